@@ -1,0 +1,24 @@
+"""kincal: robot kinematic calibration.
+
+The stable API::
+
+    robot = kincal.load_robot("ur5")
+    meas = kincal.read_measurements("data.csv", robot, length_unit="mm", angle_unit="deg")
+    res = kincal.calibrate(robot, meas)
+    stats = kincal.evaluate(res.robot, test_meas)
+"""
+from .analysis import Identifiability, identifiability
+from .errors import ConvergenceError, IdentifiabilityError, KincalError, MeasurementError, ModelError
+from .identify import CalibrationResult, EvaluationStats, calibrate, evaluate
+from .io import Measurements, read_measurements, write_measurements
+from .models import Joint, Parameters, Robot, SerialRobot, bundled_robots, load_robot, save_robot
+from .simulate import perturb, simulate
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Identifiability", "identifiability", "ConvergenceError", "IdentifiabilityError", "KincalError",
+    "MeasurementError", "ModelError", "CalibrationResult", "EvaluationStats", "calibrate", "evaluate",
+    "Measurements", "read_measurements", "write_measurements", "Joint", "Parameters", "Robot", "SerialRobot",
+    "bundled_robots", "load_robot", "save_robot", "perturb", "simulate",
+]

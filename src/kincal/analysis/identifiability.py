@@ -1,0 +1,187 @@
+"""Which parameters can be known from position measurements at given poses.
+
+Method: stack the position Jacobian over the poses (3N x P), scale every column to unit norm (so
+lengths in m and angles in rad compare fairly), take the numerical rank from the singular values
+(relative tolerance ``tol``; the gap to the next singular value is reported), and choose which
+columns to keep by QR with column pivoting (parameters listed in ``keep`` are chosen first). Each
+dropped parameter is written as a combination of kept ones from the R factor,
+``J_dropped ≈ J_kept @ C``: a change δ of the dropped parameter acts like changes ``C δ`` of the
+kept ones, which is what "confounded with" means here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..models.robot import Robot
+
+DEFAULT_TOL = 1e-8  # singular values below tol * s_max count as zero (scaled columns)
+ZERO_COLUMN = 1e-12  # a column whose norm is below this (m per unit) has no effect at all
+
+
+@dataclass(frozen=True)
+class Identifiability:
+    """Identifiability of a parameter set at a set of poses (all quantities for scaled columns unless raw)."""
+
+    robot: str
+    candidates: tuple[str, ...]
+    identifiable: tuple[str, ...]
+    dropped: tuple[str, ...]
+    confounds: dict[str, tuple[tuple[str, float], ...]]  # dropped -> ((kept name, coefficient), ...)
+    rank: int
+    n_poses: int
+    singular_values: np.ndarray  # of the scaled stacked Jacobian, descending
+    gap: float  # s[rank-1] / s[rank]; inf when full rank
+    cond_raw: float  # condition number of the raw Jacobian of the identifiable columns
+    cond_scaled: float  # same after unit-norm column scaling
+    tol: float
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def full_rank(self) -> bool:
+        return not self.dropped
+
+    def to_dict(self) -> dict:
+        return {
+            "robot": self.robot,
+            "n_poses": self.n_poses,
+            "n_candidates": len(self.candidates),
+            "rank": self.rank,
+            "identifiable": list(self.identifiable),
+            "dropped": list(self.dropped),
+            "confounds": {k: [[n, c] for n, c in v] for k, v in self.confounds.items()},
+            "singular_values": [float(s) for s in self.singular_values],
+            "gap": _finite_or_none(self.gap),
+            "cond_raw": _finite_or_none(self.cond_raw),
+            "cond_scaled": _finite_or_none(self.cond_scaled),
+            "tol": self.tol,
+            "notes": list(self.notes),
+        }
+
+    def __str__(self) -> str:
+        lines = [
+            f"{self.robot}: {self.rank} of {len(self.candidates)} parameters identifiable from {self.n_poses} poses "
+            f"(position only)",
+            f"  condition number: raw {self.cond_raw:.3g}, column-scaled {self.cond_scaled:.3g}; "
+            f"rank gap {self.gap:.3g} (tol {self.tol:g})",
+            f"  identifiable: {', '.join(self.identifiable)}",
+        ]
+        if self.dropped:
+            lines.append(f"  not identifiable ({len(self.dropped)}), kept at their nominal values:")
+            for name in self.dropped:
+                conf = self.confounds.get(name, ())
+                rhs = " ".join(f"{c:+.3g}·{n}" for n, c in conf) if conf else "no effect on the position"
+                lines.append(f"    {name}  ~  {rhs}")
+        for note in self.notes:
+            lines.append(f"  note: {note}")
+        return "\n".join(lines)
+
+
+def _finite_or_none(x: float):
+    return float(x) if np.isfinite(x) else None
+
+
+def stacked_jacobian(robot: Robot, q: np.ndarray, names: Sequence[str] | None = None,
+                     params: np.ndarray | None = None) -> np.ndarray:
+    """(3N, K) position Jacobian for the named parameters (all when None)."""
+    J = robot.param_jacobian(robot.check_q(q), params)
+    if names is not None:
+        J = J[:, :, robot.params.indices(names)]
+    return J.reshape(-1, J.shape[2])
+
+
+def identifiability(
+    robot: Robot,
+    q: np.ndarray,
+    params: Sequence[str] | None = None,
+    keep: Sequence[str] = (),
+    exclude: Sequence[str] = (),
+    tol: float = DEFAULT_TOL,
+) -> Identifiability:
+    """Identifiable and dropped parameters of ``robot`` from position data at joint values q (N, n).
+
+    params  -- candidate names (default: all); ``exclude`` removes names from them
+    keep    -- names to choose first when parameters are confounded; after them come the model's own
+               ``robot.preferred_params()`` (for serial robots the tool point, then the base frame),
+               so a dropped tool offset is never replaced by a huge joint-angle change
+    tol     -- relative singular-value tolerance on the column-scaled Jacobian
+    """
+    q = robot.check_q(q)
+    excluded = set(exclude)
+    robot.params.indices(excluded)  # unknown names raise
+    cand = [n for n in (params if params is not None else robot.params.names) if n not in excluded]
+    robot.params.indices(cand)
+    J = stacked_jacobian(robot, q, cand)
+    norms = np.linalg.norm(J, axis=0)
+    live = norms > ZERO_COLUMN * max(1.0, np.sqrt(q.shape[0]))
+    Js = J[:, live] / norms[live]
+    live_names = [n for n, ok in zip(cand, live) if ok]
+
+    s = np.linalg.svd(Js, compute_uv=False) if Js.size else np.zeros(0)
+    rank = int(np.sum(s > tol * s[0])) if s.size else 0
+    gap = float(s[rank - 1] / s[rank]) if 0 < rank < s.size and s[rank] > 0 else float("inf")
+
+    order = _pivot_order(Js, live_names, [list(keep), list(robot.preferred_params())], rank, tol)
+    ident = [live_names[k] for k in order[:rank]]
+    drop_live = [live_names[k] for k in order[rank:]]
+
+    confounds: dict[str, tuple[tuple[str, float], ...]] = {}
+    if drop_live and rank:
+        A, B = Js[:, order[:rank]], Js[:, order[rank:]]
+        C = np.linalg.lstsq(A, B, rcond=None)[0]  # B ≈ A C  (scaled units)
+        n_kept = norms[live][order[:rank]]
+        n_drop = norms[live][order[rank:]]
+        for j, name in enumerate(drop_live):
+            col = C[:, j] * n_drop[j] / n_kept  # physical units: 1 of dropped ~ col of kept
+            big = np.abs(C[:, j]) > max(1e-6, 1e-3 * np.abs(C[:, j]).max())
+            idx = np.flatnonzero(big)
+            idx = idx[np.argsort(-np.abs(C[idx, j]))]
+            confounds[name] = tuple((ident[k], float(col[k])) for k in idx)
+    for name in (n for n, ok in zip(cand, live) if not ok):
+        confounds[name] = ()
+    dropped = tuple(drop_live) + tuple(n for n, ok in zip(cand, live) if not ok)
+    ident_t = tuple(n for n in cand if n in set(ident))  # model order
+
+    if ident:
+        Jr = J[:, [cand.index(n) for n in ident_t]]
+        cond_raw = float(np.linalg.cond(Jr))
+        cond_scaled = float(np.linalg.cond(Jr / np.linalg.norm(Jr, axis=0)))
+    else:
+        cond_raw = cond_scaled = float("inf")
+    notes = []
+    structure = getattr(robot, "structure_notes", None)
+    if structure is not None:
+        notes += structure()
+    if rank and gap < 1e3:
+        notes.append(f"the rank is not clear-cut (gap {gap:.3g} < 1e3): the poses hardly excite some "
+                     f"parameters; add poses or check the model")
+    return Identifiability(robot.name, tuple(cand), ident_t, dropped, confounds, rank, q.shape[0], s, gap,
+                           cond_raw, cond_scaled, tol, tuple(notes))
+
+
+def _pivot_order(Js: np.ndarray, names: list[str], stages: list[list[str]], rank: int, tol: float) -> list[int]:
+    """Column order: pivoted QR stage by stage (each stage's columns projected off those already chosen),
+    the columns of no stage last."""
+    groups, seen = [], set()
+    for stage in stages:
+        g = [k for k, n in enumerate(names) if n in set(stage) and k not in seen]
+        seen.update(g)
+        groups.append(g)
+    groups.append([k for k in range(len(names)) if k not in seen])
+    chosen: list[int] = []
+    Q = np.zeros((Js.shape[0], 0))
+    for group in groups:
+        if not group or len(chosen) >= rank:
+            continue
+        M = Js[:, group] - Q @ (Q.T @ Js[:, group])
+        _, R, piv = sla.qr(M, mode="economic", pivoting=True)
+        d = np.abs(np.diag(R))
+        take = min(int(np.sum(d > tol * 10)), rank - len(chosen))
+        picked = [group[k] for k in piv[:take]]
+        chosen += picked
+        Q = np.linalg.qr(Js[:, chosen])[0] if chosen else Q
+    rest_all = [k for k in range(len(names)) if k not in set(chosen)]
+    return chosen + rest_all

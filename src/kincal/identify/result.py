@@ -1,0 +1,115 @@
+"""Result objects of identification and evaluation (frozen, printable in mm/deg, ``to_dict`` in SI)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..analysis.identifiability import Identifiability
+from ..models.robot import Robot
+
+MM = 1e3
+DEG = 180.0 / np.pi
+
+
+def display(value: float, kind: str) -> str:
+    """A parameter value in the units engineers read: mm for lengths, deg for angles."""
+    return f"{value * MM:+.4f} mm" if kind == "length" else f"{value * DEG:+.5f} deg"
+
+
+@dataclass(frozen=True)
+class EvaluationStats:
+    """3-D position error statistics over n poses (m)."""
+
+    mean: float
+    rms: float
+    max: float
+    std: float
+    p95: float
+    n: int
+
+    @classmethod
+    def from_errors(cls, err: np.ndarray) -> "EvaluationStats":
+        e = np.linalg.norm(np.asarray(err, dtype=float).reshape(-1, 3), axis=1)
+        return cls(float(e.mean()), float(np.sqrt(np.mean(e**2))), float(e.max()), float(e.std()),
+                   float(np.percentile(e, 95)), int(e.size))
+
+    def to_dict(self) -> dict:
+        return {"mean": self.mean, "rms": self.rms, "max": self.max, "std": self.std, "p95": self.p95, "n": self.n}
+
+    def __str__(self) -> str:
+        return (f"n={self.n}  mean {self.mean * MM:.4f} mm  rms {self.rms * MM:.4f} mm  max {self.max * MM:.4f} mm"
+                f"  std {self.std * MM:.4f} mm  p95 {self.p95 * MM:.4f} mm")
+
+
+@dataclass(frozen=True, eq=False)
+class CalibrationResult:
+    """Outcome of :func:`kincal.calibrate`.
+
+    robot        -- the calibrated robot (save it with ``kincal.save_robot``)
+    names        -- the estimated parameters; every other parameter kept its starting value
+    estimates    -- final value by name (SI); ``corrections``: final − nominal (before registration)
+    std          -- 1-sigma standard deviations by name, σ̂²(JᵀJ)⁻¹ with σ̂² = ‖r‖²/(3N − K)
+    correlation  -- (K, K) correlation matrix in the order of ``names``
+    residuals    -- (N, 3) measured − predicted (m) at the calibration poses
+    """
+
+    robot: Robot
+    nominal: Robot
+    names: tuple[str, ...]
+    estimates: dict[str, float]
+    corrections: dict[str, float]
+    std: dict[str, float]
+    correlation: np.ndarray
+    residuals: np.ndarray
+    sigma: float
+    stats_before: EvaluationStats
+    stats_after: EvaluationStats
+    iterations: int
+    evaluations: int
+    converged: bool
+    message: str
+    time_s: float
+    loss: str
+    base: str
+    identifiability: Identifiability
+
+    def to_dict(self) -> dict:
+        return {
+            "robot": self.robot.name,
+            "converged": self.converged,
+            "message": self.message,
+            "iterations": self.iterations,
+            "evaluations": self.evaluations,
+            "time_s": self.time_s,
+            "loss": self.loss,
+            "base": self.base,
+            "n_poses": int(self.residuals.shape[0]),
+            "sigma": self.sigma,
+            "estimated": list(self.names),
+            "not_estimated": [n for n in self.robot.params.names if n not in set(self.names)],
+            "estimates": self.estimates,
+            "corrections": self.corrections,
+            "std": self.std,
+            "correlation": self.correlation.tolist(),
+            "before": self.stats_before.to_dict(),
+            "after": self.stats_after.to_dict(),
+            "identifiability": self.identifiability.to_dict(),
+        }
+
+    def __str__(self) -> str:
+        kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
+        status = "converged" if self.converged else "NOT CONVERGED"
+        lines = [
+            f"calibration of {self.robot.name}: {status} ({self.message}) in {self.iterations} iterations, "
+            f"{self.time_s * 1e3:.1f} ms; {len(self.names)} parameters from {self.residuals.shape[0]} poses, "
+            f"base {self.base}, loss {self.loss}",
+            f"{'parameter':<12} {'estimate':>16} {'correction':>16} {'std':>14}",
+        ]
+        for n in self.names:
+            k = kinds[n]
+            lines.append(f"{n:<12} {display(self.estimates[n], k):>16} {display(self.corrections[n], k):>16} "
+                         f"{display(self.std[n], k).lstrip('+'):>14}")
+        lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm",
+                  f"before: {self.stats_before}", f"after:  {self.stats_after}"]
+        return "\n".join(lines)

@@ -1,0 +1,99 @@
+"""Named kinematic parameters: an immutable, ordered vector with SI values and a kind per entry."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+
+from ..errors import ModelError
+
+KINDS = ("length", "angle")
+
+
+@dataclass(frozen=True, eq=False)
+class Parameters:
+    """Ordered parameter vector.
+
+    names  -- stable names such as ``j2.a``, ``base.rz``, ``tool.z``
+    values -- (P,) SI values (m, rad), read-only
+    kinds  -- ``"length"`` or ``"angle"`` per entry
+    """
+
+    names: tuple[str, ...]
+    values: np.ndarray
+    kinds: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        names = tuple(self.names)
+        kinds = tuple(self.kinds)
+        values = np.array(self.values, dtype=float).reshape(-1)
+        if not (len(names) == len(kinds) == values.size):
+            raise ModelError(
+                f"parameters: {len(names)} names, {len(kinds)} kinds and {values.size} values must match"
+            )
+        if len(set(names)) != len(names):
+            dup = sorted({n for n in names if names.count(n) > 1})
+            raise ModelError(f"parameters: duplicate names {dup}")
+        bad = [k for k in kinds if k not in KINDS]
+        if bad:
+            raise ModelError(f"parameters: unknown kind(s) {sorted(set(bad))}; use 'length' or 'angle'")
+        if not np.all(np.isfinite(values)):
+            raise ModelError(
+                "parameters: non-finite values for "
+                + ", ".join(n for n, v in zip(names, values) if not np.isfinite(v))
+            )
+        values.setflags(write=False)
+        object.__setattr__(self, "names", names)
+        object.__setattr__(self, "kinds", kinds)
+        object.__setattr__(self, "values", values)
+        object.__setattr__(self, "_index", {n: i for i, n in enumerate(names)})
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._index
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Parameters):
+            return NotImplemented
+        return (
+            self.names == other.names
+            and self.kinds == other.kinds
+            and np.array_equal(self.values, other.values)
+        )
+
+    def index(self, name: str) -> int:
+        """Position of ``name``; ModelError naming the known parameters if absent."""
+        try:
+            return self._index[name]
+        except KeyError:
+            raise ModelError(
+                f"unknown parameter '{name}'; this model has: {', '.join(self.names)}"
+            ) from None
+
+    def indices(self, names: Iterable[str]) -> np.ndarray:
+        return np.array([self.index(n) for n in names], dtype=int)
+
+    def __getitem__(self, name: str) -> float:
+        return float(self.values[self.index(name)])
+
+    def as_dict(self) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.names, self.values)}
+
+    def replace(self, values: Mapping[str, float] | Sequence[float] | np.ndarray) -> "Parameters":
+        """New Parameters with some values changed (by name) or all values replaced (array of length P)."""
+        if isinstance(values, Mapping):
+            new = self.values.copy()
+            for name, v in values.items():
+                new[self.index(name)] = float(v)
+        else:
+            new = np.array(values, dtype=float).reshape(-1)
+            if new.size != len(self):
+                raise ModelError(f"expected {len(self)} parameter values, got {new.size}")
+        return Parameters(self.names, new, self.kinds)
+
+    def is_length(self) -> np.ndarray:
+        """(P,) bool mask of length parameters."""
+        return np.array([k == "length" for k in self.kinds])

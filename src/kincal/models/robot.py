@@ -1,0 +1,115 @@
+"""The `Robot` interface every model (serial, hybrid, parallel) implements."""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..errors import ModelError
+from .parameters import Parameters
+
+JOINT_TYPES = ("revolute", "prismatic")
+
+
+class Robot(ABC):
+    """A robot with named joints, joint limits and a named parameter vector.
+
+    Subclasses are immutable values. All kinematics are batched: the first axis of ``q`` is the
+    configuration. Units are SI (m, rad).
+    """
+
+    name: str
+    joint_names: tuple[str, ...]
+    joint_types: tuple[str, ...]
+    lower: np.ndarray  # (n,) joint lower limits, rad or m
+    upper: np.ndarray  # (n,)
+    params: Parameters
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_names)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.params)
+
+    @abstractmethod
+    def with_params(self, values: Mapping[str, float] | Sequence[float] | np.ndarray | Parameters) -> "Robot":
+        """A new robot with changed parameter values (by name, or a full (P,) vector)."""
+
+    @abstractmethod
+    def forward_and_jacobian(
+        self, q: np.ndarray, params: np.ndarray | None = None, jacobian: bool = True
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Tool positions (N,3) m, parameter Jacobian (N,3,P) and joint Jacobian (N,3,n) in one pass."""
+
+    def preferred_params(self) -> tuple[str, ...]:
+        """Names to keep first when parameters are confounded (after any the user lists)."""
+        return ()
+
+    def base_params(self) -> tuple[str, ...]:
+        """Names of the 6 base-frame parameters (x y z rx ry rz), or () if the model has no base frame."""
+        return ()
+
+    def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
+        """Base frame as (R (3,3), t (3,)): world = R @ robot + t."""
+        raise ModelError(f"robot '{self.name}' has no base frame")
+
+    def with_base_transform(self, R: np.ndarray, t: np.ndarray) -> "Robot":
+        """A copy whose base frame is (R, t)."""
+        raise ModelError(f"robot '{self.name}' has no base frame")
+
+    # ---- shared conveniences -------------------------------------------------------------------
+    def check_q(self, q: np.ndarray) -> np.ndarray:
+        """q as a float (N, n) array; ModelError if the joint count is wrong."""
+        q = np.asarray(q, dtype=float)
+        if q.ndim == 1:
+            q = q[None, :]
+        if q.ndim != 2 or q.shape[1] != self.n_joints:
+            raise ModelError(
+                f"{self.name}: joint array has shape {q.shape}, expected (N, {self.n_joints}) "
+                f"for joints {', '.join(self.joint_names)}"
+            )
+        return q
+
+    def param_values(self, params: np.ndarray | None) -> np.ndarray:
+        if params is None:
+            return self.params.values
+        v = np.asarray(params, dtype=float).reshape(-1)
+        if v.size != self.n_params:
+            raise ModelError(f"{self.name}: expected {self.n_params} parameter values, got {v.size}")
+        return v
+
+    def forward(self, q: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
+        """Tool point position (N,3) in m for joint values q (N,n)."""
+        squeeze = np.ndim(q) == 1
+        p = self.forward_and_jacobian(q, params, jacobian=False)[0]
+        return p[0] if squeeze else p
+
+    def param_jacobian(self, q: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
+        """d position / d parameters, (N,3,P); columns in the order of ``params.names``."""
+        squeeze = np.ndim(q) == 1
+        J = self.forward_and_jacobian(q, params)[1]
+        return J[0] if squeeze else J
+
+    def joint_jacobian(self, q: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
+        """d position / d joint values, (N,3,n)."""
+        squeeze = np.ndim(q) == 1
+        Jq = self.forward_and_jacobian(q, params)[2]
+        return Jq[0] if squeeze else Jq
+
+    def sample_joints(self, n: int, seed: int | None = 0, margin: float = 0.0) -> np.ndarray:
+        """n joint vectors drawn uniformly inside the limits (shrunk by ``margin`` of each range), (n, n_joints)."""
+        rng = np.random.default_rng(seed)
+        lo, hi = self.lower, self.upper
+        span = hi - lo
+        return rng.uniform(lo + margin * span, hi - margin * span, size=(int(n), self.n_joints))
+
+    def within_limits(self, q: np.ndarray, tol: float = 1e-12) -> np.ndarray:
+        """(N,) bool: every joint inside its limits."""
+        q = self.check_q(q)
+        return np.all((q >= self.lower - tol) & (q <= self.upper + tol), axis=1)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(name={self.name!r}, joints={self.n_joints}, params={self.n_params})"

@@ -1,0 +1,230 @@
+"""Serial chains in standard DH (Craig's ``Rz(θ) Tz(d) Tx(a) Rx(α)``) or modified DH
+(``Rx(α) Tx(a) Rz(θ) Tz(d)``), with Hayati's β, a 6-parameter base frame and a tool point.
+
+Parameter names (stable): ``base.x base.y base.z base.rx base.ry base.rz``, then per joint
+``<joint>.theta <joint>.d <joint>.a <joint>.alpha [<joint>.beta]``, then ``tool.x tool.y tool.z``.
+
+* base frame: ``Tx(x) Ty(y) Tz(z) Rz(rz) Ry(ry) Rx(rx)`` (fixed-axis roll/pitch/yaw).
+* standard DH joint i: ``Rz(θ_i + q_i) Tz(d_i) Tx(a_i) Rx(α_i) [Ry(β_i)]``; β_i goes on the link whose
+  two joint axes (i and i+1) are parallel (α_i ≈ 0 or π), where the common normal is undefined.
+* modified DH joint i: ``Rx(α_i) Tx(a_i) [Ry(β_i)] Rz(θ_i + q_i) Tz(d_i)``; β_i goes on joint i when its
+  axis is parallel to joint i-1's.
+* prismatic joints add q to d instead of θ; θ (or d) is then the joint's zero offset.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..errors import ModelError
+from .chain import AXES, ROT, TRANS, Chain, Op
+from .parameters import Parameters
+from .robot import JOINT_TYPES, Robot
+from .transforms import rot_zyx, zyx_from_matrix
+
+CONVENTIONS = ("dh", "mdh")
+BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
+TOOL_NAMES = ("tool.x", "tool.y", "tool.z")
+PARALLEL_TOL = 1e-6  # |sin α| below this: consecutive axes are parallel
+
+
+@dataclass(frozen=True)
+class Joint:
+    """Structure of one joint: name, type, whether it carries β, limits (rad or m)."""
+
+    name: str
+    type: str = "revolute"
+    beta: bool = False
+    lower: float = -np.pi
+    upper: float = np.pi
+
+    def __post_init__(self) -> None:
+        if self.type not in JOINT_TYPES:
+            raise ModelError(f"joint '{self.name}': type '{self.type}' is not one of {JOINT_TYPES}")
+        if not (np.isfinite(self.lower) and np.isfinite(self.upper) and self.lower < self.upper):
+            raise ModelError(
+                f"joint '{self.name}': limits [{self.lower}, {self.upper}] must be finite with lower < upper"
+            )
+        if "." in self.name or not self.name:
+            raise ModelError(f"joint name '{self.name}' must be non-empty and contain no '.'")
+
+
+def _param_names(convention: str, joints: Sequence[Joint]) -> tuple[list[str], list[str]]:
+    names, kinds = list(BASE_NAMES), ["length"] * 3 + ["angle"] * 3
+    for jt in joints:
+        for suffix, kind in (("theta", "angle"), ("d", "length"), ("a", "length"), ("alpha", "angle")):
+            names.append(f"{jt.name}.{suffix}")
+            kinds.append(kind)
+        if jt.beta:
+            names.append(f"{jt.name}.beta")
+            kinds.append("angle")
+    names += TOOL_NAMES
+    kinds += ["length"] * 3
+    return names, kinds
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class SerialRobot(Robot):
+    """An open serial chain. Build with :meth:`SerialRobot.build` or load from YAML."""
+
+    name: str
+    convention: str
+    joints: tuple[Joint, ...]
+    params: Parameters
+    description: str = ""
+    _chain: Chain = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.convention not in CONVENTIONS:
+            raise ModelError(f"robot '{self.name}': convention '{self.convention}' is not one of {CONVENTIONS}")
+        joints = tuple(self.joints)
+        if not joints:
+            raise ModelError(f"robot '{self.name}': a serial robot needs at least one joint")
+        jn = [j.name for j in joints]
+        if len(set(jn)) != len(jn):
+            raise ModelError(f"robot '{self.name}': duplicate joint names {jn}")
+        names, kinds = _param_names(self.convention, joints)
+        if tuple(names) != self.params.names or tuple(kinds) != self.params.kinds:
+            raise ModelError(f"robot '{self.name}': parameter names do not match the joint structure")
+        object.__setattr__(self, "joints", joints)
+        object.__setattr__(self, "_chain", Chain(self._build_ops(), len(self.params), len(joints)))
+
+    # ---- construction --------------------------------------------------------------------------
+    @classmethod
+    def build(
+        cls,
+        name: str,
+        convention: str,
+        joints: Sequence[Joint],
+        dh: Sequence[Mapping[str, float]],
+        base: Mapping[str, float] | None = None,
+        tool: Mapping[str, float] | None = None,
+        description: str = "",
+    ) -> "SerialRobot":
+        """Robot from joint structures and per-joint values ``{"theta", "d", "a", "alpha", ["beta"]}`` (SI).
+
+        ``base`` keys: x y z rx ry rz; ``tool`` keys: x y z (missing keys are 0).
+        """
+        if len(dh) != len(joints):
+            raise ModelError(f"robot '{name}': {len(joints)} joints but {len(dh)} DH rows")
+        names, kinds = _param_names(convention, joints)
+        vals = {n: 0.0 for n in names}
+        for k, v in (base or {}).items():
+            vals[_checked(f"base.{k}", vals, name)] = float(v)
+        for k, v in (tool or {}).items():
+            vals[_checked(f"tool.{k}", vals, name)] = float(v)
+        for jt, row in zip(joints, dh):
+            for k, v in row.items():
+                vals[_checked(f"{jt.name}.{k}", vals, name)] = float(v)
+        return cls(name, convention, tuple(joints), Parameters(names, [vals[n] for n in names], kinds), description)
+
+    def _build_ops(self) -> tuple[Op, ...]:
+        idx = self.params.index
+        x, y, z = AXES["x"], AXES["y"], AXES["z"]
+        ops = [Op(TRANS, x, idx("base.x")), Op(TRANS, y, idx("base.y")), Op(TRANS, z, idx("base.z")),
+               Op(ROT, z, idx("base.rz")), Op(ROT, y, idx("base.ry")), Op(ROT, x, idx("base.rx"))]
+        for k, jt in enumerate(self.joints):
+            p = lambda s: idx(f"{jt.name}.{s}")  # noqa: E731
+            rev = jt.type == "revolute"
+            rz = Op(ROT, z, p("theta"), k if rev else -1)
+            tz = Op(TRANS, z, p("d"), -1 if rev else k)
+            beta = [Op(ROT, y, p("beta"))] if jt.beta else []
+            if self.convention == "dh":
+                ops += [rz, tz, Op(TRANS, x, p("a")), Op(ROT, x, p("alpha"))] + beta
+            else:
+                ops += [Op(ROT, x, p("alpha")), Op(TRANS, x, p("a"))] + beta + [rz, tz]
+        ops += [Op(TRANS, x, idx("tool.x")), Op(TRANS, y, idx("tool.y")), Op(TRANS, z, idx("tool.z"))]
+        return tuple(ops)
+
+    # ---- Robot interface -----------------------------------------------------------------------
+    @property
+    def joint_names(self) -> tuple[str, ...]:  # type: ignore[override]
+        return tuple(j.name for j in self.joints)
+
+    @property
+    def joint_types(self) -> tuple[str, ...]:  # type: ignore[override]
+        return tuple(j.type for j in self.joints)
+
+    @property
+    def lower(self) -> np.ndarray:  # type: ignore[override]
+        return np.array([j.lower for j in self.joints])
+
+    @property
+    def upper(self) -> np.ndarray:  # type: ignore[override]
+        return np.array([j.upper for j in self.joints])
+
+    def with_params(self, values) -> "SerialRobot":
+        new = values if isinstance(values, Parameters) else self.params.replace(values)
+        return SerialRobot(self.name, self.convention, self.joints, new, self.description)
+
+    def with_joints(self, joints: Sequence[Joint], name: str | None = None) -> "SerialRobot":
+        """Same values, new joint structures (e.g. β switched on/off); new β values start at 0."""
+        old = self.params.as_dict()
+        names, kinds = _param_names(self.convention, joints)
+        vals = [old.get(n, 0.0) for n in names]
+        return SerialRobot(name or self.name, self.convention, tuple(joints), Parameters(names, vals, kinds),
+                           self.description)
+
+    def forward_and_jacobian(self, q, params=None, jacobian=True):
+        q = self.check_q(q)
+        values = self.param_values(params)
+        if not jacobian:
+            return self._chain.forward(values, q), None, None
+        p, J = self._chain.forward_and_jacobian(values, q)
+        return p, J, J[:, :, self._chain.joint_param]
+
+    def preferred_params(self) -> tuple[str, ...]:
+        """The tool point, then the base frame: well-conditioned, physical stand-ins for joint terms."""
+        return TOOL_NAMES + BASE_NAMES
+
+    def base_params(self) -> tuple[str, ...]:
+        return BASE_NAMES
+
+    def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
+        v = self.params
+        R = rot_zyx(v["base.rz"], v["base.ry"], v["base.rx"])
+        return R, np.array([v["base.x"], v["base.y"], v["base.z"]])
+
+    def with_base_transform(self, R: np.ndarray, t: np.ndarray) -> "SerialRobot":
+        rz, ry, rx = zyx_from_matrix(np.asarray(R, dtype=float))
+        x, y, z = (float(c) for c in t)
+        return self.with_params({"base.x": x, "base.y": y, "base.z": z, "base.rx": rx, "base.ry": ry, "base.rz": rz})
+
+    # ---- structure -----------------------------------------------------------------------------
+    def parallel_pairs(self) -> list[tuple[int, int]]:
+        """Index pairs (i, i+1) of consecutive revolute joints whose nominal axes are parallel."""
+        out = []
+        for i in range(len(self.joints) - 1):
+            a, b = self.joints[i], self.joints[i + 1]
+            if a.type != "revolute" or b.type != "revolute":
+                continue
+            alpha = self.params[f"{(a if self.convention == 'dh' else b).name}.alpha"]
+            if abs(np.sin(alpha)) < PARALLEL_TOL:
+                out.append((i, i + 1))
+        return out
+
+    def beta_joint(self, pair: tuple[int, int]) -> int:
+        """The joint that carries β for a parallel pair: the first in DH, the second in MDH."""
+        return pair[0] if self.convention == "dh" else pair[1]
+
+    def structure_notes(self) -> list[str]:
+        """Human-readable warnings about the model structure (parallel axes without β)."""
+        notes = []
+        for pair in self.parallel_pairs():
+            jb = self.joints[self.beta_joint(pair)]
+            if not jb.beta:
+                a, b = (self.joints[k].name for k in pair)
+                notes.append(
+                    f"axes of {a} and {b} are parallel and {jb.name} has no beta: a tilt of {b}'s axis "
+                    f"about the common normal cannot be represented and the d offsets along the parallel "
+                    f"axes only act through their sum; set 'beta' on {jb.name} (Hayati) to model it"
+                )
+        return notes
+
+
+def _checked(key: str, vals: dict, robot: str) -> str:
+    if key not in vals:
+        raise ModelError(f"robot '{robot}': unknown parameter '{key}'; known: {', '.join(vals)}")
+    return key

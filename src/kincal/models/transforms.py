@@ -1,0 +1,26 @@
+"""Small rotation helpers shared by the models (fixed-axis roll/pitch/yaw: R = Rz(rz) Ry(ry) Rx(rx))."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def rot_zyx(rz: float, ry: float, rx: float) -> np.ndarray:
+    """3x3 rotation Rz(rz) @ Ry(ry) @ Rx(rx) (angles in rad)."""
+    cz, sz, cy, sy, cx, sx = np.cos(rz), np.sin(rz), np.cos(ry), np.sin(ry), np.cos(rx), np.sin(rx)
+    return np.array([
+        [cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx],
+        [sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx],
+        [-sy, cy * sx, cy * cx],
+    ])
+
+
+def zyx_from_matrix(R: np.ndarray) -> tuple[float, float, float]:
+    """(rz, ry, rx) with R = Rz Ry Rx; ry in [-pi/2, pi/2] (gimbal lock at |ry| = pi/2 puts all of it in rz)."""
+    ry = float(np.arcsin(np.clip(-R[2, 0], -1.0, 1.0)))
+    if abs(R[2, 0]) < 1.0 - 1e-12:
+        rz = float(np.arctan2(R[1, 0], R[0, 0]))
+        rx = float(np.arctan2(R[2, 1], R[2, 2]))
+    else:
+        rz = float(np.arctan2(-R[0, 1], R[1, 1]))
+        rx = 0.0
+    return rz, ry, rx

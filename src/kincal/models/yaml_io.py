@@ -1,0 +1,171 @@
+"""Robot YAML files: load, save (exact round trip in SI units) and the bundled robot library.
+
+Format (units apply to every length/angle in the file)::
+
+    name: ur5
+    description: free text
+    convention: dh            # dh (Craig: Rz Tz Tx Rx) or mdh (Rx Tx Rz Tz)
+    units: {length: mm, angle: deg}
+    joints:
+      - {name: j1, type: revolute, theta: 0, d: 89.159, a: 0, alpha: 90, limits: [-360, 360]}
+      - {name: j2, type: revolute, theta: 0, d: 0, a: -425, alpha: 0, beta: 0, limits: [-360, 360]}
+    base: {x: 0, y: 0, z: 0, rx: 0, ry: 0, rz: 0}
+    tool: {x: 0, y: 0.09, z: 31.0}
+
+``beta``: a number switches Hayati's β on for that joint, ``false`` switches it off, and when the key
+is absent it is switched on automatically where consecutive revolute axes are parallel.
+"""
+from __future__ import annotations
+
+import os
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .._atomic import write_text_atomic
+from ..errors import ModelError
+from .serial import CONVENTIONS, Joint, SerialRobot
+
+LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}
+ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
+_JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits"}
+_TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool"}
+
+
+def bundled_robots() -> list[str]:
+    """Names of the robots shipped with kincal."""
+    folder = resources.files("kincal.models") / "robots"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
+
+
+def unit_factor(unit: str, kind: str, where: str = "") -> float:
+    """SI factor of a length ('m','mm','um') or angle ('rad','deg') unit."""
+    table = LENGTH_UNITS if kind == "length" else ANGLE_UNITS
+    if unit not in table:
+        raise ModelError(f"{where}unknown {kind} unit '{unit}'; use one of {', '.join(table)}")
+    return table[unit]
+
+
+def load_robot(name_or_path: str | os.PathLike) -> SerialRobot:
+    """A bundled robot by name (see :func:`bundled_robots`) or a robot YAML file."""
+    s = str(name_or_path)
+    if s in bundled_robots():
+        path = resources.files("kincal.models") / "robots" / f"{s}.yaml"
+        text, label = path.read_text(), f"bundled robot '{s}'"
+    else:
+        p = Path(s)
+        if not p.is_file():
+            raise ModelError(
+                f"'{s}' is neither a bundled robot ({', '.join(bundled_robots())}) nor a robot YAML file"
+            )
+        text, label = p.read_text(), str(p)
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ModelError(f"{label}: not valid YAML ({exc})") from None
+    return robot_from_dict(data, label)
+
+
+def robot_from_dict(data: dict, label: str = "robot") -> SerialRobot:
+    """Build a robot from the parsed YAML mapping; errors name ``label`` and the offending key."""
+    if not isinstance(data, dict):
+        raise ModelError(f"{label}: expected a mapping with keys {sorted(_TOP_KEYS)}")
+    unknown = set(data) - _TOP_KEYS
+    if unknown:
+        raise ModelError(f"{label}: unknown key(s) {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
+    for key in ("name", "convention", "joints"):
+        if key not in data:
+            raise ModelError(f"{label}: missing required key '{key}'")
+    conv = str(data["convention"]).lower()
+    if conv not in CONVENTIONS:
+        raise ModelError(f"{label}: convention '{conv}' is not one of {CONVENTIONS}")
+    units = data.get("units") or {}
+    lf = unit_factor(units.get("length", "m"), "length", f"{label}: ")
+    af = unit_factor(units.get("angle", "rad"), "angle", f"{label}: ")
+
+    joints, rows, explicit_beta = [], [], []
+    if not isinstance(data["joints"], list) or not data["joints"]:
+        raise ModelError(f"{label}: 'joints' must be a non-empty list")
+    for k, jd in enumerate(data["joints"]):
+        where = f"{label}: joint {k + 1}"
+        if not isinstance(jd, dict):
+            raise ModelError(f"{where}: expected a mapping")
+        bad = set(jd) - _JOINT_KEYS
+        if bad:
+            raise ModelError(f"{where}: unknown key(s) {sorted(bad)}; allowed: {sorted(_JOINT_KEYS)}")
+        jtype = str(jd.get("type", "revolute"))
+        lim = jd.get("limits")
+        qf = af if jtype == "revolute" else lf
+        if lim is None:
+            lo, hi = (-np.pi, np.pi) if jtype == "revolute" else (-1.0, 1.0)
+        else:
+            if not (isinstance(lim, list) and len(lim) == 2):
+                raise ModelError(f"{where}: 'limits' must be [lower, upper]")
+            lo, hi = _num(lim[0], where, "limits") * qf, _num(lim[1], where, "limits") * qf
+        beta = jd.get("beta", None)
+        explicit_beta.append(beta)
+        joints.append(Joint(str(jd.get("name", f"j{k + 1}")), jtype, beta not in (None, False), lo, hi))
+        row = {key: _num(jd.get(key, 0.0), where, key) * (lf if key in ("d", "a") else af)
+               for key in ("theta", "d", "a", "alpha")}
+        if beta not in (None, False):
+            row["beta"] = _num(beta, where, "beta") * af
+        rows.append(row)
+
+    base = {k: _num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
+            for k, v in (data.get("base") or {}).items()}
+    tool = {k: _num(v, f"{label}: tool", k) * lf for k, v in (data.get("tool") or {}).items()}
+    robot = SerialRobot.build(str(data["name"]), conv, joints, rows, base, tool, str(data.get("description", "")))
+    # automatic beta where axes are parallel and the file does not say otherwise
+    auto = {robot.beta_joint(pair) for pair in robot.parallel_pairs()}
+    auto = {k for k in auto if explicit_beta[k] is None}
+    if auto:
+        joints = [Joint(j.name, j.type, True, j.lower, j.upper) if k in auto else j
+                  for k, j in enumerate(robot.joints)]
+        robot = robot.with_joints(joints)
+    return robot
+
+
+def _num(v, where: str, key: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ModelError(f"{where}: '{key}' must be a number, got {v!r}")
+    if not np.isfinite(v):
+        raise ModelError(f"{where}: '{key}' must be finite, got {v!r}")
+    return float(v)
+
+
+def _fmt(x: float) -> str:
+    """Shortest exact float text that YAML reads back as a float."""
+    s = repr(float(x))
+    if "e" in s and "." not in s.split("e")[0]:
+        m, e = s.split("e")
+        s = f"{m}.0e{e}"
+    return s
+
+
+def robot_to_yaml(robot: SerialRobot, length_unit: str = "m", angle_unit: str = "rad") -> str:
+    """YAML text of a robot. In SI units (the default) load(save(robot)) reproduces it exactly."""
+    lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
+    v = robot.params.as_dict()
+    lines = [f"name: {robot.name}"]
+    if robot.description:
+        lines.append(f"description: {yaml.safe_dump(robot.description, default_style=chr(34)).strip()}")
+    lines += [f"convention: {robot.convention}", f"units: {{length: {length_unit}, angle: {angle_unit}}}", "joints:"]
+    for j in robot.joints:
+        qf = af if j.type == "revolute" else lf
+        items = [f"name: {j.name}", f"type: {j.type}"]
+        for key, f in (("theta", af), ("d", lf), ("a", lf), ("alpha", af)):
+            items.append(f"{key}: {_fmt(v[f'{j.name}.{key}'] * f)}")
+        items.append(f"beta: {_fmt(v[f'{j.name}.beta'] * af)}" if j.beta else "beta: false")
+        items.append(f"limits: [{_fmt(j.lower * qf)}, {_fmt(j.upper * qf)}]")
+        lines.append("  - {" + ", ".join(items) + "}")
+    base = ", ".join(f"{k}: {_fmt(v['base.' + k] * (lf if k in 'xyz' else af))}" for k in ("x", "y", "z", "rx", "ry", "rz"))
+    tool = ", ".join(f"{k}: {_fmt(v['tool.' + k] * lf)}" for k in ("x", "y", "z"))
+    lines += [f"base: {{{base}}}", f"tool: {{{tool}}}", ""]
+    return "\n".join(lines)
+
+
+def save_robot(robot: SerialRobot, path: str | os.PathLike, length_unit: str = "m", angle_unit: str = "rad") -> None:
+    """Save a robot YAML (atomically). SI units round-trip exactly; mm/deg are easier to read."""
+    write_text_atomic(path, robot_to_yaml(robot, length_unit, angle_unit))

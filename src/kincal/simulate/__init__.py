@@ -1,0 +1,44 @@
+"""Simulation: a "true" robot and tracker noise stand in for the real robot and its measurements."""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from ..io.measurements import Measurements
+from ..models.robot import Robot
+
+DEFAULT_NOISE = 15e-6  # m, per axis: a laser tracker's typical 1-sigma
+DEFAULT_LENGTH_ERROR = 0.5e-3  # m
+DEFAULT_ANGLE_ERROR = np.deg2rad(0.05)  # rad
+
+
+def simulate(true_robot: Robot, q: np.ndarray, noise: float = DEFAULT_NOISE, seed: int | None = 0) -> Measurements:
+    """Measurements of ``true_robot`` at joint values q (N, n) with Gaussian noise of ``noise`` m per axis."""
+    q = true_robot.check_q(q)
+    rng = np.random.default_rng(seed)
+    xyz = true_robot.forward(q) + noise * rng.standard_normal((q.shape[0], 3))
+    return Measurements(q, xyz, true_robot.joint_names, source=f"simulated {true_robot.name}")
+
+
+def perturb(
+    robot: Robot,
+    length: float = DEFAULT_LENGTH_ERROR,
+    angle: float = DEFAULT_ANGLE_ERROR,
+    seed: int | None = 0,
+    names: Sequence[str] | None = None,
+    include_base: bool = False,
+) -> Robot:
+    """A copy of ``robot`` with uniform random errors in ±length (m) / ±angle (rad) on its parameters.
+
+    names -- parameters to perturb (default: all except the base frame unless ``include_base``).
+    """
+    rng = np.random.default_rng(seed)
+    if names is None:
+        skip = set() if include_base else set(robot.base_params())
+        names = [n for n in robot.params.names if n not in skip]
+    idx = robot.params.indices(names)
+    mag = np.where(robot.params.is_length()[idx], length, angle)
+    values = robot.params.values.copy()
+    values[idx] += rng.uniform(-1.0, 1.0, size=idx.size) * mag
+    return robot.with_params(values)
