@@ -117,19 +117,17 @@ def calibrate(
     fit = levenberg_marquardt(lambda x: residual(x, w), v0[idx], max_iter=max_iter)
     iterations, evaluations = fit.iterations, fit.evaluations
     if loss != "linear":
-        norms = np.linalg.norm(fit.residual.reshape(-1, 3), axis=1)
-        if f_scale is None:
-            f_scale = 3.0 * float(np.median(norms)) / 1.538  # median of a 3-D norm ≈ 1.538 σ
-        f_scale = max(f_scale, 1e-9)
+        auto_scale = f_scale is None
         for _ in range(MAX_IRLS):
+            norms = np.linalg.norm(residual(fit.x, np.ones(len(meas)))[0].reshape(-1, 3), axis=1)
+            if auto_scale:  # 3 robust sigmas; the median of a 3-D Gaussian norm is 1.538 sigma
+                f_scale = max(3.0 * float(np.median(norms)) / 1.538, 1e-9)
             w_new = _robust_weights(norms, loss, f_scale)
-            done = np.max(np.abs(w_new - w)) < 1e-4
-            w = w_new
-            if done:
+            if np.max(np.abs(w_new - w)) < 1e-4:
                 break
+            w = w_new
             fit = levenberg_marquardt(lambda x: residual(x, w), fit.x, max_iter=max_iter)
             iterations, evaluations = iterations + fit.iterations, evaluations + fit.evaluations
-            norms = np.linalg.norm(residual(fit.x, np.ones(len(meas)))[0].reshape(-1, 3), axis=1)
 
     v = v0.copy()
     v[idx] = fit.x

@@ -1,0 +1,27 @@
+"""Shared fixtures: bundled robots and the bundled GTS3800 laser-tracker data."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import kincal
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "ur5_wam_gts3800"
+UR5_COLS = [f"joint_{i}" for i in range(1, 7)]
+WAM_COLS = [f"joint_{i}" for i in range(1, 8)]
+
+
+@pytest.fixture(scope="session")
+def ur5():
+    return kincal.load_robot("ur5")
+
+
+def central_jacobian(robot, q, h=1e-6):
+    """Central differences of forward() over every parameter, (N,3,P)."""
+    v = robot.params.values
+    cols = []
+    for k in range(v.size):
+        e = np.zeros_like(v)
+        e[k] = h
+        cols.append((robot.forward(q, v + e) - robot.forward(q, v - e)) / (2 * h))
+    return np.stack(cols, axis=2)

@@ -1,0 +1,57 @@
+"""Identifiability: rank counts from theory, named confounds that hold exactly."""
+import numpy as np
+
+import kincal
+from kincal import Joint
+
+
+def test_ur5_position_with_beta_has_27_identifiable(ur5):
+    q = ur5.sample_joints(80, seed=3)
+    ident = kincal.identifiability(ur5, q)
+    assert ident.rank == 27 == len(ident.identifiable)  # 4*6 + 6 - 3
+    assert len(ident.dropped) == ur5.n_params - 27
+    assert ident.gap > 1e6  # a clear-cut rank
+    # confounds read off the R factor are real: the dropped column equals the named combination
+    J = ur5.param_jacobian(q)
+    for name in ident.dropped:
+        conf = ident.confounds[name]
+        combo = sum(c * J[:, :, ur5.params.index(n)] for n, c in conf)
+        np.testing.assert_allclose(J[:, :, ur5.params.index(name)], combo, atol=1e-9)
+    # the obvious ones, in physical units
+    assert ident.confounds["j6.d"] == (("tool.z", 1.0),) or dict(ident.confounds["j6.d"])["tool.z"] == \
+        np.float64(1.0) or abs(dict(ident.confounds["j6.d"])["tool.z"] - 1) < 1e-9
+    assert abs(dict(ident.confounds["j1.d"])["base.z"] - 1) < 1e-9
+    assert abs(dict(ident.confounds["j1.theta"])["base.rz"] - 1) < 1e-9
+    text = str(ident)
+    assert "27 of 35" in text and "j6.d" in text and "tool.z" in text
+
+
+def test_ur5_without_beta_loses_rank_and_says_why(ur5):
+    no_beta = ur5.with_joints([Joint(j.name, j.type, False, j.lower, j.upper) for j in ur5.joints])
+    ident = kincal.identifiability(no_beta, no_beta.sample_joints(80, seed=3))
+    assert ident.rank == 25
+    # the d offsets along the three parallel axes act only through their sum
+    parallel_d = {"j2.d", "j3.d", "j4.d"}
+    assert len(parallel_d & set(ident.dropped)) == 2
+    assert any("parallel" in n and "beta" in n for n in ident.notes)
+
+
+def test_fixed_base_and_keep_change_the_choice(ur5):
+    q = ur5.sample_joints(60, seed=1)
+    fixed = kincal.identifiability(ur5, q, exclude=ur5.base_params())
+    assert not set(ur5.base_params()) & set(fixed.candidates)
+    assert {"j1.theta", "j1.d"} <= set(fixed.identifiable)
+    kept = kincal.identifiability(ur5, q, keep=["j1.theta"])
+    assert "j1.theta" in kept.identifiable and "base.rz" in kept.dropped
+
+
+def test_parameter_without_effect_is_reported():
+    wam = kincal.load_robot("wam")  # reflector on the last axis: joint 7's angle cannot be seen
+    ident = kincal.identifiability(wam, wam.sample_joints(50, seed=0))
+    assert "j7.theta" in ident.dropped and ident.confounds["j7.theta"] == ()
+    assert "no effect" in str(ident)
+
+
+def test_too_few_poses_limit_the_rank(ur5):
+    ident = kincal.identifiability(ur5, ur5.sample_joints(5, seed=0))
+    assert ident.rank <= 15

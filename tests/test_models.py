@@ -1,0 +1,184 @@
+"""Robot models: forward kinematics against independent computations, analytic Jacobians against
+central differences, robot YAML files."""
+import numpy as np
+import pytest
+from conftest import DATA, UR5_COLS, central_jacobian
+
+import kincal
+from kincal import Joint, ModelError, SerialRobot
+
+
+def dh_matrix(theta, d, a, alpha):
+    """Craig's standard DH link transform, written out by hand."""
+    ct, st, ca, sa = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha)
+    return np.array([[ct, -st * ca, st * sa, a * ct],
+                     [st, ct * ca, -ct * sa, a * st],
+                     [0, sa, ca, d],
+                     [0, 0, 0, 1.0]])
+
+
+UR5_D = [0.089159, 0, 0, 0.10915, 0.09465, 0.0823]
+UR5_A = [0, -0.425, -0.39225, 0, 0, 0]
+UR5_ALPHA = [np.pi / 2, 0, 0, np.pi / 2, -np.pi / 2, 0]
+
+
+def ur5_by_hand(q, tool):
+    T = np.eye(4)
+    for i in range(6):
+        T = T @ dh_matrix(q[i], UR5_D[i], UR5_A[i], UR5_ALPHA[i])
+    return (T @ np.append(tool, 1.0))[:3]
+
+
+def test_ur5_forward_matches_hand_computation(ur5):
+    q = ur5.sample_joints(25, seed=4)
+    expected = np.array([ur5_by_hand(qi, [0, 0.09e-3, 31.0e-3]) for qi in q])
+    np.testing.assert_allclose(ur5.forward(q), expected, atol=1e-12)
+
+
+def test_ur5_zero_pose_closed_form(ur5):
+    flange = ur5.with_params({"tool.y": 0.0, "tool.z": 0.0})
+    # at q = 0 the UR5 flange sits at (a2 + a3, -(d4 + d6), d1 - d5)
+    expected = [-0.425 - 0.39225, -(0.10915 + 0.0823), 0.089159 - 0.09465]
+    np.testing.assert_allclose(flange.forward(np.zeros(6)), expected, atol=1e-12)
+
+
+def test_ur5_matches_dataset_nominal_targets(ur5):
+    d = np.genfromtxt(DATA / "ur5_grid.csv", delimiter=",", names=True)
+    q = np.deg2rad(np.column_stack([d[c] for c in UR5_COLS]))
+    target = np.column_stack([d["x_target"], d["y_target"], d["z_target"]]) * 1e-3
+    assert np.abs(ur5.forward(q) - target).max() < 0.05e-3  # the README says 0.05 mm
+
+
+def random_robot(convention, seed):
+    """A random 6-joint chain with a prismatic joint, parallel axes (β) and non-zero base and tool."""
+    rng = np.random.default_rng(seed)
+    types = ["revolute", "revolute", "revolute", "prismatic", "revolute", "revolute"]
+    joints, rows = [], []
+    for k, t in enumerate(types):
+        joints.append(Joint(f"j{k + 1}", t, beta=(k in (1, 4)), lower=-2.0, upper=2.0))
+        rows.append({"theta": rng.uniform(-1, 1), "d": rng.uniform(-0.3, 0.3), "a": rng.uniform(-0.5, 0.5),
+                     "alpha": rng.uniform(-2, 2), "beta": rng.uniform(-0.1, 0.1)})
+        if not joints[-1].beta:
+            rows[-1].pop("beta")
+    base = dict(zip(["x", "y", "z", "rx", "ry", "rz"], rng.uniform(-1, 1, 6)))
+    tool = dict(zip("xyz", rng.uniform(-0.1, 0.1, 3)))
+    return SerialRobot.build(f"random-{convention}", convention, joints, rows, base, tool)
+
+
+@pytest.mark.parametrize("convention", ["dh", "mdh"])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_param_jacobian_matches_central_differences(convention, seed):
+    robot = random_robot(convention, seed)
+    q = robot.sample_joints(30, seed=seed)
+    J = robot.param_jacobian(q)
+    Jn = central_jacobian(robot, q)
+    assert J.shape == (30, 3, robot.n_params)
+    assert np.abs(J - Jn).max() / np.abs(Jn).max() < 1e-6
+    # every parameter column is exercised (none silently zero)
+    assert np.all(np.linalg.norm(J, axis=(0, 1)) > 0)
+
+
+@pytest.mark.parametrize("name", ["ur5", "ur10", "wam", "scara"])
+def test_bundled_jacobians_match_central_differences(name):
+    robot = kincal.perturb(kincal.load_robot(name), 1e-3, 1e-2, seed=5, include_base=True)
+    q = robot.sample_joints(20, seed=1)
+    Jn = central_jacobian(robot, q)
+    assert np.abs(robot.param_jacobian(q) - Jn).max() / np.abs(Jn).max() < 1e-6
+
+
+def test_joint_jacobian_matches_central_differences():
+    robot = random_robot("dh", 3)
+    q = robot.sample_joints(10, seed=2)
+    h = 1e-6
+    Jn = np.stack([(robot.forward(q + h * e) - robot.forward(q - h * e)) / (2 * h) for e in np.eye(6)], axis=2)
+    np.testing.assert_allclose(robot.joint_jacobian(q), Jn, atol=1e-8)
+
+
+def test_mdh_equals_dh_for_the_same_geometry():
+    # a 2R planar arm: DH (a1, a2) and MDH (a on the following joint + tool offset) describe one machine
+    dh = SerialRobot.build("p", "dh", [Joint("j1"), Joint("j2")], [{"a": 0.4}, {"a": 0.3}])
+    mdh = SerialRobot.build("p", "mdh", [Joint("j1"), Joint("j2")], [{}, {"a": 0.4}], tool={"x": 0.3})
+    q = dh.sample_joints(10, seed=0)
+    np.testing.assert_allclose(dh.forward(q), mdh.forward(q), atol=1e-14)
+    np.testing.assert_allclose(dh.forward(q)[:, 0], 0.4 * np.cos(q[:, 0]) + 0.3 * np.cos(q.sum(1)), atol=1e-14)
+
+
+def test_prismatic_joint_moves_along_its_axis():
+    scara = kincal.load_robot("scara")
+    q = np.array([[0.3, -0.2, 0.05, 0.1], [0.3, -0.2, 0.15, 0.1]])
+    p = scara.forward(q)
+    # joint 3 points down (alpha2 = 180 deg): 100 mm more stroke is 100 mm lower
+    np.testing.assert_allclose(p[1] - p[0], [0, 0, -0.1], atol=1e-14)
+
+
+def test_beta_detected_on_parallel_axes(ur5):
+    assert [j.beta for j in ur5.joints] == [False, True, True, False, False, False]
+    assert "j2.beta" in ur5.params and "j6.beta" not in ur5.params
+    assert ur5.structure_notes() == []
+    no_beta = ur5.with_joints([Joint(j.name, j.type, False, j.lower, j.upper) for j in ur5.joints])
+    notes = no_beta.structure_notes()
+    assert len(notes) == 2 and "j2" in notes[0] and "beta" in notes[0]
+
+
+def test_yaml_round_trip_is_exact(tmp_path, ur5):
+    robot = kincal.perturb(ur5, seed=9, include_base=True)
+    path = tmp_path / "r.yaml"
+    kincal.save_robot(robot, path)
+    back = kincal.load_robot(path)
+    assert back.params == robot.params
+    assert [(j.name, j.type, j.beta, j.lower, j.upper) for j in back.joints] == \
+           [(j.name, j.type, j.beta, j.lower, j.upper) for j in robot.joints]
+    assert back.convention == robot.convention and back.description == robot.description
+    # and in engineering units it agrees to rounding
+    kincal.save_robot(robot, path, "mm", "deg")
+    np.testing.assert_allclose(kincal.load_robot(path).params.values, robot.params.values, rtol=1e-15, atol=1e-18)
+
+
+def test_yaml_beta_override(tmp_path):
+    text = """name: two
+convention: dh
+units: {length: mm, angle: deg}
+joints:
+  - {name: j1, a: 300, alpha: 0, beta: false}
+  - {name: j2, a: 200, alpha: 0}
+"""
+    path = tmp_path / "two.yaml"
+    path.write_text(text)
+    r = kincal.load_robot(path)
+    assert [j.beta for j in r.joints] == [False, False]  # j1 switched off explicitly; j2 has no successor
+    assert len(r.structure_notes()) == 1
+    path.write_text(text.replace("beta: false", "beta: 0.5"))
+    r = kincal.load_robot(path)
+    assert r.params["j1.beta"] == pytest.approx(np.deg2rad(0.5))
+
+
+@pytest.mark.parametrize("text,fragment", [
+    ("name: x\nconvention: dh\njoints: []\n", "non-empty list"),
+    ("name: x\nconvention: xyz\njoints: [{a: 1}]\n", "convention"),
+    ("name: x\nconvention: dh\njoints: [{a: 1, lenght: 2}]\n", "lenght"),
+    ("name: x\nconvention: dh\njoints: [{a: one}]\n", "'a' must be a number"),
+    ("name: x\nconvention: dh\nunits: {length: inch}\njoints: [{a: 1}]\n", "unknown length unit"),
+    ("name: x\nconvention: dh\njoints: [{a: 1, limits: [1, -1]}]\n", "lower < upper"),
+])
+def test_bad_robot_files_name_the_problem(tmp_path, text, fragment):
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ModelError, match=fragment) as exc:
+        kincal.load_robot(path)
+    assert "bad.yaml" in str(exc.value) or "joint" in str(exc.value)
+
+
+def test_unknown_robot_and_parameter_names(ur5):
+    with pytest.raises(ModelError, match="bundled robot"):
+        kincal.load_robot("ur55")
+    with pytest.raises(ModelError, match="unknown parameter 'j9.a'"):
+        ur5.with_params({"j9.a": 1.0})
+    with pytest.raises(ModelError, match=r"expected \(N, 6\)"):
+        ur5.forward(np.zeros((3, 5)))
+
+
+def test_models_are_immutable(ur5):
+    with pytest.raises(ValueError):
+        ur5.params.values[0] = 1.0
+    moved = ur5.with_params({"j2.a": -0.43})
+    assert ur5.params["j2.a"] == -0.425 and moved.params["j2.a"] == -0.43
