@@ -15,7 +15,7 @@ import kincal
 from kincal.errors import KincalError
 
 out = Console(highlight=False, soft_wrap=True)
-err = Console(stderr=True, highlight=False)
+err = Console(stderr=True, highlight=False, soft_wrap=True)
 EXIT_ERROR, EXIT_NOT_CONVERGED = 1, 3
 MM, DEG = 1e3, 180.0 / np.pi
 
@@ -155,7 +155,7 @@ def cmd_calibrate(args) -> int:
     meas = _read(args, r, args.data)
     with _progress("calibrating", args.json) as say:
         res = kincal.calibrate(r, meas, params=args.params or "auto", base=args.base, loss=args.loss,
-                               keep=args.keep or (), progress=say)
+                               keep=args.keep or (), max_iter=args.max_iter, progress=say)
     if args.output:
         kincal.save_robot(res.robot, args.output)
     payload = res.to_dict()
@@ -254,6 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--loss", choices=["linear", "huber", "soft_l1"], default="linear")
     s.add_argument("--params", type=_csv_list, help="parameters to estimate (default: identifiable set)")
     s.add_argument("--keep", type=_csv_list, help="parameters to prefer among confounded ones")
+    s.add_argument("--max-iter", type=int, default=100, help="Levenberg-Marquardt iteration limit (default 100)")
     _add_data_flags(s)
 
     s = cmd("evaluate", cmd_evaluate, "position error statistics of a robot model on measurements")

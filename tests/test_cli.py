@@ -1,0 +1,84 @@
+"""The command line, end to end: real tracker data and a simulate → calibrate → evaluate round trip."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import DATA, UR5_COLS, WAM_COLS
+
+import kincal
+from kincal.cli import main
+
+
+def run_json(capsys, *argv):
+    code = main([str(a) for a in argv] + ["--json"])
+    cap = capsys.readouterr()
+    assert code == 0, cap.err
+    return json.loads(cap.out)
+
+
+def units(cols):
+    return ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(cols)]
+
+
+def test_ur5_real_tracker_data(tmp_path, capsys):
+    """Calibrate on the 1000-pose grid, evaluate on the 20 unseen random poses: 2.57 mm -> <= 0.105 mm."""
+    out = tmp_path / "ur5_cal.yaml"
+    cal = run_json(capsys, "calibrate", "ur5", DATA / "ur5_grid.csv", "-o", out, *units(UR5_COLS))
+    assert cal["converged"] and cal["n_poses"] == 1000
+    before = run_json(capsys, "evaluate", "ur5", DATA / "ur5_random.csv", *units(UR5_COLS))
+    after = run_json(capsys, "evaluate", out, DATA / "ur5_random.csv", *units(UR5_COLS))
+    assert before["n"] == 20 and before["mean"] == pytest.approx(2.57e-3, abs=0.01e-3)
+    assert after["mean"] <= 0.105e-3
+
+
+def test_wam_real_tracker_data(tmp_path, capsys):
+    out = tmp_path / "wam_cal.yaml"
+    run_json(capsys, "calibrate", "wam", DATA / "wam_grid.csv", "-o", out, *units(WAM_COLS))
+    before = run_json(capsys, "evaluate", "wam", DATA / "wam_random.csv", *units(WAM_COLS))
+    after = run_json(capsys, "evaluate", out, DATA / "wam_random.csv", *units(WAM_COLS))
+    assert before["mean"] == pytest.approx(17.6e-3, abs=0.05e-3)
+    assert after["mean"] < 3.5e-3  # a geometric model leaves the cable-driven WAM's ~3 mm
+
+
+def test_simulate_calibrate_evaluate_round_trip(tmp_path, capsys):
+    data, true = tmp_path / "sim.csv", tmp_path / "true.yaml"
+    run_json(capsys, "simulate", "ur5", "-o", data, "--poses", "80", "--perturb", "--save-true", true,
+             "--length-unit", "mm", "--angle-unit", "deg")
+    cal_path = tmp_path / "cal.yaml"
+    cal = run_json(capsys, "calibrate", "ur5", data, "-o", cal_path, "--length-unit", "mm", "--angle-unit", "deg")
+    assert cal["after"]["rms"] < 40e-6  # residuals at the 15 µm noise level (3-D)
+    val = tmp_path / "val.csv"
+    run_json(capsys, "simulate", true, "-o", val, "--poses", "100", "--noise", "0", "--seed", "5")
+    after = run_json(capsys, "evaluate", cal_path, val)
+    before = run_json(capsys, "evaluate", "ur5", val)
+    assert before["mean"] > 0.5e-3 and after["mean"] < 30e-6
+
+
+def test_identifiability_and_show(capsys):
+    ident = run_json(capsys, "identifiability", "ur5", "--poses", "60")
+    assert ident["rank"] == 27 and "j6.d" in ident["dropped"]
+    show = run_json(capsys, "show", "ur5")
+    assert show["parameters"]["j2.a"] == pytest.approx(-0.425)
+    robots = run_json(capsys, "robots")
+    assert {r["name"] for r in robots["robots"]} >= {"ur5", "ur10", "wam", "scara"}
+
+
+def test_human_output_uses_mm_and_deg(capsys):
+    assert main(["show", "ur5"]) == 0
+    text = capsys.readouterr().out
+    assert "-425" in text and "mm" in text and "deg" in text
+
+
+def test_demo_reduces_error(capsys):
+    d = run_json(capsys, "demo", "--poses", "60")
+    assert d["validation_before"]["mean"] > 0.3e-3
+    assert d["validation_after"]["mean"] < 30e-6
+
+
+def test_console_script_is_installed():
+    proc = subprocess.run([sys.executable, "-m", "kincal.cli", "robots", "--json"], capture_output=True, text=True)
+    assert proc.returncode == 0 and "ur5" in proc.stdout
+    proc = subprocess.run([sys.executable, "-m", "kincal.cli", "show", "nope"], capture_output=True, text=True)
+    assert proc.returncode == 1 and proc.stderr.startswith("kincal: error:")

@@ -1,0 +1,139 @@
+"""Bad input: every error names what is wrong and what to do, through the API and the CLI."""
+import numpy as np
+import pytest
+from conftest import DATA, UR5_COLS
+
+import kincal
+from kincal import MeasurementError
+from kincal.cli import main
+
+MMDEG = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
+
+
+def write_csv(path, ur5, q, xyz, length="m", angle="rad"):
+    kincal.write_measurements(path, kincal.Measurements(q, xyz, ur5.joint_names), ur5.joint_types, length, angle)
+
+
+@pytest.fixture
+def good(tmp_path, ur5):
+    q = ur5.sample_joints(30, seed=0)
+    xyz = kincal.perturb(ur5).forward(q)
+    path = tmp_path / "good.csv"
+    write_csv(path, ur5, q, xyz)
+    return path, q, xyz
+
+
+def run_cli(capsys, *argv):
+    code = main([str(a) for a in argv])
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+def test_nan_rows_are_named(tmp_path, ur5, good, capsys):
+    good_path, _, _ = good
+    lines = good_path.read_text().splitlines()
+    for row in (5, 9):  # file lines (header = 1)
+        lines[row - 1] = lines[row - 1].rsplit(",", 1)[0] + ",nan"
+    path = tmp_path / "nan.csv"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(MeasurementError, match=r"nan.csv: NaN or infinite values in row\(s\) 5, 9"):
+        kincal.read_measurements(path, ur5)
+    code, _, err = run_cli(capsys, "calibrate", "ur5", path)
+    assert code == 1 and "row(s) 5, 9" in err and err.count("\n") == 1
+
+
+def test_non_numeric_cell_is_located(tmp_path, ur5, good):
+    path, _, _ = good
+    lines = path.read_text().splitlines()
+    cells = lines[4].split(",")
+    cells[2] = "abc"
+    lines[4] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(MeasurementError, match="row 5, column 'j3': 'abc' is not a number"):
+        kincal.read_measurements(path, ur5)
+
+
+def test_missing_columns_list_the_header(ur5, good, capsys):
+    path, _, _ = good
+    with pytest.raises(MeasurementError, match="column.*joint_1.*the header has: j1"):
+        kincal.read_measurements(path, ur5, joint_cols=UR5_COLS)
+    code, _, err = run_cli(capsys, "evaluate", "ur5", path, "--joint-cols", ",".join(UR5_COLS))
+    assert code == 1 and "joint_1" in err
+
+
+def test_joint_count_mismatch(ur5, good, capsys):
+    path, q, xyz = good
+    with pytest.raises(MeasurementError, match="5 joint columns given.*6 joints"):
+        kincal.read_measurements(path, ur5, joint_cols=["j1", "j2", "j3", "j4", "j5"])
+    wam = kincal.load_robot("wam")
+    with pytest.raises(MeasurementError, match="6 joint columns but robot 'wam' has 7"):
+        kincal.calibrate(wam, kincal.Measurements(q, xyz, ur5.joint_names))
+    code, _, err = run_cli(capsys, "calibrate", "wam", path)
+    assert code == 1 and "j7 not found" in err
+
+
+def test_mm_read_as_metres_and_the_reverse(ur5, capsys):
+    path = DATA / "ur5_grid.csv"
+    with pytest.raises(MeasurementError, match="look like mm read as m.*--length-unit mm"):
+        kincal.read_measurements(path, ur5, joint_cols=UR5_COLS, angle_unit="deg")
+    code, _, err = run_cli(capsys, "calibrate", "ur5", path, "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS))
+    assert code == 1 and "--length-unit mm" in err
+
+
+def test_metres_read_as_mm(tmp_path, ur5, good):
+    path, _, _ = good
+    with pytest.raises(MeasurementError, match="look like m read as mm"):
+        kincal.read_measurements(path, ur5, length_unit="mm")
+
+
+def test_degrees_read_as_radians(ur5, capsys):
+    with pytest.raises(MeasurementError, match="look like degrees.*--angle-unit deg"):
+        kincal.read_measurements(DATA / "ur5_grid.csv", ur5, joint_cols=UR5_COLS, length_unit="mm")
+    code, _, err = run_cli(capsys, "evaluate", "ur5", DATA / "ur5_grid.csv", "--length-unit", "mm",
+                           "--joint-cols", ",".join(UR5_COLS))
+    assert code == 1 and "degrees" in err
+
+
+def test_too_few_measurements(ur5, good, capsys):
+    path, q, xyz = good
+    few = kincal.Measurements(q[:4], xyz[:4], ur5.joint_names, source="few.csv")
+    with pytest.raises(MeasurementError, match="4 poses give 12 equations.*measure at least"):
+        kincal.calibrate(ur5, few)
+    small = path.parent / "few.csv"
+    small.write_text("\n".join(path.read_text().splitlines()[:5]) + "\n")
+    code, _, err = run_cli(capsys, "calibrate", "ur5", small)
+    assert code == 1 and "measure at least" in err
+
+
+def test_not_converged_is_reported(ur5, good, tmp_path, capsys):
+    path, q, xyz = good
+    res = kincal.calibrate(ur5, kincal.Measurements(q, xyz, ur5.joint_names), max_iter=1)
+    assert not res.converged and "without meeting the tolerances" in res.message
+    assert "NOT CONVERGED" in str(res)
+    code, out, err = run_cli(capsys, "calibrate", "ur5", path, "--max-iter", "1", "-o", tmp_path / "c.yaml")
+    assert code == 3 and "did not converge" in err
+
+
+def test_semicolon_separated_file(tmp_path, ur5, good):
+    path, q, _ = good
+    semi = tmp_path / "semi.csv"
+    semi.write_text(path.read_text().replace(",", ";"))
+    np.testing.assert_allclose(kincal.read_measurements(semi, ur5).q, q)
+
+
+def test_bad_option_values(ur5, good):
+    path, q, xyz = good
+    meas = kincal.Measurements(q, xyz, ur5.joint_names)
+    with pytest.raises(ValueError, match="base='tracker'"):
+        kincal.calibrate(ur5, meas, base="tracker")
+    with pytest.raises(ValueError, match="loss='cauchy'"):
+        kincal.calibrate(ur5, meas, loss="cauchy")
+    with pytest.raises(MeasurementError, match="unknown length unit 'inch'"):
+        kincal.read_measurements(path, ur5, length_unit="inch")
+
+
+def test_missing_file_and_unknown_robot(capsys, tmp_path):
+    code, _, err = run_cli(capsys, "evaluate", "ur5", tmp_path / "nope.csv")
+    assert code == 1 and "nope.csv" in err
+    code, _, err = run_cli(capsys, "show", "ur55")
+    assert code == 1 and "neither a bundled robot" in err
