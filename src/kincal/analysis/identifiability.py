@@ -117,20 +117,22 @@ def identifiability(
     J = stacked_jacobian(robot, q, cand)
     norms = np.linalg.norm(J, axis=0)
     live = norms > ZERO_COLUMN * max(1.0, np.sqrt(q.shape[0]))
-    Js = J[:, live] / norms[live]
     live_names = [n for n, ok in zip(cand, live) if ok]
+    # Everything below depends on the column space only, so it works on the small triangular
+    # factor R0 of the scaled Jacobian (Js = Q0 R0): same singular values, same linear relations.
+    R0 = np.linalg.qr(J[:, live] / norms[live], mode="r") if live.any() else np.zeros((0, 0))
 
-    s = np.linalg.svd(Js, compute_uv=False) if Js.size else np.zeros(0)
+    s = np.linalg.svd(R0, compute_uv=False) if R0.size else np.zeros(0)
     rank = int(np.sum(s > tol * s[0])) if s.size else 0
     gap = float(s[rank - 1] / s[rank]) if 0 < rank < s.size and s[rank] > 0 else float("inf")
 
-    order = _pivot_order(Js, live_names, [list(keep), list(robot.preferred_params())], rank, tol)
+    order = _pivot_order(R0, live_names, [list(keep), list(robot.preferred_params())], rank, tol)
     ident = [live_names[k] for k in order[:rank]]
     drop_live = [live_names[k] for k in order[rank:]]
 
     confounds: dict[str, tuple[tuple[str, float], ...]] = {}
     if drop_live and rank:
-        A, B = Js[:, order[:rank]], Js[:, order[rank:]]
+        A, B = R0[:, order[:rank]], R0[:, order[rank:]]
         C = np.linalg.lstsq(A, B, rcond=None)[0]  # B ≈ A C  (scaled units)
         n_kept = norms[live][order[:rank]]
         n_drop = norms[live][order[rank:]]
@@ -146,9 +148,10 @@ def identifiability(
     ident_t = tuple(n for n in cand if n in set(ident))  # model order
 
     if ident:
-        Jr = J[:, [cand.index(n) for n in ident_t]]
-        cond_raw = float(np.linalg.cond(Jr))
-        cond_scaled = float(np.linalg.cond(Jr / np.linalg.norm(Jr, axis=0)))
+        sel = sorted(order[:rank])
+        Rs = R0[:, sel]
+        cond_scaled = float(np.linalg.cond(Rs))
+        cond_raw = float(np.linalg.cond(Rs * norms[live][sel]))
     else:
         cond_raw = cond_scaled = float("inf")
     notes = []

@@ -53,7 +53,7 @@ def levenberg_marquardt(
             converged, message = True, "gradient below tolerance"
             break
         if mu is None:
-            mu = 1e-3 * float(np.max(np.diag(H)))
+            mu = 1e-8 * float(np.max(np.diag(H)))  # near Gauss-Newton: calibration problems are mildly nonlinear
         while True:
             try:
                 c = sla.cho_factor(H + mu * np.eye(H.shape[0]), check_finite=False)

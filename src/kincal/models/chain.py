@@ -67,6 +67,14 @@ class Chain:
         self.is_trans = np.array([op.kind == TRANS for op in self.ops])
         self.seg_slices = np.cumsum([0] + [len(s) for s in self.segments])
         self.n_params, self.n_joints = n_params, n_joints
+        self.unused = np.setdiff1d(np.arange(n_params), self.cols)
+        # per segment: op slice, rotation mask (or None when it has no rotation op)
+        self.seg_rot = []
+        for a, b in zip(self.seg_slices[:-1], self.seg_slices[1:]):
+            rot = ~self.is_trans[a:b]
+            self.seg_rot.append(rot if rot.any() else None)
+        self.head_joint = np.array([h.joint for h in self.heads if h is not None])
+        self.head_param = np.array([h.param for h in self.heads if h is not None])
         self.joint_param = np.array([ops[k].param for k in sorted(joint_ops, key=lambda k: ops[k].joint)])
 
     def _segment_frames(self, values: np.ndarray, record: bool):
@@ -123,47 +131,53 @@ class Chain:
         return np.ascontiguousarray(np.broadcast_to(V, (3, n)).T)
 
     def forward_and_jacobian(self, values: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Positions (N,3) and parameter Jacobian (N,3,P) by forward propagation of frames."""
+        """Positions (N,3) and parameter Jacobian (N,3,P) by forward propagation of frames.
+
+        Pass 1 propagates the frames and keeps, per segment, the frame just after its joint op.
+        Pass 2 turns each segment's op axes and points into world vectors with one BLAS product each
+        and writes the columns: u × (p − o) for rotations, u for translations. Temporaries stay
+        per segment (small), which matters more than op count for speed here.
+        """
         n = q.shape[0]
         ends, A, B = self._segment_frames(values, True)
-        # each op's axis / point in its segment's END frame, then the affine column maps G p + h
-        Rs = np.stack([R for R, _ in ends])[self.seg_of_op]  # (n_ops,3,3)
-        ts = np.stack([t for _, t in ends])[self.seg_of_op]
-        a = np.einsum("kj,kji->ki", A, Rs)
-        b = np.einsum("kj,kji->ki", B - ts, Rs)
-        G = np.zeros((len(self.ops), 3, 3))
-        G[:, 0, 1], G[:, 0, 2], G[:, 1, 2] = -a[:, 2], a[:, 1], -a[:, 0]
-        G[:, 1, 0], G[:, 2, 0], G[:, 2, 1] = a[:, 2], -a[:, 1], a[:, 0]
-        h = -np.cross(a, b)
-        G[self.is_trans] = 0.0
-        h[self.is_trans] = a[self.is_trans]
-
-        qt = q.T
-        W = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n))  # W[j] = world column j, (3, N)
-        o = np.zeros((3, 1))
-        frames = []
+        JT = np.empty((self.n_params, 3, n))
+        X = q.T[self.head_joint] + values[self.head_param][:, None]  # joint-op values, (n_joints, N)
+        C, S = np.cos(X), np.sin(X)
+        W = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n))  # W[k] = world axis k of the frame, (3, N)
+        o = np.zeros((3, n))
+        starts = []
+        k = 0
         for (R, t), head in zip(ends, self.heads):
-            if head is not None:
-                x = qt[head.joint] + values[head.param]
+            if head is not None:  # move to the frame just after the joint op
                 if head.kind == TRANS:
-                    o = o + W[head.axis] * x
+                    o = o + W[head.axis] * X[k]
                 else:
-                    c, s = cos_sin(x)
+                    c, s = C[k], S[k]
                     i, j = (head.axis + 1) % 3, (head.axis + 2) % 3
                     W2 = np.empty((3, 3, n))
                     W2[i] = c * W[i] + s * W[j]
                     W2[j] = c * W[j] - s * W[i]
                     W2[head.axis] = W[head.axis]
                     W = W2
-            o = o + (t @ W.reshape(3, -1)).reshape(3, -1)
-            W = (R.T @ W.reshape(3, -1)).reshape(3, 3, -1)
-            frames.append((W, o))
-        p = np.broadcast_to(o, (3, n))
-        JT = np.zeros((3, self.n_params, n))
-        for s, (W, o) in enumerate(frames):
+                k += 1
+            Wf = W.reshape(3, -1)
+            starts.append((Wf, o))
+            o = o + (t @ Wf).reshape(3, n)
+            W = (R.T @ Wf).reshape(3, 3, n)
+        p = o
+        for s, (Wf, o) in enumerate(starts):
             lo, hi = self.seg_slices[s], self.seg_slices[s + 1]
-            d = p - o
-            p_loc = (W * d[None]).sum(axis=1)  # (3, N): tool point in this segment's end frame
-            L = (G[lo:hi].reshape(-1, 3) @ p_loc + h[lo:hi].reshape(-1, 1)).reshape(hi - lo, 3, -1)
-            JT[:, self.cols[lo:hi], :] = W[0][:, None] * L[:, 0] + W[1][:, None] * L[:, 1] + W[2][:, None] * L[:, 2]
-        return np.ascontiguousarray(p.T), JT.transpose(2, 0, 1)
+            U = (A[lo:hi] @ Wf).reshape(hi - lo, 3, n)
+            rot = self.seg_rot[s]
+            if rot is not None:
+                D = p - o - (B[lo:hi][rot] @ Wf).reshape(-1, 3, n)
+                Ur = U[rot]
+                C = np.empty_like(D)
+                C[:, 0] = Ur[:, 1] * D[:, 2] - Ur[:, 2] * D[:, 1]
+                C[:, 1] = Ur[:, 2] * D[:, 0] - Ur[:, 0] * D[:, 2]
+                C[:, 2] = Ur[:, 0] * D[:, 1] - Ur[:, 1] * D[:, 0]
+                U[rot] = C
+            JT[self.cols[lo:hi]] = U
+        if self.unused.size:
+            JT[self.unused] = 0.0
+        return np.ascontiguousarray(p.T), JT.transpose(2, 1, 0)
