@@ -19,7 +19,7 @@ runs over configurations.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import cos, sin
+from math import cos, prod, sin
 
 import numpy as np
 
@@ -49,6 +49,17 @@ def cos_sin(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (1.0 - t2) * inv, (2.0 * inv) * t
 
 
+def _carve(n: int, *shapes: tuple[int, ...]) -> list[np.ndarray]:
+    """Views of shapes ``shape + (n,)`` cut from one block (one allocation instead of many)."""
+    sizes = [prod(sh) * n for sh in shapes]
+    block = np.empty(sum(sizes))
+    out, at = [], 0
+    for sh, size in zip(shapes, sizes):
+        out.append(block[at:at + size].reshape(*sh, n))
+        at += size
+    return out
+
+
 class Chain:
     """Compiled op sequence for ``n_params`` parameters and ``n_joints`` joints (each joint in exactly one op)."""
 
@@ -68,17 +79,26 @@ class Chain:
         self.seg_slices = np.cumsum([0] + [len(s) for s in self.segments])
         self.n_params, self.n_joints = n_params, n_joints
         self.unused = np.setdiff1d(np.arange(n_params), self.cols)
-        # per segment: op slice, rotation mask (or None when it has no rotation op)
-        self.seg_rot = []
+        # per segment, rotation ops first then translation ops (rows of the axis buffer U)
+        self.rot_idx = np.flatnonzero(~self.is_trans)
+        self.rot_slices = np.searchsorted(self.rot_idx, self.seg_slices)
+        perm, perm_rot, perm_trans = [], [], []
         for a, b in zip(self.seg_slices[:-1], self.seg_slices[1:]):
-            rot = ~self.is_trans[a:b]
-            self.seg_rot.append(rot if rot.any() else None)
+            rot = [m for m in range(a, b) if not self.is_trans[m]]
+            trans = [m for m in range(a, b) if self.is_trans[m]]
+            perm_rot += range(len(perm), len(perm) + len(rot))
+            perm_trans += range(len(perm) + len(rot), b)
+            perm += rot + trans
+        self.perm = np.array(perm, dtype=int)
+        self.perm_rot, self.perm_trans = np.array(perm_rot, dtype=int), np.array(perm_trans, dtype=int)
+        self.cols_rot = self.cols[self.rot_idx]
+        self.cols_trans = self.cols[self.perm[self.perm_trans]]
         self.head_joint = np.array([h.joint for h in self.heads if h is not None])
         self.head_param = np.array([h.param for h in self.heads if h is not None])
         self.joint_param = np.array([ops[k].param for k in sorted(joint_ops, key=lambda k: ops[k].joint)])
 
     def _segment_frames(self, values: np.ndarray, record: bool):
-        """Constant part of each segment as (R (3,3), t (3,)); with ``record`` also each op's axis
+        """Constant part of each segment as [Rᵀ; t] (4, 3); with ``record`` also each op's axis
         and point in its segment's start coordinates, (n_ops, 3) each. Scalar Python: ~40 ops."""
         ends, axes, points = [], [], []
         for seg, head in zip(self.segments, self.heads):
@@ -103,7 +123,7 @@ class Chain:
                     a, b = cols[i], cols[j]
                     cols[i] = [c * a[0] + s * b[0], c * a[1] + s * b[1], c * a[2] + s * b[2]]
                     cols[j] = [c * b[0] - s * a[0], c * b[1] - s * a[1], c * b[2] - s * a[2]]
-            ends.append((np.array(cols).T, np.array(t)))
+            ends.append(np.array(cols + [t]))  # [Rᵀ; t], (4, 3): the segment's constant part
         return ends, np.array(axes), np.array(points)
 
     def forward(self, values: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -112,8 +132,8 @@ class Chain:
         ends, _, _ = self._segment_frames(values, False)
         qt = q.T
         V = None  # (3, N) position in the current frame; None while it is the origin
-        for (R, t), head in zip(reversed(ends), reversed(self.heads)):
-            V = t[:, None] if V is None else R @ V + t[:, None]
+        for M, head in zip(reversed(ends), reversed(self.heads)):
+            V = M[3][:, None] if V is None else M[:3].T @ V + M[3][:, None]
             if head is None:
                 continue
             x = qt[head.joint] + values[head.param]
@@ -133,51 +153,63 @@ class Chain:
     def forward_and_jacobian(self, values: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Positions (N,3) and parameter Jacobian (N,3,P) by forward propagation of frames.
 
-        Pass 1 propagates the frames and keeps, per segment, the frame just after its joint op.
-        Pass 2 turns each segment's op axes and points into world vectors with one BLAS product each
-        and writes the columns: u × (p − o) for rotations, u for translations. Temporaries stay
-        per segment (small), which matters more than op count for speed here.
+        Pass 1 propagates the frames; for each segment, the frame just after its joint op gives the
+        world axes (and, for rotations, points) of all the segment's ops by BLAS products. Then one
+        batched cross product u × (p − o) makes every rotation column; translation columns are the
+        axes themselves. Intermediates live in one block written in place: many small temporaries
+        make glibc return and re-fault heap pages on every call, which costs more than the arithmetic.
         """
         n = q.shape[0]
         ends, A, B = self._segment_frames(values, True)
-        JT = np.empty((self.n_params, 3, n))
+        S, n_ops, n_rot = len(self.segments), len(self.ops), self.rot_idx.size
+        F, N4, origins, U, D, Cx, tmp = _carve(
+            n, (3, 3), (4, 3), (S + 1, 3), (n_ops, 3), (n_rot, 3), (n_rot, 3), (max(n_rot, 3),))
+        Ap, Br = A[self.perm], B[self.rot_idx]
         X = q.T[self.head_joint] + values[self.head_param][:, None]  # joint-op values, (n_joints, N)
-        C, S = np.cos(X), np.sin(X)
-        W = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n))  # W[k] = world axis k of the frame, (3, N)
-        o = np.zeros((3, n))
-        starts = []
+        C, Sn = np.cos(X), np.sin(X)
+        W = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n))  # W[k] = world axis k of the frame
+        t3 = tmp[:3]
+        origins[0] = 0.0
         k = 0
-        for (R, t), head in zip(ends, self.heads):
-            if head is not None:  # move to the frame just after the joint op
-                if head.kind == TRANS:
-                    o = o + W[head.axis] * X[k]
-                else:
-                    c, s = C[k], S[k]
-                    i, j = (head.axis + 1) % 3, (head.axis + 2) % 3
-                    W2 = np.empty((3, 3, n))
-                    W2[i] = c * W[i] + s * W[j]
-                    W2[j] = c * W[j] - s * W[i]
-                    W2[head.axis] = W[head.axis]
-                    W = W2
-                k += 1
-            Wf = W.reshape(3, -1)
-            starts.append((Wf, o))
-            o = o + (t @ Wf).reshape(3, n)
-            W = (R.T @ Wf).reshape(3, 3, n)
-        p = o
-        for s, (Wf, o) in enumerate(starts):
+        for s, (M, head) in enumerate(zip(ends, self.heads)):
+            o = origins[s]
+            if head is None or head.kind == TRANS:  # F: the frame just after the joint op
+                F[...] = W
+                if head is not None:
+                    np.multiply(W[head.axis], X[k], out=t3)
+                    o += t3
+            else:
+                c, sn = C[k], Sn[k]
+                i, j = (head.axis + 1) % 3, (head.axis + 2) % 3
+                np.multiply(W[i], c, out=F[i])
+                np.multiply(W[j], sn, out=t3)
+                F[i] += t3
+                np.multiply(W[j], c, out=F[j])
+                np.multiply(W[i], sn, out=t3)
+                F[j] -= t3
+                F[head.axis] = W[head.axis]
+            k += head is not None
+            Ff = F.reshape(3, -1)
             lo, hi = self.seg_slices[s], self.seg_slices[s + 1]
-            U = (A[lo:hi] @ Wf).reshape(hi - lo, 3, n)
-            rot = self.seg_rot[s]
-            if rot is not None:
-                D = p - o - (B[lo:hi][rot] @ Wf).reshape(-1, 3, n)
-                Ur = U[rot]
-                C = np.empty_like(D)
-                C[:, 0] = Ur[:, 1] * D[:, 2] - Ur[:, 2] * D[:, 1]
-                C[:, 1] = Ur[:, 2] * D[:, 0] - Ur[:, 0] * D[:, 2]
-                C[:, 2] = Ur[:, 0] * D[:, 1] - Ur[:, 1] * D[:, 0]
-                U[rot] = C
-            JT[self.cols[lo:hi]] = U
+            np.matmul(Ap[lo:hi], Ff, out=U[lo:hi].reshape(hi - lo, -1))  # world axes of the ops
+            rlo, rhi = self.rot_slices[s], self.rot_slices[s + 1]
+            if rhi > rlo:
+                np.matmul(Br[rlo:rhi], Ff, out=D[rlo:rhi].reshape(rhi - rlo, -1))
+                D[rlo:rhi] += o  # world points of the rotation ops
+            # the next segment's frame and origin in one product with [Rᵀ; t]
+            np.matmul(M, Ff, out=N4.reshape(4, -1))
+            np.add(o, N4[3], out=origins[s + 1])
+            W = N4[:3]
+        p = origins[S]
+        np.subtract(p, D, out=D)  # p − o for every rotation op
+        Ur, tr = U[self.perm_rot], tmp[:n_rot]
+        for a, b, c_ in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+            np.multiply(Ur[:, b], D[:, c_], out=Cx[:, a])
+            np.multiply(Ur[:, c_], D[:, b], out=tr)
+            Cx[:, a] -= tr
+        JT = np.empty((self.n_params, 3, n))
+        JT[self.cols_rot] = Cx
+        JT[self.cols_trans] = U[self.perm_trans]
         if self.unused.size:
             JT[self.unused] = 0.0
         return np.ascontiguousarray(p.T), JT.transpose(2, 1, 0)
