@@ -79,20 +79,27 @@ class Chain:
         self.seg_slices = np.cumsum([0] + [len(s) for s in self.segments])
         self.n_params, self.n_joints = n_params, n_joints
         self.unused = np.setdiff1d(np.arange(n_params), self.cols)
-        # per segment, rotation ops first then translation ops (rows of the axis buffer U)
+        # Rows of the per-segment product: for segment s, the axes of its ops, the points of its
+        # rotation ops, then its [Rᵀ; t] (4 rows). z_map picks them from concat([A, B, ends]).
+        n_ops = len(self.ops)
         self.rot_idx = np.flatnonzero(~self.is_trans)
-        self.rot_slices = np.searchsorted(self.rot_idx, self.seg_slices)
-        perm, perm_rot, perm_trans = [], [], []
-        for a, b in zip(self.seg_slices[:-1], self.seg_slices[1:]):
+        z_map, z_slices, z_points, z_rot_axes, z_trans_axes = [], [], [], [], []
+        for s, (a, b) in enumerate(zip(self.seg_slices[:-1], self.seg_slices[1:])):
+            lo = len(z_map)
+            z_rot_axes += [lo + m - a for m in range(a, b) if not self.is_trans[m]]
+            z_trans_axes += [lo + m - a for m in range(a, b) if self.is_trans[m]]
+            z_map += list(range(a, b))
+            mid = len(z_map)
             rot = [m for m in range(a, b) if not self.is_trans[m]]
-            trans = [m for m in range(a, b) if self.is_trans[m]]
-            perm_rot += range(len(perm), len(perm) + len(rot))
-            perm_trans += range(len(perm) + len(rot), b)
-            perm += rot + trans
-        self.perm = np.array(perm, dtype=int)
-        self.perm_rot, self.perm_trans = np.array(perm_rot, dtype=int), np.array(perm_trans, dtype=int)
+            z_points += range(mid, mid + len(rot))
+            z_map += [n_ops + m for m in rot]
+            z_map += [2 * n_ops + 4 * s + r for r in range(4)]
+            z_slices.append((lo, mid, len(z_map)))
+        self.z_map, self.z_slices, self.z_rows = np.array(z_map), z_slices, len(z_map)
+        self.z_points, self.z_rot_axes = np.array(z_points, dtype=int), np.array(z_rot_axes, dtype=int)
+        self.z_trans_axes = np.array(z_trans_axes, dtype=int)
         self.cols_rot = self.cols[self.rot_idx]
-        self.cols_trans = self.cols[self.perm[self.perm_trans]]
+        self.cols_trans = self.cols[self.is_trans]
         self.head_joint = np.array([h.joint for h in self.heads if h is not None])
         self.head_param = np.array([h.param for h in self.heads if h is not None])
         self.joint_param = np.array([ops[k].param for k in sorted(joint_ops, key=lambda k: ops[k].joint)])
@@ -153,25 +160,25 @@ class Chain:
     def forward_and_jacobian(self, values: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Positions (N,3) and parameter Jacobian (N,3,P) by forward propagation of frames.
 
-        Pass 1 propagates the frames; for each segment, the frame just after its joint op gives the
-        world axes (and, for rotations, points) of all the segment's ops by BLAS products. Then one
-        batched cross product u × (p − o) makes every rotation column; translation columns are the
-        axes themselves. Intermediates live in one block written in place: many small temporaries
-        make glibc return and re-fault heap pages on every call, which costs more than the arithmetic.
+        For each segment, one BLAS product of a stacked constant matrix with the frame just after
+        its joint op gives the world axes of all its ops, the world points of its rotation ops and
+        the next segment's frame and origin. Then one batched cross product u × (p − o) makes every
+        rotation column; translation columns are the axes themselves. Intermediates live in one block
+        written in place: many small temporaries make glibc return and re-fault heap pages on every
+        call, which costs more than the arithmetic here.
         """
         n = q.shape[0]
         ends, A, B = self._segment_frames(values, True)
-        S, n_ops, n_rot = len(self.segments), len(self.ops), self.rot_idx.size
-        F, N4, origins, U, D, Cx, tmp = _carve(
-            n, (3, 3), (4, 3), (S + 1, 3), (n_ops, 3), (n_rot, 3), (n_rot, 3), (max(n_rot, 3),))
-        Ap, Br = A[self.perm], B[self.rot_idx]
+        S, n_rot = len(self.segments), self.rot_idx.size
+        F, Z, origins, Cx, tmp = _carve(n, (3, 3), (self.z_rows, 3), (S + 1, 3), (n_rot, 3), (max(n_rot, 3),))
+        G = np.concatenate([A, B, np.concatenate(ends)])[self.z_map]  # (z_rows, 3) stacked constants
         X = q.T[self.head_joint] + values[self.head_param][:, None]  # joint-op values, (n_joints, N)
         C, Sn = np.cos(X), np.sin(X)
         W = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n))  # W[k] = world axis k of the frame
         t3 = tmp[:3]
         origins[0] = 0.0
         k = 0
-        for s, (M, head) in enumerate(zip(ends, self.heads)):
+        for s, head in enumerate(self.heads):
             o = origins[s]
             if head is None or head.kind == TRANS:  # F: the frame just after the joint op
                 F[...] = W
@@ -189,27 +196,22 @@ class Chain:
                 F[j] -= t3
                 F[head.axis] = W[head.axis]
             k += head is not None
-            Ff = F.reshape(3, -1)
-            lo, hi = self.seg_slices[s], self.seg_slices[s + 1]
-            np.matmul(Ap[lo:hi], Ff, out=U[lo:hi].reshape(hi - lo, -1))  # world axes of the ops
-            rlo, rhi = self.rot_slices[s], self.rot_slices[s + 1]
-            if rhi > rlo:
-                np.matmul(Br[rlo:rhi], Ff, out=D[rlo:rhi].reshape(rhi - rlo, -1))
-                D[rlo:rhi] += o  # world points of the rotation ops
-            # the next segment's frame and origin in one product with [Rᵀ; t]
-            np.matmul(M, Ff, out=N4.reshape(4, -1))
-            np.add(o, N4[3], out=origins[s + 1])
-            W = N4[:3]
+            lo, mid, hi = self.z_slices[s]
+            np.matmul(G[lo:hi], F.reshape(3, -1), out=Z[lo:hi].reshape(hi - lo, -1))
+            Z[mid:hi - 4] += o  # world points of the rotation ops
+            np.add(o, Z[hi - 1], out=origins[s + 1])
+            W = Z[hi - 4:hi - 1]
         p = origins[S]
+        D = Z[self.z_points]
         np.subtract(p, D, out=D)  # p − o for every rotation op
-        Ur, tr = U[self.perm_rot], tmp[:n_rot]
+        Ur, tr = Z[self.z_rot_axes], tmp[:n_rot]
         for a, b, c_ in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
             np.multiply(Ur[:, b], D[:, c_], out=Cx[:, a])
             np.multiply(Ur[:, c_], D[:, b], out=tr)
             Cx[:, a] -= tr
         JT = np.empty((self.n_params, 3, n))
         JT[self.cols_rot] = Cx
-        JT[self.cols_trans] = U[self.perm_trans]
+        JT[self.cols_trans] = Z[self.z_trans_axes]
         if self.unused.size:
             JT[self.unused] = 0.0
         return np.ascontiguousarray(p.T), JT.transpose(2, 1, 0)
