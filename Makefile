@@ -13,8 +13,16 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet --disable-pip-version-check -e '.[dev]'
 	touch $(STAMP)
 
+DATA = data/ur5_wam_gts3800
+UR5  = --length-unit mm --angle-unit deg --joint-cols joint_1,joint_2,joint_3,joint_4,joint_5,joint_6
+
 demo: setup
 	$(VENV)/bin/kincal demo
+	@echo
+	@echo "Real laser-tracker data: calibrate the UR5 on 1000 grid poses, evaluate on 20 unseen poses"
+	$(VENV)/bin/kincal evaluate ur5 $(DATA)/ur5_random.csv $(UR5)
+	$(VENV)/bin/kincal calibrate ur5 $(DATA)/ur5_grid.csv $(UR5) -o .venv/ur5_calibrated.yaml > /dev/null
+	$(VENV)/bin/kincal evaluate .venv/ur5_calibrated.yaml $(DATA)/ur5_random.csv $(UR5)
 
 test: setup
 	$(PY) -m pytest -q

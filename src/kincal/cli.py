@@ -51,6 +51,8 @@ def _progress(message: str, quiet: bool):
 def _emit(args, payload: dict, text) -> None:
     if args.json:
         sys.stdout.write(json.dumps(payload, indent=2, default=_json_default) + "\n")
+    elif isinstance(text, str):
+        out.print(text, markup=False)
     else:
         out.print(text)
 
@@ -196,7 +198,7 @@ def cmd_demo(args) -> int:
         return 0
     out.print(f"[bold]kincal demo[/bold]: UR5 with random errors (±0.5 mm, ±0.05°), {args.poses} random "
               f"poses, tracker noise {args.noise * 1e3:.0f} µm per axis, validation on 200 other poses (noise-free)")
-    out.print(res.identifiability)
+    out.print(str(res.identifiability), markup=False)
     t = Table("validation (200 poses)", "mean mm", "rms mm", "max mm", "p95 mm")
     for label, s in (("nominal model", before), ("calibrated model", after)):
         t.add_row(label, f"{s.mean * MM:.4f}", f"{s.rms * MM:.4f}", f"{s.max * MM:.4f}", f"{s.p95 * MM:.4f}")
