@@ -182,3 +182,10 @@ def test_models_are_immutable(ur5):
         ur5.params.values[0] = 1.0
     moved = ur5.with_params({"j2.a": -0.43})
     assert ur5.params["j2.a"] == -0.425 and moved.params["j2.a"] == -0.43
+
+
+def test_cos_sin_matches_numpy_everywhere():
+    from kincal.models.chain import cos_sin
+    x = np.concatenate([np.linspace(-50, 50, 200001), np.pi * np.arange(-8, 9) / 2, [0.0, -0.0, 1e-300]])
+    c, s = cos_sin(x)
+    assert np.abs(c - np.cos(x)).max() < 1e-15 and np.abs(s - np.sin(x)).max() < 1e-15

@@ -105,21 +105,34 @@ def calibrate(
     idx = start.params.indices(names)
     v0 = start.params.values.copy()
 
-    def residual(x: np.ndarray, w: np.ndarray):
+    def values(x: np.ndarray) -> np.ndarray:
         v = v0.copy()
         v[idx] = x
-        p, J, _ = start.forward_and_jacobian(q, v)
-        sw = np.sqrt(w)[:, None]
-        return ((p - xyz) * sw).ravel(), (J[:, :, idx] * sw[:, :, None]).reshape(-1, K)
+        return v
+
+    def residual(x: np.ndarray, w: np.ndarray | None):
+        """Stacked residual and Jacobian, ordered axis-major (all x, then all y, then all z) so the
+        Jacobian is a transposed view of the model's parameter rows, without a copy per call."""
+        p, J = start.forward_and_jacobian(q, values(x))
+        r = (p - xyz).T.ravel()
+        Jt = J.transpose(2, 1, 0)[idx].reshape(K, -1)  # (K, 3N)
+        if w is not None:
+            sw = np.tile(np.sqrt(w), 3)
+            r, Jt = r * sw, Jt * sw
+        return r, Jt.T
+
+    def pose_norms(x: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(xyz - start.forward(q, values(x)), axis=1)
 
     say(f"fitting {K} parameters to {len(meas)} poses")
-    w = np.ones(len(meas))
-    fit = levenberg_marquardt(lambda x: residual(x, w), v0[idx], max_iter=max_iter)
+    w = None
+    fit = levenberg_marquardt(lambda x: residual(x, None), v0[idx], max_iter=max_iter)
     iterations, evaluations = fit.iterations, fit.evaluations
     if loss != "linear":
         auto_scale = f_scale is None
+        w = np.ones(len(meas))
         for _ in range(MAX_IRLS):
-            norms = np.linalg.norm(residual(fit.x, np.ones(len(meas)))[0].reshape(-1, 3), axis=1)
+            norms = pose_norms(fit.x)
             if auto_scale:  # 3 robust sigmas; the median of a 3-D Gaussian norm is 1.538 sigma
                 f_scale = max(3.0 * float(np.median(norms)) / 1.538, 1e-9)
             w_new = _robust_weights(norms, loss, f_scale)
@@ -151,7 +164,7 @@ def calibrate(
         std={n: float(s) for n, s in zip(names, sd)},
         correlation=corr,
         residuals=res,
-        sigma=float(np.sqrt(sigma2 / np.mean(w))),
+        sigma=float(np.sqrt(sigma2 / (1.0 if w is None else np.mean(w)))),
         stats_before=EvaluationStats.from_errors(xyz - robot.forward(q)),
         stats_after=EvaluationStats.from_errors(res),
         iterations=iterations,

@@ -1,6 +1,6 @@
 """Levenberg–Marquardt for small dense least-squares problems, with column scaling.
 
-Minimises ½‖r(x)‖² where ``fun(x) -> (r (M,), J (M,K))``. Steps solve the damped, column-scaled
+Minimises ½‖r(x)‖² where ``fun(x) -> (r (M,), J (M,K))`` (J may be a transposed view). Steps solve the damped, column-scaled
 normal equations ``(AᵀA + μI) h = -Aᵀr`` with ``A = J D⁻¹`` (D: running maximum of the column norms,
 Moré's scaling), and μ follows Nielsen's gain-ratio rule. Cheap for M ≫ K (a K×K Cholesky per step).
 """
@@ -46,9 +46,8 @@ def levenberg_marquardt(
     it = 0
     for it in range(1, max_iter + 1):
         D = np.maximum(D, np.linalg.norm(J, axis=0))
-        A = J / D
-        H = A.T @ A
-        g = A.T @ r
+        H = (J.T @ J) / np.outer(D, D)  # normal matrix of the scaled problem A = J D⁻¹
+        g = (J.T @ r) / D
         if np.max(np.abs(g)) <= gtol * max(1.0, np.sqrt(2 * cost)):
             converged, message = True, "gradient below tolerance"
             break

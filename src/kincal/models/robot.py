@@ -41,8 +41,12 @@ class Robot(ABC):
     @abstractmethod
     def forward_and_jacobian(
         self, q: np.ndarray, params: np.ndarray | None = None, jacobian: bool = True
-    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-        """Tool positions (N,3) m, parameter Jacobian (N,3,P) and joint Jacobian (N,3,n) in one pass."""
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Tool positions (N,3) m and parameter Jacobian (N,3,P) (None if not ``jacobian``) in one pass."""
+
+    @abstractmethod
+    def joint_jacobian(self, q: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
+        """d position / d joint values, (N,3,n)."""
 
     def preferred_params(self) -> tuple[str, ...]:
         """Names to keep first when parameters are confounded (after any the user lists)."""
@@ -92,12 +96,6 @@ class Robot(ABC):
         squeeze = np.ndim(q) == 1
         J = self.forward_and_jacobian(q, params)[1]
         return J[0] if squeeze else J
-
-    def joint_jacobian(self, q: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
-        """d position / d joint values, (N,3,n)."""
-        squeeze = np.ndim(q) == 1
-        Jq = self.forward_and_jacobian(q, params)[2]
-        return Jq[0] if squeeze else Jq
 
     def sample_joints(self, n: int, seed: int | None = 0, margin: float = 0.0) -> np.ndarray:
         """n joint vectors drawn uniformly inside the limits (shrunk by ``margin`` of each range), (n, n_joints)."""

@@ -171,9 +171,14 @@ class SerialRobot(Robot):
         q = self.check_q(q)
         values = self.param_values(params)
         if not jacobian:
-            return self._chain.forward(values, q), None, None
-        p, J = self._chain.forward_and_jacobian(values, q)
-        return p, J, J[:, :, self._chain.joint_param]
+            return self._chain.forward(values, q), None
+        return self._chain.forward_and_jacobian(values, q)
+
+    def joint_jacobian(self, q, params=None):
+        squeeze = np.ndim(q) == 1
+        # every joint drives one op, whose parameter (θ or d) it adds to: same column
+        Jq = self.param_jacobian(q, params)[..., self._chain.joint_param]
+        return Jq[0] if squeeze else Jq
 
     def preferred_params(self) -> tuple[str, ...]:
         """The tool point, then the base frame: well-conditioned, physical stand-ins for joint terms."""
