@@ -126,7 +126,8 @@ def identifiability(
     rank = int(np.sum(s > tol * s[0])) if s.size else 0
     gap = float(s[rank - 1] / s[rank]) if 0 < rank < s.size and s[rank] > 0 else float("inf")
 
-    order = _pivot_order(R0, live_names, [list(keep), list(robot.preferred_params())], rank, tol)
+    order = _pivot_order(R0, live_names, [list(keep), list(robot.preferred_params())], rank,
+                         tol * s[0] if s.size else 0.0)
     ident = [live_names[k] for k in order[:rank]]
     drop_live = [live_names[k] for k in order[rank:]]
 
@@ -165,9 +166,10 @@ def identifiability(
                            cond_raw, cond_scaled, tol, tuple(notes))
 
 
-def _pivot_order(Js: np.ndarray, names: list[str], stages: list[list[str]], rank: int, tol: float) -> list[int]:
-    """Column order: pivoted QR stage by stage (each stage's columns projected off those already chosen),
-    the columns of no stage last."""
+def _pivot_order(Js: np.ndarray, names: list[str], stages: list[list[str]], rank: int, cutoff: float) -> list[int]:
+    """Column order: pivoted QR stage by stage (each stage's columns projected off those already chosen,
+    a column counting when its residual exceeds ``cutoff``), the columns of no stage last; the first
+    ``rank`` entries are the chosen columns."""
     groups, seen = [], set()
     for stage in stages:
         g = [k for k, n in enumerate(names) if n in set(stage) and k not in seen]
@@ -176,13 +178,14 @@ def _pivot_order(Js: np.ndarray, names: list[str], stages: list[list[str]], rank
     groups.append([k for k in range(len(names)) if k not in seen])
     chosen: list[int] = []
     Q = np.zeros((Js.shape[0], 0))
-    for group in groups:
+    for g, group in enumerate(groups):
         if not group or len(chosen) >= rank:
             continue
         M = Js[:, group] - Q @ (Q.T @ Js[:, group])
         _, R, piv = sla.qr(M, mode="economic", pivoting=True)
         d = np.abs(np.diag(R))
-        take = min(int(np.sum(d > tol * 10)), rank - len(chosen))
+        last = g == len(groups) - 1  # the last stage completes the rank whatever its residuals
+        take = rank - len(chosen) if last else min(int(np.sum(d > cutoff)), rank - len(chosen))
         picked = [group[k] for k in piv[:take]]
         chosen += picked
         Q = np.linalg.qr(Js[:, chosen])[0] if chosen else Q

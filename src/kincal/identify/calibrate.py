@@ -50,7 +50,14 @@ def calibrate(
     base     -- "estimate": register the measurement frame (Kabsch on the nominal predictions), then
                 fit the base frame jointly with the kinematics; "fixed": the base frame is known
     loss     -- "linear" (least squares), or "huber" / "soft_l1" on each pose's 3-D residual norm
-                (iteratively reweighted; ``f_scale`` in m, default 3 robust sigmas of the linear fit)
+                (iteratively reweighted; ``f_scale`` in m, default 3 robust sigmas of the residuals,
+                re-estimated at every reweighting)
+    method   -- "lm": Levenberg–Marquardt with the analytic Jacobian and column scaling
+    max_iter -- LM iteration limit; a fit that stops there is returned with ``converged=False``
+    progress -- called with a short message at each stage (the CLI shows it)
+
+    Returns a :class:`CalibrationResult`. Raises MeasurementError for data that cannot belong to the
+    robot or is too little, IdentifiabilityError when an explicit ``params`` list is not identifiable.
     keep     -- names to prefer when choosing among confounded parameters
     tol      -- relative singular-value tolerance of the identifiability check (column-scaled); the
                 default also leaves out parameters the poses determine only very weakly, which would
