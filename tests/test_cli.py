@@ -82,3 +82,15 @@ def test_console_script_is_installed():
     assert proc.returncode == 0 and "ur5" in proc.stdout
     proc = subprocess.run([sys.executable, "-m", "kincal.cli", "show", "nope"], capture_output=True, text=True)
     assert proc.returncode == 1 and proc.stderr.startswith("kincal: error:")
+
+
+def test_simulate_at_given_joint_values(tmp_path, capsys):
+    """Poses from a CSV without positions (e.g. a designed pose list), in degrees."""
+    poses = tmp_path / "poses.csv"
+    q_deg = np.array([[10, -80, 90, 0, 90, 0], [40, -60, 70, 20, 100, 30], [-20, -100, 120, -30, 60, 10]], float)
+    poses.write_text("j1;j2;j3;j4;j5;j6\n" + "\n".join(";".join(str(v) for v in row) for row in q_deg) + "\n")
+    out = tmp_path / "sim.csv"
+    run_json(capsys, "simulate", "ur5", "--joints", poses, "--noise", "0", "-o", out, "--angle-unit", "deg")
+    meas = kincal.read_measurements(out, kincal.load_robot("ur5"), angle_unit="deg")
+    np.testing.assert_allclose(meas.q, np.deg2rad(q_deg), atol=1e-12)
+    np.testing.assert_allclose(meas.xyz, kincal.load_robot("ur5").forward(np.deg2rad(q_deg)), atol=1e-12)

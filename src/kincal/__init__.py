@@ -10,7 +10,7 @@ The stable API::
 from .analysis import Identifiability, identifiability
 from .errors import ConvergenceError, IdentifiabilityError, KincalError, MeasurementError, ModelError
 from .identify import CalibrationResult, EvaluationStats, calibrate, evaluate
-from .io import Measurements, read_measurements, write_measurements
+from .io import Measurements, read_joints, read_measurements, write_measurements
 from .models import Joint, Parameters, Robot, SerialRobot, bundled_robots, load_robot, save_robot
 from .simulate import perturb, simulate
 
@@ -19,6 +19,6 @@ __version__ = "0.1.0"
 __all__ = [
     "Identifiability", "identifiability", "ConvergenceError", "IdentifiabilityError", "KincalError",
     "MeasurementError", "ModelError", "CalibrationResult", "EvaluationStats", "calibrate", "evaluate",
-    "Measurements", "read_measurements", "write_measurements", "Joint", "Parameters", "Robot", "SerialRobot",
+    "Measurements", "read_joints", "read_measurements", "write_measurements", "Joint", "Parameters", "Robot", "SerialRobot",
     "bundled_robots", "load_robot", "save_robot", "perturb", "simulate",
 ]

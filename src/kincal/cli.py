@@ -116,7 +116,7 @@ def cmd_simulate(args) -> int:
     if args.perturb:
         true = kincal.perturb(r, length=args.length_error / MM, angle=args.angle_error / DEG, seed=args.seed)
     if args.joints:
-        q = _read_joints(args, r)
+        q = kincal.read_joints(args.joints, r, args.joint_cols, args.length_unit, args.angle_unit)
     else:
         q = r.sample_joints(args.poses, seed=args.seed)
     meas = kincal.simulate(true, q, noise=args.noise / MM, seed=args.seed + 1)
@@ -129,27 +129,6 @@ def cmd_simulate(args) -> int:
     _emit(args, payload, f"wrote {len(meas)} simulated measurements of {true.name} to {args.output}"
           + (f" (true robot saved to {args.save_true})" if args.save_true else ""))
     return 0
-
-
-def _read_joints(args, robot) -> np.ndarray:
-    """Joint values from a CSV that may have no position columns."""
-    import csv
-    with open(args.joints, newline="") as fh:
-        header = next(csv.reader(fh), [])
-    cols = args.joint_cols or list(robot.joint_names)
-    if all(c in header for c in args.xyz_cols):
-        return _read(args, robot, args.joints).q
-    missing = [c for c in cols if c not in header]
-    if missing:
-        raise kincal.MeasurementError(f"{args.joints}: column(s) {', '.join(missing)} not found; "
-                                      f"the header has: {', '.join(header)}")
-    data = np.genfromtxt(args.joints, delimiter=",", names=True)
-    q = np.column_stack([data[c] for c in cols]).astype(float)
-    if not np.all(np.isfinite(q)):
-        raise kincal.MeasurementError(f"{args.joints}: non-numeric or missing joint values")
-    scale = np.array([1 / DEG if args.angle_unit == "deg" else 1.0 if t == "revolute" else
-                      {"m": 1.0, "mm": 1e-3, "um": 1e-6}[args.length_unit] for t in robot.joint_types])
-    return q * scale
 
 
 def cmd_calibrate(args) -> int:

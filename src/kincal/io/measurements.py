@@ -110,6 +110,77 @@ def _sniff_delimiter(header: str, path: str) -> str:
     return best
 
 
+def _read_columns(path: str, columns: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Numeric values of ``columns`` from a CSV with a header, (rows, len(columns)), and the rows'
+    1-based line numbers. Errors name the file, row and column."""
+    try:
+        text = Path(path).read_text()
+    except OSError as exc:
+        raise MeasurementError(f"{path}: cannot read the file ({exc.strerror})") from None
+    lines = text.splitlines()
+    if not lines or not lines[0].strip():
+        raise MeasurementError(f"{path}: the file is empty; expected a header line and one row per pose")
+    reader = csv.reader(_io.StringIO(text), delimiter=_sniff_delimiter(lines[0], path))
+    header = [h.strip() for h in next(reader)]
+    missing = [c for c in columns if c not in header]
+    if missing:
+        raise MeasurementError(
+            f"{path}: column(s) {', '.join(missing)} not found; the header has: {', '.join(header)}"
+        )
+    idx = [header.index(c) for c in columns]
+    rows, line_no = [], []
+    for k, rec in enumerate(reader, start=2):
+        if not rec or all(not c.strip() for c in rec):
+            continue
+        if len(rec) < len(header):
+            raise MeasurementError(f"{path}: row {k} has {len(rec)} fields, the header has {len(header)}")
+        try:
+            rows.append([float(rec[i]) for i in idx])
+        except ValueError:
+            col = next(header[i] for i in idx if not _is_float(rec[i]))
+            raise MeasurementError(
+                f"{path}: row {k}, column '{col}': '{rec[header.index(col)]}' is not a number"
+            ) from None
+        line_no.append(k)
+    if not rows:
+        raise MeasurementError(f"{path}: no data rows after the header")
+    return np.array(rows), np.array(line_no)
+
+
+def _joint_columns(path: str, robot: Robot, joint_cols: Sequence[str] | None) -> list[str]:
+    cols = list(joint_cols) if joint_cols is not None else list(robot.joint_names)
+    if len(cols) != robot.n_joints:
+        raise MeasurementError(
+            f"{path}: {len(cols)} joint columns given ({', '.join(cols)}) but robot '{robot.name}' "
+            f"has {robot.n_joints} joints; give one column per joint"
+        )
+    return cols
+
+
+def _joint_scale(joint_types: Sequence[str], length_unit: str, angle_unit: str, path: str) -> np.ndarray:
+    """SI factor per joint: angle unit for revolute joints, length unit for prismatic ones."""
+    lf, af = _unit(length_unit, "length", path), _unit(angle_unit, "angle", path)
+    return np.array([af if t == "revolute" else lf for t in joint_types])
+
+
+def read_joints(
+    path: str | os.PathLike,
+    robot: Robot,
+    joint_cols: Sequence[str] | None = None,
+    length_unit: str = "m",
+    angle_unit: str = "rad",
+) -> np.ndarray:
+    """Joint values (N, n) in rad/m from a CSV with a header (e.g. poses to measure)."""
+    path = str(path)
+    cols = _joint_columns(path, robot, joint_cols)
+    q, lines = _read_columns(path, cols)
+    bad = ~np.all(np.isfinite(q), axis=1)
+    if bad.any():
+        raise MeasurementError(f"{path}: NaN or infinite joint values in row(s) "
+                               f"{', '.join(str(r) for r in lines[bad][:MAX_LISTED])}; remove or fix those rows")
+    return q * _joint_scale(robot.joint_types, length_unit, angle_unit, path)
+
+
 def read_measurements(
     path: str | os.PathLike,
     robot: Robot,
@@ -121,56 +192,17 @@ def read_measurements(
     """Read a CSV (header line; comma, semicolon or tab separated) of joint values and positions.
 
     joint_cols default to the robot's joint names. Revolute joints are in ``angle_unit``, prismatic
-    joints and positions in ``length_unit``. Values are returned in SI units.
+    joints and positions in ``length_unit``. Values are returned in SI units; data whose scale looks
+    like the wrong unit is refused with the unit to use.
     """
     path = str(path)
-    lf = _unit(length_unit, "length", path)
-    af = _unit(angle_unit, "angle", path)
-    try:
-        text = Path(path).read_text()
-    except OSError as exc:
-        raise MeasurementError(f"{path}: cannot read the file ({exc.strerror})") from None
-    lines = text.splitlines()
-    if not lines or not lines[0].strip():
-        raise MeasurementError(f"{path}: the file is empty; expected a header line and one row per pose")
-    delim = _sniff_delimiter(lines[0], path)
-    reader = csv.reader(_io.StringIO(text), delimiter=delim)
-    header = [h.strip() for h in next(reader)]
-    joint_cols = list(joint_cols) if joint_cols is not None else list(robot.joint_names)
-    if len(joint_cols) != robot.n_joints:
-        raise MeasurementError(
-            f"{path}: {len(joint_cols)} joint columns given ({', '.join(joint_cols)}) but robot '{robot.name}' "
-            f"has {robot.n_joints} joints; give one column per joint"
-        )
+    cols = _joint_columns(path, robot, joint_cols)
     if len(xyz_cols) != 3:
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
-    missing = [c for c in list(joint_cols) + list(xyz_cols) if c not in header]
-    if missing:
-        raise MeasurementError(
-            f"{path}: column(s) {', '.join(missing)} not found; the header has: {', '.join(header)}"
-        )
-    jidx = [header.index(c) for c in joint_cols]
-    pidx = [header.index(c) for c in xyz_cols]
-    q_rows, p_rows, line_no = [], [], []
-    for k, rec in enumerate(reader, start=2):
-        if not rec or all(not c.strip() for c in rec):
-            continue
-        if len(rec) < len(header):
-            raise MeasurementError(f"{path}: row {k} has {len(rec)} fields, the header has {len(header)}")
-        try:
-            q_rows.append([float(rec[i]) for i in jidx])
-            p_rows.append([float(rec[i]) for i in pidx])
-        except ValueError:
-            col = next(header[i] for i in jidx + pidx if not _is_float(rec[i]))
-            raise MeasurementError(
-                f"{path}: row {k}, column '{col}': '{rec[header.index(col)]}' is not a number"
-            ) from None
-        line_no.append(k)
-    if not q_rows:
-        raise MeasurementError(f"{path}: no data rows after the header")
-    q = np.array(q_rows)
-    scale = np.array([af if t == "revolute" else lf for t in robot.joint_types])
-    meas = Measurements(q * scale, np.array(p_rows) * lf, robot.joint_names, path, np.array(line_no))
+    data, lines = _read_columns(path, cols + list(xyz_cols))
+    n = robot.n_joints
+    meas = Measurements(data[:, :n] * _joint_scale(robot.joint_types, length_unit, angle_unit, path),
+                        data[:, n:] * _unit(length_unit, "length", path), robot.joint_names, path, lines)
     meas.check_robot(robot, length_unit, angle_unit)
     return meas
 
@@ -199,10 +231,9 @@ def write_measurements(
     joint_cols: Sequence[str] | None = None,
 ) -> None:
     """Write measurements as a comma-separated CSV (atomically) in the given units."""
-    lf = 1.0 / _unit(length_unit, "length", str(path))
-    af = 1.0 / _unit(angle_unit, "angle", str(path))
     types = list(joint_types) if joint_types is not None else ["revolute"] * meas.q.shape[1]
-    scale = np.array([af if t == "revolute" else lf for t in types])
+    scale = 1.0 / _joint_scale(types, length_unit, angle_unit, str(path))
+    lf = 1.0 / _unit(length_unit, "length", str(path))
     cols = list(joint_cols) if joint_cols is not None else list(meas.joint_names)
     buf = _io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
