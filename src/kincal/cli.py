@@ -103,9 +103,13 @@ def cmd_show(args) -> int:
 
 def cmd_identifiability(args) -> int:
     r = kincal.load_robot(args.robot)
-    q = _read(args, r, args.data).q if args.data else r.sample_joints(args.poses, seed=args.seed)
-    ident = kincal.identifiability(r, q, exclude=r.base_params() if args.base == "fixed" else (),
-                                   keep=args.keep or (), tol=args.tol)
+    if args.data:
+        q = kincal.read_joints(args.data, r, args.joint_cols, args.length_unit, args.angle_unit)
+    else:
+        q = r.sample_joints(args.poses, seed=args.seed)
+    fixed = args.base == "fixed"
+    ident = kincal.identifiability(r, q, exclude=r.base_params() if fixed else (),
+                                   keep=list(args.keep or ()) + ([] if fixed else list(r.base_params())), tol=args.tol)
     _emit(args, ident.to_dict(), str(ident))
     return 0
 
@@ -205,7 +209,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = cmd("identifiability", cmd_identifiability, "which parameters position data can identify")
     s.add_argument("robot")
-    s.add_argument("--data", help="measurement CSV whose poses to analyse (default: random poses)")
+    s.add_argument("--data", help="CSV of poses (joint columns) to analyse (default: random poses)")
     s.add_argument("--poses", type=int, default=100, help="number of random poses (default 100)")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--base", choices=["estimate", "fixed"], default="estimate")

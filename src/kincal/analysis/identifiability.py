@@ -155,10 +155,7 @@ def identifiability(
         cond_raw = float(np.linalg.cond(Rs * norms[live][sel]))
     else:
         cond_raw = cond_scaled = float("inf")
-    notes = []
-    structure = getattr(robot, "structure_notes", None)
-    if structure is not None:
-        notes += structure()
+    notes = list(robot.structure_notes())
     if rank and gap < 1e3:
         notes.append(f"the rank is not clear-cut (gap {gap:.3g} < 1e3): the poses hardly excite some "
                      f"parameters; add poses or check the model")

@@ -52,6 +52,10 @@ class Robot(ABC):
         """Names to keep first when parameters are confounded (after any the user lists)."""
         return ()
 
+    def structure_notes(self) -> list[str]:
+        """Warnings about the model's structure (e.g. parallel axes without β); none by default."""
+        return []
+
     def base_params(self) -> tuple[str, ...]:
         """Names of the 6 base-frame parameters (x y z rx ry rz), or () if the model has no base frame."""
         return ()
