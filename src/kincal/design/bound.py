@@ -1,0 +1,104 @@
+"""Continuous relaxation of D-optimal design with a certified upper bound.
+
+    maximise f(w) = log det Σ wᵢ JᵢᵀJᵢ   subject to Σ wᵢ = m, 0 ≤ wᵢ ≤ 1.
+
+Every exact design of m distinct candidates is a feasible w, so the relaxed optimum bounds the best
+exact design from above. f is concave with ∂f/∂wᵢ = dᵢ = tr(M⁻¹JᵢᵀJᵢ) and Σ wᵢdᵢ = k, so for any
+feasible w (Frank–Wolfe duality)
+
+    f* ≤ f(w) + max_{v feasible} ∇f(w)·(v − w) = f(w) + (sum of the m largest dᵢ) − k,
+
+which is the certificate reported, whatever the solver's progress. The solver is accelerated projected
+gradient ascent with backtracking (projection onto the capped simplex by bisection on the shift).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .problem import DesignProblem
+
+
+@dataclass(frozen=True)
+class Bound:
+    """upper: certified upper bound on log det M of any m-point design (scaled units);
+    relaxed: log det at the relaxed solution found; gap = upper − relaxed."""
+
+    upper: float
+    relaxed: float
+    weights: np.ndarray
+    iterations: int
+
+    @property
+    def gap(self) -> float:
+        return self.upper - self.relaxed
+
+    def to_dict(self) -> dict:
+        return {"upper": self.upper, "relaxed": self.relaxed, "gap": self.gap, "iterations": self.iterations}
+
+
+def _project(v: np.ndarray, m: float) -> np.ndarray:
+    """Euclidean projection onto {0 ≤ w ≤ 1, Σw = m}: w = clip(v − τ, 0, 1) with τ by bisection."""
+    lo, hi = v.min() - 1.0, v.max()
+    for _ in range(60):
+        tau = 0.5 * (lo + hi)
+        if np.clip(v - tau, 0.0, 1.0).sum() > m:
+            lo = tau
+        else:
+            hi = tau
+    return np.clip(v - 0.5 * (lo + hi), 0.0, 1.0)
+
+
+def _eval(P: DesignProblem, w: np.ndarray):
+    M = P.information(np.arange(P.N), w)
+    try:
+        L = np.linalg.cholesky(M)
+    except np.linalg.LinAlgError:
+        return -np.inf, None
+    Y = np.linalg.solve(L, P.rows.T)  # (k, 3N): L⁻¹Jᵀ
+    d = np.sum((Y * Y).reshape(P.k, P.N, 3), axis=(0, 2))
+    return 2.0 * float(np.sum(np.log(np.diag(L)))), d
+
+
+def relaxed_bound(P: DesignProblem, m: int, tol: float = 2e-3, max_iter: int = 300) -> Bound:
+    """Certified upper bound on log det M over m-point designs of the problem's candidates.
+
+    Accelerated projected-gradient ascent (FISTA with restarts) from uniform weights; it stops when
+    the certified gap is below ``tol`` (an efficiency uncertainty of about tol/k).
+    """
+    N, k = P.N, P.k
+    w = np.full(N, m / N)
+    f, d = _eval(P, w)
+    best_upper = np.inf
+    step = m / max(k, 1)
+    y, fy, dy, t = w, f, d, 1.0  # extrapolated point (FISTA)
+    it = 0
+    for it in range(1, max_iter + 1):
+        best_upper = min(best_upper, f + np.sort(d)[-m:].sum() - k)
+        if best_upper - f <= tol:
+            break
+        while True:  # backtracking from the extrapolated point
+            w_new = _project(y + step * dy, m)
+            f_new, d_new = _eval(P, w_new)
+            diff = w_new - y
+            if f_new >= fy + dy @ diff - diff @ diff / (2 * step):
+                break
+            step *= 0.5
+            if step < 1e-14:
+                break
+        if step < 1e-14:
+            break
+        if f_new < f:  # restart the momentum when it overshoots
+            y, fy, dy, t = w, f, d, 1.0
+            continue
+        t_new = 0.5 * (1 + np.sqrt(1 + 4 * t * t))
+        y = w_new + (t - 1) / t_new * (w_new - w)
+        y = _project(y, m)
+        fy, dy = _eval(P, y)
+        if dy is None:
+            y, fy, dy = w_new, f_new, d_new
+        w, f, d, t = w_new, f_new, d_new, t_new
+        step *= 1.5
+    best_upper = min(best_upper, f + np.sort(d)[-m:].sum() - k)
+    return Bound(float(best_upper), float(f), w, it)

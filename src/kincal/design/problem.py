@@ -1,0 +1,78 @@
+"""The design problem: per-candidate Jacobian blocks of the parameters to identify, column-scaled."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ..analysis.identifiability import identifiability
+from ..analysis.observability import column_scale
+from ..errors import IdentifiabilityError
+from ..models.robot import Robot
+
+
+@dataclass(frozen=True, eq=False)
+class DesignProblem:
+    """Candidate poses q (N, n) and their scaled position Jacobians J (N, 3, k) for ``names``.
+
+    ``scale`` (k,) multiplies the raw columns (see :func:`kincal.analysis.observability.column_scale`);
+    it is fixed by the pool so every design of this problem is measured in the same units.
+    """
+
+    q: np.ndarray
+    J: np.ndarray
+    names: tuple[str, ...]
+    scale: np.ndarray
+
+    @property
+    def N(self) -> int:
+        return self.J.shape[0]
+
+    @property
+    def k(self) -> int:
+        return self.J.shape[2]
+
+    @property
+    def rows(self) -> np.ndarray:
+        """(3N, k) stacked blocks."""
+        return self.J.reshape(-1, self.k)
+
+    def information(self, idx: Sequence[int] | np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+        """M = Σ wᵢ JᵢᵀJᵢ over the candidates ``idx`` (k, k)."""
+        Js = self.J[np.asarray(idx)].reshape(-1, self.k)
+        if weights is None:
+            return Js.T @ Js
+        return (Js * np.repeat(np.asarray(weights, float), 3)[:, None]).T @ Js
+
+    def logdet(self, idx: Sequence[int] | np.ndarray) -> float:
+        """log det M of a design (−inf if singular)."""
+        sign, val = np.linalg.slogdet(self.information(idx))
+        return float(val) if sign > 0 else -np.inf
+
+    def stacked(self, idx: Sequence[int] | np.ndarray) -> np.ndarray:
+        """Stacked scaled Jacobian of a design, (3m, k)."""
+        return self.J[np.asarray(idx)].reshape(-1, self.k)
+
+
+def design_problem(robot: Robot, pool_q: np.ndarray, params: Sequence[str] | None = None,
+                   base: str = "estimate") -> DesignProblem:
+    """Build the problem for ``robot`` on the candidate pool (N, n).
+
+    params -- parameters to design for; default: the identifiable set at the pool (base frame kept
+              first when ``base="estimate"``, left out when "fixed"), as :func:`kincal.calibrate` would fit.
+    """
+    pool_q = robot.check_q(pool_q)
+    if params is None:
+        bn = robot.base_params()
+        ident = identifiability(robot, pool_q, exclude=bn if base == "fixed" else (),
+                                keep=bn if base == "estimate" else ())
+        names = ident.identifiable
+    else:
+        names = tuple(params)
+        ident = identifiability(robot, pool_q, params=names)
+        if ident.dropped:
+            raise IdentifiabilityError(f"the candidate pool cannot identify all the given parameters:\n{ident}")
+    J = robot.param_jacobian(pool_q)[:, :, robot.params.indices(names)]
+    scale = column_scale(J.reshape(-1, len(names)))
+    return DesignProblem(pool_q, np.ascontiguousarray(J * scale), tuple(names), scale)
