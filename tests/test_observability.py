@@ -74,3 +74,17 @@ def test_column_scale_gives_unit_rms_columns():
     J = rng.normal(size=(60, 4)) * np.array([1e-3, 1.0, 50.0, 0.2])
     Js = J * column_scale(J)
     np.testing.assert_allclose(np.sqrt((Js**2).sum(axis=0) / 20), 1.0)
+
+
+def test_batched_indices_match_single():
+    rng = np.random.default_rng(3)
+    S = np.abs(rng.normal(size=(5, 6))) + 0.01
+    S[2, -1] = 0.0
+    batch = indices_from_singular_values(S, 7)
+    comp = comprehensive_index(S, 7)
+    for i in range(5):
+        one = indices_from_singular_values(S[i], 7)
+        for key in one:
+            assert batch[key][i] == pytest.approx(one[key])
+        assert comp[i] == pytest.approx(comprehensive_index(S[i], 7))
+    assert comp[2] == 0.0

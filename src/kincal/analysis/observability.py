@@ -36,24 +36,31 @@ def singular_values(J: np.ndarray) -> np.ndarray:
     return np.linalg.svd(np.asarray(J, dtype=float), compute_uv=False)
 
 
-def indices_from_singular_values(s: np.ndarray, m: int) -> dict[str, float]:
-    """All indices from singular values ``s`` (k,) of a design of ``m`` poses."""
-    s = np.sort(np.asarray(s, dtype=float))[::-1]
-    k = s.size
-    if k == 0 or s[-1] <= SINGULAR:
-        return {"O1": 0.0, "O2": 0.0, "O3": 0.0, "O4": 0.0, "O5": 0.0, "O6": 0.0,
-                "D": -np.inf, "A": -np.inf, "E": 0.0}
-    return {
-        "O1": float(np.exp(np.mean(np.log(s))) / np.sqrt(m)),
-        "O2": float(s[-1] / s[0]),
-        "O3": float(s[-1]),
-        "O4": float(s[-1] ** 2 / s[0]),
-        "O5": float(1.0 / np.sum(1.0 / s)),
-        "O6": float(np.mean(s**-2.0) ** -0.5),
-        "D": float(2.0 * np.sum(np.log(s))),
-        "A": float(-np.sum(s**-2.0)),
-        "E": float(s[-1] ** 2),
-    }
+def indices_from_singular_values(s: np.ndarray, m: int) -> dict:
+    """All indices from singular values ``s`` (k,) of a design of ``m`` poses; a stack (n, k) of
+    singular values gives (n,) arrays."""
+    s = -np.sort(-np.asarray(s, dtype=float), axis=-1)
+    if s.shape[-1] == 0:
+        s = np.zeros(s.shape[:-1] + (1,))
+    sing = s[..., -1] <= SINGULAR
+    with np.errstate(divide="ignore", invalid="ignore"):
+        safe = np.where(sing[..., None], 1.0, s)
+        out = {
+            "O1": np.exp(np.mean(np.log(safe), axis=-1)) / np.sqrt(m),
+            "O2": safe[..., -1] / safe[..., 0],
+            "O3": safe[..., -1],
+            "O4": safe[..., -1] ** 2 / safe[..., 0],
+            "O5": 1.0 / np.sum(1.0 / safe, axis=-1),
+            "O6": np.mean(safe**-2.0, axis=-1) ** -0.5,
+            "D": 2.0 * np.sum(np.log(safe), axis=-1),
+            "A": -np.sum(safe**-2.0, axis=-1),
+            "E": safe[..., -1] ** 2,
+        }
+    worst = {"D": -np.inf, "A": -np.inf}
+    for key, val in out.items():
+        val = np.where(sing, worst.get(key, 0.0), val)
+        out[key] = float(val) if val.ndim == 0 else val
+    return out
 
 
 def observability(J: np.ndarray, m: int | None = None) -> dict[str, float]:
@@ -63,26 +70,31 @@ def observability(J: np.ndarray, m: int | None = None) -> dict[str, float]:
 
 
 def entropy_weights(s: np.ndarray) -> np.ndarray:
-    """Entropy weights (eq. 12–13) of the three feature groups {σᵢ}, {1/σᵢ}, {1/σᵢ²}: (3,), sum 1.
+    """Entropy weights (eq. 12–13) of the three feature groups {σᵢ}, {1/σᵢ}, {1/σᵢ²}: (3,), sum 1
+    (or (n, 3) for a stack (n, k) of singular values).
 
     Each group is normalised to proportions pᵢ = xᵢ / Σx, its entropy S = −Σ pᵢ ln pᵢ / ln k lies in
     [0, 1] (1: all σ equal, no information to discriminate), and the weights are (1 − S_j) / Σ(1 − S).
     When every group has entropy 1 (all σ equal) the weights are equal, 1/3 each. The weights do not
-    change when all σ are scaled by the same factor.
+    change when all σ are scaled by the same factor. Singular designs get equal weights.
     """
     s = np.asarray(s, dtype=float)
-    k = s.size
-    if k < 2 or np.any(s <= SINGULAR):
-        return np.full(3, 1.0 / 3.0)
-    X = np.column_stack([s, 1.0 / s, 1.0 / s**2])
-    P = X / X.sum(axis=0)
-    S = -np.sum(P * np.log(P), axis=0) / np.log(k)
+    k = s.shape[-1]
+    if k < 2:
+        return np.full(s.shape[:-1] + (3,), 1.0 / 3.0)
+    bad = np.any(s <= SINGULAR, axis=-1)
+    safe = np.where(bad[..., None], 1.0, s)
+    X = np.stack([safe, 1.0 / safe, 1.0 / safe**2], axis=-1)  # (..., k, 3)
+    P = X / X.sum(axis=-2, keepdims=True)
+    S = -np.sum(P * np.log(P), axis=-2) / np.log(k)
     d = np.clip(1.0 - S, 0.0, None)
-    return d / d.sum() if d.sum() > 1e-15 else np.full(3, 1.0 / 3.0)
+    tot = d.sum(axis=-1, keepdims=True)
+    w = np.where(tot > 1e-15, d / np.where(tot > 1e-15, tot, 1.0), 1.0 / 3.0)
+    return np.where(bad[..., None], 1.0 / 3.0, w)
 
 
-def comprehensive_index(s: np.ndarray, m: int) -> float:
-    """The seed's entropy-weighted comprehensive index (eq. 12–15), in [0, 3).
+def comprehensive_index(s: np.ndarray, m: int):
+    """The seed's entropy-weighted comprehensive index (eq. 12–15), in [0, 3) (array for a stack).
 
     Interpretation (the paper is ambiguous here): the weighted matrix D = X·diag(w) scales each
     index by its weight, so the weighted indices are w₁·O1, w₂·O5, w₃·O6, and
@@ -92,8 +104,8 @@ def comprehensive_index(s: np.ndarray, m: int) -> float:
     """
     s = np.asarray(s, dtype=float)
     ind = indices_from_singular_values(s, m)
-    if ind["O3"] == 0.0:
-        return 0.0
     w = entropy_weights(s)
-    o = np.array([ind["O1"], ind["O5"], ind["O6"]])
-    return float(2.0 / np.pi * np.sum(np.arctan(w * o)))
+    o = np.stack([np.asarray(ind["O1"]), np.asarray(ind["O5"]), np.asarray(ind["O6"])], axis=-1)
+    val = 2.0 / np.pi * np.sum(np.arctan(w * o), axis=-1)
+    val = np.where(np.asarray(ind["O3"]) == 0.0, 0.0, val)
+    return float(val) if val.ndim == 0 else val

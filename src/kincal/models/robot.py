@@ -113,5 +113,9 @@ class Robot(ABC):
         q = self.check_q(q)
         return np.all((q >= self.lower - tol) & (q <= self.upper + tol), axis=1)
 
+    def feasible(self, q: np.ndarray) -> np.ndarray:
+        """(N,) bool: joint limits and any coupled constraints of the model hold."""
+        return self.within_limits(q)
+
     def __repr__(self) -> str:
         return f"{type(self).__name__}(name={self.name!r}, joints={self.n_joints}, params={self.n_params})"

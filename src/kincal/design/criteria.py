@@ -1,0 +1,41 @@
+"""Design criteria (larger is better) evaluated on information matrices M = JᵀJ, batched."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..analysis.observability import comprehensive_index, indices_from_singular_values
+
+CRITERIA = ("D", "A", "E", "I", "O1", "O2", "O3", "O4", "O5", "O6", "comprehensive")
+
+
+def check_criterion(criterion: str) -> None:
+    if criterion not in CRITERIA:
+        raise ValueError(f"criterion '{criterion}' is not one of {', '.join(CRITERIA)}")
+
+
+def score(M: np.ndarray, m: int, criterion: str, B: np.ndarray | None = None) -> np.ndarray:
+    """Criterion of information matrices M (..., k, k) of m-pose designs.
+
+    "I" is −tr(M⁻¹B)/tr(B) (minus the average prediction variance over the region whose mean
+    information is B); the others come from the singular values of the stacked Jacobian, √eig(M).
+    """
+    M = np.asarray(M, dtype=float)
+    if criterion == "D":
+        sign, val = np.linalg.slogdet(M)
+        return np.where(sign > 0, val, -np.inf)
+    if criterion == "I":
+        with np.errstate(all="ignore"):
+            try:
+                X = np.linalg.solve(M, np.broadcast_to(B, M.shape))
+                val = -np.trace(X, axis1=-2, axis2=-1) / np.trace(B)
+            except np.linalg.LinAlgError:
+                return np.full(M.shape[:-2], -np.inf)
+        ok = np.linalg.eigvalsh(M)[..., 0] > 1e-12 * np.trace(M, axis1=-2, axis2=-1) / M.shape[-1]
+        return np.where(ok & np.isfinite(val), val, -np.inf)
+    lam = np.clip(np.linalg.eigvalsh(M), 0.0, None)  # ascending
+    singular = lam[..., 0] <= 1e-14 * np.maximum(lam[..., -1], 1e-300)  # rank-deficient: a zero σ
+    lam[..., 0] = np.where(singular, 0.0, lam[..., 0])
+    s = np.sqrt(lam)[..., ::-1]
+    if criterion == "comprehensive":
+        return np.asarray(comprehensive_index(s, m))
+    return np.asarray(indices_from_singular_values(s, m)[criterion])
