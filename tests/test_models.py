@@ -150,6 +150,8 @@ joints:
     path.write_text(text.replace("beta: false", "beta: 0.5"))
     r = kincal.load_robot(path)
     assert r.params["j1.beta"] == pytest.approx(np.deg2rad(0.5))
+    path.write_text(text.replace("beta: false", "beta: 0"))  # zero is a value, not "off"
+    assert kincal.load_robot(path).joints[0].beta
 
 
 @pytest.mark.parametrize("text,fragment", [

@@ -82,15 +82,15 @@ def cmd_show(args) -> int:
     t = Table("parameter", "value", "unit", title=f"{r.name} ({r.convention}, {r.n_joints} joints)")
     for n, k, v in zip(r.params.names, r.params.kinds, r.params.values):
         t.add_row(n, f"{v * MM:.6g}" if k == "length" else f"{v * DEG:.6g}", "mm" if k == "length" else "deg")
-    lim = Table("joint", "type", "beta", "lower", "upper")
-    for j in r.joints:
-        f = DEG if j.type == "revolute" else MM
-        lim.add_row(j.name, j.type, "yes" if j.beta else "no", f"{j.lower * f:.6g}", f"{j.upper * f:.6g}")
+    lim = Table("joint", "type", "lower", "upper")
+    for name, typ, lo, hi in zip(r.joint_names, r.joint_types, r.lower, r.upper):
+        f = DEG if typ == "revolute" else MM
+        lim.add_row(name, typ, f"{lo * f:.6g}", f"{hi * f:.6g}")
     notes = r.structure_notes()
     payload = {"name": r.name, "convention": r.convention, "description": r.description,
                "parameters": r.params.as_dict(), "kinds": dict(zip(r.params.names, r.params.kinds)),
-               "joints": [{"name": j.name, "type": j.type, "beta": j.beta, "limits": [j.lower, j.upper]}
-                          for j in r.joints], "notes": notes}
+               "joints": [{"name": n, "type": t, "limits": [float(lo), float(hi)]}
+                          for n, t, lo, hi in zip(r.joint_names, r.joint_types, r.lower, r.upper)], "notes": notes}
     if args.json:
         _emit(args, payload, None)
     else:

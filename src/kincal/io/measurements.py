@@ -72,12 +72,15 @@ class Measurements:
             )
         rev = np.array([t == "revolute" for t in robot.joint_types])
         if rev.any():
-            qmax = float(np.max(np.abs(self.q[:, rev])))
-            if qmax > 4 * np.pi:
+            # more than two turns and well beyond the joint limits: degrees read as radians
+            reach = np.maximum(4 * np.pi, 1.5 * np.maximum(np.abs(robot.lower), np.abs(robot.upper)))[rev]
+            over = np.abs(self.q[:, rev]) > reach
+            if over.any():
+                qmax = float(np.max(np.abs(self.q[:, rev])))
                 given = f" ('{angle_unit}' was given)" if angle_unit else ""
                 raise MeasurementError(
-                    f"{self.source}: revolute joint values reach {qmax:.4g} rad{given}, more than two turns: "
-                    f"they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)"
+                    f"{self.source}: revolute joint values reach {qmax:.4g} rad{given}, far beyond the joint "
+                    f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)"
                 )
         if len(self) >= 3:
             pred = robot.forward(self.q)

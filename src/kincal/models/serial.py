@@ -174,10 +174,15 @@ class SerialRobot(Robot):
             return self._chain.forward(values, q), None
         return self._chain.forward_and_jacobian(values, q)
 
+    @property
+    def joint_columns(self) -> np.ndarray:
+        """(n,) parameter column of each joint: the θ (revolute) or d (prismatic) its value adds to,
+        so ∂p/∂qⱼ is that column of the parameter Jacobian."""
+        return self._chain.joint_param
+
     def joint_jacobian(self, q, params=None):
         squeeze = np.ndim(q) == 1
-        # every joint drives one op, whose parameter (θ or d) it adds to: same column
-        Jq = self.param_jacobian(q, params)[..., self._chain.joint_param]
+        Jq = self.param_jacobian(q, params)[..., self.joint_columns]
         return Jq[0] if squeeze else Jq
 
     def preferred_params(self) -> tuple[str, ...]:

@@ -26,12 +26,15 @@ import yaml
 
 from .._atomic import write_text_atomic
 from ..errors import ModelError
+from .robot import Robot
 from .serial import CONVENTIONS, Joint, SerialRobot
+from .transmission import Map, TransmissionRobot, build_transmission_robot
 
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}
 ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
 _JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits"}
-_TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool"}
+_TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool", "actuators", "transmission"}
+DRIVE_PREFIX = "drive."
 
 
 def bundled_robots() -> list[str]:
@@ -48,7 +51,7 @@ def unit_factor(unit: str, kind: str, where: str = "") -> float:
     return table[unit]
 
 
-def load_robot(name_or_path: str | os.PathLike) -> SerialRobot:
+def load_robot(name_or_path: str | os.PathLike) -> Robot:
     """A bundled robot by name (see :func:`bundled_robots`) or a robot YAML file."""
     s = str(name_or_path)
     if s in bundled_robots():
@@ -68,7 +71,7 @@ def load_robot(name_or_path: str | os.PathLike) -> SerialRobot:
     return robot_from_dict(data, label)
 
 
-def robot_from_dict(data: dict, label: str = "robot") -> SerialRobot:
+def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     """Build a robot from the parsed YAML mapping; errors name ``label`` and the offending key."""
     if not isinstance(data, dict):
         raise ModelError(f"{label}: expected a mapping with keys {sorted(_TOP_KEYS)}")
@@ -106,10 +109,10 @@ def robot_from_dict(data: dict, label: str = "robot") -> SerialRobot:
             lo, hi = _num(lim[0], where, "limits") * qf, _num(lim[1], where, "limits") * qf
         beta = jd.get("beta", None)
         explicit_beta.append(beta)
-        joints.append(Joint(str(jd.get("name", f"j{k + 1}")), jtype, beta not in (None, False), lo, hi))
+        joints.append(Joint(str(jd.get("name", f"j{k + 1}")), jtype, not (beta is None or beta is False), lo, hi))
         row = {key: _num(jd.get(key, 0.0), where, key) * (lf if key in ("d", "a") else af)
                for key in ("theta", "d", "a", "alpha")}
-        if beta not in (None, False):
+        if not (beta is None or beta is False):
             row["beta"] = _num(beta, where, "beta") * af
         rows.append(row)
 
@@ -124,7 +127,44 @@ def robot_from_dict(data: dict, label: str = "robot") -> SerialRobot:
         joints = [Joint(j.name, j.type, True, j.lower, j.upper) if k in auto else j
                   for k, j in enumerate(robot.joints)]
         robot = robot.with_joints(joints)
+    if ("transmission" in data) != ("actuators" in data):
+        raise ModelError(f"{label}: 'actuators' and 'transmission' go together; give both or neither")
+    if "transmission" in data:
+        return _transmission_from_dict(robot, data, lf, af, label)
     return robot
+
+
+def _transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float, label: str) -> TransmissionRobot:
+    acts = data["actuators"]
+    tr = data["transmission"]
+    if not isinstance(acts, list) or not acts or not isinstance(tr, dict):
+        raise ModelError(f"{label}: 'actuators' must be a list and 'transmission' a mapping with 'parameters' and 'maps'")
+    actuators = []
+    for k, ad in enumerate(acts):
+        where = f"{label}: actuator {k + 1}"
+        lim = ad.get("limits") if isinstance(ad, dict) else None
+        if not (isinstance(lim, list) and len(lim) == 2) or "name" not in ad:
+            raise ModelError(f"{where}: give a name and limits: [lower, upper]")
+        actuators.append((str(ad["name"]), _num(lim[0], where, "limits") * af, _num(lim[1], where, "limits") * af))
+    act_index = {a[0]: i for i, a in enumerate(actuators)}
+    joint_index = {j.name: i for i, j in enumerate(chain.joints)}
+    drive = {DRIVE_PREFIX + str(key): (_num(v, f"{label}: transmission parameters", key) * lf, "length")
+             for key, v in (tr.get("parameters") or {}).items()}
+    maps = []
+    for k, md in enumerate(tr.get("maps") or []):
+        where = f"{label}: transmission map {k + 1}"
+        try:
+            a = tuple(act_index[n] for n in md["actuators"])
+            j = tuple(joint_index[n] for n in md["joints"])
+        except KeyError as exc:
+            raise ModelError(f"{where}: unknown actuator or joint {exc}; actuators: {', '.join(act_index)}; "
+                             f"joints: {', '.join(joint_index)}") from None
+        roles = {"direct": (), "screw": ("lead",), "differential_screw": ("lead", "arm")}.get(md.get("type"), ())
+        missing = [r for r in roles if r not in md]
+        if missing:
+            raise ModelError(f"{where}: missing {', '.join(missing)}")
+        maps.append(Map(str(md.get("type")), a, j, tuple(DRIVE_PREFIX + str(md[r]) for r in roles)))
+    return build_transmission_robot(chain, actuators, maps, drive)
 
 
 def _num(v, where: str, key: str) -> float:
@@ -144,8 +184,30 @@ def _fmt(x: float) -> str:
     return s
 
 
-def robot_to_yaml(robot: SerialRobot, length_unit: str = "m", angle_unit: str = "rad") -> str:
+def robot_to_yaml(robot: Robot, length_unit: str = "m", angle_unit: str = "rad") -> str:
     """YAML text of a robot. In SI units (the default) load(save(robot)) reproduces it exactly."""
+    if isinstance(robot, TransmissionRobot):
+        return _chain_yaml(robot.chain, length_unit, angle_unit) + _transmission_yaml(robot, length_unit, angle_unit)
+    return _chain_yaml(robot, length_unit, angle_unit)
+
+
+def _transmission_yaml(robot: TransmissionRobot, length_unit: str, angle_unit: str) -> str:
+    lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
+    lines = ["actuators:"]
+    for name, lo, hi in zip(robot.actuator_names, robot.actuator_lower, robot.actuator_upper):
+        lines.append(f"  - {{name: {name}, limits: [{_fmt(lo * af)}, {_fmt(hi * af)}]}}")
+    params = ", ".join(f"{n[len(DRIVE_PREFIX):]}: {_fmt(v * lf)}" for n, v in zip(robot.drive.names, robot.drive.values))
+    lines += ["transmission:", f"  parameters: {{{params}}}", "  maps:"]
+    roles = {"direct": (), "screw": ("lead",), "differential_screw": ("lead", "arm")}
+    for mp in robot.maps:
+        items = [f"type: {mp.kind}", f"actuators: [{', '.join(robot.actuator_names[a] for a in mp.actuators)}]",
+                 f"joints: [{', '.join(robot.chain.joints[j].name for j in mp.joints)}]"]
+        items += [f"{role}: {p[len(DRIVE_PREFIX):]}" for role, p in zip(roles[mp.kind], mp.params)]
+        lines.append("    - {" + ", ".join(items) + "}")
+    return "\n".join(lines) + "\n"
+
+
+def _chain_yaml(robot: SerialRobot, length_unit: str, angle_unit: str) -> str:
     lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
     v = robot.params.as_dict()
     lines = [f"name: {robot.name}"]
@@ -166,6 +228,6 @@ def robot_to_yaml(robot: SerialRobot, length_unit: str = "m", angle_unit: str = 
     return "\n".join(lines)
 
 
-def save_robot(robot: SerialRobot, path: str | os.PathLike, length_unit: str = "m", angle_unit: str = "rad") -> None:
+def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", angle_unit: str = "rad") -> None:
     """Save a robot YAML (atomically). SI units round-trip exactly; mm/deg are easier to read."""
     write_text_atomic(path, robot_to_yaml(robot, length_unit, angle_unit))
