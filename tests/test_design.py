@@ -103,3 +103,32 @@ def test_bad_design_requests(ur5):
         select_poses(ur5, pool, 5, bound=False)
     with pytest.raises(ValueError, match="D and I"):
         select_poses(ur5, pool, 20, "fedorov", "comprehensive", bound=False)
+
+
+def test_reverse_search_boundary_handling():
+    from kincal.design.ide import _bounce
+    lo, hi = np.array([0.0, 0.0]), np.array([1.0, 1.0])
+    best = np.array([[0.6, 0.2]])
+    x = np.array([[1.4, -0.3]])  # overshoots: 0.4 above, 0.3 below
+    out = _bounce(x, best, lo, hi)
+    assert out[0, 0] == pytest.approx(0.6 + 0.4 * 0.4 / 0.8)  # between best and the upper limit
+    assert out[0, 1] == pytest.approx(0.2 - 0.2 * 0.3 / 0.5)  # between the lower limit and best
+    inside = np.array([[0.3, 0.9]])
+    assert np.array_equal(_bounce(inside, best, lo, hi), inside)
+
+
+@pytest.mark.parametrize("method", ["ide", "detmax-ide"])
+def test_ide_keeps_constraints_is_deterministic_and_improves(method):
+    robot = kincal.load_robot("guo3t2r")
+    pool = candidate_pool(robot, 400, seed=4)
+    P = design_problem(robot, pool)
+    d = select_poses(robot, pool, 25, method, "D", seed=2, problem=P, bound=False, generations=60)
+    assert np.all(robot.feasible(d.q))  # joint limits and |psi| <= 45 deg on every pose
+    assert np.all(np.abs(robot.joints(d.q)[:, 1]) <= np.pi / 4 + 1e-12)
+    again = select_poses(robot, pool, 25, method, "D", seed=2, problem=P, bound=False, generations=60)
+    assert np.array_equal(d.q, again.q)
+    start = select_poses(robot, pool, 25, "random" if method == "ide" else "detmax", "D", seed=2, problem=P,
+                         bound=False)
+    assert d.value >= start.value
+    if method == "ide":
+        assert d.value > start.value + 1.0  # from a random start the evolution finds much better poses

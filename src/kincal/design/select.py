@@ -12,22 +12,25 @@ from ..models.robot import Robot
 from .bound import Bound, relaxed_bound
 from .criteria import check_criterion, score
 from .exchange import _State, det3, fedorov, greedy
+from .ide import ide
 from .problem import DesignProblem, design_problem
 
-METHODS = ("random", "detmax", "fedorov")
+METHODS = ("random", "detmax", "fedorov", "ide", "detmax-ide")
 
 
 @dataclass(frozen=True, eq=False)
 class Design:
     """m chosen poses of a pool.
 
-    indices    -- positions in the pool; q: their joint values (m, n)
+    indices    -- positions in the pool (None for ide / detmax-ide, whose poses leave the pool);
+                  q: the joint values (m, n)
     value      -- the criterion of the design; logdet: log det of its scaled information matrix
     bound      -- certified upper bound on logdet over all m-pose designs of the pool (or None)
-    efficiency -- D-efficiency (det M / exp(bound))^(1/k) ≤ 1: how far from the best possible
+    efficiency -- D-efficiency (det M / exp(bound))^(1/k): how far from the best possible design
+                  of the pool (≤ 1 for pool designs; continuous designs may exceed the pool's bound)
     """
 
-    indices: np.ndarray
+    indices: np.ndarray | None
     q: np.ndarray
     method: str
     criterion: str
@@ -45,15 +48,15 @@ class Design:
         return float(np.exp((self.logdet - self.bound.upper) / len(self.names)))
 
     def to_dict(self) -> dict:
-        return {"method": self.method, "criterion": self.criterion, "m": int(self.indices.size),
-                "indices": self.indices.tolist(), "q": self.q.tolist(), "value": self.value,
+        return {"method": self.method, "criterion": self.criterion, "m": int(self.q.shape[0]),
+                "indices": None if self.indices is None else self.indices.tolist(), "q": self.q.tolist(), "value": self.value,
                 "logdet": self.logdet, "bound": None if self.bound is None else self.bound.to_dict(),
                 "efficiency": self.efficiency, "parameters": list(self.names), "time_s": self.time_s,
                 "seed": self.seed}
 
     def __str__(self) -> str:
         eff = "n/a" if self.efficiency is None else f"{self.efficiency:.4f}"
-        return (f"{self.method} design of {self.indices.size} poses for {len(self.names)} parameters: "
+        return (f"{self.method} design of {self.q.shape[0]} poses for {len(self.names)} parameters: "
                 f"{self.criterion} = {self.value:.6g}, D-efficiency {eff}, {self.time_s:.2f} s")
 
 
@@ -118,12 +121,16 @@ def select_poses(
     restarts: int = 0,
     validation_q: np.ndarray | None = None,
     problem: DesignProblem | None = None,
+    generations: int = 200,
+    progress=None,
 ) -> Design:
     """Choose m poses from pool_q (N, n) for identifying ``params`` (default: the identifiable set).
 
     method    -- "random"; "detmax" (add–compare–remove–compare exchange); "fedorov" (greedy start,
                  then modified Fedorov exchange with low-rank updates; D and I criteria only), with
-                 ``restarts`` extra random starts, keeping the best
+                 ``restarts`` extra random starts, keeping the best; "ide" (improved differential
+                 evolution over continuous poses from a random pool design, ``generations``);
+                 "detmax-ide" (the seed's two steps: DETMAX on the pool, then IDE from its design)
     criterion -- "D", "A", "E", "I" (average prediction variance over ``validation_q``, default the
                  pool), "O1"…"O6", "comprehensive" (the seed's entropy-weighted index)
     bound     -- True to compute the certified relaxation bound (D-efficiency), a precomputed Bound
@@ -143,6 +150,23 @@ def select_poses(
         Jv = P.J if validation_q is None else robot.param_jacobian(validation_q)[:, :, robot.params.indices(P.names)] * P.scale
         B = np.einsum("nak,nal->kl", Jv, Jv) / Jv.shape[0]
     rng = np.random.default_rng(seed)
+    if method in ("ide", "detmax-ide"):
+        idx0 = detmax(P, m, criterion, rng, B) if method == "detmax-ide" else rng.choice(P.N, m, replace=False)
+        cols = robot.params.indices(P.names)
+
+        def objective(q: np.ndarray) -> float:
+            Jq = robot.param_jacobian(q)[:, :, cols] * P.scale
+            return float(score(np.einsum("nak,nal->kl", Jq, Jq), m, criterion, B))
+
+        q_best, value, _ = ide(robot, P.q[np.asarray(idx0)], objective, rng, generations=generations,
+                               progress=progress)
+        Jq = (robot.param_jacobian(q_best)[:, :, cols] * P.scale).reshape(-1, P.k)
+        sign, logdet = np.linalg.slogdet(Jq.T @ Jq)
+        elapsed = time.perf_counter() - t0
+        if bound is True:
+            bound = relaxed_bound(P, m)
+        return Design(None, q_best, method, criterion, value, float(logdet) if sign > 0 else -np.inf, P.names,
+                      bound if isinstance(bound, Bound) else None, elapsed, seed)
     if method == "random":
         idx = [int(i) for i in rng.choice(P.N, m, replace=False)]
     elif method == "detmax":
