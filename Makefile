@@ -29,6 +29,8 @@ test: setup
 
 bench: setup
 	$(PY) benchmarks/core.py
+	$(PY) benchmarks/design.py
+	$(PY) benchmarks/design_real.py
 
 clean:
 	rm -rf $(VENV) build src/*.egg-info .pytest_cache

@@ -71,10 +71,33 @@ def test_human_output_uses_mm_and_deg(capsys):
     assert "-425" in text and "mm" in text and "deg" in text
 
 
-def test_demo_reduces_error(capsys):
-    d = run_json(capsys, "demo", "--poses", "60")
-    assert d["validation_before"]["mean"] > 0.3e-3
-    assert d["validation_after"]["mean"] < 30e-6
+def test_demo_runs_the_seed1_study(capsys):
+    d = run_json(capsys, "demo", "--seeds", "3")
+    assert set(d["separation"]["subdomain_gcn"]) == {"theta", "alpha", "a", "d", "beta"}
+    before = d["validation"]["before calibration"]["mean"]
+    for name in ("random", "full-parameter optimised", "separated-parameter optimised"):
+        assert d["validation"][name]["mean"] < 0.01 * before  # tens of mm -> about 0.1 mm
+        assert d["repeated"][name]["mean_of_mean"] > 0
+    assert d["design_values"]["separated-parameter optimised"] > d["design_values"]["random"]
+
+
+def test_design_command(tmp_path, capsys):
+    out = tmp_path / "poses.csv"
+    d = run_json(capsys, "design", "ur5", "-m", "30", "--pool", "800", "-o", out, "--angle-unit", "deg")
+    assert 0.9 < d["efficiency"] <= 1.0 and d["m"] == 30
+    q = kincal.read_joints(out, kincal.load_robot("ur5"), angle_unit="deg")
+    np.testing.assert_allclose(q, np.array(d["q"]), atol=1e-12)
+    # the poses file feeds simulate, and a user's candidate list feeds design
+    sim = tmp_path / "sim.csv"
+    run_json(capsys, "simulate", "ur5", "--joints", out, "-o", sim, "--angle-unit", "deg")
+    d2 = run_json(capsys, "design", "ur5", "-m", "10", "--candidates", out, "-o", tmp_path / "p2.csv",
+                  "--angle-unit", "deg", "--params", "j2.a,j3.a,j2.theta,j3.theta")
+    assert d2["m"] == 10 and d2["parameters"] == ["j2.a", "j3.a", "j2.theta", "j3.theta"]
+
+
+def test_separate_command(capsys):
+    d = run_json(capsys, "separate", "guo3t2r")
+    assert d["subdomain_gcn"]["a"] > 1e12 and "j4.theta" in d["separated"]
 
 
 def test_console_script_is_installed():

@@ -132,3 +132,15 @@ def test_ide_keeps_constraints_is_deterministic_and_improves(method):
     assert d.value >= start.value
     if method == "ide":
         assert d.value > start.value + 1.0  # from a random start the evolution finds much better poses
+
+
+def test_pose_counts(ur5):
+    from kincal.design.npose import minimum_poses, pose_count_curve
+    assert minimum_poses(5, 21) == 21 and minimum_poses(6, 27) == 32 and minimum_poses(1, 30) == 10
+    P = design_problem(ur5, ur5.sample_joints(200, seed=0))
+    curve = pose_count_curve(P, "O1", m_max=120)  # O1 normalises by sqrt(m): it levels off
+    v = curve.values[np.isfinite(curve.values)]
+    assert np.all(np.isfinite(v[-50:])) and v[-1] > 0
+    assert 9 <= curve.chosen < 120
+    i = curve.chosen - 1
+    assert (curve.values[i + 10] - curve.values[i]) / abs(curve.values[i]) < 0.01

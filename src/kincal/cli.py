@@ -4,7 +4,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from contextlib import contextmanager
 
 import numpy as np
@@ -12,6 +11,7 @@ from rich.console import Console
 from rich.table import Table
 
 import kincal
+import kincal.design
 from kincal.errors import KincalError
 
 out = Console(highlight=False, soft_wrap=True)
@@ -164,30 +164,42 @@ def cmd_evaluate(args) -> int:
 
 
 def cmd_demo(args) -> int:
-    """Simulate a UR5 with random geometric errors, calibrate from random poses, validate."""
-    nominal = kincal.load_robot("ur5")
-    true = kincal.perturb(nominal, seed=args.seed)
-    q_cal = nominal.sample_joints(args.poses, seed=args.seed)
-    q_val = nominal.sample_joints(200, seed=args.seed + 1000)
-    meas = kincal.simulate(true, q_cal, noise=args.noise / MM, seed=args.seed)
-    val = kincal.simulate(true, q_val, noise=0.0)
-    t0 = time.perf_counter()
-    res = kincal.calibrate(nominal, meas)
-    before, after = kincal.evaluate(nominal, val), kincal.evaluate(res.robot, val)
-    payload = {"poses": args.poses, "noise": args.noise / MM, "calibration": res.to_dict(),
-               "validation_before": before.to_dict(), "validation_after": after.to_dict()}
-    if args.json:
-        _emit(args, payload, None)
-        return 0
-    out.print(f"[bold]kincal demo[/bold]: UR5 with random errors (±0.5 mm, ±0.05°), {args.poses} random "
-              f"poses, tracker noise {args.noise * 1e3:.0f} µm per axis, validation on 200 other poses (noise-free)")
-    out.print(str(res.identifiability), markup=False)
-    t = Table("validation (200 poses)", "mean mm", "rms mm", "max mm", "p95 mm")
-    for label, s in (("nominal model", before), ("calibrated model", after)):
-        t.add_row(label, f"{s.mean * MM:.4f}", f"{s.rms * MM:.4f}", f"{s.max * MM:.4f}", f"{s.p95 * MM:.4f}")
-    out.print(t)
-    out.print(f"calibration: {len(res.names)} parameters, {res.iterations} LM iterations, "
-              f"{(time.perf_counter() - t0) * 1e3:.0f} ms, residual sigma {res.sigma * 1e6:.1f} µm per axis")
+    """The seed-1 study on the 3T2R robot, in simulation."""
+    from kincal.studies import seed1_study
+
+    with _progress("seed-1 study", args.json) as say:
+        study = seed1_study(seeds=args.seeds, m=args.poses, progress=say)
+    _emit(args, study.to_dict(), str(study))
+    return 0
+
+
+def cmd_design(args) -> int:
+    r = kincal.load_robot(args.robot)
+    if args.candidates:
+        pool = kincal.read_joints(args.candidates, r, args.joint_cols, args.length_unit, args.angle_unit)
+        bad = ~r.feasible(pool)
+        if bad.any():
+            raise kincal.MeasurementError(f"{args.candidates}: {int(bad.sum())} candidate pose(s) break the joint "
+                                          f"limits or coupled constraints (first: row {int(np.flatnonzero(bad)[0]) + 2})")
+    else:
+        pool = kincal.candidate_pool(r, args.pool, seed=args.seed)
+    with _progress("designing poses", args.json) as say:
+        say(f"{args.method} on {len(pool)} candidates")
+        d = kincal.select_poses(r, pool, args.m, args.method, args.criterion, seed=args.seed, params=args.params,
+                                base=args.base, bound=not args.no_bound, restarts=args.restarts,
+                                generations=args.generations)
+    kincal.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, args.angle_unit)
+    payload = d.to_dict()
+    payload["output"] = args.output
+    _emit(args, payload, f"{d}\nposes written to {args.output}")
+    return 0
+
+
+def cmd_separate(args) -> int:
+    r = kincal.load_robot(args.robot)
+    sep = kincal.separate_ill_conditioned(r, kincal.candidate_pool(r, args.poses, seed=args.seed),
+                                          threshold=args.threshold)
+    _emit(args, sep.to_dict(), sep.tables())
     return 0
 
 
@@ -248,10 +260,32 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--rebase", action="store_true", help="re-fit only the base frame first")
     _add_data_flags(s)
 
-    s = cmd("demo", cmd_demo, "simulated UR5 calibration: before/after statistics")
-    s.add_argument("--poses", type=int, default=60)
-    s.add_argument("--noise", type=float, default=0.015, help="mm per axis")
+    s = cmd("design", cmd_design, "choose measurement poses (writes a poses CSV)")
+    s.add_argument("robot")
+    s.add_argument("-m", type=int, default=60, help="number of poses (default 60)")
+    s.add_argument("-o", "--output", required=True, help="poses CSV to write")
+    src = s.add_mutually_exclusive_group()
+    src.add_argument("--pool", type=int, default=5000, help="random feasible candidates (default 5000)")
+    src.add_argument("--candidates", help="CSV of candidate poses (e.g. the poses you can reach)")
+    s.add_argument("--method", default="fedorov", choices=list(kincal.design.METHODS))
+    s.add_argument("--criterion", default="D", choices=list(kincal.design.CRITERIA))
+    s.add_argument("--params", type=_csv_list, help="parameters to design for (default: identifiable set)")
+    s.add_argument("--base", choices=["estimate", "fixed"], default="estimate")
+    s.add_argument("--restarts", type=int, default=0, help="extra random starts for fedorov")
+    s.add_argument("--generations", type=int, default=200, help="generations for ide / detmax-ide")
+    s.add_argument("--no-bound", action="store_true", help="skip the certified bound (and D-efficiency)")
     s.add_argument("--seed", type=int, default=0)
+    _add_data_flags(s)
+
+    s = cmd("separate", cmd_separate, "GCN branch-and-bound separation of ill-conditioned parameters")
+    s.add_argument("robot")
+    s.add_argument("--poses", type=int, default=100, help="random poses (default 100)")
+    s.add_argument("--threshold", type=float, default=1e2, help="GCN threshold (default 1e2)")
+    s.add_argument("--seed", type=int, default=0)
+
+    s = cmd("demo", cmd_demo, "the seed-1 study on the 3T2R robot (simulation)")
+    s.add_argument("--poses", type=int, default=60, help="poses per design (default 60)")
+    s.add_argument("--seeds", type=int, default=20, help="repetitions (default 20)")
     return p
 
 

@@ -244,3 +244,22 @@ def write_measurements(
     for qi, pi in zip(meas.q * scale, meas.xyz * lf):
         w.writerow([repr(float(v)) for v in qi] + [repr(float(v)) for v in pi])
     write_text_atomic(path, buf.getvalue())
+
+
+def write_joints(
+    path: str | os.PathLike,
+    q: np.ndarray,
+    robot: Robot,
+    joint_cols: Sequence[str] | None = None,
+    length_unit: str = "m",
+    angle_unit: str = "rad",
+) -> None:
+    """Write joint vectors (N, n) in SI units as a CSV of poses (atomically), e.g. poses to measure."""
+    cols = _joint_columns(str(path), robot, joint_cols)
+    scale = 1.0 / _joint_scale(robot.joint_types, length_unit, angle_unit, str(path))
+    buf = _io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(cols)
+    for qi in robot.check_q(q) * scale:
+        w.writerow([repr(float(v)) for v in qi])
+    write_text_atomic(path, buf.getvalue())
