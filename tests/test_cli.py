@@ -117,3 +117,9 @@ def test_simulate_at_given_joint_values(tmp_path, capsys):
     meas = kincal.read_measurements(out, kincal.load_robot("ur5"), angle_unit="deg")
     np.testing.assert_allclose(meas.q, np.deg2rad(q_deg), atol=1e-12)
     np.testing.assert_allclose(meas.xyz, kincal.load_robot("ur5").forward(np.deg2rad(q_deg)), atol=1e-12)
+
+
+def test_npose_command(capsys):
+    d = run_json(capsys, "npose", "ur5", "--criterion", "O1", "--max", "80")
+    assert d["minimum_eq18"] == int(np.ceil(7 * d["parameters"] / 6)) and 1 <= d["chosen"] <= 80
+    assert len(d["values"]) == 80

@@ -144,3 +144,11 @@ def test_pose_counts(ur5):
     assert 9 <= curve.chosen < 120
     i = curve.chosen - 1
     assert (curve.values[i + 10] - curve.values[i]) / abs(curve.values[i]) < 0.01
+
+
+@pytest.mark.parametrize("method", ["random", "detmax", "fedorov"])
+def test_pool_designs_keep_the_coupled_constraints(method):
+    robot = kincal.load_robot("guo3t2r")
+    pool = candidate_pool(robot, 500, seed=6)
+    d = select_poses(robot, pool, 25, method, "D", seed=1, bound=False)
+    assert np.all(robot.feasible(d.q)) and np.all(np.abs(robot.joints(d.q)[:, 1]) <= np.pi / 4 + 1e-12)

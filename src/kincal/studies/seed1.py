@@ -53,22 +53,28 @@ class Seed1Study:
             out.append(f"  {d:<31} {len(self.design_params[d]):2d} parameters, comprehensive index "
                        f"{self.design_values[d]:.4f}")
         out.append("")
-        out.append("== Identification accuracy η (eq. 29), seed 0: % per parameter error (— = not identifiable, kept nominal) ==")
         joints = sorted({n.split('.')[0] for n in self.true_errors})
-        for d in DESIGNS:
-            out.append(f"  {d}")
-            out.append("    joint " + "".join(f"{'Δ' + t:>10}" for t in TYPES))
+
+        def table(values: dict[str, float], fmt) -> list[str]:
+            rows = ["    joint " + "".join(f"{'Δ' + t:>10}" for t in TYPES)]
             for j in joints:
-                cells = []
-                for t in TYPES:
-                    name = f"{j}.{t}"
-                    if name not in self.true_errors:
-                        cells.append(f"{'':>10}")
-                    elif name in self.eta[d]:
-                        cells.append(f"{self.eta[d][name]:10.2f}")
-                    else:
-                        cells.append(f"{'—':>10}")
-                out.append(f"    {j:<5} " + "".join(cells))
+                cells = [f"{'':>10}" if f"{j}.{t}" not in self.true_errors else
+                         fmt(f"{j}.{t}", values[f"{j}.{t}"]) if f"{j}.{t}" in values else f"{'—':>10}" for t in TYPES]
+                rows.append(f"    {j:<5} " + "".join(cells))
+            return rows
+
+        def as_units(name: str, v: float) -> str:  # mm for lengths, rad for angles, as the paper's tables
+            return f"{v * 1e3:10.4f}" if param_type(name) in ("a", "d") else f"{v:10.4f}"
+
+        out.append("== Identified errors, seed 0 (Tables 4-5; mm and rad; set: "
+                   f"{self.true_errors[next(n for n in self.true_errors if param_type(n) == 'a')] * 1e3:.1f} mm, "
+                   f"{self.true_errors[next(n for n in self.true_errors if param_type(n) == 'theta')]:.2f} rad) ==")
+        for d in DESIGNS:
+            out += [f"  {d}"] + table(self.identified[d], as_units)
+        out.append("")
+        out.append("== Identification accuracy η (eq. 29), seed 0: % per parameter error (— = not identifiable, kept nominal) ==")
+        for d in DESIGNS:
+            out += [f"  {d}"] + table(self.eta[d], lambda n, v: f"{v:10.2f}")
         out.append("")
         out.append("== Validation, 60 poses, seed 0 (Table 8): position error in mm ==")
         out.append(f"  {'':<31} {'max':>8} {'mean':>8} {'std':>8}")
