@@ -29,8 +29,13 @@ def test_separation_on_the_3t2r_robot():
     assert rows["j2.a"] < 1e2 and rows["j3.a"] < 1e2 and rows["j1.a"] > 1e12
     assert {"j3.theta", "j4.theta"} <= set(sep.candidates["theta"])
     assert set(sep.candidates["d"]) >= {"j3.d", "j4.d"}
-    # the separated parameters include one of each dependent group QR drops within the types
+    # one member of each dependent group is separated, like QR; step 4 also finds the dependence
+    # across types (j5.alpha), so the reduced model has exactly QR's rank and is well conditioned
     for group in ({"j2.a", "j3.a"}, {"j3.theta", "j4.theta"}):
-        assert group & set(sep.separated) and group & set(sep.qr_dropped)
-    assert sep.gcn_reduced <= sep.gcn_full
+        assert len(group & set(sep.separated)) == 1 and len(group & set(sep.qr_dropped)) == 1
+    assert "j5.alpha" in sep.separated and "j5.alpha" in sep.qr_dropped
+    assert len(sep.names) - len(sep.separated) == len(sep.names) - len(sep.qr_dropped) == 16
+    kept = [n for n in sep.names if n not in sep.separated]
+    assert kincal.identifiability(robot, candidate_pool(robot, 100, seed=0), params=kept).full_rank
+    assert sep.gcn_reduced < 1e2 < sep.gcn_full
     assert "Table 1" in sep.tables() and "QR" in sep.tables()

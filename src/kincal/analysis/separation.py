@@ -12,7 +12,10 @@ GCN exceeds the threshold (1e2) is branched by backward elimination: each parame
 turn, and the removals that bring it under the threshold are its candidate ill-conditioned
 parameters; when no single removal suffices the best one is taken and the branch goes one level
 deeper; (3) the reconstructed models (eq. 27–28) that remove every candidate, or one per group of
-equivalent candidates, are compared by GCN and the lowest is kept.
+equivalent candidates, are built; (4) a reconstructed model whose GCN still exceeds the threshold
+(step 4 of the paper: not yet verified) loses, one at a time, the parameter whose removal lowers its
+GCN most — this catches dependences across types that per-type subdomains cannot see; the verified
+model with the lowest GCN is kept.
 """
 from __future__ import annotations
 
@@ -59,6 +62,7 @@ class Separation:
     gcn_reduced: float
     threshold: float
     qr_dropped: tuple[str, ...]
+    paper_choice: tuple[str, ...] = ()  # the separated set by the paper's rule (lowest GCN)
     notes: tuple[str, ...] = field(default=())
 
     def to_dict(self) -> dict:
@@ -66,7 +70,8 @@ class Separation:
                 "candidates": {k: list(v) for k, v in self.candidates.items()},
                 "models": [[list(r), g] for r, g in self.models], "separated": list(self.separated),
                 "gcn_full": self.gcn_full, "gcn_reduced": self.gcn_reduced, "threshold": self.threshold,
-                "qr_dropped": list(self.qr_dropped), "notes": list(self.notes)}
+                "qr_dropped": list(self.qr_dropped), "paper_choice": list(self.paper_choice),
+                "notes": list(self.notes)}
 
     def tables(self) -> str:
         """The paper's Tables 1–3 and the model comparison, as text."""
@@ -75,12 +80,14 @@ class Separation:
         for n, (t, rows) in enumerate(self.branches.items(), start=2):
             out.append(f"Table {n}  GCN of J_{SYMBOL[t]} with one parameter separated (threshold {self.threshold:g})")
             out.append("  " + "  ".join(f"-{name:<9} {g:10.4g}" for name, g in rows))
-        out.append("Reconstructed models (eq. 27-28): GCN with the separated parameters removed")
+        out.append("Reconstructed models (eq. 27-28): GCN with the candidates removed (before step 4)")
         for removed, g in self.models:
             out.append(f"  without {', '.join(removed):<40} GCN {g:10.4g}")
         out.append(f"  full model GCN {self.gcn_full:.4g}  ->  reduced model GCN {self.gcn_reduced:.4g} "
                    f"({len(self.names) - len(self.separated)} of {len(self.names)} parameters kept)")
         out.append(f"separated (ill-conditioned): {', '.join(self.separated) or 'none'}")
+        if set(self.paper_choice) != set(self.separated):
+            out.append(f"by the paper's rule (lowest GCN) the separated set would be: {', '.join(self.paper_choice)}")
         out += [f"note: {n}" for n in self.notes]
         return "\n".join(out)
 
@@ -136,30 +143,40 @@ def separate_ill_conditioned(robot: Robot, q: np.ndarray, params: Sequence[str] 
     for pick in itertools.product(*groups):
         options.add(tuple(sorted(set(pick))))
     full = averaged_gcn(J)
-    models = []
+
+    def model_gcn(removed: Sequence[str]) -> float:
+        return averaged_gcn(J[:, :, [col[n] for n in names if n not in set(removed)]])
+
+    models, completed = [], []
     for removed in sorted(options, key=len):
-        keep = [col[n] for n in names if n not in removed]
-        models.append((removed, averaged_gcn(J[:, :, keep])))
+        g = model_gcn(removed)
+        models.append((removed, g))
+        extra = list(removed)
+        while g > threshold and len(extra) < len(names) - 1:  # step 4: not verified, separate further
+            trial = [(n, model_gcn(extra + [n])) for n in names if n not in extra]
+            n_best, g = min(trial, key=lambda x: x[1])
+            extra.append(n_best)
+        completed.append((tuple(sorted(extra)), g))
     models.sort(key=lambda x: x[1])
-    separated, reduced = models[0] if models else ((), full)
+    # kincal's verdict: among verified models, the one keeping the most parameters (QR's rank), then
+    # the lowest GCN; the paper's rule, the lowest GCN, may drop whole groups of equivalent parameters
+    verified = [c for c in completed if c[1] <= threshold] or completed
+    separated, reduced = min(verified, key=lambda x: (len(x[0]), x[1])) if verified else ((), full)
+    paper_choice = min(verified, key=lambda x: x[1])[0] if verified else ()
 
     qr = identifiability(robot, q, params=names)
-    notes = []
-    both = set(separated) & set(qr.dropped)
-    only_bb = set(separated) - set(qr.dropped)
-    only_qr = set(qr.dropped) - set(separated)
+    kept = [n for n in names if n not in set(separated)]
+    qr_kept = identifiability(robot, q, params=kept)
+    notes = [f"the reduced model keeps {len(kept)} parameters; QR rank of it {qr_kept.rank}, of the full model "
+             f"{qr.rank} ({'full rank' if qr_kept.rank == len(kept) else 'still rank-deficient'})"]
     notes.append(f"QR identifiability of the same {len(names)} parameters drops {len(qr.dropped)}: "
                  f"{', '.join(qr.dropped) or 'none'}")
+    only_bb, only_qr = set(separated) - set(qr.dropped), set(qr.dropped) - set(separated)
     if not only_bb and not only_qr:
-        notes.append("branch-and-bound and QR agree exactly")
+        notes.append("branch-and-bound and QR separate the same parameters")
     else:
-        if both:
-            notes.append(f"both separate {', '.join(sorted(both))}")
-        if only_bb:
-            notes.append(f"only branch-and-bound separates {', '.join(sorted(only_bb))}: it removes whole groups "
-                         f"of equivalent parameters, where QR keeps one of each group (those stay identifiable)")
-        if only_qr:
-            notes.append(f"only QR drops {', '.join(sorted(only_qr))}: dependent across types, which the "
-                         f"per-type subdomains cannot see")
+        notes.append(f"both separate {', '.join(sorted(set(separated) & set(qr.dropped))) or 'nothing in common'}; "
+                     f"of equivalent parameters branch-and-bound removes {', '.join(sorted(only_bb)) or 'none'} "
+                     f"where QR removes {', '.join(sorted(only_qr)) or 'none'}")
     return Separation(names, subdomains, sub_values, branches, candidates, tuple(models), tuple(separated),
-                      full, reduced, threshold, qr.dropped, tuple(notes))
+                      full, reduced, threshold, qr.dropped, tuple(paper_choice), tuple(notes))
