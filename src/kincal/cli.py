@@ -69,17 +69,17 @@ def _json_default(o):
 def cmd_robots(args) -> int:
     names = kincal.bundled_robots()
     rows = [(n, kincal.load_robot(n)) for n in names]
-    t = Table("robot", "joints", "parameters", "convention", "description")
+    t = Table("robot", "joints", "parameters", "model", "description")
     for n, r in rows:
-        t.add_row(n, str(r.n_joints), str(r.n_params), r.convention, r.description)
+        t.add_row(n, str(r.n_joints), str(r.n_params), r.kind, r.description.split(". ")[0].split(": ")[0])
     _emit(args, {"robots": [{"name": n, "joints": r.n_joints, "parameters": r.n_params,
-                             "convention": r.convention, "description": r.description} for n, r in rows]}, t)
+                             "model": r.kind, "description": r.description} for n, r in rows]}, t)
     return 0
 
 
 def cmd_show(args) -> int:
     r = kincal.load_robot(args.robot)
-    t = Table("parameter", "value", "unit", title=f"{r.name} ({r.convention}, {r.n_joints} joints)")
+    t = Table("parameter", "value", "unit", title=f"{r.name} ({r.kind}, {r.n_joints} joints)")
     for n, k, v in zip(r.params.names, r.params.kinds, r.params.values):
         t.add_row(n, f"{v * MM:.6g}" if k == "length" else f"{v * DEG:.6g}", "mm" if k == "length" else "deg")
     lim = Table("joint", "type", "lower", "upper")
@@ -87,7 +87,7 @@ def cmd_show(args) -> int:
         f = DEG if typ == "revolute" else MM
         lim.add_row(name, typ, f"{lo * f:.6g}", f"{hi * f:.6g}")
     notes = r.structure_notes()
-    payload = {"name": r.name, "convention": r.convention, "description": r.description,
+    payload = {"name": r.name, "model": r.kind, "description": r.description,
                "parameters": r.params.as_dict(), "kinds": dict(zip(r.params.names, r.params.kinds)),
                "joints": [{"name": n, "type": t, "limits": [float(lo), float(hi)]}
                           for n, t, lo, hi in zip(r.joint_names, r.joint_types, r.lower, r.upper)], "notes": notes}

@@ -156,6 +156,12 @@ def identifiability(
     else:
         cond_raw = cond_scaled = float("inf")
     notes = list(robot.structure_notes())
+    for name in dropped:  # say pairs that act only through their sum or difference in words
+        conf = confounds.get(name, ())
+        if len(conf) == 1 and abs(abs(conf[0][1]) - 1.0) < 1e-6:
+            other, c = conf[0]
+            how = f"their difference {name} − {other}" if c < 0 else f"their sum {name} + {other}"
+            notes.append(f"{name} and {other} act only through {how}: only that combination can be identified")
     if rank and gap < 1e3:
         notes.append(f"the rank is not clear-cut (gap {gap:.3g} < 1e3): the poses hardly excite some "
                      f"parameters; add poses or check the model")

@@ -7,16 +7,20 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..analysis.identifiability import identifiability
-from ..errors import IdentifiabilityError, MeasurementError
+from ..errors import IdentifiabilityError, MeasurementError, ModelError
 from ..io.measurements import Measurements
 from ..models.robot import Robot
-from .lm import levenberg_marquardt
+from .lm import LMResult, levenberg_marquardt
+from .pso import pso
 from .registration import register_base
 from .result import CalibrationResult, EvaluationStats
 
 LOSSES = ("linear", "huber", "soft_l1")
 BASE_MODES = ("fixed", "estimate")
-METHODS = ("lm",)
+METHODS = ("lm", "pso", "pso+lm")
+RESIDUALS = ("cartesian", "joint")
+PSO_HALF_WIDTH = {"length": 8e-3, "angle": 8e-3}  # the paper's position limits ±8 (mm), per kind
+PSO_V_MAX = {"length": 0.5e-3, "angle": 0.5e-3}  # and velocity limits ±0.5 (mm per iteration)
 MAX_IRLS = 20
 PRACTICAL_TOL = 3e-5  # directions weaker than this (relative, scaled) are not fitted by default
 
@@ -43,6 +47,8 @@ def calibrate(
     tol: float = PRACTICAL_TOL,
     max_iter: int = 100,
     progress: Callable[[str], None] | None = None,
+    residual: str = "cartesian",
+    pso_options: dict | None = None,
 ) -> CalibrationResult:
     """Identify ``robot``'s parameters from measured tool positions.
 
@@ -52,7 +58,14 @@ def calibrate(
     loss     -- "linear" (least squares), or "huber" / "soft_l1" on each pose's 3-D residual norm
                 (iteratively reweighted; ``f_scale`` in m, default 3 robust sigmas of the residuals,
                 re-estimated at every reweighting)
-    method   -- "lm": Levenberg–Marquardt with the analytic Jacobian and column scaling
+    method   -- "lm": Levenberg–Marquardt with the analytic Jacobian and column scaling; "pso":
+                particle swarm with the seed-2 settings (``pso_options`` overrides particles,
+                iterations, w, c1, c2, seed); "pso+lm": PSO, then LM on the identifiable set. PSO
+                accepts an explicit ``params`` list that is not identifiable (as the seed's r and R);
+                those parameters get an infinite standard deviation
+    residual -- "cartesian": measured − predicted positions; "joint" (seed 2, eq. 4/11): commanded
+                joint values − the inverse kinematics of the measured positions (robots with a
+                closed-form inverse only)
     max_iter -- LM iteration limit; a fit that stops there is returned with ``converged=False``
     progress -- called with a short message at each stage (the CLI shows it)
 
@@ -71,6 +84,11 @@ def calibrate(
         raise ValueError(f"loss='{loss}' is not one of {LOSSES}")
     if method not in METHODS:
         raise ValueError(f"method='{method}' is not one of {METHODS}")
+    if residual not in RESIDUALS:
+        raise ValueError(f"residual='{residual}' is not one of {RESIDUALS}")
+    if residual == "joint" and not hasattr(robot, "inverse_and_jacobian"):
+        raise ValueError(f"residual='joint' needs a robot with closed-form inverse kinematics; robot "
+                         f"'{robot.name}' has none: use residual='cartesian'")
     meas.check_robot(robot)
     q, xyz = meas.q, meas.xyz
     base_names = robot.base_params()
@@ -96,12 +114,12 @@ def calibrate(
         if base == "estimate":
             names = list(base_names) + [n for n in names if n not in set(base_names)]
         ident = identifiability(start, q, params=names, keep=keep, tol=tol)
-        if ident.dropped:
+        if ident.dropped and method == "lm":
             raise IdentifiabilityError(
                 f"these parameters cannot all be identified from the {len(meas)} poses; leave out the "
                 f"dropped ones or use params='auto':\n{ident}"
             )
-        names = ident.identifiable
+        names = names if method != "lm" else ident.identifiable
     names = tuple(names)
     K = len(names)
     if 3 * len(meas) <= K:
@@ -117,25 +135,49 @@ def calibrate(
         v[idx] = x
         return v
 
-    def residual(x: np.ndarray, w: np.ndarray | None):
+    def residual(x: np.ndarray, w: np.ndarray | None, cols: np.ndarray = idx):
         """Stacked residual and Jacobian, ordered axis-major (all x, then all y, then all z) so the
         Jacobian is a transposed view of the model's parameter rows, without a copy per call."""
-        p, J = start.forward_and_jacobian(q, values(x))
-        r = (p - xyz).T.ravel()
-        Jt = J.transpose(2, 1, 0)[idx].reshape(K, -1)  # (K, 3N)
+        if residual == "joint":
+            qh, J = start.inverse_and_jacobian(xyz, values(x) if x.size == K else _embed(x, cols))
+            r = (qh - q).T.ravel()
+        else:
+            p, J = start.forward_and_jacobian(q, values(x) if x.size == K else _embed(x, cols))
+            r = (p - xyz).T.ravel()
+        Jt = J.transpose(2, 1, 0)[cols].reshape(cols.size, -1)  # (K, 3N)
         if w is not None:
             sw = np.tile(np.sqrt(w), 3)
             r, Jt = r * sw, Jt * sw
         return r, Jt.T
 
+    def _embed(x: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        v = v0.copy()
+        v[cols] = x
+        return v
+
     def pose_norms(x: np.ndarray) -> np.ndarray:
         return np.linalg.norm(xyz - start.forward(q, values(x)), axis=1)
 
-    say(f"fitting {K} parameters to {len(meas)} poses")
     w = None
-    fit = levenberg_marquardt(lambda x: residual(x, None), v0[idx], max_iter=max_iter)
-    iterations, evaluations = fit.iterations, fit.evaluations
+    x0 = v0[idx]
+    iterations = evaluations = 0
+    if method in ("pso", "pso+lm"):
+        say(f"particle swarm over {K} parameters")
+        x0, iterations, evaluations = _pso_fit(start, q, xyz, idx, v0, residual, pso_options or {})
+    lm_cols = idx
+    if method == "pso+lm" and ident.dropped:  # polish only what the data determine
+        lm_cols = start.params.indices(ident.identifiable)
+        v0 = _embed(x0, idx)
+        x0 = v0[lm_cols]
+    if method != "pso":
+        say(f"fitting {lm_cols.size} parameters to {len(meas)} poses")
+        fit = levenberg_marquardt(lambda x: residual(x, None, lm_cols), x0, max_iter=max_iter)
+        iterations, evaluations = iterations + fit.iterations, evaluations + fit.evaluations
+    else:
+        fit = _evaluated(residual(x0, None), x0)
     if loss != "linear":
+        if method != "lm":
+            raise ValueError("robust losses are available with method='lm'")
         auto_scale = f_scale is None
         w = np.ones(len(meas))
         for _ in range(MAX_IRLS):
@@ -149,18 +191,28 @@ def calibrate(
             fit = levenberg_marquardt(lambda x: residual(x, w), fit.x, max_iter=max_iter)
             iterations, evaluations = iterations + fit.iterations, evaluations + fit.evaluations
 
+    cols = lm_cols if method != "pso" else idx
     v = v0.copy()
-    v[idx] = fit.x
+    v[cols] = fit.x
     calibrated = start.with_params(v)
     res = xyz - calibrated.forward(q)
-    J = fit.jacobian  # weighted, at the solution
-    dof = 3 * len(meas) - K
+    J = fit.jacobian  # weighted, at the solution, columns ``cols``
+    dof = max(fit.residual.size - cols.size, 1)
     sigma2 = float(fit.residual @ fit.residual) / dof
     cov = _covariance(J) * sigma2
-    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    sd_cols = {start.params.names[c]: float(np.sqrt(max(cov[k, k], 0.0))) for k, c in enumerate(cols)}
+    undetermined = set(ident.dropped) if method == "pso" else set()
+    sd = np.array([np.inf if n in undetermined else sd_cols.get(n, np.inf) for n in names])
+    full_cov = np.zeros((K, K))
+    pos = {start.params.names[c]: k for k, c in enumerate(cols)}
+    for a, na in enumerate(names):
+        for b, nb in enumerate(names):
+            if na in pos and nb in pos:
+                full_cov[a, b] = cov[pos[na], pos[nb]]
     with np.errstate(invalid="ignore", divide="ignore"):
-        corr = cov / np.outer(sd, sd)
+        corr = full_cov / np.outer(sd, sd)
     corr = np.where(np.isfinite(corr), corr, 0.0)
+    np.fill_diagonal(corr, 1.0)
     nominal = robot.params
     return CalibrationResult(
         robot=calibrated,
@@ -168,7 +220,7 @@ def calibrate(
         names=names,
         estimates={n: float(v[i]) for n, i in zip(names, idx)},
         corrections={n: float(v[i] - nominal.values[i]) for n, i in zip(names, idx)},
-        std={n: float(s) for n, s in zip(names, sd)},
+        std={n: float(x) for n, x in zip(names, sd)},
         correlation=corr,
         residuals=res,
         sigma=float(np.sqrt(sigma2 / (1.0 if w is None else np.mean(w)))),
@@ -202,3 +254,28 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False) -> Evaluati
     if rebase:
         robot = calibrate(robot, meas, params=(), base="estimate").robot
     return EvaluationStats.from_errors(meas.xyz - robot.forward(meas.q))
+
+
+def _evaluated(rj: tuple[np.ndarray, np.ndarray], x: np.ndarray) -> LMResult:
+    r, J = rj
+    return LMResult(x, 0.5 * float(r @ r), r, J, 0, 0, True, "particle swarm finished its iterations")
+
+
+def _pso_fit(robot: Robot, q: np.ndarray, xyz: np.ndarray, idx: np.ndarray, v0: np.ndarray, residual: str,
+             options: dict) -> tuple[np.ndarray, int, int]:
+    """Particle swarm on the mean squared residual; returns the best x, iterations, model evaluations."""
+    kinds = [robot.params.kinds[i] for i in idx]
+
+    def objective(x: np.ndarray) -> float:
+        v = v0.copy()
+        v[idx] = x
+        try:
+            r = robot.inverse(xyz, v) - q if residual == "joint" else robot.forward(q, v) - xyz
+        except ModelError:
+            return np.inf
+        return float(np.mean(r * r))
+
+    opts = {"particles": 500, "iterations": 200, "w": 0.8, "c1": 0.5, "c2": 1.2, "seed": 0, **options}
+    out = pso(objective, v0[idx], np.array([PSO_HALF_WIDTH[k] for k in kinds]),
+              np.array([PSO_V_MAX[k] for k in kinds]), **opts)
+    return out.x, out.iterations, out.evaluations

@@ -90,7 +90,7 @@ class CalibrationResult:
             "not_estimated": [n for n in self.robot.params.names if n not in set(self.names)],
             "estimates": self.estimates,
             "corrections": self.corrections,
-            "std": self.std,
+            "std": {k: (v if np.isfinite(v) else None) for k, v in self.std.items()},  # None: undetermined
             "correlation": self.correlation.tolist(),
             "before": self.stats_before.to_dict(),
             "after": self.stats_after.to_dict(),
@@ -108,8 +108,9 @@ class CalibrationResult:
         ]
         for n in self.names:
             k = kinds[n]
+            sd = display(self.std[n], k).lstrip("+") if np.isfinite(self.std[n]) else "undetermined"
             lines.append(f"{n:<12} {display(self.estimates[n], k):>16} {display(self.corrections[n], k):>16} "
-                         f"{display(self.std[n], k).lstrip('+'):>14}")
+                         f"{sd:>14}")
         lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm",
                   f"before: {self.stats_before}", f"after:  {self.stats_after}"]
         return "\n".join(lines)

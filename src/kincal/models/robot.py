@@ -27,6 +27,11 @@ class Robot(ABC):
     params: Parameters
 
     @property
+    def kind(self) -> str:
+        """A short description of the model type (e.g. 'dh', 'mdh', 'puu3 (implicit)')."""
+        return type(self).__name__
+
+    @property
     def n_joints(self) -> int:
         return len(self.joint_names)
 
@@ -107,6 +112,20 @@ class Robot(ABC):
         lo, hi = self.lower, self.upper
         span = hi - lo
         return rng.uniform(lo + margin * span, hi - margin * span, size=(int(n), self.n_joints))
+
+    def sample_feasible(self, n: int, seed: int | None = 0, max_tries: int = 50) -> np.ndarray:
+        """n joint vectors drawn uniformly within the limits where ``feasible`` holds, (n, n_joints)."""
+        rng = np.random.default_rng(seed)
+        kept, have = [], 0
+        for _ in range(max_tries):
+            q = rng.uniform(self.lower, self.upper, size=(max(2 * (n - have), 16), self.n_joints))
+            q = q[self.feasible(q)]
+            kept.append(q)
+            have += q.shape[0]
+            if have >= n:
+                return np.concatenate(kept)[:n]
+        raise ModelError(f"{self.name}: only {have} of {n} random joint vectors satisfy the robot's constraints; "
+                         f"check the joint limits and coupled constraints")
 
     def within_limits(self, q: np.ndarray, tol: float = 1e-12) -> np.ndarray:
         """(N,) bool: every joint inside its limits."""

@@ -138,6 +138,10 @@ class SerialRobot(Robot):
         ops += [Op(TRANS, x, idx("tool.x")), Op(TRANS, y, idx("tool.y")), Op(TRANS, z, idx("tool.z"))]
         return tuple(ops)
 
+    @property
+    def kind(self) -> str:
+        return self.convention
+
     # ---- Robot interface -----------------------------------------------------------------------
     @property
     def joint_names(self) -> tuple[str, ...]:  # type: ignore[override]

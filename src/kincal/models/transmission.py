@@ -86,6 +86,7 @@ class TransmissionRobot(Robot):
     name = property(lambda self: self.chain.name)  # type: ignore[assignment]
     description = property(lambda self: self.chain.description)
     convention = property(lambda self: self.chain.convention)
+    kind = property(lambda self: f"{self.chain.convention} + transmission")  # type: ignore[assignment]
     joint_names = property(lambda self: self.actuator_names)  # type: ignore[assignment]
     joint_types = property(lambda self: ("revolute",) * len(self.actuator_names))  # type: ignore[assignment]
     lower = property(lambda self: self.actuator_lower)  # type: ignore[assignment]

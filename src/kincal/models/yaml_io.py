@@ -26,6 +26,7 @@ import yaml
 
 from .._atomic import write_text_atomic
 from ..errors import ModelError
+from .puu3 import PUU3Robot, puu3_names
 from .robot import Robot
 from .serial import CONVENTIONS, Joint, SerialRobot
 from .transmission import Map, TransmissionRobot, build_transmission_robot
@@ -33,7 +34,8 @@ from .transmission import Map, TransmissionRobot, build_transmission_robot
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}
 ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
 _JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits"}
-_TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool", "actuators", "transmission"}
+_TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool", "actuators", "transmission",
+             "type", "extended", "parameters", "slider_limits"}
 DRIVE_PREFIX = "drive."
 
 
@@ -78,6 +80,10 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     unknown = set(data) - _TOP_KEYS
     if unknown:
         raise ModelError(f"{label}: unknown key(s) {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
+    if data.get("type", "serial") == "puu3":
+        return _puu3_from_dict(data, label)
+    if data.get("type", "serial") != "serial":
+        raise ModelError(f"{label}: unknown robot type '{data.get('type')}'; use 'serial' (default) or 'puu3'")
     for key in ("name", "convention", "joints"):
         if key not in data:
             raise ModelError(f"{label}: missing required key '{key}'")
@@ -134,6 +140,44 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     return robot
 
 
+def _puu3_from_dict(data: dict, label: str) -> PUU3Robot:
+    units = data.get("units") or {}
+    lf = unit_factor(units.get("length", "m"), "length", f"{label}: ")
+    af = unit_factor(units.get("angle", "rad"), "angle", f"{label}: ")
+    extended = bool(data.get("extended", False))
+    names, kinds = puu3_names(extended)
+    kind = dict(zip(names, kinds))
+    values = {}
+    for key, v in (data.get("parameters") or {}).items():
+        if key not in kind:
+            raise ModelError(f"{label}: unknown 3-PUU parameter '{key}'; known: {', '.join(names[6:])}")
+        values[key] = _num(v, f"{label}: parameters", key) * (lf if kind[key] == "length" else af)
+    for k, v in (data.get("base") or {}).items():
+        values[f"base.{k}"] = _num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
+    lim = data.get("slider_limits", [380, 835] if lf == 1e-3 else [0.380, 0.835])
+    if not (isinstance(lim, list) and len(lim) == 2):
+        raise ModelError(f"{label}: 'slider_limits' must be [lower, upper]")
+    lo, hi = _num(lim[0], label, "slider_limits") * lf, _num(lim[1], label, "slider_limits") * lf
+    base = PUU3Robot.build(str(data.get("name", "puu3")), extended=extended, h_range=(lo, hi),
+                           description=str(data.get("description", "")))
+    return base.with_params(values)
+
+
+def _puu3_yaml(robot: PUU3Robot, length_unit: str, angle_unit: str) -> str:
+    lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
+    v = robot.params.as_dict()
+    kinds = dict(zip(robot.params.names, robot.params.kinds))
+    params = ", ".join(f"{n}: {_fmt(v[n] * (lf if kinds[n] == 'length' else af))}" for n in robot.params.names[6:])
+    base = ", ".join(f"{k}: {_fmt(v['base.' + k] * (lf if k in 'xyz' else af))}" for k in ("x", "y", "z", "rx", "ry", "rz"))
+    lines = [f"name: {robot.name}", "type: puu3"]
+    if robot.description:
+        lines.append(f"description: {yaml.safe_dump(robot.description, default_style=chr(34)).strip()}")
+    lines += [f"units: {{length: {length_unit}, angle: {angle_unit}}}", f"extended: {str(robot.extended).lower()}",
+              f"parameters: {{{params}}}", f"slider_limits: [{_fmt(robot.h_lower * lf)}, {_fmt(robot.h_upper * lf)}]",
+              f"base: {{{base}}}", ""]
+    return "\n".join(lines)
+
+
 def _transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float, label: str) -> TransmissionRobot:
     acts = data["actuators"]
     tr = data["transmission"]
@@ -186,6 +230,8 @@ def _fmt(x: float) -> str:
 
 def robot_to_yaml(robot: Robot, length_unit: str = "m", angle_unit: str = "rad") -> str:
     """YAML text of a robot. In SI units (the default) load(save(robot)) reproduces it exactly."""
+    if isinstance(robot, PUU3Robot):
+        return _puu3_yaml(robot, length_unit, angle_unit)
     if isinstance(robot, TransmissionRobot):
         return _chain_yaml(robot.chain, length_unit, angle_unit) + _transmission_yaml(robot, length_unit, angle_unit)
     return _chain_yaml(robot, length_unit, angle_unit)

@@ -1,0 +1,182 @@
+"""Closed-loop robots defined by constraints f(p, q, s) = 0 (one per leg; seed 2, eq. 1).
+
+p is the end-effector position in the robot frame, q the joint inputs, s the structural parameters.
+A subclass supplies the constraints and their derivatives (and, where it exists, a closed-form
+inverse); everything else is generic and batched:
+
+* ``forward(q)``: Newton's method on f(p) = 0 from the model's start point; configurations where it
+  does not converge, or where ∂f/∂p is singular, raise a ModelError that names them;
+* ``param_jacobian``: implicit-function theorem, dp = −(∂f/∂p)⁻¹ (∂f/∂s) ds (eq. 3, 9);
+* ``joint_jacobian``: dp = −(∂f/∂p)⁻¹ (∂f/∂q) dq;
+* a 6-parameter base frame places the robot frame in the measurement frame, as for serial robots,
+  so tracker data can be registered: world = R_b p + t_b, R_b = Rz(rz) Ry(ry) Rx(rx).
+"""
+from __future__ import annotations
+
+from abc import abstractmethod
+
+import numpy as np
+
+from ..errors import ModelError
+from .robot import Robot
+from .serial import BASE_NAMES
+from .transforms import rot_zyx, zyx_from_matrix
+
+NEWTON_TOL = 1e-13  # m², constraint residual
+NEWTON_ITER = 50
+SINGULAR_COND = 1e10
+
+
+class ImplicitRobot(Robot):
+    """Base class: subclasses set ``name``, joint names/types/limits, ``params`` (the first six being
+    the base frame) and implement the constraint methods below (robot frame, SI units)."""
+
+    # ---- to implement -------------------------------------------------------------------------
+    @abstractmethod
+    def constraints(self, p: np.ndarray, q: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """f (N, c) for positions p (N, 3) in the robot frame."""
+
+    @abstractmethod
+    def constraint_derivatives(self, p: np.ndarray, q: np.ndarray, values: np.ndarray):
+        """(∂f/∂p (N,c,3), ∂f/∂q (N,c,n), ∂f/∂s (N,c,P)); ∂f/∂s may leave the base columns 0."""
+
+    @abstractmethod
+    def start_point(self, q: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """A starting position (N, 3) for Newton's method, in the desired assembly mode."""
+
+    def assembly_mode(self, p: np.ndarray, q: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """Map converged solutions (N, 3) onto the model's nominal assembly mode; identity by default."""
+        return p
+
+    def inverse_local(self, p: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """Closed-form inverse kinematics in the robot frame, (N, n); optional."""
+        raise ModelError(f"robot '{self.name}' has no closed-form inverse")
+
+    # ---- base frame ---------------------------------------------------------------------------
+    def base_params(self) -> tuple[str, ...]:
+        return BASE_NAMES
+
+    def preferred_params(self) -> tuple[str, ...]:
+        return BASE_NAMES
+
+    def _base(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        b = values[self.params.indices(BASE_NAMES)]
+        return rot_zyx(b[5], b[4], b[3]), b[:3]
+
+    def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._base(self.params.values)
+
+    def with_base_transform(self, R: np.ndarray, t: np.ndarray) -> "ImplicitRobot":
+        rz, ry, rx = zyx_from_matrix(np.asarray(R, dtype=float))
+        return self.with_params(dict(zip(BASE_NAMES, [float(c) for c in t] + [rx, ry, rz])))
+
+    # ---- generic kinematics -------------------------------------------------------------------
+    def _solve_local(self, q: np.ndarray, values: np.ndarray, strict: bool = True):
+        """Newton on f(p) = 0; returns p (N,3) and a converged mask (raises if ``strict``)."""
+        p = self.start_point(q, values)
+        ok = np.zeros(q.shape[0], bool)
+        for _ in range(NEWTON_ITER):
+            f = self.constraints(p, q, values)
+            ok = np.all(np.abs(f) < NEWTON_TOL, axis=1)
+            if ok.all():
+                break
+            fp = self.constraint_derivatives(p, q, values)[0]
+            with np.errstate(all="ignore"):
+                try:
+                    step = np.linalg.solve(fp, f[..., None])[..., 0]
+                except np.linalg.LinAlgError:
+                    step = np.einsum("nij,nj->ni", np.linalg.pinv(fp), f)
+            step = np.where(np.isfinite(step), step, 0.0)
+            p = p - np.where(ok[:, None], 0.0, step)
+        ok &= np.all(np.isfinite(p), axis=1)
+        p = self.assembly_mode(p, q, values)
+        if strict and not ok.all():
+            bad = np.flatnonzero(~ok)
+            raise ModelError(
+                f"{self.name}: forward kinematics did not converge for {bad.size} configuration(s) "
+                f"(first at index {bad[0]}, q = {np.array2string(q[bad[0]], precision=6)}): outside the "
+                f"workspace or at a singularity; check the joint values and their units")
+        return p, ok
+
+    def _to_world(self, p_local: np.ndarray, values: np.ndarray) -> np.ndarray:
+        R, t = self._base(values)
+        return p_local @ R.T + t
+
+    def forward_and_jacobian(self, q, params=None, jacobian=True):
+        q = self.check_q(q)
+        values = self.param_values(params)
+        p_local, _ = self._solve_local(q, values)
+        p = self._to_world(p_local, values)
+        if not jacobian:
+            return p, None
+        fp, _, fs = self.constraint_derivatives(p_local, q, values)
+        fp_inv = self._checked_inverse(fp, q)
+        R, t = self._base(values)
+        J = -np.einsum("ij,njc,nck->nik", R, fp_inv, fs)  # IFT in the robot frame, then rotated
+        bi = self.params.indices(BASE_NAMES)
+        J[:, :, bi[:3]] = np.eye(3)
+        d = p - t
+        rz, ry = values[bi[5]], values[bi[4]]
+        axes = [rot_zyx(rz, ry, 0.0) @ [1.0, 0, 0], rot_zyx(rz, 0.0, 0.0) @ [0, 1.0, 0], np.array([0, 0, 1.0])]
+        for k, axis in zip(bi[3:], axes):  # rx, ry, rz: rotation about the world-frame axis through t
+            J[:, :, k] = np.cross(axis, d)
+        return p, J
+
+    def _checked_inverse(self, fp: np.ndarray, q: np.ndarray) -> np.ndarray:
+        cond = np.linalg.cond(fp)
+        bad = ~(cond < SINGULAR_COND)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise ModelError(f"{self.name}: {int(bad.sum())} configuration(s) are singular (∂f/∂p has condition "
+                             f"number {cond[k]:.3g} at index {k}, q = {np.array2string(q[k], precision=6)}); "
+                             f"leave them out")
+        return np.linalg.inv(fp)
+
+    def joint_jacobian(self, q, params=None):
+        squeeze = np.ndim(q) == 1
+        q = self.check_q(q)
+        values = self.param_values(params)
+        p_local, _ = self._solve_local(q, values)
+        fp, fq, _ = self.constraint_derivatives(p_local, q, values)
+        R, _ = self._base(values)
+        out = -np.einsum("ij,njc,nck->nik", R, self._checked_inverse(fp, q), fq)
+        return out[0] if squeeze else out
+
+    def inverse(self, p: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
+        """Joint values (N, n) that place the end effector at world positions p (N, 3)."""
+        values = self.param_values(params)
+        R, t = self._base(values)
+        return self.inverse_local((np.atleast_2d(np.asarray(p, float)) - t) @ R, values)
+
+    def in_working_mode(self, p: np.ndarray, q: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """(N,) bool: the solution is in the working mode the closed-form inverse returns."""
+        return np.ones(p.shape[0], bool)
+
+    def inverse_and_jacobian(self, p: np.ndarray, params: np.ndarray | None = None):
+        """Joint values (N, n) for world positions p (N, 3) and their derivatives with respect to the
+        parameters at fixed p, (N, n, P): dq = −(∂f/∂q)⁻¹ (∂f/∂p · ∂p_local/∂s + ∂f/∂s) ds."""
+        values = self.param_values(params)
+        p = np.atleast_2d(np.asarray(p, float))
+        R, t = self._base(values)
+        p_local = (p - t) @ R
+        q = self.inverse_local(p_local, values)
+        fp, fq, fs = self.constraint_derivatives(p_local, q, values)
+        dpl = np.zeros((p.shape[0], 3, self.n_params))  # ∂p_local/∂(base parameters)
+        bi = self.params.indices(BASE_NAMES)
+        dpl[:, :, bi[:3]] = -R.T
+        rz, ry = values[bi[5]], values[bi[4]]
+        axes = [rot_zyx(rz, ry, 0.0) @ [1.0, 0, 0], rot_zyx(rz, 0.0, 0.0) @ [0, 1.0, 0], np.array([0, 0, 1.0])]
+        for k, axis in zip(bi[3:], axes):
+            dpl[:, :, k] = -np.cross(axis, p - t) @ R
+        rhs = fs + np.einsum("nci,nik->nck", fp, dpl)
+        return q, -np.linalg.solve(fq, rhs)
+
+    def feasible(self, q: np.ndarray) -> np.ndarray:
+        """Within the limits, assembles, and in the nominal working mode."""
+        q = self.check_q(q)
+        p, ok = self._solve_local(q, self.params.values, strict=False)
+        return self.within_limits(q) & ok & self.in_working_mode(p, q, self.params.values)
+
+    def sample_joints(self, n: int, seed: int | None = 0, margin: float = 0.0) -> np.ndarray:
+        """n joint vectors within the limits that also assemble (rejection sampling)."""
+        return self.sample_feasible(n, seed)

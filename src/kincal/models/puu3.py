@@ -1,0 +1,177 @@
+"""The 3-PUU translational parallel robot of seed 2 (eq. 7–10), with an extended parameter set.
+
+Leg i (nominal direction φᵢ = 0°, 120°, 240°): a slider moves along a rail through the base point
+Rᵢ·e(φᵢ + aᵢ) in direction uᵢ = (txᵢ, tyᵢ, 1)/‖·‖, at height hᵢ + h0ᵢ; a link of length Lᵢ joins it to
+the platform point p + rᵢ·e(φᵢ + bᵢ) (e(θ) = (cos θ, sin θ, 0)). The platform only translates. The
+constraint of leg i is fᵢ = ‖p + rᵢe(φᵢ+bᵢ) − Rᵢe(φᵢ+aᵢ) − (hᵢ+h0ᵢ)uᵢ‖² − Lᵢ² = 0.
+
+Parameters: the base frame, the paper's five ``r R L1 L2 L3`` (eq. 10), and with ``extended`` per
+leg ``leg<i>.dR leg<i>.dr`` (radius offsets), ``leg<i>.a leg<i>.b`` (base / platform angle offsets),
+``leg<i>.h0`` (slider zero offset) and ``leg<i>.tx leg<i>.ty`` (rail tilt). Rᵢ = R + dRᵢ, rᵢ = r + drᵢ.
+Inverse kinematics is closed form (the slider above the platform, the nominal assembly mode).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ModelError
+from .implicit import ImplicitRobot
+from .parameters import Parameters
+from .serial import BASE_NAMES
+
+LEG_PARAMS = ("dR", "dr", "a", "b", "h0", "tx", "ty")
+LEG_KINDS = ("length", "length", "angle", "angle", "length", "angle", "angle")
+
+
+def puu3_names(extended: bool) -> tuple[list[str], list[str]]:
+    names = list(BASE_NAMES) + ["r", "R", "L1", "L2", "L3"]
+    kinds = ["length"] * 3 + ["angle"] * 3 + ["length"] * 5
+    if extended:
+        for i in range(1, 4):
+            names += [f"leg{i}.{p}" for p in LEG_PARAMS]
+            kinds += list(LEG_KINDS)
+    return names, kinds
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class PUU3Robot(ImplicitRobot):
+    """3-PUU translational parallel robot; joints are the three slider heights h1..h3 (m)."""
+
+    name: str
+    params: Parameters
+    h_lower: float
+    h_upper: float
+    extended: bool = False
+    description: str = ""
+    phi: tuple[float, float, float] = (0.0, 2 * np.pi / 3, 4 * np.pi / 3)
+    _idx: dict = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        names, kinds = puu3_names(self.extended)
+        if self.params.names != tuple(names) or self.params.kinds != tuple(kinds):
+            raise ModelError(f"{self.name}: parameters do not match the 3-PUU layout ({', '.join(names)})")
+        if not self.h_lower < self.h_upper:
+            raise ModelError(f"{self.name}: slider limits must have lower < upper")
+        object.__setattr__(self, "_idx", {n: i for i, n in enumerate(names)})
+
+    @classmethod
+    def build(cls, name: str = "puu3", r: float = 0.1, R: float = 0.2, L: float = 0.35,
+              h_range: tuple[float, float] = (0.380, 0.835), extended: bool = False,
+              values: dict | None = None, description: str = "") -> "PUU3Robot":
+        names, kinds = puu3_names(extended)
+        v = dict.fromkeys(names, 0.0)
+        v.update({"r": r, "R": R, "L1": L, "L2": L, "L3": L})
+        v.update(values or {})
+        unknown = set(v) - set(names)
+        if unknown:
+            raise ModelError(f"{name}: unknown parameter(s) {sorted(unknown)}; known: {', '.join(names)}")
+        return cls(name, Parameters(names, [v[n] for n in names], kinds), h_range[0], h_range[1], extended,
+                   description)
+
+    kind = property(lambda self: "puu3 (implicit)")  # type: ignore[assignment]
+    joint_names = property(lambda self: ("h1", "h2", "h3"))  # type: ignore[assignment]
+    joint_types = property(lambda self: ("prismatic",) * 3)  # type: ignore[assignment]
+    lower = property(lambda self: np.full(3, self.h_lower))  # type: ignore[assignment]
+    upper = property(lambda self: np.full(3, self.h_upper))  # type: ignore[assignment]
+
+    def with_params(self, values) -> "PUU3Robot":
+        new = values if isinstance(values, Parameters) else self.params.replace(values)
+        return PUU3Robot(self.name, new, self.h_lower, self.h_upper, self.extended, self.description, self.phi)
+
+    # ---- geometry -------------------------------------------------------------------------------
+    def _legs(self, values: np.ndarray):
+        """Per leg: platform offset (3,3), base point (3,3), rail direction (3,3), h0 (3,), L (3,) and
+        the pieces needed for derivatives."""
+        g = lambda n: values[self._idx[n]]  # noqa: E731
+        r, R = g("r"), g("R")
+        L = np.array([g("L1"), g("L2"), g("L3")])
+        leg = np.zeros((3, len(LEG_PARAMS)))
+        if self.extended:
+            leg = np.array([[g(f"leg{i}.{p}") for p in LEG_PARAMS] for i in range(1, 4)])
+        dR, dr, a, b, h0, tx, ty = leg.T
+        phi = np.asarray(self.phi)
+        ea = np.stack([np.cos(phi + a), np.sin(phi + a), np.zeros(3)], axis=1)
+        eb = np.stack([np.cos(phi + b), np.sin(phi + b), np.zeros(3)], axis=1)
+        va = np.stack([-np.sin(phi + a), np.cos(phi + a), np.zeros(3)], axis=1)  # d e(θ)/dθ
+        vb = np.stack([-np.sin(phi + b), np.cos(phi + b), np.zeros(3)], axis=1)
+        v = np.stack([tx, ty, np.ones(3)], axis=1)
+        nv = np.linalg.norm(v, axis=1)
+        u = v / nv[:, None]
+        du_dtx = (np.array([1.0, 0, 0]) - u * u[:, :1]) / nv[:, None]
+        du_dty = (np.array([0, 1.0, 0]) - u * u[:, 1:2]) / nv[:, None]
+        plat = (r + dr)[:, None] * eb
+        base = (R + dR)[:, None] * ea
+        return plat, base, u, h0, L, (ea, eb, va, vb, du_dtx, du_dty, r + dr, R + dR)
+
+    def _d(self, p: np.ndarray, q: np.ndarray, values: np.ndarray):
+        plat, base, u, h0, L, extra = self._legs(values)
+        t = q + h0  # slider travel along the rail, (N, 3)
+        d = p[:, None, :] + plat[None] - base[None] - t[:, :, None] * u[None]  # (N, 3 legs, 3)
+        return d, t, u, L, extra
+
+    def constraints(self, p, q, values):
+        d, _, _, L, _ = self._d(p, q, values)
+        return np.einsum("nij,nij->ni", d, d) - L**2
+
+    def constraint_derivatives(self, p, q, values):
+        d, t, u, L, (ea, eb, va, vb, du_dtx, du_dty, ri, Ri) = self._d(p, q, values)
+        n = p.shape[0]
+        fp = 2.0 * d
+        du = np.einsum("nij,ij->ni", d, u)  # d·u per leg
+        fq = np.zeros((n, 3, 3))
+        fq[:, [0, 1, 2], [0, 1, 2]] = -2.0 * du
+        fs = np.zeros((n, 3, self.n_params))
+        ix = self._idx
+        d_eb = np.einsum("nij,ij->ni", d, eb)
+        d_ea = np.einsum("nij,ij->ni", d, ea)
+        fs[:, :, ix["r"]] = 2.0 * d_eb
+        fs[:, :, ix["R"]] = -2.0 * d_ea
+        for i in range(3):
+            fs[:, i, ix[f"L{i + 1}"]] = -2.0 * L[i]
+        if self.extended:
+            for i in range(3):
+                c = lambda name: ix[f"leg{i + 1}.{name}"]  # noqa: E731
+                fs[:, i, c("dr")] = 2.0 * d_eb[:, i]
+                fs[:, i, c("dR")] = -2.0 * d_ea[:, i]
+                fs[:, i, c("b")] = 2.0 * ri[i] * (d[:, i] @ vb[i])
+                fs[:, i, c("a")] = -2.0 * Ri[i] * (d[:, i] @ va[i])
+                fs[:, i, c("h0")] = -2.0 * du[:, i]
+                fs[:, i, c("tx")] = -2.0 * t[:, i] * (d[:, i] @ du_dtx[i])
+                fs[:, i, c("ty")] = -2.0 * t[:, i] * (d[:, i] @ du_dty[i])
+        return fp, fq, fs
+
+    def start_point(self, q, values):
+        plat, base, _, h0, L, _ = self._legs(values)
+        rho = np.linalg.norm(base - plat, axis=1).mean()
+        z = (q + h0).mean(axis=1) - np.sqrt(max(L.mean() ** 2 - rho**2, 1e-12))
+        return np.column_stack([np.zeros(q.shape[0]), np.zeros(q.shape[0]), z])
+
+    def assembly_mode(self, p, q, values):
+        """The platform hangs below its three sphere centres cᵢ = sliderᵢ − platform offsetᵢ; the other
+        solution is the mirror image across their plane, so reflect any solution found above it."""
+        plat, base, u, h0, _, _ = self._legs(values)
+        c = base[None] + (q + h0)[:, :, None] * u[None] - plat[None]  # (N, 3, 3) sphere centres
+        n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        n *= np.sign(n[:, 2:3])  # upward normal
+        h = np.einsum("ni,ni->n", p - c[:, 0], n)
+        return p - 2.0 * np.maximum(h, 0.0)[:, None] * n
+
+    def in_working_mode(self, p, q, values):
+        """Every link rises from its platform point to its slider (the inverse's branch)."""
+        d, _, u, _, _ = self._d(p, q, values)
+        return np.all(np.einsum("nij,ij->ni", d, u) < 0.0, axis=1)
+
+    def inverse_local(self, p, values):
+        """Slider heights for platform positions p (N, 3): the root with the slider above the platform."""
+        plat, base, u, h0, L, _ = self._legs(values)
+        w = np.asarray(p, float)[:, None, :] + plat[None] - base[None]  # (N, legs, 3)
+        wu = np.einsum("nij,ij->ni", w, u)
+        disc = wu**2 - np.einsum("nij,nij->ni", w, w) + L**2
+        if np.any(disc < 0):
+            k = int(np.flatnonzero(np.any(disc < 0, axis=1))[0])
+            raise ModelError(f"{self.name}: position {np.array2string(np.asarray(p)[k], precision=6)} m is out of "
+                             f"reach of the links (row {k}); check the targets and their units")
+        return wu + np.sqrt(disc) - h0
