@@ -135,11 +135,14 @@ def calibrate(
         v[idx] = x
         return v
 
-    def residual(x: np.ndarray, w: np.ndarray | None, cols: np.ndarray = idx):
+    def stacked(x: np.ndarray, w: np.ndarray | None, cols: np.ndarray = idx):
         """Stacked residual and Jacobian, ordered axis-major (all x, then all y, then all z) so the
         Jacobian is a transposed view of the model's parameter rows, without a copy per call."""
         if residual == "joint":
-            qh, J = start.inverse_and_jacobian(xyz, values(x) if x.size == K else _embed(x, cols))
+            try:
+                qh, J = start.inverse_and_jacobian(xyz, values(x) if x.size == K else _embed(x, cols))
+            except ModelError:  # a trial step where some measured position is out of reach: reject it
+                return np.full(q.size, np.inf), np.zeros((q.size, cols.size))
             r = (qh - q).T.ravel()
         else:
             p, J = start.forward_and_jacobian(q, values(x) if x.size == K else _embed(x, cols))
@@ -171,10 +174,10 @@ def calibrate(
         x0 = v0[lm_cols]
     if method != "pso":
         say(f"fitting {lm_cols.size} parameters to {len(meas)} poses")
-        fit = levenberg_marquardt(lambda x: residual(x, None, lm_cols), x0, max_iter=max_iter)
+        fit = levenberg_marquardt(lambda x: stacked(x, None, lm_cols), x0, max_iter=max_iter)
         iterations, evaluations = iterations + fit.iterations, evaluations + fit.evaluations
     else:
-        fit = _evaluated(residual(x0, None), x0)
+        fit = _evaluated(stacked(x0, None), x0)
     if loss != "linear":
         if method != "lm":
             raise ValueError("robust losses are available with method='lm'")
@@ -188,7 +191,7 @@ def calibrate(
             if np.max(np.abs(w_new - w)) < 1e-4:
                 break
             w = w_new
-            fit = levenberg_marquardt(lambda x: residual(x, w), fit.x, max_iter=max_iter)
+            fit = levenberg_marquardt(lambda x: stacked(x, w), fit.x, max_iter=max_iter)
             iterations, evaluations = iterations + fit.iterations, evaluations + fit.evaluations
 
     cols = lm_cols if method != "pso" else idx
@@ -270,10 +273,11 @@ def _pso_fit(robot: Robot, q: np.ndarray, xyz: np.ndarray, idx: np.ndarray, v0: 
         v = v0.copy()
         v[idx] = x
         try:
-            r = robot.inverse(xyz, v) - q if residual == "joint" else robot.forward(q, v) - xyz
-        except ModelError:
+            r = robot.inverse(xyz, v, strict=False) - q if residual == "joint" else robot.forward(q, v) - xyz
+        except ModelError:  # a candidate that cannot assemble some pose
             return np.inf
-        return float(np.mean(r * r))
+        val = float(np.mean(r * r))
+        return val if np.isfinite(val) else np.inf
 
     opts = {"particles": 500, "iterations": 200, "w": 0.8, "c1": 0.5, "c2": 1.2, "seed": 0, **options}
     out = pso(objective, v0[idx], np.array([PSO_HALF_WIDTH[k] for k in kinds]),

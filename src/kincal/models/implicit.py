@@ -48,8 +48,9 @@ class ImplicitRobot(Robot):
         """Map converged solutions (N, 3) onto the model's nominal assembly mode; identity by default."""
         return p
 
-    def inverse_local(self, p: np.ndarray, values: np.ndarray) -> np.ndarray:
-        """Closed-form inverse kinematics in the robot frame, (N, n); optional."""
+    def inverse_local(self, p: np.ndarray, values: np.ndarray, strict: bool = True) -> np.ndarray:
+        """Closed-form inverse kinematics in the robot frame, (N, n); optional. Unreachable positions
+        raise a ModelError, or give NaN rows when not ``strict``."""
         raise ModelError(f"robot '{self.name}' has no closed-form inverse")
 
     # ---- base frame ---------------------------------------------------------------------------
@@ -142,11 +143,12 @@ class ImplicitRobot(Robot):
         out = -np.einsum("ij,njc,nck->nik", R, self._checked_inverse(fp, q), fq)
         return out[0] if squeeze else out
 
-    def inverse(self, p: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
-        """Joint values (N, n) that place the end effector at world positions p (N, 3)."""
+    def inverse(self, p: np.ndarray, params: np.ndarray | None = None, strict: bool = True) -> np.ndarray:
+        """Joint values (N, n) that place the end effector at world positions p (N, 3); unreachable
+        positions raise a ModelError (or give NaN rows when not ``strict``)."""
         values = self.param_values(params)
         R, t = self._base(values)
-        return self.inverse_local((np.atleast_2d(np.asarray(p, float)) - t) @ R, values)
+        return self.inverse_local((np.atleast_2d(np.asarray(p, float)) - t) @ R, values, strict)
 
     def in_working_mode(self, p: np.ndarray, q: np.ndarray, values: np.ndarray) -> np.ndarray:
         """(N,) bool: the solution is in the working mode the closed-form inverse returns."""

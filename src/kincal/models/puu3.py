@@ -164,12 +164,14 @@ class PUU3Robot(ImplicitRobot):
         d, _, u, _, _ = self._d(p, q, values)
         return np.all(np.einsum("nij,ij->ni", d, u) < 0.0, axis=1)
 
-    def inverse_local(self, p, values):
+    def inverse_local(self, p, values, strict=True):
         """Slider heights for platform positions p (N, 3): the root with the slider above the platform."""
         plat, base, u, h0, L, _ = self._legs(values)
         w = np.asarray(p, float)[:, None, :] + plat[None] - base[None]  # (N, legs, 3)
         wu = np.einsum("nij,ij->ni", w, u)
         disc = wu**2 - np.einsum("nij,nij->ni", w, w) + L**2
+        if not strict:
+            return np.where(disc >= 0, wu + np.sqrt(np.maximum(disc, 0.0)), np.nan) - h0
         if np.any(disc < 0):
             k = int(np.flatnonzero(np.any(disc < 0, axis=1))[0])
             raise ModelError(f"{self.name}: position {np.array2string(np.asarray(p)[k], precision=6)} m is out of "
