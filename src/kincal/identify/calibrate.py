@@ -161,6 +161,14 @@ def calibrate(
     def pose_norms(x: np.ndarray) -> np.ndarray:
         return np.linalg.norm(xyz - start.forward(q, values(x)), axis=1)
 
+    if residual == "joint":
+        reach = start.inverse(xyz, strict=False)
+        bad = ~np.all(np.isfinite(reach), axis=1)
+        if bad.any():
+            raise MeasurementError(
+                f"{meas.source}: the positions in row(s) {', '.join(str(r) for r in meas.rows[bad][:10])} are out "
+                f"of reach of the starting model, so the joint-space residual is undefined there; use "
+                f"residual='cartesian' or leave those rows out")
     w = None
     x0 = v0[idx]
     iterations = evaluations = 0

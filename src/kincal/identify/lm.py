@@ -39,6 +39,8 @@ def levenberg_marquardt(
     r, J = fun(x)
     n_eval = 1
     cost = 0.5 * float(r @ r)
+    if not (np.isfinite(cost) and np.all(np.isfinite(J))):
+        raise ValueError("the residual or its Jacobian is not finite at the starting point")
     D = np.linalg.norm(J, axis=0)
     D[D == 0] = 1.0
     mu, nu = None, 2.0
@@ -53,7 +55,7 @@ def levenberg_marquardt(
             break
         if mu is None:
             mu = 1e-8 * float(np.max(np.diag(H)))  # near Gauss-Newton: calibration problems are mildly nonlinear
-        while True:
+        for _attempt in range(100):
             try:
                 c = sla.cho_factor(H + mu * np.eye(H.shape[0]), check_finite=False)
                 h = -sla.cho_solve(c, g, check_finite=False)
@@ -70,15 +72,19 @@ def levenberg_marquardt(
             if np.isfinite(cost_new) and rho > 0:
                 small_step = np.linalg.norm(h) <= xtol * (np.linalg.norm(x * D) + xtol)
                 small_drop = (cost - cost_new) <= ftol * cost
-                x, r, J, old, cost = x_new, r_new, J_new, cost, cost_new
+                x, r, J, cost = x_new, r_new, J_new, cost_new
                 mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
                 nu = 2.0
                 break
             mu *= nu
             nu *= 2.0
-            if mu > 1e20 * max(1.0, float(np.max(np.diag(H)))):
-                return LMResult(x, cost, r, J, it, n_eval, False,
-                                "no step reduces the cost (damping exhausted); the problem may be ill-posed")
+            if not mu < 1e20 * max(1.0, float(np.max(np.diag(H)))):
+                break
+        else:
+            mu = np.inf
+        if not np.isfinite(mu) or not mu < 1e20 * max(1.0, float(np.max(np.diag(H)))):
+            return LMResult(x, cost, r, J, it, n_eval, False,
+                            "no step reduces the cost (damping exhausted); the problem may be ill-posed")
         if small_step:
             converged, message = True, "step below tolerance"
             break

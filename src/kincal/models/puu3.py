@@ -22,6 +22,7 @@ from .parameters import Parameters
 from .serial import BASE_NAMES
 
 LEG_PARAMS = ("dR", "dr", "a", "b", "h0", "tx", "ty")
+LINK_RISE = 0.25  # sin of the smallest link elevation (about 14.5 deg) kept in sampled poses
 LEG_KINDS = ("length", "length", "angle", "angle", "length", "angle", "angle")
 
 
@@ -160,9 +161,11 @@ class PUU3Robot(ImplicitRobot):
         return p - 2.0 * np.maximum(h, 0.0)[:, None] * n
 
     def in_working_mode(self, p, q, values):
-        """Every link rises from its platform point to its slider (the inverse's branch)."""
-        d, _, u, _, _ = self._d(p, q, values)
-        return np.all(np.einsum("nij,ij->ni", d, u) < 0.0, axis=1)
+        """Every link rises from its platform point to its slider (the inverse's branch), at least
+        ``LINK_RISE`` of its length: nearly horizontal links sit at the workspace boundary, where the
+        inverse loses its solution under millimetre parameter changes."""
+        d, _, u, L, _ = self._d(p, q, values)
+        return np.all(-np.einsum("nij,ij->ni", d, u) > LINK_RISE * L, axis=1)
 
     def inverse_local(self, p, values, strict=True):
         """Slider heights for platform positions p (N, 3): the root with the slider above the platform."""

@@ -1,0 +1,63 @@
+"""Compensation: commanding the compensated inputs reaches held-out targets to the calibration accuracy."""
+import numpy as np
+import pytest
+
+import kincal
+from kincal.compensate import compensate
+
+NOISE = 15e-6
+
+
+def test_ur5_compensation_brings_targets_to_noise_level(ur5):
+    true = kincal.perturb(ur5, seed=21)
+    cal = kincal.calibrate(ur5, kincal.simulate(true, ur5.sample_joints(80, seed=21), NOISE, seed=2)).robot
+    q_nom = ur5.sample_joints(50, seed=22)
+    targets = ur5.forward(q_nom)  # what the nominal model promises for the nominal commands
+    before = np.linalg.norm(true.forward(q_nom) - targets, axis=1).mean()
+    comp = compensate(cal, targets, q_nom)
+    assert comp.residual.max() < 1e-9
+    after = np.linalg.norm(true.forward(comp.q) - targets, axis=1).mean()
+    assert before > 0.5e-3 and after < 2 * NOISE
+
+
+def test_puu3_compensation_brings_targets_to_noise_level():
+    robot = kincal.load_robot("puu3-extended")
+    true = kincal.perturb(robot, 0.5e-3, 2e-3, seed=3)
+    cal = kincal.calibrate(robot, kincal.simulate(true, robot.sample_joints(80, seed=3), NOISE, seed=3)).robot
+    rng = np.random.default_rng(4)
+    targets = rng.uniform([-0.1, -0.1, 0.2], [0.1, 0.1, 0.35], size=(50, 3))  # inside the workspace
+    before = np.linalg.norm(true.forward(robot.inverse(targets)) - targets, axis=1).mean()
+    comp = compensate(cal, targets)
+    after = np.linalg.norm(true.forward(comp.q) - targets, axis=1).mean()
+    assert before > 0.5e-3 and after < 2 * NOISE and comp.method == "closed-form inverse"
+
+
+def test_serial_compensation_needs_a_start(ur5):
+    with pytest.raises(kincal.ModelError, match="starting point"):
+        compensate(ur5, np.zeros((1, 3)))
+
+
+def test_sensitivity_matches_jacobian_and_closed_form():
+    from kincal.analysis.sensitivity import sensitivity
+    robot = kincal.load_robot("puu3")
+    q = robot.sample_joints(10, seed=7)
+    s = sensitivity(robot, q, ["r", "R", "L1"])
+    np.testing.assert_allclose(s.deltas, s.linear, atol=2e-5)  # 1 mm is small: nearly linear
+    np.testing.assert_allclose(s.deltas[0], -s.deltas[1], atol=1e-12)  # r and R act as r - R
+    assert "1 mm" in s.table()
+
+
+def test_verification_in_simulation_is_at_noise_level():
+    from kincal.compensate.verify import verification_plan
+    robot = kincal.load_robot("puu3")
+    true = robot.with_params({"r": 0.1 + 1.72e-3, "R": 0.2 + 1.52e-3, "L1": 0.35 + 0.32e-3, "L2": 0.35 - 1.25e-3,
+                              "L3": 0.35 + 2.47e-3})  # the paper's identified errors (Table 4)
+    cal = kincal.calibrate(robot, kincal.simulate(true, robot.sample_joints(30, seed=1), NOISE, seed=1),
+                           base="fixed", residual="joint").robot
+    plan = verification_plan(cal, robot.sample_joints(10, seed=7), ["r", "L1", "L2", "L3"])
+    # the predictions differ from the samples by about the unit error, so the check has teeth
+    assert np.linalg.norm(plan.predicted - cal.forward(plan.q_samples), axis=2).mean() > 0.5e-3
+    measured = np.array([kincal.simulate(true, c, NOISE, seed=k).xyz for k, c in enumerate(plan.commands)])
+    dev = np.abs(plan.compare(measured).deviations)
+    assert dev.mean() < 2 * NOISE and dev.max() < 8 * NOISE
+    assert "Table" not in plan.compare(measured).table() and "ΔL1 = 1" in plan.compare(measured).table()
