@@ -13,7 +13,7 @@ import numpy as np
 
 import kincal
 from kincal.design import design_problem, relaxed_bound, select_poses
-from kincal.design.exchange import IMPROVE, _State, det3, mm, tr
+from kincal.design.exchange import _State, det3, mm, tr
 
 TARGETS = {30: {"best": 0.98, "fedorov": 0.97}, 60: {"best": 0.995, "fedorov": 0.99}}
 METHODS = [("random", {}), ("detmax", {}), ("ide", {}), ("detmax-ide", {}), ("fedorov", {}),

@@ -123,3 +123,22 @@ def test_npose_command(capsys):
     d = run_json(capsys, "npose", "ur5", "--criterion", "O1", "--max", "80")
     assert d["minimum_eq18"] == int(np.ceil(7 * d["parameters"] / 6)) and 1 <= d["chosen"] <= 80
     assert len(d["values"]) == 80
+
+
+def test_parallel_workflow_on_the_command_line(tmp_path, capsys):
+    """simulate -> calibrate (joint residual) -> sensitivity -> verify -> compensate, for the 3-PUU robot."""
+    true = tmp_path / "true.yaml"
+    data = tmp_path / "data.csv"
+    run_json(capsys, "simulate", "puu3-extended", "--perturb", "--poses", "80", "-o", data, "--save-true", true,
+             "--length-error", "0.3", "--angle-error", "0.1")
+    cal = tmp_path / "cal.yaml"
+    c = run_json(capsys, "calibrate", "puu3-extended", data, "-o", cal, "--base", "fixed")
+    assert c["after"]["rms"] < 40e-6
+    s = run_json(capsys, "sensitivity", cal, "--params", "L1,L2", "--plot", tmp_path / "s.png")
+    assert len(s["deltas"]) == 2 and (tmp_path / "s.png").stat().st_size > 1000
+    v = run_json(capsys, "verify", cal, "--params", "L1,L2,L3", "--simulate", true, "-o", tmp_path / "plan.csv")
+    assert set(v) == {"L1", "L2", "L3"} and max(max(x["mean"]) for x in v.values()) < 40e-6
+    targets = tmp_path / "targets.csv"
+    targets.write_text("x,y,z\n0.02,-0.03,0.30\n-0.05,0.04,0.25\n")
+    cmds = run_json(capsys, "compensate", cal, targets, "-o", tmp_path / "cmds.csv")
+    assert cmds["max_residual"] < 1e-9 and len(cmds["q"]) == 2

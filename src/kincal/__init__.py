@@ -10,18 +10,22 @@ The stable API::
 from .analysis import Identifiability, identifiability
 from .errors import ConvergenceError, IdentifiabilityError, KincalError, MeasurementError, ModelError
 from .identify import CalibrationResult, EvaluationStats, calibrate, evaluate
-from .io import Measurements, read_joints, read_measurements, write_joints, write_measurements
+from .io import Measurements, read_joints, read_measurements, read_positions, write_joints, write_measurements
 from .models import Joint, Parameters, Robot, SerialRobot, bundled_robots, load_robot, save_robot
 from .simulate import perturb, simulate
 from .design import Design, candidate_pool, design_bound, select_poses
 from .analysis.separation import Separation, separate_ill_conditioned
+from .analysis.sensitivity import Sensitivity, sensitivity
+from .compensate import Compensation, compensate
+from .compensate.verify import Verification, VerificationPlan, verification_plan
 
 __version__ = "0.1.0"
 
 __all__ = [
     "Identifiability", "identifiability", "ConvergenceError", "IdentifiabilityError", "KincalError",
     "MeasurementError", "ModelError", "CalibrationResult", "EvaluationStats", "calibrate", "evaluate",
-    "Measurements", "read_joints", "read_measurements", "write_joints", "write_measurements", "Joint", "Parameters", "Robot", "SerialRobot",
+    "Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements", "Joint", "Parameters", "Robot", "SerialRobot",
     "bundled_robots", "load_robot", "save_robot", "perturb", "simulate", "Design", "candidate_pool",
-    "design_bound", "select_poses", "Separation", "separate_ill_conditioned",
+    "design_bound", "select_poses", "Separation", "separate_ill_conditioned", "Sensitivity", "sensitivity",
+    "Compensation", "compensate", "Verification", "VerificationPlan", "verification_plan",
 ]

@@ -2,67 +2,21 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from contextlib import contextmanager
 
 import numpy as np
-from rich.console import Console
 from rich.table import Table
 
 import kincal
 import kincal.design
 from kincal.errors import KincalError
 
-out = Console(highlight=False, soft_wrap=True)
-err = Console(stderr=True, highlight=False, soft_wrap=True)
-EXIT_ERROR, EXIT_NOT_CONVERGED = 1, 3
-MM, DEG = 1e3, 180.0 / np.pi
-
-
-def _csv_list(s: str) -> list[str]:
-    return [c.strip() for c in s.split(",") if c.strip()]
-
-
-def _add_data_flags(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("data columns and units")
-    g.add_argument("--joint-cols", type=_csv_list, default=None,
-                   help="comma-separated joint columns (default: the robot's joint names)")
-    g.add_argument("--xyz-cols", type=_csv_list, default=["x", "y", "z"], help="position columns (default x,y,z)")
-    g.add_argument("--length-unit", default="m", choices=["m", "mm", "um"], help="positions, prismatic joints")
-    g.add_argument("--angle-unit", default="rad", choices=["rad", "deg"], help="revolute joints")
-
-
-def _read(args, robot, path):
-    return kincal.read_measurements(path, robot, joint_cols=args.joint_cols, xyz_cols=args.xyz_cols,
-                                    length_unit=args.length_unit, angle_unit=args.angle_unit)
-
-
-@contextmanager
-def _progress(message: str, quiet: bool):
-    """A spinner on stderr for work that may take over a second (off with --json)."""
-    if quiet or not err.is_terminal:
-        yield lambda msg: None
-        return
-    with err.status(message) as status:
-        yield lambda msg: status.update(msg)
-
-
-def _emit(args, payload: dict, text) -> None:
-    if args.json:
-        sys.stdout.write(json.dumps(payload, indent=2, default=_json_default) + "\n")
-    elif isinstance(text, str):
-        out.print(text, markup=False)
-    else:
-        out.print(text)
-
-
-def _json_default(o):
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+from kincal.cli_common import DEG, EXIT_ERROR, EXIT_NOT_CONVERGED, MM, err, out
+from kincal.cli_common import add_data_flags as _add_data_flags
+from kincal.cli_common import csv_list as _csv_list
+from kincal.cli_common import emit as _emit
+from kincal.cli_common import progress as _progress
+from kincal.cli_common import read as _read
 
 
 # ---- commands ------------------------------------------------------------------------------------
@@ -140,7 +94,8 @@ def cmd_calibrate(args) -> int:
     meas = _read(args, r, args.data)
     with _progress("calibrating", args.json) as say:
         res = kincal.calibrate(r, meas, params=args.params or "auto", base=args.base, loss=args.loss,
-                               keep=args.keep or (), max_iter=args.max_iter, progress=say)
+                               keep=args.keep or (), max_iter=args.max_iter, progress=say, method=args.method,
+                               residual=args.residual)
     if args.output:
         kincal.save_robot(res.robot, args.output)
     payload = res.to_dict()
@@ -270,6 +225,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--params", type=_csv_list, help="parameters to estimate (default: identifiable set)")
     s.add_argument("--keep", type=_csv_list, help="parameters to prefer among confounded ones")
     s.add_argument("--max-iter", type=int, default=100, help="Levenberg-Marquardt iteration limit (default 100)")
+    s.add_argument("--method", choices=["lm", "pso", "pso+lm"], default="lm")
+    s.add_argument("--residual", choices=["cartesian", "joint"], default="cartesian",
+                   help="joint: commanded − inverse kinematics of the measured positions (parallel robots)")
     _add_data_flags(s)
 
     s = cmd("evaluate", cmd_evaluate, "position error statistics of a robot model on measurements")
@@ -307,6 +265,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--poses", type=int, default=100, help="random poses (default 100)")
     s.add_argument("--threshold", type=float, default=1e2, help="GCN threshold (default 1e2)")
     s.add_argument("--seed", type=int, default=0)
+
+    from kincal.cli_parallel import register
+
+    register(cmd)
 
     s = cmd("demo", cmd_demo, "the seed-1 study on the 3T2R robot (simulation)")
     s.add_argument("--poses", type=int, default=60, help="poses per design (default 60)")

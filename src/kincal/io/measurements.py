@@ -184,6 +184,20 @@ def read_joints(
     return q * _joint_scale(robot.joint_types, length_unit, angle_unit, path)
 
 
+def read_positions(path: str | os.PathLike, xyz_cols: Sequence[str] = ("x", "y", "z"),
+                   length_unit: str = "m") -> np.ndarray:
+    """Positions (N, 3) in m from a CSV with a header (e.g. targets to reach)."""
+    path = str(path)
+    if len(xyz_cols) != 3:
+        raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
+    xyz, lines = _read_columns(path, list(xyz_cols))
+    bad = ~np.all(np.isfinite(xyz), axis=1)
+    if bad.any():
+        raise MeasurementError(f"{path}: NaN or infinite positions in row(s) "
+                               f"{', '.join(str(r) for r in lines[bad][:MAX_LISTED])}; remove or fix those rows")
+    return xyz * _unit(length_unit, "length", path)
+
+
 def read_measurements(
     path: str | os.PathLike,
     robot: Robot,
