@@ -31,6 +31,7 @@ bench: setup
 	$(PY) benchmarks/core.py
 	$(PY) benchmarks/design.py
 	$(PY) benchmarks/design_real.py
+	$(PY) benchmarks/parallel.py
 
 clean:
 	rm -rf $(VENV) build src/*.egg-info .pytest_cache
