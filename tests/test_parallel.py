@@ -89,3 +89,14 @@ def test_extended_set_within_three_sigma():
         z += [(res.estimates[n] - ref.estimates[n]) / res.std[n] for n in res.names]
     z = np.abs(np.array(z))
     assert np.mean(z < 3) > 0.99 and np.mean(z < 1) > 0.55
+
+
+def test_pose_design_and_evaluation_work_unchanged(puu3):
+    from kincal.design import candidate_pool, select_poses
+    pool = candidate_pool(puu3, 400, seed=0)
+    assert np.all(puu3.feasible(pool))
+    d = select_poses(puu3, pool, 15, "fedorov", "D", seed=0)
+    assert 0.9 < d.efficiency <= 1.0 and np.all(puu3.within_limits(d.q))
+    true = kincal.perturb(puu3, 1e-3, 1e-3, seed=1, include_base=True)
+    res = kincal.calibrate(puu3, kincal.simulate(true, d.q, 0.0))  # base frame estimated (registration)
+    assert kincal.evaluate(res.robot, kincal.simulate(true, pool[:50], 0.0)).max < 1e-8
