@@ -41,13 +41,7 @@ class Measurements:
         if q.shape[1] != len(self.joint_names):
             raise MeasurementError(f"{self.source}: {q.shape[1]} joint columns but {len(self.joint_names)} names")
         rows = np.arange(2, q.shape[0] + 2) if self.rows is None else np.asarray(self.rows, dtype=int)
-        bad = ~(np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(xyz), axis=1))
-        if bad.any():
-            listed = ", ".join(str(r) for r in rows[bad][:MAX_LISTED])
-            more = f" and {bad.sum() - MAX_LISTED} more" if bad.sum() > MAX_LISTED else ""
-            raise MeasurementError(
-                f"{self.source}: NaN or infinite values in row(s) {listed}{more}; remove or fix those rows"
-            )
+        _check_finite(self.source, np.column_stack([q, xyz]), rows, "values")
         for a in (q, xyz, rows):
             a.setflags(write=False)
         object.__setattr__(self, "q", q)
@@ -99,6 +93,15 @@ class Measurements:
                         f"{self.source}: measured positions spread {1 / ratio:.0f}x less than the robot moves{unit}; "
                         f"they look like m read as mm: use length unit 'm' (CLI: --length-unit m)"
                     )
+
+
+def _check_finite(source: str, values: np.ndarray, rows: np.ndarray, what: str) -> None:
+    """MeasurementError naming the rows (file line numbers) that hold NaN or infinite values."""
+    bad = ~np.all(np.isfinite(values), axis=1)
+    if bad.any():
+        listed = ", ".join(str(r) for r in rows[bad][:MAX_LISTED])
+        more = f" and {bad.sum() - MAX_LISTED} more" if bad.sum() > MAX_LISTED else ""
+        raise MeasurementError(f"{source}: NaN or infinite {what} in row(s) {listed}{more}; remove or fix those rows")
 
 
 def _spread(x: np.ndarray) -> float:
@@ -177,10 +180,7 @@ def read_joints(
     path = str(path)
     cols = _joint_columns(path, robot, joint_cols)
     q, lines = _read_columns(path, cols)
-    bad = ~np.all(np.isfinite(q), axis=1)
-    if bad.any():
-        raise MeasurementError(f"{path}: NaN or infinite joint values in row(s) "
-                               f"{', '.join(str(r) for r in lines[bad][:MAX_LISTED])}; remove or fix those rows")
+    _check_finite(path, q, lines, "joint values")
     return q * _joint_scale(robot.joint_types, length_unit, angle_unit, path)
 
 
@@ -191,10 +191,7 @@ def read_positions(path: str | os.PathLike, xyz_cols: Sequence[str] = ("x", "y",
     if len(xyz_cols) != 3:
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
     xyz, lines = _read_columns(path, list(xyz_cols))
-    bad = ~np.all(np.isfinite(xyz), axis=1)
-    if bad.any():
-        raise MeasurementError(f"{path}: NaN or infinite positions in row(s) "
-                               f"{', '.join(str(r) for r in lines[bad][:MAX_LISTED])}; remove or fix those rows")
+    _check_finite(path, xyz, lines, "positions")
     return xyz * _unit(length_unit, "length", path)
 
 
