@@ -130,22 +130,17 @@ def calibrate(
     idx = start.params.indices(names)
     v0 = start.params.values.copy()
 
-    def values(x: np.ndarray) -> np.ndarray:
-        v = v0.copy()
-        v[idx] = x
-        return v
-
     def stacked(x: np.ndarray, w: np.ndarray | None, cols: np.ndarray = idx):
         """Stacked residual and Jacobian, ordered axis-major (all x, then all y, then all z) so the
         Jacobian is a transposed view of the model's parameter rows, without a copy per call."""
         if residual == "joint":
             try:
-                qh, J = start.inverse_and_jacobian(xyz, values(x) if x.size == K else _embed(x, cols))
+                qh, J = start.inverse_and_jacobian(xyz, _embed(x, cols))
             except ModelError:  # a trial step where some measured position is out of reach: reject it
                 return np.full(q.size, np.inf), np.zeros((q.size, cols.size))
             r = (qh - q).T.ravel()
         else:
-            p, J = start.forward_and_jacobian(q, values(x) if x.size == K else _embed(x, cols))
+            p, J = start.forward_and_jacobian(q, _embed(x, cols))
             r = (p - xyz).T.ravel()
         Jt = J.transpose(2, 1, 0)[cols].reshape(cols.size, -1)  # (K, 3N)
         if w is not None:
@@ -154,12 +149,13 @@ def calibrate(
         return r, Jt.T
 
     def _embed(x: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """The full parameter vector with ``cols`` set to x (v0 is read when called)."""
         v = v0.copy()
         v[cols] = x
         return v
 
     def pose_norms(x: np.ndarray) -> np.ndarray:
-        return np.linalg.norm(xyz - start.forward(q, values(x)), axis=1)
+        return np.linalg.norm(xyz - start.forward(q, _embed(x, idx)), axis=1)
 
     if residual == "joint":
         reach = start.inverse(xyz, strict=False)
@@ -214,12 +210,11 @@ def calibrate(
     sd_cols = {start.params.names[c]: float(np.sqrt(max(cov[k, k], 0.0))) for k, c in enumerate(cols)}
     undetermined = set(ident.dropped) if method == "pso" else set()
     sd = np.array([np.inf if n in undetermined else sd_cols.get(n, np.inf) for n in names])
-    full_cov = np.zeros((K, K))
     pos = {start.params.names[c]: k for k, c in enumerate(cols)}
-    for a, na in enumerate(names):
-        for b, nb in enumerate(names):
-            if na in pos and nb in pos:
-                full_cov[a, b] = cov[pos[na], pos[nb]]
+    at = np.array([pos.get(n, -1) for n in names])
+    ok = at >= 0
+    full_cov = np.zeros((K, K))
+    full_cov[np.ix_(ok, ok)] = cov[np.ix_(at[ok], at[ok])]
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = full_cov / np.outer(sd, sd)
     corr = np.where(np.isfinite(corr), corr, 0.0)
