@@ -88,7 +88,7 @@ def test_extended_set_within_three_sigma():
         ref = kincal.calibrate(robot, kincal.simulate(true, q, 0.0), params=list(res.names), base="fixed")
         z += [(res.estimates[n] - ref.estimates[n]) / res.std[n] for n in res.names]
     z = np.abs(np.array(z))
-    assert np.mean(z < 3) > 0.99 and np.mean(z < 1) > 0.55
+    assert z.max() < 3 and 0.55 < np.mean(z < 1) < 0.8  # every one within 3 sigma; about 68 % within 1
 
 
 def test_pose_design_and_evaluation_work_unchanged(puu3):
