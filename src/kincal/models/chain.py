@@ -76,8 +76,10 @@ class Chain:
         self.seg_slices = np.cumsum([0] + [len(s) for s in self.segments])
         self.n_params, self.n_joints = n_params, n_joints
         self.unused = np.setdiff1d(np.arange(n_params), self.cols)
-        # Rows of the per-segment product: for segment s, the axes of its ops, the points of its
-        # rotation ops, then its [Rᵀ; t] (4 rows). z_map picks them from concat([A, B, ends]).
+        # Rows of the per-segment product, for segment s: the axes of its ops, the next frame's axes
+        # (rows of Rᵀ), the points of its rotation ops, the next origin (t). Points and origin are
+        # contiguous so one addition shifts them by the segment's origin. z_map picks the rows from
+        # concat([A, B, ends]).
         n_ops = len(self.ops)
         self.rot_idx = np.flatnonzero(~self.is_trans)
         z_map, z_slices, z_points, z_rot_axes, z_trans_axes = [], [], [], [], []
@@ -86,12 +88,14 @@ class Chain:
             z_rot_axes += [lo + m - a for m in range(a, b) if not self.is_trans[m]]
             z_trans_axes += [lo + m - a for m in range(a, b) if self.is_trans[m]]
             z_map += list(range(a, b))
-            mid = len(z_map)
+            w0 = len(z_map)
+            z_map += [2 * n_ops + 4 * s + r for r in range(3)]
+            p0 = len(z_map)
             rot = [m for m in range(a, b) if not self.is_trans[m]]
-            z_points += range(mid, mid + len(rot))
+            z_points += range(p0, p0 + len(rot))
             z_map += [n_ops + m for m in rot]
-            z_map += [2 * n_ops + 4 * s + r for r in range(4)]
-            z_slices.append((lo, mid, len(z_map)))
+            z_map.append(2 * n_ops + 4 * s + 3)
+            z_slices.append((lo, w0, p0, len(z_map)))
         self.z_map, self.z_slices, self.z_rows = np.array(z_map), z_slices, len(z_map)
         self.z_points, self.z_rot_axes = np.array(z_points, dtype=int), np.array(z_rot_axes, dtype=int)
         self.z_trans_axes = np.array(z_trans_axes, dtype=int)
@@ -165,17 +169,17 @@ class Chain:
         """
         n = q.shape[0]
         ends, A, B = self._segment_frames(values, True)
-        S, n_rot = len(self.segments), self.rot_idx.size
-        F, Z, origins, Cx, tmp = _carve(n, (3, 3), (self.z_rows, 3), (S + 1, 3), (n_rot, 3), (max(n_rot, 3),))
+        n_rot = self.rot_idx.size
+        F, Z, o0, Cx, tmp = _carve(n, (3, 3), (self.z_rows, 3), (3,), (n_rot, 3), (max(n_rot, 3),))
         G = np.concatenate([A, B, np.concatenate(ends)])[self.z_map]  # (z_rows, 3) stacked constants
         X = q.T[self.head_joint] + values[self.head_param][:, None]  # joint-op values, (n_joints, N)
         C, Sn = cos_sin(X)
         W = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n))  # W[k] = world axis k of the frame
         t3 = tmp[:3]
-        origins[0] = 0.0
+        o = o0
+        o[...] = 0.0
         k = 0
         for s, head in enumerate(self.heads):
-            o = origins[s]
             if head is None or head.kind == TRANS:  # F: the frame just after the joint op
                 F[...] = W
                 if head is not None:
@@ -192,12 +196,11 @@ class Chain:
                 F[j] -= t3
                 F[head.axis] = W[head.axis]
             k += head is not None
-            lo, mid, hi = self.z_slices[s]
+            lo, w0, p0, hi = self.z_slices[s]
             np.matmul(G[lo:hi], F.reshape(3, -1), out=Z[lo:hi].reshape(hi - lo, -1))
-            Z[mid:hi - 4] += o  # world points of the rotation ops
-            np.add(o, Z[hi - 1], out=origins[s + 1])
-            W = Z[hi - 4:hi - 1]
-        p = origins[S]
+            Z[p0:hi] += o  # world points of the rotation ops, and the next origin
+            W, o = Z[w0:w0 + 3], Z[hi - 1]
+        p = o
         D = Z[self.z_points]
         np.subtract(p, D, out=D)  # p − o for every rotation op
         Ur, tr = Z[self.z_rot_axes], tmp[:n_rot]
