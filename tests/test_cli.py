@@ -142,3 +142,19 @@ def test_parallel_workflow_on_the_command_line(tmp_path, capsys):
     targets.write_text("x,y,z\n0.02,-0.03,0.30\n-0.05,0.04,0.25\n")
     cmds = run_json(capsys, "compensate", cal, targets, "-o", tmp_path / "cmds.csv")
     assert cmds["max_residual"] < 1e-9 and len(cmds["q"]) == 2
+
+
+def test_verify_with_measurements_file(tmp_path, capsys):
+    plan_path = tmp_path / "plan.csv"
+    run_json(capsys, "verify", "puu3", "--params", "L1,L2", "--samples", "4", "-o", plan_path)
+    rows = plan_path.read_text().splitlines()
+    assert rows[0].startswith("case,sample,h1,h2,h3") and len(rows) == 1 + 2 * 4
+    # "measure" the plan with the model itself: deviations vanish
+    robot = kincal.load_robot("puu3")
+    body = [r.split(",") for r in rows[1:]]
+    q = np.array([[float(x) for x in r[2:5]] for r in body])
+    p = robot.forward(q)
+    meas = tmp_path / "meas.csv"
+    meas.write_text("h1,h2,h3,x,y,z\n" + "\n".join(",".join(repr(float(x)) for x in [*qi, *pi]) for qi, pi in zip(q, p)) + "\n")
+    v = run_json(capsys, "verify", "puu3", "--params", "L1,L2", "--samples", "4", "--measured", meas)
+    assert max(max(c["max"]) for c in v.values()) < 1e-12

@@ -100,3 +100,15 @@ def test_pose_design_and_evaluation_work_unchanged(puu3):
     true = kincal.perturb(puu3, 1e-3, 1e-3, seed=1, include_base=True)
     res = kincal.calibrate(puu3, kincal.simulate(true, d.q, 0.0))  # base frame estimated (registration)
     assert kincal.evaluate(res.robot, kincal.simulate(true, pool[:50], 0.0)).max < 1e-8
+
+
+def test_yaml_round_trip(tmp_path):
+    robot = kincal.perturb(kincal.load_robot("puu3-extended"), 1e-3, 1e-3, seed=8, include_base=True)
+    path = tmp_path / "p.yaml"
+    kincal.save_robot(robot, path)
+    back = kincal.load_robot(path)
+    assert back.params == robot.params and (back.h_lower, back.h_upper) == (robot.h_lower, robot.h_upper)
+    assert back.extended and back.kind == "puu3 (implicit)"
+    path.write_text(path.read_text().replace("L1:", "L9:"))
+    with pytest.raises(kincal.ModelError, match="unknown 3-PUU parameter 'L9'"):
+        kincal.load_robot(path)
