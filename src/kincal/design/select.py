@@ -60,8 +60,9 @@ class Design:
                 f"{self.criterion} = {self.value:.6g}, D-efficiency {eff}, {self.time_s:.2f} s")
 
 
-def _value(P: DesignProblem, idx, criterion: str, B) -> float:
-    return float(score(P.information(idx), len(idx), criterion, B))
+def _score_blocks(J: np.ndarray, criterion: str, B) -> float:
+    """Criterion of the design whose scaled Jacobian blocks are J (m, 3, k)."""
+    return float(score(np.einsum("nak,nal->kl", J, J), J.shape[0], criterion, B))
 
 
 def detmax(P: DesignProblem, m: int, criterion: str, rng: np.random.Generator, B=None,
@@ -150,36 +151,33 @@ def select_poses(
         Jv = P.J if validation_q is None else robot.param_jacobian(validation_q)[:, :, robot.params.indices(P.names)] * P.scale
         B = np.einsum("nak,nal->kl", Jv, Jv) / Jv.shape[0]
     rng = np.random.default_rng(seed)
+    cols = robot.params.indices(P.names)
+
+    def blocks(q: np.ndarray) -> np.ndarray:
+        """Scaled Jacobian blocks (N, 3, k) of poses off the pool."""
+        return robot.param_jacobian(q)[:, :, cols] * P.scale
+
+    idx = None
     if method in ("ide", "detmax-ide"):
         idx0 = detmax(P, m, criterion, rng, B) if method == "detmax-ide" else rng.choice(P.N, m, replace=False)
-        cols = robot.params.indices(P.names)
-
-        def objective(q: np.ndarray) -> float:
-            Jq = robot.param_jacobian(q)[:, :, cols] * P.scale
-            return float(score(np.einsum("nak,nal->kl", Jq, Jq), m, criterion, B))
-
-        q_best, value, _ = ide(robot, P.q[np.asarray(idx0)], objective, rng, generations=generations,
-                               progress=progress)
-        Jq = (robot.param_jacobian(q_best)[:, :, cols] * P.scale).reshape(-1, P.k)
-        sign, logdet = np.linalg.slogdet(Jq.T @ Jq)
-        elapsed = time.perf_counter() - t0
-        if bound is True:
-            bound = relaxed_bound(P, m)
-        return Design(None, q_best, method, criterion, value, float(logdet) if sign > 0 else -np.inf, P.names,
-                      bound if isinstance(bound, Bound) else None, elapsed, seed)
-    if method == "random":
-        idx = [int(i) for i in rng.choice(P.N, m, replace=False)]
-    elif method == "detmax":
-        idx = detmax(P, m, criterion, rng, B)
+        q, _, _ = ide(robot, P.q[np.asarray(idx0)], lambda x: _score_blocks(blocks(x), criterion, B), rng,
+                      generations=generations, progress=progress)
+        J = blocks(q)
     else:
-        if criterion not in ("D", "I"):
-            raise ValueError("method 'fedorov' supports the D and I criteria; use 'detmax' for the others")
-        starts = [greedy(P, m)] + [[int(i) for i in rng.choice(P.N, m, replace=False)] for _ in range(restarts)]
-        runs = [fedorov(P, s, criterion, B)[0] for s in starts]
-        idx = max(runs, key=lambda d: _value(P, d, criterion, B))
+        if method == "random":
+            idx = [int(i) for i in rng.choice(P.N, m, replace=False)]
+        elif method == "detmax":
+            idx = detmax(P, m, criterion, rng, B)
+        else:
+            if criterion not in ("D", "I"):
+                raise ValueError("method 'fedorov' supports the D and I criteria; use 'detmax' for the others")
+            starts = [greedy(P, m)] + [[int(i) for i in rng.choice(P.N, m, replace=False)] for _ in range(restarts)]
+            runs = [fedorov(P, s, criterion, B)[0] for s in starts]
+            idx = max(runs, key=lambda d: _score_blocks(P.J[np.asarray(d)], criterion, B))
+        idx = np.asarray(idx, dtype=int)
+        q, J = P.q[idx], P.J[idx]
     elapsed = time.perf_counter() - t0
     if bound is True:
         bound = relaxed_bound(P, m)
-    idx_arr = np.asarray(idx, dtype=int)
-    return Design(idx_arr, P.q[idx_arr], method, criterion, _value(P, idx, criterion, B), P.logdet(idx), P.names,
+    return Design(idx, q, method, criterion, _score_blocks(J, criterion, B), _score_blocks(J, "D", None), P.names,
                   bound if isinstance(bound, Bound) else None, elapsed, seed)

@@ -64,6 +64,12 @@ class ImplicitRobot(Robot):
         b = values[self.params.indices(BASE_NAMES)]
         return rot_zyx(b[5], b[4], b[3]), b[:3]
 
+    def _base_axes(self, values: np.ndarray) -> list[np.ndarray]:
+        """World axes of the base rotations rx, ry, rz (R = Rz Ry Rx: each turns about its axis
+        as already moved by the rotations before it in the product)."""
+        b = values[self.params.indices(BASE_NAMES)]
+        return [rot_zyx(b[5], b[4], 0.0) @ [1.0, 0, 0], rot_zyx(b[5], 0.0, 0.0) @ [0, 1.0, 0], np.array([0, 0, 1.0])]
+
     def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
         return self._base(self.params.values)
 
@@ -116,11 +122,8 @@ class ImplicitRobot(Robot):
         J = -np.einsum("ij,njc,nck->nik", R, fp_inv, fs)  # IFT in the robot frame, then rotated
         bi = self.params.indices(BASE_NAMES)
         J[:, :, bi[:3]] = np.eye(3)
-        d = p - t
-        rz, ry = values[bi[5]], values[bi[4]]
-        axes = [rot_zyx(rz, ry, 0.0) @ [1.0, 0, 0], rot_zyx(rz, 0.0, 0.0) @ [0, 1.0, 0], np.array([0, 0, 1.0])]
-        for k, axis in zip(bi[3:], axes):  # rx, ry, rz: rotation about the world-frame axis through t
-            J[:, :, k] = np.cross(axis, d)
+        for k, axis in zip(bi[3:], self._base_axes(values)):  # rotation about the world axis through t
+            J[:, :, k] = np.cross(axis, p - t)
         return p, J
 
     def _checked_inverse(self, fp: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -166,9 +169,7 @@ class ImplicitRobot(Robot):
         dpl = np.zeros((p.shape[0], 3, self.n_params))  # ∂p_local/∂(base parameters)
         bi = self.params.indices(BASE_NAMES)
         dpl[:, :, bi[:3]] = -R.T
-        rz, ry = values[bi[5]], values[bi[4]]
-        axes = [rot_zyx(rz, ry, 0.0) @ [1.0, 0, 0], rot_zyx(rz, 0.0, 0.0) @ [0, 1.0, 0], np.array([0, 0, 1.0])]
-        for k, axis in zip(bi[3:], axes):
+        for k, axis in zip(bi[3:], self._base_axes(values)):
             dpl[:, :, k] = -np.cross(axis, p - t) @ R
         rhs = fs + np.einsum("nci,nik->nck", fp, dpl)
         return q, -np.linalg.solve(fq, rhs)

@@ -115,13 +115,13 @@ def seed1_study(seeds: int = 20, m: int = 60, pool_size: int = 1000, generations
                          generations=generations)
         designs[name], values[name] = d.q, d.value
     q_val = candidate_pool(robot, 60, seed=99)
+    size = {n: length_error if robot.params.kinds[robot.params.index(n)] == "length" else angle_error for n in kin}
     eta, identified, validation, runs = {}, {}, {}, {n: [] for n in DESIGNS}
     for seed in range(seeds):
         say(f"identifying, seed {seed + 1}/{seeds}")
         rng = np.random.default_rng(seed)
         sign = np.ones(len(kin)) if seed == 0 else rng.choice([-1.0, 1.0], len(kin))
-        errors = {n: s * (length_error if robot.params.kinds[robot.params.index(n)] == "length" else angle_error)
-                  for n, s in zip(kin, sign)}
+        errors = {n: s * size[n] for n, s in zip(kin, sign)}
         true = robot.with_params({n: robot.params[n] + e for n, e in errors.items()})
         val = simulate(true, q_val, 0.0)
         if seed == 0:
@@ -141,5 +141,4 @@ def seed1_study(seeds: int = 20, m: int = 60, pool_size: int = 1000, generations
         a = np.array(r)
         repeated[name] = (float(a[:, 0].mean()), float(a[:, 0].std(ddof=1)) if len(a) > 1 else 0.0,
                           float(a[:, 1].mean()), float(a[:, 1].std(ddof=1)) if len(a) > 1 else 0.0)
-    true0 = {n: (length_error if robot.params.kinds[robot.params.index(n)] == "length" else angle_error) for n in kin}
-    return Seed1Study(sep, params, values, eta, identified, true0, validation, repeated, seeds, m)
+    return Seed1Study(sep, params, values, eta, identified, size, validation, repeated, seeds, m)
