@@ -3,7 +3,9 @@
 Method: stack the position Jacobian over the poses (3N x P), scale every column to unit norm (so
 lengths in m and angles in rad compare fairly), take the numerical rank from the singular values
 (relative tolerance ``tol``; the gap to the next singular value is reported), and choose which
-columns to keep by QR with column pivoting (parameters listed in ``keep`` are chosen first). Each
+columns to keep by QR with column pivoting (parameters listed in ``keep`` are chosen first; columns
+whose residual norms tie within :data:`kincal.ties.TIE_RTOL` go in canonical order, so exactly
+equivalent parameters are resolved the same way on every machine: the earliest is kept). Each
 dropped parameter is written as a combination of kept ones from the R factor,
 ``J_dropped ≈ J_kept @ C``: a change δ of the dropped parameter acts like changes ``C δ`` of the
 kept ones, which is what "confounded with" means here.
@@ -14,12 +16,12 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
-import scipy.linalg as sla
 
 from ..models.robot import Robot
+from ..ties import first_best, order_with_ties
+from .observability import live_columns
 
 DEFAULT_TOL = 1e-8  # singular values below tol * s_max count as zero (scaled columns)
-ZERO_COLUMN = 1e-12  # a column whose norm is below this (m per unit) has no effect at all
 
 
 @dataclass(frozen=True)
@@ -116,7 +118,7 @@ def identifiability(
     robot.params.indices(cand)
     J = stacked_jacobian(robot, q, cand)
     norms = np.linalg.norm(J, axis=0)
-    live = norms > ZERO_COLUMN * max(1.0, np.sqrt(q.shape[0]))
+    live = live_columns(J)
     live_names = [n for n, ok in zip(cand, live) if ok]
     # Everything below depends on the column space only, so it works on the small triangular
     # factor R0 of the scaled Jacobian (Js = Q0 R0): same singular values, same linear relations.
@@ -141,7 +143,7 @@ def identifiability(
             col = C[:, j] * n_drop[j] / n_kept  # physical units: 1 of dropped ~ col of kept
             big = np.abs(C[:, j]) > max(1e-6, 1e-3 * np.abs(C[:, j]).max())
             idx = np.flatnonzero(big)
-            idx = idx[np.argsort(-np.abs(C[idx, j]))]
+            idx = idx[order_with_ties(np.abs(C[idx, j]))]
             confounds[name] = tuple((ident[k], float(col[k])) for k in idx)
     for name in (n for n, ok in zip(cand, live) if not ok):
         confounds[name] = ()
@@ -170,27 +172,30 @@ def identifiability(
 
 
 def _pivot_order(Js: np.ndarray, names: list[str], stages: list[list[str]], rank: int, cutoff: float) -> list[int]:
-    """Column order: pivoted QR stage by stage (each stage's columns projected off those already chosen,
-    a column counting when its residual exceeds ``cutoff``), the columns of no stage last; the first
-    ``rank`` entries are the chosen columns."""
+    """Column order: pivoted Gram–Schmidt stage by stage (each stage's columns in the stage's own
+    order, the rest in model order), a column counting when its residual exceeds ``cutoff``; the
+    columns of no stage come last and complete the rank. Residual norms that tie go to the earliest
+    column. The first ``rank`` entries are the chosen columns."""
+    pos = {n: k for k, n in enumerate(names)}
     groups, seen = [], set()
     for stage in stages:
-        g = [k for k, n in enumerate(names) if n in set(stage) and k not in seen]
+        g = [pos[n] for n in dict.fromkeys(stage) if n in pos and pos[n] not in seen]
         seen.update(g)
         groups.append(g)
     groups.append([k for k in range(len(names)) if k not in seen])
+    A = np.array(Js, dtype=float)  # columns made orthogonal to the chosen ones as we go
     chosen: list[int] = []
-    Q = np.zeros((Js.shape[0], 0))
     for g, group in enumerate(groups):
-        if not group or len(chosen) >= rank:
-            continue
-        M = Js[:, group] - Q @ (Q.T @ Js[:, group])
-        _, R, piv = sla.qr(M, mode="economic", pivoting=True)
-        d = np.abs(np.diag(R))
         last = g == len(groups) - 1  # the last stage completes the rank whatever its residuals
-        take = rank - len(chosen) if last else min(int(np.sum(d > cutoff)), rank - len(chosen))
-        picked = [group[k] for k in piv[:take]]
-        chosen += picked
-        Q = np.linalg.qr(Js[:, chosen])[0] if chosen else Q
-    rest_all = [k for k in range(len(names)) if k not in set(chosen)]
-    return chosen + rest_all
+        rest = list(group)
+        while rest and len(chosen) < rank:
+            norms = np.linalg.norm(A[:, rest], axis=0)
+            i = first_best(norms)
+            if not last and norms[i] <= cutoff:
+                break
+            k = rest.pop(i)
+            chosen.append(k)
+            u = A[:, k] / norms[i]
+            for _ in range(2):  # twice is enough (Kahan–Parlett)
+                A -= np.outer(u, u @ A)
+    return chosen + [k for k in range(len(names)) if k not in set(chosen)]

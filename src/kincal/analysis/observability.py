@@ -24,11 +24,24 @@ INDICES = ("O1", "O2", "O3", "O4", "O5", "O6", "D", "A", "E")
 SINGULAR = 1e-300
 
 
+ZERO_COLUMN = 1e-12  # per-pose RMS (m per unit) below which a column has no effect at all
+
+
+def live_columns(J: np.ndarray) -> np.ndarray:
+    """(k,) bool: columns of a stacked Jacobian (3m × k) whose per-pose RMS exceeds ``ZERO_COLUMN``."""
+    J = np.asarray(J, dtype=float)
+    return np.sqrt(np.sum(J**2, axis=0) / max(J.shape[0] // 3, 1)) > ZERO_COLUMN
+
+
 def column_scale(J: np.ndarray) -> np.ndarray:
-    """(k,) factors that give each column of a stacked Jacobian (3m × k) a unit RMS norm per pose."""
+    """(k,) factors that give each column of a stacked Jacobian (3m × k) a unit RMS norm per pose.
+
+    A column with no effect (see :func:`live_columns`) keeps the factor 1: scaling rounding noise up
+    to unit size would make an unidentifiable parameter look well conditioned.
+    """
     J = np.asarray(J, dtype=float)
     rms = np.sqrt(np.sum(J**2, axis=0) / max(J.shape[0] // 3, 1))
-    return 1.0 / np.where(rms > 0, rms, 1.0)
+    return np.where(live_columns(J), 1.0 / np.where(rms > 0, rms, 1.0), 1.0)
 
 
 def singular_values(J: np.ndarray) -> np.ndarray:

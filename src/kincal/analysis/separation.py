@@ -1,10 +1,11 @@
 """Separation of ill-conditioned parameters by GCN and branch-and-bound (seed 1, §3.1).
 
 GCN (eq. 14) = cond(J)/m = ‖J‖₂·‖J⁺‖₂ / m for a stacked Jacobian of m poses. ‖J⁺‖₂ is taken from
-every singular value the SVD returns, without a cut-off: an exact dependence, whose singular value
-is rounding noise (~1e-16·σ_max), gives a large but finite GCN (1e12–1e16, as in the paper's tables);
-an exactly zero singular value is replaced by eps·σ_max for the same reason. Columns are scaled with
-:func:`~kincal.analysis.observability.column_scale` of the pose set first (cond depends on units).
+every singular value the SVD returns, floored at ``GCN_FLOOR``·σ_max: an exact dependence, whose
+singular value is rounding noise (1e-16…1e-13·σ_max, different on every BLAS kernel), gets the
+reproducible, large but finite GCN 1/(GCN_FLOOR·m) (the paper's tables show 1e12–1e16 here).
+Columns are scaled with :func:`~kincal.analysis.observability.column_scale` of the pose set first
+(cond depends on units; a column with no effect stays zero, so it is never "well conditioned").
 A subdomain's GCN is averaged over its first 1, 2, …, M poses, as the paper does with M = 100.
 
 Procedure: (1) split the parameters into subdomains by type (θ, α, a, d, β); (2) a subdomain whose
@@ -16,6 +17,11 @@ equivalent candidates, are built; (4) a reconstructed model whose GCN still exce
 (step 4 of the paper: not yet verified) loses, one at a time, the parameter whose removal lowers its
 GCN most — this catches dependences across types that per-type subdomains cannot see; the verified
 model with the lowest GCN is kept.
+
+Ties (GCN values within :data:`kincal.ties.TIE_RTOL`) follow :mod:`kincal.ties`: the canonical order
+of the parameters is ``keep`` first, then the robot's parameter order; among tied removals the one
+latest in that order is removed, and among tied reconstructed models the smaller set, then the one
+whose members come latest. No result depends on set or hash order.
 """
 from __future__ import annotations
 
@@ -26,19 +32,22 @@ from typing import Sequence
 import numpy as np
 
 from ..models.robot import Robot
+from ..ties import first_best
 from .identifiability import identifiability
 from .observability import column_scale
 
 TYPES = ("theta", "alpha", "a", "d", "beta")
 SYMBOL = {"theta": "θ", "alpha": "α", "a": "a", "d": "d", "beta": "β"}
+GCN_FLOOR = 1e-10  # singular values below this fraction of σ_max are an exact dependence
 
 
 def gcn(J: np.ndarray, m: int) -> float:
-    """cond(J)/m = σ_max / σ_min / m over the min(rows, cols) singular values (finite always)."""
+    """cond(J)/m = σ_max / σ_min / m over the min(rows, cols) singular values, σ_min floored at
+    GCN_FLOOR·σ_max (finite always)."""
     s = np.linalg.svd(J, compute_uv=False)
     if s.size == 0 or s[0] == 0:
         return float("inf")
-    return float(s[0] / max(s[-1], np.finfo(float).eps * s[0]) / m)
+    return float(s[0] / max(s[-1], GCN_FLOOR * s[0]) / m)
 
 
 def averaged_gcn(J: np.ndarray) -> float:
@@ -98,85 +107,121 @@ def param_type(name: str) -> str:
 
 
 def separate_ill_conditioned(robot: Robot, q: np.ndarray, params: Sequence[str] | None = None,
-                             threshold: float = 1e2) -> Separation:
+                             threshold: float = 1e2, keep: Sequence[str] = ()) -> Separation:
     """Branch-and-bound separation of ill-conditioned parameters at poses q (M, n).
 
-    params -- the error-model parameters (default: every θ, α, a, d, β of the robot, as the seed).
+    params -- the error-model parameters (default: every θ, α, a, d, β of the robot, as the seed)
+    keep   -- parameters to remove last when removals tie (canonical order: keep, then model order)
     """
     q = robot.check_q(q)
     names = tuple(params) if params is not None else tuple(
         n for n in robot.params.names if param_type(n) in TYPES)
     J = robot.param_jacobian(q)[:, :, robot.params.indices(names)]
     J = J * column_scale(J.reshape(-1, len(names)))
+    canon = [n for n in dict.fromkeys(keep) if n in names] + [n for n in names if n not in set(keep)]
+    rank = {n: k for k, n in enumerate(canon)}
     col = {n: i for i, n in enumerate(names)}
 
     def sub_gcn(members: Sequence[str]) -> float:
-        return averaged_gcn(J[:, :, [col[n] for n in members]])
+        return averaged_gcn(J[:, :, [col[n] for n in names if n in set(members)]])
+
+    def model_gcn(removed: Sequence[str]) -> float:
+        return averaged_gcn(J[:, :, [col[n] for n in names if n not in set(removed)]])
 
     subdomains = {t: tuple(n for n in names if param_type(n) == t) for t in TYPES}
     subdomains = {t: v for t, v in subdomains.items() if v}
     sub_values = {t: sub_gcn(v) for t, v in subdomains.items()}
     branches, candidates = {}, {}
     for t, members in subdomains.items():
-        if sub_values[t] <= threshold or len(members) < 2:
-            continue
-        removed: list[str] = []
-        current = list(members)
-        rows: list[tuple[str, float]] = []
-        while len(current) > 1:
-            trial = [(n, sub_gcn([x for x in current if x != n])) for n in current]
-            if not rows:
-                rows = trial
-            fixes = [n for n, g in trial if g <= threshold]
-            if fixes:
-                removed.append(tuple(fixes))
-                break
-            best = min(trial, key=lambda x: x[1])[0]
-            removed.append((best,))
-            current.remove(best)
-        branches[t] = tuple(rows)
-        candidates[t] = tuple(n for grp in removed for n in grp)
-
-    # reconstructed models: remove every candidate, or one of each group of equivalent candidates
-    groups = [c for c in candidates.values()]
-    options = {tuple(sorted({n for g in groups for n in g}))}
-    for pick in itertools.product(*groups):
-        options.add(tuple(sorted(set(pick))))
+        if sub_values[t] > threshold and len(members) > 1:
+            branches[t], candidates[t] = _branch(members, sub_gcn, threshold, rank)
+    options = _reconstructions(list(candidates.values()), rank)
+    models = tuple((removed, model_gcn(removed)) for removed in options)
+    completed = [_verify(list(removed), g, names, model_gcn, threshold, rank) for removed, g in models]
     full = averaged_gcn(J)
-
-    def model_gcn(removed: Sequence[str]) -> float:
-        return averaged_gcn(J[:, :, [col[n] for n in names if n not in set(removed)]])
-
-    models, completed = [], []
-    for removed in sorted(options, key=len):
-        g = model_gcn(removed)
-        models.append((removed, g))
-        extra = list(removed)
-        while g > threshold and len(extra) < len(names) - 1:  # step 4: not verified, separate further
-            trial = [(n, model_gcn(extra + [n])) for n in names if n not in extra]
-            n_best, g = min(trial, key=lambda x: x[1])
-            extra.append(n_best)
-        completed.append((tuple(sorted(extra)), g))
-    models.sort(key=lambda x: x[1])
-    # kincal's verdict: among verified models, the one keeping the most parameters (QR's rank), then
-    # the lowest GCN; the paper's rule, the lowest GCN, may drop whole groups of equivalent parameters
     verified = [c for c in completed if c[1] <= threshold] or completed
-    separated, reduced = min(verified, key=lambda x: (len(x[0]), x[1])) if verified else ((), full)
-    paper_choice = min(verified, key=lambda x: x[1])[0] if verified else ()
+    separated, reduced = _choose(verified, by_size=True) if verified else ((), full)
+    paper_choice = _choose(verified, by_size=False)[0] if verified else ()
+    notes = _qr_notes(robot, q, names, separated, keep)
+    qr_dropped = identifiability(robot, q, params=names, keep=keep).dropped
+    return Separation(names, subdomains, sub_values, branches, candidates, models, tuple(separated),
+                      full, reduced, threshold, qr_dropped, tuple(paper_choice), tuple(notes))
 
-    qr = identifiability(robot, q, params=names)
+
+def _removal_order(names: Sequence[str], rank: dict[str, int]) -> list[str]:
+    """Candidates for removal, the one to remove first on a tie first (latest in canonical order)."""
+    return sorted(names, key=lambda n: -rank[n])
+
+
+def _set_key(removed: Sequence[str], rank: dict[str, int]) -> tuple:
+    """Canonical order of removed sets: smaller first, then the one whose members come latest."""
+    return (len(removed), tuple(-r for r in sorted((rank[n] for n in removed), reverse=True)))
+
+
+def _branch(members, sub_gcn, threshold: float, rank: dict[str, int]):
+    """Backward elimination in one subdomain: (table of single removals, candidate parameters)."""
+    removed: list[tuple[str, ...]] = []
+    current = list(members)
+    rows: list[tuple[str, float]] = []
+    while len(current) > 1:
+        trial = [(n, sub_gcn([x for x in current if x != n])) for n in current]  # model order
+        rows = rows or trial
+        fixes = tuple(n for n, g in trial if g <= threshold)
+        if fixes:
+            removed.append(fixes)
+            break
+        ordered = sorted(trial, key=lambda x: -rank[x[0]])
+        best = ordered[first_best([g for _, g in ordered], maximize=False)][0]
+        removed.append((best,))
+        current.remove(best)
+    return tuple(rows), tuple(n for grp in removed for n in grp)
+
+
+def _reconstructions(groups: list[tuple[str, ...]], rank: dict[str, int]) -> list[tuple[str, ...]]:
+    """Removed sets of the reconstructed models (eq. 27–28): every candidate, or one of each group,
+    in canonical order, members of each set in canonical order."""
+    canon = lambda names: tuple(sorted(dict.fromkeys(names), key=rank.__getitem__))  # noqa: E731
+    options = {canon(n for g in groups for n in g)}
+    options.update(canon(pick) for pick in itertools.product(*groups))
+    return sorted(options, key=lambda s: _set_key(s, rank))
+
+
+def _verify(removed: list[str], g: float, names, model_gcn, threshold: float, rank: dict[str, int]):
+    """Step 4: while the model's GCN exceeds the threshold, remove the parameter whose removal lowers
+    it most. Returns (removed set in canonical order, GCN)."""
+    while g > threshold and len(removed) < len(names) - 1:
+        trial = _removal_order([n for n in names if n not in set(removed)], rank)
+        values = [model_gcn(removed + [n]) for n in trial]
+        k = first_best(values, maximize=False)
+        removed.append(trial[k])
+        g = values[k]
+    return tuple(sorted(removed, key=rank.__getitem__)), g
+
+
+def _choose(models: list[tuple[tuple[str, ...], float]], by_size: bool) -> tuple[tuple[str, ...], float]:
+    """kincal's verdict (``by_size``): the verified model keeping the most parameters (QR's rank),
+    then the lowest GCN; the paper's rule: the lowest GCN, which may drop whole groups of equivalent
+    parameters. ``models`` are in canonical order, which breaks ties."""
+    pool = [m for m in models if len(m[0]) == min(len(x[0]) for x in models)] if by_size else models
+    return pool[first_best([g for _, g in pool], maximize=False)]
+
+
+def _qr_notes(robot: Robot, q: np.ndarray, names, separated, keep) -> list[str]:
+    """How the separation compares with QR identifiability of the same parameters."""
+    qr = identifiability(robot, q, params=names, keep=keep)
     kept = [n for n in names if n not in set(separated)]
     qr_kept = identifiability(robot, q, params=kept)
     notes = [f"the reduced model keeps {len(kept)} parameters; QR rank of it {qr_kept.rank}, of the full model "
              f"{qr.rank} ({'full rank' if qr_kept.rank == len(kept) else 'still rank-deficient'})"]
     notes.append(f"QR identifiability of the same {len(names)} parameters drops {len(qr.dropped)}: "
                  f"{', '.join(qr.dropped) or 'none'}")
-    only_bb, only_qr = set(separated) - set(qr.dropped), set(qr.dropped) - set(separated)
+    both = [n for n in names if n in separated and n in qr.dropped]
+    only_bb = [n for n in names if n in separated and n not in qr.dropped]
+    only_qr = [n for n in names if n in qr.dropped and n not in separated]
     if not only_bb and not only_qr:
         notes.append("branch-and-bound and QR separate the same parameters")
     else:
-        notes.append(f"both separate {', '.join(sorted(set(separated) & set(qr.dropped))) or 'nothing in common'}; "
-                     f"of equivalent parameters branch-and-bound removes {', '.join(sorted(only_bb)) or 'none'} "
-                     f"where QR removes {', '.join(sorted(only_qr)) or 'none'}")
-    return Separation(names, subdomains, sub_values, branches, candidates, tuple(models), tuple(separated),
-                      full, reduced, threshold, qr.dropped, tuple(paper_choice), tuple(notes))
+        notes.append(f"both separate {', '.join(both) or 'nothing in common'}; of equivalent parameters "
+                     f"branch-and-bound removes {', '.join(only_bb) or 'none'} where QR removes "
+                     f"{', '.join(only_qr) or 'none'}")
+    return notes

@@ -1,0 +1,69 @@
+"""One rule for every "pick the best" step, so a result never depends on floating-point round-off.
+
+Two values that differ by less than a relative tolerance are a tie: a different BLAS kernel, another
+summation order or a hash-randomised iteration order may change them by a few ulps, and such noise
+must not change a verdict. Ties are broken by the **canonical order** of the candidates: the order in
+which the caller lists them. Callers list candidates as follows, so the rule is the same everywhere:
+
+* parameters: the user's ``keep`` list first, then the model's preferred parameters (tool point,
+  base frame), then ``robot.params.names`` order; the earliest is kept, the latest is dropped;
+* sets of parameters: by size, then by the canonical positions of their members;
+* poses: by position in the candidate pool (the earliest wins); exchange candidates likewise;
+* an optimiser's incumbent beats any challenger it ties with (only a real improvement replaces it).
+
+``TIE_RTOL`` (1e-9) is far above round-off (1e-16…1e-13 relative) and far below any difference that
+means something in calibration.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+TIE_RTOL = 1e-9
+
+
+def tie_tolerance(best: float, rtol: float = TIE_RTOL, atol: float = 0.0) -> float:
+    """Width of the tie band around ``best``."""
+    return rtol * abs(best) + atol
+
+
+def first_best(values: Sequence[float] | np.ndarray, maximize: bool = True, rtol: float = TIE_RTOL,
+               atol: float = 0.0) -> int:
+    """Index of the first value (canonical order) that ties with the best one; −inf/nan never win
+    unless nothing else is there (then 0)."""
+    v = np.asarray(values, dtype=float)
+    if v.size == 0:
+        raise ValueError("first_best of an empty sequence")
+    s = v if maximize else -v
+    s = np.where(np.isnan(s), -np.inf, s)
+    best = float(np.max(s))
+    if not np.isfinite(best):
+        return int(np.argmax(s)) if best == np.inf else 0
+    return int(np.flatnonzero(s >= best - tie_tolerance(best, rtol, atol))[0])
+
+
+def improves(new: float, incumbent: float, maximize: bool = True, rtol: float = TIE_RTOL,
+             atol: float = 0.0) -> bool:
+    """True when ``new`` beats ``incumbent`` by more than the tie band (the incumbent wins ties)."""
+    if np.isnan(new):
+        return False
+    if np.isnan(incumbent) or np.isinf(new) or np.isinf(incumbent):
+        return bool(np.isnan(incumbent) or (new > incumbent if maximize else new < incumbent))
+    gap = (new - incumbent) if maximize else (incumbent - new)
+    return bool(gap > tie_tolerance(incumbent, rtol, atol))
+
+
+def order_with_ties(values: Sequence[float] | np.ndarray, descending: bool = True,
+                    rtol: float = TIE_RTOL) -> list[int]:
+    """Indices sorted by value; values tied with the head of their run keep canonical order."""
+    v = np.asarray(values, dtype=float)
+    rest = list(range(v.size))
+    out: list[int] = []
+    while rest:
+        k = rest[first_best(v[rest], maximize=descending, rtol=rtol)]
+        band = tie_tolerance(float(v[k]), rtol)
+        tied = [i for i in rest if abs(v[i] - v[k]) <= band or v[i] == v[k]]
+        out += tied
+        rest = [i for i in rest if i not in tied]
+    return out
