@@ -11,12 +11,14 @@ exchange (add i, remove j) by a rank-6 term. With Vᵢ = Jᵢ M⁻¹ Jᵢᵀ and
 For one design point j, all N candidates cost one (3N×k)·(k×3) product plus 3×3 algebra; M⁻¹ and
 every Vᵢ are then updated by the same Woodbury identity (rank 6). The exchange visits the design
 points in turn and swaps each with its best candidate while that improves the criterion (Cook and
-Nachtsheim's modified Fedorov algorithm).
+Nachtsheim's modified Fedorov algorithm). Candidates whose gains tie (:mod:`kincal.ties`) are taken
+in pool order, so the design does not depend on round-off.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..ties import first_best
 from .problem import DesignProblem
 
 IMPROVE = 1e-10  # relative improvement an exchange must bring
@@ -95,7 +97,7 @@ def greedy(P: DesignProblem, m: int, ridge: float = 1e-8) -> list[int]:
     for _ in range(m):
         gain = st.A_det.copy()
         gain[taken] = -np.inf
-        i = int(np.argmax(gain))
+        i = first_best(gain)
         chosen.append(i)
         taken[i] = True
         st.update(P.J[i], np.ones(3), st.cross(i))
@@ -131,7 +133,7 @@ def fedorov(P: DesignProblem, start: list[int], criterion: str = "D", B: np.ndar
                 score = _i_gain(st, C, Vj, R, H, j, in_design) / max(np.trace(st.Minv @ B), 1e-300)
             score[in_design] = -np.inf
             score[~np.isfinite(score)] = -np.inf
-            i = int(np.argmax(score))
+            i = first_best(score + 1.0)  # ties judged on the ratio of the criteria
             if score[i] <= IMPROVE:
                 continue
             U = np.vstack([P.J[i], P.J[j]])

@@ -4,14 +4,19 @@ The individual is a whole design: m poses × n joints. From a starting design ε
 
 * initial population (eq. 19): xᵢ = ε_opt + s·ε_opt·Gauss(0, 1), s = ``init_scale`` (1 in the paper);
 * adaptive mutation (eq. 20–21): ε_g = ε_opt + F(x_r1 − x_r2) + F(x_r3 − x_r4),
-  F = F0 − log2(1 + (g − 1)/G);
+  F = F0 − log2(1 + (g − 1)/G). The log term grows from 0 to log2(2 − 1/G) ≈ 1, so F falls by about
+  1 over the run; the paper gives no F0. With F0 ≤ 1 the factor turns negative in the later
+  generations (from generation 64 of 150 with F0 = 0.5) and the mutants are pushed *away* from the
+  best design. kincal's default F0 = 1.1 lets F decay from 1.1 (wide search) to about 0.1 (fine
+  search near the best); a smaller F0 is clipped at ``F_MIN`` so F stays positive in any case;
 * second mutation (eq. 22): v_g = v_{g−1} + F(ε_opt − v_{g−1}) + F(x_r5 − x_r6), v₀ a random member;
 * reverse-search boundary handling (eq. 23–24): a joint value beyond a limit is pulled back between
   ε_opt and the limit, ε' = ε_opt ± |limit − ε_opt|·|limit − ε|/|ε_opt − ε| (the paper prints '+'
   for the lower bound too; '−' is what keeps the value inside). A pose that still breaks a coupled
   constraint (e.g. |ψ| ≤ 45°) is replaced by the corresponding pose of ε_opt;
 * crossover (eq. 25): each pose of h_g comes from ε_g with probability cr, else from ε_opt;
-* selection (eq. 26): the best of h_g, v_g and ε_opt becomes ε_opt.
+* selection (eq. 26): the best of h_g, v_g and ε_opt becomes ε_opt; on a tie (:mod:`kincal.ties`)
+  ε_opt stays, then h_g is preferred to v_g.
 """
 from __future__ import annotations
 
@@ -20,6 +25,14 @@ from typing import Callable
 import numpy as np
 
 from ..models.robot import Robot
+from ..ties import first_best
+
+F_MIN = 0.05  # the mutation factor never falls below this
+
+
+def mutation_factor(g: int, generations: int, F0: float) -> float:
+    """Eq. 21, F = F0 − log2(1 + (g − 1)/G), kept ≥ F_MIN (generation g = 1…G)."""
+    return max(F0 - float(np.log2(1.0 + (g - 1) / generations)), F_MIN)
 
 
 def _bounce(x: np.ndarray, best: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -42,7 +55,7 @@ def ide(
     rng: np.random.Generator,
     generations: int = 200,
     population: int = 30,
-    F0: float = 0.5,
+    F0: float = 1.1,
     cr: float = 0.6,
     init_scale: float = 1.0,
     progress: Callable[[int, float], None] | None = None,
@@ -63,17 +76,16 @@ def ide(
     v = pop[int(rng.integers(population))].copy()
     history = []
     for g in range(1, generations + 1):
-        F = F0 - np.log2(1.0 + (g - 1) / generations)
+        F = mutation_factor(g, generations, F0)
         r = rng.choice(population, 6, replace=False)
         eps = repair(best + F * (pop[r[0]] - pop[r[1]]) + F * (pop[r[2]] - pop[r[3]]))
         v = repair(v + F * (best - v) + F * (pop[r[4]] - pop[r[5]]))
         take = rng.random(best.shape[0]) <= cr
         h = np.where(take[:, None], eps, best)
         f_h, f_v = objective(h), objective(v)
-        if f_h >= f_v and f_h >= f_best:
-            best, f_best = h, f_h
-        elif f_v >= f_h and f_v >= f_best:
-            best, f_best = v.copy(), f_v
+        k = first_best([f_best, f_h, f_v])  # the incumbent wins ties
+        if k:
+            best, f_best = (h, f_h) if k == 1 else (v.copy(), f_v)
         history.append(f_best)
         if progress is not None:
             progress(g, f_best)

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import IdentifiabilityError
 from ..models.robot import Robot
+from ..ties import first_best
 from .bound import Bound, relaxed_bound
 from .criteria import check_criterion, score
 from .exchange import _State, det3, fedorov, greedy
@@ -28,6 +29,7 @@ class Design:
     bound      -- certified upper bound on logdet over all m-pose designs of the pool (or None)
     efficiency -- D-efficiency (det M / exp(bound))^(1/k): how far from the best possible design
                   of the pool (≤ 1 for pool designs; continuous designs may exceed the pool's bound)
+    history    -- ide / detmax-ide: the best criterion after each generation (seed 1, Figs. 5–6)
     """
 
     indices: np.ndarray | None
@@ -40,6 +42,7 @@ class Design:
     bound: Bound | None
     time_s: float
     seed: int | None
+    history: tuple[float, ...] = ()
 
     @property
     def efficiency(self) -> float | None:
@@ -52,7 +55,7 @@ class Design:
                 "indices": None if self.indices is None else self.indices.tolist(), "q": self.q.tolist(), "value": self.value,
                 "logdet": self.logdet, "bound": None if self.bound is None else self.bound.to_dict(),
                 "efficiency": self.efficiency, "parameters": list(self.names), "time_s": self.time_s,
-                "seed": self.seed}
+                "seed": self.seed, "history": list(self.history)}
 
     def __str__(self) -> str:
         eff = "n/a" if self.efficiency is None else f"{self.efficiency:.4f}"
@@ -77,23 +80,23 @@ def detmax(P: DesignProblem, m: int, criterion: str, rng: np.random.Generator, B
     for _ in range(max_iter or 20 * m):
         free = np.flatnonzero(~in_design)
         if st is not None:  # det M' / det M = det(I + V) for an addition
-            a = int(free[np.argmax(st.A_det[free])])
+            a = int(free[first_best(st.A_det[free])])
         else:
             M = P.information(design)
             Ja = P.J[free]
             vals = score(M + np.einsum("nak,nal->nkl", Ja, Ja), m + 1, criterion, B)
-            a = int(free[np.argmax(vals)])
+            a = int(free[first_best(vals)])
         design.append(a)
         in_design[a] = True
         if st is not None:
             st.update(P.J[a], np.ones(3), st.cross(a))
             idx = np.asarray(design)
             # removal: det M'/det M = det(I − Vⱼ)
-            r_pos = int(np.argmax(det3(np.eye(3)[:, :, None] - st.V[:, :, idx])))
+            r_pos = first_best(det3(np.eye(3)[:, :, None] - st.V[:, :, idx]))
         else:
             M = P.information(design)
             Jd = P.J[np.asarray(design)]
-            r_pos = int(np.argmax(score(M - np.einsum("nak,nal->nkl", Jd, Jd), m, criterion, B)))
+            r_pos = first_best(score(M - np.einsum("nak,nal->nkl", Jd, Jd), m, criterion, B))
         r = design.pop(r_pos)
         in_design[r] = False
         if st is not None:
@@ -157,10 +160,10 @@ def select_poses(
         """Scaled Jacobian blocks (N, 3, k) of poses off the pool."""
         return robot.param_jacobian(q)[:, :, cols] * P.scale
 
-    idx = None
+    idx, history = None, ()
     if method in ("ide", "detmax-ide"):
         idx0 = detmax(P, m, criterion, rng, B) if method == "detmax-ide" else rng.choice(P.N, m, replace=False)
-        q, _, _ = ide(robot, P.q[np.asarray(idx0)], lambda x: _score_blocks(blocks(x), criterion, B), rng,
+        q, _, history = ide(robot, P.q[np.asarray(idx0)], lambda x: _score_blocks(blocks(x), criterion, B), rng,
                       generations=generations, progress=progress)
         J = blocks(q)
     else:
@@ -173,11 +176,11 @@ def select_poses(
                 raise ValueError("method 'fedorov' supports the D and I criteria; use 'detmax' for the others")
             starts = [greedy(P, m)] + [[int(i) for i in rng.choice(P.N, m, replace=False)] for _ in range(restarts)]
             runs = [fedorov(P, s, criterion, B)[0] for s in starts]
-            idx = max(runs, key=lambda d: _score_blocks(P.J[np.asarray(d)], criterion, B))
+            idx = runs[first_best([_score_blocks(P.J[np.asarray(d)], criterion, B) for d in runs])]
         idx = np.asarray(idx, dtype=int)
         q, J = P.q[idx], P.J[idx]
     elapsed = time.perf_counter() - t0
     if bound is True:
         bound = relaxed_bound(P, m)
     return Design(idx, q, method, criterion, _score_blocks(J, criterion, B), _score_blocks(J, "D", None), P.names,
-                  bound if isinstance(bound, Bound) else None, elapsed, seed)
+                  bound if isinstance(bound, Bound) else None, elapsed, seed, tuple(float(h) for h in history))

@@ -23,6 +23,7 @@ from ..identify.calibrate import calibrate, evaluate
 from ..identify.result import EvaluationStats
 from ..models.yaml_io import load_robot
 from ..simulate import simulate
+from ..ties import first_best
 
 DESIGNS = ("random", "full-parameter optimised", "separated-parameter optimised")
 
@@ -86,7 +87,7 @@ class Seed1Study:
         out.append(f"  {'':<31} {'mean error':>22} {'std of error':>22}")
         for k, (mm, ms, sm, ss) in self.repeated.items():
             out.append(f"  {k:<31} {mm * 1e3:10.4f} ± {ms * 1e3:<9.4f} {sm * 1e3:10.4f} ± {ss * 1e3:<9.4f}")
-        best = min(DESIGNS[1:], key=lambda d: self.repeated[d][0])
+        best = DESIGNS[1:][first_best([self.repeated[d][0] for d in DESIGNS[1:]], maximize=False)]
         rnd = self.repeated["random"][0]
         out.append(f"  mean error of '{best}' vs random: {100 * (1 - self.repeated[best][0] / rnd):+.1f} % reduction")
         return "\n".join(out)
