@@ -1,4 +1,4 @@
-"""Analysis of stacked error Jacobians: identifiability (and, later, observability indices)."""
-from .identifiability import Identifiability, identifiability, stacked_jacobian
+"""Analysis of stacked error Jacobians: identifiability, observability indices, separation, sensitivity."""
+from .identifiability import BASE_MODES, Identifiability, free_parameters, identifiability, stacked_jacobian
 
-__all__ = ["Identifiability", "identifiability", "stacked_jacobian"]
+__all__ = ["BASE_MODES", "Identifiability", "free_parameters", "identifiability", "stacked_jacobian"]

@@ -171,6 +171,33 @@ def identifiability(
                            cond_raw, cond_scaled, tol, tuple(notes))
 
 
+BASE_MODES = ("fixed", "estimate")
+
+
+def free_parameters(robot: Robot, q: np.ndarray, base: str = "estimate", params: Sequence[str] | None = None,
+                    keep: Sequence[str] = (), tol: float = DEFAULT_TOL) -> Identifiability:
+    """Identifiability of the parameters a calibration or a design would fit: the one home of the
+    base-mode rule. ``base="fixed"``: the base frame is known, so its parameters are left out (an
+    explicit ``params`` list naming one is an error); ``"estimate"``: the base frame is fitted too and
+    its parameters are chosen first among confounded ones (after ``keep``), so a base offset, not a
+    joint term, absorbs where the tracker stands. ``params`` None: every parameter is a candidate;
+    otherwise exactly those (plus the base frame when estimated). The fit's free parameters are
+    ``.identifiable``; ``.candidates`` is the list asked for."""
+    if base not in BASE_MODES:
+        raise ValueError(f"base='{base}' is not one of {BASE_MODES}")
+    bn = list(robot.base_params())
+    if params is None:
+        return identifiability(robot, q, exclude=bn if base == "fixed" else (),
+                               keep=list(keep) + (bn if base == "estimate" else []), tol=tol)
+    names = list(dict.fromkeys(params))
+    clash = [n for n in names if n in bn]
+    if base == "fixed" and clash:
+        raise ValueError(f"{', '.join(clash)} listed with base='fixed'; use base='estimate' to fit the base")
+    if base == "estimate":
+        names = bn + [n for n in names if n not in bn]
+    return identifiability(robot, q, params=names, keep=list(keep) + (bn if base == "estimate" else []), tol=tol)
+
+
 def _pivot_order(Js: np.ndarray, names: list[str], stages: list[list[str]], rank: int, cutoff: float) -> list[int]:
     """Column order: pivoted Gram–Schmidt stage by stage (each stage's columns in the stage's own
     order, the rest in model order), a column counting when its residual exceeds ``cutoff``; the

@@ -6,7 +6,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..analysis.identifiability import identifiability
+from ..analysis.identifiability import free_parameters, identifiability
 from ..analysis.observability import column_scale
 from ..errors import IdentifiabilityError
 from ..models.robot import Robot
@@ -59,15 +59,13 @@ def design_problem(robot: Robot, pool_q: np.ndarray, params: Sequence[str] | Non
                    base: str = "estimate") -> DesignProblem:
     """Build the problem for ``robot`` on the candidate pool (N, n).
 
-    params -- parameters to design for; default: the identifiable set at the pool (base frame kept
-              first when ``base="estimate"``, left out when "fixed"), as :func:`kincal.calibrate` would fit.
+    params -- parameters to design for, exactly these; default: the identifiable set at the pool
+              by the base-mode rule of :func:`kincal.analysis.free_parameters`, as
+              :func:`kincal.calibrate` would fit.
     """
     pool_q = robot.check_q(pool_q)
     if params is None:
-        bn = robot.base_params()
-        ident = identifiability(robot, pool_q, exclude=bn if base == "fixed" else (),
-                                keep=bn if base == "estimate" else ())
-        names = ident.identifiable
+        names = free_parameters(robot, pool_q, base).identifiable
     else:
         names = tuple(params)
         ident = identifiability(robot, pool_q, params=names)

@@ -1,4 +1,9 @@
-"""Identification of kinematic parameters from measured positions: ``calibrate`` and ``evaluate``."""
+"""Identification of kinematic parameters from measured positions: ``calibrate`` and ``evaluate``.
+
+``calibrate`` checks every option first, builds a :class:`~kincal.identify.problem.CalibrationProblem`
+(robot, measurements, free parameters, residual), runs a solver on it (LM, PSO, or PSO then LM),
+optionally reweights robustly, and turns the fit into a :class:`CalibrationResult`.
+"""
 from __future__ import annotations
 
 import time
@@ -6,33 +11,51 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..analysis.identifiability import identifiability
-from ..errors import IdentifiabilityError, MeasurementError, ModelError
+from .._threads import blas_threads
+from ..analysis.identifiability import BASE_MODES
 from ..io.measurements import Measurements
 from ..models.robot import Robot
-from .lm import LMResult, levenberg_marquardt
-from .pso import pso
-from .registration import register_base
+from .covariance import parameter_statistics
+from .lm import LMResult, fit_lm
+from .problem import CalibrationProblem, build_problem
+from .pso import OPTIONS as PSO_OPTIONS
+from .pso import fit_pso
+from .residuals import RESIDUALS, supports
 from .result import CalibrationResult, EvaluationStats
+from .robust import LOSSES, irls
 
-LOSSES = ("linear", "huber", "soft_l1")
-BASE_MODES = ("fixed", "estimate")
 METHODS = ("lm", "pso", "pso+lm")
-RESIDUALS = ("cartesian", "joint")
-PSO_HALF_WIDTH = {"length": 8e-3, "angle": 8e-3}  # the paper's position limits ±8 (mm), per kind
-PSO_V_MAX = {"length": 0.5e-3, "angle": 0.5e-3}  # and velocity limits ±0.5 (mm per iteration)
-MAX_IRLS = 20
 PRACTICAL_TOL = 3e-5  # directions weaker than this (relative, scaled) are not fitted by default
 
 
-def _robust_weights(norms: np.ndarray, loss: str, f_scale: float) -> np.ndarray:
-    """IRLS weights ρ'(z), z = (‖rᵢ‖/f_scale)², per pose (scipy's conventions for huber and soft_l1)."""
-    z = (norms / f_scale) ** 2
-    if loss == "huber":
-        return np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1.0)))
-    if loss == "soft_l1":
-        return 1.0 / np.sqrt(1.0 + z)
-    return np.ones_like(z)
+def check_options(robot: Robot, params, base: str, loss: str, method: str, residual: str,
+                  f_scale: float | None, tol: float, max_iter: int, pso_options: dict | None) -> None:
+    """Every option of :func:`calibrate`, checked before any work; ValueError names the option."""
+    for name, value, allowed in (("base", base, BASE_MODES), ("loss", loss, LOSSES), ("method", method, METHODS),
+                                 ("residual", residual, tuple(RESIDUALS))):
+        if value not in allowed:
+            raise ValueError(f"{name}='{value}' is not one of {allowed}")
+    if loss != "linear" and method != "lm":
+        raise ValueError(f"loss='{loss}' needs method='lm' (got method='{method}'): robust reweighting refits with "
+                         f"Levenberg-Marquardt; use loss='linear' with '{method}', or method='lm'")
+    if not supports(robot, residual):
+        raise ValueError(f"residual='{residual}' needs a robot with closed-form inverse kinematics; robot "
+                         f"'{robot.name}' has none: use residual='cartesian'")
+    if isinstance(params, str):
+        if params != "auto":
+            raise ValueError(f"params='{params}': use 'auto' or a list of parameter names")
+    else:
+        robot.params.indices(list(params))  # unknown names raise, naming them
+    if f_scale is not None and not (np.isfinite(f_scale) and f_scale > 0):
+        raise ValueError(f"f_scale={f_scale}: give a positive residual scale in m, or None for automatic")
+    if not 0 < tol < 1:
+        raise ValueError(f"tol={tol}: the relative singular-value tolerance must lie in (0, 1)")
+    if int(max_iter) != max_iter or max_iter < 1:
+        raise ValueError(f"max_iter={max_iter}: give a positive whole number of iterations")
+    unknown = sorted(set(pso_options or {}) - set(PSO_OPTIONS))
+    if unknown or (pso_options and method == "lm"):
+        raise ValueError(f"pso_options {unknown or sorted(pso_options)}: " + (
+            f"known are {', '.join(PSO_OPTIONS)}" if unknown else "apply to method='pso' or 'pso+lm' only"))
 
 
 def calibrate(
@@ -57,7 +80,7 @@ def calibrate(
                 fit the base frame jointly with the kinematics; "fixed": the base frame is known
     loss     -- "linear" (least squares), or "huber" / "soft_l1" on each pose's 3-D residual norm
                 (iteratively reweighted; ``f_scale`` in m, default 3 robust sigmas of the residuals,
-                re-estimated at every reweighting)
+                re-estimated at every reweighting); method "lm" only
     method   -- "lm": Levenberg–Marquardt with the analytic Jacobian and column scaling; "pso":
                 particle swarm with the seed-2 settings (``pso_options`` overrides particles,
                 iterations, w, c1, c2, seed); "pso+lm": PSO, then LM on the identifiable set. PSO
@@ -66,189 +89,74 @@ def calibrate(
     residual -- "cartesian": measured − predicted positions; "joint" (seed 2, eq. 4/11): commanded
                 joint values − the inverse kinematics of the measured positions (robots with a
                 closed-form inverse only)
-    max_iter -- LM iteration limit; a fit that stops there is returned with ``converged=False``
-    progress -- called with a short message at each stage (the CLI shows it)
-
-    Returns a :class:`CalibrationResult`. Raises MeasurementError for data that cannot belong to the
-    robot or is too little, IdentifiabilityError when an explicit ``params`` list is not identifiable.
     keep     -- names to prefer when choosing among confounded parameters
     tol      -- relative singular-value tolerance of the identifiability check (column-scaled); the
                 default also leaves out parameters the poses determine only very weakly, which would
                 otherwise wander along a flat valley of the cost to absurd values
+    max_iter -- LM iteration limit; a fit that stops there is returned with ``converged=False``
+    progress -- called with a short message at each stage (the CLI shows it)
+
+    Every option is checked before any work (ValueError). Raises MeasurementError for data that
+    cannot belong to the robot or is too little, IdentifiabilityError when an explicit ``params``
+    list is not identifiable by LM. BLAS runs single-threaded inside: these problems are small, and
+    threads only fight other processes for the cores.
     """
     t0 = time.perf_counter()
+    check_options(robot, params, base, loss, method, residual, f_scale, tol, max_iter, pso_options)
     say = progress or (lambda msg: None)
-    if base not in BASE_MODES:
-        raise ValueError(f"base='{base}' is not one of {BASE_MODES}")
-    if loss not in LOSSES:
-        raise ValueError(f"loss='{loss}' is not one of {LOSSES}")
-    if method not in METHODS:
-        raise ValueError(f"method='{method}' is not one of {METHODS}")
-    if residual not in RESIDUALS:
-        raise ValueError(f"residual='{residual}' is not one of {RESIDUALS}")
-    if residual == "joint" and not hasattr(robot, "inverse_and_jacobian"):
-        raise ValueError(f"residual='joint' needs a robot with closed-form inverse kinematics; robot "
-                         f"'{robot.name}' has none: use residual='cartesian'")
-    meas.check_robot(robot)
-    q, xyz = meas.q, meas.xyz
-    base_names = robot.base_params()
-    start = robot
-    if base == "estimate":
-        if len(meas) < 3:
-            raise MeasurementError(f"{meas.source}: registering the base frame needs at least 3 poses, got {len(meas)}")
-        say("registering the measurement frame")
-        start = register_base(robot, q, xyz)
+    with blas_threads(1):
+        problem = build_problem(robot, meas, params, base, keep, tol, residual, strict=method == "lm", say=say)
+        fit, final, counts, history = _solve(problem, method, max_iter, pso_options or {}, say)
+        w = None
+        if loss != "linear":
+            say("reweighting (robust loss)")
+            fit, w, its, evs = irls(final, fit, loss, f_scale, lambda x, wt: fit_lm(final, x, wt, max_iter))
+            counts = (counts[0] + its, counts[1] + evs)
+        return _result(robot, problem, final, fit, w, counts, history, method, loss, time.perf_counter() - t0)
 
-    say("checking identifiability")
-    if isinstance(params, str):
-        if params != "auto":
-            raise ValueError(f"params='{params}': use 'auto' or a list of parameter names")
-        ident = identifiability(start, q, exclude=base_names if base == "fixed" else (),
-                                keep=list(keep) + (list(base_names) if base == "estimate" else []), tol=tol)
-        names = ident.identifiable
-    else:
-        names = list(params)
-        clash = [n for n in names if n in set(base_names)] if base == "fixed" else []
-        if clash:
-            raise ValueError(f"{', '.join(clash)} listed with base='fixed'; use base='estimate' to fit the base")
-        if base == "estimate":
-            names = list(base_names) + [n for n in names if n not in set(base_names)]
-        ident = identifiability(start, q, params=names, keep=keep, tol=tol)
-        if ident.dropped and method == "lm":
-            raise IdentifiabilityError(
-                f"these parameters cannot all be identified from the {len(meas)} poses; leave out the "
-                f"dropped ones or use params='auto':\n{ident}"
-            )
-        names = names if method != "lm" else ident.identifiable
-    names = tuple(names)
-    K = len(names)
-    if 3 * len(meas) <= K:
-        raise MeasurementError(
-            f"{meas.source}: {len(meas)} poses give {3 * len(meas)} equations for {K} parameters; "
-            f"measure at least {K // 3 + 1} poses (3-5 times as many is advisable)"
-        )
-    idx = start.params.indices(names)
-    v0 = start.params.values.copy()
 
-    def stacked(x: np.ndarray, w: np.ndarray | None, cols: np.ndarray = idx):
-        """Stacked residual and Jacobian, ordered axis-major (all x, then all y, then all z) so the
-        Jacobian is a transposed view of the model's parameter rows, without a copy per call."""
-        if residual == "joint":
-            try:
-                qh, J = start.inverse_and_jacobian(xyz, _embed(x, cols))
-            except ModelError:  # a trial step where some measured position is out of reach: reject it
-                return np.full(q.size, np.inf), np.zeros((q.size, cols.size))
-            r = (qh - q).T.ravel()
-        else:
-            p, J = start.forward_and_jacobian(q, _embed(x, cols))
-            r = (p - xyz).T.ravel()
-        Jt = J.transpose(2, 1, 0)[cols].reshape(cols.size, -1)  # (K, 3N)
-        if w is not None:
-            sw = np.tile(np.sqrt(w), 3)
-            r, Jt = r * sw, Jt * sw
-        return r, Jt.T
-
-    def _embed(x: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """The full parameter vector with ``cols`` set to x (v0 is read when called)."""
-        v = v0.copy()
-        v[cols] = x
-        return v
-
-    def pose_norms(x: np.ndarray) -> np.ndarray:
-        return np.linalg.norm(xyz - start.forward(q, _embed(x, idx)), axis=1)
-
-    if residual == "joint":
-        reach = start.inverse(xyz, strict=False)
-        bad = ~np.all(np.isfinite(reach), axis=1)
-        if bad.any():
-            raise MeasurementError(
-                f"{meas.source}: the positions in row(s) {', '.join(str(r) for r in meas.rows[bad][:10])} are out "
-                f"of reach of the starting model, so the joint-space residual is undefined there; use "
-                f"residual='cartesian' or leave those rows out")
-    w = None
-    x0 = v0[idx]
-    iterations = evaluations = 0
+def _solve(problem: CalibrationProblem, method: str, max_iter: int, pso_options: dict, say):
+    """Run the solver(s). Returns the fit, the problem it belongs to, (iterations, evaluations) and
+    the particle swarm's best value per iteration (empty for LM)."""
+    history: tuple[float, ...] = ()
+    x0, counts, final = problem.x0, (0, 0), problem
     if method in ("pso", "pso+lm"):
-        say(f"particle swarm over {K} parameters")
-        x0, iterations, evaluations = _pso_fit(start, q, xyz, idx, v0, residual, pso_options or {})
-    lm_cols = idx
-    if method == "pso+lm" and ident.dropped:  # polish only what the data determine
-        lm_cols = start.params.indices(ident.identifiable)
-        v0 = _embed(x0, idx)
-        x0 = v0[lm_cols]
-    if method != "pso":
-        say(f"fitting {lm_cols.size} parameters to {len(meas)} poses")
-        fit = levenberg_marquardt(lambda x: stacked(x, None, lm_cols), x0, max_iter=max_iter)
-        iterations, evaluations = iterations + fit.iterations, evaluations + fit.evaluations
-    else:
-        fit = _evaluated(stacked(x0, None), x0)
-    if loss != "linear":
-        if method != "lm":
-            raise ValueError("robust losses are available with method='lm'")
-        auto_scale = f_scale is None
-        w = np.ones(len(meas))
-        for _ in range(MAX_IRLS):
-            norms = pose_norms(fit.x)
-            if auto_scale:  # 3 robust sigmas; the median of a 3-D Gaussian norm is 1.538 sigma
-                f_scale = max(3.0 * float(np.median(norms)) / 1.538, 1e-9)
-            w_new = _robust_weights(norms, loss, f_scale)
-            if np.max(np.abs(w_new - w)) < 1e-4:
-                break
-            w = w_new
-            fit = levenberg_marquardt(lambda x: stacked(x, w), fit.x, max_iter=max_iter)
-            iterations, evaluations = iterations + fit.iterations, evaluations + fit.evaluations
+        say(f"particle swarm over {len(problem.names)} parameters")
+        swarm = fit_pso(problem, pso_options)
+        x0, counts, history = swarm.x, (swarm.iterations, swarm.evaluations), tuple(map(float, swarm.history))
+        if method == "pso":
+            r, J = problem.fun()(x0)
+            return LMResult(x0, 0.5 * float(r @ r), r, J, 0, 0, True, "particle swarm finished its iterations"), \
+                problem, counts, history
+        if problem.ident.dropped:  # polish only what the data determine
+            final = problem.restrict(problem.ident.identifiable, problem.embed(x0))
+            x0 = final.x0
+    say(f"fitting {len(final.names)} parameters to {len(problem.meas)} poses")
+    fit = fit_lm(final, x0, max_iter=max_iter)
+    return fit, final, (counts[0] + fit.iterations, counts[1] + fit.evaluations), history
 
-    cols = lm_cols if method != "pso" else idx
-    v = v0.copy()
-    v[cols] = fit.x
-    calibrated = start.with_params(v)
-    res = xyz - calibrated.forward(q)
-    J = fit.jacobian  # weighted, at the solution, columns ``cols``
-    dof = max(fit.residual.size - cols.size, 1)
-    sigma2 = float(fit.residual @ fit.residual) / dof
-    cov = _covariance(J) * sigma2
-    sd_cols = {start.params.names[c]: float(np.sqrt(max(cov[k, k], 0.0))) for k, c in enumerate(cols)}
-    undetermined = set(ident.dropped) if method == "pso" else set()
-    sd = np.array([np.inf if n in undetermined else sd_cols.get(n, np.inf) for n in names])
-    pos = {start.params.names[c]: k for k, c in enumerate(cols)}
-    at = np.array([pos.get(n, -1) for n in names])
-    ok = at >= 0
-    full_cov = np.zeros((K, K))
-    full_cov[np.ix_(ok, ok)] = cov[np.ix_(at[ok], at[ok])]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        corr = full_cov / np.outer(sd, sd)
-    corr = np.where(np.isfinite(corr), corr, 0.0)
-    np.fill_diagonal(corr, 1.0)
-    nominal = robot.params
+
+def _result(robot: Robot, problem: CalibrationProblem, final: CalibrationProblem, fit: LMResult, w, counts,
+            history, method: str, loss: str, elapsed: float) -> CalibrationResult:
+    """The fit as a CalibrationResult: estimates for every name of ``problem``, uncertainty from
+    the fit of ``final`` (undetermined parameters of a swarm-only fit get σ = inf)."""
+    v = final.embed(fit.x)
+    calibrated = problem.start.with_params(v)
+    names, idx = problem.names, problem.cols
+    undetermined = problem.ident.dropped if method == "pso" else ()
+    sd, corr, sigma2 = parameter_statistics(fit.jacobian, fit.residual, final.names, names, undetermined)
+    meas = problem.meas
+    res = meas.xyz - calibrated.forward(meas.q)
     return CalibrationResult(
-        robot=calibrated,
-        nominal=robot,
-        names=names,
+        robot=calibrated, nominal=robot, names=names,
         estimates={n: float(v[i]) for n, i in zip(names, idx)},
-        corrections={n: float(v[i] - nominal.values[i]) for n, i in zip(names, idx)},
-        std={n: float(x) for n, x in zip(names, sd)},
-        correlation=corr,
-        residuals=res,
+        corrections={n: float(v[i] - robot.params.values[i]) for n, i in zip(names, idx)},
+        std={n: float(x) for n, x in zip(names, sd)}, correlation=corr, residuals=res,
         sigma=float(np.sqrt(sigma2 / (1.0 if w is None else np.mean(w)))),
-        stats_before=EvaluationStats.from_errors(xyz - robot.forward(q)),
+        stats_before=EvaluationStats.from_errors(meas.xyz - robot.forward(meas.q)),
         stats_after=EvaluationStats.from_errors(res),
-        iterations=iterations,
-        evaluations=evaluations,
-        converged=fit.converged,
-        message=fit.message,
-        time_s=time.perf_counter() - t0,
-        loss=loss,
-        base=base,
-        identifiability=ident,
-    )
-
-
-def _covariance(J: np.ndarray) -> np.ndarray:
-    """(JᵀJ)⁻¹ computed on unit-norm columns (stable), returned in the original units."""
-    d = np.linalg.norm(J, axis=0)
-    d[d == 0] = 1.0
-    A = J / d
-    return np.linalg.pinv(A.T @ A, hermitian=True) / np.outer(d, d)
+        iterations=counts[0], evaluations=counts[1], converged=fit.converged, message=fit.message,
+        time_s=elapsed, loss=loss, base=problem.base, identifiability=problem.ident, history=history)
 
 
 def evaluate(robot: Robot, meas: Measurements, rebase: bool = False) -> EvaluationStats:
@@ -260,29 +168,3 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False) -> Evaluati
     if rebase:
         robot = calibrate(robot, meas, params=(), base="estimate").robot
     return EvaluationStats.from_errors(meas.xyz - robot.forward(meas.q))
-
-
-def _evaluated(rj: tuple[np.ndarray, np.ndarray], x: np.ndarray) -> LMResult:
-    r, J = rj
-    return LMResult(x, 0.5 * float(r @ r), r, J, 0, 0, True, "particle swarm finished its iterations")
-
-
-def _pso_fit(robot: Robot, q: np.ndarray, xyz: np.ndarray, idx: np.ndarray, v0: np.ndarray, residual: str,
-             options: dict) -> tuple[np.ndarray, int, int]:
-    """Particle swarm on the mean squared residual; returns the best x, iterations, model evaluations."""
-    kinds = [robot.params.kinds[i] for i in idx]
-
-    def objective(x: np.ndarray) -> float:
-        v = v0.copy()
-        v[idx] = x
-        try:
-            r = robot.inverse(xyz, v, strict=False) - q if residual == "joint" else robot.forward(q, v) - xyz
-        except ModelError:  # a candidate that cannot assemble some pose
-            return np.inf
-        val = float(np.mean(r * r))
-        return val if np.isfinite(val) else np.inf
-
-    opts = {"particles": 500, "iterations": 200, "w": 0.8, "c1": 0.5, "c2": 1.2, "seed": 0, **options}
-    out = pso(objective, v0[idx], np.array([PSO_HALF_WIDTH[k] for k in kinds]),
-              np.array([PSO_V_MAX[k] for k in kinds]), **opts)
-    return out.x, out.iterations, out.evaluations

@@ -1,8 +1,9 @@
 """Levenberg–Marquardt for small dense least-squares problems, with column scaling.
 
-Minimises ½‖r(x)‖² where ``fun(x) -> (r (M,), J (M,K))`` (J may be a transposed view). Steps solve the damped, column-scaled
-normal equations ``(AᵀA + μI) h = -Aᵀr`` with ``A = J D⁻¹`` (D: running maximum of the column norms,
-Moré's scaling), and μ follows Nielsen's gain-ratio rule. Cheap for M ≫ K (a K×K Cholesky per step).
+Minimises ½‖r(x)‖² where ``fun(x) -> (r (M,), J (M,K))`` (J may be a transposed view). Steps solve the
+damped, column-scaled normal equations ``(AᵀA + μI) h = -Aᵀr`` with ``A = J D⁻¹`` (D: running maximum
+of the column norms, Moré's scaling), and μ follows Nielsen's gain-ratio rule. Cheap for M ≫ K (a
+K×K Cholesky per step).
 """
 from __future__ import annotations
 
@@ -11,6 +12,10 @@ from typing import Callable
 
 import numpy as np
 import scipy.linalg as sla
+
+from .problem import CalibrationProblem
+
+MU_LIMIT = 1e20  # damping beyond this (relative to the largest diagonal entry) means no step helps
 
 
 @dataclass(frozen=True)
@@ -25,6 +30,44 @@ class LMResult:
     message: str
 
 
+@dataclass
+class _Step:
+    """Outcome of the damping loop of one iteration."""
+
+    accepted: bool
+    x: np.ndarray
+    r: np.ndarray
+    J: np.ndarray
+    cost: float
+    h: np.ndarray
+    mu: float
+    evaluations: int
+
+
+def _damped_step(fun, x, cost, H, g, D, mu: float) -> _Step:
+    """Raise μ until a step lowers the cost (Nielsen's rule), or give up past MU_LIMIT."""
+    nu, evals, limit = 2.0, 0, MU_LIMIT * max(1.0, float(np.max(np.diag(H))))
+    eye = np.eye(H.shape[0])
+    while mu < limit:
+        try:
+            c = sla.cho_factor(H + mu * eye, check_finite=False)
+            h = -sla.cho_solve(c, g, check_finite=False)
+        except np.linalg.LinAlgError:
+            mu, nu = mu * nu, nu * 2.0
+            continue
+        x_new = x + h / D
+        r_new, J_new = fun(x_new)
+        evals += 1
+        cost_new = 0.5 * float(r_new @ r_new)
+        predicted = 0.5 * float(h @ (mu * h - g))
+        rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
+        if np.isfinite(cost_new) and rho > 0:
+            mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+            return _Step(True, x_new, r_new, J_new, cost_new, h, mu, evals)
+        mu, nu = mu * nu, nu * 2.0
+    return _Step(False, x, np.empty(0), np.empty(0), cost, np.zeros_like(g), mu, evals)
+
+
 def levenberg_marquardt(
     fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
     x0: np.ndarray,
@@ -37,58 +80,36 @@ def levenberg_marquardt(
     gradient falls below its tolerance."""
     x = np.array(x0, dtype=float)
     r, J = fun(x)
-    n_eval = 1
-    cost = 0.5 * float(r @ r)
+    n_eval, cost = 1, 0.5 * float(r @ r)
     if not (np.isfinite(cost) and np.all(np.isfinite(J))):
         raise ValueError("the residual or its Jacobian is not finite at the starting point")
     D = np.linalg.norm(J, axis=0)
     D[D == 0] = 1.0
-    mu, nu = None, 2.0
-    message, converged = f"stopped after {max_iter} iterations without meeting the tolerances", False
-    it = 0
+    mu = None
     for it in range(1, max_iter + 1):
         D = np.maximum(D, np.linalg.norm(J, axis=0))
         H = (J.T @ J) / np.outer(D, D)  # normal matrix of the scaled problem A = J D⁻¹
         g = (J.T @ r) / D
         if np.max(np.abs(g)) <= gtol * max(1.0, np.sqrt(2 * cost)):
-            converged, message = True, "gradient below tolerance"
-            break
+            return LMResult(x, cost, r, J, it, n_eval, True, "gradient below tolerance")
         if mu is None:
             mu = 1e-8 * float(np.max(np.diag(H)))  # near Gauss-Newton: calibration problems are mildly nonlinear
-        for _attempt in range(100):
-            try:
-                c = sla.cho_factor(H + mu * np.eye(H.shape[0]), check_finite=False)
-                h = -sla.cho_solve(c, g, check_finite=False)
-            except np.linalg.LinAlgError:
-                mu *= nu
-                nu *= 2.0
-                continue
-            x_new = x + h / D
-            r_new, J_new = fun(x_new)
-            n_eval += 1
-            cost_new = 0.5 * float(r_new @ r_new)
-            predicted = 0.5 * float(h @ (mu * h - g))
-            rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
-            if np.isfinite(cost_new) and rho > 0:
-                small_step = np.linalg.norm(h) <= xtol * (np.linalg.norm(x * D) + xtol)
-                small_drop = (cost - cost_new) <= ftol * cost
-                x, r, J, cost = x_new, r_new, J_new, cost_new
-                mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-                nu = 2.0
-                break
-            mu *= nu
-            nu *= 2.0
-            if not mu < 1e20 * max(1.0, float(np.max(np.diag(H)))):
-                break
-        else:
-            mu = np.inf
-        if not np.isfinite(mu) or not mu < 1e20 * max(1.0, float(np.max(np.diag(H)))):
+        step = _damped_step(fun, x, cost, H, g, D, mu)
+        n_eval += step.evaluations
+        if not step.accepted:
             return LMResult(x, cost, r, J, it, n_eval, False,
                             "no step reduces the cost (damping exhausted); the problem may be ill-posed")
-        if small_step:
-            converged, message = True, "step below tolerance"
-            break
-        if small_drop:
-            converged, message = True, "cost decrease below tolerance"
-            break
-    return LMResult(x, cost, r, J, it, n_eval, converged, message)
+        small_step = np.linalg.norm(step.h) <= xtol * (np.linalg.norm(x * D) + xtol)
+        small_drop = (cost - step.cost) <= ftol * cost
+        x, r, J, cost, mu = step.x, step.r, step.J, step.cost, step.mu
+        if small_step or small_drop:
+            return LMResult(x, cost, r, J, it, n_eval, True,
+                            "step below tolerance" if small_step else "cost decrease below tolerance")
+    return LMResult(x, cost, r, J, max_iter, n_eval, False,
+                    f"stopped after {max_iter} iterations without meeting the tolerances")
+
+
+def fit_lm(problem: CalibrationProblem, x0: np.ndarray | None = None, weights: np.ndarray | None = None,
+           max_iter: int = 100) -> LMResult:
+    """Levenberg–Marquardt on ``problem`` (per-pose ``weights`` for robust reweighting)."""
+    return levenberg_marquardt(problem.fun(weights), problem.x0 if x0 is None else x0, max_iter=max_iter)

@@ -73,6 +73,7 @@ class CalibrationResult:
     loss: str
     base: str
     identifiability: Identifiability
+    history: tuple[float, ...] = ()  # particle swarm: best mean squared residual per iteration (seed 2, Fig. 7)
 
     def to_dict(self) -> dict:
         return {
@@ -95,6 +96,7 @@ class CalibrationResult:
             "before": self.stats_before.to_dict(),
             "after": self.stats_after.to_dict(),
             "identifiability": self.identifiability.to_dict(),
+            "history": list(self.history),
         }
 
     def __str__(self) -> str:

@@ -9,7 +9,10 @@ inverse); everything else is generic and batched:
 * ``param_jacobian``: implicit-function theorem, dp = −(∂f/∂p)⁻¹ (∂f/∂s) ds (eq. 3, 9);
 * ``joint_jacobian``: dp = −(∂f/∂p)⁻¹ (∂f/∂q) dq;
 * a 6-parameter base frame places the robot frame in the measurement frame, as for serial robots,
-  so tracker data can be registered: world = R_b p + t_b, R_b = Rz(rz) Ry(ry) Rx(rx).
+  so tracker data can be registered: world = R_b p + t_b, R_b = Rz(rz) Ry(ry) Rx(rx);
+* ``forward_batch`` / ``inverse_batch``: many parameter vectors at once (a particle swarm) in one
+  batched pass, every configuration carrying its own parameter row. Subclasses therefore write the
+  constraint methods so ``values`` may be (P,) or one row per configuration, (N, P).
 """
 from __future__ import annotations
 
@@ -50,7 +53,8 @@ class ImplicitRobot(Robot):
 
     def inverse_local(self, p: np.ndarray, values: np.ndarray, strict: bool = True) -> np.ndarray:
         """Closed-form inverse kinematics in the robot frame, (N, n); optional. Unreachable positions
-        raise a ModelError, or give NaN rows when not ``strict``."""
+        raise a ModelError, or give NaN rows when not ``strict``. Batched callers pass p (S, N, 3)
+        with values (S, 1, P) and get (S, N, n)."""
         raise ModelError(f"robot '{self.name}' has no closed-form inverse")
 
     # ---- base frame ---------------------------------------------------------------------------
@@ -63,6 +67,39 @@ class ImplicitRobot(Robot):
     def _base(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         b = values[self.params.indices(BASE_NAMES)]
         return rot_zyx(b[5], b[4], b[3]), b[:3]
+
+    def _base_rows(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Base frames of parameter rows (M, P): R (M, 3, 3), t (M, 3)."""
+        b = values[:, self.params.indices(BASE_NAMES)]
+        return np.moveaxis(rot_zyx(b[:, 5], b[:, 4], b[:, 3]), -1, 0), b[:, :3]
+
+    def _rows(self, n: int, values: np.ndarray) -> np.ndarray:
+        """(S·n, P): each of the S parameter vectors repeated for the n configurations."""
+        values = np.asarray(values, dtype=float)
+        if values.ndim != 2 or values.shape[1] != self.n_params:
+            raise ModelError(f"{self.name}: expected (S, {self.n_params}) parameter vectors, got {values.shape}")
+        return np.repeat(values, n, axis=0)
+
+    def forward_batch(self, q: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """Positions (S, N, 3) for S parameter vectors (S, P) in one Newton solve; NaN where a
+        configuration does not assemble."""
+        q = self.check_q(q)
+        rows = self._rows(q.shape[0], values)
+        p_local, ok = self._solve_local(np.tile(q, (len(values), 1)), rows, strict=False)
+        R, t = self._base_rows(rows)
+        p = np.einsum("mij,mj->mi", R, p_local) + t
+        return np.where(ok[:, None], p, np.nan).reshape(len(values), q.shape[0], 3)
+
+    def inverse_batch(self, p: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """Joint values (S, N, n) that reach world positions p (N, 3) for S parameter vectors (S, P);
+        NaN where a position is out of reach. The geometry is built once per vector and broadcast
+        over the positions (``values`` reach ``inverse_local`` as (S, 1, P))."""
+        p = np.atleast_2d(np.asarray(p, float))
+        values = np.asarray(values, dtype=float)
+        self._rows(0, values)  # shape check
+        R, t = self._base_rows(values)
+        p_local = np.einsum("sni,sij->snj", p[None] - t[:, None], R)
+        return self.inverse_local(p_local, values[:, None, :], strict=False)
 
     def _base_axes(self, values: np.ndarray) -> list[np.ndarray]:
         """World axes of the base rotations rx, ry, rz (R = Rz Ry Rx: each turns about its axis

@@ -83,33 +83,36 @@ class PUU3Robot(ImplicitRobot):
 
     # ---- geometry -------------------------------------------------------------------------------
     def _legs(self, values: np.ndarray):
-        """Per leg: platform offset (3,3), base point (3,3), rail direction (3,3), h0 (3,), L (3,) and
-        the pieces needed for derivatives."""
-        g = lambda n: values[self._idx[n]]  # noqa: E731
-        r, R = g("r"), g("R")
-        L = np.array([g("L1"), g("L2"), g("L3")])
-        leg = np.zeros((3, len(LEG_PARAMS)))
+        """Per leg: platform offset, base point, rail direction (..., 3, 3), h0 and L (..., 3), and the
+        pieces needed for derivatives. ``values`` is (P,) or one parameter vector per row, (N, P)."""
+        v = np.asarray(values, dtype=float)
+        g = lambda n: v[..., self._idx[n]]  # noqa: E731  () or (N,)
+        r, R = g("r")[..., None], g("R")[..., None]
+        L = np.stack([g("L1"), g("L2"), g("L3")], axis=-1)
         if self.extended:
-            leg = np.array([[g(f"leg{i}.{p}") for p in LEG_PARAMS] for i in range(1, 4)])
-        dR, dr, a, b, h0, tx, ty = leg.T
+            leg = np.stack([np.stack([g(f"leg{i}.{p}") for p in LEG_PARAMS], axis=-1) for i in range(1, 4)], axis=-2)
+        else:
+            leg = np.zeros(v.shape[:-1] + (3, len(LEG_PARAMS)))
+        dR, dr, a, b, h0, tx, ty = np.moveaxis(leg, -1, 0)  # each (..., 3)
         phi = np.asarray(self.phi)
-        ea = np.stack([np.cos(phi + a), np.sin(phi + a), np.zeros(3)], axis=1)
-        eb = np.stack([np.cos(phi + b), np.sin(phi + b), np.zeros(3)], axis=1)
-        va = np.stack([-np.sin(phi + a), np.cos(phi + a), np.zeros(3)], axis=1)  # d e(θ)/dθ
-        vb = np.stack([-np.sin(phi + b), np.cos(phi + b), np.zeros(3)], axis=1)
-        v = np.stack([tx, ty, np.ones(3)], axis=1)
-        nv = np.linalg.norm(v, axis=1)
-        u = v / nv[:, None]
-        du_dtx = (np.array([1.0, 0, 0]) - u * u[:, :1]) / nv[:, None]
-        du_dty = (np.array([0, 1.0, 0]) - u * u[:, 1:2]) / nv[:, None]
-        plat = (r + dr)[:, None] * eb
-        base = (R + dR)[:, None] * ea
+        zero, one = np.zeros_like(a), np.ones_like(a)
+        ea = np.stack([np.cos(phi + a), np.sin(phi + a), zero], axis=-1)
+        eb = np.stack([np.cos(phi + b), np.sin(phi + b), zero], axis=-1)
+        va = np.stack([-np.sin(phi + a), np.cos(phi + a), zero], axis=-1)  # d e(θ)/dθ
+        vb = np.stack([-np.sin(phi + b), np.cos(phi + b), zero], axis=-1)
+        w = np.stack([tx, ty, one], axis=-1)
+        nv = np.linalg.norm(w, axis=-1)[..., None]
+        u = w / nv
+        du_dtx = (np.array([1.0, 0, 0]) - u * u[..., :1]) / nv
+        du_dty = (np.array([0, 1.0, 0]) - u * u[..., 1:2]) / nv
+        plat = (r + dr)[..., None] * eb
+        base = (R + dR)[..., None] * ea
         return plat, base, u, h0, L, (ea, eb, va, vb, du_dtx, du_dty, r + dr, R + dR)
 
     def _d(self, p: np.ndarray, q: np.ndarray, values: np.ndarray):
         plat, base, u, h0, L, extra = self._legs(values)
         t = q + h0  # slider travel along the rail, (N, 3)
-        d = p[:, None, :] + plat[None] - base[None] - t[:, :, None] * u[None]  # (N, 3 legs, 3)
+        d = p[:, None, :] + plat - base - t[:, :, None] * u  # (N, 3 legs, 3)
         return d, t, u, L, extra
 
     def constraints(self, p, q, values):
@@ -120,40 +123,37 @@ class PUU3Robot(ImplicitRobot):
         d, t, u, L, (ea, eb, va, vb, du_dtx, du_dty, ri, Ri) = self._d(p, q, values)
         n = p.shape[0]
         fp = 2.0 * d
-        du = np.einsum("nij,ij->ni", d, u)  # d·u per leg
+        dot = lambda x: np.sum(d * x, axis=-1)  # noqa: E731  d·x per leg, (N, 3)
+        du = dot(u)
         fq = np.zeros((n, 3, 3))
         fq[:, [0, 1, 2], [0, 1, 2]] = -2.0 * du
         fs = np.zeros((n, 3, self.n_params))
         ix = self._idx
-        d_eb = np.einsum("nij,ij->ni", d, eb)
-        d_ea = np.einsum("nij,ij->ni", d, ea)
+        d_eb, d_ea = dot(eb), dot(ea)
         fs[:, :, ix["r"]] = 2.0 * d_eb
         fs[:, :, ix["R"]] = -2.0 * d_ea
         for i in range(3):
-            fs[:, i, ix[f"L{i + 1}"]] = -2.0 * L[i]
+            fs[:, i, ix[f"L{i + 1}"]] = -2.0 * L[..., i]
         if self.extended:
+            leg = {name: 2.0 * x for name, x in (("dr", d_eb), ("dR", -d_ea), ("b", ri * dot(vb)),
+                                                 ("a", -Ri * dot(va)), ("h0", -du), ("tx", -t * dot(du_dtx)),
+                                                 ("ty", -t * dot(du_dty)))}
             for i in range(3):
-                c = lambda name: ix[f"leg{i + 1}.{name}"]  # noqa: E731
-                fs[:, i, c("dr")] = 2.0 * d_eb[:, i]
-                fs[:, i, c("dR")] = -2.0 * d_ea[:, i]
-                fs[:, i, c("b")] = 2.0 * ri[i] * (d[:, i] @ vb[i])
-                fs[:, i, c("a")] = -2.0 * Ri[i] * (d[:, i] @ va[i])
-                fs[:, i, c("h0")] = -2.0 * du[:, i]
-                fs[:, i, c("tx")] = -2.0 * t[:, i] * (d[:, i] @ du_dtx[i])
-                fs[:, i, c("ty")] = -2.0 * t[:, i] * (d[:, i] @ du_dty[i])
+                for name, x in leg.items():
+                    fs[:, i, ix[f"leg{i + 1}.{name}"]] = x[:, i]
         return fp, fq, fs
 
     def start_point(self, q, values):
         plat, base, _, h0, L, _ = self._legs(values)
-        rho = np.linalg.norm(base - plat, axis=1).mean()
-        z = (q + h0).mean(axis=1) - np.sqrt(max(L.mean() ** 2 - rho**2, 1e-12))
+        rho = np.linalg.norm(base - plat, axis=-1).mean(axis=-1)
+        z = (q + h0).mean(axis=1) - np.sqrt(np.maximum(L.mean(axis=-1) ** 2 - rho**2, 1e-12))
         return np.column_stack([np.zeros(q.shape[0]), np.zeros(q.shape[0]), z])
 
     def assembly_mode(self, p, q, values):
         """The platform hangs below its three sphere centres cᵢ = sliderᵢ − platform offsetᵢ; the other
         solution is the mirror image across their plane, so reflect any solution found above it."""
         plat, base, u, h0, _, _ = self._legs(values)
-        c = base[None] + (q + h0)[:, :, None] * u[None] - plat[None]  # (N, 3, 3) sphere centres
+        c = base + (q + h0)[:, :, None] * u - plat  # (N, 3, 3) sphere centres
         n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
         n /= np.linalg.norm(n, axis=1, keepdims=True)
         n *= np.sign(n[:, 2:3])  # upward normal
@@ -165,16 +165,17 @@ class PUU3Robot(ImplicitRobot):
         ``LINK_RISE`` of its length: nearly horizontal links sit at the workspace boundary, where the
         inverse loses its solution under millimetre parameter changes."""
         d, _, u, L, _ = self._d(p, q, values)
-        return np.all(-np.einsum("nij,ij->ni", d, u) > LINK_RISE * L, axis=1)
+        return np.all(-np.sum(d * u, axis=-1) > LINK_RISE * L, axis=1)
 
     def inverse_local(self, p, values, strict=True):
         """Slider heights for platform positions p (N, 3): the root with the slider above the platform."""
         plat, base, u, h0, L, _ = self._legs(values)
-        w = np.asarray(p, float)[:, None, :] + plat[None] - base[None]  # (N, legs, 3)
-        wu = np.einsum("nij,ij->ni", w, u)
-        disc = wu**2 - np.einsum("nij,nij->ni", w, w) + L**2
+        w = np.asarray(p, float)[..., None, :] + plat - base  # (..., N, legs, 3)
+        wu = np.sum(w * u, axis=-1)
+        disc = wu**2 - np.einsum("...ij,...ij->...i", w, w) + L**2
         if not strict:
-            return np.where(disc >= 0, wu + np.sqrt(np.maximum(disc, 0.0)), np.nan) - h0
+            with np.errstate(invalid="ignore"):
+                return np.where(disc >= 0, wu + np.sqrt(np.maximum(disc, 0.0)), np.nan) - h0
         if np.any(disc < 0):
             k = int(np.flatnonzero(np.any(disc < 0, axis=1))[0])
             raise ModelError(f"{self.name}: position {np.array2string(np.asarray(p)[k], precision=6)} m is out of "

@@ -106,6 +106,19 @@ class Robot(ABC):
         J = self.forward_and_jacobian(q, params)[1]
         return J[0] if squeeze else J
 
+    def forward_batch(self, q: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """Positions (S, N, 3) m for S parameter vectors ``values`` (S, P) at the same joints q (N, n),
+        as a particle swarm needs; rows that cannot be computed are NaN. This default calls
+        ``forward`` once per vector; models with a batched path override it."""
+        q = self.check_q(q)
+        out = np.full((len(values), q.shape[0], 3), np.nan)
+        for k, v in enumerate(np.asarray(values, dtype=float)):
+            try:
+                out[k] = self.forward(q, v)
+            except ModelError:
+                pass
+        return out
+
     def sample_joints(self, n: int, seed: int | None = 0, margin: float = 0.0) -> np.ndarray:
         """n joint vectors drawn uniformly inside the limits (shrunk by ``margin`` of each range), (n, n_joints)."""
         rng = np.random.default_rng(seed)

@@ -1,0 +1,20 @@
+"""BLAS thread limits for small dense work (threadpoolctl, inspected once per process)."""
+from __future__ import annotations
+
+from contextlib import contextmanager
+from functools import lru_cache
+
+from threadpoolctl import ThreadpoolController
+
+
+@lru_cache(maxsize=1)
+def _controller() -> ThreadpoolController:
+    return ThreadpoolController()
+
+
+@contextmanager
+def blas_threads(n: int):
+    """Run the block with at most ``n`` BLAS threads: calibration problems are small (K ≤ ~100
+    columns), and OpenBLAS threads that spin on a busy 2-core machine make them 5–10× slower."""
+    with _controller().limit(limits=n, user_api="blas"):
+        yield

@@ -1,0 +1,35 @@
+"""Parameter covariance of a least-squares fit: σ̂²(JᵀJ)⁻¹ with σ̂² = ‖r‖²/(M − K)."""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+
+def normal_inverse(J: np.ndarray) -> np.ndarray:
+    """(JᵀJ)⁻¹ (pseudo-inverse) computed on unit-norm columns (stable), in the original units."""
+    d = np.linalg.norm(J, axis=0)
+    d[d == 0] = 1.0
+    A = J / d
+    return np.linalg.pinv(A.T @ A, hermitian=True) / np.outer(d, d)
+
+
+def parameter_statistics(J: np.ndarray, r: np.ndarray, fitted: Sequence[str], names: Sequence[str],
+                         undetermined: Sequence[str] = ()) -> tuple[np.ndarray, np.ndarray, float]:
+    """Standard deviations (K,) and correlation (K, K) of ``names`` from a fit of ``fitted`` (the
+    columns of J) with residual r, and σ̂². Names not fitted, or ``undetermined``, get σ = inf and no
+    correlation."""
+    dof = max(r.size - J.shape[1], 1)
+    sigma2 = float(r @ r) / dof
+    cov = normal_inverse(J) * sigma2
+    pos = {n: k for k, n in enumerate(fitted)}
+    at = np.array([-1 if n in set(undetermined) else pos.get(n, -1) for n in names], dtype=int)
+    ok = at >= 0
+    full = np.zeros((len(names), len(names)))
+    full[np.ix_(ok, ok)] = cov[np.ix_(at[ok], at[ok])]
+    sd = np.where(ok, np.sqrt(np.maximum(np.diag(full), 0.0)), np.inf)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = full / np.outer(sd, sd)
+    corr = np.where(np.isfinite(corr), corr, 0.0)
+    np.fill_diagonal(corr, 1.0)
+    return sd, corr, sigma2
