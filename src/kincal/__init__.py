@@ -7,9 +7,10 @@ The stable API::
     res = kincal.calibrate(robot, meas)
     stats = kincal.evaluate(res.robot, test_meas)
 """
-from .analysis import Identifiability, identifiability
+from .analysis import BASE_MODES, Identifiability, free_parameters, identifiability
 from .errors import ConvergenceError, IdentifiabilityError, KincalError, MeasurementError, ModelError
-from .identify import CalibrationResult, EvaluationStats, calibrate, evaluate
+from .identify import LOSSES, RESIDUALS, CalibrationProblem, CalibrationResult, EvaluationStats, calibrate, evaluate
+from .identify import METHODS as CALIBRATION_METHODS
 from .io import Measurements, read_joints, read_measurements, read_positions, write_joints, write_measurements
 from .models import Joint, Parameters, Robot, SerialRobot, bundled_robots, load_robot, save_robot
 from .simulate import perturb, simulate
@@ -18,11 +19,13 @@ from .analysis.separation import Separation, separate_ill_conditioned
 from .analysis.sensitivity import Sensitivity, sensitivity
 from .compensate import Compensation, compensate
 from .compensate.verify import Verification, VerificationPlan, verification_plan
+from .studies import Seed1Study, seed1_study
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Identifiability", "identifiability", "ConvergenceError", "IdentifiabilityError", "KincalError",
+    "BASE_MODES", "free_parameters", "LOSSES", "RESIDUALS", "CALIBRATION_METHODS", "CalibrationProblem",
+    "Seed1Study", "seed1_study", "Identifiability", "identifiability", "ConvergenceError", "IdentifiabilityError", "KincalError",
     "MeasurementError", "ModelError", "CalibrationResult", "EvaluationStats", "calibrate", "evaluate",
     "Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements", "Joint", "Parameters", "Robot", "SerialRobot",
     "bundled_robots", "load_robot", "save_robot", "perturb", "simulate", "Design", "candidate_pool",

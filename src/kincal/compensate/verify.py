@@ -7,11 +7,15 @@ p″ tests the error model: p″ should equal p + Δp up to the measurement nois
 """
 from __future__ import annotations
 
+import csv
+import io
+import os
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
+from .._atomic import write_text_atomic
 from ..analysis.sensitivity import UNIT
 from ..models.robot import Robot
 from . import compensate
@@ -30,6 +34,17 @@ class VerificationPlan:
         """Deviations of the measured positions (C, N, 3) from the predictions."""
         dev = np.asarray(measured, float).reshape(self.predicted.shape) - self.predicted
         return Verification(self.cases, dev)
+
+    def write_csv(self, path: str | os.PathLike, joint_names: Sequence[str]) -> None:
+        """The commands to run, case by case (SI units), with the predicted positions; written
+        atomically. Columns: case, sample, one per joint, x_pred, y_pred, z_pred."""
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(["case", "sample", *joint_names, "x_pred", "y_pred", "z_pred"])
+        for case, cmds, pred in zip(self.cases, self.commands, self.predicted):
+            for k, (qc, pc) in enumerate(zip(cmds, pred)):
+                w.writerow([case, k + 1, *(repr(float(v)) for v in qc), *(repr(float(v)) for v in pc)])
+        write_text_atomic(path, buf.getvalue())
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,14 +1,11 @@
-"""Commands for compensation, sensitivity and error-model verification (seed 2)."""
+"""Seed-2 commands: compensation (targets -> corrected joint commands) and error-model verification."""
 from __future__ import annotations
-
-import csv
-import io
 
 import numpy as np
 
 import kincal
-from kincal._atomic import write_text_atomic
-from kincal.cli_common import MM, add_data_flags, csv_list, emit
+
+from .common import MM, add_data_flags, csv_list, emit
 
 
 def cmd_compensate(args) -> int:
@@ -25,20 +22,11 @@ def cmd_compensate(args) -> int:
     return 0
 
 
-def cmd_sensitivity(args) -> int:
-    r = kincal.load_robot(args.robot)
-    s = kincal.sensitivity(r, r.sample_joints(args.samples, seed=args.seed), args.params)
-    if args.plot:
-        s.plot(args.plot)
-    emit(args, s.to_dict(), s.table() + (f"\nplot written to {args.plot}" if args.plot else ""))
-    return 0
-
-
 def cmd_verify(args) -> int:
     r = kincal.load_robot(args.robot)
     plan = kincal.verification_plan(r, r.sample_joints(args.samples, seed=args.seed), args.params)
     if args.output:
-        _write_plan(args.output, plan, r)
+        plan.write_csv(args.output, r.joint_names)
     if args.measured or args.simulate:
         if args.measured:
             meas = kincal.read_measurements(args.measured, r, args.joint_cols, args.xyz_cols, args.length_unit,
@@ -60,16 +48,6 @@ def cmd_verify(args) -> int:
     return 0
 
 
-def _write_plan(path, plan, robot) -> None:
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["case", "sample", *robot.joint_names, "x_pred", "y_pred", "z_pred"])
-    for case, cmds, pred in zip(plan.cases, plan.commands, plan.predicted):
-        for k, (qc, pc) in enumerate(zip(cmds, pred)):
-            w.writerow([case, k + 1, *(repr(float(v)) for v in qc), *(repr(float(v)) for v in pc)])
-    write_text_atomic(path, buf.getvalue())
-
-
 def register(cmd) -> None:
     """Add the commands to the parser through ``cmd(name, func, help)``."""
     s = cmd("compensate", cmd_compensate, "joint commands that the calibrated model says reach target positions")
@@ -77,13 +55,6 @@ def register(cmd) -> None:
     s.add_argument("targets", help="CSV of target positions (serial robots: with the nominal joint values too)")
     s.add_argument("-o", "--output", required=True, help="commands CSV to write")
     add_data_flags(s)
-
-    s = cmd("sensitivity", cmd_sensitivity, "position error caused by a unit error of each parameter")
-    s.add_argument("robot")
-    s.add_argument("--samples", type=int, default=10)
-    s.add_argument("--params", type=csv_list)
-    s.add_argument("--plot", help="PNG or SVG file for the plot")
-    s.add_argument("--seed", type=int, default=0)
 
     s = cmd("verify", cmd_verify, "error-model verification: commands to run, then the comparison (Table 5)")
     s.add_argument("robot", help="the identified (actual) robot model")

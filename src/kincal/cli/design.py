@@ -1,0 +1,89 @@
+"""Commands that choose measurement poses and study the error model: design, npose, separate."""
+from __future__ import annotations
+
+import numpy as np
+
+import kincal
+import kincal.design
+
+from .common import add_data_flags, csv_list, emit, progress
+
+
+def cmd_design(args) -> int:
+    r = kincal.load_robot(args.robot)
+    if args.candidates:
+        pool = kincal.read_joints(args.candidates, r, args.joint_cols, args.length_unit, args.angle_unit)
+        bad = ~r.feasible(pool)
+        if bad.any():
+            raise kincal.MeasurementError(f"{args.candidates}: {int(bad.sum())} candidate pose(s) break the joint "
+                                          f"limits or coupled constraints (first: row {int(np.flatnonzero(bad)[0]) + 2})")
+    else:
+        pool = kincal.candidate_pool(r, args.pool, seed=args.seed)
+    with progress("designing poses", args.json) as say:
+        say(f"{args.method} on {len(pool)} candidates")
+        d = kincal.select_poses(r, pool, args.m, args.method, args.criterion, seed=args.seed, params=args.params,
+                                base=args.base, bound=not args.no_bound, restarts=args.restarts,
+                                generations=args.generations)
+    kincal.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, args.angle_unit)
+    payload = d.to_dict()
+    payload["output"] = args.output
+    emit(args, payload, f"{d}\nposes written to {args.output}")
+    return 0
+
+
+def cmd_npose(args) -> int:
+    r = kincal.load_robot(args.robot)
+    P = kincal.design.design_problem(r, kincal.candidate_pool(r, max(args.max, 200), seed=args.seed),
+                                     params=args.params)
+    curve = kincal.design.pose_count_curve(P, args.criterion, m_max=args.max, seed=args.seed)
+    low = kincal.design.minimum_poses(r.n_joints, P.k)
+    payload = {"parameters": len(P.names), "minimum_eq18": low, **curve.to_dict()}
+    step = max(1, args.max // 10)
+    rows = "\n".join(f"  m = {m:4d}   {args.criterion} = {v:.5g}" for m, v in
+                     zip(curve.m_values[step - 1::step], curve.values[step - 1::step]))
+    emit(args, payload, f"{r.name}: {P.k} parameters, {r.n_joints} joints\n"
+         f"minimum number of poses (eq. 18): {low}\n{rows}\n"
+         f"the curve flattens (< 1 % gain over 10 more poses) at m = {curve.chosen}")
+    return 0
+
+
+def cmd_separate(args) -> int:
+    r = kincal.load_robot(args.robot)
+    sep = kincal.separate_ill_conditioned(r, kincal.candidate_pool(r, args.poses, seed=args.seed),
+                                          threshold=args.threshold, keep=args.keep or ())
+    emit(args, sep.to_dict(), sep.tables())
+    return 0
+
+
+def register(cmd) -> None:
+    """Add the commands to the parser through ``cmd(name, func, help)``."""
+    s = cmd("design", cmd_design, "choose measurement poses (writes a poses CSV)")
+    s.add_argument("robot")
+    s.add_argument("-m", type=int, default=60, help="number of poses (default 60)")
+    s.add_argument("-o", "--output", required=True, help="poses CSV to write")
+    src = s.add_mutually_exclusive_group()
+    src.add_argument("--pool", type=int, default=5000, help="random feasible candidates (default 5000)")
+    src.add_argument("--candidates", help="CSV of candidate poses (e.g. the poses you can reach)")
+    s.add_argument("--method", default="fedorov", choices=list(kincal.design.METHODS))
+    s.add_argument("--criterion", default="D", choices=list(kincal.design.CRITERIA))
+    s.add_argument("--params", type=csv_list, help="parameters to design for (default: identifiable set)")
+    s.add_argument("--base", choices=list(kincal.BASE_MODES), default="estimate")
+    s.add_argument("--restarts", type=int, default=0, help="extra random starts for fedorov")
+    s.add_argument("--generations", type=int, default=200, help="generations for ide / detmax-ide")
+    s.add_argument("--no-bound", action="store_true", help="skip the certified bound (and D-efficiency)")
+    s.add_argument("--seed", type=int, default=0)
+    add_data_flags(s)
+
+    s = cmd("npose", cmd_npose, "how many poses: eq. 18 minimum and where the criterion curve flattens")
+    s.add_argument("robot")
+    s.add_argument("--criterion", default="comprehensive", choices=list(kincal.design.CRITERIA))
+    s.add_argument("--max", type=int, default=100, help="largest number of poses on the curve (default 100)")
+    s.add_argument("--params", type=csv_list, help="parameters (default: identifiable set)")
+    s.add_argument("--seed", type=int, default=0)
+
+    s = cmd("separate", cmd_separate, "GCN branch-and-bound separation of ill-conditioned parameters")
+    s.add_argument("robot")
+    s.add_argument("--poses", type=int, default=100, help="random poses (default 100)")
+    s.add_argument("--threshold", type=float, default=1e2, help="GCN threshold (default 1e2)")
+    s.add_argument("--keep", type=csv_list, help="parameters to remove last when removals tie")
+    s.add_argument("--seed", type=int, default=0)

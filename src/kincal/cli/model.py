@@ -1,0 +1,121 @@
+"""Commands about robots and their kinematics: robots, show, identifiability, simulate, sensitivity."""
+from __future__ import annotations
+
+from rich.table import Table
+
+import kincal
+
+from .common import DEG, MM, add_data_flags, csv_list, emit, out
+
+
+def cmd_robots(args) -> int:
+    names = kincal.bundled_robots()
+    rows = [(n, kincal.load_robot(n)) for n in names]
+    t = Table("robot", "joints", "parameters", "model", "description")
+    for n, r in rows:
+        t.add_row(n, str(r.n_joints), str(r.n_params), r.kind, r.description.split(". ")[0].split(": ")[0])
+    emit(args, {"robots": [{"name": n, "joints": r.n_joints, "parameters": r.n_params,
+                            "model": r.kind, "description": r.description} for n, r in rows]}, t)
+    return 0
+
+
+def cmd_show(args) -> int:
+    r = kincal.load_robot(args.robot)
+    t = Table("parameter", "value", "unit", title=f"{r.name} ({r.kind}, {r.n_joints} joints)")
+    for n, k, v in zip(r.params.names, r.params.kinds, r.params.values):
+        t.add_row(n, f"{v * MM:.6g}" if k == "length" else f"{v * DEG:.6g}", "mm" if k == "length" else "deg")
+    lim = Table("joint", "type", "lower", "upper")
+    for name, typ, lo, hi in zip(r.joint_names, r.joint_types, r.lower, r.upper):
+        f = DEG if typ == "revolute" else MM
+        lim.add_row(name, typ, f"{lo * f:.6g}", f"{hi * f:.6g}")
+    notes = r.structure_notes()
+    payload = {"name": r.name, "model": r.kind, "description": r.description,
+               "parameters": r.params.as_dict(), "kinds": dict(zip(r.params.names, r.params.kinds)),
+               "joints": [{"name": n, "type": t, "limits": [float(lo), float(hi)]}
+                          for n, t, lo, hi in zip(r.joint_names, r.joint_types, r.lower, r.upper)], "notes": notes}
+    if args.json:
+        emit(args, payload, None)
+    else:
+        out.print(t)
+        out.print(lim)
+        for n in notes:
+            out.print(f"note: {n}")
+    return 0
+
+
+def cmd_identifiability(args) -> int:
+    r = kincal.load_robot(args.robot)
+    if args.data:
+        q = kincal.read_joints(args.data, r, args.joint_cols, args.length_unit, args.angle_unit)
+    else:
+        q = r.sample_joints(args.poses, seed=args.seed)
+    ident = kincal.free_parameters(r, q, base=args.base, keep=args.keep or (), tol=args.tol)
+    emit(args, ident.to_dict(), str(ident))
+    return 0
+
+
+def cmd_simulate(args) -> int:
+    r = kincal.load_robot(args.robot)
+    true = r
+    if args.perturb:
+        true = kincal.perturb(r, length=args.length_error / MM, angle=args.angle_error / DEG, seed=args.seed)
+    if args.joints:
+        q = kincal.read_joints(args.joints, r, args.joint_cols, args.length_unit, args.angle_unit)
+    else:
+        q = r.sample_joints(args.poses, seed=args.seed)
+    meas = kincal.simulate(true, q, noise=args.noise / MM, seed=args.seed + 1)
+    kincal.write_measurements(args.output, meas, r.joint_types, args.length_unit, args.angle_unit,
+                              joint_cols=args.joint_cols)
+    if args.save_true:
+        kincal.save_robot(true, args.save_true)
+    payload = {"output": args.output, "n": len(meas), "noise": args.noise / MM, "perturbed": bool(args.perturb),
+               "true_robot": args.save_true, "true_parameters": true.params.as_dict()}
+    emit(args, payload, f"wrote {len(meas)} simulated measurements of {true.name} to {args.output}"
+         + (f" (true robot saved to {args.save_true})" if args.save_true else ""))
+    return 0
+
+
+def cmd_sensitivity(args) -> int:
+    r = kincal.load_robot(args.robot)
+    s = kincal.sensitivity(r, r.sample_joints(args.samples, seed=args.seed), args.params)
+    if args.plot:
+        s.plot(args.plot)
+    emit(args, s.to_dict(), s.table() + (f"\nplot written to {args.plot}" if args.plot else ""))
+    return 0
+
+
+def register(cmd) -> None:
+    """Add the commands to the parser through ``cmd(name, func, help)``."""
+    cmd("robots", cmd_robots, "list the bundled robots")
+    s = cmd("show", cmd_show, "show a robot's parameters (mm, deg), joints and structure notes")
+    s.add_argument("robot", help="bundled name or robot YAML")
+
+    s = cmd("identifiability", cmd_identifiability, "which parameters position data can identify")
+    s.add_argument("robot")
+    s.add_argument("--data", help="CSV of poses (joint columns) to analyse (default: random poses)")
+    s.add_argument("--poses", type=int, default=100, help="number of random poses (default 100)")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--base", choices=list(kincal.BASE_MODES), default="estimate")
+    s.add_argument("--keep", type=csv_list, help="parameters to prefer among confounded ones")
+    s.add_argument("--tol", type=float, default=1e-8, help="relative singular-value tolerance (default 1e-8)")
+    add_data_flags(s)
+
+    s = cmd("simulate", cmd_simulate, "simulate tracker measurements of a (perturbed) robot")
+    s.add_argument("robot")
+    s.add_argument("-o", "--output", required=True, help="CSV to write")
+    s.add_argument("--poses", type=int, default=60, help="random poses within the joint limits (default 60)")
+    s.add_argument("--joints", help="CSV of joint values to use instead of random poses")
+    s.add_argument("--perturb", action="store_true", help="apply random geometric errors to the robot first")
+    s.add_argument("--length-error", type=float, default=0.5, help="mm, uniform ± (default 0.5)")
+    s.add_argument("--angle-error", type=float, default=0.05, help="deg, uniform ± (default 0.05)")
+    s.add_argument("--noise", type=float, default=0.015, help="tracker noise, mm per axis (default 0.015)")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--save-true", help="write the simulated 'true' robot to this YAML")
+    add_data_flags(s)
+
+    s = cmd("sensitivity", cmd_sensitivity, "position error caused by a unit error of each parameter")
+    s.add_argument("robot")
+    s.add_argument("--samples", type=int, default=10)
+    s.add_argument("--params", type=csv_list)
+    s.add_argument("--plot", help="PNG or SVG file for the plot")
+    s.add_argument("--seed", type=int, default=0)
