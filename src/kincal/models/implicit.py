@@ -73,18 +73,19 @@ class ImplicitRobot(Robot):
         b = values[:, self.params.indices(BASE_NAMES)]
         return np.moveaxis(rot_zyx(b[:, 5], b[:, 4], b[:, 3]), -1, 0), b[:, :3]
 
-    def _rows(self, n: int, values: np.ndarray) -> np.ndarray:
-        """(S·n, P): each of the S parameter vectors repeated for the n configurations."""
+    def _batch(self, values: np.ndarray) -> np.ndarray:
+        """``values`` as an (S, P) array; ModelError for another shape."""
         values = np.asarray(values, dtype=float)
         if values.ndim != 2 or values.shape[1] != self.n_params:
             raise ModelError(f"{self.name}: expected (S, {self.n_params}) parameter vectors, got {values.shape}")
-        return np.repeat(values, n, axis=0)
+        return values
 
     def forward_batch(self, q: np.ndarray, values: np.ndarray) -> np.ndarray:
         """Positions (S, N, 3) for S parameter vectors (S, P) in one Newton solve; NaN where a
         configuration does not assemble."""
         q = self.check_q(q)
-        rows = self._rows(q.shape[0], values)
+        values = self._batch(values)
+        rows = np.repeat(values, q.shape[0], axis=0)  # one parameter row per configuration
         p_local, ok = self._solve_local(np.tile(q, (len(values), 1)), rows, strict=False)
         R, t = self._base_rows(rows)
         p = np.einsum("mij,mj->mi", R, p_local) + t
@@ -95,8 +96,7 @@ class ImplicitRobot(Robot):
         NaN where a position is out of reach. The geometry is built once per vector and broadcast
         over the positions (``values`` reach ``inverse_local`` as (S, 1, P))."""
         p = np.atleast_2d(np.asarray(p, float))
-        values = np.asarray(values, dtype=float)
-        self._rows(0, values)  # shape check
+        values = self._batch(values)
         R, t = self._base_rows(values)
         p_local = np.einsum("sni,sij->snj", p[None] - t[:, None], R)
         return self.inverse_local(p_local, values[:, None, :], strict=False)
