@@ -3,8 +3,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from contextlib import contextmanager
+from pathlib import Path
 
 import numpy as np
 from rich.console import Console
@@ -13,12 +15,59 @@ import kincal
 
 out = Console(highlight=False, soft_wrap=True)
 err = Console(stderr=True, highlight=False, soft_wrap=True)
-EXIT_ERROR, EXIT_NOT_CONVERGED = 1, 3
+EXIT_ERROR, EXIT_NOT_CONVERGED, EXIT_REFUSED = 1, 3, 4
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
 MM, DEG = 1e3, 180.0 / np.pi
 
 
 def csv_list(s: str) -> list[str]:
     return [c.strip() for c in s.split(",") if c.strip()]
+
+
+def row_list(s: str) -> list[int]:
+    """'5,7-9' -> [5, 7, 8, 9] (input file rows, header = 1)."""
+    rows: list[int] = []
+    for part in csv_list(s):
+        lo, _, hi = part.partition("-")
+        try:
+            a, b = int(lo), int(hi or lo)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{part}' is not a row number or range like 7-9") from None
+        if a < 2 or b < a:
+            raise argparse.ArgumentTypeError(f"'{part}': rows are file line numbers from 2 (after the header)")
+        rows += range(a, b + 1)
+    return rows
+
+
+def robot_inputs(robot: str) -> list[str]:
+    """The robot argument as an input file, if it is one."""
+    return [robot] if Path(robot).is_file() else []
+
+
+def check_paths(inputs, outputs) -> None:
+    """Before any work: every output can be written, and none is an input or another output."""
+    ins = [Path(p) for p in inputs if p]
+    seen: list[Path] = []
+    for raw in (o for o in outputs if o):
+        out_path = Path(raw)
+        for other in ins + seen:
+            if _same_file(out_path, other):
+                raise ValueError(f"{raw}: the output would overwrite {other}, which this command reads (or writes "
+                                 f"already); choose another output file")
+        folder = out_path.parent if str(out_path.parent) else Path(".")
+        if out_path.is_dir():
+            raise ValueError(f"{raw}: is a folder; give a file name for the output")
+        if not folder.is_dir():
+            raise ValueError(f"{raw}: the folder {folder} does not exist; create it or choose another output path")
+        if not os.access(folder, os.W_OK):
+            raise ValueError(f"{raw}: the folder {folder} is not writable; choose another output path")
+        seen.append(out_path)
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    if a.exists() and b.exists():
+        return os.path.samefile(a, b)
+    return a.resolve() == b.resolve()
 
 
 def add_data_flags(p: argparse.ArgumentParser) -> None:

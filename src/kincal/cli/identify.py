@@ -1,38 +1,72 @@
 """Commands that identify and judge a model: calibrate, evaluate."""
 from __future__ import annotations
 
+import argparse
+
 import kincal
 
-from .common import EXIT_NOT_CONVERGED, add_data_flags, csv_list, emit, err, progress, read
+from .common import (DEG, EXIT_NOT_CONVERGED, EXIT_REFUSED, MM, add_data_flags, check_paths, csv_list, emit, err,
+                     progress, read, robot_inputs, row_list)
+
+
+def _thresholds(args) -> kincal.Thresholds:
+    ls, lr = args.length_limits
+    a_s, a_r = args.angle_limits
+    return kincal.Thresholds(length_suspect=ls / MM, length_refuse=lr / MM, angle_suspect=a_s / DEG,
+                             angle_refuse=a_r / DEG, tracker_noise=args.tracker_noise / MM)
 
 
 def cmd_calibrate(args) -> int:
+    check_paths([*robot_inputs(args.robot), args.data], [args.output, args.residuals])
     r = kincal.load_robot(args.robot)
     meas = read(args, r, args.data)
+    if args.exclude:
+        meas = meas.without_rows(args.exclude)
     with progress("calibrating", args.json) as say:
         res = kincal.calibrate(r, meas, params=args.params or "auto", base=args.base, loss=args.loss,
                                keep=args.keep or (), max_iter=args.max_iter, progress=say, method=args.method,
-                               residual=args.residual)
-    if args.output:
+                               residual=args.residual, thresholds=_thresholds(args))
+    if args.residuals:
+        kincal.write_residuals(args.residuals, meas, meas.xyz - res.residuals, res.pose_z, res.outlier_z,
+                               r.joint_types, "mm", "deg")
+    refused = res.verdict.status == "refused"
+    written = bool(args.output) and (not refused or args.force)
+    if written:
         kincal.save_robot(res.robot, args.output)
-    payload = res.to_dict()
-    payload["output"] = args.output
-    text = str(res) + (f"\ncalibrated robot written to {args.output}" if args.output else "")
+    payload = {**res.to_dict(), "output": args.output if written else None, "residuals_file": args.residuals}
+    text = str(res)
     if not args.json and res.identifiability.dropped:
         text += "\nnot estimated (kept nominal): " + ", ".join(res.identifiability.dropped)
+    if args.output:
+        text += (f"\ncalibrated robot written to {args.output}" + (" (forced despite the verdict)" if refused else "")
+                 if written else f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")
     emit(args, payload, text)
     if not res.converged:
         err.print(f"kincal: calibration did not converge: {res.message}")
         return EXIT_NOT_CONVERGED
+    if refused:
+        err.print(f"kincal: calibration refused: {'; '.join(r.code for r in res.verdict.reasons if r.level == 'refused')}")
+        return EXIT_REFUSED
     return 0
 
 
 def cmd_evaluate(args) -> int:
+    check_paths([*robot_inputs(args.robot), args.data], [])
     r = kincal.load_robot(args.robot)
     meas = read(args, r, args.data)
     stats = kincal.evaluate(r, meas, rebase=args.rebase)
     emit(args, stats.to_dict(), f"{r.name} on {args.data}{' (base re-fitted)' if args.rebase else ''}: {stats}")
     return 0
+
+
+def _pair(s: str) -> tuple[float, float]:
+    try:
+        a, b = (float(x) for x in csv_list(s))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}': give two numbers, SUSPECT,REFUSE") from None
+    if not 0 < a <= b:
+        raise argparse.ArgumentTypeError(f"'{s}': need 0 < SUSPECT <= REFUSE")
+    return a, b
 
 
 def register(cmd) -> None:
@@ -50,6 +84,14 @@ def register(cmd) -> None:
     s.add_argument("--method", choices=list(kincal.CALIBRATION_METHODS), default="lm")
     s.add_argument("--residual", choices=list(kincal.RESIDUALS), default="cartesian",
                    help="joint: commanded − inverse kinematics of the measured positions (parallel robots)")
+    s.add_argument("--exclude", type=row_list, help="input rows to leave out, e.g. 12,40-42")
+    s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers)")
+    s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")
+    s.add_argument("--tracker-noise", type=float, default=0.05, help="expected tracker noise, mm (default 0.05)")
+    s.add_argument("--length-limits", type=_pair, default=(10.0, 50.0), metavar="SUSPECT,REFUSE",
+                   help="largest plausible length corrections, mm (default 10,50)")
+    s.add_argument("--angle-limits", type=_pair, default=(2.0, 10.0), metavar="SUSPECT,REFUSE",
+                   help="largest plausible angle corrections, deg (default 2,10)")
     add_data_flags(s)
 
     s = cmd("evaluate", cmd_evaluate, "position error statistics of a robot model on measurements")

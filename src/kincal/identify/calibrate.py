@@ -6,6 +6,7 @@ optionally reweights robustly, and turns the fit into a :class:`CalibrationResul
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Callable, Sequence
 
@@ -23,13 +24,15 @@ from .pso import fit_pso
 from .residuals import RESIDUALS, supports
 from .result import CalibrationResult, EvaluationStats
 from .robust import LOSSES, irls
+from .verdict import (Reason, Thresholds, Verdict, correction_reasons, duplicate_reasons, outlier_reasons,
+                      residual_reasons, robust_z)
 
 METHODS = ("lm", "pso", "pso+lm")
 PRACTICAL_TOL = 3e-5  # directions weaker than this (relative, scaled) are not fitted by default
 
 
-def check_options(robot: Robot, params, base: str, loss: str, method: str, residual: str,
-                  f_scale: float | None, tol: float, max_iter: int, pso_options: dict | None) -> None:
+def check_options(robot: Robot, params, base: str, loss: str, method: str, residual: str, f_scale: float | None,
+                  tol: float, max_iter: int, pso_options: dict | None, thresholds: Thresholds | None = None) -> None:
     """Every option of :func:`calibrate`, checked before any work; ValueError names the option."""
     for name, value, allowed in (("base", base, BASE_MODES), ("loss", loss, LOSSES), ("method", method, METHODS),
                                  ("residual", residual, tuple(RESIDUALS))):
@@ -52,6 +55,8 @@ def check_options(robot: Robot, params, base: str, loss: str, method: str, resid
         raise ValueError(f"tol={tol}: the relative singular-value tolerance must lie in (0, 1)")
     if int(max_iter) != max_iter or max_iter < 1:
         raise ValueError(f"max_iter={max_iter}: give a positive whole number of iterations")
+    if thresholds is not None and not isinstance(thresholds, Thresholds):
+        raise ValueError("thresholds: give a kincal.Thresholds value")
     unknown = sorted(set(pso_options or {}) - set(PSO_OPTIONS))
     if unknown or (pso_options and method == "lm"):
         raise ValueError(f"pso_options {unknown or sorted(pso_options)}: " + (
@@ -72,6 +77,7 @@ def calibrate(
     progress: Callable[[str], None] | None = None,
     residual: str = "cartesian",
     pso_options: dict | None = None,
+    thresholds: Thresholds | None = None,
 ) -> CalibrationResult:
     """Identify ``robot``'s parameters from measured tool positions.
 
@@ -95,6 +101,9 @@ def calibrate(
                 otherwise wander along a flat valley of the cost to absurd values
     max_iter -- LM iteration limit; a fit that stops there is returned with ``converged=False``
     progress -- called with a short message at each stage (the CLI shows it)
+    thresholds -- the verdict's limits (:class:`~kincal.identify.verdict.Thresholds`); the result's
+                ``verdict`` is good, suspect or refused with reasons, ``pose_records()`` names every
+                pose by input row with its error and robust z-score
 
     Every option is checked before any work (ValueError). Raises MeasurementError for data that
     cannot belong to the robot or is too little, IdentifiabilityError when an explicit ``params``
@@ -102,17 +111,20 @@ def calibrate(
     threads only fight other processes for the cores.
     """
     t0 = time.perf_counter()
-    check_options(robot, params, base, loss, method, residual, f_scale, tol, max_iter, pso_options)
+    check_options(robot, params, base, loss, method, residual, f_scale, tol, max_iter, pso_options, thresholds)
     say = progress or (lambda msg: None)
     with blas_threads(1):
         problem = build_problem(robot, meas, params, base, keep, tol, residual, strict=method == "lm", say=say)
-        fit, final, counts, history = _solve(problem, method, max_iter, pso_options or {}, say)
         w = None
-        if loss != "linear":
-            say("reweighting (robust loss)")
-            fit, w, its, evs = irls(final, fit, loss, f_scale, lambda x, wt: fit_lm(final, x, wt, max_iter))
-            counts = (counts[0] + its, counts[1] + evs)
-        return _result(robot, problem, final, fit, w, counts, history, method, loss, time.perf_counter() - t0)
+        if loss == "linear":
+            fit, final, counts, history = _solve(problem, method, max_iter, pso_options or {}, say)
+        else:  # reweight from the start: a least-squares fit pulled by outliers is a poor place to begin
+            say("fitting with reweighting (robust loss)")
+            final, history = problem, ()
+            fit, w, *counts = irls(problem, _at(problem, problem.x0), loss, f_scale,
+                                   lambda x, wt: fit_lm(problem, x, wt, max_iter))
+        res = _result(robot, problem, final, fit, w, counts, history, method, loss, time.perf_counter() - t0)
+        return judge(res, problem, thresholds or Thresholds())
 
 
 def _solve(problem: CalibrationProblem, method: str, max_iter: int, pso_options: dict, say):
@@ -125,15 +137,19 @@ def _solve(problem: CalibrationProblem, method: str, max_iter: int, pso_options:
         swarm = fit_pso(problem, pso_options)
         x0, counts, history = swarm.x, (swarm.iterations, swarm.evaluations), tuple(map(float, swarm.history))
         if method == "pso":
-            r, J = problem.fun()(x0)
-            return LMResult(x0, 0.5 * float(r @ r), r, J, 0, 0, True, "particle swarm finished its iterations"), \
-                problem, counts, history
+            return _at(problem, x0, "particle swarm finished its iterations"), problem, counts, history
         if problem.ident.dropped:  # polish only what the data determine
             final = problem.restrict(problem.ident.identifiable, problem.embed(x0))
             x0 = final.x0
     say(f"fitting {len(final.names)} parameters to {len(problem.meas)} poses")
     fit = fit_lm(final, x0, max_iter=max_iter)
     return fit, final, (counts[0] + fit.iterations, counts[1] + fit.evaluations), history
+
+
+def _at(problem: CalibrationProblem, x: np.ndarray, message: str = "not yet fitted") -> LMResult:
+    """The problem evaluated at x, as a fit without iterations."""
+    r, J = problem.fun()(x)
+    return LMResult(x, 0.5 * float(r @ r), r, J, 0, 0, True, message)
 
 
 def _result(robot: Robot, problem: CalibrationProblem, final: CalibrationProblem, fit: LMResult, w, counts,
@@ -144,7 +160,7 @@ def _result(robot: Robot, problem: CalibrationProblem, final: CalibrationProblem
     calibrated = problem.start.with_params(v)
     names, idx = problem.names, problem.cols
     undetermined = problem.ident.dropped if method == "pso" else ()
-    sd, corr, sigma2 = parameter_statistics(fit.jacobian, fit.residual, final.names, names, undetermined)
+    sd, corr, sigma2, cov = parameter_statistics(fit.jacobian, fit.residual, final.names, names, undetermined)
     meas = problem.meas
     res = meas.xyz - calibrated.forward(meas.q)
     return CalibrationResult(
@@ -156,7 +172,27 @@ def _result(robot: Robot, problem: CalibrationProblem, final: CalibrationProblem
         stats_before=EvaluationStats.from_errors(meas.xyz - robot.forward(meas.q)),
         stats_after=EvaluationStats.from_errors(res),
         iterations=counts[0], evaluations=counts[1], converged=fit.converged, message=fit.message,
-        time_s=elapsed, loss=loss, base=problem.base, identifiability=problem.ident, history=history)
+        time_s=elapsed, loss=loss, base=problem.base, identifiability=problem.ident, history=history, covariance=cov)
+
+
+def judge(res: CalibrationResult, problem: CalibrationProblem, th: Thresholds) -> CalibrationResult:
+    """The result with its verdict and per-pose robust z-scores."""
+    meas = problem.meas
+    z = robust_z(np.linalg.norm(res.residuals, axis=1))
+    reasons = [] if res.converged else [Reason("refused", "not-converged", f"the fit did not converge "
+                                                                             f"({res.message})")]
+    if problem.base == "estimate":
+        loose = [n for n in problem.start.base_params() if n in problem.ident.dropped]
+        if loose:
+            reasons.append(Reason("refused", "base-underdetermined",
+                                  f"the poses leave the base frame underdetermined ({', '.join(loose)}): measure "
+                                  f"poses spread over the workspace, or use --base fixed if the base is known"))
+    reasons += correction_reasons(problem.start, {n: res.corrections[n] for n in res.names
+                                                  if np.isfinite(res.std[n])}, th)
+    pos_sigma = float(np.sqrt(np.sum(res.residuals**2) / max(res.residuals.size - len(res.names), 1)))
+    reasons += residual_reasons(pos_sigma, th) + outlier_reasons(meas.rows, z, th) + duplicate_reasons(meas.rows, meas.q)
+    return dataclasses.replace(res, verdict=Verdict.from_reasons(reasons), measurements=meas, pose_z=z,
+                               outlier_z=th.outlier_z)
 
 
 def evaluate(robot: Robot, meas: Measurements, rebase: bool = False) -> EvaluationStats:

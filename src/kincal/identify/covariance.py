@@ -15,10 +15,10 @@ def normal_inverse(J: np.ndarray) -> np.ndarray:
 
 
 def parameter_statistics(J: np.ndarray, r: np.ndarray, fitted: Sequence[str], names: Sequence[str],
-                         undetermined: Sequence[str] = ()) -> tuple[np.ndarray, np.ndarray, float]:
-    """Standard deviations (K,) and correlation (K, K) of ``names`` from a fit of ``fitted`` (the
-    columns of J) with residual r, and σ̂². Names not fitted, or ``undetermined``, get σ = inf and no
-    correlation."""
+                         undetermined: Sequence[str] = ()) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """Standard deviations (K,), correlation (K, K), σ̂² and covariance (K, K) of ``names`` from a
+    fit of ``fitted`` (the columns of J) with residual r. Names not fitted, or ``undetermined``, get
+    σ = inf, no correlation and zero rows/columns in the covariance."""
     dof = max(r.size - J.shape[1], 1)
     sigma2 = float(r @ r) / dof
     cov = normal_inverse(J) * sigma2
@@ -32,4 +32,4 @@ def parameter_statistics(J: np.ndarray, r: np.ndarray, fitted: Sequence[str], na
         corr = full / np.outer(sd, sd)
     corr = np.where(np.isfinite(corr), corr, 0.0)
     np.fill_diagonal(corr, 1.0)
-    return sd, corr, sigma2
+    return sd, corr, sigma2, full

@@ -19,6 +19,7 @@ from ..io.measurements import Measurements
 from ..models.robot import Robot
 from .registration import register_base
 from .residuals import RESIDUALS, CartesianResidual, JointResidual
+from .verdict import duplicate_groups
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,9 +83,11 @@ def build_problem(robot: Robot, meas: Measurements, params: str | Sequence[str],
     must be identifiable (local solvers); otherwise undetermined ones stay free (global search)."""
     meas.check_robot(robot)
     start = robot
+    distinct = len(meas) - sum(len(g) - 1 for g in duplicate_groups(meas.q))
     if base == "estimate":
-        if len(meas) < 3:
-            raise MeasurementError(f"{meas.source}: registering the base frame needs at least 3 poses, got {len(meas)}")
+        if distinct < 3:
+            raise MeasurementError(f"{meas.source}: registering the base frame needs at least 3 distinct poses, got "
+                                   f"{distinct} ({len(meas)} rows); measure poses spread over the workspace")
         say("registering the measurement frame")
         start = register_base(robot, meas.q, meas.xyz)
     say("checking identifiability")
@@ -95,10 +98,11 @@ def build_problem(robot: Robot, meas: Measurements, params: str | Sequence[str],
                                    f"out the dropped ones or use params='auto':\n{ident}")
     names = ident.identifiable if auto or strict else ident.candidates
     res = RESIDUALS[residual](start, meas)
-    equations = res.components * len(meas)
+    equations = res.components * distinct
     if equations <= len(names):
         raise MeasurementError(
-            f"{meas.source}: {len(meas)} poses give {equations} equations for {len(names)} parameters; "
+            f"{meas.source}: {distinct} poses give {equations} equations for {len(names)} parameters"
+            f"{'' if distinct == len(meas) else f' ({len(meas)} rows, some repeating the same joint values)'}; "
             f"measure at least {len(names) // res.components + 1} poses (3-5 times as many is advisable)")
     res.check(start.params.values)
     return CalibrationProblem(start, meas, tuple(names), res, ident, base, start.params.values.copy())

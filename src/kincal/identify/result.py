@@ -6,7 +6,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..analysis.identifiability import Identifiability
+from ..io.measurements import Measurements
 from ..models.robot import Robot
+from .verdict import Verdict
 
 MM = 1e3
 DEG = 180.0 / np.pi
@@ -74,6 +76,19 @@ class CalibrationResult:
     base: str
     identifiability: Identifiability
     history: tuple[float, ...] = ()  # particle swarm: best mean squared residual per iteration (seed 2, Fig. 7)
+    verdict: Verdict = Verdict("good")
+    measurements: Measurements | None = None  # the data fitted (rows name the input lines)
+    pose_z: np.ndarray | None = None  # (N,) robust z-score of each pose's error norm
+    outlier_z: float = 5.0
+    covariance: np.ndarray | None = None  # (K, K) in the order of ``names`` (inf σ: rows/cols of zeros)
+
+    def pose_records(self) -> list[dict]:
+        """Per pose: input row, error vector and norm (m), robust z-score, outlier flag."""
+        rows = self.measurements.rows if self.measurements is not None else np.arange(2, len(self.residuals) + 2)
+        z = self.pose_z if self.pose_z is not None else np.zeros(len(self.residuals))
+        norms = np.linalg.norm(self.residuals, axis=1)
+        return [{"row": int(r), "error": e.tolist(), "norm": float(n), "z": float(zi), "outlier": bool(zi > self.outlier_z)}
+                for r, e, n, zi in zip(rows, self.residuals, norms, z)]
 
     def to_dict(self) -> dict:
         return {
@@ -97,6 +112,8 @@ class CalibrationResult:
             "after": self.stats_after.to_dict(),
             "identifiability": self.identifiability.to_dict(),
             "history": list(self.history),
+            "verdict": self.verdict.to_dict(),
+            "poses": self.pose_records(),
         }
 
     def __str__(self) -> str:
@@ -114,5 +131,5 @@ class CalibrationResult:
             lines.append(f"{n:<12} {display(self.estimates[n], k):>16} {display(self.corrections[n], k):>16} "
                          f"{sd:>14}")
         lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm",
-                  f"before: {self.stats_before}", f"after:  {self.stats_after}"]
+                  f"before: {self.stats_before}", f"after:  {self.stats_after}", str(self.verdict)]
         return "\n".join(lines)

@@ -32,7 +32,7 @@ def irls(problem: CalibrationProblem, fit: LMResult, loss: str, f_scale: float |
          solve: Callable[[np.ndarray, np.ndarray], LMResult]) -> tuple[LMResult, np.ndarray, int, int]:
     """Reweight and re-solve from ``fit`` until the weights settle; ``solve(x0, weights)`` is the
     solver. Returns the final fit, the weights (N,), and the iterations and evaluations spent."""
-    w = np.ones(len(problem.meas))
+    w = np.full(len(problem.meas), np.nan)
     iterations = evaluations = 0
     for _ in range(MAX_IRLS):
         norms = problem.pose_norms(fit.x)

@@ -57,6 +57,15 @@ class Measurements:
         idx = np.asarray(index)
         return Measurements(self.q[idx], self.xyz[idx], self.joint_names, self.source, self.rows[idx])
 
+    def without_rows(self, rows: Sequence[int]) -> "Measurements":
+        """The measurements less the given input rows (file line numbers, header = 1)."""
+        rows = [int(r) for r in rows]
+        unknown = [r for r in rows if r not in set(self.rows.tolist())]
+        if unknown:
+            raise MeasurementError(f"{self.source}: row(s) {', '.join(map(str, unknown[:MAX_LISTED]))} to exclude are "
+                                   f"not data rows of the file (data rows are {self.rows[0]}..{self.rows[-1]})")
+        return self.subset(~np.isin(self.rows, rows))
+
     def check_robot(self, robot: Robot, length_unit: str | None = None, angle_unit: str | None = None) -> None:
         """Raise MeasurementError if the data cannot belong to ``robot`` or its units look wrong."""
         if self.q.shape[1] != robot.n_joints:
@@ -77,22 +86,30 @@ class Measurements:
                     f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)"
                 )
         if len(self) >= 3:
-            pred = robot.forward(self.q)
-            spread_m = _spread(self.xyz)
-            spread_p = _spread(pred)
-            if spread_p > 0 and spread_m > 0:
-                ratio = spread_m / spread_p
-                unit = f" with length unit '{length_unit}'" if length_unit else ""
-                if ratio > 30:
-                    raise MeasurementError(
-                        f"{self.source}: measured positions spread {ratio:.0f}x more than the robot can move{unit}; "
-                        f"they look like mm read as m: use length unit 'mm' (CLI: --length-unit mm)"
-                    )
-                if ratio < 1 / 30:
-                    raise MeasurementError(
-                        f"{self.source}: measured positions spread {1 / ratio:.0f}x less than the robot moves{unit}; "
-                        f"they look like m read as mm: use length unit 'm' (CLI: --length-unit m)"
-                    )
+            ratio = _spread(self.xyz) / max(_spread(robot.forward(self.q)), 1e-300)
+            if _spread(robot.forward(self.q)) > MIN_SPREAD and not 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
+                raise MeasurementError(f"{self.source}: {_unit_hint(ratio, length_unit)}")
+
+
+MIN_SPREAD = 1e-3  # m: below this the poses barely move the tool, and noise decides the spread
+SPREAD_RATIO = 2.0  # measured vs predicted spread at the same poses; model errors change it by < 1 %
+_FACTORS = ((1000.0, "mm read as m, or m read as mm"), (25.4, "inches"), (10.0, "cm"))
+
+
+def _unit_hint(ratio: float, length_unit: str | None) -> str:
+    """Why the measured spread is off by ``ratio``, and what to do."""
+    unit = f" with length unit '{length_unit}'" if length_unit else ""
+    if ratio > 30:
+        return (f"measured positions spread {ratio:.0f}x more than the robot can move{unit}; they look like mm read "
+                f"as m: use length unit 'mm' (CLI: --length-unit mm)")
+    if ratio < 1 / 30:
+        return (f"measured positions spread {1 / ratio:.0f}x less than the robot moves{unit}; they look like m read "
+                f"as mm: use length unit 'm' (CLI: --length-unit m)")
+    f, what = min(_FACTORS, key=lambda x: abs(np.log(max(ratio, 1 / ratio) / x[0])))
+    side = "more" if ratio > 1 else "less"
+    return (f"measured positions spread {max(ratio, 1 / ratio):.3g}x {side} than the robot moves at the same joint "
+            f"values{unit} (nearest unit factor {f:g}: {what}?); convert the positions to the declared unit, or "
+            f"check the joint columns and the robot file")
 
 
 def _check_finite(source: str, values: np.ndarray, rows: np.ndarray, what: str) -> None:
@@ -273,4 +290,30 @@ def write_joints(
     w.writerow(cols)
     for qi in robot.check_q(q) * scale:
         w.writerow([repr(float(v)) for v in qi])
+    write_text_atomic(path, buf.getvalue())
+
+
+def write_residuals(
+    path: str | os.PathLike,
+    meas: Measurements,
+    predicted: np.ndarray,
+    z: np.ndarray,
+    outlier_z: float,
+    joint_types: Sequence[str],
+    length_unit: str = "mm",
+    angle_unit: str = "deg",
+) -> None:
+    """Per-pose residual table (atomically): input row, joints, measured, predicted, error vector and
+    norm (all in the given units), robust z-score and an outlier flag."""
+    scale = 1.0 / _joint_scale(joint_types, length_unit, angle_unit, str(path))
+    lf = 1.0 / _unit(length_unit, "length", str(path))
+    err = meas.xyz - predicted
+    buf = _io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    u = f"_{length_unit}"
+    w.writerow(["row", *meas.joint_names, *(f"{a}_measured{u}" for a in "xyz"), *(f"{a}_predicted{u}" for a in "xyz"),
+                *(f"e{a}{u}" for a in "xyz"), f"norm{u}", "robust_z", "outlier"])
+    for r, qi, m, p, e, zi in zip(meas.rows, meas.q * scale, meas.xyz * lf, predicted * lf, err * lf, z):
+        w.writerow([int(r), *(f"{v:.10g}" for v in (*qi, *m, *p, *e, np.linalg.norm(e), zi)),
+                    "yes" if zi > outlier_z else "no"])
     write_text_atomic(path, buf.getvalue())

@@ -1,0 +1,156 @@
+"""Whether to believe a calibration: per-pose residuals, outliers by input row, and a verdict.
+
+Every calibration gets a verdict, ``good``, ``suspect`` (warnings; the model is written) or
+``refused`` (the model is not written unless forced), with reasons a user can act on. The thresholds
+are a frozen :class:`Thresholds` value, documented here and overridable (``calibrate(thresholds=…)``,
+CLI flags):
+
+* implausible corrections (every estimated parameter except the base frame, which only says where
+  the tracker stands): a length moving more than ``length_suspect`` (10 mm) is suspect, more than
+  ``length_refuse`` (50 mm) is refused; an angle more than ``angle_suspect`` (2°) / ``angle_refuse``
+  (10°). Real arms are off by fractions of a mm and a degree; corrections of tens of mm mean data in
+  another unit (cm, inches), swapped joint columns or the wrong robot file;
+* residual after the fit, σ per axis, against the tracker noise (``tracker_noise``, 0.05 mm): more
+  than ``residual_suspect`` (10×) is suspect (errors the model cannot describe), more than
+  ``residual_refuse`` (100×) is refused (data and model do not belong together);
+* outliers: poses whose error norm lies more than ``outlier_z`` (5) robust σ above the median
+  (σ = 1.4826·MAD) are named by input row, with the advice to use a robust loss or leave them out;
+* repeated poses (identical joint values) are named: they shrink the stated σ as if independent;
+* a fit that did not converge is refused.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..models.robot import Robot
+
+MAX_LISTED = 10
+STATUSES = ("good", "suspect", "refused")
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Verdict thresholds (SI units: m, rad; ratios are to ``tracker_noise``)."""
+
+    length_suspect: float = 10e-3
+    length_refuse: float = 50e-3
+    angle_suspect: float = float(np.deg2rad(2.0))
+    angle_refuse: float = float(np.deg2rad(10.0))
+    tracker_noise: float = 0.05e-3
+    residual_suspect: float = 10.0
+    residual_refuse: float = 100.0
+    outlier_z: float = 5.0
+
+    def to_dict(self) -> dict:
+        return {k: float(v) for k, v in self.__dict__.items()}
+
+
+@dataclass(frozen=True)
+class Reason:
+    """One finding: its level ("suspect" or "refused"), a short code and a message with what to do."""
+
+    level: str
+    code: str
+    message: str
+
+    def to_dict(self) -> dict:
+        return {"level": self.level, "code": self.code, "message": self.message}
+
+
+@dataclass(frozen=True)
+class Verdict:
+    status: str
+    reasons: tuple[Reason, ...] = field(default=())
+
+    @classmethod
+    def from_reasons(cls, reasons) -> "Verdict":
+        levels = {r.level for r in reasons}
+        status = "refused" if "refused" in levels else "suspect" if reasons else "good"
+        return cls(status, tuple(reasons))
+
+    def to_dict(self) -> dict:
+        return {"status": self.status, "reasons": [r.to_dict() for r in self.reasons]}
+
+    def __str__(self) -> str:
+        lines = [f"verdict: {self.status.upper()}"]
+        lines += [f"  {r.level}: {r.message}" for r in self.reasons]
+        return "\n".join(lines)
+
+
+def listed(rows) -> str:
+    """'5, 17, 30 and 4 more' for error messages."""
+    rows = [str(int(r)) for r in rows]
+    more = f" and {len(rows) - MAX_LISTED} more" if len(rows) > MAX_LISTED else ""
+    return ", ".join(rows[:MAX_LISTED]) + more
+
+
+def robust_z(norms: np.ndarray) -> np.ndarray:
+    """(N,) (e − median) / (1.4826·MAD) of error norms; 0 when the spread is nil."""
+    med = float(np.median(norms))
+    mad = 1.4826 * float(np.median(np.abs(norms - med)))
+    return (norms - med) / mad if mad > 0 else np.zeros_like(norms)
+
+
+def duplicate_groups(q: np.ndarray, tol: float = 1e-9) -> list[np.ndarray]:
+    """Indices of poses that repeat the same joint values (within ``tol``), groups of ≥ 2, in order."""
+    key = np.round(q / tol).astype(np.int64) if q.size else q
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    groups = [np.flatnonzero(inverse == g) for g in np.flatnonzero(counts > 1)]
+    return sorted(groups, key=lambda g: g[0])
+
+
+def correction_reasons(robot: Robot, corrections: dict[str, float], th: Thresholds) -> list[Reason]:
+    """Implausibly large corrections (the base frame excluded)."""
+    base = set(robot.base_params())
+    kinds = dict(zip(robot.params.names, robot.params.kinds))
+    out = []
+    for level, lim_len, lim_ang in (("refused", th.length_refuse, th.angle_refuse),
+                                    ("suspect", th.length_suspect, th.angle_suspect)):
+        big = [(n, c) for n, c in corrections.items() if n not in base and
+               abs(c) > (lim_len if kinds[n] == "length" else lim_ang)]
+        if big:
+            shown = ", ".join(f"{n} {c * 1e3:+.1f} mm" if kinds[n] == "length" else f"{n} {np.rad2deg(c):+.2f} deg"
+                              for n, c in sorted(big, key=lambda x: -abs(x[1]))[:MAX_LISTED])
+            what = "implausible" if level == "refused" else "large"
+            out.append(Reason(level, f"{what}-correction",
+                              f"{what} corrections ({shown}; limits {lim_len * 1e3:g} mm, {np.rad2deg(lim_ang):g} "
+                              f"deg): check the length unit of the data (cm or inches declared as mm?), the joint "
+                              f"columns and their order, and the robot file"))
+            break
+    return out
+
+
+def residual_reasons(sigma: float, th: Thresholds) -> list[Reason]:
+    """The fit's σ per axis against the tracker noise."""
+    ratio = sigma / th.tracker_noise
+    msg = (f"residual σ per axis {sigma * 1e3:.3f} mm is {ratio:.0f}x the tracker noise "
+           f"({th.tracker_noise * 1e3:g} mm)")
+    if ratio > th.residual_refuse:
+        return [Reason("refused", "residual", msg + ": data and model do not belong together; check the joint "
+                                                    "columns, units and robot file")]
+    if ratio > th.residual_suspect:
+        return [Reason("suspect", "residual", msg + ": the model leaves errors it cannot describe (non-geometric "
+                                                    "errors, a moved tracker, bad poses); look at the per-pose "
+                                                    "residuals")]
+    return []
+
+
+def outlier_reasons(rows: np.ndarray, z: np.ndarray, th: Thresholds) -> list[Reason]:
+    bad = rows[z > th.outlier_z]
+    if bad.size == 0:
+        return []
+    return [Reason("suspect", "outliers", f"outlier pose(s) more than {th.outlier_z:g} robust σ off: row(s) "
+                                          f"{listed(bad)}; use --loss huber, or --exclude {','.join(map(str, bad[:MAX_LISTED]))}")]
+
+
+def duplicate_reasons(rows: np.ndarray, q: np.ndarray) -> list[Reason]:
+    groups = duplicate_groups(q)
+    if not groups:
+        return []
+    shown = "; ".join(f"rows {listed(rows[g])}" for g in groups[:5])
+    return [Reason("suspect", "repeated-poses",
+                   f"{sum(len(g) for g in groups)} rows repeat the same joint values ({shown}): repeated poses count "
+                   f"as independent and make the stated σ too small; average them or leave the copies out")]
