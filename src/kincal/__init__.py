@@ -14,6 +14,7 @@ from .identify import METHODS as CALIBRATION_METHODS
 from .io import (Measurements, read_joints, read_measurements, read_positions, write_joints, write_measurements,
                  write_residuals)
 from .identify.verdict import Reason, Thresholds, Verdict
+from .analysis.uncertainty import EXTRAPOLATION_RATIO, ModelUncertainty, load_uncertainty
 from .models import Joint, Parameters, Robot, SerialRobot, bundled_robots, load_robot, save_robot
 from .simulate import perturb, simulate
 from .design import Design, candidate_pool, design_bound, select_poses
@@ -27,7 +28,8 @@ __version__ = "0.1.0"
 
 __all__ = [
     "BASE_MODES", "free_parameters", "LOSSES", "RESIDUALS", "CALIBRATION_METHODS", "CalibrationProblem",
-    "Seed1Study", "seed1_study", "write_residuals", "Reason", "Thresholds", "Verdict", "Identifiability", "identifiability", "ConvergenceError", "IdentifiabilityError", "KincalError",
+    "Seed1Study", "seed1_study", "write_residuals", "Reason", "Thresholds", "Verdict",
+    "EXTRAPOLATION_RATIO", "ModelUncertainty", "load_uncertainty", "Identifiability", "identifiability", "ConvergenceError", "IdentifiabilityError", "KincalError",
     "MeasurementError", "ModelError", "CalibrationResult", "EvaluationStats", "calibrate", "evaluate",
     "Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements", "Joint", "Parameters", "Robot", "SerialRobot",
     "bundled_robots", "load_robot", "save_robot", "perturb", "simulate", "Design", "candidate_pool",

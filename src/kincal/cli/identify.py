@@ -32,7 +32,7 @@ def cmd_calibrate(args) -> int:
     refused = res.verdict.status == "refused"
     written = bool(args.output) and (not refused or args.force)
     if written:
-        kincal.save_robot(res.robot, args.output)
+        kincal.save_robot(res.robot, args.output, calibration=res.uncertainty().to_dict())
     payload = {**res.to_dict(), "output": args.output if written else None, "residuals_file": args.residuals}
     text = str(res)
     if not args.json and res.identifiability.dropped:
@@ -54,7 +54,7 @@ def cmd_evaluate(args) -> int:
     check_paths([*robot_inputs(args.robot), args.data], [])
     r = kincal.load_robot(args.robot)
     meas = read(args, r, args.data)
-    stats = kincal.evaluate(r, meas, rebase=args.rebase)
+    stats = kincal.evaluate(r, meas, rebase=args.rebase, uncertainty=kincal.load_uncertainty(args.robot))
     emit(args, stats.to_dict(), f"{r.name} on {args.data}{' (base re-fitted)' if args.rebase else ''}: {stats}")
     return 0
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from .._threads import blas_threads
 from ..analysis.identifiability import BASE_MODES
+from ..analysis.uncertainty import ModelUncertainty, extrapolation_warning
 from ..io.measurements import Measurements
 from ..models.robot import Robot
 from .covariance import parameter_statistics
@@ -195,12 +196,23 @@ def judge(res: CalibrationResult, problem: CalibrationProblem, th: Thresholds) -
                                outlier_z=th.outlier_z)
 
 
-def evaluate(robot: Robot, meas: Measurements, rebase: bool = False) -> EvaluationStats:
+def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
+             uncertainty: ModelUncertainty | None = None) -> EvaluationStats:
     """Position error statistics of ``robot`` on ``meas`` (m).
 
-    rebase -- first re-fit only the 6 base-frame parameters (the tracker moved between sessions).
+    rebase      -- first re-fit only the 6 base-frame parameters (the tracker moved between sessions)
+    uncertainty -- the model's parameter covariance (``result.uncertainty()``, or
+                   :func:`kincal.load_uncertainty` of a saved calibration): adds the predicted σ at
+                   every pose and a warning naming the rows where the model extrapolates
     """
     meas.check_robot(robot)
     if rebase:
         robot = calibrate(robot, meas, params=(), base="estimate").robot
-    return EvaluationStats.from_errors(meas.xyz - robot.forward(meas.q))
+    stats = EvaluationStats.from_errors(meas.xyz - robot.forward(meas.q))
+    if uncertainty is None:
+        return stats
+    sigma = uncertainty.sigma(robot, meas.q)
+    warning = extrapolation_warning(meas.rows, sigma, uncertainty)
+    return dataclasses.replace(stats, predicted_sigma=tuple(map(float, sigma)),
+                               extrapolated_rows=tuple(int(r) for r in meas.rows[uncertainty.extrapolated(sigma)]),
+                               warnings=(warning,) if warning else ())

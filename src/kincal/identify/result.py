@@ -6,6 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..analysis.identifiability import Identifiability
+from ..analysis.uncertainty import ModelUncertainty
 from ..io.measurements import Measurements
 from ..models.robot import Robot
 from .verdict import Verdict
@@ -21,7 +22,8 @@ def display(value: float, kind: str) -> str:
 
 @dataclass(frozen=True)
 class EvaluationStats:
-    """3-D position error statistics over n poses (m)."""
+    """3-D position error statistics over n poses (m); with a model's uncertainty also the predicted
+    σ (m) at every pose and warnings where the model extrapolates."""
 
     mean: float
     rms: float
@@ -29,6 +31,9 @@ class EvaluationStats:
     std: float
     p95: float
     n: int
+    predicted_sigma: tuple[float, ...] | None = None
+    extrapolated_rows: tuple[int, ...] = ()
+    warnings: tuple[str, ...] = ()
 
     @classmethod
     def from_errors(cls, err: np.ndarray) -> "EvaluationStats":
@@ -37,11 +42,18 @@ class EvaluationStats:
                    float(np.percentile(e, 95)), int(e.size))
 
     def to_dict(self) -> dict:
-        return {"mean": self.mean, "rms": self.rms, "max": self.max, "std": self.std, "p95": self.p95, "n": self.n}
+        out = {"mean": self.mean, "rms": self.rms, "max": self.max, "std": self.std, "p95": self.p95, "n": self.n}
+        if self.predicted_sigma is not None:
+            out.update(predicted_sigma=list(self.predicted_sigma), extrapolated_rows=list(self.extrapolated_rows))
+        return {**out, "warnings": list(self.warnings)}
 
     def __str__(self) -> str:
-        return (f"n={self.n}  mean {self.mean * MM:.4f} mm  rms {self.rms * MM:.4f} mm  max {self.max * MM:.4f} mm"
+        text = (f"n={self.n}  mean {self.mean * MM:.4f} mm  rms {self.rms * MM:.4f} mm  max {self.max * MM:.4f} mm"
                 f"  std {self.std * MM:.4f} mm  p95 {self.p95 * MM:.4f} mm")
+        if self.predicted_sigma is not None:
+            s = np.asarray(self.predicted_sigma)
+            text += f"\n  model's predicted σ at these poses: median {np.median(s) * MM:.4f} mm, max {s.max() * MM:.4f} mm"
+        return text + "".join(f"\n  warning: {w}" for w in self.warnings)
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,6 +93,16 @@ class CalibrationResult:
     pose_z: np.ndarray | None = None  # (N,) robust z-score of each pose's error norm
     outlier_z: float = 5.0
     covariance: np.ndarray | None = None  # (K, K) in the order of ``names`` (inf σ: rows/cols of zeros)
+
+    def uncertainty(self) -> ModelUncertainty:
+        """The calibrated model's parameter covariance, with the median predicted σ at the training
+        poses (for prediction σ and extrapolation warnings where the model is used)."""
+        ok = np.isfinite(np.array([self.std[n] for n in self.names]))
+        names = tuple(n for n, k in zip(self.names, ok) if k)
+        q = self.measurements.q if self.measurements is not None else None
+        if q is None:
+            raise ValueError("the result holds no measurements to compute the training σ from")
+        return ModelUncertainty.from_fit(self.robot, names, self.covariance[np.ix_(ok, ok)], q)
 
     def pose_records(self) -> list[dict]:
         """Per pose: input row, error vector and norm (m), robust z-score, outlier flag."""

@@ -35,7 +35,7 @@ LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}
 ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
 _JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits"}
 _TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool", "actuators", "transmission",
-             "type", "extended", "parameters", "slider_limits"}
+             "type", "extended", "parameters", "slider_limits", "calibration"}
 DRIVE_PREFIX = "drive."
 
 
@@ -55,22 +55,49 @@ def unit_factor(unit: str, kind: str, where: str = "") -> float:
 
 def load_robot(name_or_path: str | os.PathLike) -> Robot:
     """A bundled robot by name (see :func:`bundled_robots`) or a robot YAML file."""
+    text, label = _robot_text(name_or_path)
+    return robot_from_dict(_parse(text, label), label)
+
+
+def _robot_text(name_or_path: str | os.PathLike) -> tuple[str, str]:
+    """The YAML text of a bundled robot or a file, and a label for messages. A name that is both a
+    bundled robot and a file here is ambiguous and refused."""
     s = str(name_or_path)
+    p = Path(s)
     if s in bundled_robots():
-        path = resources.files("kincal.models") / "robots" / f"{s}.yaml"
-        text, label = path.read_text(), f"bundled robot '{s}'"
-    else:
-        p = Path(s)
-        if not p.is_file():
-            raise ModelError(
-                f"'{s}' is neither a bundled robot ({', '.join(bundled_robots())}) nor a robot YAML file"
-            )
-        text, label = p.read_text(), str(p)
+        if p.is_file():
+            raise ModelError(f"'{s}' is both a bundled robot and a file in this folder; write ./{s} for the file "
+                             f"or rename it")
+        return (resources.files("kincal.models") / "robots" / f"{s}.yaml").read_text(), f"bundled robot '{s}'"
+    if not p.is_file():
+        raise ModelError(f"'{s}' is neither a bundled robot ({', '.join(bundled_robots())}) nor a robot YAML file")
     try:
-        data = yaml.safe_load(text)
+        return p.read_text(encoding="utf-8-sig"), str(p)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f"{p}: cannot read the robot file ({exc})") from None
+
+
+def _parse(text: str, label: str):
+    try:
+        return yaml.load(text, Loader=_UniqueKeyLoader)
     except yaml.YAMLError as exc:
-        raise ModelError(f"{label}: not valid YAML ({exc})") from None
-    return robot_from_dict(data, label)
+        raise ModelError(f"{label}: not valid YAML ({' '.join(str(exc).split())})") from None
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """Safe YAML that refuses a key given twice in one mapping (the later value would win silently)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if not isinstance(key, (str, int, float, bool)) and key is not None:
+                continue  # unhashable keys: the base class reports them
+            if key in seen:
+                raise yaml.constructor.ConstructorError(None, None, f"key '{key}' is given twice",
+                                                        key_node.start_mark)
+            seen.add(key)
+        return super().construct_mapping(node, deep)
 
 
 def robot_from_dict(data: dict, label: str = "robot") -> Robot:
@@ -274,6 +301,23 @@ def _chain_yaml(robot: SerialRobot, length_unit: str, angle_unit: str) -> str:
     return "\n".join(lines)
 
 
-def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", angle_unit: str = "rad") -> None:
-    """Save a robot YAML (atomically). SI units round-trip exactly; mm/deg are easier to read."""
-    write_text_atomic(path, robot_to_yaml(robot, length_unit, angle_unit))
+def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", angle_unit: str = "rad",
+               calibration: dict | None = None) -> None:
+    """Save a robot YAML (atomically). SI units round-trip exactly; mm/deg are easier to read.
+
+    calibration -- an optional mapping stored under ``calibration:`` (always SI), e.g. the parameter
+                   covariance of a calibrated model (read back with :func:`read_section`)
+    """
+    text = robot_to_yaml(robot, length_unit, angle_unit)
+    if calibration:
+        text += yaml.safe_dump({"calibration": calibration}, default_flow_style=None, sort_keys=False, width=120)
+    write_text_atomic(path, text)
+
+
+def read_section(name_or_path: str | os.PathLike, key: str) -> object | None:
+    """A top-level section of a robot file (None for a bundled robot or when absent)."""
+    text, label = _robot_text(name_or_path)
+    if label.startswith("bundled"):
+        return None
+    data = _parse(text, label)
+    return data.get(key) if isinstance(data, dict) else None
