@@ -138,7 +138,8 @@ def test_parallel_workflow_on_the_command_line(tmp_path, capsys):
     s = run_json(capsys, "sensitivity", cal, "--params", "L1,L2", "--plot", tmp_path / "s.png")
     assert len(s["deltas"]) == 2 and (tmp_path / "s.png").stat().st_size > 1000
     v = run_json(capsys, "verify", cal, "--params", "L1,L2,L3", "--simulate", true, "-o", tmp_path / "plan.csv")
-    assert set(v) == {"L1", "L2", "L3"} and max(max(x["mean"]) for x in v.values()) < 40e-6
+    assert set(v["cases"]) == {"L1", "L2", "L3"} and max(max(x["mean"]) for x in v["cases"].values()) < 40e-6
+    assert v["pass"] and v["tolerance"] == pytest.approx(50e-6)
     targets = tmp_path / "targets.csv"
     targets.write_text("x,y,z\n0.02,-0.03,0.30\n-0.05,0.04,0.25\n")
     cmds = run_json(capsys, "compensate", cal, targets, "-o", tmp_path / "cmds.csv")
@@ -146,16 +147,23 @@ def test_parallel_workflow_on_the_command_line(tmp_path, capsys):
 
 
 def test_verify_with_measurements_file(tmp_path, capsys):
+    """The plan is written in the user's units, read back from its file, and measured in its order."""
     plan_path = tmp_path / "plan.csv"
-    run_json(capsys, "verify", "puu3", "--params", "L1,L2", "--samples", "4", "-o", plan_path)
+    run_json(capsys, "verify", "puu3", "--params", "L1,L2", "--samples", "4", "-o", plan_path, "--length-unit", "mm")
     rows = plan_path.read_text().splitlines()
-    assert rows[0].startswith("case,sample,h1,h2,h3") and len(rows) == 1 + 2 * 4
+    assert "length=mm" in rows[0] and rows[1].startswith("case,sample,h1,h2,h3") and len(rows) == 2 + 2 * 4
     # "measure" the plan with the model itself: deviations vanish
     robot = kincal.load_robot("puu3")
-    body = [r.split(",") for r in rows[1:]]
-    q = np.array([[float(x) for x in r[2:5]] for r in body])
+    body = [r.split(",") for r in rows[2:]]
+    q = np.array([[float(x) for x in r[2:5]] for r in body]) / 1e3
+    assert robot.within_limits(q).all()  # the commands were written in mm
     p = robot.forward(q)
     meas = tmp_path / "meas.csv"
     meas.write_text("h1,h2,h3,x,y,z\n" + "\n".join(",".join(repr(float(x)) for x in [*qi, *pi]) for qi, pi in zip(q, p)) + "\n")
-    v = run_json(capsys, "verify", "puu3", "--params", "L1,L2", "--samples", "4", "--measured", meas)
-    assert max(max(c["max"]) for c in v.values()) < 1e-12
+    v = run_json(capsys, "verify", "puu3", "--plan", plan_path, "--measured", meas)
+    assert max(max(c["max"]) for c in v["cases"].values()) < 1e-12 and v["pass"]
+    # a plan rebuilt from another seed is not what was measured: the joints do not match and it says so
+    other = tmp_path / "other.csv"
+    run_json(capsys, "verify", "puu3", "--params", "L1,L2", "--samples", "4", "--seed", "5", "-o", other)
+    code = main(["verify", "puu3", "--plan", str(other), "--measured", str(meas)])
+    assert code == 1 and "not the plan's commands" in capsys.readouterr().err

@@ -10,13 +10,17 @@ from __future__ import annotations
 import csv
 import io
 import os
+import re
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
 from .._atomic import write_text_atomic
 from ..analysis.sensitivity import UNIT
+from ..errors import MeasurementError
+from ..models.yaml_io import unit_factor
 from ..models.robot import Robot
 from . import compensate
 
@@ -30,41 +34,90 @@ class VerificationPlan:
     predicted: np.ndarray
     commands: np.ndarray
 
-    def compare(self, measured: np.ndarray) -> "Verification":
-        """Deviations of the measured positions (C, N, 3) from the predictions."""
+    def compare(self, measured: np.ndarray, tolerance: float = 50e-6) -> "Verification":
+        """Deviations of the measured positions (C, N, 3) from the predictions, judged against
+        ``tolerance`` (m, per axis)."""
         dev = np.asarray(measured, float).reshape(self.predicted.shape) - self.predicted
-        return Verification(self.cases, dev)
+        return Verification(self.cases, dev, tolerance)
 
-    def write_csv(self, path: str | os.PathLike, joint_names: Sequence[str]) -> None:
-        """The commands to run, case by case (SI units), with the predicted positions; written
-        atomically. Columns: case, sample, one per joint, x_pred, y_pred, z_pred."""
+    def write_csv(self, path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None,
+                  length_unit: str = "m", angle_unit: str = "rad") -> None:
+        """The commands to run, case by case, with the predicted positions, in the given units
+        (atomically). A first comment line records the units; columns: case, sample, one per joint,
+        x_pred, y_pred, z_pred. :meth:`read_csv` reads it back."""
+        cols = list(joint_cols) if joint_cols else list(robot.joint_names)
+        if len(cols) != robot.n_joints:
+            raise MeasurementError(f"{path}: {len(cols)} joint columns given for {robot.n_joints} joints")
+        qs, lf = _joint_factors(robot, length_unit, angle_unit), unit_factor(length_unit, "length")
         buf = io.StringIO()
+        buf.write(f"# kincal verification plan for {robot.name}; units: length={length_unit} angle={angle_unit}\n")
         w = csv.writer(buf, lineterminator="\n")
-        w.writerow(["case", "sample", *joint_names, "x_pred", "y_pred", "z_pred"])
-        for case, cmds, pred in zip(self.cases, self.commands, self.predicted):
+        w.writerow(["case", "sample", *cols, "x_pred", "y_pred", "z_pred"])
+        for case, cmds, pred in zip(self.cases, self.commands / qs, self.predicted / lf):
             for k, (qc, pc) in enumerate(zip(cmds, pred)):
                 w.writerow([case, k + 1, *(repr(float(v)) for v in qc), *(repr(float(v)) for v in pc)])
         write_text_atomic(path, buf.getvalue())
 
+    @classmethod
+    def read_csv(cls, path: str | os.PathLike, robot: Robot) -> "VerificationPlan":
+        """A plan written by :meth:`write_csv` (its units line says how to read it)."""
+        lines = Path(path).read_text(encoding="utf-8-sig").splitlines()
+        m = re.match(r"# kincal verification plan .*units: length=(\w+) angle=(\w+)", lines[0] if lines else "")
+        if not m:
+            raise MeasurementError(f"{path}: not a verification plan written by 'kincal verify -o' (its first line "
+                                   f"names the units); write the plan with -o and pass that file")
+        qs, lf = _joint_factors(robot, m.group(1), m.group(2)), unit_factor(m.group(1), "length")
+        rows = list(csv.reader(lines[1:]))
+        n = robot.n_joints
+        if len(rows) < 2 or any(len(r) != n + 5 for r in rows):
+            raise MeasurementError(f"{path}: a plan for {robot.name} has {n + 5} columns per row")
+        cases = tuple(dict.fromkeys(r[0] for r in rows[1:]))
+        try:
+            vals = np.array([[float(x) for x in r[2:]] for r in rows[1:]])
+        except ValueError as exc:
+            raise MeasurementError(f"{path}: {exc}") from None
+        per = len(rows[1:]) // len(cases)
+        if per * len(cases) != len(rows) - 1:
+            raise MeasurementError(f"{path}: every case needs the same number of samples")
+        cmds = (vals[:, :n] * qs).reshape(len(cases), per, n)
+        return cls(cases, cmds[0], (vals[:, n:] * lf).reshape(len(cases), per, 3), cmds)
+
+
+def _joint_factors(robot: Robot, length_unit: str, angle_unit: str) -> np.ndarray:
+    return np.array([unit_factor(angle_unit, "angle") if t == "revolute" else unit_factor(length_unit, "length")
+                     for t in robot.joint_types])
+
 
 @dataclass(frozen=True, eq=False)
 class Verification:
+    """Deviations (C, N, 3) of measured − predicted positions (m), judged against ``tolerance`` (m):
+    a case passes when no axis deviates by more than the tolerance."""
+
     cases: tuple[str, ...]
-    deviations: np.ndarray  # (C, N, 3) measured − predicted, m
+    deviations: np.ndarray
+    tolerance: float = 50e-6
+
+    @property
+    def passed(self) -> np.ndarray:
+        return np.abs(self.deviations).max(axis=(1, 2)) <= self.tolerance
 
     def to_dict(self) -> dict:
         a = np.abs(self.deviations)
-        return {c: {"max": a[k].max(axis=0).tolist(), "mean": a[k].mean(axis=0).tolist()}
-                for k, c in enumerate(self.cases)}
+        return {"units": "m", "tolerance": self.tolerance, "pass": bool(self.passed.all()),
+                "cases": {c: {"max": a[k].max(axis=0).tolist(), "mean": a[k].mean(axis=0).tolist(),
+                              "pass": bool(self.passed[k])} for k, c in enumerate(self.cases)}}
 
     def table(self) -> str:
-        """Table 5: per case and axis, maximum and mean deviation (mm)."""
-        out = [f"{'case':<14} {'axis':<5} {'max mm':>9} {'mean mm':>9}"]
+        """Table 5: per case and axis, maximum and mean deviation (mm), and the verdict."""
+        out = [f"{'case':<14} {'axis':<5} {'max mm':>9} {'mean mm':>9}  verdict (tolerance {self.tolerance * 1e3:g} mm)"]
         a = np.abs(self.deviations) * 1e3
         for k, c in enumerate(self.cases):
             for j, axis in enumerate("xyz"):
+                verdict = ("PASS" if self.passed[k] else "FAIL") if j == 0 else ""
                 out.append(f"{('Δ' + c + ' = 1') if j == 0 else '':<14} {axis:<5} {a[k, :, j].max():9.4f} "
-                           f"{a[k, :, j].mean():9.4f}")
+                           f"{a[k, :, j].mean():9.4f}  {verdict}")
+        out.append(f"error model {'confirmed' if self.passed.all() else 'NOT confirmed'}: "
+                   f"{int(self.passed.sum())} of {len(self.cases)} cases within {self.tolerance * 1e3:g} mm")
         return "\n".join(out)
 
 

@@ -202,14 +202,16 @@ def read_joints(
 
 
 def read_positions(path: str | os.PathLike, xyz_cols: Sequence[str] = ("x", "y", "z"),
-                   length_unit: str = "m") -> np.ndarray:
-    """Positions (N, 3) in m from a CSV with a header (e.g. targets to reach)."""
+                   length_unit: str = "m", with_rows: bool = False):
+    """Positions (N, 3) in m from a CSV with a header (e.g. targets to reach); with ``with_rows``
+    also their 1-based line numbers (N,)."""
     path = str(path)
     if len(xyz_cols) != 3:
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
     xyz, lines = _read_columns(path, list(xyz_cols))
     _check_finite(path, xyz, lines, "positions")
-    return xyz * _unit(length_unit, "length", path)
+    xyz = xyz * _unit(length_unit, "length", path)
+    return (xyz, lines) if with_rows else xyz
 
 
 def read_measurements(
