@@ -7,12 +7,24 @@ verification), ``study`` (the demonstration).
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
 
 import kincal
 
 from . import design, identify, model, parallel, study
-from .common import EXIT_ERROR, err
+from .common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED, err
+
+EXIT_INTERNAL = 70  # a bug in kincal, not in the user's input (KINCAL_DEBUG=1 shows the traceback)
+
+
+class Terminated(Exception):
+    """SIGTERM, turned into an exception so files being written are cleaned up like on Ctrl-C."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -32,13 +44,31 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one command; exit 0 (done), 1 (bad input), 3 (not converged), 4 (refused by a check),
+    70 (internal error), 130 (Ctrl-C), 143 (SIGTERM). Outputs are written atomically, so an
+    interrupted command leaves no half-written file."""
     args = build_parser().parse_args(argv)
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         return args.func(args)
     except (kincal.KincalError, ValueError, OSError) as exc:
         msg = " ".join(str(exc).split()) if not isinstance(exc, kincal.IdentifiabilityError) else str(exc)
         err.print(f"kincal: error: {msg}", markup=False)
         return EXIT_ERROR
+    except KeyboardInterrupt:
+        err.print("kincal: interrupted; nothing half-written", markup=False)
+        return EXIT_INTERRUPTED
+    except Terminated:
+        err.print("kincal: terminated; nothing half-written", markup=False)
+        return EXIT_TERMINATED
+    except Exception as exc:  # never a bare traceback for a user
+        if os.environ.get("KINCAL_DEBUG"):
+            raise
+        err.print(f"kincal: internal error ({type(exc).__name__}: {exc}); please report it with the command "
+                  f"line (KINCAL_DEBUG=1 shows the details)", markup=False)
+        return EXIT_INTERNAL
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -6,10 +6,11 @@ import numpy as np
 import kincal
 import kincal.design
 
-from .common import add_data_flags, csv_list, emit, progress
+from .common import add_data_flags, check_paths, csv_list, emit, progress, robot_inputs
 
 
 def cmd_design(args) -> int:
+    check_paths([*robot_inputs(args.robot), args.candidates], [args.output])
     r = kincal.load_robot(args.robot)
     if args.candidates:
         pool = kincal.read_joints(args.candidates, r, args.joint_cols, args.length_unit, args.angle_unit)

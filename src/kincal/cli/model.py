@@ -5,7 +5,7 @@ from rich.table import Table
 
 import kincal
 
-from .common import DEG, MM, add_data_flags, csv_list, emit, out
+from .common import DEG, MM, add_data_flags, check_paths, csv_list, emit, out, robot_inputs
 
 
 def cmd_robots(args) -> int:
@@ -44,6 +44,7 @@ def cmd_show(args) -> int:
 
 
 def cmd_identifiability(args) -> int:
+    check_paths([*robot_inputs(args.robot), args.data], [])
     r = kincal.load_robot(args.robot)
     if args.data:
         q = kincal.read_joints(args.data, r, args.joint_cols, args.length_unit, args.angle_unit)
@@ -55,6 +56,7 @@ def cmd_identifiability(args) -> int:
 
 
 def cmd_simulate(args) -> int:
+    check_paths([*robot_inputs(args.robot), args.joints], [args.output, args.save_true])
     r = kincal.load_robot(args.robot)
     true = r
     if args.perturb:
@@ -76,6 +78,7 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_sensitivity(args) -> int:
+    check_paths(robot_inputs(args.robot), [args.plot])
     r = kincal.load_robot(args.robot)
     s = kincal.sensitivity(r, r.sample_joints(args.samples, seed=args.seed), args.params)
     if args.plot:

@@ -64,8 +64,18 @@ def design_problem(robot: Robot, pool_q: np.ndarray, params: Sequence[str] | Non
               :func:`kincal.calibrate` would fit.
     """
     pool_q = robot.check_q(pool_q)
+    distinct = len(np.unique(np.round(pool_q, 9), axis=0))
+    if distinct < 2:
+        raise IdentifiabilityError(f"the candidate pool holds {distinct} distinct pose(s) in {len(pool_q)} rows: "
+                                   f"give candidates spread over the workspace")
     if params is None:
         names = free_parameters(robot, pool_q, base).identifiable
+        generic = free_parameters(robot, robot.sample_feasible(200, seed=0), base).rank
+        if len(names) < generic:
+            raise IdentifiabilityError(
+                f"the candidate pool identifies only {len(names)} parameters where poses spread over the workspace "
+                f"identify {generic}: its {distinct} distinct candidates are too alike (nearly identical poses?); "
+                f"give candidates spread over the workspace, or name the parameters to design for")
     else:
         names = tuple(params)
         ident = identifiability(robot, pool_q, params=names)

@@ -147,8 +147,9 @@ def select_poses(
     P = problem or design_problem(robot, pool_q, params, base)
     if 3 * m < P.k:
         raise IdentifiabilityError(f"{m} poses give {3 * m} equations for {P.k} parameters; choose m ≥ {-(-P.k // 3)}")
-    if m > P.N:
-        raise ValueError(f"m = {m} poses but the pool has only {P.N}")
+    distinct = len(np.unique(np.round(P.q, 9), axis=0))
+    if m > distinct:
+        raise ValueError(f"m = {m} poses but the pool has only {distinct} distinct candidates ({P.N} rows)")
     B = None
     if criterion == "I":
         Jv = P.J if validation_q is None else robot.param_jacobian(validation_q)[:, :, robot.params.indices(P.names)] * P.scale

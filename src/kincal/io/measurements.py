@@ -4,6 +4,7 @@ from __future__ import annotations
 import csv
 import io as _io
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
@@ -133,34 +134,61 @@ def _sniff_delimiter(header: str, path: str) -> str:
     return best
 
 
-def _read_columns(path: str, columns: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
-    """Numeric values of ``columns`` from a CSV with a header, (rows, len(columns)), and the rows'
-    1-based line numbers. Errors name the file, row and column."""
+DECIMAL_COMMA = re.compile(r"^\s*[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?\s*$")
+
+
+def _read_text(path: str) -> str:
+    """The file's text: UTF-8 (with or without the BOM Excel writes), else Latin-1."""
     try:
-        text = Path(path).read_text()
+        raw = Path(path).read_bytes()
     except OSError as exc:
         raise MeasurementError(f"{path}: cannot read the file ({exc.strerror})") from None
-    lines = text.splitlines()
-    if not lines or not lines[0].strip():
+    if b"\0" in raw[:4096]:
+        raise MeasurementError(f"{path}: this is not a text file (CSV expected; UTF-16 exports: save as 'CSV UTF-8')")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def _data_lines(text: str) -> list[tuple[int, str]]:
+    """(1-based line number, line) of every line that is not blank or a '#' comment."""
+    return [(k, line) for k, line in enumerate(text.splitlines(), start=1)
+            if line.strip() and not line.lstrip().startswith("#")]
+
+
+def _number(cell: str, delimiter: str) -> float:
+    """A cell as a float; decimal commas are read where the separator is not a comma."""
+    if delimiter != "," and DECIMAL_COMMA.match(cell):
+        cell = cell.replace(",", ".")
+    return float(cell)
+
+
+def _read_columns(path: str, columns: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Numeric values of ``columns`` from a CSV with a header, (rows, len(columns)), and the rows'
+    1-based line numbers. Blank and '#' lines are skipped. Errors name the file, row and column."""
+    lines = _data_lines(_read_text(path))
+    if not lines:
         raise MeasurementError(f"{path}: the file is empty; expected a header line and one row per pose")
-    reader = csv.reader(_io.StringIO(text), delimiter=_sniff_delimiter(lines[0], path))
-    header = [h.strip() for h in next(reader)]
+    delim = _sniff_delimiter(lines[0][1], path)
+    records = list(zip((k for k, _ in lines), csv.reader((line for _, line in lines), delimiter=delim)))
+    header = [h.strip() for h in records[0][1]]
     missing = [c for c in columns if c not in header]
     if missing:
-        raise MeasurementError(
-            f"{path}: column(s) {', '.join(missing)} not found; the header has: {', '.join(header)}"
-        )
+        where = f" (line {records[0][0]})" if records[0][0] != 1 else ""
+        raise MeasurementError(f"{path}: column(s) {', '.join(missing)} not found; the header has: "
+                               f"{', '.join(header)}{where}")
     idx = [header.index(c) for c in columns]
     rows, line_no = [], []
-    for k, rec in enumerate(reader, start=2):
-        if not rec or all(not c.strip() for c in rec):
-            continue
-        if len(rec) < len(header):
-            raise MeasurementError(f"{path}: row {k} has {len(rec)} fields, the header has {len(header)}")
+    for k, rec in records[1:]:
+        if len(rec) != len(header):
+            hint = (" (decimal commas in a comma-separated file? use ';' as the separator, or '.' for decimals)"
+                    if len(rec) > len(header) and delim == "," else "")
+            raise MeasurementError(f"{path}: row {k} has {len(rec)} fields, the header has {len(header)}{hint}")
         try:
-            rows.append([float(rec[i]) for i in idx])
+            rows.append([_number(rec[i], delim) for i in idx])
         except ValueError:
-            col = next(header[i] for i in idx if not _is_float(rec[i]))
+            col = next(header[i] for i in idx if not _is_float(rec[i], delim))
             raise MeasurementError(
                 f"{path}: row {k}, column '{col}': '{rec[header.index(col)]}' is not a number"
             ) from None
@@ -240,9 +268,9 @@ def read_measurements(
     return meas
 
 
-def _is_float(s: str) -> bool:
+def _is_float(s: str, delimiter: str = ",") -> bool:
     try:
-        float(s)
+        _number(s, delimiter)
         return True
     except ValueError:
         return False

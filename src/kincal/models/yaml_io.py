@@ -56,7 +56,36 @@ def unit_factor(unit: str, kind: str, where: str = "") -> float:
 def load_robot(name_or_path: str | os.PathLike) -> Robot:
     """A bundled robot by name (see :func:`bundled_robots`) or a robot YAML file."""
     text, label = _robot_text(name_or_path)
-    return robot_from_dict(_parse(text, label), label)
+    data = _parse(text, label)
+    try:
+        robot = robot_from_dict(data, label)
+    except ModelError:
+        raise
+    except (TypeError, AttributeError, KeyError, ValueError, IndexError) as exc:  # a shape no check foresaw
+        raise ModelError(f"{label}: malformed robot file ({type(exc).__name__}: {exc}); see the robot YAML "
+                         f"format in the README") from None
+    _check_plausible(robot, isinstance(data, dict) and "units" in data, label)
+    return robot
+
+
+MAX_LENGTH = 100.0  # m: no robot parameter is longer
+MAX_ANGLE = 4 * np.pi  # rad: no geometric angle turns further
+
+
+def _check_plausible(robot: Robot, has_units: bool, label: str) -> None:
+    """Refuse values no robot has; without a ``units`` key say which unit the values look like."""
+    v, kinds = robot.params.values, robot.params.kinds
+    ang = [(n, x) for n, k, x in zip(robot.params.names, kinds, v) if k == "angle" and abs(x) > MAX_ANGLE / 2]
+    lng = [(n, x) for n, k, x in zip(robot.params.names, kinds, v) if k == "length" and abs(x) > 10.0]
+    if not has_units and (ang or lng):
+        n, x = (ang or lng)[0]
+        what = f"{np.rad2deg(x):.0f} deg read as rad" if ang else f"{x:g} m"
+        raise ModelError(f"{label}: {n} = {x:g} ({what}) is implausible in the default units m and rad; the values "
+                         f"look like {'degrees' if ang else 'mm'}: add 'units: {{length: mm, angle: deg}}'")
+    bad = [(n, x) for n, x in ang if abs(x) > MAX_ANGLE] + [(n, x) for n, x in lng if abs(x) > MAX_LENGTH]
+    if bad:
+        n, x = bad[0]
+        raise ModelError(f"{label}: {n} = {x:g} (SI) is implausible for a robot; check the value and the 'units' key")
 
 
 def _robot_text(name_or_path: str | os.PathLike) -> tuple[str, str]:
@@ -117,9 +146,7 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     conv = str(data["convention"]).lower()
     if conv not in CONVENTIONS:
         raise ModelError(f"{label}: convention '{conv}' is not one of {CONVENTIONS}")
-    units = data.get("units") or {}
-    lf = unit_factor(units.get("length", "m"), "length", f"{label}: ")
-    af = unit_factor(units.get("angle", "rad"), "angle", f"{label}: ")
+    lf, af = _units(data, label)
 
     joints, rows, explicit_beta = [], [], []
     if not isinstance(data["joints"], list) or not data["joints"]:
@@ -150,8 +177,8 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
         rows.append(row)
 
     base = {k: _num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
-            for k, v in (data.get("base") or {}).items()}
-    tool = {k: _num(v, f"{label}: tool", k) * lf for k, v in (data.get("tool") or {}).items()}
+            for k, v in _mapping(data, "base", label).items()}
+    tool = {k: _num(v, f"{label}: tool", k) * lf for k, v in _mapping(data, "tool", label).items()}
     robot = SerialRobot.build(str(data["name"]), conv, joints, rows, base, tool, str(data.get("description", "")))
     # automatic beta where axes are parallel and the file does not say otherwise
     auto = {robot.beta_joint(pair) for pair in robot.parallel_pairs()}
@@ -167,19 +194,43 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     return robot
 
 
+_EXAMPLES = {"units": "{length: mm, angle: deg}", "base": "{x: 0, y: 0, z: 0, rx: 0, ry: 0, rz: 0}",
+             "tool": "{x: 0, y: 0, z: 0}", "parameters": "{r: 100, R: 200, L1: 350}"}
+
+
+def _mapping(data: dict, key: str, label: str) -> dict:
+    """``data[key]`` as a mapping ({} when absent); ModelError naming the key otherwise."""
+    value = data.get(key)
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise ModelError(f"{label}: '{key}' must be a mapping like {_EXAMPLES.get(key, '{name: value}')}, got {value!r}")
+    return value
+
+
+def _units(data: dict, label: str) -> tuple[float, float]:
+    """SI factors of the file's ``units: {length: …, angle: …}`` (m and rad when absent)."""
+    units = _mapping(data, "units", label)
+    extra = set(units) - {"length", "angle"}
+    if extra:
+        raise ModelError(f"{label}: 'units' takes only 'length' and 'angle', got {sorted(map(str, extra))}")
+    return (unit_factor(str(units.get("length", "m")), "length", f"{label}: "),
+            unit_factor(str(units.get("angle", "rad")), "angle", f"{label}: "))
+
+
 def _puu3_from_dict(data: dict, label: str) -> PUU3Robot:
-    units = data.get("units") or {}
-    lf = unit_factor(units.get("length", "m"), "length", f"{label}: ")
-    af = unit_factor(units.get("angle", "rad"), "angle", f"{label}: ")
+    lf, af = _units(data, label)
     extended = bool(data.get("extended", False))
     names, kinds = puu3_names(extended)
     kind = dict(zip(names, kinds))
     values = {}
-    for key, v in (data.get("parameters") or {}).items():
+    for key, v in _mapping(data, "parameters", label).items():
         if key not in kind:
             raise ModelError(f"{label}: unknown 3-PUU parameter '{key}'; known: {', '.join(names[6:])}")
         values[key] = _num(v, f"{label}: parameters", key) * (lf if kind[key] == "length" else af)
-    for k, v in (data.get("base") or {}).items():
+    for k, v in _mapping(data, "base", label).items():
+        if k not in ("x", "y", "z", "rx", "ry", "rz"):
+            raise ModelError(f"{label}: unknown base key '{k}'; use x, y, z, rx, ry, rz")
         values[f"base.{k}"] = _num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
     lim = data.get("slider_limits", [380, 835] if lf == 1e-3 else [0.380, 0.835])
     if not (isinstance(lim, list) and len(lim) == 2):
@@ -239,6 +290,11 @@ def _transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float
 
 
 def _num(v, where: str, key: str) -> float:
+    if isinstance(v, str):  # YAML 1.1 reads '31e0' (no dot) as text
+        try:
+            v = float(v.strip())
+        except ValueError:
+            pass
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise ModelError(f"{where}: '{key}' must be a number, got {v!r}")
     if not np.isfinite(v):
