@@ -24,6 +24,41 @@ def csv_list(s: str) -> list[str]:
     return [c.strip() for c in s.split(",") if c.strip()]
 
 
+def positive_int(s: str) -> int:
+    """argparse type: a whole number ≥ 1."""
+    try:
+        v = int(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}' is not a whole number") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{v}: give at least 1")
+    return v
+
+
+def nonneg_int(s: str) -> int:
+    """argparse type: a whole number ≥ 0."""
+    return 0 if s.strip() == "0" else positive_int(s)
+
+
+def nonneg_float(s: str) -> float:
+    """argparse type: a finite number ≥ 0."""
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}' is not a number") from None
+    if not (np.isfinite(v) and v >= 0):
+        raise argparse.ArgumentTypeError(f"{s}: give a finite number >= 0")
+    return v
+
+
+def positive_float(s: str) -> float:
+    """argparse type: a finite number > 0."""
+    v = nonneg_float(s)
+    if v == 0:
+        raise argparse.ArgumentTypeError(f"{s}: give a number > 0")
+    return v
+
+
 def row_list(s: str) -> list[int]:
     """'5,7-9' -> [5, 7, 8, 9] (input file rows, header = 1)."""
     rows: list[int] = []

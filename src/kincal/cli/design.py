@@ -6,7 +6,8 @@ import numpy as np
 import kincal
 import kincal.design
 
-from .common import add_data_flags, check_paths, csv_list, emit, progress, robot_inputs
+from .common import (add_data_flags, check_paths, csv_list, emit, nonneg_int, positive_float, positive_int, progress,
+                     robot_inputs)
 
 
 def cmd_design(args) -> int:
@@ -44,7 +45,8 @@ def cmd_npose(args) -> int:
                      zip(curve.m_values[step - 1::step], curve.values[step - 1::step]))
     emit(args, payload, f"{r.name}: {P.k} parameters, {r.n_joints} joints\n"
          f"minimum number of poses (eq. 18): {low}\n{rows}\n"
-         f"the curve flattens (< 1 % gain over 10 more poses) at m = {curve.chosen}")
+         + (f"the curve flattens (< 1 % gain over 10 more poses) at m = {curve.chosen}" if curve.flattened else
+            f"the curve does not flatten within m <= {args.max} (< 1 % gain over 10 more poses): try a larger --max"))
     return 0
 
 
@@ -60,17 +62,17 @@ def register(cmd) -> None:
     """Add the commands to the parser through ``cmd(name, func, help)``."""
     s = cmd("design", cmd_design, "choose measurement poses (writes a poses CSV)")
     s.add_argument("robot")
-    s.add_argument("-m", type=int, default=60, help="number of poses (default 60)")
+    s.add_argument("-m", type=positive_int, default=60, help="number of poses (default 60)")
     s.add_argument("-o", "--output", required=True, help="poses CSV to write")
     src = s.add_mutually_exclusive_group()
-    src.add_argument("--pool", type=int, default=5000, help="random feasible candidates (default 5000)")
+    src.add_argument("--pool", type=positive_int, default=5000, help="random feasible candidates (default 5000)")
     src.add_argument("--candidates", help="CSV of candidate poses (e.g. the poses you can reach)")
     s.add_argument("--method", default="fedorov", choices=list(kincal.design.METHODS))
     s.add_argument("--criterion", default="D", choices=list(kincal.design.CRITERIA))
     s.add_argument("--params", type=csv_list, help="parameters to design for (default: identifiable set)")
     s.add_argument("--base", choices=list(kincal.BASE_MODES), default="estimate")
-    s.add_argument("--restarts", type=int, default=0, help="extra random starts for fedorov")
-    s.add_argument("--generations", type=int, default=200, help="generations for ide / detmax-ide")
+    s.add_argument("--restarts", type=nonneg_int, default=0, help="extra random starts for fedorov")
+    s.add_argument("--generations", type=positive_int, default=200, help="generations for ide / detmax-ide")
     s.add_argument("--no-bound", action="store_true", help="skip the certified bound (and D-efficiency)")
     s.add_argument("--seed", type=int, default=0)
     add_data_flags(s)
@@ -78,13 +80,13 @@ def register(cmd) -> None:
     s = cmd("npose", cmd_npose, "how many poses: eq. 18 minimum and where the criterion curve flattens")
     s.add_argument("robot")
     s.add_argument("--criterion", default="comprehensive", choices=list(kincal.design.CRITERIA))
-    s.add_argument("--max", type=int, default=100, help="largest number of poses on the curve (default 100)")
+    s.add_argument("--max", type=positive_int, default=100, help="largest number of poses on the curve (default 100)")
     s.add_argument("--params", type=csv_list, help="parameters (default: identifiable set)")
     s.add_argument("--seed", type=int, default=0)
 
     s = cmd("separate", cmd_separate, "GCN branch-and-bound separation of ill-conditioned parameters")
     s.add_argument("robot")
-    s.add_argument("--poses", type=int, default=100, help="random poses (default 100)")
-    s.add_argument("--threshold", type=float, default=1e2, help="GCN threshold (default 1e2)")
+    s.add_argument("--poses", type=positive_int, default=100, help="random poses (default 100)")
+    s.add_argument("--threshold", type=positive_float, default=1e2, help="GCN threshold (default 1e2)")
     s.add_argument("--keep", type=csv_list, help="parameters to remove last when removals tie")
     s.add_argument("--seed", type=int, default=0)

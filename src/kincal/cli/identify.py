@@ -6,7 +6,7 @@ import argparse
 import kincal
 
 from .common import (DEG, EXIT_NOT_CONVERGED, EXIT_REFUSED, MM, add_data_flags, check_paths, csv_list, emit, err,
-                     progress, read, robot_inputs, row_list)
+                     positive_float, positive_int, progress, read, robot_inputs, row_list)
 
 
 def _thresholds(args) -> kincal.Thresholds:
@@ -41,12 +41,13 @@ def cmd_calibrate(args) -> int:
         text += (f"\ncalibrated robot written to {args.output}" + (" (forced despite the verdict)" if refused else "")
                  if written else f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")
     emit(args, payload, text)
+    data_problems = [r.code for r in res.verdict.reasons if r.level == "refused" and r.code != "not-converged"]
+    if data_problems:  # more telling than the non-convergence they usually cause
+        err.print(f"kincal: calibration refused: {'; '.join(data_problems)}")
+        return EXIT_REFUSED
     if not res.converged:
         err.print(f"kincal: calibration did not converge: {res.message}")
         return EXIT_NOT_CONVERGED
-    if refused:
-        err.print(f"kincal: calibration refused: {'; '.join(r.code for r in res.verdict.reasons if r.level == 'refused')}")
-        return EXIT_REFUSED
     return 0
 
 
@@ -80,14 +81,14 @@ def register(cmd) -> None:
     s.add_argument("--loss", choices=list(kincal.LOSSES), default="linear")
     s.add_argument("--params", type=csv_list, help="parameters to estimate (default: identifiable set)")
     s.add_argument("--keep", type=csv_list, help="parameters to prefer among confounded ones")
-    s.add_argument("--max-iter", type=int, default=100, help="Levenberg-Marquardt iteration limit (default 100)")
+    s.add_argument("--max-iter", type=positive_int, default=100, help="Levenberg-Marquardt iteration limit (default 100)")
     s.add_argument("--method", choices=list(kincal.CALIBRATION_METHODS), default="lm")
     s.add_argument("--residual", choices=list(kincal.RESIDUALS), default="cartesian",
                    help="joint: commanded − inverse kinematics of the measured positions (parallel robots)")
     s.add_argument("--exclude", type=row_list, help="input rows to leave out, e.g. 12,40-42")
     s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers)")
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")
-    s.add_argument("--tracker-noise", type=float, default=0.05, help="expected tracker noise, mm (default 0.05)")
+    s.add_argument("--tracker-noise", type=positive_float, default=0.05, help="expected tracker noise, mm (default 0.05)")
     s.add_argument("--length-limits", type=_pair, default=(10.0, 50.0), metavar="SUSPECT,REFUSE",
                    help="largest plausible length corrections, mm (default 10,50)")
     s.add_argument("--angle-limits", type=_pair, default=(2.0, 10.0), metavar="SUSPECT,REFUSE",

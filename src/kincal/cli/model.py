@@ -5,7 +5,8 @@ from rich.table import Table
 
 import kincal
 
-from .common import DEG, MM, add_data_flags, check_paths, csv_list, emit, out, robot_inputs
+from .common import (DEG, MM, add_data_flags, check_paths, csv_list, emit, nonneg_float, out, positive_float,
+                     positive_int, robot_inputs)
 
 
 def cmd_robots(args) -> int:
@@ -96,29 +97,29 @@ def register(cmd) -> None:
     s = cmd("identifiability", cmd_identifiability, "which parameters position data can identify")
     s.add_argument("robot")
     s.add_argument("--data", help="CSV of poses (joint columns) to analyse (default: random poses)")
-    s.add_argument("--poses", type=int, default=100, help="number of random poses (default 100)")
+    s.add_argument("--poses", type=positive_int, default=100, help="number of random poses (default 100)")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--base", choices=list(kincal.BASE_MODES), default="estimate")
     s.add_argument("--keep", type=csv_list, help="parameters to prefer among confounded ones")
-    s.add_argument("--tol", type=float, default=1e-8, help="relative singular-value tolerance (default 1e-8)")
+    s.add_argument("--tol", type=positive_float, default=1e-8, help="relative singular-value tolerance (default 1e-8)")
     add_data_flags(s)
 
     s = cmd("simulate", cmd_simulate, "simulate tracker measurements of a (perturbed) robot")
     s.add_argument("robot")
     s.add_argument("-o", "--output", required=True, help="CSV to write")
-    s.add_argument("--poses", type=int, default=60, help="random poses within the joint limits (default 60)")
+    s.add_argument("--poses", type=positive_int, default=60, help="random poses within the joint limits (default 60)")
     s.add_argument("--joints", help="CSV of joint values to use instead of random poses")
     s.add_argument("--perturb", action="store_true", help="apply random geometric errors to the robot first")
-    s.add_argument("--length-error", type=float, default=0.5, help="mm, uniform ± (default 0.5)")
-    s.add_argument("--angle-error", type=float, default=0.05, help="deg, uniform ± (default 0.05)")
-    s.add_argument("--noise", type=float, default=0.015, help="tracker noise, mm per axis (default 0.015)")
+    s.add_argument("--length-error", type=nonneg_float, default=0.5, help="mm, uniform ± (default 0.5)")
+    s.add_argument("--angle-error", type=nonneg_float, default=0.05, help="deg, uniform ± (default 0.05)")
+    s.add_argument("--noise", type=nonneg_float, default=0.015, help="tracker noise, mm per axis (default 0.015)")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--save-true", help="write the simulated 'true' robot to this YAML")
     add_data_flags(s)
 
     s = cmd("sensitivity", cmd_sensitivity, "position error caused by a unit error of each parameter")
     s.add_argument("robot")
-    s.add_argument("--samples", type=int, default=10)
+    s.add_argument("--samples", type=positive_int, default=10)
     s.add_argument("--params", type=csv_list)
     s.add_argument("--plot", help="PNG or SVG file for the plot")
     s.add_argument("--seed", type=int, default=0)

@@ -5,7 +5,8 @@ import numpy as np
 
 import kincal
 
-from .common import EXIT_REFUSED, MM, add_data_flags, check_paths, csv_list, emit, robot_inputs
+from .common import (EXIT_REFUSED, MM, add_data_flags, check_paths, csv_list, emit, nonneg_float, positive_float,
+                     positive_int, robot_inputs)
 
 
 def cmd_compensate(args) -> int:
@@ -89,13 +90,13 @@ def register(cmd) -> None:
 
     s = cmd("verify", cmd_verify, "error-model verification: commands to run, then the comparison (Table 5)")
     s.add_argument("robot", help="the identified (actual) robot model")
-    s.add_argument("--samples", type=int, default=10)
+    s.add_argument("--samples", type=positive_int, default=10)
     s.add_argument("--params", type=csv_list)
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("-o", "--output", help="CSV of the commands to run, case by case (in --length-unit/--angle-unit)")
     s.add_argument("--plan", help="the plan CSV written with -o (whose commands were measured)")
     s.add_argument("--measured", help="measurements of the plan's commands, in the same order")
-    s.add_argument("--tolerance", type=float, default=0.05, help="largest deviation per axis to pass, mm (default 0.05)")
+    s.add_argument("--tolerance", type=positive_float, default=0.05, help="largest deviation per axis to pass, mm (default 0.05)")
     s.add_argument("--simulate", help="a 'true' robot YAML to simulate the measurements instead")
-    s.add_argument("--noise", type=float, default=0.015, help="simulated tracker noise, mm per axis")
+    s.add_argument("--noise", type=nonneg_float, default=0.015, help="simulated tracker noise, mm per axis")
     add_data_flags(s)

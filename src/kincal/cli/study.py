@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import kincal
 
-from .common import emit, progress
+from .common import emit, positive_int, progress
 
 
 def cmd_demo(args) -> int:
@@ -16,5 +16,5 @@ def cmd_demo(args) -> int:
 def register(cmd) -> None:
     """Add the commands to the parser through ``cmd(name, func, help)``."""
     s = cmd("demo", cmd_demo, "the seed-1 study on the 3T2R robot (simulation)")
-    s.add_argument("--poses", type=int, default=60, help="poses per design (default 60)")
-    s.add_argument("--seeds", type=int, default=20, help="repetitions (default 20)")
+    s.add_argument("--poses", type=positive_int, default=60, help="poses per design (default 60)")
+    s.add_argument("--seeds", type=positive_int, default=20, help="repetitions (default 20)")

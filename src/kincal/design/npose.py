@@ -24,10 +24,11 @@ class PoseCountCurve:
     values: np.ndarray
     chosen: int
     criterion: str
+    flattened: bool = True  # False: no flattening within the curve; ``chosen`` is then its last m
 
     def to_dict(self) -> dict:
         return {"m": self.m_values.tolist(), "values": self.values.tolist(), "chosen": self.chosen,
-                "criterion": self.criterion}
+                "criterion": self.criterion, "flattened": self.flattened}
 
 
 def pose_count_curve(P: DesignProblem, criterion: str = "comprehensive", m_max: int = 100, seed: int | None = 0,
@@ -38,10 +39,8 @@ def pose_count_curve(P: DesignProblem, criterion: str = "comprehensive", m_max: 
     m_values = np.arange(1, order.size + 1)
     Ms = np.cumsum(np.einsum("nak,nal->nkl", P.J[order], P.J[order]), axis=0)
     values = np.array([float(score(Ms[i], i + 1, criterion)) for i in range(order.size)])
-    chosen = int(m_values[-1])
     for i in range(order.size - window):
         a, b = values[i], values[i + window]
         if np.isfinite(a) and a > 0 and np.isfinite(b) and (b - a) / abs(a) < rel_gain:
-            chosen = int(m_values[i])
-            break
-    return PoseCountCurve(m_values, values, chosen, criterion)
+            return PoseCountCurve(m_values, values, int(m_values[i]), criterion)
+    return PoseCountCurve(m_values, values, int(m_values[-1]), criterion, flattened=False)

@@ -16,6 +16,7 @@ import scipy.linalg as sla
 from .problem import CalibrationProblem
 
 MU_LIMIT = 1e20  # damping beyond this (relative to the largest diagonal entry) means no step helps
+STATIONARY = 1e-6  # when no step helps, a residual this close to orthogonal to every column is an optimum
 
 
 @dataclass(frozen=True)
@@ -77,7 +78,8 @@ def levenberg_marquardt(
     gtol: float = 1e-12,
 ) -> LMResult:
     """Minimise ½‖r(x)‖²; converged when the scaled step, the relative cost decrease or the scaled
-    gradient falls below its tolerance."""
+    gradient falls below its tolerance, or when no step lowers the cost at a point where the residual
+    is orthogonal to every scaled column within ``STATIONARY`` (the cosine; round-off level)."""
     x = np.array(x0, dtype=float)
     r, J = fun(x)
     n_eval, cost = 1, 0.5 * float(r @ r)
@@ -96,7 +98,9 @@ def levenberg_marquardt(
             mu = 1e-8 * float(np.max(np.diag(H)))  # near Gauss-Newton: calibration problems are mildly nonlinear
         step = _damped_step(fun, x, cost, H, g, D, mu)
         n_eval += step.evaluations
-        if not step.accepted:
+        if not step.accepted:  # at an optimum, round-off can leave nothing to gain
+            if np.max(np.abs(g)) <= STATIONARY * np.sqrt(2 * cost):
+                return LMResult(x, cost, r, J, it, n_eval, True, "stationary point (no decrease left above round-off)")
             return LMResult(x, cost, r, J, it, n_eval, False,
                             "no step reduces the cost (damping exhausted); the problem may be ill-posed")
         small_step = np.linalg.norm(step.h) <= xtol * (np.linalg.norm(x * D) + xtol)

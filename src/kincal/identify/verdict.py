@@ -43,6 +43,15 @@ class Thresholds:
     residual_refuse: float = 100.0
     outlier_z: float = 5.0
 
+    def __post_init__(self) -> None:
+        bad = [k for k, v in self.__dict__.items() if not (np.isfinite(v) and v > 0)]
+        if bad:
+            raise ValueError(f"thresholds: {', '.join(bad)} must be positive numbers")
+        for a, b in (("length_suspect", "length_refuse"), ("angle_suspect", "angle_refuse"),
+                     ("residual_suspect", "residual_refuse")):
+            if getattr(self, a) > getattr(self, b):
+                raise ValueError(f"thresholds: {a} must not exceed {b}")
+
     def to_dict(self) -> dict:
         return {k: float(v) for k, v in self.__dict__.items()}
 

@@ -59,8 +59,10 @@ def load_robot(name_or_path: str | os.PathLike) -> Robot:
     data = _parse(text, label)
     try:
         robot = robot_from_dict(data, label)
-    except ModelError:
-        raise
+    except ModelError as exc:
+        if str(exc).startswith(label):
+            raise
+        raise ModelError(f"{label}: {exc}") from None
     except (TypeError, AttributeError, KeyError, ValueError, IndexError) as exc:  # a shape no check foresaw
         raise ModelError(f"{label}: malformed robot file ({type(exc).__name__}: {exc}); see the robot YAML "
                          f"format in the README") from None
@@ -151,6 +153,10 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     joints, rows, explicit_beta = [], [], []
     if not isinstance(data["joints"], list) or not data["joints"]:
         raise ModelError(f"{label}: 'joints' must be a non-empty list")
+    names = [str(jd.get("name", f"j{k + 1}")) for k, jd in enumerate(data["joints"]) if isinstance(jd, dict)]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ModelError(f"{label}: duplicate joint names {', '.join(twice)}; every joint needs its own name")
     for k, jd in enumerate(data["joints"]):
         where = f"{label}: joint {k + 1}"
         if not isinstance(jd, dict):

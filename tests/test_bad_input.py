@@ -1,0 +1,416 @@
+"""A corpus of bad input for every command that reads a file: never a traceback, never a confident
+wrong answer. Each case asserts the exit code, words of the message, and that no input file was
+changed and no output was left behind where the command refused."""
+import hashlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+import kincal
+from kincal.cli import main
+
+MMDEG = ["--length-unit", "mm", "--angle-unit", "deg"]
+UR5_YAML = """name: myarm
+convention: dh
+units: {length: mm, angle: deg}
+joints:
+  - {name: j1, theta: 0, d: 89.159, a: 0, alpha: 90, limits: [-360, 360]}
+  - {name: j2, theta: 0, d: 0, a: -425, alpha: 0, limits: [-360, 360]}
+  - {name: j3, theta: 0, d: 0, a: -392.25, alpha: 0, limits: [-360, 360]}
+  - {name: j4, theta: 0, d: 109.15, a: 0, alpha: 90, limits: [-360, 360]}
+  - {name: j5, theta: 0, d: 94.65, a: 0, alpha: -90, limits: [-360, 360]}
+  - {name: j6, theta: 0, d: 82.3, a: 0, alpha: 0, limits: [-360, 360]}
+tool: {x: 0, y: 0, z: 0}
+"""
+PUU3_YAML = "name: p\ntype: puu3\nunits: {length: mm, angle: deg}\nparameters: {r: 100, R: 200, L1: 350, L2: 350, L3: 350}\n"
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.fixture(scope="module")
+def base(tmp_path_factory):
+    """Good files: UR5 measurements (mm, deg), their lines, a targets file with nominal joints."""
+    d = tmp_path_factory.mktemp("base")
+    ur5 = kincal.load_robot("ur5")
+    true = kincal.perturb(ur5, seed=4)
+    q = ur5.sample_joints(60, seed=4)
+    kincal.write_measurements(d / "good.csv", kincal.simulate(true, q, 15e-6, seed=1), ur5.joint_types, "mm", "deg")
+    qt = ur5.sample_joints(5, seed=8)
+    xyz = ur5.forward(qt) * 1e3
+    body = "\n".join(",".join(f"{v:.9f}" for v in (*np.rad2deg(a), *b)) for a, b in zip(qt, xyz))
+    (d / "targets.csv").write_text("j1,j2,j3,j4,j5,j6,x,y,z\n" + body + "\n")
+    kincal.calibrate(ur5, kincal.read_measurements(d / "good.csv", ur5, length_unit="mm", angle_unit="deg"))
+    return d
+
+
+def good_lines(base):
+    return (base / "good.csv").read_text().splitlines()
+
+
+def edit(base, f):
+    """good.csv with f applied to its data lines (list of lists of cells)."""
+    lines = good_lines(base)
+    rows = [line.split(",") for line in lines[1:]]
+    header, rows = f(lines[0].split(","), rows)
+    return "\n".join(",".join(r) for r in [header] + rows) + "\n"
+
+
+def scaled_xyz(factor):
+    return lambda h, rows: (h, [r[:6] + [repr(float(v) * factor) for v in r[6:]] for r in rows])
+
+
+def robot_yaml(**changes):
+    """UR5_YAML with lines replaced (key: old substring -> new)."""
+    text = UR5_YAML
+    for old, new in changes.values():
+        text = text.replace(old, new)
+    return text
+
+
+def csv_case(name, content, code, words, extra=(), robot="ur5", cmd="calibrate"):
+    return pytest.param({"files": {"data.csv": content}, "argv": [cmd, robot, "{d}/data.csv", *MMDEG, *extra],
+                         "code": code, "words": words}, id=name)
+
+
+def yaml_case(name, text, code, words, cmd=("show",)):
+    return pytest.param({"files": {"robot.yaml": text}, "argv": [*cmd, "{d}/robot.yaml"], "code": code,
+                         "words": words}, id=name)
+
+
+def case(name, argv, code, words, files=None):
+    return pytest.param({"files": files or {}, "argv": argv, "code": code, "words": words}, id=name)
+
+
+CSV = [
+    csv_case("empty", "", 1, ["empty"]),
+    csv_case("header-only", "j1,j2,j3,j4,j5,j6,x,y,z\n", 1, ["no data rows"]),
+    csv_case("blank-lines-only", "\n\n  \n", 1, ["empty"]),
+    csv_case("comments-only", "# a\n# b\n", 1, ["empty"]),
+    csv_case("missing-column", lambda b: edit(b, lambda h, r: (h[:-1] + ["zz"], r)), 1, ["not found", "z"]),
+    csv_case("non-numeric", lambda b: edit(b, lambda h, r: (h, [r[0], r[1][:1] + ["abc"] + r[1][2:]] + r[2:])), 1,
+             ["row 3", "'j2'", "abc"]),
+    csv_case("empty-cell", lambda b: edit(b, lambda h, r: (h, [r[0][:3] + [""] + r[0][4:]] + r[1:])), 1,
+             ["row 2", "'j4'", "not a number"]),
+    csv_case("nan", lambda b: edit(b, lambda h, r: (h, r[:4] + [r[4][:7] + ["nan"] + r[4][8:]] + r[5:])), 1,
+             ["NaN", "6"]),
+    csv_case("inf", lambda b: edit(b, lambda h, r: (h, r[:9] + [r[9][:2] + ["inf"] + r[9][3:]] + r[10:])), 1,
+             ["infinite", "11"]),
+    csv_case("fewer-fields", lambda b: edit(b, lambda h, r: (h, r[:2] + [r[2][:5]] + r[3:])), 1,
+             ["row 4", "5 fields"]),
+    csv_case("decimal-commas-in-comma-file",
+             lambda b: edit(b, lambda h, r: (h, [[c.replace(".", ",") for c in row] for row in r])), 1,
+             ["decimal commas", "';'"]),
+    csv_case("no-separator", "j1 j2 j3\n1 2 3\n", 1, ["separator"]),
+    csv_case("utf16", lambda b: (b / "good.csv").read_text().encode("utf-16"), 1, ["not a text file", "UTF-8"]),
+    csv_case("degrees-declared-rad", lambda b: (b / "good.csv").read_text(), 1, ["look like degrees", "deg"],
+             extra=["--angle-unit", "rad"]),
+    csv_case("mm-declared-m", lambda b: (b / "good.csv").read_text(), 1, ["mm read as m", "--length-unit mm"],
+             extra=["--length-unit", "m"]),
+    csv_case("m-declared-mm", lambda b: edit(b, scaled_xyz(1e-3)), 1, ["m read as mm"]),
+    csv_case("cm-declared-mm", lambda b: edit(b, scaled_xyz(0.1)), 1, ["10", "cm"]),
+    csv_case("inches-declared-mm", lambda b: edit(b, scaled_xyz(1 / 25.4)), 1, ["25.4", "inches"]),
+    csv_case("tenfold-too-large", lambda b: edit(b, scaled_xyz(10.0)), 1, ["10x more", "cm"]),
+    csv_case("wrong-joint-count", lambda b: (b / "good.csv").read_text(), 1, ["5 joint columns", "6 joints"],
+             extra=["--joint-cols", "j1,j2,j3,j4,j5"]),
+    csv_case("joint-columns-unknown", lambda b: (b / "good.csv").read_text(), 1, ["not found", "joint_1"],
+             extra=["--joint-cols", "joint_1,joint_2,joint_3,joint_4,joint_5,joint_6"]),
+    csv_case("xyz-two-columns", lambda b: (b / "good.csv").read_text(), 1, ["three position columns"],
+             extra=["--xyz-cols", "x,y"]),
+    csv_case("too-few-poses", lambda b: "\n".join(good_lines(b)[:5]) + "\n", 1, ["4 poses", "measure at least"]),
+    csv_case("one-pose-repeated", lambda b: "\n".join(good_lines(b)[:1] + good_lines(b)[1:2] * 80) + "\n", 1,
+             ["3 distinct poses", "1 (80 rows)"]),
+    csv_case("swapped-joint-columns", lambda b: edit(b, lambda h, r: (h, [[x[0], x[2], x[1], *x[3:]] for x in r])), 4,
+             ["refused", "implausible"]),
+    csv_case("duplicated-joint-column", lambda b: edit(b, lambda h, r: (h, [[x[0], x[0], *x[2:]] for x in r])), 4,
+             ["refused"]),
+    csv_case("wrong-robot", lambda b: (b / "good.csv").read_text(), 1, ["j7", "not found"], robot="wam"),
+    csv_case("exclude-unknown-row", lambda b: (b / "good.csv").read_text(), 1, ["row(s) 999", "not data rows"],
+             extra=["--exclude", "999"]),
+    csv_case("exclude-bad-syntax", lambda b: (b / "good.csv").read_text(), 2, ["row number"],
+             extra=["--exclude", "x-y"]),
+    csv_case("exclude-header", lambda b: (b / "good.csv").read_text(), 2, ["from 2"], extra=["--exclude", "1"]),
+    csv_case("unknown-param", lambda b: (b / "good.csv").read_text(), 1, ["j9.a"], extra=["--params", "j2.a,j9.a"]),
+    csv_case("base-param-with-fixed-base", lambda b: (b / "good.csv").read_text(), 1, ["base='fixed'"],
+             extra=["--base", "fixed", "--params", "base.x,j2.a"]),
+    csv_case("unidentifiable-params", lambda b: (b / "good.csv").read_text(), 1, ["cannot all be identified"],
+             extra=["--params", "j2.d,j3.d,j4.d"]),
+    csv_case("max-iter-zero", lambda b: (b / "good.csv").read_text(), 2, ["at least 1"], extra=["--max-iter", "0"]),
+    csv_case("length-limits-one-number", lambda b: (b / "good.csv").read_text(), 2, ["two numbers"],
+             extra=["--length-limits", "5"]),
+    csv_case("limits-reversed", lambda b: (b / "good.csv").read_text(), 2, ["SUSPECT <= REFUSE"],
+             extra=["--angle-limits", "10,2"]),
+    csv_case("tracker-noise-negative", lambda b: (b / "good.csv").read_text(), 2, [">= 0"],
+             extra=["--tracker-noise", "-1"]),
+    csv_case("pso-with-huber", lambda b: (b / "good.csv").read_text(), 1, ["huber", "pso"],
+             extra=["--method", "pso", "--loss", "huber"]),
+    csv_case("joint-residual-serial", lambda b: (b / "good.csv").read_text(), 1, ["joint", "closed-form"],
+             extra=["--residual", "joint"]),
+    csv_case("evaluate-nan", lambda b: edit(b, lambda h, r: (h, r[:1] + [r[1][:8] + ["nan"]] + r[2:])), 1, ["NaN", "3"],
+             cmd="evaluate"),
+    csv_case("evaluate-empty", "", 1, ["empty"], cmd="evaluate"),
+    csv_case("identifiability-nan", lambda b: edit(b, lambda h, r: (h, [["nan"] + r[0][1:]] + r[1:])), 1,
+             ["NaN", "joint values", "2"], cmd="identifiability"),
+]
+for _p in CSV:  # identifiability reads poses with --data
+    if _p.values[0]["argv"][0] == "identifiability":
+        _p.values[0]["argv"][2:3] = ["--data", "{d}/data.csv"]
+
+CSV_GOOD = [  # variants real tools produce: read correctly, never misread
+    csv_case("bom", lambda b: "\ufeff" + (b / "good.csv").read_text(), 0, []),
+    csv_case("semicolon-decimal-commas",
+             lambda b: (b / "good.csv").read_text().replace(",", ";").replace(".", ","), 0, []),
+    csv_case("tabs", lambda b: (b / "good.csv").read_text().replace(",", "\t"), 0, []),
+    csv_case("comments-and-blank-lines",
+             lambda b: "# exported by the tracker\n" + "\n".join(good_lines(b)[:10]) + "\n\n# pause\n" +
+             "\n".join(good_lines(b)[10:]) + "\n", 0, []),
+    csv_case("latin1-extra-column",
+             lambda b: edit(b, lambda h, r: (h + ["opérateur"], [x + ["José"] for x in r])).encode("latin-1"), 0, []),
+    csv_case("crlf", lambda b: (b / "good.csv").read_text().replace("\n", "\r\n"), 0, []),
+    csv_case("extra-columns-reordered",
+             lambda b: edit(b, lambda h, r: (["t"] + h[::-1], [["0"] + x[::-1] for x in r])), 0, []),
+]
+
+YAML = [
+    yaml_case("not-yaml", "name: [unclosed\n", 1, ["not valid YAML"]),
+    yaml_case("empty-file", "", 1, ["expected a mapping"]),
+    yaml_case("top-level-list", "- a\n- b\n", 1, ["expected a mapping"]),
+    yaml_case("unknown-key", UR5_YAML + "colour: red\n", 1, ["unknown key", "colour"]),
+    yaml_case("missing-convention", UR5_YAML.replace("convention: dh\n", ""), 1, ["missing required key", "convention"]),
+    yaml_case("bad-convention", UR5_YAML.replace("convention: dh", "convention: xyz"), 1, ["convention", "xyz"]),
+    yaml_case("units-string", UR5_YAML.replace("units: {length: mm, angle: deg}", "units: mm"), 1,
+              ["'units' must be a mapping", "length: mm"]),
+    yaml_case("units-inch", UR5_YAML.replace("length: mm", "length: inch"), 1, ["unknown length unit", "inch"]),
+    yaml_case("units-extra-key", UR5_YAML.replace("angle: deg}", "angle: deg, time: s}"), 1, ["takes only"]),
+    yaml_case("base-list", UR5_YAML + "base: [1, 2, 3]\n", 1, ["'base' must be a mapping"]),
+    yaml_case("tool-string", UR5_YAML.replace("tool: {x: 0, y: 0, z: 0}", "tool: flange"), 1,
+              ["'tool' must be a mapping", "flange"]),
+    yaml_case("base-unknown-key", UR5_YAML + "base: {q: 1}\n", 1, ["unknown parameter", "base.q"]),
+    yaml_case("joints-empty", UR5_YAML.split("joints:")[0] + "joints: []\n", 1, ["non-empty list"]),
+    yaml_case("joints-number", UR5_YAML.split("joints:")[0] + "joints: 5\n", 1, ["non-empty list"]),
+    yaml_case("joint-not-mapping", UR5_YAML.replace("  - {name: j6, theta: 0, d: 82.3, a: 0, alpha: 0, limits: "
+                                                    "[-360, 360]}", "  - j6"), 1, ["joint 6", "mapping"]),
+    yaml_case("joint-unknown-key", UR5_YAML.replace("name: j2,", "name: j2, offset: 3,"), 1, ["joint 2", "offset"]),
+    yaml_case("joint-bad-type", UR5_YAML.replace("name: j3,", "name: j3, type: spherical,"), 1, ["spherical"]),
+    yaml_case("limits-three", UR5_YAML.replace("limits: [-360, 360]}", "limits: [-360, 0, 360]}", 1), 1,
+              ["'limits' must be [lower, upper]"]),
+    yaml_case("limits-reversed", UR5_YAML.replace("limits: [-360, 360]}", "limits: [360, -360]}", 1), 1,
+              ["lower < upper"]),
+    yaml_case("value-text", UR5_YAML.replace("d: 89.159", "d: abc"), 1, ["'d' must be a number", "abc"]),
+    yaml_case("value-nan", UR5_YAML.replace("d: 89.159", "d: .nan"), 1, ["must be finite"]),
+    yaml_case("value-bool", UR5_YAML.replace("d: 89.159", "d: yes"), 1, ["must be a number"]),
+    yaml_case("duplicate-key", UR5_YAML.replace("d: 89.159,", "d: 89.159, d: 90,"), 1, ["given twice", "'d'"]),
+    yaml_case("duplicate-top-key", UR5_YAML + "name: other\n", 1, ["given twice", "'name'"]),
+    yaml_case("duplicate-joint-names", UR5_YAML.replace("name: j2,", "name: j1,"), 1,
+              ["robot.yaml", "duplicate joint names", "j1"]),
+    yaml_case("dot-in-joint-name", UR5_YAML.replace("name: j2,", "name: j.2,"), 1, ["contain no '.'"]),
+    yaml_case("degrees-without-units", UR5_YAML.replace("units: {length: mm, angle: deg}\n", "").replace(
+        "89.159", "0.089159").replace("-425", "-0.425").replace("-392.25", "-0.39225").replace("109.15", "0.10915")
+        .replace("94.65", "0.09465").replace("82.3", "0.0823"), 1, ["look like degrees", "units"]),
+    yaml_case("mm-without-units", UR5_YAML.replace("units: {length: mm, angle: deg}\n", "").replace(
+        "alpha: 90", "alpha: 1.5707963").replace("alpha: -90", "alpha: -1.5707963").replace(
+        "limits: [-360, 360]", "limits: [-6.28, 6.28]"), 1, ["look like mm", "units"]),
+    yaml_case("absurd-length", UR5_YAML.replace("a: -425", "a: 1e300"), 1, ["implausible"]),
+    yaml_case("puu3-parameters-list", PUU3_YAML.replace("parameters: {r: 100, R: 200, L1: 350, L2: 350, L3: 350}",
+                                                        "parameters: [100, 200]"), 1,
+              ["'parameters' must be a mapping"]),
+    yaml_case("puu3-unknown-parameter", PUU3_YAML.replace("r: 100", "rr: 100"), 1, ["unknown 3-PUU parameter", "rr"]),
+    yaml_case("puu3-slider-limits", PUU3_YAML + "slider_limits: 380\n", 1, ["slider_limits"]),
+    yaml_case("puu3-base-unknown", PUU3_YAML + "base: {w: 1}\n", 1, ["unknown base key", "w"]),
+    yaml_case("unknown-type", UR5_YAML.replace("convention: dh", "convention: dh\ntype: delta"), 1,
+              ["unknown robot type", "delta"]),
+    yaml_case("actuators-alone", UR5_YAML + "actuators: [{name: m1, limits: [0, 1]}]\n", 1, ["go together"]),
+    yaml_case("transmission-malformed", UR5_YAML + "actuators: [{name: m1, limits: [0, 1]}]\ntransmission: "
+              "{parameters: {sx: 10}, maps: [5]}\n", 1, ["robot.yaml", "malformed"]),
+    yaml_case("binary", "\x00\x01\x02", 1, ["robot.yaml"]),
+    pytest.param({"files": {"robot.yaml": "name: [unclosed\n"}, "argv": ["calibrate", "{d}/robot.yaml",
+                                                                          "{base}/good.csv", *MMDEG],
+                  "code": 1, "words": ["robot.yaml", "not valid YAML"]}, id="calibrate-with-bad-robot"),
+    pytest.param({"files": {"robot.yaml": UR5_YAML + "calibration: 5\n"},
+                  "argv": ["evaluate", "{d}/robot.yaml", "{base}/good.csv", *MMDEG], "code": 1,
+                  "words": ["calibration", "mapping"]}, id="evaluate-bad-calibration-section"),
+]
+YAML_GOOD = [
+    yaml_case("exponent-without-dot", UR5_YAML.replace("d: 89.159", "d: 89159e-3"), 0, []),
+    yaml_case("bom-robot", "\ufeff" + UR5_YAML, 0, []),
+]
+
+PATHS = [
+    case("calibrate-output-is-data", ["calibrate", "ur5", "{base}/good.csv", *MMDEG, "-o", "{base}/good.csv"], 1,
+         ["would overwrite"]),
+    case("calibrate-output-is-robot", ["calibrate", "{d}/r.yaml", "{base}/good.csv", *MMDEG, "-o", "{d}/r.yaml"], 1,
+         ["would overwrite"], files={"r.yaml": UR5_YAML}),
+    case("calibrate-residuals-is-output", ["calibrate", "ur5", "{base}/good.csv", *MMDEG, "-o", "{d}/c.yaml",
+                                           "--residuals", "{d}/c.yaml"], 1, ["would overwrite"]),
+    case("calibrate-output-folder-missing", ["calibrate", "ur5", "{base}/good.csv", *MMDEG, "-o", "{d}/no/c.yaml"], 1,
+         ["does not exist"]),
+    case("calibrate-output-is-folder", ["calibrate", "ur5", "{base}/good.csv", *MMDEG, "-o", "{d}"], 1,
+         ["is a folder"]),
+    case("calibrate-data-missing", ["calibrate", "ur5", "{d}/nothing.csv", *MMDEG], 1, ["cannot read"]),
+    case("calibrate-data-is-folder", ["calibrate", "ur5", "{d}", *MMDEG], 1, ["cannot read"]),
+    case("compensate-output-is-targets", ["compensate", "ur5", "{base}/targets.csv", *MMDEG, "-o",
+                                          "{base}/targets.csv"], 1, ["would overwrite"]),
+    case("compensate-output-is-robot", ["compensate", "{d}/r.yaml", "{base}/targets.csv", *MMDEG, "-o", "{d}/r.yaml"],
+         1, ["would overwrite"], files={"r.yaml": UR5_YAML}),
+    case("design-output-is-candidates", ["design", "ur5", "-m", "10", "--candidates", "{d}/c.csv", "-o", "{d}/c.csv"],
+         1, ["would overwrite"], files={"c.csv": "j1,j2,j3,j4,j5,j6\n0,0,0,0,0,0\n"}),
+    case("simulate-output-is-save-true", ["simulate", "ur5", "-o", "{d}/x.yaml", "--save-true", "{d}/x.yaml"], 1,
+         ["would overwrite"]),
+    case("simulate-output-is-joints", ["simulate", "ur5", "--joints", "{d}/j.csv", "-o", "{d}/j.csv"], 1,
+         ["would overwrite"], files={"j.csv": "j1,j2,j3,j4,j5,j6\n0,0,0,0,0,0\n"}),
+    case("simulate-output-folder-missing", ["simulate", "ur5", "-o", "{d}/none/x.csv"], 1, ["does not exist"]),
+    case("sensitivity-plot-folder-missing", ["sensitivity", "ur5", "--plot", "{d}/none/s.png"], 1, ["does not exist"]),
+    case("verify-output-is-plan", ["verify", "puu3", "--plan", "{d}/p.csv", "-o", "{d}/p.csv"], 1,
+         ["would overwrite"], files={"p.csv": "x\n"}),
+    case("robot-missing", ["show", "{d}/none.yaml"], 1, ["neither a bundled robot"]),
+    case("robot-is-folder", ["show", "{d}"], 1, ["neither a bundled robot"]),
+    case("unknown-bundled-name", ["show", "ur55"], 1, ["neither a bundled robot", "ur5"]),
+]
+
+ARGS = [
+    case("identifiability-zero-poses", ["identifiability", "ur5", "--poses", "0"], 2, ["at least 1"]),
+    case("identifiability-tol-text", ["identifiability", "ur5", "--tol", "small"], 2, ["not a number"]),
+    case("simulate-negative-noise", ["simulate", "ur5", "-o", "{d}/x.csv", "--noise", "-1"], 2, [">= 0"]),
+    case("simulate-zero-poses", ["simulate", "ur5", "-o", "{d}/x.csv", "--poses", "0"], 2, ["at least 1"]),
+    case("simulate-nan-noise", ["simulate", "ur5", "-o", "{d}/x.csv", "--noise", "nan"], 2, ["finite"]),
+    case("design-m-zero", ["design", "ur5", "-m", "0", "-o", "{d}/p.csv"], 2, ["at least 1"]),
+    case("design-m-too-small", ["design", "ur5", "-m", "5", "--pool", "300", "-o", "{d}/p.csv"], 1, ["choose m"]),
+    case("design-m-above-pool", ["design", "ur5", "-m", "40", "--pool", "30", "-o", "{d}/p.csv"], 1,
+         ["distinct candidates"]),
+    case("design-fedorov-criterion-A", ["design", "ur5", "-m", "20", "--pool", "300", "--criterion", "A", "-o",
+                                        "{d}/p.csv"], 1, ["D and I"]),
+    case("design-identical-candidates", ["design", "ur5", "-m", "10", "--candidates", "{d}/c.csv", "-o", "{d}/p.csv"],
+         1, ["1 distinct pose"], files={"c.csv": "j1,j2,j3,j4,j5,j6\n" + "0.1,0.2,0.3,0.4,0.5,0.6\n" * 50}),
+    case("design-candidates-beyond-limits", ["design", "guo3t2r", "-m", "10", "--candidates", "{d}/c.csv", "-o",
+                                             "{d}/p.csv"], 1, ["break the joint limits", "row 2"],
+         files={"c.csv": "phi1,phi2,phi3,phi4,phi5\n1e6,0,0,0,0\n"}),
+    case("design-negative-restarts", ["design", "ur5", "-o", "{d}/p.csv", "--restarts", "-1"], 2, ["at least 1"]),
+    case("npose-max-zero", ["npose", "ur5", "--max", "0"], 2, ["at least 1"]),
+    case("separate-zero-poses", ["separate", "guo3t2r", "--poses", "0"], 2, ["at least 1"]),
+    case("separate-negative-threshold", ["separate", "guo3t2r", "--threshold", "-5"], 2, [">= 0"]),
+    case("sensitivity-zero-samples", ["sensitivity", "ur5", "--samples", "0"], 2, ["at least 1"]),
+    case("sensitivity-unknown-param", ["sensitivity", "ur5", "--params", "j9.a"], 1, ["j9.a"]),
+    case("demo-zero-seeds", ["demo", "--seeds", "0"], 2, ["at least 1"]),
+    case("demo-too-few-poses", ["demo", "--poses", "2", "--seeds", "1"], 1, ["choose m"]),
+    case("verify-nothing-to-do", ["verify", "puu3"], 1, ["nothing to do", "-o FILE"]),
+    case("verify-measured-without-plan", ["verify", "puu3", "--measured", "{base}/good.csv"], 1, ["needs --plan"]),
+    case("verify-plan-not-a-plan", ["verify", "puu3", "--plan", "{base}/good.csv", "--measured", "{base}/good.csv"], 1,
+         ["not a verification plan"]),
+    case("verify-zero-samples", ["verify", "puu3", "--samples", "0", "-o", "{d}/p.csv"], 2, ["at least 1"]),
+    case("verify-zero-tolerance", ["verify", "puu3", "-o", "{d}/p.csv", "--tolerance", "0"], 2, ["> 0"]),
+    case("unknown-command", ["frobnicate"], 2, ["invalid choice"]),
+    case("calibrate-missing-data-argument", ["calibrate", "ur5"], 2, ["required"]),
+]
+
+COMPENSATE = [
+    case("compensate-targets-in-m-declared-mm", ["compensate", "ur5", "{d}/t.csv", *MMDEG, "-o", "{d}/c.csv"], 4,
+         ["row 2", "beyond the robot's reach"], files={"t.csv": lambda b: _targets(b, xyz_factor=1e3)}),
+    case("compensate-out-of-reach", ["compensate", "ur5", "{d}/t.csv", *MMDEG, "-o", "{d}/c.csv"], 4,
+         ["row 4", "beyond the robot's reach"], files={"t.csv": lambda b: _targets(b, far_row=2)}),
+    case("compensate-joints-and-targets-disagree", ["compensate", "ur5", "{d}/t.csv", *MMDEG, "-o", "{d}/c.csv"], 4,
+         ["do not belong together"], files={"t.csv": lambda b: _targets(b, swap_joints=True)}),
+    case("compensate-across-joint-limit", ["compensate", "{d}/r.yaml", "{d}/t.csv", *MMDEG, "-o", "{d}/c.csv"], 4,
+         ["row 2", "joint limits"], files={"r.yaml": lambda b: _tight_robot(), "t.csv": lambda b: _limit_target()}),
+    case("compensate-targets-without-joints", ["compensate", "ur5", "{d}/t.csv", *MMDEG, "-o", "{d}/c.csv"], 1,
+         ["not found", "j1"], files={"t.csv": "x,y,z\n100,200,300\n"}),
+    case("compensate-puu3-out-of-reach", ["compensate", "puu3", "{d}/t.csv", "-o", "{d}/c.csv"], 4,
+         ["row 3", "out of reach"], files={"t.csv": "x,y,z\n0.02,-0.03,0.30\n5.0,0.0,0.3\n"}),
+]
+
+
+def _targets(base, xyz_factor=1.0, far_row=None, swap_joints=False):
+    lines = (base / "targets.csv").read_text().splitlines()
+    rows = [line.split(",") for line in lines[1:]]
+    for k, r in enumerate(rows):
+        r[6:] = [repr(float(v) * xyz_factor) for v in r[6:]]
+        if far_row == k:
+            r[6:] = ["5000", "0", "0"]
+        if swap_joints:
+            r[0:6] = r[5::-1]
+    return "\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n"
+
+
+Q_LIMIT = np.array([10.0, -90.9, 40.0, 10.0, 60.0, 10.0])  # deg: the nominal command of the limit case
+
+
+def _tight_robot():
+    """The UR5 with every joint limited to ±0.01° around Q_LIMIT."""
+    text = UR5_YAML
+    for k, q in enumerate(Q_LIMIT):
+        start = text.index(f"name: j{k + 1},")
+        end = text.index("}", start)
+        line = text[start:end]
+        text = text[:start] + line[:line.index("limits:")] + f"limits: [{q - 0.01}, {q + 0.01}]" + text[end:]
+    return text
+
+
+def _limit_target():
+    """A target 7 mm from where the nominal command puts the tool: reachable only beyond the limits."""
+    r = kincal.models.yaml_io.robot_from_dict(yaml.safe_load(_tight_robot()))
+    q = np.deg2rad(Q_LIMIT)[None]
+    xyz = (r.forward(q) + [0.004, 0.004, 0.004]) * 1e3
+    return "j1,j2,j3,j4,j5,j6,x,y,z\n" + ",".join(f"{v:.9f}" for v in (*Q_LIMIT, *xyz[0])) + "\n"
+
+
+ALL = CSV + CSV_GOOD + YAML + YAML_GOOD + PATHS + ARGS + COMPENSATE
+
+
+@pytest.mark.parametrize("spec", ALL)
+def test_bad_input(spec, base, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for name, content in spec["files"].items():
+        content = content(base) if callable(content) else content
+        (tmp_path / name).write_bytes(content.encode() if isinstance(content, str) else content)
+    argv = [a.format(d=tmp_path, base=base) for a in spec["argv"]]
+    before = {p: _sha(p) for p in [*tmp_path.rglob("*"), *base.iterdir()] if p.is_file()}
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse
+        code = exc.code
+    cap = capsys.readouterr()
+    assert code == spec["code"], cap.err + cap.out
+    assert "Traceback" not in cap.err + cap.out and "internal error" not in cap.err
+    for word in spec["words"]:
+        assert word in cap.err + cap.out, (word, cap.err + cap.out)
+    for p, h in before.items():  # no input damaged
+        assert p.exists() and _sha(p) == h, f"{p} changed"
+    if code not in (0,):
+        created = [p for p in tmp_path.rglob("*") if p.is_file() and p not in before]
+        assert not created, f"refused, but wrote {created}"
+
+
+def test_corpus_size():
+    assert len(ALL) >= 100
+
+
+def test_outputs_get_normal_permissions(tmp_path, capsys):
+    old = os.umask(0o022)
+    try:
+        assert main(["simulate", "ur5", "-o", str(tmp_path / "x.csv"), "--poses", "5", "--json"]) == 0
+    finally:
+        os.umask(old)
+    capsys.readouterr()
+    assert (tmp_path / "x.csv").stat().st_mode & 0o777 == 0o644
+
+
+@pytest.mark.parametrize("sig, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
+def test_signals_end_cleanly(tmp_path, sig, code, word):
+    """Ctrl-C or SIGTERM during a long command: one line, the conventional exit code, no file left."""
+    out = tmp_path / "poses.csv"
+    proc = subprocess.Popen([sys.executable, "-m", "kincal.cli", "design", "guo3t2r", "-m", "60", "--pool", "3000",
+                             "--method", "detmax-ide", "--criterion", "comprehensive", "--generations", "100000",
+                             "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    time.sleep(4.0)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == code, err
+    assert word in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []

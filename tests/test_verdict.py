@@ -1,0 +1,168 @@
+"""Every result says whether to believe it: verdicts, outliers by row, extrapolation, checked commands."""
+import json
+
+import numpy as np
+import pytest
+from conftest import DATA, UR5_COLS
+
+import kincal
+from kincal.cli import main
+from kincal.identify.verdict import duplicate_groups, robust_z
+
+UNITS = ["--length-unit", "mm", "--angle-unit", "deg"]
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+@pytest.fixture(scope="module")
+def sim(ur5):
+    true = kincal.perturb(ur5, seed=1)
+    meas = kincal.simulate(true, ur5.sample_joints(80, seed=3), 15e-6, seed=0)
+    val = kincal.simulate(true, ur5.sample_joints(200, seed=9), 0.0)
+    return true, meas, val
+
+
+@pytest.mark.parametrize("factor", [10.0, 25.4, 1000.0])
+@pytest.mark.parametrize("direction", ["smaller", "larger"])
+def test_unit_mistakes_are_refused(ur5, sim, tmp_path, capsys, factor, direction):
+    """Positions in cm, inches or m (or the reverse) declared as mm never calibrate quietly."""
+    _, meas, _ = sim
+    f = 1.0 / factor if direction == "smaller" else factor
+    wrong = kincal.Measurements(meas.q, meas.xyz * f, meas.joint_names, "wrong.csv")
+    # at reading, against the robot's own spread of positions at the same joints
+    path = tmp_path / "wrong.csv"
+    kincal.write_measurements(path, wrong, ur5.joint_types, "mm", "deg")
+    code, _, err = run(capsys, "calibrate", "ur5", path, *UNITS, "-o", tmp_path / "cal.yaml")
+    assert code == 1 and "spread" in err and not (tmp_path / "cal.yaml").exists()
+    # the API refuses such data the same way
+    with pytest.raises(kincal.MeasurementError, match="spread"):
+        kincal.calibrate(ur5, wrong)
+
+
+def test_implausible_corrections_are_refused(ur5, sim):
+    """Data that passes the unit checks but fits only with absurd geometry (joint columns 2 and 3
+    swapped) is refused by its corrections and its residual."""
+    _, meas, _ = sim
+    swapped = kincal.Measurements(meas.q[:, [0, 2, 1, 3, 4, 5]], meas.xyz, meas.joint_names, "swapped.csv")
+    res = kincal.calibrate(ur5, swapped)
+    codes = {r.code for r in res.verdict.reasons if r.level == "refused"}
+    assert res.verdict.status == "refused" and {"implausible-correction", "residual"} <= codes
+
+
+def test_real_ur5_grid_is_good(tmp_path, capsys):
+    cal = tmp_path / "cal.yaml"
+    cols = ["--joint-cols", ",".join(UR5_COLS)]
+    code, out, _ = run(capsys, "calibrate", "ur5", DATA / "ur5_grid.csv", *UNITS, *cols, "-o", cal, "--json")
+    res = json.loads(out)
+    assert code == 0 and res["verdict"] == {"status": "good", "reasons": []}
+    assert len(res["poses"]) == 1000 and res["poses"][0]["row"] == 2
+    assert not any(p["outlier"] for p in res["poses"])
+    code, out, _ = run(capsys, "evaluate", cal, DATA / "ur5_random.csv", *UNITS, *cols, "--json")
+    ev = json.loads(out)
+    assert ev["mean"] == pytest.approx(0.1005e-3, abs=0.00005e-3) and ev["warnings"] == []
+    assert len(ev["predicted_sigma"]) == 20 and max(ev["predicted_sigma"]) < 0.05e-3
+
+
+def test_outlier_is_named_and_robust_fits_recover(ur5, sim, tmp_path, capsys):
+    true, meas, val = sim
+    clean = kincal.evaluate(kincal.calibrate(ur5, meas).robot, val).mean
+    xyz = meas.xyz.copy()
+    xyz[37] += [0.03, 0.04, 0.0]  # one 50 mm outlier, input row 39
+    path = tmp_path / "sim.csv"
+    kincal.write_measurements(path, kincal.Measurements(meas.q, xyz, meas.joint_names), ur5.joint_types, "mm", "deg")
+    table = tmp_path / "residuals.csv"
+    code, out, err = run(capsys, "calibrate", "ur5", path, *UNITS, "--residuals", table)
+    assert "row(s) 39" in out and "--loss huber" in out and "--exclude 39" in out
+    rows = table.read_text().splitlines()
+    flagged = [r.split(",")[0] for r in rows[1:] if r.endswith(",yes")]
+    assert flagged == ["39"] and rows[0].startswith("row,j1,") and "robust_z" in rows[0]
+    for extra in (["--loss", "huber"], ["--exclude", "39"]):
+        cal = tmp_path / f"cal{extra[0]}.yaml"
+        code, out, err = run(capsys, "calibrate", "ur5", path, *UNITS, *extra, "-o", cal)
+        assert code == 0, err
+        fixed = kincal.evaluate(kincal.load_robot(cal), val).mean
+        assert fixed <= 1.1 * clean, (extra, fixed, clean)
+
+
+def test_repeated_poses_are_named(ur5, sim):
+    _, meas, _ = sim
+    idx = np.r_[np.arange(80), [5, 5, 17]]  # a file whose last three rows repeat rows 7, 7 and 19
+    res = kincal.calibrate(ur5, kincal.Measurements(meas.q[idx], meas.xyz[idx], meas.joint_names, "rep.csv"))
+    msg = next(r.message for r in res.verdict.reasons if r.code == "repeated-poses")
+    assert res.verdict.status == "suspect" and "rows 7, 82, 83" in msg and "rows 19, 84" in msg
+
+
+def test_robust_z_and_duplicates_by_hand():
+    z = robust_z(np.array([1.0, 2.0, 3.0, 4.0, 100.0]))
+    assert z[2] == 0.0 and z[4] == pytest.approx(97.0 / 1.4826)  # median 3, MAD 1
+    groups = duplicate_groups(np.array([[0.0, 1.0], [2.0, 3.0], [0.0, 1.0], [2.0, 3.0 + 1e-12], [5.0, 5.0]]))
+    assert [g.tolist() for g in groups] == [[0, 2], [1, 3]]
+
+
+def test_nothing_written_when_not_converged(ur5, sim, tmp_path, capsys):
+    _, meas, _ = sim
+    path = tmp_path / "sim.csv"
+    kincal.write_measurements(path, meas, ur5.joint_types, "mm", "deg")
+    cal = tmp_path / "cal.yaml"
+    code, out, err = run(capsys, "calibrate", "ur5", path, *UNITS, "--max-iter", "1", "-o", cal)
+    assert code == 3 and not cal.exists() and "nothing written" in out and "--force" in out
+    code, out, err = run(capsys, "calibrate", "ur5", path, *UNITS, "--max-iter", "1", "-o", cal, "--force")
+    assert code == 3 and cal.exists() and "forced" in out
+
+
+def test_extrapolation_is_flagged_on_real_data(ur5):
+    """Train on the UR5 grid poses with joint 1 below its median; poses above it are extrapolation."""
+    grid = kincal.read_measurements(DATA / "ur5_grid.csv", ur5, UR5_COLS, length_unit="mm", angle_unit="deg")
+    low = grid.q[:, 0] <= np.median(grid.q[:, 0])
+    inside = grid.subset(np.flatnonzero(low))
+    order = np.random.default_rng(0).permutation(len(inside))
+    train, held = inside.subset(order[:375]), inside.subset(order[375:])
+    res = kincal.calibrate(ur5, train)
+    unc = res.uncertainty()
+    on_held = kincal.evaluate(res.robot, held, uncertainty=unc)
+    outside = kincal.evaluate(res.robot, grid.subset(np.flatnonzero(~low)), uncertainty=unc)
+    assert on_held.warnings == () and on_held.extrapolated_rows == ()
+    assert len(outside.extrapolated_rows) > 0 and "did not constrain" in outside.warnings[0]
+    assert max(outside.predicted_sigma) > kincal.EXTRAPOLATION_RATIO * unc.training_median
+    assert set(outside.extrapolated_rows) <= set(grid.rows[~low].tolist())
+
+
+def test_predicted_sigma_matches_monte_carlo(ur5, sim):
+    """σ(q) = sqrt(tr(J C Jᵀ)) against the scatter of predictions over repeated noisy calibrations."""
+    true, meas, _ = sim
+    q_test = ur5.sample_joints(5, seed=11)
+    preds = []
+    for seed in range(60):
+        m = kincal.simulate(true, meas.q, 15e-6, seed=100 + seed)
+        preds.append(kincal.calibrate(ur5, m, base="fixed").robot.forward(q_test))
+    spread = np.sqrt(np.mean(np.sum((np.array(preds) - np.mean(preds, axis=0)) ** 2, axis=2), axis=0))
+    res = kincal.calibrate(ur5, kincal.simulate(true, meas.q, 15e-6, seed=7), base="fixed")
+    predicted = res.uncertainty().sigma(res.robot, q_test)
+    np.testing.assert_allclose(predicted, spread, rtol=0.3)
+
+
+def test_compensate_checks_every_row(ur5, tmp_path, capsys):
+    true = kincal.perturb(ur5, seed=21)
+    cal = kincal.calibrate(ur5, kincal.simulate(true, ur5.sample_joints(80, seed=21), 15e-6, seed=2)).robot
+    q = ur5.sample_joints(4, seed=5)
+    targets = ur5.forward(q)
+    targets[1] = [3.0, 0.0, 0.0]  # out of reach
+    comp = kincal.compensate(cal, targets, q, rows=np.arange(2, 6))
+    assert comp.ok.tolist() == [True, False, True, True] and comp.problems[0].startswith("row 3: target 3000.0 mm")
+    # the CLI refuses, or with --skip-unreachable writes only the good rows
+    path = tmp_path / "t.csv"
+    path.write_text("j1,j2,j3,j4,j5,j6,x,y,z\n" + "\n".join(
+        ",".join(repr(float(v)) for v in (*qi, *ti)) for qi, ti in zip(q, targets)) + "\n")
+    robot = tmp_path / "cal.yaml"
+    kincal.save_robot(cal, robot)
+    out = tmp_path / "cmds.csv"
+    code, text, _ = run(capsys, "compensate", robot, path, "-o", out)
+    assert code == 4 and not out.exists() and "row 3" in text
+    code, text, _ = run(capsys, "compensate", robot, path, "-o", out, "--skip-unreachable")
+    written = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert code == 0 and written.shape == (3, 6)
+    np.testing.assert_allclose(written, comp.q[comp.ok], atol=1e-12)
