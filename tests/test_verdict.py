@@ -166,3 +166,20 @@ def test_compensate_checks_every_row(ur5, tmp_path, capsys):
     written = np.loadtxt(out, delimiter=",", skiprows=1)
     assert code == 0 and written.shape == (3, 6)
     np.testing.assert_allclose(written, comp.q[comp.ok], atol=1e-12)
+
+
+def test_compensate_reports_sigma_and_extrapolation(ur5, sim):
+    """Commands where the calibration poses were (inside) and far from them (outside)."""
+    true, meas, _ = sim
+    near = meas.subset(np.flatnonzero(np.abs(meas.q[:, 1] + 1.0) < 1.0))  # joint 2 within ±57° of −57°
+    res = kincal.calibrate(ur5, near, base="fixed")
+    unc = res.uncertainty()
+    q_in, q_out = near.q[:3], near.q[:3].copy()
+    q_out[:, 1] += np.pi  # the upper arm turned half a turn: no calibration pose was there
+    q = np.vstack([q_in, q_out])
+    comp = kincal.compensate(res.robot, ur5.forward(q), q, rows=np.arange(2, 8), uncertainty=unc)
+    assert comp.ok.all() and comp.predicted_sigma.shape == (6,)
+    np.testing.assert_allclose(comp.predicted_sigma, unc.sigma(res.robot, comp.q), rtol=1e-12)
+    assert comp.warnings and "row(s)" in comp.warnings[0]
+    flagged = unc.extrapolated(comp.predicted_sigma)
+    assert not flagged[:3].any() and flagged[3:].any()

@@ -16,7 +16,7 @@ def cmd_compensate(args) -> int:
     start = None
     if not hasattr(r, "inverse"):
         start = kincal.read_joints(args.targets, r, args.joint_cols, args.length_unit, args.angle_unit)
-    comp = kincal.compensate(r, targets, start, rows=rows)
+    comp = kincal.compensate(r, targets, start, rows=rows, uncertainty=kincal.load_uncertainty(args.robot))
     written = comp.all_ok or (args.skip_unreachable and comp.ok.any())
     if written:
         kincal.write_joints(args.output, comp.q[comp.ok], r, args.joint_cols, args.length_unit, args.angle_unit)
@@ -29,6 +29,10 @@ def cmd_compensate(args) -> int:
     else:
         text += (f"\nnothing written to {args.output}: {len(comp.problems)} of {len(targets)} targets refused"
                  + ("" if args.skip_unreachable else " (--skip-unreachable writes the others)"))
+    if comp.predicted_sigma is not None and comp.ok.any():
+        s = comp.predicted_sigma[comp.ok]
+        text += f"\nmodel's predicted σ at the commands: median {np.median(s) * MM:.4f} mm, max {s.max() * MM:.4f} mm"
+    text += "".join(f"\nwarning: {w}" for w in comp.warnings)
     emit(args, payload, text.strip())
     return 0 if written else EXIT_REFUSED
 

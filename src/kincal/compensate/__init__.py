@@ -1,10 +1,12 @@
 """Compensation: joint commands that the calibrated model says reach given target positions."""
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..analysis.uncertainty import ModelUncertainty, extrapolation_warning
 from ..errors import ModelError
 from ..models.robot import Robot
 
@@ -32,6 +34,8 @@ class Compensation:
     ok: np.ndarray | None = None
     problems: tuple[str, ...] = ()
     rows: np.ndarray | None = None
+    predicted_sigma: np.ndarray | None = None  # (N,) m, where the model's uncertainty is known
+    warnings: tuple[str, ...] = ()
 
     @property
     def all_ok(self) -> bool:
@@ -43,11 +47,13 @@ class Compensation:
         return {"q": [qi.tolist() if k else None for qi, k in zip(self.q, ok)],
                 "residual": [float(r) if np.isfinite(r) else None for r in res],
                 "max_residual": float(np.nanmax(res[ok])) if ok.any() else None, "method": self.method,
-                "iterations": self.iterations, "ok": ok.tolist(), "problems": list(self.problems)}
+                "iterations": self.iterations, "ok": ok.tolist(), "problems": list(self.problems),
+                "predicted_sigma": None if self.predicted_sigma is None else
+                [float(x) if np.isfinite(x) else None for x in self.predicted_sigma], "warnings": list(self.warnings)}
 
 
 def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = None, damping: float = 1e-4,
-               rows: np.ndarray | None = None) -> Compensation:
+               rows: np.ndarray | None = None, uncertainty: ModelUncertainty | None = None) -> Compensation:
     """Joint commands that place ``robot``'s tool at targets (N, 3) m, each checked before use.
 
     Robots with a closed-form inverse (parallel robots) use it. Otherwise (serial robots) a damped
@@ -57,6 +63,8 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     (and plausibly in the declared unit), the command inside the joint limits, on the same branch
     as the nominal command (no joint moving more than ``BRANCH_TOL``), with a model residual under
     1 µm. ``ok`` and ``problems`` (rows are ``rows``, default 1-based positions) report the checks.
+    With the model's ``uncertainty`` the predicted σ at every command is reported, with a warning
+    naming the rows where the model extrapolates.
     """
     targets = np.atleast_2d(np.asarray(targets, dtype=float))
     rows = np.arange(1, len(targets) + 1) if rows is None else np.asarray(rows)
@@ -64,7 +72,7 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     if inverse is not None:
         q = inverse(targets, strict=False)
         comp = Compensation(q, _residual(robot, q, targets), "closed-form inverse", 0)
-        return _checked(robot, comp, targets, None, rows)
+        return _with_sigma(robot, _checked(robot, comp, targets, None, rows), uncertainty)
     if q_start is None:
         raise ModelError(f"robot '{robot.name}' has no closed-form inverse: give the nominal joint values of the "
                          f"targets as the starting point")
@@ -80,7 +88,17 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
         A = Jq @ np.swapaxes(Jq, 1, 2) + damping**2 * np.eye(3)
         q = q + np.einsum("nji,nj->ni", Jq, np.linalg.solve(A, e[..., None])[..., 0])
     comp = Compensation(q, _residual(robot, q, targets), "damped least squares", it)
-    return _checked(robot, comp, targets, q0, rows)
+    return _with_sigma(robot, _checked(robot, comp, targets, q0, rows), uncertainty)
+
+
+def _with_sigma(robot: Robot, comp: Compensation, unc: ModelUncertainty | None) -> Compensation:
+    """The compensation with the predicted σ at its accepted commands and an extrapolation warning."""
+    if unc is None or not comp.ok.any():
+        return comp
+    sigma = np.full(len(comp.q), np.nan)
+    sigma[comp.ok] = unc.sigma(robot, comp.q[comp.ok])
+    warning = extrapolation_warning(comp.rows[comp.ok], sigma[comp.ok], unc)
+    return dataclasses.replace(comp, predicted_sigma=sigma, warnings=(warning,) if warning else ())
 
 
 def _residual(robot: Robot, q: np.ndarray, targets: np.ndarray) -> np.ndarray:
