@@ -133,6 +133,8 @@ CSV = [
     csv_case("duplicated-joint-column", lambda b: edit(b, lambda h, r: (h, [[x[0], x[0], *x[2:]] for x in r])), 4,
              ["refused"]),
     csv_case("wrong-robot", lambda b: (b / "good.csv").read_text(), 1, ["j7", "not found"], robot="wam"),
+    csv_case("wrong-robot-same-joints", lambda b: (b / "good.csv").read_text(), 4, ["implausible", "robot file"],
+             robot="ur10"),
     csv_case("exclude-unknown-row", lambda b: (b / "good.csv").read_text(), 1, ["row(s) 999", "not data rows"],
              extra=["--exclude", "999"]),
     csv_case("exclude-bad-syntax", lambda b: (b / "good.csv").read_text(), 2, ["row number"],

@@ -191,7 +191,7 @@ def judge(res: CalibrationResult, problem: CalibrationProblem, th: Thresholds) -
     reasons += correction_reasons(problem.start, {n: res.corrections[n] for n in res.names
                                                   if np.isfinite(res.std[n])}, th)
     pos_sigma = float(np.sqrt(np.sum(res.residuals**2) / max(res.residuals.size - len(res.names), 1)))
-    reasons += residual_reasons(pos_sigma, th) + outlier_reasons(meas.rows, z, th) + duplicate_reasons(meas.rows, meas.q)
+    reasons += residual_reasons(pos_sigma, th) + outlier_reasons(meas.rows, z, th) + duplicate_reasons(meas.rows, problem.repeats)
     return dataclasses.replace(res, verdict=Verdict.from_reasons(reasons), measurements=meas, pose_z=z,
                                outlier_z=th.outlier_z)
 

@@ -36,6 +36,7 @@ class CalibrationProblem:
     ident: Identifiability
     base: str
     values0: np.ndarray
+    repeats: tuple[np.ndarray, ...] = ()  # groups of poses with the same joint values (indices)
 
     @property
     def cols(self) -> np.ndarray:
@@ -83,7 +84,8 @@ def build_problem(robot: Robot, meas: Measurements, params: str | Sequence[str],
     must be identifiable (local solvers); otherwise undetermined ones stay free (global search)."""
     meas.check_robot(robot)
     start = robot
-    distinct = len(meas) - sum(len(g) - 1 for g in duplicate_groups(meas.q))
+    repeats = tuple(duplicate_groups(meas.q))
+    distinct = len(meas) - sum(len(g) - 1 for g in repeats)
     if base == "estimate":
         if distinct < 3:
             raise MeasurementError(f"{meas.source}: registering the base frame needs at least 3 distinct poses, got "
@@ -105,4 +107,4 @@ def build_problem(robot: Robot, meas: Measurements, params: str | Sequence[str],
             f"{'' if distinct == len(meas) else f' ({len(meas)} rows, some repeating the same joint values)'}; "
             f"measure at least {len(names) // res.components + 1} poses (3-5 times as many is advisable)")
     res.check(start.params.values)
-    return CalibrationProblem(start, meas, tuple(names), res, ident, base, start.params.values.copy())
+    return CalibrationProblem(start, meas, tuple(names), res, ident, base, start.params.values.copy(), repeats)

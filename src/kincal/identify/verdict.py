@@ -155,8 +155,8 @@ def outlier_reasons(rows: np.ndarray, z: np.ndarray, th: Thresholds) -> list[Rea
                                           f"{listed(bad)}; use --loss huber, or --exclude {','.join(map(str, bad[:MAX_LISTED]))}")]
 
 
-def duplicate_reasons(rows: np.ndarray, q: np.ndarray) -> list[Reason]:
-    groups = duplicate_groups(q)
+def duplicate_reasons(rows: np.ndarray, groups) -> list[Reason]:
+    """Repeated poses (groups of indices, see :func:`duplicate_groups`), named by input row."""
     if not groups:
         return []
     shown = "; ".join(f"rows {listed(rows[g])}" for g in groups[:5])

@@ -87,8 +87,9 @@ class Measurements:
                     f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)"
                 )
         if len(self) >= 3:
-            ratio = _spread(self.xyz) / max(_spread(robot.forward(self.q)), 1e-300)
-            if _spread(robot.forward(self.q)) > MIN_SPREAD and not 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
+            spread = _spread(robot.forward(self.q))
+            ratio = _spread(self.xyz) / max(spread, 1e-300)
+            if spread > MIN_SPREAD and not 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
                 raise MeasurementError(f"{self.source}: {_unit_hint(ratio, length_unit)}")
 
 
