@@ -74,6 +74,30 @@ def row_list(s: str) -> list[int]:
     return rows
 
 
+def add_robot(p: argparse.ArgumentParser, help_: str = "bundled name, kincal robot YAML or URDF file") -> None:
+    """The ROBOT argument, with the URDF chain flags."""
+    p.add_argument("robot", help=help_)
+    g = p.add_argument_group("URDF robots")
+    g.add_argument("--base-link", help="first link of the chain (default: the URDF's root link)")
+    g.add_argument("--tip-link", help="last link of the chain (default: the only end link)")
+    g.add_argument("--tool", type=_triple, help="tool point X,Y,Z in m in the tip link's frame (default 0,0,0)")
+
+
+def _triple(s: str) -> tuple[float, float, float]:
+    try:
+        t = tuple(float(x) for x in csv_list(s))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}': give three numbers X,Y,Z (m)") from None
+    if len(t) != 3 or not all(np.isfinite(t)):
+        raise argparse.ArgumentTypeError(f"'{s}': give three finite numbers X,Y,Z (m)")
+    return t
+
+
+def load_robot(args):
+    """The command's robot, with the URDF chain flags when given."""
+    return kincal.load_robot(args.robot, base_link=args.base_link, tip_link=args.tip_link, tool=args.tool)
+
+
 def robot_inputs(robot: str) -> list[str]:
     """The robot argument as an input file, if it is one."""
     return [robot] if Path(robot).is_file() else []

@@ -6,13 +6,13 @@ import numpy as np
 import kincal
 import kincal.design
 
-from .common import (add_data_flags, check_paths, csv_list, emit, nonneg_int, positive_float, positive_int, progress,
-                     robot_inputs)
+from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, load_robot, nonneg_int, positive_float,
+                     positive_int, progress, robot_inputs)
 
 
 def cmd_design(args) -> int:
     check_paths([*robot_inputs(args.robot), args.candidates], [args.output])
-    r = kincal.load_robot(args.robot)
+    r = load_robot(args)
     if args.candidates:
         pool = kincal.read_joints(args.candidates, r, args.joint_cols, args.length_unit, args.angle_unit)
         bad = ~r.feasible(pool)
@@ -34,7 +34,7 @@ def cmd_design(args) -> int:
 
 
 def cmd_npose(args) -> int:
-    r = kincal.load_robot(args.robot)
+    r = load_robot(args)
     P = kincal.design.design_problem(r, kincal.candidate_pool(r, max(args.max, 200), seed=args.seed),
                                      params=args.params)
     curve = kincal.design.pose_count_curve(P, args.criterion, m_max=args.max, seed=args.seed)
@@ -51,7 +51,7 @@ def cmd_npose(args) -> int:
 
 
 def cmd_separate(args) -> int:
-    r = kincal.load_robot(args.robot)
+    r = load_robot(args)
     sep = kincal.separate_ill_conditioned(r, kincal.candidate_pool(r, args.poses, seed=args.seed),
                                           threshold=args.threshold, keep=args.keep or ())
     emit(args, sep.to_dict(), sep.tables())
@@ -61,7 +61,7 @@ def cmd_separate(args) -> int:
 def register(cmd) -> None:
     """Add the commands to the parser through ``cmd(name, func, help)``."""
     s = cmd("design", cmd_design, "choose measurement poses (writes a poses CSV)")
-    s.add_argument("robot")
+    add_robot(s)
     s.add_argument("-m", type=positive_int, default=60, help="number of poses (default 60)")
     s.add_argument("-o", "--output", required=True, help="poses CSV to write")
     src = s.add_mutually_exclusive_group()
@@ -78,14 +78,14 @@ def register(cmd) -> None:
     add_data_flags(s)
 
     s = cmd("npose", cmd_npose, "how many poses: eq. 18 minimum and where the criterion curve flattens")
-    s.add_argument("robot")
+    add_robot(s)
     s.add_argument("--criterion", default="comprehensive", choices=list(kincal.design.CRITERIA))
     s.add_argument("--max", type=positive_int, default=100, help="largest number of poses on the curve (default 100)")
     s.add_argument("--params", type=csv_list, help="parameters (default: identifiable set)")
     s.add_argument("--seed", type=int, default=0)
 
     s = cmd("separate", cmd_separate, "GCN branch-and-bound separation of ill-conditioned parameters")
-    s.add_argument("robot")
+    add_robot(s)
     s.add_argument("--poses", type=positive_int, default=100, help="random poses (default 100)")
     s.add_argument("--threshold", type=positive_float, default=1e2, help="GCN threshold (default 1e2)")
     s.add_argument("--keep", type=csv_list, help="parameters to remove last when removals tie")

@@ -5,8 +5,8 @@ import argparse
 
 import kincal
 
-from .common import (DEG, EXIT_NOT_CONVERGED, EXIT_REFUSED, MM, add_data_flags, check_paths, csv_list, emit, err,
-                     positive_float, positive_int, progress, read, robot_inputs, row_list)
+from .common import (DEG, EXIT_NOT_CONVERGED, EXIT_REFUSED, MM, add_data_flags, add_robot, check_paths, csv_list, emit,
+                     err, load_robot, positive_float, positive_int, progress, read, robot_inputs, row_list)
 
 
 def _thresholds(args) -> kincal.Thresholds:
@@ -18,7 +18,7 @@ def _thresholds(args) -> kincal.Thresholds:
 
 def cmd_calibrate(args) -> int:
     check_paths([*robot_inputs(args.robot), args.data], [args.output, args.residuals])
-    r = kincal.load_robot(args.robot)
+    r = load_robot(args)
     meas = read(args, r, args.data)
     if args.exclude:
         meas = meas.without_rows(args.exclude)
@@ -53,7 +53,7 @@ def cmd_calibrate(args) -> int:
 
 def cmd_evaluate(args) -> int:
     check_paths([*robot_inputs(args.robot), args.data], [])
-    r = kincal.load_robot(args.robot)
+    r = load_robot(args)
     meas = read(args, r, args.data)
     stats = kincal.evaluate(r, meas, rebase=args.rebase, uncertainty=kincal.load_uncertainty(args.robot))
     emit(args, stats.to_dict(), f"{r.name} on {args.data}{' (base re-fitted)' if args.rebase else ''}: {stats}")
@@ -73,7 +73,7 @@ def _pair(s: str) -> tuple[float, float]:
 def register(cmd) -> None:
     """Add the commands to the parser through ``cmd(name, func, help)``."""
     s = cmd("calibrate", cmd_calibrate, "identify the robot's parameters from measurements")
-    s.add_argument("robot")
+    add_robot(s)
     s.add_argument("data", help="measurement CSV")
     s.add_argument("-o", "--output", help="calibrated robot YAML to write")
     s.add_argument("--base", choices=list(kincal.BASE_MODES), default="estimate",
@@ -96,7 +96,7 @@ def register(cmd) -> None:
     add_data_flags(s)
 
     s = cmd("evaluate", cmd_evaluate, "position error statistics of a robot model on measurements")
-    s.add_argument("robot")
+    add_robot(s)
     s.add_argument("data")
     s.add_argument("--rebase", action="store_true", help="re-fit only the base frame first")
     add_data_flags(s)

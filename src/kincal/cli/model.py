@@ -1,12 +1,13 @@
 """Commands about robots and their kinematics: robots, show, identifiability, simulate, sensitivity."""
 from __future__ import annotations
 
+import numpy as np
 from rich.table import Table
 
 import kincal
 
-from .common import (DEG, MM, add_data_flags, check_paths, csv_list, emit, nonneg_float, out, positive_float,
-                     positive_int, robot_inputs)
+from .common import (DEG, MM, add_data_flags, add_robot, check_paths, csv_list, emit, load_robot, nonneg_float, out,
+                     positive_float, positive_int, robot_inputs)
 
 
 def cmd_robots(args) -> int:
@@ -21,7 +22,7 @@ def cmd_robots(args) -> int:
 
 
 def cmd_show(args) -> int:
-    r = kincal.load_robot(args.robot)
+    r = load_robot(args)
     t = Table("parameter", "value", "unit", title=f"{r.name} ({r.kind}, {r.n_joints} joints)")
     for n, k, v in zip(r.params.names, r.params.kinds, r.params.values):
         t.add_row(n, f"{v * MM:.6g}" if k == "length" else f"{v * DEG:.6g}", "mm" if k == "length" else "deg")
@@ -32,7 +33,8 @@ def cmd_show(args) -> int:
     notes = r.structure_notes()
     payload = {"name": r.name, "model": r.kind, "description": r.description,
                "parameters": r.params.as_dict(), "kinds": dict(zip(r.params.names, r.params.kinds)),
-               "joints": [{"name": n, "type": t, "limits": [float(lo), float(hi)]}
+               "joints": [{"name": n, "type": t, "limits": [float(lo) if np.isfinite(lo) else None,
+                                                           float(hi) if np.isfinite(hi) else None]}
                           for n, t, lo, hi in zip(r.joint_names, r.joint_types, r.lower, r.upper)], "notes": notes}
     if args.json:
         emit(args, payload, None)
@@ -46,7 +48,7 @@ def cmd_show(args) -> int:
 
 def cmd_identifiability(args) -> int:
     check_paths([*robot_inputs(args.robot), args.data], [])
-    r = kincal.load_robot(args.robot)
+    r = load_robot(args)
     if args.data:
         q = kincal.read_joints(args.data, r, args.joint_cols, args.length_unit, args.angle_unit)
     else:
@@ -58,7 +60,7 @@ def cmd_identifiability(args) -> int:
 
 def cmd_simulate(args) -> int:
     check_paths([*robot_inputs(args.robot), args.joints], [args.output, args.save_true])
-    r = kincal.load_robot(args.robot)
+    r = load_robot(args)
     true = r
     if args.perturb:
         true = kincal.perturb(r, length=args.length_error / MM, angle=args.angle_error / DEG, seed=args.seed)
@@ -80,7 +82,7 @@ def cmd_simulate(args) -> int:
 
 def cmd_sensitivity(args) -> int:
     check_paths(robot_inputs(args.robot), [args.plot])
-    r = kincal.load_robot(args.robot)
+    r = load_robot(args)
     s = kincal.sensitivity(r, r.sample_joints(args.samples, seed=args.seed), args.params)
     if args.plot:
         s.plot(args.plot)
@@ -92,10 +94,10 @@ def register(cmd) -> None:
     """Add the commands to the parser through ``cmd(name, func, help)``."""
     cmd("robots", cmd_robots, "list the bundled robots")
     s = cmd("show", cmd_show, "show a robot's parameters (mm, deg), joints and structure notes")
-    s.add_argument("robot", help="bundled name or robot YAML")
+    add_robot(s)
 
     s = cmd("identifiability", cmd_identifiability, "which parameters position data can identify")
-    s.add_argument("robot")
+    add_robot(s)
     s.add_argument("--data", help="CSV of poses (joint columns) to analyse (default: random poses)")
     s.add_argument("--poses", type=positive_int, default=100, help="number of random poses (default 100)")
     s.add_argument("--seed", type=int, default=0)
@@ -105,7 +107,7 @@ def register(cmd) -> None:
     add_data_flags(s)
 
     s = cmd("simulate", cmd_simulate, "simulate tracker measurements of a (perturbed) robot")
-    s.add_argument("robot")
+    add_robot(s)
     s.add_argument("-o", "--output", required=True, help="CSV to write")
     s.add_argument("--poses", type=positive_int, default=60, help="random poses within the joint limits (default 60)")
     s.add_argument("--joints", help="CSV of joint values to use instead of random poses")
@@ -118,7 +120,7 @@ def register(cmd) -> None:
     add_data_flags(s)
 
     s = cmd("sensitivity", cmd_sensitivity, "position error caused by a unit error of each parameter")
-    s.add_argument("robot")
+    add_robot(s)
     s.add_argument("--samples", type=positive_int, default=10)
     s.add_argument("--params", type=csv_list)
     s.add_argument("--plot", help="PNG or SVG file for the plot")

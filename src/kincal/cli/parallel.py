@@ -5,13 +5,13 @@ import numpy as np
 
 import kincal
 
-from .common import (EXIT_REFUSED, MM, add_data_flags, check_paths, csv_list, emit, nonneg_float, positive_float,
-                     positive_int, robot_inputs)
+from .common import (EXIT_REFUSED, MM, add_data_flags, add_robot, check_paths, csv_list, emit, load_robot, nonneg_float,
+                     positive_float, positive_int, robot_inputs)
 
 
 def cmd_compensate(args) -> int:
     check_paths([*robot_inputs(args.robot), args.targets], [args.output])
-    r = kincal.load_robot(args.robot)
+    r = load_robot(args)
     targets, rows = kincal.read_positions(args.targets, args.xyz_cols, args.length_unit, with_rows=True)
     start = None
     if not hasattr(r, "inverse"):
@@ -42,7 +42,7 @@ PLAN_JOINT_TOL = 1e-5  # rad or m: measured joint values must repeat the plan's 
 
 def cmd_verify(args) -> int:
     check_paths([*robot_inputs(args.robot), args.plan, args.measured, args.simulate], [args.output])
-    r = kincal.load_robot(args.robot)
+    r = load_robot(args)
     if args.measured and not args.plan:
         raise ValueError("--measured needs --plan FILE: the plan written with -o, whose commands were measured")
     if not (args.output or args.measured or args.simulate):
@@ -85,7 +85,7 @@ def _measured(args, r, plan) -> np.ndarray:
 def register(cmd) -> None:
     """Add the commands to the parser through ``cmd(name, func, help)``."""
     s = cmd("compensate", cmd_compensate, "joint commands that the calibrated model says reach target positions")
-    s.add_argument("robot", help="the calibrated robot (YAML)")
+    add_robot(s, "the calibrated robot (YAML)")
     s.add_argument("targets", help="CSV of target positions (serial robots: with the nominal joint values too)")
     s.add_argument("-o", "--output", required=True, help="commands CSV to write")
     s.add_argument("--skip-unreachable", action="store_true",
@@ -93,7 +93,7 @@ def register(cmd) -> None:
     add_data_flags(s)
 
     s = cmd("verify", cmd_verify, "error-model verification: commands to run, then the comparison (Table 5)")
-    s.add_argument("robot", help="the identified (actual) robot model")
+    add_robot(s, "the identified (actual) robot model")
     s.add_argument("--samples", type=positive_int, default=10)
     s.add_argument("--params", type=csv_list)
     s.add_argument("--seed", type=int, default=0)

@@ -77,7 +77,8 @@ class Measurements:
         rev = np.array([t == "revolute" for t in robot.joint_types])
         if rev.any():
             # more than two turns and well beyond the joint limits: degrees read as radians
-            reach = np.maximum(4 * np.pi, 1.5 * np.maximum(np.abs(robot.lower), np.abs(robot.upper)))[rev]
+            lim = np.maximum(np.abs(robot.lower), np.abs(robot.upper))
+            reach = np.maximum(4 * np.pi, 1.5 * np.where(np.isfinite(lim), lim, 0.0))[rev]
             over = np.abs(self.q[:, rev]) > reach
             if over.any():
                 qmax = float(np.max(np.abs(self.q[:, rev])))

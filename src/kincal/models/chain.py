@@ -30,12 +30,14 @@ AXES = {"x": 0, "y": 1, "z": 2}
 @dataclass(frozen=True)
 class Op:
     """One elementary motion: ``kind`` R/T about/along local ``axis`` (0,1,2) by
-    ``values[param]`` (+ ``q[:, joint]`` if ``joint >= 0``)."""
+    ``offset + values[param]`` (+ ``q[:, joint]`` if ``joint >= 0``). ``param = -1``: a constant
+    motion by ``offset`` with no parameter (e.g. a URDF fixed joint, or aligning a joint axis)."""
 
     kind: str
     axis: int
     param: int
     joint: int = -1
+    offset: float = 0.0
 
 
 def cos_sin(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -66,6 +68,8 @@ class Chain:
         joints = [ops[k].joint for k in joint_ops]
         if sorted(joints) != list(range(n_joints)):
             raise ModelError(f"chain: every joint must drive exactly one op, got joints {joints} for {n_joints}")
+        if any(ops[k].param < 0 for k in joint_ops):
+            raise ModelError("chain: every joint op needs a parameter (its zero offset)")
         bounds = [0] + joint_ops + [len(ops)]
         # segment 0: ops before the first joint; segment s: joint op and the constant ops after it
         self.segments = [tuple(ops[bounds[s]:bounds[s + 1]]) for s in range(len(bounds) - 1)]
@@ -101,8 +105,12 @@ class Chain:
         self.z_trans_axes = np.array(z_trans_axes, dtype=int)
         self.cols_rot = self.cols[self.rot_idx]
         self.cols_trans = self.cols[self.is_trans]
+        self.rot_keep = np.flatnonzero(self.cols_rot >= 0)  # constant ops have no column
+        self.trans_keep = np.flatnonzero(self.cols_trans >= 0)
+        self.all_ops_have_params = bool(np.all(self.cols >= 0))
         self.head_joint = np.array([h.joint for h in self.heads if h is not None])
         self.head_param = np.array([h.param for h in self.heads if h is not None])
+        self.head_offset = np.array([h.offset for h in self.heads if h is not None])
         self.joint_param = np.array([ops[k].param for k in sorted(joint_ops, key=lambda k: ops[k].joint)])
 
     def _segment_frames(self, values: np.ndarray, record: bool):
@@ -118,7 +126,7 @@ class Chain:
                     points.append(list(t))
                 if op is head:
                     continue
-                v = float(values[op.param])
+                v = op.offset + (float(values[op.param]) if op.param >= 0 else 0.0)
                 if v == 0.0:
                     continue
                 u = cols[op.axis]
@@ -143,7 +151,7 @@ class Chain:
             V = M[3][:, None] if V is None else M[:3].T @ V + M[3][:, None]
             if head is None:
                 continue
-            x = qt[head.joint] + values[head.param]
+            x = qt[head.joint] + (values[head.param] + head.offset)
             V = np.broadcast_to(V, (3, n))
             if head.kind == TRANS:
                 V = V + np.outer(np.eye(3)[head.axis], x)
@@ -172,7 +180,7 @@ class Chain:
         n_rot = self.rot_idx.size
         F, Z, o0, Cx, tmp = _carve(n, (3, 3), (self.z_rows, 3), (3,), (n_rot, 3), (max(n_rot, 3),))
         G = np.concatenate([A, B, np.concatenate(ends)])[self.z_map]  # (z_rows, 3) stacked constants
-        X = q.T[self.head_joint] + values[self.head_param][:, None]  # joint-op values, (n_joints, N)
+        X = q.T[self.head_joint] + (values[self.head_param] + self.head_offset)[:, None]  # joint-op values, (n_joints, N)
         C, Sn = cos_sin(X)
         W = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n))  # W[k] = world axis k of the frame
         t3 = tmp[:3]
@@ -209,8 +217,12 @@ class Chain:
             np.multiply(Ur[:, c_], D[:, b], out=tr)
             Cx[:, a] -= tr
         JT = np.empty((self.n_params, 3, n))
-        JT[self.cols_rot] = Cx
-        JT[self.cols_trans] = Z[self.z_trans_axes]
+        if self.all_ops_have_params:
+            JT[self.cols_rot] = Cx
+            JT[self.cols_trans] = Z[self.z_trans_axes]
+        else:
+            JT[self.cols_rot[self.rot_keep]] = Cx[self.rot_keep]
+            JT[self.cols_trans[self.trans_keep]] = Z[self.z_trans_axes[self.trans_keep]]
         if self.unused.size:
             JT[self.unused] = 0.0
         return np.ascontiguousarray(p.T), JT.transpose(2, 1, 0)

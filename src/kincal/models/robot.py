@@ -119,10 +119,15 @@ class Robot(ABC):
                 pass
         return out
 
+    def sampling_limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint limits for drawing random poses: the limits, with ±π for unlimited (continuous) joints."""
+        lo, hi = np.asarray(self.lower, float), np.asarray(self.upper, float)
+        return np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
+
     def sample_joints(self, n: int, seed: int | None = 0, margin: float = 0.0) -> np.ndarray:
         """n joint vectors drawn uniformly inside the limits (shrunk by ``margin`` of each range), (n, n_joints)."""
         rng = np.random.default_rng(seed)
-        lo, hi = self.lower, self.upper
+        lo, hi = self.sampling_limits()
         span = hi - lo
         return rng.uniform(lo + margin * span, hi - margin * span, size=(int(n), self.n_joints))
 
@@ -130,8 +135,9 @@ class Robot(ABC):
         """n joint vectors drawn uniformly within the limits where ``feasible`` holds, (n, n_joints)."""
         rng = np.random.default_rng(seed)
         kept, have = [], 0
+        lo, hi = self.sampling_limits()
         for _ in range(max_tries):
-            q = rng.uniform(self.lower, self.upper, size=(max(2 * (n - have), 16), self.n_joints))
+            q = rng.uniform(lo, hi, size=(max(2 * (n - have), 16), self.n_joints))
             q = q[self.feasible(q)]
             kept.append(q)
             have += q.shape[0]

@@ -65,8 +65,68 @@ def _param_names(convention: str, joints: Sequence[Joint]) -> tuple[list[str], l
     return names, kinds
 
 
+class ChainRobot(Robot):
+    """A robot computed by a :class:`~kincal.models.chain.Chain` of elementary motions that starts
+    with the standard base frame (``base.x`` … ``base.rz``) and ends with the tool point
+    (``tool.x/y/z``): DH/MDH chains and URDF chains share their kinematics and base handling."""
+
+    _chain: Chain
+
+    def base_ops(self) -> list[Op]:
+        """The base frame's six ops, Tx Ty Tz Rz Ry Rx."""
+        idx = self.params.index
+        x, y, z = AXES["x"], AXES["y"], AXES["z"]
+        return [Op(TRANS, x, idx("base.x")), Op(TRANS, y, idx("base.y")), Op(TRANS, z, idx("base.z")),
+                Op(ROT, z, idx("base.rz")), Op(ROT, y, idx("base.ry")), Op(ROT, x, idx("base.rx"))]
+
+    def tool_ops(self) -> list[Op]:
+        idx = self.params.index
+        return [Op(TRANS, AXES[a], idx(f"tool.{a}")) for a in "xyz"]
+
+    @property
+    def chain(self) -> Chain:
+        """The compiled op sequence (read-only use: exports walk it)."""
+        return self._chain
+
+    def forward_and_jacobian(self, q, params=None, jacobian=True):
+        q = self.check_q(q)
+        values = self.param_values(params)
+        if not jacobian:
+            return self._chain.forward(values, q), None
+        return self._chain.forward_and_jacobian(values, q)
+
+    @property
+    def joint_columns(self) -> np.ndarray:
+        """(n,) parameter column of each joint: the θ (revolute) or d (prismatic) its value adds to,
+        so ∂p/∂qⱼ is that column of the parameter Jacobian."""
+        return self._chain.joint_param
+
+    def joint_jacobian(self, q, params=None):
+        squeeze = np.ndim(q) == 1
+        Jq = self.param_jacobian(q, params)[..., self.joint_columns]
+        return Jq[0] if squeeze else Jq
+
+    def preferred_params(self) -> tuple[str, ...]:
+        """The tool point, then the base frame: well-conditioned, physical stand-ins for joint terms."""
+        return TOOL_NAMES + BASE_NAMES
+
+    def base_params(self) -> tuple[str, ...]:
+        return BASE_NAMES
+
+    def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
+        v = self.params
+        R = rot_zyx(v["base.rz"], v["base.ry"], v["base.rx"])
+        return R, np.array([v["base.x"], v["base.y"], v["base.z"]])
+
+    def with_base_transform(self, R: np.ndarray, t: np.ndarray) -> "ChainRobot":
+        rz, ry, rx = zyx_from_matrix(np.asarray(R, dtype=float))
+        x, y, z = (float(c) for c in t)
+        return self.with_params({"base.x": x, "base.y": y, "base.z": z, "base.rx": rx, "base.ry": ry, "base.rz": rz})
+
+
+
 @dataclass(frozen=True, eq=False, repr=False)
-class SerialRobot(Robot):
+class SerialRobot(ChainRobot):
     """An open serial chain. Build with :meth:`SerialRobot.build` or load from YAML."""
 
     name: str
@@ -123,8 +183,7 @@ class SerialRobot(Robot):
     def _build_ops(self) -> tuple[Op, ...]:
         idx = self.params.index
         x, y, z = AXES["x"], AXES["y"], AXES["z"]
-        ops = [Op(TRANS, x, idx("base.x")), Op(TRANS, y, idx("base.y")), Op(TRANS, z, idx("base.z")),
-               Op(ROT, z, idx("base.rz")), Op(ROT, y, idx("base.ry")), Op(ROT, x, idx("base.rx"))]
+        ops = self.base_ops()
         for k, jt in enumerate(self.joints):
             p = lambda s: idx(f"{jt.name}.{s}")  # noqa: E731
             rev = jt.type == "revolute"
@@ -135,8 +194,7 @@ class SerialRobot(Robot):
                 ops += [rz, tz, Op(TRANS, x, p("a")), Op(ROT, x, p("alpha"))] + beta
             else:
                 ops += [Op(ROT, x, p("alpha")), Op(TRANS, x, p("a"))] + beta + [rz, tz]
-        ops += [Op(TRANS, x, idx("tool.x")), Op(TRANS, y, idx("tool.y")), Op(TRANS, z, idx("tool.z"))]
-        return tuple(ops)
+        return tuple(ops + self.tool_ops())
 
     @property
     def kind(self) -> str:
@@ -170,41 +228,6 @@ class SerialRobot(Robot):
         vals = [old.get(n, 0.0) for n in names]
         return SerialRobot(name or self.name, self.convention, tuple(joints), Parameters(names, vals, kinds),
                            self.description)
-
-    def forward_and_jacobian(self, q, params=None, jacobian=True):
-        q = self.check_q(q)
-        values = self.param_values(params)
-        if not jacobian:
-            return self._chain.forward(values, q), None
-        return self._chain.forward_and_jacobian(values, q)
-
-    @property
-    def joint_columns(self) -> np.ndarray:
-        """(n,) parameter column of each joint: the θ (revolute) or d (prismatic) its value adds to,
-        so ∂p/∂qⱼ is that column of the parameter Jacobian."""
-        return self._chain.joint_param
-
-    def joint_jacobian(self, q, params=None):
-        squeeze = np.ndim(q) == 1
-        Jq = self.param_jacobian(q, params)[..., self.joint_columns]
-        return Jq[0] if squeeze else Jq
-
-    def preferred_params(self) -> tuple[str, ...]:
-        """The tool point, then the base frame: well-conditioned, physical stand-ins for joint terms."""
-        return TOOL_NAMES + BASE_NAMES
-
-    def base_params(self) -> tuple[str, ...]:
-        return BASE_NAMES
-
-    def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
-        v = self.params
-        R = rot_zyx(v["base.rz"], v["base.ry"], v["base.rx"])
-        return R, np.array([v["base.x"], v["base.y"], v["base.z"]])
-
-    def with_base_transform(self, R: np.ndarray, t: np.ndarray) -> "SerialRobot":
-        rz, ry, rx = zyx_from_matrix(np.asarray(R, dtype=float))
-        x, y, z = (float(c) for c in t)
-        return self.with_params({"base.x": x, "base.y": y, "base.z": z, "base.rx": rx, "base.ry": ry, "base.rz": rz})
 
     # ---- structure -----------------------------------------------------------------------------
     def parallel_pairs(self) -> list[tuple[int, int]]:

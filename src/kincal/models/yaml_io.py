@@ -30,12 +30,14 @@ from .puu3 import PUU3Robot, puu3_names
 from .robot import Robot
 from .serial import CONVENTIONS, Joint, SerialRobot
 from .transmission import Map, TransmissionRobot, build_transmission_robot
+from .urdf import URDFJoint, URDFRobot, read_urdf, urdf_robot
 
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}
 ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
 _JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits"}
 _TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool", "actuators", "transmission",
-             "type", "extended", "parameters", "slider_limits", "calibration"}
+             "type", "extended", "parameters", "slider_limits", "calibration", "source"}
+_URDF_JOINT_KEYS = {"name", "type", "axis", "limits", "xyz", "rpy", "roll", "pitch", "yaw"}
 DRIVE_PREFIX = "drive."
 
 
@@ -53,9 +55,23 @@ def unit_factor(unit: str, kind: str, where: str = "") -> float:
     return table[unit]
 
 
-def load_robot(name_or_path: str | os.PathLike) -> Robot:
-    """A bundled robot by name (see :func:`bundled_robots`) or a robot YAML file."""
+def load_robot(name_or_path: str | os.PathLike, base_link: str | None = None, tip_link: str | None = None,
+               tool: tuple[float, float, float] | None = None) -> Robot:
+    """A bundled robot by name (see :func:`bundled_robots`), a robot YAML file or a URDF file.
+
+    For a URDF (a ``.urdf`` file, or any file whose text starts with ``<``): the serial chain from
+    ``base_link`` (default: the root link) to ``tip_link`` (default: the only end link), with the
+    tool point ``tool`` (m, in the tip link's frame; default its origin).
+    """
     text, label = _robot_text(name_or_path)
+    if str(name_or_path).lower().endswith(".urdf") or text.lstrip().startswith("<"):
+        try:
+            return read_urdf(text, label, base_link, tip_link, _tool(tool, label))
+        except (TypeError, ValueError) as exc:
+            raise ModelError(f"{label}: malformed URDF ({exc})") from None
+    if base_link or tip_link or tool is not None:
+        raise ModelError(f"{label}: base_link, tip_link and tool apply to URDF files only; a kincal robot file "
+                         f"holds its own base and tool")
     data = _parse(text, label)
     try:
         robot = robot_from_dict(data, label)
@@ -68,6 +84,15 @@ def load_robot(name_or_path: str | os.PathLike) -> Robot:
                          f"format in the README") from None
     _check_plausible(robot, isinstance(data, dict) and "units" in data, label)
     return robot
+
+
+def _tool(tool, label: str) -> tuple[float, float, float]:
+    if tool is None:
+        return (0.0, 0.0, 0.0)
+    t = tuple(float(v) for v in tool)
+    if len(t) != 3 or not all(np.isfinite(t)):
+        raise ModelError(f"{label}: the tool point must be three finite numbers (m), got {tool!r}")
+    return t
 
 
 MAX_LENGTH = 100.0  # m: no robot parameter is longer
@@ -140,8 +165,10 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
         raise ModelError(f"{label}: unknown key(s) {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
     if data.get("type", "serial") == "puu3":
         return _puu3_from_dict(data, label)
+    if data.get("type") == "urdf":
+        return _urdf_from_dict(data, label)
     if data.get("type", "serial") != "serial":
-        raise ModelError(f"{label}: unknown robot type '{data.get('type')}'; use 'serial' (default) or 'puu3'")
+        raise ModelError(f"{label}: unknown robot type '{data.get('type')}'; use 'serial' (default), 'puu3' or 'urdf'")
     for key in ("name", "convention", "joints"):
         if key not in data:
             raise ModelError(f"{label}: missing required key '{key}'")
@@ -247,6 +274,73 @@ def _puu3_from_dict(data: dict, label: str) -> PUU3Robot:
     return base.with_params(values)
 
 
+def _urdf_from_dict(data: dict, label: str) -> URDFRobot:
+    """A URDF chain saved by kincal (type: urdf): per joint the file's origin (xyz, rpy), axis and
+    limits, and for moving joints the rotation deviations roll, pitch, yaw."""
+    lf, af = _units(data, label)
+    if not isinstance(data.get("joints"), list) or not data["joints"]:
+        raise ModelError(f"{label}: 'joints' must be a non-empty list")
+    joints, values = [], {}
+    for k, jd in enumerate(data["joints"]):
+        where = f"{label}: joint {k + 1}"
+        if not isinstance(jd, dict) or set(jd) - _URDF_JOINT_KEYS or "name" not in jd:
+            raise ModelError(f"{where}: a mapping with name and keys from {sorted(_URDF_JOINT_KEYS)}")
+        jtype, name = str(jd.get("type", "revolute")), str(jd["name"])
+        vec = {key: _vector(jd.get(key, [0.0, 0.0, 0.0] if key != "axis" else [1.0, 0.0, 0.0]), where, key)
+               for key in ("xyz", "rpy", "axis")}
+        qf = lf if jtype == "prismatic" else af
+        lim = jd.get("limits")
+        lo, hi = (-np.inf, np.inf) if lim is None else tuple(_num(x, where, "limits") * qf for x in _pair(lim, where))
+        joints.append(URDFJoint(name, jtype, tuple(vec["xyz"] * lf), tuple(vec["rpy"] * af), tuple(vec["axis"]), lo, hi))
+        if jtype != "fixed":
+            values.update({f"{name}.{c}": _num(jd.get(c, 0.0), where, c) * af for c in ("roll", "pitch", "yaw")})
+    src = _mapping(data, "source", label)
+    tool = tuple(_num(_mapping(data, "tool", label).get(c, 0.0), f"{label}: tool", c) * lf for c in "xyz")
+    robot = urdf_robot(str(data.get("name", "urdf_robot")), joints, tool, str(data.get("description", "")),
+                       {str(k): str(v) for k, v in src.items()})
+    base = {f"base.{k}": _num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
+            for k, v in _mapping(data, "base", label).items()}
+    return robot.with_params({**values, **base})
+
+
+def _vector(v, where: str, key: str) -> np.ndarray:
+    if not (isinstance(v, list) and len(v) == 3):
+        raise ModelError(f"{where}: '{key}' must be [a, b, c]")
+    return np.array([_num(x, where, key) for x in v])
+
+
+def _pair(v, where: str) -> list:
+    if not (isinstance(v, list) and len(v) == 2):
+        raise ModelError(f"{where}: 'limits' must be [lower, upper]")
+    return v
+
+
+def _urdf_yaml(robot: URDFRobot, length_unit: str, angle_unit: str) -> str:
+    lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
+    v = robot.params.as_dict()
+    lines = [f"name: {robot.name}", "type: urdf"]
+    if robot.description:
+        lines.append(f"description: {yaml.safe_dump(robot.description, default_style=chr(34)).strip()}")
+    if robot.source:
+        lines.append("source: {" + ", ".join(f"{k}: {yaml.safe_dump(str(x), default_style=chr(34)).strip()}"
+                                             for k, x in robot.source.items()) + "}")
+    lines += [f"units: {{length: {length_unit}, angle: {angle_unit}}}", "joints:"]
+    vec = lambda xs, f: "[" + ", ".join(_fmt(x * f) for x in xs) + "]"  # noqa: E731
+    for j in robot.joints:
+        xyz = [v[f"{j.name}.{c}"] for c in "xyz"] if j.moving else j.xyz
+        items = [f"name: {j.name}", f"type: {j.type}", f"axis: {vec(j.axis, 1.0)}", f"xyz: {vec(xyz, lf)}",
+                 f"rpy: {vec(j.rpy, af)}"]
+        if j.moving:
+            items += [f"{c}: {_fmt(v[f'{j.name}.{c}'] * af)}" for c in ("roll", "pitch", "yaw")]
+        qf = lf if j.type == "prismatic" else af
+        if np.isfinite(j.lower) and np.isfinite(j.upper):
+            items.append(f"limits: [{_fmt(j.lower * qf)}, {_fmt(j.upper * qf)}]")
+        lines.append("  - {" + ", ".join(items) + "}")
+    base = ", ".join(f"{k}: {_fmt(v['base.' + k] * (lf if k in 'xyz' else af))}" for k in ("x", "y", "z", "rx", "ry", "rz"))
+    tool = ", ".join(f"{k}: {_fmt(v['tool.' + k] * lf)}" for k in ("x", "y", "z"))
+    return "\n".join(lines + [f"base: {{{base}}}", f"tool: {{{tool}}}", ""])
+
+
 def _puu3_yaml(robot: PUU3Robot, length_unit: str, angle_unit: str) -> str:
     lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
     v = robot.params.as_dict()
@@ -321,6 +415,8 @@ def robot_to_yaml(robot: Robot, length_unit: str = "m", angle_unit: str = "rad")
     """YAML text of a robot. In SI units (the default) load(save(robot)) reproduces it exactly."""
     if isinstance(robot, PUU3Robot):
         return _puu3_yaml(robot, length_unit, angle_unit)
+    if isinstance(robot, URDFRobot):
+        return _urdf_yaml(robot, length_unit, angle_unit)
     if isinstance(robot, TransmissionRobot):
         return _chain_yaml(robot.chain, length_unit, angle_unit) + _transmission_yaml(robot, length_unit, angle_unit)
     return _chain_yaml(robot, length_unit, angle_unit)

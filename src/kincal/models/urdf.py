@@ -1,0 +1,333 @@
+"""Robots from URDF: the serial chain between two links, with the origin deviations of every moving joint.
+
+A URDF joint places its child frame at ``origin`` (xyz, then rpy: R = Rz(yaw) Ry(pitch) Rx(roll)) in
+the parent frame and then moves about or along ``axis``. kincal builds that chain from the standard
+library's XML parser, with these parameters (stable names from the URDF joint names):
+
+* the base frame ``base.x … base.rz`` (where the chain's base link stands in the measurement frame);
+* per moving joint its origin: ``<joint>.x .y .z``, the position in the parent frame (nominal: the
+  file's xyz), and ``<joint>.roll .pitch .yaw``, small rotations about the x, y and z axes of the
+  joint's frame applied after the file's rpy (nominal 0). Deviations about the frame's own axes
+  describe every small misalignment at any nominal orientation; deviations of the rpy angles
+  themselves would lose one direction where a pitch is ±90° (as in most UR URDFs);
+* the tool point ``tool.x/y/z`` in the tip link's frame.
+
+A zero offset of the joint value is a rotation about (or translation along) the joint axis and is
+therefore already one of these six. Fixed joints inside the chain are constant motions without
+parameters: their deviations act like those of the next moving joint's origin. Continuous joints
+are revolute joints without limits. An axis that is not +x, +y or +z is reached by constant
+rotations around the joint motion. ``mimic`` joints, closed loops, ``floating`` and ``planar``
+joints are refused with the element's name. Identifiability then says which of these parameters
+position data can determine (for a UR5: 27, as for DH with Hayati's β).
+"""
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..errors import ModelError
+from .chain import AXES, ROT, TRANS, Chain, Op
+from .parameters import Parameters
+from .serial import BASE_NAMES, TOOL_NAMES, ChainRobot
+from .transforms import rot_zyx, zyx_from_matrix
+
+ORIGIN = ("x", "y", "z", "roll", "pitch", "yaw")
+MOVING = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic"}
+KNOWN = set(MOVING) | {"fixed", "floating", "planar"}
+
+
+@dataclass(frozen=True)
+class URDFJoint:
+    """One joint of the chain: its origin (xyz m, rpy rad), unit axis, type and limits."""
+
+    name: str
+    type: str  # revolute | continuous | prismatic | fixed
+    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    lower: float = -math.inf
+    upper: float = math.inf
+
+    @property
+    def moving(self) -> bool:
+        return self.type != "fixed"
+
+
+def _param_layout(joints: Sequence[URDFJoint]) -> tuple[list[str], list[str]]:
+    names, kinds = list(BASE_NAMES), ["length"] * 3 + ["angle"] * 3
+    for j in joints:
+        if j.moving:
+            names += [f"{j.name}.{k}" for k in ORIGIN]
+            kinds += ["length"] * 3 + ["angle"] * 3
+    return names + list(TOOL_NAMES), kinds + ["length"] * 3
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class URDFRobot(ChainRobot):
+    """A serial chain read from a URDF (or from its kincal YAML). Build with :func:`urdf_robot`."""
+
+    name: str
+    joints: tuple[URDFJoint, ...]
+    params: Parameters
+    description: str = ""
+    source: Mapping[str, str] = field(default_factory=dict)  # file, base_link, tip_link
+    _chain: Chain = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        names, kinds = _param_layout(self.joints)
+        if self.params.names != tuple(names) or self.params.kinds != tuple(kinds):
+            raise ModelError(f"robot '{self.name}': parameters do not match the URDF chain")
+        moving = [j for j in self.joints if j.moving]
+        if not moving:
+            raise ModelError(f"robot '{self.name}': the chain has no moving joint")
+        for j in self.joints:
+            if "." in j.name or not j.name:
+                raise ModelError(f"robot '{self.name}': joint name '{j.name}' must be non-empty and contain no '.'")
+        # each joint motion gets a column of its own after the parameters: ∂p/∂q (joint_jacobian)
+        object.__setattr__(self, "_chain", Chain(self._build_ops(), len(self.params) + len(moving), len(moving)))
+
+    @property
+    def kind(self) -> str:
+        return "urdf"
+
+    @property
+    def moving_joints(self) -> tuple[URDFJoint, ...]:
+        return tuple(j for j in self.joints if j.moving)
+
+    joint_names = property(lambda self: tuple(j.name for j in self.moving_joints))  # type: ignore[assignment]
+    joint_types = property(lambda self: tuple(MOVING[j.type] for j in self.moving_joints))  # type: ignore
+    lower = property(lambda self: np.array([j.lower for j in self.moving_joints]))  # type: ignore[assignment]
+    upper = property(lambda self: np.array([j.upper for j in self.moving_joints]))  # type: ignore[assignment]
+
+    def with_params(self, values) -> "URDFRobot":
+        new = values if isinstance(values, Parameters) else self.params.replace(values)
+        return URDFRobot(self.name, self.joints, new, self.description, dict(self.source))
+
+    def _build_ops(self) -> tuple[Op, ...]:
+        idx, n_params = self.params.index, len(self.params)
+        ops, k = self.base_ops(), 0
+        for j in self.joints:
+            if not j.moving:
+                ops += _constant_origin(j.xyz, j.rpy)
+                continue
+            ops += [Op(TRANS, AXES[c], idx(f"{j.name}.{c}")) for c in "xyz"] + _constant_origin((0, 0, 0), j.rpy)
+            ops += [Op(ROT, AXES[c], idx(f"{j.name}.{r}")) for c, r in zip("xyz", ("roll", "pitch", "yaw"))]
+            kind = ROT if MOVING[j.type] == "revolute" else TRANS
+            pre, axis, post = _align(j.axis, f"robot '{self.name}', joint '{j.name}'")
+            ops += pre + [Op(kind, axis, n_params + k, k)] + post
+            k += 1
+        return tuple(ops + self.tool_ops())
+
+    def _extended(self, params) -> np.ndarray:
+        """Parameter values followed by a zero per joint (the joint motions' own columns)."""
+        return np.concatenate([self.param_values(params), np.zeros(self.n_joints)])
+
+    def forward_and_jacobian(self, q, params=None, jacobian=True):
+        q = self.check_q(q)
+        values = self._extended(params)
+        if not jacobian:
+            return self._chain.forward(values, q), None
+        p, J = self._chain.forward_and_jacobian(values, q)
+        return p, J[:, :, :self.n_params]
+
+    def joint_jacobian(self, q, params=None):
+        squeeze = np.ndim(q) == 1
+        Jq = self._chain.forward_and_jacobian(self._extended(params), self.check_q(q))[1][:, :, self.n_params:]
+        return Jq[0] if squeeze else Jq
+
+    def origin(self, joint: URDFJoint, values: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """A moving joint's origin with its deviations as URDF xyz (3,) and rpy (3,): the file's rpy
+        composed with the small rotations about the joint frame's axes."""
+        v = self.params.as_dict() if values is None else dict(zip(self.params.names, values))
+        xyz = np.array([v[f"{joint.name}.{c}"] for c in "xyz"])
+        R = rpy_matrix(*joint.rpy) @ rot_zyx(0.0, 0.0, v[f"{joint.name}.roll"]) \
+            @ rot_zyx(0.0, v[f"{joint.name}.pitch"], 0.0) @ rot_zyx(v[f"{joint.name}.yaw"], 0.0, 0.0)
+        rz, ry, rx = zyx_from_matrix(R)
+        return xyz, np.array([rx, ry, rz])
+
+
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """URDF's fixed-axis rpy: R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    return rot_zyx(yaw, pitch, roll)
+
+
+def _constant_origin(xyz, rpy) -> list[Op]:
+    """Tx Ty Tz Rz(yaw) Ry(pitch) Rx(roll) as constant motions (zero motions left out)."""
+    order = [(TRANS, "x", xyz[0]), (TRANS, "y", xyz[1]), (TRANS, "z", xyz[2]), (ROT, "z", rpy[2]),
+             (ROT, "y", rpy[1]), (ROT, "x", rpy[0])]
+    return [Op(kind, AXES[a], -1, offset=float(v)) for kind, a, v in order if v != 0.0]
+
+
+def _align(axis: Sequence[float], where: str) -> tuple[list[Op], int, list[Op]]:
+    """Constant ops before/after a motion about local ``k`` that make it a motion about ``axis``."""
+    a = np.asarray(axis, dtype=float)
+    n = float(np.linalg.norm(a))
+    if not (np.isfinite(n) and n > 1e-9):
+        raise ModelError(f"{where}: the axis {list(a)} must be a non-zero vector")
+    a = a / n
+    for k in range(3):
+        if a[k] > 1.0 - 1e-12:
+            return [], k, []
+    phi, theta = math.atan2(a[1], a[0]), math.acos(max(-1.0, min(1.0, a[2])))
+    pre = [Op(ROT, AXES["z"], -1, offset=phi), Op(ROT, AXES["y"], -1, offset=theta)]
+    post = [Op(ROT, AXES["y"], -1, offset=-theta), Op(ROT, AXES["z"], -1, offset=-phi)]
+    return pre, AXES["z"], post
+
+
+def urdf_robot(name: str, joints: Sequence[URDFJoint], tool: Sequence[float] = (0.0, 0.0, 0.0),
+               description: str = "", source: Mapping[str, str] | None = None) -> URDFRobot:
+    """A URDFRobot with its joints' nominal origins (no rotation deviations), base at the origin."""
+    names, kinds = _param_layout(joints)
+    values = dict.fromkeys(names, 0.0)
+    for j in joints:
+        if j.moving:
+            values.update({f"{j.name}.{c}": float(v) for c, v in zip("xyz", j.xyz)})
+    values.update({f"tool.{c}": float(v) for c, v in zip("xyz", tool)})
+    return URDFRobot(name, tuple(joints), Parameters(names, [values[n] for n in names], kinds), description,
+                     dict(source or {}))
+
+
+# ---- reading URDF --------------------------------------------------------------------------------
+def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str | None = None,
+              tool: Sequence[float] | None = None) -> URDFRobot:
+    """The chain from ``base_link`` (default: the root link) to ``tip_link`` (default: the only end
+    link below the base) of a URDF document; errors name the file and the element."""
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise ModelError(f"{label}: not valid XML ({exc})") from None
+    if root.tag != "robot":
+        raise ModelError(f"{label}: the root element is <{root.tag}>, a URDF has <robot>")
+    links = _links(root, label)
+    joints = {}
+    for el in root.findall("joint"):
+        name, parsed = _joint(el, label, links)
+        if name in joints:
+            raise ModelError(f"{label}: joint '{name}' is defined twice")
+        joints[name] = parsed
+    parent_of = _parents(joints, label)
+    base = base_link or _root(links, parent_of, label)
+    tip = tip_link or _tip(base, joints, parent_of, label)
+    for what, link in (("base_link", base), ("tip_link", tip)):
+        if link not in links:
+            raise ModelError(f"{label}: {what} '{link}' is not a link of the file (links: {', '.join(sorted(links))})")
+    chain = _chain_between(base, tip, joints, parent_of, label)
+    for j in chain:
+        if j["mimic"]:
+            raise ModelError(f"{label}: joint '{j['joint'].name}' is a mimic joint; kincal does not model mimic "
+                             f"joints yet")
+    source = {"file": label, "base_link": base, "tip_link": tip}
+    return urdf_robot(root.get("name") or "urdf_robot", [j["joint"] for j in chain], tool or (0.0, 0.0, 0.0),
+                      f"URDF chain {base} -> {tip} from {label}", source)
+
+
+def _links(root, label: str) -> set[str]:
+    names = [el.get("name") for el in root.findall("link")]
+    if any(not n for n in names):
+        raise ModelError(f"{label}: a <link> has no name")
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ModelError(f"{label}: link(s) {', '.join(twice)} defined twice")
+    return set(names)
+
+
+def _joint(el, label: str, links: set[str]) -> tuple[str, dict]:
+    name, jtype = el.get("name"), el.get("type")
+    where = f"{label}: joint '{name}'"
+    if not name:
+        raise ModelError(f"{label}: a <joint> has no name")
+    if jtype not in KNOWN:
+        raise ModelError(f"{where}: unknown type '{jtype}' (URDF types: {', '.join(sorted(KNOWN))})")
+    ends = {}
+    for tag in ("parent", "child"):
+        node = el.find(tag)
+        link = node.get("link") if node is not None else None
+        if not link:
+            raise ModelError(f"{where}: missing <{tag} link=...>")
+        if link not in links:
+            raise ModelError(f"{where}: {tag} link '{link}' is not defined")
+        ends[tag] = link
+    origin = el.find("origin")
+    xyz = _floats(origin, "xyz", 3, where, (0.0, 0.0, 0.0))
+    rpy = _floats(origin, "rpy", 3, where, (0.0, 0.0, 0.0))
+    axis = _floats(el.find("axis"), "xyz", 3, where, (1.0, 0.0, 0.0))
+    lower, upper = -math.inf, math.inf
+    if jtype in ("revolute", "prismatic"):
+        limit = el.find("limit")
+        if limit is None or limit.get("lower") is None or limit.get("upper") is None:
+            raise ModelError(f"{where}: a {jtype} joint needs <limit lower=... upper=...>")
+        lower, upper = _floats(limit, "lower", 1, where)[0], _floats(limit, "upper", 1, where)[0]
+        if not lower < upper:
+            raise ModelError(f"{where}: limit lower {lower} must be below upper {upper}")
+    joint = URDFJoint(name, jtype, xyz, rpy, axis, lower, upper)
+    return name, {"joint": joint, "mimic": el.find("mimic") is not None, **ends}
+
+
+def _floats(node, attr: str, n: int, where: str, default=None) -> tuple[float, ...]:
+    text = node.get(attr) if node is not None else None
+    if text is None:
+        if default is None:
+            raise ModelError(f"{where}: missing attribute '{attr}'")
+        return default
+    try:
+        vals = tuple(float(v) for v in text.split())
+    except ValueError:
+        raise ModelError(f"{where}: {node.tag} {attr}='{text}' is not {n} number(s)") from None
+    if len(vals) != n or not all(math.isfinite(v) for v in vals):
+        raise ModelError(f"{where}: {node.tag} {attr}='{text}' must be {n} finite number(s)")
+    return vals
+
+
+def _parents(joints: dict, label: str) -> dict[str, str]:
+    """child link -> joint name; a link with two parent joints is a closed loop."""
+    parent_of: dict[str, str] = {}
+    for name, j in joints.items():
+        if j["child"] in parent_of:
+            raise ModelError(f"{label}: link '{j['child']}' is the child of joints '{parent_of[j['child']]}' and "
+                             f"'{name}': closed loops are not supported")
+        parent_of[j["child"]] = name
+    return parent_of
+
+
+def _root(links: set[str], parent_of: dict[str, str], label: str) -> str:
+    roots = sorted(links - set(parent_of))
+    if len(roots) != 1:
+        raise ModelError(f"{label}: {len(roots)} root links ({', '.join(roots) or 'none: the joints form a loop'}); "
+                         f"choose the chain's base with base_link (CLI: --base-link)")
+    return roots[0]
+
+
+def _tip(base: str, joints: dict, parent_of: dict[str, str], label: str) -> str:
+    children: dict[str, list[str]] = {}
+    for j in joints.values():
+        children.setdefault(j["parent"], []).append(j["child"])
+    leaves, stack = [], [base]
+    while stack:
+        link = stack.pop()
+        below = children.get(link, [])
+        leaves += [] if below else [link]
+        stack += below
+    if len(leaves) != 1:
+        raise ModelError(f"{label}: several end links below '{base}' ({', '.join(sorted(leaves))}); choose one with "
+                         f"tip_link (CLI: --tip-link)")
+    return leaves[0]
+
+
+def _chain_between(base: str, tip: str, joints: dict, parent_of: dict[str, str], label: str) -> list[dict]:
+    chain, link, seen = [], tip, set()
+    while link != base:
+        if link not in parent_of or link in seen:
+            raise ModelError(f"{label}: broken chain: tip_link '{tip}' is not below base_link '{base}' (stopped at "
+                             f"link '{link}')")
+        seen.add(link)
+        j = joints[parent_of[link]]
+        if j["joint"].type in ("floating", "planar"):
+            raise ModelError(f"{label}: joint '{j['joint'].name}' is {j['joint'].type}; only revolute, continuous, "
+                             f"prismatic and fixed joints can be calibrated")
+        chain.append(j)
+        link = j["parent"]
+    return chain[::-1]
