@@ -15,7 +15,9 @@ from .io import (Measurements, read_joints, read_measurements, read_positions, w
                  write_residuals)
 from .identify.verdict import Reason, Thresholds, Verdict
 from .analysis.uncertainty import EXTRAPOLATION_RATIO, ModelUncertainty, load_uncertainty
-from .models import Joint, Parameters, Robot, SerialRobot, bundled_robots, load_robot, save_robot
+from .models import (Joint, Parameters, Robot, SerialRobot, URDFRobot, bundled_robots, load_robot, save_robot,
+                     export_robot, ur_calibration, urdf_text)
+from .models import FORMATS as EXPORT_FORMATS
 from .simulate import perturb, simulate
 from .design import Design, candidate_pool, design_bound, select_poses
 from .analysis.separation import Separation, separate_ill_conditioned
@@ -28,7 +30,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "BASE_MODES", "free_parameters", "LOSSES", "RESIDUALS", "CALIBRATION_METHODS", "CalibrationProblem",
-    "Seed1Study", "seed1_study", "write_residuals", "Reason", "Thresholds", "Verdict",
+    "URDFRobot", "ur_calibration", "urdf_text", "export_robot", "EXPORT_FORMATS", "Seed1Study", "seed1_study", "write_residuals", "Reason", "Thresholds", "Verdict",
     "EXTRAPOLATION_RATIO", "ModelUncertainty", "load_uncertainty", "Identifiability", "identifiability", "ConvergenceError", "IdentifiabilityError", "KincalError",
     "MeasurementError", "ModelError", "CalibrationResult", "EvaluationStats", "calibrate", "evaluate",
     "Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements", "Joint", "Parameters", "Robot", "SerialRobot",

@@ -63,6 +63,15 @@ class Identifiability:
             "notes": list(self.notes),
         }
 
+    def confound_lines(self, indent: str = "    ") -> list[str]:
+        """One line per dropped parameter: the kept parameters it acts like (physical units)."""
+        out = []
+        for name in self.dropped:
+            conf = self.confounds.get(name, ())
+            rhs = " ".join(f"{c:+.3g}·{n}" for n, c in conf) if conf else "no effect on the position"
+            out.append(f"{indent}{name}  ~  {rhs}")
+        return out
+
     def __str__(self) -> str:
         lines = [
             f"{self.robot}: {self.rank} of {len(self.candidates)} parameters identifiable from {self.n_poses} poses "
@@ -73,10 +82,7 @@ class Identifiability:
         ]
         if self.dropped:
             lines.append(f"  not identifiable ({len(self.dropped)}), kept at their nominal values:")
-            for name in self.dropped:
-                conf = self.confounds.get(name, ())
-                rhs = " ".join(f"{c:+.3g}·{n}" for n, c in conf) if conf else "no effect on the position"
-                lines.append(f"    {name}  ~  {rhs}")
+            lines += self.confound_lines()
         for note in self.notes:
             lines.append(f"  note: {note}")
         return "\n".join(lines)

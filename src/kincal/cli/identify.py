@@ -35,8 +35,10 @@ def cmd_calibrate(args) -> int:
         kincal.save_robot(res.robot, args.output, calibration=res.uncertainty().to_dict())
     payload = {**res.to_dict(), "output": args.output if written else None, "residuals_file": args.residuals}
     text = str(res)
-    if not args.json and res.identifiability.dropped:
-        text += "\nnot estimated (kept nominal): " + ", ".join(res.identifiability.dropped)
+    ident = res.identifiability
+    if ident.dropped:
+        text += (f"\nidentifiable: {len(res.names)} of {len(ident.candidates)} candidate parameters; not estimated "
+                 f"(kept nominal), each acting like the estimated ones shown:\n" + "\n".join(ident.confound_lines("  ")))
     if args.output:
         text += (f"\ncalibrated robot written to {args.output}" + (" (forced despite the verdict)" if refused else "")
                  if written else f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")

@@ -90,6 +90,27 @@ def cmd_sensitivity(args) -> int:
     return 0
 
 
+def cmd_export(args) -> int:
+    check_paths([*robot_inputs(args.robot), args.source], [args.output])
+    r = load_robot(args)
+    info = kincal.export_robot(r, args.output, args.format, args.source, args.tool_link, args.base_yaw / DEG,
+                               args.length_unit, args.angle_unit)
+    base = info["base_frame"]
+    lines = [f"{r.name}: {info['format']} written to {args.output} (checked: it reproduces the model to 1e-9 m)"]
+    if base:
+        kinds = dict(zip(r.params.names, r.params.kinds))
+        lines.append("base frame found by the calibration (where the tracker saw the robot; not part of the robot "
+                     "description): " + ", ".join(f"{k} {v * MM:+.4f} mm" if kinds[k] == "length" else
+                                                  f"{k} {v * DEG:+.4f} deg" for k, v in base.items()))
+    if info["format"] == "ur":
+        tcp = np.array(info["tool_point"]) * MM
+        lines.append(f"set the TCP on the controller to x {tcp[0]:+.4f}, y {tcp[1]:+.4f}, z {tcp[2]:+.4f} mm (the "
+                     f"tool point in the UR flange frame); the driver will warn that the file's hash does not match "
+                     f"the robot's factory calibration: expected for a tracker calibration (see the README)")
+    emit(args, {**info, "output": args.output}, "\n".join(lines))
+    return 0
+
+
 def register(cmd) -> None:
     """Add the commands to the parser through ``cmd(name, func, help)``."""
     cmd("robots", cmd_robots, "list the bundled robots")
@@ -118,6 +139,18 @@ def register(cmd) -> None:
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--save-true", help="write the simulated 'true' robot to this YAML")
     add_data_flags(s)
+
+    s = cmd("export", cmd_export, "write a calibrated robot as URDF, UR calibration file or kincal YAML")
+    add_robot(s)
+    s.add_argument("output", help="file to write (.urdf: URDF; otherwise kincal YAML unless --format ur)")
+    s.add_argument("--format", choices=list(kincal.EXPORT_FORMATS), help="urdf, ur (Universal Robots' kinematics "
+                   "file for the ROS driver) or yaml (default: from the file name)")
+    s.add_argument("--from", dest="source", help="the URDF a URDF robot was read from (default: the file it names)")
+    s.add_argument("--tool-link", help="add the tool point to the URDF as a fixed joint and link of this name")
+    s.add_argument("--base-yaw", type=float, default=0.0, help="UR files: UR's Base frame is the model's base "
+                   "turned by this about z, deg (0 for kincal's DH ur5; 180 for ur_description's base_link)")
+    s.add_argument("--length-unit", default="m", choices=["m", "mm", "um"], help="kincal YAML: length unit")
+    s.add_argument("--angle-unit", default="rad", choices=["rad", "deg"], help="kincal YAML: angle unit")
 
     s = cmd("sensitivity", cmd_sensitivity, "position error caused by a unit error of each parameter")
     add_robot(s)

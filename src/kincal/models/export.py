@@ -1,0 +1,244 @@
+"""Calibrated kinematics back out: URDF (the user's own file with only joint origins changed, or a new
+one for DH/MDH chains) and Universal Robots' ``calibration.yaml`` (``kinematics:`` for the ROS driver).
+
+Both are built from the joint frames of a chain at zero joint values. Jₖ is the frame whose z axis
+is joint k's axis, with the joint's zero offset applied, relative to the robot's base frame (the
+base frame parameters, which say where the tracker saw the robot, are not part of a robot
+description). Any chain then reads J₁ Rz(q₁) (J₁⁻¹J₂) Rz(q₂) … Jₙ Rz(qₙ) (Jₙ⁻¹F), F the flange,
+because everything between two joint motions is constant. Each export is checked before it is
+returned: the written numbers, rebuilt by the file format's own rules, must reproduce kincal's
+forward kinematics to 1e-9 m at random poses, else nothing is written.
+"""
+from __future__ import annotations
+
+import hashlib
+import re
+from pathlib import Path
+
+import numpy as np
+
+from .._atomic import write_text_atomic
+from ..errors import ModelError
+from .chain import ROT
+from .robot import Robot
+from .serial import ChainRobot, SerialRobot
+from .transforms import rot_zyx, zyx_from_matrix
+from .urdf import URDFRobot, read_urdf, rpy_matrix
+from .yaml_io import robot_to_yaml
+
+EXPORT_TOL = 1e-9  # m: an export must reproduce the model this closely
+UR_SECTIONS = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
+_ALIGN = {0: rot_zyx(0.0, np.pi / 2, 0.0), 1: rot_zyx(0.0, 0.0, -np.pi / 2), 2: np.eye(3)}  # z onto x, y, z
+
+
+def _h(R: np.ndarray, t) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, t
+    return T
+
+
+def _motion(kind: str, axis: int, value: float) -> np.ndarray:
+    if kind == ROT:
+        angles = [0.0, 0.0, 0.0]  # rot_zyx takes (rz, ry, rx)
+        angles[2 - axis] = value
+        return _h(rot_zyx(*angles), np.zeros(3))
+    return _h(np.eye(3), np.eye(3)[axis] * value)
+
+
+def joint_frames(robot: ChainRobot) -> tuple[list[np.ndarray], np.ndarray]:
+    """Jₖ (4×4, z along joint k's axis, zero offset included) for every joint at q = 0, and the
+    flange frame F (the end of the chain without the tool point), both relative to the base frame."""
+    if not isinstance(robot, ChainRobot):
+        raise ModelError(f"robot '{robot.name}' ({robot.kind}) is not a serial chain: it has no URDF or UR form")
+    values = robot.params.values.copy()
+    values[robot.params.indices(robot.base_params())] = 0.0
+    values[robot.params.indices(("tool.x", "tool.y", "tool.z"))] = 0.0
+    values = np.concatenate([values, np.zeros(robot.n_joints)])  # a URDF chain's joint-motion columns
+    M, frames = np.eye(4), []
+    for op in robot.chain.ops:
+        value = op.offset + (values[op.param] if op.param >= 0 else 0.0)
+        step = _motion(op.kind, op.axis, value)
+        if op.joint >= 0:
+            frames.append(M @ _h(_ALIGN[op.axis], np.zeros(3)) @ _motion(op.kind, 2, value))
+        M = M @ step
+    return frames, M
+
+
+def _xyz_rpy(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    rz, ry, rx = zyx_from_matrix(T[:3, :3])
+    return T[:3, 3].copy(), np.array([rx, ry, rz])
+
+
+def _origin(xyz, rpy) -> np.ndarray:
+    return _h(rpy_matrix(*rpy), xyz)
+
+
+def _fmt(x: float) -> str:
+    return repr(float(x)) if x != 0 else "0"
+
+
+# ---- Universal Robots calibration file ------------------------------------------------------------
+def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
+    """The ``kinematics:`` file of UR's ROS driver for a 6-joint revolute chain, and a summary.
+
+    The six entries are each joint's origin (parent-to-joint transform at zero angle: x y z m,
+    roll pitch yaw rad) relative to UR's Base frame, which is the model's base frame turned by
+    ``base_yaw`` (rad) about z (0 for kincal's DH ur5, whose base is UR's Base; π for a URDF whose
+    base_link faces the other way). What lies beyond the wrist-3 frame that the file cannot hold
+    (the flange-to-TCP transform and the tool point) is returned in the summary for the controller.
+    """
+    frames, flange = joint_frames(robot)
+    if robot.n_joints != 6 or any(t != "revolute" for t in robot.joint_types):
+        raise ModelError(f"robot '{robot.name}': a UR calibration file holds 6 revolute joints, the robot has "
+                         f"{robot.n_joints} ({', '.join(robot.joint_types)})")
+    base = _h(rot_zyx(base_yaw, 0.0, 0.0), np.zeros(3))
+    chain = [base] + frames
+    origins = [np.linalg.inv(a) @ b for a, b in zip(chain[:-1], chain[1:])]
+    rest = np.linalg.inv(frames[-1]) @ flange
+    d = rest[2, 3]  # a shift along the last axis commutes with its rotation: it belongs to wrist_3
+    origins[-1] = origins[-1] @ _h(np.eye(3), [0.0, 0.0, d])
+    rest = _h(np.eye(3), [0.0, 0.0, -d]) @ rest
+    entries = {name: _xyz_rpy(T) for name, T in zip(UR_SECTIONS, origins)}
+    lines = ["kinematics:"]
+    for name, (xyz, rpy) in entries.items():
+        lines.append(f"  {name}:")
+        lines += [f"    {k}: {_fmt(v)}" for k, v in zip(("x", "y", "z", "roll", "pitch", "yaw"), (*xyz, *rpy))]
+    digest = hashlib.sha256("\n".join(lines).encode()).hexdigest()
+    text = "\n".join(lines + [f"  hash: calib_{int(digest[:15], 16)}", ""])
+    tool = np.array([robot.params[f"tool.{c}"] for c in "xyz"])
+    summary = {"flange_to_tcp": rest.tolist(), "tool_point": (rest[:3, :3] @ tool + rest[:3, 3]).tolist(),
+               "base_yaw": base_yaw}
+    _check(robot, lambda q: _ur_forward(entries, q, base, rest, tool), "UR calibration file")
+    return text, summary
+
+
+def _ur_forward(entries: dict, q: np.ndarray, base: np.ndarray, rest: np.ndarray, tool: np.ndarray) -> np.ndarray:
+    """The UR file's chain: Base, then per joint origin and Rz(q), then flange-to-TCP and the tool."""
+    out = []
+    for qi in q:
+        T = base.copy()
+        for (xyz, rpy), angle in zip(entries.values(), qi):
+            T = T @ _origin(xyz, rpy) @ _motion(ROT, 2, angle)
+        out.append((T @ rest @ np.append(tool, 1.0))[:3])
+    return np.array(out)
+
+
+def _check(robot: Robot, forward, what: str) -> None:
+    """The exported kinematics must reproduce the model (base frame removed) at random poses."""
+    q = robot.sample_joints(50, seed=0)
+    model = robot.with_params(dict.fromkeys(robot.base_params(), 0.0)).forward(q)
+    gap = float(np.max(np.linalg.norm(forward(q) - model, axis=1)))
+    if not gap <= EXPORT_TOL:
+        raise ModelError(f"the {what} would place the tool {gap * 1e3:.3g} mm from the calibrated model; "
+                         f"nothing written (please report this)")
+
+
+# ---- URDF ----------------------------------------------------------------------------------------
+def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = None) -> str:
+    """URDF of a calibrated chain. A URDF robot needs its ``source`` text: only the ``<origin>`` of
+    its moving joints changes (comments, ``<gazebo>``, ``<transmission>``… stay as they are). A DH/MDH
+    robot gets a new URDF (base_link, one link per joint, flange). ``tool_link``: add the tool point
+    as a fixed joint and link of that name. The result is read back and checked against the model."""
+    if isinstance(robot, URDFRobot):
+        if source is None:
+            raise ModelError(f"robot '{robot.name}' came from a URDF: give that file (--from) so only its joint "
+                             f"origins change")
+        text, base, tip = _edit_urdf(robot, source), robot.source.get("base_link"), robot.source.get("tip_link")
+    elif isinstance(robot, SerialRobot):
+        text, base, tip = _new_urdf(robot), "base_link", "flange"
+    else:
+        raise ModelError(f"robot '{robot.name}' ({robot.kind}) is not a serial chain: it has no URDF form")
+    if tool_link:
+        text = _add_tool(text, robot, tip, tool_link)
+    tool = tuple(robot.params[f"tool.{c}"] for c in "xyz")
+    check = read_urdf(text, "exported URDF", base, tool_link or tip, (0.0, 0.0, 0.0) if tool_link else tool)
+    _check(robot, check.forward, "exported URDF")
+    return text
+
+
+def _edit_urdf(robot: URDFRobot, source: str) -> str:
+    for j in robot.moving_joints:
+        xyz, rpy = robot.origin(j)
+        start = re.search(rf'<joint\b[^>]*\bname\s*=\s*["\']{re.escape(j.name)}["\'][^>]*>', source)
+        if start is None:
+            raise ModelError(f"the URDF has no joint '{j.name}': give the file the robot was read from (--from)")
+        end = source.index("</joint>", start.end())
+        body = source[start.end():end]
+        tag = f'<origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>'
+        m = re.search(r"<origin\b[^>]*/>", body)
+        body = body[:m.start()] + tag + body[m.end():] if m else "\n    " + tag + body
+        source = source[:start.end()] + body + source[end:]
+    return source
+
+
+def _new_urdf(robot: SerialRobot) -> str:
+    frames, flange = joint_frames(robot)
+    chain = [np.eye(4)] + frames
+    lines = ['<?xml version="1.0"?>', f"<!-- {robot.name} calibrated with kincal; joint origins in m and rad -->",
+             f'<robot name="{robot.name}">', '  <link name="base_link"/>']
+    parent = "base_link"
+    for k, (a, b) in enumerate(zip(chain[:-1], chain[1:])):
+        xyz, rpy = _xyz_rpy(np.linalg.inv(a) @ b)
+        child = f"link_{k + 1}"
+        lines += [f'  <link name="{child}"/>', f'  <joint name="{robot.joint_names[k]}" type="{robot.joint_types[k]}">',
+                  f'    <parent link="{parent}"/>', f'    <child link="{child}"/>',
+                  f'    <origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>',
+                  '    <axis xyz="0 0 1"/>',
+                  f'    <limit lower="{_fmt(robot.lower[k])}" upper="{_fmt(robot.upper[k])}" effort="0" velocity="0"/>',
+                  "  </joint>"]
+        parent = child
+    xyz, rpy = _xyz_rpy(np.linalg.inv(frames[-1]) @ flange)
+    lines += ['  <link name="flange"/>', '  <joint name="flange_joint" type="fixed">', f'    <parent link="{parent}"/>',
+              '    <child link="flange"/>',
+              f'    <origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>', "  </joint>",
+              "</robot>", ""]
+    return "\n".join(lines)
+
+
+def _add_tool(text: str, robot: Robot, tip: str, name: str) -> str:
+    if re.search(rf'<link\b[^>]*\bname\s*=\s*["\']{re.escape(name)}["\']', text):
+        raise ModelError(f"the URDF already has a link '{name}': choose another tool link name")
+    xyz = " ".join(_fmt(robot.params[f"tool.{c}"]) for c in "xyz")
+    block = (f'  <link name="{name}"/>\n  <joint name="{tip}-{name}" type="fixed">\n    <parent link="{tip}"/>\n'
+             f'    <child link="{name}"/>\n    <origin xyz="{xyz}" rpy="0 0 0"/>\n  </joint>\n')
+    end = text.rindex("</robot>")
+    return text[:end] + block + text[end:]
+
+
+FORMATS = ("urdf", "ur", "yaml")
+
+
+def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, tool_link: str | None = None,
+                 base_yaw: float = 0.0, length_unit: str = "m", angle_unit: str = "rad") -> dict:
+    """Write ``robot`` as URDF, UR calibration file or kincal YAML (atomically, checked first).
+
+    fmt         -- "urdf", "ur" or "yaml"; default from the file name (.urdf, else kincal YAML)
+    source_path -- for a URDF robot, the URDF it was read from (default: the one it names)
+    Returns a summary: the format, the base frame the calibration found (where the tracker saw
+    the robot: not part of a robot description) and, for UR, what belongs on the controller.
+    """
+    fmt = fmt or ("urdf" if str(path).lower().endswith(".urdf") else "yaml")
+    if fmt not in FORMATS:
+        raise ValueError(f"format '{fmt}' is not one of {', '.join(FORMATS)}")
+    summary: dict = {"format": fmt, "base_frame": {n: float(robot.params[n]) for n in robot.base_params()}}
+    if fmt == "urdf":
+        text = urdf_text(robot, _source(robot, source_path), tool_link)
+    elif fmt == "ur":
+        text, extra = ur_calibration(robot, base_yaw)
+        summary.update(extra)
+    else:
+        text = robot_to_yaml(robot, length_unit, angle_unit)
+    write_text_atomic(path, text)
+    return summary
+
+
+def _source(robot: Robot, source_path) -> str | None:
+    if not isinstance(robot, URDFRobot):
+        return None
+    path = source_path or robot.source.get("file")
+    if not path:
+        raise ModelError(f"robot '{robot.name}' came from a URDF: give that file (--from)")
+    try:
+        return Path(path).read_text(encoding="utf-8-sig")
+    except OSError as exc:
+        raise ModelError(f"{path}: cannot read the URDF the robot came from ({exc.strerror}); give it with --from")
