@@ -23,6 +23,11 @@ demo: setup
 	$(VENV)/bin/kincal evaluate ur5 $(DATA)/ur5_random.csv $(UR5)
 	$(VENV)/bin/kincal calibrate ur5 $(DATA)/ur5_grid.csv $(UR5) -o .venv/ur5_calibrated.yaml > /dev/null
 	$(VENV)/bin/kincal evaluate .venv/ur5_calibrated.yaml $(DATA)/ur5_random.csv $(UR5)
+	@echo
+	@echo "The calibrated UR5 back out, for ROS: a URDF (with the reflector as link 'smr') and UR's kinematics file"
+	$(VENV)/bin/kincal export .venv/ur5_calibrated.yaml .venv/ur5_calibrated.urdf --tool-link smr
+	$(VENV)/bin/kincal export .venv/ur5_calibrated.yaml .venv/ur5_calibration.yaml --format ur
+	@echo "written: .venv/ur5_calibrated.yaml (kincal), .venv/ur5_calibrated.urdf (URDF), .venv/ur5_calibration.yaml (UR driver)"
 
 test: setup
 	$(PY) -m pytest -q

@@ -67,6 +67,10 @@ def load_robot(name_or_path: str | os.PathLike, base_link: str | None = None, ti
     if str(name_or_path).lower().endswith(".urdf") or text.lstrip().startswith("<"):
         try:
             return read_urdf(text, label, base_link, tip_link, _tool(tool, label))
+        except ModelError as exc:
+            if str(exc).startswith(label):
+                raise
+            raise ModelError(f"{label}: {exc}") from None
         except (TypeError, ValueError) as exc:
             raise ModelError(f"{label}: malformed URDF ({exc})") from None
     if base_link or tip_link or tool is not None:

@@ -1,0 +1,276 @@
+"""URDF robots in, calibrated kinematics out (URDF, Universal Robots' kinematics file, kincal YAML)."""
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from conftest import DATA, UR5_COLS, central_jacobian
+
+import yourdfpy  # an independent URDF parser, test-time only (the dev extra installs it)
+
+import kincal
+from kincal.analysis import stacked_jacobian
+from kincal.cli import main
+
+
+UR5_URDF = Path(__file__).parent / "data" / "urdf" / "ur5_robot.urdf"
+SMR = (0.0, 0.09e-3, 31.0e-3)  # the data set's reflector in the flange (tool0) frame, m
+UNITS = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
+
+TESTBOT = """<?xml version="1.0"?>
+<!-- fixed joints inside the chain, a continuous joint, a prismatic joint, tilted and negative axes -->
+<robot name="testbot">
+  <link name="world"/><link name="base"/><link name="l1"/><link name="l1b"/><link name="l2"/>
+  <link name="l3"/><link name="l4"/><link name="tip"/><link name="camera"/>
+  <joint name="mount" type="fixed"><parent link="world"/><child link="base"/>
+    <origin xyz="0.1 0 0.05" rpy="0 0 0.3"/></joint>
+  <joint name="j1" type="continuous"><parent link="base"/><child link="l1"/>
+    <origin xyz="0 0 0.3"/><axis xyz="0 0 1"/></joint>
+  <joint name="bracket" type="fixed"><parent link="l1"/><child link="l1b"/>
+    <origin xyz="0.05 0 0.1" rpy="0.2 -0.1 0"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1b"/><child link="l2"/>
+    <origin xyz="0 0.1 0" rpy="1.5707963 0 0"/><axis xyz="0 0.6 0.8"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="slide" type="prismatic"><parent link="l2"/><child link="l3"/>
+    <origin xyz="0.4 0 0" rpy="0 0.3 0"/><axis xyz="1 0 0"/>
+    <limit lower="0" upper="0.3" effort="1" velocity="1"/></joint>
+  <joint name="j4" type="revolute"><parent link="l3"/><child link="l4"/>
+    <origin xyz="0.1 0 0.05"/><axis xyz="0 -1 0"/><limit lower="-2.5" upper="2.5" effort="1" velocity="1"/></joint>
+  <joint name="j5" type="revolute"><parent link="l4"/><child link="tip"/>
+    <origin xyz="0.08 0 0" rpy="0 1.2 0"/><axis xyz="1 0 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="cam" type="fixed"><parent link="l1"/><child link="camera"/><origin xyz="0 0 0.2"/></joint>
+  <transmission name="t1"><type>SimpleTransmission</type></transmission>
+</robot>
+"""
+
+
+@pytest.fixture(scope="module")
+def ur5u():
+    return kincal.load_robot(UR5_URDF, base_link="base_link", tip_link="tool0", tool=SMR)
+
+
+@pytest.fixture(scope="module")
+def testbot(tmp_path_factory):
+    path = tmp_path_factory.mktemp("urdf") / "testbot.urdf"
+    path.write_text(TESTBOT)
+    return path, kincal.load_robot(path, tip_link="tip", tool=(0.02, 0.01, 0.05))
+
+
+def reference(path, robot, q, tip):
+    """Tool positions by yourdfpy (base frame of the model removed: its base is the chain's base)."""
+    u = yourdfpy.URDF.load(str(path), load_meshes=False, build_collision_scene_graph=False)
+    tool = np.append([robot.params[f"tool.{c}"] for c in "xyz"], 1.0)
+    out = []
+    for qi in q:
+        u.update_cfg(dict(zip(robot.joint_names, qi)))
+        out.append((u.get_transform(tip, robot.source.get("base_link", "base_link")) @ tool)[:3])
+    return np.array(out)
+
+
+def without_base(robot):
+    return robot.with_params(dict.fromkeys(robot.base_params(), 0.0))
+
+
+def test_ur5_urdf_equals_the_dh_model(ur5, ur5u):
+    """base_link is the DH base turned 180° about z; tool0 is the DH flange; q_urdf = q_dh."""
+    q = ur5.sample_joints(1000, seed=0)
+    turned = ur5u.forward(q) * [-1.0, -1.0, 1.0]
+    assert np.abs(turned - ur5.forward(q)).max() < 1e-9
+    assert ur5u.joint_names[0] == "shoulder_pan_joint" and ur5u.n_params == 6 + 6 * 6 + 3
+
+
+def test_jacobians_match_central_differences(ur5u, testbot):
+    for robot in (kincal.perturb(ur5u, seed=3), kincal.perturb(testbot[1], seed=3)):
+        q = robot.sample_joints(30, seed=1)
+        J, Jn = robot.param_jacobian(q), central_jacobian(robot, q)
+        assert np.abs(J - Jn).max() / np.abs(J).max() < 1e-6
+        h, Jq = 1e-6, robot.joint_jacobian(q)
+        Jqn = np.stack([(robot.forward(q + h * e) - robot.forward(q - h * e)) / (2 * h) for e in np.eye(robot.n_joints)],
+                       axis=2)
+        assert np.abs(Jq - Jqn).max() / np.abs(Jq).max() < 1e-6
+
+
+def test_the_chain_is_read_as_written(testbot):
+    path, robot = testbot
+    assert robot.joint_names == ("j1", "j2", "slide", "j4", "j5")
+    assert robot.joint_types == ("revolute", "revolute", "prismatic", "revolute", "revolute")
+    assert np.isinf(robot.lower[0]) and robot.upper[2] == 0.3  # continuous = unlimited
+    q = robot.sample_joints(200, seed=2)
+    assert np.all(np.abs(q[:, 0]) <= np.pi)  # sampled within ±π when unlimited
+    np.testing.assert_allclose(robot.forward(q), reference(path, robot, q, "tip"), atol=1e-12)
+
+
+def test_kincal_yaml_round_trip_is_exact(ur5u, testbot, tmp_path):
+    for robot in (kincal.perturb(ur5u, seed=5), kincal.perturb(testbot[1], seed=5, include_base=True)):
+        path = tmp_path / f"{robot.name}.yaml"
+        kincal.save_robot(robot, path)
+        back = kincal.load_robot(path)
+        assert back.params.names == robot.params.names and np.array_equal(back.params.values, robot.params.values)
+        q = robot.sample_joints(50, seed=6)
+        assert np.array_equal(back.forward(q), robot.forward(q))
+
+
+def test_identifiability_as_for_dh(ur5, ur5u):
+    q = ur5.sample_joints(100, seed=0)
+    dh = kincal.free_parameters(ur5, q)
+    urdf = kincal.free_parameters(ur5u, q)
+    assert urdf.rank == dh.rank == 27
+    # each dropped parameter is named with what it acts like
+    assert urdf.confounds["shoulder_pan_joint.z"] == (("base.z", pytest.approx(1.0)),)
+
+
+def test_real_ur5_grid_through_the_urdf(tmp_path, capsys):
+    cal = tmp_path / "cal.yaml"
+    flags = ["--base-link", "base_link", "--tip-link", "tool0", "--tool", ",".join(map(str, SMR))]
+    assert main(["calibrate", str(UR5_URDF), str(DATA / "ur5_grid.csv"), *UNITS, *flags, "-o", str(cal)]) == 0
+    text = capsys.readouterr().out
+    assert "identifiable: 25 of 45 candidate parameters" in text and "shoulder_pan_joint.z  ~  +1·base.z" in text
+    assert main(["evaluate", str(cal), str(DATA / "ur5_random.csv"), *UNITS, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["mean"] == pytest.approx(0.1005e-3, abs=0.001e-3)
+
+
+def test_exported_urdf_is_the_calibrated_model(ur5u, tmp_path, capsys):
+    """Calibrated in simulation, exported, read by an independent parser: the same kinematics; every
+    line but the six joint origins (and the added tool link) is the original's."""
+    true = kincal.perturb(ur5u, seed=11)
+    res = kincal.calibrate(ur5u, kincal.simulate(true, ur5u.sample_joints(80, seed=11), 15e-6, seed=1))
+    cal, out, plain = tmp_path / "cal.yaml", tmp_path / "cal.urdf", tmp_path / "plain.urdf"
+    kincal.save_robot(res.robot, cal)
+    assert main(["export", str(cal), str(out), "--tool-link", "smr", "--from", str(UR5_URDF)]) == 0
+    assert main(["export", str(cal), str(plain), "--from", str(UR5_URDF)]) == 0
+    capsys.readouterr()
+    q = ur5u.sample_joints(100, seed=12)
+    no_tool = without_base(res.robot).with_params({"tool.x": 0.0, "tool.y": 0.0, "tool.z": 0.0})
+    np.testing.assert_allclose(reference(out, no_tool, q, "smr"), without_base(res.robot).forward(q), atol=1e-9)
+    old, new = UR5_URDF.read_text().splitlines(), plain.read_text().splitlines()
+    changed = [(a, b) for a, b in zip(old, new) if a != b]
+    assert len(old) == len(new) and len(changed) == 6 and all("<origin" in a and "<origin" in b for a, b in changed)
+    text = out.read_text()
+    assert '<link name="smr"/>' in text and "<gazebo>" in text and "<transmission" in text and "<!-- measured" in text
+
+
+def test_dh_robot_exports_to_urdf_and_ur_file(ur5, tmp_path, capsys):
+    true = kincal.perturb(ur5, seed=13)
+    res = kincal.calibrate(ur5, kincal.simulate(true, ur5.sample_joints(80, seed=13), 15e-6, seed=2))
+    cal = tmp_path / "cal.yaml"
+    kincal.save_robot(res.robot, cal)
+    q = ur5.sample_joints(100, seed=14)
+    model = without_base(res.robot).forward(q)
+    # URDF, read by yourdfpy
+    assert main(["export", str(cal), str(tmp_path / "cal.urdf"), "--tool-link", "smr"]) == 0
+    capsys.readouterr()
+    robot_for_ref = kincal.load_robot(tmp_path / "cal.urdf", tip_link="smr")
+    np.testing.assert_allclose(reference(tmp_path / "cal.urdf", robot_for_ref, q, "smr"), model, atol=1e-9)
+    # UR kinematics file, rebuilt by a few lines that follow the file format only
+    assert main(["export", str(cal), str(tmp_path / "ur.yaml"), "--format", "ur", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    kin = yaml.safe_load((tmp_path / "ur.yaml").read_text())["kinematics"]
+    assert kin["hash"].startswith("calib_") and list(kin)[:6] == ["shoulder", "upper_arm", "forearm", "wrist_1",
+                                                                  "wrist_2", "wrist_3"]
+    np.testing.assert_allclose(ur_file_forward(kin, q, info["tool_point"]), model, atol=1e-9)
+    # the DH UR5's flange is UR's flange: the TCP is the tool point itself
+    np.testing.assert_allclose(info["tool_point"], [res.robot.params[f"tool.{c}"] for c in "xyz"], atol=1e-12)
+
+
+def ur_file_forward(kin, q, tcp):
+    """UR's driver chain: per joint T(x, y, z) Rz(yaw) Ry(pitch) Rx(roll), then Rz(q); TCP in the last frame."""
+    def rot(axis, a):
+        c, s = np.cos(a), np.sin(a)
+        i, j = [(1, 2), (2, 0), (0, 1)][axis]
+        R = np.eye(4)
+        R[i, i], R[i, j], R[j, i], R[j, j] = c, -s, s, c
+        return R
+    out = []
+    for qi in q:
+        T = np.eye(4)
+        for name, angle in zip(["shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3"], qi):
+            e = kin[name]
+            M = np.eye(4)
+            M[:3, 3] = [e["x"], e["y"], e["z"]]
+            T = T @ M @ rot(2, e["yaw"]) @ rot(1, e["pitch"]) @ rot(0, e["roll"]) @ rot(2, angle)
+        out.append((T @ np.append(tcp, 1.0))[:3])
+    return np.array(out)
+
+
+def test_complex_urdf_calibrates_to_the_cramer_rao_level(testbot, tmp_path):
+    path, robot = testbot
+    noise, rms, predicted = 15e-6, [], []
+    for seed in range(20):
+        true = kincal.perturb(robot, 0.5e-3, 2e-3, seed=100 + seed)
+        q, qv = robot.sample_joints(60, seed=200 + seed), robot.sample_joints(200, seed=300 + seed)
+        res = kincal.calibrate(robot, kincal.simulate(true, q, noise, seed=seed), base="fixed")
+        assert res.converged and res.verdict.status == "good"
+        rms.append(kincal.evaluate(res.robot, kincal.simulate(true, qv, 0.0)).rms)
+        J, Jv = stacked_jacobian(res.robot, q, res.names), stacked_jacobian(res.robot, qv, res.names)
+        predicted.append(noise * np.sqrt(np.trace(Jv @ np.linalg.inv(J.T @ J) @ Jv.T) / len(qv)))
+    assert abs(np.mean(rms) / np.mean(predicted) - 1) < 0.10
+    out = tmp_path / "cal.urdf"
+    text = kincal.urdf_text(res.robot, path.read_text())
+    out.write_text(text)
+    q = robot.sample_joints(50, seed=7)
+    np.testing.assert_allclose(reference(out, res.robot, q, "tip"), res.robot.forward(q), atol=1e-9)
+    assert text.count("<origin") == TESTBOT.count("<origin") and "camera" in text
+
+
+BAD = {
+    "not-xml": ("<robot><link name='a'>", "not valid XML"),
+    "wrong-root": ("<model name='x'/>", "<model>"),
+    "missing-link": ("<robot name='r'><link name='a'/><joint name='j' type='revolute'><parent link='a'/>"
+                     "<child link='b'/><limit lower='-1' upper='1'/></joint></robot>", "joint 'j': child link 'b'"),
+    "unknown-type": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j' type='spherical'>"
+                     "<parent link='a'/><child link='b'/></joint></robot>", "joint 'j': unknown type 'spherical'"),
+    "mimic": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j' type='revolute'><parent link='a'/>"
+              "<child link='b'/><limit lower='-1' upper='1'/><mimic joint='k'/></joint></robot>", "'j' is a mimic"),
+    "non-numeric-origin": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j' type='revolute'>"
+                           "<parent link='a'/><child link='b'/><origin xyz='0 zero 0'/><limit lower='-1' upper='1'/>"
+                           "</joint></robot>", "joint 'j': origin xyz='0 zero 0'"),
+    "closed-loop": ("<robot name='r'><link name='a'/><link name='b'/><link name='c'/>"
+                    "<joint name='j1' type='fixed'><parent link='a'/><child link='b'/></joint>"
+                    "<joint name='j2' type='fixed'><parent link='c'/><child link='b'/></joint></robot>",
+                    "closed loops"),
+    "no-limit": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j' type='revolute'><parent link='a'/>"
+                 "<child link='b'/></joint></robot>", "joint 'j': a revolute joint needs <limit"),
+    "floating-in-chain": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j' type='floating'>"
+                          "<parent link='a'/><child link='b'/></joint></robot>", "'j' is floating"),
+    "no-moving-joint": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j' type='fixed'>"
+                        "<parent link='a'/><child link='b'/></joint></robot>", "no moving joint"),
+    "zero-axis": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j' type='revolute'><parent link='a'/>"
+                  "<child link='b'/><axis xyz='0 0 0'/><limit lower='-1' upper='1'/></joint></robot>", "axis"),
+    "dot-in-name": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j.1' type='revolute'>"
+                    "<parent link='a'/><child link='b'/><limit lower='-1' upper='1'/></joint></robot>", "'j.1'"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD))
+def test_bad_urdf_one_line_error(name, tmp_path, capsys):
+    text, words = BAD[name]
+    path = tmp_path / "bad.urdf"
+    path.write_text(text)
+    assert main(["show", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert words in err and "bad.urdf" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("flags, words", [
+    (["--tip-link", "nowhere"], "tip_link 'nowhere' is not a link"),
+    (["--base-link", "tool0", "--tip-link", "base_link"], "broken chain"),
+    ([], "several end links"),
+    (["--tip-link", "tool0", "--tool", "1,2"], "three"),
+])
+def test_chain_choice_errors(flags, words, capsys):
+    code = None
+    try:
+        code = main(["show", str(UR5_URDF), *flags])
+    except SystemExit as exc:  # argparse
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code in (1, 2) and words in err and "Traceback" not in err
+
+
+def test_export_refuses_what_it_cannot_write(tmp_path, capsys):
+    assert main(["export", "guo3t2r", str(tmp_path / "g.urdf")]) == 1
+    assert "not a serial chain" in capsys.readouterr().err
+    assert main(["export", "wam", str(tmp_path / "w.yaml"), "--format", "ur"]) == 1
+    assert "6 revolute joints" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
