@@ -272,6 +272,15 @@ PATHS = [
     case("sensitivity-plot-folder-missing", ["sensitivity", "ur5", "--plot", "{d}/none/s.png"], 1, ["does not exist"]),
     case("verify-output-is-plan", ["verify", "puu3", "--plan", "{d}/p.csv", "-o", "{d}/p.csv"], 1,
          ["would overwrite"], files={"p.csv": "x\n"}),
+    case("export-output-is-robot", ["export", "{d}/r.yaml", "{d}/r.yaml"], 1, ["would overwrite"],
+         files={"r.yaml": UR5_YAML}),
+    case("export-output-is-source-urdf", ["export", "{d}/r.urdf", "{d}/r.urdf", "--tip-link", "b"], 1,
+         ["would overwrite"], files={"r.urdf": "<robot name='r'><link name='a'/><link name='b'/><joint name='j' "
+                                               "type='revolute'><parent link='a'/><child link='b'/><limit "
+                                               "lower='-1' upper='1'/></joint></robot>"}),
+    case("export-ur-of-a-parallel-robot", ["export", "puu3", "{d}/u.yaml", "--format", "ur"], 1,
+         ["not a serial chain"]),
+    case("urdf-flags-on-yaml-robot", ["show", "ur5", "--tip-link", "tool0"], 1, ["apply to URDF files only"]),
     case("robot-missing", ["show", "{d}/none.yaml"], 1, ["neither a bundled robot"]),
     case("robot-is-folder", ["show", "{d}"], 1, ["neither a bundled robot"]),
     case("unknown-bundled-name", ["show", "ur55"], 1, ["neither a bundled robot", "ur5"]),

@@ -274,3 +274,17 @@ def test_export_refuses_what_it_cannot_write(tmp_path, capsys):
     assert main(["export", "wam", str(tmp_path / "w.yaml"), "--format", "ur"]) == 1
     assert "6 revolute joints" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("convention", ["dh", "mdh"])
+def test_random_dh_and_mdh_chains_export(convention, tmp_path):
+    """Random chains with a prismatic joint and β: the new URDF, read by yourdfpy, is the model."""
+    from test_models import random_robot
+
+    robot = random_robot(convention, 4)
+    path = tmp_path / "r.urdf"
+    path.write_text(kincal.urdf_text(robot, tool_link="tcp"))
+    ref = kincal.load_robot(path, tip_link="tcp")
+    q = robot.sample_joints(50, seed=3)
+    np.testing.assert_allclose(reference(path, ref, q, "tcp"), without_base(robot).forward(q), atol=1e-9)
+    assert "prismatic" in path.read_text()
