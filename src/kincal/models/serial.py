@@ -124,7 +124,6 @@ class ChainRobot(Robot):
         return self.with_params({"base.x": x, "base.y": y, "base.z": z, "base.rx": rx, "base.ry": ry, "base.rz": rz})
 
 
-
 @dataclass(frozen=True, eq=False, repr=False)
 class SerialRobot(ChainRobot):
     """An open serial chain. Build with :meth:`SerialRobot.build` or load from YAML."""

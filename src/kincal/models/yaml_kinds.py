@@ -1,0 +1,159 @@
+"""Robot files for the model kinds beyond DH chains: 3-PUU, transmissions, URDF chains (kincal YAML)."""
+from __future__ import annotations
+
+import numpy as np
+import yaml
+
+from ..errors import ModelError
+from .puu3 import PUU3Robot, puu3_names
+from .serial import SerialRobot
+from .transmission import Map, TransmissionRobot, build_transmission_robot
+from .urdf import URDFJoint, URDFRobot, urdf_robot
+from .yaml_values import fmt, mapping, num, pair, unit_factor, units, vector
+
+URDF_JOINT_KEYS = {"name", "type", "axis", "limits", "xyz", "rpy", "roll", "pitch", "yaw"}
+
+
+DRIVE_PREFIX = "drive."
+
+
+def puu3_from_dict(data: dict, label: str) -> PUU3Robot:
+    lf, af = units(data, label)
+    extended = bool(data.get("extended", False))
+    names, kinds = puu3_names(extended)
+    kind = dict(zip(names, kinds))
+    values = {}
+    for key, v in mapping(data, "parameters", label).items():
+        if key not in kind:
+            raise ModelError(f"{label}: unknown 3-PUU parameter '{key}'; known: {', '.join(names[6:])}")
+        values[key] = num(v, f"{label}: parameters", key) * (lf if kind[key] == "length" else af)
+    for k, v in mapping(data, "base", label).items():
+        if k not in ("x", "y", "z", "rx", "ry", "rz"):
+            raise ModelError(f"{label}: unknown base key '{k}'; use x, y, z, rx, ry, rz")
+        values[f"base.{k}"] = num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
+    lim = data.get("slider_limits", [380, 835] if lf == 1e-3 else [0.380, 0.835])
+    if not (isinstance(lim, list) and len(lim) == 2):
+        raise ModelError(f"{label}: 'slider_limits' must be [lower, upper]")
+    lo, hi = num(lim[0], label, "slider_limits") * lf, num(lim[1], label, "slider_limits") * lf
+    base = PUU3Robot.build(str(data.get("name", "puu3")), extended=extended, h_range=(lo, hi),
+                           description=str(data.get("description", "")))
+    return base.with_params(values)
+
+
+def puu3_yaml(robot: PUU3Robot, length_unit: str, angle_unit: str) -> str:
+    lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
+    v = robot.params.as_dict()
+    kinds = dict(zip(robot.params.names, robot.params.kinds))
+    params = ", ".join(f"{n}: {fmt(v[n] * (lf if kinds[n] == 'length' else af))}" for n in robot.params.names[6:])
+    base = ", ".join(f"{k}: {fmt(v['base.' + k] * (lf if k in 'xyz' else af))}" for k in ("x", "y", "z", "rx", "ry", "rz"))
+    lines = [f"name: {robot.name}", "type: puu3"]
+    if robot.description:
+        lines.append(f"description: {yaml.safe_dump(robot.description, default_style=chr(34)).strip()}")
+    lines += [f"units: {{length: {length_unit}, angle: {angle_unit}}}", f"extended: {str(robot.extended).lower()}",
+              f"parameters: {{{params}}}", f"slider_limits: [{fmt(robot.h_lower * lf)}, {fmt(robot.h_upper * lf)}]",
+              f"base: {{{base}}}", ""]
+    return "\n".join(lines)
+
+
+def urdf_from_dict(data: dict, label: str) -> URDFRobot:
+    """A URDF chain saved by kincal (type: urdf): per joint the file's origin (xyz, rpy), axis and
+    limits, and for moving joints the rotation deviations roll, pitch, yaw."""
+    lf, af = units(data, label)
+    if not isinstance(data.get("joints"), list) or not data["joints"]:
+        raise ModelError(f"{label}: 'joints' must be a non-empty list")
+    joints, values = [], {}
+    for k, jd in enumerate(data["joints"]):
+        where = f"{label}: joint {k + 1}"
+        if not isinstance(jd, dict) or set(jd) - URDF_JOINT_KEYS or "name" not in jd:
+            raise ModelError(f"{where}: a mapping with name and keys from {sorted(URDF_JOINT_KEYS)}")
+        jtype, name = str(jd.get("type", "revolute")), str(jd["name"])
+        vec = {key: vector(jd.get(key, [0.0, 0.0, 0.0] if key != "axis" else [1.0, 0.0, 0.0]), where, key)
+               for key in ("xyz", "rpy", "axis")}
+        qf = lf if jtype == "prismatic" else af
+        lim = jd.get("limits")
+        lo, hi = (-np.inf, np.inf) if lim is None else tuple(num(x, where, "limits") * qf for x in pair(lim, where))
+        joints.append(URDFJoint(name, jtype, tuple(vec["xyz"] * lf), tuple(vec["rpy"] * af), tuple(vec["axis"]), lo, hi))
+        if jtype != "fixed":
+            values.update({f"{name}.{c}": num(jd.get(c, 0.0), where, c) * af for c in ("roll", "pitch", "yaw")})
+    src = mapping(data, "source", label)
+    tool = tuple(num(mapping(data, "tool", label).get(c, 0.0), f"{label}: tool", c) * lf for c in "xyz")
+    robot = urdf_robot(str(data.get("name", "urdf_robot")), joints, tool, str(data.get("description", "")),
+                       {str(k): str(v) for k, v in src.items()})
+    base = {f"base.{k}": num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
+            for k, v in mapping(data, "base", label).items()}
+    return robot.with_params({**values, **base})
+
+
+def urdf_yaml(robot: URDFRobot, length_unit: str, angle_unit: str) -> str:
+    lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
+    v = robot.params.as_dict()
+    lines = [f"name: {robot.name}", "type: urdf"]
+    if robot.description:
+        lines.append(f"description: {yaml.safe_dump(robot.description, default_style=chr(34)).strip()}")
+    if robot.source:
+        lines.append("source: {" + ", ".join(f"{k}: {yaml.safe_dump(str(x), default_style=chr(34)).strip()}"
+                                             for k, x in robot.source.items()) + "}")
+    lines += [f"units: {{length: {length_unit}, angle: {angle_unit}}}", "joints:"]
+    vec = lambda xs, f: "[" + ", ".join(fmt(x * f) for x in xs) + "]"  # noqa: E731
+    for j in robot.joints:
+        xyz = [v[f"{j.name}.{c}"] for c in "xyz"] if j.moving else j.xyz
+        items = [f"name: {j.name}", f"type: {j.type}", f"axis: {vec(j.axis, 1.0)}", f"xyz: {vec(xyz, lf)}",
+                 f"rpy: {vec(j.rpy, af)}"]
+        if j.moving:
+            items += [f"{c}: {fmt(v[f'{j.name}.{c}'] * af)}" for c in ("roll", "pitch", "yaw")]
+        qf = lf if j.type == "prismatic" else af
+        if np.isfinite(j.lower) and np.isfinite(j.upper):
+            items.append(f"limits: [{fmt(j.lower * qf)}, {fmt(j.upper * qf)}]")
+        lines.append("  - {" + ", ".join(items) + "}")
+    base = ", ".join(f"{k}: {fmt(v['base.' + k] * (lf if k in 'xyz' else af))}" for k in ("x", "y", "z", "rx", "ry", "rz"))
+    tool = ", ".join(f"{k}: {fmt(v['tool.' + k] * lf)}" for k in ("x", "y", "z"))
+    return "\n".join(lines + [f"base: {{{base}}}", f"tool: {{{tool}}}", ""])
+
+
+def transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float, label: str) -> TransmissionRobot:
+    acts = data["actuators"]
+    tr = data["transmission"]
+    if not isinstance(acts, list) or not acts or not isinstance(tr, dict):
+        raise ModelError(f"{label}: 'actuators' must be a list and 'transmission' a mapping with 'parameters' and 'maps'")
+    actuators = []
+    for k, ad in enumerate(acts):
+        where = f"{label}: actuator {k + 1}"
+        lim = ad.get("limits") if isinstance(ad, dict) else None
+        if not (isinstance(lim, list) and len(lim) == 2) or "name" not in ad:
+            raise ModelError(f"{where}: give a name and limits: [lower, upper]")
+        actuators.append((str(ad["name"]), num(lim[0], where, "limits") * af, num(lim[1], where, "limits") * af))
+    act_index = {a[0]: i for i, a in enumerate(actuators)}
+    joint_index = {j.name: i for i, j in enumerate(chain.joints)}
+    drive = {DRIVE_PREFIX + str(key): (num(v, f"{label}: transmission parameters", key) * lf, "length")
+             for key, v in (tr.get("parameters") or {}).items()}
+    maps = []
+    for k, md in enumerate(tr.get("maps") or []):
+        where = f"{label}: transmission map {k + 1}"
+        try:
+            a = tuple(act_index[n] for n in md["actuators"])
+            j = tuple(joint_index[n] for n in md["joints"])
+        except KeyError as exc:
+            raise ModelError(f"{where}: unknown actuator or joint {exc}; actuators: {', '.join(act_index)}; "
+                             f"joints: {', '.join(joint_index)}") from None
+        roles = {"direct": (), "screw": ("lead",), "differential_screw": ("lead", "arm")}.get(md.get("type"), ())
+        missing = [r for r in roles if r not in md]
+        if missing:
+            raise ModelError(f"{where}: missing {', '.join(missing)}")
+        maps.append(Map(str(md.get("type")), a, j, tuple(DRIVE_PREFIX + str(md[r]) for r in roles)))
+    return build_transmission_robot(chain, actuators, maps, drive)
+
+
+def transmission_yaml(robot: TransmissionRobot, length_unit: str, angle_unit: str) -> str:
+    lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
+    lines = ["actuators:"]
+    for name, lo, hi in zip(robot.actuator_names, robot.actuator_lower, robot.actuator_upper):
+        lines.append(f"  - {{name: {name}, limits: [{fmt(lo * af)}, {fmt(hi * af)}]}}")
+    params = ", ".join(f"{n[len(DRIVE_PREFIX):]}: {fmt(v * lf)}" for n, v in zip(robot.drive.names, robot.drive.values))
+    lines += ["transmission:", f"  parameters: {{{params}}}", "  maps:"]
+    roles = {"direct": (), "screw": ("lead",), "differential_screw": ("lead", "arm")}
+    for mp in robot.maps:
+        items = [f"type: {mp.kind}", f"actuators: [{', '.join(robot.actuator_names[a] for a in mp.actuators)}]",
+                 f"joints: [{', '.join(robot.chain.joints[j].name for j in mp.joints)}]"]
+        items += [f"{role}: {p[len(DRIVE_PREFIX):]}" for role, p in zip(roles[mp.kind], mp.params)]
+        lines.append("    - {" + ", ".join(items) + "}")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,77 @@
+"""Values in robot files: units, numbers, small mappings; messages name the file and the key."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ModelError
+
+LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}
+
+
+ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
+
+
+def unit_factor(unit: str, kind: str, where: str = "") -> float:
+    """SI factor of a length ('m','mm','um') or angle ('rad','deg') unit."""
+    table = LENGTH_UNITS if kind == "length" else ANGLE_UNITS
+    if unit not in table:
+        raise ModelError(f"{where}unknown {kind} unit '{unit}'; use one of {', '.join(table)}")
+    return table[unit]
+
+
+EXAMPLES = {"units": "{length: mm, angle: deg}", "base": "{x: 0, y: 0, z: 0, rx: 0, ry: 0, rz: 0}",
+             "tool": "{x: 0, y: 0, z: 0}", "parameters": "{r: 100, R: 200, L1: 350}"}
+
+
+def mapping(data: dict, key: str, label: str) -> dict:
+    """``data[key]`` as a mapping ({} when absent); ModelError naming the key otherwise."""
+    value = data.get(key)
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise ModelError(f"{label}: '{key}' must be a mapping like {EXAMPLES.get(key, '{name: value}')}, got {value!r}")
+    return value
+
+
+def units(data: dict, label: str) -> tuple[float, float]:
+    """SI factors of the file's ``units: {length: …, angle: …}`` (m and rad when absent)."""
+    units = mapping(data, "units", label)
+    extra = set(units) - {"length", "angle"}
+    if extra:
+        raise ModelError(f"{label}: 'units' takes only 'length' and 'angle', got {sorted(map(str, extra))}")
+    return (unit_factor(str(units.get("length", "m")), "length", f"{label}: "),
+            unit_factor(str(units.get("angle", "rad")), "angle", f"{label}: "))
+
+
+def vector(v, where: str, key: str) -> np.ndarray:
+    if not (isinstance(v, list) and len(v) == 3):
+        raise ModelError(f"{where}: '{key}' must be [a, b, c]")
+    return np.array([num(x, where, key) for x in v])
+
+
+def pair(v, where: str) -> list:
+    if not (isinstance(v, list) and len(v) == 2):
+        raise ModelError(f"{where}: 'limits' must be [lower, upper]")
+    return v
+
+
+def num(v, where: str, key: str) -> float:
+    if isinstance(v, str):  # YAML 1.1 reads '31e0' (no dot) as text
+        try:
+            v = float(v.strip())
+        except ValueError:
+            pass
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ModelError(f"{where}: '{key}' must be a number, got {v!r}")
+    if not np.isfinite(v):
+        raise ModelError(f"{where}: '{key}' must be finite, got {v!r}")
+    return float(v)
+
+
+def fmt(x: float) -> str:
+    """Shortest exact float text that YAML reads back as a float."""
+    s = repr(float(x))
+    if "e" in s and "." not in s.split("e")[0]:
+        m, e = s.split("e")
+        s = f"{m}.0e{e}"
+    return s
