@@ -24,10 +24,14 @@ demo: setup
 	$(VENV)/bin/kincal calibrate ur5 $(DATA)/ur5_grid.csv $(UR5) -o .venv/ur5_calibrated.yaml > /dev/null
 	$(VENV)/bin/kincal evaluate .venv/ur5_calibrated.yaml $(DATA)/ur5_random.csv $(UR5)
 	@echo
+	@echo "The calibration report (open it in a browser): verdict, errors before/after, plots, parameters"
+	$(VENV)/bin/kincal report .venv/ur5_calibrated.yaml --test $(DATA)/ur5_random.csv -o .venv/ur5_report.html
+	@echo
 	@echo "The calibrated UR5 back out, for ROS: a URDF (with the reflector as link 'smr') and UR's kinematics file"
 	$(VENV)/bin/kincal export .venv/ur5_calibrated.yaml .venv/ur5_calibrated.urdf --tool-link smr
 	$(VENV)/bin/kincal export .venv/ur5_calibrated.yaml .venv/ur5_calibration.yaml --format ur
 	@echo "written: .venv/ur5_calibrated.yaml (kincal), .venv/ur5_calibrated.urdf (URDF), .venv/ur5_calibration.yaml (UR driver)"
+	@echo "report:  .venv/ur5_report.html (numbers in .venv/ur5_report.json)"
 
 test: setup
 	$(PY) -m pytest -q
@@ -37,6 +41,7 @@ bench: setup
 	$(PY) benchmarks/design.py
 	$(PY) benchmarks/design_real.py
 	$(PY) benchmarks/parallel.py
+	$(PY) benchmarks/report.py
 
 clean:
 	rm -rf $(VENV) build src/*.egg-info .pytest_cache

@@ -1,8 +1,8 @@
 """kincal command line: parses, calls the public API, prints (tables for people, --json for programs).
 
 One module per concept: ``model`` (robots and their kinematics), ``design`` (pose design, separation),
-``identify`` (calibrate, evaluate), ``parallel`` (seed-2 commands: compensation, error-model
-verification), ``study`` (the demonstration).
+``identify`` (calibrate, evaluate), ``report`` (the calibration report), ``parallel`` (seed-2
+commands: compensation, error-model verification), ``study`` (the demonstration).
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import sys
 
 import kincal
 
-from . import design, identify, model, parallel, study
+from . import design, identify, model, parallel, report, study
 from .common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED, err
 
 EXIT_INTERNAL = 70  # a bug in kincal, not in the user's input (KINCAL_DEBUG=1 shows the traceback)
@@ -38,7 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
         s.set_defaults(func=func)
         return s
 
-    for room in (model, identify, design, parallel, study):
+    for room in (model, identify, report, design, parallel, study):
         room.register(cmd)
     return p
 

@@ -5,6 +5,8 @@ import argparse
 
 import kincal
 
+from .report import data_record, save_figures, write_outputs
+
 from .common import (DEG, EXIT_NOT_CONVERGED, EXIT_REFUSED, MM, add_data_flags, add_robot, check_paths, csv_list, emit,
                      err, load_robot, positive_float, positive_int, progress, read, robot_inputs, row_list)
 
@@ -17,9 +19,11 @@ def _thresholds(args) -> kincal.Thresholds:
 
 
 def cmd_calibrate(args) -> int:
-    check_paths([*robot_inputs(args.robot), args.data], [args.output, args.residuals])
+    reports = [args.report, kincal.json_path_for(args.report)] if args.report else []
+    check_paths([*robot_inputs(args.robot), args.data, args.test], [args.output, args.residuals, *reports])
     r = load_robot(args)
     meas = read(args, r, args.data)
+    test = read(args, r, args.test) if args.test else None
     if args.exclude:
         meas = meas.without_rows(args.exclude)
     with progress("calibrating", args.json) as say:
@@ -32,7 +36,8 @@ def cmd_calibrate(args) -> int:
     refused = res.verdict.status == "refused"
     written = bool(args.output) and (not refused or args.force)
     if written:
-        kincal.save_robot(res.robot, args.output, calibration=res.uncertainty().to_dict())
+        kincal.save_robot(res.robot, args.output,
+                          calibration={**res.record(), "data": data_record(args, args.data, args.exclude)})
     payload = {**res.to_dict(), "output": args.output if written else None, "residuals_file": args.residuals}
     text = str(res)
     ident = res.identifiability
@@ -42,6 +47,8 @@ def cmd_calibrate(args) -> int:
     if args.output:
         text += (f"\ncalibrated robot written to {args.output}" + (" (forced despite the verdict)" if refused else "")
                  if written else f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")
+    text += "".join("\n" + line for line in write_outputs(args, res, test, {
+        "robot": args.robot, "units": f"{args.length_unit}, {args.angle_unit}"}))
     emit(args, payload, text)
     data_problems = [r.code for r in res.verdict.reasons if r.level == "refused" and r.code != "not-converged"]
     if data_problems:  # more telling than the non-convergence they usually cause
@@ -57,8 +64,13 @@ def cmd_evaluate(args) -> int:
     check_paths([*robot_inputs(args.robot), args.data], [])
     r = load_robot(args)
     meas = read(args, r, args.data)
-    stats = kincal.evaluate(r, meas, rebase=args.rebase, uncertainty=kincal.load_uncertainty(args.robot))
-    emit(args, stats.to_dict(), f"{r.name} on {args.data}{' (base re-fitted)' if args.rebase else ''}: {stats}")
+    if args.rebase:
+        r = kincal.calibrate(r, meas, params=(), base="estimate").robot
+    stats = kincal.evaluate(r, meas, uncertainty=kincal.load_uncertainty(args.robot))
+    text = f"{r.name} on {args.data}{' (base re-fitted)' if args.rebase else ''}: {stats}"
+    if args.plot:
+        text += "\n" + "\n".join(save_figures(kincal.evaluation_figures(r, meas), args.plot))
+    emit(args, stats.to_dict(), text)
     return 0
 
 
@@ -90,6 +102,9 @@ def register(cmd) -> None:
     s.add_argument("--exclude", type=row_list, help="input rows to leave out, e.g. 12,40-42")
     s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers)")
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")
+    s.add_argument("--test", help="held-out measurements for the report and figures")
+    s.add_argument("--report", help="HTML report to write (self-contained; its JSON goes beside it)")
+    s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     s.add_argument("--tracker-noise", type=positive_float, default=0.05, help="expected tracker noise, mm (default 0.05)")
     s.add_argument("--length-limits", type=_pair, default=(10.0, 50.0), metavar="SUSPECT,REFUSE",
                    help="largest plausible length corrections, mm (default 10,50)")
@@ -101,4 +116,5 @@ def register(cmd) -> None:
     add_robot(s)
     s.add_argument("data")
     s.add_argument("--rebase", action="store_true", help="re-fit only the base frame first")
+    s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     add_data_flags(s)

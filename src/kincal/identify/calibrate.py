@@ -125,7 +125,11 @@ def calibrate(
             fit, w, *counts = irls(problem, _at(problem, problem.x0), loss, f_scale,
                                    lambda x, wt: fit_lm(problem, x, wt, max_iter))
         res = _result(robot, problem, final, fit, w, counts, history, method, loss, time.perf_counter() - t0)
-        return judge(res, problem, thresholds or Thresholds())
+        th = thresholds or Thresholds()
+        options = {"params": params if isinstance(params, str) else list(params), "base": base, "loss": loss,
+                   "method": method, "f_scale": f_scale, "keep": list(keep), "tol": tol, "max_iter": max_iter,
+                   "residual": residual, "pso_options": dict(pso_options or {}), "thresholds": th.to_dict()}
+        return dataclasses.replace(judge(res, problem, th), options=options)
 
 
 def _solve(problem: CalibrationProblem, method: str, max_iter: int, pso_options: dict, say):

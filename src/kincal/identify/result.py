@@ -1,7 +1,7 @@
 """Result objects of identification and evaluation (frozen, printable in mm/deg, ``to_dict`` in SI)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -93,6 +93,13 @@ class CalibrationResult:
     pose_z: np.ndarray | None = None  # (N,) robust z-score of each pose's error norm
     outlier_z: float = 5.0
     covariance: np.ndarray | None = None  # (K, K) in the order of ``names`` (inf σ: rows/cols of zeros)
+    options: dict = field(default_factory=dict)  # the calibrate() options used (to reproduce the fit)
+
+    def record(self) -> dict:
+        """What a calibrated robot file keeps beside the model: the parameter covariance and training σ
+        (``uncertainty()``), the nominal parameter values and the options, so the fit can be
+        reproduced (``kincal report``)."""
+        return {**self.uncertainty().to_dict(), "nominal": self.nominal.params.as_dict(), "options": self.options}
 
     def uncertainty(self) -> ModelUncertainty:
         """The calibrated model's parameter covariance, with the median predicted σ at the training

@@ -6,8 +6,8 @@ from .robot import Robot
 from .serial import ChainRobot, Joint, SerialRobot
 from .transmission import Map, TransmissionRobot
 from .urdf import URDFJoint, URDFRobot, read_urdf
-from .yaml_io import bundled_robots, load_robot, save_robot
+from .yaml_io import bundled_robots, load_calibration_record, load_robot, save_robot
 
 __all__ = ["Chain", "Op", "Parameters", "Robot", "ChainRobot", "Joint", "SerialRobot", "Map", "TransmissionRobot",
-           "URDFJoint", "URDFRobot", "read_urdf", "bundled_robots", "load_robot", "save_robot", "joint_frames",
+           "URDFJoint", "URDFRobot", "read_urdf", "bundled_robots", "load_robot", "save_robot", "load_calibration_record", "joint_frames",
            "ur_calibration", "urdf_text", "FORMATS", "export_robot"]

@@ -272,3 +272,12 @@ def read_section(name_or_path: str | os.PathLike, key: str) -> object | None:
         return None
     data = _parse(text, label)
     return data.get(key) if isinstance(data, dict) else None
+
+
+def load_calibration_record(name_or_path: str | os.PathLike) -> dict | None:
+    """The ``calibration:`` section a calibrated robot file keeps (covariance, nominal values, options,
+    data settings; see :meth:`kincal.CalibrationResult.record`), or None."""
+    section = read_section(name_or_path, "calibration")
+    if section is not None and not isinstance(section, dict):
+        raise ModelError(f"{name_or_path}: the 'calibration' section must be a mapping")
+    return section

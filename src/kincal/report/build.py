@@ -1,0 +1,222 @@
+"""The calibration report: one self-contained HTML page (inline SVG, no JavaScript, no network), the
+JSON of the same numbers, and a terminal summary. Deterministic: the same input gives the same bytes
+(the date is the day, or SOURCE_DATE_EPOCH when set)."""
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import json
+import os
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import jinja2
+import numpy as np
+
+from .._atomic import write_text_atomic
+from ..identify.calibrate import calibrate, evaluate
+from ..identify.result import CalibrationResult, EvaluationStats
+from ..identify.verdict import Thresholds, duplicate_groups, robust_z
+from ..io.measurements import Measurements
+from . import figures as F
+
+MM, DEG = 1e3, 180.0 / np.pi
+
+
+@dataclass(frozen=True)
+class Report:
+    html: str
+    data: dict  # the same numbers, SI units
+    summary: str  # a few lines for the terminal
+
+    def write(self, path: str | os.PathLike) -> Path:
+        """Write the HTML to ``path`` and the JSON beside it (same name, .json); returns the JSON path."""
+        path = Path(path)
+        json_path = json_path_for(path)
+        write_text_atomic(path, self.html)
+        write_text_atomic(json_path, json.dumps(self.data, indent=2, sort_keys=True) + "\n")
+        return json_path
+
+
+def json_path_for(path: str | os.PathLike) -> Path:
+    path = Path(path)
+    return path.with_suffix(".json") if path.suffix.lower() in (".html", ".htm") else Path(f"{path}.json")
+
+
+def report_date() -> str:
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    when = _dt.datetime.fromtimestamp(int(epoch), _dt.timezone.utc) if epoch else _dt.datetime.now(_dt.timezone.utc)
+    return when.strftime("%Y-%m-%d")
+
+
+def build_report(result: CalibrationResult, test: Measurements | None = None, info: dict | None = None,
+                 html_name: str = "report.html") -> Report:
+    """The report of ``result`` (its training data) and, if given, held-out ``test`` data.
+
+    info -- labels for the data section: "robot" (the robot file or name), "units", and anything else
+            to show (key -> text)
+    """
+    from .. import __version__
+
+    info = dict(info or {})
+    train = result.measurements
+    th = _thresholds(result)
+    sets = _sets(result, test, th)
+    warnings = list(evaluate(result.robot, test, uncertainty=result.uncertainty()).warnings) if test else []
+    headline = [_headline(s, which) for s in sets for which in ("before", "after")]
+    figs = _figures(sets, result)
+    ctx = {"robot": result.robot.name, "version": __version__, "date": report_date(), "model_kind": result.robot.kind,
+           "n_estimated": len(result.names), "n_train": len(train), "verdict": result.verdict.to_dict(),
+           "outliers": [int(r) for s in sets for r in s.rows[s.outliers]], "headline": headline,
+           "warnings": warnings, "parameters": _parameter_rows(result, th),
+           "not_estimated": result.identifiability.confound_lines(""), "data": _data_rows(result, test, info),
+           "iso": _iso9283(sets, result), "json_name": json_path_for(html_name).name, **figs}
+    html = _template().render(**ctx)
+    data = {k: ctx[k] for k in ("robot", "version", "date", "model_kind", "verdict", "outliers", "warnings",
+                                "parameters", "not_estimated", "data", "iso")}
+    data["headline"] = [{**h, **{k: h[k] / MM for k in ("mean", "rms", "max", "p95")}} for h in headline]
+    data["figures"] = [f["name"] for group in figs.values() for f in group]
+    return Report(html, data, _summary(result, headline))
+
+
+def _thresholds(result: CalibrationResult) -> Thresholds:
+    return Thresholds(**result.options["thresholds"]) if result.options.get("thresholds") else Thresholds()
+
+
+def _sets(result: CalibrationResult, test: Measurements | None, th: Thresholds) -> list[F.PoseSet]:
+    """The training set (outliers as judged by the calibration) and the held-out set (by robust z)."""
+    sets = [_pose_set("training", result, result.measurements, result.pose_z > result.outlier_z)]
+    if test is not None:
+        after = np.linalg.norm(test.xyz - result.robot.forward(test.q), axis=1)
+        sets.append(_pose_set("held-out", result, test, robust_z(after) > th.outlier_z))
+    return sets
+
+
+def _pose_set(label: str, result: CalibrationResult, meas: Measurements, outliers: np.ndarray) -> F.PoseSet:
+    """Errors before (nominal model, its base frame fitted to these data) and after (the calibrated model)."""
+    nominal = calibrate(result.nominal, meas, params=(), base="estimate").robot if result.nominal.base_params() \
+        else result.nominal
+    before = meas.xyz - nominal.forward(meas.q)
+    after = meas.xyz - result.robot.forward(meas.q)
+    return F.PoseSet(label, meas.rows, meas.q, meas.xyz, before, after, np.asarray(outliers, bool))
+
+
+def _headline(s: F.PoseSet, which: str) -> dict:
+    st = EvaluationStats.from_errors(s.before if which == "before" else s.after)
+    model = "nominal (frame registered)" if which == "before" else "calibrated"
+    return {"data": s.label, "n": st.n, "model": model, "key": f"{s.label}.{which}", "mean": st.mean * MM,
+            "rms": st.rms * MM, "max": st.max * MM, "p95": st.p95 * MM}
+
+
+GROUPS = {"figures_errors": ("per_pose", "histogram", "per_axis"), "figures_where": ("vs_joints", "workspace"),
+          "figures_params": ("correlation",)}
+
+
+def _figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
+    figs = _make_figures(sets, result)
+    return {g: [{"name": n, "svg": F.svg(figs[n])} for n in names] for g, names in GROUPS.items()}
+
+
+def figure_set(result: CalibrationResult, test: Measurements | None = None) -> dict:
+    """The report's figures as matplotlib Figures by name (``--plot`` saves them as PNG or SVG)."""
+    return _make_figures(_sets(result, test, _thresholds(result)), result)
+
+
+def evaluation_figures(robot, meas: Measurements) -> dict:
+    """Figures of one model on one data set (``evaluate --plot``): errors per pose, distribution,
+    per axis, against the joints, in the workspace; outliers by robust z."""
+    after = meas.xyz - robot.forward(meas.q)
+    s = F.PoseSet("held-out", meas.rows, meas.q, meas.xyz, None, after,
+                  robust_z(np.linalg.norm(after, axis=1)) > Thresholds().outlier_z)
+    return {"per_pose": F.per_pose([s]), "histogram": F.histogram([s]), "per_axis": F.per_axis([s]),
+            "vs_joints": F.vs_joints([s], robot.joint_names, robot.joint_types), "workspace": F.workspace([s])}
+
+
+def _make_figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
+    robot = result.robot
+    ok = np.array([np.isfinite(result.std[n]) for n in result.names])
+    return {"per_pose": F.per_pose(sets), "histogram": F.histogram(sets), "per_axis": F.per_axis(sets),
+            "vs_joints": F.vs_joints(sets, robot.joint_names, robot.joint_types), "workspace": F.workspace(sets),
+            "correlation": F.correlation([n for n, k in zip(result.names, ok) if k],
+                                         result.correlation[np.ix_(ok, ok)])}
+
+
+def _value(v: float, kind: str, signed: bool = False) -> str:
+    fmt = "{:+.4f}" if signed else "{:.4f}"
+    return fmt.format(v * MM) + " mm" if kind == "length" else fmt.format(v * DEG) + " deg"
+
+
+def _parameter_rows(result: CalibrationResult, th: Thresholds) -> list[dict]:
+    kinds = dict(zip(result.robot.params.names, result.robot.params.kinds))
+    base = set(result.robot.base_params())
+    rows = []
+    for n in result.names:
+        k, c = kinds[n], result.corrections[n]
+        big = abs(c) > (th.length_suspect if k == "length" else th.angle_suspect) and n not in base
+        sd = result.std[n]
+        rows.append({"name": n, "nominal": _value(result.nominal.params[n], k),
+                     "calibrated": _value(result.estimates[n], k), "correction": _value(c, k, True),
+                     "sigma": _value(sd, k) if np.isfinite(sd) else "undetermined",
+                     "flag": "large" if big else ""})
+    return rows
+
+
+def _file_line(meas: Measurements) -> str:
+    path = Path(meas.source)
+    if not path.is_file():
+        return f"{meas.source} ({len(meas)} poses)"
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    return f"{path.name} ({len(meas)} poses, rows {meas.rows[0]}..{meas.rows[-1]}; sha256 {digest[:16]}…)"
+
+
+def _data_rows(result: CalibrationResult, test: Measurements | None, info: dict) -> list[dict]:
+    o = result.options
+    rows = [("robot", info.pop("robot", result.robot.name)), ("training data", _file_line(result.measurements))]
+    if test is not None:
+        rows.append(("held-out data", _file_line(test)))
+    rows += [("options", f"base {o.get('base')}, loss {o.get('loss')}, method {o.get('method')}, "
+                         f"parameters {o.get('params') if isinstance(o.get('params'), str) else 'as listed'}"),
+             ("solver", f"{'converged' if result.converged else 'NOT converged'} ({result.message}), "
+                        f"{result.iterations} iterations"),
+             ("pose design", info.pop("design", "not recorded (poses not from kincal design, or not given)"))]
+    rows += [(k, str(v)) for k, v in info.items()]
+    return [{"label": k, "value": v} for k, v in rows]
+
+
+def _iso9283(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
+    """ISO 9283 AP and RP for poses visited more than once (the calibrated model as the command)."""
+    groups = []
+    for s in sets:
+        for g in duplicate_groups(s.q):
+            pts = s.xyz[g]
+            mean = pts.mean(axis=0)
+            commanded = result.robot.forward(s.q[g[:1]])[0]
+            dist = np.linalg.norm(pts - mean, axis=1)
+            groups.append({"rows": ", ".join(str(int(r)) for r in s.rows[g]), "n": len(g),
+                           "ap": float(np.linalg.norm(mean - commanded)) * MM,
+                           "rp": float(dist.mean() + 3 * dist.std(ddof=1)) * MM})
+    if groups:
+        text = ("These data visit some poses more than once: for those, ISO 9283 pose accuracy AP (distance of the "
+                "mean attained position from the model's position) and repeatability RP (mean distance from that "
+                "mean plus three standard deviations) are below. The error statistics above are over different "
+                "poses and are not AP.")
+    else:
+        text = ("No pose is visited more than once, so ISO 9283 pose accuracy (AP) and repeatability (RP) cannot be "
+                "computed from these data. The figures above are 3-D position errors over different poses: they "
+                "describe the model's accuracy across the workspace, which is not ISO 9283 AP.")
+    return {"text": text, "groups": groups}
+
+
+def _template() -> jinja2.Template:
+    text = (resources.files("kincal.report") / "templates" / "report.html").read_text()
+    return jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined).from_string(text)
+
+
+def _summary(result: CalibrationResult, headline: list[dict]) -> str:
+    lines = [f"verdict: {result.verdict.status.upper()}"]
+    lines += [f"  {r.level}: {r.message}" for r in result.verdict.reasons]
+    for h in headline:
+        lines.append(f"  {h['data']:<9} {h['model']:<27} mean {h['mean']:.4f} mm  rms {h['rms']:.4f} mm  "
+                     f"max {h['max']:.4f} mm")
+    return "\n".join(lines)

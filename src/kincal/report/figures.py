@@ -1,0 +1,185 @@
+"""The report's figures (matplotlib, no pyplot state), shared by ``kincal report`` and ``--plot``.
+
+Every figure takes :class:`PoseSet` values: one data set's poses, with the errors before and after
+calibration (m). SVG output is deterministic (fixed hash salt, no date, text as paths), so a report
+has the same bytes for the same input.
+"""
+from __future__ import annotations
+
+import functools
+import io
+import os
+import re
+from dataclasses import dataclass
+
+import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
+
+MM, DEG = 1e3, 180.0 / np.pi
+RC = {"svg.hashsalt": "kincal", "svg.fonttype": "none", "font.size": 9, "axes.titlesize": 10,
+      "axes.grid": True, "grid.alpha": 0.3, "font.family": "DejaVu Sans"}
+SVG_DPI = 110  # point clouds are embedded as images at this resolution (thousands of markers stay small)
+COLOURS = {"training": "#1f77b4", "held-out": "#d62728", "before": "#9a9a9a"}
+
+
+@dataclass(frozen=True, eq=False)
+class PoseSet:
+    """One data set: label ("training" / "held-out"), input rows (N,), joints q (N, n) SI, measured
+    positions xyz (N, 3) m, errors before/after (N, 3) m (measured − model; ``before`` None when
+    only one model is evaluated), outlier flags (N,)."""
+
+    label: str
+    rows: np.ndarray
+    q: np.ndarray
+    xyz: np.ndarray
+    before: np.ndarray | None
+    after: np.ndarray
+    outliers: np.ndarray
+
+    @property
+    def after_norm(self) -> np.ndarray:
+        return np.linalg.norm(self.after, axis=1)
+
+
+def svg(fig: Figure) -> str:
+    """The figure as an inline SVG string (no XML header, deterministic)."""
+    buf = io.StringIO()
+    with matplotlib.rc_context(RC):
+        fig.savefig(buf, format="svg", dpi=SVG_DPI, metadata={"Date": None, "Creator": None})
+    text = buf.getvalue()
+    text = re.sub(r"\s*<metadata>.*?</metadata>", "", text, flags=re.S)  # creator/format RDF: noise in a page
+    return text[text.index("<svg"):]
+
+
+def save(fig: Figure, path: str | os.PathLike) -> None:
+    """PNG or SVG by the file's extension."""
+    with matplotlib.rc_context(RC):
+        fig.savefig(path, dpi=130, metadata={"Date": None} if str(path).lower().endswith(".svg") else None)
+
+
+def _styled(make):
+    """Build a figure under the report's style (fonts, grid), whatever the caller's rcParams."""
+    @functools.wraps(make)
+    def wrapper(*args, **kwargs) -> Figure:
+        with matplotlib.rc_context(RC):
+            return make(*args, **kwargs)
+    return wrapper
+
+
+def _figure(width: float, height: float) -> Figure:
+    return Figure(figsize=(width, height), layout="constrained")
+
+
+@_styled
+def per_pose(sets: list[PoseSet]) -> Figure:
+    """Error norm of every pose, before and after, in file order (log scale: mm to µm)."""
+    fig = _figure(9.0, 2.6 * len(sets))
+    for k, s in enumerate(sets):
+        ax = fig.add_subplot(len(sets), 1, k + 1)
+        x = np.arange(1, len(s.rows) + 1)
+        if s.before is not None:
+            ax.semilogy(x, np.linalg.norm(s.before, axis=1) * MM, ".", ms=3, color=COLOURS["before"],
+                        label="before (nominal model, frame registered)", rasterized=True)
+        ax.semilogy(x, s.after_norm * MM, ".", ms=3, color=COLOURS[s.label],
+                    label="after calibration" if s.before is not None else "model", rasterized=True)
+        ax.set_title(f"{s.label} poses ({len(x)}): position error per pose")
+        ax.set_xlabel("pose (file order)")
+        ax.set_ylabel("error (mm)")
+        ax.legend(loc="upper right", fontsize=8)
+    return fig
+
+
+@_styled
+def histogram(sets: list[PoseSet]) -> Figure:
+    fig = _figure(4.6, 3.0)
+    ax = fig.add_subplot()
+    top = max(float(s.after_norm.max()) for s in sets) * MM
+    bins = np.linspace(0.0, top * 1.02 if top > 0 else 1.0, 31)
+    for s in sets:
+        ax.hist(s.after_norm * MM, bins=bins, alpha=0.6, color=COLOURS[s.label], label=s.label,
+                weights=np.full(len(s.rows), 100.0 / len(s.rows)))
+    ax.set_title("distribution of the error after calibration")
+    ax.set_xlabel("position error (mm)")
+    ax.set_ylabel("poses (%)")
+    ax.legend(fontsize=8)
+    return fig
+
+
+@_styled
+def per_axis(sets: list[PoseSet]) -> Figure:
+    fig = _figure(4.6, 3.0)
+    ax = fig.add_subplot()
+    data, labels, colours = [], [], []
+    for a, name in enumerate("xyz"):
+        for s in sets:
+            data.append(s.after[:, a] * MM)
+            labels.append(f"{name}\n{s.label}")
+            colours.append(COLOURS[s.label])
+    parts = ax.boxplot(data, patch_artist=True, widths=0.6, flierprops={"markersize": 2})
+    ax.set_xticks(range(1, len(labels) + 1), labels, fontsize=7)
+    for patch, colour in zip(parts["boxes"], colours):
+        patch.set_facecolor(colour)
+        patch.set_alpha(0.5)
+    ax.set_title("error per axis after calibration")
+    ax.set_ylabel("measured − model (mm)")
+    return fig
+
+
+@_styled
+def vs_joints(sets: list[PoseSet], joint_names, joint_types) -> Figure:
+    """Error after calibration against each joint value: gravity sag, gear and encoder errors show here."""
+    n = len(joint_names)
+    cols = min(n, 3)
+    rows = -(-n // cols)
+    fig = _figure(3.2 * cols, 2.4 * rows)
+    for j in range(n):
+        ax = fig.add_subplot(rows, cols, j + 1)
+        scale, unit = (DEG, "deg") if joint_types[j] == "revolute" else (MM, "mm")
+        for s in sets:
+            ax.plot(s.q[:, j] * scale, s.after_norm * MM, ".", ms=3, color=COLOURS[s.label], label=s.label,
+                    rasterized=True)
+        ax.set_xlabel(f"{joint_names[j]} ({unit})")
+        ax.set_ylabel("error (mm)")
+    fig.axes[0].legend(fontsize=7)
+    fig.suptitle("error after calibration against each joint")
+    return fig
+
+
+@_styled
+def workspace(sets: list[PoseSet]) -> Figure:
+    """Measured positions in three projections, coloured by the error after calibration; outliers
+    circled and named by input row."""
+    fig = _figure(11.0, 3.6)
+    all_err = np.concatenate([s.after_norm for s in sets]) * MM
+    vmax = float(np.percentile(all_err, 99)) if all_err.size else 1.0
+    for k, (a, b) in enumerate(((0, 1), (0, 2), (1, 2))):
+        ax = fig.add_subplot(1, 3, k + 1)
+        for s in sets:
+            sc = ax.scatter(s.xyz[:, a] * MM, s.xyz[:, b] * MM, c=s.after_norm * MM, s=8, cmap="viridis",
+                            vmin=0.0, vmax=vmax, marker="o" if s.label == "training" else "^", rasterized=True)
+            for r, p in zip(s.rows[s.outliers], s.xyz[s.outliers]):
+                ax.scatter(p[a] * MM, p[b] * MM, s=80, facecolors="none", edgecolors="red", linewidths=1.2)
+                ax.annotate(f"row {r}", (p[a] * MM, p[b] * MM), xytext=(4, 4), textcoords="offset points",
+                            color="red", fontsize=8)
+        ax.set_xlabel(f"{'xyz'[a]} (mm)")
+        ax.set_ylabel(f"{'xyz'[b]} (mm)")
+        ax.set_aspect("equal", adjustable="datalim")
+    fig.colorbar(sc, ax=fig.axes, label="error after (mm)", shrink=0.9)
+    fig.suptitle("workspace (measurement frame): o training, ^ held-out; red circles: outliers")
+    return fig
+
+
+@_styled
+def correlation(names, corr: np.ndarray) -> Figure:
+    k = len(names)
+    size = max(4.0, min(10.0, 0.28 * k + 2.0))
+    fig = _figure(size + 1.0, size)
+    ax = fig.add_subplot()
+    im = ax.imshow(corr, vmin=-1.0, vmax=1.0, cmap="RdBu_r")
+    ax.set_xticks(range(k), names, rotation=90, fontsize=7)
+    ax.set_yticks(range(k), names, fontsize=7)
+    ax.grid(False)
+    fig.colorbar(im, ax=ax, label="correlation", shrink=0.8)
+    ax.set_title("correlation of the estimated parameters")
+    return fig

@@ -1,0 +1,127 @@
+"""The calibration report: same bytes for the same input, the page's numbers equal the JSON, bad
+calibrations say so at the top, and figures for calibrate/evaluate --plot."""
+import json
+import re
+
+import numpy as np
+import pytest
+from conftest import DATA, UR5_COLS
+
+import kincal
+from kincal.cli import main
+
+UNITS = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
+
+
+@pytest.fixture(autouse=True)
+def fixed_date(monkeypatch):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1795000000")
+
+
+@pytest.fixture(scope="module")
+def real(tmp_path_factory):
+    """The real UR5 calibration with its report (calibrate --report), and the calibrated robot file."""
+    d = tmp_path_factory.mktemp("report")
+    mp = pytest.MonkeyPatch()
+    mp.setenv("SOURCE_DATE_EPOCH", "1795000000")
+    code = main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *UNITS, "-o", str(d / "cal.yaml"), "--test",
+                 str(DATA / "ur5_random.csv"), "--report", str(d / "report.html")])
+    mp.undo()
+    assert code == 0
+    return d
+
+
+def page_numbers(html: str) -> dict:
+    return {k: float(v) for k, v in re.findall(r'data-key="([^"]+)\.mean">([-0-9.]+)<', html)}
+
+
+def test_report_content_matches_its_json(real):
+    html = (real / "report.html").read_text()
+    data = json.loads((real / "report.json").read_text())
+    assert data["verdict"]["status"] == "good" and data["robot"] == "ur5"
+    numbers = page_numbers(html)
+    assert set(numbers) == {"training.before", "training.after", "held-out.before", "held-out.after"}
+    for h in data["headline"]:
+        assert numbers[h["key"]] == pytest.approx(h["mean"] * 1e3, abs=5e-5)  # the page shows 4 decimals in mm
+    assert next(h for h in data["headline"] if h["key"] == "held-out.after")["mean"] == pytest.approx(0.1005e-3,
+                                                                                                      abs=0.00005e-3)
+    assert data["figures"] == ["per_pose", "histogram", "per_axis", "vs_joints", "workspace", "correlation"]
+    assert html.count("<svg") == 6 and "<script" not in html  # self-contained: no JavaScript, nothing fetched
+    assert not re.search(r"""(src|href)\s*=\s*["']?(https?:|//)""", html)
+    assert len(html.encode()) < 1_000_000
+    assert "sha256" in html and "ISO 9283" in html and "j1.d  ~  +1·base.z" in html
+
+
+def test_same_input_same_bytes(real, tmp_path, capsys):
+    """calibrate --report twice gives the same bytes; kincal report of the saved file the same content."""
+    code = main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *UNITS, "--test", str(DATA / "ur5_random.csv"),
+                 "--report", str(tmp_path / "report.html")])
+    assert code == 0
+    assert (tmp_path / "report.html").read_bytes() == (real / "report.html").read_bytes()
+    assert main(["report", str(real / "cal.yaml"), "--test", str(DATA / "ur5_random.csv"), "-o",
+                 str(tmp_path / "again.html")]) == 0
+    capsys.readouterr()
+    first, again = (real / "report.html").read_text(), (tmp_path / "again.html").read_text()
+    assert page_numbers(first) == page_numbers(again)
+    strip = lambda t: re.sub(r"<table id=\"data\">.*?</table>|[\w.-]+\.json", "", t, flags=re.S)  # noqa: E731
+    assert strip(first) == strip(again)
+
+
+def test_bad_calibration_says_so_at_the_top(ur5, tmp_path, capsys):
+    true = kincal.perturb(ur5, seed=1)
+    meas = kincal.simulate(true, ur5.sample_joints(80, seed=3), 15e-6, seed=0)
+    xyz = meas.xyz.copy()
+    xyz[37] += [0.03, 0.04, 0.0]  # a 50 mm outlier, input row 39
+    path = tmp_path / "outlier.csv"
+    kincal.write_measurements(path, kincal.Measurements(meas.q, xyz, meas.joint_names), ur5.joint_types, "mm", "deg")
+    code = main(["calibrate", "ur5", str(path), "--length-unit", "mm", "--angle-unit", "deg", "--loss", "huber",
+                 "--report", str(tmp_path / "outlier.html")])
+    html = (tmp_path / "outlier.html").read_text()
+    top = html[:html.index("<h2>")]
+    assert code == 0 and "SUSPECT" in top and "row(s) 39" in top and 'id="outliers"' in top and ">39<" not in top
+    assert "Outlier poses (input rows): 39" in top
+    # data in cm declared as mm never reaches a fit: refused at the door, no report written
+    scaled = tmp_path / "cm.csv"
+    kincal.write_measurements(scaled, kincal.Measurements(meas.q, meas.xyz / 10, meas.joint_names), ur5.joint_types,
+                              "mm", "deg")
+    code = main(["calibrate", "ur5", str(scaled), "--length-unit", "mm", "--angle-unit", "deg", "--report",
+                 str(tmp_path / "cm.html")])
+    assert code == 1 and "cm" in capsys.readouterr().err and not (tmp_path / "cm.html").exists()
+    # a fit that is refused still gets its report, which says why at the top
+    swapped = tmp_path / "swapped.csv"
+    kincal.write_measurements(swapped, kincal.Measurements(meas.q[:, [0, 2, 1, 3, 4, 5]], meas.xyz, meas.joint_names),
+                              ur5.joint_types, "mm", "deg")
+    code = main(["calibrate", "ur5", str(swapped), "--length-unit", "mm", "--angle-unit", "deg", "--report",
+                 str(tmp_path / "swapped.html")])
+    top = (tmp_path / "swapped.html").read_text().split("<h2>")[0]
+    assert code == 4 and "REFUSED" in top and "implausible corrections" in top
+
+
+def test_repeated_poses_get_iso9283(ur5, tmp_path):
+    """Five visits of each of four poses: AP and RP by the ISO 9283 formulas, computed independently."""
+    true = kincal.perturb(ur5, seed=2)
+    q = np.vstack([ur5.sample_joints(60, seed=5), np.repeat(ur5.sample_joints(4, seed=6), 5, axis=0)])
+    meas = kincal.simulate(true, q, 15e-6, seed=1)
+    res = kincal.calibrate(ur5, meas)
+    rep = kincal.build_report(res)
+    groups = rep.data["iso"]["groups"]
+    assert len(groups) == 4 and all(g["n"] == 5 for g in groups)
+    pts = meas.xyz[60:65]
+    mean = pts.mean(axis=0)
+    ap = np.linalg.norm(mean - res.robot.forward(q[60]))
+    d = np.linalg.norm(pts - mean, axis=1)
+    assert groups[0]["ap"] == pytest.approx(ap * 1e3) and groups[0]["rp"] == pytest.approx((d.mean() + 3 * d.std(ddof=1)) * 1e3)
+    assert groups[0]["rows"] == "62, 63, 64, 65, 66"
+
+
+def test_plots_for_calibrate_and_evaluate(real, tmp_path, capsys):
+    assert main(["evaluate", str(real / "cal.yaml"), str(DATA / "ur5_random.csv"), *UNITS, "--plot",
+                 str(tmp_path / "ev.png")]) == 0
+    capsys.readouterr()
+    pngs = sorted(tmp_path.glob("ev-*.png"))
+    assert [p.name for p in pngs] == ["ev-histogram.png", "ev-per_axis.png", "ev-per_pose.png", "ev-vs_joints.png",
+                                      "ev-workspace.png"]
+    assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000 for p in pngs)
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *UNITS, "--plot", str(tmp_path / "cal.svg")]) == 0
+    svgs = sorted(tmp_path.glob("cal-*.svg"))
+    assert len(svgs) == 6 and all("<svg" in p.read_text() for p in svgs)

@@ -1,0 +1,73 @@
+"""The report as a person sees it: rendered by a real headless Chromium (screenshot, PDF, DOM).
+
+CI installs Debian's chromium-headless-shell (.ci/run). Where no browser can be found the test is
+reported as not run, with the reason; under CI (CI set) a missing browser fails.
+"""
+import json
+import os
+import re
+import shutil
+import subprocess
+
+import pytest
+from conftest import DATA, UR5_COLS
+from PIL import Image
+
+from kincal.cli import main
+
+BROWSERS = ("chromium-headless-shell", "chromium", "chromium-browser", "google-chrome")
+FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+         "--disable-sync", "--no-first-run", "--hide-scrollbars", "--enable-logging=stderr", "--v=0"]
+FIGURES = ("per_pose", "histogram", "per_axis", "vs_joints", "workspace", "correlation")
+
+
+def find_browser() -> str:
+    for name in BROWSERS:
+        path = shutil.which(name)
+        if path:
+            return path
+    reason = "no headless Chromium found (apt-get install chromium-headless-shell); the report was not rendered"
+    if os.environ.get("CI"):
+        pytest.fail(reason)
+    pytest.skip(reason)
+
+
+def render(browser: str, url: str, tmp_path, *args: str) -> subprocess.CompletedProcess:
+    cmd = [browser, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", *args, url]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+
+
+def test_report_in_a_real_browser(tmp_path, monkeypatch, capsys):
+    browser = find_browser()
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1795000000")
+    report = tmp_path / "report.html"
+    units = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *units, "--test", str(DATA / "ur5_random.csv"),
+                 "--report", str(report)]) == 0
+    capsys.readouterr()
+    data = json.loads(report.with_suffix(".json").read_text())
+    url = report.as_uri()
+
+    dom = render(browser, url, tmp_path, "--dump-dom")
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    console = [line for line in dom.stderr.splitlines() if "CONSOLE" in line or "net::ERR" in line]
+    assert console == [], console  # no console errors, nothing failed to load
+    html = dom.stdout
+    for name in FIGURES:  # every plot is in the page and has content
+        m = re.search(rf'<figure id="fig-{name}">(.*?)</figure>', html, re.S)
+        assert m and m.group(1).count("<path") + m.group(1).count("<image") > 10, name
+    shown = {k: float(v) for k, v in re.findall(r'data-key="([^"]+)\.mean">([-0-9.]+)<', html)}
+    assert shown == {h["key"]: pytest.approx(h["mean"] * 1e3, abs=5e-5) for h in data["headline"]}
+    assert re.search(r'id="verdict-status">GOOD<', html)
+
+    png = tmp_path / "report.png"
+    shot = render(browser, url, tmp_path, "--window-size=1200,5200", f"--screenshot={png}")
+    assert shot.returncode == 0 and png.stat().st_size > 100_000, shot.stderr[-2000:]
+    with Image.open(png) as im:
+        assert im.size == (1200, 5200)
+        colours = im.convert("RGB").resize((300, 1300)).getcolors(maxcolors=100_000)
+        assert colours is not None and len(colours) > 500  # plots, tables and text, not a blank page
+
+    pdf = tmp_path / "report.pdf"
+    printed = render(browser, url, tmp_path, f"--print-to-pdf={pdf}", "--no-pdf-header-footer")
+    assert printed.returncode == 0 and pdf.read_bytes()[:5] == b"%PDF-" and pdf.stat().st_size > 50_000
