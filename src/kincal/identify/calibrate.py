@@ -194,7 +194,8 @@ def judge(res: CalibrationResult, problem: CalibrationProblem, th: Thresholds) -
                                   f"poses spread over the workspace, or use --base fixed if the base is known"))
     reasons += correction_reasons(problem.start, {n: res.corrections[n] for n in res.names
                                                   if np.isfinite(res.std[n])}, th)
-    pos_sigma = float(np.sqrt(np.sum(res.residuals**2) / max(res.residuals.size - len(res.names), 1)))
+    inliers = res.residuals[z <= th.outlier_z]  # outliers are named on their own, not smeared into σ
+    pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
     reasons += residual_reasons(pos_sigma, th) + outlier_reasons(meas.rows, z, th) + duplicate_reasons(meas.rows, problem.repeats)
     return dataclasses.replace(res, verdict=Verdict.from_reasons(reasons), measurements=meas, pose_z=z,
                                outlier_z=th.outlier_z)

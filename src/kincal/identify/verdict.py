@@ -10,9 +10,10 @@ CLI flags):
   ``length_refuse`` (50 mm) is refused; an angle more than ``angle_suspect`` (2°) / ``angle_refuse``
   (10°). Real arms are off by fractions of a mm and a degree; corrections of tens of mm mean data in
   another unit (cm, inches), swapped joint columns or the wrong robot file;
-* residual after the fit, σ per axis, against the tracker noise (``tracker_noise``, 0.05 mm): more
-  than ``residual_suspect`` (10×) is suspect (errors the model cannot describe), more than
-  ``residual_refuse`` (100×) is refused (data and model do not belong together);
+* residual after the fit, σ per axis over the poses that are not outliers, against the tracker noise
+  (``tracker_noise``, 0.05 mm): more than ``residual_suspect`` (10×) is suspect (errors the model
+  cannot describe), more than ``residual_refuse`` (100×) is refused (data and model do not belong
+  together);
 * outliers: poses whose error norm lies more than ``outlier_z`` (5) robust σ above the median
   (σ = 1.4826·MAD) are named by input row, with the advice to use a robust loss or leave them out;
 * repeated poses (identical joint values) are named: they shrink the stated σ as if independent;
