@@ -33,8 +33,10 @@ PRACTICAL_TOL = 3e-5  # directions weaker than this (relative, scaled) are not f
 
 
 def check_options(robot: Robot, params, base: str, loss: str, method: str, residual: str, f_scale: float | None,
-                  tol: float, max_iter: int, pso_options: dict | None, thresholds: Thresholds | None = None) -> None:
-    """Every option of :func:`calibrate`, checked before any work; ValueError names the option."""
+                  tol: float, max_iter: int, pso_options: dict | None, thresholds: Thresholds | None = None,
+                  keep: Sequence[str] = ()) -> dict:
+    """Every option of :func:`calibrate`, checked before any work (ValueError names the option), and
+    returned as the record that reproduces the fit."""
     for name, value, allowed in (("base", base, BASE_MODES), ("loss", loss, LOSSES), ("method", method, METHODS),
                                  ("residual", residual, tuple(RESIDUALS))):
         if value not in allowed:
@@ -50,6 +52,7 @@ def check_options(robot: Robot, params, base: str, loss: str, method: str, resid
             raise ValueError(f"params='{params}': use 'auto' or a list of parameter names")
     else:
         robot.params.indices(list(params))  # unknown names raise, naming them
+    robot.params.indices(list(keep))
     if f_scale is not None and not (np.isfinite(f_scale) and f_scale > 0):
         raise ValueError(f"f_scale={f_scale}: give a positive residual scale in m, or None for automatic")
     if not 0 < tol < 1:
@@ -62,6 +65,10 @@ def check_options(robot: Robot, params, base: str, loss: str, method: str, resid
     if unknown or (pso_options and method == "lm"):
         raise ValueError(f"pso_options {unknown or sorted(pso_options)}: " + (
             f"known are {', '.join(PSO_OPTIONS)}" if unknown else "apply to method='pso' or 'pso+lm' only"))
+    return {"params": params if isinstance(params, str) else list(params), "base": base, "loss": loss,
+            "method": method, "f_scale": f_scale, "keep": list(keep), "tol": tol, "max_iter": max_iter,
+            "residual": residual,
+            "pso_options": dict(pso_options or {}), "thresholds": (thresholds or Thresholds()).to_dict()}
 
 
 def calibrate(
@@ -106,13 +113,13 @@ def calibrate(
                 ``verdict`` is good, suspect or refused with reasons, ``pose_records()`` names every
                 pose by input row with its error and robust z-score
 
-    Every option is checked before any work (ValueError). Raises MeasurementError for data that
-    cannot belong to the robot or is too little, IdentifiabilityError when an explicit ``params``
-    list is not identifiable by LM. BLAS runs single-threaded inside: these problems are small, and
-    threads only fight other processes for the cores.
+    Options are checked before any work (ValueError); MeasurementError for data that cannot belong to
+    the robot or is too little, IdentifiabilityError for an explicit ``params`` list LM cannot
+    identify. BLAS runs single-threaded inside: small problems, and threads fight for the cores.
     """
     t0 = time.perf_counter()
-    check_options(robot, params, base, loss, method, residual, f_scale, tol, max_iter, pso_options, thresholds)
+    options = check_options(robot, params, base, loss, method, residual, f_scale, tol, max_iter, pso_options,
+                            thresholds, keep)
     say = progress or (lambda msg: None)
     with blas_threads(1):
         problem = build_problem(robot, meas, params, base, keep, tol, residual, strict=method == "lm", say=say)
@@ -125,11 +132,7 @@ def calibrate(
             fit, w, *counts = irls(problem, _at(problem, problem.x0), loss, f_scale,
                                    lambda x, wt: fit_lm(problem, x, wt, max_iter))
         res = _result(robot, problem, final, fit, w, counts, history, method, loss, time.perf_counter() - t0)
-        th = thresholds or Thresholds()
-        options = {"params": params if isinstance(params, str) else list(params), "base": base, "loss": loss,
-                   "method": method, "f_scale": f_scale, "keep": list(keep), "tol": tol, "max_iter": max_iter,
-                   "residual": residual, "pso_options": dict(pso_options or {}), "thresholds": th.to_dict()}
-        return dataclasses.replace(judge(res, problem, th), options=options)
+        return dataclasses.replace(judge(res, problem, thresholds or Thresholds()), options=options)
 
 
 def _solve(problem: CalibrationProblem, method: str, max_iter: int, pso_options: dict, say):
