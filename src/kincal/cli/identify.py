@@ -29,7 +29,7 @@ def cmd_calibrate(args) -> int:
     with progress("calibrating", args.json) as say:
         res = kincal.calibrate(r, meas, params=args.params or "auto", base=args.base, loss=args.loss,
                                keep=args.keep or (), max_iter=args.max_iter, progress=say, method=args.method,
-                               residual=args.residual, thresholds=_thresholds(args))
+                               residual=args.residual, thresholds=_thresholds(args), model=args.model)
     if args.residuals:
         kincal.write_residuals(args.residuals, meas, meas.xyz - res.residuals, res.pose_z, res.outlier_z,
                                r.joint_types, "mm", "deg")
@@ -99,6 +99,9 @@ def register(cmd) -> None:
     s.add_argument("--method", choices=list(kincal.CALIBRATION_METHODS), default="lm")
     s.add_argument("--residual", choices=list(kincal.RESIDUALS), default="cartesian",
                    help="joint: commanded − inverse kinematics of the measured positions (parallel robots)")
+    s.add_argument("--model", choices=[*kincal.ERROR_MODELS, "auto"],
+                   help="error model: geometric, harmonics:k (joint-angle harmonics) or auto (chosen by joint-space "
+                        "blocked cross-validation); default: the robot file's own")
     s.add_argument("--exclude", type=row_list, help="input rows to leave out, e.g. 12,40-42")
     s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers)")
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")

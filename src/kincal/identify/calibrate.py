@@ -17,6 +17,7 @@ from ..analysis.identifiability import BASE_MODES
 from ..analysis.uncertainty import ModelUncertainty, extrapolation_warning
 from ..io.measurements import Measurements
 from ..models.robot import Robot
+from ..models.terms import MODELS, extend
 from .covariance import parameter_statistics
 from .lm import LMResult, fit_lm
 from .problem import CalibrationProblem, build_problem
@@ -25,6 +26,7 @@ from .pso import fit_pso
 from .residuals import RESIDUALS, supports
 from .result import CalibrationResult, EvaluationStats
 from .robust import LOSSES, irls
+from .select import select_model
 from .verdict import (Reason, Thresholds, Verdict, correction_reasons, duplicate_reasons, outlier_reasons,
                       residual_reasons, robust_z)
 
@@ -34,7 +36,7 @@ PRACTICAL_TOL = 3e-5  # directions weaker than this (relative, scaled) are not f
 
 def check_options(robot: Robot, params, base: str, loss: str, method: str, residual: str, f_scale: float | None,
                   tol: float, max_iter: int, pso_options: dict | None, thresholds: Thresholds | None = None,
-                  keep: Sequence[str] = ()) -> dict:
+                  keep: Sequence[str] = (), model: str | None = None) -> dict:
     """Every option of :func:`calibrate`, checked before any work (ValueError names the option), and
     returned as the record that reproduces the fit."""
     for name, value, allowed in (("base", base, BASE_MODES), ("loss", loss, LOSSES), ("method", method, METHODS),
@@ -53,6 +55,8 @@ def check_options(robot: Robot, params, base: str, loss: str, method: str, resid
     else:
         robot.params.indices(list(params))  # unknown names raise, naming them
     robot.params.indices(list(keep))
+    if model is not None and model not in (*MODELS, "auto"):
+        raise ValueError(f"model='{model}' is not one of {', '.join(MODELS)}, auto")
     if f_scale is not None and not (np.isfinite(f_scale) and f_scale > 0):
         raise ValueError(f"f_scale={f_scale}: give a positive residual scale in m, or None for automatic")
     if not 0 < tol < 1:
@@ -67,7 +71,7 @@ def check_options(robot: Robot, params, base: str, loss: str, method: str, resid
             f"known are {', '.join(PSO_OPTIONS)}" if unknown else "apply to method='pso' or 'pso+lm' only"))
     return {"params": params if isinstance(params, str) else list(params), "base": base, "loss": loss,
             "method": method, "f_scale": f_scale, "keep": list(keep), "tol": tol, "max_iter": max_iter,
-            "residual": residual,
+            "residual": residual, "model": model,
             "pso_options": dict(pso_options or {}), "thresholds": (thresholds or Thresholds()).to_dict()}
 
 
@@ -86,42 +90,36 @@ def calibrate(
     residual: str = "cartesian",
     pso_options: dict | None = None,
     thresholds: Thresholds | None = None,
+    model: str | None = None,
 ) -> CalibrationResult:
     """Identify ``robot``'s parameters from measured tool positions.
 
-    params   -- "auto" (the identifiable set at these poses) or a list of names
-    base     -- "estimate": register the measurement frame (Kabsch on the nominal predictions), then
-                fit the base frame jointly with the kinematics; "fixed": the base frame is known
-    loss     -- "linear" (least squares), or "huber" / "soft_l1" on each pose's 3-D residual norm
-                (iteratively reweighted; ``f_scale`` in m, default 3 robust sigmas of the residuals,
-                re-estimated at every reweighting); method "lm" only
-    method   -- "lm": Levenberg–Marquardt with the analytic Jacobian and column scaling; "pso":
-                particle swarm with the seed-2 settings (``pso_options`` overrides particles,
-                iterations, w, c1, c2, seed); "pso+lm": PSO, then LM on the identifiable set. PSO
-                accepts an explicit ``params`` list that is not identifiable (as the seed's r and R);
-                those parameters get an infinite standard deviation
-    residual -- "cartesian": measured − predicted positions; "joint" (seed 2, eq. 4/11): commanded
-                joint values − the inverse kinematics of the measured positions (robots with a
-                closed-form inverse only)
-    keep     -- names to prefer when choosing among confounded parameters
-    tol      -- relative singular-value tolerance of the identifiability check (column-scaled); the
-                default also leaves out parameters the poses determine only very weakly, which would
-                otherwise wander along a flat valley of the cost to absurd values
-    max_iter -- LM iteration limit; a fit that stops there is returned with ``converged=False``
-    progress -- called with a short message at each stage (the CLI shows it)
-    thresholds -- the verdict's limits (:class:`~kincal.identify.verdict.Thresholds`); the result's
-                ``verdict`` is good, suspect or refused with reasons, ``pose_records()`` names every
-                pose by input row with its error and robust z-score
+    params   -- "auto" (the identifiable set at these poses) or a list of names; ``keep``: names to
+                prefer among confounded ones; ``tol``: relative singular-value tolerance (the default
+                also leaves out directions so weak they would drift to absurd values)
+    base     -- "estimate": register the tracker frame (Kabsch), then fit the base frame with the rest;
+                "fixed": the base frame is known
+    loss     -- "linear", or "huber" / "soft_l1" on each pose's 3-D residual (reweighted from the start;
+                ``f_scale`` m, default 3 robust sigmas); method "lm" only
+    method   -- "lm" (Levenberg–Marquardt), "pso" (seed-2 particle swarm; ``pso_options``), "pso+lm".
+                PSO accepts an explicit, unidentifiable ``params`` list (σ = inf for those)
+    residual -- "cartesian" (positions) or "joint" (seed 2: commanded − inverse of the measured positions)
+    model    -- error model: None (the robot as given), "geometric", "harmonics:k", or "auto" (joint-space
+                blocked cross-validation with the prediction-σ guard; the comparison: ``model_selection``)
+    max_iter -- LM iteration limit; ``progress``: called with a message at each stage
+    thresholds -- the verdict's limits; the result's ``verdict`` is good, suspect or refused with reasons
 
     Options are checked before any work (ValueError); MeasurementError for data that cannot belong to
     the robot or is too little, IdentifiabilityError for an explicit ``params`` list LM cannot
     identify. BLAS runs single-threaded inside: small problems, and threads fight for the cores.
     """
+
     t0 = time.perf_counter()
     options = check_options(robot, params, base, loss, method, residual, f_scale, tol, max_iter, pso_options,
-                            thresholds, keep)
+                            thresholds, keep, model)
     say = progress or (lambda msg: None)
     with blas_threads(1):
+        robot, choice = _error_model(robot, meas, model, options, say)
         problem = build_problem(robot, meas, params, base, keep, tol, residual, strict=method == "lm", say=say)
         w = None
         if loss == "linear":
@@ -132,7 +130,21 @@ def calibrate(
             fit, w, *counts = irls(problem, _at(problem, problem.x0), loss, f_scale,
                                    lambda x, wt: fit_lm(problem, x, wt, max_iter))
         res = _result(robot, problem, final, fit, w, counts, history, method, loss, time.perf_counter() - t0)
-        return dataclasses.replace(judge(res, problem, thresholds or Thresholds()), options=options)
+        return dataclasses.replace(judge(res, problem, thresholds or Thresholds()), options=options,
+                                   model_selection=choice)
+
+
+def _error_model(robot: Robot, meas: Measurements, model: str | None, options: dict, say):
+    """The robot with the requested error model, and the model comparison when ``model="auto"``."""
+    if model is None:
+        return robot, None
+    choice = None
+    if model == "auto":
+        say("choosing the error model (joint-space blocked cross-validation)")
+        fold_options = {k: v for k, v in options.items() if k not in ("thresholds", "model")}
+        choice = select_model(robot, meas, calibrate, thresholds=Thresholds(**options["thresholds"]), **fold_options)
+        model = choice.chosen
+    return extend(robot, model, meas.q), choice
 
 
 def _solve(problem: CalibrationProblem, method: str, max_iter: int, pso_options: dict, say):

@@ -9,6 +9,7 @@ from ..analysis.identifiability import Identifiability
 from ..analysis.uncertainty import ModelUncertainty
 from ..io.measurements import Measurements
 from ..models.robot import Robot
+from .select import ModelChoice
 from .verdict import Verdict
 
 MM = 1e3
@@ -94,6 +95,7 @@ class CalibrationResult:
     outlier_z: float = 5.0
     covariance: np.ndarray | None = None  # (K, K) in the order of ``names`` (inf σ: rows/cols of zeros)
     options: dict = field(default_factory=dict)  # the calibrate() options used (to reproduce the fit)
+    model_selection: ModelChoice | None = None  # model="auto": the blocked-CV comparison
 
     def record(self) -> dict:
         """What a calibrated robot file keeps beside the model: the parameter covariance and training σ
@@ -142,6 +144,8 @@ class CalibrationResult:
             "identifiability": self.identifiability.to_dict(),
             "history": list(self.history),
             "verdict": self.verdict.to_dict(),
+            "model": self.robot.kind,
+            "model_selection": None if self.model_selection is None else self.model_selection.to_dict(),
             "poses": self.pose_records(),
         }
 
@@ -160,5 +164,8 @@ class CalibrationResult:
             lines.append(f"{n:<12} {display(self.estimates[n], k):>16} {display(self.corrections[n], k):>16} "
                          f"{sd:>14}")
         lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm",
-                  f"before: {self.stats_before}", f"after:  {self.stats_after}", str(self.verdict)]
+                  f"before: {self.stats_before}", f"after:  {self.stats_after}"]
+        if self.model_selection is not None:
+            lines.append(str(self.model_selection))
+        lines.append(str(self.verdict))
         return "\n".join(lines)

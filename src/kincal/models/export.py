@@ -22,6 +22,7 @@ from ..errors import ModelError
 from .chain import ROT
 from .robot import Robot
 from .serial import ChainRobot, SerialRobot
+from .terms import ExtendedRobot
 from .transforms import rot_zyx, zyx_from_matrix
 from .urdf import URDFRobot, read_urdf, rpy_matrix
 from .yaml_io import robot_to_yaml
@@ -48,6 +49,10 @@ def _motion(kind: str, axis: int, value: float) -> np.ndarray:
 def joint_frames(robot: ChainRobot) -> tuple[list[np.ndarray], np.ndarray]:
     """Jₖ (4×4, z along joint k's axis, zero offset included) for every joint at q = 0, and the
     flange frame F (the end of the chain without the tool point), both relative to the base frame."""
+    if isinstance(robot, ExtendedRobot):
+        raise ModelError(f"robot '{robot.name}' ({robot.kind}): joint-angle harmonics have no place in a URDF or UR "
+                         f"file; command the robot with 'kincal compensate', or calibrate with --model geometric "
+                         f"for an export")
     if not isinstance(robot, ChainRobot):
         raise ModelError(f"robot '{robot.name}' ({robot.kind}) is not a serial chain: it has no URDF or UR form")
     values = robot.params.values.copy()

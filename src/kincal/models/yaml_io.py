@@ -30,14 +30,15 @@ from .puu3 import PUU3Robot
 from .robot import Robot
 from .serial import CONVENTIONS, Joint, SerialRobot
 from .transmission import TransmissionRobot
+from .terms import ExtendedRobot
 from .urdf import URDFRobot, read_urdf
-from .yaml_kinds import (puu3_from_dict, puu3_yaml, transmission_from_dict, transmission_yaml, urdf_from_dict,
-                         urdf_yaml)
+from .yaml_kinds import (error_model_from_dict, error_model_yaml, puu3_from_dict, puu3_yaml, transmission_from_dict,
+                         transmission_yaml, urdf_from_dict, urdf_yaml)
 from .yaml_values import fmt, mapping, num, unit_factor, units
 
 _JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits"}
 _TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool", "actuators", "transmission",
-             "type", "extended", "parameters", "slider_limits", "calibration", "source"}
+             "type", "extended", "parameters", "slider_limits", "calibration", "source", "error_model"}
 def bundled_robots() -> list[str]:
     """Names of the robots shipped with kincal."""
     folder = resources.files("kincal.models") / "robots"
@@ -153,6 +154,9 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     """Build a robot from the parsed YAML mapping; errors name ``label`` and the offending key."""
     if not isinstance(data, dict):
         raise ModelError(f"{label}: expected a mapping with keys {sorted(_TOP_KEYS)}")
+    if "error_model" in data:
+        base = robot_from_dict({k: v for k, v in data.items() if k != "error_model"}, label)
+        return error_model_from_dict(base, data["error_model"], label)
     unknown = set(data) - _TOP_KEYS
     if unknown:
         raise ModelError(f"{label}: unknown key(s) {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
@@ -222,6 +226,8 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
 
 def robot_to_yaml(robot: Robot, length_unit: str = "m", angle_unit: str = "rad") -> str:
     """YAML text of a robot. In SI units (the default) load(save(robot)) reproduces it exactly."""
+    if isinstance(robot, ExtendedRobot):
+        return robot_to_yaml(robot.base, length_unit, angle_unit) + error_model_yaml(robot)
     if isinstance(robot, PUU3Robot):
         return puu3_yaml(robot, length_unit, angle_unit)
     if isinstance(robot, URDFRobot):

@@ -8,6 +8,8 @@ from ..errors import ModelError
 from .puu3 import PUU3Robot, puu3_names
 from .serial import SerialRobot
 from .transmission import Map, TransmissionRobot, build_transmission_robot
+from .robot import Robot
+from .terms import ExtendedRobot
 from .urdf import URDFJoint, URDFRobot, urdf_robot
 from .yaml_values import fmt, mapping, num, pair, unit_factor, units, vector
 
@@ -157,3 +159,26 @@ def transmission_yaml(robot: TransmissionRobot, length_unit: str, angle_unit: st
         items += [f"{role}: {p[len(DRIVE_PREFIX):]}" for role, p in zip(roles[mp.kind], mp.params)]
         lines.append("    - {" + ", ".join(items) + "}")
     return "\n".join(lines) + "\n"
+
+
+def error_model_yaml(robot: ExtendedRobot) -> str:
+    """The non-geometric terms (always SI: rad)."""
+    values = ", ".join(f"{n}: {fmt(robot.params[n])}" for n in robot.term_names)
+    return (f"error_model: {{harmonics: {robot.harmonics}, joints: [{', '.join(robot.joints)}], "
+            f"values: {{{values}}}}}\n")
+
+
+def error_model_from_dict(base: Robot, data, label: str) -> ExtendedRobot:
+    where = f"{label}: error_model"
+    if not isinstance(data, dict) or set(data) - {"harmonics", "joints", "values"}:
+        raise ModelError(f"{where}: a mapping with harmonics, joints and values")
+    order = data.get("harmonics")
+    joints = data.get("joints")
+    if not isinstance(order, int) or isinstance(order, bool) or not isinstance(joints, list):
+        raise ModelError(f"{where}: 'harmonics' must be a whole number and 'joints' a list")
+    values = {str(k): num(v, where, str(k)) for k, v in mapping(data, "values", where).items()}
+    robot = ExtendedRobot.build(base, order, [str(j) for j in joints])
+    unknown = sorted(set(values) - set(robot.term_names))
+    if unknown:
+        raise ModelError(f"{where}: unknown term(s) {', '.join(unknown)}")
+    return robot.with_params(values)

@@ -1,0 +1,118 @@
+"""Choosing the error model by joint-space blocked cross-validation, refusing to extrapolate.
+
+Random folds flatter flexible models: every held-out pose has training neighbours. Here the folds
+are regions of joint space (k-means on cos/sin of the revolute joints and the scaled prismatic
+ones, deterministically seeded), so each fold tests the model where it was not fitted, as a robot
+is later used. A candidate term is kept only when
+
+* its blocked-CV mean error is below the geometric model's,
+* its predicted σ at the held-out poses stays within ``SIGMA_FACTOR`` (3×) of the geometric
+  model's (the prediction-σ guard: a term the data cannot pin down where the robot goes is
+  refused), and every fold's fit converged without a refused verdict;
+
+and among the models kept (geometric always is) the simplest one within one standard error of the
+best CV error is chosen. The table says why each candidate was kept or dropped.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..io.measurements import Measurements
+from ..models.robot import Robot
+from ..models.terms import extend
+from ..ties import first_best
+
+SIGMA_FACTOR = 3.0
+CANDIDATES = ("geometric", "harmonics:1", "harmonics:2")
+
+
+@dataclass(frozen=True)
+class ModelChoice:
+    """The comparison: per model its parameter count, blocked-CV mean error and standard error (m),
+    predicted-σ ratio to geometric, whether it was eligible and why; and the model chosen."""
+
+    rows: tuple[dict, ...]
+    chosen: str
+    folds: int
+
+    def to_dict(self) -> dict:
+        return {"chosen": self.chosen, "folds": self.folds, "models": [dict(r) for r in self.rows]}
+
+    def __str__(self) -> str:
+        lines = [f"error model by joint-space blocked cross-validation ({self.folds} regions): {self.chosen}",
+                 f"  {'model':<13} {'params':>6} {'CV mean mm':>11} {'± se':>8} {'σ ratio':>8}  decision"]
+        for r in self.rows:
+            lines.append(f"  {r['model']:<13} {r['parameters']:>6} {r['cv_mean'] * 1e3:11.4f} {r['cv_se'] * 1e3:8.4f} "
+                         f"{r['sigma_ratio']:8.2f}  {r['decision']}")
+        return "\n".join(lines)
+
+
+def blocked_folds(robot: Robot, q: np.ndarray, k: int, iterations: int = 30) -> list[np.ndarray]:
+    """k regions of joint space (index arrays, in pose order): deterministic k-means."""
+    rev = np.array([t == "revolute" for t in robot.joint_types])
+    span = np.ptp(q, axis=0) + 1e-12
+    X = np.hstack([np.cos(q[:, rev]), np.sin(q[:, rev]), (q[:, ~rev] - q[:, ~rev].min(axis=0)) / span[~rev]])
+    centres = [X[first_best(-np.sum((X - X.mean(axis=0)) ** 2, axis=1))]]
+    for _ in range(1, k):  # farthest-point start: spread-out regions, no random seed
+        d = np.min([np.sum((X - c) ** 2, axis=1) for c in centres], axis=0)
+        centres.append(X[first_best(d)])
+    C = np.array(centres)
+    for _ in range(iterations):
+        labels = np.argmin(((X[:, None, :] - C[None]) ** 2).sum(axis=2), axis=1)
+        C = np.array([X[labels == j].mean(axis=0) if np.any(labels == j) else C[j] for j in range(k)])
+    return [np.flatnonzero(labels == j) for j in range(k) if np.any(labels == j)]
+
+
+def select_model(robot: Robot, meas: Measurements, calibrate, candidates=CANDIDATES, folds: int = 5,
+                 **options) -> ModelChoice:
+    """Compare ``candidates`` on ``meas`` and choose one (see the module docstring). ``calibrate`` is
+    the calibration function (passed in to keep this room below it), ``options`` its options."""
+    regions = blocked_folds(robot, meas.q, folds)
+    rows = [_cross_validate(robot, meas, model, regions, calibrate, options) for model in candidates]
+    geo = rows[0]
+    for r in rows:
+        r["sigma_ratio"] = r.pop("sigma") / geo["sigma"] if r is not geo else 1.0
+        r["decision"] = _eligibility(r, geo)
+    kept = [r for r in rows if r["decision"].startswith("kept")]
+    best = kept[first_best([r["cv_mean"] for r in kept], maximize=False)]
+    simple = [r for r in kept if r["cv_mean"] <= best["cv_mean"] + best["cv_se"]]
+    chosen = min(simple, key=lambda r: r["parameters"])
+    for r in kept:
+        if r is chosen:
+            r["decision"] = "chosen" + ("" if r is best else ": the simplest within one standard error of the best")
+        elif r is best:
+            r["decision"] = "best CV, but a simpler model is within one standard error"
+        else:
+            r["decision"] = "kept, but more than one standard error worse than the best"
+    return ModelChoice(tuple(rows), chosen["model"], len(regions))
+
+
+def _cross_validate(robot: Robot, meas: Measurements, model: str, regions, calibrate, options) -> dict:
+    ext = extend(robot, model, meas.q)
+    errors, sigmas, ok, estimated = [], [], True, 0
+    for held in regions:
+        train = meas.subset(np.setdiff1d(np.arange(len(meas)), held))
+        res = calibrate(ext, train, **options)
+        ok &= res.converged and res.verdict.status != "refused"
+        estimated = max(estimated, len(res.names))
+        test = meas.subset(held)
+        errors.append(float(np.mean(np.linalg.norm(test.xyz - res.robot.forward(test.q), axis=1))))
+        sigmas.append(float(np.median(res.uncertainty().sigma(res.robot, test.q))))
+    e = np.array(errors)
+    return {"model": model, "parameters": estimated, "cv_mean": float(e.mean()),
+            "cv_se": float(e.std(ddof=1) / np.sqrt(len(e))) if len(e) > 1 else 0.0, "sigma": float(np.median(sigmas)),
+            "fits_ok": bool(ok)}
+
+
+def _eligibility(r: dict, geo: dict) -> str:
+    if r is geo:
+        return "kept (reference)"
+    if not r["fits_ok"]:
+        return "dropped: a fold's fit did not converge or was refused"
+    if r["cv_mean"] >= geo["cv_mean"]:
+        return "dropped: no better than geometric on held-out regions"
+    if r["sigma_ratio"] > SIGMA_FACTOR:
+        return f"dropped: predicted σ {r['sigma_ratio']:.1f}x geometric's where it would be used (limit {SIGMA_FACTOR:g}x)"
+    return "kept"
