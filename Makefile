@@ -42,6 +42,7 @@ bench: setup
 	$(PY) benchmarks/design_real.py
 	$(PY) benchmarks/parallel.py
 	$(PY) benchmarks/report.py
+	$(PY) benchmarks/models.py
 
 clean:
 	rm -rf $(VENV) build src/*.egg-info .pytest_cache

@@ -29,7 +29,8 @@ def cmd_calibrate(args) -> int:
     with progress("calibrating", args.json) as say:
         res = kincal.calibrate(r, meas, params=args.params or "auto", base=args.base, loss=args.loss,
                                keep=args.keep or (), max_iter=args.max_iter, progress=say, method=args.method,
-                               residual=args.residual, thresholds=_thresholds(args), model=args.model)
+                               residual=args.residual, thresholds=_thresholds(args), model=args.model,
+                               use_q=None if test is None else test.q)
     if args.residuals:
         kincal.write_residuals(args.residuals, meas, meas.xyz - res.residuals, res.pose_z, res.outlier_z,
                                r.joint_types, "mm", "deg")
@@ -105,7 +106,8 @@ def register(cmd) -> None:
     s.add_argument("--exclude", type=row_list, help="input rows to leave out, e.g. 12,40-42")
     s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers)")
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")
-    s.add_argument("--test", help="held-out measurements for the report and figures")
+    s.add_argument("--test", help="held-out measurements for the report and figures; with --model auto also the "
+                                  "poses where the model will be used (the prediction-σ guard)")
     s.add_argument("--report", help="HTML report to write (self-contained; its JSON goes beside it)")
     s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     s.add_argument("--tracker-noise", type=positive_float, default=0.05, help="expected tracker noise, mm (default 0.05)")

@@ -91,6 +91,7 @@ def calibrate(
     pso_options: dict | None = None,
     thresholds: Thresholds | None = None,
     model: str | None = None,
+    use_q: np.ndarray | None = None,
 ) -> CalibrationResult:
     """Identify ``robot``'s parameters from measured tool positions.
 
@@ -119,7 +120,7 @@ def calibrate(
                             thresholds, keep, model)
     say = progress or (lambda msg: None)
     with blas_threads(1):
-        robot, choice = _error_model(robot, meas, model, options, say)
+        robot, choice = _error_model(robot, meas, model, options, say, use_q)
         problem = build_problem(robot, meas, params, base, keep, tol, residual, strict=method == "lm", say=say)
         w = None
         if loss == "linear":
@@ -134,7 +135,7 @@ def calibrate(
                                    model_selection=choice)
 
 
-def _error_model(robot: Robot, meas: Measurements, model: str | None, options: dict, say):
+def _error_model(robot: Robot, meas: Measurements, model: str | None, options: dict, say, use_q=None):
     """The robot with the requested error model, and the model comparison when ``model="auto"``."""
     if model is None:
         return robot, None
@@ -142,7 +143,8 @@ def _error_model(robot: Robot, meas: Measurements, model: str | None, options: d
     if model == "auto":
         say("choosing the error model (joint-space blocked cross-validation)")
         fold_options = {k: v for k, v in options.items() if k not in ("thresholds", "model")}
-        choice = select_model(robot, meas, calibrate, thresholds=Thresholds(**options["thresholds"]), **fold_options)
+        choice = select_model(robot, meas, calibrate, use_q=use_q, thresholds=Thresholds(**options["thresholds"]),
+                              **fold_options)
         model = choice.chosen
     return extend(robot, model, meas.q), choice
 

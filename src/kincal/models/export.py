@@ -49,10 +49,7 @@ def _motion(kind: str, axis: int, value: float) -> np.ndarray:
 def joint_frames(robot: ChainRobot) -> tuple[list[np.ndarray], np.ndarray]:
     """Jₖ (4×4, z along joint k's axis, zero offset included) for every joint at q = 0, and the
     flange frame F (the end of the chain without the tool point), both relative to the base frame."""
-    if isinstance(robot, ExtendedRobot):
-        raise ModelError(f"robot '{robot.name}' ({robot.kind}): joint-angle harmonics have no place in a URDF or UR "
-                         f"file; command the robot with 'kincal compensate', or calibrate with --model geometric "
-                         f"for an export")
+    _geometric_only(robot)
     if not isinstance(robot, ChainRobot):
         raise ModelError(f"robot '{robot.name}' ({robot.kind}) is not a serial chain: it has no URDF or UR form")
     values = robot.params.values.copy()
@@ -67,6 +64,13 @@ def joint_frames(robot: ChainRobot) -> tuple[list[np.ndarray], np.ndarray]:
             frames.append(M @ _h(_ALIGN[op.axis], np.zeros(3)) @ _motion(op.kind, 2, value))
         M = M @ step
     return frames, M
+
+
+def _geometric_only(robot: Robot) -> None:
+    if isinstance(robot, ExtendedRobot):
+        raise ModelError(f"robot '{robot.name}' ({robot.kind}): joint-angle harmonics have no place in a URDF or UR "
+                         f"file; command the robot with 'kincal compensate', or calibrate with --model geometric "
+                         f"for an export")
 
 
 def _xyz_rpy(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -144,6 +148,7 @@ def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = N
     its moving joints changes (comments, ``<gazebo>``, ``<transmission>``… stay as they are). A DH/MDH
     robot gets a new URDF (base_link, one link per joint, flange). ``tool_link``: add the tool point
     as a fixed joint and link of that name. The result is read back and checked against the model."""
+    _geometric_only(robot)
     if isinstance(robot, URDFRobot):
         if source is None:
             raise ModelError(f"robot '{robot.name}' came from a URDF: give that file (--from) so only its joint "

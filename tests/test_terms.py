@@ -1,0 +1,119 @@
+"""Beyond geometry: joint-angle harmonics, and the model choice that refuses to extrapolate."""
+import numpy as np
+import pytest
+from conftest import DATA, UR5_COLS, central_jacobian
+
+import kincal
+from kincal.analysis import stacked_jacobian
+from kincal.cli import main
+from kincal.identify.select import blocked_folds
+
+NOISE = 15e-6
+
+
+@pytest.fixture(scope="module")
+def grid(ur5):
+    read = lambda name: kincal.read_measurements(DATA / name, ur5, UR5_COLS, length_unit="mm", angle_unit="deg")  # noqa
+    return read("ur5_grid.csv"), read("ur5_random.csv")
+
+
+def test_harmonics_jacobians_match_central_differences(ur5):
+    robot = kincal.perturb(kincal.extend(ur5, "harmonics:2"), 1e-3, 1e-3, seed=2)
+    assert robot.joints == ("j1", "j2", "j3", "j4", "j5")  # j6 turns the reflector about itself: no lever
+    q = robot.sample_joints(30, seed=1)
+    J, Jn = robot.param_jacobian(q), central_jacobian(robot, q)
+    assert np.abs(J - Jn).max() / np.abs(J).max() < 1e-6
+    h = 1e-6
+    Jqn = np.stack([(robot.forward(q + h * e) - robot.forward(q - h * e)) / (2 * h) for e in np.eye(6)], axis=2)
+    assert np.abs(robot.joint_jacobian(q) - Jqn).max() < 1e-8
+    # the correction is the harmonic series itself
+    a, b = robot.params["j2.h1s"], robot.params["j2.h1c"]
+    a2, b2 = robot.params["j2.h2s"], robot.params["j2.h2c"]
+    expected = q[:, 1] + a * np.sin(q[:, 1]) + b * np.cos(q[:, 1]) + a2 * np.sin(2 * q[:, 1]) + b2 * np.cos(2 * q[:, 1])
+    np.testing.assert_allclose(robot.corrected(q)[:, 1], expected, atol=1e-15)
+
+
+def test_round_trip_and_no_export(ur5, tmp_path, capsys):
+    robot = kincal.perturb(kincal.extend(ur5, "harmonics:1"), 1e-3, 1e-3, seed=4)
+    kincal.save_robot(robot, tmp_path / "h.yaml")
+    back = kincal.load_robot(tmp_path / "h.yaml")
+    assert back.params.names == robot.params.names and np.array_equal(back.params.values, robot.params.values)
+    assert main(["export", str(tmp_path / "h.yaml"), str(tmp_path / "h.urdf")]) == 1
+    assert "harmonics have no place in a URDF" in capsys.readouterr().err and not (tmp_path / "h.urdf").exists()
+
+
+def test_simulated_harmonics_are_recovered(ur5):
+    """Known harmonic errors + 15 µm noise: every estimated term within 3σ over 10 seeds, and the
+    validation RMS at the Cramér–Rao level of the extended model."""
+    model = kincal.extend(ur5, "harmonics:1")
+    terms = model.term_names
+    z, rms, predicted = [], [], []
+    for seed in range(10):
+        rng = np.random.default_rng(seed)
+        true = kincal.perturb(model, 0.5e-3, 0.5e-3, seed=50 + seed).with_params(
+            dict(zip(terms, rng.uniform(-1e-3, 1e-3, len(terms)))))
+        q, qv = ur5.sample_joints(150, seed=60 + seed), ur5.sample_joints(200, seed=70 + seed)
+        res = kincal.calibrate(model, kincal.simulate(true, q, NOISE, seed=seed), base="fixed")
+        assert res.converged and set(terms) <= set(res.names)
+        z += [(res.estimates[n] - true.params[n]) / res.std[n] for n in terms]
+        rms.append(kincal.evaluate(res.robot, kincal.simulate(true, qv, 0.0)).rms)
+        J, Jv = stacked_jacobian(res.robot, q, res.names), stacked_jacobian(res.robot, qv, res.names)
+        predicted.append(NOISE * np.sqrt(np.trace(Jv @ np.linalg.inv(J.T @ J) @ Jv.T) / len(qv)))
+    assert np.max(np.abs(z)) < 3.5 and np.mean(np.abs(np.array(z)) < 3) > 0.98
+    assert abs(np.mean(rms) / np.mean(predicted) - 1) < 0.10
+
+
+def test_auto_on_the_real_ur5(grid, tmp_path, capsys):
+    train, test = grid
+    units = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *units, "--model", "auto", "--test",
+                 str(DATA / "ur5_random.csv"), "-o", str(tmp_path / "auto.yaml")]) == 0
+    out = capsys.readouterr().out
+    assert "blocked cross-validation" in out and "chosen" in out
+    robot = kincal.load_robot(tmp_path / "auto.yaml")
+    assert robot.kind.endswith("harmonics:2")
+    assert kincal.evaluate(robot, test).mean <= 0.090e-3  # geometric: 0.1005 mm
+
+
+@pytest.mark.parametrize("joint", [1, 2, 4])
+def test_auto_never_extrapolates_worse(ur5, grid, joint):
+    """Train on one half of a joint's range, use on the other: auto is never worse than geometric by
+    more than 3 %, and the extrapolation warning fires there."""
+    train_all, _ = grid
+    q = train_all.q[:, joint]
+    inside = train_all.subset(np.flatnonzero(q <= np.median(q)))
+    outside = train_all.subset(np.flatnonzero(q > np.median(q)))
+    geo = kincal.calibrate(ur5, inside)
+    auto = kincal.calibrate(ur5, inside, model="auto", use_q=outside.q)
+    e_geo = kincal.evaluate(geo.robot, outside).mean
+    e_auto = kincal.evaluate(auto.robot, outside, uncertainty=auto.uncertainty())
+    assert e_auto.mean <= 1.03 * e_geo
+    assert e_auto.warnings and len(e_auto.extrapolated_rows) > 0
+    rows = {r["model"]: r for r in auto.model_selection.rows}
+    assert rows["geometric"]["decision"].startswith("chosen") or rows[auto.model_selection.chosen]["sigma_ratio"] <= 1.25
+
+
+def test_blocked_folds_are_regions(ur5):
+    q = ur5.sample_joints(400, seed=3)
+    folds = blocked_folds(ur5, q, 5)
+    assert sorted(np.concatenate(folds).tolist()) == list(range(400)) and len(folds) == 5
+    assert [f.tolist() for f in folds] == [f.tolist() for f in blocked_folds(ur5, q, 5)]  # deterministic
+    # regions: a pose is closer (in cos/sin joint space) to its own fold's centre than to others'
+    X = np.hstack([np.cos(q), np.sin(q)])
+    centres = np.array([X[f].mean(axis=0) for f in folds])
+    own = np.array([np.argmin(((X[i] - centres) ** 2).sum(axis=1)) for i in range(400)])
+    labels = np.empty(400, int)
+    for k, f in enumerate(folds):
+        labels[f] = k
+    assert np.mean(own == labels) > 0.95
+
+
+def test_compensate_uses_the_harmonics(ur5):
+    true = kincal.perturb(kincal.extend(ur5, "harmonics:1"), 0.5e-3, 1e-3, seed=9)
+    res = kincal.calibrate(kincal.extend(ur5, "harmonics:1"), kincal.simulate(true, ur5.sample_joints(150, seed=9),
+                                                                             NOISE, seed=1))
+    q = ur5.sample_joints(20, seed=10)
+    targets = ur5.forward(q)
+    comp = kincal.compensate(res.robot, targets, q)
+    assert comp.all_ok and comp.residual.max() < 1e-9
+    assert np.linalg.norm(true.forward(comp.q) - targets, axis=1).mean() < 3 * NOISE
