@@ -117,3 +117,25 @@ def test_compensate_uses_the_harmonics(ur5):
     comp = kincal.compensate(res.robot, targets, q)
     assert comp.all_ok and comp.residual.max() < 1e-9
     assert np.linalg.norm(true.forward(comp.q) - targets, axis=1).mean() < 3 * NOISE
+
+
+def test_warm_up_drift_is_named(ur5):
+    true = kincal.perturb(ur5, seed=1)
+    q = ur5.sample_joints(200, seed=2)
+    meas = kincal.simulate(true, q, NOISE, seed=3)
+    xyz = meas.xyz.copy()
+    xyz[:20] += np.linspace(0.3e-3, 0.05e-3, 20)[:, None] * [1.0, 0.5, 0.0]  # the first poses drift back
+    res = kincal.calibrate(ur5, kincal.Measurements(q, xyz, meas.joint_names))
+    drift = [r.message for r in res.verdict.reasons if r.code == "drift"]
+    assert drift and "rows 2-21" in drift[0] and "--exclude 2-21" in drift[0]
+    assert not [r for r in kincal.calibrate(ur5, meas).verdict.reasons if r.code == "drift"]
+
+
+def test_report_shows_the_model_comparison(ur5, grid, monkeypatch):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1795000000")
+    train, test = grid
+    res = kincal.calibrate(ur5, train, model="auto", use_q=test.q)
+    rep = kincal.build_report(res, test)
+    assert 'id="models"' in rep.html and rep.data["model_selection"]["chosen"] == "harmonics:2"
+    assert [m["model"] for m in rep.data["model_selection"]["models"]] == ["geometric", "harmonics:1", "harmonics:2"]
+    assert res.record()["envelope"]["lower"] == pytest.approx(train.q.min(axis=0).tolist())

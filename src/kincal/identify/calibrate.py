@@ -27,8 +27,8 @@ from .residuals import RESIDUALS, supports
 from .result import CalibrationResult, EvaluationStats
 from .robust import LOSSES, irls
 from .select import select_model
-from .verdict import (Reason, Thresholds, Verdict, correction_reasons, duplicate_reasons, outlier_reasons,
-                      residual_reasons, robust_z)
+from .verdict import (Reason, Thresholds, Verdict, correction_reasons, drift_reasons, duplicate_reasons,
+                      outlier_reasons, residual_reasons, robust_z)
 
 METHODS = ("lm", "pso", "pso+lm")
 PRACTICAL_TOL = 3e-5  # directions weaker than this (relative, scaled) are not fitted by default
@@ -213,6 +213,7 @@ def judge(res: CalibrationResult, problem: CalibrationProblem, th: Thresholds) -
                                                   if np.isfinite(res.std[n])}, th)
     inliers = res.residuals[z <= th.outlier_z]  # outliers are named on their own, not smeared into σ
     pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
+    reasons += drift_reasons(meas.rows, np.linalg.norm(res.residuals, axis=1))
     reasons += residual_reasons(pos_sigma, th) + outlier_reasons(meas.rows, z, th) + duplicate_reasons(meas.rows, problem.repeats)
     return dataclasses.replace(res, verdict=Verdict.from_reasons(reasons), measurements=meas, pose_z=z,
                                outlier_z=th.outlier_z)

@@ -100,8 +100,12 @@ class CalibrationResult:
     def record(self) -> dict:
         """What a calibrated robot file keeps beside the model: the parameter covariance and training σ
         (``uncertainty()``), the nominal parameter values and the options, so the fit can be
-        reproduced (``kincal report``)."""
-        return {**self.uncertainty().to_dict(), "nominal": self.nominal.params.as_dict(), "options": self.options}
+        reproduced (``kincal report``), and the training joint ranges."""
+        q = self.measurements.q
+        envelope = {"joints": list(self.robot.joint_names), "lower": q.min(axis=0).tolist(),
+                    "upper": q.max(axis=0).tolist()}  # where the model was fitted (joint ranges)
+        return {**self.uncertainty().to_dict(), "nominal": self.nominal.params.as_dict(), "options": self.options,
+                "envelope": envelope}
 
     def uncertainty(self) -> ModelUncertainty:
         """The calibrated model's parameter covariance, with the median predicted σ at the training

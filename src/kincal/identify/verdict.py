@@ -17,6 +17,8 @@ CLI flags):
 * outliers: poses whose error norm lies more than ``outlier_z`` (5) robust σ above the median
   (σ = 1.4826·MAD) are named by input row, with the advice to use a robust loss or leave them out;
 * repeated poses (identical joint values) are named: they shrink the stated σ as if independent;
+* drift: when the first tenth of the poses in acquisition (row) order carry errors 1.5× and 3
+  standard errors above the rest, the tracker or the robot was still warming up;
 * a fit that did not converge is refused.
 """
 from __future__ import annotations
@@ -164,3 +166,21 @@ def duplicate_reasons(rows: np.ndarray, groups) -> list[Reason]:
     return [Reason("suspect", "repeated-poses",
                    f"{sum(len(g) for g in groups)} rows repeat the same joint values ({shown}): repeated poses count "
                    f"as independent and make the stated σ too small; average them or leave the copies out")]
+
+
+DRIFT_RATIO, DRIFT_Z, DRIFT_MIN_POSES = 1.5, 3.0, 50
+
+
+def drift_reasons(rows: np.ndarray, norms: np.ndarray) -> list[Reason]:
+    """Warm-up drift: the first tenth of the poses by input row against the rest."""
+    if len(rows) < DRIFT_MIN_POSES:
+        return []
+    order = np.argsort(rows, kind="stable")
+    k = max(5, len(rows) // 10)
+    first, rest = norms[order[:k]], norms[order[k:]]
+    if first.mean() > DRIFT_RATIO * rest.mean() and first.mean() > rest.mean() + DRIFT_Z * rest.std(ddof=1) / np.sqrt(k):
+        a, b = rows[order[0]], rows[order[k - 1]]
+        return [Reason("suspect", "drift", f"the first {k} poses (rows {a}-{b}) average {first.mean() * 1e3:.3f} mm "
+                                           f"of error against {rest.mean() * 1e3:.3f} mm for the rest: tracker or "
+                                           f"robot warm-up? leave them out (--exclude {a}-{b}) and check the set-up")]
+    return []

@@ -71,10 +71,11 @@ def build_report(result: CalibrationResult, test: Measurements | None = None, in
            "outliers": [int(r) for s in sets for r in s.rows[s.outliers]], "headline": headline,
            "warnings": warnings, "parameters": _parameter_rows(result, th),
            "not_estimated": result.identifiability.confound_lines(""), "data": _data_rows(result, test, info),
-           "iso": _iso9283(sets, result), "json_name": json_path_for(html_name).name, **figs}
+           "iso": _iso9283(sets, result), "json_name": json_path_for(html_name).name,
+           "model_selection": None if result.model_selection is None else result.model_selection.to_dict(), **figs}
     html = _template().render(**ctx)
     data = {k: ctx[k] for k in ("robot", "version", "date", "model_kind", "verdict", "outliers", "warnings",
-                                "parameters", "not_estimated", "data", "iso")}
+                                "parameters", "not_estimated", "data", "iso", "model_selection")}
     data["headline"] = [{**h, **{k: h[k] / MM for k in ("mean", "rms", "max", "p95")}} for h in headline]
     data["figures"] = [f["name"] for group in figs.values() for f in group]
     return Report(html, data, _summary(result, headline))
