@@ -66,7 +66,7 @@ def cmd_report(args) -> int:
     options = {k: record["options"][k] for k in OPTIONS if k in record["options"]}
     thresholds = kincal.Thresholds(**record["options"].get("thresholds", {}))
     with progress("refitting the calibration", args.json):
-        res = kincal.calibrate(nominal, train, thresholds=thresholds, **options)
+        res = kincal.calibrate(nominal, train, thresholds=thresholds, use_q=None if test is None else test.q, **options)
     gap = float(np.max(np.abs(res.robot.params.values - cal.params.values)))
     info = {"robot": f"{args.robot} (nominal values from its calibration record)",
             "units": f"{units['length_unit']}, {units['angle_unit']}"}
