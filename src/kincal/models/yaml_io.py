@@ -174,14 +174,35 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
         raise ModelError(f"{label}: convention '{conv}' is not one of {CONVENTIONS}")
     lf, af = units(data, label)
 
+    joints, rows, explicit_beta = _dh_joints(data["joints"], lf, af, label)
+    base = {k: num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
+            for k, v in mapping(data, "base", label).items()}
+    tool = {k: num(v, f"{label}: tool", k) * lf for k, v in mapping(data, "tool", label).items()}
+    robot = SerialRobot.build(str(data["name"]), conv, joints, rows, base, tool, str(data.get("description", "")))
+    # automatic beta where axes are parallel and the file does not say otherwise
+    auto = {robot.beta_joint(pair) for pair in robot.parallel_pairs()}
+    auto = {k for k in auto if explicit_beta[k] is None}
+    if auto:
+        joints = [Joint(j.name, j.type, True, j.lower, j.upper) if k in auto else j
+                  for k, j in enumerate(robot.joints)]
+        robot = robot.with_joints(joints)
+    if ("transmission" in data) != ("actuators" in data):
+        raise ModelError(f"{label}: 'actuators' and 'transmission' go together; give both or neither")
+    if "transmission" in data:
+        return transmission_from_dict(robot, data, lf, af, label)
+    return robot
+
+
+def _dh_joints(entries, lf: float, af: float, label: str) -> tuple[list[Joint], list[dict], list]:
+    """Joint structures, DH rows (SI) and each joint's ``beta`` as written (None: absent)."""
     joints, rows, explicit_beta = [], [], []
-    if not isinstance(data["joints"], list) or not data["joints"]:
+    if not isinstance(entries, list) or not entries:
         raise ModelError(f"{label}: 'joints' must be a non-empty list")
-    names = [str(jd.get("name", f"j{k + 1}")) for k, jd in enumerate(data["joints"]) if isinstance(jd, dict)]
+    names = [str(jd.get("name", f"j{k + 1}")) for k, jd in enumerate(entries) if isinstance(jd, dict)]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
         raise ModelError(f"{label}: duplicate joint names {', '.join(twice)}; every joint needs its own name")
-    for k, jd in enumerate(data["joints"]):
+    for k, jd in enumerate(entries):
         where = f"{label}: joint {k + 1}"
         if not isinstance(jd, dict):
             raise ModelError(f"{where}: expected a mapping")
@@ -205,23 +226,7 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
         if not (beta is None or beta is False):
             row["beta"] = num(beta, where, "beta") * af
         rows.append(row)
-
-    base = {k: num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
-            for k, v in mapping(data, "base", label).items()}
-    tool = {k: num(v, f"{label}: tool", k) * lf for k, v in mapping(data, "tool", label).items()}
-    robot = SerialRobot.build(str(data["name"]), conv, joints, rows, base, tool, str(data.get("description", "")))
-    # automatic beta where axes are parallel and the file does not say otherwise
-    auto = {robot.beta_joint(pair) for pair in robot.parallel_pairs()}
-    auto = {k for k in auto if explicit_beta[k] is None}
-    if auto:
-        joints = [Joint(j.name, j.type, True, j.lower, j.upper) if k in auto else j
-                  for k, j in enumerate(robot.joints)]
-        robot = robot.with_joints(joints)
-    if ("transmission" in data) != ("actuators" in data):
-        raise ModelError(f"{label}: 'actuators' and 'transmission' go together; give both or neither")
-    if "transmission" in data:
-        return transmission_from_dict(robot, data, lf, af, label)
-    return robot
+    return joints, rows, explicit_beta
 
 
 def robot_to_yaml(robot: Robot, length_unit: str = "m", angle_unit: str = "rad") -> str:
