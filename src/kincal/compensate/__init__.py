@@ -16,7 +16,7 @@ IK_ITER = 100
 
 BRANCH_TOL = {"revolute": np.deg2rad(5.0), "prismatic": 5e-3}  # a correction larger than this changes branch
 START_TOL = 50e-3  # m: the model at the nominal command must be this close to the target
-REACH_MARGIN = 1.2  # targets farther from the base than this times the sampled reach are out of reach
+REACH_MARGIN = 1.2  # targets farther from the base than this times the reach bound are out of reach
 
 
 @dataclass(frozen=True)
@@ -143,7 +143,13 @@ def _checks(robot: Robot, comp: Compensation, targets: np.ndarray, q0: np.ndarra
 
 
 def _reach(robot: Robot, targets: np.ndarray) -> tuple[np.ndarray, float]:
-    """Distance of each target from the robot's base origin and the largest sampled distance (m)."""
+    """Distance of each target from the robot's base origin, and an upper bound on the reach (m): the
+    sum of every length parameter but the base frame's and of the prismatic joints' travel. No
+    reachable target exceeds it; a target in the wrong unit (mm read as m) lies far beyond."""
     t = robot.base_transform()[1] if robot.base_params() else np.zeros(3)
-    sample = robot.forward(robot.sample_joints(2000, seed=0))
-    return np.linalg.norm(targets - t, axis=1), float(np.max(np.linalg.norm(sample - t, axis=1)))
+    p = robot.params
+    base = set(robot.base_params())
+    links = sum(abs(v) for n, k, v in zip(p.names, p.kinds, p.values) if k == "length" and n not in base)
+    travel = sum(max(abs(lo), abs(hi)) for t_, lo, hi in zip(robot.joint_types, robot.lower, robot.upper)
+                 if t_ == "prismatic" and np.isfinite(lo) and np.isfinite(hi))
+    return np.linalg.norm(targets - t, axis=1), float(links + travel)

@@ -54,19 +54,6 @@ class ModelChoice:
         return "\n".join(lines)
 
 
-EDGE = 0.2  # each joint's lowest and highest fifth of its range are held out in turn
-
-
-def edge_folds(robot: Robot, q: np.ndarray) -> list[np.ndarray]:
-    """Per joint, the poses in the lowest and in the highest ``EDGE`` of its range (index arrays):
-    each fold asks a model to predict beyond the range of one joint it was fitted on."""
-    folds = []
-    for j in range(q.shape[1]):
-        lo, hi = np.quantile(q[:, j], [EDGE, 1.0 - EDGE])
-        folds += [np.flatnonzero(q[:, j] <= lo), np.flatnonzero(q[:, j] >= hi)]
-    return [f for f in folds if 0 < f.size < len(q)]
-
-
 def blocked_folds(robot: Robot, q: np.ndarray, k: int, iterations: int = 30) -> list[np.ndarray]:
     """k regions of joint space (index arrays, in pose order): deterministic k-means."""
     rev = np.array([t == "revolute" for t in robot.joint_types])
@@ -86,10 +73,9 @@ def blocked_folds(robot: Robot, q: np.ndarray, k: int, iterations: int = 30) -> 
 def select_model(robot: Robot, meas: Measurements, calibrate, candidates=CANDIDATES, folds: int = 5,
                  use_q: np.ndarray | None = None, **options) -> ModelChoice:
     """Compare ``candidates`` on ``meas`` and choose one (see the module docstring). ``calibrate`` is
-    the calibration function (passed in to keep this room below it), ``options`` its options.
-    ``folds``: the number of k-means regions; 0 holds out each joint's range edges instead
-    (:func:`edge_folds`, stricter: it rejected harmonics even where they helped on the real UR5)."""
-    regions = edge_folds(robot, meas.q) if folds == 0 else blocked_folds(robot, meas.q, folds)
+    the calibration function (passed in to keep this room below it), ``options`` its options;
+    ``folds`` is the number of k-means regions."""
+    regions = blocked_folds(robot, meas.q, folds)
     use = meas.q if use_q is None else robot.check_q(use_q)
     rows = [_cross_validate(robot, meas, model, regions, calibrate, options, use) for model in candidates]
     geo = rows[0]

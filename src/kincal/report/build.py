@@ -45,9 +45,15 @@ def json_path_for(path: str | os.PathLike) -> Path:
 
 
 def report_date() -> str:
+    """Today (UTC), or the day of SOURCE_DATE_EPOCH (seconds since 1970) for reproducible builds."""
     epoch = os.environ.get("SOURCE_DATE_EPOCH")
-    when = _dt.datetime.fromtimestamp(int(epoch), _dt.timezone.utc) if epoch else _dt.datetime.now(_dt.timezone.utc)
-    return when.strftime("%Y-%m-%d")
+    if not epoch:
+        return _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d")
+    try:
+        return _dt.datetime.fromtimestamp(int(epoch), _dt.timezone.utc).strftime("%Y-%m-%d")
+    except (ValueError, OverflowError, OSError):
+        raise ValueError(f"SOURCE_DATE_EPOCH='{epoch}' is not a number of seconds since 1970; unset it or fix "
+                         f"it") from None
 
 
 def build_report(result: CalibrationResult, test: Measurements | None = None, info: dict | None = None,
