@@ -95,17 +95,6 @@ class ChainRobot(Robot):
             return self._chain.forward(values, q), None
         return self._chain.forward_and_jacobian(values, q)
 
-    @property
-    def joint_columns(self) -> np.ndarray:
-        """(n,) parameter column of each joint: the θ (revolute) or d (prismatic) its value adds to,
-        so ∂p/∂qⱼ is that column of the parameter Jacobian."""
-        return self._chain.joint_param
-
-    def joint_jacobian(self, q, params=None):
-        squeeze = np.ndim(q) == 1
-        Jq = self.param_jacobian(q, params)[..., self.joint_columns]
-        return Jq[0] if squeeze else Jq
-
     def preferred_params(self) -> tuple[str, ...]:
         """The tool point, then the base frame: well-conditioned, physical stand-ins for joint terms."""
         return TOOL_NAMES + BASE_NAMES
@@ -198,6 +187,17 @@ class SerialRobot(ChainRobot):
     @property
     def kind(self) -> str:
         return self.convention
+
+    @property
+    def joint_columns(self) -> np.ndarray:
+        """(n,) parameter column of each joint: the θ (revolute) or d (prismatic) its value adds to,
+        so ∂p/∂qⱼ is that column of the parameter Jacobian."""
+        return self._chain.joint_param
+
+    def joint_jacobian(self, q, params=None):
+        squeeze = np.ndim(q) == 1
+        Jq = self.param_jacobian(q, params)[..., self.joint_columns]
+        return Jq[0] if squeeze else Jq
 
     # ---- Robot interface -----------------------------------------------------------------------
     @property
