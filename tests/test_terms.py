@@ -19,7 +19,7 @@ def grid(ur5):
 
 def test_harmonics_jacobians_match_central_differences(ur5):
     robot = kincal.perturb(kincal.extend(ur5, "harmonics:2"), 1e-3, 1e-3, seed=2)
-    assert robot.joints == ("j1", "j2", "j3", "j4", "j5")  # j6 turns the reflector about itself: no lever
+    assert robot.terms[0].joints == ("j1", "j2", "j3", "j4", "j5")  # j6 turns the reflector about itself: no lever
     q = robot.sample_joints(30, seed=1)
     J, Jn = robot.param_jacobian(q), central_jacobian(robot, q)
     assert np.abs(J - Jn).max() / np.abs(J).max() < 1e-6
@@ -39,7 +39,7 @@ def test_round_trip_and_no_export(ur5, tmp_path, capsys):
     back = kincal.load_robot(tmp_path / "h.yaml")
     assert back.params.names == robot.params.names and np.array_equal(back.params.values, robot.params.values)
     assert main(["export", str(tmp_path / "h.yaml"), str(tmp_path / "h.urdf")]) == 1
-    assert "harmonics have no place in a URDF" in capsys.readouterr().err and not (tmp_path / "h.urdf").exists()
+    assert "(harmonics:1) have no place in a URDF" in capsys.readouterr().err and not (tmp_path / "h.urdf").exists()
 
 
 def test_simulated_harmonics_are_recovered(ur5):
@@ -137,5 +137,6 @@ def test_report_shows_the_model_comparison(ur5, grid, monkeypatch):
     res = kincal.calibrate(ur5, train, model="auto", use_q=test.q)
     rep = kincal.build_report(res, test)
     assert 'id="models"' in rep.html and rep.data["model_selection"]["chosen"] == "harmonics:2"
-    assert [m["model"] for m in rep.data["model_selection"]["models"]] == ["geometric", "harmonics:1", "harmonics:2"]
+    assert [m["model"] for m in rep.data["model_selection"]["models"]] == ["geometric", "nobeta", "compliance",
+                                                                     "gravity-regressor", "harmonics:1", "harmonics:2"]
     assert res.record()["envelope"]["lower"] == pytest.approx(train.q.min(axis=0).tolist())

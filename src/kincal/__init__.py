@@ -27,6 +27,7 @@ from .compensate import Compensation, compensate
 from .compensate.verify import Verification, VerificationPlan, verification_plan
 from .studies import Seed1Study, seed1_study
 from .models.terms import MODELS as ERROR_MODELS
+from .models.terms import parse_model
 from .models.terms import ExtendedRobot, extend
 from .report import Report, build_report, evaluation_figures, figure_set, json_path_for, save_figure
 
@@ -34,7 +35,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "BASE_MODES", "free_parameters", "LOSSES", "RESIDUALS", "CALIBRATION_METHODS", "CalibrationProblem",
-    "ERROR_MODELS", "ExtendedRobot", "extend", "URDFRobot", "load_calibration_record", "build_report", "figure_set", "evaluation_figures", "Report", "json_path_for", "save_figure", "ur_calibration", "urdf_text", "export_robot", "EXPORT_FORMATS", "Seed1Study", "seed1_study", "write_residuals", "Reason", "Thresholds", "Verdict",
+    "ERROR_MODELS", "parse_model", "ExtendedRobot", "extend", "URDFRobot", "load_calibration_record", "build_report", "figure_set", "evaluation_figures", "Report", "json_path_for", "save_figure", "ur_calibration", "urdf_text", "export_robot", "EXPORT_FORMATS", "Seed1Study", "seed1_study", "write_residuals", "Reason", "Thresholds", "Verdict",
     "EXTRAPOLATION_RATIO", "ModelUncertainty", "load_uncertainty", "Identifiability", "identifiability", "ConvergenceError", "IdentifiabilityError", "KincalError",
     "MeasurementError", "ModelError", "CalibrationResult", "EvaluationStats", "calibrate", "evaluate",
     "Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements", "Joint", "Parameters", "Robot", "SerialRobot",

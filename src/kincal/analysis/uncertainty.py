@@ -7,6 +7,10 @@ standard deviation is σ(q) = sqrt(trace(J C Jᵀ)). Where the calibration poses
 from them it grows. A pose with σ(q) above ``EXTRAPOLATION_RATIO`` (2.5) times the training median
 lies where the data did not constrain the model: its prediction is an extrapolation, and the more
 flexible the error model, the less it should be trusted there.
+
+The training joint ranges (the envelope) are kept too. A model with joint-value terms (harmonics,
+compliance, gravity regressor) learned those terms only inside them: a pose with a joint more than
+``ENVELOPE_MARGIN`` (2 %) of its training range outside it is named as well.
 """
 from __future__ import annotations
 
@@ -19,6 +23,7 @@ from ..models.robot import Robot
 from ..models.yaml_io import read_section
 
 EXTRAPOLATION_RATIO = 2.5
+ENVELOPE_MARGIN = 0.02
 
 
 @dataclass(frozen=True, eq=False)
@@ -28,11 +33,21 @@ class ModelUncertainty:
     names: tuple[str, ...]
     covariance: np.ndarray
     training_median: float
+    lower: np.ndarray | None = None  # (n,) training joint ranges (rad or m); None: not recorded
+    upper: np.ndarray | None = None
 
     @classmethod
     def from_fit(cls, robot: Robot, names, covariance: np.ndarray, q_train: np.ndarray) -> "ModelUncertainty":
         unc = cls(tuple(names), np.asarray(covariance, dtype=float), 0.0)
-        return cls(unc.names, unc.covariance, float(np.median(unc.sigma(robot, q_train))))
+        return cls(unc.names, unc.covariance, float(np.median(unc.sigma(robot, q_train))), q_train.min(axis=0),
+                   q_train.max(axis=0))
+
+    def outside(self, q: np.ndarray) -> np.ndarray:
+        """(N,) bool: a joint lies outside its training range by more than ENVELOPE_MARGIN of it."""
+        if self.lower is None:
+            return np.zeros(len(q), bool)
+        margin = ENVELOPE_MARGIN * (self.upper - self.lower)
+        return np.any((q < self.lower - margin) | (q > self.upper + margin), axis=1)
 
     def sigma(self, robot: Robot, q: np.ndarray) -> np.ndarray:
         """(N,) 3-D standard deviation (m) of the predicted position at joint values q (N, n)."""
@@ -45,8 +60,11 @@ class ModelUncertainty:
         return sigma > EXTRAPOLATION_RATIO * self.training_median
 
     def to_dict(self) -> dict:
-        return {"parameters": list(self.names), "covariance": self.covariance.tolist(),
-                "training_median_sigma": self.training_median}
+        out = {"parameters": list(self.names), "covariance": self.covariance.tolist(),
+               "training_median_sigma": self.training_median}
+        if self.lower is not None:
+            out["envelope"] = {"lower": self.lower.tolist(), "upper": self.upper.tolist()}
+        return out
 
     @classmethod
     def from_dict(cls, data: dict, label: str = "calibration") -> "ModelUncertainty":
@@ -54,13 +72,17 @@ class ModelUncertainty:
             names = tuple(str(n) for n in data["parameters"])
             cov = np.array(data["covariance"], dtype=float)
             med = float(data["training_median_sigma"])
+            env = data.get("envelope")
+            lo, hi = (None, None) if env is None else (np.array(env["lower"], float), np.array(env["upper"], float))
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelError(f"{label}: the 'calibration' section is incomplete or malformed ({exc}); "
                              f"calibrate again or remove the section") from None
         if cov.shape != (len(names), len(names)) or not np.all(np.isfinite(cov)) or not np.isfinite(med):
             raise ModelError(f"{label}: the 'calibration' covariance must be a finite {len(names)}x{len(names)} "
                              f"matrix; calibrate again or remove the section")
-        return cls(names, cov, med)
+        if lo is not None and (lo.shape != hi.shape or lo.ndim != 1 or not np.all(lo <= hi)):
+            raise ModelError(f"{label}: the 'calibration' envelope must give lower <= upper per joint")
+        return cls(names, cov, med, lo, hi)
 
 
 def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncertainty) -> str | None:
@@ -72,6 +94,21 @@ def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncerta
     return (f"{int(bad.sum())} pose(s) lie where the calibration data did not constrain the model (predicted σ up to "
             f"{sigma[bad].max() / unc.training_median:.1f}x the training median {unc.training_median * 1e3:.4f} mm, "
             f"limit {EXTRAPOLATION_RATIO:g}x): row(s) {shown}; measure calibration poses there too")
+
+
+def envelope_warning(rows: np.ndarray, q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> tuple[np.ndarray, str | None]:
+    """For a model with joint-value terms: the poses outside the training joint ranges and a warning
+    naming them (else no pose and None)."""
+    terms = getattr(robot, "model", None)
+    if terms is None or unc.lower is None or len(unc.lower) != q.shape[1]:
+        return np.zeros(len(q), bool), None
+    bad = unc.outside(q)
+    if not bad.any():
+        return bad, None
+    shown = ", ".join(str(int(r)) for r in rows[bad][:10]) + (f" and {bad.sum() - 10} more" if bad.sum() > 10 else "")
+    joints = [robot.joint_names[j] for j in np.flatnonzero(np.any((q[bad] < unc.lower) | (q[bad] > unc.upper), axis=0))]
+    return bad, (f"{int(bad.sum())} pose(s) lie outside the joint ranges the terms ({terms}) were fitted on "
+                 f"({', '.join(joints)}): row(s) {shown}; the terms extrapolate there")
 
 
 def load_uncertainty(name_or_path) -> ModelUncertainty | None:

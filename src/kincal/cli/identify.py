@@ -8,7 +8,7 @@ import kincal
 from .report import data_record, save_figures, write_outputs
 
 from .common import (DEG, EXIT_NOT_CONVERGED, EXIT_REFUSED, MM, add_data_flags, add_robot, check_paths, csv_list, emit,
-                     err, load_robot, positive_float, positive_int, progress, read, robot_inputs, row_list)
+                     err, load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list)
 
 
 def _thresholds(args) -> kincal.Thresholds:
@@ -16,6 +16,16 @@ def _thresholds(args) -> kincal.Thresholds:
     a_s, a_r = args.angle_limits
     return kincal.Thresholds(length_suspect=ls / MM, length_refuse=lr / MM, angle_suspect=a_s / DEG,
                              angle_refuse=a_r / DEG, tracker_noise=args.tracker_noise / MM)
+
+
+def model_name(s: str) -> str:
+    """argparse type: an error model name (see kincal.extend) or auto."""
+    if s != "auto":
+        try:
+            kincal.parse_model(s)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    return s
 
 
 def cmd_calibrate(args) -> int:
@@ -30,7 +40,7 @@ def cmd_calibrate(args) -> int:
         res = kincal.calibrate(r, meas, params=args.params or "auto", base=args.base, loss=args.loss,
                                keep=args.keep or (), max_iter=args.max_iter, progress=say, method=args.method,
                                residual=args.residual, thresholds=_thresholds(args), model=args.model,
-                               use_q=None if test is None else test.q)
+                               use_q=None if test is None else test.q, payload=args.payload)
     if args.residuals:
         kincal.write_residuals(args.residuals, meas, meas.xyz - res.residuals, res.pose_z, res.outlier_z,
                                r.joint_types, "mm", "deg")
@@ -100,9 +110,12 @@ def register(cmd) -> None:
     s.add_argument("--method", choices=list(kincal.CALIBRATION_METHODS), default="lm")
     s.add_argument("--residual", choices=list(kincal.RESIDUALS), default="cartesian",
                    help="joint: commanded − inverse kinematics of the measured positions (parallel robots)")
-    s.add_argument("--model", choices=[*kincal.ERROR_MODELS, "auto"],
-                   help="error model: geometric, harmonics:k (joint-angle harmonics) or auto (chosen by joint-space "
-                        "blocked cross-validation); default: the robot file's own")
+    s.add_argument("--model", type=model_name,
+                   help="error model: geometric, nobeta, compliance, gravity-regressor, harmonics:1..4, terms joined "
+                        "by '+' (e.g. compliance+harmonics:2), or auto (chosen by joint-space blocked "
+                        "cross-validation); default: the robot file's own")
+    s.add_argument("--payload", type=nonneg_float, default=0.0,
+                   help="payload at the tool in kg, for the gravity terms (default 0)")
     s.add_argument("--exclude", type=row_list, help="input rows to leave out, e.g. 12,40-42")
     s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers)")
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..analysis.uncertainty import ModelUncertainty, extrapolation_warning
+from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
 from ..errors import ModelError
 from ..models.robot import Robot
 
@@ -97,8 +97,10 @@ def _with_sigma(robot: Robot, comp: Compensation, unc: ModelUncertainty | None) 
         return comp
     sigma = np.full(len(comp.q), np.nan)
     sigma[comp.ok] = unc.sigma(robot, comp.q[comp.ok])
-    warning = extrapolation_warning(comp.rows[comp.ok], sigma[comp.ok], unc)
-    return dataclasses.replace(comp, predicted_sigma=sigma, warnings=(warning,) if warning else ())
+    ok = comp.ok
+    warnings = (extrapolation_warning(comp.rows[ok], sigma[ok], unc),
+                envelope_warning(comp.rows[ok], comp.q[ok], robot, unc)[1])
+    return dataclasses.replace(comp, predicted_sigma=sigma, warnings=tuple(w for w in warnings if w))
 
 
 def _residual(robot: Robot, q: np.ndarray, targets: np.ndarray) -> np.ndarray:

@@ -14,10 +14,10 @@ import numpy as np
 
 from .._threads import blas_threads
 from ..analysis.identifiability import BASE_MODES
-from ..analysis.uncertainty import ModelUncertainty, extrapolation_warning
+from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
 from ..io.measurements import Measurements
 from ..models.robot import Robot
-from ..models.terms import MODELS, extend
+from ..models.terms import TAU_REF, drop_terms, extend, parse_model
 from .covariance import parameter_statistics
 from .lm import LMResult, fit_lm
 from .problem import CalibrationProblem, build_problem
@@ -36,7 +36,7 @@ PRACTICAL_TOL = 3e-5  # directions weaker than this (relative, scaled) are not f
 
 def check_options(robot: Robot, params, base: str, loss: str, method: str, residual: str, f_scale: float | None,
                   tol: float, max_iter: int, pso_options: dict | None, thresholds: Thresholds | None = None,
-                  keep: Sequence[str] = (), model: str | None = None) -> dict:
+                  keep: Sequence[str] = (), model: str | None = None, payload: float = 0.0) -> dict:
     """Every option of :func:`calibrate`, checked before any work (ValueError names the option), and
     returned as the record that reproduces the fit."""
     for name, value, allowed in (("base", base, BASE_MODES), ("loss", loss, LOSSES), ("method", method, METHODS),
@@ -55,8 +55,10 @@ def check_options(robot: Robot, params, base: str, loss: str, method: str, resid
     else:
         robot.params.indices(list(params))  # unknown names raise, naming them
     robot.params.indices(list(keep))
-    if model is not None and model not in (*MODELS, "auto"):
-        raise ValueError(f"model='{model}' is not one of {', '.join(MODELS)}, auto")
+    if model is not None and model != "auto":
+        parse_model(model)
+    if isinstance(payload, bool) or not isinstance(payload, (int, float)) or not (np.isfinite(payload) and payload >= 0):
+        raise ValueError(f"payload={payload}: give the payload at the tool in kg (0 or more)")
     if f_scale is not None and not (np.isfinite(f_scale) and f_scale > 0):
         raise ValueError(f"f_scale={f_scale}: give a positive residual scale in m, or None for automatic")
     if not 0 < tol < 1:
@@ -71,7 +73,7 @@ def check_options(robot: Robot, params, base: str, loss: str, method: str, resid
             f"known are {', '.join(PSO_OPTIONS)}" if unknown else "apply to method='pso' or 'pso+lm' only"))
     return {"params": params if isinstance(params, str) else list(params), "base": base, "loss": loss,
             "method": method, "f_scale": f_scale, "keep": list(keep), "tol": tol, "max_iter": max_iter,
-            "residual": residual, "model": model,
+            "residual": residual, "model": model, "payload": float(payload),
             "pso_options": dict(pso_options or {}), "thresholds": (thresholds or Thresholds()).to_dict()}
 
 
@@ -92,6 +94,7 @@ def calibrate(
     thresholds: Thresholds | None = None,
     model: str | None = None,
     use_q: np.ndarray | None = None,
+    payload: float = 0.0,
 ) -> CalibrationResult:
     """Identify ``robot``'s parameters from measured tool positions.
 
@@ -105,8 +108,9 @@ def calibrate(
     method   -- "lm" (Levenberg–Marquardt), "pso" (seed-2 particle swarm; ``pso_options``), "pso+lm".
                 PSO accepts an explicit, unidentifiable ``params`` list (σ = inf for those)
     residual -- "cartesian" (positions) or "joint" (seed 2: commanded − inverse of the measured positions)
-    model    -- error model: None (the robot as given), "geometric", "harmonics:k", or "auto" (joint-space
-                blocked cross-validation with the prediction-σ guard; the comparison: ``model_selection``)
+    model    -- None (the robot as given), a name for :func:`kincal.extend` ("compliance+harmonics:2"), or
+                "auto" (blocked cross-validation: ``model_selection``); ``payload`` kg for gravity terms.
+                A negative compliance is dropped and the fit repeated (``model_notes``)
     max_iter -- LM iteration limit; ``progress``: called with a message at each stage
     thresholds -- the verdict's limits; the result's ``verdict`` is good, suspect or refused with reasons
 
@@ -117,7 +121,7 @@ def calibrate(
 
     t0 = time.perf_counter()
     options = check_options(robot, params, base, loss, method, residual, f_scale, tol, max_iter, pso_options,
-                            thresholds, keep, model)
+                            thresholds, keep, model, payload)
     say = progress or (lambda msg: None)
     with blas_threads(1):
         robot, choice = _error_model(robot, meas, model, options, say, use_q)
@@ -131,8 +135,9 @@ def calibrate(
             fit, w, *counts = irls(problem, _at(problem, problem.x0), loss, f_scale,
                                    lambda x, wt: fit_lm(problem, x, wt, max_iter))
         res = _result(robot, problem, final, fit, w, counts, history, method, loss, time.perf_counter() - t0)
-        return dataclasses.replace(judge(res, problem, thresholds or Thresholds()), options=options,
-                                   model_selection=choice)
+        res = dataclasses.replace(judge(res, problem, thresholds or Thresholds()), options=options,
+                                  model_selection=choice)
+        return _negative_compliance(res, options, choice, say) or res
 
 
 def _error_model(robot: Robot, meas: Measurements, model: str | None, options: dict, say, use_q=None):
@@ -146,7 +151,22 @@ def _error_model(robot: Robot, meas: Measurements, model: str | None, options: d
         choice = select_model(robot, meas, calibrate, use_q=use_q, thresholds=Thresholds(**options["thresholds"]),
                               **fold_options)
         model = choice.chosen
-    return extend(robot, model, meas.q), choice
+    return extend(robot, model, meas.q, options["payload"]), choice
+
+
+def _negative_compliance(res: CalibrationResult, options: dict, choice, say) -> CalibrationResult | None:
+    """The fit repeated without the compliances ``res`` finds negative (a joint that bends against its
+    load is not a spring: the term describes something else), or None when all are positive."""
+    neg = [n for n in res.names if n.endswith(".compliance") and res.estimates[n] < 0.0]
+    if not neg:
+        return None
+    notes = tuple(f"{n.split('.')[0]}: compliance came out negative ({res.estimates[n] / TAU_REF:+.3g} rad/(N·m), "
+                  f"σ {res.std[n] / TAU_REF:.2g}) and was dropped; the fit was repeated without it" for n in neg)
+    say("dropping negative compliance: " + ", ".join(neg))
+    args = {k: v for k, v in options.items() if k not in ("model", "thresholds")}
+    again = calibrate(drop_terms(res.nominal, neg), res.measurements, thresholds=Thresholds(**options["thresholds"]),
+                      **args)
+    return dataclasses.replace(again, options=options, model_selection=choice, model_notes=notes + again.model_notes)
 
 
 def _solve(problem: CalibrationProblem, method: str, max_iter: int, pso_options: dict, say):
@@ -235,7 +255,8 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
     if uncertainty is None:
         return stats
     sigma = uncertainty.sigma(robot, meas.q)
-    warning = extrapolation_warning(meas.rows, sigma, uncertainty)
+    outside, envelope = envelope_warning(meas.rows, meas.q, robot, uncertainty)
+    warnings = tuple(w for w in (extrapolation_warning(meas.rows, sigma, uncertainty), envelope) if w)
+    flagged = uncertainty.extrapolated(sigma) | outside
     return dataclasses.replace(stats, predicted_sigma=tuple(map(float, sigma)),
-                               extrapolated_rows=tuple(int(r) for r in meas.rows[uncertainty.extrapolated(sigma)]),
-                               warnings=(warning,) if warning else ())
+                               extrapolated_rows=tuple(int(r) for r in meas.rows[flagged]), warnings=warnings)

@@ -96,16 +96,15 @@ class CalibrationResult:
     covariance: np.ndarray | None = None  # (K, K) in the order of ``names`` (inf σ: rows/cols of zeros)
     options: dict = field(default_factory=dict)  # the calibrate() options used (to reproduce the fit)
     model_selection: ModelChoice | None = None  # model="auto": the blocked-CV comparison
+    model_notes: tuple[str, ...] = ()  # terms dropped after the fit, and why
 
     def record(self) -> dict:
         """What a calibrated robot file keeps beside the model: the parameter covariance and training σ
         (``uncertainty()``), the nominal parameter values and the options, so the fit can be
         reproduced (``kincal report``), and the training joint ranges."""
-        q = self.measurements.q
-        envelope = {"joints": list(self.robot.joint_names), "lower": q.min(axis=0).tolist(),
-                    "upper": q.max(axis=0).tolist()}  # where the model was fitted (joint ranges)
-        return {**self.uncertainty().to_dict(), "nominal": self.nominal.params.as_dict(), "options": self.options,
-                "envelope": envelope}
+        unc = self.uncertainty().to_dict()  # with the envelope: where the model was fitted (joint ranges)
+        unc["envelope"]["joints"] = list(self.robot.joint_names)
+        return {**unc, "nominal": self.nominal.params.as_dict(), "options": self.options}
 
     def uncertainty(self) -> ModelUncertainty:
         """The calibrated model's parameter covariance, with the median predicted σ at the training
@@ -150,6 +149,8 @@ class CalibrationResult:
             "verdict": self.verdict.to_dict(),
             "model": self.robot.kind,
             "model_selection": None if self.model_selection is None else self.model_selection.to_dict(),
+            "model_notes": list(self.model_notes),
+            "compliance": getattr(self.robot, "compliances", dict)(),  # rad/(N·m) per joint
             "poses": self.pose_records(),
         }
 
@@ -171,5 +172,7 @@ class CalibrationResult:
                   f"before: {self.stats_before}", f"after:  {self.stats_after}"]
         if self.model_selection is not None:
             lines.append(str(self.model_selection))
+        lines += [f"compliance of {j}: {c:.3g} rad/(N·m)" for j, c in getattr(self.robot, "compliances", dict)().items()]
+        lines += [f"note: {n}" for n in self.model_notes]
         lines.append(str(self.verdict))
         return "\n".join(lines)

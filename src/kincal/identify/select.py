@@ -26,11 +26,23 @@ import numpy as np
 from ..errors import KincalError
 from ..io.measurements import Measurements
 from ..models.robot import Robot
+from ..models.serial import ChainRobot, SerialRobot
 from ..models.terms import extend
 from ..ties import first_best
 
 SIGMA_FACTOR = 1.25
-CANDIDATES = ("geometric", "harmonics:1", "harmonics:2")
+
+
+def default_candidates(robot: Robot) -> tuple[str, ...]:
+    """The models ``auto`` compares: geometric; without the automatic β tilts (DH/MDH chains that
+    have them); compliance (chains with link masses) and the gravity regressor (chains); joint-angle
+    harmonics of order 1 and 2."""
+    out = ["geometric"]
+    if isinstance(robot, SerialRobot) and any(j.beta for j in robot.joints):
+        out.append("nobeta")
+    if isinstance(robot, ChainRobot):
+        out += ["compliance", "gravity-regressor"]
+    return tuple(out + ["harmonics:1", "harmonics:2"])
 
 
 @dataclass(frozen=True)
@@ -43,13 +55,18 @@ class ModelChoice:
     folds: int
 
     def to_dict(self) -> dict:
-        return {"chosen": self.chosen, "folds": self.folds, "models": [dict(r) for r in self.rows]}
+        finite = lambda v: None if isinstance(v, float) and not np.isfinite(v) else v  # noqa: E731  (JSON has no inf)
+        return {"chosen": self.chosen, "folds": self.folds,
+                "models": [{k: finite(v) for k, v in r.items()} for r in self.rows]}
 
     def __str__(self) -> str:
         lines = [f"error model by joint-space blocked cross-validation ({self.folds} regions): {self.chosen}",
-                 f"  {'model':<13} {'params':>6} {'CV mean mm':>11} {'± se':>8} {'σ ratio':>8}  decision"]
+                 f"  {'model':<20} {'params':>6} {'CV mean mm':>11} {'± se':>8} {'σ ratio':>8}  decision"]
         for r in self.rows:
-            lines.append(f"  {r['model']:<13} {r['parameters']:>6} {r['cv_mean'] * 1e3:11.4f} {r['cv_se'] * 1e3:8.4f} "
+            if not np.isfinite(r["cv_mean"]):
+                lines.append(f"  {r['model']:<20} {'-':>6} {'-':>11} {'-':>8} {'-':>8}  {r['decision']}")
+                continue
+            lines.append(f"  {r['model']:<20} {r['parameters']:>6} {r['cv_mean'] * 1e3:11.4f} {r['cv_se'] * 1e3:8.4f} "
                          f"{r['sigma_ratio']:8.2f}  {r['decision']}")
         return "\n".join(lines)
 
@@ -70,14 +87,15 @@ def blocked_folds(robot: Robot, q: np.ndarray, k: int, iterations: int = 30) -> 
     return [np.flatnonzero(labels == j) for j in range(k) if np.any(labels == j)]
 
 
-def select_model(robot: Robot, meas: Measurements, calibrate, candidates=CANDIDATES, folds: int = 5,
+def select_model(robot: Robot, meas: Measurements, calibrate, candidates=None, folds: int = 5,
                  use_q: np.ndarray | None = None, **options) -> ModelChoice:
     """Compare ``candidates`` on ``meas`` and choose one (see the module docstring). ``calibrate`` is
     the calibration function (passed in to keep this room below it), ``options`` its options;
-    ``folds`` is the number of k-means regions."""
+    ``folds`` is the number of k-means regions; ``candidates`` default to :func:`default_candidates`."""
     regions = blocked_folds(robot, meas.q, folds)
     use = meas.q if use_q is None else robot.check_q(use_q)
-    rows = [_cross_validate(robot, meas, model, regions, calibrate, options, use) for model in candidates]
+    rows = [_cross_validate(robot, meas, model, regions, calibrate, options, use)
+            for model in (candidates or default_candidates(robot))]
     geo = rows[0]
     for r in rows:
         r["sigma_ratio"] = r.pop("sigma") / geo["sigma"] if r is not geo else 1.0
@@ -99,7 +117,11 @@ def select_model(robot: Robot, meas: Measurements, calibrate, candidates=CANDIDA
 
 def _cross_validate(robot: Robot, meas: Measurements, model: str, regions, calibrate, options, use) -> dict:
     """Blocked-CV errors of one model, and its predicted σ at the use poses when fitted to all data."""
-    ext = extend(robot, model, meas.q)
+    try:
+        ext = extend(robot, model, meas.q, options.get("payload", 0.0))
+    except KincalError as exc:  # e.g. compliance without link masses
+        return {"model": model, "parameters": 0, "cv_mean": np.inf, "cv_se": 0.0, "sigma": np.inf,
+                "fits_ok": False, "why": str(exc)}
     errors, ok, estimated = [], True, 0
     for held in regions:
         train = meas.subset(np.setdiff1d(np.arange(len(meas)), held))
@@ -123,6 +145,8 @@ def _cross_validate(robot: Robot, meas: Measurements, model: str, regions, calib
 def _eligibility(r: dict, geo: dict) -> str:
     if r is geo:
         return "kept (reference)"
+    if "why" in r:
+        return f"not applicable: {r.pop('why')}"
     if not r["fits_ok"]:
         return "dropped: a fold's fit did not converge or was refused"
     if r["cv_mean"] >= geo["cv_mean"]:

@@ -68,8 +68,8 @@ def joint_frames(robot: ChainRobot) -> tuple[list[np.ndarray], np.ndarray]:
 
 def _geometric_only(robot: Robot) -> None:
     if isinstance(robot, ExtendedRobot):
-        raise ModelError(f"robot '{robot.name}' ({robot.kind}): joint-angle harmonics have no place in a URDF or UR "
-                         f"file; command the robot with 'kincal compensate', or calibrate with --model geometric "
+        raise ModelError(f"robot '{robot.name}' ({robot.kind}): joint-value terms ({robot.model}) have no place in a "
+                         f"URDF or UR file; command the robot with 'kincal compensate', or calibrate with --model geometric "
                          f"for an export")
 
 

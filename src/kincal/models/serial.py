@@ -32,15 +32,20 @@ PARALLEL_TOL = 1e-6  # |sin α| below this: consecutive axes are parallel
 
 @dataclass(frozen=True)
 class Joint:
-    """Structure of one joint: name, type, whether it carries β, limits (rad or m)."""
+    """Structure of one joint: name, type, whether it carries β, limits (rad or m), and the mass (kg)
+    and centre of mass (m, in the link frame at the end of the joint's row) of the link it moves."""
 
     name: str
     type: str = "revolute"
     beta: bool = False
     lower: float = -np.pi
     upper: float = np.pi
+    mass: float = 0.0
+    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
+        check_mass(self.mass, self.com, f"joint '{self.name}'")
+        object.__setattr__(self, "com", tuple(float(c) for c in self.com))
         if self.type not in JOINT_TYPES:
             raise ModelError(f"joint '{self.name}': type '{self.type}' is not one of {JOINT_TYPES}")
         if not (np.isfinite(self.lower) and np.isfinite(self.upper) and self.lower < self.upper):
@@ -49,6 +54,14 @@ class Joint:
             )
         if "." in self.name or not self.name:
             raise ModelError(f"joint name '{self.name}' must be non-empty and contain no '.'")
+
+
+def check_mass(mass: float, com, where: str) -> None:
+    """A link mass must be finite and ≥ 0 kg, its centre of mass three finite numbers (m)."""
+    if not (np.isfinite(mass) and mass >= 0.0):
+        raise ModelError(f"{where}: mass {mass} must be a finite number of kg, 0 or more")
+    if len(com) != 3 or not np.all(np.isfinite(np.asarray(com, dtype=float))):
+        raise ModelError(f"{where}: com {list(com)} must be three finite numbers (x, y, z)")
 
 
 def _param_names(convention: str, joints: Sequence[Joint]) -> tuple[list[str], list[str]]:
@@ -82,6 +95,15 @@ class ChainRobot(Robot):
     def tool_ops(self) -> list[Op]:
         idx = self.params.index
         return [Op(TRANS, AXES[a], idx(f"tool.{a}")) for a in "xyz"]
+
+    def link_frames(self) -> list[tuple[str, int, int, float, tuple[float, float, float]]]:
+        """Per link of the chain: (name, number of chain ops up to its frame, number of joints
+        before it, mass kg, centre of mass m in its frame). Gravity terms place masses with this."""
+        raise NotImplementedError
+
+    def chain_values(self, params=None) -> np.ndarray:
+        """The values the compiled chain reads (the parameters, and any extra columns)."""
+        return self.param_values(params)
 
     @property
     def chain(self) -> Chain:
@@ -169,20 +191,29 @@ class SerialRobot(ChainRobot):
         return cls(name, convention, tuple(joints), Parameters(names, [vals[n] for n in names], kinds), description)
 
     def _build_ops(self) -> tuple[Op, ...]:
-        idx = self.params.index
-        x, y, z = AXES["x"], AXES["y"], AXES["z"]
         ops = self.base_ops()
         for k, jt in enumerate(self.joints):
-            p = lambda s: idx(f"{jt.name}.{s}")  # noqa: E731
-            rev = jt.type == "revolute"
-            rz = Op(ROT, z, p("theta"), k if rev else -1)
-            tz = Op(TRANS, z, p("d"), -1 if rev else k)
-            beta = [Op(ROT, y, p("beta"))] if jt.beta else []
-            if self.convention == "dh":
-                ops += [rz, tz, Op(TRANS, x, p("a")), Op(ROT, x, p("alpha"))] + beta
-            else:
-                ops += [Op(ROT, x, p("alpha")), Op(TRANS, x, p("a"))] + beta + [rz, tz]
+            ops += self._row_ops(k, jt)
         return tuple(ops + self.tool_ops())
+
+    def _row_ops(self, k: int, jt: Joint) -> list[Op]:
+        p = lambda s: self.params.index(f"{jt.name}.{s}")  # noqa: E731
+        x, y, z = AXES["x"], AXES["y"], AXES["z"]
+        rev = jt.type == "revolute"
+        rz = Op(ROT, z, p("theta"), k if rev else -1)
+        tz = Op(TRANS, z, p("d"), -1 if rev else k)
+        beta = [Op(ROT, y, p("beta"))] if jt.beta else []
+        if self.convention == "dh":
+            return [rz, tz, Op(TRANS, x, p("a")), Op(ROT, x, p("alpha"))] + beta
+        return [Op(ROT, x, p("alpha")), Op(TRANS, x, p("a"))] + beta + [rz, tz]
+
+    def link_frames(self) -> list[tuple[str, int, int, float, tuple[float, float, float]]]:
+        """Link k is the frame at the end of joint k's row (DH and MDH alike)."""
+        out, end = [], len(self.base_ops())
+        for k, jt in enumerate(self.joints):
+            end += len(self._row_ops(k, jt))
+            out.append((jt.name, end, k + 1, jt.mass, jt.com))
+        return out
 
     @property
     def kind(self) -> str:

@@ -32,7 +32,7 @@ import numpy as np
 from ..errors import ModelError
 from .chain import AXES, ROT, TRANS, Chain, Op
 from .parameters import Parameters
-from .serial import BASE_NAMES, TOOL_NAMES, ChainRobot
+from .serial import BASE_NAMES, TOOL_NAMES, ChainRobot, check_mass
 from .transforms import rot_zyx, zyx_from_matrix
 
 ORIGIN = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -42,7 +42,8 @@ KNOWN = set(MOVING) | {"fixed", "floating", "planar"}
 
 @dataclass(frozen=True)
 class URDFJoint:
-    """One joint of the chain: its origin (xyz m, rpy rad), unit axis, type and limits."""
+    """One joint of the chain: its origin (xyz m, rpy rad), unit axis, type and limits, and the mass
+    (kg) and centre of mass (m, child link frame) of its child link (URDF ``<inertial>``)."""
 
     name: str
     type: str  # revolute | continuous | prismatic | fixed
@@ -51,6 +52,12 @@ class URDFJoint:
     axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
     lower: float = -math.inf
     upper: float = math.inf
+    mass: float = 0.0
+    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        check_mass(self.mass, self.com, f"joint '{self.name}'")
+        object.__setattr__(self, "com", tuple(float(c) for c in self.com))
 
     @property
     def moving(self) -> bool:
@@ -108,19 +115,34 @@ class URDFRobot(ChainRobot):
         return URDFRobot(self.name, self.joints, new, self.description, dict(self.source))
 
     def _build_ops(self) -> tuple[Op, ...]:
-        idx, n_params = self.params.index, len(self.params)
         ops, k = self.base_ops(), 0
         for j in self.joints:
-            if not j.moving:
-                ops += _constant_origin(j.xyz, j.rpy)
-                continue
-            ops += [Op(TRANS, AXES[c], idx(f"{j.name}.{c}")) for c in "xyz"] + _constant_origin((0, 0, 0), j.rpy)
-            ops += [Op(ROT, AXES[c], idx(f"{j.name}.{r}")) for c, r in zip("xyz", ("roll", "pitch", "yaw"))]
-            kind = ROT if MOVING[j.type] == "revolute" else TRANS
-            pre, axis, post = _align(j.axis, f"robot '{self.name}', joint '{j.name}'")
-            ops += pre + [Op(kind, axis, n_params + k, k)] + post
-            k += 1
+            ops += self._joint_ops(j, k)
+            k += j.moving
         return tuple(ops + self.tool_ops())
+
+    def _joint_ops(self, j: URDFJoint, k: int) -> list[Op]:
+        """The ops of one joint (k: its index among the moving joints); they end in the child link's frame."""
+        if not j.moving:
+            return _constant_origin(j.xyz, j.rpy)
+        idx = self.params.index
+        ops = [Op(TRANS, AXES[c], idx(f"{j.name}.{c}")) for c in "xyz"] + _constant_origin((0, 0, 0), j.rpy)
+        ops += [Op(ROT, AXES[c], idx(f"{j.name}.{r}")) for c, r in zip("xyz", ("roll", "pitch", "yaw"))]
+        kind = ROT if MOVING[j.type] == "revolute" else TRANS
+        pre, axis, post = _align(j.axis, f"robot '{self.name}', joint '{j.name}'")
+        return ops + pre + [Op(kind, axis, len(self.params) + k, k)] + post
+
+    def link_frames(self) -> list[tuple[str, int, int, float, tuple[float, float, float]]]:
+        """Every joint's child link, named by its joint."""
+        out, end, k = [], len(self.base_ops()), 0
+        for j in self.joints:
+            end += len(self._joint_ops(j, k))
+            k += j.moving
+            out.append((j.name, end, k, j.mass, j.com))
+        return out
+
+    def chain_values(self, params=None) -> np.ndarray:
+        return self._extended(params)
 
     def _extended(self, params) -> np.ndarray:
         """Parameter values followed by a zero per joint (the joint motions' own columns)."""
@@ -203,9 +225,10 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
     if root.tag != "robot":
         raise ModelError(f"{label}: the root element is <{root.tag}>, a URDF has <robot>")
     links = _links(root, label)
+    masses = {el.get("name"): _inertial(el, label) for el in root.findall("link")}
     joints = {}
     for el in root.findall("joint"):
-        name, parsed = _joint(el, label, links)
+        name, parsed = _joint(el, label, links, masses)
         if name in joints:
             raise ModelError(f"{label}: joint '{name}' is defined twice")
         joints[name] = parsed
@@ -235,7 +258,19 @@ def _links(root, label: str) -> set[str]:
     return set(names)
 
 
-def _joint(el, label: str, links: set[str]) -> tuple[str, dict]:
+def _inertial(link, label: str) -> tuple[float, tuple[float, ...]]:
+    """A link's mass (kg) and centre of mass (m, link frame) from ``<inertial>``; (0, 0) without one."""
+    node = link.find("inertial")
+    if node is None:
+        return 0.0, (0.0, 0.0, 0.0)
+    where = f"{label}: link '{link.get('name')}' <inertial>"
+    mass = _floats(node.find("mass"), "value", 1, where)[0]
+    if mass < 0.0:
+        raise ModelError(f"{where}: mass {mass} kg is negative")
+    return mass, _floats(node.find("origin"), "xyz", 3, where, (0.0, 0.0, 0.0))
+
+
+def _joint(el, label: str, links: set[str], masses: dict) -> tuple[str, dict]:
     name, jtype = el.get("name"), el.get("type")
     where = f"{label}: joint '{name}'"
     if not name:
@@ -263,7 +298,7 @@ def _joint(el, label: str, links: set[str]) -> tuple[str, dict]:
         lower, upper = _floats(limit, "lower", 1, where)[0], _floats(limit, "upper", 1, where)[0]
         if not lower < upper:
             raise ModelError(f"{where}: limit lower {lower} must be below upper {upper}")
-    joint = URDFJoint(name, jtype, xyz, rpy, axis, lower, upper)
+    joint = URDFJoint(name, jtype, xyz, rpy, axis, lower, upper, *masses[ends["child"]])
     return name, {"joint": joint, "mimic": el.find("mimic") is not None, **ends}
 
 

@@ -17,6 +17,8 @@ is absent it is switched on automatically where consecutive revolute axes are pa
 """
 from __future__ import annotations
 
+import dataclasses
+
 import os
 from importlib import resources
 from pathlib import Path
@@ -34,9 +36,9 @@ from .terms import ExtendedRobot
 from .urdf import URDFRobot, read_urdf
 from .yaml_kinds import (error_model_from_dict, error_model_yaml, puu3_from_dict, puu3_yaml, transmission_from_dict,
                          transmission_yaml, urdf_from_dict, urdf_yaml)
-from .yaml_values import fmt, mapping, num, unit_factor, units
+from .yaml_values import fmt, link_mass, mapping, mass_items, num, unit_factor, units
 
-_JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits"}
+_JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits", "mass", "com"}
 _TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool", "actuators", "transmission",
              "type", "extended", "parameters", "slider_limits", "calibration", "source", "error_model"}
 def bundled_robots() -> list[str]:
@@ -183,7 +185,7 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     auto = {robot.beta_joint(pair) for pair in robot.parallel_pairs()}
     auto = {k for k in auto if explicit_beta[k] is None}
     if auto:
-        joints = [Joint(j.name, j.type, True, j.lower, j.upper) if k in auto else j
+        joints = [dataclasses.replace(j, beta=True) if k in auto else j
                   for k, j in enumerate(robot.joints)]
         robot = robot.with_joints(joints)
     if ("transmission" in data) != ("actuators" in data):
@@ -220,7 +222,9 @@ def _dh_joints(entries, lf: float, af: float, label: str) -> tuple[list[Joint], 
             lo, hi = num(lim[0], where, "limits") * qf, num(lim[1], where, "limits") * qf
         beta = jd.get("beta", None)
         explicit_beta.append(beta)
-        joints.append(Joint(str(jd.get("name", f"j{k + 1}")), jtype, not (beta is None or beta is False), lo, hi))
+        mass, com = link_mass(jd, lf, where)
+        joints.append(Joint(str(jd.get("name", f"j{k + 1}")), jtype, not (beta is None or beta is False), lo, hi,
+                            mass, com))
         row = {key: num(jd.get(key, 0.0), where, key) * (lf if key in ("d", "a") else af)
                for key in ("theta", "d", "a", "alpha")}
         if not (beta is None or beta is False):
@@ -256,7 +260,7 @@ def _chain_yaml(robot: SerialRobot, length_unit: str, angle_unit: str) -> str:
             items.append(f"{key}: {fmt(v[f'{j.name}.{key}'] * f)}")
         items.append(f"beta: {fmt(v[f'{j.name}.beta'] * af)}" if j.beta else "beta: false")
         items.append(f"limits: [{fmt(j.lower * qf)}, {fmt(j.upper * qf)}]")
-        lines.append("  - {" + ", ".join(items) + "}")
+        lines.append("  - {" + ", ".join(items + mass_items(j, lf)) + "}")
     base = ", ".join(f"{k}: {fmt(v['base.' + k] * (lf if k in 'xyz' else af))}" for k in ("x", "y", "z", "rx", "ry", "rz"))
     tool = ", ".join(f"{k}: {fmt(v['tool.' + k] * lf)}" for k in ("x", "y", "z"))
     lines += [f"base: {{{base}}}", f"tool: {{{tool}}}", ""]

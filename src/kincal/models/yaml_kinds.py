@@ -9,11 +9,11 @@ from .puu3 import PUU3Robot, puu3_names
 from .serial import SerialRobot
 from .transmission import Map, TransmissionRobot, build_transmission_robot
 from .robot import Robot
-from .terms import ExtendedRobot
+from .terms import ExtendedRobot, term_from_dict
 from .urdf import URDFJoint, URDFRobot, urdf_robot
-from .yaml_values import fmt, mapping, num, pair, unit_factor, units, vector
+from .yaml_values import fmt, link_mass, mapping, mass_items, num, pair, unit_factor, units, vector
 
-URDF_JOINT_KEYS = {"name", "type", "axis", "limits", "xyz", "rpy", "roll", "pitch", "yaw"}
+URDF_JOINT_KEYS = {"name", "type", "axis", "limits", "xyz", "rpy", "roll", "pitch", "yaw", "mass", "com"}
 
 
 DRIVE_PREFIX = "drive."
@@ -74,7 +74,8 @@ def urdf_from_dict(data: dict, label: str) -> URDFRobot:
         qf = lf if jtype == "prismatic" else af
         lim = jd.get("limits")
         lo, hi = (-np.inf, np.inf) if lim is None else tuple(num(x, where, "limits") * qf for x in pair(lim, where))
-        joints.append(URDFJoint(name, jtype, tuple(vec["xyz"] * lf), tuple(vec["rpy"] * af), tuple(vec["axis"]), lo, hi))
+        joints.append(URDFJoint(name, jtype, tuple(vec["xyz"] * lf), tuple(vec["rpy"] * af), tuple(vec["axis"]), lo, hi,
+                                *link_mass(jd, lf, where)))
         if jtype != "fixed":
             values.update({f"{name}.{c}": num(jd.get(c, 0.0), where, c) * af for c in ("roll", "pitch", "yaw")})
     src = mapping(data, "source", label)
@@ -106,7 +107,7 @@ def urdf_yaml(robot: URDFRobot, length_unit: str, angle_unit: str) -> str:
         qf = lf if j.type == "prismatic" else af
         if np.isfinite(j.lower) and np.isfinite(j.upper):
             items.append(f"limits: [{fmt(j.lower * qf)}, {fmt(j.upper * qf)}]")
-        lines.append("  - {" + ", ".join(items) + "}")
+        lines.append("  - {" + ", ".join(items + mass_items(j, lf)) + "}")
     base = ", ".join(f"{k}: {fmt(v['base.' + k] * (lf if k in 'xyz' else af))}" for k in ("x", "y", "z", "rx", "ry", "rz"))
     tool = ", ".join(f"{k}: {fmt(v['tool.' + k] * lf)}" for k in ("x", "y", "z"))
     return "\n".join(lines + [f"base: {{{base}}}", f"tool: {{{tool}}}", ""])
@@ -162,22 +163,29 @@ def transmission_yaml(robot: TransmissionRobot, length_unit: str, angle_unit: st
 
 
 def error_model_yaml(robot: ExtendedRobot) -> str:
-    """The non-geometric terms (always SI: rad)."""
-    values = ", ".join(f"{n}: {fmt(robot.params[n])}" for n in robot.term_names)
-    return (f"error_model: {{harmonics: {robot.harmonics}, joints: [{', '.join(robot.joints)}], "
-            f"values: {{{values}}}}}\n")
+    """The non-geometric terms (always SI: rad, kg, m), and the geometry their gravity loads use."""
+    block: dict = {"terms": [t.to_dict() for t in robot.terms]}
+    refs = [t.gravity.robot for t in robot.terms if hasattr(t, "gravity")]
+    if refs:
+        block["reference"] = {n: float(v) for n, v in zip(refs[0].params.names, refs[0].params.values)}
+    block["values"] = {n: float(robot.params[n]) for n in robot.term_names}
+    return yaml.safe_dump({"error_model": block}, default_flow_style=None, sort_keys=False, width=120)
 
 
 def error_model_from_dict(base: Robot, data, label: str) -> ExtendedRobot:
     where = f"{label}: error_model"
-    if not isinstance(data, dict) or set(data) - {"harmonics", "joints", "values"}:
-        raise ModelError(f"{where}: a mapping with harmonics, joints and values")
-    order = data.get("harmonics")
-    joints = data.get("joints")
-    if not isinstance(order, int) or isinstance(order, bool) or not isinstance(joints, list):
-        raise ModelError(f"{where}: 'harmonics' must be a whole number and 'joints' a list")
+    if not isinstance(data, dict) or set(data) - {"terms", "reference", "values"} or not isinstance(data.get("terms"),
+                                                                                                   list):
+        raise ModelError(f"{where}: a mapping with terms, values and (for gravity terms) reference")
     values = {str(k): num(v, where, str(k)) for k, v in mapping(data, "values", where).items()}
-    robot = ExtendedRobot.build(base, order, [str(j) for j in joints])
+    reference = None
+    if "reference" in data:
+        ref = {str(k): num(v, f"{where}: reference", str(k)) for k, v in mapping(data, "reference", where).items()}
+        if set(ref) != set(base.params.names):
+            raise ModelError(f"{where}: 'reference' must give every parameter of the robot ({len(base.params)})")
+        reference = base.with_params(ref)
+    terms = [term_from_dict(base, reference, t, f"{where}: term {k + 1}") for k, t in enumerate(data["terms"])]
+    robot = ExtendedRobot.build(base, terms)
     unknown = sorted(set(values) - set(robot.term_names))
     if unknown:
         raise ModelError(f"{where}: unknown term(s) {', '.join(unknown)}")

@@ -75,3 +75,19 @@ def fmt(x: float) -> str:
         m, e = s.split("e")
         s = f"{m}.0e{e}"
     return s
+
+
+def link_mass(jd: dict, lf: float, where: str) -> tuple[float, tuple[float, float, float]]:
+    """A joint entry's optional link ``mass`` (kg) and ``com`` (length unit of the file)."""
+    mass = num(jd.get("mass", 0.0), where, "mass")
+    if mass < 0.0:
+        raise ModelError(f"{where}: 'mass' {mass} kg is negative; give the link's mass in kg (0 if unknown)")
+    com = vector(jd.get("com", [0.0, 0.0, 0.0]), where, "com") * lf
+    return mass, (float(com[0]), float(com[1]), float(com[2]))
+
+
+def mass_items(joint, lf: float) -> list[str]:
+    """``mass`` and ``com`` items of a joint entry (none when the link has no mass)."""
+    if joint.mass == 0.0 and not any(joint.com):
+        return []
+    return [f"mass: {fmt(joint.mass)}", "com: [" + ", ".join(fmt(c * lf) for c in joint.com) + "]"]

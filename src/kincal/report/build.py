@@ -78,13 +78,26 @@ def build_report(result: CalibrationResult, test: Measurements | None = None, in
            "warnings": warnings, "parameters": _parameter_rows(result, th),
            "not_estimated": result.identifiability.confound_lines(""), "data": _data_rows(result, test, info),
            "iso": _iso9283(sets, result), "json_name": json_path_for(html_name).name,
-           "model_selection": None if result.model_selection is None else result.model_selection.to_dict(), **figs}
+           "model_selection": None if result.model_selection is None else result.model_selection.to_dict(),
+           "model_notes": list(result.model_notes), "compliance": getattr(result.robot, "compliances", dict)(),
+           "acquisition": _acquisition(result), **figs}
     html = _template().render(**ctx)
     data = {k: ctx[k] for k in ("robot", "version", "date", "model_kind", "verdict", "outliers", "warnings",
-                                "parameters", "not_estimated", "data", "iso", "model_selection")}
+                                "parameters", "not_estimated", "data", "iso", "model_selection", "model_notes",
+                                "compliance", "acquisition")}
     data["headline"] = [{**h, **{k: h[k] / MM for k in ("mean", "rms", "max", "p95")}} for h in headline]
     data["figures"] = [f["name"] for group in figs.values() for f in group]
     return Report(html, data, _summary(result, headline))
+
+
+def _acquisition(result: CalibrationResult) -> dict:
+    """Training residual norms in acquisition (input row) order, with their linear trend: drift of
+    the tracker or a robot warming up shows here (the verdict names a warm-up)."""
+    meas = result.measurements
+    order = np.argsort(meas.rows, kind="stable")
+    norms = np.linalg.norm(result.residuals, axis=1)[order] * MM
+    slope = float(np.polyfit(np.arange(len(norms)), norms, 1)[0]) * 100 if len(norms) > 2 else 0.0
+    return {"rows": meas.rows[order].tolist(), "error_mm": norms.tolist(), "trend_mm_per_100_poses": slope}
 
 
 def _thresholds(result: CalibrationResult) -> Thresholds:

@@ -1,0 +1,112 @@
+"""Gravity loads on a serial chain: the joint torques a mass model causes, and their linear regressor.
+
+Gravity acts along −z of the robot's own base frame (the base frame parameters, which place the
+robot in the tracker's frame, are zeroed): a floor-mounted robot whose base z points up. A point
+mass m at a point P of link j loads joint i (i ≤ j) with the generalised force
+
+    τᵢ = (∂P/∂qᵢ) · m g⃗,   g⃗ = (0, 0, −9.80665) m/s²,
+
+N·m for a revolute joint. ∂P/∂q is the joint Jacobian of the chain cut at link j's frame with P
+added as constant translations, so one mechanism serves DH, MDH and URDF chains. The geometry is
+that of the robot the model is built from (its reference), held fixed: the loads are known
+functions of q, and terms built on them stay linear in their parameters.
+
+With unknown masses, P = oⱼ + Rⱼc and ∂P/∂qᵢ is linear in c, so the load is linear in (m, m·c)
+per link: the gravity regressor, four columns per (joint, link) pair, each ĝ·∂(oⱼ + Rⱼeₖ)/∂qᵢ in m.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .chain import AXES, TRANS, Chain, Op
+from .serial import ChainRobot
+
+G = 9.80665  # m/s²
+COMPONENTS = ("m", "x", "y", "z")  # regressor columns per link: the mass, then its first moments
+
+
+def _offset_ops(c) -> list[Op]:
+    return [Op(TRANS, AXES[a], -1, offset=float(v)) for a, v in zip("xyz", c) if v != 0.0]
+
+
+@dataclass(frozen=True, eq=False)
+class GravityModel:
+    """Loads of ``robot``'s link masses (and a ``payload`` kg at the tool point) at joint values q."""
+
+    robot: ChainRobot
+    payload: float = 0.0
+    _values: np.ndarray = field(init=False, repr=False)
+    _cache: dict = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        values = self.robot.chain_values().copy()
+        values[self.robot.params.indices(self.robot.base_params())] = 0.0
+        object.__setattr__(self, "_values", values)
+        object.__setattr__(self, "_cache", {})
+
+    def _jacobian(self, end: int, joints: int, offset) -> "callable":
+        ops = self.robot.chain.ops[:end] + tuple(_offset_ops(offset))
+        chain = Chain(ops, len(self._values), joints)
+        cols = chain.joint_param
+
+        def jac(q: np.ndarray) -> np.ndarray:  # (N, 3, joints)
+            return chain.forward_and_jacobian(self._values, q[:, :joints])[1][:, :, cols]
+        return jac
+
+    def _points(self, key: str, q: np.ndarray, build) -> list[np.ndarray]:
+        """Joint Jacobians of the points ``build()`` lists, for these q (kept for the last q seen)."""
+        if key not in self._cache:
+            self._cache[key] = ([self._jacobian(*p) for p in build()], None, None)
+        fns, last_q, last = self._cache[key]
+        if last_q is None or last_q.shape != q.shape or not np.array_equal(last_q, q):
+            last, last_q = [f(q) for f in fns], q.copy()
+            self._cache[key] = (fns, last_q, last)
+        return last
+
+    def _mass_points(self) -> list[tuple[int, int, tuple, float]]:
+        pts = [(end, k, com, m) for _, end, k, m, com in self.robot.link_frames() if m > 0.0 and k > 0]
+        if self.payload > 0.0:
+            pts.append((len(self.robot.chain.ops), self.robot.n_joints, (0.0, 0.0, 0.0), self.payload))
+        return pts
+
+    @property
+    def total_mass(self) -> float:
+        return float(sum(p[3] for p in self._mass_points()))
+
+    def torques(self, q: np.ndarray) -> np.ndarray:
+        """(N, n) gravity load per joint (N·m or N) at joint values q (N, n)."""
+        q = self.robot.check_q(q)
+        pts = self._mass_points()
+        out = np.zeros(q.shape)
+        for (_, k, _, m), J in zip(pts, self._points("mass", q, lambda: [p[:3] for p in pts])):
+            out[:, :k] -= G * m * J[:, 2, :]  # g⃗ = −G ẑ
+        return out
+
+    def links(self) -> list[tuple[str, int, int]]:
+        """The links the regressor uses: the first frame after each moving joint (name, end, joints)."""
+        out, seen = [], set()
+        for name, end, k, _, _ in self.robot.link_frames():
+            if k > 0 and k not in seen:
+                seen.add(k)
+                out.append((name, end, k))
+        return out
+
+    def regressor(self, q: np.ndarray) -> np.ndarray:
+        """(N, n, L, 4): for link ℓ and component (m, x, y, z) the load column on each joint, in m:
+        −ẑ·∂oℓ/∂qᵢ and −ẑ·∂(Rℓeₖ)/∂qᵢ (zero for joints after the link)."""
+        q = self.robot.check_q(q)
+        links = self.links()
+        unit = np.eye(3)
+
+        def build():
+            return [(end, k, off) for _, end, k in links for off in ((0.0, 0.0, 0.0), *unit)]
+        Js = self._points("regressor", q, build)
+        out = np.zeros((len(q), self.robot.n_joints, len(links), 4))
+        for ell, (_, _, k) in enumerate(links):
+            J0, *Jc = Js[4 * ell:4 * ell + 4]
+            out[:, :k, ell, 0] = -J0[:, 2, :]
+            for c in range(3):
+                out[:, :k, ell, c + 1] = -(Jc[c][:, 2, :] - J0[:, 2, :])
+        return out
