@@ -221,6 +221,14 @@ YAML = [
         "alpha: 90", "alpha: 1.5707963").replace("alpha: -90", "alpha: -1.5707963").replace(
         "limits: [-360, 360]", "limits: [-6.28, 6.28]"), 1, ["look like mm", "units"]),
     yaml_case("absurd-length", UR5_YAML.replace("a: -425", "a: 1e300"), 1, ["implausible"]),
+    yaml_case("negative-mass", UR5_YAML.replace("name: j2,", "name: j2, mass: -8.4,"), 1,
+              ["joint 2", "'mass'", "negative", "kg"]),
+    yaml_case("com-two-numbers", UR5_YAML.replace("name: j2,", "name: j2, mass: 8.4, com: [1, 2],"), 1,
+              ["joint 2", "'com'"]),
+    yaml_case("error-model-unknown-term", UR5_YAML + "error_model: {terms: [{type: spline}], values: {}}\n", 1,
+              ["error_model", "term 1", "harmonics|compliance|gravity-regressor"]),
+    yaml_case("error-model-no-reference", UR5_YAML + "error_model: {terms: [{type: compliance, joints: [j2]}], "
+              "values: {}}\n", 1, ["error_model", "term 1", "reference"]),
     yaml_case("puu3-parameters-list", PUU3_YAML.replace("parameters: {r: 100, R: 200, L1: 350, L2: 350, L3: 350}",
                                                         "parameters: [100, 200]"), 1,
               ["'parameters' must be a mapping"]),
