@@ -40,7 +40,8 @@ def cmd_calibrate(args) -> int:
         res = kincal.calibrate(r, meas, params=args.params or "auto", base=args.base, loss=args.loss,
                                keep=args.keep or (), max_iter=args.max_iter, progress=say, method=args.method,
                                residual=args.residual, thresholds=_thresholds(args), model=args.model,
-                               use_q=None if test is None else test.q, payload=args.payload)
+                               use_q=None if test is None else test.q, payload=args.payload,
+                               drift=args.drift)
     if args.residuals:
         kincal.write_residuals(args.residuals, meas, meas.xyz - res.residuals, res.pose_z, res.outlier_z,
                                r.joint_types, "mm", "deg")
@@ -116,6 +117,9 @@ def register(cmd) -> None:
                         "cross-validation); default: the robot file's own")
     s.add_argument("--payload", type=nonneg_float, default=0.0,
                    help="payload at the tool in kg, for the gravity terms (default 0)")
+    s.add_argument("--drift", action="store_true",
+                   help="also fit a base drift over acquisition (row) order, e.g. a tracker creeping; reported, "
+                        "not kept in the model")
     s.add_argument("--exclude", type=row_list, help="input rows to leave out, e.g. 12,40-42")
     s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers)")
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")

@@ -19,6 +19,7 @@ from ..io.measurements import Measurements
 from ..models.robot import Robot
 from ..models.terms import TAU_REF, drop_terms, extend, parse_model
 from .covariance import parameter_statistics
+from .drift import with_drift, without_drift
 from .lm import LMResult, fit_lm
 from .problem import CalibrationProblem, build_problem
 from .pso import OPTIONS as PSO_OPTIONS
@@ -36,7 +37,8 @@ PRACTICAL_TOL = 3e-5  # directions weaker than this (relative, scaled) are not f
 
 def check_options(robot: Robot, params, base: str, loss: str, method: str, residual: str, f_scale: float | None,
                   tol: float, max_iter: int, pso_options: dict | None, thresholds: Thresholds | None = None,
-                  keep: Sequence[str] = (), model: str | None = None, payload: float = 0.0) -> dict:
+                  keep: Sequence[str] = (), model: str | None = None, payload: float = 0.0,
+                  drift: bool = False) -> dict:
     """Every option of :func:`calibrate`, checked before any work (ValueError names the option), and
     returned as the record that reproduces the fit."""
     for name, value, allowed in (("base", base, BASE_MODES), ("loss", loss, LOSSES), ("method", method, METHODS),
@@ -57,6 +59,8 @@ def check_options(robot: Robot, params, base: str, loss: str, method: str, resid
     robot.params.indices(list(keep))
     if model is not None and model != "auto":
         parse_model(model)
+    if drift not in (True, False) or (drift and residual != "cartesian"):
+        raise ValueError(f"drift={drift!r}: True or False; the drift term needs residual='cartesian'")
     if isinstance(payload, bool) or not isinstance(payload, (int, float)) or not (np.isfinite(payload) and payload >= 0):
         raise ValueError(f"payload={payload}: give the payload at the tool in kg (0 or more)")
     if f_scale is not None and not (np.isfinite(f_scale) and f_scale > 0):
@@ -73,7 +77,7 @@ def check_options(robot: Robot, params, base: str, loss: str, method: str, resid
             f"known are {', '.join(PSO_OPTIONS)}" if unknown else "apply to method='pso' or 'pso+lm' only"))
     return {"params": params if isinstance(params, str) else list(params), "base": base, "loss": loss,
             "method": method, "f_scale": f_scale, "keep": list(keep), "tol": tol, "max_iter": max_iter,
-            "residual": residual, "model": model, "payload": float(payload),
+            "residual": residual, "model": model, "payload": float(payload), "drift": bool(drift),
             "pso_options": dict(pso_options or {}), "thresholds": (thresholds or Thresholds()).to_dict()}
 
 
@@ -95,6 +99,7 @@ def calibrate(
     model: str | None = None,
     use_q: np.ndarray | None = None,
     payload: float = 0.0,
+    drift: bool = False,
 ) -> CalibrationResult:
     """Identify ``robot``'s parameters from measured tool positions.
 
@@ -111,6 +116,7 @@ def calibrate(
     model    -- None (the robot as given), a name for :func:`kincal.extend` ("compliance+harmonics:2"), or
                 "auto" (blocked cross-validation: ``model_selection``); ``payload`` kg for gravity terms.
                 A negative compliance is dropped and the fit repeated (``model_notes``)
+    drift    -- also fit a base drift over acquisition (row) order (``result.drift``; kincal.identify.drift)
     max_iter -- LM iteration limit; ``progress``: called with a message at each stage
     thresholds -- the verdict's limits; the result's ``verdict`` is good, suspect or refused with reasons
 
@@ -121,23 +127,31 @@ def calibrate(
 
     t0 = time.perf_counter()
     options = check_options(robot, params, base, loss, method, residual, f_scale, tol, max_iter, pso_options,
-                            thresholds, keep, model, payload)
+                            thresholds, keep, model, payload, drift)
     say = progress or (lambda msg: None)
     with blas_threads(1):
         robot, choice = _error_model(robot, meas, model, options, say, use_q)
-        problem = build_problem(robot, meas, params, base, keep, tol, residual, strict=method == "lm", say=say)
-        w = None
-        if loss == "linear":
-            fit, final, counts, history = _solve(problem, method, max_iter, pso_options or {}, say)
-        else:  # reweight from the start: a least-squares fit pulled by outliers is a poor place to begin
-            say("fitting with reweighting (robust loss)")
-            final, history = problem, ()
-            fit, w, *counts = irls(problem, _at(problem, problem.x0), loss, f_scale,
-                                   lambda x, wt: fit_lm(problem, x, wt, max_iter))
-        res = _result(robot, problem, final, fit, w, counts, history, method, loss, time.perf_counter() - t0)
-        res = dataclasses.replace(judge(res, problem, thresholds or Thresholds()), options=options,
-                                  model_selection=choice)
+        res = dataclasses.replace(_fit(robot, meas, options, say, t0), options=options, model_selection=choice)
         return _negative_compliance(res, options, choice, say) or res
+
+
+def _fit(robot: Robot, meas: Measurements, o: dict, say, t0: float) -> CalibrationResult:
+    """Build the problem (with the drift term if asked), solve it, judge the result."""
+    fit_robot, fit_meas = with_drift(robot, meas) if o["drift"] else (robot, meas)
+    problem = build_problem(fit_robot, fit_meas, o["params"], o["base"], o["keep"], o["tol"], o["residual"],
+                            strict=o["method"] == "lm", say=say)
+    w = None
+    if o["loss"] == "linear":
+        fit, final, counts, history = _solve(problem, o["method"], o["max_iter"], o["pso_options"], say)
+    else:  # reweight from the start: a least-squares fit pulled by outliers is a poor place to begin
+        say("fitting with reweighting (robust loss)")
+        final, history = problem, ()
+        fit, w, *counts = irls(problem, _at(problem, problem.x0), o["loss"], o["f_scale"],
+                               lambda x, wt: fit_lm(problem, x, wt, o["max_iter"]))
+    res = _result(fit_robot, problem, final, fit, w, counts, history, o["method"], o["loss"],
+                  time.perf_counter() - t0)
+    res = judge(res, problem, Thresholds(**o["thresholds"]))
+    return without_drift(res, robot, meas) if o["drift"] else res
 
 
 def _error_model(robot: Robot, meas: Measurements, model: str | None, options: dict, say, use_q=None):

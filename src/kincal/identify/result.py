@@ -97,6 +97,7 @@ class CalibrationResult:
     options: dict = field(default_factory=dict)  # the calibrate() options used (to reproduce the fit)
     model_selection: ModelChoice | None = None  # model="auto": the blocked-CV comparison
     model_notes: tuple[str, ...] = ()  # terms dropped after the fit, and why
+    drift: dict | None = None  # drift=True: per axis x/y/z the drift over the session (m) and its std
 
     def record(self) -> dict:
         """What a calibrated robot file keeps beside the model: the parameter covariance and training σ
@@ -150,6 +151,7 @@ class CalibrationResult:
             "model": self.robot.kind,
             "model_selection": None if self.model_selection is None else self.model_selection.to_dict(),
             "model_notes": list(self.model_notes),
+            "drift": self.drift,
             "compliance": getattr(self.robot, "compliances", dict)(),  # rad/(N·m) per joint
             "poses": self.pose_records(),
         }
@@ -174,5 +176,8 @@ class CalibrationResult:
             lines.append(str(self.model_selection))
         lines += [f"compliance of {j}: {c:.3g} rad/(N·m)" for j, c in getattr(self.robot, "compliances", dict)().items()]
         lines += [f"note: {n}" for n in self.model_notes]
+        if self.drift:
+            lines.append("drift over the session (first to last pose): " + ", ".join(
+                f"{a} {d['value'] * MM:+.4f} ± {d['std'] * MM:.4f} mm" for a, d in self.drift.items()))
         lines.append(str(self.verdict))
         return "\n".join(lines)

@@ -1,0 +1,104 @@
+"""A base drift over acquisition order: the tracker (or the robot's base) creeping during a session.
+
+With ``calibrate(drift=True)`` the measured positions are modelled as p(q) + s·d, s the pose's
+place in acquisition order (input row order, centred: −½ … +½) and d = ``drift.x/y/z`` (m) the
+drift over the whole session. Inside the fit the robot carries s as an extra joint value, so the
+identifiability analysis, LM and covariance treat d like any parameter: when the poses were taken
+in an order that follows the joints (a grid scanned joint by joint), d is confounded with the
+geometry and is named as such instead of being fitted. The calibrated robot is returned without
+the drift (it belongs to that session, not to the robot); ``result.drift`` reports it.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..io.measurements import Measurements
+from ..models.parameters import Parameters
+from ..models.robot import Robot
+
+NAMES = ("drift.x", "drift.y", "drift.z")
+ORDER = "acquisition"
+
+
+def acquisition(rows: np.ndarray) -> np.ndarray:
+    """(N,) place of each pose in row order, centred on 0 and spanning 1 (ties keep input order)."""
+    rank = np.empty(len(rows))
+    rank[np.argsort(rows, kind="stable")] = np.arange(len(rows))
+    return (rank - rank.mean()) / max(len(rows) - 1, 1)
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class DriftRobot(Robot):
+    """``base`` plus a drift d·s, s the last joint value (see the module docstring)."""
+
+    base: Robot
+    params: Parameters
+
+    name = property(lambda self: self.base.name)  # type: ignore[assignment]
+    description = property(lambda self: self.base.description)
+    joint_names = property(lambda self: (*self.base.joint_names, ORDER))  # type: ignore[assignment]
+    joint_types = property(lambda self: (*self.base.joint_types, "prismatic"))  # type: ignore[assignment]
+    lower = property(lambda self: np.append(self.base.lower, -1.0))  # type: ignore[assignment]
+    upper = property(lambda self: np.append(self.base.upper, 1.0))  # type: ignore[assignment]
+    kind = property(lambda self: f"{self.base.kind} + drift")  # type: ignore[assignment]
+
+    @classmethod
+    def build(cls, base: Robot) -> "DriftRobot":
+        p = base.params
+        return cls(base, Parameters(list(p.names) + list(NAMES), list(p.values) + [0.0] * 3,
+                                    list(p.kinds) + ["length"] * 3))
+
+    def with_params(self, values) -> "DriftRobot":
+        new = values if isinstance(values, Parameters) else self.params.replace(values)
+        return DriftRobot(self.base.with_params(new.values[:self.base.n_params]), new)
+
+    def forward_and_jacobian(self, q, params=None, jacobian=True):
+        q = self.check_q(q)
+        v = self.param_values(params)
+        nb = self.base.n_params
+        p, J = self.base.forward_and_jacobian(q[:, :-1], v[:nb], jacobian)
+        p = p + q[:, -1:] * v[nb:]
+        if not jacobian:
+            return p, None
+        return p, np.concatenate([J, q[:, -1, None, None] * np.eye(3)], axis=2)
+
+    def joint_jacobian(self, q, params=None):
+        q = self.check_q(q)
+        v = self.param_values(params)
+        J = self.base.joint_jacobian(q[:, :-1], v[:self.base.n_params])
+        return np.concatenate([J, np.broadcast_to(v[self.base.n_params:, None], (len(q), 3, 1))], axis=2)
+
+    def preferred_params(self) -> tuple[str, ...]:
+        return self.base.preferred_params()
+
+    def base_params(self) -> tuple[str, ...]:
+        return self.base.base_params()
+
+    def base_transform(self):
+        return self.base.base_transform()
+
+    def with_base_transform(self, R: np.ndarray, t: np.ndarray) -> "DriftRobot":
+        moved = self.base.with_base_transform(R, t)
+        return self.with_params(dict(zip(moved.params.names, moved.params.values)))
+
+
+def with_drift(robot: Robot, meas: Measurements) -> tuple[DriftRobot, Measurements]:
+    """The robot with the drift term, and the measurements with their acquisition place as a joint."""
+    q = np.column_stack([meas.q, acquisition(meas.rows)])
+    return DriftRobot.build(robot), Measurements(q, meas.xyz, (*meas.joint_names, ORDER), meas.source, meas.rows)
+
+
+def without_drift(res, robot: Robot, meas: Measurements):
+    """A result fitted with the drift term, as a result for ``robot`` itself (drift in ``res.drift``)."""
+    keep = [k for k, n in enumerate(res.names) if n not in NAMES]
+    drift = {n.split(".")[1]: {"value": res.estimates[n], "std": res.std[n]} for n in NAMES if n in res.names}
+    drop = lambda d: {k: v for k, v in d.items() if k not in NAMES}  # noqa: E731
+    sub = np.ix_(keep, keep)
+    return dataclasses.replace(
+        res, robot=res.robot.base, nominal=robot, names=tuple(res.names[k] for k in keep),
+        estimates=drop(res.estimates), corrections=drop(res.corrections), std=drop(res.std),
+        correlation=res.correlation[sub], covariance=None if res.covariance is None else res.covariance[sub],
+        measurements=meas, drift=drift or None)
