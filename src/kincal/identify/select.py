@@ -15,7 +15,9 @@ is later used. A candidate term is kept only when
 * every fold's fit converged without a refused verdict;
 
 and among the models kept (geometric always is) the simplest one within one standard error of the
-best CV error is chosen. The table says why each candidate was kept or dropped.
+best CV error is chosen. The table says why each candidate was kept or dropped. The same rule
+decides whether the automatic β tilts stay (candidate ``nobeta``) and whether gravity terms earn
+their place (``compliance`` when the robot file has masses, ``gravity-regressor``).
 """
 from __future__ import annotations
 

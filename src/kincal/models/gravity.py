@@ -47,6 +47,13 @@ class GravityModel:
         object.__setattr__(self, "_cache", {})
 
     def _jacobian(self, end: int, joints: int, offset) -> "callable":
+        """The joint Jacobian (N, 3, joints) of the point ``offset`` in the frame after ``end`` ops."""
+        key = ("chain", end, joints, tuple(float(c) for c in offset))
+        if key not in self._cache:
+            self._cache[key] = self._compile(end, joints, offset)
+        return self._cache[key]
+
+    def _compile(self, end: int, joints: int, offset):
         ops = self.robot.chain.ops[:end] + tuple(_offset_ops(offset))
         chain = Chain(ops, len(self._values), joints)
         cols = chain.joint_param
@@ -55,14 +62,13 @@ class GravityModel:
             return chain.forward_and_jacobian(self._values, q[:, :joints])[1][:, :, cols]
         return jac
 
-    def _points(self, key: str, q: np.ndarray, build) -> list[np.ndarray]:
-        """Joint Jacobians of the points ``build()`` lists, for these q (kept for the last q seen)."""
-        if key not in self._cache:
-            self._cache[key] = ([self._jacobian(*p) for p in build()], None, None)
-        fns, last_q, last = self._cache[key]
+    def _cached(self, key: str, q: np.ndarray, compute) -> np.ndarray:
+        """compute(q), kept for the last q seen per key (a fit evaluates the same poses many times)."""
+        last_q, last = self._cache.get(key, (None, None))
         if last_q is None or last_q.shape != q.shape or not np.array_equal(last_q, q):
-            last, last_q = [f(q) for f in fns], q.copy()
-            self._cache[key] = (fns, last_q, last)
+            last = compute(q)
+            last.setflags(write=False)
+            self._cache[key] = (q.copy(), last)
         return last
 
     def _mass_points(self) -> list[tuple[int, int, tuple, float]]:
@@ -77,11 +83,12 @@ class GravityModel:
 
     def torques(self, q: np.ndarray) -> np.ndarray:
         """(N, n) gravity load per joint (N·m or N) at joint values q (N, n)."""
-        q = self.robot.check_q(q)
-        pts = self._mass_points()
+        return self._cached("torques", self.robot.check_q(q), self._torques)
+
+    def _torques(self, q: np.ndarray) -> np.ndarray:
         out = np.zeros(q.shape)
-        for (_, k, _, m), J in zip(pts, self._points("mass", q, lambda: [p[:3] for p in pts])):
-            out[:, :k] -= G * m * J[:, 2, :]  # g⃗ = −G ẑ
+        for end, k, com, m in self._mass_points():
+            out[:, :k] -= G * m * self._jacobian(end, k, com)(q)[:, 2, :]  # g⃗ = −G ẑ
         return out
 
     def links(self) -> list[tuple[str, int, int]]:
@@ -96,17 +103,14 @@ class GravityModel:
     def regressor(self, q: np.ndarray) -> np.ndarray:
         """(N, n, L, 4): for link ℓ and component (m, x, y, z) the load column on each joint, in m:
         −ẑ·∂oℓ/∂qᵢ and −ẑ·∂(Rℓeₖ)/∂qᵢ (zero for joints after the link)."""
-        q = self.robot.check_q(q)
-        links = self.links()
-        unit = np.eye(3)
+        return self._cached("regressor", self.robot.check_q(q), self._regressor)
 
-        def build():
-            return [(end, k, off) for _, end, k in links for off in ((0.0, 0.0, 0.0), *unit)]
-        Js = self._points("regressor", q, build)
+    def _regressor(self, q: np.ndarray) -> np.ndarray:
+        links = self.links()
         out = np.zeros((len(q), self.robot.n_joints, len(links), 4))
-        for ell, (_, _, k) in enumerate(links):
-            J0, *Jc = Js[4 * ell:4 * ell + 4]
-            out[:, :k, ell, 0] = -J0[:, 2, :]
-            for c in range(3):
-                out[:, :k, ell, c + 1] = -(Jc[c][:, 2, :] - J0[:, 2, :])
+        for ell, (_, end, k) in enumerate(links):
+            J0 = self._jacobian(end, k, (0.0, 0.0, 0.0))(q)[:, 2, :]
+            out[:, :k, ell, 0] = -J0
+            for c, axis in enumerate(np.eye(3)):
+                out[:, :k, ell, c + 1] = J0 - self._jacobian(end, k, axis)(q)[:, 2, :]
         return out

@@ -53,6 +53,13 @@ class Robot(ABC):
     def joint_jacobian(self, q: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
         """d position / d joint values, (N,3,n)."""
 
+    def forward_jacobians(self, q: np.ndarray, params: np.ndarray | None = None
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Positions (N,3), parameter Jacobian (N,3,P) and joint Jacobian (N,3,n); chains give all
+        three from one pass."""
+        p, J = self.forward_and_jacobian(q, params)
+        return p, J, self.joint_jacobian(q, params)
+
     def preferred_params(self) -> tuple[str, ...]:
         """Names to keep first when parameters are confounded (after any the user lists)."""
         return ()

@@ -230,6 +230,10 @@ class SerialRobot(ChainRobot):
         Jq = self.param_jacobian(q, params)[..., self.joint_columns]
         return Jq[0] if squeeze else Jq
 
+    def forward_jacobians(self, q, params=None):
+        p, J = self.forward_and_jacobian(q, params)
+        return p, J, J[..., self.joint_columns]
+
     # ---- Robot interface -----------------------------------------------------------------------
     @property
     def joint_names(self) -> tuple[str, ...]:  # type: ignore[override]

@@ -107,6 +107,9 @@ class GravityTerm:
         return tuple(f"{joints[i]}.g_{links[ell]}_{COMPONENTS[c]}" for i, ell, c in self.columns)
 
     def basis(self, q: np.ndarray) -> np.ndarray:
+        return self.gravity._cached(f"basis:{self.columns}", q, self._basis)
+
+    def _basis(self, q: np.ndarray) -> np.ndarray:
         B = np.zeros((len(q), q.shape[1], len(self.columns)))
         if self.kind == "compliance":
             tau = self.gravity.torques(q) / TAU_REF
@@ -201,8 +204,7 @@ class ExtendedRobot(Robot):
         qc = q + sum(B @ th for B, th in zip(bases, thetas))
         if not jacobian:
             return self.base.forward_and_jacobian(qc, base_values, jacobian=False)
-        p, Jb = self.base.forward_and_jacobian(qc, base_values)
-        Jq = self.base.joint_jacobian(qc, base_values)  # (N, 3, n)
+        p, Jb, Jq = self.base.forward_jacobians(qc, base_values)  # Jq: (N, 3, n)
         return p, np.concatenate([Jb] + [Jq @ B for B in bases], axis=2)
 
     def joint_jacobian(self, q, params=None):

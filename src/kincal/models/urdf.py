@@ -156,6 +156,10 @@ class URDFRobot(ChainRobot):
         p, J = self._chain.forward_and_jacobian(values, q)
         return p, J[:, :, :self.n_params]
 
+    def forward_jacobians(self, q, params=None):
+        p, J = self._chain.forward_and_jacobian(self._extended(params), self.check_q(q))
+        return p, J[:, :, :self.n_params], J[:, :, self.n_params:]
+
     def joint_jacobian(self, q, params=None):
         squeeze = np.ndim(q) == 1
         Jq = self._chain.forward_and_jacobian(self._extended(params), self.check_q(q))[1][:, :, self.n_params:]
