@@ -140,6 +140,12 @@ def test_report_shows_the_model_comparison(ur5, grid, monkeypatch):
     assert [m["model"] for m in rep.data["model_selection"]["models"]] == ["geometric", "nobeta", "compliance",
                                                                      "gravity-regressor", "harmonics:1", "harmonics:2"]
     assert res.record()["envelope"]["lower"] == pytest.approx(train.q.min(axis=0).tolist())
+    acq = rep.data["acquisition"]  # residuals in acquisition order, for drift
+    assert acq["rows"] == sorted(train.rows.tolist())
+    norms = np.linalg.norm(res.residuals, axis=1) * 1e3
+    assert acq["error_mm"][:5] == pytest.approx(norms[np.argsort(train.rows)][:5].tolist())
+    assert acq["trend_mm_per_100_poses"] == pytest.approx(np.polyfit(np.arange(len(norms)), norms[np.argsort(
+        train.rows)], 1)[0] * 100)
 
 
 def test_base_drift_over_acquisition_order_is_fitted(ur5, tmp_path, capsys):
