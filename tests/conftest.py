@@ -25,3 +25,12 @@ def central_jacobian(robot, q, h=1e-6):
         e[k] = h
         cols.append((robot.forward(q, v + e) - robot.forward(q, v - e)) / (2 * h))
     return np.stack(cols, axis=2)
+
+
+def assert_jacobians(robot, q, param_tol=1e-6, joint_tol=1e-8, h=1e-6):
+    """param_jacobian (relative) and joint_jacobian (absolute, m/rad) against central differences."""
+    J, Jn = robot.param_jacobian(q), central_jacobian(robot, q)
+    assert np.abs(J - Jn).max() / np.abs(J).max() < param_tol
+    Jq = np.stack([(robot.forward(q + h * e) - robot.forward(q - h * e)) / (2 * h) for e in np.eye(q.shape[1])],
+                  axis=2)
+    assert np.abs(robot.joint_jacobian(q) - Jq).max() < joint_tol

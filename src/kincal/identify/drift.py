@@ -17,7 +17,7 @@ import numpy as np
 
 from ..io.measurements import Measurements
 from ..models.parameters import Parameters
-from ..models.robot import Robot
+from ..models.robot import Robot, Wrapped
 
 NAMES = ("drift.x", "drift.y", "drift.z")
 ORDER = "acquisition"
@@ -31,7 +31,7 @@ def acquisition(rows: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False, repr=False)
-class DriftRobot(Robot):
+class DriftRobot(Wrapped):
     """``base`` plus a drift d·s, s the last joint value (see the module docstring)."""
 
     base: Robot
@@ -71,18 +71,7 @@ class DriftRobot(Robot):
         J = self.base.joint_jacobian(q[:, :-1], v[:self.base.n_params])
         return np.concatenate([J, np.broadcast_to(v[self.base.n_params:, None], (len(q), 3, 1))], axis=2)
 
-    def preferred_params(self) -> tuple[str, ...]:
-        return self.base.preferred_params()
-
-    def base_params(self) -> tuple[str, ...]:
-        return self.base.base_params()
-
-    def base_transform(self):
-        return self.base.base_transform()
-
-    def with_base_transform(self, R: np.ndarray, t: np.ndarray) -> "DriftRobot":
-        moved = self.base.with_base_transform(R, t)
-        return self.with_params(dict(zip(moved.params.names, moved.params.values)))
+    inner = property(lambda self: self.base)
 
 
 def with_drift(robot: Robot, meas: Measurements) -> tuple[DriftRobot, Measurements]:

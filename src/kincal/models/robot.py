@@ -164,3 +164,27 @@ class Robot(ABC):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(name={self.name!r}, joints={self.n_joints}, params={self.n_params})"
+
+
+class Wrapped(Robot):
+    """A robot built on another one (``inner``): the structure, the base frame and the preferences
+    among confounded parameters are the inner robot's."""
+
+    @property
+    def inner(self) -> Robot:
+        raise NotImplementedError
+
+    def preferred_params(self) -> tuple[str, ...]:
+        return self.inner.preferred_params()
+
+    def structure_notes(self) -> list[str]:
+        return self.inner.structure_notes()
+
+    def base_params(self) -> tuple[str, ...]:
+        return self.inner.base_params()
+
+    def base_transform(self):
+        return self.inner.base_transform()
+
+    def with_base_transform(self, R: np.ndarray, t: np.ndarray) -> "Robot":
+        return self.with_params(self.inner.with_base_transform(R, t).params.as_dict())

@@ -31,7 +31,7 @@ import numpy as np
 from ..errors import ModelError
 from .gravity import COMPONENTS, GravityModel
 from .parameters import Parameters
-from .robot import Robot
+from .robot import Robot, Wrapped
 from .serial import ChainRobot, SerialRobot
 
 MIN_LEVER = 0.01  # m per rad: RMS tool motion per joint rotation below which angle terms are not modelled
@@ -138,7 +138,7 @@ class GravityTerm:
 
 
 @dataclass(frozen=True, eq=False, repr=False)
-class ExtendedRobot(Robot):
+class ExtendedRobot(Wrapped):
     """``base`` with non-geometric ``terms``; ``params`` = base's, then each term's."""
 
     base: Robot
@@ -215,21 +215,7 @@ class ExtendedRobot(Robot):
         J = J + sum(J @ t.slope(q, th) for t, th in zip(self.terms, thetas))
         return J[0] if squeeze else J
 
-    def preferred_params(self) -> tuple[str, ...]:
-        return self.base.preferred_params()
-
-    def structure_notes(self) -> list[str]:
-        return self.base.structure_notes()
-
-    def base_params(self) -> tuple[str, ...]:
-        return self.base.base_params()
-
-    def base_transform(self):
-        return self.base.base_transform()
-
-    def with_base_transform(self, R: np.ndarray, t: np.ndarray) -> "ExtendedRobot":
-        moved = self.base.with_base_transform(R, t)
-        return self.with_params(dict(zip(moved.params.names, moved.params.values)))
+    inner = property(lambda self: self.base)
 
     def feasible(self, q: np.ndarray) -> np.ndarray:
         return self.base.feasible(q)

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import ModelError
 from .parameters import Parameters
-from .robot import Robot
+from .robot import Robot, Wrapped
 from .serial import SerialRobot
 
 TWO_PI = 2.0 * np.pi
@@ -47,7 +47,7 @@ class Map:
 
 
 @dataclass(frozen=True, eq=False, repr=False)
-class TransmissionRobot(Robot):
+class TransmissionRobot(Wrapped):
     """A serial chain whose joint variables are driven by actuators through a transmission."""
 
     chain: SerialRobot
@@ -169,20 +169,7 @@ class TransmissionRobot(Robot):
         phi = self.check_q(q)
         return self.within_limits(phi) & self.chain.within_limits(self.joints(phi))
 
-    def structure_notes(self) -> list[str]:
-        return self.chain.structure_notes()
-
-    def preferred_params(self) -> tuple[str, ...]:
-        return self.chain.preferred_params()
-
-    def base_params(self) -> tuple[str, ...]:
-        return self.chain.base_params()
-
-    def base_transform(self):
-        return self.chain.base_transform()
-
-    def with_base_transform(self, R, t) -> "TransmissionRobot":
-        return self.with_params(self.chain.with_base_transform(R, t).params.as_dict())
+    inner = property(lambda self: self.chain)
 
 
 def build_transmission_robot(chain: SerialRobot, actuators: Sequence[tuple[str, float, float]],
