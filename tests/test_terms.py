@@ -104,10 +104,12 @@ def test_blocked_folds_are_regions(ur5):
     assert np.mean(own == labels) > 0.95
 
 
-def test_compensate_uses_the_harmonics(ur5):
-    true = kincal.perturb(kincal.extend(ur5, "harmonics:1"), 0.5e-3, 1e-3, seed=9)
-    res = kincal.calibrate(kincal.extend(ur5, "harmonics:1"), kincal.simulate(true, ur5.sample_joints(150, seed=9),
-                                                                             NOISE, seed=1))
+@pytest.mark.parametrize("model", ["harmonics:1", "compliance+harmonics:1"])
+def test_compensate_uses_the_terms(ur5, model):
+    true = kincal.perturb(kincal.extend(ur5, model), 0.5e-3, 1e-3, seed=9)
+    true = true.with_params({n: 2e-3 for n in true.term_names if n.endswith("compliance")})
+    res = kincal.calibrate(kincal.extend(ur5, model), kincal.simulate(true, ur5.sample_joints(150, seed=9),
+                                                                      NOISE, seed=1))
     q = ur5.sample_joints(20, seed=10)
     targets = ur5.forward(q)
     comp = kincal.compensate(res.robot, targets, q)
