@@ -1,9 +1,16 @@
-"""The demonstration: the seed-1 study on the 3T2R robot, in simulation."""
+"""The demonstration (the seed-1 study on the 3T2R robot) and Monte-Carlo studies that scale out."""
 from __future__ import annotations
 
-import kincal
+import argparse
+import os
+from pathlib import Path
 
-from .common import emit, positive_int, progress
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+import kincal
+from kincal.studies import runner, seed1_mc
+
+from .common import EXIT_INTERRUPTED, emit, err, positive_int, progress
 
 
 def cmd_demo(args) -> int:
@@ -13,8 +20,74 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def cmd_study(args) -> int:
+    out = Path(args.output)
+    if out.exists() and out.is_dir():
+        raise ValueError(f"{out}: is a folder; give a results file (JSON lines)")
+    with progress("preparing the study", args.json) as say:
+        trials = seed1_mc.prepare(m=args.poses, generations=args.generations, seed=args.seed, say=say)
+    header = {**trials.header, "per_task": args.per_task}
+    tasks = runner.tasks_for(args.trials, args.per_task)
+    try:
+        with runner.make_executor(args.workers, args.scheduler) as ex, _bar(args, len(tasks)) as bar:
+            records = runner.run_tasks(trials.run, tasks, ex, out, header, bar)
+    except KeyboardInterrupt:
+        err.print(f"kincal: interrupted; the finished tasks are kept in {out}: run the same command to resume",
+                  markup=False)
+        return EXIT_INTERRUPTED
+    rows = seed1_mc.summarise(records)
+    emit(args, {"results_file": str(out), "trials": len(records), "settings": header, "reduction": rows},
+         seed1_mc.report(rows) + f"\nper-trial results: {out}")
+    return 0
+
+
+class _bar:
+    """A progress bar on the terminal (tasks done of total); silent with --json or when piped."""
+
+    def __init__(self, args, total: int) -> None:
+        self.progress = None if args.json or not err.is_terminal else Progress(
+            TextColumn("study"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=err)
+        self.total = total
+
+    def __enter__(self):
+        if self.progress is None:
+            return None
+        self.progress.start()
+        task = self.progress.add_task("study", total=self.total)
+        return lambda done, total: self.progress.update(task, completed=done)
+
+    def __exit__(self, *exc) -> None:
+        if self.progress is not None:
+            self.progress.stop()
+
+
+def _scheduler(s: str) -> str:
+    if s.startswith("local:"):
+        positive_int(s.split(":", 1)[1])
+    elif "://" not in s:
+        raise argparse.ArgumentTypeError(f"'{s}': give a Dask scheduler address such as tcp://host:8786, or local:N")
+    return s
+
+
 def register(cmd) -> None:
     """Add the commands to the parser through ``cmd(name, func, help)``."""
     s = cmd("demo", cmd_demo, "the seed-1 study on the 3T2R robot (simulation)")
     s.add_argument("--poses", type=positive_int, default=60, help="poses per design (default 60)")
     s.add_argument("--seeds", type=positive_int, default=20, help="repetitions (default 20)")
+    s = cmd("study", cmd_study, "Monte-Carlo study: seed 1's optimised against random poses, as a distribution")
+    s.add_argument("name", choices=["seed1"], help="the study")
+    s.add_argument("--trials", type=positive_int, default=200,
+                   help="trials, each a new random design, parameter errors and noise (default 200)")
+    s.add_argument("--per-task", type=positive_int, default=runner.TRIALS_PER_TASK,
+                   help=f"trials per task sent to a worker (default {runner.TRIALS_PER_TASK})")
+    s.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1,
+                   help="worker processes on this machine (default: one per core; 1 runs in this process)")
+    s.add_argument("--scheduler", type=_scheduler,
+                   help="run on Dask: a scheduler address (tcp://host:8786) or local:N for a local cluster of N "
+                        "workers (needs kincal[dask])")
+    s.add_argument("--poses", type=positive_int, default=60, help="poses per design (default 60)")
+    s.add_argument("--generations", type=positive_int, default=150, help="IDE generations of the optimised design")
+    s.add_argument("--seed", type=int, default=0, help="the study's random seed (default 0)")
+    s.add_argument("-o", "--output", default="seed1_study.jsonl",
+                   help="results file, one line per finished task; an existing one of the same study is resumed "
+                        "(default seed1_study.jsonl)")

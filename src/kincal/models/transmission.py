@@ -107,6 +107,23 @@ class TransmissionRobot(Wrapped):
         """Chain joint variables (N, n_j) for actuator values φ (N, n_a)."""
         return self._transmit(self.check_q(phi), self.param_values(params), derivatives=False)[0]
 
+    def actuators(self, q: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
+        """Actuator values φ (N, n_a) that give chain joint variables q (N, n_j): the inverse of :meth:`joints`."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        _, dv = self._split(self.param_values(params))
+        phi = np.empty((len(q), len(self.actuator_names)))
+        for mp in self.maps:
+            p = [dv[self.drive.index(name)] for name in mp.params]
+            if mp.kind == "direct":
+                phi[:, mp.actuators[0]] = q[:, mp.joints[0]]
+            elif mp.kind == "screw":
+                phi[:, mp.actuators[0]] = TWO_PI * q[:, mp.joints[0]] / p[0]
+            else:
+                (a, b), (jt, jr), (lead, arm) = mp.actuators, mp.joints, p
+                s, d = 2 * TWO_PI * q[:, jt] / lead, TWO_PI * arm * np.tan(q[:, jr]) / lead
+                phi[:, a], phi[:, b] = (s + d) / 2, (s - d) / 2
+        return phi
+
     def _transmit(self, phi: np.ndarray, values: np.ndarray, derivatives: bool = True):
         """q (N, n_j), ∂q/∂φ (N, n_j, n_a) and ∂q/∂drive (N, n_j, P_drive)."""
         _, dv = self._split(values)

@@ -1,0 +1,114 @@
+"""Monte-Carlo studies: the seed-1 trials, the runner (executors, resume), the CLI."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from kincal.cli import main
+from kincal.studies import runner, seed1_mc
+
+
+@pytest.fixture(scope="module")
+def small():
+    """A small seed-1 study: 30 poses, a short optimisation."""
+    return seed1_mc.prepare(m=30, generations=10)
+
+
+def records(path):
+    lines = [json.loads(line) for line in open(path, encoding="utf-8")]
+    return lines[0], sorted([r for t in lines[1:] for r in t["records"]], key=lambda r: r["trial"])
+
+
+def test_grid_is_the_equally_spaced_one(small):
+    q = small.robot.joints(small.grid)
+    assert small.robot.feasible(small.grid).all() and len(q) == 60
+    assert sorted(set(np.round(q[:, 0], 9))) == pytest.approx([0.1, 0.3, 0.5, 0.7, 0.9])
+    assert sorted(set(np.round(np.rad2deg(q[:, 1]), 6))) == pytest.approx([-36, -12, 12, 36])
+    assert sorted(set(np.round(q[:, 2], 9))) == pytest.approx([-0.45, -0.25, -0.05])
+    part = small.robot.joints(small.pools["partial"])
+    assert part[:, 0].max() <= 0.5 and part[:, 2].min() >= -0.25 and len(part) > 500
+
+
+def test_quill_sag_is_quadratic_in_the_extension(small):
+    q = small.grid[:6]
+    ext = -small.robot.joints(q)[:, 2] / 0.5
+    shift = small.positions(small.robot, q, 1e-4) - small.robot.forward(q)
+    np.testing.assert_allclose(shift, np.outer(1e-4 * ext**2, [1, 0, 0]), atol=1e-15)
+
+
+def test_trials_do_not_depend_on_how_they_are_batched(small, tmp_path):
+    with runner.make_executor(1) as ex:
+        a = runner.run_tasks(small.run, runner.tasks_for(4, 1), ex, tmp_path / "a.jsonl", small.header)
+        b = runner.run_tasks(small.run, runner.tasks_for(4, 3), ex, tmp_path / "b.jsonl", small.header)
+    assert a == b and [r["trial"] for r in a] == [0, 1, 2, 3]
+    assert a[0] != a[1]  # every trial draws its own design, errors and noise
+
+
+def test_summary_is_the_reduction_distribution():
+    recs = []
+    for t in range(20):
+        r = {"trial": t}
+        for truth in seed1_mc.TRUTHS:
+            for name in ("optimised", *seed1_mc.RANDOM_SETS):
+                for val in seed1_mc.VALIDATIONS:
+                    base = 1.0 if name != "optimised" else 0.5 + 0.01 * t  # reduction 50 … 31 %
+                    r[f"{truth}/{name}/{val}"] = [base, 2 * base, 3 * base]
+        recs.append(r)
+    rows = seed1_mc.summarise(recs)
+    expected = 100 * (1 - (0.5 + 0.01 * np.arange(20)))
+    assert len(rows) == 24 and all(row["trials"] == 20 for row in rows)
+    assert rows[0]["median"] == pytest.approx(np.median(expected)) and rows[0]["p5"] == pytest.approx(
+        np.percentile(expected, 5)) and rows[0]["at_least_paper"] == 0.0
+    assert "median" in seed1_mc.report(rows) and "62 %" in seed1_mc.report(rows)
+
+
+def test_dask_local_cluster_gives_the_process_pool_results_bit_for_bit(small, tmp_path):
+    tasks = runner.tasks_for(4, 1)
+    with runner.make_executor(2) as ex:
+        pool = runner.run_tasks(small.run, tasks, ex, tmp_path / "p.jsonl", small.header)
+    with runner.make_executor(scheduler="local:2") as ex:
+        dask = runner.run_tasks(small.run, tasks, ex, tmp_path / "d.jsonl", small.header)
+    assert pool == dask and len(pool) == 4
+    assert records(tmp_path / "p.jsonl")[1] == records(tmp_path / "d.jsonl")[1]
+
+
+def test_another_study_or_a_torn_line(small, tmp_path, capsys):
+    path = tmp_path / "r.jsonl"
+    with runner.make_executor(1) as ex:
+        full = runner.run_tasks(small.run, runner.tasks_for(3, 1), ex, path, small.header)
+        lines = path.read_text().splitlines()
+        path.write_text("\n".join(lines[:2]) + "\n" + lines[2][:25])  # stopped while writing task 1
+        again = runner.run_tasks(small.run, runner.tasks_for(3, 1), ex, path, small.header)
+        assert again == full
+        with pytest.raises(ValueError, match="another study"):
+            runner.run_tasks(small.run, runner.tasks_for(3, 1), ex, path, {**small.header, "m": 61})
+    (tmp_path / "x.jsonl").write_text("hello\n")
+    assert main(["study", "seed1", "--trials", "2", "--poses", "30", "--generations", "10", "--workers", "1",
+                 "-o", str(tmp_path / "x.jsonl")]) == 1
+    assert "another study" in capsys.readouterr().err and (tmp_path / "x.jsonl").read_text() == "hello\n"
+
+
+def test_an_interrupted_study_resumes_to_the_same_results(tmp_path):
+    argv = [sys.executable, "-m", "kincal.cli", "study", "seed1", "--trials", "40", "--per-task", "2", "--poses",
+            "30", "--generations", "10", "--workers", "2", "--json"]
+    ref = subprocess.run(argv + ["-o", str(tmp_path / "ref.jsonl")], capture_output=True, text=True)
+    assert ref.returncode == 0, ref.stderr
+    part = tmp_path / "part.jsonl"
+    proc = subprocess.Popen(argv + ["-o", str(part)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while time.time() < deadline and (not part.exists() or len(part.read_text().splitlines()) < 4):
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and "run the same command to resume" in err and "Traceback" not in err
+    done = len(part.read_text().splitlines()) - 1
+    assert 3 <= done < 20  # stopped part-way
+    again = subprocess.run(argv + ["-o", str(part)], capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr
+    assert records(part)[1] == records(tmp_path / "ref.jsonl")[1]
+    assert json.loads(again.stdout)["reduction"] == json.loads(ref.stdout)["reduction"]
