@@ -25,7 +25,7 @@ def cmd_design(args) -> int:
         say(f"{args.method} on {len(pool)} candidates")
         d = kincal.select_poses(r, pool, args.m, args.method, args.criterion, seed=args.seed, params=args.params,
                                 base=args.base, bound=not args.no_bound, restarts=args.restarts,
-                                generations=args.generations)
+                                generations=args.generations, units=args.units)
     kincal.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, args.angle_unit)
     payload = d.to_dict()
     payload["output"] = args.output
@@ -36,7 +36,7 @@ def cmd_design(args) -> int:
 def cmd_npose(args) -> int:
     r = load_robot(args)
     P = kincal.design.design_problem(r, kincal.candidate_pool(r, max(args.max, 200), seed=args.seed),
-                                     params=args.params)
+                                     params=args.params, units=args.units)
     curve = kincal.design.pose_count_curve(P, args.criterion, m_max=args.max, seed=args.seed)
     low = kincal.design.minimum_poses(r.n_joints, P.k)
     payload = {"parameters": len(P.names), "minimum_eq18": low, **curve.to_dict()}
@@ -74,6 +74,8 @@ def register(cmd) -> None:
     s.add_argument("--restarts", type=nonneg_int, default=0, help="extra random starts for fedorov")
     s.add_argument("--generations", type=positive_int, default=200, help="generations for ide / detmax-ide")
     s.add_argument("--no-bound", action="store_true", help="skip the certified bound (and D-efficiency)")
+    s.add_argument("--units", choices=list(kincal.design.UNITS), default="scaled",
+                   help="index units: scaled (unit-invariant, default) or paper (raw Jacobian in mm and rad)")
     s.add_argument("--seed", type=int, default=0)
     add_data_flags(s)
 
@@ -81,6 +83,8 @@ def register(cmd) -> None:
     add_robot(s)
     s.add_argument("--criterion", default="comprehensive", choices=list(kincal.design.CRITERIA))
     s.add_argument("--max", type=positive_int, default=100, help="largest number of poses on the curve (default 100)")
+    s.add_argument("--units", choices=list(kincal.design.UNITS), default="scaled",
+                   help="index units: scaled (unit-invariant, default) or paper (raw Jacobian in mm and rad)")
     s.add_argument("--params", type=csv_list, help="parameters (default: identifiable set)")
     s.add_argument("--seed", type=int, default=0)
 

@@ -8,14 +8,15 @@ from pathlib import Path
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
 import kincal
-from kincal.studies import runner, seed1_mc
+from kincal.studies import runner, seed1, seed1_mc
 
 from .common import EXIT_INTERRUPTED, emit, err, positive_int, progress
 
 
 def cmd_demo(args) -> int:
     with progress("seed-1 study", args.json) as say:
-        study = kincal.seed1_study(seeds=args.seeds, m=args.poses, progress=say)
+        study = kincal.seed1_study(seeds=args.seeds, m=args.poses, progress=say, protocol=args.protocol,
+                                   units=args.units)
     emit(args, study.to_dict(), str(study))
     return 0
 
@@ -74,6 +75,11 @@ def register(cmd) -> None:
     s = cmd("demo", cmd_demo, "the seed-1 study on the 3T2R robot (simulation)")
     s.add_argument("--poses", type=positive_int, default=60, help="poses per design (default 60)")
     s.add_argument("--seeds", type=positive_int, default=20, help="repetitions (default 20)")
+    s.add_argument("--protocol", choices=list(seed1.PROTOCOLS), default="kincal",
+                   help="identification: kincal (noise, adaptive LM, identifiable set; default) or paper (no noise, "
+                        "fixed mu = 1, all 21 parameters)")
+    s.add_argument("--units", choices=["scaled", "paper"], default="scaled",
+                   help="comprehensive index on scaled columns (default) or the raw Jacobian in mm and rad (paper)")
     s = cmd("study", cmd_study, "Monte-Carlo study: seed 1's optimised against random poses, as a distribution")
     s.add_argument("name", choices=["seed1"], help="the study")
     s.add_argument("--trials", type=positive_int, default=200,

@@ -55,14 +55,22 @@ class DesignProblem:
         return self.J[np.asarray(idx)].reshape(-1, self.k)
 
 
+UNITS = ("scaled", "paper")
+
+
 def design_problem(robot: Robot, pool_q: np.ndarray, params: Sequence[str] | None = None,
-                   base: str = "estimate") -> DesignProblem:
+                   base: str = "estimate", units: str = "scaled") -> DesignProblem:
     """Build the problem for ``robot`` on the candidate pool (N, n).
 
     params -- parameters to design for, exactly these; default: the identifiable set at the pool
               by the base-mode rule of :func:`kincal.analysis.free_parameters`, as
               :func:`kincal.calibrate` would fit.
+    units  -- "scaled" (default): every column at unit RMS over the pool, so indices do not depend
+              on the units of lengths and angles; "paper": the raw Jacobian in mm and rad (position
+              in mm per mm of length, per rad of angle), as the seed papers compute their indices.
     """
+    if units not in UNITS:
+        raise ValueError(f"units='{units}' is not one of {UNITS}")
     pool_q = robot.check_q(pool_q)
     distinct = len(np.unique(np.round(pool_q, 9), axis=0))
     if distinct < 2:
@@ -82,5 +90,8 @@ def design_problem(robot: Robot, pool_q: np.ndarray, params: Sequence[str] | Non
         if ident.dropped:
             raise IdentifiabilityError(f"the candidate pool cannot identify all the given parameters:\n{ident}")
     J = robot.param_jacobian(pool_q)[:, :, robot.params.indices(names)]
-    scale = column_scale(J.reshape(-1, len(names)))
+    if units == "paper":  # mm of position per mm of length (1), per rad of angle (1000 mm per m)
+        scale = np.array([1.0 if robot.params.kinds[robot.params.index(n)] == "length" else 1e3 for n in names])
+    else:
+        scale = column_scale(J.reshape(-1, len(names)))
     return DesignProblem(pool_q, np.ascontiguousarray(J * scale), tuple(names), scale)

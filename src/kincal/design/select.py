@@ -127,6 +127,7 @@ def select_poses(
     problem: DesignProblem | None = None,
     generations: int = 200,
     progress=None,
+    units: str = "scaled",
 ) -> Design:
     """Choose m poses from pool_q (N, n) for identifying ``params`` (default: the identifiable set).
 
@@ -139,12 +140,14 @@ def select_poses(
                  pool), "O1"…"O6", "comprehensive" (the seed's entropy-weighted index)
     bound     -- True to compute the certified relaxation bound (D-efficiency), a precomputed Bound
                  to reuse, or False
+    units     -- "scaled" (unit-invariant columns) or "paper" (raw Jacobian in mm and rad); see
+                 :func:`~kincal.design.problem.design_problem`
     """
     if method not in METHODS:
         raise ValueError(f"method '{method}' is not one of {', '.join(METHODS)}")
     check_criterion(criterion)
     t0 = time.perf_counter()
-    P = problem or design_problem(robot, pool_q, params, base)
+    P = problem or design_problem(robot, pool_q, params, base, units)
     if 3 * m < P.k:
         raise IdentifiabilityError(f"{m} poses give {3 * m} equations for {P.k} parameters; choose m ≥ {-(-P.k // 3)}")
     distinct = len(np.unique(np.round(P.q, 9), axis=0))
