@@ -156,3 +156,33 @@ def test_paper_protocol_splits_dependent_errors_and_names_the_combinations(capsy
 def _run(capsys, argv):
     assert main(argv) == 0
     return capsys.readouterr().out
+
+
+def test_seed_figures_show_the_study_numbers(tmp_path, capsys):
+    """Figs. 5-8 and 12-13 of seed 1 from the demo, seed 2's Fig. 7 from a swarm; each figure's data
+    are the study's own numbers."""
+    import kincal
+    from kincal.report.study_figures import seed1_figures
+    study = kincal.seed1_study(seeds=1, generations=20)
+    figs = seed1_figures(study)
+    assert set(figs) == {"ide-convergence", "pose-count", "eta", "validation-points", "validation-summary"}
+    line = figs["pose-count"].axes[0].lines[0]
+    np.testing.assert_array_equal(line.get_ydata(), study.curve["values"])
+    bars = [p.get_height() for p in figs["eta"].axes[0].patches]
+    expected = [max(study.eta[d].get(n, np.nan), -100.0) for d in ("random", "separated-parameter optimised")
+                for n in study.true_errors]
+    np.testing.assert_allclose(bars, expected, equal_nan=True)
+    hatched = [p.get_hatch() for p in figs["eta"].axes[0].patches][:len(study.true_errors)]
+    assert hatched[list(study.true_errors).index("j2.d")] == "///"  # the stand-in for d2 + d3 + d4
+    ide = figs["ide-convergence"].axes[1].lines[0].get_ydata()
+    np.testing.assert_array_equal(ide, study.histories["separated-parameter optimised"])
+    # the command writes them (and refuses a missing folder before any work)
+    assert main(["demo", "--seeds", "1", "--plot", str(tmp_path / "no" / "f.png")]) == 1
+    assert "does not exist" in capsys.readouterr().err
+    puu3 = kincal.load_robot("puu3")
+    true = kincal.perturb(puu3, 1e-3, 0.0, seed=1)
+    meas = kincal.simulate(true, puu3.sample_joints(30, seed=2), 0.0)
+    res = kincal.calibrate(puu3, meas, base="fixed", residual="joint", method="pso",
+                           pso_options={"particles": 40, "iterations": 30})
+    fit = kincal.figure_set(res)["pso-fitness"].axes[0].lines[0].get_ydata()
+    np.testing.assert_allclose(fit, np.sqrt(res.history) * 1e3)

@@ -10,14 +10,21 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 import kincal
 from kincal.studies import runner, seed1, seed1_mc
 
-from .common import EXIT_INTERRUPTED, emit, err, positive_int, progress
+from .common import EXIT_INTERRUPTED, check_paths, emit, err, positive_int, progress
 
 
 def cmd_demo(args) -> int:
+    check_paths([], [args.plot])  # before the work: a figure folder that does not exist
     with progress("seed-1 study", args.json) as say:
         study = kincal.seed1_study(seeds=args.seeds, m=args.poses, progress=say, protocol=args.protocol,
                                    units=args.units)
-    emit(args, study.to_dict(), str(study))
+    text = str(study)
+    if args.plot:
+        from kincal.report.study_figures import seed1_figures
+
+        from .report import save_figures
+        text += "\n" + "\n".join(save_figures(seed1_figures(study), args.plot))
+    emit(args, study.to_dict(), text)
     return 0
 
 
@@ -75,6 +82,7 @@ def register(cmd) -> None:
     s = cmd("demo", cmd_demo, "the seed-1 study on the 3T2R robot (simulation)")
     s.add_argument("--poses", type=positive_int, default=60, help="poses per design (default 60)")
     s.add_argument("--seeds", type=positive_int, default=20, help="repetitions (default 20)")
+    s.add_argument("--plot", help="figures to write (Figs. 5-8, 12-13): STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     s.add_argument("--protocol", choices=list(seed1.PROTOCOLS), default="kincal",
                    help="identification: kincal (noise, adaptive LM, identifiable set; default) or paper (no noise, "
                         "fixed mu = 1, all 21 parameters)")

@@ -20,6 +20,7 @@ from ..identify.result import CalibrationResult, EvaluationStats
 from ..identify.verdict import Thresholds, duplicate_groups, robust_z
 from ..io.measurements import Measurements
 from . import figures as F
+from .study_figures import pso_fitness
 
 MM, DEG = 1e3, 180.0 / np.pi
 
@@ -139,8 +140,12 @@ def _figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
 
 
 def figure_set(result: CalibrationResult, test: Measurements | None = None) -> dict:
-    """The report's figures as matplotlib Figures by name (``--plot`` saves them as PNG or SVG)."""
-    return _make_figures(_sets(result, test, _thresholds(result)), result)
+    """The report's figures as matplotlib Figures by name (``--plot`` saves them as PNG or SVG); with a
+    particle swarm also its fitness per iteration (seed 2, Fig. 7)."""
+    figs = _make_figures(_sets(result, test, _thresholds(result)), result)
+    if result.history:
+        figs["pso-fitness"] = pso_fitness(result.history)
+    return figs
 
 
 def evaluation_figures(robot, meas: Measurements) -> dict:

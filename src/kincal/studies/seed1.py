@@ -11,14 +11,14 @@ leaves out the branch-and-bound's choice by the paper's rule (the lowest GCN; se
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
 from ..analysis.identifiability import identifiability
 from ..analysis.separation import TYPES, Separation, param_type, separate_ill_conditioned
-from ..design import candidate_pool, design_problem, select_poses
+from ..design import candidate_pool, design_problem, pose_count_curve, select_poses
 from ..identify.calibrate import calibrate, evaluate
 from ..identify.result import EvaluationStats
 from ..models.yaml_io import load_robot
@@ -43,17 +43,23 @@ class Seed1Study:
     m: int
     protocol: str = "kincal"
     units: str = "scaled"
+    histories: dict = field(default_factory=dict)  # design -> IDE best index per generation (Figs. 5-6)
+    curve: dict = field(default_factory=dict)  # index vs number of poses, separated model (Fig. 7)
+    point_errors: dict = field(default_factory=dict)  # seed 0: validation errors (60, 3) m per model (Fig. 12)
 
     def to_dict(self) -> dict:
         return {"separation": self.separation.to_dict(), "design_params": {k: list(v) for k, v in self.design_params.items()},
                 "design_values": self.design_values, "eta_percent": self.eta, "identified_errors": self.identified,
                 "combinations": self.combinations, "protocol": self.protocol, "units": self.units,
+                "ide_history": {k: list(v) for k, v in self.histories.items()}, "pose_count_curve": self.curve,
+                "validation_point_errors": {k: np.asarray(v).tolist() for k, v in self.point_errors.items()},
                 "true_errors": self.true_errors, "validation": {k: v.to_dict() for k, v in self.validation.items()},
                 "repeated": {k: {"mean_of_mean": v[0], "sd_of_mean": v[1], "mean_of_std": v[2], "sd_of_std": v[3]}
                              for k, v in self.repeated.items()}, "seeds": self.seeds, "m": self.m}
 
     def __str__(self) -> str:
-        out = ["== Ill-conditioned parameter separation (100 random poses) ==", self.separation.tables(), ""]
+        out = ["== Ill-conditioned parameter separation (100 random poses) ==", self.separation.tables(),
+               DEPENDENCE_NOTE, ""]
         out += self._designs() + self._tables() + self._validation()
         return "\n".join(out)
 
@@ -121,6 +127,20 @@ class Seed1Study:
         return out
 
 
+DEPENDENCE_NOTE = """why these dependences differ from the paper's Tables 1-3 (a4/a5 and d2/d3 there):
+  - the paper sets the partial derivatives of its coupled A1 by theta1, alpha1, a1, d1 to zero (its section 1),
+    so they cannot take part in a dependence; kincal models A1 as two DH rows (carriage j1, arm j2) whose
+    parameters act. The arm's vertical offset j2.d then lies on the same vertical line as the quill's j3.d
+    and J4's j4.d (J4 is coaxial with the quill): kincal's d2/d3/d4 group is the paper's d2/d3 pair (its
+    A2 quill and A3 J4 rows) plus the A1 offset the paper zeroed; likewise j3.theta/j4.theta (two turns
+    about that axis) would be the paper's theta1/theta3, hidden by the zero column.
+  - the paper ends with a constant tool row A5 (4 DH parameters, no joint): with theta5 = 0 its a5 moves
+    along the same x axis as A4's a4 (the paper's a4/a5) and alpha5 cannot move a point at the row's origin.
+    kincal places the reflector with a 3-parameter tool point instead, so that pair cannot appear; the same
+    mechanism gives kincal's a2/a3 (arm and quill rows, no turn between them) and j5.theta/j5.alpha.
+  - the paper gives no dimensions and no reflector offset, so its GCN values cannot be matched number for
+    number; the structure of the dependences can, and QR names every one of them exactly."""
+
 PROTOCOLS = ("kincal", "paper")
 # the paper's Tables 4-6 (seed 0 of this study sets every error as the paper: +0.5 mm, +0.05 rad)
 PAPER_INDEX = {"full-parameter optimised": 1.833, "separated-parameter optimised": 2.049}
@@ -152,25 +172,28 @@ def seed1_study(seeds: int = 20, m: int = 60, pool_size: int = 1000, generations
     # the seed's separated model: its own rule (lowest GCN), which may drop whole equivalent groups
     reduced = identifiability(robot, pool, params=[n for n in kin if n not in sep.paper_choice]).identifiable
     params = {DESIGNS[0]: full, DESIGNS[1]: full, DESIGNS[2]: reduced}
-    designs, values = {}, {}
+    designs, values, histories = {}, {}, {}
     for name in DESIGNS:
         say(f"designing: {name}")
         P = design_problem(robot, pool, params[name], units=units)
         method = "random" if name == DESIGNS[0] else "detmax-ide"
         d = select_poses(robot, pool, m, method, "comprehensive", seed=0, problem=P, bound=False,
                          generations=generations)
-        designs[name], values[name] = d.q, d.value
+        designs[name], values[name], histories[name] = d.q, d.value, d.history
+        if name == DESIGNS[2]:
+            curve = pose_count_curve(P, "comprehensive", m_max=100, seed=0).to_dict()
     size = {n: length_error if robot.params.kinds[robot.params.index(n)] == "length" else angle_error for n in kin}
-    eta, combos, identified, validation, repeated = _identify(robot, kin, designs, size, seeds,
-                                                              0.0 if protocol == "paper" else noise, protocol, say)
+    eta, combos, identified, validation, repeated, points = _identify(robot, kin, designs, size, seeds,
+                                                                      0.0 if protocol == "paper" else noise, protocol,
+                                                                      say)
     return Seed1Study(sep, params, values, eta, combos, identified, size, validation, repeated, seeds, m, protocol,
-                      units)
+                      units, histories, curve, points)
 
 
 def _identify(robot, kin, designs, size, seeds, noise, protocol, say):
     """Per seed: errors, identification from each design, validation; seed 0 keeps the details."""
     q_val = candidate_pool(robot, 60, seed=99)
-    eta, combos, identified, validation, runs = {}, {}, {}, {}, {n: [] for n in DESIGNS}
+    eta, combos, identified, validation, runs, points = {}, {}, {}, {}, {n: [] for n in DESIGNS}, {}
     for seed in range(seeds):
         say(f"identifying, seed {seed + 1}/{seeds}")
         rng = np.random.default_rng(seed)
@@ -180,6 +203,7 @@ def _identify(robot, kin, designs, size, seeds, noise, protocol, say):
         val = simulate(true, q_val, 0.0)
         if seed == 0:
             validation["before calibration"] = evaluate(robot, val)
+            points["before calibration"] = val.xyz - robot.forward(val.q)
         for name in DESIGNS:
             meas = simulate(true, designs[name], noise, seed=1000 + seed)
             ident = identifiability(robot, designs[name], params=kin)
@@ -193,6 +217,7 @@ def _identify(robot, kin, designs, size, seeds, noise, protocol, say):
             runs[name].append((stats.mean, stats.std))
             if seed == 0:
                 validation[name], identified[name] = stats, corr
+                points[name] = val.xyz - fitted.forward(val.q)
                 eta[name] = {n: _eta(errors[n], corr[n]) for n in corr}
                 combos[name] = _combinations(ident, errors, corr)
     repeated = {}
@@ -200,7 +225,7 @@ def _identify(robot, kin, designs, size, seeds, noise, protocol, say):
         a = np.array(r)
         repeated[name] = (float(a[:, 0].mean()), float(a[:, 0].std(ddof=1)) if len(a) > 1 else 0.0,
                           float(a[:, 1].mean()), float(a[:, 1].std(ddof=1)) if len(a) > 1 else 0.0)
-    return eta, combos, identified, validation, repeated
+    return eta, combos, identified, validation, repeated, points
 
 
 def _eta(true: float, est: float) -> float:

@@ -1,0 +1,120 @@
+"""Figures of the seed papers' studies: seed 1's Figs. 5-8 and 12-13 from a :class:`Seed1Study`,
+seed 2's Fig. 7 (particle-swarm fitness) from a calibration's history."""
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from .figures import MM, _figure, _styled
+
+DESIGN_COLOURS = {"random": "#9a9a9a", "full-parameter optimised": "#1f77b4",
+                  "separated-parameter optimised": "#d62728", "before calibration": "#555555"}
+
+
+@_styled
+def ide_convergence(histories: dict) -> Figure:
+    """Figs. 5-6: the comprehensive index of the best design per IDE generation, one panel per model
+    (generation 0: the DETMAX design IDE starts from)."""
+    runs = {k: h for k, h in histories.items() if len(h)}
+    fig = _figure(6.0, 1.6 + 1.6 * len(runs))
+    axes = fig.subplots(len(runs), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (name, h) in zip(axes, runs.items()):
+        ax.plot(np.arange(1, len(h) + 1), h, color=DESIGN_COLOURS.get(name))
+        ax.set(ylabel="index", title=f"{name}: {h[0]:.4f} -> {h[-1]:.4f}")
+    axes[-1].set_xlabel("IDE generation")
+    fig.suptitle("DETMAX-IDE convergence (Figs. 5-6)")
+    return fig
+
+
+@_styled
+def pose_count(curve: dict, m: int) -> Figure:
+    """Fig. 7: the comprehensive index against the number of poses (separated model)."""
+    fig = _figure(6.0, 3.2)
+    ax = fig.add_subplot()
+    ax.plot(curve["m"], curve["values"], color=DESIGN_COLOURS["separated-parameter optimised"])
+    ax.axvline(m, color="k", lw=0.8, ls="--")
+    ax.annotate(f"{m} poses", (m, np.nanmin(curve["values"])), xytext=(4, 4), textcoords="offset points")
+    ax.set(xlabel="number of poses", ylabel="comprehensive index", title="Index against the number of poses (Fig. 7)")
+    return fig
+
+
+@_styled
+def eta_bars(eta: dict, names: list[str], stand_ins=(), clip: float = -100.0) -> Figure:
+    """Fig. 8: identification accuracy η per parameter and design (bars below ``clip`` are cut and
+    marked; ``stand_ins``, kept parameters that carry dependent ones, are hatched: their η against
+    their own error alone is not their accuracy)."""
+    fig = _figure(max(6.0, 0.38 * len(names)), 3.4)
+    ax = fig.add_subplot()
+    designs = list(eta)
+    width = 0.8 / len(designs)
+    x = np.arange(len(names))
+    for k, d in enumerate(designs):
+        v = np.array([eta[d].get(n, np.nan) for n in names])
+        bars = ax.bar(x + (k - (len(designs) - 1) / 2) * width, np.maximum(v, clip), width, label=d,
+                      color=DESIGN_COLOURS.get(d))
+        for bar, n in zip(bars, names):
+            if n in stand_ins:
+                bar.set_hatch("///")
+        for i in np.flatnonzero(v < clip):
+            ax.annotate(f"{v[i]:.0f}", (x[i] + (k - (len(designs) - 1) / 2) * width, clip), fontsize=6,
+                        rotation=90, va="bottom", ha="center")
+    ax.set_xticks(x, names, rotation=60, ha="right", fontsize=7)
+    ax.set(ylabel="η (%)", ylim=(clip - 5, 110),
+           title="Identification accuracy η per parameter (Fig. 8; hatched: stands for a combination; "
+                 "no bar: not identifiable)")
+    ax.legend(loc="lower left", fontsize=7)
+    return fig
+
+
+@_styled
+def validation_points(errors: dict) -> Figure:
+    """Fig. 12: the error e (average of the three axis errors) at each validation point: before
+    calibration (top) and after, per model (bottom)."""
+    fig = _figure(6.4, 4.6)
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    for name, err in errors.items():
+        e = np.asarray(err).mean(axis=1) * MM
+        ax = top if name == "before calibration" else bottom
+        ax.plot(np.arange(1, len(e) + 1), e, marker="o", ms=2.5, lw=0.8, label=name, color=DESIGN_COLOURS.get(name))
+    top.set(ylabel="e (mm)", title="Error at the validation points (Fig. 12): before calibration")
+    bottom.set(xlabel="validation point", ylabel="e (mm)", title="after calibration")
+    bottom.legend(fontsize=7)
+    return fig
+
+
+@_styled
+def validation_summary(errors: dict) -> Figure:
+    """Fig. 13: max, mean and std of e over the validation points, per model (after calibration)."""
+    fig = _figure(6.0, 3.2)
+    ax = fig.add_subplot()
+    models = [k for k in errors if k != "before calibration"]
+    stats = np.array([[np.max(np.abs(e)), np.mean(np.abs(e)), np.std(e, ddof=1)]
+                      for e in (np.asarray(errors[k]).mean(axis=1) * MM for k in models)])
+    x = np.arange(3)
+    for k, name in enumerate(models):
+        ax.bar(x + (k - (len(models) - 1) / 2) * 0.25, stats[k], 0.25, label=name, color=DESIGN_COLOURS.get(name))
+    ax.set_xticks(x, ["max |e|", "mean |e|", "std e"])
+    ax.set(ylabel="mm", title="Validation errors after calibration (Fig. 13)")
+    ax.legend(fontsize=7)
+    return fig
+
+
+def seed1_figures(study) -> dict:
+    """The study's figures by name."""
+    names = [n for n in study.true_errors]
+    chosen = {d: study.eta[d] for d in ("random", "separated-parameter optimised")}
+    stand_ins = {label.split()[0] for combos in study.combinations.values() for label in combos}
+    return {"ide-convergence": ide_convergence(study.histories), "pose-count": pose_count(study.curve, study.m),
+            "eta": eta_bars(chosen, names, stand_ins), "validation-points": validation_points(study.point_errors),
+            "validation-summary": validation_summary(study.point_errors)}
+
+
+@_styled
+def pso_fitness(history) -> Figure:
+    """Seed 2, Fig. 7: the swarm's best mean squared residual per iteration."""
+    fig = _figure(6.0, 3.2)
+    ax = fig.add_subplot()
+    h = np.asarray(history, dtype=float)
+    ax.semilogy(np.arange(1, len(h) + 1), np.sqrt(h) * MM, color="#1f77b4")
+    ax.set(xlabel="iteration", ylabel="best RMS residual (mm)", title="Particle swarm fitness (seed 2, Fig. 7)")
+    return fig
