@@ -186,3 +186,20 @@ def test_seed_figures_show_the_study_numbers(tmp_path, capsys):
                            pso_options={"particles": 40, "iterations": 30})
     fit = kincal.figure_set(res)["pso-fitness"].axes[0].lines[0].get_ydata()
     np.testing.assert_allclose(fit, np.sqrt(res.history) * 1e3)
+
+
+def test_the_paper_row_structure_gives_the_papers_a4_a5_pair(capsys):
+    """guo3t2r-paper: the same kinematics as guo3t2r (a fixed A5 row instead of a tool point), and
+    the paper's a4/a5 dependence appears exactly (kincal's j5.a / a5.a)."""
+    import kincal
+    from kincal.analysis.identifiability import identifiability
+    a, b = kincal.load_robot("guo3t2r"), kincal.load_robot("guo3t2r-paper")
+    phi = a.sample_feasible(50, seed=1)
+    np.testing.assert_allclose(b.forward(phi), a.forward(phi), atol=1e-12)
+    kin = [n for n in b.params.names if n.split(".")[1] in ("theta", "d", "a", "alpha", "beta")]
+    ident = identifiability(b, kincal.candidate_pool(b, 500, seed=1), params=kin)
+    assert dict(ident.confounds)["a5.a"] == (("j5.a", pytest.approx(1.0)),)
+    assert ident.confounds["j4.d"][0][0] == "j2.d" and ident.confounds["a5.alpha"] == ()
+    d = json.loads(_run(capsys, ["demo", "--robot", "guo3t2r-paper", "--seeds", "1", "--protocol", "paper",
+                                 "--json"]))
+    assert len(d["identified_errors"]["random"]) == len(kin) == 25

@@ -288,3 +288,54 @@ def test_random_dh_and_mdh_chains_export(convention, tmp_path):
     q = robot.sample_joints(50, seed=3)
     np.testing.assert_allclose(reference(path, ref, q, "tcp"), without_base(robot).forward(q), atol=1e-9)
     assert "prismatic" in path.read_text()
+
+
+FIXED_ROW = """name: fixedrow
+convention: dh
+units: {length: mm, angle: deg}
+joints:
+  - {name: j1, type: revolute, theta: 10, d: 300, a: 50, alpha: 90, limits: [-170, 170]}
+  - {name: plate, type: fixed, theta: 30, d: 40, a: 120, alpha: -20}
+  - {name: j2, type: prismatic, theta: 0, d: 100, a: 20, alpha: 0, limits: [0, 400]}
+  - {name: j3, type: revolute, theta: 0, d: 10, a: 200, alpha: 0, limits: [-120, 120]}
+  - {name: tcp, type: fixed, theta: 0, d: 80, a: 30, alpha: 0}
+tool: {x: 5, y: 0, z: 0}
+"""
+
+
+def dh_matrix(theta, d, a, alpha):
+    ct, st, ca, sa = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha)
+    return np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st], [0, sa, ca, d], [0, 0, 0, 1]])
+
+
+def test_fixed_rows_are_dh_rows_without_a_joint(tmp_path, capsys):
+    """A fixed row (a DH row with no joint variable, such as seed 1's A5 tool row) composes as its
+    matrix; it has parameters but no joint, round-trips through YAML and exports to URDF."""
+    (tmp_path / "f.yaml").write_text(FIXED_ROW)
+    robot = kincal.perturb(kincal.load_robot(tmp_path / "f.yaml"), 1e-3, 1e-3, seed=3)
+    assert robot.joint_names == ("j1", "j2", "j3") and "plate.a" in robot.params and "tcp.alpha" in robot.params
+    q = robot.sample_joints(20, seed=4)
+    v = robot.params.as_dict()
+    rows = [(n, t) for n, t in (("j1", "r"), ("plate", "f"), ("j2", "p"), ("j3", "r"), ("tcp", "f"))]
+    expected = []
+    for qi in q:
+        T, k = np.eye(4), 0
+        for name, t in rows:
+            th, d = v[f"{name}.theta"], v[f"{name}.d"]
+            if t != "f":
+                th, d, k = (th + qi[k], d, k + 1) if t == "r" else (th, d + qi[k], k + 1)
+            T = T @ dh_matrix(th, d, v[f"{name}.a"], v[f"{name}.alpha"])
+        expected.append((T @ np.append([v["tool.x"], v["tool.y"], v["tool.z"]], 1.0))[:3])
+    np.testing.assert_allclose(without_base(robot).forward(q), expected, atol=1e-12)
+    kincal.save_robot(robot, tmp_path / "g.yaml", "mm", "deg")
+    assert "{name: tcp, type: fixed" in (tmp_path / "g.yaml").read_text()
+    back = kincal.load_robot(tmp_path / "g.yaml")
+    np.testing.assert_allclose(back.forward(q), robot.forward(q), atol=1e-12)
+    assert main(["export", str(tmp_path / "g.yaml"), str(tmp_path / "g.urdf"), "--tool-link", "tool"]) == 0
+    capsys.readouterr()
+    ref_robot = kincal.load_robot(tmp_path / "g.urdf", tip_link="tool")
+    np.testing.assert_allclose(reference(tmp_path / "g.urdf", ref_robot, q, "tool"), without_base(robot).forward(q),
+                               atol=1e-9)
+    (tmp_path / "h.yaml").write_text(FIXED_ROW.replace("alpha: -20}", "alpha: -20, limits: [0, 1]}"))
+    with pytest.raises(kincal.ModelError, match="fixed row has no joint"):
+        kincal.load_robot(tmp_path / "h.yaml")

@@ -17,7 +17,7 @@ def cmd_demo(args) -> int:
     check_paths([], [args.plot])  # before the work: a figure folder that does not exist
     with progress("seed-1 study", args.json) as say:
         study = kincal.seed1_study(seeds=args.seeds, m=args.poses, progress=say, protocol=args.protocol,
-                                   units=args.units)
+                                   units=args.units, robot=args.robot)
     text = str(study)
     if args.plot:
         from kincal.report.study_figures import seed1_figures
@@ -82,6 +82,8 @@ def register(cmd) -> None:
     s = cmd("demo", cmd_demo, "the seed-1 study on the 3T2R robot (simulation)")
     s.add_argument("--poses", type=positive_int, default=60, help="poses per design (default 60)")
     s.add_argument("--seeds", type=positive_int, default=20, help="repetitions (default 20)")
+    s.add_argument("--robot", choices=["guo3t2r", "guo3t2r-paper"], default="guo3t2r",
+                   help="the model: guo3t2r (tool point) or guo3t2r-paper (the paper's fixed A5 tool row)")
     s.add_argument("--plot", help="figures to write (Figs. 5-8, 12-13): STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     s.add_argument("--protocol", choices=list(seed1.PROTOCOLS), default="kincal",
                    help="identification: kincal (noise, adaptive LM, identifiable set; default) or paper (no noise, "

@@ -25,6 +25,7 @@ from .robot import JOINT_TYPES, Robot
 from .transforms import rot_zyx, zyx_from_matrix
 
 CONVENTIONS = ("dh", "mdh")
+ROW_TYPES = (*JOINT_TYPES, "fixed")  # a fixed row: a DH row without a joint (e.g. a tool row)
 BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
 TOOL_NAMES = ("tool.x", "tool.y", "tool.z")
 PARALLEL_TOL = 1e-6  # |sin α| below this: consecutive axes are parallel
@@ -46,8 +47,8 @@ class Joint:
     def __post_init__(self) -> None:
         check_mass(self.mass, self.com, f"joint '{self.name}'")
         object.__setattr__(self, "com", tuple(float(c) for c in self.com))
-        if self.type not in JOINT_TYPES:
-            raise ModelError(f"joint '{self.name}': type '{self.type}' is not one of {JOINT_TYPES}")
+        if self.type not in ROW_TYPES:
+            raise ModelError(f"joint '{self.name}': type '{self.type}' is not one of {ROW_TYPES}")
         if not (np.isfinite(self.lower) and np.isfinite(self.upper) and self.lower < self.upper):
             raise ModelError(
                 f"joint '{self.name}': limits [{self.lower}, {self.upper}] must be finite with lower < upper"
@@ -155,11 +156,13 @@ class SerialRobot(ChainRobot):
         jn = [j.name for j in joints]
         if len(set(jn)) != len(jn):
             raise ModelError(f"robot '{self.name}': duplicate joint names {jn}")
+        if all(j.type == "fixed" for j in joints):
+            raise ModelError(f"robot '{self.name}': every row is fixed; a robot needs a moving joint")
         names, kinds = _param_names(self.convention, joints)
         if tuple(names) != self.params.names or tuple(kinds) != self.params.kinds:
             raise ModelError(f"robot '{self.name}': parameter names do not match the joint structure")
         object.__setattr__(self, "joints", joints)
-        object.__setattr__(self, "_chain", Chain(self._build_ops(), len(self.params), len(joints)))
+        object.__setattr__(self, "_chain", Chain(self._build_ops(), len(self.params), len(self.moving)))
 
     # ---- construction --------------------------------------------------------------------------
     @classmethod
@@ -190,18 +193,31 @@ class SerialRobot(ChainRobot):
                 vals[_checked(f"{jt.name}.{k}", vals, name)] = float(v)
         return cls(name, convention, tuple(joints), Parameters(names, [vals[n] for n in names], kinds), description)
 
+    @property
+    def moving(self) -> tuple[Joint, ...]:
+        """The rows with a joint variable (``joints`` less the fixed rows)."""
+        return tuple(j for j in self.joints if j.type != "fixed")
+
     def _build_ops(self) -> tuple[Op, ...]:
         ops = self.base_ops()
-        for k, jt in enumerate(self.joints):
+        for k, jt in self._numbered():
             ops += self._row_ops(k, jt)
         return tuple(ops + self.tool_ops())
+
+    def _numbered(self) -> list[tuple[int, Joint]]:
+        """Each row with the index of its joint variable (-1 for a fixed row)."""
+        out, k = [], 0
+        for jt in self.joints:
+            out.append((k if jt.type != "fixed" else -1, jt))
+            k += jt.type != "fixed"
+        return out
 
     def _row_ops(self, k: int, jt: Joint) -> list[Op]:
         p = lambda s: self.params.index(f"{jt.name}.{s}")  # noqa: E731
         x, y, z = AXES["x"], AXES["y"], AXES["z"]
         rev = jt.type == "revolute"
         rz = Op(ROT, z, p("theta"), k if rev else -1)
-        tz = Op(TRANS, z, p("d"), -1 if rev else k)
+        tz = Op(TRANS, z, p("d"), k if jt.type == "prismatic" else -1)
         beta = [Op(ROT, y, p("beta"))] if jt.beta else []
         if self.convention == "dh":
             return [rz, tz, Op(TRANS, x, p("a")), Op(ROT, x, p("alpha"))] + beta
@@ -209,10 +225,11 @@ class SerialRobot(ChainRobot):
 
     def link_frames(self) -> list[tuple[str, int, int, float, tuple[float, float, float]]]:
         """Link k is the frame at the end of joint k's row (DH and MDH alike)."""
-        out, end = [], len(self.base_ops())
-        for k, jt in enumerate(self.joints):
+        out, end, moving = [], len(self.base_ops()), 0
+        for k, jt in self._numbered():
             end += len(self._row_ops(k, jt))
-            out.append((jt.name, end, k + 1, jt.mass, jt.com))
+            moving += k >= 0
+            out.append((jt.name, end, moving, jt.mass, jt.com))
         return out
 
     @property
@@ -237,19 +254,19 @@ class SerialRobot(ChainRobot):
     # ---- Robot interface -----------------------------------------------------------------------
     @property
     def joint_names(self) -> tuple[str, ...]:  # type: ignore[override]
-        return tuple(j.name for j in self.joints)
+        return tuple(j.name for j in self.moving)
 
     @property
     def joint_types(self) -> tuple[str, ...]:  # type: ignore[override]
-        return tuple(j.type for j in self.joints)
+        return tuple(j.type for j in self.moving)
 
     @property
     def lower(self) -> np.ndarray:  # type: ignore[override]
-        return np.array([j.lower for j in self.joints])
+        return np.array([j.lower for j in self.moving])
 
     @property
     def upper(self) -> np.ndarray:  # type: ignore[override]
-        return np.array([j.upper for j in self.joints])
+        return np.array([j.upper for j in self.moving])
 
     def with_params(self, values) -> "SerialRobot":
         new = values if isinstance(values, Parameters) else self.params.replace(values)

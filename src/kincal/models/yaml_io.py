@@ -213,6 +213,8 @@ def _dh_joints(entries, lf: float, af: float, label: str) -> tuple[list[Joint], 
             raise ModelError(f"{where}: unknown key(s) {sorted(bad)}; allowed: {sorted(_JOINT_KEYS)}")
         jtype = str(jd.get("type", "revolute"))
         lim = jd.get("limits")
+        if jtype == "fixed" and lim is not None:
+            raise ModelError(f"{where}: a fixed row has no joint, so no 'limits'")
         qf = af if jtype == "revolute" else lf
         if lim is None:
             lo, hi = (-np.pi, np.pi) if jtype == "revolute" else (-1.0, 1.0)
@@ -259,7 +261,8 @@ def _chain_yaml(robot: SerialRobot, length_unit: str, angle_unit: str) -> str:
         for key, f in (("theta", af), ("d", lf), ("a", lf), ("alpha", af)):
             items.append(f"{key}: {fmt(v[f'{j.name}.{key}'] * f)}")
         items.append(f"beta: {fmt(v[f'{j.name}.beta'] * af)}" if j.beta else "beta: false")
-        items.append(f"limits: [{fmt(j.lower * qf)}, {fmt(j.upper * qf)}]")
+        if j.type != "fixed":
+            items.append(f"limits: [{fmt(j.lower * qf)}, {fmt(j.upper * qf)}]")
         lines.append("  - {" + ", ".join(items + mass_items(j, lf)) + "}")
     base = ", ".join(f"{k}: {fmt(v['base.' + k] * (lf if k in 'xyz' else af))}" for k in ("x", "y", "z", "rx", "ry", "rz"))
     tool = ", ".join(f"{k}: {fmt(v['tool.' + k] * lf)}" for k in ("x", "y", "z"))

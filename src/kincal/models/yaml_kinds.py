@@ -126,7 +126,7 @@ def transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float,
             raise ModelError(f"{where}: give a name and limits: [lower, upper]")
         actuators.append((str(ad["name"]), num(lim[0], where, "limits") * af, num(lim[1], where, "limits") * af))
     act_index = {a[0]: i for i, a in enumerate(actuators)}
-    joint_index = {j.name: i for i, j in enumerate(chain.joints)}
+    joint_index = {name: i for i, name in enumerate(chain.joint_names)}
     drive = {DRIVE_PREFIX + str(key): (num(v, f"{label}: transmission parameters", key) * lf, "length")
              for key, v in (tr.get("parameters") or {}).items()}
     maps = []

@@ -84,7 +84,8 @@ class Seed1Study:
     def _tables(self) -> list[str]:
         def as_units(name: str, v: float) -> str:  # mm for lengths, rad for angles, as the paper's tables
             return f"{v * 1e3:10.4f}" if param_type(name) in ("a", "d") else f"{v:10.4f}"
-        how = ("paper protocol: no noise, LM with fixed μ = 1 (mm, rad), all 21 parameters" if self.protocol == "paper"
+        how = (f"paper protocol: no noise, LM with fixed μ = 1 (mm, rad), all {len(self.true_errors)} parameters"
+               if self.protocol == "paper"
                else "kincal protocol: 15 µm noise, adaptive LM, the identifiable parameters")
         out = [f"== Identified errors, seed 0 (Tables 4-5; mm and rad; {how}; set: "
                f"{self.true_errors[next(n for n in self.true_errors if param_type(n) == 'a')] * 1e3:.1f} mm, "
@@ -101,12 +102,13 @@ class Seed1Study:
             out += [f"    {k:<48} set {c['set']:+.5f}  identified {c['identified']:+.5f}  η "
                     + ("—" if c["eta"] is None else f"{c['eta']:.2f} %") for k, c in self.combinations[d].items()]
         out += ["", "== Table 6 (η %, optimised vs random; paper row k+1 is kincal joint k for k >= 2, its coupled A1 "
-                    "is kincal's j1 and j2, its A5 tool row kincal's tool point, not a kinematic error here) =="]
+                    "is kincal's j1 and j2, its A5 tool row guo3t2r-paper's a5 (guo3t2r: the tool point)) =="]
         opt, rnd = DESIGNS[2], DESIGNS[0]
         for label, (name, paper) in PAPER_TABLE6.items():
             mine = (f"{self.eta[opt][name]:8.2f} {self.eta[rnd][name]:8.2f}" if name and name in self.eta[opt]
                     and name in self.eta[rnd] else f"{'—':>8} {'—':>8}")
-            out.append(f"  {label:<5} {name or '(tool)':<9} kincal {mine}   paper {paper[0]:8.3f} {paper[1]:8.3f}")
+            shown = name if name in self.true_errors else "(tool)"
+            out.append(f"  {label:<5} {shown:<9} kincal {mine}   paper {paper[0]:8.3f} {paper[1]:8.3f}")
         return out + [""]
 
     def _validation(self) -> list[str]:
@@ -136,8 +138,10 @@ DEPENDENCE_NOTE = """why these dependences differ from the paper's Tables 1-3 (a
     about that axis) would be the paper's theta1/theta3, hidden by the zero column.
   - the paper ends with a constant tool row A5 (4 DH parameters, no joint): with theta5 = 0 its a5 moves
     along the same x axis as A4's a4 (the paper's a4/a5) and alpha5 cannot move a point at the row's origin.
-    kincal places the reflector with a 3-parameter tool point instead, so that pair cannot appear; the same
-    mechanism gives kincal's a2/a3 (arm and quill rows, no turn between them) and j5.theta/j5.alpha.
+    guo3t2r places the reflector with a 3-parameter tool point instead, so that pair cannot appear there;
+    the robot guo3t2r-paper has the fixed A5 row (kincal demo --robot guo3t2r-paper) and QR finds the
+    paper's pair exactly (a5.a ~ j5.a) with its siblings a5.d ~ j5.d, a5.theta ~ j5.theta, a5.alpha (no
+    effect). The same mechanism gives a2/a3 (arm and quill rows, no turn between them).
   - the paper gives no dimensions and no reflector offset, so its GCN values cannot be matched number for
     number; the structure of the dependences can, and QR names every one of them exactly."""
 
@@ -146,24 +150,25 @@ PROTOCOLS = ("kincal", "paper")
 PAPER_INDEX = {"full-parameter optimised": 1.833, "separated-parameter optimised": 2.049}
 PAPER_TABLE6 = {"Δα4": ("j5.alpha", (17.159, 15.964)), "Δd2": ("j3.d", (98.068, 96.673)),
                 "Δd3": ("j4.d", (98.066, 96.671)), "Δd4": ("j5.d", (19.557, 18.796)),
-                "Δd5": (None, (31.855, 30.556))}  # paper label -> (kincal name, η %: optimised, random)
+                "Δd5": ("a5.d", (31.855, 30.556))}  # paper label -> (kincal name, η %: optimised, random)
 
 
 def seed1_study(seeds: int = 20, m: int = 60, pool_size: int = 1000, generations: int = 150,
                 noise: float = 15e-6, length_error: float = 0.5e-3, angle_error: float = 0.05,
                 progress: Callable[[str], None] | None = None, protocol: str = "kincal",
-                units: str = "scaled") -> Seed1Study:
+                units: str = "scaled", robot: str = "guo3t2r") -> Seed1Study:
     """Run the study (about half a minute with the defaults).
 
     protocol -- "kincal": tracker noise, adaptive LM, the identifiable parameters (η of each kept
                 parameter against the combination it stands for); "paper": no noise, LM with a fixed
                 damping μ = 1 in mm and rad, all 21 parameters (η for each, and for the combinations)
     units    -- the designs' index: "scaled" (unit-invariant) or "paper" (raw Jacobian in mm, rad)
+    robot    -- "guo3t2r", or "guo3t2r-paper" (the paper's rows: a fixed A5 tool row instead of a tool point)
     """
     if protocol not in PROTOCOLS:
         raise ValueError(f"protocol='{protocol}' is not one of {PROTOCOLS}")
     say = progress or (lambda msg: None)
-    robot = load_robot("guo3t2r")
+    robot = load_robot(robot)
     kin = tuple(n for n in robot.params.names if param_type(n) in TYPES)
     say("separating ill-conditioned parameters")
     sep = separate_ill_conditioned(robot, candidate_pool(robot, 100, seed=0), kin)
