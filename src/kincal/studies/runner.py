@@ -89,19 +89,16 @@ def make_executor(workers: int = 1, scheduler: str | None = None) -> Iterator[Ex
 
 
 def _single_thread() -> None:
-    """One BLAS thread per worker process (the workers are the parallelism); Ctrl-C is the main
-    process's to handle."""
+    """One BLAS thread per worker process for its whole life (the workers are the parallelism);
+    Ctrl-C is the main process's to handle (signals can be set from a main thread only: a Dask
+    worker runs this in another)."""
     import signal
+    import threading
 
     from .._threads import blas_threads
-    if threading_main():
+    if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-    blas_threads(1).__enter__()
-
-
-def threading_main() -> bool:
-    import threading
-    return threading.current_thread() is threading.main_thread()
+    blas_threads(1).__enter__()  # left entered on purpose: the limit lasts as long as the worker
 
 
 def _read(path: Path, header: dict) -> dict[int, list[dict]]:

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._threads import blas_threads
 from ..analysis.identifiability import identifiability
 from ..analysis.separation import TYPES, param_type, separate_ill_conditioned
 from ..design import candidate_pool, design_problem, select_poses
@@ -71,7 +72,8 @@ class Seed1Trials:
     header: dict = field(default_factory=dict)
 
     def run(self, task: Task) -> list[dict]:
-        return [self.trial(t) for t in task.trials]
+        with blas_threads(1):  # the same arithmetic in this process, a pool worker or a Dask worker
+            return [self.trial(t) for t in task.trials]
 
     def trial(self, t: int) -> dict:
         rng = np.random.default_rng([self.seed, t])
