@@ -148,7 +148,7 @@ def _eligibility(r: dict, geo: dict) -> str:
     if r is geo:
         return "kept (reference)"
     if "why" in r:
-        return f"not applicable: {r.pop('why')}"
+        return f"not applicable: {r['why']}"
     if not r["fits_ok"]:
         return "dropped: a fold's fit did not converge or was refused"
     if r["cv_mean"] >= geo["cv_mean"]:

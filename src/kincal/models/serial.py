@@ -45,8 +45,7 @@ class Joint:
     com: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
-        check_mass(self.mass, self.com, f"joint '{self.name}'")
-        object.__setattr__(self, "com", tuple(float(c) for c in self.com))
+        object.__setattr__(self, "com", check_mass(self.mass, self.com, f"joint '{self.name}'"))
         if self.type not in ROW_TYPES:
             raise ModelError(f"joint '{self.name}': type '{self.type}' is not one of {ROW_TYPES}")
         if not (np.isfinite(self.lower) and np.isfinite(self.upper) and self.lower < self.upper):
@@ -57,12 +56,14 @@ class Joint:
             raise ModelError(f"joint name '{self.name}' must be non-empty and contain no '.'")
 
 
-def check_mass(mass: float, com, where: str) -> None:
-    """A link mass must be finite and ≥ 0 kg, its centre of mass three finite numbers (m)."""
+def check_mass(mass: float, com, where: str) -> tuple[float, float, float]:
+    """The centre of mass as a tuple of floats (m), after checking: a link mass must be finite and
+    ≥ 0 kg, its centre of mass three finite numbers."""
     if not (np.isfinite(mass) and mass >= 0.0):
         raise ModelError(f"{where}: mass {mass} must be a finite number of kg, 0 or more")
     if len(com) != 3 or not np.all(np.isfinite(np.asarray(com, dtype=float))):
         raise ModelError(f"{where}: com {list(com)} must be three finite numbers (x, y, z)")
+    return (float(com[0]), float(com[1]), float(com[2]))
 
 
 def _param_names(convention: str, joints: Sequence[Joint]) -> tuple[list[str], list[str]]:

@@ -226,20 +226,17 @@ class ExtendedRobot(Wrapped):
 
 
 def drop_terms(robot: Robot, names: Sequence[str]) -> Robot:
-    """``robot`` without the term parameters ``names`` (a term left without parameters goes)."""
+    """``robot`` without the gravity-term parameters ``names`` (a term left without columns goes)."""
     if not isinstance(robot, ExtendedRobot):
         return robot
     terms = []
     for t in robot.terms:
-        keep = [c for c, n in zip(_columns(t), t.names) if n not in names]
-        if keep:
-            terms.append(dataclasses.replace(t, columns=tuple(keep)) if isinstance(t, GravityTerm) else t)
+        if isinstance(t, GravityTerm):
+            t = dataclasses.replace(t, columns=tuple(c for c, n in zip(t.columns, t.names) if n not in names))
+        if t.names:
+            terms.append(t)
     values = {n: robot.params[n] for t in terms for n in t.names}
     return ExtendedRobot.build(robot.base, terms, values) if terms else robot.base
-
-
-def _columns(term) -> list:
-    return list(term.columns) if isinstance(term, GravityTerm) else [None] * len(term.names)
 
 
 def parse_model(model: str) -> tuple[str, ...]:
@@ -314,8 +311,10 @@ def term_from_dict(base: Robot, reference: Robot | None, data: dict, where: str)
             raise ModelError(f"{where}: harmonics 'order' must be a whole number from 1 to 4")
         return Harmonics(order, tuple(index[j] for j in joints), tuple(joints))
     payload = data.get("payload", 0.0)
-    if not isinstance(reference, ChainRobot) or isinstance(payload, bool) or not isinstance(payload, (int, float)):
-        raise ModelError(f"{where}: a gravity term needs a serial chain, its 'reference' geometry and a payload in kg")
+    if not isinstance(reference, ChainRobot) or isinstance(payload, bool) or not isinstance(payload, (int, float)) \
+            or not payload >= 0:
+        raise ModelError(f"{where}: a gravity term needs a serial chain, its 'reference' geometry and a payload in kg "
+                         f"(0 or more)")
     gravity = GravityModel(reference, float(payload))
     if kind == "compliance":
         return GravityTerm(kind, gravity, tuple((index[j], 0, 0) for j in joints))

@@ -56,8 +56,7 @@ class URDFJoint:
     com: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
-        check_mass(self.mass, self.com, f"joint '{self.name}'")
-        object.__setattr__(self, "com", tuple(float(c) for c in self.com))
+        object.__setattr__(self, "com", check_mass(self.mass, self.com, f"joint '{self.name}'"))
 
     @property
     def moving(self) -> bool:
