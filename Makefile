@@ -19,8 +19,8 @@ UR5  = --length-unit mm --angle-unit deg --joint-cols joint_1,joint_2,joint_3,jo
 demo: setup
 	$(VENV)/bin/kincal demo
 	@echo
-	@echo "Seed 1's 62 % claim as a Monte-Carlo study (200 trials; resumes from .venv/seed1_study.jsonl)"
-	$(VENV)/bin/kincal study seed1 --workers 2 -o .venv/seed1_study.jsonl
+	@echo "Guo et al. 2024's 62 % claim as a Monte-Carlo study (200 trials; resumes from .venv/guo2024_study.jsonl)"
+	$(VENV)/bin/kincal study guo2024 --workers 2 -o .venv/guo2024_study.jsonl
 	@echo
 	@echo "Real laser-tracker data: calibrate the UR5 on 1000 grid poses, evaluate on 20 unseen poses"
 	$(VENV)/bin/kincal evaluate ur5 $(DATA)/ur5_random.csv $(UR5)

@@ -49,10 +49,10 @@ def main() -> None:
     print(f"{'m':>3} {'method':<22} {'D-eff':>7} {'time s':>7}  target")
     for m in (30, 60):
         t0 = time.perf_counter()
-        b = relaxed_bound(P, m, tol=5e-4)
+        b = relaxed_bound(P, m, gap_tol=5e-4)
         print(f"{m:>3} {'(certified bound)':<22} {'1':>7} {time.perf_counter() - t0:7.2f}  gap {b.gap:.1e} in log det")
         for method, kw in METHODS:
-            d = select_poses(ur5, pool, m, method, "D", seed=0, problem=P, bound=b, **kw)
+            d = select_poses(ur5, pool, m=m, method=method, criterion="D", seed=0, problem=P, bound=b, **kw)
             label = method + (f" +{kw['restarts']} restarts" if kw else "") + (" *" if "ide" in method else "")
             key = "fedorov" if (method == "fedorov" and not kw) else "best" if kw else None
             target = f"≥ {TARGETS[m][key]} in {2.5 if key == 'fedorov' else 5} s" if key else ""

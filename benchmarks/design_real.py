@@ -35,12 +35,12 @@ def main(n_random: int = 20) -> None:
     for m in (30, 60):
         b = relaxed_bound(P, m)
         for method, kw in (("detmax", {}), ("fedorov", {}), ("fedorov", {"restarts": 3})):
-            d = select_poses(ur5, grid.q, m, method, "D", seed=0, problem=P, bound=b, **kw)
+            d = select_poses(ur5, grid.q, m=m, method=method, criterion="D", seed=0, problem=P, bound=b, **kw)
             label = method + (f" +{kw['restarts']} restarts" if kw else "")
             print(f"{m:>3} {label:<22} {d.efficiency:7.4f} {score(d.indices):13.4f}")
         effs, errs = [], []
         for s in range(n_random):
-            d = select_poses(ur5, grid.q, m, "random", "D", seed=s, problem=P, bound=b)
+            d = select_poses(ur5, grid.q, m=m, method="random", criterion="D", seed=s, problem=P, bound=b)
             effs.append(d.efficiency)
             errs.append(score(d.indices))
         print(f"{m:>3} {f'random ({n_random} subsets)':<22} {np.mean(effs):7.4f} "

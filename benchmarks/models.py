@@ -38,9 +38,9 @@ def main() -> None:
         if any(j.mass > 0 for j in robot.joints):
             models[2:2] = ["compliance", "compliance+harmonics:2"]
         for model in models:
-            kw = {"model": model, "use_q": test.q} if model == "auto" else {"model": model}
+            kw = {"error_model": model, "use_q": test.q} if model == "auto" else {"error_model": model}
             res, t = timed(lambda: kincal.calibrate(robot, train, **kw), repeat=3 if model == "auto" else 5)
-            label = model if model != "auto" else f"auto={res.model_selection.chosen}"
+            label = model if model != "auto" else f"auto={res.error_model_choice.chosen}"
             print(f"{name:<5} {label:<30} {len(res.names):>6} {kincal.evaluate(res.robot, test).mean * 1e3:>17.4f} "
                   f"{t * 1e3:>7.0f} ms")
     print("targets: ur5 auto <= 0.090 mm; extended fit <= 100 ms; auto <= 2000 ms (1000 poses)")

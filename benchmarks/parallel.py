@@ -1,4 +1,5 @@
-"""3-PUU identification, the seed-2 simulation (§3.2, Tables 1–3): PSO with the paper's settings vs LM.
+"""3-PUU identification, the 3-PUU error-model verification paper's simulation (§3.2, Tables 1–3):
+PSO with the paper's settings vs LM.
 
 Errors δr = −1.0, δR = 2.5, δL1 = 3.4, δL2 = −2.8, δL3 = 2.2 mm; 30 random samples; joint-space residual
 (eq. 11). Then the same with 15 µm tracker noise: LM estimates with their standard deviations.
@@ -23,8 +24,8 @@ def main() -> None:
     print(f"{'solver':<26} {'evals':>7} {'time s':>7} {'r':>9} {'R':>9} {'r-R':>10} {'L1':>9} {'L2':>9} {'L3':>9} "
           f"{'max |err L| mm':>15}")
     cases = [("LM (identifiable set)", dict(method="lm")),
-             ("PSO, paper's settings", dict(method="pso", params=list(ERRORS))),
-             ("PSO then LM", dict(method="pso+lm", params=list(ERRORS)))]
+             ("PSO, paper's settings", dict(method="pso", names=list(ERRORS))),
+             ("PSO then LM", dict(method="pso+lm", names=list(ERRORS)))]
     histories = {}
     for label, kw in cases:
         t0 = time.perf_counter()

@@ -1,4 +1,4 @@
-"""The seed-1 Monte-Carlo study and how it scales: 200 trials on one worker, on two, and on a Dask
+"""The Monte-Carlo study of Guo et al. 2024's claim and how it scales: 200 trials on one worker, on two, and on a Dask
 LocalCluster of two (when kincal[dask] is installed). Targets: 200 trials ≤ 5 min on 2 cores; two
 workers ≥ 1.7× faster than one; Dask gives the same numbers as the process pool.
 
@@ -11,13 +11,13 @@ import tempfile
 import time
 from pathlib import Path
 
-from kincal.studies import runner, seed1_mc
+from kincal.studies import runner, guo2024_mc
 
 
 def main() -> None:
     trials = int(sys.argv[1]) if len(sys.argv) > 1 else 200
     t0 = time.perf_counter()
-    study = seed1_mc.prepare()
+    study = guo2024_mc.prepare()
     prep = time.perf_counter() - t0
     print(f"prepare (separation, DETMAX-IDE design, pools): {prep:.1f} s")
     print(f"{'executor':<22} {'trials':>6} {'time s':>8} {'speed-up':>9}  same results")
@@ -38,7 +38,7 @@ def main() -> None:
             base = base or t
             same = results[label] == results["in-process (1)"]
             print(f"{label:<22} {trials:>6} {t:8.1f} {base / t:8.2f}x  {same}")
-    print(seed1_mc.report(seed1_mc.summarise(results["in-process (1)"])))
+    print(guo2024_mc.report(guo2024_mc.summarise(results["in-process (1)"])))
     print("targets: 200 trials <= 300 s on 2 cores; process pool (2) >= 1.7x; identical results")
 
 

@@ -274,7 +274,7 @@ PATHS = [
          1, ["would overwrite"], files={"c.csv": "j1,j2,j3,j4,j5,j6\n0,0,0,0,0,0\n"}),
     case("simulate-output-is-save-true", ["simulate", "ur5", "-o", "{d}/x.yaml", "--save-true", "{d}/x.yaml"], 1,
          ["would overwrite"]),
-    case("simulate-output-is-joints", ["simulate", "ur5", "--joints", "{d}/j.csv", "-o", "{d}/j.csv"], 1,
+    case("simulate-output-is-joints", ["simulate", "ur5", "--poses-file", "{d}/j.csv", "-o", "{d}/j.csv"], 1,
          ["would overwrite"], files={"j.csv": "j1,j2,j3,j4,j5,j6\n0,0,0,0,0,0\n"}),
     case("simulate-output-folder-missing", ["simulate", "ur5", "-o", "{d}/none/x.csv"], 1, ["does not exist"]),
     case("sensitivity-plot-folder-missing", ["sensitivity", "ur5", "--plot", "{d}/none/s.png"], 1, ["does not exist"]),
@@ -296,7 +296,7 @@ PATHS = [
 
 ARGS = [
     case("identifiability-zero-poses", ["identifiability", "ur5", "--poses", "0"], 2, ["at least 1"]),
-    case("identifiability-tol-text", ["identifiability", "ur5", "--tol", "small"], 2, ["not a number"]),
+    case("identifiability-tol-text", ["identifiability", "ur5", "--rank-tol", "small"], 2, ["not a number"]),
     case("simulate-negative-noise", ["simulate", "ur5", "-o", "{d}/x.csv", "--noise", "-1"], 2, [">= 0"]),
     case("simulate-zero-poses", ["simulate", "ur5", "-o", "{d}/x.csv", "--poses", "0"], 2, ["at least 1"]),
     case("simulate-nan-noise", ["simulate", "ur5", "-o", "{d}/x.csv", "--noise", "nan"], 2, ["finite"]),
@@ -317,8 +317,8 @@ ARGS = [
     case("separate-negative-threshold", ["separate", "guo3t2r", "--threshold", "-5"], 2, [">= 0"]),
     case("sensitivity-zero-samples", ["sensitivity", "ur5", "--samples", "0"], 2, ["at least 1"]),
     case("sensitivity-unknown-param", ["sensitivity", "ur5", "--params", "j9.a"], 1, ["j9.a"]),
-    case("demo-zero-seeds", ["demo", "--seeds", "0"], 2, ["at least 1"]),
-    case("demo-too-few-poses", ["demo", "--poses", "2", "--seeds", "1"], 1, ["choose m"]),
+    case("demo-zero-repeats", ["demo", "--repeats", "0"], 2, ["at least 1"]),
+    case("demo-too-few-poses", ["demo", "--poses", "2", "--repeats", "1"], 1, ["choose m"]),
     case("verify-nothing-to-do", ["verify", "puu3"], 1, ["nothing to do", "-o FILE"]),
     case("verify-measured-without-plan", ["verify", "puu3", "--measured", "{base}/good.csv"], 1, ["needs --plan"]),
     case("verify-plan-not-a-plan", ["verify", "puu3", "--plan", "{base}/good.csv", "--measured", "{base}/good.csv"], 1,

@@ -91,10 +91,10 @@ def test_robust_loss_resists_outliers(ur5, loss):
 def test_explicit_parameter_list(ur5):
     true = kincal.perturb(ur5, seed=2)
     meas = kincal.simulate(true, ur5.sample_joints(40, seed=2), NOISE, seed=2)
-    res = kincal.calibrate(ur5, meas, params=["j2.a", "j3.a"], base="fixed")
+    res = kincal.calibrate(ur5, meas, names=["j2.a", "j3.a"], base="fixed")
     assert res.names == ("j2.a", "j3.a")
     with pytest.raises(kincal.IdentifiabilityError, match="j6.d"):
-        kincal.calibrate(ur5, meas, params=["j6.d", "tool.z"], base="fixed")
+        kincal.calibrate(ur5, meas, names=["j6.d", "tool.z"], base="fixed")
 
 
 def test_result_round_trips_through_yaml_and_json(tmp_path, ur5):

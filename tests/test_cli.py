@@ -71,8 +71,8 @@ def test_human_output_uses_mm_and_deg(capsys):
     assert "-425" in text and "mm" in text and "deg" in text
 
 
-def test_demo_runs_the_seed1_study(capsys):
-    d = run_json(capsys, "demo", "--seeds", "3")
+def test_demo_reproduces_guo2024(capsys):
+    d = run_json(capsys, "demo", "--repeats", "3")
     assert set(d["separation"]["subdomain_gcn"]) == {"theta", "alpha", "a", "d", "beta"}
     before = d["validation"]["before calibration"]["mean"]
     for name in ("random", "full-parameter optimised", "separated-parameter optimised"):
@@ -89,7 +89,7 @@ def test_design_command(tmp_path, capsys):
     np.testing.assert_allclose(q, np.array(d["q"]), atol=1e-12)
     # the poses file feeds simulate, and a user's candidate list feeds design
     sim = tmp_path / "sim.csv"
-    run_json(capsys, "simulate", "ur5", "--joints", out, "-o", sim, "--angle-unit", "deg")
+    run_json(capsys, "simulate", "ur5", "--poses-file", out, "-o", sim, "--angle-unit", "deg")
     d2 = run_json(capsys, "design", "ur5", "-m", "10", "--candidates", out, "-o", tmp_path / "p2.csv",
                   "--angle-unit", "deg", "--params", "j2.a,j3.a,j2.theta,j3.theta")
     assert d2["m"] == 10 and d2["parameters"] == ["j2.a", "j3.a", "j2.theta", "j3.theta"]
@@ -114,7 +114,7 @@ def test_simulate_at_given_joint_values(tmp_path, capsys):
     q_deg = np.array([[10, -80, 90, 0, 90, 0], [40, -60, 70, 20, 100, 30], [-20, -100, 120, -30, 60, 10]], float)
     poses.write_text("j1;j2;j3;j4;j5;j6\n" + "\n".join(";".join(str(v) for v in row) for row in q_deg) + "\n")
     out = tmp_path / "sim.csv"
-    run_json(capsys, "simulate", "ur5", "--joints", poses, "--noise", "0", "-o", out, "--angle-unit", "deg")
+    run_json(capsys, "simulate", "ur5", "--poses-file", poses, "--noise", "0", "-o", out, "--angle-unit", "deg")
     meas = kincal.read_measurements(out, kincal.load_robot("ur5"), angle_unit="deg")
     np.testing.assert_allclose(meas.q, np.deg2rad(q_deg), atol=1e-12)
     np.testing.assert_allclose(meas.xyz, kincal.load_robot("ur5").forward(np.deg2rad(q_deg)), atol=1e-12)

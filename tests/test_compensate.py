@@ -48,7 +48,7 @@ def test_sensitivity_matches_jacobian_and_closed_form():
 
 
 def test_verification_in_simulation_is_at_noise_level():
-    from kincal.compensate.verify import verification_plan
+    from kincal.compensate import verification_plan
     robot = kincal.load_robot("puu3")
     true = robot.with_params({"r": 0.1 + 1.72e-3, "R": 0.2 + 1.52e-3, "L1": 0.35 + 0.32e-3, "L2": 0.35 - 1.25e-3,
                               "L3": 0.35 + 2.47e-3})  # the paper's identified errors (Table 4)

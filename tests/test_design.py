@@ -20,7 +20,7 @@ def test_bound_is_above_every_exact_design(seed):
     P = small_problem(seed=seed)
     m = 3
     best = max(P.logdet(c) for c in itertools.combinations(range(P.N), m))
-    b = relaxed_bound(P, m, tol=1e-6)
+    b = relaxed_bound(P, m, gap_tol=1e-6)
     assert b.upper >= best - 1e-9
     assert b.relaxed >= best - 1e-6  # the relaxation contains every exact design
     assert b.gap <= 1e-6 and b.weights.sum() == pytest.approx(m) and np.all((b.weights >= 0) & (b.weights <= 1))
@@ -73,24 +73,24 @@ def test_designs_respect_limits_are_deterministic_and_beat_random(ur5):
     pool = candidate_pool(limited, 600, seed=1)
     P = design_problem(limited, pool)
     b = relaxed_bound(P, 20)
-    random = select_poses(limited, pool, 20, "random", problem=P, bound=b, seed=3)
+    random = select_poses(limited, pool, m=20, method="random", problem=P, bound=b, seed=3)
     for method, criterion in [("fedorov", "D"), ("detmax", "D"), ("detmax", "O1"), ("fedorov", "I")]:
-        d = select_poses(limited, pool, 20, method, criterion, seed=3, problem=P, bound=b)
+        d = select_poses(limited, pool, m=20, method=method, criterion=criterion, seed=3, problem=P, bound=b)
         assert np.all(limited.within_limits(d.q)) and len(set(d.indices.tolist())) == 20
-        again = select_poses(limited, pool, 20, method, criterion, seed=3, problem=P, bound=b)
+        again = select_poses(limited, pool, m=20, method=method, criterion=criterion, seed=3, problem=P, bound=b)
         assert np.array_equal(d.indices, again.indices)
-        rnd = select_poses(limited, pool, 20, "random", criterion, seed=3, problem=P, bound=False)
+        rnd = select_poses(limited, pool, m=20, method="random", criterion=criterion, seed=3, problem=P, certify=False)
         assert d.value > rnd.value
         assert d.efficiency <= 1.0
-    assert random.efficiency < select_poses(limited, pool, 20, problem=P, bound=b).efficiency
+    assert random.efficiency < select_poses(limited, pool, m=20, problem=P, bound=b).efficiency
 
 
 def test_efficiency_does_not_depend_on_column_scale(ur5):
     pool = ur5.sample_joints(300, seed=2)
     P = design_problem(ur5, pool)
     Q = DesignProblem(P.q, P.J * np.linspace(0.1, 10, P.k), P.names, P.scale)
-    d = select_poses(ur5, pool, 15, problem=P)
-    bq = relaxed_bound(Q, 15, tol=1e-4)
+    d = select_poses(ur5, pool, m=15, problem=P)
+    bq = relaxed_bound(Q, 15, gap_tol=1e-4)
     eff_q = np.exp((Q.logdet(d.indices) - bq.upper) / Q.k)
     assert d.efficiency == pytest.approx(eff_q, abs=2e-4)  # both bounds are certified to ~tol/k
 
@@ -98,11 +98,11 @@ def test_efficiency_does_not_depend_on_column_scale(ur5):
 def test_bad_design_requests(ur5):
     pool = ur5.sample_joints(100, seed=0)
     with pytest.raises(ValueError, match="criterion 'X'"):
-        select_poses(ur5, pool, 20, criterion="X", bound=False)
+        select_poses(ur5, pool, m=20, criterion="X", certify=False)
     with pytest.raises(kincal.IdentifiabilityError, match="choose m"):
-        select_poses(ur5, pool, 5, bound=False)
+        select_poses(ur5, pool, m=5, certify=False)
     with pytest.raises(ValueError, match="D and I"):
-        select_poses(ur5, pool, 20, "fedorov", "comprehensive", bound=False)
+        select_poses(ur5, pool, m=20, method="fedorov", criterion="comprehensive", certify=False)
 
 
 def test_reverse_search_boundary_handling():
@@ -122,13 +122,14 @@ def test_ide_keeps_constraints_is_deterministic_and_improves(method):
     robot = kincal.load_robot("guo3t2r")
     pool = candidate_pool(robot, 400, seed=4)
     P = design_problem(robot, pool)
-    d = select_poses(robot, pool, 25, method, "D", seed=2, problem=P, bound=False, generations=60)
+    d = select_poses(robot, pool, m=25, method=method, criterion="D", seed=2, problem=P, certify=False, generations=60)
     assert np.all(robot.feasible(d.q))  # joint limits and |psi| <= 45 deg on every pose
-    assert np.all(np.abs(robot.joints(d.q)[:, 1]) <= np.pi / 4 + 1e-12)
-    again = select_poses(robot, pool, 25, method, "D", seed=2, problem=P, bound=False, generations=60)
+    assert np.all(np.abs(robot.chain_q(d.q)[:, 1]) <= np.pi / 4 + 1e-12)
+    again = select_poses(robot, pool, m=25, method=method, criterion="D", seed=2, problem=P, certify=False, generations=60)
     assert np.array_equal(d.q, again.q)
-    start = select_poses(robot, pool, 25, "random" if method == "ide" else "detmax", "D", seed=2, problem=P,
-                         bound=False)
+    start = select_poses(robot, pool, m=25, method="random" if method == "ide" else "detmax", criterion="D", seed=2,
+                         problem=P,
+                         certify=False)
     assert d.value >= start.value
     if method == "ide":
         assert d.value > start.value + 1.0  # from a random start the evolution finds much better poses
@@ -150,5 +151,5 @@ def test_pose_counts(ur5):
 def test_pool_designs_keep_the_coupled_constraints(method):
     robot = kincal.load_robot("guo3t2r")
     pool = candidate_pool(robot, 500, seed=6)
-    d = select_poses(robot, pool, 25, method, "D", seed=1, bound=False)
-    assert np.all(robot.feasible(d.q)) and np.all(np.abs(robot.joints(d.q)[:, 1]) <= np.pi / 4 + 1e-12)
+    d = select_poses(robot, pool, m=25, method=method, criterion="D", seed=1, certify=False)
+    assert np.all(robot.feasible(d.q)) and np.all(np.abs(robot.chain_q(d.q)[:, 1]) <= np.pi / 4 + 1e-12)

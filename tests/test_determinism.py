@@ -53,10 +53,10 @@ def _jitter(monkeypatch, seed):
     different BLAS kernel or summation order would."""
     rng = np.random.default_rng(seed)
     for cls in (SerialRobot, TransmissionRobot):
-        def wrapped(self, q, params=None, jacobian=True, method=cls.forward_and_jacobian):
-            p, J = method(self, q, params, jacobian)
+        def wrapped(self, q, values, jacobian, method=cls._forward_and_jacobian):
+            p, J = method(self, q, values, jacobian)
             return p, (None if J is None else J * (1.0 + 1e-13 * rng.standard_normal(J.shape)))
-        monkeypatch.setattr(cls, "forward_and_jacobian", wrapped)
+        monkeypatch.setattr(cls, "_forward_and_jacobian", wrapped)
     exact_gcn = separation.gcn
     monkeypatch.setattr(separation, "gcn", lambda J, m: exact_gcn(J, m) * (1.0 + 1e-13 * rng.standard_normal()))
 
@@ -68,8 +68,9 @@ def _verdicts():
     ur5 = kincal.load_robot("ur5")
     ident = kincal.identifiability(ur5, ur5.sample_joints(60, seed=0), keep=ur5.base_params())
     pool = candidate_pool(robot, 300, seed=1)
-    designs = {m: kincal.select_poses(robot, pool, 15, m, "comprehensive" if m != "fedorov" else "D", seed=0,
-                                      bound=False, generations=30)
+    designs = {m: kincal.select_poses(robot, pool, m=15, method=m, criterion="comprehensive" if m != "fedorov" else "D",
+                                      seed=0,
+                                      certify=False, generations=30)
                for m in ("detmax", "fedorov", "detmax-ide")}
     return (sep.separated, sep.paper_choice, sep.candidates, [r for r, _ in sep.models], ident.dropped,
             ident.confounds.keys(), {m: d.q.round(12).tolist() for m, d in designs.items()})

@@ -79,7 +79,7 @@ def test_regressor_with_the_true_masses_gives_the_loads(ur5):
 
 @pytest.mark.parametrize("model", ["compliance+harmonics:2", "gravity-regressor"])
 def test_jacobians_match_central_differences(ur5, model):
-    robot = kincal.perturb(kincal.extend(ur5, model, payload=0.5), 1e-3, 1e-3, seed=5)
+    robot = kincal.perturb(kincal.extend(ur5, kincal.ErrorModel(model, payload=0.5)), 1e-3, 1e-3, seed=5)
     robot = robot.with_params({n: 2e-3 for n in robot.term_names})
     q = ur5.sample_joints(20, seed=6)
     assert_jacobians(robot, q, 1e-7)
@@ -94,12 +94,12 @@ def test_jacobians_match_central_differences(ur5, model):
 
 @pytest.mark.parametrize("model", ["compliance+harmonics:1", "gravity-regressor"])
 def test_round_trip_is_exact(ur5, model, tmp_path):
-    robot = kincal.perturb(kincal.extend(ur5, model, payload=1.25), 1e-3, 1e-3, seed=7)
+    robot = kincal.perturb(kincal.extend(ur5, kincal.ErrorModel(model, payload=1.25)), 1e-3, 1e-3, seed=7)
     robot = robot.with_params({n: 1e-3 * (k + 1) for k, n in enumerate(robot.term_names)})
     kincal.save_robot(robot, tmp_path / "r.yaml", "mm", "deg")
     back = kincal.load_robot(tmp_path / "r.yaml")
     q = ur5.sample_joints(50, seed=8)
-    assert back.params.names == robot.params.names and back.kind == robot.kind
+    assert back.params.names == robot.params.names and back.structure == robot.structure
     assert np.abs(back.forward(q) - robot.forward(q)).max() < 1e-12
 
 
@@ -121,7 +121,7 @@ def test_simulated_compliance_and_harmonics_are_recovered(ur5):
             if n in res.names:
                 z.append((res.estimates[n] - true.params[n]) / res.std[n])
             else:  # only a compliance the data cannot tell from zero may be dropped (as negative)
-                assert n == "j4.compliance" and any(n.split(".")[0] in note for note in res.model_notes)
+                assert n == "j4.compliance" and any(n.split(".")[0] in note for note in res.error_model_notes)
         rms.append(kincal.evaluate(res.robot, kincal.simulate(true, qv, 0.0)).rms)
         J, Jv = stacked_jacobian(res.robot, q, res.names), stacked_jacobian(res.robot, qv, res.names)
         predicted.append(NOISE * np.sqrt(np.trace(Jv @ np.linalg.inv(J.T @ J) @ Jv.T) / len(qv)))
@@ -133,10 +133,10 @@ def test_a_negative_compliance_is_dropped(ur5):
     model = kincal.extend(ur5, "compliance")
     true = kincal.perturb(model, 0.5e-3, 0.5e-3, seed=3).with_params({"j2.compliance": 2e-3, "j3.compliance": -3e-3})
     meas = kincal.simulate(true, ur5.sample_joints(200, seed=4), NOISE, seed=5)
-    res = kincal.calibrate(ur5, meas, model="compliance")
+    res = kincal.calibrate(ur5, meas, error_model="compliance")
     assert "j3.compliance" not in res.robot.params.names and res.estimates["j2.compliance"] > 0
-    assert any("j3: compliance came out negative" in n and "dropped" in n for n in res.model_notes)
-    assert not any(n.startswith("j2") for n in res.model_notes)
+    assert any("j3: compliance came out negative" in n and "dropped" in n for n in res.error_model_notes)
+    assert not any(n.startswith("j2") for n in res.error_model_notes)
     assert res.to_dict()["compliance"]["j2"] == pytest.approx(res.estimates["j2.compliance"] / 100)
 
 
@@ -148,7 +148,7 @@ def test_terms_warn_outside_the_training_envelope(ur5, tmp_path):
     meas = kincal.simulate(true, q, NOISE, seed=3)
     res = kincal.calibrate(model, meas.subset(inside))
     kincal.save_robot(res.robot, tmp_path / "c.yaml", calibration=res.record())
-    unc = kincal.load_uncertainty(tmp_path / "c.yaml")
+    unc = kincal.analysis.load_uncertainty(tmp_path / "c.yaml")
     assert unc.upper[1] < 0.0 and unc.lower[1] == pytest.approx(q[inside, 1].min())
     stats = kincal.evaluate(kincal.load_robot(tmp_path / "c.yaml"), meas, uncertainty=unc)
     outside_rows = set(meas.rows[q[:, 1] > 0.02 * 2 * np.pi + unc.upper[1]].tolist())
@@ -163,10 +163,10 @@ def test_compliance_needs_masses(tmp_path, capsys):
     data = tmp_path / "d.csv"
     wam = kincal.load_robot("wam")
     kincal.write_measurements(data, kincal.simulate(wam, wam.sample_joints(60, seed=1), NOISE, seed=1))
-    assert main(["calibrate", "wam", str(data), "--model", "compliance", "-o", str(tmp_path / "o.yaml")]) == 1
+    assert main(["calibrate", "wam", str(data), "--error-model", "compliance", "-o", str(tmp_path / "o.yaml")]) == 1
     err = capsys.readouterr().err
     assert "'compliance' needs link masses" in err and "gravity-regressor" in err and not (tmp_path / "o.yaml").exists()
     with pytest.raises(SystemExit) as exc:
-        main(["calibrate", "wam", str(data), "--model", "compliance+gravity-regressor"])
+        main(["calibrate", "wam", str(data), "--error-model", "compliance+gravity-regressor"])
     assert exc.value.code == 2
     assert "joined by '+'" in capsys.readouterr().err

@@ -65,8 +65,8 @@ def test_paper_simulation_lm(puu3, residual):
 
 def test_paper_simulation_pso(puu3):
     true, meas = paper_case(puu3)
-    res = kincal.calibrate(puu3, meas, params=list(PAPER_ERRORS), base="fixed", method="pso", residual="joint",
-                           pso_options={"particles": 100, "iterations": 60})
+    res = kincal.calibrate(puu3, meas, names=list(PAPER_ERRORS), base="fixed", method="pso", residual="joint",
+                           pso={"particles": 100, "iterations": 60})
     est = res.robot.params
     assert abs((est["r"] - est["R"]) - (true.params["r"] - true.params["R"])) < 2e-5
     assert all(abs(res.corrections[k] - PAPER_ERRORS[k]) < 2e-5 for k in ("L1", "L2", "L3"))
@@ -85,7 +85,7 @@ def test_extended_set_within_three_sigma():
         qv = robot.sample_joints(100, seed=500 + seed)
         assert kincal.evaluate(res.robot, kincal.simulate(true, qv, 0.0)).rms < 20e-6
         # and each identifiable parameter against the truth re-expressed in the same identifiable basis
-        ref = kincal.calibrate(robot, kincal.simulate(true, q, 0.0), params=list(res.names), base="fixed")
+        ref = kincal.calibrate(robot, kincal.simulate(true, q, 0.0), names=list(res.names), base="fixed")
         z += [(res.estimates[n] - ref.estimates[n]) / res.std[n] for n in res.names]
     z = np.abs(np.array(z))
     assert z.max() < 3 and 0.55 < np.mean(z < 1) < 0.8  # every one within 3 sigma; about 68 % within 1
@@ -95,7 +95,7 @@ def test_pose_design_and_evaluation_work_unchanged(puu3):
     from kincal.design import candidate_pool, select_poses
     pool = candidate_pool(puu3, 400, seed=0)
     assert np.all(puu3.feasible(pool))
-    d = select_poses(puu3, pool, 15, "fedorov", "D", seed=0)
+    d = select_poses(puu3, pool, m=15, method="fedorov", criterion="D", seed=0)
     assert 0.9 < d.efficiency <= 1.0 and np.all(puu3.within_limits(d.q))
     true = kincal.perturb(puu3, 1e-3, 1e-3, seed=1, include_base=True)
     res = kincal.calibrate(puu3, kincal.simulate(true, d.q, 0.0))  # base frame estimated (registration)
@@ -108,7 +108,7 @@ def test_yaml_round_trip(tmp_path):
     kincal.save_robot(robot, path)
     back = kincal.load_robot(path)
     assert back.params == robot.params and (back.h_lower, back.h_upper) == (robot.h_lower, robot.h_upper)
-    assert back.extended and back.kind == "puu3 (implicit)"
+    assert back.extended and back.structure == "puu3 (implicit)"
     path.write_text(path.read_text().replace("L1:", "L9:"))
     with pytest.raises(kincal.ModelError, match="unknown 3-PUU parameter 'L9'"):
         kincal.load_robot(path)

@@ -9,7 +9,7 @@ import pytest
 
 import kincal
 from kincal.design.ide import F_MIN, mutation_factor
-from kincal.identify import CartesianResidual, JointResidual, build_problem
+from kincal.identify import CartesianResidual, FitOptions, JointResidual, build_problem
 
 SRC = Path(kincal.__file__).parent
 calibrate_module = importlib.import_module("kincal.identify.calibrate")  # the module, not the function
@@ -26,11 +26,11 @@ def puu3_data():
 @pytest.mark.parametrize("kwargs, words", [
     (dict(method="pso", loss="huber"), ("pso", "huber")),
     (dict(method="pso+lm", loss="soft_l1"), ("pso+lm", "soft_l1")),
-    (dict(pso_options={"particles": 10}), ("pso_options", "method")),
-    (dict(method="pso", pso_options={"swarm": 10}), ("swarm", "particles")),
+    (dict(pso={"particles": 10}), ("pso=", "method='lm'")),
+    (dict(method="pso", pso={"swarm": 10}), ("swarm", "particles")),
     (dict(f_scale=-1.0), ("f_scale",)),
     (dict(max_iter=0), ("max_iter",)),
-    (dict(params=["r", "nope"]), ("nope",)),
+    (dict(names=["r", "nope"]), ("nope",)),
     (dict(residual="joint", robot="ur5"), ("joint", "ur5")),
 ])
 def test_options_are_checked_before_any_work(puu3_data, monkeypatch, kwargs, words):
@@ -51,18 +51,18 @@ def test_options_are_checked_before_any_work(puu3_data, monkeypatch, kwargs, wor
 
 def test_base_mode_rule_has_one_home(ur5):
     q = ur5.sample_joints(60, seed=0)
-    fixed = kincal.free_parameters(ur5, q, base="fixed")
-    est = kincal.free_parameters(ur5, q, base="estimate")
+    fixed = kincal.analysis.free_parameters(ur5, q, base="fixed")
+    est = kincal.analysis.free_parameters(ur5, q, base="estimate")
     assert not set(fixed.candidates) & set(ur5.base_params())
     assert set(ur5.base_params()) <= set(est.identifiable)  # the base absorbs j1.theta and j1.d
     assert {"j1.theta", "j1.d"} <= set(est.dropped) and fixed.rank == est.rank - 4
-    explicit = kincal.free_parameters(ur5, q, base="estimate", params=["j2.a", "j3.a"])
+    explicit = kincal.analysis.free_parameters(ur5, q, base="estimate", names=["j2.a", "j3.a"])
     assert explicit.candidates == (*ur5.base_params(), "j2.a", "j3.a")
     with pytest.raises(ValueError, match="base.x"):
-        kincal.free_parameters(ur5, q, base="fixed", params=["base.x", "j2.a"])
+        kincal.analysis.free_parameters(ur5, q, base="fixed", names=["base.x", "j2.a"])
     # calibrate, design and the CLI all use it: the same free parameters
     meas = kincal.simulate(ur5, q, noise=0.0)
-    assert kincal.calibrate(ur5, meas, tol=1e-8).names == est.identifiable
+    assert kincal.calibrate(ur5, meas).names == est.identifiable  # one rank rule: no tolerance to pass
     assert kincal.design.design_problem(ur5, q).names == est.identifiable
 
 
@@ -94,7 +94,7 @@ def test_swarm_costs_equal_the_residuals(puu3_data):
 def test_pso_history_is_kept(puu3_data):
     robot, meas = puu3_data
     res = kincal.calibrate(robot, meas, base="fixed", residual="joint", method="pso",
-                           params=["r", "R", "L1", "L2", "L3"], pso_options={"particles": 60, "iterations": 40})
+                           names=["r", "R", "L1", "L2", "L3"], pso={"particles": 60, "iterations": 40})
     h = np.array(res.history)
     assert h.size == 40 and np.all(np.diff(h) <= 0) and h[-1] < h[0]
     # the last value is the mean squared joint residual of the returned model
@@ -107,7 +107,8 @@ def test_problem_refuses_too_little_data_before_solving(puu3_data):
     robot, meas = puu3_data
     few = meas.subset(np.arange(1))
     with pytest.raises(kincal.MeasurementError, match="equations"):
-        build_problem(robot, few, ["L1", "L2", "L3", "r"], "fixed", (), 1e-8, "joint", strict=False)
+        build_problem(robot, few, FitOptions(names=["L1", "L2", "L3", "r"], base="fixed", residual="joint",
+                                             method="pso"))
 
 
 def test_ide_mutation_factor_stays_positive():
@@ -122,7 +123,8 @@ def test_ide_mutation_factor_stays_positive():
 def test_ide_history_reaches_the_design(capsys):
     robot = kincal.load_robot("guo3t2r")
     pool = kincal.candidate_pool(robot, 200, seed=0)
-    d = kincal.select_poses(robot, pool, 12, "detmax-ide", "comprehensive", bound=False, generations=25)
+    d = kincal.select_poses(robot, pool, m=12, method="detmax-ide", criterion="comprehensive", certify=False,
+                            generations=25)
     h = np.array(d.history)
     assert h.size == 25 and np.all(np.diff(h) >= 0) and h[-1] == pytest.approx(d.value, rel=1e-12)
 

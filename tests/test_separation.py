@@ -38,6 +38,6 @@ def test_separation_on_the_3t2r_robot():
     assert "j5.alpha" in sep.separated and "j5.alpha" in sep.qr_dropped
     assert len(sep.names) - len(sep.separated) == len(sep.names) - len(sep.qr_dropped) == 16
     kept = [n for n in sep.names if n not in sep.separated]
-    assert kincal.identifiability(robot, candidate_pool(robot, 100, seed=0), params=kept).full_rank
+    assert kincal.identifiability(robot, candidate_pool(robot, 100, seed=0), names=kept).full_rank
     assert sep.gcn_reduced < 1e2 < sep.gcn_full
     assert "Table 1" in sep.tables() and "QR" in sep.tables()

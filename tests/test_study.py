@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 
 from kincal.cli import main
-from kincal.studies import runner, seed1_mc
+from kincal.studies import runner, guo2024_mc
 
 
 @pytest.fixture(scope="module")
 def small():
     """A small seed-1 study: 30 poses, a short optimisation."""
-    return seed1_mc.prepare(m=30, generations=10)
+    return guo2024_mc.prepare(m=30, generations=10)
 
 
 def records(path):
@@ -25,18 +25,18 @@ def records(path):
 
 
 def test_grid_is_the_equally_spaced_one(small):
-    q = small.robot.joints(small.grid)
+    q = small.robot.chain_q(small.grid)
     assert small.robot.feasible(small.grid).all() and len(q) == 60
     assert sorted(set(np.round(q[:, 0], 9))) == pytest.approx([0.1, 0.3, 0.5, 0.7, 0.9])
     assert sorted(set(np.round(np.rad2deg(q[:, 1]), 6))) == pytest.approx([-36, -12, 12, 36])
     assert sorted(set(np.round(q[:, 2], 9))) == pytest.approx([-0.45, -0.25, -0.05])
-    part = small.robot.joints(small.pools["partial"])
+    part = small.robot.chain_q(small.pools["partial"])
     assert part[:, 0].max() <= 0.5 and part[:, 2].min() >= -0.25 and len(part) > 500
 
 
 def test_quill_sag_is_quadratic_in_the_extension(small):
     q = small.grid[:6]
-    ext = -small.robot.joints(q)[:, 2] / 0.5
+    ext = -small.robot.chain_q(q)[:, 2] / 0.5
     shift = small.positions(small.robot, q, 1e-4) - small.robot.forward(q)
     np.testing.assert_allclose(shift, np.outer(1e-4 * ext**2, [1, 0, 0]), atol=1e-15)
 
@@ -53,18 +53,18 @@ def test_summary_is_the_reduction_distribution():
     recs = []
     for t in range(20):
         r = {"trial": t}
-        for truth in seed1_mc.TRUTHS:
-            for name in ("optimised", *seed1_mc.RANDOM_SETS):
-                for val in seed1_mc.VALIDATIONS:
+        for truth in guo2024_mc.TRUTHS:
+            for name in ("optimised", *guo2024_mc.RANDOM_SETS):
+                for val in guo2024_mc.VALIDATIONS:
                     base = 1.0 if name != "optimised" else 0.5 + 0.01 * t  # reduction 50 … 31 %
                     r[f"{truth}/{name}/{val}"] = [base, 2 * base, 3 * base]
         recs.append(r)
-    rows = seed1_mc.summarise(recs)
+    rows = guo2024_mc.summarise(recs)
     expected = 100 * (1 - (0.5 + 0.01 * np.arange(20)))
     assert len(rows) == 24 and all(row["trials"] == 20 for row in rows)
     assert rows[0]["median"] == pytest.approx(np.median(expected)) and rows[0]["p5"] == pytest.approx(
         np.percentile(expected, 5)) and rows[0]["at_least_paper"] == 0.0
-    assert "median" in seed1_mc.report(rows) and "62 %" in seed1_mc.report(rows)
+    assert "median" in guo2024_mc.report(rows) and "62 %" in guo2024_mc.report(rows)
 
 
 def test_dask_local_cluster_gives_the_process_pool_results_bit_for_bit(small, tmp_path):
@@ -88,13 +88,13 @@ def test_another_study_or_a_torn_line(small, tmp_path, capsys):
         with pytest.raises(ValueError, match="another study"):
             runner.run_tasks(small.run, runner.tasks_for(3, 1), ex, path, {**small.header, "m": 61})
     (tmp_path / "x.jsonl").write_text("hello\n")
-    assert main(["study", "seed1", "--trials", "2", "--poses", "30", "--generations", "10", "--workers", "1",
+    assert main(["study", "guo2024", "--trials", "2", "--poses", "30", "--generations", "10", "--workers", "1",
                  "-o", str(tmp_path / "x.jsonl")]) == 1
     assert "another study" in capsys.readouterr().err and (tmp_path / "x.jsonl").read_text() == "hello\n"
 
 
 def test_an_interrupted_study_resumes_to_the_same_results(tmp_path):
-    argv = [sys.executable, "-m", "kincal.cli", "study", "seed1", "--trials", "40", "--per-task", "2", "--poses",
+    argv = [sys.executable, "-m", "kincal.cli", "study", "guo2024", "--trials", "40", "--per-task", "2", "--poses",
             "30", "--generations", "10", "--workers", "2", "--json"]
     ref = subprocess.run(argv + ["-o", str(tmp_path / "ref.jsonl")], capture_output=True, text=True)
     assert ref.returncode == 0, ref.stderr
@@ -127,7 +127,7 @@ def test_paper_units_give_the_paper_index_scale():
     np.testing.assert_array_equal(P.J, raw * [1e3, 1.0, 1e3, 1.0, 1e3])  # mm per rad; mm per mm
     with pytest.raises(ValueError, match="units"):
         design_problem(robot, pool, names, units="inch")
-    study = kincal.seed1_study(seeds=1, units="paper", generations=60)
+    study = kincal.studies.guo2024_study(repeats=1, units="paper", generations=60)
     v = study.design_values
     assert 1.4 < v["full-parameter optimised"] < v["separated-parameter optimised"] < 2.2
     assert "(paper: 2.049)" in str(study)
@@ -137,7 +137,7 @@ def test_paper_protocol_splits_dependent_errors_and_names_the_combinations(capsy
     """No noise, fixed μ = 1 over all 21 parameters: independent errors come back exactly; a group
     that acts through its sum (the d offsets along the vertical axis) is split but its sum is exact,
     as in the paper's Table 4 (d2 0.5097 + d3 0.4903 mm); the positions are matched exactly."""
-    d = json.loads(_run(capsys, ["demo", "--protocol", "paper", "--seeds", "1", "--json"]))
+    d = json.loads(_run(capsys, ["demo", "--protocol", "paper", "--repeats", "1", "--json"]))
     opt = d["identified_errors"]["separated-parameter optimised"]
     assert len(opt) == 21 and opt["j1.a"] == pytest.approx(0.5e-3, abs=1e-9)
     # the sum to 1 µm: with 0.05 rad errors the three axes are not exactly parallel any more
@@ -146,7 +146,7 @@ def test_paper_protocol_splits_dependent_errors_and_names_the_combinations(capsy
     combo = d["combinations"]["separated-parameter optimised"]["j2.d +1·j3.d +1·j4.d"]
     assert combo["eta"] == pytest.approx(100.0, abs=0.5)
     # kincal's own protocol judges a kept stand-in against the combination it carries
-    k = json.loads(_run(capsys, ["demo", "--seeds", "1", "--json"]))
+    k = json.loads(_run(capsys, ["demo", "--repeats", "1", "--json"]))
     combo = k["combinations"]["separated-parameter optimised"]
     assert all(c["eta"] > 75 for c in combo.values())  # first-order relations at 0.05 rad errors, with noise
     # judged alone, the stand-in j2.d (carrying d2 + d3 + d4) looks absurd: that was the misleading number
@@ -162,9 +162,9 @@ def test_seed_figures_show_the_study_numbers(tmp_path, capsys):
     """Figs. 5-8 and 12-13 of seed 1 from the demo, seed 2's Fig. 7 from a swarm; each figure's data
     are the study's own numbers."""
     import kincal
-    from kincal.report.study_figures import seed1_figures
-    study = kincal.seed1_study(seeds=1, generations=20)
-    figs = seed1_figures(study)
+    from kincal.report import guo2024_figures
+    study = kincal.studies.guo2024_study(repeats=1, generations=20)
+    figs = guo2024_figures(study)
     assert set(figs) == {"ide-convergence", "pose-count", "eta", "validation-points", "validation-summary"}
     line = figs["pose-count"].axes[0].lines[0]
     np.testing.assert_array_equal(line.get_ydata(), study.curve["values"])
@@ -177,14 +177,14 @@ def test_seed_figures_show_the_study_numbers(tmp_path, capsys):
     ide = figs["ide-convergence"].axes[1].lines[0].get_ydata()
     np.testing.assert_array_equal(ide, study.histories["separated-parameter optimised"])
     # the command writes them (and refuses a missing folder before any work)
-    assert main(["demo", "--seeds", "1", "--plot", str(tmp_path / "no" / "f.png")]) == 1
+    assert main(["demo", "--repeats", "1", "--plot", str(tmp_path / "no" / "f.png")]) == 1
     assert "does not exist" in capsys.readouterr().err
     puu3 = kincal.load_robot("puu3")
     true = kincal.perturb(puu3, 1e-3, 0.0, seed=1)
     meas = kincal.simulate(true, puu3.sample_joints(30, seed=2), 0.0)
     res = kincal.calibrate(puu3, meas, base="fixed", residual="joint", method="pso",
-                           pso_options={"particles": 40, "iterations": 30})
-    fit = kincal.figure_set(res)["pso-fitness"].axes[0].lines[0].get_ydata()
+                           pso={"particles": 40, "iterations": 30})
+    fit = kincal.report.figure_set(res)["pso-fitness"].axes[0].lines[0].get_ydata()
     np.testing.assert_allclose(fit, np.sqrt(res.history) * 1e3)
 
 
@@ -194,12 +194,12 @@ def test_the_paper_row_structure_gives_the_papers_a4_a5_pair(capsys):
     import kincal
     from kincal.analysis.identifiability import identifiability
     a, b = kincal.load_robot("guo3t2r"), kincal.load_robot("guo3t2r-paper")
-    phi = a.sample_feasible(50, seed=1)
+    phi = a.sample_joints(50, seed=1)
     np.testing.assert_allclose(b.forward(phi), a.forward(phi), atol=1e-12)
     kin = [n for n in b.params.names if n.split(".")[1] in ("theta", "d", "a", "alpha", "beta")]
-    ident = identifiability(b, kincal.candidate_pool(b, 500, seed=1), params=kin)
+    ident = identifiability(b, kincal.candidate_pool(b, 500, seed=1), names=kin)
     assert dict(ident.confounds)["a5.a"] == (("j5.a", pytest.approx(1.0)),)
     assert ident.confounds["j4.d"][0][0] == "j2.d" and ident.confounds["a5.alpha"] == ()
-    d = json.loads(_run(capsys, ["demo", "--robot", "guo3t2r-paper", "--seeds", "1", "--protocol", "paper",
+    d = json.loads(_run(capsys, ["demo", "--robot", "guo3t2r-paper", "--repeats", "1", "--protocol", "paper",
                                  "--json"]))
     assert len(d["identified_errors"]["random"]) == len(kin) == 25

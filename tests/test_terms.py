@@ -19,7 +19,7 @@ def grid(ur5):
 
 def test_harmonics_jacobians_match_central_differences(ur5):
     robot = kincal.perturb(kincal.extend(ur5, "harmonics:2"), 1e-3, 1e-3, seed=2)
-    assert robot.terms[0].joints == ("j1", "j2", "j3", "j4", "j5")  # j6 turns the reflector about itself: no lever
+    assert robot.terms[0].joint_names == ("j1", "j2", "j3", "j4", "j5")  # j6 turns the reflector about itself: no lever
     q = robot.sample_joints(30, seed=1)
     assert_jacobians(robot, q)
     # the correction is the harmonic series itself
@@ -62,12 +62,12 @@ def test_simulated_harmonics_are_recovered(ur5):
 def test_auto_on_the_real_ur5(grid, tmp_path, capsys):
     train, test = grid
     units = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
-    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *units, "--model", "auto", "--test",
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *units, "--error-model", "auto", "--test",
                  str(DATA / "ur5_random.csv"), "-o", str(tmp_path / "auto.yaml")]) == 0
     out = capsys.readouterr().out
     assert "blocked cross-validation" in out and "chosen" in out
     robot = kincal.load_robot(tmp_path / "auto.yaml")
-    assert robot.kind.endswith("harmonics:2")
+    assert robot.structure.endswith("harmonics:2") and robot.error_model == "harmonics:2"
     assert kincal.evaluate(robot, test).mean <= 0.090e-3  # geometric: 0.1005 mm
 
 
@@ -80,13 +80,13 @@ def test_auto_never_extrapolates_worse(ur5, grid, joint):
     inside = train_all.subset(np.flatnonzero(q <= np.median(q)))
     outside = train_all.subset(np.flatnonzero(q > np.median(q)))
     geo = kincal.calibrate(ur5, inside)
-    auto = kincal.calibrate(ur5, inside, model="auto", use_q=outside.q)
+    auto = kincal.calibrate(ur5, inside, error_model="auto", use_q=outside.q)
     e_geo = kincal.evaluate(geo.robot, outside).mean
     e_auto = kincal.evaluate(auto.robot, outside, uncertainty=auto.uncertainty())
     assert e_auto.mean <= 1.03 * e_geo
     assert e_auto.warnings and len(e_auto.extrapolated_rows) > 0
-    rows = {r["model"]: r for r in auto.model_selection.rows}
-    assert rows["geometric"]["decision"].startswith("chosen") or rows[auto.model_selection.chosen]["sigma_ratio"] <= 1.25
+    rows = {r["error_model"]: r for r in auto.error_model_choice.rows}
+    assert rows["geometric"]["decision"].startswith("chosen") or rows[auto.error_model_choice.chosen]["sigma_ratio"] <= 1.25
 
 
 def test_blocked_folds_are_regions(ur5):
@@ -132,10 +132,10 @@ def test_warm_up_drift_is_named(ur5):
 def test_report_shows_the_model_comparison(ur5, grid, monkeypatch):
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "1795000000")
     train, test = grid
-    res = kincal.calibrate(ur5, train, model="auto", use_q=test.q)
+    res = kincal.calibrate(ur5, train, error_model="auto", use_q=test.q)
     rep = kincal.build_report(res, test)
-    assert 'id="models"' in rep.html and rep.data["model_selection"]["chosen"] == "harmonics:2"
-    assert [m["model"] for m in rep.data["model_selection"]["models"]] == ["geometric", "nobeta", "compliance",
+    assert 'id="models"' in rep.html and rep.data["error_model_choice"]["chosen"] == "harmonics:2"
+    assert [m["error_model"] for m in rep.data["error_model_choice"]["candidates"]] == ["geometric", "nobeta", "compliance",
                                                                      "gravity-regressor", "harmonics:1", "harmonics:2"]
     assert res.record()["envelope"]["lower"] == pytest.approx(train.q.min(axis=0).tolist())
     acq = rep.data["acquisition"]  # residuals in acquisition order, for drift

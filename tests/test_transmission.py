@@ -15,7 +15,7 @@ def guo():
 def test_transmission_formulas(guo):
     sx, sz, L1 = 0.010, 0.010, 0.300
     phi = np.array([[300.0, 250.0, -100.0, 0.3, -0.4]])
-    q = guo.joints(phi)[0]
+    q = guo.chain_q(phi)[0]
     assert q[0] == pytest.approx(sx * 550.0 / (4 * np.pi))
     assert q[1] == pytest.approx(np.arctan(sx * 50.0 / (2 * np.pi * L1)))
     assert q[2] == pytest.approx(sz * -100.0 / (2 * np.pi))
@@ -40,7 +40,7 @@ def test_jacobians_match_central_differences(guo):
 
 def test_psi_constraint_and_pool(guo):
     phi = candidate_pool(guo, 400, seed=1)
-    q = guo.joints(phi)
+    q = guo.chain_q(phi)
     assert np.all(np.abs(q[:, 1]) <= np.pi / 4 + 1e-12) and np.all(guo.within_limits(phi))
     # a differential beyond 2*pi*L1/sx violates |psi| <= 45 deg
     bad = np.array([[400.0, 400.0 - 2 * np.pi * 0.3 / 0.01 - 1.0, -10.0, 0, 0]])
@@ -52,7 +52,7 @@ def test_round_trip_and_calibration(tmp_path, guo):
     path = tmp_path / "g.yaml"
     kincal.save_robot(true, path)
     back = kincal.load_robot(path)
-    assert back.params == true.params and back.actuator_names == guo.actuator_names
+    assert back.params == true.params and back.joint_names == guo.joint_names
     phi = candidate_pool(guo, 80, seed=2)
     res = kincal.calibrate(guo, kincal.simulate(true, phi, 15e-6, seed=1))
     val = kincal.simulate(true, candidate_pool(guo, 100, seed=9), 0.0)

@@ -113,8 +113,8 @@ def test_kincal_yaml_round_trip_is_exact(ur5u, testbot, tmp_path):
 
 def test_identifiability_as_for_dh(ur5, ur5u):
     q = ur5.sample_joints(100, seed=0)
-    dh = kincal.free_parameters(ur5, q)
-    urdf = kincal.free_parameters(ur5u, q)
+    dh = kincal.analysis.free_parameters(ur5, q)
+    urdf = kincal.analysis.free_parameters(ur5u, q)
     assert urdf.rank == dh.rank == 27
     # each dropped parameter is named with what it acts like
     assert urdf.confounds["shoulder_pan_joint.z"] == (("base.z", pytest.approx(1.0)),)
@@ -206,7 +206,7 @@ def test_complex_urdf_calibrates_to_the_cramer_rao_level(testbot, tmp_path):
         predicted.append(noise * np.sqrt(np.trace(Jv @ np.linalg.inv(J.T @ J) @ Jv.T) / len(qv)))
     assert abs(np.mean(rms) / np.mean(predicted) - 1) < 0.10
     out = tmp_path / "cal.urdf"
-    text = kincal.urdf_text(res.robot, path.read_text())
+    text = kincal.models.urdf_text(res.robot, path.read_text())
     out.write_text(text)
     q = robot.sample_joints(50, seed=7)
     np.testing.assert_allclose(reference(out, res.robot, q, "tip"), res.robot.forward(q), atol=1e-9)
@@ -283,7 +283,7 @@ def test_random_dh_and_mdh_chains_export(convention, tmp_path):
 
     robot = random_robot(convention, 4)
     path = tmp_path / "r.urdf"
-    path.write_text(kincal.urdf_text(robot, tool_link="tcp"))
+    path.write_text(kincal.models.urdf_text(robot, tool_link="tcp"))
     ref = kincal.load_robot(path, tip_link="tcp")
     q = robot.sample_joints(50, seed=3)
     np.testing.assert_allclose(reference(path, ref, q, "tcp"), without_base(robot).forward(q), atol=1e-9)

@@ -127,7 +127,7 @@ def test_extrapolation_is_flagged_on_real_data(ur5):
     outside = kincal.evaluate(res.robot, grid.subset(np.flatnonzero(~low)), uncertainty=unc)
     assert on_held.warnings == () and on_held.extrapolated_rows == ()
     assert len(outside.extrapolated_rows) > 0 and "did not constrain" in outside.warnings[0]
-    assert max(outside.predicted_sigma) > kincal.EXTRAPOLATION_RATIO * unc.training_median
+    assert max(outside.predicted_sigma) > kincal.analysis.EXTRAPOLATION_RATIO * unc.training_median
     assert set(outside.extrapolated_rows) <= set(grid.rows[~low].tolist())
 
 

@@ -1,45 +1,53 @@
 """kincal: robot kinematic calibration.
 
-The stable API::
+The public face (``kincal.__all__``) is what a user calls::
 
     robot = kincal.load_robot("ur5")
     meas = kincal.read_measurements("data.csv", robot, length_unit="mm", angle_unit="deg")
-    res = kincal.calibrate(robot, meas)
+    res = kincal.calibrate(robot, meas)                      # or calibrate(robot, meas, kincal.FitOptions(...))
     stats = kincal.evaluate(res.robot, test_meas)
-"""
-from .analysis import BASE_MODES, Identifiability, free_parameters, identifiability
-from .errors import ConvergenceError, IdentifiabilityError, KincalError, MeasurementError, ModelError
-from .identify import LOSSES, RESIDUALS, CalibrationProblem, CalibrationResult, EvaluationStats, calibrate, evaluate
-from .identify import METHODS as CALIBRATION_METHODS
-from .io import (Measurements, read_joints, read_measurements, read_positions, write_joints, write_measurements,
-                 write_residuals)
-from .identify.verdict import Reason, Thresholds, Verdict
-from .analysis.uncertainty import EXTRAPOLATION_RATIO, ModelUncertainty, load_uncertainty
-from .models import (Joint, Parameters, Robot, SerialRobot, URDFRobot, bundled_robots, load_calibration_record,
-                     load_robot, save_robot,
-                     export_robot, ur_calibration, urdf_text)
-from .models import FORMATS as EXPORT_FORMATS
-from .simulate import perturb, simulate
-from .design import Design, candidate_pool, design_bound, select_poses
-from .analysis.separation import Separation, separate_ill_conditioned
-from .analysis.sensitivity import Sensitivity, sensitivity
-from .compensate import Compensation, compensate
-from .compensate.verify import Verification, VerificationPlan, verification_plan
-from .studies import Seed1Study, seed1_study
-from .models.terms import MODELS as ERROR_MODELS
-from .models.terms import parse_model
-from .models.terms import ExtendedRobot, extend
-from .report import Report, build_report, evaluation_figures, figure_set, json_path_for, save_figure
 
-__version__ = "0.1.0"
+The rooms hold the rest, each with its own ``__all__``: :mod:`kincal.models`, :mod:`kincal.analysis`,
+:mod:`kincal.design`, :mod:`kincal.identify`, :mod:`kincal.compensate`, :mod:`kincal.io`,
+:mod:`kincal.report` (plots and the HTML page, loaded only when used), :mod:`kincal.studies`,
+:mod:`kincal.units`. Importing kincal loads numpy and PyYAML, not SciPy, matplotlib or Jinja2.
+"""
+from __future__ import annotations
+
+from .analysis import identifiability
+from .compensate import Compensation, compensate
+from .design import Design, DesignOptions, candidate_pool, select_poses
+from .errors import ConvergenceError, IdentifiabilityError, KincalError, MeasurementError, ModelError
+from .identify import CalibrationResult, EvaluationStats, FitOptions, Thresholds, Verdict, calibrate, evaluate
+from .io import Measurements, read_joints, read_measurements, read_positions, write_measurements
+from .models import (ErrorModel, ImplicitRobot, Joint, Parameters, Robot, SerialRobot, URDFRobot, bundled_robots,
+                     export_robot, extend, load_robot, save_robot)
+from .simulate import perturb, simulate
+
+__version__ = "0.2.0"
 
 __all__ = [
-    "BASE_MODES", "free_parameters", "LOSSES", "RESIDUALS", "CALIBRATION_METHODS", "CalibrationProblem",
-    "ERROR_MODELS", "parse_model", "ExtendedRobot", "extend", "URDFRobot", "load_calibration_record", "build_report", "figure_set", "evaluation_figures", "Report", "json_path_for", "save_figure", "ur_calibration", "urdf_text", "export_robot", "EXPORT_FORMATS", "Seed1Study", "seed1_study", "write_residuals", "Reason", "Thresholds", "Verdict",
-    "EXTRAPOLATION_RATIO", "ModelUncertainty", "load_uncertainty", "Identifiability", "identifiability", "ConvergenceError", "IdentifiabilityError", "KincalError",
-    "MeasurementError", "ModelError", "CalibrationResult", "EvaluationStats", "calibrate", "evaluate",
-    "Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements", "Joint", "Parameters", "Robot", "SerialRobot",
-    "bundled_robots", "load_robot", "save_robot", "perturb", "simulate", "Design", "candidate_pool",
-    "design_bound", "select_poses", "Separation", "separate_ill_conditioned", "Sensitivity", "sensitivity",
-    "Compensation", "compensate", "Verification", "VerificationPlan", "verification_plan",
+    # robots, their models and files (ImplicitRobot and Robot are the extension points)
+    "Robot", "ImplicitRobot", "SerialRobot", "URDFRobot", "Joint", "Parameters", "ErrorModel",
+    "load_robot", "save_robot", "bundled_robots", "export_robot", "extend",
+    # measurements
+    "Measurements", "read_measurements", "read_joints", "read_positions", "write_measurements",
+    # identification and its results
+    "identifiability", "calibrate", "evaluate", "FitOptions", "CalibrationResult", "EvaluationStats", "Thresholds",
+    "Verdict",
+    # pose design, compensation, simulation, the report
+    "select_poses", "DesignOptions", "Design", "candidate_pool", "compensate", "Compensation", "simulate", "perturb",
+    "build_report",
+    # errors
+    "KincalError", "ModelError", "MeasurementError", "IdentifiabilityError", "ConvergenceError",
 ]
+
+_LAZY = {"build_report": "report"}  # name -> room loaded on first use (matplotlib, Jinja2)
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module 'kincal' has no attribute '{name}'")

@@ -1,4 +1,10 @@
-"""Analysis of stacked error Jacobians: identifiability, observability indices, separation, sensitivity."""
-from .identifiability import BASE_MODES, Identifiability, free_parameters, identifiability, stacked_jacobian
+"""Analysis of stacked error Jacobians: identifiability, observability indices, GCN separation,
+sensitivity, and the prediction uncertainty of a calibrated model."""
+from .identifiability import BASE_MODES, RANK_TOL, Identifiability, free_parameters, identifiability, stacked_jacobian
+from .sensitivity import Sensitivity, sensitivity
+from .separation import Separation, separate_ill_conditioned
+from .uncertainty import EXTRAPOLATION_RATIO, ModelUncertainty, load_uncertainty
 
-__all__ = ["BASE_MODES", "Identifiability", "free_parameters", "identifiability", "stacked_jacobian"]
+__all__ = ["BASE_MODES", "RANK_TOL", "Identifiability", "free_parameters", "identifiability", "stacked_jacobian",
+           "Sensitivity", "sensitivity", "Separation", "separate_ill_conditioned", "EXTRAPOLATION_RATIO",
+           "ModelUncertainty", "load_uncertainty"]

@@ -2,7 +2,8 @@
 
 Method: stack the position Jacobian over the poses (3N x P), scale every column to unit norm (so
 lengths in m and angles in rad compare fairly), take the numerical rank from the singular values
-(relative tolerance ``tol``; the gap to the next singular value is reported), and choose which
+(relative tolerance ``rank_tol``, :data:`RANK_TOL` by default, the one rule shared by calibration
+and pose design; the gap to the next singular value is reported), and choose which
 columns to keep by QR with column pivoting (parameters listed in ``keep`` are chosen first; columns
 whose residual norms tie within :data:`kincal.ties.TIE_RTOL` go in canonical order, so exactly
 equivalent parameters are resolved the same way on every machine: the earliest is kept). Each
@@ -21,7 +22,12 @@ from ..models.robot import Robot
 from ..ties import first_best, order_with_ties
 from .observability import live_columns
 
-DEFAULT_TOL = 1e-8  # singular values below tol * s_max count as zero (scaled columns)
+# Singular values below RANK_TOL * s_max of the column-scaled Jacobian count as zero. The same rule
+# decides what a calibration fits and what a design designs for: directions weaker than this are
+# not determined by the poses and would drift to absurd values along a flat valley of the cost.
+# (On every bundled robot and pool no singular value lies between 1e-8 and this, so exact
+# dependences and practical ones are the same sets there.)
+RANK_TOL = 3e-5
 
 
 @dataclass(frozen=True)
@@ -39,7 +45,7 @@ class Identifiability:
     gap: float  # s[rank-1] / s[rank]; inf when full rank
     cond_raw: float  # condition number of the raw Jacobian of the identifiable columns
     cond_scaled: float  # same after unit-norm column scaling
-    tol: float
+    rank_tol: float
     notes: tuple[str, ...] = field(default=())
 
     @property
@@ -59,7 +65,7 @@ class Identifiability:
             "gap": _finite_or_none(self.gap),
             "cond_raw": _finite_or_none(self.cond_raw),
             "cond_scaled": _finite_or_none(self.cond_scaled),
-            "tol": self.tol,
+            "rank_tol": self.rank_tol,
             "notes": list(self.notes),
         }
 
@@ -77,7 +83,7 @@ class Identifiability:
             f"{self.robot}: {self.rank} of {len(self.candidates)} parameters identifiable from {self.n_poses} poses "
             f"(position only)",
             f"  condition number: raw {self.cond_raw:.3g}, column-scaled {self.cond_scaled:.3g}; "
-            f"rank gap {self.gap:.3g} (tol {self.tol:g})",
+            f"rank gap {self.gap:.3g} (rank tolerance {self.rank_tol:g})",
             f"  identifiable: {', '.join(self.identifiable)}",
         ]
         if self.dropped:
@@ -93,34 +99,36 @@ def _finite_or_none(x: float):
 
 
 def stacked_jacobian(robot: Robot, q: np.ndarray, names: Sequence[str] | None = None,
-                     params: np.ndarray | None = None) -> np.ndarray:
+                     values: np.ndarray | None = None) -> np.ndarray:
     """(3N, K) position Jacobian for the named parameters (all when None)."""
-    J = robot.param_jacobian(robot.check_q(q), params)
+    J = robot.param_jacobian(robot.check_q(q), values)
     if names is not None:
         J = J[:, :, robot.params.indices(names)]
-    return J.reshape(-1, J.shape[2])
+    return J.reshape(J.shape[0] * J.shape[1], J.shape[2])
 
 
 def identifiability(
     robot: Robot,
     q: np.ndarray,
-    params: Sequence[str] | None = None,
+    names: Sequence[str] | None = None,
     keep: Sequence[str] = (),
     exclude: Sequence[str] = (),
-    tol: float = DEFAULT_TOL,
+    rank_tol: float = RANK_TOL,
 ) -> Identifiability:
     """Identifiable and dropped parameters of ``robot`` from position data at joint values q (N, n).
 
-    params  -- candidate names (default: all); ``exclude`` removes names from them
-    keep    -- names to choose first when parameters are confounded; after them come the model's own
-               ``robot.preferred_params()`` (for serial robots the tool point, then the base frame),
-               so a dropped tool offset is never replaced by a huge joint-angle change
-    tol     -- relative singular-value tolerance on the column-scaled Jacobian
+    names    -- candidate parameter names (default: all); ``exclude`` removes names from them
+    keep     -- names to choose first when parameters are confounded; after them come the model's own
+                ``robot.preferred_params()`` (for serial robots the tool point, then the base frame),
+                so a dropped tool offset is never replaced by a huge joint-angle change
+    rank_tol -- relative singular-value tolerance on the column-scaled Jacobian (:data:`RANK_TOL`)
     """
+    if not 0 < rank_tol < 1:
+        raise ValueError(f"rank_tol={rank_tol}: the relative singular-value tolerance must lie in (0, 1)")
     q = robot.check_q(q)
     excluded = set(exclude)
     robot.params.indices(excluded)  # unknown names raise
-    cand = [n for n in (params if params is not None else robot.params.names) if n not in excluded]
+    cand = [n for n in (names if names is not None else robot.params.names) if n not in excluded]
     robot.params.indices(cand)
     J = stacked_jacobian(robot, q, cand)
     norms = np.linalg.norm(J, axis=0)
@@ -131,11 +139,11 @@ def identifiability(
     R0 = np.linalg.qr(J[:, live] / norms[live], mode="r") if live.any() else np.zeros((0, 0))
 
     s = np.linalg.svd(R0, compute_uv=False) if R0.size else np.zeros(0)
-    rank = int(np.sum(s > tol * s[0])) if s.size else 0
+    rank = int(np.sum(s > rank_tol * s[0])) if s.size else 0
     gap = float(s[rank - 1] / s[rank]) if 0 < rank < s.size and s[rank] > 0 else float("inf")
 
     order = _pivot_order(R0, live_names, [list(keep), list(robot.preferred_params())], rank,
-                         tol * s[0] if s.size else 0.0)
+                         rank_tol * s[0] if s.size else 0.0)
     ident = [live_names[k] for k in order[:rank]]
     drop_live = [live_names[k] for k in order[rank:]]
 
@@ -174,34 +182,35 @@ def identifiability(
         notes.append(f"the rank is not clear-cut (gap {gap:.3g} < 1e3): the poses hardly excite some "
                      f"parameters; add poses or check the model")
     return Identifiability(robot.name, tuple(cand), ident_t, dropped, confounds, rank, q.shape[0], s, gap,
-                           cond_raw, cond_scaled, tol, tuple(notes))
+                           cond_raw, cond_scaled, rank_tol, tuple(notes))
 
 
 BASE_MODES = ("fixed", "estimate")
 
 
-def free_parameters(robot: Robot, q: np.ndarray, base: str = "estimate", params: Sequence[str] | None = None,
-                    keep: Sequence[str] = (), tol: float = DEFAULT_TOL) -> Identifiability:
+def free_parameters(robot: Robot, q: np.ndarray, base: str = "estimate", names: Sequence[str] | None = None,
+                    keep: Sequence[str] = (), rank_tol: float = RANK_TOL) -> Identifiability:
     """Identifiability of the parameters a calibration or a design would fit: the one home of the
     base-mode rule. ``base="fixed"``: the base frame is known, so its parameters are left out (an
-    explicit ``params`` list naming one is an error); ``"estimate"``: the base frame is fitted too and
+    explicit ``names`` list naming one is an error); ``"estimate"``: the base frame is fitted too and
     its parameters are chosen first among confounded ones (after ``keep``), so a base offset, not a
-    joint term, absorbs where the tracker stands. ``params`` None: every parameter is a candidate;
+    joint term, absorbs where the tracker stands. ``names`` None: every parameter is a candidate;
     otherwise exactly those (plus the base frame when estimated). The fit's free parameters are
     ``.identifiable``; ``.candidates`` is the list asked for."""
     if base not in BASE_MODES:
         raise ValueError(f"base='{base}' is not one of {BASE_MODES}")
     bn = list(robot.base_params())
-    if params is None:
+    if names is None:
         return identifiability(robot, q, exclude=bn if base == "fixed" else (),
-                               keep=list(keep) + (bn if base == "estimate" else []), tol=tol)
-    names = list(dict.fromkeys(params))
-    clash = [n for n in names if n in bn]
+                               keep=list(keep) + (bn if base == "estimate" else []), rank_tol=rank_tol)
+    chosen = list(dict.fromkeys(names))
+    clash = [n for n in chosen if n in bn]
     if base == "fixed" and clash:
         raise ValueError(f"{', '.join(clash)} listed with base='fixed'; use base='estimate' to fit the base")
     if base == "estimate":
-        names = bn + [n for n in names if n not in bn]
-    return identifiability(robot, q, params=names, keep=list(keep) + (bn if base == "estimate" else []), tol=tol)
+        chosen = bn + [n for n in chosen if n not in bn]
+    return identifiability(robot, q, names=chosen, keep=list(keep) + (bn if base == "estimate" else []),
+                           rank_tol=rank_tol)
 
 
 def _pivot_order(Js: np.ndarray, names: list[str], stages: list[list[str]], rank: int, cutoff: float) -> list[int]:

@@ -1,4 +1,4 @@
-"""Observability indices of a stacked position Jacobian, and the seed paper's entropy-weighted index.
+"""Observability indices of a stacked position Jacobian, and Guo et al. 2024's entropy-weighted index.
 
 All indices are functions of the singular values σ₁ ≥ … ≥ σ_k of the stacked Jacobian J (3m × k) of
 m poses and k parameters. They depend on the units of J's columns: a length column is in m/m, an
@@ -6,7 +6,7 @@ angle column in m/rad. To compare designs fairly, scale the columns once with a 
 :func:`column_scale` of the candidate pool) and use the same scale for every design; the
 D-efficiency of :mod:`kincal.design` does not depend on the scale at all.
 
-Indices (larger is better), after Borm & Menq, Driels & Pathre, Nahvi & Hollerbach and the seed:
+Indices (larger is better), after Borm & Menq, Driels & Pathre, Nahvi & Hollerbach and Guo et al. 2024:
     O1 = (σ₁⋯σ_k)^(1/k) / √m          (eq. 9; D-optimality)
     O2 = σ_min / σ_max                 (inverse condition number)
     O3 = σ_min                         (E-optimality)
@@ -107,7 +107,7 @@ def entropy_weights(s: np.ndarray) -> np.ndarray:
 
 
 def comprehensive_index(s: np.ndarray, m: int):
-    """The seed's entropy-weighted comprehensive index (eq. 12–15), in [0, 3) (array for a stack).
+    """Guo et al. 2024's entropy-weighted comprehensive index (eq. 12–15), in [0, 3) (array for a stack).
 
     Interpretation (the paper is ambiguous here): the weighted matrix D = X·diag(w) scales each
     index by its weight, so the weighted indices are w₁·O1, w₂·O5, w₃·O6, and

@@ -1,4 +1,5 @@
-"""Sensitivity analysis (seed 2, §3.4): the position error a unit error of each parameter causes."""
+"""Sensitivity analysis (the 3-PUU error-model verification paper, §3.4): the position error a unit error of
+each parameter causes."""
 from __future__ import annotations
 
 import os
@@ -8,8 +9,9 @@ from typing import Sequence
 import numpy as np
 
 from ..models.robot import Robot
+from ..units import MM, MRAD
 
-UNIT = {"length": 1e-3, "angle": 1e-3}  # 1 mm, 1 mrad
+UNIT = {"length": 1.0 / MM, "angle": 1.0 / MRAD}  # one unit error: 1 mm, 1 mrad (SI)
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,8 +39,8 @@ class Sensitivity:
                f"{'max|dp| mm':>11}"]
         for n, kind, m, d in zip(self.names, self.kinds, self.mean_abs(), self.deltas):
             unit = "1 mm" if kind == "length" else "1 mrad"
-            out.append(f"{n:<12} {unit:>6} {m[0] * 1e3:12.4f} {m[1] * 1e3:12.4f} {m[2] * 1e3:12.4f} "
-                       f"{np.linalg.norm(d, axis=1).max() * 1e3:11.4f}")
+            out.append(f"{n:<12} {unit:>6} {m[0] * MM:12.4f} {m[1] * MM:12.4f} {m[2] * MM:12.4f} "
+                       f"{np.linalg.norm(d, axis=1).max() * MM:11.4f}")
         return "\n".join(out)
 
     def plot(self, path: str | os.PathLike) -> None:
@@ -58,7 +60,7 @@ class Sensitivity:
                 ax.axis("off")
                 continue
             for a, label in enumerate("xyz"):
-                ax.plot(x, self.deltas[k, :, a] * 1e3, marker="o", ms=3, label=f"Δ{label}")
+                ax.plot(x, self.deltas[k, :, a] * MM, marker="o", ms=3, label=f"Δ{label}")
             ax.set_title(self.names[k])
             ax.set_xlabel("sample")
             ax.set_ylabel("mm")
@@ -69,11 +71,11 @@ class Sensitivity:
         plt.close(fig)
 
 
-def sensitivity(robot: Robot, q: np.ndarray, params: Sequence[str] | None = None) -> Sensitivity:
-    """Position changes at joint values q (N, n) for a unit error of each parameter (default: all but
-    the base frame)."""
+def sensitivity(robot: Robot, q: np.ndarray, names: Sequence[str] | None = None) -> Sensitivity:
+    """Position changes at joint values q (N, n) for a unit error (1 mm, 1 mrad) of each parameter
+    (default: all but the base frame)."""
     q = robot.check_q(q)
-    names = tuple(params) if params is not None else tuple(
+    names = tuple(names) if names is not None else tuple(
         n for n in robot.params.names if n not in set(robot.base_params()))
     idx = robot.params.indices(names)
     units = tuple(UNIT[robot.params.kinds[i]] for i in idx)

@@ -1,4 +1,4 @@
-"""Separation of ill-conditioned parameters by GCN and branch-and-bound (seed 1, §3.1).
+"""Separation of ill-conditioned parameters by GCN and branch-and-bound (Guo et al. 2024, §3.1).
 
 GCN (eq. 14) = cond(J)/m = ‖J‖₂·‖J⁺‖₂ / m for a stacked Jacobian of m poses. ‖J⁺‖₂ is taken from
 every singular value the SVD returns, floored at ``GCN_FLOOR``·σ_max: an exact dependence, whose
@@ -106,15 +106,17 @@ def param_type(name: str) -> str:
     return name.rsplit(".", 1)[-1]
 
 
-def separate_ill_conditioned(robot: Robot, q: np.ndarray, params: Sequence[str] | None = None,
+def separate_ill_conditioned(robot: Robot, q: np.ndarray, names: Sequence[str] | None = None,
                              threshold: float = 1e2, keep: Sequence[str] = ()) -> Separation:
     """Branch-and-bound separation of ill-conditioned parameters at poses q (M, n).
 
-    params -- the error-model parameters (default: every θ, α, a, d, β of the robot, as the seed)
+    names  -- the error-model parameters (default: every θ, α, a, d, β of the robot, as the paper)
     keep   -- parameters to remove last when removals tie (canonical order: keep, then model order)
     """
     q = robot.check_q(q)
-    names = tuple(params) if params is not None else tuple(
+    if not threshold > 0:
+        raise ValueError(f"threshold={threshold}: the GCN threshold must be a positive number")
+    names = tuple(names) if names is not None else tuple(
         n for n in robot.params.names if param_type(n) in TYPES)
     J = robot.param_jacobian(q)[:, :, robot.params.indices(names)]
     J = J * column_scale(J.reshape(-1, len(names)))
@@ -143,7 +145,7 @@ def separate_ill_conditioned(robot: Robot, q: np.ndarray, params: Sequence[str] 
     separated, reduced = _choose(verified, by_size=True) if verified else ((), full)
     paper_choice = _choose(verified, by_size=False)[0] if verified else ()
     notes = _qr_notes(robot, q, names, separated, keep)
-    qr_dropped = identifiability(robot, q, params=names, keep=keep).dropped
+    qr_dropped = identifiability(robot, q, names=names, keep=keep).dropped
     return Separation(names, subdomains, sub_values, branches, candidates, models, tuple(separated),
                       full, reduced, threshold, qr_dropped, tuple(paper_choice), tuple(notes))
 
@@ -208,9 +210,9 @@ def _choose(models: list[tuple[tuple[str, ...], float]], by_size: bool) -> tuple
 
 def _qr_notes(robot: Robot, q: np.ndarray, names, separated, keep) -> list[str]:
     """How the separation compares with QR identifiability of the same parameters."""
-    qr = identifiability(robot, q, params=names, keep=keep)
+    qr = identifiability(robot, q, names=names, keep=keep)
     kept = [n for n in names if n not in set(separated)]
-    qr_kept = identifiability(robot, q, params=kept)
+    qr_kept = identifiability(robot, q, names=kept)
     notes = [f"the reduced model keeps {len(kept)} parameters; QR rank of it {qr_kept.rank}, of the full model "
              f"{qr.rank} ({'full rank' if qr_kept.rank == len(kept) else 'still rank-deficient'})"]
     notes.append(f"QR identifiability of the same {len(names)} parameters drops {len(qr.dropped)}: "

@@ -99,8 +99,8 @@ def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncerta
 def envelope_warning(rows: np.ndarray, q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> tuple[np.ndarray, str | None]:
     """For a model with joint-value terms: the poses outside the training joint ranges and a warning
     naming them (else no pose and None)."""
-    terms = getattr(robot, "model", None)
-    if terms is None or unc.lower is None or len(unc.lower) != q.shape[1]:
+    terms = robot.error_model
+    if terms == "geometric" or unc.lower is None or len(unc.lower) != q.shape[1]:
         return np.zeros(len(q), bool), None
     bad = unc.outside(q)
     if not bad.any():

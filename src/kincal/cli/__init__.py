@@ -1,8 +1,9 @@
 """kincal command line: parses, calls the public API, prints (tables for people, --json for programs).
 
 One module per concept: ``model`` (robots and their kinematics), ``design`` (pose design, separation),
-``identify`` (calibrate, evaluate), ``report`` (the calibration report), ``parallel`` (seed-2
-commands: compensation, error-model verification), ``study`` (the demonstration).
+``identify`` (calibrate, evaluate), ``report`` (the calibration report), ``parallel`` (compensation
+and the 3-PUU paper's error-model verification), ``study`` (Guo et al. 2024 reproduced, and its
+Monte-Carlo study).
 """
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import sys
 import kincal
 
 from . import design, identify, model, parallel, report, study
-from .common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED, err
+from .common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED, err, progress_lines
 
 EXIT_INTERNAL = 70  # a bug in kincal, not in the user's input (KINCAL_DEBUG=1 shows the traceback)
 
@@ -49,6 +50,8 @@ def main(argv: list[str] | None = None) -> int:
     interrupted command leaves no half-written file."""
     args = build_parser().parse_args(argv)
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    if progress_lines():  # a log (or a test) learns that Ctrl-C and SIGTERM are handled from here on
+        err.print(f"kincal: {args.command} started", markup=False)
     try:
         return args.func(args)
     except (kincal.KincalError, ValueError, OSError) as exc:

@@ -12,12 +12,13 @@ import numpy as np
 from rich.console import Console
 
 import kincal
+from kincal.units import ANGLE_UNITS, LENGTH_UNITS
 
 out = Console(highlight=False, soft_wrap=True)
 err = Console(stderr=True, highlight=False, soft_wrap=True)
 EXIT_ERROR, EXIT_NOT_CONVERGED, EXIT_REFUSED = 1, 3, 4
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
-MM, DEG = 1e3, 180.0 / np.pi
+PROGRESS_LINES = "KINCAL_PROGRESS"  # set to 1: progress as plain lines on stderr (logs, CI), also when piped
 
 
 def csv_list(s: str) -> list[str]:
@@ -98,6 +99,11 @@ def load_robot(args):
     return kincal.load_robot(args.robot, base_link=args.base_link, tip_link=args.tip_link, tool=args.tool)
 
 
+def hidden_alias(p: argparse.ArgumentParser, flag: str, dest: str, **kw) -> None:
+    """An old spelling of an option, still accepted for one release, not shown in --help."""
+    p.add_argument(flag, dest=dest, help=argparse.SUPPRESS, default=argparse.SUPPRESS, **kw)
+
+
 def robot_inputs(robot: str) -> list[str]:
     """The robot argument as an input file, if it is one."""
     return [robot] if Path(robot).is_file() else []
@@ -134,8 +140,8 @@ def add_data_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--joint-cols", type=csv_list, default=None,
                    help="comma-separated joint columns (default: the robot's joint names)")
     g.add_argument("--xyz-cols", type=csv_list, default=["x", "y", "z"], help="position columns (default x,y,z)")
-    g.add_argument("--length-unit", default="m", choices=["m", "mm", "um"], help="positions, prismatic joints")
-    g.add_argument("--angle-unit", default="rad", choices=["rad", "deg"], help="revolute joints")
+    g.add_argument("--length-unit", default="m", choices=list(LENGTH_UNITS), help="positions, prismatic joints")
+    g.add_argument("--angle-unit", default="rad", choices=list(ANGLE_UNITS), help="revolute joints")
 
 
 def read(args, robot, path):
@@ -143,9 +149,20 @@ def read(args, robot, path):
                                     length_unit=args.length_unit, angle_unit=args.angle_unit)
 
 
+def progress_lines() -> bool:
+    """Whether progress goes to stderr as plain lines (``KINCAL_PROGRESS=1``, e.g. for a log)."""
+    return os.environ.get(PROGRESS_LINES, "") not in ("", "0")
+
+
 @contextmanager
 def progress(message: str, quiet: bool):
-    """A spinner on stderr for work that may take over a second (off with --json)."""
+    """A spinner on stderr for work that may take over a second (off with --json); with
+    ``KINCAL_PROGRESS=1`` each stage as a line ``kincal: <stage>`` instead, terminal or not."""
+    if progress_lines():
+        say = lambda msg: err.print(f"kincal: {msg}", markup=False)  # noqa: E731
+        say(message)
+        yield say
+        return
     if quiet or not err.is_terminal:
         yield lambda msg: None
         return

@@ -4,6 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 import kincal
+import kincal.io
+import kincal.analysis
 import kincal.design
 
 from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, load_robot, nonneg_int, positive_float,
@@ -12,7 +14,12 @@ from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, loa
 
 def cmd_design(args) -> int:
     check_paths([*robot_inputs(args.robot), args.candidates], [args.output])
+    options = kincal.DesignOptions(m=args.m, method=args.method, criterion=args.criterion, seed=args.seed,
+                                   names=args.params, base=args.base, certify=not args.no_bound,
+                                   restarts=args.restarts, generations=args.generations, units=args.units)
     r = load_robot(args)
+    if args.params:
+        r.params.indices(args.params)
     if args.candidates:
         pool = kincal.read_joints(args.candidates, r, args.joint_cols, args.length_unit, args.angle_unit)
         bad = ~r.feasible(pool)
@@ -23,10 +30,8 @@ def cmd_design(args) -> int:
         pool = kincal.candidate_pool(r, args.pool, seed=args.seed)
     with progress("designing poses", args.json) as say:
         say(f"{args.method} on {len(pool)} candidates")
-        d = kincal.select_poses(r, pool, args.m, args.method, args.criterion, seed=args.seed, params=args.params,
-                                base=args.base, bound=not args.no_bound, restarts=args.restarts,
-                                generations=args.generations, units=args.units)
-    kincal.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, args.angle_unit)
+        d = kincal.select_poses(r, pool, options)
+    kincal.io.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, args.angle_unit)
     payload = d.to_dict()
     payload["output"] = args.output
     emit(args, payload, f"{d}\nposes written to {args.output}")
@@ -36,7 +41,7 @@ def cmd_design(args) -> int:
 def cmd_npose(args) -> int:
     r = load_robot(args)
     P = kincal.design.design_problem(r, kincal.candidate_pool(r, max(args.max, 200), seed=args.seed),
-                                     params=args.params, units=args.units)
+                                     names=args.params, units=args.units)
     curve = kincal.design.pose_count_curve(P, args.criterion, m_max=args.max, seed=args.seed)
     low = kincal.design.minimum_poses(r.n_joints, P.k)
     payload = {"parameters": len(P.names), "minimum_eq18": low, **curve.to_dict()}
@@ -52,8 +57,8 @@ def cmd_npose(args) -> int:
 
 def cmd_separate(args) -> int:
     r = load_robot(args)
-    sep = kincal.separate_ill_conditioned(r, kincal.candidate_pool(r, args.poses, seed=args.seed),
-                                          threshold=args.threshold, keep=args.keep or ())
+    sep = kincal.analysis.separate_ill_conditioned(r, kincal.candidate_pool(r, args.poses, seed=args.seed),
+                                                   threshold=args.threshold, keep=args.keep or ())
     emit(args, sep.to_dict(), sep.tables())
     return 0
 
@@ -70,7 +75,7 @@ def register(cmd) -> None:
     s.add_argument("--method", default="fedorov", choices=list(kincal.design.METHODS))
     s.add_argument("--criterion", default="D", choices=list(kincal.design.CRITERIA))
     s.add_argument("--params", type=csv_list, help="parameters to design for (default: identifiable set)")
-    s.add_argument("--base", choices=list(kincal.BASE_MODES), default="estimate")
+    s.add_argument("--base", choices=list(kincal.analysis.BASE_MODES), default="estimate")
     s.add_argument("--restarts", type=nonneg_int, default=0, help="extra random starts for fedorov")
     s.add_argument("--generations", type=positive_int, default=200, help="generations for ide / detmax-ide")
     s.add_argument("--no-bound", action="store_true", help="skip the certified bound (and D-efficiency)")
@@ -79,7 +84,8 @@ def register(cmd) -> None:
     s.add_argument("--seed", type=int, default=0)
     add_data_flags(s)
 
-    s = cmd("npose", cmd_npose, "how many poses: eq. 18 minimum and where the criterion curve flattens")
+    s = cmd("npose", cmd_npose, "how many poses: Guo et al. 2024's eq. 18 minimum and where the criterion curve "
+                                "flattens")
     add_robot(s)
     s.add_argument("--criterion", default="comprehensive", choices=list(kincal.design.CRITERIA))
     s.add_argument("--max", type=positive_int, default=100, help="largest number of poses on the curve (default 100)")

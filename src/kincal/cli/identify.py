@@ -4,11 +4,15 @@ from __future__ import annotations
 import argparse
 
 import kincal
+import kincal.analysis
+import kincal.identify
+import kincal.io
+from kincal.units import DEG, MM
 
-from .report import data_record, save_figures, write_outputs
-
-from .common import (DEG, EXIT_NOT_CONVERGED, EXIT_REFUSED, MM, add_data_flags, add_robot, check_paths, csv_list, emit,
-                     err, load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list)
+from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, add_data_flags, add_robot, check_paths, csv_list, emit, err,
+                     hidden_alias, load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs,
+                     row_list)
+from .report import data_record, json_path, save_figures, write_outputs
 
 
 def _thresholds(args) -> kincal.Thresholds:
@@ -18,33 +22,37 @@ def _thresholds(args) -> kincal.Thresholds:
                              angle_refuse=a_r / DEG, tracker_noise=args.tracker_noise / MM)
 
 
-def model_name(s: str) -> str:
-    """argparse type: an error model name (see kincal.extend) or auto."""
-    if s != "auto":
-        try:
-            kincal.parse_model(s)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
-    return s
+def error_model_name(s: str) -> str:
+    """argparse type: an error model name (see kincal.ErrorModel) or auto."""
+    try:
+        return kincal.ErrorModel(s).name
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def fit_options(args) -> kincal.FitOptions:
+    """The calibrate command's options as the record the API takes (checked when built)."""
+    error_model = None if args.error_model is None else kincal.ErrorModel(args.error_model, args.payload)
+    return kincal.FitOptions(names=args.params or "auto", base=args.base, loss=args.loss, keep=args.keep or (),
+                             max_iter=args.max_iter, method=args.method, residual=args.residual,
+                             thresholds=_thresholds(args), error_model=error_model, drift=args.drift)
 
 
 def cmd_calibrate(args) -> int:
-    reports = [args.report, kincal.json_path_for(args.report)] if args.report else []
+    reports = [args.report, json_path(args.report)] if args.report else []
     check_paths([*robot_inputs(args.robot), args.data, args.test], [args.output, args.residuals, *reports])
+    options = fit_options(args)
     r = load_robot(args)
+    options.check(r)
     meas = read(args, r, args.data)
     test = read(args, r, args.test) if args.test else None
     if args.exclude:
         meas = meas.without_rows(args.exclude)
     with progress("calibrating", args.json) as say:
-        res = kincal.calibrate(r, meas, params=args.params or "auto", base=args.base, loss=args.loss,
-                               keep=args.keep or (), max_iter=args.max_iter, progress=say, method=args.method,
-                               residual=args.residual, thresholds=_thresholds(args), model=args.model,
-                               use_q=None if test is None else test.q, payload=args.payload,
-                               drift=args.drift)
+        res = kincal.calibrate(r, meas, options, use_q=None if test is None else test.q, progress=say)
     if args.residuals:
-        kincal.write_residuals(args.residuals, meas, meas.xyz - res.residuals, res.pose_z, res.outlier_z,
-                               r.joint_types, "mm", "deg")
+        kincal.io.write_residuals(args.residuals, meas, meas.xyz - res.residuals, res.pose_z, res.outlier_z,
+                                  r.joint_types, "mm", "deg")
     refused = res.verdict.status == "refused"
     written = bool(args.output) and (not refused or args.force)
     if written:
@@ -77,11 +85,13 @@ def cmd_evaluate(args) -> int:
     r = load_robot(args)
     meas = read(args, r, args.data)
     if args.rebase:
-        r = kincal.calibrate(r, meas, params=(), base="estimate").robot
-    stats = kincal.evaluate(r, meas, uncertainty=kincal.load_uncertainty(args.robot))
+        r = kincal.calibrate(r, meas, names=(), base="estimate").robot
+    stats = kincal.evaluate(r, meas, uncertainty=kincal.analysis.load_uncertainty(args.robot))
     text = f"{r.name} on {args.data}{' (base re-fitted)' if args.rebase else ''}: {stats}"
     if args.plot:
-        text += "\n" + "\n".join(save_figures(kincal.evaluation_figures(r, meas), args.plot))
+        from kincal.report import evaluation_figures
+
+        text += "\n" + "\n".join(save_figures(evaluation_figures(r, meas), args.plot))
     emit(args, stats.to_dict(), text)
     return 0
 
@@ -102,19 +112,20 @@ def register(cmd) -> None:
     add_robot(s)
     s.add_argument("data", help="measurement CSV")
     s.add_argument("-o", "--output", help="calibrated robot YAML to write")
-    s.add_argument("--base", choices=list(kincal.BASE_MODES), default="estimate",
+    s.add_argument("--base", choices=list(kincal.analysis.BASE_MODES), default="estimate",
                    help="estimate the measurement (tracker) frame, or take the robot's base as known")
-    s.add_argument("--loss", choices=list(kincal.LOSSES), default="linear")
+    s.add_argument("--loss", choices=list(kincal.identify.LOSSES), default="linear")
     s.add_argument("--params", type=csv_list, help="parameters to estimate (default: identifiable set)")
     s.add_argument("--keep", type=csv_list, help="parameters to prefer among confounded ones")
     s.add_argument("--max-iter", type=positive_int, default=100, help="Levenberg-Marquardt iteration limit (default 100)")
-    s.add_argument("--method", choices=list(kincal.CALIBRATION_METHODS), default="lm")
-    s.add_argument("--residual", choices=list(kincal.RESIDUALS), default="cartesian",
+    s.add_argument("--method", choices=list(kincal.identify.METHODS), default="lm")
+    s.add_argument("--residual", choices=list(kincal.identify.RESIDUALS), default="cartesian",
                    help="joint: commanded − inverse kinematics of the measured positions (parallel robots)")
-    s.add_argument("--model", type=model_name,
+    s.add_argument("--error-model", type=error_model_name,
                    help="error model: geometric, nobeta, compliance, gravity-regressor, harmonics:1..4, terms joined "
                         "by '+' (e.g. compliance+harmonics:2), or auto (chosen by joint-space blocked "
                         "cross-validation); default: the robot file's own")
+    hidden_alias(s, "--model", "error_model", type=error_model_name)
     s.add_argument("--payload", type=nonneg_float, default=0.0,
                    help="payload at the tool in kg, for the gravity terms (default 0)")
     s.add_argument("--drift", action="store_true",
@@ -123,8 +134,8 @@ def register(cmd) -> None:
     s.add_argument("--exclude", type=row_list, help="input rows to leave out, e.g. 12,40-42")
     s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers)")
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")
-    s.add_argument("--test", help="held-out measurements for the report and figures; with --model auto also the "
-                                  "poses where the model will be used (the prediction-σ guard)")
+    s.add_argument("--test", help="held-out measurements for the report and figures; with --error-model auto also "
+                                  "the poses where the model will be used (the prediction-σ guard)")
     s.add_argument("--report", help="HTML report to write (self-contained; its JSON goes beside it)")
     s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     s.add_argument("--tracker-noise", type=positive_float, default=0.05, help="expected tracker noise, mm (default 0.05)")

@@ -1,29 +1,42 @@
 """Commands about robots and their kinematics: robots, show, identifiability, simulate, sensitivity."""
 from __future__ import annotations
 
+import re
+
 import numpy as np
-from rich.table import Table
 
 import kincal
+import kincal.analysis
+import kincal.models
+from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM
 
-from .common import (DEG, MM, add_data_flags, add_robot, check_paths, csv_list, emit, load_robot, nonneg_float, out,
-                     positive_float, positive_int, robot_inputs)
+from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, hidden_alias, load_robot, nonneg_float,
+                     out, positive_float, positive_int, robot_inputs)
+
+
+def _summary(description: str) -> str:
+    """The first clause of a robot's description: up to a colon or the end of the first sentence."""
+    return re.split(r"\. (?=[A-Z])|: ", description)[0]
 
 
 def cmd_robots(args) -> int:
+    from rich.table import Table
+
     names = kincal.bundled_robots()
     rows = [(n, kincal.load_robot(n)) for n in names]
-    t = Table("robot", "joints", "parameters", "model", "description")
+    t = Table("robot", "joints", "parameters", "structure", "description")
     for n, r in rows:
-        t.add_row(n, str(r.n_joints), str(r.n_params), r.kind, r.description.split(". ")[0].split(": ")[0])
+        t.add_row(n, str(r.n_joints), str(r.n_params), r.structure, _summary(r.description))
     emit(args, {"robots": [{"name": n, "joints": r.n_joints, "parameters": r.n_params,
-                            "model": r.kind, "description": r.description} for n, r in rows]}, t)
+                            "structure": r.structure, "description": r.description} for n, r in rows]}, t)
     return 0
 
 
 def cmd_show(args) -> int:
+    from rich.table import Table
+
     r = load_robot(args)
-    t = Table("parameter", "value", "unit", title=f"{r.name} ({r.kind}, {r.n_joints} joints)")
+    t = Table("parameter", "value", "unit", title=f"{r.name} ({r.structure}, {r.n_joints} joints)")
     for n, k, v in zip(r.params.names, r.params.kinds, r.params.values):
         t.add_row(n, f"{v * MM:.6g}" if k == "length" else f"{v * DEG:.6g}", "mm" if k == "length" else "deg")
     lim = Table("joint", "type", "lower", "upper")
@@ -31,7 +44,7 @@ def cmd_show(args) -> int:
         f = DEG if typ == "revolute" else MM
         lim.add_row(name, typ, f"{lo * f:.6g}", f"{hi * f:.6g}")
     notes = r.structure_notes()
-    payload = {"name": r.name, "model": r.kind, "description": r.description,
+    payload = {"name": r.name, "structure": r.structure, "description": r.description,
                "parameters": r.params.as_dict(), "kinds": dict(zip(r.params.names, r.params.kinds)),
                "joints": [{"name": n, "type": t, "limits": [float(lo) if np.isfinite(lo) else None,
                                                            float(hi) if np.isfinite(hi) else None]}
@@ -53,19 +66,19 @@ def cmd_identifiability(args) -> int:
         q = kincal.read_joints(args.data, r, args.joint_cols, args.length_unit, args.angle_unit)
     else:
         q = r.sample_joints(args.poses, seed=args.seed)
-    ident = kincal.free_parameters(r, q, base=args.base, keep=args.keep or (), tol=args.tol)
+    ident = kincal.analysis.free_parameters(r, q, base=args.base, keep=args.keep or (), rank_tol=args.rank_tol)
     emit(args, ident.to_dict(), str(ident))
     return 0
 
 
 def cmd_simulate(args) -> int:
-    check_paths([*robot_inputs(args.robot), args.joints], [args.output, args.save_true])
+    check_paths([*robot_inputs(args.robot), args.poses_file], [args.output, args.save_true])
     r = load_robot(args)
     true = r
     if args.perturb:
         true = kincal.perturb(r, length=args.length_error / MM, angle=args.angle_error / DEG, seed=args.seed)
-    if args.joints:
-        q = kincal.read_joints(args.joints, r, args.joint_cols, args.length_unit, args.angle_unit)
+    if args.poses_file:
+        q = kincal.read_joints(args.poses_file, r, args.joint_cols, args.length_unit, args.angle_unit)
     else:
         q = r.sample_joints(args.poses, seed=args.seed)
     meas = kincal.simulate(true, q, noise=args.noise / MM, seed=args.seed + 1)
@@ -83,7 +96,7 @@ def cmd_simulate(args) -> int:
 def cmd_sensitivity(args) -> int:
     check_paths(robot_inputs(args.robot), [args.plot])
     r = load_robot(args)
-    s = kincal.sensitivity(r, r.sample_joints(args.samples, seed=args.seed), args.params)
+    s = kincal.analysis.sensitivity(r, r.sample_joints(args.samples, seed=args.seed), args.params)
     if args.plot:
         s.plot(args.plot)
     emit(args, s.to_dict(), s.table() + (f"\nplot written to {args.plot}" if args.plot else ""))
@@ -122,16 +135,20 @@ def register(cmd) -> None:
     s.add_argument("--data", help="CSV of poses (joint columns) to analyse (default: random poses)")
     s.add_argument("--poses", type=positive_int, default=100, help="number of random poses (default 100)")
     s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--base", choices=list(kincal.BASE_MODES), default="estimate")
+    s.add_argument("--base", choices=list(kincal.analysis.BASE_MODES), default="estimate")
     s.add_argument("--keep", type=csv_list, help="parameters to prefer among confounded ones")
-    s.add_argument("--tol", type=positive_float, default=1e-8, help="relative singular-value tolerance (default 1e-8)")
+    s.add_argument("--rank-tol", type=positive_float, default=kincal.analysis.RANK_TOL,
+                   help=f"relative singular-value tolerance, as calibrate and design use (default "
+                        f"{kincal.analysis.RANK_TOL:g})")
+    hidden_alias(s, "--tol", "rank_tol", type=positive_float)
     add_data_flags(s)
 
     s = cmd("simulate", cmd_simulate, "simulate tracker measurements of a (perturbed) robot")
     add_robot(s)
     s.add_argument("-o", "--output", required=True, help="CSV to write")
     s.add_argument("--poses", type=positive_int, default=60, help="random poses within the joint limits (default 60)")
-    s.add_argument("--joints", help="CSV of joint values to use instead of random poses")
+    s.add_argument("--poses-file", help="CSV of joint values to use instead of random poses (e.g. a design)")
+    hidden_alias(s, "--joints", "poses_file")
     s.add_argument("--perturb", action="store_true", help="apply random geometric errors to the robot first")
     s.add_argument("--length-error", type=nonneg_float, default=0.5, help="mm, uniform ± (default 0.5)")
     s.add_argument("--angle-error", type=nonneg_float, default=0.05, help="deg, uniform ± (default 0.05)")
@@ -143,14 +160,14 @@ def register(cmd) -> None:
     s = cmd("export", cmd_export, "write a calibrated robot as URDF, UR calibration file or kincal YAML")
     add_robot(s)
     s.add_argument("output", help="file to write (.urdf: URDF; otherwise kincal YAML unless --format ur)")
-    s.add_argument("--format", choices=list(kincal.EXPORT_FORMATS), help="urdf, ur (Universal Robots' kinematics "
+    s.add_argument("--format", choices=list(kincal.models.FORMATS), help="urdf, ur (Universal Robots' kinematics "
                    "file for the ROS driver) or yaml (default: from the file name)")
     s.add_argument("--from", dest="source", help="the URDF a URDF robot was read from (default: the file it names)")
     s.add_argument("--tool-link", help="add the tool point to the URDF as a fixed joint and link of this name")
     s.add_argument("--base-yaw", type=float, default=0.0, help="UR files: UR's Base frame is the model's base "
                    "turned by this about z, deg (0 for kincal's DH ur5; 180 for ur_description's base_link)")
-    s.add_argument("--length-unit", default="m", choices=["m", "mm", "um"], help="kincal YAML: length unit")
-    s.add_argument("--angle-unit", default="rad", choices=["rad", "deg"], help="kincal YAML: angle unit")
+    s.add_argument("--length-unit", default="m", choices=list(LENGTH_UNITS), help="kincal YAML: length unit")
+    s.add_argument("--angle-unit", default="rad", choices=list(ANGLE_UNITS), help="kincal YAML: angle unit")
 
     s = cmd("sensitivity", cmd_sensitivity, "position error caused by a unit error of each parameter")
     add_robot(s)

@@ -1,11 +1,16 @@
-"""Seed-2 commands: compensation (targets -> corrected joint commands) and error-model verification."""
+"""Commands that turn a model into robot commands: compensation (targets -> corrected joint commands)
+and the 3-PUU error-model verification paper's verification (commands to run, then the comparison)."""
 from __future__ import annotations
 
 import numpy as np
 
 import kincal
+import kincal.io
+import kincal.analysis
+from kincal.compensate import VerificationPlan, verification_plan
+from kincal.units import MM
 
-from .common import (EXIT_REFUSED, MM, add_data_flags, add_robot, check_paths, csv_list, emit, load_robot, nonneg_float,
+from .common import (EXIT_REFUSED, add_data_flags, add_robot, check_paths, csv_list, emit, load_robot, nonneg_float,
                      positive_float, positive_int, robot_inputs)
 
 
@@ -14,12 +19,12 @@ def cmd_compensate(args) -> int:
     r = load_robot(args)
     targets, rows = kincal.read_positions(args.targets, args.xyz_cols, args.length_unit, with_rows=True)
     start = None
-    if not hasattr(r, "inverse"):
+    if not r.has_inverse:
         start = kincal.read_joints(args.targets, r, args.joint_cols, args.length_unit, args.angle_unit)
-    comp = kincal.compensate(r, targets, start, rows=rows, uncertainty=kincal.load_uncertainty(args.robot))
+    comp = kincal.compensate(r, targets, start, rows=rows, uncertainty=kincal.analysis.load_uncertainty(args.robot))
     written = comp.all_ok or (args.skip_unreachable and comp.ok.any())
     if written:
-        kincal.write_joints(args.output, comp.q[comp.ok], r, args.joint_cols, args.length_unit, args.angle_unit)
+        kincal.io.write_joints(args.output, comp.q[comp.ok], r, args.joint_cols, args.length_unit, args.angle_unit)
     payload = {**comp.to_dict(), "output": args.output if written else None}
     good = comp.residual[comp.ok]
     text = "\n".join(f"refused: {p}" for p in comp.problems)
@@ -48,8 +53,8 @@ def cmd_verify(args) -> int:
     if not (args.output or args.measured or args.simulate):
         raise ValueError("nothing to do: give -o FILE to write the commands to run; after measuring them, run "
                          "again with --plan FILE --measured MEASUREMENTS (or --simulate TRUE_ROBOT to try it)")
-    plan = (kincal.VerificationPlan.read_csv(args.plan, r) if args.plan else
-            kincal.verification_plan(r, r.sample_joints(args.samples, seed=args.seed), args.params))
+    plan = (VerificationPlan.read_csv(args.plan, r) if args.plan else
+            verification_plan(r, r.sample_joints(args.samples, seed=args.seed), args.params))
     if args.output:
         plan.write_csv(args.output, r, args.joint_cols, args.length_unit, args.angle_unit)
     if not (args.measured or args.simulate):
@@ -92,7 +97,8 @@ def register(cmd) -> None:
                    help="write the commands that pass every check and list the refused targets")
     add_data_flags(s)
 
-    s = cmd("verify", cmd_verify, "error-model verification: commands to run, then the comparison (Table 5)")
+    s = cmd("verify", cmd_verify, "error-model verification (the 3-PUU paper): commands to run, then the comparison "
+                                  "(its Table 5)")
     add_robot(s, "the identified (actual) robot model")
     s.add_argument("--samples", type=positive_int, default=10)
     s.add_argument("--params", type=csv_list)

@@ -6,10 +6,17 @@ from pathlib import Path
 import numpy as np
 
 import kincal
+import kincal.models
+from kincal.units import ANGLE_UNITS, LENGTH_UNITS
 
 from .common import add_robot, check_paths, csv_list, emit, err, load_robot, progress, robot_inputs
 
-OPTIONS = ("params", "base", "loss", "method", "f_scale", "keep", "tol", "max_iter", "residual", "pso_options")
+
+def json_path(html: str) -> Path:
+    """Where the report's JSON goes: beside the HTML, same name, .json (kincal.report.json_path_for;
+    the same rule without loading the plotting room before any work)."""
+    path = Path(html)
+    return path.with_suffix(".json") if path.suffix.lower() in (".html", ".htm") else Path(f"{path}.json")
 
 
 def data_record(args, path, exclude) -> dict:
@@ -27,7 +34,9 @@ def write_outputs(args, res, test, info: dict) -> list[str]:
             json_path = rep.write(args.report)
         lines.append(f"report written to {args.report} (numbers in {json_path})")
     if args.plot:
-        lines += save_figures(kincal.figure_set(res, test), args.plot)
+        from kincal.report import figure_set
+
+        lines += save_figures(figure_set(res, test), args.plot)
     return lines
 
 
@@ -36,37 +45,39 @@ def save_figures(figures: dict, stem: str) -> list[str]:
     path = Path(stem)
     ext = path.suffix if path.suffix.lower() in (".png", ".svg") else ".png"
     base = path.with_suffix("") if path.suffix.lower() in (".png", ".svg") else path
+    from kincal.report import save_figure
+
     written = []
     for name, fig in figures.items():
         target = base.parent / f"{base.name}-{name}{ext}"
-        kincal.save_figure(fig, target)
+        save_figure(fig, target)
         written.append(str(target))
     return [f"figures written: {', '.join(written)}"]
 
 
 def cmd_report(args) -> int:
-    record = kincal.load_calibration_record(args.robot)
+    record = kincal.models.load_calibration_record(args.robot)
     if not record or "nominal" not in record or "options" not in record:
         raise ValueError(f"{args.robot}: no calibration record in the file; write it with 'kincal calibrate ... -o "
                          f"{args.robot}' (the record keeps the nominal values and options the report refits)")
-    data = record.get("data", {})
+    data = _mapping(record.get("data", {}), args.robot, "data")
     train_path = args.train or data.get("file")
-    if not train_path:
-        raise ValueError("give the training data with --train")
-    check_paths([*robot_inputs(args.robot), train_path, args.test], [args.output, kincal.json_path_for(args.output)])
+    if not isinstance(train_path, str):
+        raise ValueError("give the training data with --train (the record names no data file)")
+    check_paths([*robot_inputs(args.robot), train_path, args.test], [args.output, json_path(args.output)])
+    options = kincal.FitOptions.from_dict(record["options"], f"{args.robot}: calibration options")
     cal = load_robot(args)
-    nominal = cal.with_params({k: float(v) for k, v in record["nominal"].items()})
-    units = {k: getattr(args, k) if getattr(args, k) is not None else data.get(k, default)
+    nominal = cal.with_params(_nominal(record["nominal"], args.robot))
+    units = {k: vars(args)[k] if vars(args)[k] is not None else data.get(k, default)
              for k, default in (("length_unit", "m"), ("angle_unit", "rad"), ("joint_cols", None),
                                 ("xyz_cols", ["x", "y", "z"]))}
     train = kincal.read_measurements(train_path, nominal, **units)
     if data.get("exclude"):
         train = train.without_rows(data["exclude"])
     test = kincal.read_measurements(args.test, nominal, **units) if args.test else None
-    options = {k: record["options"][k] for k in OPTIONS if k in record["options"]}
-    thresholds = kincal.Thresholds(**record["options"].get("thresholds", {}))
+    use_q = np.asarray(record["use_q"], dtype=float) if record.get("use_q") is not None else None
     with progress("refitting the calibration", args.json):
-        res = kincal.calibrate(nominal, train, thresholds=thresholds, use_q=None if test is None else test.q, **options)
+        res = kincal.calibrate(nominal, train, options, use_q=use_q)
     gap = float(np.max(np.abs(res.robot.params.values - cal.params.values)))
     info = {"robot": f"{args.robot} (nominal values from its calibration record)",
             "units": f"{units['length_unit']}, {units['angle_unit']}"}
@@ -75,10 +86,25 @@ def cmd_report(args) -> int:
                         f"the fit of these data, not the file")
         err.print(f"kincal: warning: {info['note']}", markup=False)
     rep = kincal.build_report(res, test, info, Path(args.output).name)
-    json_path = rep.write(args.output)
-    emit(args, {**rep.data, "output": args.output, "json": str(json_path)},
-         f"{rep.summary}\nreport written to {args.output} (numbers in {json_path})")
+    json_file = rep.write(args.output)
+    emit(args, {**rep.data, "output": args.output, "json": str(json_file)},
+         f"{rep.summary}\nreport written to {args.output} (numbers in {json_file})")
     return 0 if res.verdict.status != "refused" else 4
+
+
+def _mapping(value, robot: str, key: str) -> dict:
+    if not isinstance(value, dict):
+        raise ValueError(f"{robot}: the calibration record's '{key}' must be a mapping; calibrate again")
+    return value
+
+
+def _nominal(values, robot: str) -> dict[str, float]:
+    """The record's nominal parameter values, checked to be numbers."""
+    values = _mapping(values, robot, "nominal")
+    bad = [k for k, v in values.items() if isinstance(v, bool) or not isinstance(v, (int, float))]
+    if bad:
+        raise ValueError(f"{robot}: the calibration record's nominal value of {bad[0]} is not a number; calibrate again")
+    return {str(k): float(v) for k, v in values.items()}
 
 
 def register(cmd) -> None:
@@ -90,6 +116,6 @@ def register(cmd) -> None:
     g = s.add_argument_group("data columns and units (default: as recorded by calibrate)")
     g.add_argument("--joint-cols", type=csv_list)
     g.add_argument("--xyz-cols", type=csv_list)
-    g.add_argument("--length-unit", choices=["m", "mm", "um"])
-    g.add_argument("--angle-unit", choices=["rad", "deg"])
+    g.add_argument("--length-unit", choices=list(LENGTH_UNITS))
+    g.add_argument("--angle-unit", choices=list(ANGLE_UNITS))
 

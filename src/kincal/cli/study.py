@@ -1,29 +1,30 @@
-"""The demonstration (the seed-1 study on the 3T2R robot) and Monte-Carlo studies that scale out."""
+"""The demonstration (Guo et al. 2024 reproduced on the 3T2R robot) and Monte-Carlo studies that scale out."""
 from __future__ import annotations
 
 import argparse
 import os
 from pathlib import Path
 
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+import kincal.studies
+from kincal.papers import GUO2024
+from kincal.studies import guo2024, guo2024_mc, runner
 
-import kincal
-from kincal.studies import runner, seed1, seed1_mc
+from .common import EXIT_INTERRUPTED, check_paths, emit, err, hidden_alias, positive_int, progress
 
-from .common import EXIT_INTERRUPTED, check_paths, emit, err, positive_int, progress
+STUDIES = {"guo2024": "guo2024", "seed1": "guo2024"}  # study names (and the 0.1 name, still accepted)
 
 
 def cmd_demo(args) -> int:
     check_paths([], [args.plot])  # before the work: a figure folder that does not exist
-    with progress("seed-1 study", args.json) as say:
-        study = kincal.seed1_study(seeds=args.seeds, m=args.poses, progress=say, protocol=args.protocol,
-                                   units=args.units, robot=args.robot)
+    with progress(f"{GUO2024} reproduced", args.json) as say:
+        study = kincal.studies.guo2024_study(repeats=args.repeats, m=args.poses, progress=say, protocol=args.protocol,
+                                             units=args.units, robot=args.robot)
     text = str(study)
     if args.plot:
-        from kincal.report.study_figures import seed1_figures
+        from kincal.report import guo2024_figures
 
         from .report import save_figures
-        text += "\n" + "\n".join(save_figures(seed1_figures(study), args.plot))
+        text += "\n" + "\n".join(save_figures(guo2024_figures(study), args.plot))
     emit(args, study.to_dict(), text)
     return 0
 
@@ -33,7 +34,7 @@ def cmd_study(args) -> int:
     if out.exists() and out.is_dir():
         raise ValueError(f"{out}: is a folder; give a results file (JSON lines)")
     with progress("preparing the study", args.json) as say:
-        trials = seed1_mc.prepare(m=args.poses, generations=args.generations, seed=args.seed, say=say)
+        trials = guo2024_mc.prepare(m=args.poses, generations=args.generations, seed=args.seed, say=say)
     header = {**trials.header, "per_task": args.per_task}
     tasks = runner.tasks_for(args.trials, args.per_task)
     try:
@@ -43,9 +44,9 @@ def cmd_study(args) -> int:
         err.print(f"kincal: interrupted; the finished tasks are kept in {out}: run the same command to resume",
                   markup=False)
         return EXIT_INTERRUPTED
-    rows = seed1_mc.summarise(records)
+    rows = guo2024_mc.summarise(records)
     emit(args, {"results_file": str(out), "trials": len(records), "settings": header, "reduction": rows},
-         seed1_mc.report(rows) + f"\nper-trial results: {out}")
+         guo2024_mc.report(rows) + f"\nper-trial results: {out}")
     return 0
 
 
@@ -53,9 +54,12 @@ class _bar:
     """A progress bar on the terminal (tasks done of total); silent with --json or when piped."""
 
     def __init__(self, args, total: int) -> None:
-        self.progress = None if args.json or not err.is_terminal else Progress(
-            TextColumn("study"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=err)
-        self.total = total
+        self.progress, self.total = None, total
+        if not (args.json or not err.is_terminal):
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+            self.progress = Progress(TextColumn("study"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
+                                     console=err)
 
     def __enter__(self):
         if self.progress is None:
@@ -79,19 +83,23 @@ def _scheduler(s: str) -> str:
 
 def register(cmd) -> None:
     """Add the commands to the parser through ``cmd(name, func, help)``."""
-    s = cmd("demo", cmd_demo, "the seed-1 study on the 3T2R robot (simulation)")
+    s = cmd("demo", cmd_demo, f"{GUO2024} (measurement-pose optimisation) reproduced on the 3T2R robot, in "
+                              f"simulation")
     s.add_argument("--poses", type=positive_int, default=60, help="poses per design (default 60)")
-    s.add_argument("--seeds", type=positive_int, default=20, help="repetitions (default 20)")
+    s.add_argument("--repeats", type=positive_int, default=20,
+                   help="repetitions with new errors and noise, each from its own random seed (default 20)")
+    hidden_alias(s, "--seeds", "repeats", type=positive_int)
     s.add_argument("--robot", choices=["guo3t2r", "guo3t2r-paper"], default="guo3t2r",
                    help="the model: guo3t2r (tool point) or guo3t2r-paper (the paper's fixed A5 tool row)")
     s.add_argument("--plot", help="figures to write (Figs. 5-8, 12-13): STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
-    s.add_argument("--protocol", choices=list(seed1.PROTOCOLS), default="kincal",
+    s.add_argument("--protocol", choices=list(guo2024.PROTOCOLS), default="kincal",
                    help="identification: kincal (noise, adaptive LM, identifiable set; default) or paper (no noise, "
                         "fixed mu = 1, all 21 parameters)")
     s.add_argument("--units", choices=["scaled", "paper"], default="scaled",
                    help="comprehensive index on scaled columns (default) or the raw Jacobian in mm and rad (paper)")
-    s = cmd("study", cmd_study, "Monte-Carlo study: seed 1's optimised against random poses, as a distribution")
-    s.add_argument("name", choices=["seed1"], help="the study")
+    s = cmd("study", cmd_study, f"Monte-Carlo study: {GUO2024}'s optimised against random poses, as a distribution")
+    s.add_argument("name", choices=list(STUDIES), metavar="{guo2024}", help=f"the study: guo2024 ({GUO2024}'s "
+                   f"62 %% claim)")
     s.add_argument("--trials", type=positive_int, default=200,
                    help="trials, each a new random design, parameter errors and noise (default 200)")
     s.add_argument("--per-task", type=positive_int, default=runner.TRIALS_PER_TASK,
@@ -104,6 +112,6 @@ def register(cmd) -> None:
     s.add_argument("--poses", type=positive_int, default=60, help="poses per design (default 60)")
     s.add_argument("--generations", type=positive_int, default=150, help="IDE generations of the optimised design")
     s.add_argument("--seed", type=int, default=0, help="the study's random seed (default 0)")
-    s.add_argument("-o", "--output", default="seed1_study.jsonl",
+    s.add_argument("-o", "--output", default="guo2024_study.jsonl",
                    help="results file, one line per finished task; an existing one of the same study is resumed "
-                        "(default seed1_study.jsonl)")
+                        "(default guo2024_study.jsonl)")

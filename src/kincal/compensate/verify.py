@@ -1,4 +1,4 @@
-"""Error-model verification (seed 2, §3.5, Table 5).
+"""Error-model verification (the 3-PUU error-model verification paper, §3.5, Table 5).
 
 With an identified ("actual") model s′ and sample joint inputs q′: for each parameter error Δs (unit
 error) the error model predicts the position p + Δp = FK(q′; s′ + Δs). The inverse of the actual
@@ -20,9 +20,9 @@ import numpy as np
 from .._atomic import write_text_atomic
 from ..analysis.sensitivity import UNIT
 from ..errors import MeasurementError
-from ..models.yaml_io import unit_factor
+from ..units import unit_factor
 from ..models.robot import Robot
-from . import compensate
+from .commands import compensate
 
 
 @dataclass(frozen=True, eq=False)
@@ -121,18 +121,20 @@ class Verification:
         return "\n".join(out)
 
 
-def verification_plan(model: Robot, q_samples: np.ndarray, params: Sequence[str] | None = None) -> VerificationPlan:
-    """Commands that realise, on the actual robot, the error model's prediction for a unit error of
-    each parameter (default: all but the base frame) at the sample inputs (N, n)."""
-    q = model.check_q(q_samples)
-    names = tuple(params) if params is not None else tuple(
-        n for n in model.params.names if n not in set(model.base_params()))
+def verification_plan(robot: Robot, q_samples: np.ndarray, names: Sequence[str] | None = None) -> VerificationPlan:
+    """Commands that realise, on the actual robot (``robot``: the identified model), the error
+    model's prediction for a unit error of each parameter (default: all but the base frame) at the
+    sample inputs (N, n)."""
+    q = robot.check_q(q_samples)
+    names = tuple(names) if names is not None else tuple(
+        n for n in robot.params.names if n not in set(robot.base_params()))
+    robot.params.indices(names)
     predicted, commands = [], []
     for name in names:
-        i = model.params.index(name)
-        v = model.params.values.copy()
-        v[i] += UNIT[model.params.kinds[i]]
-        target = model.forward(q, v)
+        i = robot.params.index(name)
+        v = robot.params.values.copy()
+        v[i] += UNIT[robot.params.kinds[i]]
+        target = robot.forward(q, v)
         predicted.append(target)
-        commands.append(compensate(model, target, q).q)
+        commands.append(compensate(robot, target, q).q)
     return VerificationPlan(names, q, np.array(predicted), np.array(commands))

@@ -61,11 +61,11 @@ def _eval(P: DesignProblem, w: np.ndarray):
     return 2.0 * float(np.sum(np.log(np.diag(L)))), d
 
 
-def relaxed_bound(P: DesignProblem, m: int, tol: float = 2e-3, max_iter: int = 300) -> Bound:
+def relaxed_bound(P: DesignProblem, m: int, gap_tol: float = 2e-3, max_iter: int = 300) -> Bound:
     """Certified upper bound on log det M over m-point designs of the problem's candidates.
 
     Accelerated projected-gradient ascent (FISTA with restarts) from uniform weights; it stops when
-    the certified gap is below ``tol`` (an efficiency uncertainty of about tol/k).
+    the certified gap is below ``gap_tol`` (an efficiency uncertainty of about gap_tol/k).
     """
     N, k = P.N, P.k
     w = np.full(N, m / N)
@@ -76,7 +76,7 @@ def relaxed_bound(P: DesignProblem, m: int, tol: float = 2e-3, max_iter: int = 3
     it = 0
     for it in range(1, max_iter + 1):
         best_upper = min(best_upper, f + np.sort(d)[-m:].sum() - k)
-        if best_upper - f <= tol:
+        if best_upper - f <= gap_tol:
             break
         while True:  # backtracking from the extrapolated point
             w_new = _project(y + step * dy, m)

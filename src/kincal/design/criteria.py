@@ -8,11 +8,6 @@ from ..analysis.observability import comprehensive_index, indices_from_singular_
 CRITERIA = ("D", "A", "E", "I", "O1", "O2", "O3", "O4", "O5", "O6", "comprehensive")
 
 
-def check_criterion(criterion: str) -> None:
-    if criterion not in CRITERIA:
-        raise ValueError(f"criterion '{criterion}' is not one of {', '.join(CRITERIA)}")
-
-
 def score(M: np.ndarray, m: int, criterion: str, B: np.ndarray | None = None) -> np.ndarray:
     """Criterion of information matrices M (..., k, k) of m-pose designs.
 

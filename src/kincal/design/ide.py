@@ -1,4 +1,4 @@
-"""Improved differential evolution over continuous poses (seed 1, §3.2, eq. 19–26).
+"""Improved differential evolution over continuous poses (Guo et al. 2024, §3.2, eq. 19–26).
 
 The individual is a whole design: m poses × n joints. From a starting design ε_opt:
 

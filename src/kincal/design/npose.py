@@ -1,4 +1,4 @@
-"""How many poses to measure: the seed's minimum (eq. 18) and the flattening of the criterion (Fig. 7)."""
+"""How many poses to measure: Guo et al. 2024's minimum (eq. 18) and where the criterion flattens (Fig. 7)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -33,7 +33,7 @@ class PoseCountCurve:
 
 def pose_count_curve(P: DesignProblem, criterion: str = "comprehensive", m_max: int = 100, seed: int | None = 0,
                      window: int = 10, rel_gain: float = 0.01) -> PoseCountCurve:
-    """The seed's Fig. 7: criterion against the number of random poses, and the flattening point."""
+    """Guo et al. 2024, Fig. 7: criterion against the number of random poses, and the flattening point."""
     rng = np.random.default_rng(seed)
     order = rng.permutation(P.N)[:m_max]
     m_values = np.arange(1, order.size + 1)

@@ -58,16 +58,16 @@ class DesignProblem:
 UNITS = ("scaled", "paper")
 
 
-def design_problem(robot: Robot, pool_q: np.ndarray, params: Sequence[str] | None = None,
+def design_problem(robot: Robot, pool_q: np.ndarray, names: Sequence[str] | None = None,
                    base: str = "estimate", units: str = "scaled") -> DesignProblem:
     """Build the problem for ``robot`` on the candidate pool (N, n).
 
-    params -- parameters to design for, exactly these; default: the identifiable set at the pool
+    names  -- parameters to design for, exactly these; default: the identifiable set at the pool
               by the base-mode rule of :func:`kincal.analysis.free_parameters`, as
               :func:`kincal.calibrate` would fit.
     units  -- "scaled" (default): every column at unit RMS over the pool, so indices do not depend
               on the units of lengths and angles; "paper": the raw Jacobian in mm and rad (position
-              in mm per mm of length, per rad of angle), as the seed papers compute their indices.
+              in mm per mm of length, per rad of angle), as Guo et al. 2024 compute their indices.
     """
     if units not in UNITS:
         raise ValueError(f"units='{units}' is not one of {UNITS}")
@@ -76,17 +76,17 @@ def design_problem(robot: Robot, pool_q: np.ndarray, params: Sequence[str] | Non
     if distinct < 2:
         raise IdentifiabilityError(f"the candidate pool holds {distinct} distinct pose(s) in {len(pool_q)} rows: "
                                    f"give candidates spread over the workspace")
-    if params is None:
+    if names is None:
         names = free_parameters(robot, pool_q, base).identifiable
-        generic = free_parameters(robot, robot.sample_feasible(200, seed=0), base).rank
+        generic = free_parameters(robot, robot.sample_joints(200, seed=0), base).rank
         if len(names) < generic:
             raise IdentifiabilityError(
                 f"the candidate pool identifies only {len(names)} parameters where poses spread over the workspace "
                 f"identify {generic}: its {distinct} distinct candidates are too alike (nearly identical poses?); "
                 f"give candidates spread over the workspace, or name the parameters to design for")
     else:
-        names = tuple(params)
-        ident = identifiability(robot, pool_q, params=names)
+        names = tuple(names)
+        ident = identifiability(robot, pool_q, names=names)
         if ident.dropped:
             raise IdentifiabilityError(f"the candidate pool cannot identify all the given parameters:\n{ident}")
     J = robot.param_jacobian(pool_q)[:, :, robot.params.indices(names)]

@@ -11,12 +11,11 @@ from ..errors import IdentifiabilityError
 from ..models.robot import Robot
 from ..ties import first_best
 from .bound import Bound, relaxed_bound
-from .criteria import check_criterion, score
+from .criteria import score
 from .exchange import _State, det3, fedorov, greedy
 from .ide import ide
+from .options import DesignOptions
 from .problem import DesignProblem, design_problem
-
-METHODS = ("random", "detmax", "fedorov", "ide", "detmax-ide")
 
 
 @dataclass(frozen=True, eq=False)
@@ -29,7 +28,7 @@ class Design:
     bound      -- certified upper bound on logdet over all m-pose designs of the pool (or None)
     efficiency -- D-efficiency (det M / exp(bound))^(1/k): how far from the best possible design
                   of the pool (≤ 1 for pool designs; continuous designs may exceed the pool's bound)
-    history    -- ide / detmax-ide: the best criterion after each generation (seed 1, Figs. 5–6)
+    history    -- ide / detmax-ide: the best criterion after each generation (Guo et al. 2024, Figs. 5–6)
     """
 
     indices: np.ndarray | None
@@ -70,7 +69,7 @@ def _score_blocks(J: np.ndarray, criterion: str, B) -> float:
 
 def detmax(P: DesignProblem, m: int, criterion: str, rng: np.random.Generator, B=None,
            max_iter: int | None = None) -> list[int]:
-    """DETMAX (the seed's §3.2 steps 1–3): from a random m-subset, add the candidate that most
+    """DETMAX (Guo et al. 2024, §3.2 steps 1–3): from a random m-subset, add the candidate that most
     improves the criterion, then remove the design point whose removal leaves the best criterion;
     stop when the removed point is the one just added."""
     design = [int(i) for i in rng.choice(P.N, m, replace=False)]
@@ -106,85 +105,94 @@ def detmax(P: DesignProblem, m: int, criterion: str, rng: np.random.Generator, B
     return design
 
 
-def design_bound(robot: Robot, pool_q: np.ndarray, m: int, params: Sequence[str] | None = None,
-                 base: str = "estimate", tol: float = 2e-3) -> Bound:
+def design_bound(robot: Robot, pool_q: np.ndarray, m: int, names: Sequence[str] | None = None,
+                 base: str = "estimate", gap_tol: float = 2e-3) -> Bound:
     """Certified upper bound on log det M (scaled) over every m-pose design from the pool."""
-    return relaxed_bound(design_problem(robot, pool_q, params, base), m, tol=tol)
+    return relaxed_bound(design_problem(robot, pool_q, names, base), m, gap_tol=gap_tol)
 
 
-def select_poses(
-    robot: Robot,
-    pool_q: np.ndarray,
-    m: int = 60,
-    method: str = "fedorov",
-    criterion: str = "D",
-    seed: int | None = 0,
-    params: Sequence[str] | None = None,
-    base: str = "estimate",
-    bound: bool | Bound = True,
-    restarts: int = 0,
-    validation_q: np.ndarray | None = None,
-    problem: DesignProblem | None = None,
-    generations: int = 200,
-    progress=None,
-    units: str = "scaled",
-) -> Design:
-    """Choose m poses from pool_q (N, n) for identifying ``params`` (default: the identifiable set).
+def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None = None, *,
+                 problem: DesignProblem | None = None, bound: Bound | None = None,
+                 validation_q: np.ndarray | None = None, progress=None, **changes) -> Design:
+    """Choose measurement poses from the candidate pool (N, n).
 
-    method    -- "random"; "detmax" (add–compare–remove–compare exchange); "fedorov" (greedy start,
-                 then modified Fedorov exchange with low-rank updates; D and I criteria only), with
-                 ``restarts`` extra random starts, keeping the best; "ide" (improved differential
-                 evolution over continuous poses from a random pool design, ``generations``);
-                 "detmax-ide" (the seed's two steps: DETMAX on the pool, then IDE from its design)
-    criterion -- "D", "A", "E", "I" (average prediction variance over ``validation_q``, default the
-                 pool), "O1"…"O6", "comprehensive" (the seed's entropy-weighted index)
-    bound     -- True to compute the certified relaxation bound (D-efficiency), a precomputed Bound
-                 to reuse, or False
-    units     -- "scaled" (unit-invariant columns) or "paper" (raw Jacobian in mm and rad); see
-                 :func:`~kincal.design.problem.design_problem`
+    options      -- a :class:`DesignOptions` record (default: its defaults); ``changes`` are fields
+                    of it to change, e.g. ``select_poses(robot, pool, m=30, method="detmax")``
+    problem      -- a prebuilt :class:`DesignProblem` of this pool to reuse (its parameters win)
+    bound        -- a certified bound of this problem and m to reuse
+    validation_q -- poses whose average prediction variance the "I" criterion lowers (default: the pool)
+    progress     -- called as ``progress(generation, best)`` by IDE
+
+    Every option is checked before any work (ValueError naming it).
     """
-    if method not in METHODS:
-        raise ValueError(f"method '{method}' is not one of {', '.join(METHODS)}")
-    check_criterion(criterion)
+    o = (options or DesignOptions()).replace(**changes)
+    pool_q = _checked_pool(robot, pool_q, o, problem, validation_q)
     t0 = time.perf_counter()
-    P = problem or design_problem(robot, pool_q, params, base, units)
-    if 3 * m < P.k:
-        raise IdentifiabilityError(f"{m} poses give {3 * m} equations for {P.k} parameters; choose m ≥ {-(-P.k // 3)}")
-    distinct = len(np.unique(np.round(P.q, 9), axis=0))
-    if m > distinct:
-        raise ValueError(f"m = {m} poses but the pool has only {distinct} distinct candidates ({P.N} rows)")
-    B = None
-    if criterion == "I":
-        Jv = P.J if validation_q is None else robot.param_jacobian(validation_q)[:, :, robot.params.indices(P.names)] * P.scale
-        B = np.einsum("nak,nal->kl", Jv, Jv) / Jv.shape[0]
-    rng = np.random.default_rng(seed)
+    P = problem or design_problem(robot, pool_q, o.names, o.base, o.units)
+    if 3 * o.m < P.k:
+        raise IdentifiabilityError(f"{o.m} poses give {3 * o.m} equations for {P.k} parameters; choose "
+                                   f"m ≥ {-(-P.k // 3)}")
+    B = _region_information(robot, P, validation_q) if o.criterion == "I" else None
+    rng = np.random.default_rng(o.seed)
+    idx, history = None, ()
+    if o.method in ("ide", "detmax-ide"):
+        q, J, history = _continuous_design(robot, P, o, B, rng, progress)
+    else:
+        idx = _pool_design(P, o, B, rng)
+        q, J = P.q[idx], P.J[idx]
+    elapsed = time.perf_counter() - t0
+    if bound is None and o.certify:
+        bound = relaxed_bound(P, o.m)
+    return Design(idx, q, o.method, o.criterion, _score_blocks(J, o.criterion, B), _score_blocks(J, "D", None),
+                  P.names, bound, elapsed, o.seed,
+                  tuple(float(h) for h in history))
+
+
+def _checked_pool(robot: Robot, pool_q: np.ndarray, o: DesignOptions, problem: DesignProblem | None,
+                  validation_q: np.ndarray | None) -> np.ndarray:
+    """The pool as (N, n) after the checks that need the robot and the pool (cheap: before any work)."""
+    pool_q = robot.check_q(pool_q)
+    if o.names is not None:
+        robot.params.indices(o.names)
+    if validation_q is not None:
+        robot.check_q(validation_q)
+    distinct = len(np.unique(np.round(problem.q if problem is not None else pool_q, 9), axis=0))
+    if o.m > distinct:
+        raise ValueError(f"m = {o.m} poses, but the candidate pool holds {distinct} distinct pose(s) in {len(pool_q)} "
+                         f"rows: give at least m distinct candidates spread over the workspace, or a smaller m")
+    return pool_q
+
+
+def _region_information(robot: Robot, P: DesignProblem, validation_q: np.ndarray | None) -> np.ndarray:
+    """Mean scaled information of the region of use (the pool, or ``validation_q``), (k, k)."""
+    Jv = P.J if validation_q is None else \
+        robot.param_jacobian(validation_q)[:, :, robot.params.indices(P.names)] * P.scale
+    return np.einsum("nak,nal->kl", Jv, Jv) / Jv.shape[0]
+
+
+def _pool_design(P: DesignProblem, o: DesignOptions, B, rng: np.random.Generator) -> np.ndarray:
+    """Indices of a design of pool candidates by ``o.method`` (random, detmax, fedorov)."""
+    if o.method == "random":
+        idx = [int(i) for i in rng.choice(P.N, o.m, replace=False)]
+    elif o.method == "detmax":
+        idx = detmax(P, o.m, o.criterion, rng, B)
+    else:
+        starts = [greedy(P, o.m)] + [[int(i) for i in rng.choice(P.N, o.m, replace=False)] for _ in range(o.restarts)]
+        runs = [fedorov(P, start, o.criterion, B)[0] for start in starts]
+        idx = runs[first_best([_score_blocks(P.J[np.asarray(d)], o.criterion, B) for d in runs])]
+    return np.asarray(idx, dtype=int)
+
+
+def _continuous_design(robot: Robot, P: DesignProblem, o: DesignOptions, B, rng, progress):
+    """IDE from a random (ide) or DETMAX (detmax-ide) pool design: poses (m, n), their scaled
+    Jacobian blocks and the best criterion per generation."""
     cols = robot.params.indices(P.names)
 
     def blocks(q: np.ndarray) -> np.ndarray:
         """Scaled Jacobian blocks (N, 3, k) of poses off the pool."""
         return robot.param_jacobian(q)[:, :, cols] * P.scale
 
-    idx, history = None, ()
-    if method in ("ide", "detmax-ide"):
-        idx0 = detmax(P, m, criterion, rng, B) if method == "detmax-ide" else rng.choice(P.N, m, replace=False)
-        q, _, history = ide(robot, P.q[np.asarray(idx0)], lambda x: _score_blocks(blocks(x), criterion, B), rng,
-                      generations=generations, progress=progress)
-        J = blocks(q)
-    else:
-        if method == "random":
-            idx = [int(i) for i in rng.choice(P.N, m, replace=False)]
-        elif method == "detmax":
-            idx = detmax(P, m, criterion, rng, B)
-        else:
-            if criterion not in ("D", "I"):
-                raise ValueError("method 'fedorov' supports the D and I criteria; use 'detmax' for the others")
-            starts = [greedy(P, m)] + [[int(i) for i in rng.choice(P.N, m, replace=False)] for _ in range(restarts)]
-            runs = [fedorov(P, s, criterion, B)[0] for s in starts]
-            idx = runs[first_best([_score_blocks(P.J[np.asarray(d)], criterion, B) for d in runs])]
-        idx = np.asarray(idx, dtype=int)
-        q, J = P.q[idx], P.J[idx]
-    elapsed = time.perf_counter() - t0
-    if bound is True:
-        bound = relaxed_bound(P, m)
-    return Design(idx, q, method, criterion, _score_blocks(J, criterion, B), _score_blocks(J, "D", None), P.names,
-                  bound if isinstance(bound, Bound) else None, elapsed, seed, tuple(float(h) for h in history))
+    idx0 = detmax(P, o.m, o.criterion, rng, B) if o.method == "detmax-ide" else rng.choice(P.N, o.m, replace=False)
+    q, _, history = ide(robot, P.q[np.asarray(idx0)], lambda x: _score_blocks(blocks(x), o.criterion, B), rng,
+                        generations=o.generations, progress=progress)
+    return q, blocks(q), history

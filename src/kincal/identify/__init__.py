@@ -1,9 +1,13 @@
 """Identification: calibration problems, residuals, solvers (LM, PSO), robust weighting, covariance."""
-from .calibrate import METHODS, calibrate, check_options, evaluate
+from .calibrate import calibrate, evaluate
+from .options import METHODS, FitOptions, PSOOptions
 from .problem import CalibrationProblem, build_problem
 from .residuals import RESIDUALS, CartesianResidual, JointResidual
 from .result import CalibrationResult, EvaluationStats
 from .robust import LOSSES
+from .select import ErrorModelChoice
+from .verdict import Reason, Thresholds, Verdict
 
-__all__ = ["METHODS", "calibrate", "check_options", "evaluate", "CalibrationProblem", "build_problem", "RESIDUALS",
-           "CartesianResidual", "JointResidual", "CalibrationResult", "EvaluationStats", "LOSSES"]
+__all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "CalibrationProblem", "build_problem",
+           "RESIDUALS", "CartesianResidual", "JointResidual", "CalibrationResult", "EvaluationStats", "LOSSES",
+           "ErrorModelChoice", "Reason", "Thresholds", "Verdict"]

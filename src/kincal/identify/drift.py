@@ -11,13 +11,13 @@ the drift (it belongs to that session, not to the robot); ``result.drift`` repor
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..io.measurements import Measurements
 from ..models.parameters import Parameters
-from ..models.robot import Robot, Wrapped
+from ..models.robot import JointSpace, Robot, Wrapped
 
 NAMES = ("drift.x", "drift.y", "drift.z")
 ORDER = "acquisition"
@@ -32,46 +32,38 @@ def acquisition(rows: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False, repr=False)
 class DriftRobot(Wrapped):
-    """``base`` plus a drift d·s, s the last joint value (see the module docstring)."""
+    """``inner`` plus a drift d·s, s the last joint value (see the module docstring)."""
 
-    base: Robot
-    params: Parameters
+    joint_space: JointSpace = field(init=False, repr=False)
 
-    name = property(lambda self: self.base.name)  # type: ignore[assignment]
-    description = property(lambda self: self.base.description)
-    joint_names = property(lambda self: (*self.base.joint_names, ORDER))  # type: ignore[assignment]
-    joint_types = property(lambda self: (*self.base.joint_types, "prismatic"))  # type: ignore[assignment]
-    lower = property(lambda self: np.append(self.base.lower, -1.0))  # type: ignore[assignment]
-    upper = property(lambda self: np.append(self.base.upper, 1.0))  # type: ignore[assignment]
-    kind = property(lambda self: f"{self.base.kind} + drift")  # type: ignore[assignment]
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        js = self.inner.joint_space
+        object.__setattr__(self, "joint_space", JointSpace((*js.names, ORDER), (*js.types, "prismatic"),
+                                                           np.append(js.lower, -1.0), np.append(js.upper, 1.0)))
 
     @classmethod
-    def build(cls, base: Robot) -> "DriftRobot":
-        p = base.params
-        return cls(base, Parameters(list(p.names) + list(NAMES), list(p.values) + [0.0] * 3,
-                                    list(p.kinds) + ["length"] * 3))
+    def build(cls, inner: Robot) -> "DriftRobot":
+        p = inner.params
+        return cls(inner, Parameters(list(p.names) + list(NAMES), list(p.values) + [0.0] * 3,
+                                     list(p.kinds) + ["length"] * 3))
 
-    def with_params(self, values) -> "DriftRobot":
-        new = values if isinstance(values, Parameters) else self.params.replace(values)
-        return DriftRobot(self.base.with_params(new.values[:self.base.n_params]), new)
+    @property
+    def structure(self) -> str:
+        return f"{self.inner.structure} + drift"
 
-    def forward_and_jacobian(self, q, params=None, jacobian=True):
-        q = self.check_q(q)
-        v = self.param_values(params)
-        nb = self.base.n_params
-        p, J = self.base.forward_and_jacobian(q[:, :-1], v[:nb], jacobian)
-        p = p + q[:, -1:] * v[nb:]
+    def _forward_and_jacobian(self, q, values, jacobian):
+        inner_values, d = self._split(values)
+        p, J = self.inner.forward_and_jacobian(q[:, :-1], inner_values, jacobian)
+        p = p + q[:, -1:] * d
         if not jacobian:
             return p, None
         return p, np.concatenate([J, q[:, -1, None, None] * np.eye(3)], axis=2)
 
-    def joint_jacobian(self, q, params=None):
-        q = self.check_q(q)
-        v = self.param_values(params)
-        J = self.base.joint_jacobian(q[:, :-1], v[:self.base.n_params])
-        return np.concatenate([J, np.broadcast_to(v[self.base.n_params:, None], (len(q), 3, 1))], axis=2)
-
-    inner = property(lambda self: self.base)
+    def _joint_jacobian(self, q, values):
+        inner_values, d = self._split(values)
+        J = self.inner.joint_jacobian(q[:, :-1], inner_values)
+        return np.concatenate([J, np.broadcast_to(d[:, None], (len(q), 3, 1))], axis=2)
 
 
 def with_drift(robot: Robot, meas: Measurements) -> tuple[DriftRobot, Measurements]:
@@ -87,7 +79,7 @@ def without_drift(res, robot: Robot, meas: Measurements):
     drop = lambda d: {k: v for k, v in d.items() if k not in NAMES}  # noqa: E731
     sub = np.ix_(keep, keep)
     return dataclasses.replace(
-        res, robot=res.robot.base, nominal=robot, names=tuple(res.names[k] for k in keep),
+        res, robot=res.robot.inner, nominal=robot, names=tuple(res.names[k] for k in keep),
         estimates=drop(res.estimates), corrections=drop(res.corrections), std=drop(res.std),
         correlation=res.correlation[sub], covariance=None if res.covariance is None else res.covariance[sub],
         measurements=meas, drift=drift or None)

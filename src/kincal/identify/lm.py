@@ -11,7 +11,6 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-import scipy.linalg as sla
 
 from .problem import CalibrationProblem
 
@@ -47,6 +46,8 @@ class _Step:
 
 def _damped_step(fun, x, cost, H, g, D, mu: float) -> _Step:
     """Raise μ until a step lowers the cost (Nielsen's rule), or give up past MU_LIMIT."""
+    import scipy.linalg as sla  # loaded on the first fit, not when kincal is imported (0.3 s)
+
     nu, evals, limit = 2.0, 0, MU_LIMIT * max(1.0, float(np.max(np.diag(H))))
     eye = np.eye(H.shape[0])
     while mu < limit:

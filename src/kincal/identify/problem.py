@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
@@ -20,6 +20,9 @@ from ..models.robot import Robot
 from .registration import register_base
 from .residuals import RESIDUALS, CartesianResidual, JointResidual
 from .verdict import duplicate_groups
+
+if TYPE_CHECKING:
+    from .options import FitOptions
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,11 +80,12 @@ class CalibrationProblem:
         return dataclasses.replace(self, names=tuple(names), values0=np.asarray(values0, float).copy())
 
 
-def build_problem(robot: Robot, meas: Measurements, params: str | Sequence[str], base: str, keep: Sequence[str],
-                  tol: float, residual: str, strict: bool,
+def build_problem(robot: Robot, meas: Measurements, options: FitOptions,
                   say: Callable[[str], None] = lambda msg: None) -> CalibrationProblem:
-    """Register, choose the free parameters, check the data. ``strict``: an explicit ``params`` list
-    must be identifiable (local solvers); otherwise undetermined ones stay free (global search)."""
+    """Register, choose the free parameters, check the data. With Levenberg–Marquardt an explicit
+    list of ``options.names`` must be identifiable; a particle swarm (a global search) keeps the
+    undetermined ones free."""
+    base, strict = options.base, options.method == "lm"
     meas.check_robot(robot)
     start = robot
     repeats = tuple(duplicate_groups(meas.q))
@@ -93,13 +97,13 @@ def build_problem(robot: Robot, meas: Measurements, params: str | Sequence[str],
         say("registering the measurement frame")
         start = register_base(robot, meas.q, meas.xyz)
     say("checking identifiability")
-    auto = isinstance(params, str)
-    ident = free_parameters(start, meas.q, base, None if auto else params, keep, tol)
+    auto = options.names == "auto"
+    ident = free_parameters(start, meas.q, base, None if auto else options.names, options.keep, options.rank_tol)
     if not auto and ident.dropped and strict:
         raise IdentifiabilityError(f"these parameters cannot all be identified from the {len(meas)} poses; leave "
-                                   f"out the dropped ones or use params='auto':\n{ident}")
+                                   f"out the dropped ones or estimate names='auto':\n{ident}")
     names = ident.identifiable if auto or strict else ident.candidates
-    res = RESIDUALS[residual](start, meas)
+    res = RESIDUALS[options.residual](start, meas)
     equations = res.components * distinct
     if equations <= len(names):
         raise MeasurementError(

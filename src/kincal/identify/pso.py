@@ -1,4 +1,4 @@
-"""Particle swarm optimisation with the seed-2 paper's settings as defaults (Table 2).
+"""Particle swarm optimisation with the 3-PUU error-model verification paper's settings as defaults (Table 2).
 
 The objective is evaluated for the whole swarm at once, ``objective(X (S, K)) -> (S,)``: with a
 model's batched kinematics (``forward_batch`` / ``inverse_batch``) no Python loop runs over particles.
@@ -10,9 +10,9 @@ from typing import Callable
 
 import numpy as np
 
+from .options import PSOOptions
 from .problem import CalibrationProblem
 
-OPTIONS = ("particles", "iterations", "w", "c1", "c2", "seed")
 HALF_WIDTH = {"length": 8e-3, "angle": 8e-3}  # the paper's position limits ±8 (mm), per kind
 V_MAX = {"length": 0.5e-3, "angle": 0.5e-3}  # and velocity limits ±0.5 (mm per iteration)
 
@@ -74,12 +74,11 @@ def _finite(f: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(f), f, np.inf)
 
 
-def fit_pso(problem: CalibrationProblem, options: dict,
+def fit_pso(problem: CalibrationProblem, options: PSOOptions,
             progress: Callable[[int, float], None] | None = None) -> PSOResult:
     """Particle swarm on the mean squared residual of ``problem`` around its starting values, in a
     box of ±8 mm (lengths) or ±8 mrad (angles) per parameter."""
     kinds = [problem.start.params.kinds[i] for i in problem.cols]
     return pso(lambda X: problem.residual.batch_cost(problem.embed_many(X)), problem.x0,
                np.array([HALF_WIDTH[k] for k in kinds]), np.array([V_MAX[k] for k in kinds]),
-               progress=progress, **{"particles": 500, "iterations": 200, "w": 0.8, "c1": 0.5, "c2": 1.2,
-                                     "seed": 0, **options})
+               progress=progress, **options.to_dict())

@@ -64,8 +64,8 @@ class CartesianResidual(_Residual):
 
 @dataclass(frozen=True, eq=False)
 class JointResidual(_Residual):
-    """Inverse kinematics of the measured positions − commanded joint values (seed 2, eq. 4/11);
-    robots with a closed-form inverse only."""
+    """Inverse kinematics of the measured positions − commanded joint values (the 3-PUU error-model
+    verification paper, eq. 4/11); robots with a closed-form inverse (``has_inverse``) only."""
 
     name: str = "joint"
 
@@ -95,8 +95,3 @@ class JointResidual(_Residual):
 
 
 RESIDUALS = {"cartesian": CartesianResidual, "joint": JointResidual}
-
-
-def supports(robot: Robot, residual: str) -> bool:
-    """Whether ``robot`` can use the residual (the joint residual needs a closed-form inverse)."""
-    return residual == "cartesian" or hasattr(robot, "inverse_and_jacobian")

@@ -9,16 +9,10 @@ from ..analysis.identifiability import Identifiability
 from ..analysis.uncertainty import ModelUncertainty
 from ..io.measurements import Measurements
 from ..models.robot import Robot
-from .select import ModelChoice
+from ..units import MM, display
+from .options import FitOptions
+from .select import ErrorModelChoice
 from .verdict import Verdict
-
-MM = 1e3
-DEG = 180.0 / np.pi
-
-
-def display(value: float, kind: str) -> str:
-    """A parameter value in the units engineers read: mm for lengths, deg for angles."""
-    return f"{value * MM:+.4f} mm" if kind == "length" else f"{value * DEG:+.5f} deg"
 
 
 @dataclass(frozen=True)
@@ -85,27 +79,40 @@ class CalibrationResult:
     converged: bool
     message: str
     time_s: float
-    loss: str
-    base: str
     identifiability: Identifiability
-    history: tuple[float, ...] = ()  # particle swarm: best mean squared residual per iteration (seed 2, Fig. 7)
+    options: FitOptions = field(default_factory=FitOptions)  # the options used (to reproduce the fit)
+    history: tuple[float, ...] = ()  # particle swarm: best mean squared residual per iteration (PSO fitness)
     verdict: Verdict = Verdict("good")
     measurements: Measurements | None = None  # the data fitted (rows name the input lines)
     pose_z: np.ndarray | None = None  # (N,) robust z-score of each pose's error norm
-    outlier_z: float = 5.0
     covariance: np.ndarray | None = None  # (K, K) in the order of ``names`` (inf σ: rows/cols of zeros)
-    options: dict = field(default_factory=dict)  # the calibrate() options used (to reproduce the fit)
-    model_selection: ModelChoice | None = None  # model="auto": the blocked-CV comparison
-    model_notes: tuple[str, ...] = ()  # terms dropped after the fit, and why
+    error_model_choice: ErrorModelChoice | None = None  # error_model "auto": the blocked-CV comparison
+    error_model_notes: tuple[str, ...] = ()  # terms dropped after the fit, and why
     drift: dict | None = None  # drift=True: per axis x/y/z the drift over the session (m) and its std
+    use_q: np.ndarray | None = None  # (M, n) where the model will be used (the prediction-σ guard)
+
+    @property
+    def loss(self) -> str:
+        return self.options.loss
+
+    @property
+    def base(self) -> str:
+        return self.options.base
+
+    @property
+    def outlier_z(self) -> float:
+        return self.options.thresholds.outlier_z
 
     def record(self) -> dict:
         """What a calibrated robot file keeps beside the model: the parameter covariance and training σ
-        (``uncertainty()``), the nominal parameter values and the options, so the fit can be
-        reproduced (``kincal report``), and the training joint ranges."""
+        (``uncertainty()``), the training joint ranges, the nominal parameter values, the options and
+        the poses of use, so the fit can be reproduced (``kincal report``)."""
         unc = self.uncertainty().to_dict()  # with the envelope: where the model was fitted (joint ranges)
         unc["envelope"]["joints"] = list(self.robot.joint_names)
-        return {**unc, "nominal": self.nominal.params.as_dict(), "options": self.options}
+        out = {**unc, "nominal": self.nominal.params.as_dict(), "options": self.options.to_dict()}
+        if self.use_q is not None:
+            out["use_q"] = self.use_q.tolist()
+        return out
 
     def uncertainty(self) -> ModelUncertainty:
         """The calibrated model's parameter covariance, with the median predicted σ at the training
@@ -135,6 +142,7 @@ class CalibrationResult:
             "time_s": self.time_s,
             "loss": self.loss,
             "base": self.base,
+            "options": self.options.to_dict(),
             "n_poses": int(self.residuals.shape[0]),
             "sigma": self.sigma,
             "estimated": list(self.names),
@@ -148,11 +156,12 @@ class CalibrationResult:
             "identifiability": self.identifiability.to_dict(),
             "history": list(self.history),
             "verdict": self.verdict.to_dict(),
-            "model": self.robot.kind,
-            "model_selection": None if self.model_selection is None else self.model_selection.to_dict(),
-            "model_notes": list(self.model_notes),
+            "structure": self.robot.structure,
+            "error_model": self.robot.error_model,
+            "error_model_choice": None if self.error_model_choice is None else self.error_model_choice.to_dict(),
+            "error_model_notes": list(self.error_model_notes),
             "drift": self.drift,
-            "compliance": getattr(self.robot, "compliances", dict)(),  # rad/(N·m) per joint
+            "compliance": self.robot.compliances(),  # rad/(N·m) per joint
             "poses": self.pose_records(),
         }
 
@@ -172,10 +181,10 @@ class CalibrationResult:
                          f"{sd:>14}")
         lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm",
                   f"before: {self.stats_before}", f"after:  {self.stats_after}"]
-        if self.model_selection is not None:
-            lines.append(str(self.model_selection))
-        lines += [f"compliance of {j}: {c:.3g} rad/(N·m)" for j, c in getattr(self.robot, "compliances", dict)().items()]
-        lines += [f"note: {n}" for n in self.model_notes]
+        if self.error_model_choice is not None:
+            lines.append(str(self.error_model_choice))
+        lines += [f"compliance of {j}: {c:.3g} rad/(N·m)" for j, c in self.robot.compliances().items()]
+        lines += [f"note: {n}" for n in self.error_model_notes]
         if self.drift:
             lines.append("drift over the session (first to last pose): " + ", ".join(
                 f"{a} {d['value'] * MM:+.4f} ± {d['std'] * MM:.4f} mm" for a, d in self.drift.items()))

@@ -28,9 +28,9 @@ import numpy as np
 from ..errors import KincalError
 from ..io.measurements import Measurements
 from ..models.robot import Robot
-from ..models.serial import ChainRobot, SerialRobot
-from ..models.terms import extend
+from ..models.terms import ErrorModel, extend
 from ..ties import first_best
+from ..units import MM
 
 SIGMA_FACTOR = 1.25
 
@@ -40,17 +40,17 @@ def default_candidates(robot: Robot) -> tuple[str, ...]:
     have them); compliance (chains with link masses) and the gravity regressor (chains); joint-angle
     harmonics of order 1 and 2."""
     out = ["geometric"]
-    if isinstance(robot, SerialRobot) and any(j.beta for j in robot.joints):
+    if robot.has_beta:
         out.append("nobeta")
-    if isinstance(robot, ChainRobot):
+    if robot.has_gravity:
         out += ["compliance", "gravity-regressor"]
     return tuple(out + ["harmonics:1", "harmonics:2"])
 
 
 @dataclass(frozen=True)
-class ModelChoice:
-    """The comparison: per model its parameter count, blocked-CV mean error and standard error (m),
-    predicted-σ ratio to geometric, whether it was eligible and why; and the model chosen."""
+class ErrorModelChoice:
+    """The comparison: per error model its parameter count, blocked-CV mean error and standard error
+    (m), predicted-σ ratio to geometric, whether it was eligible and why; and the model chosen."""
 
     rows: tuple[dict, ...]
     chosen: str
@@ -59,16 +59,16 @@ class ModelChoice:
     def to_dict(self) -> dict:
         finite = lambda v: None if isinstance(v, float) and not np.isfinite(v) else v  # noqa: E731  (JSON has no inf)
         return {"chosen": self.chosen, "folds": self.folds,
-                "models": [{k: finite(v) for k, v in r.items()} for r in self.rows]}
+                "candidates": [{k: finite(v) for k, v in r.items()} for r in self.rows]}
 
     def __str__(self) -> str:
         lines = [f"error model by joint-space blocked cross-validation ({self.folds} regions): {self.chosen}",
-                 f"  {'model':<20} {'params':>6} {'CV mean mm':>11} {'± se':>8} {'σ ratio':>8}  decision"]
+                 f"  {'error model':<20} {'params':>6} {'CV mean mm':>11} {'± se':>8} {'σ ratio':>8}  decision"]
         for r in self.rows:
             if not np.isfinite(r["cv_mean"]):
-                lines.append(f"  {r['model']:<20} {'-':>6} {'-':>11} {'-':>8} {'-':>8}  {r['decision']}")
+                lines.append(f"  {r['error_model']:<20} {'-':>6} {'-':>11} {'-':>8} {'-':>8}  {r['decision']}")
                 continue
-            lines.append(f"  {r['model']:<20} {r['parameters']:>6} {r['cv_mean'] * 1e3:11.4f} {r['cv_se'] * 1e3:8.4f} "
+            lines.append(f"  {r['error_model']:<20} {r['parameters']:>6} {r['cv_mean'] * MM:11.4f} {r['cv_se'] * MM:8.4f} "
                          f"{r['sigma_ratio']:8.2f}  {r['decision']}")
         return "\n".join(lines)
 
@@ -89,15 +89,16 @@ def blocked_folds(robot: Robot, q: np.ndarray, k: int, iterations: int = 30) -> 
     return [np.flatnonzero(labels == j) for j in range(k) if np.any(labels == j)]
 
 
-def select_model(robot: Robot, meas: Measurements, calibrate, candidates=None, folds: int = 5,
-                 use_q: np.ndarray | None = None, **options) -> ModelChoice:
+def select_model(robot: Robot, meas: Measurements, calibrate, options, candidates=None, folds: int = 5,
+                 use_q: np.ndarray | None = None, payload: float = 0.0) -> ErrorModelChoice:
     """Compare ``candidates`` on ``meas`` and choose one (see the module docstring). ``calibrate`` is
-    the calibration function (passed in to keep this room below it), ``options`` its options;
-    ``folds`` is the number of k-means regions; ``candidates`` default to :func:`default_candidates`."""
+    the calibration function (passed in to keep this room below it), ``options`` its FitOptions
+    (without an error model); ``folds`` is the number of k-means regions; ``candidates`` default to
+    :func:`default_candidates`; ``payload`` (kg) loads the gravity terms."""
     regions = blocked_folds(robot, meas.q, folds)
     use = meas.q if use_q is None else robot.check_q(use_q)
-    rows = [_cross_validate(robot, meas, model, regions, calibrate, options, use)
-            for model in (candidates or default_candidates(robot))]
+    rows = [_cross_validate(robot, meas, ErrorModel(name, payload), regions, calibrate, options, use)
+            for name in (candidates or default_candidates(robot))]
     geo = rows[0]
     for r in rows:
         r["sigma_ratio"] = r.pop("sigma") / geo["sigma"] if r is not geo else 1.0
@@ -114,32 +115,33 @@ def select_model(robot: Robot, meas: Measurements, calibrate, candidates=None, f
             r["decision"] = "best CV, but a simpler model is within one standard error"
         else:
             r["decision"] = "kept, but more than one standard error worse than the best"
-    return ModelChoice(tuple(rows), chosen["model"], len(regions))
+    return ErrorModelChoice(tuple(rows), chosen["error_model"], len(regions))
 
 
-def _cross_validate(robot: Robot, meas: Measurements, model: str, regions, calibrate, options, use) -> dict:
-    """Blocked-CV errors of one model, and its predicted σ at the use poses when fitted to all data."""
+def _cross_validate(robot: Robot, meas: Measurements, spec: ErrorModel, regions, calibrate, options, use) -> dict:
+    """Blocked-CV errors of one error model, and its predicted σ at the use poses when fitted to all data."""
+    model = spec.name
     try:
-        ext = extend(robot, model, meas.q, options.get("payload", 0.0))
+        ext = extend(robot, spec, meas.q)
     except KincalError as exc:  # e.g. compliance without link masses
-        return {"model": model, "parameters": 0, "cv_mean": np.inf, "cv_se": 0.0, "sigma": np.inf,
+        return {"error_model": model, "parameters": 0, "cv_mean": np.inf, "cv_se": 0.0, "sigma": np.inf,
                 "fits_ok": False, "why": str(exc)}
     errors, ok, estimated = [], True, 0
     for held in regions:
         train = meas.subset(np.setdiff1d(np.arange(len(meas)), held))
         try:
-            res = calibrate(ext, train, **options)
+            res = calibrate(ext, train, options)
         except KincalError:  # too little data left for this model: it cannot be judged, so not kept
-            return {"model": model, "parameters": ext.n_params, "cv_mean": np.inf, "cv_se": 0.0, "sigma": np.inf,
-                    "fits_ok": False}
+            return {"error_model": model, "parameters": ext.n_params, "cv_mean": np.inf, "cv_se": 0.0,
+                    "sigma": np.inf, "fits_ok": False}
         ok &= res.converged and res.verdict.status != "refused"
         estimated = max(estimated, len(res.names))
         test = meas.subset(held)
         errors.append(float(np.mean(np.linalg.norm(test.xyz - res.robot.forward(test.q), axis=1))))
-    full = calibrate(ext, meas, **options)
+    full = calibrate(ext, meas, options)
     sigma = float(np.median(full.uncertainty().sigma(full.robot, use)))
     e = np.array(errors)
-    return {"model": model, "parameters": estimated, "cv_mean": float(e.mean()),
+    return {"error_model": model, "parameters": estimated, "cv_mean": float(e.mean()),
             "cv_se": float(e.std(ddof=1) / np.sqrt(len(e))) if len(e) > 1 else 0.0, "sigma": sigma,
             "fits_ok": bool(ok)}
 

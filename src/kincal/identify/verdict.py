@@ -23,7 +23,9 @@ CLI flags):
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
+from typing import Mapping
 
 import numpy as np
 
@@ -47,13 +49,24 @@ class Thresholds:
     outlier_z: float = 5.0
 
     def __post_init__(self) -> None:
-        bad = [k for k, v in self.__dict__.items() if not (np.isfinite(v) and v > 0)]
+        bad = [k for k, v in self.__dict__.items()
+               if isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) or not (np.isfinite(v) and v > 0)]
         if bad:
             raise ValueError(f"thresholds: {', '.join(bad)} must be positive numbers")
         for a, b in (("length_suspect", "length_refuse"), ("angle_suspect", "angle_refuse"),
                      ("residual_suspect", "residual_refuse")):
-            if getattr(self, a) > getattr(self, b):
+            if self.__dict__[a] > self.__dict__[b]:
                 raise ValueError(f"thresholds: {a} must not exceed {b}")
+
+    @classmethod
+    def of(cls, value) -> "Thresholds":
+        """Thresholds from itself or a mapping of its fields (ValueError naming an unknown one)."""
+        if isinstance(value, Thresholds):
+            return value
+        known = [f.name for f in dataclasses.fields(cls)]
+        if not isinstance(value, Mapping) or set(value) - set(known):
+            raise ValueError(f"thresholds {value!r}: a mapping of {', '.join(known)}")
+        return cls(**value)
 
     def to_dict(self) -> dict:
         return {k: float(v) for k, v in self.__dict__.items()}

@@ -14,7 +14,7 @@ import numpy as np
 from .._atomic import write_text_atomic
 from ..errors import MeasurementError
 from ..models.robot import Robot
-from ..models.yaml_io import unit_factor
+from ..units import unit_factor
 
 MAX_LISTED = 10  # rows named in an error message
 
@@ -279,10 +279,7 @@ def _is_float(s: str, delimiter: str = ",") -> bool:
 
 
 def _unit(unit: str, kind: str, path: str) -> float:
-    try:
-        return unit_factor(unit, kind)
-    except Exception as exc:  # ModelError from the shared unit table
-        raise MeasurementError(f"{path}: {exc}") from None
+    return unit_factor(unit, kind, f"{path}: ", MeasurementError)
 
 
 def write_measurements(

@@ -1,13 +1,18 @@
-"""Robot models: parameters, serial chains, URDF chains, robot files in and out."""
+"""Robot models: parameters, serial chains, URDF chains, transmissions, closed loops, error-model
+terms, and robot files in and out."""
 from .chain import Chain, Op
 from .export import FORMATS, export_robot, joint_frames, ur_calibration, urdf_text
+from .implicit import ImplicitRobot
 from .parameters import Parameters
-from .robot import Robot
+from .puu3 import PUU3Robot
+from .robot import JointSpace, Robot, Wrapped
 from .serial import ChainRobot, Joint, SerialRobot
+from .terms import ErrorModel, ExtendedRobot, extend, parse_model
 from .transmission import Map, TransmissionRobot
 from .urdf import URDFJoint, URDFRobot, read_urdf
 from .yaml_io import bundled_robots, load_calibration_record, load_robot, save_robot
 
-__all__ = ["Chain", "Op", "Parameters", "Robot", "ChainRobot", "Joint", "SerialRobot", "Map", "TransmissionRobot",
-           "URDFJoint", "URDFRobot", "read_urdf", "bundled_robots", "load_robot", "save_robot", "load_calibration_record", "joint_frames",
-           "ur_calibration", "urdf_text", "FORMATS", "export_robot"]
+__all__ = ["Chain", "Op", "FORMATS", "export_robot", "joint_frames", "ur_calibration", "urdf_text", "ImplicitRobot",
+           "Parameters", "PUU3Robot", "JointSpace", "Robot", "Wrapped", "ChainRobot", "Joint", "SerialRobot",
+           "ErrorModel", "ExtendedRobot", "extend", "parse_model", "Map", "TransmissionRobot", "URDFJoint", "URDFRobot",
+           "read_urdf", "bundled_robots", "load_calibration_record", "load_robot", "save_robot"]

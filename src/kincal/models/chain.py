@@ -29,11 +29,11 @@ AXES = {"x": 0, "y": 1, "z": 2}
 
 @dataclass(frozen=True)
 class Op:
-    """One elementary motion: ``kind`` R/T about/along local ``axis`` (0,1,2) by
+    """One elementary motion: ``motion`` R/T about/along local ``axis`` (0,1,2) by
     ``offset + values[param]`` (+ ``q[:, joint]`` if ``joint >= 0``). ``param = -1``: a constant
     motion by ``offset`` with no parameter (e.g. a URDF fixed joint, or aligning a joint axis)."""
 
-    kind: str
+    motion: str
     axis: int
     param: int
     joint: int = -1
@@ -76,7 +76,7 @@ class Chain:
         self.heads = [seg[0] if seg[0].joint >= 0 else None for seg in self.segments]
         self.ops = tuple(op for seg in self.segments for op in seg)
         self.cols = np.array([op.param for op in self.ops])
-        self.is_trans = np.array([op.kind == TRANS for op in self.ops])
+        self.is_trans = np.array([op.motion == TRANS for op in self.ops])
         self.seg_slices = np.cumsum([0] + [len(s) for s in self.segments])
         self.n_params, self.n_joints = n_params, n_joints
         self.unused = np.setdiff1d(np.arange(n_params), self.cols)
@@ -130,7 +130,7 @@ class Chain:
                 if v == 0.0:
                     continue
                 u = cols[op.axis]
-                if op.kind == TRANS:
+                if op.motion == TRANS:
                     t = [t[0] + v * u[0], t[1] + v * u[1], t[2] + v * u[2]]
                 else:
                     c, s = cos(v), sin(v)
@@ -153,7 +153,7 @@ class Chain:
                 continue
             x = qt[head.joint] + (values[head.param] + head.offset)
             V = np.broadcast_to(V, (3, n))
-            if head.kind == TRANS:
+            if head.motion == TRANS:
                 V = V + np.outer(np.eye(3)[head.axis], x)
             else:
                 c, s = cos_sin(x)
@@ -188,7 +188,7 @@ class Chain:
         o[...] = 0.0
         k = 0
         for s, head in enumerate(self.heads):
-            if head is None or head.kind == TRANS:  # F: the frame just after the joint op
+            if head is None or head.motion == TRANS:  # F: the frame just after the joint op
                 F[...] = W
                 if head is not None:
                     np.multiply(W[head.axis], X[k], out=t3)

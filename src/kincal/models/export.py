@@ -22,7 +22,6 @@ from ..errors import ModelError
 from .chain import ROT
 from .robot import Robot
 from .serial import ChainRobot, SerialRobot
-from .terms import ExtendedRobot
 from .transforms import rot_zyx, zyx_from_matrix
 from .urdf import URDFRobot, read_urdf, rpy_matrix
 from .yaml_io import robot_to_yaml
@@ -38,8 +37,8 @@ def _h(R: np.ndarray, t) -> np.ndarray:
     return T
 
 
-def _motion(kind: str, axis: int, value: float) -> np.ndarray:
-    if kind == ROT:
+def _motion(motion: str, axis: int, value: float) -> np.ndarray:
+    if motion == ROT:
         angles = [0.0, 0.0, 0.0]  # rot_zyx takes (rz, ry, rx)
         angles[2 - axis] = value
         return _h(rot_zyx(*angles), np.zeros(3))
@@ -51,7 +50,7 @@ def joint_frames(robot: ChainRobot) -> tuple[list[np.ndarray], np.ndarray]:
     flange frame F (the end of the chain without the tool point), both relative to the base frame."""
     _geometric_only(robot)
     if not isinstance(robot, ChainRobot):
-        raise ModelError(f"robot '{robot.name}' ({robot.kind}) is not a serial chain: it has no URDF or UR form")
+        raise ModelError(f"robot '{robot.name}' ({robot.structure}) is not a serial chain: it has no URDF or UR form")
     values = robot.params.values.copy()
     values[robot.params.indices(robot.base_params())] = 0.0
     values[robot.params.indices(("tool.x", "tool.y", "tool.z"))] = 0.0
@@ -59,16 +58,16 @@ def joint_frames(robot: ChainRobot) -> tuple[list[np.ndarray], np.ndarray]:
     M, frames = np.eye(4), []
     for op in robot.chain.ops:
         value = op.offset + (values[op.param] if op.param >= 0 else 0.0)
-        step = _motion(op.kind, op.axis, value)
+        step = _motion(op.motion, op.axis, value)
         if op.joint >= 0:
-            frames.append(M @ _h(_ALIGN[op.axis], np.zeros(3)) @ _motion(op.kind, 2, value))
+            frames.append(M @ _h(_ALIGN[op.axis], np.zeros(3)) @ _motion(op.motion, 2, value))
         M = M @ step
     return frames, M
 
 
 def _geometric_only(robot: Robot) -> None:
-    if isinstance(robot, ExtendedRobot):
-        raise ModelError(f"robot '{robot.name}' ({robot.kind}): joint-value terms ({robot.model}) have no place in a "
+    if robot.error_model != "geometric":
+        raise ModelError(f"robot '{robot.name}' ({robot.structure}): joint-value terms ({robot.error_model}) have no place in a "
                          f"URDF or UR file; command the robot with 'kincal compensate', or calibrate with --model geometric "
                          f"for an export")
 
@@ -157,7 +156,7 @@ def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = N
     elif isinstance(robot, SerialRobot):
         text, base, tip = _new_urdf(robot), "base_link", "flange"
     else:
-        raise ModelError(f"robot '{robot.name}' ({robot.kind}) is not a serial chain: it has no URDF form")
+        raise ModelError(f"robot '{robot.name}' ({robot.structure}) is not a serial chain: it has no URDF form")
     if tool_link:
         text = _add_tool(text, robot, tip, tool_link)
     tool = tuple(robot.params[f"tool.{c}"] for c in "xyz")

@@ -17,11 +17,14 @@ per link: the gravity regressor, four columns per (joint, link) pair, each ĝ·�
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from .chain import AXES, TRANS, Chain, Op
-from .serial import ChainRobot
+
+if TYPE_CHECKING:
+    from .serial import ChainRobot
 
 G = 9.80665  # m/s²
 COMPONENTS = ("m", "x", "y", "z")  # regressor columns per link: the mass, then its first moments
@@ -35,7 +38,7 @@ def _offset_ops(c) -> list[Op]:
 class GravityModel:
     """Loads of ``robot``'s link masses (and a ``payload`` kg at the tool point) at joint values q."""
 
-    robot: ChainRobot
+    robot: "ChainRobot"
     payload: float = 0.0
     _values: np.ndarray = field(init=False, repr=False)
     _cache: dict = field(init=False, repr=False)
@@ -46,7 +49,7 @@ class GravityModel:
         object.__setattr__(self, "_values", values)
         object.__setattr__(self, "_cache", {})
 
-    def _jacobian(self, end: int, joints: int, offset) -> "callable":
+    def _jacobian(self, end: int, joints: int, offset) -> Callable[[np.ndarray], np.ndarray]:
         """The joint Jacobian (N, 3, joints) of the point ``offset`` in the frame after ``end`` ops."""
         key = ("chain", end, joints, tuple(float(c) for c in offset))
         if key not in self._cache:

@@ -1,4 +1,5 @@
-"""Closed-loop robots defined by constraints f(p, q, s) = 0 (one per leg; seed 2, eq. 1).
+"""Closed-loop robots defined by constraints f(p, q, s) = 0 (one per leg; the 3-PUU error-model verification
+paper, eq. 1).
 
 p is the end-effector position in the robot frame, q the joint inputs, s the structural parameters.
 A subclass supplies the constraints and their derivatives (and, where it exists, a closed-form
@@ -31,8 +32,10 @@ SINGULAR_COND = 1e10
 
 
 class ImplicitRobot(Robot):
-    """Base class: subclasses set ``name``, joint names/types/limits, ``params`` (the first six being
-    the base frame) and implement the constraint methods below (robot frame, SI units)."""
+    """Base class: subclasses are frozen dataclasses that set ``name``, ``description``,
+    ``joint_space``, ``params`` (the first six being the base frame) and implement the constraint
+    methods below (robot frame, SI units). A subclass with a closed-form inverse implements
+    ``inverse_local`` and sets ``has_inverse = True``."""
 
     # ---- to implement -------------------------------------------------------------------------
     @abstractmethod
@@ -52,10 +55,10 @@ class ImplicitRobot(Robot):
         return p
 
     def inverse_local(self, p: np.ndarray, values: np.ndarray, strict: bool = True) -> np.ndarray:
-        """Closed-form inverse kinematics in the robot frame, (N, n); optional. Unreachable positions
-        raise a ModelError, or give NaN rows when not ``strict``. Batched callers pass p (S, N, 3)
-        with values (S, 1, P) and get (S, N, n)."""
-        raise ModelError(f"robot '{self.name}' has no closed-form inverse")
+        """Closed-form inverse kinematics in the robot frame, (N, n); optional (``has_inverse``).
+        Unreachable positions raise a ModelError, or give NaN rows when not ``strict``. Batched
+        callers pass p (S, N, 3) with values (S, 1, P) and get (S, N, n)."""
+        raise self._no_inverse()
 
     # ---- base frame ---------------------------------------------------------------------------
     def base_params(self) -> tuple[str, ...]:
@@ -110,8 +113,8 @@ class ImplicitRobot(Robot):
     def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
         return self._base(self.params.values)
 
-    def with_base_transform(self, R: np.ndarray, t: np.ndarray) -> "ImplicitRobot":
-        rz, ry, rx = zyx_from_matrix(np.asarray(R, dtype=float))
+    def with_base_transform(self, R_: np.ndarray, t: np.ndarray):
+        rz, ry, rx = zyx_from_matrix(np.asarray(R_, dtype=float))
         return self.with_params(dict(zip(BASE_NAMES, [float(c) for c in t] + [rx, ry, rz])))
 
     # ---- generic kinematics -------------------------------------------------------------------
@@ -146,9 +149,7 @@ class ImplicitRobot(Robot):
         R, t = self._base(values)
         return p_local @ R.T + t
 
-    def forward_and_jacobian(self, q, params=None, jacobian=True):
-        q = self.check_q(q)
-        values = self.param_values(params)
+    def _forward_and_jacobian(self, q, values, jacobian):
         p_local, _ = self._solve_local(q, values)
         p = self._to_world(p_local, values)
         if not jacobian:
@@ -173,20 +174,16 @@ class ImplicitRobot(Robot):
                              f"leave them out")
         return np.linalg.inv(fp)
 
-    def joint_jacobian(self, q, params=None):
-        squeeze = np.ndim(q) == 1
-        q = self.check_q(q)
-        values = self.param_values(params)
+    def _joint_jacobian(self, q, values):
         p_local, _ = self._solve_local(q, values)
         fp, fq, _ = self.constraint_derivatives(p_local, q, values)
         R, _ = self._base(values)
-        out = -np.einsum("ij,njc,nck->nik", R, self._checked_inverse(fp, q), fq)
-        return out[0] if squeeze else out
+        return -np.einsum("ij,njc,nck->nik", R, self._checked_inverse(fp, q), fq)
 
-    def inverse(self, p: np.ndarray, params: np.ndarray | None = None, strict: bool = True) -> np.ndarray:
+    def inverse(self, p: np.ndarray, values: np.ndarray | None = None, strict: bool = True) -> np.ndarray:
         """Joint values (N, n) that place the end effector at world positions p (N, 3); unreachable
         positions raise a ModelError (or give NaN rows when not ``strict``)."""
-        values = self.param_values(params)
+        values = self.param_values(values)
         R, t = self._base(values)
         return self.inverse_local((np.atleast_2d(np.asarray(p, float)) - t) @ R, values, strict)
 
@@ -194,10 +191,10 @@ class ImplicitRobot(Robot):
         """(N,) bool: the solution is in the working mode the closed-form inverse returns."""
         return np.ones(p.shape[0], bool)
 
-    def inverse_and_jacobian(self, p: np.ndarray, params: np.ndarray | None = None):
+    def inverse_and_jacobian(self, p: np.ndarray, values: np.ndarray | None = None):
         """Joint values (N, n) for world positions p (N, 3) and their derivatives with respect to the
         parameters at fixed p, (N, n, P): dq = −(∂f/∂q)⁻¹ (∂f/∂p · ∂p_local/∂s + ∂f/∂s) ds."""
-        values = self.param_values(params)
+        values = self.param_values(values)
         p = np.atleast_2d(np.asarray(p, float))
         R, t = self._base(values)
         p_local = (p - t) @ R
@@ -216,7 +213,3 @@ class ImplicitRobot(Robot):
         q = self.check_q(q)
         p, ok = self._solve_local(q, self.params.values, strict=False)
         return self.within_limits(q) & ok & self.in_working_mode(p, q, self.params.values)
-
-    def sample_joints(self, n: int, seed: int | None = 0, margin: float = 0.0) -> np.ndarray:
-        """n joint vectors within the limits that also assemble (rejection sampling)."""
-        return self.sample_feasible(n, seed)

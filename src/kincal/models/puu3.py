@@ -1,4 +1,5 @@
-"""The 3-PUU translational parallel robot of seed 2 (eq. 7–10), with an extended parameter set.
+"""The 3-PUU translational parallel robot of the 3-PUU error-model verification paper (eq. 7–10), with an
+extended parameter set.
 
 Leg i (nominal direction φᵢ = 0°, 120°, 240°): a slider moves along a rail through the base point
 Rᵢ·e(φᵢ + aᵢ) in direction uᵢ = (txᵢ, tyᵢ, 1)/‖·‖, at height hᵢ + h0ᵢ; a link of length Lᵢ joins it to
@@ -13,12 +14,14 @@ Inverse kinematics is closed form (the slider above the platform, the nominal as
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
 from ..errors import ModelError
 from .implicit import ImplicitRobot
 from .parameters import Parameters
+from .robot import JointSpace
 from .serial import BASE_NAMES
 
 LEG_PARAMS = ("dR", "dr", "a", "b", "h0", "tx", "ty")
@@ -47,7 +50,9 @@ class PUU3Robot(ImplicitRobot):
     extended: bool = False
     description: str = ""
     phi: tuple[float, float, float] = (0.0, 2 * np.pi / 3, 4 * np.pi / 3)
+    joint_space: JointSpace = field(init=False, repr=False)
     _idx: dict = field(init=False, repr=False)
+    has_inverse: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         names, kinds = puu3_names(self.extended)
@@ -56,6 +61,8 @@ class PUU3Robot(ImplicitRobot):
         if not self.h_lower < self.h_upper:
             raise ModelError(f"{self.name}: slider limits must have lower < upper")
         object.__setattr__(self, "_idx", {n: i for i, n in enumerate(names)})
+        object.__setattr__(self, "joint_space", JointSpace(("h1", "h2", "h3"), ("prismatic",) * 3,
+                                                           [self.h_lower] * 3, [self.h_upper] * 3))
 
     @classmethod
     def build(cls, name: str = "puu3", r: float = 0.1, R: float = 0.2, L: float = 0.35,
@@ -71,15 +78,9 @@ class PUU3Robot(ImplicitRobot):
         return cls(name, Parameters(names, [v[n] for n in names], kinds), h_range[0], h_range[1], extended,
                    description)
 
-    kind = property(lambda self: "puu3 (implicit)")  # type: ignore[assignment]
-    joint_names = property(lambda self: ("h1", "h2", "h3"))  # type: ignore[assignment]
-    joint_types = property(lambda self: ("prismatic",) * 3)  # type: ignore[assignment]
-    lower = property(lambda self: np.full(3, self.h_lower))  # type: ignore[assignment]
-    upper = property(lambda self: np.full(3, self.h_upper))  # type: ignore[assignment]
-
-    def with_params(self, values) -> "PUU3Robot":
-        new = values if isinstance(values, Parameters) else self.params.replace(values)
-        return PUU3Robot(self.name, new, self.h_lower, self.h_upper, self.extended, self.description, self.phi)
+    @property
+    def structure(self) -> str:
+        return "puu3 (implicit)"
 
     # ---- geometry -------------------------------------------------------------------------------
     def _legs(self, values: np.ndarray):

@@ -1,117 +1,144 @@
-"""The `Robot` interface every model (serial, hybrid, parallel) implements."""
+"""The `Robot` interface every model (serial, hybrid, parallel) implements.
+
+A robot is an immutable value (a frozen dataclass) with a ``name``, a ``description``, its named
+parameters ``params`` and its ``joint_space`` (joint names, types and read-only limits). Everything a
+robot can do is declared here, so callers never probe for an attribute; a robot that lacks an
+ability says so with a :class:`~kincal.errors.ModelError` through the same method:
+
+* kinematics (batched: the first axis of ``q`` is the configuration; a single (n,) vector gives
+  unbatched results): ``forward``, ``forward_and_jacobian``, ``param_jacobian``, ``joint_jacobian``,
+  ``forward_jacobians``, ``forward_batch``. A subclass implements the batched hooks
+  ``_forward_and_jacobian`` and ``_joint_jacobian``; shapes are handled here, once;
+* joints: ``joint_names``, ``joint_types``, ``lower``, ``upper``, ``check_q``, ``within_limits``,
+  ``feasible`` (coupled constraints too), ``sample_joints`` (feasible poses only);
+* parameters: ``with_params`` (one implementation: a copy with new values, re-validated),
+  ``param_values``, ``preferred_params`` (kept first among confounded ones), ``structure_notes``;
+* the base frame: ``base_params``, ``base_transform``, ``with_base_transform``;
+* inverse kinematics (``has_inverse``): ``inverse``, ``inverse_and_jacobian``, ``inverse_batch``;
+* the error model beyond geometry: ``error_model``, ``term_names``, ``corrected``, ``compliances``;
+* gravity loads of link masses (``has_gravity``): ``gravity``; Hayati's β tilts (``has_beta``):
+  ``without_beta``.
+
+A robot built on another one is a :class:`Wrapped` robot; the robot it wraps is ``inner``.
+"""
 from __future__ import annotations
 
+import dataclasses
 from abc import ABC, abstractmethod
-from typing import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping, Sequence, TypeVar
 
 import numpy as np
 
 from ..errors import ModelError
 from .parameters import Parameters
 
+if TYPE_CHECKING:
+    from .gravity import GravityModel
+
 JOINT_TYPES = ("revolute", "prismatic")
+R = TypeVar("R", bound="Robot")
+ParamValues = Mapping[str, float] | Sequence[float] | np.ndarray | Parameters
+
+
+def read_only(a) -> np.ndarray:
+    """A float copy of ``a`` that cannot be changed in place."""
+    out = np.array(a, dtype=float)
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class JointSpace:
+    """The joints a user commands: names, types ("revolute" or "prismatic") and limits (rad or m;
+    ±inf for an unlimited joint), all immutable."""
+
+    names: tuple[str, ...]
+    types: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+
+    def __post_init__(self) -> None:
+        names, types = tuple(self.names), tuple(self.types)
+        lo, hi = read_only(self.lower).reshape(-1), read_only(self.upper).reshape(-1)
+        if not (len(names) == len(types) == lo.size == hi.size):
+            raise ModelError(f"joints {list(names)}: names, types and limits must have one entry per joint")
+        if len(set(names)) != len(names) or any(not n or "." in n for n in names):
+            raise ModelError(f"joint names {list(names)} must be distinct, non-empty and contain no '.'")
+        bad = [t for t in types if t not in JOINT_TYPES]
+        if bad:
+            raise ModelError(f"joint type(s) {sorted(set(bad))}: use one of {JOINT_TYPES}")
+        if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or not np.all(lo < hi):
+            raise ModelError(f"joints {list(names)}: every limit needs lower < upper")
+        object.__setattr__(self, "names", names)
+        object.__setattr__(self, "types", types)
+        object.__setattr__(self, "lower", read_only(lo))
+        object.__setattr__(self, "upper", read_only(hi))
+
+    def __len__(self) -> int:
+        return len(self.names)
 
 
 class Robot(ABC):
-    """A robot with named joints, joint limits and a named parameter vector.
-
-    Subclasses are immutable values. All kinematics are batched: the first axis of ``q`` is the
-    configuration. Units are SI (m, rad).
-    """
+    """A robot with named joints, joint limits and a named parameter vector (see the module
+    docstring for the whole interface). Subclasses are frozen dataclasses that set ``name``,
+    ``description``, ``params`` and ``joint_space`` and implement the two kinematic hooks. Units are
+    SI (m, rad)."""
 
     name: str
-    joint_names: tuple[str, ...]
-    joint_types: tuple[str, ...]
-    lower: np.ndarray  # (n,) joint lower limits, rad or m
-    upper: np.ndarray  # (n,)
+    description: str
     params: Parameters
+    joint_space: JointSpace
 
-    @property
-    def kind(self) -> str:
-        """A short description of the model type (e.g. 'dh', 'mdh', 'puu3 (implicit)')."""
-        return type(self).__name__
+    has_inverse: ClassVar[bool] = False  # closed-form inverse kinematics
+    has_gravity: ClassVar[bool] = False  # a chain whose links can carry masses (gravity terms)
 
-    @property
-    def n_joints(self) -> int:
-        return len(self.joint_names)
-
-    @property
-    def n_params(self) -> int:
-        return len(self.params)
+    # ---- what a model implements (batched: q (N, n), values (P,)) -------------------------------
+    @abstractmethod
+    def _forward_and_jacobian(self, q: np.ndarray, values: np.ndarray,
+                              jacobian: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        """Tool positions (N, 3) and parameter Jacobian (N, 3, P) (None unless ``jacobian``)."""
 
     @abstractmethod
-    def with_params(self, values: Mapping[str, float] | Sequence[float] | np.ndarray | Parameters) -> "Robot":
-        """A new robot with changed parameter values (by name, or a full (P,) vector)."""
+    def _joint_jacobian(self, q: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """d position / d joint values, (N, 3, n)."""
 
-    @abstractmethod
-    def forward_and_jacobian(
-        self, q: np.ndarray, params: np.ndarray | None = None, jacobian: bool = True
-    ) -> tuple[np.ndarray, np.ndarray | None]:
-        """Tool positions (N,3) m and parameter Jacobian (N,3,P) (None if not ``jacobian``) in one pass."""
+    def _forward_jacobians(self, q: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        p, J = self._forward_and_jacobian(q, values, True)
+        return p, J, self._joint_jacobian(q, values)
 
-    @abstractmethod
-    def joint_jacobian(self, q: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
-        """d position / d joint values, (N,3,n)."""
+    # ---- kinematics ------------------------------------------------------------------------------
+    def _batched(self, hook: Callable[..., Any], q, values, *args):
+        """``hook`` on q as (N, n) and values as (P,); a single (n,) q gives unbatched results."""
+        single = np.ndim(q) == 1
+        out = hook(self.check_q(q), self.param_values(values), *args)
+        if not single:
+            return out
+        return tuple(None if a is None else a[0] for a in out) if isinstance(out, tuple) else out[0]
 
-    def forward_jacobians(self, q: np.ndarray, params: np.ndarray | None = None
+    def forward_and_jacobian(self, q: np.ndarray, values: np.ndarray | None = None,
+                             jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+        """Tool positions (N, 3) m and the parameter Jacobian (N, 3, P) (None unless ``jacobian``)
+        in one pass; ``values`` (P,) default to the robot's own."""
+        return self._batched(self._forward_and_jacobian, q, values, jacobian)
+
+    def forward(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
+        """Tool point position (N, 3) in m for joint values q (N, n)."""
+        return self.forward_and_jacobian(q, values, jacobian=False)[0]
+
+    def param_jacobian(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
+        """d position / d parameters, (N, 3, P); columns in the order of ``params.names``."""
+        return self.forward_and_jacobian(q, values)[1]
+
+    def joint_jacobian(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
+        """d position / d joint values, (N, 3, n)."""
+        return self._batched(self._joint_jacobian, q, values)
+
+    def forward_jacobians(self, q: np.ndarray, values: np.ndarray | None = None
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Positions (N,3), parameter Jacobian (N,3,P) and joint Jacobian (N,3,n); chains give all
-        three from one pass."""
-        p, J = self.forward_and_jacobian(q, params)
-        return p, J, self.joint_jacobian(q, params)
-
-    def preferred_params(self) -> tuple[str, ...]:
-        """Names to keep first when parameters are confounded (after any the user lists)."""
-        return ()
-
-    def structure_notes(self) -> list[str]:
-        """Warnings about the model's structure (e.g. parallel axes without β); none by default."""
-        return []
-
-    def base_params(self) -> tuple[str, ...]:
-        """Names of the 6 base-frame parameters (x y z rx ry rz), or () if the model has no base frame."""
-        return ()
-
-    def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
-        """Base frame as (R (3,3), t (3,)): world = R @ robot + t."""
-        raise ModelError(f"robot '{self.name}' has no base frame")
-
-    def with_base_transform(self, R: np.ndarray, t: np.ndarray) -> "Robot":
-        """A copy whose base frame is (R, t)."""
-        raise ModelError(f"robot '{self.name}' has no base frame")
-
-    # ---- shared conveniences -------------------------------------------------------------------
-    def check_q(self, q: np.ndarray) -> np.ndarray:
-        """q as a float (N, n) array; ModelError if the joint count is wrong."""
-        q = np.asarray(q, dtype=float)
-        if q.ndim == 1:
-            q = q[None, :]
-        if q.ndim != 2 or q.shape[1] != self.n_joints:
-            raise ModelError(
-                f"{self.name}: joint array has shape {q.shape}, expected (N, {self.n_joints}) "
-                f"for joints {', '.join(self.joint_names)}"
-            )
-        return q
-
-    def param_values(self, params: np.ndarray | None) -> np.ndarray:
-        if params is None:
-            return self.params.values
-        v = np.asarray(params, dtype=float).reshape(-1)
-        if v.size != self.n_params:
-            raise ModelError(f"{self.name}: expected {self.n_params} parameter values, got {v.size}")
-        return v
-
-    def forward(self, q: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
-        """Tool point position (N,3) in m for joint values q (N,n)."""
-        squeeze = np.ndim(q) == 1
-        p = self.forward_and_jacobian(q, params, jacobian=False)[0]
-        return p[0] if squeeze else p
-
-    def param_jacobian(self, q: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
-        """d position / d parameters, (N,3,P); columns in the order of ``params.names``."""
-        squeeze = np.ndim(q) == 1
-        J = self.forward_and_jacobian(q, params)[1]
-        return J[0] if squeeze else J
+        """Positions (N, 3), parameter Jacobian (N, 3, P) and joint Jacobian (N, 3, n); chains give
+        all three from one pass."""
+        return self._batched(self._forward_jacobians, q, values)
 
     def forward_batch(self, q: np.ndarray, values: np.ndarray) -> np.ndarray:
         """Positions (S, N, 3) m for S parameter vectors ``values`` (S, P) at the same joints q (N, n),
@@ -126,53 +153,208 @@ class Robot(ABC):
                 pass
         return out
 
-    def sampling_limits(self) -> tuple[np.ndarray, np.ndarray]:
-        """Joint limits for drawing random poses: the limits, with ±π for unlimited (continuous) joints."""
-        lo, hi = np.asarray(self.lower, float), np.asarray(self.upper, float)
-        return np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
+    # ---- inverse kinematics (has_inverse) --------------------------------------------------------
+    def _no_inverse(self) -> ModelError:
+        return ModelError(f"robot '{self.name}' ({self.structure}) has no closed-form inverse kinematics; give "
+                          f"nominal joint values to start from, or use residual='cartesian'")
 
-    def sample_joints(self, n: int, seed: int | None = 0, margin: float = 0.0) -> np.ndarray:
-        """n joint vectors drawn uniformly inside the limits (shrunk by ``margin`` of each range), (n, n_joints)."""
-        rng = np.random.default_rng(seed)
-        lo, hi = self.sampling_limits()
-        span = hi - lo
-        return rng.uniform(lo + margin * span, hi - margin * span, size=(int(n), self.n_joints))
+    def inverse(self, p: np.ndarray, values: np.ndarray | None = None, strict: bool = True) -> np.ndarray:
+        """Joint values (N, n) that place the tool at world positions p (N, 3); unreachable positions
+        raise a ModelError, or give NaN rows when not ``strict``."""
+        raise self._no_inverse()
 
-    def sample_feasible(self, n: int, seed: int | None = 0, max_tries: int = 50) -> np.ndarray:
-        """n joint vectors drawn uniformly within the limits where ``feasible`` holds, (n, n_joints)."""
-        rng = np.random.default_rng(seed)
-        kept, have = [], 0
-        lo, hi = self.sampling_limits()
-        for _ in range(max_tries):
-            q = rng.uniform(lo, hi, size=(max(2 * (n - have), 16), self.n_joints))
-            q = q[self.feasible(q)]
-            kept.append(q)
-            have += q.shape[0]
-            if have >= n:
-                return np.concatenate(kept)[:n]
-        raise ModelError(f"{self.name}: only {have} of {n} random joint vectors satisfy the robot's constraints; "
-                         f"check the joint limits and coupled constraints")
+    def inverse_and_jacobian(self, p: np.ndarray, values: np.ndarray | None = None
+                             ) -> tuple[np.ndarray, np.ndarray]:
+        """Joint values (N, n) for positions p (N, 3) and their parameter derivatives at fixed p, (N, n, P)."""
+        raise self._no_inverse()
 
-    def within_limits(self, q: np.ndarray, tol: float = 1e-12) -> np.ndarray:
-        """(N,) bool: every joint inside its limits."""
+    def inverse_batch(self, p: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """Joint values (S, N, n) for positions p (N, 3) and S parameter vectors (S, P); NaN where out of reach."""
+        raise self._no_inverse()
+
+    # ---- joints ----------------------------------------------------------------------------------
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return self.joint_space.names
+
+    @property
+    def joint_types(self) -> tuple[str, ...]:
+        return self.joint_space.types
+
+    @property
+    def lower(self) -> np.ndarray:
+        """(n,) joint lower limits, rad or m (read-only)."""
+        return self.joint_space.lower
+
+    @property
+    def upper(self) -> np.ndarray:
+        """(n,) joint upper limits, rad or m (read-only)."""
+        return self.joint_space.upper
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_space)
+
+    def check_q(self, q: np.ndarray) -> np.ndarray:
+        """q as a float (N, n) array; ModelError if the joint count is wrong."""
+        q = np.asarray(q, dtype=float)
+        if q.ndim == 1:
+            q = q[None, :]
+        if q.ndim != 2 or q.shape[1] != self.n_joints:
+            raise ModelError(
+                f"{self.name}: joint array has shape {q.shape}, expected (N, {self.n_joints}) "
+                f"for joints {', '.join(self.joint_names)}"
+            )
+        return q
+
+    def within_limits(self, q: np.ndarray, margin: float = 1e-12) -> np.ndarray:
+        """(N,) bool: every joint inside its limits (widened by ``margin``, rad or m)."""
         q = self.check_q(q)
-        return np.all((q >= self.lower - tol) & (q <= self.upper + tol), axis=1)
+        return np.all((q >= self.lower - margin) & (q <= self.upper + margin), axis=1)
 
     def feasible(self, q: np.ndarray) -> np.ndarray:
         """(N,) bool: joint limits and any coupled constraints of the model hold."""
         return self.within_limits(q)
 
+    def sampling_limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint limits for drawing random poses: the limits, with ±π for unlimited (continuous) joints."""
+        lo, hi = self.lower, self.upper
+        return np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
+
+    def sample_joints(self, n: int, seed: int | None = 0, max_tries: int = 50) -> np.ndarray:
+        """n joint vectors (n, n_joints) drawn uniformly inside the limits where ``feasible`` holds
+        (coupled constraints, assembly), by rejection. Where every draw is feasible the result is the
+        first n uniform draws of the generator."""
+        rng = np.random.default_rng(seed)
+        kept, have = [], 0
+        lo, hi = self.sampling_limits()
+        for _ in range(max_tries):
+            q = rng.uniform(lo, hi, size=(max(2 * (int(n) - have), 16), self.n_joints))
+            q = q[self.feasible(q)]
+            kept.append(q)
+            have += q.shape[0]
+            if have >= n:
+                return np.concatenate(kept)[:int(n)]
+        raise ModelError(f"{self.name}: only {have} of {n} random joint vectors satisfy the robot's constraints; "
+                         f"check the joint limits and coupled constraints")
+
+    # ---- parameters ------------------------------------------------------------------------------
+    @property
+    def n_params(self) -> int:
+        return len(self.params)
+
+    @property
+    def structure(self) -> str:
+        """The kinematic structure in a few words (e.g. 'dh', 'mdh', 'urdf', 'puu3 (implicit)')."""
+        return type(self).__name__
+
+    def param_values(self, values: np.ndarray | None) -> np.ndarray:
+        """``values`` as a (P,) array (the robot's own when None); ModelError for another size."""
+        if values is None:
+            return self.params.values
+        v = np.asarray(values, dtype=float).reshape(-1)
+        if v.size != self.n_params:
+            raise ModelError(f"{self.name}: expected {self.n_params} parameter values, got {v.size}")
+        return v
+
+    def with_params(self: R, values: ParamValues) -> R:
+        """A new robot with changed parameter values: by name (a mapping), a full (P,) vector, or
+        Parameters of the same names and kinds."""
+        new = values if isinstance(values, Parameters) else self.params.replace(values)
+        if (new.names, new.kinds) != (self.params.names, self.params.kinds):
+            raise ModelError(f"robot '{self.name}': the new parameters must have the same names and kinds")
+        return self._rebuild(new)
+
+    def _rebuild(self: R, params: Parameters) -> R:
+        """A copy with ``params`` (a frozen dataclass is re-validated by its __post_init__)."""
+        if not dataclasses.is_dataclass(self):
+            raise ModelError(f"robot '{self.name}': a robot that is not a dataclass must override _rebuild")
+        return dataclasses.replace(self, params=params)  # type: ignore[type-var]  # checked just above
+
+    def preferred_params(self) -> tuple[str, ...]:
+        """Names to keep first when parameters are confounded (after any the user lists)."""
+        return ()
+
+    def structure_notes(self) -> list[str]:
+        """Warnings about the model's structure (e.g. parallel axes without β); none by default."""
+        return []
+
+    # ---- base frame ------------------------------------------------------------------------------
+    def base_params(self) -> tuple[str, ...]:
+        """Names of the 6 base-frame parameters (x y z rx ry rz), or () if the model has no base frame."""
+        return ()
+
+    def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
+        """Base frame as (R (3,3), t (3,)): world = R @ robot + t."""
+        raise ModelError(f"robot '{self.name}' has no base frame")
+
+    def with_base_transform(self: R, R_: np.ndarray, t: np.ndarray) -> R:
+        """A copy whose base frame is (R_, t)."""
+        raise ModelError(f"robot '{self.name}' has no base frame")
+
+    # ---- the error model beyond geometry ---------------------------------------------------------
+    @property
+    def error_model(self) -> str:
+        """The joint-value terms on top of the geometry ('geometric': none; e.g. 'compliance+harmonics:2')."""
+        return "geometric"
+
+    @property
+    def term_names(self) -> tuple[str, ...]:
+        """The parameters of the error-model terms (none for a geometric model)."""
+        return ()
+
+    def corrected(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
+        """The joint values (N, n) the geometry uses for commanded/read values q (the same without terms)."""
+        return self.check_q(q)
+
+    def compliances(self) -> dict[str, float]:
+        """Per joint with a compliance term its compliance in rad/(N·m); none by default."""
+        return {}
+
+    # ---- gravity and β ---------------------------------------------------------------------------
+    def gravity(self, payload: float = 0.0) -> "GravityModel":
+        """The gravity loads of the link masses (and ``payload`` kg at the tool point)."""
+        raise ModelError(f"robot '{self.name}' ({self.structure}): gravity terms need a serial chain whose links "
+                         f"carry masses")
+
+    @property
+    def has_beta(self) -> bool:
+        """Whether the model carries Hayati β tilts that ``without_beta`` can switch off."""
+        return False
+
+    def without_beta(self: R) -> R:
+        """The model without its β tilts (their values dropped)."""
+        raise ModelError(f"robot '{self.name}' ({self.structure}): 'nobeta' applies to DH/MDH chains with β tilts")
+
     def __repr__(self) -> str:
         return f"{type(self).__name__}(name={self.name!r}, joints={self.n_joints}, params={self.n_params})"
 
 
+@dataclass(frozen=True, eq=False, repr=False)
 class Wrapped(Robot):
-    """A robot built on another one (``inner``): the structure, the base frame and the preferences
-    among confounded parameters are the inner robot's."""
+    """A robot built on another one, ``inner``: its parameters are ``inner``'s followed by its own
+    (``params``), and its name, description, base frame, structure notes and preferences among
+    confounded parameters are ``inner``'s."""
 
-    @property
-    def inner(self) -> Robot:
-        raise NotImplementedError
+    inner: Robot
+    params: Parameters
+    name: str = field(init=False)
+    description: str = field(init=False)
+
+    def __post_init__(self) -> None:
+        n = self.inner.n_params
+        if self.params.names[:n] != self.inner.params.names:
+            raise ModelError(f"robot '{self.inner.name}': parameters must start with the inner robot's")
+        object.__setattr__(self, "name", self.inner.name)
+        object.__setattr__(self, "description", self.inner.description)
+
+    def _rebuild(self, params: Parameters):
+        inner = self.inner.with_params(params.values[:self.inner.n_params])
+        return dataclasses.replace(self, inner=inner, params=params)
+
+    def _split(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(inner's values, own values) of a (P,) vector."""
+        return values[:self.inner.n_params], values[self.inner.n_params:]
 
     def preferred_params(self) -> tuple[str, ...]:
         return self.inner.preferred_params()
@@ -183,8 +365,19 @@ class Wrapped(Robot):
     def base_params(self) -> tuple[str, ...]:
         return self.inner.base_params()
 
-    def base_transform(self):
+    def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
         return self.inner.base_transform()
 
-    def with_base_transform(self, R: np.ndarray, t: np.ndarray) -> "Robot":
-        return self.with_params(self.inner.with_base_transform(R, t).params.as_dict())
+    def with_base_transform(self, R_: np.ndarray, t: np.ndarray):
+        return self.with_params(self.inner.with_base_transform(R_, t).params.as_dict())
+
+    @property
+    def error_model(self) -> str:
+        return self.inner.error_model
+
+    @property
+    def term_names(self) -> tuple[str, ...]:
+        return self.inner.term_names
+
+    def compliances(self) -> dict[str, float]:
+        return self.inner.compliances()

@@ -13,15 +13,18 @@ Parameter names (stable): ``base.x base.y base.z base.rx base.ry base.rz``, then
 """
 from __future__ import annotations
 
+import dataclasses
+from abc import abstractmethod
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
+from typing import ClassVar, Mapping, Sequence
 
 import numpy as np
 
 from ..errors import ModelError
 from .chain import AXES, ROT, TRANS, Chain, Op
+from .gravity import GravityModel
 from .parameters import Parameters
-from .robot import JOINT_TYPES, Robot
+from .robot import JOINT_TYPES, JointSpace, Robot
 from .transforms import rot_zyx, zyx_from_matrix
 
 CONVENTIONS = ("dh", "mdh")
@@ -83,9 +86,11 @@ def _param_names(convention: str, joints: Sequence[Joint]) -> tuple[list[str], l
 class ChainRobot(Robot):
     """A robot computed by a :class:`~kincal.models.chain.Chain` of elementary motions that starts
     with the standard base frame (``base.x`` … ``base.rz``) and ends with the tool point
-    (``tool.x/y/z``): DH/MDH chains and URDF chains share their kinematics and base handling."""
+    (``tool.x/y/z``): DH/MDH chains and URDF chains share their kinematics, base handling and
+    gravity loads."""
 
     _chain: Chain
+    has_gravity: ClassVar[bool] = True
 
     def base_ops(self) -> list[Op]:
         """The base frame's six ops, Tx Ty Tz Rz Ry Rx."""
@@ -98,26 +103,27 @@ class ChainRobot(Robot):
         idx = self.params.index
         return [Op(TRANS, AXES[a], idx(f"tool.{a}")) for a in "xyz"]
 
+    @abstractmethod
     def link_frames(self) -> list[tuple[str, int, int, float, tuple[float, float, float]]]:
         """Per link of the chain: (name, number of chain ops up to its frame, number of joints
         before it, mass kg, centre of mass m in its frame). Gravity terms place masses with this."""
-        raise NotImplementedError
 
-    def chain_values(self, params=None) -> np.ndarray:
+    def chain_values(self, values: np.ndarray | None = None) -> np.ndarray:
         """The values the compiled chain reads (the parameters, and any extra columns)."""
-        return self.param_values(params)
+        return self.param_values(values)
 
     @property
     def chain(self) -> Chain:
         """The compiled op sequence (read-only use: exports walk it)."""
         return self._chain
 
-    def forward_and_jacobian(self, q, params=None, jacobian=True):
-        q = self.check_q(q)
-        values = self.param_values(params)
+    def _forward_and_jacobian(self, q, values, jacobian):
         if not jacobian:
             return self._chain.forward(values, q), None
         return self._chain.forward_and_jacobian(values, q)
+
+    def gravity(self, payload: float = 0.0) -> GravityModel:
+        return GravityModel(self, float(payload))
 
     def preferred_params(self) -> tuple[str, ...]:
         """The tool point, then the base frame: well-conditioned, physical stand-ins for joint terms."""
@@ -131,8 +137,8 @@ class ChainRobot(Robot):
         R = rot_zyx(v["base.rz"], v["base.ry"], v["base.rx"])
         return R, np.array([v["base.x"], v["base.y"], v["base.z"]])
 
-    def with_base_transform(self, R: np.ndarray, t: np.ndarray) -> "ChainRobot":
-        rz, ry, rx = zyx_from_matrix(np.asarray(R, dtype=float))
+    def with_base_transform(self, R_: np.ndarray, t: np.ndarray):
+        rz, ry, rx = zyx_from_matrix(np.asarray(R_, dtype=float))
         x, y, z = (float(c) for c in t)
         return self.with_params({"base.x": x, "base.y": y, "base.z": z, "base.rx": rx, "base.ry": ry, "base.rz": rz})
 
@@ -146,6 +152,7 @@ class SerialRobot(ChainRobot):
     joints: tuple[Joint, ...]
     params: Parameters
     description: str = ""
+    joint_space: JointSpace = field(init=False, repr=False)
     _chain: Chain = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -162,8 +169,11 @@ class SerialRobot(ChainRobot):
         names, kinds = _param_names(self.convention, joints)
         if tuple(names) != self.params.names or tuple(kinds) != self.params.kinds:
             raise ModelError(f"robot '{self.name}': parameter names do not match the joint structure")
+        moving = [j for j in joints if j.type != "fixed"]
         object.__setattr__(self, "joints", joints)
-        object.__setattr__(self, "_chain", Chain(self._build_ops(), len(self.params), len(self.moving)))
+        object.__setattr__(self, "joint_space", JointSpace(tuple(j.name for j in moving), tuple(j.type for j in moving),
+                                                           [j.lower for j in moving], [j.upper for j in moving]))
+        object.__setattr__(self, "_chain", Chain(self._build_ops(), len(self.params), len(moving)))
 
     # ---- construction --------------------------------------------------------------------------
     @classmethod
@@ -234,7 +244,7 @@ class SerialRobot(ChainRobot):
         return out
 
     @property
-    def kind(self) -> str:
+    def structure(self) -> str:
         return self.convention
 
     @property
@@ -243,35 +253,12 @@ class SerialRobot(ChainRobot):
         so ∂p/∂qⱼ is that column of the parameter Jacobian."""
         return self._chain.joint_param
 
-    def joint_jacobian(self, q, params=None):
-        squeeze = np.ndim(q) == 1
-        Jq = self.param_jacobian(q, params)[..., self.joint_columns]
-        return Jq[0] if squeeze else Jq
+    def _joint_jacobian(self, q, values):
+        return self._chain.forward_and_jacobian(values, q)[1][..., self.joint_columns]
 
-    def forward_jacobians(self, q, params=None):
-        p, J = self.forward_and_jacobian(q, params)
+    def _forward_jacobians(self, q, values):
+        p, J = self._chain.forward_and_jacobian(values, q)
         return p, J, J[..., self.joint_columns]
-
-    # ---- Robot interface -----------------------------------------------------------------------
-    @property
-    def joint_names(self) -> tuple[str, ...]:  # type: ignore[override]
-        return tuple(j.name for j in self.moving)
-
-    @property
-    def joint_types(self) -> tuple[str, ...]:  # type: ignore[override]
-        return tuple(j.type for j in self.moving)
-
-    @property
-    def lower(self) -> np.ndarray:  # type: ignore[override]
-        return np.array([j.lower for j in self.moving])
-
-    @property
-    def upper(self) -> np.ndarray:  # type: ignore[override]
-        return np.array([j.upper for j in self.moving])
-
-    def with_params(self, values) -> "SerialRobot":
-        new = values if isinstance(values, Parameters) else self.params.replace(values)
-        return SerialRobot(self.name, self.convention, self.joints, new, self.description)
 
     def with_joints(self, joints: Sequence[Joint], name: str | None = None) -> "SerialRobot":
         """Same values, new joint structures (e.g. β switched on/off); new β values start at 0."""
@@ -280,6 +267,13 @@ class SerialRobot(ChainRobot):
         vals = [old.get(n, 0.0) for n in names]
         return SerialRobot(name or self.name, self.convention, tuple(joints), Parameters(names, vals, kinds),
                            self.description)
+
+    @property
+    def has_beta(self) -> bool:
+        return any(j.beta for j in self.joints)
+
+    def without_beta(self) -> "SerialRobot":
+        return self.with_joints([dataclasses.replace(j, beta=False) for j in self.joints])
 
     # ---- structure -----------------------------------------------------------------------------
     def parallel_pairs(self) -> list[tuple[int, int]]:

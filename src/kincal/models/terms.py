@@ -1,6 +1,6 @@
 """Non-geometric error terms on top of any robot model: corrections of the joint values.
 
-``ExtendedRobot(base, terms)`` reads joint i at qᵢ + Δqᵢ(q), Δq = Σ_terms B(q)·θ with a known
+``ExtendedRobot(inner, terms)`` reads joint i at qᵢ + Δqᵢ(q), Δq = Σ_terms B(q)·θ with a known
 basis B (N, n, m) per term, linear in the term's parameters θ:
 
 * ``harmonics:k``: Δqᵢ = Σₖ aᵢₖ sin(k qᵢ) + bᵢₖ cos(k qᵢ) (encoder eccentricity k = 1, gear
@@ -31,8 +31,7 @@ import numpy as np
 from ..errors import ModelError
 from .gravity import COMPONENTS, GravityModel
 from .parameters import Parameters
-from .robot import Robot, Wrapped
-from .serial import ChainRobot, SerialRobot
+from .robot import JointSpace, Robot, Wrapped
 
 MIN_LEVER = 0.01  # m per rad: RMS tool motion per joint rotation below which angle terms are not modelled
 TAU_REF = 100.0  # N·m: a compliance parameter is the deflection at this load
@@ -57,14 +56,21 @@ def lever_joints(robot: Robot, q: np.ndarray) -> tuple[str, ...]:
 
 @dataclass(frozen=True, eq=False)
 class Harmonics:
-    """Joint-angle harmonics of ``order`` on joints ``index`` (positions in the robot's joints)."""
+    """Joint-angle harmonics of ``order`` on the joints ``joint_names`` (at positions ``index`` among
+    the robot's joints)."""
 
     order: int
     index: tuple[int, ...]
-    joints: tuple[str, ...]
+    joint_names: tuple[str, ...]
+    reference: None = None  # no geometry of its own (gravity terms keep theirs)
 
-    token = property(lambda self: f"harmonics:{self.order}")
-    names = property(lambda self: tuple(harmonic_names(self.joints, self.order)))
+    @property
+    def token(self) -> str:
+        return f"harmonics:{self.order}"
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(harmonic_names(self.joint_names, self.order))
 
     def basis(self, q: np.ndarray) -> np.ndarray:
         kq = q[:, list(self.index), None] * np.arange(1, self.order + 1)
@@ -85,7 +91,7 @@ class Harmonics:
         return out
 
     def to_dict(self) -> dict:
-        return {"type": "harmonics", "order": self.order, "joints": list(self.joints)}
+        return {"type": "harmonics", "order": self.order, "joints": list(self.joint_names)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,16 +99,19 @@ class GravityTerm:
     """``compliance`` (one column per loaded joint: its load / TAU_REF) or ``gravity-regressor``
     (the regressor ``columns``: (joint index, link index, component))."""
 
-    kind: str
+    token: str
     gravity: GravityModel
     columns: tuple[tuple[int, int, int], ...]
 
-    token = property(lambda self: self.kind)
+    @property
+    def reference(self) -> Robot:
+        """The geometry whose link frames carry the masses (held fixed: the basis is known)."""
+        return self.gravity.robot
 
     @property
     def names(self) -> tuple[str, ...]:
         joints, links = self.gravity.robot.joint_names, [ln[0] for ln in self.gravity.links()]
-        if self.kind == "compliance":
+        if self.token == "compliance":
             return tuple(f"{joints[i]}.compliance" for i, _, _ in self.columns)
         return tuple(f"{joints[i]}.g_{links[ell]}_{COMPONENTS[c]}" for i, ell, c in self.columns)
 
@@ -111,7 +120,7 @@ class GravityTerm:
 
     def _basis(self, q: np.ndarray) -> np.ndarray:
         B = np.zeros((len(q), q.shape[1], len(self.columns)))
-        if self.kind == "compliance":
+        if self.token == "compliance":
             tau = self.gravity.torques(q) / TAU_REF
             for col, (i, _, _) in enumerate(self.columns):
                 B[:, i, col] = tau[:, i]
@@ -131,7 +140,7 @@ class GravityTerm:
 
     def to_dict(self) -> dict:
         joints = self.gravity.robot.joint_names
-        if self.kind == "compliance":
+        if self.token == "compliance":
             return {"type": "compliance", "joints": [joints[i] for i, _, _ in self.columns],
                     "payload": self.gravity.payload}
         return {"type": "gravity-regressor", "payload": self.gravity.payload, "columns": list(self.names)}
@@ -139,86 +148,69 @@ class GravityTerm:
 
 @dataclass(frozen=True, eq=False, repr=False)
 class ExtendedRobot(Wrapped):
-    """``base`` with non-geometric ``terms``; ``params`` = base's, then each term's."""
+    """A geometric robot (``inner``) with non-geometric ``terms``; ``params`` = inner's, then each term's."""
 
-    base: Robot
     terms: tuple
-    params: Parameters
+    joint_space: JointSpace = field(init=False, repr=False)
     _sizes: tuple[int, ...] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        if isinstance(self.base, ExtendedRobot) or not self.terms:
-            raise ModelError(f"robot '{self.base.name}': terms go on a geometric model")
-        names = list(self.base.params.names) + [n for t in self.terms for n in t.names]
+        super().__post_init__()
+        if isinstance(self.inner, ExtendedRobot) or not self.terms:
+            raise ModelError(f"robot '{self.inner.name}': terms go on a geometric model")
+        names = list(self.inner.params.names) + [n for t in self.terms for n in t.names]
         if self.params.names != tuple(names):
-            raise ModelError(f"robot '{self.base.name}': parameters do not match the error model")
+            raise ModelError(f"robot '{self.inner.name}': parameters do not match the error model")
+        object.__setattr__(self, "joint_space", self.inner.joint_space)
         object.__setattr__(self, "_sizes", tuple(len(t.names) for t in self.terms))
 
     @classmethod
-    def build(cls, base: Robot, terms: Sequence, values: Mapping[str, float] | None = None) -> "ExtendedRobot":
+    def build(cls, inner: Robot, terms: Sequence, values: Mapping[str, float] | None = None) -> "ExtendedRobot":
         names = [n for t in terms for n in t.names]
-        params = Parameters(list(base.params.names) + names, list(base.params.values) + [0.0] * len(names),
-                            list(base.params.kinds) + ["angle"] * len(names))
-        robot = cls(base, tuple(terms), params)
+        params = Parameters(list(inner.params.names) + names, list(inner.params.values) + [0.0] * len(names),
+                            list(inner.params.kinds) + ["angle"] * len(names))
+        robot = cls(inner, params, tuple(terms))
         return robot.with_params(dict(values)) if values else robot
 
-    # ---- the Robot interface, delegated to the base at the corrected joint values -------------
-    name = property(lambda self: self.base.name)  # type: ignore[assignment]
-    description = property(lambda self: self.base.description)
-    joint_names = property(lambda self: self.base.joint_names)  # type: ignore[assignment]
-    joint_types = property(lambda self: self.base.joint_types)  # type: ignore[assignment]
-    lower = property(lambda self: self.base.lower)  # type: ignore[assignment]
-    upper = property(lambda self: self.base.upper)  # type: ignore[assignment]
-
+    # ---- the Robot interface, delegated to the geometry at the corrected joint values -----------
     @property
-    def model(self) -> str:
+    def error_model(self) -> str:
         return "+".join(t.token for t in self.terms)
 
     @property
-    def kind(self) -> str:
-        return f"{self.base.kind} + {self.model}"
+    def structure(self) -> str:
+        return f"{self.inner.structure} + {self.error_model}"
 
     @property
     def term_names(self) -> tuple[str, ...]:
-        return self.params.names[self.base.n_params:]
+        return self.params.names[self.inner.n_params:]
 
-    def with_params(self, values) -> "ExtendedRobot":
-        new = values if isinstance(values, Parameters) else self.params.replace(values)
-        return ExtendedRobot(self.base.with_params(new.values[:self.base.n_params]), self.terms, new)
+    def _thetas(self, values: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+        """(the geometry's values, each term's parameters) of a (P,) vector."""
+        cuts = np.cumsum((self.inner.n_params,) + self._sizes)
+        return values[:cuts[0]], [values[a:b] for a, b in zip(cuts[:-1], cuts[1:])]
 
-    def _split(self, params) -> tuple[np.ndarray, list[np.ndarray]]:
-        v = self.param_values(params)
-        cuts = np.cumsum((self.base.n_params,) + self._sizes)
-        return v[:cuts[0]], [v[a:b] for a, b in zip(cuts[:-1], cuts[1:])]
-
-    def corrected(self, q: np.ndarray, params=None) -> np.ndarray:
-        """The joint values the model uses for commanded/read values q (N, n)."""
+    def corrected(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
         q = self.check_q(q)
-        _, thetas = self._split(params)
+        _, thetas = self._thetas(self.param_values(values))
         return q + sum(t.basis(q) @ th for t, th in zip(self.terms, thetas))
 
-    def forward_and_jacobian(self, q, params=None, jacobian=True):
-        q = self.check_q(q)
-        base_values, thetas = self._split(params)
+    def _forward_and_jacobian(self, q, values, jacobian):
+        inner_values, thetas = self._thetas(values)
         bases = [t.basis(q) for t in self.terms]
         qc = q + sum(B @ th for B, th in zip(bases, thetas))
         if not jacobian:
-            return self.base.forward_and_jacobian(qc, base_values, jacobian=False)
-        p, Jb, Jq = self.base.forward_jacobians(qc, base_values)  # Jq: (N, 3, n)
+            return self.inner.forward_and_jacobian(qc, inner_values, jacobian=False)
+        p, Jb, Jq = self.inner.forward_jacobians(qc, inner_values)  # Jq: (N, 3, n)
         return p, np.concatenate([Jb] + [Jq @ B for B in bases], axis=2)
 
-    def joint_jacobian(self, q, params=None):
-        squeeze = np.ndim(q) == 1
-        q = self.check_q(q)
-        base_values, thetas = self._split(params)
-        J = self.base.joint_jacobian(self.corrected(q, params), base_values)
-        J = J + sum(J @ t.slope(q, th) for t, th in zip(self.terms, thetas))
-        return J[0] if squeeze else J
-
-    inner = property(lambda self: self.base)
+    def _joint_jacobian(self, q, values):
+        inner_values, thetas = self._thetas(values)
+        J = self.inner.joint_jacobian(self.corrected(q, values), inner_values)
+        return J + sum(J @ t.slope(q, th) for t, th in zip(self.terms, thetas))
 
     def feasible(self, q: np.ndarray) -> np.ndarray:
-        return self.base.feasible(q)
+        return self.inner.feasible(q)
 
     def compliances(self) -> dict[str, float]:
         """Per joint with a compliance term: the compliance in rad/(N·m)."""
@@ -236,56 +228,83 @@ def drop_terms(robot: Robot, names: Sequence[str]) -> Robot:
         if t.names:
             terms.append(t)
     values = {n: robot.params[n] for t in terms for n in t.names}
-    return ExtendedRobot.build(robot.base, terms, values) if terms else robot.base
+    return ExtendedRobot.build(robot.inner, terms, values) if terms else robot.inner
 
 
-def parse_model(model: str) -> tuple[str, ...]:
-    """The tokens of a model name such as "compliance+harmonics:2" (ValueError naming the choices)."""
-    tokens = tuple(model.split("+")) if isinstance(model, str) else ()
-    kinds = [t.split(":")[0] for t in tokens]
-    ok = bool(tokens) and all(t in MODELS for t in tokens) and len(set(kinds)) == len(kinds)
+def parse_model(name: str) -> tuple[str, ...]:
+    """The tokens of an error-model name such as "compliance+harmonics:2" (ValueError naming the choices)."""
+    tokens = tuple(name.split("+")) if isinstance(name, str) else ()
+    families = [t.split(":")[0] for t in tokens]
+    ok = bool(tokens) and all(t in MODELS for t in tokens) and len(set(families)) == len(families)
     ok = ok and ("geometric" not in tokens or len(tokens) == 1)
     ok = ok and not {"compliance", "gravity-regressor"} <= set(tokens)
     if not ok:
-        raise ValueError(f"model '{model}': use geometric, or one or more of nobeta, compliance or gravity-regressor, "
-                         f"harmonics:1..4 joined by '+' (e.g. compliance+harmonics:2), or auto")
+        raise ValueError(f"error model '{name}': use geometric, or one or more of nobeta, compliance or "
+                         f"gravity-regressor, harmonics:1..4 joined by '+' (e.g. compliance+harmonics:2), or auto")
     return tokens
 
 
-def without_beta(robot: Robot) -> Robot:
-    """A DH/MDH robot without its β tilts (their values dropped)."""
-    if not isinstance(robot, SerialRobot):
-        raise ModelError(f"robot '{robot.name}' ({robot.kind}): 'nobeta' applies to DH/MDH chains")
-    return robot.with_joints([dataclasses.replace(j, beta=False) for j in robot.joints])
+@dataclass(frozen=True)
+class ErrorModel:
+    """What to model beyond the geometry, validated when built: ``name`` is "geometric", terms joined
+    by '+' ("compliance+harmonics:2"; see :func:`parse_model`) or "auto" (chosen by joint-space
+    blocked cross-validation in :func:`kincal.calibrate`); ``payload`` (kg) at the tool point loads
+    the gravity terms."""
+
+    name: str = "geometric"
+    payload: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.name != "auto":
+            parse_model(self.name)
+        p = self.payload
+        if isinstance(p, bool) or not isinstance(p, (int, float)) or not (np.isfinite(p) and p >= 0):
+            raise ValueError(f"payload={p!r}: give the payload at the tool in kg (0 or more)")
+        object.__setattr__(self, "payload", float(p))
+
+    @classmethod
+    def of(cls, value: "ErrorModel | str | Mapping") -> "ErrorModel":
+        """An ErrorModel from itself, a name, or its :meth:`to_dict`."""
+        if isinstance(value, ErrorModel):
+            return value
+        if isinstance(value, str):
+            return cls(value)
+        if isinstance(value, Mapping) and set(value) <= {"name", "payload"}:
+            return cls(**value)
+        raise ValueError(f"error model {value!r}: give a name such as 'compliance+harmonics:2' or 'auto'")
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "payload": self.payload}
 
 
-def extend(robot: Robot, model: str, q: np.ndarray | None = None, payload: float = 0.0) -> Robot:
-    """``robot`` with the error model ``model`` (see :func:`parse_model`): terms on the joints with a
-    lever arm at the poses q (default: 200 random poses); gravity terms load the robot's link masses
-    and ``payload`` kg at the tool point, with ``robot``'s geometry as reference."""
-    tokens = parse_model(model)
-    base = robot.base if isinstance(robot, ExtendedRobot) else robot
+def extend(robot: Robot, error_model: ErrorModel | str, q: np.ndarray | None = None) -> Robot:
+    """``robot`` with the error model (see :class:`ErrorModel`; not "auto"): terms on the joints with
+    a lever arm at the poses q (default: 200 random poses); gravity terms load the robot's link
+    masses and the payload at the tool point, with ``robot``'s geometry as reference."""
+    spec = ErrorModel.of(error_model)
+    if spec.name == "auto":
+        raise ValueError("error model 'auto' is chosen by calibrate(); extend() takes a named model")
+    tokens = parse_model(spec.name)
+    inner = robot.inner if isinstance(robot, ExtendedRobot) else robot
     if "nobeta" in tokens:
-        base = without_beta(base)
-    q = base.sample_joints(200, seed=0) if q is None else base.check_q(q)
-    terms = [_term(base, tok, q, payload) for tok in tokens if tok not in ("geometric", "nobeta")]
-    return ExtendedRobot.build(base, terms) if terms else base
+        inner = inner.without_beta()
+    q = inner.sample_joints(200, seed=0) if q is None else inner.check_q(q)
+    terms = [_term(inner, tok, q, spec.payload) for tok in tokens if tok not in ("geometric", "nobeta")]
+    return ExtendedRobot.build(inner, terms) if terms else inner
 
 
-def _term(base: Robot, token: str, q: np.ndarray, payload: float):
-    joints = lever_joints(base, q)
-    index = [base.joint_names.index(j) for j in joints]
+def _term(geometry: Robot, token: str, q: np.ndarray, payload: float):
+    joints = lever_joints(geometry, q)
+    index = [geometry.joint_names.index(j) for j in joints]
     if not joints:
-        raise ModelError(f"robot '{base.name}': no revolute joint moves the tool enough for joint-angle terms")
+        raise ModelError(f"robot '{geometry.name}': no revolute joint moves the tool enough for joint-angle terms")
     if token.startswith("harmonics"):
         return Harmonics(int(token.split(":")[1]), tuple(index), joints)
-    if not isinstance(base, ChainRobot):
-        raise ModelError(f"robot '{base.name}' ({base.kind}): gravity terms need a serial chain")
-    gravity = GravityModel(base, float(payload))
+    gravity = geometry.gravity(payload)
     if token == "compliance":
         if gravity.total_mass <= 0.0:
-            raise ModelError(f"robot '{base.name}': 'compliance' needs link masses: give mass and com per joint in the "
-                             f"robot file (URDF: <inertial>) or a payload, or use gravity-regressor")
+            raise ModelError(f"robot '{geometry.name}': 'compliance' needs link masses: give mass and com per joint in "
+                             f"the robot file (URDF: <inertial>) or a payload, or use gravity-regressor")
         rms = np.sqrt(np.mean(gravity.torques(q) ** 2, axis=0))
         cols = tuple((i, 0, 0) for i in index if rms[i] >= TAU_MIN)
     else:
@@ -293,31 +312,31 @@ def _term(base: Robot, token: str, q: np.ndarray, payload: float):
         cols = tuple((i, ell, c) for i in index for ell in range(rms.shape[1]) for c in range(4)
                      if rms[i, ell, c] >= REGRESSOR_MIN)
     if not cols:
-        raise ModelError(f"robot '{base.name}': no joint carries a gravity load at these poses for '{token}'")
+        raise ModelError(f"robot '{geometry.name}': no joint carries a gravity load at these poses for '{token}'")
     return GravityTerm(token, gravity, cols)
 
 
-def term_from_dict(base: Robot, reference: Robot | None, data: dict, where: str):
+def term_from_dict(geometry: Robot, reference: Robot | None, data: dict, where: str):
     """A term saved by :meth:`to_dict` (``reference``: the geometry of its gravity loads)."""
-    kind = data.get("type") if isinstance(data, dict) else None
-    index = {j: i for i, j in enumerate(base.joint_names)}
+    term_type = data.get("type") if isinstance(data, dict) else None
+    index = {j: i for i, j in enumerate(geometry.joint_names)}
     joints = data.get("joints", []) if isinstance(data, dict) else None
-    if kind not in TERMS or not isinstance(joints, list) or any(j not in index for j in joints):
+    if term_type not in TERMS or not isinstance(joints, list) or any(j not in index for j in joints):
         raise ModelError(f"{where}: a term is {{type: harmonics|compliance|gravity-regressor, ...}} on joints of "
-                         f"the robot ({', '.join(base.joint_names)})")
-    if kind == "harmonics":
+                         f"the robot ({', '.join(geometry.joint_names)})")
+    if term_type == "harmonics":
         order = data.get("order")
         if not isinstance(order, int) or isinstance(order, bool) or not 1 <= order <= 4:
             raise ModelError(f"{where}: harmonics 'order' must be a whole number from 1 to 4")
         return Harmonics(order, tuple(index[j] for j in joints), tuple(joints))
     payload = data.get("payload", 0.0)
-    if not isinstance(reference, ChainRobot) or isinstance(payload, bool) or not isinstance(payload, (int, float)) \
-            or not payload >= 0:
+    if reference is None or not reference.has_gravity or isinstance(payload, bool) \
+            or not isinstance(payload, (int, float)) or not payload >= 0:
         raise ModelError(f"{where}: a gravity term needs a serial chain, its 'reference' geometry and a payload in kg "
                          f"(0 or more)")
-    gravity = GravityModel(reference, float(payload))
-    if kind == "compliance":
-        return GravityTerm(kind, gravity, tuple((index[j], 0, 0) for j in joints))
+    gravity = reference.gravity(float(payload))
+    if term_type == "compliance":
+        return GravityTerm(term_type, gravity, tuple((index[j], 0, 0) for j in joints))
     links = {ln[0]: k for k, ln in enumerate(gravity.links())}
     cols = []
     for name in data.get("columns", []) if isinstance(data.get("columns"), list) else [None]:
@@ -326,8 +345,4 @@ def term_from_dict(base: Robot, reference: Robot | None, data: dict, where: str)
         if joint not in index or link not in links or comp not in COMPONENTS:
             raise ModelError(f"{where}: gravity-regressor column '{name}' is not <joint>.g_<link>_<m|x|y|z>")
         cols.append((index[joint], links[link], COMPONENTS.index(comp)))
-    return GravityTerm(kind, gravity, tuple(cols))
-
-
-def model_name(robot: Robot) -> str:
-    return robot.model if isinstance(robot, ExtendedRobot) else "geometric"
+    return GravityTerm(term_type, gravity, tuple(cols))

@@ -22,171 +22,148 @@ import numpy as np
 
 from ..errors import ModelError
 from .parameters import Parameters
-from .robot import Robot, Wrapped
+from .robot import JointSpace, Wrapped
 from .serial import SerialRobot
 
 TWO_PI = 2.0 * np.pi
+MAP_SHAPES = {"direct": (1, 1, 0), "screw": (1, 1, 1), "differential_screw": (2, 2, 2)}  # actuators, joints, params
 
 
 @dataclass(frozen=True)
 class Map:
-    """One transmission element: ``kind`` with actuator and joint indices and parameter names."""
+    """One transmission element of ``type`` direct, screw or differential_screw: the indices of the
+    actuators it reads and of the chain joints it drives, and the names of its drive parameters."""
 
-    kind: str
+    type: str
     actuators: tuple[int, ...]
-    joints: tuple[int, ...]
-    params: tuple[str, ...] = ()
+    chain_joints: tuple[int, ...]
+    param_names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        shape = {"direct": (1, 1, 0), "screw": (1, 1, 1), "differential_screw": (2, 2, 2)}
-        if self.kind not in shape:
-            raise ModelError(f"transmission: unknown map type '{self.kind}'; use one of {', '.join(shape)}")
-        if (len(self.actuators), len(self.joints), len(self.params)) != shape[self.kind]:
-            raise ModelError(f"transmission: a '{self.kind}' map takes {shape[self.kind][0]} actuator(s), "
-                             f"{shape[self.kind][1]} joint(s) and {shape[self.kind][2]} parameter(s)")
+        if self.type not in MAP_SHAPES:
+            raise ModelError(f"transmission: unknown map type '{self.type}'; use one of {', '.join(MAP_SHAPES)}")
+        shape = MAP_SHAPES[self.type]
+        if (len(self.actuators), len(self.chain_joints), len(self.param_names)) != shape:
+            raise ModelError(f"transmission: a '{self.type}' map takes {shape[0]} actuator(s), {shape[1]} joint(s) "
+                             f"and {shape[2]} parameter(s)")
 
 
 @dataclass(frozen=True, eq=False, repr=False)
 class TransmissionRobot(Wrapped):
-    """A serial chain whose joint variables are driven by actuators through a transmission."""
+    """A serial chain (``inner``) whose joint variables are driven by actuators through a
+    transmission. Its joints (``joint_space``) are the actuators; ``params`` are the chain's followed
+    by the transmission's own (``drive``)."""
 
-    chain: SerialRobot
-    actuator_names: tuple[str, ...]
-    actuator_lower: np.ndarray
-    actuator_upper: np.ndarray
+    joint_space: JointSpace
     maps: tuple[Map, ...]
-    drive: Parameters  # the transmission's own parameters
-    params: Parameters = field(init=False)
+    drive: Parameters = field(init=False, repr=False)  # the transmission's own parameters
 
     def __post_init__(self) -> None:
-        n_a, n_j = len(self.actuator_names), self.chain.n_joints
-        driven = sorted(j for mp in self.maps for j in mp.joints)
+        super().__post_init__()
+        p, n = self.params, self.inner.n_params
+        object.__setattr__(self, "drive", Parameters(p.names[n:], p.values[n:], p.kinds[n:]))
+        chain = self.inner
+        if not isinstance(chain, SerialRobot):
+            raise ModelError(f"{self.name}: a transmission drives a DH/MDH chain")
+        n_a, n_j = len(self.joint_space), chain.n_joints
+        driven = sorted(j for mp in self.maps for j in mp.chain_joints)
         if driven != list(range(n_j)):
-            raise ModelError(f"{self.chain.name}: the transmission must drive each of the {n_j} chain joints "
+            raise ModelError(f"{chain.name}: the transmission must drive each of the {n_j} chain joints "
                              f"exactly once (drives {driven})")
         used = sorted(a for mp in self.maps for a in mp.actuators)
         if used != list(range(n_a)):
-            raise ModelError(f"{self.chain.name}: every actuator must feed exactly one map (uses {used})")
+            raise ModelError(f"{chain.name}: every actuator must feed exactly one map (uses {used})")
         for mp in self.maps:
-            self.drive.indices(mp.params)
-        clash = set(self.chain.params.names) & set(self.drive.names)
-        if clash:
-            raise ModelError(f"{self.chain.name}: transmission parameter names clash with the chain: {sorted(clash)}")
-        lo, hi = np.asarray(self.actuator_lower, float), np.asarray(self.actuator_upper, float)
-        if lo.shape != (n_a,) or hi.shape != (n_a,) or not np.all(lo < hi):
-            raise ModelError(f"{self.chain.name}: actuator limits must be finite with lower < upper")
-        object.__setattr__(self, "actuator_lower", lo)
-        object.__setattr__(self, "actuator_upper", hi)
-        object.__setattr__(self, "params", Parameters(
-            self.chain.params.names + self.drive.names,
-            np.concatenate([self.chain.params.values, self.drive.values]),
-            self.chain.params.kinds + self.drive.kinds))
+            self.drive.indices(mp.param_names)
+        if set(self.joint_space.types) != {"revolute"} or not np.all(np.isfinite(self.lower + self.upper)):
+            raise ModelError(f"{chain.name}: actuators are revolute (motor angles) with finite limits")
 
-    # ---- identity -----------------------------------------------------------------------------
-    name = property(lambda self: self.chain.name)  # type: ignore[assignment]
-    description = property(lambda self: self.chain.description)
-    convention = property(lambda self: self.chain.convention)
-    kind = property(lambda self: f"{self.chain.convention} + transmission")  # type: ignore[assignment]
-    joint_names = property(lambda self: self.actuator_names)  # type: ignore[assignment]
-    joint_types = property(lambda self: ("revolute",) * len(self.actuator_names))  # type: ignore[assignment]
-    lower = property(lambda self: self.actuator_lower)  # type: ignore[assignment]
-    upper = property(lambda self: self.actuator_upper)  # type: ignore[assignment]
-
-    def _split(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        pc = self.chain.n_params
-        return values[:pc], values[pc:]
-
-    def with_params(self, values) -> "TransmissionRobot":
-        new = values if isinstance(values, Parameters) else self.params.replace(values)
-        chain_v, drive_v = self._split(new.values)
-        return TransmissionRobot(self.chain.with_params(chain_v), self.actuator_names, self.actuator_lower,
-                                 self.actuator_upper, self.maps, self.drive.replace(drive_v))
+    @property
+    def structure(self) -> str:
+        return f"{self.inner.structure} + transmission"
 
     # ---- the transmission ----------------------------------------------------------------------
-    def joints(self, phi: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
-        """Chain joint variables (N, n_j) for actuator values φ (N, n_a)."""
-        return self._transmit(self.check_q(phi), self.param_values(params), derivatives=False)[0]
+    def chain_q(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
+        """Chain joint values (N, n_j) for actuator values q (N, n_a)."""
+        return self._transmit(self.check_q(q), self.param_values(values), derivatives=False)[0]
 
-    def actuators(self, q: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
-        """Actuator values φ (N, n_a) that give chain joint variables q (N, n_j): the inverse of :meth:`joints`."""
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        _, dv = self._split(self.param_values(params))
-        phi = np.empty((len(q), len(self.actuator_names)))
+    def actuator_q(self, chain_q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
+        """Actuator values (N, n_a) that give the chain joint values ``chain_q`` (N, n_j): the inverse of
+        :meth:`chain_q`."""
+        qc = np.atleast_2d(np.asarray(chain_q, dtype=float))
+        _, dv = self._split(self.param_values(values))
+        phi = np.empty((len(qc), self.n_joints))
         for mp in self.maps:
-            p = [dv[self.drive.index(name)] for name in mp.params]
-            if mp.kind == "direct":
-                phi[:, mp.actuators[0]] = q[:, mp.joints[0]]
-            elif mp.kind == "screw":
-                phi[:, mp.actuators[0]] = TWO_PI * q[:, mp.joints[0]] / p[0]
+            p = [dv[i] for i in self.drive.indices(mp.param_names)]
+            if mp.type == "direct":
+                phi[:, mp.actuators[0]] = qc[:, mp.chain_joints[0]]
+            elif mp.type == "screw":
+                phi[:, mp.actuators[0]] = TWO_PI * qc[:, mp.chain_joints[0]] / p[0]
             else:
-                (a, b), (jt, jr), (lead, arm) = mp.actuators, mp.joints, p
-                s, d = 2 * TWO_PI * q[:, jt] / lead, TWO_PI * arm * np.tan(q[:, jr]) / lead
+                (a, b), (jt, jr), (lead, arm) = mp.actuators, mp.chain_joints, p
+                s, d = 2 * TWO_PI * qc[:, jt] / lead, TWO_PI * arm * np.tan(qc[:, jr]) / lead
                 phi[:, a], phi[:, b] = (s + d) / 2, (s - d) / 2
         return phi
 
     def _transmit(self, phi: np.ndarray, values: np.ndarray, derivatives: bool = True):
-        """q (N, n_j), ∂q/∂φ (N, n_j, n_a) and ∂q/∂drive (N, n_j, P_drive)."""
+        """q (N, n_j), ∂q/∂φ (N, n_j, n_a) and ∂q/∂drive (N, n_j, P_drive) for actuator values φ."""
         _, dv = self._split(values)
-        n = phi.shape[0]
-        q = np.empty((n, self.chain.n_joints))
-        dq_dphi = np.zeros((n, self.chain.n_joints, len(self.actuator_names))) if derivatives else None
-        dq_ds = np.zeros((n, self.chain.n_joints, len(self.drive))) if derivatives else None
+        n, n_j, drive = phi.shape[0], self.inner.n_joints, self.drive
+        q = np.empty((n, n_j))
+        dq_dphi = np.zeros((n, n_j, self.n_joints)) if derivatives else None
+        dq_ds = np.zeros((n, n_j, len(drive))) if derivatives else None
         for mp in self.maps:
-            p = [dv[self.drive.index(name)] for name in mp.params]
-            if mp.kind == "direct":
-                (a,), (j,) = mp.actuators, mp.joints
+            p = [dv[i] for i in drive.indices(mp.param_names)]
+            if mp.type == "direct":
+                (a,), (j,) = mp.actuators, mp.chain_joints
                 q[:, j] = phi[:, a]
                 if derivatives:
                     dq_dphi[:, j, a] = 1.0
-            elif mp.kind == "screw":
-                (a,), (j,), (lead,) = mp.actuators, mp.joints, p
+            elif mp.type == "screw":
+                (a,), (j,), (lead,) = mp.actuators, mp.chain_joints, p
                 q[:, j] = lead * phi[:, a] / TWO_PI
                 if derivatives:
                     dq_dphi[:, j, a] = lead / TWO_PI
-                    dq_ds[:, j, self.drive.index(mp.params[0])] = phi[:, a] / TWO_PI
+                    dq_ds[:, j, drive.index(mp.param_names[0])] = phi[:, a] / TWO_PI
             else:
-                (a, b), (jt, jr), (lead, arm) = mp.actuators, mp.joints, p
-                il, ia = self.drive.index(mp.params[0]), self.drive.index(mp.params[1])
-                s, d = phi[:, a] + phi[:, b], phi[:, a] - phi[:, b]
-                q[:, jt] = lead * s / (2 * TWO_PI)
-                u = lead * d / (TWO_PI * arm)
-                q[:, jr] = np.arctan(u)
-                if derivatives:
-                    g = 1.0 / (1.0 + u * u)  # d atan(u)/du
-                    dq_dphi[:, jt, a] = dq_dphi[:, jt, b] = lead / (2 * TWO_PI)
-                    dq_dphi[:, jr, a] = g * lead / (TWO_PI * arm)
-                    dq_dphi[:, jr, b] = -dq_dphi[:, jr, a]
-                    dq_ds[:, jt, il] = s / (2 * TWO_PI)
-                    dq_ds[:, jr, il] = g * d / (TWO_PI * arm)
-                    dq_ds[:, jr, ia] = -g * u / arm
+                self._differential(mp, p, phi, q, dq_dphi, dq_ds)
         return q, dq_dphi, dq_ds
 
+    def _differential(self, mp: Map, p, phi, q, dq_dphi, dq_ds) -> None:
+        """A differential screw pair: carriage travel and lever turn (and their derivatives, in place)."""
+        (a, b), (jt, jr), (lead, arm) = mp.actuators, mp.chain_joints, p
+        il, ia = self.drive.index(mp.param_names[0]), self.drive.index(mp.param_names[1])
+        s, d = phi[:, a] + phi[:, b], phi[:, a] - phi[:, b]
+        q[:, jt] = lead * s / (2 * TWO_PI)
+        u = lead * d / (TWO_PI * arm)
+        q[:, jr] = np.arctan(u)
+        if dq_dphi is None:
+            return
+        g = 1.0 / (1.0 + u * u)  # d atan(u)/du
+        dq_dphi[:, jt, a] = dq_dphi[:, jt, b] = lead / (2 * TWO_PI)
+        dq_dphi[:, jr, a] = g * lead / (TWO_PI * arm)
+        dq_dphi[:, jr, b] = -dq_dphi[:, jr, a]
+        dq_ds[:, jt, il] = s / (2 * TWO_PI)
+        dq_ds[:, jr, il] = g * d / (TWO_PI * arm)
+        dq_ds[:, jr, ia] = -g * u / arm
+
     # ---- Robot interface -----------------------------------------------------------------------
-    def forward_and_jacobian(self, q, params=None, jacobian=True):
-        phi = self.check_q(q)
-        values = self.param_values(params)
+    def _forward_and_jacobian(self, q, values, jacobian):
         cv, _ = self._split(values)
-        qj, _, dq_ds = self._transmit(phi, values, derivatives=jacobian)
+        qj, _, dq_ds = self._transmit(q, values, derivatives=jacobian)
         if not jacobian:
-            return self.chain.forward(qj, cv), None
-        p, Jc = self.chain.forward_and_jacobian(qj, cv)
-        Jq = Jc[:, :, self.chain.joint_columns]
+            return self.inner.forward(qj, cv), None
+        p, Jc, Jq = self.inner.forward_jacobians(qj, cv)
         return p, np.concatenate([Jc, Jq @ dq_ds], axis=2)
 
-    def joint_jacobian(self, q, params=None):
-        squeeze = np.ndim(q) == 1
-        phi = self.check_q(q)
-        values = self.param_values(params)
-        qj, dq_dphi, _ = self._transmit(phi, values)
-        out = self.chain.joint_jacobian(qj, self._split(values)[0]) @ dq_dphi
-        return out[0] if squeeze else out
+    def _joint_jacobian(self, q, values):
+        qj, dq_dphi, _ = self._transmit(q, values)
+        return self.inner.joint_jacobian(qj, self._split(values)[0]) @ dq_dphi
 
     def feasible(self, q: np.ndarray) -> np.ndarray:
         """Actuator limits and the chain's joint limits (e.g. |ψ| ≤ 45°, carriage travel) hold."""
-        phi = self.check_q(q)
-        return self.within_limits(phi) & self.chain.within_limits(self.joints(phi))
-
-    inner = property(lambda self: self.chain)
+        q = self.check_q(q)
+        return self.within_limits(q) & self.inner.within_limits(self.chain_q(q))
 
 
 def build_transmission_robot(chain: SerialRobot, actuators: Sequence[tuple[str, float, float]],
@@ -196,6 +173,11 @@ def build_transmission_robot(chain: SerialRobot, actuators: Sequence[tuple[str, 
     names = tuple(a[0] for a in actuators)
     if len(set(names)) != len(names):
         raise ModelError(f"{chain.name}: duplicate actuator names {names}")
-    drive_p = Parameters(tuple(drive), [v for v, _ in drive.values()], tuple(k for _, k in drive.values()))
-    return TransmissionRobot(chain, names, np.array([a[1] for a in actuators]), np.array([a[2] for a in actuators]),
-                             tuple(maps), drive_p)
+    clash = sorted(set(chain.params.names) & set(drive))
+    if clash:
+        raise ModelError(f"{chain.name}: transmission parameter names clash with the chain: {clash}")
+    p = chain.params
+    params = Parameters(p.names + tuple(drive), list(p.values) + [v for v, _ in drive.values()],
+                        p.kinds + tuple(k for _, k in drive.values()))
+    space = JointSpace(names, ("revolute",) * len(names), [a[1] for a in actuators], [a[2] for a in actuators])
+    return TransmissionRobot(chain, params, space, tuple(maps))

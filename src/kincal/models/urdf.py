@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from types import MappingProxyType
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
@@ -32,6 +33,7 @@ import numpy as np
 from ..errors import ModelError
 from .chain import AXES, ROT, TRANS, Chain, Op
 from .parameters import Parameters
+from .robot import JointSpace
 from .serial import BASE_NAMES, TOOL_NAMES, ChainRobot, check_mass
 from .transforms import rot_zyx, zyx_from_matrix
 
@@ -81,6 +83,7 @@ class URDFRobot(ChainRobot):
     params: Parameters
     description: str = ""
     source: Mapping[str, str] = field(default_factory=dict)  # file, base_link, tip_link
+    joint_space: JointSpace = field(init=False, repr=False)
     _chain: Chain = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -93,25 +96,20 @@ class URDFRobot(ChainRobot):
         for j in self.joints:
             if "." in j.name or not j.name:
                 raise ModelError(f"robot '{self.name}': joint name '{j.name}' must be non-empty and contain no '.'")
+        object.__setattr__(self, "source", MappingProxyType(dict(self.source)))
+        object.__setattr__(self, "joint_space", JointSpace(tuple(j.name for j in moving),
+                                                           tuple(MOVING[j.type] for j in moving),
+                                                           [j.lower for j in moving], [j.upper for j in moving]))
         # each joint motion gets a column of its own after the parameters: ∂p/∂q (joint_jacobian)
         object.__setattr__(self, "_chain", Chain(self._build_ops(), len(self.params) + len(moving), len(moving)))
 
     @property
-    def kind(self) -> str:
+    def structure(self) -> str:
         return "urdf"
 
     @property
     def moving_joints(self) -> tuple[URDFJoint, ...]:
         return tuple(j for j in self.joints if j.moving)
-
-    joint_names = property(lambda self: tuple(j.name for j in self.moving_joints))  # type: ignore[assignment]
-    joint_types = property(lambda self: tuple(MOVING[j.type] for j in self.moving_joints))  # type: ignore
-    lower = property(lambda self: np.array([j.lower for j in self.moving_joints]))  # type: ignore[assignment]
-    upper = property(lambda self: np.array([j.upper for j in self.moving_joints]))  # type: ignore[assignment]
-
-    def with_params(self, values) -> "URDFRobot":
-        new = values if isinstance(values, Parameters) else self.params.replace(values)
-        return URDFRobot(self.name, self.joints, new, self.description, dict(self.source))
 
     def _build_ops(self) -> tuple[Op, ...]:
         ops, k = self.base_ops(), 0
@@ -140,29 +138,23 @@ class URDFRobot(ChainRobot):
             out.append((j.name, end, k, j.mass, j.com))
         return out
 
-    def chain_values(self, params=None) -> np.ndarray:
-        return self._extended(params)
-
-    def _extended(self, params) -> np.ndarray:
+    def chain_values(self, values: np.ndarray | None = None) -> np.ndarray:
         """Parameter values followed by a zero per joint (the joint motions' own columns)."""
-        return np.concatenate([self.param_values(params), np.zeros(self.n_joints)])
+        return np.concatenate([self.param_values(values), np.zeros(self.n_joints)])
 
-    def forward_and_jacobian(self, q, params=None, jacobian=True):
-        q = self.check_q(q)
-        values = self._extended(params)
+    def _forward_and_jacobian(self, q, values, jacobian):
+        values = self.chain_values(values)
         if not jacobian:
             return self._chain.forward(values, q), None
         p, J = self._chain.forward_and_jacobian(values, q)
         return p, J[:, :, :self.n_params]
 
-    def forward_jacobians(self, q, params=None):
-        p, J = self._chain.forward_and_jacobian(self._extended(params), self.check_q(q))
+    def _forward_jacobians(self, q, values):
+        p, J = self._chain.forward_and_jacobian(self.chain_values(values), q)
         return p, J[:, :, :self.n_params], J[:, :, self.n_params:]
 
-    def joint_jacobian(self, q, params=None):
-        squeeze = np.ndim(q) == 1
-        Jq = self._chain.forward_and_jacobian(self._extended(params), self.check_q(q))[1][:, :, self.n_params:]
-        return Jq[0] if squeeze else Jq
+    def _joint_jacobian(self, q, values):
+        return self._chain.forward_and_jacobian(self.chain_values(values), q)[1][:, :, self.n_params:]
 
     def origin(self, joint: URDFJoint, values: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """A moving joint's origin with its deviations as URDF xyz (3,) and rpy (3,): the file's rpy

@@ -157,8 +157,8 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     if not isinstance(data, dict):
         raise ModelError(f"{label}: expected a mapping with keys {sorted(_TOP_KEYS)}")
     if "error_model" in data:
-        base = robot_from_dict({k: v for k, v in data.items() if k != "error_model"}, label)
-        return error_model_from_dict(base, data["error_model"], label)
+        geometry = robot_from_dict({k: v for k, v in data.items() if k != "error_model"}, label)
+        return error_model_from_dict(geometry, data["error_model"], label)
     unknown = set(data) - _TOP_KEYS
     if unknown:
         raise ModelError(f"{label}: unknown key(s) {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
@@ -238,13 +238,13 @@ def _dh_joints(entries, lf: float, af: float, label: str) -> tuple[list[Joint], 
 def robot_to_yaml(robot: Robot, length_unit: str = "m", angle_unit: str = "rad") -> str:
     """YAML text of a robot. In SI units (the default) load(save(robot)) reproduces it exactly."""
     if isinstance(robot, ExtendedRobot):
-        return robot_to_yaml(robot.base, length_unit, angle_unit) + error_model_yaml(robot)
+        return robot_to_yaml(robot.inner, length_unit, angle_unit) + error_model_yaml(robot)
     if isinstance(robot, PUU3Robot):
         return puu3_yaml(robot, length_unit, angle_unit)
     if isinstance(robot, URDFRobot):
         return urdf_yaml(robot, length_unit, angle_unit)
     if isinstance(robot, TransmissionRobot):
-        return _chain_yaml(robot.chain, length_unit, angle_unit) + transmission_yaml(robot, length_unit, angle_unit)
+        return _chain_yaml(robot.inner, length_unit, angle_unit) + transmission_yaml(robot, length_unit, angle_unit)
     return _chain_yaml(robot, length_unit, angle_unit)
 
 

@@ -37,9 +37,9 @@ def puu3_from_dict(data: dict, label: str) -> PUU3Robot:
     if not (isinstance(lim, list) and len(lim) == 2):
         raise ModelError(f"{label}: 'slider_limits' must be [lower, upper]")
     lo, hi = num(lim[0], label, "slider_limits") * lf, num(lim[1], label, "slider_limits") * lf
-    base = PUU3Robot.build(str(data.get("name", "puu3")), extended=extended, h_range=(lo, hi),
-                           description=str(data.get("description", "")))
-    return base.with_params(values)
+    robot = PUU3Robot.build(str(data.get("name", "puu3")), extended=extended, h_range=(lo, hi),
+                            description=str(data.get("description", "")))
+    return robot.with_params(values)
 
 
 def puu3_yaml(robot: PUU3Robot, length_unit: str, angle_unit: str) -> str:
@@ -149,15 +149,15 @@ def transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float,
 def transmission_yaml(robot: TransmissionRobot, length_unit: str, angle_unit: str) -> str:
     lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
     lines = ["actuators:"]
-    for name, lo, hi in zip(robot.actuator_names, robot.actuator_lower, robot.actuator_upper):
+    for name, lo, hi in zip(robot.joint_names, robot.lower, robot.upper):
         lines.append(f"  - {{name: {name}, limits: [{fmt(lo * af)}, {fmt(hi * af)}]}}")
     params = ", ".join(f"{n[len(DRIVE_PREFIX):]}: {fmt(v * lf)}" for n, v in zip(robot.drive.names, robot.drive.values))
     lines += ["transmission:", f"  parameters: {{{params}}}", "  maps:"]
     roles = {"direct": (), "screw": ("lead",), "differential_screw": ("lead", "arm")}
     for mp in robot.maps:
-        items = [f"type: {mp.kind}", f"actuators: [{', '.join(robot.actuator_names[a] for a in mp.actuators)}]",
-                 f"joints: [{', '.join(robot.chain.joints[j].name for j in mp.joints)}]"]
-        items += [f"{role}: {p[len(DRIVE_PREFIX):]}" for role, p in zip(roles[mp.kind], mp.params)]
+        items = [f"type: {mp.type}", f"actuators: [{', '.join(robot.joint_names[a] for a in mp.actuators)}]",
+                 f"joints: [{', '.join(robot.inner.joint_names[j] for j in mp.chain_joints)}]"]
+        items += [f"{role}: {p[len(DRIVE_PREFIX):]}" for role, p in zip(roles[mp.type], mp.param_names)]
         lines.append("    - {" + ", ".join(items) + "}")
     return "\n".join(lines) + "\n"
 
@@ -165,14 +165,14 @@ def transmission_yaml(robot: TransmissionRobot, length_unit: str, angle_unit: st
 def error_model_yaml(robot: ExtendedRobot) -> str:
     """The non-geometric terms (always SI: rad, kg, m), and the geometry their gravity loads use."""
     block: dict = {"terms": [t.to_dict() for t in robot.terms]}
-    refs = [t.gravity.robot for t in robot.terms if hasattr(t, "gravity")]
+    refs = [t.reference for t in robot.terms if t.reference is not None]
     if refs:
         block["reference"] = {n: float(v) for n, v in zip(refs[0].params.names, refs[0].params.values)}
     block["values"] = {n: float(robot.params[n]) for n in robot.term_names}
     return yaml.safe_dump({"error_model": block}, default_flow_style=None, sort_keys=False, width=120)
 
 
-def error_model_from_dict(base: Robot, data, label: str) -> ExtendedRobot:
+def error_model_from_dict(geometry: Robot, data, label: str) -> ExtendedRobot:
     where = f"{label}: error_model"
     if not isinstance(data, dict) or set(data) - {"terms", "reference", "values"} or not isinstance(data.get("terms"),
                                                                                                    list):
@@ -181,11 +181,11 @@ def error_model_from_dict(base: Robot, data, label: str) -> ExtendedRobot:
     reference = None
     if "reference" in data:
         ref = {str(k): num(v, f"{where}: reference", str(k)) for k, v in mapping(data, "reference", where).items()}
-        if set(ref) != set(base.params.names):
-            raise ModelError(f"{where}: 'reference' must give every parameter of the robot ({len(base.params)})")
-        reference = base.with_params(ref)
-    terms = [term_from_dict(base, reference, t, f"{where}: term {k + 1}") for k, t in enumerate(data["terms"])]
-    robot = ExtendedRobot.build(base, terms)
+        if set(ref) != set(geometry.params.names):
+            raise ModelError(f"{where}: 'reference' must give every parameter of the robot ({len(geometry.params)})")
+        reference = geometry.with_params(ref)
+    terms = [term_from_dict(geometry, reference, t, f"{where}: term {k + 1}") for k, t in enumerate(data["terms"])]
+    robot = ExtendedRobot.build(geometry, terms)
     unknown = sorted(set(values) - set(robot.term_names))
     if unknown:
         raise ModelError(f"{where}: unknown term(s) {', '.join(unknown)}")

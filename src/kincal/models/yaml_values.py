@@ -3,20 +3,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import units as U
 from ..errors import ModelError
-
-LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}
-
-
-ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
 
 
 def unit_factor(unit: str, kind: str, where: str = "") -> float:
-    """SI factor of a length ('m','mm','um') or angle ('rad','deg') unit."""
-    table = LENGTH_UNITS if kind == "length" else ANGLE_UNITS
-    if unit not in table:
-        raise ModelError(f"{where}unknown {kind} unit '{unit}'; use one of {', '.join(table)}")
-    return table[unit]
+    """SI factor of a length or angle unit in a robot file (ModelError naming the choices)."""
+    return U.unit_factor(unit, kind, where, ModelError)
 
 
 EXAMPLES = {"units": "{length: mm, angle: deg}", "base": "{x: 0, y: 0, z: 0, rx: 0, ry: 0, rz: 0}",

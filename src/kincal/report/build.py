@@ -19,10 +19,9 @@ from ..identify.calibrate import calibrate, evaluate
 from ..identify.result import CalibrationResult, EvaluationStats
 from ..identify.verdict import Thresholds, duplicate_groups, robust_z
 from ..io.measurements import Measurements
+from ..units import MM, display
 from . import figures as F
 from .study_figures import pso_fitness
-
-MM, DEG = 1e3, 180.0 / np.pi
 
 
 @dataclass(frozen=True)
@@ -68,24 +67,24 @@ def build_report(result: CalibrationResult, test: Measurements | None = None, in
 
     info = dict(info or {})
     train = result.measurements
-    th = _thresholds(result)
+    th = result.options.thresholds
     sets = _sets(result, test, th)
     warnings = list(evaluate(result.robot, test, uncertainty=result.uncertainty()).warnings) if test else []
     headline = [_headline(s, which) for s in sets for which in ("before", "after")]
     figs = _figures(sets, result)
-    ctx = {"robot": result.robot.name, "version": __version__, "date": report_date(), "model_kind": result.robot.kind,
+    ctx = {"robot": result.robot.name, "version": __version__, "date": report_date(), "structure": result.robot.structure,
            "n_estimated": len(result.names), "n_train": len(train), "verdict": result.verdict.to_dict(),
            "outliers": [int(r) for s in sets for r in s.rows[s.outliers]], "headline": headline,
            "warnings": warnings, "parameters": _parameter_rows(result, th),
            "not_estimated": result.identifiability.confound_lines(""), "data": _data_rows(result, test, info),
            "iso": _iso9283(sets, result), "json_name": json_path_for(html_name).name,
-           "model_selection": None if result.model_selection is None else result.model_selection.to_dict(),
-           "model_notes": list(result.model_notes), "compliance": getattr(result.robot, "compliances", dict)(),
+           "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
+           "error_model_notes": list(result.error_model_notes), "compliance": result.robot.compliances(),
            "acquisition": _acquisition(result), **figs}
     html = _template().render(**ctx)
-    data = {k: ctx[k] for k in ("robot", "version", "date", "model_kind", "verdict", "outliers", "warnings",
-                                "parameters", "not_estimated", "data", "iso", "model_selection", "model_notes",
-                                "compliance", "acquisition")}
+    data = {k: ctx[k] for k in ("robot", "version", "date", "structure", "verdict", "outliers", "warnings",
+                                "parameters", "not_estimated", "data", "iso", "error_model_choice",
+                                "error_model_notes", "compliance", "acquisition")}
     data["headline"] = [{**h, **{k: h[k] / MM for k in ("mean", "rms", "max", "p95")}} for h in headline]
     data["figures"] = [f["name"] for group in figs.values() for f in group]
     return Report(html, data, _summary(result, headline))
@@ -101,10 +100,6 @@ def _acquisition(result: CalibrationResult) -> dict:
     return {"rows": meas.rows[order].tolist(), "error_mm": norms.tolist(), "trend_mm_per_100_poses": slope}
 
 
-def _thresholds(result: CalibrationResult) -> Thresholds:
-    return Thresholds(**result.options["thresholds"]) if result.options.get("thresholds") else Thresholds()
-
-
 def _sets(result: CalibrationResult, test: Measurements | None, th: Thresholds) -> list[F.PoseSet]:
     """The training set (outliers as judged by the calibration) and the held-out set (by robust z)."""
     sets = [_pose_set("training", result, result.measurements, result.pose_z > result.outlier_z)]
@@ -116,7 +111,7 @@ def _sets(result: CalibrationResult, test: Measurements | None, th: Thresholds) 
 
 def _pose_set(label: str, result: CalibrationResult, meas: Measurements, outliers: np.ndarray) -> F.PoseSet:
     """Errors before (nominal model, its base frame fitted to these data) and after (the calibrated model)."""
-    nominal = calibrate(result.nominal, meas, params=(), base="estimate").robot if result.nominal.base_params() \
+    nominal = calibrate(result.nominal, meas, names=(), base="estimate").robot if result.nominal.base_params() \
         else result.nominal
     before = meas.xyz - nominal.forward(meas.q)
     after = meas.xyz - result.robot.forward(meas.q)
@@ -141,8 +136,8 @@ def _figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
 
 def figure_set(result: CalibrationResult, test: Measurements | None = None) -> dict:
     """The report's figures as matplotlib Figures by name (``--plot`` saves them as PNG or SVG); with a
-    particle swarm also its fitness per iteration (seed 2, Fig. 7)."""
-    figs = _make_figures(_sets(result, test, _thresholds(result)), result)
+    particle swarm also its fitness per iteration (the 3-PUU paper's Fig. 7)."""
+    figs = _make_figures(_sets(result, test, result.options.thresholds), result)
     if result.history:
         figs["pso-fitness"] = pso_fitness(result.history)
     return figs
@@ -168,8 +163,7 @@ def _make_figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
 
 
 def _value(v: float, kind: str, signed: bool = False) -> str:
-    fmt = "{:+.4f}" if signed else "{:.4f}"
-    return fmt.format(v * MM) + " mm" if kind == "length" else fmt.format(v * DEG) + " deg"
+    return display(v, kind, signed, digits=(4, 4))
 
 
 def _parameter_rows(result: CalibrationResult, th: Thresholds) -> list[dict]:
@@ -200,8 +194,8 @@ def _data_rows(result: CalibrationResult, test: Measurements | None, info: dict)
     rows = [("robot", info.pop("robot", result.robot.name)), ("training data", _file_line(result.measurements))]
     if test is not None:
         rows.append(("held-out data", _file_line(test)))
-    rows += [("options", f"base {o.get('base')}, loss {o.get('loss')}, method {o.get('method')}, "
-                         f"parameters {o.get('params') if isinstance(o.get('params'), str) else 'as listed'}"),
+    rows += [("options", f"base {o.base}, loss {o.loss}, method {o.method}, "
+                         f"parameters {o.names if isinstance(o.names, str) else 'as listed'}"),
              ("solver", f"{'converged' if result.converged else 'NOT converged'} ({result.message}), "
                         f"{result.iterations} iterations"),
              ("pose design", info.pop("design", "not recorded (poses not from kincal design, or not given)"))]

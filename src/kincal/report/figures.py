@@ -16,7 +16,7 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-MM, DEG = 1e3, 180.0 / np.pi
+from ..units import DEG, MM
 RC = {"svg.hashsalt": "kincal", "svg.fonttype": "none", "font.size": 9, "axes.titlesize": 10,
       "axes.grid": True, "grid.alpha": 0.3, "font.family": "DejaVu Sans"}
 SVG_DPI = 110  # point clouds are embedded as images at this resolution (thousands of markers stay small)

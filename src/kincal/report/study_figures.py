@@ -1,5 +1,6 @@
-"""Figures of the seed papers' studies: seed 1's Figs. 5-8 and 12-13 from a :class:`Seed1Study`,
-seed 2's Fig. 7 (particle-swarm fitness) from a calibration's history."""
+"""Figures of the papers' studies: Guo et al. 2024's Figs. 5-8 and 12-13 from a
+:class:`~kincal.studies.Guo2024Study`, and the 3-PUU error-model verification paper's Fig. 7
+(particle-swarm fitness) from a calibration's history."""
 from __future__ import annotations
 
 import numpy as np
@@ -99,7 +100,7 @@ def validation_summary(errors: dict) -> Figure:
     return fig
 
 
-def seed1_figures(study) -> dict:
+def guo2024_figures(study) -> dict:
     """The study's figures by name."""
     names = [n for n in study.true_errors]
     chosen = {d: study.eta[d] for d in ("random", "separated-parameter optimised")}
@@ -111,10 +112,10 @@ def seed1_figures(study) -> dict:
 
 @_styled
 def pso_fitness(history) -> Figure:
-    """Seed 2, Fig. 7: the swarm's best mean squared residual per iteration."""
+    """The 3-PUU paper's Fig. 7: the swarm's best mean squared residual per iteration."""
     fig = _figure(6.0, 3.2)
     ax = fig.add_subplot()
     h = np.asarray(history, dtype=float)
     ax.semilogy(np.arange(1, len(h) + 1), np.sqrt(h) * MM, color="#1f77b4")
-    ax.set(xlabel="iteration", ylabel="best RMS residual (mm)", title="Particle swarm fitness (seed 2, Fig. 7)")
+    ax.set(xlabel="iteration", ylabel="best RMS residual (mm)", title="Particle swarm fitness (3-PUU paper, Fig. 7)")
     return fig

@@ -1,6 +1,6 @@
-"""The seed-1 claim as a Monte-Carlo experiment: optimised against random measurement poses.
+"""Guo et al. 2024's claim as a Monte-Carlo experiment: optimised against random measurement poses.
 
-The seed-1 paper reports that its optimised 60 poses cut the mean position error by 62.09 % (std by
+Guo et al. 2024 report that their optimised 60 poses cut the mean position error by 62.09 % (std by
 62.45 %) against 60 random poses, from one real experiment. Here every trial draws a new random
 design, new parameter errors and new tracker noise, identifies the robot from the optimised design
 (separated-parameter DETMAX-IDE, fixed for the study) and from the random one, and validates both.
@@ -49,11 +49,11 @@ def paper_grid(robot: TransmissionRobot) -> np.ndarray:
                   for c in np.linspace(-0.45, -0.05, 3)])
     k = np.arange(len(g))
     wrist = np.column_stack([np.deg2rad((k % 4) * 90.0 - 135.0), np.deg2rad((k % 3) * 60.0 - 60.0)])
-    return robot.actuators(np.column_stack([g, wrist]))
+    return robot.actuator_q(np.column_stack([g, wrist]))
 
 
 @dataclass(frozen=True, eq=False)
-class Seed1Trials:
+class Guo2024Trials:
     """Everything a trial needs (picklable: it travels to the workers)."""
 
     robot: TransmissionRobot
@@ -87,14 +87,14 @@ class Seed1Trials:
         designs = {"optimised": self.optimised}
         for name in RANDOM_SETS:
             designs[name] = self.pools[name][np.sort(rng.choice(len(self.pools[name]), self.m, replace=False))]
-        estimated = {name: identifiability(robot, q, params=self.kin).identifiable for name, q in designs.items()}
+        estimated = {name: identifiability(robot, q, names=self.kin).identifiable for name, q in designs.items()}
         out: dict = {"trial": t}
         for truth in TRUTHS:
             model = true if truth == "exact" else true.with_params(drive)
             sag = 0.0 if truth == "exact" else self.sag
             for name, q in designs.items():
                 xyz = self.positions(model, q, sag) + rng.normal(0.0, self.noise, (len(q), 3))
-                res = calibrate(robot, Measurements(q, xyz, robot.joint_names), params=estimated[name], base="fixed",
+                res = calibrate(robot, Measurements(q, xyz, robot.joint_names), names=estimated[name], base="fixed",
                                 max_iter=200)
                 for val, qv in (("grid", self.grid), ("random", self.validation)):
                     err = self.positions(model, qv, sag) - res.robot.forward(qv)
@@ -107,12 +107,12 @@ class Seed1Trials:
         """Tool positions of ``model`` with the quill sag (base x, quadratic in the quill extension)."""
         p = model.forward(q)
         if sag:
-            ext = -model.joints(q)[:, 2] / 0.5
+            ext = -model.chain_q(q)[:, 2] / 0.5
             p = p + np.outer(sag * ext**2, [1.0, 0.0, 0.0])
         return p
 
 
-def prepare(m: int = 60, generations: int = 150, seed: int = 0, say=lambda msg: None) -> Seed1Trials:
+def prepare(m: int = 60, generations: int = 150, seed: int = 0, say=lambda msg: None) -> Guo2024Trials:
     """The study's fixed parts: the optimised design (the paper's method, as ``kincal demo``), the
     validation poses and the candidate pools for random designs (about 10 s)."""
     robot = load_robot("guo3t2r")
@@ -120,15 +120,15 @@ def prepare(m: int = 60, generations: int = 150, seed: int = 0, say=lambda msg: 
     say("separating ill-conditioned parameters")
     sep = separate_ill_conditioned(robot, candidate_pool(robot, 100, seed=0), kin)
     pool = candidate_pool(robot, 1000, seed=1)
-    reduced = identifiability(robot, pool, params=[n for n in kin if n not in sep.paper_choice]).identifiable
+    reduced = identifiability(robot, pool, names=[n for n in kin if n not in sep.paper_choice]).identifiable
     say("optimising the design (DETMAX-IDE, comprehensive index)")
-    design = select_poses(robot, pool, m, "detmax-ide", "comprehensive", seed=0,
-                          problem=design_problem(robot, pool, reduced), bound=False, generations=generations)
+    design = select_poses(robot, pool, m=m, method="detmax-ide", criterion="comprehensive", seed=0,
+                          problem=design_problem(robot, pool, reduced), certify=False, generations=generations)
     big = candidate_pool(robot, 8000, seed=2)
-    qj = robot.joints(big)
+    qj = robot.chain_q(big)
     part = big[(qj[:, 0] <= 0.5) & (qj[:, 2] >= -0.25)]
-    header = {"study": "seed1", "m": m, "generations": generations, "seed": seed}
-    return Seed1Trials(robot, design.q, paper_grid(robot), candidate_pool(robot, 60, seed=99),
+    header = {"study": "guo2024", "m": m, "generations": generations, "seed": seed}
+    return Guo2024Trials(robot, design.q, paper_grid(robot), candidate_pool(robot, 60, seed=99),
                        {"random": big, "partial": part}, kin, m=m, seed=seed, header=header)
 
 

@@ -1,7 +1,10 @@
-"""The seed-1 study on the 3T2R robot: ill-conditioned parameter separation, three 60-pose designs
+"""Guo et al. 2024 ("Measurement configuration optimization for robot kinematic calibration based on
+ill-conditioned parameter separation") reproduced on the 3T2R robot: ill-conditioned parameter
+separation, three 60-pose designs
 (random, full-parameter optimised, separated-parameter optimised, both by DETMAX-IDE on the
 comprehensive index), LM identification of parameter errors of 0.5 mm / 0.05 rad with tracker noise,
-identification accuracy η (eq. 29) and validation errors (Table 8), repeated over several seeds.
+identification accuracy η (eq. 29) and validation errors (Table 8), repeated several times (repetition
+k draws its errors and noise from random seed k; the first sets every error as the paper does).
 
 Deviation from the paper, by necessity: an error model with exact dependences has a zero singular
 value, so every index of it is 0 (or rounding noise) and it cannot steer a design. The "full" model
@@ -18,7 +21,7 @@ import numpy as np
 
 from ..analysis.identifiability import identifiability
 from ..analysis.separation import TYPES, Separation, param_type, separate_ill_conditioned
-from ..design import candidate_pool, design_problem, pose_count_curve, select_poses
+from ..design import DesignOptions, candidate_pool, design_problem, pose_count_curve, select_poses
 from ..identify.calibrate import calibrate, evaluate
 from ..identify.result import EvaluationStats
 from ..models.yaml_io import load_robot
@@ -29,23 +32,23 @@ DESIGNS = ("random", "full-parameter optimised", "separated-parameter optimised"
 
 
 @dataclass(frozen=True, eq=False)
-class Seed1Study:
+class Guo2024Study:
     separation: Separation
     design_params: dict[str, tuple[str, ...]]
     design_values: dict[str, float]
-    eta: dict[str, dict[str, float]]  # design -> parameter -> η % (seed 0)
-    combinations: dict[str, dict[str, dict]]  # design -> combination -> set, identified, η (seed 0)
-    identified: dict[str, dict[str, float]]  # design -> parameter -> identified error (seed 0)
+    eta: dict[str, dict[str, float]]  # design -> parameter -> η % (first repetition)
+    combinations: dict[str, dict[str, dict]]  # design -> combination -> set, identified, η (first repetition)
+    identified: dict[str, dict[str, float]]  # design -> parameter -> identified error (first repetition)
     true_errors: dict[str, float]
-    validation: dict[str, EvaluationStats]  # seed 0; "before" is the nominal model
+    validation: dict[str, EvaluationStats]  # first repetition; "before" is the nominal model
     repeated: dict[str, tuple[float, float, float, float]]  # mean±sd of mean error, mean±sd of std (m)
-    seeds: int
+    repeats: int
     m: int
     protocol: str = "kincal"
     units: str = "scaled"
     histories: dict = field(default_factory=dict)  # design -> IDE best index per generation (Figs. 5-6)
     curve: dict = field(default_factory=dict)  # index vs number of poses, separated model (Fig. 7)
-    point_errors: dict = field(default_factory=dict)  # seed 0: validation errors (60, 3) m per model (Fig. 12)
+    point_errors: dict = field(default_factory=dict)  # first repetition: validation errors (60, 3) m per model (Fig. 12)
 
     def to_dict(self) -> dict:
         return {"separation": self.separation.to_dict(), "design_params": {k: list(v) for k, v in self.design_params.items()},
@@ -55,7 +58,7 @@ class Seed1Study:
                 "validation_point_errors": {k: np.asarray(v).tolist() for k, v in self.point_errors.items()},
                 "true_errors": self.true_errors, "validation": {k: v.to_dict() for k, v in self.validation.items()},
                 "repeated": {k: {"mean_of_mean": v[0], "sd_of_mean": v[1], "mean_of_std": v[2], "sd_of_std": v[3]}
-                             for k, v in self.repeated.items()}, "seeds": self.seeds, "m": self.m}
+                             for k, v in self.repeated.items()}, "repeats": self.repeats, "m": self.m}
 
     def __str__(self) -> str:
         out = ["== Ill-conditioned parameter separation (100 random poses) ==", self.separation.tables(),
@@ -87,12 +90,12 @@ class Seed1Study:
         how = (f"paper protocol: no noise, LM with fixed μ = 1 (mm, rad), all {len(self.true_errors)} parameters"
                if self.protocol == "paper"
                else "kincal protocol: 15 µm noise, adaptive LM, the identifiable parameters")
-        out = [f"== Identified errors, seed 0 (Tables 4-5; mm and rad; {how}; set: "
+        out = [f"== Identified errors, first repetition (Tables 4-5; mm and rad; {how}; set: "
                f"{self.true_errors[next(n for n in self.true_errors if param_type(n) == 'a')] * 1e3:.1f} mm, "
                f"{self.true_errors[next(n for n in self.true_errors if param_type(n) == 'theta')]:.2f} rad) =="]
         for d in DESIGNS:
             out += [f"  {d}"] + self._table(self.identified[d], as_units)
-        out += ["", "== Identification accuracy η (eq. 29), seed 0: % per parameter error (— = not identifiable, "
+        out += ["", "== Identification accuracy η (eq. 29), first repetition: % per parameter error (— = not identifiable, "
                     "kept nominal) =="]
         for d in DESIGNS:
             out += [f"  {d}"] + self._table(self.eta[d], lambda n, v: f"{v:10.2f}")
@@ -112,11 +115,11 @@ class Seed1Study:
         return out + [""]
 
     def _validation(self) -> list[str]:
-        out = ["== Validation, 60 poses, seed 0 (Table 8): position error in mm ==",
+        out = ["== Validation, 60 poses, first repetition (Table 8): position error in mm ==",
                f"  {'':<31} {'max':>8} {'mean':>8} {'std':>8}"]
         for k, s in self.validation.items():
             out.append(f"  {k:<31} {s.max * 1e3:8.4f} {s.mean * 1e3:8.4f} {s.std * 1e3:8.4f}")
-        out += ["", f"== Repeated over {self.seeds} seeds: mean ± sd (mm) ==",
+        out += ["", f"== Repeated {self.repeats} times (new errors and noise each): mean ± sd (mm) ==",
                 f"  {'':<31} {'mean error':>22} {'std of error':>22}"]
         for k, (mm, ms, sm, ss) in self.repeated.items():
             out.append(f"  {k:<31} {mm * 1e3:10.4f} ± {ms * 1e3:<9.4f} {sm * 1e3:10.4f} ± {ss * 1e3:<9.4f}")
@@ -125,7 +128,7 @@ class Seed1Study:
         if rnd < 1e-9:
             return out + ["  every design reproduces the validation positions to < 1 nm (no noise): nothing to compare"]
         out.append(f"  mean error of '{best}' vs random: {100 * (1 - self.repeated[best][0] / rnd):+.1f} % reduction "
-                   f"(one random design; 'kincal study seed1' gives the distribution)")
+                   f"(one random design; 'kincal study guo2024' gives the distribution)")
         return out
 
 
@@ -146,17 +149,17 @@ DEPENDENCE_NOTE = """why these dependences differ from the paper's Tables 1-3 (a
     number; the structure of the dependences can, and QR names every one of them exactly."""
 
 PROTOCOLS = ("kincal", "paper")
-# the paper's Tables 4-6 (seed 0 of this study sets every error as the paper: +0.5 mm, +0.05 rad)
+# the paper's Tables 4-6 (the first repetition sets every error as the paper: +0.5 mm, +0.05 rad)
 PAPER_INDEX = {"full-parameter optimised": 1.833, "separated-parameter optimised": 2.049}
 PAPER_TABLE6 = {"Δα4": ("j5.alpha", (17.159, 15.964)), "Δd2": ("j3.d", (98.068, 96.673)),
                 "Δd3": ("j4.d", (98.066, 96.671)), "Δd4": ("j5.d", (19.557, 18.796)),
                 "Δd5": ("a5.d", (31.855, 30.556))}  # paper label -> (kincal name, η %: optimised, random)
 
 
-def seed1_study(seeds: int = 20, m: int = 60, pool_size: int = 1000, generations: int = 150,
-                noise: float = 15e-6, length_error: float = 0.5e-3, angle_error: float = 0.05,
-                progress: Callable[[str], None] | None = None, protocol: str = "kincal",
-                units: str = "scaled", robot: str = "guo3t2r") -> Seed1Study:
+def guo2024_study(repeats: int = 20, m: int = 60, pool_size: int = 1000, generations: int = 150,
+                  noise: float = 15e-6, length_error: float = 0.5e-3, angle_error: float = 0.05,
+                  progress: Callable[[str], None] | None = None, protocol: str = "kincal",
+                  units: str = "scaled", robot: str = "guo3t2r") -> Guo2024Study:
     """Run the study (about half a minute with the defaults).
 
     protocol -- "kincal": tracker noise, adaptive LM, the identifiable parameters (η of each kept
@@ -167,40 +170,44 @@ def seed1_study(seeds: int = 20, m: int = 60, pool_size: int = 1000, generations
     """
     if protocol not in PROTOCOLS:
         raise ValueError(f"protocol='{protocol}' is not one of {PROTOCOLS}")
+    DesignOptions(m=m, method="detmax-ide", criterion="comprehensive", units=units, generations=generations)  # checked first
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise ValueError(f"repeats={repeats!r}: give a whole number, 1 or more")
     say = progress or (lambda msg: None)
     robot = load_robot(robot)
     kin = tuple(n for n in robot.params.names if param_type(n) in TYPES)
     say("separating ill-conditioned parameters")
     sep = separate_ill_conditioned(robot, candidate_pool(robot, 100, seed=0), kin)
     pool = candidate_pool(robot, pool_size, seed=1)
-    full = identifiability(robot, pool, params=kin).identifiable
-    # the seed's separated model: its own rule (lowest GCN), which may drop whole equivalent groups
-    reduced = identifiability(robot, pool, params=[n for n in kin if n not in sep.paper_choice]).identifiable
-    params = {DESIGNS[0]: full, DESIGNS[1]: full, DESIGNS[2]: reduced}
+    full = identifiability(robot, pool, names=kin).identifiable
+    # the paper's separated model: its own rule (lowest GCN), which may drop whole equivalent groups
+    reduced = identifiability(robot, pool, names=[n for n in kin if n not in sep.paper_choice]).identifiable
+    design_names = {DESIGNS[0]: full, DESIGNS[1]: full, DESIGNS[2]: reduced}
     designs, values, histories = {}, {}, {}
     for name in DESIGNS:
         say(f"designing: {name}")
-        P = design_problem(robot, pool, params[name], units=units)
+        P = design_problem(robot, pool, design_names[name], units=units)
         method = "random" if name == DESIGNS[0] else "detmax-ide"
-        d = select_poses(robot, pool, m, method, "comprehensive", seed=0, problem=P, bound=False,
-                         generations=generations)
+        d = select_poses(robot, pool, m=m, method=method, criterion="comprehensive", seed=0, problem=P,
+                         certify=False, generations=generations)
         designs[name], values[name], histories[name] = d.q, d.value, d.history
         if name == DESIGNS[2]:
             curve = pose_count_curve(P, "comprehensive", m_max=100, seed=0).to_dict()
     size = {n: length_error if robot.params.kinds[robot.params.index(n)] == "length" else angle_error for n in kin}
-    eta, combos, identified, validation, repeated, points = _identify(robot, kin, designs, size, seeds,
+    eta, combos, identified, validation, repeated, points = _identify(robot, kin, designs, size, repeats,
                                                                       0.0 if protocol == "paper" else noise, protocol,
                                                                       say)
-    return Seed1Study(sep, params, values, eta, combos, identified, size, validation, repeated, seeds, m, protocol,
-                      units, histories, curve, points)
+    return Guo2024Study(sep, design_names, values, eta, combos, identified, size, validation, repeated, repeats, m,
+                        protocol, units, histories, curve, points)
 
 
-def _identify(robot, kin, designs, size, seeds, noise, protocol, say):
-    """Per seed: errors, identification from each design, validation; seed 0 keeps the details."""
+def _identify(robot, kin, designs, size, repeats, noise, protocol, say):
+    """Per repetition (random seed k): errors, identification from each design, validation; the
+    first repetition keeps the details."""
     q_val = candidate_pool(robot, 60, seed=99)
     eta, combos, identified, validation, runs, points = {}, {}, {}, {}, {n: [] for n in DESIGNS}, {}
-    for seed in range(seeds):
-        say(f"identifying, seed {seed + 1}/{seeds}")
+    for seed in range(repeats):
+        say(f"identifying, repetition {seed + 1}/{repeats}")
         rng = np.random.default_rng(seed)
         sign = np.ones(len(kin)) if seed == 0 else rng.choice([-1.0, 1.0], len(kin))
         errors = {n: s * size[n] for n, s in zip(kin, sign)}
@@ -211,12 +218,12 @@ def _identify(robot, kin, designs, size, seeds, noise, protocol, say):
             points["before calibration"] = val.xyz - robot.forward(val.q)
         for name in DESIGNS:
             meas = simulate(true, designs[name], noise, seed=1000 + seed)
-            ident = identifiability(robot, designs[name], params=kin)
+            ident = identifiability(robot, designs[name], names=kin)
             if protocol == "paper":
                 fitted = paper_lm(robot, meas, kin)
                 corr = {n: fitted.params[n] - robot.params[n] for n in kin}
             else:
-                fitted = calibrate(robot, meas, params=ident.identifiable, base="fixed", max_iter=200).robot
+                fitted = calibrate(robot, meas, names=ident.identifiable, base="fixed", max_iter=200).robot
                 corr = {n: fitted.params[n] - robot.params[n] for n in ident.identifiable}
             stats = evaluate(fitted, val)
             runs[name].append((stats.mean, stats.std))
@@ -254,7 +261,7 @@ def _combinations(ident, errors: dict, corr: dict) -> dict[str, dict]:
 
 
 def paper_lm(robot, meas, names, mu: float = 1.0, max_iter: int = 200, tol: float = 1e-12):
-    """Seed 1's identification (eq. 8): ΔX = (JᵀJ + μI)⁻¹JᵀΔP with a fixed μ, positions in mm,
+    """Guo et al. 2024's identification (eq. 8): ΔX = (JᵀJ + μI)⁻¹JᵀΔP with a fixed μ, positions in mm,
     lengths in mm and angles in rad, over all ``names`` (dependent ones included: μ keeps the step
     finite and splits a dependent group evenly). Returns the fitted robot."""
     cols = robot.params.indices(names)

@@ -1,0 +1,171 @@
+"""Compensation: joint commands that the calibrated model says reach given target positions."""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
+from ..errors import ModelError
+from ..models.robot import Robot
+
+IK_TOL = 1e-10  # m
+IK_ITER = 100
+
+
+BRANCH_TOL = {"revolute": np.deg2rad(5.0), "prismatic": 5e-3}  # a correction larger than this changes branch
+START_TOL = 50e-3  # m: the model at the nominal command must be this close to the target
+REACH_MARGIN = 1.2  # targets farther from the base than this times the reach bound are out of reach
+
+
+@dataclass(frozen=True)
+class Compensation:
+    """q (N, n): commands; residual (N,): |model(q) − target| in m; method: how q was found.
+
+    ok (N,) says which commands passed every check (reach, joint limits, branch, model residual);
+    problems holds one message per refused target, naming its input row.
+    """
+
+    q: np.ndarray
+    residual: np.ndarray
+    method: str
+    iterations: int
+    ok: np.ndarray | None = None
+    problems: tuple[str, ...] = ()
+    rows: np.ndarray | None = None
+    predicted_sigma: np.ndarray | None = None  # (N,) m, where the model's uncertainty is known
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def all_ok(self) -> bool:
+        return self.ok is None or bool(self.ok.all())
+
+    def to_dict(self) -> dict:
+        ok = np.ones(len(self.q), bool) if self.ok is None else self.ok
+        res = np.where(np.isfinite(self.residual), self.residual, np.nan)
+        return {"q": [qi.tolist() if k else None for qi, k in zip(self.q, ok)],
+                "residual": [float(r) if np.isfinite(r) else None for r in res],
+                "max_residual": float(np.nanmax(res[ok])) if ok.any() else None, "method": self.method,
+                "iterations": self.iterations, "ok": ok.tolist(), "problems": list(self.problems),
+                "predicted_sigma": None if self.predicted_sigma is None else
+                [float(x) if np.isfinite(x) else None for x in self.predicted_sigma], "warnings": list(self.warnings)}
+
+
+def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = None, *, damping: float = 1e-4,
+               rows: np.ndarray | None = None, uncertainty: ModelUncertainty | None = None) -> Compensation:
+    """Joint commands that place ``robot``'s tool at targets (N, 3) m, each checked before use.
+
+    Robots with a closed-form inverse (parallel robots) use it. Otherwise (serial robots) a damped
+    least-squares iteration on the model, started from ``q_start`` (N, n) — normally the commands the
+    nominal model gives for the targets — converges to the nearest solution; the damping (m) keeps
+    steps small near singularities. Every command is then checked: the target must be within reach
+    (and plausibly in the declared unit), the command inside the joint limits, on the same branch
+    as the nominal command (no joint moving more than ``BRANCH_TOL``), with a model residual under
+    1 µm. ``ok`` and ``problems`` (rows are ``rows``, default 1-based positions) report the checks.
+    With the model's ``uncertainty`` the predicted σ at every command is reported, with a warning
+    naming the rows where the model extrapolates. Every argument is checked before any work.
+    """
+    targets, q0, rows = _checked_inputs(robot, targets, q_start, damping, rows)
+    if robot.has_inverse:
+        q = robot.inverse(targets, strict=False)
+        comp = Compensation(q, _residual(robot, q, targets), "closed-form inverse", 0)
+        return _with_sigma(robot, _checked(robot, comp, targets, None, rows), uncertainty)
+    q, it = q0.copy(), 0
+    for it in range(1, IK_ITER + 1):
+        e = targets - robot.forward(q)
+        if np.max(np.linalg.norm(e, axis=1)) < IK_TOL:
+            break
+        Jq = robot.joint_jacobian(q)  # (N, 3, n)
+        A = Jq @ np.swapaxes(Jq, 1, 2) + damping**2 * np.eye(3)
+        q = q + np.einsum("nji,nj->ni", Jq, np.linalg.solve(A, e[..., None])[..., 0])
+    comp = Compensation(q, _residual(robot, q, targets), "damped least squares", it)
+    return _with_sigma(robot, _checked(robot, comp, targets, q0, rows), uncertainty)
+
+
+def _checked_inputs(robot: Robot, targets, q_start, damping: float, rows):
+    """Targets (N, 3), the starting joints (N, n) (None with a closed-form inverse) and the rows (N,),
+    checked: finite numbers, matching counts, a positive damping."""
+    targets = np.atleast_2d(np.asarray(targets, dtype=float))
+    if targets.ndim != 2 or targets.shape[1] != 3 or not np.all(np.isfinite(targets)):
+        raise ModelError(f"targets must be finite positions (N, 3) in m, got shape {targets.shape}")
+    if isinstance(damping, bool) or not isinstance(damping, (int, float)) or not (np.isfinite(damping) and damping > 0):
+        raise ValueError(f"damping={damping!r}: give a positive damping in m")
+    rows = np.arange(1, len(targets) + 1) if rows is None else np.asarray(rows)
+    if rows.shape != (len(targets),):
+        raise ValueError(f"rows: {rows.shape[0] if rows.ndim else 0} row numbers for {len(targets)} targets")
+    if robot.has_inverse:
+        return targets, None, rows
+    if q_start is None:
+        raise ModelError(f"robot '{robot.name}' has no closed-form inverse: give the nominal joint values of the "
+                         f"targets as the starting point")
+    q0 = robot.check_q(q_start)
+    if q0.shape[0] != targets.shape[0] or not np.all(np.isfinite(q0)):
+        raise ModelError(f"{targets.shape[0]} targets but {q0.shape[0]} starting joint vectors (finite values needed)")
+    return targets, q0, rows
+
+
+def _with_sigma(robot: Robot, comp: Compensation, unc: ModelUncertainty | None) -> Compensation:
+    """The compensation with the predicted σ at its accepted commands and an extrapolation warning."""
+    if unc is None or not comp.ok.any():
+        return comp
+    sigma = np.full(len(comp.q), np.nan)
+    sigma[comp.ok] = unc.sigma(robot, comp.q[comp.ok])
+    ok = comp.ok
+    warnings = (extrapolation_warning(comp.rows[ok], sigma[ok], unc),
+                envelope_warning(comp.rows[ok], comp.q[ok], robot, unc)[1])
+    return dataclasses.replace(comp, predicted_sigma=sigma, warnings=tuple(w for w in warnings if w))
+
+
+def _residual(robot: Robot, q: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    out = np.full(len(q), np.inf)
+    good = np.all(np.isfinite(q), axis=1)
+    if good.any():
+        out[good] = np.linalg.norm(robot.forward(q[good]) - targets[good], axis=1)
+    return out
+
+
+def _checked(robot: Robot, comp: Compensation, targets: np.ndarray, q0: np.ndarray | None,
+             rows: np.ndarray) -> Compensation:
+    """The compensation with every command checked; the first failed check of each row is reported."""
+    why: list[str | None] = [None] * len(targets)
+    for bad, message in _checks(robot, comp, targets, q0):
+        for k in np.flatnonzero(bad):
+            why[k] = why[k] or f"row {rows[k]}: {message(k)}"
+    ok = np.array([w is None for w in why])
+    return Compensation(comp.q, comp.residual, comp.method, comp.iterations, ok, tuple(w for w in why if w), rows)
+
+
+def _checks(robot: Robot, comp: Compensation, targets: np.ndarray, q0: np.ndarray | None):
+    """(mask of failing rows, message for row k) per check, in the order they are reported."""
+    q, mm = comp.q, lambda x: f"{x * 1e3:.1f} mm"  # noqa: E731
+    finite = np.all(np.isfinite(q), axis=1)
+    dist, reach = _reach(robot, targets)
+    yield dist > REACH_MARGIN * reach, lambda k: (f"target {mm(dist[k])} from the base, beyond the robot's reach "
+                                                  f"({mm(reach)}): out of reach, or not in the declared length unit")
+    yield ~finite, lambda k: "out of reach of the calibrated model (no inverse kinematics solution)"
+    if q0 is not None:
+        gap = np.linalg.norm(robot.forward(q0) - targets, axis=1)
+        yield gap > START_TOL, lambda k: (f"the nominal command lands {mm(gap[k])} from the target: the joint values "
+                                          f"and the target do not belong together (units or column order?)")
+        tol = np.array([BRANCH_TOL[t] for t in robot.joint_types])
+        jump = np.where(finite[:, None], np.abs(q - q0), 0.0) > tol
+        yield jump.any(axis=1), lambda k: (f"the corrected command moves joint(s) "
+                                           f"{', '.join(np.array(robot.joint_names)[jump[k]])} away from the nominal "
+                                           f"one (another arm configuration); refused")
+    lim = finite & ~robot.within_limits(np.where(finite[:, None], q, 0.0))
+    yield lim, lambda k: "the command breaks the joint limits"
+    yield finite & (comp.residual > 1e-6), lambda k: f"the model misses the target by {mm(comp.residual[k])}"
+
+
+def _reach(robot: Robot, targets: np.ndarray) -> tuple[np.ndarray, float]:
+    """Distance of each target from the robot's base origin, and an upper bound on the reach (m): the
+    sum of every length parameter but the base frame's and of the prismatic joints' travel. No
+    reachable target exceeds it; a target in the wrong unit (mm read as m) lies far beyond."""
+    t = robot.base_transform()[1] if robot.base_params() else np.zeros(3)
+    p = robot.params
+    base = set(robot.base_params())
+    links = sum(abs(v) for n, k, v in zip(p.names, p.kinds, p.values) if k == "length" and n not in base)
+    travel = sum(max(abs(lo), abs(hi)) for t_, lo, hi in zip(robot.joint_types, robot.lower, robot.upper)
+                 if t_ == "prismatic" and np.isfinite(lo) and np.isfinite(hi))
+    return np.linalg.norm(targets - t, axis=1), float(links + travel)

@@ -1,0 +1,210 @@
+"""The options of a calibration as one frozen record, validated when it is built.
+
+:class:`FitOptions` is what :func:`kincal.calibrate` takes, what a calibrated robot file keeps
+(``to_dict``) and what ``kincal report`` refits from (``from_dict``). Everything that can be checked
+without the robot is checked in ``__post_init__``; :meth:`FitOptions.check` adds the checks that
+need the robot (parameter names, the joint-space residual). Both run before any work, and every
+message names the option.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..analysis.identifiability import BASE_MODES, RANK_TOL
+from ..models.robot import Robot
+from ..models.terms import ErrorModel
+from .residuals import RESIDUALS
+from .robust import LOSSES
+from .verdict import Thresholds
+
+METHODS = ("lm", "pso", "pso+lm")
+_LEGACY = {"params": "names", "tol": "rank_tol", "pso_options": "pso"}  # keys of records written by kincal 0.1
+
+
+def _whole(name: str, value, least: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+        raise ValueError(f"{name}={value!r}: give a whole number, {least} or more")
+    return int(value)
+
+
+def _number(name: str, value, positive: bool = True) -> float:
+    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.floating)) and np.isfinite(value)
+    if not ok or (positive and value <= 0) or value < 0:
+        raise ValueError(f"{name}={value!r}: give a finite number {'> 0' if positive else '>= 0'}")
+    return float(value)
+
+
+def _one_of(name: str, value, allowed: tuple) -> str:
+    if value not in allowed:
+        raise ValueError(f"{name}={value!r} is not one of {allowed}")
+    return value
+
+
+def _names(name: str, value) -> tuple[str, ...]:
+    if isinstance(value, str) or not all(isinstance(n, str) for n in value):
+        raise ValueError(f"{name}={value!r}: give a list of parameter names")
+    return tuple(dict.fromkeys(value))
+
+
+@dataclass(frozen=True)
+class PSOOptions:
+    """Particle swarm settings (defaults: the 3-PUU paper's Table 2)."""
+
+    particles: int = 500
+    iterations: int = 200
+    w: float = 0.8
+    c1: float = 0.5
+    c2: float = 1.2
+    seed: int | None = 0
+
+    def __post_init__(self) -> None:
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
+        set_("particles", _whole("pso particles", self.particles, 2))
+        set_("iterations", _whole("pso iterations", self.iterations, 1))
+        for k in ("w", "c1", "c2"):
+            set_(k, _number(f"pso {k}", self.__dict__[k], positive=False))
+        if self.seed is not None:
+            set_("seed", _whole("pso seed", self.seed, 0))
+
+    @classmethod
+    def of(cls, value) -> "PSOOptions":
+        if isinstance(value, PSOOptions):
+            return value
+        if isinstance(value, Mapping):
+            unknown = sorted(set(value) - {f.name for f in dataclasses.fields(cls)})
+            if unknown:
+                raise ValueError(f"pso options {unknown}: known are {', '.join(f.name for f in dataclasses.fields(cls))}")
+            return cls(**value)
+        raise ValueError(f"pso={value!r}: give kincal.PSOOptions(...) or a mapping of its fields")
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """How to calibrate. Every field is checked when the record is built (ValueError naming it).
+
+    names      -- "auto" (the identifiable set at the poses) or the parameter names to estimate
+    base       -- "estimate": register the measurement frame (Kabsch), then fit the base frame with
+                  the rest; "fixed": the base frame is known
+    loss       -- "linear", or "huber" / "soft_l1" on each pose's 3-D residual (reweighted from the
+                  start; ``f_scale`` m, default 3 robust σ); method "lm" only
+    method     -- "lm" (Levenberg–Marquardt), "pso" (particle swarm; ``pso``), "pso+lm"
+    residual   -- "cartesian" (positions) or "joint" (commanded − inverse kinematics of the measured
+                  positions, the 3-PUU paper's residual; robots with a closed-form inverse)
+    keep       -- names to prefer among confounded parameters
+    rank_tol   -- relative singular-value tolerance of the identifiable set (the one rule shared with
+                  pose design, :data:`kincal.analysis.RANK_TOL`)
+    max_iter   -- Levenberg–Marquardt iteration limit
+    pso        -- :class:`PSOOptions` for method "pso" / "pso+lm" (None: its defaults)
+    thresholds -- the verdict's limits (:class:`~kincal.Thresholds`)
+    error_model-- None (the robot as given), or an :class:`~kincal.ErrorModel` (a name is accepted:
+                  "compliance+harmonics:2", "auto")
+    drift      -- also fit a base drift over acquisition (row) order (cartesian residual only)
+    """
+
+    names: str | tuple[str, ...] = "auto"
+    base: str = "estimate"
+    loss: str = "linear"
+    f_scale: float | None = None
+    method: str = "lm"
+    residual: str = "cartesian"
+    keep: tuple[str, ...] = ()
+    rank_tol: float = RANK_TOL
+    max_iter: int = 100
+    pso: PSOOptions | None = None
+    thresholds: Thresholds = field(default_factory=Thresholds)
+    error_model: ErrorModel | None = None
+    drift: bool = False
+
+    def __post_init__(self) -> None:
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
+        if self.names != "auto":
+            set_("names", _names("names", self.names))
+        set_("keep", _names("keep", self.keep))
+        _one_of("base", self.base, BASE_MODES)
+        _one_of("loss", self.loss, LOSSES)
+        _one_of("method", self.method, METHODS)
+        _one_of("residual", self.residual, tuple(RESIDUALS))
+        if self.f_scale is not None:
+            set_("f_scale", _number("f_scale (m)", self.f_scale))
+        set_("rank_tol", _number("rank_tol", self.rank_tol))
+        if not self.rank_tol < 1:
+            raise ValueError(f"rank_tol={self.rank_tol!r}: the relative singular-value tolerance must lie in (0, 1)")
+        set_("max_iter", _whole("max_iter", self.max_iter, 1))
+        self._check_combinations()
+
+    def _check_combinations(self) -> None:
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
+        if self.loss != "linear" and self.method != "lm":
+            raise ValueError(f"loss='{self.loss}' needs method='lm' (got method='{self.method}'): robust reweighting "
+                             f"refits with Levenberg-Marquardt; use loss='linear' with '{self.method}', or method='lm'")
+        if self.pso is not None:
+            set_("pso", PSOOptions.of(self.pso))
+            if self.method == "lm":
+                raise ValueError(f"pso={self.pso.to_dict()}: particle-swarm options apply to method='pso' or 'pso+lm' "
+                                 f"only (method='lm')")
+        if not isinstance(self.thresholds, Thresholds):
+            set_("thresholds", Thresholds.of(self.thresholds))
+        if self.error_model is not None:
+            set_("error_model", ErrorModel.of(self.error_model))
+        if self.drift not in (True, False) or (self.drift and self.residual != "cartesian"):
+            raise ValueError(f"drift={self.drift!r}: True or False; the drift term needs residual='cartesian'")
+        set_("drift", bool(self.drift))
+
+    def check(self, robot: Robot) -> "FitOptions":
+        """The checks that need the robot: known parameter names, a residual the robot supports."""
+        if self.names != "auto":
+            robot.params.indices(self.names)  # unknown names raise, naming them
+        robot.params.indices(self.keep)
+        if self.residual == "joint" and not robot.has_inverse:
+            raise ValueError(f"residual='joint' needs a robot with closed-form inverse kinematics; robot "
+                             f"'{robot.name}' has none: use residual='cartesian'")
+        return self
+
+    def replace(self, **changes: Any) -> "FitOptions":
+        """A copy with some fields changed (and checked again); an unknown field is named."""
+        unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(self)})
+        if unknown:
+            raise ValueError(f"unknown calibration option(s) {', '.join(unknown)}; the options are "
+                             f"{', '.join(f.name for f in dataclasses.fields(self))}")
+        return dataclasses.replace(self, **changes)
+
+    @property
+    def pso_settings(self) -> PSOOptions:
+        """The swarm's settings (the defaults when none were given)."""
+        return self.pso or PSOOptions()
+
+    def to_dict(self) -> dict:
+        """The record a calibrated robot file keeps (SI; plain lists, numbers and strings)."""
+        return {"names": self.names if isinstance(self.names, str) else list(self.names), "base": self.base,
+                "loss": self.loss, "f_scale": self.f_scale, "method": self.method, "residual": self.residual,
+                "keep": list(self.keep), "rank_tol": self.rank_tol, "max_iter": self.max_iter,
+                "pso": None if self.pso is None else self.pso.to_dict(), "thresholds": self.thresholds.to_dict(),
+                "error_model": None if self.error_model is None else self.error_model.to_dict(),
+                "drift": self.drift}
+
+    @classmethod
+    def from_dict(cls, data: Mapping, where: str = "calibration record") -> "FitOptions":
+        """The record written by :meth:`to_dict` (also the keys kincal 0.1 wrote); ValueError naming
+        ``where`` and the key when it is malformed."""
+        if not isinstance(data, Mapping):
+            raise ValueError(f"{where}: the options must be a mapping, got {type(data).__name__}")
+        d = {_LEGACY.get(k, k): v for k, v in data.items()}
+        if "model" in d:  # 0.1: model and payload side by side
+            model, payload = d.pop("model"), d.pop("payload", 0.0)
+            d["error_model"] = None if model is None else {"name": model, "payload": payload}
+        d.pop("payload", None)
+        if d.get("pso") == {}:
+            d["pso"] = None
+        if isinstance(d.get("names"), list):
+            d["names"] = tuple(d["names"])
+        try:
+            return cls().replace(**d)
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"{where}: {exc}") from None

@@ -1,0 +1,42 @@
+"""Units at the edges: the one home of length and angle units, their SI factors and display.
+
+Inside kincal every length is in m and every angle in rad. Files, flags and printed text use the
+units engineers read; this module converts between the two and nothing else does:
+
+* ``LENGTH_UNITS`` / ``ANGLE_UNITS``: the SI value of one unit (``"mm": 1e-3`` m);
+  :func:`unit_factor` looks one up and names the choices when a unit is unknown;
+* ``MM``, ``UM``, ``DEG``: display factors, an SI value times the factor is in that unit
+  (``0.0012 * MM == 1.2`` mm; ``1.2 / MM`` m); ``MRAD`` likewise (1 rad = 1000 mrad);
+* :func:`display` writes a parameter value as mm or deg by its kind.
+
+A leaf module: it imports nothing of kincal.
+"""
+from __future__ import annotations
+
+import math
+
+LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}  # SI value (m) of one unit
+ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}  # SI value (rad) of one unit
+
+MM = 1e3  # mm per m
+UM = 1e6  # µm per m
+DEG = 180.0 / math.pi  # deg per rad
+MRAD = 1e3  # mrad per rad
+
+
+def unit_factor(unit: str, kind: str, where: str = "", error: type[Exception] = ValueError) -> float:
+    """SI factor of a length ('m', 'mm', 'um') or angle ('rad', 'deg') unit; ``error`` (prefixed with
+    ``where``) names the choices when the unit is unknown."""
+    table = LENGTH_UNITS if kind == "length" else ANGLE_UNITS
+    if unit not in table:
+        raise error(f"{where}unknown {kind} unit '{unit}'; use one of {', '.join(table)}")
+    return table[unit]
+
+
+def display(value: float, kind: str, signed: bool = True, digits: tuple[int, int] = (4, 5)) -> str:
+    """A parameter value as engineers read it: lengths in mm, angles in deg (``kind``: "length" or
+    "angle"); ``digits``: decimals for mm and for deg."""
+    sign = "+" if signed else ""
+    if kind == "length":
+        return f"{value * MM:{sign}.{digits[0]}f} mm"
+    return f"{value * DEG:{sign}.{digits[1]}f} deg"
