@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY      = $(VENV)/bin/python
 STAMP   = $(VENV)/.installed
 
-.PHONY: setup demo test bench clean
+.PHONY: setup demo test test-fast bench clean
 
 setup: $(STAMP)
 
@@ -39,7 +39,12 @@ demo: setup
 test: setup
 	$(PY) -m pytest -q
 
+# the inner loop: everything but the tests marked slow (under a minute)
+test-fast: setup
+	$(PY) -m pytest -q -m "not slow"
+
 bench: setup
+	$(PY) benchmarks/startup.py
 	$(PY) benchmarks/core.py
 	$(PY) benchmarks/design.py
 	$(PY) benchmarks/design_real.py

@@ -3,6 +3,8 @@ registration, robust losses, covariance, evaluation."""
 import numpy as np
 import pytest
 
+from conftest import central_jacobian
+
 import kincal
 from kincal.analysis import stacked_jacobian
 from kincal.models.transforms import rot_zyx
@@ -70,8 +72,12 @@ def test_standard_deviations_match_monte_carlo(ur5):
     reported = np.array([[r.std[n] for n in names] for r in runs]).mean(axis=0)
     ratio = est.std(axis=0, ddof=1) / reported
     assert 0.7 < np.median(ratio) < 1.3, np.median(ratio)
-    corr = runs[0].correlation
-    np.testing.assert_allclose(np.diag(corr), 1.0)
+    # the correlation matrix is that of (JᵀJ)⁻¹, J by central differences at the fitted values
+    res = runs[0]
+    Jn = central_jacobian(res.robot, q)[:, :, res.robot.params.indices(names)].reshape(-1, len(names))
+    C = np.linalg.inv(Jn.T @ Jn)
+    np.testing.assert_allclose(res.correlation, C / np.sqrt(np.outer(np.diag(C), np.diag(C))), atol=1e-5)
+    assert np.abs(res.correlation - np.eye(len(names))).max() > 0.5  # strongly correlated pairs exist
 
 
 @pytest.mark.parametrize("loss", ["huber", "soft_l1"])

@@ -68,6 +68,7 @@ def test_low_rank_exchange_matches_brute_force(seed):
     assert exchanges > 0 and fast == brute_fedorov(P, start)
 
 
+@pytest.mark.slow
 def test_designs_respect_limits_are_deterministic_and_beat_random(ur5):
     limited = ur5.with_joints([kincal.Joint(j.name, j.type, j.beta, -1.0, 1.5) for j in ur5.joints])
     pool = candidate_pool(limited, 600, seed=1)

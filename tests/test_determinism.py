@@ -34,6 +34,7 @@ def _run(argv, hash_seed, tmp_path):
     return proc.stdout
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("argv", [
     ["separate", "guo3t2r", "--json"],
     ["demo", "--json"],
@@ -76,6 +77,7 @@ def _verdicts():
             ident.confounds.keys(), {m: d.q.round(12).tolist() for m, d in designs.items()})
 
 
+@pytest.mark.slow
 def test_verdicts_survive_round_off(monkeypatch):
     """Separation, QR identifiability and the designs (DETMAX, Fedorov, DETMAX-IDE) give the same
     verdicts when every tie-prone input moves by round-off."""

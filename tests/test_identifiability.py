@@ -53,5 +53,12 @@ def test_parameter_without_effect_is_reported():
 
 
 def test_too_few_poses_limit_the_rank(ur5):
-    ident = kincal.identifiability(ur5, ur5.sample_joints(5, seed=0))
-    assert ident.rank <= 15
+    """5 poses give 15 equations: the rank is 15, the rank numpy finds on the same scaled columns."""
+    q = ur5.sample_joints(5, seed=0)
+    ident = kincal.identifiability(ur5, q)
+    J = ur5.param_jacobian(q).reshape(15, -1)
+    live = np.linalg.norm(J, axis=0) > 1e-12
+    Js = J[:, live] / np.linalg.norm(J[:, live], axis=0)
+    s = np.linalg.svd(Js, compute_uv=False)
+    assert ident.rank == np.linalg.matrix_rank(Js, tol=kincal.analysis.RANK_TOL * s[0]) == 15
+    assert len(ident.identifiable) == 15 and len(ident.dropped) == ur5.n_params - 15

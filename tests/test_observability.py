@@ -38,11 +38,14 @@ def test_singular_design_scores_worst():
     assert o["O3"] == 0.0 and o["D"] == -np.inf and comprehensive_index(np.array([1.0, 1.0, 0.0]), 2) == 0.0
 
 
-def test_entropy_weights_sum_to_one_and_ignore_scale():
+def test_entropy_weights_by_the_formula_and_scale_free():
     s = np.array([5.0, 2.0, 1.0, 0.3, 0.05])
+    X = np.column_stack([s, 1 / s, 1 / s**2])
+    P = X / X.sum(axis=0)
+    d = 1 + (P * np.log(P)).sum(axis=0) / np.log(len(s))  # 1 − entropy per group (eq. 12–13)
     w = entropy_weights(s)
-    assert w.sum() == pytest.approx(1.0) and np.all(w >= 0)
-    np.testing.assert_allclose(entropy_weights(7.3 * s), w)
+    np.testing.assert_allclose(w, d / d.sum(), rtol=1e-12)
+    np.testing.assert_allclose(entropy_weights(7.3 * s), w, rtol=1e-12)
 
 
 def test_entropy_weights_by_hand():

@@ -74,6 +74,7 @@ def test_paper_simulation_pso(puu3):
     assert res.evaluations == 100 * 61
 
 
+@pytest.mark.slow
 def test_extended_set_within_three_sigma():
     robot = kincal.load_robot("puu3-extended")
     z = []

@@ -10,6 +10,8 @@ from conftest import DATA, UR5_COLS
 import kincal
 from kincal.cli import main
 
+pytestmark = pytest.mark.slow  # whole studies and real-data calibrations: make test-fast leaves them out
+
 UNITS = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
 
 

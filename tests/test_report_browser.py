@@ -15,6 +15,8 @@ from PIL import Image
 
 from kincal.cli import main
 
+pytestmark = pytest.mark.slow  # whole studies and real-data calibrations: make test-fast leaves them out
+
 BROWSERS = ("chromium-headless-shell", "chromium", "chromium-browser", "google-chrome")
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
          "--disable-sync", "--no-first-run", "--hide-scrollbars", "--enable-logging=stderr", "--v=0"]

@@ -19,6 +19,7 @@ def test_gcn_by_hand():
     assert averaged_gcn(blocks) == pytest.approx((1.0 / 1 + 1.0 / 2) / 2)
 
 
+@pytest.mark.slow
 def test_separation_on_the_3t2r_robot():
     robot = kincal.load_robot("guo3t2r")
     sep = separate_ill_conditioned(robot, candidate_pool(robot, 100, seed=0))

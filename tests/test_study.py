@@ -12,6 +12,8 @@ import pytest
 from kincal.cli import main
 from kincal.studies import runner, guo2024_mc
 
+pytestmark = pytest.mark.slow  # whole studies and real-data calibrations: make test-fast leaves them out
+
 
 @pytest.fixture(scope="module")
 def small():

@@ -59,6 +59,7 @@ def test_simulated_harmonics_are_recovered(ur5):
     assert abs(np.mean(rms) / np.mean(predicted) - 1) < 0.10
 
 
+@pytest.mark.slow
 def test_auto_on_the_real_ur5(grid, tmp_path, capsys):
     train, test = grid
     units = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
@@ -71,6 +72,7 @@ def test_auto_on_the_real_ur5(grid, tmp_path, capsys):
     assert kincal.evaluate(robot, test).mean <= 0.090e-3  # geometric: 0.1005 mm
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("joint", [1, 2, 4])
 def test_auto_never_extrapolates_worse(ur5, grid, joint):
     """Train on one half of a joint's range, use on the other: auto is never worse than geometric by
@@ -129,6 +131,7 @@ def test_warm_up_drift_is_named(ur5):
     assert not [r for r in kincal.calibrate(ur5, meas).verdict.reasons if r.code == "drift"]
 
 
+@pytest.mark.slow
 def test_report_shows_the_model_comparison(ur5, grid, monkeypatch):
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "1795000000")
     train, test = grid

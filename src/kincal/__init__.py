@@ -49,5 +49,5 @@ def __getattr__(name: str):
     if name in _LAZY:
         import importlib
 
-        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        return vars(importlib.import_module(f".{_LAZY[name]}", __name__))[name]
     raise AttributeError(f"module 'kincal' has no attribute '{name}'")

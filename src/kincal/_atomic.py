@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 
@@ -14,6 +13,8 @@ def _umask() -> int:
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:
     """Write a file via a temporary file and rename, so no half-written file is ever left."""
+    import tempfile  # loaded when a file is written, not when kincal is imported
+
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent or ".")
     try:

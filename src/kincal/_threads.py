@@ -4,11 +4,12 @@ from __future__ import annotations
 from contextlib import contextmanager
 from functools import lru_cache
 
-from threadpoolctl import ThreadpoolController
-
 
 @lru_cache(maxsize=1)
-def _controller() -> ThreadpoolController:
+def _controller():
+    """threadpoolctl's controller, loaded on the first fit (not when kincal is imported)."""
+    from threadpoolctl import ThreadpoolController
+
     return ThreadpoolController()
 
 

@@ -145,44 +145,56 @@ def identifiability(
     order = _pivot_order(R0, live_names, [list(keep), list(robot.preferred_params())], rank,
                          rank_tol * s[0] if s.size else 0.0)
     ident = [live_names[k] for k in order[:rank]]
-    drop_live = [live_names[k] for k in order[rank:]]
+    confounds = _confounds(R0, norms[live], order, rank, live_names)
+    dead = [n for n, ok in zip(cand, live) if not ok]
+    confounds.update(dict.fromkeys(dead, ()))
+    dropped = tuple(live_names[k] for k in order[rank:]) + tuple(dead)
+    cond_raw, cond_scaled = _conditioning(R0, norms[live], sorted(order[:rank]))
+    notes = list(robot.structure_notes()) + _pair_notes(dropped, confounds)
+    if rank and gap < 1e3:
+        notes.append(f"the rank is not clear-cut (gap {gap:.3g} < 1e3): the poses hardly excite some "
+                     f"parameters; add poses or check the model")
+    return Identifiability(robot.name, tuple(cand), tuple(n for n in cand if n in set(ident)), dropped, confounds,
+                           rank, q.shape[0], s, gap, cond_raw, cond_scaled, rank_tol, tuple(notes))
 
-    confounds: dict[str, tuple[tuple[str, float], ...]] = {}
-    if drop_live and rank:
-        A, B = R0[:, order[:rank]], R0[:, order[rank:]]
-        C = np.linalg.lstsq(A, B, rcond=None)[0]  # B ≈ A C  (scaled units)
-        n_kept = norms[live][order[:rank]]
-        n_drop = norms[live][order[rank:]]
-        for j, name in enumerate(drop_live):
-            col = C[:, j] * n_drop[j] / n_kept  # physical units: 1 of dropped ~ col of kept
-            big = np.abs(C[:, j]) > max(1e-6, 1e-3 * np.abs(C[:, j]).max())
-            idx = np.flatnonzero(big)
-            idx = idx[order_with_ties(np.abs(C[idx, j]))]
-            confounds[name] = tuple((ident[k], float(col[k])) for k in idx)
-    for name in (n for n, ok in zip(cand, live) if not ok):
-        confounds[name] = ()
-    dropped = tuple(drop_live) + tuple(n for n, ok in zip(cand, live) if not ok)
-    ident_t = tuple(n for n in cand if n in set(ident))  # model order
 
-    if ident:
-        sel = sorted(order[:rank])
-        Rs = R0[:, sel]
-        cond_scaled = float(np.linalg.cond(Rs))
-        cond_raw = float(np.linalg.cond(Rs * norms[live][sel]))
-    else:
-        cond_raw = cond_scaled = float("inf")
-    notes = list(robot.structure_notes())
-    for name in dropped:  # say pairs that act only through their sum or difference in words
+def _confounds(R0: np.ndarray, norms: np.ndarray, order: list[int], rank: int,
+               names: list[str]) -> dict[str, tuple[tuple[str, float], ...]]:
+    """Each dropped column as a combination of the kept ones, read off the R factor, in physical
+    units (1 of the dropped parameter acts like ``c`` of each kept one), largest first."""
+    out: dict[str, tuple[tuple[str, float], ...]] = {}
+    if rank == 0 or rank == len(order):
+        return out
+    A, B = R0[:, order[:rank]], R0[:, order[rank:]]
+    C = np.linalg.lstsq(A, B, rcond=None)[0]  # B ≈ A C  (scaled units)
+    kept = [names[k] for k in order[:rank]]
+    n_kept, n_drop = norms[order[:rank]], norms[order[rank:]]
+    for j, k in enumerate(order[rank:]):
+        col = C[:, j] * n_drop[j] / n_kept
+        idx = np.flatnonzero(np.abs(C[:, j]) > max(1e-6, 1e-3 * np.abs(C[:, j]).max()))
+        idx = idx[order_with_ties(np.abs(C[idx, j]))]
+        out[names[k]] = tuple((kept[i], float(col[i])) for i in idx)
+    return out
+
+
+def _conditioning(R0: np.ndarray, norms: np.ndarray, kept: list[int]) -> tuple[float, float]:
+    """Condition numbers (raw, column-scaled) of the kept columns; inf when nothing is kept."""
+    if not kept:
+        return float("inf"), float("inf")
+    Rs = R0[:, kept]
+    return float(np.linalg.cond(Rs * norms[kept])), float(np.linalg.cond(Rs))
+
+
+def _pair_notes(dropped, confounds) -> list[str]:
+    """Pairs that act only through their sum or difference, said in words."""
+    notes = []
+    for name in dropped:
         conf = confounds.get(name, ())
         if len(conf) == 1 and abs(abs(conf[0][1]) - 1.0) < 1e-6:
             other, c = conf[0]
             how = f"their difference {name} − {other}" if c < 0 else f"their sum {name} + {other}"
             notes.append(f"{name} and {other} act only through {how}: only that combination can be identified")
-    if rank and gap < 1e3:
-        notes.append(f"the rank is not clear-cut (gap {gap:.3g} < 1e3): the poses hardly excite some "
-                     f"parameters; add poses or check the model")
-    return Identifiability(robot.name, tuple(cand), ident_t, dropped, confounds, rank, q.shape[0], s, gap,
-                           cond_raw, cond_scaled, rank_tol, tuple(notes))
+    return notes
 
 
 BASE_MODES = ("fixed", "estimate")

@@ -33,9 +33,10 @@ def cmd_study(args) -> int:
     out = Path(args.output)
     if out.exists() and out.is_dir():
         raise ValueError(f"{out}: is a folder; give a results file (JSON lines)")
+    header = {**guo2024_mc.settings(args.poses, args.generations, args.seed), "per_task": args.per_task}
+    runner.check_results_file(out, header)  # another study's file is refused before the preparation
     with progress("preparing the study", args.json) as say:
         trials = guo2024_mc.prepare(m=args.poses, generations=args.generations, seed=args.seed, say=say)
-    header = {**trials.header, "per_task": args.per_task}
     tasks = runner.tasks_for(args.trials, args.per_task)
     try:
         with runner.make_executor(args.workers, args.scheduler) as ex, _bar(args, len(tasks)) as bar:

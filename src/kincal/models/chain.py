@@ -216,13 +216,18 @@ class Chain:
             np.multiply(Ur[:, b], D[:, c_], out=Cx[:, a])
             np.multiply(Ur[:, c_], D[:, b], out=tr)
             Cx[:, a] -= tr
+        return np.ascontiguousarray(p.T), self._columns(Cx, Z[self.z_trans_axes], n)
+
+    def _columns(self, rot: np.ndarray, trans: np.ndarray, n: int) -> np.ndarray:
+        """The Jacobian (N, 3, P) from the rotation columns u × (p − o) and the translation axes,
+        each (ops, 3, N); constant ops have no column, parameters without an op get zeros."""
         JT = np.empty((self.n_params, 3, n))
         if self.all_ops_have_params:
-            JT[self.cols_rot] = Cx
-            JT[self.cols_trans] = Z[self.z_trans_axes]
+            JT[self.cols_rot] = rot
+            JT[self.cols_trans] = trans
         else:
-            JT[self.cols_rot[self.rot_keep]] = Cx[self.rot_keep]
-            JT[self.cols_trans[self.trans_keep]] = Z[self.z_trans_axes[self.trans_keep]]
+            JT[self.cols_rot[self.rot_keep]] = rot[self.rot_keep]
+            JT[self.cols_trans[self.trans_keep]] = trans[self.trans_keep]
         if self.unused.size:
             JT[self.unused] = 0.0
-        return np.ascontiguousarray(p.T), JT.transpose(2, 1, 0)
+        return JT.transpose(2, 1, 0)

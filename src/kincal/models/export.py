@@ -11,7 +11,6 @@ forward kinematics to 1e-9 m at random poses, else nothing is written.
 """
 from __future__ import annotations
 
-import hashlib
 import re
 from pathlib import Path
 
@@ -111,6 +110,8 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
     for name, (xyz, rpy) in entries.items():
         lines.append(f"  {name}:")
         lines += [f"    {k}: {_fmt(v)}" for k, v in zip(("x", "y", "z", "roll", "pitch", "yaw"), (*xyz, *rpy))]
+    import hashlib  # the UR file's hash line only
+
     digest = hashlib.sha256("\n".join(lines).encode()).hexdigest()
     text = "\n".join(lines + [f"  hash: calib_{int(digest[:15], 16)}", ""])
     tool = np.array([robot.params[f"tool.{c}"] for c in "xyz"])

@@ -127,9 +127,13 @@ def prepare(m: int = 60, generations: int = 150, seed: int = 0, say=lambda msg: 
     big = candidate_pool(robot, 8000, seed=2)
     qj = robot.chain_q(big)
     part = big[(qj[:, 0] <= 0.5) & (qj[:, 2] >= -0.25)]
-    header = {"study": "guo2024", "m": m, "generations": generations, "seed": seed}
     return Guo2024Trials(robot, design.q, paper_grid(robot), candidate_pool(robot, 60, seed=99),
-                       {"random": big, "partial": part}, kin, m=m, seed=seed, header=header)
+                         {"random": big, "partial": part}, kin, m=m, seed=seed, header=settings(m, generations, seed))
+
+
+def settings(m: int = 60, generations: int = 150, seed: int = 0) -> dict:
+    """The study's settings, as its results file names them (known before any work)."""
+    return {"study": "guo2024", "m": m, "generations": generations, "seed": seed}
 
 
 def summarise(records: list[dict]) -> list[dict]:

@@ -66,7 +66,7 @@ def make_executor(workers: int = 1, scheduler: str | None = None) -> Iterator[Ex
         try:
             yield pool
         except BaseException:  # Ctrl-C or an error: stop the workers now, not after their tasks
-            for proc in list(getattr(pool, "_processes", {}).values()):
+            for proc in list((pool._processes or {}).values()):  # the pool's own processes (private, no API)
                 proc.terminate()
             pool.shutdown(wait=False, cancel_futures=True)
             raise
@@ -101,6 +101,12 @@ def _single_thread() -> None:
     blas_threads(1).__enter__()  # left entered on purpose: the limit lasts as long as the worker
 
 
+def check_results_file(path: str | os.PathLike, header: dict) -> None:
+    """Before any work: ``path`` is absent or holds results of the study ``header`` names (ValueError
+    otherwise)."""
+    _read(Path(path), json.loads(json.dumps(header)))
+
+
 def _read(path: Path, header: dict) -> dict[int, list[dict]]:
     """Finished tasks in the results file (a torn last line from an interruption is ignored)."""
     if not path.exists():
@@ -114,12 +120,15 @@ def _read(path: Path, header: dict) -> dict[int, list[dict]]:
         raise ValueError(f"{path}: holds the results of another study (or is not a results file); give a new "
                          f"output file or remove this one")
     done = {}
-    for line in lines[1:]:
+    for k, line in enumerate(lines[1:], start=2):
         try:
             rec = json.loads(line)
         except json.JSONDecodeError:
             continue  # the line being written when the study stopped
-        done[int(rec["task"])] = rec["records"]
+        if not (isinstance(rec, dict) and isinstance(rec.get("task"), int) and isinstance(rec.get("records"), list)):
+            raise ValueError(f"{path}: line {k} is not a task record of this study; give a new output file or remove "
+                             f"this one")
+        done[rec["task"]] = rec["records"]
     return done
 
 
