@@ -334,7 +334,7 @@ ARGS = [
                                                         "{tracker_noise: small}}}\n"}),
     case("report-record-data-a-number", ["report", "{d}/r.yaml", "-o", "{d}/r.html"], 1, ["'data' must be a mapping"],
          files={"r.yaml": UR5_YAML + "calibration: {nominal: {}, options: {}, data: 5}\n"}),
-    case("study-unknown-name", ["study", "seed3", "-o", "{d}/s.jsonl"], 2, ["invalid choice"]),
+    case("study-unknown-name", ["study", "seed3", "-o", "{d}/s.jsonl"], 2, ["the study is guo2024"]),
     case("study-zero-trials", ["study", "guo2024", "--trials", "0", "-o", "{d}/s.jsonl"], 2, ["at least 1"]),
     case("study-results-of-another-study", ["study", "guo2024", "--trials", "1", "--poses", "24", "--generations",
                                             "2", "--workers", "1", "-o", "{d}/s.jsonl"], 1, ["another study"],

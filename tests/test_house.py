@@ -41,6 +41,39 @@ def test_every_function_fits_on_a_screen():
     assert not long, long
 
 
+# The flow runs one way: a room imports only rooms of a lower rank (leaf modules are rank 0).
+RANKS = {"errors": 0, "units": 0, "papers": 0, "ties": 0, "_atomic": 0, "_threads": 0, "models": 1, "analysis": 2,
+         "io": 2, "design": 3, "identify": 3, "compensate": 3, "simulate": 3, "studies": 4, "report": 4, "cli": 5}
+
+
+def _imports(path: Path):
+    """(importing room, imported room) for every kincal import in a module."""
+    parts = path.relative_to(SRC.parent).with_suffix("").parts
+    package = parts[:-1] if path.name != "__init__.py" else parts[:-1]
+    here = parts[1] if len(parts) > 2 else parts[-1]
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.level:
+            base = list(package[:len(package) - node.level + 1])
+            targets = [base + node.module.split(".")] if node.module else [base + [a.name] for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            targets = [(node.module or "").split(".")]
+        elif isinstance(node, ast.Import):
+            targets = [a.name.split(".") for a in node.names]
+        else:
+            continue
+        for t in targets:
+            if t[0] == "kincal" and len(t) > 1:
+                yield here, t[1]
+
+
+def test_the_flow_is_one_way():
+    wrong = sorted({(a, b) for p in _sources() for a, b in _imports(p)
+                    if a in RANKS and b in RANKS and a != b and RANKS[b] >= RANKS[a]})
+    assert wrong == []
+    assert set(RANKS) >= {p.stem if p.is_file() else p.name for p in SRC.iterdir()
+                          if not p.name.startswith("__") and p.name != "py.typed"}
+
+
 def test_no_capability_probes():
     """What a robot can do is declared on Robot: no hasattr/getattr anywhere in the package."""
     probes = [f"{p.relative_to(SRC)}:{node.lineno}" for p in _sources() for node in ast.walk(ast.parse(p.read_text()))

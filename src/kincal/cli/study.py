@@ -74,6 +74,13 @@ class _bar:
             self.progress.stop()
 
 
+def _study(s: str) -> str:
+    """argparse type: a study's name (its 0.1 name is still accepted)."""
+    if s not in STUDIES:
+        raise argparse.ArgumentTypeError(f"'{s}': the study is guo2024 ({GUO2024}'s 62 % claim)")
+    return STUDIES[s]
+
+
 def _scheduler(s: str) -> str:
     if s.startswith("local:"):
         positive_int(s.split(":", 1)[1])
@@ -99,8 +106,7 @@ def register(cmd) -> None:
     s.add_argument("--units", choices=["scaled", "paper"], default="scaled",
                    help="comprehensive index on scaled columns (default) or the raw Jacobian in mm and rad (paper)")
     s = cmd("study", cmd_study, f"Monte-Carlo study: {GUO2024}'s optimised against random poses, as a distribution")
-    s.add_argument("name", choices=list(STUDIES), metavar="{guo2024}", help=f"the study: guo2024 ({GUO2024}'s "
-                   f"62 %% claim)")
+    s.add_argument("name", type=_study, metavar="STUDY", help=f"the study: guo2024 ({GUO2024}'s 62 %% claim)")
     s.add_argument("--trials", type=positive_int, default=200,
                    help="trials, each a new random design, parameter errors and noise (default 200)")
     s.add_argument("--per-task", type=positive_int, default=runner.TRIALS_PER_TASK,
