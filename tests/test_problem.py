@@ -174,3 +174,19 @@ def test_ide_history_reaches_the_design(capsys):
                             generations=25)
     h = np.array(d.history)
     assert h.size == 25 and np.all(np.diff(h) >= 0) and h[-1] == pytest.approx(d.value, rel=1e-12)
+
+
+def test_fit_options_round_trip_and_the_records_of_0_1():
+    o = FitOptions(names=["j2.a", "j3.a"], base="fixed", loss="huber", f_scale=2e-4, rank_tol=1e-6, max_iter=7,
+                   error_model=kincal.ErrorModel("compliance+harmonics:2", payload=1.5), drift=True,
+                   thresholds=kincal.Thresholds(tracker_noise=0.011e-3))
+    assert FitOptions.from_dict(o.to_dict()) == o
+    assert FitOptions.from_dict(__import__("json").loads(__import__("json").dumps(o.to_dict()))) == o
+    old = {"params": "auto", "base": "estimate", "loss": "linear", "method": "pso", "f_scale": None, "keep": [],
+           "tol": 3e-05, "max_iter": 100, "residual": "joint", "model": "harmonics:1", "payload": 0.0, "drift": False,
+           "pso_options": {"particles": 60}, "thresholds": kincal.Thresholds().to_dict()}  # kincal 0.1's record
+    new = FitOptions.from_dict(old)
+    assert (new.names, new.rank_tol, new.method, new.pso.particles, new.error_model) == \
+        ("auto", 3e-05, "pso", 60, kincal.ErrorModel("harmonics:1"))
+    with pytest.raises(ValueError, match="calibration record: unknown calibration option.*colour"):
+        FitOptions.from_dict({**old, "colour": "red"})

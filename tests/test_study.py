@@ -1,6 +1,5 @@
 """Monte-Carlo studies: the seed-1 trials, the runner (executors, resume), the CLI."""
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -120,7 +119,7 @@ def test_paper_units_give_the_paper_index_scale():
     """On the raw Jacobian in mm and rad the comprehensive index of the optimised designs lands near
     the paper's 1.833 (full) and 2.049 (separated), in the paper's order; scaled columns give < 1."""
     import kincal
-    from kincal.design import candidate_pool, design_problem, select_poses
+    from kincal.design import candidate_pool, design_problem
     robot = kincal.load_robot("guo3t2r")
     pool = candidate_pool(robot, 400, seed=1)
     names = ("j1.theta", "j2.a", "j2.alpha", "j3.d", "j5.theta")

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
+from ..checks import number
 from ..errors import ModelError
 from ..models.robot import Robot
 
@@ -89,8 +90,7 @@ def _checked_inputs(robot: Robot, targets, q_start, damping: float, rows):
     targets = np.atleast_2d(np.asarray(targets, dtype=float))
     if targets.ndim != 2 or targets.shape[1] != 3 or not np.all(np.isfinite(targets)):
         raise ModelError(f"targets must be finite positions (N, 3) in m, got shape {targets.shape}")
-    if isinstance(damping, bool) or not isinstance(damping, (int, float)) or not (np.isfinite(damping) and damping > 0):
-        raise ValueError(f"damping={damping!r}: give a positive damping in m")
+    number("damping", damping, unit="m")
     rows = np.arange(1, len(targets) + 1) if rows is None else np.asarray(rows)
     if rows.shape != (len(targets),):
         raise ValueError(f"rows: {rows.shape[0] if rows.ndim else 0} row numbers for {len(targets)} targets")

@@ -5,20 +5,13 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from ..analysis.identifiability import BASE_MODES
+from ..checks import whole as _whole
 from .criteria import CRITERIA
 from .problem import UNITS
 
 METHODS = ("random", "detmax", "fedorov", "ide", "detmax-ide")
 EXCHANGE_CRITERIA = ("D", "I")  # what the low-rank Fedorov exchange can update
-
-
-def _whole(name: str, value, least: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
-        raise ValueError(f"{name}={value!r}: give a whole number, {least} or more")
-    return int(value)
 
 
 @dataclass(frozen=True)

@@ -12,9 +12,10 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-import numpy as np
-
 from ..analysis.identifiability import BASE_MODES, RANK_TOL
+from ..checks import number as _number
+from ..checks import one_of as _one_of
+from ..checks import whole as _whole
 from ..models.robot import Robot
 from ..models.terms import ErrorModel
 from .residuals import RESIDUALS
@@ -23,25 +24,6 @@ from .verdict import Thresholds
 
 METHODS = ("lm", "pso", "pso+lm")
 _LEGACY = {"params": "names", "tol": "rank_tol", "pso_options": "pso"}  # keys of records written by kincal 0.1
-
-
-def _whole(name: str, value, least: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
-        raise ValueError(f"{name}={value!r}: give a whole number, {least} or more")
-    return int(value)
-
-
-def _number(name: str, value, positive: bool = True) -> float:
-    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.floating)) and np.isfinite(value)
-    if not ok or (positive and value <= 0) or value < 0:
-        raise ValueError(f"{name}={value!r}: give a finite number {'> 0' if positive else '>= 0'}")
-    return float(value)
-
-
-def _one_of(name: str, value, allowed: tuple) -> str:
-    if value not in allowed:
-        raise ValueError(f"{name}={value!r} is not one of {allowed}")
-    return value
 
 
 def _names(name: str, value) -> tuple[str, ...]:
@@ -132,7 +114,7 @@ class FitOptions:
         _one_of("method", self.method, METHODS)
         _one_of("residual", self.residual, tuple(RESIDUALS))
         if self.f_scale is not None:
-            set_("f_scale", _number("f_scale (m)", self.f_scale))
+            set_("f_scale", _number("f_scale", self.f_scale, unit="m"))
         set_("rank_tol", _number("rank_tol", self.rank_tol))
         if not self.rank_tol < 1:
             raise ValueError(f"rank_tol={self.rank_tol!r}: the relative singular-value tolerance must lie in (0, 1)")

@@ -28,6 +28,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..checks import number
 from ..errors import ModelError
 from .gravity import COMPONENTS, GravityModel
 from .parameters import Parameters
@@ -257,10 +258,7 @@ class ErrorModel:
     def __post_init__(self) -> None:
         if self.name != "auto":
             parse_model(self.name)
-        p = self.payload
-        if isinstance(p, bool) or not isinstance(p, (int, float)) or not (np.isfinite(p) and p >= 0):
-            raise ValueError(f"payload={p!r}: give the payload at the tool in kg (0 or more)")
-        object.__setattr__(self, "payload", float(p))
+        object.__setattr__(self, "payload", number("payload", self.payload, positive=False, unit="kg at the tool"))
 
     @classmethod
     def of(cls, value: "ErrorModel | str | Mapping") -> "ErrorModel":

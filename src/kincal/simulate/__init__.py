@@ -5,6 +5,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..checks import number
 from ..io.measurements import Measurements
 from ..models.robot import Robot
 
@@ -15,8 +16,7 @@ DEFAULT_ANGLE_ERROR = np.deg2rad(0.05)  # rad
 
 def simulate(true_robot: Robot, q: np.ndarray, noise: float = DEFAULT_NOISE, seed: int | None = 0) -> Measurements:
     """Measurements of ``true_robot`` at joint values q (N, n) with Gaussian noise of ``noise`` m per axis."""
-    if isinstance(noise, bool) or not isinstance(noise, (int, float)) or not (np.isfinite(noise) and noise >= 0):
-        raise ValueError(f"noise={noise!r}: give the tracker noise per axis in m (0 or more)")
+    number("noise", noise, positive=False, unit="m per axis")
     q = true_robot.check_q(q)
     rng = np.random.default_rng(seed)
     xyz = true_robot.forward(q) + noise * rng.standard_normal((q.shape[0], 3))
@@ -35,9 +35,8 @@ def perturb(
 
     names -- parameters to perturb (default: all except the base frame unless ``include_base``).
     """
-    for what, value in (("length", length), ("angle", angle)):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not (np.isfinite(value) and value >= 0):
-            raise ValueError(f"{what}={value!r}: give the largest {what} error (SI, 0 or more)")
+    number("length", length, positive=False, unit="m")
+    number("angle", angle, positive=False, unit="rad")
     rng = np.random.default_rng(seed)
     if names is None:
         skip = set() if include_base else set(robot.base_params())

@@ -20,6 +20,7 @@ from typing import Callable
 import numpy as np
 
 from ..analysis.identifiability import identifiability
+from ..checks import whole
 from ..analysis.separation import TYPES, Separation, param_type, separate_ill_conditioned
 from ..design import DesignOptions, candidate_pool, design_problem, pose_count_curve, select_poses
 from ..identify.calibrate import calibrate, evaluate
@@ -171,8 +172,7 @@ def guo2024_study(repeats: int = 20, m: int = 60, pool_size: int = 1000, generat
     if protocol not in PROTOCOLS:
         raise ValueError(f"protocol='{protocol}' is not one of {PROTOCOLS}")
     DesignOptions(m=m, method="detmax-ide", criterion="comprehensive", units=units, generations=generations)  # checked first
-    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
-        raise ValueError(f"repeats={repeats!r}: give a whole number, 1 or more")
+    whole("repeats", repeats, 1)
     say = progress or (lambda msg: None)
     robot = load_robot(robot)
     kin = tuple(n for n in robot.params.names if param_type(n) in TYPES)
