@@ -21,6 +21,7 @@ import numpy as np
 from ..errors import ModelError
 from ..models.robot import Robot
 from ..models.yaml_io import read_section
+from ..units import MM
 
 EXTRAPOLATION_RATIO = 2.5
 ENVELOPE_MARGIN = 0.02
@@ -92,7 +93,7 @@ def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncerta
         return None
     shown = ", ".join(str(int(r)) for r in rows[bad][:10]) + (f" and {bad.sum() - 10} more" if bad.sum() > 10 else "")
     return (f"{int(bad.sum())} pose(s) lie where the calibration data did not constrain the model (predicted σ up to "
-            f"{sigma[bad].max() / unc.training_median:.1f}x the training median {unc.training_median * 1e3:.4f} mm, "
+            f"{sigma[bad].max() / unc.training_median:.1f}x the training median {unc.training_median * MM:.4f} mm, "
             f"limit {EXTRAPOLATION_RATIO:g}x): row(s) {shown}; measure calibration poses there too")
 
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
 from ..checks import number
+from ..units import MM
 from ..errors import ModelError
 from ..models.robot import Robot
 
@@ -138,7 +139,7 @@ def _checked(robot: Robot, comp: Compensation, targets: np.ndarray, q0: np.ndarr
 
 def _checks(robot: Robot, comp: Compensation, targets: np.ndarray, q0: np.ndarray | None):
     """(mask of failing rows, message for row k) per check, in the order they are reported."""
-    q, mm = comp.q, lambda x: f"{x * 1e3:.1f} mm"  # noqa: E731
+    q, mm = comp.q, lambda x: f"{x * MM:.1f} mm"  # noqa: E731
     finite = np.all(np.isfinite(q), axis=1)
     dist, reach = _reach(robot, targets)
     yield dist > REACH_MARGIN * reach, lambda k: (f"target {mm(dist[k])} from the base, beyond the robot's reach "

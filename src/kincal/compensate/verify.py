@@ -20,7 +20,7 @@ import numpy as np
 from .._atomic import write_text_atomic
 from ..analysis.sensitivity import UNIT
 from ..errors import MeasurementError
-from ..units import unit_factor
+from ..units import MM, unit_factor
 from ..models.robot import Robot
 from .commands import compensate
 
@@ -109,15 +109,15 @@ class Verification:
 
     def table(self) -> str:
         """Table 5: per case and axis, maximum and mean deviation (mm), and the verdict."""
-        out = [f"{'case':<14} {'axis':<5} {'max mm':>9} {'mean mm':>9}  verdict (tolerance {self.tolerance * 1e3:g} mm)"]
-        a = np.abs(self.deviations) * 1e3
+        out = [f"{'case':<14} {'axis':<5} {'max mm':>9} {'mean mm':>9}  verdict (tolerance {self.tolerance * MM:g} mm)"]
+        a = np.abs(self.deviations) * MM
         for k, c in enumerate(self.cases):
             for j, axis in enumerate("xyz"):
                 verdict = ("PASS" if self.passed[k] else "FAIL") if j == 0 else ""
                 out.append(f"{('Δ' + c + ' = 1') if j == 0 else '':<14} {axis:<5} {a[k, :, j].max():9.4f} "
                            f"{a[k, :, j].mean():9.4f}  {verdict}")
         out.append(f"error model {'confirmed' if self.passed.all() else 'NOT confirmed'}: "
-                   f"{int(self.passed.sum())} of {len(self.cases)} cases within {self.tolerance * 1e3:g} mm")
+                   f"{int(self.passed.sum())} of {len(self.cases)} cases within {self.tolerance * MM:g} mm")
         return "\n".join(out)
 
 

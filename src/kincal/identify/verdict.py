@@ -30,6 +30,7 @@ from typing import Mapping
 import numpy as np
 
 from ..models.robot import Robot
+from ..units import DEG, MM
 
 MAX_LISTED = 10
 STATUSES = ("good", "suspect", "refused")
@@ -137,11 +138,11 @@ def correction_reasons(robot: Robot, corrections: dict[str, float], th: Threshol
         big = [(n, c) for n, c in corrections.items() if n not in base and
                abs(c) > (lim_len if kinds[n] == "length" else lim_ang)]
         if big:
-            shown = ", ".join(f"{n} {c * 1e3:+.1f} mm" if kinds[n] == "length" else f"{n} {np.rad2deg(c):+.2f} deg"
+            shown = ", ".join(f"{n} {c * MM:+.1f} mm" if kinds[n] == "length" else f"{n} {c * DEG:+.2f} deg"
                               for n, c in sorted(big, key=lambda x: -abs(x[1]))[:MAX_LISTED])
             what = "implausible" if level == "refused" else "large"
             out.append(Reason(level, f"{what}-correction",
-                              f"{what} corrections ({shown}; limits {lim_len * 1e3:g} mm, {np.rad2deg(lim_ang):g} "
+                              f"{what} corrections ({shown}; limits {lim_len * MM:g} mm, {lim_ang * DEG:g} "
                               f"deg): check the length unit of the data (cm or inches declared as mm?), the joint "
                               f"columns and their order, and the robot file"))
             break
@@ -151,8 +152,8 @@ def correction_reasons(robot: Robot, corrections: dict[str, float], th: Threshol
 def residual_reasons(sigma: float, th: Thresholds) -> list[Reason]:
     """The fit's σ per axis against the tracker noise."""
     ratio = sigma / th.tracker_noise
-    msg = (f"residual σ per axis {sigma * 1e3:.3f} mm is {ratio:.0f}x the tracker noise "
-           f"({th.tracker_noise * 1e3:g} mm)")
+    msg = (f"residual σ per axis {sigma * MM:.3f} mm is {ratio:.0f}x the tracker noise "
+           f"({th.tracker_noise * MM:g} mm)")
     if ratio > th.residual_refuse:
         return [Reason("refused", "residual", msg + ": data and model do not belong together; check the joint "
                                                     "columns, units and robot file")]
@@ -193,7 +194,7 @@ def drift_reasons(rows: np.ndarray, norms: np.ndarray) -> list[Reason]:
     first, rest = norms[order[:k]], norms[order[k:]]
     if first.mean() > DRIFT_RATIO * rest.mean() and first.mean() > rest.mean() + DRIFT_Z * rest.std(ddof=1) / np.sqrt(k):
         a, b = rows[order[0]], rows[order[k - 1]]
-        return [Reason("suspect", "drift", f"the first {k} poses (rows {a}-{b}) average {first.mean() * 1e3:.3f} mm "
-                                           f"of error against {rest.mean() * 1e3:.3f} mm for the rest: tracker or "
+        return [Reason("suspect", "drift", f"the first {k} poses (rows {a}-{b}) average {first.mean() * MM:.3f} mm "
+                                           f"of error against {rest.mean() * MM:.3f} mm for the rest: tracker or "
                                            f"robot warm-up? leave them out (--exclude {a}-{b}) and check the set-up")]
     return []

@@ -18,6 +18,7 @@ import numpy as np
 
 from .._atomic import write_text_atomic
 from ..errors import ModelError
+from ..units import MM
 from .chain import ROT
 from .robot import Robot
 from .serial import ChainRobot, SerialRobot
@@ -138,7 +139,7 @@ def _check(robot: Robot, forward, what: str) -> None:
     model = robot.with_params(dict.fromkeys(robot.base_params(), 0.0)).forward(q)
     gap = float(np.max(np.linalg.norm(forward(q) - model, axis=1)))
     if not gap <= EXPORT_TOL:
-        raise ModelError(f"the {what} would place the tool {gap * 1e3:.3g} mm from the calibrated model; "
+        raise ModelError(f"the {what} would place the tool {gap * MM:.3g} mm from the calibrated model; "
                          f"nothing written (please report this)")
 
 

@@ -28,6 +28,7 @@ import yaml
 
 from .._atomic import write_text_atomic
 from ..errors import ModelError
+from ..units import DEG
 from .puu3 import PUU3Robot
 from .robot import Robot
 from .serial import CONVENTIONS, Joint, SerialRobot
@@ -102,7 +103,7 @@ def _check_plausible(robot: Robot, has_units: bool, label: str) -> None:
     lng = [(n, x) for n, k, x in zip(robot.params.names, kinds, v) if k == "length" and abs(x) > 10.0]
     if not has_units and (ang or lng):
         n, x = (ang or lng)[0]
-        what = f"{np.rad2deg(x):.0f} deg read as rad" if ang else f"{x:g} m"
+        what = f"{x * DEG:.0f} deg read as rad" if ang else f"{x:g} m"
         raise ModelError(f"{label}: {n} = {x:g} ({what}) is implausible in the default units m and rad; the values "
                          f"look like {'degrees' if ang else 'mm'}: add 'units: {{length: mm, angle: deg}}'")
     bad = [(n, x) for n, x in ang if abs(x) > MAX_ANGLE] + [(n, x) for n, x in lng if abs(x) > MAX_LENGTH]

@@ -28,6 +28,7 @@ from ..identify.result import EvaluationStats
 from ..models.yaml_io import load_robot
 from ..simulate import simulate
 from ..ties import first_best
+from ..units import MM
 
 DESIGNS = ("random", "full-parameter optimised", "separated-parameter optimised")
 
@@ -87,12 +88,12 @@ class Guo2024Study:
 
     def _tables(self) -> list[str]:
         def as_units(name: str, v: float) -> str:  # mm for lengths, rad for angles, as the paper's tables
-            return f"{v * 1e3:10.4f}" if param_type(name) in ("a", "d") else f"{v:10.4f}"
+            return f"{v * MM:10.4f}" if param_type(name) in ("a", "d") else f"{v:10.4f}"
         how = (f"paper protocol: no noise, LM with fixed μ = 1 (mm, rad), all {len(self.true_errors)} parameters"
                if self.protocol == "paper"
                else "kincal protocol: 15 µm noise, adaptive LM, the identifiable parameters")
         out = [f"== Identified errors, first repetition (Tables 4-5; mm and rad; {how}; set: "
-               f"{self.true_errors[next(n for n in self.true_errors if param_type(n) == 'a')] * 1e3:.1f} mm, "
+               f"{self.true_errors[next(n for n in self.true_errors if param_type(n) == 'a')] * MM:.1f} mm, "
                f"{self.true_errors[next(n for n in self.true_errors if param_type(n) == 'theta')]:.2f} rad) =="]
         for d in DESIGNS:
             out += [f"  {d}"] + self._table(self.identified[d], as_units)
@@ -119,11 +120,11 @@ class Guo2024Study:
         out = ["== Validation, 60 poses, first repetition (Table 8): position error in mm ==",
                f"  {'':<31} {'max':>8} {'mean':>8} {'std':>8}"]
         for k, s in self.validation.items():
-            out.append(f"  {k:<31} {s.max * 1e3:8.4f} {s.mean * 1e3:8.4f} {s.std * 1e3:8.4f}")
+            out.append(f"  {k:<31} {s.max * MM:8.4f} {s.mean * MM:8.4f} {s.std * MM:8.4f}")
         out += ["", f"== Repeated {self.repeats} times (new errors and noise each): mean ± sd (mm) ==",
                 f"  {'':<31} {'mean error':>22} {'std of error':>22}"]
         for k, (mm, ms, sm, ss) in self.repeated.items():
-            out.append(f"  {k:<31} {mm * 1e3:10.4f} ± {ms * 1e3:<9.4f} {sm * 1e3:10.4f} ± {ss * 1e3:<9.4f}")
+            out.append(f"  {k:<31} {mm * MM:10.4f} ± {ms * MM:<9.4f} {sm * MM:10.4f} ± {ss * MM:<9.4f}")
         best = DESIGNS[1:][first_best([self.repeated[d][0] for d in DESIGNS[1:]], maximize=False)]
         rnd = self.repeated["random"][0]
         if rnd < 1e-9:
@@ -265,12 +266,12 @@ def paper_lm(robot, meas, names, mu: float = 1.0, max_iter: int = 200, tol: floa
     lengths in mm and angles in rad, over all ``names`` (dependent ones included: μ keeps the step
     finite and splits a dependent group evenly). Returns the fitted robot."""
     cols = robot.params.indices(names)
-    unit = np.array([1e3 if robot.params.kinds[i] == "length" else 1.0 for i in cols])  # SI -> paper units
+    unit = np.array([MM if robot.params.kinds[i] == "length" else 1.0 for i in cols])  # SI -> paper units (mm, rad)
     v = robot.params.values.copy()
     for _ in range(max_iter):
         p, J = robot.forward_and_jacobian(meas.q, v)
-        r = (meas.xyz - p).reshape(-1) * 1e3
-        A = J[:, :, cols].reshape(-1, len(cols)) * 1e3 / unit
+        r = (meas.xyz - p).reshape(-1) * MM
+        A = J[:, :, cols].reshape(-1, len(cols)) * MM / unit
         step = np.linalg.solve(A.T @ A + mu * np.eye(len(cols)), A.T @ r)
         v[cols] += step / unit
         if np.max(np.abs(step)) < tol:
