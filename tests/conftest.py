@@ -1,4 +1,5 @@
 """Shared fixtures: bundled robots and the bundled GTS3800 laser-tracker data."""
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,13 @@ WAM_COLS = [f"joint_{i}" for i in range(1, 8)]
 @pytest.fixture(scope="session")
 def ur5():
     return kincal.load_robot("ur5")
+
+
+def default_sigint() -> None:
+    """For a child process (``preexec_fn``): Ctrl-C as at a terminal, even when the tests run where
+    SIGINT is ignored (a shell's background job, some CI runners) — Python installs its
+    KeyboardInterrupt handler only if SIGINT is not ignored at start."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def central_jacobian(robot, q, h=1e-6):

@@ -13,6 +13,8 @@ import pytest
 import yaml
 
 import kincal
+from conftest import default_sigint
+
 from kincal.cli import main
 
 MMDEG = ["--length-unit", "mm", "--angle-unit", "deg"]
@@ -447,7 +449,7 @@ def test_signals_end_cleanly(tmp_path, sig, code, word):
     proc = subprocess.Popen([sys.executable, "-m", "kincal.cli", "design", "guo3t2r", "-m", "60", "--pool", "3000",
                              "--method", "detmax-ide", "--criterion", "comprehensive", "--generations", "100000",
                              "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
-                            env={**os.environ, "KINCAL_PROGRESS": "1"})
+                            env={**os.environ, "KINCAL_PROGRESS": "1"}, preexec_fn=default_sigint)
     seen = [proc.stderr.readline() for _ in range(3)]
     assert [line.split(":")[1].strip() for line in seen] == ["design started", "designing poses", "detmax-ide on 3000 "
                                                              "candidates"], seen

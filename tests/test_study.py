@@ -8,8 +8,10 @@ import time
 import numpy as np
 import pytest
 
+from conftest import default_sigint
+
 from kincal.cli import main
-from kincal.studies import runner, guo2024_mc
+from kincal.studies import guo2024_mc, runner
 
 pytestmark = pytest.mark.slow  # whole studies and real-data calibrations: make test-fast leaves them out
 
@@ -100,7 +102,8 @@ def test_an_interrupted_study_resumes_to_the_same_results(tmp_path):
     ref = subprocess.run(argv + ["-o", str(tmp_path / "ref.jsonl")], capture_output=True, text=True)
     assert ref.returncode == 0, ref.stderr
     part = tmp_path / "part.jsonl"
-    proc = subprocess.Popen(argv + ["-o", str(part)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(argv + ["-o", str(part)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=default_sigint)
     deadline = time.time() + 60
     while time.time() < deadline and (not part.exists() or len(part.read_text().splitlines()) < 4):
         time.sleep(0.05)

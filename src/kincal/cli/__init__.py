@@ -15,7 +15,7 @@ import sys
 import kincal
 
 from . import design, identify, model, parallel, report, study
-from .common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED, err, progress_lines
+from .common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED, err, line, progress_lines
 
 EXIT_INTERNAL = 70  # a bug in kincal, not in the user's input (KINCAL_DEBUG=1 shows the traceback)
 
@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
     if progress_lines():  # a log (or a test) learns that Ctrl-C and SIGTERM are handled from here on
-        err.print(f"kincal: {args.command} started", markup=False)
+        line(f"kincal: {args.command} started")
     try:
         return args.func(args)
     except (kincal.KincalError, ValueError, OSError) as exc:
@@ -59,10 +59,10 @@ def main(argv: list[str] | None = None) -> int:
         err.print(f"kincal: error: {msg}", markup=False)
         return EXIT_ERROR
     except KeyboardInterrupt:
-        err.print("kincal: interrupted; nothing half-written", markup=False)
+        line("kincal: interrupted; nothing half-written")
         return EXIT_INTERRUPTED
     except Terminated:
-        err.print("kincal: terminated; nothing half-written", markup=False)
+        line("kincal: terminated; nothing half-written")
         return EXIT_TERMINATED
     except Exception as exc:  # never a bare traceback for a user
         if os.environ.get("KINCAL_DEBUG"):

@@ -154,12 +154,20 @@ def progress_lines() -> bool:
     return os.environ.get(PROGRESS_LINES, "") not in ("", "0")
 
 
+def line(text: str) -> None:
+    """One plain line on stderr, written at once. Progress lines and the last words after Ctrl-C go
+    this way, not through rich: a signal that lands while rich copies its buffer to the terminal
+    leaves that buffer full, and rich's next print would show the interrupted line twice."""
+    sys.stderr.write(text + "\n")
+    sys.stderr.flush()
+
+
 @contextmanager
 def progress(message: str, quiet: bool):
     """A spinner on stderr for work that may take over a second (off with --json); with
     ``KINCAL_PROGRESS=1`` each stage as a line ``kincal: <stage>`` instead, terminal or not."""
     if progress_lines():
-        say = lambda msg: err.print(f"kincal: {msg}", markup=False)  # noqa: E731
+        say = lambda msg: line(f"kincal: {msg}")  # noqa: E731
         say(message)
         yield say
         return

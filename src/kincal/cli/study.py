@@ -9,7 +9,7 @@ import kincal.studies
 from kincal.papers import GUO2024
 from kincal.studies import guo2024, guo2024_mc, runner
 
-from .common import EXIT_INTERRUPTED, check_paths, emit, err, hidden_alias, positive_int, progress
+from .common import EXIT_INTERRUPTED, check_paths, emit, err, hidden_alias, line, positive_int, progress
 
 STUDIES = {"guo2024": "guo2024", "seed1": "guo2024"}  # study names (and the 0.1 name, still accepted)
 
@@ -42,8 +42,7 @@ def cmd_study(args) -> int:
         with runner.make_executor(args.workers, args.scheduler) as ex, _bar(args, len(tasks)) as bar:
             records = runner.run_tasks(trials.run, tasks, ex, out, header, bar)
     except KeyboardInterrupt:
-        err.print(f"kincal: interrupted; the finished tasks are kept in {out}: run the same command to resume",
-                  markup=False)
+        line(f"kincal: interrupted; the finished tasks are kept in {out}: run the same command to resume")
         return EXIT_INTERRUPTED
     rows = guo2024_mc.summarise(records)
     emit(args, {"results_file": str(out), "trials": len(records), "settings": header, "reduction": rows},
