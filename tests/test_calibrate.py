@@ -112,3 +112,13 @@ def test_result_round_trips_through_yaml_and_json(tmp_path, ur5):
     kincal.save_robot(res.robot, tmp_path / "cal.yaml")
     assert kincal.load_robot(tmp_path / "cal.yaml").params == res.robot.params
     assert "parameter" in str(res) and "mm" in str(res)
+
+
+def test_residual_sigma_is_the_unbiased_per_axis_estimate(ur5):
+    """σ̂ = sqrt(‖r‖² / (3N − K)) at the fit, written out (and near the simulated noise)."""
+    true = kincal.perturb(ur5, seed=12)
+    q = ur5.sample_joints(120, seed=12)
+    res = kincal.calibrate(ur5, kincal.simulate(true, q, NOISE, seed=12), base="fixed")
+    expected = np.sqrt(np.sum(res.residuals**2) / (res.residuals.size - len(res.names)))
+    assert res.sigma == pytest.approx(expected, rel=1e-12) and 0.8 * NOISE < res.sigma < 1.2 * NOISE
+    assert kincal.FitOptions(method="pso", pso={"seed": None}).pso.seed is None  # a fresh swarm each run

@@ -38,6 +38,7 @@ def puu3_data():
 ])
 def test_options_are_checked_before_any_work(puu3_data, monkeypatch, kwargs, words):
     robot, meas = puu3_data
+    kwargs = dict(kwargs)  # the parameter is shared by every run of this test in a process
     if kwargs.pop("robot", None) == "ur5":
         robot = kincal.load_robot("ur5")
         meas = kincal.simulate(robot, robot.sample_joints(10, seed=0), noise=0.0)

@@ -127,3 +127,23 @@ def test_plots_for_calibrate_and_evaluate(real, tmp_path, capsys):
     assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *UNITS, "--plot", str(tmp_path / "cal.svg")]) == 0
     svgs = sorted(tmp_path.glob("cal-*.svg"))
     assert len(svgs) == 6 and all("<svg" in p.read_text() for p in svgs)
+
+
+def test_report_refits_from_the_record_the_file_keeps(tmp_path, capsys):
+    """The record keeps FitOptions and the poses of use (calibrate --test with --error-model auto);
+    kincal report refits from exactly those, whatever held-out file it is given to show."""
+    cal = tmp_path / "cal.yaml"
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *UNITS, "--error-model", "auto", "--test",
+                 str(DATA / "ur5_random.csv"), "-o", str(cal), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    record = kincal.models.load_calibration_record(cal)
+    assert kincal.FitOptions.from_dict(record["options"]).error_model == kincal.ErrorModel("auto")
+    test = kincal.read_measurements(DATA / "ur5_random.csv", kincal.load_robot("ur5"), UR5_COLS, length_unit="mm",
+                                    angle_unit="deg")
+    np.testing.assert_array_equal(np.array(record["use_q"]), test.q)
+    # shown against the grid itself: the refit still uses the recorded poses of use, so it is the file's fit
+    assert main(["report", str(cal), "--test", str(DATA / "ur5_grid.csv"), "-o", str(tmp_path / "r.html")]) == 0
+    cap = capsys.readouterr()
+    assert "differs from" not in cap.err
+    data = json.loads((tmp_path / "r.json").read_text())
+    assert data["error_model_choice"]["chosen"] == res["error_model_choice"]["chosen"] == "harmonics:2"
