@@ -336,6 +336,9 @@ ARGS = [
                                                         "{tracker_noise: small}}}\n"}),
     case("report-record-data-a-number", ["report", "{d}/r.yaml", "-o", "{d}/r.html"], 1, ["'data' must be a mapping"],
          files={"r.yaml": UR5_YAML + "calibration: {nominal: {}, options: {}, data: 5}\n"}),
+    case("report-record-use-q-text", ["report", "{d}/r.yaml", "--train", "{base}/good.csv", "-o", "{d}/r.html"], 1,
+         ["'use_q' must be rows of 6 joint values"], files={"r.yaml": UR5_YAML + "calibration: {nominal: {}, options: "
+                                                              "{}, use_q: [[1, 2], [x, y]]}\n"}),
     case("study-unknown-name", ["study", "seed3", "-o", "{d}/s.jsonl"], 2, ["the study is guo2024"]),
     case("study-zero-trials", ["study", "guo2024", "--trials", "0", "-o", "{d}/s.jsonl"], 2, ["at least 1"]),
     case("study-results-of-another-study", ["study", "guo2024", "--trials", "1", "--poses", "24", "--generations",

@@ -68,6 +68,7 @@ def cmd_report(args) -> int:
     options = kincal.FitOptions.from_dict(record["options"], f"{args.robot}: calibration options")
     cal = load_robot(args)
     nominal = cal.with_params(_nominal(record["nominal"], args.robot))
+    use_q = _use_q(record.get("use_q"), nominal, args.robot)
     units = {k: vars(args)[k] if vars(args)[k] is not None else data.get(k, default)
              for k, default in (("length_unit", "m"), ("angle_unit", "rad"), ("joint_cols", None),
                                 ("xyz_cols", ["x", "y", "z"]))}
@@ -75,7 +76,6 @@ def cmd_report(args) -> int:
     if data.get("exclude"):
         train = train.without_rows(data["exclude"])
     test = kincal.read_measurements(args.test, nominal, **units) if args.test else None
-    use_q = np.asarray(record["use_q"], dtype=float) if record.get("use_q") is not None else None
     with progress("refitting the calibration", args.json):
         res = kincal.calibrate(nominal, train, options, use_q=use_q)
     gap = float(np.max(np.abs(res.robot.params.values - cal.params.values)))
@@ -96,6 +96,20 @@ def _mapping(value, robot: str, key: str) -> dict:
     if not isinstance(value, dict):
         raise ValueError(f"{robot}: the calibration record's '{key}' must be a mapping; calibrate again")
     return value
+
+
+def _use_q(value, robot, path: str) -> np.ndarray | None:
+    """The record's poses of use (N, n) in SI units, or None; checked to be finite numbers per joint."""
+    if value is None:
+        return None
+    try:
+        q = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        q = np.empty((0, 0))
+    if q.ndim != 2 or q.shape[1] != robot.n_joints or len(q) == 0 or not np.all(np.isfinite(q)):
+        raise ValueError(f"{path}: the calibration record's 'use_q' must be rows of {robot.n_joints} joint values "
+                         f"(rad or m); calibrate again")
+    return q
 
 
 def _nominal(values, robot: str) -> dict[str, float]:
