@@ -27,7 +27,7 @@ def real(tmp_path_factory):
     mp = pytest.MonkeyPatch()
     mp.setenv("SOURCE_DATE_EPOCH", "1795000000")
     code = main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *UNITS, "-o", str(d / "cal.yaml"), "--test",
-                 str(DATA / "ur5_random.csv"), "--report", str(d / "report.html")])
+                 str(DATA / "ur5_random.csv"), "--same-frame", "--report", str(d / "report.html")])
     mp.undo()
     assert code == 0
     return d
@@ -57,10 +57,10 @@ def test_report_content_matches_its_json(real):
 def test_same_input_same_bytes(real, tmp_path, capsys):
     """calibrate --report twice gives the same bytes; kincal report of the saved file the same content."""
     code = main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *UNITS, "--test", str(DATA / "ur5_random.csv"),
-                 "--report", str(tmp_path / "report.html")])
+                 "--same-frame", "--report", str(tmp_path / "report.html")])
     assert code == 0
     assert (tmp_path / "report.html").read_bytes() == (real / "report.html").read_bytes()
-    assert main(["report", str(real / "cal.yaml"), "--test", str(DATA / "ur5_random.csv"), "-o",
+    assert main(["report", str(real / "cal.yaml"), "--test", str(DATA / "ur5_random.csv"), "--same-frame", "-o",
                  str(tmp_path / "again.html")]) == 0
     capsys.readouterr()
     first, again = (real / "report.html").read_text(), (tmp_path / "again.html").read_text()

@@ -126,7 +126,7 @@ def test_real_ur5_grid_through_the_urdf(tmp_path, capsys):
     assert main(["calibrate", str(UR5_URDF), str(DATA / "ur5_grid.csv"), *UNITS, *flags, "-o", str(cal)]) == 0
     text = capsys.readouterr().out
     assert "identifiable: 25 of 45 candidate parameters" in text and "shoulder_pan_joint.z  ~  +1·base.z" in text
-    assert main(["evaluate", str(cal), str(DATA / "ur5_random.csv"), *UNITS, "--json"]) == 0
+    assert main(["evaluate", str(cal), str(DATA / "ur5_random.csv"), *UNITS, "--same-frame", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["mean"] == pytest.approx(0.1005e-3, abs=0.001e-3)
 
 

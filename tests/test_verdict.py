@@ -61,7 +61,7 @@ def test_real_ur5_grid_is_good(tmp_path, capsys):
     assert code == 0 and res["verdict"] == {"status": "good", "reasons": []}
     assert len(res["poses"]) == 1000 and res["poses"][0]["row"] == 2
     assert not any(p["outlier"] for p in res["poses"])
-    code, out, _ = run(capsys, "evaluate", cal, DATA / "ur5_random.csv", *UNITS, *cols, "--json")
+    code, out, _ = run(capsys, "evaluate", cal, DATA / "ur5_random.csv", *UNITS, *cols, "--same-frame", "--json")
     ev = json.loads(out)
     assert ev["mean"] == pytest.approx(0.1005e-3, abs=0.00005e-3) and ev["warnings"] == []
     assert len(ev["predicted_sigma"]) == 20 and max(ev["predicted_sigma"]) < 0.05e-3

@@ -76,21 +76,33 @@ def row_list(s: str) -> list[int]:
 
 
 def add_robot(p: argparse.ArgumentParser, help_: str = "bundled name, kincal robot YAML or URDF file") -> None:
-    """The ROBOT argument, with the URDF chain flags."""
+    """The ROBOT argument, with the tool point and the URDF chain flags."""
     p.add_argument("robot", help=help_)
+    p.add_argument("--tool", type=point, metavar="X,Y,Z[UNIT]",
+                   help="the measured point (reflector, probe) in the flange frame, e.g. 0,0,93.2mm (unit m, mm or "
+                        "um after the numbers; m when none); replaces the robot file's tool point")
     g = p.add_argument_group("URDF robots")
     g.add_argument("--base-link", help="first link of the chain (default: the URDF's root link)")
     g.add_argument("--tip-link", help="last link of the chain (default: the only end link)")
-    g.add_argument("--tool", type=_triple, help="tool point X,Y,Z in m in the tip link's frame (default 0,0,0)")
 
 
-def _triple(s: str) -> tuple[float, float, float]:
+MAX_TOOL = 2.0  # m: no tool point lies farther from the flange; larger values are mm written without a unit
+
+
+def point(s: str) -> tuple[float, float, float]:
+    """argparse type: 'X,Y,Z' with an optional length unit after the numbers ('0,0,93.2mm'), in m."""
+    text = s.strip()
+    unit = next((u for u in sorted(LENGTH_UNITS, key=len, reverse=True) if text.endswith(u)), None)
+    body = text[:-len(unit)] if unit else text
     try:
-        t = tuple(float(x) for x in csv_list(s))
+        t = tuple(float(x) * LENGTH_UNITS[unit or "m"] for x in csv_list(body))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"'{s}': give three numbers X,Y,Z (m)") from None
+        raise argparse.ArgumentTypeError(f"'{s}': give three numbers X,Y,Z and a unit, e.g. 0,0,93.2mm") from None
     if len(t) != 3 or not all(np.isfinite(t)):
-        raise argparse.ArgumentTypeError(f"'{s}': give three finite numbers X,Y,Z (m)")
+        raise argparse.ArgumentTypeError(f"'{s}': give three finite numbers X,Y,Z and a unit, e.g. 0,0,93.2mm")
+    if unit is None and max(map(abs, t)) > MAX_TOOL:
+        raise argparse.ArgumentTypeError(f"'{s}': {max(map(abs, t)):g} m from the flange; these look like mm: "
+                                         f"write {body}mm")
     return t
 
 

@@ -3,16 +3,19 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
 import kincal
 import kincal.analysis
 import kincal.identify
 import kincal.io
+import kincal.models
 from kincal.units import DEG, MM
 
 from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, add_data_flags, add_robot, check_paths, csv_list, emit, err,
                      hidden_alias, load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs,
                      row_list)
-from .report import data_record, json_path, save_figures, write_outputs
+from .report import add_session_flags, data_record, json_path, save_figures, write_outputs
 
 
 def _thresholds(args) -> kincal.Thresholds:
@@ -40,16 +43,17 @@ def fit_options(args) -> kincal.FitOptions:
 
 def cmd_calibrate(args) -> int:
     reports = [args.report, json_path(args.report)] if args.report else []
-    check_paths([*robot_inputs(args.robot), args.data, args.test], [args.output, args.residuals, *reports])
+    check_paths([*robot_inputs(args.robot), args.data, *args.test], [args.output, args.residuals, *reports])
     options = fit_options(args)
     r = load_robot(args)
     options.check(r)
     meas = read(args, r, args.data)
-    test = read(args, r, args.test) if args.test else None
+    test = [read(args, r, t) for t in args.test]
     if args.exclude:
         meas = meas.without_rows(args.exclude)
     with progress("calibrating", args.json) as say:
-        res = kincal.calibrate(r, meas, options, use_q=None if test is None else test.q, progress=say)
+        res = kincal.calibrate(r, meas, options, use_q=np.concatenate([t.q for t in test]) if test else None,
+                               progress=say)
     if args.residuals:
         kincal.io.write_residuals(args.residuals, meas, meas.xyz - res.residuals, res.pose_z, res.outlier_z,
                                   r.joint_types, "mm", "deg")
@@ -81,19 +85,35 @@ def cmd_calibrate(args) -> int:
 
 
 def cmd_evaluate(args) -> int:
-    check_paths([*robot_inputs(args.robot), args.data], [])
+    check_paths([*robot_inputs(args.robot), *args.data], [])
     r = load_robot(args)
-    meas = read(args, r, args.data)
-    if args.rebase:
-        r = kincal.calibrate(r, meas, names=(), base="estimate").robot
-    stats = kincal.evaluate(r, meas, uncertainty=kincal.analysis.load_uncertainty(args.robot))
-    text = f"{r.name} on {args.data}{' (base re-fitted)' if args.rebase else ''}: {stats}"
-    if args.plot:
-        from kincal.report import evaluation_figures
+    sessions = [read(args, r, path) for path in args.data]
+    unc = kincal.analysis.load_uncertainty(args.robot)
+    train_error = _training_error(args.robot)
+    how = kincal.identify.AS_CALIBRATED if args.same_frame else kincal.identify.REGISTERED
+    texts, payloads = [], []
+    with progress("evaluating", args.json):
+        for path, meas in zip(args.data, sessions):
+            model = r if args.same_frame else kincal.identify.refit_frame(r, meas)
+            stats = kincal.evaluate(model, meas, uncertainty=unc)
+            cause = kincal.identify.heldout_cause(model, meas, train_error, not args.same_frame) if train_error else ""
+            payloads.append({"file": path, "registration": how, **stats.to_dict(), "cause": cause or None})
+            texts.append(f"{r.name} on {path} ({how}): {stats}" + (f"\n  likely cause: {cause}" if cause else ""))
+            if args.plot:
+                from kincal.report import evaluation_figures
 
-        text += "\n" + "\n".join(save_figures(evaluation_figures(r, meas), args.plot))
-    emit(args, stats.to_dict(), text)
+                stem = args.plot if len(args.data) == 1 else f"{args.plot}-{len(payloads)}"
+                texts.append("\n".join(save_figures(evaluation_figures(model, meas), stem)))
+    payload = {**payloads[0], "sessions": payloads} if len(payloads) == 1 else {"sessions": payloads}
+    emit(args, payload, "\n".join(texts))
     return 0
+
+
+def _training_error(robot: str) -> float:
+    """The calibrated model's mean error on its training data (m), from its calibration record; 0 when unknown."""
+    record = kincal.models.load_calibration_record(robot) if robot_inputs(robot) else None
+    value = (record or {}).get("training_error")
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else 0.0
 
 
 def _pair(s: str) -> tuple[float, float]:
@@ -134,8 +154,8 @@ def register(cmd) -> None:
     s.add_argument("--exclude", type=row_list, help="input rows to leave out, e.g. 12,40-42")
     s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers)")
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")
-    s.add_argument("--test", help="held-out measurements for the report and figures; with --error-model auto also "
-                                  "the poses where the model will be used (the prediction-σ guard)")
+    add_session_flags(s)  # held-out sessions for the report and figures; with --error-model auto also the
+    # poses where the model will be used (the prediction-σ guard)
     s.add_argument("--report", help="HTML report to write (self-contained; its JSON goes beside it)")
     s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     s.add_argument("--tracker-noise", type=positive_float, default=0.05, help="expected tracker noise, mm (default 0.05)")
@@ -147,7 +167,10 @@ def register(cmd) -> None:
 
     s = cmd("evaluate", cmd_evaluate, "position error statistics of a robot model on measurements")
     add_robot(s)
-    s.add_argument("data")
-    s.add_argument("--rebase", action="store_true", help="re-fit only the base frame first")
+    s.add_argument("data", nargs="+", help="measurement CSV, one per session")
+    s.add_argument("--same-frame", action="store_true",
+                   help="the data were measured in the model's measurement frame (the tracker did not move): use "
+                        "the model as it is; by default each session's frame is re-fitted first (kinematics fixed)")
+    s.add_argument("--rebase", action="store_true", help=argparse.SUPPRESS)  # the default now; accepted
     s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     add_data_flags(s)

@@ -1,6 +1,7 @@
 """The calibration report: ``kincal report`` and the ``--report`` / ``--plot`` outputs of calibrate."""
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 import numpy as np
@@ -30,13 +31,13 @@ def write_outputs(args, res, test, info: dict) -> list[str]:
     lines = []
     if args.report:
         with progress("writing the report", args.json):
-            rep = kincal.build_report(res, test, info, Path(args.report).name)
+            rep = kincal.build_report(res, test, info, Path(args.report).name, same_frame=args.same_frame)
             json_path = rep.write(args.report)
         lines.append(f"report written to {args.report} (numbers in {json_path})")
     if args.plot:
         from kincal.report import figure_set
 
-        lines += save_figures(figure_set(res, test), args.plot)
+        lines += save_figures(figure_set(res, test, args.same_frame), args.plot)
     return lines
 
 
@@ -64,7 +65,7 @@ def cmd_report(args) -> int:
     train_path = args.train or data.get("file")
     if not isinstance(train_path, str):
         raise ValueError("give the training data with --train (the record names no data file)")
-    check_paths([*robot_inputs(args.robot), train_path, args.test], [args.output, json_path(args.output)])
+    check_paths([*robot_inputs(args.robot), train_path, *args.test], [args.output, json_path(args.output)])
     options = kincal.FitOptions.from_dict(record["options"], f"{args.robot}: calibration options")
     cal = load_robot(args)
     nominal = cal.with_params(_nominal(record["nominal"], args.robot))
@@ -75,7 +76,7 @@ def cmd_report(args) -> int:
     train = kincal.read_measurements(train_path, nominal, **units)
     if data.get("exclude"):
         train = train.without_rows(data["exclude"])
-    test = kincal.read_measurements(args.test, nominal, **units) if args.test else None
+    tests = [kincal.read_measurements(t, nominal, **units) for t in args.test]
     with progress("refitting the calibration", args.json):
         res = kincal.calibrate(nominal, train, options, use_q=use_q)
     gap = float(np.max(np.abs(res.robot.params.values - cal.params.values)))
@@ -85,7 +86,7 @@ def cmd_report(args) -> int:
         info["note"] = (f"a fit of these data differs from {args.robot} by up to {gap:.3g} (SI): the report shows "
                         f"the fit of these data, not the file")
         err.print(f"kincal: warning: {info['note']}", markup=False)
-    rep = kincal.build_report(res, test, info, Path(args.output).name)
+    rep = kincal.build_report(res, tests, info, Path(args.output).name, same_frame=args.same_frame)
     json_file = rep.write(args.output)
     emit(args, {**rep.data, "output": args.output, "json": str(json_file)},
          f"{rep.summary}\nreport written to {args.output} (numbers in {json_file})")
@@ -121,11 +122,23 @@ def _nominal(values, robot: str) -> dict[str, float]:
     return {str(k): float(v) for k, v in values.items()}
 
 
+def add_session_flags(p) -> None:
+    """--test (repeatable: one file per session) and --same-frame."""
+    p.add_argument("--test", action="append", default=[], metavar="FILE",
+                   help="held-out measurements, one file per session (repeat --test for several sessions); each "
+                        "session's measurement frame is re-fitted to it for the nominal and the calibrated model "
+                        "alike, kinematics fixed")
+    p.add_argument("--same-frame", action="store_true",
+                   help="the held-out sessions were measured in the training data's frame (the tracker did not "
+                        "move): use the models' frames as they are")
+    p.add_argument("--rebase", action="store_true", help=argparse.SUPPRESS)  # the default now; accepted
+
+
 def register(cmd) -> None:
     s = cmd("report", cmd_report, "the calibration report (HTML with plots, and JSON) of a calibrated robot")
     add_robot(s, "the calibrated robot file written by 'kincal calibrate -o'")
     s.add_argument("--train", help="the calibration data (default: the file named in the robot's record)")
-    s.add_argument("--test", help="held-out measurements to validate on")
+    add_session_flags(s)
     s.add_argument("-o", "--output", required=True, help="HTML file to write (the JSON goes beside it)")
     g = s.add_argument_group("data columns and units (default: as recorded by calibrate)")
     g.add_argument("--joint-cols", type=csv_list)

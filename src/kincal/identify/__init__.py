@@ -6,8 +6,10 @@ from .residuals import RESIDUALS, CartesianResidual, JointResidual
 from .result import CalibrationResult, EvaluationStats
 from .robust import LOSSES
 from .select import ErrorModelChoice
+from .sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
 from .verdict import Reason, Thresholds, Verdict
 
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "CalibrationProblem", "build_problem",
            "RESIDUALS", "CartesianResidual", "JointResidual", "CalibrationResult", "EvaluationStats", "LOSSES",
-           "ErrorModelChoice", "Reason", "Thresholds", "Verdict"]
+           "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "REGISTERED",
+           "AS_CALIBRATED"]

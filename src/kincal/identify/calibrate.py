@@ -26,8 +26,8 @@ from .pso import fit_pso
 from .result import CalibrationResult, EvaluationStats
 from .robust import irls
 from .select import select_model
-from .verdict import (Reason, Verdict, correction_reasons, drift_reasons, duplicate_reasons, outlier_reasons,
-                      residual_reasons, robust_z)
+from .verdict import (Reason, Verdict, correction_reasons, drift_reasons, duplicate_reasons, mounting_reasons,
+                      outlier_reasons, residual_reasons, robust_z)
 
 
 def calibrate(robot: Robot, meas: Measurements, options: FitOptions | None = None, *, use_q: np.ndarray | None = None,
@@ -144,7 +144,7 @@ def _result(robot: Robot, problem: CalibrationProblem, final: CalibrationProblem
         corrections={n: float(v[i] - robot.params.values[i]) for n, i in zip(names, idx)},
         std={n: float(x) for n, x in zip(names, sd)}, correlation=corr, residuals=res,
         sigma=float(np.sqrt(sigma2 / (1.0 if w is None else np.mean(w)))),
-        stats_before=EvaluationStats.from_errors(meas.xyz - robot.forward(meas.q)),
+        stats_before=EvaluationStats.from_errors(meas.xyz - problem.start.forward(meas.q)),  # frame registered
         stats_after=EvaluationStats.from_errors(res),
         iterations=counts[0], evaluations=counts[1], converged=fit.converged, message=fit.message,
         time_s=elapsed, options=options, identifiability=problem.ident, history=history, covariance=cov)
@@ -164,6 +164,8 @@ def judge(res: CalibrationResult, problem: CalibrationProblem) -> CalibrationRes
                                   f"poses spread over the workspace, or use --base fixed if the base is known"))
     reasons += correction_reasons(problem.start, {n: res.corrections[n] for n in res.names
                                                   if np.isfinite(res.std[n])}, th)
+    if res.mounting:
+        reasons += mounting_reasons(res.nominal.tool_point(), res.robot.tool_point(), th)
     inliers = res.residuals[z <= th.outlier_z]  # outliers are named on their own, not smeared into σ
     pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
     reasons += drift_reasons(meas.rows, np.linalg.norm(res.residuals, axis=1))
@@ -183,7 +185,7 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
     if rebase not in (True, False):
         raise ValueError(f"rebase={rebase!r}: True or False")
     meas.check_robot(robot)
-    if rebase:
+    if rebase and robot.base_params():  # frame only, kinematics fixed (kincal.identify.refit_frame)
         robot = calibrate(robot, meas, names=(), base="estimate").robot
     stats = EvaluationStats.from_errors(meas.xyz - robot.forward(meas.q))
     if uncertainty is None:

@@ -8,11 +8,11 @@ import numpy as np
 from ..analysis.identifiability import Identifiability
 from ..analysis.uncertainty import ModelUncertainty
 from ..io.measurements import Measurements
-from ..models.robot import Robot
+from ..models.robot import TOOL_NAMES, Robot
 from ..units import MM, display
 from .options import FitOptions
 from .select import ErrorModelChoice
-from .verdict import Verdict
+from .verdict import Verdict, mounting_line
 
 
 @dataclass(frozen=True)
@@ -92,6 +92,14 @@ class CalibrationResult:
     use_q: np.ndarray | None = None  # (M, n) where the model will be used (the prediction-σ guard)
 
     @property
+    def mounting(self) -> str:
+        """Where the data put the target in the flange frame against the declared tool point, when the
+        tool point was estimated (a mounting result, not a robot error); '' otherwise."""
+        if not self.robot.has_tool_point or not any(n in self.names and np.isfinite(self.std[n]) for n in TOOL_NAMES):
+            return ""
+        return mounting_line(self.nominal.tool_point(), self.robot.tool_point())
+
+    @property
     def loss(self) -> str:
         return self.options.loss
 
@@ -109,7 +117,8 @@ class CalibrationResult:
         the poses of use, so the fit can be reproduced (``kincal report``)."""
         unc = self.uncertainty().to_dict()  # with the envelope: where the model was fitted (joint ranges)
         unc["envelope"]["joints"] = list(self.robot.joint_names)
-        out = {**unc, "nominal": self.nominal.params.as_dict(), "options": self.options.to_dict()}
+        out = {**unc, "nominal": self.nominal.params.as_dict(), "options": self.options.to_dict(),
+               "training_error": self.stats_after.mean}
         if self.use_q is not None:
             out["use_q"] = self.use_q.tolist()
         return out
@@ -161,6 +170,9 @@ class CalibrationResult:
             "error_model_choice": None if self.error_model_choice is None else self.error_model_choice.to_dict(),
             "error_model_notes": list(self.error_model_notes),
             "drift": self.drift,
+            "mounting": None if not self.mounting else {
+                "tool_point": self.robot.tool_point().tolist(), "declared_tool_point": self.nominal.tool_point().tolist(),
+                "text": self.mounting},
             "compliance": self.robot.compliances(),  # rad/(N·m) per joint
             "poses": self.pose_records(),
         }
@@ -180,7 +192,9 @@ class CalibrationResult:
             lines.append(f"{n:<12} {display(self.estimates[n], k):>16} {display(self.corrections[n], k):>16} "
                          f"{sd:>14}")
         lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm",
-                  f"before: {self.stats_before}", f"after:  {self.stats_after}"]
+                  f"before (nominal, frame registered): {self.stats_before}", f"after:  {self.stats_after}"]
+        if self.mounting:
+            lines.append(f"mounting: {self.mounting}")
         if self.error_model_choice is not None:
             lines.append(str(self.error_model_choice))
         lines += [f"compliance of {j}: {c:.3g} rad/(N·m)" for j, c in self.robot.compliances().items()]

@@ -6,10 +6,14 @@ are a frozen :class:`Thresholds` value, documented here and overridable (``calib
 CLI flags):
 
 * implausible corrections (every estimated parameter except the base frame, which only says where
-  the tracker stands): a length moving more than ``length_suspect`` (10 mm) is suspect, more than
+  the tracker stands, and the tool point, which says where the target is mounted): a length moving more than ``length_suspect`` (10 mm) is suspect, more than
   ``length_refuse`` (50 mm) is refused; an angle more than ``angle_suspect`` (2°) / ``angle_refuse``
   (10°). Real arms are off by fractions of a mm and a degree; corrections of tens of mm mean data in
   another unit (cm, inches), swapped joint columns or the wrong robot file;
+* mounting: the tool point is where the user mounted the target, not a robot error; the fitted
+  point is always reported against the declared one, a distance over ``tool_suspect`` (50 mm) is
+  suspect (declare the real point) and over ``tool_refuse`` (1 m: no probe is that long) refused;
+  never with unit advice;
 * residual after the fit, σ per axis over the poses that are not outliers, against the tracker noise
   (``tracker_noise``, 0.05 mm): more than ``residual_suspect`` (10×) is suspect (errors the model
   cannot describe), more than ``residual_refuse`` (100×) is refused (data and model do not belong
@@ -29,7 +33,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..models.robot import Robot
+from ..models.robot import TOOL_NAMES, Robot
 from ..units import DEG, MM
 
 MAX_LISTED = 10
@@ -48,6 +52,8 @@ class Thresholds:
     residual_suspect: float = 10.0
     residual_refuse: float = 100.0
     outlier_z: float = 5.0
+    tool_suspect: float = 50e-3
+    tool_refuse: float = 1.0
 
     def __post_init__(self) -> None:
         bad = [k for k, v in self.__dict__.items()
@@ -55,7 +61,7 @@ class Thresholds:
         if bad:
             raise ValueError(f"thresholds: {', '.join(bad)} must be positive numbers")
         for a, b in (("length_suspect", "length_refuse"), ("angle_suspect", "angle_refuse"),
-                     ("residual_suspect", "residual_refuse")):
+                     ("residual_suspect", "residual_refuse"), ("tool_suspect", "tool_refuse")):
             if self.__dict__[a] > self.__dict__[b]:
                 raise ValueError(f"thresholds: {a} must not exceed {b}")
 
@@ -129,8 +135,8 @@ def duplicate_groups(q: np.ndarray, tol: float = 1e-9) -> list[np.ndarray]:
 
 
 def correction_reasons(robot: Robot, corrections: dict[str, float], th: Thresholds) -> list[Reason]:
-    """Implausibly large corrections (the base frame excluded)."""
-    base = set(robot.base_params())
+    """Implausibly large corrections (the base frame and the tool point, mounting results, excluded)."""
+    base = set(robot.base_params()) | set(TOOL_NAMES)
     kinds = dict(zip(robot.params.names, robot.params.kinds))
     out = []
     for level, lim_len, lim_ang in (("refused", th.length_refuse, th.angle_refuse),
@@ -147,6 +153,29 @@ def correction_reasons(robot: Robot, corrections: dict[str, float], th: Threshol
                               f"columns and their order, and the robot file"))
             break
     return out
+
+
+def mounting_line(declared: np.ndarray, fitted: np.ndarray) -> str:
+    """Where the data put the target in the flange frame, against the declared tool point (m)."""
+    mm = lambda v: "(" + ", ".join(f"{x * MM:.2f}" for x in v) + ") mm"  # noqa: E731
+    return (f"the data put the target at {mm(fitted)} in the flange frame (declared {mm(declared)}, "
+            f"{np.linalg.norm(fitted - declared) * MM:.2f} mm apart)")
+
+
+def mounting_reasons(declared: np.ndarray, fitted: np.ndarray, th: Thresholds) -> list[Reason]:
+    """The fitted tool point against the declared one: a mounting result, with its own limits."""
+    gap = float(np.linalg.norm(fitted - declared))
+    tool = ",".join(f"{x * MM:.2f}" for x in fitted)
+    if gap > th.tool_refuse:
+        return [Reason("refused", "tool-point", f"{mounting_line(declared, fitted)}: no probe or reflector is "
+                                                f"mounted {gap:.2f} m from its declared place; check that the "
+                                                f"data belong to this robot (joint columns, robot file)")]
+    if gap > th.tool_suspect:
+        return [Reason("suspect", "tool-point", f"{mounting_line(declared, fitted)}: if the target is mounted "
+                                                f"there, declare it (--tool {tool}mm) so that the tool point is "
+                                                f"known and the commands use it; otherwise check the probe and "
+                                                f"its adapter")]
+    return []
 
 
 def residual_reasons(sigma: float, th: Thresholds) -> list[Reason]:

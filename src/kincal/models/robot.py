@@ -37,6 +37,7 @@ if TYPE_CHECKING:
     from .gravity import GravityModel
 
 JOINT_TYPES = ("revolute", "prismatic")
+TOOL_NAMES = ("tool.x", "tool.y", "tool.z")  # the measured point in the flange frame (m), where a model has one
 R = TypeVar("R", bound="Robot")
 ParamValues = Mapping[str, float] | Sequence[float] | np.ndarray | Parameters
 
@@ -291,6 +292,47 @@ class Robot(ABC):
     def with_base_transform(self: R, R_: np.ndarray, t: np.ndarray) -> R:
         """A copy whose base frame is (R_, t)."""
         raise ModelError(f"robot '{self.name}' has no base frame")
+
+    # ---- the tool point (the measured target on the flange) ---------------------------------------
+    @property
+    def has_tool_point(self) -> bool:
+        """Whether the model ends with a tool point ``tool.x/y/z`` (m, in the flange frame)."""
+        return all(n in self.params.names for n in TOOL_NAMES)
+
+    def _no_tool_point(self) -> ModelError:
+        return ModelError(f"robot '{self.name}' ({self.structure}) has no tool point (tool.x, tool.y, tool.z): its "
+                          f"measured point is part of its structure")
+
+    def tool_point(self) -> np.ndarray:
+        """The tool point (3,) in m in the flange frame."""
+        if not self.has_tool_point:
+            raise self._no_tool_point()
+        return np.array([self.params[n] for n in TOOL_NAMES])
+
+    def with_tool_point(self: R, xyz) -> R:
+        """A copy whose tool point is ``xyz`` (3,) m in the flange frame."""
+        t = np.asarray(xyz, dtype=float).reshape(-1)
+        if not self.has_tool_point:
+            raise self._no_tool_point()
+        if t.size != 3 or not np.all(np.isfinite(t)):
+            raise ModelError(f"robot '{self.name}': a tool point is three finite numbers (m), got {xyz!r}")
+        return self.with_params(dict(zip(TOOL_NAMES, map(float, t))))
+
+    def flange_rotation(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
+        """(N, 3, 3) orientation of the flange frame in the world frame at q (N, n): column k is where
+        a unit step of the tool point along flange axis k moves it (the tool point is a translation)."""
+        if not self.has_tool_point:
+            raise self._no_tool_point()
+        v = self.param_values(values)
+        cols = self.params.indices(TOOL_NAMES)
+        q = self.check_q(q)
+        p0 = self.forward(q, v)
+        R = np.empty((q.shape[0], 3, 3))
+        for k, c in enumerate(cols):
+            vk = v.copy()
+            vk[c] += 1.0
+            R[:, :, k] = self.forward(q, vk) - p0
+        return R
 
     # ---- the error model beyond geometry ---------------------------------------------------------
     @property

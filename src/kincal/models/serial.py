@@ -24,13 +24,12 @@ from ..errors import ModelError
 from .chain import AXES, ROT, TRANS, Chain, Op
 from .gravity import GravityModel
 from .parameters import Parameters
-from .robot import JOINT_TYPES, JointSpace, Robot
+from .robot import JOINT_TYPES, TOOL_NAMES, JointSpace, Robot
 from .transforms import rot_zyx, zyx_from_matrix
 
 CONVENTIONS = ("dh", "mdh")
 ROW_TYPES = (*JOINT_TYPES, "fixed")  # a fixed row: a DH row without a joint (e.g. a tool row)
 BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
-TOOL_NAMES = ("tool.x", "tool.y", "tool.z")
 PARALLEL_TOL = 1e-6  # |sin α| below this: consecutive axes are parallel
 
 

@@ -52,9 +52,10 @@ def load_robot(name_or_path: str | os.PathLike, base_link: str | None = None, ti
                tool: tuple[float, float, float] | None = None) -> Robot:
     """A bundled robot by name (see :func:`bundled_robots`), a robot YAML file or a URDF file.
 
-    For a URDF (a ``.urdf`` file, or any file whose text starts with ``<``): the serial chain from
-    ``base_link`` (default: the root link) to ``tip_link`` (default: the only end link), with the
-    tool point ``tool`` (m, in the tip link's frame; default its origin).
+    ``tool`` (m, in the flange (tip link) frame): the measured point, replacing the file's own tool
+    point. For a URDF (a ``.urdf`` file, or any file whose text starts with ``<``): the serial chain
+    from ``base_link`` (default: the root link) to ``tip_link`` (default: the only end link), with
+    the tool point ``tool`` (default the tip link's origin).
     """
     text, label = _robot_text(name_or_path)
     if str(name_or_path).lower().endswith(".urdf") or text.lstrip().startswith("<"):
@@ -66,9 +67,9 @@ def load_robot(name_or_path: str | os.PathLike, base_link: str | None = None, ti
             raise ModelError(f"{label}: {exc}") from None
         except (TypeError, ValueError) as exc:
             raise ModelError(f"{label}: malformed URDF ({exc})") from None
-    if base_link or tip_link or tool is not None:
-        raise ModelError(f"{label}: base_link, tip_link and tool apply to URDF files only; a kincal robot file "
-                         f"holds its own base and tool")
+    if base_link or tip_link:
+        raise ModelError(f"{label}: base_link and tip_link apply to URDF files only; a kincal robot file holds its "
+                         f"own chain")
     data = _parse(text, label)
     try:
         robot = robot_from_dict(data, label)
@@ -80,7 +81,12 @@ def load_robot(name_or_path: str | os.PathLike, base_link: str | None = None, ti
         raise ModelError(f"{label}: malformed robot file ({type(exc).__name__}: {exc}); see the robot YAML "
                          f"format in the README") from None
     _check_plausible(robot, isinstance(data, dict) and "units" in data, label)
-    return robot
+    if tool is None:
+        return robot
+    try:
+        return robot.with_tool_point(_tool(tool, label))
+    except ModelError as exc:
+        raise ModelError(f"{label}: {exc}") from None
 
 
 def _tool(tool, label: str) -> tuple[float, float, float]:

@@ -3,6 +3,7 @@ JSON of the same numbers, and a terminal summary. Deterministic: the same input 
 (the date is the day, or SOURCE_DATE_EPOCH when set)."""
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import hashlib
 import json
@@ -10,12 +11,14 @@ import os
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
+from typing import Sequence
 
 import jinja2
 import numpy as np
 
 from .._atomic import write_text_atomic
-from ..identify.calibrate import calibrate, evaluate
+from ..identify.calibrate import evaluate
+from ..identify.sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
 from ..identify.result import CalibrationResult, EvaluationStats
 from ..identify.verdict import Thresholds, duplicate_groups, robust_z
 from ..io.measurements import Measurements
@@ -56,38 +59,53 @@ def report_date() -> str:
                          f"it") from None
 
 
-def build_report(result: CalibrationResult, test: Measurements | None = None, info: dict | None = None,
-                 html_name: str = "report.html") -> Report:
-    """The report of ``result`` (its training data) and, if given, held-out ``test`` data.
+def build_report(result: CalibrationResult, test: Measurements | Sequence[Measurements] | None = None,
+                 info: dict | None = None, html_name: str = "report.html", same_frame: bool = False) -> Report:
+    """The report of ``result`` (its training data) and, if given, held-out sessions ``test`` (one set
+    of measurements or several, one per session).
 
-    info -- labels for the data section: "robot" (the robot file or name), "units", and anything else
-            to show (key -> text)
+    same_frame -- the held-out sessions were measured in the training data's frame (the tracker did not
+                  move): the models are used as they are. By default each session's frame is re-fitted
+                  to it, for the nominal and the calibrated model alike (kinematics fixed)
+    info       -- labels for the data section: "robot" (the robot file or name), "units", and anything
+                  else to show (key -> text)
     """
     from .. import __version__
 
     info = dict(info or {})
-    train = result.measurements
+    tests = [test] if isinstance(test, Measurements) else list(test or [])
     th = result.options.thresholds
-    sets = _sets(result, test, th)
-    warnings = list(evaluate(result.robot, test, uncertainty=result.uncertainty()).warnings) if test else []
+    sets = _sets(result, tests, th, same_frame)
     headline = [_headline(s, which) for s in sets for which in ("before", "after")]
     figs = _figures(sets, result)
     ctx = {"robot": result.robot.name, "version": __version__, "date": report_date(), "structure": result.robot.structure,
-           "n_estimated": len(result.names), "n_train": len(train), "verdict": result.verdict.to_dict(),
+           "n_estimated": len(result.names), "n_train": len(result.measurements), "verdict": result.verdict.to_dict(),
            "outliers": [int(r) for s in sets for r in s.rows[s.outliers]], "headline": headline,
-           "warnings": warnings, "parameters": _parameter_rows(result, th),
-           "not_estimated": result.identifiability.confound_lines(""), "data": _data_rows(result, test, info),
+           "warnings": _warnings(result, sets[1:], tests, same_frame), "parameters": _parameter_rows(result, th),
+           "not_estimated": result.identifiability.confound_lines(""), "data": _data_rows(result, tests, info),
            "iso": _iso9283(sets, result), "json_name": json_path_for(html_name).name,
            "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
            "error_model_notes": list(result.error_model_notes), "compliance": result.robot.compliances(),
-           "acquisition": _acquisition(result), **figs}
+           "acquisition": _acquisition(result), "mounting": result.mounting, **figs}
     html = _template().render(**ctx)
     data = {k: ctx[k] for k in ("robot", "version", "date", "structure", "verdict", "outliers", "warnings",
                                 "parameters", "not_estimated", "data", "iso", "error_model_choice",
-                                "error_model_notes", "compliance", "acquisition")}
+                                "error_model_notes", "compliance", "acquisition", "mounting")}
     data["headline"] = [{**h, **{k: h[k] / MM for k in ("mean", "rms", "max", "p95")}} for h in headline]
     data["figures"] = [f["name"] for group in figs.values() for f in group]
-    return Report(html, data, _summary(result, headline))
+    return Report(html, data, _summary(result, headline, ctx["warnings"]))
+
+
+def _warnings(result: CalibrationResult, held: list[F.PoseSet], tests: list[Measurements], same_frame: bool) -> list[str]:
+    """Per held-out session: where the calibrated model extrapolates, and the likely cause of an error
+    far above the training error."""
+    out = []
+    for s, meas in zip(held, tests):
+        model = result.robot if same_frame else refit_frame(result.robot, meas)
+        out += [f"{s.name}: {w}" for w in evaluate(model, meas, uncertainty=result.uncertainty()).warnings]
+        cause = heldout_cause(model, meas, result.stats_after.mean, not same_frame)
+        out += [cause] if cause else []
+    return out
 
 
 def _acquisition(result: CalibrationResult) -> dict:
@@ -100,29 +118,39 @@ def _acquisition(result: CalibrationResult) -> dict:
     return {"rows": meas.rows[order].tolist(), "error_mm": norms.tolist(), "trend_mm_per_100_poses": slope}
 
 
-def _sets(result: CalibrationResult, test: Measurements | None, th: Thresholds) -> list[F.PoseSet]:
-    """The training set (outliers as judged by the calibration) and the held-out set (by robust z)."""
-    sets = [_pose_set("training", result, result.measurements, result.pose_z > result.outlier_z)]
-    if test is not None:
-        after = np.linalg.norm(test.xyz - result.robot.forward(test.q), axis=1)
-        sets.append(_pose_set("held-out", result, test, robust_z(after) > th.outlier_z))
+def _sets(result: CalibrationResult, tests: list[Measurements], th: Thresholds, same_frame: bool) -> list[F.PoseSet]:
+    """The training set (outliers as judged by the calibration) and one set per held-out session (by
+    robust z), each with its errors before (nominal) and after (calibrated), both models registered
+    the same way."""
+    train = result.measurements
+    nominal = refit_frame(result.nominal, train)
+    sets = [_pose_set("training", train, nominal, result.robot, result.pose_z > result.outlier_z,
+                      "frame fitted with the model (nominal: registered to these data)")]
+    for k, meas in enumerate(tests):
+        if same_frame:
+            pair, how = (nominal, result.robot), AS_CALIBRATED
+        else:
+            pair, how = (refit_frame(result.nominal, meas), refit_frame(result.robot, meas)), REGISTERED
+        z = robust_z(np.linalg.norm(meas.xyz - pair[1].forward(meas.q), axis=1))
+        sets.append(dataclasses.replace(_pose_set("held-out", meas, *pair, z > th.outlier_z, how),
+                                        name=Path(meas.source).name,
+                                        key="held-out" if len(tests) == 1 else f"held-out-{k + 1}",
+                                        colour=F.SESSION_COLOURS[k % len(F.SESSION_COLOURS)]))
     return sets
 
 
-def _pose_set(label: str, result: CalibrationResult, meas: Measurements, outliers: np.ndarray) -> F.PoseSet:
-    """Errors before (nominal model, its base frame fitted to these data) and after (the calibrated model)."""
-    nominal = calibrate(result.nominal, meas, names=(), base="estimate").robot if result.nominal.base_params() \
-        else result.nominal
+def _pose_set(label: str, meas: Measurements, nominal, calibrated, outliers: np.ndarray, how: str) -> F.PoseSet:
+    """Errors before (``nominal``) and after (``calibrated``) on ``meas``."""
     before = meas.xyz - nominal.forward(meas.q)
-    after = meas.xyz - result.robot.forward(meas.q)
-    return F.PoseSet(label, meas.rows, meas.q, meas.xyz, before, after, np.asarray(outliers, bool))
+    after = meas.xyz - calibrated.forward(meas.q)
+    return F.PoseSet(label, meas.rows, meas.q, meas.xyz, before, after, np.asarray(outliers, bool), registration=how)
 
 
 def _headline(s: F.PoseSet, which: str) -> dict:
     st = EvaluationStats.from_errors(s.before if which == "before" else s.after)
     model = "nominal (frame registered)" if which == "before" else "calibrated"
-    return {"data": s.label, "n": st.n, "model": model, "key": f"{s.label}.{which}", "mean": st.mean * MM,
-            "rms": st.rms * MM, "max": st.max * MM, "p95": st.p95 * MM}
+    return {"data": s.title, "n": st.n, "model": model, "key": f"{s.key or s.label}.{which}", "mean": st.mean * MM,
+            "rms": st.rms * MM, "max": st.max * MM, "p95": st.p95 * MM, "registration": s.registration}
 
 
 GROUPS = {"figures_errors": ("per_pose", "histogram", "per_axis"), "figures_where": ("vs_joints", "workspace"),
@@ -134,10 +162,12 @@ def _figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
     return {g: [{"name": n, "svg": F.svg(figs[n])} for n in names] for g, names in GROUPS.items()}
 
 
-def figure_set(result: CalibrationResult, test: Measurements | None = None) -> dict:
+def figure_set(result: CalibrationResult, test: Measurements | Sequence[Measurements] | None = None,
+               same_frame: bool = False) -> dict:
     """The report's figures as matplotlib Figures by name (``--plot`` saves them as PNG or SVG); with a
     particle swarm also its fitness per iteration (the 3-PUU paper's Fig. 7)."""
-    figs = _make_figures(_sets(result, test, result.options.thresholds), result)
+    tests = [test] if isinstance(test, Measurements) else list(test or [])
+    figs = _make_figures(_sets(result, tests, result.options.thresholds, same_frame), result)
     if result.history:
         figs["pso-fitness"] = pso_fitness(result.history)
     return figs
@@ -189,11 +219,12 @@ def _file_line(meas: Measurements) -> str:
     return f"{path.name} ({len(meas)} poses, rows {meas.rows[0]}..{meas.rows[-1]}; sha256 {digest[:16]}…)"
 
 
-def _data_rows(result: CalibrationResult, test: Measurements | None, info: dict) -> list[dict]:
+def _data_rows(result: CalibrationResult, tests: list[Measurements], info: dict) -> list[dict]:
     o = result.options
     rows = [("robot", info.pop("robot", result.robot.name)), ("training data", _file_line(result.measurements))]
-    if test is not None:
-        rows.append(("held-out data", _file_line(test)))
+    rows += [(f"held-out session {k + 1}", _file_line(t)) for k, t in enumerate(tests)]
+    if result.mounting:
+        rows.append(("tool point (mounting)", result.mounting))
     rows += [("options", f"base {o.base}, loss {o.loss}, method {o.method}, "
                          f"parameters {o.names if isinstance(o.names, str) else 'as listed'}"),
              ("solver", f"{'converged' if result.converged else 'NOT converged'} ({result.message}), "
@@ -232,10 +263,12 @@ def _template() -> jinja2.Template:
     return jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined).from_string(text)
 
 
-def _summary(result: CalibrationResult, headline: list[dict]) -> str:
+def _summary(result: CalibrationResult, headline: list[dict], warnings: list[str]) -> str:
     lines = [f"verdict: {result.verdict.status.upper()}"]
     lines += [f"  {r.level}: {r.message}" for r in result.verdict.reasons]
+    width = max(len(h["data"]) for h in headline)
     for h in headline:
-        lines.append(f"  {h['data']:<9} {h['model']:<27} mean {h['mean']:.4f} mm  rms {h['rms']:.4f} mm  "
+        lines.append(f"  {h['data']:<{width}} {h['model']:<27} mean {h['mean']:.4f} mm  rms {h['rms']:.4f} mm  "
                      f"max {h['max']:.4f} mm")
-    return "\n".join(lines)
+    lines += [f"  {h['data']}: {h['registration']}" for h in headline[::2] if h["data"] != "training"]
+    return "\n".join(lines + [f"  warning: {w}" for w in warnings])

@@ -36,10 +36,25 @@ class PoseSet:
     before: np.ndarray | None
     after: np.ndarray
     outliers: np.ndarray
+    name: str = ""  # the session (file) of a held-out set
+    registration: str = ""  # how the models' measurement frame was set for these data
+    colour: str = ""  # default: by label
+    key: str = ""  # the set's key in the report's numbers (default: the label)
 
     @property
     def after_norm(self) -> np.ndarray:
         return np.linalg.norm(self.after, axis=1)
+
+    @property
+    def title(self) -> str:
+        return f"{self.label} {self.name}" if self.name else self.label
+
+    @property
+    def color(self) -> str:
+        return self.colour or COLOURS[self.label]
+
+
+SESSION_COLOURS = ("#d62728", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf")  # held-out sessions in turn
 
 
 def svg(fig: Figure) -> str:
@@ -81,9 +96,9 @@ def per_pose(sets: list[PoseSet]) -> Figure:
         if s.before is not None:
             ax.semilogy(x, np.linalg.norm(s.before, axis=1) * MM, ".", ms=3, color=COLOURS["before"],
                         label="before (nominal model, frame registered)", rasterized=True)
-        ax.semilogy(x, s.after_norm * MM, ".", ms=3, color=COLOURS[s.label],
+        ax.semilogy(x, s.after_norm * MM, ".", ms=3, color=s.color,
                     label="after calibration" if s.before is not None else "model", rasterized=True)
-        ax.set_title(f"{s.label} poses ({len(x)}): position error per pose")
+        ax.set_title(f"{s.title} poses ({len(x)}): position error per pose")
         ax.set_xlabel("pose (file order)")
         ax.set_ylabel("error (mm)")
         ax.legend(loc="upper right", fontsize=8)
@@ -97,7 +112,7 @@ def histogram(sets: list[PoseSet]) -> Figure:
     top = max(float(s.after_norm.max()) for s in sets) * MM
     bins = np.linspace(0.0, top * 1.02 if top > 0 else 1.0, 31)
     for s in sets:
-        ax.hist(s.after_norm * MM, bins=bins, alpha=0.6, color=COLOURS[s.label], label=s.label,
+        ax.hist(s.after_norm * MM, bins=bins, alpha=0.6, color=s.color, label=s.title,
                 weights=np.full(len(s.rows), 100.0 / len(s.rows)))
     ax.set_title("distribution of the error after calibration")
     ax.set_xlabel("position error (mm)")
@@ -114,8 +129,8 @@ def per_axis(sets: list[PoseSet]) -> Figure:
     for a, name in enumerate("xyz"):
         for s in sets:
             data.append(s.after[:, a] * MM)
-            labels.append(f"{name}\n{s.label}")
-            colours.append(COLOURS[s.label])
+            labels.append(f"{name}\n{s.title}")
+            colours.append(s.color)
     parts = ax.boxplot(data, patch_artist=True, widths=0.6, flierprops={"markersize": 2})
     ax.set_xticks(range(1, len(labels) + 1), labels, fontsize=7)
     for patch, colour in zip(parts["boxes"], colours):
@@ -137,7 +152,7 @@ def vs_joints(sets: list[PoseSet], joint_names, joint_types) -> Figure:
         ax = fig.add_subplot(rows, cols, j + 1)
         scale, unit = (DEG, "deg") if joint_types[j] == "revolute" else (MM, "mm")
         for s in sets:
-            ax.plot(s.q[:, j] * scale, s.after_norm * MM, ".", ms=3, color=COLOURS[s.label], label=s.label,
+            ax.plot(s.q[:, j] * scale, s.after_norm * MM, ".", ms=3, color=s.color, label=s.title,
                     rasterized=True)
         ax.set_xlabel(f"{joint_names[j]} ({unit})")
         ax.set_ylabel("error (mm)")
@@ -166,7 +181,7 @@ def workspace(sets: list[PoseSet]) -> Figure:
         ax.set_ylabel(f"{'xyz'[b]} (mm)")
         ax.set_aspect("equal", adjustable="datalim")
     fig.colorbar(sc, ax=fig.axes, label="error after (mm)", shrink=0.9)
-    fig.suptitle("workspace (measurement frame): o training, ^ held-out; red circles: outliers")
+    fig.suptitle("workspace (each set in its own measurement frame): o training, ^ held-out; red circles: outliers")
     return fig
 
 

@@ -1,0 +1,72 @@
+"""Measurement sessions: held-out data taken with the measurement frame registered again, and a
+named cause when a model does much worse on a session than on its training data.
+
+A session is one file of measurements taken with the tracker (camera, probe) in one place. The
+tracker may move between sessions, so a model judged on another session gets its measurement frame
+(the 6 base-frame parameters) re-fitted to that session first, kinematics fixed, unless the user
+says the frame is known. Both the nominal and the calibrated model are registered the same way.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..io.measurements import Measurements
+from ..models.robot import TOOL_NAMES, Robot
+from ..units import MM
+from .calibrate import calibrate
+
+HELDOUT_RATIO = 10.0  # a held-out error this many times the training error needs a named cause
+SCALE_TOL = 0.01  # measured vs predicted spread off by more than 1 %: a scale (unit, compensation) error
+REGISTERED = "frame re-registered to these data (both models; kinematics fixed)"
+AS_CALIBRATED = "frame as calibrated (told the measurement frame did not move)"
+
+
+def refit_frame(robot: Robot, meas: Measurements) -> Robot:
+    """``robot`` with only its measurement (base) frame re-fitted to ``meas``; a robot without a
+    base frame is returned as it is."""
+    if not robot.base_params():
+        return robot
+    return calibrate(robot, meas, names=(), base="estimate").robot
+
+
+def _mean_error(robot: Robot, meas: Measurements) -> float:
+    return float(np.mean(np.linalg.norm(meas.xyz - robot.forward(meas.q), axis=1)))
+
+
+def _spread_ratio(robot: Robot, meas: Measurements) -> float:
+    """Measured spread / predicted spread of the positions at the same joints."""
+    def spread(x):
+        return float(np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1))))
+    return spread(meas.xyz) / max(spread(robot.forward(meas.q)), 1e-300)
+
+
+def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased: bool) -> str:
+    """A sentence naming the likely cause when ``robot`` (as used on ``meas``: registered or not)
+    misses ``meas`` by more than HELDOUT_RATIO times its mean training error ``train_error`` (m);
+    '' otherwise. Tries, in order: the frame not re-registered, another tool point, a scale error."""
+    error = _mean_error(robot, meas)
+    if not train_error > 0 or error <= HELDOUT_RATIO * train_error:
+        return ""
+    head = (f"{meas.source}: mean error {error * MM:.3f} mm is {error / train_error:.0f}x the training error "
+            f"({train_error * MM:.3f} mm)")
+    if not rebased and robot.base_params():
+        again = _mean_error(refit_frame(robot, meas), meas)
+        if again < 0.5 * error:
+            return (f"{head}; with the measurement frame re-registered it is {again * MM:.3f} mm: the tracker moved "
+                    f"between sessions (leave out --same-frame so that each session's frame is registered)")
+    if robot.has_tool_point and robot.base_params() and len(meas) >= 4:
+        tooled = calibrate(robot, meas, names=TOOL_NAMES, base="estimate").robot
+        again = _mean_error(tooled, meas)
+        if again < 0.5 * error:
+            gap = np.linalg.norm(tooled.tool_point() - robot.tool_point())
+            where = ", ".join(f"{x * MM:.2f}" for x in tooled.tool_point())
+            return (f"{head}; a tool point {gap * MM:.2f} mm from the calibrated one (at {where} mm in the flange "
+                    f"frame) brings it to {again * MM:.3f} mm: the target was mounted differently in this session "
+                    f"(another probe, adapter or seat); give that session's tool point with --tool")
+    ratio = _spread_ratio(robot, meas)
+    if abs(np.log(ratio)) > SCALE_TOL:
+        return (f"{head}; the measured positions spread {ratio:.4f}x the model's at the same joints: a scale error "
+                f"(length unit, tracker compensation, or joint columns in another unit)")
+    return (f"{head}; neither a moved frame, another tool point nor a scale error explains it: the poses may lie "
+            f"outside the calibrated region (see the predicted σ), the robot may have been disturbed (collision, "
+            f"re-mastering), or the joint columns differ from the training data")
