@@ -356,7 +356,7 @@ COMPENSATE = [
     case("compensate-joints-and-targets-disagree", ["compensate", "ur5", "{d}/t.csv", *MMDEG, "-o", "{d}/c.csv"], 4,
          ["do not belong together"], files={"t.csv": lambda b: _targets(b, swap_joints=True)}),
     case("compensate-across-joint-limit", ["compensate", "{d}/r.yaml", "{d}/t.csv", *MMDEG, "-o", "{d}/c.csv"], 4,
-         ["row 2", "joint limits"], files={"r.yaml": lambda b: _tight_robot(), "t.csv": lambda b: _limit_target()}),
+         ["row 2", "joint limits"], files={"r.yaml": lambda b: _tight_calibrated(), "t.csv": lambda b: _limit_target()}),
     case("compensate-targets-without-joints", ["compensate", "ur5", "{d}/t.csv", *MMDEG, "-o", "{d}/c.csv"], 1,
          ["not found", "j1"], files={"t.csv": "x,y,z\n100,200,300\n"}),
     case("compensate-puu3-out-of-reach", ["compensate", "puu3", "{d}/t.csv", "-o", "{d}/c.csv"], 4,
@@ -391,11 +391,20 @@ def _tight_robot():
 
 
 def _limit_target():
-    """A target 7 mm from where the nominal command puts the tool: reachable only beyond the limits."""
+    """The nominal target of the nominal command at Q_LIMIT."""
     r = kincal.models.yaml_io.robot_from_dict(yaml.safe_load(_tight_robot()))
-    q = np.deg2rad(Q_LIMIT)[None]
-    xyz = (r.forward(q) + [0.004, 0.004, 0.004]) * 1e3
+    xyz = r.forward(np.deg2rad(Q_LIMIT)[None]) * 1e3
     return "j1,j2,j3,j4,j5,j6,x,y,z\n" + ",".join(f"{v:.9f}" for v in (*Q_LIMIT, *xyz[0])) + "\n"
+
+
+def _tight_calibrated():
+    """The tight UR5 calibrated with j2.theta 0.05° off its nominal value: reaching the nominal target
+    needs j2 0.05° from the nominal command, beyond its ±0.01° limits."""
+    nominal = kincal.models.yaml_io.robot_from_dict(yaml.safe_load(_tight_robot()))
+    cal = nominal.with_params({"j2.theta": np.deg2rad(0.05)})
+    record = {"parameters": ["j2.theta"], "covariance": [[1e-12]], "training_median_sigma": 1e-5,
+              "nominal": nominal.params.as_dict()}
+    return kincal.models.yaml_io.robot_to_yaml(cal) + yaml.safe_dump({"calibration": record})
 
 
 ALL = CSV + CSV_GOOD + YAML + YAML_GOOD + PATHS + ARGS + COMPENSATE

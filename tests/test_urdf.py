@@ -160,8 +160,14 @@ def test_dh_robot_exports_to_urdf_and_ur_file(ur5, tmp_path, capsys):
     # URDF, read by yourdfpy
     assert main(["export", str(cal), str(tmp_path / "cal.urdf"), "--tool-link", "smr"]) == 0
     capsys.readouterr()
-    robot_for_ref = kincal.load_robot(tmp_path / "cal.urdf", tip_link="smr")
+    robot_for_ref = kincal.load_robot(tmp_path / "cal.urdf", base_link="base", tip_link="smr")
     np.testing.assert_allclose(reference(tmp_path / "cal.urdf", robot_for_ref, q, "smr"), model, atol=1e-9)
+    # the root is ROS's base_link, the DH base turned 180° about z (as in UR's own URDF), and the joints
+    # carry UR's names
+    ros = kincal.load_robot(tmp_path / "cal.urdf", tip_link="smr")
+    assert ros.joint_names == ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
+                               "wrist_2_joint", "wrist_3_joint")
+    np.testing.assert_allclose(reference(tmp_path / "cal.urdf", ros, q, "smr"), model * [-1, -1, 1], atol=1e-9)
     # UR kinematics file, rebuilt by a few lines that follow the file format only
     assert main(["export", str(cal), str(tmp_path / "ur.yaml"), "--format", "ur", "--json"]) == 0
     info = json.loads(capsys.readouterr().out)

@@ -6,6 +6,7 @@ import pytest
 from conftest import DATA, UR5_COLS
 
 import kincal
+from kincal.compensate import command_models
 from kincal.cli import main
 from kincal.identify.verdict import duplicate_groups, robust_z
 
@@ -147,25 +148,28 @@ def test_predicted_sigma_matches_monte_carlo(ur5, sim):
 
 def test_compensate_checks_every_row(ur5, tmp_path, capsys):
     true = kincal.perturb(ur5, seed=21)
-    cal = kincal.calibrate(ur5, kincal.simulate(true, ur5.sample_joints(80, seed=21), 15e-6, seed=2)).robot
+    res = kincal.calibrate(ur5, kincal.simulate(true, ur5.sample_joints(80, seed=21), 15e-6, seed=2))
+    cal, nominal = command_models(res.robot, res.nominal.params.as_dict())  # in the robot's base frame
     q = ur5.sample_joints(4, seed=5)
     targets = ur5.forward(q)
     targets[1] = [3.0, 0.0, 0.0]  # out of reach
-    comp = kincal.compensate(cal, targets, q, rows=np.arange(2, 6))
+    comp = kincal.compensate(cal, targets, q, rows=np.arange(2, 6), nominal=nominal)
     assert comp.ok.tolist() == [True, False, True, True] and comp.problems[0].startswith("row 3: target 3000.0 mm")
     # the CLI refuses, or with --skip-unreachable writes only the good rows
     path = tmp_path / "t.csv"
     path.write_text("j1,j2,j3,j4,j5,j6,x,y,z\n" + "\n".join(
         ",".join(repr(float(v)) for v in (*qi, *ti)) for qi, ti in zip(q, targets)) + "\n")
     robot = tmp_path / "cal.yaml"
-    kincal.save_robot(cal, robot)
+    kincal.save_robot(res.robot, robot, calibration=res.record())
     out = tmp_path / "cmds.csv"
     code, text, _ = run(capsys, "compensate", robot, path, "-o", out)
     assert code == 4 and not out.exists() and "row 3" in text
     code, text, _ = run(capsys, "compensate", robot, path, "-o", out, "--skip-unreachable")
     written = np.loadtxt(out, delimiter=",", skiprows=1)
-    assert code == 0 and written.shape == (3, 6)
-    np.testing.assert_allclose(written, comp.q[comp.ok], atol=1e-12)
+    assert code == 0 and written.shape == (3, 1 + 6 + 3 + 6 + 1) and written[:, 0].tolist() == [2, 4, 5]
+    np.testing.assert_allclose(written[:, 1:7], comp.q[comp.ok], atol=1e-12)
+    np.testing.assert_allclose(written[:, 7:10], targets[comp.ok], atol=1e-15)
+    np.testing.assert_allclose(written[:, 10:16], comp.q[comp.ok] - q[comp.ok], atol=1e-12)
 
 
 def test_compensate_reports_sigma_and_extrapolation(ur5, sim):

@@ -107,7 +107,7 @@ def cmd_export(args) -> int:
     check_paths([*robot_inputs(args.robot), args.source], [args.output])
     r = load_robot(args)
     info = kincal.export_robot(r, args.output, args.format, args.source, args.tool_link, args.base_yaw / DEG,
-                               args.length_unit, args.angle_unit)
+                               args.length_unit, args.angle_unit, args.joint_names)
     base = info["base_frame"]
     lines = [f"{r.name}: {info['format']} written to {args.output} (checked: it reproduces the model to 1e-9 m)"]
     if base:
@@ -115,6 +115,9 @@ def cmd_export(args) -> int:
         lines.append("base frame found by the calibration (where the tracker saw the robot; not part of the robot "
                      "description): " + ", ".join(f"{k} {v * MM:+.4f} mm" if kinds[k] == "length" else
                                                   f"{k} {v * DEG:+.4f} deg" for k, v in base.items()))
+    if info.get("missing_limits"):
+        lines.append(f"note: the robot file gives no velocity/effort limit for {', '.join(info['missing_limits'])}: "
+                     f"the URDF leaves them out (add 'velocity:' and 'effort:' to those joints)")
     if info["format"] == "ur":
         tcp = np.array(info["tool_point"]) * MM
         lines.append(f"set the TCP on the controller to x {tcp[0]:+.4f}, y {tcp[1]:+.4f}, z {tcp[2]:+.4f} mm (the "
@@ -164,6 +167,8 @@ def register(cmd) -> None:
                    "file for the ROS driver) or yaml (default: from the file name)")
     s.add_argument("--from", dest="source", help="the URDF a URDF robot was read from (default: the file it names)")
     s.add_argument("--tool-link", help="add the tool point to the URDF as a fixed joint and link of this name")
+    s.add_argument("--joint-names", type=csv_list, help="URDF of a DH robot: the joints' names in your robot stack, "
+                   "e.g. shoulder_pan_joint,... (default: the robot file's 'names:')")
     s.add_argument("--base-yaw", type=float, default=0.0, help="UR files: UR's Base frame is the model's base "
                    "turned by this about z, deg (0 for kincal's DH ur5; 180 for ur_description's base_link)")
     s.add_argument("--length-unit", default="m", choices=list(LENGTH_UNITS), help="kincal YAML: length unit")

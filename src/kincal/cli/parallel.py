@@ -5,41 +5,63 @@ from __future__ import annotations
 import numpy as np
 
 import kincal
-import kincal.io
 import kincal.analysis
-from kincal.compensate import VerificationPlan, verification_plan
-from kincal.units import MM
+import kincal.io
+import kincal.models
+from kincal.compensate import VerificationPlan, command_models, verification_plan
+from kincal.units import DEG, MM
 
 from .common import (EXIT_REFUSED, add_data_flags, add_robot, check_paths, csv_list, emit, load_robot, nonneg_float,
-                     positive_float, positive_int, robot_inputs)
+                     point, positive_float, positive_int, robot_inputs)
 
 
 def cmd_compensate(args) -> int:
     check_paths([*robot_inputs(args.robot), args.targets], [args.output])
-    r = load_robot(args)
+    cal = load_robot(args)
+    record = kincal.models.load_calibration_record(args.robot) if robot_inputs(args.robot) else None
+    nominal_values = (record or {}).get("nominal")
+    r, nominal = command_models(cal, nominal_values if isinstance(nominal_values, dict) else None,
+                                                  args.tcp, args.target_frame)
     targets, rows = kincal.read_positions(args.targets, args.xyz_cols, args.length_unit, with_rows=True)
     start = None
     if not r.has_inverse:
         start = kincal.read_joints(args.targets, r, args.joint_cols, args.length_unit, args.angle_unit)
-    comp = kincal.compensate(r, targets, start, rows=rows, uncertainty=kincal.analysis.load_uncertainty(args.robot))
+    comp = kincal.compensate(r, targets, start, rows=rows, uncertainty=kincal.analysis.load_uncertainty(args.robot),
+                             nominal=nominal)
     written = comp.all_ok or (args.skip_unreachable and comp.ok.any())
     if written:
-        kincal.io.write_joints(args.output, comp.q[comp.ok], r, args.joint_cols, args.length_unit, args.angle_unit)
-    payload = {**comp.to_dict(), "output": args.output if written else None}
-    good = comp.residual[comp.ok]
+        ok = comp.ok
+        kincal.io.write_commands(args.output, r, rows[ok], targets[ok], comp.q[ok], None if start is None else start[ok],
+                                 None if comp.orientation_change is None else comp.orientation_change[ok],
+                                 args.joint_cols, args.length_unit, args.angle_unit)
+    payload = {**comp.to_dict(), "output": args.output if written else None, "target_frame": args.target_frame}
+    emit(args, payload, _compensation_text(args, comp, r, start, written, len(targets)))
+    return 0 if written else EXIT_REFUSED
+
+
+def _compensation_text(args, comp, r, start, written: bool, n: int) -> str:
+    """What compensate prints: refused rows, what was written, the largest joint move and orientation change."""
     text = "\n".join(f"refused: {p}" for p in comp.problems)
+    frame = f"targets in the '{args.target_frame}' frame"
     if written:
-        text += (f"\n{int(comp.ok.sum())} of {len(targets)} targets: commands written to {args.output} ({comp.method}); "
+        good = comp.residual[comp.ok]
+        text += (f"\n{int(comp.ok.sum())} of {n} targets ({frame}): commands written to {args.output} ({comp.method}); "
                  f"largest model residual {good.max() * MM:.2e} mm")
+        if start is not None:
+            dq = np.abs(comp.q[comp.ok] - start[comp.ok]).max(axis=0)
+            text += "\nlargest change per joint: " + ", ".join(
+                f"{j} {d * DEG:.4f} deg" if t == "revolute" else f"{j} {d * MM:.4f} mm"
+                for j, t, d in zip(r.joint_names, r.joint_types, dq))
+        if comp.orientation_change is not None:
+            text += (f"\npredicted change of the tool orientation: up to "
+                     f"{comp.orientation_change[comp.ok].max() * 1e3:.3f} mrad (position-only compensation)")
     else:
-        text += (f"\nnothing written to {args.output}: {len(comp.problems)} of {len(targets)} targets refused"
+        text += (f"\nnothing written to {args.output}: {len(comp.problems)} problem(s) for {n} targets ({frame})"
                  + ("" if args.skip_unreachable else " (--skip-unreachable writes the others)"))
     if comp.predicted_sigma is not None and comp.ok.any():
         s = comp.predicted_sigma[comp.ok]
         text += f"\nmodel's predicted σ at the commands: median {np.median(s) * MM:.4f} mm, max {s.max() * MM:.4f} mm"
-    text += "".join(f"\nwarning: {w}" for w in comp.warnings)
-    emit(args, payload, text.strip())
-    return 0 if written else EXIT_REFUSED
+    return (text + "".join(f"\nwarning: {w}" for w in comp.warnings)).strip()
 
 
 PLAN_JOINT_TOL = 1e-5  # rad or m: measured joint values must repeat the plan's commands this closely
@@ -95,6 +117,12 @@ def register(cmd) -> None:
     s.add_argument("-o", "--output", required=True, help="commands CSV to write")
     s.add_argument("--skip-unreachable", action="store_true",
                    help="write the commands that pass every check and list the refused targets")
+    s.add_argument("--tcp", type=point, metavar="X,Y,Z[UNIT]",
+                   help="the controller's TCP in the flange frame, e.g. 0,0,109mm: the point the targets are for "
+                        "(default: the calibrated tool point)")
+    s.add_argument("--target-frame", default="base",
+                   help="the frame of the targets: base (the robot's own, default), measurement (the calibration's "
+                        "tracker frame), or a frame the robot file names (e.g. base_link for UR arms, as in ROS)")
     add_data_flags(s)
 
     s = cmd("verify", cmd_verify, "error-model verification (the 3-PUU paper): commands to run, then the comparison "

@@ -11,6 +11,7 @@ from ..checks import number
 from ..units import MM
 from ..errors import ModelError
 from ..models.robot import Robot
+from .frames import MISMATCH_TOL, frame_mismatch, orientation_change
 
 IK_TOL = 1e-10  # m
 IK_ITER = 100
@@ -38,6 +39,7 @@ class Compensation:
     rows: np.ndarray | None = None
     predicted_sigma: np.ndarray | None = None  # (N,) m, where the model's uncertainty is known
     warnings: tuple[str, ...] = ()
+    orientation_change: np.ndarray | None = None  # (N,) rad: model at q vs the nominal promise at q_start
 
     @property
     def all_ok(self) -> bool:
@@ -51,11 +53,14 @@ class Compensation:
                 "max_residual": float(np.nanmax(res[ok])) if ok.any() else None, "method": self.method,
                 "iterations": self.iterations, "ok": ok.tolist(), "problems": list(self.problems),
                 "predicted_sigma": None if self.predicted_sigma is None else
-                [float(x) if np.isfinite(x) else None for x in self.predicted_sigma], "warnings": list(self.warnings)}
+                [float(x) if np.isfinite(x) else None for x in self.predicted_sigma], "warnings": list(self.warnings),
+                "orientation_change": None if self.orientation_change is None else
+                [float(x) if k else None for x, k in zip(self.orientation_change, ok)]}
 
 
 def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = None, *, damping: float = 1e-4,
-               rows: np.ndarray | None = None, uncertainty: ModelUncertainty | None = None) -> Compensation:
+               rows: np.ndarray | None = None, uncertainty: ModelUncertainty | None = None,
+               nominal: Robot | None = None) -> Compensation:
     """Joint commands that place ``robot``'s tool at targets (N, 3) m, each checked before use.
 
     Robots with a closed-form inverse (parallel robots) use it. Otherwise (serial robots) a damped
@@ -66,9 +71,17 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     as the nominal command (no joint moving more than ``BRANCH_TOL``), with a model residual under
     1 µm. ``ok`` and ``problems`` (rows are ``rows``, default 1-based positions) report the checks.
     With the model's ``uncertainty`` the predicted σ at every command is reported, with a warning
-    naming the rows where the model extrapolates. Every argument is checked before any work.
+    naming the rows where the model extrapolates. With the ``nominal`` model (same frame and tool
+    point, see :func:`kincal.compensate.command_models`) the nominal joints must first reach the targets
+    through it: a TCP or frame mismatch refuses every row, named with its size and direction; and the
+    predicted change of the tool orientation is reported. Every argument is checked before any work.
     """
     targets, q0, rows = _checked_inputs(robot, targets, q_start, damping, rows)
+    if nominal is not None and q0 is not None:
+        why = frame_mismatch(nominal, q0, targets, rows)
+        if why:
+            none = np.zeros(len(targets), bool)
+            return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
     if robot.has_inverse:
         q = robot.inverse(targets, strict=False)
         comp = Compensation(q, _residual(robot, q, targets), "closed-form inverse", 0)
@@ -82,7 +95,10 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
         A = Jq @ np.swapaxes(Jq, 1, 2) + damping**2 * np.eye(3)
         q = q + np.einsum("nji,nj->ni", Jq, np.linalg.solve(A, e[..., None])[..., 0])
     comp = Compensation(q, _residual(robot, q, targets), "damped least squares", it)
-    return _with_sigma(robot, _checked(robot, comp, targets, q0, rows), uncertainty)
+    comp = _with_sigma(robot, _checked(robot, comp, targets, q0, rows, nominal), uncertainty)
+    if nominal is None or not robot.has_tool_point:
+        return comp
+    return dataclasses.replace(comp, orientation_change=orientation_change(robot, q, nominal, q0))
 
 
 def _checked_inputs(robot: Robot, targets, q_start, damping: float, rows):
@@ -127,18 +143,20 @@ def _residual(robot: Robot, q: np.ndarray, targets: np.ndarray) -> np.ndarray:
 
 
 def _checked(robot: Robot, comp: Compensation, targets: np.ndarray, q0: np.ndarray | None,
-             rows: np.ndarray) -> Compensation:
+             rows: np.ndarray, nominal: Robot | None = None) -> Compensation:
     """The compensation with every command checked; the first failed check of each row is reported."""
     why: list[str | None] = [None] * len(targets)
-    for bad, message in _checks(robot, comp, targets, q0):
+    for bad, message in _checks(robot, comp, targets, q0, nominal):
         for k in np.flatnonzero(bad):
             why[k] = why[k] or f"row {rows[k]}: {message(k)}"
     ok = np.array([w is None for w in why])
     return Compensation(comp.q, comp.residual, comp.method, comp.iterations, ok, tuple(w for w in why if w), rows)
 
 
-def _checks(robot: Robot, comp: Compensation, targets: np.ndarray, q0: np.ndarray | None):
-    """(mask of failing rows, message for row k) per check, in the order they are reported."""
+def _checks(robot: Robot, comp: Compensation, targets: np.ndarray, q0: np.ndarray | None, nominal: Robot | None):
+    """(mask of failing rows, message for row k) per check, in the order they are reported. With the
+    nominal model the nominal command must reach its target within MISMATCH_TOL, else START_TOL (the
+    calibrated model is then the only one known)."""
     q, mm = comp.q, lambda x: f"{x * MM:.1f} mm"  # noqa: E731
     finite = np.all(np.isfinite(q), axis=1)
     dist, reach = _reach(robot, targets)
@@ -146,9 +164,11 @@ def _checks(robot: Robot, comp: Compensation, targets: np.ndarray, q0: np.ndarra
                                                   f"({mm(reach)}): out of reach, or not in the declared length unit")
     yield ~finite, lambda k: "out of reach of the calibrated model (no inverse kinematics solution)"
     if q0 is not None:
-        gap = np.linalg.norm(robot.forward(q0) - targets, axis=1)
-        yield gap > START_TOL, lambda k: (f"the nominal command lands {mm(gap[k])} from the target: the joint values "
-                                          f"and the target do not belong together (units or column order?)")
+        gap = np.linalg.norm((nominal or robot).forward(q0) - targets, axis=1)
+        tol = START_TOL if nominal is None else MISMATCH_TOL
+        yield gap > tol, lambda k: (f"the nominal command lands {gap[k] * MM:.3f} mm from the target"
+                                    f"{' through the nominal model' if nominal else ''}: the joint values and the "
+                                    f"target do not belong together (units, column order, TCP or frame?)")
         tol = np.array([BRANCH_TOL[t] for t in robot.joint_types])
         jump = np.where(finite[:, None], np.abs(q - q0), 0.0) > tol
         yield jump.any(axis=1), lambda k: (f"the corrected command moves joint(s) "

@@ -1,6 +1,6 @@
 """Measurement data in and out (CSV)."""
-from .measurements import (Measurements, read_joints, read_measurements, read_positions, write_joints,
-                           write_measurements, write_residuals)
+from .measurements import (Measurements, read_joints, read_measurements, read_positions, write_commands,
+                           write_joints, write_measurements, write_residuals)
 
 __all__ = ["Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements",
-           "write_residuals"]
+           "write_residuals", "write_commands"]

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
@@ -144,7 +145,8 @@ def _check(robot: Robot, forward, what: str) -> None:
 
 
 # ---- URDF ----------------------------------------------------------------------------------------
-def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = None) -> str:
+def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = None,
+              joint_names: Sequence[str] | None = None) -> str:
     """URDF of a calibrated chain. A URDF robot needs its ``source`` text: only the ``<origin>`` of
     its moving joints changes (comments, ``<gazebo>``, ``<transmission>``… stay as they are). A DH/MDH
     robot gets a new URDF (base_link, one link per joint, flange). ``tool_link``: add the tool point
@@ -156,7 +158,7 @@ def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = N
                              f"origins change")
         text, base, tip = _edit_urdf(robot, source), robot.source.get("base_link"), robot.source.get("tip_link")
     elif isinstance(robot, SerialRobot):
-        text, base, tip = _new_urdf(robot), "base_link", "flange"
+        (text, base), tip = _new_urdf(robot, joint_names), "flange"
     else:
         raise ModelError(f"robot '{robot.name}' ({robot.structure}) is not a serial chain: it has no URDF form")
     if tool_link:
@@ -182,28 +184,67 @@ def _edit_urdf(robot: URDFRobot, source: str) -> str:
     return source
 
 
-def _new_urdf(robot: SerialRobot) -> str:
+def _new_urdf(robot: SerialRobot, names: Sequence[str] | None = None) -> tuple[str, str]:
+    """A URDF of a DH/MDH chain: one link per joint, then ``flange``; joints named as the robot stack
+    names them, with the file's velocity and effort limits (left out where the file gives none,
+    never written as 0). A robot file that names a ``base_link`` frame (ROS) gets it as the root,
+    with the DH base as link ``base``, as UR's own descriptions do. Returns the text and the DH base
+    link's name."""
     frames, flange = joint_frames(robot)
     chain = [np.eye(4)] + frames
+    names = _joint_names(robot, names)
+    ros = robot.named_frames().get("base_link")
+    base = "base" if ros else "base_link"
     lines = ['<?xml version="1.0"?>', f"<!-- {robot.name} calibrated with kincal; joint origins in m and rad -->",
-             f'<robot name="{robot.name}">', '  <link name="base_link"/>']
-    parent = "base_link"
+             f'<robot name="{robot.name}">']
+    if ros:
+        xyz, rpy = _xyz_rpy(np.linalg.inv(_h(*ros)))
+        lines += ['  <link name="base_link"/>', '  <link name="base"/>', '  <joint name="base_link-base_fixed_joint" '
+                  'type="fixed">', '    <parent link="base_link"/>', '    <child link="base"/>',
+                  f'    <origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>', "  </joint>"]
+    else:
+        lines.append('  <link name="base_link"/>')
+    parent = base
     for k, (a, b) in enumerate(zip(chain[:-1], chain[1:])):
         xyz, rpy = _xyz_rpy(np.linalg.inv(a) @ b)
         child = f"link_{k + 1}"
-        lines += [f'  <link name="{child}"/>', f'  <joint name="{robot.joint_names[k]}" type="{robot.joint_types[k]}">',
+        lines += [f'  <link name="{child}"/>', f'  <joint name="{names[k]}" type="{robot.joint_types[k]}">',
                   f'    <parent link="{parent}"/>', f'    <child link="{child}"/>',
                   f'    <origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>',
-                  '    <axis xyz="0 0 1"/>',
-                  f'    <limit lower="{_fmt(robot.lower[k])}" upper="{_fmt(robot.upper[k])}" effort="0" velocity="0"/>',
-                  "  </joint>"]
+                  '    <axis xyz="0 0 1"/>', f"    {_limit(robot, k)}", "  </joint>"]
         parent = child
     xyz, rpy = _xyz_rpy(np.linalg.inv(frames[-1]) @ flange)
     lines += ['  <link name="flange"/>', '  <joint name="flange_joint" type="fixed">', f'    <parent link="{parent}"/>',
               '    <child link="flange"/>',
               f'    <origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>', "  </joint>",
               "</robot>", ""]
-    return "\n".join(lines)
+    return "\n".join(lines), base
+
+
+def _joint_names(robot: SerialRobot, names: Sequence[str] | None) -> tuple[str, ...]:
+    """The URDF joint names: ``names`` (one per joint, distinct) or the robot file's."""
+    if names is None:
+        return robot.export_names
+    names = tuple(str(n).strip() for n in names)
+    if len(names) != robot.n_joints or len(set(names)) != len(names) or not all(names):
+        raise ModelError(f"joint names {list(names)}: give {robot.n_joints} distinct names, one per joint "
+                         f"({', '.join(robot.joint_names)})")
+    return names
+
+
+def _limit(robot: SerialRobot, k: int) -> str:
+    """The ``<limit>`` of moving joint k: position limits, and velocity and effort where given."""
+    joint = robot.moving[k]
+    extra = (f' effort="{joint.effort:.10g}"' if joint.effort else "") + \
+        (f' velocity="{joint.velocity:.10g}"' if joint.velocity else "")
+    return f'<limit lower="{_fmt(robot.lower[k])}" upper="{_fmt(robot.upper[k])}"{extra}/>'
+
+
+def missing_limits(robot: Robot) -> list[str]:
+    """Joints of a DH/MDH chain whose velocity or effort limit the robot file does not give."""
+    if not isinstance(robot, SerialRobot):
+        return []
+    return [j.name for j in robot.moving if not (j.velocity and j.effort)]
 
 
 def _add_tool(text: str, robot: Robot, tip: str, name: str) -> str:
@@ -220,11 +261,13 @@ FORMATS = ("urdf", "ur", "yaml")
 
 
 def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, tool_link: str | None = None,
-                 base_yaw: float = 0.0, length_unit: str = "m", angle_unit: str = "rad") -> dict:
+                 base_yaw: float = 0.0, length_unit: str = "m", angle_unit: str = "rad",
+                 joint_names: Sequence[str] | None = None) -> dict:
     """Write ``robot`` as URDF, UR calibration file or kincal YAML (atomically, checked first).
 
     fmt         -- "urdf", "ur" or "yaml"; default from the file name (.urdf, else kincal YAML)
     source_path -- for a URDF robot, the URDF it was read from (default: the one it names)
+    joint_names -- URDF of a DH/MDH robot: the joints' names (default: the robot file's ``names:``)
     Returns a summary: the format, the base frame the calibration found (where the tracker saw
     the robot: not part of a robot description) and, for UR, what belongs on the controller.
     """
@@ -233,7 +276,8 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
         raise ValueError(f"format '{fmt}' is not one of {', '.join(FORMATS)}")
     summary: dict = {"format": fmt, "base_frame": {n: float(robot.params[n]) for n in robot.base_params()}}
     if fmt == "urdf":
-        text = urdf_text(robot, _source(robot, source_path), tool_link)
+        text = urdf_text(robot, _source(robot, source_path), tool_link, joint_names)
+        summary["missing_limits"] = missing_limits(robot)
     elif fmt == "ur":
         text, extra = ur_calibration(robot, base_yaw)
         summary.update(extra)

@@ -293,6 +293,16 @@ class Robot(ABC):
         """A copy whose base frame is (R_, t)."""
         raise ModelError(f"robot '{self.name}' has no base frame")
 
+    def named_frames(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Frames the robot file names (e.g. ROS ``base_link``): name -> (R, t), the frame's pose in the
+        robot's base frame (a point p in it is R @ p + t in the base frame); none by default."""
+        return {}
+
+    @property
+    def export_names(self) -> tuple[str, ...]:
+        """The joints' names in the robot stack (URDF, ROS); by default their own names."""
+        return self.joint_names
+
     # ---- the tool point (the measured target on the flange) ---------------------------------------
     @property
     def has_tool_point(self) -> bool:
@@ -409,6 +419,13 @@ class Wrapped(Robot):
 
     def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
         return self.inner.base_transform()
+
+    def named_frames(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        return self.inner.named_frames()
+
+    @property
+    def export_names(self) -> tuple[str, ...]:
+        return self.inner.export_names if self.inner.joint_names == self.joint_names else self.joint_names
 
     def with_base_transform(self, R_: np.ndarray, t: np.ndarray):
         return self.with_params(self.inner.with_base_transform(R_, t).params.as_dict())

@@ -45,9 +45,17 @@ class Joint:
     upper: float = np.pi
     mass: float = 0.0
     com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    velocity: float = 0.0  # rad/s or m/s; 0: not given
+    effort: float = 0.0  # N·m or N; 0: not given
+    export_name: str = ""  # the joint's name in the robot stack (URDF, ROS); default its own name
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "com", check_mass(self.mass, self.com, f"joint '{self.name}'"))
+        for key in ("velocity", "effort"):
+            value = self.__dict__[key]
+            if not (np.isfinite(value) and value >= 0.0):
+                raise ModelError(f"joint '{self.name}': {key} limit {value} must be a finite number, 0 or more "
+                                 f"(0: not given)")
         if self.type not in ROW_TYPES:
             raise ModelError(f"joint '{self.name}': type '{self.type}' is not one of {ROW_TYPES}")
         if not (np.isfinite(self.lower) and np.isfinite(self.upper) and self.lower < self.upper):
@@ -66,6 +74,21 @@ def check_mass(mass: float, com, where: str) -> tuple[float, float, float]:
     if len(com) != 3 or not np.all(np.isfinite(np.asarray(com, dtype=float))):
         raise ModelError(f"{where}: com {list(com)} must be three finite numbers (x, y, z)")
     return (float(com[0]), float(com[1]), float(com[2]))
+
+
+def check_frames(frames, where: str) -> tuple[tuple[str, tuple[float, ...]], ...]:
+    """Named frames as ((name, (x, y, z, rx, ry, rz)), ...) after checking: distinct non-empty names,
+    six finite numbers each (m, rad: the frame's pose in the robot's base frame)."""
+    out = []
+    for name, pose in frames:
+        pose = tuple(float(v) for v in pose)
+        if not str(name) or len(pose) != 6 or not np.all(np.isfinite(pose)):
+            raise ModelError(f"{where}: frame '{name}' needs a name and six finite numbers x, y, z, rx, ry, rz")
+        out.append((str(name), pose))
+    names = [n for n, _ in out]
+    if len(set(names)) != len(names) or "base" in names:
+        raise ModelError(f"{where}: frame names {names} must be distinct and not 'base' (the robot's own frame)")
+    return tuple(out)
 
 
 def _param_names(convention: str, joints: Sequence[Joint]) -> tuple[list[str], list[str]]:
@@ -151,6 +174,7 @@ class SerialRobot(ChainRobot):
     joints: tuple[Joint, ...]
     params: Parameters
     description: str = ""
+    frames: tuple[tuple[str, tuple[float, ...]], ...] = ()  # named frames: (name, (x y z m, rx ry rz rad) in base)
     joint_space: JointSpace = field(init=False, repr=False)
     _chain: Chain = field(init=False, repr=False)
 
@@ -170,6 +194,7 @@ class SerialRobot(ChainRobot):
             raise ModelError(f"robot '{self.name}': parameter names do not match the joint structure")
         moving = [j for j in joints if j.type != "fixed"]
         object.__setattr__(self, "joints", joints)
+        object.__setattr__(self, "frames", check_frames(self.frames, f"robot '{self.name}'"))
         object.__setattr__(self, "joint_space", JointSpace(tuple(j.name for j in moving), tuple(j.type for j in moving),
                                                            [j.lower for j in moving], [j.upper for j in moving]))
         object.__setattr__(self, "_chain", Chain(self._build_ops(), len(self.params), len(moving)))
@@ -185,6 +210,7 @@ class SerialRobot(ChainRobot):
         base: Mapping[str, float] | None = None,
         tool: Mapping[str, float] | None = None,
         description: str = "",
+        frames: Sequence[tuple[str, Sequence[float]]] = (),
     ) -> "SerialRobot":
         """Robot from joint structures and per-joint values ``{"theta", "d", "a", "alpha", ["beta"]}`` (SI).
 
@@ -201,7 +227,8 @@ class SerialRobot(ChainRobot):
         for jt, row in zip(joints, dh):
             for k, v in row.items():
                 vals[_checked(f"{jt.name}.{k}", vals, name)] = float(v)
-        return cls(name, convention, tuple(joints), Parameters(names, [vals[n] for n in names], kinds), description)
+        return cls(name, convention, tuple(joints), Parameters(names, [vals[n] for n in names], kinds), description,
+                   tuple((n, tuple(p)) for n, p in frames))
 
     @property
     def moving(self) -> tuple[Joint, ...]:
@@ -265,7 +292,14 @@ class SerialRobot(ChainRobot):
         names, kinds = _param_names(self.convention, joints)
         vals = [old.get(n, 0.0) for n in names]
         return SerialRobot(name or self.name, self.convention, tuple(joints), Parameters(names, vals, kinds),
-                           self.description)
+                           self.description, self.frames)
+
+    def named_frames(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        return {n: (rot_zyx(v[5], v[4], v[3]), np.array(v[:3])) for n, v in self.frames}
+
+    @property
+    def export_names(self) -> tuple[str, ...]:
+        return tuple(j.export_name or j.name for j in self.moving)
 
     @property
     def has_beta(self) -> bool:

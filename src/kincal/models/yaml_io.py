@@ -39,9 +39,10 @@ from .yaml_kinds import (error_model_from_dict, error_model_yaml, puu3_from_dict
                          transmission_yaml, urdf_from_dict, urdf_yaml)
 from .yaml_values import fmt, link_mass, mapping, mass_items, num, unit_factor, units
 
-_JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits", "mass", "com"}
+_JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits", "mass", "com", "velocity", "effort"}
 _TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool", "actuators", "transmission",
-             "type", "extended", "parameters", "slider_limits", "calibration", "source", "error_model"}
+             "type", "extended", "parameters", "slider_limits", "calibration", "source", "error_model", "names",
+             "frames"}
 def bundled_robots() -> list[str]:
     """Names of the robots shipped with kincal."""
     folder = resources.files("kincal.models") / "robots"
@@ -187,7 +188,9 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     base = {k: num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
             for k, v in mapping(data, "base", label).items()}
     tool = {k: num(v, f"{label}: tool", k) * lf for k, v in mapping(data, "tool", label).items()}
-    robot = SerialRobot.build(str(data["name"]), conv, joints, rows, base, tool, str(data.get("description", "")))
+    joints = _export_names(joints, data.get("names"), label)
+    robot = SerialRobot.build(str(data["name"]), conv, joints, rows, base, tool, str(data.get("description", "")),
+                              _frames(data.get("frames"), lf, af, label))
     # automatic beta where axes are parallel and the file does not say otherwise
     auto = {robot.beta_joint(pair) for pair in robot.parallel_pairs()}
     auto = {k for k in auto if explicit_beta[k] is None}
@@ -200,6 +203,36 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     if "transmission" in data:
         return transmission_from_dict(robot, data, lf, af, label)
     return robot
+
+
+def _export_names(joints: list[Joint], names, label: str) -> list[Joint]:
+    """The joints with their robot-stack names from a ``names:`` mapping (kincal name -> name)."""
+    if names is None:
+        return joints
+    known = [j.name for j in joints if j.type != "fixed"]
+    if not isinstance(names, dict) or set(map(str, names)) - set(known):
+        raise ModelError(f"{label}: 'names' must map joint names ({', '.join(known)}) to their names in the robot "
+                         f"stack, e.g. {{{known[0]}: shoulder_pan_joint}}")
+    given = {str(k): str(v) for k, v in names.items()}
+    if len(set(given.values())) != len(given) or any(not v.strip() for v in given.values()):
+        raise ModelError(f"{label}: 'names' must give distinct, non-empty names")
+    return [dataclasses.replace(j, export_name=given.get(j.name, "")) for j in joints]
+
+
+def _frames(frames, lf: float, af: float, label: str) -> tuple:
+    """Named frames (``frames: {base_link: {rz: 180}}``: the frame's pose in the base frame) in SI units."""
+    if frames is None:
+        return ()
+    if not isinstance(frames, dict):
+        raise ModelError(f"{label}: 'frames' must map frame names to {{x, y, z, rx, ry, rz}}")
+    out = []
+    for name, pose in frames.items():
+        where = f"{label}: frame '{name}'"
+        if not isinstance(pose, dict) or set(pose) - {"x", "y", "z", "rx", "ry", "rz"}:
+            raise ModelError(f"{where}: give its pose as {{x, y, z, rx, ry, rz}} (missing keys are 0)")
+        out.append((str(name), tuple(num(pose.get(k, 0.0), where, k) * (lf if k in "xyz" else af)
+                                     for k in ("x", "y", "z", "rx", "ry", "rz"))))
+    return tuple(out)
 
 
 def _dh_joints(entries, lf: float, af: float, label: str) -> tuple[list[Joint], list[dict], list]:
@@ -232,8 +265,10 @@ def _dh_joints(entries, lf: float, af: float, label: str) -> tuple[list[Joint], 
         beta = jd.get("beta", None)
         explicit_beta.append(beta)
         mass, com = link_mass(jd, lf, where)
+        speed = num(jd.get("velocity", 0.0), where, "velocity") * qf
+        effort = num(jd.get("effort", 0.0), where, "effort")
         joints.append(Joint(str(jd.get("name", f"j{k + 1}")), jtype, not (beta is None or beta is False), lo, hi,
-                            mass, com))
+                            mass, com, speed, effort))
         row = {key: num(jd.get(key, 0.0), where, key) * (lf if key in ("d", "a") else af)
                for key in ("theta", "d", "a", "alpha")}
         if not (beta is None or beta is False):
@@ -270,11 +305,20 @@ def _chain_yaml(robot: SerialRobot, length_unit: str, angle_unit: str) -> str:
         items.append(f"beta: {fmt(v[f'{j.name}.beta'] * af)}" if j.beta else "beta: false")
         if j.type != "fixed":
             items.append(f"limits: [{fmt(j.lower * qf)}, {fmt(j.upper * qf)}]")
+        items += [f"velocity: {fmt(j.velocity * qf)}"] if j.velocity else []
+        items += [f"effort: {fmt(j.effort)}"] if j.effort else []
         lines.append("  - {" + ", ".join(items + mass_items(j, lf)) + "}")
-    base = ", ".join(f"{k}: {fmt(v['base.' + k] * (lf if k in 'xyz' else af))}" for k in ("x", "y", "z", "rx", "ry", "rz"))
+    pose = lambda p: ", ".join(f"{k}: {fmt(x * (lf if k in 'xyz' else af))}"  # noqa: E731
+                               for k, x in zip(("x", "y", "z", "rx", "ry", "rz"), p))
+    base = pose([v[f"base.{k}"] for k in ("x", "y", "z", "rx", "ry", "rz")])
     tool = ", ".join(f"{k}: {fmt(v['tool.' + k] * lf)}" for k in ("x", "y", "z"))
-    lines += [f"base: {{{base}}}", f"tool: {{{tool}}}", ""]
-    return "\n".join(lines)
+    lines += [f"base: {{{base}}}", f"tool: {{{tool}}}"]
+    named = {j.name: j.export_name for j in robot.joints if j.export_name}
+    if named:
+        lines.append("names: {" + ", ".join(f"{k}: {n}" for k, n in named.items()) + "}")
+    if robot.frames:
+        lines.append("frames: {" + ", ".join(f"{n}: {{{pose(p)}}}" for n, p in robot.frames) + "}")
+    return "\n".join(lines + [""])
 
 
 def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", angle_unit: str = "rad",
