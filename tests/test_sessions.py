@@ -158,3 +158,120 @@ def test_real_ur5_figures_unchanged_in_the_same_frame(capsys):
     assert kincal.evaluate(res.robot, test).mean == pytest.approx(0.1005e-3, abs=0.00005e-3)
     assert not res.mounting or "0.0" in res.mounting
     assert cols  # the CLI spelling is checked in test_cli
+
+
+# ---- commands in the user's frames -----------------------------------------------------------------
+TCP = np.array([0.0, 0.0, 0.1092])  # the controller's TCP: 16 mm beyond the probe
+
+
+def calibrated_ur10(tmp_path):
+    """A UR10 calibrated (probe declared) in a tracker frame 2 m away, saved with its record."""
+    nominal = kincal.load_robot("ur10").with_tool_point(PROBE)
+    true = kincal.perturb(nominal, seed=11)
+    frame = (rot_zyx(0.7, 0.02, 0.01), np.array([2.0, 1.0, -0.4]))
+    meas = kincal.simulate(true.with_base_transform(*frame), true.sample_joints(80, seed=5), 5e-6, seed=5)
+    res = kincal.calibrate(nominal, meas)
+    path = tmp_path / "cal.yaml"
+    kincal.save_robot(res.robot, path, calibration=res.record())
+    return res, path
+
+
+def lab_targets(tmp_path, frame_name="base_link", tcp=TCP):
+    """The lab's goals: nominal UR10 with the controller's TCP at nominal joints, in ROS base_link (mm, deg)."""
+    nominal = kincal.load_robot("ur10").with_tool_point(tcp)
+    q = nominal.sample_joints(50, seed=9)
+    R, t = nominal.named_frames()[frame_name]
+    goals = (nominal.forward(q) - t) @ R
+    path = tmp_path / "goals.csv"
+    path.write_text("j1,j2,j3,j4,j5,j6,x,y,z\n" + "\n".join(
+        ",".join(repr(float(v)) for v in (*np.rad2deg(qi), *gi * 1e3)) for qi, gi in zip(q, goals)) + "\n")
+    return path, q, goals
+
+
+def test_compensation_refuses_a_tcp_mismatch_with_its_size_and_direction(tmp_path, capsys):
+    _, cal = calibrated_ur10(tmp_path)
+    goals, *_ = lab_targets(tmp_path)
+    out = tmp_path / "cmds.csv"
+    code = main(["compensate", str(cal), str(goals), "-o", str(out), "--target-frame", "base_link",
+                 "--length-unit", "mm", "--angle-unit", "deg"])
+    text = capsys.readouterr().out
+    assert code == 4 and not out.exists()
+    assert "TCP/frame mismatch of 16.0 mm along the flange +z" in text and "--tcp" in text
+
+
+def test_compensation_names_the_frame_the_targets_are_in(tmp_path, capsys):
+    _, cal = calibrated_ur10(tmp_path)
+    goals, *_ = lab_targets(tmp_path)
+    code = main(["compensate", str(cal), str(goals), "-o", str(tmp_path / "c.csv"), "--tcp", "0,0,109.2mm",
+                 "--length-unit", "mm", "--angle-unit", "deg"])
+    assert code == 4 and "--target-frame base_link" in capsys.readouterr().out
+
+
+def test_compensation_in_base_link_for_the_tcp_reproduces_the_targets(tmp_path, capsys):
+    res, cal = calibrated_ur10(tmp_path)
+    goals, q_nominal, targets = lab_targets(tmp_path)
+    out = tmp_path / "cmds.csv"
+    assert main(["compensate", str(cal), str(goals), "-o", str(out), "--tcp", "0,0,109.2mm", "--target-frame",
+                 "base_link", "--length-unit", "mm", "--angle-unit", "deg"]) == 0
+    text = capsys.readouterr().out
+    header = out.read_text().splitlines()[0].split(",")
+    assert header[:10] == ["row", "j1", "j2", "j3", "j4", "j5", "j6", "x", "y", "z"]
+    assert header[10:] == ["d_j1", "d_j2", "d_j3", "d_j4", "d_j5", "d_j6", "orientation_change_mrad"]
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    q = np.deg2rad(table[:, 1:7])
+    # an independent reading of "the calibrated model in base_link with the TCP": its kinematics with
+    # the nominal base, the TCP moved as the calibration moved the probe, and base_link = Rz(180°)·base
+    model = res.robot.with_base_transform(np.eye(3), np.zeros(3))
+    model = model.with_tool_point(TCP + res.robot.tool_point() - PROBE)
+    reached = model.forward(q) * [-1, -1, 1]
+    assert np.max(np.linalg.norm(reached - targets, axis=1)) < 1e-6
+    np.testing.assert_allclose(table[:, 7:10] * 1e-3, targets, atol=1e-12)
+    np.testing.assert_allclose(np.deg2rad(table[:, 10:16]), q - q_nominal, atol=1e-12)
+    assert "largest change per joint" in text and "orientation" in text
+
+
+# ---- exports a robot stack can load ----------------------------------------------------------------
+# Universal Robots' published dynamics of the UR10 (CB3), "DH Parameters for calculations of kinematics
+# and dynamics" (universal-robots.com): link masses in kg and centres of mass in m in the DH link frames.
+UR10_MASSES = [7.1, 12.7, 4.27, 2.0, 2.0, 0.365]
+UR10_COMS = [[0.021, 0.0, 0.027], [0.38, 0.0, 0.158], [0.24, 0.0, 0.068], [0.0, 0.007, 0.018], [0.0, 0.007, 0.018],
+             [0.0, 0.0, -0.026]]
+# UR's ROS description (ur_description, ur10): joint names, velocity (rad/s) and effort (N·m) limits
+UR_NAMES = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+            "wrist_3_joint"]
+UR10_LIMITS = {"velocity": [2.16, 2.16, 3.15, 3.2, 3.2, 3.2], "effort": [330.0, 330.0, 150.0, 54.0, 54.0, 54.0]}
+
+
+def test_ur10_carries_urs_published_masses():
+    r = kincal.load_robot("ur10")
+    assert [j.mass for j in r.joints] == UR10_MASSES
+    np.testing.assert_allclose([j.com for j in r.joints], UR10_COMS, atol=1e-15)
+    assert "compliance" in kincal.ErrorModel("compliance").name
+    extended = kincal.extend(r, kincal.ErrorModel("compliance"), r.sample_joints(20, seed=0))
+    assert extended.error_model == "compliance"  # available now that the links have masses
+
+
+def test_ur10_urdf_loads_in_yourdfpy_with_urs_names_and_limits(tmp_path, capsys):
+    import yourdfpy
+
+    assert main(["export", "ur10", str(tmp_path / "ur10.urdf")]) == 0
+    capsys.readouterr()
+    u = yourdfpy.URDF.load(str(tmp_path / "ur10.urdf"), load_meshes=False, build_collision_scene_graph=False)
+    assert list(u.actuated_joint_names) == UR_NAMES
+    joints = {j.name: j for j in u.robot.joints}
+    np.testing.assert_allclose([joints[n].limit.velocity for n in UR_NAMES], UR10_LIMITS["velocity"], rtol=1e-9)
+    np.testing.assert_allclose([joints[n].limit.effort for n in UR_NAMES], UR10_LIMITS["effort"], rtol=1e-12)
+    r = kincal.load_robot("ur10")
+    q = r.sample_joints(10, seed=2)
+    for qi, p in zip(q, r.forward(q)):
+        u.update_cfg(dict(zip(UR_NAMES, qi)))
+        assert np.allclose(u.get_transform("flange", "base_link")[:3, 3], p * [-1, -1, 1], atol=1e-9)
+
+
+def test_joint_names_flag_renames_the_urdf_joints(tmp_path, capsys):
+    names = [f"axis_{k}" for k in range(1, 7)]
+    assert main(["export", "ur5", str(tmp_path / "ur5.urdf"), "--joint-names", ",".join(names)]) == 0
+    capsys.readouterr()
+    assert kincal.load_robot(tmp_path / "ur5.urdf").joint_names == tuple(names)
+    assert main(["export", "ur5", str(tmp_path / "bad.urdf"), "--joint-names", "a,b"]) == 1
+    assert "give 6 distinct names" in capsys.readouterr().err
