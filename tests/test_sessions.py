@@ -1,5 +1,6 @@
 """The cell around the robot: sessions with their own measurement frames, and the tool point as a
 mounting result (declared with --tool for every robot kind, never given unit advice)."""
+import dataclasses
 import json
 from pathlib import Path
 
@@ -275,3 +276,83 @@ def test_joint_names_flag_renames_the_urdf_joints(tmp_path, capsys):
     assert kincal.load_robot(tmp_path / "ur5.urdf").joint_names == tuple(names)
     assert main(["export", "ur5", str(tmp_path / "bad.urdf"), "--joint-names", "a,b"]) == 1
     assert "give 6 distinct names" in capsys.readouterr().err
+
+
+# ---- ISO 9283 on repeated poses --------------------------------------------------------------------
+def test_iso9283_groups_repeats_with_joint_jitter_and_follows_the_standard():
+    """An ISO-cube-like session: 5 poses, each measured 3 times with joint readings jittering by up to
+    5e-5 rad and 20 µm of tracker noise. AP and RP by the standard's formulas, computed here."""
+    robot = kincal.load_robot("ur5")
+    true = kincal.perturb(robot, seed=3)
+    cube = robot.sample_joints(5, seed=8)
+    rng = np.random.default_rng(1)
+    commanded = np.repeat(cube, 3, axis=0)
+    read = commanded + rng.uniform(-5e-5, 5e-5, commanded.shape)
+    train = kincal.simulate(true, robot.sample_joints(60, seed=2), 10e-6, seed=4)
+    res = kincal.calibrate(robot, train)
+    session = kincal.Measurements(read, true.forward(read) + rng.normal(0, 20e-6, (15, 3)), robot.joint_names,
+                                  "cube.csv")
+    rep = kincal.build_report(res, [session])
+    groups = [g for g in rep.data["iso"]["groups"] if g["session"] == "held-out cube.csv"]
+    assert [g["rows"] for g in groups] == [f"{2 + 3 * k}, {3 + 3 * k}, {4 + 3 * k}" for k in range(5)]
+    model = kincal.identify.refit_frame(res.robot, session)  # the held-out session's frame, re-registered
+    for k, g in enumerate(groups):
+        p = session.xyz[3 * k:3 * k + 3]
+        bary = p.sum(axis=0) / 3
+        command = model.forward(read[3 * k:3 * k + 3]).sum(axis=0) / 3
+        ap = np.sqrt(np.sum((bary - command) ** 2))
+        lj = np.sqrt(np.sum((p - bary) ** 2, axis=1))
+        rp = lj.mean() + 3 * np.sqrt(np.sum((lj - lj.mean()) ** 2) / 2)
+        assert g["n"] == 3 and g["ap"] == pytest.approx(ap * 1e3, rel=1e-9) and g["rp"] == pytest.approx(rp * 1e3,
+                                                                                                          rel=1e-9)
+    # the same readings with a tolerance below the jitter are five times three different poses
+    tight = res.options.replace(thresholds=kincal.Thresholds(repeat_angle=1e-6))
+    res_tight = dataclasses.replace(res, options=tight)
+    assert kincal.build_report(res_tight, [session]).data["iso"]["groups"] == []
+
+
+# ---- the instrument's σ per sample ----------------------------------------------------------------
+def sigma_file(tmp_path, std: np.ndarray, meas, name="s.csv"):
+    path = tmp_path / name
+    kincal.write_measurements(path, meas, ("revolute",) * 6, "mm", "deg")
+    lines = path.read_text().splitlines()
+    lines[0] += ",measurement_std_x,measurement_std_y,measurement_std_z"
+    lines[1:] = [f"{line},{','.join(repr(float(v)) for v in s * 1e3)}" for line, s in zip(lines[1:], std)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_sigma_columns_weight_the_fit_and_set_the_noise_level(tmp_path, capsys):
+    robot = kincal.load_robot("ur5")
+    true = kincal.perturb(robot, seed=6)
+    q = robot.sample_joints(120, seed=6)
+    std = np.full((120, 3), 11e-6)
+    std[:40] = 1e-3  # a third of the samples, taken at long range: σ 1 mm
+    rng = np.random.default_rng(2)
+    meas = kincal.Measurements(q, true.forward(q) + rng.standard_normal((120, 3)) * std, robot.joint_names, "sim")
+    path = sigma_file(tmp_path, std, meas)
+    read = kincal.read_measurements(path, robot, length_unit="mm", angle_unit="deg")
+    np.testing.assert_allclose(read.std, std, rtol=1e-12)
+    weighted = kincal.calibrate(robot, read)
+    plain = kincal.calibrate(robot, kincal.read_measurements(path, robot, length_unit="mm", angle_unit="deg",
+                                                             std_cols=[]))
+    check = robot.sample_joints(200, seed=7)
+    err = {k: np.mean(np.linalg.norm(refit_frame(r.robot, kincal.simulate(true, check, 0.0)).forward(check)
+                                     - true.forward(check), axis=1)) for k, r in (("w", weighted), ("p", plain))}
+    assert err["w"] < 0.5 * err["p"]  # the 1 mm samples no longer pull the fit
+    text = str(weighted)
+    assert "tracker noise for the verdict 0.011 mm: median of the data's measurement σ columns" in text
+    assert "the default; give --tracker-noise" in str(plain)
+    # equal σ everywhere: the same fit as without them
+    same = sigma_file(tmp_path, np.full((120, 3), 20e-6), meas, "same.csv")
+    equal = kincal.calibrate(robot, kincal.read_measurements(same, robot, length_unit="mm", angle_unit="deg"))
+    np.testing.assert_allclose(equal.robot.params.values, plain.robot.params.values, atol=1e-12)
+
+
+def test_sigma_columns_must_be_positive(tmp_path):
+    robot = kincal.load_robot("ur5")
+    meas = kincal.simulate(robot, robot.sample_joints(10, seed=1), 0.0)
+    std = np.full((10, 3), 1e-5)
+    std[3, 1] = 0.0
+    with pytest.raises(kincal.MeasurementError, match="row\\(s\\) 5 give 0 or less"):
+        kincal.read_measurements(sigma_file(tmp_path, std, meas), robot, length_unit="mm", angle_unit="deg")

@@ -154,11 +154,15 @@ def add_data_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--xyz-cols", type=csv_list, default=["x", "y", "z"], help="position columns (default x,y,z)")
     g.add_argument("--length-unit", default="m", choices=list(LENGTH_UNITS), help="positions, prismatic joints")
     g.add_argument("--angle-unit", default="rad", choices=list(ANGLE_UNITS), help="revolute joints")
+    g.add_argument("--std-cols", type=csv_list, default=None,
+                   help="the instrument's σ per sample, X,Y,Z columns in the length unit (default: "
+                        "measurement_std_x,measurement_std_y,measurement_std_z when present; 'none' ignores them)")
 
 
 def read(args, robot, path):
+    std = None if args.std_cols is None else ([] if args.std_cols == ["none"] else args.std_cols)
     return kincal.read_measurements(path, robot, joint_cols=args.joint_cols, xyz_cols=args.xyz_cols,
-                                    length_unit=args.length_unit, angle_unit=args.angle_unit)
+                                    length_unit=args.length_unit, angle_unit=args.angle_unit, std_cols=std)
 
 
 def progress_lines() -> bool:

@@ -27,7 +27,7 @@ from .result import CalibrationResult, EvaluationStats
 from .robust import irls
 from .select import select_model
 from .verdict import (Reason, Verdict, correction_reasons, drift_reasons, duplicate_reasons, mounting_reasons,
-                      outlier_reasons, residual_reasons, robust_z)
+                      noise_level, outlier_reasons, residual_reasons, robust_z)
 
 
 def calibrate(robot: Robot, meas: Measurements, options: FitOptions | None = None, *, use_q: np.ndarray | None = None,
@@ -169,7 +169,7 @@ def judge(res: CalibrationResult, problem: CalibrationProblem) -> CalibrationRes
     inliers = res.residuals[z <= th.outlier_z]  # outliers are named on their own, not smeared into σ
     pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
     reasons += drift_reasons(meas.rows, np.linalg.norm(res.residuals, axis=1))
-    reasons += residual_reasons(pos_sigma, th) + outlier_reasons(meas.rows, z, th) + duplicate_reasons(meas.rows, problem.repeats)
+    reasons += residual_reasons(pos_sigma, noise_level(meas.std, th), th) + outlier_reasons(meas.rows, z, th) + duplicate_reasons(meas.rows, problem.repeats)
     return dataclasses.replace(res, verdict=Verdict.from_reasons(reasons), measurements=meas, pose_z=z)
 
 

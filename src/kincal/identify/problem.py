@@ -19,7 +19,7 @@ from ..io.measurements import Measurements
 from ..models.robot import Robot
 from .registration import register_base
 from .residuals import RESIDUALS, CartesianResidual, JointResidual
-from .verdict import duplicate_groups
+from .verdict import duplicate_groups, repeat_tolerance
 
 if TYPE_CHECKING:
     from .options import FitOptions
@@ -40,6 +40,7 @@ class CalibrationProblem:
     base: str
     values0: np.ndarray
     repeats: tuple[np.ndarray, ...] = ()  # groups of poses with the same joint values (indices)
+    weights: np.ndarray | None = None  # (N, 3) relative weights (σ_median/σ)² from the measurement σ, if given
 
     @property
     def cols(self) -> np.ndarray:
@@ -65,6 +66,9 @@ class CalibrationProblem:
         """x -> (r, J): the (optionally per-pose weighted) stacked residual and Jacobian for LM."""
         cols = self.cols
         sw = None if weights is None else np.tile(np.sqrt(weights), self.residual.components)
+        if self.weights is not None and self.residual.components == 3:  # component-major, as the residual
+            base = np.sqrt(self.weights).T.ravel()
+            sw = base if sw is None else sw * base
 
         def f(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             r, J = self.residual.evaluate(self.embed(x), cols)
@@ -88,7 +92,7 @@ def build_problem(robot: Robot, meas: Measurements, options: FitOptions,
     base, strict = options.base, options.method == "lm"
     meas.check_robot(robot)
     start = robot
-    repeats = tuple(duplicate_groups(meas.q))
+    repeats = tuple(duplicate_groups(meas.q, repeat_tolerance(robot.joint_types, options.thresholds)))
     distinct = len(meas) - sum(len(g) - 1 for g in repeats)
     if base == "estimate":
         if distinct < 3:
@@ -111,4 +115,6 @@ def build_problem(robot: Robot, meas: Measurements, options: FitOptions,
             f"{'' if distinct == len(meas) else f' ({len(meas)} rows, some repeating the same joint values)'}; "
             f"measure at least {len(names) // res.components + 1} poses (3-5 times as many is advisable)")
     res.check(start.params.values)
-    return CalibrationProblem(start, meas, tuple(names), res, ident, base, start.params.values.copy(), repeats)
+    weights = None if meas.std is None else (float(np.median(meas.std)) / meas.std) ** 2
+    return CalibrationProblem(start, meas, tuple(names), res, ident, base, start.params.values.copy(), repeats,
+                              weights)

@@ -12,7 +12,7 @@ from ..models.robot import TOOL_NAMES, Robot
 from ..units import MM, display
 from .options import FitOptions
 from .select import ErrorModelChoice
-from .verdict import Verdict, mounting_line
+from .verdict import Verdict, mounting_line, noise_level
 
 
 @dataclass(frozen=True)
@@ -191,7 +191,9 @@ class CalibrationResult:
             sd = display(self.std[n], k).lstrip("+") if np.isfinite(self.std[n]) else "undetermined"
             lines.append(f"{n:<12} {display(self.estimates[n], k):>16} {display(self.corrections[n], k):>16} "
                          f"{sd:>14}")
-        lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm",
+        noise = noise_level(None if self.measurements is None else self.measurements.std, self.options.thresholds)
+        lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm (tracker noise for the verdict "
+                  f"{noise[0] * MM:.3g} mm: {noise[1]})",
                   f"before (nominal, frame registered): {self.stats_before}", f"after:  {self.stats_after}"]
         if self.mounting:
             lines.append(f"mounting: {self.mounting}")

@@ -20,7 +20,9 @@ CLI flags):
   together);
 * outliers: poses whose error norm lies more than ``outlier_z`` (5) robust σ above the median
   (σ = 1.4826·MAD) are named by input row, with the advice to use a robust loss or leave them out;
-* repeated poses (identical joint values) are named: they shrink the stated σ as if independent;
+* repeated poses (commanded joints within ``repeat_angle`` 1e-4 rad / ``repeat_length`` 0.01 mm: a
+  robot's joint readings jitter around the same command) are named: they shrink the stated σ as if
+  independent;
 * drift: when the first tenth of the poses in acquisition (row) order carry errors 1.5× and 3
   standard errors above the rest, the tracker or the robot was still warming up;
 * a fit that did not converge is refused.
@@ -54,6 +56,8 @@ class Thresholds:
     outlier_z: float = 5.0
     tool_suspect: float = 50e-3
     tool_refuse: float = 1.0
+    repeat_angle: float = 1e-4  # rad: commanded joint angles this close are the same pose (a repeat)
+    repeat_length: float = 1e-5  # m: the same for prismatic joints
 
     def __post_init__(self) -> None:
         bad = [k for k, v in self.__dict__.items()
@@ -125,13 +129,25 @@ def robust_z(norms: np.ndarray) -> np.ndarray:
     return (norms - med) / mad if mad > 0 else np.zeros_like(norms)
 
 
-def duplicate_groups(q: np.ndarray, tol: float = 1e-9) -> list[np.ndarray]:
-    """Indices of poses that repeat the same joint values (within ``tol``), groups of ≥ 2, in order."""
-    key = np.round(q / tol).astype(np.int64) if q.size else q
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    inverse = inverse.ravel()
-    groups = [np.flatnonzero(inverse == g) for g in np.flatnonzero(counts > 1)]
-    return sorted(groups, key=lambda g: g[0])
+def duplicate_groups(q: np.ndarray, tol: np.ndarray | float = 1e-9) -> list[np.ndarray]:
+    """Indices of poses whose commanded joints agree within ``tol`` (per joint: rad or m, or one value
+    for all), groups of ≥ 2 in row order. Each pose joins the first earlier group whose first pose it
+    matches (every joint within tol), so the grouping never depends on rounding to a grid."""
+    q = np.asarray(q, dtype=float)
+    tol = np.broadcast_to(np.asarray(tol, dtype=float), q.shape[1:]) if q.size else tol
+    label = np.full(len(q), -1)
+    for i in range(len(q)):
+        if label[i] >= 0:
+            continue
+        close = np.all(np.abs(q[i:] - q[i]) <= tol, axis=1) & (label[i:] < 0)
+        label[i:][close] = i
+    groups = [np.flatnonzero(label == g) for g in np.unique(label)]
+    return sorted((g for g in groups if len(g) > 1), key=lambda g: g[0])
+
+
+def repeat_tolerance(joint_types, th: "Thresholds") -> np.ndarray:
+    """Per joint, how close two commanded values count as the same pose (ISO 9283 repeats)."""
+    return np.array([th.repeat_angle if t == "revolute" else th.repeat_length for t in joint_types])
 
 
 def correction_reasons(robot: Robot, corrections: dict[str, float], th: Thresholds) -> list[Reason]:
@@ -178,11 +194,19 @@ def mounting_reasons(declared: np.ndarray, fitted: np.ndarray, th: Thresholds) -
     return []
 
 
-def residual_reasons(sigma: float, th: Thresholds) -> list[Reason]:
-    """The fit's σ per axis against the tracker noise."""
-    ratio = sigma / th.tracker_noise
+def noise_level(std: np.ndarray | None, th: Thresholds) -> tuple[float, str]:
+    """The instrument noise a residual is judged against (m), and where it comes from: the median of
+    the data's per-sample σ (N, 3) when given, else the thresholds' tracker_noise."""
+    if std is not None:
+        return float(np.median(std)), "median of the data's measurement σ columns"
+    return th.tracker_noise, "the default; give --tracker-noise or measurement_std_x/y/z columns"
+
+
+def residual_reasons(sigma: float, noise: tuple[float, str], th: Thresholds) -> list[Reason]:
+    """The fit's σ per axis against the instrument noise (value in m, and where it comes from)."""
+    ratio = sigma / noise[0]
     msg = (f"residual σ per axis {sigma * MM:.3f} mm is {ratio:.0f}x the tracker noise "
-           f"({th.tracker_noise * MM:g} mm)")
+           f"({noise[0] * MM:.3g} mm: {noise[1]})")
     if ratio > th.residual_refuse:
         return [Reason("refused", "residual", msg + ": data and model do not belong together; check the joint "
                                                     "columns, units and robot file")]

@@ -31,6 +31,7 @@ class Measurements:
     joint_names: tuple[str, ...]
     source: str = "<memory>"
     rows: np.ndarray | None = field(default=None)
+    std: np.ndarray | None = field(default=None)  # (N, 3) m: the instrument's σ per sample and axis, if given
 
     def __post_init__(self) -> None:
         q = np.array(self.q, dtype=float)
@@ -43,6 +44,17 @@ class Measurements:
             raise MeasurementError(f"{self.source}: {q.shape[1]} joint columns but {len(self.joint_names)} names")
         rows = np.arange(2, q.shape[0] + 2) if self.rows is None else np.asarray(self.rows, dtype=int)
         _check_finite(self.source, np.column_stack([q, xyz]), rows, "values")
+        if self.std is not None:
+            std = np.array(self.std, dtype=float)
+            if std.shape != xyz.shape:
+                raise MeasurementError(f"{self.source}: σ must be (N, 3) like the positions, got {std.shape}")
+            _check_finite(self.source, std, rows, "measurement σ")
+            bad = ~np.all(std > 0, axis=1)
+            if bad.any():
+                raise MeasurementError(f"{self.source}: measurement σ must be > 0; row(s) "
+                                       f"{', '.join(map(str, rows[bad][:MAX_LISTED]))} give 0 or less")
+            std.setflags(write=False)
+            object.__setattr__(self, "std", std)
         for a in (q, xyz, rows):
             a.setflags(write=False)
         object.__setattr__(self, "q", q)
@@ -56,7 +68,8 @@ class Measurements:
     def subset(self, index: np.ndarray | Sequence[int]) -> "Measurements":
         """The measurements at the given positions (indices or boolean mask)."""
         idx = np.asarray(index)
-        return Measurements(self.q[idx], self.xyz[idx], self.joint_names, self.source, self.rows[idx])
+        return Measurements(self.q[idx], self.xyz[idx], self.joint_names, self.source, self.rows[idx],
+                            None if self.std is None else self.std[idx])
 
     def without_rows(self, rows: Sequence[int]) -> "Measurements":
         """The measurements less the given input rows (file line numbers, header = 1)."""
@@ -251,23 +264,44 @@ def read_measurements(
     xyz_cols: Sequence[str] = ("x", "y", "z"),
     length_unit: str = "m",
     angle_unit: str = "rad",
+    std_cols: Sequence[str] | None = None,
 ) -> Measurements:
     """Read a CSV (header line; comma, semicolon or tab separated) of joint values and positions.
 
     joint_cols default to the robot's joint names. Revolute joints are in ``angle_unit``, prismatic
     joints and positions in ``length_unit``. Values are returned in SI units; data whose scale looks
-    like the wrong unit is refused with the unit to use.
+    like the wrong unit is refused with the unit to use. ``std_cols``: the instrument's σ per sample
+    and axis (length unit); by default ``measurement_std_x/y/z`` when the file has them (they weight
+    the fit and set the noise level of the verdict); ``[]`` ignores them.
     """
     path = str(path)
     cols = _joint_columns(path, robot, joint_cols)
     if len(xyz_cols) != 3:
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
-    data, lines = _read_columns(path, cols + list(xyz_cols))
-    n = robot.n_joints
+    std_cols = _std_columns(path, std_cols)
+    data, lines = _read_columns(path, cols + list(xyz_cols) + std_cols)
+    n, lf = robot.n_joints, _unit(length_unit, "length", path)
     meas = Measurements(data[:, :n] * _joint_scale(robot.joint_types, length_unit, angle_unit, path),
-                        data[:, n:] * _unit(length_unit, "length", path), robot.joint_names, path, lines)
+                        data[:, n:n + 3] * lf, robot.joint_names, path, lines,
+                        data[:, n + 3:] * lf if std_cols else None)
     meas.check_robot(robot, length_unit, angle_unit)
     return meas
+
+
+STD_COLUMNS = ("measurement_std_x", "measurement_std_y", "measurement_std_z")
+
+
+def _std_columns(path: str, std_cols: Sequence[str] | None) -> list[str]:
+    """The σ columns to read: as given (three, or none), else STD_COLUMNS when the header has all three."""
+    if std_cols is not None:
+        if len(std_cols) not in (0, 3):
+            raise MeasurementError(f"{path}: give three σ columns (x, y, z) or none, got {list(std_cols)}")
+        return list(std_cols)
+    lines = _data_lines(_read_text(path))
+    if not lines:
+        return []
+    header = [h.strip() for h in next(csv.reader([lines[0][1]], delimiter=_sniff_delimiter(lines[0][1], path)))]
+    return list(STD_COLUMNS) if all(c in header for c in STD_COLUMNS) else []
 
 
 def _is_float(s: str, delimiter: str = ",") -> bool:

@@ -20,7 +20,7 @@ from .._atomic import write_text_atomic
 from ..identify.calibrate import evaluate
 from ..identify.sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
 from ..identify.result import CalibrationResult, EvaluationStats
-from ..identify.verdict import Thresholds, duplicate_groups, robust_z
+from ..identify.verdict import Thresholds, duplicate_groups, repeat_tolerance, robust_z
 from ..io.measurements import Measurements
 from ..units import MM, display
 from . import figures as F
@@ -234,27 +234,39 @@ def _data_rows(result: CalibrationResult, tests: list[Measurements], info: dict)
     return [{"label": k, "value": v} for k, v in rows]
 
 
+def iso9283_group(xyz: np.ndarray, commanded: np.ndarray) -> tuple[float, float]:
+    """ISO 9283 pose accuracy AP and repeatability RP (position, m) of n ≥ 2 attained positions xyz
+    (n, 3) of one commanded pose at ``commanded`` (3,): AP = |barycentre − commanded|; RP = l̄ + 3·S_l
+    with l_j the distance of each attained position from the barycentre and S_l their sample std."""
+    bary = xyz.mean(axis=0)
+    dist = np.linalg.norm(xyz - bary, axis=1)
+    return float(np.linalg.norm(bary - commanded)), float(dist.mean() + 3 * dist.std(ddof=1))
+
+
 def _iso9283(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
-    """ISO 9283 AP and RP for poses visited more than once (the calibrated model as the command)."""
+    """ISO 9283 AP and RP, per session, wherever a commanded pose repeats (commanded joints within the
+    thresholds' repeat tolerance); the command's position is the calibrated model's as used on that set."""
+    tol = repeat_tolerance(result.robot.joint_types, result.options.thresholds)
     groups = []
     for s in sets:
-        for g in duplicate_groups(s.q):
-            pts = s.xyz[g]
-            mean = pts.mean(axis=0)
-            commanded = result.robot.forward(s.q[g[:1]])[0]
-            dist = np.linalg.norm(pts - mean, axis=1)
-            groups.append({"rows": ", ".join(str(int(r)) for r in s.rows[g]), "n": len(g),
-                           "ap": float(np.linalg.norm(mean - commanded)) * MM,
-                           "rp": float(dist.mean() + 3 * dist.std(ddof=1)) * MM})
+        model = s.xyz - s.after  # the calibrated model's positions, registered as for this set
+        for g in duplicate_groups(s.q, tol):
+            ap, rp = iso9283_group(s.xyz[g], model[g].mean(axis=0))
+            groups.append({"session": s.title, "rows": ", ".join(str(int(r)) for r in s.rows[g]), "n": len(g),
+                           "ap": ap * MM, "rp": rp * MM,
+                           "joint_spread": float(np.max(np.ptp(s.q[g], axis=0)))})
+    th = result.options.thresholds
+    rule = (f"poses whose commanded joints agree within {th.repeat_angle:g} rad (revolute) / "
+            f"{th.repeat_length * MM:g} mm (prismatic) count as one pose")
     if groups:
-        text = ("These data visit some poses more than once: for those, ISO 9283 pose accuracy AP (distance of the "
-                "mean attained position from the model's position) and repeatability RP (mean distance from that "
-                "mean plus three standard deviations) are below. The error statistics above are over different "
-                "poses and are not AP.")
+        text = (f"Some poses are visited more than once ({rule}): for those, ISO 9283 pose accuracy AP (distance of "
+                f"the barycentre of the attained positions from the commanded position, through the calibrated model) "
+                f"and repeatability RP (mean distance from the barycentre plus three sample standard deviations) are "
+                f"below, per session. The error statistics above are over different poses and are not AP.")
     else:
-        text = ("No pose is visited more than once, so ISO 9283 pose accuracy (AP) and repeatability (RP) cannot be "
-                "computed from these data. The figures above are 3-D position errors over different poses: they "
-                "describe the model's accuracy across the workspace, which is not ISO 9283 AP.")
+        text = (f"No pose is visited more than once ({rule}), so ISO 9283 pose accuracy (AP) and repeatability (RP) "
+                f"cannot be computed from these data. The figures above are 3-D position errors over different poses: "
+                f"they describe the model's accuracy across the workspace, which is not ISO 9283 AP.")
     return {"text": text, "groups": groups}
 
 
