@@ -23,18 +23,22 @@ demo: setup
 	$(VENV)/bin/kincal study guo2024 --workers 2 -o .venv/guo2024_study.jsonl
 	@echo
 	@echo "Real laser-tracker data: calibrate the UR5 on 1000 grid poses, evaluate on 20 unseen poses"
-	$(VENV)/bin/kincal evaluate ur5 $(DATA)/ur5_random.csv $(UR5)
+	@echo "(one tracker set-up, data in the robot base frame: --same-frame)"
+	$(VENV)/bin/kincal evaluate ur5 $(DATA)/ur5_random.csv $(UR5) --same-frame
 	$(VENV)/bin/kincal calibrate ur5 $(DATA)/ur5_grid.csv $(UR5) -o .venv/ur5_calibrated.yaml > /dev/null
-	$(VENV)/bin/kincal evaluate .venv/ur5_calibrated.yaml $(DATA)/ur5_random.csv $(UR5)
+	$(VENV)/bin/kincal evaluate .venv/ur5_calibrated.yaml $(DATA)/ur5_random.csv $(UR5) --same-frame
 	@echo
 	@echo "The calibration report (open it in a browser): verdict, errors before/after, plots, parameters"
-	$(VENV)/bin/kincal report .venv/ur5_calibrated.yaml --test $(DATA)/ur5_random.csv -o .venv/ur5_report.html
+	$(VENV)/bin/kincal report .venv/ur5_calibrated.yaml --test $(DATA)/ur5_random.csv --same-frame -o .venv/ur5_report.html
 	@echo
 	@echo "The calibrated UR5 back out, for ROS: a URDF (with the reflector as link 'smr') and UR's kinematics file"
 	$(VENV)/bin/kincal export .venv/ur5_calibrated.yaml .venv/ur5_calibrated.urdf --tool-link smr
 	$(VENV)/bin/kincal export .venv/ur5_calibrated.yaml .venv/ur5_calibration.yaml --format ur
 	@echo "written: .venv/ur5_calibrated.yaml (kincal), .venv/ur5_calibrated.urdf (URDF), .venv/ur5_calibration.yaml (UR driver)"
 	@echo "report:  .venv/ur5_report.html (numbers in .venv/ur5_report.json)"
+	@echo
+	@echo "To use kincal on your own robot, put it on your PATH (this shell):  source $(VENV)/bin/activate"
+	@echo "or for good:  ln -s $(CURDIR)/$(VENV)/bin/kincal ~/.local/bin/kincal   (then: kincal --help)"
 
 test: setup
 	$(PY) -m pytest -q

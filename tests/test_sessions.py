@@ -356,3 +356,32 @@ def test_sigma_columns_must_be_positive(tmp_path):
     std[3, 1] = 0.0
     with pytest.raises(kincal.MeasurementError, match="row\\(s\\) 5 give 0 or less"):
         kincal.read_measurements(sigma_file(tmp_path, std, meas), robot, length_unit="mm", angle_unit="deg")
+
+
+# ---- calibrating from several sessions -------------------------------------------------------------
+def test_sessions_calibrate_jointly_each_in_its_own_frame(tmp_path, capsys):
+    nominal, a, b = ur10_cell()
+    a, b = a.subset(np.arange(20)), b.subset(np.arange(20))  # two short sessions
+    true = kincal.perturb(nominal, seed=4)  # the cell's robot, as ur10_cell draws it
+    joint = kincal.identify.calibrate_sessions(nominal, [a, b])
+    alone = kincal.calibrate(nominal, a)
+    assert joint.verdict.status == "good" and len(joint.measurements) == len(a) + len(b)
+    check = true.sample_joints(300, seed=9)
+    seen = kincal.simulate(true, check, 0.0)
+    error = {k: mean_error(refit_frame(r.robot, seen), seen) for k, r in (("joint", joint), ("alone", alone))}
+    assert error["joint"] < error["alone"] < 0.05e-3  # more poses, shared kinematics: a better model
+    # pooled without frames, the two sessions cannot be fitted at all: the frames are what makes it work
+    pooled = kincal.calibrate(nominal, kincal.identify.sessions.joined([a, b]))
+    assert pooled.verdict.status == "refused"
+    # the CLI takes the sessions as files, and the report refits from the record of both
+    paths = []
+    for k, s in enumerate((a, b)):
+        paths.append(tmp_path / f"s{k}.csv")
+        kincal.write_measurements(paths[-1], s, nominal.joint_types, "mm", "deg")
+    out = tmp_path / "cal.yaml"
+    assert main(["calibrate", "ur10", *map(str, paths), "--tool", "0,0,93.2mm", "--length-unit", "mm",
+                 "--angle-unit", "deg", "-o", str(out), "--json"]) == 0
+    cli = json.loads(capsys.readouterr().out)
+    assert cli["sessions"] == [str(p) for p in paths] and cli["verdict"]["status"] == "good"
+    assert main(["report", str(out), "-o", str(tmp_path / "r.html")]) == 0
+    assert "differs from" not in capsys.readouterr().err  # the refit reproduces the file

@@ -43,17 +43,24 @@ def fit_options(args) -> kincal.FitOptions:
 
 def cmd_calibrate(args) -> int:
     reports = [args.report, json_path(args.report)] if args.report else []
-    check_paths([*robot_inputs(args.robot), args.data, *args.test], [args.output, args.residuals, *reports])
+    check_paths([*robot_inputs(args.robot), *args.data, *args.test], [args.output, args.residuals, *reports])
+    if args.exclude and len(args.data) > 1:
+        raise ValueError("--exclude names rows of one file; with several sessions leave the rows out of their files")
     options = fit_options(args)
     r = load_robot(args)
     options.check(r)
-    meas = read(args, r, args.data)
+    sessions = [read(args, r, path) for path in args.data]
     test = [read(args, r, t) for t in args.test]
     if args.exclude:
-        meas = meas.without_rows(args.exclude)
+        sessions = [sessions[0].without_rows(args.exclude)]
+    use_q = np.concatenate([t.q for t in test]) if test else None
     with progress("calibrating", args.json) as say:
-        res = kincal.calibrate(r, meas, options, use_q=np.concatenate([t.q for t in test]) if test else None,
-                               progress=say)
+        if len(sessions) == 1:
+            res = kincal.calibrate(r, sessions[0], options, use_q=use_q, progress=say)
+        else:
+            say(f"calibrating {len(sessions)} sessions, each in its own measurement frame")
+            res = kincal.identify.calibrate_sessions(r, sessions, options, use_q=use_q)
+    meas = res.measurements
     if args.residuals:
         kincal.io.write_residuals(args.residuals, meas, meas.xyz - res.residuals, res.pose_z, res.outlier_z,
                                   r.joint_types, "mm", "deg")
@@ -62,7 +69,8 @@ def cmd_calibrate(args) -> int:
     if written:
         kincal.save_robot(res.robot, args.output,
                           calibration={**res.record(), "data": data_record(args, args.data, args.exclude)})
-    payload = {**res.to_dict(), "output": args.output if written else None, "residuals_file": args.residuals}
+    payload = {**res.to_dict(), "output": args.output if written else None, "residuals_file": args.residuals,
+               "sessions": list(args.data) if len(args.data) > 1 else None}
     text = str(res)
     ident = res.identifiability
     if ident.dropped:
@@ -130,7 +138,8 @@ def register(cmd) -> None:
     """Add the commands to the parser through ``cmd(name, func, help)``."""
     s = cmd("calibrate", cmd_calibrate, "identify the robot's parameters from measurements")
     add_robot(s)
-    s.add_argument("data", help="measurement CSV")
+    s.add_argument("data", nargs="+", help="measurement CSV, one per session (the tracker may move between sessions: "
+                                           "each gets its own measurement frame, the kinematics are shared)")
     s.add_argument("-o", "--output", help="calibrated robot YAML to write")
     s.add_argument("--base", choices=list(kincal.analysis.BASE_MODES), default="estimate",
                    help="estimate the measurement (tracker) frame, or take the robot's base as known")

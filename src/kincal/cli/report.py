@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 import kincal
+import kincal.identify
 import kincal.models
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS
 
@@ -22,7 +23,8 @@ def json_path(html: str) -> Path:
 
 def data_record(args, path, exclude) -> dict:
     """How the training data were read, kept with the calibrated robot so a report can reread them."""
-    return {"file": str(path), "length_unit": args.length_unit, "angle_unit": args.angle_unit,
+    files = [str(p) for p in path] if isinstance(path, (list, tuple)) else [str(path)]
+    return {"file": files[0] if len(files) == 1 else files, "length_unit": args.length_unit, "angle_unit": args.angle_unit,
             "joint_cols": args.joint_cols, "xyz_cols": args.xyz_cols, "exclude": list(exclude or [])}
 
 
@@ -62,10 +64,11 @@ def cmd_report(args) -> int:
         raise ValueError(f"{args.robot}: no calibration record in the file; write it with 'kincal calibrate ... -o "
                          f"{args.robot}' (the record keeps the nominal values and options the report refits)")
     data = _mapping(record.get("data", {}), args.robot, "data")
-    train_path = args.train or data.get("file")
-    if not isinstance(train_path, str):
+    train_paths = args.train or data.get("file")
+    train_paths = [train_paths] if isinstance(train_paths, str) else train_paths
+    if not isinstance(train_paths, list) or not train_paths or not all(isinstance(p, str) for p in train_paths):
         raise ValueError("give the training data with --train (the record names no data file)")
-    check_paths([*robot_inputs(args.robot), train_path, *args.test], [args.output, json_path(args.output)])
+    check_paths([*robot_inputs(args.robot), *train_paths, *args.test], [args.output, json_path(args.output)])
     options = kincal.FitOptions.from_dict(record["options"], f"{args.robot}: calibration options")
     cal = load_robot(args)
     nominal = cal.with_params(_nominal(record["nominal"], args.robot))
@@ -73,12 +76,12 @@ def cmd_report(args) -> int:
     units = {k: vars(args)[k] if vars(args)[k] is not None else data.get(k, default)
              for k, default in (("length_unit", "m"), ("angle_unit", "rad"), ("joint_cols", None),
                                 ("xyz_cols", ["x", "y", "z"]))}
-    train = kincal.read_measurements(train_path, nominal, **units)
+    train = [kincal.read_measurements(path, nominal, **units) for path in train_paths]
     if data.get("exclude"):
-        train = train.without_rows(data["exclude"])
+        train = [train[0].without_rows(data["exclude"])]
     tests = [kincal.read_measurements(t, nominal, **units) for t in args.test]
     with progress("refitting the calibration", args.json):
-        res = kincal.calibrate(nominal, train, options, use_q=use_q)
+        res = kincal.identify.calibrate_sessions(nominal, train, options, use_q=use_q)
     gap = float(np.max(np.abs(res.robot.params.values - cal.params.values)))
     info = {"robot": f"{args.robot} (nominal values from its calibration record)",
             "units": f"{units['length_unit']}, {units['angle_unit']}"}
@@ -137,7 +140,8 @@ def add_session_flags(p) -> None:
 def register(cmd) -> None:
     s = cmd("report", cmd_report, "the calibration report (HTML with plots, and JSON) of a calibrated robot")
     add_robot(s, "the calibrated robot file written by 'kincal calibrate -o'")
-    s.add_argument("--train", help="the calibration data (default: the file named in the robot's record)")
+    s.add_argument("--train", nargs="+", help="the calibration data, one file per session (default: the files named "
+                                              "in the robot's record)")
     add_session_flags(s)
     s.add_argument("-o", "--output", required=True, help="HTML file to write (the JSON goes beside it)")
     g = s.add_argument_group("data columns and units (default: as recorded by calibrate)")

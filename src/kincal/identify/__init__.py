@@ -6,10 +6,10 @@ from .residuals import RESIDUALS, CartesianResidual, JointResidual
 from .result import CalibrationResult, EvaluationStats
 from .robust import LOSSES
 from .select import ErrorModelChoice
-from .sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
+from .sessions import AS_CALIBRATED, REGISTERED, calibrate_sessions, heldout_cause, refit_frame
 from .verdict import Reason, Thresholds, Verdict
 
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "CalibrationProblem", "build_problem",
            "RESIDUALS", "CartesianResidual", "JointResidual", "CalibrationResult", "EvaluationStats", "LOSSES",
-           "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "REGISTERED",
+           "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
            "AS_CALIBRATED"]

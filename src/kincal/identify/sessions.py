@@ -18,7 +18,7 @@ from .calibrate import calibrate
 HELDOUT_RATIO = 10.0  # a held-out error this many times the training error needs a named cause
 SCALE_TOL = 0.01  # measured vs predicted spread off by more than 1 %: a scale (unit, compensation) error
 REGISTERED = "frame re-registered to these data (both models; kinematics fixed)"
-AS_CALIBRATED = "frame as calibrated (told the measurement frame did not move)"
+AS_CALIBRATED = "frame as calibrated: told the measurement frame did not move"
 
 
 def refit_frame(robot: Robot, meas: Measurements) -> Robot:
@@ -70,3 +70,47 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
     return (f"{head}; neither a moved frame, another tool point nor a scale error explains it: the poses may lie "
             f"outside the calibrated region (see the predicted σ), the robot may have been disturbed (collision, "
             f"re-mastering), or the joint columns differ from the training data")
+
+
+MAX_ROUNDS = 30  # alternations between the sessions' frames and the shared kinematics
+ROUND_TOL = 1e-10  # m or rad: the kinematic parameters have settled when no one moves more than this
+
+
+def _in_frame_of(model: Robot, registered: Robot, meas: Measurements) -> Measurements:
+    """``meas`` (taken in the frame where ``registered`` sees the robot) expressed in ``model``'s frame."""
+    R0, t0 = model.base_transform()
+    Rs, ts = registered.base_transform()
+    xyz = (meas.xyz - ts) @ Rs @ R0.T + t0
+    std = None if meas.std is None else np.sqrt(meas.std**2 @ (Rs @ R0.T) ** 2)  # per-axis variances, rotated
+    return Measurements(meas.q, xyz, meas.joint_names, meas.source, meas.rows, std)
+
+
+def joined(sessions: list[Measurements]) -> Measurements:
+    """Several sessions as one set of measurements (their rows keep their own files' line numbers)."""
+    std = None if any(s.std is None for s in sessions) else np.concatenate([s.std for s in sessions])
+    return Measurements(np.concatenate([s.q for s in sessions]), np.concatenate([s.xyz for s in sessions]),
+                        sessions[0].joint_names, " + ".join(s.source for s in sessions),
+                        np.concatenate([s.rows for s in sessions]), std)
+
+
+def calibrate_sessions(robot: Robot, sessions, options=None, **changes):
+    """Calibrate shared kinematics from several sessions, each measured in its own frame (the tracker
+    moved between them). Alternates: each session's frame re-fitted to the current model (frame only),
+    every session brought into the first one's frame, the kinematics and that frame fitted to all of
+    them, until no kinematic parameter moves more than ROUND_TOL. Each step lowers the total squared
+    error, so the rounds settle. Returns the last fit (its data: the sessions in the first one's frame;
+    its σ leaves out the uncertainty of the other sessions' frames). ``options``/``changes``: as
+    :func:`kincal.calibrate`; one session is simply calibrated."""
+    sessions = [sessions] if isinstance(sessions, Measurements) else list(sessions)
+    if len(sessions) == 1 or not robot.base_params():
+        return calibrate(robot, joined(sessions), options, **changes)
+    keep = np.array([n not in set(robot.base_params()) for n in robot.params.names])
+    model, res = refit_frame(robot, sessions[0]), None
+    for _ in range(MAX_ROUNDS):
+        data = [sessions[0]] + [_in_frame_of(model, refit_frame(model, s), s) for s in sessions[1:]]
+        res = calibrate(robot, joined(data), options, **changes)
+        moved = float(np.max(np.abs(res.robot.params.values - model.params.values)[keep]))
+        model = res.robot
+        if moved < ROUND_TOL:
+            break
+    return res
