@@ -169,7 +169,7 @@ def judge(res: CalibrationResult, problem: CalibrationProblem) -> CalibrationRes
     inliers = res.residuals[z <= th.outlier_z]  # outliers are named on their own, not smeared into σ
     pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
     reasons += drift_reasons(meas.rows, np.linalg.norm(res.residuals, axis=1))
-    reasons += residual_reasons(pos_sigma, noise_level(meas.std, th), th) + outlier_reasons(meas.rows, z, th) + duplicate_reasons(meas.rows, problem.repeats)
+    reasons += residual_reasons(pos_sigma, noise_level(meas.std, th), th) + outlier_reasons(meas.rows, z, th) + duplicate_reasons(meas.rows, problem.repeated_poses)
     return dataclasses.replace(res, verdict=Verdict.from_reasons(reasons), measurements=meas, pose_z=z)
 
 

@@ -39,7 +39,7 @@ class CalibrationProblem:
     ident: Identifiability
     base: str
     values0: np.ndarray
-    repeats: tuple[np.ndarray, ...] = ()  # groups of poses with the same joint values (indices)
+    repeated_poses: tuple[np.ndarray, ...] = ()  # groups of poses with the same commanded joints (indices)
     weights: np.ndarray | None = None  # (N, 3) relative weights (σ_median/σ)² from the measurement σ, if given
 
     @property
@@ -92,8 +92,8 @@ def build_problem(robot: Robot, meas: Measurements, options: FitOptions,
     base, strict = options.base, options.method == "lm"
     meas.check_robot(robot)
     start = robot
-    repeats = tuple(duplicate_groups(meas.q, repeat_tolerance(robot.joint_types, options.thresholds)))
-    distinct = len(meas) - sum(len(g) - 1 for g in repeats)
+    repeated = tuple(duplicate_groups(meas.q, repeat_tolerance(robot.joint_types, options.thresholds)))
+    distinct = len(meas) - sum(len(g) - 1 for g in repeated)
     if base == "estimate":
         if distinct < 3:
             raise MeasurementError(f"{meas.source}: registering the base frame needs at least 3 distinct poses, got "
@@ -116,5 +116,5 @@ def build_problem(robot: Robot, meas: Measurements, options: FitOptions,
             f"measure at least {len(names) // res.components + 1} poses (3-5 times as many is advisable)")
     res.check(start.params.values)
     weights = None if meas.std is None else (float(np.median(meas.std)) / meas.std) ** 2
-    return CalibrationProblem(start, meas, tuple(names), res, ident, base, start.params.values.copy(), repeats,
+    return CalibrationProblem(start, meas, tuple(names), res, ident, base, start.params.values.copy(), repeated,
                               weights)

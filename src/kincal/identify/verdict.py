@@ -146,7 +146,7 @@ def duplicate_groups(q: np.ndarray, tol: np.ndarray | float = 1e-9) -> list[np.n
 
 
 def repeat_tolerance(joint_types, th: "Thresholds") -> np.ndarray:
-    """Per joint, how close two commanded values count as the same pose (ISO 9283 repeats)."""
+    """Per joint, how close two commanded values count as the same pose (a repeated pose, ISO 9283)."""
     return np.array([th.repeat_angle if t == "revolute" else th.repeat_length for t in joint_types])
 
 
