@@ -20,8 +20,8 @@ def cmd_compensate(args) -> int:
     cal = load_robot(args)
     record = kincal.models.load_calibration_record(args.robot) if robot_inputs(args.robot) else None
     nominal_values = (record or {}).get("nominal")
-    r, nominal = command_models(cal, nominal_values if isinstance(nominal_values, dict) else None,
-                                                  args.tcp, args.target_frame)
+    r, nominal = command_models(cal, nominal_values if isinstance(nominal_values, dict) else None, args.tcp,
+                                args.target_frame)
     targets, rows = kincal.read_positions(args.targets, args.xyz_cols, args.length_unit, with_rows=True)
     start = None
     if not r.has_inverse:

@@ -43,7 +43,7 @@ def command_models(calibrated: Robot, nominal_values: Mapping[str, float] | None
             Rf, tf = named[frame]
             R, t = Rf.T @ R, Rf.T @ (t - tf)
         model, nominal = model.with_base_transform(R, t), nominal.with_base_transform(R, t)
-    if model.has_tool_point and tcp is not None:
+    if tcp is not None:  # a robot without a tool point says so (ModelError)
         tcp = np.asarray(tcp, dtype=float)
         model = model.with_tool_point(tcp + _tool_correction(model.tool_point(), nominal.tool_point()))
         nominal = nominal.with_tool_point(tcp)
