@@ -88,16 +88,24 @@ def make_executor(workers: int = 1, scheduler: str | None = None) -> Iterator[Ex
         yield client.get_executor()
 
 
+def _quiet_exit(signum, frame) -> None:
+    """A worker's SIGTERM: exit with 143; multiprocessing prints no traceback for SystemExit."""
+    raise SystemExit(143)
+
+
 def _single_thread() -> None:
     """One BLAS thread per worker process for its whole life (the workers are the parallelism);
-    Ctrl-C is the main process's to handle (signals can be set from a main thread only: a Dask
-    worker runs this in another)."""
+    Ctrl-C is the main process's to handle, and SIGTERM (the main process stopping the pool) ends a
+    worker quietly, unwinding as an exception does (so no lock stays held), instead of through the
+    command line's handler it inherited by fork, whose exception multiprocessing prints with a
+    traceback (signals can be set from a main thread only: a Dask worker runs this in another)."""
     import signal
     import threading
 
     from .._threads import blas_threads
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, _quiet_exit)
     blas_threads(1).__enter__()  # left entered on purpose: the limit lasts as long as the worker
 
 
