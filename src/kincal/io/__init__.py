@@ -1,6 +1,7 @@
 """Measurement data in and out (CSV)."""
-from .measurements import (Measurements, read_joints, read_measurements, read_positions, write_commands,
-                           write_joints, write_measurements, write_residuals)
+from .commands import write_commands
+from .measurements import (Measurements, read_joints, read_measurements, read_positions, write_joints,
+                           write_measurements, write_residuals)
 
 __all__ = ["Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements",
            "write_residuals", "write_commands"]
