@@ -149,16 +149,17 @@ def test_flange_rotation_is_orthonormal_and_matches_finite_differences():
     assert np.allclose(on_axis.forward(q), on_axis.forward(q + dq), atol=1e-12)
 
 
-def test_real_ur5_figures_unchanged_in_the_same_frame(capsys):
-    cols = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
+def test_real_ur5_figures_unchanged_in_the_same_frame():
     robot = kincal.load_robot("ur5")
     grid = kincal.read_measurements(DATA / "ur5_grid.csv", robot, UR5_COLS, length_unit="mm", angle_unit="deg")
     test = kincal.read_measurements(DATA / "ur5_random.csv", robot, UR5_COLS, length_unit="mm", angle_unit="deg")
     res = kincal.calibrate(robot, grid)
     assert res.verdict.status == "good"
     assert kincal.evaluate(res.robot, test).mean == pytest.approx(0.1005e-3, abs=0.00005e-3)
-    assert not res.mounting or "0.0" in res.mounting
-    assert cols  # the CLI spelling is checked in test_cli
+    # the reflector declared at (0, 0.09, 31.0) mm: the fit moves it by under 3 mm, a mounting line, no reason
+    fitted = res.robot.tool_point()
+    assert res.mounting.startswith(f"the data put the target at ({fitted[0] * 1e3:.2f}, ")
+    assert np.linalg.norm(fitted - robot.tool_point()) < 3e-3
 
 
 # ---- commands in the user's frames -----------------------------------------------------------------
@@ -247,7 +248,6 @@ def test_ur10_carries_urs_published_masses():
     r = kincal.load_robot("ur10")
     assert [j.mass for j in r.joints] == UR10_MASSES
     np.testing.assert_allclose([j.com for j in r.joints], UR10_COMS, atol=1e-15)
-    assert "compliance" in kincal.ErrorModel("compliance").name
     extended = kincal.extend(r, kincal.ErrorModel("compliance"), r.sample_joints(20, seed=0))
     assert extended.error_model == "compliance"  # available now that the links have masses
 

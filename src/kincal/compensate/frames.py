@@ -15,6 +15,7 @@ from typing import Mapping
 import numpy as np
 
 from ..models.robot import Robot
+from ..ties import first_best
 from ..units import MM
 
 TARGET_FRAMES = ("base", "measurement")  # besides the frames a robot file names
@@ -71,7 +72,8 @@ def frame_mismatch(nominal: Robot, q: np.ndarray, targets: np.ndarray, rows: np.
     (N, 3), or '': a constant offset in the flange frame is a TCP mismatch, one in the base frame a
     frame offset; targets that fit a named frame of the robot file are in that frame. Scattered
     misses are not a set-up mismatch (the per-row checks name them)."""
-    e = targets - nominal.forward(q)
+    reached = nominal.forward(q)
+    e = targets - reached
     norms = np.linalg.norm(e, axis=1)
     if len(e) < MIN_ROWS or np.median(norms) <= MISMATCH_TOL:  # too few to tell, or most fine: misses are the rows' own
         return ""
@@ -81,7 +83,7 @@ def frame_mismatch(nominal: Robot, q: np.ndarray, targets: np.ndarray, rows: np.
         Rf = nominal.flange_rotation(q)
         c = np.einsum("nji,nj->i", Rf, e) / len(e)
         fits.append(("flange", c, e - Rf @ c))
-    name, c, rest = min(fits, key=lambda f: float(np.sum(f[2] ** 2)))
+    name, c, rest = fits[first_best([float(np.sum(f[2] ** 2)) for f in fits], maximize=False)]  # ties: base frame
     size = float(np.linalg.norm(c))
     if np.sqrt(np.mean(np.sum(rest**2, axis=1))) < EXPLAINED * rms:
         head = f"TCP/frame mismatch of {size * MM:.1f} mm along {_direction(c / size, name)}"
@@ -93,7 +95,7 @@ def frame_mismatch(nominal: Robot, q: np.ndarray, targets: np.ndarray, rows: np.
         return (f"{head}: the targets are in another frame than the model's; say which with --target-frame. Not "
                 f"corrected: a constant offset is a set-up mismatch, not a robot error")
     for frame, (R, t) in nominal.named_frames().items():
-        there = (nominal.forward(q) - t) @ R  # the nominal positions in that frame
+        there = (reached - t) @ R  # the nominal positions in that frame
         if np.max(np.linalg.norm(targets - there, axis=1)) <= MISMATCH_TOL:
             return (f"the targets are in the robot's '{frame}' frame, not its base frame: give --target-frame {frame}")
     return ""  # no set-up mismatch: the rows that miss are named one by one

@@ -17,7 +17,8 @@ import numpy as np
 
 from ..io.measurements import Measurements
 from ..models.parameters import Parameters
-from ..models.robot import JointSpace, Robot, Wrapped
+from ..models.robot import JointSpace, Robot
+from ..models.wrapped import Wrapped
 
 NAMES = ("drift.x", "drift.y", "drift.z")
 ORDER = "acquisition"

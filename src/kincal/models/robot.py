@@ -19,13 +19,14 @@ ability says so with a :class:`~kincal.errors.ModelError` through the same metho
 * gravity loads of link masses (``has_gravity``): ``gravity``; Hayati's β tilts (``has_beta``):
   ``without_beta``.
 
-A robot built on another one is a :class:`Wrapped` robot; the robot it wraps is ``inner``.
+A robot built on another one is a :class:`~kincal.models.wrapped.Wrapped` robot; the robot it wraps
+is ``inner``.
 """
 from __future__ import annotations
 
 import dataclasses
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping, Sequence, TypeVar
 
 import numpy as np
@@ -380,63 +381,3 @@ class Robot(ABC):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(name={self.name!r}, joints={self.n_joints}, params={self.n_params})"
-
-
-@dataclass(frozen=True, eq=False, repr=False)
-class Wrapped(Robot):
-    """A robot built on another one, ``inner``: its parameters are ``inner``'s followed by its own
-    (``params``), and its name, description, base frame, structure notes and preferences among
-    confounded parameters are ``inner``'s."""
-
-    inner: Robot
-    params: Parameters
-    name: str = field(init=False)
-    description: str = field(init=False)
-
-    def __post_init__(self) -> None:
-        n = self.inner.n_params
-        if self.params.names[:n] != self.inner.params.names:
-            raise ModelError(f"robot '{self.inner.name}': parameters must start with the inner robot's")
-        object.__setattr__(self, "name", self.inner.name)
-        object.__setattr__(self, "description", self.inner.description)
-
-    def _rebuild(self, params: Parameters):
-        inner = self.inner.with_params(params.values[:self.inner.n_params])
-        return dataclasses.replace(self, inner=inner, params=params)
-
-    def _split(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(inner's values, own values) of a (P,) vector."""
-        return values[:self.inner.n_params], values[self.inner.n_params:]
-
-    def preferred_params(self) -> tuple[str, ...]:
-        return self.inner.preferred_params()
-
-    def structure_notes(self) -> list[str]:
-        return self.inner.structure_notes()
-
-    def base_params(self) -> tuple[str, ...]:
-        return self.inner.base_params()
-
-    def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.inner.base_transform()
-
-    def named_frames(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        return self.inner.named_frames()
-
-    @property
-    def export_names(self) -> tuple[str, ...]:
-        return self.inner.export_names if self.inner.joint_names == self.joint_names else self.joint_names
-
-    def with_base_transform(self, R_: np.ndarray, t: np.ndarray):
-        return self.with_params(self.inner.with_base_transform(R_, t).params.as_dict())
-
-    @property
-    def error_model(self) -> str:
-        return self.inner.error_model
-
-    @property
-    def term_names(self) -> tuple[str, ...]:
-        return self.inner.term_names
-
-    def compliances(self) -> dict[str, float]:
-        return self.inner.compliances()

@@ -32,7 +32,8 @@ from ..checks import number
 from ..errors import ModelError
 from .gravity import COMPONENTS, GravityModel
 from .parameters import Parameters
-from .robot import JointSpace, Robot, Wrapped
+from .robot import JointSpace, Robot
+from .wrapped import Wrapped
 
 MIN_LEVER = 0.01  # m per rad: RMS tool motion per joint rotation below which angle terms are not modelled
 TAU_REF = 100.0  # N·m: a compliance parameter is the deflection at this load

@@ -22,7 +22,8 @@ import numpy as np
 
 from ..errors import ModelError
 from .parameters import Parameters
-from .robot import JointSpace, Wrapped
+from .robot import JointSpace
+from .wrapped import Wrapped
 from .serial import SerialRobot
 
 TWO_PI = 2.0 * np.pi

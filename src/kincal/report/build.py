@@ -75,13 +75,14 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence[Measur
     info = dict(info or {})
     tests = [test] if isinstance(test, Measurements) else list(test or [])
     th = result.options.thresholds
-    sets = _sets(result, tests, th, same_frame)
+    models = _held_out_models(result, tests, same_frame)
+    sets = _sets(result, tests, models, th)
     headline = [_headline(s, which) for s in sets for which in ("before", "after")]
     figs = _figures(sets, result)
     ctx = {"robot": result.robot.name, "version": __version__, "date": report_date(), "structure": result.robot.structure,
            "n_estimated": len(result.names), "n_train": len(result.measurements), "verdict": result.verdict.to_dict(),
            "outliers": [int(r) for s in sets for r in s.rows[s.outliers]], "headline": headline,
-           "warnings": _warnings(result, sets[1:], tests, same_frame), "parameters": _parameter_rows(result, th),
+           "warnings": _warnings(result, tests, models), "parameters": _parameter_rows(result, th),
            "not_estimated": result.identifiability.confound_lines(""), "data": _data_rows(result, tests, info),
            "iso": _iso9283(sets, result), "json_name": json_path_for(html_name).name,
            "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
@@ -96,16 +97,26 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence[Measur
     return Report(html, data, _summary(result, headline, ctx["warnings"]))
 
 
-def _warnings(result: CalibrationResult, held: list[F.PoseSet], tests: list[Measurements], same_frame: bool) -> list[str]:
+def _warnings(result: CalibrationResult, tests: list[Measurements], models: list[tuple]) -> list[str]:
     """Per held-out session: where the calibrated model extrapolates, and the likely cause of an error
-    far above the training error."""
+    far above the training error (``models``: per session, as :func:`_held_out_models` gives them)."""
     out = []
-    for s, meas in zip(held, tests):
-        model = result.robot if same_frame else refit_frame(result.robot, meas)
-        out += [f"{s.name}: {w}" for w in evaluate(model, meas, uncertainty=result.uncertainty()).warnings]
-        cause = heldout_cause(model, meas, result.stats_after.mean, not same_frame)
+    for meas, (_, model, how) in zip(tests, models):
+        out += [f"{Path(meas.source).name}: {w}"
+                for w in evaluate(model, meas, uncertainty=result.uncertainty()).warnings]
+        cause = heldout_cause(model, meas, result.stats_after.mean, how == REGISTERED)
         out += [cause] if cause else []
     return out
+
+
+def _held_out_models(result: CalibrationResult, tests: list[Measurements], same_frame: bool) -> list[tuple]:
+    """Per held-out session (nominal model, calibrated model, how their frame was set): both re-fitted
+    to the session (kinematics fixed), or with ``same_frame`` as calibrated (the nominal one registered
+    to the training data). Computed once: the headline, the figures and the warnings share them."""
+    if same_frame:
+        nominal = refit_frame(result.nominal, result.measurements)
+        return [(nominal, result.robot, AS_CALIBRATED) for _ in tests]
+    return [(refit_frame(result.nominal, m), refit_frame(result.robot, m), REGISTERED) for m in tests]
 
 
 def _acquisition(result: CalibrationResult) -> dict:
@@ -118,21 +129,16 @@ def _acquisition(result: CalibrationResult) -> dict:
     return {"rows": meas.rows[order].tolist(), "error_mm": norms.tolist(), "trend_mm_per_100_poses": slope}
 
 
-def _sets(result: CalibrationResult, tests: list[Measurements], th: Thresholds, same_frame: bool) -> list[F.PoseSet]:
+def _sets(result: CalibrationResult, tests: list[Measurements], models: list[tuple], th: Thresholds) -> list[F.PoseSet]:
     """The training set (outliers as judged by the calibration) and one set per held-out session (by
     robust z), each with its errors before (nominal) and after (calibrated), both models registered
-    the same way."""
+    the same way (``models``: per session, from :func:`_held_out_models`)."""
     train = result.measurements
-    nominal = refit_frame(result.nominal, train)
-    sets = [_pose_set("training", train, nominal, result.robot, result.pose_z > result.outlier_z,
-                      "frame fitted with the model (nominal: registered to these data)")]
-    for k, meas in enumerate(tests):
-        if same_frame:
-            pair, how = (nominal, result.robot), AS_CALIBRATED
-        else:
-            pair, how = (refit_frame(result.nominal, meas), refit_frame(result.robot, meas)), REGISTERED
-        z = robust_z(np.linalg.norm(meas.xyz - pair[1].forward(meas.q), axis=1))
-        sets.append(dataclasses.replace(_pose_set("held-out", meas, *pair, z > th.outlier_z, how),
+    sets = [_pose_set("training", train, refit_frame(result.nominal, train), result.robot,
+                      result.pose_z > result.outlier_z, "frame fitted with the model (nominal: registered to these data)")]
+    for k, (meas, (nominal, model, how)) in enumerate(zip(tests, models)):
+        z = robust_z(np.linalg.norm(meas.xyz - model.forward(meas.q), axis=1))
+        sets.append(dataclasses.replace(_pose_set("held-out", meas, nominal, model, z > th.outlier_z, how),
                                         name=Path(meas.source).name,
                                         key="held-out" if len(tests) == 1 else f"held-out-{k + 1}",
                                         colour=F.SESSION_COLOURS[k % len(F.SESSION_COLOURS)]))
@@ -167,7 +173,8 @@ def figure_set(result: CalibrationResult, test: Measurements | Sequence[Measurem
     """The report's figures as matplotlib Figures by name (``--plot`` saves them as PNG or SVG); with a
     particle swarm also its fitness per iteration (the 3-PUU paper's Fig. 7)."""
     tests = [test] if isinstance(test, Measurements) else list(test or [])
-    figs = _make_figures(_sets(result, tests, result.options.thresholds, same_frame), result)
+    models = _held_out_models(result, tests, same_frame)
+    figs = _make_figures(_sets(result, tests, models, result.options.thresholds), result)
     if result.history:
         figs["pso-fitness"] = pso_fitness(result.history)
     return figs
