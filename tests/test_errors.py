@@ -74,7 +74,7 @@ def test_joint_count_mismatch(ur5, good, capsys):
 
 def test_mm_read_as_metres_and_the_reverse(ur5, capsys):
     path = DATA / "ur5_grid.csv"
-    with pytest.raises(MeasurementError, match="look like mm read as m.*--length-unit mm"):
+    with pytest.raises(MeasurementError, match="look like mm; use length unit 'mm' .CLI: --length-unit mm"):
         kincal.read_measurements(path, ur5, joint_cols=UR5_COLS, angle_unit="deg")
     code, _, err = run_cli(capsys, "calibrate", "ur5", path, "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS))
     assert code == 1 and "--length-unit mm" in err
@@ -82,7 +82,7 @@ def test_mm_read_as_metres_and_the_reverse(ur5, capsys):
 
 def test_metres_read_as_mm(tmp_path, ur5, good):
     path, _, _ = good
-    with pytest.raises(MeasurementError, match="look like m read as mm"):
+    with pytest.raises(MeasurementError, match="look like m; use length unit 'm'"):
         kincal.read_measurements(path, ur5, length_unit="mm")
 
 

@@ -17,6 +17,7 @@ import math
 
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}  # SI value (m) of one unit
 ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}  # SI value (rad) of one unit
+OTHER_LENGTHS = {"cm": 1e-2, "inch": 0.0254}  # units files are sometimes written in: named in advice only
 
 MM = 1e3  # mm per m
 UM = 1e6  # µm per m

@@ -38,7 +38,8 @@ def fit_options(args) -> kincal.FitOptions:
     error_model = None if args.error_model is None else kincal.ErrorModel(args.error_model, args.payload)
     return kincal.FitOptions(names=args.params or "auto", base=args.base, loss=args.loss, keep=args.keep or (),
                              max_iter=args.max_iter, method=args.method, residual=args.residual,
-                             thresholds=_thresholds(args), error_model=error_model, drift=args.drift)
+                             thresholds=_thresholds(args), error_model=error_model, drift=args.drift,
+                             reject_outliers=args.reject_outliers)
 
 
 def cmd_calibrate(args) -> int:
@@ -82,9 +83,12 @@ def cmd_calibrate(args) -> int:
     text += "".join("\n" + line for line in write_outputs(args, res, test, {
         "robot": args.robot, "units": f"{args.length_unit}, {args.angle_unit}"}))
     emit(args, payload, text)
-    data_problems = [r.code for r in res.verdict.reasons if r.level == "refused" and r.code != "not-converged"]
+    data_problems = [r.code for r in res.verdict.reasons if r.level == "refused" and r.code != "not-converged"
+                     and not r.code.startswith("cause-")]
     if data_problems:  # more telling than the non-convergence they usually cause
-        err.print(f"kincal: calibration refused: {'; '.join(data_problems)}")
+        cause = res.diagnosis.best if res.diagnosis else None
+        err.print(f"kincal: calibration refused: {'; '.join(data_problems)}"
+                  + (f"; likely cause: {cause.cause} (fix: {cause.fix})" if cause else ""))
         return EXIT_REFUSED
     if not res.converged:
         err.print(f"kincal: calibration did not converge: {res.message}")
@@ -161,6 +165,9 @@ def register(cmd) -> None:
                    help="also fit a base drift over acquisition (row) order, e.g. a tracker creeping; reported, "
                         "not kept in the model")
     s.add_argument("--exclude", type=row_list, help="input rows to leave out, e.g. 12,40-42")
+    s.add_argument("--reject-outliers", action="store_true",
+                   help="leave out the poses a robust refit puts beyond the outlier limit (at most a tenth of them); "
+                        "named by row in the output and the report")
     s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers)")
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")
     add_session_flags(s)  # held-out sessions for the report and figures; with --error-model auto also the

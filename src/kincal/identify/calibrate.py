@@ -18,6 +18,7 @@ from ..io.measurements import Measurements
 from ..models.robot import Robot
 from ..models.terms import TAU_REF, drop_terms, extend
 from .covariance import parameter_statistics
+from .diagnosis import TRIGGERS, diagnose, outlier_rows
 from .drift import with_drift, without_drift
 from .lm import LMResult, fit_lm
 from .options import FitOptions
@@ -26,8 +27,8 @@ from .pso import fit_pso
 from .result import CalibrationResult, EvaluationStats
 from .robust import irls
 from .select import select_model
-from .verdict import (Reason, Verdict, correction_reasons, drift_reasons, duplicate_reasons, mounting_reasons,
-                      noise_level, outlier_reasons, residual_reasons, robust_z)
+from .verdict import (Reason, Verdict, correction_reasons, drift_reasons, duplicate_reasons, fitted_drift_reasons,
+                      listed, mounting_reasons, noise_level, outlier_reasons, residual_reasons, robust_z)
 
 
 def calibrate(robot: Robot, meas: Measurements, options: FitOptions | None = None, *, use_q: np.ndarray | None = None,
@@ -54,7 +55,34 @@ def calibrate(robot: Robot, meas: Measurements, options: FitOptions | None = Non
     with blas_threads(1):
         robot, choice = _error_model(robot, meas, options, say, use_q)
         res = dataclasses.replace(_fit(robot, meas, options, say, t0), error_model_choice=choice, use_q=use_q)
-        return _negative_compliance(res, say) or res
+        res = _negative_compliance(res, say) or res
+        if options.reject_outliers:
+            res = _without_outliers(res, say)
+        return _diagnosed(res, say) if options.diagnose else res
+
+
+def _without_outliers(res: CalibrationResult, say) -> CalibrationResult:
+    """The fit repeated without the poses a robust refit puts beyond the outlier limit (none: ``res``)."""
+    rows = outlier_rows(res.nominal, res.measurements, res.options)
+    if not len(rows):
+        return res
+    say(f"leaving out {len(rows)} outlier pose(s): row(s) {listed(rows)}")
+    again = calibrate(res.nominal, res.measurements.without_rows(rows),
+                      res.options.replace(error_model=None, reject_outliers=False, diagnose=False))
+    return dataclasses.replace(again, options=res.options, error_model_choice=res.error_model_choice,
+                               use_q=res.use_q, error_model_notes=res.error_model_notes + again.error_model_notes,
+                               rejected_rows=tuple(int(r) for r in rows))
+
+
+def _diagnosed(res: CalibrationResult, say) -> CalibrationResult:
+    """A doubtful verdict gets the differential diagnosis, its finding as the first reason."""
+    if not any(r.code in TRIGGERS for r in res.verdict.reasons):
+        return res
+    say("trying the common input mistakes")
+    found = diagnose(res)
+    best = found.best
+    reason = Reason(res.verdict.status, f"cause-{best.code}" if best else "cause-unknown", found.message())
+    return dataclasses.replace(res, diagnosis=found, verdict=Verdict(res.verdict.status, (reason, *res.verdict.reasons)))
 
 
 def _fit(robot: Robot, meas: Measurements, o: FitOptions, say, t0: float) -> CalibrationResult:
@@ -71,7 +99,11 @@ def _fit(robot: Robot, meas: Measurements, o: FitOptions, say, t0: float) -> Cal
                                lambda x, wt: fit_lm(problem, x, wt, o.max_iter))
     res = _result(fit_robot, problem, final, fit, w, counts, history, o, time.perf_counter() - t0)
     res = judge(res, problem)
-    return without_drift(res, robot, meas) if o.drift else res
+    if not o.drift:
+        return res
+    res = without_drift(res, robot, meas)
+    found = fitted_drift_reasons(res.drift, noise_level(meas.std, o.thresholds)[0])
+    return dataclasses.replace(res, verdict=Verdict.from_reasons(res.verdict.reasons + tuple(found)))
 
 
 def _error_model(robot: Robot, meas: Measurements, options: FitOptions, say, use_q=None):
@@ -82,7 +114,8 @@ def _error_model(robot: Robot, meas: Measurements, options: FitOptions, say, use
     choice = None
     if spec.name == "auto":
         say("choosing the error model (joint-space blocked cross-validation)")
-        choice = select_model(robot, meas, calibrate, options.replace(error_model=None), use_q=use_q,
+        choice = select_model(robot, meas, calibrate, options.replace(error_model=None, diagnose=False,
+                                                                       reject_outliers=False), use_q=use_q,
                               payload=spec.payload)
         spec = dataclasses.replace(spec, name=choice.chosen)
     return extend(robot, spec, meas.q), choice
@@ -97,7 +130,8 @@ def _negative_compliance(res: CalibrationResult, say) -> CalibrationResult | Non
     notes = tuple(f"{n.split('.')[0]}: compliance came out negative ({res.estimates[n] / TAU_REF:+.3g} rad/(N·m), "
                   f"σ {res.std[n] / TAU_REF:.2g}) and was dropped; the fit was repeated without it" for n in neg)
     say("dropping negative compliance: " + ", ".join(neg))
-    again = calibrate(drop_terms(res.nominal, neg), res.measurements, res.options.replace(error_model=None))
+    again = calibrate(drop_terms(res.nominal, neg), res.measurements,
+                      res.options.replace(error_model=None, reject_outliers=False, diagnose=False))
     return dataclasses.replace(again, options=res.options, error_model_choice=res.error_model_choice,
                                use_q=res.use_q, error_model_notes=notes + again.error_model_notes)
 
@@ -169,7 +203,9 @@ def judge(res: CalibrationResult, problem: CalibrationProblem) -> CalibrationRes
     inliers = res.residuals[z <= th.outlier_z]  # outliers are named on their own, not smeared into σ
     pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
     reasons += drift_reasons(meas.rows, np.linalg.norm(res.residuals, axis=1))
-    reasons += residual_reasons(pos_sigma, noise_level(meas.std, th), th) + outlier_reasons(meas.rows, z, th) + duplicate_reasons(meas.rows, problem.repeated_poses)
+    reasons += residual_reasons(pos_sigma, noise_level(meas.std, th), th)
+    reasons += outlier_reasons(meas.rows, z, th, res.options.loss)
+    reasons += duplicate_reasons(meas.rows, problem.repeated_poses)
     return dataclasses.replace(res, verdict=Verdict.from_reasons(reasons), measurements=meas, pose_z=z)
 
 
@@ -186,7 +222,7 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
         raise ValueError(f"rebase={rebase!r}: True or False")
     meas.check_robot(robot)
     if rebase and robot.base_params():  # frame only, kinematics fixed (kincal.identify.refit_frame)
-        robot = calibrate(robot, meas, names=(), base="estimate").robot
+        robot = calibrate(robot, meas, names=(), base="estimate", diagnose=False).robot
     stats = EvaluationStats.from_errors(meas.xyz - robot.forward(meas.q))
     if uncertainty is None:
         return stats

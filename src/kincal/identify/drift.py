@@ -70,7 +70,8 @@ class DriftRobot(Wrapped):
 def with_drift(robot: Robot, meas: Measurements) -> tuple[DriftRobot, Measurements]:
     """The robot with the drift term, and the measurements with their acquisition place as a joint."""
     q = np.column_stack([meas.q, acquisition(meas.rows)])
-    return DriftRobot.build(robot), Measurements(q, meas.xyz, (*meas.joint_names, ORDER), meas.source, meas.rows)
+    return DriftRobot.build(robot), Measurements(q, meas.xyz, (*meas.joint_names, ORDER), meas.source, meas.rows,
+                                                 meas.std, meas.units)
 
 
 def without_drift(res, robot: Robot, meas: Measurements):

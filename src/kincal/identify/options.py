@@ -88,6 +88,10 @@ class FitOptions:
     error_model-- None (the robot as given), or an :class:`~kincal.ErrorModel` (a name is accepted:
                   "compliance+harmonics:2", "auto")
     drift      -- also fit a base drift over acquisition (row) order (cartesian residual only)
+    reject_outliers -- leave out the poses a robust refit puts beyond ``thresholds.outlier_z`` robust σ
+                  (at most a tenth of them), named by row in the result
+    diagnose   -- when the verdict doubts the data, try the common input mistakes and name the one
+                  that explains them (:mod:`kincal.identify.diagnosis`)
     """
 
     names: str | tuple[str, ...] = "auto"
@@ -103,6 +107,8 @@ class FitOptions:
     thresholds: Thresholds = field(default_factory=Thresholds)
     error_model: ErrorModel | None = None
     drift: bool = False
+    reject_outliers: bool = False
+    diagnose: bool = True
 
     def __post_init__(self) -> None:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -138,6 +144,13 @@ class FitOptions:
         if self.drift not in (True, False) or (self.drift and self.residual != "cartesian"):
             raise ValueError(f"drift={self.drift!r}: True or False; the drift term needs residual='cartesian'")
         set_("drift", bool(self.drift))
+        for k in ("reject_outliers", "diagnose"):
+            if self.__dict__[k] not in (True, False):
+                raise ValueError(f"{k}={self.__dict__[k]!r}: True or False")
+            set_(k, bool(self.__dict__[k]))
+        if self.reject_outliers and self.method != "lm":
+            raise ValueError(f"reject_outliers=True needs method='lm' (got '{self.method}'): the outliers are found "
+                             f"by a robust Levenberg-Marquardt refit")
 
     def check(self, robot: Robot) -> "FitOptions":
         """The checks that need the robot: known parameter names, a residual the robot supports."""
@@ -169,7 +182,7 @@ class FitOptions:
                 "keep": list(self.keep), "rank_tol": self.rank_tol, "max_iter": self.max_iter,
                 "pso": None if self.pso is None else self.pso.to_dict(), "thresholds": self.thresholds.to_dict(),
                 "error_model": None if self.error_model is None else self.error_model.to_dict(),
-                "drift": self.drift}
+                "drift": self.drift, "reject_outliers": self.reject_outliers, "diagnose": self.diagnose}
 
     @classmethod
     def from_dict(cls, data: Mapping, where: str = "calibration record") -> "FitOptions":

@@ -10,9 +10,10 @@ from ..analysis.uncertainty import ModelUncertainty
 from ..io.measurements import Measurements
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import MM, display
+from .diagnosis import Diagnosis
 from .options import FitOptions
 from .select import ErrorModelChoice
-from .verdict import Verdict, mounting_line, noise_level
+from .verdict import Verdict, listed, mounting_line, noise_level
 
 
 @dataclass(frozen=True)
@@ -90,6 +91,8 @@ class CalibrationResult:
     error_model_notes: tuple[str, ...] = ()  # terms dropped after the fit, and why
     drift: dict | None = None  # drift=True: per axis x/y/z the drift over the session (m) and its std
     use_q: np.ndarray | None = None  # (M, n) where the model will be used (the prediction-σ guard)
+    diagnosis: Diagnosis | None = None  # a doubtful verdict: the common mistakes tried, the one that explains
+    rejected_rows: tuple[int, ...] = ()  # reject_outliers: input rows left out as outliers
 
     @property
     def mounting(self) -> str:
@@ -170,6 +173,8 @@ class CalibrationResult:
             "error_model_choice": None if self.error_model_choice is None else self.error_model_choice.to_dict(),
             "error_model_notes": list(self.error_model_notes),
             "drift": self.drift,
+            "diagnosis": None if self.diagnosis is None else self.diagnosis.to_dict(),
+            "rejected_rows": list(self.rejected_rows),
             "mounting": None if not self.mounting else {
                 "tool_point": self.robot.tool_point().tolist(), "declared_tool_point": self.nominal.tool_point().tolist(),
                 "text": self.mounting},
@@ -197,6 +202,9 @@ class CalibrationResult:
                   f"before (nominal, frame registered): {self.stats_before}", f"after:  {self.stats_after}"]
         if self.mounting:
             lines.append(f"mounting: {self.mounting}")
+        if self.rejected_rows:
+            lines.append(f"left out as outliers (more than {self.outlier_z:g} robust σ off a robust refit): row(s) "
+                         f"{listed(self.rejected_rows)}")
         if self.error_model_choice is not None:
             lines.append(str(self.error_model_choice))
         lines += [f"compliance of {j}: {c:.3g} rad/(N·m)" for j, c in self.robot.compliances().items()]

@@ -26,7 +26,7 @@ def refit_frame(robot: Robot, meas: Measurements) -> Robot:
     base frame is returned as it is."""
     if not robot.base_params():
         return robot
-    return calibrate(robot, meas, names=(), base="estimate").robot
+    return calibrate(robot, meas, names=(), base="estimate", diagnose=False).robot
 
 
 def _mean_error(robot: Robot, meas: Measurements) -> float:
@@ -55,7 +55,7 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
             return (f"{head}; with the measurement frame re-registered it is {again * MM:.3f} mm: the tracker moved "
                     f"between sessions (leave out --same-frame so that each session's frame is registered)")
     if robot.has_tool_point and robot.base_params() and len(meas) >= 4:
-        tooled = calibrate(robot, meas, names=TOOL_NAMES, base="estimate").robot
+        tooled = calibrate(robot, meas, names=TOOL_NAMES, base="estimate", diagnose=False).robot
         again = _mean_error(tooled, meas)
         if again < 0.5 * error:
             gap = np.linalg.norm(tooled.tool_point() - robot.tool_point())
@@ -108,7 +108,7 @@ def calibrate_sessions(robot: Robot, sessions, options=None, **changes):
     model, res = refit_frame(robot, sessions[0]), None
     for _ in range(MAX_ROUNDS):
         data = [sessions[0]] + [_in_frame_of(model, refit_frame(model, s), s) for s in sessions[1:]]
-        res = calibrate(robot, joined(data), options, **changes)
+        res = calibrate(robot, joined(data), options, **{**changes, "diagnose": False})
         moved = float(np.max(np.abs(res.robot.params.values - model.params.values)[keep]))
         model = res.robot
         if moved < ROUND_TOL:

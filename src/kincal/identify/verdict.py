@@ -8,8 +8,8 @@ CLI flags):
 * implausible corrections (every estimated parameter except the base frame, which only says where
   the tracker stands, and the tool point, which says where the target is mounted): a length moving more than ``length_suspect`` (10 mm) is suspect, more than
   ``length_refuse`` (50 mm) is refused; an angle more than ``angle_suspect`` (2°) / ``angle_refuse``
-  (10°). Real arms are off by fractions of a mm and a degree; corrections of tens of mm mean data in
-  another unit (cm, inches), swapped joint columns or the wrong robot file;
+  (10°). Real arms are off by fractions of a mm and a degree; corrections of tens of mm mean an input
+  mistake, which the diagnosis names (:mod:`kincal.identify.diagnosis`);
 * mounting: the tool point is where the user mounted the target, not a robot error; the fitted
   point is always reported against the declared one, a distance over ``tool_suspect`` (50 mm) is
   suspect (declare the real point) and over ``tool_refuse`` (1 m: no probe is that long) refused;
@@ -165,8 +165,7 @@ def correction_reasons(robot: Robot, corrections: dict[str, float], th: Threshol
             what = "implausible" if level == "refused" else "large"
             out.append(Reason(level, f"{what}-correction",
                               f"{what} corrections ({shown}; limits {lim_len * MM:g} mm, {lim_ang * DEG:g} "
-                              f"deg): check the length unit of the data (cm or inches declared as mm?), the joint "
-                              f"columns and their order, and the robot file"))
+                              f"deg): the data and the robot file disagree by far more than a real robot's errors"))
             break
     return out
 
@@ -208,8 +207,7 @@ def residual_reasons(sigma: float, noise: tuple[float, str], th: Thresholds) -> 
     msg = (f"residual σ per axis {sigma * MM:.3f} mm is {ratio:.0f}x the tracker noise "
            f"({noise[0] * MM:.3g} mm: {noise[1]})")
     if ratio > th.residual_refuse:
-        return [Reason("refused", "residual", msg + ": data and model do not belong together; check the joint "
-                                                    "columns, units and robot file")]
+        return [Reason("refused", "residual", msg + ": data and model do not belong together")]
     if ratio > th.residual_suspect:
         return [Reason("suspect", "residual", msg + ": the model leaves errors it cannot describe (non-geometric "
                                                     "errors, a moved tracker, bad poses); look at the per-pose "
@@ -217,12 +215,32 @@ def residual_reasons(sigma: float, noise: tuple[float, str], th: Thresholds) -> 
     return []
 
 
-def outlier_reasons(rows: np.ndarray, z: np.ndarray, th: Thresholds) -> list[Reason]:
+def outlier_reasons(rows: np.ndarray, z: np.ndarray, th: Thresholds, loss: str = "linear") -> list[Reason]:
+    """Poses more than ``outlier_z`` robust σ off, named by row, with what to do (given the loss used)."""
     bad = rows[z > th.outlier_z]
     if bad.size == 0:
         return []
+    exclude = ",".join(map(str, bad[:MAX_LISTED]))
+    todo = (f"the {loss} loss already down-weights them; --reject-outliers leaves them out (or --exclude {exclude})"
+            if loss != "linear" else f"use --reject-outliers (or --exclude {exclude}), or --loss huber")
     return [Reason("suspect", "outliers", f"outlier pose(s) more than {th.outlier_z:g} robust σ off: row(s) "
-                                          f"{listed(bad)}; use --loss huber, or --exclude {','.join(map(str, bad[:MAX_LISTED]))}")]
+                                          f"{listed(bad)}; {todo}")]
+
+
+def fitted_drift_reasons(drift: dict | None, noise: float) -> list[Reason]:
+    """A drift term (``{axis: {value, std}}``, m) that found a real drift: larger than 2× the instrument
+    noise and 3 standard errors. The fit absorbs it in these data only; the set-up was not settled."""
+    if not drift:
+        return []
+    d = np.array([drift[a]["value"] for a in drift])
+    sd = np.array([drift[a]["std"] for a in drift])
+    if not (np.linalg.norm(d) > DRIFT_NOISE * noise and np.any(np.abs(d) > DRIFT_Z * sd)):
+        return []
+    shown = ", ".join(f"{a} {drift[a]['value'] * MM:+.3f} mm" for a in drift)
+    return [Reason("suspect", "drift-fitted", f"the measurement frame drifted by {np.linalg.norm(d) * MM:.3f} mm over "
+                                              f"the session ({shown}): the drift term absorbs it in these data only; "
+                                              f"let the tracker and robot warm up, check the tracker's stand, and "
+                                              f"measure again (or repeat a reference pose to track the drift)")]
 
 
 def duplicate_reasons(rows: np.ndarray, groups) -> list[Reason]:
@@ -235,7 +253,7 @@ def duplicate_reasons(rows: np.ndarray, groups) -> list[Reason]:
                    f"as independent and make the stated σ too small; average them or leave the copies out")]
 
 
-DRIFT_RATIO, DRIFT_Z, DRIFT_MIN_POSES = 1.5, 3.0, 50
+DRIFT_RATIO, DRIFT_Z, DRIFT_MIN_POSES, DRIFT_NOISE = 1.5, 3.0, 50, 2.0
 
 
 def drift_reasons(rows: np.ndarray, norms: np.ndarray) -> list[Reason]:

@@ -14,7 +14,7 @@ import numpy as np
 from .._atomic import write_text_atomic
 from ..errors import MeasurementError
 from ..models.robot import Robot
-from ..units import unit_factor
+from ..units import LENGTH_UNITS, OTHER_LENGTHS, unit_factor
 
 MAX_LISTED = 10  # rows named in an error message
 
@@ -32,6 +32,7 @@ class Measurements:
     source: str = "<memory>"
     rows: np.ndarray | None = field(default=None)
     std: np.ndarray | None = field(default=None)  # (N, 3) m: the instrument's σ per sample and axis, if given
+    units: tuple[str, str] | None = None  # (length, angle) units the file was read in, for advice; None: SI
 
     def __post_init__(self) -> None:
         q = np.array(self.q, dtype=float)
@@ -69,7 +70,7 @@ class Measurements:
         """The measurements at the given positions (indices or boolean mask)."""
         idx = np.asarray(index)
         return Measurements(self.q[idx], self.xyz[idx], self.joint_names, self.source, self.rows[idx],
-                            None if self.std is None else self.std[idx])
+                            None if self.std is None else self.std[idx], self.units)
 
     def without_rows(self, rows: Sequence[int]) -> "Measurements":
         """The measurements less the given input rows (file line numbers, header = 1)."""
@@ -101,31 +102,48 @@ class Measurements:
                     f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)"
                 )
         if len(self) >= 3:
-            spread = _spread(robot.forward(self.q))
-            ratio = _spread(self.xyz) / max(spread, 1e-300)
-            if spread > MIN_SPREAD and not 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
-                raise MeasurementError(f"{self.source}: {_unit_hint(ratio, length_unit)}")
+            self._check_spread(robot, length_unit or (self.units[0] if self.units else None),
+                               angle_unit or (self.units[1] if self.units else None))
+
+    def _check_spread(self, robot: Robot, length_unit: str | None, angle_unit: str | None) -> None:
+        """The measured spread against the robot's at the same joints: off by more than SPREAD_RATIO is
+        a unit mistake, named (angles read in the other unit first, then the length unit)."""
+        spread = _spread(robot.forward(self.q))
+        ratio = _spread(self.xyz) / max(spread, 1e-300)
+        if spread > MIN_SPREAD and 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
+            return
+        rev = np.array([t == "revolute" for t in robot.joint_types])
+        if angle_unit == "deg" and rev.any():
+            q = self.q.copy()
+            q[:, rev] *= 180.0 / np.pi
+            if 1 / SPREAD_RATIO < _spread(self.xyz) / max(_spread(robot.forward(q)), 1e-300) < SPREAD_RATIO:
+                raise MeasurementError(f"{self.source}: read as degrees, the joint values move the robot "
+                                       f"{max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the measured positions "
+                                       f"spread, read as radians they match: use angle unit 'rad' (CLI: --angle-unit "
+                                       f"rad)")
+        if spread > MIN_SPREAD:
+            raise MeasurementError(f"{self.source}: {_unit_hint(ratio, length_unit)}")
 
 
 MIN_SPREAD = 1e-3  # m: below this the poses barely move the tool, and noise decides the spread
 SPREAD_RATIO = 2.0  # measured vs predicted spread at the same poses; model errors change it by < 1 %
-_FACTORS = ((1000.0, "mm read as m, or m read as mm"), (25.4, "inches"), (10.0, "cm"))
 
 
 def _unit_hint(ratio: float, length_unit: str | None) -> str:
-    """Why the measured spread is off by ``ratio``, and what to do."""
-    unit = f" with length unit '{length_unit}'" if length_unit else ""
-    if ratio > 30:
-        return (f"measured positions spread {ratio:.0f}x more than the robot can move{unit}; they look like mm read "
-                f"as m: use length unit 'mm' (CLI: --length-unit mm)")
-    if ratio < 1 / 30:
-        return (f"measured positions spread {1 / ratio:.0f}x less than the robot moves{unit}; they look like m read "
-                f"as mm: use length unit 'm' (CLI: --length-unit m)")
-    f, what = min(_FACTORS, key=lambda x: abs(np.log(max(ratio, 1 / ratio) / x[0])))
-    side = "more" if ratio > 1 else "less"
-    return (f"measured positions spread {max(ratio, 1 / ratio):.3g}x {side} than the robot moves at the same joint "
-            f"values{unit} (nearest unit factor {f:g}: {what}?); convert the positions to the declared unit, or "
-            f"check the joint columns and the robot file")
+    """Why the measured spread is off by ``ratio`` (read in ``length_unit``, default m), and what to do:
+    the unit the positions are really in when one explains the factor."""
+    table = {**LENGTH_UNITS, **OTHER_LENGTHS}
+    declared = length_unit if length_unit in table else "m"
+    true = table[declared] / ratio  # the SI value of the unit the numbers are really in
+    name = min(table, key=lambda k: abs(np.log(table[k] / true)))
+    side = f"{ratio:.3g}x more" if ratio > 1 else f"{1 / ratio:.3g}x less"
+    head = f"measured positions spread {side} than the robot moves at the same joint values (read as '{declared}')"
+    if abs(np.log(table[name] / true)) > np.log(1.3):
+        return f"{head}; no length unit explains that factor: check the joint columns and the robot file"
+    if name in LENGTH_UNITS:
+        return f"{head}: they look like {name}; use length unit '{name}' (CLI: --length-unit {name})"
+    return (f"{head}: they look like {name}; convert them to mm (x{table[name] / 1e-3:g}) and use length unit 'mm' "
+            f"(CLI: --length-unit mm)")
 
 
 def _check_finite(source: str, values: np.ndarray, rows: np.ndarray, what: str) -> None:
@@ -283,7 +301,7 @@ def read_measurements(
     n, lf = robot.n_joints, _unit(length_unit, "length", path)
     meas = Measurements(data[:, :n] * _joint_scale(robot.joint_types, length_unit, angle_unit, path),
                         data[:, n:n + 3] * lf, robot.joint_names, path, lines,
-                        data[:, n + 3:] * lf if std_cols else None)
+                        data[:, n + 3:] * lf if std_cols else None, (length_unit, angle_unit))
     meas.check_robot(robot, length_unit, angle_unit)
     return meas
 

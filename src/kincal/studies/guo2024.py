@@ -224,7 +224,8 @@ def _identify(robot, kin, designs, size, repeats, noise, protocol, say):
                 fitted = paper_lm(robot, meas, kin)
                 corr = {n: fitted.params[n] - robot.params[n] for n in kin}
             else:
-                fitted = calibrate(robot, meas, names=ident.identifiable, base="fixed", max_iter=200).robot
+                fitted = calibrate(robot, meas, names=ident.identifiable, base="fixed", diagnose=False,
+                                   max_iter=200).robot
                 corr = {n: fitted.params[n] - robot.params[n] for n in ident.identifiable}
             stats = evaluate(fitted, val)
             runs[name].append((stats.mean, stats.std))

@@ -95,7 +95,7 @@ class Guo2024Trials:
             for name, q in designs.items():
                 xyz = self.positions(model, q, sag) + rng.normal(0.0, self.noise, (len(q), 3))
                 res = calibrate(robot, Measurements(q, xyz, robot.joint_names), names=estimated[name], base="fixed",
-                                max_iter=200)
+                                diagnose=False, max_iter=200)
                 for val, qv in (("grid", self.grid), ("random", self.validation)):
                     err = self.positions(model, qv, sag) - res.robot.forward(qv)
                     e = err.mean(axis=1)

@@ -1,0 +1,300 @@
+"""Differential diagnosis of a refused or suspect calibration: which common mistake explains the data.
+
+A fit whose verdict says the data and the robot disagree (implausible corrections, a residual far above
+the instrument noise, outliers) gets the cheap candidate causes tried one by one, and
+the one that explains the data is named with its fix and the figure that shows it ("without row 39
+the residual σ falls from 1.18 mm to 0.011 mm"). Each candidate is a changed copy of the data or of the
+fit's set-up, listed in this canonical order (ties go to the earlier one, :mod:`kincal.ties`):
+
+1. length unit: the positions are in another unit (m, mm, µm, cm, inch) than the declared one;
+2. angle unit: all revolute joint columns, or one of them, are in the other angle unit;
+3. joint columns: one negated, one offset by +90°, −90° or 180°, two swapped;
+4. mirrored positions: a left-handed measurement frame (two axes swapped, or one negated: with the
+   frame fitted these are one and the same mistake);
+5. rows shifted: each position belongs to the joints one row above or below;
+6. the robot file: a bundled robot with the same joints fits the data;
+7. the frame: ``base="fixed"`` on data measured in another frame (a tracker's);
+8. the tool point: not estimated, and mounted elsewhere than declared;
+9. a few bad poses: the rows a robust refit puts beyond ``outlier_z`` robust σ, left out.
+
+Two stages keep it cheap. Candidates 1–6 change the data; each is screened by registering the
+nominal model to it (measurement frame and tool point only, ~10 ms for 80 poses). The MAX_FULL best
+screens that beat the data as given, and candidates 7–9, then get a full calibration with the user's
+options. A candidate explains the data when its verdict is better than the original one with a
+residual σ no more than NOT_WORSE times the original, or when its σ falls below EXPLAIN_RATIO times
+the original; those that do are ranked by verdict, then σ.
+"""
+from __future__ import annotations
+
+import functools
+import itertools
+import math
+from dataclasses import dataclass, replace
+from typing import Callable
+
+import numpy as np
+
+from ..errors import KincalError
+from ..io.measurements import Measurements
+from ..models.robot import TOOL_NAMES, Robot
+from ..units import ANGLE_UNITS, LENGTH_UNITS, MM, OTHER_LENGTHS
+from ..ties import order_with_ties
+from .verdict import STATUSES, listed, robust_z
+
+EXPLAIN_RATIO = 0.5  # a candidate whose fit leaves less than half the residual σ explains the data
+NOT_WORSE = 2.0  # ... or one with a better verdict and a residual σ at most this many times the original
+MAX_FULL = 3  # screened data changes that get a full calibration
+TRIGGERS = ("implausible-correction", "large-correction", "residual", "outliers")
+SCREEN_POSES = 200  # the screen registers the nominal model to the first this many poses
+SCREEN_ITERATIONS = 8  # ... in this many steps: enough to tell a fitting change from the rest
+MAX_OUTLIER_SHARE = 0.1  # "a few bad poses": at most this share of the poses
+
+
+@dataclass(frozen=True)
+class Cause:
+    """One candidate mistake: a short code, what went wrong, what to do, and — once tried — the
+    residual σ per axis (m) and the verdict of the fit with the mistake undone."""
+
+    code: str
+    cause: str
+    fix: str
+    sigma: float = math.nan
+    status: str = ""
+    rows: tuple[int, ...] = ()
+
+    def to_dict(self) -> dict:
+        return {"code": self.code, "cause": self.cause, "fix": self.fix, "sigma": self.sigma, "status": self.status,
+                "rows": list(self.rows)}
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """The fit as given (σ per axis, m; verdict) and the causes that explain it, best first."""
+
+    sigma: float
+    status: str
+    found: tuple[Cause, ...]
+    tried: int
+
+    @property
+    def best(self) -> Cause | None:
+        return self.found[0] if self.found else None
+
+    def message(self) -> str:
+        """One sentence for the verdict: the likely cause with its figure and fix, or what was tried."""
+        c = self.best
+        if c is None:
+            return (f"none of the {self.tried} common input mistakes kincal tried (joint columns, position frame, "
+                    f"rows, tool point, bad poses, robot file) explains the data better")
+        if c.sigma < EXPLAIN_RATIO * self.sigma:
+            figure = f"the residual σ per axis falls from {self.sigma * MM:.4g} mm to {c.sigma * MM:.4g} mm"
+        else:
+            figure = f"the verdict becomes {c.status} (residual σ {c.sigma * MM:.4g} mm)"
+        return f"likely cause: {c.cause}; with that undone {figure}. Fix: {c.fix}"
+
+    def to_dict(self) -> dict:
+        return {"sigma": self.sigma, "status": self.status, "tried": self.tried,
+                "found": [c.to_dict() for c in self.found]}
+
+
+Change = Callable[[Robot, Measurements, object], tuple[Robot, Measurements, object]]
+
+
+def _data(change: Callable[[Measurements], Measurements]) -> Change:
+    return lambda robot, meas, options: (robot, change(meas), options)
+
+
+def _with(meas: Measurements, q=None, xyz=None, index=None) -> Measurements:
+    m = meas if index is None else meas.subset(index)
+    return replace(m, q=m.q if q is None else q, xyz=m.xyz if xyz is None else xyz)
+
+
+def _length_units(meas: Measurements) -> list[tuple[Cause, Change]]:
+    table = {**LENGTH_UNITS, **OTHER_LENGTHS}
+    declared = meas.units[0] if meas.units else "m"
+    out = []
+    for name, f in table.items():
+        if name == declared:
+            continue
+        fix = (f"read them with --length-unit {name}" if name in LENGTH_UNITS else
+               f"convert them to mm (x{f / 1e-3:g}) and read them with --length-unit mm")
+        k = f / table[declared]
+        out.append((Cause("length-unit", f"the positions are in {name}, read as {declared}", fix),
+                    _data(lambda m, k=k: _with(m, xyz=m.xyz * k))))
+    return out
+
+
+def _angle_units(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]:
+    declared = meas.units[1] if meas.units else "rad"
+    other = "rad" if declared == "deg" else "deg"
+    k = ANGLE_UNITS[other] / ANGLE_UNITS[declared]
+    rev = [j for j, t in enumerate(robot.joint_types) if t == "revolute"]
+    if not rev:
+        return []
+
+    def scaled(cols):
+        return _data(lambda m: _with(m, q=_set(m.q, cols, m.q[:, cols] * k)))
+    out = [(Cause("angle-unit", f"the joint values are in {other}, read as {declared}",
+                  f"read them with --angle-unit {other}"), scaled(rev))]
+    for j in rev:
+        name = robot.joint_names[j]
+        out.append((Cause("joint-unit", f"{name}'s column is in {other}, the other joints' in {declared}",
+                          f"convert {name}'s column to {declared}"), scaled([j])))
+    return out
+
+
+def _set(q: np.ndarray, cols, values) -> np.ndarray:
+    q = q.copy()
+    q[:, cols] = values
+    return q
+
+
+def _joint_columns(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]:
+    names, out = robot.joint_names, []
+    for j, name in enumerate(names):
+        out.append((Cause("joint-sign", f"{name} counts the other way (its column is negated)",
+                          f"negate {name}'s column, or check its axis direction in the robot file"),
+                    _data(lambda m, j=j: _with(m, q=_set(m.q, [j], -m.q[:, [j]])))))
+    for j, name in enumerate(names):
+        if robot.joint_types[j] != "revolute":
+            continue
+        for deg in (90.0, -90.0, 180.0):
+            out.append((Cause("joint-zero", f"{name}'s column is {deg:g} deg short of the robot file's joint angle "
+                                            f"(the controller's zero differs)",
+                              f"add {deg:g} deg to {name}'s column, or move the joint's zero in the robot file"),
+                        _data(lambda m, j=j, d=deg: _with(m, q=_set(m.q, [j], m.q[:, [j]] + np.deg2rad(d))))))
+    for a, b in itertools.combinations(range(len(names)), 2):
+        out.append((Cause("joint-order", f"the columns of {names[a]} and {names[b]} are swapped",
+                          f"swap them (give --joint-cols in the robot's joint order)"),
+                    _data(lambda m, a=a, b=b: _with(m, q=m.q[:, _swapped(len(names), a, b)]))))
+    return out
+
+
+def _swapped(n: int, a: int, b: int) -> list[int]:
+    order = list(range(n))
+    order[a], order[b] = b, a
+    return order
+
+
+def _frame_and_rows() -> list[tuple[Cause, Change]]:
+    return [
+        (Cause("mirrored", "the positions are mirrored (a left-handed measurement frame: two axes swapped or one "
+                           "negated)", "check the instrument's axis order and signs; kincal needs a right-handed "
+                                       "frame"), _data(lambda m: _with(m, xyz=m.xyz * [1.0, 1.0, -1.0]))),
+        (Cause("row-shift", "each position is one row late (it belongs to the joints one row above)",
+               "move the position columns up by one row (check the export's timing)"),
+         _data(lambda m: _with(m, q=m.q[:-1], index=np.arange(1, len(m))))),
+        (Cause("row-shift", "each position is one row early (it belongs to the joints one row below)",
+               "move the position columns down by one row (check the export's timing)"),
+         _data(lambda m: _with(m, q=m.q[1:], index=np.arange(len(m) - 1)))),
+    ]
+
+
+@functools.lru_cache(maxsize=None)
+def _bundled(name: str) -> Robot:
+    from ..models.yaml_io import load_robot
+    return load_robot(name)
+
+
+def _robot_files(robot: Robot) -> list[tuple[Cause, Change]]:
+    from ..models.yaml_io import bundled_robots
+    out = []
+    for name in bundled_robots():
+        other = _bundled(name)
+        if name == robot.name or other.joint_types != robot.joint_types or type(other) is not type(robot):
+            continue
+        if robot.has_tool_point and other.has_tool_point:
+            other = other.with_tool_point(robot.tool_point())
+        out.append((Cause("robot-file", f"the data belong to another robot: they fit the bundled '{name}'",
+                          f"calibrate with robot '{name}', or check the robot file's lengths"),
+                    lambda r, m, o, other=other: (other, m, o)))
+    return out
+
+
+def _setups(robot: Robot, options) -> list[tuple[Cause, Change]]:
+    """Changes of the fit's set-up (full calibration only): the frame, the tool point."""
+    out: list[tuple[Cause, Change]] = []
+    if options.base == "fixed" and robot.base_params():
+        out.append((Cause("frame", "the positions are not in the robot's base frame (--base fixed on data measured "
+                                   "in the instrument's own frame)", "leave out --base fixed: the measurement frame "
+                                                                     "is then fitted"),
+                    lambda r, m, o: (r, m, o.replace(base="estimate"))))
+    tool = [n for n in TOOL_NAMES if n in robot.params.names]
+    if tool and options.names != "auto" and not set(tool) <= set(options.names):
+        out.append((Cause("tool-point", "the target is not at the declared tool point",
+                          "estimate it (add tool.x,tool.y,tool.z to --params) or declare it with --tool"),
+                    lambda r, m, o: (r, m, o.replace(names=tuple(o.names) + tuple(tool)))))
+    return out
+
+
+def outlier_rows(robot: Robot, meas: Measurements, options) -> np.ndarray:
+    """Input rows of the poses a robust (Huber) refit puts more than ``outlier_z`` robust σ off, at most
+    MAX_OUTLIER_SHARE of the poses (none when more are that far off: then it is not a few bad poses)."""
+    from .calibrate import calibrate
+    robust = calibrate(robot, meas, _quiet(options).replace(loss="huber", method="lm", f_scale=None))
+    z = robust_z(np.linalg.norm(robust.residuals, axis=1))
+    bad = robust.measurements.rows[z > options.thresholds.outlier_z]
+    return bad if 0 < len(bad) <= max(1, int(MAX_OUTLIER_SHARE * len(meas))) else bad[:0]
+
+
+def _quiet(options):
+    """The options for a trial fit: no diagnosis, no model choice, no drift, nothing left out."""
+    return options.replace(diagnose=False, reject_outliers=False, error_model=None, drift=False, pso=None,
+                           method="lm" if options.method == "pso" else options.method)
+
+
+def _screen(robot: Robot, meas: Measurements) -> float:
+    """Residual σ per axis (m) of the nominal model registered to ``meas`` (measurement frame and tool
+    point fitted, kinematics fixed); inf when that fit is impossible."""
+    from .calibrate import calibrate
+    tool = tuple(n for n in TOOL_NAMES if n in robot.params.names)
+    base = "estimate" if robot.base_params() else "fixed"
+    try:
+        return calibrate(robot, meas, names=tool, base=base, diagnose=False, max_iter=SCREEN_ITERATIONS).sigma
+    except (KincalError, ValueError, np.linalg.LinAlgError):
+        return math.inf
+
+
+def _full(cause: Cause, change: Change, robot: Robot, meas: Measurements, options) -> Cause | None:
+    """``cause`` with the σ and verdict of the full calibration with its change applied (None if impossible)."""
+    from .calibrate import calibrate
+    try:
+        r, m, o = change(robot, meas, _quiet(options))
+        res = calibrate(r, m, o)
+    except (KincalError, ValueError, np.linalg.LinAlgError):
+        return None
+    return replace(cause, sigma=res.sigma, status=res.verdict.status)
+
+
+def diagnose(res) -> Diagnosis:
+    """Try the candidate causes of a doubtful fit ``res`` (a :class:`CalibrationResult` with its
+    measurements) and rank those that explain the data; see the module docstring."""
+    robot, meas, options = res.nominal, res.measurements, res.options
+    data = (_length_units(meas) + _angle_units(robot, meas) + _joint_columns(robot, meas) + _frame_and_rows()
+            + _robot_files(robot))
+    block = meas.subset(np.arange(min(len(meas), SCREEN_POSES)))  # consecutive: row shifts stay row shifts
+    screened = [_screen(*change(robot, block, options)[:2]) for _, change in data]
+    as_given = _screen(robot, block)
+    order = sorted((k for k, s in enumerate(screened) if s < EXPLAIN_RATIO * as_given), key=lambda k: screened[k])
+    trials = [data[k] for k in sorted(order[:MAX_FULL])] + _setups(robot, options)
+    rows = outlier_rows(robot, meas, options) if len(meas) > 10 else []
+    if len(rows):
+        trials.append((Cause("outliers", f"a few bad poses: row(s) {listed(rows)} lie far off the rest",
+                             f"leave them out (--reject-outliers, or --exclude {','.join(map(str, rows))}) and "
+                             f"check how they were measured", rows=tuple(int(r) for r in rows)),
+                       lambda r, m, o: (r, m.without_rows(rows), o)))
+    tried = [c for c in (_full(cause, change, robot, meas, options) for cause, change in trials) if c is not None]
+    return Diagnosis(res.sigma, res.verdict.status, _ranked(tried, res), len(data) + len(trials) - len(order[:MAX_FULL]))
+
+
+def _ranked(tried: list[Cause], res) -> tuple[Cause, ...]:
+    """The causes that explain the data, best verdict first, then smallest σ; ties (kincal.ties) keep
+    the canonical order."""
+    level = STATUSES.index(res.verdict.status)
+    good = [c for c in tried if c.sigma < EXPLAIN_RATIO * res.sigma
+            or (STATUSES.index(c.status) < level and c.sigma <= NOT_WORSE * res.sigma)]
+    out: list[Cause] = []
+    for status in STATUSES:
+        same = [c for c in good if c.status == status]
+        out += [same[k] for k in order_with_ties([c.sigma for c in same], descending=False)]
+    return tuple(out)

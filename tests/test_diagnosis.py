@@ -1,0 +1,175 @@
+"""The differential diagnosis names the true cause of a mistaken-but-plausible input, and gives unit
+advice only when a unit is what went wrong.
+
+A table of mistakes, each made on simulated data of a UR5 (DH, bundled) or a Franka Panda (URDF): the
+cause kincal names first — the error raised while reading, the first reason of the verdict — must be the
+mistake that was made in at least 90 % of the cases, and no case whose units are right may get unit
+advice."""
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import kincal
+from kincal.errors import MeasurementError
+from kincal.models.transforms import rot_zyx
+
+PANDA = Path(__file__).parent / "data" / "urdf" / "panda" / "panda.urdf"
+TOOL = (0.05, 0.02, 0.10)  # m: a probe off the flange axis, so that every joint moves it
+UNIT_WORDS = ("--length-unit", "--angle-unit", "length unit", "angle unit", " cm", "inch")
+UNIT_CAUSES = ("length-unit", "angle-unit", "joint-unit")
+
+
+@dataclasses.dataclass(frozen=True)
+class Setup:
+    robot: kincal.Robot
+    good: kincal.Measurements  # simulated, units as declared: mm and deg
+
+
+def _setup(robot: kincal.Robot, n: int, seed: int) -> Setup:
+    true = kincal.perturb(robot, seed=seed)
+    q = robot.sample_joints(n, seed=seed)
+    meas = kincal.simulate(true, q, 15e-6, seed=seed)
+    return Setup(robot, dataclasses.replace(meas, units=("mm", "deg")))
+
+
+@pytest.fixture(scope="module")
+def setups():
+    ur5 = kincal.load_robot("ur5", tool=TOOL)
+    panda = kincal.load_robot(PANDA, tip_link="ball_link", tool=TOOL)
+    ur10 = kincal.load_robot("ur10", tool=TOOL)
+    q = ur5.sample_joints(50, seed=5)
+    ur10_data = dataclasses.replace(kincal.simulate(kincal.perturb(ur10, seed=5), q, 15e-6, seed=5), units=("mm", "deg"))
+    return {"ur5": _setup(ur5, 50, 5), "panda": _setup(panda, 60, 6), "ur10-data": Setup(ur5, ur10_data)}
+
+
+def _q(m, f):
+    q = m.q.copy()
+    f(q)
+    return dataclasses.replace(m, q=q)
+
+
+def _xyz(m, f):
+    return dataclasses.replace(m, xyz=f(m.xyz))
+
+
+def _col(j, f):
+    def change(m):
+        def g(q):
+            q[:, j] = f(q[:, j])
+        return _q(m, g)
+    return change
+
+
+def _swap(a, b):
+    def change(m):
+        order = list(range(m.q.shape[1]))
+        order[a], order[b] = b, a
+        return dataclasses.replace(m, q=m.q[:, order])
+    return change
+
+
+def _outliers(rows, size=0.05):
+    def change(m):
+        xyz = m.xyz.copy()
+        xyz[list(rows)] += [size, 0.0, 0.0]
+        return dataclasses.replace(m, xyz=xyz)
+    return change
+
+
+def _moved(m):
+    return _xyz(m, lambda p: p @ rot_zyx(0.6, 0.1, -0.05).T + [1.2, -0.4, 0.3])
+
+
+def _row_shift(late):
+    def change(m):
+        n = len(m)
+        if late:  # each position was written one row after its joints
+            return dataclasses.replace(m.subset(np.arange(1, n)), q=m.q[:-1])
+        return dataclasses.replace(m.subset(np.arange(n - 1)), q=m.q[1:])
+    return change
+
+
+def _declared(m, units):
+    return dataclasses.replace(m, units=units)
+
+
+DEG = np.pi / 180
+CASES = [  # name, setup, mistake on the data, fit options, the cause to name first
+    ("cm-read-as-mm", "ur5", lambda m: _xyz(m, lambda p: p * 0.1), {}, "length-unit"),
+    ("inch-read-as-mm", "ur5", lambda m: _xyz(m, lambda p: p / 25.4), {}, "length-unit"),
+    ("mm-read-as-um", "ur5", lambda m: _declared(_xyz(m, lambda p: p * 1e-3), ("um", "deg")), {}, "length-unit"),
+    ("mm-read-as-m", "ur5", lambda m: _declared(_xyz(m, lambda p: p * 1e3), ("m", "deg")), {}, "length-unit"),
+    ("m-read-as-mm", "ur5", lambda m: _xyz(m, lambda p: p * 1e-3), {}, "length-unit"),
+    ("rad-read-as-deg", "ur5", lambda m: _q(m, lambda q: q.__imul__(DEG)), {}, "angle-unit"),
+    ("deg-read-as-rad", "ur5", lambda m: _declared(_q(m, lambda q: q.__imul__(1 / DEG)), ("mm", "rad")), {},
+     "angle-unit"),
+    *[(f"j{j + 1}-negated", "ur5", _col(j, np.negative), {}, "joint-sign") for j in range(6)],
+    *[(f"j{j + 1}-zero{d:+d}", "ur5", _col(j, lambda v, d=d: v - d * DEG), {}, "joint-zero")
+      for j, d in ((1, 90), (2, -90), (4, 180), (3, 90))],
+    *[(f"swap-j{a + 1}-j{b + 1}", "ur5", _swap(a, b), {}, "joint-order") for a, b in ((0, 1), (1, 2), (3, 4), (2, 5))],
+    ("j4-in-rad", "ur5", _col(3, lambda v: v * DEG), {}, "joint-unit"),
+    ("j6-in-rad", "ur5", _col(5, lambda v: v * DEG), {}, "joint-unit"),
+    ("y-negated", "ur5", lambda m: _xyz(m, lambda p: p * [1, -1, 1]), {}, "mirrored"),
+    ("x-y-swapped", "ur5", lambda m: _xyz(m, lambda p: p[:, [1, 0, 2]]), {}, "mirrored"),
+    ("y-z-swapped", "ur5", lambda m: _xyz(m, lambda p: p[:, [0, 2, 1]]), {}, "mirrored"),
+    ("positions-one-row-late", "ur5", _row_shift(True), {}, "row-shift"),
+    ("positions-one-row-early", "ur5", _row_shift(False), {}, "row-shift"),
+    ("base-fixed-on-tracker-data", "ur5", _moved, {"base": "fixed"}, "frame"),
+    ("one-50mm-outlier", "ur5", _outliers([17]), {}, "outliers"),
+    ("two-outliers", "ur5", _outliers([3, 40], 0.03), {}, "outliers"),
+    ("one-outlier-with-huber", "ur5", _outliers([17]), {"loss": "huber"}, "outliers"),
+    ("ur10-data-on-ur5-file", "ur10-data", lambda m: m, {}, "robot-file"),
+    ("probe-93mm-off", "ur5", lambda m: m, {"tool": (0.05, 0.02, 0.1 - 0.093)}, "tool-point"),
+    ("forgotten-tool", "ur5", lambda m: m, {"tool": (0.0, 0.0, 0.0)}, "tool-point"),
+    ("panda-cm-read-as-mm", "panda", lambda m: _xyz(m, lambda p: p * 0.1), {}, "length-unit"),
+    ("panda-rad-read-as-deg", "panda", lambda m: _q(m, lambda q: q.__imul__(DEG)), {}, "angle-unit"),
+    *[(f"panda-j{j + 1}-negated", "panda", _col(j, np.negative), {}, "joint-sign") for j in (0, 3, 5)],
+    ("panda-j2-zero+90", "panda", _col(1, lambda v: v - 90 * DEG), {}, "joint-zero"),
+    ("panda-swap-j2-j4", "panda", _swap(1, 3), {}, "joint-order"),
+    ("panda-mirrored", "panda", lambda m: _xyz(m, lambda p: p * [-1, 1, 1]), {}, "mirrored"),
+    ("panda-row-late", "panda", _row_shift(True), {}, "row-shift"),
+    ("panda-base-fixed", "panda", _moved, {"base": "fixed"}, "frame"),
+    ("panda-outlier", "panda", _outliers([30]), {}, "outliers"),
+]
+
+
+def named_cause(robot: kincal.Robot, meas: kincal.Measurements, options: dict) -> tuple[str, str]:
+    """The cause kincal names first, as a code, and everything it said."""
+    options = dict(options)
+    if "tool" in options:
+        robot = robot.with_tool_point(options.pop("tool"))
+    try:
+        res = kincal.calibrate(robot, meas, **options)
+    except MeasurementError as exc:  # refused while reading: the message names a unit or nothing
+        text = str(exc)
+        code = ("angle-unit" if "use angle unit" in text else "length-unit" if "use length unit" in text else "error")
+        return code, text
+    if not res.verdict.reasons:
+        return "good", ""
+    first = res.verdict.reasons[0].code
+    return first.removeprefix("cause-"), "\n".join(r.message for r in res.verdict.reasons)
+
+
+@pytest.mark.slow
+def test_the_diagnosis_names_the_true_cause(setups):
+    assert len(CASES) >= 40
+    hits, misses, unit_advice = 0, [], []
+    for name, key, mistake, options, cause in CASES:
+        s = setups[key]
+        code, text = named_cause(s.robot, mistake(s.good), options)
+        hits += code == cause
+        if code != cause:
+            misses.append((name, cause, code, text[:300]))
+        if cause not in UNIT_CAUSES and any(w in text for w in UNIT_WORDS):
+            unit_advice.append((name, text[:300]))
+    assert hits / len(CASES) >= 0.9, misses
+    assert unit_advice == []
+
+
+def test_correct_data_get_no_diagnosis(setups):
+    """The same data without a mistake: good, nothing to diagnose."""
+    s = setups["ur5"]
+    res = kincal.calibrate(s.robot, s.good)
+    assert res.verdict.status == "good" and res.diagnosis is None
