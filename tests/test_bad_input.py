@@ -290,8 +290,8 @@ PATHS = [
     case("export-ur-of-a-parallel-robot", ["export", "puu3", "{d}/u.yaml", "--format", "ur"], 1,
          ["not a serial chain"]),
     case("urdf-flags-on-yaml-robot", ["show", "ur5", "--tip-link", "tool0"], 1, ["apply to URDF files only"]),
-    case("robot-missing", ["show", "{d}/none.yaml"], 1, ["neither a bundled robot"]),
-    case("robot-is-folder", ["show", "{d}"], 1, ["neither a bundled robot"]),
+    case("robot-missing", ["show", "{d}/none.yaml"], 1, ["robot file", "none.yaml' not found"]),
+    case("robot-is-folder", ["show", "{d}"], 1, ["is a folder"]),
     case("unknown-bundled-name", ["show", "ur55"], 1, ["neither a bundled robot", "ur5"]),
 ]
 

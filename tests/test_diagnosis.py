@@ -173,3 +173,53 @@ def test_correct_data_get_no_diagnosis(setups):
     s = setups["ur5"]
     res = kincal.calibrate(s.robot, s.good)
     assert res.verdict.status == "good" and res.diagnosis is None
+
+
+def test_reject_outliers_matches_the_outlier_free_fit_and_the_report_names_the_row(tmp_path, capsys):
+    """One 50 mm outlier among 80 poses: left out by row, the validation RMS within 1.05x of the fit
+    without it; the report names the row."""
+    from kincal.cli import main
+    ur5 = kincal.load_robot("ur5")
+    true = kincal.perturb(ur5, seed=7)
+    meas = kincal.simulate(true, ur5.sample_joints(80, seed=7), 15e-6, seed=7)
+    val = kincal.simulate(true, ur5.sample_joints(300, seed=70), 0.0, seed=70)
+    xyz = meas.xyz.copy()
+    xyz[38] += [0.0, 0.05, 0.0]  # input row 40
+    bad = dataclasses.replace(meas, xyz=xyz)
+    clean = kincal.calibrate(ur5, meas.without_rows([40]))
+    plain = kincal.calibrate(ur5, bad)
+    kept = kincal.calibrate(ur5, bad, reject_outliers=True)
+    rms = lambda r: kincal.evaluate(r.robot, val, rebase=True).rms  # noqa: E731
+    assert plain.verdict.status == "refused" and plain.verdict.reasons[0].code == "cause-outliers"
+    assert kept.rejected_rows == (40,) and kept.verdict.status == "good"
+    assert rms(kept) <= 1.05 * rms(clean) and rms(plain) > 10 * rms(clean)
+    path = tmp_path / "bad.csv"
+    kincal.write_measurements(path, bad, ur5.joint_types, "mm", "deg")
+    code = main(["calibrate", "ur5", str(path), "--length-unit", "mm", "--angle-unit", "deg", "--reject-outliers",
+                 "-o", str(tmp_path / "cal.yaml"), "--report", str(tmp_path / "r.html")])
+    out = capsys.readouterr().out
+    assert code == 0 and "left out as outliers" in out and "row(s) 40" in out
+    html = (tmp_path / "r.html").read_text()
+    assert "left out as outliers" in html and "row(s) 40 of" in html
+
+
+def test_huber_fit_is_not_told_to_use_huber(setups):
+    s = setups["ur5"]
+    xyz = s.good.xyz.copy()
+    xyz[10] += [0.0, 0.0, 0.02]
+    res = kincal.calibrate(s.robot, dataclasses.replace(s.good, xyz=xyz), loss="huber", diagnose=False)
+    text = "\n".join(r.message for r in res.verdict.reasons)
+    assert "row(s) 12" in text and "--loss huber" not in text and "--reject-outliers" in text
+
+
+def test_a_drift_found_by_the_drift_term_is_a_reason():
+    ur5 = kincal.load_robot("ur5")
+    true = kincal.perturb(ur5, seed=2)
+    q = ur5.sample_joints(120, seed=2)
+    meas = kincal.simulate(true, q, 15e-6, seed=2)
+    s = np.linspace(0.0, 1.0, len(q))[:, None]
+    drifted = dataclasses.replace(meas, xyz=meas.xyz + s * [0.6e-3, -0.4e-3, 0.2e-3])
+    res = kincal.calibrate(ur5, drifted, drift=True)
+    codes = [r.code for r in res.verdict.reasons]
+    assert "drift-fitted" in codes and res.verdict.status == "suspect"
+    assert kincal.calibrate(ur5, meas, drift=True).verdict.status == "good"

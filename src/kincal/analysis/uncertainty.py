@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import ModelError
 from ..models.robot import Robot
 from ..models.yaml_io import read_section
-from ..units import MM
+from ..units import DEG, MM
 
 EXTRAPOLATION_RATIO = 2.5
 ENVELOPE_MARGIN = 0.02
@@ -86,30 +86,49 @@ class ModelUncertainty:
         return cls(names, cov, med, lo, hi)
 
 
-def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncertainty) -> str | None:
-    """A warning naming the rows whose predicted σ says the model extrapolates there, or None."""
+def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncertainty, q: np.ndarray | None = None,
+                          robot: Robot | None = None) -> str | None:
+    """A warning naming the poses whose predicted σ says the model extrapolates there — where they lie
+    (the joint ranges beyond the training ones, given ``q`` and ``robot``) and their first rows — or None."""
     bad = unc.extrapolated(sigma)
     if not bad.any():
         return None
-    shown = ", ".join(str(int(r)) for r in rows[bad][:10]) + (f" and {bad.sum() - 10} more" if bad.sum() > 10 else "")
+    where = _beyond(q[bad], robot, unc) if q is not None and robot is not None else ""
     return (f"{int(bad.sum())} pose(s) lie where the calibration data did not constrain the model (predicted σ up to "
             f"{sigma[bad].max() / unc.training_median:.1f}x the training median {unc.training_median * MM:.4f} mm, "
-            f"limit {EXTRAPOLATION_RATIO:g}x): row(s) {shown}; measure calibration poses there too")
+            f"limit {EXTRAPOLATION_RATIO:g}x){where}: row(s) {_first_rows(rows[bad])}; measure calibration poses "
+            f"there too")
+
+
+def _first_rows(rows: np.ndarray) -> str:
+    return ", ".join(str(int(r)) for r in rows[:10]) + (f" and {len(rows) - 10} more" if len(rows) > 10 else "")
+
+
+def _beyond(q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> str:
+    """', with j2 at -175.0..-3.0 deg (calibrated on -90.0..-20.0 deg), …' for the joints whose values in
+    ``q`` leave the training ranges; '' when none does or the ranges are not known."""
+    if unc.lower is None or len(unc.lower) != q.shape[1]:
+        return ""
+    parts = []
+    for j in np.flatnonzero(np.any((q < unc.lower) | (q > unc.upper), axis=0)):
+        k = DEG if robot.joint_types[j] == "revolute" else MM
+        u = "deg" if robot.joint_types[j] == "revolute" else "mm"
+        parts.append(f"{robot.joint_names[j]} at {q[:, j].min() * k:.1f}..{q[:, j].max() * k:.1f} {u} (calibrated on "
+                     f"{unc.lower[j] * k:.1f}..{unc.upper[j] * k:.1f} {u})")
+    return ", with " + "; ".join(parts) if parts else ", inside the training joint ranges"
 
 
 def envelope_warning(rows: np.ndarray, q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> tuple[np.ndarray, str | None]:
     """For a model with joint-value terms: the poses outside the training joint ranges and a warning
-    naming them (else no pose and None)."""
+    naming the joint ranges and the first rows (else no pose and None)."""
     terms = robot.error_model
     if terms == "geometric" or unc.lower is None or len(unc.lower) != q.shape[1]:
         return np.zeros(len(q), bool), None
     bad = unc.outside(q)
     if not bad.any():
         return bad, None
-    shown = ", ".join(str(int(r)) for r in rows[bad][:10]) + (f" and {bad.sum() - 10} more" if bad.sum() > 10 else "")
-    joints = [robot.joint_names[j] for j in np.flatnonzero(np.any((q[bad] < unc.lower) | (q[bad] > unc.upper), axis=0))]
-    return bad, (f"{int(bad.sum())} pose(s) lie outside the joint ranges the terms ({terms}) were fitted on "
-                 f"({', '.join(joints)}): row(s) {shown}; the terms extrapolate there")
+    return bad, (f"{int(bad.sum())} pose(s) lie outside the joint ranges the terms ({terms}) were fitted on"
+                 f"{_beyond(q[bad], robot, unc)}: row(s) {_first_rows(rows[bad])}; the terms extrapolate there")
 
 
 def load_uncertainty(name_or_path) -> ModelUncertainty | None:

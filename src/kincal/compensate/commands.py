@@ -129,7 +129,7 @@ def _with_sigma(robot: Robot, comp: Compensation, unc: ModelUncertainty | None) 
     sigma = np.full(len(comp.q), np.nan)
     sigma[comp.ok] = unc.sigma(robot, comp.q[comp.ok])
     ok = comp.ok
-    warnings = (extrapolation_warning(comp.rows[ok], sigma[ok], unc),
+    warnings = (extrapolation_warning(comp.rows[ok], sigma[ok], unc, comp.q[ok], robot),
                 envelope_warning(comp.rows[ok], comp.q[ok], robot, unc)[1])
     return dataclasses.replace(comp, predicted_sigma=sigma, warnings=tuple(w for w in warnings if w))
 

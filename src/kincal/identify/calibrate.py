@@ -228,7 +228,7 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
         return stats
     sigma = uncertainty.sigma(robot, meas.q)
     outside, envelope = envelope_warning(meas.rows, meas.q, robot, uncertainty)
-    warnings = tuple(w for w in (extrapolation_warning(meas.rows, sigma, uncertainty), envelope) if w)
+    warnings = tuple(w for w in (extrapolation_warning(meas.rows, sigma, uncertainty, meas.q, robot), envelope) if w)
     flagged = uncertainty.extrapolated(sigma) | outside
     return dataclasses.replace(stats, predicted_sigma=tuple(map(float, sigma)),
                                extrapolated_rows=tuple(int(r) for r in meas.rows[flagged]), warnings=warnings)

@@ -129,8 +129,14 @@ def _robot_text(name_or_path: str | os.PathLike) -> tuple[str, str]:
             raise ModelError(f"'{s}' is both a bundled robot and a file in this folder; write ./{s} for the file "
                              f"or rename it")
         return (resources.files("kincal.models") / "robots" / f"{s}.yaml").read_text(), f"bundled robot '{s}'"
+    if p.is_dir():
+        raise ModelError(f"'{s}' is a folder, not a robot file; give a robot YAML or URDF file, or a bundled robot "
+                         f"({', '.join(bundled_robots())})")
     if not p.is_file():
-        raise ModelError(f"'{s}' is neither a bundled robot ({', '.join(bundled_robots())}) nor a robot YAML file")
+        if p.suffix or len(p.parts) > 1:  # written as a path: the file is missing
+            raise ModelError(f"robot file '{s}' not found (no such file; the folder it names "
+                             f"{'exists' if p.parent.is_dir() else 'does not exist either'})")
+        raise ModelError(f"'{s}' is neither a bundled robot ({', '.join(bundled_robots())}) nor a robot file here")
     try:
         return p.read_text(encoding="utf-8-sig"), str(p)
     except (OSError, UnicodeDecodeError) as exc:

@@ -232,6 +232,12 @@ def _data_rows(result: CalibrationResult, tests: list[Measurements], info: dict)
     rows += [(f"held-out session {k + 1}", _file_line(t)) for k, t in enumerate(tests)]
     if result.mounting:
         rows.append(("tool point (mounting)", result.mounting))
+    if result.rejected_rows:
+        rows.append(("left out as outliers", f"row(s) {', '.join(map(str, result.rejected_rows))} of "
+                                             f"{result.measurements.source}: more than {result.outlier_z:g} robust σ "
+                                             f"off a robust refit (--reject-outliers)"))
+    if result.diagnosis is not None:
+        rows.append(("diagnosis", result.diagnosis.message()))
     rows += [("options", f"base {o.base}, loss {o.loss}, method {o.method}, "
                          f"parameters {o.names if isinstance(o.names, str) else 'as listed'}"),
              ("solver", f"{'converged' if result.converged else 'NOT converged'} ({result.message}), "
