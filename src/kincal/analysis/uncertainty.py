@@ -69,21 +69,32 @@ class ModelUncertainty:
 
     @classmethod
     def from_dict(cls, data: dict, label: str = "calibration") -> "ModelUncertainty":
+        key = "parameters"
         try:
-            names = tuple(str(n) for n in data["parameters"])
-            cov = np.array(data["covariance"], dtype=float)
-            med = float(data["training_median_sigma"])
-            env = data.get("envelope")
+            names = tuple(str(n) for n in _listed(data[key]))
+            key = "covariance"
+            cov = np.array(data[key], dtype=float)
+            key = "training_median_sigma"
+            med = float(data[key])
+            key = "envelope"
+            env = data.get(key)
             lo, hi = (None, None) if env is None else (np.array(env["lower"], float), np.array(env["upper"], float))
         except (KeyError, TypeError, ValueError) as exc:
-            raise ModelError(f"{label}: the 'calibration' section is incomplete or malformed ({exc}); "
-                             f"calibrate again or remove the section") from None
+            what = "is missing" if isinstance(exc, KeyError) and str(exc).strip("'") == key else "is malformed"
+            raise ModelError(f"{label}: the 'calibration' section's '{key}' {what}; calibrate again or remove the "
+                             f"section") from None
         if cov.shape != (len(names), len(names)) or not np.all(np.isfinite(cov)) or not np.isfinite(med):
             raise ModelError(f"{label}: the 'calibration' covariance must be a finite {len(names)}x{len(names)} "
                              f"matrix; calibrate again or remove the section")
         if lo is not None and (lo.shape != hi.shape or lo.ndim != 1 or not np.all(lo <= hi)):
             raise ModelError(f"{label}: the 'calibration' envelope must give lower <= upper per joint")
         return cls(names, cov, med, lo, hi)
+
+
+def _listed(value) -> list:
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
+        raise TypeError("a list")
+    return list(value)
 
 
 def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncertainty, q: np.ndarray | None = None,

@@ -117,8 +117,16 @@ def hidden_alias(p: argparse.ArgumentParser, flag: str, dest: str, **kw) -> None
 
 
 def robot_inputs(robot: str) -> list[str]:
-    """The robot argument as an input file, if it is one."""
-    return [robot] if Path(robot).is_file() else []
+    """The robot argument as an input file, if it is one, and the file it was made from (a calibrated
+    robot file's ``source``, e.g. the user's URDF): outputs must replace neither."""
+    if not Path(robot).is_file():
+        return []
+    try:
+        source = kincal.models.yaml_io.read_section(robot, "source")
+    except kincal.errors.KincalError:  # a malformed file: loading it says why
+        source = None
+    made_from = source.get("file") if isinstance(source, dict) else None
+    return [robot] + ([made_from] if isinstance(made_from, str) and Path(made_from).is_file() else [])
 
 
 def check_paths(inputs, outputs) -> None:

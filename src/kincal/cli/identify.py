@@ -44,7 +44,8 @@ def fit_options(args) -> kincal.FitOptions:
 
 def cmd_calibrate(args) -> int:
     reports = [args.report, json_path(args.report)] if args.report else []
-    check_paths([*robot_inputs(args.robot), *args.data, *args.test], [args.output, args.residuals, *reports])
+    check_paths([*robot_inputs(args.robot), *args.data, *args.test],
+                [args.output, args.residuals, *reports, args.plot])
     if args.exclude and len(args.data) > 1:
         raise ValueError("--exclude names rows of one file; with several sessions leave the rows out of their files")
     options = fit_options(args)
@@ -97,7 +98,7 @@ def cmd_calibrate(args) -> int:
 
 
 def cmd_evaluate(args) -> int:
-    check_paths([*robot_inputs(args.robot), *args.data], [])
+    check_paths([*robot_inputs(args.robot), *args.data], [args.plot])
     r = load_robot(args)
     sessions = [read(args, r, path) for path in args.data]
     unc = kincal.analysis.load_uncertainty(args.robot)

@@ -65,6 +65,7 @@ def _compensation_text(args, comp, r, start, written: bool, n: int) -> str:
 
 
 PLAN_JOINT_TOL = 1e-5  # rad or m: measured joint values must repeat the plan's commands this closely
+PLAN_COPY_TOL = 1e-12  # relative: "measurements" this close to the predictions are a copy of them (no noise)
 
 
 def cmd_verify(args) -> int:
@@ -106,7 +107,12 @@ def _measured(args, r, plan) -> np.ndarray:
         raise kincal.MeasurementError(f"{args.measured}: the joint values in row(s) "
                                       f"{', '.join(map(str, meas.rows[off][:10]))} are not the plan's commands "
                                       f"({args.plan}); measure the plan's commands in its order")
-    return meas.xyz.reshape(plan.predicted.shape)
+    xyz = meas.xyz.reshape(plan.predicted.shape)
+    if np.max(np.abs(xyz - plan.predicted)) < PLAN_COPY_TOL * max(1.0, float(np.max(np.abs(plan.predicted)))):
+        raise kincal.MeasurementError(f"{args.measured}: the 'measured' positions ({', '.join(args.xyz_cols)}) equal "
+                                      f"the plan's predictions to the last digits: they are the plan's predicted "
+                                      f"columns, not measurements; give the columns the instrument measured")
+    return xyz
 
 
 def register(cmd) -> None:

@@ -61,8 +61,9 @@ def save_figures(figures: dict, stem: str) -> list[str]:
 def cmd_report(args) -> int:
     record = kincal.models.load_calibration_record(args.robot)
     if not record or "nominal" not in record or "options" not in record:
-        raise ValueError(f"{args.robot}: no calibration record in the file; write it with 'kincal calibrate ... -o "
-                         f"{args.robot}' (the record keeps the nominal values and options the report refits)")
+        raise ValueError(f"{args.robot}: not a calibrated robot file (no calibration record: the nominal values and "
+                         f"options the report refits); calibrate first, e.g. 'kincal calibrate {args.robot} DATA.csv "
+                         f"-o calibrated.yaml --report report.html', or give the calibrated file")
     data = _mapping(record.get("data", {}), args.robot, "data")
     train_paths = args.train or data.get("file")
     train_paths = [train_paths] if isinstance(train_paths, str) else train_paths

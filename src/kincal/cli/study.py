@@ -44,7 +44,12 @@ def cmd_study(args) -> int:
     except KeyboardInterrupt:
         line(f"kincal: interrupted; the finished tasks are kept in {out}: run the same command to resume")
         return EXIT_INTERRUPTED
-    rows = guo2024_mc.summarise(records)
+    try:
+        rows = guo2024_mc.summarise(records)
+    except (KeyError, TypeError, ValueError, IndexError) as exc:  # records read back from the file
+        raise ValueError(f"{out}: its trial records lack the study's results (key or value {exc} missing or "
+                         f"malformed); the file was changed or written by another version; give a new output file "
+                         f"or remove this one") from None
     emit(args, {"results_file": str(out), "trials": len(records), "settings": header, "reduction": rows},
          guo2024_mc.report(rows) + f"\nper-trial results: {out}")
     return 0

@@ -88,19 +88,7 @@ class Measurements:
                 f"{self.source}: {self.q.shape[1]} joint columns but robot '{robot.name}' has {robot.n_joints} "
                 f"joints ({', '.join(robot.joint_names)}); pass the right joint columns"
             )
-        rev = np.array([t == "revolute" for t in robot.joint_types])
-        if rev.any():
-            # more than two turns and well beyond the joint limits: degrees read as radians
-            lim = np.maximum(np.abs(robot.lower), np.abs(robot.upper))
-            reach = np.maximum(4 * np.pi, 1.5 * np.where(np.isfinite(lim), lim, 0.0))[rev]
-            over = np.abs(self.q[:, rev]) > reach
-            if over.any():
-                qmax = float(np.max(np.abs(self.q[:, rev])))
-                given = f" ('{angle_unit}' was given)" if angle_unit else ""
-                raise MeasurementError(
-                    f"{self.source}: revolute joint values reach {qmax:.4g} rad{given}, far beyond the joint "
-                    f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)"
-                )
+        _check_degrees(self.source, self.q, robot, angle_unit)
         if len(self) >= 3:
             self._check_spread(robot, length_unit or (self.units[0] if self.units else None),
                                angle_unit or (self.units[1] if self.units else None))
@@ -123,6 +111,21 @@ class Measurements:
                                        f"rad)")
         if spread > MIN_SPREAD:
             raise MeasurementError(f"{self.source}: {_unit_hint(ratio, length_unit)}")
+
+
+def _check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | None) -> None:
+    """MeasurementError when revolute joint values (rad) go beyond two turns and well beyond the joint
+    limits: degrees read as radians."""
+    rev = np.array([t == "revolute" for t in robot.joint_types])
+    if not rev.any():
+        return
+    lim = np.maximum(np.abs(robot.lower), np.abs(robot.upper))
+    reach = np.maximum(4 * np.pi, 1.5 * np.where(np.isfinite(lim), lim, 0.0))[rev]
+    if np.any(np.abs(q[:, rev]) > reach):
+        qmax = float(np.max(np.abs(q[:, rev])))
+        given = f" ('{angle_unit}' was given)" if angle_unit else ""
+        raise MeasurementError(f"{source}: revolute joint values reach {qmax:.4g} rad{given}, far beyond the joint "
+                               f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)")
 
 
 MIN_SPREAD = 1e-3  # m: below this the poses barely move the tool, and noise decides the spread
@@ -206,6 +209,15 @@ def _read_columns(path: str, columns: Sequence[str]) -> tuple[np.ndarray, np.nda
     delim = _sniff_delimiter(lines[0][1], path)
     records = list(zip((k for k, _ in lines), csv.reader((line for _, line in lines), delimiter=delim)))
     header = [h.strip() for h in records[0][1]]
+    asked = [c for c in dict.fromkeys(columns) if list(columns).count(c) > 1]
+    if asked:
+        raise MeasurementError(f"{path}: column(s) {', '.join(asked)} given more than once (as joint, position or σ "
+                               f"columns); each value must come from its own column")
+    twice = [c for c in dict.fromkeys(columns) if header.count(c) > 1]
+    if twice:
+        raise MeasurementError(f"{path}: the header names column(s) {', '.join(twice)} more than once (columns "
+                               f"{', '.join(str(k + 1) for k, h in enumerate(header) if h in twice)}); rename them so "
+                               f"that each name is one column")
     missing = [c for c in columns if c not in header]
     if missing:
         where = f" (line {records[0][0]})" if records[0][0] != 1 else ""
@@ -259,7 +271,9 @@ def read_joints(
     cols = _joint_columns(path, robot, joint_cols)
     q, lines = _read_columns(path, cols)
     _check_finite(path, q, lines, "joint values")
-    return q * _joint_scale(robot.joint_types, length_unit, angle_unit, path)
+    q = q * _joint_scale(robot.joint_types, length_unit, angle_unit, path)
+    _check_degrees(path, q, robot, angle_unit)
+    return q
 
 
 def read_positions(path: str | os.PathLike, xyz_cols: Sequence[str] = ("x", "y", "z"),

@@ -59,7 +59,7 @@ def load_robot(name_or_path: str | os.PathLike, base_link: str | None = None, ti
     the tool point ``tool`` (default the tip link's origin).
     """
     text, label = _robot_text(name_or_path)
-    if str(name_or_path).lower().endswith(".urdf") or text.lstrip().startswith("<"):
+    if _is_urdf(name_or_path, text):
         try:
             return read_urdf(text, label, base_link, tip_link, _tool(tool, label))
         except ModelError as exc:
@@ -343,10 +343,14 @@ def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", an
 def read_section(name_or_path: str | os.PathLike, key: str) -> object | None:
     """A top-level section of a robot file (None for a bundled robot or when absent)."""
     text, label = _robot_text(name_or_path)
-    if label.startswith("bundled"):
+    if label.startswith("bundled") or _is_urdf(name_or_path, text):  # a URDF has no kincal sections
         return None
     data = _parse(text, label)
     return data.get(key) if isinstance(data, dict) else None
+
+
+def _is_urdf(name_or_path: str | os.PathLike, text: str) -> bool:
+    return str(name_or_path).lower().endswith(".urdf") or text.lstrip().startswith("<")
 
 
 def load_calibration_record(name_or_path: str | os.PathLike) -> dict | None:

@@ -140,6 +140,24 @@ def _read(path: Path, header: dict) -> dict[int, list[dict]]:
     return done
 
 
+def _check_done(path: Path, done: dict[int, list], tasks: Sequence[Task]) -> None:
+    """Every finished task in the file holds one record (a mapping) per trial of that task, all with
+    the same keys (ValueError naming the task otherwise: the summary would cover other trials)."""
+    by_first = {t.first: t for t in tasks}
+    keys = None
+    for first, records in done.items():
+        task = by_first.get(first)
+        ok = task is not None and all(isinstance(r, dict) for r in records)
+        ok = ok and [r.get("trial") for r in records] == list(task.trials)
+        if ok and records:
+            keys = keys or set(records[0])
+            ok = all(set(r) == keys for r in records)
+        if not ok:
+            raise ValueError(f"{path}: the record of task {first} does not hold one result per trial of this study "
+                             f"(trials {first}..); the file was changed or written by another version; give a new "
+                             f"output file or remove this one")
+
+
 def _append(handle, record: dict) -> None:
     handle.write(json.dumps(record, separators=(",", ":")) + "\n")
     handle.flush()
@@ -153,6 +171,7 @@ def run_tasks(run: Callable[[Task], list[dict]], tasks: Sequence[Task], executor
     against the file; ``progress(done, total)`` is called as tasks finish."""
     path, header = Path(path), json.loads(json.dumps(header))
     done = _read(path, header)
+    _check_done(path, done, tasks)
     todo = [t for t in tasks if t.first not in done]
     with path.open("a", encoding="utf-8") as handle:
         if not done and path.stat().st_size == 0:
@@ -164,6 +183,7 @@ def run_tasks(run: Callable[[Task], list[dict]], tasks: Sequence[Task], executor
             _append(handle, {"task": task.first, "records": records})
             if progress:
                 progress(sum(1 for t in tasks if t.first in done), len(tasks))
+    _check_done(path, done, tasks)  # the new records against the old ones' keys
     records = [r for t in tasks for r in done[t.first]]
     return sorted(records, key=lambda r: r["trial"])
 
