@@ -158,16 +158,23 @@ def test_verify_with_measurements_file(tmp_path, capsys):
     run_json(capsys, "verify", "puu3", "--params", "L1,L2", "--samples", "4", "-o", plan_path, "--length-unit", "mm")
     rows = plan_path.read_text().splitlines()
     assert "length=mm" in rows[0] and rows[1].startswith("case,sample,h1,h2,h3") and len(rows) == 2 + 2 * 4
-    # "measure" the plan with the model itself: deviations vanish
+    # "measure" the plan with the model itself and 1 µm of noise: deviations are the noise
     robot = kincal.load_robot("puu3")
     body = [r.split(",") for r in rows[2:]]
     q = np.array([[float(x) for x in r[2:5]] for r in body]) / 1e3
     assert robot.within_limits(q).all()  # the commands were written in mm
-    p = robot.forward(q)
+    noise = np.random.default_rng(3).normal(0.0, 1e-6, (len(q), 3))
+    p = robot.forward(q) + noise
     meas = tmp_path / "meas.csv"
     meas.write_text("h1,h2,h3,x,y,z\n" + "\n".join(",".join(repr(float(x)) for x in [*qi, *pi]) for qi, pi in zip(q, p)) + "\n")
     v = run_json(capsys, "verify", "puu3", "--plan", plan_path, "--measured", meas)
-    assert max(max(c["max"]) for c in v["cases"].values()) < 1e-12 and v["pass"]
+    largest = max(max(c["max"]) for c in v["cases"].values())
+    assert 0.5 * np.linalg.norm(noise, axis=1).max() < largest < 1.01 * np.linalg.norm(noise, axis=1).max()
+    assert v["pass"]
+    # the plan's own predicted columns are not measurements
+    code = main(["verify", "puu3", "--plan", str(plan_path), "--measured", str(plan_path), "--xyz-cols",
+                 "x_pred,y_pred,z_pred"])
+    assert code == 1 and "predicted columns, not measurements" in capsys.readouterr().err
     # a plan rebuilt from another seed is not what was measured: the joints do not match and it says so
     other = tmp_path / "other.csv"
     run_json(capsys, "verify", "puu3", "--params", "L1,L2", "--samples", "4", "--seed", "5", "-o", other)

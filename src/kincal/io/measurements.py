@@ -115,13 +115,14 @@ class Measurements:
 
 def _check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | None) -> None:
     """MeasurementError when revolute joint values (rad) go beyond two turns and well beyond the joint
-    limits: degrees read as radians."""
+    limits, and would lie within them read as degrees: degrees read as radians."""
     rev = np.array([t == "revolute" for t in robot.joint_types])
     if not rev.any():
         return
     lim = np.maximum(np.abs(robot.lower), np.abs(robot.upper))
     reach = np.maximum(4 * np.pi, 1.5 * np.where(np.isfinite(lim), lim, 0.0))[rev]
-    if np.any(np.abs(q[:, rev]) > reach):
+    over = np.any(np.abs(q[:, rev]) > reach)
+    if over and np.all(np.abs(q[:, rev]) * np.pi / 180.0 <= reach):  # read as degrees, they would fit
         qmax = float(np.max(np.abs(q[:, rev])))
         given = f" ('{angle_unit}' was given)" if angle_unit else ""
         raise MeasurementError(f"{source}: revolute joint values reach {qmax:.4g} rad{given}, far beyond the joint "
