@@ -172,7 +172,7 @@ def test_verify_with_measurements_file(tmp_path, capsys):
     assert 0.5 * np.linalg.norm(noise, axis=1).max() < largest < 1.01 * np.linalg.norm(noise, axis=1).max()
     assert v["pass"]
     # the plan's own predicted columns are not measurements
-    code = main(["verify", "puu3", "--plan", str(plan_path), "--measured", str(plan_path), "--xyz-cols",
+    code = main(["verify", "puu3", "--plan", str(plan_path), "--measured", str(plan_path), "--length-unit", "mm", "--xyz-cols",
                  "x_pred,y_pred,z_pred"])
     assert code == 1 and "predicted columns, not measurements" in capsys.readouterr().err
     # a plan rebuilt from another seed is not what was measured: the joints do not match and it says so
