@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -482,3 +483,42 @@ def test_signals_end_cleanly(tmp_path, sig, code, word):
     assert proc.returncode == code, err
     assert word in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.fixture
+def cpu_hog():
+    """One busy process per core: the machine a user's Ctrl-C meets when it is loaded."""
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 2)]
+    yield
+    for h in hogs:
+        h.kill()
+        h.wait()
+
+
+STOP_ARGV = {"design": ["design", "guo3t2r", "-m", "60", "--pool", "3000", "--method", "detmax-ide", "--generations",
+                        "100000"],
+             "demo": ["demo", "--repeats", "50"]}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("command", ["design", "demo"])
+@pytest.mark.parametrize("sig, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
+def test_signals_under_load_end_in_one_line(tmp_path, cpu_hog, command, sig, code, word):
+    """Ctrl-C or SIGTERM while the command loads, parses or works on a busy machine: the conventional
+    exit code, one line, no traceback, no file left; whenever the signal comes after the entry point
+    runs (it says so with KINCAL_PROGRESS=1)."""
+    kincal_cmd = str(Path(sys.executable).parent / "kincal")
+    for delay in (0.0, 0.05, 0.3, 1.0, 2.5):
+        out = tmp_path / f"{command}-{delay}"
+        argv = STOP_ARGV[command] + (["-o", str(out)] if command == "design" else ["--plot", str(out) + ".png"])
+        proc = subprocess.Popen([kincal_cmd, *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                cwd=tmp_path, env={**os.environ, "KINCAL_PROGRESS": "1"}, preexec_fn=default_sigint)
+        assert proc.stderr.readline().strip() == "kincal: loading"
+        time.sleep(delay)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=120)
+        lines = [x for x in err.splitlines() if x.strip()]
+        assert proc.returncode == code, (delay, err)
+        assert "Traceback" not in err and "Error" not in err, (delay, err)
+        assert lines[-1] == f"kincal: {word}; nothing half-written" and sum(word in x for x in lines) == 1, (delay, err)
+        assert not list(tmp_path.glob(f"{command}-{delay}*")), (delay, list(tmp_path.iterdir()))

@@ -48,8 +48,29 @@ def main(argv: list[str] | None = None) -> int:
     """Run one command; exit 0 (done), 1 (bad input), 3 (not converged), 4 (refused by a check),
     70 (internal error), 130 (Ctrl-C), 143 (SIGTERM). Outputs are written atomically, so an
     interrupted command leaves no half-written file."""
+    previous = signal.signal(signal.SIGTERM, _on_sigterm), signal.getsignal(signal.SIGINT)
+    try:
+        return _run(argv)
+    except KeyboardInterrupt:
+        return _stopped("interrupted", EXIT_INTERRUPTED)
+    except Terminated:
+        return _stopped("terminated", EXIT_TERMINATED)
+    finally:
+        signal.signal(signal.SIGTERM, previous[0])
+        if previous[1] is not None:  # None: a handler not set from Python
+            signal.signal(signal.SIGINT, previous[1])
+
+
+def _stopped(word: str, code: int) -> int:
+    """One line for Ctrl-C or SIGTERM; a second signal while it is printed is ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    line(f"kincal: {word}; nothing half-written")
+    return code
+
+
+def _run(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
-    previous = signal.signal(signal.SIGTERM, _on_sigterm)
     if progress_lines():  # a log (or a test) learns that Ctrl-C and SIGTERM are handled from here on
         line(f"kincal: {args.command} started")
     try:
@@ -58,20 +79,14 @@ def main(argv: list[str] | None = None) -> int:
         msg = " ".join(str(exc).split()) if not isinstance(exc, kincal.IdentifiabilityError) else str(exc)
         err.print(f"kincal: error: {msg}", markup=False)
         return EXIT_ERROR
-    except KeyboardInterrupt:
-        line("kincal: interrupted; nothing half-written")
-        return EXIT_INTERRUPTED
-    except Terminated:
-        line("kincal: terminated; nothing half-written")
-        return EXIT_TERMINATED
+    except (KeyboardInterrupt, Terminated):
+        raise
     except Exception as exc:  # never a bare traceback for a user
         if os.environ.get("KINCAL_DEBUG"):
             raise
         err.print(f"kincal: internal error ({type(exc).__name__}: {exc}); please report it with the command "
                   f"line (KINCAL_DEBUG=1 shows the details)", markup=False)
         return EXIT_INTERNAL
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":
