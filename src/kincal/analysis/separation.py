@@ -31,6 +31,8 @@ from typing import Sequence
 
 import numpy as np
 
+from ..errors import ModelError
+
 from ..models.robot import Robot
 from ..ties import first_best
 from .identifiability import identifiability
@@ -118,6 +120,10 @@ def separate_ill_conditioned(robot: Robot, q: np.ndarray, names: Sequence[str] |
         raise ValueError(f"threshold={threshold}: the GCN threshold must be a positive number")
     names = tuple(names) if names is not None else tuple(
         n for n in robot.params.names if param_type(n) in TYPES)
+    if not names:
+        raise ModelError(f"robot '{robot.name}' has no DH parameters (θ, d, a, α, β) to separate: the GCN separation "
+                         f"of Guo et al. 2024 works on a DH model (a URDF or a parallel robot has other parameters); "
+                         f"use 'kincal identifiability' for this robot")
     J = robot.param_jacobian(q)[:, :, robot.params.indices(names)]
     J = J * column_scale(J.reshape(-1, len(names)))
     canon = [n for n in dict.fromkeys(keep) if n in names] + [n for n in names if n not in set(keep)]

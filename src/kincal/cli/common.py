@@ -52,6 +52,17 @@ def nonneg_float(s: str) -> float:
     return v
 
 
+def finite_float(s: str) -> float:
+    """argparse type: a finite number."""
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}' is not a number") from None
+    if not np.isfinite(v):
+        raise argparse.ArgumentTypeError(f"'{s}': give a finite number")
+    return v
+
+
 def positive_float(s: str) -> float:
     """argparse type: a finite number > 0."""
     v = nonneg_float(s)

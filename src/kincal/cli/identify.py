@@ -35,6 +35,9 @@ def error_model_name(s: str) -> str:
 
 def fit_options(args) -> kincal.FitOptions:
     """The calibrate command's options as the record the API takes (checked when built)."""
+    if args.payload and args.error_model is None:
+        raise ValueError(f"--payload {args.payload:g}: only the gravity terms use it; give --error-model compliance, "
+                         f"gravity-regressor or auto")
     error_model = None if args.error_model is None else kincal.ErrorModel(args.error_model, args.payload)
     return kincal.FitOptions(names=args.params or "auto", base=args.base, loss=args.loss, keep=args.keep or (),
                              max_iter=args.max_iter, method=args.method, residual=args.residual,

@@ -10,8 +10,8 @@ import kincal.analysis
 import kincal.models
 from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM
 
-from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, hidden_alias, load_robot, nonneg_float,
-                     out, positive_float, positive_int, robot_inputs)
+from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, finite_float, hidden_alias, load_robot,
+                     nonneg_float, out, positive_float, positive_int, robot_inputs)
 
 
 def _summary(description: str) -> str:
@@ -169,7 +169,7 @@ def register(cmd) -> None:
     s.add_argument("--tool-link", help="add the tool point to the URDF as a fixed joint and link of this name")
     s.add_argument("--joint-names", type=csv_list, help="URDF of a DH robot: the joints' names in your robot stack, "
                    "e.g. shoulder_pan_joint,... (default: the robot file's 'names:')")
-    s.add_argument("--base-yaw", type=float, default=0.0, help="UR files: UR's Base frame is the model's base "
+    s.add_argument("--base-yaw", type=finite_float, default=0.0, help="UR files: UR's Base frame is the model's base "
                    "turned by this about z, deg (0 for kincal's DH ur5; 180 for ur_description's base_link)")
     s.add_argument("--length-unit", default="m", choices=list(LENGTH_UNITS), help="kincal YAML: length unit")
     s.add_argument("--angle-unit", default="rad", choices=list(ANGLE_UNITS), help="kincal YAML: angle unit")

@@ -289,6 +289,9 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
 
 def _source(robot: Robot, source_path) -> str | None:
     if not isinstance(robot, URDFRobot):
+        if source_path:
+            raise ModelError(f"{source_path}: a source URDF (--from) applies to robots read from a URDF; robot "
+                             f"'{robot.name}' is a {robot.structure} model, whose URDF is written new")
         return None
     path = source_path or robot.source.get("file")
     if not path:

@@ -41,6 +41,7 @@ TAU_MIN = 0.5  # N·m: RMS load below which a joint gets no compliance
 REGRESSOR_MIN = 1e-6  # m: RMS of a regressor column below which it is left out (no load in any pose)
 SLOPE_STEP = 1e-6  # rad
 TERMS = ("compliance", "gravity-regressor", "harmonics")
+MAX_PAYLOAD = 3000.0  # kg: the heaviest industrial robots carry about 2300 kg
 MODELS = ("geometric", "nobeta", "compliance", "gravity-regressor", "harmonics:1", "harmonics:2", "harmonics:3",
           "harmonics:4")
 
@@ -260,6 +261,13 @@ class ErrorModel:
         if self.name != "auto":
             parse_model(self.name)
         object.__setattr__(self, "payload", number("payload", self.payload, positive=False, unit="kg at the tool"))
+        if self.payload > MAX_PAYLOAD:
+            raise ValueError(f"payload={self.payload:g} kg: more than any robot carries ({MAX_PAYLOAD:g} kg); give the "
+                             f"payload at the tool in kg")
+        if self.payload > 0 and self.name != "auto" and not {"compliance", "gravity-regressor"} & set(
+                parse_model(self.name)):
+            raise ValueError(f"payload={self.payload:g} kg: only the gravity terms (compliance, gravity-regressor) use "
+                             f"it, and error model '{self.name}' has none")
 
     @classmethod
     def of(cls, value: "ErrorModel | str | Mapping") -> "ErrorModel":
@@ -330,9 +338,9 @@ def term_from_dict(geometry: Robot, reference: Robot | None, data: dict, where: 
         return Harmonics(order, tuple(index[j] for j in joints), tuple(joints))
     payload = data.get("payload", 0.0)
     if reference is None or not reference.has_gravity or isinstance(payload, bool) \
-            or not isinstance(payload, (int, float)) or not payload >= 0:
+            or not isinstance(payload, (int, float)) or not 0 <= payload <= MAX_PAYLOAD:
         raise ModelError(f"{where}: a gravity term needs a serial chain, its 'reference' geometry and a payload in kg "
-                         f"(0 or more)")
+                         f"(0 to {MAX_PAYLOAD:g})")
     gravity = reference.gravity(float(payload))
     if term_type == "compliance":
         return GravityTerm(term_type, gravity, tuple((index[j], 0, 0) for j in joints))

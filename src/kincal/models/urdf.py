@@ -219,6 +219,9 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
         raise ModelError(f"{label}: not valid XML ({exc})") from None
     if root.tag != "robot":
         raise ModelError(f"{label}: the root element is <{root.tag}>, a URDF has <robot>")
+    if "xacro" in text[:4000] and any(el.tag.startswith("{http://www.ros.org/wiki/xacro}") for el in root.iter()):
+        raise ModelError(f"{label}: a xacro file (macros, not yet a URDF); expand it first, e.g. 'xacro {label} > "
+                         f"robot.urdf' (or 'ros2 run xacro xacro ...'), and give the URDF")
     links = _links(root, label)
     masses = {el.get("name"): _inertial(el, label) for el in root.findall("link")}
     joints = {}
@@ -238,9 +241,28 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
         if j["mimic"]:
             raise ModelError(f"{label}: joint '{j['joint'].name}' is a mimic joint; kincal does not model mimic "
                              f"joints yet")
+    _check_lengths([j["joint"] for j in chain], label)
     source = {"file": label, "base_link": base, "tip_link": tip}
     return urdf_robot(root.get("name") or "urdf_robot", [j["joint"] for j in chain], tool or (0.0, 0.0, 0.0),
                       f"URDF chain {base} -> {tip} from {label}", source)
+
+
+MAX_REACH = 20.0  # m: a chain longer than this is no robot arm (the largest reach about 4 m)
+MM_REACH = 100.0  # m: ... and one this long was written in mm (URDF lengths are in metres)
+
+
+def _check_lengths(chain: Sequence[URDFJoint], label: str) -> None:
+    """The chain's origins add up to a robot's size: refuse one written in mm, or absurd values."""
+    lengths = [float(np.max(np.abs(j.xyz))) for j in chain]  # the largest component: no overflow
+    total = sum(lengths)
+    if total <= MAX_REACH:
+        return
+    worst = chain[int(np.argmax(lengths))]
+    if MM_REACH < total < 1e5:
+        raise ModelError(f"{label}: the chain's joint origins add up to {total:.4g} m (joint '{worst.name}' at "
+                         f"{max(lengths):.4g} m): they look like mm; URDF lengths are in metres (divide by 1000)")
+    raise ModelError(f"{label}: joint '{worst.name}' has its origin {max(lengths):.4g} m away (the chain adds up to "
+                     f"{total:.4g} m): implausible for a robot; check the <origin xyz> values (metres)")
 
 
 def _links(root, label: str) -> set[str]:

@@ -1,6 +1,8 @@
 """Robot files for the model kinds beyond DH chains: 3-PUU, transmissions, URDF chains (kincal YAML)."""
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import yaml
 
@@ -189,4 +191,12 @@ def error_model_from_dict(geometry: Robot, data, label: str) -> ExtendedRobot:
     unknown = sorted(set(values) - set(robot.term_names))
     if unknown:
         raise ModelError(f"{where}: unknown term(s) {', '.join(unknown)}")
+    big = [n for n, v in values.items() if re.fullmatch(r".+\.h\d[sc]", n) and abs(v) > MAX_HARMONIC]
+    if big:
+        raise ModelError(f"{where}: harmonic amplitude(s) {', '.join(f'{n} = {values[n]:g} rad' for n in big)} are "
+                         f"implausible (limit {MAX_HARMONIC:g} rad; real transmission errors are below 0.01 rad): the "
+                         f"values are in rad, or calibrate again")
     return robot.with_params(values)
+
+
+MAX_HARMONIC = 0.05  # rad: a joint-angle harmonic beyond this is not a transmission error (3 deg)
