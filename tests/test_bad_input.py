@@ -420,7 +420,215 @@ def _tight_calibrated():
     return kincal.models.yaml_io.robot_to_yaml(cal) + yaml.safe_dump({"calibration": record})
 
 
-ALL = CSV + CSV_GOOD + YAML + YAML_GOOD + PATHS + ARGS + COMPENSATE
+URDF = Path(__file__).parent / "data" / "urdf" / "ur5_robot.urdf"
+URDF_FLAGS = ["--tip-link", "tool0", "--joint-cols", "j1,j2,j3,j4,j5,j6"]
+_CALIBRATED: dict = {}
+
+
+def _calibrated(base, **record):
+    """A calibrated UR5 file (YAML text) from good.csv, its calibration record changed by ``record``
+    (a key set to None is removed)."""
+    if "text" not in _CALIBRATED:
+        ur5 = kincal.load_robot("ur5")
+        res = kincal.calibrate(ur5, kincal.read_measurements(base / "good.csv", ur5, length_unit="mm",
+                                                             angle_unit="deg"))
+        _CALIBRATED["robot"] = kincal.models.yaml_io.robot_to_yaml(res.robot)
+        _CALIBRATED["record"] = {**res.record(), "data": {"file": str(base / "good.csv"), "length_unit": "mm",
+                                                           "angle_unit": "deg"}}
+        _CALIBRATED["text"] = True
+    rec = {**_CALIBRATED["record"], **record}
+    rec = {k: v for k, v in rec.items() if v is not None}
+    return _CALIBRATED["robot"] + yaml.safe_dump({"calibration": rec})
+
+
+def _header(base, f):
+    lines = good_lines(base)
+    return "\n".join([",".join(f(lines[0].split(",")))] + lines[1:]) + "\n"
+
+
+def _joints_in_degrees_declared_rad(base):
+    """Candidate poses in degrees (values up to 180), the file read as radians."""
+    return "j1,j2,j3,j4,j5,j6\n" + "\n".join(",".join(line.split(",")[:6]) for line in good_lines(base)[1:]) + "\n"
+
+
+def _mm_urdf():
+    import re
+    text = URDF.read_text()
+    return re.sub(r'xyz="([^"]*)"', lambda m: 'xyz="' + " ".join(str(float(v) * 1000) for v in m.group(1).split())
+                  + '"', text)
+
+
+def _cal(cmd, extra=(), **record):
+    """A command on a calibrated robot file whose record is changed."""
+    return {"files": {"cal.yaml": lambda b: _calibrated(b, **record)}, "argv": [*cmd, *extra]}
+
+
+def rcase(name, cmd, code, words, **record):
+    spec = _cal(cmd, **record)
+    return pytest.param({**spec, "code": code, "words": words}, id=name)
+
+
+EVAL = ["evaluate", "{d}/cal.yaml", "{base}/good.csv", *MMDEG]
+REPORT = ["report", "{d}/cal.yaml", "-o", "{d}/r.html"]
+COMP = ["compensate", "{d}/cal.yaml", "{base}/targets.csv", *MMDEG, "-o", "{d}/c.csv"]
+EXPORT = ["export", "{d}/cal.yaml", "{d}/out.urdf"]
+STUDY = ["study", "guo2024", "--trials", "2", "--poses", "24", "--generations", "2", "--workers", "1", "-o",
+         "{d}/s.jsonl"]
+STUDY_HEAD = '{"study":{"study":"guo2024","m":24,"generations":2,"seed":0,"per_task":100}}\n'
+
+ROUND2 = [
+    # readers: columns named twice, units checked the same way in every command that reads joints
+    csv_case("header-names-a-column-twice", lambda b: _header(b, lambda h: [h[0], h[0], *h[2:]]), 1,
+             ["names column(s) j1 more than once", "columns 1, 2"]),
+    csv_case("joint-cols-names-one-twice", lambda b: (b / "good.csv").read_text(), 1, ["j1 given more than once"],
+             extra=["--joint-cols", "j1,j1,j3,j4,j5,j6"]),
+    csv_case("xyz-col-also-a-joint", lambda b: (b / "good.csv").read_text(), 1, ["j6 given more than once"],
+             extra=["--xyz-cols", "x,y,j6"]),
+    csv_case("std-cols-repeat-x", lambda b: (b / "good.csv").read_text(), 1, ["given more than once"],
+             extra=["--std-cols", "x,y,z"]),
+    csv_case("evaluate-header-twice", lambda b: _header(b, lambda h: [*h[:6], "x", "x", "z"]), 1,
+             ["names column(s) x more than once"], cmd="evaluate"),
+    csv_case("rad-read-as-deg", lambda b: edit(b, lambda h, r: (h, [[repr(float(np.deg2rad(float(v)))) for v in x[:6]]
+                                                                     + x[6:] for x in r])), 1,
+             ["read as radians they match", "--angle-unit rad"]),
+    csv_case("mm-read-as-um", lambda b: (b / "good.csv").read_text(), 1, ["look like mm", "--length-unit mm"],
+             extra=["--length-unit", "um"]),
+    case("design-candidates-in-degrees-read-as-rad", ["design", "ur5", "-m", "10", "--candidates", "{d}/c.csv", "-o",
+                                                      "{d}/p.csv"], 1, ["look like degrees", "--angle-unit deg"],
+         files={"c.csv": _joints_in_degrees_declared_rad}),
+    case("simulate-poses-in-degrees-read-as-rad", ["simulate", "ur5", "--poses-file", "{d}/c.csv", "-o", "{d}/x.csv"],
+         1, ["look like degrees"], files={"c.csv": _joints_in_degrees_declared_rad}),
+    case("design-candidates-column-twice", ["design", "ur5", "-m", "10", "--candidates", "{d}/c.csv", "-o",
+                                            "{d}/p.csv"], 1, ["more than once"],
+         files={"c.csv": "j1,j1,j3,j4,j5,j6\n" + "0.1,0.2,0.3,0.4,0.5,0.6\n" * 20}),
+    case("verify-plan-predictions-as-measurements", ["verify", "puu3", "--plan", "{d}/p.csv", "--measured",
+                                                     "{d}/p.csv", "--xyz-cols", "x_pred,y_pred,z_pred"], 1,
+         ["predicted columns, not measurements"], files={"p.csv": lambda b: _plan()}),
+    # robot files: missing, a folder, xacro, URDF in mm or absurd, error-model values
+    case("robot-file-missing-with-path", ["calibrate", "{d}/robots/arm.yaml", "{base}/good.csv", *MMDEG], 1,
+         ["robot file", "not found", "does not exist either"]),
+    case("robot-file-is-folder", ["evaluate", "{d}", "{base}/good.csv", *MMDEG], 1, ["is a folder"]),
+    case("xacro-file", ["show", "{d}/arm.urdf.xacro"], 1, ["xacro file", "expand it first"],
+         files={"arm.urdf.xacro": '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro"><xacro:include '
+                                  'filename="arm.xacro"/><xacro:arm prefix=""/></robot>'}),
+    case("urdf-in-mm", ["show", "{d}/mm.urdf", "--tip-link", "tool0"], 1, ["look like mm", "metres"],
+         files={"mm.urdf": lambda b: _mm_urdf()}),
+    case("urdf-origin-1e300", ["show", "{d}/big.urdf", "--tip-link", "tool0"], 1, ["implausible", "shoulder_pan"],
+         files={"big.urdf": lambda b: URDF.read_text().replace('xyz="0.0 0.0 0.089159"', 'xyz="0.0 0.0 1e300"', 1)}),
+    yaml_case("error-model-payload-inf", UR5_YAML + "error_model: {terms: [{type: compliance, joints: [j2], payload: "
+              ".inf}], reference: {}, values: {}}\n", 1, ["error_model"]),
+    case("error-model-harmonic-3-rad", ["show", "{d}/h.yaml"], 1, ["harmonic amplitude", "j2.h1s = 3 rad",
+                                                                     "implausible"],
+         files={"h.yaml": UR5_YAML + "error_model: {terms: [{type: harmonics, order: 1, joints: [j2]}], values: "
+                                     "{j2.h1s: 3.0}}\n"}),
+    # URDF robots in every command that takes a robot
+    case("urdf-evaluate", ["evaluate", str(URDF), "{base}/good.csv", *MMDEG, *URDF_FLAGS], 0, ["n=60"]),
+    case("urdf-compensate-targets-in-dh-base", ["compensate", str(URDF), "{base}/targets.csv", *MMDEG, *URDF_FLAGS,
+                                                "-o", "{d}/c.csv"], 4, ["do not belong together", "frame?"]),
+    case("urdf-report-without-record", ["report", str(URDF), "--train", "{base}/good.csv", *MMDEG, *URDF_FLAGS, "-o",
+                                        "{d}/r.html"], 1, ["not a calibrated robot file", "-o calibrated.yaml"]),
+    case("separate-urdf", ["separate", str(URDF), "--tip-link", "tool0"], 1, ["no DH parameters"]),
+    case("separate-puu3", ["separate", "puu3"], 1, ["no DH parameters", "identifiability"]),
+    # calibration records that cannot be used: one line naming the file and the key
+    rcase("evaluate-record-parameters-a-number", EVAL, 1, ["cal.yaml", "'parameters' is malformed"], parameters=5),
+    rcase("evaluate-record-covariance-text", EVAL, 1, ["cal.yaml", "'covariance' is malformed"], covariance="text"),
+    rcase("evaluate-record-envelope-a-number", EVAL, 1, ["cal.yaml", "'envelope' is malformed"], envelope=3),
+    rcase("evaluate-record-without-sigma", EVAL, 1, ["'training_median_sigma' is missing"],
+          training_median_sigma=None),
+    rcase("compensate-record-covariance-text", COMP, 1, ["cal.yaml", "'covariance' is malformed"], covariance="x"),
+    rcase("compensate-record-parameters-missing", COMP, 1, ["'parameters' is missing"], parameters=None),
+    rcase("report-record-options-a-list", [*REPORT], 1, ["options must be a mapping"], options=[1, 2]),
+    rcase("report-record-data-a-number", [*REPORT], 1, ["'data' must be a mapping"], data=5),
+    rcase("report-record-thresholds-text", [*REPORT], 1, ["thresholds"], options={"thresholds": "high"}),
+    rcase("report-record-max-iter-text", [*REPORT], 1, ["max_iter"], options={"max_iter": "many"}),
+    rcase("report-record-error-model-number", [*REPORT], 1, ["error model 5"], options={"error_model": 5}),
+    rcase("report-record-unknown-option", [*REPORT], 1, ["unknown calibration option"], options={"colour": 1}),
+    rcase("report-record-nominal-text", [*REPORT], 1, ["nominal value", "not a number"], nominal={"j2.a": "long"}),
+    rcase("report-record-data-file-a-number", [*REPORT], 1, ["--train"], data={"file": 5}),
+    rcase("report-record-reject-outliers-text", [*REPORT], 1, ["reject_outliers"],
+          options={"reject_outliers": "yes"}),
+    # study results files
+    case("study-line-not-a-record", STUDY, 1, ["line 2 is not a task record"], files={"s.jsonl": STUDY_HEAD + "[1]\n"}),
+    case("study-empty-record-list", STUDY, 1, ["task 0", "one result per trial"],
+         files={"s.jsonl": STUDY_HEAD + '{"task":0,"records":[]}\n'}),
+    case("study-records-without-results", STUDY, 1, ["lack the study's results"],
+         files={"s.jsonl": STUDY_HEAD + '{"task":0,"records":[{"trial":0},{"trial":1}]}\n'}),
+    case("study-records-of-other-trials", STUDY, 1, ["task 0"],
+         files={"s.jsonl": STUDY_HEAD + '{"task":0,"records":[{"trial":5},{"trial":6}]}\n'}),
+    case("study-header-a-number", STUDY, 1, ["another study"], files={"s.jsonl": "5\n"}),
+    # exports: never over what the robot was read from; values checked before writing
+    case("export-over-the-source-urdf", ["export", "{d}/cal.yaml", "arm.urdf"], 1, ["would overwrite", "arm.urdf"],
+         files={"arm.urdf": lambda b: URDF.read_text(), "cal.yaml": lambda b: _urdf_calibrated(b)}),
+    case("export-from-with-dh-robot", ["export", "ur5", "{d}/x.urdf", "--from", str(URDF)], 1,
+         ["applies to robots read from a URDF"]),
+    case("export-base-yaw-nan", ["export", "ur5", "{d}/u.yaml", "--format", "ur", "--base-yaw", "nan"], 2,
+         ["finite number"]),
+    case("export-base-yaw-inf", ["export", "ur5", "{d}/u.yaml", "--format", "ur", "--base-yaw", "inf"], 2,
+         ["finite number"]),
+    case("export-over-the-calibrated-file", [*EXPORT[:2], "{d}/cal.yaml"], 1, ["would overwrite"],
+         files={"cal.yaml": lambda b: _calibrated(b)}),
+    # options that were ignored or accepted without a word
+    csv_case("payload-without-gravity-terms", lambda b: (b / "good.csv").read_text(), 1, ["--payload 5",
+                                                                                         "gravity terms"],
+             extra=["--payload", "5"]),
+    csv_case("payload-1e9", lambda b: (b / "good.csv").read_text(), 1, ["more than any robot carries"],
+             extra=["--payload", "1e9", "--error-model", "compliance"]),
+    csv_case("payload-with-harmonics-only", lambda b: (b / "good.csv").read_text(), 1, ["has none"],
+             extra=["--payload", "2", "--error-model", "harmonics:1"]),
+    csv_case("reject-outliers-with-pso", lambda b: (b / "good.csv").read_text(), 1, ["reject_outliers", "lm"],
+             extra=["--reject-outliers", "--method", "pso"]),
+    csv_case("tool-in-mm-without-unit", lambda b: (b / "good.csv").read_text(), 2, ["look like mm", "31mm"],
+             extra=["--tool", "0,0.09,31"]),
+    # outputs checked before any work
+    csv_case("calibrate-plot-folder-missing", lambda b: (b / "good.csv").read_text(), 1, ["does not exist"],
+             extra=["-o", "{d}/cal.yaml", "--report", "{d}/r.html", "--plot", "{d}/figs/f.png"]),
+    csv_case("evaluate-plot-folder-missing", lambda b: (b / "good.csv").read_text(), 1, ["does not exist"],
+             extra=["--plot", "{d}/figs/f.png"], cmd="evaluate"),
+    csv_case("calibrate-report-folder-missing", lambda b: (b / "good.csv").read_text(), 1, ["does not exist"],
+             extra=["-o", "{d}/cal.yaml", "--report", "{d}/none/r.html"]),
+    csv_case("calibrate-plot-is-the-data", lambda b: (b / "good.csv").read_text(), 1, ["would overwrite"],
+             extra=["--plot", "{d}/data.csv"]),
+    case("demo-plot-folder-missing", ["demo", "--plot", "{d}/none/f.png"], 1, ["does not exist"]),
+    case("report-output-is-training-data", ["report", "{d}/cal.yaml", "-o", "{base}/good.csv"], 1,
+         ["would overwrite"], files={"cal.yaml": lambda b: _calibrated(b)}),
+    case("compensate-output-is-calibrated-file", [*COMP[:-1], "{d}/cal.yaml"], 1, ["would overwrite"],
+         files={"cal.yaml": lambda b: _calibrated(b)}),
+    case("compensate-targets-header-twice", ["compensate", "ur5", "{d}/t.csv", *MMDEG, "-o", "{d}/c.csv"], 1,
+         ["names column(s) x more than once"], files={"t.csv": "j1,j2,j3,j4,j5,j6,x,x,z\n0,0,0,0,0,0,1,2,3\n"}),
+    case("identifiability-data-header-twice", ["identifiability", "ur5", "--data", "{d}/q.csv"], 1,
+         ["names column(s) j3 more than once"], files={"q.csv": "j1,j2,j3,j3,j5,j6\n" + "0.1,0.2,0.3,0.4,0.5,0.6\n" * 9}),
+    case("calibrate-urdf-in-mm", ["calibrate", "{d}/mm.urdf", "{base}/good.csv", *MMDEG, *URDF_FLAGS], 1,
+         ["look like mm", "divide by 1000"], files={"mm.urdf": lambda b: _mm_urdf()}),
+    case("export-joint-names-twice", ["export", "ur5", "{d}/x.urdf", "--joint-names", "a,a,c,d,e,f"], 1,
+         ["give 6 distinct names"]),
+    case("evaluate-xacro", ["evaluate", "{d}/arm.xacro", "{base}/good.csv", *MMDEG], 1, ["xacro file"],
+         files={"arm.xacro": '<?xml version="1.0"?>\n<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+                             '<xacro:property name="a" value="1"/></robot>'}),
+    csv_case("residuals-is-the-data", lambda b: (b / "good.csv").read_text(), 1, ["would overwrite"],
+             extra=["--residuals", "{d}/data.csv"]),
+]
+
+
+def _plan():
+    from kincal.compensate.verify import verification_plan
+    import io
+    r = kincal.load_robot("puu3")
+    plan = verification_plan(r, r.sample_joints(4, seed=1), ["L1", "L2"])
+    buf = Path(os.environ.get("TMPDIR", "/tmp")) / f"kincal-plan-{os.getpid()}.csv"
+    plan.write_csv(buf, r)
+    text = buf.read_text()
+    buf.unlink()
+    return text
+
+
+def _urdf_calibrated(base):
+    """A UR5 calibrated from the URDF 'arm.urdf' in the case's folder (the file it names as source)."""
+    robot = kincal.load_robot(URDF, tip_link="tool0")
+    text = kincal.models.yaml_io.robot_to_yaml(robot)
+    return text.replace(str(URDF), "arm.urdf")  # relative: the case runs in its own folder
+
+
+ALL = CSV + CSV_GOOD + YAML + YAML_GOOD + PATHS + ARGS + COMPENSATE + ROUND2
 
 
 @pytest.mark.parametrize("spec", ALL)
