@@ -31,13 +31,15 @@ def run() -> int:
     """Load the command line with the signals handled, run it, and return its exit code."""
     signal.signal(signal.SIGINT, _raise(130, "interrupted"))
     signal.signal(signal.SIGTERM, _raise(143, "terminated"))
-    if os.environ.get("KINCAL_PROGRESS"):
-        sys.stderr.write("kincal: loading\n")
-        sys.stderr.flush()
     try:
+        if os.environ.get("KINCAL_PROGRESS"):
+            sys.stderr.write("kincal: loading\n")
+            sys.stderr.flush()
         from kincal.cli import main
         signal.signal(signal.SIGINT, signal.default_int_handler)  # main handles them from here on
         code = main()
+        _quiet_from_here()
+        return code
     except _Stop as stop:
         _quiet_from_here()
         sys.stderr.write(f"kincal: {stop.word}; nothing half-written\n")
@@ -46,5 +48,3 @@ def run() -> int:
         _quiet_from_here()
         sys.stderr.write("kincal: interrupted; nothing half-written\n")
         return 130
-    _quiet_from_here()
-    return code
