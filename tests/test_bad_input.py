@@ -611,7 +611,6 @@ ROUND2 = [
 
 def _plan():
     from kincal.compensate.verify import verification_plan
-    import io
     r = kincal.load_robot("puu3")
     plan = verification_plan(r, r.sample_joints(4, seed=1), ["L1", "L2"])
     buf = Path(os.environ.get("TMPDIR", "/tmp")) / f"kincal-plan-{os.getpid()}.csv"

@@ -63,7 +63,7 @@ def order_with_ties(values: Sequence[float] | np.ndarray, descending: bool = Tru
     while rest:
         k = rest[first_best(v[rest], maximize=descending, rtol=rtol)]
         band = tie_tolerance(float(v[k]), rtol)
-        tied = [i for i in rest if abs(v[i] - v[k]) <= band or v[i] == v[k]]
+        tied = [i for i in rest if v[i] == v[k] or abs(v[i] - v[k]) <= band]  # equal first: inf - inf is nan
         out += tied
         rest = [i for i in rest if i not in tied]
     return out

@@ -165,7 +165,7 @@ def _joint_columns(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change
                         _data(lambda m, j=j, d=deg: _with(m, q=_set(m.q, [j], m.q[:, [j]] + np.deg2rad(d))))))
     for a, b in itertools.combinations(range(len(names)), 2):
         out.append((Cause("joint-order", f"the columns of {names[a]} and {names[b]} are swapped",
-                          f"swap them (give --joint-cols in the robot's joint order)"),
+                          "swap them (give --joint-cols in the robot's joint order)"),
                     _data(lambda m, a=a, b=b: _with(m, q=m.q[:, _swapped(len(names), a, b)]))))
     return out
 
@@ -275,7 +275,7 @@ def diagnose(res) -> Diagnosis:
     block = meas.subset(np.arange(min(len(meas), SCREEN_POSES)))  # consecutive: row shifts stay row shifts
     screened = [_screen(*change(robot, block, options)[:2]) for _, change in data]
     as_given = _screen(robot, block)
-    order = sorted((k for k, s in enumerate(screened) if s < EXPLAIN_RATIO * as_given), key=lambda k: screened[k])
+    order = [k for k in order_with_ties(screened, descending=False) if screened[k] < EXPLAIN_RATIO * as_given]
     trials = [data[k] for k in sorted(order[:MAX_FULL])] + _setups(robot, options)
     rows = outlier_rows(robot, meas, options) if len(meas) > 10 else []
     if len(rows):
@@ -284,7 +284,8 @@ def diagnose(res) -> Diagnosis:
                              f"check how they were measured", rows=tuple(int(r) for r in rows)),
                        lambda r, m, o: (r, m.without_rows(rows), o)))
     tried = [c for c in (_full(cause, change, robot, meas, options) for cause, change in trials) if c is not None]
-    return Diagnosis(res.sigma, res.verdict.status, _ranked(tried, res), len(data) + len(trials) - len(order[:MAX_FULL]))
+    n_tried = len(data) + len(trials) - min(len(order), MAX_FULL)  # the screened ones counted once
+    return Diagnosis(res.sigma, res.verdict.status, _ranked(tried, res), n_tried)
 
 
 def _ranked(tried: list[Cause], res) -> tuple[Cause, ...]:

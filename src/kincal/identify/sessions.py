@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.measurements import Measurements
+from ..io.unit_checks import spread
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import MM
 from .calibrate import calibrate
@@ -35,8 +36,6 @@ def _mean_error(robot: Robot, meas: Measurements) -> float:
 
 def _spread_ratio(robot: Robot, meas: Measurements) -> float:
     """Measured spread / predicted spread of the positions at the same joints."""
-    def spread(x):
-        return float(np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1))))
     return spread(meas.xyz) / max(spread(robot.forward(meas.q)), 1e-300)
 
 

@@ -14,7 +14,8 @@ import numpy as np
 from .._atomic import write_text_atomic
 from ..errors import MeasurementError
 from ..models.robot import Robot
-from ..units import LENGTH_UNITS, OTHER_LENGTHS, unit_factor
+from ..units import unit_factor
+from .unit_checks import check_degrees, check_spread
 
 MAX_LISTED = 10  # rows named in an error message
 
@@ -88,66 +89,10 @@ class Measurements:
                 f"{self.source}: {self.q.shape[1]} joint columns but robot '{robot.name}' has {robot.n_joints} "
                 f"joints ({', '.join(robot.joint_names)}); pass the right joint columns"
             )
-        _check_degrees(self.source, self.q, robot, angle_unit)
+        check_degrees(self.source, self.q, robot, angle_unit)
         if len(self) >= 3:
-            self._check_spread(robot, length_unit or (self.units[0] if self.units else None),
-                               angle_unit or (self.units[1] if self.units else None))
-
-    def _check_spread(self, robot: Robot, length_unit: str | None, angle_unit: str | None) -> None:
-        """The measured spread against the robot's at the same joints: off by more than SPREAD_RATIO is
-        a unit mistake, named (angles read in the other unit first, then the length unit)."""
-        spread = _spread(robot.forward(self.q))
-        ratio = _spread(self.xyz) / max(spread, 1e-300)
-        if spread > MIN_SPREAD and 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
-            return
-        rev = np.array([t == "revolute" for t in robot.joint_types])
-        if angle_unit == "deg" and rev.any():
-            q = self.q.copy()
-            q[:, rev] *= 180.0 / np.pi
-            if 1 / SPREAD_RATIO < _spread(self.xyz) / max(_spread(robot.forward(q)), 1e-300) < SPREAD_RATIO:
-                raise MeasurementError(f"{self.source}: read as degrees, the joint values move the robot "
-                                       f"{max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the measured positions "
-                                       f"spread, read as radians they match: use angle unit 'rad' (CLI: --angle-unit "
-                                       f"rad)")
-        if spread > MIN_SPREAD:
-            raise MeasurementError(f"{self.source}: {_unit_hint(ratio, length_unit)}")
-
-
-def _check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | None) -> None:
-    """MeasurementError when revolute joint values (rad) go beyond two turns and well beyond the joint
-    limits, and would lie within them read as degrees: degrees read as radians."""
-    rev = np.array([t == "revolute" for t in robot.joint_types])
-    if not rev.any():
-        return
-    lim = np.maximum(np.abs(robot.lower), np.abs(robot.upper))
-    reach = np.maximum(4 * np.pi, 1.5 * np.where(np.isfinite(lim), lim, 0.0))[rev]
-    over = np.any(np.abs(q[:, rev]) > reach)
-    if over and np.all(np.abs(q[:, rev]) * np.pi / 180.0 <= reach):  # read as degrees, they would fit
-        qmax = float(np.max(np.abs(q[:, rev])))
-        given = f" ('{angle_unit}' was given)" if angle_unit else ""
-        raise MeasurementError(f"{source}: revolute joint values reach {qmax:.4g} rad{given}, far beyond the joint "
-                               f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)")
-
-
-MIN_SPREAD = 1e-3  # m: below this the poses barely move the tool, and noise decides the spread
-SPREAD_RATIO = 2.0  # measured vs predicted spread at the same poses; model errors change it by < 1 %
-
-
-def _unit_hint(ratio: float, length_unit: str | None) -> str:
-    """Why the measured spread is off by ``ratio`` (read in ``length_unit``, default m), and what to do:
-    the unit the positions are really in when one explains the factor."""
-    table = {**LENGTH_UNITS, **OTHER_LENGTHS}
-    declared = length_unit if length_unit in table else "m"
-    true = table[declared] / ratio  # the SI value of the unit the numbers are really in
-    name = min(table, key=lambda k: abs(np.log(table[k] / true)))
-    side = f"{ratio:.3g}x more" if ratio > 1 else f"{1 / ratio:.3g}x less"
-    head = f"measured positions spread {side} than the robot moves at the same joint values (read as '{declared}')"
-    if abs(np.log(table[name] / true)) > np.log(1.3):
-        return f"{head}; no length unit explains that factor: check the joint columns and the robot file"
-    if name in LENGTH_UNITS:
-        return f"{head}: they look like {name}; use length unit '{name}' (CLI: --length-unit {name})"
-    return (f"{head}: they look like {name}; convert them to mm (x{table[name] / 1e-3:g}) and use length unit 'mm' "
-            f"(CLI: --length-unit mm)")
+            check_spread(self.source, self.q, self.xyz, robot, length_unit or (self.units[0] if self.units else None),
+                         angle_unit or (self.units[1] if self.units else None))
 
 
 def _check_finite(source: str, values: np.ndarray, rows: np.ndarray, what: str) -> None:
@@ -157,10 +102,6 @@ def _check_finite(source: str, values: np.ndarray, rows: np.ndarray, what: str) 
         listed = ", ".join(str(r) for r in rows[bad][:MAX_LISTED])
         more = f" and {bad.sum() - MAX_LISTED} more" if bad.sum() > MAX_LISTED else ""
         raise MeasurementError(f"{source}: NaN or infinite {what} in row(s) {listed}{more}; remove or fix those rows")
-
-
-def _spread(x: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1))))
 
 
 def _sniff_delimiter(header: str, path: str) -> str:
@@ -273,7 +214,7 @@ def read_joints(
     q, lines = _read_columns(path, cols)
     _check_finite(path, q, lines, "joint values")
     q = q * _joint_scale(robot.joint_types, length_unit, angle_unit, path)
-    _check_degrees(path, q, robot, angle_unit)
+    check_degrees(path, q, robot, angle_unit)
     return q
 
 

@@ -239,7 +239,8 @@ def _data_rows(result: CalibrationResult, tests: list[Measurements], info: dict)
     if result.diagnosis is not None:
         rows.append(("diagnosis", result.diagnosis.message()))
     rows += [("options", f"base {o.base}, loss {o.loss}, method {o.method}, "
-                         f"parameters {o.names if isinstance(o.names, str) else 'as listed'}"),
+                         f"parameters {o.names if isinstance(o.names, str) else 'as listed'}"
+                         + (", outliers left out (--reject-outliers)" if o.reject_outliers else "")),
              ("solver", f"{'converged' if result.converged else 'NOT converged'} ({result.message}), "
                         f"{result.iterations} iterations"),
              ("pose design", info.pop("design", "not recorded (poses not from kincal design, or not given)"))]

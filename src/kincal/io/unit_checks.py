@@ -1,0 +1,74 @@
+"""Whether measured data are in the units they were declared in: degrees read as radians, and the
+measured spread of positions against the robot's own at the same joints (which names the unit the
+numbers are really in). Used by every reader of joint values and by the measurement checks."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import MeasurementError
+from ..models.robot import Robot
+from ..units import LENGTH_UNITS, OTHER_LENGTHS
+
+MIN_SPREAD = 1e-3  # m: below this the poses barely move the tool, and noise decides the spread
+SPREAD_RATIO = 2.0  # measured vs predicted spread at the same poses; model errors change it by < 1 %
+
+
+def spread(x: np.ndarray) -> float:
+    """RMS distance (m) of the points x (N, 3) from their centroid."""
+    return float(np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1))))
+
+
+def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, length_unit: str | None,
+                 angle_unit: str | None) -> None:
+    """MeasurementError when the measured spread of ``xyz`` (N, 3) differs from the robot's at the
+    joints ``q`` by more than SPREAD_RATIO: a unit mistake, named (the joint values read in the
+    other angle unit first, then the unit the positions are really in)."""
+    predicted = spread(robot.forward(q))
+    ratio = spread(xyz) / max(predicted, 1e-300)
+    if predicted > MIN_SPREAD and 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
+        return
+    rev = np.array([t == "revolute" for t in robot.joint_types])
+    if angle_unit == "deg" and rev.any():
+        as_rad = q.copy()
+        as_rad[:, rev] *= 180.0 / np.pi
+        if 1 / SPREAD_RATIO < spread(xyz) / max(spread(robot.forward(as_rad)), 1e-300) < SPREAD_RATIO:
+            raise MeasurementError(f"{source}: read as degrees, the joint values move the robot "
+                                   f"{max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the "
+                                   f"measured positions spread, read as radians they match: use angle unit 'rad' "
+                                   f"(CLI: --angle-unit rad)")
+    if predicted > MIN_SPREAD:
+        raise MeasurementError(f"{source}: {unit_hint(ratio, length_unit)}")
+
+
+def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | None) -> None:
+    """MeasurementError when revolute joint values (rad) go beyond two turns and well beyond the joint
+    limits, and would lie within them read as degrees: degrees read as radians."""
+    rev = np.array([t == "revolute" for t in robot.joint_types])
+    if not rev.any():
+        return
+    lim = np.maximum(np.abs(robot.lower), np.abs(robot.upper))
+    reach = np.maximum(4 * np.pi, 1.5 * np.where(np.isfinite(lim), lim, 0.0))[rev]
+    over = np.any(np.abs(q[:, rev]) > reach)
+    if over and np.all(np.abs(q[:, rev]) * np.pi / 180.0 <= reach):  # read as degrees, they would fit
+        qmax = float(np.max(np.abs(q[:, rev])))
+        given = f" ('{angle_unit}' was given)" if angle_unit else ""
+        raise MeasurementError(f"{source}: revolute joint values reach {qmax:.4g} rad{given}, far beyond the joint "
+                               f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)")
+
+
+
+def unit_hint(ratio: float, length_unit: str | None) -> str:
+    """Why the measured spread is off by ``ratio`` (read in ``length_unit``, default m), and what to do:
+    the unit the positions are really in when one explains the factor."""
+    table = {**LENGTH_UNITS, **OTHER_LENGTHS}
+    declared = length_unit if length_unit in table else "m"
+    true = table[declared] / ratio  # the SI value of the unit the numbers are really in
+    name = min(table, key=lambda k: abs(np.log(table[k] / true)))
+    side = f"{ratio:.3g}x more" if ratio > 1 else f"{1 / ratio:.3g}x less"
+    head = f"measured positions spread {side} than the robot moves at the same joint values (read as '{declared}')"
+    if abs(np.log(table[name] / true)) > np.log(1.3):
+        return f"{head}; no length unit explains that factor: check the joint columns and the robot file"
+    if name in LENGTH_UNITS:
+        return f"{head}: they look like {name}; use length unit '{name}' (CLI: --length-unit {name})"
+    return (f"{head}: they look like {name}; convert them to mm (x{table[name] / 1e-3:g}) and use length unit 'mm' "
+            f"(CLI: --length-unit mm)")
