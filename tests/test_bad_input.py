@@ -606,6 +606,9 @@ ROUND2 = [
                              '<xacro:property name="a" value="1"/></robot>'}),
     csv_case("residuals-is-the-data", lambda b: (b / "good.csv").read_text(), 1, ["would overwrite"],
              extra=["--residuals", "{d}/data.csv"]),
+    case("same-session-twice", ["calibrate", "ur5", "{d}/data.csv", "{d}/./data.csv", *MMDEG], 1,
+         ["data.csv is given twice as a session", "give each session file once"],
+         files={"data.csv": lambda b: (b / "good.csv").read_text()}),
 ]
 
 

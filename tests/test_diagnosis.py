@@ -203,6 +203,26 @@ def test_reject_outliers_matches_the_outlier_free_fit_and_the_report_names_the_r
     assert "left out as outliers" in html and "row(s) 40 of" in html
 
 
+def test_reject_outliers_with_sessions_leaves_out_only_the_bad_pose_of_its_file():
+    """Two sessions (frames 0.5 rad apart) both have a row 12; the 50 mm outlier is in the second file's
+    row 12: only that pose goes, named with its file, and the fit equals the one without it."""
+    from kincal.identify.sessions import calibrate_sessions
+    ur5 = kincal.load_robot("ur5")
+    true = kincal.perturb(ur5, seed=3)
+    a = dataclasses.replace(kincal.simulate(true, ur5.sample_joints(80, seed=1), 15e-6, seed=1), source="a.csv")
+    b = kincal.simulate(true.with_base_transform(rot_zyx(0.5, 0.0, 0.0), np.array([1.0, 0.0, 0.0])),
+                        ur5.sample_joints(60, seed=2), 15e-6, seed=2)
+    xyz = b.xyz.copy()
+    xyz[10] += [0.05, 0.0, 0.0]  # input row 12
+    bad = dataclasses.replace(b, xyz=xyz, source="b.csv")
+    res = calibrate_sessions(ur5, [a, bad], reject_outliers=True)
+    assert len(res.measurements) == 139 and res.rejected_rows == (12,) and res.rejected_sessions == ("b.csv",)
+    assert res.rejected_text() == "row(s) 12 of b.csv" and "row(s) 12 of b.csv" in str(res)
+    assert res.verdict.status == "good"
+    clean = calibrate_sessions(ur5, [a, bad.without_rows([12])])
+    np.testing.assert_allclose(res.robot.params.values, clean.robot.params.values, atol=1e-12)
+
+
 def test_huber_fit_is_not_told_to_use_huber(setups):
     s = setups["ur5"]
     xyz = s.good.xyz.copy()

@@ -1,4 +1,6 @@
 """Beyond geometry: joint-angle harmonics, and the model choice that refuses to extrapolate."""
+import dataclasses
+
 import numpy as np
 import pytest
 from conftest import DATA, UR5_COLS, assert_jacobians
@@ -6,6 +8,7 @@ from conftest import DATA, UR5_COLS, assert_jacobians
 import kincal
 from kincal.analysis import stacked_jacobian
 from kincal.cli import main
+from kincal.identify import refit_frame
 from kincal.identify.select import blocked_folds
 
 NOISE = 15e-6
@@ -172,3 +175,61 @@ def test_base_drift_over_acquisition_order_is_fitted(ur5, tmp_path, capsys):
     assert main(["calibrate", "ur5", str(path), "--drift", "--json"]) == 0
     out = __import__("json").loads(capsys.readouterr().out)
     assert out["drift"]["x"]["value"] == pytest.approx(res.drift["x"]["value"], abs=1e-12)
+
+
+def _session(true, nominal, phase, seed, frame):
+    """One session: an error that looks like a first harmonic of j2 and j3 inside the session but whose
+    phase is set anew in every session (something of the set-up, not of the robot), in a frame of its own."""
+    amp = 1e-3
+    t = true.with_params({"j2.h1s": amp * np.cos(phase), "j2.h1c": amp * np.sin(phase),
+                          "j3.h1s": amp * np.cos(phase + 1), "j3.h1c": amp * np.sin(phase + 1)})
+    c, s = np.cos(frame), np.sin(frame)
+    t = t.with_base_transform(np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]), np.array([1.0 + frame, -0.3, 0.2]))
+    meas = kincal.simulate(t, nominal.sample_joints(120, seed=seed), NOISE, seed=seed)
+    return dataclasses.replace(meas, source=f"session{seed}.csv")
+
+
+def test_auto_with_sessions_refuses_a_term_that_does_not_carry_over():
+    """Pooled, the harmonics win on held-out regions; on a third, later session they are 30 % worse
+    than geometric. Left out one session at a time they lose on both: auto keeps geometric."""
+    from kincal.identify.sessions import calibrate_sessions
+    nominal = kincal.load_robot("ur5").with_tool_point(np.array([0.05, 0.02, 0.1]))
+    model = kincal.extend(nominal, "harmonics:1")
+    true = kincal.perturb(model, 0.5e-3, 0.5e-3, seed=3).with_params({n: 0.0 for n in model.term_names})
+    a, b, later = (_session(true, nominal, phase, seed, frame)
+                   for phase, seed, frame in ((0.0, 1, 0.0), (np.pi / 2, 2, 0.4), (np.pi, 3, -0.3)))
+    res = calibrate_sessions(nominal, [a, b], error_model="auto")
+    choice = res.error_model_choice
+    assert choice.chosen == "geometric" and choice.sessions == ("session1.csv", "session2.csv")
+    rows = {r["error_model"]: r for r in choice.rows}
+    assert rows["harmonics:1"]["decision"].startswith("dropped: worse than geometric on held-out session")
+    assert rows["harmonics:1"]["cv_mean"] < rows["geometric"]["cv_mean"]  # the region test alone was fooled
+    # without the session labels (the same aligned data as one file) the regions choose the harmonics
+    blind = kincal.calibrate(nominal, dataclasses.replace(res.measurements, session=None), error_model="auto")
+    assert blind.error_model_choice.chosen.startswith("harmonics") and not blind.error_model_choice.sessions
+    # ... and the later session says the guard was right
+    errors = {k: np.mean(np.linalg.norm(later.xyz - refit_frame(r.robot, later).forward(later.q), axis=1))
+              for k, r in (("auto", res), ("blind", calibrate_sessions(nominal, [a, b],
+                                                                       error_model=blind.error_model_choice.chosen)))}
+    assert errors["blind"] > 1.2 * errors["auto"]
+    assert "leave-one-session-out (2 of 2 sessions held out)" in str(choice)
+
+
+def test_auto_with_real_ur5_sessions_holds_out_the_smaller_one(ur5, grid):
+    """1000 grid poses and 20 random ones as two sessions: only the 20 are held out (a model fitted to 20
+    poses would be judged on how little data it had); the harmonics carry over to them and are kept."""
+    from kincal.identify.sessions import calibrate_sessions
+    train, test = grid
+    res = calibrate_sessions(ur5, [train, test], error_model="auto")
+    choice = res.error_model_choice
+    assert choice.sessions == (test.source,) and choice.not_held_out == (train.source,)
+    rows = {r["error_model"]: r for r in choice.rows}
+    assert choice.chosen == "harmonics:2"
+    assert rows["harmonics:2"]["sessions"][0] < rows["geometric"]["sessions"][0]
+    # the held-out figure is the model fitted to the grid alone, its frame re-registered to the 20 poses
+    alone = kincal.calibrate(ur5, train)
+    expected = np.mean(np.linalg.norm(test.xyz - refit_frame(alone.robot, test).forward(test.q), axis=1))
+    assert rows["geometric"]["sessions"][0] == pytest.approx(expected, rel=1e-6)
+    html = kincal.build_report(res, []).html  # the report's table has the held-out session's column
+    assert f'<th title="{test.source}">held out: ur5_random.csv (mm)</th>' in html
+    assert f'{rows["harmonics:2"]["sessions"][0] * 1e3:.4f}</td>' in html and "Not held out" in html

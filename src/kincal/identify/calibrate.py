@@ -18,17 +18,17 @@ from ..io.measurements import Measurements
 from ..models.robot import Robot
 from ..models.terms import TAU_REF, drop_terms, extend
 from .covariance import parameter_statistics
-from .diagnosis import TRIGGERS, diagnose, outlier_rows
+from .diagnosis import TRIGGERS, diagnose, outlier_poses
 from .drift import with_drift, without_drift
 from .lm import LMResult, fit_lm
 from .options import FitOptions
 from .problem import CalibrationProblem, build_problem
 from .pso import fit_pso
-from .result import CalibrationResult, EvaluationStats
+from .result import CalibrationResult, EvaluationStats, rejected
 from .robust import irls
 from .select import select_model
 from .verdict import (Reason, Verdict, correction_reasons, drift_reasons, duplicate_reasons, fitted_drift_reasons,
-                      listed, mounting_reasons, noise_level, outlier_reasons, residual_reasons, robust_z)
+                      mounting_reasons, noise_level, outlier_reasons, residual_reasons, robust_z)
 
 
 def calibrate(robot: Robot, meas: Measurements, options: FitOptions | None = None, *, use_q: np.ndarray | None = None,
@@ -63,15 +63,16 @@ def calibrate(robot: Robot, meas: Measurements, options: FitOptions | None = Non
 
 def _without_outliers(res: CalibrationResult, say) -> CalibrationResult:
     """The fit repeated without the poses a robust refit puts beyond the outlier limit (none: ``res``)."""
-    rows = outlier_rows(res.nominal, res.measurements, res.options)
-    if not len(rows):
+    meas = res.measurements
+    bad = outlier_poses(res.nominal, meas, res.options)
+    if not len(bad):
         return res
-    say(f"leaving out {len(rows)} outlier pose(s): row(s) {listed(rows)}")
-    again = calibrate(res.nominal, res.measurements.without_rows(rows),
+    say(f"leaving out {len(bad)} outlier pose(s): {meas.describe_rows(bad)}")
+    again = calibrate(res.nominal, meas.subset(np.setdiff1d(np.arange(len(meas)), bad)),
                       res.options.replace(error_model=None, reject_outliers=False, diagnose=False))
     return dataclasses.replace(again, options=res.options, error_model_choice=res.error_model_choice,
                                use_q=res.use_q, error_model_notes=res.error_model_notes + again.error_model_notes,
-                               rejected_rows=tuple(int(r) for r in rows))
+                               **rejected(meas, bad))
 
 
 def _diagnosed(res: CalibrationResult, say) -> CalibrationResult:

@@ -39,7 +39,7 @@ from ..io.measurements import Measurements
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import ANGLE_UNITS, LENGTH_UNITS, MM, OTHER_LENGTHS
 from ..ties import order_with_ties
-from .verdict import STATUSES, listed, robust_z
+from .verdict import STATUSES, robust_z
 
 EXPLAIN_RATIO = 0.5  # a candidate whose fit leaves less than half the residual σ explains the data
 NOT_WORSE = 2.0  # ... or one with a better verdict and a residual σ at most this many times the original
@@ -227,13 +227,13 @@ def _setups(robot: Robot, options) -> list[tuple[Cause, Change]]:
     return out
 
 
-def outlier_rows(robot: Robot, meas: Measurements, options) -> np.ndarray:
-    """Input rows of the poses a robust (Huber) refit puts more than ``outlier_z`` robust σ off, at most
-    MAX_OUTLIER_SHARE of the poses (none when more are that far off: then it is not a few bad poses)."""
+def outlier_poses(robot: Robot, meas: Measurements, options) -> np.ndarray:
+    """Indices into ``meas`` of the poses a robust (Huber) refit puts more than ``outlier_z`` robust σ
+    off, at most MAX_OUTLIER_SHARE of the poses (none when more are that far off: then it is not a few
+    bad poses). Indices, not file rows: several sessions repeat their files' line numbers."""
     from .calibrate import calibrate
     robust = calibrate(robot, meas, _quiet(options).replace(loss="huber", method="lm", f_scale=None))
-    z = robust_z(np.linalg.norm(robust.residuals, axis=1))
-    bad = robust.measurements.rows[z > options.thresholds.outlier_z]
+    bad = np.flatnonzero(robust_z(np.linalg.norm(robust.residuals, axis=1)) > options.thresholds.outlier_z)
     return bad if 0 < len(bad) <= max(1, int(MAX_OUTLIER_SHARE * len(meas))) else bad[:0]
 
 
@@ -277,12 +277,14 @@ def diagnose(res) -> Diagnosis:
     as_given = _screen(robot, block)
     order = [k for k in order_with_ties(screened, descending=False) if screened[k] < EXPLAIN_RATIO * as_given]
     trials = [data[k] for k in sorted(order[:MAX_FULL])] + _setups(robot, options)
-    rows = outlier_rows(robot, meas, options) if len(meas) > 10 else []
-    if len(rows):
-        trials.append((Cause("outliers", f"a few bad poses: row(s) {listed(rows)} lie far off the rest",
-                             f"leave them out (--reject-outliers, or --exclude {','.join(map(str, rows))}) and "
-                             f"check how they were measured", rows=tuple(int(r) for r in rows)),
-                       lambda r, m, o: (r, m.without_rows(rows), o)))
+    bad = outlier_poses(robot, meas, options) if len(meas) > 10 else []
+    if len(bad):
+        rows = meas.rows[bad]
+        exclude = f"--exclude {','.join(map(str, rows))}" if meas.session is None else "--exclude in their files"
+        trials.append((Cause("outliers", f"a few bad poses: {meas.describe_rows(bad)} lie far off the rest",
+                             f"leave them out (--reject-outliers, or {exclude}) and check how they were measured",
+                             rows=tuple(int(r) for r in rows)),
+                       lambda r, m, o: (r, m.subset(np.setdiff1d(np.arange(len(m)), bad)), o)))
     tried = [c for c in (_full(cause, change, robot, meas, options) for cause, change in trials) if c is not None]
     n_tried = len(data) + len(trials) - min(len(order), MAX_FULL)  # the screened ones counted once
     return Diagnosis(res.sigma, res.verdict.status, _ranked(tried, res), n_tried)

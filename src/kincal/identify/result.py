@@ -93,6 +93,17 @@ class CalibrationResult:
     use_q: np.ndarray | None = None  # (M, n) where the model will be used (the prediction-σ guard)
     diagnosis: Diagnosis | None = None  # a doubtful verdict: the common mistakes tried, the one that explains
     rejected_rows: tuple[int, ...] = ()  # reject_outliers: input rows left out as outliers
+    rejected_sessions: tuple[str, ...] = ()  # several sessions: the file of each rejected row
+
+    def rejected_text(self) -> str:
+        """'row(s) 40 of grid.csv' (several sessions: each file's rows after its name); '' when none."""
+        if not self.rejected_rows:
+            return ""
+        if not self.rejected_sessions:
+            return f"row(s) {listed(self.rejected_rows)} of {self.measurements.source}"
+        names = list(dict.fromkeys(self.rejected_sessions))
+        return "row(s) " + "; ".join(
+            f"{listed([r for r, s in zip(self.rejected_rows, self.rejected_sessions) if s == n])} of {n}" for n in names)
 
     @property
     def mounting(self) -> str:
@@ -175,6 +186,7 @@ class CalibrationResult:
             "drift": self.drift,
             "diagnosis": None if self.diagnosis is None else self.diagnosis.to_dict(),
             "rejected_rows": list(self.rejected_rows),
+            "rejected_sessions": list(self.rejected_sessions) or None,
             "mounting": None if not self.mounting else {
                 "tool_point": self.robot.tool_point().tolist(), "declared_tool_point": self.nominal.tool_point().tolist(),
                 "text": self.mounting},
@@ -203,8 +215,8 @@ class CalibrationResult:
         if self.mounting:
             lines.append(f"mounting: {self.mounting}")
         if self.rejected_rows:
-            lines.append(f"left out as outliers (more than {self.outlier_z:g} robust σ off a robust refit): row(s) "
-                         f"{listed(self.rejected_rows)}")
+            lines.append(f"left out as outliers (more than {self.outlier_z:g} robust σ off a robust refit): "
+                         f"{self.rejected_text()}")
         if self.error_model_choice is not None:
             lines.append(str(self.error_model_choice))
         lines += [f"compliance of {j}: {c:.3g} rad/(N·m)" for j, c in self.robot.compliances().items()]
@@ -214,3 +226,10 @@ class CalibrationResult:
                 f"{a} {d['value'] * MM:+.4f} ± {d['std'] * MM:.4f} mm" for a, d in self.drift.items()))
         lines.append(str(self.verdict))
         return "\n".join(lines)
+
+
+def rejected(meas: Measurements, index: np.ndarray) -> dict:
+    """The ``rejected_rows``/``rejected_sessions`` fields for the poses of ``meas`` at ``index``."""
+    several = meas.session is not None and len(meas.sessions()) > 1
+    return {"rejected_rows": tuple(int(r) for r in meas.rows[index]),
+            "rejected_sessions": tuple(str(s) for s in meas.session[index]) if several else ()}

@@ -13,6 +13,14 @@ is later used. A candidate term is kept only when
   the geometric σ on the other half and 2–4× its error, while inside the training region the ratio
   stayed at 1.0–1.1. Hence the tight factor (chosen on that data set; the WAM agreed);
 * every fold's fit converged without a refused verdict;
+* when the data come from several sessions (files, set-ups, days), it is also no worse than
+  geometric on any held-out session: each session is left out in turn, both models are fitted to the
+  others, the left-out session's measurement frame is re-registered to each (kinematics fixed, as
+  ``evaluate`` does) and their mean errors compared. Regions of one session share its temperature,
+  payload, tracker set-up and mastering; a term that fits those rather than the robot shows up only on
+  another session. Only sessions with at most half of the poses are held out (a model trained on the
+  smaller part would be judged on how little data it had, not on whether it carries over), and a
+  session whose complement cannot fit a model does not judge it;
 
 and among the models kept (geometric always is) the simplest one within one standard error of the
 best CV error is chosen. The table says why each candidate was kept or dropped. The same rule
@@ -29,7 +37,7 @@ from ..errors import KincalError
 from ..io.measurements import Measurements
 from ..models.robot import Robot
 from ..models.terms import ErrorModel, extend
-from ..ties import first_best
+from ..ties import first_best, improves
 from ..units import MM
 
 SIGMA_FACTOR = 1.25
@@ -50,27 +58,46 @@ def default_candidates(robot: Robot) -> tuple[str, ...]:
 @dataclass(frozen=True)
 class ErrorModelChoice:
     """The comparison: per error model its parameter count, blocked-CV mean error and standard error
-    (m), predicted-σ ratio to geometric, whether it was eligible and why; and the model chosen."""
+    (m), predicted-σ ratio to geometric, mean error on each held-out session (m; inf: not judged),
+    whether it was eligible and why; and the model chosen. ``sessions``: the held-out sessions' labels
+    (empty for one session); ``not_held_out``: the sessions kept in every fit (more than half the poses)."""
 
     rows: tuple[dict, ...]
     chosen: str
     folds: int
+    sessions: tuple[str, ...] = ()
+    not_held_out: tuple[str, ...] = ()  # sessions with more than half of the poses
 
     def to_dict(self) -> dict:
-        finite = lambda v: None if isinstance(v, float) and not np.isfinite(v) else v  # noqa: E731  (JSON has no inf)
-        return {"chosen": self.chosen, "folds": self.folds,
-                "candidates": [{k: finite(v) for k, v in r.items()} for r in self.rows]}
+        return {"chosen": self.chosen, "folds": self.folds, "sessions": list(self.sessions),
+                "not_held_out": list(self.not_held_out),
+                "candidates": [{k: _json(v) for k, v in r.items()} for r in self.rows]}
 
     def __str__(self) -> str:
-        lines = [f"error model by joint-space blocked cross-validation ({self.folds} regions): {self.chosen}",
-                 f"  {'error model':<20} {'params':>6} {'CV mean mm':>11} {'± se':>8} {'σ ratio':>8}  decision"]
+        total = len(self.sessions) + len(self.not_held_out)
+        held = f" and leave-one-session-out ({len(self.sessions)} of {total} sessions held out)" if self.sessions else ""
+        lines = [f"error model by joint-space blocked cross-validation ({self.folds} regions){held}: {self.chosen}",
+                 f"  {'error model':<20} {'params':>6} {'CV mean mm':>11} {'± se':>8} {'σ ratio':>8}"
+                 + "".join(f" {f'session {i + 1} mm':>12}" for i in range(len(self.sessions))) + "  decision"]
         for r in self.rows:
             if not np.isfinite(r["cv_mean"]):
-                lines.append(f"  {r['error_model']:<20} {'-':>6} {'-':>11} {'-':>8} {'-':>8}  {r['decision']}")
+                lines.append(f"  {r['error_model']:<20} {'-':>6} {'-':>11} {'-':>8} {'-':>8}"
+                             + f" {'-':>12}" * len(self.sessions) + f"  {r['decision']}")
                 continue
             lines.append(f"  {r['error_model']:<20} {r['parameters']:>6} {r['cv_mean'] * MM:11.4f} {r['cv_se'] * MM:8.4f} "
-                         f"{r['sigma_ratio']:8.2f}  {r['decision']}")
+                         f"{r['sigma_ratio']:8.2f}" + "".join(f" {e * MM:12.4f}" if np.isfinite(e) else f" {'-':>12}"
+                                                             for e in r["sessions"]) + f"  {r['decision']}")
+        lines += [f"  session {i + 1}: {name} (held out; its frame re-registered)" for i, name in enumerate(self.sessions)]
+        lines += [f"  not held out: {name} (more than half of the poses: a model fitted without it would be judged "
+                  f"on too little data)" for name in self.not_held_out]
         return "\n".join(lines)
+
+
+def _json(v):
+    """inf (not judged) as None: JSON has no inf."""
+    if isinstance(v, list):
+        return [_json(x) for x in v]
+    return None if isinstance(v, float) and not np.isfinite(v) else v
 
 
 def blocked_folds(robot: Robot, q: np.ndarray, k: int, iterations: int = 30) -> list[np.ndarray]:
@@ -93,11 +120,13 @@ def select_model(robot: Robot, meas: Measurements, calibrate, options, candidate
                  use_q: np.ndarray | None = None, payload: float = 0.0) -> ErrorModelChoice:
     """Compare ``candidates`` on ``meas`` and choose one (see the module docstring). ``calibrate`` is
     the calibration function (passed in to keep this room below it), ``options`` its FitOptions
-    (without an error model); ``folds`` is the number of k-means regions; ``candidates`` default to
+    (without an error model); ``folds`` is the number of k-means regions; ``meas.session`` labels
+    (several sessions) add the leave-one-session-out test; ``candidates`` default to
     :func:`default_candidates`; ``payload`` (kg) loads the gravity terms."""
     regions = blocked_folds(robot, meas.q, folds)
+    sessions = _held_out_sessions(meas)
     use = meas.q if use_q is None else robot.check_q(use_q)
-    rows = [_cross_validate(robot, meas, ErrorModel(name, payload), regions, calibrate, options, use)
+    rows = [_cross_validate(robot, meas, ErrorModel(name, payload), regions, sessions, calibrate, options, use)
             for name in (candidates or default_candidates(robot))]
     geo = rows[0]
     for r in rows:
@@ -115,35 +144,69 @@ def select_model(robot: Robot, meas: Measurements, calibrate, options, candidate
             r["decision"] = "best CV, but a simpler model is within one standard error"
         else:
             r["decision"] = "kept, but more than one standard error worse than the best"
-    return ErrorModelChoice(tuple(rows), chosen["error_model"], len(regions))
+    return ErrorModelChoice(tuple(rows), chosen["error_model"], len(regions), tuple(n for n, _ in sessions),
+                            tuple(n for n in meas.sessions() if n not in {m for m, _ in sessions}) if sessions else ())
 
 
-def _cross_validate(robot: Robot, meas: Measurements, spec: ErrorModel, regions, calibrate, options, use) -> dict:
-    """Blocked-CV errors of one error model, and its predicted σ at the use poses when fitted to all data."""
+def _held_out_sessions(meas: Measurements) -> list[tuple[str, np.ndarray]]:
+    """(label, pose indices) of the sessions to hold out: several sessions, each at most half the poses."""
+    names = meas.sessions()
+    if len(names) < 2:
+        return []
+    held = [(name, np.flatnonzero(meas.session == name)) for name in names]
+    return [(name, index) for name, index in held if 2 * len(index) <= len(meas)]
+
+
+def _cross_validate(robot: Robot, meas: Measurements, spec: ErrorModel, regions, sessions, calibrate, options,
+                    use) -> dict:
+    """Blocked-CV errors of one error model, its held-out session errors, and its predicted σ at the
+    use poses when fitted to all data."""
     model = spec.name
     try:
         ext = extend(robot, spec, meas.q)
     except KincalError as exc:  # e.g. compliance without link masses
-        return {"error_model": model, "parameters": 0, "cv_mean": np.inf, "cv_se": 0.0, "sigma": np.inf,
-                "fits_ok": False, "why": str(exc)}
+        return _unjudged(model, 0, sessions, why=str(exc))
     errors, ok, estimated = [], True, 0
     for held in regions:
-        train = meas.subset(np.setdiff1d(np.arange(len(meas)), held))
         try:
-            res = calibrate(ext, train, options)
+            res = calibrate(ext, meas.subset(np.setdiff1d(np.arange(len(meas)), held)), options)
         except KincalError:  # too little data left for this model: it cannot be judged, so not kept
-            return {"error_model": model, "parameters": ext.n_params, "cv_mean": np.inf, "cv_se": 0.0,
-                    "sigma": np.inf, "fits_ok": False}
+            return _unjudged(model, ext.n_params, sessions)
         ok &= res.converged and res.verdict.status != "refused"
         estimated = max(estimated, len(res.names))
-        test = meas.subset(held)
-        errors.append(float(np.mean(np.linalg.norm(test.xyz - res.robot.forward(test.q), axis=1))))
+        errors.append(_mean_error(res.robot, meas.subset(held)))
     full = calibrate(ext, meas, options)
     sigma = float(np.median(full.uncertainty().sigma(full.robot, use)))
     e = np.array(errors)
     return {"error_model": model, "parameters": estimated, "cv_mean": float(e.mean()),
             "cv_se": float(e.std(ddof=1) / np.sqrt(len(e))) if len(e) > 1 else 0.0, "sigma": sigma,
-            "fits_ok": bool(ok)}
+            "fits_ok": bool(ok), "sessions": [_session_error(ext, meas, held, calibrate, options)
+                                              for _, held in sessions]}
+
+
+def _unjudged(model: str, parameters: int, sessions, why: str | None = None) -> dict:
+    row = {"error_model": model, "parameters": parameters, "cv_mean": np.inf, "cv_se": 0.0, "sigma": np.inf,
+           "fits_ok": False, "sessions": [np.inf] * len(sessions)}
+    return row if why is None else {**row, "why": why}
+
+
+def _mean_error(robot: Robot, test: Measurements) -> float:
+    return float(np.mean(np.linalg.norm(test.xyz - robot.forward(test.q), axis=1)))
+
+
+def _session_error(ext: Robot, meas: Measurements, held: np.ndarray, calibrate, options) -> float:
+    """Mean error (m) on the poses ``held`` (one session) of ``ext`` fitted to the other sessions, the
+    held-out session's measurement frame re-registered (kinematics fixed); inf when a fit fails."""
+    try:
+        res = calibrate(ext, meas.subset(np.setdiff1d(np.arange(len(meas)), held)), options)
+        if not res.converged or res.verdict.status == "refused":
+            return np.inf
+        test, model = meas.subset(held), res.robot
+        if model.base_params():
+            model = calibrate(model, test, options.replace(names=(), base="estimate")).robot
+        return _mean_error(model, test)
+    except KincalError:
+        return np.inf
 
 
 def _eligibility(r: dict, geo: dict) -> str:
@@ -157,4 +220,19 @@ def _eligibility(r: dict, geo: dict) -> str:
         return "dropped: no better than geometric on held-out regions"
     if r["sigma_ratio"] > SIGMA_FACTOR:
         return f"dropped: predicted σ {r['sigma_ratio']:.1f}x geometric's where it would be used (limit {SIGMA_FACTOR:g}x)"
+    return _session_eligibility(r, geo)
+
+
+def _session_eligibility(r: dict, geo: dict) -> str:
+    """The leave-one-session-out test: no held-out session may be worse than with geometric."""
+    if not r["sessions"]:
+        return "kept"
+    judged = [(i, e, g) for i, (e, g) in enumerate(zip(r["sessions"], geo["sessions"]))
+              if np.isfinite(e) and np.isfinite(g)]
+    if not judged:
+        return "dropped: it cannot be fitted with a session left out, so no held-out session can judge it"
+    worse = [(i, e, g) for i, e, g in judged if improves(e, g)]  # larger beyond the tie band: worse
+    if worse:
+        i, e, g = worse[first_best([w[1] / w[2] for w in worse])]
+        return f"dropped: worse than geometric on held-out session {i + 1} ({e * MM:.4f} vs {g * MM:.4f} mm)"
     return "kept"

@@ -8,6 +8,8 @@ says the frame is known. Both the nominal and the calibrated model are registere
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..io.measurements import Measurements
@@ -15,6 +17,9 @@ from ..io.unit_checks import spread
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import MM
 from .calibrate import calibrate
+from .diagnosis import outlier_poses
+from .options import FitOptions
+from .result import CalibrationResult, rejected
 
 HELDOUT_RATIO = 10.0  # a held-out error this many times the training error needs a named cause
 SCALE_TOL = 0.01  # measured vs predicted spread off by more than 1 %: a scale (unit, compensation) error
@@ -81,35 +86,82 @@ def _in_frame_of(model: Robot, registered: Robot, meas: Measurements) -> Measure
     Rs, ts = registered.base_transform()
     xyz = (meas.xyz - ts) @ Rs @ R0.T + t0
     std = None if meas.std is None else np.sqrt(meas.std**2 @ (Rs @ R0.T) ** 2)  # per-axis variances, rotated
-    return Measurements(meas.q, xyz, meas.joint_names, meas.source, meas.rows, std)
+    return Measurements(meas.q, xyz, meas.joint_names, meas.source, meas.rows, std, meas.units, meas.session)
 
 
 def joined(sessions: list[Measurements]) -> Measurements:
-    """Several sessions as one set of measurements (their rows keep their own files' line numbers)."""
+    """Several sessions as one set of measurements (their rows keep their own files' line numbers; each
+    pose is labelled with its session's source, so held-out sessions can be told apart)."""
+    if len(sessions) == 1:
+        return sessions[0]
     std = None if any(s.std is None for s in sessions) else np.concatenate([s.std for s in sessions])
+    labels = [s.source if s.source not in [t.source for t in sessions[:i]] else f"{s.source} ({i + 1})"
+              for i, s in enumerate(sessions)]
     return Measurements(np.concatenate([s.q for s in sessions]), np.concatenate([s.xyz for s in sessions]),
                         sessions[0].joint_names, " + ".join(s.source for s in sessions),
-                        np.concatenate([s.rows for s in sessions]), std)
+                        np.concatenate([s.rows for s in sessions]), std, sessions[0].units,
+                        np.concatenate([np.full(len(s), name) for s, name in zip(sessions, labels)]))
 
 
-def calibrate_sessions(robot: Robot, sessions, options=None, **changes):
+def calibrate_sessions(robot: Robot, sessions, options: FitOptions | None = None, *,
+                       use_q: np.ndarray | None = None, **changes) -> CalibrationResult:
     """Calibrate shared kinematics from several sessions, each measured in its own frame (the tracker
     moved between them). Alternates: each session's frame re-fitted to the current model (frame only),
     every session brought into the first one's frame, the kinematics and that frame fitted to all of
     them, until no kinematic parameter moves more than ROUND_TOL. Each step lowers the total squared
     error, so the rounds settle. Returns the last fit (its data: the sessions in the first one's frame;
-    its σ leaves out the uncertainty of the other sessions' frames). ``options``/``changes``: as
-    :func:`kincal.calibrate`; one session is simply calibrated."""
+    its σ leaves out the uncertainty of the other sessions' frames). With ``error_model="auto"`` the
+    frames are first aligned with the geometric model, the error model is chosen once on the aligned
+    sessions (each session also held out in turn) and the rounds repeated with it. ``options``,
+    ``use_q``, ``changes``: as :func:`kincal.calibrate`; one session is simply calibrated."""
     sessions = [sessions] if isinstance(sessions, Measurements) else list(sessions)
+    options = (options or FitOptions()).replace(**changes)
     if len(sessions) == 1 or not robot.base_params():
-        return calibrate(robot, joined(sessions), options, **changes)
-    keep = np.array([n not in set(robot.base_params()) for n in robot.params.names])
-    model, res = refit_frame(robot, sessions[0]), None
+        return calibrate(robot, joined(sessions), options, use_q=use_q)
+    plain, left_out = options.replace(reject_outliers=False), {}
+    if options.reject_outliers:  # found with the geometry, by session: rows repeat across files
+        first = _rounds(robot, sessions, plain.replace(error_model=None), use_q)
+        sessions, left_out = _without_outliers(robot, sessions, first.measurements, plain)
+    return dataclasses.replace(_with_model(robot, sessions, plain, use_q), options=options, **left_out)
+
+
+def _with_model(robot: Robot, sessions: list[Measurements], options: FitOptions, use_q) -> CalibrationResult:
+    """The rounds with the requested error model; "auto" chooses it once, on the sessions aligned by
+    the geometric model (each session held out in turn), then repeats the rounds with it."""
+    spec = options.error_model
+    if spec is None or spec.name != "auto":
+        return _rounds(robot, sessions, options, use_q)
+    geometric = _rounds(robot, sessions, options.replace(error_model=None), use_q)
+    chosen = calibrate(robot, geometric.measurements, options.replace(diagnose=False), use_q=use_q)
+    choice = chosen.error_model_choice
+    if choice.chosen == "geometric":
+        return chosen
+    fixed = options.replace(error_model=dataclasses.replace(spec, name=choice.chosen))
+    return dataclasses.replace(_rounds(robot, sessions, fixed, use_q), error_model_choice=choice)
+
+
+def _without_outliers(robot: Robot, sessions: list[Measurements], aligned: Measurements, options: FitOptions):
+    """The sessions less the poses a robust refit of the aligned sessions puts beyond the outlier
+    limit, and the result fields that name them."""
+    bad = outlier_poses(robot, aligned, options)
+    if not len(bad):
+        return sessions, {}
+    start = np.cumsum([0] + [len(s) for s in sessions])
+    kept = [s.subset(np.setdiff1d(np.arange(len(s)), bad[(bad >= a) & (bad < a + len(s))] - a))
+            for s, a in zip(sessions, start)]
+    return kept, rejected(aligned, bad)
+
+
+def _rounds(robot: Robot, sessions: list[Measurements], options: FitOptions, use_q) -> CalibrationResult:
+    """The alternation of :func:`calibrate_sessions` with a fixed error model."""
+    model, res, previous = refit_frame(robot, sessions[0]), None, None
     for _ in range(MAX_ROUNDS):
         data = [sessions[0]] + [_in_frame_of(model, refit_frame(model, s), s) for s in sessions[1:]]
-        res = calibrate(robot, joined(data), options, **{**changes, "diagnose": False})
-        moved = float(np.max(np.abs(res.robot.params.values - model.params.values)[keep]))
+        res = calibrate(robot, joined(data), options.replace(diagnose=False), use_q=use_q)
+        base = set(res.robot.base_params())
+        values = np.array([v for n, v in zip(res.robot.params.names, res.robot.params.values) if n not in base])
         model = res.robot
-        if moved < ROUND_TOL:
+        if previous is not None and float(np.max(np.abs(values - previous))) < ROUND_TOL:
             break
+        previous = values
     return res

@@ -35,10 +35,10 @@ from typing import Mapping
 
 import numpy as np
 
+from ..io.measurements import MAX_LISTED, listed
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import DEG, MM
 
-MAX_LISTED = 10
 STATUSES = ("good", "suspect", "refused")
 
 
@@ -113,13 +113,6 @@ class Verdict:
         lines = [f"verdict: {self.status.upper()}"]
         lines += [f"  {r.level}: {r.message}" for r in self.reasons]
         return "\n".join(lines)
-
-
-def listed(rows) -> str:
-    """'5, 17, 30 and 4 more' for error messages."""
-    rows = [str(int(r)) for r in rows]
-    more = f" and {len(rows) - MAX_LISTED} more" if len(rows) > MAX_LISTED else ""
-    return ", ".join(rows[:MAX_LISTED]) + more
 
 
 def robust_z(norms: np.ndarray) -> np.ndarray:

@@ -34,6 +34,7 @@ class Measurements:
     rows: np.ndarray | None = field(default=None)
     std: np.ndarray | None = field(default=None)  # (N, 3) m: the instrument's σ per sample and axis, if given
     units: tuple[str, str] | None = None  # (length, angle) units the file was read in, for advice; None: SI
+    session: np.ndarray | None = field(default=None)  # (N,) str: the session (file) of each pose; None: one session
 
     def __post_init__(self) -> None:
         q = np.array(self.q, dtype=float)
@@ -57,6 +58,12 @@ class Measurements:
                                        f"{', '.join(map(str, rows[bad][:MAX_LISTED]))} give 0 or less")
             std.setflags(write=False)
             object.__setattr__(self, "std", std)
+        if self.session is not None:
+            session = np.asarray(self.session, dtype=str)
+            if session.shape != (q.shape[0],):
+                raise MeasurementError(f"{self.source}: one session label per pose expected, got {session.shape}")
+            session.setflags(write=False)
+            object.__setattr__(self, "session", session)
         for a in (q, xyz, rows):
             a.setflags(write=False)
         object.__setattr__(self, "q", q)
@@ -71,7 +78,24 @@ class Measurements:
         """The measurements at the given positions (indices or boolean mask)."""
         idx = np.asarray(index)
         return Measurements(self.q[idx], self.xyz[idx], self.joint_names, self.source, self.rows[idx],
-                            None if self.std is None else self.std[idx], self.units)
+                            None if self.std is None else self.std[idx], self.units,
+                            None if self.session is None else self.session[idx])
+
+    def describe_rows(self, index: np.ndarray | Sequence[int]) -> str:
+        """'row(s) 5, 17' for the poses at ``index``; with several sessions each file's rows after its name."""
+        idx = np.asarray(index, dtype=int)
+        if self.session is None or len(self.sessions()) < 2:
+            return f"row(s) {listed(self.rows[idx])}"
+        parts = [f"{listed(self.rows[idx[self.session[idx] == name]])} of {name}" for name in self.sessions()
+                 if np.any(self.session[idx] == name)]
+        return "row(s) " + "; ".join(parts)
+
+    def sessions(self) -> tuple[str, ...]:
+        """The session labels in order of first appearance (one session without labels: its source)."""
+        if self.session is None:
+            return (self.source,)
+        names, first = np.unique(self.session, return_index=True)
+        return tuple(str(n) for n in names[np.argsort(first)])
 
     def without_rows(self, rows: Sequence[int]) -> "Measurements":
         """The measurements less the given input rows (file line numbers, header = 1)."""
@@ -93,6 +117,13 @@ class Measurements:
         if len(self) >= 3:
             check_spread(self.source, self.q, self.xyz, robot, length_unit or (self.units[0] if self.units else None),
                          angle_unit or (self.units[1] if self.units else None))
+
+
+def listed(rows) -> str:
+    """'5, 17, 30 and 4 more' for messages."""
+    rows = [str(int(r)) for r in rows]
+    more = f" and {len(rows) - MAX_LISTED} more" if len(rows) > MAX_LISTED else ""
+    return ", ".join(rows[:MAX_LISTED]) + more
 
 
 def _check_finite(source: str, values: np.ndarray, rows: np.ndarray, what: str) -> None:

@@ -233,8 +233,7 @@ def _data_rows(result: CalibrationResult, tests: list[Measurements], info: dict)
     if result.mounting:
         rows.append(("tool point (mounting)", result.mounting))
     if result.rejected_rows:
-        rows.append(("left out as outliers", f"row(s) {', '.join(map(str, result.rejected_rows))} of "
-                                             f"{result.measurements.source}: more than {result.outlier_z:g} robust σ "
+        rows.append(("left out as outliers", f"{result.rejected_text()}: more than {result.outlier_z:g} robust σ "
                                              f"off a robust refit (--reject-outliers)"))
     if result.diagnosis is not None:
         rows.append(("diagnosis", result.diagnosis.message()))
