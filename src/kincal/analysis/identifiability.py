@@ -13,6 +13,7 @@ kept ones, which is what "confounded with" means here.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -47,6 +48,7 @@ class Identifiability:
     cond_scaled: float  # same after unit-norm column scaling
     rank_tol: float
     notes: tuple[str, ...] = field(default=())
+    measured: str = "position only"  # what the data observe, for the summary line
 
     @property
     def full_rank(self) -> bool:
@@ -81,7 +83,7 @@ class Identifiability:
     def __str__(self) -> str:
         lines = [
             f"{self.robot}: {self.rank} of {len(self.candidates)} parameters identifiable from {self.n_poses} poses "
-            f"(position only)",
+            f"({self.measured})",
             f"  condition number: raw {self.cond_raw:.3g}, column-scaled {self.cond_scaled:.3g}; "
             f"rank gap {self.gap:.3g} (rank tolerance {self.rank_tol:g})",
             f"  identifiable: {', '.join(self.identifiable)}",
@@ -131,6 +133,16 @@ def identifiability(
     cand = [n for n in (names if names is not None else robot.params.names) if n not in excluded]
     robot.params.indices(cand)
     J = stacked_jacobian(robot, q, cand)
+    ident = jacobian_identifiability(J, cand, [list(keep), list(robot.preferred_params())], robot.name, q.shape[0],
+                                     rank_tol)
+    return dataclasses.replace(ident, notes=tuple(robot.structure_notes()) + ident.notes)
+
+
+def jacobian_identifiability(J: np.ndarray, cand: Sequence[str], stages: Sequence[Sequence[str]], label: str,
+                             n_poses: int, rank_tol: float = RANK_TOL) -> Identifiability:
+    """Identifiability of the columns ``cand`` of any stacked (whitened) Jacobian J (M, K): the one
+    rule for position data and for every other observation type. ``stages``: names chosen first, in
+    order, when columns are confounded (e.g. nuisance parameters, then the base frame)."""
     norms = np.linalg.norm(J, axis=0)
     live = live_columns(J)
     live_names = [n for n, ok in zip(cand, live) if ok]
@@ -142,20 +154,19 @@ def identifiability(
     rank = int(np.sum(s > rank_tol * s[0])) if s.size else 0
     gap = float(s[rank - 1] / s[rank]) if 0 < rank < s.size and s[rank] > 0 else float("inf")
 
-    order = _pivot_order(R0, live_names, [list(keep), list(robot.preferred_params())], rank,
-                         rank_tol * s[0] if s.size else 0.0)
+    order = _pivot_order(R0, live_names, [list(st) for st in stages], rank, rank_tol * s[0] if s.size else 0.0)
     ident = [live_names[k] for k in order[:rank]]
     confounds = _confounds(R0, norms[live], order, rank, live_names)
     dead = [n for n, ok in zip(cand, live) if not ok]
     confounds.update(dict.fromkeys(dead, ()))
     dropped = tuple(live_names[k] for k in order[rank:]) + tuple(dead)
     cond_raw, cond_scaled = _conditioning(R0, norms[live], sorted(order[:rank]))
-    notes = list(robot.structure_notes()) + _pair_notes(dropped, confounds)
+    notes = _pair_notes(dropped, confounds)
     if rank and gap < 1e3:
         notes.append(f"the rank is not clear-cut (gap {gap:.3g} < 1e3): the poses hardly excite some "
                      f"parameters; add poses or check the model")
-    return Identifiability(robot.name, tuple(cand), tuple(n for n in cand if n in set(ident)), dropped, confounds,
-                           rank, q.shape[0], s, gap, cond_raw, cond_scaled, rank_tol, tuple(notes))
+    return Identifiability(label, tuple(cand), tuple(n for n in cand if n in set(ident)), dropped, confounds,
+                           rank, n_poses, s, gap, cond_raw, cond_scaled, rank_tol, tuple(notes))
 
 
 def _confounds(R0: np.ndarray, norms: np.ndarray, order: list[int], rank: int,

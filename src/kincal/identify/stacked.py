@@ -1,0 +1,248 @@
+"""Calibration from any mix of observation types: the stacked, σ-whitened problem.
+
+Every observation set (:mod:`kincal.observe`) gives its residual, its noise σ
+and its nuisance parameters; this module stacks them (nuisance parameters with the same name are
+one parameter: the same target, socket or plane seen by two sets), chooses the free parameters by
+the one identifiability rule on the whitened Jacobian (nuisance parameters first, then the base
+frame, then the model's preferred ones, so a confound is always resolved in favour of the set-up),
+fits them by Levenberg–Marquardt and judges the result.
+
+Refused before any work: data with no length reference (only sockets without a distance, or only
+unknown planes), because a robot shrunk towards a point explains them equally well.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from .._threads import blas_threads
+from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_identifiability
+from ..errors import MeasurementError
+from ..models.robot import Robot
+from ..units import MM
+from .covariance import parameter_statistics
+from .lm import levenberg_marquardt
+from .registration import register_base
+from .verdict import Reason, Thresholds, Verdict, correction_reasons
+
+IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes (unseen) than across them
+
+
+@dataclass(frozen=True, eq=False)
+class ObservationFit:
+    """A calibration from observation sets: the calibrated robot, the robot parameters fitted
+    (``names``), the nuisance parameters' values, σ of both (m or rad; a posteriori, σ̂² = χ²/dof),
+    the identifiability of the stacked problem, the gauge freedoms, per-set statistics before and
+    after (mm, mrad), the whitened residual RMS (1 when the stated σ are right) and the verdict."""
+
+    robot: Robot
+    nominal: Robot
+    names: tuple[str, ...]
+    nuisance: dict
+    std: dict
+    identifiability: Identifiability
+    gauge: tuple[str, ...]
+    stats_before: tuple[dict, ...]
+    stats: tuple[dict, ...]
+    whitened_rms: float
+    covariance: np.ndarray
+    verdict: Verdict
+    converged: bool
+    iterations: int
+    observations: tuple = ()
+
+    def to_dict(self) -> dict:
+        return {"robot": self.robot.name, "fitted": list(self.names),
+                "estimates": {n: float(self.robot.params[n]) for n in self.names},
+                "corrections": {n: float(self.robot.params[n] - self.nominal.params[n]) for n in self.names},
+                "nuisance": {k: float(v) for k, v in self.nuisance.items()},
+                "std": {k: (float(v) if np.isfinite(v) else None) for k, v in self.std.items()},
+                "gauge": list(self.gauge), "identifiability": self.identifiability.to_dict(),
+                "before": list(self.stats_before), "after": list(self.stats), "whitened_rms": self.whitened_rms,
+                "verdict": self.verdict.to_dict(), "converged": self.converged, "iterations": self.iterations}
+
+    def __str__(self) -> str:
+        lines = [f"calibration of {self.robot.name} from {', '.join(sorted({s['type'] for s in self.stats}))} data: "
+                 f"{'converged' if self.converged else 'NOT converged'} in {self.iterations} iterations; "
+                 f"{len(self.names)} robot and {len(self.nuisance)} set-up parameters",
+                 f"whitened residual RMS {self.whitened_rms:.3g} (1 when the stated σ are right)"]
+        for b, a in zip(self.stats_before, self.stats):
+            lines.append(f"  {a['type']} ({a['source']}): {_line(b)}  →  {_line(a)}")
+        if self.gauge:
+            lines.append(f"not seen by these data (gauge freedoms, kept at their values): {', '.join(self.gauge)}")
+        lines.append(f"verdict: {self.verdict.status.upper()}")
+        lines += [f"  {r.level}: {r.message}" for r in self.verdict.reasons]
+        return "\n".join(lines)
+
+
+def _line(s: dict) -> str:
+    if "mean_abs_mm" in s:
+        return f"mean |p − point| {s['mean_abs_mm']:.4f} mm"
+    rot = f", mean {s['mean_mrad']:.4f} mrad" if "mean_mrad" in s else ""
+    return f"mean {s['mean_mm']:.4f} mm{rot}"
+
+
+@dataclass(frozen=True)
+class _Stack:
+    """The stacked problem: sets, robot candidates, nuisance names/start values, σ per component."""
+
+    sets: tuple
+    robot: Robot
+    nuis_names: tuple[str, ...]
+    nuis0: np.ndarray
+    slots: tuple[np.ndarray, ...]  # per set: positions of its nuisance parameters in the stacked vector
+    inv_sigma: np.ndarray
+
+    def evaluate(self, values: np.ndarray, nuis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Whitened residual (M,) and Jacobian (M, P + K) over all robot and nuisance parameters."""
+        rs, Js = [], []
+        for obs, slot in zip(self.sets, self.slots):
+            r, Jr, Jn = obs.evaluate(self.robot, values, nuis[slot])
+            J = np.zeros((r.size, values.size + nuis.size))
+            J[:, :values.size] = Jr
+            J[:, values.size + slot] = Jn
+            rs.append(r)
+            Js.append(J)
+        r, J = np.concatenate(rs), np.concatenate(Js)
+        return r * self.inv_sigma, J * self.inv_sigma[:, None]
+
+
+def _stack(robot: Robot, observations: Sequence) -> _Stack:
+    sets = tuple(o.prepare(robot) for o in observations)
+    names: list[str] = []
+    start: list[float] = []
+    slots = []
+    for obs in sets:
+        n, v, _ = obs.nuisance(robot)
+        for name, value in zip(n, v):
+            if name not in names:
+                names.append(name)
+                start.append(float(value))
+        slots.append(np.array([names.index(name) for name in n], dtype=int))
+    sigma = np.concatenate([o.sigma() for o in sets])
+    if not np.all(np.isfinite(sigma) & (sigma > 0)):
+        raise MeasurementError("every measurement σ must be a positive number (m or rad)")
+    return _Stack(sets, robot, tuple(names), np.array(start), tuple(slots), 1.0 / sigma)
+
+
+def _gauge(robot: Robot, sets) -> tuple[str, ...]:
+    """Robot parameters no set sees (the intersection of the sets' gauge freedoms)."""
+    common = set(robot.params.names)
+    for obs in sets:
+        common &= set(obs.gauge_params(robot))
+    return tuple(n for n in robot.params.names if n in common)
+
+
+def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] | str = "auto",
+                     keep: Sequence[str] = (), max_iter: int = 100, rank_tol: float = RANK_TOL) -> ObservationFit:
+    """Calibrate ``robot`` from observation sets of any types (see the module docstring). ``names``:
+    robot parameters to fit ("auto": every identifiable one); ``keep``: chosen first among confounded."""
+    if not observations:
+        raise MeasurementError("no observations given")
+    if not any(o.reference for o in observations):
+        raise MeasurementError(
+            "these data do not fix the length scale: sockets without a known distance, or plane contacts without two "
+            "known parallel planes at different heights, are explained as well by a robot shrunk towards a point, so "
+            "the scale is unobservable; give a known distance between two labelled points, a known step between two "
+            "parallel planes, or some absolute measurements (a tracker, a camera)")
+    with blas_threads(1):
+        gauge = _gauge(robot, observations)
+        robot = _registered(robot, observations, gauge)
+        st = _stack(robot, observations)
+        cand = [n for n in (robot.params.names if names == "auto" else names) if n not in set(gauge)]
+        values0 = robot.params.values.copy()
+        r0, J0 = st.evaluate(values0, st.nuis0)
+        all_names = list(robot.params.names) + list(st.nuis_names)
+        cols = np.array([all_names.index(n) for n in cand + list(st.nuis_names)], dtype=int)
+        ident = jacobian_identifiability(J0[:, cols], cand + list(st.nuis_names),
+                                         [list(keep), list(st.nuis_names), list(robot.base_params()),
+                                          list(robot.preferred_params())], robot.name, len(r0), rank_tol)
+        ident = dataclasses.replace(ident, measured=" + ".join(dict.fromkeys(o.kind for o in st.sets)))
+        free = [n for n in ident.identifiable]
+        fcols = np.array([all_names.index(n) for n in free], dtype=int)
+        if r0.size <= len(free):
+            raise MeasurementError(f"{r0.size} residual components for {len(free)} parameters: measure more samples")
+        x0 = np.concatenate([values0, st.nuis0])
+        fit = levenberg_marquardt(lambda x: _fun(st, x0, fcols, x), x0[fcols], max_iter=max_iter)
+        return _result(robot, st, gauge, ident, free, fcols, x0, fit)
+
+
+def _registered(robot: Robot, sets, gauge) -> Robot:
+    """``robot`` with its measurement frame registered rigidly to the absolute positions in ``sets``
+    (none, or a base the data do not see: unchanged)."""
+    found = [p for p in (o.positions() for o in sets) if p is not None]
+    if not found or not robot.base_params() or set(robot.base_params()) <= set(gauge):
+        return robot
+    q, xyz = np.concatenate([f[0] for f in found]), np.concatenate([f[1] for f in found])
+    return register_base(robot, q, xyz) if len(q) >= 3 else robot
+
+
+def _fun(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray):
+    full = x0.copy()
+    full[fcols] = x
+    P = st.robot.n_params
+    r, J = st.evaluate(full[:P], full[P:])
+    return r, J[:, fcols]
+
+
+def _result(robot, st, gauge, ident, free, fcols, x0, fit) -> ObservationFit:
+    full = x0.copy()
+    full[fcols] = fit.x
+    P = robot.n_params
+    calibrated = robot.with_params(dict(zip(robot.params.names, full[:P])))
+    sd, _, s2, cov = parameter_statistics(fit.jacobian, fit.residual, free, free)
+    nuis = dict(zip(st.nuis_names, full[P:]))
+    std = {n: float(v) for n, v in zip(free, sd)}
+    std.update({n: np.inf for n in st.nuis_names if n not in std})
+    before = tuple(o.stats(robot, x0[:P], x0[P:][slot]) for o, slot in zip(st.sets, st.slots))
+    after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
+    rms = float(np.sqrt(np.mean(fit.residual**2)))
+    verdict = _verdict(robot, calibrated, st, rms, fit.converged)
+    return ObservationFit(calibrated, robot, tuple(n for n in free if n in robot.params.names), nuis, std, ident,
+                          gauge, before, after, rms, cov, verdict, bool(fit.converged), fit.iterations, st.sets)
+
+
+def _verdict(nominal: Robot, calibrated: Robot, st: _Stack, rms: float, converged: bool) -> Verdict:
+    reasons = []
+    if not converged:
+        reasons.append(Reason("refused", "not-converged", "the fit did not converge"))
+    if rms > 3.0:
+        reasons.append(Reason("suspect", "residual", f"the residuals are {rms:.1f}x the stated noise: the model leaves "
+                                                     f"errors it cannot describe, or the stated σ are too small"))
+    reasons += correction_reasons(nominal, {n: calibrated.params[n] - nominal.params[n] for n in nominal.params.names},
+                                  Thresholds())
+    if all(o.kind == "plane" for o in st.sets):
+        reasons += _plane_reasons(nominal, calibrated, st.sets)
+    return Verdict.from_reasons(tuple(reasons))
+
+
+def _plane_reasons(nominal: Robot, calibrated: Robot, sets) -> list[Reason]:
+    """Plane contacts alone never make a fit "good": they see only distances to the planes. When the
+    fit moves the predicted points along the planes much more than across them, say so."""
+    along, across = [], []
+    for obs in sets:
+        moved = calibrated.forward(obs.q) - nominal.forward(obs.q)
+        normal = np.array([obs.planes(np.zeros(0) if not obs.unknown() else _zeros(obs))[lab][0] for lab in obs.labels])
+        n_part = np.sum(moved * normal, axis=1)
+        across.append(n_part)
+        along.append(np.linalg.norm(moved - n_part[:, None] * normal, axis=1))
+    a, c = np.concatenate(along), np.concatenate(across)
+    rms_a, rms_c = float(np.sqrt(np.mean(a**2))), float(np.sqrt(np.mean(c**2)))
+    out = [Reason("suspect", "plane-only",
+                  "plane contacts alone: the fit can only make the points lie on the planes; it cannot tell whether the "
+                  "robot became more accurate (positions along the planes and the base are not seen); validate with "
+                  "absolute data (a tracker, or sockets with a known distance) before trusting it")]
+    if rms_a > IN_PLANE_RATIO * max(rms_c, 1e-12):
+        out.append(Reason("suspect", "plane-in-plane",
+                          f"the fit moved the predicted contact points by {rms_a * MM:.3f} mm RMS along the planes, "
+                          f"more than it changed their distances to the planes ({rms_c * MM:.3f} mm RMS): the planes "
+                          f"cannot confirm that motion, so the absolute error may have grown while the plane residual "
+                          f"fell; check with absolute data"))
+    return out
+
+
+def _zeros(obs) -> np.ndarray:
+    return np.array([v for lab in obs.unknown() for v in (0.0, 0.0, obs.start[lab][1])])

@@ -1,0 +1,7 @@
+"""Observation types: what a measurement says about the robot (a point, markers, a full pose, the
+same point with known distances, plane contacts), each a residual object with its noise σ and the
+set-up parameters it brings. The stacked fit is :func:`kincal.identify.stacked.fit_observations`."""
+from .constraints import PlaneObs, SamePointObs
+from .observations import MarkersObs, Observation, PointObs, PoseObs
+
+__all__ = ["Observation", "PointObs", "PoseObs", "MarkersObs", "SamePointObs", "PlaneObs"]

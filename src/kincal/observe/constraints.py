@@ -1,0 +1,181 @@
+"""Observation types without a measuring device: a ball seated in sockets (the same unknown point
+reached in many configurations, with known distances between points) and contacts with planes.
+
+Neither sees where the robot stands: the base frame is a gauge freedom (left at its value and named).
+Sockets without a known distance, and planes without two known parallel ones at different offsets,
+do not fix the length scale either: a robot shrunk towards a point (on a plane, or on the line where
+two planes meet) satisfies them as well, so such a fit is refused before it starts (MUKCa, Franzese
+et al. 2025, use the 50 mm between two sockets).
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..models.robot import Robot
+from ..units import MM
+from .observations import Observation
+
+
+def _labels_in_order(labels: np.ndarray) -> list[str]:
+    names, first = np.unique(labels, return_index=True)
+    return [str(n) for n in names[np.argsort(first)]]
+
+
+@dataclass(frozen=True, eq=False)
+class SamePointObs(Observation):
+    """The tool point held at the same unknown point in every sample with the same label
+    (``point[<label>].x/y/z``, robot base frame), and known distances (m) between labelled points.
+    ``group``: per sample, the placement whose statistics are reported (default: one group)."""
+
+    labels: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=str))
+    distances: tuple[tuple[str, str, float], ...] = ()
+    group: np.ndarray | None = None
+    std: float = 0.05e-3  # m: how well the ball seats, per axis
+    std_distance: float = 0.1e-3  # m: how well the distances are known
+    kind = "same-point"
+
+    @property
+    def reference(self) -> bool:
+        return bool(self.distances)
+
+    def points(self) -> list[str]:
+        return _labels_in_order(self.labels)
+
+    def nuisance(self, robot: Robot):
+        p = robot.forward(self.q)
+        start = np.concatenate([p[self.labels == lab].mean(axis=0) for lab in self.points()])
+        return tuple(f"point[{lab}].{a}" for lab in self.points() for a in "xyz"), start, ("length",) * start.size
+
+    def gauge_params(self, robot: Robot) -> tuple[str, ...]:
+        return robot.base_params()
+
+    def sigma(self) -> np.ndarray:
+        return np.concatenate([np.full(3 * len(self), self.std), np.full(len(self.distances), self.std_distance)])
+
+    def _index(self) -> tuple[np.ndarray, dict[str, int]]:
+        pos = {lab: k for k, lab in enumerate(self.points())}
+        return np.array([pos[str(lab)] for lab in self.labels]), pos
+
+    def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
+        p, J = robot.forward_and_jacobian(self.q, values)
+        at, pos = self._index()
+        P = nuis.reshape(-1, 3)
+        n, K = len(self), nuis.size
+        Jn = np.zeros((3, n, K))
+        for a in range(3):
+            Jn[a, np.arange(n), 3 * at + a] = -1.0
+        r = [(p - P[at]).T.ravel()]
+        Jr, Jd = [J.transpose(1, 0, 2).reshape(-1, J.shape[2])], []
+        for a_lab, b_lab, d in self.distances:
+            i, j = pos[a_lab], pos[b_lab]
+            u = P[i] - P[j]
+            length = float(np.linalg.norm(u))
+            row = np.zeros(K)
+            row[3 * i:3 * i + 3], row[3 * j:3 * j + 3] = u / length, -u / length
+            r.append(np.array([length - d]))
+            Jd.append(row)
+        Jr.append(np.zeros((len(self.distances), J.shape[2])))
+        return np.concatenate(r), np.concatenate(Jr), np.vstack([Jn.reshape(3 * n, K), *(np.array(Jd).reshape(-1, K),)])
+
+    def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
+        """Per group (placement), as the MUKCa paper defines them: the count-weighted mean over its
+        points of |p − that point's mean of p| and, for each known distance inside the group,
+        | ‖m_a − m_b‖ − d | with m the means of the predicted points."""
+        p = robot.forward(self.q, values)
+        group = np.full(len(self), "all") if self.group is None else self.group
+        out = []
+        for g in _labels_in_order(group):
+            mine = group == g
+            means = {lab: p[mine & (self.labels == lab)].mean(axis=0) for lab in _labels_in_order(self.labels[mine])}
+            dev = np.concatenate([np.linalg.norm(p[mine & (self.labels == lab)] - m, axis=1) for lab, m in means.items()])
+            dist = [abs(float(np.linalg.norm(means[a] - means[b])) - d) for a, b, d in self.distances
+                    if a in means and b in means]
+            out.append({"group": g, "samples": int(mine.sum()), "mean_abs_mm": float(dev.mean() * MM),
+                        "distance_error_mm": float(np.mean(dist) * MM) if dist else None})
+        dev_all = np.concatenate([[r["mean_abs_mm"]] * r["samples"] for r in out])
+        return {"type": self.kind, "source": self.source, "samples": len(self), "mean_abs_mm": float(dev_all.mean()),
+                "groups": out}
+
+
+@dataclass(frozen=True, eq=False)
+class PlaneObs(Observation):
+    """The tool point touching a plane: per sample a plane label; a plane is known (unit normal n and
+    offset c, n·x = c in the robot base frame, m) or unknown (``plane[<label>].a/b/c``: the normal
+    tilted by a, b (rad) from its start and the offset c, m). Residual: n·p − c (m)."""
+
+    labels: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=str))
+    known: dict = field(default_factory=dict)  # label -> (n (3,), c)
+    std: float = 0.05e-3
+    kind = "plane"
+
+    @property
+    def reference(self) -> bool:
+        """Only two known parallel planes at different offsets (a gauge block's step) fix the length
+        scale: points collapsed onto one plane, or onto the line where two planes meet, satisfy the rest."""
+        known = [(np.asarray(n, float) / np.linalg.norm(n), float(c)) for n, c in self.known.values()]
+        return any(abs(abs(a @ b) - 1.0) < 1e-6 and abs(ca - np.sign(a @ b) * cb) > 1e-3
+                   for i, (a, ca) in enumerate(known) for b, cb in known[i + 1:])
+
+    def unknown(self) -> list[str]:
+        return [lab for lab in _labels_in_order(self.labels) if lab not in self.known]
+
+    start: dict = field(default_factory=dict)  # unknown planes: label -> (n0, c0) the fit starts from (prepare)
+
+    def prepare(self, robot: Robot) -> "PlaneObs":
+        """A copy whose unknown planes start at the best-fitting planes through ``robot``'s points."""
+        p = robot.forward(self.q)
+        start = {}
+        for lab in self.unknown():
+            pts = p[self.labels == lab]
+            n = np.linalg.svd(pts - pts.mean(axis=0))[2][2]
+            n = n if n[np.argmax(np.abs(n))] > 0 else -n  # canonical sign
+            start[lab] = (n, float(n @ pts.mean(axis=0)))
+        return dataclasses.replace(self, start=start)
+
+    def nuisance(self, robot: Robot):
+        names = tuple(f"plane[{lab}].{a}" for lab in self.unknown() for a in "abc")
+        vals = np.concatenate([[0.0, 0.0, self.start[lab][1]] for lab in self.unknown()]) if self.unknown() else np.zeros(0)
+        return names, vals, ("angle", "angle", "length") * len(self.unknown())
+
+    def gauge_params(self, robot: Robot) -> tuple[str, ...]:
+        return robot.base_params()
+
+    def sigma(self) -> np.ndarray:
+        return np.full(len(self), self.std)
+
+    def planes(self, nuis: np.ndarray) -> dict:
+        """label -> (n, c, dn/da, dn/db) at the nuisance values (known planes: no derivatives)."""
+        out = {lab: (np.asarray(n, float) / np.linalg.norm(n), float(c), None, None) for lab, (n, c) in self.known.items()}
+        for k, lab in enumerate(self.unknown()):
+            n0 = self.start[lab][0]
+            u1 = np.cross(n0, np.eye(3)[np.argmin(np.abs(n0))])
+            u1 /= np.linalg.norm(u1)
+            u2 = np.cross(n0, u1)
+            a, b, c = nuis[3 * k:3 * k + 3]
+            m = n0 + a * u1 + b * u2
+            nm = np.linalg.norm(m)
+            n = m / nm
+            proj = (np.eye(3) - np.outer(n, n)) / nm
+            out[lab] = (n, float(c), proj @ u1, proj @ u2)
+        return out
+
+    def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
+        p, J = robot.forward_and_jacobian(self.q, values)
+        planes, unknown = self.planes(nuis), {lab: k for k, lab in enumerate(self.unknown())}
+        r, Jr, Jn = np.empty(len(self)), np.empty((len(self), J.shape[2])), np.zeros((len(self), nuis.size))
+        for lab, (n, c, da, db) in planes.items():
+            rows = self.labels == lab
+            r[rows] = p[rows] @ n - c
+            Jr[rows] = np.einsum("i,nip->np", n, J[rows])
+            if lab in unknown:
+                k = unknown[lab]
+                Jn[rows, 3 * k], Jn[rows, 3 * k + 1], Jn[rows, 3 * k + 2] = p[rows] @ da, p[rows] @ db, -1.0
+        return r, Jr, Jn
+
+    def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
+        r = np.abs(self.evaluate(robot, values, nuis)[0])
+        return {"type": self.kind, "source": self.source, "samples": len(self), "planes": len(set(self.labels.tolist())),
+                "mean_mm": float(r.mean() * MM), "rms_mm": float(np.sqrt(np.mean(r**2)) * MM), "max_mm": float(r.max() * MM)}

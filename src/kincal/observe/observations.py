@@ -1,0 +1,261 @@
+"""Observation types: what one kind of measurement says about the robot, each a residual object.
+
+An observation set holds the joint values of its samples and declares
+
+* ``sigma()``: (M,) the noise σ of every residual component (m or rad), from columns or stated; the
+  problem is whitened by it, so millimetres and milliradians are combined by the instrument's
+  noise, never by an arbitrary "1 mm weighs like x mrad";
+* ``nuisance``: the parameters it brings (target frame, marker points, socket points, planes) as
+  names, start values (given the starting robot) and kinds (length/angle);
+* ``evaluate(robot, values, nuis) -> (r (M,), Jr (M, P), Jn (M, K))``: predicted − measured and its
+  derivatives by the robot's parameters and by its own;
+* ``gauge``: robot parameters these data cannot see (a plate's sockets do not see where the robot
+  stands: the base frame), and ``reference``: whether they fix the length scale;
+* ``stats(...)``: per-type figures in mm and mrad.
+
+The kinematics of points and frames on the flange come from the robot's position Jacobian alone:
+the tool point is a translation in the flange frame, so d p / d tool = R (the flange rotation), and
+moving the tool point by a unit step along each flange axis gives d(R eₖ)/d θ exactly; the rotation
+rate is ½ Σₖ aₖ × d aₖ. Every robot with a tool point gets full poses and markers this way.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..models.robot import TOOL_NAMES, Robot
+from ..units import MM
+
+MRAD = 1e3
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """(…, 3) → (…, 3, 3) cross-product matrices."""
+    z = np.zeros(v.shape[:-1])
+    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1), np.stack([v[..., 2], z, -v[..., 0]], -1),
+                     np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
+
+
+def so3_left_inverse(phi: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) inverse left Jacobian of SO(3) at rotation vectors phi (N, 3): d log(R) = J⁻¹ δθ."""
+    th = np.linalg.norm(phi, axis=-1)
+    small = th < 1e-6
+    ts = np.where(small, 1.0, th)
+    c = np.where(small, 1.0 / 12.0, 1.0 / ts**2 - (1 + np.cos(ts)) / (2 * ts * np.sin(ts)))
+    K = _skew(phi)
+    return np.eye(3) - 0.5 * K + c[:, None, None] * (K @ K)
+
+
+def so3_right(omega: np.ndarray) -> np.ndarray:
+    """(3, 3) right Jacobian of SO(3) at the rotation vector omega (3,): R Exp(ω + δ) ≈ R Exp(ω) Exp(Jr δ)."""
+    th = float(np.linalg.norm(omega))
+    K = _skew(omega)
+    if th < 1e-6:
+        return np.eye(3) - 0.5 * K + K @ K / 6.0
+    return np.eye(3) - (1 - np.cos(th)) / th**2 * K + (th - np.sin(th)) / th**3 * (K @ K)
+
+
+def _with_tool(robot: Robot, values: np.ndarray, point: np.ndarray) -> np.ndarray:
+    v = values.copy()
+    v[robot.params.indices(TOOL_NAMES)] = point
+    return v
+
+
+def flange_point(robot: Robot, q: np.ndarray, values: np.ndarray, point: np.ndarray):
+    """Positions (N, 3) of ``point`` (3,) m in the flange frame, their parameter Jacobian (N, 3, P)
+    (the tool columns replaced by nothing: they are d/d point = R) and the flange rotation (N, 3, 3)."""
+    p, J = robot.forward_and_jacobian(q, _with_tool(robot, values, point))
+    return p, J, J[:, :, robot.params.indices(TOOL_NAMES)]
+
+
+def flange_rotation_rate(robot: Robot, q: np.ndarray, values: np.ndarray, origin: np.ndarray,
+                         J0: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """(N, 3, P) world rotation rate of the flange per parameter: ½ Σₖ aₖ × d aₖ with aₖ = R eₖ and
+    d aₖ = J(origin + eₖ) − J(origin) (exact: positions are linear in the tool point)."""
+    rate = np.zeros_like(J0)
+    for k in range(3):
+        _, Jk = robot.forward_and_jacobian(q, _with_tool(robot, values, origin + np.eye(3)[k]))
+        rate += np.cross(R[:, :, k][:, :, None], Jk - J0, axisa=1, axisb=1, axisc=1)
+    return 0.5 * rate
+
+
+@dataclass(frozen=True, eq=False)
+class Observation:
+    """Common fields: joint values q (N, n) in rad/m, the input ``rows`` (line numbers), the
+    ``source`` file and an optional per-sample session label."""
+
+    q: np.ndarray
+    rows: np.ndarray
+    source: str
+
+    kind = "observation"
+
+    @property
+    def reference(self) -> bool:
+        """Whether the data fix the length scale (absolute positions do)."""
+        return True
+
+    def __len__(self) -> int:
+        return self.q.shape[0]
+
+    def nuisance(self, robot: Robot) -> tuple[tuple[str, ...], np.ndarray, tuple[str, ...]]:
+        """Names, start values (at ``robot``) and kinds ('length'/'angle') of the parameters it brings."""
+        return (), np.zeros(0), ()
+
+    def gauge_params(self, robot: Robot) -> tuple[str, ...]:
+        """Robot parameters these data cannot see (left at their values, named as gauge freedoms)."""
+        return ()
+
+    def prepare(self, robot: Robot) -> "Observation":
+        """The set ready to fit from ``robot`` (types whose parametrisation depends on the start override)."""
+        return self
+
+    def positions(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(q, xyz) of the tool point measured in the measurement frame, to register that frame before
+        the fit; None for data that see no absolute position."""
+        return None
+
+
+@dataclass(frozen=True, eq=False)
+class PointObs(Observation):
+    """One 3-D point per sample (a tracker's reflector): xyz (N, 3) m in the measurement frame (the
+    robot's base frame parameters), σ (N, 3) m or one number."""
+
+    xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    std: np.ndarray | float = 15e-6
+    kind = "point"
+
+    def positions(self):
+        return self.q, self.xyz
+
+    def sigma(self) -> np.ndarray:
+        return np.broadcast_to(np.asarray(self.std, float), self.xyz.shape).T.ravel()
+
+    def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
+        p, J = robot.forward_and_jacobian(self.q, values)
+        return (p - self.xyz).T.ravel(), J.transpose(1, 0, 2).reshape(-1, J.shape[2]), np.zeros((p.size, 0))
+
+    def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
+        e = np.linalg.norm(robot.forward(self.q, values) - self.xyz, axis=1)
+        return {"type": self.kind, "source": self.source, "samples": len(self), "mean_mm": float(e.mean() * MM),
+                "rms_mm": float(np.sqrt(np.mean(e**2)) * MM), "max_mm": float(e.max() * MM)}
+
+
+@dataclass(frozen=True, eq=False)
+class PoseObs(Observation):
+    """Full 6-D poses of a target frame on the flange: positions xyz (N, 3) m and rotations R (N, 3, 3)
+    in the measurement frame. The target's origin is the robot's tool point; its orientation on the
+    flange is ``target_rotation`` (3, 3) times a fitted rotation vector (``target.rx/ry/rz``, rad).
+    σ: position (m) and rotation (rad), per sample (N,) or one number each."""
+
+    xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    R: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
+    target_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+    std_pos: np.ndarray | float = 0.1e-3
+    std_rot: np.ndarray | float = 1e-3
+    kind = "pose"
+
+    def positions(self):
+        return self.q, self.xyz
+
+    def prepare(self, robot: Robot) -> "PoseObs":
+        """A copy whose target rotation starts at the chordal mean of flangeᵀ·measured over the samples."""
+        _, _, Rf = flange_point(robot, self.q, robot.params.values, robot.tool_point())
+        U, _, Vt = np.linalg.svd(np.sum(Rf.transpose(0, 2, 1) @ self.R, axis=0))
+        return dataclasses.replace(self, target_rotation=U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt)
+
+    def nuisance(self, robot: Robot):
+        return ("target.rx", "target.ry", "target.rz"), np.zeros(3), ("angle",) * 3
+
+    def sigma(self) -> np.ndarray:
+        n = len(self)
+        sp = np.broadcast_to(np.asarray(self.std_pos, float), (n,))
+        sr = np.broadcast_to(np.asarray(self.std_rot, float), (n,))
+        return np.concatenate([sp, sp, sp, sr, sr, sr])
+
+    def target(self, nuis: np.ndarray) -> np.ndarray:
+        from scipy.spatial.transform import Rotation
+        return self.target_rotation @ Rotation.from_rotvec(nuis[:3]).as_matrix()
+
+    def errors(self, robot: Robot, values: np.ndarray, nuis: np.ndarray, jacobian: bool = True):
+        """Position errors (N, 3) m, rotation errors (N, 3) rad (world-frame rotation vectors of
+        predicted·measuredᵀ) and, with ``jacobian``, their derivatives."""
+        from scipy.spatial.transform import Rotation
+        origin = robot.param_values(values)[robot.params.indices(TOOL_NAMES)]
+        p, J, Rf = flange_point(robot, self.q, robot.param_values(values), origin)
+        Rt = self.target(nuis)
+        phi = Rotation.from_matrix(Rf @ Rt @ self.R.transpose(0, 2, 1)).as_rotvec()
+        if not jacobian:
+            return p - self.xyz, phi, None
+        Linv = so3_left_inverse(phi)
+        Jrot = Linv @ flange_rotation_rate(robot, self.q, robot.param_values(values), origin, J, Rf)
+        Jn = Linv @ (Rf @ (Rt @ so3_right(nuis[:3])))
+        return p - self.xyz, phi, (J, Jrot, Jn)
+
+    def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
+        dp, phi, (J, Jrot, Jn) = self.errors(robot, values, nuis)
+        n, P = len(self), J.shape[2]
+        r = np.concatenate([dp.T.ravel(), phi.T.ravel()])
+        Jr = np.concatenate([J.transpose(1, 0, 2).reshape(-1, P), Jrot.transpose(1, 0, 2).reshape(-1, P)])
+        Jnn = np.concatenate([np.zeros((3 * n, 3)), Jn.transpose(1, 0, 2).reshape(-1, 3)])
+        return r, Jr, Jnn
+
+    def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
+        dp, phi, _ = self.errors(robot, values, nuis, jacobian=False)
+        e, a = np.linalg.norm(dp, axis=1), np.linalg.norm(phi, axis=1)
+        return {"type": self.kind, "source": self.source, "samples": len(self), "mean_mm": float(e.mean() * MM),
+                "rms_mm": float(np.sqrt(np.mean(e**2)) * MM), "max_mm": float(e.max() * MM),
+                "mean_mrad": float(a.mean() * MRAD), "rms_mrad": float(np.sqrt(np.mean(a**2)) * MRAD),
+                "max_mrad": float(a.max() * MRAD)}
+
+
+@dataclass(frozen=True, eq=False)
+class MarkersObs(Observation):
+    """k markers per sample (mocap, several reflectors on a nest): xyz (N, k, 3) m in the measurement
+    frame, NaN where a marker was not seen; each marker is an unknown point on the flange
+    (``marker[<name>].x/y/z``), so the robot's own tool point is a gauge freedom here."""
+
+    xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 1, 3)))
+    names: tuple[str, ...] = ()
+    start: np.ndarray | None = None  # (k, 3) m: start values of the marker points (default: the tool point)
+    std: float = 15e-6
+    kind = "markers"
+
+    def seen(self) -> np.ndarray:
+        return np.all(np.isfinite(self.xyz), axis=2)  # (N, k)
+
+    def nuisance(self, robot: Robot):
+        k = self.xyz.shape[1]
+        start = np.tile(robot.tool_point(), (k, 1)) if self.start is None else np.asarray(self.start, float)
+        names = tuple(f"marker[{m}].{a}" for m in self.names for a in "xyz")
+        return names, start.ravel(), ("length",) * (3 * k)
+
+    def gauge_params(self, robot: Robot) -> tuple[str, ...]:
+        return TOOL_NAMES
+
+    def sigma(self) -> np.ndarray:
+        return np.full(3 * int(self.seen().sum()), float(self.std))
+
+    def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
+        seen, k = self.seen(), self.xyz.shape[1]
+        r, Jr, Jn = [], [], []
+        for m in range(k):
+            rows = seen[:, m]
+            p, J, R = flange_point(robot, self.q[rows], robot.param_values(values), nuis[3 * m:3 * m + 3])
+            J = J.copy()
+            J[:, :, robot.params.indices(TOOL_NAMES)] = 0.0
+            Jm = np.zeros((rows.sum(), 3, 3 * k))
+            Jm[:, :, 3 * m:3 * m + 3] = R
+            r.append((p - self.xyz[rows, m]).T.ravel())
+            Jr.append(J.transpose(1, 0, 2).reshape(-1, J.shape[2]))
+            Jn.append(Jm.transpose(1, 0, 2).reshape(-1, 3 * k))
+        return np.concatenate(r), np.concatenate(Jr), np.concatenate(Jn)
+
+    def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
+        r = self.evaluate(robot, values, nuis)[0].reshape(3, -1)
+        e = np.linalg.norm(r, axis=0)
+        return {"type": self.kind, "source": self.source, "samples": len(self), "markers": len(self.names),
+                "observed": int(e.size), "mean_mm": float(e.mean() * MM), "rms_mm": float(np.sqrt(np.mean(e**2)) * MM),
+                "max_mm": float(e.max() * MM)}

@@ -1,0 +1,112 @@
+"""Simulated observations of every type, so a set-up can be planned before anyone measures.
+
+Constraint data (sockets, planes) need configurations that put the tool point at a given point:
+found by damped least-squares inverse kinematics on the true robot from random starts (poses
+that do not reach within 1 nm, or leave the joint limits, are drawn again).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ModelError
+from ..observe.constraints import PlaneObs, SamePointObs
+from ..observe.observations import MarkersObs, PoseObs, flange_point
+from ..models.robot import Robot
+
+IK_TOL = 1e-9  # m
+
+
+def _rotations(rng: np.random.Generator, sigma: float, n: int) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+    return Rotation.from_rotvec(sigma * rng.standard_normal((n, 3))).as_matrix()
+
+
+def simulate_poses(true: Robot, q: np.ndarray, target_rotation: np.ndarray, std_pos: float = 0.1e-3,
+                   std_rot: float = 1e-3, seed: int = 0) -> PoseObs:
+    """6-D poses of a target frame (origin: the true tool point; orientation ``target_rotation`` on
+    the flange) at q (N, n), with isotropic noise ``std_pos`` (m) and ``std_rot`` (rad)."""
+    rng = np.random.default_rng(seed)
+    q = true.check_q(q)
+    p, _, Rf = flange_point(true, q, true.params.values, true.tool_point())
+    R = _rotations(rng, std_rot, len(q)) @ Rf @ target_rotation
+    return PoseObs(q, np.arange(2, len(q) + 2), f"simulated {true.name} poses", xyz=p + std_pos * rng.standard_normal(p.shape),
+                   R=R, std_pos=std_pos, std_rot=std_rot)
+
+
+def simulate_markers(true: Robot, q: np.ndarray, markers: np.ndarray, std: float = 15e-6, missing: float = 0.0,
+                     seed: int = 0) -> MarkersObs:
+    """k markers (``markers`` (k, 3) m in the flange frame) at q (N, n); a share ``missing`` of the
+    cells is left unseen (NaN), never a whole sample."""
+    rng = np.random.default_rng(seed)
+    q = true.check_q(q)
+    markers = np.asarray(markers, float)
+    xyz = np.stack([flange_point(true, q, true.params.values, m)[0] for m in markers], axis=1)
+    xyz = xyz + std * rng.standard_normal(xyz.shape)
+    hide = rng.random(xyz.shape[:2]) < missing
+    hide[np.all(hide, axis=1), 0] = False
+    xyz[hide] = np.nan
+    return MarkersObs(q, np.arange(2, len(q) + 2), f"simulated {true.name} markers", xyz=xyz,
+                      names=tuple(f"m{k + 1}" for k in range(len(markers))), std=std)
+
+
+def reach(true: Robot, targets: np.ndarray, seed: int = 0, max_rounds: int = 20, strict: bool = True) -> np.ndarray:
+    """(N, n) joint values within the limits that put ``true``'s tool point at ``targets`` (N, 3) m,
+    each from a random start (damped least squares); a target that cannot be reached is a
+    ModelError (``strict``) or a row of NaN."""
+    rng = np.random.default_rng(seed)
+    targets = np.asarray(targets, float)
+    q = np.empty((len(targets), true.n_joints))
+    todo = np.arange(len(targets))
+    for round_ in range(max_rounds):
+        if not todo.size:
+            return q
+        x = true.sample_joints(todo.size, seed=int(rng.integers(2**31)))
+        for _ in range(60):
+            p = true.forward(x)
+            J = true.joint_jacobian(x)
+            e = targets[todo] - p
+            JJt = J @ J.transpose(0, 2, 1) + 1e-6 * np.eye(3)
+            x = x + np.einsum("nji,nj->ni", J, np.linalg.solve(JJt, e[..., None])[..., 0])
+        ok = (np.linalg.norm(targets[todo] - true.forward(x), axis=1) < IK_TOL) & true.within_limits(x)
+        q[todo[ok]] = x[ok]
+        todo = todo[~ok]
+    q[todo] = np.nan
+    if todo.size and strict:
+        raise ModelError(f"{todo.size} target point(s) could not be reached by {true.name} (first: "
+                         f"{targets[todo[0]].round(4).tolist()} m)")
+    return q
+
+
+def simulate_same_point(true: Robot, points: dict, per_point: int, distances=(), std: float = 0.05e-3,
+                        std_distance: float = 0.1e-3, seed: int = 0) -> SamePointObs:
+    """A ball seated ``per_point`` times at each labelled point (``points``: label -> (3,) m in the
+    robot base frame), each time in another configuration, seated within ``std`` (m per axis);
+    ``distances`` ((a, b, d m), …) are stated as known."""
+    rng = np.random.default_rng(seed)
+    labels = np.repeat(np.array(list(points), dtype=str), per_point)
+    where = np.repeat(np.array([points[k] for k in points], float), per_point, axis=0)
+    q = reach(true, where + std * rng.standard_normal(where.shape), seed=seed)
+    return SamePointObs(q, np.arange(2, len(q) + 2), f"simulated {true.name} sockets", labels=labels,
+                        distances=tuple(distances), std=std, std_distance=std_distance)
+
+
+def simulate_planes(true: Robot, planes: dict, per_plane: int, known=(), std: float = 0.05e-3,
+                    seed: int = 0) -> PlaneObs:
+    """Contacts of the tool point with planes (``planes``: label -> (unit normal (3,), offset c m),
+    robot base frame) at random reachable points of each plane, within ``std`` (m) across it;
+    labels in ``known`` are stated as known planes."""
+    rng = np.random.default_rng(seed)
+    labels, qs = [], []
+    for lab, (n, c) in planes.items():
+        n = np.asarray(n, float) / np.linalg.norm(n)
+        p = true.forward(true.sample_joints(4 * per_plane, seed=int(rng.integers(2**31))))
+        on = p - (p @ n - c)[:, None] * n + std * rng.standard_normal(len(p))[:, None] * n
+        q = reach(true, on, seed=seed, max_rounds=5, strict=False)
+        q = q[np.all(np.isfinite(q), axis=1)][:per_plane]
+        if len(q) < per_plane:
+            raise ModelError(f"plane {lab}: only {len(q)} of {per_plane} contacts are within reach of {true.name}")
+        qs.append(q)
+        labels += [lab] * per_plane
+    q = np.concatenate(qs)
+    return PlaneObs(q, np.arange(2, len(q) + 2), f"simulated {true.name} plane contacts", labels=np.array(labels),
+                    known={lab: planes[lab] for lab in known}, std=std)
