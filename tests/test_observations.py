@@ -209,6 +209,10 @@ def test_panda_sockets_as_the_authors_protocol(tmp_path):
     assert max(g["distance_error_mm"] for g in test["groups"]) < 0.35  # the scale carries over
     with pytest.raises(kincal.MeasurementError, match="scale is unobservable"):
         fit_observations(robot, [sockets(train, distance=False)])
+    in_mm = dataclasses.replace(sockets(train), distances=(("front_center/0", "front_center/1", 50.0),))
+    with pytest.raises(kincal.MeasurementError, match="stated as 50 m, but the robot file puts those points "
+                                                      "0.05.. m apart: it looks like mm"):
+        fit_observations(robot, [in_mm])
 
 
 def test_positioner_6d_even_rows_fit_odd_rows_held_out():

@@ -14,9 +14,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..units import MM
 from .observations import Observation
+
+
+SCALE_LIMIT = 3.0  # a stated distance this many times off the robot file's: a unit or label mistake
+UNIT_FACTORS = {"mm": 1000.0, "cm": 100.0, "inches": 1 / 0.0254}
 
 
 def _labels_in_order(labels: np.ndarray) -> list[str]:
@@ -43,6 +48,24 @@ class SamePointObs(Observation):
 
     def points(self) -> list[str]:
         return _labels_in_order(self.labels)
+
+    def prepare(self, robot: Robot) -> "SamePointObs":
+        """Checks each known distance against where ``robot`` puts its two points (a unit mistake makes
+        them 10-1000x apart) and each label against the points named; returns the set unchanged."""
+        names, start, _ = self.nuisance(robot)
+        at = {lab: start[3 * k:3 * k + 3] for k, lab in enumerate(self.points())}
+        for a, b, d in self.distances:
+            missing = [lab for lab in (a, b) if lab not in at]
+            if missing:
+                raise MeasurementError(f"{self.source}: the distance {a}–{b} names {', '.join(missing)}, which no sample "
+                                       f"has (labels: {', '.join(self.points()[:10])})")
+            seen = float(np.linalg.norm(at[a] - at[b]))
+            if not (d > 0 and SCALE_LIMIT ** -1 < d / max(seen, 1e-12) < SCALE_LIMIT):
+                unit = next((u for u, f in UNIT_FACTORS.items() if abs(np.log(d / max(seen, 1e-12) / f)) < 0.3), None)
+                hint = f": it looks like {unit}; give distances in m" if unit else ""
+                raise MeasurementError(f"{self.source}: the distance {a}–{b} is stated as {d:g} m, but the robot file "
+                                       f"puts those points {seen:.4g} m apart{hint}")
+        return self
 
     def nuisance(self, robot: Robot):
         p = robot.forward(self.q)
