@@ -225,7 +225,8 @@ def _plane_reasons(nominal: Robot, calibrated: Robot, sets) -> list[Reason]:
     along, across = [], []
     for obs in sets:
         moved = calibrated.forward(obs.q) - nominal.forward(obs.q)
-        normal = np.array([obs.planes(np.zeros(0) if not obs.unknown() else _zeros(obs))[lab][0] for lab in obs.labels])
+        planes = obs.planes(_start(obs))  # the normals the fit started from: changes across them are what moved
+        normal = np.array([planes[lab][0] for lab in obs.labels])
         n_part = np.sum(moved * normal, axis=1)
         across.append(n_part)
         along.append(np.linalg.norm(moved - n_part[:, None] * normal, axis=1))
@@ -244,5 +245,6 @@ def _plane_reasons(nominal: Robot, calibrated: Robot, sets) -> list[Reason]:
     return out
 
 
-def _zeros(obs) -> np.ndarray:
+def _start(obs) -> np.ndarray:
+    """The nuisance values a plane set starts from (no tilt, the start offsets)."""
     return np.array([v for lab in obs.unknown() for v in (0.0, 0.0, obs.start[lab][1])])
