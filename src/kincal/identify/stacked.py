@@ -161,7 +161,7 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
                                          [list(keep), list(st.nuis_names), list(robot.base_params()),
                                           list(robot.preferred_params())], robot.name, len(r0), rank_tol)
         ident = dataclasses.replace(ident, measured=" + ".join(dict.fromkeys(o.kind for o in st.sets)))
-        free = [n for n in ident.identifiable]
+        free = list(ident.identifiable)
         fcols = np.array([all_names.index(n) for n in free], dtype=int)
         if r0.size <= len(free):
             raise MeasurementError(f"{r0.size} residual components for {len(free)} parameters: measure more samples")
@@ -193,7 +193,7 @@ def _result(robot, st, gauge, ident, free, fcols, x0, fit) -> ObservationFit:
     full[fcols] = fit.x
     P = robot.n_params
     calibrated = robot.with_params(dict(zip(robot.params.names, full[:P])))
-    sd, _, s2, cov = parameter_statistics(fit.jacobian, fit.residual, free, free)
+    sd, _, _, cov = parameter_statistics(fit.jacobian, fit.residual, free, free)
     nuis = dict(zip(st.nuis_names, full[P:]))
     std = {n: float(v) for n, v in zip(free, sd)}
     std.update({n: np.inf for n in st.nuis_names if n not in std})

@@ -16,12 +16,12 @@ import numpy as np
 
 from ..errors import MeasurementError
 from ..models.robot import Robot
-from ..units import MM
+from ..units import LENGTH_UNITS, MM, OTHER_LENGTHS
 from .observations import Observation
 
 
 SCALE_LIMIT = 3.0  # a stated distance this many times off the robot file's: a unit or label mistake
-UNIT_FACTORS = {"mm": 1000.0, "cm": 100.0, "inches": 1 / 0.0254}
+UNIT_FACTORS = {"mm": 1 / LENGTH_UNITS["mm"], "cm": 1 / OTHER_LENGTHS["cm"], "inches": 1 / OTHER_LENGTHS["inch"]}
 
 
 def _labels_in_order(labels: np.ndarray) -> list[str]:
@@ -90,18 +90,15 @@ class SamePointObs(Observation):
         Jn = np.zeros((3, n, K))
         for a in range(3):
             Jn[a, np.arange(n), 3 * at + a] = -1.0
-        r = [(p - P[at]).T.ravel()]
-        Jr, Jd = [J.transpose(1, 0, 2).reshape(-1, J.shape[2])], []
-        for a_lab, b_lab, d in self.distances:
+        rd, Jd = np.empty(len(self.distances)), np.zeros((len(self.distances), K))
+        for k, (a_lab, b_lab, d) in enumerate(self.distances):
             i, j = pos[a_lab], pos[b_lab]
             u = P[i] - P[j]
             length = float(np.linalg.norm(u))
-            row = np.zeros(K)
-            row[3 * i:3 * i + 3], row[3 * j:3 * j + 3] = u / length, -u / length
-            r.append(np.array([length - d]))
-            Jd.append(row)
-        Jr.append(np.zeros((len(self.distances), J.shape[2])))
-        return np.concatenate(r), np.concatenate(Jr), np.vstack([Jn.reshape(3 * n, K), *(np.array(Jd).reshape(-1, K),)])
+            rd[k] = length - d
+            Jd[k, 3 * i:3 * i + 3], Jd[k, 3 * j:3 * j + 3] = u / length, -u / length
+        Jr = np.vstack([J.transpose(1, 0, 2).reshape(-1, J.shape[2]), np.zeros((len(rd), J.shape[2]))])
+        return np.concatenate([(p - P[at]).T.ravel(), rd]), Jr, np.vstack([Jn.reshape(3 * n, K), Jd])
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         """Per group (placement), as the MUKCa paper defines them: the count-weighted mean over its

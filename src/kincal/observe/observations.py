@@ -26,9 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..models.robot import TOOL_NAMES, Robot
-from ..units import MM
-
-MRAD = 1e3
+from ..units import MM, MRAD
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
@@ -65,7 +63,7 @@ def _with_tool(robot: Robot, values: np.ndarray, point: np.ndarray) -> np.ndarra
 
 def flange_point(robot: Robot, q: np.ndarray, values: np.ndarray, point: np.ndarray):
     """Positions (N, 3) of ``point`` (3,) m in the flange frame, their parameter Jacobian (N, 3, P)
-    (the tool columns replaced by nothing: they are d/d point = R) and the flange rotation (N, 3, 3)."""
+    and the flange rotation (N, 3, 3), which is the Jacobian's tool columns (d p / d point = R)."""
     p, J = robot.forward_and_jacobian(q, _with_tool(robot, values, point))
     return p, J, J[:, :, robot.params.indices(TOOL_NAMES)]
 
