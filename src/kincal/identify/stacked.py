@@ -22,7 +22,7 @@ from .._threads import blas_threads
 from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_identifiability
 from ..errors import MeasurementError
 from ..models.robot import Robot
-from ..units import MM
+from ..units import MM, MRAD
 from .covariance import parameter_statistics
 from .lm import levenberg_marquardt
 from .registration import register_base
@@ -53,6 +53,7 @@ class ObservationFit:
     converged: bool
     iterations: int
     observations: tuple = ()
+    weak: dict = dataclasses.field(default_factory=dict)  # kept nominal: name -> σ the data gave it (m or rad)
 
     def to_dict(self) -> dict:
         return {"robot": self.robot.name, "fitted": list(self.names),
@@ -60,7 +61,8 @@ class ObservationFit:
                 "corrections": {n: float(self.robot.params[n] - self.nominal.params[n]) for n in self.names},
                 "nuisance": {k: float(v) for k, v in self.nuisance.items()},
                 "std": {k: (float(v) if np.isfinite(v) else None) for k, v in self.std.items()},
-                "gauge": list(self.gauge), "identifiability": self.identifiability.to_dict(),
+                "gauge": list(self.gauge), "weakly_determined": {k: float(v) for k, v in self.weak.items()},
+                "identifiability": self.identifiability.to_dict(),
                 "before": list(self.stats_before), "after": list(self.stats), "whitened_rms": self.whitened_rms,
                 "verdict": self.verdict.to_dict(), "converged": self.converged, "iterations": self.iterations}
 
@@ -73,6 +75,12 @@ class ObservationFit:
             lines.append(f"  {a['type']} ({a['source']}): {_line(b)}  →  {_line(a)}")
         if self.gauge:
             lines.append(f"not seen by these data (gauge freedoms, kept at their values): {', '.join(self.gauge)}")
+        if self.weak:
+            kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
+            shown = ", ".join(f"{n} ±{v * MM:.1f} mm" if kinds[n] == "length" else f"{n} ±{v * MRAD:.0f} mrad"
+                              for n, v in self.weak.items())
+            lines.append(f"kept at nominal, the data determine them worse than a real robot's error (10 mm, 2 deg): "
+                         f"{shown}")
         lines.append(f"verdict: {self.verdict.status.upper()}")
         lines += [f"  {r.level}: {r.message}" for r in self.verdict.reasons]
         return "\n".join(lines)
@@ -162,12 +170,40 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
                                           list(robot.preferred_params())], robot.name, len(r0), rank_tol)
         ident = dataclasses.replace(ident, measured=" + ".join(dict.fromkeys(o.kind for o in st.sets)))
         free = list(ident.identifiable)
-        fcols = np.array([all_names.index(n) for n in free], dtype=int)
         if r0.size <= len(free):
             raise MeasurementError(f"{r0.size} residual components for {len(free)} parameters: measure more samples")
         x0 = np.concatenate([values0, st.nuis0])
-        fit = levenberg_marquardt(lambda x: _fun(st, x0, fcols, x), x0[fcols], max_iter=max_iter)
-        return _result(robot, st, gauge, ident, free, fcols, x0, fit)
+        weak: dict[str, float] = {}
+        while True:
+            fcols = np.array([all_names.index(n) for n in free], dtype=int)
+            fit = levenberg_marquardt(lambda x: _fun(st, x0, fcols, x), x0[fcols], max_iter=max_iter)
+            worst = _weakest(robot, free, fit)
+            if worst is None:
+                ident = _without_weak(ident, free, weak)
+                return _result(robot, st, gauge, ident, free, fcols, x0, fit, weak)
+            weak[worst[0]] = worst[1]
+            free.remove(worst[0])
+
+
+def _without_weak(ident: Identifiability, free: list[str], weak: dict) -> Identifiability:
+    if not weak:
+        return ident
+    note = (f"kept at nominal, determined worse than a real robot's error (10 mm, 2 deg): {', '.join(weak)}",)
+    return dataclasses.replace(ident, identifiable=tuple(free), dropped=ident.dropped + tuple(weak),
+                               notes=ident.notes + note)
+
+
+def _weakest(robot: Robot, free: list[str], fit) -> tuple[str, float] | None:
+    """The robot parameter the data determine worst, when its σ exceeds the largest correction a real
+    robot plausibly needs (the verdict's "large correction" limits, 10 mm and 2 deg): such a value is
+    noise (and extrapolates wildly outside the measured region), so it is kept at its nominal value."""
+    sd = parameter_statistics(fit.jacobian, fit.residual, free, free)[0]
+    th = Thresholds()
+    kinds = dict(zip(robot.params.names, robot.params.kinds))
+    ratio = [(s / (th.length_suspect if kinds[n] == "length" else th.angle_suspect), n, float(s))
+             for n, s in zip(free, sd) if n in kinds and n not in robot.base_params()]
+    over = [r for r in ratio if r[0] > 1.0]
+    return None if not over else max(over)[1:]
 
 
 def _registered(robot: Robot, sets, gauge) -> Robot:
@@ -188,7 +224,7 @@ def _fun(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray):
     return r, J[:, fcols]
 
 
-def _result(robot, st, gauge, ident, free, fcols, x0, fit) -> ObservationFit:
+def _result(robot, st, gauge, ident, free, fcols, x0, fit, weak) -> ObservationFit:
     full = x0.copy()
     full[fcols] = fit.x
     P = robot.n_params
@@ -202,7 +238,7 @@ def _result(robot, st, gauge, ident, free, fcols, x0, fit) -> ObservationFit:
     rms = float(np.sqrt(np.mean(fit.residual**2)))
     verdict = _verdict(robot, calibrated, st, rms, fit.converged)
     return ObservationFit(calibrated, robot, tuple(n for n in free if n in robot.params.names), nuis, std, ident,
-                          gauge, before, after, rms, cov, verdict, bool(fit.converged), fit.iterations, st.sets)
+                          gauge, before, after, rms, cov, verdict, bool(fit.converged), fit.iterations, st.sets, weak)
 
 
 def _verdict(nominal: Robot, calibrated: Robot, st: _Stack, rms: float, converged: bool) -> Verdict:
