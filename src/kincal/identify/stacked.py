@@ -160,16 +160,19 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
         gauge = _gauge(robot, observations)
         robot = _registered(robot, observations, gauge)
         st = _stack(robot, observations)
-        cand = [n for n in (robot.params.names if names == "auto" else names) if n not in set(gauge)]
+        # the gauge freedoms go before the robot's parameters: what acts like them (joint 1's origin next to an unseen base) is
+        # dropped as confounded with them, instead of fitted to the residuals' curvature alone
+        cand = list(gauge) + [n for n in (robot.params.names if names == "auto" else names) if n not in set(gauge)]
         values0 = robot.params.values.copy()
         r0, J0 = st.evaluate(values0, st.nuis0)
         all_names = list(robot.params.names) + list(st.nuis_names)
         cols = np.array([all_names.index(n) for n in cand + list(st.nuis_names)], dtype=int)
         ident = jacobian_identifiability(J0[:, cols], cand + list(st.nuis_names),
-                                         [list(keep), list(st.nuis_names), list(robot.base_params()),
+                                         [list(keep), list(st.nuis_names), list(gauge), list(robot.base_params()),
                                           list(robot.preferred_params())], robot.name, len(r0), rank_tol)
         ident = dataclasses.replace(ident, measured=" + ".join(dict.fromkeys(o.kind for o in st.sets)))
-        free = list(ident.identifiable)
+        free = [n for n in ident.identifiable if n not in set(gauge)]
+        ident = dataclasses.replace(ident, identifiable=tuple(free))
         if r0.size <= len(free):
             raise MeasurementError(f"{r0.size} residual components for {len(free)} parameters: measure more samples")
         x0 = np.concatenate([values0, st.nuis0])

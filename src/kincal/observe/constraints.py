@@ -161,7 +161,9 @@ class PlaneObs(Observation):
         return names, vals, ("angle", "angle", "length") * len(self.unknown())
 
     def gauge_params(self, robot: Robot) -> tuple[str, ...]:
-        return robot.base_params()
+        """Unknown planes only: a rigid motion of robot and planes together is unseen. A known plane
+        sees the base's motion across it; what it does not see is dropped by the identifiability rule."""
+        return () if self.known else robot.base_params()
 
     def sigma(self) -> np.ndarray:
         return np.full(len(self), self.std)
