@@ -4,14 +4,13 @@ from __future__ import annotations
 import csv
 import io as _io
 import os
-import re
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
 from .._atomic import write_text_atomic
+from .._csv import data_lines, is_float, number, read_table, read_text, sniff_delimiter
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..units import unit_factor
@@ -135,53 +134,10 @@ def _check_finite(source: str, values: np.ndarray, rows: np.ndarray, what: str) 
         raise MeasurementError(f"{source}: NaN or infinite {what} in row(s) {listed}{more}; remove or fix those rows")
 
 
-def _sniff_delimiter(header: str, path: str) -> str:
-    counts = {d: header.count(d) for d in (",", ";", "\t")}
-    best = max(counts, key=counts.get)
-    if counts[best] == 0:
-        raise MeasurementError(f"{path}: cannot find a ',', ';' or tab separator in the header line")
-    return best
-
-
-DECIMAL_COMMA = re.compile(r"^\s*[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?\s*$")
-
-
-def _read_text(path: str) -> str:
-    """The file's text: UTF-8 (with or without the BOM Excel writes), else Latin-1."""
-    try:
-        raw = Path(path).read_bytes()
-    except OSError as exc:
-        raise MeasurementError(f"{path}: cannot read the file ({exc.strerror})") from None
-    if b"\0" in raw[:4096]:
-        raise MeasurementError(f"{path}: this is not a text file (CSV expected; UTF-16 exports: save as 'CSV UTF-8')")
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
-
-
-def _data_lines(text: str) -> list[tuple[int, str]]:
-    """(1-based line number, line) of every line that is not blank or a '#' comment."""
-    return [(k, line) for k, line in enumerate(text.splitlines(), start=1)
-            if line.strip() and not line.lstrip().startswith("#")]
-
-
-def _number(cell: str, delimiter: str) -> float:
-    """A cell as a float; decimal commas are read where the separator is not a comma."""
-    if delimiter != "," and DECIMAL_COMMA.match(cell):
-        cell = cell.replace(",", ".")
-    return float(cell)
-
-
 def _read_columns(path: str, columns: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
     """Numeric values of ``columns`` from a CSV with a header, (rows, len(columns)), and the rows'
     1-based line numbers. Blank and '#' lines are skipped. Errors name the file, row and column."""
-    lines = _data_lines(_read_text(path))
-    if not lines:
-        raise MeasurementError(f"{path}: the file is empty; expected a header line and one row per pose")
-    delim = _sniff_delimiter(lines[0][1], path)
-    records = list(zip((k for k, _ in lines), csv.reader((line for _, line in lines), delimiter=delim)))
-    header = [h.strip() for h in records[0][1]]
+    header, records, delim, header_line = read_table(path)
     asked = [c for c in dict.fromkeys(columns) if list(columns).count(c) > 1]
     if asked:
         raise MeasurementError(f"{path}: column(s) {', '.join(asked)} given more than once (as joint, position or σ "
@@ -193,26 +149,20 @@ def _read_columns(path: str, columns: Sequence[str]) -> tuple[np.ndarray, np.nda
                                f"that each name is one column")
     missing = [c for c in columns if c not in header]
     if missing:
-        where = f" (line {records[0][0]})" if records[0][0] != 1 else ""
+        where = f" (line {header_line})" if header_line != 1 else ""
         raise MeasurementError(f"{path}: column(s) {', '.join(missing)} not found; the header has: "
                                f"{', '.join(header)}{where}")
     idx = [header.index(c) for c in columns]
     rows, line_no = [], []
-    for k, rec in records[1:]:
-        if len(rec) != len(header):
-            hint = (" (decimal commas in a comma-separated file? use ';' as the separator, or '.' for decimals)"
-                    if len(rec) > len(header) and delim == "," else "")
-            raise MeasurementError(f"{path}: row {k} has {len(rec)} fields, the header has {len(header)}{hint}")
+    for k, rec in records:
         try:
-            rows.append([_number(rec[i], delim) for i in idx])
+            rows.append([number(rec[i], delim) for i in idx])
         except ValueError:
-            col = next(header[i] for i in idx if not _is_float(rec[i], delim))
+            col = next(header[i] for i in idx if not is_float(rec[i], delim))
             raise MeasurementError(
                 f"{path}: row {k}, column '{col}': '{rec[header.index(col)]}' is not a number"
             ) from None
         line_no.append(k)
-    if not rows:
-        raise MeasurementError(f"{path}: no data rows after the header")
     return np.array(rows), np.array(line_no)
 
 
@@ -302,19 +252,11 @@ def _std_columns(path: str, std_cols: Sequence[str] | None) -> list[str]:
         if len(std_cols) not in (0, 3):
             raise MeasurementError(f"{path}: give three σ columns (x, y, z) or none, got {list(std_cols)}")
         return list(std_cols)
-    lines = _data_lines(_read_text(path))
+    lines = data_lines(read_text(path))
     if not lines:
         return []
-    header = [h.strip() for h in next(csv.reader([lines[0][1]], delimiter=_sniff_delimiter(lines[0][1], path)))]
+    header = [h.strip() for h in next(csv.reader([lines[0][1]], delimiter=sniff_delimiter(lines[0][1], path)))]
     return list(STD_COLUMNS) if all(c in header for c in STD_COLUMNS) else []
-
-
-def _is_float(s: str, delimiter: str = ",") -> bool:
-    try:
-        _number(s, delimiter)
-        return True
-    except ValueError:
-        return False
 
 
 def _unit(unit: str, kind: str, path: str) -> float:
