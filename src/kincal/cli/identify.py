@@ -17,6 +17,7 @@ from kincal.units import DEG, MM
 from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, add_data_flags, add_robot, check_paths, csv_list, emit, err,
                      hidden_alias, load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs,
                      row_list)
+from . import observe
 from .report import add_session_flags, data_record, json_path, save_figures, write_outputs
 
 
@@ -48,6 +49,9 @@ def fit_options(args) -> kincal.FitOptions:
 
 
 def cmd_calibrate(args) -> int:
+    kinds = observe.types_of(args)
+    if set(kinds) != {"point"}:
+        return observe.cmd_calibrate(args, kinds)
     reports = [args.report, json_path(args.report)] if args.report else []
     check_paths([*robot_inputs(args.robot), *args.data, *args.test],
                 [args.output, args.residuals, *reports, args.plot])
@@ -190,6 +194,7 @@ def register(cmd) -> None:
     s.add_argument("--angle-limits", type=_pair, default=(2.0, 10.0), metavar="SUSPECT,REFUSE",
                    help="largest plausible angle corrections, deg (default 2,10)")
     add_data_flags(s)
+    observe.add_flags(s)
 
     s = cmd("evaluate", cmd_evaluate, "position error statistics of a robot model on measurements")
     add_robot(s)

@@ -20,6 +20,7 @@ import numpy as np
 
 from .._threads import blas_threads
 from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_identifiability
+from ..analysis.uncertainty import ModelUncertainty
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..units import MM, MRAD
@@ -66,13 +67,37 @@ class ObservationFit:
                 "before": list(self.stats_before), "after": list(self.stats), "whitened_rms": self.whitened_rms,
                 "verdict": self.verdict.to_dict(), "converged": self.converged, "iterations": self.iterations}
 
+    def record(self) -> dict:
+        """What a calibrated robot file keeps beside the model: the robot parameters' covariance (for
+        prediction σ), the nominal values, the set-up parameters and the statistics."""
+        k = [i for i, n in enumerate(self.identifiability.identifiable) if n in set(self.names)]
+        q = np.concatenate([o.q for o in self.observations])
+        unc = ModelUncertainty.from_fit(self.robot, self.names, self.covariance[np.ix_(k, k)], q).to_dict()
+        unc["envelope"]["joints"] = list(self.robot.joint_names)
+        return {**unc, "nominal": self.nominal.params.as_dict(), "observations": list(self.stats),
+                "nuisance": {n: float(v) for n, v in self.nuisance.items()},
+                "weakly_determined": {n: float(v) for n, v in self.weak.items()}}
+
+    def held_out(self, obs) -> dict:
+        """Statistics of a held-out set (same types) under the calibrated robot: set-up parameters the
+        fit shares with it (a target's rotation, markers) at their fitted values; a pose set also takes
+        the training target's start rotation."""
+        poses = [o for o in self.observations if o.kind == "pose"]
+        if obs.kind == "pose" and poses:
+            obs = dataclasses.replace(obs, target_rotation=poses[0].target_rotation)
+        else:
+            obs = obs.prepare(self.robot)
+        names, start, _ = obs.nuisance(self.robot)
+        nuis = np.array([self.nuisance.get(n, v) for n, v in zip(names, start)])
+        return obs.stats(self.robot, self.robot.params.values, nuis)
+
     def __str__(self) -> str:
         lines = [f"calibration of {self.robot.name} from {', '.join(sorted({s['type'] for s in self.stats}))} data: "
                  f"{'converged' if self.converged else 'NOT converged'} in {self.iterations} iterations; "
                  f"{len(self.names)} robot and {len(self.nuisance)} set-up parameters",
                  f"whitened residual RMS {self.whitened_rms:.3g} (1 when the stated σ are right)"]
         for b, a in zip(self.stats_before, self.stats):
-            lines.append(f"  {a['type']} ({a['source']}): {_line(b)}  →  {_line(a)}")
+            lines.append(f"  {a['type']} ({a['source']}): {stat_line(b)}  →  {stat_line(a)}")
         if self.gauge:
             lines.append(f"not seen by these data (gauge freedoms, kept at their values): {', '.join(self.gauge)}")
         if self.weak:
@@ -86,7 +111,8 @@ class ObservationFit:
         return "\n".join(lines)
 
 
-def _line(s: dict) -> str:
+def stat_line(s: dict) -> str:
+    """One set's statistics (``stats()`` of an observation type) in a few words, mm and mrad."""
     if "mean_abs_mm" in s:
         return f"mean |p − point| {s['mean_abs_mm']:.4f} mm"
     rot = f", mean {s['mean_mrad']:.4f} mrad" if "mean_mrad" in s else ""

@@ -56,6 +56,18 @@ def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
                                f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)")
 
 
+def check_radians(source: str, q: np.ndarray, robot: Robot, angle_unit: str | None) -> None:
+    """MeasurementError when joint values declared in degrees never leave ±2π, over poses meant to
+    span the workspace (at least 10): radians read as degrees, which barely move the robot."""
+    rev = np.array([t == "revolute" for t in robot.joint_types])
+    if angle_unit != "deg" or not rev.any() or len(q) < 10:
+        return
+    as_read = np.abs(q[:, rev]) * 180.0 / np.pi
+    if float(as_read.max()) <= 2 * np.pi and float(np.ptp(as_read, axis=0).max()) > 0.5:
+        raise MeasurementError(f"{source}: read as degrees, no revolute joint moves more than {as_read.max():.3g} "
+                               f"deg over {len(q)} samples: the values look like radians; use angle unit 'rad' "
+                               f"(CLI: --angle-unit rad)")
+
 
 def unit_hint(ratio: float, length_unit: str | None) -> str:
     """Why the measured spread is off by ``ratio`` (read in ``length_unit``, default m), and what to do:

@@ -21,6 +21,7 @@ from .observations import Observation
 
 
 SCALE_LIMIT = 3.0  # a stated distance this many times off the robot file's: a unit or label mistake
+SPREAD_LIMIT = 50e-3  # m: one point's samples farther than this from their centre under the robot file: not one point
 UNIT_FACTORS = {"mm": 1 / LENGTH_UNITS["mm"], "cm": 1 / OTHER_LENGTHS["cm"], "inches": 1 / OTHER_LENGTHS["inch"]}
 
 
@@ -54,6 +55,7 @@ class SamePointObs(Observation):
         them 10-1000x apart) and each label against the points named; returns the set unchanged."""
         names, start, _ = self.nuisance(robot)
         at = {lab: start[3 * k:3 * k + 3] for k, lab in enumerate(self.points())}
+        self._check_spread(robot, at)
         for a, b, d in self.distances:
             missing = [lab for lab in (a, b) if lab not in at]
             if missing:
@@ -66,6 +68,19 @@ class SamePointObs(Observation):
                 raise MeasurementError(f"{self.source}: the distance {a}–{b} is stated as {d:g} m, but the robot file "
                                        f"puts those points {seen:.4g} m apart{hint}")
         return self
+
+    def _check_spread(self, robot: Robot, at: dict) -> None:
+        """One label's samples must be one point up to the robot's error: samples of several places
+        under one label (a moved plate without its placement) are refused with that cause."""
+        p = robot.forward(self.q)
+        for lab, centre in at.items():
+            d = np.linalg.norm(p[self.labels == lab] - centre, axis=1)
+            if d.mean() > SPREAD_LIMIT:
+                raise MeasurementError(
+                    f"{self.source}: the {d.size} samples labelled '{lab}' are not one point: the robot file puts them "
+                    f"{d.mean() * MM:.0f} mm from their centre on average (up to {d.max() * MM:.0f} mm), far more "
+                    f"than a robot's error; if the plate was moved between samples, label each placement (kincal "
+                    f"calibrate: --group-col), else check the joint columns and units")
 
     def nuisance(self, robot: Robot):
         p = robot.forward(self.q)

@@ -1,0 +1,165 @@
+"""calibrate --type pose|markers|same-point|plane: measurements other than one 3-D point per pose,
+read by kincal.observe and fitted by the stacked, σ-weighted problem."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from kincal.units import ANGLE_UNITS, LENGTH_UNITS, MRAD
+
+from .common import EXIT_NOT_CONVERGED, EXIT_REFUSED, check_paths, csv_list, emit, err, load_robot, progress
+
+TYPES = ("point", "pose", "markers", "same-point", "plane")
+# options of the position-only calibration that the observation fit does not have (yet): refused by name
+POINT_ONLY = {"error_model": "--error-model", "drift": "--drift", "reject_outliers": "--reject-outliers",
+              "exclude": "--exclude", "residuals": "--residuals", "plot": "--plot", "same_frame": "--same-frame"}
+
+
+def types_of(args) -> list[str]:
+    """One measurement type per data file (one given for all, or one per file)."""
+    kinds = args.type or ["point"]
+    if len(kinds) not in (1, len(args.data)):
+        raise ValueError(f"--type: give one type for all {len(args.data)} files or one per file, got {len(kinds)}")
+    bad = [k for k in kinds if k not in TYPES]
+    if bad:
+        raise ValueError(f"--type {bad[0]}: use one of {', '.join(TYPES)}")
+    return kinds * len(args.data) if len(kinds) == 1 else list(kinds)
+
+
+def _quantity(s: str, table: dict, kind: str, example: str) -> float:
+    text = s.strip()
+    unit = next((u for u in sorted(table, key=len, reverse=True) if text.endswith(u)), None)
+    if unit is None:
+        raise argparse.ArgumentTypeError(f"'{s}': give a number and a {kind} unit ({', '.join(table)}), e.g. {example}")
+    try:
+        v = float(text[:-len(unit)]) * table[unit]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}': give a number and a unit, e.g. {example}") from None
+    if not (np.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"'{s}': give a number > 0")
+    return v
+
+
+def length(s: str) -> float:
+    """argparse type: a positive length with its unit ('0.1mm'), in m."""
+    return _quantity(s, LENGTH_UNITS, "length", "0.1mm")
+
+
+def angle(s: str) -> float:
+    """argparse type: a positive angle with its unit ('1mrad', '0.05deg'), in rad."""
+    return _quantity(s, {**ANGLE_UNITS, "mrad": 1.0 / MRAD}, "angle", "1mrad")
+
+
+def distance(s: str) -> tuple[str, str, float]:
+    """argparse type: 'A,B,D' (two labels and their distance in the file's length unit)."""
+    parts = csv_list(s)
+    try:
+        return parts[0], parts[1], float(parts[2])
+    except (IndexError, ValueError):
+        raise argparse.ArgumentTypeError(f"'{s}': give LABEL_A,LABEL_B,DISTANCE, e.g. 0,1,50 (the length unit of the "
+                                         f"file)") from None
+
+
+def plane(s: str) -> tuple[str, tuple[tuple[float, float, float], float]]:
+    """argparse type: 'LABEL:NX,NY,NZ,C' (n·p = c in the robot's base frame; c in the file's length unit)."""
+    label, _, rest = s.partition(":")
+    try:
+        nx, ny, nz, c = (float(x) for x in csv_list(rest))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}': give LABEL:NX,NY,NZ,C, e.g. table:0,0,1,0") from None
+    n = np.array([nx, ny, nz])
+    if not label.strip() or not np.isfinite(n).all() or np.linalg.norm(n) == 0 or not np.isfinite(c):
+        raise argparse.ArgumentTypeError(f"'{s}': give a label, a non-zero normal and an offset")
+    return label.strip(), (tuple(n / np.linalg.norm(n)), c)
+
+
+def add_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("measurement types (see the README's 'Other measurements')")
+    g.add_argument("--type", type=csv_list, metavar="TYPE[,TYPE...]",
+                   help="point (default: one 3-D point per pose), pose (position + orientation), markers (NAME.x/.y/.z "
+                        "columns), same-point (sockets: a label column, known distances), plane (plane contacts); "
+                        "one for all files or one per file")
+    g.add_argument("--orientation", default="quat-wxyz",
+                   help="pose: quat-wxyz, quat-xyzw, matrix, rotvec, rotvec-deg, or euler-<axes>-<intrinsic|"
+                        "extrinsic>-<deg|rad> such as euler-zyx-intrinsic-deg (default quat-wxyz)")
+    g.add_argument("--rot-cols", type=csv_list, help="pose: the orientation columns, in the convention's order")
+    g.add_argument("--markers", type=csv_list, help="markers: their names (default: every NAME with NAME.x/.y/.z)")
+    g.add_argument("--label-col", help="same-point / plane: the label column (default 'point' / 'plane')")
+    g.add_argument("--group-col", help="same-point: a group column, e.g. the plate placement; labels and distances "
+                                       "apply inside each group")
+    g.add_argument("--distance", type=distance, action="append", default=[], metavar="A,B,D",
+                   help="same-point: a known distance between labels A and B (length unit of the file); repeatable")
+    g.add_argument("--plane", type=plane, action="append", default=[], metavar="LABEL:NX,NY,NZ,C",
+                   help="plane: a known plane n·p = c in the robot's base frame (c in the file's length unit)")
+    g.add_argument("--std-pos", type=length, help="position σ with its unit, e.g. 0.1mm (defaults: point 0.015mm, "
+                                                  "pose 0.1mm, markers/sockets/planes 0.05mm)")
+    g.add_argument("--std-rot", type=angle, help="pose: orientation σ with its unit, e.g. 1mrad (default 1mrad)")
+
+
+def _format(args, kind: str):
+    from kincal.observe.files import ObservationFormat
+
+    return ObservationFormat(kind, tuple(args.joint_cols) if args.joint_cols else None, args.length_unit,
+                             args.angle_unit, tuple(args.xyz_cols), args.orientation,
+                             tuple(args.rot_cols) if args.rot_cols else None,
+                             tuple(args.markers) if args.markers else None, args.label_col, args.group_col,
+                             tuple(args.distance), dict(args.plane), args.std_pos, args.std_rot)
+
+
+def cmd_calibrate(args, kinds: list[str]) -> int:
+    """calibrate with measurement types: fit, print per-type statistics, write the robot and report."""
+    import kincal
+    from kincal.identify.stacked import fit_observations, stat_line
+    from kincal.io.unit_checks import check_degrees, check_radians
+    from kincal.observe.files import read_observations
+
+    given = [flag for dest, flag in POINT_ONLY.items() if vars(args).get(dest)]
+    if given or args.base != "estimate":
+        raise ValueError(f"{(given or ['--base fixed'])[0]} is for position data (--type point) only; leave it out "
+                         f"with --type {', '.join(sorted(set(kinds) - {'point'}))}")
+    reports = [args.report, str(Path(args.report).with_suffix(".json"))] if args.report else []
+    check_paths([args.robot, *args.data, *args.test], [args.output, *reports])
+    robot = load_robot(args)
+    sets = [read_observations(path, robot, _format(args, k)) for path, k in zip(args.data, kinds)]
+    tests = [read_observations(path, robot, _format(args, kinds[0])) for path in args.test]
+    for obs in sets + tests:
+        check_degrees(obs.source, obs.q, robot, args.angle_unit)
+        check_radians(obs.source, obs.q, robot, args.angle_unit)
+    with progress("calibrating", args.json):
+        fit = fit_observations(robot, sets, names=args.params or "auto", keep=args.keep or (), max_iter=args.max_iter)
+    held = [fit.held_out(t) for t in tests]
+    refused = fit.verdict.status == "refused"
+    written = bool(args.output) and (not refused or args.force)
+    if written:
+        kincal.save_robot(fit.robot, args.output, calibration=fit.record())
+    text = str(fit) + "".join(f"\n  held out {h['type']} ({h['source']}): {stat_line(h)}" for h in held)
+    text += "".join(f"\n{line}" for line in _groups(fit.stats, held))
+    if args.output:
+        text += (f"\ncalibrated robot written to {args.output}" if written else
+                 f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")
+    if args.report:
+        from kincal.report.observations import observation_report
+
+        json_path = observation_report(fit, held, Path(args.report).name).write(args.report)
+        text += f"\nreport written to {args.report} (numbers in {json_path})"
+    emit(args, {**fit.to_dict(), "held_out": held, "output": args.output if written else None}, text)
+    if refused:
+        err.print("kincal: calibration refused: " + "; ".join(r.code for r in fit.verdict.reasons
+                                                              if r.level == "refused"))
+        return EXIT_REFUSED if fit.converged else EXIT_NOT_CONVERGED
+    return 0
+
+
+def _groups(train, held) -> list[str]:
+    """Per placement (same-point sets): mean |p − point| and the distance error, mm."""
+    out = []
+    for which, sets in (("training", train), ("held out", held)):
+        for s in sets:
+            for g in s.get("groups", []):
+                d = "–" if g["distance_error_mm"] is None else f"{g['distance_error_mm']:.3f} mm"
+                out.append(f"  {which} {g['group']}: {g['samples']} samples, mean |p − point| "
+                           f"{g['mean_abs_mm']:.4f} mm, distance error {d}")
+    return out
+

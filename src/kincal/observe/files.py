@@ -1,0 +1,217 @@
+"""Observation files: one CSV per set, its columns declared by the type (``ObservationFormat``).
+
+Every type has the robot's joint columns (or ``joint_cols``) in ``angle_unit`` / ``length_unit``:
+
+* ``point``: x, y, z (``xyz_cols``), the measured point;
+* ``pose``: x, y, z and the orientation columns of the declared convention (see
+  :mod:`kincal.observe.orientation`; ``rot_cols`` renames them);
+* ``markers``: NAME.x, NAME.y, NAME.z for every marker NAME (all such triplets in the header, or
+  ``markers``); an empty cell is a marker not seen in that sample;
+* ``same-point``: a label column (``label_col``, default ``point``) and optionally a group column
+  (``group_col``, e.g. the plate placement); ``distances`` are known distances between labels,
+  applied inside every group;
+* ``plane``: a label column (``label_col``, default ``plane``); ``planes`` gives the known ones
+  (unit normal and offset, n·p = c in the robot's base frame); the others are fitted.
+
+σ are stated (``std_pos`` m, ``std_rot`` rad) or, for points, read per sample from
+measurement_std_x/y/z. A file whose columns do not fit the declared type is refused in one line.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._csv import is_float, number, read_table
+from ..errors import MeasurementError
+from ..models.robot import Robot
+from ..units import unit_factor
+from .constraints import PlaneObs, SamePointObs
+from .observations import MarkersObs, Observation, PointObs, PoseObs, flange_point
+from .orientation import check_convention, convention_check, default_columns, to_matrices
+
+KINDS = ("point", "pose", "markers", "same-point", "plane")
+DEFAULT_STD = {"point": (15e-6, None), "pose": (0.1e-3, 1e-3), "markers": (50e-6, None),
+               "same-point": (50e-6, None), "plane": (50e-6, None)}
+POINT_STD = ("measurement_std_x", "measurement_std_y", "measurement_std_z")
+
+
+@dataclass(frozen=True)
+class ObservationFormat:
+    """How to read one observation file (units of ``distances`` and ``planes``' offsets: ``length_unit``)."""
+
+    kind: str = "point"
+    joint_cols: tuple[str, ...] | None = None
+    length_unit: str = "m"
+    angle_unit: str = "rad"
+    xyz_cols: tuple[str, ...] = ("x", "y", "z")
+    orientation: str = "quat-wxyz"
+    rot_cols: tuple[str, ...] | None = None
+    markers: tuple[str, ...] | None = None
+    label_col: str | None = None
+    group_col: str | None = None
+    distances: tuple[tuple[str, str, float], ...] = ()
+    planes: dict = field(default_factory=dict)  # label -> (normal (3,), offset)
+    std_pos: float | None = None  # m
+    std_rot: float | None = None  # rad
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"measurement type '{self.kind}': use one of {', '.join(KINDS)}")
+        check_convention(self.orientation)
+        unit_factor(self.length_unit, "length")
+        unit_factor(self.angle_unit, "angle")
+        if len(self.xyz_cols) != 3:
+            raise ValueError(f"give three position columns, got {list(self.xyz_cols)}")
+        if self.rot_cols is not None and len(self.rot_cols) != len(default_columns(self.orientation)):
+            raise ValueError(f"{self.orientation} has {len(default_columns(self.orientation))} columns, "
+                             f"got {list(self.rot_cols)}")
+        for what, v in (("std_pos", self.std_pos), ("std_rot", self.std_rot)):
+            if v is not None and not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{what} must be a positive number, got {v}")
+        for a, b, d in self.distances:
+            if not (np.isfinite(d) and d > 0) or a == b:
+                raise ValueError(f"distance {a}–{b}: give two different labels and a length > 0, got {d}")
+
+    @property
+    def label(self) -> str:
+        return self.label_col or ("plane" if self.kind == "plane" else "point")
+
+    def std(self) -> tuple[float, float | None]:
+        pos, rot = DEFAULT_STD[self.kind]
+        return (self.std_pos or pos), (self.std_rot or rot)
+
+
+def read_observations(path: str, robot: Robot, fmt: ObservationFormat = ObservationFormat()) -> Observation:
+    """One observation set from ``path`` as ``fmt`` declares it (see the module docstring)."""
+    path = str(path)
+    header, records, delim, _ = read_table(path)
+    table = _Table(path, header, records, delim)
+    q = table.joints(robot, fmt)
+    lf = unit_factor(fmt.length_unit, "length")
+    reader = {"point": _point, "pose": _pose, "markers": _markers, "same-point": _same_point, "plane": _plane}
+    return reader[fmt.kind](table, robot, fmt, q, lf)
+
+
+@dataclass(frozen=True)
+class _Table:
+    path: str
+    header: list[str]
+    records: list
+    delim: str
+
+    @property
+    def rows(self) -> np.ndarray:
+        return np.array([k for k, _ in self.records])
+
+    def need(self, cols, fmt: ObservationFormat, what: str) -> None:
+        missing = [c for c in cols if c not in self.header]
+        if missing:
+            raise MeasurementError(f"{self.path}: --type {fmt.kind} needs {what} ({', '.join(missing)} not found); "
+                                   f"the header has: {', '.join(self.header)}")
+
+    def text(self, col: str) -> np.ndarray:
+        i = self.header.index(col)
+        return np.array([rec[i].strip() for _, rec in self.records])
+
+    def numbers(self, cols, empty_ok: bool = False) -> np.ndarray:
+        idx = [self.header.index(c) for c in cols]
+        out = np.empty((len(self.records), len(cols)))
+        for r, (k, rec) in enumerate(self.records):
+            for j, i in enumerate(idx):
+                cell = rec[i].strip()
+                if empty_ok and cell == "":
+                    out[r, j] = np.nan
+                elif not is_float(cell, self.delim) or not np.isfinite(number(cell, self.delim)):
+                    raise MeasurementError(f"{self.path}: row {k}, column '{cols[j]}': '{rec[i]}' is not a "
+                                           f"{'number (or empty)' if empty_ok else 'finite number'}")
+                else:
+                    out[r, j] = number(cell, self.delim)
+        return out
+
+    def joints(self, robot: Robot, fmt: ObservationFormat) -> np.ndarray:
+        cols = list(fmt.joint_cols or robot.joint_names)
+        if len(cols) != robot.n_joints:
+            raise MeasurementError(f"{self.path}: {len(cols)} joint columns given ({', '.join(cols)}) but robot "
+                                   f"'{robot.name}' has {robot.n_joints} joints; give one column per joint")
+        missing = [c for c in cols if c not in self.header]
+        if missing:
+            raise MeasurementError(f"{self.path}: joint column(s) {', '.join(missing)} not found (--joint-cols names "
+                                   f"them); the header has: {', '.join(self.header)}")
+        scale = [unit_factor(fmt.angle_unit if t == "revolute" else fmt.length_unit, "angle" if t == "revolute"
+                             else "length") for t in robot.joint_types]
+        return self.numbers(cols) * np.array(scale)
+
+
+def _point(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PointObs:
+    t.need(fmt.xyz_cols, fmt, "the position columns (--xyz-cols)")
+    std = t.numbers(POINT_STD) * lf if all(c in t.header for c in POINT_STD) else fmt.std()[0]
+    return PointObs(q, t.rows, t.path, xyz=t.numbers(fmt.xyz_cols) * lf, std=std)
+
+
+def _pose(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PoseObs:
+    cols = list(fmt.rot_cols or default_columns(fmt.orientation))
+    t.need(fmt.xyz_cols, fmt, "the position columns (--xyz-cols)")
+    t.need(cols, fmt, f"orientation columns {', '.join(cols)} for --orientation {fmt.orientation} (other names: "
+                      f"--rot-cols; position only: --type point)")
+    values = t.numbers(cols)
+    _, _, Rf = flange_point(robot, q, robot.params.values, robot.tool_point())
+    convention_check(Rf, values, fmt.orientation, t.path, t.rows)
+    pos, rot = fmt.std()
+    return PoseObs(q, t.rows, t.path, xyz=t.numbers(fmt.xyz_cols) * lf,
+                   R=to_matrices(values, fmt.orientation, t.path, t.rows), std_pos=pos, std_rot=rot)
+
+
+def _markers(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> MarkersObs:
+    names = fmt.markers or tuple(c[:-2] for c in t.header if c.endswith(".x") and f"{c[:-2]}.y" in t.header
+                                 and f"{c[:-2]}.z" in t.header)
+    if not names:
+        raise MeasurementError(f"{t.path}: --type markers needs columns NAME.x, NAME.y, NAME.z per marker (none "
+                               f"found); the header has: {', '.join(t.header)}")
+    cols = [f"{m}.{a}" for m in names for a in "xyz"]
+    t.need(cols, fmt, "the marker columns NAME.x, NAME.y, NAME.z")
+    xyz = t.numbers(cols, empty_ok=True).reshape(len(t.records), len(names), 3) * lf
+    partial = np.isnan(xyz).any(axis=2) & ~np.isnan(xyz).all(axis=2)
+    if partial.any():
+        r, m = np.argwhere(partial)[0]
+        raise MeasurementError(f"{t.path}: row {t.rows[r]}: marker {names[m]} has some coordinates empty, not all; "
+                               f"a marker not seen leaves all three empty")
+    return MarkersObs(q, t.rows, t.path, xyz=xyz, names=tuple(names), std=fmt.std()[0])
+
+
+def _labels(t: _Table, fmt: ObservationFormat) -> tuple[np.ndarray, np.ndarray | None]:
+    t.need([fmt.label] + ([fmt.group_col] if fmt.group_col else []), fmt,
+           f"a label column ('{fmt.label}', --label-col)" + (" and the group column" if fmt.group_col else ""))
+    labels = t.text(fmt.label)
+    if (labels == "").any():
+        raise MeasurementError(f"{t.path}: row {t.rows[np.flatnonzero(labels == '')[0]]}: empty label in column "
+                               f"'{fmt.label}'")
+    return labels, (t.text(fmt.group_col) if fmt.group_col else None)
+
+
+def _same_point(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> SamePointObs:
+    labels, group = _labels(t, fmt)
+    known = set(labels.tolist())
+    for a, b, _ in fmt.distances:
+        unknown = [x for x in (a, b) if x not in known]
+        if unknown:
+            raise MeasurementError(f"{t.path}: the distance {a}–{b} names label(s) {', '.join(unknown)} that column "
+                                   f"'{fmt.label}' does not have (it has: {', '.join(sorted(known))})")
+    if group is None:
+        return SamePointObs(q, t.rows, t.path, labels=labels, distances=tuple((a, b, d * lf) for a, b, d in
+                                                                                fmt.distances), std=fmt.std()[0])
+    full = np.array([f"{g}/{lab}" for g, lab in zip(group, labels)])
+    have = set(full.tolist())
+    dist = tuple((f"{g}/{a}", f"{g}/{b}", d * lf) for g in dict.fromkeys(group.tolist()) for a, b, d in fmt.distances
+                 if f"{g}/{a}" in have and f"{g}/{b}" in have)
+    return SamePointObs(q, t.rows, t.path, labels=full, distances=dist, group=group, std=fmt.std()[0])
+
+
+def _plane(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PlaneObs:
+    labels, _ = _labels(t, fmt)
+    missing = [lab for lab in fmt.planes if lab not in set(labels.tolist())]
+    if missing:
+        raise MeasurementError(f"{t.path}: known plane(s) {', '.join(missing)} not in column '{fmt.label}' (it has: "
+                               f"{', '.join(sorted(set(labels.tolist())))})")
+    known = {lab: (np.asarray(n, float), float(c) * lf) for lab, (n, c) in fmt.planes.items()}
+    return PlaneObs(q, t.rows, t.path, labels=labels, known=known, std=fmt.std()[0])

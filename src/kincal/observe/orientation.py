@@ -1,0 +1,127 @@
+"""Orientation columns as measuring systems write them, always with the convention named.
+
+Conventions (``--orientation``):
+
+* ``quat-wxyz`` (columns qw, qx, qy, qz) and ``quat-xyzw`` (qx, qy, qz, qw): unit quaternions;
+* ``matrix`` (r11, r12, r13, r21, …, r33): the rotation matrix, row by row;
+* ``rotvec`` (rx, ry, rz): a rotation vector in rad (the UR controller's pose);
+  ``rotvec-deg`` the same in deg;
+* ``euler-<axes>-<intrinsic|extrinsic>-<deg|rad>`` (e1, e2, e3), e.g. ``euler-zyx-intrinsic-deg``
+  (KUKA's A, B, C) or ``euler-xyz-extrinsic-deg`` (Fanuc's W, P, R): three angles about the named
+  axes, in that order, about the moving (intrinsic) or the fixed (extrinsic) axes.
+
+Nothing is guessed: :func:`convention_check` compares the declared reading with the common others
+on the nominal robot and, when another one fits markedly better, names it.
+"""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from ..errors import MeasurementError
+from ..units import ANGLE_UNITS, MRAD
+
+EULER = re.compile(r"^euler-([xyz]{3})-(intrinsic|extrinsic)-(deg|rad)$")
+FIXED = {"quat-wxyz": ("qw", "qx", "qy", "qz"), "quat-xyzw": ("qx", "qy", "qz", "qw"),
+         "matrix": tuple(f"r{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)),
+         "rotvec": ("rx", "ry", "rz"), "rotvec-deg": ("rx", "ry", "rz")}
+UNIT_NORM = 1e-3  # a quaternion farther from norm 1, or a matrix farther from orthonormal, is not one
+MARKEDLY = 5.0  # another convention fits markedly better: this many times smaller rotation error
+PLAUSIBLE = 50e-3  # rad: a declared reading that leaves less than this RMS against the nominal robot is kept
+
+
+def check_convention(name: str) -> str:
+    """``name`` if it is a convention kincal reads, else a ValueError listing them."""
+    if name in FIXED or EULER.match(name):
+        return name
+    raise ValueError(f"orientation '{name}': use quat-wxyz, quat-xyzw, matrix, rotvec, rotvec-deg or "
+                     f"euler-<axes>-<intrinsic|extrinsic>-<deg|rad>, e.g. euler-zyx-intrinsic-deg")
+
+
+def default_columns(name: str) -> tuple[str, ...]:
+    return FIXED.get(check_convention(name), ("e1", "e2", "e3"))
+
+
+def to_matrices(values: np.ndarray, name: str, source: str, rows: np.ndarray) -> np.ndarray:
+    """Rotation matrices (N, 3, 3) from the orientation columns (N, k) read as ``name``; values that
+    are no rotation in that convention are refused, naming the row."""
+    from scipy.spatial.transform import Rotation
+    v = np.asarray(values, float)
+    if name.startswith("quat"):
+        norm = np.linalg.norm(v, axis=1)
+        _refuse(source, rows, np.abs(norm - 1.0) > UNIT_NORM, f"is not a unit quaternion (norm {{}}; {name})", norm)
+        xyzw = v if name == "quat-xyzw" else v[:, [1, 2, 3, 0]]
+        return Rotation.from_quat(xyzw).as_matrix()
+    if name == "matrix":
+        R = v.reshape(-1, 3, 3)
+        dev = np.abs(R @ R.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2))
+        det = np.linalg.det(R)
+        _refuse(source, rows, (dev > UNIT_NORM) | (det < 0), "is not a rotation matrix (|RRᵀ − I| {})", dev)
+        return R
+    if name.startswith("rotvec"):
+        return Rotation.from_rotvec(v * (ANGLE_UNITS["deg"] if name.endswith("deg") else 1.0)).as_matrix()
+    axes, how, unit = EULER.match(name).groups()
+    if unit == "rad":
+        big = np.abs(v).max(axis=1)
+        _refuse(source, rows, big > 2 * np.pi + 1e-9, "has angles up to {} beyond 2π rad: degrees? (use ...-deg)", big)
+    seq = axes.upper() if how == "intrinsic" else axes
+    return Rotation.from_euler(seq, v, degrees=unit == "deg").as_matrix()
+
+
+def _refuse(source: str, rows: np.ndarray, bad: np.ndarray, what: str, value: np.ndarray) -> None:
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise MeasurementError(f"{source}: row {rows[k]}: the orientation {what.format(f'{value[k]:.4g}')}"
+                               f" ({int(bad.sum())} such row(s)); check the columns and --orientation")
+
+
+def alternatives(name: str) -> list[str]:
+    """The common conventions a file declared as ``name`` may really be in."""
+    if name.startswith("quat"):
+        return ["quat-xyzw" if name == "quat-wxyz" else "quat-wxyz"]
+    if name.startswith("rotvec"):
+        return ["rotvec-deg" if name == "rotvec" else "rotvec"]
+    if name == "matrix":
+        return []
+    axes, how, unit = EULER.match(name).groups()
+    other = "extrinsic" if how == "intrinsic" else "intrinsic"
+    return [f"euler-{axes}-{other}-{unit}", f"euler-{axes[::-1]}-{how}-{unit}",
+            f"euler-{axes}-{how}-{'rad' if unit == 'deg' else 'deg'}"]
+
+
+def orientation_misfit(R_flange: np.ndarray, R_meas: np.ndarray, iterations: int = 30) -> float:
+    """RMS angle (rad) left when measured rotations are explained as F·R_flange·T with the best
+    frame rotation F and target rotation T (alternating chordal means)."""
+    T = np.eye(3)
+    for _ in range(iterations):
+        F = _project(np.sum(R_meas @ (R_flange @ T).transpose(0, 2, 1), axis=0))
+        T = _project(np.sum((F @ R_flange).transpose(0, 2, 1) @ R_meas, axis=0))
+    E = (F @ R_flange @ T).transpose(0, 2, 1) @ R_meas
+    ang = np.arccos(np.clip((np.trace(E, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0))
+    return float(np.sqrt(np.mean(ang**2)))
+
+
+def _project(M: np.ndarray) -> np.ndarray:
+    U, _, Vt = np.linalg.svd(M)
+    return U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+
+
+def convention_check(R_flange: np.ndarray, values: np.ndarray, name: str, source: str, rows: np.ndarray) -> float:
+    """The declared reading's misfit (rad) against the nominal robot's flange rotations; refused,
+    naming the convention, when another common one fits ``MARKEDLY`` better and the declared one
+    leaves more than a robot's error could (``PLAUSIBLE``)."""
+    declared = orientation_misfit(R_flange, to_matrices(values, name, source, rows))
+    if declared <= PLAUSIBLE:
+        return declared
+    for other in alternatives(name):
+        try:
+            misfit = orientation_misfit(R_flange, to_matrices(values, other, source, rows))
+        except MeasurementError:  # not even a rotation in that convention
+            continue
+        if misfit * MARKEDLY < declared:
+            raise MeasurementError(
+                f"{source}: read as {name}, the orientations differ from the robot file's by {declared * MRAD:.0f} "
+                f"mrad RMS (frame and target fitted); read as {other} by {misfit * MRAD:.1f} mrad: the file looks "
+                f"like {other}; give --orientation {other} (or check the columns)")
+    return declared
