@@ -130,11 +130,13 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
     with progress("calibrating", args.json):
         fit = fit_observations(robot, sets, names=args.params or "auto", keep=args.keep or (), max_iter=args.max_iter)
     held = [fit.held_out(t) for t in tests]
+    held_nominal = [fit.held_out(t, fit.nominal) for t in tests]
     refused = fit.verdict.status == "refused"
     written = bool(args.output) and (not refused or args.force)
     if written:
         kincal.save_robot(fit.robot, args.output, calibration=fit.record())
-    text = str(fit) + "".join(f"\n  held out {h['type']} ({h['source']}): {stat_line(h)}" for h in held)
+    text = str(fit) + "".join(f"\n  held out {h['type']} ({h['source']}): {stat_line(b)}  →  {stat_line(h)}"
+                              for b, h in zip(held_nominal, held))
     text += "".join(f"\n{line}" for line in _groups(fit.stats, held))
     if args.output:
         text += (f"\ncalibrated robot written to {args.output}" if written else
@@ -142,9 +144,10 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
     if args.report:
         from kincal.report.observations import observation_report
 
-        json_path = observation_report(fit, held, Path(args.report).name).write(args.report)
+        json_path = observation_report(fit, held, held_nominal, Path(args.report).name).write(args.report)
         text += f"\nreport written to {args.report} (numbers in {json_path})"
-    emit(args, {**fit.to_dict(), "held_out": held, "output": args.output if written else None}, text)
+    emit(args, {**fit.to_dict(), "held_out": held, "held_out_nominal": held_nominal,
+                "output": args.output if written else None}, text)
     if refused:
         err.print("kincal: calibration refused: " + "; ".join(r.code for r in fit.verdict.reasons
                                                               if r.level == "refused"))

@@ -78,18 +78,25 @@ class ObservationFit:
                 "nuisance": {n: float(v) for n, v in self.nuisance.items()},
                 "weakly_determined": {n: float(v) for n, v in self.weak.items()}}
 
-    def held_out(self, obs) -> dict:
-        """Statistics of a held-out set (same types) under the calibrated robot: set-up parameters the
-        fit shares with it (a target's rotation, markers) at their fitted values; a pose set also takes
-        the training target's start rotation."""
+    def weak_lines(self) -> list[str]:
+        """The parameters kept nominal for want of information, each with the σ the data gave it."""
+        kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
+        return [f"{n} ±{v * MM:.1f} mm" if kinds[n] == "length" else f"{n} ±{v * MRAD:.0f} mrad"
+                for n, v in self.weak.items()]
+
+    def held_out(self, obs, robot: Robot | None = None) -> dict:
+        """Statistics of a held-out set (same types) under the calibrated robot (or ``robot``, e.g. the
+        nominal one): set-up parameters the fit shares with it (a target's rotation, markers) at their
+        fitted values; a pose set also takes the training target's start rotation."""
+        robot = self.robot if robot is None else robot
         poses = [o for o in self.observations if o.kind == "pose"]
         if obs.kind == "pose" and poses:
             obs = dataclasses.replace(obs, target_rotation=poses[0].target_rotation)
         else:
-            obs = obs.prepare(self.robot)
-        names, start, _ = obs.nuisance(self.robot)
+            obs = obs.prepare(robot)
+        names, start, _ = obs.nuisance(robot)
         nuis = np.array([self.nuisance.get(n, v) for n, v in zip(names, start)])
-        return obs.stats(self.robot, self.robot.params.values, nuis)
+        return obs.stats(robot, robot.params.values, nuis)
 
     def __str__(self) -> str:
         lines = [f"calibration of {self.robot.name} from {', '.join(sorted({s['type'] for s in self.stats}))} data: "
@@ -101,11 +108,8 @@ class ObservationFit:
         if self.gauge:
             lines.append(f"not seen by these data (gauge freedoms, kept at their values): {', '.join(self.gauge)}")
         if self.weak:
-            kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
-            shown = ", ".join(f"{n} ±{v * MM:.1f} mm" if kinds[n] == "length" else f"{n} ±{v * MRAD:.0f} mrad"
-                              for n, v in self.weak.items())
             lines.append(f"kept at nominal, the data determine them worse than a real robot's error (10 mm, 2 deg): "
-                         f"{shown}")
+                         f"{', '.join(self.weak_lines())}")
         lines.append(f"verdict: {self.verdict.status.upper()}")
         lines += [f"  {r.level}: {r.message}" for r in self.verdict.reasons]
         return "\n".join(lines)
@@ -218,8 +222,7 @@ def _without_weak(ident: Identifiability, free: list[str], weak: dict) -> Identi
     if not weak:
         return ident
     note = (f"kept at nominal, determined worse than a real robot's error (10 mm, 2 deg): {', '.join(weak)}",)
-    return dataclasses.replace(ident, identifiable=tuple(free), dropped=ident.dropped + tuple(weak),
-                               notes=ident.notes + note)
+    return dataclasses.replace(ident, identifiable=tuple(free), notes=ident.notes + note)
 
 
 def _weakest(robot: Robot, free: list[str], fit) -> tuple[str, float] | None:

@@ -121,7 +121,7 @@ class SamePointObs(Observation):
         | ‖m_a − m_b‖ − d | with m the means of the predicted points."""
         p = robot.forward(self.q, values)
         group = np.full(len(self), "all") if self.group is None else self.group
-        out = []
+        out, devs = [], []
         for g in _labels_in_order(group):
             mine = group == g
             means = {lab: p[mine & (self.labels == lab)].mean(axis=0) for lab in _labels_in_order(self.labels[mine])}
@@ -130,9 +130,10 @@ class SamePointObs(Observation):
                     if a in means and b in means]
             out.append({"group": g, "samples": int(mine.sum()), "mean_abs_mm": float(dev.mean() * MM),
                         "distance_error_mm": float(np.mean(dist) * MM) if dist else None})
-        dev_all = np.concatenate([[r["mean_abs_mm"]] * r["samples"] for r in out])
+            devs.append(dev)
+        dev_all = np.concatenate(devs) * MM
         return {"type": self.kind, "source": self.source, "samples": len(self), "mean_abs_mm": float(dev_all.mean()),
-                "groups": out}
+                "rms_mm": float(np.sqrt(np.mean(dev_all**2))), "max_mm": float(dev_all.max()), "groups": out}
 
 
 @dataclass(frozen=True, eq=False)

@@ -88,7 +88,7 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence[Measur
            "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
            "error_model_notes": list(result.error_model_notes), "compliance": result.robot.compliances(),
            "acquisition": _acquisition(result), "mounting": result.mounting, **figs}
-    html = _template().render(**ctx)
+    html = template().render(**ctx)
     data = {k: ctx[k] for k in ("robot", "version", "date", "structure", "verdict", "outliers", "warnings",
                                 "parameters", "not_estimated", "data", "iso", "error_model_choice",
                                 "error_model_notes", "compliance", "acquisition", "mounting")}
@@ -283,9 +283,12 @@ def _iso9283(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
     return {"text": text, "groups": groups}
 
 
-def _template() -> jinja2.Template:
-    text = (resources.files("kincal.report") / "templates" / "report.html").read_text()
-    return jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined).from_string(text)
+def template(name: str = "report.html") -> jinja2.Template:
+    """A page template of this room (they share ``_style.html``)."""
+    folder = resources.files("kincal.report") / "templates"
+    env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined,
+                             loader=jinja2.FunctionLoader(lambda n: (folder / n).read_text()))
+    return env.get_template(name)
 
 
 def _summary(result: CalibrationResult, headline: list[dict], warnings: list[str]) -> str:
