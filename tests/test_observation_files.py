@@ -1,0 +1,167 @@
+"""Observation files and `calibrate --type`: every orientation convention read back against the
+rotations it was written from (scipy as the independent reference), a file in another common
+convention named, one-line errors when type and columns disagree, and the real data sets through
+the command line against their published figures."""
+import csv
+import json
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import kincal
+from kincal.cli import main
+from kincal.observe.files import ObservationFormat, read_observations
+from kincal.simulate.observations import simulate_markers, simulate_poses
+
+from test_observations import MARKERS, PANDA, ROOT, SOCKETS, TOOL
+
+JOINTS = [f"joint_{i}" for i in range(1, 7)]
+TARGET = Rotation.from_rotvec([0.1, 0.2, -0.3]).as_matrix()
+
+
+@pytest.fixture(scope="module")
+def ur5():
+    return kincal.load_robot("ur5").with_tool_point(TOOL)
+
+
+def _write(path, header, rows):
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows(rows)
+    return str(path)
+
+
+def _encode(R, name):
+    """Orientation values of rotations R in the named convention, by scipy (the reference)."""
+    rot = Rotation.from_matrix(R)
+    if name == "quat-xyzw":
+        return rot.as_quat()
+    if name == "quat-wxyz":
+        return rot.as_quat()[:, [3, 0, 1, 2]]
+    if name == "matrix":
+        return R.reshape(-1, 9)
+    if name == "rotvec":
+        return rot.as_rotvec()
+    if name == "rotvec-deg":
+        return np.rad2deg(rot.as_rotvec())
+    axes, how, unit = name.split("-")[1:]
+    return rot.as_euler(axes.upper() if how == "intrinsic" else axes, degrees=unit == "deg")
+
+
+def _pose_file(tmp_path, robot, name, cols=None, values=None, n=40):
+    sim = simulate_poses(kincal.perturb(robot, seed=3), robot.sample_joints(n, seed=4), TARGET, 0.0, 0.0, 1)
+    values = _encode(sim.R, name) if values is None else values(sim.R)
+    cols = list(cols or ObservationFormat(orientation=name).rot_cols or
+                kincal.observe.orientation.default_columns(name))
+    rows = np.column_stack([sim.q, sim.xyz * 1e3, values])
+    return _write(tmp_path / f"{name}.csv", JOINTS + ["x", "y", "z"] + cols, rows), sim
+
+
+@pytest.mark.parametrize("name", ["quat-wxyz", "quat-xyzw", "matrix", "rotvec", "rotvec-deg", "euler-zyx-intrinsic-deg",
+                                  "euler-xyz-extrinsic-deg", "euler-zyz-intrinsic-rad"])
+def test_every_orientation_convention_reads_back_the_rotations(tmp_path, ur5, name):
+    path, sim = _pose_file(tmp_path, ur5, name)
+    obs = read_observations(path, ur5, ObservationFormat("pose", tuple(JOINTS), "mm", orientation=name))
+    assert np.abs(obs.R - sim.R).max() < 1e-9 and np.abs(obs.xyz - sim.xyz).max() < 1e-12
+
+
+@pytest.mark.parametrize("written, declared", [("quat-xyzw", "quat-wxyz"), ("quat-wxyz", "quat-xyzw"),
+                                               ("euler-zyx-extrinsic-deg", "euler-zyx-intrinsic-deg"),
+                                               ("rotvec-deg", "rotvec")])
+def test_a_file_in_another_common_convention_is_named(tmp_path, ur5, written, declared):
+    """Values written in one convention under the column names of the declared one: refused, and the
+    message names the convention the file is in."""
+    cols = kincal.observe.orientation.default_columns(declared)
+    path, _ = _pose_file(tmp_path, ur5, written, cols=cols)
+    with pytest.raises(kincal.MeasurementError, match=f"the file looks like {written}; give --orientation {written}"):
+        read_observations(path, ur5, ObservationFormat("pose", tuple(JOINTS), "mm", orientation=declared))
+
+
+def test_no_rotation_is_refused_by_row(tmp_path, ur5):
+    path, _ = _pose_file(tmp_path, ur5, "matrix", values=lambda R: (R * [1.0, 1.0, 1.01]).reshape(-1, 9))
+    with pytest.raises(kincal.MeasurementError, match=r"row 2: the orientation is not a rotation matrix"):
+        read_observations(path, ur5, ObservationFormat("pose", tuple(JOINTS), "mm", orientation="matrix"))
+    path, _ = _pose_file(tmp_path, ur5, "quat-wxyz", values=lambda R: 2 * Rotation.from_matrix(R).as_quat())
+    with pytest.raises(kincal.MeasurementError, match=r"row 2: the orientation is not a unit quaternion \(norm 2"):
+        read_observations(path, ur5, ObservationFormat("pose", tuple(JOINTS), "mm"))
+
+
+@pytest.mark.parametrize("kind, needs", [("pose", "orientation columns qw, qx, qy, qz"),
+                                         ("markers", "columns NAME.x, NAME.y, NAME.z per marker"),
+                                         ("same-point", "a label column ('point', --label-col)"),
+                                         ("plane", "a label column ('plane', --label-col)")])
+def test_type_and_columns_disagree_in_one_line(tmp_path, ur5, kind, needs):
+    m = kincal.simulate(ur5, ur5.sample_joints(20, seed=1), 0.0, seed=1)
+    path = _write(tmp_path / "points.csv", JOINTS + ["x", "y", "z"], np.column_stack([m.q, m.xyz]))
+    with pytest.raises(kincal.MeasurementError) as err:
+        read_observations(path, ur5, ObservationFormat(kind, tuple(JOINTS)))
+    assert needs in str(err.value) and f"--type {kind}" in str(err.value) and "\n" not in str(err.value)
+    assert "the header has: joint_1, joint_2" in str(err.value)
+
+
+def test_markers_with_empty_cells_are_not_observed_there(tmp_path, ur5):
+    sim = simulate_markers(kincal.perturb(ur5, seed=2), ur5.sample_joints(30, seed=5), MARKERS, 0.0, 0.3, 7)
+    cells = np.where(np.isnan(sim.xyz), "", sim.xyz.astype(str).astype(object)).reshape(len(sim.q), -1)
+    header = JOINTS + [f"m{k}.{a}" for k in range(1, 4) for a in "xyz"]
+    path = _write(tmp_path / "markers.csv", header, np.column_stack([sim.q.astype(str), cells]))
+    obs = read_observations(path, ur5, ObservationFormat("markers", tuple(JOINTS)))
+    assert obs.names == ("m1", "m2", "m3") and np.array_equal(np.isnan(obs.xyz), np.isnan(sim.xyz))
+    assert 0 < np.isnan(obs.xyz[..., 0]).sum() < obs.xyz[..., 0].size
+    assert np.nanmax(np.abs(obs.xyz - sim.xyz)) == 0.0
+    cells[3, 1] = ""  # m1.y missing while m1.x and m1.z are there
+    path = _write(tmp_path / "partial.csv", header, np.column_stack([sim.q.astype(str), cells]))
+    with pytest.raises(kincal.MeasurementError, match="row 5: marker m1 has some coordinates empty"):
+        read_observations(path, ur5, ObservationFormat("markers", tuple(JOINTS)))
+
+
+def _run(capsys, argv):
+    code = main(argv + ["--json"])
+    out = capsys.readouterr()
+    return code, (json.loads(out.out) if out.out.strip() else None), out.err
+
+
+@pytest.mark.slow
+def test_positioner_through_the_command_line(tmp_path, capsys):
+    rows = list(csv.DictReader(open(ROOT / "data" / "positioner_6d" / "measurements.csv")))
+    keys = list(rows[0])
+    even = _write(tmp_path / "even.csv", keys, [[r[k] for k in keys] for r in rows[0::2]])
+    odd = _write(tmp_path / "odd.csv", keys, [[r[k] for k in keys] for r in rows[1::2]])
+    base = ["calibrate", str(ROOT / "data" / "positioner_6d" / "positioner.yaml"), even, "--test", odd, "--type", "pose",
+            "--joint-cols", "q1,q2", "--std-pos", "0.1mm"]
+    for std, limits in (("1mrad", (0.50, 0.90)), ("0.1mrad", (0.50, 0.90))):
+        code, out, _ = _run(capsys, base + ["--std-rot", std])
+        held = out["held_out"][0]
+        assert code == 0 and held["mean_mm"] <= limits[0] and held["mean_mrad"] <= limits[1]
+        assert out["held_out_nominal"][0]["mean_mm"] > 10 * held["mean_mm"]
+    code, _, err = _run(capsys, base + ["--rot-cols", "qx,qy,qz,qw"])  # the columns given in the other order
+    assert code == 1 and "the file looks like quat-xyzw" in err
+
+
+@pytest.mark.slow
+def test_panda_sockets_through_the_command_line(tmp_path, capsys):
+    rows = list(csv.DictReader(open(SOCKETS / "samples.csv")))
+    keys = list(rows[0])
+    train = _write(tmp_path / "train.csv", keys, [[r[k] for k in keys] for r in rows if r["placement"] == "front_center"])
+    test = _write(tmp_path / "test.csv", keys, [[r[k] for k in keys] for r in rows if r["placement"] != "front_center"])
+    report = tmp_path / "sockets.html"
+    base = ["calibrate", str(PANDA / "panda.urdf"), "--tip-link", "ball_link", "--type", "same-point",
+            "--joint-cols", ",".join(f"q{k}" for k in range(1, 8)), "--label-col", "socket", "--length-unit", "mm"]
+    code, out, _ = _run(capsys, base + [train, "--test", test, "--group-col", "placement", "--distance", "0,1,50",
+                                        "--report", str(report), "-o", str(tmp_path / "panda.yaml")])
+    held = out["held_out"][0]
+    assert code == 0 and out["after"][0]["mean_abs_mm"] <= 0.168 and held["mean_abs_mm"] <= 0.375
+    assert len(held["groups"]) == 7 and max(g["distance_error_mm"] for g in held["groups"]) < 0.35
+    assert out["held_out_nominal"][0]["mean_abs_mm"] == pytest.approx(7.78, abs=0.01)
+    page = report.read_text()
+    assert "Per placement" in page and page.count("held out: ") == 7 and page.count("held out 1: ") == 2
+    saved = kincal.load_robot(tmp_path / "panda.yaml")
+    q = np.array([[float(r[f"q{k}"]) for k in range(1, 8)] for r in rows[:5]])
+    assert np.abs(saved.forward(q) - kincal.load_robot(PANDA / "panda.urdf", tip_link="ball_link").forward(q)).max() > 1e-4
+    code, _, err = _run(capsys, base + [test, "--distance", "0,1,50"])  # the placement column forgotten
+    assert code == 1 and "not one point" in err and "--group-col" in err
+    code, _, err = _run(capsys, base + [train, "--group-col", "placement"])  # no distance
+    assert code == 1 and "scale is unobservable" in err
+    code, _, err = _run(capsys, base + [train, "--group-col", "placement", "--distance", "0,1,50", "--angle-unit", "deg"])
+    assert code == 1 and "look like radians" in err
