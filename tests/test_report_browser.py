@@ -73,3 +73,40 @@ def test_report_in_a_real_browser(tmp_path, monkeypatch, capsys):
     pdf = tmp_path / "report.pdf"
     printed = render(browser, url, tmp_path, f"--print-to-pdf={pdf}", "--no-pdf-header-footer")
     assert printed.returncode == 0 and pdf.read_bytes()[:5] == b"%PDF-" and pdf.stat().st_size > 50_000
+
+
+def test_socket_report_in_a_real_browser(tmp_path, monkeypatch, capsys):
+    """The observation report (Panda sockets, trained on one placement, 7 held out): the per-placement
+    table as the browser shows it equals the JSON, and the page is not blank."""
+    import csv as _csv
+
+    browser = find_browser()
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1795000000")
+    root = DATA.parents[1]
+    rows = list(_csv.DictReader(open(root / "data" / "panda_sockets" / "samples.csv")))
+    files = {}
+    for name, keep in (("train", lambda r: r["placement"] == "front_center"),
+                       ("test", lambda r: r["placement"] != "front_center")):
+        files[name] = tmp_path / f"{name}.csv"
+        with open(files[name], "w", newline="") as f:
+            w = _csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(r for r in rows if keep(r))
+    report = tmp_path / "sockets.html"
+    assert main(["calibrate", str(root / "tests" / "data" / "urdf" / "panda" / "panda.urdf"), str(files["train"]),
+                 "--test", str(files["test"]), "--tip-link", "ball_link", "--type", "same-point", "--joint-cols",
+                 ",".join(f"q{k}" for k in range(1, 8)), "--label-col", "socket", "--group-col", "placement",
+                 "--distance", "0,1,50", "--length-unit", "mm", "--report", str(report)]) == 0
+    capsys.readouterr()
+    data = json.loads(report.with_suffix(".json").read_text())
+    dom = render(browser, report.as_uri(), tmp_path, "--dump-dom")
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    shown = {k: float(v) for k, v in re.findall(r'data-key="held out\.([^"]+)">([-0-9.]+)<', dom.stdout)}
+    assert shown == {g["group"]: pytest.approx(g["mean_abs_mm"], abs=5e-5) for g in data["held_out"][0]["groups"]}
+    assert len(shown) == 7 and re.search(r'id="verdict-status">GOOD<', dom.stdout)
+    png = tmp_path / "sockets.png"
+    shot = render(browser, report.as_uri(), tmp_path, "--window-size=1200,2400", f"--screenshot={png}")
+    assert shot.returncode == 0, shot.stderr[-2000:]
+    with Image.open(png) as im:
+        colours = im.convert("RGB").resize((300, 600)).getcolors(maxcolors=100_000)
+        assert colours is not None and len(colours) > 50  # tables and text, not a blank page
