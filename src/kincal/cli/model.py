@@ -10,6 +10,7 @@ import kincal.analysis
 import kincal.models
 from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM
 
+from . import observe
 from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, finite_float, hidden_alias, load_robot,
                      nonneg_float, out, positive_float, positive_int, robot_inputs)
 
@@ -61,6 +62,9 @@ def cmd_show(args) -> int:
 
 def cmd_identifiability(args) -> int:
     check_paths([*robot_inputs(args.robot), args.data], [])
+    kind = _one_type(args)
+    if kind != "point":
+        return observe.cmd_identifiability(args, kind)
     r = load_robot(args)
     if args.data:
         q = kincal.read_joints(args.data, r, args.joint_cols, args.length_unit, args.angle_unit)
@@ -81,16 +85,26 @@ def cmd_simulate(args) -> int:
         q = kincal.read_joints(args.poses_file, r, args.joint_cols, args.length_unit, args.angle_unit)
     else:
         q = r.sample_joints(args.poses, seed=args.seed)
+    kind = _one_type(args)
+    if args.save_true:
+        kincal.save_robot(true, args.save_true)
+    if kind != "point":
+        return observe.cmd_simulate(args, kind, true, q)
     meas = kincal.simulate(true, q, noise=args.noise / MM, seed=args.seed + 1)
     kincal.write_measurements(args.output, meas, r.joint_types, args.length_unit, args.angle_unit,
                               joint_cols=args.joint_cols)
-    if args.save_true:
-        kincal.save_robot(true, args.save_true)
     payload = {"output": args.output, "n": len(meas), "noise": args.noise / MM, "perturbed": bool(args.perturb),
                "true_robot": args.save_true, "true_parameters": true.params.as_dict()}
     emit(args, payload, f"wrote {len(meas)} simulated measurements of {true.name} to {args.output}"
          + (f" (true robot saved to {args.save_true})" if args.save_true else ""))
     return 0
+
+
+def _one_type(args) -> str:
+    kinds = args.type or ["point"]
+    if len(kinds) != 1 or kinds[0] not in observe.TYPES:
+        raise ValueError(f"--type: give one of {', '.join(observe.TYPES)}")
+    return kinds[0]
 
 
 def cmd_sensitivity(args) -> int:
@@ -145,6 +159,7 @@ def register(cmd) -> None:
                         f"{kincal.analysis.RANK_TOL:g})")
     hidden_alias(s, "--tol", "rank_tol", type=positive_float)
     add_data_flags(s)
+    observe.add_flags(s)
 
     s = cmd("simulate", cmd_simulate, "simulate tracker measurements of a (perturbed) robot")
     add_robot(s)
@@ -159,6 +174,7 @@ def register(cmd) -> None:
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--save-true", help="write the simulated 'true' robot to this YAML")
     add_data_flags(s)
+    observe.add_flags(s)
 
     s = cmd("export", cmd_export, "write a calibrated robot as URDF, UR calibration file or kincal YAML")
     add_robot(s)

@@ -3,10 +3,12 @@ read by kincal.observe and fitted by the stacked, σ-weighted problem."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 
+import kincal
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS, MRAD
 
 from .common import EXIT_NOT_CONVERGED, EXIT_REFUSED, check_paths, csv_list, emit, err, load_robot, progress
@@ -110,7 +112,6 @@ def _format(args, kind: str):
 
 def cmd_calibrate(args, kinds: list[str]) -> int:
     """calibrate with measurement types: fit, print per-type statistics, write the robot and report."""
-    import kincal
     from kincal.identify.stacked import fit_observations, stat_line
     from kincal.io.unit_checks import check_degrees, check_radians
     from kincal.observe.files import read_observations
@@ -166,3 +167,78 @@ def _groups(train, held) -> list[str]:
                            f"{g['mean_abs_mm']:.4f} mm, distance error {d}")
     return out
 
+
+
+PLAN_MARKERS = ((0.04, 0.0, 0.0), (0.0, 0.04, 0.0), (-0.03, -0.03, 0.02))  # m around the tool point: a small nest
+SOCKETS_PER_POINT = 15  # samples per socket when planning
+CONTACTS_PER_PLANE = 30  # contacts per plane when planning
+
+
+def _planned(args, robot, true, kind: str, q, std: float, seed: int):
+    """Observations of ``true`` of the type ``kind``: at the joints q (point, pose, markers), or at a
+    planned plate (sockets) or table with a step (planes). With ``std`` = 0 they are exact."""
+    from kincal.observe.observations import PointObs
+    from kincal.simulate import observations as sim
+
+    fmt = _format(args, kind)
+    pos, rot = fmt.std()
+    if kind == "point":
+        m = kincal.simulate(true, q, std, seed=seed)
+        return PointObs(m.q, m.rows, m.source, xyz=m.xyz, std=pos)
+    if kind == "pose":
+        noise_rot = rot if std else 0.0
+        return dataclasses.replace(sim.simulate_poses(true, q, np.eye(3), std, noise_rot, seed), std_pos=pos, std_rot=rot)
+    if kind == "markers":
+        tool = true.tool_point()
+        return dataclasses.replace(sim.simulate_markers(true, q, tool + np.array(PLAN_MARKERS), std, 0.0, seed), std=pos)
+    if kind == "same-point":
+        points, distances = sim.socket_plan(robot, seed=seed)
+        obs = sim.simulate_same_point(true, points, SOCKETS_PER_POINT, distances, std, seed=seed)
+        return dataclasses.replace(obs, std=pos, group=np.array([lab.split("/")[0] for lab in obs.labels]))
+    planes = sim.plane_plan(robot, seed=seed)
+    return dataclasses.replace(sim.simulate_planes(true, planes, CONTACTS_PER_PLANE, known=tuple(planes), std=std, seed=seed), std=pos)
+
+
+def _flags_to_use(obs, length_unit: str) -> str:
+    """The calibrate flags that read a written plan back: labels, distances, planes."""
+    f = 1.0 / LENGTH_UNITS[length_unit]
+    if obs.kind == "same-point":
+        d = obs.distances[0][2] * f
+        return f"--type same-point --label-col point --group-col placement --distance 0,1,{d:g}"
+    if obs.kind == "plane":
+        return "--type plane " + " ".join(f"--plane {lab}:{n[0]:g},{n[1]:g},{n[2]:g},{c * f:.6g}"
+                                          for lab, (n, c) in obs.known.items())
+    return f"--type {obs.kind}"
+
+
+def cmd_simulate(args, kind: str, true, q) -> int:
+    """simulate --type: write simulated observations of the (perturbed) robot in the type's columns."""
+    from kincal.observe.files import write_observations
+
+    robot = load_robot(args)
+    obs = _planned(args, robot, true, kind, q, args.noise / 1e3, args.seed + 1)
+    write_observations(args.output, obs, robot, _format(args, kind))
+    use = _flags_to_use(obs, args.length_unit)
+    emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
+         f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them with: {use}")
+    return 0
+
+
+def cmd_identifiability(args, kind: str) -> int:
+    """identifiability --type: which parameters the planned measurements identify, before measuring."""
+    from kincal.identify.stacked import observation_identifiability
+    from kincal.observe.files import read_observations
+
+    robot = load_robot(args)
+    if kind in ("same-point", "plane"):
+        if args.data:
+            obs = read_observations(args.data, robot, _format(args, kind))
+        else:
+            obs = _planned(args, robot, robot, kind, None, 0.0, args.seed)
+    else:
+        q = (kincal.read_joints(args.data, robot, args.joint_cols, args.length_unit, args.angle_unit) if args.data
+             else robot.sample_joints(args.poses, seed=args.seed))
+        obs = _planned(args, robot, robot, kind, q, 0.0, args.seed)
+    ident, gauge = observation_identifiability(robot, [obs], keep=args.keep or (), rank_tol=args.rank_tol)
+    emit(args, {**ident.to_dict(), "gauge": list(gauge), "type": kind}, str(ident))
+    return 0

@@ -178,34 +178,13 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
                      keep: Sequence[str] = (), max_iter: int = 100, rank_tol: float = RANK_TOL) -> ObservationFit:
     """Calibrate ``robot`` from observation sets of any types (see the module docstring). ``names``:
     robot parameters to fit ("auto": every identifiable one); ``keep``: chosen first among confounded."""
-    if not observations:
-        raise MeasurementError("no observations given")
-    if not any(o.reference for o in observations):
-        raise MeasurementError(
-            "these data do not fix the length scale: sockets without a known distance, or plane contacts without two "
-            "known parallel planes at different heights, are explained as well by a robot shrunk towards a point, so "
-            "the scale is unobservable; give a known distance between two labelled points, a known step between two "
-            "parallel planes, or some absolute measurements (a tracker, a camera)")
     with blas_threads(1):
-        gauge = _gauge(robot, observations)
-        robot = _registered(robot, observations, gauge)
-        st = _stack(robot, observations)
-        # the gauge freedoms go before the robot's parameters: what acts like them (joint 1's origin next to an unseen base) is
-        # dropped as confounded with them, instead of fitted to the residuals' curvature alone
-        cand = list(gauge) + [n for n in (robot.params.names if names == "auto" else names) if n not in set(gauge)]
-        values0 = robot.params.values.copy()
-        r0, J0 = st.evaluate(values0, st.nuis0)
-        all_names = list(robot.params.names) + list(st.nuis_names)
-        cols = np.array([all_names.index(n) for n in cand + list(st.nuis_names)], dtype=int)
-        ident = jacobian_identifiability(J0[:, cols], cand + list(st.nuis_names),
-                                         [list(keep), list(st.nuis_names), list(gauge), list(robot.base_params()),
-                                          list(robot.preferred_params())], robot.name, len(r0), rank_tol)
-        ident = dataclasses.replace(ident, measured=" + ".join(dict.fromkeys(o.kind for o in st.sets)))
-        free = [n for n in ident.identifiable if n not in set(gauge)]
-        ident = dataclasses.replace(ident, identifiable=tuple(free))
+        robot, st, gauge, ident, r0 = _problem(robot, observations, names, keep, rank_tol)
+        free = list(ident.identifiable)
         if r0.size <= len(free):
             raise MeasurementError(f"{r0.size} residual components for {len(free)} parameters: measure more samples")
-        x0 = np.concatenate([values0, st.nuis0])
+        all_names = list(robot.params.names) + list(st.nuis_names)
+        x0 = np.concatenate([robot.params.values, st.nuis0])
         weak: dict[str, float] = {}
         while True:
             fcols = np.array([all_names.index(n) for n in free], dtype=int)
@@ -216,6 +195,52 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
                 return _result(robot, st, gauge, ident, free, fcols, x0, fit, weak)
             weak[worst[0]] = worst[1]
             free.remove(worst[0])
+
+
+def observation_identifiability(robot: Robot, observations: Sequence, names: Sequence[str] | str = "auto",
+                                keep: Sequence[str] = (), rank_tol: float = RANK_TOL
+                                ) -> tuple[Identifiability, tuple[str, ...]]:
+    """Which robot and set-up parameters the observation sets identify (the rule of
+    :func:`fit_observations`, at ``robot``), and the gauge freedoms no set sees: for planned
+    measurements (simulated at the nominal robot) before anyone measures."""
+    with blas_threads(1):
+        _, _, gauge, ident, _ = _problem(robot, observations, names, keep, rank_tol)
+    return ident, gauge
+
+
+def _problem(robot: Robot, observations: Sequence, names, keep, rank_tol):
+    """The registered robot, the stacked problem, the gauge, the identifiability (robot and set-up
+    parameters; the gauge left out) and the whitened residual at the start."""
+    if not observations:
+        raise MeasurementError("no observations given")
+    if not any(o.reference for o in observations):
+        raise MeasurementError(
+            "these data do not fix the length scale: sockets without a known distance, or plane contacts without two "
+            "known parallel planes at different heights, are explained as well by a robot shrunk towards a point, so "
+            "the scale is unobservable; give a known distance between two labelled points, a known step between two "
+            "parallel planes, or some absolute measurements (a tracker, a camera)")
+    gauge = _gauge(robot, observations)
+    robot = _registered(robot, observations, gauge)
+    st = _stack(robot, observations)
+    # the gauge freedoms go before the robot's parameters: what acts like them (joint 1's origin next to
+    # an unseen base) is dropped as confounded with them, not fitted to the residuals' curvature alone
+    cand = list(gauge) + [n for n in (robot.params.names if names == "auto" else names) if n not in set(gauge)]
+    r0, J0 = st.evaluate(robot.params.values, st.nuis0)
+    all_names = list(robot.params.names) + list(st.nuis_names)
+    cols = np.array([all_names.index(n) for n in cand + list(st.nuis_names)], dtype=int)
+    ident = jacobian_identifiability(J0[:, cols], cand + list(st.nuis_names),
+                                     [list(keep), list(st.nuis_names), list(gauge), list(robot.base_params()),
+                                      list(robot.preferred_params())], robot.name,
+                                     sum(len(o) for o in st.sets), rank_tol)
+    free = tuple(n for n in ident.identifiable if n not in set(gauge))
+    notes = (f"not seen by these data (gauge freedoms, kept at their values): {', '.join(gauge)}",) if gauge else ()
+    unseen = set(gauge)
+    ident = dataclasses.replace(ident, measured=" + ".join(dict.fromkeys(o.kind for o in st.sets)), identifiable=free,
+                                candidates=tuple(n for n in ident.candidates if n not in unseen), rank=len(free),
+                                dropped=tuple(n for n in ident.dropped if n not in unseen),
+                                confounds={k: v for k, v in ident.confounds.items() if k not in unseen},
+                                notes=ident.notes + notes)
+    return robot, st, gauge, ident, r0
 
 
 def _without_weak(ident: Identifiability, free: list[str], weak: dict) -> Identifiability:

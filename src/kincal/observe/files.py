@@ -22,13 +22,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._atomic import write_text_atomic
 from .._csv import is_float, number, read_table
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..units import unit_factor
 from .constraints import PlaneObs, SamePointObs
 from .observations import MarkersObs, Observation, PointObs, PoseObs, flange_point
-from .orientation import check_convention, convention_check, default_columns, to_matrices
+from .orientation import check_convention, convention_check, default_columns, from_matrices, to_matrices
 
 KINDS = ("point", "pose", "markers", "same-point", "plane")
 DEFAULT_STD = {"point": (15e-6, None), "pose": (0.1e-3, 1e-3), "markers": (50e-6, None),
@@ -215,3 +216,33 @@ def _plane(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PlaneObs:
                                f"{', '.join(sorted(set(labels.tolist())))})")
     known = {lab: (np.asarray(n, float), float(c) * lf) for lab, (n, c) in fmt.planes.items()}
     return PlaneObs(q, t.rows, t.path, labels=labels, known=known, std=fmt.std()[0])
+
+
+def write_observations(path: str, obs: Observation, robot: Robot, fmt: ObservationFormat = ObservationFormat()) -> None:
+    """Write ``obs`` (its type: ``obs.kind``) in the columns ``read_observations`` reads with ``fmt``
+    (atomically): what ``kincal simulate --type`` writes, so a planned set-up can be calibrated."""
+    lf = unit_factor(fmt.length_unit, "length")
+    scale = np.array([unit_factor(fmt.angle_unit, "angle") if t == "revolute" else lf for t in robot.joint_types])
+    header = list(fmt.joint_cols or robot.joint_names)
+    cells = [[f"{v:.12g}" for v in row] for row in obs.q / scale]
+    extra_h, extra = _columns_of(obs, fmt, lf)
+    lines = [",".join(extra_h + header)] + [",".join(e + c) for e, c in zip(extra, cells)]
+    write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+def _columns_of(obs: Observation, fmt: ObservationFormat, lf: float) -> tuple[list[str], list[list[str]]]:
+    """The type's own columns (before the joints) and their cells, per sample."""
+    num = lambda a: [["" if not np.isfinite(v) else f"{v:.12g}" for v in row] for row in a]  # noqa: E731
+    if obs.kind in ("point", "pose"):
+        values = obs.xyz / lf
+        header = list(fmt.xyz_cols)
+        if obs.kind == "pose":
+            values = np.column_stack([values, from_matrices(obs.R, fmt.orientation)])
+            header += list(fmt.rot_cols or default_columns(fmt.orientation))
+        return header, num(values)
+    if obs.kind == "markers":
+        return [f"{m}.{a}" for m in obs.names for a in "xyz"], num(obs.xyz.reshape(len(obs.q), -1) / lf)
+    if obs.kind == "same-point" and obs.group is not None:
+        labels = [lab.split("/", 1)[1] for lab in obs.labels]
+        return [fmt.group_col or "placement", fmt.label], [[g, lab] for g, lab in zip(obs.group, labels)]
+    return [fmt.label], [[lab] for lab in obs.labels]

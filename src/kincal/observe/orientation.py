@@ -69,6 +69,21 @@ def to_matrices(values: np.ndarray, name: str, source: str, rows: np.ndarray) ->
     return Rotation.from_euler(seq, v, degrees=unit == "deg").as_matrix()
 
 
+def from_matrices(R: np.ndarray, name: str) -> np.ndarray:
+    """The orientation columns (N, k) of rotations R (N, 3, 3) in the convention ``name``."""
+    from scipy.spatial.transform import Rotation
+    rot = Rotation.from_matrix(R)
+    if name.startswith("quat"):
+        xyzw = rot.as_quat()
+        return xyzw if name == "quat-xyzw" else xyzw[:, [3, 0, 1, 2]]
+    if name == "matrix":
+        return np.asarray(R, float).reshape(-1, 9)
+    if name.startswith("rotvec"):
+        return rot.as_rotvec() / (ANGLE_UNITS["deg"] if name.endswith("deg") else 1.0)
+    axes, how, unit = EULER.match(check_convention(name)).groups()
+    return rot.as_euler(axes.upper() if how == "intrinsic" else axes, degrees=unit == "deg")
+
+
 def _refuse(source: str, rows: np.ndarray, bad: np.ndarray, what: str, value: np.ndarray) -> None:
     if bad.any():
         k = int(np.flatnonzero(bad)[0])

@@ -110,3 +110,31 @@ def simulate_planes(true: Robot, planes: dict, per_plane: int, known=(), std: fl
     q = np.concatenate(qs)
     return PlaneObs(q, np.arange(2, len(q) + 2), f"simulated {true.name} plane contacts", labels=np.array(labels),
                     known={lab: planes[lab] for lab in known}, std=std)
+
+
+def socket_plan(robot: Robot, placements: int = 4, spacing: float = 0.05, seed: int = 0) -> tuple[dict, tuple]:
+    """Where to put a two-socket plate: ``placements`` places within comfortable reach (40–70 % of
+    the farthest horizontal reach over random poses, spread around the base), each with sockets
+    0 and 1 ``spacing`` m apart across the radial direction. Returns (points, distances) for
+    :func:`simulate_same_point` (labels "<placement>/<socket>")."""
+    p = robot.forward(robot.sample_joints(2000, seed=seed))
+    r = np.linalg.norm(p[:, :2], axis=1)
+    ok = np.flatnonzero((r > 0.4 * r.max()) & (r < 0.7 * r.max()))
+    if len(ok) < placements:
+        raise ModelError(f"{robot.name}: too few poses within comfortable reach to place {placements} plates")
+    order = ok[np.argsort(np.arctan2(p[ok, 1], p[ok, 0]), kind="stable")]
+    chosen = order[np.linspace(0, len(order) - 1, placements).round().astype(int)]
+    points, distances = {}, []
+    for k, i in enumerate(chosen):
+        u = np.array([-p[i, 1], p[i, 0], 0.0]) / max(r[i], 1e-9)
+        points[f"place{k + 1}/0"], points[f"place{k + 1}/1"] = p[i], p[i] + spacing * u
+        distances.append((f"place{k + 1}/0", f"place{k + 1}/1", spacing))
+    return points, tuple(distances)
+
+
+def plane_plan(robot: Robot, step: float = 0.05, seed: int = 0) -> dict:
+    """A table and a gauge-block step on it (horizontal planes ``step`` m apart, both known) at the
+    height the tool point reaches most easily (the 30th percentile of random poses' heights)."""
+    z = float(np.percentile(robot.forward(robot.sample_joints(2000, seed=seed))[:, 2], 30))
+    up = np.array([0.0, 0.0, 1.0])
+    return {"table": (up, z), "step": (up, z + step)}
