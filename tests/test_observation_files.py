@@ -225,3 +225,13 @@ def test_simulated_files_of_every_type_calibrate_back(tmp_path, capsys, kind):
         R, tt = kabsch(p, t)
         return np.sqrt(np.mean(np.sum((p @ R.T + tt - t) ** 2, axis=1)))
     assert error(cal) < 0.2 * error(nominal)
+
+
+def test_show_says_what_a_file_of_each_type_holds(capsys):
+    code, out, _ = _run(capsys, ["show", "ur5", "--type", "pose", "--orientation", "euler-zyx-intrinsic-deg",
+                                 "--joint-cols", "a1,a2,a3,a4,a5,a6"])
+    assert code == 0 and out["measurement"][0] == ("pose files: columns a1, a2, a3, a4, a5, a6 (rad / m) and x, y, z, "
+                                                   "e1, e2, e3 (euler-zyx-intrinsic-deg)")
+    assert "target.rx" in out["measurement"][1] and out["measurement"][3] == "σ used: 0.1 mm, 1 mrad (--std-pos, --std-rot)"
+    code, out, _ = _run(capsys, ["show", "ur5", "--type", "same-point", "--std-pos", "0.02mm"])
+    assert "only with a known distance" in out["measurement"][2] and out["measurement"][3] == "σ used: 0.02 mm (--std-pos)"

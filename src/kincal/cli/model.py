@@ -50,13 +50,18 @@ def cmd_show(args) -> int:
                "joints": [{"name": n, "type": t, "limits": [float(lo) if np.isfinite(lo) else None,
                                                            float(hi) if np.isfinite(hi) else None]}
                           for n, t, lo, hi in zip(r.joint_names, r.joint_types, r.lower, r.upper)], "notes": notes}
+    kind = _one_type(args)
+    if args.type:
+        from kincal.observe.files import describe
+
+        payload["measurement"] = describe(r, observe.format_of(args, kind))
     if args.json:
         emit(args, payload, None)
     else:
         out.print(t)
         out.print(lim)
-        for n in notes:
-            out.print(f"note: {n}")
+        for n in notes + payload.get("measurement", []):
+            out.print(f"note: {n}" if n in notes else n, markup=False)
     return 0
 
 
@@ -146,6 +151,8 @@ def register(cmd) -> None:
     cmd("robots", cmd_robots, "list the bundled robots")
     s = cmd("show", cmd_show, "show a robot's parameters (mm, deg), joints and structure notes")
     add_robot(s)
+    add_data_flags(s)
+    observe.add_flags(s)  # --type: also what a file of that measurement type holds for this robot
 
     s = cmd("identifiability", cmd_identifiability, "which parameters position data can identify")
     add_robot(s)

@@ -100,7 +100,7 @@ def add_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--std-rot", type=angle, help="pose: orientation σ with its unit, e.g. 1mrad (default 1mrad)")
 
 
-def _format(args, kind: str):
+def format_of(args, kind: str):
     from kincal.observe.files import ObservationFormat
 
     return ObservationFormat(kind, tuple(args.joint_cols) if args.joint_cols else None, args.length_unit,
@@ -123,8 +123,8 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
     reports = [args.report, str(Path(args.report).with_suffix(".json"))] if args.report else []
     check_paths([args.robot, *args.data, *args.test], [args.output, *reports])
     robot = load_robot(args)
-    sets = [read_observations(path, robot, _format(args, k)) for path, k in zip(args.data, kinds)]
-    tests = [read_observations(path, robot, _format(args, kinds[0])) for path in args.test]
+    sets = [read_observations(path, robot, format_of(args, k)) for path, k in zip(args.data, kinds)]
+    tests = [read_observations(path, robot, format_of(args, kinds[0])) for path in args.test]
     for obs in sets + tests:
         check_degrees(obs.source, obs.q, robot, args.angle_unit)
         check_radians(obs.source, obs.q, robot, args.angle_unit)
@@ -180,7 +180,7 @@ def _planned(args, robot, true, kind: str, q, std: float, seed: int):
     from kincal.observe.observations import PointObs
     from kincal.simulate import observations as sim
 
-    fmt = _format(args, kind)
+    fmt = format_of(args, kind)
     pos, rot = fmt.std()
     if kind == "point":
         m = kincal.simulate(true, q, std, seed=seed)
@@ -217,7 +217,7 @@ def cmd_simulate(args, kind: str, true, q) -> int:
 
     robot = load_robot(args)
     obs = _planned(args, robot, true, kind, q, args.noise / 1e3, args.seed + 1)
-    write_observations(args.output, obs, robot, _format(args, kind))
+    write_observations(args.output, obs, robot, format_of(args, kind))
     use = _flags_to_use(obs, args.length_unit)
     emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
          f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them with: {use}")
@@ -232,7 +232,7 @@ def cmd_identifiability(args, kind: str) -> int:
     robot = load_robot(args)
     if kind in ("same-point", "plane"):
         if args.data:
-            obs = read_observations(args.data, robot, _format(args, kind))
+            obs = read_observations(args.data, robot, format_of(args, kind))
         else:
             obs = _planned(args, robot, robot, kind, None, 0.0, args.seed)
     else:

@@ -246,3 +246,32 @@ def _columns_of(obs: Observation, fmt: ObservationFormat, lf: float) -> tuple[li
         labels = [lab.split("/", 1)[1] for lab in obs.labels]
         return [fmt.group_col or "placement", fmt.label], [[g, lab] for g, lab in zip(obs.group, labels)]
     return [fmt.label], [[lab] for lab in obs.labels]
+
+
+SETUP = {"point": "none (the measurement frame is the robot's base frame, fitted)",
+         "pose": "target.rx, target.ry, target.rz: the target frame's orientation on the flange (its origin is the "
+                 "tool point); the measurement frame is the robot's base frame",
+         "markers": "marker[NAME].x/y/z: each marker's point on the flange (the tool point is then not seen)",
+         "same-point": "point[LABEL].x/y/z: each socket's position (the base is not seen)",
+         "plane": "plane[LABEL].a/b/c for each plane not given with --plane (tilt in rad, offset in m)"}
+SCALE = {"point": "yes", "pose": "yes", "markers": "yes",
+         "same-point": "only with a known distance (--distance): without, the fit is refused",
+         "plane": "only with two known parallel planes at different offsets (--plane, e.g. a table and a gauge-block "
+                  "step): without, the fit is refused"}
+
+
+def describe(robot: Robot, fmt: ObservationFormat) -> list[str]:
+    """What a file of the type ``fmt.kind`` must hold for ``robot``, and what the fit adds."""
+    joints = ", ".join(fmt.joint_cols or robot.joint_names)
+    own = {"point": ", ".join(fmt.xyz_cols), "pose": ", ".join(list(fmt.xyz_cols) + list(
+               fmt.rot_cols or default_columns(fmt.orientation))) + f" ({fmt.orientation})",
+           "markers": "NAME.x, NAME.y, NAME.z per marker (empty: not seen)",
+           "same-point": f"{fmt.label}" + (f", {fmt.group_col}" if fmt.group_col else " (and a group column for "
+                                                                                     "plate placements)"),
+           "plane": fmt.label}[fmt.kind]
+    pos, rot = fmt.std()
+    sigma = f"{pos * 1e3:g} mm" + (f", {rot * 1e3:g} mrad" if rot else "")
+    return [f"{fmt.kind} files: columns {joints} ({fmt.angle_unit} / {fmt.length_unit}) and {own}",
+            f"set-up parameters fitted with the robot: {SETUP[fmt.kind]}",
+            f"fixes the length scale: {SCALE[fmt.kind]}",
+            f"σ used: {sigma} ({'--std-pos, --std-rot' if rot else '--std-pos'})"]
