@@ -235,3 +235,52 @@ def test_show_says_what_a_file_of_each_type_holds(capsys):
     assert "target.rx" in out["measurement"][1] and out["measurement"][3] == "σ used: 0.1 mm, 1 mrad (--std-pos, --std-rot)"
     code, out, _ = _run(capsys, ["show", "ur5", "--type", "same-point", "--std-pos", "0.02mm"])
     assert "only with a known distance" in out["measurement"][2] and out["measurement"][3] == "σ used: 0.02 mm (--std-pos)"
+
+
+@pytest.mark.slow
+def test_two_pose_sessions_each_in_its_own_frame(tmp_path, capsys, ur5):
+    """The camera moved between two sessions: each file after the first gets its own frame (set-up
+    parameters), found to the µm / µrad; declared as one frame, the same data are far from the noise."""
+    import dataclasses
+    from kincal.observe.files import write_observations
+
+    true = kincal.perturb(ur5, seed=4)
+    moved_R, moved_t = Rotation.from_rotvec([0.02, -0.5, 0.3]).as_matrix(), np.array([0.3, -0.2, 0.1])
+    files = []
+    for k, (R, t) in enumerate(((np.eye(3), np.zeros(3)), (moved_R, moved_t))):
+        s = simulate_poses(true, ur5.sample_joints(60, seed=k + 1), TARGET, 15e-6, 0.05e-3, k + 1)
+        s = dataclasses.replace(s, xyz=s.xyz @ R.T + t, R=R @ s.R)
+        files.append(str(tmp_path / f"session{k + 1}.csv"))
+        write_observations(files[-1], s, ur5, ObservationFormat("pose", length_unit="mm"))
+    base = ["calibrate", "ur5", *files, "--type", "pose", "--length-unit", "mm", "--tool", "50,20,100mm",
+            "--std-pos", "0.015mm", "--std-rot", "0.05mrad"]
+    code, fit, _ = _run(capsys, base)
+    assert code == 0 and fit["whitened_rms"] < 1.2 and fit["after"][1]["session"] == "2:session2.csv"
+    frame = {k.split("].", 1)[1]: v for k, v in fit["nuisance"].items() if k.startswith("frame[")}
+    moved = ur5.with_base_transform(moved_R, moved_t)  # the same base parametrisation, independently
+    expected = dict(zip(moved.base_params(), moved.params.values[moved.params.indices(moved.base_params())]))
+    fitted_base = {n: fit["estimates"].get(n, ur5.params[n]) for n in ur5.base_params()}
+    assert max(abs(frame[f"base.{a}"] - expected[f"base.{a}"]) for a in ("x", "y", "z")) < 20e-6
+    assert max(abs(fitted_base[f"base.{a}"]) for a in ("x", "y", "z")) < 20e-6
+    code, one, _ = _run(capsys, base + ["--same-frame"])
+    assert one["whitened_rms"] > 100 and one["verdict"]["status"] != "good"
+
+
+@pytest.mark.slow
+def test_points_and_sockets_together_through_the_command_line(tmp_path, capsys):
+    """A tracker session and socket samples in one calibration: the points give the frame and the
+    scale, the sockets add configurations; the result is near the truth."""
+    units = ["--length-unit", "mm", "--angle-unit", "deg", "--tool", "0,0,100mm"]
+    truth = tmp_path / "true.yaml"
+    assert main(["simulate", "ur5", "-o", str(tmp_path / "points.csv"), "--perturb", "--poses", "40",
+                 "--save-true", str(truth), *units]) == 0
+    assert main(["simulate", "ur5", "-o", str(tmp_path / "sockets.csv"), "--type", "same-point", "--perturb", *units]) == 0
+    capsys.readouterr()
+    code, fit, err = _run(capsys, ["calibrate", "ur5", str(tmp_path / "points.csv"), str(tmp_path / "sockets.csv"),
+                                   "--type", "point,same-point", "--label-col", "point", "--group-col", "placement",
+                                   "--distance", "0,1,50", *units, "-o", str(tmp_path / "cal.yaml")])
+    assert code == 0 and [s["type"] for s in fit["after"]] == ["point", "same-point"], err
+    assert fit["after"][0]["mean_mm"] < 0.03 and fit["after"][1]["mean_abs_mm"] < 0.03
+    true, cal = kincal.load_robot(truth), kincal.load_robot(tmp_path / "cal.yaml")
+    q = true.sample_joints(200, seed=3)
+    assert np.sqrt(np.mean(np.sum((cal.forward(q) - true.forward(q)) ** 2, axis=1))) < 30e-6

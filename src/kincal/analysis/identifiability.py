@@ -139,12 +139,14 @@ def identifiability(
 
 
 def jacobian_identifiability(J: np.ndarray, cand: Sequence[str], stages: Sequence[Sequence[str]], label: str,
-                             n_poses: int, rank_tol: float = RANK_TOL) -> Identifiability:
+                             n_poses: int, rank_tol: float = RANK_TOL, live: np.ndarray | None = None
+                             ) -> Identifiability:
     """Identifiability of the columns ``cand`` of any stacked (whitened) Jacobian J (M, K): the one
     rule for position data and for every other observation type. ``stages``: names chosen first, in
-    order, when columns are confounded (e.g. nuisance parameters, then the base frame)."""
+    order, when columns are confounded (e.g. nuisance parameters, then the base frame). ``live``:
+    which columns have any effect, judged in physical units (default: from J itself, unwhitened)."""
     norms = np.linalg.norm(J, axis=0)
-    live = live_columns(J)
+    live = live_columns(J) if live is None else np.asarray(live, bool)
     live_names = [n for n, ok in zip(cand, live) if ok]
     # Everything below depends on the column space only, so it works on the small triangular
     # factor R0 of the scaled Jacobian (Js = Q0 R0): same singular values, same linear relations.

@@ -49,16 +49,16 @@ def fit_options(args) -> kincal.FitOptions:
 
 
 def cmd_calibrate(args) -> int:
+    twice = [d for k, d in enumerate(args.data) if Path(d).resolve() in {Path(e).resolve() for e in args.data[:k]}]
+    if twice:
+        raise ValueError(f"{twice[0]} is given twice as a session: each pose would count twice (the σ too small, "
+                         f"and a session held out against its own copy); give each session file once")
     kinds = observe.types_of(args)
     if set(kinds) != {"point"}:
         return observe.cmd_calibrate(args, kinds)
     reports = [args.report, json_path(args.report)] if args.report else []
     check_paths([*robot_inputs(args.robot), *args.data, *args.test],
                 [args.output, args.residuals, *reports, args.plot])
-    twice = [d for k, d in enumerate(args.data) if Path(d).resolve() in {Path(e).resolve() for e in args.data[:k]}]
-    if twice:
-        raise ValueError(f"{twice[0]} is given twice as a session: each pose would count twice (the σ too small, "
-                         f"and a session held out against its own copy); give each session file once")
     if args.exclude and len(args.data) > 1:
         raise ValueError("--exclude names rows of one file; with several sessions leave the rows out of their files")
     options = fit_options(args)

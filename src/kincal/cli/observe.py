@@ -16,7 +16,8 @@ from .common import EXIT_NOT_CONVERGED, EXIT_REFUSED, check_paths, csv_list, emi
 TYPES = ("point", "pose", "markers", "same-point", "plane")
 # options of the position-only calibration that the observation fit does not have (yet): refused by name
 POINT_ONLY = {"error_model": "--error-model", "drift": "--drift", "reject_outliers": "--reject-outliers",
-              "exclude": "--exclude", "residuals": "--residuals", "plot": "--plot", "same_frame": "--same-frame"}
+              "exclude": "--exclude", "residuals": "--residuals", "plot": "--plot"}
+ABSOLUTE = ("point", "pose", "markers")  # types measured in a frame: each file after the first is its own session
 
 
 def types_of(args) -> list[str]:
@@ -123,7 +124,8 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
     reports = [args.report, str(Path(args.report).with_suffix(".json"))] if args.report else []
     check_paths([args.robot, *args.data, *args.test], [args.output, *reports])
     robot = load_robot(args)
-    sets = [read_observations(path, robot, format_of(args, k)) for path, k in zip(args.data, kinds)]
+    sets = _sessions([read_observations(path, robot, format_of(args, k)) for path, k in zip(args.data, kinds)],
+                     args.same_frame)
     tests = [read_observations(path, robot, format_of(args, kinds[0])) for path in args.test]
     for obs in sets + tests:
         check_degrees(obs.source, obs.q, robot, args.angle_unit)
@@ -154,6 +156,20 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
                                                               if r.level == "refused"))
         return EXIT_REFUSED if fit.converged else EXIT_NOT_CONVERGED
     return 0
+
+
+def _sessions(sets: list, same_frame: bool) -> list:
+    """Each absolute file after the first in its own frame (the tracker or camera may have moved),
+    named by its file; with ``same_frame`` all in the robot's base frame."""
+    from kincal.observe.sessions import InSession
+
+    absolute = [k for k, o in enumerate(sets) if o.kind in ABSOLUTE]
+    if same_frame or len(absolute) < 2:
+        return sets
+    out = list(sets)
+    for n, k in enumerate(absolute[1:], start=2):
+        out[k] = InSession.of(sets[k], f"{n}:{Path(sets[k].source).name}")
+    return out
 
 
 def _groups(train, held) -> list[str]:

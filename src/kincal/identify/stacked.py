@@ -20,9 +20,11 @@ import numpy as np
 
 from .._threads import blas_threads
 from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_identifiability
+from ..analysis.observability import live_columns
 from ..analysis.uncertainty import ModelUncertainty
 from ..errors import MeasurementError
 from ..models.robot import Robot
+from ..observe.sessions import InSession
 from ..units import MM, MRAD
 from .covariance import parameter_statistics
 from .lm import levenberg_marquardt
@@ -149,7 +151,13 @@ class _Stack:
 
 
 def _stack(robot: Robot, observations: Sequence) -> _Stack:
-    sets = tuple(o.prepare(robot) for o in observations)
+    anchors: dict = {}
+    sets = []
+    for o in (o.prepare(robot) for o in observations):  # sets sharing a target start from the first's
+        o = o.with_anchors({k: v for k, v in anchors.items() if k in o.anchors()})
+        anchors = {**o.anchors(), **anchors}
+        sets.append(o)
+    sets = tuple(sets)
     names: list[str] = []
     start: list[float] = []
     slots = []
@@ -221,17 +229,18 @@ def _problem(robot: Robot, observations: Sequence, names, keep, rank_tol):
             "parallel planes, or some absolute measurements (a tracker, a camera)")
     gauge = _gauge(robot, observations)
     robot = _registered(robot, observations, gauge)
-    st = _stack(robot, observations)
+    st = _stack(robot, [_session_start(robot, o) for o in observations])
     # the gauge freedoms go before the robot's parameters: what acts like them (joint 1's origin next to
     # an unseen base) is dropped as confounded with them, not fitted to the residuals' curvature alone
     cand = list(gauge) + [n for n in (robot.params.names if names == "auto" else names) if n not in set(gauge)]
     r0, J0 = st.evaluate(robot.params.values, st.nuis0)
     all_names = list(robot.params.names) + list(st.nuis_names)
     cols = np.array([all_names.index(n) for n in cand + list(st.nuis_names)], dtype=int)
+    live = live_columns(J0[:, cols] / st.inv_sigma[:, None])  # no effect: judged in m and rad, not whitened
     ident = jacobian_identifiability(J0[:, cols], cand + list(st.nuis_names),
                                      [list(keep), list(st.nuis_names), list(gauge), list(robot.base_params()),
                                       list(robot.preferred_params())], robot.name,
-                                     sum(len(o) for o in st.sets), rank_tol)
+                                     sum(len(o) for o in st.sets), rank_tol, live)
     free = tuple(n for n in ident.identifiable if n not in set(gauge))
     notes = (f"not seen by these data (gauge freedoms, kept at their values): {', '.join(gauge)}",) if gauge else ()
     unseen = set(gauge)
@@ -271,6 +280,17 @@ def _registered(robot: Robot, sets, gauge) -> Robot:
         return robot
     q, xyz = np.concatenate([f[0] for f in found]), np.concatenate([f[1] for f in found])
     return register_base(robot, q, xyz) if len(q) >= 3 else robot
+
+
+def _session_start(robot: Robot, obs):
+    """A set in its own session frame, with the frame's start registered rigidly to its positions."""
+    if not isinstance(obs, InSession) or obs.frame0 is not None:
+        return obs
+    found = obs.session_positions()
+    if found is None or len(found[0]) < 3:
+        raise MeasurementError(f"{obs.source}: a session in its own frame needs at least 3 absolute positions")
+    moved = register_base(robot, *found)
+    return dataclasses.replace(obs, frame0=moved.params.values[moved.params.indices(robot.base_params())])
 
 
 def _fun(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray):

@@ -115,6 +115,15 @@ class Observation:
         the fit; None for data that see no absolute position."""
         return None
 
+    def anchors(self) -> dict:
+        """Start values its set-up parameters are measured from, which every set sharing those
+        parameters must share (a pose target's start rotation); none by default."""
+        return {}
+
+    def with_anchors(self, anchors: dict) -> "Observation":
+        """The set measured from the given anchors (the first set's, when several share a target)."""
+        return self
+
 
 @dataclass(frozen=True, eq=False)
 class PointObs(Observation):
@@ -166,6 +175,12 @@ class PoseObs(Observation):
 
     def nuisance(self, robot: Robot):
         return ("target.rx", "target.ry", "target.rz"), np.zeros(3), ("angle",) * 3
+
+    def anchors(self) -> dict:
+        return {"target_rotation": self.target_rotation}
+
+    def with_anchors(self, anchors: dict) -> "PoseObs":
+        return dataclasses.replace(self, target_rotation=anchors.get("target_rotation", self.target_rotation))
 
     def sigma(self) -> np.ndarray:
         n = len(self)

@@ -1,0 +1,89 @@
+"""Sessions: an absolute set (points, poses, markers) measured in its own frame, because the tracker
+or camera moved between sessions. One shared mechanism for every type: the set is evaluated with
+the robot's base-frame parameters replaced by its own frame (``frame[<session>].<base parameter>``,
+set-up parameters), so the kinematics are shared and each session keeps its frame."""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ModelError
+from ..models.robot import Robot
+from .observations import Observation
+
+
+@dataclass(frozen=True, eq=False)
+class InSession(Observation):
+    """``inner`` (an absolute set) measured in the frame of ``session``; ``frame0``: the frame's start
+    values in the order and units of ``robot.base_params()`` (set by the fit from a registration)."""
+
+    inner: Observation | None = None
+    session: str = ""
+    frame0: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, inner: Observation, session: str) -> "InSession":
+        return cls(inner.q, inner.rows, inner.source, inner=inner, session=session)
+
+    @property
+    def kind(self) -> str:  # the inner set's type
+        return self.inner.kind
+
+    @property
+    def reference(self) -> bool:
+        return self.inner.reference
+
+    def _base(self, robot: Robot) -> np.ndarray:
+        if not robot.base_params():
+            raise ModelError(f"robot '{robot.name}' has no base frame: its sessions cannot each have their own frame")
+        return robot.params.indices(robot.base_params())
+
+    def _values(self, robot: Robot, values: np.ndarray, frame: np.ndarray) -> np.ndarray:
+        v = np.array(values, float)
+        v[self._base(robot)] = frame
+        return v
+
+    def positions(self):
+        return None  # its positions are in its own frame, not the robot's
+
+    def session_positions(self):
+        return self.inner.positions()
+
+    def prepare(self, robot: Robot) -> "InSession":
+        at = robot.with_params(dict(zip(robot.base_params(), self.frame0)))
+        return dataclasses.replace(self, inner=self.inner.prepare(at))
+
+    def anchors(self) -> dict:
+        return self.inner.anchors()
+
+    def with_anchors(self, anchors: dict) -> "InSession":
+        return dataclasses.replace(self, inner=self.inner.with_anchors(anchors))
+
+    def nuisance(self, robot: Robot):
+        at = robot.with_params(dict(zip(robot.base_params(), self.frame0)))
+        names, start, kinds = self.inner.nuisance(at)
+        base = robot.base_params()
+        frame = tuple(f"frame[{self.session}].{n}" for n in base)
+        base_kinds = tuple(robot.params.kinds[i] for i in self._base(robot))
+        return tuple(names) + frame, np.concatenate([start, self.frame0]), tuple(kinds) + base_kinds
+
+    def gauge_params(self, robot: Robot) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(self.inner.gauge_params(robot) + robot.base_params()))
+
+    def sigma(self) -> np.ndarray:
+        return self.inner.sigma()
+
+    def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
+        idx, k = self._base(robot), len(robot.base_params())
+        r, Jr, Jn = self.inner.evaluate(robot, self._values(robot, values, nuis[-k:]), nuis[:-k])
+        Jf = Jr[:, idx].copy()
+        Jr = Jr.copy()
+        Jr[:, idx] = 0.0
+        return r, Jr, np.hstack([Jn, Jf])
+
+    def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
+        k = len(robot.base_params())
+        out = self.inner.stats(robot, self._values(robot, values, nuis[-k:]), nuis[:-k])
+        return {**out, "session": self.session}
