@@ -284,3 +284,12 @@ def test_points_and_sockets_together_through_the_command_line(tmp_path, capsys):
     true, cal = kincal.load_robot(truth), kincal.load_robot(tmp_path / "cal.yaml")
     q = true.sample_joints(200, seed=3)
     assert np.sqrt(np.mean(np.sum((cal.forward(q) - true.forward(q)) ** 2, axis=1))) < 30e-6
+
+
+def test_pose_positions_in_the_wrong_unit_are_named(capsys):
+    """Metres read as mm: without the check, a robot shrunk a thousandfold into the base and tool
+    fitted the 6-D poses to 0.0004 mm and was called good."""
+    code, _, err = _run(capsys, ["calibrate", str(ROOT / "data" / "positioner_6d" / "positioner.yaml"),
+                                 str(ROOT / "data" / "positioner_6d" / "measurements.csv"), "--type", "pose",
+                                 "--joint-cols", "q1,q2", "--length-unit", "mm"])
+    assert code == 1 and "they look like m; use length unit 'm'" in err

@@ -114,7 +114,7 @@ def format_of(args, kind: str):
 def cmd_calibrate(args, kinds: list[str]) -> int:
     """calibrate with measurement types: fit, print per-type statistics, write the robot and report."""
     from kincal.identify.stacked import fit_observations, stat_line
-    from kincal.io.unit_checks import check_degrees, check_radians
+    from kincal.io.unit_checks import check_degrees, check_radians, check_spread
     from kincal.observe.files import read_observations
 
     given = [flag for dest, flag in POINT_ONLY.items() if vars(args).get(dest)]
@@ -124,12 +124,15 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
     reports = [args.report, str(Path(args.report).with_suffix(".json"))] if args.report else []
     check_paths([args.robot, *args.data, *args.test], [args.output, *reports])
     robot = load_robot(args)
-    sets = _sessions([read_observations(path, robot, format_of(args, k)) for path, k in zip(args.data, kinds)],
-                     args.same_frame)
+    sets = [read_observations(path, robot, format_of(args, k)) for path, k in zip(args.data, kinds)]
     tests = [read_observations(path, robot, format_of(args, kinds[0])) for path in args.test]
     for obs in sets + tests:
         check_degrees(obs.source, obs.q, robot, args.angle_unit)
         check_radians(obs.source, obs.q, robot, args.angle_unit)
+        found = _measured_points(obs)
+        if found is not None:  # positions in the wrong unit would be fitted by a shrunk or blown-up robot
+            check_spread(obs.source, *found, robot, args.length_unit, args.angle_unit)
+    sets = _sessions(sets, args.same_frame)
     with progress("calibrating", args.json):
         fit = fit_observations(robot, sets, names=args.params or "auto", keep=args.keep or (), max_iter=args.max_iter)
     held = [fit.held_out(t) for t in tests]
@@ -156,6 +159,15 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
                                                               if r.level == "refused"))
         return EXIT_REFUSED if fit.converged else EXIT_NOT_CONVERGED
     return 0
+
+
+def _measured_points(obs):
+    """(q, xyz) of absolutely measured points near the tool (markers: the first marker where seen),
+    for the unit check; None for constraints."""
+    if obs.kind == "markers":
+        seen = ~np.isnan(obs.xyz[:, 0, 0])
+        return obs.q[seen], obs.xyz[seen, 0]
+    return obs.positions()
 
 
 def _sessions(sets: list, same_frame: bool) -> list:

@@ -29,7 +29,7 @@ from ..units import MM, MRAD
 from .covariance import parameter_statistics
 from .lm import levenberg_marquardt
 from .registration import register_base
-from .verdict import Reason, Thresholds, Verdict, correction_reasons
+from .verdict import Reason, Thresholds, Verdict, correction_reasons, mounting_reasons
 
 IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes (unseen) than across them
 
@@ -327,6 +327,7 @@ def _verdict(nominal: Robot, calibrated: Robot, st: _Stack, rms: float, converge
                                                      f"errors it cannot describe, or the stated σ are too small"))
     reasons += correction_reasons(nominal, {n: calibrated.params[n] - nominal.params[n] for n in nominal.params.names},
                                   Thresholds())
+    reasons += mounting_reasons(nominal.tool_point(), calibrated.tool_point(), Thresholds())
     if all(o.kind == "plane" for o in st.sets):
         reasons += _plane_reasons(nominal, calibrated, st.sets)
     return Verdict.from_reasons(tuple(reasons))
