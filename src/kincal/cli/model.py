@@ -52,7 +52,7 @@ def cmd_show(args) -> int:
                           for n, t, lo, hi in zip(r.joint_names, r.joint_types, r.lower, r.upper)], "notes": notes}
     kind = _one_type(args)
     if args.type:
-        from kincal.observe.files import describe
+        from kincal.observe import describe
 
         payload["measurement"] = describe(r, observe.format_of(args, kind))
     if args.json:

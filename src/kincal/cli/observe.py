@@ -102,7 +102,7 @@ def add_flags(p: argparse.ArgumentParser) -> None:
 
 
 def format_of(args, kind: str):
-    from kincal.observe.files import ObservationFormat
+    from kincal.observe import ObservationFormat
 
     return ObservationFormat(kind, tuple(args.joint_cols) if args.joint_cols else None, args.length_unit,
                              args.angle_unit, tuple(args.xyz_cols), args.orientation,
@@ -113,9 +113,9 @@ def format_of(args, kind: str):
 
 def cmd_calibrate(args, kinds: list[str]) -> int:
     """calibrate with measurement types: fit, print per-type statistics, write the robot and report."""
-    from kincal.identify.stacked import fit_observations, stat_line
-    from kincal.io.unit_checks import check_degrees, check_radians, check_spread
-    from kincal.observe.files import read_observations
+    from kincal.identify import fit_observations, stat_line
+    from kincal.io import check_degrees, check_radians, check_spread
+    from kincal.observe import read_observations
 
     given = [flag for dest, flag in POINT_ONLY.items() if vars(args).get(dest)]
     if given or args.base != "estimate":
@@ -148,7 +148,7 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
         text += (f"\ncalibrated robot written to {args.output}" if written else
                  f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")
     if args.report:
-        from kincal.report.observations import observation_report
+        from kincal.report import observation_report
 
         json_path = observation_report(fit, held, held_nominal, Path(args.report).name).write(args.report)
         text += f"\nreport written to {args.report} (numbers in {json_path})"
@@ -173,7 +173,7 @@ def _measured_points(obs):
 def _sessions(sets: list, same_frame: bool) -> list:
     """Each absolute file after the first in its own frame (the tracker or camera may have moved),
     named by its file; with ``same_frame`` all in the robot's base frame."""
-    from kincal.observe.sessions import InSession
+    from kincal.observe import InSession
 
     absolute = [k for k, o in enumerate(sets) if o.kind in ABSOLUTE]
     if same_frame or len(absolute) < 2:
@@ -205,8 +205,9 @@ CONTACTS_PER_PLANE = 30  # contacts per plane when planning
 def _planned(args, robot, true, kind: str, q, std: float, seed: int):
     """Observations of ``true`` of the type ``kind``: at the joints q (point, pose, markers), or at a
     planned plate (sockets) or table with a step (planes). With ``std`` = 0 they are exact."""
-    from kincal.observe.observations import PointObs
-    from kincal.simulate import observations as sim
+    from kincal.observe import PointObs
+    from kincal.simulate import plane_plan, simulate_markers, simulate_planes, simulate_poses, simulate_same_point, \
+        socket_plan
 
     fmt = format_of(args, kind)
     pos, rot = fmt.std()
@@ -215,16 +216,17 @@ def _planned(args, robot, true, kind: str, q, std: float, seed: int):
         return PointObs(m.q, m.rows, m.source, xyz=m.xyz, std=pos)
     if kind == "pose":
         noise_rot = rot if std else 0.0
-        return dataclasses.replace(sim.simulate_poses(true, q, np.eye(3), std, noise_rot, seed), std_pos=pos, std_rot=rot)
+        return dataclasses.replace(simulate_poses(true, q, np.eye(3), std, noise_rot, seed), std_pos=pos, std_rot=rot)
     if kind == "markers":
         tool = true.tool_point()
-        return dataclasses.replace(sim.simulate_markers(true, q, tool + np.array(PLAN_MARKERS), std, 0.0, seed), std=pos)
+        return dataclasses.replace(simulate_markers(true, q, tool + np.array(PLAN_MARKERS), std, 0.0, seed), std=pos)
     if kind == "same-point":
-        points, distances = sim.socket_plan(robot, seed=seed)
-        obs = sim.simulate_same_point(true, points, SOCKETS_PER_POINT, distances, std, seed=seed)
+        points, distances = socket_plan(robot, seed=seed)
+        obs = simulate_same_point(true, points, SOCKETS_PER_POINT, distances, std, seed=seed)
         return dataclasses.replace(obs, std=pos, group=np.array([lab.split("/")[0] for lab in obs.labels]))
-    planes = sim.plane_plan(robot, seed=seed)
-    return dataclasses.replace(sim.simulate_planes(true, planes, CONTACTS_PER_PLANE, known=tuple(planes), std=std, seed=seed), std=pos)
+    planes = plane_plan(robot, seed=seed)
+    obs = simulate_planes(true, planes, CONTACTS_PER_PLANE, known=tuple(planes), std=std, seed=seed)
+    return dataclasses.replace(obs, std=pos)
 
 
 def _flags_to_use(obs, length_unit: str) -> str:
@@ -241,7 +243,7 @@ def _flags_to_use(obs, length_unit: str) -> str:
 
 def cmd_simulate(args, kind: str, true, q) -> int:
     """simulate --type: write simulated observations of the (perturbed) robot in the type's columns."""
-    from kincal.observe.files import write_observations
+    from kincal.observe import write_observations
 
     robot = load_robot(args)
     obs = _planned(args, robot, true, kind, q, args.noise / 1e3, args.seed + 1)
@@ -254,8 +256,8 @@ def cmd_simulate(args, kind: str, true, q) -> int:
 
 def cmd_identifiability(args, kind: str) -> int:
     """identifiability --type: which parameters the planned measurements identify, before measuring."""
-    from kincal.identify.stacked import observation_identifiability
-    from kincal.observe.files import read_observations
+    from kincal.identify import observation_identifiability
+    from kincal.observe import read_observations
 
     robot = load_robot(args)
     if kind in ("same-point", "plane"):

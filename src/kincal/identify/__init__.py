@@ -6,11 +6,11 @@ from .residuals import RESIDUALS, CartesianResidual, JointResidual
 from .result import CalibrationResult, EvaluationStats
 from .robust import LOSSES
 from .select import ErrorModelChoice
-from .stacked import ObservationFit, fit_observations
+from .stacked import ObservationFit, fit_observations, observation_identifiability, stat_line
 from .sessions import AS_CALIBRATED, REGISTERED, calibrate_sessions, heldout_cause, refit_frame
 from .verdict import Reason, Thresholds, Verdict
 
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "CalibrationProblem", "build_problem",
            "RESIDUALS", "CartesianResidual", "JointResidual", "CalibrationResult", "EvaluationStats", "LOSSES",
            "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
-           "AS_CALIBRATED", "fit_observations", "ObservationFit"]
+           "AS_CALIBRATED", "fit_observations", "ObservationFit", "observation_identifiability", "stat_line"]

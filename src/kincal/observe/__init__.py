@@ -2,6 +2,9 @@
 same point with known distances, plane contacts), each a residual object with its noise σ and the
 set-up parameters it brings. The stacked fit is :func:`kincal.identify.stacked.fit_observations`."""
 from .constraints import PlaneObs, SamePointObs
+from .files import KINDS, ObservationFormat, describe, read_observations, write_observations
 from .observations import MarkersObs, Observation, PointObs, PoseObs
+from .sessions import InSession
 
-__all__ = ["Observation", "PointObs", "PoseObs", "MarkersObs", "SamePointObs", "PlaneObs"]
+__all__ = ["Observation", "PointObs", "PoseObs", "MarkersObs", "SamePointObs", "PlaneObs", "InSession", "KINDS",
+           "ObservationFormat", "read_observations", "write_observations", "describe"]

@@ -46,3 +46,10 @@ def perturb(
     values = robot.params.values.copy()
     values[idx] += rng.uniform(-1.0, 1.0, size=idx.size) * mag
     return robot.with_params(values)
+
+
+from .observations import (plane_plan, reach, simulate_markers, simulate_planes, simulate_poses,  # noqa: E402
+                           simulate_same_point, socket_plan)
+
+__all__ = ["simulate", "perturb", "simulate_poses", "simulate_markers", "simulate_same_point", "simulate_planes",
+           "reach", "socket_plan", "plane_plan", "DEFAULT_NOISE", "DEFAULT_LENGTH_ERROR", "DEFAULT_ANGLE_ERROR"]
