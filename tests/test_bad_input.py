@@ -630,7 +630,70 @@ def _urdf_calibrated(base):
     return text.replace(str(URDF), "arm.urdf")  # relative: the case runs in its own folder
 
 
-ALL = CSV + CSV_GOOD + YAML + YAML_GOOD + PATHS + ARGS + COMPENSATE + ROUND2
+def _observations(kind, **change):
+    """A UR5 file of the type (mm, deg) written by kincal; ``change``: cells to spoil (column -> f)."""
+    def build(base):
+        import dataclasses
+        from kincal.observe import ObservationFormat, write_observations
+        from kincal.simulate import simulate_poses
+        ur5 = kincal.load_robot("ur5")
+        obs = simulate_poses(ur5, ur5.sample_joints(30, seed=2), np.eye(3), 0.0, 0.0, 1)
+        if kind == "same-point":  # every pose labelled as one socket: not one point
+            from kincal.observe import SamePointObs
+            obs = SamePointObs(obs.q, obs.rows, "x", labels=np.array(["0", "1"] * 15))
+        path = Path(os.environ.get("TMPDIR", "/tmp")) / f"kincal-obs-{os.getpid()}.csv"
+        write_observations(path, dataclasses.replace(obs), ur5, ObservationFormat(kind, length_unit="mm",
+                                                                                 angle_unit="deg"))
+        lines = [line.split(",") for line in path.read_text().splitlines()]
+        path.unlink()
+        for col, f in change.items():
+            k = lines[0].index(col)
+            for row in lines[1:]:
+                row[k] = f(row[k])
+        return "\n".join(",".join(r) for r in lines) + "\n"
+    return build
+
+
+def ocase(name, kind, code, words, extra=(), content=None, cmd="calibrate"):
+    return pytest.param({"files": {"data.csv": content or _observations(kind)},
+                         "argv": [cmd, "ur5", "{d}/data.csv", *MMDEG, "--type", kind, *extra], "code": code,
+                         "words": words}, id=name)
+
+
+OBSERVE = [
+    ocase("pose-type-on-point-file", "pose", 1, ["--type pose needs orientation columns qw, qx, qy, qz"],
+          content=lambda b: (b / "good.csv").read_text()),
+    ocase("markers-type-on-point-file", "markers", 1, ["NAME.x, NAME.y, NAME.z per marker"],
+          content=lambda b: (b / "good.csv").read_text()),
+    ocase("same-point-type-on-point-file", "same-point", 1, ["a label column ('point', --label-col)"],
+          content=lambda b: (b / "good.csv").read_text()),
+    ocase("quaternion-not-unit", "pose", 1, ["row 2: the orientation is not a unit quaternion"],
+          content=_observations("pose", qw=lambda v: repr(2 * float(v)), qx=lambda v: repr(2 * float(v)),
+                                qy=lambda v: repr(2 * float(v)), qz=lambda v: repr(2 * float(v)))),
+    ocase("quaternion-x-first-declared-w-first", "pose", 1, ["the file looks like quat-xyzw"],
+          extra=["--rot-cols", "qx,qy,qz,qw"]),
+    ocase("pose-positions-in-m-declared-mm", "pose", 1, ["they look like m"],
+          content=_observations("pose", x=lambda v: repr(float(v) / 1e3), y=lambda v: repr(float(v) / 1e3),
+                                z=lambda v: repr(float(v) / 1e3))),
+    ocase("sockets-of-many-places-one-label", "same-point", 1, ["are not one point", "--group-col"],
+          extra=["--distance", "0,1,50"]),
+    ocase("sockets-without-distance", "same-point", 1, ["scale is unobservable"]),
+    ocase("distance-names-unknown-label", "same-point", 1, ["names label(s) 7"], extra=["--distance", "0,7,50"]),
+    ocase("known-plane-not-in-file", "plane", 1, ["known plane(s) tabel not in column 'plane'"],
+          content=lambda b: "plane,j1,j2,j3,j4,j5,j6\ntable,1,2,3,4,5,6\n", extra=["--plane", "tabel:0,0,1,0"]),
+    ocase("types-for-two-of-one-file", "pose,markers", 1, ["give one type for all 1 files or one per file"],
+          content=_observations("pose")),
+    ocase("std-rot-without-unit", "pose", 2, ["give a number and an angle unit"], extra=["--std-rot", "1"]),
+    ocase("error-model-with-poses", "pose", 1, ["--error-model is for position data"],
+          extra=["--error-model", "harmonics:1"]),
+    ocase("pose-output-over-input", "pose", 1, ["would overwrite"], extra=["-o", "{d}/data.csv"]),
+    ocase("empty-cell-in-pose-file", "pose", 1, ["row 2, column 'qw'", "finite number"],
+          content=_observations("pose", qw=lambda v: "")),
+    ocase("identifiability-bad-type", "socket", 1, ["--type: give one of point, pose"], cmd="identifiability",
+          content=_observations("pose")),
+]
+
+ALL = CSV + CSV_GOOD + YAML + YAML_GOOD + PATHS + ARGS + COMPENSATE + ROUND2 + OBSERVE
 
 
 @pytest.mark.parametrize("spec", ALL)

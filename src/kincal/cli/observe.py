@@ -35,7 +35,8 @@ def _quantity(s: str, table: dict, kind: str, example: str) -> float:
     text = s.strip()
     unit = next((u for u in sorted(table, key=len, reverse=True) if text.endswith(u)), None)
     if unit is None:
-        raise argparse.ArgumentTypeError(f"'{s}': give a number and a {kind} unit ({', '.join(table)}), e.g. {example}")
+        raise argparse.ArgumentTypeError(f"'{s}': give a number and {'an' if kind[0] in 'aeiou' else 'a'} {kind} unit "
+                                         f"({', '.join(table)}), e.g. {example}")
     try:
         v = float(text[:-len(unit)]) * table[unit]
     except ValueError:
