@@ -689,8 +689,11 @@ OBSERVE = [
     ocase("pose-output-over-input", "pose", 1, ["would overwrite"], extra=["-o", "{d}/data.csv"]),
     ocase("empty-cell-in-pose-file", "pose", 1, ["row 2, column 'qw'", "finite number"],
           content=_observations("pose", qw=lambda v: "")),
-    ocase("identifiability-bad-type", "socket", 1, ["--type: give one of point, pose"], cmd="identifiability",
-          content=_observations("pose")),
+    case("identifiability-bad-type", ["identifiability", "ur5", "--type", "socket"], 1,
+         ["--type: give one of point, pose"]),
+    case("identifiability-sockets-plan-without-labels", ["identifiability", "ur5", "--type", "same-point", "--data",
+                                                          "{base}/good.csv", *MMDEG], 1,
+         ["a label column ('point', --label-col)"]),
 ]
 
 ALL = CSV + CSV_GOOD + YAML + YAML_GOOD + PATHS + ARGS + COMPENSATE + ROUND2 + OBSERVE
