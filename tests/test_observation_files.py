@@ -293,3 +293,31 @@ def test_pose_positions_in_the_wrong_unit_are_named(capsys):
                                  str(ROOT / "data" / "positioner_6d" / "measurements.csv"), "--type", "pose",
                                  "--joint-cols", "q1,q2", "--length-unit", "mm"])
     assert code == 1 and "they look like m; use length unit 'm'" in err
+
+
+@pytest.mark.slow
+def test_evaluate_observation_files_with_the_kinematics_fixed(tmp_path, capsys):
+    """evaluate --type fits only the set-up parameters (and each file's frame): on the Panda's test
+    placements it gives the calibration's held-out figures exactly, with or without the distance."""
+    rows = list(csv.DictReader(open(SOCKETS / "samples.csv")))
+    keys = list(rows[0])
+    train = _write(tmp_path / "train.csv", keys, [[r[k] for k in keys] for r in rows if r["placement"] == "front_center"])
+    test = _write(tmp_path / "test.csv", keys, [[r[k] for k in keys] for r in rows if r["placement"] != "front_center"])
+    cols = ["--type", "same-point", "--joint-cols", ",".join(f"q{k}" for k in range(1, 8)), "--label-col", "socket",
+            "--group-col", "placement", "--length-unit", "mm"]
+    code, fit, _ = _run(capsys, ["calibrate", str(PANDA / "panda.urdf"), "--tip-link", "ball_link", train, "--test",
+                                 test, "--distance", "0,1,50", "-o", str(tmp_path / "cal.yaml"), *cols])
+    assert code == 0
+    code, ev, _ = _run(capsys, ["evaluate", str(tmp_path / "cal.yaml"), test, *cols])
+    got = ev["sessions"][0]
+    assert code == 0 and got["mean_abs_mm"] == pytest.approx(fit["held_out"][0]["mean_abs_mm"], abs=1e-9)
+    assert [g["mean_abs_mm"] for g in got["groups"]] == pytest.approx([g["mean_abs_mm"] for g in
+                                                                       fit["held_out"][0]["groups"]], abs=1e-9)
+    assert all(g["distance_error_mm"] is None for g in got["groups"])  # no distance given: none judged
+    positioner = [str(ROOT / "data" / "positioner_6d" / "positioner.yaml"),
+                  str(ROOT / "data" / "positioner_6d" / "measurements.csv"), "--type", "pose", "--joint-cols", "q1,q2"]
+    code, fitted, _ = _run(capsys, ["evaluate", *positioner])
+    code2, same, _ = _run(capsys, ["evaluate", *positioner, "--same-frame"])
+    # the frame fitted by least squares explains the nominal robot better than its declared frame
+    assert code == code2 == 0 and 1.0 < fitted["sessions"][0]["mean_mm"] < same["sessions"][0]["mean_mm"]
+    assert fitted["sessions"][0]["frame_fitted"] and not same["sessions"][0]["frame_fitted"]

@@ -112,6 +112,11 @@ def cmd_calibrate(args) -> int:
 
 def cmd_evaluate(args) -> int:
     check_paths([*robot_inputs(args.robot), *args.data], [args.plot])
+    kinds = observe.types_of(args)
+    if set(kinds) != {"point"}:
+        if len(set(kinds)) > 1 or args.plot:
+            raise ValueError("evaluate --type: one type for all files, and no --plot (position data only)")
+        return observe.cmd_evaluate(args, kinds[0])
     r = load_robot(args)
     sessions = [read(args, r, path) for path in args.data]
     unc = kincal.analysis.load_uncertainty(args.robot)
@@ -205,3 +210,4 @@ def register(cmd) -> None:
     s.add_argument("--rebase", action="store_true", help=argparse.SUPPRESS)  # the default now; accepted
     s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     add_data_flags(s)
+    observe.add_flags(s)

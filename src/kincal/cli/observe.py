@@ -115,7 +115,6 @@ def format_of(args, kind: str):
 def cmd_calibrate(args, kinds: list[str]) -> int:
     """calibrate with measurement types: fit, print per-type statistics, write the robot and report."""
     from kincal.identify import fit_observations, stat_line
-    from kincal.io import check_degrees, check_radians, check_spread
     from kincal.observe import read_observations
 
     given = [flag for dest, flag in POINT_ONLY.items() if vars(args).get(dest)]
@@ -127,12 +126,7 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
     robot = load_robot(args)
     sets = [read_observations(path, robot, format_of(args, k)) for path, k in zip(args.data, kinds)]
     tests = [read_observations(path, robot, format_of(args, kinds[0])) for path in args.test]
-    for obs in sets + tests:
-        check_degrees(obs.source, obs.q, robot, args.angle_unit)
-        check_radians(obs.source, obs.q, robot, args.angle_unit)
-        found = _measured_points(obs)
-        if found is not None:  # positions in the wrong unit would be fitted by a shrunk or blown-up robot
-            check_spread(obs.source, *found, robot, args.length_unit, args.angle_unit)
+    _check_units(sets + tests, robot, args)
     sets = _sessions(sets, args.same_frame)
     with progress("calibrating", args.json):
         fit = fit_observations(robot, sets, names=args.params or "auto", keep=args.keep or (), max_iter=args.max_iter)
@@ -160,6 +154,19 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
                                                               if r.level == "refused"))
         return EXIT_REFUSED if fit.converged else EXIT_NOT_CONVERGED
     return 0
+
+
+def _check_units(sets: list, robot, args) -> None:
+    """Joint values and positions in the declared units, before any fit (a wrong unit is fitted by a
+    shrunk or blown-up robot otherwise)."""
+    from kincal.io import check_degrees, check_radians, check_spread
+
+    for obs in sets:
+        check_degrees(obs.source, obs.q, robot, args.angle_unit)
+        check_radians(obs.source, obs.q, robot, args.angle_unit)
+        found = _measured_points(obs)
+        if found is not None:
+            check_spread(obs.source, *found, robot, args.length_unit, args.angle_unit)
 
 
 def _measured_points(obs):
@@ -272,4 +279,29 @@ def cmd_identifiability(args, kind: str) -> int:
         obs = _planned(args, robot, robot, kind, q, 0.0, args.seed)
     ident, gauge = observation_identifiability(robot, [obs], keep=args.keep or (), rank_tol=args.rank_tol)
     emit(args, {**ident.to_dict(), "gauge": list(gauge), "type": kind}, str(ident))
+    return 0
+
+
+def cmd_evaluate(args, kind: str) -> int:
+    """evaluate --type: a robot model on observation files, its kinematics fixed; only the set-up
+    parameters (and, unless --same-frame, each file's measurement frame) are fitted to each file."""
+    from kincal.identify import fit_observations, stat_line
+    from kincal.observe import read_observations
+
+    robot = load_robot(args)
+    payloads, texts = [], []
+    for path in args.data:
+        obs = read_observations(path, robot, format_of(args, kind))
+        _check_units([obs], robot, args)
+        frame = () if args.same_frame or kind not in ABSOLUTE else robot.base_params()
+        with progress("evaluating", args.json):
+            fit = fit_observations(robot, [obs], names=frame)
+        s = fit.stats[0]
+        payloads.append({"file": path, "frame_fitted": bool(frame), **s})
+        texts.append(f"{robot.name} on {path} ({kind}; kinematics fixed, "
+                     f"{'frame and ' if frame else ''}set-up parameters fitted): {stat_line(s)}")
+        texts += [f"  {g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
+                  f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
+                  for g in s.get("groups", [])]
+    emit(args, {"sessions": payloads}, "\n".join(texts))
     return 0

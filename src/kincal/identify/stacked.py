@@ -221,18 +221,20 @@ def _problem(robot: Robot, observations: Sequence, names, keep, rank_tol):
     parameters; the gauge left out) and the whitened residual at the start."""
     if not observations:
         raise MeasurementError("no observations given")
-    if not any(o.reference for o in observations):
+    wanted = robot.params.names if names == "auto" else tuple(names)
+    if wanted and not any(o.reference for o in observations):  # (a model only evaluated needs no scale)
         raise MeasurementError(
             "these data do not fix the length scale: sockets without a known distance, or plane contacts without two "
             "known parallel planes at different heights, are explained as well by a robot shrunk towards a point, so "
             "the scale is unobservable; give a known distance between two labelled points, a known step between two "
             "parallel planes, or some absolute measurements (a tracker, a camera)")
     gauge = _gauge(robot, observations)
-    robot = _registered(robot, observations, gauge)
+    if set(robot.base_params()) & set(wanted):  # a base that is not fitted stays where it is
+        robot = _registered(robot, observations, gauge)
     st = _stack(robot, [_session_start(robot, o) for o in observations])
     # the gauge freedoms go before the robot's parameters: what acts like them (joint 1's origin next to
     # an unseen base) is dropped as confounded with them, not fitted to the residuals' curvature alone
-    cand = list(gauge) + [n for n in (robot.params.names if names == "auto" else names) if n not in set(gauge)]
+    cand = list(gauge) + [n for n in wanted if n not in set(gauge)]
     r0, J0 = st.evaluate(robot.params.values, st.nuis0)
     all_names = list(robot.params.names) + list(st.nuis_names)
     cols = np.array([all_names.index(n) for n in cand + list(st.nuis_names)], dtype=int)
