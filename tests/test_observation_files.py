@@ -321,3 +321,32 @@ def test_evaluate_observation_files_with_the_kinematics_fixed(tmp_path, capsys):
     # the frame fitted by least squares explains the nominal robot better than its declared frame
     assert code == code2 == 0 and 1.0 < fitted["sessions"][0]["mean_mm"] < same["sessions"][0]["mean_mm"]
     assert fitted["sessions"][0]["frame_fitted"] and not same["sessions"][0]["frame_fitted"]
+
+
+def test_pose_design_blocks_and_exchange(ur5):
+    """Design for 6-D poses: each candidate's block is its own whitened pose residual Jacobian (checked
+    one pose at a time), the exchange's low-rank updates end at the criterion recomputed from scratch,
+    and the design comes within its certified bound."""
+    from kincal.design import observation_problem, relaxed_bound, select_poses
+    from kincal.observe import PoseObs
+    pool = ur5.sample_joints(300, seed=5)
+    p, _, Rf = kincal.observe.observations.flange_point(ur5, pool, ur5.params.values, ur5.tool_point())
+    planned = PoseObs(pool, np.arange(2, 302), "plan", xyz=p, R=Rf, std_pos=0.1e-3, std_rot=1e-3)
+    P = observation_problem(ur5, planned)
+    assert P.r == 6 and {"target.rx", "j5.a"} <= set(P.names) and "j1.theta" not in P.names
+    names = list(ur5.params.names) + ["target.rx", "target.ry", "target.rz"]
+    for i in (0, 123):
+        one = PoseObs(pool[i:i + 1], np.array([2]), "one", xyz=p[i:i + 1], R=Rf[i:i + 1], std_pos=0.1e-3, std_rot=1e-3)
+        one = one.prepare(ur5).with_anchors(planned.prepare(ur5).anchors())
+        _, Jr, Jn = one.evaluate(ur5, ur5.params.values, np.zeros(3))
+        J = np.hstack([Jr, Jn]) / one.sigma()[:, None]
+        assert np.allclose(P.J[i], J[:, [names.index(n) for n in P.names]] * P.scale, rtol=1e-9, atol=1e-9)
+    d = select_poses(ur5, pool, m=20, method="fedorov", problem=P, certify=False)
+    assert d.logdet == pytest.approx(np.linalg.slogdet(P.information(d.indices))[1], abs=1e-8)
+    bound = relaxed_bound(P, 20)
+    assert 0.95 < np.exp((d.logdet - bound.upper) / P.k) <= 1 + 1e-9
+    detmax = select_poses(ur5, pool, m=20, method="detmax", problem=P, certify=False)
+    assert detmax.logdet == pytest.approx(np.linalg.slogdet(P.information(detmax.indices))[1], abs=1e-8)
+    rng = np.random.default_rng(1)
+    random = [np.linalg.slogdet(P.information(rng.choice(300, 20, replace=False)))[1] for _ in range(20)]
+    assert min(d.logdet, detmax.logdet) > max(random)

@@ -8,6 +8,7 @@ import kincal.io
 import kincal.analysis
 import kincal.design
 
+from . import observe
 from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, load_robot, nonneg_int, positive_float,
                      positive_int, progress, robot_inputs)
 
@@ -28,14 +29,30 @@ def cmd_design(args) -> int:
                                           f"limits or coupled constraints (first: row {int(np.flatnonzero(bad)[0]) + 2})")
     else:
         pool = kincal.candidate_pool(r, args.pool, seed=args.seed)
+    problem = _observation_problem(args, r, pool)
     with progress("designing poses", args.json) as say:
         say(f"{args.method} on {len(pool)} candidates")
-        d = kincal.select_poses(r, pool, options)
+        d = kincal.select_poses(r, pool, options, problem=problem)
     kincal.io.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, args.angle_unit)
     payload = d.to_dict()
     payload["output"] = args.output
     emit(args, payload, f"{d}\nposes written to {args.output}")
     return 0
+
+
+def _observation_problem(args, robot, pool):
+    """With --type pose or markers: the design problem of that measurement (whitened blocks with the
+    set-up parameters), else None (tracker points, the default)."""
+    kinds = args.type or ["point"]
+    if kinds == ["point"]:
+        return None
+    if len(kinds) != 1 or kinds[0] not in ("pose", "markers"):
+        raise ValueError(f"design --type {','.join(kinds)}: poses are designed for point, pose or markers data; plan "
+                         f"sockets and planes with 'simulate --type' and 'identifiability --type'")
+    if args.method in ("ide", "detmax-ide") or args.params:
+        raise ValueError("design --type: use --method detmax or fedorov (the IDE leaves the pool) and no --params")
+    planned = observe.planned(args, robot, robot, kinds[0], pool, 0.0, args.seed)
+    return kincal.design.observation_problem(robot, planned)
 
 
 def cmd_npose(args) -> int:
@@ -83,6 +100,7 @@ def register(cmd) -> None:
                    help="index units: scaled (unit-invariant, default) or paper (raw Jacobian in mm and rad)")
     s.add_argument("--seed", type=int, default=0)
     add_data_flags(s)
+    observe.add_flags(s)  # --type pose|markers: design for that measurement
 
     s = cmd("npose", cmd_npose, "how many poses: Guo et al. 2024's eq. 18 minimum and where the criterion curve "
                                 "flattens")

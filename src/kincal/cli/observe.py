@@ -210,7 +210,7 @@ SOCKETS_PER_POINT = 15  # samples per socket when planning
 CONTACTS_PER_PLANE = 30  # contacts per plane when planning
 
 
-def _planned(args, robot, true, kind: str, q, std: float, seed: int):
+def planned(args, robot, true, kind: str, q, std: float, seed: int):
     """Observations of ``true`` of the type ``kind``: at the joints q (point, pose, markers), or at a
     planned plate (sockets) or table with a step (planes). With ``std`` = 0 they are exact."""
     from kincal.observe import PointObs
@@ -254,7 +254,7 @@ def cmd_simulate(args, kind: str, true, q) -> int:
     from kincal.observe import write_observations
 
     robot = load_robot(args)
-    obs = _planned(args, robot, true, kind, q, args.noise / 1e3, args.seed + 1)
+    obs = planned(args, robot, true, kind, q, args.noise / 1e3, args.seed + 1)
     write_observations(args.output, obs, robot, format_of(args, kind))
     use = _flags_to_use(obs, args.length_unit)
     emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
@@ -272,11 +272,11 @@ def cmd_identifiability(args, kind: str) -> int:
         if args.data:
             obs = read_observations(args.data, robot, format_of(args, kind))
         else:
-            obs = _planned(args, robot, robot, kind, None, 0.0, args.seed)
+            obs = planned(args, robot, robot, kind, None, 0.0, args.seed)
     else:
         q = (kincal.read_joints(args.data, robot, args.joint_cols, args.length_unit, args.angle_unit) if args.data
              else robot.sample_joints(args.poses, seed=args.seed))
-        obs = _planned(args, robot, robot, kind, q, 0.0, args.seed)
+        obs = planned(args, robot, robot, kind, q, 0.0, args.seed)
     ident, gauge = observation_identifiability(robot, [obs], keep=args.keep or (), rank_tol=args.rank_tol)
     emit(args, {**ident.to_dict(), "gauge": list(gauge), "type": kind}, str(ident))
     return 0

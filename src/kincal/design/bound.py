@@ -56,8 +56,8 @@ def _eval(P: DesignProblem, w: np.ndarray):
         L = np.linalg.cholesky(M)
     except np.linalg.LinAlgError:
         return -np.inf, None
-    Y = np.linalg.solve(L, P.rows.T)  # (k, 3N): L⁻¹Jᵀ
-    d = np.sum((Y * Y).reshape(P.k, P.N, 3), axis=(0, 2))
+    Y = np.linalg.solve(L, P.rows.T)  # (k, rN): L⁻¹Jᵀ
+    d = np.sum((Y * Y).reshape(P.k, P.N, P.r), axis=(0, 2))
     return 2.0 * float(np.sum(np.log(np.diag(L)))), d
 
 

@@ -1,15 +1,16 @@
 """Greedy start and modified Fedorov exchange with low-rank updates (no factorisation per candidate).
 
-Each pose contributes a 3-row block Jᵢ, so adding it changes M = Σ JᵀJ by a rank-3 term and an
-exchange (add i, remove j) by a rank-6 term. With Vᵢ = Jᵢ M⁻¹ Jᵢᵀ and Cᵢⱼ = Jᵢ M⁻¹ Jⱼᵀ (3×3):
+Each pose contributes an r-row block Jᵢ (3 position rows for a tracker, 6 for a full pose, 3 per
+marker), so adding it changes M = Σ JᵀJ by a rank-r term and an exchange (add i, remove j) by a
+rank-2r term. With Vᵢ = Jᵢ M⁻¹ Jᵢᵀ and Cᵢⱼ = Jᵢ M⁻¹ Jⱼᵀ (r×r; closed forms for r = 3):
 
 * add i:           det M'/det M = det(I + Vᵢ)
 * exchange j → i:  det M'/det M = det(I + Vᵢ) · det(I − Vⱼ + Cᵢⱼᵀ (I + Vᵢ)⁻¹ Cᵢⱼ)
 * I-criterion:     tr(M'⁻¹B) = tr(M⁻¹B) − tr(K⁻¹ U H Uᵀ), U = [Jᵢ; Jⱼ], H = M⁻¹BM⁻¹,
                    K = diag(I, −I) + U M⁻¹ Uᵀ   (Woodbury)
 
-For one design point j, all N candidates cost one (3N×k)·(k×3) product plus 3×3 algebra; M⁻¹ and
-every Vᵢ are then updated by the same Woodbury identity (rank 6). The exchange visits the design
+For one design point j, all N candidates cost one (rN×k)·(k×r) product plus r×r algebra; M⁻¹ and
+every Vᵢ are then updated by the same Woodbury identity (rank 2r). The exchange visits the design
 points in turn and swaps each with its best candidate while that improves the criterion (Cook and
 Nachtsheim's modified Fedorov algorithm). Candidates whose gains tie (:mod:`kincal.ties`) are taken
 in pool order, so the design does not depend on round-off.
@@ -46,6 +47,20 @@ def inv3(A: np.ndarray) -> np.ndarray:
     return adj / det3(A)
 
 
+def det_blocks(A: np.ndarray) -> np.ndarray:
+    """Determinants of (r, r, ...) matrices: closed form for r = 3 (a tracker's blocks), else LU."""
+    if A.shape[0] == 3:
+        return det3(A)
+    return np.linalg.det(np.moveaxis(A, (0, 1), (-2, -1)))
+
+
+def inv_blocks(A: np.ndarray) -> np.ndarray:
+    """Inverses of (r, r, ...) matrices, same layout."""
+    if A.shape[0] == 3:
+        return inv3(A)
+    return np.moveaxis(np.linalg.inv(np.moveaxis(A, (0, 1), (-2, -1))), (-2, -1), (0, 1))
+
+
 def mm(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
     """Products of (a, b, N) and (b, c, N) stacks, (a, c, N)."""
     return (X[:, :, None, :] * Y[None, :, :, :]).sum(axis=1)
@@ -56,7 +71,7 @@ def tr(X: np.ndarray) -> np.ndarray:
 
 
 class _State:
-    """M⁻¹ of the current design and Vᵢ = Jᵢ M⁻¹ Jᵢᵀ for every candidate, (3, 3, N)."""
+    """M⁻¹ of the current design and Vᵢ = Jᵢ M⁻¹ Jᵢᵀ for every candidate, (r, r, N)."""
 
     def __init__(self, P: DesignProblem, M: np.ndarray) -> None:
         self.P = P
@@ -66,26 +81,27 @@ class _State:
 
     def _set_V(self, V: np.ndarray) -> None:
         self.V = V
-        A = np.eye(3)[:, :, None] + V
-        self.A_det, self.A_inv = det3(A), inv3(A)  # reused by every exchange evaluation
+        A = np.eye(self.P.r)[:, :, None] + V
+        self.A_det, self.A_inv = det_blocks(A), inv_blocks(A)  # reused by every exchange evaluation
 
     def quad(self, A: np.ndarray) -> np.ndarray:
-        """Jᵢ A Jᵢᵀ for every candidate, (3, 3, N)."""
-        N, k = self.P.N, self.P.k
-        Y = (self.rows @ A).reshape(3, N, k)
-        Jr = self.rows.reshape(3, N, k)
+        """Jᵢ A Jᵢᵀ for every candidate, (r, r, N)."""
+        N, k, r = self.P.N, self.P.k, self.P.r
+        Y = (self.rows @ A).reshape(r, N, k)
+        Jr = self.rows.reshape(r, N, k)
         return np.einsum("ank,bnk->abn", Y, Jr)
 
     def cross(self, j: int) -> np.ndarray:
-        """Cᵢⱼ = Jᵢ M⁻¹ Jⱼᵀ for every candidate i, (3, 3, N)."""
-        return (self.rows @ (self.Minv @ self.P.J[j].T)).reshape(3, self.P.N, 3).transpose(0, 2, 1)
+        """Cᵢⱼ = Jᵢ M⁻¹ Jⱼᵀ for every candidate i, (r, r, N)."""
+        r = self.P.r
+        return (self.rows @ (self.Minv @ self.P.J[j].T)).reshape(r, self.P.N, r).transpose(0, 2, 1)
 
     def update(self, U: np.ndarray, sign: np.ndarray, G: np.ndarray) -> None:
-        """M += Uᵀ diag(sign) U, with G = J M⁻¹ Uᵀ for every candidate (3, r, N)."""
+        """M += Uᵀ diag(sign) U, with G = J M⁻¹ Uᵀ for every candidate (r, u, N)."""
         MU = self.Minv @ U.T
         Kinv = np.linalg.inv(np.diag(sign) + U @ MU)
         self.Minv = self.Minv - MU @ Kinv @ MU.T
-        GK = np.matmul(Kinv.T, G)  # (3, r, N)
+        GK = np.matmul(Kinv.T, G)  # (r, u, N)
         self._set_V(self.V - (GK[:, None] * G[None]).sum(axis=2))
 
 
@@ -100,7 +116,7 @@ def greedy(P: DesignProblem, m: int, ridge: float = 1e-8) -> list[int]:
         i = first_best(gain)
         chosen.append(i)
         taken[i] = True
-        st.update(P.J[i], np.ones(3), st.cross(i))
+        st.update(P.J[i], np.ones(P.r), st.cross(i))
     return chosen
 
 
@@ -114,18 +130,18 @@ def fedorov(P: DesignProblem, start: list[int], criterion: str = "D", B: np.ndar
     in_design = np.zeros(P.N, bool)
     in_design[design] = True
     st = _State(P, P.information(design))
-    eye, sign = np.eye(3)[:, :, None], np.array([1.0, 1, 1, -1, -1, -1])
+    eye, sign = np.eye(P.r)[:, :, None], np.repeat([1.0, -1.0], P.r)
     exchanges = passes = 0
     for passes in range(1, max_passes + 1):
         changed = False
         H = R = None
         for pos in range(len(design)):
             j = design[pos]
-            C = st.cross(j)  # (3,3,N): Cᵢⱼ
+            C = st.cross(j)  # (r,r,N): Cᵢⱼ
             Vj = st.V[:, :, j:j + 1]
             if criterion == "D":
                 E = (eye - Vj) + mm(tr(C), mm(st.A_inv, C))
-                score = st.A_det * det3(E) - 1.0  # relative gain in det M
+                score = st.A_det * det_blocks(E) - 1.0  # relative gain in det M
             else:
                 if H is None:
                     H = st.Minv @ B @ st.Minv
@@ -154,18 +170,19 @@ def _i_gain(st: _State, C, Vj, R, H, j: int, in_design: np.ndarray) -> np.ndarra
     P = st.P
     out = np.full(P.N, -np.inf)
     free = ~in_design
-    to_n = lambda X: np.moveaxis(X, 2, 0)[free]  # noqa: E731  (3,3,N) -> (n_free,3,3)
-    K = np.empty((int(free.sum()), 6, 6))
-    K[:, :3, :3] = to_n(np.eye(3)[:, :, None] + st.V)
-    K[:, :3, 3:] = to_n(C)
-    K[:, 3:, :3] = np.swapaxes(K[:, :3, 3:], 1, 2)
-    K[:, 3:, 3:] = Vj[:, :, 0] - np.eye(3)
-    HJj = (st.rows @ (H @ P.J[j].T)).reshape(3, P.N, 3).transpose(0, 2, 1)
+    to_n = lambda X: np.moveaxis(X, 2, 0)[free]  # noqa: E731  (r,r,N) -> (n_free,r,r)
+    r = P.r
+    K = np.empty((int(free.sum()), 2 * r, 2 * r))
+    K[:, :r, :r] = to_n(np.eye(r)[:, :, None] + st.V)
+    K[:, :r, r:] = to_n(C)
+    K[:, r:, :r] = np.swapaxes(K[:, :r, r:], 1, 2)
+    K[:, r:, r:] = Vj[:, :, 0] - np.eye(r)
+    HJj = (st.rows @ (H @ P.J[j].T)).reshape(r, P.N, r).transpose(0, 2, 1)
     Q = np.empty_like(K)
-    Q[:, :3, :3] = to_n(R)
-    Q[:, :3, 3:] = to_n(HJj)
-    Q[:, 3:, :3] = np.swapaxes(Q[:, :3, 3:], 1, 2)
-    Q[:, 3:, 3:] = R[:, :, j]
+    Q[:, :r, :r] = to_n(R)
+    Q[:, :r, r:] = to_n(HJj)
+    Q[:, r:, :r] = np.swapaxes(Q[:, :r, r:], 1, 2)
+    Q[:, r:, r:] = R[:, :, j]
     with np.errstate(all="ignore"):
         out[free] = np.trace(np.linalg.solve(K, Q), axis1=1, axis2=2)
     return out

@@ -6,15 +6,17 @@ from typing import Sequence
 
 import numpy as np
 
-from ..analysis.identifiability import free_parameters, identifiability
-from ..analysis.observability import column_scale
+from ..analysis.identifiability import RANK_TOL, free_parameters, identifiability, jacobian_identifiability
+from ..analysis.observability import column_scale, live_columns
 from ..errors import IdentifiabilityError
 from ..models.robot import Robot
 
 
 @dataclass(frozen=True, eq=False)
 class DesignProblem:
-    """Candidate poses q (N, n) and their scaled position Jacobians J (N, 3, k) for ``names``.
+    """Candidate poses q (N, n) and their scaled Jacobian blocks J (N, r, k) for ``names``: r = 3
+    position rows per pose for a tracker; other measurement types give other blocks (6 for a full
+    pose, whitened by its σ).
 
     ``scale`` (k,) multiplies the raw columns (see :func:`kincal.analysis.observability.column_scale`);
     it is fixed by the pool so every design of this problem is measured in the same units.
@@ -34,8 +36,13 @@ class DesignProblem:
         return self.J.shape[2]
 
     @property
+    def r(self) -> int:
+        """Rows per candidate."""
+        return self.J.shape[1]
+
+    @property
     def rows(self) -> np.ndarray:
-        """(3N, k) stacked blocks."""
+        """(rN, k) stacked blocks."""
         return self.J.reshape(-1, self.k)
 
     def information(self, idx: Sequence[int] | np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
@@ -43,7 +50,7 @@ class DesignProblem:
         Js = self.J[np.asarray(idx)].reshape(-1, self.k)
         if weights is None:
             return Js.T @ Js
-        return (Js * np.repeat(np.asarray(weights, float), 3)[:, None]).T @ Js
+        return (Js * np.repeat(np.asarray(weights, float), self.r)[:, None]).T @ Js
 
     def logdet(self, idx: Sequence[int] | np.ndarray) -> float:
         """log det M of a design (−inf if singular)."""
@@ -51,7 +58,7 @@ class DesignProblem:
         return float(val) if sign > 0 else -np.inf
 
     def stacked(self, idx: Sequence[int] | np.ndarray) -> np.ndarray:
-        """Stacked scaled Jacobian of a design, (3m, k)."""
+        """Stacked scaled Jacobian of a design, (rm, k)."""
         return self.J[np.asarray(idx)].reshape(-1, self.k)
 
 
@@ -95,3 +102,32 @@ def design_problem(robot: Robot, pool_q: np.ndarray, names: Sequence[str] | None
     else:
         scale = column_scale(J.reshape(-1, len(names)))
     return DesignProblem(pool_q, np.ascontiguousarray(J * scale), tuple(names), scale)
+
+
+def observation_problem(robot: Robot, planned, names: Sequence[str] | None = None,
+                        rank_tol: float = RANK_TOL) -> DesignProblem:
+    """The design problem of a planned observation set (``kincal.observe``; one sample per candidate
+    pose, values as the nominal robot predicts them): each candidate's block holds its whitened
+    residual rows (6 for a full pose, 3 per marker), its columns the robot's and the set-up
+    parameters the pool identifies (set-up parameters first, as the fit chooses them) or ``names``."""
+    obs = planned.prepare(robot)
+    nuis_names, start, _ = obs.nuisance(robot)
+    _, Jr, Jn = obs.evaluate(robot, robot.params.values, start)
+    raw = np.hstack([Jr, Jn])
+    J = raw / obs.sigma()[:, None]
+    rows = obs.sample_rows()
+    counts = np.bincount(rows[rows >= 0], minlength=len(obs))
+    if (rows < 0).any() or len(set(counts.tolist())) != 1:
+        raise IdentifiabilityError(f"{obs.kind} data are not one block per pose (known distances, markers not "
+                                   f"seen): design poses for tracker, pose or marker data")
+    blocks = J[np.argsort(rows, kind="stable")].reshape(len(obs), counts[0], -1)
+    all_names = list(robot.params.names) + list(nuis_names)
+    if names is None:
+        ident = jacobian_identifiability(J, all_names, [list(nuis_names), list(robot.base_params()),
+                                                        list(robot.preferred_params())], robot.name, len(obs),
+                                         rank_tol, live_columns(raw))
+        names = ident.identifiable
+    cols = [all_names.index(n) for n in names]
+    Jb = blocks[:, :, cols]
+    scale = column_scale(Jb.reshape(-1, len(cols)))
+    return DesignProblem(obs.q, np.ascontiguousarray(Jb * scale), tuple(names), scale)

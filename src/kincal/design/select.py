@@ -12,7 +12,7 @@ from ..models.robot import Robot
 from ..ties import first_best
 from .bound import Bound, relaxed_bound
 from .criteria import score
-from .exchange import _State, det3, fedorov, greedy
+from .exchange import _State, det_blocks, fedorov, greedy
 from .ide import ide
 from .options import DesignOptions
 from .problem import DesignProblem, design_problem
@@ -63,7 +63,7 @@ class Design:
 
 
 def _score_blocks(J: np.ndarray, criterion: str, B) -> float:
-    """Criterion of the design whose scaled Jacobian blocks are J (m, 3, k)."""
+    """Criterion of the design whose scaled Jacobian blocks are J (m, r, k)."""
     return float(score(np.einsum("nak,nal->kl", J, J), J.shape[0], criterion, B))
 
 
@@ -88,10 +88,10 @@ def detmax(P: DesignProblem, m: int, criterion: str, rng: np.random.Generator, B
         design.append(a)
         in_design[a] = True
         if st is not None:
-            st.update(P.J[a], np.ones(3), st.cross(a))
+            st.update(P.J[a], np.ones(P.r), st.cross(a))
             idx = np.asarray(design)
             # removal: det M'/det M = det(I − Vⱼ)
-            r_pos = first_best(det3(np.eye(3)[:, :, None] - st.V[:, :, idx]))
+            r_pos = first_best(det_blocks(np.eye(P.r)[:, :, None] - st.V[:, :, idx]))
         else:
             M = P.information(design)
             Jd = P.J[np.asarray(design)]
@@ -99,7 +99,7 @@ def detmax(P: DesignProblem, m: int, criterion: str, rng: np.random.Generator, B
         r = design.pop(r_pos)
         in_design[r] = False
         if st is not None:
-            st.update(P.J[r], -np.ones(3), st.cross(r))
+            st.update(P.J[r], -np.ones(P.r), st.cross(r))
         if r == a:
             break
     return design
@@ -129,9 +129,9 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
     pool_q = _checked_pool(robot, pool_q, o, problem, validation_q)
     t0 = time.perf_counter()
     P = problem or design_problem(robot, pool_q, o.names, o.base, o.units)
-    if 3 * o.m < P.k:
-        raise IdentifiabilityError(f"{o.m} poses give {3 * o.m} equations for {P.k} parameters; choose "
-                                   f"m ≥ {-(-P.k // 3)}")
+    if P.r * o.m < P.k:
+        raise IdentifiabilityError(f"{o.m} poses give {P.r * o.m} equations for {P.k} parameters; choose "
+                                   f"m ≥ {-(-P.k // P.r)}")
     B = _region_information(robot, P, validation_q) if o.criterion == "I" else None
     rng = np.random.default_rng(o.seed)
     idx, history = None, ()

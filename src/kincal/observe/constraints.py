@@ -90,6 +90,9 @@ class SamePointObs(Observation):
     def gauge_params(self, robot: Robot) -> tuple[str, ...]:
         return robot.base_params()
 
+    def sample_rows(self) -> np.ndarray:
+        return np.concatenate([np.tile(np.arange(len(self)), 3), -np.ones(len(self.distances), int)])
+
     def sigma(self) -> np.ndarray:
         return np.concatenate([np.full(3 * len(self), self.std), np.full(len(self.distances), self.std_distance)])
 
@@ -175,6 +178,9 @@ class PlaneObs(Observation):
         names = tuple(f"plane[{lab}].{a}" for lab in self.unknown() for a in "abc")
         vals = np.concatenate([[0.0, 0.0, self.start[lab][1]] for lab in self.unknown()]) if self.unknown() else np.zeros(0)
         return names, vals, ("angle", "angle", "length") * len(self.unknown())
+
+    def sample_rows(self) -> np.ndarray:
+        return np.arange(len(self))
 
     def gauge_params(self, robot: Robot) -> tuple[str, ...]:
         """Unknown planes only: a rigid motion of robot and planes together is unseen. A known plane

@@ -115,6 +115,11 @@ class Observation:
         the fit; None for data that see no absolute position."""
         return None
 
+    def sample_rows(self) -> np.ndarray:
+        """The sample each residual row belongs to, (M,); -1 for rows of no one sample (a known
+        distance): what a pose design needs to group the rows into per-candidate blocks."""
+        raise NotImplementedError(f"{self.kind} data cannot be grouped by sample")
+
     def anchors(self) -> dict:
         """Start values its set-up parameters are measured from, which every set sharing those
         parameters must share (a pose target's start rotation); none by default."""
@@ -136,6 +141,9 @@ class PointObs(Observation):
 
     def positions(self):
         return self.q, self.xyz
+
+    def sample_rows(self) -> np.ndarray:
+        return np.tile(np.arange(len(self)), 3)
 
     def sigma(self) -> np.ndarray:
         return np.broadcast_to(np.asarray(self.std, float), self.xyz.shape).T.ravel()
@@ -178,6 +186,9 @@ class PoseObs(Observation):
 
     def anchors(self) -> dict:
         return {"target_rotation": self.target_rotation}
+
+    def sample_rows(self) -> np.ndarray:
+        return np.tile(np.arange(len(self)), 6)
 
     def with_anchors(self, anchors: dict) -> "PoseObs":
         return dataclasses.replace(self, target_rotation=anchors.get("target_rotation", self.target_rotation))
@@ -250,6 +261,10 @@ class MarkersObs(Observation):
 
     def sigma(self) -> np.ndarray:
         return np.full(3 * int(self.seen().sum()), float(self.std))
+
+    def sample_rows(self) -> np.ndarray:
+        seen = self.seen()
+        return np.concatenate([np.tile(np.flatnonzero(seen[:, m]), 3) for m in range(seen.shape[1])])
 
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
         seen, k = self.seen(), self.xyz.shape[1]

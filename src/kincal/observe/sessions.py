@@ -75,6 +75,9 @@ class InSession(Observation):
     def sigma(self) -> np.ndarray:
         return self.inner.sigma()
 
+    def sample_rows(self) -> np.ndarray:
+        return self.inner.sample_rows()
+
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
         idx, k = self._base(robot), len(robot.base_params())
         r, Jr, Jn = self.inner.evaluate(robot, self._values(robot, values, nuis[-k:]), nuis[:-k])
