@@ -25,6 +25,7 @@ from ..analysis.uncertainty import ModelUncertainty
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..observe.sessions import InSession
+from ..ties import first_best
 from ..units import MM, MRAD
 from .covariance import parameter_statistics
 from .lm import levenberg_marquardt
@@ -243,9 +244,9 @@ def _problem(robot: Robot, observations: Sequence, names, keep, rank_tol):
                                      [list(keep), list(st.nuis_names), list(gauge), list(robot.base_params()),
                                       list(robot.preferred_params())], robot.name,
                                      sum(len(o) for o in st.sets), rank_tol, live)
-    free = tuple(n for n in ident.identifiable if n not in set(gauge))
-    notes = (f"not seen by these data (gauge freedoms, kept at their values): {', '.join(gauge)}",) if gauge else ()
     unseen = set(gauge)
+    free = tuple(n for n in ident.identifiable if n not in unseen)
+    notes = (f"not seen by these data (gauge freedoms, kept at their values): {', '.join(gauge)}",) if gauge else ()
     ident = dataclasses.replace(ident, measured=" + ".join(dict.fromkeys(o.kind for o in st.sets)), identifiable=free,
                                 candidates=tuple(n for n in ident.candidates if n not in unseen), rank=len(free),
                                 dropped=tuple(n for n in ident.dropped if n not in unseen),
@@ -268,10 +269,10 @@ def _weakest(robot: Robot, free: list[str], fit) -> tuple[str, float] | None:
     sd = parameter_statistics(fit.jacobian, fit.residual, free, free)[0]
     th = Thresholds()
     kinds = dict(zip(robot.params.names, robot.params.kinds))
-    ratio = [(s / (th.length_suspect if kinds[n] == "length" else th.angle_suspect), n, float(s))
-             for n, s in zip(free, sd) if n in kinds and n not in robot.base_params()]
-    over = [r for r in ratio if r[0] > 1.0]
-    return None if not over else max(over)[1:]
+    over = [(float(s / (th.length_suspect if kinds[n] == "length" else th.angle_suspect)), n, float(s))
+            for n, s in zip(free, sd) if n in kinds and n not in robot.base_params()]
+    over = [r for r in over if r[0] > 1.0]
+    return None if not over else over[first_best([r[0] for r in over])][1:]
 
 
 def _registered(robot: Robot, sets, gauge) -> Robot:
