@@ -131,11 +131,13 @@ def test_positioner_through_the_command_line(tmp_path, capsys):
     odd = _write(tmp_path / "odd.csv", keys, [[r[k] for k in keys] for r in rows[1::2]])
     base = ["calibrate", str(ROOT / "data" / "positioner_6d" / "positioner.yaml"), even, "--test", odd, "--type", "pose",
             "--joint-cols", "q1,q2", "--std-pos", "0.1mm"]
-    for std, limits in (("1mrad", (0.50, 0.90)), ("0.1mrad", (0.50, 0.90))):
-        code, out, _ = _run(capsys, base + ["--std-rot", std])
+    for std in ("1mrad", "0.1mrad"):  # the same camera: judged in the training frame and target
+        code, out, _ = _run(capsys, base + ["--std-rot", std, "--same-frame"])
         held = out["held_out"][0]
-        assert code == 0 and held["mean_mm"] <= limits[0] and held["mean_mrad"] <= limits[1]
+        assert code == 0 and held["mean_mm"] <= 0.50 and held["mean_mrad"] <= 0.90
         assert out["held_out_nominal"][0]["mean_mm"] > 10 * held["mean_mm"]
+    code, out, _ = _run(capsys, base + ["--std-rot", "1mrad"])  # by default the test file's frame is fitted
+    assert code == 0 and out["held_out"][0]["mean_mm"] <= held["mean_mm"] + 1e-9
     code, _, err = _run(capsys, base + ["--rot-cols", "qx,qy,qz,qw"])  # the columns given in the other order
     assert code == 1 and "the file looks like quat-xyzw" in err
 

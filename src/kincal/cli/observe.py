@@ -11,7 +11,9 @@ import numpy as np
 import kincal
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS, MRAD
 
-from .common import EXIT_NOT_CONVERGED, EXIT_REFUSED, check_paths, csv_list, emit, err, load_robot, progress
+from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, check_paths, csv_list, emit, err, load_robot, progress,
+                     robot_inputs)
+from .report import json_path
 
 TYPES = ("point", "pose", "markers", "same-point", "plane")
 # options of the position-only calibration that the observation fit does not have (yet): refused by name
@@ -121,8 +123,8 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
     if given or args.base != "estimate":
         raise ValueError(f"{(given or ['--base fixed'])[0]} is for position data (--type point) only; leave it out "
                          f"with --type {', '.join(sorted(set(kinds) - {'point'}))}")
-    reports = [args.report, str(Path(args.report).with_suffix(".json"))] if args.report else []
-    check_paths([args.robot, *args.data, *args.test], [args.output, *reports])
+    reports = [args.report, json_path(args.report)] if args.report else []
+    check_paths([*robot_inputs(args.robot), *args.data, *args.test], [args.output, *reports])
     robot = load_robot(args)
     sets = [read_observations(path, robot, format_of(args, k)) for path, k in zip(args.data, kinds)]
     tests = [read_observations(path, robot, format_of(args, kinds[0])) for path in args.test]
@@ -130,8 +132,8 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
     sets = _sessions(sets, args.same_frame)
     with progress("calibrating", args.json):
         fit = fit_observations(robot, sets, names=args.params or "auto", keep=args.keep or (), max_iter=args.max_iter)
-    held = [fit.held_out(t) for t in tests]
-    held_nominal = [fit.held_out(t, fit.nominal) for t in tests]
+    held = [_held_out(fit, t, fit.robot, args.same_frame) for t in tests]
+    held_nominal = [_held_out(fit, t, fit.nominal, args.same_frame) for t in tests]
     refused = fit.verdict.status == "refused"
     written = bool(args.output) and (not refused or args.force)
     if written:
@@ -145,8 +147,8 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
     if args.report:
         from kincal.report import observation_report
 
-        json_path = observation_report(fit, held, held_nominal, Path(args.report).name).write(args.report)
-        text += f"\nreport written to {args.report} (numbers in {json_path})"
+        numbers = observation_report(fit, held, held_nominal, Path(args.report).name).write(args.report)
+        text += f"\nreport written to {args.report} (numbers in {numbers})"
     emit(args, {**fit.to_dict(), "held_out": held, "held_out_nominal": held_nominal,
                 "output": args.output if written else None}, text)
     if refused:
@@ -154,6 +156,18 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
                                                               if r.level == "refused"))
         return EXIT_REFUSED if fit.converged else EXIT_NOT_CONVERGED
     return 0
+
+
+def _held_out(fit, obs, robot, same_frame: bool) -> dict:
+    """A held-out file's statistics under ``robot``: in the training frame with the training set-up
+    parameters (``same_frame``; sockets and planes need no frame), else with its own frame fitted
+    (the tracker or camera may have moved), the kinematics fixed."""
+    from kincal.identify import fit_observations
+
+    if same_frame or obs.kind not in ABSOLUTE:
+        return fit.held_out(obs, robot)
+    anchors = {k: v for o in fit.observations for k, v in o.anchors().items()}
+    return fit_observations(robot, [obs.with_anchors(anchors)], names=robot.base_params()).stats[0]
 
 
 def _check_units(sets: list, robot, args) -> None:
@@ -202,7 +216,6 @@ def _groups(train, held) -> list[str]:
                 out.append(f"  {which} {g['group']}: {g['samples']} samples, mean |p − point| "
                            f"{g['mean_abs_mm']:.4f} mm, distance error {d}")
     return out
-
 
 
 PLAN_MARKERS = ((0.04, 0.0, 0.0), (0.0, 0.04, 0.0), (-0.03, -0.03, 0.02))  # m around the tool point: a small nest
