@@ -160,8 +160,8 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
 
 def _held_out(fit, obs, robot, same_frame: bool) -> dict:
     """A held-out file's statistics under ``robot``: in the training frame with the training set-up
-    parameters (``same_frame``; sockets and planes need no frame), else with its own frame fitted
-    (the tracker or camera may have moved), the kinematics fixed."""
+    parameters (``same_frame``; sockets and planes need no frame), else with its own frame and set-up
+    parameters (a target's rotation) fitted (the tracker or camera may have moved), the kinematics fixed."""
     from kincal.identify import fit_observations
 
     if same_frame or obs.kind not in ABSOLUTE:
