@@ -51,8 +51,8 @@ def simulate_markers(true: Robot, q: np.ndarray, markers: np.ndarray, std: float
 
 def reach(true: Robot, targets: np.ndarray, seed: int = 0, max_rounds: int = 20, strict: bool = True) -> np.ndarray:
     """(N, n) joint values within the limits that put ``true``'s tool point at ``targets`` (N, 3) m,
-    each from a random start (damped least squares); a target that cannot be reached is a
-    ModelError (``strict``) or a row of NaN."""
+    each from a random start (damped least squares, each step projected onto the limits); a target
+    that cannot be reached is a ModelError (``strict``) or a row of NaN."""
     rng = np.random.default_rng(seed)
     targets = np.asarray(targets, float)
     q = np.empty((len(targets), true.n_joints))
@@ -67,6 +67,7 @@ def reach(true: Robot, targets: np.ndarray, seed: int = 0, max_rounds: int = 20,
             e = targets[todo] - p
             JJt = J @ J.transpose(0, 2, 1) + 1e-6 * np.eye(3)
             x = x + np.einsum("nji,nj->ni", J, np.linalg.solve(JJt, e[..., None])[..., 0])
+            x = np.clip(x, true.lower, true.upper)  # projected steps: a redundant arm slides along its limits
         ok = (np.linalg.norm(targets[todo] - true.forward(x), axis=1) < IK_TOL) & true.within_limits(x)
         q[todo[ok]] = x[ok]
         todo = todo[~ok]
@@ -114,20 +115,27 @@ def simulate_planes(true: Robot, planes: dict, per_plane: int, known=(), std: fl
 
 def socket_plan(robot: Robot, placements: int = 4, spacing: float = 0.05, seed: int = 0) -> tuple[dict, tuple]:
     """Where to put a two-socket plate: ``placements`` places within comfortable reach (40–70 % of
-    the farthest horizontal reach over random poses, spread around the base), each with sockets
+    the farthest horizontal reach over random poses, and the middle 30 % of their heights, spread
+    around the base, both sockets reached by inverse kinematics), each with sockets
     0 and 1 ``spacing`` m apart across the radial direction. Returns (points, distances) for
     :func:`simulate_same_point` (labels "<placement>/<socket>")."""
     p = robot.forward(robot.sample_joints(2000, seed=seed))
     r = np.linalg.norm(p[:, :2], axis=1)
-    ok = np.flatnonzero((r > 0.4 * r.max()) & (r < 0.7 * r.max()))
+    lo, hi = np.percentile(p[:, 2], [35, 65])  # and heights in the middle: away from the edge of reach
+    ok = np.flatnonzero((r > 0.4 * r.max()) & (r < 0.7 * r.max()) & (p[:, 2] > lo) & (p[:, 2] < hi))
     if len(ok) < placements:
         raise ModelError(f"{robot.name}: too few poses within comfortable reach to place {placements} plates")
     order = ok[np.argsort(np.arctan2(p[ok, 1], p[ok, 0]), kind="stable")]
-    chosen = order[np.linspace(0, len(order) - 1, placements).round().astype(int)]
     points, distances = {}, []
-    for k, i in enumerate(chosen):
-        u = np.array([-p[i, 1], p[i, 0], 0.0]) / max(r[i], 1e-9)
-        points[f"place{k + 1}/0"], points[f"place{k + 1}/1"] = p[i], p[i] + spacing * u
+    for k, start in enumerate(np.linspace(0, len(order), placements, endpoint=False).astype(int)):
+        for i in np.roll(order, -start)[:50]:  # the first candidate from there whose two sockets are reached
+            u = np.array([-p[i, 1], p[i, 0], 0.0]) / max(r[i], 1e-9)
+            pair = np.array([p[i], p[i] + spacing * u])
+            if np.isfinite(reach(robot, pair, seed=seed, max_rounds=5, strict=False)).all():
+                break
+        else:
+            raise ModelError(f"{robot.name}: no place for a plate near candidate {start} within reach")
+        points[f"place{k + 1}/0"], points[f"place{k + 1}/1"] = pair
         distances.append((f"place{k + 1}/0", f"place{k + 1}/1", spacing))
     return points, tuple(distances)
 
