@@ -14,6 +14,7 @@ from kincal.cli import main
 from kincal.cli.observe import PLAN_MARKERS
 from kincal.observe.files import ObservationFormat, read_observations
 from kincal.simulate.observations import simulate_markers, simulate_poses
+import kincal.identify.registration  # noqa: F401  (kabsch, an independent rigid fit)
 
 from test_observations import MARKERS, PANDA, ROOT, SOCKETS, TOOL
 
@@ -352,3 +353,37 @@ def test_pose_design_blocks_and_exchange(ur5):
     rng = np.random.default_rng(1)
     random = [np.linalg.slogdet(P.information(rng.choice(300, 20, replace=False)))[1] for _ in range(20)]
     assert min(d.logdet, detmax.logdet) > max(random)
+
+
+def test_per_sample_sigma_from_columns(tmp_path, ur5):
+    """std_pos (the file's length unit) and std_rot_mrad columns give each sample its own σ; noisier
+    samples then weigh less, and the whitened residual is at 1 only with the right σ."""
+    rng = np.random.default_rng(3)
+    true = kincal.perturb(ur5, seed=6)
+    q = ur5.sample_joints(120, seed=6)
+    sp, sr = np.where(np.arange(120) % 2, 0.2e-3, 0.02e-3), np.where(np.arange(120) % 3, 0.3e-3, 2e-3)
+    sim = simulate_poses(true, q, TARGET, 0.0, 0.0, 1)
+    noisy = Rotation.from_rotvec(sr[:, None] * rng.standard_normal((120, 3))).as_matrix() @ sim.R
+    xyz = sim.xyz + sp[:, None] * rng.standard_normal((120, 3))
+    rows = np.column_stack([q, xyz * 1e3, _encode(noisy, "quat-wxyz"), sp * 1e3, sr * 1e3])
+    path = _write(tmp_path / "poses.csv", JOINTS + ["x", "y", "z", "qw", "qx", "qy", "qz", "std_pos", "std_rot_mrad"],
+                  rows)
+    obs = read_observations(path, ur5, ObservationFormat("pose", tuple(JOINTS), "mm"))
+    assert np.allclose(obs.sigma(), np.concatenate([sp, sp, sp, sr, sr, sr]), rtol=1e-12)
+    fit = kincal.identify.fit_observations(ur5, [obs])
+    stated = kincal.identify.fit_observations(ur5, [read_observations(path, ur5, ObservationFormat(
+        "pose", tuple(JOINTS), "mm", std_pos=0.02e-3, std_rot=0.3e-3))])
+    assert 0.85 < fit.whitened_rms < 1.15 and stated.whitened_rms > 2
+    qv = ur5.sample_joints(200, seed=8)
+
+    def error(robot):
+        p, t = robot.forward(qv), true.forward(qv)
+        R, tt = kincal.identify.registration.kabsch(p, t)
+        return np.sqrt(np.mean(np.sum((p @ R.T + tt - t) ** 2, axis=1)))
+    assert error(fit.robot) < error(stated.robot)  # the right weights give the better robot
+    bad = rows.copy()
+    bad[4, -2] = 0.0
+    path = _write(tmp_path / "bad.csv", JOINTS + ["x", "y", "z", "qw", "qx", "qy", "qz", "std_pos", "std_rot_mrad"],
+                  bad)
+    with pytest.raises(kincal.MeasurementError, match="row 6, column 'std_pos': a σ must be > 0"):
+        read_observations(path, ur5, ObservationFormat("pose", tuple(JOINTS), "mm"))

@@ -39,7 +39,7 @@ class SamePointObs(Observation):
     labels: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=str))
     distances: tuple[tuple[str, str, float], ...] = ()
     group: np.ndarray | None = None
-    std: float = 0.05e-3  # m: how well the ball seats, per axis
+    std: np.ndarray | float = 0.05e-3  # m: how well the ball seats, per axis (one number or per sample)
     std_distance: float = 0.1e-3  # m: how well the distances are known
     kind = "same-point"
 
@@ -94,7 +94,8 @@ class SamePointObs(Observation):
         return np.concatenate([np.tile(np.arange(len(self)), 3), -np.ones(len(self.distances), int)])
 
     def sigma(self) -> np.ndarray:
-        return np.concatenate([np.full(3 * len(self), self.std), np.full(len(self.distances), self.std_distance)])
+        per_sample = np.broadcast_to(np.asarray(self.std, float), (len(self),))  # one number or (N,)
+        return np.concatenate([np.tile(per_sample, 3), np.full(len(self.distances), self.std_distance)])
 
     def _index(self) -> tuple[np.ndarray, dict[str, int]]:
         pos = {lab: k for k, lab in enumerate(self.points())}
@@ -147,7 +148,7 @@ class PlaneObs(Observation):
 
     labels: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=str))
     known: dict = field(default_factory=dict)  # label -> (n (3,), c)
-    std: float = 0.05e-3
+    std: np.ndarray | float = 0.05e-3  # m, one number or per sample
     kind = "plane"
 
     @property
@@ -188,7 +189,7 @@ class PlaneObs(Observation):
         return () if self.known else robot.base_params()
 
     def sigma(self) -> np.ndarray:
-        return np.full(len(self), self.std)
+        return np.array(np.broadcast_to(np.asarray(self.std, float), (len(self),)))
 
     def planes(self, nuis: np.ndarray) -> dict:
         """label -> (n, c, dn/da, dn/db) at the nuisance values (known planes: no derivatives)."""

@@ -13,8 +13,9 @@ Every type has the robot's joint columns (or ``joint_cols``) in ``angle_unit`` /
 * ``plane``: a label column (``label_col``, default ``plane``); ``planes`` gives the known ones
   (unit normal and offset, n·p = c in the robot's base frame); the others are fitted.
 
-σ are stated (``std_pos`` m, ``std_rot`` rad) or, for points, read per sample from
-measurement_std_x/y/z. A file whose columns do not fit the declared type is refused in one line.
+σ are stated (``std_pos`` m, ``std_rot`` rad: a statement wins), or read per sample from the
+columns ``std_pos`` (the file's length unit) and, for poses, ``std_rot_mrad`` (mrad) — points:
+measurement_std_x/y/z —, or the type's default. A file whose columns do not fit the declared type is refused in one line.
 """
 from __future__ import annotations
 
@@ -83,6 +84,27 @@ class ObservationFormat:
         return (self.std_pos or pos), (self.std_rot or rot)
 
 
+STD_POS, STD_ROT = "std_pos", "std_rot_mrad"  # per-sample σ columns: the file's length unit, and mrad
+
+
+def _stds(t: "_Table", fmt: ObservationFormat, lf: float):
+    """The σ (m, rad): as stated (``fmt.std_pos``, ``fmt.std_rot``: a statement wins), else per sample
+    from the ``std_pos`` (length unit) and ``std_rot_mrad`` columns when the file has them, else the
+    type's default."""
+    pos, rot = fmt.std()
+    out = []
+    for col, factor, value, stated in ((STD_POS, lf, pos, fmt.std_pos), (STD_ROT, 1e-3, rot, fmt.std_rot)):
+        if stated is not None or col not in t.header:
+            out.append(value)
+            continue
+        v = t.numbers([col])[:, 0]
+        if (v <= 0).any():
+            raise MeasurementError(f"{t.path}: row {t.rows[np.flatnonzero(v <= 0)[0]]}, column '{col}': a σ must "
+                                   f"be > 0")
+        out.append(v * factor)
+    return out[0], out[1]
+
+
 def read_observations(path: str, robot: Robot, fmt: ObservationFormat = ObservationFormat()) -> Observation:
     """One observation set from ``path`` as ``fmt`` declares it (see the module docstring)."""
     path = str(path)
@@ -146,7 +168,8 @@ class _Table:
 
 def _point(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PointObs:
     t.need(fmt.xyz_cols, fmt, "the position columns (--xyz-cols)")
-    std = t.numbers(POINT_STD) * lf if all(c in t.header for c in POINT_STD) else fmt.std()[0]
+    columns = fmt.std_pos is None and all(c in t.header for c in POINT_STD)
+    std = t.numbers(POINT_STD) * lf if columns else fmt.std()[0]
     return PointObs(q, t.rows, t.path, xyz=t.numbers(fmt.xyz_cols) * lf, std=std)
 
 
@@ -158,7 +181,7 @@ def _pose(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PoseObs:
     values = t.numbers(cols)
     _, _, Rf = flange_point(robot, q, robot.params.values, robot.tool_point())
     convention_check(Rf, values, fmt.orientation, t.path, t.rows)
-    pos, rot = fmt.std()
+    pos, rot = _stds(t, fmt, lf)
     return PoseObs(q, t.rows, t.path, xyz=t.numbers(fmt.xyz_cols) * lf,
                    R=to_matrices(values, fmt.orientation, t.path, t.rows), std_pos=pos, std_rot=rot)
 
@@ -177,7 +200,7 @@ def _markers(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> MarkersO
         r, m = np.argwhere(partial)[0]
         raise MeasurementError(f"{t.path}: row {t.rows[r]}: marker {names[m]} has some coordinates empty, not all; "
                                f"a marker not seen leaves all three empty")
-    return MarkersObs(q, t.rows, t.path, xyz=xyz, names=tuple(names), std=fmt.std()[0])
+    return MarkersObs(q, t.rows, t.path, xyz=xyz, names=tuple(names), std=_stds(t, fmt, lf)[0])
 
 
 def _labels(t: _Table, fmt: ObservationFormat) -> tuple[np.ndarray, np.ndarray | None]:
@@ -200,12 +223,12 @@ def _same_point(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> SameP
                                    f"'{fmt.label}' does not have (it has: {', '.join(sorted(known))})")
     if group is None:
         return SamePointObs(q, t.rows, t.path, labels=labels, distances=tuple((a, b, d * lf) for a, b, d in
-                                                                                fmt.distances), std=fmt.std()[0])
+                                                                                fmt.distances), std=_stds(t, fmt, lf)[0])
     full = np.array([f"{g}/{lab}" for g, lab in zip(group, labels)])
     have = set(full.tolist())
     dist = tuple((f"{g}/{a}", f"{g}/{b}", d * lf) for g in dict.fromkeys(group.tolist()) for a, b, d in fmt.distances
                  if f"{g}/{a}" in have and f"{g}/{b}" in have)
-    return SamePointObs(q, t.rows, t.path, labels=full, distances=dist, group=group, std=fmt.std()[0])
+    return SamePointObs(q, t.rows, t.path, labels=full, distances=dist, group=group, std=_stds(t, fmt, lf)[0])
 
 
 def _plane(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PlaneObs:
@@ -215,7 +238,7 @@ def _plane(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PlaneObs:
         raise MeasurementError(f"{t.path}: known plane(s) {', '.join(missing)} not in column '{fmt.label}' (it has: "
                                f"{', '.join(sorted(set(labels.tolist())))})")
     known = {lab: (np.asarray(n, float), float(c) * lf) for lab, (n, c) in fmt.planes.items()}
-    return PlaneObs(q, t.rows, t.path, labels=labels, known=known, std=fmt.std()[0])
+    return PlaneObs(q, t.rows, t.path, labels=labels, known=known, std=_stds(t, fmt, lf)[0])
 
 
 def write_observations(path: str, obs: Observation, robot: Robot, fmt: ObservationFormat = ObservationFormat()) -> None:

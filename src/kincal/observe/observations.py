@@ -244,7 +244,7 @@ class MarkersObs(Observation):
     xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 1, 3)))
     names: tuple[str, ...] = ()
     start: np.ndarray | None = None  # (k, 3) m: start values of the marker points (default: the tool point)
-    std: float = 15e-6
+    std: np.ndarray | float = 15e-6  # m, one number or per sample
     kind = "markers"
 
     def seen(self) -> np.ndarray:
@@ -260,7 +260,7 @@ class MarkersObs(Observation):
         return TOOL_NAMES
 
     def sigma(self) -> np.ndarray:
-        return np.full(3 * int(self.seen().sum()), float(self.std))
+        return np.broadcast_to(np.asarray(self.std, float), (len(self),))[self.sample_rows()]
 
     def sample_rows(self) -> np.ndarray:
         seen = self.seen()
