@@ -40,6 +40,8 @@ class Compensation:
     predicted_sigma: np.ndarray | None = None  # (N,) m, where the model's uncertainty is known
     warnings: tuple[str, ...] = ()
     orientation_change: np.ndarray | None = None  # (N,) rad: model at q vs the nominal promise at q_start
+    rotation_residual: np.ndarray | None = None  # (N,) rad, pose targets: |log(R_target R(q)ᵀ)|
+    filtered: tuple[np.ndarray, np.ndarray] | None = None  # poses to send a controller moving with the nominal model
 
     @property
     def all_ok(self) -> bool:
@@ -55,12 +57,14 @@ class Compensation:
                 "predicted_sigma": None if self.predicted_sigma is None else
                 [float(x) if np.isfinite(x) else None for x in self.predicted_sigma], "warnings": list(self.warnings),
                 "orientation_change": None if self.orientation_change is None else
-                [float(x) if k else None for x, k in zip(self.orientation_change, ok)]}
+                [float(x) if k else None for x, k in zip(self.orientation_change, ok)],
+                "rotation_residual": None if self.rotation_residual is None else
+                [float(x) if k else None for x, k in zip(self.rotation_residual, ok)]}
 
 
 def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = None, *, damping: float = 1e-4,
                rows: np.ndarray | None = None, uncertainty: ModelUncertainty | None = None,
-               nominal: Robot | None = None) -> Compensation:
+               nominal: Robot | None = None, rotations: np.ndarray | None = None) -> Compensation:
     """Joint commands that place ``robot``'s tool at targets (N, 3) m, each checked before use.
 
     Robots with a closed-form inverse (parallel robots) use it. Otherwise (serial robots) a damped
@@ -74,8 +78,12 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     naming the rows where the model extrapolates. With the ``nominal`` model (same frame and tool
     point, see :func:`kincal.compensate.command_models`) the nominal joints must first reach the targets
     through it: a TCP or frame mismatch refuses every row, named with its size and direction; and the
-    predicted change of the tool orientation is reported. Every argument is checked before any work.
+    predicted change of the tool orientation is reported. With target ``rotations`` (N, 3, 3) of the
+    flange the targets are full poses (:func:`compensate_poses`). Every argument is checked before any work.
     """
+    if rotations is not None:
+        return compensate_poses(robot, targets, rotations, q_start, rows=rows, uncertainty=uncertainty,
+                                nominal=nominal)
     targets, q0, rows = _checked_inputs(robot, targets, q_start, damping, rows)
     if nominal is not None and q0 is not None:
         why = frame_mismatch(nominal, q0, targets, rows)
@@ -190,3 +198,62 @@ def _reach(robot: Robot, targets: np.ndarray) -> tuple[np.ndarray, float]:
     travel = sum(max(abs(lo), abs(hi)) for t_, lo, hi in zip(robot.joint_types, robot.lower, robot.upper)
                  if t_ == "prismatic" and np.isfinite(lo) and np.isfinite(hi))
     return np.linalg.norm(targets - t, axis=1), float(links + travel)
+
+
+ROT_TOL = 1e-6  # rad: a pose command must reproduce the target orientation this closely (6 joints or more)
+ORIENT_MISMATCH = 1e-3  # rad: the nominal command's orientation must match the target's this closely
+
+
+def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q_start: np.ndarray, *,
+                     rows: np.ndarray | None = None, uncertainty: ModelUncertainty | None = None,
+                     nominal: Robot | None = None) -> Compensation:
+    """Joint commands that put ``robot``'s tool point at targets (N, 3) m with its flange at
+    ``rotations`` (N, 3, 3), from the nominal commands q_start (N, n), each checked like a position
+    command and, with six joints or more, for the orientation too (fewer joints: the rotation they
+    cannot control is reported). With the ``nominal`` (controller's) model also the filtered poses:
+    what to send that controller so that its inverse kinematics give these commands."""
+    from .poses import filtered_poses, solve_poses
+
+    targets, q0, rows = _checked_inputs(robot, targets, q_start, 1e-4, rows)
+    rotations = _checked_rotations(rotations, len(targets))
+    if nominal is not None:
+        why = frame_mismatch(nominal, q0, targets, rows) or _orientation_mismatch(nominal, q0, rotations)
+        if why:
+            none = np.zeros(len(targets), bool)
+            return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
+    sol = solve_poses(robot, targets, rotations, q0)
+    comp = Compensation(sol.q, _residual(robot, sol.q, targets), "pose (damped Newton)", sol.iterations)
+    comp = _checked(robot, comp, targets, q0, rows, nominal)
+    if robot.n_joints >= 6:
+        bad = comp.ok & (sol.rotation_error > ROT_TOL)
+        problems = comp.problems + tuple(f"row {r}: the model misses the target orientation by "
+                                         f"{e * 1e3:.4f} mrad" for r, e in zip(rows[bad], sol.rotation_error[bad]))
+        comp = dataclasses.replace(comp, ok=comp.ok & ~bad, problems=problems)
+    comp = dataclasses.replace(_with_sigma(robot, comp, uncertainty), rotation_residual=sol.rotation_error)
+    return comp if nominal is None else dataclasses.replace(comp, filtered=filtered_poses(nominal, sol.q))
+
+
+def _checked_rotations(rotations, n: int) -> np.ndarray:
+    R = np.asarray(rotations, dtype=float)
+    if R.shape != (n, 3, 3) or not np.all(np.isfinite(R)):
+        raise ModelError(f"rotations must be finite (N, 3, 3) matrices for the {n} targets, got shape {R.shape}")
+    dev = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max(axis=(1, 2))
+    if (dev > 1e-6).any() or (np.linalg.det(R) < 0).any():
+        raise ModelError(f"target {int(np.flatnonzero((dev > 1e-6) | (np.linalg.det(R) < 0))[0]) + 1}: the orientation "
+                         f"is not a rotation")
+    return R
+
+
+def _orientation_mismatch(nominal: Robot, q0: np.ndarray, rotations: np.ndarray) -> str:
+    """A constant rotation between the nominal flange at the nominal joints and the targets' orientation
+    (in the flange frame): the TCP's orientation or the convention differs; '' when they match."""
+    from .poses import rotation_log
+
+    Rn = nominal.flange_rotation(q0)
+    local = rotation_log(np.swapaxes(Rn, 1, 2) @ rotations)  # target in the nominal flange frame
+    if np.median(np.linalg.norm(local, axis=1)) <= ORIENT_MISMATCH:
+        return ""
+    c = np.median(local, axis=0)
+    return (f"the targets' orientation differs from the nominal flange at the nominal joints by "
+            f"{np.linalg.norm(c) * 1e3:.1f} mrad about the flange axis ({', '.join(f'{x:.2f}' for x in c / max(np.linalg.norm(c), 1e-300))}): "
+            f"a TCP orientation or an orientation convention that differs from the model's; not corrected")

@@ -218,6 +218,46 @@ class Chain:
             Cx[:, a] -= tr
         return np.ascontiguousarray(p.T), self._columns(Cx, Z[self.z_trans_axes], n)
 
+    def pose_jacobian(self, values: np.ndarray, q: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """End point (N, 3), end frame orientation (N, 3, 3: columns are its axes in the world) and the
+        joint Jacobians of the position and of the frame's angular velocity, (N, 3, n) each: the frames
+        carried forward only from joint to joint (the constant part of each segment is one 3×3 mix),
+        so it costs a few forward passes, not a parameter Jacobian."""
+        n = q.shape[0]
+        ends, _, _ = self._segment_frames(values, False)
+        W = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n))  # W[k]: world axis k, (3, N)
+        o = np.zeros((3, n))
+        U, O = np.zeros((self.n_joints, 3, n)), np.zeros((self.n_joints, 3, n))
+        revolute = np.zeros(self.n_joints, bool)
+        for M, head in zip(ends, self.heads):
+            F = W
+            if head is not None:
+                x = q[:, head.joint] + (values[head.param] + head.offset)
+                U[head.joint] = W[head.axis]
+                if head.motion == TRANS:
+                    o = o + W[head.axis] * x
+                else:
+                    revolute[head.joint] = True
+                    O[head.joint] = o
+                    c, sn = cos_sin(x)
+                    i, j = (head.axis + 1) % 3, (head.axis + 2) % 3
+                    F = np.empty((3, 3, n))
+                    F[i], F[j], F[head.axis] = W[i] * c + W[j] * sn, W[j] * c - W[i] * sn, W[head.axis]
+            Ff = F.reshape(3, -1)
+            o = o + (M[3] @ Ff).reshape(3, n)
+            W = (M[:3] @ Ff).reshape(3, 3, n)
+        J = np.zeros((6, self.n_joints, n))  # rows: position x y z, angular velocity x y z
+        for k in range(self.n_joints):
+            if not revolute[k]:
+                J[:3, k] = U[k]
+                continue
+            d = o - O[k]
+            u = U[k]
+            J[0, k], J[1, k], J[2, k] = u[1] * d[2] - u[2] * d[1], u[2] * d[0] - u[0] * d[2], u[0] * d[1] - u[1] * d[0]
+            J[3:, k] = u
+        return o.T, W.transpose(2, 1, 0), J[:3].transpose(2, 0, 1), J[3:].transpose(2, 0, 1)
+
     def _columns(self, rot: np.ndarray, trans: np.ndarray, n: int) -> np.ndarray:
         """The Jacobian (N, 3, P) from the rotation columns u × (p − o) and the translation axes,
         each (ops, 3, N); constant ops have no column, parameters without an op get zeros."""

@@ -109,6 +109,21 @@ class Robot(ABC):
         p, J = self._forward_and_jacobian(q, values, True)
         return p, J, self._joint_jacobian(q, values)
 
+    def _pose_and_jacobian(self, q: np.ndarray, values: np.ndarray):
+        """Generic: the flange axes are where a unit step of the tool point along each moves it, and
+        the angular velocity ω follows from those axes' rates, ω = ½ Σₖ aₖ × ȧₖ (exact)."""
+        if not self.has_tool_point:
+            raise self._no_tool_point()
+        cols = self.params.indices(TOOL_NAMES)
+        p0, J0 = self._forward_and_jacobian(q, values, False)[0], self._joint_jacobian(q, values)
+        R, Jw = np.empty((q.shape[0], 3, 3)), np.zeros_like(J0)
+        for k, c in enumerate(cols):
+            vk = values.copy()
+            vk[c] += 1.0
+            R[:, :, k] = self._forward_and_jacobian(q, vk, False)[0] - p0
+            Jw += 0.5 * np.cross(R[:, :, k][:, :, None], self._joint_jacobian(q, vk) - J0, axis=1)
+        return p0, R, J0, Jw
+
     # ---- kinematics ------------------------------------------------------------------------------
     def _batched(self, hook: Callable[..., Any], q, values, *args):
         """``hook`` on q as (N, n) and values as (P,); a single (n,) q gives unbatched results."""
@@ -141,6 +156,12 @@ class Robot(ABC):
         """Positions (N, 3), parameter Jacobian (N, 3, P) and joint Jacobian (N, 3, n); chains give
         all three from one pass."""
         return self._batched(self._forward_jacobians, q, values)
+
+    def pose_and_jacobian(self, q: np.ndarray, values: np.ndarray | None = None
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Tool point (N, 3) m, flange orientation (N, 3, 3) (columns: its axes in the world) and the
+        joint Jacobians of the tool point and of the flange's angular velocity, (N, 3, n) each."""
+        return self._batched(self._pose_and_jacobian, q, values)
 
     def forward_batch(self, q: np.ndarray, values: np.ndarray) -> np.ndarray:
         """Positions (S, N, 3) m for S parameter vectors ``values`` (S, P) at the same joints q (N, n),

@@ -144,6 +144,9 @@ class ChainRobot(Robot):
             return self._chain.forward(values, q), None
         return self._chain.forward_and_jacobian(values, q)
 
+    def _pose_and_jacobian(self, q, values):
+        return self._chain.pose_jacobian(self.chain_values(values), q)
+
     def gravity(self, payload: float = 0.0) -> GravityModel:
         return GravityModel(self, float(payload))
 

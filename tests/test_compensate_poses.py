@@ -1,0 +1,62 @@
+"""Full-pose compensation: commands that reproduce 6-D targets through the calibrated model, and
+filtered targets that the controller's own inverse kinematics turn into the same commands; a UR5
+(six joints), the Panda (seven: the controller's redundancy parameter is joint 7) and the 5-joint
+hybrid of Guo et al. 2024 (it controls the position and two rotations; the third is reported)."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import kincal
+from kincal.compensate.poses import rotation_log, solve_poses
+
+PANDA = Path(__file__).resolve().parent / "data" / "urdf" / "panda" / "panda.urdf"
+
+
+def _case(nominal, n=400, seed=3):
+    """A program of nominal commands q0 and the poses the controller (the nominal model) reaches with
+    them, away from the wrist singularity; the real robot is the nominal one with errors."""
+    q0 = nominal.sample_joints(4 * n, seed=seed)
+    _, _, Jp, Jw = nominal.pose_and_jacobian(q0)
+    s = np.linalg.svd(np.concatenate([Jp, 0.1 * Jw], axis=1), compute_uv=False)
+    q0 = q0[s[:, -1] > 0.2 * np.median(s[:, -1])][:n]  # well-conditioned poses only
+    p, R, _, _ = nominal.pose_and_jacobian(q0)
+    return kincal.perturb(nominal, seed=seed + 1), q0, p, R
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda"])
+def test_pose_commands_reproduce_targets_and_filtered_targets_give_the_same_joints(name):
+    nominal = (kincal.load_robot("ur5").with_tool_point([0.03, -0.02, 0.12]) if name == "ur5" else
+               kincal.load_robot(PANDA, tip_link="ball_link"))
+    true, q0, p, R = _case(nominal)
+    comp = kincal.compensate(true, p, q0, rotations=R, nominal=nominal)
+    assert comp.ok.mean() > 0.98, comp.problems[:3]
+    ok = comp.ok
+    pt, Rt, _, _ = true.pose_and_jacobian(comp.q[ok])  # the calibrated (true) model at the commands
+    assert np.linalg.norm(pt - p[ok], axis=1).max() < 1e-6
+    assert np.linalg.norm(rotation_log(R[ok] @ np.swapaxes(Rt, 1, 2)), axis=1).max() < 1e-6
+    assert np.abs(comp.q[ok] - q0[ok]).max() > 1e-4  # the corrections are real, not the identity
+    fp, fR = comp.filtered
+    fixed = (6,) if nominal.n_joints == 7 else ()  # Franka: joint 7 is the inverse kinematics' parameter
+    start = q0.copy()
+    if fixed:
+        start[:, 6] = comp.q[:, 6]
+    back = solve_poses(nominal, fp[ok], fR[ok], start[ok], fixed=fixed)  # the controller's own IK
+    assert back.converged.all() and np.abs(back.q - comp.q[ok]).max() < 1e-9
+
+
+def test_a_five_joint_robot_reaches_position_and_the_rotations_it_controls():
+    nominal = kincal.load_robot("guo3t2r")
+    true, q0, p, R = _case(nominal, n=300)
+    sol = solve_poses(true, p, R, q0)
+    assert sol.converged.mean() > 0.98
+    ok = sol.converged
+    assert sol.position_error[ok].max() < 1e-6
+    # the rotation left is the one five joints cannot control: orthogonal to every joint's rotation
+    _, Rf, Jp, Jw = true.pose_and_jacobian(sol.q[ok])
+    pt = true.forward(sol.q[ok])
+    er = rotation_log(R[ok] @ np.swapaxes(Rf, 1, 2))
+    J = np.concatenate([Jp, 1e-4 * Jw], axis=1)
+    e = np.concatenate([p[ok] - pt, 1e-4 * er], axis=1)
+    assert np.abs(np.einsum("nij,ni->nj", J, e)).max() < 1e-12  # the least-squares optimality condition
+    assert np.median(np.linalg.norm(er, axis=1)) > 1e-5  # and some rotation is indeed left (not a 6-D reach)
