@@ -19,12 +19,14 @@ from ..models.robot import Robot
 POS_TOL = 1e-12  # m: converged (commands then agree to ~1e-10 rad)
 ROT_TOL = 1e-12  # rad
 MAX_ITER = 50
-DAMPING = 1e-9  # keeps a step finite at an exact singularity; far below the scale of a correction
+CHUNK = 16384  # targets solved together
+DAMPING = 1e-12  # relative: keeps a step finite at an exact singularity
 ROT_WEIGHT = {True: 0.1, False: 1e-4}  # m per rad: full pose (≥ 6 joints) / position first (fewer joints)
 STALL = 1e-13  # m: a step moving the tool this little ends a least-squares solve (fewer than 6 joints)
 MAX_MOVE = 0.02  # m: no joint may move the tool point more than this in one step (a full step near a
 #                   singularity would leave the branch); joints are scaled by their lever (m per rad or m)
 ROT_LEVER = 0.1  # m per rad: a wrist joint turning the tool counts as moving a point this far out
+MAX_TRAVEL = 0.1  # m: a correction that has moved the tool this far is another arm configuration; given up
 
 
 @dataclass(frozen=True)
@@ -40,9 +42,20 @@ class PoseSolution:
 
 
 def rotation_log(R: np.ndarray) -> np.ndarray:
-    """Rotation vectors (N, 3) of rotation matrices (N, 3, 3) (rad)."""
-    from scipy.spatial.transform import Rotation
-    return Rotation.from_matrix(R).as_rotvec()
+    """Rotation vectors (N, 3) of rotation matrices (N, 3, 3) (rad): in closed form from the skew part
+    (θ / (2 sin θ) · vee(R − Rᵀ), its series near 0); angles near π, where that part vanishes, by
+    scipy's Rotation."""
+    v = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
+    cos = np.clip((np.trace(R, axis1=1, axis2=2) - 1.0) * 0.5, -1.0, 1.0)
+    theta = np.arccos(cos)
+    small = theta < 1e-4
+    f = np.where(small, 0.5 + theta**2 / 12.0, theta / (2.0 * np.sin(np.where(small, 1.0, theta))))
+    out = v * f[:, None]
+    wide = theta > 3.0
+    if wide.any():
+        from scipy.spatial.transform import Rotation
+        out[wide] = Rotation.from_matrix(R[wide]).as_rotvec()
+    return out
 
 
 def pose_errors(model: Robot, q: np.ndarray, p_t: np.ndarray, R_t: np.ndarray):
@@ -53,50 +66,83 @@ def pose_errors(model: Robot, q: np.ndarray, p_t: np.ndarray, R_t: np.ndarray):
 
 
 def solve_poses(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, max_iter: int = MAX_ITER,
-                fixed: tuple[int, ...] = ()) -> PoseSolution:
+                fixed: tuple[int, ...] = (), chunk: int = CHUNK) -> PoseSolution:
     """Commands q (N, n) that put ``model``'s tool point at p_t (N, 3) m with its flange at R_t
-    (N, 3, 3), by Newton steps from q0 (N, n); only unconverged targets iterate. Joints in ``fixed``
-    keep their start values (a redundant arm's controller takes one as its redundancy parameter)."""
+    (N, 3, 3), by Newton steps from q0 (N, n); only unconverged targets iterate, ``chunk`` targets at
+    a time (bounded memory, arrays that stay in cache). Joints in ``fixed`` keep their start values
+    (a redundant arm's controller takes one as its redundancy parameter)."""
     if not model.has_tool_point:
         raise ModelError(f"robot '{model.name}' has no tool point and flange frame: give position targets")
     q = np.array(q0, dtype=float)
     moving = np.ones(q.shape[1], bool)
     moving[list(fixed)] = False
+    dp, dr, conv = np.empty(len(q)), np.empty(len(q)), np.zeros(len(q), bool)
+    iterations = 0
+    for a in range(0, len(q), chunk):
+        b = min(a + chunk, len(q))
+        it = _solve_chunk(model, p_t[a:b], R_t[a:b], q[a:b], moving, max_iter, dp[a:b], dr[a:b], conv[a:b])
+        iterations = max(iterations, it)
+    return PoseSolution(q, dp, dr, conv, iterations)
+
+
+def _solve_chunk(model: Robot, p_t, R_t, q, moving, max_iter: int, dp, dr, converged) -> int:
+    """Newton iterations on one chunk, in place: q (the commands), dp/dr (the errors left, m/rad)
+    and converged; returns the iterations made."""
     n_j = int(moving.sum())
     w = ROT_WEIGHT[n_j >= 6]
-    converged = np.zeros(len(q), bool)
     active = np.arange(len(q))
+    travel = np.zeros(len(q))  # m: how far the steps have moved the tool, summed
     it = 0
     for it in range(1, max_iter + 1):
-        ep, er, Jp, Jw = pose_errors(model, q[active], p_t[active], R_t[active])
-        done = (np.linalg.norm(ep, axis=1) < POS_TOL) & (np.linalg.norm(er, axis=1) < ROT_TOL)
-        J = np.concatenate([Jp, w * Jw], axis=1) * moving
-        e = np.concatenate([ep, w * er], axis=1)
-        dq = _step(J, e)
-        lever = np.linalg.norm(Jp, axis=1) + ROT_LEVER * np.linalg.norm(Jw, axis=1)  # (N, n): per unit of each joint
-        dq *= np.minimum(1.0, MAX_MOVE / np.maximum((np.abs(dq) * lever).max(axis=1), 1e-300))[:, None]
-        if n_j < 6:
-            done |= (np.abs(dq) * lever).max(axis=1) < STALL
+        full = active.size == len(q)
+        qa = q if full else q[active]
+        ep, er, Jp, Jw = pose_errors(model, qa, p_t if full else p_t[active], R_t if full else R_t[active])
+        dp[active], dr[active] = np.linalg.norm(ep, axis=1), np.linalg.norm(er, axis=1)
+        done = (dp[active] < POS_TOL) & (dr[active] < ROT_TOL)
         converged[active[done]] = True
         keep = ~done
-        q[active[keep]] += dq[keep]
         active = active[keep]
         if not active.size:
             break
-    ep, er, _, _ = pose_errors(model, q, p_t, R_t)
-    return PoseSolution(q, np.linalg.norm(ep, axis=1), np.linalg.norm(er, axis=1), converged, it)
+        Jp, Jw, ep, er = (x if keep.all() else x[keep] for x in (Jp, Jw, ep, er))
+        dq = _step(np.concatenate([Jp, w * Jw], axis=1) * moving, np.concatenate([ep, w * er], axis=1))
+        lever = np.linalg.norm(Jp, axis=1) + ROT_LEVER * np.linalg.norm(Jw, axis=1)  # (N, n): per unit of each joint
+        move = (np.abs(dq) * lever).max(axis=1)
+        dq *= np.minimum(1.0, MAX_MOVE / np.maximum(move, 1e-300))[:, None]
+        travel[active] += np.minimum(move, MAX_MOVE)
+        stalled = move < STALL if n_j < 6 else np.zeros(len(move), bool)  # least squares: steps stopped moving
+        converged[active[stalled]] = True
+        go = ~stalled & (travel[active] < MAX_TRAVEL)  # beyond MAX_TRAVEL: left unconverged, refused by the checks
+        q[active[go]] += dq[go]
+        active = active[go]
+        if not active.size:
+            break
+    if active.size:  # the errors at the last commands
+        ep, er, _, _ = pose_errors(model, q[active], p_t[active], R_t[active])
+        dp[active], dr[active] = np.linalg.norm(ep, axis=1), np.linalg.norm(er, axis=1)
+    return it
 
 
 def _step(J: np.ndarray, e: np.ndarray) -> np.ndarray:
     """Damped least-squares steps (N, n) for Jacobians J (N, 6, n) and errors e (N, 6): the smallest
     step that removes the error when the robot has six joints or more, the least-squares one else."""
     n = J.shape[2]
+    if n == 6:  # square: one LU per target; the damped normal equations only if one is singular
+        try:
+            return np.linalg.solve(J, e[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            pass
     Jt = np.swapaxes(J, 1, 2)
     if n >= 6:
-        A = J @ Jt + DAMPING**2 * np.eye(6)
-        return np.einsum("nij,nj->ni", Jt, np.linalg.solve(A, e[..., None])[..., 0])
-    A = Jt @ J + DAMPING**2 * np.eye(n)
-    return np.linalg.solve(A, np.einsum("nij,nj->ni", Jt, e)[..., None])[..., 0]
+        return np.einsum("nij,nj->ni", Jt, np.linalg.solve(_damped(J @ Jt), e[..., None])[..., 0])
+    return np.linalg.solve(_damped(Jt @ J), np.einsum("nij,nj->ni", Jt, e)[..., None])[..., 0]
+
+
+def _damped(A: np.ndarray) -> np.ndarray:
+    """A (N, k, k) plus DAMPING times its mean diagonal: finite steps at an exact singularity, and no
+    measurable effect elsewhere whatever the units of the rows."""
+    k = A.shape[1]
+    return A + (DAMPING * np.trace(A, axis1=1, axis2=2) / k)[:, None, None] * np.eye(k)
 
 
 def filtered_poses(controller: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
