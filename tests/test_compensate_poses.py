@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import kincal
-from kincal.compensate.poses import rotation_log, solve_poses
+from kincal.compensate import solve_poses
+from kincal.compensate.poses import rotation_log
 
 PANDA = Path(__file__).resolve().parent / "data" / "urdf" / "panda" / "panda.urdf"
 
@@ -60,3 +61,16 @@ def test_a_five_joint_robot_reaches_position_and_the_rotations_it_controls():
     e = np.concatenate([p[ok] - pt, 1e-4 * er], axis=1)
     assert np.abs(np.einsum("nij,ni->nj", J, e)).max() < 1e-12  # the least-squares optimality condition
     assert np.median(np.linalg.norm(er, axis=1)) > 1e-5  # and some rotation is indeed left (not a 6-D reach)
+
+
+def test_a_constant_rotation_of_the_targets_is_refused_as_a_set_up_mismatch():
+    """Targets turned 90° about the flange z (another TCP orientation, or another convention): not
+    'corrected' by moving joints; every row refused with the size and the axis."""
+    from scipy.spatial.transform import Rotation
+    nominal = kincal.load_robot("ur5").with_tool_point([0.03, -0.02, 0.12])
+    true, q0, p, R = _case(nominal, n=50)
+    turned = R @ Rotation.from_rotvec([0.0, 0.0, np.pi / 2]).as_matrix()
+    comp = kincal.compensate(true, p, q0, rotations=turned, nominal=nominal)
+    assert not comp.ok.any() and len(comp.problems) == 1
+    assert "1570.8 mrad about the flange axis (0.00, 0.00, 1.00)" in comp.problems[0]
+    assert np.array_equal(comp.q, q0)  # nothing moved

@@ -254,6 +254,7 @@ def _orientation_mismatch(nominal: Robot, q0: np.ndarray, rotations: np.ndarray)
     if np.median(np.linalg.norm(local, axis=1)) <= ORIENT_MISMATCH:
         return ""
     c = np.median(local, axis=0)
+    axis = ", ".join(f"{round(float(x), 2) + 0.0:.2f}" for x in c / max(float(np.linalg.norm(c)), 1e-300))
     return (f"the targets' orientation differs from the nominal flange at the nominal joints by "
-            f"{np.linalg.norm(c) * 1e3:.1f} mrad about the flange axis ({', '.join(f'{x:.2f}' for x in c / max(np.linalg.norm(c), 1e-300))}): "
-            f"a TCP orientation or an orientation convention that differs from the model's; not corrected")
+            f"{np.linalg.norm(c) * 1e3:.1f} mrad about the flange axis ({axis}): a TCP orientation or an "
+            f"orientation convention that differs from the model's; not corrected")
