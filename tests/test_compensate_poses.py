@@ -74,3 +74,13 @@ def test_a_constant_rotation_of_the_targets_is_refused_as_a_set_up_mismatch():
     assert not comp.ok.any() and len(comp.problems) == 1
     assert "1570.8 mrad about the flange axis (0.00, 0.00, 1.00)" in comp.problems[0]
     assert np.array_equal(comp.q, q0)  # nothing moved
+
+
+def test_compensate_names_what_a_five_joint_robot_does_not_control():
+    nominal = kincal.load_robot("guo3t2r")
+    true, q0, p, R = _case(nominal, n=60)
+    comp = kincal.compensate(true, p, q0, rotations=R, nominal=nominal)
+    left = comp.rotation_residual[comp.ok].max()
+    assert comp.ok.any() and left > 1e-5
+    assert any(f"5 joints control the position and 2 rotation(s): the rest of the target orientation is not "
+               f"controlled, up to {left * 1e3:.3f} mrad left" in w for w in comp.warnings)

@@ -230,6 +230,11 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
                                          f"{e * 1e3:.4f} mrad" for r, e in zip(rows[bad], sol.rotation_error[bad]))
         comp = dataclasses.replace(comp, ok=comp.ok & ~bad, problems=problems)
     comp = dataclasses.replace(_with_sigma(robot, comp, uncertainty), rotation_residual=sol.rotation_error)
+    if robot.n_joints < 6 and comp.ok.any():
+        left = float(sol.rotation_error[comp.ok].max())
+        comp = dataclasses.replace(comp, warnings=comp.warnings + (
+            f"{robot.n_joints} joints control the position and {robot.n_joints - 3} rotation(s): the rest of the "
+            f"target orientation is not controlled, up to {left * 1e3:.3f} mrad left (rotation_residual)",))
     return comp if nominal is None else dataclasses.replace(comp, filtered=filtered_poses(nominal, sol.q))
 
 

@@ -31,8 +31,8 @@ MAX_TRAVEL = 0.1  # m: a correction that has moved the tool this far is another 
 
 @dataclass(frozen=True)
 class PoseSolution:
-    """q (N, n) commands; position and rotation errors left at them (N,) m and rad; converged (N,);
-    iterations made; for robots with fewer than six joints the rotation error they cannot remove."""
+    """q (N, n) commands; position and rotation errors left at them (N,) m and rad (for a robot with
+    fewer than six joints the rotation error is what it cannot control); converged (N,); iterations."""
 
     q: np.ndarray
     position_error: np.ndarray
