@@ -84,3 +84,46 @@ def test_compensate_names_what_a_five_joint_robot_does_not_control():
     assert comp.ok.any() and left > 1e-5
     assert any(f"5 joints control the position and 2 rotation(s): the rest of the target orientation is not "
                f"controlled, up to {left * 1e3:.3f} mrad left" in w for w in comp.warnings)
+
+
+@pytest.mark.slow
+def test_pose_targets_through_the_command_line(tmp_path, capsys):
+    """compensate --pose: KUKA-style A, B, C angles in, commands (or filtered poses) out; the commands
+    reach every written target through the calibrated command model, the filtered poses are the
+    nominal model's at the commands, and the other Euler order is named."""
+    import json
+    from kincal.cli import main
+    from kincal.compensate import command_models
+    from kincal.observe import from_matrices, to_matrices
+    units = ["--length-unit", "mm", "--angle-unit", "deg"]
+    assert main(["simulate", "ur5", "-o", str(tmp_path / "m.csv"), "--perturb", "--poses", "120", "--tool",
+                 "0,0,100mm", *units]) == 0
+    assert main(["calibrate", "ur5", str(tmp_path / "m.csv"), "--tool", "0,0,100mm", "-o", str(tmp_path / "cal.yaml"),
+                 *units]) == 0
+    tcp = np.array([0.03, -0.02, 0.12])
+    cal = kincal.load_robot(tmp_path / "cal.yaml")
+    model, nominal = command_models(cal, kincal.models.load_calibration_record(tmp_path / "cal.yaml")["nominal"], tcp)
+    _, q0, p, R = _case(nominal, n=80)
+    head = "j1,j2,j3,j4,j5,j6,x,y,z,e1,e2,e3"
+    np.savetxt(tmp_path / "poses.csv", np.column_stack([np.rad2deg(q0), p * 1e3, from_matrices(R, "euler-zyx-intrinsic-deg")]),
+               delimiter=",", header=head, comments="", fmt="%.15g")
+    capsys.readouterr()
+    base = ["compensate", str(tmp_path / "cal.yaml"), str(tmp_path / "poses.csv"), "--pose", "--tcp", "30,-20,120mm",
+            *units, "--json", "--skip-unreachable"]
+    assert main(base + ["-o", str(tmp_path / "cmd.csv"), "--orientation", "euler-zyx-intrinsic-deg"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    cmd = np.loadtxt(tmp_path / "cmd.csv", delimiter=",", skiprows=1)
+    rows = cmd[:, 0].astype(int) - 2
+    assert len(rows) >= 76 and len(rows) + len(out["problems"]) == 80  # a refused row is named (limits, branch)
+    assert max(r for r in out["rotation_residual"] if r is not None) < 1e-6
+    pm, Rm, _, _ = model.pose_and_jacobian(np.deg2rad(cmd[:, 1:7]))
+    assert np.abs(pm - p[rows]).max() < 1e-6
+    assert main(base + ["-o", str(tmp_path / "f.csv"), "--orientation", "euler-zyx-intrinsic-deg",
+                        "--output-kind", "cartesian"]) == 0
+    capsys.readouterr()
+    f = np.loadtxt(tmp_path / "f.csv", delimiter=",", skiprows=1)
+    pn, Rn, _, _ = nominal.pose_and_jacobian(np.deg2rad(f[:, 7:13]))
+    assert np.abs(pn * 1e3 - f[:, 1:4]).max() < 1e-6
+    assert np.abs(Rn - to_matrices(f[:, 4:7], "euler-zyx-intrinsic-deg", "f", f[:, 0])).max() < 1e-9
+    assert main(base + ["-o", str(tmp_path / "x.csv"), "--orientation", "euler-zyx-extrinsic-deg"]) == 1
+    assert "the file looks like euler-zyx-intrinsic-deg" in capsys.readouterr().err

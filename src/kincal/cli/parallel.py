@@ -2,6 +2,8 @@
 and the 3-PUU error-model verification paper's verification (commands to run, then the comparison)."""
 from __future__ import annotations
 
+import argparse
+
 import numpy as np
 
 import kincal
@@ -22,6 +24,10 @@ def cmd_compensate(args) -> int:
     nominal_values = (record or {}).get("nominal")
     r, nominal = command_models(cal, nominal_values if isinstance(nominal_values, dict) else None, args.tcp,
                                 args.target_frame)
+    if args.pose:
+        return _compensate_poses(args, r, nominal)
+    if args.output_kind == "cartesian":
+        raise ValueError("--output-kind cartesian writes filtered poses: give --pose (targets with orientation)")
     targets, rows = kincal.read_positions(args.targets, args.xyz_cols, args.length_unit, with_rows=True)
     start = None
     if not r.has_inverse:
@@ -62,6 +68,39 @@ def _compensation_text(args, comp, r, start, written: bool, n: int) -> str:
         s = comp.predicted_sigma[comp.ok]
         text += f"\nmodel's predicted σ at the commands: median {np.median(s) * MM:.4f} mm, max {s.max() * MM:.4f} mm"
     return (text + "".join(f"\nwarning: {w}" for w in comp.warnings)).strip()
+
+
+def _compensate_poses(args, r, nominal) -> int:
+    """compensate --pose: full-pose targets (the orientation columns of --orientation), commands or
+    filtered poses for the controller (--output-kind cartesian), every row checked."""
+    from kincal.observe import ObservationFormat, default_columns, from_matrices, read_observations
+
+    fmt = ObservationFormat("pose", tuple(args.joint_cols) if args.joint_cols else None, args.length_unit,
+                            args.angle_unit, tuple(args.xyz_cols), args.orientation,
+                            tuple(args.rot_cols) if args.rot_cols else None)
+    obs = read_observations(args.targets, nominal, fmt)  # a convention that fits markedly better is named
+    comp = kincal.compensate(r, obs.xyz, obs.q, rows=obs.rows, rotations=obs.R, nominal=nominal,
+                             uncertainty=kincal.analysis.load_uncertainty(args.robot))
+    written = comp.all_ok or (args.skip_unreachable and comp.ok.any())
+    ok = comp.ok
+    if written and args.output_kind == "cartesian":
+        p, R = comp.filtered
+        cols = list(args.rot_cols or default_columns(args.orientation))
+        kincal.io.write_filtered(args.output, r, obs.rows[ok], p[ok], cols, from_matrices(R[ok], args.orientation),
+                                 comp.q[ok], args.joint_cols, args.length_unit, args.angle_unit)
+    elif written:
+        kincal.io.write_commands(args.output, r, obs.rows[ok], obs.xyz[ok], comp.q[ok], obs.q[ok], None,
+                                 args.joint_cols, args.length_unit, args.angle_unit)
+    payload = {**comp.to_dict(), "output": args.output if written else None, "target_frame": args.target_frame,
+               "output_kind": args.output_kind}
+    text = _compensation_text(args, comp, r, obs.q, written, len(obs.q))
+    if written and comp.rotation_residual is not None:
+        text += f"\nlargest orientation residual {comp.rotation_residual[ok].max() * 1e3:.2e} mrad"
+        if args.output_kind == "cartesian":
+            text += (f"\nfiltered poses ({args.orientation}) written: send them to a controller moving with the "
+                     f"nominal model; its inverse kinematics give the commands listed beside them")
+    emit(args, payload, text)
+    return 0 if written else EXIT_REFUSED
 
 
 PLAN_JOINT_TOL = 1e-5  # rad or m: measured joint values must repeat the plan's commands this closely
@@ -115,6 +154,15 @@ def _measured(args, r, plan) -> np.ndarray:
     return xyz
 
 
+def _convention(s: str) -> str:
+    from kincal.observe import check_convention
+
+    try:
+        return check_convention(s)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def register(cmd) -> None:
     """Add the commands to the parser through ``cmd(name, func, help)``."""
     s = cmd("compensate", cmd_compensate, "joint commands that the calibrated model says reach target positions")
@@ -126,6 +174,15 @@ def register(cmd) -> None:
     s.add_argument("--tcp", type=point, metavar="X,Y,Z[UNIT]",
                    help="the controller's TCP in the flange frame, e.g. 0,0,109mm: the point the targets are for "
                         "(default: the calibrated tool point)")
+    s.add_argument("--pose", action="store_true",
+                   help="the targets are full poses: position and the orientation columns of --orientation")
+    s.add_argument("--orientation", default="quat-wxyz", type=_convention,
+                   help="--pose: quat-wxyz (default), quat-xyzw, matrix, rotvec, rotvec-deg or "
+                        "euler-<axes>-<intrinsic|extrinsic>-<deg|rad>")
+    s.add_argument("--rot-cols", type=csv_list, help="--pose: the orientation columns, in the convention's order")
+    s.add_argument("--output-kind", choices=("joints", "cartesian"), default="joints",
+                   help="joints: corrected joint commands (default); cartesian: the filtered poses to send a "
+                        "controller that moves with the nominal model")
     s.add_argument("--target-frame", default="base",
                    help="the frame of the targets: base (the robot's own, default), measurement (the calibration's "
                         "tracker frame), or a frame the robot file names (e.g. base_link for UR arms, as in ROS)")

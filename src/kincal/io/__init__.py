@@ -1,8 +1,8 @@
 """Measurement data in and out (CSV)."""
-from .commands import write_commands
+from .commands import write_commands, write_filtered
 from .measurements import (Measurements, read_joints, read_measurements, read_positions, write_joints,
                            write_measurements, write_residuals)
 from .unit_checks import check_degrees, check_radians, check_spread
 
 __all__ = ["Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements",
-           "write_residuals", "write_commands", "check_degrees", "check_radians", "check_spread"]
+           "write_residuals", "write_commands", "write_filtered", "check_degrees", "check_radians", "check_spread"]

@@ -43,3 +43,18 @@ def write_commands(
         cells += [] if orientation_change is None else [orientation_change[k] * 1e3]
         w.writerow([cells[0], *(repr(float(v)) for v in cells[1:])])
     write_text_atomic(path, buf.getvalue())
+
+
+def write_filtered(path: str | os.PathLike, robot: Robot, rows: np.ndarray, xyz: np.ndarray, rot_cols: Sequence[str],
+                   rot_values: np.ndarray, q: np.ndarray, joint_cols: Sequence[str] | None = None,
+                   length_unit: str = "m", angle_unit: str = "rad") -> None:
+    """Filtered poses (atomically): the input row, the pose to send the controller (x, y, z in the
+    length unit and the orientation columns as given, e.g. a quaternion) and the joints its inverse
+    kinematics will produce (``joint_cols``)."""
+    cols = _joint_columns(str(path), robot, joint_cols)
+    scale = 1.0 / _joint_scale(robot.joint_types, length_unit, angle_unit, str(path))
+    lf = 1.0 / _unit(length_unit, "length", str(path))
+    table = np.column_stack([xyz * lf, rot_values, q * scale])
+    lines = [",".join(["row", "x", "y", "z", *rot_cols, *cols])]
+    lines += [",".join([str(int(r)), *(repr(float(v)) for v in row)]) for r, row in zip(rows, table)]
+    write_text_atomic(path, "\n".join(lines) + "\n")

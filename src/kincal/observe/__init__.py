@@ -4,7 +4,9 @@ set-up parameters it brings. The stacked fit is :func:`kincal.identify.stacked.f
 from .constraints import PlaneObs, SamePointObs
 from .files import KINDS, ObservationFormat, describe, read_observations, write_observations
 from .observations import MarkersObs, Observation, PointObs, PoseObs
+from .orientation import check_convention, default_columns, from_matrices, to_matrices
 from .sessions import InSession
 
 __all__ = ["Observation", "PointObs", "PoseObs", "MarkersObs", "SamePointObs", "PlaneObs", "InSession", "KINDS",
-           "ObservationFormat", "read_observations", "write_observations", "describe"]
+           "ObservationFormat", "read_observations", "write_observations", "describe", "check_convention", "default_columns",
+           "from_matrices", "to_matrices"]
