@@ -127,3 +127,26 @@ def test_pose_targets_through_the_command_line(tmp_path, capsys):
     assert np.abs(Rn - to_matrices(f[:, 4:7], "euler-zyx-intrinsic-deg", "f", f[:, 0])).max() < 1e-9
     assert main(base + ["-o", str(tmp_path / "x.csv"), "--orientation", "euler-zyx-extrinsic-deg"]) == 1
     assert "the file looks like euler-zyx-intrinsic-deg" in capsys.readouterr().err
+
+
+def test_a_path_through_a_wrist_near_singularity_keeps_its_branch_and_names_where_continuity_is_lost():
+    """10⁴ consecutive UR5 poses whose wrist passes within 5 µrad of its singularity (j5 = 0): away
+    from it the corrected commands stay on the nominal branch and as smooth as the nominal path;
+    at it the rows where a correction would jump are refused and named, and only there."""
+    from kincal.compensate import path_checked
+    nominal = kincal.load_robot("ur5").with_tool_point([0.0, 0.0, 0.12])
+    true = kincal.perturb(nominal, seed=5)
+    t = np.linspace(0, 2 * np.pi, 10_000)
+    q0 = np.array([0.3, -1.2, 1.5, -1.9, 0.0, 0.4]) + np.column_stack(
+        [0.4 * np.cos(t), 0.2 * np.sin(t), 0.2 * np.cos(t), 0.3 * np.sin(t), 0.3 * np.sin(t) + 0.005, 0.2 * np.cos(t)])
+    p, R, _, _ = nominal.pose_and_jacobian(q0)
+    comp = path_checked(true, kincal.compensate(true, p, q0, rotations=R, nominal=nominal), q0)
+    near = np.abs(q0[:, 4]) < 0.01  # within 0.6 deg of the singularity
+    refused = ~comp.ok
+    assert refused.any() and not (refused & ~near).any()  # refused only near the singularity
+    assert any("continuity of the path is lost" in p for p in comp.problems)
+    away = ~near
+    assert np.abs(comp.q[away] - q0[away]).max() < np.deg2rad(5)  # the nominal branch: no flip
+    steps = np.abs(np.diff(comp.q, axis=0))[away[1:] & away[:-1]]
+    nominal_steps = np.abs(np.diff(q0, axis=0))[away[1:] & away[:-1]]
+    assert (steps <= np.maximum(3 * nominal_steps, np.deg2rad(0.5))).all()

@@ -10,7 +10,7 @@ import kincal
 import kincal.analysis
 import kincal.io
 import kincal.models
-from kincal.compensate import VerificationPlan, command_models, verification_plan
+from kincal.compensate import VerificationPlan, command_models, path_checked, verification_plan
 from kincal.units import DEG, MM
 
 from .common import (EXIT_REFUSED, add_data_flags, add_robot, check_paths, csv_list, emit, load_robot, nonneg_float,
@@ -34,6 +34,8 @@ def cmd_compensate(args) -> int:
         start = kincal.read_joints(args.targets, r, args.joint_cols, args.length_unit, args.angle_unit)
     comp = kincal.compensate(r, targets, start, rows=rows, uncertainty=kincal.analysis.load_uncertainty(args.robot),
                              nominal=nominal)
+    if args.path and start is not None:
+        comp = path_checked(r, comp, start)
     written = comp.all_ok or (args.skip_unreachable and comp.ok.any())
     if written:
         ok = comp.ok
@@ -81,6 +83,8 @@ def _compensate_poses(args, r, nominal) -> int:
     obs = read_observations(args.targets, nominal, fmt)  # a convention that fits markedly better is named
     comp = kincal.compensate(r, obs.xyz, obs.q, rows=obs.rows, rotations=obs.R, nominal=nominal,
                              uncertainty=kincal.analysis.load_uncertainty(args.robot))
+    if args.path:
+        comp = path_checked(r, comp, obs.q)
     written = comp.all_ok or (args.skip_unreachable and comp.ok.any())
     ok = comp.ok
     if written and args.output_kind == "cartesian":
@@ -180,6 +184,9 @@ def register(cmd) -> None:
                    help="--pose: quat-wxyz (default), quat-xyzw, matrix, rotvec, rotvec-deg or "
                         "euler-<axes>-<intrinsic|extrinsic>-<deg|rad>")
     s.add_argument("--rot-cols", type=csv_list, help="--pose: the orientation columns, in the convention's order")
+    s.add_argument("--path", action="store_true",
+                   help="the rows are consecutive targets of one path: a row whose corrected command jumps much "
+                        "more from the previous one than the nominal commands do is refused and named")
     s.add_argument("--output-kind", choices=("joints", "cartesian"), default="joints",
                    help="joints: corrected joint commands (default); cartesian: the filtered poses to send a "
                         "controller that moves with the nominal model")

@@ -263,3 +263,28 @@ def _orientation_mismatch(nominal: Robot, q0: np.ndarray, rotations: np.ndarray)
     return (f"the targets' orientation differs from the nominal flange at the nominal joints by "
             f"{np.linalg.norm(c) * 1e3:.1f} mrad about the flange axis ({axis}): a TCP orientation or an "
             f"orientation convention that differs from the model's; not corrected")
+
+
+PATH_TOL = {"revolute": np.deg2rad(0.5), "prismatic": 0.5e-3}  # a step the correction may add between rows
+PATH_RATIO = 3.0  # ... or this many times the nominal step, whichever is larger
+
+
+def path_checked(robot: Robot, comp: Compensation, q_start: np.ndarray) -> Compensation:
+    """``comp`` as a path (consecutive rows are consecutive targets): a row whose corrected command
+    steps from the previous row's much more than the nominal commands do (more than PATH_RATIO times
+    the nominal step and PATH_TOL) loses continuity: refused and named, with the joint and both steps."""
+    q, q0 = comp.q, np.asarray(q_start, dtype=float)
+    d_cor, d_nom = np.abs(np.diff(q, axis=0)), np.abs(np.diff(q0, axis=0))
+    tol = np.array([PATH_TOL[t] for t in robot.joint_types])
+    over = (d_cor > np.maximum(PATH_RATIO * d_nom, tol)) & np.all(np.isfinite(q[1:]), axis=1)[:, None]
+    bad = np.flatnonzero(over.any(axis=1) & comp.ok[1:]) + 1  # rows refused already keep their first reason
+    fmt = lambda j, v: f"{np.rad2deg(v):.2f} deg" if robot.joint_types[j] == "revolute" else f"{v * 1e3:.2f} mm"  # noqa: E731
+    problems = []
+    for k in bad:
+        j = int(np.argmax(np.where(over[k - 1], d_cor[k - 1] - d_nom[k - 1], -np.inf)))
+        problems.append(f"row {comp.rows[k]}: the corrected command jumps {fmt(j, d_cor[k - 1, j])} on "
+                        f"{robot.joint_names[j]} from the previous row where the nominal path moves "
+                        f"{fmt(j, d_nom[k - 1, j])}: continuity of the path is lost here (near a singularity?)")
+    ok = comp.ok.copy()
+    ok[bad] = False
+    return dataclasses.replace(comp, ok=ok, problems=comp.problems + tuple(problems))
