@@ -10,7 +10,7 @@ import kincal
 import kincal.analysis
 import kincal.io
 import kincal.models
-from kincal.compensate import VerificationPlan, command_models, path_checked, verification_plan
+from kincal.compensate import VerificationPlan, command_models, compensate_program, path_checked, verification_plan
 from kincal.units import DEG, MM
 
 from .common import (EXIT_REFUSED, add_data_flags, add_robot, check_paths, csv_list, emit, load_robot, nonneg_float,
@@ -24,6 +24,8 @@ def cmd_compensate(args) -> int:
     nominal_values = (record or {}).get("nominal")
     r, nominal = command_models(cal, nominal_values if isinstance(nominal_values, dict) else None, args.tcp,
                                 args.target_frame)
+    if args.program:
+        return _compensate_program(args, r, nominal)
     if args.pose:
         return _compensate_poses(args, r, nominal)
     if args.output_kind == "cartesian":
@@ -70,6 +72,25 @@ def _compensation_text(args, comp, r, start, written: bool, n: int) -> str:
         s = comp.predicted_sigma[comp.ok]
         text += f"\nmodel's predicted σ at the commands: median {np.median(s) * MM:.4f} mm, max {s.max() * MM:.4f} mm"
     return (text + "".join(f"\nwarning: {w}" for w in comp.warnings)).strip()
+
+
+def _compensate_program(args, r, nominal) -> int:
+    """compensate --program ur: a robot program compensated in place, written to -o (never over it)."""
+    prog = kincal.io.read_program(args.targets, args.program)
+    res = compensate_program(r, nominal, prog)
+    written = bool(res.texts) and (not res.problems or args.skip_unreachable)  # never half a program silently
+    if written:
+        kincal.io.write_program(args.output, prog, res.texts)
+    lines = [f"{len(res.texts)} of {len(prog.targets)} literal targets compensated"
+             + (f"; program written to {args.output} (everything else byte for byte)" if written else
+                f"; nothing written to {args.output}" + (" (--skip-unreachable writes the program with the refused "
+                                                         "targets left as they are)" if res.texts else ""))]
+    lines += [f"refused: {p}" for p in res.problems]
+    lines += [f"left as is (not a literal): line {n} {move}({arg}, …)" for n, move, arg in res.not_literal]
+    emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
+                "not_literal": [{"line": n, "move": m, "target": a} for n, m, a in res.not_literal],
+                "output": args.output if written else None}, "\n".join(lines))
+    return 0 if written else EXIT_REFUSED
 
 
 def _compensate_poses(args, r, nominal) -> int:
@@ -184,6 +205,9 @@ def register(cmd) -> None:
                    help="--pose: quat-wxyz (default), quat-xyzw, matrix, rotvec, rotvec-deg or "
                         "euler-<axes>-<intrinsic|extrinsic>-<deg|rad>")
     s.add_argument("--rot-cols", type=csv_list, help="--pose: the orientation columns, in the convention's order")
+    s.add_argument("--program", choices=("ur",),
+                   help="the targets file is a robot program (ur: URScript .script): its literal move targets are "
+                        "compensated in place, every other byte kept; the result goes to -o")
     s.add_argument("--path", action="store_true",
                    help="the rows are consecutive targets of one path: a row whose corrected command jumps much "
                         "more from the previous one than the nominal commands do is refused and named")
