@@ -112,16 +112,10 @@ class Robot(ABC):
     def _pose_and_jacobian(self, q: np.ndarray, values: np.ndarray):
         """Generic: the flange axes are where a unit step of the tool point along each moves it, and
         the angular velocity ω follows from those axes' rates, ω = ½ Σₖ aₖ × ȧₖ (exact)."""
-        if not self.has_tool_point:
-            raise self._no_tool_point()
-        cols = self.params.indices(TOOL_NAMES)
+        steps = self._tool_steps(values)
         p0, J0 = self._forward_and_jacobian(q, values, False)[0], self._joint_jacobian(q, values)
-        R, Jw = np.empty((q.shape[0], 3, 3)), np.zeros_like(J0)
-        for k, c in enumerate(cols):
-            vk = values.copy()
-            vk[c] += 1.0
-            R[:, :, k] = self._forward_and_jacobian(q, vk, False)[0] - p0
-            Jw += 0.5 * np.cross(R[:, :, k][:, :, None], self._joint_jacobian(q, vk) - J0, axis=1)
+        R = np.stack([self._forward_and_jacobian(q, v, False)[0] - p0 for v in steps], axis=2)
+        Jw = sum(0.5 * np.cross(R[:, :, k, None], self._joint_jacobian(q, v) - J0, axis=1) for k, v in enumerate(steps))
         return p0, R, J0, Jw
 
     # ---- kinematics ------------------------------------------------------------------------------
@@ -353,18 +347,17 @@ class Robot(ABC):
     def flange_rotation(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
         """(N, 3, 3) orientation of the flange frame in the world frame at q (N, n): column k is where
         a unit step of the tool point along flange axis k moves it (the tool point is a translation)."""
+        v, q = self.param_values(values), self.check_q(q)
+        p0 = self.forward(q, v)
+        return np.stack([self.forward(q, vk) - p0 for vk in self._tool_steps(v)], axis=2)
+
+    def _tool_steps(self, values: np.ndarray) -> np.ndarray:
+        """(3, P): ``values`` with the tool point moved 1 m along each flange axis."""
         if not self.has_tool_point:
             raise self._no_tool_point()
-        v = self.param_values(values)
-        cols = self.params.indices(TOOL_NAMES)
-        q = self.check_q(q)
-        p0 = self.forward(q, v)
-        R = np.empty((q.shape[0], 3, 3))
-        for k, c in enumerate(cols):
-            vk = v.copy()
-            vk[c] += 1.0
-            R[:, :, k] = self.forward(q, vk) - p0
-        return R
+        steps = np.repeat(np.asarray(values, dtype=float)[None], 3, axis=0)
+        steps[np.arange(3), self.params.indices(TOOL_NAMES)] += 1.0
+        return steps
 
     # ---- the error model beyond geometry ---------------------------------------------------------
     @property
