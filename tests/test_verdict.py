@@ -167,9 +167,9 @@ def test_compensate_checks_every_row(ur5, tmp_path, capsys):
     code, text, _ = run(capsys, "compensate", robot, path, "-o", out, "--skip-unreachable")
     written = np.loadtxt(out, delimiter=",", skiprows=1)
     assert code == 0 and written.shape == (3, 1 + 6 + 3 + 6 + 1) and written[:, 0].tolist() == [2, 4, 5]
-    np.testing.assert_allclose(written[:, 1:7], comp.q[comp.ok], atol=1e-12)
-    np.testing.assert_allclose(written[:, 7:10], targets[comp.ok], atol=1e-15)
-    np.testing.assert_allclose(written[:, 10:16], comp.q[comp.ok] - q[comp.ok], atol=1e-12)
+    np.testing.assert_allclose(written[:, 1:7], comp.q[comp.ok], rtol=0, atol=1e-10)  # 10 decimals
+    np.testing.assert_allclose(written[:, 7:10], targets[comp.ok], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(written[:, 10:16], comp.q[comp.ok] - q[comp.ok], rtol=0, atol=1e-10)
 
 
 def test_compensate_reports_sigma_and_extrapolation(ur5, sim):

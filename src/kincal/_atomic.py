@@ -26,3 +26,33 @@ def write_text_atomic(path: str | os.PathLike, text: str, encoding: str = "utf-8
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+class AtomicFile:
+    """A text file written through a temporary file beside ``path``: it appears at ``path`` (renamed)
+    only when :meth:`keep` was called before the ``with`` block ends; else, or on an error, the
+    temporary file is removed and ``path`` is untouched."""
+
+    def __init__(self, path: str | os.PathLike, encoding: str = "utf-8") -> None:
+        self.path, self.encoding, self._keep = Path(path), encoding, False
+
+    def __enter__(self):
+        import tempfile
+
+        fd, self._tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", dir=self.path.parent or ".")
+        self._fh = os.fdopen(fd, "w", newline="", encoding=self.encoding)
+        return self
+
+    def write(self, text: str) -> None:
+        self._fh.write(text)
+
+    def keep(self) -> None:
+        self._keep = True
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self._fh.close()
+        if exc_type is None and self._keep:
+            os.chmod(self._tmp, 0o666 & ~_umask())
+            os.replace(self._tmp, self.path)
+        elif os.path.exists(self._tmp):
+            os.unlink(self._tmp)

@@ -5,8 +5,12 @@ file and the row."""
 from __future__ import annotations
 
 import csv
+import io
 import re
+from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from .errors import MeasurementError
 
@@ -73,3 +77,154 @@ def read_table(path: str) -> tuple[list[str], list[tuple[int, list[str]]], str, 
     if len(records) < 2:
         raise MeasurementError(f"{path}: no data rows after the header")
     return header, [(k, rec) for k, rec in records[1:]], delim, records[0][0]
+
+
+def cell_numbers(path: str, records, header: list[str], cols, delim: str, empty_ok: bool = False):
+    """The named columns of ``records`` ((line number, cells) pairs) as floats (N, len(cols)), each
+    cell checked: a cell that is not a finite number (or empty, with ``empty_ok``: NaN) is refused,
+    naming the file, row and column."""
+    idx = [header.index(c) for c in cols]
+    out = np.empty((len(records), len(cols)))
+    for r, (k, rec) in enumerate(records):
+        for j, i in enumerate(idx):
+            cell = rec[i].strip()
+            if empty_ok and cell == "":
+                out[r, j] = np.nan
+            elif not is_float(cell, delim) or not np.isfinite(number(cell, delim)):
+                raise MeasurementError(f"{path}: row {k}, column '{cols[j]}': '{rec[i]}' is not a "
+                                       f"{'number (or empty)' if empty_ok else 'finite number'}")
+            else:
+                out[r, j] = number(cell, delim)
+    return out
+
+
+BLOCK_BYTES = 4 << 20  # a streamed file is read this many bytes at a time (whole lines)
+
+
+@dataclass(frozen=True)
+class Block:
+    """Whole lines of a streamed CSV (blank and '#' lines included): ``nbytes`` bytes from ``offset``,
+    the first being line ``first_line``; ``text`` holds them when they are not to be read from the file."""
+
+    first_line: int
+    offset: int
+    nbytes: int
+    text: str | None = None
+
+
+@dataclass(frozen=True)
+class Stream:
+    """A CSV read block by block: its header (stripped names), separator, and where the data start."""
+
+    path: str
+    header: list[str]
+    delim: str
+    header_line: int
+    offset: int  # bytes: the first byte after the header line
+    size: int  # bytes: the file's size
+    block_bytes: int = BLOCK_BYTES
+
+    def blocks(self):
+        """(block, its last data line as a block of its own or None) for the data after the header, in
+        blocks of about ``block_bytes`` bytes of whole lines; only the line breaks are looked at here."""
+        line, offset, size = self.header_line + 1, self.offset, self.block_bytes
+        with open(self.path, "rb") as fh:
+            fh.seek(offset)
+            tail = b""
+            while True:
+                raw = fh.read(size)
+                if not raw and not tail.strip():
+                    return
+                raw = tail + raw
+                cut = raw.rfind(b"\n") + 1 if raw and fh.tell() < self.size else len(raw)
+                if cut == 0:
+                    tail = raw
+                    continue
+                block, tail = Block(line, offset, cut), raw[cut:]
+                yield block, _last_line(raw[:cut], line)
+                line, offset = line + raw.count(b"\n", 0, cut), offset + cut
+
+    def read(self, block: Block) -> bytes:
+        if block.text is not None:
+            return block.text.encode("utf-8")
+        with open(self.path, "rb") as fh:
+            fh.seek(block.offset)
+            return fh.read(block.nbytes)
+
+    def numbers(self, block: Block, cols) -> tuple[np.ndarray, np.ndarray]:
+        """(row numbers (N,), values (N, len(cols))) of the block's data lines: numpy's C reader when
+        the block is plain (no comment, blank or quoted line; the header's field count on every line)
+        and every cell a finite number in '.' notation, else cell by cell (decimal commas, quoted
+        cells), with an error naming the row and column."""
+        raw = self.read(block)
+        idx = [self.header.index(c) for c in cols]
+        n = raw.count(b"\n") + (0 if raw.endswith(b"\n") else 1)
+        d = self.delim.encode()
+        plain = (b"#" not in raw and b'"' not in raw and b"\n\n" not in raw and not raw.startswith((b"\n", b"\r"))
+                 and raw.count(d) == n * (len(self.header) - 1))
+        if plain:
+            try:
+                out = np.loadtxt(io.BytesIO(raw), delimiter=self.delim, usecols=idx, ndmin=2, comments=None)
+                if out.shape == (n, len(idx)) and np.all(np.isfinite(out)):
+                    return block.first_line + np.arange(n), out
+            except ValueError:
+                pass  # the careful reader names the cell
+        return self._careful(_decoded(raw), block.first_line, list(cols))
+
+    def _careful(self, text: str, first_line: int, cols: list) -> tuple[np.ndarray, np.ndarray]:
+        lines = text.splitlines()
+        keep = [k for k, s in enumerate(lines) if s.strip() and not s.lstrip().startswith("#")]
+        records = list(zip([first_line + k for k in keep], csv.reader([lines[k] for k in keep], delimiter=self.delim)))
+        for k, rec in records:
+            if len(rec) != len(self.header):
+                raise MeasurementError(f"{self.path}: row {k} has {len(rec)} fields, the header has {len(self.header)}")
+        rows = np.array([k for k, _ in records], dtype=int)
+        return rows, cell_numbers(self.path, records, self.header, cols, self.delim).reshape(len(rows), len(cols))
+
+
+def _last_line(raw: bytes, first_line: int) -> Block | None:
+    """The last data line of whole lines ``raw`` (starting at line ``first_line``) as a block holding its text."""
+    end = len(raw)
+    while end > 0:
+        start = raw.rfind(b"\n", 0, end - 1) + 1
+        text = _decoded(raw[start:end])
+        if text.strip() and not text.lstrip().startswith("#"):
+            return Block(first_line + raw.count(b"\n", 0, start), -1, 0, text.rstrip("\r\n") + "\n")
+        end = start
+    return None
+
+
+def _decoded(raw: bytes) -> str:
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def open_stream(path: str, block_bytes: int = BLOCK_BYTES) -> Stream:
+    """The header of a CSV to stream (the first line that is not blank or a '#' comment; UTF-8 with or
+    without a BOM, else Latin-1) and where its data start."""
+    import os
+
+    try:
+        size = os.path.getsize(path)
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 16)
+    except OSError as exc:
+        raise MeasurementError(f"{path}: cannot read the file ({exc.strerror})") from None
+    if b"\0" in head[:4096]:
+        raise MeasurementError(f"{path}: this is not a text file (CSV expected; UTF-16 exports: save as 'CSV UTF-8')")
+    start = 3 if head.startswith(b"\xef\xbb\xbf") else 0
+    pos, line = start, 1
+    while True:
+        end = head.find(b"\n", pos)
+        if end < 0:
+            raise MeasurementError(f"{path}: no header line in the first 64 kB (a header line, then one row per "
+                                   f"target)")
+        text = _decoded(head[pos:end])
+        if text.strip() and not text.lstrip().startswith("#"):
+            break
+        pos, line = end + 1, line + 1
+    delim = sniff_delimiter(text, path)
+    header = [h.strip() for h in next(csv.reader([text], delimiter=delim))]
+    return Stream(path, header, delim, line, end + 1, size, block_bytes)

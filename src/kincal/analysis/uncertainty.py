@@ -25,6 +25,7 @@ from ..units import DEG, MM
 
 EXTRAPOLATION_RATIO = 2.5
 ENVELOPE_MARGIN = 0.02
+SIGMA_CHUNK = 4096  # poses per parameter Jacobian when computing σ
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,8 +53,12 @@ class ModelUncertainty:
 
     def sigma(self, robot: Robot, q: np.ndarray) -> np.ndarray:
         """(N,) 3-D standard deviation (m) of the predicted position at joint values q (N, n)."""
-        J = robot.param_jacobian(robot.check_q(q))[:, :, robot.params.indices(self.names)]
-        var = np.einsum("nak,kl,nal->n", J, self.covariance, J)
+        q = robot.check_q(q)
+        idx = robot.params.indices(self.names)
+        var = np.empty(len(q))
+        for a in range(0, len(q), SIGMA_CHUNK):  # Jacobians that stay in cache
+            J = robot.param_jacobian(q[a:a + SIGMA_CHUNK])[:, :, idx].reshape(-1, len(idx))  # (3n, K)
+            var[a:a + SIGMA_CHUNK] = np.einsum("ik,ik->i", J @ self.covariance, J).reshape(-1, 3).sum(axis=1)
         return np.sqrt(np.maximum(var, 0.0))
 
     def extrapolated(self, sigma: np.ndarray) -> np.ndarray:

@@ -213,6 +213,40 @@ def progress(message: str, quiet: bool):
         yield lambda msg: status.update(msg)
 
 
+class Bar:
+    """A progress bar on stderr for ``label``: tasks done of ``total``, or with no total a share of
+    bytes (the callback is then called with (done, total)); silent with --json or when stderr is not
+    a terminal; with ``KINCAL_PROGRESS=1`` a line ``kincal: <label> N %`` per tenth instead."""
+
+    def __init__(self, args, label: str, total: int | None = None) -> None:
+        self.label, self.total, self.progress, self.shown = label, total, None, -1
+        self.lines = progress_lines() and not args.json
+        if not (args.json or not err.is_terminal or self.lines):
+            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TaskProgressColumn, TextColumn,
+                                       TimeRemainingColumn)
+
+            count = MofNCompleteColumn() if total is not None else TaskProgressColumn()
+            self.progress = Progress(TextColumn(label), BarColumn(), count, TimeRemainingColumn(), console=err,
+                                     transient=total is None)
+
+    def __enter__(self):
+        if self.progress is not None:
+            self.progress.start()
+            self.task = self.progress.add_task(self.label, total=self.total)
+        return self.update
+
+    def update(self, done: int, total: int) -> None:
+        if self.progress is not None:
+            self.progress.update(self.task, completed=done, total=total)
+        elif self.lines and total > 0 and int(10 * done / total) > self.shown:
+            self.shown = int(10 * done / total)
+            line(f"kincal: {self.label} {100 * done // total} %")
+
+    def __exit__(self, *exc) -> None:
+        if self.progress is not None:
+            self.progress.stop()
+
+
 def emit(args, payload: dict, text) -> None:
     if args.json:
         sys.stdout.write(json.dumps(payload, indent=2, default=json_default) + "\n")

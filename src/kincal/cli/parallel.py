@@ -10,11 +10,12 @@ import kincal
 import kincal.analysis
 import kincal.io
 import kincal.models
-from kincal.compensate import VerificationPlan, command_models, compensate_program, path_checked, verification_plan
+from kincal.compensate import (StreamJob, TargetsFormat, VerificationPlan, command_models, compensate_file,
+                               compensate_program, verification_plan)
 from kincal.units import DEG, MM
 
-from .common import (EXIT_REFUSED, add_data_flags, add_robot, check_paths, csv_list, emit, load_robot, nonneg_float,
-                     point, positive_float, positive_int, robot_inputs)
+from .common import (EXIT_REFUSED, Bar, add_data_flags, add_robot, check_paths, csv_list, emit, load_robot,
+                     nonneg_float, point, positive_float, positive_int, robot_inputs)
 
 
 def cmd_compensate(args) -> int:
@@ -22,56 +23,57 @@ def cmd_compensate(args) -> int:
     cal = load_robot(args)
     record = kincal.models.load_calibration_record(args.robot) if robot_inputs(args.robot) else None
     nominal_values = (record or {}).get("nominal")
+    uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
     r, nominal = command_models(cal, nominal_values if isinstance(nominal_values, dict) else None, args.tcp,
                                 args.target_frame)
     if args.program:
         return _compensate_program(args, r, nominal)
-    if args.pose:
-        return _compensate_poses(args, r, nominal)
-    if args.output_kind == "cartesian":
-        raise ValueError("--output-kind cartesian writes filtered poses: give --pose (targets with orientation)")
-    targets, rows = kincal.read_positions(args.targets, args.xyz_cols, args.length_unit, with_rows=True)
-    start = None
-    if not r.has_inverse:
-        start = kincal.read_joints(args.targets, r, args.joint_cols, args.length_unit, args.angle_unit)
-    comp = kincal.compensate(r, targets, start, rows=rows, uncertainty=kincal.analysis.load_uncertainty(args.robot),
-                             nominal=nominal)
-    if args.path and start is not None:
-        comp = path_checked(r, comp, start)
-    written = comp.all_ok or (args.skip_unreachable and comp.ok.any())
-    if written:
-        ok = comp.ok
-        kincal.io.write_commands(args.output, r, rows[ok], targets[ok], comp.q[ok], None if start is None else start[ok],
-                                 None if comp.orientation_change is None else comp.orientation_change[ok],
-                                 args.joint_cols, args.length_unit, args.angle_unit)
-    payload = {**comp.to_dict(), "output": args.output if written else None, "target_frame": args.target_frame}
-    emit(args, payload, _compensation_text(args, comp, r, start, written, len(targets)))
-    return 0 if written else EXIT_REFUSED
+    fmt = TargetsFormat(args.pose, tuple(args.joint_cols) if args.joint_cols else None, tuple(args.xyz_cols),
+                        args.orientation, tuple(args.rot_cols) if args.rot_cols else None, args.length_unit,
+                        args.angle_unit)
+    job = StreamJob(r, nominal, fmt, uncertainty, args.output_kind, args.path)
+    with Bar(args, "compensating") as bar:
+        res = compensate_file(job, args.targets, args.output, skip_unreachable=args.skip_unreachable,
+                              workers=args.workers, progress=bar)
+    payload = {**res.to_dict(), "output": args.output if res.written else None, "target_frame": args.target_frame,
+               "output_kind": args.output_kind}
+    emit(args, payload, _compensation_text(args, res, r))
+    return 0 if res.written else EXIT_REFUSED
 
 
-def _compensation_text(args, comp, r, start, written: bool, n: int) -> str:
+SHOWN_PROBLEMS = 50  # refused rows listed on the terminal (all of them with --json)
+
+
+def _compensation_text(args, res, r) -> str:
     """What compensate prints: refused rows, what was written, the largest joint move and orientation change."""
-    text = "\n".join(f"refused: {p}" for p in comp.problems)
+    shown = res.problems[:SHOWN_PROBLEMS]
+    text = "\n".join(f"refused: {p}" for p in shown)
+    if len(res.problems) > len(shown):
+        text += f"\n… and {len(res.problems) - len(shown)} more refused rows (all of them with --json)"
     frame = f"targets in the '{args.target_frame}' frame"
-    if written:
-        good = comp.residual[comp.ok]
-        text += (f"\n{int(comp.ok.sum())} of {n} targets ({frame}): commands written to {args.output} ({comp.method}); "
-                 f"largest model residual {good.max() * MM:.2e} mm")
-        if start is not None:
-            dq = np.abs(comp.q[comp.ok] - start[comp.ok]).max(axis=0)
+    big = res.largest
+    if res.written:
+        text += (f"\n{res.accepted} of {res.targets} targets ({frame}): commands written to {args.output} "
+                 f"({res.method}); largest model residual {big['residual'] * MM:.2e} mm")
+        if "change" in big:
             text += "\nlargest change per joint: " + ", ".join(
                 f"{j} {d * DEG:.4f} deg" if t == "revolute" else f"{j} {d * MM:.4f} mm"
-                for j, t, d in zip(r.joint_names, r.joint_types, dq))
-        if comp.orientation_change is not None:
-            text += (f"\npredicted change of the tool orientation: up to "
-                     f"{comp.orientation_change[comp.ok].max() * 1e3:.3f} mrad (position-only compensation)")
+                for j, t, d in zip(r.joint_names, r.joint_types, big["change"]))
+        if "orientation_change" in big:
+            text += (f"\npredicted change of the tool orientation: up to {big['orientation_change'] * 1e3:.3f} mrad "
+                     f"(position-only compensation)")
+        if "rotation_residual" in big:
+            text += f"\nlargest orientation residual {big['rotation_residual'] * 1e3:.2e} mrad"
+        if args.output_kind == "cartesian":
+            text += (f"\nfiltered poses ({args.orientation}) written: send them to a controller moving with the "
+                     f"nominal model; its inverse kinematics give the commands listed beside them")
     else:
-        text += (f"\nnothing written to {args.output}: {len(comp.problems)} problem(s) for {n} targets ({frame})"
-                 + ("" if args.skip_unreachable else " (--skip-unreachable writes the others)"))
-    if comp.predicted_sigma is not None and comp.ok.any():
-        s = comp.predicted_sigma[comp.ok]
-        text += f"\nmodel's predicted σ at the commands: median {np.median(s) * MM:.4f} mm, max {s.max() * MM:.4f} mm"
-    return (text + "".join(f"\nwarning: {w}" for w in comp.warnings)).strip()
+        text += (f"\nnothing written to {args.output}: {len(res.problems)} problem(s) for {res.targets} targets "
+                 f"({frame})" + ("" if args.skip_unreachable else " (--skip-unreachable writes the others)"))
+    if res.sigma_median is not None:
+        text += (f"\nmodel's predicted σ at the commands: median {res.sigma_median * MM:.4f} mm, "
+                 f"max {res.sigma_max * MM:.4f} mm")
+    return (text + "".join(f"\nwarning: {w}" for w in res.warnings)).strip()
 
 
 def _compensate_program(args, r, nominal) -> int:
@@ -90,41 +92,6 @@ def _compensate_program(args, r, nominal) -> int:
     emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
                 "not_literal": [{"line": n, "move": m, "target": a} for n, m, a in res.not_literal],
                 "output": args.output if written else None}, "\n".join(lines))
-    return 0 if written else EXIT_REFUSED
-
-
-def _compensate_poses(args, r, nominal) -> int:
-    """compensate --pose: full-pose targets (the orientation columns of --orientation), commands or
-    filtered poses for the controller (--output-kind cartesian), every row checked."""
-    from kincal.observe import ObservationFormat, default_columns, from_matrices, read_observations
-
-    fmt = ObservationFormat("pose", tuple(args.joint_cols) if args.joint_cols else None, args.length_unit,
-                            args.angle_unit, tuple(args.xyz_cols), args.orientation,
-                            tuple(args.rot_cols) if args.rot_cols else None)
-    obs = read_observations(args.targets, nominal, fmt)  # a convention that fits markedly better is named
-    comp = kincal.compensate(r, obs.xyz, obs.q, rows=obs.rows, rotations=obs.R, nominal=nominal,
-                             uncertainty=kincal.analysis.load_uncertainty(args.robot))
-    if args.path:
-        comp = path_checked(r, comp, obs.q)
-    written = comp.all_ok or (args.skip_unreachable and comp.ok.any())
-    ok = comp.ok
-    if written and args.output_kind == "cartesian":
-        p, R = comp.filtered
-        cols = list(args.rot_cols or default_columns(args.orientation))
-        kincal.io.write_filtered(args.output, r, obs.rows[ok], p[ok], cols, from_matrices(R[ok], args.orientation),
-                                 comp.q[ok], args.joint_cols, args.length_unit, args.angle_unit)
-    elif written:
-        kincal.io.write_commands(args.output, r, obs.rows[ok], obs.xyz[ok], comp.q[ok], obs.q[ok], None,
-                                 args.joint_cols, args.length_unit, args.angle_unit)
-    payload = {**comp.to_dict(), "output": args.output if written else None, "target_frame": args.target_frame,
-               "output_kind": args.output_kind}
-    text = _compensation_text(args, comp, r, obs.q, written, len(obs.q))
-    if written and comp.rotation_residual is not None:
-        text += f"\nlargest orientation residual {comp.rotation_residual[ok].max() * 1e3:.2e} mrad"
-        if args.output_kind == "cartesian":
-            text += (f"\nfiltered poses ({args.orientation}) written: send them to a controller moving with the "
-                     f"nominal model; its inverse kinematics give the commands listed beside them")
-    emit(args, payload, text)
     return 0 if written else EXIT_REFUSED
 
 
@@ -214,6 +181,8 @@ def register(cmd) -> None:
     s.add_argument("--output-kind", choices=("joints", "cartesian"), default="joints",
                    help="joints: corrected joint commands (default); cartesian: the filtered poses to send a "
                         "controller that moves with the nominal model")
+    s.add_argument("--workers", type=positive_int,
+                   help="processes sharing a long targets file (default: one per core; the output is the same)")
     s.add_argument("--target-frame", default="base",
                    help="the frame of the targets: base (the robot's own, default), measurement (the calibration's "
                         "tracker frame), or a frame the robot file names (e.g. base_link for UR arms, as in ROS)")

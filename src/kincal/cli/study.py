@@ -9,7 +9,7 @@ import kincal.studies
 from kincal.papers import GUO2024
 from kincal.studies import guo2024, guo2024_mc, runner
 
-from .common import EXIT_INTERRUPTED, check_paths, emit, err, hidden_alias, line, positive_int, progress
+from .common import EXIT_INTERRUPTED, Bar, check_paths, emit, hidden_alias, line, positive_int, progress
 
 STUDIES = {"guo2024": "guo2024", "seed1": "guo2024"}  # study names (and the 0.1 name, still accepted)
 
@@ -39,7 +39,7 @@ def cmd_study(args) -> int:
         trials = guo2024_mc.prepare(m=args.poses, generations=args.generations, seed=args.seed, say=say)
     tasks = runner.tasks_for(args.trials, args.per_task)
     try:
-        with runner.make_executor(args.workers, args.scheduler) as ex, _bar(args, len(tasks)) as bar:
+        with runner.make_executor(args.workers, args.scheduler) as ex, Bar(args, "study", len(tasks)) as bar:
             records = runner.run_tasks(trials.run, tasks, ex, out, header, bar)
     except KeyboardInterrupt:
         line(f"kincal: interrupted; the finished tasks are kept in {out}: run the same command to resume")
@@ -53,29 +53,6 @@ def cmd_study(args) -> int:
     emit(args, {"results_file": str(out), "trials": len(records), "settings": header, "reduction": rows},
          guo2024_mc.report(rows) + f"\nper-trial results: {out}")
     return 0
-
-
-class _bar:
-    """A progress bar on the terminal (tasks done of total); silent with --json or when piped."""
-
-    def __init__(self, args, total: int) -> None:
-        self.progress, self.total = None, total
-        if not (args.json or not err.is_terminal):
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
-            self.progress = Progress(TextColumn("study"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
-                                     console=err)
-
-    def __enter__(self):
-        if self.progress is None:
-            return None
-        self.progress.start()
-        task = self.progress.add_task("study", total=self.total)
-        return lambda done, total: self.progress.update(task, completed=done)
-
-    def __exit__(self, *exc) -> None:
-        if self.progress is not None:
-            self.progress.stop()
 
 
 def _study(s: str) -> str:

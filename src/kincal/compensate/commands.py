@@ -231,21 +231,28 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
         comp = dataclasses.replace(comp, ok=comp.ok & ~bad, problems=problems)
     comp = dataclasses.replace(_with_sigma(robot, comp, uncertainty), rotation_residual=sol.rotation_error)
     if robot.n_joints < 6 and comp.ok.any():
-        left = float(sol.rotation_error[comp.ok].max())
         comp = dataclasses.replace(comp, warnings=comp.warnings + (
-            f"{robot.n_joints} joints control the position and {robot.n_joints - 3} rotation(s): the rest of the "
-            f"target orientation is not controlled, up to {left * 1e3:.3f} mrad left (rotation_residual)",))
+            uncontrolled_warning(robot, float(sol.rotation_error[comp.ok].max())),))
     return comp if nominal is None else dataclasses.replace(comp, filtered=filtered_poses(nominal, sol.q))
+
+
+def uncontrolled_warning(robot: Robot, left: float) -> str:
+    """What pose targets leave to a robot with fewer than six joints: ``left`` (rad) the largest
+    rotation error at accepted commands."""
+    return (f"{robot.n_joints} joints control the position and {robot.n_joints - 3} rotation(s): the rest of the "
+            f"target orientation is not controlled, up to {left * 1e3:.3f} mrad left (rotation_residual)")
 
 
 def _checked_rotations(rotations, n: int) -> np.ndarray:
     R = np.asarray(rotations, dtype=float)
     if R.shape != (n, 3, 3) or not np.all(np.isfinite(R)):
         raise ModelError(f"rotations must be finite (N, 3, 3) matrices for the {n} targets, got shape {R.shape}")
-    dev = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max(axis=(1, 2))
-    if (dev > 1e-6).any() or (np.linalg.det(R) < 0).any():
-        raise ModelError(f"target {int(np.flatnonzero((dev > 1e-6) | (np.linalg.det(R) < 0))[0]) + 1}: the orientation "
-                         f"is not a rotation")
+    a, b, c = R[:, :, 0], R[:, :, 1], R[:, :, 2]  # columns: unit, orthogonal, right-handed
+    dot = lambda x, y: np.einsum("ni,ni->n", x, y)  # noqa: E731
+    dev = np.max(np.abs([dot(a, a) - 1, dot(b, b) - 1, dot(c, c) - 1, dot(a, b), dot(a, c), dot(b, c)]), axis=0)
+    bad = (dev > 1e-6) | (dot(a, np.cross(b, c)) < 0)
+    if bad.any():
+        raise ModelError(f"target {int(np.flatnonzero(bad)[0]) + 1}: the orientation is not a rotation")
     return R
 
 

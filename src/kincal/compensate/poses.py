@@ -20,19 +20,23 @@ POS_TOL = 1e-12  # m: converged (commands then agree to ~1e-10 rad)
 ROT_TOL = 1e-12  # rad
 MAX_ITER = 50
 CHUNK = 16384  # targets solved together
+FIRST_PASS = 8  # iterations per chunk; the targets left then iterate together (near singularities)
 DAMPING = 1e-12  # relative: keeps a step finite at an exact singularity
 ROT_WEIGHT = {True: 0.1, False: 1e-4}  # m per rad: full pose (≥ 6 joints) / position first (fewer joints)
 STALL = 1e-13  # m: a step moving the tool this little ends a least-squares solve (fewer than 6 joints)
 MAX_MOVE = 0.02  # m: no joint may move the tool point more than this in one step (a full step near a
 #                   singularity would leave the branch); joints are scaled by their lever (m per rad or m)
 ROT_LEVER = 0.1  # m per rad: a wrist joint turning the tool counts as moving a point this far out
+FINAL = 1e-9  # m and rad: an error below this is gone after one more Newton step (it leaves ~1e-18 at
+#               the model's curvature of about 1 per m), so that step ends the solve without another evaluation
 MAX_TRAVEL = 0.1  # m: a correction that has moved the tool this far is another arm configuration; given up
 
 
 @dataclass(frozen=True)
 class PoseSolution:
     """q (N, n) commands; position and rotation errors left at them (N,) m and rad (for a robot with
-    fewer than six joints the rotation error is what it cannot control); converged (N,); iterations."""
+    fewer than six joints the rotation error is what it cannot control; for a target whose last
+    step started below FINAL, the error before that step: a bound); converged (N,); iterations."""
 
     q: np.ndarray
     position_error: np.ndarray
@@ -69,69 +73,107 @@ def solve_poses(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, 
                 fixed: tuple[int, ...] = (), chunk: int = CHUNK) -> PoseSolution:
     """Commands q (N, n) that put ``model``'s tool point at p_t (N, 3) m with its flange at R_t
     (N, 3, 3), by Newton steps from q0 (N, n); only unconverged targets iterate, ``chunk`` targets at
-    a time (bounded memory, arrays that stay in cache). Joints in ``fixed`` keep their start values
-    (a redundant arm's controller takes one as its redundancy parameter)."""
+    a time (bounded memory, arrays that stay in cache) for the first FIRST_PASS iterations, then the
+    few left of every chunk together (a target near a singularity then costs no pass per chunk).
+    Joints in ``fixed`` keep their start values (a redundant arm's controller takes one as its
+    redundancy parameter)."""
     if not model.has_tool_point:
         raise ModelError(f"robot '{model.name}' has no tool point and flange frame: give position targets")
     q = np.array(q0, dtype=float)
     moving = np.ones(q.shape[1], bool)
     moving[list(fixed)] = False
-    dp, dr, conv = np.empty(len(q)), np.empty(len(q)), np.zeros(len(q), bool)
-    iterations = 0
-    for a in range(0, len(q), chunk):
-        b = min(a + chunk, len(q))
-        it = _solve_chunk(model, p_t[a:b], R_t[a:b], q[a:b], moving, max_iter, dp[a:b], dr[a:b], conv[a:b])
+    s = _State(q, np.empty(len(q)), np.empty(len(q)), np.zeros(len(q), bool), np.zeros(len(q)))
+    first = min(FIRST_PASS, max_iter)
+    left = [_iterate(model, p_t, R_t, s, np.arange(a, min(a + chunk, len(q))), moving, 1, first)
+            for a in range(0, len(q), chunk)]
+    rest = np.concatenate([a for a, _ in left]) if left else np.zeros(0, int)
+    iterations = max((it for _, it in left), default=0)
+    for a in range(0, rest.size, chunk):
+        stopped, it = _iterate(model, p_t, R_t, s, rest[a:a + chunk], moving, first + 1, max_iter)
         iterations = max(iterations, it)
-    return PoseSolution(q, dp, dr, conv, iterations)
+        if stopped.size:  # the errors at their last commands
+            ep, er, _, _ = pose_errors(model, q[stopped], p_t[stopped], R_t[stopped])
+            s.dp[stopped], s.dr[stopped] = np.linalg.norm(ep, axis=1), np.linalg.norm(er, axis=1)
+    return PoseSolution(q, s.dp, s.dr, s.converged, iterations)
 
 
-def _solve_chunk(model: Robot, p_t, R_t, q, moving, max_iter: int, dp, dr, converged) -> int:
-    """Newton iterations on one chunk, in place: q (the commands), dp/dr (the errors left, m/rad)
-    and converged; returns the iterations made."""
+@dataclass(frozen=True)
+class _State:
+    """The solve's arrays, written in place: commands, errors left (m, rad), converged, and how far
+    the steps have moved each tool point (m, summed)."""
+
+    q: np.ndarray
+    dp: np.ndarray
+    dr: np.ndarray
+    converged: np.ndarray
+    travel: np.ndarray
+
+
+def _iterate(model: Robot, p_t, R_t, s: _State, active: np.ndarray, moving, start: int, stop: int
+             ) -> tuple[np.ndarray, int]:
+    """Newton iterations start..stop on the targets ``active`` (indices), in place; returns the targets
+    still iterating after ``stop`` (empty when the last one is done) and the last iteration made.
+    The errors of a target that stops unconverged are those at its last command."""
     n_j = int(moving.sum())
     w = ROT_WEIGHT[n_j >= 6]
-    active = np.arange(len(q))
-    travel = np.zeros(len(q))  # m: how far the steps have moved the tool, summed
-    it = 0
-    for it in range(1, max_iter + 1):
-        full = active.size == len(q)
-        qa = q if full else q[active]
-        ep, er, Jp, Jw = pose_errors(model, qa, p_t if full else p_t[active], R_t if full else R_t[active])
-        dp[active], dr[active] = np.linalg.norm(ep, axis=1), np.linalg.norm(er, axis=1)
-        done = (dp[active] < POS_TOL) & (dr[active] < ROT_TOL)
-        converged[active[done]] = True
-        keep = ~done
+    it = start - 1
+    for it in range(start, stop + 1):
+        ep, er, Jp, Jw = pose_errors(model, s.q[active], p_t[active], R_t[active])
+        s.dp[active], s.dr[active] = np.linalg.norm(ep, axis=1), np.linalg.norm(er, axis=1)
+        keep = ~((s.dp[active] < POS_TOL) & (s.dr[active] < ROT_TOL))
+        s.converged[active[~keep]] = True
         active = active[keep]
         if not active.size:
-            break
+            return active, it
         Jp, Jw, ep, er = (x if keep.all() else x[keep] for x in (Jp, Jw, ep, er))
-        dq = _step(np.concatenate([Jp, w * Jw], axis=1) * moving, np.concatenate([ep, w * er], axis=1))
+        J = np.concatenate([Jp, w * Jw], axis=1)
+        dq = _step(J if moving.all() else J * moving, np.concatenate([ep, w * er], axis=1))
         lever = np.linalg.norm(Jp, axis=1) + ROT_LEVER * np.linalg.norm(Jw, axis=1)  # (N, n): per unit of each joint
         move = (np.abs(dq) * lever).max(axis=1)
         dq *= np.minimum(1.0, MAX_MOVE / np.maximum(move, 1e-300))[:, None]
-        travel[active] += np.minimum(move, MAX_MOVE)
+        s.travel[active] += np.minimum(move, MAX_MOVE)
         stalled = move < STALL if n_j < 6 else np.zeros(len(move), bool)  # least squares: steps stopped moving
-        converged[active[stalled]] = True
-        go = ~stalled & (travel[active] < MAX_TRAVEL)  # beyond MAX_TRAVEL: left unconverged, refused by the checks
-        q[active[go]] += dq[go]
+        s.converged[active[stalled]] = True
+        go = ~stalled & (s.travel[active] < MAX_TRAVEL)  # beyond MAX_TRAVEL: left unconverged, refused by the checks
+        s.q[active[go]] += dq[go]
+        if n_j >= 6:  # a full Newton step from an error this small leaves about its square: done
+            last = go & (s.dp[active] < FINAL) & (s.dr[active] < FINAL) & (move < MAX_MOVE)
+            s.converged[active[last]] = True
+            go &= ~last
         active = active[go]
         if not active.size:
-            break
-    if active.size:  # the errors at the last commands
-        ep, er, _, _ = pose_errors(model, q[active], p_t[active], R_t[active])
-        dp[active], dr[active] = np.linalg.norm(ep, axis=1), np.linalg.norm(er, axis=1)
-    return it
+            return active, it
+    return active, it
 
 
 def _step(J: np.ndarray, e: np.ndarray) -> np.ndarray:
     """Damped least-squares steps (N, n) for Jacobians J (N, 6, n) and errors e (N, 6): the smallest
     step that removes the error when the robot has six joints or more, the least-squares one else."""
     n = J.shape[2]
-    if n == 6:  # square: one LU per target; the damped normal equations only if one is singular
+    if n == 6:  # square: one LU per target; the damped normal equations for the singular ones
         try:
             return np.linalg.solve(J, e[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            pass
+        except np.linalg.LinAlgError:  # which ones, so that no target's step depends on the others
+            out = np.empty(e.shape)
+            singular = np.array([_singular(Jk) for Jk in J])
+            if (~singular).any():
+                out[~singular] = np.linalg.solve(J[~singular], e[~singular, :, None])[..., 0]
+            out[singular] = _damped_step(J[singular], e[singular])
+            return out
+    return _damped_step(J, e)
+
+
+def _singular(J: np.ndarray) -> bool:
+    try:
+        np.linalg.solve(J, np.zeros(len(J)))
+        return False
+    except np.linalg.LinAlgError:
+        return True
+
+
+def _damped_step(J: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """Damped least-squares steps: minimum norm (n ≥ 6 joints) or least squares (fewer)."""
+    n = J.shape[2]
     Jt = np.swapaxes(J, 1, 2)
     if n >= 6:
         return np.einsum("nij,nj->ni", Jt, np.linalg.solve(_damped(J @ Jt), e[..., None])[..., 0])

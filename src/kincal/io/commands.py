@@ -1,16 +1,78 @@
-"""Joint commands out (CSV): what compensation writes for the robot, with the row, target and changes."""
+"""Joint commands out (CSV): what compensation writes for the robot, with the row, target and changes.
+
+Numbers are written with 10 decimals (1e-10 rad, deg, m or mm in the file's units): far below any
+controller's resolution, and formatted a whole block at a time, so a million rows take about a second.
+"""
 from __future__ import annotations
 
-import csv
-import io as _io
 import os
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
 from .._atomic import write_text_atomic
+from .._numtext import fixed_lines
 from ..models.robot import Robot
 from .measurements import _joint_columns, _joint_scale, _unit
+
+DECIMALS = 10
+
+
+@dataclass(frozen=True)
+class CommandColumns:
+    """The layout of a commands file. ``kind`` "joints": row, the joints (``joint_cols``), the target
+    x, y, z, with ``changes`` the change of every joint from the nominal command (``d_<joint>``) and
+    with ``orientation_change`` the predicted change of the tool orientation (mrad); "cartesian":
+    row, the pose to send (x, y, z and ``rot_cols``) and the joints it gives. Values are SI inside;
+    ``joint_scale`` and ``length_scale`` turn them into the file's units."""
+
+    kind: str
+    joint_cols: tuple[str, ...]
+    joint_scale: np.ndarray
+    length_scale: float
+    changes: bool = False
+    orientation_change: bool = False
+    rot_cols: tuple[str, ...] = ()
+
+    def header(self) -> str:
+        j = list(self.joint_cols)
+        if self.kind == "cartesian":
+            return ",".join(["row", "x", "y", "z", *self.rot_cols, *j]) + "\n"
+        extra = [f"d_{c}" for c in j] if self.changes else []
+        return ",".join(["row", *j, "x", "y", "z", *extra] + (["orientation_change_mrad"] if self.orientation_change
+                                                               else [])) + "\n"
+
+    def text(self, rows: np.ndarray, q: np.ndarray, xyz: np.ndarray, q_start: np.ndarray | None = None,
+             orientation_change: np.ndarray | None = None, rot_values: np.ndarray | None = None) -> str:
+        """The lines of ``rows`` (N,): commands q (N, n), targets or poses to send xyz (N, 3) m, the
+        nominal commands, orientation changes (N,) rad or the orientation columns (N, k), as the layout says."""
+        rows = np.asarray(rows)
+        parts: list = [None]
+        if self.kind == "cartesian":
+            parts += [xyz * self.length_scale, rot_values, q * self.joint_scale]
+        else:
+            parts += [q * self.joint_scale, xyz * self.length_scale]
+            parts += [(q - q_start) * self.joint_scale] if self.changes else []
+            parts += [orientation_change[:, None] * 1e3] if self.orientation_change else []
+        table = np.column_stack(parts[1:])
+        text = fixed_lines(rows, table, DECIMALS)
+        if text is None:  # a value beyond ~1e5 in the file's unit: printf, slower
+            line = ",".join(["%d"] + [f"%.{DECIMALS}f"] * table.shape[1]) + "\n"
+            text = (line * len(table)) % tuple(np.column_stack([rows, table]).ravel().tolist())
+        return text
+
+
+def command_columns(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None,
+                    length_unit: str = "m", angle_unit: str = "rad", kind: str = "joints", changes: bool = False,
+                    orientation_change: bool = False, rot_cols: Sequence[str] = ()) -> CommandColumns:
+    """The layout of a commands file at ``path`` for ``robot`` in the given units (see CommandColumns)."""
+    cols = _joint_columns(str(path), robot, joint_cols)
+    scale = 1.0 / _joint_scale(robot.joint_types, length_unit, angle_unit, str(path))
+    lf = 1.0 / _unit(length_unit, "length", str(path))
+    return CommandColumns(kind, tuple(cols), scale, lf, changes, orientation_change, tuple(rot_cols))
+
+
 def write_commands(
     path: str | os.PathLike,
     robot: Robot,
@@ -26,23 +88,9 @@ def write_commands(
     """Joint commands (atomically): the input row, the commanded joints (``joint_cols``, in the given
     units), the target (x, y, z), and with the nominal joints ``q_start`` the change of every joint
     (``d_<joint>``) and the predicted change of the tool orientation (mrad)."""
-    cols = _joint_columns(str(path), robot, joint_cols)
-    scale = 1.0 / _joint_scale(robot.joint_types, length_unit, angle_unit, str(path))
-    lf = 1.0 / _unit(length_unit, "length", str(path))
-    header = ["row", *cols, "x", "y", "z"]
-    if q_start is not None:
-        header += [f"d_{c}" for c in cols]
-    if orientation_change is not None:
-        header.append("orientation_change_mrad")
-    buf = _io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(header)
-    for k in range(len(q)):
-        cells = [int(rows[k]), *(q[k] * scale), *(targets[k] * lf)]
-        cells += [] if q_start is None else list((q[k] - q_start[k]) * scale)
-        cells += [] if orientation_change is None else [orientation_change[k] * 1e3]
-        w.writerow([cells[0], *(repr(float(v)) for v in cells[1:])])
-    write_text_atomic(path, buf.getvalue())
+    layout = command_columns(path, robot, joint_cols, length_unit, angle_unit, "joints", q_start is not None,
+                             orientation_change is not None)
+    write_text_atomic(path, layout.header() + layout.text(rows, q, targets, q_start, orientation_change))
 
 
 def write_filtered(path: str | os.PathLike, robot: Robot, rows: np.ndarray, xyz: np.ndarray, rot_cols: Sequence[str],
@@ -51,10 +99,5 @@ def write_filtered(path: str | os.PathLike, robot: Robot, rows: np.ndarray, xyz:
     """Filtered poses (atomically): the input row, the pose to send the controller (x, y, z in the
     length unit and the orientation columns as given, e.g. a quaternion) and the joints its inverse
     kinematics will produce (``joint_cols``)."""
-    cols = _joint_columns(str(path), robot, joint_cols)
-    scale = 1.0 / _joint_scale(robot.joint_types, length_unit, angle_unit, str(path))
-    lf = 1.0 / _unit(length_unit, "length", str(path))
-    table = np.column_stack([xyz * lf, rot_values, q * scale])
-    lines = [",".join(["row", "x", "y", "z", *rot_cols, *cols])]
-    lines += [",".join([str(int(r)), *(repr(float(v)) for v in row)]) for r, row in zip(rows, table)]
-    write_text_atomic(path, "\n".join(lines) + "\n")
+    layout = command_columns(path, robot, joint_cols, length_unit, angle_unit, "cartesian", rot_cols=rot_cols)
+    write_text_atomic(path, layout.header() + layout.text(rows, q, xyz, rot_values=rot_values))

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._atomic import write_text_atomic
-from .._csv import is_float, number, read_table
+from .._csv import cell_numbers, read_table
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..units import unit_factor
@@ -138,19 +138,7 @@ class _Table:
         return np.array([rec[i].strip() for _, rec in self.records])
 
     def numbers(self, cols, empty_ok: bool = False) -> np.ndarray:
-        idx = [self.header.index(c) for c in cols]
-        out = np.empty((len(self.records), len(cols)))
-        for r, (k, rec) in enumerate(self.records):
-            for j, i in enumerate(idx):
-                cell = rec[i].strip()
-                if empty_ok and cell == "":
-                    out[r, j] = np.nan
-                elif not is_float(cell, self.delim) or not np.isfinite(number(cell, self.delim)):
-                    raise MeasurementError(f"{self.path}: row {k}, column '{cols[j]}': '{rec[i]}' is not a "
-                                           f"{'number (or empty)' if empty_ok else 'finite number'}")
-                else:
-                    out[r, j] = number(cell, self.delim)
-        return out
+        return cell_numbers(self.path, self.records, self.header, list(cols), self.delim, empty_ok)
 
     def joints(self, robot: Robot, fmt: ObservationFormat) -> np.ndarray:
         cols = list(fmt.joint_cols or robot.joint_names)

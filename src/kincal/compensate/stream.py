@@ -1,0 +1,357 @@
+"""Compensation of a targets file of any length: read, solved, checked and written block by block
+(about 8 MB of text at a time, so memory stays bounded), in worker processes when the file has
+several blocks, while the next blocks are read.
+
+Each target's command depends on its own row only, a path's continuity check carries the previous
+block's last row over, and the blocks are written in their order: the output does not depend on the
+number of workers. The orientation convention is checked on the file's first rows; everything else
+(reach, limits, branch, model residual, orientation, TCP/frame mismatch, continuity) on every row.
+"""
+from __future__ import annotations
+
+import os
+import sys
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Callable, Iterator
+
+import numpy as np
+
+from .._atomic import AtomicFile
+from .._csv import BLOCK_BYTES, Block, Stream, open_stream
+from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
+from ..errors import MeasurementError
+from ..io.commands import CommandColumns, command_columns
+from ..models.robot import Robot
+from ..observe.orientation import check_convention, convention_check, default_columns, from_matrices, to_matrices
+from ..units import unit_factor
+from .commands import compensate, path_checked, uncontrolled_warning
+
+CONVENTION_ROWS = 2000  # the orientation convention is judged on the file's first rows
+IN_FLIGHT = 2  # blocks queued per worker
+
+
+@dataclass(frozen=True)
+class TargetsFormat:
+    """The columns of a targets file: joints (the nominal commands, ``joint_cols``, default the
+    robot's names), the position (``xyz_cols``) and, for full poses (``pose``), the orientation in
+    the convention ``orientation`` (columns ``rot_cols``, default the convention's); units as given."""
+
+    pose: bool = False
+    joint_cols: tuple[str, ...] | None = None
+    xyz_cols: tuple[str, ...] = ("x", "y", "z")
+    orientation: str = "quat-wxyz"
+    rot_cols: tuple[str, ...] | None = None
+    length_unit: str = "m"
+    angle_unit: str = "rad"
+
+    def __post_init__(self) -> None:
+        check_convention(self.orientation)
+        unit_factor(self.length_unit, "length")
+        unit_factor(self.angle_unit, "angle")
+        if len(self.xyz_cols) != 3:
+            raise ValueError(f"give three position columns, got {list(self.xyz_cols)}")
+        if self.rot_cols is not None and len(self.rot_cols) != len(default_columns(self.orientation)):
+            raise ValueError(f"{self.orientation} has {len(default_columns(self.orientation))} columns, "
+                             f"got {list(self.rot_cols)}")
+
+    @property
+    def orientation_cols(self) -> tuple[str, ...]:
+        return tuple(self.rot_cols or default_columns(self.orientation))
+
+
+@dataclass(frozen=True)
+class StreamJob:
+    """What to do with every target: ``robot`` the calibrated model (where the robot really goes) and
+    ``nominal`` the controller's, both in the targets' frame (:func:`command_models`); the output
+    ``kind`` ("joints": corrected commands, "cartesian": the filtered poses to send); ``path``: the
+    rows are consecutive targets of one path (continuity checked)."""
+
+    robot: Robot
+    nominal: Robot | None
+    targets: TargetsFormat = TargetsFormat()
+    uncertainty: ModelUncertainty | None = None
+    kind: str = "joints"
+    path: bool = False
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("joints", "cartesian"):
+            raise ValueError(f"output kind '{self.kind}': use joints or cartesian")
+        if self.kind == "cartesian" and not (self.targets.pose and self.nominal is not None):
+            raise ValueError("--output-kind cartesian writes filtered poses: give --pose (targets with orientation)")
+
+    @property
+    def needs_joints(self) -> bool:
+        return self.targets.pose or not self.robot.has_inverse
+
+    def layout(self, dst: str) -> CommandColumns:
+        t = self.targets
+        change = not t.pose and not self.robot.has_inverse and self.nominal is not None and self.robot.has_tool_point
+        return command_columns(dst, self.robot, t.joint_cols, t.length_unit, t.angle_unit, self.kind,
+                               self.needs_joints, change, t.orientation_cols if self.kind == "cartesian" else ())
+
+
+@dataclass(frozen=True)
+class _Part:
+    """One block's outcome: its output lines and what the summary needs (the σ of accepted rows; the
+    rows, σ and joints of those that extrapolate or leave the training envelope; the largest values)."""
+
+    text: str
+    n: int
+    n_ok: int
+    problems: tuple[str, ...]
+    sigma: np.ndarray
+    extrapolated: tuple[np.ndarray, np.ndarray, np.ndarray]
+    outside: tuple[np.ndarray, np.ndarray]
+    largest: dict
+    method: str
+    iterations: int
+    end: int
+
+
+@dataclass(frozen=True)
+class StreamResult:
+    """The summary of a streamed compensation: targets read, commands written (0 when the file was
+    not written), the refused rows' reasons, warnings, the largest model residual (m), rotation
+    residual (rad), orientation change (rad) and change per joint (rad or m), the predicted σ (m)."""
+
+    targets: int
+    accepted: int
+    written: bool
+    problems: tuple[str, ...]
+    warnings: tuple[str, ...]
+    method: str
+    iterations: int
+    largest: dict = field(default_factory=dict)
+    sigma_median: float | None = None
+    sigma_max: float | None = None
+
+    @property
+    def all_ok(self) -> bool:
+        return self.accepted == self.targets
+
+    def to_dict(self) -> dict:
+        return {"targets": self.targets, "accepted": self.accepted, "written": self.accepted if self.written else 0,
+                "problems": list(self.problems), "warnings": list(self.warnings), "method": self.method,
+                "iterations": self.iterations, **{f"max_{k}": v for k, v in self.largest.items()},
+                "predicted_sigma": None if self.sigma_median is None else
+                {"median": self.sigma_median, "max": self.sigma_max}}
+
+
+def compensate_file(job: StreamJob, src: str, dst: str, *, skip_unreachable: bool = False, workers: int | None = None,
+                    progress: Callable[[int, int], None] | None = None, block_bytes: int = BLOCK_BYTES) -> StreamResult:
+    """Compensate every target of the CSV ``src`` and write the commands to ``dst`` (never half a file:
+    written only when every row passes, or with ``skip_unreachable`` the rows that pass). ``workers``
+    processes (default: one per core) share the blocks (``block_bytes`` of text each; the output does
+    not depend on the workers) of a file longer than one; ``progress(bytes done, bytes total)`` is
+    called after each block."""
+    stream = open_stream(src, block_bytes)
+    _check_columns(job, stream)
+    layout = job.layout(dst)
+    total = _Totals()
+    with AtomicFile(dst) as out:
+        out.write(layout.header())
+        for part in _parts(job, stream, layout, _workers(workers, stream)):
+            total.add(part)
+            out.write(part.text)
+            if progress:
+                progress(part.end, stream.size)
+        written = total.n > 0 and (total.n_ok == total.n or (skip_unreachable and total.n_ok > 0))
+        if written:
+            out.keep()
+    if total.n == 0:
+        raise MeasurementError(f"{src}: no data rows after the header")
+    return total.result(job, written)
+
+
+def _check_columns(job: StreamJob, stream: Stream) -> None:
+    """Every column the job reads is in the header once and read once, else one line saying which."""
+    t, robot, path, header = job.targets, job.robot, stream.path, stream.header
+    joints = list(t.joint_cols or robot.joint_names) if job.needs_joints else []
+    cols = [*joints, *t.xyz_cols, *(t.orientation_cols if t.pose else ())]
+    asked = [c for c in dict.fromkeys(cols) if cols.count(c) > 1]
+    if asked:
+        raise MeasurementError(f"{path}: column(s) {', '.join(asked)} given more than once (as joint, position or "
+                               f"orientation columns); each value must come from its own column")
+    twice = [c for c in dict.fromkeys(header) if header.count(c) > 1 and c in cols]
+    if twice:
+        raise MeasurementError(f"{path}: the header names column(s) {', '.join(twice)} more than once (columns "
+                               f"{', '.join(str(k + 1) for k, h in enumerate(header) if h in twice)}); rename them so "
+                               f"that each name is one column")
+    if job.needs_joints:
+        if len(joints) != robot.n_joints:
+            raise MeasurementError(f"{path}: {len(joints)} joint columns given ({', '.join(joints)}) but robot "
+                                   f"'{robot.name}' has {robot.n_joints} joints; give one column per joint")
+        _need(stream, joints, "the nominal joint values (--joint-cols names them)")
+    _need(stream, t.xyz_cols, "the target position columns (--xyz-cols)")
+    if t.pose:
+        rot = t.orientation_cols
+        _need(stream, rot, f"orientation columns {', '.join(rot)} for --orientation {t.orientation} (other names: "
+                           f"--rot-cols; position only: leave out --pose)")
+
+
+def _need(stream: Stream, cols, what: str) -> None:
+    missing = [c for c in cols if c not in stream.header]
+    if missing:
+        raise MeasurementError(f"{stream.path}: needs {what} ({', '.join(missing)} not found); the header has: "
+                               f"{', '.join(stream.header)}")
+
+
+def _workers(workers: int | None, stream: Stream) -> int:
+    if stream.size - stream.offset <= stream.block_bytes:
+        return 1  # one block: no process to start
+    if workers is None:
+        workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, int(workers))
+
+
+def _tasks(stream: Stream) -> Iterator[tuple[Block, Block | None, bool, int]]:
+    """(block, the previous block's last data line as a block (None for the first), first?, bytes done)."""
+    previous = None
+    for k, (block, last) in enumerate(stream.blocks()):
+        yield block, previous, k == 0, block.offset + block.nbytes
+        previous = last
+
+
+def _parts(job: StreamJob, stream: Stream, layout: CommandColumns, workers: int) -> Iterator[_Part]:
+    """The blocks' outcomes in file order: in this process, or from ``workers`` processes with at most
+    IN_FLIGHT blocks queued each."""
+    if workers <= 1:
+        for task in _tasks(stream):
+            yield _block(job, stream, layout, *task)
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    method = "fork" if sys.platform.startswith("linux") else "spawn"  # fork: no re-import, no __main__ guard needed
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context(method), initializer=_init,
+                               initargs=(job, stream, layout))
+    try:
+        pending: deque = deque()
+        for task in _tasks(stream):
+            pending.append(pool.submit(_in_worker, *task))
+            if len(pending) >= IN_FLIGHT * workers:
+                yield pending.popleft().result()
+        while pending:
+            yield pending.popleft().result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+_WORK: tuple = ()
+
+
+def _init(job: StreamJob, stream: Stream, layout: CommandColumns) -> None:
+    """A worker process: the job once, and one BLAS thread (the workers share the cores)."""
+    global _WORK
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
+    _WORK = (job, stream, layout)
+
+
+def _in_worker(block: Block, previous: Block | None, first: bool, end: int) -> _Part:
+    return _block(*_WORK, block, previous, first, end)
+
+
+def _block(job: StreamJob, stream: Stream, layout: CommandColumns, block: Block, previous: Block | None,
+           first: bool, end: int) -> _Part:
+    """One block compensated (the previous block's last row first when the rows are a path, to check
+    continuity into this block; its own outcome belongs to the previous block)."""
+    ctx = job.path and previous is not None
+    rows, q0, xyz, R, rot = _read(job, stream, block, previous if ctx else None)
+    if first and job.targets.pose and job.nominal is not None:
+        m = min(len(rows), CONVENTION_ROWS)
+        convention_check(job.nominal.flange_rotation(q0[:m]), rot[:m], job.targets.orientation, stream.path, rows[:m])
+    comp = compensate(job.robot, xyz, q0, rows=rows, rotations=R, nominal=job.nominal, uncertainty=job.uncertainty)
+    if job.path and q0 is not None:
+        comp = path_checked(job.robot, comp, q0)
+    k = 1 if ctx else 0
+    problems = tuple(p for p in comp.problems if not (ctx and p.startswith(f"row {rows[0]}: ")))
+    return _summary(job, layout, comp, rows[k:], None if q0 is None else q0[k:], xyz[k:], k, problems, end)
+
+
+def _read(job: StreamJob, stream: Stream, block: Block, previous: Block | None):
+    """Rows (N,), nominal joints (N, n) rad/m (None when not read), target positions (N, 3) m,
+    rotations (N, 3, 3) and the orientation columns as read (None for position targets) of the
+    block, after ``previous`` when given."""
+    t, robot = job.targets, job.robot
+    jcols = list(t.joint_cols or robot.joint_names) if job.needs_joints else []
+    cols = jcols + list(t.xyz_cols) + (list(t.orientation_cols) if t.pose else [])
+    parts = [stream.numbers(b, cols) for b in ((previous, block) if previous is not None else (block,))]
+    rows = np.concatenate([p[0] for p in parts])
+    v = np.concatenate([p[1] for p in parts])
+    n = len(jcols)
+    q0 = None
+    if n:
+        scale = [unit_factor(t.angle_unit if k == "revolute" else t.length_unit,
+                             "angle" if k == "revolute" else "length") for k in robot.joint_types]
+        q0 = v[:, :n] * np.array(scale)
+    xyz = v[:, n:n + 3] * unit_factor(t.length_unit, "length")
+    R = to_matrices(v[:, n + 3:], t.orientation, stream.path, rows) if t.pose else None
+    return rows, q0, xyz, R, (v[:, n + 3:] if t.pose else None)
+
+
+def _summary(job: StreamJob, layout: CommandColumns, comp, rows, q0, xyz, k: int, problems, end: int) -> _Part:
+    """The block's output lines and summary (``k`` leading context rows of ``comp`` dropped)."""
+    ok = comp.ok[k:]
+    q = comp.q[k:]
+    if job.kind == "cartesian":
+        p, Rf = (a[k:][ok] for a in comp.filtered)
+        text = layout.text(rows[ok], q[ok], p, rot_values=from_matrices(Rf, job.targets.orientation))
+    else:
+        oc = (comp.orientation_change[k:][ok] if comp.orientation_change is not None else
+              None if not layout.orientation_change else np.zeros(0))  # none: nothing was corrected
+        text = layout.text(rows[ok], q[ok], xyz[ok], None if q0 is None else q0[ok], oc)
+    sigma = np.zeros(0) if comp.predicted_sigma is None else comp.predicted_sigma[k:][ok]
+    unc = job.uncertainty
+    ext = unc.extrapolated(sigma) if unc is not None else np.zeros(len(sigma), bool)
+    out = unc.outside(q[ok]) if unc is not None else np.zeros(len(sigma), bool)
+    largest = {"residual": comp.residual[k:][ok],
+               "rotation_residual": None if comp.rotation_residual is None else comp.rotation_residual[k:][ok],
+               "orientation_change": None if comp.orientation_change is None else comp.orientation_change[k:][ok]}
+    largest = {n: float(v.max()) for n, v in largest.items() if v is not None and v.size}
+    if q0 is not None and ok.any():
+        largest["change"] = np.abs(q[ok] - q0[ok]).max(axis=0)
+    return _Part(text, len(rows), int(ok.sum()), problems, sigma, (rows[ok][ext], sigma[ext], q[ok][ext]),
+                 (rows[ok][out], q[ok][out]), largest, comp.method, comp.iterations, end)
+
+
+class _Totals:
+    """The blocks' summaries added up, in file order."""
+
+    def __init__(self) -> None:
+        self.n = self.n_ok = self.iterations = 0
+        self.problems: dict[str, None] = {}
+        self.sigma: list[np.ndarray] = []
+        self.ext: list[tuple] = []
+        self.out: list[tuple] = []
+        self.largest: dict = {}
+        self.method = ""
+
+    def add(self, part: _Part) -> None:
+        self.n += part.n
+        self.n_ok += part.n_ok
+        self.problems.update(dict.fromkeys(part.problems))  # a block-wide message once
+        self.sigma.append(part.sigma)
+        self.ext.append(part.extrapolated)
+        self.out.append(part.outside)
+        for name, v in part.largest.items():
+            self.largest[name] = v if name not in self.largest else np.maximum(self.largest[name], v)
+        self.method, self.iterations = part.method, max(self.iterations, part.iterations)
+
+    def result(self, job: StreamJob, written: bool) -> StreamResult:
+        sigma = np.concatenate(self.sigma) if self.sigma else np.zeros(0)
+        warnings = []
+        unc, robot = job.uncertainty, job.robot
+        if unc is not None and sigma.size:
+            rows, s, q = (np.concatenate(a) for a in zip(*self.ext))
+            warnings.append(extrapolation_warning(rows, s, unc, q if len(q) else None, robot))
+            rows, q = (np.concatenate(a) for a in zip(*self.out))
+            warnings.append(envelope_warning(rows, q.reshape(-1, robot.n_joints), robot, unc)[1])
+        if job.targets.pose and robot.n_joints < 6 and "rotation_residual" in self.largest:
+            warnings.append(uncontrolled_warning(robot, self.largest["rotation_residual"]))
+        largest = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in self.largest.items()}
+        return StreamResult(self.n, self.n_ok, written, tuple(self.problems), tuple(w for w in warnings if w),
+                            self.method, self.iterations, largest,
+                            float(np.median(sigma)) if sigma.size else None, float(sigma.max()) if sigma.size else None)
