@@ -19,3 +19,8 @@ def blas_threads(n: int):
     columns), and OpenBLAS threads that spin on a busy 2-core machine make them 5–10× slower."""
     with _controller().limit(limits=n, user_api="blas"):
         yield
+
+
+def limit_blas(n: int) -> None:
+    """At most ``n`` BLAS threads for the rest of this process (a worker sharing the cores with others)."""
+    _controller().limit(limits=n, user_api="blas")

@@ -19,6 +19,7 @@ import numpy as np
 
 from .._atomic import AtomicFile
 from .._csv import BLOCK_BYTES, Block, Stream, open_stream
+from .._threads import limit_blas
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
 from ..errors import MeasurementError
 from ..io.commands import CommandColumns, command_columns
@@ -244,9 +245,7 @@ _WORK: tuple = ()
 def _init(job: StreamJob, stream: Stream, layout: CommandColumns) -> None:
     """A worker process: the job once, and one BLAS thread (the workers share the cores)."""
     global _WORK
-    from threadpoolctl import threadpool_limits
-
-    threadpool_limits(1)
+    limit_blas(1)
     _WORK = (job, stream, layout)
 
 

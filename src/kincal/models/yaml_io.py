@@ -150,7 +150,7 @@ def _parse(text: str, label: str):
         raise ModelError(f"{label}: not valid YAML ({' '.join(str(exc).split())})") from None
 
 
-class _UniqueKeyLoader(yaml.SafeLoader):
+class _UniqueKeys:
     """Safe YAML that refuses a key given twice in one mapping (the later value would win silently)."""
 
     def construct_mapping(self, node, deep=False):
@@ -164,6 +164,13 @@ class _UniqueKeyLoader(yaml.SafeLoader):
                                                         key_node.start_mark)
             seen.add(key)
         return super().construct_mapping(node, deep)
+
+
+_SAFE = yaml.CSafeLoader if yaml.__with_libyaml__ else yaml.SafeLoader
+
+
+class _UniqueKeyLoader(_UniqueKeys, _SAFE):  # type: ignore[misc,valid-type]  # a base picked at import
+    """libyaml's parser (5-10x faster on a calibrated file's covariance) where PyYAML has it."""
 
 
 def robot_from_dict(data: dict, label: str = "robot") -> Robot:

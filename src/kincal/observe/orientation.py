@@ -46,13 +46,12 @@ def default_columns(name: str) -> tuple[str, ...]:
 def to_matrices(values: np.ndarray, name: str, source: str, rows: np.ndarray) -> np.ndarray:
     """Rotation matrices (N, 3, 3) from the orientation columns (N, k) read as ``name``; values that
     are no rotation in that convention are refused, naming the row."""
-    from scipy.spatial.transform import Rotation
     v = np.asarray(values, float)
     if name.startswith("quat"):
         norm = np.linalg.norm(v, axis=1)
         _refuse(source, rows, np.abs(norm - 1.0) > UNIT_NORM, f"is not a unit quaternion (norm {{}}; {name})", norm)
-        xyzw = v if name == "quat-xyzw" else v[:, [1, 2, 3, 0]]
-        return Rotation.from_quat(xyzw).as_matrix()
+        return _quaternion_matrices((v if name == "quat-xyzw" else v[:, [1, 2, 3, 0]]) / norm[:, None])
+    from scipy.spatial.transform import Rotation
     if name == "matrix":
         R = v.reshape(-1, 3, 3)
         dev = np.abs(R @ R.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2))
@@ -67,6 +66,15 @@ def to_matrices(values: np.ndarray, name: str, source: str, rows: np.ndarray) ->
         _refuse(source, rows, big > 2 * np.pi + 1e-9, "has angles up to {} beyond 2π rad: degrees? (use ...-deg)", big)
     seq = axes.upper() if how == "intrinsic" else axes
     return Rotation.from_euler(seq, v, degrees=unit == "deg").as_matrix()
+
+
+def _quaternion_matrices(xyzw: np.ndarray) -> np.ndarray:
+    """Rotation matrices (N, 3, 3) of unit quaternions (N, 4), scalar last (the closed form; no
+    scipy import on a long file's critical path)."""
+    x, y, z, w = xyzw.T
+    return np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+                     2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+                     2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1).reshape(-1, 3, 3)
 
 
 def from_matrices(R: np.ndarray, name: str) -> np.ndarray:
