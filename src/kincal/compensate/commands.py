@@ -18,6 +18,7 @@ IK_ITER = 100
 
 
 BRANCH_TOL = {"revolute": np.deg2rad(5.0), "prismatic": 5e-3}  # a correction larger than this changes branch
+GIVE_UP = 2.0  # pose solves stop a target this many times BRANCH_TOL from its nominal command
 START_TOL = 50e-3  # m: the model at the nominal command must be this close to the target
 REACH_MARGIN = 1.2  # targets farther from the base than this times the reach bound are out of reach
 
@@ -179,8 +180,9 @@ def _checks(robot: Robot, comp: Compensation, targets: np.ndarray, q0: np.ndarra
                                     f"target do not belong together (units, column order, TCP or frame?)")
         tol = np.array([BRANCH_TOL[t] for t in robot.joint_types])
         jump = np.where(finite[:, None], np.abs(q - q0), 0.0) > tol
+        names = robot.joint_names
         yield jump.any(axis=1), lambda k: (f"the corrected command moves joint(s) "
-                                           f"{', '.join(np.array(robot.joint_names)[jump[k]])} away from the nominal "
+                                           f"{', '.join(n for n, j in zip(names, jump[k]) if j)} away from the nominal "
                                            f"one (another arm configuration); refused")
     lim = finite & ~robot.within_limits(np.where(finite[:, None], q, 0.0))
     yield lim, lambda k: "the command breaks the joint limits"
@@ -221,7 +223,8 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
         if why:
             none = np.zeros(len(targets), bool)
             return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
-    sol = solve_poses(robot, targets, rotations, q0)
+    give_up = GIVE_UP * np.array([BRANCH_TOL[t] for t in robot.joint_types])  # refused by the branch check anyway
+    sol = solve_poses(robot, targets, rotations, q0, give_up=give_up)
     comp = Compensation(sol.q, _residual(robot, sol.q, targets), "pose (damped Newton)", sol.iterations)
     comp = _checked(robot, comp, targets, q0, rows, nominal)
     if robot.n_joints >= 6:

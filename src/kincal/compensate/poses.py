@@ -70,19 +70,22 @@ def pose_errors(model: Robot, q: np.ndarray, p_t: np.ndarray, R_t: np.ndarray):
 
 
 def solve_poses(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, max_iter: int = MAX_ITER,
-                fixed: tuple[int, ...] = (), chunk: int = CHUNK) -> PoseSolution:
+                fixed: tuple[int, ...] = (), chunk: int = CHUNK, give_up: np.ndarray | None = None) -> PoseSolution:
     """Commands q (N, n) that put ``model``'s tool point at p_t (N, 3) m with its flange at R_t
     (N, 3, 3), by Newton steps from q0 (N, n); only unconverged targets iterate, ``chunk`` targets at
     a time (bounded memory, arrays that stay in cache) for the first FIRST_PASS iterations, then the
     few left of every chunk together (a target near a singularity then costs no pass per chunk).
     Joints in ``fixed`` keep their start values (a redundant arm's controller takes one as its
-    redundancy parameter)."""
+    redundancy parameter). A target whose next command would leave its start by more than
+    ``give_up`` (n,) rad or m on a joint stops there, unconverged (a caller that refuses such
+    commands saves their iterations)."""
     if not model.has_tool_point:
         raise ModelError(f"robot '{model.name}' has no tool point and flange frame: give position targets")
     q = np.array(q0, dtype=float)
     moving = np.ones(q.shape[1], bool)
     moving[list(fixed)] = False
-    s = _State(q, np.empty(len(q)), np.empty(len(q)), np.zeros(len(q), bool), np.zeros(len(q)))
+    s = _State(q, np.empty(len(q)), np.empty(len(q)), np.zeros(len(q), bool), np.zeros(len(q)), np.array(q0, float),
+               None if give_up is None else np.asarray(give_up, float))
     first = min(FIRST_PASS, max_iter)
     left = [_iterate(model, p_t, R_t, s, np.arange(a, min(a + chunk, len(q))), moving, 1, first)
             for a in range(0, len(q), chunk)]
@@ -107,6 +110,12 @@ class _State:
     dr: np.ndarray
     converged: np.ndarray
     travel: np.ndarray
+    start: np.ndarray
+    give_up: np.ndarray | None
+
+
+def _norms(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.sqrt(np.einsum("nij,nij->nj", x, x)) if axis == 1 else np.sqrt(np.einsum("ni,ni->n", x, x))
 
 
 def _iterate(model: Robot, p_t, R_t, s: _State, active: np.ndarray, moving, start: int, stop: int
@@ -118,26 +127,30 @@ def _iterate(model: Robot, p_t, R_t, s: _State, active: np.ndarray, moving, star
     w = ROT_WEIGHT[n_j >= 6]
     it = start - 1
     for it in range(start, stop + 1):
-        ep, er, Jp, Jw = pose_errors(model, s.q[active], p_t[active], R_t[active])
-        s.dp[active], s.dr[active] = np.linalg.norm(ep, axis=1), np.linalg.norm(er, axis=1)
-        keep = ~((s.dp[active] < POS_TOL) & (s.dr[active] < ROT_TOL))
+        q = s.q[active]
+        ep, er, Jp, Jw = pose_errors(model, q, p_t[active], R_t[active])
+        dp, dr = _norms(ep), _norms(er)
+        s.dp[active], s.dr[active] = dp, dr
+        keep = (dp >= POS_TOL) | (dr >= ROT_TOL)
         s.converged[active[~keep]] = True
-        active = active[keep]
+        if not keep.all():
+            active, q, dp, dr, Jp, Jw, ep, er = (x[keep] for x in (active, q, dp, dr, Jp, Jw, ep, er))
         if not active.size:
             return active, it
-        Jp, Jw, ep, er = (x if keep.all() else x[keep] for x in (Jp, Jw, ep, er))
         J = np.concatenate([Jp, w * Jw], axis=1)
         dq = _step(J if moving.all() else J * moving, np.concatenate([ep, w * er], axis=1))
-        lever = np.linalg.norm(Jp, axis=1) + ROT_LEVER * np.linalg.norm(Jw, axis=1)  # (N, n): per unit of each joint
+        lever = _norms(Jp, 1) + ROT_LEVER * _norms(Jw, 1)  # (N, n): how far a unit of each joint moves the tool
         move = (np.abs(dq) * lever).max(axis=1)
         dq *= np.minimum(1.0, MAX_MOVE / np.maximum(move, 1e-300))[:, None]
         s.travel[active] += np.minimum(move, MAX_MOVE)
         stalled = move < STALL if n_j < 6 else np.zeros(len(move), bool)  # least squares: steps stopped moving
         s.converged[active[stalled]] = True
         go = ~stalled & (s.travel[active] < MAX_TRAVEL)  # beyond MAX_TRAVEL: left unconverged, refused by the checks
-        s.q[active[go]] += dq[go]
+        if s.give_up is not None:  # a command this far from its start is refused anyway (another branch)
+            go &= ~(np.abs(q + dq - s.start[active]) > s.give_up).any(axis=1)
+        s.q[active[go]] = q[go] + dq[go]
         if n_j >= 6:  # a full Newton step from an error this small leaves about its square: done
-            last = go & (s.dp[active] < FINAL) & (s.dr[active] < FINAL) & (move < MAX_MOVE)
+            last = go & (dp < FINAL) & (dr < FINAL) & (move < MAX_MOVE)
             s.converged[active[last]] = True
             go &= ~last
         active = active[go]

@@ -19,6 +19,7 @@ import numpy as np
 
 from .._atomic import AtomicFile
 from .._csv import BLOCK_BYTES, Block, Stream, open_stream
+from .._memory import keep_freed_memory
 from .._threads import limit_blas
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
 from ..errors import MeasurementError
@@ -28,7 +29,7 @@ from ..observe.orientation import check_convention, convention_check, default_co
 from ..units import unit_factor
 from .commands import compensate, path_checked, uncontrolled_warning
 
-CONVENTION_ROWS = 2000  # the orientation convention is judged on the file's first rows
+CONVENTION_ROWS = 500  # the orientation convention is judged on the file's first rows
 IN_FLIGHT = 2  # blocks queued per worker
 
 
@@ -148,6 +149,7 @@ def compensate_file(job: StreamJob, src: str, dst: str, *, skip_unreachable: boo
     called after each block."""
     stream = open_stream(src, block_bytes)
     _check_columns(job, stream)
+    keep_freed_memory()  # this process too: it reads and writes every block
     layout = job.layout(dst)
     total = _Totals()
     with AtomicFile(dst) as out:
@@ -202,7 +204,10 @@ def _workers(workers: int | None, stream: Stream) -> int:
     if stream.size - stream.offset <= stream.block_bytes:
         return 1  # one block: no process to start
     if workers is None:
-        workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        try:
+            workers = len(os.sched_getaffinity(0))  # the cores this process may use
+        except AttributeError:  # not on this system
+            workers = os.cpu_count() or 1
     return max(1, int(workers))
 
 
@@ -243,9 +248,11 @@ _WORK: tuple = ()
 
 
 def _init(job: StreamJob, stream: Stream, layout: CommandColumns) -> None:
-    """A worker process: the job once, and one BLAS thread (the workers share the cores)."""
+    """A worker process: the job once, one BLAS thread (the workers share the cores), freed memory
+    kept for the next block."""
     global _WORK
     limit_blas(1)
+    keep_freed_memory()
     _WORK = (job, stream, layout)
 
 

@@ -169,7 +169,7 @@ class _UniqueKeys:
 _SAFE = yaml.CSafeLoader if yaml.__with_libyaml__ else yaml.SafeLoader
 
 
-class _UniqueKeyLoader(_UniqueKeys, _SAFE):  # type: ignore[misc,valid-type]  # a base picked at import
+class _UniqueKeyLoader(_UniqueKeys, _SAFE):
     """libyaml's parser (5-10x faster on a calibrated file's covariance) where PyYAML has it."""
 
 
