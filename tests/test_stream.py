@@ -152,3 +152,18 @@ def test_numbers_are_written_as_printf_would_with_ten_decimals():
     small = np.all(np.abs(x) < 10, axis=1)
     assert sum(a != b for a, b, s in zip(got, ref, small) if s) <= 1  # exact round-off there: printf's text
     assert fixed_lines(rows[:1], np.array([[1e6]]), 10) is None  # beyond exact integers: formatted otherwise
+
+
+def test_a_unit_mistake_is_named_before_any_row_is_refused_for_it(tmp_path):
+    """Targets in mm read as m, and joints in degrees read as radians: the file is refused with the
+    unit the numbers are really in (not a TCP or convention mismatch, which they would also look like)."""
+    p, R, q0 = _circle(n=400)
+    job = StreamJob(kincal.perturb(NOMINAL, seed=2), NOMINAL, TargetsFormat(pose=True))
+    src = tmp_path / "t.csv"
+    _write(src, q0, p * 1e3, R)
+    with pytest.raises(MeasurementError, match="target positions spread 1e\\+03x more .* they look like mm"):
+        compensate_file(job, str(src), str(tmp_path / "c.csv"))
+    _write(src, np.rad2deg(q0), p, R)
+    with pytest.raises(MeasurementError, match="look like degrees"):
+        compensate_file(job, str(src), str(tmp_path / "c.csv"))
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["t.csv"]

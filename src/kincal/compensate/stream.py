@@ -24,6 +24,7 @@ from .._threads import limit_blas
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
 from ..errors import MeasurementError
 from ..io.commands import CommandColumns, command_columns
+from ..io.unit_checks import SPREAD_RATIO, check_degrees, check_radians, check_spread
 from ..models.robot import Robot
 from ..observe.orientation import check_convention, convention_check, default_columns, from_matrices, to_matrices
 from ..units import unit_factor
@@ -266,15 +267,40 @@ def _block(job: StreamJob, stream: Stream, layout: CommandColumns, block: Block,
     continuity into this block; its own outcome belongs to the previous block)."""
     ctx = job.path and previous is not None
     rows, q0, xyz, R, rot = _read(job, stream, block, previous if ctx else None)
-    if first and job.targets.pose and job.nominal is not None:
-        m = min(len(rows), CONVENTION_ROWS)
-        convention_check(job.nominal.flange_rotation(q0[:m]), rot[:m], job.targets.orientation, stream.path, rows[:m])
+    if first:
+        _first_checks(job, stream, rows, q0, xyz, rot)
     comp = compensate(job.robot, xyz, q0, rows=rows, rotations=R, nominal=job.nominal, uncertainty=job.uncertainty)
     if job.path and q0 is not None:
         comp = path_checked(job.robot, comp, q0)
     k = 1 if ctx else 0
     problems = tuple(p for p in comp.problems if not (ctx and p.startswith(f"row {rows[0]}: ")))
     return _summary(job, layout, comp, rows[k:], None if q0 is None else q0[k:], xyz[k:], k, problems, end)
+
+
+def _first_checks(job: StreamJob, stream: Stream, rows, q0, xyz, rot) -> None:
+    """On the file's first rows: the units (degrees read as radians and back, positions whose spread
+    is not the robot's at the nominal joints: the unit they are really in is named) and the
+    orientation convention (another that fits markedly better is named)."""
+    t, robot = job.targets, job.nominal or job.robot
+    m = min(len(rows), CONVENTION_ROWS)
+    if q0 is None:
+        return
+    check_degrees(stream.path, q0[:m], robot, t.angle_unit)
+    check_radians(stream.path, q0[:m], robot, t.angle_unit)
+    if not _spread_plausible(xyz[:m], robot.forward(q0[:m])):  # a unit, named; a few wild rows: named by row later
+        check_spread(stream.path, q0[:m], xyz[:m], robot, t.length_unit, t.angle_unit, "target positions")
+    if t.pose and job.nominal is not None:
+        convention_check(job.nominal.flange_rotation(q0[:m]), rot[:m], t.orientation, stream.path, rows[:m])
+
+
+def _spread_plausible(xyz: np.ndarray, reached: np.ndarray) -> bool:
+    """The targets' spread (median distance from their median) within SPREAD_RATIO of the nominal
+    model's at the nominal joints: robust to a few rows far off (those are refused by row)."""
+    def size(x: np.ndarray) -> float:
+        return float(np.median(np.linalg.norm(x - np.median(x, axis=0), axis=1)))
+
+    ratio = size(xyz) / max(size(reached), 1e-300)
+    return 1 / SPREAD_RATIO < ratio < SPREAD_RATIO
 
 
 def _read(job: StreamJob, stream: Stream, block: Block, previous: Block | None):

@@ -19,7 +19,7 @@ def spread(x: np.ndarray) -> float:
 
 
 def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, length_unit: str | None,
-                 angle_unit: str | None) -> None:
+                 angle_unit: str | None, what: str = "measured positions") -> None:
     """MeasurementError when the measured spread of ``xyz`` (N, 3) differs from the robot's at the
     joints ``q`` by more than SPREAD_RATIO: a unit mistake, named (the joint values read in the
     other angle unit first, then the unit the positions are really in)."""
@@ -34,10 +34,10 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
         if 1 / SPREAD_RATIO < spread(xyz) / max(spread(robot.forward(as_rad)), 1e-300) < SPREAD_RATIO:
             raise MeasurementError(f"{source}: read as degrees, the joint values move the robot "
                                    f"{max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the "
-                                   f"measured positions spread, read as radians they match: use angle unit 'rad' "
+                                   f"{what} spread, read as radians they match: use angle unit 'rad' "
                                    f"(CLI: --angle-unit rad)")
     if predicted > MIN_SPREAD:
-        raise MeasurementError(f"{source}: {unit_hint(ratio, length_unit)}")
+        raise MeasurementError(f"{source}: {unit_hint(ratio, length_unit, what)}")
 
 
 def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | None) -> None:
@@ -69,7 +69,7 @@ def check_radians(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
                                f"(CLI: --angle-unit rad)")
 
 
-def unit_hint(ratio: float, length_unit: str | None) -> str:
+def unit_hint(ratio: float, length_unit: str | None, what: str = "measured positions") -> str:
     """Why the measured spread is off by ``ratio`` (read in ``length_unit``, default m), and what to do:
     the unit the positions are really in when one explains the factor."""
     table = {**LENGTH_UNITS, **OTHER_LENGTHS}
@@ -77,7 +77,7 @@ def unit_hint(ratio: float, length_unit: str | None) -> str:
     true = table[declared] / ratio  # the SI value of the unit the numbers are really in
     name = min(table, key=lambda k: abs(np.log(table[k] / true)))
     side = f"{ratio:.3g}x more" if ratio > 1 else f"{1 / ratio:.3g}x less"
-    head = f"measured positions spread {side} than the robot moves at the same joint values (read as '{declared}')"
+    head = f"{what} spread {side} than the robot moves at the same joint values (read as '{declared}')"
     if abs(np.log(table[name] / true)) > np.log(1.3):
         return f"{head}; no length unit explains that factor: check the joint columns and the robot file"
     if name in LENGTH_UNITS:
