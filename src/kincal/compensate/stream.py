@@ -250,8 +250,11 @@ _WORK: tuple = ()
 
 def _init(job: StreamJob, stream: Stream, layout: CommandColumns) -> None:
     """A worker process: the job once, one BLAS thread (the workers share the cores), freed memory
-    kept for the next block."""
+    kept for the next block, Ctrl-C left to the main process."""
     global _WORK
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the main process's to handle (it stops the pool)
     limit_blas(1)
     keep_freed_memory()
     _WORK = (job, stream, layout)
