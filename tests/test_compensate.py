@@ -61,3 +61,19 @@ def test_verification_in_simulation_is_at_noise_level():
     dev = np.abs(plan.compare(measured).deviations)
     assert dev.mean() < 2 * NOISE and dev.max() < 8 * NOISE
     assert "Table" not in plan.compare(measured).table() and "ΔL1 = 1" in plan.compare(measured).table()
+
+
+def test_a_plan_read_back_keeps_its_sample_inputs(tmp_path):
+    """Written in mm and degrees and read back, a plan has the inputs its commands were made from
+    (not the first case's commands): each prediction is the model with that unit error at them."""
+    from kincal.analysis.sensitivity import UNIT
+    from kincal.compensate import VerificationPlan, verification_plan
+    robot = kincal.load_robot("puu3")
+    plan = verification_plan(robot, robot.sample_joints(6, seed=3), ["r", "L2"])
+    plan.write_csv(tmp_path / "plan.csv", robot, length_unit="mm", angle_unit="deg")
+    back = VerificationPlan.read_csv(tmp_path / "plan.csv", robot)
+    assert np.abs(back.q_samples - plan.q_samples).max() < 1e-15 and np.abs(back.commands[0] - back.q_samples).max() > 1e-4
+    for k, name in enumerate(back.cases):
+        v = robot.params.values.copy()
+        v[robot.params.index(name)] += UNIT[robot.params.kinds[robot.params.index(name)]]
+        assert np.abs(robot.forward(back.q_samples, v) - back.predicted[k]).max() < 1e-12

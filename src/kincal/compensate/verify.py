@@ -27,10 +27,11 @@ from .commands import compensate
 
 @dataclass(frozen=True, eq=False)
 class VerificationPlan:
-    """For each case (parameter) and sample: the predicted position (C, N, 3) and commands (C, N, n)."""
+    """For each case (parameter) and sample: the predicted position (C, N, 3) and commands (C, N, n),
+    from the sample inputs q_samples (N, n) (None in a plan file written before kincal kept them)."""
 
     cases: tuple[str, ...]
-    q_samples: np.ndarray
+    q_samples: np.ndarray | None
     predicted: np.ndarray
     commands: np.ndarray
 
@@ -44,7 +45,8 @@ class VerificationPlan:
                   length_unit: str = "m", angle_unit: str = "rad") -> None:
         """The commands to run, case by case, with the predicted positions, in the given units
         (atomically). A first comment line records the units; columns: case, sample, one per joint,
-        x_pred, y_pred, z_pred. :meth:`read_csv` reads it back."""
+        x_pred, y_pred, z_pred, then the sample inputs the commands were made from (``input_<joint>``).
+        :meth:`read_csv` reads it back."""
         cols = list(joint_cols) if joint_cols else list(robot.joint_names)
         if len(cols) != robot.n_joints:
             raise MeasurementError(f"{path}: {len(cols)} joint columns given for {robot.n_joints} joints")
@@ -52,10 +54,12 @@ class VerificationPlan:
         buf = io.StringIO()
         buf.write(f"# kincal verification plan for {robot.name}; units: length={length_unit} angle={angle_unit}\n")
         w = csv.writer(buf, lineterminator="\n")
-        w.writerow(["case", "sample", *cols, "x_pred", "y_pred", "z_pred"])
+        known = self.q_samples is not None
+        w.writerow(["case", "sample", *cols, "x_pred", "y_pred", "z_pred", *(f"input_{c}" for c in cols if known)])
+        inputs = self.q_samples / qs if known else np.zeros(self.commands.shape[1:2] + (0,))
         for case, cmds, pred in zip(self.cases, self.commands / qs, self.predicted / lf):
-            for k, (qc, pc) in enumerate(zip(cmds, pred)):
-                w.writerow([case, k + 1, *(repr(float(v)) for v in qc), *(repr(float(v)) for v in pc)])
+            for k, (qc, pc, qi) in enumerate(zip(cmds, pred, inputs)):
+                w.writerow([case, k + 1, *(repr(float(v)) for v in (*qc, *pc, *qi))])
         write_text_atomic(path, buf.getvalue())
 
     @classmethod
@@ -69,8 +73,10 @@ class VerificationPlan:
         qs, lf = _joint_factors(robot, m.group(1), m.group(2)), unit_factor(m.group(1), "length")
         rows = list(csv.reader(lines[1:]))
         n = robot.n_joints
-        if len(rows) < 2 or any(len(r) != n + 5 for r in rows):
-            raise MeasurementError(f"{path}: a plan for {robot.name} has {n + 5} columns per row")
+        width = len(rows[0]) if rows else 0
+        if len(rows) < 2 or width not in (n + 5, 2 * n + 5) or any(len(r) != width for r in rows):
+            raise MeasurementError(f"{path}: a plan for {robot.name} has {2 * n + 5} columns per row (commands, "
+                                   f"predictions and sample inputs; {n + 5} in plans of older versions)")
         cases = tuple(dict.fromkeys(r[0] for r in rows[1:]))
         try:
             vals = np.array([[float(x) for x in r[2:]] for r in rows[1:]])
@@ -80,7 +86,11 @@ class VerificationPlan:
         if per * len(cases) != len(rows) - 1:
             raise MeasurementError(f"{path}: every case needs the same number of samples")
         cmds = (vals[:, :n] * qs).reshape(len(cases), per, n)
-        return cls(cases, cmds[0], (vals[:, n:] * lf).reshape(len(cases), per, 3), cmds)
+        inputs = (vals[:per, n + 3:] * qs) if width == 2 * n + 5 else None  # the same for every case
+        if inputs is not None and not np.allclose(vals[:, n + 3:].reshape(len(cases), per, n), vals[:per, n + 3:],
+                                                  rtol=0, atol=0):
+            raise MeasurementError(f"{path}: the sample inputs differ between cases; write the plan again with -o")
+        return cls(cases, inputs, (vals[:, n:n + 3] * lf).reshape(len(cases), per, 3), cmds)
 
 
 def _joint_factors(robot: Robot, length_unit: str, angle_unit: str) -> np.ndarray:
