@@ -72,6 +72,9 @@ def test_paper_simulation_pso(puu3):
     assert all(abs(res.corrections[k] - PAPER_ERRORS[k]) < 2e-5 for k in ("L1", "L2", "L3"))
     assert res.std["r"] == np.inf or res.std["R"] == np.inf  # one of the pair is undetermined
     assert res.evaluations == 100 * 61
+    moved = [n for n in ("r", "R") if res.std[n] == np.inf]  # the swarm moved it: said so, not "kept nominal"
+    assert res.corrections[moved[0]] != 0.0 and "4 of 5 candidate parameters" in res.dropped_text()
+    assert f"{moved[0]} moved by the particle swarm too" in res.dropped_text() and "kept nominal" not in res.dropped_text()
 
 
 @pytest.mark.slow

@@ -87,10 +87,8 @@ def cmd_calibrate(args) -> int:
     payload = {**res.to_dict(), "output": args.output if written else None, "residuals_file": args.residuals,
                "sessions": list(args.data) if len(args.data) > 1 else None}
     text = str(res)
-    ident = res.identifiability
-    if ident.dropped:
-        text += (f"\nidentifiable: {len(res.names)} of {len(ident.candidates)} candidate parameters; not estimated "
-                 f"(kept nominal), each acting like the estimated ones shown:\n" + "\n".join(ident.confound_lines("  ")))
+    if res.identifiability.dropped:
+        text += "\n" + res.dropped_text()
     if args.output:
         text += (f"\ncalibrated robot written to {args.output}" + (" (forced despite the verdict)" if refused else "")
                  if written else f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")

@@ -105,6 +105,22 @@ class CalibrationResult:
         return "row(s) " + "; ".join(
             f"{listed([r for r, s in zip(self.rejected_rows, self.rejected_sessions) if s == n])} of {n}" for n in names)
 
+    def dropped_text(self) -> str:
+        """What the data do not determine: kept nominal (least squares), or moved by a particle swarm
+        anyway (only their combination with the parameters they act like is fitted); '' when none."""
+        ident = self.identifiability
+        if not ident.dropped:
+            return ""
+        moved = [n for n in ident.dropped if n in self.names]
+        head = f"identifiable: {len(ident.identifiable)} of {len(ident.candidates)} candidate parameters; "
+        if moved:
+            head += (f"{', '.join(moved)} moved by the particle swarm too, but not determined by the data (σ "
+                     f"undetermined): only its combination with the parameters it acts like is fitted")
+        kept = [n for n in ident.dropped if n not in self.names]
+        if kept:
+            head += ("; " if moved else "") + f"{', '.join(kept)} not estimated (kept nominal)"
+        return head + ". Each acts like the estimated ones shown:\n" + "\n".join(ident.confound_lines("  "))
+
     @property
     def mounting(self) -> str:
         """Where the data put the target in the flange frame against the declared tool point, when the
