@@ -180,3 +180,24 @@ def test_verify_with_measurements_file(tmp_path, capsys):
     run_json(capsys, "verify", "puu3", "--params", "L1,L2", "--samples", "4", "--seed", "5", "-o", other)
     code = main(["verify", "puu3", "--plan", str(other), "--measured", str(meas)])
     assert code == 1 and "not the plan's commands" in capsys.readouterr().err
+
+
+def test_design_from_candidates_keeps_the_users_rows_and_columns(tmp_path, capsys):
+    """A design from the user's candidate file writes the chosen rows themselves: their line numbers,
+    their IDs and every other column as given (a comment and a blank line do not shift the rows);
+    the choice is the one the library makes on the same pool."""
+    robot = kincal.load_robot("ur5")
+    pool = robot.sample_joints(150, seed=4)
+    lines = ["pose_id;station;" + ";".join(f"j{k}" for k in range(1, 7)), "# reachable poses, exported", ""]
+    lines += [f"P{100 + k};bay {k % 3};" + ";".join(repr(float(v)) for v in np.rad2deg(q)) for k, q in enumerate(pool)]
+    src = tmp_path / "candidates.csv"
+    src.write_text("\n".join(lines) + "\n")
+    run_json(capsys, "design", "ur5", "--candidates", src, "-m", "12", "--method", "fedorov", "-o",
+                   tmp_path / "d.csv", "--angle-unit", "deg", "--seed", "3")
+    rows = [r.split(";") for r in (tmp_path / "d.csv").read_text().splitlines()]
+    assert rows[0] == ["input_row", "pose_id", "station", "j1", "j2", "j3", "j4", "j5", "j6"] and len(rows) == 13
+    ref = kincal.select_poses(robot, pool, kincal.DesignOptions(m=12, method="fedorov", seed=3))
+    assert [r[1] for r in rows[1:]] == [f"P{100 + k}" for k in ref.indices]
+    assert [int(r[0]) for r in rows[1:]] == [4 + k for k in ref.indices]  # the file's line numbers
+    for r, k in zip(rows[1:], ref.indices):
+        assert r[1:] == lines[3 + k].split(";")  # every cell as the user wrote it

@@ -33,10 +33,16 @@ def cmd_design(args) -> int:
     with progress("designing poses", args.json) as say:
         say(f"{args.method} on {len(pool)} candidates")
         d = kincal.select_poses(r, pool, options, problem=problem)
-    kincal.io.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, args.angle_unit)
+    if args.candidates and d.indices is not None:  # the user's own rows: IDs and every column kept
+        kincal.io.write_selected_rows(args.output, args.candidates, d.indices)
+        where = f"poses written to {args.output} (the chosen rows of {args.candidates}, every column kept)"
+    else:
+        kincal.io.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, args.angle_unit)
+        where = f"poses written to {args.output}" + (f" ({args.method} leaves the candidates: new poses, no input "
+                                                     f"rows)" if args.candidates else "")
     payload = d.to_dict()
     payload["output"] = args.output
-    emit(args, payload, f"{d}\nposes written to {args.output}")
+    emit(args, payload, f"{d}\n{where}")
     return 0
 
 

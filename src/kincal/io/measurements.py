@@ -303,6 +303,20 @@ def write_joints(
     write_text_atomic(path, buf.getvalue())
 
 
+def write_selected_rows(path: str | os.PathLike, source: str | os.PathLike, indices: Sequence[int]) -> None:
+    """The data rows ``indices`` (0-based, in file order, blank and '#' lines not counted) of the CSV
+    ``source``, in that order, every column as the user gave it (IDs, names, other columns), after
+    ``input_row``: the row's line number in ``source``; written atomically with the source's separator."""
+    header, records, delim, _ = read_table(str(source))
+    buf = _io.StringIO()
+    w = csv.writer(buf, delimiter=delim, lineterminator="\n")
+    w.writerow(["input_row", *header] if "input_row" not in header else header)
+    for k in indices:
+        line, cells = records[int(k)]
+        w.writerow([line, *cells] if "input_row" not in header else cells)
+    write_text_atomic(path, buf.getvalue())
+
+
 def write_residuals(
     path: str | os.PathLike,
     meas: Measurements,
