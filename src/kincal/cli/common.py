@@ -100,6 +100,21 @@ def add_robot(p: argparse.ArgumentParser, help_: str = "bundled name, kincal rob
 MAX_TOOL = 2.0  # m: no tool point lies farther from the flange; larger values are mm written without a unit
 
 
+def lengths(count: int, example: str):
+    """argparse type: ``count`` numbers with an optional length unit after them ('3000,0,500mm'), in m."""
+    def parse(s: str) -> tuple[float, ...]:
+        text = s.strip()
+        unit = next((u for u in sorted(LENGTH_UNITS, key=len, reverse=True) if text.endswith(u)), None)
+        try:
+            t = tuple(float(x) * LENGTH_UNITS[unit or "m"] for x in csv_list(text[:-len(unit)] if unit else text))
+        except ValueError:
+            t = ()
+        if len(t) != count or not all(np.isfinite(t)):
+            raise argparse.ArgumentTypeError(f"'{s}': give {count} finite number(s) and a unit, e.g. {example}")
+        return t
+    return parse
+
+
 def point(s: str) -> tuple[float, float, float]:
     """argparse type: 'X,Y,Z' with an optional length unit after the numbers ('0,0,93.2mm'), in m."""
     text = s.strip()

@@ -9,8 +9,8 @@ import kincal.analysis
 import kincal.design
 
 from . import observe
-from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, load_robot, nonneg_int, positive_float,
-                     positive_int, progress, robot_inputs)
+from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, lengths, load_robot, nonneg_float, nonneg_int,
+                     positive_float, positive_int, progress, robot_inputs)
 
 
 def cmd_design(args) -> int:
@@ -21,18 +21,21 @@ def cmd_design(args) -> int:
     r = load_robot(args)
     if args.params:
         r.params.indices(args.params)
+    cell = _cell(args)
     if args.candidates:
         pool = kincal.read_joints(args.candidates, r, args.joint_cols, args.length_unit, args.angle_unit)
         bad = ~r.feasible(pool)
         if bad.any():
             raise kincal.MeasurementError(f"{args.candidates}: {int(bad.sum())} candidate pose(s) break the joint "
                                           f"limits or coupled constraints (first: row {int(np.flatnonzero(bad)[0]) + 2})")
+    elif cell is not None:
+        pool = cell.pool(r, args.pool, seed=args.seed)
     else:
         pool = kincal.candidate_pool(r, args.pool, seed=args.seed)
     problem = _observation_problem(args, r, pool)
     with progress("designing poses", args.json) as say:
         say(f"{args.method} on {len(pool)} candidates")
-        d = kincal.select_poses(r, pool, options, problem=problem)
+        d = kincal.select_poses(r, pool, options, problem=problem, cell=cell)
     if args.candidates and d.indices is not None:  # the user's own rows: IDs and every column kept
         kincal.io.write_selected_rows(args.output, args.candidates, d.indices)
         where = f"poses written to {args.output} (the chosen rows of {args.candidates}, every column kept)"
@@ -44,6 +47,17 @@ def cmd_design(args) -> int:
     payload["output"] = args.output
     emit(args, payload, f"{d}\n{where}")
     return 0
+
+
+def _cell(args):
+    """The cell's constraints from the flags (SI, the robot's base frame), or None when none is given."""
+    half = [((0.0, 0.0, 1.0), args.floor[0])] if args.floor else []
+    boxes = [(np.array(b[:3]), np.array(b[3:])) for b in args.keep_out or []]
+    cell = kincal.design.Cell(tuple(half), tuple(boxes), None if args.tracker is None else np.array(args.tracker),
+                              tuple(args.tracker_range) if args.tracker_range else (0.0, np.inf),
+                              np.deg2rad(args.cone), tuple(args.reflector_axis),
+                              np.deg2rad(args.joint_margin))
+    return None if cell.empty else cell
 
 
 def _observation_problem(args, robot, pool):
@@ -95,6 +109,19 @@ def register(cmd) -> None:
     src = s.add_mutually_exclusive_group()
     src.add_argument("--pool", type=positive_int, default=5000, help="random feasible candidates (default 5000)")
     src.add_argument("--candidates", help="CSV of candidate poses (e.g. the poses you can reach)")
+    c = s.add_argument_group("the cell (robot base frame; every pose of the pool and the design obeys it)")
+    c.add_argument("--floor", type=lengths(1, "0mm"), help="the target stays above this height, e.g. 0mm (the "
+                                                         "mounting plane)")
+    c.add_argument("--keep-out", type=lengths(6, "200,-300,0,600,300,400mm"), action="append",
+                   help="X0,Y0,Z0,X1,Y1,Z1[UNIT]: a box the target may not enter (repeatable)")
+    c.add_argument("--tracker", type=lengths(3, "3000,0,500mm"), help="the tracker's position: poses it cannot see "
+                                                                   "are left out")
+    c.add_argument("--tracker-range", type=lengths(2, "500,20000mm"), help="MIN,MAX[UNIT] distance to the tracker")
+    c.add_argument("--cone", type=positive_float, default=30.0,
+                   help="half-angle (deg) of the reflector's acceptance around its axis (default 30)")
+    c.add_argument("--reflector-axis", type=lengths(3, "0,0,1"), default=(0.0, 0.0, 1.0),
+                   help="the reflector's opening direction in the flange frame (default 0,0,1)")
+    c.add_argument("--joint-margin", type=nonneg_float, default=0.0, help="degrees kept from every revolute joint's limits")
     s.add_argument("--method", default="fedorov", choices=list(kincal.design.METHODS))
     s.add_argument("--criterion", default="D", choices=list(kincal.design.CRITERIA))
     s.add_argument("--params", type=csv_list, help="parameters to design for (default: identifiable set)")

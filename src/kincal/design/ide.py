@@ -59,16 +59,18 @@ def ide(
     cr: float = 0.6,
     init_scale: float = 1.0,
     progress: Callable[[int, float], None] | None = None,
+    feasible: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> tuple[np.ndarray, float, list[float]]:
     """Maximise ``objective(design)`` over designs (m, n) near ``start``; returns the best design,
-    its value and the best value after each generation."""
+    its value and the best value after each generation. A pose that ``feasible`` (default: the
+    robot's own constraints; e.g. a cell's) refuses keeps the incumbent's."""
     lo, hi = robot.lower, robot.upper
     best = np.array(start, dtype=float)
     f_best = objective(best)
 
     def repair(x: np.ndarray) -> np.ndarray:
         x = _bounce(x, best, lo, hi)
-        bad = ~robot.feasible(x)
+        bad = ~(feasible or robot.feasible)(x)
         x[bad] = best[bad]
         return x
 

@@ -11,6 +11,7 @@ from ..errors import IdentifiabilityError
 from ..models.robot import Robot
 from ..ties import first_best
 from .bound import Bound, relaxed_bound
+from .cell import Cell
 from .criteria import score
 from .exchange import _State, det_blocks, fedorov, greedy
 from .ide import ide
@@ -113,7 +114,8 @@ def design_bound(robot: Robot, pool_q: np.ndarray, m: int, names: Sequence[str] 
 
 def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None = None, *,
                  problem: DesignProblem | None = None, bound: Bound | None = None,
-                 validation_q: np.ndarray | None = None, progress=None, **changes) -> Design:
+                 validation_q: np.ndarray | None = None, progress=None, cell: Cell | None = None,
+                 **changes) -> Design:
     """Choose measurement poses from the candidate pool (N, n).
 
     options      -- a :class:`DesignOptions` record (default: its defaults); ``changes`` are fields
@@ -122,11 +124,14 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
     bound        -- a certified bound of this problem and m to reuse
     validation_q -- poses whose average prediction variance the "I" criterion lowers (default: the pool)
     progress     -- called as ``progress(generation, best)`` by IDE
+    cell         -- the :class:`Cell`'s constraints: every candidate must meet them, and IDE keeps to them
 
     Every option is checked before any work (ValueError naming it).
     """
     o = (options or DesignOptions()).replace(**changes)
     pool_q = _checked_pool(robot, pool_q, o, problem, validation_q)
+    if cell is not None:
+        _check_cell(robot, pool_q, cell)
     t0 = time.perf_counter()
     P = problem or design_problem(robot, pool_q, o.names, o.base, o.units)
     if P.r * o.m < P.k:
@@ -136,7 +141,7 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
     rng = np.random.default_rng(o.seed)
     idx, history = None, ()
     if o.method in ("ide", "detmax-ide"):
-        q, J, history = _continuous_design(robot, P, o, B, rng, progress)
+        q, J, history = _continuous_design(robot, P, o, B, rng, progress, cell)
     else:
         idx = _pool_design(P, o, B, rng)
         q, J = P.q[idx], P.J[idx]
@@ -163,6 +168,17 @@ def _checked_pool(robot: Robot, pool_q: np.ndarray, o: DesignOptions, problem: D
     return pool_q
 
 
+def _check_cell(robot: Robot, pool_q: np.ndarray, cell: Cell) -> None:
+    """Every candidate meets the cell's constraints, else the count, the first row and the constraint."""
+    broken = cell.violations(robot, pool_q)
+    bad = np.any(list(broken.values()), axis=0) | ~robot.feasible(pool_q)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        why = ", ".join(n for n, v in broken.items() if v[k]) or "the joint limits"
+        raise ValueError(f"{int(bad.sum())} of {len(pool_q)} candidate poses break the cell's constraints (first: "
+                         f"candidate {k + 1}, {why}); leave them out or loosen the cell")
+
+
 def _region_information(robot: Robot, P: DesignProblem, validation_q: np.ndarray | None) -> np.ndarray:
     """Mean scaled information of the region of use (the pool, or ``validation_q``), (k, k)."""
     Jv = P.J if validation_q is None else \
@@ -183,7 +199,7 @@ def _pool_design(P: DesignProblem, o: DesignOptions, B, rng: np.random.Generator
     return np.asarray(idx, dtype=int)
 
 
-def _continuous_design(robot: Robot, P: DesignProblem, o: DesignOptions, B, rng, progress):
+def _continuous_design(robot: Robot, P: DesignProblem, o: DesignOptions, B, rng, progress, cell: Cell | None):
     """IDE from a random (ide) or DETMAX (detmax-ide) pool design: poses (m, n), their scaled
     Jacobian blocks and the best criterion per generation."""
     cols = robot.params.indices(P.names)
@@ -194,5 +210,6 @@ def _continuous_design(robot: Robot, P: DesignProblem, o: DesignOptions, B, rng,
 
     idx0 = detmax(P, o.m, o.criterion, rng, B) if o.method == "detmax-ide" else rng.choice(P.N, o.m, replace=False)
     q, _, history = ide(robot, P.q[np.asarray(idx0)], lambda x: _score_blocks(blocks(x), o.criterion, B), rng,
-                        generations=o.generations, progress=progress)
+                        generations=o.generations, progress=progress,
+                        feasible=None if cell is None else (lambda x: cell.allows(robot, x)))
     return q, blocks(q), history
