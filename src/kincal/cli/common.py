@@ -100,6 +100,9 @@ def add_robot(p: argparse.ArgumentParser, help_: str = "bundled name, kincal rob
 MAX_TOOL = 2.0  # m: no tool point lies farther from the flange; larger values are mm written without a unit
 
 
+CELL_SIZE = 100.0  # m: a length beyond this in a robot cell, given without a unit, is taken for mm
+
+
 def lengths(count: int, example: str):
     """argparse type: ``count`` numbers with an optional length unit after them ('3000,0,500mm'), in m."""
     def parse(s: str) -> tuple[float, ...]:
@@ -111,6 +114,9 @@ def lengths(count: int, example: str):
             t = ()
         if len(t) != count or not all(np.isfinite(t)):
             raise argparse.ArgumentTypeError(f"'{s}': give {count} finite number(s) and a unit, e.g. {example}")
+        if unit is None and max(map(abs, t)) > CELL_SIZE:
+            raise argparse.ArgumentTypeError(f"'{s}': {max(map(abs, t)):g} m from the robot; these look like mm: "
+                                             f"write {text}mm")
         return t
     return parse
 
