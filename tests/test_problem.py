@@ -174,7 +174,9 @@ def test_ide_history_reaches_the_design(capsys):
     d = kincal.select_poses(robot, pool, m=12, method="detmax-ide", criterion="comprehensive", certify=False,
                             generations=25)
     h = np.array(d.history)
-    assert h.size == 25 and np.all(np.diff(h) >= 0) and h[-1] == pytest.approx(d.value, rel=1e-12)
+    assert h.size == 26 and np.all(np.diff(h) >= 0) and h[-1] == pytest.approx(d.value, rel=1e-12)
+    start = kincal.select_poses(robot, pool, m=12, method="detmax", criterion="comprehensive", certify=False)
+    assert h[0] == pytest.approx(start.value, rel=1e-12)  # generation 0: the DETMAX design IDE starts from
 
 
 def test_fit_options_round_trip_and_the_records_of_0_1():
@@ -191,3 +193,14 @@ def test_fit_options_round_trip_and_the_records_of_0_1():
         ("auto", 3e-05, "pso", 60, kincal.ErrorModel("harmonics:1"))
     with pytest.raises(ValueError, match="calibration record: unknown calibration option.*colour"):
         FitOptions.from_dict({**old, "colour": "red"})
+
+
+def test_ide_settings_are_options_checked_before_any_work():
+    robot = kincal.load_robot("guo3t2r")
+    pool = kincal.candidate_pool(robot, 200, seed=0)
+    for bad in ({"f0": 0.0}, {"cr": 1.5}, {"population": 5}, {"f0": "1"}):
+        with pytest.raises(ValueError, match=list(bad)[0]):
+            kincal.DesignOptions(**bad)
+    runs = {f0: kincal.select_poses(robot, pool, m=12, method="detmax-ide", criterion="comprehensive", certify=False,
+                                    generations=15, f0=f0, cr=0.9, population=12).history for f0 in (0.5, 1.1)}
+    assert runs[0.5][0] == runs[1.1][0] and runs[0.5] != runs[1.1]  # same start, another search

@@ -62,7 +62,7 @@ def ide(
     feasible: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> tuple[np.ndarray, float, list[float]]:
     """Maximise ``objective(design)`` over designs (m, n) near ``start``; returns the best design,
-    its value and the best value after each generation. A pose that ``feasible`` (default: the
+    its value and the best value at generation 0 (the start) and after each generation (G + 1 values). A pose that ``feasible`` (default: the
     robot's own constraints; e.g. a cell's) refuses keeps the incumbent's."""
     lo, hi = robot.lower, robot.upper
     best = np.array(start, dtype=float)
@@ -76,7 +76,7 @@ def ide(
 
     pop = [repair(best + init_scale * best * rng.standard_normal(best.shape)) for _ in range(population)]
     v = pop[int(rng.integers(population))].copy()
-    history = []
+    history = [f_best]
     for g in range(1, generations + 1):
         F = mutation_factor(g, generations, F0)
         r = rng.choice(population, 6, replace=False)

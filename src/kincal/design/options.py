@@ -32,6 +32,8 @@ class DesignOptions:
     base        -- "estimate" or "fixed": whether the base frame is fitted (the base-mode rule)
     certify     -- compute the certified relaxation bound, so the design reports its D-efficiency
     units       -- "scaled" (unit-invariant columns) or "paper" (raw Jacobian in mm and rad)
+    f0, cr, population -- IDE's initial mutation factor (eq. 21), crossover probability (eq. 25) and
+                   population size
     """
 
     m: int = 60
@@ -44,6 +46,9 @@ class DesignOptions:
     restarts: int = 0
     generations: int = 200
     units: str = "scaled"
+    f0: float = 1.1
+    cr: float = 0.6
+    population: int = 30
 
     def __post_init__(self) -> None:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -64,6 +69,11 @@ class DesignOptions:
             raise ValueError(f"certify={self.certify!r}: True or False")
         set_("restarts", _whole("restarts", self.restarts, 0))
         set_("generations", _whole("generations", self.generations, 1))
+        set_("population", _whole("population", self.population, 6))  # a mutant draws 6 distinct members
+        for name, lo, hi in (("f0", 0.0, 4.0), ("cr", 0.0, 1.0)):
+            v = self.__dict__[name]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo < v <= hi:
+                raise ValueError(f"{name}={v!r}: give a number in ({lo:g}, {hi:g}]")
 
     def replace(self, **changes: Any) -> "DesignOptions":
         """A copy with some fields changed (and checked again); an unknown field is named."""

@@ -29,7 +29,7 @@ class Design:
     bound      -- certified upper bound on logdet over all m-pose designs of the pool (or None)
     efficiency -- D-efficiency (det M / exp(bound))^(1/k): how far from the best possible design
                   of the pool (≤ 1 for pool designs; continuous designs may exceed the pool's bound)
-    history    -- ide / detmax-ide: the best criterion after each generation (Guo et al. 2024, Figs. 5–6)
+    history    -- ide / detmax-ide: the best criterion at generation 0 and after each one (Guo et al. 2024, Fig. 6)
     """
 
     indices: np.ndarray | None
@@ -210,6 +210,6 @@ def _continuous_design(robot: Robot, P: DesignProblem, o: DesignOptions, B, rng,
 
     idx0 = detmax(P, o.m, o.criterion, rng, B) if o.method == "detmax-ide" else rng.choice(P.N, o.m, replace=False)
     q, _, history = ide(robot, P.q[np.asarray(idx0)], lambda x: _score_blocks(blocks(x), o.criterion, B), rng,
-                        generations=o.generations, progress=progress,
+                        generations=o.generations, population=o.population, F0=o.f0, cr=o.cr, progress=progress,
                         feasible=None if cell is None else (lambda x: cell.allows(robot, x)))
     return q, blocks(q), history

@@ -14,16 +14,16 @@ DESIGN_COLOURS = {"random": "#9a9a9a", "full-parameter optimised": "#1f77b4",
 
 @_styled
 def ide_convergence(histories: dict) -> Figure:
-    """Figs. 5-6: the comprehensive index of the best design per IDE generation, one panel per model
+    """Fig. 6: the comprehensive index of the best design per IDE generation, one panel per model
     (generation 0: the DETMAX design IDE starts from)."""
     runs = {k: h for k, h in histories.items() if len(h)}
     fig = _figure(6.0, 1.6 + 1.6 * len(runs))
     axes = fig.subplots(len(runs), 1, sharex=True, squeeze=False)[:, 0]
     for ax, (name, h) in zip(axes, runs.items()):
-        ax.plot(np.arange(1, len(h) + 1), h, color=DESIGN_COLOURS.get(name))
+        ax.plot(np.arange(len(h)), h, color=DESIGN_COLOURS.get(name))
         ax.set(ylabel="index", title=f"{name}: {h[0]:.4f} -> {h[-1]:.4f}")
     axes[-1].set_xlabel("IDE generation")
-    fig.suptitle("DETMAX-IDE convergence (Figs. 5-6)")
+    fig.suptitle("DETMAX-IDE convergence (Fig. 6)")
     return fig
 
 

@@ -48,7 +48,7 @@ class Guo2024Study:
     m: int
     protocol: str = "kincal"
     units: str = "scaled"
-    histories: dict = field(default_factory=dict)  # design -> IDE best index per generation (Figs. 5-6)
+    histories: dict = field(default_factory=dict)  # design -> IDE best index per generation, 0 first (Fig. 6)
     curve: dict = field(default_factory=dict)  # index vs number of poses, separated model (Fig. 7)
     point_errors: dict = field(default_factory=dict)  # first repetition: validation errors (60, 3) m per model (Fig. 12)
 
