@@ -129,8 +129,8 @@ def register(cmd) -> None:
     s.add_argument("--base", choices=list(kincal.analysis.BASE_MODES), default="estimate")
     s.add_argument("--restarts", type=nonneg_int, default=0, help="extra random starts for fedorov")
     s.add_argument("--generations", type=positive_int, default=200, help="generations for ide / detmax-ide")
-    s.add_argument("--f0", type=positive_float, default=1.1, help="IDE's initial mutation factor F0 (eq. 21)")
-    s.add_argument("--cr", type=positive_float, default=0.6, help="IDE's crossover probability (eq. 25)")
+    s.add_argument("--f0", type=positive_float, default=0.2, help="IDE F0, eq. 21 (default 0.2)")
+    s.add_argument("--cr", type=positive_float, default=0.2, help="IDE crossover probability, eq. 25 (default 0.2)")
     s.add_argument("--population", type=positive_int, default=30, help="IDE's population size")
     s.add_argument("--no-bound", action="store_true", help="skip the certified bound (and D-efficiency)")
     s.add_argument("--units", choices=list(kincal.design.UNITS), default="scaled",

@@ -46,8 +46,8 @@ class DesignOptions:
     restarts: int = 0
     generations: int = 200
     units: str = "scaled"
-    f0: float = 1.1
-    cr: float = 0.6
+    f0: float = 0.2
+    cr: float = 0.2
     population: int = 30
 
     def __post_init__(self) -> None:
