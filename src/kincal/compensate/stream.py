@@ -26,7 +26,8 @@ from ..errors import MeasurementError
 from ..io.commands import CommandColumns, command_columns
 from ..io.unit_checks import SPREAD_RATIO, check_degrees, check_radians, check_spread
 from ..models.robot import Robot
-from ..observe.orientation import check_convention, convention_check, default_columns, from_matrices, to_matrices
+from ..observe.files import check_pose_columns
+from ..observe.orientation import convention_check, default_columns, from_matrices, to_matrices
 from ..units import unit_factor
 from .commands import compensate, path_checked, uncontrolled_warning
 
@@ -49,14 +50,7 @@ class TargetsFormat:
     angle_unit: str = "rad"
 
     def __post_init__(self) -> None:
-        check_convention(self.orientation)
-        unit_factor(self.length_unit, "length")
-        unit_factor(self.angle_unit, "angle")
-        if len(self.xyz_cols) != 3:
-            raise ValueError(f"give three position columns, got {list(self.xyz_cols)}")
-        if self.rot_cols is not None and len(self.rot_cols) != len(default_columns(self.orientation)):
-            raise ValueError(f"{self.orientation} has {len(default_columns(self.orientation))} columns, "
-                             f"got {list(self.rot_cols)}")
+        check_pose_columns(self.orientation, self.length_unit, self.angle_unit, self.xyz_cols, self.rot_cols)
 
     @property
     def orientation_cols(self) -> tuple[str, ...]:

@@ -38,6 +38,18 @@ DEFAULT_STD = {"point": (15e-6, None), "pose": (0.1e-3, 1e-3), "markers": (50e-6
 POINT_STD = ("measurement_std_x", "measurement_std_y", "measurement_std_z")
 
 
+def check_pose_columns(orientation: str, length_unit: str, angle_unit: str, xyz_cols, rot_cols) -> None:
+    """The settings shared by files of positions and poses: a known orientation convention and units,
+    three position columns, and as many orientation columns as the convention has (ValueError)."""
+    check_convention(orientation)
+    unit_factor(length_unit, "length")
+    unit_factor(angle_unit, "angle")
+    if len(xyz_cols) != 3:
+        raise ValueError(f"give three position columns, got {list(xyz_cols)}")
+    if rot_cols is not None and len(rot_cols) != len(default_columns(orientation)):
+        raise ValueError(f"{orientation} has {len(default_columns(orientation))} columns, got {list(rot_cols)}")
+
+
 @dataclass(frozen=True)
 class ObservationFormat:
     """How to read one observation file (units of ``distances`` and ``planes``' offsets: ``length_unit``)."""
@@ -60,14 +72,7 @@ class ObservationFormat:
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ValueError(f"measurement type '{self.kind}': use one of {', '.join(KINDS)}")
-        check_convention(self.orientation)
-        unit_factor(self.length_unit, "length")
-        unit_factor(self.angle_unit, "angle")
-        if len(self.xyz_cols) != 3:
-            raise ValueError(f"give three position columns, got {list(self.xyz_cols)}")
-        if self.rot_cols is not None and len(self.rot_cols) != len(default_columns(self.orientation)):
-            raise ValueError(f"{self.orientation} has {len(default_columns(self.orientation))} columns, "
-                             f"got {list(self.rot_cols)}")
+        check_pose_columns(self.orientation, self.length_unit, self.angle_unit, self.xyz_cols, self.rot_cols)
         for what, v in (("std_pos", self.std_pos), ("std_rot", self.std_rot)):
             if v is not None and not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{what} must be a positive number, got {v}")
