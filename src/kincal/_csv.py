@@ -79,6 +79,21 @@ def read_table(path: str) -> tuple[list[str], list[tuple[int, list[str]]], str, 
     return header, [(k, rec) for k, rec in records[1:]], delim, records[0][0]
 
 
+def check_once(path: str, header: list[str], columns, kinds: str = "joint, position or σ") -> None:
+    """Each of ``columns`` asked for once and named once in the header, else an error saying which
+    (``kinds``: what the columns are, for the message)."""
+    columns = list(columns)
+    asked = [c for c in dict.fromkeys(columns) if columns.count(c) > 1]
+    if asked:
+        raise MeasurementError(f"{path}: column(s) {', '.join(asked)} given more than once (as {kinds} columns); "
+                               f"each value must come from its own column")
+    twice = [c for c in dict.fromkeys(columns) if header.count(c) > 1]
+    if twice:
+        raise MeasurementError(f"{path}: the header names column(s) {', '.join(twice)} more than once (columns "
+                               f"{', '.join(str(k + 1) for k, h in enumerate(header) if h in twice)}); rename them so "
+                               f"that each name is one column")
+
+
 def cell_numbers(path: str, records, header: list[str], cols, delim: str, empty_ok: bool = False):
     """The named columns of ``records`` ((line number, cells) pairs) as floats (N, len(cols)), each
     cell checked: a cell that is not a finite number (or empty, with ``empty_ok``: NaN) is refused,

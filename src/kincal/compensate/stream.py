@@ -18,7 +18,7 @@ from typing import Callable, Iterator
 import numpy as np
 
 from .._atomic import AtomicFile
-from .._csv import BLOCK_BYTES, Block, Stream, open_stream
+from .._csv import BLOCK_BYTES, Block, Stream, check_once, open_stream
 from .._memory import keep_freed_memory
 from .._threads import limit_blas
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
@@ -141,10 +141,12 @@ def compensate_file(job: StreamJob, src: str, dst: str, *, skip_unreachable: boo
     written only when every row passes, or with ``skip_unreachable`` the rows that pass). ``workers``
     processes (default: one per core) share the blocks (``block_bytes`` of text each; the output does
     not depend on the workers) of a file longer than one; ``progress(bytes done, bytes total)`` is
-    called after each block."""
+    called after each block. For a file of several blocks the calling process, like the workers, keeps
+    freed memory for the next block (glibc's thresholds, :mod:`kincal._memory`)."""
     stream = open_stream(src, block_bytes)
     _check_columns(job, stream)
-    keep_freed_memory()  # this process too: it reads and writes every block
+    if stream.size - stream.offset > block_bytes:
+        keep_freed_memory()  # a long file: this process reads and writes every block
     layout = job.layout(dst)
     total = _Totals()
     with AtomicFile(dst) as out:
@@ -167,15 +169,7 @@ def _check_columns(job: StreamJob, stream: Stream) -> None:
     t, robot, path, header = job.targets, job.robot, stream.path, stream.header
     joints = list(t.joint_cols or robot.joint_names) if job.needs_joints else []
     cols = [*joints, *t.xyz_cols, *(t.orientation_cols if t.pose else ())]
-    asked = [c for c in dict.fromkeys(cols) if cols.count(c) > 1]
-    if asked:
-        raise MeasurementError(f"{path}: column(s) {', '.join(asked)} given more than once (as joint, position or "
-                               f"orientation columns); each value must come from its own column")
-    twice = [c for c in dict.fromkeys(header) if header.count(c) > 1 and c in cols]
-    if twice:
-        raise MeasurementError(f"{path}: the header names column(s) {', '.join(twice)} more than once (columns "
-                               f"{', '.join(str(k + 1) for k, h in enumerate(header) if h in twice)}); rename them so "
-                               f"that each name is one column")
+    check_once(path, header, cols, "joint, position or orientation")
     if job.needs_joints:
         if len(joints) != robot.n_joints:
             raise MeasurementError(f"{path}: {len(joints)} joint columns given ({', '.join(joints)}) but robot "

@@ -10,7 +10,7 @@ from typing import Sequence
 import numpy as np
 
 from .._atomic import write_text_atomic
-from .._csv import data_lines, is_float, number, read_table, read_text, sniff_delimiter
+from .._csv import check_once, data_lines, is_float, number, read_table, read_text, sniff_delimiter
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..units import unit_factor
@@ -138,15 +138,7 @@ def _read_columns(path: str, columns: Sequence[str]) -> tuple[np.ndarray, np.nda
     """Numeric values of ``columns`` from a CSV with a header, (rows, len(columns)), and the rows'
     1-based line numbers. Blank and '#' lines are skipped. Errors name the file, row and column."""
     header, records, delim, header_line = read_table(path)
-    asked = [c for c in dict.fromkeys(columns) if list(columns).count(c) > 1]
-    if asked:
-        raise MeasurementError(f"{path}: column(s) {', '.join(asked)} given more than once (as joint, position or σ "
-                               f"columns); each value must come from its own column")
-    twice = [c for c in dict.fromkeys(columns) if header.count(c) > 1]
-    if twice:
-        raise MeasurementError(f"{path}: the header names column(s) {', '.join(twice)} more than once (columns "
-                               f"{', '.join(str(k + 1) for k, h in enumerate(header) if h in twice)}); rename them so "
-                               f"that each name is one column")
+    check_once(path, header, columns)
     missing = [c for c in columns if c not in header]
     if missing:
         where = f" (line {header_line})" if header_line != 1 else ""
