@@ -12,6 +12,7 @@ from .problem import UNITS
 
 METHODS = ("random", "detmax", "fedorov", "ide", "detmax-ide")
 EXCHANGE_CRITERIA = ("D", "I")  # what the low-rank Fedorov exchange can update
+DESIGN_CRITERIA = ("IMSE",) + CRITERIA
 
 
 @dataclass(frozen=True)
@@ -25,8 +26,13 @@ class DesignOptions:
                    differential evolution over continuous poses from a random pool design,
                    ``generations``); "detmax-ide" (Guo et al. 2024's two steps: DETMAX on the pool,
                    then IDE from its design)
-    criterion   -- "D", "A", "E", "I" (average prediction variance over the validation poses, default
-                   the pool), "O1"…"O6", "comprehensive" (Guo et al. 2024's entropy-weighted index)
+    criterion   -- "IMSE" (default: mean squared prediction error over the region of use, counting the
+                   bias of error terms geometry cannot describe; see :mod:`kincal.design.robust`),
+                   "D", "A", "E", "I" (average prediction variance over the region of use), "O1"…"O6",
+                   "comprehensive" (Guo et al. 2024's entropy-weighted index)
+    coverage    -- keep one pose per stratum of the pool (k-means in joint space), exchanging within
+                   strata (method "fedorov"); None: on for IMSE (which needs it), off otherwise
+    weight      -- IMSE: the variance of each left-out term's effect, in units of the noise variance
     seed        -- the random seed (random starts, IDE); None draws a fresh one
     names       -- parameters to design for (default: the identifiable set at the pool)
     base        -- "estimate" or "fixed": whether the base frame is fitted (the base-mode rule)
@@ -38,7 +44,7 @@ class DesignOptions:
 
     m: int = 60
     method: str = "fedorov"
-    criterion: str = "D"
+    criterion: str = "IMSE"
     seed: int | None = 0
     names: tuple[str, ...] | None = None
     base: str = "estimate"
@@ -49,16 +55,16 @@ class DesignOptions:
     f0: float = 0.2
     cr: float = 0.2
     population: int = 30
+    coverage: bool | None = None
+    weight: float = 0.3
 
     def __post_init__(self) -> None:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
         set_("m", _whole("m", self.m, 1))
-        for name, allowed in (("method", METHODS), ("criterion", CRITERIA), ("base", BASE_MODES), ("units", UNITS)):
+        for name, allowed in (("method", METHODS), ("criterion", DESIGN_CRITERIA), ("base", BASE_MODES), ("units", UNITS)):
             if self.__dict__[name] not in allowed:
                 raise ValueError(f"{name} '{self.__dict__[name]}' is not one of {', '.join(allowed)}")
-        if self.method == "fedorov" and self.criterion not in EXCHANGE_CRITERIA:
-            raise ValueError(f"method 'fedorov' supports the D and I criteria (got '{self.criterion}'); use 'detmax' "
-                             f"for the others")
+        self._check_coverage()
         if self.seed is not None:
             set_("seed", _whole("seed", self.seed, 0))
         if self.names is not None:
@@ -74,6 +80,30 @@ class DesignOptions:
             v = self.__dict__[name]
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo < v <= hi:
                 raise ValueError(f"{name}={v!r}: give a number in ({lo:g}, {hi:g}]")
+
+    def _check_coverage(self) -> None:
+        """IMSE and coverage are searched by the exchange within strata (see :attr:`stratified`)."""
+        if self.coverage not in (True, False, None):
+            raise ValueError(f"coverage={self.coverage!r}: True, False or None (on for IMSE)")
+        w = self.weight
+        if isinstance(w, bool) or not isinstance(w, (int, float)) or not 0.0 <= w < 1e6:
+            raise ValueError(f"weight={w!r}: give the variance of each left-out term in units of the noise variance "
+                             f"(≥ 0, e.g. 0.3)")
+        if self.criterion == "IMSE" and self.coverage is False:
+            raise ValueError("criterion 'IMSE' is searched one pose per joint-space stratum: leave coverage on, or "
+                             "choose criterion D or I")
+        if self.stratified and (self.method != "fedorov" or self.criterion not in ("IMSE",) + EXCHANGE_CRITERIA):
+            default = " (the default)" if self.criterion == "IMSE" else ""
+            raise ValueError(f"criterion '{self.criterion}'{default} with coverage is searched by the exchange within "
+                             f"strata, method 'fedorov'; with method '{self.method}' choose a criterion such as D")
+        if self.method == "fedorov" and self.criterion not in ("IMSE",) + EXCHANGE_CRITERIA:
+            raise ValueError(f"method 'fedorov' supports the IMSE, D and I criteria (got '{self.criterion}'); use "
+                             f"'detmax' for the others")
+
+    @property
+    def stratified(self) -> bool:
+        """Whether the design keeps one pose per stratum: ``coverage``, or None → on for IMSE."""
+        return self.criterion == "IMSE" if self.coverage is None else bool(self.coverage)
 
     def replace(self, **changes: Any) -> "DesignOptions":
         """A copy with some fields changed (and checked again); an unknown field is named."""

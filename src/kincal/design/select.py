@@ -17,6 +17,7 @@ from .exchange import _State, det_blocks, fedorov, greedy
 from .ide import ide
 from .options import DesignOptions
 from .problem import DesignProblem, design_problem
+from .robust import stratified_design
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,6 +31,7 @@ class Design:
     efficiency -- D-efficiency (det M / exp(bound))^(1/k): how far from the best possible design
                   of the pool (≤ 1 for pool designs; continuous designs may exceed the pool's bound)
     history    -- ide / detmax-ide: the best criterion at generation 0 and after each one (Guo et al. 2024, Fig. 6)
+    note       -- what the criterion counted (IMSE: the left-out error terms), or ""
     """
 
     indices: np.ndarray | None
@@ -43,6 +45,7 @@ class Design:
     time_s: float
     seed: int | None
     history: tuple[float, ...] = ()
+    note: str = ""
 
     @property
     def efficiency(self) -> float | None:
@@ -55,12 +58,14 @@ class Design:
                 "indices": None if self.indices is None else self.indices.tolist(), "q": self.q.tolist(), "value": self.value,
                 "logdet": self.logdet, "bound": None if self.bound is None else self.bound.to_dict(),
                 "efficiency": self.efficiency, "parameters": list(self.names), "time_s": self.time_s,
-                "seed": self.seed, "history": list(self.history)}
+                "seed": self.seed, "history": list(self.history), "note": self.note}
 
     def __str__(self) -> str:
         eff = "n/a" if self.efficiency is None else f"{self.efficiency:.4f}"
+        what = "IMSE/σ² (smaller is better)" if self.criterion == "IMSE" else self.criterion
         return (f"{self.method} design of {self.q.shape[0]} poses for {len(self.names)} parameters: "
-                f"{self.criterion} = {self.value:.6g}, D-efficiency {eff}, {self.time_s:.2f} s")
+                f"{what} = {self.value:.6g}, D-efficiency {eff}, {self.time_s:.2f} s" +
+                (f"\n  {self.note}" if self.note else ""))
 
 
 def _score_blocks(J: np.ndarray, criterion: str, B) -> float:
@@ -122,7 +127,8 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
                     of it to change, e.g. ``select_poses(robot, pool, m=30, method="detmax")``
     problem      -- a prebuilt :class:`DesignProblem` of this pool to reuse (its parameters win)
     bound        -- a certified bound of this problem and m to reuse
-    validation_q -- poses whose average prediction variance the "I" criterion lowers (default: the pool)
+    validation_q -- the region of use: poses where the IMSE and I criteria lower the prediction error
+                    (default: the pool)
     progress     -- called as ``progress(generation, best)`` by IDE
     cell         -- the :class:`Cell`'s constraints: every candidate must meet them, and IDE keeps to them
 
@@ -139,18 +145,23 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
                                    f"m ≥ {-(-P.k // P.r)}")
     B = _region_information(robot, P, validation_q) if o.criterion == "I" else None
     rng = np.random.default_rng(o.seed)
-    idx, history = None, ()
+    idx, history, note = None, (), ""
     if o.method in ("ide", "detmax-ide"):
         q, J, history = _continuous_design(robot, P, o, B, rng, progress, cell)
+    elif o.stratified:
+        chosen, value, note = stratified_design(robot, P, o.m, o.criterion, validation_q, o.weight, rng)
+        idx = np.asarray(chosen, dtype=int)
+        q, J = P.q[idx], P.J[idx]
     else:
         idx = _pool_design(P, o, B, rng)
         q, J = P.q[idx], P.J[idx]
+    if not o.stratified:
+        value = _score_blocks(J, o.criterion, B)
     elapsed = time.perf_counter() - t0
     if bound is None and o.certify:
         bound = relaxed_bound(P, o.m)
-    return Design(idx, q, o.method, o.criterion, _score_blocks(J, o.criterion, B), _score_blocks(J, "D", None),
-                  P.names, bound, elapsed, o.seed,
-                  tuple(float(h) for h in history))
+    return Design(idx, q, o.method, o.criterion, value, _score_blocks(J, "D", None), P.names, bound, elapsed, o.seed,
+                  tuple(float(h) for h in history), note)
 
 
 def _checked_pool(robot: Robot, pool_q: np.ndarray, o: DesignOptions, problem: DesignProblem | None,
