@@ -28,16 +28,17 @@ def _independent_violations(q: np.ndarray) -> np.ndarray:
 
 def test_pools_and_designs_keep_to_the_cell():
     free = kincal.select_poses(UR10, kincal.candidate_pool(UR10, 3000, seed=1), m=40, method="fedorov",
-                               certify=False)
+                               criterion="D", certify=False)
     assert _independent_violations(free.q).sum() >= 20  # without the cell, most design poses break it
     pool = CELL.pool(UR10, 3000, seed=1)
     assert not _independent_violations(pool[:300]).any()
     for method in ("fedorov", "ide"):
-        d = kincal.select_poses(UR10, pool, m=40, method=method, certify=False, generations=40, cell=CELL)
+        d = kincal.select_poses(UR10, pool, m=40, method=method, criterion="D", certify=False, generations=40,
+                                cell=CELL)
         assert not _independent_violations(d.q).any(), method
         if method == "ide":
             assert np.abs(d.q[:, None, :] - pool[None]).max(axis=2).min(axis=1).max() > 1e-6  # IDE left the pool
-            loose = kincal.select_poses(UR10, pool, m=40, method=method, certify=False, generations=40)
+            loose = kincal.select_poses(UR10, pool, m=40, method=method, criterion="D", certify=False, generations=40)
             assert _independent_violations(loose.q).sum() >= 10  # ... and without the cell it leaves the cell too
 
 

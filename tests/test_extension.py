@@ -76,5 +76,5 @@ def test_a_user_written_implicit_robot_works_everywhere():
     res = kincal.calibrate(robot, kincal.simulate(true, q, 0.0), base="fixed")
     qv = robot.sample_joints(50, seed=3)
     assert res.converged and kincal.evaluate(res.robot, kincal.simulate(true, qv, 0.0)).max < 1e-9
-    d = kincal.select_poses(robot, robot.sample_joints(300, seed=4), m=12, base="fixed")
+    d = kincal.select_poses(robot, robot.sample_joints(300, seed=4), m=12, base="fixed", criterion="D")
     assert d.q.shape == (12, 3) and 0.9 < d.efficiency <= 1.0

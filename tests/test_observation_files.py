@@ -344,11 +344,11 @@ def test_pose_design_blocks_and_exchange(ur5):
         _, Jr, Jn = one.evaluate(ur5, ur5.params.values, np.zeros(3))
         J = np.hstack([Jr, Jn]) / one.sigma()[:, None]
         assert np.allclose(P.J[i], J[:, [names.index(n) for n in P.names]] * P.scale, rtol=1e-9, atol=1e-9)
-    d = select_poses(ur5, pool, m=20, method="fedorov", problem=P, certify=False)
+    d = select_poses(ur5, pool, m=20, method="fedorov", criterion="D", problem=P, certify=False)
     assert d.logdet == pytest.approx(np.linalg.slogdet(P.information(d.indices))[1], abs=1e-8)
     bound = relaxed_bound(P, 20)
     assert 0.95 < np.exp((d.logdet - bound.upper) / P.k) <= 1 + 1e-9
-    detmax = select_poses(ur5, pool, m=20, method="detmax", problem=P, certify=False)
+    detmax = select_poses(ur5, pool, m=20, method="detmax", criterion="D", problem=P, certify=False)
     assert detmax.logdet == pytest.approx(np.linalg.slogdet(P.information(detmax.indices))[1], abs=1e-8)
     rng = np.random.default_rng(1)
     random = [np.linalg.slogdet(P.information(rng.choice(300, 20, replace=False)))[1] for _ in range(20)]

@@ -1,6 +1,8 @@
 """Commands that choose measurement poses and study the error model: design, npose, separate."""
 from __future__ import annotations
 
+import argparse
+
 import numpy as np
 
 import kincal
@@ -14,11 +16,13 @@ from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, len
 
 
 def cmd_design(args) -> int:
-    check_paths([*robot_inputs(args.robot), args.candidates], [args.output])
-    options = kincal.DesignOptions(m=args.m, method=args.method, criterion=args.criterion, seed=args.seed,
+    check_paths([*robot_inputs(args.robot), args.candidates, args.use], [args.output])
+    criterion = args.criterion or ("IMSE" if args.method in ("fedorov", "random") else "D")
+    options = kincal.DesignOptions(m=args.m, method=args.method, criterion=criterion, seed=args.seed,
                                    names=args.params, base=args.base, certify=not args.no_bound,
                                    restarts=args.restarts, generations=args.generations, units=args.units,
-                                   f0=args.f0, cr=args.cr, population=args.population)
+                                   f0=args.f0, cr=args.cr, population=args.population, coverage=args.coverage,
+                                   weight=args.weight)
     r = load_robot(args)
     if args.params:
         r.params.indices(args.params)
@@ -34,9 +38,11 @@ def cmd_design(args) -> int:
     else:
         pool = kincal.candidate_pool(r, args.pool, seed=args.seed)
     problem = _observation_problem(args, r, pool)
+    use = None if args.use is None else kincal.read_joints(args.use, r, args.joint_cols, args.length_unit,
+                                                           args.angle_unit)
     with progress("designing poses", args.json) as say:
         say(f"{args.method} on {len(pool)} candidates")
-        d = kincal.select_poses(r, pool, options, problem=problem, cell=cell)
+        d = kincal.select_poses(r, pool, options, problem=problem, cell=cell, validation_q=use)
     if args.candidates and d.indices is not None:  # the user's own rows: IDs and every column kept
         kincal.io.write_selected_rows(args.output, args.candidates, d.indices)
         where = f"poses written to {args.output} (the chosen rows of {args.candidates}, every column kept)"
@@ -48,6 +54,20 @@ def cmd_design(args) -> int:
     payload["output"] = args.output
     emit(args, payload, f"{d}\n{where}")
     return 0
+
+
+def _criterion_flags(s) -> None:
+    s.add_argument("--method", default="fedorov", choices=list(kincal.design.METHODS))
+    s.add_argument("--criterion", choices=list(kincal.design.DESIGN_CRITERIA),
+                   help="IMSE (default for fedorov and random): the smallest mean squared prediction error where the "
+                        "robot is used, counting error terms geometry cannot describe (it won on the real UR5 and WAM, "
+                        "see the README); D for detmax and the IDE")
+    s.add_argument("--use", help="CSV of joint values where the robot will work (the region of use of IMSE and I; "
+                                 "default: the candidates)")
+    s.add_argument("--coverage", action=argparse.BooleanOptionalAction, default=None,
+                   help="one pose per joint-space stratum of the candidates (default: on for IMSE)")
+    s.add_argument("--weight", type=nonneg_float, default=0.3,
+                   help="IMSE: variance of each left-out error term, in units of the noise variance (default 0.3)")
 
 
 def _cell(args):
@@ -123,8 +143,7 @@ def register(cmd) -> None:
     c.add_argument("--reflector-axis", type=lengths(3, "0,0,1"), default=(0.0, 0.0, 1.0),
                    help="the reflector's opening direction in the flange frame (default 0,0,1)")
     c.add_argument("--joint-margin", type=nonneg_float, default=0.0, help="degrees kept from every revolute joint's limits")
-    s.add_argument("--method", default="fedorov", choices=list(kincal.design.METHODS))
-    s.add_argument("--criterion", default="D", choices=list(kincal.design.CRITERIA))
+    _criterion_flags(s)
     s.add_argument("--params", type=csv_list, help="parameters to design for (default: identifiable set)")
     s.add_argument("--base", choices=list(kincal.analysis.BASE_MODES), default="estimate")
     s.add_argument("--restarts", type=nonneg_int, default=0, help="extra random starts for fedorov")

@@ -3,11 +3,11 @@ from .bound import Bound, relaxed_bound
 from .criteria import CRITERIA, score
 from .npose import PoseCountCurve, minimum_poses, pose_count_curve
 from .pool import candidate_pool
-from .options import METHODS, DesignOptions
+from .options import DESIGN_CRITERIA, METHODS, DesignOptions
 from .problem import UNITS, DesignProblem, design_problem, observation_problem
 from .cell import Cell
 from .select import Design, design_bound, select_poses
 
 __all__ = ["UNITS", "Bound", "relaxed_bound", "CRITERIA", "score", "candidate_pool", "DesignProblem", "design_problem",
-           "METHODS", "Cell", "DesignOptions", "Design", "design_bound", "select_poses", "PoseCountCurve", "minimum_poses",
+           "METHODS", "DESIGN_CRITERIA", "Cell", "DesignOptions", "Design", "design_bound", "select_poses", "PoseCountCurve", "minimum_poses",
            "pose_count_curve", "observation_problem"]

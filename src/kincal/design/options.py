@@ -31,7 +31,7 @@ class DesignOptions:
                    "D", "A", "E", "I" (average prediction variance over the region of use), "O1"…"O6",
                    "comprehensive" (Guo et al. 2024's entropy-weighted index)
     coverage    -- keep one pose per stratum of the pool (k-means in joint space), exchanging within
-                   strata (method "fedorov"); None: on for IMSE (which needs it), off otherwise
+                   strata (method "fedorov"); None: on for IMSE (which is searched that way), off otherwise
     weight      -- IMSE: the variance of each left-out term's effect, in units of the noise variance
     seed        -- the random seed (random starts, IDE); None draws a fresh one
     names       -- parameters to design for (default: the identifiable set at the pool)
@@ -89,21 +89,24 @@ class DesignOptions:
         if isinstance(w, bool) or not isinstance(w, (int, float)) or not 0.0 <= w < 1e6:
             raise ValueError(f"weight={w!r}: give the variance of each left-out term in units of the noise variance "
                              f"(≥ 0, e.g. 0.3)")
-        if self.criterion == "IMSE" and self.coverage is False:
-            raise ValueError("criterion 'IMSE' is searched one pose per joint-space stratum: leave coverage on, or "
-                             "choose criterion D or I")
+        if self.criterion == "IMSE" and (self.coverage is False or self.method not in ("fedorov", "random")):
+            raise ValueError(f"criterion 'IMSE'{' (the default)' if self.method != 'fedorov' else ''} is searched one "
+                             f"pose per joint-space stratum by method 'fedorov' with coverage; with method "
+                             f"'{self.method}'{' and no coverage' if self.coverage is False else ''} choose a criterion "
+                             f"such as D")
         if self.stratified and (self.method != "fedorov" or self.criterion not in ("IMSE",) + EXCHANGE_CRITERIA):
-            default = " (the default)" if self.criterion == "IMSE" else ""
-            raise ValueError(f"criterion '{self.criterion}'{default} with coverage is searched by the exchange within "
-                             f"strata, method 'fedorov'; with method '{self.method}' choose a criterion such as D")
+            raise ValueError(f"coverage is kept by the exchange within strata: method 'fedorov' with criterion IMSE, D "
+                             f"or I (got method '{self.method}', criterion '{self.criterion}')")
         if self.method == "fedorov" and self.criterion not in ("IMSE",) + EXCHANGE_CRITERIA:
             raise ValueError(f"method 'fedorov' supports the IMSE, D and I criteria (got '{self.criterion}'); use "
                              f"'detmax' for the others")
 
     @property
     def stratified(self) -> bool:
-        """Whether the design keeps one pose per stratum: ``coverage``, or None → on for IMSE."""
-        return self.criterion == "IMSE" if self.coverage is None else bool(self.coverage)
+        """Whether the design keeps one pose per stratum: ``coverage``, or None → on for IMSE by Fedorov."""
+        if self.coverage is None:
+            return self.criterion == "IMSE" and self.method == "fedorov"
+        return bool(self.coverage)
 
     def replace(self, **changes: Any) -> "DesignOptions":
         """A copy with some fields changed (and checked again); an unknown field is named."""

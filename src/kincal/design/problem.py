@@ -26,6 +26,7 @@ class DesignProblem:
     J: np.ndarray
     names: tuple[str, ...]
     scale: np.ndarray
+    note: str = ""  # parameters the pool cannot identify that spread poses would, and what they act like
 
     @property
     def N(self) -> int:
@@ -83,14 +84,9 @@ def design_problem(robot: Robot, pool_q: np.ndarray, names: Sequence[str] | None
     if distinct < 2:
         raise IdentifiabilityError(f"the candidate pool holds {distinct} distinct pose(s) in {len(pool_q)} rows: "
                                    f"give candidates spread over the workspace")
+    note = ""
     if names is None:
-        names = free_parameters(robot, pool_q, base).identifiable
-        generic = free_parameters(robot, robot.sample_joints(200, seed=0), base).rank
-        if len(names) < generic:
-            raise IdentifiabilityError(
-                f"the candidate pool identifies only {len(names)} parameters where poses spread over the workspace "
-                f"identify {generic}: its {distinct} distinct candidates are too alike (nearly identical poses?); "
-                f"give candidates spread over the workspace, or name the parameters to design for")
+        names, note = _pool_parameters(robot, pool_q, base, distinct)
     else:
         names = tuple(names)
         ident = identifiability(robot, pool_q, names=names)
@@ -101,7 +97,27 @@ def design_problem(robot: Robot, pool_q: np.ndarray, names: Sequence[str] | None
         scale = np.array([1.0 if robot.params.kinds[robot.params.index(n)] == "length" else 1e3 for n in names])
     else:
         scale = column_scale(J.reshape(-1, len(names)))
-    return DesignProblem(pool_q, np.ascontiguousarray(J * scale), tuple(names), scale)
+    return DesignProblem(pool_q, np.ascontiguousarray(J * scale), tuple(names), scale, note)
+
+
+def _pool_parameters(robot: Robot, pool_q: np.ndarray, base: str, distinct: int) -> tuple[tuple[str, ...], str]:
+    """The parameters the pool identifies, and a note naming those that poses spread over the
+    workspace would identify but no subset of the pool can (with what they act like there). A pool
+    that loses half of them or more is refused: its candidates are too alike to design from."""
+    ident = free_parameters(robot, pool_q, base)
+    generic = free_parameters(robot, robot.sample_joints(200, seed=0), base)
+    if ident.rank >= generic.rank:
+        return ident.identifiable, ""
+    if 2 * ident.rank <= generic.rank:
+        raise IdentifiabilityError(
+            f"the candidate pool identifies only {ident.rank} parameters where poses spread over the workspace "
+            f"identify {generic.rank}: its {distinct} distinct candidates are too alike (nearly identical poses?); "
+            f"give candidates spread over the workspace, or name the parameters to design for")
+    lost = [n for n in ident.dropped if n not in generic.dropped] or list(ident.dropped)
+    like = "; ".join(f"{n} ~ " + " ".join(f"{c:+.3g}·{k}" for k, c in ident.confounds.get(n, ())[:2]) for n in lost)
+    return ident.identifiable, (f"the candidates identify {ident.rank} of the {generic.rank} parameters that poses "
+                                f"spread over the workspace identify; no design from them can separate {like}: a "
+                                f"calibration on it keeps these nominal, as one on every candidate would")
 
 
 def observation_problem(robot: Robot, planned, names: Sequence[str] | None = None,

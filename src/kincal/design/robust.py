@@ -91,12 +91,14 @@ def robust_terms(robot: Robot, P: DesignProblem, region_q: np.ndarray | None, we
                  error_model: str = UNMODELLED) -> tuple[RobustTerms, str]:
     """The left-out terms of ``robot`` on the pool of ``P`` and the region (default: the pool), and a
     note when there are none (a robot without such terms, or blocks other than tool positions)."""
-    cols = robot.params.indices(P.names)
+    point = P.r == 3 and set(P.names) <= set(robot.params.names)
+    if not point and region_q is not None:
+        raise ValueError("a region of use other than the pool is supported for tool-position (point) designs only")
     region = P.q if region_q is None else region_q
-    Ju = robot.param_jacobian(region)[:, :, cols] * P.scale
+    Ju = robot.param_jacobian(region)[:, :, robot.params.indices(P.names)] * P.scale if point else P.J
     B = np.einsum("nak,nal->kl", Ju, Ju) / len(region)
     none = RobustTerms(np.zeros(P.J.shape[:2] + (0,)), B, np.zeros((P.k, 0)), 0.0, ())
-    if P.r != 3 or weight == 0.0:
+    if not point or weight == 0.0:
         why = "weight 0" if weight == 0.0 else "the measurement is not a tool position"
         return none, f"no left-out error terms counted ({why}): IMSE is I-optimality here"
     try:
@@ -191,7 +193,17 @@ def stratified_design(robot: Robot, P: DesignProblem, m: int, criterion: str, re
         note = f"{criterion}-optimal within the strata"
     lab = strata(P.q, m, rng)
     design = exchange_in_strata(P, lab, medoids(P.q, lab), value, terms.K)
+    return design, _value(terms, P, design, criterion), note
+
+
+def design_imse(robot: Robot, P: DesignProblem, design, region_q: np.ndarray | None,
+                weight: float) -> tuple[float, str]:
+    """IMSE/σ² of any pool design (indices), and the note on the terms counted."""
+    terms, note = robust_terms(robot, P, region_q, weight)
+    return _value(terms, P, list(design), "IMSE"), note
+
+
+def _value(terms: RobustTerms, P: DesignProblem, design: list[int], criterion: str) -> float:
     Jd, Kd = P.J[design].reshape(1, -1, P.k), terms.K[design].reshape(1, len(design) * P.r, -1)
     M, Q = np.swapaxes(Jd, 1, 2) @ Jd, np.swapaxes(Jd, 1, 2) @ Kd
-    v = float(terms.imse(M, Q)[0]) if criterion == "IMSE" else float(score(M, m, criterion, terms.B)[0])
-    return design, v, note
+    return float(terms.imse(M, Q)[0]) if criterion == "IMSE" else float(score(M, len(design), criterion, terms.B)[0])

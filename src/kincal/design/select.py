@@ -17,7 +17,7 @@ from .exchange import _State, det_blocks, fedorov, greedy
 from .ide import ide
 from .options import DesignOptions
 from .problem import DesignProblem, design_problem
-from .robust import stratified_design
+from .robust import design_imse, stratified_design
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,11 +155,14 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
     else:
         idx = _pool_design(P, o, B, rng)
         q, J = P.q[idx], P.J[idx]
-    if not o.stratified:
+    if o.criterion == "IMSE" and not o.stratified:  # a random design, scored
+        value, note = design_imse(robot, P, idx, validation_q, o.weight)
+    elif not o.stratified:
         value = _score_blocks(J, o.criterion, B)
     elapsed = time.perf_counter() - t0
     if bound is None and o.certify:
         bound = relaxed_bound(P, o.m)
+    note = "\n  ".join(n for n in (P.note, note) if n)
     return Design(idx, q, o.method, o.criterion, value, _score_blocks(J, "D", None), P.names, bound, elapsed, o.seed,
                   tuple(float(h) for h in history), note)
 

@@ -1,0 +1,121 @@
+"""IMSE designs: the criterion against a direct computation and a Monte-Carlo of the linear model,
+the exchange within strata, and the options and notes around it."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import kincal
+from kincal.design import design_problem
+from kincal.design.robust import exchange_in_strata, medoids, robust_terms, strata
+
+
+@pytest.fixture(scope="module")
+def ur5_problem():
+    ur5 = kincal.load_robot("ur5")
+    pool = ur5.sample_joints(400, seed=11)
+    return ur5, pool, design_problem(ur5, pool)
+
+
+def _direct_imse(P, terms, design):
+    """IMSE/σ² from its definition: prediction variance and bias row by row over the region (the pool)."""
+    J, K = P.J[design].reshape(-1, P.k), terms.K[design].reshape(-1, terms.K.shape[2])
+    Ju, Ku = P.J.reshape(-1, P.k), terms.K.reshape(-1, terms.K.shape[2])
+    Minv = np.linalg.inv(J.T @ J)
+    var = np.einsum("rk,kl,rl->", Ju, Minv, Ju) / P.N
+    R = Ju @ Minv @ J.T @ K - Ku
+    return var + np.sum(R ** 2) / P.N
+
+
+def test_imse_matches_its_definition_the_woodbury_update_and_a_monte_carlo(ur5_problem):
+    ur5, pool, P = ur5_problem
+    terms, note = robust_terms(ur5, P, None, 0.3)
+    assert len(terms.names) > 20 and "left-out error terms" in note
+    rng = np.random.default_rng(0)
+    design = sorted(rng.choice(P.N, 30, replace=False).tolist())
+    J, K = P.J[design].reshape(-1, P.k), terms.K[design].reshape(-1, len(terms.names))
+    direct = _direct_imse(P, terms, design)
+    assert terms.imse((J.T @ J)[None], (J.T @ K)[None])[0] == pytest.approx(direct, rel=1e-9)
+    rest, c = design[1:], np.array([design[0], 5, 17])
+    Jr, Kr = P.J[rest].reshape(-1, P.k), terms.K[rest].reshape(-1, len(terms.names))
+    added = terms.imse_added(Jr.T @ Jr, Jr.T @ Kr, P.J[c], terms.K[c])
+    for v, extra in zip(added, c):
+        assert v == pytest.approx(_direct_imse(P, terms, rest + [int(extra)]), rel=1e-8)
+    # Monte-Carlo of the linear model: y = Jθ + Kδ + ε, δ ~ N(0, I) (weight folded into K), ε ~ N(0, 1)
+    Ju, Ku = P.J.reshape(-1, P.k), terms.K.reshape(-1, len(terms.names))
+    H = np.linalg.solve(J.T @ J, J.T)
+    errs = []
+    for _ in range(400):
+        delta, eps = rng.standard_normal(len(terms.names)), rng.standard_normal(len(J))
+        errs.append(np.sum((Ju @ (H @ (K @ delta + eps)) - Ku @ delta) ** 2) / P.N)
+    assert np.mean(errs) == pytest.approx(direct, rel=0.1)
+
+
+def test_the_stratified_exchange_keeps_one_pose_per_stratum_and_no_swap_improves(ur5_problem):
+    ur5, pool, P = ur5_problem
+    d = kincal.select_poses(ur5, pool, m=25, problem=P, certify=False, seed=4)
+    again = kincal.select_poses(ur5, pool, m=25, problem=P, certify=False, seed=4)
+    assert np.array_equal(d.indices, again.indices) and d.criterion == "IMSE"
+    lab = strata(P.q, 25, np.random.default_rng(4))
+    assert sorted(lab[d.indices].tolist()) == list(range(25))  # one pose per stratum
+    terms, _ = robust_terms(ur5, P, None, 0.3)
+    value = _direct_imse(P, terms, d.indices.tolist())
+    assert d.value == pytest.approx(value, rel=1e-9)
+    start = medoids(P.q, lab)
+    assert value < _direct_imse(P, terms, start)
+    for j in (0, 7, 19):  # no member of a stratum improves on the chosen pose by more than a tie
+        members = np.flatnonzero(lab == lab[d.indices[j]])
+        for c in members[:6]:
+            swapped = d.indices.tolist()
+            swapped[j] = int(c)
+            assert _direct_imse(P, terms, swapped) >= value * (1 - 1e-9)
+    randoms = [kincal.select_poses(ur5, pool, m=25, method="random", problem=P, certify=False, seed=s) for s in range(5)]
+    assert all(r.value > d.value for r in randoms)  # a random design has larger IMSE (scored, not searched)
+    exchanged = exchange_in_strata(P, lab, start, lambda M0, Q0, Jc, Kc: -terms.imse_added(M0, Q0, Jc, Kc), terms.K)
+    assert sorted(exchanged) == sorted(d.indices.tolist())
+
+
+def test_imse_options_and_notes(ur5_problem):
+    ur5, pool, P = ur5_problem
+    with pytest.raises(ValueError, match="with method 'detmax' choose a criterion such as D"):
+        kincal.DesignOptions(method="detmax")
+    with pytest.raises(ValueError, match="coverage is kept by the exchange within strata"):
+        kincal.DesignOptions(method="detmax", criterion="D", coverage=True)
+    with pytest.raises(ValueError, match="leave coverage on|and no coverage"):
+        kincal.DesignOptions(coverage=False)
+    with pytest.raises(ValueError, match="weight=-1"):
+        kincal.DesignOptions(weight=-1)
+    assert kincal.DesignOptions().stratified and not kincal.DesignOptions(criterion="D").stratified
+    plain = kincal.select_poses(ur5, pool, m=20, problem=P, certify=False, weight=0.0)
+    i_cov = kincal.select_poses(ur5, pool, m=20, problem=P, certify=False, criterion="I", coverage=True)
+    assert np.array_equal(plain.indices, i_cov.indices)  # weight 0: IMSE is I-optimality within the strata
+    assert "I-optimality here" in plain.note
+    # the region of use moves the design: poses near the region's joints are favoured
+    use = pool[np.argsort(pool[:, 1])[:60]]
+    near = kincal.select_poses(ur5, pool, m=20, problem=P, certify=False, validation_q=use)
+    terms_use, _ = robust_terms(ur5, P, use, 0.3)
+    terms_pool, _ = robust_terms(ur5, P, None, 0.3)
+    d_pool = kincal.select_poses(ur5, pool, m=20, problem=P, certify=False)
+    imse_at_use = lambda idx: _direct_imse_region(P, terms_use, list(idx), ur5, use)  # noqa: E731
+    assert imse_at_use(near.indices) < imse_at_use(d_pool.indices)
+    assert terms_pool.D != terms_use.D
+
+
+def _direct_imse_region(P, terms, design, robot, region):
+    J, K = P.J[design].reshape(-1, P.k), terms.K[design].reshape(-1, terms.K.shape[2])
+    M = J.T @ J
+    val = terms.imse(M[None], (J.T @ K)[None])[0]
+    Ju = robot.param_jacobian(region)[:, :, robot.params.indices(P.names)].reshape(-1, P.k) * P.scale
+    assert np.trace(np.linalg.solve(M, Ju.T @ Ju / len(region))) <= val + 1e-12  # variance part alone
+    return val
+
+
+def test_a_pool_that_cannot_separate_two_parameters_is_designed_for_the_rest_and_says_which():
+    ur5 = kincal.load_robot("ur5")
+    pool = ur5.sample_joints(500, seed=3)
+    pool[:, 5] = 0.3  # the last joint never moves: the wrist's last link and the tool point fold together
+    d = kincal.select_poses(ur5, pool, m=30, certify=False)
+    assert "identify 23 of the 27" in d.note and "no design from them can separate j5.theta ~" in d.note
+    assert "j5.a ~ +0.955·tool.x" in d.note and "j5.a" not in d.names and len(d.names) == 23
+    with pytest.raises(kincal.IdentifiabilityError, match="too alike"):
+        kincal.select_poses(ur5, pool[:1] + np.linspace(0, 1e-3, 40)[:, None], m=30, certify=False)
