@@ -119,3 +119,10 @@ def test_a_pool_that_cannot_separate_two_parameters_is_designed_for_the_rest_and
     assert "j5.a ~ +0.955·tool.x" in d.note and "j5.a" not in d.names and len(d.names) == 23
     with pytest.raises(kincal.IdentifiabilityError, match="too alike"):
         kincal.select_poses(ur5, pool[:1] + np.linspace(0, 1e-3, 40)[:, None], m=30, certify=False)
+
+
+def test_evaluating_on_no_poses_is_a_clear_error_not_a_traceback():
+    ur5 = kincal.load_robot("ur5")
+    meas = kincal.simulate(ur5, ur5.sample_joints(5, seed=0), 0.0)
+    with pytest.raises(kincal.MeasurementError, match="no poses to evaluate on"):
+        kincal.evaluate(ur5, meas.subset(np.array([], dtype=int)))

@@ -14,6 +14,7 @@ import numpy as np
 
 from .._threads import blas_threads
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
+from ..errors import MeasurementError
 from ..io.measurements import Measurements
 from ..models.robot import Robot
 from ..models.terms import TAU_REF, drop_terms, extend
@@ -222,6 +223,9 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
     if rebase not in (True, False):
         raise ValueError(f"rebase={rebase!r}: True or False")
     meas.check_robot(robot)
+    if len(meas) == 0:
+        raise MeasurementError(f"{meas.source}: no poses to evaluate on (an empty file or "
+                               f"subset); give at least one measured pose")
     if rebase and robot.base_params():  # frame only, kinematics fixed (kincal.identify.refit_frame)
         robot = calibrate(robot, meas, names=(), base="estimate", diagnose=False).robot
     stats = EvaluationStats.from_errors(meas.xyz - robot.forward(meas.q))
