@@ -19,8 +19,8 @@ UR5  = --length-unit mm --angle-unit deg --joint-cols joint_1,joint_2,joint_3,jo
 demo: setup
 	$(VENV)/bin/kincal demo
 	@echo
-	@echo "Guo et al. 2024's 62 % claim as a Monte-Carlo study (200 trials; resumes from .venv/guo2024_study.jsonl)"
-	$(VENV)/bin/kincal study guo2024 --workers 2 -o .venv/guo2024_study.jsonl
+	@echo "Guo et al. 2024's 62 % claim as a Monte-Carlo study (200 trials; resumes from .venv/guo2024_study_v2.jsonl)"
+	$(VENV)/bin/kincal study guo2024 --workers 2 -o .venv/guo2024_study_v2.jsonl
 	@echo
 	@echo "Real laser-tracker data: calibrate the UR5 on 1000 grid poses, evaluate on 20 unseen poses"
 	@echo "(one tracker set-up, data in the robot base frame: --same-frame)"

@@ -169,7 +169,36 @@ def test_seed_figures_show_the_study_numbers(tmp_path, capsys):
     from kincal.report import guo2024_figures
     study = kincal.studies.guo2024_study(repeats=1, generations=20)
     figs = guo2024_figures(study)
-    assert set(figs) == {"ide-convergence", "pose-count", "eta", "validation-points", "validation-summary"}
+    assert set(figs) == {"ide-convergence", "pose-count", "eta", "validation-points", "validation-summary", "gcn",
+                         "design-positions"}
+    # Table 8 and Figs. 12-13 validate on the paper's grid with its error e, and show the same numbers
+    robot = study_robot = kincal.load_robot("guo3t2r")
+    true = robot.with_params({n: robot.params[n] + e for n, e in study.true_errors.items()})  # first repetition
+    grid = guo2024_mc.paper_grid(robot)
+    np.testing.assert_allclose(study.point_errors["before calibration"], true.forward(grid) - robot.forward(grid),
+                               atol=1e-12)
+    summary = figs["validation-summary"].axes[0]
+    heights = sorted(p.get_height() for p in summary.patches)
+    table = sorted(v * 1e3 for row in kincal.identify.result.e_statistics(study.point_errors).values() for v in row)
+    np.testing.assert_allclose(heights, table, rtol=1e-12)
+    for name, err in study.point_errors.items():
+        e = np.asarray(err).mean(axis=1)
+        text = str(study).split("Validation on the paper's 60-point grid")[1]
+        row = next(line for line in text.splitlines() if line.strip().startswith(name))
+        assert row.split()[-3:] == [f"{np.max(np.abs(e)) * 1e3:.4f}", f"{np.mean(np.abs(e)) * 1e3:.4f}",
+                                    f"{np.std(e, ddof=1) * 1e3:.4f}"]
+    # Fig. 5: cond/m of the separated model's Jacobian (mm, rad) on the first m pool poses
+    from kincal.design import candidate_pool, design_problem
+    names = study.gcn_curve["parameters"]
+    J = design_problem(study_robot, candidate_pool(study_robot, 1000, seed=1)[:100], names, units="paper").J
+    for m in (10, 60):
+        k = study.gcn_curve["m"].index(m)
+        assert study.gcn_curve["gcn"][k] == pytest.approx(np.linalg.cond(J[:m].reshape(-1, len(names))) / m, rel=1e-9)
+    np.testing.assert_array_equal(figs["gcn"].axes[0].lines[0].get_ydata(), study.gcn_curve["gcn"])
+    assert study.gcn_curve["gcn"][0] > 5 * study.gcn_curve["gcn"][-1]  # more poses, better conditioned
+    # Fig. 10: the designs' tool positions
+    for name, p in study.positions.items():
+        assert np.asarray(p).shape == (study.m, 3)
     line = figs["pose-count"].axes[0].lines[0]
     np.testing.assert_array_equal(line.get_ydata(), study.curve["values"])
     bars = [p.get_height() for p in figs["eta"].axes[0].patches]

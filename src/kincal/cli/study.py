@@ -80,7 +80,7 @@ def register(cmd) -> None:
     hidden_alias(s, "--seeds", "repeats", type=positive_int)
     s.add_argument("--robot", choices=["guo3t2r", "guo3t2r-paper"], default="guo3t2r",
                    help="the model: guo3t2r (tool point) or guo3t2r-paper (the paper's fixed A5 tool row)")
-    s.add_argument("--plot", help="figures to write (Figs. 5-8, 12-13): STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
+    s.add_argument("--plot", help="figures to write (Figs. 5-8, 10, 12-13): STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     s.add_argument("--protocol", choices=list(guo2024.PROTOCOLS), default="kincal",
                    help="identification: kincal (noise, adaptive LM, identifiable set; default) or paper (no noise, "
                         "fixed mu = 1, all 21 parameters)")

@@ -1,11 +1,13 @@
-"""Figures of the papers' studies: Guo et al. 2024's Figs. 5-8 and 12-13 from a
+"""Figures of the papers' studies: Guo et al. 2024's Figs. 5-8, 10 and 12-13 from a
 :class:`~kincal.studies.Guo2024Study`, and the 3-PUU error-model verification paper's Fig. 7
 (particle-swarm fitness) from a calibration's history."""
 from __future__ import annotations
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 
+from ..identify.result import EXACT, e_statistics
 from .figures import MM, _figure, _styled
 
 DESIGN_COLOURS = {"random": "#9a9a9a", "full-parameter optimised": "#1f77b4",
@@ -73,30 +75,73 @@ def validation_points(errors: dict) -> Figure:
     calibration (top) and after, per model (bottom)."""
     fig = _figure(6.4, 4.6)
     top, bottom = fig.subplots(2, 1, sharex=True)
+    exact = []
     for name, err in errors.items():
         e = np.asarray(err).mean(axis=1) * MM
+        if name != "before calibration" and np.max(np.abs(e)) < EXACT * MM:
+            exact.append(name)  # round-off (no noise, exact model): named, not plotted as a ranking
+            continue
         ax = top if name == "before calibration" else bottom
         ax.plot(np.arange(1, len(e) + 1), e, marker="o", ms=2.5, lw=0.8, label=name, color=DESIGN_COLOURS.get(name))
+    if exact:
+        bottom.text(0.5, 0.5, "every point < 1 nm (round-off, not shown):\n" + "\n".join(exact),
+                    transform=bottom.transAxes, ha="center", va="center", fontsize=7)
     top.set(ylabel="e (mm)", title="Error at the validation points (Fig. 12): before calibration")
     bottom.set(xlabel="validation point", ylabel="e (mm)", title="after calibration")
-    bottom.legend(fontsize=7)
+    if len(exact) < len(errors) - 1:
+        bottom.legend(fontsize=7)
     return fig
 
 
 @_styled
 def validation_summary(errors: dict) -> Figure:
-    """Fig. 13: max, mean and std of e over the validation points, per model (after calibration)."""
+    """Fig. 13: max |e|, mean |e| and std e over the validation points, before calibration and per
+    model after; values below 1 nm (no noise, exact model) are round-off, drawn as a note, not bars."""
+    fig = _figure(6.4, 3.4)
+    ax = fig.add_subplot()
+    stats = e_statistics(errors)
+    x, shown = np.arange(3), []
+    width = 0.8 / len(stats)
+    for k, (name, row) in enumerate(stats.items()):
+        pos = x + (k - (len(stats) - 1) / 2) * width
+        v = np.array(row) * MM
+        exact = np.array(row) < EXACT
+        ax.bar(pos[~exact], v[~exact], width, label=name, color=DESIGN_COLOURS.get(name, "#999999"))
+        shown.extend(v[~exact])
+        for p, val, ex in zip(pos, v, exact):  # the table's numbers on the bars; round-off is named, not drawn
+            ax.annotate("< 1 nm" if ex else f"{val:.3g}", (p, 0.02 if ex else val), fontsize=6, rotation=90,
+                        va="bottom", ha="center", xycoords=ax.get_xaxis_transform() if ex else "data")
+    ax.set_yscale("log")
+    ax.set_xlim(-0.5, 2.5)
+    ax.set_ylim(min(shown) / 4, max(shown) * 2.5)
+    ax.set_xticks(x, ["max |e|", "mean |e|", "std e"])
+    ax.set(ylabel="mm (log scale)", title="Validation on the 60-point grid, before and after calibration (Fig. 13)")
+    ax.legend(handles=[Patch(color=DESIGN_COLOURS.get(n, "#999999"), label=n) for n in stats], fontsize=7)
+    return fig
+
+
+@_styled
+def gcn_against_poses(curve: dict) -> Figure:
+    """Fig. 5: the GCN of the separated model's Jacobian against the number of measurement poses."""
     fig = _figure(6.0, 3.2)
     ax = fig.add_subplot()
-    models = [k for k in errors if k != "before calibration"]
-    stats = np.array([[np.max(np.abs(e)), np.mean(np.abs(e)), np.std(e, ddof=1)]
-                      for e in (np.asarray(errors[k]).mean(axis=1) * MM for k in models)])
-    x = np.arange(3)
-    for k, name in enumerate(models):
-        ax.bar(x + (k - (len(models) - 1) / 2) * 0.25, stats[k], 0.25, label=name, color=DESIGN_COLOURS.get(name))
-    ax.set_xticks(x, ["max |e|", "mean |e|", "std e"])
-    ax.set(ylabel="mm", title="Validation errors after calibration (Fig. 13)")
-    ax.legend(fontsize=7)
+    ax.semilogy(curve["m"], curve["gcn"], marker="o", ms=2, lw=0.8, color="#1f77b4")
+    ax.set(xlabel="number of poses", ylabel="GCN (cond / m)",
+           title=f"GCN of the separated model ({len(curve['parameters'])} parameters) against the poses (Fig. 5)")
+    return fig
+
+
+@_styled
+def design_positions(positions: dict) -> Figure:
+    """Fig. 10: where the designs put the tool in the workspace (mm)."""
+    fig = _figure(6.4, 4.8)
+    ax = fig.add_subplot(projection="3d")
+    for name, p in positions.items():
+        p = np.asarray(p) * MM
+        ax.scatter(p[:, 0], p[:, 1], p[:, 2], s=10, label=name, color=DESIGN_COLOURS.get(name),
+                   alpha=1.0 if "separated" in name else 0.45)
+    ax.set(xlabel="x (mm)", ylabel="y (mm)", zlabel="z (mm)", title="Tool positions of the designs (Fig. 10)")
+    ax.legend(fontsize=7, loc="upper left")
     return fig
 
 
@@ -107,7 +152,8 @@ def guo2024_figures(study) -> dict:
     stand_ins = {label.split()[0] for combos in study.combinations.values() for label in combos}
     return {"ide-convergence": ide_convergence(study.histories), "pose-count": pose_count(study.curve, study.m),
             "eta": eta_bars(chosen, names, stand_ins), "validation-points": validation_points(study.point_errors),
-            "validation-summary": validation_summary(study.point_errors)}
+            "validation-summary": validation_summary(study.point_errors), "gcn": gcn_against_poses(study.gcn_curve),
+            "design-positions": design_positions(study.positions)}
 
 
 @_styled

@@ -140,7 +140,8 @@ def prepare(m: int = 60, generations: int = 150, seed: int = 0, say=lambda msg: 
 
 def settings(m: int = 60, generations: int = 150, seed: int = 0) -> dict:
     """The study's settings, as its results file names them (known before any work)."""
-    return {"study": "guo2024", "m": m, "generations": generations, "seed": seed}
+    return {"study": "guo2024", "m": m, "generations": generations, "seed": seed,
+            "exact_model": "identifiable errors"}  # results of the former exact model cannot be resumed
 
 
 def summarise(records: list[dict]) -> list[dict]:
