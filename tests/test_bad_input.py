@@ -474,7 +474,8 @@ COMP = ["compensate", "{d}/cal.yaml", "{base}/targets.csv", *MMDEG, "-o", "{d}/c
 EXPORT = ["export", "{d}/cal.yaml", "{d}/out.urdf"]
 STUDY = ["study", "guo2024", "--trials", "2", "--poses", "24", "--generations", "2", "--workers", "1", "-o",
          "{d}/s.jsonl"]
-STUDY_HEAD = '{"study":{"study":"guo2024","m":24,"generations":2,"seed":0,"per_task":100}}\n'
+STUDY_HEAD = ('{"study":{"study":"guo2024","m":24,"generations":2,"seed":0,"exact_model":"identifiable errors",'
+              '"per_task":100}}\n')
 
 ROUND2 = [
     # readers: columns named twice, units checked the same way in every command that reads joints
