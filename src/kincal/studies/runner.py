@@ -15,6 +15,7 @@ same settings give the same numbers on one core, two, or a cluster.
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
@@ -66,8 +67,9 @@ def make_executor(workers: int = 1, scheduler: str | None = None) -> Iterator[Ex
         try:
             yield pool
         except BaseException:  # Ctrl-C or an error: stop the workers now, not after their tasks
-            for proc in list((pool._processes or {}).values()):  # the pool's own processes (private, no API)
-                proc.terminate()
+            procs = list((pool._processes or {}).values())  # the pool's own processes (private, no API)
+            for proc in procs + [p for p in multiprocessing.active_children() if p not in procs]:
+                proc.terminate()  # a worker still starting when Ctrl-C came is not in the pool's list yet
             pool.shutdown(wait=False, cancel_futures=True)
             raise
         pool.shutdown()
