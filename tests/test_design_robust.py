@@ -99,6 +99,8 @@ def test_imse_options_and_notes(ur5_problem):
     imse_at_use = lambda idx: _direct_imse_region(P, terms_use, list(idx), ur5, use)  # noqa: E731
     assert imse_at_use(near.indices) < imse_at_use(d_pool.indices)
     assert terms_pool.D != terms_use.D
+    with pytest.raises(ValueError, match="steers the IMSE and I criteria only"):
+        kincal.select_poses(ur5, pool, m=20, problem=P, certify=False, criterion="D", validation_q=use)
 
 
 def _direct_imse_region(P, terms, design, robot, region):

@@ -172,7 +172,7 @@ def test_seed_figures_show_the_study_numbers(tmp_path, capsys):
     assert set(figs) == {"ide-convergence", "pose-count", "eta", "validation-points", "validation-summary", "gcn",
                          "design-positions"}
     # Table 8 and Figs. 12-13 validate on the paper's grid with its error e, and show the same numbers
-    robot = study_robot = kincal.load_robot("guo3t2r")
+    robot = kincal.load_robot("guo3t2r")
     true = robot.with_params({n: robot.params[n] + e for n, e in study.true_errors.items()})  # first repetition
     grid = guo2024_mc.paper_grid(robot)
     np.testing.assert_allclose(study.point_errors["before calibration"], true.forward(grid) - robot.forward(grid),
@@ -190,7 +190,7 @@ def test_seed_figures_show_the_study_numbers(tmp_path, capsys):
     # Fig. 5: cond/m of the separated model's Jacobian (mm, rad) on the first m pool poses
     from kincal.design import candidate_pool, design_problem
     names = study.gcn_curve["parameters"]
-    J = design_problem(study_robot, candidate_pool(study_robot, 1000, seed=1)[:100], names, units="paper").J
+    J = design_problem(robot, candidate_pool(robot, 1000, seed=1)[:100], names, units="paper").J
     for m in (10, 60):
         k = study.gcn_curve["m"].index(m)
         assert study.gcn_curve["gcn"][k] == pytest.approx(np.linalg.cond(J[:m].reshape(-1, len(names))) / m, rel=1e-9)

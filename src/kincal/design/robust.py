@@ -35,6 +35,7 @@ from .problem import DesignProblem
 UNMODELLED = "gravity-regressor+harmonics:1"  # what geometry cannot describe, to first order
 KMEANS_ITERATIONS = 100
 SINGULAR = 1e-12  # smallest eigenvalue of M below this times its mean: singular
+WOODBURY_COND = 1e-9  # M0's eigenvalue ratio below this: solve directly (the update would lose digits)
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,7 +69,7 @@ class RobustTerms:
         M⁻¹ by the Woodbury identity from M0⁻¹ (M0 well conditioned), else directly."""
         k = M0.shape[0]
         lam = np.linalg.eigvalsh(M0)
-        if lam[0] <= 1e-9 * lam[-1]:
+        if lam[0] <= WOODBURY_COND * lam[-1]:
             return self.imse(M0 + np.swapaxes(Jc, 1, 2) @ Jc, Q0 + np.swapaxes(Jc, 1, 2) @ Kc)
         G = np.linalg.inv(M0)
         R = np.concatenate([np.broadcast_to(self.B, (len(Jc), k, k)), Q0 + np.swapaxes(Jc, 1, 2) @ Kc], axis=-1)
@@ -92,11 +93,7 @@ def robust_terms(robot: Robot, P: DesignProblem, region_q: np.ndarray | None, we
     """The left-out terms of ``robot`` on the pool of ``P`` and the region (default: the pool), and a
     note when there are none (a robot without such terms, or blocks other than tool positions)."""
     point = P.r == 3 and set(P.names) <= set(robot.params.names)
-    if not point and region_q is not None:
-        raise ValueError("a region of use other than the pool is supported for tool-position (point) designs only")
-    region = P.q if region_q is None else region_q
-    Ju = robot.param_jacobian(region)[:, :, robot.params.indices(P.names)] * P.scale if point else P.J
-    B = np.einsum("nak,nal->kl", Ju, Ju) / len(region)
+    Ju, B = region_jacobian(robot, P, region_q)
     none = RobustTerms(np.zeros(P.J.shape[:2] + (0,)), B, np.zeros((P.k, 0)), 0.0, ())
     if not point or weight == 0.0:
         why = "weight 0" if weight == 0.0 else "the measurement is not a tool position"
@@ -107,16 +104,28 @@ def robust_terms(robot: Robot, P: DesignProblem, region_q: np.ndarray | None, we
         return none, f"no left-out error terms counted ({e}): IMSE is I-optimality here"
     names = tuple(n for n in ext.params.names if n not in robot.params.names)
     idx = ext.params.indices(names)
-    Ku = ext.param_jacobian(region)[:, :, idx]
+    K = ext.param_jacobian(P.q)[:, :, idx]
+    Ku = K if region_q is None else ext.param_jacobian(region_q)[:, :, idx]
     rms = np.sqrt(np.mean(Ku ** 2, axis=(0, 1)))
     keep = rms > 0
     s = np.sqrt(weight) / rms[keep]
-    Ku = Ku[:, :, keep] * s
-    K = ext.param_jacobian(P.q)[:, :, idx][:, :, keep] * s
-    n = len(region)
+    Ku, K = Ku[:, :, keep] * s, K[:, :, keep] * s
+    n = len(Ju)
     terms = RobustTerms(np.ascontiguousarray(K), B, np.einsum("nak,nap->kp", Ju, Ku) / n,
                         float(np.sum(Ku ** 2)) / n, tuple(np.asarray(names)[keep]))
     return terms, f"{len(terms.names)} left-out error terms ({error_model}), weight {weight:g} σ² each"
+
+
+def region_jacobian(robot: Robot, P: DesignProblem, region_q: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Scaled Jacobian blocks (n_u, r, k) of the region of use (the pool, or the poses ``region_q``)
+    and its mean information B (k, k); another region than the pool only for tool positions."""
+    if region_q is None:
+        Ju = P.J
+    elif P.r == 3 and set(P.names) <= set(robot.params.names):
+        Ju = robot.param_jacobian(region_q)[:, :, robot.params.indices(P.names)] * P.scale
+    else:
+        raise ValueError("a region of use other than the pool is supported for tool-position (point) designs only")
+    return Ju, np.einsum("nak,nal->kl", Ju, Ju) / len(Ju)
 
 
 def strata(q: np.ndarray, m: int, rng: np.random.Generator) -> np.ndarray:
@@ -152,7 +161,7 @@ def medoids(q: np.ndarray, lab: np.ndarray) -> list[int]:
 
 
 def exchange_in_strata(P: DesignProblem, lab: np.ndarray, start: list[int],
-                       value: Callable[[np.ndarray, np.ndarray], np.ndarray], K: np.ndarray,
+                       value: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray], K: np.ndarray,
                        max_sweeps: int = 20) -> list[int]:
     """Exchange each design pose for the best member of its stratum until a sweep changes nothing.
 

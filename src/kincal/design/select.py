@@ -17,7 +17,7 @@ from .exchange import _State, det_blocks, fedorov, greedy
 from .ide import ide
 from .options import DesignOptions
 from .problem import DesignProblem, design_problem
-from .robust import design_imse, stratified_design
+from .robust import design_imse, region_jacobian, stratified_design
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,7 +143,7 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
     if P.r * o.m < P.k:
         raise IdentifiabilityError(f"{o.m} poses give {P.r * o.m} equations for {P.k} parameters; choose "
                                    f"m ≥ {-(-P.k // P.r)}")
-    B = _region_information(robot, P, validation_q) if o.criterion == "I" else None
+    B = region_jacobian(robot, P, validation_q)[1] if o.criterion == "I" else None
     rng = np.random.default_rng(o.seed)
     idx, history, note = None, (), ""
     if o.method in ("ide", "detmax-ide"):
@@ -175,6 +175,9 @@ def _checked_pool(robot: Robot, pool_q: np.ndarray, o: DesignOptions, problem: D
         robot.params.indices(o.names)
     if validation_q is not None:
         robot.check_q(validation_q)
+        if o.criterion not in ("IMSE", "I"):
+            raise ValueError(f"a region of use (validation_q, --use) steers the IMSE and I criteria only; criterion "
+                             f"'{o.criterion}' does not look at it: choose IMSE or I, or leave it out")
     distinct = len(np.unique(np.round(problem.q if problem is not None else pool_q, 9), axis=0))
     if o.m > distinct:
         raise ValueError(f"m = {o.m} poses, but the candidate pool holds {distinct} distinct pose(s) in {len(pool_q)} "
@@ -191,13 +194,6 @@ def _check_cell(robot: Robot, pool_q: np.ndarray, cell: Cell) -> None:
         why = ", ".join(n for n, v in broken.items() if v[k]) or "the joint limits"
         raise ValueError(f"{int(bad.sum())} of {len(pool_q)} candidate poses break the cell's constraints (first: "
                          f"candidate {k + 1}, {why}); leave them out or loosen the cell")
-
-
-def _region_information(robot: Robot, P: DesignProblem, validation_q: np.ndarray | None) -> np.ndarray:
-    """Mean scaled information of the region of use (the pool, or ``validation_q``), (k, k)."""
-    Jv = P.J if validation_q is None else \
-        robot.param_jacobian(validation_q)[:, :, robot.params.indices(P.names)] * P.scale
-    return np.einsum("nak,nal->kl", Jv, Jv) / Jv.shape[0]
 
 
 def _pool_design(P: DesignProblem, o: DesignOptions, B, rng: np.random.Generator) -> np.ndarray:
