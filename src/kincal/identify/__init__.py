@@ -4,6 +4,7 @@ from .options import METHODS, FitOptions, PSOOptions
 from .problem import CalibrationProblem, build_problem
 from .residuals import RESIDUALS, CartesianResidual, JointResidual
 from .result import CalibrationResult, EvaluationStats
+from .relevance import PRIORS
 from .robust import LOSSES
 from .select import ErrorModelChoice
 from .stacked import ObservationFit, fit_observations, observation_identifiability, stat_line
@@ -13,4 +14,4 @@ from .verdict import Reason, Thresholds, Verdict
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "CalibrationProblem", "build_problem",
            "RESIDUALS", "CartesianResidual", "JointResidual", "CalibrationResult", "EvaluationStats", "LOSSES",
            "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
-           "AS_CALIBRATED", "fit_observations", "ObservationFit", "observation_identifiability", "stat_line"]
+           "AS_CALIBRATED", "PRIORS", "fit_observations", "ObservationFit", "observation_identifiability", "stat_line"]

@@ -5,7 +5,9 @@ and its nuisance parameters; this module stacks them (nuisance parameters with t
 one parameter: the same target, socket or plane seen by two sets), chooses the free parameters by
 the one identifiability rule on the whitened Jacobian (nuisance parameters first, then the base
 frame, then the model's preferred ones, so a confound is always resolved in favour of the set-up),
-fits them by Levenberg–Marquardt and judges the result.
+fits them by Levenberg–Marquardt, by default refits them with a prior learned from the data
+(:mod:`kincal.identify.relevance`: corrections the data cannot confirm stay at nominal) and judges
+the result.
 
 Refused before any work: data with no length reference (only sockets without a distance, or only
 unknown planes), because a robot shrunk towards a point explains them equally well.
@@ -30,6 +32,7 @@ from ..units import MM, MRAD
 from .covariance import parameter_statistics
 from .lm import levenberg_marquardt
 from .registration import register_base
+from .relevance import PRIORS, RelevanceFit, prior_lines, with_learned_prior
 from .verdict import Reason, Thresholds, Verdict, correction_reasons, mounting_reasons
 
 IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes (unseen) than across them
@@ -40,7 +43,8 @@ class ObservationFit:
     """A calibration from observation sets: the calibrated robot, the robot parameters fitted
     (``names``), the nuisance parameters' values, σ of both (m or rad; a posteriori, σ̂² = χ²/dof),
     the identifiability of the stacked problem, the gauge freedoms, per-set statistics before and
-    after (mm, mrad), the whitened residual RMS (1 when the stated σ are right) and the verdict."""
+    after (mm, mrad), the whitened residual RMS (1 when the stated σ are right), the verdict and the
+    learned prior's σ per group (``prior``; with it, ``std`` and ``covariance`` are posterior)."""
 
     robot: Robot
     nominal: Robot
@@ -58,6 +62,7 @@ class ObservationFit:
     iterations: int
     observations: tuple = ()
     weak: dict = dataclasses.field(default_factory=dict)  # kept nominal: name -> σ the data gave it (m or rad)
+    prior: dict = dataclasses.field(default_factory=dict)  # learned prior σ per group (m or rad); {}: none
 
     def to_dict(self) -> dict:
         return {"robot": self.robot.name, "fitted": list(self.names),
@@ -66,6 +71,7 @@ class ObservationFit:
                 "nuisance": {k: float(v) for k, v in self.nuisance.items()},
                 "std": {k: (float(v) if np.isfinite(v) else None) for k, v in self.std.items()},
                 "gauge": list(self.gauge), "weakly_determined": {k: float(v) for k, v in self.weak.items()},
+                "prior": {k: float(v) for k, v in self.prior.items()},
                 "identifiability": self.identifiability.to_dict(),
                 "before": list(self.stats_before), "after": list(self.stats), "whitened_rms": self.whitened_rms,
                 "verdict": self.verdict.to_dict(), "converged": self.converged, "iterations": self.iterations}
@@ -113,6 +119,7 @@ class ObservationFit:
         if self.weak:
             lines.append(f"kept at nominal, the data determine them worse than a real robot's error (10 mm, 2 deg): "
                          f"{', '.join(self.weak_lines())}")
+        lines += prior_lines(self.prior)
         lines.append(f"verdict: {self.verdict.status.upper()}")
         lines += [f"  {r.level}: {r.message}" for r in self.verdict.reasons]
         return "\n".join(lines)
@@ -184,9 +191,14 @@ def _gauge(robot: Robot, sets) -> tuple[str, ...]:
 
 
 def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] | str = "auto",
-                     keep: Sequence[str] = (), max_iter: int = 100, rank_tol: float = RANK_TOL) -> ObservationFit:
+                     keep: Sequence[str] = (), max_iter: int = 100, rank_tol: float = RANK_TOL,
+                     prior: str = "relevance") -> ObservationFit:
     """Calibrate ``robot`` from observation sets of any types (see the module docstring). ``names``:
-    robot parameters to fit ("auto": every identifiable one); ``keep``: chosen first among confounded."""
+    robot parameters to fit ("auto": every identifiable one); ``keep``: chosen first among confounded;
+    ``prior``: "relevance" (a prior σ per joint origin and kind learned from the data,
+    :mod:`kincal.identify.relevance`) or "none" (least squares)."""
+    if prior not in PRIORS:
+        raise ValueError(f"prior {prior!r}: use one of {', '.join(PRIORS)}")
     with blas_threads(1):
         robot, st, gauge, ident, r0 = _problem(robot, observations, names, keep, rank_tol)
         free = list(ident.identifiable)
@@ -201,6 +213,8 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
             worst = _weakest(robot, free, fit)
             if worst is None:
                 ident = _without_weak(ident, free, weak)
+                if prior == "relevance":
+                    fit = with_learned_prior(lambda x: _fun(st, x0, fcols, x), fit, x0[fcols], free, robot)
                 return _result(robot, st, gauge, ident, free, fcols, x0, fit, weak)
             weak[worst[0]] = worst[1]
             free.remove(worst[0])
@@ -309,7 +323,12 @@ def _result(robot, st, gauge, ident, free, fcols, x0, fit, weak) -> ObservationF
     full[fcols] = fit.x
     P = robot.n_params
     calibrated = robot.with_params(dict(zip(robot.params.names, full[:P])))
-    sd, _, _, cov = parameter_statistics(fit.jacobian, fit.residual, free, free)
+    if isinstance(fit, RelevanceFit):
+        cov, learned = fit.covariance, fit.sigma
+        sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    else:
+        sd, _, _, cov = parameter_statistics(fit.jacobian, fit.residual, free, free)
+        learned = {}
     nuis = dict(zip(st.nuis_names, full[P:]))
     std = {n: float(v) for n, v in zip(free, sd)}
     std.update({n: np.inf for n in st.nuis_names if n not in std})
@@ -318,7 +337,8 @@ def _result(robot, st, gauge, ident, free, fcols, x0, fit, weak) -> ObservationF
     rms = float(np.sqrt(np.mean(fit.residual**2)))
     verdict = _verdict(robot, calibrated, st, rms, fit.converged)
     return ObservationFit(calibrated, robot, tuple(n for n in free if n in robot.params.names), nuis, std, ident,
-                          gauge, before, after, rms, cov, verdict, bool(fit.converged), fit.iterations, st.sets, weak)
+                          gauge, before, after, rms, cov, verdict, bool(fit.converged), fit.iterations, st.sets, weak,
+                          learned)
 
 
 def _verdict(nominal: Robot, calibrated: Robot, st: _Stack, rms: float, converged: bool) -> Verdict:
