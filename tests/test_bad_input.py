@@ -572,6 +572,8 @@ ROUND2 = [
     csv_case("payload-without-gravity-terms", lambda b: (b / "good.csv").read_text(), 1, ["--payload 5",
                                                                                          "gravity terms"],
              extra=["--payload", "5"]),
+    csv_case("prior-for-position-data", lambda b: (b / "good.csv").read_text(), 1,
+             ["--prior is for the other measurement types"], extra=["--prior", "none"]),
     csv_case("payload-1e9", lambda b: (b / "good.csv").read_text(), 1, ["more than any robot carries"],
              extra=["--payload", "1e9", "--error-model", "compliance"]),
     csv_case("payload-with-harmonics-only", lambda b: (b / "good.csv").read_text(), 1, ["has none"],

@@ -155,14 +155,19 @@ def test_panda_sockets_through_the_command_line(tmp_path, capsys):
     code, out, _ = _run(capsys, base + [train, "--test", test, "--group-col", "placement", "--distance", "0,1,50",
                                         "--report", str(report), "-o", str(tmp_path / "panda.yaml")])
     held = out["held_out"][0]
-    assert code == 0 and out["after"][0]["mean_abs_mm"] <= 0.168 and held["mean_abs_mm"] <= 0.375
+    assert code == 0 and out["after"][0]["mean_abs_mm"] <= 0.168 and held["mean_abs_mm"] <= 0.347
+    assert out["prior"]["panda_joint4 lengths"] < 1e-6 < out["prior"]["panda_joint5 angles"]
     assert len(held["groups"]) == 7 and max(g["distance_error_mm"] for g in held["groups"]) < 0.35
     assert out["held_out_nominal"][0]["mean_abs_mm"] == pytest.approx(7.78, abs=0.01)
     page = report.read_text()
     assert "Per placement" in page and page.count("held out: ") == 7 and page.count("held out 1: ") == 2
+    assert "held at nominal (the data do not confirm their corrections): panda_joint4 lengths" in page
     saved = kincal.load_robot(tmp_path / "panda.yaml")
     q = np.array([[float(r[f"q{k}"]) for k in range(1, 8)] for r in rows[:5]])
     assert np.abs(saved.forward(q) - kincal.load_robot(PANDA / "panda.urdf", tip_link="ball_link").forward(q)).max() > 1e-4
+    code, out, _ = _run(capsys, base + [train, "--test", test, "--group-col", "placement", "--distance", "0,1,50",
+                                        "--prior", "none"])
+    assert code == 0 and not out["prior"] and out["held_out"][0]["mean_abs_mm"] > held["mean_abs_mm"] + 0.02
     code, _, err = _run(capsys, base + [test, "--distance", "0,1,50"])  # the placement column forgotten
     assert code == 1 and "not one point" in err and "--group-col" in err
     code, _, err = _run(capsys, base + [train, "--group-col", "placement"])  # no distance

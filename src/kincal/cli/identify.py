@@ -41,6 +41,9 @@ def fit_options(args) -> kincal.FitOptions:
     if args.payload and args.error_model is None:
         raise ValueError(f"--payload {args.payload:g}: only the gravity terms use it; give --error-model compliance, "
                          f"gravity-regressor or auto")
+    if args.prior:
+        raise ValueError("--prior is for the other measurement types (--type pose, markers, same-point, plane); "
+                         "position data choose their model with --error-model")
     error_model = None if args.error_model is None else kincal.ErrorModel(args.error_model, args.payload)
     return kincal.FitOptions(names=args.params or "auto", base=args.base, loss=args.loss, keep=args.keep or (),
                              max_iter=args.max_iter, method=args.method, residual=args.residual,
@@ -186,6 +189,10 @@ def register(cmd) -> None:
                    help="leave out the poses a robust refit puts beyond the outlier limit (at most a tenth of them); "
                         "named by row in the output and the report")
     s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers)")
+    s.add_argument("--prior", choices=list(kincal.identify.PRIORS),
+                   help="--type pose|markers|same-point|plane: relevance (default: a prior σ per joint origin's "
+                        "lengths and angles, learned from the data; corrections the data do not confirm stay "
+                        "near nominal) or none (least squares)")
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")
     add_session_flags(s)  # held-out sessions for the report and figures; with --error-model auto also the
     # poses where the model will be used (the prediction-σ guard)

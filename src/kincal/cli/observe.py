@@ -131,7 +131,8 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
     _check_units(sets + tests, robot, args)
     sets = _sessions(sets, args.same_frame)
     with progress("calibrating", args.json):
-        fit = fit_observations(robot, sets, names=args.params or "auto", keep=args.keep or (), max_iter=args.max_iter)
+        fit = fit_observations(robot, sets, names=args.params or "auto", keep=args.keep or (), max_iter=args.max_iter,
+                               prior=args.prior or "relevance")
     held = [_held_out(fit, t, fit.robot, args.same_frame) for t in tests]
     held_nominal = [_held_out(fit, t, fit.nominal, args.same_frame) for t in tests]
     refused = fit.verdict.status == "refused"

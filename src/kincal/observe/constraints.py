@@ -65,6 +65,9 @@ class SamePointObs(Observation):
             if not (d > 0 and SCALE_LIMIT ** -1 < d / max(seen, 1e-12) < SCALE_LIMIT):
                 unit = next((u for u, f in UNIT_FACTORS.items() if abs(np.log(d / max(seen, 1e-12) / f)) < 0.3), None)
                 hint = f": it looks like {unit}; give distances in m" if unit else ""
+                if abs(np.log(d / max(seen, 1e-12) * 1e3)) < 0.3:  # metres stated where the file's unit is mm
+                    hint = ": a thousandth of it, as if metres were stated in a file read in mm; state distances " \
+                           "in the file's length unit"
                 raise MeasurementError(f"{self.source}: the distance {a}–{b} is stated as {d:g} m, but the robot file "
                                        f"puts those points {seen:.4g} m apart{hint}")
         return self
