@@ -11,9 +11,12 @@ estimated with them. A group whose corrections the data support gets a wide prio
 as by least squares; a group whose corrections the data cannot confirm gets a narrow one and stays
 near nominal. The base (a set-up frame) and the set-up parameters get no prior.
 
-The evidence is maximised on the linearised problem (MacKay's fixed-point updates), relinearised
-after each fit of the parameters, from 1 mm / 1 mrad; the groups make the optimum unique in
-practice (per-parameter relevance found different optima from different starts).
+The evidence is maximised on the linearised problem (MacKay's fixed-point updates, from 1 mm /
+1 mrad: a machining tolerance), interleaved with Gauss–Newton steps from the least-squares fit.
+The evidence can have several local optima. Grouping makes them few: on the Panda, starts from 1 mm
+to 100 mm give the same prior, a start at 0.1 mm a neighbouring one (test error 0.338 mm against
+0.333 mm); one σ per parameter found optima 0.325 mm and 0.349 mm apart by start. The posterior
+covariance is reported: under the learned prior, a group held at nominal has σ ≈ 0.
 """
 from __future__ import annotations
 
@@ -56,11 +59,14 @@ class RelevanceFit:
 
 
 def with_learned_prior(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], fit: LMResult,
-                       nominal: np.ndarray, free: Sequence[str], robot) -> RelevanceFit:
+                       nominal: np.ndarray, free: Sequence[str], robot) -> RelevanceFit | LMResult:
     """:func:`relevance_fit` of the columns ``free`` (robot parameters and set-up parameters) of a
-    least-squares ``fit``, the base frame without a prior."""
+    least-squares ``fit``, the base frame without a prior; ``fit`` itself when no column has one
+    (only a frame fitted)."""
     kinds = dict(zip(robot.params.names, robot.params.kinds))
     groups = prior_groups(free, kinds, robot.base_params())
+    if not any(groups):
+        return fit
     return relevance_fit(fun, fit, nominal, groups, [kinds.get(n, "") for n in free])
 
 
@@ -103,21 +109,22 @@ def relevance_fit(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], fi
     with_prior = np.array([g is not None for g in groups])
     prec = np.where(with_prior, [1.0 / START.get(k, 1e-3) ** 2 for k in kinds], 0.0)
     x, r, J, s2 = fit.x, fit.residual, fit.jacobian, 1.0
+    it = 0
     for it in range(1, RELINEARISE + 1):
         prec, s2, d, C = _evidence_updates(r, J, x - nominal, prec, s2, groups)
         step = nominal + d - x
         if np.all(np.abs(step) <= np.maximum(LINEAR, SETTLED * np.sqrt(np.diag(C)))):  # linear here
             return _relevance_result(x + step, r + J @ step, J, prec, s2, groups, True, it)
         r_new, J_new = fun(x + step)
-        if not _lower(r_new, r + J @ step, x + step - nominal, r, x - nominal, prec, s2):
+        if not _lower(r_new, x + step - nominal, r, x - nominal, prec, s2):
             break
         x, r, J = x + step, r_new, J_new
     lm = levenberg_marquardt(_augmented(fun, nominal, prec, s2), x, max_iter=max_iter)
     r, J = fun(lm.x)
-    return _relevance_result(lm.x, r, J, prec, s2, groups, lm.converged, RELINEARISE + lm.iterations)
+    return _relevance_result(lm.x, r, J, prec, s2, groups, lm.converged, it + lm.iterations)
 
 
-def _lower(r_new, r_lin, d_new, r_old, d_old, prec, s2) -> bool:
+def _lower(r_new, d_new, r_old, d_old, prec, s2) -> bool:
     """A Gauss–Newton step is kept when it lowers the prior's cost, finitely."""
     def cost(r, d):
         return float(r @ r) / s2 + float(np.sum(prec * d * d))
