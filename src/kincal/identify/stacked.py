@@ -200,7 +200,7 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
     if prior not in PRIORS:
         raise ValueError(f"prior {prior!r}: use one of {', '.join(PRIORS)}")
     with blas_threads(1):
-        robot, st, gauge, ident, r0 = _problem(robot, observations, names, keep, rank_tol)
+        robot, st, gauge, ident, (r0, J0) = _problem(robot, observations, names, keep, rank_tol)
         free = list(ident.identifiable)
         if r0.size <= len(free):
             raise MeasurementError(f"{r0.size} residual components for {len(free)} parameters: measure more samples")
@@ -209,7 +209,7 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
         weak: dict[str, float] = {}
         while True:
             fcols = np.array([all_names.index(n) for n in free], dtype=int)
-            fit = levenberg_marquardt(lambda x: _fun(st, x0, fcols, x), x0[fcols], max_iter=max_iter)
+            fit = levenberg_marquardt(_fun_from(st, x0, fcols, (r0, J0)), x0[fcols], max_iter=max_iter)
             worst = _weakest(robot, free, fit)
             if worst is None:
                 ident = _without_weak(ident, free, weak)
@@ -233,7 +233,7 @@ def observation_identifiability(robot: Robot, observations: Sequence, names: Seq
 
 def _problem(robot: Robot, observations: Sequence, names, keep, rank_tol):
     """The registered robot, the stacked problem, the gauge, the identifiability (robot and set-up
-    parameters; the gauge left out) and the whitened residual at the start."""
+    parameters; the gauge left out) and the whitened residual and Jacobian (all columns) at the start."""
     if not observations:
         raise MeasurementError("no observations given")
     wanted = robot.params.names if names == "auto" else tuple(names)
@@ -266,7 +266,7 @@ def _problem(robot: Robot, observations: Sequence, names, keep, rank_tol):
                                 dropped=tuple(n for n in ident.dropped if n not in unseen),
                                 confounds={k: v for k, v in ident.confounds.items() if k not in unseen},
                                 notes=ident.notes + notes)
-    return robot, st, gauge, ident, r0
+    return robot, st, gauge, ident, (r0, J0)
 
 
 def _without_weak(ident: Identifiability, free: list[str], weak: dict) -> Identifiability:
@@ -308,6 +308,15 @@ def _session_start(robot: Robot, obs):
         raise MeasurementError(f"{obs.source}: a session in its own frame needs at least 3 absolute positions")
     moved = register_base(robot, *found)
     return dataclasses.replace(obs, frame0=moved.params.values[moved.params.indices(robot.base_params())])
+
+
+def _fun_from(st: _Stack, x0: np.ndarray, fcols: np.ndarray, start: tuple[np.ndarray, np.ndarray]):
+    """:func:`_fun` of the columns ``fcols``, the start's evaluation (all columns) reused at the start."""
+    def fun(x):
+        if np.array_equal(x, x0[fcols]):
+            return start[0], start[1][:, fcols]
+        return _fun(st, x0, fcols, x)
+    return fun
 
 
 def _fun(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray):
