@@ -2,12 +2,17 @@
 the exchange within strata, and the options and notes around it."""
 from __future__ import annotations
 
+import dataclasses
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import kincal
 from kincal.design import design_problem
-from kincal.design.robust import exchange_in_strata, medoids, robust_terms, strata
+from kincal.design.robust import design_imse, exchange_in_strata, medoids, robust_terms, strata
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
@@ -128,3 +133,62 @@ def test_evaluating_on_no_poses_is_a_clear_error_not_a_traceback():
     meas = kincal.simulate(ur5, ur5.sample_joints(5, seed=0), 0.0)
     with pytest.raises(kincal.MeasurementError, match="no poses to evaluate on"):
         kincal.evaluate(ur5, meas.subset(np.array([], dtype=int)))
+
+
+def _settle(true, q, targets):
+    """The configurations near ``q`` where ``true`` puts its tool point at ``targets`` (Newton steps)."""
+    x = q.copy()
+    for _ in range(30):
+        J = true.joint_jacobian(x)
+        e = targets - true.forward(x)
+        x = x + np.einsum("nji,nj->ni", J, np.linalg.solve(J @ J.transpose(0, 2, 1) + 1e-9 * np.eye(3), e[..., None])[..., 0])
+    return x
+
+
+def test_socket_design_known_distance_as_exact_constraint_and_better_than_random():
+    """Sockets: the known distances are eliminated as exact constraints (the reduced problem's
+    information on the robot equals the full problem's as the distance σ goes to 0); the chosen 40
+    seats of a 4-placement plan beat every one of 20 random choices on IMSE and calibrate a
+    simulated Panda better over the workspace than random choices (median over 6 robots)."""
+    from kincal.identify.registration import kabsch
+    from kincal.identify.stacked import fit_observations
+    from kincal.simulate.observations import simulate_same_point, socket_plan
+
+    robot = kincal.load_robot(ROOT / "tests" / "data" / "urdf" / "panda" / "panda.urdf", tip_link="ball_link")
+    pts, dist = socket_plan(robot, placements=4, seed=0)
+    plan = dataclasses.replace(simulate_same_point(robot, pts, 40, dist, 0.0, 0.0, seed=0), std=50e-6,
+                               std_distance=0.1e-3)
+    P = kincal.design.observation_problem(robot, plan)
+    tight = dataclasses.replace(plan, std_distance=1e-9).prepare(robot)
+    names, start, _ = tight.nuisance(robot)
+    _, Jr, Jn = tight.evaluate(robot, robot.params.values, start)
+    full_names = list(robot.params.names) + list(names)
+
+    def schur(J, cols, rob):
+        a = [cols.index(n) for n in rob]
+        b = [k for k, n in enumerate(cols) if n not in robot.params.names]
+        M = J.T @ J
+        return M[np.ix_(a, a)] - M[np.ix_(a, b)] @ np.linalg.pinv(M[np.ix_(b, b)]) @ M[np.ix_(b, a)]
+    rob = [n for n in P.names if n in robot.params.names]
+    full = schur(np.hstack([Jr, Jn]) / tight.sigma()[:, None], full_names, rob)
+    reduced = schur(P.J.reshape(-1, P.k) / P.scale, list(P.names), rob)
+    assert np.max(np.abs(full - reduced)) < 1e-6 * np.max(np.abs(full))
+    assert len(P.names) == len(rob) + 3 * 8 - 4  # 8 socket points, one coordinate per distance eliminated
+
+    d = kincal.select_poses(robot, plan.q, problem=P, m=40)
+    rng = np.random.default_rng(0)
+    random = [np.sort(rng.choice(len(plan), 40, replace=False)) for _ in range(20)]
+    assert design_imse(robot, P, d.indices, None, 0.3)[0] < min(design_imse(robot, P, r, None, 0.3)[0] for r in random)
+    qv = robot.sample_joints(300, seed=99)
+    targets = np.array([pts[lab] for lab in plan.labels])
+    errors = {"design": [], "random": []}
+    for seed in range(6):
+        true = kincal.perturb(robot, 0.5e-3, 0.5e-3, seed=seed)
+        noise = np.random.default_rng(seed).standard_normal((40, 3)) * 50e-6
+        for name, idx in (("design", d.indices), ("random", random[seed])):
+            seats = dataclasses.replace(plan.subset(idx), q=_settle(true, plan.q[idx], targets[idx] + noise))
+            p, t = fit_observations(robot, [seats]).robot.forward(qv), true.forward(qv)
+            R, tt = kabsch(p, t)
+            errors[name].append(float(np.sqrt(np.mean(np.sum((p @ R.T + tt - t) ** 2, axis=1)))))
+    print({k: np.round(np.array(v) * 1e3, 3) for k, v in errors.items()})
+    assert np.median(errors["design"]) < 0.9 * np.median(errors["random"])

@@ -392,3 +392,27 @@ def test_per_sample_sigma_from_columns(tmp_path, ur5):
                   bad)
     with pytest.raises(kincal.MeasurementError, match="row 6, column 'std_pos': a σ must be > 0"):
         read_observations(path, ur5, ObservationFormat("pose", tuple(JOINTS), "mm"))
+
+
+@pytest.mark.parametrize("kind", ["same-point", "plane"])
+def test_design_chooses_samples_of_a_socket_or_plane_plan(tmp_path, capsys, kind):
+    """design --type same-point|plane: from kincal's own plan, m samples written in the type's columns
+    (read back by the flags it prints), identifying what the whole plan identifies; from a simulated
+    plan given as --candidates, its chosen rows, every column kept."""
+    base = ["ur5", "--tool", "0,0,100mm", "--type", kind]
+    code, out, err = _run(capsys, ["design", *base, "-m", "30", "-o", str(tmp_path / "own.csv")])
+    assert code == 0, err
+    flags = out["flags"].split()[2:]  # after "--type KIND"
+    own = _ident(capsys, kind, ["--data", str(tmp_path / "own.csv"), *flags])
+    assert len(list(csv.DictReader(open(tmp_path / "own.csv")))) == 30
+    assert set(own["identifiable"]) == set(_ident(capsys, kind)["identifiable"])
+    code, out, err = _run(capsys, ["simulate", *base, "-o", str(tmp_path / "plan.csv")])
+    assert code == 0, err
+    flags = out["flags"].split()[2:]
+    code, out, err = _run(capsys, ["design", *base, "--candidates", str(tmp_path / "plan.csv"), *flags, "-m", "25",
+                                   "-o", str(tmp_path / "chosen.csv")])
+    assert code == 0, err
+    chosen = list(csv.DictReader(open(tmp_path / "chosen.csv")))
+    plan = list(csv.DictReader(open(tmp_path / "plan.csv")))
+    assert len(chosen) == 25 and all(plan[int(r["input_row"]) - 2] == {k: v for k, v in r.items() if k != "input_row"}
+                                     for r in chosen)

@@ -27,6 +27,8 @@ def cmd_design(args) -> int:
     if args.params:
         r.params.indices(args.params)
     cell = _cell(args)
+    if (args.type or ["point"])[0] in CONSTRAINTS:
+        return _design_constraints(args, r, options, cell)
     if args.candidates:
         pool = kincal.read_joints(args.candidates, r, args.joint_cols, args.length_unit, args.angle_unit)
         bad = ~r.feasible(pool)
@@ -81,19 +83,57 @@ def _cell(args):
     return None if cell.empty else cell
 
 
+CONSTRAINTS = ("same-point", "plane")  # plans of where the robot goes (sockets, planes): samples chosen from them
+PLAN_PER_LABEL = 40  # candidate samples per socket or plane in kincal's own plan
+
+
 def _observation_problem(args, robot, pool):
     """With --type pose or markers: the design problem of that measurement (whitened blocks with the
     set-up parameters), else None (tracker points, the default)."""
     kinds = args.type or ["point"]
     if kinds == ["point"]:
         return None
-    if len(kinds) != 1 or kinds[0] not in ("pose", "markers"):
-        raise ValueError(f"design --type {','.join(kinds)}: poses are designed for point, pose or markers data; plan "
-                         f"sockets and planes with 'simulate --type' and 'identifiability --type'")
-    if args.method in ("ide", "detmax-ide") or args.params:
-        raise ValueError("design --type: use --method detmax or fedorov (the IDE leaves the pool) and no --params")
+    _check_observation_design(args)
     planned = observe.planned(args, robot, robot, kinds[0], pool, 0.0, args.seed)
     return kincal.design.observation_problem(robot, planned)
+
+
+def _check_observation_design(args) -> None:
+    kinds = args.type or ["point"]
+    if len(kinds) != 1 or kinds[0] not in observe.TYPES:
+        raise ValueError(f"design --type {','.join(kinds)}: give one of {', '.join(observe.TYPES)}")
+    if args.method in ("ide", "detmax-ide") or args.params:
+        raise ValueError("design --type: use --method detmax or fedorov (the IDE leaves the pool) and no --params")
+
+
+def _design_constraints(args, robot, options, cell) -> int:
+    """design --type same-point|plane: choose samples of a plan (a plate's sockets, a table and a step:
+    the candidates file, e.g. from 'simulate --type', or kincal's own plan) by the stacked, whitened
+    problem; known distances count as exact constraints on the socket points."""
+    from kincal.observe import read_observations, write_observations
+
+    kind = args.type[0]
+    _check_observation_design(args)
+    if cell is not None:
+        raise ValueError(f"design --type {kind}: the cell flags filter poses of a tracker, pose or markers design; "
+                         f"a {kind} plan already says where the robot goes (plan it inside the cell)")
+    if args.candidates:
+        plan = read_observations(args.candidates, robot, observe.format_of(args, kind))
+    else:
+        plan = observe.planned(args, robot, robot, kind, None, 0.0, args.seed, per=PLAN_PER_LABEL)
+    problem = kincal.design.observation_problem(robot, plan)
+    with progress("designing samples", args.json) as say:
+        say(f"{args.method} on {len(plan)} candidates")
+        d = kincal.select_poses(robot, plan.q, options, problem=problem)
+    flags = observe.flags_to_use(plan, args.length_unit)
+    if args.candidates:
+        kincal.io.write_selected_rows(args.output, args.candidates, d.indices)
+        where = f"samples written to {args.output} (the chosen rows of {args.candidates}, every column kept)"
+    else:
+        write_observations(args.output, plan.subset(d.indices), robot, observe.format_of(args, kind))
+        where = f"samples written to {args.output}; measure them and calibrate with: {flags}"
+    emit(args, {**d.to_dict(), "output": args.output, "type": kind, "flags": flags}, f"{d}\n{where}")
+    return 0
 
 
 def cmd_npose(args) -> int:
@@ -156,7 +196,7 @@ def register(cmd) -> None:
                    help="index units: scaled (unit-invariant, default) or paper (raw Jacobian in mm and rad)")
     s.add_argument("--seed", type=int, default=0)
     add_data_flags(s)
-    observe.add_flags(s)  # --type pose|markers: design for that measurement
+    observe.add_flags(s)  # --type: design for that measurement (sockets, planes: samples of a plan)
 
     s = cmd("npose", cmd_npose, "how many poses: Guo et al. 2024's eq. 18 minimum and where the criterion curve "
                                 "flattens")

@@ -224,9 +224,10 @@ SOCKETS_PER_POINT = 15  # samples per socket when planning
 CONTACTS_PER_PLANE = 30  # contacts per plane when planning
 
 
-def planned(args, robot, true, kind: str, q, std: float, seed: int):
+def planned(args, robot, true, kind: str, q, std: float, seed: int, per: int | None = None):
     """Observations of ``true`` of the type ``kind``: at the joints q (point, pose, markers), or at a
-    planned plate (sockets) or table with a step (planes). With ``std`` = 0 they are exact."""
+    planned plate (sockets) or table with a step (planes), ``per`` samples per socket or plane
+    (default 15 and 30). With ``std`` = 0 they are exact."""
     from kincal.observe import PointObs
     from kincal.simulate import plane_plan, simulate_markers, simulate_planes, simulate_poses, simulate_same_point, \
         socket_plan
@@ -244,14 +245,14 @@ def planned(args, robot, true, kind: str, q, std: float, seed: int):
         return dataclasses.replace(simulate_markers(true, q, tool + np.array(PLAN_MARKERS), std, 0.0, seed), std=pos)
     if kind == "same-point":
         points, distances = socket_plan(robot, seed=seed)
-        obs = simulate_same_point(true, points, SOCKETS_PER_POINT, distances, std, seed=seed)
+        obs = simulate_same_point(true, points, per or SOCKETS_PER_POINT, distances, std, seed=seed)
         return dataclasses.replace(obs, std=pos, group=np.array([lab.split("/")[0] for lab in obs.labels]))
     planes = plane_plan(robot, seed=seed)
-    obs = simulate_planes(true, planes, CONTACTS_PER_PLANE, known=tuple(planes), std=std, seed=seed)
+    obs = simulate_planes(true, planes, per or CONTACTS_PER_PLANE, known=tuple(planes), std=std, seed=seed)
     return dataclasses.replace(obs, std=pos)
 
 
-def _flags_to_use(obs, length_unit: str) -> str:
+def flags_to_use(obs, length_unit: str) -> str:
     """The calibrate flags that read a written plan back: labels, distances, planes."""
     f = 1.0 / LENGTH_UNITS[length_unit]
     if obs.kind == "same-point":
@@ -270,7 +271,7 @@ def cmd_simulate(args, kind: str, true, q) -> int:
     robot = load_robot(args)
     obs = planned(args, robot, true, kind, q, args.noise / 1e3, args.seed + 1)
     write_observations(args.output, obs, robot, format_of(args, kind))
-    use = _flags_to_use(obs, args.length_unit)
+    use = flags_to_use(obs, args.length_unit)
     emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
          f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them with: {use}")
     return 0

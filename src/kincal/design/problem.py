@@ -10,6 +10,7 @@ from ..analysis.identifiability import RANK_TOL, free_parameters, identifiabilit
 from ..analysis.observability import column_scale, live_columns
 from ..errors import IdentifiabilityError
 from ..models.robot import Robot
+from ..ties import first_best
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,15 +130,16 @@ def observation_problem(robot: Robot, planned, names: Sequence[str] | None = Non
     obs = planned.prepare(robot)
     nuis_names, start, _ = obs.nuisance(robot)
     _, Jr, Jn = obs.evaluate(robot, robot.params.values, start)
-    raw = np.hstack([Jr, Jn])
-    J = raw / obs.sigma()[:, None]
     rows = obs.sample_rows()
-    counts = np.bincount(rows[rows >= 0], minlength=len(obs))
-    if (rows < 0).any() or len(set(counts.tolist())) != 1:
-        raise IdentifiabilityError(f"{obs.kind} data are not one block per pose (known distances, markers not "
-                                   f"seen): design poses for tracker, pose or marker data")
+    raw, all_names = _constrained(np.hstack([Jr, Jn]), rows, list(robot.params.names) + list(nuis_names),
+                                  robot.n_params)
+    raw, sigma, rows = raw[rows >= 0], obs.sigma()[rows >= 0], rows[rows >= 0]
+    J = raw / sigma[:, None]
+    counts = np.bincount(rows, minlength=len(obs))
+    if len(set(counts.tolist())) != 1:
+        raise IdentifiabilityError(f"{obs.kind} data are not one block per pose (markers not seen in some): design "
+                                   f"poses for tracker, pose, marker, socket or plane data")
     blocks = J[np.argsort(rows, kind="stable")].reshape(len(obs), counts[0], -1)
-    all_names = list(robot.params.names) + list(nuis_names)
     if names is None:
         ident = jacobian_identifiability(J, all_names, [list(nuis_names), list(robot.base_params()),
                                                         list(robot.preferred_params())], robot.name, len(obs),
@@ -147,3 +149,27 @@ def observation_problem(robot: Robot, planned, names: Sequence[str] | None = Non
     Jb = blocks[:, :, cols]
     scale = column_scale(Jb.reshape(-1, len(cols)))
     return DesignProblem(obs.q, np.ascontiguousarray(Jb * scale), tuple(names), scale)
+
+
+def _constrained(raw: np.ndarray, rows: np.ndarray, names: list[str], n_robot: int) -> tuple[np.ndarray, list[str]]:
+    """Rows that belong to no sample (known distances between socket points) as exact constraints on
+    the set-up parameters: per constraint, the set-up parameter it moves most (the first among ties)
+    is eliminated, linearised, so every remaining row belongs to one candidate. Returns the raw
+    Jacobian over the remaining columns and their names."""
+    C = raw[rows < 0].copy()
+    keep = np.ones(len(names), bool)
+    if not C.size:
+        return raw, names
+    if np.any(C[:, :n_robot]):
+        raise IdentifiabilityError("a constraint row involves robot parameters: design cannot eliminate it")
+    A = raw.copy()
+    for k in range(C.shape[0]):
+        free = np.flatnonzero(keep & (np.arange(len(names)) >= n_robot))
+        j = int(free[first_best(np.abs(C[k, free]))])
+        if C[k, j] == 0:
+            continue  # a constraint the others already imply
+        coef = C[k] / C[k, j]  # x_j = −Σ_{i≠j} coef_i x_i on the constraint
+        A -= np.outer(A[:, j], coef)
+        C -= np.outer(C[:, j], coef)
+        keep[j] = False
+    return A[:, keep], [n for n, kp in zip(names, keep) if kp]

@@ -98,6 +98,14 @@ class Observation:
     def __len__(self) -> int:
         return self.q.shape[0]
 
+    def subset(self, idx: np.ndarray) -> "Observation":
+        """The samples ``idx`` (every per-sample array indexed; distances, planes and frames kept)."""
+        n = len(self)
+        per_sample = {k: v[idx] for k, v in vars(self).items()
+                      if k in {f.name for f in dataclasses.fields(self)} and isinstance(v, np.ndarray)
+                      and v.shape[:1] == (n,)}
+        return dataclasses.replace(self, **per_sample)
+
     def nuisance(self, robot: Robot) -> tuple[tuple[str, ...], np.ndarray, tuple[str, ...]]:
         """Names, start values (at ``robot``) and kinds ('length'/'angle') of the parameters it brings."""
         return (), np.zeros(0), ()
