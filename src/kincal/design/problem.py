@@ -162,12 +162,12 @@ def _constrained(raw: np.ndarray, rows: np.ndarray, names: list[str], n_robot: i
         return raw, names
     if np.any(C[:, :n_robot]):
         raise IdentifiabilityError("a constraint row involves robot parameters: design cannot eliminate it")
-    A = raw.copy()
+    A, size = raw.copy(), np.abs(C).max(axis=1)
     for k in range(C.shape[0]):
         free = np.flatnonzero(keep & (np.arange(len(names)) >= n_robot))
         j = int(free[first_best(np.abs(C[k, free]))])
-        if C[k, j] == 0:
-            continue  # a constraint the others already imply
+        if abs(C[k, j]) <= 1e-9 * size[k]:
+            continue  # a constraint the others already imply (what is left of it is round-off)
         coef = C[k] / C[k, j]  # x_j = −Σ_{i≠j} coef_i x_i on the constraint
         A -= np.outer(A[:, j], coef)
         C -= np.outer(C[:, j], coef)
