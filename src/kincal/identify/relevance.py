@@ -89,13 +89,8 @@ def prior_lines(sigma: dict) -> list[str]:
 def prior_groups(names: Sequence[str], kinds: dict, excluded: Sequence[str] = ()) -> list[str | None]:
     """Per parameter: its group ("panda_joint5 lengths", "j2 angles", "tool lengths"), or None for
     parameters without a prior (``excluded``: the base; names not in ``kinds``: set-up parameters)."""
-    out: list[str | None] = []
-    for n in names:
-        if n not in kinds or n in set(excluded):
-            out.append(None)
-        else:
-            out.append(f"{n.rsplit('.', 1)[0]} {kinds[n]}s")
-    return out
+    without = set(excluded)
+    return [None if n not in kinds or n in without else f"{n.rsplit('.', 1)[0]} {kinds[n]}s" for n in names]
 
 
 def relevance_fit(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], fit: LMResult,
