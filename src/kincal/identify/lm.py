@@ -86,6 +86,8 @@ def levenberg_marquardt(
     n_eval, cost = 1, 0.5 * float(r @ r)
     if not (np.isfinite(cost) and np.all(np.isfinite(J))):
         raise ValueError("the residual or its Jacobian is not finite at the starting point")
+    if x.size == 0:  # nothing free (a model judged with every parameter fixed): the start is the answer
+        return LMResult(x, cost, r, J, 0, n_eval, True, "no free parameters")
     D = np.linalg.norm(J, axis=0)
     D[D == 0] = 1.0
     mu = None

@@ -192,32 +192,94 @@ def _gauge(robot: Robot, sets) -> tuple[str, ...]:
 
 def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] | str = "auto",
                      keep: Sequence[str] = (), max_iter: int = 100, rank_tol: float = RANK_TOL,
-                     prior: str = "relevance") -> ObservationFit:
+                     prior: str = "relevance", thresholds: Thresholds | None = None) -> ObservationFit:
     """Calibrate ``robot`` from observation sets of any types (see the module docstring). ``names``:
     robot parameters to fit ("auto": every identifiable one); ``keep``: chosen first among confounded;
     ``prior``: "relevance" (a prior σ per joint origin and kind learned from the data,
-    :mod:`kincal.identify.relevance`) or "none" (least squares)."""
+    :mod:`kincal.identify.relevance`) or "none" (least squares); ``thresholds``: the verdict's limits
+    of plausible corrections and of the mounting (default :class:`Thresholds`).
+
+    Identifiability is judged at the start and again at the solution: where the fit moved the model
+    (a tool point off a joint's axis) the data may identify other parameters. When the set changed,
+    the fit is repeated from its solution with the new set, at most ``JUDGED`` times, and
+    ``identifiability.notes`` says so."""
     if prior not in PRIORS:
         raise ValueError(f"prior {prior!r}: use one of {', '.join(PRIORS)}")
     with blas_threads(1):
-        robot, st, gauge, ident, (r0, J0) = _problem(robot, observations, names, keep, rank_tol)
-        free = list(ident.identifiable)
-        if r0.size <= len(free):
-            raise MeasurementError(f"{r0.size} residual components for {len(free)} parameters: measure more samples")
-        all_names = list(robot.params.names) + list(st.nuis_names)
+        robot, st, gauge, ident, start = _problem(robot, observations, names, keep, rank_tol)
+        if start[0].size <= len(ident.identifiable):
+            raise MeasurementError(f"{start[0].size} residual components for {len(ident.identifiable)} parameters: "
+                                   f"measure more samples")
         x0 = np.concatenate([robot.params.values, st.nuis0])
+        wanted = robot.params.names if names == "auto" else tuple(names)
+        rounds = _Round(robot, st, x0, max_iter, prior)
+        full, fit, free, weak = rounds.fit(list(ident.identifiable), x0, start)
+        notes: tuple[str, ...] = ()
+        for k in range(JUDGED + 1):
+            # the fitted set first among confounded ones: only a real change of what the data see counts
+            again = _identifiability(robot, st, gauge, wanted, (*keep, *ident.identifiable), rank_tol, full)
+            change = _change(ident, again)
+            if not change:
+                break
+            if k == JUDGED:
+                notes += (f"at the fitted model the identifiable set still changes ({change}) after {JUDGED} refits; "
+                          f"the last fit is kept: measure poses that see these parameters clearly",)
+                break
+            notes += (f"at the fitted model the data identify a different set ({change}): refitted from that "
+                      f"solution",)
+            ident = again
+            full, fit, free, weak = rounds.fit(list(ident.identifiable), full, None)
+        ident = dataclasses.replace(_without_weak(ident, free, weak), notes=ident.notes + notes)
+        return _result(robot, st, gauge, ident, free, rounds.cols(free), x0, fit, weak, thresholds or Thresholds())
+
+
+JUDGED = 3  # refits when the identifiable set at the solution differs from the start's
+
+
+def _change(before: Identifiability, after: Identifiability) -> str:
+    """The identifiable set's change in words ('+a, b; −c'), '' when none."""
+    old, new = set(before.identifiable), set(after.identifiable)
+    gained = [n for n in after.identifiable if n not in old]
+    lost = [n for n in before.identifiable if n not in new]
+    return "; ".join(p for p in (f"now also {', '.join(gained)}" if gained else "",
+                                  f"no longer {', '.join(lost)}" if lost else "") if p)
+
+
+@dataclass(frozen=True)
+class _Round:
+    """One fit of a set of free columns: LM from a start, parameters the data hardly see kept nominal,
+    then (by default) the learned prior. The columns not fitted stay at ``x0`` (the nominal values,
+    the set-up parameters' starts), which is also the prior's centre."""
+
+    robot: Robot
+    st: _Stack
+    x0: np.ndarray
+    max_iter: int
+    prior: str
+
+    def cols(self, free: Sequence[str]) -> np.ndarray:
+        all_names = list(self.robot.params.names) + list(self.st.nuis_names)
+        return np.array([all_names.index(n) for n in free], dtype=int)
+
+    def fit(self, free: list[str], start: np.ndarray, evaluated):
+        """(full vector, fit, free names, weak) from the full vector ``start`` (its evaluation
+        ``evaluated`` (r, J) over all columns, or None)."""
         weak: dict[str, float] = {}
         while True:
-            fcols = np.array([all_names.index(n) for n in free], dtype=int)
-            fit = levenberg_marquardt(_fun_from(st, x0, fcols, (r0, J0)), x0[fcols], max_iter=max_iter)
-            worst = _weakest(robot, free, fit)
+            fcols = self.cols(free)
+            fun = (_fun_from(self.st, self.x0, fcols, evaluated) if evaluated is not None and
+                   np.array_equal(start, self.x0) else lambda x, c=fcols: _fun(self.st, self.x0, c, x))
+            fit = levenberg_marquardt(fun, start[fcols], max_iter=self.max_iter)
+            worst = _weakest(self.robot, free, fit)
             if worst is None:
-                ident = _without_weak(ident, free, weak)
-                if prior == "relevance":
-                    fit = with_learned_prior(lambda x: _fun(st, x0, fcols, x), fit, x0[fcols], free, robot)
-                return _result(robot, st, gauge, ident, free, fcols, x0, fit, weak)
+                break
             weak[worst[0]] = worst[1]
             free.remove(worst[0])
+        if self.prior == "relevance":
+            fit = with_learned_prior(lambda x: _fun(self.st, self.x0, fcols, x), fit, self.x0[fcols], free, self.robot)
+        full = self.x0.copy()
+        full[fcols] = fit.x
+        return full, fit, free, weak
 
 
 def observation_identifiability(robot: Robot, observations: Sequence, names: Sequence[str] | str = "auto",
@@ -247,10 +309,21 @@ def _problem(robot: Robot, observations: Sequence, names, keep, rank_tol):
     if set(robot.base_params()) & set(wanted):  # a base that is not fitted stays where it is
         robot = _registered(robot, observations, gauge)
     st = _stack(robot, [_session_start(robot, o) for o in observations])
+    x0 = np.concatenate([robot.params.values, st.nuis0])
+    start = st.evaluate(robot.params.values, st.nuis0)
+    ident = _identifiability(robot, st, gauge, wanted, keep, rank_tol, x0, start)
+    return robot, st, gauge, ident, start
+
+
+def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, full: np.ndarray,
+                     evaluated=None) -> Identifiability:
+    """The one rule on the whitened Jacobian at the full vector ``full`` (robot and set-up
+    parameters; its evaluation ``evaluated`` if known): robot and set-up parameters, the gauge left out."""
     # the gauge freedoms go before the robot's parameters: what acts like them (joint 1's origin next to
     # an unseen base) is dropped as confounded with them, not fitted to the residuals' curvature alone
     cand = list(gauge) + [n for n in wanted if n not in set(gauge)]
-    r0, J0 = st.evaluate(robot.params.values, st.nuis0)
+    P = robot.n_params
+    J0 = (evaluated or st.evaluate(full[:P], full[P:]))[1]
     all_names = list(robot.params.names) + list(st.nuis_names)
     cols = np.array([all_names.index(n) for n in cand + list(st.nuis_names)], dtype=int)
     live = live_columns(J0[:, cols] / st.inv_sigma[:, None])  # no effect: judged in m and rad, not whitened
@@ -266,7 +339,7 @@ def _problem(robot: Robot, observations: Sequence, names, keep, rank_tol):
                                 dropped=tuple(n for n in ident.dropped if n not in unseen),
                                 confounds={k: v for k, v in ident.confounds.items() if k not in unseen},
                                 notes=ident.notes + notes)
-    return robot, st, gauge, ident, (r0, J0)
+    return ident
 
 
 def _without_weak(ident: Identifiability, free: list[str], weak: dict) -> Identifiability:
@@ -327,7 +400,7 @@ def _fun(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray):
     return r, J[:, fcols]
 
 
-def _result(robot, st, gauge, ident, free, fcols, x0, fit, weak) -> ObservationFit:
+def _result(robot, st, gauge, ident, free, fcols, x0, fit, weak, th: Thresholds) -> ObservationFit:
     full = x0.copy()
     full[fcols] = fit.x
     P = robot.n_params
@@ -344,13 +417,13 @@ def _result(robot, st, gauge, ident, free, fcols, x0, fit, weak) -> ObservationF
     before = tuple(o.stats(robot, x0[:P], x0[P:][slot]) for o, slot in zip(st.sets, st.slots))
     after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
     rms = float(np.sqrt(np.mean(fit.residual**2)))
-    verdict = _verdict(robot, calibrated, st, rms, fit.converged)
+    verdict = _verdict(robot, calibrated, st, rms, fit.converged, th)
     return ObservationFit(calibrated, robot, tuple(n for n in free if n in robot.params.names), nuis, std, ident,
                           gauge, before, after, rms, cov, verdict, bool(fit.converged), fit.iterations, st.sets, weak,
                           learned)
 
 
-def _verdict(nominal: Robot, calibrated: Robot, st: _Stack, rms: float, converged: bool) -> Verdict:
+def _verdict(nominal: Robot, calibrated: Robot, st: _Stack, rms: float, converged: bool, th: Thresholds) -> Verdict:
     reasons = []
     if not converged:
         reasons.append(Reason("refused", "not-converged", "the fit did not converge"))
@@ -358,8 +431,8 @@ def _verdict(nominal: Robot, calibrated: Robot, st: _Stack, rms: float, converge
         reasons.append(Reason("suspect", "residual", f"the residuals are {rms:.1f}x the stated noise: the model leaves "
                                                      f"errors it cannot describe, or the stated σ are too small"))
     reasons += correction_reasons(nominal, {n: calibrated.params[n] - nominal.params[n] for n in nominal.params.names},
-                                  Thresholds())
-    reasons += mounting_reasons(nominal.tool_point(), calibrated.tool_point(), Thresholds())
+                                  th)
+    reasons += mounting_reasons(nominal.tool_point(), calibrated.tool_point(), th)
     if all(o.kind == "plane" for o in st.sets):
         reasons += _plane_reasons(nominal, calibrated, st.sets)
     return Verdict.from_reasons(tuple(reasons))
