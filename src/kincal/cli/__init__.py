@@ -24,6 +24,31 @@ class Terminated(Exception):
     """SIGTERM, turned into an exception so files being written are cleaned up like on Ctrl-C."""
 
 
+def given_flags(parser: argparse.ArgumentParser, args: argparse.Namespace) -> dict[str, str]:
+    """The options of the command that differ from their defaults: destination -> the flag (its long
+    spelling), what :func:`kincal.identify.refuse_inapplicable` judges against the data's kinds."""
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    out = {}
+    for action in sub.choices[args.command]._actions:
+        if action.option_strings and action.default is not argparse.SUPPRESS and action.dest not in out:
+            if vars(args).get(action.dest, action.default) != action.default:
+                out[action.dest] = action.option_strings[-1] if action.option_strings[-1].startswith("--") \
+                    else action.option_strings[0]
+    return out
+
+
+def prepared(parser: argparse.ArgumentParser, args: argparse.Namespace) -> argparse.Namespace:
+    """``args`` with ``given`` (:func:`given_flags`), after the checks of flags that several commands
+    share: a flag that asks for the default while another contradicts it, a flag without the one it
+    modifies (ValueError)."""
+    args.given = given_flags(parser, args)
+    if "rebase" in args.given and args.rebase and args.same_frame:
+        raise ValueError("--rebase (each session's frame re-fitted, the default) contradicts --same-frame; give one")
+    if "force" in args.given and args.force and not args.output:
+        raise ValueError("--force writes the calibrated model despite a refused verdict: give the file with -o")
+    return args
+
+
 def _on_sigterm(signum, frame):
     raise Terminated()
 
@@ -70,11 +95,12 @@ def _stopped(word: str, code: int) -> int:
 
 
 def _run(argv: list[str] | None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     if progress_lines():  # a log (or a test) learns that Ctrl-C and SIGTERM are handled from here on
         line(f"kincal: {args.command} started")
     try:
-        return args.func(args)
+        return args.func(prepared(parser, args))
     except (kincal.KincalError, ValueError, OSError) as exc:
         msg = " ".join(str(exc).split()) if not isinstance(exc, kincal.IdentifiabilityError) else str(exc)
         err.print(f"kincal: error: {msg}", markup=False)

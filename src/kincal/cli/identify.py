@@ -41,9 +41,6 @@ def fit_options(args) -> kincal.FitOptions:
     if args.payload and args.error_model is None:
         raise ValueError(f"--payload {args.payload:g}: only the gravity terms use it; give --error-model compliance, "
                          f"gravity-regressor or auto")
-    if args.prior:
-        raise ValueError("--prior is for the other measurement types (--type pose, markers, same-point, plane); "
-                         "position data choose their model with --error-model")
     error_model = None if args.error_model is None else kincal.ErrorModel(args.error_model, args.payload)
     return kincal.FitOptions(names=args.params or "auto", base=args.base, loss=args.loss, keep=args.keep or (),
                              max_iter=args.max_iter, method=args.method, residual=args.residual,
@@ -57,8 +54,12 @@ def cmd_calibrate(args) -> int:
         raise ValueError(f"{twice[0]} is given twice as a session: each pose would count twice (the σ too small, "
                          f"and a session held out against its own copy); give each session file once")
     kinds = observe.types_of(args)
+    kincal.identify.refuse_inapplicable(kinds, args.given)
+    if args.same_frame and len(args.data) == 1 and not args.test:
+        raise ValueError("--same-frame declares one measurement frame for several files (sessions or --test); "
+                         "with one file and no --test it changes nothing: leave it out")
     if set(kinds) != {"point"}:
-        return observe.cmd_calibrate(args, kinds)
+        return observe.cmd_calibrate(args, kinds, _thresholds(args))
     reports = [args.report, json_path(args.report)] if args.report else []
     check_paths([*robot_inputs(args.robot), *args.data, *args.test],
                 [args.output, args.residuals, *reports, args.plot])
@@ -73,8 +74,8 @@ def cmd_calibrate(args) -> int:
         sessions = [sessions[0].without_rows(args.exclude)]
     use_q = np.concatenate([t.q for t in test]) if test else None
     with progress("calibrating", args.json) as say:
-        if len(sessions) == 1:
-            res = kincal.calibrate(r, sessions[0], options, use_q=use_q, progress=say)
+        if len(sessions) == 1 or args.same_frame:  # one frame: the files are one session
+            res = kincal.calibrate(r, kincal.identify.joined(sessions), options, use_q=use_q, progress=say)
         else:
             say(f"calibrating {len(sessions)} sessions, each in its own measurement frame")
             res = kincal.identify.calibrate_sessions(r, sessions, options, use_q=use_q)
@@ -114,9 +115,10 @@ def cmd_calibrate(args) -> int:
 def cmd_evaluate(args) -> int:
     check_paths([*robot_inputs(args.robot), *args.data], [args.plot])
     kinds = observe.types_of(args)
+    kincal.identify.refuse_inapplicable(kinds, args.given)
     if set(kinds) != {"point"}:
-        if len(set(kinds)) > 1 or args.plot:
-            raise ValueError("evaluate --type: one type for all files, and no --plot (position data only)")
+        if len(set(kinds)) > 1:
+            raise ValueError("evaluate --type: one type for all files")
         return observe.cmd_evaluate(args, kinds[0])
     r = load_robot(args)
     sessions = [read(args, r, path) for path in args.data]

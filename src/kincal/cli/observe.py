@@ -16,9 +16,6 @@ from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, check_paths, csv_list, em
 from .report import json_path
 
 TYPES = ("point", "pose", "markers", "same-point", "plane")
-# options of the position-only calibration that the observation fit does not have (yet): refused by name
-POINT_ONLY = {"error_model": "--error-model", "drift": "--drift", "reject_outliers": "--reject-outliers",
-              "exclude": "--exclude", "residuals": "--residuals", "plot": "--plot"}
 ABSOLUTE = ("point", "pose", "markers")  # types measured in a frame: each file after the first is its own session
 
 
@@ -114,15 +111,11 @@ def format_of(args, kind: str):
                              tuple(args.distance), dict(args.plane), args.std_pos, args.std_rot)
 
 
-def cmd_calibrate(args, kinds: list[str]) -> int:
+def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
     """calibrate with measurement types: fit, print per-type statistics, write the robot and report."""
     from kincal.identify import fit_observations, stat_line
     from kincal.observe import read_observations
 
-    given = [flag for dest, flag in POINT_ONLY.items() if vars(args).get(dest)]
-    if given or args.base != "estimate":
-        raise ValueError(f"{(given or ['--base fixed'])[0]} is for position data (--type point) only; leave it out "
-                         f"with --type {', '.join(sorted(set(kinds) - {'point'}))}")
     reports = [args.report, json_path(args.report)] if args.report else []
     check_paths([*robot_inputs(args.robot), *args.data, *args.test], [args.output, *reports])
     robot = load_robot(args)
@@ -132,7 +125,7 @@ def cmd_calibrate(args, kinds: list[str]) -> int:
     sets = _sessions(sets, args.same_frame)
     with progress("calibrating", args.json):
         fit = fit_observations(robot, sets, names=args.params or "auto", keep=args.keep or (), max_iter=args.max_iter,
-                               prior=args.prior or "relevance")
+                               prior=args.prior or "relevance", thresholds=thresholds)
     held = [_held_out(fit, t, fit.robot, args.same_frame) for t in tests]
     held_nominal = [_held_out(fit, t, fit.nominal, args.same_frame) for t in tests]
     refused = fit.verdict.status == "refused"

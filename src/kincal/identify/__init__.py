@@ -1,4 +1,5 @@
 """Identification: calibration problems, residuals, solvers (LM, PSO), robust weighting, covariance."""
+from .applies import SCOPES, refuse_inapplicable
 from .calibrate import calibrate, evaluate
 from .options import METHODS, FitOptions, PSOOptions
 from .problem import CalibrationProblem, build_problem
@@ -8,10 +9,11 @@ from .relevance import PRIORS
 from .robust import LOSSES
 from .select import ErrorModelChoice
 from .stacked import ObservationFit, fit_observations, observation_identifiability, stat_line
-from .sessions import AS_CALIBRATED, REGISTERED, calibrate_sessions, heldout_cause, refit_frame
+from .sessions import AS_CALIBRATED, REGISTERED, calibrate_sessions, heldout_cause, joined, refit_frame
 from .verdict import Reason, Thresholds, Verdict
 
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "CalibrationProblem", "build_problem",
            "RESIDUALS", "CartesianResidual", "JointResidual", "CalibrationResult", "EvaluationStats", "LOSSES",
            "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
-           "AS_CALIBRATED", "PRIORS", "fit_observations", "ObservationFit", "observation_identifiability", "stat_line"]
+           "AS_CALIBRATED", "PRIORS", "fit_observations", "ObservationFit", "observation_identifiability", "stat_line",
+           "SCOPES", "refuse_inapplicable", "joined"]

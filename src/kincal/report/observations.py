@@ -55,7 +55,7 @@ def _row(s: dict, data: str, model: str, key: str) -> dict:
 def _groups(before: Sequence[dict], after: Sequence[dict], data: str) -> list[dict]:
     out = []
     for k, s in enumerate(after):
-        prior = {g["group"]: g for g in before[k]["groups"]} if k < len(before) else {}
+        prior = {g["group"]: g for g in before[k].get("groups", [])} if k < len(before) else {}
         for g in s.get("groups", []):
             b = prior.get(g["group"])
             out.append({"data": f"{data}: {s['source']}", "group": g["group"], "samples": g["samples"],

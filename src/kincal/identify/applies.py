@@ -1,0 +1,87 @@
+"""Which options apply to which measurement kinds: one table and one check, so that an option the
+data's kind does not use is refused with its reason instead of being ignored.
+
+Every option of ``calibrate`` and ``evaluate`` (a :class:`FitOptions` field, or a setting of how the
+files are read and what is written) is named here with the kinds that use it; an option not in the
+table applies to every kind. With several files of several kinds, an option is accepted when at
+least one of the kinds uses it (``--distance`` for the socket file of a points + sockets fit).
+``tests/test_applies.py`` walks the command line's flags and fails on any flag that a kind neither
+reads nor refuses.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable, Mapping
+
+KINDS = ("point", "pose", "markers", "same-point", "plane")
+OBSERVED = ("pose", "markers", "same-point", "plane")  # kinds fitted with their own σ and set-up parameters
+
+
+@dataclass(frozen=True)
+class Scope:
+    """The kinds an option applies to, and why the others do not use it (completes 'it does not apply
+    because …'); ``alone``: only when every file is of these kinds (the position fit's options: files of
+    several kinds are fitted together, by the one fit all kinds share)."""
+
+    kinds: tuple[str, ...]
+    why: str
+    alone: bool = False
+
+
+_POSITION_FIT = ("position data alone are fitted with error models, robust losses, particle swarms and outlier "
+                 "rejection; other kinds, and files of several kinds together, are not yet")
+
+
+def _points_alone(why: str) -> Scope:
+    return Scope(("point",), why, alone=True)
+
+
+SCOPES: dict[str, Scope] = {
+    "loss": _points_alone("robust losses reweight each pose's 3-D position error; " + _POSITION_FIT),
+    "f_scale": _points_alone("it scales the robust loss of position data"),
+    "method": _points_alone("the particle swarm searches the position residual; " + _POSITION_FIT),
+    "pso": _points_alone("the particle swarm searches the position residual"),
+    "residual": _points_alone("the joint-space residual inverts measured positions"),
+    "error_model": _points_alone("error models beyond geometry are chosen and fitted on position data; "
+                                 + _POSITION_FIT),
+    "payload": _points_alone("the payload loads the gravity terms of an error model (position data)"),
+    "drift": _points_alone("the drift term follows one position file's row order"),
+    "exclude": _points_alone("it names rows of one position file; leave the rows out of the file"),
+    "reject_outliers": _points_alone("outliers are found by a robust refit of position data; " + _POSITION_FIT),
+    "residuals": _points_alone("the residuals file lists each pose's 3-D position error"),
+    "plot": _points_alone("the figures show 3-D position errors; the report (--report) shows every kind"),
+    "tracker_noise": _points_alone("the other kinds state their noise with --std-pos (and --std-rot)"),
+    "std_cols": _points_alone("the other kinds read σ from the columns std_pos and std_rot_mrad"),
+    "base": _points_alone("the other kinds fit the measurement frame where the data see it, and sockets and "
+                          "planes do not see it at all"),
+    "prior": Scope(OBSERVED, "position data choose their model with --error-model (no learned prior yet)"),
+    "orientation": Scope(("pose",), "only pose files have orientation columns"),
+    "rot_cols": Scope(("pose",), "only pose files have orientation columns"),
+    "std_rot": Scope(("pose",), "only poses measure an orientation"),
+    "std_pos": Scope(OBSERVED, "position files state σ per axis with --std-cols (measurement_std_x/y/z) or "
+                               "the verdict's --tracker-noise"),
+    "markers": Scope(("markers",), "only marker files have NAME.x/.y/.z columns"),
+    "label_col": Scope(("same-point", "plane"), "only socket and plane files have a label column"),
+    "group_col": Scope(("same-point",), "only socket files group their labels by placement"),
+    "distance": Scope(("same-point",), "known distances are between socket labels"),
+    "plane": Scope(("plane",), "known planes are for plane contacts"),
+    "same_frame": Scope(("point", "pose", "markers"), "sockets and planes are not measured in a frame"),
+    "xyz_cols": Scope(("point", "pose"), "only point and pose files have one x, y, z triple"),
+}
+
+
+def refuse_inapplicable(kinds: Iterable[str], given: Mapping[str, str]) -> None:
+    """ValueError for the first option in ``given`` (option name -> the flag as the user wrote it)
+    that none of ``kinds`` uses, naming the flag, the kinds and why."""
+    kinds = tuple(dict.fromkeys(kinds))
+    for name, flag in given.items():
+        scope = SCOPES.get(name)
+        if scope is None or (set(kinds) <= set(scope.kinds) if scope.alone else set(scope.kinds) & set(kinds)):
+            continue
+        where = f"{_either(scope.kinds, 'or')} data{' alone' if scope.alone else ''}"
+        raise ValueError(f"{flag} does not apply to {_either(kinds, 'and')} data: {scope.why}; leave it out "
+                         f"(it applies to {where})")
+
+
+def _either(words: tuple[str, ...], joiner: str) -> str:
+    return words[0] if len(words) == 1 else f"{', '.join(words[:-1])} {joiner} {words[-1]}"

@@ -1,0 +1,107 @@
+"""Every flag of calibrate and evaluate, for every measurement kind: read by the command, or refused
+with its reason (kincal.identify.SCOPES). None is silently ignored."""
+import argparse
+import re
+
+import pytest
+
+from kincal.cli import build_parser, main, prepared
+from kincal.identify import SCOPES
+from kincal.identify.applies import KINDS
+
+# a valid value other than the default, for every flag some kind refuses
+SAMPLE = {"--loss": ["huber"], "--method": ["pso"], "--residual": ["joint"], "--error-model": ["compliance"],
+          "--payload": ["1"], "--drift": [], "--exclude": ["3"], "--reject-outliers": [], "--residuals": ["r.csv"],
+          "--plot": ["f.png"], "--tracker-noise": ["0.02"], "--std-cols": ["none"], "--base": ["fixed"],
+          "--prior": ["none"], "--orientation": ["quat-xyzw"], "--rot-cols": ["a,b,c,d"], "--std-rot": ["1mrad"],
+          "--std-pos": ["0.1mm"], "--markers": ["m1"], "--label-col": ["socket"], "--group-col": ["plate"],
+          "--distance": ["0,1,50"], "--plane": ["t:0,0,1,0"], "--xyz-cols": ["a,b,c"], "--same-frame": []}
+NOT_TYPED = {"help", "given", "func", "command"}
+
+
+class Reads(argparse.Namespace):
+    """A namespace that remembers which options the command read."""
+
+    def __getattribute__(self, name):
+        if not name.startswith("_"):
+            object.__getattribute__(self, "_read").add(name)
+        return object.__getattribute__(self, name)
+
+
+def _parse(argv):
+    parser = build_parser()
+    ns = Reads()
+    object.__setattr__(ns, "_read", set())
+    args = parser.parse_args(argv, namespace=ns)
+    object.__getattribute__(args, "_read").clear()
+    return parser, prepared(parser, args)
+
+
+def _flags(parser, command):
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return {a.dest: a.option_strings[-1] for a in sub.choices[command]._actions
+            if a.option_strings and a.dest not in NOT_TYPED and a.default is not argparse.SUPPRESS}
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """A simulated UR5 file of every kind, and the flags that read it back."""
+    d = tmp_path_factory.mktemp("kinds")
+    out = {}
+    for kind in KINDS:
+        path = d / f"{kind}.csv"
+        assert main(["simulate", "ur5", "--type", kind, "--perturb", "--poses", "40", "-o", str(path)]) == 0
+        out[kind] = path
+    return out
+
+
+READ_BACK = {"same-point": ["--label-col", "point", "--group-col", "placement", "--distance", "0,1,0.05"],
+             "plane": None}  # planes: the simulated file's known planes, from simulate's printed flags
+
+
+def _read_back(kind, path, capsys):
+    if kind == "plane":
+        main(["simulate", "ur5", "--type", "plane", "--perturb", "-o", str(path)])
+        text = capsys.readouterr().out
+        return re.findall(r"--plane \S+", text)[0].split() + re.findall(r"--plane \S+", text)[1].split()
+    return READ_BACK.get(kind) or []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("command", ["calibrate", "evaluate"])
+@pytest.mark.parametrize("kind", KINDS)
+def test_every_flag_is_read_or_refused(files, kind, command, capsys, tmp_path):
+    extra = _read_back(kind, files[kind], capsys)
+    head = [command, "ur5", str(files[kind]), "--type", kind, *extra]
+    parser, args = _parse(head)
+    code = args.func(args)
+    capsys.readouterr()
+    for dest in ("force", "rebase"):  # flags that only modify others: checked when given (kincal.cli.prepared)
+        if dest in _flags(parser, command):
+            assert main([*head, f"--{dest}", *(["--same-frame"] if dest == "rebase" else [])]) == 1
+            assert "--same-frame" in capsys.readouterr().err or dest == "force"
+            object.__getattribute__(args, "_read").add(dest)
+    assert code in (0, 4), f"{command} {kind} failed"
+    read = object.__getattribute__(args, "_read")
+    for dest, flag in _flags(parser, command).items():
+        scope = SCOPES.get(dest)
+        applies = scope is None or (kind in scope.kinds)
+        if applies:
+            assert dest in read, f"{command} --type {kind}: {flag} is neither read nor refused"
+            continue
+        assert flag in SAMPLE, f"{flag}: give a sample value in SAMPLE"
+        code = main([*head, flag, *SAMPLE[flag]])
+        err = capsys.readouterr().err
+        assert code == 1 and "does not apply to" in err and flag in err, (flag, kind, err)
+
+
+def test_every_scoped_option_is_a_flag_or_an_option():
+    """The table names only options that exist (a flag of calibrate or evaluate, or a FitOptions field)."""
+    import dataclasses
+
+    import kincal
+
+    parser = build_parser()
+    known = set(_flags(parser, "calibrate")) | set(_flags(parser, "evaluate"))
+    known |= {f.name for f in dataclasses.fields(kincal.FitOptions)}
+    assert set(SCOPES) <= known, set(SCOPES) - known
