@@ -96,9 +96,13 @@ def test_socket_report_in_a_real_browser(tmp_path, monkeypatch, capsys):
     assert main(["calibrate", str(root / "tests" / "data" / "urdf" / "panda" / "panda.urdf"), str(files["train"]),
                  "--test", str(files["test"]), "--tip-link", "ball_link", "--type", "same-point", "--joint-cols",
                  ",".join(f"q{k}" for k in range(1, 8)), "--label-col", "socket", "--group-col", "placement",
-                 "--distance", "0,1,50", "--length-unit", "mm", "--report", str(report)]) == 0
+                 "--distance", "0,1,50", "--length-unit", "mm", "--report", str(report), "-o",
+                 str(tmp_path / "cal.yaml")]) == 0
+    again = tmp_path / "again.html"  # the calibrated file reported again: refitted from its record
+    assert main(["report", str(tmp_path / "cal.yaml"), "--test", str(files["test"]), "-o", str(again)]) == 0
     capsys.readouterr()
     data = json.loads(report.with_suffix(".json").read_text())
+    assert json.loads(again.with_suffix(".json").read_text())["held_out"] == data["held_out"]
     dom = render(browser, report.as_uri(), tmp_path, "--dump-dom")
     assert dom.returncode == 0, dom.stderr[-2000:]
     shown = {k: float(v) for k, v in re.findall(r'data-key="held out\.([^"]+)">([-0-9.]+)<', dom.stdout)}
@@ -110,3 +114,38 @@ def test_socket_report_in_a_real_browser(tmp_path, monkeypatch, capsys):
     with Image.open(png) as im:
         colours = im.convert("RGB").resize((300, 600)).getcolors(maxcolors=100_000)
         assert colours is not None and len(colours) > 50  # tables and text, not a blank page
+
+
+def _shown_rows(html: str) -> dict:
+    """The residual table's numbers as the browser shows them: data-key -> value."""
+    return {k: float(v) for k, v in re.findall(r'data-key="([^"]+)">([-0-9.]+)<', html)}
+
+
+def test_pose_calibration_reported_again_in_a_real_browser(tmp_path, monkeypatch, capsys):
+    """The positioner's 6-D poses (even rows fitted, odd held out) calibrated with -o and --report;
+    `kincal report` on the calibrated file refits from its record: the same numbers in the browser
+    as in the calibration's own report, and both pages show the residual table."""
+    browser = find_browser()
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1795000000")
+    root = DATA.parents[1] / "data" / "positioner_6d"
+    lines = (root / "measurements.csv").read_text().splitlines()
+    even, odd = tmp_path / "even.csv", tmp_path / "odd.csv"
+    even.write_text("\n".join([lines[0], *lines[1::2]]) + "\n")
+    odd.write_text("\n".join([lines[0], *lines[2::2]]) + "\n")
+    cal, first, again = tmp_path / "cal.yaml", tmp_path / "first.html", tmp_path / "again.html"
+    assert main(["calibrate", str(root / "positioner.yaml"), str(even), "--test", str(odd), "--type", "pose",
+                 "--joint-cols", "q1,q2", "--std-pos", "0.1mm", "--std-rot", "1mrad", "-o", str(cal),
+                 "--report", str(first)]) == 0
+    assert main(["report", str(cal), "--test", str(odd), "-o", str(again)]) == 0
+    capsys.readouterr()
+    pages = []
+    for page in (first, again):
+        dom = render(browser, page.as_uri(), tmp_path, "--dump-dom")
+        assert dom.returncode == 0, dom.stderr[-2000:]
+        pages.append(_shown_rows(dom.stdout))
+    data = json.loads(again.with_suffix(".json").read_text())
+    held = data["held_out"][0]
+    assert pages[0] == pages[1] and held["mean_mm"] <= 0.50 and held["mean_mrad"] <= 0.90
+    key = f"held_out.{held['source']}"
+    assert pages[1][f"{key}.mean_mm"] == pytest.approx(held["mean_mm"], abs=5e-5)
+    assert pages[1][f"{key}.mean_mrad"] == pytest.approx(held["mean_mrad"], abs=5e-5)

@@ -111,27 +111,26 @@ def format_of(args, kind: str):
                              tuple(args.distance), dict(args.plane), args.std_pos, args.std_rot)
 
 
+READING = ("joint_cols", "length_unit", "angle_unit", "xyz_cols", "orientation", "rot_cols", "markers", "label_col",
+           "group_col", "distance", "plane", "std_pos", "std_rot")  # how the files were read: kept in the record
+
+
 def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
     """calibrate with measurement types: fit, print per-type statistics, write the robot and report."""
-    from kincal.identify import fit_observations, stat_line
-    from kincal.observe import read_observations
+    from kincal.identify import stat_line
 
     reports = [args.report, json_path(args.report)] if args.report else []
     check_paths([*robot_inputs(args.robot), *args.data, *args.test], [args.output, *reports])
-    robot = load_robot(args)
-    sets = [read_observations(path, robot, format_of(args, k)) for path, k in zip(args.data, kinds)]
-    tests = [read_observations(path, robot, format_of(args, kinds[0])) for path in args.test]
-    _check_units(sets + tests, robot, args)
-    sets = _sessions(sets, args.same_frame)
-    with progress("calibrating", args.json):
-        fit = fit_observations(robot, sets, names=args.params or "auto", keep=args.keep or (), max_iter=args.max_iter,
-                               prior=args.prior or "relevance", thresholds=thresholds)
-    held = [_held_out(fit, t, fit.robot, args.same_frame) for t in tests]
-    held_nominal = [_held_out(fit, t, fit.nominal, args.same_frame) for t in tests]
+    options = {"names": tuple(args.params) if args.params else "auto", "keep": tuple(args.keep or ()),
+               "max_iter": args.max_iter, "prior": args.prior or "relevance", "thresholds": thresholds}
+    fit, held, held_nominal = fitted(args, load_robot(args), kinds, args.data, args.test, options)
+    record = {**fit.record(), "observation_options": {**options, "thresholds": thresholds.to_dict()},
+              "data": {"file": list(args.data), "kinds": list(kinds), "same_frame": args.same_frame,
+                       "reading": {k: _plain(vars(args)[k]) for k in READING}}}
     refused = fit.verdict.status == "refused"
     written = bool(args.output) and (not refused or args.force)
     if written:
-        kincal.save_robot(fit.robot, args.output, calibration=fit.record())
+        kincal.save_robot(fit.robot, args.output, calibration=record)
     text = str(fit) + "".join(f"\n  held out {h['type']} ({h['source']}): {stat_line(b)}  →  {stat_line(h)}"
                               for b, h in zip(held_nominal, held))
     text += "".join(f"\n{line}" for line in _groups(fit.stats, held))
@@ -150,6 +149,58 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
                                                               if r.level == "refused"))
         return EXIT_REFUSED if fit.converged else EXIT_NOT_CONVERGED
     return 0
+
+
+def fitted(args, robot, kinds: list[str], data: list[str], tests: list[str], options: dict):
+    """The files read (``args``: how; tests in the first file's kind), fitted from ``robot`` with
+    ``options`` (of :func:`kincal.identify.fit_observations`), and the held-out statistics under the
+    calibrated and the nominal model: (fit, held, held_nominal)."""
+    from kincal.identify import fit_observations
+    from kincal.observe import read_observations
+
+    sets = [read_observations(path, robot, format_of(args, k)) for path, k in zip(data, kinds)]
+    test_sets = [read_observations(path, robot, format_of(args, kinds[0])) for path in tests]
+    _check_units(sets + test_sets, robot, args)
+    with progress("calibrating", args.json):
+        fit = fit_observations(robot, _sessions(sets, args.same_frame), **options)
+    held = [_held_out(fit, t, fit.robot, args.same_frame) for t in test_sets]
+    held_nominal = [_held_out(fit, t, fit.nominal, args.same_frame) for t in test_sets]
+    return fit, held, held_nominal
+
+
+def _plain(value):
+    """A flag's value as YAML keeps it (tuples as lists)."""
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def cmd_report(args, record: dict) -> int:
+    """kincal report of a file calibrated from observation files: the fit repeated from the record
+    (the nominal values, the options, how each file was read), the report written."""
+    import kincal.identify
+    from kincal.report import observation_report
+
+    data, opts = record["data"], dict(record["observation_options"])
+    reading = argparse.Namespace(**{k: data["reading"].get(k) for k in READING}, json=args.json,
+                                 same_frame=bool(args.same_frame or data.get("same_frame")))
+    reading.distance = [tuple(d) for d in reading.distance or []]
+    reading.plane = [(lab, (tuple(n), c)) for lab, (n, c) in reading.plane or []]
+    train = args.train or data["file"]
+    check_paths([*robot_inputs(args.robot), *train, *args.test], [args.output, json_path(args.output)])
+    cal = load_robot(args)
+    nominal = cal.with_params({str(k): float(v) for k, v in record["nominal"].items()})
+    opts["thresholds"] = kincal.Thresholds.of(opts["thresholds"])
+    opts["names"] = opts["names"] if opts["names"] == "auto" else tuple(opts["names"])
+    fit, held, held_nominal = fitted(reading, nominal, data["kinds"], train, args.test, opts)
+    gap = float(np.max(np.abs(fit.robot.params.values - cal.params.values)))
+    if gap > 1e-9:
+        err.print(f"kincal: warning: a fit of these data differs from {args.robot} by up to {gap:.3g} (SI): the "
+                  f"report shows the fit of these data, not the file", markup=False)
+    numbers = observation_report(fit, held, held_nominal, Path(args.output).name).write(args.output)
+    emit(args, {**fit.to_dict(), "held_out": held, "output": args.output, "json": str(numbers)},
+         f"verdict: {fit.verdict.status.upper()}\nreport written to {args.output} (numbers in {numbers})")
+    return 0 if fit.verdict.status != "refused" else EXIT_REFUSED
 
 
 def _held_out(fit, obs, robot, same_frame: bool) -> dict:

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -60,6 +61,10 @@ def save_figures(figures: dict, stem: str) -> list[str]:
 
 def cmd_report(args) -> int:
     record = kincal.models.load_calibration_record(args.robot)
+    if record and "observation_options" in record:  # calibrated from observation files (--type)
+        from . import observe
+
+        return observe.cmd_report(args, record)
     if not record or "nominal" not in record or "options" not in record:
         raise ValueError(f"{args.robot}: not a calibrated robot file (no calibration record: the nominal values and "
                          f"options the report refits); calibrate first, e.g. 'kincal calibrate {args.robot} DATA.csv "
@@ -74,7 +79,7 @@ def cmd_report(args) -> int:
     cal = load_robot(args)
     nominal = cal.with_params(_nominal(record["nominal"], args.robot))
     use_q = _use_q(record.get("use_q"), nominal, args.robot)
-    units = {k: vars(args)[k] if vars(args)[k] is not None else data.get(k, default)
+    units: dict[str, Any] = {k: vars(args)[k] if vars(args)[k] is not None else data.get(k, default)
              for k, default in (("length_unit", "m"), ("angle_unit", "rad"), ("joint_cols", None),
                                 ("xyz_cols", ["x", "y", "z"]))}
     train = [kincal.read_measurements(path, nominal, **units) for path in train_paths]
