@@ -22,6 +22,7 @@ from .covariance import parameter_statistics
 from .diagnosis import TRIGGERS, diagnose, outlier_poses
 from .drift import with_drift, without_drift
 from .lm import LMResult, fit_lm
+from .noise import ROUNDS, SETTLED, extra_variance, relative_weights
 from .options import FitOptions
 from .problem import CalibrationProblem, build_problem
 from .pso import fit_pso
@@ -94,6 +95,8 @@ def _fit(robot: Robot, meas: Measurements, o: FitOptions, say, t0: float) -> Cal
     w = None
     if o.loss == "linear":
         fit, final, counts, history = _solve(problem, o, say)
+        if problem.weights is not None and fit.converged:
+            problem, fit, final = _with_model_error(problem, final, fit, o, say)
     else:  # reweight from the start: a least-squares fit pulled by outliers is a poor place to begin
         say("fitting with reweighting (robust loss)")
         final, history = problem, ()
@@ -106,6 +109,25 @@ def _fit(robot: Robot, meas: Measurements, o: FitOptions, say, t0: float) -> Cal
     res = without_drift(res, robot, meas)
     found = fitted_drift_reasons(res.drift, noise_level(meas.std, o.thresholds)[0])
     return dataclasses.replace(res, verdict=Verdict.from_reasons(res.verdict.reasons + tuple(found)))
+
+
+def _with_model_error(problem: CalibrationProblem, final: CalibrationProblem, fit: LMResult, o: FitOptions, say):
+    """The fit repeated with weights 1/(σᵢ² + s²), s² what the model leaves unexplained beyond the
+    stated σ (:mod:`kincal.identify.noise`), until s settles: (problem, fit, the problem fitted)."""
+    meas, s_old = problem.meas, 0.0
+    for _ in range(ROUNDS):
+        r = meas.xyz - final.start.with_params(final.embed(fit.x)).forward(meas.q)
+        s2 = extra_variance(r**2, meas.std**2, r.size - len(final.names))
+        if abs(np.sqrt(s2) - s_old) <= SETTLED * max(np.sqrt(s2), 1e-12):
+            break
+        s_old = float(np.sqrt(s2))
+        w = relative_weights(meas.std, s2)
+        if np.allclose(w, final.weights, rtol=1e-9, atol=0.0):  # equal σ: the same weights, the same fit
+            break
+        say(f"refitting with {s_old * 1e3:.3g} mm of model error beside the stated σ")
+        problem, final = (dataclasses.replace(p, weights=w) for p in (problem, final))
+        fit = fit_lm(final, fit.x, max_iter=o.max_iter)
+    return problem, fit, final
 
 
 def _error_model(robot: Robot, meas: Measurements, options: FitOptions, say, use_q=None):

@@ -63,6 +63,7 @@ class ObservationFit:
     observations: tuple = ()
     weak: dict = dataclasses.field(default_factory=dict)  # kept nominal: name -> σ the data gave it (m or rad)
     prior: dict = dataclasses.field(default_factory=dict)  # learned prior σ per group (m or rad); {}: none
+    whitened: dict = dataclasses.field(default_factory=dict)  # whitened RMS per kind ("pose rotation": 1.3)
 
     def to_dict(self) -> dict:
         return {"robot": self.robot.name, "fitted": list(self.names),
@@ -74,6 +75,7 @@ class ObservationFit:
                 "prior": {k: float(v) for k, v in self.prior.items()},
                 "identifiability": self.identifiability.to_dict(),
                 "before": list(self.stats_before), "after": list(self.stats), "whitened_rms": self.whitened_rms,
+                "whitened_rms_per_kind": dict(self.whitened),
                 "verdict": self.verdict.to_dict(), "converged": self.converged, "iterations": self.iterations}
 
     def record(self) -> dict:
@@ -111,7 +113,8 @@ class ObservationFit:
         lines = [f"calibration of {self.robot.name} from {', '.join(sorted({s['type'] for s in self.stats}))} data: "
                  f"{'converged' if self.converged else 'NOT converged'} in {self.iterations} iterations; "
                  f"{len(self.names)} robot and {len(self.nuisance)} set-up parameters",
-                 f"whitened residual RMS {self.whitened_rms:.3g} (1 when the stated σ are right)"]
+                 f"whitened residual RMS {self.whitened_rms:.3g} (1 when the stated σ are right): "
+                 + ", ".join(f"{k} {v:.3g}" for k, v in self.whitened.items())]
         for b, a in zip(self.stats_before, self.stats):
             lines.append(f"  {a['type']} ({a['source']}): {stat_line(b)}  →  {stat_line(a)}")
         if self.gauge:
@@ -417,25 +420,55 @@ def _result(robot, st, gauge, ident, free, fcols, x0, fit, weak, th: Thresholds)
     before = tuple(o.stats(robot, x0[:P], x0[P:][slot]) for o, slot in zip(st.sets, st.slots))
     after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
     rms = float(np.sqrt(np.mean(fit.residual**2)))
-    verdict = _verdict(robot, calibrated, st, rms, fit.converged, th)
+    per_kind = whitened_per_kind(st.sets, fit.residual)
+    verdict = _verdict(robot, calibrated, st, per_kind, fit.converged, th)
     return ObservationFit(calibrated, robot, tuple(n for n in free if n in robot.params.names), nuis, std, ident,
                           gauge, before, after, rms, cov, verdict, bool(fit.converged), fit.iterations, st.sets, weak,
-                          learned)
+                          learned, per_kind)
 
 
-def _verdict(nominal: Robot, calibrated: Robot, st: _Stack, rms: float, converged: bool, th: Thresholds) -> Verdict:
+STATED = {"pose position": "--std-pos", "pose rotation": "--std-rot"}  # the flag that states each kind's σ
+
+
+def whitened_per_kind(sets, r: np.ndarray) -> dict[str, float]:
+    """RMS of the whitened residual ``r`` (stacked in the order of ``sets``) per kind of component: a
+    pose's position and rotation rows apart (each has its own σ), the other kinds whole."""
+    sums: dict[str, list[float]] = {}
+    start = 0
+    for obs in sets:
+        m = obs.sigma().size
+        rows = r[start:start + m]
+        parts = ((("pose position", rows[:m // 2]), ("pose rotation", rows[m // 2:])) if obs.kind == "pose"
+                 else ((obs.kind, rows),))
+        for name, part in parts:
+            acc = sums.setdefault(name, [0.0, 0.0])
+            acc[0] += float(part @ part)
+            acc[1] += part.size
+        start += m
+    return {k: float(np.sqrt(a / max(n, 1.0))) for k, (a, n) in sums.items()}
+
+
+def _verdict(nominal: Robot, calibrated: Robot, st: _Stack, per_kind: dict, converged: bool, th: Thresholds) -> Verdict:
     reasons = []
     if not converged:
         reasons.append(Reason("refused", "not-converged", "the fit did not converge"))
-    if rms > 3.0:
-        reasons.append(Reason("suspect", "residual", f"the residuals are {rms:.1f}x the stated noise: the model leaves "
-                                                     f"errors it cannot describe, or the stated σ are too small"))
+    for kind, rms in per_kind.items():
+        if rms > 3.0:
+            reasons.append(Reason("suspect", "residual", (
+                f"the {kind} residuals are {rms:.1f}x their stated σ ({STATED.get(kind, '--std-pos')}): the model "
+                f"leaves errors it cannot describe there, or that σ is too small; restate it if the instrument is "
+                f"noisier" + _other_kinds(per_kind, kind))))
     reasons += correction_reasons(nominal, {n: calibrated.params[n] - nominal.params[n] for n in nominal.params.names},
                                   th)
     reasons += mounting_reasons(nominal.tool_point(), calibrated.tool_point(), th)
     if all(o.kind == "plane" for o in st.sets):
         reasons += _plane_reasons(nominal, calibrated, st.sets)
     return Verdict.from_reasons(tuple(reasons))
+
+
+def _other_kinds(per_kind: dict, kind: str) -> str:
+    fine = [k for k, v in per_kind.items() if k != kind and v <= 3.0]
+    return f" (the {', '.join(fine)} residuals agree with their σ)" if fine else ""
 
 
 def _plane_reasons(nominal: Robot, calibrated: Robot, sets) -> list[Reason]:
