@@ -15,10 +15,13 @@ import numpy as np
 from ..io.measurements import Measurements
 from ..io.unit_checks import spread
 from ..models.robot import TOOL_NAMES, Robot
+from ..models.terms import extend
 from ..units import MM
 from .calibrate import calibrate
 from .diagnosis import outlier_poses
 from .options import FitOptions
+from .problem import build_problem
+from .registration import register_base
 from .result import CalibrationResult, rejected
 
 HELDOUT_RATIO = 10.0  # a held-out error this many times the training error needs a named cause
@@ -76,8 +79,8 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
             f"re-mastering), or the joint columns differ from the training data")
 
 
-MAX_ROUNDS = 30  # alternations between the sessions' frames and the shared kinematics
-ROUND_TOL = 1e-10  # m or rad: the kinematic parameters have settled when no one moves more than this
+MAX_ROUNDS = 30  # fits with the sessions' frames re-fitted, when the options move the kinematics
+ROUND_TOL = 1e-10  # m or rad: the frames have settled when no one moves more than this
 
 
 def _in_frame_of(model: Robot, registered: Robot, meas: Measurements) -> Measurements:
@@ -106,14 +109,15 @@ def joined(sessions: list[Measurements]) -> Measurements:
 def calibrate_sessions(robot: Robot, sessions, options: FitOptions | None = None, *,
                        use_q: np.ndarray | None = None, **changes) -> CalibrationResult:
     """Calibrate shared kinematics from several sessions, each measured in its own frame (the tracker
-    moved between them). Alternates: each session's frame re-fitted to the current model (frame only),
-    every session brought into the first one's frame, the kinematics and that frame fitted to all of
-    them, until no kinematic parameter moves more than ROUND_TOL. Each step lowers the total squared
-    error, so the rounds settle. Returns the last fit (its data: the sessions in the first one's frame;
-    its σ leaves out the uncertainty of the other sessions' frames). With ``error_model="auto"`` the
-    frames are first aligned with the geometric model, the error model is chosen once on the aligned
-    sessions (each session also held out in turn) and the rounds repeated with it. ``options``,
-    ``use_q``, ``changes``: as :func:`kincal.calibrate`; one session is simply calibrated."""
+    moved between them). The kinematics and every session's frame are fitted together in one stacked
+    least-squares problem (a frame's six parameters per later session); the sessions are then brought
+    into the first one's frame and calibrated with ``options``; if that moves the kinematics (a robust
+    loss, an error model, σ columns), each frame is re-fitted and the fit repeated until no frame moves
+    more than ROUND_TOL. Returns the last fit (its data: the sessions in the first one's frame; its σ
+    leaves out the uncertainty of the other sessions' frames). With ``error_model="auto"`` the error
+    model is chosen once on the sessions aligned by the geometric model (each session also held out in
+    turn) and the fit repeated with it. ``options``, ``use_q``, ``changes``: as
+    :func:`kincal.calibrate`; one session is simply calibrated."""
     sessions = [sessions] if isinstance(sessions, Measurements) else list(sessions)
     options = (options or FitOptions()).replace(**changes)
     if len(sessions) == 1 or not robot.base_params():
@@ -153,15 +157,54 @@ def _without_outliers(robot: Robot, sessions: list[Measurements], aligned: Measu
 
 
 def _rounds(robot: Robot, sessions: list[Measurements], options: FitOptions, use_q) -> CalibrationResult:
-    """The alternation of :func:`calibrate_sessions` with a fixed error model."""
-    model, res, previous = refit_frame(robot, sessions[0]), None, None
+    """:func:`calibrate_sessions` with a fixed error model: the sessions' frames from one stacked fit of
+    the kinematics and every frame (:func:`_stacked_frames`), the sessions brought into the first one's
+    frame and calibrated with ``options``. When those options move the kinematics off the stacked
+    least-squares fit (a robust loss, σ columns with the model error beside them), the frames are
+    re-fitted to the new kinematics and the fit repeated, until no frame moves more than ROUND_TOL."""
+    opts = options.replace(diagnose=False)
+    model, frames = _stacked_frames(robot, sessions, opts)
+    res = None
     for _ in range(MAX_ROUNDS):
-        data = [sessions[0]] + [_in_frame_of(model, refit_frame(model, s), s) for s in sessions[1:]]
-        res = calibrate(robot, joined(data), options.replace(diagnose=False), use_q=use_q)
-        base = set(res.robot.base_params())
-        values = np.array([v for n, v in zip(res.robot.params.names, res.robot.params.values) if n not in base])
-        model = res.robot
-        if previous is not None and float(np.max(np.abs(values - previous))) < ROUND_TOL:
+        data = [sessions[0]] + [_in_frame_of(model, f, s) for f, s in zip(frames, sessions[1:])]
+        res = calibrate(robot, joined(data), opts, use_q=use_q)
+        again = [refit_frame(res.robot, s) for s in sessions[1:]]
+        moved = max(float(np.max(np.abs(_frame(a) - _frame(f) - _frame(res.robot) + _frame(model))))
+                    for a, f in zip(again, frames))
+        if moved < ROUND_TOL:
             break
-        previous = values
+        model, frames = res.robot, again
     return res
+
+
+def _frame(robot: Robot) -> np.ndarray:
+    return robot.params.values[robot.params.indices(robot.base_params())]
+
+
+def _aligned(robot: Robot, sessions: list[Measurements]) -> list[Measurements]:
+    """The sessions in the first one's frame as the starting model sees them (each frame registered
+    rigidly to the model's predictions)."""
+    model = register_base(robot, sessions[0].q, sessions[0].xyz)
+    return [sessions[0]] + [_in_frame_of(model, register_base(model, s.q, s.xyz), s) for s in sessions[1:]]
+
+
+def _stacked_frames(robot: Robot, sessions: list[Measurements], options: FitOptions):
+    """The kinematics and every session's frame fitted together (least squares: the parameters
+    ``calibrate`` would fit on the aligned sessions, with the error model of ``options``, and a frame
+    per later session; :func:`~kincal.identify.stacked.fit_observations`): the model (in the first
+    session's frame) and, per later session, the model in that session's frame."""
+    from ..observe import InSession, PointObs
+    from .stacked import fit_observations
+
+    aligned = joined(_aligned(robot, sessions))
+    fit_robot = robot if options.error_model is None else extend(robot, options.error_model, aligned.q)
+    names = build_problem(fit_robot, aligned, options).names
+    sets = [PointObs(s.q, s.rows, s.source, xyz=s.xyz, std=STACK_STD if s.std is None else s.std) for s in sessions]
+    sets = sets[:1] + [InSession.of(o, f"{k}:{o.source}") for k, o in enumerate(sets[1:], start=2)]
+    fit = fit_observations(fit_robot, sets, names=names, keep=options.keep, rank_tol=options.rank_tol, prior="none")
+    base = fit.robot.base_params()
+    frames = [fit.robot.with_params({b: fit.nuisance[f"frame[{o.session}].{b}"] for b in base}) for o in sets[1:]]
+    return fit.robot, frames
+
+
+STACK_STD = 15e-6  # m: the σ of points without σ columns in the stacked fit (equal σ: its value does not matter)
