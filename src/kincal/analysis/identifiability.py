@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Sequence, cast
 
 import numpy as np
 
@@ -150,7 +150,8 @@ def jacobian_identifiability(J: np.ndarray, cand: Sequence[str], stages: Sequenc
     live_names = [n for n, ok in zip(cand, live) if ok]
     # Everything below depends on the column space only, so it works on the small triangular
     # factor R0 of the scaled Jacobian (Js = Q0 R0): same singular values, same linear relations.
-    R0 = np.linalg.qr(J[:, live] / norms[live], mode="r") if live.any() else np.zeros((0, 0))
+    # (NumPy's stubs type every qr result as a QRResult; mode="r" returns R alone)
+    R0 = cast(np.ndarray, np.linalg.qr(J[:, live] / norms[live], mode="r")) if live.any() else np.zeros((0, 0))
 
     s = np.linalg.svd(R0, compute_uv=False) if R0.size else np.zeros(0)
     rank = int(np.sum(s > rank_tol * s[0])) if s.size else 0
@@ -252,8 +253,8 @@ def _pivot_order(Js: np.ndarray, names: list[str], stages: list[list[str]], rank
     groups.append([k for k in range(len(names)) if k not in seen])
     A = np.array(Js, dtype=float)  # columns made orthogonal to the chosen ones as we go
     chosen: list[int] = []
-    for g, group in enumerate(groups):
-        last = g == len(groups) - 1  # the last stage completes the rank whatever its residuals
+    for at, group in enumerate(groups):
+        last = at == len(groups) - 1  # the last stage completes the rank whatever its residuals
         rest = list(group)
         while rest and len(chosen) < rank:
             norms = np.linalg.norm(A[:, rest], axis=0)

@@ -46,7 +46,7 @@ class ModelUncertainty:
 
     def outside(self, q: np.ndarray) -> np.ndarray:
         """(N,) bool: a joint lies outside its training range by more than ENVELOPE_MARGIN of it."""
-        if self.lower is None:
+        if self.lower is None or self.upper is None:
             return np.zeros(len(q), bool)
         margin = ENVELOPE_MARGIN * (self.upper - self.lower)
         return np.any((q < self.lower - margin) | (q > self.upper + margin), axis=1)
@@ -68,7 +68,7 @@ class ModelUncertainty:
     def to_dict(self) -> dict:
         out = {"parameters": list(self.names), "covariance": self.covariance.tolist(),
                "training_median_sigma": self.training_median}
-        if self.lower is not None:
+        if self.lower is not None and self.upper is not None:
             out["envelope"] = {"lower": self.lower.tolist(), "upper": self.upper.tolist()}
         return out
 
@@ -91,7 +91,7 @@ class ModelUncertainty:
         if cov.shape != (len(names), len(names)) or not np.all(np.isfinite(cov)) or not np.isfinite(med):
             raise ModelError(f"{label}: the 'calibration' covariance must be a finite {len(names)}x{len(names)} "
                              f"matrix; calibrate again or remove the section")
-        if lo is not None and (lo.shape != hi.shape or lo.ndim != 1 or not np.all(lo <= hi)):
+        if lo is not None and hi is not None and (lo.shape != hi.shape or lo.ndim != 1 or not np.all(lo <= hi)):
             raise ModelError(f"{label}: the 'calibration' envelope must give lower <= upper per joint")
         return cls(names, cov, med, lo, hi)
 
@@ -123,7 +123,7 @@ def _first_rows(rows: np.ndarray) -> str:
 def _beyond(q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> str:
     """', with j2 at -175.0..-3.0 deg (calibrated on -90.0..-20.0 deg), …' for the joints whose values in
     ``q`` leave the training ranges; '' when none does or the ranges are not known."""
-    if unc.lower is None or len(unc.lower) != q.shape[1]:
+    if unc.lower is None or unc.upper is None or len(unc.lower) != q.shape[1]:
         return ""
     parts = []
     for j in np.flatnonzero(np.any((q < unc.lower) | (q > unc.upper), axis=0)):

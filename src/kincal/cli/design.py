@@ -125,6 +125,7 @@ def _design_constraints(args, robot, options, cell) -> int:
     with progress("designing samples", args.json) as say:
         say(f"{args.method} on {len(plan)} candidates")
         d = kincal.select_poses(robot, plan.q, options, problem=problem)
+    assert d.indices is not None  # detmax and fedorov choose among the plan's samples (checked above)
     flags = observe.flags_to_use(plan, args.length_unit)
     if args.candidates:
         kincal.io.write_selected_rows(args.output, args.candidates, d.indices)

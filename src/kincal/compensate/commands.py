@@ -28,16 +28,16 @@ class Compensation:
     """q (N, n): commands; residual (N,): |model(q) − target| in m; method: how q was found.
 
     ok (N,) says which commands passed every check (reach, joint limits, branch, model residual);
-    problems holds one message per refused target, naming its input row.
+    problems holds one message per refused target, naming its input row (rows (N,): the targets' rows).
     """
 
     q: np.ndarray
     residual: np.ndarray
     method: str
     iterations: int
-    ok: np.ndarray | None = None
-    problems: tuple[str, ...] = ()
-    rows: np.ndarray | None = None
+    ok: np.ndarray
+    problems: tuple[str, ...]
+    rows: np.ndarray
     predicted_sigma: np.ndarray | None = None  # (N,) m, where the model's uncertainty is known
     warnings: tuple[str, ...] = ()
     orientation_change: np.ndarray | None = None  # (N,) rad: model at q vs the nominal promise at q_start
@@ -46,10 +46,10 @@ class Compensation:
 
     @property
     def all_ok(self) -> bool:
-        return self.ok is None or bool(self.ok.all())
+        return bool(self.ok.all())
 
     def to_dict(self) -> dict:
-        ok = np.ones(len(self.q), bool) if self.ok is None else self.ok
+        ok = self.ok
         res = np.where(np.isfinite(self.residual), self.residual, np.nan)
         return {"q": [qi.tolist() if k else None for qi, k in zip(self.q, ok)],
                 "residual": [float(r) if np.isfinite(r) else None for r in res],
@@ -93,8 +93,8 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
             return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
     if robot.has_inverse:
         q = robot.inverse(targets, strict=False)
-        comp = Compensation(q, _residual(robot, q, targets), "closed-form inverse", 0)
-        return _with_sigma(robot, _checked(robot, comp, targets, None, rows), uncertainty)
+        comp = _checked(robot, q, _residual(robot, q, targets), "closed-form inverse", 0, targets, None, rows)
+        return _with_sigma(robot, comp, uncertainty)
     q, it = q0.copy(), 0
     for it in range(1, IK_ITER + 1):
         e = targets - robot.forward(q)
@@ -103,8 +103,8 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
         Jq = robot.joint_jacobian(q)  # (N, 3, n)
         A = Jq @ np.swapaxes(Jq, 1, 2) + damping**2 * np.eye(3)
         q = q + np.einsum("nji,nj->ni", Jq, np.linalg.solve(A, e[..., None])[..., 0])
-    comp = Compensation(q, _residual(robot, q, targets), "damped least squares", it)
-    comp = _with_sigma(robot, _checked(robot, comp, targets, q0, rows, nominal), uncertainty)
+    comp = _checked(robot, q, _residual(robot, q, targets), "damped least squares", it, targets, q0, rows, nominal)
+    comp = _with_sigma(robot, comp, uncertainty)
     if nominal is None or not robot.has_tool_point:
         return comp
     return dataclasses.replace(comp, orientation_change=orientation_change(robot, q, nominal, q0))
@@ -151,22 +151,24 @@ def _residual(robot: Robot, q: np.ndarray, targets: np.ndarray) -> np.ndarray:
     return out
 
 
-def _checked(robot: Robot, comp: Compensation, targets: np.ndarray, q0: np.ndarray | None,
-             rows: np.ndarray, nominal: Robot | None = None) -> Compensation:
-    """The compensation with every command checked; the first failed check of each row is reported."""
+def _checked(robot: Robot, q: np.ndarray, residual: np.ndarray, method: str, iterations: int, targets: np.ndarray,
+             q0: np.ndarray | None, rows: np.ndarray, nominal: Robot | None = None) -> Compensation:
+    """The compensation by commands q (their model residuals, how they were found) with every command
+    checked; the first failed check of each row is reported."""
     why: list[str | None] = [None] * len(targets)
-    for bad, message in _checks(robot, comp, targets, q0, nominal):
+    for bad, message in _checks(robot, q, residual, targets, q0, nominal):
         for k in np.flatnonzero(bad):
             why[k] = why[k] or f"row {rows[k]}: {message(k)}"
     ok = np.array([w is None for w in why])
-    return Compensation(comp.q, comp.residual, comp.method, comp.iterations, ok, tuple(w for w in why if w), rows)
+    return Compensation(q, residual, method, iterations, ok, tuple(w for w in why if w), rows)
 
 
-def _checks(robot: Robot, comp: Compensation, targets: np.ndarray, q0: np.ndarray | None, nominal: Robot | None):
+def _checks(robot: Robot, q: np.ndarray, residual: np.ndarray, targets: np.ndarray, q0: np.ndarray | None,
+            nominal: Robot | None):
     """(mask of failing rows, message for row k) per check, in the order they are reported. With the
     nominal model the nominal command must reach its target within MISMATCH_TOL, else START_TOL (the
     calibrated model is then the only one known)."""
-    q, mm = comp.q, lambda x: f"{x * MM:.1f} mm"  # noqa: E731
+    mm = lambda x: f"{x * MM:.1f} mm"  # noqa: E731
     finite = np.all(np.isfinite(q), axis=1)
     dist, reach = _reach(robot, targets)
     yield dist > REACH_MARGIN * reach, lambda k: (f"target {mm(dist[k])} from the base, beyond the robot's reach "
@@ -178,15 +180,15 @@ def _checks(robot: Robot, comp: Compensation, targets: np.ndarray, q0: np.ndarra
         yield gap > tol, lambda k: (f"the nominal command lands {gap[k] * MM:.3f} mm from the target"
                                     f"{' through the nominal model' if nominal else ''}: the joint values and the "
                                     f"target do not belong together (units, column order, TCP or frame?)")
-        tol = np.array([BRANCH_TOL[t] for t in robot.joint_types])
-        jump = np.where(finite[:, None], np.abs(q - q0), 0.0) > tol
+        branch_tol = np.array([BRANCH_TOL[t] for t in robot.joint_types])
+        jump = np.where(finite[:, None], np.abs(q - q0), 0.0) > branch_tol
         names = robot.joint_names
         yield jump.any(axis=1), lambda k: (f"the corrected command moves joint(s) "
                                            f"{', '.join(n for n, j in zip(names, jump[k]) if j)} away from the nominal "
                                            f"one (another arm configuration); refused")
     lim = finite & ~robot.within_limits(np.where(finite[:, None], q, 0.0))
     yield lim, lambda k: "the command breaks the joint limits"
-    yield finite & (comp.residual > 1e-6), lambda k: f"the model misses the target by {mm(comp.residual[k])}"
+    yield finite & (residual > 1e-6), lambda k: f"the model misses the target by {mm(residual[k])}"
 
 
 def _reach(robot: Robot, targets: np.ndarray) -> tuple[np.ndarray, float]:
@@ -206,7 +208,7 @@ ROT_TOL = 1e-6  # rad: a pose command must reproduce the target orientation this
 ORIENT_MISMATCH = 1e-3  # rad: the nominal command's orientation must match the target's this closely
 
 
-def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q_start: np.ndarray, *,
+def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q_start: np.ndarray | None, *,
                      rows: np.ndarray | None = None, uncertainty: ModelUncertainty | None = None,
                      nominal: Robot | None = None) -> Compensation:
     """Joint commands that put ``robot``'s tool point at targets (N, 3) m with its flange at
@@ -225,8 +227,8 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
             return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
     give_up = GIVE_UP * np.array([BRANCH_TOL[t] for t in robot.joint_types])  # refused by the branch check anyway
     sol = solve_poses(robot, targets, rotations, q0, give_up=give_up)
-    comp = Compensation(sol.q, _residual(robot, sol.q, targets), "pose (damped Newton)", sol.iterations)
-    comp = _checked(robot, comp, targets, q0, rows, nominal)
+    comp = _checked(robot, sol.q, _residual(robot, sol.q, targets), "pose (damped Newton)", sol.iterations, targets,
+                    q0, rows, nominal)
     if robot.n_joints >= 6:
         bad = comp.ok & (sol.rotation_error > ROT_TOL)
         problems = comp.problems + tuple(f"row {r}: the model misses the target orientation by "

@@ -233,7 +233,7 @@ def _parts(job: StreamJob, stream: Stream, layout: CommandColumns, workers: int)
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-_WORK: tuple = ()
+_WORK: tuple[StreamJob, Stream, CommandColumns] | None = None  # a worker's job, set by _init
 
 
 def _init(job: StreamJob, stream: Stream, layout: CommandColumns) -> None:
@@ -249,6 +249,7 @@ def _init(job: StreamJob, stream: Stream, layout: CommandColumns) -> None:
 
 
 def _in_worker(block: Block, previous: Block | None, first: bool, end: int) -> _Part:
+    assert _WORK is not None  # the pool runs _init in every worker first
     return _block(*_WORK, block, previous, first, end)
 
 

@@ -19,6 +19,8 @@ def score(M: np.ndarray, m: int, criterion: str, B: np.ndarray | None = None) ->
         sign, val = np.linalg.slogdet(M)
         return np.where(sign > 0, val, -np.inf)
     if criterion == "I":
+        if B is None:
+            raise ValueError("criterion 'I' needs B, the mean information over the region")
         with np.errstate(all="ignore"):
             try:
                 X = np.linalg.solve(M, np.broadcast_to(B, M.shape))

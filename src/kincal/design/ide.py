@@ -85,7 +85,7 @@ def ide(
         r = rng.choice(population, 6, replace=False)
         eps = repair(best + F * (pop[r[0]] - pop[r[1]]) + F * (pop[r[2]] - pop[r[3]]))
         v = repair(v + F * (best - v) + F * (pop[r[4]] - pop[r[5]]))
-        take = rng.random(best.shape[0]) <= cr
+        take = rng.random(len(best)) <= cr
         h = np.where(take[:, None], eps, best)
         f_h, f_v = objective(h), objective(v)
         k = first_best([f_best, f_h, f_v])  # the incumbent wins ties

@@ -145,7 +145,8 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
                                    f"m ≥ {-(-P.k // P.r)}")
     B = region_jacobian(robot, P, validation_q)[1] if o.criterion == "I" else None
     rng = np.random.default_rng(o.seed)
-    idx, history, note = None, (), ""
+    idx, note = None, ""
+    history: Sequence[float] = ()
     if o.method in ("ide", "detmax-ide"):
         q, J, history = _continuous_design(robot, P, o, B, rng, progress, cell)
     elif o.stratified:

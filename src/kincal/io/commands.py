@@ -53,14 +53,22 @@ class CommandColumns:
             parts += [xyz * self.length_scale, rot_values, q * self.joint_scale]
         else:
             parts += [q * self.joint_scale, xyz * self.length_scale]
-            parts += [(q - q_start) * self.joint_scale] if self.changes else []
-            parts += [orientation_change[:, None] * 1e3] if self.orientation_change else []
+            if self.changes:
+                parts.append((q - _given(q_start, "q_start")) * self.joint_scale)
+            if self.orientation_change:
+                parts.append(_given(orientation_change, "orientation_change")[:, None] * 1e3)
         table = np.column_stack(parts[1:])
         text = fixed_lines(rows, table, DECIMALS)
         if text is None:  # a value beyond ~1e5 in the file's unit: printf, slower
             line = ",".join(["%d"] + [f"%.{DECIMALS}f"] * table.shape[1]) + "\n"
             text = (line * len(table)) % tuple(np.column_stack([rows, table]).ravel().tolist())
         return text
+
+
+def _given(values: np.ndarray | None, what: str) -> np.ndarray:
+    if values is None:
+        raise ValueError(f"this commands layout has a column for {what}: give it")
+    return values
 
 
 def command_columns(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None,

@@ -68,8 +68,9 @@ def parse(source: str, text: str) -> Program:
         for a, b in _arguments(code, m.end() - 1, source, line)[:MOVES[move]]:
             arg = text[a:b]
             pose, joints = POSE.match(arg), JOINTS.match(arg)
-            if pose or joints:
-                values = np.array([float(x) for x in (pose or joints).group(1).split(",")])
+            found = pose or joints
+            if found:
+                values = np.array([float(x) for x in found.group(1).split(",")])
                 lead = len(arg) - len(arg.lstrip())
                 tail = len(arg) - len(arg.rstrip())
                 targets.append(Target(a + lead, b - tail, line, move, "pose" if pose else "joints", values))

@@ -86,7 +86,11 @@ class Chain:
         # concat([A, B, ends]).
         n_ops = len(self.ops)
         self.rot_idx = np.flatnonzero(~self.is_trans)
-        z_map, z_slices, z_points, z_rot_axes, z_trans_axes = [], [], [], [], []
+        z_map: list[int] = []
+        z_slices: list[tuple[int, int, int, int]] = []
+        z_points: list[int] = []
+        z_rot_axes: list[int] = []
+        z_trans_axes: list[int] = []
         for s, (a, b) in enumerate(zip(self.seg_slices[:-1], self.seg_slices[1:])):
             lo = len(z_map)
             z_rot_axes += [lo + m - a for m in range(a, b) if not self.is_trans[m]]
@@ -146,7 +150,7 @@ class Chain:
         n = q.shape[0]
         ends, _, _ = self._segment_frames(values, False)
         qt = q.T
-        V = None  # (3, N) position in the current frame; None while it is the origin
+        V: np.ndarray | None = None  # (3, N) position in the current frame; None while it is the origin
         for M, head in zip(reversed(ends), reversed(self.heads)):
             V = M[3][:, None] if V is None else M[:3].T @ V + M[3][:, None]
             if head is None:
@@ -163,6 +167,7 @@ class Chain:
                 W[j] = s * V[i] + c * V[j]
                 W[head.axis] = V[head.axis]
                 V = W
+        assert V is not None  # a chain has at least one segment
         return np.ascontiguousarray(np.broadcast_to(V, (3, n)).T)
 
     def forward_and_jacobian(self, values: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

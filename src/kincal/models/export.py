@@ -46,7 +46,7 @@ def _motion(motion: str, axis: int, value: float) -> np.ndarray:
     return _h(np.eye(3), np.eye(3)[axis] * value)
 
 
-def joint_frames(robot: ChainRobot) -> tuple[list[np.ndarray], np.ndarray]:
+def joint_frames(robot: Robot) -> tuple[list[np.ndarray], np.ndarray]:
     """Jₖ (4×4, z along joint k's axis, zero offset included) for every joint at q = 0, and the
     flange frame F (the end of the chain without the tool point), both relative to the base frame."""
     _geometric_only(robot)
@@ -162,6 +162,9 @@ def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = N
     else:
         raise ModelError(f"robot '{robot.name}' ({robot.structure}) is not a serial chain: it has no URDF form")
     if tool_link:
+        if tip is None:
+            raise ModelError(f"robot '{robot.name}': its robot file names no URDF tip link (source: tip_link) to "
+                             f"attach the tool link to")
         text = _add_tool(text, robot, tip, tool_link)
     tool = tuple(robot.params[f"tool.{c}"] for c in "xyz")
     check = read_urdf(text, "exported URDF", base, tool_link or tip, (0.0, 0.0, 0.0) if tool_link else tool)

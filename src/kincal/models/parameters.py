@@ -1,17 +1,18 @@
 """Named kinematic parameters: an immutable, ordered vector with SI values and a kind per entry."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import ModelError
 
 KINDS = ("length", "angle")
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class Parameters:
     """Ordered parameter vector.
 
@@ -23,11 +24,12 @@ class Parameters:
     names: tuple[str, ...]
     values: np.ndarray
     kinds: tuple[str, ...]
+    _index: dict[str, int] = field(init=False, repr=False)
 
-    def __post_init__(self) -> None:
-        names = tuple(self.names)
-        kinds = tuple(self.kinds)
-        values = np.array(self.values, dtype=float).reshape(-1)
+    def __init__(self, names: Iterable[str], values: ArrayLike, kinds: Iterable[str]) -> None:
+        names = tuple(names)
+        kinds = tuple(kinds)
+        values = np.array(values, dtype=float).reshape(-1)
         if not (len(names) == len(kinds) == values.size):
             raise ModelError(
                 f"parameters: {len(names)} names, {len(kinds)} kinds and {values.size} values must match"

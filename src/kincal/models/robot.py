@@ -27,9 +27,10 @@ from __future__ import annotations
 import dataclasses
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping, Sequence, TypeVar
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Iterable, Literal, Mapping, Sequence, TypeVar, overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import ModelError
 from .parameters import Parameters
@@ -43,14 +44,14 @@ R = TypeVar("R", bound="Robot")
 ParamValues = Mapping[str, float] | Sequence[float] | np.ndarray | Parameters
 
 
-def read_only(a) -> np.ndarray:
+def read_only(a: ArrayLike) -> np.ndarray:
     """A float copy of ``a`` that cannot be changed in place."""
     out = np.array(a, dtype=float)
     out.setflags(write=False)
     return out
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class JointSpace:
     """The joints a user commands: names, types ("revolute" or "prismatic") and limits (rad or m;
     ±inf for an unlimited joint), all immutable."""
@@ -60,9 +61,9 @@ class JointSpace:
     lower: np.ndarray
     upper: np.ndarray
 
-    def __post_init__(self) -> None:
-        names, types = tuple(self.names), tuple(self.types)
-        lo, hi = read_only(self.lower).reshape(-1), read_only(self.upper).reshape(-1)
+    def __init__(self, names: Iterable[str], types: Iterable[str], lower: ArrayLike, upper: ArrayLike) -> None:
+        names, types = tuple(names), tuple(types)
+        lo, hi = read_only(lower).reshape(-1), read_only(upper).reshape(-1)
         if not (len(names) == len(types) == lo.size == hi.size):
             raise ModelError(f"joints {list(names)}: names, types and limits must have one entry per joint")
         if len(set(names)) != len(names) or any(not n or "." in n for n in names):
@@ -107,6 +108,7 @@ class Robot(ABC):
 
     def _forward_jacobians(self, q: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         p, J = self._forward_and_jacobian(q, values, True)
+        assert J is not None  # asked for
         return p, J, self._joint_jacobian(q, values)
 
     def _pose_and_jacobian(self, q: np.ndarray, values: np.ndarray):
@@ -126,6 +128,19 @@ class Robot(ABC):
         if not single:
             return out
         return tuple(None if a is None else a[0] for a in out) if isinstance(out, tuple) else out[0]
+
+    @overload
+    def forward_and_jacobian(self, q: np.ndarray, values: np.ndarray | None = None,
+                             jacobian: Literal[True] = True) -> tuple[np.ndarray, np.ndarray]: ...
+    @overload
+    def forward_and_jacobian(self, q: np.ndarray, values: np.ndarray | None = None, *,
+                             jacobian: Literal[False]) -> tuple[np.ndarray, None]: ...
+    @overload
+    def forward_and_jacobian(self, q: np.ndarray, values: np.ndarray | None,
+                             jacobian: Literal[False]) -> tuple[np.ndarray, None]: ...
+    @overload
+    def forward_and_jacobian(self, q: np.ndarray, values: np.ndarray | None = None,
+                             jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]: ...
 
     def forward_and_jacobian(self, q: np.ndarray, values: np.ndarray | None = None,
                              jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
@@ -286,7 +301,7 @@ class Robot(ABC):
         """A copy with ``params`` (a frozen dataclass is re-validated by its __post_init__)."""
         if not dataclasses.is_dataclass(self):
             raise ModelError(f"robot '{self.name}': a robot that is not a dataclass must override _rebuild")
-        return dataclasses.replace(self, params=params)  # type: ignore[type-var]  # checked just above
+        return dataclasses.replace(self, params=params)
 
     def preferred_params(self) -> tuple[str, ...]:
         """Names to keep first when parameters are confounded (after any the user lists)."""

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 
-def rot_zyx(rz: float, ry: float, rx: float) -> np.ndarray:
-    """3x3 rotation Rz(rz) @ Ry(ry) @ Rx(rx) (angles in rad)."""
+def rot_zyx(rz: float | np.ndarray, ry: float | np.ndarray, rx: float | np.ndarray) -> np.ndarray:
+    """3x3 rotation Rz(rz) @ Ry(ry) @ Rx(rx) (angles in rad); angle arrays of shape (M,) give (3, 3, M)."""
     cz, sz, cy, sy, cx, sx = np.cos(rz), np.sin(rz), np.cos(ry), np.sin(ry), np.cos(rx), np.sin(rx)
     return np.array([
         [cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx],

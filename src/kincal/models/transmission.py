@@ -55,6 +55,7 @@ class TransmissionRobot(Wrapped):
     transmission. Its joints (``joint_space``) are the actuators; ``params`` are the chain's followed
     by the transmission's own (``drive``)."""
 
+    inner: SerialRobot  # checked in __post_init__
     joint_space: JointSpace
     maps: tuple[Map, ...]
     drive: Parameters = field(init=False, repr=False)  # the transmission's own parameters
@@ -118,12 +119,12 @@ class TransmissionRobot(Wrapped):
             if mp.type == "direct":
                 (a,), (j,) = mp.actuators, mp.chain_joints
                 q[:, j] = phi[:, a]
-                if derivatives:
+                if dq_dphi is not None:
                     dq_dphi[:, j, a] = 1.0
             elif mp.type == "screw":
                 (a,), (j,), (lead,) = mp.actuators, mp.chain_joints, p
                 q[:, j] = lead * phi[:, a] / TWO_PI
-                if derivatives:
+                if dq_dphi is not None and dq_ds is not None:
                     dq_dphi[:, j, a] = lead / TWO_PI
                     dq_ds[:, j, drive.index(mp.param_names[0])] = phi[:, a] / TWO_PI
             else:

@@ -33,8 +33,8 @@ import numpy as np
 from ..errors import ModelError
 from .chain import AXES, ROT, TRANS, Chain, Op
 from .parameters import Parameters
-from .robot import JointSpace
-from .serial import BASE_NAMES, TOOL_NAMES, ChainRobot, check_mass
+from .robot import TOOL_NAMES, JointSpace
+from .serial import BASE_NAMES, ChainRobot, check_mass
 from .transforms import rot_zyx, zyx_from_matrix
 
 ORIGIN = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -275,7 +275,7 @@ def _links(root, label: str) -> set[str]:
     return set(names)
 
 
-def _inertial(link, label: str) -> tuple[float, tuple[float, ...]]:
+def _inertial(link, label: str) -> tuple[float, tuple[float, float, float]]:
     """A link's mass (kg) and centre of mass (m, link frame) from ``<inertial>``; (0, 0) without one."""
     node = link.find("inertial")
     if node is None:
@@ -284,7 +284,7 @@ def _inertial(link, label: str) -> tuple[float, tuple[float, ...]]:
     mass = _floats(node.find("mass"), "value", 1, where)[0]
     if mass < 0.0:
         raise ModelError(f"{where}: mass {mass} kg is negative")
-    return mass, _floats(node.find("origin"), "xyz", 3, where, (0.0, 0.0, 0.0))
+    return mass, _triple(node.find("origin"), "xyz", where, (0.0, 0.0, 0.0))
 
 
 def _joint(el, label: str, links: set[str], masses: dict) -> tuple[str, dict]:
@@ -304,9 +304,9 @@ def _joint(el, label: str, links: set[str], masses: dict) -> tuple[str, dict]:
             raise ModelError(f"{where}: {tag} link '{link}' is not defined")
         ends[tag] = link
     origin = el.find("origin")
-    xyz = _floats(origin, "xyz", 3, where, (0.0, 0.0, 0.0))
-    rpy = _floats(origin, "rpy", 3, where, (0.0, 0.0, 0.0))
-    axis = _floats(el.find("axis"), "xyz", 3, where, (1.0, 0.0, 0.0))
+    xyz = _triple(origin, "xyz", where, (0.0, 0.0, 0.0))
+    rpy = _triple(origin, "rpy", where, (0.0, 0.0, 0.0))
+    axis = _triple(el.find("axis"), "xyz", where, (1.0, 0.0, 0.0))
     lower, upper = -math.inf, math.inf
     if jtype in ("revolute", "prismatic"):
         limit = el.find("limit")
@@ -319,7 +319,12 @@ def _joint(el, label: str, links: set[str], masses: dict) -> tuple[str, dict]:
     return name, {"joint": joint, "mimic": el.find("mimic") is not None, **ends}
 
 
-def _floats(node, attr: str, n: int, where: str, default=None) -> tuple[float, ...]:
+def _triple(node, attr: str, where: str, default: tuple[float, float, float]) -> tuple[float, float, float]:
+    x, y, z = _floats(node, attr, 3, where, default)
+    return x, y, z
+
+
+def _floats(node, attr: str, n: int, where: str, default: tuple[float, ...] | None = None) -> tuple[float, ...]:
     text = node.get(attr) if node is not None else None
     if text is None:
         if default is None:

@@ -166,11 +166,16 @@ class _UniqueKeys:
         return super().construct_mapping(node, deep)
 
 
-_SAFE = yaml.CSafeLoader if yaml.__with_libyaml__ else yaml.SafeLoader
+class _PyUniqueKeyLoader(_UniqueKeys, yaml.SafeLoader):
+    """PyYAML's own parser, where PyYAML was built without libyaml."""
 
 
-class _UniqueKeyLoader(_UniqueKeys, _SAFE):
-    """libyaml's parser (5-10x faster on a calibrated file's covariance) where PyYAML has it."""
+_UniqueKeyLoader: type[yaml.SafeLoader | yaml.CSafeLoader] = _PyUniqueKeyLoader
+if yaml.__with_libyaml__:
+    class _CUniqueKeyLoader(_UniqueKeys, yaml.CSafeLoader):
+        """libyaml's parser (5-10x faster on a calibrated file's covariance) where PyYAML has it."""
+
+    _UniqueKeyLoader = _CUniqueKeyLoader
 
 
 def robot_from_dict(data: dict, label: str = "robot") -> Robot:
@@ -300,6 +305,8 @@ def robot_to_yaml(robot: Robot, length_unit: str = "m", angle_unit: str = "rad")
         return urdf_yaml(robot, length_unit, angle_unit)
     if isinstance(robot, TransmissionRobot):
         return _chain_yaml(robot.inner, length_unit, angle_unit) + transmission_yaml(robot, length_unit, angle_unit)
+    if not isinstance(robot, SerialRobot):
+        raise ModelError(f"robot '{robot.name}' ({robot.structure}): kincal has no robot file for this kind of model")
     return _chain_yaml(robot, length_unit, angle_unit)
 
 

@@ -11,13 +11,18 @@ import io
 import os
 import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
 from ..units import DEG, MM
-RC = {"svg.hashsalt": "kincal", "svg.fonttype": "none", "font.size": 9, "axes.titlesize": 10,
+
+if TYPE_CHECKING:
+    from matplotlib.typing import RcKeyType
+
+RC: dict[RcKeyType, Any] = {"svg.hashsalt": "kincal", "svg.fonttype": "none", "font.size": 9, "axes.titlesize": 10,
       "axes.grid": True, "grid.alpha": 0.3, "font.family": "DejaVu Sans"}
 SVG_DPI = 110  # point clouds are embedded as images at this resolution (thousands of markers stay small)
 COLOURS = {"training": "#1f77b4", "held-out": "#d62728", "before": "#9a9a9a"}
@@ -112,7 +117,7 @@ def histogram(sets: list[PoseSet]) -> Figure:
     top = max(float(s.after_norm.max()) for s in sets) * MM
     bins = np.linspace(0.0, top * 1.02 if top > 0 else 1.0, 31)
     for s in sets:
-        ax.hist(s.after_norm * MM, bins=bins, alpha=0.6, color=s.color, label=s.title,
+        ax.hist(s.after_norm * MM, bins=bins.tolist(), alpha=0.6, color=s.color, label=s.title,
                 weights=np.full(len(s.rows), 100.0 / len(s.rows)))
     ax.set_title("distribution of the error after calibration")
     ax.set_xlabel("position error (mm)")

@@ -8,7 +8,8 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from ..identify.result import EXACT, e_statistics
-from .figures import MM, _figure, _styled
+from ..units import MM
+from .figures import _figure, _styled
 
 DESIGN_COLOURS = {"random": "#9a9a9a", "full-parameter optimised": "#1f77b4",
                   "separated-parameter optimised": "#d62728", "before calibration": "#555555"}
@@ -100,7 +101,8 @@ def validation_summary(errors: dict) -> Figure:
     fig = _figure(6.4, 3.4)
     ax = fig.add_subplot()
     stats = e_statistics(errors)
-    x, shown = np.arange(3), []
+    x = np.arange(3)
+    shown: list[float] = []
     width = 0.8 / len(stats)
     for k, (name, row) in enumerate(stats.items()):
         pos = x + (k - (len(stats) - 1) / 2) * width

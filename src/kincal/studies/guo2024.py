@@ -185,33 +185,33 @@ def guo2024_study(repeats: int = 20, m: int = 60, pool_size: int = 1000, generat
     DesignOptions(m=m, method="detmax-ide", criterion="comprehensive", units=units, generations=generations)  # checked first
     whole("repeats", repeats, 1)
     say = progress or (lambda msg: None)
-    robot = load_robot(robot)
-    kin = tuple(n for n in robot.params.names if param_type(n) in TYPES)
+    model = load_robot(robot)
+    kin = tuple(n for n in model.params.names if param_type(n) in TYPES)
     say("separating ill-conditioned parameters")
-    sep = separate_ill_conditioned(robot, candidate_pool(robot, 100, seed=0), kin)
-    pool = candidate_pool(robot, pool_size, seed=1)
-    full = identifiability(robot, pool, names=kin).identifiable
+    sep = separate_ill_conditioned(model, candidate_pool(model, 100, seed=0), kin)
+    pool = candidate_pool(model, pool_size, seed=1)
+    full = identifiability(model, pool, names=kin).identifiable
     # the paper's separated model: its own rule (lowest GCN), which may drop whole equivalent groups
-    reduced = identifiability(robot, pool, names=[n for n in kin if n not in sep.paper_choice]).identifiable
+    reduced = identifiability(model, pool, names=[n for n in kin if n not in sep.paper_choice]).identifiable
     design_names = {DESIGNS[0]: full, DESIGNS[1]: full, DESIGNS[2]: reduced}
     designs, values, histories = {}, {}, {}
     for name in DESIGNS:
         say(f"designing: {name}")
-        P = design_problem(robot, pool, design_names[name], units=units)
+        P = design_problem(model, pool, design_names[name], units=units)
         method = "random" if name == DESIGNS[0] else "detmax-ide"
-        d = select_poses(robot, pool, m=m, method=method, criterion="comprehensive", seed=0, problem=P,
+        d = select_poses(model, pool, m=m, method=method, criterion="comprehensive", seed=0, problem=P,
                          certify=False, generations=generations)
         designs[name], values[name], histories[name] = d.q, d.value, d.history
         if name == DESIGNS[2]:
             curve = pose_count_curve(P, "comprehensive", m_max=100, seed=0).to_dict()
-            gcns = gcn_curve(robot, pool, design_names[name])
-    size = {n: length_error if robot.params.kinds[robot.params.index(n)] == "length" else angle_error for n in kin}
-    eta, combos, identified, validation, repeated, points = _identify(robot, kin, designs, size, repeats,
+            gcns = gcn_curve(model, pool, design_names[name])
+    size = {n: length_error if model.params.kinds[model.params.index(n)] == "length" else angle_error for n in kin}
+    eta, combos, identified, validation, repeated, points = _identify(model, kin, designs, size, repeats,
                                                                       0.0 if protocol == "paper" else noise, protocol,
                                                                       say)
     return Guo2024Study(sep, design_names, values, eta, combos, identified, size, validation, repeated, repeats, m,
                         protocol, units, histories, curve, points, gcns,
-                        {k: robot.forward(q) for k, q in designs.items()})
+                        {k: model.forward(q) for k, q in designs.items()})
 
 
 def gcn_curve(robot, pool: np.ndarray, names, m_max: int = 100) -> dict:

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._threads import blas_threads
+from ..errors import ModelError
 from ..ties import first_best
 from ..analysis.identifiability import identifiability
 from ..analysis.separation import TYPES, param_type, separate_ill_conditioned
@@ -121,6 +122,8 @@ def prepare(m: int = 60, generations: int = 150, seed: int = 0, say=lambda msg: 
     """The study's fixed parts: the optimised design (the paper's method, as ``kincal demo``), the
     validation poses and the candidate pools for random designs (about 10 s)."""
     robot = load_robot("guo3t2r")
+    if not isinstance(robot, TransmissionRobot):
+        raise ModelError("guo3t2r: the study needs the bundled robot file's transmission-driven chain")
     kin = tuple(n for n in robot.params.names if param_type(n) in TYPES)
     say("separating ill-conditioned parameters")
     sep = separate_ill_conditioned(robot, candidate_pool(robot, 100, seed=0), kin)

@@ -149,8 +149,8 @@ def _check_done(path: Path, done: dict[int, list], tasks: Sequence[Task]) -> Non
     keys = None
     for first, records in done.items():
         task = by_first.get(first)
-        ok = task is not None and all(isinstance(r, dict) for r in records)
-        ok = ok and [r.get("trial") for r in records] == list(task.trials)
+        ok = (task is not None and all(isinstance(r, dict) for r in records)
+              and [r.get("trial") for r in records] == list(task.trials))
         if ok and records:
             keys = keys or set(records[0])
             ok = all(set(r) == keys for r in records)
