@@ -187,3 +187,78 @@ def test_compensate_reports_sigma_and_extrapolation(ur5, sim):
     assert comp.warnings and "row(s)" in comp.warnings[0]
     flagged = unc.extrapolated(comp.predicted_sigma)
     assert not flagged[:3].any() and flagged[3:].any()
+
+
+def _groups_by_brute_force(q, tol):
+    """The original quadratic grouping, the reference: each pose not yet in a group leads one and
+    takes every later free pose within tol in every joint."""
+    q = np.asarray(q, dtype=float)
+    tol = np.broadcast_to(np.asarray(tol, dtype=float), q.shape[1:]) if q.size else tol
+    label = np.full(len(q), -1)
+    for i in range(len(q)):
+        if label[i] >= 0:
+            continue
+        close = np.all(np.abs(q[i:] - q[i]) <= tol, axis=1) & (label[i:] < 0)
+        label[i:][close] = i
+    groups = [np.flatnonzero(label == g) for g in np.unique(label)]
+    return sorted((g for g in groups if len(g) > 1), key=lambda g: g[0])
+
+
+def _assert_same_groups(q, tol):
+    got, want = duplicate_groups(q, tol), _groups_by_brute_force(q, tol)
+    assert [g.tolist() for g in got] == [g.tolist() for g in want]
+    return got
+
+
+def _near_ties(rng, n_pose, tol):
+    """Poses around a few centres, each joint offset by a multiple of its tol on, just inside and just
+    outside the boundary (one ulp and 1e-12 relative), plus chains stepping 0.6·tol (A~B, B~C, not
+    A~C), in shuffled row order."""
+    n = len(tol)
+    centres = rng.uniform(-3.0, 3.0, (max(1, n_pose // 10), n))
+    steps = np.array([0.5, -0.5, 1.0, -1.0, 1 - 1e-12, 1 + 1e-12, -1 - 1e-12, 1.5, 2.0, -2.0])
+    off = np.where(rng.random((n_pose, n)) < 1.5 / n, rng.choice(steps, (n_pose, n)), 0.0)
+    q = centres[rng.integers(len(centres), size=n_pose)] + off * tol
+    ulp = rng.integers(-1, 2, (n_pose, n)) * np.spacing(q)  # one ulp either way, or none
+    q = np.where(rng.random((n_pose, n)) < 0.2, q + ulp, q)
+    chain = centres[0] + 0.6 * np.arange(n_pose // 4)[:, None] * tol * rng.choice([-1.0, 0.0, 1.0], n)
+    return np.vstack([q, chain])[rng.permutation(n_pose + len(chain))]
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_duplicate_groups_match_brute_force_on_near_ties(seed):
+    """The linear-time grouping equals the quadratic reference, pose for pose, where the tolerance
+    boundary is hit exactly and by one ulp, with chained clusters and per-joint tolerances that mix
+    revolute (rad) and prismatic (m) joints."""
+    rng = np.random.default_rng(seed)
+    n = [2, 6, 7][seed % 3]
+    tol = np.where(rng.random(n) < 0.3, 1e-5, 1e-4)  # prismatic (m) and revolute (rad) joints
+    q = _near_ties(rng, 300, tol)
+    groups = _assert_same_groups(q, tol)
+    assert len(groups) > 5 and max(len(g) for g in groups) > 3  # the case is not trivial
+    # the same poses with a scalar tolerance for all joints, and tolerances on the data's own steps
+    _assert_same_groups(q, 1e-4)
+    _assert_same_groups(q, 0.6e-4)
+    _assert_same_groups(np.round(q / 1e-4) * 1e-4, 1e-4)  # values exactly a tolerance apart
+
+
+def test_duplicate_groups_match_brute_force_on_chains_and_exact_repeats():
+    """Order decides a chain: the first pose leads, the pose two steps on (outside its tol) leads the
+    next group; exact repeats, tol 0 (equality only, -0.0 equal to 0.0), an infinite tol, huge values."""
+    chain = np.array([[0.0, 0.0], [0.6, 0.6], [1.2, 1.2], [1.8, 1.8], [0.0, 0.0]])
+    assert [g.tolist() for g in _assert_same_groups(chain, 1.0)] == [[0, 1, 4], [2, 3]]
+    assert [g.tolist() for g in _assert_same_groups(chain[[1, 0, 2, 3, 4]], 1.0)] == [[0, 1, 2, 4]]
+    rng = np.random.default_rng(5)
+    q = rng.uniform(-1, 1, (40, 6))[rng.integers(40, size=200)]  # 40 poses, each repeated exactly
+    q[:, 2] = np.where(rng.random(len(q)) < 0.5, 0.0, -0.0)
+    for tol in (0.0, 1e-9, np.inf, [1e-9, 0.0, 1e-9, 1e-9, 1e-9, 1e-9]):
+        _assert_same_groups(q, tol)
+    _assert_same_groups(1e15 + q * 1e3, 1e-12)  # beyond the grid's range: all compared, still exact
+    _assert_same_groups(np.zeros((3, 0)), 1e-9)  # no joints: every pose agrees
+
+
+def test_duplicate_groups_small_and_non_finite_input():
+    assert duplicate_groups(np.zeros((0, 6))) == [] == duplicate_groups([]) == duplicate_groups(np.zeros((1, 6)))
+    q = np.array([[0.0, np.nan], [0.0, np.nan], [1.0, 1.0], [1.0, 1.0], [np.inf, 0.0], [np.inf, 0.0]])
+    # NaN and inf never agree, not even with themselves (the former loop put all such rows in one group)
+    assert [g.tolist() for g in duplicate_groups(q, 1e-4)] == [[2, 3]]

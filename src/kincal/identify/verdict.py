@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from operator import le, sub
 from typing import Mapping
 
 import numpy as np
@@ -125,17 +126,75 @@ def robust_z(norms: np.ndarray) -> np.ndarray:
 def duplicate_groups(q: np.ndarray, tol: np.ndarray | float = 1e-9) -> list[np.ndarray]:
     """Indices of poses whose commanded joints agree within ``tol`` (per joint: rad or m, or one value
     for all), groups of ≥ 2 in row order. Each pose joins the first earlier group whose first pose it
-    matches (every joint within tol), so the grouping never depends on rounding to a grid."""
+    matches (every joint within tol), so the grouping never depends on rounding to a grid.
+
+    ``q`` is (N, n) commanded joints (rad or m), ``tol`` (n,) or a scalar (the same units); returns the
+    groups as int arrays of row indices, sorted by their first index. A NaN or infinite joint matches
+    nothing (tol finite). O(N log N): a grid only says which poses to compare
+    (:func:`_neighbour_cells`); the comparison itself is exact, in float64 as NumPy does it."""
     q = np.asarray(q, dtype=float)
-    tol = np.broadcast_to(np.asarray(tol, dtype=float), q.shape[1:]) if q.size else tol
-    label = np.full(len(q), -1)
-    for i in range(len(q)):
-        if label[i] >= 0:
-            continue
-        close = np.all(np.abs(q[i:] - q[i]) <= tol, axis=1) & (label[i:] < 0)
-        label[i:][close] = i
-    groups = [np.flatnonzero(label == g) for g in np.unique(label)]
-    return sorted((g for g in groups if len(g) > 1), key=lambda g: g[0])
+    if len(q) < 2:
+        return []
+    tol = np.broadcast_to(np.asarray(tol, dtype=float), q.shape[1:])
+    own, pose, cell = _neighbour_cells(q, tol)
+    near = np.unique(pose)  # the other poses are alone: they lead groups of one
+    rows, tols, cells = q[near].tolist(), tol.tolist(), cell.tolist()
+    start = np.searchsorted(pose, near).tolist() + [len(pose)]
+    leaders: dict[int, list[int]] = {}  # cell → the group leaders in it (positions in ``near``)
+    first = []  # in row order: the earliest leader within tol in a cell it reaches, else itself
+    for p, c_own in enumerate(own[near].tolist()):
+        best = p
+        for c in cells[start[p]:start[p + 1]]:
+            for j in leaders.get(c, ()):
+                if j < best and all(map(le, map(abs, map(sub, rows[j], rows[p])), tols)):  # |Δ| ≤ tol
+                    best = j
+        if best == p:
+            leaders.setdefault(c_own, []).append(p)
+        first.append(best)
+    label = np.arange(len(q))
+    label[near] = near[np.array(first, dtype=int)]
+    grouped = np.flatnonzero(np.bincount(label, minlength=len(q))[label] > 1)
+    order = grouped[np.argsort(label[grouped], kind="stable")]  # by first index, then row order
+    return np.split(order, np.flatnonzero(np.diff(label[order])) + 1) if len(order) else []
+
+
+def _neighbour_cells(q: np.ndarray, tol: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cells of a grid 8·tol wide per joint (hashed to uint64): each pose's own (N,), and as pairs
+    (pose, cell) sorted by pose the occupied cells, its own included if shared, where a pose within
+    tol of it can lie; a pose with no pair is within tol of no other.
+
+    In units of the cell width a pose within tol is 1/8 away per joint (plus round-off below 2^-10
+    where values are under 2^40; beyond, they are clipped together), so per joint at most one next
+    cell, the one within 1/8 + 2^-10, can hold it. The hash is linear (neighbours by addition);
+    a collision only merges cells, which adds poses to compare and never loses one."""
+    n_pose, n = q.shape
+    with np.errstate(all="ignore"):
+        u = np.nan_to_num(np.clip(q / np.where(tol > 0, 8.0 * tol, 1.0) + 0.5, -2.0 ** 40, 2.0 ** 40))
+    k, reach = np.floor(u), 0.125 + 2.0 ** -10
+    step = ((np.floor(u + reach) - k) + (np.floor(u - reach) - k)).astype(np.int64)  # per joint -1, 0, +1
+    mix = np.array(_odd_mixers(n), dtype=np.uint64)
+    own = k.astype(np.int64).astype(np.uint64) @ mix
+    pose, cell = np.arange(n_pose), own
+    for j in np.flatnonzero(step.any(axis=0)):  # each cell so far, and its next one along joint j
+        along = step[:, j][pose]
+        s = np.flatnonzero(along)
+        shift = along[s].astype(np.uint64) * mix[j]  # −mix[j] (mod 2^64) for a step of −1
+        pose, cell = np.concatenate([pose, pose[s]]), np.concatenate([cell, cell[s] + shift])
+    found, key = np.unique(np.concatenate([own, cell]), return_inverse=True)  # own cells first
+    keep = np.bincount(key[:n_pose], minlength=len(found))[key[n_pose:]] > (cell == own[pose])  # others there
+    order = np.argsort(pose[keep], kind="stable")
+    return own, pose[keep][order], cell[keep][order]
+
+
+def _odd_mixers(n: int) -> list[int]:
+    """n fixed odd 64-bit multipliers (SplitMix64 outputs), for hashing integer cells."""
+    out, x, m = [], 0, 2 ** 64 - 1
+    for _ in range(n):
+        x = (x + 0x9E3779B97F4A7C15) & m
+        z = ((x ^ (x >> 30)) * 0xBF58476D1CE4E5B9) & m
+        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & m
+        out.append(z ^ (z >> 31) | 1)
+    return out
 
 
 def repeat_tolerance(joint_types, th: "Thresholds") -> np.ndarray:
