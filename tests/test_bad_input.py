@@ -312,7 +312,7 @@ ARGS = [
          1, ["1 distinct pose"], files={"c.csv": "j1,j2,j3,j4,j5,j6\n" + "0.1,0.2,0.3,0.4,0.5,0.6\n" * 50}),
     case("design-candidates-beyond-limits", ["design", "guo3t2r", "-m", "10", "--candidates", "{d}/c.csv", "-o",
                                              "{d}/p.csv"], 1, ["break the joint limits", "row 2"],
-         files={"c.csv": "phi1,phi2,phi3,phi4,phi5\n1e6,0,0,0,0\n"}),
+         files={"c.csv": "phi1,phi2,phi3,phi4,phi5\n9e4,0,0,0,0\n"}),  # 1e6 rad: not physically possible
     case("design-negative-restarts", ["design", "ur5", "-o", "{d}/p.csv", "--restarts", "-1"], 2, ["at least 1"]),
     case("npose-max-zero", ["npose", "ur5", "--max", "0"], 2, ["at least 1"]),
     case("separate-zero-poses", ["separate", "guo3t2r", "--poses", "0"], 2, ["at least 1"]),
@@ -573,7 +573,7 @@ ROUND2 = [
                                                                                          "gravity terms"],
              extra=["--payload", "5"]),
     csv_case("prior-for-position-data", lambda b: (b / "good.csv").read_text(), 1,
-             ["--prior is for the other measurement types"], extra=["--prior", "none"]),
+             ["--prior does not apply to point data", "--error-model"], extra=["--prior", "none"]),
     csv_case("payload-1e9", lambda b: (b / "good.csv").read_text(), 1, ["more than any robot carries"],
              extra=["--payload", "1e9", "--error-model", "compliance"]),
     csv_case("payload-with-harmonics-only", lambda b: (b / "good.csv").read_text(), 1, ["has none"],
@@ -687,10 +687,10 @@ OBSERVE = [
     ocase("types-for-two-of-one-file", "pose,markers", 1, ["give one type for all 1 files or one per file"],
           content=_observations("pose")),
     ocase("std-rot-without-unit", "pose", 2, ["give a number and an angle unit"], extra=["--std-rot", "1"]),
-    ocase("error-model-with-poses", "pose", 1, ["--error-model is for position data"],
+    ocase("error-model-with-poses", "pose", 1, ["--error-model does not apply to pose data", "point data alone"],
           extra=["--error-model", "harmonics:1"]),
     ocase("pose-output-over-input", "pose", 1, ["would overwrite"], extra=["-o", "{d}/data.csv"]),
-    ocase("empty-cell-in-pose-file", "pose", 1, ["row 2, column 'qw'", "finite number"],
+    ocase("empty-cell-in-pose-file", "pose", 1, ["row 2, column 'qw'", "is not a number (the cell is empty)"],
           content=_observations("pose", qw=lambda v: "")),
     case("design-tracker-in-mm-without-unit", ["design", "ur10", "-m", "30", "-o", "{d}/d.csv", "--tracker",
                                                 "3000,0,500"], 2, ["look like mm", "3000,0,500mm"]),
@@ -719,7 +719,117 @@ OBSERVE = [
          ["a label column ('point', --label-col)"]),
 ]
 
-ALL = CSV + CSV_GOOD + YAML + YAML_GOOD + PATHS + ARGS + COMPENSATE + ROUND2 + OBSERVE
+_KIND_TEXT: dict = {}
+KIND_FLAGS = {"same-point": ["--label-col", "point", "--group-col", "placement", "--distance", "0,1,50"]}
+
+
+def _kind_text(kind):
+    """A small exact UR5 file of the type (mm, deg) as `kincal simulate --type` writes it (12 poses;
+    4 samples per socket, 6 contacts per plane)."""
+    if kind not in _KIND_TEXT:
+        from kincal.cli import build_parser
+        from kincal.cli.observe import format_of, planned
+        from kincal.observe import write_observations
+        ur5 = kincal.load_robot("ur5")
+        args = build_parser().parse_args(["simulate", "ur5", "-o", "x.csv", "--type", kind, *MMDEG])
+        obs = planned(args, ur5, ur5, kind, ur5.sample_joints(12, seed=3), 0.0, 3, per=4 if kind == "same-point" else 6)
+        path = Path(os.environ.get("TMPDIR", "/tmp")) / f"kincal-kind-{os.getpid()}.csv"
+        write_observations(path, obs, ur5, format_of(args, kind))
+        _KIND_TEXT[kind] = path.read_text()
+        path.unlink()
+    return _KIND_TEXT[kind]
+
+
+def _spoiled(kind, check):
+    """The kind's file with one defect (``check``; "as-written": none), as text."""
+    def build(base):
+        head, *rows = [line.split(",") for line in _kind_text(kind).splitlines()]
+        at = head.index
+        positions = [k for k, h in enumerate(head) if h in ("x", "y", "z") or h[-2:] in (".x", ".y", ".z")]
+        if check == "joint-column-twice":  # a second j2 with other values: never read as if it were the first
+            head, rows = head + ["j2"], [r + [repr(float(r[at("j2")]) + 0.5)] for r in rows]
+        elif check == "column-missing":
+            head[at("j3")] = "j3_"
+        elif check == "nan":
+            rows[2][at("j4")] = "nan"
+        elif check == "underscore-number":
+            rows[1][at("j1")] = "0_5"
+        elif check == "1e300":
+            rows[2][(positions or [at("j2")])[0]] = "1e300"
+        elif check == "positions-in-m-declared-mm":
+            rows = [[repr(float(c) * 1e-3) if k in positions else c for k, c in enumerate(r)] for r in rows]
+        elif check == "joints-in-rad-declared-deg":
+            rows = [[repr(float(np.deg2rad(float(c)))) if h.startswith("j") else c for h, c in zip(head, r)]
+                    for r in rows]
+        return "\n".join(",".join(r) for r in [head] + rows) + "\n"
+    return build
+
+
+# every reader check on every kind's file (one shared mechanism, _csv.Table, reads them all): the words
+# the message must hold; "{col}": the column spoiled (a coordinate, or a joint where the kind has none)
+READER_CHECKS = {
+    "joint-column-twice": ["names column(s) j2 more than once", "rename them"],
+    "column-missing": ["j3 not found", "the header has"],
+    "nan": ["NaN or infinite", "row 4, column 'j4'", "remove or fix"],
+    "underscore-number": ["row 3, column 'j1'", "'0_5' is not a number", "not 0_5"],
+    "1e300": ["row 4, column '{col}'", "1e+300", "not physically possible"],
+    "positions-in-m-declared-mm": ["they look like m;", "--length-unit m"],
+    "joints-in-rad-declared-deg": ["radians", "--angle-unit rad"],
+}
+BIG_COLUMN = {"point": "x", "pose": "x", "markers": "m1.x", "same-point": "j2", "plane": "j2"}
+
+
+def _reader_cases():
+    out = []
+    for kind in ("point", "pose", "markers", "same-point", "plane"):
+        for check, words in READER_CHECKS.items():
+            extra = list(KIND_FLAGS.get(kind, []))
+            if check == "positions-in-m-declared-mm" and kind == "plane":
+                continue  # no positions in the file; a known plane's offset is a flag
+            if check == "positions-in-m-declared-mm" and kind == "same-point":  # no positions: the distance in m
+                extra[-1], words, check = "0,1,0.05", ["as if metres were stated in a file read in mm"], "as-written"
+            out.append(pytest.param({"files": {"data.csv": _spoiled(kind, check)}, "code": 1,
+                                     "argv": ["calibrate", "ur5", "{d}/data.csv", *MMDEG, "--type", kind, *extra],
+                                     "words": [w.format(col=BIG_COLUMN[kind]) for w in words]},
+                                    id=f"{kind}-{'distance-in-m' if check == 'as-written' else check}"))
+    return out
+
+
+def _verify_measured(base):
+    """Measurements of the puu3 plan's commands (its predictions), one coordinate 1e300."""
+    rows = [line.split(",") for line in _plan().splitlines() if not line.startswith("#")]
+    at = rows[0].index
+    body = [[r[at(c)] for c in ("h1", "h2", "h3", "x_pred", "y_pred", "z_pred")] for r in rows[1:]]
+    body[2][4] = "1e300"
+    return "\n".join(",".join(r) for r in [["h1", "h2", "h3", "x", "y", "z"]] + body) + "\n"
+
+
+READERS = _reader_cases() + [
+    pytest.param({"files": {"data.csv": _spoiled("pose", "1e300")}, "code": 1,
+                  "argv": ["evaluate", "ur5", "{d}/data.csv", *MMDEG, "--type", "pose"],
+                  "words": ["row 4, column 'x'", "not physically possible"]}, id="evaluate-pose-1e300"),
+    pytest.param({"files": {"data.csv": _spoiled("point", "1e300")}, "code": 1,
+                  "argv": ["evaluate", "ur5", "{d}/data.csv", *MMDEG], "words": ["row 4, column 'x'",
+                                                                             "not physically possible"]},
+                 id="evaluate-points-1e300"),
+    case("verify-measured-1e300", ["verify", "puu3", "--plan", "{d}/p.csv", "--measured", "{d}/m.csv"], 1,
+         ["m.csv: row 4, column 'y'", "not physically possible"], files={"p.csv": lambda b: _plan(),
+                                                                         "m.csv": _verify_measured}),
+    # flag values: the fields they have, and each thing given once
+    ocase("distance-four-fields", "same-point", 2, ["'0,1,50,3'", "three fields"], extra=["--distance", "0,1,50,3"]),
+    ocase("distance-underscore", "same-point", 2, ["'0,1,5_0'", "must be a number > 0"],
+          extra=["--distance", "0,1,5_0"]),
+    ocase("distance-twice-reversed", "same-point", 2, ["'1,0,60'", "already given as '0,1,50'", "give each once"],
+          extra=["--distance", "0,1,50", "--distance", "1,0,60"]),
+    ocase("plane-label-twice", "plane", 2, ["'table:0,0,1,5'", "plane 'table' is already given as 'table:0,0,1,0'"],
+          extra=["--plane", "table:0,0,1,0", "--plane", "table:0,0,1,5"]),
+    ocase("plane-five-numbers", "plane", 2, ["'table:0,0,1,0,5'", "four numbers"],
+          extra=["--plane", "table:0,0,1,0,5"]),
+    ocase("plane-offset-1e300", "plane", 1, ["plane table", "a robot can reach"],
+          extra=["--plane", "table:0,0,1,1e300"]),
+]
+
+ALL = CSV + CSV_GOOD + YAML + YAML_GOOD + PATHS + ARGS + COMPENSATE + ROUND2 + OBSERVE + READERS
 
 
 @pytest.mark.parametrize("spec", ALL)

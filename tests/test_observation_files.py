@@ -416,3 +416,41 @@ def test_design_chooses_samples_of_a_socket_or_plane_plan(tmp_path, capsys, kind
     plan = list(csv.DictReader(open(tmp_path / "plan.csv")))
     assert len(chosen) == 25 and all(plan[int(r["input_row"]) - 2] == {k: v for k, v in r.items() if k != "input_row"}
                                      for r in chosen)
+
+
+SPOIL = {"j2 twice": (lambda h, r: (h + ["joint_2"], [x + [x[1] + 0.5] for x in r]),
+                      "the header names column(s) joint_2 more than once (columns 2, 14)"),
+         "0_5": (lambda h, r: (h, [[*x[:3], "0_5", *x[4:]] if k == 1 else x for k, x in enumerate(r)]),
+                 "row 3, column 'joint_4': '0_5' is not a number"),
+         "nan": (lambda h, r: (h, [[*x[:6], "nan", *x[7:]] if k == 4 else x for k, x in enumerate(r)]),
+                 "NaN or infinite values in row(s) 6 (first: row 6, column 'x')"),
+         "1e300": (lambda h, r: (h, [[*x[:7], 1e300, *x[8:]] if k == 2 else x for k, x in enumerate(r)]),
+                   "row 4, column 'y': 1e+300 mm is not physically possible for a robot")}
+
+
+@pytest.mark.parametrize("defect", SPOIL)
+def test_both_readers_refuse_a_defect_in_the_same_words(tmp_path, ur5, defect):
+    """The point reader and the observation reader read every column through one mechanism
+    (kincal._csv.Table): the same defect, the same message, naming the file, row and column."""
+    m = kincal.simulate(ur5, ur5.sample_joints(8, seed=1), 0.0, seed=1)
+    rows = np.column_stack([m.q, m.xyz * 1e3, np.tile([1.0, 0.0, 0.0, 0.0], (8, 1))])
+    header, rows = SPOIL[defect][0](JOINTS + ["x", "y", "z", "qw", "qx", "qy", "qz"], [list(x) for x in rows])
+    path = _write(tmp_path / "points.csv", header, rows)
+    with pytest.raises(kincal.MeasurementError) as point:
+        kincal.read_measurements(path, ur5, JOINTS, length_unit="mm")
+    assert SPOIL[defect][1] in str(point.value) and "\n" not in str(point.value)
+    for kind in ("point", "pose"):
+        with pytest.raises(kincal.MeasurementError) as obs:
+            read_observations(path, ur5, ObservationFormat(kind, tuple(JOINTS), "mm"))
+        assert str(obs.value) == str(point.value)
+
+
+def test_known_distances_and_planes_are_checked_once_and_in_reach():
+    fmt = ObservationFormat("same-point", distances=(("0", "1", 50.0), ("1", "0", 50.0)), length_unit="mm")
+    assert fmt.distances == (("0", "1", 50.0),)  # the same distance twice: once
+    with pytest.raises(ValueError, match="distance 1–0 is given twice, as 50 and 60; give each known distance once"):
+        ObservationFormat("same-point", distances=(("0", "1", 50.0), ("1", "0", 60.0)), length_unit="mm")
+    with pytest.raises(ValueError, match="more than any robot spans"):
+        ObservationFormat("same-point", distances=(("0", "1", 1e300),), length_unit="mm")
+    with pytest.raises(ValueError, match="plane table: give a non-zero normal and an offset a robot can reach"):
+        ObservationFormat("plane", planes={"table": ((0.0, 0.0, 1.0), 1e300)})

@@ -1,25 +1,38 @@
 """Reading CSV text as users' tools write it: a header line; comma, semicolon or tab separated;
 UTF-8 (with or without Excel's BOM) or Latin-1; blank and '#' lines skipped; decimal commas where
-the separator is not a comma. Shared by the measurement and observation readers; errors name the
-file and the row."""
+the separator is not a comma. Shared by the measurement and observation readers (``Table``: every
+column they read is checked the same way: named once, present, a number as a CSV cell writes it,
+finite, physically possible, converted to SI); errors name the file, the row and the column."""
 from __future__ import annotations
 
 import csv
 import io
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .errors import MeasurementError
+from .units import ANGLE_UNITS, LENGTH_UNITS, MRAD
 
 DECIMAL_COMMA = re.compile(r"^\s*[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?\s*$")
+# a number as a CSV cell writes it: ASCII digits, one optional '.', an optional exponent (Python's float()
+# also takes '0_5' as 5 and '١٢' as 12: neither is a number in a measurement file)
+NUMBER = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
+NOT_FINITE = re.compile(r"[+-]?(nan|inf|infinity)", re.IGNORECASE)  # read, then refused by row (check_finite)
+MAX_LISTED = 10  # rows named in an error message
+# SI magnitudes beyond any robot's: a coordinate or prismatic joint value 10 km from the base, a joint (a screw's
+# motor included) turned 16000 times, an orientation value (quaternion, matrix entry, angle) of 10000 are a wrong
+# cell or unit (and 1e300 overflows every square): refused by row and column
+LIMIT = {"length": 1e4, "angle": 1e5, "number": 1e4}
+LIMIT_TEXT = {"length": "10 km from the robot's base", "angle": "100000 rad (16000 turns)",
+              "number": "10000 (orientation values are at most 1 or a few turns)"}
 
 
 def sniff_delimiter(header: str, path: str) -> str:
     counts = {d: header.count(d) for d in (",", ";", "\t")}
-    best = max(counts, key=counts.get)
+    best = max(counts, key=counts.__getitem__)
     if counts[best] == 0:
         raise MeasurementError(f"{path}: cannot find a ',', ';' or tab separator in the header line")
     return best
@@ -46,18 +59,26 @@ def data_lines(text: str) -> list[tuple[int, str]]:
 
 
 def number(cell: str, delimiter: str) -> float:
-    """A cell as a float; decimal commas are read where the separator is not a comma."""
-    if delimiter != "," and DECIMAL_COMMA.match(cell):
-        cell = cell.replace(",", ".")
-    return float(cell)
+    """A cell as a float: ``NUMBER`` (decimal commas where the separator is not a comma) or nan/inf,
+    which the callers refuse; anything else (``0_5``, '0x10', '') is a ValueError."""
+    text = cell.strip()
+    if delimiter != "," and DECIMAL_COMMA.match(text):
+        text = text.replace(",", ".")
+    if not (NUMBER.fullmatch(text) or NOT_FINITE.fullmatch(text)):
+        raise ValueError(f"'{cell}' is not a number")
+    return float(text)
 
 
-def is_float(s: str, delimiter: str = ",") -> bool:
-    try:
-        number(s, delimiter)
-        return True
-    except ValueError:
-        return False
+def why_not(cell: str) -> str:
+    """What is wrong with a cell that is not a number, for the message ('' when it says itself)."""
+    text = cell.strip()
+    if not text:
+        return " (the cell is empty)"
+    if "_" in text:
+        return " (no '_' inside numbers: write 0.5 or 5, not 0_5)"
+    if "," in text:
+        return " (a decimal comma: use '.' or a ';' separated file)"
+    return ""
 
 
 def read_table(path: str) -> tuple[list[str], list[tuple[int, list[str]]], str, int]:
@@ -94,10 +115,12 @@ def check_once(path: str, header: list[str], columns, kinds: str = "joint, posit
                                f"that each name is one column")
 
 
-def cell_numbers(path: str, records, header: list[str], cols, delim: str, empty_ok: bool = False):
+def cell_numbers(path: str, records, header: list[str], cols, delim: str, empty_ok: bool = False,
+                 finite: bool = True):
     """The named columns of ``records`` ((line number, cells) pairs) as floats (N, len(cols)), each
-    cell checked: a cell that is not a finite number (or empty, with ``empty_ok``: NaN) is refused,
-    naming the file, row and column."""
+    cell checked: a cell that is not a number (or empty, with ``empty_ok``: NaN) is refused, naming
+    the file, row and column and why; with ``finite`` NaN and inf too, else they are read for the
+    caller to refuse by row (``check_finite``)."""
     idx = [header.index(c) for c in cols]
     out = np.empty((len(records), len(cols)))
     for r, (k, rec) in enumerate(records):
@@ -105,12 +128,132 @@ def cell_numbers(path: str, records, header: list[str], cols, delim: str, empty_
             cell = rec[i].strip()
             if empty_ok and cell == "":
                 out[r, j] = np.nan
-            elif not is_float(cell, delim) or not np.isfinite(number(cell, delim)):
-                raise MeasurementError(f"{path}: row {k}, column '{cols[j]}': '{rec[i]}' is not a "
-                                       f"{'number (or empty)' if empty_ok else 'finite number'}")
-            else:
+                continue
+            try:
                 out[r, j] = number(cell, delim)
+                if not finite or np.isfinite(out[r, j]):
+                    continue
+            except ValueError:
+                pass
+            kind = "finite number" if finite else "number"
+            raise MeasurementError(f"{path}: row {k}, column '{cols[j]}': '{rec[i]}' is not a {kind}"
+                                   f"{' (or empty)' if empty_ok else ''}{why_not(rec[i])}")
     return out
+
+
+def listed(rows) -> str:
+    """'5, 17, 30 and 4 more' for messages."""
+    rows = [str(int(r)) for r in rows]
+    more = f" and {len(rows) - MAX_LISTED} more" if len(rows) > MAX_LISTED else ""
+    return ", ".join(rows[:MAX_LISTED]) + more
+
+
+def check_finite(path: str, values: np.ndarray, rows: np.ndarray, cols, what: str = "values", skip=None) -> None:
+    """MeasurementError naming the rows (file line numbers) that hold NaN or infinite ``values``
+    (N, len(cols)) and the first such cell's row and column; ``skip``: cells not to look at (empty)."""
+    bad = ~np.isfinite(values) if skip is None else ~np.isfinite(values) & ~skip
+    if bad.any():
+        r, c = np.argwhere(bad)[0]
+        raise MeasurementError(f"{path}: NaN or infinite {what} in row(s) {listed(rows[bad.any(axis=1)])} (first: "
+                               f"row {rows[r]}, column '{list(cols)[c]}'); remove or fix those rows")
+
+
+def unit_of(unit: str | None) -> tuple[str, float]:
+    """(kind, SI factor) of a file unit: a length ('mm'), an angle ('deg', 'mrad') or None (plain numbers)."""
+    if unit in LENGTH_UNITS:
+        return "length", LENGTH_UNITS[unit]
+    if unit in ANGLE_UNITS:
+        return "angle", ANGLE_UNITS[unit]
+    if unit == "mrad":
+        return "angle", 1.0 / MRAD
+    if unit is not None:
+        raise ValueError(f"unknown unit '{unit}'")
+    return "number", 1.0
+
+
+def in_si(path: str, values: np.ndarray, rows: np.ndarray, cols, units) -> np.ndarray:
+    """``values`` (N, len(cols)) given in the file's ``units`` (one per column; None: plain numbers)
+    in SI; a value no robot can have (beyond ``LIMIT``) is refused naming the row, column and unit.
+    NaN (empty cells) pass."""
+    kinds, factors = zip(*(unit_of(u) for u in units)) if len(units) else ((), ())
+    si = values * np.array(factors)
+    with np.errstate(invalid="ignore"):
+        over = np.abs(si) > np.array([LIMIT[k] for k in kinds])
+    if over.any():
+        r, c = np.argwhere(over)[0]
+        unit = f" {units[c]}" if units[c] else ""
+        raise MeasurementError(f"{path}: row {rows[r]}, column '{list(cols)[c]}': {values[r, c]:g}{unit} is not "
+                               f"physically possible for a robot (beyond {LIMIT_TEXT[kinds[c]]}); fix the cell"
+                               + (f", or the {kinds[c]} unit if the file is in another" if unit else ""))
+    return si
+
+
+def check_present(path: str, header: list[str], cols, what: str = "", header_line: int = 1) -> None:
+    """MeasurementError listing the header when a column of ``cols`` is not in it; ``what``: what the
+    columns are for (e.g. '--type pose needs the orientation columns'), else they are just named."""
+    missing = [c for c in cols if c not in header]
+    if missing:
+        head = f"{what} ({', '.join(missing)} not found)" if what else f"column(s) {', '.join(missing)} not found"
+        where = f" (line {header_line})" if header_line != 1 else ""
+        raise MeasurementError(f"{path}: {head}; the header has: {', '.join(header)}{where}")
+
+
+@dataclass(frozen=True)
+class Table:
+    """A CSV read whole (``open_table``) whose columns every reader reads through ``numbers`` and
+    ``text``, checked the same way: asked for once and named once in the header (over all the reads
+    of the file, ``kinds`` naming what the columns are), present, numbers as a CSV cell writes them,
+    finite, physically possible, in SI."""
+
+    path: str
+    header: list[str]
+    records: list  # (line number, cells)
+    delim: str
+    header_line: int = 1
+    kinds: str = "joint, position or σ"
+    used: list = field(default_factory=list)  # the columns read so far
+
+    @property
+    def rows(self) -> np.ndarray:
+        return np.array([k for k, _ in self.records], dtype=int)
+
+    def need(self, cols, what: str = "") -> None:
+        """``cols`` each named once in the header and present (``what``: what they are for)."""
+        check_once(self.path, self.header, list(cols), self.kinds)
+        check_present(self.path, self.header, list(cols), what, self.header_line)
+
+    def use(self, cols) -> None:
+        """Mark ``cols`` read: each once, named once in the header, present."""
+        cols = list(cols)
+        check_once(self.path, self.header, self.used + cols, self.kinds)
+        check_present(self.path, self.header, cols, "", self.header_line)
+        self.used.extend(cols)
+
+    def text(self, col: str) -> np.ndarray:
+        self.use([col])
+        i = self.header.index(col)
+        return np.array([rec[i].strip() for _, rec in self.records])
+
+    def numbers(self, cols, units=None, empty_ok: bool = False, what: str = "values") -> np.ndarray:
+        """The columns' values in SI (N, len(cols)); ``units``: the file's unit of each column, or one
+        for all (None: plain numbers); ``empty_ok``: an empty cell is NaN."""
+        cols = list(cols)
+        self.use(cols)
+        values = cell_numbers(self.path, self.records, self.header, cols, self.delim, empty_ok, finite=False)
+        rows = self.rows
+        skip = None
+        if empty_ok:
+            idx = [self.header.index(c) for c in cols]
+            skip = np.array([[rec[i].strip() == "" for i in idx] for _, rec in self.records], dtype=bool)
+        check_finite(self.path, values, rows, cols, what, skip)
+        units = [units] * len(cols) if units is None or isinstance(units, str) else list(units)
+        return in_si(self.path, values, rows, cols, units)
+
+
+def open_table(path: str, kinds: str = "joint, position or σ") -> Table:
+    """The CSV at ``path`` read whole (``read_table``) as a ``Table``."""
+    header, records, delim, header_line = read_table(path)
+    return Table(path, header, records, delim, header_line, kinds)
 
 
 BLOCK_BYTES = 4 << 20  # a streamed file is read this many bytes at a time (whole lines)

@@ -55,27 +55,67 @@ def angle(s: str) -> float:
     return _quantity(s, {**ANGLE_UNITS, "mrad": 1.0 / MRAD}, "angle", "1mrad")
 
 
-def distance(s: str) -> tuple[str, str, float]:
-    """argparse type: 'A,B,D' (two labels and their distance in the file's length unit)."""
-    parts = csv_list(s)
+def _flag_number(text: str) -> float | None:
+    """A finite number as a data file writes it (no '0_5', no NaN or inf), or None."""
+    text = text.strip()
     try:
-        return parts[0], parts[1], float(parts[2])
-    except (IndexError, ValueError):
-        raise argparse.ArgumentTypeError(f"'{s}': give LABEL_A,LABEL_B,DISTANCE, e.g. 0,1,50 (the length unit of the "
-                                         f"file)") from None
+        v = float(text) if text.isascii() and "_" not in text else None
+    except ValueError:
+        return None
+    return v if v is not None and np.isfinite(v) else None
+
+
+def distance(s: str) -> tuple[str, str, float]:
+    """argparse type: 'A,B,D' (two different labels and their distance > 0 in the file's length unit)."""
+    parts = [p.strip() for p in s.split(",")]
+    if len(parts) != 3 or not all(parts):
+        raise argparse.ArgumentTypeError(f"'{s}': give LABEL_A,LABEL_B,DISTANCE (three fields), e.g. 0,1,50 (the "
+                                         f"length unit of the file)")
+    d = _flag_number(parts[2])
+    if d is None or d <= 0:
+        raise argparse.ArgumentTypeError(f"'{s}': the distance '{parts[2]}' must be a number > 0, e.g. 0,1,50 (the "
+                                         f"length unit of the file)")
+    if parts[0] == parts[1]:
+        raise argparse.ArgumentTypeError(f"'{s}': a distance is between two different labels, e.g. 0,1,50")
+    return parts[0], parts[1], d
 
 
 def plane(s: str) -> tuple[str, tuple[tuple[float, float, float], float]]:
     """argparse type: 'LABEL:NX,NY,NZ,C' (n·p = c in the robot's base frame; c in the file's length unit)."""
-    label, _, rest = s.partition(":")
-    try:
-        nx, ny, nz, c = (float(x) for x in csv_list(rest))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{s}': give LABEL:NX,NY,NZ,C, e.g. table:0,0,1,0") from None
-    n = np.array([nx, ny, nz])
-    if not label.strip() or not np.isfinite(n).all() or np.linalg.norm(n) == 0 or not np.isfinite(c):
-        raise argparse.ArgumentTypeError(f"'{s}': give a label, a non-zero normal and an offset")
-    return label.strip(), (tuple(n / np.linalg.norm(n)), c)
+    label, colon, rest = s.partition(":")
+    values = [_flag_number(x) for x in rest.split(",")]
+    if not colon or not label.strip() or len(values) != 4 or None in values:
+        raise argparse.ArgumentTypeError(f"'{s}': give LABEL:NX,NY,NZ,C (a label and four numbers), e.g. "
+                                         f"table:0,0,1,0")
+    nx, ny, nz, c = (v for v in values if v is not None)
+    norm = float(np.linalg.norm([nx, ny, nz]))
+    if norm == 0:
+        raise argparse.ArgumentTypeError(f"'{s}': the normal is zero; give the plane's normal, e.g. table:0,0,1,0")
+    return label.strip(), ((nx / norm, ny / norm, nz / norm), c)
+
+
+class Once(argparse.Action):
+    """A repeatable flag (--distance, --plane) each of whose values names one thing: the same pair of
+    labels (in either order) or plane label again with another value is refused, naming both; an
+    exact repeat is dropped."""
+
+    def __call__(self, parser, namespace, value, option_string=None) -> None:
+        given = list(vars(namespace).get(self.dest) or [])
+        key = frozenset(value[:2]) if len(value) == 3 else value[0]
+        other = next((v for v in given if (frozenset(v[:2]) if len(v) == 3 else v[0]) == key), None)
+        if other is not None and other[-1] != value[-1]:
+            what = f"the distance {value[0]}–{value[1]}" if len(value) == 3 else f"plane '{value[0]}'"
+            raise argparse.ArgumentError(self, f"'{_flag_text(value)}': {what} is already given as "
+                                               f"'{_flag_text(other)}'; give each once, with its one value")
+        setattr(namespace, self.dest, given if other is not None else given + [value])
+
+
+def _flag_text(value) -> str:
+    """A --distance or --plane value as it is written on the command line."""
+    if len(value) == 3:
+        return f"{value[0]},{value[1]},{value[2]:g}"
+    label, (n, c) = value
+    return f"{label}:{n[0]:g},{n[1]:g},{n[2]:g},{c:g}"
 
 
 def add_flags(p: argparse.ArgumentParser) -> None:
@@ -92,9 +132,9 @@ def add_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--label-col", help="same-point / plane: the label column (default 'point' / 'plane')")
     g.add_argument("--group-col", help="same-point: a group column, e.g. the plate placement; labels and distances "
                                        "apply inside each group")
-    g.add_argument("--distance", type=distance, action="append", default=[], metavar="A,B,D",
+    g.add_argument("--distance", type=distance, action=Once, default=[], metavar="A,B,D",
                    help="same-point: a known distance between labels A and B (length unit of the file); repeatable")
-    g.add_argument("--plane", type=plane, action="append", default=[], metavar="LABEL:NX,NY,NZ,C",
+    g.add_argument("--plane", type=plane, action=Once, default=[], metavar="LABEL:NX,NY,NZ,C",
                    help="plane: a known plane n·p = c in the robot's base frame (c in the file's length unit)")
     g.add_argument("--std-pos", type=length, help="position σ with its unit, e.g. 0.1mm (defaults: point 0.015mm, "
                                                   "pose 0.1mm, markers/sockets/planes 0.05mm)")

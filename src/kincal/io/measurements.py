@@ -4,71 +4,71 @@ from __future__ import annotations
 import csv
 import io as _io
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._atomic import write_text_atomic
-from .._csv import check_once, data_lines, is_float, number, read_table, read_text, sniff_delimiter
+from .._csv import MAX_LISTED as MAX_LISTED, listed as listed  # for messages naming rows, here and in identify/
+from .._csv import check_finite, data_lines, open_table, read_table, read_text, sniff_delimiter
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..units import unit_factor
 from .unit_checks import check_degrees, check_spread
 
-MAX_LISTED = 10  # rows named in an error message
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class Measurements:
     """N measured poses: joint values q (N, n) in rad/m and positions xyz (N, 3) in m.
 
-    ``rows`` are the 1-based line numbers in ``source`` (header = line 1) so errors can name them.
+    ``rows`` are the 1-based line numbers in ``source`` (header = line 1) so errors can name them
+    (default: 2, 3, …, as written by ``write_measurements``).
     """
 
     q: np.ndarray
     xyz: np.ndarray
     joint_names: tuple[str, ...]
-    source: str = "<memory>"
-    rows: np.ndarray | None = field(default=None)
-    std: np.ndarray | None = field(default=None)  # (N, 3) m: the instrument's σ per sample and axis, if given
-    units: tuple[str, str] | None = None  # (length, angle) units the file was read in, for advice; None: SI
-    session: np.ndarray | None = field(default=None)  # (N,) str: the session (file) of each pose; None: one session
+    source: str
+    rows: np.ndarray
+    std: np.ndarray | None  # (N, 3) m: the instrument's σ per sample and axis, if given
+    units: tuple[str, str] | None  # (length, angle) units the file was read in, for advice; None: SI
+    session: np.ndarray | None  # (N,) str: the session (file) of each pose; None: one session
 
-    def __post_init__(self) -> None:
-        q = np.array(self.q, dtype=float)
-        xyz = np.array(self.xyz, dtype=float)
+    def __init__(self, q: ArrayLike, xyz: ArrayLike, joint_names: Sequence[str], source: str = "<memory>",
+                 rows: ArrayLike | None = None, std: ArrayLike | None = None, units: tuple[str, str] | None = None,
+                 session: ArrayLike | None = None) -> None:
+        q, xyz = np.array(q, dtype=float), np.array(xyz, dtype=float)
         if q.ndim != 2 or xyz.ndim != 2 or xyz.shape[1] != 3 or q.shape[0] != xyz.shape[0]:
             raise MeasurementError(
-                f"{self.source}: q must be (N, n) and xyz (N, 3) with the same N; got {q.shape} and {xyz.shape}"
+                f"{source}: q must be (N, n) and xyz (N, 3) with the same N; got {q.shape} and {xyz.shape}"
             )
-        if q.shape[1] != len(self.joint_names):
-            raise MeasurementError(f"{self.source}: {q.shape[1]} joint columns but {len(self.joint_names)} names")
-        rows = np.arange(2, q.shape[0] + 2) if self.rows is None else np.asarray(self.rows, dtype=int)
-        _check_finite(self.source, np.column_stack([q, xyz]), rows, "values")
-        if self.std is not None:
-            std = np.array(self.std, dtype=float)
+        if q.shape[1] != len(joint_names):
+            raise MeasurementError(f"{source}: {q.shape[1]} joint columns but {len(joint_names)} names")
+        rows = np.arange(2, q.shape[0] + 2) if rows is None else np.asarray(rows, dtype=int)
+        check_finite(source, np.column_stack([q, xyz]), rows, [*joint_names, "x", "y", "z"])
+        if std is not None:
+            std = np.array(std, dtype=float)
             if std.shape != xyz.shape:
-                raise MeasurementError(f"{self.source}: σ must be (N, 3) like the positions, got {std.shape}")
-            _check_finite(self.source, std, rows, "measurement σ")
+                raise MeasurementError(f"{source}: σ must be (N, 3) like the positions, got {std.shape}")
+            check_finite(source, std, rows, ["σ x", "σ y", "σ z"], "measurement σ")
             bad = ~np.all(std > 0, axis=1)
             if bad.any():
-                raise MeasurementError(f"{self.source}: measurement σ must be > 0; row(s) "
+                raise MeasurementError(f"{source}: measurement σ must be > 0; row(s) "
                                        f"{', '.join(map(str, rows[bad][:MAX_LISTED]))} give 0 or less")
             std.setflags(write=False)
-            object.__setattr__(self, "std", std)
-        if self.session is not None:
-            session = np.asarray(self.session, dtype=str)
+        if session is not None:
+            session = np.asarray(session, dtype=str)
             if session.shape != (q.shape[0],):
-                raise MeasurementError(f"{self.source}: one session label per pose expected, got {session.shape}")
+                raise MeasurementError(f"{source}: one session label per pose expected, got {session.shape}")
             session.setflags(write=False)
-            object.__setattr__(self, "session", session)
         for a in (q, xyz, rows):
             a.setflags(write=False)
-        object.__setattr__(self, "q", q)
-        object.__setattr__(self, "xyz", xyz)
-        object.__setattr__(self, "rows", rows)
-        object.__setattr__(self, "joint_names", tuple(self.joint_names))
+        for name, value in (("q", q), ("xyz", xyz), ("joint_names", tuple(joint_names)), ("source", source),
+                            ("rows", rows), ("std", std), ("units", units), ("session", session)):
+            object.__setattr__(self, name, value)
 
     def __len__(self) -> int:
         return self.q.shape[0]
@@ -118,44 +118,14 @@ class Measurements:
                          angle_unit or (self.units[1] if self.units else None))
 
 
-def listed(rows) -> str:
-    """'5, 17, 30 and 4 more' for messages."""
-    rows = [str(int(r)) for r in rows]
-    more = f" and {len(rows) - MAX_LISTED} more" if len(rows) > MAX_LISTED else ""
-    return ", ".join(rows[:MAX_LISTED]) + more
-
-
-def _check_finite(source: str, values: np.ndarray, rows: np.ndarray, what: str) -> None:
-    """MeasurementError naming the rows (file line numbers) that hold NaN or infinite values."""
-    bad = ~np.all(np.isfinite(values), axis=1)
-    if bad.any():
-        listed = ", ".join(str(r) for r in rows[bad][:MAX_LISTED])
-        more = f" and {bad.sum() - MAX_LISTED} more" if bad.sum() > MAX_LISTED else ""
-        raise MeasurementError(f"{source}: NaN or infinite {what} in row(s) {listed}{more}; remove or fix those rows")
-
-
-def _read_columns(path: str, columns: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
-    """Numeric values of ``columns`` from a CSV with a header, (rows, len(columns)), and the rows'
-    1-based line numbers. Blank and '#' lines are skipped. Errors name the file, row and column."""
-    header, records, delim, header_line = read_table(path)
-    check_once(path, header, columns)
-    missing = [c for c in columns if c not in header]
-    if missing:
-        where = f" (line {header_line})" if header_line != 1 else ""
-        raise MeasurementError(f"{path}: column(s) {', '.join(missing)} not found; the header has: "
-                               f"{', '.join(header)}{where}")
-    idx = [header.index(c) for c in columns]
-    rows, line_no = [], []
-    for k, rec in records:
-        try:
-            rows.append([number(rec[i], delim) for i in idx])
-        except ValueError:
-            col = next(header[i] for i in idx if not is_float(rec[i], delim))
-            raise MeasurementError(
-                f"{path}: row {k}, column '{col}': '{rec[header.index(col)]}' is not a number"
-            ) from None
-        line_no.append(k)
-    return np.array(rows), np.array(line_no)
+def _read_columns(path: str, columns: Sequence[str], units: Sequence[str], what: str = "values"
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """SI values of ``columns`` (given in ``units``, one per column) from a CSV with a header, (rows,
+    len(columns)), and the rows' 1-based line numbers. Blank and '#' lines are skipped. Each column is
+    checked as the observation reader checks it (``_csv.Table``: named once, present, numbers as a CSV
+    cell writes them, finite, physically possible); errors name the file, row and column."""
+    table = open_table(path)
+    return table.numbers(columns, units, what=what), table.rows
 
 
 def _joint_columns(path: str, robot: Robot, joint_cols: Sequence[str] | None) -> list[str]:
@@ -166,6 +136,13 @@ def _joint_columns(path: str, robot: Robot, joint_cols: Sequence[str] | None) ->
             f"has {robot.n_joints} joints; give one column per joint"
         )
     return cols
+
+
+def _joint_units(joint_types: Sequence[str], length_unit: str, angle_unit: str, path: str) -> list[str]:
+    """The file's unit of each joint column (checked): the angle unit for revolute joints, the length
+    unit for prismatic ones."""
+    _unit(length_unit, "length", path), _unit(angle_unit, "angle", path)
+    return [angle_unit if t == "revolute" else length_unit for t in joint_types]
 
 
 def _joint_scale(joint_types: Sequence[str], length_unit: str, angle_unit: str, path: str) -> np.ndarray:
@@ -184,9 +161,7 @@ def read_joints(
     """Joint values (N, n) in rad/m from a CSV with a header (e.g. poses to measure)."""
     path = str(path)
     cols = _joint_columns(path, robot, joint_cols)
-    q, lines = _read_columns(path, cols)
-    _check_finite(path, q, lines, "joint values")
-    q = q * _joint_scale(robot.joint_types, length_unit, angle_unit, path)
+    q, _ = _read_columns(path, cols, _joint_units(robot.joint_types, length_unit, angle_unit, path), "joint values")
     check_degrees(path, q, robot, angle_unit)
     return q
 
@@ -198,9 +173,8 @@ def read_positions(path: str | os.PathLike, xyz_cols: Sequence[str] = ("x", "y",
     path = str(path)
     if len(xyz_cols) != 3:
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
-    xyz, lines = _read_columns(path, list(xyz_cols))
-    _check_finite(path, xyz, lines, "positions")
-    xyz = xyz * _unit(length_unit, "length", path)
+    _unit(length_unit, "length", path)
+    xyz, lines = _read_columns(path, list(xyz_cols), [length_unit] * 3, "positions")
     return (xyz, lines) if with_rows else xyz
 
 
@@ -226,11 +200,11 @@ def read_measurements(
     if len(xyz_cols) != 3:
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
     std_cols = _std_columns(path, std_cols)
-    data, lines = _read_columns(path, cols + list(xyz_cols) + std_cols)
-    n, lf = robot.n_joints, _unit(length_unit, "length", path)
-    meas = Measurements(data[:, :n] * _joint_scale(robot.joint_types, length_unit, angle_unit, path),
-                        data[:, n:n + 3] * lf, robot.joint_names, path, lines,
-                        data[:, n + 3:] * lf if std_cols else None, (length_unit, angle_unit))
+    units = _joint_units(robot.joint_types, length_unit, angle_unit, path) + [length_unit] * (3 + len(std_cols))
+    data, lines = _read_columns(path, cols + list(xyz_cols) + std_cols, units)
+    n = robot.n_joints
+    meas = Measurements(data[:, :n], data[:, n:n + 3], robot.joint_names, path, lines,
+                        data[:, n + 3:] if std_cols else None, (length_unit, angle_unit))
     meas.check_robot(robot, length_unit, angle_unit)
     return meas
 
@@ -295,7 +269,8 @@ def write_joints(
     write_text_atomic(path, buf.getvalue())
 
 
-def write_selected_rows(path: str | os.PathLike, source: str | os.PathLike, indices: Sequence[int]) -> None:
+def write_selected_rows(path: str | os.PathLike, source: str | os.PathLike, indices: Sequence[int] | np.ndarray
+                        ) -> None:
     """The data rows ``indices`` (0-based, in file order, blank and '#' lines not counted) of the CSV
     ``source``, in that order, every column as the user gave it (IDs, names, other columns), after
     ``input_row``: the row's line number in ``source``; written atomically with the source's separator."""

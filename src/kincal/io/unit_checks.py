@@ -14,8 +14,10 @@ SPREAD_RATIO = 2.0  # measured vs predicted spread at the same poses; model erro
 
 
 def spread(x: np.ndarray) -> float:
-    """RMS distance (m) of the points x (N, 3) from their centroid."""
-    return float(np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1))))
+    """RMS distance (m) of the points x (N, 3) from their centroid (inf for values whose squares overflow:
+    the readers refuse such values, data built in memory may hold them)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return float(np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1))))
 
 
 def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, length_unit: str | None,
@@ -74,6 +76,9 @@ def unit_hint(ratio: float, length_unit: str | None, what: str = "measured posit
     the unit the positions are really in when one explains the factor."""
     table = {**LENGTH_UNITS, **OTHER_LENGTHS}
     declared = length_unit if length_unit in table else "m"
+    if not (np.isfinite(ratio) and ratio > 0):  # no spread at all, or one beyond floating point
+        return (f"{what} spread {'not at all' if ratio == 0 else 'beyond any robot'} while the robot moves at the "
+                f"same joint values (read as '{declared}'): check the position columns and their values")
     true = table[declared] / ratio  # the SI value of the unit the numbers are really in
     name = min(table, key=lambda k: abs(np.log(table[k] / true)))
     side = f"{ratio:.3g}x more" if ratio > 1 else f"{1 / ratio:.3g}x less"

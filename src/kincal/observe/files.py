@@ -15,7 +15,8 @@ Every type has the robot's joint columns (or ``joint_cols``) in ``angle_unit`` /
 
 σ are stated (``std_pos`` m, ``std_rot`` rad: a statement wins), or read per sample from the
 columns ``std_pos`` (the file's length unit) and, for poses, ``std_rot_mrad`` (mrad) — points:
-measurement_std_x/y/z —, or the type's default. A file whose columns do not fit the declared type is refused in one line.
+measurement_std_x/y/z —, or the type's default. A file whose columns do not fit the declared type
+is refused in one line, and every column is checked as the point reader checks it (``_csv.Table``).
 """
 from __future__ import annotations
 
@@ -24,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._atomic import write_text_atomic
-from .._csv import cell_numbers, read_table
+from .._csv import LIMIT, Table, open_table
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..units import unit_factor
@@ -36,6 +37,7 @@ KINDS = ("point", "pose", "markers", "same-point", "plane")
 DEFAULT_STD = {"point": (15e-6, None), "pose": (0.1e-3, 1e-3), "markers": (50e-6, None),
                "same-point": (50e-6, None), "plane": (50e-6, None)}
 POINT_STD = ("measurement_std_x", "measurement_std_y", "measurement_std_z")
+COLUMN_KINDS = "joint, position, orientation, marker, label or σ"  # what an observation file's columns are
 
 
 def check_pose_columns(orientation: str, length_unit: str, angle_unit: str, xyz_cols, rot_cols) -> None:
@@ -76,9 +78,34 @@ class ObservationFormat:
         for what, v in (("std_pos", self.std_pos), ("std_rot", self.std_rot)):
             if v is not None and not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{what} must be a positive number, got {v}")
+        self._check_lengths()
+
+    def _check_lengths(self) -> None:
+        """Known distances: two labels, a length > 0 that a robot can span, each pair once (in either
+        order; a repeat with the same length is dropped); known planes: a normal and an offset a robot
+        can reach; σ that a robot can have (ValueError)."""
+        lf = unit_factor(self.length_unit, "length")
+        kept: dict[frozenset, tuple[str, str, float]] = {}
         for a, b, d in self.distances:
             if not (np.isfinite(d) and d > 0) or a == b:
                 raise ValueError(f"distance {a}–{b}: give two different labels and a length > 0, got {d}")
+            if d * lf > LIMIT["length"]:
+                raise ValueError(f"distance {a}–{b}: {d:g} {self.length_unit} is more than any robot spans; give it "
+                                 f"in the file's length unit ({self.length_unit})")
+            key = frozenset((a, b))
+            if key in kept and kept[key][2] != d:
+                raise ValueError(f"distance {a}–{b} is given twice, as {kept[key][2]:g} and {d:g}; give each known "
+                                 f"distance once")
+            kept.setdefault(key, (a, b, d))
+        object.__setattr__(self, "distances", tuple(kept.values()))
+        for label, (n, c) in self.planes.items():
+            n = np.asarray(n, float)
+            if n.shape != (3,) or not np.isfinite(n).all() or not np.linalg.norm(n) or not np.isfinite(c) \
+                    or abs(c) * lf > LIMIT["length"]:
+                raise ValueError(f"plane {label}: give a non-zero normal and an offset a robot can reach (in "
+                                 f"{self.length_unit}), got {', '.join(f'{v:g}' for v in n)}, {c:g}")
+        if self.std_pos is not None and self.std_pos > LIMIT["length"]:
+            raise ValueError(f"std_pos {self.std_pos:g} m is more than any instrument's σ")
 
     @property
     def label(self) -> str:
@@ -92,113 +119,94 @@ class ObservationFormat:
 STD_POS, STD_ROT = "std_pos", "std_rot_mrad"  # per-sample σ columns: the file's length unit, and mrad
 
 
-def _stds(t: "_Table", fmt: ObservationFormat, lf: float):
+def _stds(t: Table, fmt: ObservationFormat):
     """The σ (m, rad): as stated (``fmt.std_pos``, ``fmt.std_rot``: a statement wins), else per sample
     from the ``std_pos`` (length unit) and ``std_rot_mrad`` columns when the file has them, else the
     type's default."""
     pos, rot = fmt.std()
-    out = []
-    for col, factor, value, stated in ((STD_POS, lf, pos, fmt.std_pos), (STD_ROT, 1e-3, rot, fmt.std_rot)):
+    out: list = []
+    for col, unit, value, stated in ((STD_POS, fmt.length_unit, pos, fmt.std_pos),
+                                     (STD_ROT, "mrad", rot, fmt.std_rot)):
         if stated is not None or col not in t.header:
             out.append(value)
             continue
-        v = t.numbers([col])[:, 0]
+        v = t.numbers([col], unit)[:, 0]
         if (v <= 0).any():
             raise MeasurementError(f"{t.path}: row {t.rows[np.flatnonzero(v <= 0)[0]]}, column '{col}': a σ must "
                                    f"be > 0")
-        out.append(v * factor)
+        out.append(v)
     return out[0], out[1]
 
 
 def read_observations(path: str, robot: Robot, fmt: ObservationFormat = ObservationFormat()) -> Observation:
-    """One observation set from ``path`` as ``fmt`` declares it (see the module docstring)."""
+    """One observation set from ``path`` as ``fmt`` declares it (see the module docstring). Every
+    column is read as the point reader reads it (``_csv.Table``): named once in the header and used
+    for one thing, present, a number as a CSV cell writes it, finite and physically possible."""
     path = str(path)
-    header, records, delim, _ = read_table(path)
-    table = _Table(path, header, records, delim)
-    q = table.joints(robot, fmt)
+    table = open_table(path, COLUMN_KINDS)
+    q = _joints(table, robot, fmt)
     lf = unit_factor(fmt.length_unit, "length")
     reader = {"point": _point, "pose": _pose, "markers": _markers, "same-point": _same_point, "plane": _plane}
     return reader[fmt.kind](table, robot, fmt, q, lf)
 
 
-@dataclass(frozen=True)
-class _Table:
-    path: str
-    header: list[str]
-    records: list
-    delim: str
-
-    @property
-    def rows(self) -> np.ndarray:
-        return np.array([k for k, _ in self.records])
-
-    def need(self, cols, fmt: ObservationFormat, what: str) -> None:
-        missing = [c for c in cols if c not in self.header]
-        if missing:
-            raise MeasurementError(f"{self.path}: --type {fmt.kind} needs {what} ({', '.join(missing)} not found); "
-                                   f"the header has: {', '.join(self.header)}")
-
-    def text(self, col: str) -> np.ndarray:
-        i = self.header.index(col)
-        return np.array([rec[i].strip() for _, rec in self.records])
-
-    def numbers(self, cols, empty_ok: bool = False) -> np.ndarray:
-        return cell_numbers(self.path, self.records, self.header, list(cols), self.delim, empty_ok)
-
-    def joints(self, robot: Robot, fmt: ObservationFormat) -> np.ndarray:
-        cols = list(fmt.joint_cols or robot.joint_names)
-        if len(cols) != robot.n_joints:
-            raise MeasurementError(f"{self.path}: {len(cols)} joint columns given ({', '.join(cols)}) but robot "
-                                   f"'{robot.name}' has {robot.n_joints} joints; give one column per joint")
-        missing = [c for c in cols if c not in self.header]
-        if missing:
-            raise MeasurementError(f"{self.path}: joint column(s) {', '.join(missing)} not found (--joint-cols names "
-                                   f"them); the header has: {', '.join(self.header)}")
-        scale = [unit_factor(fmt.angle_unit if t == "revolute" else fmt.length_unit, "angle" if t == "revolute"
-                             else "length") for t in robot.joint_types]
-        return self.numbers(cols) * np.array(scale)
+def _need(t: Table, cols, fmt: ObservationFormat, what: str) -> None:
+    t.need(cols, f"--type {fmt.kind} needs {what}")
 
 
-def _point(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PointObs:
-    t.need(fmt.xyz_cols, fmt, "the position columns (--xyz-cols)")
+def _joints(t: Table, robot: Robot, fmt: ObservationFormat) -> np.ndarray:
+    cols = list(fmt.joint_cols or robot.joint_names)
+    if len(cols) != robot.n_joints:
+        raise MeasurementError(f"{t.path}: {len(cols)} joint columns given ({', '.join(cols)}) but robot "
+                               f"'{robot.name}' has {robot.n_joints} joints; give one column per joint")
+    _need(t, cols, fmt, "the joint columns, named by --joint-cols")
+    units = [fmt.angle_unit if kind == "revolute" else fmt.length_unit for kind in robot.joint_types]
+    return t.numbers(cols, units)
+
+
+def _point(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PointObs:
+    _need(t, fmt.xyz_cols, fmt, "the position columns (--xyz-cols)")
+    xyz = t.numbers(fmt.xyz_cols, fmt.length_unit)
     columns = fmt.std_pos is None and all(c in t.header for c in POINT_STD)
-    std = t.numbers(POINT_STD) * lf if columns else fmt.std()[0]
-    return PointObs(q, t.rows, t.path, xyz=t.numbers(fmt.xyz_cols) * lf, std=std)
+    std = t.numbers(POINT_STD, fmt.length_unit) if columns else fmt.std()[0]
+    return PointObs(q, t.rows, t.path, xyz=xyz, std=std)
 
 
-def _pose(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PoseObs:
+def _pose(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PoseObs:
     cols = list(fmt.rot_cols or default_columns(fmt.orientation))
-    t.need(fmt.xyz_cols, fmt, "the position columns (--xyz-cols)")
-    t.need(cols, fmt, f"orientation columns {', '.join(cols)} for --orientation {fmt.orientation} (other names: "
-                      f"--rot-cols; position only: --type point)")
+    _need(t, fmt.xyz_cols, fmt, "the position columns (--xyz-cols)")
+    _need(t, cols, fmt, f"orientation columns {', '.join(cols)} for --orientation {fmt.orientation} (other names: "
+                        f"--rot-cols; position only: --type point)")
+    xyz = t.numbers(fmt.xyz_cols, fmt.length_unit)
     values = t.numbers(cols)
     _, _, Rf = flange_point(robot, q, robot.params.values, robot.tool_point())
     convention_check(Rf, values, fmt.orientation, t.path, t.rows)
-    pos, rot = _stds(t, fmt, lf)
-    return PoseObs(q, t.rows, t.path, xyz=t.numbers(fmt.xyz_cols) * lf,
-                   R=to_matrices(values, fmt.orientation, t.path, t.rows), std_pos=pos, std_rot=rot)
+    pos, rot = _stds(t, fmt)
+    return PoseObs(q, t.rows, t.path, xyz=xyz, R=to_matrices(values, fmt.orientation, t.path, t.rows), std_pos=pos,
+                   std_rot=rot)
 
 
-def _markers(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> MarkersObs:
-    names = fmt.markers or tuple(c[:-2] for c in t.header if c.endswith(".x") and f"{c[:-2]}.y" in t.header
-                                 and f"{c[:-2]}.z" in t.header)
+def _markers(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> MarkersObs:
+    names = fmt.markers or tuple(dict.fromkeys(c[:-2] for c in t.header if c.endswith(".x") and f"{c[:-2]}.y" in
+                                               t.header and f"{c[:-2]}.z" in t.header))
     if not names:
         raise MeasurementError(f"{t.path}: --type markers needs columns NAME.x, NAME.y, NAME.z per marker (none "
                                f"found); the header has: {', '.join(t.header)}")
     cols = [f"{m}.{a}" for m in names for a in "xyz"]
-    t.need(cols, fmt, "the marker columns NAME.x, NAME.y, NAME.z")
-    xyz = t.numbers(cols, empty_ok=True).reshape(len(t.records), len(names), 3) * lf
+    _need(t, cols, fmt, "the marker columns NAME.x, NAME.y, NAME.z")
+    xyz = t.numbers(cols, fmt.length_unit, empty_ok=True)
+    xyz = xyz.reshape(len(t.records), len(names), 3)
     partial = np.isnan(xyz).any(axis=2) & ~np.isnan(xyz).all(axis=2)
     if partial.any():
         r, m = np.argwhere(partial)[0]
         raise MeasurementError(f"{t.path}: row {t.rows[r]}: marker {names[m]} has some coordinates empty, not all; "
                                f"a marker not seen leaves all three empty")
-    return MarkersObs(q, t.rows, t.path, xyz=xyz, names=tuple(names), std=_stds(t, fmt, lf)[0])
+    return MarkersObs(q, t.rows, t.path, xyz=xyz, names=tuple(names), std=_stds(t, fmt)[0])
 
 
-def _labels(t: _Table, fmt: ObservationFormat) -> tuple[np.ndarray, np.ndarray | None]:
-    t.need([fmt.label] + ([fmt.group_col] if fmt.group_col else []), fmt,
-           f"a label column ('{fmt.label}', --label-col)" + (" and the group column" if fmt.group_col else ""))
+def _labels(t: Table, fmt: ObservationFormat) -> tuple[np.ndarray, np.ndarray | None]:
+    _need(t, [fmt.label] + ([fmt.group_col] if fmt.group_col else []), fmt,
+          f"a label column ('{fmt.label}', --label-col)" + (" and the group column" if fmt.group_col else ""))
     labels = t.text(fmt.label)
     if (labels == "").any():
         raise MeasurementError(f"{t.path}: row {t.rows[np.flatnonzero(labels == '')[0]]}: empty label in column "
@@ -206,7 +214,7 @@ def _labels(t: _Table, fmt: ObservationFormat) -> tuple[np.ndarray, np.ndarray |
     return labels, (t.text(fmt.group_col) if fmt.group_col else None)
 
 
-def _same_point(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> SamePointObs:
+def _same_point(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> SamePointObs:
     labels, group = _labels(t, fmt)
     known = set(labels.tolist())
     for a, b, _ in fmt.distances:
@@ -216,22 +224,22 @@ def _same_point(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> SameP
                                    f"'{fmt.label}' does not have (it has: {', '.join(sorted(known))})")
     if group is None:
         return SamePointObs(q, t.rows, t.path, labels=labels, distances=tuple((a, b, d * lf) for a, b, d in
-                                                                                fmt.distances), std=_stds(t, fmt, lf)[0])
+                                                                                fmt.distances), std=_stds(t, fmt)[0])
     full = np.array([f"{g}/{lab}" for g, lab in zip(group, labels)])
     have = set(full.tolist())
     dist = tuple((f"{g}/{a}", f"{g}/{b}", d * lf) for g in dict.fromkeys(group.tolist()) for a, b, d in fmt.distances
                  if f"{g}/{a}" in have and f"{g}/{b}" in have)
-    return SamePointObs(q, t.rows, t.path, labels=full, distances=dist, group=group, std=_stds(t, fmt, lf)[0])
+    return SamePointObs(q, t.rows, t.path, labels=full, distances=dist, group=group, std=_stds(t, fmt)[0])
 
 
-def _plane(t: _Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PlaneObs:
+def _plane(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PlaneObs:
     labels, _ = _labels(t, fmt)
     missing = [lab for lab in fmt.planes if lab not in set(labels.tolist())]
     if missing:
         raise MeasurementError(f"{t.path}: known plane(s) {', '.join(missing)} not in column '{fmt.label}' (it has: "
                                f"{', '.join(sorted(set(labels.tolist())))})")
     known = {lab: (np.asarray(n, float), float(c) * lf) for lab, (n, c) in fmt.planes.items()}
-    return PlaneObs(q, t.rows, t.path, labels=labels, known=known, std=_stds(t, fmt, lf)[0])
+    return PlaneObs(q, t.rows, t.path, labels=labels, known=known, std=_stds(t, fmt)[0])
 
 
 def write_observations(path: str, obs: Observation, robot: Robot, fmt: ObservationFormat = ObservationFormat()) -> None:
@@ -249,16 +257,18 @@ def write_observations(path: str, obs: Observation, robot: Robot, fmt: Observati
 def _columns_of(obs: Observation, fmt: ObservationFormat, lf: float) -> tuple[list[str], list[list[str]]]:
     """The type's own columns (before the joints) and their cells, per sample."""
     num = lambda a: [["" if not np.isfinite(v) else f"{v:.12g}" for v in row] for row in a]  # noqa: E731
-    if obs.kind in ("point", "pose"):
+    if isinstance(obs, (PointObs, PoseObs)):
         values = obs.xyz / lf
         header = list(fmt.xyz_cols)
-        if obs.kind == "pose":
+        if isinstance(obs, PoseObs):
             values = np.column_stack([values, from_matrices(obs.R, fmt.orientation)])
             header += list(fmt.rot_cols or default_columns(fmt.orientation))
         return header, num(values)
-    if obs.kind == "markers":
+    if isinstance(obs, MarkersObs):
         return [f"{m}.{a}" for m in obs.names for a in "xyz"], num(obs.xyz.reshape(len(obs.q), -1) / lf)
-    if obs.kind == "same-point" and obs.group is not None:
+    if not isinstance(obs, (SamePointObs, PlaneObs)):
+        raise ValueError(f"cannot write observations of the type {obs.kind}")
+    if isinstance(obs, SamePointObs) and obs.group is not None:
         labels = [lab.split("/", 1)[1] for lab in obs.labels]
         return [fmt.group_col or "placement", fmt.label], [[g, lab] for g, lab in zip(obs.group, labels)]
     return [fmt.label], [[lab] for lab in obs.labels]
