@@ -41,6 +41,7 @@ demo: setup
 	@echo "or for good:  ln -s $(CURDIR)/$(VENV)/bin/kincal ~/.local/bin/kincal   (then: kincal --help)"
 
 test: setup
+	$(PY) -m mypy
 	$(PY) -m pytest -q
 
 # the inner loop: everything but the tests marked slow (under a minute)

@@ -105,3 +105,18 @@ def test_every_scoped_option_is_a_flag_or_an_option():
     known = set(_flags(parser, "calibrate")) | set(_flags(parser, "evaluate"))
     known |= {f.name for f in dataclasses.fields(kincal.FitOptions)}
     assert set(SCOPES) <= known, set(SCOPES) - known
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", KINDS)
+def test_every_report_flag_is_read(files, kind, capsys, tmp_path):
+    """kincal report on a file calibrated from each kind reads every one of its flags."""
+    extra = _read_back(kind, files[kind], capsys)
+    cal = tmp_path / "cal.yaml"
+    assert main(["calibrate", "ur5", str(files[kind]), "--type", kind, *extra, "-o", str(cal), "--force"]) in (0, 4)
+    parser, args = _parse(["report", str(cal), "-o", str(tmp_path / "r.html")])
+    assert args.func(args) in (0, 4)
+    capsys.readouterr()
+    read = object.__getattribute__(args, "_read")
+    missing = [flag for dest, flag in _flags(parser, "report").items() if dest not in read and dest != "rebase"]
+    assert missing == [], f"report of {kind} data: {missing} neither read nor refused"

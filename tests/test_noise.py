@@ -7,15 +7,22 @@ from kincal.identify.noise import extra_variance
 from kincal.io.measurements import Measurements
 
 
-def test_extra_variance_is_the_moment_estimate():
-    r2 = np.random.default_rng(1).chisquare(1, 3000) * 4e-8
-    var = np.full(3000, 1e-10)
-    dof = 2900.0
-    assert extra_variance(r2, var, dof) == pytest.approx(r2.sum() / dof - 1e-10, rel=1e-9)  # equal σ: closed form
-    var = np.random.default_rng(2).uniform(1e-12, 4e-9, 3000)  # unequal: the equation holds at the estimate
+def test_extra_variance_is_the_robust_estimate():
+    """median(r² / (σ² + s²)) = median of χ²₁ · dof / n: the closed form for equal σ, the equation itself
+    for unequal σ, 0 when the stated σ explain the residuals, and 1 % of gross outliers barely move it
+    (the mean-square estimate would grow 20-fold)."""
+    n, dof = 3000, 2900.0
+    r2 = np.random.default_rng(1).chisquare(1, n) * 4e-8
+    t = 0.454936423119572 * dof / n  # the median of χ²₁ (scipy.stats.chi2(1).median())
+    assert extra_variance(r2, np.full(n, 1e-10), dof) == pytest.approx(np.median(r2) / t - 1e-10, rel=1e-9)
+    var = np.random.default_rng(2).uniform(1e-12, 4e-9, n)
     s2 = extra_variance(r2, var, dof)
-    assert np.sum(r2 / (var + s2)) == pytest.approx(dof, rel=1e-9)
-    assert extra_variance(r2, r2.sum() / dof * np.ones(3000) * 2, dof) == 0.0  # the stated σ explain it all
+    assert np.median(r2 / (var + s2)) == pytest.approx(t, rel=1e-6)
+    assert extra_variance(r2, np.full(n, 1.0), dof) == 0.0
+    gross = r2.copy()
+    gross[:30] = 1e-4  # 30 components of 10 mm among errors of 0.2 mm
+    assert extra_variance(gross, var, dof) == pytest.approx(s2, rel=0.05)
+    assert np.mean(gross) / np.mean(r2) > 20
 
 
 def _ur10_sets(seed: int, model_error: float):

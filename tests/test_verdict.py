@@ -262,3 +262,22 @@ def test_duplicate_groups_small_and_non_finite_input():
     q = np.array([[0.0, np.nan], [0.0, np.nan], [1.0, 1.0], [1.0, 1.0], [np.inf, 0.0], [np.inf, 0.0]])
     # NaN and inf never agree, not even with themselves (the former loop put all such rows in one group)
     assert [g.tolist() for g in duplicate_groups(q, 1e-4)] == [[2, 3]]
+
+
+def test_the_outlier_limit_rises_with_the_number_of_poses():
+    """The limit is the χ₃ quantile with tail 0.01/n in robust z (scipy as the reference), never below
+    outlier_z; 100,000 poses of pure 3-D Gaussian noise name no outlier, where the fixed limit of 5
+    named some (and set off the diagnosis, 55 extra fits)."""
+    from scipy import optimize, stats
+
+    from kincal.identify.verdict import Thresholds, robust_z
+
+    chi = stats.chi(3)
+    med = chi.median()
+    mad = optimize.brentq(lambda d: chi.cdf(med + d) - chi.cdf(med - d) - 0.5, 1e-6, 5.0)
+    th = Thresholds()
+    for n in (10, 500, 1000, 10**5, 10**6):
+        expected = max(5.0, (chi.isf(0.01 / n) - med) / (1.4826 * mad))
+        assert th.outlier_limit(n) == pytest.approx(expected, rel=1e-6)
+    z = robust_z(np.linalg.norm(np.random.default_rng(3).standard_normal((100_000, 3)), axis=1))
+    assert np.count_nonzero(z > 5.0) > 0 and np.count_nonzero(z > th.outlier_limit(len(z))) == 0

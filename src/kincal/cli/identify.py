@@ -49,15 +49,7 @@ def fit_options(args) -> kincal.FitOptions:
 
 
 def cmd_calibrate(args) -> int:
-    twice = [d for k, d in enumerate(args.data) if Path(d).resolve() in {Path(e).resolve() for e in args.data[:k]}]
-    if twice:
-        raise ValueError(f"{twice[0]} is given twice as a session: each pose would count twice (the σ too small, "
-                         f"and a session held out against its own copy); give each session file once")
-    kinds = observe.types_of(args)
-    kincal.identify.refuse_inapplicable(kinds, args.given)
-    if args.same_frame and len(args.data) == 1 and not args.test:
-        raise ValueError("--same-frame declares one measurement frame for several files (sessions or --test); "
-                         "with one file and no --test it changes nothing: leave it out")
+    kinds = _kinds_checked(args)
     if set(kinds) != {"point"}:
         return observe.cmd_calibrate(args, kinds, _thresholds(args))
     reports = [args.report, json_path(args.report)] if args.report else []
@@ -110,6 +102,20 @@ def cmd_calibrate(args) -> int:
         err.print(f"kincal: calibration did not converge: {res.message}")
         return EXIT_NOT_CONVERGED
     return 0
+
+
+def _kinds_checked(args) -> list[str]:
+    """The measurement kind of every data file, after the checks of the files and flags given."""
+    twice = [d for k, d in enumerate(args.data) if Path(d).resolve() in {Path(e).resolve() for e in args.data[:k]}]
+    if twice:
+        raise ValueError(f"{twice[0]} is given twice as a session: each pose would count twice (the σ too small, "
+                         f"and a session held out against its own copy); give each session file once")
+    kinds = observe.types_of(args)
+    kincal.identify.refuse_inapplicable(kinds, args.given)
+    if args.same_frame and len(args.data) == 1 and not args.test:
+        raise ValueError("--same-frame declares one measurement frame for several files (sessions or --test); "
+                         "with one file and no --test it changes nothing: leave it out")
+    return kinds
 
 
 def cmd_evaluate(args) -> int:

@@ -222,7 +222,9 @@ def cmd_report(args, record: dict) -> int:
     from kincal.report import observation_report
 
     data, opts = record["data"], dict(record["observation_options"])
-    reading = argparse.Namespace(**{k: data["reading"].get(k) for k in READING}, json=args.json,
+    given = {k: vars(args)[k] for k in ("joint_cols", "xyz_cols", "length_unit", "angle_unit")}  # report's flags
+    reading = argparse.Namespace(**{k: given[k] if given.get(k) is not None else data["reading"].get(k)
+                                    for k in READING}, json=args.json,
                                  same_frame=bool(args.same_frame or data.get("same_frame")))
     reading.distance = [tuple(d) for d in reading.distance or []]
     reading.plane = [(lab, (tuple(n), c)) for lab, (n, c) in reading.plane or []]
@@ -265,7 +267,8 @@ def _check_units(sets: list, robot, args) -> None:
         check_radians(obs.source, obs.q, robot, args.angle_unit)
         found = _measured_points(obs)
         if found is not None:
-            check_spread(obs.source, *found, robot, args.length_unit, args.angle_unit)
+            q, xyz = found
+            check_spread(obs.source, q, xyz, robot, args.length_unit, args.angle_unit)
 
 
 def _measured_points(obs):
@@ -332,8 +335,8 @@ def planned(args, robot, true, kind: str, q, std: float, seed: int, per: int | N
         obs = simulate_same_point(true, points, per or SOCKETS_PER_POINT, distances, std, seed=seed)
         return dataclasses.replace(obs, std=pos, group=np.array([lab.split("/")[0] for lab in obs.labels]))
     planes = plane_plan(robot, seed=seed)
-    obs = simulate_planes(true, planes, per or CONTACTS_PER_PLANE, known=tuple(planes), std=std, seed=seed)
-    return dataclasses.replace(obs, std=pos)
+    contacts = simulate_planes(true, planes, per or CONTACTS_PER_PLANE, known=tuple(planes), std=std, seed=seed)
+    return dataclasses.replace(contacts, std=pos)
 
 
 def flags_to_use(obs, length_unit: str) -> str:

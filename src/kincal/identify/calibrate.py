@@ -95,7 +95,7 @@ def _fit(robot: Robot, meas: Measurements, o: FitOptions, say, t0: float) -> Cal
     w = None
     if o.loss == "linear":
         fit, final, counts, history = _solve(problem, o, say)
-        if problem.weights is not None and fit.converged:
+        if fit.converged:
             problem, fit, final = _with_model_error(problem, final, fit, o, say)
     else:  # reweight from the start: a least-squares fit pulled by outliers is a poor place to begin
         say("fitting with reweighting (robust loss)")
@@ -113,19 +113,23 @@ def _fit(robot: Robot, meas: Measurements, o: FitOptions, say, t0: float) -> Cal
 
 def _with_model_error(problem: CalibrationProblem, final: CalibrationProblem, fit: LMResult, o: FitOptions, say):
     """The fit repeated with weights 1/(σᵢ² + s²), s² what the model leaves unexplained beyond the
-    stated σ (:mod:`kincal.identify.noise`), until s settles: (problem, fit, the problem fitted)."""
-    meas, s_old = problem.meas, 0.0
+    stated σ (:mod:`kincal.identify.noise`), until s settles: (problem, fit, the problem fitted). Data
+    without σ (no weights) are left as fitted."""
+    meas, s_old, std, weights = problem.meas, 0.0, problem.meas.std, final.weights
+    if std is None or weights is None:
+        return problem, fit, final
     for _ in range(ROUNDS):
         r = meas.xyz - final.start.with_params(final.embed(fit.x)).forward(meas.q)
-        s2 = extra_variance(r**2, meas.std**2, r.size - len(final.names))
+        s2 = extra_variance(r**2, std**2, r.size - len(final.names))
         if abs(np.sqrt(s2) - s_old) <= SETTLED * max(np.sqrt(s2), 1e-12):
             break
         s_old = float(np.sqrt(s2))
-        w = relative_weights(meas.std, s2)
-        if np.allclose(w, final.weights, rtol=1e-9, atol=0.0):  # equal σ: the same weights, the same fit
+        w = relative_weights(std, s2)
+        if np.allclose(w, weights, rtol=1e-9, atol=0.0):  # equal σ: the same weights, the same fit
             break
         say(f"refitting with {s_old * 1e3:.3g} mm of model error beside the stated σ")
         problem, final = (dataclasses.replace(p, weights=w) for p in (problem, final))
+        weights = w
         fit = fit_lm(final, fit.x, max_iter=o.max_iter)
     return problem, fit, final
 
@@ -205,13 +209,13 @@ def _result(robot: Robot, problem: CalibrationProblem, final: CalibrationProblem
         stats_before=EvaluationStats.from_errors(meas.xyz - problem.start.forward(meas.q)),  # frame registered
         stats_after=EvaluationStats.from_errors(res),
         iterations=counts[0], evaluations=counts[1], converged=fit.converged, message=fit.message,
-        time_s=elapsed, options=options, identifiability=problem.ident, history=history, covariance=cov)
+        time_s=elapsed, options=options, identifiability=problem.ident, history=history, covariance=cov,
+        measurements=meas, pose_z=robust_z(np.linalg.norm(res, axis=1)))
 
 
 def judge(res: CalibrationResult, problem: CalibrationProblem) -> CalibrationResult:
-    """The result with its verdict and per-pose robust z-scores (limits: ``res.options.thresholds``)."""
-    meas, th = problem.meas, res.options.thresholds
-    z = robust_z(np.linalg.norm(res.residuals, axis=1))
+    """The result with its verdict (limits: ``res.options.thresholds``) from its per-pose robust z-scores."""
+    meas, th, z = problem.meas, res.options.thresholds, res.pose_z
     reasons = [] if res.converged else [Reason("refused", "not-converged", f"the fit did not converge "
                                                                              f"({res.message})")]
     if problem.base == "estimate":
@@ -224,13 +228,13 @@ def judge(res: CalibrationResult, problem: CalibrationProblem) -> CalibrationRes
                                                   if np.isfinite(res.std[n])}, th)
     if res.mounting:
         reasons += mounting_reasons(res.nominal.tool_point(), res.robot.tool_point(), th)
-    inliers = res.residuals[z <= th.outlier_z]  # outliers are named on their own, not smeared into σ
+    inliers = res.residuals[z <= th.outlier_limit(len(z))]  # outliers are named on their own, not smeared into σ
     pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
     reasons += drift_reasons(meas.rows, np.linalg.norm(res.residuals, axis=1))
     reasons += residual_reasons(pos_sigma, noise_level(meas.std, th), th)
     reasons += outlier_reasons(meas.rows, z, th, res.options.loss)
     reasons += duplicate_reasons(meas.rows, problem.repeated_poses)
-    return dataclasses.replace(res, verdict=Verdict.from_reasons(reasons), measurements=meas, pose_z=z)
+    return dataclasses.replace(res, verdict=Verdict.from_reasons(reasons))
 
 
 def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,

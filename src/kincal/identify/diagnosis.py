@@ -30,7 +30,7 @@ import functools
 import itertools
 import math
 from dataclasses import dataclass, replace
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -39,7 +39,11 @@ from ..io.measurements import Measurements
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import ANGLE_UNITS, LENGTH_UNITS, MM, OTHER_LENGTHS
 from ..ties import order_with_ties
+from .options import FitOptions
 from .verdict import STATUSES, robust_z
+
+if TYPE_CHECKING:  # the result holds a Diagnosis: result imports this module
+    from .result import CalibrationResult
 
 EXPLAIN_RATIO = 0.5  # a candidate whose fit leaves less than half the residual σ explains the data
 NOT_WORSE = 2.0  # ... or one with a better verdict and a residual σ at most this many times the original
@@ -97,11 +101,36 @@ class Diagnosis:
                 "found": [c.to_dict() for c in self.found]}
 
 
-Change = Callable[[Robot, Measurements, object], tuple[Robot, Measurements, object]]
+Change = Callable[[Robot, Measurements, FitOptions], tuple[Robot, Measurements, FitOptions]]
 
 
 def _data(change: Callable[[Measurements], Measurements]) -> Change:
     return lambda robot, meas, options: (robot, change(meas), options)
+
+
+def _times_xyz(k: float) -> Change:
+    """The positions times ``k``."""
+    return _data(lambda m: _with(m, xyz=m.xyz * k))
+
+
+def _negated(j: int) -> Change:
+    """Joint column ``j`` negated."""
+    return _data(lambda m: _with(m, q=_set(m.q, [j], -m.q[:, [j]])))
+
+
+def _offset(j: int, deg: float) -> Change:
+    """``deg`` degrees added to joint column ``j``."""
+    return _data(lambda m: _with(m, q=_set(m.q, [j], m.q[:, [j]] + np.deg2rad(deg))))
+
+
+def _swap(n: int, a: int, b: int) -> Change:
+    """Joint columns ``a`` and ``b`` (of ``n``) swapped."""
+    return _data(lambda m: _with(m, q=m.q[:, _swapped(n, a, b)]))
+
+
+def _other_robot(other: Robot) -> Change:
+    """The robot replaced by ``other``."""
+    return lambda r, m, o: (other, m, o)
 
 
 def _with(meas: Measurements, q=None, xyz=None, index=None) -> Measurements:
@@ -112,7 +141,7 @@ def _with(meas: Measurements, q=None, xyz=None, index=None) -> Measurements:
 def _length_units(meas: Measurements) -> list[tuple[Cause, Change]]:
     table = {**LENGTH_UNITS, **OTHER_LENGTHS}
     declared = meas.units[0] if meas.units else "m"
-    out = []
+    out: list[tuple[Cause, Change]] = []
     for name, f in table.items():
         if name == declared:
             continue
@@ -120,7 +149,7 @@ def _length_units(meas: Measurements) -> list[tuple[Cause, Change]]:
                f"convert them to mm (x{f / 1e-3:g}) and read them with --length-unit mm")
         k = f / table[declared]
         out.append((Cause("length-unit", f"the positions are in {name}, read as {declared}", fix),
-                    _data(lambda m, k=k: _with(m, xyz=m.xyz * k))))
+                    _times_xyz(k)))
     return out
 
 
@@ -150,11 +179,12 @@ def _set(q: np.ndarray, cols, values) -> np.ndarray:
 
 
 def _joint_columns(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]:
-    names, out = robot.joint_names, []
+    names = robot.joint_names
+    out: list[tuple[Cause, Change]] = []
     for j, name in enumerate(names):
         out.append((Cause("joint-sign", f"{name} counts the other way (its column is negated)",
                           f"negate {name}'s column, or check its axis direction in the robot file"),
-                    _data(lambda m, j=j: _with(m, q=_set(m.q, [j], -m.q[:, [j]])))))
+                    _negated(j)))
     for j, name in enumerate(names):
         if robot.joint_types[j] != "revolute":
             continue
@@ -162,11 +192,11 @@ def _joint_columns(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change
             out.append((Cause("joint-zero", f"{name}'s column is {deg:g} deg short of the robot file's joint angle "
                                             f"(the controller's zero differs)",
                               f"add {deg:g} deg to {name}'s column, or move the joint's zero in the robot file"),
-                        _data(lambda m, j=j, d=deg: _with(m, q=_set(m.q, [j], m.q[:, [j]] + np.deg2rad(d))))))
+                        _offset(j, deg)))
     for a, b in itertools.combinations(range(len(names)), 2):
         out.append((Cause("joint-order", f"the columns of {names[a]} and {names[b]} are swapped",
                           "swap them (give --joint-cols in the robot's joint order)"),
-                    _data(lambda m, a=a, b=b: _with(m, q=m.q[:, _swapped(len(names), a, b)]))))
+                    _swap(len(names), a, b)))
     return out
 
 
@@ -198,7 +228,7 @@ def _bundled(name: str) -> Robot:
 
 def _robot_files(robot: Robot) -> list[tuple[Cause, Change]]:
     from ..models.yaml_io import bundled_robots
-    out = []
+    out: list[tuple[Cause, Change]] = []
     for name in bundled_robots():
         other = _bundled(name)
         if name == robot.name or other.joint_types != robot.joint_types or type(other) is not type(robot):
@@ -207,11 +237,11 @@ def _robot_files(robot: Robot) -> list[tuple[Cause, Change]]:
             other = other.with_tool_point(robot.tool_point())
         out.append((Cause("robot-file", f"the data belong to another robot: they fit the bundled '{name}'",
                           f"calibrate with robot '{name}', or check the robot file's lengths"),
-                    lambda r, m, o, other=other: (other, m, o)))
+                    _other_robot(other)))
     return out
 
 
-def _setups(robot: Robot, options) -> list[tuple[Cause, Change]]:
+def _setups(robot: Robot, options: FitOptions) -> list[tuple[Cause, Change]]:
     """Changes of the fit's set-up (full calibration only): the frame, the tool point."""
     out: list[tuple[Cause, Change]] = []
     if options.base == "fixed" and robot.base_params():
@@ -227,17 +257,18 @@ def _setups(robot: Robot, options) -> list[tuple[Cause, Change]]:
     return out
 
 
-def outlier_poses(robot: Robot, meas: Measurements, options) -> np.ndarray:
+def outlier_poses(robot: Robot, meas: Measurements, options: FitOptions) -> np.ndarray:
     """Indices into ``meas`` of the poses a robust (Huber) refit puts more than ``outlier_z`` robust σ
     off, at most MAX_OUTLIER_SHARE of the poses (none when more are that far off: then it is not a few
     bad poses). Indices, not file rows: several sessions repeat their files' line numbers."""
     from .calibrate import calibrate
     robust = calibrate(robot, meas, _quiet(options).replace(loss="huber", method="lm", f_scale=None))
-    bad = np.flatnonzero(robust_z(np.linalg.norm(robust.residuals, axis=1)) > options.thresholds.outlier_z)
+    z = robust_z(np.linalg.norm(robust.residuals, axis=1))
+    bad = np.flatnonzero(z > options.thresholds.outlier_limit(len(z)))
     return bad if 0 < len(bad) <= max(1, int(MAX_OUTLIER_SHARE * len(meas))) else bad[:0]
 
 
-def _quiet(options):
+def _quiet(options: FitOptions) -> FitOptions:
     """The options for a trial fit: no diagnosis, no model choice, no drift, nothing left out."""
     return options.replace(diagnose=False, reject_outliers=False, error_model=None, drift=False, pso=None,
                            method="lm" if options.method == "pso" else options.method)
@@ -255,7 +286,7 @@ def _screen(robot: Robot, meas: Measurements) -> float:
         return math.inf
 
 
-def _full(cause: Cause, change: Change, robot: Robot, meas: Measurements, options) -> Cause | None:
+def _full(cause: Cause, change: Change, robot: Robot, meas: Measurements, options: FitOptions) -> Cause | None:
     """``cause`` with the σ and verdict of the full calibration with its change applied (None if impossible)."""
     from .calibrate import calibrate
     try:
@@ -266,7 +297,7 @@ def _full(cause: Cause, change: Change, robot: Robot, meas: Measurements, option
     return replace(cause, sigma=res.sigma, status=res.verdict.status)
 
 
-def diagnose(res) -> Diagnosis:
+def diagnose(res: CalibrationResult) -> Diagnosis:
     """Try the candidate causes of a doubtful fit ``res`` (a :class:`CalibrationResult` with its
     measurements) and rank those that explain the data; see the module docstring."""
     robot, meas, options = res.nominal, res.measurements, res.options
@@ -277,7 +308,7 @@ def diagnose(res) -> Diagnosis:
     as_given = _screen(robot, block)
     order = [k for k in order_with_ties(screened, descending=False) if screened[k] < EXPLAIN_RATIO * as_given]
     trials = [data[k] for k in sorted(order[:MAX_FULL])] + _setups(robot, options)
-    bad = outlier_poses(robot, meas, options) if len(meas) > 10 else []
+    bad = outlier_poses(robot, meas, options) if len(meas) > 10 else np.zeros(0, dtype=int)
     if len(bad):
         rows = meas.rows[bad]
         exclude = f"--exclude {','.join(map(str, rows))}" if meas.session is None else "--exclude in their files"
@@ -290,7 +321,7 @@ def diagnose(res) -> Diagnosis:
     return Diagnosis(res.sigma, res.verdict.status, _ranked(tried, res), n_tried)
 
 
-def _ranked(tried: list[Cause], res) -> tuple[Cause, ...]:
+def _ranked(tried: list[Cause], res: CalibrationResult) -> tuple[Cause, ...]:
     """The causes that explain the data, best verdict first, then smallest σ; ties (kincal.ties) keep
     the canonical order."""
     level = STATUSES.index(res.verdict.status)

@@ -4,10 +4,12 @@ A tracker's σ per sample (its repeatability, 2–60 µm) are measurement noise.
 calibrated model also hold what the model cannot describe (0.1–0.3 mm on a real arm), the same at
 every sample whatever the instrument's σ. Weighting by 1/σᵢ² alone lets the few most precise samples
 steer the fit by their model error; weighting by 1/(σᵢ² + s²) with s² estimated from the residuals
-gives the stated σ their weight only where they dominate. s² is the moment estimate:
-Σ rᵢ² / (σᵢ² + s²) = degrees of freedom (0 when the stated σ explain the residuals).
+gives the stated σ their weight only where they dominate. s² is estimated from the median of
+rᵢ² / (σᵢ² + s²), so a few outliers are named as outliers, not taken for model error.
 """
 from __future__ import annotations
+
+from statistics import NormalDist
 
 import numpy as np
 
@@ -16,21 +18,32 @@ SETTLED = 0.05  # relative change of s that ends the rounds
 
 
 def extra_variance(r2: np.ndarray, var: np.ndarray, dof: float) -> float:
-    """s² ≥ 0 (m² or rad²) with Σ r2 / (var + s²) = dof: the variance the stated ``var`` (same shape
-    as the squared residuals ``r2``) do not explain; 0 when they explain it."""
+    """s² ≥ 0 (m² or rad²): the variance the stated ``var`` (same shape as the squared residual
+    components ``r2``) do not explain, estimated robustly so that a few outliers do not pass for model
+    error: the median of r2 / (var + s²) equals the median of χ²₁ scaled by ``dof`` / n (the degrees of
+    freedom the fit left); 0 when the stated σ explain the residuals (χ²/dof within SIGNIFICANT
+    standard errors of 1: the stated σ are kept as they are unless the data clearly contradict them)."""
     r2, var = np.asarray(r2, float).ravel(), np.asarray(var, float).ravel()
-    if dof <= 0 or float(np.sum(r2 / var)) <= dof:
+    if dof <= 0 or r2.size == 0:
         return 0.0
-    lo, hi = 0.0, float(np.sum(r2)) / dof  # at hi every term is below r2/hi: the sum is below dof
+    target = CHI2_1_MEDIAN * dof / r2.size
+    chi2 = float(np.sum(r2 / var)) / dof  # 1 ± √(2/dof) when the stated σ are right
+    if chi2 <= 1.0 + SIGNIFICANT * np.sqrt(2.0 / dof) or float(np.median(r2 / var)) <= target:
+        return 0.0
+    lo, hi = 0.0, float(np.max(r2)) / target  # at hi every ratio is below the target
     for _ in range(200):  # bisection on a decreasing function; 200 halvings reach round-off
         mid = 0.5 * (lo + hi)
-        if float(np.sum(r2 / (var + mid))) > dof:
+        if float(np.median(r2 / (var + mid))) > target:
             lo = mid
         else:
             hi = mid
         if hi - lo <= 1e-12 * hi:
             break
     return 0.5 * (lo + hi)
+
+
+SIGNIFICANT = 3.0  # the residuals must exceed the stated σ by this many standard errors of χ²/dof
+CHI2_1_MEDIAN = NormalDist().inv_cdf(0.75) ** 2  # the median of χ² with one degree of freedom (0.4549)
 
 
 def relative_weights(std: np.ndarray, s2: float) -> np.ndarray:

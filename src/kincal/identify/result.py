@@ -5,6 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._csv import listed
 from ..analysis.identifiability import Identifiability
 from ..analysis.uncertainty import ModelUncertainty
 from ..io.measurements import Measurements
@@ -13,7 +14,7 @@ from ..units import MM, display
 from .diagnosis import Diagnosis
 from .options import FitOptions
 from .select import ErrorModelChoice
-from .verdict import Verdict, listed, mounting_line, noise_level
+from .verdict import Verdict, mounting_line, noise_level
 
 
 @dataclass(frozen=True)
@@ -38,7 +39,8 @@ class EvaluationStats:
                    float(np.percentile(e, 95)), int(e.size))
 
     def to_dict(self) -> dict:
-        out = {"mean": self.mean, "rms": self.rms, "max": self.max, "std": self.std, "p95": self.p95, "n": self.n}
+        out: dict[str, object] = {"mean": self.mean, "rms": self.rms, "max": self.max, "std": self.std,
+                                  "p95": self.p95, "n": self.n}
         if self.predicted_sigma is not None:
             out.update(predicted_sigma=list(self.predicted_sigma), extrapolated_rows=list(self.extrapolated_rows))
         return {**out, "warnings": list(self.warnings)}
@@ -81,12 +83,12 @@ class CalibrationResult:
     message: str
     time_s: float
     identifiability: Identifiability
+    measurements: Measurements  # the data fitted (rows name the input lines)
+    pose_z: np.ndarray  # (N,) robust z-score of each pose's error norm
+    covariance: np.ndarray  # (K, K) in the order of ``names`` (inf σ: rows/cols of zeros)
     options: FitOptions = field(default_factory=FitOptions)  # the options used (to reproduce the fit)
     history: tuple[float, ...] = ()  # particle swarm: best mean squared residual per iteration (PSO fitness)
     verdict: Verdict = Verdict("good")
-    measurements: Measurements | None = None  # the data fitted (rows name the input lines)
-    pose_z: np.ndarray | None = None  # (N,) robust z-score of each pose's error norm
-    covariance: np.ndarray | None = None  # (K, K) in the order of ``names`` (inf σ: rows/cols of zeros)
     error_model_choice: ErrorModelChoice | None = None  # error_model "auto": the blocked-CV comparison
     error_model_notes: tuple[str, ...] = ()  # terms dropped after the fit, and why
     drift: dict | None = None  # drift=True: per axis x/y/z the drift over the session (m) and its std
@@ -139,7 +141,8 @@ class CalibrationResult:
 
     @property
     def outlier_z(self) -> float:
-        return self.options.thresholds.outlier_z
+        """The outlier limit in robust σ for this many poses (:meth:`Thresholds.outlier_limit`)."""
+        return self.options.thresholds.outlier_limit(len(self.residuals))
 
     def record(self) -> dict:
         """What a calibrated robot file keeps beside the model: the parameter covariance and training σ
@@ -158,18 +161,13 @@ class CalibrationResult:
         poses (for prediction σ and extrapolation warnings where the model is used)."""
         ok = np.isfinite(np.array([self.std[n] for n in self.names]))
         names = tuple(n for n, k in zip(self.names, ok) if k)
-        q = self.measurements.q if self.measurements is not None else None
-        if q is None:
-            raise ValueError("the result holds no measurements to compute the training σ from")
-        return ModelUncertainty.from_fit(self.robot, names, self.covariance[np.ix_(ok, ok)], q)
+        return ModelUncertainty.from_fit(self.robot, names, self.covariance[np.ix_(ok, ok)], self.measurements.q)
 
     def pose_records(self) -> list[dict]:
         """Per pose: input row, error vector and norm (m), robust z-score, outlier flag."""
-        rows = self.measurements.rows if self.measurements is not None else np.arange(2, len(self.residuals) + 2)
-        z = self.pose_z if self.pose_z is not None else np.zeros(len(self.residuals))
         norms = np.linalg.norm(self.residuals, axis=1)
         return [{"row": int(r), "error": e.tolist(), "norm": float(n), "z": float(zi), "outlier": bool(zi > self.outlier_z)}
-                for r, e, n, zi in zip(rows, self.residuals, norms, z)]
+                for r, e, n, zi in zip(self.measurements.rows, self.residuals, norms, self.pose_z)]
 
     def to_dict(self) -> dict:
         return {
@@ -224,14 +222,14 @@ class CalibrationResult:
             sd = display(self.std[n], k).lstrip("+") if np.isfinite(self.std[n]) else "undetermined"
             lines.append(f"{n:<12} {display(self.estimates[n], k):>16} {display(self.corrections[n], k):>16} "
                          f"{sd:>14}")
-        noise = noise_level(None if self.measurements is None else self.measurements.std, self.options.thresholds)
+        noise = noise_level(self.measurements.std, self.options.thresholds)
         lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm (tracker noise for the verdict "
                   f"{noise[0] * MM:.3g} mm: {noise[1]})",
                   f"before (nominal, frame registered): {self.stats_before}", f"after:  {self.stats_after}"]
         if self.mounting:
             lines.append(f"mounting: {self.mounting}")
         if self.rejected_rows:
-            lines.append(f"left out as outliers (more than {self.outlier_z:g} robust σ off a robust refit): "
+            lines.append(f"left out as outliers (more than {self.outlier_z:.3g} robust σ off a robust refit): "
                          f"{self.rejected_text()}")
         if self.error_model_choice is not None:
             lines.append(str(self.error_model_choice))
@@ -246,9 +244,10 @@ class CalibrationResult:
 
 def rejected(meas: Measurements, index: np.ndarray) -> dict:
     """The ``rejected_rows``/``rejected_sessions`` fields for the poses of ``meas`` at ``index``."""
-    several = meas.session is not None and len(meas.sessions()) > 1
-    return {"rejected_rows": tuple(int(r) for r in meas.rows[index]),
-            "rejected_sessions": tuple(str(s) for s in meas.session[index]) if several else ()}
+    rows = tuple(int(r) for r in meas.rows[index])
+    if meas.session is None or len(meas.sessions()) <= 1:
+        return {"rejected_rows": rows, "rejected_sessions": ()}
+    return {"rejected_rows": rows, "rejected_sessions": tuple(str(s) for s in meas.session[index])}
 
 
 EXACT = 1e-9  # m: a validation error below this is round-off (no noise, an exact model)

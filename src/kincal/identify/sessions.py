@@ -138,7 +138,7 @@ def _with_model(robot: Robot, sessions: list[Measurements], options: FitOptions,
     geometric = _rounds(robot, sessions, options.replace(error_model=None), use_q)
     chosen = calibrate(robot, geometric.measurements, options.replace(diagnose=False), use_q=use_q)
     choice = chosen.error_model_choice
-    if choice.chosen == "geometric":
+    if choice is None or choice.chosen == "geometric":  # (calibrate always compares the models for "auto")
         return chosen
     fixed = options.replace(error_model=dataclasses.replace(spec, name=choice.chosen))
     return dataclasses.replace(_rounds(robot, sessions, fixed, use_q), error_model_choice=choice)
@@ -164,7 +164,6 @@ def _rounds(robot: Robot, sessions: list[Measurements], options: FitOptions, use
     re-fitted to the new kinematics and the fit repeated, until no frame moves more than ROUND_TOL."""
     opts = options.replace(diagnose=False)
     model, frames = _stacked_frames(robot, sessions, opts)
-    res = None
     for _ in range(MAX_ROUNDS):
         data = [sessions[0]] + [_in_frame_of(model, f, s) for f, s in zip(frames, sessions[1:])]
         res = calibrate(robot, joined(data), opts, use_q=use_q)
@@ -172,9 +171,9 @@ def _rounds(robot: Robot, sessions: list[Measurements], options: FitOptions, use
         moved = max(float(np.max(np.abs(_frame(a) - _frame(f) - _frame(res.robot) + _frame(model))))
                     for a, f in zip(again, frames))
         if moved < ROUND_TOL:
-            break
+            return res
         model, frames = res.robot, again
-    return res
+    return res  # the frames still moved after MAX_ROUNDS: the last fit
 
 
 def _frame(robot: Robot) -> np.ndarray:
@@ -199,11 +198,12 @@ def _stacked_frames(robot: Robot, sessions: list[Measurements], options: FitOpti
     aligned = joined(_aligned(robot, sessions))
     fit_robot = robot if options.error_model is None else extend(robot, options.error_model, aligned.q)
     names = build_problem(fit_robot, aligned, options).names
-    sets = [PointObs(s.q, s.rows, s.source, xyz=s.xyz, std=STACK_STD if s.std is None else s.std) for s in sessions]
-    sets = sets[:1] + [InSession.of(o, f"{k}:{o.source}") for k, o in enumerate(sets[1:], start=2)]
-    fit = fit_observations(fit_robot, sets, names=names, keep=options.keep, rank_tol=options.rank_tol, prior="none")
+    points = [PointObs(s.q, s.rows, s.source, xyz=s.xyz, std=STACK_STD if s.std is None else s.std) for s in sessions]
+    later = [InSession.of(o, f"{k}:{o.source}") for k, o in enumerate(points[1:], start=2)]
+    fit = fit_observations(fit_robot, [points[0], *later], names=names, keep=options.keep, rank_tol=options.rank_tol,
+                           prior="none")
     base = fit.robot.base_params()
-    frames = [fit.robot.with_params({b: fit.nuisance[f"frame[{o.session}].{b}"] for b in base}) for o in sets[1:]]
+    frames = [fit.robot.with_params({b: fit.nuisance[f"frame[{o.session}].{b}"] for b in base}) for o in later]
     return fit.robot, frames
 
 

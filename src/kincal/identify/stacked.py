@@ -28,14 +28,15 @@ from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..observe.sessions import InSession
 from ..ties import first_best
-from ..units import MM, MRAD
+from ..models.robot import TOOL_NAMES
+from ..units import MM, MRAD, display
 from .covariance import parameter_statistics
 from .lm import levenberg_marquardt
 from .registration import register_base
 from .relevance import PRIORS, RelevanceFit, prior_lines, with_learned_prior
-from .verdict import Reason, Thresholds, Verdict, correction_reasons, mounting_reasons
-
-IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes (unseen) than across them
+from .noise import extra_variance
+from .observed_verdict import component_kinds, observation_verdict, whitened_per_kind
+from .verdict import Thresholds, Verdict, mounting_line
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,6 +65,7 @@ class ObservationFit:
     weak: dict = dataclasses.field(default_factory=dict)  # kept nominal: name -> σ the data gave it (m or rad)
     prior: dict = dataclasses.field(default_factory=dict)  # learned prior σ per group (m or rad); {}: none
     whitened: dict = dataclasses.field(default_factory=dict)  # whitened RMS per kind ("pose rotation": 1.3)
+    model_error: dict = dataclasses.field(default_factory=dict)  # s per kind beside the stated σ (m or rad)
 
     def to_dict(self) -> dict:
         return {"robot": self.robot.name, "fitted": list(self.names),
@@ -75,7 +77,7 @@ class ObservationFit:
                 "prior": {k: float(v) for k, v in self.prior.items()},
                 "identifiability": self.identifiability.to_dict(),
                 "before": list(self.stats_before), "after": list(self.stats), "whitened_rms": self.whitened_rms,
-                "whitened_rms_per_kind": dict(self.whitened),
+                "whitened_rms_per_kind": dict(self.whitened), "model_error": dict(self.model_error),
                 "verdict": self.verdict.to_dict(), "converged": self.converged, "iterations": self.iterations}
 
     def record(self) -> dict:
@@ -88,6 +90,25 @@ class ObservationFit:
         return {**unc, "nominal": self.nominal.params.as_dict(), "observations": list(self.stats),
                 "nuisance": {n: float(v) for n, v in self.nuisance.items()},
                 "weakly_determined": {n: float(v) for n, v in self.weak.items()}}
+
+    @property
+    def mounting(self) -> str:
+        """Where the data put the target against the declared tool point, when the fit moved it; ''
+        otherwise (a mounting result, not a robot error)."""
+        if not self.robot.has_tool_point or not set(TOOL_NAMES) & set(self.names):
+            return ""
+        return mounting_line(self.nominal.tool_point(), self.robot.tool_point())
+
+    def parameter_lines(self) -> list[str]:
+        """The fitted robot parameters as a table: estimate, correction from nominal, σ (mm, deg)."""
+        kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
+        lines = [f"{'parameter':<22} {'estimate':>16} {'correction':>16} {'σ':>14}"]
+        for n in self.names:
+            k, sd = kinds[n], self.std.get(n, np.inf)
+            lines.append(f"{n:<22} {display(self.robot.params[n], k):>16} "
+                         f"{display(self.robot.params[n] - self.nominal.params[n], k):>16} "
+                         f"{display(sd, k).lstrip('+') if np.isfinite(sd) else 'undetermined':>14}")
+        return lines
 
     def weak_lines(self) -> list[str]:
         """The parameters kept nominal for want of information, each with the σ the data gave it."""
@@ -117,6 +138,13 @@ class ObservationFit:
                  + ", ".join(f"{k} {v:.3g}" for k, v in self.whitened.items())]
         for b, a in zip(self.stats_before, self.stats):
             lines.append(f"  {a['type']} ({a['source']}): {stat_line(b)}  →  {stat_line(a)}")
+        if self.model_error:
+            lines.append("weighted by 1/(σ² + s²), s what the model leaves beyond the stated σ: " + ", ".join(
+                f"{k} {v * MRAD:.3g} mrad" if k.endswith("rotation") else f"{k} {v * MM:.3g} mm"
+                for k, v in self.model_error.items()))
+        lines += self.parameter_lines()
+        if self.mounting:
+            lines.append(f"mounting: {self.mounting}")
         if self.gauge:
             lines.append(f"not seen by these data (gauge freedoms, kept at their values): {', '.join(self.gauge)}")
         if self.weak:
@@ -145,7 +173,21 @@ class _Stack:
     nuis_names: tuple[str, ...]
     nuis0: np.ndarray
     slots: tuple[np.ndarray, ...]  # per set: positions of its nuisance parameters in the stacked vector
-    inv_sigma: np.ndarray
+    inv_sigma: np.ndarray  # (M,) the weights in use: 1/√(σ² + s²), s² the model error of the row's kind
+    stated: np.ndarray  # (M,) 1/σ as stated (the instrument's noise)
+    labels: np.ndarray  # (M,) each row's kind of component, an index into ``kinds``
+    kinds: tuple[str, ...]  # "pose position", "pose rotation", "markers", ...
+
+    def with_model_error(self, r: np.ndarray, n_free: int) -> tuple["_Stack", dict]:
+        """The stack weighted by 1/(σ² + s²) per kind of component, s² what the whitened residual
+        ``r`` (at the weights in use) leaves beyond the stated σ (:mod:`kincal.identify.noise`);
+        and s per kind (m or rad)."""
+        phys2, var = (r / self.inv_sigma) ** 2, 1.0 / self.stated**2
+        share = 1.0 - n_free / r.size
+        s2 = np.array([extra_variance(phys2[self.labels == k], var[self.labels == k],
+                                      share * np.count_nonzero(self.labels == k)) for k in range(len(self.kinds))])
+        st = dataclasses.replace(self, inv_sigma=1.0 / np.sqrt(var + s2[self.labels]))
+        return st, {k: float(np.sqrt(v)) for k, v in zip(self.kinds, s2)}
 
     def evaluate(self, values: np.ndarray, nuis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Whitened residual (M,) and Jacobian (M, P + K) over all robot and nuisance parameters."""
@@ -163,12 +205,12 @@ class _Stack:
 
 def _stack(robot: Robot, observations: Sequence) -> _Stack:
     anchors: dict = {}
-    sets = []
+    prepared = []
     for o in (o.prepare(robot) for o in observations):  # sets sharing a target start from the first's
         o = o.with_anchors({k: v for k, v in anchors.items() if k in o.anchors()})
         anchors = {**o.anchors(), **anchors}
-        sets.append(o)
-    sets = tuple(sets)
+        prepared.append(o)
+    sets = tuple(prepared)
     names: list[str] = []
     start: list[float] = []
     slots = []
@@ -182,7 +224,8 @@ def _stack(robot: Robot, observations: Sequence) -> _Stack:
     sigma = np.concatenate([o.sigma() for o in sets])
     if not np.all(np.isfinite(sigma) & (sigma > 0)):
         raise MeasurementError("every measurement σ must be a positive number (m or rad)")
-    return _Stack(sets, robot, tuple(names), np.array(start), tuple(slots), 1.0 / sigma)
+    labels, kinds = component_kinds(sets)
+    return _Stack(sets, robot, tuple(names), np.array(start), tuple(slots), 1.0 / sigma, 1.0 / sigma, labels, kinds)
 
 
 def _gauge(robot: Robot, sets) -> tuple[str, ...]:
@@ -216,7 +259,7 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
         x0 = np.concatenate([robot.params.values, st.nuis0])
         wanted = robot.params.names if names == "auto" else tuple(names)
         rounds = _Round(robot, st, x0, max_iter, prior)
-        full, fit, free, weak = rounds.fit(list(ident.identifiable), x0, start)
+        full, fit, free, weak, fitted, error = rounds.fit(list(ident.identifiable), x0, start)
         notes: tuple[str, ...] = ()
         for k in range(JUDGED + 1):
             # the fitted set first among confounded ones: only a real change of what the data see counts
@@ -231,9 +274,10 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
             notes += (f"at the fitted model the data identify a different set ({change}): refitted from that "
                       f"solution",)
             ident = again
-            full, fit, free, weak = rounds.fit(list(ident.identifiable), full, None)
+            full, fit, free, weak, fitted, error = rounds.fit(list(ident.identifiable), full, None)
         ident = dataclasses.replace(_without_weak(ident, free, weak), notes=ident.notes + notes)
-        return _result(robot, st, gauge, ident, free, rounds.cols(free), x0, fit, weak, thresholds or Thresholds())
+        return _result(robot, fitted, gauge, ident, free, rounds.cols(free), x0, fit, weak, thresholds or Thresholds(),
+                       error)
 
 
 JUDGED = 3  # refits when the identifiable set at the solution differs from the start's
@@ -265,24 +309,43 @@ class _Round:
         return np.array([all_names.index(n) for n in free], dtype=int)
 
     def fit(self, free: list[str], start: np.ndarray, evaluated):
-        """(full vector, fit, free names, weak) from the full vector ``start`` (its evaluation
-        ``evaluated`` (r, J) over all columns, or None)."""
+        """(full vector, fit, free names, weak, the stack with its weights, s per kind) from the full
+        vector ``start`` (its evaluation ``evaluated`` (r, J) over all columns, or None): least squares
+        and the weak hold, the model error per kind estimated and the fit repeated until it settles,
+        then the learned prior."""
+        st, error, candidates = self.st, {}, list(free)
+        for _ in range(NOISE_ROUNDS):
+            fcols, fit, free, weak = self._least_squares(st, list(candidates), start, evaluated)
+            start, evaluated = self.x0.copy(), None
+            start[fcols] = fit.x
+            again, found = st.with_model_error(fit.residual, len(free))
+            if np.allclose(again.inv_sigma, st.inv_sigma, rtol=NOISE_SETTLED, atol=0.0):
+                break
+            st, error = again, found
+        if self.prior == "relevance":
+            fit = with_learned_prior(lambda x: _fun(st, self.x0, fcols, x), fit, self.x0[fcols], free, self.robot)
+        full = self.x0.copy()
+        full[fcols] = fit.x
+        return full, fit, free, weak, st, error
+
+    def _least_squares(self, st: _Stack, free: list[str], start: np.ndarray, evaluated):
+        """LM on ``free``; a parameter the data determine worse than a real robot's error kept nominal
+        and the fit repeated: (columns, fit, free names, weak)."""
         weak: dict[str, float] = {}
         while True:
             fcols = self.cols(free)
-            fun = (_fun_from(self.st, self.x0, fcols, evaluated) if evaluated is not None and
-                   np.array_equal(start, self.x0) else lambda x, c=fcols: _fun(self.st, self.x0, c, x))
+            fun = (_fun_from(st, self.x0, fcols, evaluated) if evaluated is not None and
+                   np.array_equal(start, self.x0) else lambda x, c=fcols: _fun(st, self.x0, c, x))
             fit = levenberg_marquardt(fun, start[fcols], max_iter=self.max_iter)
             worst = _weakest(self.robot, free, fit)
             if worst is None:
-                break
+                return fcols, fit, free, weak
             weak[worst[0]] = worst[1]
             free.remove(worst[0])
-        if self.prior == "relevance":
-            fit = with_learned_prior(lambda x: _fun(self.st, self.x0, fcols, x), fit, self.x0[fcols], free, self.robot)
-        full = self.x0.copy()
-        full[fcols] = fit.x
-        return full, fit, free, weak
+
+
+NOISE_ROUNDS = 4  # least-squares fits at most, the model error per kind re-estimated after each
+NOISE_SETTLED = 0.02  # relative change of every weight that ends them
 
 
 def observation_identifiability(robot: Robot, observations: Sequence, names: Sequence[str] | str = "auto",
@@ -403,7 +466,7 @@ def _fun(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray):
     return r, J[:, fcols]
 
 
-def _result(robot, st, gauge, ident, free, fcols, x0, fit, weak, th: Thresholds) -> ObservationFit:
+def _result(robot, st, gauge, ident, free, fcols, x0, fit, weak, th: Thresholds, error: dict) -> ObservationFit:
     full = x0.copy()
     full[fcols] = fit.x
     P = robot.n_params
@@ -419,84 +482,10 @@ def _result(robot, st, gauge, ident, free, fcols, x0, fit, weak, th: Thresholds)
     std.update({n: np.inf for n in st.nuis_names if n not in std})
     before = tuple(o.stats(robot, x0[:P], x0[P:][slot]) for o, slot in zip(st.sets, st.slots))
     after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
-    rms = float(np.sqrt(np.mean(fit.residual**2)))
-    per_kind = whitened_per_kind(st.sets, fit.residual)
-    verdict = _verdict(robot, calibrated, st, per_kind, fit.converged, th)
+    r = fit.residual * st.stated / st.inv_sigma  # whitened by the stated σ: what the user can restate
+    rms = float(np.sqrt(np.mean(r**2)))
+    per_kind = whitened_per_kind(st.sets, r)
+    verdict = observation_verdict(robot, calibrated, st.sets, r, per_kind, fit.converged, th)
     return ObservationFit(calibrated, robot, tuple(n for n in free if n in robot.params.names), nuis, std, ident,
                           gauge, before, after, rms, cov, verdict, bool(fit.converged), fit.iterations, st.sets, weak,
-                          learned, per_kind)
-
-
-STATED = {"pose position": "--std-pos", "pose rotation": "--std-rot"}  # the flag that states each kind's σ
-
-
-def whitened_per_kind(sets, r: np.ndarray) -> dict[str, float]:
-    """RMS of the whitened residual ``r`` (stacked in the order of ``sets``) per kind of component: a
-    pose's position and rotation rows apart (each has its own σ), the other kinds whole."""
-    sums: dict[str, list[float]] = {}
-    start = 0
-    for obs in sets:
-        m = obs.sigma().size
-        rows = r[start:start + m]
-        parts = ((("pose position", rows[:m // 2]), ("pose rotation", rows[m // 2:])) if obs.kind == "pose"
-                 else ((obs.kind, rows),))
-        for name, part in parts:
-            acc = sums.setdefault(name, [0.0, 0.0])
-            acc[0] += float(part @ part)
-            acc[1] += part.size
-        start += m
-    return {k: float(np.sqrt(a / max(n, 1.0))) for k, (a, n) in sums.items()}
-
-
-def _verdict(nominal: Robot, calibrated: Robot, st: _Stack, per_kind: dict, converged: bool, th: Thresholds) -> Verdict:
-    reasons = []
-    if not converged:
-        reasons.append(Reason("refused", "not-converged", "the fit did not converge"))
-    for kind, rms in per_kind.items():
-        if rms > 3.0:
-            reasons.append(Reason("suspect", "residual", (
-                f"the {kind} residuals are {rms:.1f}x their stated σ ({STATED.get(kind, '--std-pos')}): the model "
-                f"leaves errors it cannot describe there, or that σ is too small; restate it if the instrument is "
-                f"noisier" + _other_kinds(per_kind, kind))))
-    reasons += correction_reasons(nominal, {n: calibrated.params[n] - nominal.params[n] for n in nominal.params.names},
-                                  th)
-    reasons += mounting_reasons(nominal.tool_point(), calibrated.tool_point(), th)
-    if all(o.kind == "plane" for o in st.sets):
-        reasons += _plane_reasons(nominal, calibrated, st.sets)
-    return Verdict.from_reasons(tuple(reasons))
-
-
-def _other_kinds(per_kind: dict, kind: str) -> str:
-    fine = [k for k, v in per_kind.items() if k != kind and v <= 3.0]
-    return f" (the {', '.join(fine)} residuals agree with their σ)" if fine else ""
-
-
-def _plane_reasons(nominal: Robot, calibrated: Robot, sets) -> list[Reason]:
-    """Plane contacts alone never make a fit "good": they see only distances to the planes. When the
-    fit moves the predicted points along the planes much more than across them, say so."""
-    along, across = [], []
-    for obs in sets:
-        moved = calibrated.forward(obs.q) - nominal.forward(obs.q)
-        planes = obs.planes(_start(obs))  # the normals the fit started from: changes across them are what moved
-        normal = np.array([planes[lab][0] for lab in obs.labels])
-        n_part = np.sum(moved * normal, axis=1)
-        across.append(n_part)
-        along.append(np.linalg.norm(moved - n_part[:, None] * normal, axis=1))
-    a, c = np.concatenate(along), np.concatenate(across)
-    rms_a, rms_c = float(np.sqrt(np.mean(a**2))), float(np.sqrt(np.mean(c**2)))
-    out = [Reason("suspect", "plane-only",
-                  "plane contacts alone: the fit can only make the points lie on the planes; it cannot tell whether the "
-                  "robot became more accurate (positions along the planes and the base are not seen); validate with "
-                  "absolute data (a tracker, or sockets with a known distance) before trusting it")]
-    if rms_a > IN_PLANE_RATIO * max(rms_c, 1e-12):
-        out.append(Reason("suspect", "plane-in-plane",
-                          f"the fit moved the predicted contact points by {rms_a * MM:.3f} mm RMS along the planes, "
-                          f"more than it changed their distances to the planes ({rms_c * MM:.3f} mm RMS): the planes "
-                          f"cannot confirm that motion, so the absolute error may have grown while the plane residual "
-                          f"fell; check with absolute data"))
-    return out
-
-
-def _start(obs) -> np.ndarray:
-    """The nuisance values a plane set starts from (no tilt, the start offsets)."""
-    return np.array([v for lab in obs.unknown() for v in (0.0, 0.0, obs.start[lab][1])])
+                          learned, per_kind, {k: v for k, v in error.items() if v > 0})

@@ -30,6 +30,8 @@ CLI flags):
 from __future__ import annotations
 
 import dataclasses
+import functools
+import math
 from dataclasses import dataclass, field
 from operator import le, sub
 from typing import Mapping
@@ -41,6 +43,30 @@ from ..models.robot import TOOL_NAMES, Robot
 from ..units import DEG, MM
 
 STATUSES = ("good", "suspect", "refused")
+FALSE_ALARM = 0.01  # chance that pure noise names an outlier in one calibration (any number of poses)
+
+
+def _chi3_sf(x: float) -> float:
+    """P(‖e‖ > x) for e a 3-D standard Gaussian (the χ distribution with 3 degrees of freedom)."""
+    return math.erfc(x / math.sqrt(2.0)) + math.sqrt(2.0 / math.pi) * x * math.exp(-0.5 * x * x)
+
+
+def _solve(f, lo: float, hi: float) -> float:
+    """The root of a decreasing ``f`` in [lo, hi] by bisection (to round-off)."""
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if f(mid) > 0 else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+@functools.lru_cache(maxsize=64)
+def _chi3_robust_z(tail: float) -> float:
+    """The robust z ((x − median) / (1.4826·MAD), as :func:`robust_z`) of the χ₃ quantile with upper
+    tail probability ``tail``."""
+    med = _solve(lambda x: _chi3_sf(x) - 0.5, 0.0, 10.0)
+    mad = _solve(lambda d: 0.5 - (_chi3_sf(max(med - d, 0.0)) - _chi3_sf(med + d)), 0.0, 10.0)
+    x = _solve(lambda x: _chi3_sf(x) - tail, 0.0, 40.0)
+    return (x - med) / (1.4826 * mad)
 
 
 @dataclass(frozen=True)
@@ -69,6 +95,12 @@ class Thresholds:
                      ("residual_suspect", "residual_refuse"), ("tool_suspect", "tool_refuse")):
             if self.__dict__[a] > self.__dict__[b]:
                 raise ValueError(f"thresholds: {a} must not exceed {b}")
+
+    def outlier_limit(self, n: int) -> float:
+        """The robust z beyond which one of ``n`` error norms is an outlier: ``outlier_z``, raised for
+        many poses so that noise alone (3-D Gaussian errors) names a pose in at most one calibration in
+        a hundred (5 up to about 500 poses, 5.2 for 1000, 6.5 for 10⁵)."""
+        return max(self.outlier_z, _chi3_robust_z(FALSE_ALARM / max(int(n), 1)))
 
     @classmethod
     def of(cls, value) -> "Thresholds":
@@ -269,13 +301,14 @@ def residual_reasons(sigma: float, noise: tuple[float, str], th: Thresholds) -> 
 
 def outlier_reasons(rows: np.ndarray, z: np.ndarray, th: Thresholds, loss: str = "linear") -> list[Reason]:
     """Poses more than ``outlier_z`` robust σ off, named by row, with what to do (given the loss used)."""
-    bad = rows[z > th.outlier_z]
+    limit = th.outlier_limit(len(z))
+    bad = rows[z > limit]
     if bad.size == 0:
         return []
     exclude = ",".join(map(str, bad[:MAX_LISTED]))
     todo = (f"the {loss} loss already down-weights them; --reject-outliers leaves them out (or --exclude {exclude})"
             if loss != "linear" else f"use --reject-outliers (or --exclude {exclude}), or --loss huber")
-    return [Reason("suspect", "outliers", f"outlier pose(s) more than {th.outlier_z:g} robust σ off: row(s) "
+    return [Reason("suspect", "outliers", f"outlier pose(s) more than {limit:.3g} robust σ off: row(s) "
                                           f"{listed(bad)}; {todo}")]
 
 

@@ -128,6 +128,21 @@ class Observation:
         distance): what a pose design needs to group the rows into per-candidate blocks."""
         raise NotImplementedError(f"{self.kind} data cannot be grouped by sample")
 
+    def sigma(self) -> np.ndarray:
+        """(M,) the noise σ of every residual component (m or rad); every type declares it."""
+        raise NotImplementedError(f"{self.kind} data declare no σ")
+
+    def evaluate(self, robot: Robot, values: np.ndarray,
+                 nuis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Predicted − measured r (M,), its derivatives by the robot's parameters Jr (M, P) and by the
+        set's own nuisance parameters Jn (M, K), at robot parameter ``values`` and nuisance ``nuis``;
+        every type declares it."""
+        raise NotImplementedError(f"{self.kind} data declare no residual")
+
+    def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
+        """Per-type figures (mm, mrad) at ``values`` and ``nuis``; every type declares them."""
+        raise NotImplementedError(f"{self.kind} data declare no statistics")
+
     def anchors(self) -> dict:
         """Start values its set-up parameters are measured from, which every set sharing those
         parameters must share (a pose target's start rotation); none by default."""

@@ -60,12 +60,22 @@ def to_matrices(values: np.ndarray, name: str, source: str, rows: np.ndarray) ->
         return R
     if name.startswith("rotvec"):
         return Rotation.from_rotvec(v * (ANGLE_UNITS["deg"] if name.endswith("deg") else 1.0)).as_matrix()
-    axes, how, unit = EULER.match(name).groups()
+    axes, how, unit = _euler(name)
     if unit == "rad":
         big = np.abs(v).max(axis=1)
         _refuse(source, rows, big > 2 * np.pi + 1e-9, "has angles up to {} beyond 2π rad: degrees? (use ...-deg)", big)
     seq = axes.upper() if how == "intrinsic" else axes
     return Rotation.from_euler(seq, v, degrees=unit == "deg").as_matrix()
+
+
+def _euler(name: str) -> tuple[str, str, str]:
+    """(axes, intrinsic|extrinsic, deg|rad) of the Euler convention ``name``; a ValueError for a name
+    that is no convention (:func:`check_convention`) or a convention other than Euler angles."""
+    found = EULER.match(check_convention(name))
+    if found is None:
+        raise ValueError(f"orientation '{name}' is not a convention of Euler angles")
+    axes, how, unit = found.groups()
+    return axes, how, unit
 
 
 def _quaternion_matrices(xyzw: np.ndarray) -> np.ndarray:
@@ -88,7 +98,7 @@ def from_matrices(R: np.ndarray, name: str) -> np.ndarray:
         return np.asarray(R, float).reshape(-1, 9)
     if name.startswith("rotvec"):
         return rot.as_rotvec() / (ANGLE_UNITS["deg"] if name.endswith("deg") else 1.0)
-    axes, how, unit = EULER.match(check_convention(name)).groups()
+    axes, how, unit = _euler(name)
     return rot.as_euler(axes.upper() if how == "intrinsic" else axes, degrees=unit == "deg")
 
 
@@ -107,7 +117,7 @@ def alternatives(name: str) -> list[str]:
         return ["rotvec-deg" if name == "rotvec" else "rotvec"]
     if name == "matrix":
         return []
-    axes, how, unit = EULER.match(name).groups()
+    axes, how, unit = _euler(name)
     other = "extrinsic" if how == "intrinsic" else "intrinsic"
     return [f"euler-{axes}-{other}-{unit}", f"euler-{axes[::-1]}-{how}-{unit}",
             f"euler-{axes}-{how}-{'rad' if unit == 'deg' else 'deg'}"]

@@ -19,7 +19,7 @@ class InSession(Observation):
     """``inner`` (an absolute set) measured in the frame of ``session``; ``frame0``: the frame's start
     values in the order and units of ``robot.base_params()`` (set by the fit from a registration)."""
 
-    inner: Observation | None = None
+    inner: Observation
     session: str = ""
     frame0: np.ndarray | None = None
 
@@ -31,6 +31,10 @@ class InSession(Observation):
     def kind(self) -> str:  # the inner set's type
         return self.inner.kind
 
+    @kind.setter
+    def kind(self, value: str) -> None:  # the base declares a plain attribute; here it is frozen like a field
+        raise dataclasses.FrozenInstanceError("cannot assign to field 'kind'")
+
     @property
     def reference(self) -> bool:
         return self.inner.reference
@@ -39,6 +43,17 @@ class InSession(Observation):
         if not robot.base_params():
             raise ModelError(f"robot '{robot.name}' has no base frame: its sessions cannot each have their own frame")
         return robot.params.indices(robot.base_params())
+
+    def _start(self) -> np.ndarray:
+        """``frame0``, which the fit sets before it prepares the set or asks for its parameters."""
+        if self.frame0 is None:
+            raise ValueError(f"session '{self.session}': its frame has no start values yet (the fit sets them "
+                             f"from a registration)")
+        return self.frame0
+
+    def _at_frame(self, robot: Robot) -> Robot:
+        """``robot`` with its base frame at this session's start frame."""
+        return robot.with_params(dict(zip(robot.base_params(), self._start())))
 
     def _values(self, robot: Robot, values: np.ndarray, frame: np.ndarray) -> np.ndarray:
         v = np.array(values, float)
@@ -52,8 +67,7 @@ class InSession(Observation):
         return self.inner.positions()
 
     def prepare(self, robot: Robot) -> "InSession":
-        at = robot.with_params(dict(zip(robot.base_params(), self.frame0)))
-        return dataclasses.replace(self, inner=self.inner.prepare(at))
+        return dataclasses.replace(self, inner=self.inner.prepare(self._at_frame(robot)))
 
     def anchors(self) -> dict:
         return self.inner.anchors()
@@ -62,12 +76,11 @@ class InSession(Observation):
         return dataclasses.replace(self, inner=self.inner.with_anchors(anchors))
 
     def nuisance(self, robot: Robot):
-        at = robot.with_params(dict(zip(robot.base_params(), self.frame0)))
-        names, start, kinds = self.inner.nuisance(at)
+        names, start, kinds = self.inner.nuisance(self._at_frame(robot))
         base = robot.base_params()
         frame = tuple(f"frame[{self.session}].{n}" for n in base)
         base_kinds = tuple(robot.params.kinds[i] for i in self._base(robot))
-        return tuple(names) + frame, np.concatenate([start, self.frame0]), tuple(kinds) + base_kinds
+        return tuple(names) + frame, np.concatenate([start, self._start()]), tuple(kinds) + base_kinds
 
     def gauge_params(self, robot: Robot) -> tuple[str, ...]:
         return tuple(dict.fromkeys(self.inner.gauge_params(robot) + robot.base_params()))

@@ -138,7 +138,7 @@ def _sets(result: CalibrationResult, tests: list[Measurements], models: list[tup
                       result.pose_z > result.outlier_z, "frame fitted with the model (nominal: registered to these data)")]
     for k, (meas, (nominal, model, how)) in enumerate(zip(tests, models)):
         z = robust_z(np.linalg.norm(meas.xyz - model.forward(meas.q), axis=1))
-        sets.append(dataclasses.replace(_pose_set("held-out", meas, nominal, model, z > th.outlier_z, how),
+        sets.append(dataclasses.replace(_pose_set("held-out", meas, nominal, model, z > th.outlier_limit(len(z)), how),
                                         name=Path(meas.source).name,
                                         key="held-out" if len(tests) == 1 else f"held-out-{k + 1}",
                                         colour=F.SESSION_COLOURS[k % len(F.SESSION_COLOURS)]))
@@ -153,7 +153,10 @@ def _pose_set(label: str, meas: Measurements, nominal, calibrated, outliers: np.
 
 
 def _headline(s: F.PoseSet, which: str) -> dict:
-    st = EvaluationStats.from_errors(s.before if which == "before" else s.after)
+    errors = s.before if which == "before" else s.after
+    if errors is None:  # the report's sets carry both models' errors (_pose_set)
+        raise ValueError(f"{s.title}: no errors before calibration to summarise")
+    st = EvaluationStats.from_errors(errors)
     model = "nominal (frame registered)" if which == "before" else "calibrated"
     return {"data": s.title, "n": st.n, "model": model, "key": f"{s.key or s.label}.{which}", "mean": st.mean * MM,
             "rms": st.rms * MM, "max": st.max * MM, "p95": st.p95 * MM, "registration": s.registration}
@@ -180,12 +183,17 @@ def figure_set(result: CalibrationResult, test: Measurements | Sequence[Measurem
     return figs
 
 
+def _beyond(z: np.ndarray) -> np.ndarray:
+    """Which robust z-scores are outliers under the default limits for this many poses."""
+    return z > Thresholds().outlier_limit(len(z))
+
+
 def evaluation_figures(robot, meas: Measurements) -> dict:
     """Figures of one model on one data set (``evaluate --plot``): errors per pose, distribution,
     per axis, against the joints, in the workspace; outliers by robust z."""
     after = meas.xyz - robot.forward(meas.q)
     s = F.PoseSet("held-out", meas.rows, meas.q, meas.xyz, None, after,
-                  robust_z(np.linalg.norm(after, axis=1)) > Thresholds().outlier_z)
+                  _beyond(robust_z(np.linalg.norm(after, axis=1))))
     return {"per_pose": F.per_pose([s]), "histogram": F.histogram([s]), "per_axis": F.per_axis([s]),
             "vs_joints": F.vs_joints([s], robot.joint_names, robot.joint_types), "workspace": F.workspace([s])}
 
@@ -233,7 +241,7 @@ def _data_rows(result: CalibrationResult, tests: list[Measurements], info: dict)
     if result.mounting:
         rows.append(("tool point (mounting)", result.mounting))
     if result.rejected_rows:
-        rows.append(("left out as outliers", f"{result.rejected_text()}: more than {result.outlier_z:g} robust σ "
+        rows.append(("left out as outliers", f"{result.rejected_text()}: more than {result.outlier_z:.3g} robust σ "
                                              f"off a robust refit (--reject-outliers)"))
     if result.diagnosis is not None:
         rows.append(("diagnosis", result.diagnosis.message()))

@@ -1,0 +1,132 @@
+"""The verdict of a fit from observation sets (:mod:`kincal.identify.stacked`): the whitened residual
+per kind of component against its stated σ, the corrections and the mounting against the user's
+limits, outlier samples and repeated poses per set (named by file and row), and what plane contacts
+alone cannot confirm."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..models.robot import Robot
+from ..units import MM
+from .._csv import listed
+from .verdict import (Reason, Thresholds, Verdict, correction_reasons, duplicate_groups, mounting_reasons,
+                      repeat_tolerance, robust_z)
+
+IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes (unseen) than across them
+MIN_SAMPLES = 10  # a set with fewer samples is not judged for outliers (no robust spread to judge by)
+
+
+STATED = {"pose position": "--std-pos", "pose rotation": "--std-rot"}  # the flag that states each kind's σ
+
+
+def component_kinds(sets) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Each stacked row's kind of component (M,), an index into the kinds' names (in order of first
+    appearance): a pose's position and rotation rows apart (each has its own σ), other kinds whole."""
+    names: list[str] = []
+    labels = []
+    for obs in sets:
+        m = obs.sigma().size
+        parts = (("pose position", m // 2), ("pose rotation", m - m // 2)) if obs.kind == "pose" else ((obs.kind, m),)
+        for name, count in parts:
+            if name not in names:
+                names.append(name)
+            labels.append(np.full(count, names.index(name)))
+    return np.concatenate(labels) if labels else np.zeros(0, int), tuple(names)
+
+
+def whitened_per_kind(sets, r: np.ndarray) -> dict[str, float]:
+    """RMS of the whitened residual ``r`` (stacked in the order of ``sets``) per kind of component."""
+    labels, names = component_kinds(sets)
+    return {name: float(np.sqrt(np.mean(r[labels == k] ** 2))) for k, name in enumerate(names)}
+
+
+def observation_verdict(nominal: Robot, calibrated: Robot, sets, r: np.ndarray, per_kind: dict, converged: bool,
+                        th: Thresholds) -> Verdict:
+    """Good, suspect or refused with reasons, for the whitened residual ``r`` of ``sets`` at the fit."""
+    reasons = []
+    if not converged:
+        reasons.append(Reason("refused", "not-converged", "the fit did not converge"))
+    for kind, rms in per_kind.items():
+        if rms > 3.0:
+            reasons.append(Reason("suspect", "residual", (
+                f"the {kind} residuals are {rms:.1f}x their stated σ ({STATED.get(kind, '--std-pos')}): the model "
+                f"leaves errors it cannot describe there, or that σ is too small; restate it if the instrument is "
+                f"noisier" + _other_kinds(per_kind, kind))))
+    reasons += correction_reasons(nominal, {n: calibrated.params[n] - nominal.params[n] for n in nominal.params.names},
+                                  th)
+    reasons += mounting_reasons(nominal.tool_point(), calibrated.tool_point(), th)
+    reasons += sample_reasons(sets, r, nominal, th)
+    if all(o.kind == "plane" for o in sets):
+        reasons += _plane_reasons(nominal, calibrated, sets)
+    return Verdict.from_reasons(tuple(reasons))
+
+
+def sample_norms(sets, r: np.ndarray) -> list[np.ndarray]:
+    """Per set, the norm of each sample's whitened residual block (a pose's 6 rows, a marker sample's
+    seen markers, a socket seat's 3); rows of no one sample (a known distance) left out."""
+    out, start = [], 0
+    for obs in sets:
+        m = obs.sigma().size
+        rows, owner = r[start:start + m], obs.sample_rows()
+        keep = owner >= 0
+        out.append(np.sqrt(np.bincount(owner[keep], rows[keep] ** 2, minlength=len(obs))))
+        start += m
+    return out
+
+
+def sample_reasons(sets, r: np.ndarray, robot: Robot, th: Thresholds) -> list[Reason]:
+    """Outlier samples (whitened norm beyond ``th.outlier_limit`` robust σ) and repeated poses, per set."""
+    out = []
+    tol = repeat_tolerance(robot.joint_types, th)
+    for obs, norms in zip(sets, sample_norms(sets, r)):
+        z = robust_z(norms) if len(obs) >= MIN_SAMPLES else np.zeros(len(obs))
+        limit = th.outlier_limit(len(z))
+        bad = obs.rows[z > limit]
+        if bad.size:
+            out.append(Reason("suspect", "outliers", f"{obs.source}: outlier sample(s) more than {limit:.3g} "
+                                                     f"robust σ off: row(s) {listed(bad)}; check them (a blocked line "
+                                                     f"of sight, a wrong seat) and leave them out of the file"))
+        groups = duplicate_groups(obs.q, tol)
+        if groups:
+            shown = "; ".join(f"rows {listed(obs.rows[g])}" for g in groups[:5])
+            out.append(Reason("suspect", "repeated-poses",
+                              f"{obs.source}: {sum(len(g) for g in groups)} samples repeat the same joint values "
+                              f"({shown}): repeated poses count as independent and make the stated σ look too "
+                              f"small; average them or leave the copies out"))
+    return out
+
+
+def _other_kinds(per_kind: dict, kind: str) -> str:
+    fine = [k for k, v in per_kind.items() if k != kind and v <= 3.0]
+    return f" (the {', '.join(fine)} residuals agree with their σ)" if fine else ""
+
+
+def _plane_reasons(nominal: Robot, calibrated: Robot, sets) -> list[Reason]:
+    """Plane contacts alone never make a fit "good": they see only distances to the planes. When the
+    fit moves the predicted points along the planes much more than across them, say so."""
+    along, across = [], []
+    for obs in sets:
+        moved = calibrated.forward(obs.q) - nominal.forward(obs.q)
+        planes = obs.planes(_start(obs))  # the normals the fit started from: changes across them are what moved
+        normal = np.array([planes[lab][0] for lab in obs.labels])
+        n_part = np.sum(moved * normal, axis=1)
+        across.append(n_part)
+        along.append(np.linalg.norm(moved - n_part[:, None] * normal, axis=1))
+    a, c = np.concatenate(along), np.concatenate(across)
+    rms_a, rms_c = float(np.sqrt(np.mean(a**2))), float(np.sqrt(np.mean(c**2)))
+    out = [Reason("suspect", "plane-only",
+                  "plane contacts alone: the fit can only make the points lie on the planes; it cannot tell whether the "
+                  "robot became more accurate (positions along the planes and the base are not seen); validate with "
+                  "absolute data (a tracker, or sockets with a known distance) before trusting it")]
+    if rms_a > IN_PLANE_RATIO * max(rms_c, 1e-12):
+        out.append(Reason("suspect", "plane-in-plane",
+                          f"the fit moved the predicted contact points by {rms_a * MM:.3f} mm RMS along the planes, "
+                          f"more than it changed their distances to the planes ({rms_c * MM:.3f} mm RMS): the planes "
+                          f"cannot confirm that motion, so the absolute error may have grown while the plane residual "
+                          f"fell; check with absolute data"))
+    return out
+
+
+def _start(obs) -> np.ndarray:
+    """The nuisance values a plane set starts from (no tilt, the start offsets)."""
+    return np.array([v for lab in obs.unknown() for v in (0.0, 0.0, obs.start[lab][1])])
