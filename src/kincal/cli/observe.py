@@ -13,7 +13,7 @@ from kincal.units import ANGLE_UNITS, LENGTH_UNITS, MRAD
 
 from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, check_paths, csv_list, emit, err, load_robot, progress,
                      robot_inputs)
-from .report import json_path
+from .report import json_path, report_columns
 
 TYPES = ("point", "pose", "markers", "same-point", "plane")
 ABSOLUTE = ("point", "pose", "markers")  # types measured in a frame: each file after the first is its own session
@@ -222,7 +222,7 @@ def cmd_report(args, record: dict) -> int:
     from kincal.report import observation_report
 
     data, opts = record["data"], dict(record["observation_options"])
-    given = {k: vars(args)[k] for k in ("joint_cols", "xyz_cols", "length_unit", "angle_unit")}  # report's flags
+    given = report_columns(args)
     reading = argparse.Namespace(**{k: given[k] if given.get(k) is not None else data["reading"].get(k)
                                     for k in READING}, json=args.json,
                                  same_frame=bool(args.same_frame or data.get("same_frame")))

@@ -59,6 +59,12 @@ def save_figures(figures: dict, stem: str) -> list[str]:
     return [f"figures written: {', '.join(written)}"]
 
 
+def report_columns(args) -> dict:
+    """The report command's flags of how the data files are read (None: as recorded)."""
+    return {"joint_cols": args.joint_cols, "xyz_cols": args.xyz_cols, "length_unit": args.length_unit,
+            "angle_unit": args.angle_unit}
+
+
 def cmd_report(args) -> int:
     record = kincal.models.load_calibration_record(args.robot)
     if record and "observation_options" in record:  # calibrated from observation files (--type)
@@ -79,7 +85,8 @@ def cmd_report(args) -> int:
     cal = load_robot(args)
     nominal = cal.with_params(_nominal(record["nominal"], args.robot))
     use_q = _use_q(record.get("use_q"), nominal, args.robot)
-    units: dict[str, Any] = {k: vars(args)[k] if vars(args)[k] is not None else data.get(k, default)
+    given = report_columns(args)
+    units: dict[str, Any] = {k: given[k] if given[k] is not None else data.get(k, default)
              for k, default in (("length_unit", "m"), ("angle_unit", "rad"), ("joint_cols", None),
                                 ("xyz_cols", ["x", "y", "z"]))}
     train = [kincal.read_measurements(path, nominal, **units) for path in train_paths]

@@ -319,7 +319,9 @@ class _Round:
             start, evaluated = self.x0.copy(), None
             start[fcols] = fit.x
             again, found = st.with_model_error(fit.residual, len(free))
-            if np.allclose(again.inv_sigma, st.inv_sigma, rtol=NOISE_SETTLED, atol=0.0):
+            ratio = again.inv_sigma / st.inv_sigma
+            if float(np.max(ratio)) <= float(np.min(ratio)) * (1.0 + NOISE_SETTLED):  # the same relative weights:
+                error = found if any(found.values()) else error  # the same fit (one kind, one σ: a scale only)
                 break
             st, error = again, found
         if self.prior == "relevance":
