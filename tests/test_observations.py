@@ -355,3 +355,20 @@ def test_a_wrong_rotation_sigma_cannot_spoil_the_positions(ur5, monkeypatch):
     print(f"held-out position error: right σ {right * 1e6:.2f} µm, wrong σ {wrong * 1e6:.2f} µm, wrong σ "
           f"weighted as stated {stated_only * 1e6:.2f} µm")
     assert wrong <= 1.05 * right and stated_only > 1.5 * right
+
+
+def test_markers_start_registered_in_the_camera_frame(ur5):
+    """Markers seen by a camera 0.46 m and 30° away from the robot's base: the frame is registered and
+    each marker starts where the flange frames put its measurements, so the 'before' figure is the
+    robot's error (mm), not the camera's offset, and the fit recovers the model."""
+    true = kincal.perturb(ur5, 0.5e-3, 0.5e-3, seed=11)
+    camera = true.with_params({"base.x": 0.46, "base.y": -0.1, "base.rz": np.deg2rad(30.0)})
+    q, q_test = ur5.sample_joints(120, seed=11), ur5.sample_joints(50, seed=12)
+    points = ur5.tool_point() + np.array([[0.04, 0.0, 0.0], [0.0, 0.04, 0.0], [-0.03, -0.03, 0.02]])
+    obs = simulate_markers(camera, q, points, 15e-6, 0.0, seed=11)
+    fit = fit_observations(ur5, [obs])
+    print(f"markers: before {fit.stats_before[0]['mean_mm']:.3f} mm, after {fit.stats[0]['mean_mm']:.4f} mm")
+    assert fit.stats_before[0]["mean_mm"] < 5.0 and fit.stats[0]["mean_mm"] < 0.03
+    for k, m in enumerate(obs.names):  # the marker points, in the flange frame
+        got = np.array([fit.nuisance[f"marker[{m}].{a}"] for a in "xyz"])
+        assert np.linalg.norm(got - points[k]) < 1e-3

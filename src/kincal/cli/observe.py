@@ -265,19 +265,10 @@ def _check_units(sets: list, robot, args) -> None:
     for obs in sets:
         check_degrees(obs.source, obs.q, robot, args.angle_unit)
         check_radians(obs.source, obs.q, robot, args.angle_unit)
-        found = _measured_points(obs)
+        found = obs.positions()
         if found is not None:
             q, xyz = found
             check_spread(obs.source, q, xyz, robot, args.length_unit, args.angle_unit)
-
-
-def _measured_points(obs):
-    """(q, xyz) of absolutely measured points near the tool (markers: the first marker where seen),
-    for the unit check; None for constraints."""
-    if obs.kind == "markers":
-        seen = ~np.isnan(obs.xyz[:, 0, 0])
-        return obs.q[seen], obs.xyz[seen, 0]
-    return obs.positions()
 
 
 def _sessions(sets: list, same_frame: bool) -> list:

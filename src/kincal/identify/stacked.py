@@ -313,7 +313,8 @@ class _Round:
         vector ``start`` (its evaluation ``evaluated`` (r, J) over all columns, or None): least squares
         and the weak hold, the model error per kind estimated and the fit repeated until it settles,
         then the learned prior."""
-        st, error, candidates = self.st, {}, list(free)
+        st, candidates = self.st, list(free)
+        error: dict[str, float] = {}
         for _ in range(NOISE_ROUNDS):
             fcols, fit, free, weak = self._least_squares(st, list(candidates), start, evaluated)
             start, evaluated = self.x0.copy(), None

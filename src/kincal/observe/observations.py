@@ -273,6 +273,27 @@ class MarkersObs(Observation):
     def seen(self) -> np.ndarray:
         return np.all(np.isfinite(self.xyz), axis=2)  # (N, k)
 
+    def positions(self):
+        """A point near the tool per sample, to register the measurement frame: the markers' centroid
+        where every marker was seen (at least 3 such samples), else the first marker where seen."""
+        seen = self.seen()
+        every = np.all(seen, axis=1)
+        if np.count_nonzero(every) >= 3:
+            return self.q[every], self.xyz[every].mean(axis=1)
+        return self.q[seen[:, 0]], self.xyz[seen[:, 0], 0]
+
+    def prepare(self, robot: Robot) -> "MarkersObs":
+        """Without given starts, each marker starts where the (registered) robot's flange frames put
+        its measurements on average: mean of Rᵢᵀ(xᵢ − tᵢ) over the samples that saw it."""
+        if self.start is not None:
+            return self
+        _, _, R = flange_point(robot, self.q, robot.params.values, np.zeros(3))
+        origin = robot.forward(self.q, _with_tool(robot, robot.params.values, np.zeros(3)))
+        seen = self.seen()
+        start = np.array([np.einsum("nji,nj->ni", R[seen[:, m]], self.xyz[seen[:, m], m] - origin[seen[:, m]]).mean(0)
+                          if seen[:, m].any() else robot.tool_point() for m in range(seen.shape[1])])
+        return dataclasses.replace(self, start=start)
+
     def nuisance(self, robot: Robot):
         k = self.xyz.shape[1]
         start = np.tile(robot.tool_point(), (k, 1)) if self.start is None else np.asarray(self.start, float)
