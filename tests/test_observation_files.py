@@ -186,15 +186,17 @@ def _ident(capsys, kind, extra=()):
 def test_identifiability_of_planned_measurements_per_type(capsys):
     """Known geometry, before anyone measures (tool point on the flange axis): a 6-D pose also sees
     the wrist offsets j5.a, j5.alpha, while joint 6's offset acts like the target's rotation about
-    the flange axis; markers replace the tool point; sockets see no base; a table with a step does
-    not see motion along itself (base.x, base.y, base.rz)."""
+    the flange axis; markers replace the tool point and, judged where the planned nest puts them (off
+    the flange axis), also see j5.a, j5.alpha; sockets see no base; a table with a step does not see
+    motion along itself (base.x, base.y, base.rz)."""
     point = set(_ident(capsys, None)["identifiable"])
     pose = _ident(capsys, "pose")
     assert set(pose["identifiable"]) == point | {"j5.a", "j5.alpha", "target.rx", "target.ry", "target.rz"}
     assert "target.rz" in dict(pose["confounds"]["j6.theta"])
     markers = _ident(capsys, "markers")
     robot_part = {n for n in markers["identifiable"] if not n.startswith("marker[")}
-    assert robot_part == point - {"tool.x", "tool.y", "tool.z"} and markers["gauge"] == ["tool.x", "tool.y", "tool.z"]
+    assert robot_part == (point - {"tool.x", "tool.y", "tool.z"}) | {"j5.a", "j5.alpha"}
+    assert markers["gauge"] == ["tool.x", "tool.y", "tool.z"]
     sockets = _ident(capsys, "same-point")
     assert not {n for n in sockets["identifiable"] if n.startswith("base.")} and len(sockets["gauge"]) == 6
     assert {"j1.theta", "j1.d"} <= set(sockets["dropped"])

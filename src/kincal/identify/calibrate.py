@@ -23,6 +23,7 @@ from .diagnosis import TRIGGERS, diagnose, outlier_poses
 from .drift import with_drift, without_drift
 from .lm import LMResult, fit_lm
 from .noise import ROUNDS, SETTLED, extra_variance, relative_weights
+from .weak import weak_note, weakest
 from .options import FitOptions
 from .problem import CalibrationProblem, build_problem
 from .pso import fit_pso
@@ -92,9 +93,11 @@ def _fit(robot: Robot, meas: Measurements, o: FitOptions, say, t0: float) -> Cal
     """Build the problem (with the drift term if asked), solve it, judge the result."""
     fit_robot, fit_meas = with_drift(robot, meas) if o.drift else (robot, meas)
     problem = build_problem(fit_robot, fit_meas, o, say=say)
-    w = None
+    w, weak = None, {}
     if o.loss == "linear":
         fit, final, counts, history = _solve(problem, o, say)
+        if o.method != "pso":
+            fit, final, weak = _hold_weak(problem, final, fit, o, say)
         if fit.converged:
             problem, fit, final = _with_model_error(problem, final, fit, o, say)
     else:  # reweight from the start: a least-squares fit pulled by outliers is a poor place to begin
@@ -102,13 +105,29 @@ def _fit(robot: Robot, meas: Measurements, o: FitOptions, say, t0: float) -> Cal
         final, history = problem, ()
         fit, w, *counts = irls(problem, _at(problem, problem.x0), o.loss, o.f_scale,
                                lambda x, wt: fit_lm(problem, x, wt, o.max_iter))
-    res = _result(fit_robot, problem, final, fit, w, counts, history, o, time.perf_counter() - t0)
+    res = _result(fit_robot, problem, final, fit, w, counts, history, o, time.perf_counter() - t0, weak)
     res = judge(res, problem)
     if not o.drift:
         return res
     res = without_drift(res, robot, meas)
     found = fitted_drift_reasons(res.drift, noise_level(meas.std, o.thresholds)[0])
     return dataclasses.replace(res, verdict=Verdict.from_reasons(res.verdict.reasons + tuple(found)))
+
+
+def _hold_weak(problem: CalibrationProblem, final: CalibrationProblem, fit: LMResult, o: FitOptions, say):
+    """The fit repeated with the parameters the data hardly determine held at their start values
+    (:mod:`kincal.identify.weak`), worst first: (fit, the problem fitted, held name -> its σ)."""
+    weak: dict[str, float] = {}
+    noise = noise_level(problem.meas.std, o.thresholds)[0]  # the instrument's σ: what the poses determine
+    while (worst := weakest(final.start, final.names, fit.jacobian, fit.residual, noise)) is not None:
+        weak[worst[0]] = worst[1]
+        say(f"keeping {worst[0]} at nominal: the data determine it worse than a real robot's error")
+        v = final.embed(fit.x)
+        i = int(final.start.params.indices([worst[0]])[0])
+        v[i] = problem.values0[i]
+        final = final.restrict([n for n in final.names if n != worst[0]], v)
+        fit = fit_lm(final, final.x0, max_iter=o.max_iter)
+    return fit, final, weak
 
 
 def _with_model_error(problem: CalibrationProblem, final: CalibrationProblem, fit: LMResult, o: FitOptions, say):
@@ -190,12 +209,17 @@ def _at(problem: CalibrationProblem, x: np.ndarray, message: str = "not yet fitt
 
 
 def _result(robot: Robot, problem: CalibrationProblem, final: CalibrationProblem, fit: LMResult, w, counts,
-            history, options: FitOptions, elapsed: float) -> CalibrationResult:
-    """The fit as a CalibrationResult: estimates for every name of ``problem``, uncertainty from
-    the fit of ``final`` (undetermined parameters of a swarm-only fit get σ = inf)."""
+            history, options: FitOptions, elapsed: float, weak: dict[str, float]) -> CalibrationResult:
+    """The fit as a CalibrationResult: estimates for every name of ``problem`` but those held at
+    nominal (``weak``), uncertainty from the fit of ``final`` (undetermined parameters of a swarm-only
+    fit get σ = inf)."""
     v = final.embed(fit.x)
     calibrated = problem.start.with_params(v)
-    names, idx = problem.names, problem.cols
+    names = tuple(n for n in problem.names if n not in weak)
+    idx = problem.start.params.indices(names)
+    ident = problem.ident if not weak else dataclasses.replace(
+        problem.ident, identifiable=tuple(n for n in problem.ident.identifiable if n not in weak),
+        notes=problem.ident.notes + (weak_note(problem.start, weak),))
     undetermined = problem.ident.dropped if options.method == "pso" else ()
     sd, corr, sigma2, cov = parameter_statistics(fit.jacobian, fit.residual, final.names, names, undetermined)
     meas = problem.meas
@@ -209,8 +233,8 @@ def _result(robot: Robot, problem: CalibrationProblem, final: CalibrationProblem
         stats_before=EvaluationStats.from_errors(meas.xyz - problem.start.forward(meas.q)),  # frame registered
         stats_after=EvaluationStats.from_errors(res),
         iterations=counts[0], evaluations=counts[1], converged=fit.converged, message=fit.message,
-        time_s=elapsed, options=options, identifiability=problem.ident, history=history, covariance=cov,
-        measurements=meas, pose_z=robust_z(np.linalg.norm(res, axis=1)))
+        time_s=elapsed, options=options, identifiability=ident, history=history, covariance=cov,
+        measurements=meas, pose_z=robust_z(np.linalg.norm(res, axis=1)), weak=dict(weak))
 
 
 def judge(res: CalibrationResult, problem: CalibrationProblem) -> CalibrationResult:

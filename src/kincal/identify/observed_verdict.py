@@ -98,7 +98,7 @@ def sample_reasons(sets, r: np.ndarray, robot: Robot, th: Thresholds) -> list[Re
 
 def _other_kinds(per_kind: dict, kind: str) -> str:
     fine = [k for k, v in per_kind.items() if k != kind and v <= 3.0]
-    return f" (the {', '.join(fine)} residuals agree with their σ)" if fine else ""
+    return f" (the {', '.join(fine)} residuals are within 3x their stated σ)" if fine else ""
 
 
 def _plane_reasons(nominal: Robot, calibrated: Robot, sets) -> list[Reason]:

@@ -15,6 +15,7 @@ from .diagnosis import Diagnosis
 from .options import FitOptions
 from .select import ErrorModelChoice
 from .verdict import Verdict, mounting_line, noise_level
+from .weak import weak_note
 
 
 @dataclass(frozen=True)
@@ -96,6 +97,7 @@ class CalibrationResult:
     diagnosis: Diagnosis | None = None  # a doubtful verdict: the common mistakes tried, the one that explains
     rejected_rows: tuple[int, ...] = ()  # reject_outliers: input rows left out as outliers
     rejected_sessions: tuple[str, ...] = ()  # several sessions: the file of each rejected row
+    weak: dict[str, float] = field(default_factory=dict)  # held at nominal: name -> the σ the data gave it
 
     def rejected_text(self) -> str:
         """'row(s) 40 of grid.csv' (several sessions: each file's rows after its name); '' when none."""
@@ -205,6 +207,7 @@ class CalibrationResult:
                 "tool_point": self.robot.tool_point().tolist(), "declared_tool_point": self.nominal.tool_point().tolist(),
                 "text": self.mounting},
             "compliance": self.robot.compliances(),  # rad/(N·m) per joint
+            "weakly_determined": dict(self.weak),  # held at nominal (m or rad: the σ the data gave them)
             "poses": self.pose_records(),
         }
 
@@ -228,6 +231,8 @@ class CalibrationResult:
                   f"before (nominal, frame registered): {self.stats_before}", f"after:  {self.stats_after}"]
         if self.mounting:
             lines.append(f"mounting: {self.mounting}")
+        if self.weak:
+            lines.append(weak_note(self.robot, self.weak))
         if self.rejected_rows:
             lines.append(f"left out as outliers (more than {self.outlier_z:.3g} robust σ off a robust refit): "
                          f"{self.rejected_text()}")

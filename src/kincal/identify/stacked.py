@@ -27,7 +27,6 @@ from ..analysis.uncertainty import ModelUncertainty
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..observe.sessions import InSession
-from ..ties import first_best
 from ..models.robot import TOOL_NAMES
 from ..units import MM, MRAD, display
 from .covariance import parameter_statistics
@@ -35,6 +34,7 @@ from .lm import levenberg_marquardt
 from .registration import register_base
 from .relevance import PRIORS, RelevanceFit, prior_lines, with_learned_prior
 from .noise import extra_variance
+from .weak import weakest
 from .observed_verdict import component_kinds, observation_verdict, whitened_per_kind
 from .verdict import Thresholds, Verdict, mounting_line
 
@@ -340,7 +340,7 @@ class _Round:
             fun = (_fun_from(st, self.x0, fcols, evaluated) if evaluated is not None and
                    np.array_equal(start, self.x0) else lambda x, c=fcols: _fun(st, self.x0, c, x))
             fit = levenberg_marquardt(fun, start[fcols], max_iter=self.max_iter)
-            worst = _weakest(self.robot, free, fit)
+            worst = weakest(self.robot, free, fit.jacobian, fit.residual)
             if worst is None:
                 return fcols, fit, free, weak
             weak[worst[0]] = worst[1]
@@ -416,19 +416,6 @@ def _without_weak(ident: Identifiability, free: list[str], weak: dict) -> Identi
         return ident
     note = (f"kept at nominal, determined worse than a real robot's error (10 mm, 2 deg): {', '.join(weak)}",)
     return dataclasses.replace(ident, identifiable=tuple(free), notes=ident.notes + note)
-
-
-def _weakest(robot: Robot, free: list[str], fit) -> tuple[str, float] | None:
-    """The robot parameter the data determine worst, when its σ exceeds the largest correction a real
-    robot plausibly needs (the verdict's "large correction" limits, 10 mm and 2 deg): such a value is
-    noise (and extrapolates wildly outside the measured region), so it is kept at its nominal value."""
-    sd = parameter_statistics(fit.jacobian, fit.residual, free, free)[0]
-    th = Thresholds()
-    kinds = dict(zip(robot.params.names, robot.params.kinds))
-    over = [(float(s / (th.length_suspect if kinds[n] == "length" else th.angle_suspect)), n, float(s))
-            for n, s in zip(free, sd) if n in kinds and n not in robot.base_params()]
-    over = [r for r in over if r[0] > 1.0]
-    return None if not over else over[first_best([r[0] for r in over])][1:]
 
 
 def _registered(robot: Robot, sets, gauge) -> Robot:

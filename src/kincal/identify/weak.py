@@ -1,0 +1,48 @@
+"""Parameters the data hardly determine: kept at their nominal values, in every fit.
+
+A parameter whose σ from the data exceeds the largest correction a real robot plausibly needs (the
+verdict's "large correction" limits, 10 mm and 2 deg) is noise: fitted, it extrapolates wildly
+outside the measured region (one marker on a small region: 4.17 mm held out where the fit that holds
+such parameters reaches 3.14 mm). The worst one is kept nominal and the fit repeated, until none is.
+The position fit (:mod:`kincal.identify.calibrate`) and the fit of observation sets
+(:mod:`kincal.identify.stacked`) share this rule.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from ..models.robot import Robot
+from ..ties import first_best
+from ..units import MM, MRAD
+from .covariance import normal_inverse, parameter_statistics
+from .verdict import Thresholds
+
+
+def weakest(robot: Robot, free: Sequence[str], jacobian: np.ndarray, residual: np.ndarray,
+            noise: float | None = None) -> tuple[str, float] | None:
+    """The robot parameter among ``free`` (the columns of ``jacobian``) the data determine worst, with
+    its σ (m or rad), when that σ exceeds the plausible correction limits; None when none does. The
+    base frame (a set-up) is never held. σ from the residual's own scale, or with ``noise`` (the
+    instrument's, m) from the poses alone: what the poses can determine, so data that do not fit the
+    robot (swapped joints) keep their implausible corrections in view instead of hiding them as weak."""
+    if noise is None:
+        sd = parameter_statistics(jacobian, residual, free, free)[0]
+    else:
+        sd = noise * np.sqrt(np.maximum(np.diag(normal_inverse(jacobian)), 0.0))
+    th = Thresholds()
+    kinds = dict(zip(robot.params.names, robot.params.kinds))
+    over = [(float(s / (th.length_suspect if kinds[n] == "length" else th.angle_suspect)), n, float(s))
+            for n, s in zip(free, sd) if n in kinds and n not in robot.base_params()]
+    over = [r for r in over if r[0] > 1.0]
+    return None if not over else over[first_best([r[0] for r in over])][1:]
+
+
+def weak_note(robot: Robot, weak: dict[str, float]) -> str:
+    """The parameters held, with the σ the data gave them, in one line ('' when none)."""
+    if not weak:
+        return ""
+    kinds = dict(zip(robot.params.names, robot.params.kinds))
+    shown = [f"{n} ±{v * MM:.1f} mm" if kinds[n] == "length" else f"{n} ±{v * MRAD:.0f} mrad" for n, v in weak.items()]
+    return f"kept at nominal, determined worse than a real robot's error (10 mm, 2 deg): {', '.join(shown)}"
