@@ -110,7 +110,9 @@ def test_base_mode_rule_has_one_home(ur5):
         kincal.analysis.free_parameters(ur5, q, base="fixed", names=["base.x", "j2.a"])
     # calibrate, design and the CLI all use it: the same free parameters
     meas = kincal.simulate(ur5, q, noise=0.0)
-    assert kincal.calibrate(ur5, meas).names == est.identifiable  # one rank rule: no tolerance to pass
+    res = kincal.calibrate(ur5, meas)  # one rank rule: no tolerance to pass; then the weak hold, named
+    assert res.names == tuple(n for n in est.identifiable if n not in res.weak)
+    assert set(res.weak) == {"j5.theta", "j5.alpha"}  # the reflector 0.09 mm off the flange axis: ±6 deg
     assert kincal.design.design_problem(ur5, q).names == est.identifiable
 
 

@@ -54,6 +54,15 @@ class Identifiability:
     def full_rank(self) -> bool:
         return not self.dropped
 
+    def change_from(self, before: "Identifiability") -> str:
+        """How the identifiable set differs from ``before``'s, in words ('now also a, b; no longer c');
+        '' when it is the same set."""
+        old, new = set(before.identifiable), set(self.identifiable)
+        gained = [n for n in self.identifiable if n not in old]
+        lost = [n for n in before.identifiable if n not in new]
+        return "; ".join(p for p in (f"now also {', '.join(gained)}" if gained else "",
+                                      f"no longer {', '.join(lost)}" if lost else "") if p)
+
     def to_dict(self) -> dict:
         return {
             "robot": self.robot,

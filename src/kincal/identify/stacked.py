@@ -264,7 +264,7 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
         for k in range(JUDGED + 1):
             # the fitted set first among confounded ones: only a real change of what the data see counts
             again = _identifiability(robot, st, gauge, wanted, (*keep, *ident.identifiable), rank_tol, full)
-            change = _change(ident, again)
+            change = again.change_from(ident)
             if not change:
                 break
             if k == JUDGED:
@@ -281,15 +281,6 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
 
 
 JUDGED = 3  # refits when the identifiable set at the solution differs from the start's
-
-
-def _change(before: Identifiability, after: Identifiability) -> str:
-    """The identifiable set's change in words ('+a, b; −c'), '' when none."""
-    old, new = set(before.identifiable), set(after.identifiable)
-    gained = [n for n in after.identifiable if n not in old]
-    lost = [n for n in before.identifiable if n not in new]
-    return "; ".join(p for p in (f"now also {', '.join(gained)}" if gained else "",
-                                  f"no longer {', '.join(lost)}" if lost else "") if p)
 
 
 @dataclass(frozen=True)
