@@ -25,18 +25,17 @@ from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_ident
 from ..analysis.observability import live_columns
 from ..analysis.uncertainty import ModelUncertainty
 from ..errors import MeasurementError
-from ..models.robot import Robot
+from ..models.robot import TOOL_NAMES, Robot
 from ..observe.sessions import InSession
-from ..models.robot import TOOL_NAMES
 from ..units import MM, MRAD, display
 from .covariance import parameter_statistics
 from .lm import levenberg_marquardt
 from .registration import register_base
 from .relevance import PRIORS, RelevanceFit, prior_lines, with_learned_prior
 from .noise import extra_variance
-from .weak import weakest
 from .observed_verdict import component_kinds, observation_verdict, whitened_per_kind
 from .verdict import Thresholds, Verdict, mounting_line
+from .weak import weakest
 
 
 @dataclass(frozen=True, eq=False)
