@@ -8,7 +8,8 @@ from .result import CalibrationResult, EvaluationStats
 from .relevance import PRIORS
 from .robust import LOSSES
 from .select import ErrorModelChoice
-from .stacked import ObservationFit, fit_observations, observation_identifiability, stat_line
+from .observed_result import ObservationFit, stat_line
+from .stacked import fit_observations, observation_identifiability
 from .sessions import AS_CALIBRATED, REGISTERED, calibrate_sessions, heldout_cause, joined, refit_frame
 from .verdict import Reason, Thresholds, Verdict
 

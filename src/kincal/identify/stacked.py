@@ -23,144 +23,18 @@ import numpy as np
 from .._threads import blas_threads
 from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_identifiability
 from ..analysis.observability import live_columns
-from ..analysis.uncertainty import ModelUncertainty
 from ..errors import MeasurementError
-from ..models.robot import TOOL_NAMES, Robot
+from ..models.robot import Robot
 from ..observe.sessions import InSession
-from ..units import MM, MRAD, display
 from .covariance import parameter_statistics
 from .lm import levenberg_marquardt
-from .registration import register_base
-from .relevance import PRIORS, RelevanceFit, prior_lines, with_learned_prior
 from .noise import extra_variance
+from .observed_result import ObservationFit
 from .observed_verdict import component_kinds, observation_verdict, whitened_per_kind
-from .verdict import Thresholds, Verdict, mounting_line
+from .registration import register_base
+from .relevance import PRIORS, RelevanceFit, with_learned_prior
+from .verdict import Thresholds
 from .weak import weakest
-
-
-@dataclass(frozen=True, eq=False)
-class ObservationFit:
-    """A calibration from observation sets: the calibrated robot, the robot parameters fitted
-    (``names``), the nuisance parameters' values, σ of both (m or rad; a posteriori, σ̂² = χ²/dof),
-    the identifiability of the stacked problem, the gauge freedoms, per-set statistics before and
-    after (mm, mrad), the whitened residual RMS (1 when the stated σ are right), the verdict and the
-    learned prior's σ per group (``prior``; with it, ``std`` and ``covariance`` are posterior)."""
-
-    robot: Robot
-    nominal: Robot
-    names: tuple[str, ...]
-    nuisance: dict
-    std: dict
-    identifiability: Identifiability
-    gauge: tuple[str, ...]
-    stats_before: tuple[dict, ...]
-    stats: tuple[dict, ...]
-    whitened_rms: float
-    covariance: np.ndarray
-    verdict: Verdict
-    converged: bool
-    iterations: int
-    observations: tuple = ()
-    weak: dict = dataclasses.field(default_factory=dict)  # kept nominal: name -> σ the data gave it (m or rad)
-    prior: dict = dataclasses.field(default_factory=dict)  # learned prior σ per group (m or rad); {}: none
-    whitened: dict = dataclasses.field(default_factory=dict)  # whitened RMS per kind ("pose rotation": 1.3)
-    model_error: dict = dataclasses.field(default_factory=dict)  # s per kind beside the stated σ (m or rad)
-
-    def to_dict(self) -> dict:
-        return {"robot": self.robot.name, "fitted": list(self.names),
-                "estimates": {n: float(self.robot.params[n]) for n in self.names},
-                "corrections": {n: float(self.robot.params[n] - self.nominal.params[n]) for n in self.names},
-                "nuisance": {k: float(v) for k, v in self.nuisance.items()},
-                "std": {k: (float(v) if np.isfinite(v) else None) for k, v in self.std.items()},
-                "gauge": list(self.gauge), "weakly_determined": {k: float(v) for k, v in self.weak.items()},
-                "prior": {k: float(v) for k, v in self.prior.items()},
-                "identifiability": self.identifiability.to_dict(),
-                "before": list(self.stats_before), "after": list(self.stats), "whitened_rms": self.whitened_rms,
-                "whitened_rms_per_kind": dict(self.whitened), "model_error": dict(self.model_error),
-                "verdict": self.verdict.to_dict(), "converged": self.converged, "iterations": self.iterations}
-
-    def record(self) -> dict:
-        """What a calibrated robot file keeps beside the model: the robot parameters' covariance (for
-        prediction σ), the nominal values, the set-up parameters and the statistics."""
-        k = [i for i, n in enumerate(self.identifiability.identifiable) if n in set(self.names)]
-        q = np.concatenate([o.q for o in self.observations])
-        unc = ModelUncertainty.from_fit(self.robot, self.names, self.covariance[np.ix_(k, k)], q).to_dict()
-        unc["envelope"]["joints"] = list(self.robot.joint_names)
-        return {**unc, "nominal": self.nominal.params.as_dict(), "observations": list(self.stats),
-                "nuisance": {n: float(v) for n, v in self.nuisance.items()},
-                "weakly_determined": {n: float(v) for n, v in self.weak.items()}}
-
-    @property
-    def mounting(self) -> str:
-        """Where the data put the target against the declared tool point, when the fit moved it; ''
-        otherwise (a mounting result, not a robot error)."""
-        if not self.robot.has_tool_point or not set(TOOL_NAMES) & set(self.names):
-            return ""
-        return mounting_line(self.nominal.tool_point(), self.robot.tool_point())
-
-    def parameter_lines(self) -> list[str]:
-        """The fitted robot parameters as a table: estimate, correction from nominal, σ (mm, deg)."""
-        kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
-        lines = [f"{'parameter':<22} {'estimate':>16} {'correction':>16} {'σ':>14}"]
-        for n in self.names:
-            k, sd = kinds[n], self.std.get(n, np.inf)
-            lines.append(f"{n:<22} {display(self.robot.params[n], k):>16} "
-                         f"{display(self.robot.params[n] - self.nominal.params[n], k):>16} "
-                         f"{display(sd, k).lstrip('+') if np.isfinite(sd) else 'undetermined':>14}")
-        return lines
-
-    def weak_lines(self) -> list[str]:
-        """The parameters kept nominal for want of information, each with the σ the data gave it."""
-        kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
-        return [f"{n} ±{v * MM:.1f} mm" if kinds[n] == "length" else f"{n} ±{v * MRAD:.0f} mrad"
-                for n, v in self.weak.items()]
-
-    def held_out(self, obs, robot: Robot | None = None) -> dict:
-        """Statistics of a held-out set (same types) under the calibrated robot (or ``robot``, e.g. the
-        nominal one): set-up parameters the fit shares with it (a target's rotation, markers) at their
-        fitted values; a pose set also takes the training target's start rotation."""
-        robot = self.robot if robot is None else robot
-        poses = [o for o in self.observations if o.kind == "pose"]
-        if obs.kind == "pose" and poses:
-            obs = dataclasses.replace(obs, target_rotation=poses[0].target_rotation)
-        else:
-            obs = obs.prepare(robot)
-        names, start, _ = obs.nuisance(robot)
-        nuis = np.array([self.nuisance.get(n, v) for n, v in zip(names, start)])
-        return obs.stats(robot, robot.params.values, nuis)
-
-    def __str__(self) -> str:
-        lines = [f"calibration of {self.robot.name} from {', '.join(sorted({s['type'] for s in self.stats}))} data: "
-                 f"{'converged' if self.converged else 'NOT converged'} in {self.iterations} iterations; "
-                 f"{len(self.names)} robot and {len(self.nuisance)} set-up parameters",
-                 f"whitened residual RMS {self.whitened_rms:.3g} (1 when the stated σ are right): "
-                 + ", ".join(f"{k} {v:.3g}" for k, v in self.whitened.items())]
-        for b, a in zip(self.stats_before, self.stats):
-            lines.append(f"  {a['type']} ({a['source']}): {stat_line(b)}  →  {stat_line(a)}")
-        if self.model_error:
-            lines.append("weighted by 1/(σ² + s²), s what the model leaves beyond the stated σ: " + ", ".join(
-                f"{k} {v * MRAD:.3g} mrad" if k.endswith("rotation") else f"{k} {v * MM:.3g} mm"
-                for k, v in self.model_error.items()))
-        lines += self.parameter_lines()
-        if self.mounting:
-            lines.append(f"mounting: {self.mounting}")
-        if self.gauge:
-            lines.append(f"not seen by these data (gauge freedoms, kept at their values): {', '.join(self.gauge)}")
-        if self.weak:
-            lines.append(f"kept at nominal, the data determine them worse than a real robot's error (10 mm, 2 deg): "
-                         f"{', '.join(self.weak_lines())}")
-        lines += prior_lines(self.prior)
-        lines.append(f"verdict: {self.verdict.status.upper()}")
-        lines += [f"  {r.level}: {r.message}" for r in self.verdict.reasons]
-        return "\n".join(lines)
-
-
-def stat_line(s: dict) -> str:
-    """One set's statistics (``stats()`` of an observation type) in a few words, mm and mrad."""
-    if "mean_abs_mm" in s:
-        return f"mean |p − point| {s['mean_abs_mm']:.4f} mm"
-    rot = f", mean {s['mean_mrad']:.4f} mrad" if "mean_mrad" in s else ""
-    return f"mean {s['mean_mm']:.4f} mm{rot}"
 
 
 @dataclass(frozen=True)

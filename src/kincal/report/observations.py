@@ -8,7 +8,7 @@ from typing import Sequence
 import numpy as np
 
 from ..identify.relevance import prior_lines
-from ..identify.stacked import ObservationFit
+from ..identify.observed_result import ObservationFit
 from ..units import MM, MRAD, display
 from .build import Report, json_path_for, report_date, template
 
