@@ -456,3 +456,20 @@ def test_known_distances_and_planes_are_checked_once_and_in_reach():
         ObservationFormat("same-point", distances=(("0", "1", 1e300),), length_unit="mm")
     with pytest.raises(ValueError, match="plane table: give a non-zero normal and an offset a robot can reach"):
         ObservationFormat("plane", planes={"table": ((0.0, 0.0, 1.0), 1e300)})
+
+
+def test_report_of_an_edited_record_names_what_is_missing(tmp_path, capsys):
+    """kincal report on a pose calibration whose record lost how the files were read: one line naming
+    the file and the key, exit 1; the intact record reports (exit 0)."""
+    import yaml
+
+    data, cal = tmp_path / "poses.csv", tmp_path / "cal.yaml"
+    assert main(["simulate", "ur5", "--type", "pose", "--perturb", "-o", str(data)]) == 0
+    assert main(["calibrate", "ur5", str(data), "--type", "pose", "-o", str(cal)]) == 0
+    assert main(["report", str(cal), "-o", str(tmp_path / "ok.html")]) == 0
+    doc = yaml.safe_load(cal.read_text())
+    del doc["calibration"]["data"]["reading"]
+    cal.write_text(yaml.safe_dump(doc))
+    capsys.readouterr()
+    code, _, err = _run(capsys, ["report", str(cal), "-o", str(tmp_path / "r.html")])
+    assert code == 1 and "cal.yaml: the calibration record lacks data: reading" in err and "internal" not in err

@@ -215,13 +215,28 @@ def _plain(value):
     return value
 
 
+def _record_parts(path: str, record: dict) -> tuple[dict, dict]:
+    """The record's data (files, kinds, how they were read) and options, checked to be there (a
+    ValueError naming the file and the key otherwise)."""
+    data, opts = record.get("data"), record.get("observation_options")
+    needed = (("data", data, ("file", "kinds", "reading")), ("observation_options", opts,
+                                                              ("names", "keep", "max_iter", "prior", "thresholds")))
+    for key, part, fields in needed:
+        missing = [f for f in fields if not isinstance(part, dict) or f not in part]
+        if missing or "nominal" not in record:
+            raise ValueError(f"{path}: the calibration record lacks {key}: {', '.join(missing) or 'nominal'} (edited "
+                             f"by hand, or written by another version); calibrate again to write it")
+    assert isinstance(data, dict) and isinstance(opts, dict)
+    return data, dict(opts)
+
+
 def cmd_report(args, record: dict) -> int:
     """kincal report of a file calibrated from observation files: the fit repeated from the record
     (the nominal values, the options, how each file was read), the report written."""
     import kincal.identify
     from kincal.report import observation_report
 
-    data, opts = record["data"], dict(record["observation_options"])
+    data, opts = _record_parts(args.robot, record)
     given = report_columns(args)
     reading = argparse.Namespace(**{k: given[k] if given.get(k) is not None else data["reading"].get(k)
                                     for k in READING}, json=args.json,
