@@ -1,4 +1,4 @@
-"""calibrate as problem + residual + solver: option checks first, the base-mode rule, batched swarms."""
+"""calibrate as problem + observation set + solver: option checks first, the base-mode rule, batched swarms."""
 import importlib
 
 import numpy as np
@@ -6,7 +6,8 @@ import pytest
 
 import kincal
 from kincal.design.ide import F_MIN, mutation_factor
-from kincal.identify import CartesianResidual, FitOptions, JointResidual, build_problem
+from kincal.identify import FitOptions, build_problem
+from kincal.observe import JointObs, PointObs
 
 calibrate_module = importlib.import_module("kincal.identify.calibrate")  # the module, not the function
 select_module = importlib.import_module("kincal.design.select")
@@ -134,11 +135,28 @@ def test_swarm_costs_equal_the_residuals(puu3_data):
     V = robot.params.values + np.random.default_rng(1).normal(0.0, 2e-3, (30, robot.n_params))
     V[0, robot.params.index("L1")] = 0.05  # a leg too short to reach: that particle is infinitely bad
     cols = np.arange(robot.n_params)
-    for res in (JointResidual(robot, meas), CartesianResidual(robot, meas)):
-        costs = res.batch_cost(V)
+    for kind in (JointObs, PointObs):
+        obs = kind(meas.q, meas.rows, meas.source, xyz=meas.xyz)
+        costs = obs.batch_cost(robot, V)
         assert costs[0] == np.inf
-        ref = [np.mean(res.evaluate(v, cols)[0] ** 2) for v in V[1:]]
+        ref = [np.mean(obs.evaluate_cols(robot, v, cols)[0] ** 2) for v in V[1:]]
         np.testing.assert_allclose(costs[1:], ref, rtol=1e-12)
+
+
+def test_joint_residual_jacobian_is_its_derivative(puu3_data):
+    """The joint-space observation's Jacobian against central differences, column by column, and its
+    rows in the order of its samples (every pose's first joint, then the second, ...)."""
+    robot, meas = puu3_data
+    obs = JointObs(meas.q, meas.rows, meas.source, xyz=meas.xyz)
+    v0, cols = robot.params.values, np.arange(robot.n_params)
+    r, J = obs.evaluate_cols(robot, v0, cols)
+    np.testing.assert_allclose(r.reshape(robot.n_joints, -1).T, robot.inverse(meas.xyz) - meas.q, atol=1e-15)
+    assert np.array_equal(obs.sample_rows(), np.tile(np.arange(len(meas)), robot.n_joints))
+    for k in cols:
+        h = np.zeros_like(v0)
+        h[k] = 1e-7
+        fd = (obs.evaluate_cols(robot, v0 + h, cols)[0] - obs.evaluate_cols(robot, v0 - h, cols)[0]) / 2e-7
+        np.testing.assert_allclose(J[:, k], fd, atol=1e-6)
 
 
 def test_pso_history_is_kept(puu3_data):

@@ -125,6 +125,7 @@ def identifiability(
     keep: Sequence[str] = (),
     exclude: Sequence[str] = (),
     rank_tol: float = RANK_TOL,
+    jacobian: np.ndarray | None = None,
 ) -> Identifiability:
     """Identifiable and dropped parameters of ``robot`` from position data at joint values q (N, n).
 
@@ -133,6 +134,8 @@ def identifiability(
                 ``robot.preferred_params()`` (for serial robots the tool point, then the base frame),
                 so a dropped tool offset is never replaced by a huge joint-angle change
     rank_tol -- relative singular-value tolerance on the column-scaled Jacobian (:data:`RANK_TOL`)
+    jacobian -- the stacked position Jacobian at q over every parameter, (3N, P) in any row order, if
+                already computed (a fit's first evaluation)
     """
     if not 0 < rank_tol < 1:
         raise ValueError(f"rank_tol={rank_tol}: the relative singular-value tolerance must lie in (0, 1)")
@@ -141,7 +144,8 @@ def identifiability(
     robot.params.indices(excluded)  # unknown names raise
     cand = [n for n in (names if names is not None else robot.params.names) if n not in excluded]
     robot.params.indices(cand)
-    J = stacked_jacobian(robot, q, cand)
+    # a given Jacobian's columns are taken as rows of its transpose: column-major stays column-major
+    J = stacked_jacobian(robot, q, cand) if jacobian is None else jacobian.T[robot.params.indices(cand)].T
     ident = jacobian_identifiability(J, cand, [list(keep), list(robot.preferred_params())], robot.name, q.shape[0],
                                      rank_tol)
     return dataclasses.replace(ident, notes=tuple(robot.structure_notes()) + ident.notes)
@@ -224,20 +228,22 @@ BASE_MODES = ("fixed", "estimate")
 
 
 def free_parameters(robot: Robot, q: np.ndarray, base: str = "estimate", names: Sequence[str] | None = None,
-                    keep: Sequence[str] = (), rank_tol: float = RANK_TOL) -> Identifiability:
+                    keep: Sequence[str] = (), rank_tol: float = RANK_TOL,
+                    jacobian: np.ndarray | None = None) -> Identifiability:
     """Identifiability of the parameters a calibration or a design would fit: the one home of the
     base-mode rule. ``base="fixed"``: the base frame is known, so its parameters are left out (an
     explicit ``names`` list naming one is an error); ``"estimate"``: the base frame is fitted too and
     its parameters are chosen first among confounded ones (after ``keep``), so a base offset, not a
     joint term, absorbs where the tracker stands. ``names`` None: every parameter is a candidate;
     otherwise exactly those (plus the base frame when estimated). The fit's free parameters are
-    ``.identifiable``; ``.candidates`` is the list asked for."""
+    ``.identifiable``; ``.candidates`` is the list asked for; ``jacobian``: see :func:`identifiability`."""
     if base not in BASE_MODES:
         raise ValueError(f"base='{base}' is not one of {BASE_MODES}")
     bn = list(robot.base_params())
     if names is None:
         return identifiability(robot, q, exclude=bn if base == "fixed" else (),
-                               keep=list(keep) + (bn if base == "estimate" else []), rank_tol=rank_tol)
+                               keep=list(keep) + (bn if base == "estimate" else []), rank_tol=rank_tol,
+                               jacobian=jacobian)
     chosen = list(dict.fromkeys(names))
     clash = [n for n in chosen if n in bn]
     if base == "fixed" and clash:
@@ -245,7 +251,7 @@ def free_parameters(robot: Robot, q: np.ndarray, base: str = "estimate", names: 
     if base == "estimate":
         chosen = bn + [n for n in chosen if n not in bn]
     return identifiability(robot, q, names=chosen, keep=list(keep) + (bn if base == "estimate" else []),
-                           rank_tol=rank_tol)
+                           rank_tol=rank_tol, jacobian=jacobian)
 
 
 def _pivot_order(Js: np.ndarray, names: list[str], stages: list[list[str]], rank: int, cutoff: float) -> list[int]:

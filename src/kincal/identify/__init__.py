@@ -2,8 +2,7 @@
 from .applies import SCOPES, refuse_inapplicable
 from .calibrate import calibrate, evaluate
 from .options import METHODS, FitOptions, PSOOptions
-from .problem import CalibrationProblem, build_problem
-from .residuals import RESIDUALS, CartesianResidual, JointResidual
+from .problem import RESIDUALS, CalibrationProblem, build_problem
 from .result import CalibrationResult, EvaluationStats
 from .relevance import PRIORS
 from .robust import LOSSES
@@ -14,7 +13,7 @@ from .sessions import AS_CALIBRATED, REGISTERED, calibrate_sessions, heldout_cau
 from .verdict import Reason, Thresholds, Verdict
 
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "CalibrationProblem", "build_problem",
-           "RESIDUALS", "CartesianResidual", "JointResidual", "CalibrationResult", "EvaluationStats", "LOSSES",
+           "RESIDUALS", "CalibrationResult", "EvaluationStats", "LOSSES",
            "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
            "AS_CALIBRATED", "PRIORS", "fit_observations", "ObservationFit", "observation_identifiability", "stat_line",
            "SCOPES", "refuse_inapplicable", "joined"]

@@ -143,7 +143,7 @@ def _with_model_error(problem: CalibrationProblem, final: CalibrationProblem, fi
         if abs(np.sqrt(s2) - s_old) <= SETTLED * max(np.sqrt(s2), 1e-12):
             break
         s_old = float(np.sqrt(s2))
-        w = relative_weights(std, s2)
+        w = relative_weights(std, s2).T.ravel()  # the residual's rows: every pose's x, then y, then z
         if np.allclose(w, weights, rtol=1e-9, atol=0.0):  # equal σ: the same weights, the same fit
             break
         say(f"refitting with {s_old * 1e3:.3g} mm of model error beside the stated σ")

@@ -18,7 +18,6 @@ from ..checks import one_of as _one_of
 from ..checks import whole as _whole
 from ..models.robot import Robot
 from ..models.terms import ErrorModel
-from .residuals import RESIDUALS
 from .robust import LOSSES
 from .verdict import Thresholds
 
@@ -31,6 +30,8 @@ def _names(name: str, value) -> tuple[str, ...]:
         raise ValueError(f"{name}={value!r}: give a list of parameter names")
     return tuple(dict.fromkeys(value))
 
+
+RESIDUAL_NAMES = ("cartesian", "joint")  # what a position fit minimises (identify.problem.RESIDUALS)
 
 @dataclass(frozen=True)
 class PSOOptions:
@@ -118,7 +119,7 @@ class FitOptions:
         _one_of("base", self.base, BASE_MODES)
         _one_of("loss", self.loss, LOSSES)
         _one_of("method", self.method, METHODS)
-        _one_of("residual", self.residual, tuple(RESIDUALS))
+        _one_of("residual", self.residual, RESIDUAL_NAMES)
         if self.f_scale is not None:
             set_("f_scale", _number("f_scale", self.f_scale, unit="m"))
         set_("rank_tol", _number("rank_tol", self.rank_tol))

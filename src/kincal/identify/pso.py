@@ -79,6 +79,6 @@ def fit_pso(problem: CalibrationProblem, options: PSOOptions,
     """Particle swarm on the mean squared residual of ``problem`` around its starting values, in a
     box of ±8 mm (lengths) or ±8 mrad (angles) per parameter."""
     kinds = [problem.start.params.kinds[i] for i in problem.cols]
-    return pso(lambda X: problem.residual.batch_cost(problem.embed_many(X)), problem.x0,
+    return pso(lambda X: problem.obs.batch_cost(problem.start, problem.embed_many(X)), problem.x0,
                np.array([HALF_WIDTH[k] for k in kinds]), np.array([V_MAX[k] for k in kinds]),
                progress=progress, **options.to_dict())

@@ -6,12 +6,14 @@ Weights follow scipy's conventions, z = (‖rᵢ‖/f_scale)²: "huber" ρ'(z) =
 """
 from __future__ import annotations
 
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from .lm import LMResult
-from .problem import CalibrationProblem
+
+if TYPE_CHECKING:  # the problem module uses the options, which list this module's losses
+    from .problem import CalibrationProblem
 
 LOSSES = ("linear", "huber", "soft_l1")
 MAX_IRLS = 20
@@ -28,7 +30,7 @@ def robust_weights(norms: np.ndarray, loss: str, f_scale: float) -> np.ndarray:
     return np.ones_like(z)
 
 
-def irls(problem: CalibrationProblem, fit: LMResult, loss: str, f_scale: float | None,
+def irls(problem: "CalibrationProblem", fit: LMResult, loss: str, f_scale: float | None,
          solve: Callable[[np.ndarray, np.ndarray], LMResult]) -> tuple[LMResult, np.ndarray, int, int]:
     """Reweight and re-solve from ``fit`` until the weights settle; ``solve(x0, weights)`` is the
     solver. Returns the final fit, the weights (N,), and the iterations and evaluations spent."""

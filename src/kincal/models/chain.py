@@ -25,6 +25,7 @@ from ..errors import ModelError
 
 ROT, TRANS = "R", "T"
 AXES = {"x": 0, "y": 1, "z": 2}
+BLOCK = 2048  # configurations per block of the parameter Jacobian (~3 MB of intermediates for a 6-axis arm)
 
 
 @dataclass(frozen=True)
@@ -182,9 +183,21 @@ class Chain:
         """
         n = q.shape[0]
         ends, A, B = self._segment_frames(values, True)
+        G = np.concatenate([A, B, np.concatenate(ends)])[self.z_map]  # (z_rows, 3) stacked constants
+        if n <= BLOCK:
+            return self._block(values, q, G)
+        p, JT = np.empty((n, 3)), np.empty((self.n_params, 3, n))
+        for lo in range(0, n, BLOCK):  # blocks that fit in the cache: memory traffic, not arithmetic, limits
+            p[lo:lo + BLOCK] = self._block(values, q[lo:lo + BLOCK], G, JT[:, :, lo:lo + BLOCK])[0]
+        return p, JT.transpose(2, 1, 0)
+
+    def _block(self, values: np.ndarray, q: np.ndarray, G: np.ndarray,
+               out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`forward_and_jacobian` of one block of configurations, ``G`` the stacked constants;
+        the Jacobian written to ``out`` (P, 3, n) if given."""
+        n = q.shape[0]
         n_rot = self.rot_idx.size
         F, Z, o0, Cx, tmp = _carve(n, (3, 3), (self.z_rows, 3), (3,), (n_rot, 3), (max(n_rot, 3),))
-        G = np.concatenate([A, B, np.concatenate(ends)])[self.z_map]  # (z_rows, 3) stacked constants
         X = q.T[self.head_joint] + (values[self.head_param] + self.head_offset)[:, None]  # joint-op values, (n_joints, N)
         C, Sn = cos_sin(X)
         W = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n))  # W[k] = world axis k of the frame
@@ -221,7 +234,7 @@ class Chain:
             np.multiply(Ur[:, b], D[:, c_], out=Cx[:, a])
             np.multiply(Ur[:, c_], D[:, b], out=tr)
             Cx[:, a] -= tr
-        return np.ascontiguousarray(p.T), self._columns(Cx, Z[self.z_trans_axes], n)
+        return np.ascontiguousarray(p.T), self._columns(Cx, Z[self.z_trans_axes], n, out)
 
     def pose_jacobian(self, values: np.ndarray, q: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -263,10 +276,10 @@ class Chain:
             J[3:, k] = u
         return o.T, W.transpose(2, 1, 0), J[:3].transpose(2, 0, 1), J[3:].transpose(2, 0, 1)
 
-    def _columns(self, rot: np.ndarray, trans: np.ndarray, n: int) -> np.ndarray:
+    def _columns(self, rot: np.ndarray, trans: np.ndarray, n: int, out: np.ndarray | None = None) -> np.ndarray:
         """The Jacobian (N, 3, P) from the rotation columns u × (p − o) and the translation axes,
         each (ops, 3, N); constant ops have no column, parameters without an op get zeros."""
-        JT = np.empty((self.n_params, 3, n))
+        JT = np.empty((self.n_params, 3, n)) if out is None else out
         if self.all_ops_have_params:
             JT[self.cols_rot] = rot
             JT[self.cols_trans] = trans

@@ -1,12 +1,13 @@
-"""Observation types: what a measurement says about the robot (a point, markers, a full pose, the
-same point with known distances, plane contacts), each a residual object with its noise σ and the
+"""Observation types: what a measurement says about the robot (a point, the joints that reach it, markers, a full
+pose, the same point with known distances, plane contacts), each a residual object with its noise σ and the
 set-up parameters it brings. The stacked fit is :func:`kincal.identify.stacked.fit_observations`."""
 from .constraints import PlaneObs, SamePointObs
 from .files import KINDS, ObservationFormat, describe, read_observations, write_observations
+from .joint import JointObs
 from .observations import MarkersObs, Observation, PointObs, PoseObs
 from .orientation import check_convention, default_columns, from_matrices, to_matrices
 from .sessions import InSession
 
-__all__ = ["Observation", "PointObs", "PoseObs", "MarkersObs", "SamePointObs", "PlaneObs", "InSession", "KINDS",
+__all__ = ["Observation", "PointObs", "JointObs", "PoseObs", "MarkersObs", "SamePointObs", "PlaneObs", "InSession", "KINDS",
            "ObservationFormat", "read_observations", "write_observations", "describe", "check_convention", "default_columns",
            "from_matrices", "to_matrices"]

@@ -55,6 +55,20 @@ def so3_right(omega: np.ndarray) -> np.ndarray:
     return np.eye(3) - (1 - np.cos(th)) / th**2 * K + (th - np.sin(th)) / th**3 * (K @ K)
 
 
+def component_major(r: np.ndarray, J: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N, c) residuals and (N, c, P) derivatives -> (N·c,) and (N·c, K) for the columns ``cols``,
+    every sample's first component, then the second, …: J is the transposed view of one copy of the
+    columns (the kinematics keep them parameter-major)."""
+    return r.T.ravel(), J.transpose(2, 1, 0)[cols].reshape(len(cols), -1).T
+
+
+def mean_square(r: np.ndarray) -> np.ndarray:
+    """(S,) mean of r² over every axis but the first; non-finite rows give inf."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        val = np.mean(r.reshape(r.shape[0], -1) ** 2, axis=1)
+    return np.where(np.isfinite(val), val, np.inf)
+
+
 def _with_tool(robot: Robot, values: np.ndarray, point: np.ndarray) -> np.ndarray:
     v = values.copy()
     v[robot.params.indices(TOOL_NAMES)] = point
@@ -143,6 +157,21 @@ class Observation:
         """Per-type figures (mm, mrad) at ``values`` and ``nuis``; every type declares them."""
         raise NotImplementedError(f"{self.kind} data declare no statistics")
 
+    def evaluate_cols(self, robot: Robot, values: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """r (M,) and its derivatives by the robot parameters ``cols`` only (M, K), the set-up
+        parameters at their starts: the position fit's view of a set (types whose Jacobian comes out
+        parameter-major override it and save a copy)."""
+        r, Jr, _ = self.evaluate(robot, values, self.nuisance(robot)[1])
+        return r, Jr[:, cols]
+
+    def batch_cost(self, robot: Robot, values: np.ndarray) -> np.ndarray:
+        """(S,) mean squared residual for S parameter vectors (S, P) at once, inf where one cannot be
+        evaluated: what a particle swarm minimises; types that have batched kinematics declare it."""
+        raise NotImplementedError(f"a particle swarm cannot fit {self.kind} data")
+
+    def check(self, robot: Robot, values: np.ndarray) -> None:
+        """A MeasurementError, before any work, where the residual is undefined (none by default)."""
+
     def anchors(self) -> dict:
         """Start values its set-up parameters are measured from, which every set sharing those
         parameters must share (a pose target's start rotation); none by default."""
@@ -174,6 +203,13 @@ class PointObs(Observation):
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
         p, J = robot.forward_and_jacobian(self.q, values)
         return (p - self.xyz).T.ravel(), J.transpose(1, 0, 2).reshape(-1, J.shape[2]), np.zeros((p.size, 0))
+
+    def evaluate_cols(self, robot: Robot, values: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p, J = robot.forward_and_jacobian(self.q, values)
+        return component_major(p - self.xyz, J, cols)
+
+    def batch_cost(self, robot: Robot, values: np.ndarray) -> np.ndarray:
+        return mean_square(robot.forward_batch(self.q, values) - self.xyz)
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         e = np.linalg.norm(robot.forward(self.q, values) - self.xyz, axis=1)
