@@ -1,5 +1,7 @@
 """Robot models: forward kinematics against independent computations, analytic Jacobians against
 central differences, robot YAML files."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 from conftest import DATA, UR5_COLS, central_jacobian
@@ -84,6 +86,29 @@ def test_bundled_jacobians_match_central_differences(name):
     q = robot.sample_joints(20, seed=1)
     Jn = central_jacobian(robot, q)
     assert np.abs(robot.param_jacobian(q) - Jn).max() / np.abs(Jn).max() < 1e-6
+
+
+@pytest.mark.parametrize("name", ["ur5", "scara", "panda"])
+def test_frame_rates_match_central_differences(name):
+    """Robot.frame_and_rates (a chain reads the rotation rate off its ops' world axes) against central
+    differences of the flange rotation, which comes from positions alone; over two blocks of configurations."""
+    from kincal.models.chain import BLOCK
+    from scipy.spatial.transform import Rotation
+    base = (kincal.load_robot(Path(__file__).parent / "data" / "urdf" / "panda" / "panda.urdf", tip_link="ball_link")
+            if name == "panda"
+            else kincal.load_robot(name))
+    robot = kincal.perturb(base.with_tool_point([0.05, -0.02, 0.1]), 1e-3, 1e-2, seed=5, include_base=True)
+    q = robot.sample_joints(BLOCK + 7, seed=1)
+    p, J, R, Jw = robot.frame_and_rates(q)
+    p0, J0 = robot.forward_and_jacobian(q)
+    assert np.array_equal(p, p0) and np.array_equal(J, J0)
+    np.testing.assert_allclose(R, robot.flange_rotation(q), atol=1e-12)
+    v, h = robot.params.values, 1e-6
+    for k in range(robot.n_params):
+        e = np.zeros_like(v)
+        e[k] = h
+        turn = robot.flange_rotation(q, v + e) @ robot.flange_rotation(q, v - e).transpose(0, 2, 1)
+        np.testing.assert_allclose(Jw[:, :, k], Rotation.from_matrix(turn).as_rotvec() / (2 * h), atol=1e-7)
 
 
 def test_joint_jacobian_matches_central_differences():

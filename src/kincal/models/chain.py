@@ -181,20 +181,33 @@ class Chain:
         written in place: many small temporaries make glibc return and re-fault heap pages on every
         call, which costs more than the arithmetic here.
         """
-        n = q.shape[0]
-        ends, A, B = self._segment_frames(values, True)
-        G = np.concatenate([A, B, np.concatenate(ends)])[self.z_map]  # (z_rows, 3) stacked constants
-        if n <= BLOCK:
-            return self._block(values, q, G)
-        p, JT = np.empty((n, 3)), np.empty((self.n_params, 3, n))
-        for lo in range(0, n, BLOCK):  # blocks that fit in the cache: memory traffic, not arithmetic, limits
-            p[lo:lo + BLOCK] = self._block(values, q[lo:lo + BLOCK], G, JT[:, :, lo:lo + BLOCK])[0]
-        return p, JT.transpose(2, 1, 0)
+        if q.shape[0] <= BLOCK:
+            return self._block(values, q, self._constants(values))[:2]
+        return self.frame_and_rates(values, q)[:2]
 
-    def _block(self, values: np.ndarray, q: np.ndarray, G: np.ndarray,
-               out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`forward_and_jacobian` of one block of configurations, ``G`` the stacked constants;
-        the Jacobian written to ``out`` (P, 3, n) if given."""
+    def frame_and_rates(self, values: np.ndarray, q: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Positions (N, 3), their parameter Jacobian (N, 3, P), the end frame's rotation (N, 3, 3:
+        columns are its axes) and its world rotation rate per parameter (N, 3, P): a rotation op
+        turns the frame about its world axis, a translation op does not turn it. In blocks of
+        ``BLOCK`` configurations: memory traffic, not arithmetic, limits, so a block fits the cache."""
+        n, G = q.shape[0], self._constants(values)
+        p, R, JT, WT = np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((self.n_params, 3, n)), np.zeros((self.n_params, 3, n))
+        for lo in range(0, n, BLOCK):
+            at = slice(lo, lo + BLOCK)
+            p[at], _, R[at] = self._block(values, q[at], G, JT[:, :, at], WT[:, :, at])
+        return p, JT.transpose(2, 1, 0), R, WT.transpose(2, 1, 0)
+
+    def _constants(self, values: np.ndarray) -> np.ndarray:
+        """(z_rows, 3): every segment's constant part, op axes and op points, stacked for :meth:`_block`."""
+        ends, A, B = self._segment_frames(values, True)
+        return np.concatenate([A, B, np.concatenate(ends)])[self.z_map]
+
+    def _block(self, values: np.ndarray, q: np.ndarray, G: np.ndarray, out: np.ndarray | None = None,
+               rates: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """Positions, Jacobian and (with ``rates``, zeros (P, 3, n) to write the rotation rates to) the
+        end frame's rotation of one block of configurations, ``G`` from :meth:`_constants`; the
+        Jacobian written to ``out`` (P, 3, n) if given."""
         n = q.shape[0]
         n_rot = self.rot_idx.size
         F, Z, o0, Cx, tmp = _carve(n, (3, 3), (self.z_rows, 3), (3,), (n_rot, 3), (max(n_rot, 3),))
@@ -227,6 +240,9 @@ class Chain:
             Z[p0:hi] += o  # world points of the rotation ops, and the next origin
             W, o = Z[w0:w0 + 3], Z[hi - 1]
         p = o
+        frame = None if rates is None else W.transpose(2, 1, 0).copy()  # (n, 3, 3): column k is axis k
+        if rates is not None:
+            rates[self.cols_rot[self.rot_keep]] = Z[self.z_rot_axes][self.rot_keep]
         D = Z[self.z_points]
         np.subtract(p, D, out=D)  # p − o for every rotation op
         Ur, tr = Z[self.z_rot_axes], tmp[:n_rot]
@@ -234,7 +250,7 @@ class Chain:
             np.multiply(Ur[:, b], D[:, c_], out=Cx[:, a])
             np.multiply(Ur[:, c_], D[:, b], out=tr)
             Cx[:, a] -= tr
-        return np.ascontiguousarray(p.T), self._columns(Cx, Z[self.z_trans_axes], n, out)
+        return np.ascontiguousarray(p.T), self._columns(Cx, Z[self.z_trans_axes], n, out), frame
 
     def pose_jacobian(self, values: np.ndarray, q: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

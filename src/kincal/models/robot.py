@@ -120,6 +120,18 @@ class Robot(ABC):
         Jw = sum(0.5 * np.cross(R[:, :, k, None], self._joint_jacobian(q, v) - J0, axis=1) for k, v in enumerate(steps))
         return p0, R, J0, Jw
 
+    def _frame_and_rates(self, q: np.ndarray, values: np.ndarray):
+        """Generic: the flange axes aₖ are the tool point's Jacobian columns (a translation in the
+        flange frame), their rates the Jacobian's change for a unit step of the tool point along each,
+        and the rotation rate is ½ Σₖ aₖ × d aₖ (exact: positions are linear in the tool point)."""
+        p, J = self._forward_and_jacobian(q, values, True)
+        assert J is not None  # asked for
+        R, Jw = J[:, :, self.params.indices(TOOL_NAMES)], np.zeros_like(J)
+        for k, v in enumerate(self._tool_steps(values)):
+            Jk = self._forward_and_jacobian(q, v, True)[1]
+            Jw += 0.5 * np.cross(R[:, :, k][:, :, None], Jk - J, axisa=1, axisb=1, axisc=1)
+        return p, J, R, Jw
+
     # ---- kinematics ------------------------------------------------------------------------------
     def _batched(self, hook: Callable[..., Any], q, values, *args):
         """``hook`` on q as (N, n) and values as (P,); a single (n,) q gives unbatched results."""
@@ -147,6 +159,13 @@ class Robot(ABC):
         """Tool positions (N, 3) m and the parameter Jacobian (N, 3, P) (None unless ``jacobian``)
         in one pass; ``values`` (P,) default to the robot's own."""
         return self._batched(self._forward_and_jacobian, q, values, jacobian)
+
+    def frame_and_rates(self, q: np.ndarray, values: np.ndarray | None = None
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Tool positions (N, 3) m, their parameter Jacobian (N, 3, P), the flange rotation (N, 3, 3:
+        columns are its axes in the world) and its rotation rate per parameter (N, 3, P) (rad per
+        parameter unit, world frame): what a full 6-D pose measurement needs, in one call."""
+        return self._batched(self._frame_and_rates, q, values)
 
     def forward(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
         """Tool point position (N, 3) in m for joint values q (N, n)."""

@@ -147,6 +147,10 @@ class ChainRobot(Robot):
     def _pose_and_jacobian(self, q, values):
         return self._chain.pose_jacobian(self.chain_values(values), q)
 
+    def _frame_and_rates(self, q, values):
+        p, J, R, Jw = self._chain.frame_and_rates(self.chain_values(values), q)
+        return p, J[:, :, :self.n_params], R, Jw[:, :, :self.n_params]  # extra chain columns (URDF joints) left out
+
     def gravity(self, payload: float = 0.0) -> GravityModel:
         return GravityModel(self, float(payload))
 

@@ -13,10 +13,11 @@ An observation set holds the joint values of its samples and declares
   stands: the base frame), and ``reference``: whether they fix the length scale;
 * ``stats(...)``: per-type figures in mm and mrad.
 
-The kinematics of points and frames on the flange come from the robot's position Jacobian alone:
-the tool point is a translation in the flange frame, so d p / d tool = R (the flange rotation), and
-moving the tool point by a unit step along each flange axis gives d(R eₖ)/d θ exactly; the rotation
-rate is ½ Σₖ aₖ × d aₖ. Every robot with a tool point gets full poses and markers this way.
+The kinematics of points on the flange come from the robot's position Jacobian alone: the tool
+point is a translation in the flange frame, so d p / d tool = R (the flange rotation). A full pose
+also needs the flange's rotation rate per parameter, :meth:`kincal.models.Robot.frame_and_rates`:
+a chain reads it off its ops' world axes; any other robot with a tool point derives it from unit
+steps of the tool point. Every robot with a tool point gets full poses and markers this way.
 """
 from __future__ import annotations
 
@@ -80,17 +81,6 @@ def flange_point(robot: Robot, q: np.ndarray, values: np.ndarray, point: np.ndar
     and the flange rotation (N, 3, 3), which is the Jacobian's tool columns (d p / d point = R)."""
     p, J = robot.forward_and_jacobian(q, _with_tool(robot, values, point))
     return p, J, J[:, :, robot.params.indices(TOOL_NAMES)]
-
-
-def flange_rotation_rate(robot: Robot, q: np.ndarray, values: np.ndarray, origin: np.ndarray,
-                         J0: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """(N, 3, P) world rotation rate of the flange per parameter: ½ Σₖ aₖ × d aₖ with aₖ = R eₖ and
-    d aₖ = J(origin + eₖ) − J(origin) (exact: positions are linear in the tool point)."""
-    rate = np.zeros_like(J0)
-    for k in range(3):
-        _, Jk = robot.forward_and_jacobian(q, _with_tool(robot, values, origin + np.eye(3)[k]))
-        rate += np.cross(R[:, :, k][:, :, None], Jk - J0, axisa=1, axisb=1, axisc=1)
-    return 0.5 * rate
 
 
 @dataclass(frozen=True, eq=False)
@@ -266,14 +256,17 @@ class PoseObs(Observation):
         """Position errors (N, 3) m, rotation errors (N, 3) rad (world-frame rotation vectors of
         predicted·measuredᵀ) and, with ``jacobian``, their derivatives."""
         from scipy.spatial.transform import Rotation
-        origin = robot.param_values(values)[robot.params.indices(TOOL_NAMES)]
-        p, J, Rf = flange_point(robot, self.q, robot.param_values(values), origin)
+        v = robot.param_values(values)
+        if jacobian:  # the flange's rotation rate per parameter: Robot.frame_and_rates
+            p, J, Rf, Jw = robot.frame_and_rates(self.q, v)
+        else:
+            p, J, Rf = flange_point(robot, self.q, v, v[robot.params.indices(TOOL_NAMES)])
         Rt = self.target(nuis)
         phi = Rotation.from_matrix(Rf @ Rt @ self.R.transpose(0, 2, 1)).as_rotvec()
         if not jacobian:
             return p - self.xyz, phi, None
         Linv = so3_left_inverse(phi)
-        Jrot = Linv @ flange_rotation_rate(robot, self.q, robot.param_values(values), origin, J, Rf)
+        Jrot = Linv @ Jw
         Jn = Linv @ (Rf @ (Rt @ so3_right(nuis[:3])))
         return p - self.xyz, phi, (J, Jrot, Jn)
 
