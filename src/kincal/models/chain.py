@@ -17,6 +17,7 @@ batched step is a contiguous vector operation; no Python loop runs over configur
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from math import cos, prod, sin
 
 import numpy as np
@@ -59,6 +60,13 @@ def _carve(n: int, *shapes: tuple[int, ...]) -> list[np.ndarray]:
         out.append(block[at:at + size].reshape(*sh, n))
         at += size
     return out
+
+
+@lru_cache(maxsize=64)
+def compiled(ops: tuple[Op, ...], n_params: int, n_joints: int) -> "Chain":
+    """The chain of ``ops``, compiled once per structure: a robot with new parameter values (every
+    step of a fit) keeps its chain, which reads the values at each call and is never changed."""
+    return Chain(ops, n_params, n_joints)
 
 
 class Chain:

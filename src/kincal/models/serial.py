@@ -21,7 +21,7 @@ from typing import ClassVar, Mapping, Sequence
 import numpy as np
 
 from ..errors import ModelError
-from .chain import AXES, ROT, TRANS, Chain, Op
+from .chain import AXES, ROT, TRANS, Chain, Op, compiled
 from .gravity import GravityModel
 from .parameters import Parameters
 from .robot import JOINT_TYPES, TOOL_NAMES, JointSpace, Robot
@@ -204,7 +204,7 @@ class SerialRobot(ChainRobot):
         object.__setattr__(self, "frames", check_frames(self.frames, f"robot '{self.name}'"))
         object.__setattr__(self, "joint_space", JointSpace(tuple(j.name for j in moving), tuple(j.type for j in moving),
                                                            [j.lower for j in moving], [j.upper for j in moving]))
-        object.__setattr__(self, "_chain", Chain(self._build_ops(), len(self.params), len(moving)))
+        object.__setattr__(self, "_chain", compiled(self._build_ops(), len(self.params), len(moving)))
 
     # ---- construction --------------------------------------------------------------------------
     @classmethod

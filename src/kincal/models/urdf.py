@@ -31,7 +31,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..errors import ModelError
-from .chain import AXES, ROT, TRANS, Chain, Op
+from .chain import AXES, ROT, TRANS, Chain, Op, compiled
 from .parameters import Parameters
 from .robot import TOOL_NAMES, JointSpace
 from .serial import BASE_NAMES, ChainRobot, check_mass
@@ -101,7 +101,7 @@ class URDFRobot(ChainRobot):
                                                            tuple(MOVING[j.type] for j in moving),
                                                            [j.lower for j in moving], [j.upper for j in moving]))
         # each joint motion gets a column of its own after the parameters: ∂p/∂q (joint_jacobian)
-        object.__setattr__(self, "_chain", Chain(self._build_ops(), len(self.params) + len(moving), len(moving)))
+        object.__setattr__(self, "_chain", compiled(self._build_ops(), len(self.params) + len(moving), len(moving)))
 
     @property
     def structure(self) -> str:
