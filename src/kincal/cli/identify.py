@@ -175,7 +175,9 @@ def register(cmd) -> None:
     s.add_argument("-o", "--output", help="calibrated robot YAML to write")
     s.add_argument("--base", choices=list(kincal.analysis.BASE_MODES), default="estimate",
                    help="estimate the measurement (tracker) frame, or take the robot's base as known")
-    s.add_argument("--loss", choices=list(kincal.identify.LOSSES), default="linear")
+    s.add_argument("--loss", choices=list(kincal.identify.LOSSES), default="linear",
+                   help="huber or soft_l1 down-weight the samples far off: each pose's 3-D error, or each sample's "
+                        "residual against its stated σ (a 6-D pose, a marker sample, a seat) (default linear)")
     s.add_argument("--params", type=csv_list, help="parameters to estimate (default: identifiable set)")
     s.add_argument("--keep", type=csv_list, help="parameters to prefer among confounded ones")
     s.add_argument("--max-iter", type=positive_int, default=100, help="Levenberg-Marquardt iteration limit (default 100)")
@@ -194,8 +196,8 @@ def register(cmd) -> None:
                         "not kept in the model")
     s.add_argument("--exclude", type=row_list, help="input rows to leave out, e.g. 12,40-42")
     s.add_argument("--reject-outliers", action="store_true",
-                   help="leave out the poses a robust refit puts beyond the outlier limit (at most a tenth of them); "
-                        "named by row in the output and the report")
+                   help="leave out the samples a robust refit puts beyond the outlier limit (at most a tenth of a "
+                        "file's); named by file and row in the output and the report")
     s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers)")
     s.add_argument("--prior", choices=list(kincal.identify.PRIORS),
                    help="--type pose|markers|same-point|plane: relevance (default: a prior σ per joint origin's "

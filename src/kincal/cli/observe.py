@@ -162,7 +162,8 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
     reports = [args.report, json_path(args.report)] if args.report else []
     check_paths([*robot_inputs(args.robot), *args.data, *args.test], [args.output, *reports])
     options = {"names": tuple(args.params) if args.params else "auto", "keep": tuple(args.keep or ()),
-               "max_iter": args.max_iter, "prior": args.prior or "relevance", "thresholds": thresholds}
+               "max_iter": args.max_iter, "prior": args.prior or "relevance", "thresholds": thresholds,
+               "loss": args.loss, "reject_outliers": args.reject_outliers}
     fit, held, held_nominal = fitted(args, load_robot(args), kinds, args.data, args.test, options)
     record = {**fit.record(), "observation_options": {**options, "thresholds": thresholds.to_dict()},
               "data": {"file": list(args.data), "kinds": list(kinds), "same_frame": args.same_frame,

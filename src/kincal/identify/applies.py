@@ -28,8 +28,8 @@ class Scope:
     alone: bool = False
 
 
-_POSITION_FIT = ("position data alone are fitted with error models, robust losses, particle swarms and outlier "
-                 "rejection; other kinds, and files of several kinds together, are not yet")
+_POSITION_FIT = ("position data alone are fitted with error models and particle swarms; other kinds, and files of "
+                 "several kinds together, are not yet")
 
 
 def _points_alone(why: str) -> Scope:
@@ -37,8 +37,8 @@ def _points_alone(why: str) -> Scope:
 
 
 SCOPES: dict[str, Scope] = {
-    "loss": _points_alone("robust losses reweight each pose's 3-D position error; " + _POSITION_FIT),
-    "f_scale": _points_alone("it scales the robust loss of position data"),
+    "f_scale": _points_alone("it scales the robust loss of position data in m; the other kinds' samples are scaled "
+                             "by their stated σ"),
     "method": _points_alone("the particle swarm searches the position residual; " + _POSITION_FIT),
     "pso": _points_alone("the particle swarm searches the position residual"),
     "residual": _points_alone("the joint-space residual inverts measured positions"),
@@ -47,7 +47,6 @@ SCOPES: dict[str, Scope] = {
     "payload": _points_alone("the payload loads the gravity terms of an error model (position data)"),
     "drift": _points_alone("the drift term follows one position file's row order"),
     "exclude": _points_alone("it names rows of one position file; leave the rows out of the file"),
-    "reject_outliers": _points_alone("outliers are found by a robust refit of position data; " + _POSITION_FIT),
     "residuals": _points_alone("the residuals file lists each pose's 3-D position error"),
     "plot": _points_alone("the figures show 3-D position errors; the report (--report) shows every kind"),
     "tracker_noise": _points_alone("the other kinds state their noise with --std-pos (and --std-rot)"),

@@ -40,7 +40,7 @@ from ..models.robot import TOOL_NAMES, Robot
 from ..units import ANGLE_UNITS, LENGTH_UNITS, MM, OTHER_LENGTHS
 from ..ties import order_with_ties
 from .options import FitOptions
-from .verdict import STATUSES, robust_z
+from .verdict import MAX_OUTLIER_SHARE, STATUSES, robust_z
 
 if TYPE_CHECKING:  # the result holds a Diagnosis: result imports this module
     from .result import CalibrationResult
@@ -51,7 +51,6 @@ MAX_FULL = 3  # screened data changes that get a full calibration
 TRIGGERS = ("implausible-correction", "large-correction", "residual", "outliers")
 SCREEN_POSES = 200  # the screen registers the nominal model to the first this many poses
 SCREEN_ITERATIONS = 8  # ... in this many steps: enough to tell a fitting change from the rest
-MAX_OUTLIER_SHARE = 0.1  # "a few bad poses": at most this share of the poses
 
 
 @dataclass(frozen=True)

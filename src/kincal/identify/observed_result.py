@@ -11,6 +11,7 @@ import numpy as np
 from ..analysis.identifiability import Identifiability
 from ..analysis.uncertainty import ModelUncertainty
 from ..models.robot import TOOL_NAMES, Robot
+from .._csv import listed
 from ..units import MM, MRAD, display
 from .relevance import prior_lines
 from .verdict import Verdict, mounting_line
@@ -43,6 +44,8 @@ class ObservationFit:
     prior: dict = dataclasses.field(default_factory=dict)  # learned prior σ per group (m or rad); {}: none
     whitened: dict = dataclasses.field(default_factory=dict)  # whitened RMS per kind ("pose rotation": 1.3)
     model_error: dict = dataclasses.field(default_factory=dict)  # s per kind beside the stated σ (m or rad)
+    outliers: tuple = ()  # per set, the indices of its samples beyond the outlier limit
+    rejected: dict = dataclasses.field(default_factory=dict)  # left out as outliers: file -> its rows
 
     def to_dict(self) -> dict:
         return {"robot": self.robot.name, "fitted": list(self.names),
@@ -55,6 +58,7 @@ class ObservationFit:
                 "identifiability": self.identifiability.to_dict(),
                 "before": list(self.stats_before), "after": list(self.stats), "whitened_rms": self.whitened_rms,
                 "whitened_rms_per_kind": dict(self.whitened), "model_error": dict(self.model_error),
+                "rejected_rows": {k: list(v) for k, v in self.rejected.items()},
                 "verdict": self.verdict.to_dict(), "converged": self.converged, "iterations": self.iterations}
 
     def record(self) -> dict:
@@ -115,6 +119,8 @@ class ObservationFit:
                  + ", ".join(f"{k} {v:.3g}" for k, v in self.whitened.items())]
         for b, a in zip(self.stats_before, self.stats):
             lines.append(f"  {a['type']} ({a['source']}): {stat_line(b)}  →  {stat_line(a)}")
+        lines += [f"left out as outliers (a robust refit put them beyond the outlier limit): {src} row(s) {listed(rows)}"
+                  for src, rows in self.rejected.items()]
         if self.model_error:
             lines.append("weighted by 1/(σ² + s²), s what the model leaves beyond the stated σ: " + ", ".join(
                 f"{k} {v * MRAD:.3g} mrad" if k.endswith("rotation") else f"{k} {v * MM:.3g} mm"

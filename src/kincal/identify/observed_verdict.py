@@ -74,18 +74,27 @@ def sample_norms(sets, r: np.ndarray) -> list[np.ndarray]:
     return out
 
 
+def outlier_samples(sets, r: np.ndarray, th: Thresholds) -> tuple[np.ndarray, ...]:
+    """Per set, the indices of its samples whose whitened norm (of ``r``, stacked in the order of
+    ``sets``) is more than ``th.outlier_limit`` robust σ off; none in a set of fewer than MIN_SAMPLES."""
+    out = []
+    for obs, norms in zip(sets, sample_norms(sets, r)):
+        z = robust_z(norms) if len(obs) >= MIN_SAMPLES else np.zeros(len(obs))
+        out.append(np.flatnonzero(z > th.outlier_limit(len(z))))
+    return tuple(out)
+
+
 def sample_reasons(sets, r: np.ndarray, robot: Robot, th: Thresholds) -> list[Reason]:
     """Outlier samples (whitened norm beyond ``th.outlier_limit`` robust σ) and repeated poses, per set."""
     out = []
     tol = repeat_tolerance(robot.joint_types, th)
-    for obs, norms in zip(sets, sample_norms(sets, r)):
-        z = robust_z(norms) if len(obs) >= MIN_SAMPLES else np.zeros(len(obs))
-        limit = th.outlier_limit(len(z))
-        bad = obs.rows[z > limit]
+    for obs, found in zip(sets, outlier_samples(sets, r, th)):
+        limit, bad = th.outlier_limit(len(obs)), obs.rows[found]
         if bad.size:
             out.append(Reason("suspect", "outliers", f"{obs.source}: outlier sample(s) more than {limit:.3g} "
                                                      f"robust σ off: row(s) {listed(bad)}; check them (a blocked line "
-                                                     f"of sight, a wrong seat) and leave them out of the file"))
+                                                     f"of sight, a wrong seat); --reject-outliers leaves them out, "
+                                                     f"--loss huber down-weights them"))
         groups = duplicate_groups(obs.q, tol)
         if groups:
             shown = "; ".join(f"rows {listed(obs.rows[g])}" for g in groups[:5])

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import partial
 from typing import Sequence
 
 import numpy as np
@@ -30,10 +31,11 @@ from .covariance import parameter_statistics
 from .lm import levenberg_marquardt
 from .noise import extra_variance
 from .observed_result import ObservationFit
-from .observed_verdict import component_kinds, observation_verdict, whitened_per_kind
+from .observed_verdict import component_kinds, observation_verdict, outlier_samples, whitened_per_kind
 from .registration import register_base
 from .relevance import PRIORS, RelevanceFit, with_learned_prior
-from .verdict import Thresholds
+from .robust import LOSSES, MAX_IRLS, WEIGHT_TOL, block_weights
+from .verdict import MAX_OUTLIER_SHARE, Thresholds
 from .weak import weakest
 
 
@@ -111,12 +113,16 @@ def _gauge(robot: Robot, sets) -> tuple[str, ...]:
 
 def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] | str = "auto",
                      keep: Sequence[str] = (), max_iter: int = 100, rank_tol: float = RANK_TOL,
-                     prior: str = "relevance", thresholds: Thresholds | None = None) -> ObservationFit:
+                     prior: str = "relevance", thresholds: Thresholds | None = None, loss: str = "linear",
+                     reject_outliers: bool = False) -> ObservationFit:
     """Calibrate ``robot`` from observation sets of any types (see the module docstring). ``names``:
     robot parameters to fit ("auto": every identifiable one); ``keep``: chosen first among confounded;
     ``prior``: "relevance" (a prior σ per joint origin and kind learned from the data,
     :mod:`kincal.identify.relevance`) or "none" (least squares); ``thresholds``: the verdict's limits
-    of plausible corrections and of the mounting (default :class:`Thresholds`).
+    of plausible corrections and of the mounting (default :class:`Thresholds`); ``loss``: "linear", or
+    "huber" / "soft_l1" on each sample's whitened block (:func:`kincal.identify.robust.block_weights`);
+    ``reject_outliers``: leave out the samples a robust (Huber) fit puts beyond the outlier limit, at
+    most a tenth of a set's, and fit again (named in ``rejected`` by file and row).
 
     Identifiability is judged at the start and again at the solution: where the fit moved the model
     (a tool point off a joint's axis) the data may identify other parameters. When the set changed,
@@ -124,6 +130,28 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
     ``identifiability.notes`` says so."""
     if prior not in PRIORS:
         raise ValueError(f"prior {prior!r}: use one of {', '.join(PRIORS)}")
+    if loss not in LOSSES or reject_outliers not in (True, False):
+        raise ValueError(f"loss {loss!r}, reject_outliers {reject_outliers!r}: a loss of {', '.join(LOSSES)}; "
+                         f"True or False")
+    th = thresholds or Thresholds()
+
+    def fit(sets: Sequence, lo: str) -> ObservationFit:
+        return _fit_sets(robot, sets, names, keep, max_iter, rank_tol, prior, th, lo)
+    res = fit(observations, loss)
+    if not reject_outliers:
+        return res
+    found = (res if loss != "linear" else fit(observations, "huber")).outliers
+    bad = [b if len(b) <= max(1, int(MAX_OUTLIER_SHARE * len(o))) else b[:0] for o, b in zip(observations, found)]
+    if not any(len(b) for b in bad):
+        return res
+    kept = [o.subset(np.setdiff1d(np.arange(len(o)), b)) if len(b) else o for o, b in zip(observations, bad)]
+    rejected = {o.source: tuple(int(r) for r in o.rows[b]) for o, b in zip(observations, bad) if len(b)}
+    return dataclasses.replace(fit(kept, loss), rejected=rejected)
+
+
+def _fit_sets(robot: Robot, observations: Sequence, names, keep, max_iter: int, rank_tol: float, prior: str,
+              th: Thresholds, loss: str) -> ObservationFit:
+    """:func:`fit_observations` without leaving anything out."""
     with blas_threads(1):
         robot, st, gauge, ident, start = _problem(robot, observations, names, keep, rank_tol)
         if start[0].size <= len(ident.identifiable):
@@ -131,7 +159,7 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
                                    f"measure more samples")
         x0 = np.concatenate([robot.params.values, st.nuis0])
         wanted = robot.params.names if names == "auto" else tuple(names)
-        rounds = _Round(robot, st, x0, max_iter, prior)
+        rounds = _Round(robot, st, x0, max_iter, prior, loss)
         full, fit, free, weak, fitted, error = rounds.fit(list(ident.identifiable), x0, start)
         notes: tuple[str, ...] = ()
         for k in range(JUDGED + 1):
@@ -149,8 +177,7 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
             ident = again
             full, fit, free, weak, fitted, error = rounds.fit(list(ident.identifiable), full, None)
         ident = dataclasses.replace(_without_weak(ident, free, weak), notes=ident.notes + notes)
-        return _result(robot, fitted, gauge, ident, free, rounds.cols(free), x0, fit, weak, thresholds or Thresholds(),
-                       error)
+        return _result(robot, fitted, gauge, ident, free, rounds.cols(free), x0, fit, weak, th, error)
 
 
 JUDGED = 3  # refits when the identifiable set at the solution differs from the start's
@@ -167,6 +194,7 @@ class _Round:
     x0: np.ndarray
     max_iter: int
     prior: str
+    loss: str = "linear"
 
     def cols(self, free: Sequence[str]) -> np.ndarray:
         all_names = list(self.robot.params.names) + list(self.st.nuis_names)
@@ -189,6 +217,8 @@ class _Round:
                 error = found if any(found.values()) else error  # the same fit (one kind, one σ: a scale only)
                 break
             st, error = again, found
+        if self.loss != "linear":
+            st, fit = self._reweighted(st, fcols, fit)
         if self.prior == "relevance":
             fit = with_learned_prior(lambda x: _fun(st, self.x0, fcols, x), fit, self.x0[fcols], free, self.robot)
         full = self.x0.copy()
@@ -209,6 +239,31 @@ class _Round:
                 return fcols, fit, free, weak
             weak[worst[0]] = worst[1]
             free.remove(worst[0])
+
+
+    def _reweighted(self, st: _Stack, fcols: np.ndarray, fit):
+        """Iteratively reweighted least squares on each sample's whitened block until the weights
+        settle: (the stack with the robust factors in its weights, the fit)."""
+        owner, n = _owners(st.sets)
+        base, factor = st, np.ones(owner.size)
+        for _ in range(MAX_IRLS):
+            new = block_weights(fit.residual / factor, owner, n, self.loss)
+            if np.max(np.abs(new**2 - factor**2)) < WEIGHT_TOL:
+                break
+            factor = new
+            st = dataclasses.replace(base, inv_sigma=base.inv_sigma * factor)
+            fit = levenberg_marquardt(partial(_fun, st, self.x0, fcols), fit.x, max_iter=self.max_iter)
+        return st, fit
+
+
+def _owners(sets) -> tuple[np.ndarray, int]:
+    """Each stacked row's sample, numbered over all sets (−1: a row of no one sample), and the count."""
+    out, n = [], 0
+    for obs in sets:
+        rows = obs.sample_rows()
+        out.append(np.where(rows >= 0, rows + n, -1))
+        n += len(obs)
+    return np.concatenate(out), n
 
 
 NOISE_ROUNDS = 4  # least-squares fits at most, the model error per kind re-estimated after each
@@ -342,4 +397,5 @@ def _result(robot, st, gauge, ident, free, fcols, x0, fit, weak, th: Thresholds,
     verdict = observation_verdict(robot, calibrated, st.sets, r, per_kind, fit.converged, th)
     return ObservationFit(calibrated, robot, tuple(n for n in free if n in robot.params.names), nuis, std, ident,
                           gauge, before, after, rms, cov, verdict, bool(fit.converged), fit.iterations, st.sets, weak,
-                          learned, per_kind, {k: v for k, v in error.items() if v > 0})
+                          learned, per_kind, {k: v for k, v in error.items() if v > 0},
+                          outlier_samples(st.sets, r, th))

@@ -69,6 +69,8 @@ def _chi3_robust_z(tail: float) -> float:
     return (x - med) / (1.4826 * mad)
 
 
+MAX_OUTLIER_SHARE = 0.1  # "a few bad poses": outliers are left out only up to this share of the poses
+
 @dataclass(frozen=True)
 class Thresholds:
     """Verdict thresholds (SI units: m, rad; ratios are to ``tracker_noise``)."""

@@ -27,6 +27,9 @@ class InSession(Observation):
     def of(cls, inner: Observation, session: str) -> "InSession":
         return cls(inner.q, inner.rows, inner.source, inner=inner, session=session)
 
+    def subset(self, idx: np.ndarray) -> "InSession":
+        return dataclasses.replace(self, q=self.q[idx], rows=self.rows[idx], inner=self.inner.subset(idx))
+
     @property
     def kind(self) -> str:  # the inner set's type
         return self.inner.kind

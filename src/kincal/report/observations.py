@@ -9,6 +9,7 @@ import numpy as np
 
 from ..identify.relevance import prior_lines
 from ..identify.observed_result import ObservationFit
+from .._csv import listed
 from ..units import MM, MRAD, display
 from .build import Report, json_path_for, report_date, template
 
@@ -31,7 +32,7 @@ def observation_report(fit: ObservationFit, held_out: Sequence[dict] = (), held_
            "n_samples": sum(s["samples"] for s in fit.stats), "whitened_rms": fit.whitened_rms,
            "verdict": fit.verdict.to_dict(), "residuals": residuals, "groups": groups,
            "parameters": _parameters(fit), "setup": _setup(fit), "weak": fit.weak_lines(), "gauge": list(fit.gauge),
-           "prior": prior_lines(fit.prior),
+           "prior": prior_lines(fit.prior), "rejected": {k: listed(v) for k, v in fit.rejected.items()},
            "not_estimated": [line for line in fit.identifiability.confound_lines("")
                              if line.split()[0] not in set(fit.gauge)], "json_name": json_path_for(html_name).name}
     html = template("observations.html").render(**ctx)
