@@ -161,11 +161,16 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
 
     reports = [args.report, json_path(args.report)] if args.report else []
     check_paths([*robot_inputs(args.robot), *args.data, *args.test], [args.output, *reports])
+    if args.payload and args.error_model is None:
+        raise ValueError(f"--payload {args.payload:g}: only the gravity terms use it; give --error-model compliance "
+                         f"or gravity-regressor")
+    spec = None if args.error_model is None else kincal.ErrorModel(args.error_model, args.payload)
     options = {"names": tuple(args.params) if args.params else "auto", "keep": tuple(args.keep or ()),
                "max_iter": args.max_iter, "prior": args.prior or "relevance", "thresholds": thresholds,
-               "loss": args.loss, "reject_outliers": args.reject_outliers}
+               "loss": args.loss, "reject_outliers": args.reject_outliers, "error_model": spec}
     fit, held, held_nominal = fitted(args, load_robot(args), kinds, args.data, args.test, options)
-    record = {**fit.record(), "observation_options": {**options, "thresholds": thresholds.to_dict()},
+    record = {**fit.record(), "observation_options": {**options, "thresholds": thresholds.to_dict(),
+                                                      "error_model": spec and spec.to_dict()},
               "data": {"file": list(args.data), "kinds": list(kinds), "same_frame": args.same_frame,
                        "reading": {k: _plain(vars(args)[k]) for k in READING}}}
     refused = fit.verdict.status == "refused"

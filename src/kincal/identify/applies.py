@@ -28,8 +28,8 @@ class Scope:
     alone: bool = False
 
 
-_POSITION_FIT = ("position data alone are fitted with error models and particle swarms; other kinds, and files of "
-                 "several kinds together, are not yet")
+_POSITION_FIT = ("position data alone are fitted with particle swarms; other kinds, and files of several kinds "
+                 "together, are not yet")
 
 
 def _points_alone(why: str) -> Scope:
@@ -42,9 +42,6 @@ SCOPES: dict[str, Scope] = {
     "method": _points_alone("the particle swarm searches the position residual; " + _POSITION_FIT),
     "pso": _points_alone("the particle swarm searches the position residual"),
     "residual": _points_alone("the joint-space residual inverts measured positions"),
-    "error_model": _points_alone("error models beyond geometry are chosen and fitted on position data; "
-                                 + _POSITION_FIT),
-    "payload": _points_alone("the payload loads the gravity terms of an error model (position data)"),
     "drift": _points_alone("the drift term follows one position file's row order"),
     "exclude": _points_alone("it names rows of one position file; leave the rows out of the file"),
     "residuals": _points_alone("the residuals file lists each pose's 3-D position error"),

@@ -17,7 +17,8 @@ from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapola
 from ..errors import MeasurementError
 from ..io.measurements import Measurements
 from ..models.robot import Robot
-from ..models.terms import TAU_REF, drop_terms, extend
+from ..models.terms import drop_terms, extend
+from .compliance import negative_compliances
 from .covariance import parameter_statistics
 from .diagnosis import TRIGGERS, diagnose, outlier_poses
 from .drift import with_drift, without_drift
@@ -171,11 +172,9 @@ def _error_model(robot: Robot, meas: Measurements, options: FitOptions, say, use
 def _negative_compliance(res: CalibrationResult, say) -> CalibrationResult | None:
     """The fit repeated without the compliances ``res`` finds negative (a joint that bends against its
     load is not a spring: the term describes something else), or None when all are positive."""
-    neg = [n for n in res.names if n.endswith(".compliance") and res.estimates[n] < 0.0]
+    neg, notes = negative_compliances(res.names, res.estimates, res.std)
     if not neg:
         return None
-    notes = tuple(f"{n.split('.')[0]}: compliance came out negative ({res.estimates[n] / TAU_REF:+.3g} rad/(N·m), "
-                  f"σ {res.std[n] / TAU_REF:.2g}) and was dropped; the fit was repeated without it" for n in neg)
     say("dropping negative compliance: " + ", ".join(neg))
     again = calibrate(drop_terms(res.nominal, neg), res.measurements,
                       res.options.replace(error_model=None, reject_outliers=False, diagnose=False))

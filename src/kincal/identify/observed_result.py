@@ -46,6 +46,7 @@ class ObservationFit:
     model_error: dict = dataclasses.field(default_factory=dict)  # s per kind beside the stated σ (m or rad)
     outliers: tuple = ()  # per set, the indices of its samples beyond the outlier limit
     rejected: dict = dataclasses.field(default_factory=dict)  # left out as outliers: file -> its rows
+    notes: tuple[str, ...] = ()  # what the fit changed on its way (an error-model term dropped)
 
     def to_dict(self) -> dict:
         return {"robot": self.robot.name, "fitted": list(self.names),
@@ -58,7 +59,8 @@ class ObservationFit:
                 "identifiability": self.identifiability.to_dict(),
                 "before": list(self.stats_before), "after": list(self.stats), "whitened_rms": self.whitened_rms,
                 "whitened_rms_per_kind": dict(self.whitened), "model_error": dict(self.model_error),
-                "rejected_rows": {k: list(v) for k, v in self.rejected.items()},
+                "rejected_rows": {k: list(v) for k, v in self.rejected.items()}, "notes": list(self.notes),
+                "error_model": self.robot.error_model,
                 "verdict": self.verdict.to_dict(), "converged": self.converged, "iterations": self.iterations}
 
     def record(self) -> dict:
@@ -112,8 +114,9 @@ class ObservationFit:
         return obs.stats(robot, robot.params.values, nuis)
 
     def __str__(self) -> str:
-        lines = [f"calibration of {self.robot.name} from {', '.join(sorted({s['type'] for s in self.stats}))} data: "
-                 f"{'converged' if self.converged else 'NOT converged'} in {self.iterations} iterations; "
+        lines = [f"calibration of {self.robot.name} from {', '.join(sorted({s['type'] for s in self.stats}))} data"
+                 + ("" if self.robot.error_model == "geometric" else f" ({self.robot.error_model} error model)")
+                 + f": {'converged' if self.converged else 'NOT converged'} in {self.iterations} iterations; "
                  f"{len(self.names)} robot and {len(self.nuisance)} set-up parameters",
                  f"whitened residual RMS {self.whitened_rms:.3g} (1 when the stated σ are right): "
                  + ", ".join(f"{k} {v:.3g}" for k, v in self.whitened.items())]
@@ -121,6 +124,7 @@ class ObservationFit:
             lines.append(f"  {a['type']} ({a['source']}): {stat_line(b)}  →  {stat_line(a)}")
         lines += [f"left out as outliers (a robust refit put them beyond the outlier limit): {src} row(s) {listed(rows)}"
                   for src, rows in self.rejected.items()]
+        lines += [f"error model {self.robot.error_model}: " + note for note in self.notes]
         if self.model_error:
             lines.append("weighted by 1/(σ² + s²), s what the model leaves beyond the stated σ: " + ", ".join(
                 f"{k} {v * MRAD:.3g} mrad" if k.endswith("rotation") else f"{k} {v * MM:.3g} mm"

@@ -26,7 +26,9 @@ from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_ident
 from ..analysis.observability import live_columns
 from ..errors import MeasurementError
 from ..models.robot import Robot
+from ..models.terms import ErrorModel, drop_terms, extend
 from ..observe.sessions import InSession
+from .compliance import negative_compliances
 from .covariance import parameter_statistics
 from .lm import levenberg_marquardt
 from .noise import extra_variance
@@ -114,7 +116,7 @@ def _gauge(robot: Robot, sets) -> tuple[str, ...]:
 def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] | str = "auto",
                      keep: Sequence[str] = (), max_iter: int = 100, rank_tol: float = RANK_TOL,
                      prior: str = "relevance", thresholds: Thresholds | None = None, loss: str = "linear",
-                     reject_outliers: bool = False) -> ObservationFit:
+                     reject_outliers: bool = False, error_model: ErrorModel | str | None = None) -> ObservationFit:
     """Calibrate ``robot`` from observation sets of any types (see the module docstring). ``names``:
     robot parameters to fit ("auto": every identifiable one); ``keep``: chosen first among confounded;
     ``prior``: "relevance" (a prior σ per joint origin and kind learned from the data,
@@ -122,7 +124,10 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
     of plausible corrections and of the mounting (default :class:`Thresholds`); ``loss``: "linear", or
     "huber" / "soft_l1" on each sample's whitened block (:func:`kincal.identify.robust.block_weights`);
     ``reject_outliers``: leave out the samples a robust (Huber) fit puts beyond the outlier limit, at
-    most a tenth of a set's, and fit again (named in ``rejected`` by file and row).
+    most a tenth of a set's, and fit again (named in ``rejected`` by file and row); ``error_model``: a
+    named :class:`~kincal.ErrorModel` (terms beyond geometry on the joints that move the tool at these
+    samples; not "auto", which is chosen on position data); a compliance that comes out negative is
+    dropped and the fit repeated (said in ``notes``).
 
     Identifiability is judged at the start and again at the solution: where the fit moved the model
     (a tool point off a joint's axis) the data may identify other parameters. When the set changed,
@@ -134,10 +139,15 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
         raise ValueError(f"loss {loss!r}, reject_outliers {reject_outliers!r}: a loss of {', '.join(LOSSES)}; "
                          f"True or False")
     th = thresholds or Thresholds()
+    robot = _with_error_model(robot, observations, error_model)
 
     def fit(sets: Sequence, lo: str) -> ObservationFit:
         return _fit_sets(robot, sets, names, keep, max_iter, rank_tol, prior, th, lo)
     res = fit(observations, loss)
+    neg, notes = negative_compliances(res.names, res.robot.params.as_dict(), res.std)
+    if neg:
+        robot = drop_terms(robot, neg)
+        res = dataclasses.replace(fit(observations, loss), notes=notes)
     if not reject_outliers:
         return res
     found = (res if loss != "linear" else fit(observations, "huber")).outliers
@@ -146,7 +156,19 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
         return res
     kept = [o.subset(np.setdiff1d(np.arange(len(o)), b)) if len(b) else o for o, b in zip(observations, bad)]
     rejected = {o.source: tuple(int(r) for r in o.rows[b]) for o, b in zip(observations, bad) if len(b)}
-    return dataclasses.replace(fit(kept, loss), rejected=rejected)
+    return dataclasses.replace(fit(kept, loss), rejected=rejected, notes=res.notes)
+
+
+def _with_error_model(robot: Robot, observations: Sequence, error_model) -> Robot:
+    """``robot`` extended by the named error model, its terms on the joints that move the tool at
+    the samples (``robot`` itself for None)."""
+    if error_model is None:
+        return robot
+    spec = ErrorModel.of(error_model)
+    if spec.name == "auto":
+        raise ValueError("error model 'auto' is chosen by blocked cross-validation of position data; for these "
+                         "data name the model (e.g. compliance, harmonics:2) and compare on held-out data")
+    return extend(robot, spec, np.concatenate([o.q for o in observations]))
 
 
 def _fit_sets(robot: Robot, observations: Sequence, names, keep, max_iter: int, rank_tol: float, prior: str,
