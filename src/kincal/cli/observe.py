@@ -165,10 +165,11 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
         raise ValueError(f"--payload {args.payload:g}: only the gravity terms use it; give --error-model compliance "
                          f"or gravity-regressor")
     spec = None if args.error_model is None else kincal.ErrorModel(args.error_model, args.payload)
-    options = {"names": tuple(args.params) if args.params else "auto", "keep": tuple(args.keep or ()),
+    robot = load_robot(args)
+    options = {"names": _names(args, robot), "keep": tuple(args.keep or ()),
                "max_iter": args.max_iter, "prior": args.prior or "relevance", "thresholds": thresholds,
                "loss": args.loss, "reject_outliers": args.reject_outliers, "error_model": spec}
-    fit, held, held_nominal = fitted(args, load_robot(args), kinds, args.data, args.test, options)
+    fit, held, held_nominal = fitted(args, robot, kinds, args.data, args.test, options)
     record = {**fit.record(), "observation_options": {**options, "thresholds": thresholds.to_dict(),
                                                       "error_model": spec and spec.to_dict()},
               "data": {"file": list(args.data), "kinds": list(kinds), "same_frame": args.same_frame,
@@ -195,6 +196,19 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
                                                               if r.level == "refused"))
         return EXIT_REFUSED if fit.converged else EXIT_NOT_CONVERGED
     return 0
+
+
+def _names(args, robot) -> tuple[str, ...] | str:
+    """The robot parameters to fit: --params, else every one ("auto"), but the base frame's with
+    --base fixed (the data were measured in the robot's base frame)."""
+    base = robot.base_params() if args.base == "fixed" else ()
+    clash = [n for n in args.params or () if n in base]
+    if clash:
+        raise ValueError(f"--params {','.join(clash)} with --base fixed: the base frame is known; use --base estimate "
+                         f"to fit it")
+    if args.params:
+        return tuple(args.params)
+    return tuple(n for n in robot.params.names if n not in base) if base else "auto"
 
 
 def fitted(args, robot, kinds: list[str], data: list[str], tests: list[str], options: dict):

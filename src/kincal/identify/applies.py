@@ -48,8 +48,8 @@ SCOPES: dict[str, Scope] = {
     "plot": _points_alone("the figures show 3-D position errors; the report (--report) shows every kind"),
     "tracker_noise": _points_alone("the other kinds state their noise with --std-pos (and --std-rot)"),
     "std_cols": _points_alone("the other kinds read σ from the columns std_pos and std_rot_mrad"),
-    "base": _points_alone("the other kinds fit the measurement frame where the data see it, and sockets and "
-                          "planes do not see it at all"),
+    "base": Scope(("point", "pose", "markers"), "sockets and planes do not see the measurement frame (the base is "
+                                                "a gauge freedom for them)"),
     "prior": Scope(OBSERVED, "position data choose their model with --error-model (no learned prior yet)"),
     "orientation": Scope(("pose",), "only pose files have orientation columns"),
     "rot_cols": Scope(("pose",), "only pose files have orientation columns"),

@@ -1,0 +1,35 @@
+"""Options of the position fit that the fit of observation sets now takes: --base fixed (data in the
+robot's base frame) for 6-D poses, checked against the library's fit of the same parameters."""
+import json
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+import kincal
+from kincal.cli import main
+from kincal.identify.stacked import fit_observations
+from kincal.observe import ObservationFormat, write_observations
+from kincal.simulate.observations import simulate_poses
+
+
+def test_base_fixed_for_poses(tmp_path, capsys):
+    ur5 = kincal.load_robot("ur5").with_tool_point([0.05, 0.02, 0.1])
+    true = kincal.perturb(ur5, seed=3)  # the base frame as nominal: the data are in the robot's base frame
+    assert np.allclose([true.params[n] for n in ur5.base_params()], [ur5.params[n] for n in ur5.base_params()])
+    obs = simulate_poses(true, ur5.sample_joints(150, seed=1), Rotation.from_rotvec([0.1, 0.2, -0.3]).as_matrix(),
+                         20e-6, 0.05e-3, seed=1)
+    path = tmp_path / "poses.csv"
+    write_observations(path, obs, ur5, ObservationFormat("pose", length_unit="mm"))
+    args = ["calibrate", "ur5", str(path), "--type", "pose", "--tool", "50,20,100mm", "--length-unit", "mm",
+            "--std-pos", "0.02mm", "--std-rot", "0.05mrad", "--json"]
+    assert main([*args, "--base", "fixed"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert not [n for n in out["fitted"] if n.startswith("base.")] and "j2.a" in out["fitted"]
+    ref = fit_observations(ur5, [obs], names=[n for n in ur5.params.names if n not in ur5.base_params()])
+    assert out["fitted"] == list(ref.names)
+    np.testing.assert_allclose([out["estimates"][n] for n in ref.names], [ref.robot.params[n] for n in ref.names],
+                               rtol=0, atol=1e-12)
+    assert main(args) == 0  # by default the base frame is fitted too
+    assert any(n.startswith("base.") for n in json.loads(capsys.readouterr().out)["fitted"])
+    assert main([*args, "--base", "fixed", "--params", "base.x,j2.a"]) == 1
+    assert "the base frame is known" in capsys.readouterr().err
