@@ -33,3 +33,27 @@ def test_base_fixed_for_poses(tmp_path, capsys):
     assert any(n.startswith("base.") for n in json.loads(capsys.readouterr().out)["fitted"])
     assert main([*args, "--base", "fixed", "--params", "base.x,j2.a"]) == 1
     assert "the base frame is known" in capsys.readouterr().err
+
+
+def test_exclude_rows_of_a_pose_file(tmp_path, capsys):
+    ur5 = kincal.load_robot("ur5").with_tool_point([0.05, 0.02, 0.1])
+    obs = simulate_poses(kincal.perturb(ur5, seed=3), ur5.sample_joints(80, seed=1),
+                         Rotation.from_rotvec([0.1, 0.2, -0.3]).as_matrix(), 20e-6, 0.05e-3, seed=1)
+    path, cal = tmp_path / "poses.csv", tmp_path / "cal.yaml"
+    write_observations(path, obs, ur5, ObservationFormat("pose", length_unit="mm"))
+    args = ["calibrate", "ur5", str(path), "--type", "pose", "--tool", "50,20,100mm", "--length-unit", "mm",
+            "--std-pos", "0.02mm", "--std-rot", "0.05mrad", "--json"]
+    rows = [int(obs.rows[5]), int(obs.rows[40])]
+    assert main([*args, "--exclude", f"{rows[0]},{rows[1]}", "-o", str(cal)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    ref = fit_observations(ur5, [obs.subset(np.setdiff1d(np.arange(len(obs)), [5, 40]))])
+    assert out["after"][0]["samples"] == 78
+    np.testing.assert_allclose([out["estimates"][n] for n in ref.names], [ref.robot.params[n] for n in ref.names],
+                               rtol=0, atol=1e-12)
+    assert main(["report", str(cal), "-o", str(tmp_path / "r.html")]) == 0  # the record leaves them out again
+    assert "differs from" not in capsys.readouterr().err
+    assert main([*args, "--exclude", "999"]) == 1
+    assert "row(s) 999 to exclude are not data rows" in capsys.readouterr().err
+    (tmp_path / "copy.csv").write_bytes(path.read_bytes())
+    assert main([*args[:3], str(tmp_path / "copy.csv"), *args[3:], "--exclude", str(rows[0])]) == 1
+    assert "rows of one file" in capsys.readouterr().err

@@ -152,7 +152,7 @@ def format_of(args, kind: str):
 
 
 READING = ("joint_cols", "length_unit", "angle_unit", "xyz_cols", "orientation", "rot_cols", "markers", "label_col",
-           "group_col", "distance", "plane", "std_pos", "std_rot")  # how the files were read: kept in the record
+           "group_col", "distance", "plane", "std_pos", "std_rot", "exclude")  # how the files were read: in the record
 
 
 def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
@@ -219,6 +219,10 @@ def fitted(args, robot, kinds: list[str], data: list[str], tests: list[str], opt
     from kincal.observe import read_observations
 
     sets = [read_observations(path, robot, format_of(args, k)) for path, k in zip(data, kinds)]
+    if args.exclude:
+        if len(sets) > 1:
+            raise ValueError("--exclude names rows of one file; with several files leave the rows out of their files")
+        sets = [sets[0].without_rows(args.exclude)]
     test_sets = [read_observations(path, robot, format_of(args, kinds[0])) for path in tests]
     _check_units(sets + test_sets, robot, args)
     with progress("calibrating", args.json):
@@ -262,6 +266,7 @@ def cmd_report(args, record: dict) -> int:
                                     for k in READING}, json=args.json,
                                  same_frame=bool(args.same_frame or data.get("same_frame")))
     reading.distance = [tuple(d) for d in reading.distance or []]
+    reading.exclude = None if args.train else reading.exclude  # recorded rows are rows of the recorded files
     reading.plane = [(lab, (tuple(n), c)) for lab, (n, c) in reading.plane or []]
     train = args.train or data["file"]
     check_paths([*robot_inputs(args.robot), *train, *args.test], [args.output, json_path(args.output)])

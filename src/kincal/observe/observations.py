@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import MeasurementError
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import MM, MRAD
 
@@ -109,6 +110,14 @@ class Observation:
                       if k in {f.name for f in dataclasses.fields(self)} and isinstance(v, np.ndarray)
                       and v.shape[:1] == (n,)}
         return dataclasses.replace(self, **per_sample)
+
+    def without_rows(self, rows) -> "Observation":
+        """The set less the samples of the given input rows (file line numbers, header = 1)."""
+        unknown = sorted(set(int(r) for r in rows) - set(self.rows.tolist()))
+        if unknown:
+            raise MeasurementError(f"{self.source}: row(s) {', '.join(map(str, unknown[:10]))} to exclude are not "
+                                   f"data rows of the file (data rows are {self.rows.min()}..{self.rows.max()})")
+        return self.subset(np.flatnonzero(~np.isin(self.rows, [int(r) for r in rows])))
 
     def nuisance(self, robot: Robot) -> tuple[tuple[str, ...], np.ndarray, tuple[str, ...]]:
         """Names, start values (at ``robot``) and kinds ('length'/'angle') of the parameters it brings."""
