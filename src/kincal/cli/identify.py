@@ -198,7 +198,9 @@ def register(cmd) -> None:
     s.add_argument("--reject-outliers", action="store_true",
                    help="leave out the samples a robust refit puts beyond the outlier limit (at most a tenth of a "
                         "file's); named by file and row in the output and the report")
-    s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers)")
+    s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers); for "
+                                       "the other kinds per sample: position and rotation error (mm, mrad), the "
+                                       "residual against its stated σ, robust z, outlier")
     s.add_argument("--prior", choices=list(kincal.identify.PRIORS),
                    help="--type pose|markers|same-point|plane: relevance (default: a prior σ per joint origin's "
                         "lengths and angles, learned from the data; corrections the data do not confirm stay "

@@ -160,7 +160,7 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
     from kincal.identify import stat_line
 
     reports = [args.report, json_path(args.report)] if args.report else []
-    check_paths([*robot_inputs(args.robot), *args.data, *args.test], [args.output, *reports])
+    check_paths([*robot_inputs(args.robot), *args.data, *args.test], [args.output, args.residuals, *reports])
     if args.payload and args.error_model is None:
         raise ValueError(f"--payload {args.payload:g}: only the gravity terms use it; give --error-model compliance "
                          f"or gravity-regressor")
@@ -181,6 +181,9 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
     text = str(fit) + "".join(f"\n  held out {h['type']} ({h['source']}): {stat_line(b)}  →  {stat_line(h)}"
                               for b, h in zip(held_nominal, held))
     text += "".join(f"\n{line}" for line in _groups(fit.stats, held))
+    if args.residuals:
+        fit.write_residuals(args.residuals)
+        text += f"\nper-sample residuals written to {args.residuals}"
     if args.output:
         text += (f"\ncalibrated robot written to {args.output}" if written else
                  f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")

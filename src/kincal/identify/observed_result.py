@@ -11,10 +11,12 @@ import numpy as np
 from ..analysis.identifiability import Identifiability
 from ..analysis.uncertainty import ModelUncertainty
 from ..models.robot import TOOL_NAMES, Robot
+from .._atomic import write_text_atomic
 from .._csv import listed
 from ..units import MM, MRAD, display
 from .relevance import prior_lines
-from .verdict import Verdict, mounting_line
+from .observed_verdict import MIN_SAMPLES, component_kinds, sample_norms
+from .verdict import Verdict, mounting_line, robust_z
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,6 +49,7 @@ class ObservationFit:
     outliers: tuple = ()  # per set, the indices of its samples beyond the outlier limit
     rejected: dict = dataclasses.field(default_factory=dict)  # left out as outliers: file -> its rows
     notes: tuple[str, ...] = ()  # what the fit changed on its way (an error-model term dropped)
+    whitened_residual: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))  # (M,) by the stated σ
 
     def to_dict(self) -> dict:
         return {"robot": self.robot.name, "fitted": list(self.names),
@@ -73,6 +76,38 @@ class ObservationFit:
         return {**unc, "nominal": self.nominal.params.as_dict(), "observations": list(self.stats),
                 "nuisance": {n: float(v) for n, v in self.nuisance.items()},
                 "weakly_determined": {n: float(v) for n, v in self.weak.items()}}
+
+    def sample_table(self) -> list[dict]:
+        """Per sample of every set: file, row, kind, position error (mm: the norm of the sample's
+        position residuals, all its seen markers together), rotation error (mrad; poses), the norm
+        of its residual whitened by the stated σ, its robust z within the set and the outlier flag
+        (the verdict's rule)."""
+        out, start = [], 0
+        for obs, bad in zip(self.observations, self.outliers or ((),) * len(self.observations)):
+            names, nuis0, _ = obs.nuisance(self.robot)
+            r = obs.evaluate(self.robot, self.robot.params.values,
+                             np.array([self.nuisance.get(n, v) for n, v in zip(names, nuis0)]))[0]
+            labels, kinds = component_kinds([obs])
+            owner, rot = obs.sample_rows(), np.array([kinds[k] == "pose rotation" for k in labels], bool)
+            per = lambda rows: np.sqrt(np.bincount(owner[rows], r[rows] ** 2, minlength=len(obs)))  # noqa: E731
+            pos, ang = per((owner >= 0) & ~rot), per((owner >= 0) & rot)
+            norms = sample_norms([obs], self.whitened_residual[start:start + r.size])[0]
+            start += r.size
+            z = robust_z(norms) if len(obs) >= MIN_SAMPLES else np.zeros(len(obs))
+            flagged = set(int(i) for i in bad)
+            out += [{"file": obs.source, "row": int(obs.rows[i]), "kind": obs.kind, "position_mm": float(pos[i] * MM),
+                     "rotation_mrad": float(ang[i] * MRAD) if rot.any() else None, "whitened": float(norms[i]),
+                     "robust_z": float(z[i]), "outlier": i in flagged} for i in range(len(obs))]
+        return out
+
+    def write_residuals(self, path: str) -> None:
+        """:meth:`sample_table` as CSV (atomically): mm, mrad, whitened norms, robust z, outlier yes/no."""
+        lines = ["file,row,kind,position_error_mm,rotation_error_mrad,whitened_norm,robust_z,outlier"]
+        for s in self.sample_table():
+            rot = "" if s["rotation_mrad"] is None else f"{s['rotation_mrad']:.6g}"
+            lines.append(",".join([_cell(s["file"]), str(s["row"]), s["kind"], f"{s['position_mm']:.6g}", rot,
+                                   f"{s['whitened']:.6g}", f"{s['robust_z']:.4g}", "yes" if s["outlier"] else "no"]))
+        write_text_atomic(path, "\n".join(lines) + "\n")
 
     @property
     def mounting(self) -> str:
@@ -141,6 +176,11 @@ class ObservationFit:
         lines.append(f"verdict: {self.verdict.status.upper()}")
         lines += [f"  {r.level}: {r.message}" for r in self.verdict.reasons]
         return "\n".join(lines)
+
+
+def _cell(text: str) -> str:
+    """A CSV cell: quoted when it holds a comma or a quote."""
+    return f'"{text.replace(chr(34), chr(34) * 2)}"' if "," in text or '"' in text else text
 
 
 def stat_line(s: dict) -> str:

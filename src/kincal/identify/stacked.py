@@ -420,4 +420,4 @@ def _result(robot, st, gauge, ident, free, fcols, x0, fit, weak, th: Thresholds,
     return ObservationFit(calibrated, robot, tuple(n for n in free if n in robot.params.names), nuis, std, ident,
                           gauge, before, after, rms, cov, verdict, bool(fit.converged), fit.iterations, st.sets, weak,
                           learned, per_kind, {k: v for k, v in error.items() if v > 0},
-                          outlier_samples(st.sets, r, th))
+                          outlier_samples(st.sets, r, th), whitened_residual=r)
