@@ -57,3 +57,38 @@ def test_exclude_rows_of_a_pose_file(tmp_path, capsys):
     (tmp_path / "copy.csv").write_bytes(path.read_bytes())
     assert main([*args[:3], str(tmp_path / "copy.csv"), *args[3:], "--exclude", str(rows[0])]) == 1
     assert "rows of one file" in capsys.readouterr().err
+
+
+def test_figures_for_poses(tmp_path, capsys):
+    """--plot for pose data (calibrate and evaluate) writes the five figures, the report embeds them, and
+    the per-sample position errors of the same fit (its --residuals file) are the calibrated model's
+    distances to the measured points, recomputed here."""
+    import csv
+
+    from kincal.report import observation_figures
+
+    ur5 = kincal.load_robot("ur5").with_tool_point([0.05, 0.02, 0.1])
+    obs = simulate_poses(kincal.perturb(ur5, seed=3), ur5.sample_joints(60, seed=1),
+                         Rotation.from_rotvec([0.1, 0.2, -0.3]).as_matrix(), 20e-6, 0.05e-3, seed=1)
+    path, cal = tmp_path / "poses.csv", tmp_path / "cal.yaml"
+    write_observations(path, obs, ur5, ObservationFormat("pose", length_unit="mm"))
+    args = ["--type", "pose", "--length-unit", "mm", "--std-pos", "0.02mm", "--std-rot", "0.05mrad"]
+    assert main(["calibrate", "ur5", str(path), *args, "--tool", "50,20,100mm", "-o", str(cal), "--plot",
+                 str(tmp_path / "fig.png"), "--residuals", str(tmp_path / "res.csv"), "--report",
+                 str(tmp_path / "r.html")]) == 0
+    out = capsys.readouterr().out
+    names = ("per_pose", "histogram", "per_axis", "vs_joints", "workspace")
+    for name in names:
+        assert (tmp_path / f"fig-{name}.png").stat().st_size > 10_000 and name in out
+    html = (tmp_path / "r.html").read_text()
+    assert all(f'id="fig-{n}"' in html for n in names)
+    fit = fit_observations(ur5, [obs])
+    after = fit.robot.forward(obs.q) - obs.xyz
+    written = [float(r["position_error_mm"]) for r in csv.DictReader(open(tmp_path / "res.csv"))]
+    np.testing.assert_allclose(np.linalg.norm(after, axis=1) * 1e3, written, rtol=1e-5)
+    assert set(observation_figures(fit)) == set(names)
+    assert main(["evaluate", str(cal), str(path), *args, "--plot", str(tmp_path / "ev.svg")]) == 0
+    assert (tmp_path / "ev-workspace.svg").read_text().startswith("<?xml")
+    # markers have no one position per sample: --plot is refused for them with the reason
+    assert main(["calibrate", "ur5", str(path), "--type", "markers", "--plot", str(tmp_path / "m.png")]) == 1
+    assert "3-D position error" in capsys.readouterr().err

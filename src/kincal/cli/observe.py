@@ -13,7 +13,7 @@ from kincal.units import ANGLE_UNITS, LENGTH_UNITS, MRAD
 
 from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, check_paths, csv_list, emit, err, load_robot, progress,
                      robot_inputs)
-from .report import json_path, report_columns
+from .report import json_path, report_columns, save_figures
 
 TYPES = ("point", "pose", "markers", "same-point", "plane")
 ABSOLUTE = ("point", "pose", "markers")  # types measured in a frame: each file after the first is its own session
@@ -160,7 +160,7 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
     from kincal.identify import stat_line
 
     reports = [args.report, json_path(args.report)] if args.report else []
-    check_paths([*robot_inputs(args.robot), *args.data, *args.test], [args.output, args.residuals, *reports])
+    check_paths([*robot_inputs(args.robot), *args.data, *args.test], [args.output, args.residuals, args.plot, *reports])
     if args.payload and args.error_model is None:
         raise ValueError(f"--payload {args.payload:g}: only the gravity terms use it; give --error-model compliance "
                          f"or gravity-regressor")
@@ -181,6 +181,7 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
     text = str(fit) + "".join(f"\n  held out {h['type']} ({h['source']}): {stat_line(b)}  →  {stat_line(h)}"
                               for b, h in zip(held_nominal, held))
     text += "".join(f"\n{line}" for line in _groups(fit.stats, held))
+    text += _plots(args.plot, fit, "training")
     if args.residuals:
         fit.write_residuals(args.residuals)
         text += f"\nper-sample residuals written to {args.residuals}"
@@ -286,6 +287,21 @@ def cmd_report(args, record: dict) -> int:
     emit(args, {**fit.to_dict(), "held_out": held, "output": args.output, "json": str(numbers)},
          f"verdict: {fit.verdict.status.upper()}\nreport written to {args.output} (numbers in {numbers})")
     return 0 if fit.verdict.status != "refused" else EXIT_REFUSED
+
+
+def _plots(stem: str | None, fit, label: str) -> str:
+    """The figures of ``fit``'s sets with positions written as ``stem``-<figure>.png/.svg, said in a
+    line ("" without ``stem``); when no set has one position per sample in the fit's frame, a line
+    that says so."""
+    if not stem:
+        return ""
+    from kincal.report import observation_figures
+
+    figures = observation_figures(fit, label)
+    if not figures:
+        return ("\nno figures written: they show each sample's 3-D position error, and no file here has one in the "
+                "robot's frame (sessions in their own frames); the report (--report) shows every file")
+    return "\n" + "\n".join(save_figures(figures, stem))
 
 
 def _held_out(fit, obs, robot, same_frame: bool) -> dict:
@@ -434,6 +450,9 @@ def cmd_evaluate(args, kind: str) -> int:
             fit = fit_observations(robot, [obs], names=frame)
         s = fit.stats[0]
         payloads.append({"file": path, "frame_fitted": bool(frame), **s})
+        texts += [line for line in _plots(args.plot and (args.plot if len(args.data) == 1 else
+                                                         f"{args.plot}-{len(payloads)}"), fit, "held-out").split("\n")
+                  if line]
         texts.append(f"{robot.name} on {path} ({kind}; kinematics fixed, "
                      f"{'frame and ' if frame else ''}set-up parameters fitted): {stat_line(s)}")
         texts += [f"  {g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "

@@ -43,7 +43,8 @@ SCOPES: dict[str, Scope] = {
     "pso": _points_alone("the particle swarm searches the position residual"),
     "residual": _points_alone("the joint-space residual inverts measured positions"),
     "drift": _points_alone("the drift term follows one position file's row order"),
-    "plot": _points_alone("the figures show 3-D position errors; the report (--report) shows every kind"),
+    "plot": Scope(("point", "pose"), "the figures show each sample's 3-D position error; the report (--report) "
+                                     "shows every kind"),
     "tracker_noise": _points_alone("the other kinds state their noise with --std-pos (and --std-rot)"),
     "std_cols": _points_alone("the other kinds read σ from the columns std_pos and std_rot_mrad"),
     "base": Scope(("point", "pose", "markers"), "sockets and planes do not see the measurement frame (the base is "

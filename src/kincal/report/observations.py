@@ -9,6 +9,8 @@ import numpy as np
 
 from ..identify.relevance import prior_lines
 from ..identify.observed_result import ObservationFit
+from ..observe.sessions import InSession
+from . import figures as F
 from .._csv import listed
 from ..units import MM, MRAD, display
 from .build import Report, json_path_for, report_date, template
@@ -35,12 +37,36 @@ def observation_report(fit: ObservationFit, held_out: Sequence[dict] = (), held_
            "prior": prior_lines(fit.prior), "rejected": {k: listed(v) for k, v in fit.rejected.items()},
            "not_estimated": [line for line in fit.identifiability.confound_lines("")
                              if line.split()[0] not in set(fit.gauge)], "json_name": json_path_for(html_name).name}
+    figures = observation_figures(fit)
+    ctx["figures"] = [{"name": n, "svg": F.svg(f)} for n, f in figures.items()]
     html = template("observations.html").render(**ctx)
     data = {**fit.to_dict(), "held_out": list(held_out), "held_out_nominal": list(held_out_nominal), "date": ctx["date"], "version": __version__}
     summary = "\n".join([f"verdict: {fit.verdict.status.upper()}"] + [
         f"  {r['data']} {r['type']} ({r['model']}): mean {r['mean_mm']:.4f} mm" for r in residuals
         if r["mean_mm"] is not None])
     return Report(html, data, summary)
+
+
+def observation_figures(fit: ObservationFit, label: str = "training") -> dict:
+    """The report's figures of the sets with one measured position per sample (points, 6-D poses;
+    sets in a session's own frame left out): errors per sample, distribution, per axis, against the
+    joints and in the workspace, before (the registered nominal model) and after calibration, or of
+    the model alone (``label`` "held-out", e.g. ``evaluate``); {} when no set has such positions."""
+    sets = []
+    for obs, bad in zip(fit.observations, fit.outliers or ((),) * len(fit.observations)):
+        found = obs.positions()
+        if obs.kind not in ("point", "pose") or isinstance(obs, InSession) or found is None:
+            continue
+        q, xyz = found
+        flags = np.zeros(len(q), bool)
+        flags[np.asarray(bad, int)] = True
+        before = xyz - fit.nominal.forward(q) if label == "training" else None
+        sets.append(F.PoseSet(label, obs.rows, q, xyz, before, xyz - fit.robot.forward(q), flags, name=obs.source))
+    if not sets:
+        return {}
+    names, types = fit.robot.joint_names, fit.robot.joint_types
+    return {"per_pose": F.per_pose(sets), "histogram": F.histogram(sets), "per_axis": F.per_axis(sets),
+            "vs_joints": F.vs_joints(sets, names, types), "workspace": F.workspace(sets)}
 
 
 def _row(s: dict, data: str, model: str, key: str) -> dict:
