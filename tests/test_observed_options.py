@@ -3,6 +3,7 @@ robot's base frame) for 6-D poses, checked against the library's fit of the same
 import json
 
 import numpy as np
+from conftest import DATA
 from scipy.spatial.transform import Rotation
 
 import kincal
@@ -92,3 +93,30 @@ def test_figures_for_poses(tmp_path, capsys):
     # markers have no one position per sample: --plot is refused for them with the reason
     assert main(["calibrate", "ur5", str(path), "--type", "markers", "--plot", str(tmp_path / "m.png")]) == 1
     assert "3-D position error" in capsys.readouterr().err
+
+
+def test_learned_prior_for_points_is_the_one_fit_s():
+    """calibrate(prior="relevance") on tracker points equals the fit of observation sets on the same
+    points as a PointObs (two code paths, one answer), and the options refuse it where it cannot run."""
+    import pytest
+
+    from kincal.io.measurements import read_measurements
+    from kincal.observe import PointObs
+
+    r = kincal.load_robot("ur5")
+    meas = read_measurements(DATA / "ur5_grid.csv", r, [f"joint_{i}" for i in range(1, 7)], length_unit="mm",
+                             angle_unit="deg").subset(np.arange(0, 1000, 10))
+    res = kincal.calibrate(r, meas, prior="relevance", diagnose=False)
+    ref = fit_observations(r, [PointObs(meas.q, meas.rows, meas.source, xyz=meas.xyz, std=50e-6)], prior="relevance")
+    assert set(res.names) == set(ref.names) and res.prior.keys() == ref.prior.keys()
+    np.testing.assert_allclose([res.robot.params[n] for n in ref.names], [ref.robot.params[n] for n in ref.names],
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose([res.prior[g] for g in ref.prior], list(ref.prior.values()), rtol=1e-6, atol=1e-12)
+    plain = kincal.calibrate(r, meas, diagnose=False)
+    kinds = dict(zip(r.params.names, r.params.kinds))
+    held = [n for n in res.names if res.prior.get(f"{n.rsplit('.', 1)[0]} {kinds[n]}s", 1.0) < 1e-6]
+    assert held and all(abs(res.corrections[n]) < 0.1 * abs(plain.corrections[n]) + 1e-9 for n in held)
+    assert "prior learned from the data" in str(res) and res.to_dict()["prior"] == res.prior
+    for bad in ({"method": "pso"}, {"loss": "huber"}):
+        with pytest.raises(ValueError, match="prior='relevance' refits a least-squares fit"):
+            kincal.FitOptions(prior="relevance", **bad)

@@ -49,7 +49,6 @@ SCOPES: dict[str, Scope] = {
     "std_cols": _points_alone("the other kinds read σ from the columns std_pos and std_rot_mrad"),
     "base": Scope(("point", "pose", "markers"), "sockets and planes do not see the measurement frame (the base is "
                                                 "a gauge freedom for them)"),
-    "prior": Scope(OBSERVED, "position data choose their model with --error-model (no learned prior yet)"),
     "orientation": Scope(("pose",), "only pose files have orientation columns"),
     "rot_cols": Scope(("pose",), "only pose files have orientation columns"),
     "std_rot": Scope(("pose",), "only poses measure an orientation"),

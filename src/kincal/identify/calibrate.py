@@ -19,7 +19,7 @@ from ..io.measurements import Measurements
 from ..models.robot import Robot
 from ..models.terms import drop_terms, extend
 from .compliance import negative_compliances
-from .covariance import parameter_statistics
+from .covariance import covariance_statistics, parameter_statistics
 from .diagnosis import TRIGGERS, diagnose, outlier_poses
 from .drift import with_drift, without_drift
 from .lm import LMResult, fit_lm
@@ -28,6 +28,7 @@ from .weak import weak_note, weakest
 from .options import FitOptions
 from .problem import CalibrationProblem, build_problem
 from .pso import fit_pso
+from .relevance import RelevanceFit, with_learned_prior
 from .result import CalibrationResult, EvaluationStats, rejected
 from .robust import irls
 from .select import select_model
@@ -94,19 +95,21 @@ def _fit(robot: Robot, meas: Measurements, o: FitOptions, say, t0: float) -> Cal
     """Build the problem (with the drift term if asked), solve it, judge the result."""
     fit_robot, fit_meas = with_drift(robot, meas) if o.drift else (robot, meas)
     problem = build_problem(fit_robot, fit_meas, o, say=say)
-    w, weak = None, {}
+    w, weak, prior = None, {}, None
     if o.loss == "linear":
         fit, final, counts, history = _solve(problem, o, say)
         if o.method != "pso":
             fit, final, weak = _hold_weak(problem, final, fit, o, say)
         if fit.converged:
             problem, fit, final = _with_model_error(problem, final, fit, o, say)
+        if fit.converged and o.prior == "relevance":
+            fit, prior = _with_prior(problem, final, fit, o, say)
     else:  # reweight from the start: a least-squares fit pulled by outliers is a poor place to begin
         say("fitting with reweighting (robust loss)")
         final, history = problem, ()
         fit, w, *counts = irls(problem, _at(problem, problem.x0), o.loss, o.f_scale,
                                lambda x, wt: fit_lm(problem, x, wt, o.max_iter))
-    res = _result(fit_robot, problem, final, fit, w, counts, history, o, time.perf_counter() - t0, weak)
+    res = _result(fit_robot, problem, final, fit, w, counts, history, o, time.perf_counter() - t0, weak, prior)
     res = judge(res, problem)
     if not o.drift:
         return res
@@ -152,6 +155,25 @@ def _with_model_error(problem: CalibrationProblem, final: CalibrationProblem, fi
         weights = w
         fit = fit_lm(final, fit.x, max_iter=o.max_iter)
     return problem, fit, final
+
+
+def _with_prior(problem: CalibrationProblem, final: CalibrationProblem, fit: LMResult, o: FitOptions, say):
+    """The fit of ``final`` refitted with the prior learned from the data around the nominal values
+    (:mod:`kincal.identify.relevance`), on the residual in units of the instrument's σ: (the fit at
+    its solution, the prior fit); (fit, None) when no fitted parameter takes a prior (a frame alone)."""
+    noise = noise_level(problem.meas.std, o.thresholds)[0]
+    f = final.fun()
+
+    def fun(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r, J = f(x)
+        return r / noise, J / noise
+    say("learning the prior of the corrections from the data")
+    scaled = dataclasses.replace(fit, residual=fit.residual / noise, jacobian=fit.jacobian / noise)
+    rel = with_learned_prior(fun, scaled, problem.values0[final.cols], final.names, final.start)
+    if not isinstance(rel, RelevanceFit):
+        return fit, None
+    return dataclasses.replace(fit, x=rel.x, residual=rel.residual * noise, jacobian=rel.jacobian * noise,
+                               converged=rel.converged, message=f"{fit.message}; prior learned"), (rel, noise)
 
 
 def _error_model(robot: Robot, meas: Measurements, options: FitOptions, say, use_q=None):
@@ -208,10 +230,10 @@ def _at(problem: CalibrationProblem, x: np.ndarray, message: str = "not yet fitt
 
 
 def _result(robot: Robot, problem: CalibrationProblem, final: CalibrationProblem, fit: LMResult, w, counts,
-            history, options: FitOptions, elapsed: float, weak: dict[str, float]) -> CalibrationResult:
+            history, options: FitOptions, elapsed: float, weak: dict[str, float], prior=None) -> CalibrationResult:
     """The fit as a CalibrationResult: estimates for every name of ``problem`` but those held at
-    nominal (``weak``), uncertainty from the fit of ``final`` (undetermined parameters of a swarm-only
-    fit get σ = inf)."""
+    nominal (``weak``), uncertainty from the fit of ``final`` (the posterior with a learned ``prior``:
+    (its fit, the noise it was scaled by); undetermined parameters of a swarm-only fit get σ = inf)."""
     v = final.embed(fit.x)
     calibrated = problem.start.with_params(v)
     names = tuple(n for n in problem.names if n not in weak)
@@ -220,7 +242,9 @@ def _result(robot: Robot, problem: CalibrationProblem, final: CalibrationProblem
         problem.ident, identifiable=tuple(n for n in problem.ident.identifiable if n not in weak),
         notes=problem.ident.notes + (weak_note(problem.start, weak),))
     undetermined = problem.ident.dropped if options.method == "pso" else ()
-    sd, corr, sigma2, cov = parameter_statistics(fit.jacobian, fit.residual, final.names, names, undetermined)
+    sd, corr, sigma2, cov = (parameter_statistics(fit.jacobian, fit.residual, final.names, names, undetermined)
+                             if prior is None else covariance_statistics(prior[0].covariance, prior[0].noise2 *
+                                                                         prior[1] ** 2, final.names, names))
     meas = problem.meas
     res = meas.xyz - calibrated.forward(meas.q)
     return CalibrationResult(
@@ -233,7 +257,8 @@ def _result(robot: Robot, problem: CalibrationProblem, final: CalibrationProblem
         stats_after=EvaluationStats.from_errors(res),
         iterations=counts[0], evaluations=counts[1], converged=fit.converged, message=fit.message,
         time_s=elapsed, options=options, identifiability=ident, history=history, covariance=cov,
-        measurements=meas, pose_z=robust_z(np.linalg.norm(res, axis=1)), weak=dict(weak))
+        measurements=meas, pose_z=robust_z(np.linalg.norm(res, axis=1)), weak=dict(weak),
+        prior={} if prior is None else dict(prior[0].sigma))
 
 
 def judge(res: CalibrationResult, problem: CalibrationProblem) -> CalibrationResult:

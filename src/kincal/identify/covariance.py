@@ -11,7 +11,7 @@ def normal_inverse(J: np.ndarray) -> np.ndarray:
     d = np.linalg.norm(J, axis=0)
     d[d == 0] = 1.0
     A = J / d
-    return np.linalg.pinv(A.T @ A, hermitian=True) / np.outer(d, d)
+    return np.linalg.pinv(A.T @ A) / np.outer(d, d)  # by SVD: LAPACK's symmetric eigensolver can fail to converge
 
 
 def parameter_statistics(J: np.ndarray, r: np.ndarray, fitted: Sequence[str], names: Sequence[str],
@@ -21,7 +21,12 @@ def parameter_statistics(J: np.ndarray, r: np.ndarray, fitted: Sequence[str], na
     σ = inf, no correlation and zero rows/columns in the covariance."""
     dof = max(r.size - J.shape[1], 1)
     sigma2 = float(r @ r) / dof
-    cov = normal_inverse(J) * sigma2
+    return covariance_statistics(normal_inverse(J) * sigma2, sigma2, fitted, names, undetermined)
+
+
+def covariance_statistics(cov: np.ndarray, sigma2: float, fitted: Sequence[str], names: Sequence[str],
+                          undetermined: Sequence[str] = ()) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """:func:`parameter_statistics` from a covariance of the ``fitted`` columns (e.g. a posterior)."""
     pos = {n: k for k, n in enumerate(fitted)}
     at = np.array([-1 if n in set(undetermined) else pos.get(n, -1) for n in names], dtype=int)
     ok = at >= 0

@@ -18,6 +18,7 @@ from ..checks import one_of as _one_of
 from ..checks import whole as _whole
 from ..models.robot import Robot
 from ..models.terms import ErrorModel
+from .relevance import PRIORS
 from .robust import LOSSES
 from .verdict import Thresholds
 
@@ -93,6 +94,9 @@ class FitOptions:
                   (at most a tenth of them), named by row in the result
     diagnose   -- when the verdict doubts the data, try the common input mistakes and name the one
                   that explains them (:mod:`kincal.identify.diagnosis`)
+    prior      -- "none" (least squares) or "relevance": a prior σ per joint origin's lengths and
+                  angles learned from the data (:mod:`kincal.identify.relevance`), after the
+                  least-squares fit; Levenberg–Marquardt and linear loss only
     """
 
     names: str | tuple[str, ...] = "auto"
@@ -110,6 +114,7 @@ class FitOptions:
     drift: bool = False
     reject_outliers: bool = False
     diagnose: bool = True
+    prior: str = "none"
 
     def __post_init__(self) -> None:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -120,6 +125,7 @@ class FitOptions:
         _one_of("loss", self.loss, LOSSES)
         _one_of("method", self.method, METHODS)
         _one_of("residual", self.residual, RESIDUAL_NAMES)
+        _one_of("prior", self.prior, PRIORS)
         if self.f_scale is not None:
             set_("f_scale", _number("f_scale", self.f_scale, unit="m"))
         set_("rank_tol", _number("rank_tol", self.rank_tol))
@@ -149,6 +155,9 @@ class FitOptions:
             if self.__dict__[k] not in (True, False):
                 raise ValueError(f"{k}={self.__dict__[k]!r}: True or False")
             set_(k, bool(self.__dict__[k]))
+        if self.prior != "none" and (self.method == "pso" or self.loss != "linear"):
+            raise ValueError(f"prior='{self.prior}' refits a least-squares fit: it needs method 'lm' or 'pso+lm' and "
+                             f"loss='linear' (got method='{self.method}', loss='{self.loss}')")
         if self.reject_outliers and self.method != "lm":
             raise ValueError(f"reject_outliers=True needs method='lm' (got '{self.method}'): the outliers are found "
                              f"by a robust Levenberg-Marquardt refit")
@@ -183,7 +192,8 @@ class FitOptions:
                 "keep": list(self.keep), "rank_tol": self.rank_tol, "max_iter": self.max_iter,
                 "pso": None if self.pso is None else self.pso.to_dict(), "thresholds": self.thresholds.to_dict(),
                 "error_model": None if self.error_model is None else self.error_model.to_dict(),
-                "drift": self.drift, "reject_outliers": self.reject_outliers, "diagnose": self.diagnose}
+                "drift": self.drift, "reject_outliers": self.reject_outliers, "diagnose": self.diagnose,
+                "prior": self.prior}
 
     @classmethod
     def from_dict(cls, data: Mapping, where: str = "calibration record") -> "FitOptions":

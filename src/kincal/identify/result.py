@@ -13,6 +13,7 @@ from ..models.robot import TOOL_NAMES, Robot
 from ..units import MM, display
 from .diagnosis import Diagnosis
 from .options import FitOptions
+from .relevance import prior_lines
 from .select import ErrorModelChoice
 from .verdict import Verdict, mounting_line, noise_level
 from .weak import weak_note
@@ -98,6 +99,7 @@ class CalibrationResult:
     rejected_rows: tuple[int, ...] = ()  # reject_outliers: input rows left out as outliers
     rejected_sessions: tuple[str, ...] = ()  # several sessions: the file of each rejected row
     weak: dict[str, float] = field(default_factory=dict)  # held at nominal: name -> the σ the data gave it
+    prior: dict[str, float] = field(default_factory=dict)  # learned prior σ per group (m or rad); {}: none
 
     def rejected_text(self) -> str:
         """'row(s) 40 of grid.csv' (several sessions: each file's rows after its name); '' when none."""
@@ -208,6 +210,7 @@ class CalibrationResult:
                 "text": self.mounting},
             "compliance": self.robot.compliances(),  # rad/(N·m) per joint
             "weakly_determined": dict(self.weak),  # held at nominal (m or rad: the σ the data gave them)
+            "prior": dict(self.prior),  # learned prior σ per group (m or rad)
             "poses": self.pose_records(),
         }
 
@@ -233,6 +236,7 @@ class CalibrationResult:
             lines.append(f"mounting: {self.mounting}")
         if self.weak:
             lines.append(weak_note(self.robot, self.weak))
+        lines += prior_lines(self.prior)
         if self.rejected_rows:
             lines.append(f"left out as outliers (more than {self.outlier_z:.3g} robust σ off a robust refit): "
                          f"{self.rejected_text()}")
