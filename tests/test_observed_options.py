@@ -120,3 +120,21 @@ def test_learned_prior_for_points_is_the_one_fit_s():
     for bad in ({"method": "pso"}, {"loss": "huber"}):
         with pytest.raises(ValueError, match="prior='relevance' refits a least-squares fit"):
             kincal.FitOptions(prior="relevance", **bad)
+
+
+def test_diagnosis_of_poses_names_a_negated_joint():
+    """6-D poses whose joint 2 column is negated: the fit doubts them, and the one diagnosis, run on
+    their positions, names the joint; clean poses are not screened (nothing to explain)."""
+    import dataclasses
+
+    ur5 = kincal.load_robot("ur5").with_tool_point([0.05, 0.02, 0.1])
+    obs = simulate_poses(kincal.perturb(ur5, seed=3), ur5.sample_joints(60, seed=1),
+                         Rotation.from_rotvec([0.1, 0.2, -0.3]).as_matrix(), 20e-6, 0.05e-3, seed=1)
+    q = obs.q.copy()
+    q[:, 1] *= -1
+    fit = fit_observations(ur5, [dataclasses.replace(obs, q=q)], diagnose=True)
+    first = fit.verdict.reasons[0]
+    assert first.code == "cause-joint-sign" and "j2 counts the other way" in first.message
+    assert fit.diagnosis is not None and fit.to_dict()["diagnosis"]["found"][0]["code"] == "joint-sign"
+    clean = fit_observations(ur5, [obs], diagnose=True)
+    assert clean.diagnosis is None and clean.verdict.status == "good"

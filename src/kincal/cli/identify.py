@@ -166,6 +166,19 @@ def _pair(s: str) -> tuple[float, float]:
     return a, b
 
 
+def _verdict_and_output_flags(s) -> None:
+    """calibrate's report, figures, the verdict's limits and how the files are read."""
+    s.add_argument("--report", help="HTML report to write (self-contained; its JSON goes beside it)")
+    s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
+    s.add_argument("--tracker-noise", type=positive_float, default=0.05, help="expected tracker noise, mm (default 0.05)")
+    s.add_argument("--length-limits", type=_pair, default=(10.0, 50.0), metavar="SUSPECT,REFUSE",
+                   help="largest plausible length corrections, mm (default 10,50)")
+    s.add_argument("--angle-limits", type=_pair, default=(2.0, 10.0), metavar="SUSPECT,REFUSE",
+                   help="largest plausible angle corrections, deg (default 2,10)")
+    add_data_flags(s)
+    observe.add_flags(s)
+
+
 def register(cmd) -> None:
     """Add the commands to the parser through ``cmd(name, func, help)``."""
     s = cmd("calibrate", cmd_calibrate, "identify the robot's parameters from measurements")
@@ -209,15 +222,7 @@ def register(cmd) -> None:
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")
     add_session_flags(s)  # held-out sessions for the report and figures; with --error-model auto also the
     # poses where the model will be used (the prediction-σ guard)
-    s.add_argument("--report", help="HTML report to write (self-contained; its JSON goes beside it)")
-    s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
-    s.add_argument("--tracker-noise", type=positive_float, default=0.05, help="expected tracker noise, mm (default 0.05)")
-    s.add_argument("--length-limits", type=_pair, default=(10.0, 50.0), metavar="SUSPECT,REFUSE",
-                   help="largest plausible length corrections, mm (default 10,50)")
-    s.add_argument("--angle-limits", type=_pair, default=(2.0, 10.0), metavar="SUSPECT,REFUSE",
-                   help="largest plausible angle corrections, deg (default 2,10)")
-    add_data_flags(s)
-    observe.add_flags(s)
+    _verdict_and_output_flags(s)
 
     s = cmd("evaluate", cmd_evaluate, "position error statistics of a robot model on measurements")
     add_robot(s)

@@ -15,6 +15,7 @@ from .._atomic import write_text_atomic
 from .._csv import listed
 from ..units import MM, MRAD, display
 from .relevance import prior_lines
+from .diagnosis import Diagnosis
 from .observed_verdict import MIN_SAMPLES, component_kinds, sample_norms
 from .verdict import Verdict, mounting_line, robust_z
 
@@ -50,6 +51,7 @@ class ObservationFit:
     rejected: dict = dataclasses.field(default_factory=dict)  # left out as outliers: file -> its rows
     notes: tuple[str, ...] = ()  # what the fit changed on its way (an error-model term dropped)
     whitened_residual: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))  # (M,) by the stated σ
+    diagnosis: Diagnosis | None = None  # the differential diagnosis of a doubtful fit, if run
 
     def to_dict(self) -> dict:
         return {"robot": self.robot.name, "fitted": list(self.names),
@@ -63,6 +65,7 @@ class ObservationFit:
                 "before": list(self.stats_before), "after": list(self.stats), "whitened_rms": self.whitened_rms,
                 "whitened_rms_per_kind": dict(self.whitened), "model_error": dict(self.model_error),
                 "rejected_rows": {k: list(v) for k, v in self.rejected.items()}, "notes": list(self.notes),
+                "diagnosis": None if self.diagnosis is None else self.diagnosis.to_dict(),
                 "error_model": self.robot.error_model,
                 "verdict": self.verdict.to_dict(), "converged": self.converged, "iterations": self.iterations}
 

@@ -32,6 +32,7 @@ from .compliance import negative_compliances
 from .covariance import parameter_statistics
 from .lm import levenberg_marquardt
 from .noise import extra_variance
+from .observed_diagnosis import diagnosed
 from .observed_result import ObservationFit
 from .observed_verdict import component_kinds, observation_verdict, outlier_samples, whitened_per_kind
 from .registration import register_base
@@ -116,7 +117,8 @@ def _gauge(robot: Robot, sets) -> tuple[str, ...]:
 def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] | str = "auto",
                      keep: Sequence[str] = (), max_iter: int = 100, rank_tol: float = RANK_TOL,
                      prior: str = "relevance", thresholds: Thresholds | None = None, loss: str = "linear",
-                     reject_outliers: bool = False, error_model: ErrorModel | str | None = None) -> ObservationFit:
+                     reject_outliers: bool = False, error_model: ErrorModel | str | None = None,
+                     diagnose: bool = False) -> ObservationFit:
     """Calibrate ``robot`` from observation sets of any types (see the module docstring). ``names``:
     robot parameters to fit ("auto": every identifiable one); ``keep``: chosen first among confounded;
     ``prior``: "relevance" (a prior σ per joint origin and kind learned from the data,
@@ -127,7 +129,9 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
     most a tenth of a set's, and fit again (named in ``rejected`` by file and row); ``error_model``: a
     named :class:`~kincal.ErrorModel` (terms beyond geometry on the joints that move the tool at these
     samples; not "auto", which is chosen on position data); a compliance that comes out negative is
-    dropped and the fit repeated (said in ``notes``).
+    dropped and the fit repeated (said in ``notes``); ``diagnose``: when the verdict doubts the data,
+    screen the common input mistakes on the measured positions and name the one that explains them
+    (:mod:`kincal.identify.observed_diagnosis`).
 
     Identifiability is judged at the start and again at the solution: where the fit moved the model
     (a tool point off a joint's axis) the data may identify other parameters. When the set changed,
@@ -148,8 +152,14 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
     if neg:
         robot = drop_terms(robot, neg)
         res = dataclasses.replace(fit(observations, loss), notes=notes)
-    if not reject_outliers:
-        return res
+    if reject_outliers:
+        res = _without_outliers(fit, observations, res, loss)
+    return diagnosed(res, robot) if diagnose else res
+
+
+def _without_outliers(fit, observations: Sequence, res: ObservationFit, loss: str) -> ObservationFit:
+    """``res`` fitted again (``fit(sets, loss)``) without the samples a robust fit puts beyond the
+    outlier limit, at most a tenth of a set's; ``res`` itself when there are none."""
     found = (res if loss != "linear" else fit(observations, "huber")).outliers
     bad = [b if len(b) <= max(1, int(MAX_OUTLIER_SHARE * len(o))) else b[:0] for o, b in zip(observations, found)]
     if not any(len(b) for b in bad):
