@@ -138,3 +138,46 @@ def test_diagnosis_of_poses_names_a_negated_joint():
     assert fit.diagnosis is not None and fit.to_dict()["diagnosis"]["found"][0]["code"] == "joint-sign"
     clean = fit_observations(ur5, [obs], diagnose=True)
     assert clean.diagnosis is None and clean.verdict.status == "good"
+
+
+def test_instrument_drift_over_a_pose_or_marker_file(tmp_path, capsys):
+    """A camera creeping 0.3/-0.2/0.1 mm over a file: drift=True fits it as the file's set-up
+    parameters (within 4 σ of the truth, for poses and for markers), and the model no longer absorbs
+    it (held-out error against the true robot); sockets refuse it with the reason."""
+    import dataclasses
+
+    import pytest
+
+    from kincal.observe.drifting import acquisition
+    from kincal.simulate.observations import simulate_markers
+
+    ur5 = kincal.load_robot("ur5").with_tool_point([0.05, 0.02, 0.1])
+    true = kincal.perturb(ur5, seed=3)
+    d = np.array([0.3e-3, -0.2e-3, 0.1e-3])
+    poses = simulate_poses(true, ur5.sample_joints(150, seed=1), Rotation.from_rotvec([0.1, 0.2, -0.3]).as_matrix(),
+                           20e-6, 0.05e-3, seed=1)
+    poses = dataclasses.replace(poses, xyz=poses.xyz + acquisition(poses.rows)[:, None] * d)
+    markers = simulate_markers(true, ur5.sample_joints(150, seed=4), np.array([[0.05, 0, 0.1], [-0.03, 0.05, 0.08]]),
+                               20e-6, seed=2)
+    markers = dataclasses.replace(markers, xyz=markers.xyz + acquisition(markers.rows)[:, None, None] * d)
+    qt = ur5.sample_joints(200, seed=9)
+    for obs in (poses, markers):
+        fit = fit_observations(ur5, [obs], drift=True)
+        names = [f"drift[{obs.source}].{a}" for a in "xyz"]
+        est, sd = np.array([fit.nuisance[n] for n in names]), np.array([fit.std[n] for n in names])
+        assert np.all(np.abs(est - d) < 4 * sd) and np.all(sd < 0.02e-3), (obs.kind, est, sd)
+    plain, drifting = fit_observations(ur5, [poses]), fit_observations(ur5, [poses], drift=True)
+    error = [float(np.mean(np.linalg.norm(f.robot.forward(qt) - true.forward(qt), axis=1))) for f in (plain, drifting)]
+    assert error[1] < 0.5 * error[0] and drifting.verdict.status == "good"
+    assert "over the file (first to last sample): x +0.29" in str(drifting)
+    from kincal.simulate.observations import simulate_same_point, socket_plan
+    points, distances = socket_plan(ur5, 2, seed=1)
+    sockets = simulate_same_point(true, points, 10, distances, seed=1)
+    with pytest.raises(ValueError, match="no measuring instrument that could drift"):
+        fit_observations(ur5, [sockets], drift=True)
+    path = tmp_path / "poses.csv"
+    write_observations(path, poses, ur5, ObservationFormat("pose", length_unit="mm"))
+    assert main(["calibrate", "ur5", str(path), "--type", "pose", "--tool", "50,20,100mm", "--length-unit", "mm",
+                 "--std-pos", "0.02mm", "--std-rot", "0.05mrad", "--drift"]) == 0
+    out = capsys.readouterr().out
+    assert "drift[poses.csv] over the file (first to last sample): x +0.2" in out and "verdict: GOOD" in out

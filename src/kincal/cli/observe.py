@@ -168,7 +168,8 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
     robot = load_robot(args)
     options = {"names": _names(args, robot), "keep": tuple(args.keep or ()),
                "max_iter": args.max_iter, "prior": args.prior or "relevance", "thresholds": thresholds,
-               "loss": args.loss, "reject_outliers": args.reject_outliers, "error_model": spec, "diagnose": True}
+               "loss": args.loss, "reject_outliers": args.reject_outliers, "error_model": spec, "diagnose": True,
+               "drift": args.drift}
     fit, held, held_nominal = fitted(args, robot, kinds, args.data, args.test, options)
     record = {**fit.record(), "observation_options": {**options, "thresholds": thresholds.to_dict(),
                                                       "error_model": spec and spec.to_dict()},

@@ -42,7 +42,7 @@ SCOPES: dict[str, Scope] = {
     "method": _points_alone("the particle swarm searches the position residual; " + _POSITION_FIT),
     "pso": _points_alone("the particle swarm searches the position residual"),
     "residual": _points_alone("the joint-space residual inverts measured positions"),
-    "drift": _points_alone("the drift term follows one position file's row order"),
+    "drift": Scope(("point", "pose", "markers"), "sockets and planes have no measuring instrument that could drift"),
     "plot": Scope(("point", "pose"), "the figures show each sample's 3-D position error; the report (--report) "
                                      "shows every kind"),
     "tracker_noise": _points_alone("the other kinds state their noise with --std-pos (and --std-rot)"),

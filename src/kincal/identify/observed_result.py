@@ -112,6 +112,13 @@ class ObservationFit:
                                    f"{s['whitened']:.6g}", f"{s['robust_z']:.4g}", "yes" if s["outlier"] else "no"]))
         write_text_atomic(path, "\n".join(lines) + "\n")
 
+    def drift_lines(self) -> list[str]:
+        """Each set's fitted instrument drift over its rows (first to last sample), mm with σ."""
+        sets = dict.fromkeys(n.rsplit(".", 1)[0] for n in self.nuisance if n.startswith("drift["))
+        return [f"{s} over the file (first to last sample): " + ", ".join(
+            f"{a} {self.nuisance[f'{s}.{a}'] * MM:+.4f} ± {self.std.get(f'{s}.{a}', np.inf) * MM:.4f} mm"
+            for a in "xyz" if f"{s}.{a}" in self.nuisance) for s in sets]
+
     @property
     def mounting(self) -> str:
         """Where the data put the target against the declared tool point, when the fit moved it; ''
@@ -163,6 +170,7 @@ class ObservationFit:
         lines += [f"left out as outliers (a robust refit put them beyond the outlier limit): {src} row(s) {listed(rows)}"
                   for src, rows in self.rejected.items()]
         lines += [f"error model {self.robot.error_model}: " + note for note in self.notes]
+        lines += self.drift_lines()
         if self.model_error:
             lines.append("weighted by 1/(σ² + s²), s what the model leaves beyond the stated σ: " + ", ".join(
                 f"{k} {v * MRAD:.3g} mrad" if k.endswith("rotation") else f"{k} {v * MM:.3g} mm"

@@ -27,6 +27,7 @@ from ..analysis.observability import live_columns
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..models.terms import ErrorModel, drop_terms, extend
+from ..observe.drifting import DRIFT, Drifting
 from ..observe.sessions import InSession
 from .compliance import negative_compliances
 from .covariance import parameter_statistics
@@ -55,6 +56,7 @@ class _Stack:
     stated: np.ndarray  # (M,) 1/σ as stated (the instrument's noise)
     labels: np.ndarray  # (M,) each row's kind of component, an index into ``kinds``
     kinds: tuple[str, ...]  # "pose position", "pose rotation", "markers", ...
+    late: tuple[str, ...] = ()  # set-up parameters chosen after the robot's when confounded (an instrument's drift)
 
     def with_model_error(self, r: np.ndarray, n_free: int) -> tuple["_Stack", dict]:
         """The stack weighted by 1/(σ² + s²) per kind of component, s² what the whitened residual
@@ -91,9 +93,10 @@ def _stack(robot: Robot, observations: Sequence) -> _Stack:
     sets = tuple(prepared)
     names: list[str] = []
     start: list[float] = []
-    slots = []
+    slots, late = [], []
     for obs in sets:
-        n, v, _ = obs.nuisance(robot)
+        n, v, k = obs.nuisance(robot)
+        late += [name for name, kind in zip(n, k) if kind == DRIFT]
         for name, value in zip(n, v):
             if name not in names:
                 names.append(name)
@@ -103,7 +106,8 @@ def _stack(robot: Robot, observations: Sequence) -> _Stack:
     if not np.all(np.isfinite(sigma) & (sigma > 0)):
         raise MeasurementError("every measurement σ must be a positive number (m or rad)")
     labels, kinds = component_kinds(sets)
-    return _Stack(sets, robot, tuple(names), np.array(start), tuple(slots), 1.0 / sigma, 1.0 / sigma, labels, kinds)
+    return _Stack(sets, robot, tuple(names), np.array(start), tuple(slots), 1.0 / sigma, 1.0 / sigma, labels, kinds,
+                  tuple(late))
 
 
 def _gauge(robot: Robot, sets) -> tuple[str, ...]:
@@ -118,7 +122,7 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
                      keep: Sequence[str] = (), max_iter: int = 100, rank_tol: float = RANK_TOL,
                      prior: str = "relevance", thresholds: Thresholds | None = None, loss: str = "linear",
                      reject_outliers: bool = False, error_model: ErrorModel | str | None = None,
-                     diagnose: bool = False) -> ObservationFit:
+                     diagnose: bool = False, drift: bool = False) -> ObservationFit:
     """Calibrate ``robot`` from observation sets of any types (see the module docstring). ``names``:
     robot parameters to fit ("auto": every identifiable one); ``keep``: chosen first among confounded;
     ``prior``: "relevance" (a prior σ per joint origin and kind learned from the data,
@@ -131,7 +135,9 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
     samples; not "auto", which is chosen on position data); a compliance that comes out negative is
     dropped and the fit repeated (said in ``notes``); ``diagnose``: when the verdict doubts the data,
     screen the common input mistakes on the measured positions and name the one that explains them
-    (:mod:`kincal.identify.observed_diagnosis`).
+    (:mod:`kincal.identify.observed_diagnosis`); ``drift``: each set of measured positions (points,
+    poses, markers) gets its instrument's drift over its row order as set-up parameters
+    (:class:`kincal.observe.Drifting`).
 
     Identifiability is judged at the start and again at the solution: where the fit moved the model
     (a tool point off a joint's axis) the data may identify other parameters. When the set changed,
@@ -139,11 +145,12 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
     ``identifiability.notes`` says so."""
     if prior not in PRIORS:
         raise ValueError(f"prior {prior!r}: use one of {', '.join(PRIORS)}")
-    if loss not in LOSSES or reject_outliers not in (True, False):
-        raise ValueError(f"loss {loss!r}, reject_outliers {reject_outliers!r}: a loss of {', '.join(LOSSES)}; "
-                         f"True or False")
+    if loss not in LOSSES or any(flag not in (True, False) for flag in (reject_outliers, diagnose, drift)):
+        raise ValueError(f"loss {loss!r}: one of {', '.join(LOSSES)}; reject_outliers {reject_outliers!r}, diagnose "
+                         f"{diagnose!r}, drift {drift!r}: True or False")
     th = thresholds or Thresholds()
     robot = _with_error_model(robot, observations, error_model)
+    observations = [_drifting(o) for o in observations] if drift else observations
 
     def fit(sets: Sequence, lo: str) -> ObservationFit:
         return _fit_sets(robot, sets, names, keep, max_iter, rank_tol, prior, th, lo)
@@ -167,6 +174,14 @@ def _without_outliers(fit, observations: Sequence, res: ObservationFit, loss: st
     kept = [o.subset(np.setdiff1d(np.arange(len(o)), b)) if len(b) else o for o, b in zip(observations, bad)]
     rejected = {o.source: tuple(int(r) for r in o.rows[b]) for o, b in zip(observations, bad) if len(b)}
     return dataclasses.replace(fit(kept, loss), rejected=rejected, notes=res.notes)
+
+
+def _drifting(obs):
+    """``obs`` measured by a drifting instrument (in its session's frame, if it has one)."""
+    if obs.kind not in ("point", "pose", "markers"):
+        raise ValueError(f"drift: {obs.kind} data ({obs.source}) have no measuring instrument that could drift; the "
+                         f"drift term is for points, poses and markers")
+    return dataclasses.replace(obs, inner=Drifting.of(obs.inner)) if isinstance(obs, InSession) else Drifting.of(obs)
 
 
 def _with_error_model(robot: Robot, observations: Sequence, error_model) -> Robot:
@@ -348,7 +363,8 @@ def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, fu
     cols = np.array([all_names.index(n) for n in cand + list(st.nuis_names)], dtype=int)
     live = live_columns(J0[:, cols] / st.inv_sigma[:, None])  # no effect: judged in m and rad, not whitened
     ident = jacobian_identifiability(J0[:, cols], cand + list(st.nuis_names),
-                                     [list(keep), list(st.nuis_names), list(gauge), list(robot.base_params()),
+                                     [list(keep), [n for n in st.nuis_names if n not in st.late], list(gauge),
+                                      list(robot.base_params()),
                                       list(robot.preferred_params())], robot.name,
                                      sum(len(o) for o in st.sets), rank_tol, live)
     unseen = set(gauge)

@@ -171,6 +171,16 @@ class Observation:
     def check(self, robot: Robot, values: np.ndarray) -> None:
         """A MeasurementError, before any work, where the residual is undefined (none by default)."""
 
+    def position_axes(self) -> np.ndarray:
+        """(M,) the axis (0, 1, 2) of each residual row that is a component of a measured position, −1
+        for the others: what a drifting instrument moves; types that measure positions declare it."""
+        raise NotImplementedError(f"{self.kind} data measure no position in an instrument's frame")
+
+    def shifted(self, offset: np.ndarray) -> "Observation":
+        """The set with each sample's measured positions moved by ``offset`` (N, 3) m; types that
+        measure positions declare it."""
+        raise NotImplementedError(f"{self.kind} data measure no position in an instrument's frame")
+
     def anchors(self) -> dict:
         """Start values its set-up parameters are measured from, which every set sharing those
         parameters must share (a pose target's start rotation); none by default."""
@@ -210,6 +220,12 @@ class PointObs(Observation):
     def batch_cost(self, robot: Robot, values: np.ndarray) -> np.ndarray:
         return mean_square(robot.forward_batch(self.q, values) - self.xyz)
 
+    def position_axes(self) -> np.ndarray:
+        return np.repeat(np.arange(3), len(self))
+
+    def shifted(self, offset: np.ndarray) -> "PointObs":
+        return dataclasses.replace(self, xyz=self.xyz + offset)
+
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         e = np.linalg.norm(robot.forward(self.q, values) - self.xyz, axis=1)
         return {"type": self.kind, "source": self.source, "samples": len(self), "mean_mm": float(e.mean() * MM),
@@ -247,6 +263,12 @@ class PoseObs(Observation):
 
     def sample_rows(self) -> np.ndarray:
         return np.tile(np.arange(len(self)), 6)
+
+    def position_axes(self) -> np.ndarray:
+        return np.concatenate([np.repeat(np.arange(3), len(self)), np.full(3 * len(self), -1)])
+
+    def shifted(self, offset: np.ndarray) -> "PoseObs":
+        return dataclasses.replace(self, xyz=self.xyz + offset)
 
     def with_anchors(self, anchors: dict) -> "PoseObs":
         return dataclasses.replace(self, target_rotation=anchors.get("target_rotation", self.target_rotation))
@@ -347,6 +369,13 @@ class MarkersObs(Observation):
     def sample_rows(self) -> np.ndarray:
         seen = self.seen()
         return np.concatenate([np.tile(np.flatnonzero(seen[:, m]), 3) for m in range(seen.shape[1])])
+
+    def position_axes(self) -> np.ndarray:
+        seen = self.seen()
+        return np.concatenate([np.repeat(np.arange(3), np.count_nonzero(seen[:, m])) for m in range(seen.shape[1])])
+
+    def shifted(self, offset: np.ndarray) -> "MarkersObs":
+        return dataclasses.replace(self, xyz=self.xyz + offset[:, None, :])
 
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
         seen, k = self.seen(), self.xyz.shape[1]

@@ -94,6 +94,12 @@ class InSession(Observation):
     def sample_rows(self) -> np.ndarray:
         return self.inner.sample_rows()
 
+    def position_axes(self) -> np.ndarray:
+        return self.inner.position_axes()
+
+    def shifted(self, offset: np.ndarray) -> "InSession":
+        return dataclasses.replace(self, inner=self.inner.shifted(offset))
+
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
         idx, k = self._base(robot), len(robot.base_params())
         r, Jr, Jn = self.inner.evaluate(robot, self._values(robot, values, nuis[-k:]), nuis[:-k])
