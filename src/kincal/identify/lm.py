@@ -43,10 +43,13 @@ class _Step:
     h: np.ndarray
     mu: float
     evaluations: int
+    negligible: bool = False  # no step can lower the cost by more than the tolerance: not even tried
 
 
-def _damped_step(fun, x, cost, H, g, D, mu: float) -> _Step:
-    """Raise μ until a step lowers the cost (Nielsen's rule), or give up past MU_LIMIT."""
+def _damped_step(fun, x, cost, H, g, D, mu: float, floor: float = 0.0) -> _Step:
+    """Raise μ until a step lowers the cost (Nielsen's rule), or give up past MU_LIMIT; a step whose
+    predicted decrease is at most ``floor`` is not evaluated (``negligible``): near an optimum the
+    cost's round-off (10⁵ poses) would reject it, and each rejection costs an evaluation."""
     nu, evals, limit = 2.0, 0, MU_LIMIT * max(1.0, float(np.max(np.diag(H))))
     eye = np.eye(H.shape[0])
     while mu < limit:
@@ -56,11 +59,13 @@ def _damped_step(fun, x, cost, H, g, D, mu: float) -> _Step:
         except np.linalg.LinAlgError:
             mu, nu = mu * nu, nu * 2.0
             continue
+        predicted = 0.5 * float(h @ (mu * h - g))
+        if predicted <= floor:
+            return _Step(False, x, np.empty(0), np.empty(0), cost, np.zeros_like(g), mu, evals, True)
         x_new = x + h / D
         r_new, J_new = fun(x_new)
         evals += 1
         cost_new = 0.5 * float(r_new @ r_new)
-        predicted = 0.5 * float(h @ (mu * h - g))
         rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
         if np.isfinite(cost_new) and rho > 0:
             mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
@@ -98,8 +103,10 @@ def levenberg_marquardt(
             return LMResult(x, cost, r, J, it, n_eval, True, "gradient below tolerance")
         if mu is None:
             mu = 1e-8 * float(np.max(np.diag(H)))  # near Gauss-Newton: calibration problems are mildly nonlinear
-        step = _damped_step(fun, x, cost, H, g, D, mu)
+        step = _damped_step(fun, x, cost, H, g, D, mu, ftol * cost)
         n_eval += step.evaluations
+        if step.negligible:
+            return LMResult(x, cost, r, J, it, n_eval, True, "predicted decrease below tolerance")
         if not step.accepted:  # at an optimum, round-off can leave nothing to gain
             if np.max(np.abs(g)) <= STATIONARY * np.sqrt(2 * cost):
                 return LMResult(x, cost, r, J, it, n_eval, True, "stationary point (no decrease left above round-off)")
