@@ -26,6 +26,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..units import MM, MRAD
+from .covariance import spd_inverse
 from .lm import LMResult, levenberg_marquardt
 
 PRIORS = ("relevance", "none")
@@ -133,13 +134,11 @@ def _relevance_result(x, r, J, prec, s2, groups, converged: bool, iterations: in
 
 
 def _posterior(A: np.ndarray, prec: np.ndarray) -> np.ndarray:
-    """(A + diag(prec))⁻¹, computed on unit-diagonal scaling (columns in m, rad and whitened units), by
-    SVD: LAPACK's symmetric eigensolver failed to converge on such a matrix (condition 776, entries
-    from 1 down to 1e-28: the WAM, 40 poses, a group held at nominal)."""
+    """(A + diag(prec))⁻¹, computed on unit-diagonal scaling (columns in m, rad and whitened units)."""
     H = A + np.diag(prec)
     D = np.sqrt(np.diag(H))
     D[D == 0] = 1.0
-    return np.linalg.pinv(H / np.outer(D, D)) / np.outer(D, D)
+    return spd_inverse(H / np.outer(D, D)) / np.outer(D, D)
 
 
 def _augmented(fun, nominal: np.ndarray, prec: np.ndarray, s2: float):
