@@ -181,3 +181,23 @@ def test_instrument_drift_over_a_pose_or_marker_file(tmp_path, capsys):
                  "--std-pos", "0.02mm", "--std-rot", "0.05mrad", "--drift"]) == 0
     out = capsys.readouterr().out
     assert "drift[poses.csv] over the file (first to last sample): x +0.2" in out and "verdict: GOOD" in out
+
+
+def test_held_set_up_parameters_stay_as_given():
+    """held=: a held-out file judged with the training probe's rotation: those set-up parameters keep
+    the given values (σ undetermined), only the frame is fitted, and the error can only be larger than
+    with the rotation fitted too."""
+    ur5 = kincal.load_robot("ur5").with_tool_point([0.05, 0.02, 0.1])
+    true = kincal.perturb(ur5, seed=3)
+    target = Rotation.from_rotvec([0.1, 0.2, -0.3]).as_matrix()
+    train = simulate_poses(true, ur5.sample_joints(100, seed=1), target, 20e-6, 0.05e-3, seed=1)
+    test = simulate_poses(true, ur5.sample_joints(50, seed=5), target, 20e-6, 0.05e-3, seed=2)
+    fit = fit_observations(ur5, [train])
+    anchors = fit.observations[0].anchors()
+    trained = {n: fit.nuisance[n] for n in ("target.rx", "target.ry", "target.rz")}
+    strict = fit_observations(fit.robot, [test.with_anchors(anchors)], names=ur5.base_params(), held=trained)
+    loose = fit_observations(fit.robot, [test.with_anchors(anchors)], names=ur5.base_params())
+    assert all(strict.nuisance[n] == v and strict.std[n] == np.inf for n, v in trained.items())
+    assert any(abs(loose.nuisance[n] - v) > 1e-9 for n, v in trained.items())
+    assert strict.stats[0]["mean_mrad"] >= loose.stats[0]["mean_mrad"] - 1e-9
+    assert set(strict.names) == set(ur5.base_params())

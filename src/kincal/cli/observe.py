@@ -307,14 +307,16 @@ def _plots(stem: str | None, fit, label: str) -> str:
 
 def _held_out(fit, obs, robot, same_frame: bool) -> dict:
     """A held-out file's statistics under ``robot``: in the training frame with the training set-up
-    parameters (``same_frame``; sockets and planes need no frame), else with its own frame and set-up
-    parameters (a target's rotation) fitted (the tracker or camera may have moved), the kinematics fixed."""
+    parameters (``same_frame``; sockets and planes need no frame), else with its own frame fitted (the
+    tracker or camera may have moved), the kinematics fixed and the set-up parameters it shares with
+    the training files (a target's rotation, markers) held as trained."""
     from kincal.identify import fit_observations
 
     if same_frame or obs.kind not in ABSOLUTE:
         return fit.held_out(obs, robot)
     anchors = {k: v for o in fit.observations for k, v in o.anchors().items()}
-    return fit_observations(robot, [obs.with_anchors(anchors)], names=robot.base_params()).stats[0]
+    held = {n: v for n, v in fit.nuisance.items() if not n.startswith(("frame[", "drift["))}
+    return fit_observations(robot, [obs.with_anchors(anchors)], names=robot.base_params(), held=held).stats[0]
 
 
 def _check_units(sets: list, robot, args) -> None:

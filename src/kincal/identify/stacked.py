@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from functools import partial
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -57,6 +57,7 @@ class _Stack:
     labels: np.ndarray  # (M,) each row's kind of component, an index into ``kinds``
     kinds: tuple[str, ...]  # "pose position", "pose rotation", "markers", ...
     late: tuple[str, ...] = ()  # set-up parameters chosen after the robot's when confounded (an instrument's drift)
+    held: tuple[str, ...] = ()  # set-up parameters held at their start values (a held-out file's probe as trained)
 
     def with_model_error(self, r: np.ndarray, n_free: int) -> tuple["_Stack", dict]:
         """The stack weighted by 1/(σ² + s²) per kind of component, s² what the whitened residual
@@ -122,7 +123,8 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
                      keep: Sequence[str] = (), max_iter: int = 100, rank_tol: float = RANK_TOL,
                      prior: str = "relevance", thresholds: Thresholds | None = None, loss: str = "linear",
                      reject_outliers: bool = False, error_model: ErrorModel | str | None = None,
-                     diagnose: bool = False, drift: bool = False) -> ObservationFit:
+                     diagnose: bool = False, drift: bool = False, held: Mapping[str, float] | None = None
+                     ) -> ObservationFit:
     """Calibrate ``robot`` from observation sets of any types (see the module docstring). ``names``:
     robot parameters to fit ("auto": every identifiable one); ``keep``: chosen first among confounded;
     ``prior``: "relevance" (a prior σ per joint origin and kind learned from the data,
@@ -137,7 +139,8 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
     screen the common input mistakes on the measured positions and name the one that explains them
     (:mod:`kincal.identify.observed_diagnosis`); ``drift``: each set of measured positions (points,
     poses, markers) gets its instrument's drift over its row order as set-up parameters
-    (:class:`kincal.observe.Drifting`).
+    (:class:`kincal.observe.Drifting`); ``held``: set-up parameters held at these values, not fitted
+    (a held-out file judged with the probe's rotation and the markers as trained).
 
     Identifiability is judged at the start and again at the solution: where the fit moved the model
     (a tool point off a joint's axis) the data may identify other parameters. When the set changed,
@@ -153,7 +156,7 @@ def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] 
     observations = [_drifting(o) for o in observations] if drift else observations
 
     def fit(sets: Sequence, lo: str) -> ObservationFit:
-        return _fit_sets(robot, sets, names, keep, max_iter, rank_tol, prior, th, lo)
+        return _fit_sets(robot, sets, names, keep, max_iter, rank_tol, prior, th, lo, held or {})
     res = fit(observations, loss)
     neg, notes = negative_compliances(res.names, res.robot.params.as_dict(), res.std)
     if neg:
@@ -197,10 +200,10 @@ def _with_error_model(robot: Robot, observations: Sequence, error_model) -> Robo
 
 
 def _fit_sets(robot: Robot, observations: Sequence, names, keep, max_iter: int, rank_tol: float, prior: str,
-              th: Thresholds, loss: str) -> ObservationFit:
+              th: Thresholds, loss: str, held: Mapping[str, float]) -> ObservationFit:
     """:func:`fit_observations` without leaving anything out."""
     with blas_threads(1):
-        robot, st, gauge, ident, start = _problem(robot, observations, names, keep, rank_tol)
+        robot, st, gauge, ident, start = _problem(robot, observations, names, keep, rank_tol, held)
         if start[0].size <= len(ident.identifiable):
             raise MeasurementError(f"{start[0].size} residual components for {len(ident.identifiable)} parameters: "
                                    f"measure more samples")
@@ -328,9 +331,10 @@ def observation_identifiability(robot: Robot, observations: Sequence, names: Seq
     return ident, gauge
 
 
-def _problem(robot: Robot, observations: Sequence, names, keep, rank_tol):
-    """The registered robot, the stacked problem, the gauge, the identifiability (robot and set-up
-    parameters; the gauge left out) and the whitened residual and Jacobian (all columns) at the start."""
+def _problem(robot: Robot, observations: Sequence, names, keep, rank_tol, held: Mapping[str, float] | None = None):
+    """The registered robot, the stacked problem (set-up parameters in ``held`` at those values, not
+    fitted), the gauge, the identifiability (robot and set-up parameters; the gauge left out) and the
+    whitened residual and Jacobian (all columns) at the start."""
     if not observations:
         raise MeasurementError("no observations given")
     wanted = robot.params.names if names == "auto" else tuple(names)
@@ -344,6 +348,10 @@ def _problem(robot: Robot, observations: Sequence, names, keep, rank_tol):
     if set(robot.base_params()) & set(wanted):  # a base that is not fitted stays where it is
         robot = _registered(robot, observations, gauge)
     st = _stack(robot, [_session_start(robot, o) for o in observations])
+    if held:
+        kept = tuple(n for n in st.nuis_names if n in held)
+        st = dataclasses.replace(st, held=kept, nuis0=np.array([float(held[n]) if n in held else v
+                                                                for n, v in zip(st.nuis_names, st.nuis0)]))
     x0 = np.concatenate([robot.params.values, st.nuis0])
     start = st.evaluate(robot.params.values, st.nuis0)
     ident = _identifiability(robot, st, gauge, wanted, keep, rank_tol, x0, start)
@@ -360,10 +368,11 @@ def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, fu
     P = robot.n_params
     J0 = (evaluated or st.evaluate(full[:P], full[P:]))[1]
     all_names = list(robot.params.names) + list(st.nuis_names)
-    cols = np.array([all_names.index(n) for n in cand + list(st.nuis_names)], dtype=int)
+    nuis = [n for n in st.nuis_names if n not in st.held]
+    cols = np.array([all_names.index(n) for n in cand + nuis], dtype=int)
     live = live_columns(J0[:, cols] / st.inv_sigma[:, None])  # no effect: judged in m and rad, not whitened
-    ident = jacobian_identifiability(J0[:, cols], cand + list(st.nuis_names),
-                                     [list(keep), [n for n in st.nuis_names if n not in st.late], list(gauge),
+    ident = jacobian_identifiability(J0[:, cols], cand + nuis,
+                                     [list(keep), [n for n in nuis if n not in st.late], list(gauge),
                                       list(robot.base_params()),
                                       list(robot.preferred_params())], robot.name,
                                      sum(len(o) for o in st.sets), rank_tol, live)
