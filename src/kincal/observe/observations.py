@@ -244,13 +244,17 @@ class PoseObs(Observation):
     target_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
     std_pos: np.ndarray | float = 0.1e-3
     std_rot: np.ndarray | float = 1e-3
+    anchored: bool = False  # the target rotation given (another set's, a training file's): prepare keeps it
     kind = "pose"
 
     def positions(self):
         return self.q, self.xyz
 
     def prepare(self, robot: Robot) -> "PoseObs":
-        """A copy whose target rotation starts at the chordal mean of flangeᵀ·measured over the samples."""
+        """A copy whose target rotation starts at the chordal mean of flangeᵀ·measured over the samples
+        (unless one was given: ``with_anchors``)."""
+        if self.anchored:
+            return self
         _, _, Rf = flange_point(robot, self.q, robot.params.values, robot.tool_point())
         U, _, Vt = np.linalg.svd(np.sum(Rf.transpose(0, 2, 1) @ self.R, axis=0))
         return dataclasses.replace(self, target_rotation=U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt)
@@ -271,7 +275,9 @@ class PoseObs(Observation):
         return dataclasses.replace(self, xyz=self.xyz + offset)
 
     def with_anchors(self, anchors: dict) -> "PoseObs":
-        return dataclasses.replace(self, target_rotation=anchors.get("target_rotation", self.target_rotation))
+        if "target_rotation" not in anchors:
+            return self
+        return dataclasses.replace(self, target_rotation=anchors["target_rotation"], anchored=True)
 
     def sigma(self) -> np.ndarray:
         n = len(self)
