@@ -21,7 +21,7 @@ import numpy as np
 
 from ..models.robot import Robot
 from ..ties import first_best, order_with_ties
-from .observability import live_columns
+from .observability import column_norms, live_columns
 
 # Singular values below RANK_TOL * s_max of the column-scaled Jacobian count as zero. The same rule
 # decides what a calibration fits and what a design designs for: directions weaker than this are
@@ -158,7 +158,7 @@ def jacobian_identifiability(J: np.ndarray, cand: Sequence[str], stages: Sequenc
     rule for position data and for every other observation type. ``stages``: names chosen first, in
     order, when columns are confounded (e.g. nuisance parameters, then the base frame). ``live``:
     which columns have any effect, judged in physical units (default: from J itself, unwhitened)."""
-    norms = np.linalg.norm(J, axis=0)
+    norms = column_norms(J)
     live = live_columns(J) if live is None else np.asarray(live, bool)
     live_names = [n for n, ok in zip(cand, live) if ok]
     # Everything below depends on the column space only, so it works on the small triangular

@@ -5,6 +5,8 @@ from typing import Sequence
 
 import numpy as np
 
+from ..analysis.observability import column_norms
+
 
 def spd_inverse(M: np.ndarray) -> np.ndarray:
     """The inverse of a symmetric positive semi-definite matrix scaled to a unit diagonal: directly
@@ -19,7 +21,7 @@ def spd_inverse(M: np.ndarray) -> np.ndarray:
 
 def normal_inverse(J: np.ndarray) -> np.ndarray:
     """(JᵀJ)⁻¹ (pseudo-inverse) computed on unit-norm columns (stable), in the original units."""
-    d = np.linalg.norm(J, axis=0)
+    d = column_norms(J)
     d[d == 0] = 1.0
     A = J / d
     return spd_inverse(A.T @ A) / np.outer(d, d)

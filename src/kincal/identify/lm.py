@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
+from ..analysis.observability import column_norms
+
 if TYPE_CHECKING:  # the problem module uses the options, which use the robust losses, which use LM
     from .problem import CalibrationProblem
 
@@ -92,11 +94,11 @@ def levenberg_marquardt(
         raise ValueError("the residual or its Jacobian is not finite at the starting point")
     if x.size == 0:  # nothing free (a model judged with every parameter fixed): the start is the answer
         return LMResult(x, cost, r, J, 0, n_eval, True, "no free parameters")
-    D = np.linalg.norm(J, axis=0)
+    D = column_norms(J)
     D[D == 0] = 1.0
     mu = None
     for it in range(1, max_iter + 1):
-        D = np.maximum(D, np.linalg.norm(J, axis=0))
+        D = np.maximum(D, column_norms(J))
         H = (J.T @ J) / np.outer(D, D)  # normal matrix of the scaled problem A = J D⁻¹
         g = (J.T @ r) / D
         if np.max(np.abs(g)) <= gtol * max(1.0, np.sqrt(2 * cost)):

@@ -191,7 +191,7 @@ class Chain:
         """
         if q.shape[0] <= BLOCK:
             return self._block(values, q, self._constants(values))[:2]
-        return self.frame_and_rates(values, q)[:2]
+        return self._blocks(values, q, False)[:2]
 
     def frame_and_rates(self, values: np.ndarray, q: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -199,12 +199,21 @@ class Chain:
         columns are its axes) and its world rotation rate per parameter (N, 3, P): a rotation op
         turns the frame about its world axis, a translation op does not turn it. In blocks of
         ``BLOCK`` configurations: memory traffic, not arithmetic, limits, so a block fits the cache."""
+        p, J, R, Jw = self._blocks(values, q, True)
+        assert R is not None and Jw is not None  # asked for
+        return p, J, R, Jw
+
+    def _blocks(self, values: np.ndarray, q: np.ndarray, rates: bool):
+        """(p, J, R, Jw) of :meth:`frame_and_rates` block by block (R and Jw None without ``rates``)."""
         n, G = q.shape[0], self._constants(values)
-        p, R, JT, WT = np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((self.n_params, 3, n)), np.zeros((self.n_params, 3, n))
+        p, JT = np.empty((n, 3)), np.empty((self.n_params, 3, n))
+        R, WT = (np.empty((n, 3, 3)), np.zeros((self.n_params, 3, n))) if rates else (None, None)
         for lo in range(0, n, BLOCK):
             at = slice(lo, lo + BLOCK)
-            p[at], _, R[at] = self._block(values, q[at], G, JT[:, :, at], WT[:, :, at])
-        return p, JT.transpose(2, 1, 0), R, WT.transpose(2, 1, 0)
+            p[at], _, frame = self._block(values, q[at], G, JT[:, :, at], None if WT is None else WT[:, :, at])
+            if R is not None:
+                R[at] = frame
+        return p, JT.transpose(2, 1, 0), R, None if WT is None else WT.transpose(2, 1, 0)
 
     def _constants(self, values: np.ndarray) -> np.ndarray:
         """(z_rows, 3): every segment's constant part, op axes and op points, stacked for :meth:`_block`."""
