@@ -40,9 +40,10 @@ demo: setup
 	@echo "To use kincal on your own robot, put it on your PATH (this shell):  source $(VENV)/bin/activate"
 	@echo "or for good:  ln -s $(CURDIR)/$(VENV)/bin/kincal ~/.local/bin/kincal   (then: kincal --help)"
 
+# two workers (pytest-xdist), the tests that share a computation in one xdist_group
 test: setup
 	$(PY) -m mypy
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n 2 --dist loadgroup
 
 # the inner loop: everything but the tests marked slow (under a minute)
 test-fast: setup

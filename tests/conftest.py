@@ -1,4 +1,7 @@
-"""Shared fixtures: bundled robots and the bundled GTS3800 laser-tracker data."""
+"""Shared fixtures: bundled robots, the bundled GTS3800 laser-tracker data, the Guo et al. 2024 demo."""
+import contextlib
+import io
+import json
 import os
 import signal
 from pathlib import Path
@@ -26,6 +29,18 @@ def pytest_configure(config):
 @pytest.fixture(scope="session")
 def ur5():
     return kincal.load_robot("ur5")
+
+
+@pytest.fixture(scope="session")
+def guo2024_demo() -> dict:
+    """The JSON of ``kincal demo --repeats 1 --json`` (the whole study, ~8 s), run once for the tests
+    that read it; they share the xdist group "guo2024-demo" so that make test's workers run it once."""
+    from kincal.cli import main
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["demo", "--repeats", "1", "--json"]) == 0
+    return json.loads(out.getvalue())
 
 
 def default_sigint() -> None:

@@ -73,8 +73,9 @@ def test_human_output_uses_mm_and_deg(capsys):
 
 
 @pytest.mark.slow
-def test_demo_reproduces_guo2024(capsys):
-    d = run_json(capsys, "demo", "--repeats", "1")
+@pytest.mark.xdist_group("guo2024-demo")
+def test_demo_reproduces_guo2024(guo2024_demo):
+    d = guo2024_demo  # demo --repeats 1 --json
     assert set(d["separation"]["subdomain_gcn"]) == {"theta", "alpha", "a", "d", "beta"}
     before = d["validation"]["before calibration"]["mean"]
     for name in ("random", "full-parameter optimised", "separated-parameter optimised"):

@@ -137,7 +137,8 @@ def _json_keys(obj, out):
 
 
 @pytest.mark.slow
-def test_papers_are_cited_not_nicknamed(tmp_path, capsys):
+@pytest.mark.xdist_group("guo2024-demo")
+def test_papers_are_cited_not_nicknamed(tmp_path, capsys, guo2024_demo):
     """No user-visible "seed" meaning a paper: README, --help of every command, bundled robot files,
     JSON keys of the results."""
     texts = {"README.md": (ROOT / "README.md").read_text()}
@@ -151,9 +152,7 @@ def test_papers_are_cited_not_nicknamed(tmp_path, capsys):
     bad = {where: PAPER_SEED.findall(text) for where, text in texts.items() if PAPER_SEED.search(text)}
     assert bad == {}
     assert "Guo et al. 2024" in texts["README.md"] and "ill-conditioned parameter separation" in texts["README.md"]
-    keys = set()
-    assert main(["demo", "--repeats", "1", "--poses", "24", "--json"]) == 0
-    _json_keys(json.loads(capsys.readouterr().out), keys)
+    keys = _json_keys(guo2024_demo, set())  # demo --repeats 1 --json
     data = tmp_path / "d.csv"
     kincal.write_measurements(data, kincal.simulate(kincal.load_robot("puu3"),
                                                     kincal.load_robot("puu3").sample_joints(30, seed=1), 0.0))

@@ -137,7 +137,8 @@ def test_paper_units_give_the_paper_index_scale():
     assert "(paper: 2.049)" in str(study)
 
 
-def test_paper_protocol_splits_dependent_errors_and_names_the_combinations(capsys):
+@pytest.mark.xdist_group("guo2024-demo")
+def test_paper_protocol_splits_dependent_errors_and_names_the_combinations(capsys, guo2024_demo):
     """No noise, fixed μ = 1 over all 21 parameters: independent errors come back exactly; a group
     that acts through its sum (the d offsets along the vertical axis) is split but its sum is exact,
     as in the paper's Table 4 (d2 0.5097 + d3 0.4903 mm); the positions are matched exactly."""
@@ -150,7 +151,7 @@ def test_paper_protocol_splits_dependent_errors_and_names_the_combinations(capsy
     combo = d["combinations"]["separated-parameter optimised"]["j2.d +1·j3.d +1·j4.d"]
     assert combo["eta"] == pytest.approx(100.0, abs=0.5)
     # kincal's own protocol judges a kept stand-in against the combination it carries
-    k = json.loads(_run(capsys, ["demo", "--repeats", "1", "--json"]))
+    k = guo2024_demo  # demo --repeats 1 --json
     combo = k["combinations"]["separated-parameter optimised"]
     assert all(c["eta"] > 75 for c in combo.values())  # first-order relations at 0.05 rad errors, with noise
     # judged alone, the stand-in j2.d (carrying d2 + d3 + d4) looks absurd: that was the misleading number
