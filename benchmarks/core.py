@@ -81,11 +81,14 @@ def main() -> None:
 
     cal = lambda: kincal.calibrate(ur5, meas)  # noqa: E731
     label = f"UR5 calibration, 1,000 poses ({len(res.names)} params, {res.iterations} LM iterations)"
+    big = kincal.simulate(true, ur5.sample_joints(100_000, seed=4), noise=15e-6, seed=5)
     rows = [
         ("FK, 10,000 configurations (UR5)", best_of(lambda: ur5.forward(q10k)), 3e-3, "best"),
         ("parameter Jacobian, 1,000 configurations (UR5, 35 params)", best_of(lambda: ur5.param_jacobian(q1k)),
          1e-3, "best"),
-        (label + ", idle", best_of(cal, repeat=15, number=2), 50e-3, "median"),
+        (label + ", idle", best_of(cal, repeat=15, number=2), 25e-3, "median"),
+        ("UR5 calibration, 100,000 poses, idle", best_of(lambda: kincal.calibrate(ur5, big), repeat=3, number=1),
+         2.0, "median"),
     ]
     with busy():
         rows.append((label + ", busy", best_of(cal, repeat=15, number=2), 50e-3, "median"))
@@ -99,7 +102,8 @@ def main() -> None:
         ok = "" if target is None else ("yes" if (t if judged == "best" else med) <= target else "NO")
         tgt = "" if target is None else f"{target * 1e3:6.1f} ms"
         print(f"{name:<72} {t * 1e3:>6.2f} ms {med * 1e3:>6.2f} ms {tgt:>9}  {ok:<4} {faults:8.0f}")
-    print("(FK and Jacobian are judged on the best round, calibration on the median)")
+    print("(FK and Jacobian are judged on the best round, calibration on the median; targets: 1,000 poses 25 ms and "
+          "10^5 poses 2 s idle, 50 ms beside a CPU-bound process)")
 
 
 if __name__ == "__main__":
