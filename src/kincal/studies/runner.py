@@ -53,6 +53,21 @@ class _InProcess(Executor):
         raise TypeError("the in-process executor runs tasks through run_tasks only")
 
 
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """End every worker process now and wait for it: the pool's own and any still starting (not in its
+    list yet). A worker started after an earlier sweep was left reading its task queue while the
+    interpreter's exit waited for it: an interrupted study hung."""
+    procs: list = list((pool._processes or {}).values())  # the pool's own processes (private, no API)
+    procs += [p for p in multiprocessing.active_children() if p not in procs]
+    for proc in procs:
+        proc.terminate()
+    for proc in procs:
+        proc.join(timeout=5)
+        if proc.is_alive():
+            proc.kill()
+            proc.join(timeout=5)
+
+
 @contextmanager
 def make_executor(workers: int = 1, scheduler: str | None = None) -> Iterator[Executor]:
     """An executor for :func:`run_tasks`: in-process for one worker, else a process pool of
@@ -67,10 +82,8 @@ def make_executor(workers: int = 1, scheduler: str | None = None) -> Iterator[Ex
         try:
             yield pool
         except BaseException:  # Ctrl-C or an error: stop the workers now, not after their tasks
-            procs = list((pool._processes or {}).values())  # the pool's own processes (private, no API)
-            for proc in procs + [p for p in multiprocessing.active_children() if p not in procs]:
-                proc.terminate()  # a worker still starting when Ctrl-C came is not in the pool's list yet
-            pool.shutdown(wait=False, cancel_futures=True)
+            pool.shutdown(wait=False, cancel_futures=True)  # first: no task and no worker starts after the sweep
+            _stop_workers(pool)
             raise
         pool.shutdown()
         return
