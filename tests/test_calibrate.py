@@ -131,7 +131,7 @@ def test_parameters_the_data_hardly_determine_are_held_at_nominal(monkeypatch):
     lower than when it is fitted."""
     import importlib
 
-    calibrate_module = importlib.import_module("kincal.identify.calibrate")
+    calibrate_module = importlib.import_module("kincal.identify.stacked")
     from kincal.identify.registration import kabsch
 
     ur = kincal.load_robot("ur5")
@@ -144,7 +144,7 @@ def test_parameters_the_data_hardly_determine_are_held_at_nominal(monkeypatch):
         meas = kincal.simulate(true, q, 0.5e-3, seed=2)
         for name in ("held", "fitted"):
             if name == "fitted":
-                monkeypatch.setattr(calibrate_module, "weakest", lambda *a: None)
+                monkeypatch.setattr(calibrate_module, "weakest", lambda *a, **k: None)
             res = kincal.calibrate(ur, meas, diagnose=False, thresholds=kincal.Thresholds(tracker_noise=0.5e-3))
             monkeypatch.undo()
             if name == "held":

@@ -151,7 +151,7 @@ def test_socket_design_known_distance_as_exact_constraint_and_better_than_random
     seats of a 4-placement plan beat every one of 20 random choices on IMSE and calibrate a
     simulated Panda better over the workspace than random choices (median over 6 robots)."""
     from kincal.identify.registration import kabsch
-    from kincal.identify.stacked import fit_observations
+    from kincal.identify import fit_observations
     from kincal.simulate.observations import simulate_same_point, socket_plan
 
     robot = kincal.load_robot(ROOT / "tests" / "data" / "urdf" / "panda" / "panda.urdf", tip_link="ball_link")

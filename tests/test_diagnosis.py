@@ -206,7 +206,7 @@ def test_reject_outliers_matches_the_outlier_free_fit_and_the_report_names_the_r
 def test_reject_outliers_with_sessions_leaves_out_only_the_bad_pose_of_its_file():
     """Two sessions (frames 0.5 rad apart) both have a row 12; the 50 mm outlier is in the second file's
     row 12: only that pose goes, named with its file, and the fit equals the one without it."""
-    from kincal.identify.sessions import calibrate_sessions
+    from kincal.identify import calibrate_sessions
     ur5 = kincal.load_robot("ur5")
     true = kincal.perturb(ur5, seed=3)
     a = dataclasses.replace(kincal.simulate(true, ur5.sample_joints(80, seed=1), 15e-6, seed=1), source="a.csv")

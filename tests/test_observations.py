@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 import kincal
 from kincal.identify.registration import kabsch
-from kincal.identify.stacked import fit_observations
+from kincal.identify import fit_observations
 from kincal.observe.constraints import SamePointObs
 from kincal.observe.observations import PointObs, PoseObs
 from kincal.simulate.observations import (
@@ -286,7 +286,7 @@ def test_identifiability_is_judged_again_at_the_solution():
     m = kincal.simulate(true, q, 0.0, seed=3)
     obs = PointObs(m.q, m.rows, "sim", xyz=m.xyz, std=15e-6)
     from kincal.identify.stacked import _problem
-    at_start = _problem(ur5, [obs], "auto", (), kincal.analysis.RANK_TOL)[3]
+    at_start = _problem(ur5, [obs], ur5.params.names, (), kincal.analysis.RANK_TOL)[3]
     assert {"j5.a", "j5.alpha"} <= set(at_start.dropped)  # the start cannot see them
     fit = fit_observations(ur5, [obs], prior="none")
     assert {"j5.a", "j5.alpha"} <= set(fit.identifiability.identifiable)

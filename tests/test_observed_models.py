@@ -7,7 +7,7 @@ from scipy.spatial.transform import Rotation
 
 import kincal
 from kincal.cli import main
-from kincal.identify.stacked import fit_observations
+from kincal.identify import fit_observations
 from kincal.models.terms import TAU_REF, drop_terms, extend
 from kincal.observe import ObservationFormat, write_observations
 from kincal.simulate.observations import simulate_poses

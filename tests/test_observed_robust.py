@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 import kincal
 from kincal.cli import main
 from kincal.identify.robust import block_weights, chi_median
-from kincal.identify.stacked import fit_observations
+from kincal.identify import fit_observations
 from kincal.observe import ObservationFormat, write_observations
 from kincal.simulate.observations import simulate_markers, simulate_poses
 

@@ -6,11 +6,12 @@ import pytest
 
 import kincal
 from kincal.design.ide import F_MIN, mutation_factor
-from kincal.identify import FitOptions, build_problem
+from kincal.identify import FitOptions
 from kincal.observe import JointObs, PointObs
 
 calibrate_module = importlib.import_module("kincal.identify.calibrate")  # the module, not the function
 select_module = importlib.import_module("kincal.design.select")
+stacked_module = importlib.import_module("kincal.identify.stacked")
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +47,7 @@ def test_options_are_checked_before_any_work(puu3_data, monkeypatch, kwargs, wor
 
     def no_work(*a, **k):
         raise AssertionError("work started before the options were checked")
-    monkeypatch.setattr(calibrate_module, "build_problem", no_work)
+    monkeypatch.setattr(calibrate_module, "fit_stack", no_work)
     monkeypatch.setattr(calibrate_module, "select_model", no_work)
     with pytest.raises((ValueError, kincal.ModelError)) as exc:
         kincal.calibrate(robot, meas, **kwargs)
@@ -171,12 +172,13 @@ def test_pso_history_is_kept(puu3_data):
     assert res.to_dict()["history"] == list(res.history)
 
 
-def test_problem_refuses_too_little_data_before_solving(puu3_data):
+def test_problem_refuses_too_little_data_before_solving(puu3_data, monkeypatch):
     robot, meas = puu3_data
     few = meas.subset(np.arange(1))
-    with pytest.raises(kincal.MeasurementError, match="equations"):
-        build_problem(robot, few, FitOptions(names=["L1", "L2", "L3", "r"], base="fixed", residual="joint",
-                                             method="pso"))
+    monkeypatch.setattr(stacked_module, "_swarm", _no_work)
+    with pytest.raises(kincal.MeasurementError, match="1 poses give 3 equations for 4 parameters"):
+        kincal.calibrate(robot, few, FitOptions(names=["L1", "L2", "L3", "r"], base="fixed", residual="joint",
+                                                method="pso"))
 
 
 def test_ide_mutation_factor_stays_positive():

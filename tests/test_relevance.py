@@ -7,7 +7,7 @@ from scipy.optimize import minimize
 import kincal
 from kincal.identify.lm import levenberg_marquardt
 from kincal.identify.relevance import prior_groups, relevance_fit
-from kincal.identify.stacked import fit_observations
+from kincal.identify import fit_observations
 from kincal.observe.observations import PointObs
 
 STATED = 1e-5  # m: the σ the "measurements" are whitened with
@@ -75,7 +75,7 @@ def test_plentiful_data_well_determined_as_least_squares_weak_ones_nearer_the_tr
     true = kincal.perturb(ur5, 0.5e-3, 0.5e-3, seed=4)
     m = kincal.simulate(true, ur5.sample_joints(200, seed=4), 15e-6, seed=4)
     sets = [PointObs(m.q, m.rows, "sim", xyz=m.xyz, std=15e-6)]
-    plain, learned = fit_observations(ur5, sets, prior="none"), fit_observations(ur5, sets)
+    plain, learned = fit_observations(ur5, sets, prior="none"), fit_observations(ur5, sets, prior="relevance")
     assert learned.names == plain.names and learned.prior and not plain.prior
     sharp = [n for n in plain.names if plain.std[n] < 2e-5]
     weak = [n for n in plain.names if plain.std[n] > 1e-4]
@@ -96,7 +96,7 @@ def test_scarce_data_keep_what_they_cannot_confirm_near_nominal():
     q = ur5.sample_joints(1, seed=5) + np.random.default_rng(5).uniform(-0.4, 0.4, (40, 6))
     m = kincal.simulate(true, q, 15e-6, seed=5)
     sets = [PointObs(m.q, m.rows, "sim", xyz=m.xyz, std=15e-6)]
-    plain, learned = fit_observations(ur5, sets, prior="none"), fit_observations(ur5, sets)
+    plain, learned = fit_observations(ur5, sets, prior="none"), fit_observations(ur5, sets, prior="relevance")
     qv = ur5.sample_joints(300, seed=6)
 
     def error(robot):

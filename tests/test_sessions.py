@@ -371,7 +371,7 @@ def test_sessions_calibrate_jointly_each_in_its_own_frame(tmp_path, capsys):
     error = {k: mean_error(refit_frame(r.robot, seen), seen) for k, r in (("joint", joint), ("alone", alone))}
     assert error["joint"] < error["alone"] < 0.05e-3  # more poses, shared kinematics: a better model
     # pooled without frames, the two sessions cannot be fitted at all: the frames are what makes it work
-    pooled = kincal.calibrate(nominal, kincal.identify.sessions.joined([a, b]))
+    pooled = kincal.calibrate(nominal, kincal.identify.joined([a, b]))
     assert pooled.verdict.status == "refused"
     # the CLI takes the sessions as files, and the report refits from the record of both
     paths = []
@@ -392,7 +392,7 @@ def test_sessions_fit_together_equal_the_alternation_run_to_convergence():
     """Two sessions in two frames: the stacked fit of the kinematics and the frames gives the kinematics
     of the alternation (frames re-fitted, kinematics fitted, repeated until nothing moves 1e-13) within
     1e-9, and a total squared error no larger."""
-    from kincal.identify.sessions import _in_frame_of, joined
+    from kincal.identify.calibrate import in_frame_of as _in_frame_of, joined
 
     robot = kincal.load_robot("ur5")
     true = kincal.perturb(robot, 0.5e-3, 0.5e-3, seed=4)

@@ -192,7 +192,7 @@ def _session(true, nominal, phase, seed, frame):
 def test_auto_with_sessions_refuses_a_term_that_does_not_carry_over():
     """Pooled, the harmonics win on held-out regions; on a third, later session they are 30 % worse
     than geometric. Left out one session at a time they lose on both: auto keeps geometric."""
-    from kincal.identify.sessions import calibrate_sessions
+    from kincal.identify import calibrate_sessions
     nominal = kincal.load_robot("ur5").with_tool_point(np.array([0.05, 0.02, 0.1]))
     model = kincal.extend(nominal, "harmonics:1")
     true = kincal.perturb(model, 0.5e-3, 0.5e-3, seed=3).with_params({n: 0.0 for n in model.term_names})
@@ -218,7 +218,7 @@ def test_auto_with_sessions_refuses_a_term_that_does_not_carry_over():
 def test_auto_with_real_ur5_sessions_holds_out_the_smaller_one(ur5, grid):
     """1000 grid poses and 20 random ones as two sessions: only the 20 are held out (a model fitted to 20
     poses would be judged on how little data it had); the harmonics carry over to them and are kept."""
-    from kincal.identify.sessions import calibrate_sessions
+    from kincal.identify import calibrate_sessions
     train, test = grid
     res = calibrate_sessions(ur5, [train, test], error_model="auto")
     choice = res.error_model_choice

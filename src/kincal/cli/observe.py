@@ -166,7 +166,7 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
                          f"or gravity-regressor")
     spec = None if args.error_model is None else kincal.ErrorModel(args.error_model, args.payload)
     robot = load_robot(args)
-    options = {"names": _names(args, robot), "keep": tuple(args.keep or ()),
+    options = {"names": tuple(args.params) if args.params else "auto", "base": args.base, "keep": tuple(args.keep or ()),
                "max_iter": args.max_iter, "prior": args.prior or "relevance", "thresholds": thresholds,
                "loss": args.loss, "reject_outliers": args.reject_outliers, "error_model": spec, "diagnose": True,
                "drift": args.drift}
@@ -201,19 +201,6 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
                                                               if r.level == "refused"))
         return EXIT_REFUSED if fit.converged else EXIT_NOT_CONVERGED
     return 0
-
-
-def _names(args, robot) -> tuple[str, ...] | str:
-    """The robot parameters to fit: --params, else every one ("auto"), but the base frame's with
-    --base fixed (the data were measured in the robot's base frame)."""
-    base = robot.base_params() if args.base == "fixed" else ()
-    clash = [n for n in args.params or () if n in base]
-    if clash:
-        raise ValueError(f"--params {','.join(clash)} with --base fixed: the base frame is known; use --base estimate "
-                         f"to fit it")
-    if args.params:
-        return tuple(args.params)
-    return tuple(n for n in robot.params.names if n not in base) if base else "auto"
 
 
 def fitted(args, robot, kinds: list[str], data: list[str], tests: list[str], options: dict):
@@ -450,7 +437,7 @@ def cmd_evaluate(args, kind: str) -> int:
         _check_units([obs], robot, args)
         frame = () if args.same_frame or kind not in ABSOLUTE else robot.base_params()
         with progress("evaluating", args.json):
-            fit = fit_observations(robot, [obs], names=frame)
+            fit = fit_observations(robot, [obs], names=frame, base="estimate" if frame else "fixed")
         s = fit.stats[0]
         payloads.append({"file": path, "frame_fitted": bool(frame), **s})
         texts += [line for line in _plots(args.plot and (args.plot if len(args.data) == 1 else

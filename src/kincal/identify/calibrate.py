@@ -1,14 +1,18 @@
 """Identification of kinematic parameters from measured positions: ``calibrate`` and ``evaluate``.
 
-``calibrate`` checks every option first, builds a :class:`~kincal.identify.problem.CalibrationProblem`
-(robot, measurements, free parameters, residual), runs a solver on it (LM, PSO, or PSO then LM),
-optionally reweights robustly, and turns the fit into a :class:`CalibrationResult`.
+``calibrate`` checks every option first, turns the measured positions of each session into an
+observation set (a :class:`~kincal.observe.PointObs`, or a :class:`~kincal.observe.JointObs` for
+the joint-space residual; later sessions in their own frames, :class:`~kincal.observe.InSession`),
+runs the one fit (:func:`kincal.identify.fitting.fit_stack`), and reads it as a
+:class:`CalibrationResult`: the residuals of every pose in the first session's frame, the verdict of
+position data, and the differential diagnosis of a doubtful fit. ``fit_observations`` is the same
+fit for observation sets of any kinds.
 """
 from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Callable
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -17,23 +21,21 @@ from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapola
 from ..errors import MeasurementError
 from ..io.measurements import Measurements
 from ..models.robot import Robot
-from ..models.terms import drop_terms, extend
-from .compliance import negative_compliances
-from .covariance import covariance_statistics, parameter_statistics
-from .diagnosis import TRIGGERS, diagnose, outlier_poses
-from .drift import with_drift, without_drift
-from .lm import LMResult, fit_lm
-from .noise import ROUNDS, SETTLED, extra_variance, relative_weights
-from .weak import weak_note, weakest
+from ..models.terms import extend
+from ..observe import InSession, JointObs, PointObs
+from ..observe.drifting import Drifting, acquisition
+from .diagnosis import TRIGGERS, diagnose
+from .fitting import fit_stack
+from .observed_diagnosis import diagnosed
+from .observed_result import ObservationFit
 from .options import FitOptions
-from .problem import CalibrationProblem, build_problem
-from .pso import fit_pso
-from .relevance import RelevanceFit, with_learned_prior
-from .result import CalibrationResult, EvaluationStats, rejected
-from .robust import irls
+from .result import CalibrationResult, EvaluationStats
 from .select import select_model
-from .verdict import (Reason, Verdict, correction_reasons, drift_reasons, duplicate_reasons, fitted_drift_reasons,
-                      mounting_reasons, noise_level, outlier_reasons, residual_reasons, robust_z)
+from .verdict import (Reason, Verdict, correction_reasons, drift_reasons, duplicate_groups, duplicate_reasons,
+                      fitted_drift_reasons, mounting_reasons, noise_level, outlier_reasons, repeat_tolerance,
+                      residual_reasons, robust_z)
+
+RESIDUALS = {"cartesian": PointObs, "joint": JointObs}  # FitOptions.residual -> the observation type fitted
 
 
 def calibrate(robot: Robot, meas: Measurements, options: FitOptions | None = None, *, use_q: np.ndarray | None = None,
@@ -47,37 +49,183 @@ def calibrate(robot: Robot, meas: Measurements, options: FitOptions | None = Non
                 the calibration poses). Kept in ``result.use_q`` and in the calibration record
     progress -- called with a message at each stage
 
-    Every option is checked before any work (ValueError naming it). MeasurementError for data that
-    cannot belong to the robot or is too little, IdentifiabilityError for an explicit ``names`` list
+    Several sessions joined in one frame (``meas.session`` labels) are one set each. Every option is
+    checked before any work (ValueError naming it). MeasurementError for data that cannot belong to
+    the robot or is too little, IdentifiabilityError for an explicit ``names`` list
     Levenberg–Marquardt cannot identify. The result carries a verdict (good, suspect, refused) with
     reasons. BLAS runs single-threaded inside: the problems are small, and threads fight for cores.
     """
+    parts = [meas] if meas.session is None or len(meas.sessions()) < 2 else \
+        [_relabelled(meas.subset(np.flatnonzero(meas.session == s)), s) for s in meas.sessions()]
+    return _calibrate(robot, parts, False, options, use_q, progress, changes)
+
+
+def calibrate_sessions(robot: Robot, sessions, options: FitOptions | None = None, *,
+                       use_q: np.ndarray | None = None, progress: Callable[[str], None] | None = None,
+                       **changes) -> CalibrationResult:
+    """Calibrate shared kinematics from several sessions, each measured in its own frame (the tracker
+    moved between them): every later session's frame is six set-up parameters of the one fit. The
+    result's data are the sessions in the first one's frame. ``options``, ``use_q``, ``changes``: as
+    :func:`calibrate`; one session is simply calibrated."""
+    sessions = [sessions] if isinstance(sessions, Measurements) else list(sessions)
+    return _calibrate(robot, sessions, len(sessions) > 1 and bool(robot.base_params()), options, use_q, progress,
+                      changes)
+
+
+def _calibrate(robot: Robot, sessions: list[Measurements], own_frames: bool, options, use_q, progress,
+               changes) -> CalibrationResult:
     t0 = time.perf_counter()
     options = (options or FitOptions()).replace(**changes).check(robot)
     if use_q is not None:
         use_q = robot.check_q(use_q)
     say = progress or (lambda msg: None)
+    for s in sessions:
+        s.check_robot(robot)
     with blas_threads(1):
-        robot, choice = _error_model(robot, meas, options, say, use_q)
-        res = dataclasses.replace(_fit(robot, meas, options, say, t0), error_model_choice=choice, use_q=use_q)
-        res = _negative_compliance(res, say) or res
-        if options.reject_outliers:
-            res = _without_outliers(res, say)
+        robot, choice = _error_model(robot, sessions, own_frames, options, say, use_q)
+        fit_options = options.replace(error_model=None, diagnose=False)
+        fit = fit_stack(robot, _sets(sessions, own_frames, options, robot), fit_options, say=say)
+        res = judge(_as_result(fit, robot, sessions, options, time.perf_counter() - t0))
+        res = dataclasses.replace(res, error_model_choice=choice, use_q=use_q)
         return _diagnosed(res, say) if options.diagnose else res
 
 
-def _without_outliers(res: CalibrationResult, say) -> CalibrationResult:
-    """The fit repeated without the poses a robust refit puts beyond the outlier limit (none: ``res``)."""
-    meas = res.measurements
-    bad = outlier_poses(res.nominal, meas, res.options)
-    if not len(bad):
-        return res
-    say(f"leaving out {len(bad)} outlier pose(s): {meas.describe_rows(bad)}")
-    again = calibrate(res.nominal, meas.subset(np.setdiff1d(np.arange(len(meas)), bad)),
-                      res.options.replace(error_model=None, reject_outliers=False, diagnose=False))
-    return dataclasses.replace(again, options=res.options, error_model_choice=res.error_model_choice,
-                               use_q=res.use_q, error_model_notes=res.error_model_notes + again.error_model_notes,
-                               **rejected(meas, bad))
+def _relabelled(meas: Measurements, label: str) -> Measurements:
+    return dataclasses.replace(meas, source=label)
+
+
+def _sets(sessions: list[Measurements], own_frames: bool, o: FitOptions, robot: Robot) -> list:
+    """One observation set per session (later ones in their own frames with ``own_frames``), after
+    the check that registering the frame needs: 3 distinct poses."""
+    kind = RESIDUALS[o.residual]
+    repeated = sum(len(g) - 1 for s in sessions for g in duplicate_groups(s.q, repeat_tolerance(robot.joint_types,
+                                                                                                  o.thresholds)))
+    n = sum(len(s) for s in sessions)
+    distinct = n - repeated
+    if o.base == "estimate" and robot.base_params() and distinct < 3:
+        raise MeasurementError(f"{sessions[0].source}: registering the base frame needs at least 3 distinct poses, "
+                               f"got {distinct} ({n} rows); measure poses spread over the workspace")
+    sigma = {} if kind is JointObs else {"std": o.thresholds.tracker_noise}
+    sets = [kind(s.q, s.rows, s.source, xyz=s.xyz, **({"std": s.std} if s.std is not None and sigma else sigma))
+            for s in sessions]
+    if not own_frames:
+        return sets
+    return [sets[0], *(InSession.of(x, f"{k}:{x.source}") for k, x in enumerate(sets[1:], start=2))]
+
+
+def _error_model(robot: Robot, sessions: list[Measurements], own_frames: bool, options: FitOptions, say, use_q):
+    """The robot extended by the requested error model, and the model comparison when it is "auto"
+    (on the sessions in the first one's frame as the geometric fit aligns them)."""
+    spec = options.error_model
+    if spec is None:
+        return robot, None
+    choice = None
+    if spec.name == "auto":
+        say("choosing the error model (joint-space blocked cross-validation)")
+        quiet = options.replace(error_model=None, diagnose=False, reject_outliers=False)
+        data = _joined(sessions) if not own_frames else _calibrate(robot, sessions, True, quiet, None, None,
+                                                                    {}).measurements
+        choice = select_model(robot, data, calibrate, quiet, use_q=use_q, payload=spec.payload)
+        spec = dataclasses.replace(spec, name=choice.chosen)
+    return extend(robot, spec, np.concatenate([s.q for s in sessions])), choice
+
+
+def fit_observations(robot: Robot, observations: Sequence, options: FitOptions | None = None, *,
+                     held: Mapping[str, float] | None = None, progress: Callable[[str], None] | None = None,
+                     **changes) -> ObservationFit:
+    """Calibrate ``robot`` from observation sets of any kinds (:mod:`kincal.observe`) by the one fit,
+    with ``options`` (a :class:`FitOptions`; ``changes`` are fields of it to change). Defaults of
+    this entry: the prior "auto" (learned for poses, markers, sockets and planes; none for positions
+    alone), no diagnosis. With ``diagnose`` a doubtful fit of one point or pose file is screened for
+    the common input mistakes on its measured positions. ``held``: set-up parameters held at these
+    values, not fitted (a held-out file judged with the probe's rotation and the markers as trained).
+    ``base="fixed"`` leaves the base frame out; ``residual`` and ``f_scale`` belong to position data
+    (:func:`calibrate`). Identifiability is judged at the start and again at the solution (see
+    :func:`kincal.identify.stacked.fit_sets`)."""
+    options = (options or FitOptions(diagnose=False)).replace(**changes).check(robot)
+    fit = fit_stack(robot, observations, options, held, progress or (lambda msg: None))
+    return diagnosed(fit, robot, calibrate) if options.diagnose else fit
+
+
+def _as_result(fit: ObservationFit, robot: Robot, sessions: list[Measurements], o: FitOptions,
+               elapsed: float) -> CalibrationResult:
+    """The one fit of position data read as a :class:`CalibrationResult` (``robot``: the model as
+    given, its error model included; the data kept, in the first session's frame)."""
+    nominal = fit.nominal.with_params({b: robot.params[b] for b in robot.base_params()})  # before registration
+    meas, err, drift = _kept(fit, sessions)
+    names = fit.names
+    at = [fit.free.index(n) for n in names]
+    cov = fit.covariance[np.ix_(at, at)]
+    sd = np.array([fit.std[n] for n in names])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = np.where(np.isfinite(sd[:, None] * sd), cov / np.outer(sd, sd), 0.0)
+    np.fill_diagonal(corr, 1.0)
+    stated = np.ones_like(err) if meas.std is None else meas.std / float(np.median(meas.std))
+    dof = max(err.size - len(names), 1)
+    rows = [r for src, rs in fit.rejected.items() for r in rs]
+    return CalibrationResult(
+        robot=fit.robot, nominal=nominal, names=names,
+        estimates={n: float(fit.robot.params[n]) for n in names},
+        corrections={n: float(fit.robot.params[n] - nominal.params[n]) for n in names},
+        std={n: float(fit.std[n]) for n in names}, correlation=corr, residuals=err,
+        sigma=float(np.sqrt(np.sum((err / stated) ** 2) / dof) * (1.0 if meas.std is None else np.median(meas.std))),
+        stats_before=EvaluationStats.from_errors(meas.xyz - fit.nominal.forward(meas.q)),  # frame registered
+        stats_after=EvaluationStats.from_errors(err), iterations=fit.iterations, evaluations=fit.evaluations,
+        converged=fit.converged, message=fit.message, time_s=elapsed, options=o, identifiability=fit.identifiability,
+        history=fit.history, covariance=cov, measurements=meas, pose_z=robust_z(np.linalg.norm(err, axis=1)),
+        weak=dict(fit.weak), prior=dict(fit.prior), drift=drift, error_model_notes=fit.notes,
+        rejected_rows=tuple(rows), rejected_sessions=tuple(src for src, rs in fit.rejected.items() for _ in rs)
+        if len(sessions) > 1 else ())
+
+
+def _kept(fit: ObservationFit, sessions: list[Measurements]):
+    """The poses fitted (outliers left out) in the first session's frame, their position errors
+    measured − predicted (N, 3) m (a fitted drift taken out), and the drift per axis (or None)."""
+    parts, errs, drift = [], [], None
+    for obs, s in zip(fit.observations, sessions):
+        kept = s.subset(np.flatnonzero(np.isin(s.rows, obs.rows)))
+        frame, inner, offset = fit.robot, obs, np.zeros((len(kept), 3))
+        if isinstance(inner, InSession):
+            frame = fit.robot.with_params({b: fit.nuisance[f"frame[{inner.session}].{b}"]
+                                           for b in fit.robot.base_params()})
+            inner = inner.inner
+        if isinstance(inner, Drifting):
+            d = np.array([fit.nuisance[n] for n in inner.names()])
+            offset = acquisition(inner.rows)[:, None] * d
+            drift = drift or {a: {"value": float(v), "std": float(fit.std[n])}
+                              for a, v, n in zip("xyz", d, inner.names())}
+        parts.append(in_frame_of(fit.robot, frame, kept))
+        errs.append(in_frame_of(fit.robot, frame, dataclasses.replace(kept, xyz=kept.xyz - offset)).xyz
+                    - fit.robot.forward(kept.q))
+    return joined(parts), np.concatenate(errs), drift
+
+
+def in_frame_of(model: Robot, registered: Robot, meas: Measurements) -> Measurements:
+    """``meas`` (taken in the frame where ``registered`` sees the robot) expressed in ``model``'s frame."""
+    if registered is model:
+        return meas
+    R0, t0 = model.base_transform()
+    Rs, ts = registered.base_transform()
+    xyz = (meas.xyz - ts) @ Rs @ R0.T + t0
+    std = None if meas.std is None else np.sqrt(meas.std**2 @ (Rs @ R0.T) ** 2)  # per-axis variances, rotated
+    return Measurements(meas.q, xyz, meas.joint_names, meas.source, meas.rows, std, meas.units, meas.session)
+
+
+def joined(sessions: list[Measurements]) -> Measurements:
+    """Several sessions as one set of measurements (their rows keep their own files' line numbers; each
+    pose is labelled with its session's source, so held-out sessions can be told apart)."""
+    if len(sessions) == 1:
+        return sessions[0]
+    std = None if any(s.std is None for s in sessions) else np.concatenate([s.std for s in sessions])
+    labels = [s.source if s.source not in [t.source for t in sessions[:i]] else f"{s.source} ({i + 1})"
+              for i, s in enumerate(sessions)]
+    return Measurements(np.concatenate([s.q for s in sessions]), np.concatenate([s.xyz for s in sessions]),
+                        sessions[0].joint_names, " + ".join(s.source for s in sessions),
+                        np.concatenate([s.rows for s in sessions]), std, sessions[0].units,
+                        np.concatenate([np.full(len(s), name) for s, name in zip(sessions, labels)]))
+
+
+_joined = joined
 
 
 def _diagnosed(res: CalibrationResult, say) -> CalibrationResult:
@@ -87,201 +235,35 @@ def _diagnosed(res: CalibrationResult, say) -> CalibrationResult:
     say("trying the common input mistakes")
     found = diagnose(res)
     best = found.best
-    reason = Reason(res.verdict.status, f"cause-{best.code}" if best else "cause-unknown", found.message())
-    return dataclasses.replace(res, diagnosis=found, verdict=Verdict(res.verdict.status, (reason, *res.verdict.reasons)))
+    # bad poses in a least-squares fit steer the whole model: it is wrong, not doubtful
+    status = "refused" if best and best.code == "outliers" and res.options.loss == "linear" else res.verdict.status
+    reason = Reason(status, f"cause-{best.code}" if best else "cause-unknown", found.message())
+    return dataclasses.replace(res, diagnosis=found, verdict=Verdict(status, (reason, *res.verdict.reasons)))
 
 
-def _fit(robot: Robot, meas: Measurements, o: FitOptions, say, t0: float) -> CalibrationResult:
-    """Build the problem (with the drift term if asked), solve it, judge the result."""
-    fit_robot, fit_meas = with_drift(robot, meas) if o.drift else (robot, meas)
-    problem = build_problem(fit_robot, fit_meas, o, say=say)
-    w, weak, prior = None, {}, None
-    if o.loss == "linear":
-        fit, final, counts, history = _solve(problem, o, say)
-        if o.method != "pso":
-            fit, final, weak = _hold_weak(problem, final, fit, o, say)
-        if fit.converged:
-            problem, fit, final = _with_model_error(problem, final, fit, o, say)
-        if fit.converged and o.prior == "relevance":
-            fit, prior = _with_prior(problem, final, fit, o, say)
-    else:  # reweight from the start: a least-squares fit pulled by outliers is a poor place to begin
-        say("fitting with reweighting (robust loss)")
-        final, history = problem, ()
-        fit, w, *counts = irls(problem, _at(problem, problem.x0), o.loss, o.f_scale,
-                               lambda x, wt: fit_lm(problem, x, wt, o.max_iter))
-    res = _result(fit_robot, problem, final, fit, w, counts, history, o, time.perf_counter() - t0, weak, prior)
-    res = judge(res, problem)
-    if not o.drift:
-        return res
-    res = without_drift(res, robot, meas)
-    found = fitted_drift_reasons(res.drift, noise_level(meas.std, o.thresholds)[0])
-    return dataclasses.replace(res, verdict=Verdict.from_reasons(res.verdict.reasons + tuple(found)))
-
-
-def _hold_weak(problem: CalibrationProblem, final: CalibrationProblem, fit: LMResult, o: FitOptions, say):
-    """The fit repeated with the parameters the data hardly determine held at their start values
-    (:mod:`kincal.identify.weak`), worst first: (fit, the problem fitted, held name -> its σ)."""
-    weak: dict[str, float] = {}
-    noise = noise_level(problem.meas.std, o.thresholds)[0]  # the instrument's σ: what the poses determine
-    while (worst := weakest(final.start, final.names, fit.jacobian, fit.residual, noise)) is not None:
-        weak[worst[0]] = worst[1]
-        say(f"keeping {worst[0]} at nominal: the data determine it worse than a real robot's error")
-        v = final.embed(fit.x)
-        i = int(final.start.params.indices([worst[0]])[0])
-        v[i] = problem.values0[i]
-        final = final.restrict([n for n in final.names if n != worst[0]], v)
-        fit = fit_lm(final, final.x0, max_iter=o.max_iter)
-    return fit, final, weak
-
-
-def _with_model_error(problem: CalibrationProblem, final: CalibrationProblem, fit: LMResult, o: FitOptions, say):
-    """The fit repeated with weights 1/(σᵢ² + s²), s² what the model leaves unexplained beyond the
-    stated σ (:mod:`kincal.identify.noise`), until s settles: (problem, fit, the problem fitted). Data
-    without σ (no weights) are left as fitted."""
-    meas, s_old, std, weights = problem.meas, 0.0, problem.meas.std, final.weights
-    if std is None or weights is None:
-        return problem, fit, final
-    for _ in range(ROUNDS):
-        r = meas.xyz - final.start.with_params(final.embed(fit.x)).forward(meas.q)
-        s2 = extra_variance(r**2, std**2, r.size - len(final.names))
-        if abs(np.sqrt(s2) - s_old) <= SETTLED * max(np.sqrt(s2), 1e-12):
-            break
-        s_old = float(np.sqrt(s2))
-        w = relative_weights(std, s2).T.ravel()  # the residual's rows: every pose's x, then y, then z
-        if np.allclose(w, weights, rtol=1e-9, atol=0.0):  # equal σ: the same weights, the same fit
-            break
-        say(f"refitting with {s_old * 1e3:.3g} mm of model error beside the stated σ")
-        problem, final = (dataclasses.replace(p, weights=w) for p in (problem, final))
-        weights = w
-        fit = fit_lm(final, fit.x, max_iter=o.max_iter)
-    return problem, fit, final
-
-
-def _with_prior(problem: CalibrationProblem, final: CalibrationProblem, fit: LMResult, o: FitOptions, say):
-    """The fit of ``final`` refitted with the prior learned from the data around the nominal values
-    (:mod:`kincal.identify.relevance`), on the residual in units of the instrument's σ: (the fit at
-    its solution, the prior fit); (fit, None) when no fitted parameter takes a prior (a frame alone)."""
-    noise = noise_level(problem.meas.std, o.thresholds)[0]
-    f = final.fun()
-
-    def fun(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        r, J = f(x)
-        return r / noise, J / noise
-    say("learning the prior of the corrections from the data")
-    scaled = dataclasses.replace(fit, residual=fit.residual / noise, jacobian=fit.jacobian / noise)
-    rel = with_learned_prior(fun, scaled, problem.values0[final.cols], final.names, final.start)
-    if not isinstance(rel, RelevanceFit):
-        return fit, None
-    return dataclasses.replace(fit, x=rel.x, residual=rel.residual * noise, jacobian=rel.jacobian * noise,
-                               converged=rel.converged, message=f"{fit.message}; prior learned"), (rel, noise)
-
-
-def _error_model(robot: Robot, meas: Measurements, options: FitOptions, say, use_q=None):
-    """The robot with the requested error model, and the model comparison when it is "auto"."""
-    spec = options.error_model
-    if spec is None:
-        return robot, None
-    choice = None
-    if spec.name == "auto":
-        say("choosing the error model (joint-space blocked cross-validation)")
-        choice = select_model(robot, meas, calibrate, options.replace(error_model=None, diagnose=False,
-                                                                       reject_outliers=False), use_q=use_q,
-                              payload=spec.payload)
-        spec = dataclasses.replace(spec, name=choice.chosen)
-    return extend(robot, spec, meas.q), choice
-
-
-def _negative_compliance(res: CalibrationResult, say) -> CalibrationResult | None:
-    """The fit repeated without the compliances ``res`` finds negative (a joint that bends against its
-    load is not a spring: the term describes something else), or None when all are positive."""
-    neg, notes = negative_compliances(res.names, res.estimates, res.std)
-    if not neg:
-        return None
-    say("dropping negative compliance: " + ", ".join(neg))
-    again = calibrate(drop_terms(res.nominal, neg), res.measurements,
-                      res.options.replace(error_model=None, reject_outliers=False, diagnose=False))
-    return dataclasses.replace(again, options=res.options, error_model_choice=res.error_model_choice,
-                               use_q=res.use_q, error_model_notes=notes + again.error_model_notes)
-
-
-def _solve(problem: CalibrationProblem, o: FitOptions, say):
-    """Run the solver(s). Returns the fit, the problem it belongs to, (iterations, evaluations) and
-    the particle swarm's best value per iteration (empty for LM)."""
-    history: tuple[float, ...] = ()
-    x0, counts, final = problem.x0, (0, 0), problem
-    if o.method in ("pso", "pso+lm"):
-        say(f"particle swarm over {len(problem.names)} parameters")
-        swarm = fit_pso(problem, o.pso_settings)
-        x0, counts, history = swarm.x, (swarm.iterations, swarm.evaluations), tuple(map(float, swarm.history))
-        if o.method == "pso":
-            return _at(problem, x0, "particle swarm finished its iterations"), problem, counts, history
-        if problem.ident.dropped:  # polish only what the data determine
-            final = problem.restrict(problem.ident.identifiable, problem.embed(x0))
-            x0 = final.x0
-    say(f"fitting {len(final.names)} parameters to {len(problem.meas)} poses")
-    fit = fit_lm(final, x0, max_iter=o.max_iter)
-    return fit, final, (counts[0] + fit.iterations, counts[1] + fit.evaluations), history
-
-
-def _at(problem: CalibrationProblem, x: np.ndarray, message: str = "not yet fitted") -> LMResult:
-    """The problem evaluated at x, as a fit without iterations."""
-    r, J = problem.fun()(x)
-    return LMResult(x, 0.5 * float(r @ r), r, J, 0, 0, True, message)
-
-
-def _result(robot: Robot, problem: CalibrationProblem, final: CalibrationProblem, fit: LMResult, w, counts,
-            history, options: FitOptions, elapsed: float, weak: dict[str, float], prior=None) -> CalibrationResult:
-    """The fit as a CalibrationResult: estimates for every name of ``problem`` but those held at
-    nominal (``weak``), uncertainty from the fit of ``final`` (the posterior with a learned ``prior``:
-    (its fit, the noise it was scaled by); undetermined parameters of a swarm-only fit get σ = inf)."""
-    v = final.embed(fit.x)
-    calibrated = problem.start.with_params(v)
-    names = tuple(n for n in problem.names if n not in weak)
-    idx = problem.start.params.indices(names)
-    ident = problem.ident if not weak else dataclasses.replace(
-        problem.ident, identifiable=tuple(n for n in problem.ident.identifiable if n not in weak),
-        notes=problem.ident.notes + (weak_note(problem.start, weak),))
-    undetermined = problem.ident.dropped if options.method == "pso" else ()
-    sd, corr, sigma2, cov = (parameter_statistics(fit.jacobian, fit.residual, final.names, names, undetermined)
-                             if prior is None else covariance_statistics(prior[0].covariance, prior[0].noise2 *
-                                                                         prior[1] ** 2, final.names, names))
-    meas = problem.meas
-    res = meas.xyz - calibrated.forward(meas.q)
-    return CalibrationResult(
-        robot=calibrated, nominal=robot, names=names,
-        estimates={n: float(v[i]) for n, i in zip(names, idx)},
-        corrections={n: float(v[i] - robot.params.values[i]) for n, i in zip(names, idx)},
-        std={n: float(x) for n, x in zip(names, sd)}, correlation=corr, residuals=res,
-        sigma=float(np.sqrt(sigma2 / (1.0 if w is None else np.mean(w)))),
-        stats_before=EvaluationStats.from_errors(meas.xyz - problem.start.forward(meas.q)),  # frame registered
-        stats_after=EvaluationStats.from_errors(res),
-        iterations=counts[0], evaluations=counts[1], converged=fit.converged, message=fit.message,
-        time_s=elapsed, options=options, identifiability=ident, history=history, covariance=cov,
-        measurements=meas, pose_z=robust_z(np.linalg.norm(res, axis=1)), weak=dict(weak),
-        prior={} if prior is None else dict(prior[0].sigma))
-
-
-def judge(res: CalibrationResult, problem: CalibrationProblem) -> CalibrationResult:
+def judge(res: CalibrationResult) -> CalibrationResult:
     """The result with its verdict (limits: ``res.options.thresholds``) from its per-pose robust z-scores."""
-    meas, th, z = problem.meas, res.options.thresholds, res.pose_z
+    meas, th, z, ident = res.measurements, res.options.thresholds, res.pose_z, res.identifiability
     reasons = [] if res.converged else [Reason("refused", "not-converged", f"the fit did not converge "
                                                                              f"({res.message})")]
-    if problem.base == "estimate":
-        loose = [n for n in problem.start.base_params() if n in problem.ident.dropped]
-        if loose:
-            reasons.append(Reason("refused", "base-underdetermined",
-                                  f"the poses leave the base frame underdetermined ({', '.join(loose)}): measure "
-                                  f"poses spread over the workspace, or use --base fixed if the base is known"))
-    reasons += correction_reasons(problem.start, {n: res.corrections[n] for n in res.names
-                                                  if np.isfinite(res.std[n])}, th)
+    loose = [n for n in res.nominal.base_params() if n in ident.dropped]
+    if res.options.base == "estimate" and loose:
+        reasons.append(Reason("refused", "base-underdetermined",
+                              f"the poses leave the base frame underdetermined ({', '.join(loose)}): measure "
+                              f"poses spread over the workspace, or use --base fixed if the base is known"))
+    reasons += correction_reasons(res.nominal, {n: res.corrections[n] for n in res.names
+                                                if np.isfinite(res.std[n])}, th)
     if res.mounting:
         reasons += mounting_reasons(res.nominal.tool_point(), res.robot.tool_point(), th)
     inliers = res.residuals[z <= th.outlier_limit(len(z))]  # outliers are named on their own, not smeared into σ
     pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
+    noise = noise_level(meas.std, th)
     reasons += drift_reasons(meas.rows, np.linalg.norm(res.residuals, axis=1))
-    reasons += residual_reasons(pos_sigma, noise_level(meas.std, th), th)
+    reasons += residual_reasons(pos_sigma, noise, th)
     reasons += outlier_reasons(meas.rows, z, th, res.options.loss)
-    reasons += duplicate_reasons(meas.rows, problem.repeated_poses)
+    reasons += duplicate_reasons(meas.rows, tuple(duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types,
+                                                                                            th))))
+    reasons += fitted_drift_reasons(res.drift, noise[0])
     return dataclasses.replace(res, verdict=Verdict.from_reasons(reasons))
 
 

@@ -8,14 +8,11 @@ K×K Cholesky per step).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable
+from typing import Callable
 
 import numpy as np
 
 from ..analysis.observability import column_norms
-
-if TYPE_CHECKING:  # the problem module uses the options, which use the robust losses, which use LM
-    from .problem import CalibrationProblem
 
 MU_LIMIT = 1e20  # damping beyond this (relative to the largest diagonal entry) means no step helps
 STATIONARY = 1e-6  # when no step helps, a residual this close to orthogonal to every column is an optimum
@@ -122,9 +119,3 @@ def levenberg_marquardt(
                             "step below tolerance" if small_step else "cost decrease below tolerance")
     return LMResult(x, cost, r, J, max_iter, n_eval, False,
                     f"stopped after {max_iter} iterations without meeting the tolerances")
-
-
-def fit_lm(problem: "CalibrationProblem", x0: np.ndarray | None = None, weights: np.ndarray | None = None,
-           max_iter: int = 100) -> LMResult:
-    """Levenberg–Marquardt on ``problem`` (per-pose ``weights`` for robust reweighting)."""
-    return levenberg_marquardt(problem.fun(weights), problem.x0 if x0 is None else x0, max_iter=max_iter)

@@ -14,7 +14,6 @@ import dataclasses
 from ..io.measurements import Measurements
 from ..models.robot import Robot
 from ..observe.sessions import InSession
-from .calibrate import calibrate
 from .diagnosis import TRIGGERS, diagnose
 from .observed_result import ObservationFit
 from .verdict import Reason, Verdict
@@ -22,10 +21,11 @@ from .verdict import Reason, Verdict
 MIN_SAMPLES = 10  # fewer positions screen nothing reliably
 
 
-def diagnosed(fit: ObservationFit, robot: Robot) -> ObservationFit:
+def diagnosed(fit: ObservationFit, robot: Robot, calibrate) -> ObservationFit:
     """``fit`` with the diagnosis of its positions as the first reason of its verdict, when the
     verdict doubts the data (:data:`TRIGGERS`) and one file has points or poses in the robot's frame;
-    ``robot`` is the model as given (the position fit registers its own frame)."""
+    ``robot`` is the model as given (the position fit registers its own frame), ``calibrate`` the
+    position fit (passed in: it is this module's caller)."""
     if not any(r.code in TRIGGERS for r in fit.verdict.reasons):
         return fit
     sets = [o for o in fit.observations if o.kind in ("point", "pose") and not isinstance(o, InSession)]

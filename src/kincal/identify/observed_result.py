@@ -52,6 +52,10 @@ class ObservationFit:
     notes: tuple[str, ...] = ()  # what the fit changed on its way (an error-model term dropped)
     whitened_residual: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))  # (M,) by the stated σ
     diagnosis: Diagnosis | None = None  # the differential diagnosis of a doubtful fit, if run
+    evaluations: int = 0  # evaluations of the stacked residual (a particle swarm's included)
+    message: str = ""  # how the last solver stopped
+    history: tuple[float, ...] = ()  # particle swarm: best mean squared residual per iteration
+    free: tuple[str, ...] = ()  # the columns fitted (robot and set-up parameters): the order of ``covariance``
 
     def to_dict(self) -> dict:
         return {"robot": self.robot.name, "fitted": list(self.names),

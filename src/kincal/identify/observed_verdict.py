@@ -54,7 +54,8 @@ def observation_verdict(nominal: Robot, calibrated: Robot, sets, r: np.ndarray, 
                 f"noisier" + _other_kinds(per_kind, kind))))
     reasons += correction_reasons(nominal, {n: calibrated.params[n] - nominal.params[n] for n in nominal.params.names},
                                   th)
-    reasons += mounting_reasons(nominal.tool_point(), calibrated.tool_point(), th)
+    if nominal.has_tool_point:
+        reasons += mounting_reasons(nominal.tool_point(), calibrated.tool_point(), th)
     reasons += sample_reasons(sets, r, nominal, th)
     if all(o.kind == "plane" for o in sets):
         reasons += _plane_reasons(nominal, calibrated, sets)

@@ -32,7 +32,8 @@ def _names(name: str, value) -> tuple[str, ...]:
     return tuple(dict.fromkeys(value))
 
 
-RESIDUAL_NAMES = ("cartesian", "joint")  # what a position fit minimises (identify.problem.RESIDUALS)
+RESIDUAL_NAMES = ("cartesian", "joint")  # what a position fit minimises (identify.calibrate.RESIDUALS)
+PRIOR_CHOICES = ("auto", *PRIORS)  # "auto": each kind's default, chosen by held-out evidence (identify.fitting)
 
 @dataclass(frozen=True)
 class PSOOptions:
@@ -76,8 +77,8 @@ class FitOptions:
     names      -- "auto" (the identifiable set at the poses) or the parameter names to estimate
     base       -- "estimate": register the measurement frame (Kabsch), then fit the base frame with
                   the rest; "fixed": the base frame is known
-    loss       -- "linear", or "huber" / "soft_l1" on each pose's 3-D residual (reweighted from the
-                  start; ``f_scale`` m, default 3 robust σ); method "lm" only
+    loss       -- "linear", or "huber" / "soft_l1" on each sample's whitened residual block (a pose's
+                  3-D residual; ``f_scale`` m on position data, default 3 robust σ); method "lm" only
     method     -- "lm" (Levenberg–Marquardt), "pso" (particle swarm; ``pso``), "pso+lm"
     residual   -- "cartesian" (positions) or "joint" (commanded − inverse kinematics of the measured
                   positions, the 3-PUU paper's residual; robots with a closed-form inverse)
@@ -94,9 +95,10 @@ class FitOptions:
                   (at most a tenth of them), named by row in the result
     diagnose   -- when the verdict doubts the data, try the common input mistakes and name the one
                   that explains them (:mod:`kincal.identify.diagnosis`)
-    prior      -- "none" (least squares) or "relevance": a prior σ per joint origin's lengths and
+    prior      -- "none" (least squares), "relevance": a prior σ per joint origin's lengths and
                   angles learned from the data (:mod:`kincal.identify.relevance`), after the
-                  least-squares fit; Levenberg–Marquardt and linear loss only
+                  least-squares fit (not with a particle swarm alone), or "auto": none for position
+                  data, relevance for the other kinds (:func:`kincal.identify.fitting.resolved_prior`)
     """
 
     names: str | tuple[str, ...] = "auto"
@@ -114,7 +116,7 @@ class FitOptions:
     drift: bool = False
     reject_outliers: bool = False
     diagnose: bool = True
-    prior: str = "none"
+    prior: str = "auto"
 
     def __post_init__(self) -> None:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -125,7 +127,7 @@ class FitOptions:
         _one_of("loss", self.loss, LOSSES)
         _one_of("method", self.method, METHODS)
         _one_of("residual", self.residual, RESIDUAL_NAMES)
-        _one_of("prior", self.prior, PRIORS)
+        _one_of("prior", self.prior, PRIOR_CHOICES)
         if self.f_scale is not None:
             set_("f_scale", _number("f_scale", self.f_scale, unit="m"))
         set_("rank_tol", _number("rank_tol", self.rank_tol))
@@ -155,9 +157,9 @@ class FitOptions:
             if self.__dict__[k] not in (True, False):
                 raise ValueError(f"{k}={self.__dict__[k]!r}: True or False")
             set_(k, bool(self.__dict__[k]))
-        if self.prior != "none" and (self.method == "pso" or self.loss != "linear"):
-            raise ValueError(f"prior='{self.prior}' refits a least-squares fit: it needs method 'lm' or 'pso+lm' and "
-                             f"loss='linear' (got method='{self.method}', loss='{self.loss}')")
+        if self.prior == "relevance" and self.method == "pso":
+            raise ValueError(f"prior='{self.prior}' refits a least-squares fit: it needs method 'lm' or 'pso+lm' "
+                             f"(got method='{self.method}')")
         if self.reject_outliers and self.method != "lm":
             raise ValueError(f"reject_outliers=True needs method='lm' (got '{self.method}'): the outliers are found "
                              f"by a robust Levenberg-Marquardt refit")

@@ -10,8 +10,6 @@ from typing import Callable
 
 import numpy as np
 
-from .options import PSOOptions
-from .problem import CalibrationProblem
 
 HALF_WIDTH = {"length": 8e-3, "angle": 8e-3}  # the paper's position limits ±8 (mm), per kind
 V_MAX = {"length": 0.5e-3, "angle": 0.5e-3}  # and velocity limits ±0.5 (mm per iteration)
@@ -72,13 +70,3 @@ def pso(
 def _finite(f: np.ndarray) -> np.ndarray:
     f = np.asarray(f, dtype=float)
     return np.where(np.isfinite(f), f, np.inf)
-
-
-def fit_pso(problem: CalibrationProblem, options: PSOOptions,
-            progress: Callable[[int, float], None] | None = None) -> PSOResult:
-    """Particle swarm on the mean squared residual of ``problem`` around its starting values, in a
-    box of ±8 mm (lengths) or ±8 mrad (angles) per parameter."""
-    kinds = [problem.start.params.kinds[i] for i in problem.cols]
-    return pso(lambda X: problem.obs.batch_cost(problem.start, problem.embed_many(X)), problem.x0,
-               np.array([HALF_WIDTH[k] for k in kinds]), np.array([V_MAX[k] for k in kinds]),
-               progress=progress, **options.to_dict())

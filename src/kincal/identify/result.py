@@ -251,14 +251,6 @@ class CalibrationResult:
         return "\n".join(lines)
 
 
-def rejected(meas: Measurements, index: np.ndarray) -> dict:
-    """The ``rejected_rows``/``rejected_sessions`` fields for the poses of ``meas`` at ``index``."""
-    rows = tuple(int(r) for r in meas.rows[index])
-    if meas.session is None or len(meas.sessions()) <= 1:
-        return {"rejected_rows": rows, "rejected_sessions": ()}
-    return {"rejected_rows": rows, "rejected_sessions": tuple(str(s) for s in meas.session[index])}
-
-
 EXACT = 1e-9  # m: a validation error below this is round-off (no noise, an exact model)
 
 

@@ -1,6 +1,5 @@
-"""Robust losses by iteratively reweighted least squares on each sample's residual block: a pose's
-3-D position error in the position fit, a sample's whitened rows (a 6-D pose's six, a marker
-sample's seen markers, a seat's three) in the fit of observation sets.
+"""Robust losses by iteratively reweighted least squares on each sample's whitened residual block
+(a point's three rows, a 6-D pose's six, a marker sample's seen markers, a seat's three).
 
 Weights follow scipy's conventions, z = (‖rᵢ‖/f_scale)²: "huber" ρ'(z) = 1 for z ≤ 1, z^-½ beyond;
 "soft_l1" ρ'(z) = (1 + z)^-½. Without an ``f_scale`` it is 3 robust sigmas of the current residuals
@@ -9,14 +8,7 @@ re-estimated at every reweighting.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable
-
 import numpy as np
-
-from .lm import LMResult
-
-if TYPE_CHECKING:  # the problem module uses the options, which list this module's losses
-    from .problem import CalibrationProblem
 
 LOSSES = ("linear", "huber", "soft_l1")
 MAX_IRLS = 20
@@ -39,35 +31,18 @@ def chi_median(d: np.ndarray) -> np.ndarray:
     return np.sqrt(d * (1.0 - 2.0 / (9.0 * d)) ** 3)
 
 
-def block_weights(r: np.ndarray, owner: np.ndarray, n: int, loss: str) -> np.ndarray:
+def block_weights(r: np.ndarray, owner: np.ndarray, n: int, loss: str, scale: float | None = None) -> np.ndarray:
     """(M,) IRLS row factors √ρ'(z) for the whitened residual r (M,): each of the ``n`` samples' block
     (the rows whose ``owner`` is that sample; −1: a row of no sample, factor 1) weighed by its norm
-    against 3 robust σ, σ the median over samples of norm / :func:`chi_median` of its rows."""
+    against ``scale`` (whitened), by default 3 robust σ, σ the median over samples of norm /
+    :func:`chi_median` of its rows."""
     mine = owner >= 0
     norms = np.sqrt(np.bincount(owner[mine], r[mine] ** 2, minlength=n))
     dims = np.bincount(owner[mine], minlength=n)
     has = dims > 0
     sigma = float(np.median(norms[has] / chi_median(dims[has]))) if has.any() else 0.0
     w = np.ones(n)
-    w[has] = robust_weights(norms[has], loss, max(3.0 * sigma, 1e-12))
+    w[has] = robust_weights(norms[has], loss, max(3.0 * sigma, 1e-12) if scale is None else scale)
     out = np.ones(r.size)
     out[mine] = np.sqrt(w[owner[mine]])
     return out
-
-
-def irls(problem: "CalibrationProblem", fit: LMResult, loss: str, f_scale: float | None,
-         solve: Callable[[np.ndarray, np.ndarray], LMResult]) -> tuple[LMResult, np.ndarray, int, int]:
-    """Reweight and re-solve from ``fit`` until the weights settle; ``solve(x0, weights)`` is the
-    solver. Returns the final fit, the weights (N,), and the iterations and evaluations spent."""
-    w = np.full(len(problem.meas), np.nan)
-    iterations = evaluations = 0
-    for _ in range(MAX_IRLS):
-        norms = problem.pose_norms(fit.x)
-        scale = f_scale if f_scale is not None else max(3.0 * float(np.median(norms)) / 1.538, 1e-9)
-        w_new = robust_weights(norms, loss, scale)
-        if np.max(np.abs(w_new - w)) < WEIGHT_TOL:
-            break
-        w = w_new
-        fit = solve(fit.x, w)
-        iterations, evaluations = iterations + fit.iterations, evaluations + fit.evaluations
-    return fit, w, iterations, evaluations

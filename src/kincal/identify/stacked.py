@@ -24,22 +24,21 @@ import numpy as np
 from .._threads import blas_threads
 from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_identifiability
 from ..analysis.observability import live_columns
-from ..errors import MeasurementError
+from ..errors import IdentifiabilityError, MeasurementError
 from ..models.robot import Robot
-from ..models.terms import ErrorModel, drop_terms, extend
-from ..observe.drifting import DRIFT, Drifting
+from ..observe.drifting import DRIFT
 from ..observe.sessions import InSession
-from .compliance import negative_compliances
 from .covariance import parameter_statistics
-from .lm import levenberg_marquardt
+from .lm import LMResult, levenberg_marquardt
+from .options import FitOptions
+from .pso import HALF_WIDTH, V_MAX, pso
 from .noise import extra_variance
-from .observed_diagnosis import diagnosed
 from .observed_result import ObservationFit
 from .observed_verdict import component_kinds, observation_verdict, outlier_samples, whitened_per_kind
 from .registration import register_base
-from .relevance import PRIORS, RelevanceFit, with_learned_prior
-from .robust import LOSSES, MAX_IRLS, WEIGHT_TOL, block_weights
-from .verdict import MAX_OUTLIER_SHARE, Thresholds
+from .relevance import RelevanceFit, with_learned_prior
+from .robust import MAX_IRLS, WEIGHT_TOL, block_weights
+from .verdict import Thresholds
 from .weak import weakest
 
 
@@ -69,6 +68,20 @@ class _Stack:
                                       share * np.count_nonzero(self.labels == k)) for k in range(len(self.kinds))])
         st = dataclasses.replace(self, inv_sigma=1.0 / np.sqrt(var + s2[self.labels]))
         return st, {k: float(np.sqrt(v)) for k, v in zip(self.kinds, s2)}
+
+    def weak_scale(self, r: np.ndarray, n_free: int) -> np.ndarray:
+        """(M,) factors that whiten the rows by √(σ² + s²) instead of the weights in use: what the
+        weak-parameter rule judges σ by, the stated σ and what the model cannot describe (robustly
+        estimated: a few outliers do not make the rest look weak). A kind whose s exceeds
+        ``residual_refuse`` times its stated σ (the data do not belong to the model: swapped joints)
+        is judged by its stated σ alone, so its implausible corrections stay in view."""
+        st, s = self.with_model_error(r, n_free)
+        refuse = Thresholds().residual_refuse
+        for k, kind in enumerate(self.kinds):
+            rows = self.labels == k
+            if rows.any() and s[kind] > refuse / float(np.median(self.stated[rows])):
+                st.inv_sigma[rows] = self.stated[rows]
+        return st.inv_sigma / self.inv_sigma
 
     def evaluate(self, values: np.ndarray, nuis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Whitened residual (M,) and Jacobian (M, P + K) over all robot and nuisance parameters."""
@@ -119,102 +132,30 @@ def _gauge(robot: Robot, sets) -> tuple[str, ...]:
     return tuple(n for n in robot.params.names if n in common)
 
 
-def fit_observations(robot: Robot, observations: Sequence, names: Sequence[str] | str = "auto",
-                     keep: Sequence[str] = (), max_iter: int = 100, rank_tol: float = RANK_TOL,
-                     prior: str = "relevance", thresholds: Thresholds | None = None, loss: str = "linear",
-                     reject_outliers: bool = False, error_model: ErrorModel | str | None = None,
-                     diagnose: bool = False, drift: bool = False, held: Mapping[str, float] | None = None
-                     ) -> ObservationFit:
-    """Calibrate ``robot`` from observation sets of any types (see the module docstring). ``names``:
-    robot parameters to fit ("auto": every identifiable one); ``keep``: chosen first among confounded;
-    ``prior``: "relevance" (a prior σ per joint origin and kind learned from the data,
-    :mod:`kincal.identify.relevance`) or "none" (least squares); ``thresholds``: the verdict's limits
-    of plausible corrections and of the mounting (default :class:`Thresholds`); ``loss``: "linear", or
-    "huber" / "soft_l1" on each sample's whitened block (:func:`kincal.identify.robust.block_weights`);
-    ``reject_outliers``: leave out the samples a robust (Huber) fit puts beyond the outlier limit, at
-    most a tenth of a set's, and fit again (named in ``rejected`` by file and row); ``error_model``: a
-    named :class:`~kincal.ErrorModel` (terms beyond geometry on the joints that move the tool at these
-    samples; not "auto", which is chosen on position data); a compliance that comes out negative is
-    dropped and the fit repeated (said in ``notes``); ``diagnose``: when the verdict doubts the data,
-    screen the common input mistakes on the measured positions and name the one that explains them
-    (:mod:`kincal.identify.observed_diagnosis`); ``drift``: each set of measured positions (points,
-    poses, markers) gets its instrument's drift over its row order as set-up parameters
-    (:class:`kincal.observe.Drifting`); ``held``: set-up parameters held at these values, not fitted
-    (a held-out file judged with the probe's rotation and the markers as trained).
-
-    Identifiability is judged at the start and again at the solution: where the fit moved the model
-    (a tool point off a joint's axis) the data may identify other parameters. When the set changed,
-    the fit is repeated from its solution with the new set, at most ``JUDGED`` times, and
-    ``identifiability.notes`` says so."""
-    if prior not in PRIORS:
-        raise ValueError(f"prior {prior!r}: use one of {', '.join(PRIORS)}")
-    if loss not in LOSSES or any(flag not in (True, False) for flag in (reject_outliers, diagnose, drift)):
-        raise ValueError(f"loss {loss!r}: one of {', '.join(LOSSES)}; reject_outliers {reject_outliers!r}, diagnose "
-                         f"{diagnose!r}, drift {drift!r}: True or False")
-    th = thresholds or Thresholds()
-    robot = _with_error_model(robot, observations, error_model)
-    observations = [_drifting(o) for o in observations] if drift else observations
-
-    def fit(sets: Sequence, lo: str) -> ObservationFit:
-        return _fit_sets(robot, sets, names, keep, max_iter, rank_tol, prior, th, lo, held or {})
-    res = fit(observations, loss)
-    neg, notes = negative_compliances(res.names, res.robot.params.as_dict(), res.std)
-    if neg:
-        robot = drop_terms(robot, neg)
-        res = dataclasses.replace(fit(observations, loss), notes=notes)
-    if reject_outliers:
-        res = _without_outliers(fit, observations, res, loss)
-    return diagnosed(res, robot) if diagnose else res
-
-
-def _without_outliers(fit, observations: Sequence, res: ObservationFit, loss: str) -> ObservationFit:
-    """``res`` fitted again (``fit(sets, loss)``) without the samples a robust fit puts beyond the
-    outlier limit, at most a tenth of a set's; ``res`` itself when there are none."""
-    found = (res if loss != "linear" else fit(observations, "huber")).outliers
-    bad = [b if len(b) <= max(1, int(MAX_OUTLIER_SHARE * len(o))) else b[:0] for o, b in zip(observations, found)]
-    if not any(len(b) for b in bad):
-        return res
-    kept = [o.subset(np.setdiff1d(np.arange(len(o)), b)) if len(b) else o for o, b in zip(observations, bad)]
-    rejected = {o.source: tuple(int(r) for r in o.rows[b]) for o, b in zip(observations, bad) if len(b)}
-    return dataclasses.replace(fit(kept, loss), rejected=rejected, notes=res.notes)
-
-
-def _drifting(obs):
-    """``obs`` measured by a drifting instrument (in its session's frame, if it has one)."""
-    if obs.kind not in ("point", "pose", "markers"):
-        raise ValueError(f"drift: {obs.kind} data ({obs.source}) have no measuring instrument that could drift; the "
-                         f"drift term is for points, poses and markers")
-    return dataclasses.replace(obs, inner=Drifting.of(obs.inner)) if isinstance(obs, InSession) else Drifting.of(obs)
-
-
-def _with_error_model(robot: Robot, observations: Sequence, error_model) -> Robot:
-    """``robot`` extended by the named error model, its terms on the joints that move the tool at
-    the samples (``robot`` itself for None)."""
-    if error_model is None:
-        return robot
-    spec = ErrorModel.of(error_model)
-    if spec.name == "auto":
-        raise ValueError("error model 'auto' is chosen by blocked cross-validation of position data; for these "
-                         "data name the model (e.g. compliance, harmonics:2) and compare on held-out data")
-    return extend(robot, spec, np.concatenate([o.q for o in observations]))
-
-
-def _fit_sets(robot: Robot, observations: Sequence, names, keep, max_iter: int, rank_tol: float, prior: str,
-              th: Thresholds, loss: str, held: Mapping[str, float]) -> ObservationFit:
-    """:func:`fit_observations` without leaving anything out."""
+def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, loss: str,
+             held: Mapping[str, float]) -> ObservationFit:
+    """The one fit of ``observations`` with the options ``o`` (the learned ``prior`` resolved, the
+    ``loss`` in use), set-up parameters in ``held`` kept at those values: nothing left out, nothing
+    diagnosed (:func:`kincal.identify.fitting.fit_stack` wraps it)."""
     with blas_threads(1):
-        robot, st, gauge, ident, start = _problem(robot, observations, names, keep, rank_tol, held)
-        if start[0].size <= len(ident.identifiable):
-            raise MeasurementError(f"{start[0].size} residual components for {len(ident.identifiable)} parameters: "
-                                   f"measure more samples")
+        wanted = wanted_names(robot, o)
+        robot, st, gauge, ident, start = _problem(robot, observations, wanted, o.keep, o.rank_tol, held)
+        _check_strict(ident, o, st)
+        _check_equations(st, start[0].size, len(ident.identifiable if o.method == "lm" else ident.candidates))
         x0 = np.concatenate([robot.params.values, st.nuis0])
-        wanted = robot.params.names if names == "auto" else tuple(names)
-        rounds = _Round(robot, st, x0, max_iter, prior, loss)
-        full, fit, free, weak, fitted, error = rounds.fit(list(ident.identifiable), x0, start)
+        rounds = _Round(robot, st, x0, o.max_iter, prior, loss, o.f_scale)
+        free0, swarm = list(ident.identifiable), None
+        if o.method != "lm":
+            swarm = _swarm(st, x0, rounds.cols(list(ident.candidates)), o.pso_settings)
+            if o.method == "pso":
+                return _result(robot, st, gauge, ident, list(ident.candidates), x0, swarm.fit, {}, o.thresholds, {},
+                               swarm.history, ident.dropped)
+            start = None
+        full, fit, free, weak, fitted, error = rounds.fit(free0, x0 if swarm is None else swarm.full, start)
         notes: tuple[str, ...] = ()
         for k in range(JUDGED + 1):
             # the fitted set first among confounded ones: only a real change of what the data see counts
-            again = _identifiability(robot, st, gauge, wanted, (*keep, *ident.identifiable), rank_tol, full)
+            again = _identifiability(robot, st, gauge, wanted, (*o.keep, *ident.identifiable), o.rank_tol, full)
             change = again.change_from(ident)
             if not change:
                 break
@@ -227,10 +168,50 @@ def _fit_sets(robot: Robot, observations: Sequence, names, keep, max_iter: int, 
             ident = again
             full, fit, free, weak, fitted, error = rounds.fit(list(ident.identifiable), full, None)
         ident = dataclasses.replace(_without_weak(ident, free, weak), notes=ident.notes + notes)
-        return _result(robot, fitted, gauge, ident, free, rounds.cols(free), x0, fit, weak, th, error)
+        spent = (rounds.spent[0] + (swarm.iterations if swarm else 0), rounds.spent[1] + (swarm.evaluations if swarm
+                                                                                          else 0))
+        return _result(robot, fitted, gauge, ident, free, x0, fit, weak, o.thresholds, error,
+                       swarm.history if swarm else (), spent=spent)
 
 
 JUDGED = 3  # refits when the identifiable set at the solution differs from the start's
+
+
+def wanted_names(robot: Robot, o: FitOptions) -> tuple[str, ...]:
+    """The robot parameters a fit with ``o`` may free: ``o.names`` ("auto": all), the base frame's
+    added when it is estimated and left out when it is known (``o.base``: the one base-mode rule)."""
+    base = robot.base_params()
+    if o.names == "auto":
+        return tuple(n for n in robot.params.names if o.base == "estimate" or n not in base)
+    clash = [n for n in o.names if n in base]
+    if o.base == "fixed" and clash:
+        raise ValueError(f"{', '.join(clash)} listed with base='fixed': the base frame is known; use base='estimate' "
+                         f"to fit it")
+    return tuple(dict.fromkeys((*base, *o.names))) if o.base == "estimate" else tuple(o.names)
+
+
+def _check_strict(ident: Identifiability, o: FitOptions, st: "_Stack") -> None:
+    """An explicit list of names fitted by Levenberg–Marquardt must be identifiable (a particle swarm,
+    a global search, keeps the undetermined ones free)."""
+    lost = [n for n in ident.dropped if n in o.names and n not in st.robot.base_params()]
+    if o.names != "auto" and o.method == "lm" and lost:
+        raise IdentifiabilityError(f"these parameters cannot all be identified from the {_samples(st)}; leave out "
+                                   f"the dropped ones or estimate names='auto':\n{ident}")
+
+
+def _samples(st: "_Stack") -> str:
+    n = sum(len(o) for o in st.sets)
+    return f"{n} poses" if all(o.kind in ("point", "joint") for o in st.sets) else f"{n} samples"
+
+
+def _check_equations(st: "_Stack", equations: int, unknowns: int) -> None:
+    """More residual components than free parameters, or a MeasurementError saying how many samples."""
+    if equations > unknowns:
+        return
+    per = equations // max(sum(len(o) for o in st.sets), 1)
+    raise MeasurementError(f"{st.sets[0].source}: {_samples(st)} give {equations} equations for {unknowns} "
+                           f"parameters; measure at least {unknowns // max(per, 1) + 1} (3-5 times as many is "
+                           f"advisable)")
 
 
 @dataclass(frozen=True)
@@ -245,6 +226,8 @@ class _Round:
     max_iter: int
     prior: str
     loss: str = "linear"
+    f_scale: float | None = None  # m: the robust loss's scale on a sample's position norm (None: 3 robust σ)
+    spent: list = dataclasses.field(default_factory=lambda: [0, 0])  # LM iterations and evaluations so far
 
     def cols(self, free: Sequence[str]) -> np.ndarray:
         all_names = list(self.robot.params.names) + list(self.st.nuis_names)
@@ -253,57 +236,69 @@ class _Round:
     def fit(self, free: list[str], start: np.ndarray, evaluated):
         """(full vector, fit, free names, weak, the stack with its weights, s per kind) from the full
         vector ``start`` (its evaluation ``evaluated`` (r, J) over all columns, or None): least squares
-        and the weak hold, the model error per kind estimated and the fit repeated until it settles,
-        then the learned prior."""
+        (robustly reweighted with a robust loss) and the weak hold, the model error per kind estimated
+        and the fit repeated until it settles, then the learned prior."""
         st, candidates = self.st, list(free)
         error: dict[str, float] = {}
         for _ in range(NOISE_ROUNDS):
-            fcols, fit, free, weak = self._least_squares(st, list(candidates), start, evaluated)
+            fcols, fit, free, weak, used = self._least_squares(st, list(candidates), start, evaluated)
             start, evaluated = self.x0.copy(), None
             start[fcols] = fit.x
-            again, found = st.with_model_error(fit.residual, len(free))
+            again, found = used.with_model_error(fit.residual, len(free))
             ratio = again.inv_sigma / st.inv_sigma
             if float(np.max(ratio)) <= float(np.min(ratio)) * (1.0 + NOISE_SETTLED):  # the same relative weights:
                 error = found if any(found.values()) else error  # the same fit (one kind, one σ: a scale only)
                 break
             st, error = again, found
-        if self.loss != "linear":
-            st, fit = self._reweighted(st, fcols, fit)
         if self.prior == "relevance":
-            fit = with_learned_prior(lambda x: _fun(st, self.x0, fcols, x), fit, self.x0[fcols], free, self.robot)
+            fit = with_learned_prior(lambda x: _fun(used, self.x0, fcols, x), fit, self.x0[fcols], free, self.robot)
         full = self.x0.copy()
         full[fcols] = fit.x
-        return full, fit, free, weak, st, error
+        return full, fit, free, weak, used, error
 
     def _least_squares(self, st: _Stack, free: list[str], start: np.ndarray, evaluated):
-        """LM on ``free``; a parameter the data determine worse than a real robot's error kept nominal
-        and the fit repeated: (columns, fit, free names, weak)."""
+        """LM on ``free`` (then reweighted, with a robust loss: outliers must not decide what is weak);
+        a parameter the data determine worse than a real robot's error kept nominal and the fit
+        repeated: (columns, fit, free names, weak, the stack with the robust factors in its weights)."""
         weak: dict[str, float] = {}
         while True:
             fcols = self.cols(free)
             fun = (_fun_from(st, self.x0, fcols, evaluated) if evaluated is not None and
                    np.array_equal(start, self.x0) else lambda x, c=fcols: _fun(st, self.x0, c, x))
-            fit = levenberg_marquardt(fun, start[fcols], max_iter=self.max_iter)
-            worst = weakest(self.robot, free, fit.jacobian, fit.residual)
+            if self.loss == "linear":
+                fit, used = self._lm(fun, start[fcols]), st
+            else:  # reweighted from the start: a least-squares fit pulled by outliers is a poor place to begin
+                used, fit = self._reweighted(st, fcols, start[fcols], fun(start[fcols])[0])
+            worst = weakest(self.robot, free, fit.jacobian * used.weak_scale(fit.residual, len(free))[:, None],
+                            fit.residual, noise=1.0)
             if worst is None:
-                return fcols, fit, free, weak
+                return fcols, fit, free, weak, used
             weak[worst[0]] = worst[1]
             free.remove(worst[0])
 
 
-    def _reweighted(self, st: _Stack, fcols: np.ndarray, fit):
-        """Iteratively reweighted least squares on each sample's whitened block until the weights
-        settle: (the stack with the robust factors in its weights, the fit)."""
+    def _reweighted(self, st: _Stack, fcols: np.ndarray, x: np.ndarray, r: np.ndarray):
+        """Iteratively reweighted least squares on each sample's whitened block from ``x`` (its
+        whitened residual ``r``) until the weights settle: (the stack with the robust factors in its
+        weights, the fit)."""
         owner, n = _owners(st.sets)
-        base, factor = st, np.ones(owner.size)
+        base, factor = st, np.full(owner.size, np.nan)  # (nan: at least one fit)
+        scale = None if self.f_scale is None else self.f_scale * float(np.median(st.inv_sigma))
         for _ in range(MAX_IRLS):
-            new = block_weights(fit.residual / factor, owner, n, self.loss)
+            new = block_weights(r / np.nan_to_num(factor, nan=1.0), owner, n, self.loss, scale)
             if np.max(np.abs(new**2 - factor**2)) < WEIGHT_TOL:
                 break
             factor = new
             st = dataclasses.replace(base, inv_sigma=base.inv_sigma * factor)
-            fit = levenberg_marquardt(partial(_fun, st, self.x0, fcols), fit.x, max_iter=self.max_iter)
+            fit = self._lm(partial(_fun, st, self.x0, fcols), x)
+            x, r = fit.x, fit.residual
         return st, fit
+
+    def _lm(self, fun, x0: np.ndarray):
+        fit = levenberg_marquardt(fun, x0, max_iter=self.max_iter)
+        self.spent[0] += fit.iterations
+        self.spent[1] += fit.evaluations
+        return fit
 
 
 def _owners(sets) -> tuple[np.ndarray, int]:
@@ -326,18 +321,19 @@ def observation_identifiability(robot: Robot, observations: Sequence, names: Seq
     """Which robot and set-up parameters the observation sets identify (the rule of
     :func:`fit_observations`, at ``robot``), and the gauge freedoms no set sees: for planned
     measurements (simulated at the nominal robot) before anyone measures."""
+    wanted = robot.params.names if names == "auto" else tuple(names)
     with blas_threads(1):
-        _, _, gauge, ident, _ = _problem(robot, observations, names, keep, rank_tol)
+        _, _, gauge, ident, _ = _problem(robot, observations, wanted, keep, rank_tol)
     return ident, gauge
 
 
-def _problem(robot: Robot, observations: Sequence, names, keep, rank_tol, held: Mapping[str, float] | None = None):
+def _problem(robot: Robot, observations: Sequence, wanted: tuple[str, ...], keep, rank_tol,
+             held: Mapping[str, float] | None = None):
     """The registered robot, the stacked problem (set-up parameters in ``held`` at those values, not
     fitted), the gauge, the identifiability (robot and set-up parameters; the gauge left out) and the
     whitened residual and Jacobian (all columns) at the start."""
     if not observations:
         raise MeasurementError("no observations given")
-    wanted = robot.params.names if names == "auto" else tuple(names)
     if wanted and not any(o.reference for o in observations):  # (a model only evaluated needs no scale)
         raise MeasurementError(
             "these data do not fix the length scale: sockets without a known distance, or plane contacts without two "
@@ -352,6 +348,8 @@ def _problem(robot: Robot, observations: Sequence, names, keep, rank_tol, held: 
         kept = tuple(n for n in st.nuis_names if n in held)
         st = dataclasses.replace(st, held=kept, nuis0=np.array([float(held[n]) if n in held else v
                                                                 for n, v in zip(st.nuis_names, st.nuis0)]))
+    for o in st.sets:
+        o.check(robot, robot.params.values)
     x0 = np.concatenate([robot.params.values, st.nuis0])
     start = st.evaluate(robot.params.values, st.nuis0)
     ident = _identifiability(robot, st, gauge, wanted, keep, rank_tol, x0, start)
@@ -432,27 +430,68 @@ def _fun(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray):
     return r, J[:, fcols]
 
 
-def _result(robot, st, gauge, ident, free, fcols, x0, fit, weak, th: Thresholds, error: dict) -> ObservationFit:
+def _result(robot, st, gauge, ident, free, x0, fit, weak, th: Thresholds, error: dict, history=(),
+            undetermined=(), spent=None) -> ObservationFit:
+    """The fit of the columns ``free`` as an :class:`ObservationFit` (``undetermined``: moved by a
+    particle swarm but not determined by the data, σ = inf; ``spent``: iterations and evaluations of
+    every solver run, default the fit's own)."""
+    spent = spent or (fit.iterations, fit.evaluations)
+    all_names = list(robot.params.names) + list(st.nuis_names)
     full = x0.copy()
-    full[fcols] = fit.x
+    full[[all_names.index(n) for n in free]] = fit.x
     P = robot.n_params
     calibrated = robot.with_params(dict(zip(robot.params.names, full[:P])))
     if isinstance(fit, RelevanceFit):
         cov, learned = fit.covariance, fit.sigma
         sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     else:
-        sd, _, _, cov = parameter_statistics(fit.jacobian, fit.residual, free, free)
+        sd, _, _, cov = parameter_statistics(fit.jacobian, fit.residual, free, free, undetermined)
         learned = {}
-    nuis = dict(zip(st.nuis_names, full[P:]))
     std = {n: float(v) for n, v in zip(free, sd)}
     std.update({n: np.inf for n in st.nuis_names if n not in std})
     before = tuple(o.stats(robot, x0[:P], x0[P:][slot]) for o, slot in zip(st.sets, st.slots))
     after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
     r = fit.residual * st.stated / st.inv_sigma  # whitened by the stated σ: what the user can restate
-    rms = float(np.sqrt(np.mean(r**2)))
     per_kind = whitened_per_kind(st.sets, r)
     verdict = observation_verdict(robot, calibrated, st.sets, r, per_kind, fit.converged, th)
-    return ObservationFit(calibrated, robot, tuple(n for n in free if n in robot.params.names), nuis, std, ident,
-                          gauge, before, after, rms, cov, verdict, bool(fit.converged), fit.iterations, st.sets, weak,
-                          learned, per_kind, {k: v for k, v in error.items() if v > 0},
-                          outlier_samples(st.sets, r, th), whitened_residual=r)
+    return ObservationFit(calibrated, robot, tuple(n for n in free if n in robot.params.names),
+                          dict(zip(st.nuis_names, full[P:])), std, ident, gauge, before, after,
+                          float(np.sqrt(np.mean(r**2))), cov, verdict, bool(fit.converged), spent[0], st.sets,
+                          weak, learned, per_kind, {k: v for k, v in error.items() if v > 0},
+                          outlier_samples(st.sets, r, th), whitened_residual=r, evaluations=spent[1],
+                          message=fit.message if isinstance(fit, LMResult) else "prior learned", history=tuple(history), free=tuple(free))
+
+
+@dataclass(frozen=True)
+class _Swarm:
+    """A particle swarm's outcome: the full vector, the fit evaluated there (no iterations of its own),
+    the best mean squared residual per iteration, its iterations and evaluations."""
+
+    full: np.ndarray
+    fit: LMResult
+    history: tuple[float, ...]
+    iterations: int
+    evaluations: int
+
+
+def _swarm(st: _Stack, x0: np.ndarray, cols: np.ndarray, settings) -> _Swarm:
+    """Particle swarm (:mod:`kincal.identify.pso`) over the robot parameters ``cols`` on the sets'
+    batched mean squared residual, around ``x0``; sets with set-up parameters cannot take part."""
+    P = st.robot.n_params
+    if st.nuis_names or np.any(cols >= P):
+        raise ValueError("a particle swarm fits the robot's parameters to points or joint-space residuals only: "
+                         "these data bring set-up parameters (a frame, a target); use method 'lm'")
+
+    def cost(X: np.ndarray) -> np.ndarray:
+        V = np.tile(x0[:P], (X.shape[0], 1))
+        V[:, cols] = X
+        return sum((o.batch_cost(st.robot, V) for o in st.sets), np.zeros(X.shape[0]))
+    kinds = [st.robot.params.kinds[i] for i in cols]
+    found = pso(cost, x0[cols], np.array([HALF_WIDTH[k] for k in kinds]), np.array([V_MAX[k] for k in kinds]),
+                **settings.to_dict())
+    full = x0.copy()
+    full[cols] = found.x
+    r, J = _fun(st, x0, cols, found.x)
+    fit = LMResult(found.x, 0.5 * float(r @ r), r, J, found.iterations, found.evaluations, True,
+                   "particle swarm finished its iterations")
+    return _Swarm(full, fit, tuple(map(float, found.history)), found.iterations, found.evaluations)

@@ -1,0 +1,94 @@
+"""The one fit and the procedures that wrap it: any observation sets (3-D points, joint-space
+residuals, 6-D poses, markers, sockets, planes, sessions in their own frames) with one options
+record (:class:`~kincal.identify.FitOptions`).
+
+:func:`fit_stack` extends the robot by a named error model, wraps each set of measured positions in
+its instrument's drift when asked, runs the stacked fit (:func:`kincal.identify.stacked.fit_sets`),
+drops a compliance that comes out negative and fits again, and leaves out outlier samples by a
+Huber refit. Each procedure calls the fit as a function: nothing recurses through ``calibrate``.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..models.robot import Robot
+from ..models.terms import ErrorModel, drop_terms, extend
+from ..observe.drifting import Drifting
+from ..observe.sessions import InSession
+from .compliance import negative_compliances
+from .observed_result import ObservationFit
+from .options import FitOptions
+from .stacked import fit_sets
+from .verdict import MAX_OUTLIER_SHARE
+
+POSITION_KINDS = ("point", "joint")  # kinds whose default prior is none (held-out evidence: README, "prior")
+
+
+def resolved_prior(prior: str, observations: Sequence) -> str:
+    """"auto": no prior for position data alone (3-D points, joint-space residuals: a least-squares
+    fit did as well on held-out sessions), the learned prior otherwise (poses, markers, sockets,
+    planes: it stops corrections the data cannot confirm, 4.17 → 3.14 mm held out on one marker)."""
+    if prior != "auto":
+        return prior
+    return "none" if all(o.kind in POSITION_KINDS for o in observations) else "relevance"
+
+
+def fit_stack(robot: Robot, observations: Sequence, options: FitOptions, held: Mapping[str, float] | None = None,
+              say: Callable[[str], None] = lambda msg: None) -> ObservationFit:
+    """Calibrate ``robot`` from ``observations`` with ``options`` (checked): the error model (a name;
+    "auto" is chosen by :func:`kincal.calibrate` on position data), drift, the fit, the negative-
+    compliance refit and outlier rejection; ``held``: set-up parameters held at these values (a held-
+    out file judged with the probe as trained). No diagnosis: the callers add theirs."""
+    robot = _with_error_model(robot, observations, options.error_model)
+    sets = [_drifting(o) for o in observations] if options.drift else list(observations)
+    prior = resolved_prior(options.prior, sets)
+    kinds = " + ".join(dict.fromkeys(o.kind for o in sets))
+    say(f"fitting {kinds} data ({sum(len(o) for o in sets)} samples)")
+
+    def fit(chosen: Sequence, loss: str) -> ObservationFit:
+        return fit_sets(robot, chosen, options, prior, loss, held or {})
+    res = fit(sets, options.loss)
+    neg, notes = negative_compliances(res.names, res.robot.params.as_dict(), res.std)
+    if neg:
+        say("dropping negative compliance: " + ", ".join(neg))
+        robot = drop_terms(robot, neg)
+        res = dataclasses.replace(fit(sets, options.loss), notes=notes)
+    if options.reject_outliers:
+        res = _without_outliers(fit, sets, res, options.loss, say)
+    return res
+
+
+def _without_outliers(fit, observations: Sequence, res: ObservationFit, loss: str, say) -> ObservationFit:
+    """``res`` fitted again (``fit(sets, loss)``) without the samples a robust fit puts beyond the
+    outlier limit, at most a tenth of a set's; ``res`` itself when there are none."""
+    found = (res if loss != "linear" else fit(observations, "huber")).outliers
+    bad = [b if len(b) <= max(1, int(MAX_OUTLIER_SHARE * len(o))) else b[:0] for o, b in zip(observations, found)]
+    if not any(len(b) for b in bad):
+        return res
+    kept = [o.subset(np.setdiff1d(np.arange(len(o)), b)) if len(b) else o for o, b in zip(observations, bad)]
+    rejected = {o.source: tuple(int(r) for r in o.rows[b]) for o, b in zip(observations, bad) if len(b)}
+    say(f"leaving out {sum(len(b) for b in bad)} outlier sample(s) and fitting again")
+    return dataclasses.replace(fit(kept, loss), rejected=rejected, notes=res.notes)
+
+
+def _drifting(obs):
+    """``obs`` measured by a drifting instrument (in its session's frame, if it has one)."""
+    if obs.kind not in ("point", "pose", "markers"):
+        raise ValueError(f"drift: {obs.kind} data ({obs.source}) have no measuring instrument that could drift; the "
+                         f"drift term is for points, poses and markers")
+    return dataclasses.replace(obs, inner=Drifting.of(obs.inner)) if isinstance(obs, InSession) else Drifting.of(obs)
+
+
+def _with_error_model(robot: Robot, observations: Sequence, error_model) -> Robot:
+    """``robot`` extended by the named error model, its terms on the joints that move the tool at
+    the samples (``robot`` itself for None)."""
+    if error_model is None:
+        return robot
+    spec = ErrorModel.of(error_model)
+    if spec.name == "auto":
+        raise ValueError("error model 'auto' is chosen by blocked cross-validation of position data (kincal.calibrate"
+                         "); for these data name the model (e.g. compliance, harmonics:2) and compare on held-out data")
+    return extend(robot, spec, np.concatenate([o.q for o in observations]))
