@@ -164,7 +164,9 @@ def jacobian_identifiability(J: np.ndarray, cand: Sequence[str], stages: Sequenc
     # Everything below depends on the column space only, so it works on the small triangular
     # factor R0 of the scaled Jacobian (Js = Q0 R0): same singular values, same linear relations.
     # (NumPy's stubs type every qr result as a QRResult; mode="r" returns R alone)
-    R0 = cast(np.ndarray, np.linalg.qr(J[:, live] / norms[live], mode="r")) if live.any() else np.zeros((0, 0))
+    # (J D⁻¹ = Q (R D⁻¹): the factor of the unscaled columns, scaled, saves a copy of J)
+    Jl = J if live.all() else J[:, live]
+    R0 = cast(np.ndarray, np.linalg.qr(Jl, mode="r")) / norms[live] if live.any() else np.zeros((0, 0))
 
     s = np.linalg.svd(R0, compute_uv=False) if R0.size else np.zeros(0)
     rank = int(np.sum(s > rank_tol * s[0])) if s.size else 0

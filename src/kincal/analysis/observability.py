@@ -34,9 +34,10 @@ def column_norms(J: np.ndarray) -> np.ndarray:
     return np.sqrt(np.array([c @ c for c in J.T])) if J.shape[0] else np.zeros(J.shape[1])
 
 
-def live_columns(J: np.ndarray) -> np.ndarray:
-    """(k,) bool: columns of a stacked Jacobian (3m × k) whose per-pose RMS exceeds ``ZERO_COLUMN``."""
-    return column_norms(J) / np.sqrt(max(np.shape(J)[0] // 3, 1)) > ZERO_COLUMN
+def live_columns(J: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    """(k,) bool: columns of a stacked Jacobian (3m × k), times ``scale``, whose per-pose RMS exceeds
+    ``ZERO_COLUMN``."""
+    return column_norms(J) * scale / np.sqrt(max(np.shape(J)[0] // 3, 1)) > ZERO_COLUMN
 
 
 def column_scale(J: np.ndarray) -> np.ndarray:

@@ -31,7 +31,8 @@ from .observed_result import ObservationFit
 from .options import FitOptions
 from .result import CalibrationResult, EvaluationStats
 from .select import select_model
-from .verdict import (Reason, Verdict, correction_reasons, drift_reasons, duplicate_groups, duplicate_reasons,
+from .verdict import (Reason, Verdict, correction_reasons, distinct_count, drift_reasons, duplicate_groups,
+                      duplicate_reasons,
                       fitted_drift_reasons, mounting_reasons, noise_level, outlier_reasons, repeat_tolerance,
                       residual_reasons, robust_z)
 
@@ -98,10 +99,9 @@ def _sets(sessions: list[Measurements], own_frames: bool, o: FitOptions, robot: 
     """One observation set per session (later ones in their own frames with ``own_frames``), after
     the check that registering the frame needs: 3 distinct poses."""
     kind = RESIDUALS[o.residual]
-    repeated = sum(len(g) - 1 for s in sessions for g in duplicate_groups(s.q, repeat_tolerance(robot.joint_types,
-                                                                                                  o.thresholds)))
     n = sum(len(s) for s in sessions)
-    distinct = n - repeated
+    distinct = distinct_count(np.concatenate([s.q for s in sessions]), repeat_tolerance(robot.joint_types,
+                                                                                        o.thresholds), 3)
     if o.base == "estimate" and robot.base_params() and distinct < 3:
         raise MeasurementError(f"{sessions[0].source}: registering the base frame needs at least 3 distinct poses, "
                                f"got {distinct} ({n} rows); measure poses spread over the workspace")

@@ -13,8 +13,6 @@ from statistics import NormalDist
 
 import numpy as np
 
-ROUNDS = 3  # fits with the extra variance re-estimated (it settles within one or two)
-SETTLED = 0.05  # relative change of s that ends the rounds
 
 
 def extra_variance(r2: np.ndarray, var: np.ndarray, dof: float) -> float:
@@ -44,9 +42,3 @@ def extra_variance(r2: np.ndarray, var: np.ndarray, dof: float) -> float:
 
 SIGNIFICANT = 3.0  # the residuals must exceed the stated σ by this many standard errors of χ²/dof
 CHI2_1_MEDIAN = NormalDist().inv_cdf(0.75) ** 2  # the median of χ² with one degree of freedom (0.4549)
-
-
-def relative_weights(std: np.ndarray, s2: float) -> np.ndarray:
-    """(N, 3) weights 1/(σ² + s²) scaled to a median of 1 (the fit's σ̂ stays in m)."""
-    var = np.asarray(std, float) ** 2 + s2
-    return float(np.median(var)) / var

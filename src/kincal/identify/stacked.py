@@ -83,18 +83,26 @@ class _Stack:
                 st.inv_sigma[rows] = self.stated[rows]
         return st.inv_sigma / self.inv_sigma
 
-    def evaluate(self, values: np.ndarray, nuis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Whitened residual (M,) and Jacobian (M, P + K) over all robot and nuisance parameters."""
-        rs, Js = [], []
-        for obs, slot in zip(self.sets, self.slots):
-            r, Jr, Jn = obs.evaluate(self.robot, values, nuis[slot])
-            J = np.zeros((r.size, values.size + nuis.size))
-            J[:, :values.size] = Jr
-            J[:, values.size + slot] = Jn
-            rs.append(r)
-            Js.append(J)
-        r, J = np.concatenate(rs), np.concatenate(Js)
-        return r * self.inv_sigma, J * self.inv_sigma[:, None]
+    def evaluate(self, values: np.ndarray, nuis: np.ndarray,
+                 cols: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Whitened residual (M,) and Jacobian (M, P + K) over all robot and nuisance parameters, or
+        over the columns ``cols`` of them (one set without set-up parameters: its own column view, no
+        copy of the columns not asked for)."""
+        if len(self.sets) == 1 and not nuis.size:
+            r, J = self.sets[0].evaluate_cols(self.robot, values, np.arange(values.size) if cols is None else cols)
+        else:
+            rs, Js = [], []
+            for obs, slot in zip(self.sets, self.slots):
+                r, Jr, Jn = obs.evaluate(self.robot, values, nuis[slot])
+                Jo = np.zeros((r.size, values.size + nuis.size))
+                Jo[:, :values.size] = Jr
+                Jo[:, values.size + slot] = Jn
+                rs.append(r)
+                Js.append(Jo)
+            r, J = np.concatenate(rs), np.concatenate(Js)
+            J = J if cols is None else J[:, cols]
+        J *= self.inv_sigma[:, None]  # (a fresh array either way)
+        return r * self.inv_sigma, J
 
 
 def _stack(robot: Robot, observations: Sequence) -> _Stack:
@@ -364,12 +372,14 @@ def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, fu
     # an unseen base) is dropped as confounded with them, not fitted to the residuals' curvature alone
     cand = list(gauge) + [n for n in wanted if n not in set(gauge)]
     P = robot.n_params
-    J0 = (evaluated or st.evaluate(full[:P], full[P:]))[1]
     all_names = list(robot.params.names) + list(st.nuis_names)
     nuis = [n for n in st.nuis_names if n not in st.held]
     cols = np.array([all_names.index(n) for n in cand + nuis], dtype=int)
-    live = live_columns(J0[:, cols] / st.inv_sigma[:, None])  # no effect: judged in m and rad, not whitened
-    ident = jacobian_identifiability(J0[:, cols], cand + nuis,
+    J0 = evaluated[1][:, cols] if evaluated else st.evaluate(full[:P], full[P:], cols)[1]
+    w = st.inv_sigma
+    # no effect: judged in m and rad, not whitened (one σ for every row: a scale of the column norms)
+    live = live_columns(J0, 1.0 / w[0]) if w.size and np.all(w == w[0]) else live_columns(J0 / w[:, None])
+    ident = jacobian_identifiability(J0, cand + nuis,
                                      [list(keep), [n for n in nuis if n not in st.late], list(gauge),
                                       list(robot.base_params()),
                                       list(robot.preferred_params())], robot.name,
@@ -426,8 +436,7 @@ def _fun(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray):
     full = x0.copy()
     full[fcols] = x
     P = st.robot.n_params
-    r, J = st.evaluate(full[:P], full[P:])
-    return r, J[:, fcols]
+    return st.evaluate(full[:P], full[P:], fcols)
 
 
 def _result(robot, st, gauge, ident, free, x0, fit, weak, th: Thresholds, error: dict, history=(),

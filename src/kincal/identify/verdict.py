@@ -231,6 +231,19 @@ def _odd_mixers(n: int) -> list[int]:
     return out
 
 
+def distinct_count(q: np.ndarray, tol: np.ndarray | float, most: int) -> int:
+    """How many poses of ``q`` differ pairwise by more than ``tol`` in some joint, counted up to
+    ``most``: the number of groups :func:`duplicate_groups` forms (singletons included), capped, in
+    O(N·most) (each new pose is the first that matches none found so far, so it starts a group)."""
+    found: list[int] = []
+    apart = np.ones(len(q), bool)
+    while len(found) < most and apart.any():
+        k = int(np.argmax(apart))
+        found.append(k)
+        apart &= np.any(np.abs(q - q[k]) > tol, axis=1)
+    return len(found)
+
+
 def repeat_tolerance(joint_types, th: "Thresholds") -> np.ndarray:
     """Per joint, how close two commanded values count as the same pose (a repeated pose, ISO 9283)."""
     return np.array([th.repeat_angle if t == "revolute" else th.repeat_length for t in joint_types])
