@@ -12,7 +12,8 @@ import numpy as np
 
 import kincal
 from kincal._threads import blas_threads
-from kincal.identify.sessions import _in_frame_of, joined, refit_frame
+from kincal.identify.calibrate import in_frame_of as _in_frame_of, joined
+from kincal.identify.sessions import refit_frame
 
 
 def alternation(robot, sessions, rounds=30, tol=1e-10):

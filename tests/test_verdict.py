@@ -281,3 +281,18 @@ def test_the_outlier_limit_rises_with_the_number_of_poses():
         assert th.outlier_limit(n) == pytest.approx(expected, rel=1e-6)
     z = robust_z(np.linalg.norm(np.random.default_rng(3).standard_normal((100_000, 3)), axis=1))
     assert np.count_nonzero(z > 5.0) > 0 and np.count_nonzero(z > th.outlier_limit(len(z))) == 0
+
+
+def test_distinct_count_equals_the_number_of_repeat_groups():
+    """The O(N) count of distinct poses equals the groups duplicate_groups forms (singletons
+    included), capped, on poses that repeat within and beyond the tolerance."""
+    from kincal.identify.verdict import distinct_count, duplicate_groups
+    rng = np.random.default_rng(4)
+    for trial in range(30):
+        base = rng.uniform(-1, 1, (rng.integers(1, 5), 3))
+        q = base[rng.integers(0, len(base), rng.integers(1, 40))] + rng.uniform(-4e-4, 4e-4, (1, 3)) * (trial % 2)
+        q = q + rng.normal(0, 1e-4, q.shape)  # jitter within a tolerance of 1e-3
+        groups = duplicate_groups(q, 1e-3)
+        expected = len(q) - sum(len(g) - 1 for g in groups)
+        for most in (1, 2, 3, 10):
+            assert distinct_count(q, 1e-3, most) == min(expected, most)
