@@ -45,7 +45,7 @@ def fit_options(args) -> kincal.FitOptions:
     return kincal.FitOptions(names=args.params or "auto", base=args.base, loss=args.loss, keep=args.keep or (),
                              max_iter=args.max_iter, method=args.method, residual=args.residual,
                              thresholds=_thresholds(args), error_model=error_model, drift=args.drift,
-                             reject_outliers=args.reject_outliers, prior=args.prior or "none")
+                             reject_outliers=args.reject_outliers, prior=args.prior)
 
 
 def cmd_calibrate(args) -> int:
@@ -214,11 +214,11 @@ def register(cmd) -> None:
     s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers); for "
                                        "the other kinds per sample: position and rotation error (mm, mrad), the "
                                        "residual against its stated σ, robust z, outlier")
-    s.add_argument("--prior", choices=list(kincal.identify.PRIORS),
+    s.add_argument("--prior", choices=list(kincal.identify.PRIOR_CHOICES), default=kincal.FitOptions().prior,
                    help="relevance (a prior σ per joint origin's lengths and angles, learned from the data; "
-                        "corrections the data do not confirm stay near nominal) or none (least squares); default "
-                        "relevance for poses, markers, sockets and planes, none for points (on the real UR5 it did "
-                        "not help: 40 grid poses, 0.115 vs 0.103 mm on the random poses)")
+                        "corrections the data do not confirm stay near nominal), none (least squares) or auto "
+                        "(default): relevance for poses, markers, sockets and planes, none for points (on the real "
+                        "UR5 it did not help: 40 grid poses, 0.115 vs 0.103 mm on the random poses)")
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")
     add_session_flags(s)  # held-out sessions for the report and figures; with --error-model auto also the
     # poses where the model will be used (the prediction-σ guard)

@@ -167,7 +167,7 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
     spec = None if args.error_model is None else kincal.ErrorModel(args.error_model, args.payload)
     robot = load_robot(args)
     options = {"names": tuple(args.params) if args.params else "auto", "base": args.base, "keep": tuple(args.keep or ()),
-               "max_iter": args.max_iter, "prior": args.prior or "relevance", "thresholds": thresholds,
+               "max_iter": args.max_iter, "prior": args.prior, "thresholds": thresholds,
                "loss": args.loss, "reject_outliers": args.reject_outliers, "error_model": spec, "diagnose": True,
                "drift": args.drift}
     fit, held, held_nominal = fitted(args, robot, kinds, args.data, args.test, options)

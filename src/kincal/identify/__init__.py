@@ -1,7 +1,7 @@
 """Identification: calibration problems, residuals, solvers (LM, PSO), robust weighting, covariance."""
 from .applies import SCOPES, refuse_inapplicable
 from .calibrate import RESIDUALS, calibrate, calibrate_sessions, evaluate, fit_observations, joined
-from .options import METHODS, FitOptions, PSOOptions
+from .options import METHODS, PRIOR_CHOICES, FitOptions, PSOOptions
 from .result import CalibrationResult, EvaluationStats
 from .relevance import PRIORS
 from .robust import LOSSES
@@ -13,5 +13,5 @@ from .verdict import Reason, Thresholds, Verdict
 
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "RESIDUALS", "CalibrationResult", "EvaluationStats", "LOSSES",
            "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
-           "AS_CALIBRATED", "PRIORS", "fit_observations", "ObservationFit", "observation_identifiability", "stat_line",
+           "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "ObservationFit", "observation_identifiability", "stat_line",
            "SCOPES", "refuse_inapplicable", "joined"]

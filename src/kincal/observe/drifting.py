@@ -9,7 +9,6 @@ joints (a grid scanned joint by joint) the drift is named as confounded, not fit
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,7 +16,7 @@ import numpy as np
 
 from ..models.robot import Robot
 from ..units import MM
-from .observations import Observation
+from .observations import Observation, Wrapper
 
 DRIFT = "drift"  # the kind of a drift's set-up parameters (chosen after the robot's, see the module docstring)
 
@@ -30,26 +29,12 @@ def acquisition(rows: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class Drifting(Observation):
+class Drifting(Wrapper):
     """``inner`` measured by an instrument that drifts linearly over the set's row order."""
-
-    inner: Observation
 
     @classmethod
     def of(cls, inner: Observation) -> "Drifting":
         return cls(inner.q, inner.rows, inner.source, inner=inner)
-
-    @property
-    def kind(self) -> str:  # the inner set's type
-        return self.inner.kind
-
-    @kind.setter
-    def kind(self, value: str) -> None:  # the base declares a plain attribute; here it is frozen like a field
-        raise dataclasses.FrozenInstanceError("cannot assign to field 'kind'")
-
-    @property
-    def reference(self) -> bool:
-        return self.inner.reference
 
     def names(self) -> tuple[str, ...]:
         return tuple(f"drift[{Path(self.source).name}].{a}" for a in "xyz")
@@ -58,39 +43,9 @@ class Drifting(Observation):
         """The inner set with the drift taken out of its measured positions."""
         return self.inner.shifted(-acquisition(self.rows)[:, None] * d)
 
-    def subset(self, idx: np.ndarray) -> "Drifting":
-        return dataclasses.replace(self, q=self.q[idx], rows=self.rows[idx], inner=self.inner.subset(idx))
-
-    def positions(self):
-        return self.inner.positions()
-
-    def prepare(self, robot: Robot) -> "Drifting":
-        return dataclasses.replace(self, inner=self.inner.prepare(robot))
-
-    def anchors(self) -> dict:
-        return self.inner.anchors()
-
-    def with_anchors(self, anchors: dict) -> "Drifting":
-        return dataclasses.replace(self, inner=self.inner.with_anchors(anchors))
-
     def nuisance(self, robot: Robot):
         names, start, kinds = self.inner.nuisance(robot)
         return tuple(names) + self.names(), np.concatenate([start, np.zeros(3)]), tuple(kinds) + (DRIFT,) * 3
-
-    def gauge_params(self, robot: Robot) -> tuple[str, ...]:
-        return self.inner.gauge_params(robot)
-
-    def sigma(self) -> np.ndarray:
-        return self.inner.sigma()
-
-    def sample_rows(self) -> np.ndarray:
-        return self.inner.sample_rows()
-
-    def position_axes(self) -> np.ndarray:
-        return self.inner.position_axes()
-
-    def shifted(self, offset: np.ndarray) -> "Drifting":
-        return dataclasses.replace(self, inner=self.inner.shifted(offset))
 
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
         r, Jr, Jn = self._corrected(nuis[-3:]).evaluate(robot, values, nuis[:-3])

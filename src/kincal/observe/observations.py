@@ -192,6 +192,56 @@ class Observation:
 
 
 @dataclass(frozen=True, eq=False)
+class Wrapper(Observation):
+    """A set built on another, ``inner`` (a session's own frame, a drifting instrument): its type, σ,
+    rows, positions, anchors and set-up start are the inner set's unless the wrapper says otherwise."""
+
+    inner: Observation
+
+    @property
+    def kind(self) -> str:  # the inner set's type
+        return self.inner.kind
+
+    @kind.setter
+    def kind(self, value: str) -> None:  # the base declares a plain attribute; here it is frozen like a field
+        raise dataclasses.FrozenInstanceError("cannot assign to field 'kind'")
+
+    @property
+    def reference(self) -> bool:
+        return self.inner.reference
+
+    def subset(self, idx: np.ndarray) -> "Wrapper":
+        return dataclasses.replace(self, q=self.q[idx], rows=self.rows[idx], inner=self.inner.subset(idx))
+
+    def positions(self):
+        return self.inner.positions()
+
+    def prepare(self, robot: Robot) -> "Wrapper":
+        return dataclasses.replace(self, inner=self.inner.prepare(robot))
+
+    def anchors(self) -> dict:
+        return self.inner.anchors()
+
+    def with_anchors(self, anchors: dict) -> "Wrapper":
+        return dataclasses.replace(self, inner=self.inner.with_anchors(anchors))
+
+    def gauge_params(self, robot: Robot) -> tuple[str, ...]:
+        return self.inner.gauge_params(robot)
+
+    def sigma(self) -> np.ndarray:
+        return self.inner.sigma()
+
+    def sample_rows(self) -> np.ndarray:
+        return self.inner.sample_rows()
+
+    def position_axes(self) -> np.ndarray:
+        return self.inner.position_axes()
+
+    def shifted(self, offset: np.ndarray) -> "Wrapper":
+        return dataclasses.replace(self, inner=self.inner.shifted(offset))
+
+
+@dataclass(frozen=True, eq=False)
 class PointObs(Observation):
     """One 3-D point per sample (a tracker's reflector): xyz (N, 3) m in the measurement frame (the
     robot's base frame parameters), σ (N, 3) m or one number."""

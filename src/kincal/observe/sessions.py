@@ -11,36 +11,20 @@ import numpy as np
 
 from ..errors import ModelError
 from ..models.robot import Robot
-from .observations import Observation
+from .observations import Observation, Wrapper
 
 
 @dataclass(frozen=True, eq=False)
-class InSession(Observation):
+class InSession(Wrapper):
     """``inner`` (an absolute set) measured in the frame of ``session``; ``frame0``: the frame's start
     values in the order and units of ``robot.base_params()`` (set by the fit from a registration)."""
 
-    inner: Observation
     session: str = ""
     frame0: np.ndarray | None = None
 
     @classmethod
     def of(cls, inner: Observation, session: str) -> "InSession":
         return cls(inner.q, inner.rows, inner.source, inner=inner, session=session)
-
-    def subset(self, idx: np.ndarray) -> "InSession":
-        return dataclasses.replace(self, q=self.q[idx], rows=self.rows[idx], inner=self.inner.subset(idx))
-
-    @property
-    def kind(self) -> str:  # the inner set's type
-        return self.inner.kind
-
-    @kind.setter
-    def kind(self, value: str) -> None:  # the base declares a plain attribute; here it is frozen like a field
-        raise dataclasses.FrozenInstanceError("cannot assign to field 'kind'")
-
-    @property
-    def reference(self) -> bool:
-        return self.inner.reference
 
     def _base(self, robot: Robot) -> np.ndarray:
         if not robot.base_params():
@@ -72,12 +56,6 @@ class InSession(Observation):
     def prepare(self, robot: Robot) -> "InSession":
         return dataclasses.replace(self, inner=self.inner.prepare(self._at_frame(robot)))
 
-    def anchors(self) -> dict:
-        return self.inner.anchors()
-
-    def with_anchors(self, anchors: dict) -> "InSession":
-        return dataclasses.replace(self, inner=self.inner.with_anchors(anchors))
-
     def nuisance(self, robot: Robot):
         names, start, kinds = self.inner.nuisance(self._at_frame(robot))
         base = robot.base_params()
@@ -87,18 +65,6 @@ class InSession(Observation):
 
     def gauge_params(self, robot: Robot) -> tuple[str, ...]:
         return tuple(dict.fromkeys(self.inner.gauge_params(robot) + robot.base_params()))
-
-    def sigma(self) -> np.ndarray:
-        return self.inner.sigma()
-
-    def sample_rows(self) -> np.ndarray:
-        return self.inner.sample_rows()
-
-    def position_axes(self) -> np.ndarray:
-        return self.inner.position_axes()
-
-    def shifted(self, offset: np.ndarray) -> "InSession":
-        return dataclasses.replace(self, inner=self.inner.shifted(offset))
 
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
         idx, k = self._base(robot), len(robot.base_params())
