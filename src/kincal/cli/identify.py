@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import operator
 
 from pathlib import Path
 
@@ -36,22 +38,41 @@ def error_model_name(s: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+FORMS: dict[str, dict] = {"names": {"type": csv_list}, "count": {"type": positive_int},
+                          "switch": {"action": "store_true"}}  # argparse forms of FitOptions fields
+
+
+def add_fit_flags(s) -> None:
+    """The flags of :class:`kincal.FitOptions`' fields, declared once, in the record: flag, help, the
+    form of the value, choices and default (the record's)."""
+    for f in dataclasses.fields(kincal.FitOptions):
+        m = f.metadata
+        if "flag" not in m:
+            continue
+        kw: dict = {"dest": f.name, "help": m["help"], **FORMS.get(m["form"], {})}
+        if m["choices"]:
+            kw["choices"] = list(m["choices"])
+        if m["form"] not in ("switch", "names"):
+            kw["default"] = f.default
+        s.add_argument(m["flag"], **kw)
+
+
 def fit_options(args) -> kincal.FitOptions:
-    """The calibrate command's options as the record the API takes (checked when built)."""
+    """The calibrate command's options, for every kind, as the record the API takes (checked when
+    built): the fields' own flags, the verdict's limits and the error model with its payload."""
     if args.payload and args.error_model is None:
         raise ValueError(f"--payload {args.payload:g}: only the gravity terms use it; give --error-model compliance, "
                          f"gravity-regressor or auto")
     error_model = None if args.error_model is None else kincal.ErrorModel(args.error_model, args.payload)
-    return kincal.FitOptions(names=args.params or "auto", base=args.base, loss=args.loss, keep=args.keep or (),
-                             max_iter=args.max_iter, method=args.method, residual=args.residual,
-                             thresholds=_thresholds(args), error_model=error_model, drift=args.drift,
-                             reject_outliers=args.reject_outliers, prior=args.prior)
+    flags = [f.name for f in dataclasses.fields(kincal.FitOptions) if "flag" in f.metadata]
+    given: dict = {k: v for k, v in zip(flags, operator.attrgetter(*flags)(args)) if v is not None}  # None: a list
+    return kincal.FitOptions(**given, thresholds=_thresholds(args), error_model=error_model)  # flag not given
 
 
 def cmd_calibrate(args) -> int:
     kinds = _kinds_checked(args)
     if set(kinds) != {"point"}:
-        return observe.cmd_calibrate(args, kinds, _thresholds(args))
+        return observe.cmd_calibrate(args, kinds, fit_options(args))
     reports = [args.report, json_path(args.report)] if args.report else []
     check_paths([*robot_inputs(args.robot), *args.data, *args.test],
                 [args.output, args.residuals, *reports, args.plot])
@@ -170,11 +191,15 @@ def _verdict_and_output_flags(s) -> None:
     """calibrate's report, figures, the verdict's limits and how the files are read."""
     s.add_argument("--report", help="HTML report to write (self-contained; its JSON goes beside it)")
     s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
-    s.add_argument("--tracker-noise", type=positive_float, default=0.05, help="expected tracker noise, mm (default 0.05)")
-    s.add_argument("--length-limits", type=_pair, default=(10.0, 50.0), metavar="SUSPECT,REFUSE",
-                   help="largest plausible length corrections, mm (default 10,50)")
-    s.add_argument("--angle-limits", type=_pair, default=(2.0, 10.0), metavar="SUSPECT,REFUSE",
-                   help="largest plausible angle corrections, deg (default 2,10)")
+    th = kincal.Thresholds()  # the defaults are the record's
+    s.add_argument("--tracker-noise", type=positive_float, default=th.tracker_noise * MM,
+                   help=f"expected tracker noise, mm (default {th.tracker_noise * MM:g})")
+    s.add_argument("--length-limits", type=_pair, default=(th.length_suspect * MM, th.length_refuse * MM),
+                   metavar="SUSPECT,REFUSE", help=f"largest plausible length corrections, mm (default "
+                                                  f"{th.length_suspect * MM:g},{th.length_refuse * MM:g})")
+    s.add_argument("--angle-limits", type=_pair, default=(th.angle_suspect * DEG, th.angle_refuse * DEG),
+                   metavar="SUSPECT,REFUSE", help=f"largest plausible angle corrections, deg (default "
+                                                  f"{th.angle_suspect * DEG:g},{th.angle_refuse * DEG:g})")
     add_data_flags(s)
     observe.add_flags(s)
 
@@ -186,17 +211,7 @@ def register(cmd) -> None:
     s.add_argument("data", nargs="+", help="measurement CSV, one per session (the tracker may move between sessions: "
                                            "each gets its own measurement frame, the kinematics are shared)")
     s.add_argument("-o", "--output", help="calibrated robot YAML to write")
-    s.add_argument("--base", choices=list(kincal.analysis.BASE_MODES), default="estimate",
-                   help="estimate the measurement (tracker) frame, or take the robot's base as known")
-    s.add_argument("--loss", choices=list(kincal.identify.LOSSES), default="linear",
-                   help="huber or soft_l1 down-weight the samples far off: each pose's 3-D error, or each sample's "
-                        "residual against its stated σ (a 6-D pose, a marker sample, a seat) (default linear)")
-    s.add_argument("--params", type=csv_list, help="parameters to estimate (default: identifiable set)")
-    s.add_argument("--keep", type=csv_list, help="parameters to prefer among confounded ones")
-    s.add_argument("--max-iter", type=positive_int, default=100, help="Levenberg-Marquardt iteration limit (default 100)")
-    s.add_argument("--method", choices=list(kincal.identify.METHODS), default="lm")
-    s.add_argument("--residual", choices=list(kincal.identify.RESIDUALS), default="cartesian",
-                   help="joint: commanded − inverse kinematics of the measured positions (parallel robots)")
+    add_fit_flags(s)
     s.add_argument("--error-model", type=error_model_name,
                    help="error model: geometric, nobeta, compliance, gravity-regressor, harmonics:1..4, terms joined "
                         "by '+' (e.g. compliance+harmonics:2), or auto (chosen by joint-space blocked "
@@ -204,21 +219,10 @@ def register(cmd) -> None:
     hidden_alias(s, "--model", "error_model", type=error_model_name)
     s.add_argument("--payload", type=nonneg_float, default=0.0,
                    help="payload at the tool in kg, for the gravity terms (default 0)")
-    s.add_argument("--drift", action="store_true",
-                   help="also fit a base drift over acquisition (row) order, e.g. a tracker creeping; reported, "
-                        "not kept in the model")
     s.add_argument("--exclude", type=row_list, help="input rows to leave out, e.g. 12,40-42")
-    s.add_argument("--reject-outliers", action="store_true",
-                   help="leave out the samples a robust refit puts beyond the outlier limit (at most a tenth of a "
-                        "file's); named by file and row in the output and the report")
     s.add_argument("--residuals", help="CSV of per-pose residuals to write (mm, deg; robust z-scores, outliers); for "
                                        "the other kinds per sample: position and rotation error (mm, mrad), the "
                                        "residual against its stated σ, robust z, outlier")
-    s.add_argument("--prior", choices=list(kincal.identify.PRIOR_CHOICES), default=kincal.FitOptions().prior,
-                   help="relevance (a prior σ per joint origin's lengths and angles, learned from the data; "
-                        "corrections the data do not confirm stay near nominal), none (least squares) or auto "
-                        "(default): relevance for poses, markers, sockets and planes, none for points (on the real "
-                        "UR5 it did not help: 40 grid poses, 0.115 vs 0.103 mm on the random poses)")
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")
     add_session_flags(s)  # held-out sessions for the report and figures; with --error-model auto also the
     # poses where the model will be used (the prediction-σ guard)

@@ -155,24 +155,15 @@ READING = ("joint_cols", "length_unit", "angle_unit", "xyz_cols", "orientation",
            "group_col", "distance", "plane", "std_pos", "std_rot", "exclude")  # how the files were read: in the record
 
 
-def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
+def cmd_calibrate(args, kinds: list[str], options) -> int:
     """calibrate with measurement types: fit, print per-type statistics, write the robot and report."""
     from kincal.identify import stat_line
 
     reports = [args.report, json_path(args.report)] if args.report else []
     check_paths([*robot_inputs(args.robot), *args.data, *args.test], [args.output, args.residuals, args.plot, *reports])
-    if args.payload and args.error_model is None:
-        raise ValueError(f"--payload {args.payload:g}: only the gravity terms use it; give --error-model compliance "
-                         f"or gravity-regressor")
-    spec = None if args.error_model is None else kincal.ErrorModel(args.error_model, args.payload)
     robot = load_robot(args)
-    options = {"names": tuple(args.params) if args.params else "auto", "base": args.base, "keep": tuple(args.keep or ()),
-               "max_iter": args.max_iter, "prior": args.prior, "thresholds": thresholds,
-               "loss": args.loss, "reject_outliers": args.reject_outliers, "error_model": spec, "diagnose": True,
-               "drift": args.drift}
     fit, held, held_nominal = fitted(args, robot, kinds, args.data, args.test, options)
-    record = {**fit.record(), "observation_options": {**options, "thresholds": thresholds.to_dict(),
-                                                      "error_model": spec and spec.to_dict()},
+    record = {**fit.record(), "observation_options": options.to_dict(),
               "data": {"file": list(args.data), "kinds": list(kinds), "same_frame": args.same_frame,
                        "reading": {k: _plain(vars(args)[k]) for k in READING}}}
     refused = fit.verdict.status == "refused"
@@ -203,7 +194,7 @@ def cmd_calibrate(args, kinds: list[str], thresholds) -> int:
     return 0
 
 
-def fitted(args, robot, kinds: list[str], data: list[str], tests: list[str], options: dict):
+def fitted(args, robot, kinds: list[str], data: list[str], tests: list[str], options):
     """The files read (``args``: how; tests in the first file's kind), fitted from ``robot`` with
     ``options`` (of :func:`kincal.identify.fit_observations`), and the held-out statistics under the
     calibrated and the nominal model: (fit, held, held_nominal)."""
@@ -218,7 +209,7 @@ def fitted(args, robot, kinds: list[str], data: list[str], tests: list[str], opt
     test_sets = [read_observations(path, robot, format_of(args, kinds[0])) for path in tests]
     _check_units(sets + test_sets, robot, args)
     with progress("calibrating", args.json):
-        fit = fit_observations(robot, _sessions(sets, args.same_frame), **options)
+        fit = fit_observations(robot, _sessions(sets, args.same_frame), options)
     held = [_held_out(fit, t, fit.robot, args.same_frame) for t in test_sets]
     held_nominal = [_held_out(fit, t, fit.nominal, args.same_frame) for t in test_sets]
     return fit, held, held_nominal
@@ -264,9 +255,8 @@ def cmd_report(args, record: dict) -> int:
     check_paths([*robot_inputs(args.robot), *train, *args.test], [args.output, json_path(args.output)])
     cal = load_robot(args)
     nominal = cal.with_params({str(k): float(v) for k, v in record["nominal"].items()})
-    opts["thresholds"] = kincal.Thresholds.of(opts["thresholds"])
-    opts["names"] = opts["names"] if opts["names"] == "auto" else tuple(opts["names"])
-    fit, held, held_nominal = fitted(reading, nominal, data["kinds"], train, args.test, opts)
+    options = kincal.FitOptions.from_dict(opts, f"{args.robot}: calibration record")
+    fit, held, held_nominal = fitted(reading, nominal, data["kinds"], train, args.test, options)
     gap = float(np.max(np.abs(fit.robot.params.values - cal.params.values)))
     if gap > 1e-9:
         err.print(f"kincal: warning: a fit of these data differs from {args.robot} by up to {gap:.3g} (SI): the "
@@ -427,24 +417,30 @@ def cmd_identifiability(args, kind: str) -> int:
 def cmd_evaluate(args, kind: str) -> int:
     """evaluate --type: a robot model on observation files, its kinematics fixed; only the set-up
     parameters (and, unless --same-frame, each file's measurement frame) are fitted to each file."""
-    from kincal.identify import fit_observations, stat_line
+    from kincal.identify import fit_observations, stat_line, trained_setup
     from kincal.observe import read_observations
 
     robot = load_robot(args)
+    held, anchors = trained_setup(kincal.models.load_calibration_record(args.robot) if robot_inputs(args.robot)
+                                  else None)  # the probe's rotation and the markers as trained
     payloads, texts = [], []
     for path in args.data:
         obs = read_observations(path, robot, format_of(args, kind))
         _check_units([obs], robot, args)
         frame = () if args.same_frame or kind not in ABSOLUTE else robot.base_params()
         with progress("evaluating", args.json):
-            fit = fit_observations(robot, [obs], names=frame, base="estimate" if frame else "fixed")
+            fit = fit_observations(robot, [obs.with_anchors(anchors)], names=frame,
+                                   base="estimate" if frame else "fixed", held=held)
         s = fit.stats[0]
-        payloads.append({"file": path, "frame_fitted": bool(frame), **s})
+        kept = sorted({"probe rotation" if n.startswith("target.") else "marker points" for n in held
+                       if n in fit.nuisance})
+        payloads.append({"file": path, "frame_fitted": bool(frame), "setup_as_trained": kept, **s})
         texts += [line for line in _plots(args.plot and (args.plot if len(args.data) == 1 else
                                                          f"{args.plot}-{len(payloads)}"), fit, "held-out").split("\n")
                   if line]
-        texts.append(f"{robot.name} on {path} ({kind}; kinematics fixed, "
-                     f"{'frame and ' if frame else ''}set-up parameters fitted): {stat_line(s)}")
+        texts.append(f"{robot.name} on {path} ({kind}; kinematics fixed, {'frame and ' if frame else ''}set-up "
+                     f"parameters fitted{', the ' + ' and '.join(kept) + ' as calibrated' if kept else ''}): "
+                     f"{stat_line(s)}")
         texts += [f"  {g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
                   f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
                   for g in s.get("groups", [])]

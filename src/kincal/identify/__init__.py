@@ -6,12 +6,12 @@ from .result import CalibrationResult, EvaluationStats
 from .relevance import PRIORS
 from .robust import LOSSES
 from .select import ErrorModelChoice
-from .observed_result import ObservationFit, stat_line
+from .observed_result import ObservationFit, stat_line, trained_setup
 from .stacked import observation_identifiability
 from .sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
 from .verdict import Reason, Thresholds, Verdict
 
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "RESIDUALS", "CalibrationResult", "EvaluationStats", "LOSSES",
            "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
-           "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "ObservationFit", "observation_identifiability", "stat_line",
+           "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "ObservationFit", "observation_identifiability", "stat_line", "trained_setup",
            "SCOPES", "refuse_inapplicable", "joined"]

@@ -11,6 +11,7 @@ import numpy as np
 from ..analysis.identifiability import Identifiability
 from ..analysis.uncertainty import ModelUncertainty
 from ..models.robot import TOOL_NAMES, Robot
+from ..observe.observations import Wrapper
 from .._atomic import write_text_atomic
 from .._csv import listed
 from ..units import MM, MRAD, display
@@ -81,8 +82,19 @@ class ObservationFit:
         unc = ModelUncertainty.from_fit(self.robot, self.names, self.covariance[np.ix_(k, k)], q).to_dict()
         unc["envelope"]["joints"] = list(self.robot.joint_names)
         return {**unc, "nominal": self.nominal.params.as_dict(), "observations": list(self.stats),
-                "nuisance": {n: float(v) for n, v in self.nuisance.items()},
+                "nuisance": {n: float(v) for n, v in self.nuisance.items()}, "setup": self.setup(),
                 "weakly_determined": {n: float(v) for n, v in self.weak.items()}}
+
+    def setup(self) -> dict:
+        """The set-up the next measurement of this robot shares, in absolute form: the 6-D probe's
+        rotation on the flange (3, 3) and the marker points on the flange (m), as fitted."""
+        out: dict = {"markers": {n: float(v) for n, v in self.nuisance.items() if n.startswith("marker[")}}
+        poses = [_unwrapped(o) for o in self.observations if o.kind == "pose"]
+        if poses:
+            rot = np.array([self.nuisance[n] for n in ("target.rx", "target.ry", "target.rz")])
+            out["target_rotation"] = poses[0].target(rot).tolist()
+        return out
+
 
     def sample_table(self) -> list[dict]:
         """Per sample of every set: file, row, kind, position error (mm: the norm of the sample's
@@ -153,7 +165,7 @@ class ObservationFit:
         nominal one): set-up parameters the fit shares with it (a target's rotation, markers) at their
         fitted values; a pose set also takes the training target's start rotation."""
         robot = self.robot if robot is None else robot
-        poses = [o for o in self.observations if o.kind == "pose"]
+        poses = [_unwrapped(o) for o in self.observations if o.kind == "pose"]
         if obs.kind == "pose" and poses:
             obs = dataclasses.replace(obs, target_rotation=poses[0].target_rotation)
         else:
@@ -193,6 +205,13 @@ class ObservationFit:
         return "\n".join(lines)
 
 
+def _unwrapped(obs):
+    """The set under its wrappers (a session's frame, a drifting instrument)."""
+    while isinstance(obs, Wrapper):
+        obs = obs.inner
+    return obs
+
+
 def _cell(text: str) -> str:
     """A CSV cell: quoted when it holds a comma or a quote."""
     return f'"{text.replace(chr(34), chr(34) * 2)}"' if "," in text or '"' in text else text
@@ -204,3 +223,20 @@ def stat_line(s: dict) -> str:
         return f"mean |p − point| {s['mean_abs_mm']:.4f} mm"
     rot = f", mean {s['mean_mrad']:.4f} mrad" if "mean_mrad" in s else ""
     return f"mean {s['mean_mm']:.4f} mm{rot}"
+
+
+def trained_setup(record: dict | None) -> tuple[dict, dict]:
+    """From a calibration record's ``setup``: the set-up parameters to hold (name -> value) and the
+    anchors (a 6-D probe's rotation) a held-out file is judged with, so its probe and markers stay as
+    trained; ({}, {}) for a record without one."""
+    setup = (record or {}).get("setup")
+    if not isinstance(setup, dict):
+        return {}, {}
+    held = {str(k): float(v) for k, v in (setup.get("markers") or {}).items()}
+    if "target_rotation" not in setup:
+        return held, {}
+    R = np.asarray(setup["target_rotation"], float)
+    if R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6):
+        raise ValueError("calibration record: setup.target_rotation must be a 3x3 rotation matrix (edited by hand?); "
+                         "calibrate again to write it")
+    return {**held, "target.rx": 0.0, "target.ry": 0.0, "target.rz": 0.0}, {"target_rotation": R}

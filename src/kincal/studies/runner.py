@@ -56,16 +56,15 @@ class _InProcess(Executor):
 def _stop_workers(pool: ProcessPoolExecutor) -> None:
     """End every worker process now and wait for it: the pool's own and any still starting (not in its
     list yet). A worker started after an earlier sweep was left reading its task queue while the
-    interpreter's exit waited for it: an interrupted study hung."""
+    interpreter's exit waited for it: an interrupted study hung. Killed, not terminated: a worker still
+    starting prints a traceback when SIGTERM meets its start-up, and a study keeps nothing in its
+    workers (the results are the parent's)."""
     procs: list = list((pool._processes or {}).values())  # the pool's own processes (private, no API)
     procs += [p for p in multiprocessing.active_children() if p not in procs]
     for proc in procs:
-        proc.terminate()
+        proc.kill()
     for proc in procs:
         proc.join(timeout=5)
-        if proc.is_alive():
-            proc.kill()
-            proc.join(timeout=5)
 
 
 @contextmanager
