@@ -204,3 +204,27 @@ def test_design_from_candidates_keeps_the_users_rows_and_columns(tmp_path, capsy
     assert [int(r[0]) for r in rows[1:]] == [4 + k for k in ref.indices]  # the file's line numbers
     for r, k in zip(rows[1:], ref.indices):
         assert r[1:] == lines[3 + k].split(";")  # every cell as the user wrote it
+
+
+def test_a_value_that_starts_with_a_minus_sign(capsys):
+    """``--tool -1,-7,1.6mm``: argparse alone stops at "expected one argument"; the value is taken,
+    in its unit, and a switch followed by such a token is still a switch (the token stays an error)."""
+    shown = run_json(capsys, "show", "ur5", "--tool", "-1,-7,1.6mm")
+    assert [shown["parameters"][f"tool.{a}"] for a in "xyz"] == pytest.approx([-1e-3, -7e-3, 1.6e-3], abs=1e-15)
+    with pytest.raises(SystemExit) as stop:
+        main(["evaluate", "ur5", str(DATA / "ur5_random.csv"), "--same-frame", "-5"])
+    assert stop.value.code == 2 and "unrecognized arguments: -5" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("kind", ["point", "pose"])
+def test_simulate_says_how_to_read_its_file_back(tmp_path, capsys, kind):
+    """The hint simulate prints is complete: calibrate with exactly those flags reads the file in its
+    units (without them the mm file is refused as a unit mistake)."""
+    path = tmp_path / "s.csv"
+    assert main(["simulate", "ur5", "--type", kind, "-o", str(path), "--poses", "40", "--perturb",
+                 "--length-unit", "mm", "--angle-unit", "deg"]) == 0
+    hint = capsys.readouterr().out.split("calibrate them with: ")[1].split()
+    assert "--length-unit" in hint and "--angle-unit" in hint
+    assert main(["calibrate", "ur5", str(path), *hint]) in (0, 4)
+    assert "looks like" not in capsys.readouterr().err
+    assert main(["calibrate", "ur5", str(path), "--type", kind]) == 1

@@ -8,6 +8,7 @@ Monte-Carlo study).
 from __future__ import annotations
 
 import argparse
+import re
 import os
 import signal
 import sys
@@ -86,6 +87,24 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(signal.SIGINT, previous[1])
 
 
+def _negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``--tool -1,-7,1.6mm`` as ``--tool=-1,-7,1.6mm``: argparse takes a value that starts with '-' and
+    is not one plain number for another flag ("expected one argument"). Only after a flag of the
+    command that takes a value."""
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    command = sub.choices.get(argv[0]) if argv else None
+    if command is None:
+        return argv
+    out: list[str] = []
+    for token in argv:
+        action = command._option_string_actions.get(out[-1]) if out else None
+        if action is not None and action.nargs != 0 and re.match(r"-[\d.]", token):
+            out[-1] = f"{out[-1]}={token}"
+        else:
+            out.append(token)
+    return out
+
+
 def _stopped(word: str, code: int) -> int:
     """One line for Ctrl-C or SIGTERM; a second signal while it is printed is ignored."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -96,7 +115,7 @@ def _stopped(word: str, code: int) -> int:
 
 def _run(argv: list[str] | None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_negative_values(parser, list(sys.argv[1:] if argv is None else argv)))
     if progress_lines():  # a log (or a test) learns that Ctrl-C and SIGTERM are handled from here on
         line(f"kincal: {args.command} started")
     try:

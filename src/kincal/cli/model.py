@@ -100,8 +100,10 @@ def cmd_simulate(args) -> int:
                               joint_cols=args.joint_cols)
     payload = {"output": args.output, "n": len(meas), "noise": args.noise / MM, "perturbed": bool(args.perturb),
                "true_robot": args.save_true, "true_parameters": true.params.as_dict()}
-    emit(args, payload, f"wrote {len(meas)} simulated measurements of {true.name} to {args.output}"
-         + (f" (true robot saved to {args.save_true})" if args.save_true else ""))
+    use = observe.units_to_use(args) + ("" if args.joint_cols is None else f" --joint-cols {','.join(args.joint_cols)}")
+    emit(args, {**payload, "flags": use.strip()}, f"wrote {len(meas)} simulated measurements of {true.name} to "
+         f"{args.output}" + (f" (true robot saved to {args.save_true})" if args.save_true else "")
+         + (f"; calibrate them with: {use.strip()}" if use else ""))
     return 0
 
 

@@ -381,6 +381,13 @@ def flags_to_use(obs, length_unit: str) -> str:
     return f"--type {obs.kind}"
 
 
+def units_to_use(args) -> str:
+    """The unit flags that read a written file back ('' for the defaults, m and rad)."""
+    return "".join(f" --{flag}-unit {unit}" for flag, unit, default in (("length", args.length_unit, "m"),
+                                                                      ("angle", args.angle_unit, "rad"))
+                   if unit != default)
+
+
 def cmd_simulate(args, kind: str, true, q) -> int:
     """simulate --type: write simulated observations of the (perturbed) robot in the type's columns."""
     from kincal.observe import write_observations
@@ -388,7 +395,7 @@ def cmd_simulate(args, kind: str, true, q) -> int:
     robot = load_robot(args)
     obs = planned(args, robot, true, kind, q, args.noise / 1e3, args.seed + 1)
     write_observations(args.output, obs, robot, format_of(args, kind))
-    use = flags_to_use(obs, args.length_unit)
+    use = flags_to_use(obs, args.length_unit) + units_to_use(args)
     emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
          f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them with: {use}")
     return 0
