@@ -27,10 +27,14 @@ class ObservationFit:
     (``names``), the nuisance parameters' values, σ of both (m or rad; a posteriori, σ̂² = χ²/dof),
     the identifiability of the stacked problem, the gauge freedoms, per-set statistics before and
     after (mm, mrad), the whitened residual RMS (1 when the stated σ are right), the verdict and the
-    learned prior's σ per group (``prior``; with it, ``std`` and ``covariance`` are posterior)."""
+    learned prior's σ per group (``prior``; with it, ``std`` and ``covariance`` are posterior).
+    ``nominal`` is the model as given (its declared base: corrections are from it, and commands are
+    computed in its base frame); ``registered`` the same with its measurement frame registered to the
+    data, where the fit began ("before")."""
 
     robot: Robot
     nominal: Robot
+    registered: Robot
     names: tuple[str, ...]
     nuisance: dict
     std: dict

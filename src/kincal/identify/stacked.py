@@ -146,7 +146,7 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
     ``loss`` in use), set-up parameters in ``held`` kept at those values: nothing left out, nothing
     diagnosed (:func:`kincal.identify.fitting.fit_stack` wraps it)."""
     with blas_threads(1):
-        wanted = wanted_names(robot, o)
+        wanted, declared = wanted_names(robot, o), robot
         robot, st, gauge, ident, start = _problem(robot, observations, wanted, o.keep, o.rank_tol, held)
         _check_strict(ident, o, st)
         _check_equations(st, start[0].size, len(ident.identifiable if o.method == "lm" else ident.candidates))
@@ -156,8 +156,8 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
         if o.method != "lm":
             swarm = _swarm(st, x0, rounds.cols(list(ident.candidates)), o.pso_settings)
             if o.method == "pso":
-                return _result(robot, st, gauge, ident, list(ident.candidates), x0, swarm.fit, {}, o.thresholds, {},
-                               swarm.history, ident.dropped)
+                return _result((declared, robot), st, gauge, ident, list(ident.candidates), x0, swarm.fit, {},
+                               o.thresholds, {}, swarm.history, ident.dropped)
             start = None
         full, fit, free, weak, fitted, error = rounds.fit(free0, x0 if swarm is None else swarm.full, start)
         notes: tuple[str, ...] = ()
@@ -178,7 +178,7 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
         ident = dataclasses.replace(_without_weak(ident, free, weak), notes=ident.notes + notes)
         spent = (rounds.spent[0] + (swarm.iterations if swarm else 0), rounds.spent[1] + (swarm.evaluations if swarm
                                                                                           else 0))
-        return _result(robot, fitted, gauge, ident, free, x0, fit, weak, o.thresholds, error,
+        return _result((declared, robot), fitted, gauge, ident, free, x0, fit, weak, o.thresholds, error,
                        swarm.history if swarm else (), spent=spent)
 
 
@@ -439,11 +439,13 @@ def _fun(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray):
     return st.evaluate(full[:P], full[P:], fcols)
 
 
-def _result(robot, st, gauge, ident, free, x0, fit, weak, th: Thresholds, error: dict, history=(),
-            undetermined=(), spent=None) -> ObservationFit:
-    """The fit of the columns ``free`` as an :class:`ObservationFit` (``undetermined``: moved by a
-    particle swarm but not determined by the data, σ = inf; ``spent``: iterations and evaluations of
-    every solver run, default the fit's own)."""
+def _result(models: tuple[Robot, Robot], st, gauge, ident, free, x0, fit, weak, th: Thresholds, error: dict,
+            history=(), undetermined=(), spent=None) -> ObservationFit:
+    """The fit of the columns ``free`` as an :class:`ObservationFit` (``models``: the model as given
+    and as registered, where the fit began; ``undetermined``: moved by a particle swarm but not
+    determined by the data, σ = inf; ``spent``: iterations and evaluations of every solver run,
+    default the fit's own)."""
+    declared, robot = models
     spent = spent or (fit.iterations, fit.evaluations)
     all_names = list(robot.params.names) + list(st.nuis_names)
     full = x0.copy()
@@ -463,7 +465,7 @@ def _result(robot, st, gauge, ident, free, x0, fit, weak, th: Thresholds, error:
     r = fit.residual * st.stated / st.inv_sigma  # whitened by the stated σ: what the user can restate
     per_kind = whitened_per_kind(st.sets, r)
     verdict = observation_verdict(robot, calibrated, st.sets, r, per_kind, fit.converged, th)
-    return ObservationFit(calibrated, robot, tuple(n for n in free if n in robot.params.names),
+    return ObservationFit(calibrated, declared, robot, tuple(n for n in free if n in robot.params.names),
                           dict(zip(st.nuis_names, full[P:])), std, ident, gauge, before, after,
                           float(np.sqrt(np.mean(r**2))), cov, verdict, bool(fit.converged), spent[0], st.sets,
                           weak, learned, per_kind, {k: v for k, v in error.items() if v > 0},
