@@ -10,7 +10,8 @@ import kincal
 import kincal.analysis
 import kincal.io
 import kincal.models
-from kincal.compensate import (StreamJob, TargetsFormat, VerificationPlan, command_models, compensate_file,
+from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, VerificationPlan, command_models,
+                               compensate_file, tool_carry,
                                compensate_program, verification_plan)
 from kincal.units import DEG, MM
 
@@ -24,10 +25,16 @@ def cmd_compensate(args) -> int:
     record = kincal.models.load_calibration_record(args.robot) if robot_inputs(args.robot) else None
     nominal_values = (record or {}).get("nominal")
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
-    r, nominal = command_models(cal, nominal_values if isinstance(nominal_values, dict) else None, args.tcp,
-                                args.target_frame)
+    values = nominal_values if isinstance(nominal_values, dict) else None
+    if "link_error_max" in args.given and args.tcp is None:
+        raise ValueError("--link-error-max decides how much of the calibration's move of the measured target is "
+                         "carried over to the controller's TCP; without --tcp the commands are for the measured "
+                         "target itself: give --tcp, or leave --link-error-max out")
+    r, nominal = command_models(cal, values, args.tcp, args.target_frame, args.link_error_max / MM)
+    carry = "" if args.tcp is None else tool_carry(cal.tool_point(), (cal.with_params(values) if values else cal)
+                                                   .tool_point(), args.link_error_max / MM)[1]
     if args.program:
-        return _compensate_program(args, r, nominal)
+        return _compensate_program(args, r, nominal, carry)
     fmt = TargetsFormat(args.pose, tuple(args.joint_cols) if args.joint_cols else None, tuple(args.xyz_cols),
                         args.orientation, tuple(args.rot_cols) if args.rot_cols else None, args.length_unit,
                         args.angle_unit)
@@ -36,8 +43,8 @@ def cmd_compensate(args) -> int:
         res = compensate_file(job, args.targets, args.output, skip_unreachable=args.skip_unreachable,
                               workers=args.workers, progress=bar)
     payload = {**res.to_dict(), "output": args.output if res.written else None, "target_frame": args.target_frame,
-               "output_kind": args.output_kind}
-    emit(args, payload, _compensation_text(args, res, r))
+               "output_kind": args.output_kind, "tool_carry": carry or None}
+    emit(args, payload, _compensation_text(args, res, r) + (f"\nTCP: {carry}" if carry else ""))
     return 0 if res.written else EXIT_REFUSED
 
 
@@ -76,7 +83,7 @@ def _compensation_text(args, res, r) -> str:
     return (text + "".join(f"\nwarning: {w}" for w in res.warnings)).strip()
 
 
-def _compensate_program(args, r, nominal) -> int:
+def _compensate_program(args, r, nominal, carry: str) -> int:
     """compensate --program ur: a robot program compensated in place, written to -o (never over it)."""
     prog = kincal.io.read_program(args.targets, args.program)
     res = compensate_program(r, nominal, prog)
@@ -91,7 +98,8 @@ def _compensate_program(args, r, nominal) -> int:
     lines += [f"left as is (not a literal): line {n} {move}({arg}, …)" for n, move, arg in res.not_literal]
     emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
                 "not_literal": [{"line": n, "move": m, "target": a} for n, m, a in res.not_literal],
-                "output": args.output if written else None}, "\n".join(lines))
+                "output": args.output if written else None, "tool_carry": carry or None},
+         "\n".join(lines + ([f"TCP: {carry}"] if carry else [])))
     return 0 if written else EXIT_REFUSED
 
 
@@ -166,6 +174,10 @@ def register(cmd) -> None:
     s.add_argument("--tcp", type=point, metavar="X,Y,Z[UNIT]",
                    help="the controller's TCP in the flange frame, e.g. 0,0,109mm: the point the targets are for "
                         "(default: the calibrated tool point)")
+    s.add_argument("--link-error-max", type=nonneg_float, default=LINK_ERROR_MAX * MM,
+                   help=f"with --tcp: the most the last link can be off, mm (default {LINK_ERROR_MAX * MM:g}); the "
+                        f"calibration's move of the declared target point up to this is carried over to the TCP as "
+                        f"the link's error, a larger one is the target's mounting and is not")
     s.add_argument("--pose", action="store_true",
                    help="the targets are full poses: position and the orientation columns of --orientation")
     s.add_argument("--orientation", default="quat-wxyz", type=_convention,

@@ -22,17 +22,19 @@ TARGET_FRAMES = ("base", "measurement")  # besides the frames a robot file names
 MISMATCH_TOL = 0.1e-3  # m: the nominal model at the nominal joints must reach the targets this closely
 EXPLAINED = 0.2  # a constant offset explains the gap when it leaves less than this fraction (RMS)
 MIN_ROWS = 3  # a constant offset needs this many targets to be told from a row's own miss
-TOOL_CORRECTION_MAX = 50e-3  # m: the verdict's tool_suspect; beyond it the fitted point is the mounting
+LINK_ERROR_MAX = 1e-3  # m: the most a real robot's last link is off; a larger move of the fitted target is its mounting
 
 
 def command_models(calibrated: Robot, nominal_values: Mapping[str, float] | None = None,
-                   tcp: np.ndarray | None = None, frame: str = "base") -> tuple[Robot, Robot]:
+                   tcp: np.ndarray | None = None, frame: str = "base",
+                   link_error_max: float = LINK_ERROR_MAX) -> tuple[Robot, Robot]:
     """(model, nominal model) for commands: the calibrated and the nominal parameters (``nominal_values``,
     default the calibrated ones), both in the target ``frame`` ("base": the robot's own base frame;
     "measurement": the calibration's measurement frame; or a frame the robot file names). Without a
     ``tcp`` the targets are for the measured target: the nominal model uses its declared point and the
     calibrated model the fitted one. With the controller's ``tcp`` (m, flange frame) the nominal model
-    uses it, and the calibrated model it moved as the calibration moved the declared point."""
+    uses it, and the calibrated model it moved by what :func:`tool_carry` carries over of the
+    calibration's move of the declared point (up to ``link_error_max``, m)."""
     nominal = calibrated.with_params(dict(nominal_values)) if nominal_values else calibrated
     named = calibrated.named_frames()
     if frame not in TARGET_FRAMES and frame not in named:
@@ -46,17 +48,25 @@ def command_models(calibrated: Robot, nominal_values: Mapping[str, float] | None
         model, nominal = model.with_base_transform(R, t), nominal.with_base_transform(R, t)
     if tcp is not None:  # a robot without a tool point says so (ModelError)
         tcp = np.asarray(tcp, dtype=float)
-        model = model.with_tool_point(tcp + _tool_correction(model.tool_point(), nominal.tool_point()))
+        model = model.with_tool_point(tcp + tool_carry(model.tool_point(), nominal.tool_point(), link_error_max)[0])
         nominal = nominal.with_tool_point(tcp)
     return model, nominal
 
 
-def _tool_correction(fitted: np.ndarray, declared: np.ndarray) -> np.ndarray:
-    """What the calibration moved the declared tool point by, carried over to the TCP: along the flange
-    it also holds kinematic errors (e.g. the last link's length) that the TCP shares. A move beyond
-    TOOL_CORRECTION_MAX is the target's mounting (a tool point not declared), carried over as nothing."""
+def tool_carry(fitted: np.ndarray, declared: np.ndarray, limit: float = LINK_ERROR_MAX) -> tuple[np.ndarray, str]:
+    """What of the calibration's move of the declared target point (fitted − declared, m, flange
+    frame) is carried over to the controller's TCP, and a sentence that says so. The data cannot tell
+    a target declared in the wrong place from an error of the last link, which the TCP shares: a move
+    up to ``limit`` (m) is taken for the link's and carried over; a larger one is the target's
+    mounting (declared wrong: no real link is that far off) and is carried over as nothing."""
     shift = fitted - declared
-    return shift if np.linalg.norm(shift) <= TOOL_CORRECTION_MAX else np.zeros(3)
+    size = float(np.linalg.norm(shift))
+    if size <= limit:
+        return shift, (f"the calibration moved the declared target point by {size * MM:.3f} mm: taken as the last "
+                       f"link's error and carried over to the TCP (up to {limit * MM:g} mm, --link-error-max)")
+    return np.zeros(3), (f"the calibration moved the declared target point by {size * MM:.2f} mm, more than a link's "
+                         f"error ({limit * MM:g} mm, --link-error-max): taken as the target's mounting (declared "
+                         f"wrong), not carried over to the TCP")
 
 
 def _direction(v: np.ndarray, frame: str) -> str:
