@@ -32,9 +32,8 @@ from .options import FitOptions
 from .result import CalibrationResult, EvaluationStats
 from .select import select_model
 from .verdict import (Reason, Verdict, correction_reasons, distinct_count, drift_reasons, duplicate_groups,
-                      duplicate_reasons,
-                      fitted_drift_reasons, mounting_reasons, noise_level, outlier_reasons, repeat_tolerance,
-                      residual_reasons, robust_z)
+                      duplicate_reasons, fitted_drift_reasons, mounting_reasons, noise_level, outlier_reasons,
+                      repeat_tolerance, residual_reasons, robust_z)
 
 RESIDUALS = {"cartesian": PointObs, "joint": JointObs}  # FitOptions.residual -> the observation type fitted
 

@@ -201,8 +201,10 @@ def wanted_names(robot: Robot, o: FitOptions) -> tuple[str, ...]:
 def _check_strict(ident: Identifiability, o: FitOptions, st: "_Stack") -> None:
     """An explicit list of names fitted by Levenberg–Marquardt must be identifiable (a particle swarm,
     a global search, keeps the undetermined ones free)."""
-    lost = [n for n in ident.dropped if n in o.names and n not in st.robot.base_params()]
-    if o.names != "auto" and o.method == "lm" and lost:
+    if o.names == "auto" or o.method != "lm":
+        return
+    lost = [n for n in ident.dropped if n in set(o.names) and n not in st.robot.base_params()]
+    if lost:
         raise IdentifiabilityError(f"these parameters cannot all be identified from the {_samples(st)}; leave out "
                                    f"the dropped ones or estimate names='auto':\n{ident}")
 
@@ -283,7 +285,6 @@ class _Round:
                 return fcols, fit, free, weak, used
             weak[worst[0]] = worst[1]
             free.remove(worst[0])
-
 
     def _reweighted(self, st: _Stack, fcols: np.ndarray, x: np.ndarray, r: np.ndarray):
         """Iteratively reweighted least squares on each sample's whitened block from ``x`` (its
