@@ -136,7 +136,9 @@ def test_positioner_through_the_command_line(tmp_path, capsys):
         code, out, _ = _run(capsys, base + ["--std-rot", std, "--same-frame"])
         held = out["held_out"][0]
         assert code == 0 and held["mean_mm"] <= 0.50 and held["mean_mrad"] <= 0.90
-        assert out["held_out_nominal"][0]["mean_mm"] > 10 * held["mean_mm"]
+        # the nominal kinematics with the camera frame and the target registered: the model gains 10 % here,
+        # the rest of the 16 mm "before" of a registration by the frame alone was the target's mounting
+        assert held["mean_mm"] < out["held_out_nominal"][0]["mean_mm"] < 1.3 * held["mean_mm"]
     code, out, _ = _run(capsys, base + ["--std-rot", "1mrad"])  # by default the test file's frame is fitted
     assert code == 0 and out["held_out"][0]["mean_mm"] <= held["mean_mm"] + 1e-9
     code, _, err = _run(capsys, base + ["--rot-cols", "qx,qy,qz,qw"])  # the columns given in the other order

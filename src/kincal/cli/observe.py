@@ -211,7 +211,7 @@ def fitted(args, robot, kinds: list[str], data: list[str], tests: list[str], opt
     with progress("calibrating", args.json):
         fit = fit_observations(robot, _sessions(sets, args.same_frame), options)
     held = [_held_out(fit, t, fit.robot, args.same_frame) for t in test_sets]
-    held_nominal = [_held_out(fit, t, fit.registered, args.same_frame) for t in test_sets]
+    held_nominal = [_held_out(fit, t, fit.before, args.same_frame) for t in test_sets]
     return fit, held, held_nominal
 
 

@@ -168,7 +168,7 @@ def _as_result(fit: ObservationFit, robot: Robot, sessions: list[Measurements], 
         corrections={n: float(fit.robot.params[n] - nominal.params[n]) for n in names},
         std={n: float(fit.std[n]) for n in names}, correlation=corr, residuals=err,
         sigma=float(np.sqrt(np.sum((err / stated) ** 2) / dof) * (1.0 if meas.std is None else np.median(meas.std))),
-        stats_before=EvaluationStats.from_errors(meas.xyz - fit.registered.forward(meas.q)),  # frame registered
+        stats_before=EvaluationStats.from_errors(meas.xyz - fit.before.forward(meas.q)),  # frame and target registered
         stats_after=EvaluationStats.from_errors(err), iterations=fit.iterations, evaluations=fit.evaluations,
         converged=fit.converged, message=fit.message, time_s=elapsed, options=o, identifiability=fit.identifiability,
         history=fit.history, covariance=cov, measurements=meas, pose_z=robust_z(np.linalg.norm(err, axis=1)),

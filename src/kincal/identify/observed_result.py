@@ -30,11 +30,13 @@ class ObservationFit:
     learned prior's σ per group (``prior``; with it, ``std`` and ``covariance`` are posterior).
     ``nominal`` is the model as given (its declared base: corrections are from it, and commands are
     computed in its base frame); ``registered`` the same with its measurement frame registered to the
-    data, where the fit began ("before")."""
+    data, where the fit began; ``before`` the same with the target point registered too, the model
+    the "before" figures are of (they do not depend on where the target was declared)."""
 
     robot: Robot
     nominal: Robot
     registered: Robot
+    before: Robot
     names: tuple[str, ...]
     nuisance: dict
     std: dict

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..models.robot import Robot
+from ..models.robot import TOOL_NAMES, Robot
 
 
 def kabsch(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -21,3 +21,66 @@ def register_base(robot: Robot, q: np.ndarray, xyz: np.ndarray) -> Robot:
     R, t = kabsch(robot.forward(q), xyz)
     Rb, tb = robot.base_transform()
     return robot.with_base_transform(R @ Rb, R @ tb + t)
+
+
+MOUNTING_STEPS = 20  # Gauss–Newton steps at most for the frame and the target point
+MOUNTING_TOL = 1e-12  # m: a step this small ends them
+MOUNTING_POSES = 200  # poses the frame and the point are fitted to at most (9 unknowns: plenty)
+
+
+def register_mounting(robot: Robot, q: np.ndarray, xyz: np.ndarray, frame: bool = True) -> Robot:
+    """``robot`` with its base frame and its tool point moved so its predictions at q best match xyz
+    (N, 3), its kinematics as they are: the measurement frame and the target's mounting, the set-up
+    a model is judged "before" calibration with, so the figure does not depend on where the target
+    was declared. The flange frames are computed once; Gauss–Newton on the frame's rotation and
+    translation and the point (9 unknowns), from the frame registered with the declared point.
+    Without a tool point, or with fewer than 3 poses: the frame alone (:func:`register_base`); with
+    ``frame`` False (the base is known) or a robot without a base frame: the point alone. On a
+    long file both are fitted to MOUNTING_POSES poses spread evenly over it (a reference figure: the
+    difference is far below the noise; 10⁵ poses in a few ms instead of 0.45 s)."""
+    if len(q) > MOUNTING_POSES:
+        pick = np.unique(np.linspace(0, len(q) - 1, MOUNTING_POSES).round().astype(int))
+        q, xyz = q[pick], xyz[pick]
+    frame = frame and bool(robot.base_params())
+    if not robot.has_tool_point or len(q) < 3:
+        return register_base(robot, q, xyz) if frame else robot
+    moved = robot
+    p, Jp = robot.forward_and_jacobian(q)  # the flange frames, once: d p / d tool point = the flange rotation
+    Rf = Jp[:, :, robot.params.indices(TOOL_NAMES)]
+    origin = p - Rf @ robot.tool_point()
+    R, t = kabsch(p, xyz) if frame else (np.eye(3), np.zeros(3))  # the frame registered with the declared point
+    point = robot.tool_point()
+    for _ in range(MOUNTING_STEPS):
+        a = Rf @ point + origin  # (N, 3) the point before the correction (R, t)
+        e = a @ R.T + t - xyz
+        J = np.zeros((len(q), 3, 9))
+        if frame:
+            J[:, :, :3] = -_skew(a @ R.T)
+            J[:, :, 3:6] = np.eye(3)
+        J[:, :, 6:] = R @ Rf
+        J2 = J.reshape(-1, 9)
+        H, g = J2.T @ J2, J2.T @ e.ravel()  # the 9 x 9 normal equations (frame columns 0: the point alone)
+        step = np.linalg.lstsq(H, -g, rcond=None)[0]  # (a point the poses cannot tell from the frame: least norm)
+        R, t, point = _rotation(step[:3]) @ R, t + step[3:6], point + step[6:]
+        if np.linalg.norm(step) < MOUNTING_TOL:
+            break
+    if not frame:
+        return moved.with_tool_point(point)
+    Rb, tb = moved.base_transform()
+    return moved.with_base_transform(R @ Rb, R @ tb + t).with_tool_point(point)
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """(N, 3) → (N, 3, 3) cross-product matrices."""
+    z = np.zeros(len(v))
+    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], -1), np.stack([v[:, 2], z, -v[:, 0]], -1),
+                     np.stack([-v[:, 1], v[:, 0], z], -1)], -2)
+
+
+def _rotation(w: np.ndarray) -> np.ndarray:
+    """The rotation matrix of the rotation vector w (3,) (Rodrigues)."""
+    th = float(np.linalg.norm(w))
+    K = _skew(w[None])[0]
+    if th < 1e-12:
+        return np.eye(3) + K
+    return np.eye(3) + np.sin(th) / th * K + (1 - np.cos(th)) / th**2 * (K @ K)

@@ -231,7 +231,7 @@ class CalibrationResult:
         noise = noise_level(self.measurements.std, self.options.thresholds)
         lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm (tracker noise for the verdict "
                   f"{noise[0] * MM:.3g} mm: {noise[1]})",
-                  f"before (nominal, frame registered): {self.stats_before}", f"after:  {self.stats_after}"]
+                  f"before (nominal, frame and target point registered): {self.stats_before}", f"after:  {self.stats_after}"]
         if self.mounting:
             lines.append(f"mounting: {self.mounting}")
         if self.weak:

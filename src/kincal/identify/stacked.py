@@ -35,7 +35,7 @@ from .pso import HALF_WIDTH, V_MAX, pso
 from .noise import extra_variance
 from .observed_result import ObservationFit
 from .observed_verdict import component_kinds, observation_verdict, outlier_samples, whitened_per_kind
-from .registration import register_base
+from .registration import register_base, register_mounting
 from .relevance import RelevanceFit, with_learned_prior
 from .robust import MAX_IRLS, WEIGHT_TOL, block_weights
 from .verdict import Thresholds
@@ -148,6 +148,7 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
     with blas_threads(1):
         wanted, declared = wanted_names(robot, o), robot
         robot, st, gauge, ident, start = _problem(robot, observations, wanted, o.keep, o.rank_tol, held)
+        models = (declared, robot, _before(robot, st.sets, bool(set(robot.base_params()) & set(wanted))))
         _check_strict(ident, o, st)
         _check_equations(st, start[0].size, len(ident.identifiable if o.method == "lm" else ident.candidates))
         x0 = np.concatenate([robot.params.values, st.nuis0])
@@ -156,7 +157,7 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
         if o.method != "lm":
             swarm = _swarm(st, x0, rounds.cols(list(ident.candidates)), o.pso_settings)
             if o.method == "pso":
-                return _result((declared, robot), st, gauge, ident, list(ident.candidates), x0, swarm.fit, {},
+                return _result(models, st, gauge, ident, list(ident.candidates), x0, swarm.fit, {},
                                o.thresholds, {}, swarm.history, ident.dropped)
             start = None
         full, fit, free, weak, fitted, error = rounds.fit(free0, x0 if swarm is None else swarm.full, start)
@@ -178,7 +179,7 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
         ident = dataclasses.replace(_without_weak(ident, free, weak), notes=ident.notes + notes)
         spent = (rounds.spent[0] + (swarm.iterations if swarm else 0), rounds.spent[1] + (swarm.evaluations if swarm
                                                                                           else 0))
-        return _result((declared, robot), fitted, gauge, ident, free, x0, fit, weak, o.thresholds, error,
+        return _result(models, fitted, gauge, ident, free, x0, fit, weak, o.thresholds, error,
                        swarm.history if swarm else (), spent=spent)
 
 
@@ -403,6 +404,18 @@ def _without_weak(ident: Identifiability, free: list[str], weak: dict) -> Identi
     return dataclasses.replace(ident, identifiable=tuple(free), notes=ident.notes + note)
 
 
+def _before(robot: Robot, sets, frame: bool) -> Robot:
+    """The nominal kinematics as judged "before" calibration: with the measurement frame (when it is
+    fitted, ``frame``) and the target point registered to the measured points and pose positions
+    (:func:`register_mounting`), so the figure does not depend on where the target was declared."""
+    found = [o.positions() for o in sets if o.kind in ("point", "pose") and not isinstance(o, InSession)]
+    found = [f for f in found if f is not None]
+    if not found:
+        return robot
+    return register_mounting(robot, np.concatenate([f[0] for f in found]), np.concatenate([f[1] for f in found]),
+                             frame)
+
+
 def _registered(robot: Robot, sets, gauge) -> Robot:
     """``robot`` with its measurement frame registered rigidly to the absolute positions in ``sets``
     (none, or a base the data do not see: unchanged)."""
@@ -440,13 +453,13 @@ def _fun(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray):
     return st.evaluate(full[:P], full[P:], fcols)
 
 
-def _result(models: tuple[Robot, Robot], st, gauge, ident, free, x0, fit, weak, th: Thresholds, error: dict,
+def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit, weak, th: Thresholds, error: dict,
             history=(), undetermined=(), spent=None) -> ObservationFit:
-    """The fit of the columns ``free`` as an :class:`ObservationFit` (``models``: the model as given
-    and as registered, where the fit began; ``undetermined``: moved by a particle swarm but not
-    determined by the data, σ = inf; ``spent``: iterations and evaluations of every solver run,
-    default the fit's own)."""
-    declared, robot = models
+    """The fit of the columns ``free`` as an :class:`ObservationFit` (``models``: the model as given,
+    as registered, where the fit began, and as judged "before", :func:`_before`; ``undetermined``:
+    moved by a particle swarm but not determined by the data, σ = inf; ``spent``: iterations and
+    evaluations of every solver run, default the fit's own)."""
+    declared, robot, before_model = models
     spent = spent or (fit.iterations, fit.evaluations)
     all_names = list(robot.params.names) + list(st.nuis_names)
     full = x0.copy()
@@ -461,12 +474,14 @@ def _result(models: tuple[Robot, Robot], st, gauge, ident, free, x0, fit, weak, 
         learned = {}
     std = {n: float(v) for n, v in zip(free, sd)}
     std.update({n: np.inf for n in st.nuis_names if n not in std})
-    before = tuple(o.stats(robot, x0[:P], x0[P:][slot]) for o, slot in zip(st.sets, st.slots))
+    before = tuple(o.stats(before_model, before_model.params.values, x0[P:][slot])
+                   for o, slot in zip(st.sets, st.slots))
     after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
     r = fit.residual * st.stated / st.inv_sigma  # whitened by the stated σ: what the user can restate
     per_kind = whitened_per_kind(st.sets, r)
     verdict = observation_verdict(robot, calibrated, st.sets, r, per_kind, fit.converged, th)
-    return ObservationFit(calibrated, declared, robot, tuple(n for n in free if n in robot.params.names),
+    return ObservationFit(calibrated, declared, robot, before_model,
+                          tuple(n for n in free if n in robot.params.names),
                           dict(zip(st.nuis_names, full[P:])), std, ident, gauge, before, after,
                           float(np.sqrt(np.mean(r**2))), cov, verdict, bool(fit.converged), spent[0], st.sets,
                           weak, learned, per_kind, {k: v for k, v in error.items() if v > 0},

@@ -19,6 +19,7 @@ import numpy as np
 from .._atomic import write_text_atomic
 from ..identify.calibrate import evaluate
 from ..identify.sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
+from ..identify.registration import register_mounting
 from ..identify.result import CalibrationResult, EvaluationStats
 from ..identify.verdict import Thresholds, duplicate_groups, repeat_tolerance, robust_z
 from ..io.measurements import Measurements
@@ -114,9 +115,16 @@ def _held_out_models(result: CalibrationResult, tests: list[Measurements], same_
     to the session (kinematics fixed), or with ``same_frame`` as calibrated (the nominal one registered
     to the training data). Computed once: the headline, the figures and the warnings share them."""
     if same_frame:
-        nominal = refit_frame(result.nominal, result.measurements)
+        nominal = _before(result, result.measurements, result.options.base == "estimate")
         return [(nominal, result.robot, AS_CALIBRATED) for _ in tests]
-    return [(refit_frame(result.nominal, m), refit_frame(result.robot, m), REGISTERED) for m in tests]
+    return [(_before(result, m), refit_frame(result.robot, m), REGISTERED) for m in tests]
+
+
+def _before(result: CalibrationResult, meas: Measurements, frame: bool = True):
+    """The nominal kinematics with the measurement frame (unless the base is known: ``frame`` False)
+    and the target point registered to ``meas``: "before" calibration, whatever target point was
+    declared (the improvement shown is the robot's)."""
+    return register_mounting(result.nominal, meas.q, meas.xyz, frame)
 
 
 def _acquisition(result: CalibrationResult) -> dict:
@@ -134,7 +142,7 @@ def _sets(result: CalibrationResult, tests: list[Measurements], models: list[tup
     robust z), each with its errors before (nominal) and after (calibrated), both models registered
     the same way (``models``: per session, from :func:`_held_out_models`)."""
     train = result.measurements
-    sets = [_pose_set("training", train, refit_frame(result.nominal, train), result.robot,
+    sets = [_pose_set("training", train, _before(result, train, result.options.base == "estimate"), result.robot,
                       result.pose_z > result.outlier_z, "frame fitted with the model (nominal: registered to these data)")]
     for k, (meas, (nominal, model, how)) in enumerate(zip(tests, models)):
         z = robust_z(np.linalg.norm(meas.xyz - model.forward(meas.q), axis=1))
@@ -157,7 +165,7 @@ def _headline(s: F.PoseSet, which: str) -> dict:
     if errors is None:  # the report's sets carry both models' errors (_pose_set)
         raise ValueError(f"{s.title}: no errors before calibration to summarise")
     st = EvaluationStats.from_errors(errors)
-    model = "nominal (frame registered)" if which == "before" else "calibrated"
+    model = "nominal (frame and target point registered)" if which == "before" else "calibrated"
     return {"data": s.title, "n": st.n, "model": model, "key": f"{s.key or s.label}.{which}", "mean": st.mean * MM,
             "rms": st.rms * MM, "max": st.max * MM, "p95": st.p95 * MM, "registration": s.registration}
 

@@ -100,7 +100,7 @@ def per_pose(sets: list[PoseSet]) -> Figure:
         x = np.arange(1, len(s.rows) + 1)
         if s.before is not None:
             ax.semilogy(x, np.linalg.norm(s.before, axis=1) * MM, ".", ms=3, color=COLOURS["before"],
-                        label="before (nominal model, frame registered)", rasterized=True)
+                        label="before (nominal model, frame and target point registered)", rasterized=True)
         ax.semilogy(x, s.after_norm * MM, ".", ms=3, color=s.color,
                     label="after calibration" if s.before is not None else "model", rasterized=True)
         ax.set_title(f"{s.title} poses ({len(x)}): position error per pose")

@@ -21,7 +21,7 @@ COLUMNS = ("mean_mm", "rms_mm", "max_mm", "mean_mrad", "rms_mrad", "max_mrad")
 def observation_report(fit: ObservationFit, held_out: Sequence[dict] = (), held_out_nominal: Sequence[dict] = (),
                        html_name: str = "report.html") -> Report:
     """The report of ``fit``; ``held_out`` / ``held_out_nominal``: statistics of held-out sets under
-    the calibrated and the nominal robot (``fit.held_out(obs)``, ``fit.held_out(obs, fit.registered)``)."""
+    the calibrated and the nominal robot (``fit.held_out(obs)``, ``fit.held_out(obs, fit.before)``)."""
     from .. import __version__
 
     residuals = [_row(s, f"training {k + 1}", "nominal", "before") for k, s in enumerate(fit.stats_before)]
@@ -60,7 +60,7 @@ def observation_figures(fit: ObservationFit, label: str = "training") -> dict:
         q, xyz = found
         flags = np.zeros(len(q), bool)
         flags[np.asarray(bad, int)] = True
-        before = xyz - fit.registered.forward(q) if label == "training" else None
+        before = xyz - fit.before.forward(q) if label == "training" else None
         sets.append(F.PoseSet(label, obs.rows, q, xyz, before, xyz - fit.robot.forward(q), flags, name=obs.source))
     if not sets:
         return {}
