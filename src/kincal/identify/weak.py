@@ -4,8 +4,8 @@ A parameter whose σ from the data exceeds the largest correction a real robot p
 verdict's "large correction" limits, 10 mm and 2 deg) is noise: fitted, it extrapolates wildly
 outside the measured region (one marker on a small region: 4.17 mm held out where the fit that holds
 such parameters reaches 3.14 mm). The worst one is kept nominal and the fit repeated, until none is.
-The position fit (:mod:`kincal.identify.calibrate`) and the fit of observation sets
-(:mod:`kincal.identify.stacked`) share this rule.
+The one fit (:mod:`kincal.identify.stacked`) applies it to every kind, with σ judged by the stated
+σ and the model error the data show.
 """
 from __future__ import annotations
 
