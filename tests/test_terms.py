@@ -233,3 +233,27 @@ def test_auto_with_real_ur5_sessions_holds_out_the_smaller_one(ur5, grid):
     html = kincal.build_report(res, []).html  # the report's table has the held-out session's column
     assert f'<th title="{test.source}">held out: ur5_random.csv (mm)</th>' in html
     assert f'{rows["harmonics:2"]["sessions"][0] * 1e3:.4f}</td>' in html and "Not held out" in html
+
+
+def test_the_envelope_takes_a_revolute_joint_a_whole_turn_away_as_inside():
+    """A UR5 with joint-angle harmonics fitted on joint 6 within ±60°: the same poses with joint 6 at
+    −360° + the angle are the same positions for the model (its terms are periodic) and lie inside the
+    envelope; a joint 6 90° beyond the range is named, at the angle the controller reads."""
+    from kincal.analysis.uncertainty import ModelUncertainty, envelope_warning
+    ur5 = kincal.load_robot("ur5")
+    q = ur5.sample_joints(200, seed=3)
+    q[:, 5] = np.random.default_rng(3).uniform(-np.pi / 3, np.pi / 3, len(q))
+    model = kincal.models.extend(ur5, kincal.ErrorModel("harmonics:2"), q)
+    terms = [n for n in model.params.names if n not in ur5.params.names]  # j1.h1s, j1.h1c, ...
+    model = model.with_params({n: 1e-4 for n in terms})
+    unc = ModelUncertainty.from_fit(model, terms, np.eye(len(terms)) * 1e-10, q)
+    turned = q.copy()
+    turned[:, 5] -= 2 * np.pi
+    np.testing.assert_allclose(model.forward(turned), model.forward(q), atol=1e-12)
+    rows = np.arange(2, len(q) + 2)
+    bad, text = envelope_warning(rows, turned, model, unc)
+    assert not bad.any() and text is None
+    beyond = q.copy()
+    beyond[:, 5] = np.deg2rad(150.0) - 2 * np.pi
+    bad, text = envelope_warning(rows, beyond, model, unc)
+    assert bad.all() and "150.0..150.0 deg" in text

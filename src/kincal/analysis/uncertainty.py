@@ -10,7 +10,9 @@ flexible the error model, the less it should be trusted there.
 
 The training joint ranges (the envelope) are kept too. A model with joint-value terms (harmonics,
 compliance, gravity regressor) learned those terms only inside them: a pose with a joint more than
-``ENVELOPE_MARGIN`` (2 %) of its training range outside it is named as well.
+``ENVELOPE_MARGIN`` (2 %) of its training range outside it is named as well. A revolute joint is
+compared a whole number of turns away, nearest its training range: the terms are periodic in it, and
+a controller's −360° is its 0° (joint 6 at −360° against a ±62° range is inside).
 """
 from __future__ import annotations
 
@@ -44,12 +46,23 @@ class ModelUncertainty:
         return cls(unc.names, unc.covariance, float(np.median(unc.sigma(robot, q_train))), q_train.min(axis=0),
                    q_train.max(axis=0))
 
-    def outside(self, q: np.ndarray) -> np.ndarray:
-        """(N,) bool: a joint lies outside its training range by more than ENVELOPE_MARGIN of it."""
+    def outside(self, q: np.ndarray, revolute: np.ndarray | None = None) -> np.ndarray:
+        """(N,) bool: a joint lies outside its training range by more than ENVELOPE_MARGIN of it (the
+        ``revolute`` joints, a bool mask, taken the whole turns nearest the range)."""
         if self.lower is None or self.upper is None:
             return np.zeros(len(q), bool)
+        q = self.turned(q, revolute)
         margin = ENVELOPE_MARGIN * (self.upper - self.lower)
         return np.any((q < self.lower - margin) | (q > self.upper + margin), axis=1)
+
+    def turned(self, q: np.ndarray, revolute: np.ndarray | None) -> np.ndarray:
+        """q (N, n) with each ``revolute`` joint moved by the whole turns that bring it nearest the
+        middle of its training range (the same joint position for the robot and its terms)."""
+        if revolute is None or self.lower is None or self.upper is None or not np.any(revolute):
+            return q
+        middle = 0.5 * (self.lower + self.upper)
+        turns = np.where(revolute, np.round((q - middle) / (2 * np.pi)), 0.0)
+        return q - 2 * np.pi * turns
 
     def sigma(self, robot: Robot, q: np.ndarray) -> np.ndarray:
         """(N,) 3-D standard deviation (m) of the predicted position at joint values q (N, n)."""
@@ -125,6 +138,7 @@ def _beyond(q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> str:
     ``q`` leave the training ranges; '' when none does or the ranges are not known."""
     if unc.lower is None or unc.upper is None or len(unc.lower) != q.shape[1]:
         return ""
+    q = unc.turned(q, np.array([t == "revolute" for t in robot.joint_types]))
     parts = []
     for j in np.flatnonzero(np.any((q < unc.lower) | (q > unc.upper), axis=0)):
         k = DEG if robot.joint_types[j] == "revolute" else MM
@@ -140,7 +154,7 @@ def envelope_warning(rows: np.ndarray, q: np.ndarray, robot: Robot, unc: ModelUn
     terms = robot.error_model
     if terms == "geometric" or unc.lower is None or len(unc.lower) != q.shape[1]:
         return np.zeros(len(q), bool), None
-    bad = unc.outside(q)
+    bad = unc.outside(q, np.array([t == "revolute" for t in robot.joint_types]))
     if not bad.any():
         return bad, None
     return bad, (f"{int(bad.sum())} pose(s) lie outside the joint ranges the terms ({terms}) were fitted on"

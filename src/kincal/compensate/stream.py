@@ -330,7 +330,8 @@ def _summary(job: StreamJob, layout: CommandColumns, comp, rows, q0, xyz, k: int
     sigma = np.zeros(0) if comp.predicted_sigma is None else comp.predicted_sigma[k:][ok]
     unc = job.uncertainty
     ext = unc.extrapolated(sigma) if unc is not None else np.zeros(len(sigma), bool)
-    out = unc.outside(q[ok]) if unc is not None else np.zeros(len(sigma), bool)
+    out = (unc.outside(q[ok], np.array([t == "revolute" for t in job.robot.joint_types])) if unc is not None
+           else np.zeros(len(sigma), bool))
     largest = {"residual": comp.residual[k:][ok],
                "rotation_residual": None if comp.rotation_residual is None else comp.rotation_residual[k:][ok],
                "orientation_change": None if comp.orientation_change is None else comp.orientation_change[k:][ok]}
