@@ -17,7 +17,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 import kincal
-from kincal.identify.stacked import fit_observations
+from kincal.identify import fit_observations
 from kincal.observe import SamePointObs
 from kincal.simulate.observations import simulate_poses
 

@@ -131,7 +131,7 @@ def test_parameters_the_data_hardly_determine_are_held_at_nominal(monkeypatch):
     lower than when it is fitted."""
     import importlib
 
-    calibrate_module = importlib.import_module("kincal.identify.stacked")
+    calibrate_module = importlib.import_module("kincal.identify.rounds")
     from kincal.identify.registration import kabsch
 
     ur = kincal.load_robot("ur5")

@@ -216,3 +216,14 @@ def test_cos_sin_matches_numpy_everywhere():
     x = np.concatenate([np.linspace(-50, 50, 200001), np.pi * np.arange(-8, 9) / 2, [0.0, -0.0, 1e-300]])
     c, s = cos_sin(x)
     assert np.abs(c - np.cos(x)).max() < 1e-15 and np.abs(s - np.sin(x)).max() < 1e-15
+
+
+def test_rotation_helpers_against_scipy():
+    """skew(v) @ u is v × u, and rotvec_matrix is scipy's rotation of the same vector (small and large)."""
+    from scipy.spatial.transform import Rotation
+    from kincal.models.transforms import rotvec_matrix, skew
+    rng = np.random.default_rng(5)
+    v, u = rng.normal(size=(7, 3)), rng.normal(size=(7, 3))
+    np.testing.assert_allclose(np.einsum("nij,nj->ni", skew(v), u), np.cross(v, u), atol=1e-14)
+    for w in (rng.normal(size=3), 1e-13 * rng.normal(size=3), np.array([0.0, 0.0, np.pi - 1e-9])):
+        np.testing.assert_allclose(rotvec_matrix(w), Rotation.from_rotvec(w).as_matrix(), atol=1e-12)

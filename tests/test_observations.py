@@ -340,7 +340,7 @@ def test_a_wrong_rotation_sigma_cannot_spoil_the_positions(ur5, monkeypatch):
     variance they show beside the stated σ, so a least-squares fit predicts positions as well as with the
     right σ (within 5 %), where weighting by the stated σ alone is markedly worse; the verdict names
     --std-rot."""
-    import kincal.identify.stacked as stacked
+    import kincal.identify.rounds as stacked
 
     true = kincal.perturb(ur5, 0.5e-3, 0.5e-3, seed=8)
     q, q_test = ur5.sample_joints(150, seed=8), ur5.sample_joints(100, seed=9)

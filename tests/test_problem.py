@@ -175,7 +175,7 @@ def test_pso_history_is_kept(puu3_data):
 def test_problem_refuses_too_little_data_before_solving(puu3_data, monkeypatch):
     robot, meas = puu3_data
     few = meas.subset(np.arange(1))
-    monkeypatch.setattr(stacked_module, "_swarm", _no_work)
+    monkeypatch.setattr(stacked_module, "swarm", _no_work)
     with pytest.raises(kincal.MeasurementError, match="1 poses give 3 equations for 4 parameters"):
         kincal.calibrate(robot, few, FitOptions(names=["L1", "L2", "L3", "r"], base="fixed", residual="joint",
                                                 method="pso"))

@@ -429,7 +429,7 @@ def cmd_evaluate(args, kind: str) -> int:
 
     robot = load_robot(args)
     held, anchors = trained_setup(kincal.models.load_calibration_record(args.robot) if robot_inputs(args.robot)
-                                  else None)  # the probe's rotation and the markers as trained
+                                  else None, args.robot)  # the probe's rotation and the markers as trained
     payloads, texts = [], []
     for path in args.data:
         obs = read_observations(path, robot, format_of(args, kind))

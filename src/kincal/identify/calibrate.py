@@ -122,7 +122,7 @@ def _error_model(robot: Robot, sessions: list[Measurements], own_frames: bool, o
     if spec.name == "auto":
         say("choosing the error model (joint-space blocked cross-validation)")
         quiet = options.replace(error_model=None, diagnose=False, reject_outliers=False)
-        data = _joined(sessions) if not own_frames else _calibrate(robot, sessions, True, quiet, None, None,
+        data = joined(sessions) if not own_frames else _calibrate(robot, sessions, True, quiet, None, None,
                                                                     {}).measurements
         choice = select_model(robot, data, calibrate, quiet, use_q=use_q, payload=spec.payload)
         spec = dataclasses.replace(spec, name=choice.chosen)
@@ -222,9 +222,6 @@ def joined(sessions: list[Measurements]) -> Measurements:
                         sessions[0].joint_names, " + ".join(s.source for s in sessions),
                         np.concatenate([s.rows for s in sessions]), std, sessions[0].units,
                         np.concatenate([np.full(len(s), name) for s, name in zip(sessions, labels)]))
-
-
-_joined = joined
 
 
 def _diagnosed(res: CalibrationResult, say) -> CalibrationResult:

@@ -231,10 +231,10 @@ def stat_line(s: dict) -> str:
     return f"mean {s['mean_mm']:.4f} mm{rot}"
 
 
-def trained_setup(record: dict | None) -> tuple[dict, dict]:
+def trained_setup(record: dict | None, where: str = "calibration record") -> tuple[dict, dict]:
     """From a calibration record's ``setup``: the set-up parameters to hold (name -> value) and the
     anchors (a 6-D probe's rotation) a held-out file is judged with, so its probe and markers stay as
-    trained; ({}, {}) for a record without one."""
+    trained; ({}, {}) for a record without one. ``where`` names the file in an error."""
     setup = (record or {}).get("setup")
     if not isinstance(setup, dict):
         return {}, {}
@@ -243,6 +243,6 @@ def trained_setup(record: dict | None) -> tuple[dict, dict]:
         return held, {}
     R = np.asarray(setup["target_rotation"], float)
     if R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6):
-        raise ValueError("calibration record: setup.target_rotation must be a 3x3 rotation matrix (edited by hand?); "
-                         "calibrate again to write it")
+        raise ValueError(f"{where}: the calibration record's setup.target_rotation must be a 3x3 rotation matrix "
+                         f"(edited by hand?); calibrate again to write it")
     return {**held, "target.rx": 0.0, "target.ry": 0.0, "target.rz": 0.0}, {"target_rotation": R}

@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.robot import TOOL_NAMES, Robot
+from ..models.transforms import rotvec_matrix, skew
 
 
 def kabsch(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -55,32 +56,16 @@ def register_mounting(robot: Robot, q: np.ndarray, xyz: np.ndarray, frame: bool 
         e = a @ R.T + t - xyz
         J = np.zeros((len(q), 3, 9))
         if frame:
-            J[:, :, :3] = -_skew(a @ R.T)
+            J[:, :, :3] = -skew(a @ R.T)
             J[:, :, 3:6] = np.eye(3)
         J[:, :, 6:] = R @ Rf
         J2 = J.reshape(-1, 9)
         H, g = J2.T @ J2, J2.T @ e.ravel()  # the 9 x 9 normal equations (frame columns 0: the point alone)
         step = np.linalg.lstsq(H, -g, rcond=None)[0]  # (a point the poses cannot tell from the frame: least norm)
-        R, t, point = _rotation(step[:3]) @ R, t + step[3:6], point + step[6:]
+        R, t, point = rotvec_matrix(step[:3]) @ R, t + step[3:6], point + step[6:]
         if np.linalg.norm(step) < MOUNTING_TOL:
             break
     if not frame:
         return moved.with_tool_point(point)
     Rb, tb = moved.base_transform()
     return moved.with_base_transform(R @ Rb, R @ tb + t).with_tool_point(point)
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    """(N, 3) → (N, 3, 3) cross-product matrices."""
-    z = np.zeros(len(v))
-    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], -1), np.stack([v[:, 2], z, -v[:, 0]], -1),
-                     np.stack([-v[:, 1], v[:, 0], z], -1)], -2)
-
-
-def _rotation(w: np.ndarray) -> np.ndarray:
-    """The rotation matrix of the rotation vector w (3,) (Rodrigues)."""
-    th = float(np.linalg.norm(w))
-    K = _skew(w[None])[0]
-    if th < 1e-12:
-        return np.eye(3) + K
-    return np.eye(3) + np.sin(th) / th * K + (1 - np.cos(th)) / th**2 * (K @ K)

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from functools import partial
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -29,17 +28,15 @@ from ..models.robot import Robot
 from ..observe.drifting import DRIFT
 from ..observe.sessions import InSession
 from .covariance import parameter_statistics
-from .lm import LMResult, levenberg_marquardt
+from .lm import LMResult
 from .options import FitOptions
-from .pso import HALF_WIDTH, V_MAX, pso
 from .noise import extra_variance
 from .observed_result import ObservationFit
 from .observed_verdict import component_kinds, observation_verdict, outlier_samples, whitened_per_kind
 from .registration import register_base, register_mounting
-from .relevance import RelevanceFit, with_learned_prior
-from .robust import MAX_IRLS, WEIGHT_TOL, block_weights
+from .relevance import RelevanceFit
+from .rounds import Round, swarm
 from .verdict import Thresholds
-from .weak import weakest
 
 
 @dataclass(frozen=True)
@@ -152,15 +149,15 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
         _check_strict(ident, o, st)
         _check_equations(st, start[0].size, len(ident.identifiable if o.method == "lm" else ident.candidates))
         x0 = np.concatenate([robot.params.values, st.nuis0])
-        rounds = _Round(robot, st, x0, o.max_iter, prior, loss, o.f_scale)
-        free0, swarm = list(ident.identifiable), None
+        rounds = Round(robot, st, x0, o.max_iter, prior, loss, o.f_scale)
+        free0, swarmed = list(ident.identifiable), None
         if o.method != "lm":
-            swarm = _swarm(st, x0, rounds.cols(list(ident.candidates)), o.pso_settings)
+            swarmed = swarm(st, x0, rounds.cols(list(ident.candidates)), o.pso_settings)
             if o.method == "pso":
-                return _result(models, st, gauge, ident, list(ident.candidates), x0, swarm.fit, {},
-                               o.thresholds, {}, swarm.history, ident.dropped)
+                return _result(models, st, gauge, ident, list(ident.candidates), x0, swarmed.fit, {},
+                               o.thresholds, {}, swarmed.history, ident.dropped)
             start = None
-        full, fit, free, weak, fitted, error = rounds.fit(free0, x0 if swarm is None else swarm.full, start)
+        full, fit, free, weak, fitted, error = rounds.fit(free0, x0 if swarmed is None else swarmed.full, start)
         notes: tuple[str, ...] = ()
         for k in range(JUDGED + 1):
             # the fitted set first among confounded ones: only a real change of what the data see counts
@@ -177,10 +174,10 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
             ident = again
             full, fit, free, weak, fitted, error = rounds.fit(list(ident.identifiable), full, None)
         ident = dataclasses.replace(_without_weak(ident, free, weak), notes=ident.notes + notes)
-        spent = (rounds.spent[0] + (swarm.iterations if swarm else 0), rounds.spent[1] + (swarm.evaluations if swarm
-                                                                                          else 0))
+        before = (swarmed.iterations, swarmed.evaluations) if swarmed else (0, 0)
+        spent = (rounds.spent[0] + before[0], rounds.spent[1] + before[1])
         return _result(models, fitted, gauge, ident, free, x0, fit, weak, o.thresholds, error,
-                       swarm.history if swarm else (), spent=spent)
+                       swarmed.history if swarmed else (), spent=spent)
 
 
 JUDGED = 3  # refits when the identifiable set at the solution differs from the start's
@@ -223,106 +220,6 @@ def _check_equations(st: "_Stack", equations: int, unknowns: int) -> None:
     raise MeasurementError(f"{st.sets[0].source}: {_samples(st)} give {equations} equations for {unknowns} "
                            f"parameters; measure at least {unknowns // max(per, 1) + 1} (3-5 times as many is "
                            f"advisable)")
-
-
-@dataclass(frozen=True)
-class _Round:
-    """One fit of a set of free columns: LM from a start, parameters the data hardly see kept nominal,
-    then (by default) the learned prior. The columns not fitted stay at ``x0`` (the nominal values,
-    the set-up parameters' starts), which is also the prior's centre."""
-
-    robot: Robot
-    st: _Stack
-    x0: np.ndarray
-    max_iter: int
-    prior: str
-    loss: str = "linear"
-    f_scale: float | None = None  # m: the robust loss's scale on a sample's position norm (None: 3 robust σ)
-    spent: list = dataclasses.field(default_factory=lambda: [0, 0])  # LM iterations and evaluations so far
-
-    def cols(self, free: Sequence[str]) -> np.ndarray:
-        all_names = list(self.robot.params.names) + list(self.st.nuis_names)
-        return np.array([all_names.index(n) for n in free], dtype=int)
-
-    def fit(self, free: list[str], start: np.ndarray, evaluated):
-        """(full vector, fit, free names, weak, the stack with its weights, s per kind) from the full
-        vector ``start`` (its evaluation ``evaluated`` (r, J) over all columns, or None): least squares
-        (robustly reweighted with a robust loss) and the weak hold, the model error per kind estimated
-        and the fit repeated until it settles, then the learned prior."""
-        st, candidates = self.st, list(free)
-        error: dict[str, float] = {}
-        for _ in range(NOISE_ROUNDS):
-            fcols, fit, free, weak, used = self._least_squares(st, list(candidates), start, evaluated)
-            start, evaluated = self.x0.copy(), None
-            start[fcols] = fit.x
-            again, found = used.with_model_error(fit.residual, len(free))
-            ratio = again.inv_sigma / st.inv_sigma
-            if float(np.max(ratio)) <= float(np.min(ratio)) * (1.0 + NOISE_SETTLED):  # the same relative weights:
-                error = found if any(found.values()) else error  # the same fit (one kind, one σ: a scale only)
-                break
-            st, error = again, found
-        if self.prior == "relevance":
-            fit = with_learned_prior(lambda x: _fun(used, self.x0, fcols, x), fit, self.x0[fcols], free, self.robot)
-        full = self.x0.copy()
-        full[fcols] = fit.x
-        return full, fit, free, weak, used, error
-
-    def _least_squares(self, st: _Stack, free: list[str], start: np.ndarray, evaluated):
-        """LM on ``free`` (then reweighted, with a robust loss: outliers must not decide what is weak);
-        a parameter the data determine worse than a real robot's error kept nominal and the fit
-        repeated: (columns, fit, free names, weak, the stack with the robust factors in its weights)."""
-        weak: dict[str, float] = {}
-        while True:
-            fcols = self.cols(free)
-            fun = (_fun_from(st, self.x0, fcols, evaluated) if evaluated is not None and
-                   np.array_equal(start, self.x0) else lambda x, c=fcols: _fun(st, self.x0, c, x))
-            if self.loss == "linear":
-                fit, used = self._lm(fun, start[fcols]), st
-            else:  # reweighted from the start: a least-squares fit pulled by outliers is a poor place to begin
-                used, fit = self._reweighted(st, fcols, start[fcols], fun(start[fcols])[0])
-            worst = weakest(self.robot, free, fit.jacobian * used.weak_scale(fit.residual, len(free))[:, None],
-                            fit.residual, noise=1.0)
-            if worst is None:
-                return fcols, fit, free, weak, used
-            weak[worst[0]] = worst[1]
-            free.remove(worst[0])
-
-    def _reweighted(self, st: _Stack, fcols: np.ndarray, x: np.ndarray, r: np.ndarray):
-        """Iteratively reweighted least squares on each sample's whitened block from ``x`` (its
-        whitened residual ``r``) until the weights settle: (the stack with the robust factors in its
-        weights, the fit)."""
-        owner, n = _owners(st.sets)
-        base, factor = st, np.full(owner.size, np.nan)  # (nan: at least one fit)
-        scale = None if self.f_scale is None else self.f_scale * float(np.median(st.inv_sigma))
-        for _ in range(MAX_IRLS):
-            new = block_weights(r / np.nan_to_num(factor, nan=1.0), owner, n, self.loss, scale)
-            if np.max(np.abs(new**2 - factor**2)) < WEIGHT_TOL:
-                break
-            factor = new
-            st = dataclasses.replace(base, inv_sigma=base.inv_sigma * factor)
-            fit = self._lm(partial(_fun, st, self.x0, fcols), x)
-            x, r = fit.x, fit.residual
-        return st, fit
-
-    def _lm(self, fun, x0: np.ndarray):
-        fit = levenberg_marquardt(fun, x0, max_iter=self.max_iter)
-        self.spent[0] += fit.iterations
-        self.spent[1] += fit.evaluations
-        return fit
-
-
-def _owners(sets) -> tuple[np.ndarray, int]:
-    """Each stacked row's sample, numbered over all sets (−1: a row of no one sample), and the count."""
-    out, n = [], 0
-    for obs in sets:
-        rows = obs.sample_rows()
-        out.append(np.where(rows >= 0, rows + n, -1))
-        n += len(obs)
-    return np.concatenate(out), n
-
-
-NOISE_ROUNDS = 4  # least-squares fits at most, the model error per kind re-estimated after each
-NOISE_SETTLED = 0.02  # relative change of every weight that ends them
 
 
 def observation_identifiability(robot: Robot, observations: Sequence, names: Sequence[str] | str = "auto",
@@ -437,22 +334,6 @@ def _session_start(robot: Robot, obs):
     return dataclasses.replace(obs, frame0=moved.params.values[moved.params.indices(robot.base_params())])
 
 
-def _fun_from(st: _Stack, x0: np.ndarray, fcols: np.ndarray, start: tuple[np.ndarray, np.ndarray]):
-    """:func:`_fun` of the columns ``fcols``, the start's evaluation (all columns) reused at the start."""
-    def fun(x):
-        if np.array_equal(x, x0[fcols]):
-            return start[0], start[1][:, fcols]
-        return _fun(st, x0, fcols, x)
-    return fun
-
-
-def _fun(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray):
-    full = x0.copy()
-    full[fcols] = x
-    P = st.robot.n_params
-    return st.evaluate(full[:P], full[P:], fcols)
-
-
 def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit, weak, th: Thresholds, error: dict,
             history=(), undetermined=(), spent=None) -> ObservationFit:
     """The fit of the columns ``free`` as an :class:`ObservationFit` (``models``: the model as given,
@@ -487,38 +368,3 @@ def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit,
                           weak, learned, per_kind, {k: v for k, v in error.items() if v > 0},
                           outlier_samples(st.sets, r, th), whitened_residual=r, evaluations=spent[1],
                           message=fit.message if isinstance(fit, LMResult) else "prior learned", history=tuple(history), free=tuple(free))
-
-
-@dataclass(frozen=True)
-class _Swarm:
-    """A particle swarm's outcome: the full vector, the fit evaluated there (no iterations of its own),
-    the best mean squared residual per iteration, its iterations and evaluations."""
-
-    full: np.ndarray
-    fit: LMResult
-    history: tuple[float, ...]
-    iterations: int
-    evaluations: int
-
-
-def _swarm(st: _Stack, x0: np.ndarray, cols: np.ndarray, settings) -> _Swarm:
-    """Particle swarm (:mod:`kincal.identify.pso`) over the robot parameters ``cols`` on the sets'
-    batched mean squared residual, around ``x0``; sets with set-up parameters cannot take part."""
-    P = st.robot.n_params
-    if st.nuis_names or np.any(cols >= P):
-        raise ValueError("a particle swarm fits the robot's parameters to points or joint-space residuals only: "
-                         "these data bring set-up parameters (a frame, a target); use method 'lm'")
-
-    def cost(X: np.ndarray) -> np.ndarray:
-        V = np.tile(x0[:P], (X.shape[0], 1))
-        V[:, cols] = X
-        return sum((o.batch_cost(st.robot, V) for o in st.sets), np.zeros(X.shape[0]))
-    kinds = [st.robot.params.kinds[i] for i in cols]
-    found = pso(cost, x0[cols], np.array([HALF_WIDTH[k] for k in kinds]), np.array([V_MAX[k] for k in kinds]),
-                **settings.to_dict())
-    full = x0.copy()
-    full[cols] = found.x
-    r, J = _fun(st, x0, cols, found.x)
-    fit = LMResult(found.x, 0.5 * float(r @ r), r, J, found.iterations, found.evaluations, True,
-                   "particle swarm finished its iterations")
-    return _Swarm(full, fit, tuple(map(float, found.history)), found.iterations, found.evaluations)

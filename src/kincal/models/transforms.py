@@ -1,4 +1,5 @@
-"""Small rotation helpers shared by the models (fixed-axis roll/pitch/yaw: R = Rz(rz) Ry(ry) Rx(rx))."""
+"""Small rotation helpers shared by the rooms: fixed-axis roll/pitch/yaw (R = Rz(rz) Ry(ry) Rx(rx)),
+cross-product matrices and the matrix of a rotation vector."""
 from __future__ import annotations
 
 import numpy as np
@@ -24,3 +25,19 @@ def zyx_from_matrix(R: np.ndarray) -> tuple[float, float, float]:
         rz = float(np.arctan2(-R[0, 1], R[1, 1]))
         rx = 0.0
     return rz, ry, rx
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """(…, 3) → (…, 3, 3) cross-product matrices."""
+    z = np.zeros(v.shape[:-1])
+    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1), np.stack([v[..., 2], z, -v[..., 0]], -1),
+                     np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
+
+
+def rotvec_matrix(w: np.ndarray) -> np.ndarray:
+    """The rotation matrix (3, 3) of the rotation vector w (3,) rad (Rodrigues)."""
+    th = float(np.linalg.norm(w))
+    K = skew(np.asarray(w, float))
+    if th < 1e-12:
+        return np.eye(3) + K
+    return np.eye(3) + np.sin(th) / th * K + (1 - np.cos(th)) / th**2 * (K @ K)

@@ -28,14 +28,8 @@ import numpy as np
 
 from ..errors import MeasurementError
 from ..models.robot import TOOL_NAMES, Robot
+from ..models.transforms import skew
 from ..units import MM, MRAD
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    """(…, 3) → (…, 3, 3) cross-product matrices."""
-    z = np.zeros(v.shape[:-1])
-    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1), np.stack([v[..., 2], z, -v[..., 0]], -1),
-                     np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
 
 
 def so3_left_inverse(phi: np.ndarray) -> np.ndarray:
@@ -44,14 +38,14 @@ def so3_left_inverse(phi: np.ndarray) -> np.ndarray:
     small = th < 1e-6
     ts = np.where(small, 1.0, th)
     c = np.where(small, 1.0 / 12.0, 1.0 / ts**2 - (1 + np.cos(ts)) / (2 * ts * np.sin(ts)))
-    K = _skew(phi)
+    K = skew(phi)
     return np.eye(3) - 0.5 * K + c[:, None, None] * (K @ K)
 
 
 def so3_right(omega: np.ndarray) -> np.ndarray:
     """(3, 3) right Jacobian of SO(3) at the rotation vector omega (3,): R Exp(ω + δ) ≈ R Exp(ω) Exp(Jr δ)."""
     th = float(np.linalg.norm(omega))
-    K = _skew(omega)
+    K = skew(omega)
     if th < 1e-6:
         return np.eye(3) - 0.5 * K + K @ K / 6.0
     return np.eye(3) - (1 - np.cos(th)) / th**2 * K + (th - np.sin(th)) / th**3 * (K @ K)

@@ -1,0 +1,174 @@
+"""One fit of the stacked problem's free columns (:class:`Round`): Levenberg–Marquardt from a start
+(robustly reweighted with a robust loss), parameters the data hardly determine kept nominal, the
+model error per kind estimated and the fit repeated until it settles, then the learned prior; and
+the particle swarm that can start it (:func:`swarm`). The stack itself is
+:class:`kincal.identify.stacked._Stack`; this room only evaluates it."""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from functools import partial
+from typing import TYPE_CHECKING, Sequence
+
+import numpy as np
+
+from ..models.robot import Robot
+from .lm import LMResult, levenberg_marquardt
+from .pso import HALF_WIDTH, V_MAX, pso
+from .relevance import with_learned_prior
+from .robust import MAX_IRLS, WEIGHT_TOL, block_weights
+from .weak import weakest
+
+if TYPE_CHECKING:  # the stack evaluates itself; this room only calls it
+    from .stacked import _Stack
+
+
+@dataclass(frozen=True)
+class Round:
+    """One fit of a set of free columns: LM from a start, parameters the data hardly see kept nominal,
+    then (by default) the learned prior. The columns not fitted stay at ``x0`` (the nominal values,
+    the set-up parameters' starts), which is also the prior's centre."""
+
+    robot: Robot
+    st: _Stack
+    x0: np.ndarray
+    max_iter: int
+    prior: str
+    loss: str = "linear"
+    f_scale: float | None = None  # m: the robust loss's scale on a sample's position norm (None: 3 robust σ)
+    spent: list = dataclasses.field(default_factory=lambda: [0, 0])  # LM iterations and evaluations so far
+
+    def cols(self, free: Sequence[str]) -> np.ndarray:
+        all_names = list(self.robot.params.names) + list(self.st.nuis_names)
+        return np.array([all_names.index(n) for n in free], dtype=int)
+
+    def fit(self, free: list[str], start: np.ndarray, evaluated):
+        """(full vector, fit, free names, weak, the stack with its weights, s per kind) from the full
+        vector ``start`` (its evaluation ``evaluated`` (r, J) over all columns, or None): least squares
+        (robustly reweighted with a robust loss) and the weak hold, the model error per kind estimated
+        and the fit repeated until it settles, then the learned prior."""
+        st, candidates = self.st, list(free)
+        error: dict[str, float] = {}
+        for _ in range(NOISE_ROUNDS):
+            fcols, fit, free, weak, used = self._least_squares(st, list(candidates), start, evaluated)
+            start, evaluated = self.x0.copy(), None
+            start[fcols] = fit.x
+            again, found = used.with_model_error(fit.residual, len(free))
+            ratio = again.inv_sigma / st.inv_sigma
+            if float(np.max(ratio)) <= float(np.min(ratio)) * (1.0 + NOISE_SETTLED):  # the same relative weights:
+                error = found if any(found.values()) else error  # the same fit (one kind, one σ: a scale only)
+                break
+            st, error = again, found
+        if self.prior == "relevance":
+            fit = with_learned_prior(lambda x: fun_at(used, self.x0, fcols, x), fit, self.x0[fcols], free, self.robot)
+        full = self.x0.copy()
+        full[fcols] = fit.x
+        return full, fit, free, weak, used, error
+
+    def _least_squares(self, st: _Stack, free: list[str], start: np.ndarray, evaluated):
+        """LM on ``free`` (then reweighted, with a robust loss: outliers must not decide what is weak);
+        a parameter the data determine worse than a real robot's error kept nominal and the fit
+        repeated: (columns, fit, free names, weak, the stack with the robust factors in its weights)."""
+        weak: dict[str, float] = {}
+        while True:
+            fcols = self.cols(free)
+            fun = (fun_from(st, self.x0, fcols, evaluated) if evaluated is not None and
+                   np.array_equal(start, self.x0) else lambda x, c=fcols: fun_at(st, self.x0, c, x))
+            if self.loss == "linear":
+                fit, used = self._lm(fun, start[fcols]), st
+            else:  # reweighted from the start: a least-squares fit pulled by outliers is a poor place to begin
+                used, fit = self._reweighted(st, fcols, start[fcols], fun(start[fcols])[0])
+            worst = weakest(self.robot, free, fit.jacobian * used.weak_scale(fit.residual, len(free))[:, None],
+                            fit.residual, noise=1.0)
+            if worst is None:
+                return fcols, fit, free, weak, used
+            weak[worst[0]] = worst[1]
+            free.remove(worst[0])
+
+    def _reweighted(self, st: _Stack, fcols: np.ndarray, x: np.ndarray, r: np.ndarray):
+        """Iteratively reweighted least squares on each sample's whitened block from ``x`` (its
+        whitened residual ``r``) until the weights settle: (the stack with the robust factors in its
+        weights, the fit)."""
+        owner, n = owners(st.sets)
+        base, factor = st, np.full(owner.size, np.nan)  # (nan: at least one fit)
+        scale = None if self.f_scale is None else self.f_scale * float(np.median(st.inv_sigma))
+        for _ in range(MAX_IRLS):
+            new = block_weights(r / np.nan_to_num(factor, nan=1.0), owner, n, self.loss, scale)
+            if np.max(np.abs(new**2 - factor**2)) < WEIGHT_TOL:
+                break
+            factor = new
+            st = dataclasses.replace(base, inv_sigma=base.inv_sigma * factor)
+            fit = self._lm(partial(fun_at, st, self.x0, fcols), x)
+            x, r = fit.x, fit.residual
+        return st, fit
+
+    def _lm(self, fun, x0: np.ndarray):
+        fit = levenberg_marquardt(fun, x0, max_iter=self.max_iter)
+        self.spent[0] += fit.iterations
+        self.spent[1] += fit.evaluations
+        return fit
+
+
+def owners(sets) -> tuple[np.ndarray, int]:
+    """Each stacked row's sample, numbered over all sets (−1: a row of no one sample), and the count."""
+    out, n = [], 0
+    for obs in sets:
+        rows = obs.sample_rows()
+        out.append(np.where(rows >= 0, rows + n, -1))
+        n += len(obs)
+    return np.concatenate(out), n
+
+
+NOISE_ROUNDS = 4  # least-squares fits at most, the model error per kind re-estimated after each
+NOISE_SETTLED = 0.02  # relative change of every weight that ends them
+
+
+def fun_from(st: _Stack, x0: np.ndarray, fcols: np.ndarray, start: tuple[np.ndarray, np.ndarray]):
+    """:func:`_fun` of the columns ``fcols``, the start's evaluation (all columns) reused at the start."""
+    def fun(x):
+        if np.array_equal(x, x0[fcols]):
+            return start[0], start[1][:, fcols]
+        return fun_at(st, x0, fcols, x)
+    return fun
+
+
+def fun_at(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray):
+    full = x0.copy()
+    full[fcols] = x
+    P = st.robot.n_params
+    return st.evaluate(full[:P], full[P:], fcols)
+
+
+@dataclass(frozen=True)
+class Swarm:
+    """A particle swarm's outcome: the full vector, the fit evaluated there (no iterations of its own),
+    the best mean squared residual per iteration, its iterations and evaluations."""
+
+    full: np.ndarray
+    fit: LMResult
+    history: tuple[float, ...]
+    iterations: int
+    evaluations: int
+
+
+def swarm(st: _Stack, x0: np.ndarray, cols: np.ndarray, settings) -> Swarm:
+    """Particle swarm (:mod:`kincal.identify.pso`) over the robot parameters ``cols`` on the sets'
+    batched mean squared residual, around ``x0``; sets with set-up parameters cannot take part."""
+    P = st.robot.n_params
+    if st.nuis_names or np.any(cols >= P):
+        raise ValueError("a particle swarm fits the robot's parameters to points or joint-space residuals only: "
+                         "these data bring set-up parameters (a frame, a target); use method 'lm'")
+
+    def cost(X: np.ndarray) -> np.ndarray:
+        V = np.tile(x0[:P], (X.shape[0], 1))
+        V[:, cols] = X
+        return sum((o.batch_cost(st.robot, V) for o in st.sets), np.zeros(X.shape[0]))
+    kinds = [st.robot.params.kinds[i] for i in cols]
+    found = pso(cost, x0[cols], np.array([HALF_WIDTH[k] for k in kinds]), np.array([V_MAX[k] for k in kinds]),
+                **settings.to_dict())
+    full = x0.copy()
+    full[cols] = found.x
+    r, J = fun_at(st, x0, cols, found.x)
+    fit = LMResult(found.x, 0.5 * float(r @ r), r, J, found.iterations, found.evaluations, True,
+                   "particle swarm finished its iterations")
+    return Swarm(full, fit, tuple(map(float, found.history)), found.iterations, found.evaluations)
