@@ -121,7 +121,7 @@ def test_simulated_compliance_and_harmonics_are_recovered(ur5):
             if n in res.names:
                 z.append((res.estimates[n] - true.params[n]) / res.std[n])
             else:  # only a compliance the data cannot tell from zero may be dropped (as negative)
-                assert n == "j4.compliance" and any(n.split(".")[0] in note for note in res.error_model_notes)
+                assert n == "j4.compliance" and any(n.split(".")[0] in note for note in res.notes)
         rms.append(kincal.evaluate(res.robot, kincal.simulate(true, qv, 0.0)).rms)
         J, Jv = stacked_jacobian(res.robot, q, res.names), stacked_jacobian(res.robot, qv, res.names)
         predicted.append(NOISE * np.sqrt(np.trace(Jv @ np.linalg.inv(J.T @ J) @ Jv.T) / len(qv)))
@@ -135,8 +135,8 @@ def test_a_negative_compliance_is_dropped(ur5):
     meas = kincal.simulate(true, ur5.sample_joints(200, seed=4), NOISE, seed=5)
     res = kincal.calibrate(ur5, meas, error_model="compliance")
     assert "j3.compliance" not in res.robot.params.names and res.estimates["j2.compliance"] > 0
-    assert any("j3: compliance came out negative" in n and "dropped" in n for n in res.error_model_notes)
-    assert not any(n.startswith("j2") for n in res.error_model_notes)
+    assert any("j3: compliance came out negative" in n and "dropped" in n for n in res.notes)
+    assert not any(n.startswith("j2") for n in res.notes)
     assert res.to_dict()["compliance"]["j2"] == pytest.approx(res.estimates["j2.compliance"] / 100)
 
 

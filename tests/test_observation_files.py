@@ -157,7 +157,7 @@ def test_panda_sockets_through_the_command_line(tmp_path, capsys):
     code, out, _ = _run(capsys, base + [train, "--test", test, "--group-col", "placement", "--distance", "0,1,50",
                                         "--report", str(report), "-o", str(tmp_path / "panda.yaml")])
     held = out["held_out"][0]
-    assert code == 0 and out["after"][0]["mean_abs_mm"] <= 0.168 and held["mean_abs_mm"] <= 0.347
+    assert code == 0 and out["sets"][0]["mean_abs_mm"] <= 0.168 and held["mean_abs_mm"] <= 0.347
     assert out["prior"]["panda_joint4 lengths"] < 1e-6 < out["prior"]["panda_joint5 angles"]
     assert len(held["groups"]) == 7 and max(g["distance_error_mm"] for g in held["groups"]) < 0.35
     assert out["held_out_nominal"][0]["mean_abs_mm"] == pytest.approx(7.78, abs=0.01)
@@ -223,7 +223,7 @@ def test_simulated_files_of_every_type_calibrate_back(tmp_path, capsys, kind):
     true, cal, nominal = (kincal.load_robot(p) for p in (truth, tmp_path / "cal.yaml", "ur5"))
     if kind == "plane":  # contacts see only distances to the planes: never called good, and say why
         assert fit["verdict"]["status"] == "suspect" and "plane-only" in str(fit["verdict"])
-        assert fit["after"][0]["rms_mm"] < 0.1 * fit["before"][0]["rms_mm"]
+        assert fit["sets"][0]["rms_mm"] < 0.1 * fit["sets_before"][0]["rms_mm"]
         return
     if kind == "markers":  # the tool point is not seen: compare where the first marker is
         m1 = np.array([fit["nuisance"][f"marker[m1].{a}"] for a in "xyz"])
@@ -267,7 +267,7 @@ def test_two_pose_sessions_each_in_its_own_frame(tmp_path, capsys, ur5):
     base = ["calibrate", "ur5", *files, "--type", "pose", "--length-unit", "mm", "--tool", "50,20,100mm",
             "--std-pos", "0.015mm", "--std-rot", "0.05mrad"]
     code, fit, _ = _run(capsys, base)
-    assert code == 0 and fit["whitened_rms"] < 1.2 and fit["after"][1]["session"] == "2:session2.csv"
+    assert code == 0 and fit["whitened_rms"] < 1.2 and fit["sets"][1]["session"] == "2:session2.csv"
     frame = {k.split("].", 1)[1]: v for k, v in fit["nuisance"].items() if k.startswith("frame[")}
     moved = ur5.with_base_transform(moved_R, moved_t)  # the same base parametrisation, independently
     expected = dict(zip(moved.base_params(), moved.params.values[moved.params.indices(moved.base_params())]))
@@ -291,8 +291,8 @@ def test_points_and_sockets_together_through_the_command_line(tmp_path, capsys):
     code, fit, err = _run(capsys, ["calibrate", "ur5", str(tmp_path / "points.csv"), str(tmp_path / "sockets.csv"),
                                    "--type", "point,same-point", "--label-col", "point", "--group-col", "placement",
                                    "--distance", "0,1,50", *units, "-o", str(tmp_path / "cal.yaml")])
-    assert code == 0 and [s["type"] for s in fit["after"]] == ["point", "same-point"], err
-    assert fit["after"][0]["mean_mm"] < 0.03 and fit["after"][1]["mean_abs_mm"] < 0.03
+    assert code == 0 and [s["type"] for s in fit["sets"]] == ["point", "same-point"], err
+    assert fit["sets"][0]["mean_mm"] < 0.03 and fit["sets"][1]["mean_abs_mm"] < 0.03
     true, cal = kincal.load_robot(truth), kincal.load_robot(tmp_path / "cal.yaml")
     q = true.sample_joints(200, seed=3)
     assert np.sqrt(np.mean(np.sum((cal.forward(q) - true.forward(q)) ** 2, axis=1))) < 30e-6

@@ -25,13 +25,13 @@ def test_base_fixed_for_poses(tmp_path, capsys):
             "--std-pos", "0.02mm", "--std-rot", "0.05mrad", "--json"]
     assert main([*args, "--base", "fixed"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert not [n for n in out["fitted"] if n.startswith("base.")] and "j2.a" in out["fitted"]
+    assert not [n for n in out["estimated"] if n.startswith("base.")] and "j2.a" in out["estimated"]
     ref = fit_observations(ur5, [obs], base="fixed")
-    assert out["fitted"] == list(ref.names)
+    assert out["estimated"] == list(ref.names)
     np.testing.assert_allclose([out["estimates"][n] for n in ref.names], [ref.robot.params[n] for n in ref.names],
                                rtol=0, atol=1e-12)
     assert main(args) == 0  # by default the base frame is fitted too
-    assert any(n.startswith("base.") for n in json.loads(capsys.readouterr().out)["fitted"])
+    assert any(n.startswith("base.") for n in json.loads(capsys.readouterr().out)["estimated"])
     assert main([*args, "--base", "fixed", "--params", "base.x,j2.a"]) == 1
     assert "the base frame is known" in capsys.readouterr().err
 
@@ -48,7 +48,7 @@ def test_exclude_rows_of_a_pose_file(tmp_path, capsys):
     assert main([*args, "--exclude", f"{rows[0]},{rows[1]}", "-o", str(cal)]) == 0
     out = json.loads(capsys.readouterr().out)
     ref = fit_observations(ur5, [obs.subset(np.setdiff1d(np.arange(len(obs)), [5, 40]))])
-    assert out["after"][0]["samples"] == 78
+    assert out["sets"][0]["samples"] == 78
     np.testing.assert_allclose([out["estimates"][n] for n in ref.names], [ref.robot.params[n] for n in ref.names],
                                rtol=0, atol=1e-12)
     assert main(["report", str(cal), "-o", str(tmp_path / "r.html")]) == 0  # the record leaves them out again
@@ -198,5 +198,5 @@ def test_held_set_up_parameters_stay_as_given():
     loose = fit_observations(fit.robot, [test.with_anchors(anchors)], names=ur5.base_params())
     assert all(strict.nuisance[n] == v and strict.std[n] == np.inf for n, v in trained.items())
     assert any(abs(loose.nuisance[n] - v) > 1e-9 for n, v in trained.items())
-    assert strict.stats[0]["mean_mrad"] >= loose.stats[0]["mean_mrad"] - 1e-9
+    assert strict.per_set[0]["mean_mrad"] >= loose.per_set[0]["mean_mrad"] - 1e-9
     assert set(strict.names) == set(ur5.base_params())

@@ -71,50 +71,37 @@ def fit_options(args) -> kincal.FitOptions:
 
 def cmd_calibrate(args) -> int:
     kinds = _kinds_checked(args)
-    if set(kinds) != {"point"}:
-        return observe.cmd_calibrate(args, kinds, fit_options(args))
     reports = [args.report, json_path(args.report)] if args.report else []
     check_paths([*robot_inputs(args.robot), *args.data, *args.test],
                 [args.output, args.residuals, *reports, args.plot])
-    if args.exclude and len(args.data) > 1:
-        raise ValueError("--exclude names rows of one file; with several sessions leave the rows out of their files")
     options = fit_options(args)
-    r = load_robot(args)
-    options.check(r)
-    sessions = [read(args, r, path) for path in args.data]
-    test = [read(args, r, t) for t in args.test]
-    if args.exclude:
-        sessions = [sessions[0].without_rows(args.exclude)]
-    use_q = np.concatenate([t.q for t in test]) if test else None
-    with progress("calibrating", args.json) as say:
-        if len(sessions) == 1 or args.same_frame:  # one frame: the files are one session
-            res = kincal.calibrate(r, kincal.identify.joined(sessions), options, use_q=use_q, progress=say)
-        else:
-            say(f"calibrating {len(sessions)} sessions, each in its own measurement frame")
-            res = kincal.identify.calibrate_sessions(r, sessions, options, use_q=use_q)
-    meas = res.measurements
-    if args.residuals:
-        kincal.io.write_residuals(args.residuals, meas, meas.xyz - res.residuals, res.pose_z, res.outlier_z,
-                                  r.joint_types, "mm", "deg")
+    robot = load_robot(args)
+    res, tests = fit_files(args, robot, kinds, args.data, args.test, options)
     refused = res.verdict.status == "refused"
     written = bool(args.output) and (not refused or args.force)
     if written:
-        kincal.save_robot(res.robot, args.output,
-                          calibration={**res.record(), "data": data_record(args, args.data, args.exclude)})
-    payload = {**res.to_dict(), "output": args.output if written else None, "residuals_file": args.residuals,
-               "sessions": list(args.data) if len(args.data) > 1 else None}
-    text = str(res)
-    if res.identifiability.dropped:
-        text += "\n" + res.dropped_text()
+        kincal.save_robot(res.robot, args.output, calibration={**res.record(), "data": data_record(args, kinds)})
+    lines, held = held_out(res, tests, args.same_frame)
+    text = "\n".join([str(res), *([res.dropped_text()] if res.identifiability.dropped else []), *lines])
+    if args.residuals:
+        _write_residuals(args, res, robot)
+        text += f"\nper-sample residuals written to {args.residuals}"
     if args.output:
         text += (f"\ncalibrated robot written to {args.output}" + (" (forced despite the verdict)" if refused else "")
                  if written else f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")
-    text += "".join("\n" + line for line in write_outputs(args, res, test, {
+    text += "".join("\n" + line for line in write_outputs(args, res, tests, {
         "robot": args.robot, "units": f"{args.length_unit}, {args.angle_unit}"}))
-    emit(args, payload, text)
+    emit(args, {**res.to_dict(), **held, "output": args.output if written else None, "residuals_file": args.residuals,
+                "sessions": list(args.data) if len(args.data) > 1 else None}, text)
+    return _exit_code(res)
+
+
+def _exit_code(res) -> int:
+    """EXIT_REFUSED when the data are refused (named, with the likely cause: more telling than the
+    non-convergence they usually cause), EXIT_NOT_CONVERGED when the fit did not converge, else 0."""
     data_problems = [r.code for r in res.verdict.reasons if r.level == "refused" and r.code != "not-converged"
                      and not r.code.startswith("cause-")]
-    if data_problems:  # more telling than the non-convergence they usually cause
+    if data_problems:
         cause = res.diagnosis.best if res.diagnosis else None
         err.print(f"kincal: calibration refused: {'; '.join(data_problems)}"
                   + (f"; likely cause: {cause.cause} (fix: {cause.fix})" if cause else ""))
@@ -123,6 +110,59 @@ def cmd_calibrate(args) -> int:
         err.print(f"kincal: calibration did not converge: {res.message}")
         return EXIT_NOT_CONVERGED
     return 0
+
+
+def _write_residuals(args, res, robot) -> None:
+    """Per pose (position data: rows, joints in the file's units, errors, robust z) or per sample."""
+    if not res.data:
+        return res.write_residuals(args.residuals)
+    meas = res.measurements
+    kincal.io.write_residuals(args.residuals, meas, meas.xyz - res.residuals, res.pose_z, res.outlier_z,
+                              robot.joint_types, "mm", "deg")
+
+
+def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], options, use_q=None):
+    """The files read (``args``: how; held-out ``tests`` in the first file's kind) and fitted from
+    ``robot`` with ``options``: (the result, the held-out sets). Position files are fitted by
+    :func:`kincal.calibrate` (one frame with --same-frame, else a frame per session), other kinds
+    by :func:`kincal.identify.fit_observations` (each absolute file after the first in its own frame)."""
+    if args.exclude and len(data) > 1:
+        raise ValueError("--exclude names rows of one file; with several files leave the rows out of their files")
+    options.check(robot)
+    if set(kinds) == {"point"}:
+        sessions = [read(args, robot, path) for path in data]
+        held = [read(args, robot, t) for t in tests]
+        sessions = [sessions[0].without_rows(args.exclude)] if args.exclude else sessions
+        use_q = np.concatenate([t.q for t in held]) if held and use_q is None else use_q
+        with progress("calibrating", args.json) as say:
+            if len(sessions) == 1 or args.same_frame:  # one frame: the files are one session
+                return kincal.calibrate(robot, kincal.identify.joined(sessions), options, use_q=use_q,
+                                        progress=say), held
+            say(f"calibrating {len(sessions)} sessions, each in its own measurement frame")
+            return kincal.identify.calibrate_sessions(robot, sessions, options, use_q=use_q), held
+    sets = [observe.read_set(args, robot, path, k) for path, k in zip(data, kinds)]
+    sets = [sets[0].without_rows(args.exclude)] if args.exclude else sets
+    held = [observe.read_set(args, robot, path, kinds[0]) for path in tests]
+    with progress("calibrating", args.json):
+        return kincal.identify.fit_observations(robot, observe.sessions(sets, args.same_frame), options), held
+
+
+def held_out(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
+    """Held-out observation sets under the nominal ("before") and the calibrated model, and the
+    placements of the training and held-out sets, as lines and as JSON; none for position data
+    (their report and figures show them)."""
+    if res.data:
+        return [], {}
+    from kincal.identify import held_out_stats, stat_line
+
+    held = [(held_out_stats(res, t, res.before, same_frame), held_out_stats(res, t, res.robot, same_frame))
+            for t in tests]
+    out = [f"  held out {h['type']} ({h['source']}): {stat_line(b)}  →  {stat_line(h)}" for b, h in held]
+    for which, sets in (("training", res.per_set), ("held out", [h for _, h in held])):
+        out += [f"  {which} {g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
+                f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
+                for s in sets for g in s.get("groups", [])]
+    return out, {"held_out": [h for _, h in held], "held_out_nominal": [b for b, _ in held]}
 
 
 def _kinds_checked(args) -> list[str]:
@@ -143,36 +183,43 @@ def cmd_evaluate(args) -> int:
     check_paths([*robot_inputs(args.robot), *args.data], [args.plot])
     kinds = observe.types_of(args)
     kincal.identify.refuse_inapplicable(kinds, args.given)
-    if set(kinds) != {"point"}:
-        if len(set(kinds)) > 1:
-            raise ValueError("evaluate --type: one type for all files")
-        return observe.cmd_evaluate(args, kinds[0])
+    if len(set(kinds)) > 1:
+        raise ValueError("evaluate --type: one type for all files")
     r = load_robot(args)
-    sessions = [read(args, r, path) for path in args.data]
-    unc = kincal.analysis.load_uncertainty(args.robot)
-    train_error = _training_error(args.robot)
-    how = kincal.identify.AS_CALIBRATED if args.same_frame else kincal.identify.REGISTERED
-    texts, payloads = [], []
+    record = kincal.models.load_calibration_record(args.robot) if robot_inputs(args.robot) else None
+    judge = _evaluate_points if kinds[0] == "point" else observe.evaluate_set
+    payloads, texts = [], []
     with progress("evaluating", args.json):
-        for path, meas in zip(args.data, sessions):
-            model = r if args.same_frame else kincal.identify.refit_frame(r, meas)
-            stats = kincal.evaluate(model, meas, uncertainty=unc)
-            cause = kincal.identify.heldout_cause(model, meas, train_error, not args.same_frame) if train_error else ""
-            payloads.append({"file": path, "registration": how, **stats.to_dict(), "cause": cause or None})
-            texts.append(f"{r.name} on {path} ({how}): {stats}" + (f"\n  likely cause: {cause}" if cause else ""))
-            if args.plot:
-                from kincal.report import evaluation_figures
-
-                stem = args.plot if len(args.data) == 1 else f"{args.plot}-{len(payloads)}"
-                texts.append("\n".join(save_figures(evaluation_figures(model, meas), stem)))
-    payload = {**payloads[0], "sessions": payloads} if len(payloads) == 1 else {"sessions": payloads}
-    emit(args, payload, "\n".join(texts))
+        for k, path in enumerate(args.data):
+            stem = args.plot and (args.plot if len(args.data) == 1 else f"{args.plot}-{k + 1}")
+            payload, lines = judge(args, r, record, path, kinds[0], stem)
+            payloads.append(payload)
+            texts += lines
+    emit(args, {**payloads[0], "sessions": payloads} if len(payloads) == 1 else {"sessions": payloads},
+         "\n".join(texts))
     return 0
 
 
-def _training_error(robot: str) -> float:
+def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: str | None) -> tuple[dict, list[str]]:
+    """``r`` on one file of positions (its frame re-fitted unless --same-frame): the statistics (SI),
+    the predicted σ and where the model extrapolates (from the calibration record), and the likely
+    cause of an error far above the training error; the JSON payload and the lines to print."""
+    meas = read(args, r, path)
+    how = kincal.identify.AS_CALIBRATED if args.same_frame else kincal.identify.REGISTERED
+    model = r if args.same_frame else kincal.identify.refit_frame(r, meas)
+    stats = kincal.evaluate(model, meas, uncertainty=kincal.analysis.load_uncertainty(args.robot) if record else None)
+    train_error = _training_error(record)
+    cause = kincal.identify.heldout_cause(model, meas, train_error, not args.same_frame) if train_error else ""
+    texts = [f"{r.name} on {path} ({how}): {stats}" + (f"\n  likely cause: {cause}" if cause else "")]
+    if stem:
+        from kincal.report import evaluation_figures
+
+        texts += save_figures(evaluation_figures(model, meas), stem)
+    return {"file": path, "registration": how, **stats.to_dict(), "cause": cause or None}, texts
+
+
+def _training_error(record: dict | None) -> float:
     """The calibrated model's mean error on its training data (m), from its calibration record; 0 when unknown."""
-    record = kincal.models.load_calibration_record(robot) if robot_inputs(robot) else None
     value = (record or {}).get("training_error")
     return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else 0.0
 

@@ -9,14 +9,13 @@ from pathlib import Path
 import numpy as np
 
 import kincal
+from kincal.identify import ABSOLUTE
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS, MRAD
 
-from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, check_paths, csv_list, emit, err, load_robot, progress,
-                     robot_inputs)
-from .report import json_path, report_columns, save_figures
+from .common import csv_list, emit, load_robot
+from .report import save_figures
 
 TYPES = ("point", "pose", "markers", "same-point", "plane")
-ABSOLUTE = ("point", "pose", "markers")  # types measured in a frame: each file after the first is its own session
 
 
 def types_of(args) -> list[str]:
@@ -151,123 +150,17 @@ def format_of(args, kind: str):
                              tuple(args.distance), dict(args.plane), args.std_pos, args.std_rot)
 
 
-READING = ("joint_cols", "length_unit", "angle_unit", "xyz_cols", "orientation", "rot_cols", "markers", "label_col",
-           "group_col", "distance", "plane", "std_pos", "std_rot", "exclude")  # how the files were read: in the record
-
-
-def cmd_calibrate(args, kinds: list[str], options) -> int:
-    """calibrate with measurement types: fit, print per-type statistics, write the robot and report."""
-    from kincal.identify import stat_line
-
-    reports = [args.report, json_path(args.report)] if args.report else []
-    check_paths([*robot_inputs(args.robot), *args.data, *args.test], [args.output, args.residuals, args.plot, *reports])
-    robot = load_robot(args)
-    fit, held, held_nominal = fitted(args, robot, kinds, args.data, args.test, options)
-    record = {**fit.record(), "observation_options": options.to_dict(),
-              "data": {"file": list(args.data), "kinds": list(kinds), "same_frame": args.same_frame,
-                       "reading": {k: _plain(vars(args)[k]) for k in READING}}}
-    refused = fit.verdict.status == "refused"
-    written = bool(args.output) and (not refused or args.force)
-    if written:
-        kincal.save_robot(fit.robot, args.output, calibration=record)
-    text = str(fit) + "".join(f"\n  held out {h['type']} ({h['source']}): {stat_line(b)}  →  {stat_line(h)}"
-                              for b, h in zip(held_nominal, held))
-    text += "".join(f"\n{line}" for line in _groups(fit.stats, held))
-    text += _plots(args.plot, fit, "training")
-    if args.residuals:
-        fit.write_residuals(args.residuals)
-        text += f"\nper-sample residuals written to {args.residuals}"
-    if args.output:
-        text += (f"\ncalibrated robot written to {args.output}" if written else
-                 f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")
-    if args.report:
-        from kincal.report import observation_report
-
-        numbers = observation_report(fit, held, held_nominal, Path(args.report).name).write(args.report)
-        text += f"\nreport written to {args.report} (numbers in {numbers})"
-    emit(args, {**fit.to_dict(), "held_out": held, "held_out_nominal": held_nominal,
-                "output": args.output if written else None}, text)
-    if refused:
-        err.print("kincal: calibration refused: " + "; ".join(r.code for r in fit.verdict.reasons
-                                                              if r.level == "refused"))
-        return EXIT_REFUSED if fit.converged else EXIT_NOT_CONVERGED
-    return 0
-
-
-def fitted(args, robot, kinds: list[str], data: list[str], tests: list[str], options):
-    """The files read (``args``: how; tests in the first file's kind), fitted from ``robot`` with
-    ``options`` (of :func:`kincal.identify.fit_observations`), and the held-out statistics under the
-    calibrated and the nominal model: (fit, held, held_nominal)."""
-    from kincal.identify import fit_observations
+def read_set(args, robot, path: str, kind: str):
+    """One observation file of ``kind`` read as ``args`` say, its joints and positions checked
+    against the declared units before any fit (a wrong unit is fitted by a shrunk or blown-up robot)."""
     from kincal.observe import read_observations
 
-    sets = [read_observations(path, robot, format_of(args, k)) for path, k in zip(data, kinds)]
-    if args.exclude:
-        if len(sets) > 1:
-            raise ValueError("--exclude names rows of one file; with several files leave the rows out of their files")
-        sets = [sets[0].without_rows(args.exclude)]
-    test_sets = [read_observations(path, robot, format_of(args, kinds[0])) for path in tests]
-    _check_units(sets + test_sets, robot, args)
-    with progress("calibrating", args.json):
-        fit = fit_observations(robot, _sessions(sets, args.same_frame), options)
-    held = [_held_out(fit, t, fit.robot, args.same_frame) for t in test_sets]
-    held_nominal = [_held_out(fit, t, fit.before, args.same_frame) for t in test_sets]
-    return fit, held, held_nominal
+    obs = read_observations(path, robot, format_of(args, kind))
+    _check_units([obs], robot, args)
+    return obs
 
 
-def _plain(value):
-    """A flag's value as YAML keeps it (tuples as lists)."""
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    return value
-
-
-def _record_parts(path: str, record: dict) -> tuple[dict, dict]:
-    """The record's data (files, kinds, how they were read) and options, checked to be there (a
-    ValueError naming the file and the key otherwise)."""
-    data, opts = record.get("data"), record.get("observation_options")
-    needed = (("data", data, ("file", "kinds", "reading")), ("observation_options", opts,
-                                                              ("names", "keep", "max_iter", "prior", "thresholds")))
-    for key, part, fields in needed:
-        missing = [f for f in fields if not isinstance(part, dict) or f not in part]
-        if missing or "nominal" not in record:
-            raise ValueError(f"{path}: the calibration record lacks {key}: {', '.join(missing) or 'nominal'} (edited "
-                             f"by hand, or written by another version); calibrate again to write it")
-    assert isinstance(data, dict) and isinstance(opts, dict)
-    return data, dict(opts)
-
-
-def cmd_report(args, record: dict) -> int:
-    """kincal report of a file calibrated from observation files: the fit repeated from the record
-    (the nominal values, the options, how each file was read), the report written."""
-    import kincal.identify
-    from kincal.report import observation_report
-
-    data, opts = _record_parts(args.robot, record)
-    given = report_columns(args)
-    reading = argparse.Namespace(**{k: given[k] if given.get(k) is not None else data["reading"].get(k)
-                                    for k in READING}, json=args.json,
-                                 same_frame=bool(args.same_frame or data.get("same_frame")))
-    reading.distance = [tuple(d) for d in reading.distance or []]
-    reading.exclude = None if args.train else reading.exclude  # recorded rows are rows of the recorded files
-    reading.plane = [(lab, (tuple(n), c)) for lab, (n, c) in reading.plane or []]
-    train = args.train or data["file"]
-    check_paths([*robot_inputs(args.robot), *train, *args.test], [args.output, json_path(args.output)])
-    cal = load_robot(args)
-    nominal = cal.with_params({str(k): float(v) for k, v in record["nominal"].items()})
-    options = kincal.FitOptions.from_dict(opts, f"{args.robot}: calibration record")
-    fit, held, held_nominal = fitted(reading, nominal, data["kinds"], train, args.test, options)
-    gap = float(np.max(np.abs(fit.robot.params.values - cal.params.values)))
-    if gap > 1e-9:
-        err.print(f"kincal: warning: a fit of these data differs from {args.robot} by up to {gap:.3g} (SI): the "
-                  f"report shows the fit of these data, not the file", markup=False)
-    numbers = observation_report(fit, held, held_nominal, Path(args.output).name).write(args.output)
-    emit(args, {**fit.to_dict(), "held_out": held, "output": args.output, "json": str(numbers)},
-         f"verdict: {fit.verdict.status.upper()}\nreport written to {args.output} (numbers in {numbers})")
-    return 0 if fit.verdict.status != "refused" else EXIT_REFUSED
-
-
-def _plots(stem: str | None, fit, label: str) -> str:
+def plots(stem: str | None, fit, label: str) -> str:
     """The figures of ``fit``'s sets with positions written as ``stem``-<figure>.png/.svg, said in a
     line ("" without ``stem``); when no set has one position per sample in the fit's frame, a line
     that says so."""
@@ -280,20 +173,6 @@ def _plots(stem: str | None, fit, label: str) -> str:
         return ("\nno figures written: they show each sample's 3-D position error, and no file here has one in the "
                 "robot's frame (sessions in their own frames); the report (--report) shows every file")
     return "\n" + "\n".join(save_figures(figures, stem))
-
-
-def _held_out(fit, obs, robot, same_frame: bool) -> dict:
-    """A held-out file's statistics under ``robot``: in the training frame with the training set-up
-    parameters (``same_frame``; sockets and planes need no frame), else with its own frame fitted (the
-    tracker or camera may have moved), the kinematics fixed and the set-up parameters it shares with
-    the training files (a target's rotation, markers) held as trained."""
-    from kincal.identify import fit_observations
-
-    if same_frame or obs.kind not in ABSOLUTE:
-        return fit.held_out(obs, robot)
-    anchors = {k: v for o in fit.observations for k, v in o.anchors().items()}
-    held = {n: v for n, v in fit.nuisance.items() if not n.startswith(("frame[", "drift["))}
-    return fit_observations(robot, [obs.with_anchors(anchors)], names=robot.base_params(), held=held).stats[0]
 
 
 def _check_units(sets: list, robot, args) -> None:
@@ -310,7 +189,7 @@ def _check_units(sets: list, robot, args) -> None:
             check_spread(obs.source, q, xyz, robot, args.length_unit, args.angle_unit)
 
 
-def _sessions(sets: list, same_frame: bool) -> list:
+def sessions(sets: list, same_frame: bool) -> list:
     """Each absolute file after the first in its own frame (the tracker or camera may have moved),
     named by its file; with ``same_frame`` all in the robot's base frame."""
     from kincal.observe import InSession
@@ -321,18 +200,6 @@ def _sessions(sets: list, same_frame: bool) -> list:
     out = list(sets)
     for n, k in enumerate(absolute[1:], start=2):
         out[k] = InSession.of(sets[k], f"{n}:{Path(sets[k].source).name}")
-    return out
-
-
-def _groups(train, held) -> list[str]:
-    """Per placement (same-point sets): mean |p − point| and the distance error, mm."""
-    out = []
-    for which, sets in (("training", train), ("held out", held)):
-        for s in sets:
-            for g in s.get("groups", []):
-                d = "–" if g["distance_error_mm"] is None else f"{g['distance_error_mm']:.3f} mm"
-                out.append(f"  {which} {g['group']}: {g['samples']} samples, mean |p − point| "
-                           f"{g['mean_abs_mm']:.4f} mm, distance error {d}")
     return out
 
 
@@ -421,35 +288,24 @@ def cmd_identifiability(args, kind: str) -> int:
     return 0
 
 
-def cmd_evaluate(args, kind: str) -> int:
-    """evaluate --type: a robot model on observation files, its kinematics fixed; only the set-up
-    parameters (and, unless --same-frame, each file's measurement frame) are fitted to each file."""
+def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: str | None) -> tuple[dict, list[str]]:
+    """``robot`` on one observation file, its kinematics fixed; only the set-up parameters (and,
+    unless --same-frame, the file's measurement frame) are fitted, the probe's rotation and the
+    markers held as calibrated (``record``): the JSON payload and the lines to print."""
     from kincal.identify import fit_observations, stat_line, trained_setup
-    from kincal.observe import read_observations
 
-    robot = load_robot(args)
-    held, anchors = trained_setup(kincal.models.load_calibration_record(args.robot) if robot_inputs(args.robot)
-                                  else None, args.robot)  # the probe's rotation and the markers as trained
-    payloads, texts = [], []
-    for path in args.data:
-        obs = read_observations(path, robot, format_of(args, kind))
-        _check_units([obs], robot, args)
-        frame = () if args.same_frame or kind not in ABSOLUTE else robot.base_params()
-        with progress("evaluating", args.json):
-            fit = fit_observations(robot, [obs.with_anchors(anchors)], names=frame,
-                                   base="estimate" if frame else "fixed", held=held)
-        s = fit.stats[0]
-        kept = sorted({"probe rotation" if n.startswith("target.") else "marker points" for n in held
-                       if n in fit.nuisance})
-        payloads.append({"file": path, "frame_fitted": bool(frame), "setup_as_trained": kept, **s})
-        texts += [line for line in _plots(args.plot and (args.plot if len(args.data) == 1 else
-                                                         f"{args.plot}-{len(payloads)}"), fit, "held-out").split("\n")
-                  if line]
-        texts.append(f"{robot.name} on {path} ({kind}; kinematics fixed, {'frame and ' if frame else ''}set-up "
-                     f"parameters fitted{', the ' + ' and '.join(kept) + ' as calibrated' if kept else ''}): "
-                     f"{stat_line(s)}")
-        texts += [f"  {g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
-                  f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
-                  for g in s.get("groups", [])]
-    emit(args, {"sessions": payloads}, "\n".join(texts))
-    return 0
+    held, anchors = trained_setup(record, args.robot)
+    obs = read_set(args, robot, path, kind)
+    frame = () if args.same_frame or kind not in ABSOLUTE else robot.base_params()
+    fit = fit_observations(robot, [obs.with_anchors(anchors)], names=frame, base="estimate" if frame else "fixed",
+                           held=held)
+    s = fit.per_set[0]
+    kept = sorted({"probe rotation" if n.startswith("target.") else "marker points" for n in held if n in fit.nuisance})
+    texts = [line for line in plots(stem, fit, "held-out").split("\n") if line]
+    texts.append(f"{robot.name} on {path} ({kind}; kinematics fixed, {'frame and ' if frame else ''}set-up "
+                 f"parameters fitted{', the ' + ' and '.join(kept) + ' as calibrated' if kept else ''}): "
+                 f"{stat_line(s)}")
+    texts += [f"  {g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
+              f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
+              for g in s.get("groups", [])]
+    return {"file": path, "frame_fitted": bool(frame), "setup_as_trained": kept, **s}, texts

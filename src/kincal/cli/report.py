@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -12,7 +11,7 @@ import kincal.identify
 import kincal.models
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS
 
-from .common import add_robot, check_paths, csv_list, emit, err, load_robot, progress, robot_inputs
+from .common import EXIT_REFUSED, add_robot, check_paths, csv_list, emit, err, load_robot, progress, robot_inputs
 
 
 def json_path(html: str) -> Path:
@@ -22,25 +21,37 @@ def json_path(html: str) -> Path:
     return path.with_suffix(".json") if path.suffix.lower() in (".html", ".htm") else Path(f"{path}.json")
 
 
-def data_record(args, path, exclude) -> dict:
-    """How the training data were read, kept with the calibrated robot so a report can reread them."""
-    files = [str(p) for p in path] if isinstance(path, (list, tuple)) else [str(path)]
-    return {"file": files[0] if len(files) == 1 else files, "length_unit": args.length_unit, "angle_unit": args.angle_unit,
-            "joint_cols": args.joint_cols, "xyz_cols": args.xyz_cols, "exclude": list(exclude or [])}
+READING = ("joint_cols", "length_unit", "angle_unit", "xyz_cols", "std_cols", "orientation", "rot_cols", "markers",
+           "label_col", "group_col", "distance", "plane", "std_pos", "std_rot", "exclude")  # how files are read
 
 
-def write_outputs(args, res, test, info: dict) -> list[str]:
+def data_record(args, kinds: list[str]) -> dict:
+    """How the training data were read, kept with the calibrated robot so a report can reread them:
+    the files, their kinds, one frame or one per file, and every reading flag."""
+    return {"file": list(args.data), "kinds": list(kinds), "same_frame": bool(args.same_frame),
+            "reading": {k: _plain(vars(args)[k]) for k in READING}}
+
+
+def _plain(value):
+    """A flag's value as YAML keeps it (tuples as lists)."""
+    return [_plain(v) for v in value] if isinstance(value, (list, tuple)) else value
+
+
+def write_outputs(args, res, tests: list, info: dict) -> list[str]:
     """The report (``args.report``) and figures (``args.plot``) of a calibration; lines to print."""
     lines = []
     if args.report:
         with progress("writing the report", args.json):
-            rep = kincal.build_report(res, test, info, Path(args.report).name, same_frame=args.same_frame)
-            json_path = rep.write(args.report)
-        lines.append(f"report written to {args.report} (numbers in {json_path})")
+            rep = kincal.build_report(res, tests, info, Path(args.report).name, same_frame=args.same_frame)
+            json_file = rep.write(args.report)
+        lines.append(f"report written to {args.report} (numbers in {json_file})")
     if args.plot:
         from kincal.report import figure_set
 
-        lines += save_figures(figure_set(res, test, args.same_frame), args.plot)
+        figures = figure_set(res, tests, args.same_frame)
+        lines += save_figures(figures, args.plot) if figures else [
+            "no figures written: they show each sample's 3-D position error, and no file here has one in the robot's "
+            "frame (sessions in their own frames); the report (--report) shows every file"]
     return lines
 
 
@@ -59,54 +70,67 @@ def save_figures(figures: dict, stem: str) -> list[str]:
     return [f"figures written: {', '.join(written)}"]
 
 
-def report_columns(args) -> dict:
-    """The report command's flags of how the data files are read (None: as recorded)."""
-    return {"joint_cols": args.joint_cols, "xyz_cols": args.xyz_cols, "length_unit": args.length_unit,
-            "angle_unit": args.angle_unit}
-
-
 def cmd_report(args) -> int:
-    record = kincal.models.load_calibration_record(args.robot)
-    if record and "observation_options" in record:  # calibrated from observation files (--type)
-        from . import observe
+    from .identify import fit_files
 
-        return observe.cmd_report(args, record)
-    if not record or "nominal" not in record or "options" not in record:
-        raise ValueError(f"{args.robot}: not a calibrated robot file (no calibration record: the nominal values and "
-                         f"options the report refits); calibrate first, e.g. 'kincal calibrate {args.robot} DATA.csv "
-                         f"-o calibrated.yaml --report report.html', or give the calibrated file")
-    data = _mapping(record.get("data", {}), args.robot, "data")
-    train_paths = args.train or data.get("file")
-    train_paths = [train_paths] if isinstance(train_paths, str) else train_paths
-    if not isinstance(train_paths, list) or not train_paths or not all(isinstance(p, str) for p in train_paths):
-        raise ValueError("give the training data with --train (the record names no data file)")
-    check_paths([*robot_inputs(args.robot), *train_paths, *args.test], [args.output, json_path(args.output)])
-    options = kincal.FitOptions.from_dict(record["options"], f"{args.robot}: calibration options")
+    record = kincal.models.load_calibration_record(args.robot) or {}
+    data, options = _record_parts(args.robot, record, args.train)
+    given = {"joint_cols": args.joint_cols, "xyz_cols": args.xyz_cols, "length_unit": args.length_unit,
+             "angle_unit": args.angle_unit}
+    default = {"xyz_cols": ["x", "y", "z"], "length_unit": "m", "angle_unit": "rad", "orientation": "quat-wxyz"}
+    reading = argparse.Namespace(**{k: given[k] if given.get(k) is not None else data["reading"].get(k, default.get(k))
+                                    for k in READING}, json=args.json, data=data["file"],
+                                 same_frame=bool(args.same_frame or data.get("same_frame")))
+    reading.distance = [tuple(d) for d in reading.distance or []]
+    reading.exclude = None if args.train else reading.exclude  # recorded rows are rows of the recorded files
+    reading.plane = [(lab, (tuple(n), c)) for lab, (n, c) in reading.plane or []]
+    train = data["file"]
+    check_paths([*robot_inputs(args.robot), *train, *args.test], [args.output, json_path(args.output)])
     cal = load_robot(args)
     nominal = cal.with_params(_nominal(record["nominal"], args.robot))
-    use_q = _use_q(record.get("use_q"), nominal, args.robot)
-    given = report_columns(args)
-    units: dict[str, Any] = {k: given[k] if given[k] is not None else data.get(k, default)
-             for k, default in (("length_unit", "m"), ("angle_unit", "rad"), ("joint_cols", None),
-                                ("xyz_cols", ["x", "y", "z"]))}
-    train = [kincal.read_measurements(path, nominal, **units) for path in train_paths]
-    if data.get("exclude"):
-        train = [train[0].without_rows(data["exclude"])]
-    tests = [kincal.read_measurements(t, nominal, **units) for t in args.test]
     with progress("refitting the calibration", args.json):
-        res = kincal.identify.calibrate_sessions(nominal, train, options, use_q=use_q)
+        res, tests = fit_files(reading, nominal, data["kinds"], train, args.test, options,
+                               _use_q(record.get("use_q"), nominal, args.robot))
     gap = float(np.max(np.abs(res.robot.params.values - cal.params.values)))
     info = {"robot": f"{args.robot} (nominal values from its calibration record)",
-            "units": f"{units['length_unit']}, {units['angle_unit']}"}
+            "units": f"{reading.length_unit}, {reading.angle_unit}"}
     if gap > 1e-9:
         info["note"] = (f"a fit of these data differs from {args.robot} by up to {gap:.3g} (SI): the report shows "
                         f"the fit of these data, not the file")
         err.print(f"kincal: warning: {info['note']}", markup=False)
-    rep = kincal.build_report(res, tests, info, Path(args.output).name, same_frame=args.same_frame)
+    rep = kincal.build_report(res, tests, info, Path(args.output).name, same_frame=reading.same_frame)
     json_file = rep.write(args.output)
     emit(args, {**rep.data, "output": args.output, "json": str(json_file)},
          f"{rep.summary}\nreport written to {args.output} (numbers in {json_file})")
-    return 0 if res.verdict.status != "refused" else 4
+    return 0 if res.verdict.status != "refused" else EXIT_REFUSED
+
+
+def _record_parts(path: str, record: dict, train: list[str] | None) -> tuple[dict, "kincal.FitOptions"]:
+    """The record's options (checked) and data: the files (``train`` when given), their kinds, how
+    they were read and whether in one frame; a record that does not say (written by hand) takes
+    ``train`` as position files read as the report's flags say. A ValueError names the file and
+    what is missing."""
+    if not record or "nominal" not in record or "options" not in record:
+        raise ValueError(f"{path}: not a calibrated robot file (no calibration record: the nominal values and "
+                         f"options the report refits); calibrate first, e.g. 'kincal calibrate {path} DATA.csv "
+                         f"-o calibrated.yaml --report report.html', or give the calibrated file")
+    options = kincal.FitOptions.from_dict(record["options"], f"{path}: calibration options")
+    data = _mapping(record.get("data", {}), path, "data")
+    recorded = [data["file"]] if isinstance(data.get("file"), str) else data.get("file")
+    files = train or recorded
+    if not isinstance(files, list) or not files or not all(isinstance(f, str) for f in files):
+        raise ValueError(f"{path}: the calibration record names no data files; give the training data with --train")
+    from .observe import TYPES
+
+    if "kinds" in data and not isinstance(data.get("reading"), dict):
+        raise ValueError(f"{path}: the calibration record lacks data: reading (how the files were read; edited by "
+                         f"hand, or written by another version); calibrate again to write it")
+    kinds = data.get("kinds") if isinstance(data.get("reading"), dict) else ["point"] * len(files)
+    if not isinstance(kinds, list) or not kinds or not all(k in TYPES for k in kinds):
+        raise ValueError(f"{path}: the calibration record's data.kinds must name the kind of each file (one of "
+                         f"{', '.join(TYPES)}); calibrate again")
+    return {"file": files, "kinds": kinds if not train else [kinds[0]] * len(train),
+            "reading": data.get("reading") or {}, "same_frame": bool(data.get("same_frame"))}, options
 
 
 def _mapping(value, robot: str, key: str) -> dict:

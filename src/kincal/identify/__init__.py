@@ -1,17 +1,16 @@
 """Identification: calibration problems, residuals, solvers (LM, PSO), robust weighting, covariance."""
 from .applies import SCOPES, refuse_inapplicable
-from .calibrate import RESIDUALS, calibrate, calibrate_sessions, evaluate, fit_observations, joined
+from .calibrate import ABSOLUTE, RESIDUALS, calibrate, calibrate_sessions, evaluate, fit_observations, held_out_stats
 from .options import METHODS, PRIOR_CHOICES, FitOptions, PSOOptions
-from .result import CalibrationResult, EvaluationStats
+from .result import CalibrationResult, EvaluationStats, joined, stat_line, trained_setup
 from .relevance import PRIORS
 from .robust import LOSSES
 from .select import ErrorModelChoice
-from .observed_result import ObservationFit, stat_line, trained_setup
 from .stacked import observation_identifiability
 from .sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
 from .verdict import Reason, Thresholds, Verdict
 
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "RESIDUALS", "CalibrationResult", "EvaluationStats", "LOSSES",
            "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
-           "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "ObservationFit", "observation_identifiability", "stat_line", "trained_setup",
-           "SCOPES", "refuse_inapplicable", "joined"]
+           "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "observation_identifiability", "stat_line", "trained_setup",
+           "SCOPES", "refuse_inapplicable", "joined", "ABSOLUTE", "held_out_stats"]

@@ -23,17 +23,15 @@ from ..io.measurements import Measurements
 from ..models.robot import Robot
 from ..models.terms import extend
 from ..observe import InSession, JointObs, PointObs
-from ..observe.drifting import Drifting, acquisition
 from .diagnosis import TRIGGERS, diagnose
 from .fitting import fit_stack
 from .observed_diagnosis import diagnosed
-from .observed_result import ObservationFit
 from .options import FitOptions
-from .result import CalibrationResult, EvaluationStats
+from .result import CalibrationResult, EvaluationStats, joined
 from .select import select_model
 from .verdict import (Reason, Verdict, correction_reasons, distinct_count, drift_reasons, duplicate_groups,
                       duplicate_reasons, fitted_drift_reasons, mounting_reasons, noise_level, outlier_reasons,
-                      repeat_tolerance, residual_reasons, robust_z)
+                      repeat_tolerance, residual_reasons)
 
 RESIDUALS = {"cartesian": PointObs, "joint": JointObs}  # FitOptions.residual -> the observation type fitted
 
@@ -85,8 +83,8 @@ def _calibrate(robot: Robot, sessions: list[Measurements], own_frames: bool, opt
         robot, choice = _error_model(robot, sessions, own_frames, options, say, use_q)
         fit_options = options.replace(error_model=None, diagnose=False)
         fit = fit_stack(robot, _sets(sessions, own_frames, options, robot), fit_options, say=say)
-        res = judge(_as_result(fit, robot, sessions, options, time.perf_counter() - t0))
-        res = dataclasses.replace(res, error_model_choice=choice, use_q=use_q)
+        res = judge(dataclasses.replace(fit, options=options, error_model_choice=choice, use_q=use_q,
+                                        data=tuple(sessions), time_s=time.perf_counter() - t0))
         return _diagnosed(res, say) if options.diagnose else res
 
 
@@ -131,7 +129,7 @@ def _error_model(robot: Robot, sessions: list[Measurements], own_frames: bool, o
 
 def fit_observations(robot: Robot, observations: Sequence, options: FitOptions | None = None, *,
                      held: Mapping[str, float] | None = None, progress: Callable[[str], None] | None = None,
-                     **changes) -> ObservationFit:
+                     **changes) -> CalibrationResult:
     """Calibrate ``robot`` from observation sets of any kinds (:mod:`kincal.observe`) by the one fit,
     with ``options`` (a :class:`FitOptions`; ``changes`` are fields of it to change). Defaults of
     this entry: the prior "auto" (learned for poses, markers, sockets and planes; none for positions
@@ -141,87 +139,11 @@ def fit_observations(robot: Robot, observations: Sequence, options: FitOptions |
     ``base="fixed"`` leaves the base frame out; ``residual`` and ``f_scale`` belong to position data
     (:func:`calibrate`). Identifiability is judged at the start and again at the solution (see
     :func:`kincal.identify.stacked.fit_sets`)."""
+    t0 = time.perf_counter()
     options = (options or FitOptions(diagnose=False)).replace(**changes).check(robot)
     fit = fit_stack(robot, observations, options, held, progress or (lambda msg: None))
+    fit = dataclasses.replace(fit, time_s=time.perf_counter() - t0)
     return diagnosed(fit, robot, calibrate) if options.diagnose else fit
-
-
-def _as_result(fit: ObservationFit, robot: Robot, sessions: list[Measurements], o: FitOptions,
-               elapsed: float) -> CalibrationResult:
-    """The one fit of position data read as a :class:`CalibrationResult` (``robot``: the model as
-    given, its error model included; the data kept, in the first session's frame)."""
-    nominal = fit.nominal
-    meas, err, drift = _kept(fit, sessions)
-    names = fit.names
-    at = [fit.free.index(n) for n in names]
-    cov = fit.covariance[np.ix_(at, at)]
-    sd = np.array([fit.std[n] for n in names])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        corr = np.where(np.isfinite(sd[:, None] * sd), cov / np.outer(sd, sd), 0.0)
-    np.fill_diagonal(corr, 1.0)
-    stated = np.ones_like(err) if meas.std is None else meas.std / float(np.median(meas.std))
-    dof = max(err.size - len(names), 1)
-    rows = [r for src, rs in fit.rejected.items() for r in rs]
-    return CalibrationResult(
-        robot=fit.robot, nominal=nominal, names=names,
-        estimates={n: float(fit.robot.params[n]) for n in names},
-        corrections={n: float(fit.robot.params[n] - nominal.params[n]) for n in names},
-        std={n: float(fit.std[n]) for n in names}, correlation=corr, residuals=err,
-        sigma=float(np.sqrt(np.sum((err / stated) ** 2) / dof) * (1.0 if meas.std is None else np.median(meas.std))),
-        stats_before=EvaluationStats.from_errors(meas.xyz - fit.before.forward(meas.q)),  # frame and target registered
-        stats_after=EvaluationStats.from_errors(err), iterations=fit.iterations, evaluations=fit.evaluations,
-        converged=fit.converged, message=fit.message, time_s=elapsed, options=o, identifiability=fit.identifiability,
-        history=fit.history, covariance=cov, measurements=meas, pose_z=robust_z(np.linalg.norm(err, axis=1)),
-        weak=dict(fit.weak), prior=dict(fit.prior), drift=drift, error_model_notes=fit.notes,
-        rejected_rows=tuple(rows), rejected_sessions=tuple(src for src, rs in fit.rejected.items() for _ in rs)
-        if len(sessions) > 1 else ())
-
-
-def _kept(fit: ObservationFit, sessions: list[Measurements]):
-    """The poses fitted (outliers left out) in the first session's frame, their position errors
-    measured − predicted (N, 3) m (a fitted drift taken out), and the drift per axis (or None)."""
-    parts, errs, drift = [], [], None
-    for obs, s in zip(fit.observations, sessions):
-        kept = s.subset(np.flatnonzero(np.isin(s.rows, obs.rows)))
-        frame, inner, offset = fit.robot, obs, np.zeros((len(kept), 3))
-        if isinstance(inner, InSession):
-            frame = fit.robot.with_params({b: fit.nuisance[f"frame[{inner.session}].{b}"]
-                                           for b in fit.robot.base_params()})
-            inner = inner.inner
-        if isinstance(inner, Drifting):
-            d = np.array([fit.nuisance[n] for n in inner.names()])
-            offset = acquisition(inner.rows)[:, None] * d
-            drift = drift or {a: {"value": float(v), "std": float(fit.std[n])}
-                              for a, v, n in zip("xyz", d, inner.names())}
-        parts.append(in_frame_of(fit.robot, frame, kept))
-        errs.append(in_frame_of(fit.robot, frame, dataclasses.replace(kept, xyz=kept.xyz - offset)).xyz
-                    - fit.robot.forward(kept.q))
-    return joined(parts), np.concatenate(errs), drift
-
-
-def in_frame_of(model: Robot, registered: Robot, meas: Measurements) -> Measurements:
-    """``meas`` (taken in the frame where ``registered`` sees the robot) expressed in ``model``'s frame."""
-    if registered is model:
-        return meas
-    R0, t0 = model.base_transform()
-    Rs, ts = registered.base_transform()
-    xyz = (meas.xyz - ts) @ Rs @ R0.T + t0
-    std = None if meas.std is None else np.sqrt(meas.std**2 @ (Rs @ R0.T) ** 2)  # per-axis variances, rotated
-    return Measurements(meas.q, xyz, meas.joint_names, meas.source, meas.rows, std, meas.units, meas.session)
-
-
-def joined(sessions: list[Measurements]) -> Measurements:
-    """Several sessions as one set of measurements (their rows keep their own files' line numbers; each
-    pose is labelled with its session's source, so held-out sessions can be told apart)."""
-    if len(sessions) == 1:
-        return sessions[0]
-    std = None if any(s.std is None for s in sessions) else np.concatenate([s.std for s in sessions])
-    labels = [s.source if s.source not in [t.source for t in sessions[:i]] else f"{s.source} ({i + 1})"
-              for i, s in enumerate(sessions)]
-    return Measurements(np.concatenate([s.q for s in sessions]), np.concatenate([s.xyz for s in sessions]),
-                        sessions[0].joint_names, " + ".join(s.source for s in sessions),
-                        np.concatenate([s.rows for s in sessions]), std, sessions[0].units,
-                        np.concatenate([np.full(len(s), name) for s, name in zip(sessions, labels)]))
 
 
 def _diagnosed(res: CalibrationResult, say) -> CalibrationResult:
@@ -239,7 +161,7 @@ def _diagnosed(res: CalibrationResult, say) -> CalibrationResult:
 
 def judge(res: CalibrationResult) -> CalibrationResult:
     """The result with its verdict (limits: ``res.options.thresholds``) from its per-pose robust z-scores."""
-    meas, th, z, ident = res.measurements, res.options.thresholds, res.pose_z, res.identifiability
+    meas, th, z, ident, err = res.measurements, res.options.thresholds, res.pose_z, res.identifiability, res.residuals
     reasons = [] if res.converged else [Reason("refused", "not-converged", f"the fit did not converge "
                                                                              f"({res.message})")]
     loose = [n for n in res.nominal.base_params() if n in ident.dropped]
@@ -247,14 +169,14 @@ def judge(res: CalibrationResult) -> CalibrationResult:
         reasons.append(Reason("refused", "base-underdetermined",
                               f"the poses leave the base frame underdetermined ({', '.join(loose)}): measure "
                               f"poses spread over the workspace, or use --base fixed if the base is known"))
-    reasons += correction_reasons(res.nominal, {n: res.corrections[n] for n in res.names
-                                                if np.isfinite(res.std[n])}, th)
+    corrections = res.corrections
+    reasons += correction_reasons(res.nominal, {n: corrections[n] for n in res.names if np.isfinite(res.std[n])}, th)
     if res.mounting:
         reasons += mounting_reasons(res.nominal.tool_point(), res.robot.tool_point(), th)
-    inliers = res.residuals[z <= th.outlier_limit(len(z))]  # outliers are named on their own, not smeared into σ
+    inliers = err[z <= th.outlier_limit(len(z))]  # outliers are named on their own, not smeared into σ
     pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
     noise = noise_level(meas.std, th)
-    reasons += drift_reasons(meas.rows, np.linalg.norm(res.residuals, axis=1))
+    reasons += drift_reasons(meas.rows, np.linalg.norm(err, axis=1))
     reasons += residual_reasons(pos_sigma, noise, th)
     reasons += outlier_reasons(meas.rows, z, th, res.options.loss)
     reasons += duplicate_reasons(meas.rows, tuple(duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types,
@@ -289,3 +211,19 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
     flagged = uncertainty.extrapolated(sigma) | outside
     return dataclasses.replace(stats, predicted_sigma=tuple(map(float, sigma)),
                                extrapolated_rows=tuple(int(r) for r in meas.rows[flagged]), warnings=warnings)
+
+
+ABSOLUTE = ("point", "pose", "markers")  # kinds measured in an instrument's frame (which may move between files)
+
+
+def held_out_stats(fit: CalibrationResult, obs, robot: Robot, same_frame: bool) -> dict:
+    """A held-out set's statistics (mm, mrad) under ``robot`` (the calibrated model, or ``fit.before``):
+    in the training frame with the training set-up parameters (``same_frame``; sockets and planes need
+    no frame), else with its own frame fitted (the tracker or camera may have moved), the kinematics
+    fixed and the set-up parameters it shares with the training files (a target's rotation, markers)
+    held as trained."""
+    if same_frame or obs.kind not in ABSOLUTE:
+        return fit.held_out(obs, robot)
+    anchors = {k: v for o in fit.observations for k, v in o.anchors().items()}
+    held = {n: v for n, v in fit.nuisance.items() if not n.startswith(("frame[", "drift["))}
+    return fit_observations(robot, [obs.with_anchors(anchors)], names=robot.base_params(), held=held).per_set[0]

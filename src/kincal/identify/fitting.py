@@ -19,7 +19,7 @@ from ..models.terms import ErrorModel, drop_terms, extend
 from ..observe.drifting import Drifting
 from ..observe.sessions import InSession
 from .compliance import negative_compliances
-from .observed_result import ObservationFit
+from .result import CalibrationResult
 from .options import FitOptions
 from .stacked import fit_sets
 from .verdict import MAX_OUTLIER_SHARE
@@ -37,7 +37,7 @@ def resolved_prior(prior: str, observations: Sequence) -> str:
 
 
 def fit_stack(robot: Robot, observations: Sequence, options: FitOptions, held: Mapping[str, float] | None = None,
-              say: Callable[[str], None] = lambda msg: None) -> ObservationFit:
+              say: Callable[[str], None] = lambda msg: None) -> CalibrationResult:
     """Calibrate ``robot`` from ``observations`` with ``options`` (checked): the error model (a name;
     "auto" is chosen by :func:`kincal.calibrate` on position data), drift, the fit, the negative-
     compliance refit and outlier rejection; ``held``: set-up parameters held at these values (a held-
@@ -48,7 +48,7 @@ def fit_stack(robot: Robot, observations: Sequence, options: FitOptions, held: M
     kinds = " + ".join(dict.fromkeys(o.kind for o in sets))
     say(f"fitting {kinds} data ({sum(len(o) for o in sets)} samples)")
 
-    def fit(chosen: Sequence, loss: str) -> ObservationFit:
+    def fit(chosen: Sequence, loss: str) -> CalibrationResult:
         return fit_sets(robot, chosen, options, prior, loss, held or {})
     res = fit(sets, options.loss)
     neg, notes = negative_compliances(res.names, res.robot.params.as_dict(), res.std)
@@ -61,7 +61,7 @@ def fit_stack(robot: Robot, observations: Sequence, options: FitOptions, held: M
     return res
 
 
-def _without_outliers(fit, observations: Sequence, res: ObservationFit, loss: str, say) -> ObservationFit:
+def _without_outliers(fit, observations: Sequence, res: CalibrationResult, loss: str, say) -> CalibrationResult:
     """``res`` fitted again (``fit(sets, loss)``) without the samples a robust fit puts beyond the
     outlier limit, at most a tenth of a set's; ``res`` itself when there are none."""
     found = (res if loss != "linear" else fit(observations, "huber")).outliers

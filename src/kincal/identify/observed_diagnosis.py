@@ -15,13 +15,13 @@ from ..io.measurements import Measurements
 from ..models.robot import Robot
 from ..observe.sessions import InSession
 from .diagnosis import TRIGGERS, diagnose
-from .observed_result import ObservationFit
+from .result import CalibrationResult
 from .verdict import Reason, Verdict
 
 MIN_SAMPLES = 10  # fewer positions screen nothing reliably
 
 
-def diagnosed(fit: ObservationFit, robot: Robot, calibrate) -> ObservationFit:
+def diagnosed(fit: CalibrationResult, robot: Robot, calibrate) -> CalibrationResult:
     """``fit`` with the diagnosis of its positions as the first reason of its verdict, when the
     verdict doubts the data (:data:`TRIGGERS`) and one file has points or poses in the robot's frame;
     ``robot`` is the model as given (the position fit registers its own frame), ``calibrate`` the

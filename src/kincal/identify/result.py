@@ -1,21 +1,30 @@
-"""Result objects of identification and evaluation (frozen, printable in mm/deg, ``to_dict`` in SI)."""
+"""The one result of a calibration (:func:`kincal.calibrate`, :func:`kincal.identify.fit_observations`):
+frozen, printable in mm/deg/mrad, ``to_dict`` in SI, ``record`` for the calibrated robot file; and
+the position statistics of an evaluation."""
 from __future__ import annotations
 
+import dataclasses
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._atomic import write_text_atomic
 from .._csv import listed
 from ..analysis.identifiability import Identifiability
 from ..analysis.uncertainty import ModelUncertainty
 from ..io.measurements import Measurements
 from ..models.robot import TOOL_NAMES, Robot
-from ..units import MM, display
+from ..observe.drifting import Drifting, acquisition
+from ..observe.observations import Wrapper
+from ..observe.sessions import InSession
+from ..units import MM, MRAD, display
 from .diagnosis import Diagnosis
+from .observed_verdict import MIN_SAMPLES, component_kinds, sample_norms
 from .options import FitOptions
 from .relevance import prior_lines
 from .select import ErrorModelChoice
-from .verdict import Verdict, mounting_line, noise_level
+from .verdict import Verdict, mounting_line, noise_level, robust_z
 from .weak import weak_note
 
 
@@ -58,58 +67,172 @@ class EvaluationStats:
 
 @dataclass(frozen=True, eq=False)
 class CalibrationResult:
-    """Outcome of :func:`kincal.calibrate`.
+    """A calibration from measurement sets of any kinds, by the one fit.
 
     robot        -- the calibrated robot (save it with ``kincal.save_robot``)
-    names        -- the estimated parameters; every other parameter kept its starting value
-    estimates    -- final value by name (SI); ``corrections``: final − nominal (before registration)
-    std          -- 1-sigma standard deviations by name, σ̂²(JᵀJ)⁻¹ with σ̂² = ‖r‖²/(3N − K)
-    correlation  -- (K, K) correlation matrix in the order of ``names``
-    residuals    -- (N, 3) measured − predicted (m) at the calibration poses
+    nominal      -- the model as given (corrections are from it; commands are in its base frame)
+    registered   -- the same with its measurement frame registered to the data: where the fit began
+    before       -- the same with the target point registered too: the model "before" is judged by
+    names        -- the robot parameters fitted; every other kept its value
+    nuisance     -- the set-up parameters' values (frames of later sessions, a probe's rotation,
+                    markers, sockets, planes, drift), m or rad
+    std          -- 1-σ of robot and set-up parameters (m or rad; a posteriori, or posterior with a
+                    learned ``prior``); inf: not determined
+    covariance   -- (F, F) over ``free`` (robot and set-up parameters fitted, in that order)
+    per_set_before, per_set -- each set's statistics (mm, mrad) before and after
+    whitened_rms -- RMS of the residual whitened by the stated σ (1 when they are right); per kind
+                    in ``whitened``; ``model_error``: what the model leaves beyond them (m or rad)
+    observations -- the sets fitted (outliers left out); ``outliers``: per set, the samples beyond
+                    the outlier limit; ``rejected``: file -> rows left out as outliers
+    data         -- the position data as given when fitted by :func:`kincal.calibrate` (one per
+                    session): the position view (``measurements``, ``residuals``, ``stats_after``…)
     """
 
     robot: Robot
     nominal: Robot
+    registered: Robot
+    before: Robot
     names: tuple[str, ...]
-    estimates: dict[str, float]
-    corrections: dict[str, float]
-    std: dict[str, float]
-    correlation: np.ndarray
-    residuals: np.ndarray
-    sigma: float
-    stats_before: EvaluationStats
-    stats_after: EvaluationStats
-    iterations: int
-    evaluations: int
-    converged: bool
-    message: str
-    time_s: float
+    nuisance: dict
+    std: dict
     identifiability: Identifiability
-    measurements: Measurements  # the data fitted (rows name the input lines)
-    pose_z: np.ndarray  # (N,) robust z-score of each pose's error norm
-    covariance: np.ndarray  # (K, K) in the order of ``names`` (inf σ: rows/cols of zeros)
+    gauge: tuple[str, ...]
+    per_set_before: tuple[dict, ...]
+    per_set: tuple[dict, ...]
+    whitened_rms: float
+    covariance: np.ndarray
+    verdict: Verdict
+    converged: bool
+    iterations: int
+    observations: tuple = ()
+    weak: dict = field(default_factory=dict)  # kept nominal: name -> σ the data gave it (m or rad)
+    prior: dict = field(default_factory=dict)  # learned prior σ per group (m or rad); {}: none
+    whitened: dict = field(default_factory=dict)  # whitened RMS per kind ("pose rotation": 1.3)
+    model_error: dict = field(default_factory=dict)  # s per kind beside the stated σ (m or rad)
+    outliers: tuple = ()
+    rejected: dict = field(default_factory=dict)
+    notes: tuple[str, ...] = ()  # what the fit changed on its way (an error-model term dropped)
+    whitened_residual: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (M,) by the stated σ
+    diagnosis: Diagnosis | None = None  # the differential diagnosis of a doubtful fit, if run
+    evaluations: int = 0  # evaluations of the stacked residual (a particle swarm's included)
+    message: str = ""  # how the last solver stopped
+    history: tuple[float, ...] = ()  # particle swarm: best mean squared residual per iteration
+    free: tuple[str, ...] = ()
     options: FitOptions = field(default_factory=FitOptions)  # the options used (to reproduce the fit)
-    history: tuple[float, ...] = ()  # particle swarm: best mean squared residual per iteration (PSO fitness)
-    verdict: Verdict = Verdict("good")
+    time_s: float = 0.0
     error_model_choice: ErrorModelChoice | None = None  # error_model "auto": the blocked-CV comparison
-    error_model_notes: tuple[str, ...] = ()  # terms dropped after the fit, and why
-    drift: dict | None = None  # drift=True: per axis x/y/z the drift over the session (m) and its std
     use_q: np.ndarray | None = None  # (M, n) where the model will be used (the prediction-σ guard)
-    diagnosis: Diagnosis | None = None  # a doubtful verdict: the common mistakes tried, the one that explains
-    rejected_rows: tuple[int, ...] = ()  # reject_outliers: input rows left out as outliers
-    rejected_sessions: tuple[str, ...] = ()  # several sessions: the file of each rejected row
-    weak: dict[str, float] = field(default_factory=dict)  # held at nominal: name -> the σ the data gave it
-    prior: dict[str, float] = field(default_factory=dict)  # learned prior σ per group (m or rad); {}: none
+    data: tuple[Measurements, ...] = ()
+
+    # --- the position view (data fitted by kincal.calibrate) ---
+
+    @functools.cached_property
+    def _kept(self) -> tuple[Measurements, np.ndarray, dict | None]:
+        if not self.data:
+            raise ValueError("a fit of observation sets has no position view (measurements, residuals): use "
+                             "per_set and sample_table()")
+        return _kept(self, list(self.data))
+
+    @property
+    def measurements(self) -> Measurements:
+        """The poses fitted (outliers left out) in the first session's frame."""
+        return self._kept[0]
+
+    @property
+    def residuals(self) -> np.ndarray:
+        """(N, 3) measured − predicted (m) at :attr:`measurements` (a fitted drift taken out)."""
+        return self._kept[1]
+
+    @property
+    def drift(self) -> dict | None:
+        """With ``drift``: per axis x/y/z the instrument's drift over the session (m) and its σ."""
+        return self._kept[2]
+
+    @property
+    def pose_z(self) -> np.ndarray:
+        """(N,) robust z-score of each pose's error norm."""
+        return robust_z(np.linalg.norm(self.residuals, axis=1))
+
+    @property
+    def sigma(self) -> float:
+        """The residual σ per axis (m), by the data's relative σ when given."""
+        meas, err = self.measurements, self.residuals
+        stated = np.ones_like(err) if meas.std is None else meas.std / float(np.median(meas.std))
+        scale = 1.0 if meas.std is None else float(np.median(meas.std))
+        return float(np.sqrt(np.sum((err / stated) ** 2) / max(err.size - len(self.names), 1)) * scale)
+
+    @property
+    def stats_before(self) -> EvaluationStats:
+        """Position errors of the "before" model (frame and target point registered) on the poses."""
+        meas = self.measurements
+        return EvaluationStats.from_errors(meas.xyz - self.before.forward(meas.q))
+
+    @property
+    def stats_after(self) -> EvaluationStats:
+        return EvaluationStats.from_errors(self.residuals)
+
+    @property
+    def outlier_z(self) -> float:
+        """The outlier limit in robust σ for this many poses (:meth:`Thresholds.outlier_limit`)."""
+        return self.options.thresholds.outlier_limit(len(self.residuals))
+
+    @property
+    def rejected_rows(self) -> tuple[int, ...]:
+        return tuple(r for rows in self.rejected.values() for r in rows)
 
     def rejected_text(self) -> str:
-        """'row(s) 40 of grid.csv' (several sessions: each file's rows after its name); '' when none."""
-        if not self.rejected_rows:
+        """'row(s) 40 of grid.csv' (several files: each file's rows after its name); '' when none."""
+        return "; ".join(f"row(s) {listed(rows)} of {src}" for src, rows in self.rejected.items())
+
+    def pose_records(self) -> list[dict]:
+        """Per pose: input row, error vector and norm (m), robust z-score, outlier flag."""
+        norms = np.linalg.norm(self.residuals, axis=1)
+        return [{"row": int(r), "error": e.tolist(), "norm": float(n), "z": float(zi), "outlier": bool(zi > self.outlier_z)}
+                for r, e, n, zi in zip(self.measurements.rows, self.residuals, norms, self.pose_z)]
+
+    # --- every kind ---
+
+    @property
+    def estimates(self) -> dict[str, float]:
+        return {n: float(self.robot.params[n]) for n in self.names}
+
+    @property
+    def corrections(self) -> dict[str, float]:
+        """Final − nominal (the model as given) per fitted robot parameter (m or rad)."""
+        return {n: float(self.robot.params[n] - self.nominal.params[n]) for n in self.names}
+
+    @property
+    def correlation(self) -> np.ndarray:
+        """(K, K) correlation of the fitted robot parameters, in the order of ``names``."""
+        cov = self.name_covariance
+        sd = np.array([self.std[n] for n in self.names])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            corr = np.where(np.isfinite(sd[:, None] * sd), cov / np.outer(sd, sd), 0.0)
+        np.fill_diagonal(corr, 1.0)
+        return corr
+
+    @property
+    def name_covariance(self) -> np.ndarray:
+        """(K, K) covariance of the fitted robot parameters, in the order of ``names``."""
+        at = [self.free.index(n) for n in self.names]
+        return self.covariance[np.ix_(at, at)]
+
+    @property
+    def mounting(self) -> str:
+        """Where the data put the target against the declared tool point, when the fit determined it;
+        '' otherwise (a mounting result, not a robot error)."""
+        if not self.robot.has_tool_point or not any(np.isfinite(self.std.get(n, np.inf)) for n in TOOL_NAMES
+                                                    if n in self.names):
             return ""
-        if not self.rejected_sessions:
-            return f"row(s) {listed(self.rejected_rows)} of {self.measurements.source}"
-        names = list(dict.fromkeys(self.rejected_sessions))
-        return "row(s) " + "; ".join(
-            f"{listed([r for r, s in zip(self.rejected_rows, self.rejected_sessions) if s == n])} of {n}" for n in names)
+        return mounting_line(self.nominal.tool_point(), self.robot.tool_point())
+
+    def uncertainty(self) -> ModelUncertainty:
+        """The calibrated model's parameter covariance, with the median predicted σ at the training
+        poses (for prediction σ and extrapolation warnings where the model is used)."""
+        ok = [n for n in self.names if np.isfinite(self.std[n])]
+        at = [self.free.index(n) for n in ok]
+        q = np.concatenate([o.q for o in self.observations])
+        return ModelUncertainty.from_fit(self.robot, tuple(ok), self.covariance[np.ix_(at, at)], q)
 
     def dropped_text(self) -> str:
         """What the data do not determine: kept nominal (least squares), or moved by a particle swarm
@@ -127,128 +250,254 @@ class CalibrationResult:
             head += ("; " if moved else "") + f"{', '.join(kept)} not estimated (kept nominal)"
         return head + ". Each acts like the estimated ones shown:\n" + "\n".join(ident.confound_lines("  "))
 
-    @property
-    def mounting(self) -> str:
-        """Where the data put the target in the flange frame against the declared tool point, when the
-        tool point was estimated (a mounting result, not a robot error); '' otherwise."""
-        if not self.robot.has_tool_point or not any(n in self.names and np.isfinite(self.std[n]) for n in TOOL_NAMES):
-            return ""
-        return mounting_line(self.nominal.tool_point(), self.robot.tool_point())
-
-    @property
-    def loss(self) -> str:
-        return self.options.loss
-
-    @property
-    def base(self) -> str:
-        return self.options.base
-
-    @property
-    def outlier_z(self) -> float:
-        """The outlier limit in robust σ for this many poses (:meth:`Thresholds.outlier_limit`)."""
-        return self.options.thresholds.outlier_limit(len(self.residuals))
-
     def record(self) -> dict:
-        """What a calibrated robot file keeps beside the model: the parameter covariance and training σ
-        (``uncertainty()``), the training joint ranges, the nominal parameter values, the options and
-        the poses of use, so the fit can be reproduced (``kincal report``)."""
-        unc = self.uncertainty().to_dict()  # with the envelope: where the model was fitted (joint ranges)
+        """What a calibrated robot file keeps beside the model: the robot parameters' covariance and
+        the training joint ranges (for prediction σ and extrapolation warnings), the nominal values,
+        the options, the set-up to share with the next measurement, each set's statistics and the
+        poses of use, so the fit can be reproduced (``kincal report``)."""
+        unc = self.uncertainty().to_dict()
         unc["envelope"]["joints"] = list(self.robot.joint_names)
         out = {**unc, "nominal": self.nominal.params.as_dict(), "options": self.options.to_dict(),
-               "training_error": self.stats_after.mean}
+               "observations": list(self.per_set), "nuisance": {n: float(v) for n, v in self.nuisance.items()},
+               "setup": self.setup(), "weakly_determined": {n: float(v) for n, v in self.weak.items()}}
+        if self.data:
+            out["training_error"] = self.stats_after.mean
         if self.use_q is not None:
             out["use_q"] = self.use_q.tolist()
         return out
 
-    def uncertainty(self) -> ModelUncertainty:
-        """The calibrated model's parameter covariance, with the median predicted σ at the training
-        poses (for prediction σ and extrapolation warnings where the model is used)."""
-        ok = np.isfinite(np.array([self.std[n] for n in self.names]))
-        names = tuple(n for n, k in zip(self.names, ok) if k)
-        return ModelUncertainty.from_fit(self.robot, names, self.covariance[np.ix_(ok, ok)], self.measurements.q)
+    def setup(self) -> dict:
+        """The set-up the next measurement of this robot shares, in absolute form: the 6-D probe's
+        rotation on the flange (3, 3) and the marker points on the flange (m), as fitted."""
+        out: dict = {"markers": {n: float(v) for n, v in self.nuisance.items() if n.startswith("marker[")}}
+        poses = [_unwrapped(o) for o in self.observations if o.kind == "pose"]
+        if poses:
+            rot = np.array([self.nuisance[n] for n in ("target.rx", "target.ry", "target.rz")])
+            out["target_rotation"] = poses[0].target(rot).tolist()
+        return out
 
-    def pose_records(self) -> list[dict]:
-        """Per pose: input row, error vector and norm (m), robust z-score, outlier flag."""
-        norms = np.linalg.norm(self.residuals, axis=1)
-        return [{"row": int(r), "error": e.tolist(), "norm": float(n), "z": float(zi), "outlier": bool(zi > self.outlier_z)}
-                for r, e, n, zi in zip(self.measurements.rows, self.residuals, norms, self.pose_z)]
+    def sample_table(self) -> list[dict]:
+        """Per sample of every set: file, row, kind, position error (mm: the norm of the sample's
+        position residuals, all its seen markers together), rotation error (mrad; poses), the norm
+        of its residual whitened by the stated σ, its robust z within the set and the outlier flag
+        (the verdict's rule)."""
+        out, start = [], 0
+        for obs, bad in zip(self.observations, self.outliers or ((),) * len(self.observations)):
+            names, nuis0, _ = obs.nuisance(self.robot)
+            r = obs.evaluate(self.robot, self.robot.params.values,
+                             np.array([self.nuisance.get(n, v) for n, v in zip(names, nuis0)]))[0]
+            labels, kinds = component_kinds([obs])
+            owner, rot = obs.sample_rows(), np.array([kinds[k] == "pose rotation" for k in labels], bool)
+            per = lambda rows: np.sqrt(np.bincount(owner[rows], r[rows] ** 2, minlength=len(obs)))  # noqa: E731
+            pos, ang = per((owner >= 0) & ~rot), per((owner >= 0) & rot)
+            norms = sample_norms([obs], self.whitened_residual[start:start + r.size])[0]
+            start += r.size
+            z = robust_z(norms) if len(obs) >= MIN_SAMPLES else np.zeros(len(obs))
+            flagged = set(int(i) for i in bad)
+            out += [{"file": obs.source, "row": int(obs.rows[i]), "kind": obs.kind, "position_mm": float(pos[i] * MM),
+                     "rotation_mrad": float(ang[i] * MRAD) if rot.any() else None, "whitened": float(norms[i]),
+                     "robust_z": float(z[i]), "outlier": i in flagged} for i in range(len(obs))]
+        return out
+
+    def write_residuals(self, path: str) -> None:
+        """:meth:`sample_table` as CSV (atomically): mm, mrad, whitened norms, robust z, outlier yes/no."""
+        lines = ["file,row,kind,position_error_mm,rotation_error_mrad,whitened_norm,robust_z,outlier"]
+        for s in self.sample_table():
+            rot = "" if s["rotation_mrad"] is None else f"{s['rotation_mrad']:.6g}"
+            lines.append(",".join([_cell(s["file"]), str(s["row"]), s["kind"], f"{s['position_mm']:.6g}", rot,
+                                   f"{s['whitened']:.6g}", f"{s['robust_z']:.4g}", "yes" if s["outlier"] else "no"]))
+        write_text_atomic(path, "\n".join(lines) + "\n")
+
+    def held_out(self, obs, robot: Robot | None = None) -> dict:
+        """Statistics of a held-out set (same types) under the calibrated robot (or ``robot``, e.g. the
+        nominal one): set-up parameters the fit shares with it (a target's rotation, markers) at their
+        fitted values; a pose set also takes the training target's start rotation."""
+        robot = self.robot if robot is None else robot
+        poses = [_unwrapped(o) for o in self.observations if o.kind == "pose"]
+        if obs.kind == "pose" and poses:
+            obs = dataclasses.replace(obs, target_rotation=poses[0].target_rotation)
+        else:
+            obs = obs.prepare(robot)
+        names, start, _ = obs.nuisance(robot)
+        nuis = np.array([self.nuisance.get(n, v) for n, v in zip(names, start)])
+        return obs.stats(robot, robot.params.values, nuis)
 
     def to_dict(self) -> dict:
-        return {
-            "robot": self.robot.name,
-            "converged": self.converged,
-            "message": self.message,
-            "iterations": self.iterations,
-            "evaluations": self.evaluations,
-            "time_s": self.time_s,
-            "loss": self.loss,
-            "base": self.base,
-            "options": self.options.to_dict(),
-            "n_poses": int(self.residuals.shape[0]),
-            "sigma": self.sigma,
-            "estimated": list(self.names),
-            "not_estimated": [n for n in self.robot.params.names if n not in set(self.names)],
-            "estimates": self.estimates,
-            "corrections": self.corrections,
-            "std": {k: (v if np.isfinite(v) else None) for k, v in self.std.items()},  # None: undetermined
-            "correlation": self.correlation.tolist(),
-            "before": self.stats_before.to_dict(),
-            "after": self.stats_after.to_dict(),
-            "identifiability": self.identifiability.to_dict(),
-            "history": list(self.history),
-            "verdict": self.verdict.to_dict(),
-            "structure": self.robot.structure,
-            "error_model": self.robot.error_model,
-            "error_model_choice": None if self.error_model_choice is None else self.error_model_choice.to_dict(),
-            "error_model_notes": list(self.error_model_notes),
-            "drift": self.drift,
-            "diagnosis": None if self.diagnosis is None else self.diagnosis.to_dict(),
-            "rejected_rows": list(self.rejected_rows),
-            "rejected_sessions": list(self.rejected_sessions) or None,
-            "mounting": None if not self.mounting else {
-                "tool_point": self.robot.tool_point().tolist(), "declared_tool_point": self.nominal.tool_point().tolist(),
-                "text": self.mounting},
-            "compliance": self.robot.compliances(),  # rad/(N·m) per joint
-            "weakly_determined": dict(self.weak),  # held at nominal (m or rad: the σ the data gave them)
-            "prior": dict(self.prior),  # learned prior σ per group (m or rad)
-            "poses": self.pose_records(),
-        }
+        out = {"robot": self.robot.name, "converged": self.converged, "message": self.message,
+               "iterations": self.iterations, "evaluations": self.evaluations, "time_s": self.time_s,
+               "options": self.options.to_dict(), "estimated": list(self.names),
+               "not_estimated": [n for n in self.robot.params.names if n not in set(self.names)],
+               "estimates": self.estimates, "corrections": self.corrections,
+               "nuisance": {k: float(v) for k, v in self.nuisance.items()},
+               "std": {k: (float(v) if np.isfinite(v) else None) for k, v in self.std.items()},  # None: undetermined
+               "correlation": self.correlation.tolist(), "gauge": list(self.gauge),
+               "identifiability": self.identifiability.to_dict(), "history": list(self.history),
+               "sets_before": list(self.per_set_before), "sets": list(self.per_set),
+               "whitened_rms": self.whitened_rms, "whitened_rms_per_kind": dict(self.whitened),
+               "model_error": dict(self.model_error), "verdict": self.verdict.to_dict(),
+               "structure": self.robot.structure, "error_model": self.robot.error_model,
+               "error_model_choice": None if self.error_model_choice is None else self.error_model_choice.to_dict(),
+               "error_model_notes": list(self.notes), "rejected_rows": {k: list(v) for k, v in self.rejected.items()},
+               "diagnosis": None if self.diagnosis is None else self.diagnosis.to_dict(),
+               "mounting": None if not self.mounting else {
+                   "tool_point": self.robot.tool_point().tolist(),
+                   "declared_tool_point": self.nominal.tool_point().tolist(), "text": self.mounting},
+               "compliance": self.robot.compliances(),  # rad/(N·m) per joint
+               "weakly_determined": {k: float(v) for k, v in self.weak.items()},  # m or rad: the σ the data gave
+               "prior": {k: float(v) for k, v in self.prior.items()}}  # learned prior σ per group (m or rad)
+        if self.data:
+            out.update(n_poses=len(self.residuals), sigma=self.sigma, before=self.stats_before.to_dict(),
+                       after=self.stats_after.to_dict(), drift=self.drift, poses=self.pose_records())
+        return out
 
     def __str__(self) -> str:
-        kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
-        status = "converged" if self.converged else "NOT CONVERGED"
-        lines = [
-            f"calibration of {self.robot.name}: {status} ({self.message}) in {self.iterations} iterations, "
-            f"{self.time_s * 1e3:.1f} ms; {len(self.names)} parameters from {self.residuals.shape[0]} poses, "
-            f"base {self.base}, loss {self.loss}",
-            f"{'parameter':<12} {'estimate':>16} {'correction':>16} {'std':>14}",
-        ]
-        for n in self.names:
-            k = kinds[n]
-            sd = display(self.std[n], k).lstrip("+") if np.isfinite(self.std[n]) else "undetermined"
-            lines.append(f"{n:<12} {display(self.estimates[n], k):>16} {display(self.corrections[n], k):>16} "
-                         f"{sd:>14}")
-        noise = noise_level(self.measurements.std, self.options.thresholds)
-        lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm (tracker noise for the verdict "
-                  f"{noise[0] * MM:.3g} mm: {noise[1]})",
-                  f"before (nominal, frame and target point registered): {self.stats_before}", f"after:  {self.stats_after}"]
+        kinds = " + ".join(dict.fromkeys(s["type"] for s in self.per_set))
+        lines = [f"calibration of {self.robot.name} from {kinds} data"
+                 + ("" if self.robot.error_model == "geometric" else f" ({self.robot.error_model} error model)")
+                 + f": {'converged' if self.converged else 'NOT CONVERGED'} ({self.message}) in {self.iterations} "
+                 f"iterations, {self.time_s * 1e3:.1f} ms; {len(self.names)} robot and {len(self.nuisance)} set-up "
+                 f"parameters; loss {self.options.loss}, base {self.options.base}"]
+        lines += self.parameter_lines()
+        lines += self._data_lines()
         if self.mounting:
             lines.append(f"mounting: {self.mounting}")
-        if self.weak:
-            lines.append(weak_note(self.robot, self.weak))
+        if self.gauge:
+            lines.append(f"not seen by these data (gauge freedoms, kept at their values): {', '.join(self.gauge)}")
+        lines += [weak_note(self.robot, self.weak)] if self.weak else []
         lines += prior_lines(self.prior)
-        if self.rejected_rows:
-            lines.append(f"left out as outliers (more than {self.outlier_z:.3g} robust σ off a robust refit): "
+        if self.rejected:
+            lines.append(f"left out as outliers (a robust refit put them beyond the outlier limit): "
                          f"{self.rejected_text()}")
         if self.error_model_choice is not None:
             lines.append(str(self.error_model_choice))
         lines += [f"compliance of {j}: {c:.3g} rad/(N·m)" for j, c in self.robot.compliances().items()]
-        lines += [f"note: {n}" for n in self.error_model_notes]
-        if self.drift:
-            lines.append("drift over the session (first to last pose): " + ", ".join(
-                f"{a} {d['value'] * MM:+.4f} ± {d['std'] * MM:.4f} mm" for a, d in self.drift.items()))
-        lines.append(str(self.verdict))
-        return "\n".join(lines)
+        lines += [f"note: {n}" for n in self.notes]
+        return "\n".join([*lines, str(self.verdict)])
+
+    def parameter_lines(self) -> list[str]:
+        """The fitted robot parameters as a table: estimate, correction from nominal, σ (mm, deg)."""
+        kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
+        lines = [f"{'parameter':<22} {'estimate':>16} {'correction':>16} {'σ':>14}"]
+        for n in self.names:
+            k, sd = kinds[n], self.std.get(n, np.inf)
+            lines.append(f"{n:<22} {display(self.robot.params[n], k):>16} "
+                         f"{display(self.robot.params[n] - self.nominal.params[n], k):>16} "
+                         f"{display(sd, k).lstrip('+') if np.isfinite(sd) else 'undetermined':>14}")
+        return lines
+
+    def _data_lines(self) -> list[str]:
+        """The residuals: per set before → after; for position data the residual σ against the
+        tracker noise, the statistics before and after and a fitted drift; σ per kind otherwise."""
+        lines = [f"  {a['type']} ({a['source']}): {stat_line(b)}  →  {stat_line(a)}"
+                 for b, a in zip(self.per_set_before, self.per_set)]
+        if self.data:
+            noise = noise_level(self.measurements.std, self.options.thresholds)
+            lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm (tracker noise for the verdict "
+                      f"{noise[0] * MM:.3g} mm: {noise[1]})",
+                      f"before (nominal, frame and target point registered): {self.stats_before}",
+                      f"after:  {self.stats_after}"]
+            if self.drift:
+                lines.append("drift over the session (first to last pose): " + ", ".join(
+                    f"{a} {d['value'] * MM:+.4f} ± {d['std'] * MM:.4f} mm" for a, d in self.drift.items()))
+            return lines
+        lines.append(f"whitened residual RMS {self.whitened_rms:.3g} (1 when the stated σ are right): "
+                     + ", ".join(f"{k} {v:.3g}" for k, v in self.whitened.items()))
+        if self.model_error:
+            lines.append("weighted by 1/(σ² + s²), s what the model leaves beyond the stated σ: " + ", ".join(
+                f"{k} {v * MRAD:.3g} mrad" if k.endswith("rotation") else f"{k} {v * MM:.3g} mm"
+                for k, v in self.model_error.items()))
+        return lines + self._drift_lines()
+
+    def _drift_lines(self) -> list[str]:
+        """Each set's fitted instrument drift over its rows (first to last sample), mm with σ."""
+        sets = dict.fromkeys(n.rsplit(".", 1)[0] for n in self.nuisance if n.startswith("drift["))
+        return [f"{s} over the file (first to last sample): " + ", ".join(
+            f"{a} {self.nuisance[f'{s}.{a}'] * MM:+.4f} ± {self.std.get(f'{s}.{a}', np.inf) * MM:.4f} mm"
+            for a in "xyz" if f"{s}.{a}" in self.nuisance) for s in sets]
+
+
+def _kept(fit: CalibrationResult, sessions: list[Measurements]):
+    """The poses fitted (outliers left out) in the first session's frame, their position errors
+    measured − predicted (N, 3) m (a fitted drift taken out), and the drift per axis (or None)."""
+    parts, errs, drift = [], [], None
+    for obs, s in zip(fit.observations, sessions):
+        kept = s.subset(np.flatnonzero(np.isin(s.rows, obs.rows)))
+        frame, inner, offset = fit.robot, obs, np.zeros((len(kept), 3))
+        if isinstance(inner, InSession):
+            frame = fit.robot.with_params({b: fit.nuisance[f"frame[{inner.session}].{b}"]
+                                           for b in fit.robot.base_params()})
+            inner = inner.inner
+        if isinstance(inner, Drifting):
+            d = np.array([fit.nuisance[n] for n in inner.names()])
+            offset = acquisition(inner.rows)[:, None] * d
+            drift = drift or {a: {"value": float(v), "std": float(fit.std[n])}
+                              for a, v, n in zip("xyz", d, inner.names())}
+        parts.append(in_frame_of(fit.robot, frame, kept))
+        errs.append(in_frame_of(fit.robot, frame, dataclasses.replace(kept, xyz=kept.xyz - offset)).xyz
+                    - fit.robot.forward(kept.q))
+    return joined(parts), np.concatenate(errs), drift
+
+
+def in_frame_of(model: Robot, registered: Robot, meas: Measurements) -> Measurements:
+    """``meas`` (taken in the frame where ``registered`` sees the robot) expressed in ``model``'s frame."""
+    if registered is model:
+        return meas
+    R0, t0 = model.base_transform()
+    Rs, ts = registered.base_transform()
+    xyz = (meas.xyz - ts) @ Rs @ R0.T + t0
+    std = None if meas.std is None else np.sqrt(meas.std**2 @ (Rs @ R0.T) ** 2)  # per-axis variances, rotated
+    return Measurements(meas.q, xyz, meas.joint_names, meas.source, meas.rows, std, meas.units, meas.session)
+
+
+def joined(sessions: list[Measurements]) -> Measurements:
+    """Several sessions as one set of measurements (their rows keep their own files' line numbers; each
+    pose is labelled with its session's source, so held-out sessions can be told apart)."""
+    if len(sessions) == 1:
+        return sessions[0]
+    std = None if any(s.std is None for s in sessions) else np.concatenate([s.std for s in sessions])
+    labels = [s.source if s.source not in [t.source for t in sessions[:i]] else f"{s.source} ({i + 1})"
+              for i, s in enumerate(sessions)]
+    return Measurements(np.concatenate([s.q for s in sessions]), np.concatenate([s.xyz for s in sessions]),
+                        sessions[0].joint_names, " + ".join(s.source for s in sessions),
+                        np.concatenate([s.rows for s in sessions]), std, sessions[0].units,
+                        np.concatenate([np.full(len(s), name) for s, name in zip(sessions, labels)]))
+
+
+def _unwrapped(obs):
+    """The set under its wrappers (a session's frame, a drifting instrument)."""
+    while isinstance(obs, Wrapper):
+        obs = obs.inner
+    return obs
+
+
+def _cell(text: str) -> str:
+    """A CSV cell: quoted when it holds a comma or a quote."""
+    return f'"{text.replace(chr(34), chr(34) * 2)}"' if "," in text or '"' in text else text
+
+
+def stat_line(s: dict) -> str:
+    """One set's statistics (``stats()`` of an observation type) in a few words, mm and mrad."""
+    if "mean_abs_mm" in s:
+        return f"mean |p − point| {s['mean_abs_mm']:.4f} mm"
+    rot = f", mean {s['mean_mrad']:.4f} mrad" if "mean_mrad" in s else ""
+    return f"mean {s['mean_mm']:.4f} mm{rot}"
+
+
+def trained_setup(record: dict | None, where: str = "calibration record") -> tuple[dict, dict]:
+    """From a calibration record's ``setup``: the set-up parameters to hold (name -> value) and the
+    anchors (a 6-D probe's rotation) a held-out file is judged with, so its probe and markers stay as
+    trained; ({}, {}) for a record without one. ``where`` names the file in an error."""
+    setup = (record or {}).get("setup")
+    if not isinstance(setup, dict):
+        return {}, {}
+    held = {str(k): float(v) for k, v in (setup.get("markers") or {}).items()}
+    if "target_rotation" not in setup:
+        return held, {}
+    R = np.asarray(setup["target_rotation"], float)
+    if R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6):
+        raise ValueError(f"{where}: the calibration record's setup.target_rotation must be a 3x3 rotation matrix "
+                         f"(edited by hand?); calibrate again to write it")
+    return {**held, "target.rx": 0.0, "target.ry": 0.0, "target.rz": 0.0}, {"target_rotation": R}
 
 
 EXACT = 1e-9  # m: a validation error below this is round-off (no noise, an exact model)

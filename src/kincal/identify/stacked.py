@@ -31,7 +31,7 @@ from .covariance import parameter_statistics
 from .lm import LMResult
 from .options import FitOptions
 from .noise import extra_variance
-from .observed_result import ObservationFit
+from .result import CalibrationResult
 from .observed_verdict import component_kinds, observation_verdict, outlier_samples, whitened_per_kind
 from .registration import register_base, register_mounting
 from .relevance import RelevanceFit
@@ -138,7 +138,7 @@ def _gauge(robot: Robot, sets) -> tuple[str, ...]:
 
 
 def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, loss: str,
-             held: Mapping[str, float]) -> ObservationFit:
+             held: Mapping[str, float]) -> CalibrationResult:
     """The one fit of ``observations`` with the options ``o`` (the learned ``prior`` resolved, the
     ``loss`` in use), set-up parameters in ``held`` kept at those values: nothing left out, nothing
     diagnosed (:func:`kincal.identify.fitting.fit_stack` wraps it)."""
@@ -154,8 +154,8 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
         if o.method != "lm":
             swarmed = swarm(st, x0, rounds.cols(list(ident.candidates)), o.pso_settings)
             if o.method == "pso":
-                return _result(models, st, gauge, ident, list(ident.candidates), x0, swarmed.fit, {},
-                               o.thresholds, {}, swarmed.history, ident.dropped)
+                return _result(models, st, gauge, ident, list(ident.candidates), x0, swarmed.fit, {}, o, {},
+                               swarmed.history, ident.dropped)
             start = None
         full, fit, free, weak, fitted, error = rounds.fit(free0, x0 if swarmed is None else swarmed.full, start)
         notes: tuple[str, ...] = ()
@@ -176,7 +176,7 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
         ident = dataclasses.replace(_without_weak(ident, free, weak), notes=ident.notes + notes)
         before = (swarmed.iterations, swarmed.evaluations) if swarmed else (0, 0)
         spent = (rounds.spent[0] + before[0], rounds.spent[1] + before[1])
-        return _result(models, fitted, gauge, ident, free, x0, fit, weak, o.thresholds, error,
+        return _result(models, fitted, gauge, ident, free, x0, fit, weak, o, error,
                        swarmed.history if swarmed else (), spent=spent)
 
 
@@ -334,9 +334,9 @@ def _session_start(robot: Robot, obs):
     return dataclasses.replace(obs, frame0=moved.params.values[moved.params.indices(robot.base_params())])
 
 
-def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit, weak, th: Thresholds, error: dict,
-            history=(), undetermined=(), spent=None) -> ObservationFit:
-    """The fit of the columns ``free`` as an :class:`ObservationFit` (``models``: the model as given,
+def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit, weak, o: FitOptions, error: dict,
+            history=(), undetermined=(), spent=None) -> CalibrationResult:
+    """The fit of the columns ``free`` as a :class:`CalibrationResult` with options ``o`` (``models``: the model as given,
     as registered, where the fit began, and as judged "before", :func:`_before`; ``undetermined``:
     moved by a particle swarm but not determined by the data, σ = inf; ``spent``: iterations and
     evaluations of every solver run, default the fit's own)."""
@@ -360,11 +360,15 @@ def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit,
     after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
     r = fit.residual * st.stated / st.inv_sigma  # whitened by the stated σ: what the user can restate
     per_kind = whitened_per_kind(st.sets, r)
-    verdict = observation_verdict(robot, calibrated, st.sets, r, per_kind, fit.converged, th)
-    return ObservationFit(calibrated, declared, robot, before_model,
-                          tuple(n for n in free if n in robot.params.names),
-                          dict(zip(st.nuis_names, full[P:])), std, ident, gauge, before, after,
-                          float(np.sqrt(np.mean(r**2))), cov, verdict, bool(fit.converged), spent[0], st.sets,
-                          weak, learned, per_kind, {k: v for k, v in error.items() if v > 0},
-                          outlier_samples(st.sets, r, th), whitened_residual=r, evaluations=spent[1],
-                          message=fit.message if isinstance(fit, LMResult) else "prior learned", history=tuple(history), free=tuple(free))
+    th = o.thresholds
+    return CalibrationResult(
+        robot=calibrated, nominal=declared, registered=robot, before=before_model,
+        names=tuple(n for n in free if n in robot.params.names), nuisance=dict(zip(st.nuis_names, full[P:])),
+        std=std, identifiability=ident, gauge=gauge, per_set_before=before, per_set=after,
+        whitened_rms=float(np.sqrt(np.mean(r**2))), covariance=cov,
+        verdict=observation_verdict(robot, calibrated, st.sets, r, per_kind, fit.converged, th),
+        converged=bool(fit.converged), iterations=spent[0], observations=st.sets, weak=weak, prior=learned,
+        whitened=per_kind, model_error={k: v for k, v in error.items() if v > 0},
+        outliers=outlier_samples(st.sets, r, th), whitened_residual=r, evaluations=spent[1],
+        message=fit.message if isinstance(fit, LMResult) else "prior learned", history=tuple(history),
+        free=tuple(free), options=o)

@@ -2,8 +2,8 @@
 calibrations and studies. Importing this room loads matplotlib and Jinja2."""
 from .build import Report, build_report, evaluation_figures, figure_set, json_path_for
 from .figures import save as save_figure
-from .observations import observation_figures, observation_report
+from .observations import observation_figures
 from .study_figures import guo2024_figures
 
 __all__ = ["Report", "build_report", "figure_set", "evaluation_figures", "json_path_for", "save_figure",
-           "guo2024_figures", "observation_report", "observation_figures"]
+           "guo2024_figures", "observation_figures"]

@@ -20,11 +20,15 @@ from .._atomic import write_text_atomic
 from ..identify.calibrate import evaluate
 from ..identify.sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
 from ..identify.registration import register_mounting
+from ..identify.relevance import prior_lines
 from ..identify.result import CalibrationResult, EvaluationStats
+from ..identify.weak import weak_note
 from ..identify.verdict import Thresholds, duplicate_groups, repeat_tolerance, robust_z
 from ..io.measurements import Measurements
-from ..units import MM, display
+from ..models.robot import TOOL_NAMES
+from ..units import MM, MRAD, display
 from . import figures as F
+from .observations import observation_figures, sets_part
 from .study_figures import pso_fitness
 
 
@@ -60,10 +64,11 @@ def report_date() -> str:
                          f"it") from None
 
 
-def build_report(result: CalibrationResult, test: Measurements | Sequence[Measurements] | None = None,
-                 info: dict | None = None, html_name: str = "report.html", same_frame: bool = False) -> Report:
-    """The report of ``result`` (its training data) and, if given, held-out sessions ``test`` (one set
-    of measurements or several, one per session).
+def build_report(result: CalibrationResult, test: Measurements | Sequence | None = None, info: dict | None = None,
+                 html_name: str = "report.html", same_frame: bool = False) -> Report:
+    """The report of ``result`` (a calibration from any kinds of data) and, if given, held-out sessions
+    ``test`` (position data: one set of measurements or several, one per session; other kinds:
+    observation sets of the training data's kind).
 
     same_frame -- the held-out sessions were measured in the training data's frame (the tracker did not
                   move): the models are used as they are. By default each session's frame is re-fitted
@@ -73,29 +78,45 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence[Measur
     """
     from .. import __version__
 
-    info = dict(info or {})
     tests = [test] if isinstance(test, Measurements) else list(test or [])
-    th = result.options.thresholds
-    models = _held_out_models(result, tests, same_frame)
-    sets = _sets(result, tests, models, th)
-    headline = [_headline(s, which) for s in sets for which in ("before", "after")]
-    figs = _figures(sets, result)
-    ctx = {"robot": result.robot.name, "version": __version__, "date": report_date(), "structure": result.robot.structure,
-           "n_estimated": len(result.names), "n_train": len(result.measurements), "verdict": result.verdict.to_dict(),
-           "outliers": [int(r) for s in sets for r in s.rows[s.outliers]], "headline": headline,
-           "warnings": _warnings(result, tests, models), "parameters": _parameter_rows(result, th),
-           "not_estimated": result.identifiability.confound_lines(""), "data": _data_rows(result, tests, info),
-           "iso": _iso9283(sets, result), "json_name": json_path_for(html_name).name,
+    part, numbers, summary = (_positions_part if result.data else sets_part)(result, tests, same_frame)
+    ctx = {"robot": result.robot.name, "version": __version__, "date": report_date(), "positional": bool(result.data),
+           "structure": result.robot.structure, "types": list(dict.fromkeys(s["type"] for s in result.per_set)),
+           "n_estimated": len(result.names), "n_setup": len(result.nuisance),
+           "n_samples": sum(s["samples"] for s in result.per_set), "whitened_rms": result.whitened_rms,
+           "verdict": result.verdict.to_dict(), "parameters": _parameter_rows(result), "setup": _setup(result),
+           "weak": weak_note(result.robot, result.weak), "prior": prior_lines(result.prior),
+           "gauge": list(result.gauge), "not_estimated": [line for line in result.identifiability.confound_lines("")
+                                                          if line.split()[0] not in set(result.gauge)],
+           "data": _data_rows(result, tests, dict(info or {})), "json_name": json_path_for(html_name).name,
            "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
-           "error_model_notes": list(result.error_model_notes), "compliance": result.robot.compliances(),
-           "acquisition": _acquisition(result), "mounting": result.mounting, **figs}
-    html = template().render(**ctx)
-    data = {k: ctx[k] for k in ("robot", "version", "date", "structure", "verdict", "outliers", "warnings",
-                                "parameters", "not_estimated", "data", "iso", "error_model_choice",
-                                "error_model_notes", "compliance", "acquisition", "mounting")}
-    data["headline"] = [{**h, **{k: h[k] / MM for k in ("mean", "rms", "max", "p95")}} for h in headline]
-    data["figures"] = [f["name"] for group in figs.values() for f in group]
-    return Report(html, data, _summary(result, headline, ctx["warnings"]))
+           "error_model_notes": list(result.notes), "compliance": result.robot.compliances(),
+           "mounting": result.mounting, **part}
+    data = {k: ctx[k] for k in ("robot", "version", "date", "structure", "verdict", "parameters", "setup",
+                                "not_estimated", "data", "error_model_choice", "error_model_notes", "compliance",
+                                "mounting", "whitened_rms")}
+    return Report(template().render(**ctx), {**data, **numbers, "calibration": result.to_dict()},
+                  "\n".join([f"verdict: {result.verdict.status.upper()}",
+                             *(f"  {r.level}: {r.message}" for r in result.verdict.reasons), *summary]))
+
+
+def _positions_part(result: CalibrationResult, tests: list[Measurements], same_frame: bool):
+    """The position report's sections (headline, figures, warnings, ISO 9283, acquisition order), the
+    numbers it adds to the JSON and its lines of the terminal summary."""
+    models = _held_out_models(result, tests, same_frame)
+    sets = _sets(result, tests, models, result.options.thresholds)
+    headline = [_headline(s, which) for s in sets for which in ("before", "after")]
+    part = {"outliers": [int(r) for s in sets for r in s.rows[s.outliers]], "headline": headline,
+            "warnings": _warnings(result, tests, models), "iso": _iso9283(sets, result),
+            "acquisition": _acquisition(result), **_figures(sets, result)}
+    numbers = {k: part[k] for k in ("outliers", "warnings", "iso", "acquisition")}
+    numbers["headline"] = [{**h, **{k: h[k] / MM for k in ("mean", "rms", "max", "p95")}} for h in headline]
+    numbers["figures"] = [f["name"] for g in GROUPS for f in part[g]]
+    width = max(len(h["data"]) for h in headline)
+    summary = [f"  {h['data']:<{width}} {h['model']:<27} mean {h['mean']:.4f} mm  rms {h['rms']:.4f} mm  "
+               f"max {h['max']:.4f} mm" for h in headline]
+    summary += [f"  {h['data']}: {h['registration']}" for h in headline[::2] if h["data"] != "training"]
+    return part, numbers, summary + [f"  warning: {w}" for w in part["warnings"]]
 
 
 def _warnings(result: CalibrationResult, tests: list[Measurements], models: list[tuple]) -> list[str]:
@@ -182,7 +203,10 @@ def _figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
 def figure_set(result: CalibrationResult, test: Measurements | Sequence[Measurements] | None = None,
                same_frame: bool = False) -> dict:
     """The report's figures as matplotlib Figures by name (``--plot`` saves them as PNG or SVG); with a
-    particle swarm also its fitness per iteration (the 3-PUU paper's Fig. 7)."""
+    particle swarm also its fitness per iteration (the 3-PUU paper's Fig. 7). Observation sets: the
+    figures of the sets with positions in the robot's frame ({} when none has)."""
+    if not result.data:
+        return observation_figures(result)
     tests = [test] if isinstance(test, Measurements) else list(test or [])
     models = _held_out_models(result, tests, same_frame)
     figs = _make_figures(_sets(result, tests, models, result.options.thresholds), result)
@@ -219,9 +243,10 @@ def _value(v: float, kind: str, signed: bool = False) -> str:
     return display(v, kind, signed, digits=(4, 4))
 
 
-def _parameter_rows(result: CalibrationResult, th: Thresholds) -> list[dict]:
+def _parameter_rows(result: CalibrationResult) -> list[dict]:
+    th = result.options.thresholds
     kinds = dict(zip(result.robot.params.names, result.robot.params.kinds))
-    base = set(result.robot.base_params())
+    base = {*result.robot.base_params(), *TOOL_NAMES}  # where the tracker stands and the target is: not errors
     rows = []
     for n in result.names:
         k, c = kinds[n], result.corrections[n]
@@ -234,23 +259,36 @@ def _parameter_rows(result: CalibrationResult, th: Thresholds) -> list[dict]:
     return rows
 
 
-def _file_line(meas: Measurements) -> str:
-    path = Path(meas.source)
+def _setup(result: CalibrationResult) -> list[dict]:
+    """Set-up parameters in mm (lengths) and mrad (angles: target rotations, plane tilts)."""
+    out = []
+    for n, v in result.nuisance.items():
+        f, unit = (MRAD, "mrad") if n.startswith("target.") or n.endswith((".a", ".b")) else (MM, "mm")
+        sd = result.std.get(n, np.inf)
+        out.append({"name": n, "value": f"{v * f:.4f} {unit}", "std": f"{sd * f:.4f} {unit}" if np.isfinite(sd) else "–"})
+    return out
+
+
+def _file_line(data) -> str:
+    """A data file (measurements or an observation set) by name, size, rows and sha256."""
+    path, what = Path(data.source), "poses" if isinstance(data, Measurements) else f"{data.kind} samples"
     if not path.is_file():
-        return f"{meas.source} ({len(meas)} poses)"
+        return f"{data.source} ({len(data)} {what})"
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    return f"{path.name} ({len(meas)} poses, rows {meas.rows[0]}..{meas.rows[-1]}; sha256 {digest[:16]}…)"
+    return f"{path.name} ({len(data)} {what}, rows {data.rows[0]}..{data.rows[-1]}; sha256 {digest[:16]}…)"
 
 
-def _data_rows(result: CalibrationResult, tests: list[Measurements], info: dict) -> list[dict]:
+def _data_rows(result: CalibrationResult, tests: list, info: dict) -> list[dict]:
     o = result.options
-    rows = [("robot", info.pop("robot", result.robot.name)), ("training data", _file_line(result.measurements))]
+    rows = [("robot", info.pop("robot", result.robot.name))]
+    rows += [(f"training data {k + 1}" if len(result.observations) > 1 else "training data", _file_line(s))
+             for k, s in enumerate(result.data or result.observations)]
     rows += [(f"held-out session {k + 1}", _file_line(t)) for k, t in enumerate(tests)]
     if result.mounting:
         rows.append(("tool point (mounting)", result.mounting))
-    if result.rejected_rows:
-        rows.append(("left out as outliers", f"{result.rejected_text()}: more than {result.outlier_z:.3g} robust σ "
-                                             f"off a robust refit (--reject-outliers)"))
+    if result.rejected:
+        rows.append(("left out as outliers", f"{result.rejected_text()}: beyond the outlier limit of a robust refit "
+                                             f"(--reject-outliers)"))
     if result.diagnosis is not None:
         rows.append(("diagnosis", result.diagnosis.message()))
     rows += [("options", f"base {o.base}, loss {o.loss}, method {o.method}, "
@@ -299,20 +337,9 @@ def _iso9283(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
     return {"text": text, "groups": groups}
 
 
-def template(name: str = "report.html") -> jinja2.Template:
-    """A page template of this room (they share ``_style.html``)."""
+def template() -> jinja2.Template:
+    """The report's page template."""
     folder = resources.files("kincal.report") / "templates"
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined,
                              loader=jinja2.FunctionLoader(lambda n: (folder / n).read_text()))
-    return env.get_template(name)
-
-
-def _summary(result: CalibrationResult, headline: list[dict], warnings: list[str]) -> str:
-    lines = [f"verdict: {result.verdict.status.upper()}"]
-    lines += [f"  {r.level}: {r.message}" for r in result.verdict.reasons]
-    width = max(len(h["data"]) for h in headline)
-    for h in headline:
-        lines.append(f"  {h['data']:<{width}} {h['model']:<27} mean {h['mean']:.4f} mm  rms {h['rms']:.4f} mm  "
-                     f"max {h['max']:.4f} mm")
-    lines += [f"  {h['data']}: {h['registration']}" for h in headline[::2] if h["data"] != "training"]
-    return "\n".join(lines + [f"  warning: {w}" for w in warnings])
+    return env.get_template("report.html")

@@ -128,19 +128,20 @@ def histogram(sets: list[PoseSet]) -> Figure:
 
 @_styled
 def per_axis(sets: list[PoseSet]) -> Figure:
+    """Box plots of the error per axis after calibration: one box per set (its colour, named in the
+    legend) beside each other at x, y and z."""
     fig = _figure(4.6, 3.0)
     ax = fig.add_subplot()
-    data, labels, colours = [], [], []
-    for a, name in enumerate("xyz"):
-        for s in sets:
-            data.append(s.after[:, a] * MM)
-            labels.append(f"{name}\n{s.title}")
-            colours.append(s.color)
-    parts = ax.boxplot(data, patch_artist=True, widths=0.6, flierprops={"markersize": 2})
-    ax.set_xticks(range(1, len(labels) + 1), labels, fontsize=7)
-    for patch, colour in zip(parts["boxes"], colours):
-        patch.set_facecolor(colour)
+    k = len(sets)
+    data = [s.after[:, a] * MM for a in range(3) for s in sets]
+    where = [a * (k + 1) + j + 1 for a in range(3) for j in range(k)]
+    parts = ax.boxplot(data, positions=where, patch_artist=True, widths=0.6, flierprops={"markersize": 2})
+    for patch, s in zip(parts["boxes"], [s for _ in range(3) for s in sets]):
+        patch.set_facecolor(s.color)
         patch.set_alpha(0.5)
+    ax.set_xticks([a * (k + 1) + (k + 1) / 2 for a in range(3)], ["x", "y", "z"])
+    if k > 1:
+        ax.legend(parts["boxes"][:k], [s.title for s in sets], fontsize=7)
     ax.set_title("error per axis after calibration")
     ax.set_ylabel("measured − model (mm)")
     return fig
