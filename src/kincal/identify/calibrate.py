@@ -25,7 +25,6 @@ from ..models.terms import extend
 from ..observe import InSession, JointObs, PointObs
 from .diagnosis import TRIGGERS, diagnose
 from .fitting import fit_stack
-from .observed_diagnosis import diagnosed
 from .options import FitOptions
 from .result import CalibrationResult, EvaluationStats, joined
 from .select import select_model
@@ -85,7 +84,7 @@ def _calibrate(robot: Robot, sessions: list[Measurements], own_frames: bool, opt
         fit = fit_stack(robot, _sets(sessions, own_frames, options, robot), fit_options, say=say)
         res = judge(dataclasses.replace(fit, options=options, error_model_choice=choice, use_q=use_q,
                                         data=tuple(sessions), time_s=time.perf_counter() - t0))
-        return _diagnosed(res, say) if options.diagnose else res
+        return diagnosed(res, robot, say) if options.diagnose else res
 
 
 def _relabelled(meas: Measurements, label: str) -> Measurements:
@@ -143,20 +142,38 @@ def fit_observations(robot: Robot, observations: Sequence, options: FitOptions |
     options = (options or FitOptions(diagnose=False)).replace(**changes).check(robot)
     fit = fit_stack(robot, observations, options, held, progress or (lambda msg: None))
     fit = dataclasses.replace(fit, time_s=time.perf_counter() - t0)
-    return diagnosed(fit, robot, calibrate) if options.diagnose else fit
+    return diagnosed(fit, robot) if options.diagnose else fit
 
 
-def _diagnosed(res: CalibrationResult, say) -> CalibrationResult:
-    """A doubtful verdict gets the differential diagnosis, its finding as the first reason."""
+def diagnosed(res: CalibrationResult, robot: Robot, say=lambda msg: None) -> CalibrationResult:
+    """``res`` with the differential diagnosis as the first reason of its verdict, when the verdict
+    doubts the data (:data:`TRIGGERS`). Position data are screened as fitted; other kinds on the
+    positions of their one point or 6-D pose file in the robot's frame (fitted as positions from
+    ``robot``, the model as given); markers, sockets, planes and sessions in their own frames are
+    not. Bad poses in a least-squares fit of positions steer the whole model: refused, not doubtful."""
     if not any(r.code in TRIGGERS for r in res.verdict.reasons):
         return res
+    position = res if res.data else _positions_of(res, robot)
+    if position is None:
+        return res
     say("trying the common input mistakes")
-    found = diagnose(res)
+    found = diagnose(position)
     best = found.best
-    # bad poses in a least-squares fit steer the whole model: it is wrong, not doubtful
-    status = "refused" if best and best.code == "outliers" and res.options.loss == "linear" else res.verdict.status
-    reason = Reason(status, f"cause-{best.code}" if best else "cause-unknown", found.message())
+    status = "refused" if best and best.code == "outliers" and res.data and res.options.loss == "linear" \
+        else res.verdict.status
+    reason = Reason(status, f"cause-{best.code}" if best else "cause-unknown",
+                    found.message() + ("" if res.data else " (screened on the measured positions)"))
     return dataclasses.replace(res, diagnosis=found, verdict=Verdict(status, (reason, *res.verdict.reasons)))
+
+
+def _positions_of(res: CalibrationResult, robot: Robot) -> CalibrationResult | None:
+    """The fit of the measured positions of ``res``'s one point or pose file in the robot's frame
+    (at least 10 of them), or None."""
+    sets = [o for o in res.observations if o.kind in ("point", "pose") and not isinstance(o, InSession)]
+    if len(sets) != 1 or len(sets[0]) < 10:
+        return None
+    q, xyz = sets[0].positions()
+    return calibrate(robot, Measurements(q, xyz, robot.joint_names, sets[0].source, sets[0].rows), diagnose=False)
 
 
 def judge(res: CalibrationResult) -> CalibrationResult:
