@@ -121,9 +121,10 @@ def _write_residuals(args, res, robot) -> None:
                               robot.joint_types, "mm", "deg")
 
 
-def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], options, use_q=None):
+def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], options, use_q="held"):
     """The files read (``args``: how; held-out ``tests`` in the first file's kind) and fitted from
-    ``robot`` with ``options``: (the result, the held-out sets). Position files are fitted by
+    ``robot`` with ``options``: (the result, the held-out sets); ``use_q``: the poses of use of
+    position data (the prediction-σ guard of an "auto" error model), by default the held-out ones. Position files are fitted by
     :func:`kincal.calibrate` (one frame with --same-frame, else a frame per session), other kinds
     by :func:`kincal.identify.fit_observations` (each absolute file after the first in its own frame)."""
     if args.exclude and len(data) > 1:
@@ -133,7 +134,8 @@ def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], 
         sessions = [read(args, robot, path) for path in data]
         held = [read(args, robot, t) for t in tests]
         sessions = [sessions[0].without_rows(args.exclude)] if args.exclude else sessions
-        use_q = np.concatenate([t.q for t in held]) if held and use_q is None else use_q
+        if isinstance(use_q, str):
+            use_q = np.concatenate([t.q for t in held]) if held else None
         with progress("calibrating", args.json) as say:
             if len(sessions) == 1 or args.same_frame:  # one frame: the files are one session
                 return kincal.calibrate(robot, kincal.identify.joined(sessions), options, use_q=use_q,
