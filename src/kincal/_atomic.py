@@ -13,19 +13,9 @@ def _umask() -> int:
 
 def write_text_atomic(path: str | os.PathLike, text: str, encoding: str = "utf-8") -> None:
     """Write a file via a temporary file and rename, so no half-written file is ever left."""
-    import tempfile  # loaded when a file is written, not when kincal is imported
-
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w", newline="", encoding=encoding) as fh:
-            fh.write(text)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with AtomicFile(path, encoding) as fh:
+        fh.write(text)
+        fh.keep()
 
 
 class AtomicFile:
@@ -37,7 +27,7 @@ class AtomicFile:
         self.path, self.encoding, self._keep = Path(path), encoding, False
 
     def __enter__(self):
-        import tempfile
+        import tempfile  # loaded when a file is written, not when kincal is imported
 
         fd, self._tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", dir=self.path.parent or ".")
         self._fh = os.fdopen(fd, "w", newline="", encoding=self.encoding)
@@ -50,9 +40,11 @@ class AtomicFile:
         self._keep = True
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        self._fh.close()
-        if exc_type is None and self._keep:
-            os.chmod(self._tmp, 0o666 & ~_umask())
-            os.replace(self._tmp, self.path)
-        elif os.path.exists(self._tmp):
-            os.unlink(self._tmp)
+        try:
+            self._fh.close()
+            if exc_type is None and self._keep:
+                os.chmod(self._tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
+                os.replace(self._tmp, self.path)
+        finally:  # not renamed (not kept, an error, or the close, chmod or rename failed): no temporary left
+            if os.path.exists(self._tmp):
+                os.unlink(self._tmp)

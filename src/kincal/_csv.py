@@ -9,7 +9,6 @@ import csv
 import io
 import re
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -40,14 +39,26 @@ def sniff_delimiter(header: str, path: str) -> str:
 
 def read_text(path: str) -> str:
     """The file's text: UTF-8 (with or without the BOM Excel writes), else Latin-1."""
+    return _decoded(_read_bytes(path), "utf-8-sig")
+
+
+def _read_bytes(path: str, size: int = -1) -> bytes:
+    """The file's first ``size`` bytes (-1: all); MeasurementError when it cannot be read or is not
+    text (a NUL byte in its first 4 kB: UTF-16, a binary file)."""
     try:
-        raw = Path(path).read_bytes()
+        with open(path, "rb") as fh:
+            raw = fh.read(size)
     except OSError as exc:
         raise MeasurementError(f"{path}: cannot read the file ({exc.strerror})") from None
     if b"\0" in raw[:4096]:
         raise MeasurementError(f"{path}: this is not a text file (CSV expected; UTF-16 exports: save as 'CSV UTF-8')")
+    return raw
+
+
+def _decoded(raw: bytes, encoding: str = "utf-8") -> str:
+    """``raw`` as UTF-8 ('utf-8-sig': a leading BOM dropped), else Latin-1."""
     try:
-        return raw.decode("utf-8-sig")
+        return raw.decode(encoding)
     except UnicodeDecodeError:
         return raw.decode("latin-1")
 
@@ -352,26 +363,13 @@ def _last_line(raw: bytes, first_line: int) -> Block | None:
     return None
 
 
-def _decoded(raw: bytes) -> str:
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
-
-
 def open_stream(path: str, block_bytes: int = BLOCK_BYTES) -> Stream:
     """The header of a CSV to stream (the first line that is not blank or a '#' comment; UTF-8 with or
     without a BOM, else Latin-1) and where its data start."""
     import os
 
-    try:
-        size = os.path.getsize(path)
-        with open(path, "rb") as fh:
-            head = fh.read(1 << 16)
-    except OSError as exc:
-        raise MeasurementError(f"{path}: cannot read the file ({exc.strerror})") from None
-    if b"\0" in head[:4096]:
-        raise MeasurementError(f"{path}: this is not a text file (CSV expected; UTF-16 exports: save as 'CSV UTF-8')")
+    head = _read_bytes(path, 1 << 16)
+    size = os.path.getsize(path)
     start = 3 if head.startswith(b"\xef\xbb\xbf") else 0
     pos, line = start, 1
     while True:

@@ -5,7 +5,8 @@ units engineers read; this module converts between the two and nothing else does
 
 * ``LENGTH_UNITS`` / ``ANGLE_UNITS``: the SI value of one unit (``"mm": 1e-3`` m);
   :func:`unit_factor` looks one up and names the choices when a unit is unknown;
-* ``MM``, ``UM``, ``DEG``: display factors, an SI value times the factor is in that unit
+* :func:`joint_units` / :func:`joint_factors`: each joint's unit (and its SI factor) by the joint's type;
+* ``MM``, ``DEG``: display factors, an SI value times the factor is in that unit
   (``0.0012 * MM == 1.2`` mm; ``1.2 / MM`` m); ``MRAD`` likewise (1 rad = 1000 mrad);
 * :func:`display` writes a parameter value as mm or deg by its kind.
 
@@ -14,13 +15,13 @@ A leaf module: it imports nothing of kincal.
 from __future__ import annotations
 
 import math
+from typing import Iterable
 
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}  # SI value (m) of one unit
 ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}  # SI value (rad) of one unit
 OTHER_LENGTHS = {"cm": 1e-2, "inch": 0.0254}  # units files are sometimes written in: named in advice only
 
 MM = 1e3  # mm per m
-UM = 1e6  # µm per m
 DEG = 180.0 / math.pi  # deg per rad
 MRAD = 1e3  # mrad per rad
 
@@ -32,6 +33,19 @@ def unit_factor(unit: str, kind: str, where: str = "", error: type[Exception] = 
     if unit not in table:
         raise error(f"{where}unknown {kind} unit '{unit}'; use one of {', '.join(table)}")
     return table[unit]
+
+
+def joint_units(types: Iterable[str], length_unit: str, angle_unit: str) -> list[str]:
+    """Each joint's unit: ``angle_unit`` for a revolute joint, ``length_unit`` for a prismatic one."""
+    return [angle_unit if t == "revolute" else length_unit for t in types]
+
+
+def joint_factors(types: Iterable[str], length_unit: str, angle_unit: str, where: str = "",
+                  error: type[Exception] = ValueError) -> list[float]:
+    """SI factor of each joint's unit (:func:`joint_units`; rad or m per unit); both units are checked
+    first, length then angle (:func:`unit_factor`, with ``where`` and ``error``)."""
+    lf, af = unit_factor(length_unit, "length", where, error), unit_factor(angle_unit, "angle", where, error)
+    return [af if t == "revolute" else lf for t in types]
 
 
 def display(value: float, kind: str, signed: bool = True, digits: tuple[int, int] = (4, 5)) -> str:

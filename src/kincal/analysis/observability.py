@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 
-INDICES = ("O1", "O2", "O3", "O4", "O5", "O6", "D", "A", "E")
 SINGULAR = 1e-300
 
 
@@ -49,11 +48,6 @@ def column_scale(J: np.ndarray) -> np.ndarray:
     J = np.asarray(J, dtype=float)
     rms = column_norms(J) / np.sqrt(max(J.shape[0] // 3, 1))
     return np.where(live_columns(J), 1.0 / np.where(rms > 0, rms, 1.0), 1.0)
-
-
-def singular_values(J: np.ndarray) -> np.ndarray:
-    """Singular values of J, descending."""
-    return np.linalg.svd(np.asarray(J, dtype=float), compute_uv=False)
 
 
 def indices_from_singular_values(s: np.ndarray, m: int) -> dict:
@@ -86,7 +80,7 @@ def indices_from_singular_values(s: np.ndarray, m: int) -> dict:
 def observability(J: np.ndarray, m: int | None = None) -> dict[str, float]:
     """All indices of a stacked Jacobian J (3m × k); m defaults to rows / 3."""
     J = np.asarray(J, dtype=float)
-    return indices_from_singular_values(singular_values(J), m if m is not None else J.shape[0] // 3)
+    return indices_from_singular_values(np.linalg.svd(J, compute_uv=False), m if m is not None else J.shape[0] // 3)
 
 
 def entropy_weights(s: np.ndarray) -> np.ndarray:

@@ -20,9 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._csv import listed
 from ..errors import ModelError
 from ..models.robot import Robot
-from ..models.yaml_io import read_section
+from ..models.yaml_io import load_calibration_record
 from ..units import DEG, MM
 
 EXTRAPOLATION_RATIO = 2.5
@@ -125,12 +126,8 @@ def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncerta
     where = _beyond(q[bad], robot, unc) if q is not None and robot is not None else ""
     return (f"{int(bad.sum())} pose(s) lie where the calibration data did not constrain the model (predicted σ up to "
             f"{sigma[bad].max() / unc.training_median:.1f}x the training median {unc.training_median * MM:.4f} mm, "
-            f"limit {EXTRAPOLATION_RATIO:g}x){where}: row(s) {_first_rows(rows[bad])}; measure calibration poses "
+            f"limit {EXTRAPOLATION_RATIO:g}x){where}: row(s) {listed(rows[bad])}; measure calibration poses "
             f"there too")
-
-
-def _first_rows(rows: np.ndarray) -> str:
-    return ", ".join(str(int(r)) for r in rows[:10]) + (f" and {len(rows) - 10} more" if len(rows) > 10 else "")
 
 
 def _beyond(q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> str:
@@ -158,14 +155,10 @@ def envelope_warning(rows: np.ndarray, q: np.ndarray, robot: Robot, unc: ModelUn
     if not bad.any():
         return bad, None
     return bad, (f"{int(bad.sum())} pose(s) lie outside the joint ranges the terms ({terms}) were fitted on"
-                 f"{_beyond(q[bad], robot, unc)}: row(s) {_first_rows(rows[bad])}; the terms extrapolate there")
+                 f"{_beyond(q[bad], robot, unc)}: row(s) {listed(rows[bad])}; the terms extrapolate there")
 
 
 def load_uncertainty(name_or_path) -> ModelUncertainty | None:
     """The uncertainty saved with a calibrated robot file (its ``calibration:`` section), or None."""
-    section = read_section(name_or_path, "calibration")
-    if section is None:
-        return None
-    if not isinstance(section, dict):
-        raise ModelError(f"{name_or_path}: the 'calibration' section must be a mapping")
-    return ModelUncertainty.from_dict(section, str(name_or_path))
+    section = load_calibration_record(name_or_path)
+    return None if section is None else ModelUncertainty.from_dict(section, str(name_or_path))

@@ -41,12 +41,17 @@ def nonneg_int(s: str) -> int:
     return 0 if s.strip() == "0" else positive_int(s)
 
 
-def nonneg_float(s: str) -> float:
-    """argparse type: a finite number ≥ 0."""
+def _number(s: str) -> float:
+    """``s`` as a float (inf and nan included); ArgumentTypeError when it is not a number."""
     try:
-        v = float(s)
+        return float(s)
     except ValueError:
         raise argparse.ArgumentTypeError(f"'{s}' is not a number") from None
+
+
+def nonneg_float(s: str) -> float:
+    """argparse type: a finite number ≥ 0."""
+    v = _number(s)
     if not (np.isfinite(v) and v >= 0):
         raise argparse.ArgumentTypeError(f"{s}: give a finite number >= 0")
     return v
@@ -54,10 +59,7 @@ def nonneg_float(s: str) -> float:
 
 def finite_float(s: str) -> float:
     """argparse type: a finite number."""
-    try:
-        v = float(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{s}' is not a number") from None
+    v = _number(s)
     if not np.isfinite(v):
         raise argparse.ArgumentTypeError(f"'{s}': give a finite number")
     return v
@@ -103,8 +105,10 @@ MAX_TOOL = 2.0  # m: no tool point lies farther from the flange; larger values a
 CELL_SIZE = 100.0  # m: a length beyond this in a robot cell, given without a unit, is taken for mm
 
 
-def lengths(count: int, example: str):
-    """argparse type: ``count`` numbers with an optional length unit after them ('3000,0,500mm'), in m."""
+def lengths(count: int, example: str, what: str = "", limit: float = CELL_SIZE, where: str = "the robot"):
+    """argparse type: ``count`` numbers with an optional length unit after them ('3000,0,500mm'), in m.
+    ``what`` names the numbers in the message (default "<count> finite number(s)"); without a unit, a
+    value beyond ``limit`` (m) from ``where`` is taken for mm."""
     def parse(s: str) -> tuple[float, ...]:
         text = s.strip()
         unit = next((u for u in sorted(LENGTH_UNITS, key=len, reverse=True) if text.endswith(u)), None)
@@ -113,29 +117,17 @@ def lengths(count: int, example: str):
         except ValueError:
             t = ()
         if len(t) != count or not all(np.isfinite(t)):
-            raise argparse.ArgumentTypeError(f"'{s}': give {count} finite number(s) and a unit, e.g. {example}")
-        if unit is None and max(map(abs, t)) > CELL_SIZE:
-            raise argparse.ArgumentTypeError(f"'{s}': {max(map(abs, t)):g} m from the robot; these look like mm: "
+            raise argparse.ArgumentTypeError(f"'{s}': give {what or f'{count} finite number(s)'} and a unit, "
+                                             f"e.g. {example}")
+        if unit is None and max(map(abs, t)) > limit:
+            raise argparse.ArgumentTypeError(f"'{s}': {max(map(abs, t)):g} m from {where}; these look like mm: "
                                              f"write {text}mm")
         return t
     return parse
 
 
-def point(s: str) -> tuple[float, float, float]:
-    """argparse type: 'X,Y,Z' with an optional length unit after the numbers ('0,0,93.2mm'), in m."""
-    text = s.strip()
-    unit = next((u for u in sorted(LENGTH_UNITS, key=len, reverse=True) if text.endswith(u)), None)
-    body = text[:-len(unit)] if unit else text
-    try:
-        t = tuple(float(x) * LENGTH_UNITS[unit or "m"] for x in csv_list(body))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{s}': give three numbers X,Y,Z and a unit, e.g. 0,0,93.2mm") from None
-    if len(t) != 3 or not all(np.isfinite(t)):
-        raise argparse.ArgumentTypeError(f"'{s}': give three finite numbers X,Y,Z and a unit, e.g. 0,0,93.2mm")
-    if unit is None and max(map(abs, t)) > MAX_TOOL:
-        raise argparse.ArgumentTypeError(f"'{s}': {max(map(abs, t)):g} m from the flange; these look like mm: "
-                                         f"write {body}mm")
-    return t
+# argparse type: 'X,Y,Z' with an optional length unit after the numbers ('0,0,93.2mm'), in m
+point = lengths(3, "0,0,93.2mm", "three finite numbers X,Y,Z", MAX_TOOL, "the flange")
 
 
 def load_robot(args):

@@ -28,7 +28,7 @@ from ..io.unit_checks import SPREAD_RATIO, check_degrees, check_radians, check_s
 from ..models.robot import Robot
 from ..observe.files import check_pose_columns
 from ..observe.orientation import convention_check, default_columns, from_matrices, to_matrices
-from ..units import unit_factor
+from ..units import joint_factors, unit_factor
 from .commands import compensate, path_checked, uncontrolled_warning
 
 CONVENTION_ROWS = 500  # the orientation convention is judged on the file's first rows
@@ -308,9 +308,7 @@ def _read(job: StreamJob, stream: Stream, block: Block, previous: Block | None):
     n = len(jcols)
     q0 = None
     if n:
-        scale = [unit_factor(t.angle_unit if k == "revolute" else t.length_unit,
-                             "angle" if k == "revolute" else "length") for k in robot.joint_types]
-        q0 = v[:, :n] * np.array(scale)
+        q0 = v[:, :n] * np.array(joint_factors(robot.joint_types, t.length_unit, t.angle_unit))
     xyz = v[:, n:n + 3] * unit_factor(t.length_unit, "length")
     R = to_matrices(v[:, n + 3:], t.orientation, stream.path, rows) if t.pose else None
     return rows, q0, xyz, R, (v[:, n + 3:] if t.pose else None)

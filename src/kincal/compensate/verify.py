@@ -20,7 +20,7 @@ import numpy as np
 from .._atomic import write_text_atomic
 from ..analysis.sensitivity import UNIT
 from ..errors import MeasurementError
-from ..units import MM, unit_factor
+from ..units import MM, joint_factors, unit_factor
 from ..models.robot import Robot
 from .commands import compensate
 
@@ -50,7 +50,7 @@ class VerificationPlan:
         cols = list(joint_cols) if joint_cols else list(robot.joint_names)
         if len(cols) != robot.n_joints:
             raise MeasurementError(f"{path}: {len(cols)} joint columns given for {robot.n_joints} joints")
-        qs, lf = _joint_factors(robot, length_unit, angle_unit), unit_factor(length_unit, "length")
+        qs, lf = np.array(joint_factors(robot.joint_types, length_unit, angle_unit)), unit_factor(length_unit, "length")
         buf = io.StringIO()
         buf.write(f"# kincal verification plan for {robot.name}; units: length={length_unit} angle={angle_unit}\n")
         w = csv.writer(buf, lineterminator="\n")
@@ -70,7 +70,7 @@ class VerificationPlan:
         if not m:
             raise MeasurementError(f"{path}: not a verification plan written by 'kincal verify -o' (its first line "
                                    f"names the units); write the plan with -o and pass that file")
-        qs, lf = _joint_factors(robot, m.group(1), m.group(2)), unit_factor(m.group(1), "length")
+        qs, lf = np.array(joint_factors(robot.joint_types, m.group(1), m.group(2))), unit_factor(m.group(1), "length")
         rows = list(csv.reader(lines[1:]))
         n = robot.n_joints
         width = len(rows[0]) if rows else 0
@@ -91,11 +91,6 @@ class VerificationPlan:
                                                   rtol=0, atol=0):
             raise MeasurementError(f"{path}: the sample inputs differ between cases; write the plan again with -o")
         return cls(cases, inputs, (vals[:, n:n + 3] * lf).reshape(len(cases), per, 3), cmds)
-
-
-def _joint_factors(robot: Robot, length_unit: str, angle_unit: str) -> np.ndarray:
-    return np.array([unit_factor(angle_unit, "angle") if t == "revolute" else unit_factor(length_unit, "length")
-                     for t in robot.joint_types])
 
 
 @dataclass(frozen=True, eq=False)

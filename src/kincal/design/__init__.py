@@ -6,8 +6,8 @@ from .pool import candidate_pool
 from .options import DESIGN_CRITERIA, METHODS, DesignOptions
 from .problem import UNITS, DesignProblem, design_problem, observation_problem
 from .cell import Cell
-from .select import Design, design_bound, select_poses
+from .select import Design, select_poses
 
 __all__ = ["UNITS", "Bound", "relaxed_bound", "CRITERIA", "score", "candidate_pool", "DesignProblem", "design_problem",
-           "METHODS", "DESIGN_CRITERIA", "Cell", "DesignOptions", "Design", "design_bound", "select_poses", "PoseCountCurve", "minimum_poses",
+           "METHODS", "DESIGN_CRITERIA", "Cell", "DesignOptions", "Design", "select_poses", "PoseCountCurve", "minimum_poses",
            "pose_count_curve", "observation_problem"]

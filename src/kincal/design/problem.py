@@ -59,10 +59,6 @@ class DesignProblem:
         sign, val = np.linalg.slogdet(self.information(idx))
         return float(val) if sign > 0 else -np.inf
 
-    def stacked(self, idx: Sequence[int] | np.ndarray) -> np.ndarray:
-        """Stacked scaled Jacobian of a design, (rm, k)."""
-        return self.J[np.asarray(idx)].reshape(-1, self.k)
-
 
 UNITS = ("scaled", "paper")
 

@@ -111,12 +111,6 @@ def detmax(P: DesignProblem, m: int, criterion: str, rng: np.random.Generator, B
     return design
 
 
-def design_bound(robot: Robot, pool_q: np.ndarray, m: int, names: Sequence[str] | None = None,
-                 base: str = "estimate", gap_tol: float = 2e-3) -> Bound:
-    """Certified upper bound on log det M (scaled) over every m-pose design from the pool."""
-    return relaxed_bound(design_problem(robot, pool_q, names, base), m, gap_tol=gap_tol)
-
-
 def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None = None, *,
                  problem: DesignProblem | None = None, bound: Bound | None = None,
                  validation_q: np.ndarray | None = None, progress=None, cell: Cell | None = None,

@@ -27,27 +27,13 @@ def normal_inverse(J: np.ndarray) -> np.ndarray:
     return spd_inverse(A.T @ A) / np.outer(d, d)
 
 
-def parameter_statistics(J: np.ndarray, r: np.ndarray, fitted: Sequence[str], names: Sequence[str],
-                         undetermined: Sequence[str] = ()) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
-    """Standard deviations (K,), correlation (K, K), σ̂² and covariance (K, K) of ``names`` from a
-    fit of ``fitted`` (the columns of J) with residual r. Names not fitted, or ``undetermined``, get
-    σ = inf, no correlation and zero rows/columns in the covariance."""
+def parameter_statistics(J: np.ndarray, r: np.ndarray, names: Sequence[str],
+                         undetermined: Sequence[str] = ()) -> tuple[np.ndarray, np.ndarray]:
+    """Standard deviations (K,) and covariance (K, K) (m, rad) of the fitted parameters ``names`` (the
+    columns of J) with residual r: σ̂²(JᵀJ)⁻¹. Names in ``undetermined`` get σ = inf and zero
+    rows/columns in the covariance."""
     dof = max(r.size - J.shape[1], 1)
-    sigma2 = float(r @ r) / dof
-    return covariance_statistics(normal_inverse(J) * sigma2, sigma2, fitted, names, undetermined)
-
-
-def covariance_statistics(cov: np.ndarray, sigma2: float, fitted: Sequence[str], names: Sequence[str],
-                          undetermined: Sequence[str] = ()) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
-    """:func:`parameter_statistics` from a covariance of the ``fitted`` columns (e.g. a posterior)."""
-    pos = {n: k for k, n in enumerate(fitted)}
-    at = np.array([-1 if n in set(undetermined) else pos.get(n, -1) for n in names], dtype=int)
-    ok = at >= 0
-    full = np.zeros((len(names), len(names)))
-    full[np.ix_(ok, ok)] = cov[np.ix_(at[ok], at[ok])]
-    sd = np.where(ok, np.sqrt(np.maximum(np.diag(full), 0.0)), np.inf)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        corr = full / np.outer(sd, sd)
-    corr = np.where(np.isfinite(corr), corr, 0.0)
-    np.fill_diagonal(corr, 1.0)
-    return sd, corr, sigma2, full
+    without = set(undetermined)
+    ok = np.array([n not in without for n in names], dtype=bool)
+    cov = np.where(np.outer(ok, ok), normal_inverse(J) * (float(r @ r) / dof), 0.0)
+    return np.where(ok, np.sqrt(np.maximum(np.diag(cov), 0.0)), np.inf), cov

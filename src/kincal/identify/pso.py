@@ -35,7 +35,6 @@ def pso(
     c1: float = 0.5,
     c2: float = 1.2,
     seed: int | None = 0,
-    progress: Callable[[int, float], None] | None = None,
 ) -> PSOResult:
     """Minimise ``objective`` (batched over the swarm) for x in [center − half_width, center + half_width].
 
@@ -62,8 +61,6 @@ def pso(
         if f_best[g] < g_val:
             g_best, g_val = p_best[g].copy(), float(f_best[g])
         history[it] = g_val
-        if progress is not None:
-            progress(it + 1, g_val)
     return PSOResult(g_best, g_val, history, particles * (iterations + 1), iterations)
 
 

@@ -44,14 +44,13 @@ SETTLED = 1e-4  # relative change of every group's σ and of the noise level tha
 @dataclass(frozen=True, eq=False)
 class RelevanceFit:
     """The fit with the learned prior: the columns' values ``x``, the data's whitened residual and
-    Jacobian there, the prior precision per column (0: no prior), the noise factor s² (1 when the
-    stated σ are right), each group's prior σ (m or rad), the posterior covariance of the columns,
-    whether the fit converged and its linearisations (each one evaluation of the data)."""
+    Jacobian there, the noise factor s² (1 when the stated σ are right), each group's prior σ (m or
+    rad), the posterior covariance of the columns, whether the fit converged and its linearisations
+    (each one evaluation of the data)."""
 
     x: np.ndarray
     residual: np.ndarray
     jacobian: np.ndarray
-    precision: np.ndarray
     noise2: float
     sigma: dict
     covariance: np.ndarray
@@ -130,7 +129,7 @@ def _lower(r_new, d_new, r_old, d_old, prec, s2) -> bool:
 def _relevance_result(x, r, J, prec, s2, groups, converged: bool, iterations: int) -> RelevanceFit:
     cov = _posterior(J.T @ J / s2, prec)
     sigma = {g: float(1.0 / np.sqrt(prec[k])) for k, g in enumerate(groups) if g is not None}
-    return RelevanceFit(x, r, J, prec, float(s2), sigma, cov, bool(converged), iterations)
+    return RelevanceFit(x, r, J, float(s2), sigma, cov, bool(converged), iterations)
 
 
 def _posterior(A: np.ndarray, prec: np.ndarray) -> np.ndarray:

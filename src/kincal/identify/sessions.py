@@ -15,6 +15,7 @@ from ..io.unit_checks import spread
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import MM
 from .calibrate import calibrate
+from .select import _mean_error
 
 HELDOUT_RATIO = 10.0  # a held-out error this many times the training error needs a named cause
 SCALE_TOL = 0.01  # measured vs predicted spread off by more than 1 %: a scale (unit, compensation) error
@@ -28,10 +29,6 @@ def refit_frame(robot: Robot, meas: Measurements) -> Robot:
     if not robot.base_params():
         return robot
     return calibrate(robot, meas, names=(), base="estimate", diagnose=False).robot
-
-
-def _mean_error(robot: Robot, meas: Measurements) -> float:
-    return float(np.mean(np.linalg.norm(meas.xyz - robot.forward(meas.q), axis=1)))
 
 
 def _spread_ratio(robot: Robot, meas: Measurements) -> float:

@@ -351,7 +351,7 @@ def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit,
         cov, learned = fit.covariance, fit.sigma
         sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     else:
-        sd, _, _, cov = parameter_statistics(fit.jacobian, fit.residual, free, free, undetermined)
+        sd, cov = parameter_statistics(fit.jacobian, fit.residual, free, undetermined)
         learned = {}
     std = {n: float(v) for n, v in zip(free, sd)}
     std.update({n: np.inf for n in st.nuis_names if n not in std})

@@ -28,7 +28,7 @@ def weakest(robot: Robot, free: Sequence[str], jacobian: np.ndarray, residual: n
     instrument's, m) from the poses alone: what the poses can determine, so data that do not fit the
     robot (swapped joints) keep their implausible corrections in view instead of hiding them as weak."""
     if noise is None:
-        sd = parameter_statistics(jacobian, residual, free, free)[0]
+        sd = parameter_statistics(jacobian, residual, free)[0]
     else:
         sd = noise * np.sqrt(np.maximum(np.diag(normal_inverse(jacobian)), 0.0))
     th = Thresholds()

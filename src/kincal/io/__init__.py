@@ -1,10 +1,9 @@
 """Measurement data in and out (CSV)."""
-from .commands import write_commands, write_filtered
 from .measurements import (Measurements, read_joints, read_measurements, read_positions, write_joints,
                            write_measurements, write_residuals, write_selected_rows)
 from .programs import Program, Target, read_program, write_program
 from .unit_checks import check_degrees, check_radians, check_spread
 
 __all__ = ["Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements",
-           "write_residuals", "write_selected_rows", "write_commands", "write_filtered", "check_degrees", "check_radians",
-           "check_spread", "Program", "Target", "read_program", "write_program"]
+           "write_residuals", "write_selected_rows", "check_degrees", "check_radians", "check_spread",
+           "Program", "Target", "read_program", "write_program"]

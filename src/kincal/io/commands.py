@@ -11,7 +11,6 @@ from typing import Sequence
 
 import numpy as np
 
-from .._atomic import write_text_atomic
 from .._numtext import fixed_lines
 from ..models.robot import Robot
 from .measurements import _joint_columns, _joint_scale, _unit
@@ -80,32 +79,3 @@ def command_columns(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[
     lf = 1.0 / _unit(length_unit, "length", str(path))
     return CommandColumns(kind, tuple(cols), scale, lf, changes, orientation_change, tuple(rot_cols))
 
-
-def write_commands(
-    path: str | os.PathLike,
-    robot: Robot,
-    rows: np.ndarray,
-    targets: np.ndarray,
-    q: np.ndarray,
-    q_start: np.ndarray | None = None,
-    orientation_change: np.ndarray | None = None,
-    joint_cols: Sequence[str] | None = None,
-    length_unit: str = "m",
-    angle_unit: str = "rad",
-) -> None:
-    """Joint commands (atomically): the input row, the commanded joints (``joint_cols``, in the given
-    units), the target (x, y, z), and with the nominal joints ``q_start`` the change of every joint
-    (``d_<joint>``) and the predicted change of the tool orientation (mrad)."""
-    layout = command_columns(path, robot, joint_cols, length_unit, angle_unit, "joints", q_start is not None,
-                             orientation_change is not None)
-    write_text_atomic(path, layout.header() + layout.text(rows, q, targets, q_start, orientation_change))
-
-
-def write_filtered(path: str | os.PathLike, robot: Robot, rows: np.ndarray, xyz: np.ndarray, rot_cols: Sequence[str],
-                   rot_values: np.ndarray, q: np.ndarray, joint_cols: Sequence[str] | None = None,
-                   length_unit: str = "m", angle_unit: str = "rad") -> None:
-    """Filtered poses (atomically): the input row, the pose to send the controller (x, y, z in the
-    length unit and the orientation columns as given, e.g. a quaternion) and the joints its inverse
-    kinematics will produce (``joint_cols``)."""
-    layout = command_columns(path, robot, joint_cols, length_unit, angle_unit, "cartesian", rot_cols=rot_cols)
-    write_text_atomic(path, layout.header() + layout.text(rows, q, xyz, rot_values=rot_values))

@@ -12,10 +12,10 @@ from numpy.typing import ArrayLike
 
 from .._atomic import write_text_atomic
 from .._csv import MAX_LISTED as MAX_LISTED, listed as listed  # for messages naming rows, here and in identify/
-from .._csv import check_finite, data_lines, open_table, read_table, read_text, sniff_delimiter
+from .._csv import check_finite, open_table, read_table
 from ..errors import MeasurementError
 from ..models.robot import Robot
-from ..units import unit_factor
+from ..units import joint_factors, joint_units, unit_factor
 from .unit_checks import check_degrees, check_spread
 
 
@@ -118,16 +118,6 @@ class Measurements:
                          angle_unit or (self.units[1] if self.units else None))
 
 
-def _read_columns(path: str, columns: Sequence[str], units: Sequence[str], what: str = "values"
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """SI values of ``columns`` (given in ``units``, one per column) from a CSV with a header, (rows,
-    len(columns)), and the rows' 1-based line numbers. Blank and '#' lines are skipped. Each column is
-    checked as the observation reader checks it (``_csv.Table``: named once, present, numbers as a CSV
-    cell writes them, finite, physically possible); errors name the file, row and column."""
-    table = open_table(path)
-    return table.numbers(columns, units, what=what), table.rows
-
-
 def _joint_columns(path: str, robot: Robot, joint_cols: Sequence[str] | None) -> list[str]:
     cols = list(joint_cols) if joint_cols is not None else list(robot.joint_names)
     if len(cols) != robot.n_joints:
@@ -142,13 +132,12 @@ def _joint_units(joint_types: Sequence[str], length_unit: str, angle_unit: str, 
     """The file's unit of each joint column (checked): the angle unit for revolute joints, the length
     unit for prismatic ones."""
     _unit(length_unit, "length", path), _unit(angle_unit, "angle", path)
-    return [angle_unit if t == "revolute" else length_unit for t in joint_types]
+    return joint_units(joint_types, length_unit, angle_unit)
 
 
 def _joint_scale(joint_types: Sequence[str], length_unit: str, angle_unit: str, path: str) -> np.ndarray:
     """SI factor per joint: angle unit for revolute joints, length unit for prismatic ones."""
-    lf, af = _unit(length_unit, "length", path), _unit(angle_unit, "angle", path)
-    return np.array([af if t == "revolute" else lf for t in joint_types])
+    return np.array(joint_factors(joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError))
 
 
 def read_joints(
@@ -161,7 +150,8 @@ def read_joints(
     """Joint values (N, n) in rad/m from a CSV with a header (e.g. poses to measure)."""
     path = str(path)
     cols = _joint_columns(path, robot, joint_cols)
-    q, _ = _read_columns(path, cols, _joint_units(robot.joint_types, length_unit, angle_unit, path), "joint values")
+    units = _joint_units(robot.joint_types, length_unit, angle_unit, path)
+    q = open_table(path).numbers(cols, units, what="joint values")
     check_degrees(path, q, robot, angle_unit)
     return q
 
@@ -174,8 +164,9 @@ def read_positions(path: str | os.PathLike, xyz_cols: Sequence[str] = ("x", "y",
     if len(xyz_cols) != 3:
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
     _unit(length_unit, "length", path)
-    xyz, lines = _read_columns(path, list(xyz_cols), [length_unit] * 3, "positions")
-    return (xyz, lines) if with_rows else xyz
+    table = open_table(path)
+    xyz = table.numbers(list(xyz_cols), [length_unit] * 3, what="positions")
+    return (xyz, table.rows) if with_rows else xyz
 
 
 def read_measurements(
@@ -193,36 +184,28 @@ def read_measurements(
     joints and positions in ``length_unit``. Values are returned in SI units; data whose scale looks
     like the wrong unit is refused with the unit to use. ``std_cols``: the instrument's σ per sample
     and axis (length unit); by default ``measurement_std_x/y/z`` when the file has them (they weight
-    the fit and set the noise level of the verdict); ``[]`` ignores them.
+    the fit and set the noise level of the verdict); ``[]`` ignores them. Blank and '#' lines are
+    skipped; every column is checked as ``_csv.Table`` checks it, errors naming the file, row and column.
     """
     path = str(path)
     cols = _joint_columns(path, robot, joint_cols)
     if len(xyz_cols) != 3:
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
-    std_cols = _std_columns(path, std_cols)
-    units = _joint_units(robot.joint_types, length_unit, angle_unit, path) + [length_unit] * (3 + len(std_cols))
-    data, lines = _read_columns(path, cols + list(xyz_cols) + std_cols, units)
+    if std_cols is not None and len(std_cols) not in (0, 3):
+        raise MeasurementError(f"{path}: give three σ columns (x, y, z) or none, got {list(std_cols)}")
+    units = _joint_units(robot.joint_types, length_unit, angle_unit, path)
+    table = open_table(path)
+    if std_cols is None:  # the σ columns by their usual names when the header has all three
+        std_cols = STD_COLUMNS if all(c in table.header for c in STD_COLUMNS) else ()
+    data = table.numbers(cols + list(xyz_cols) + list(std_cols), units + [length_unit] * (3 + len(std_cols)))
     n = robot.n_joints
-    meas = Measurements(data[:, :n], data[:, n:n + 3], robot.joint_names, path, lines,
-                        data[:, n + 3:] if std_cols else None, (length_unit, angle_unit))
+    meas = Measurements(data[:, :n], data[:, n:n + 3], robot.joint_names, path, table.rows,
+                        data[:, n + 3:] if len(std_cols) else None, (length_unit, angle_unit))
     meas.check_robot(robot, length_unit, angle_unit)
     return meas
 
 
 STD_COLUMNS = ("measurement_std_x", "measurement_std_y", "measurement_std_z")
-
-
-def _std_columns(path: str, std_cols: Sequence[str] | None) -> list[str]:
-    """The σ columns to read: as given (three, or none), else STD_COLUMNS when the header has all three."""
-    if std_cols is not None:
-        if len(std_cols) not in (0, 3):
-            raise MeasurementError(f"{path}: give three σ columns (x, y, z) or none, got {list(std_cols)}")
-        return list(std_cols)
-    lines = data_lines(read_text(path))
-    if not lines:
-        return []
-    header = [h.strip() for h in next(csv.reader([lines[0][1]], delimiter=sniff_delimiter(lines[0][1], path)))]
-    return list(STD_COLUMNS) if all(c in header for c in STD_COLUMNS) else []
 
 
 def _unit(unit: str, kind: str, path: str) -> float:

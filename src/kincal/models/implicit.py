@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import ModelError
 from .robot import Robot
 from .serial import BASE_NAMES
-from .transforms import rot_zyx, zyx_from_matrix
+from .transforms import rot_zyx
 
 NEWTON_TOL = 1e-13  # m², constraint residual
 NEWTON_ITER = 50
@@ -109,13 +109,6 @@ class ImplicitRobot(Robot):
         as already moved by the rotations before it in the product)."""
         b = values[self.params.indices(BASE_NAMES)]
         return [rot_zyx(b[5], b[4], 0.0) @ [1.0, 0, 0], rot_zyx(b[5], 0.0, 0.0) @ [0, 1.0, 0], np.array([0, 0, 1.0])]
-
-    def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
-        return self._base(self.params.values)
-
-    def with_base_transform(self, R_: np.ndarray, t: np.ndarray):
-        rz, ry, rx = zyx_from_matrix(np.asarray(R_, dtype=float))
-        return self.with_params(dict(zip(BASE_NAMES, [float(c) for c in t] + [rx, ry, rz])))
 
     # ---- generic kinematics -------------------------------------------------------------------
     def _solve_local(self, q: np.ndarray, values: np.ndarray, strict: bool = True):

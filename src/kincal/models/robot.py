@@ -34,6 +34,7 @@ from numpy.typing import ArrayLike
 
 from ..errors import ModelError
 from .parameters import Parameters
+from .transforms import rot_zyx, zyx_from_matrix
 
 if TYPE_CHECKING:
     from .gravity import GravityModel
@@ -336,12 +337,24 @@ class Robot(ABC):
         return ()
 
     def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
-        """Base frame as (R (3,3), t (3,)): world = R @ robot + t."""
-        raise ModelError(f"robot '{self.name}' has no base frame")
+        """Base frame as (R (3,3), t (3,) m): world = R @ robot + t, from the base parameters x y z (m)
+        and rx ry rz (rad, R = Rz(rz) Ry(ry) Rx(rx))."""
+        x, y, z, rx, ry, rz = (self.params[n] for n in self._base_names())
+        return rot_zyx(rz, ry, rx), np.array([x, y, z])
 
     def with_base_transform(self: R, R_: np.ndarray, t: np.ndarray) -> R:
-        """A copy whose base frame is (R_, t)."""
-        raise ModelError(f"robot '{self.name}' has no base frame")
+        """A copy whose base frame is (R_ (3,3), t (3,) m)."""
+        names = self._base_names()
+        rz, ry, rx = zyx_from_matrix(np.asarray(R_, dtype=float))
+        x, y, z = (float(c) for c in t)
+        return self.with_params(dict(zip(names, (x, y, z, rx, ry, rz))))
+
+    def _base_names(self) -> tuple[str, ...]:
+        """:meth:`base_params`; ModelError when the model has no base frame."""
+        names = self.base_params()
+        if not names:
+            raise ModelError(f"robot '{self.name}' has no base frame")
+        return names
 
     def named_frames(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Frames the robot file names (e.g. ROS ``base_link``): name -> (R, t), the frame's pose in the

@@ -25,7 +25,7 @@ from .chain import AXES, ROT, TRANS, Chain, Op, compiled
 from .gravity import GravityModel
 from .parameters import Parameters
 from .robot import JOINT_TYPES, TOOL_NAMES, JointSpace, Robot
-from .transforms import rot_zyx, zyx_from_matrix
+from .transforms import rot_zyx
 
 CONVENTIONS = ("dh", "mdh")
 ROW_TYPES = (*JOINT_TYPES, "fixed")  # a fixed row: a DH row without a joint (e.g. a tool row)
@@ -160,16 +160,6 @@ class ChainRobot(Robot):
 
     def base_params(self) -> tuple[str, ...]:
         return BASE_NAMES
-
-    def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
-        v = self.params
-        R = rot_zyx(v["base.rz"], v["base.ry"], v["base.rx"])
-        return R, np.array([v["base.x"], v["base.y"], v["base.z"]])
-
-    def with_base_transform(self, R_: np.ndarray, t: np.ndarray):
-        rz, ry, rx = zyx_from_matrix(np.asarray(R_, dtype=float))
-        x, y, z = (float(c) for c in t)
-        return self.with_params({"base.x": x, "base.y": y, "base.z": z, "base.rx": rx, "base.ry": ry, "base.rz": rz})
 
 
 @dataclass(frozen=True, eq=False, repr=False)

@@ -46,18 +46,12 @@ class Wrapped(Robot):
     def base_params(self) -> tuple[str, ...]:
         return self.inner.base_params()
 
-    def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.inner.base_transform()
-
     def named_frames(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         return self.inner.named_frames()
 
     @property
     def export_names(self) -> tuple[str, ...]:
         return self.inner.export_names if self.inner.joint_names == self.joint_names else self.joint_names
-
-    def with_base_transform(self, R_: np.ndarray, t: np.ndarray):
-        return self.with_params(self.inner.with_base_transform(R_, t).params.as_dict())
 
     @property
     def error_model(self) -> str:

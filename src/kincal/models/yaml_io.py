@@ -37,7 +37,8 @@ from .terms import ExtendedRobot
 from .urdf import URDFRobot, read_urdf
 from .yaml_kinds import (error_model_from_dict, error_model_yaml, puu3_from_dict, puu3_yaml, transmission_from_dict,
                          transmission_yaml, urdf_from_dict, urdf_yaml)
-from .yaml_values import fmt, link_mass, mapping, mass_items, num, unit_factor, units
+from .yaml_values import (POSE_KEYS, base_pose, description_lines, fmt, frame_text, link_mass, mass_items, mapping, num,
+                          per_unit, pose_text, units)
 
 _JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits", "mass", "com", "velocity", "effort"}
 _TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool", "actuators", "transmission",
@@ -203,8 +204,7 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     lf, af = units(data, label)
 
     joints, rows, explicit_beta = _dh_joints(data["joints"], lf, af, label)
-    base = {k: num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
-            for k, v in mapping(data, "base", label).items()}
+    base = base_pose(data, label, lf, af)
     tool = {k: num(v, f"{label}: tool", k) * lf for k, v in mapping(data, "tool", label).items()}
     joints = _export_names(joints, data.get("names"), label)
     robot = SerialRobot.build(str(data["name"]), conv, joints, rows, base, tool, str(data.get("description", "")),
@@ -246,10 +246,10 @@ def _frames(frames, lf: float, af: float, label: str) -> tuple:
     out = []
     for name, pose in frames.items():
         where = f"{label}: frame '{name}'"
-        if not isinstance(pose, dict) or set(pose) - {"x", "y", "z", "rx", "ry", "rz"}:
+        if not isinstance(pose, dict) or set(pose) - set(POSE_KEYS):
             raise ModelError(f"{where}: give its pose as {{x, y, z, rx, ry, rz}} (missing keys are 0)")
         out.append((str(name), tuple(num(pose.get(k, 0.0), where, k) * (lf if k in "xyz" else af)
-                                     for k in ("x", "y", "z", "rx", "ry", "rz"))))
+                                     for k in POSE_KEYS)))
     return tuple(out)
 
 
@@ -311,11 +311,9 @@ def robot_to_yaml(robot: Robot, length_unit: str = "m", angle_unit: str = "rad")
 
 
 def _chain_yaml(robot: SerialRobot, length_unit: str, angle_unit: str) -> str:
-    lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
+    lf, af = per_unit(length_unit, angle_unit)
     v = robot.params.as_dict()
-    lines = [f"name: {robot.name}"]
-    if robot.description:
-        lines.append(f"description: {yaml.safe_dump(robot.description, default_style=chr(34)).strip()}")
+    lines = [f"name: {robot.name}", *description_lines(robot.description)]
     lines += [f"convention: {robot.convention}", f"units: {{length: {length_unit}, angle: {angle_unit}}}", "joints:"]
     for j in robot.joints:
         qf = af if j.type == "revolute" else lf
@@ -328,16 +326,12 @@ def _chain_yaml(robot: SerialRobot, length_unit: str, angle_unit: str) -> str:
         items += [f"velocity: {fmt(j.velocity * qf)}"] if j.velocity else []
         items += [f"effort: {fmt(j.effort)}"] if j.effort else []
         lines.append("  - {" + ", ".join(items + mass_items(j, lf)) + "}")
-    pose = lambda p: ", ".join(f"{k}: {fmt(x * (lf if k in 'xyz' else af))}"  # noqa: E731
-                               for k, x in zip(("x", "y", "z", "rx", "ry", "rz"), p))
-    base = pose([v[f"base.{k}"] for k in ("x", "y", "z", "rx", "ry", "rz")])
-    tool = ", ".join(f"{k}: {fmt(v['tool.' + k] * lf)}" for k in ("x", "y", "z"))
-    lines += [f"base: {{{base}}}", f"tool: {{{tool}}}"]
+    lines += [f"base: {{{frame_text(v, 'base', lf, af)}}}", f"tool: {{{frame_text(v, 'tool', lf, af)}}}"]
     named = {j.name: j.export_name for j in robot.joints if j.export_name}
     if named:
         lines.append("names: {" + ", ".join(f"{k}: {n}" for k, n in named.items()) + "}")
     if robot.frames:
-        lines.append("frames: {" + ", ".join(f"{n}: {{{pose(p)}}}" for n, p in robot.frames) + "}")
+        lines.append("frames: {" + ", ".join(f"{n}: {{{pose_text(p, lf, af)}}}" for n, p in robot.frames) + "}")
     return "\n".join(lines + [""])
 
 

@@ -13,7 +13,8 @@ from .transmission import Map, TransmissionRobot, build_transmission_robot
 from .robot import Robot
 from .terms import ExtendedRobot, term_from_dict
 from .urdf import URDFJoint, URDFRobot, urdf_robot
-from .yaml_values import fmt, link_mass, mapping, mass_items, num, pair, unit_factor, units, vector
+from .yaml_values import (base_pose, description_lines, fmt, frame_text, link_mass, mapping, mass_items, num, pair,
+                          per_unit, units, vector)
 
 URDF_JOINT_KEYS = {"name", "type", "axis", "limits", "xyz", "rpy", "roll", "pitch", "yaw", "mass", "com"}
 
@@ -31,10 +32,7 @@ def puu3_from_dict(data: dict, label: str) -> PUU3Robot:
         if key not in kind:
             raise ModelError(f"{label}: unknown 3-PUU parameter '{key}'; known: {', '.join(names[6:])}")
         values[key] = num(v, f"{label}: parameters", key) * (lf if kind[key] == "length" else af)
-    for k, v in mapping(data, "base", label).items():
-        if k not in ("x", "y", "z", "rx", "ry", "rz"):
-            raise ModelError(f"{label}: unknown base key '{k}'; use x, y, z, rx, ry, rz")
-        values[f"base.{k}"] = num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
+    values.update({f"base.{k}": x for k, x in base_pose(data, label, lf, af, strict=True).items()})
     lim = data.get("slider_limits", [380, 835] if lf == 1e-3 else [0.380, 0.835])
     if not (isinstance(lim, list) and len(lim) == 2):
         raise ModelError(f"{label}: 'slider_limits' must be [lower, upper]")
@@ -45,17 +43,14 @@ def puu3_from_dict(data: dict, label: str) -> PUU3Robot:
 
 
 def puu3_yaml(robot: PUU3Robot, length_unit: str, angle_unit: str) -> str:
-    lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
+    lf, af = per_unit(length_unit, angle_unit)
     v = robot.params.as_dict()
     kinds = dict(zip(robot.params.names, robot.params.kinds))
     params = ", ".join(f"{n}: {fmt(v[n] * (lf if kinds[n] == 'length' else af))}" for n in robot.params.names[6:])
-    base = ", ".join(f"{k}: {fmt(v['base.' + k] * (lf if k in 'xyz' else af))}" for k in ("x", "y", "z", "rx", "ry", "rz"))
-    lines = [f"name: {robot.name}", "type: puu3"]
-    if robot.description:
-        lines.append(f"description: {yaml.safe_dump(robot.description, default_style=chr(34)).strip()}")
+    lines = [f"name: {robot.name}", "type: puu3", *description_lines(robot.description)]
     lines += [f"units: {{length: {length_unit}, angle: {angle_unit}}}", f"extended: {str(robot.extended).lower()}",
               f"parameters: {{{params}}}", f"slider_limits: [{fmt(robot.h_lower * lf)}, {fmt(robot.h_upper * lf)}]",
-              f"base: {{{base}}}", ""]
+              f"base: {{{frame_text(v, 'base', lf, af)}}}", ""]
     return "\n".join(lines)
 
 
@@ -84,17 +79,14 @@ def urdf_from_dict(data: dict, label: str) -> URDFRobot:
     tool = tuple(num(mapping(data, "tool", label).get(c, 0.0), f"{label}: tool", c) * lf for c in "xyz")
     robot = urdf_robot(str(data.get("name", "urdf_robot")), joints, tool, str(data.get("description", "")),
                        {str(k): str(v) for k, v in src.items()})
-    base = {f"base.{k}": num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
-            for k, v in mapping(data, "base", label).items()}
+    base = {f"base.{k}": x for k, x in base_pose(data, label, lf, af).items()}
     return robot.with_params({**values, **base})
 
 
 def urdf_yaml(robot: URDFRobot, length_unit: str, angle_unit: str) -> str:
-    lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
+    lf, af = per_unit(length_unit, angle_unit)
     v = robot.params.as_dict()
-    lines = [f"name: {robot.name}", "type: urdf"]
-    if robot.description:
-        lines.append(f"description: {yaml.safe_dump(robot.description, default_style=chr(34)).strip()}")
+    lines = [f"name: {robot.name}", "type: urdf", *description_lines(robot.description)]
     if robot.source:
         lines.append("source: {" + ", ".join(f"{k}: {yaml.safe_dump(str(x), default_style=chr(34)).strip()}"
                                              for k, x in robot.source.items()) + "}")
@@ -110,9 +102,8 @@ def urdf_yaml(robot: URDFRobot, length_unit: str, angle_unit: str) -> str:
         if np.isfinite(j.lower) and np.isfinite(j.upper):
             items.append(f"limits: [{fmt(j.lower * qf)}, {fmt(j.upper * qf)}]")
         lines.append("  - {" + ", ".join(items + mass_items(j, lf)) + "}")
-    base = ", ".join(f"{k}: {fmt(v['base.' + k] * (lf if k in 'xyz' else af))}" for k in ("x", "y", "z", "rx", "ry", "rz"))
-    tool = ", ".join(f"{k}: {fmt(v['tool.' + k] * lf)}" for k in ("x", "y", "z"))
-    return "\n".join(lines + [f"base: {{{base}}}", f"tool: {{{tool}}}", ""])
+    return "\n".join(lines + [f"base: {{{frame_text(v, 'base', lf, af)}}}", f"tool: {{{frame_text(v, 'tool', lf, af)}}}",
+                              ""])
 
 
 def transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float, label: str) -> TransmissionRobot:
@@ -149,7 +140,7 @@ def transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float,
 
 
 def transmission_yaml(robot: TransmissionRobot, length_unit: str, angle_unit: str) -> str:
-    lf, af = 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
+    lf, af = per_unit(length_unit, angle_unit)
     lines = ["actuators:"]
     for name, lo, hi in zip(robot.joint_names, robot.lower, robot.upper):
         lines.append(f"  - {{name: {name}, limits: [{fmt(lo * af)}, {fmt(hi * af)}]}}")

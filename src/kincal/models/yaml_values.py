@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import yaml
 
 from .. import units as U
 from ..errors import ModelError
@@ -10,6 +11,14 @@ from ..errors import ModelError
 def unit_factor(unit: str, kind: str, where: str = "") -> float:
     """SI factor of a length or angle unit in a robot file (ModelError naming the choices)."""
     return U.unit_factor(unit, kind, where, ModelError)
+
+
+def per_unit(length_unit: str, angle_unit: str) -> tuple[float, float]:
+    """File units per m and per rad, to write a robot file in ``length_unit`` and ``angle_unit``."""
+    return 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
+
+
+POSE_KEYS = ("x", "y", "z", "rx", "ry", "rz")  # a frame's pose in a robot file: position, then rotations
 
 
 EXAMPLES = {"units": "{length: mm, angle: deg}", "base": "{x: 0, y: 0, z: 0, rx: 0, ry: 0, rz: 0}",
@@ -34,6 +43,17 @@ def units(data: dict, label: str) -> tuple[float, float]:
         raise ModelError(f"{label}: 'units' takes only 'length' and 'angle', got {sorted(map(str, extra))}")
     return (unit_factor(str(units.get("length", "m")), "length", f"{label}: "),
             unit_factor(str(units.get("angle", "rad")), "angle", f"{label}: "))
+
+
+def base_pose(data: dict, label: str, lf: float, af: float, strict: bool = False) -> dict:
+    """The file's ``base: {x, y, z, rx, ry, rz}`` in SI (m, rad; ``lf``, ``af``: SI per file unit) by
+    key, the keys given only; with ``strict`` a key not of these is refused here."""
+    out = {}
+    for k, v in mapping(data, "base", label).items():
+        if strict and k not in POSE_KEYS:
+            raise ModelError(f"{label}: unknown base key '{k}'; use x, y, z, rx, ry, rz")
+        out[k] = num(v, f"{label}: base", k) * (lf if k in "xyz" else af)
+    return out
 
 
 def vector(v, where: str, key: str) -> np.ndarray:
@@ -68,6 +88,22 @@ def fmt(x: float) -> str:
         m, e = s.split("e")
         s = f"{m}.0e{e}"
     return s
+
+
+def description_lines(description: str) -> list[str]:
+    """The ``description:`` line of a robot file (none without a description)."""
+    return [f"description: {yaml.safe_dump(description, default_style=chr(34)).strip()}"] if description else []
+
+
+def pose_text(pose, lf: float, af: float) -> str:
+    """'x: …, y: …, z: …, rx: …, ry: …, rz: …' of a pose (SI; three values: a point) in the file's
+    units (``lf``, ``af``: file units per m and per rad)."""
+    return ", ".join(f"{k}: {fmt(x * (lf if k in 'xyz' else af))}" for k, x in zip(POSE_KEYS, pose))
+
+
+def frame_text(values: dict, frame: str, lf: float, af: float) -> str:
+    """:func:`pose_text` of the ``base`` (x … rz) or ``tool`` (x y z) parameters in ``values`` (SI)."""
+    return pose_text([values[f"{frame}.{k}"] for k in (POSE_KEYS if frame == "base" else POSE_KEYS[:3])], lf, af)
 
 
 def link_mass(jd: dict, lf: float, where: str) -> tuple[float, tuple[float, float, float]]:

@@ -17,7 +17,7 @@ import numpy as np
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..units import LENGTH_UNITS, MM, OTHER_LENGTHS
-from .observations import Observation
+from .observations import Observation, error_stats
 
 
 SCALE_LIMIT = 3.0  # a stated distance this many times off the robot file's: a unit or label mistake
@@ -224,6 +224,4 @@ class PlaneObs(Observation):
         return r, Jr, Jn
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
-        r = np.abs(self.evaluate(robot, values, nuis)[0])
-        return {"type": self.kind, "source": self.source, "samples": len(self), "planes": len(set(self.labels.tolist())),
-                "mean_mm": float(r.mean() * MM), "rms_mm": float(np.sqrt(np.mean(r**2)) * MM), "max_mm": float(r.max() * MM)}
+        return error_stats(self, np.abs(self.evaluate(robot, values, nuis)[0]), planes=len(set(self.labels.tolist())))

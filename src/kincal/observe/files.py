@@ -28,7 +28,7 @@ from .._atomic import write_text_atomic
 from .._csv import LIMIT, Table, open_table
 from ..errors import MeasurementError
 from ..models.robot import Robot
-from ..units import unit_factor
+from ..units import joint_factors, joint_units, unit_factor
 from .constraints import PlaneObs, SamePointObs
 from .observations import MarkersObs, Observation, PointObs, PoseObs, flange_point
 from .orientation import check_convention, convention_check, default_columns, from_matrices, to_matrices
@@ -160,8 +160,7 @@ def _joints(t: Table, robot: Robot, fmt: ObservationFormat) -> np.ndarray:
         raise MeasurementError(f"{t.path}: {len(cols)} joint columns given ({', '.join(cols)}) but robot "
                                f"'{robot.name}' has {robot.n_joints} joints; give one column per joint")
     _need(t, cols, fmt, "the joint columns, named by --joint-cols")
-    units = [fmt.angle_unit if kind == "revolute" else fmt.length_unit for kind in robot.joint_types]
-    return t.numbers(cols, units)
+    return t.numbers(cols, joint_units(robot.joint_types, fmt.length_unit, fmt.angle_unit))
 
 
 def _point(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PointObs:
@@ -246,7 +245,7 @@ def write_observations(path: str, obs: Observation, robot: Robot, fmt: Observati
     """Write ``obs`` (its type: ``obs.kind``) in the columns ``read_observations`` reads with ``fmt``
     (atomically): what ``kincal simulate --type`` writes, so a planned set-up can be calibrated."""
     lf = unit_factor(fmt.length_unit, "length")
-    scale = np.array([unit_factor(fmt.angle_unit, "angle") if t == "revolute" else lf for t in robot.joint_types])
+    scale = np.array(joint_factors(robot.joint_types, fmt.length_unit, fmt.angle_unit))
     header = list(fmt.joint_cols or robot.joint_names)
     cells = [[f"{v:.12g}" for v in row] for row in obs.q / scale]
     extra_h, extra = _columns_of(obs, fmt, lf)

@@ -13,8 +13,7 @@ import numpy as np
 
 from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
-from ..units import MM
-from .observations import Observation, component_major, mean_square
+from .observations import Observation, component_major, error_stats, mean_square
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,6 +58,4 @@ class JointObs(Observation):
                 f"residual='cartesian' or leave those rows out")
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
-        e = np.linalg.norm(robot.forward(self.q, values) - self.xyz, axis=1)
-        return {"type": self.kind, "source": self.source, "samples": len(self), "mean_mm": float(e.mean() * MM),
-                "rms_mm": float(np.sqrt(np.mean(e**2)) * MM), "max_mm": float(e.max() * MM)}
+        return error_stats(self, np.linalg.norm(robot.forward(self.q, values) - self.xyz, axis=1))

@@ -185,6 +185,13 @@ class Observation:
         return self
 
 
+def error_stats(obs: Observation, e: np.ndarray, **counts) -> dict:
+    """The summary of an observation's errors ``e`` (m, one per sample or per observed point): its type,
+    source and samples, then ``counts`` (e.g. markers=4), then the mean, RMS and largest error in mm."""
+    return {"type": obs.kind, "source": obs.source, "samples": len(obs), **counts, "mean_mm": float(e.mean() * MM),
+            "rms_mm": float(np.sqrt(np.mean(e**2)) * MM), "max_mm": float(e.max() * MM)}
+
+
 @dataclass(frozen=True, eq=False)
 class Wrapper(Observation):
     """A set built on another, ``inner`` (a session's own frame, a drifting instrument): its type, σ,
@@ -271,9 +278,7 @@ class PointObs(Observation):
         return dataclasses.replace(self, xyz=self.xyz + offset)
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
-        e = np.linalg.norm(robot.forward(self.q, values) - self.xyz, axis=1)
-        return {"type": self.kind, "source": self.source, "samples": len(self), "mean_mm": float(e.mean() * MM),
-                "rms_mm": float(np.sqrt(np.mean(e**2)) * MM), "max_mm": float(e.max() * MM)}
+        return error_stats(self, np.linalg.norm(robot.forward(self.q, values) - self.xyz, axis=1))
 
 
 @dataclass(frozen=True, eq=False)
@@ -362,10 +367,8 @@ class PoseObs(Observation):
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         dp, phi, _ = self.errors(robot, values, nuis, jacobian=False)
         e, a = np.linalg.norm(dp, axis=1), np.linalg.norm(phi, axis=1)
-        return {"type": self.kind, "source": self.source, "samples": len(self), "mean_mm": float(e.mean() * MM),
-                "rms_mm": float(np.sqrt(np.mean(e**2)) * MM), "max_mm": float(e.max() * MM),
-                "mean_mrad": float(a.mean() * MRAD), "rms_mrad": float(np.sqrt(np.mean(a**2)) * MRAD),
-                "max_mrad": float(a.max() * MRAD)}
+        return {**error_stats(self, e), "mean_mrad": float(a.mean() * MRAD),
+                "rms_mrad": float(np.sqrt(np.mean(a**2)) * MRAD), "max_mrad": float(a.max() * MRAD)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -445,6 +448,4 @@ class MarkersObs(Observation):
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         r = self.evaluate(robot, values, nuis)[0].reshape(3, -1)
         e = np.linalg.norm(r, axis=0)
-        return {"type": self.kind, "source": self.source, "samples": len(self), "markers": len(self.names),
-                "observed": int(e.size), "mean_mm": float(e.mean() * MM), "rms_mm": float(np.sqrt(np.mean(e**2)) * MM),
-                "max_mm": float(e.max() * MM)}
+        return error_stats(self, e, markers=len(self.names), observed=int(e.size))
