@@ -38,6 +38,7 @@ def setting():
             f"  movec({_fmt(poses[3], True)}, {_fmt(poses[4], True)}, a=1.2, v=0.25, r=0, mode=0)\r\n"
             f"  servoj({_fmt(qs[4], False)}, t=0.008, lookahead_time=0.1, gain=300)\r\n"
             '  textmsg("movel(p[1, 2, 3, 4, 5, 6])")\r\n'
+            "  movel(pose_add(target, p[0, 0, 0.01, 0, 0, 0]), a=1.2)\r\n"
             "end\r\n")
     return nominal, true, home, qs, poses, text
 
@@ -46,10 +47,10 @@ def test_every_move_kind_is_found_and_only_literals(tmp_path, setting):
     nominal, true, home, qs, poses, text = setting
     (tmp_path / "prog.script").write_bytes(text.encode())
     prog = read_program(str(tmp_path / "prog.script"))
-    assert [(t.move, t.kind, t.line) for t in prog.targets] == [
-        ("movej", "joints", 3), ("movel", "pose", 6), ("movep", "pose", 7), ("movec", "pose", 8),
-        ("movec", "pose", 8), ("servoj", "joints", 9)]
-    assert prog.not_literal == ((5, "movel", "target"),)
+    assert [(t.move, t.kind, t.line, t.variable) for t in prog.targets] == [
+        ("movej", "joints", 3, ""), ("movel", "pose", 4, "target"), ("movel", "pose", 6, ""), ("movep", "pose", 7, ""),
+        ("movec", "pose", 8, ""), ("movec", "pose", 8, ""), ("servoj", "joints", 9, "")]
+    assert prog.not_literal == ((11, "movel", "pose_add(target, p[0, 0, 0.01, 0, 0, 0])"),)
     assert prog.with_targets({}) == text  # nothing replaced: the same bytes
 
 
@@ -58,7 +59,7 @@ def test_compensated_program_keeps_every_other_byte_and_matches_the_pose_route(t
     (tmp_path / "prog.script").write_bytes(text.encode())
     prog = read_program(str(tmp_path / "prog.script"))
     res = compensate_program(true, nominal, prog)
-    assert res.problems == () and len(res.texts) == 6
+    assert res.problems == () and len(res.texts) == 7
     write_program(str(tmp_path / "out.script"), prog, res.texts)
     out = (tmp_path / "out.script").read_bytes().decode()
     old_lines, new_lines = text.split("\r\n"), out.split("\r\n")
@@ -67,19 +68,19 @@ def test_compensated_program_keeps_every_other_byte_and_matches_the_pose_route(t
     for k, (a, b) in enumerate(zip(old_lines, new_lines), start=1):
         assert (a == b) != (k in changed), (k, a, b)  # unchanged lines byte for byte; target lines changed
     # joint targets: the same as compensating the pose the nominal model reaches there (the pose-file route)
-    for k, q in ((0, home), (5, qs[4])):
+    for k, q in ((0, home), (6, qs[4])):
         p, R, _, _ = nominal.pose_and_jacobian(q[None])
         comp = kincal.compensate(true, p, q[None], rotations=R, nominal=nominal)
         assert np.abs(res.q[k] - comp.q[0]).max() < 1e-9
     # pose targets: the controller's IK of the written pose gives joints at which the real robot is on target
     new = read_program(str(tmp_path / "out.script"))
     start = home
-    for k in (1, 2, 3, 4):
+    for k in (1, 2, 3, 4, 5):  # the variable's literal (its assignment compensated), then the literals
         v = new.targets[k].values
         ik = solve_poses(nominal, v[None, :3], Rotation.from_rotvec(v[3:]).as_matrix()[None], start[None])
         pt, Rt, _, _ = true.pose_and_jacobian(ik.q)
-        assert np.linalg.norm(pt[0] - poses[k][:3]) < 1e-6
-        assert np.linalg.norm(rotation_log(Rt)[0] - poses[k][3:]) < 1e-6
+        assert np.linalg.norm(pt[0] - poses[k - 1][:3]) < 1e-6
+        assert np.linalg.norm(rotation_log(Rt)[0] - poses[k - 1][3:]) < 1e-6
         assert np.abs(ik.q[0] - res.q[k]).max() < 1e-8
         start = ik.q[0]
 
@@ -100,6 +101,118 @@ def test_program_through_the_command_line(tmp_path, capsys, setting):
     assert "would overwrite" in capsys.readouterr().err  # never over the input
     assert main(base + ["-o", str(tmp_path / "out.script")]) == 0
     out = capsys.readouterr().out
-    assert "6 of 6 literal targets compensated" in out and "line 5 movel(target, …)" in out
+    assert "7 of 7 literal targets compensated" in out and "line 11 movel(pose_add(target" in out
     new = read_program(str(tmp_path / "out.script"))
     assert 1e-5 < np.abs(new.targets[0].values - home).max() < np.deg2rad(5)  # corrected, same branch
+
+
+def _ur10(seed=3):
+    nominal = kincal.load_robot("ur10").with_tool_point([0.0, 0.0, 0.15]).with_params({"base.rz": 0.4, "base.x": 0.2})
+    return nominal, kincal.perturb(nominal, seed=seed)
+
+
+def _wrapped(q):
+    return (q + np.pi) % (2 * np.pi) - np.pi
+
+
+def test_ur10_closed_form_gives_the_eight_branches_a_numeric_search_finds():
+    """The closed form's branches against an independent search: Newton from 400 spread starts finds
+    the same solutions (joints modulo a turn), no more and no fewer."""
+    from kincal.models.ur import ur_inverse
+
+    nominal, _ = _ur10()
+    q0 = np.array([0.3, -1.2, 1.4, -1.9, -1.5, 0.6])
+    p, R, _, _ = nominal.pose_and_jacobian(q0[None])
+    sols, ok = ur_inverse(nominal, p, R, q0[None])
+    assert ok.sum() == 8
+    starts = nominal.sample_joints(400, seed=11)
+    found = solve_poses(nominal, np.repeat(p, 400, 0), np.repeat(R, 400, 0), starts, max_iter=300, max_travel=50.0)
+    numeric = _wrapped(found.q[found.converged])
+    distinct = [numeric[0]]
+    for q in numeric[1:]:
+        if min(np.abs(_wrapped(q - d)).max() for d in distinct) > 1e-6:
+            distinct.append(q)
+    closed = _wrapped(sols[0][ok[0]])
+    assert len(distinct) == 8
+    for q in distinct:  # every numeric solution is one of the closed form's, within 1e-8 rad
+        assert min(np.abs(_wrapped(q - c)).max() for c in closed) < 1e-8
+
+
+def _program(lines):
+    return "def prog():\n" + "".join(f"  {line}\n" for line in lines) + "end\n"
+
+
+def _checked_program(tmp_path, true, nominal, text, tcp=None):
+    """The program compensated for ``true`` (the calibrated model), every target asserted on target
+    through it within 1e-9 m and 1e-9 rad."""
+    (tmp_path / "p.script").write_text(text)
+    prog = read_program(str(tmp_path / "p.script"))
+    models = (lambda t: (true.with_tool_point(t), nominal.with_tool_point(t))) if tcp is not None else None
+    res = compensate_program(true, nominal, prog, models=models)
+    assert res.problems == () and len(res.texts) == len(prog.targets)
+    turn = np.eye(3) if tcp is None else Rotation.from_rotvec(tcp[3:]).as_matrix()
+    model = true if tcp is None else true.with_tool_point(tcp[:3])
+    for k, t in enumerate(prog.targets):
+        p, R, _, _ = model.pose_and_jacobian(res.q[k][None])
+        if t.kind == "pose":
+            assert np.linalg.norm(p[0] - t.values[:3]) < 1e-9
+            assert np.linalg.norm(rotation_log((R[0] @ turn)[None])[0] - t.values[3:]) < 1e-9
+    return prog, res
+
+
+def test_a_program_turning_joint_1_up_to_90_degrees_is_compensated_on_the_controllers_branch(tmp_path):
+    """movej(q0) then movel to the nominal pose of q0 with joint 1 turned by 1 … 90 deg: every target
+    compensated on the branch the controller takes (the nominal joints: q0 with joint 1 turned)."""
+    nominal, true = _ur10()
+    q0 = np.array([0.3, -1.2, 1.4, -1.9, -1.5, 0.6])
+    turns = [1, 3, 5, 8, 12, 20, 40, 90]
+    lines = []
+    for deg in turns:
+        q = q0 + np.deg2rad(deg) * np.eye(6)[0]
+        lines += [f"movej({_fmt(q0, False)})", f"movel({_fmt(_pose(nominal, q), True)}, a=1.2, v=0.25)"]
+    prog, res = _checked_program(tmp_path, true, nominal, _program(lines))
+    from kincal.compensate.program import controller_inverse
+
+    for k, deg in zip(range(1, 2 * len(turns), 2), turns):
+        v = prog.targets[k].values
+        q_nom = controller_inverse(nominal, v[None, :3], Rotation.from_rotvec(v[3:]).as_matrix()[None], q0)
+        assert np.abs(q_nom - (q0 + np.deg2rad(deg) * np.eye(6)[0])).max() < 1e-9
+        assert np.abs(res.q[k] - q_nom).max() < np.deg2rad(1)  # the correction stays on that branch
+
+
+def test_a_pick_program_across_the_workspace_with_its_own_tcp(tmp_path):
+    """Seven targets across the workspace (joint 1 over 200 deg) after set_tcp(p[…]) with a rotated
+    TCP: all compensated; the TCP's point and rotation are the program's."""
+    nominal, true = _ur10(seed=5)
+    tcp = np.array([0.01, -0.02, 0.12, 0.0, 0.0, 0.5])
+    home = np.array([0.0, -1.5, 1.5, -1.5, -1.5, 0.0])
+    qs = [home + np.array([a, 0.2 * np.sin(a), -0.3 * np.cos(a), 0.2, 0.1 * a, 0.3]) for a in np.linspace(-1.7, 1.8, 7)]
+    tooled = nominal.with_tool_point(tcp[:3])
+    poses = []
+    for q in qs:
+        p, R, _, _ = tooled.pose_and_jacobian(q[None])
+        poses.append(np.concatenate([p[0], rotation_log((R[0] @ Rotation.from_rotvec(tcp[3:]).as_matrix())[None])[0]]))
+    lines = [f"set_tcp({_fmt(tcp, True)})", f"movej({_fmt(home, False)})"]
+    lines += [f"movel({_fmt(v, True)})" if k % 2 else f"movej({_fmt(v, True)})" for k, v in enumerate(poses)]
+    _checked_program(tmp_path, true, nominal, _program(lines), tcp=tcp)
+
+
+def test_skip_unreachable_marks_each_target_left_as_is(tmp_path, capsys):
+    """A pose 3 m away cannot be reached: refused and nothing written; with --skip-unreachable the
+    program is written with a comment naming why beside that target, the rest compensated."""
+    nominal, true = _ur10()
+    kincal.save_robot(true, str(tmp_path / "cal.yaml"))
+    q0 = np.array([0.3, -1.2, 1.4, -1.9, -1.5, 0.6])
+    far = np.concatenate([[3.0, 0.0, 0.5], _pose(nominal, q0)[3:]])
+    text = _program([f"movej({_fmt(q0, False)})", f"movel({_fmt(far, True)})  # too far",
+                     f"movel({_fmt(_pose(nominal, q0 + 0.1), True)})"])
+    (tmp_path / "p.script").write_text(text)
+    base = ["compensate", str(tmp_path / "cal.yaml"), str(tmp_path / "p.script"), "--program", "ur", "-o",
+            str(tmp_path / "out.script")]
+    assert main(base) == 4 and not (tmp_path / "out.script").exists()  # refused: nothing written
+    assert "refused: " in capsys.readouterr().out
+    assert main(base + ["--skip-unreachable"]) == 0
+    out = (tmp_path / "out.script").read_text().splitlines()
+    assert out[2].endswith("# too far  # kincal: not compensated: the nominal model does not reach this pose on "
+                           "any branch within the joint limits")
+    assert "kincal" not in out[1] + out[3] and out[1] != text.splitlines()[1]

@@ -26,15 +26,18 @@ def cmd_compensate(args) -> int:
     nominal_values = (record or {}).get("nominal")
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
     values = nominal_values if isinstance(nominal_values, dict) else None
-    if "link_error_max" in args.given and args.tcp is None:
+    if "link_error_max" in args.given and args.tcp is None and not args.program:  # a program may set its TCP
         raise ValueError("--link-error-max decides how much of the calibration's move of the measured target is "
                          "carried over to the controller's TCP; without --tcp the commands are for the measured "
                          "target itself: give --tcp, or leave --link-error-max out")
     r, nominal = command_models(cal, values, args.tcp, args.target_frame, args.link_error_max / MM)
-    carry = "" if args.tcp is None else tool_carry(cal.tool_point(), (cal.with_params(values) if values else cal)
-                                                   .tool_point(), args.link_error_max / MM)[1]
+    carry = "" if not cal.has_tool_point else tool_carry(
+        cal.tool_point(), (cal.with_params(values) if values else cal).tool_point(), args.link_error_max / MM)[1]
     if args.program:
-        return _compensate_program(args, r, nominal, carry)
+        def models(tcp):  # the models for a TCP the program sets (set_tcp)
+            return command_models(cal, values, tcp, args.target_frame, args.link_error_max / MM)
+        return _compensate_program(args, r, nominal, carry, models)
+    carry = carry if args.tcp is not None else ""
     fmt = TargetsFormat(args.pose, tuple(args.joint_cols) if args.joint_cols else None, tuple(args.xyz_cols),
                         args.orientation, tuple(args.rot_cols) if args.rot_cols else None, args.length_unit,
                         args.angle_unit)
@@ -83,17 +86,24 @@ def _compensation_text(args, res, r) -> str:
     return (text + "".join(f"\nwarning: {w}" for w in res.warnings)).strip()
 
 
-def _compensate_program(args, r, nominal, carry: str) -> int:
-    """compensate --program ur: a robot program compensated in place, written to -o (never over it)."""
+def _compensate_program(args, r, nominal, carry: str, models) -> int:
+    """compensate --program ur: a robot program compensated in place, written to -o (never over it);
+    with --skip-unreachable each target left as it is gets a comment saying why."""
     prog = kincal.io.read_program(args.targets, args.program)
-    res = compensate_program(r, nominal, prog)
+    res = compensate_program(r, nominal, prog, models=models)
     written = bool(res.texts) and (not res.problems or args.skip_unreachable)  # never half a program silently
     if written:
-        kincal.io.write_program(args.output, prog, res.texts)
+        kincal.io.write_program(args.output, prog, res.texts, res.refused)
     lines = [f"{len(res.texts)} of {len(prog.targets)} literal targets compensated"
-             + (f"; program written to {args.output} (everything else byte for byte)" if written else
+             + (f"; program written to {args.output} (everything else byte for byte"
+                + (", a comment beside each target left as it is)" if res.refused else ")") if written else
                 f"; nothing written to {args.output}" + (" (--skip-unreachable writes the program with the refused "
-                                                         "targets left as they are)" if res.texts else ""))]
+                                                         "targets left as they are, each marked)" if res.texts else ""))]
+    carry = carry if prog.tcps or args.tcp is not None else ""
+    lines += [f"TCP set by the program (set_tcp) at {len(prog.tcps)} place(s): the moves after each use it"] \
+        if prog.tcps else [] if args.tcp is not None else [
+        "warning: the program sets no TCP (set_tcp) and no --tcp was given: its poses are taken as poses of the "
+        "measured target (the calibration's tool point); give --tcp with the controller's TCP if it is another"]
     lines += [f"refused: {p}" for p in res.problems]
     lines += [f"left as is (not a literal): line {n} {move}({arg}, …)" for n, move, arg in res.not_literal]
     emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),

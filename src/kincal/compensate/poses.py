@@ -70,7 +70,8 @@ def pose_errors(model: Robot, q: np.ndarray, p_t: np.ndarray, R_t: np.ndarray):
 
 
 def solve_poses(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, max_iter: int = MAX_ITER,
-                fixed: tuple[int, ...] = (), chunk: int = CHUNK, give_up: np.ndarray | None = None) -> PoseSolution:
+                fixed: tuple[int, ...] = (), chunk: int = CHUNK, give_up: np.ndarray | None = None,
+                max_travel: float = MAX_TRAVEL) -> PoseSolution:
     """Commands q (N, n) that put ``model``'s tool point at p_t (N, 3) m with its flange at R_t
     (N, 3, 3), by Newton steps from q0 (N, n); only unconverged targets iterate, ``chunk`` targets at
     a time (bounded memory, arrays that stay in cache) for the first FIRST_PASS iterations, then the
@@ -78,14 +79,16 @@ def solve_poses(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, 
     Joints in ``fixed`` keep their start values (a redundant arm's controller takes one as its
     redundancy parameter). A target whose next command would leave its start by more than
     ``give_up`` (n,) rad or m on a joint stops there, unconverged (a caller that refuses such
-    commands saves their iterations)."""
+    commands saves their iterations). A target whose steps have moved its tool point ``max_travel`` m
+    in all stops unconverged (a correction that far is another configuration; an inverse from afar
+    gives a larger one)."""
     if not model.has_tool_point:
         raise ModelError(f"robot '{model.name}' has no tool point and flange frame: give position targets")
     q = np.array(q0, dtype=float)
     moving = np.ones(q.shape[1], bool)
     moving[list(fixed)] = False
     s = _State(q, np.empty(len(q)), np.empty(len(q)), np.zeros(len(q), bool), np.zeros(len(q)), np.array(q0, float),
-               None if give_up is None else np.asarray(give_up, float))
+               None if give_up is None else np.asarray(give_up, float), max_travel)
     first = min(FIRST_PASS, max_iter)
     left = [_iterate(model, p_t, R_t, s, np.arange(a, min(a + chunk, len(q))), moving, 1, first)
             for a in range(0, len(q), chunk)]
@@ -112,6 +115,7 @@ class _State:
     travel: np.ndarray
     start: np.ndarray
     give_up: np.ndarray | None
+    max_travel: float = MAX_TRAVEL
 
 
 def _norms(x: np.ndarray, axis: int = -1) -> np.ndarray:
@@ -145,7 +149,7 @@ def _iterate(model: Robot, p_t, R_t, s: _State, active: np.ndarray, moving, star
         s.travel[active] += np.minimum(move, MAX_MOVE)
         stalled = move < STALL if n_j < 6 else np.zeros(len(move), bool)  # least squares: steps stopped moving
         s.converged[active[stalled]] = True
-        go = ~stalled & (s.travel[active] < MAX_TRAVEL)  # beyond MAX_TRAVEL: left unconverged, refused by the checks
+        go = ~stalled & (s.travel[active] < s.max_travel)  # beyond max_travel: left unconverged, refused by the checks
         if s.give_up is not None:  # a command this far from its start is refused anyway (another branch)
             go &= ~(np.abs(q + dq - s.start[active]) > s.give_up).any(axis=1)
         s.q[active[go]] = q[go] + dq[go]

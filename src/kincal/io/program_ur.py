@@ -1,8 +1,12 @@
 """URScript (Universal Robots): the literal targets of movej, movel, movep, movec and servoj.
 
 A pose literal is ``p[x, y, z, rx, ry, rz]`` (m; rotation vector in rad, the TCP in the base
-frame); a joint literal is ``[q1, …, q6]`` (rad). ``movec`` has two targets (via and to). Comments
-(``#`` to the end of the line) and strings are skipped; anything else is left as it is.
+frame); a joint literal is ``[q1, …, q6]`` (rad). ``movec`` has two targets (via and to). A move to a
+variable assigned once, with a literal (``global home = p[…]``, ``local q0 = […]``, ``x = …``), has
+that literal as its target (compensated where it is written); a variable assigned more than once or
+from an expression is listed, never touched. ``set_tcp(p[…])`` sets the TCP of the moves after it
+in the text. Comments (``#`` to the end of the line) and strings are skipped; anything else is left
+as it is.
 """
 from __future__ import annotations
 
@@ -18,6 +22,9 @@ CALL = re.compile(r"\b(" + "|".join(MOVES) + r")\s*\(")
 NUMBER = r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*"
 POSE = re.compile(r"^\s*p\s*\[(" + NUMBER + r"(?:," + NUMBER + r"){5})\]\s*$")
 JOINTS = re.compile(r"^\s*\[(" + NUMBER + r"(?:," + NUMBER + r")*)\]\s*$")
+ASSIGN = re.compile(r"^[ \t]*(?:(?:global|local)[ \t]+)?([A-Za-z_]\w*)[ \t]*=(?!=)[ \t]*([^\n]*)", re.M)
+NAME = re.compile(r"^\s*([A-Za-z_]\w*)\s*$")
+SET_TCP = re.compile(r"\bset_tcp\s*\(")
 
 
 def _masked(text: str) -> str:
@@ -60,23 +67,61 @@ def _arguments(code: str, open_at: int, source: str, line: int) -> list[tuple[in
 
 
 def parse(source: str, text: str) -> Program:
-    """The literal targets and the non-literal moves of a URScript program."""
+    """The literal targets (in the order the moves come), the non-literal moves and the TCPs set in
+    a URScript program."""
     code = _masked(text)
-    targets, not_literal = [], []
+    bound = _bound_literals(code, text)
+    targets, not_literal, seen = [], [], set()
     for m in CALL.finditer(code):
         move, line = m.group(1), text.count("\n", 0, m.start()) + 1
         for a, b in _arguments(code, m.end() - 1, source, line)[:MOVES[move]]:
-            arg = text[a:b]
-            pose, joints = POSE.match(arg), JOINTS.match(arg)
-            found = pose or joints
-            if found:
-                values = np.array([float(x) for x in found.group(1).split(",")])
-                lead = len(arg) - len(arg.lstrip())
-                tail = len(arg) - len(arg.rstrip())
-                targets.append(Target(a + lead, b - tail, line, move, "pose" if pose else "joints", values))
+            name = NAME.match(text[a:b])
+            if name and name.group(1) in bound:
+                a0, b0 = bound[name.group(1)]
+                lit = _literal(text, a0, b0, text.count("\n", 0, a0) + 1, move, m.start(), name.group(1))
+                if lit is not None and name.group(1) not in seen:  # compensated once, where it is written
+                    seen.add(name.group(1))
+                    targets.append(lit)
+                continue
+            found = _literal(text, a, b, line, move, m.start())
+            if found is None:
+                not_literal.append((line, move, text[a:b].strip()))
             else:
-                not_literal.append((line, move, arg.strip()))
-    return Program(source, text, tuple(targets), tuple(not_literal))
+                targets.append(found)
+    return Program(source, text, tuple(targets), tuple(not_literal), tcps=_tcps(code, text, source))
+
+
+def _literal(text: str, a: int, b: int, line: int, move: str, at: int, variable: str = "") -> Target | None:
+    """The target written in text[a:b] (its span without the surrounding blanks), or None."""
+    arg = text[a:b]
+    pose, joints = POSE.match(arg), JOINTS.match(arg)
+    found = pose or joints
+    if not found:
+        return None
+    values = np.array([float(x) for x in found.group(1).split(",")])
+    lead, tail = len(arg) - len(arg.lstrip()), len(arg) - len(arg.rstrip())
+    return Target(a + lead, b - tail, line, move, "pose" if pose else "joints", values, at, variable)
+
+
+def _bound_literals(code: str, text: str) -> dict[str, tuple[int, int]]:
+    """Variables assigned exactly once in the program, with a pose or joint literal: name -> the
+    span of that literal (its statement's value up to a comment)."""
+    spans: dict[str, list] = {}
+    for m in ASSIGN.finditer(code):
+        a = m.start(2)
+        b = a + len(code[a:m.end(2)].rstrip())  # the comment after it is blank in the code
+        spans.setdefault(m.group(1), []).append((a, b) if POSE.match(text[a:b]) or JOINTS.match(text[a:b]) else None)
+    return {k: v[0] for k, v in spans.items() if len(v) == 1 and v[0] is not None}
+
+
+def _tcps(code: str, text: str, source: str) -> tuple[tuple[int, np.ndarray | None], ...]:
+    """Each set_tcp in text order: its position and the TCP pose (6,) (None: not a literal)."""
+    out = []
+    for m in SET_TCP.finditer(code):
+        (a, b), *_ = _arguments(code, m.end() - 1, source, text.count("\n", 0, m.start()) + 1)
+        pose = POSE.match(text[a:b])
+        out.append((m.start(), None if pose is None else np.array([float(x) for x in pose.group(1).split(",")])))
+    return tuple(out)
 
 
 def pose_literal(values: np.ndarray) -> str:

@@ -18,8 +18,10 @@ from ..errors import MeasurementError
 
 @dataclass(frozen=True)
 class Target:
-    """One literal target: its span in the text, the line, the move, and its values: a pose
-    (x, y, z in m, rotation vector in rad; ``kind`` "pose") or joint values (rad; "joints")."""
+    """One literal target: its span in the text and its line, the move, and its values: a pose (x, y,
+    z in m, rotation vector in rad; ``kind`` "pose") or joint values (rad; "joints"); where the move
+    is in the text (``at``) and the variable it moves to ('' for a literal in the move; the span and
+    line are then those of the variable's literal)."""
 
     start: int
     end: int
@@ -27,27 +29,51 @@ class Target:
     move: str
     kind: str
     values: np.ndarray
+    at: int = -1
+    variable: str = ""
 
 
 @dataclass(frozen=True)
 class Program:
-    """A program's text, its literal targets in order, and the moves whose targets are not literals
-    (line, move, the argument's text)."""
+    """A program's text, its literal targets in the order of the moves, the moves whose targets are
+    not literals (line, move, the argument's text), the TCPs it sets (position in the text, the pose
+    (6,) or None when not a literal) and its language's comment mark."""
 
     source: str
     text: str
     targets: tuple[Target, ...]
     not_literal: tuple[tuple[int, str, str], ...] = field(default=())
     encoding: str = "utf-8"
+    tcps: tuple = ()
+    comment: str = "#"
 
-    def with_targets(self, texts: dict[int, str]) -> str:
-        """The text with target k's span replaced by ``texts[k]`` (the others as they are)."""
+    def tcp_at(self, at: int):
+        """The TCP set last before position ``at`` (its pose (6,), None if not a literal), or () when none."""
+        before = [pose for where, pose in self.tcps if where < at]
+        return before[-1] if before else ()
+
+    def with_targets(self, texts: dict[int, str], marks: dict[int, str] | None = None) -> str:
+        """The text with target k's span replaced by ``texts[k]`` (the others as they are), and a
+        comment ``marks[k]`` at the end of the line of each target k that is left as it is."""
+        edits = sorted([(t.start, t.end, texts[k]) for k, t in enumerate(self.targets) if k in texts]
+                       + _marks(self, marks or {}))
         out, at = [], 0
-        for k, t in enumerate(self.targets):
-            if k in texts:
-                out += [self.text[at:t.start], texts[k]]
-                at = t.end
+        for a, b, new in edits:
+            out += [self.text[at:a], new]
+            at = b
         return "".join(out) + self.text[at:]
+
+
+def _marks(program: Program, marks: dict[int, str]) -> list[tuple[int, int, str]]:
+    """Insertions (at the end of each marked target's line, before its line ending) of one comment
+    per line with the reasons of every marked target on it."""
+    by_end: dict[int, list[str]] = {}
+    for k, why in marks.items():
+        t = program.targets[k]
+        end = program.text.find("\n", t.end)
+        end = len(program.text) if end < 0 else end - (program.text[end - 1:end] == "\r")
+        by_end.setdefault(end, []).append(why)
+    return [(e, e, f"  {program.comment} kincal: not compensated: {'; '.join(w)}") for e, w in by_end.items()]
 
 
 def read_program(path: str, dialect: str = "ur") -> Program:
@@ -68,6 +94,7 @@ def read_program(path: str, dialect: str = "ur") -> Program:
     return dataclasses.replace(readers[dialect](path, text), encoding=encoding)
 
 
-def write_program(path: str, program: Program, texts: dict[int, str]) -> None:
-    """The program with the given targets replaced, in its own encoding (atomically)."""
-    write_text_atomic(path, program.with_targets(texts), program.encoding)
+def write_program(path: str, program: Program, texts: dict[int, str], marks: dict[int, str] | None = None) -> None:
+    """The program with the given targets replaced and the marked ones commented, in its own encoding
+    (atomically)."""
+    write_text_atomic(path, program.with_targets(texts, marks), program.encoding)
