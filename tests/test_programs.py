@@ -216,3 +216,27 @@ def test_skip_unreachable_marks_each_target_left_as_is(tmp_path, capsys):
     assert out[2].endswith("# too far  # kincal: not compensated: the nominal model does not reach this pose on "
                            "any branch within the joint limits")
     assert "kincal" not in out[1] + out[3] and out[1] != text.splitlines()[1]
+
+
+def test_design_writes_a_measurement_program_that_compensate_reads_whole(tmp_path, capsys):
+    """design --program ur: movej through the designed poses (the CSV's joints to 1e-10 rad) with a
+    wait at each, the predicted tool positions in the JSON (the forward kinematics at those joints);
+    compensate --program ur reads every target as a literal and, with the nominal model as the
+    calibrated one, writes the program back byte for byte."""
+    import json
+
+    out = tmp_path / "poses.csv"
+    assert main(["design", "ur10", "-m", "12", "--pool", "400", "--tool", "0,0,100mm", "--settle", "1.5", "-o",
+                 str(out), "--program", "ur", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    robot = kincal.load_robot("ur10").with_tool_point([0.0, 0.0, 0.1])
+    q = kincal.read_joints(str(out), robot)
+    prog = read_program(data["program"])
+    assert prog.not_literal == () and [t.kind for t in prog.targets] == ["joints"] * 12
+    assert np.abs(np.array([t.values for t in prog.targets]) - q).max() < 1e-10
+    assert prog.text.count("sleep(1.5)") == 12
+    assert np.abs(np.array(data["tool_positions"]) - robot.forward(q)).max() < 1e-12
+    kincal.save_robot(robot, str(tmp_path / "ur10.yaml"))
+    assert main(["compensate", str(tmp_path / "ur10.yaml"), data["program"], "--program", "ur", "-o",
+                 str(tmp_path / "again.script")]) == 0
+    assert (tmp_path / "again.script").read_text() == prog.text

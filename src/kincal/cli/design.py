@@ -16,7 +16,7 @@ from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, len
 
 
 def cmd_design(args) -> int:
-    check_paths([*robot_inputs(args.robot), args.candidates, args.use], [args.output])
+    check_paths([*robot_inputs(args.robot), args.candidates, args.use], [args.output, _program_path(args)])
     criterion = args.criterion or ("IMSE" if args.method in ("fedorov", "random") else "D")
     options = kincal.DesignOptions(m=args.m, method=args.method, criterion=criterion, seed=args.seed,
                                    names=args.params, base=args.base, certify=not args.no_bound,
@@ -28,6 +28,9 @@ def cmd_design(args) -> int:
         r.params.indices(args.params)
     cell = _cell(args)
     if (args.type or ["point"])[0] in CONSTRAINTS:
+        if args.program:
+            raise ValueError("--program writes a program through designed poses; sockets and planes are touched by "
+                             "hand or by a guided move at each sample, so no program is written for them")
         return _design_constraints(args, r, options, cell)
     if args.candidates:
         pool = kincal.read_joints(args.candidates, r, args.joint_cols, args.length_unit, args.angle_unit)
@@ -54,8 +57,32 @@ def cmd_design(args) -> int:
                                                      f"rows)" if args.candidates else "")
     payload = d.to_dict()
     payload["output"] = args.output
-    emit(args, payload, f"{d}\n{where}")
+    emit(args, {**payload, **_program(args, r, d.q)}, f"{d}\n{where}" + (
+        f"\nmeasurement program written to {_program_path(args)} (movej through the poses, {args.settle:g} s to "
+        f"settle at each; the predicted tool positions in its comments and the JSON)" if args.program else ""))
     return 0
+
+
+def _program_path(args) -> str | None:
+    """Where design --program writes the measurement program: beside the poses, .script."""
+    from pathlib import Path
+
+    return str(Path(args.output).with_suffix(".script")) if args.program else None
+
+
+def _program(args, r, q: np.ndarray) -> dict:
+    """design --program ur: the measurement program written (atomically); its path and the tool
+    positions (m, the robot's base frame) for the JSON ({} without --program)."""
+    if not args.program:
+        return {}
+    if r.n_joints != 6:
+        raise ValueError(f"--program ur writes URScript for a six-joint UR arm; {r.name} has {r.n_joints} joints")
+    from kincal._atomic import write_text_atomic
+    from kincal.io.program_ur import measurement_program
+
+    tool, path = r.forward(q), str(_program_path(args))
+    write_text_atomic(path, measurement_program(q, tool, args.settle, f"kincal design: {r.name}"))
+    return {"program": path, "tool_positions": tool.tolist()}
 
 
 def _criterion_flags(s) -> None:
@@ -168,6 +195,10 @@ def register(cmd) -> None:
     add_robot(s)
     s.add_argument("-m", type=positive_int, default=60, help="number of poses (default 60)")
     s.add_argument("-o", "--output", required=True, help="poses CSV to write")
+    s.add_argument("--program", choices=("ur",), help="also write the measurement program (ur: URScript, beside "
+                                                     "the poses as .script): movej through the poses with a wait")
+    s.add_argument("--settle", type=positive_float, default=2.0, help="--program: seconds to wait at each pose "
+                                                                      "before measuring (default 2)")
     src = s.add_mutually_exclusive_group()
     src.add_argument("--pool", type=positive_int, default=5000, help="random feasible candidates (default 5000)")
     src.add_argument("--candidates", help="CSV of candidate poses (e.g. the poses you can reach)")

@@ -131,3 +131,16 @@ def pose_literal(values: np.ndarray) -> str:
 
 def joints_literal(values: np.ndarray) -> str:
     return "[" + ", ".join(f"{v:.10f}" for v in values) + "]"
+
+
+def measurement_program(q: np.ndarray, tool: np.ndarray, settle: float, title: str) -> str:
+    """A URScript program that moves through the joint vectors q (N, 6) rad with movej, waits
+    ``settle`` s at each for the measurement, and names each pose and its predicted tool position
+    (N, 3) m in a comment and a textmsg; ``title`` heads it."""
+    lines = ["def kincal_measure():", f"  # {title}", f"  # {len(q)} poses; settle {settle:g} s at each, then measure"]
+    for k, (qk, tk) in enumerate(zip(q, tool), start=1):
+        where = ", ".join(f"{v * 1e3:.3f}" for v in tk)
+        lines += [f"  # pose {k}: tool at ({where}) mm in the base frame",
+                  f"  movej({joints_literal(qk)}, a=0.5, v=0.5)", f"  sleep({settle:g})",
+                  f'  textmsg("kincal pose {k} of {len(q)}")']
+    return "\n".join(lines + ["end", "kincal_measure()", ""])
