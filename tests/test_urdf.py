@@ -131,8 +131,9 @@ def test_real_ur5_grid_through_the_urdf(tmp_path, capsys):
 
 
 def test_exported_urdf_is_the_calibrated_model(ur5u, tmp_path, capsys):
-    """Calibrated in simulation, exported, read by an independent parser: the same kinematics; every
-    line but the six joint origins (and the added tool link) is the original's."""
+    """Calibrated in simulation, exported, read by an independent parser: the same kinematics, the
+    fitted tool point carried as a link (named, or 'tool_point' by default: never dropped); every
+    line but the six joint origins and the added tool link is the original's."""
     true = kincal.perturb(ur5u, seed=11)
     res = kincal.calibrate(ur5u, kincal.simulate(true, ur5u.sample_joints(80, seed=11), 15e-6, seed=1))
     cal, out, plain = tmp_path / "cal.yaml", tmp_path / "cal.urdf", tmp_path / "plain.urdf"
@@ -143,9 +144,11 @@ def test_exported_urdf_is_the_calibrated_model(ur5u, tmp_path, capsys):
     q = ur5u.sample_joints(100, seed=12)
     no_tool = without_base(res.robot).with_params({"tool.x": 0.0, "tool.y": 0.0, "tool.z": 0.0})
     np.testing.assert_allclose(reference(out, no_tool, q, "smr"), without_base(res.robot).forward(q), atol=1e-9)
+    np.testing.assert_allclose(reference(plain, no_tool, q, "tool_point"), without_base(res.robot).forward(q), atol=1e-9)
     old, new = UR5_URDF.read_text().splitlines(), plain.read_text().splitlines()
-    changed = [(a, b) for a, b in zip(old, new) if a != b]
-    assert len(old) == len(new) and len(changed) == 6 and all("<origin" in a and "<origin" in b for a, b in changed)
+    changed = [(a, b) for a, b in zip(old[:-1], new) if a != b]
+    assert len(changed) == 6 and all("<origin" in a and "<origin" in b for a, b in changed)
+    assert len(new) == len(old) + 6 and new[-7] == '  <link name="tool_point"/>' and new[-1] == old[-1]
     text = out.read_text()
     assert '<link name="smr"/>' in text and "<gazebo>" in text and "<transmission" in text and "<!-- measured" in text
 
@@ -215,8 +218,9 @@ def test_complex_urdf_calibrates_to_the_cramer_rao_level(testbot, tmp_path):
     text = kincal.models.urdf_text(res.robot, path.read_text())
     out.write_text(text)
     q = robot.sample_joints(50, seed=7)
-    np.testing.assert_allclose(reference(out, res.robot, q, "tip"), res.robot.forward(q), atol=1e-9)
-    assert text.count("<origin") == TESTBOT.count("<origin") and "camera" in text
+    no_tool = res.robot.with_params({"tool.x": 0.0, "tool.y": 0.0, "tool.z": 0.0})
+    np.testing.assert_allclose(reference(out, no_tool, q, "tool_point"), res.robot.forward(q), atol=1e-9)
+    assert text.count("<origin") == TESTBOT.count("<origin") + 1 and "camera" in text  # + the tool point's joint
 
 
 BAD = {
@@ -345,3 +349,30 @@ def test_fixed_rows_are_dh_rows_without_a_joint(tmp_path, capsys):
     (tmp_path / "h.yaml").write_text(FIXED_ROW.replace("alpha: -20}", "alpha: -20, limits: [0, 1]}"))
     with pytest.raises(kincal.ModelError, match="fixed row has no joint"):
         kincal.load_robot(tmp_path / "h.yaml")
+
+
+def test_a_socket_calibration_exports_the_fitted_ball(tmp_path, capsys):
+    """Panda sockets (one plate placement) calibrated, then exported as URDF: the fitted ball point,
+    millimetres from ball_link's origin, is the link 'tool_point'; an independent parser of the file
+    reproduces the calibrated ball within 1e-9 m at random joints."""
+    import csv as _csv
+
+    root = DATA.parents[1]
+    rows = [r for r in _csv.DictReader(open(root / "data" / "panda_sockets" / "samples.csv"))
+            if r["placement"] == "front_center"]
+    with open(tmp_path / "train.csv", "w", newline="") as f:
+        w = _csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    assert main(["calibrate", str(root / "tests" / "data" / "urdf" / "panda" / "panda.urdf"), str(tmp_path / "train.csv"),
+                 "--tip-link", "ball_link", "--type", "same-point", "--joint-cols", ",".join(f"q{k}" for k in range(1, 8)),
+                 "--label-col", "socket", "--group-col", "placement", "--distance", "0,1,50", "--length-unit", "mm",
+                 "-o", str(tmp_path / "cal.yaml")]) == 0
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "cal.urdf")]) == 0
+    assert "is the fixed link 'tool_point'" in capsys.readouterr().out
+    cal = kincal.load_robot(str(tmp_path / "cal.yaml"))
+    assert np.linalg.norm(cal.tool_point()) > 1e-3  # the ball moved: dropping it would miss by millimetres
+    q = cal.sample_joints(30, seed=4)
+    no_tool = cal.with_params({"tool.x": 0.0, "tool.y": 0.0, "tool.z": 0.0})
+    np.testing.assert_allclose(reference(tmp_path / "cal.urdf", no_tool, q, "tool_point"),
+                               without_base(cal).forward(q), atol=1e-9)

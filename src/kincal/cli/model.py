@@ -130,7 +130,12 @@ def cmd_export(args) -> int:
     info = kincal.export_robot(r, args.output, args.format, args.source, args.tool_link, args.base_yaw / DEG,
                                args.length_unit, args.angle_unit, args.joint_names)
     base = info["base_frame"]
-    lines = [f"{r.name}: {info['format']} written to {args.output} (checked: it reproduces the model to 1e-9 m)"]
+    lines = [f"{r.name}: {info['format']} written to {args.output} (checked: it reproduces the model, tool point "
+             f"included, to 1e-9 m)"]
+    if info.get("tool_link") and not args.tool_link:
+        where = ", ".join(f"{v * MM:.3f}" for v in r.tool_point())
+        lines.append(f"the tool point ({where}) mm on the flange is the fixed link '{info['tool_link']}' "
+                     f"(--tool-link names it)")
     if base:
         kinds = dict(zip(r.params.names, r.params.kinds))
         lines.append("base frame found by the calibration (where the tracker saw the robot; not part of the robot "

@@ -28,6 +28,7 @@ from .urdf import URDFRobot, read_urdf, rpy_matrix
 from .yaml_io import robot_to_yaml
 
 EXPORT_TOL = 1e-9  # m: an export must reproduce the model this closely
+TOOL_LINK = "tool_point"  # the link a URDF export carries a non-zero tool point on, unless named
 UR_SECTIONS = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
 _ALIGN = {0: rot_zyx(0.0, np.pi / 2, 0.0), 1: rot_zyx(0.0, 0.0, -np.pi / 2), 2: np.eye(3)}  # z onto x, y, z
 
@@ -149,9 +150,11 @@ def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = N
               joint_names: Sequence[str] | None = None) -> str:
     """URDF of a calibrated chain. A URDF robot needs its ``source`` text: only the ``<origin>`` of
     its moving joints changes (comments, ``<gazebo>``, ``<transmission>``… stay as they are). A DH/MDH
-    robot gets a new URDF (base_link, one link per joint, flange). ``tool_link``: add the tool point
-    as a fixed joint and link of that name. The result is read back and checked against the model."""
+    robot gets a new URDF (base_link, one link per joint, flange). The tool point (a probe, a ball the
+    calibration fitted) is a fixed joint and link named ``tool_link`` (default TOOL_LINK when it is
+    not zero). The result is read back and checked against the model, tool point included."""
     _geometric_only(robot)
+    tool_link = tool_link_of(robot, tool_link)
     if isinstance(robot, URDFRobot):
         if source is None:
             raise ModelError(f"robot '{robot.name}' came from a URDF: give that file (--from) so only its joint "
@@ -166,10 +169,17 @@ def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = N
             raise ModelError(f"robot '{robot.name}': its robot file names no URDF tip link (source: tip_link) to "
                              f"attach the tool link to")
         text = _add_tool(text, robot, tip, tool_link)
-    tool = tuple(robot.params[f"tool.{c}"] for c in "xyz")
-    check = read_urdf(text, "exported URDF", base, tool_link or tip, (0.0, 0.0, 0.0) if tool_link else tool)
+    check = read_urdf(text, "exported URDF", base, tool_link or tip, (0.0, 0.0, 0.0))  # the whole chain
     _check(robot, check.forward, "exported URDF")
     return text
+
+
+def tool_link_of(robot: Robot, name: str | None) -> str | None:
+    """The link a URDF export puts the tool point on: ``name``, else TOOL_LINK when the tool point
+    is not zero (it would be dropped otherwise), else none."""
+    if name or not robot.has_tool_point:
+        return name
+    return TOOL_LINK if np.any(robot.tool_point() != 0.0) else None
 
 
 def _edit_urdf(robot: URDFRobot, source: str) -> str:
@@ -280,7 +290,7 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
     summary: dict = {"format": fmt, "base_frame": {n: float(robot.params[n]) for n in robot.base_params()}}
     if fmt == "urdf":
         text = urdf_text(robot, _source(robot, source_path), tool_link, joint_names)
-        summary["missing_limits"] = missing_limits(robot)
+        summary.update(missing_limits=missing_limits(robot), tool_link=tool_link_of(robot, tool_link))
     elif fmt == "ur":
         text, extra = ur_calibration(robot, base_yaw)
         summary.update(extra)
