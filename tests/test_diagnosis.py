@@ -243,3 +243,51 @@ def test_a_drift_found_by_the_drift_term_is_a_reason():
     codes = [r.code for r in res.verdict.reasons]
     assert "drift-fitted" in codes and res.verdict.status == "suspect"
     assert kincal.calibrate(ur5, meas, drift=True).verdict.status == "good"
+
+
+def _bumped(shift, turn, at=149, n=300):
+    """UR10 tracker data whose frame moves by ``shift`` m and turns ``turn`` rad about z from index ``at`` on."""
+    robot = kincal.load_robot("ur10").with_tool_point([0.0, 0.0, 0.1])
+    true = kincal.perturb(robot, seed=2)
+    q = robot.sample_joints(n, seed=3)
+    m = kincal.simulate(true, q, 20e-6, seed=1)
+    xyz = m.xyz.copy()
+    xyz[at:] = xyz[at:] @ rot_zyx(turn, 0.0, 0.0).T + [shift, 0.0, 0.0]
+    return robot, true, kincal.Measurements(q, xyz, robot.joint_names, "bumped.csv")
+
+
+def test_a_bumped_tracker_is_named_with_its_row():
+    """A frame that moves by 2 mm and turns by 3 mrad at row 151 of one file: the diagnosis names the
+    jump and its row first, and with the file split the residual falls to the noise; the data as
+    simulated (no jump) give no jump, the model as fitted or as true."""
+    from kincal.io.unit_checks import frame_jump
+
+    robot, true, meas = _bumped(0.002, 0.003)
+    res = kincal.calibrate(robot, meas)
+    first = res.verdict.reasons[0]
+    assert first.code == "cause-frame-jump" and "frame jumps at row 151" in first.message
+    assert "one file per session" in first.message and res.diagnosis.best.sigma < 30e-6 < 0.1 * res.sigma
+    clean = kincal.simulate(true, meas.q, 20e-6, seed=1)
+    assert frame_jump(clean.xyz, true.forward(clean.q)) is None
+    assert frame_jump(clean.xyz, kincal.calibrate(robot, clean).robot.forward(clean.q)) is None
+
+
+def test_two_set_ups_in_one_file_are_named_not_a_unit(tmp_path, capsys):
+    """Two tracker set-ups 0.8 m and 23 deg apart in one file: the calibration is refused with the row
+    where the frame jumps as its likely cause (not a length unit, not the joint columns)."""
+    from kincal.cli import main
+
+    robot, _, meas = _bumped(0.8, 0.4)
+    kincal.write_measurements(str(tmp_path / "two.csv"), meas, robot.joint_types, length_unit="mm")
+    code = main(["calibrate", "ur10", str(tmp_path / "two.csv"), "--length-unit", "mm", "--tool", "0,0,100mm"])
+    err = capsys.readouterr().err
+    assert code == 4 and "likely cause: the measurement frame jumps at row 151" in err and "length unit" not in err
+
+
+def test_a_frame_jump_that_breaks_the_spread_is_named_by_the_reader(tmp_path):
+    """Set-ups 5 m apart make the measured spread 3x the robot's: the reader names the jump's row
+    instead of 'no length unit explains that factor'."""
+    robot, _, meas = _bumped(5.0, 2.0)
+    kincal.write_measurements(str(tmp_path / "far.csv"), meas, robot.joint_types, length_unit="mm")
+    with pytest.raises(MeasurementError, match="far.csv: the measurement frame jumps at row 151"):
+        kincal.read_measurements(str(tmp_path / "far.csv"), robot, length_unit="mm")

@@ -186,7 +186,7 @@ def _check_units(sets: list, robot, args) -> None:
         found = obs.positions()
         if found is not None:
             q, xyz = found
-            check_spread(obs.source, q, xyz, robot, args.length_unit, args.angle_unit)
+            check_spread(obs.source, q, xyz, robot, args.length_unit, args.angle_unit, rows=obs.rows)
 
 
 def sessions(sets: list, same_frame: bool) -> list:

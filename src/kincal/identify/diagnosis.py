@@ -15,11 +15,13 @@ fit's set-up, listed in this canonical order (ties go to the earlier one, :mod:`
 6. the robot file: a bundled robot with the same joints fits the data;
 7. the frame: ``base="fixed"`` on data measured in another frame (a tracker's);
 8. the tool point: not estimated, and mounted elsewhere than declared;
-9. a few bad poses: the rows a robust refit puts beyond ``outlier_z`` robust σ, left out.
+9. a frame that jumps inside the file (two set-ups, a bumped tracker): the split
+   (:func:`kincal.io.unit_checks.frame_jump` on the fitted model) fitted as two sessions;
+10. a few bad poses: the rows a robust refit puts beyond ``outlier_z`` robust σ, left out.
 
 Two stages keep it cheap. Candidates 1–6 change the data; each is screened by registering the
 nominal model to it (measurement frame and tool point only, ~10 ms for 80 poses). The MAX_FULL best
-screens that beat the data as given, and candidates 7–9, then get a full calibration with the user's
+screens that beat the data as given, and candidates 7–10, then get a full calibration with the user's
 options. A candidate explains the data when its verdict is better than the original one with a
 residual σ no more than NOT_WORSE times the original, or when its σ falls below EXPLAIN_RATIO times
 the original; those that do are ranked by verdict, then σ.
@@ -36,6 +38,7 @@ import numpy as np
 
 from ..errors import KincalError
 from ..io.measurements import Measurements
+from ..io.unit_checks import frame_jump
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import ANGLE_UNITS, LENGTH_UNITS, MM, OTHER_LENGTHS
 from ..ties import order_with_ties
@@ -100,7 +103,7 @@ class Diagnosis:
                 "found": [c.to_dict() for c in self.found]}
 
 
-Change = Callable[[Robot, Measurements, FitOptions], tuple[Robot, Measurements, FitOptions]]
+Change = Callable[[Robot, Measurements, FitOptions], tuple[Robot, "Measurements | list[Measurements]", FitOptions]]
 
 
 def _data(change: Callable[[Measurements], Measurements]) -> Change:
@@ -256,6 +259,20 @@ def _setups(robot: Robot, options: FitOptions) -> list[tuple[Cause, Change]]:
     return out
 
 
+def _jump(res: CalibrationResult) -> list[tuple[Cause, Change]]:
+    """A frame that jumps inside one file, where the fitted model sees it: the file as two sessions."""
+    meas = res.measurements
+    found = frame_jump(meas.xyz, res.robot.forward(meas.q)) if meas.session is None else None
+    if found is None:
+        return []
+    k, row = found[0], int(meas.rows[found[0]])
+    parts = [meas.subset(np.arange(k)), meas.subset(np.arange(k, len(meas)))]
+    return [(Cause("frame-jump", f"the measurement frame jumps at row {row} (two set-ups in one file, or the tracker "
+                                 f"was moved or bumped there)", f"split the file at row {row}: one file per session "
+                                                                f"(each gets its own frame)", rows=(row,)),
+             lambda r, m, o: (r, parts, o))]
+
+
 def outlier_poses(robot: Robot, meas: Measurements, options: FitOptions) -> np.ndarray:
     """Indices into ``meas`` of the poses a robust (Huber) refit puts more than ``outlier_z`` robust σ
     off, at most MAX_OUTLIER_SHARE of the poses (none when more are that far off: then it is not a few
@@ -273,10 +290,12 @@ def _quiet(options: FitOptions) -> FitOptions:
                            method="lm" if options.method == "pso" else options.method)
 
 
-def _screen(robot: Robot, meas: Measurements) -> float:
+def _screen(robot: Robot, meas: "Measurements | list[Measurements]") -> float:
     """Residual σ per axis (m) of the nominal model registered to ``meas`` (measurement frame and tool
-    point fitted, kinematics fixed); inf when that fit is impossible."""
+    point fitted, kinematics fixed); inf when that fit is impossible (or ``meas`` is several sessions)."""
     from .calibrate import calibrate
+    if isinstance(meas, list):
+        return math.inf
     tool = tuple(n for n in TOOL_NAMES if n in robot.params.names)
     base = "estimate" if robot.base_params() else "fixed"
     try:
@@ -287,10 +306,10 @@ def _screen(robot: Robot, meas: Measurements) -> float:
 
 def _full(cause: Cause, change: Change, robot: Robot, meas: Measurements, options: FitOptions) -> Cause | None:
     """``cause`` with the σ and verdict of the full calibration with its change applied (None if impossible)."""
-    from .calibrate import calibrate
+    from .calibrate import calibrate, calibrate_sessions
     try:
         r, m, o = change(robot, meas, _quiet(options))
-        res = calibrate(r, m, o)
+        res = calibrate_sessions(r, m, o) if isinstance(m, list) else calibrate(r, m, o)
     except (KincalError, ValueError, np.linalg.LinAlgError):
         return None
     return replace(cause, sigma=res.sigma, status=res.verdict.status)
@@ -306,7 +325,7 @@ def diagnose(res: CalibrationResult) -> Diagnosis:
     screened = [_screen(*change(robot, block, options)[:2]) for _, change in data]
     as_given = _screen(robot, block)
     order = [k for k in order_with_ties(screened, descending=False) if screened[k] < EXPLAIN_RATIO * as_given]
-    trials = [data[k] for k in sorted(order[:MAX_FULL])] + _setups(robot, options)
+    trials = [data[k] for k in sorted(order[:MAX_FULL])] + _setups(robot, options) + _jump(res)
     bad = outlier_poses(robot, meas, options) if len(meas) > 10 else np.zeros(0, dtype=int)
     if len(bad):
         rows = meas.rows[bad]

@@ -115,7 +115,7 @@ class Measurements:
         check_degrees(self.source, self.q, robot, angle_unit)
         if len(self) >= 3:
             check_spread(self.source, self.q, self.xyz, robot, length_unit or (self.units[0] if self.units else None),
-                         angle_unit or (self.units[1] if self.units else None))
+                         angle_unit or (self.units[1] if self.units else None), rows=self.rows)
 
 
 def _joint_columns(path: str, robot: Robot, joint_cols: Sequence[str] | None) -> list[str]:

@@ -11,6 +11,8 @@ from ..units import LENGTH_UNITS, OTHER_LENGTHS
 
 MIN_SPREAD = 1e-3  # m: below this the poses barely move the tool, and noise decides the spread
 SPREAD_RATIO = 2.0  # measured vs predicted spread at the same poses; model errors change it by < 1 %
+JUMP_RATIO = 0.25  # two frames leave less than this share of one frame's RMS: the frame jumps inside the file
+MIN_PART = 10  # poses on either side of a frame jump (fewer fit any frame)
 
 
 def spread(x: np.ndarray) -> float:
@@ -21,10 +23,11 @@ def spread(x: np.ndarray) -> float:
 
 
 def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, length_unit: str | None,
-                 angle_unit: str | None, what: str = "measured positions") -> None:
+                 angle_unit: str | None, what: str = "measured positions", rows: np.ndarray | None = None) -> None:
     """MeasurementError when the measured spread of ``xyz`` (N, 3) differs from the robot's at the
     joints ``q`` by more than SPREAD_RATIO: a unit mistake, named (the joint values read in the
-    other angle unit first, then the unit the positions are really in)."""
+    other angle unit first, then a frame that jumps inside the file, at its row of ``rows``, then the
+    unit the positions are really in)."""
     predicted = spread(robot.forward(q))
     ratio = spread(xyz) / max(predicted, 1e-300)
     if predicted > MIN_SPREAD and 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
@@ -38,8 +41,52 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
                                    f"{max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the "
                                    f"{what} spread, read as radians they match: use angle unit 'rad' "
                                    f"(CLI: --angle-unit rad)")
+    jump = frame_jump(xyz, robot.forward(q))
+    if jump is not None:
+        raise MeasurementError(jump_text(source, jump, rows))
     if predicted > MIN_SPREAD:
         raise MeasurementError(f"{source}: {unit_hint(ratio, length_unit, what)}")
+
+
+def frame_jump(xyz: np.ndarray, model: np.ndarray, min_part: int = MIN_PART) -> tuple[int, float, float] | None:
+    """Where the measurement frame jumps inside one file: the first index k of the second part and
+    the RMS (m) of the positions xyz (N, 3) against the model's model (N, 3) with one rigid frame for
+    all and with one for each part (rows before k and from k on), for the k that fits best; None
+    unless two frames leave less than JUMP_RATIO of one frame's RMS (two set-ups, a bumped tracker)."""
+    n = len(xyz)
+    if n < 2 * min_part:
+        return None
+    cum = [np.cumsum(a, axis=0) for a in (np.ones(n), xyz, model, np.sum(xyz**2, 1) + np.sum(model**2, 1),
+                                          xyz[:, :, None] * model[:, None, :])]
+    total = [c[-1] for c in cum]
+    k = np.arange(min_part, n - min_part + 1)  # the second part's first index
+    head = [c[k - 1] for c in cum]
+    tail = [t - h for t, h in zip(total, head)]
+    two = _rigid_sse(*head) + _rigid_sse(*tail)
+    one = float(_rigid_sse(*[t[None] for t in total])[0])
+    best = int(np.argmin(two))
+    rms_one, rms_two = np.sqrt(one / n), float(np.sqrt(max(two[best], 0.0) / n))
+    return (int(k[best]), float(rms_one), rms_two) if rms_two < JUMP_RATIO * rms_one else None
+
+
+def _rigid_sse(n, sx, sp, sq, sxp) -> np.ndarray:
+    """Sum of squared distances left by the best rigid motion of the points x onto p, from their
+    sums: count n (K,), Σx and Σp (K, 3), Σ(|x|² + |p|²) (K,), Σ x pᵀ (K, 3, 3) (Kabsch)."""
+    H = sxp - sx[:, :, None] * sp[:, None, :] / n[:, None, None]
+    s = np.linalg.svd(H, compute_uv=False)
+    s[:, -1] *= np.sign(np.linalg.det(H))  # a reflection is not a frame
+    return sq - (np.sum(sx**2, 1) + np.sum(sp**2, 1)) / n - 2 * s.sum(axis=1)
+
+
+def jump_text(source: str, jump: tuple[int, float, float], rows: np.ndarray | None) -> str:
+    """The message naming a frame jump found by :func:`frame_jump` (``rows``: the file's line of each
+    position; default: the data rows after a header line)."""
+    k, one, two = jump
+    row = int(rows[k]) if rows is not None else k + 2
+    return (f"{source}: the measurement frame jumps at row {row}: the rows before it and those from it on each fit "
+            f"the robot in a frame of their own (RMS {two * 1e3:.3g} mm against {one * 1e3:.3g} mm in one frame): two "
+            f"set-ups in one file, or the tracker was moved or bumped there; give one file per session (each gets "
+            f"its own frame)")
 
 
 def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | None) -> None:
