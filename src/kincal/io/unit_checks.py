@@ -65,8 +65,8 @@ def frame_jump(xyz: np.ndarray, model: np.ndarray, min_part: int = MIN_PART) -> 
     two = _rigid_sse(*head) + _rigid_sse(*tail)
     one = float(_rigid_sse(*[t[None] for t in total])[0])
     best = int(np.argmin(two))
-    rms_one, rms_two = np.sqrt(one / n), float(np.sqrt(max(two[best], 0.0) / n))
-    return (int(k[best]), float(rms_one), rms_two) if rms_two < JUMP_RATIO * rms_one else None
+    rms_one, rms_two = float(np.sqrt(max(one, 0.0) / n)), float(np.sqrt(max(two[best], 0.0) / n))  # round-off: ≥ 0
+    return (int(k[best]), rms_one, rms_two) if rms_two < JUMP_RATIO * rms_one else None
 
 
 def _rigid_sse(n, sx, sp, sq, sxp) -> np.ndarray:
