@@ -228,3 +228,26 @@ def test_simulate_says_how_to_read_its_file_back(tmp_path, capsys, kind):
     assert main(["calibrate", "ur5", str(path), *hint]) in (0, 4)
     assert "looks like" not in capsys.readouterr().err
     assert main(["calibrate", "ur5", str(path), "--type", kind]) == 1
+
+
+def test_files_with_the_robot_stacks_joint_names_are_read_without_joint_cols(tmp_path):
+    """A bundled UR's joints are j1..j6 in kincal and shoulder_pan_joint … in UR's ROS description (its
+    robot file's names:): a file headed with either is read alike, points and 6-D poses; another
+    header still names the columns it looks for."""
+    import kincal
+    from kincal.errors import MeasurementError
+    from kincal.observe import ObservationFormat, read_observations
+
+    robot = kincal.load_robot("ur10")
+    m = kincal.simulate(robot, robot.sample_joints(20, seed=1), 0.0, seed=1)
+    kincal.write_measurements(str(tmp_path / "own.csv"), m, robot.joint_types)
+    lines = (tmp_path / "own.csv").read_text().splitlines()
+    assert lines[0].startswith("j1,j2,j3,j4,j5,j6,")
+    (tmp_path / "ros.csv").write_text("\n".join([lines[0].replace("j1,j2,j3,j4,j5,j6", ",".join(robot.stack_names)),
+                                                 *lines[1:]]) + "\n")
+    ros = kincal.read_measurements(str(tmp_path / "ros.csv"), robot)
+    assert robot.stack_names[0] == "shoulder_pan_joint" and np.array_equal(ros.q, m.q)
+    assert np.array_equal(read_observations(str(tmp_path / "ros.csv"), robot, ObservationFormat("point")).q, m.q)
+    (tmp_path / "other.csv").write_text("\n".join([lines[0].replace("j1,", "a1,"), *lines[1:]]) + "\n")
+    with pytest.raises(MeasurementError, match="j1"):
+        kincal.read_measurements(str(tmp_path / "other.csv"), robot)

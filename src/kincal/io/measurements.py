@@ -118,8 +118,10 @@ class Measurements:
                          angle_unit or (self.units[1] if self.units else None), rows=self.rows)
 
 
-def _joint_columns(path: str, robot: Robot, joint_cols: Sequence[str] | None) -> list[str]:
-    cols = list(joint_cols) if joint_cols is not None else list(robot.joint_names)
+def _joint_columns(path: str, robot: Robot, joint_cols: Sequence[str] | None, header: Sequence[str] = ()) -> list[str]:
+    """The joint columns: as given, else the robot's default for this header (its joints' names, or
+    their robot-stack names), checked to be one per joint."""
+    cols = list(joint_cols) if joint_cols is not None else robot.default_columns(header)
     if len(cols) != robot.n_joints:
         raise MeasurementError(
             f"{path}: {len(cols)} joint columns given ({', '.join(cols)}) but robot '{robot.name}' "
@@ -149,9 +151,9 @@ def read_joints(
 ) -> np.ndarray:
     """Joint values (N, n) in rad/m from a CSV with a header (e.g. poses to measure)."""
     path = str(path)
-    cols = _joint_columns(path, robot, joint_cols)
     units = _joint_units(robot.joint_types, length_unit, angle_unit, path)
-    q = open_table(path).numbers(cols, units, what="joint values")
+    table = open_table(path)
+    q = table.numbers(_joint_columns(path, robot, joint_cols, table.header), units, what="joint values")
     check_degrees(path, q, robot, angle_unit)
     return q
 
@@ -188,13 +190,14 @@ def read_measurements(
     skipped; every column is checked as ``_csv.Table`` checks it, errors naming the file, row and column.
     """
     path = str(path)
-    cols = _joint_columns(path, robot, joint_cols)
+    _joint_columns(path, robot, joint_cols)  # one per joint, before the file is read
     if len(xyz_cols) != 3:
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
     if std_cols is not None and len(std_cols) not in (0, 3):
         raise MeasurementError(f"{path}: give three σ columns (x, y, z) or none, got {list(std_cols)}")
     units = _joint_units(robot.joint_types, length_unit, angle_unit, path)
     table = open_table(path)
+    cols = _joint_columns(path, robot, joint_cols, table.header)
     if std_cols is None:  # the σ columns by their usual names when the header has all three
         std_cols = STD_COLUMNS if all(c in table.header for c in STD_COLUMNS) else ()
     data = table.numbers(cols + list(xyz_cols) + list(std_cols), units + [length_unit] * (3 + len(std_cols)))

@@ -259,6 +259,17 @@ class Robot(ABC):
             )
         return q
 
+    @property
+    def stack_names(self) -> tuple[str, ...]:
+        """The joints' names in the robot stack (URDF, ROS: a robot file's ``names:``); default their own."""
+        return self.joint_names
+
+    def default_columns(self, header: Sequence[str]) -> list[str]:
+        """The joint columns of a file with ``header`` when none are given: the joints' own names, or
+        their robot-stack names (UR's shoulder_pan_joint …) when the file has those and not these."""
+        own, stack = list(self.joint_names), list(self.stack_names)
+        return stack if not set(own) <= set(header) and set(stack) <= set(header) else own
+
     def within_limits(self, q: np.ndarray, margin: float = 1e-12) -> np.ndarray:
         """(N,) bool: every joint inside its limits (widened by ``margin``, rad or m)."""
         q = self.check_q(q)

@@ -299,6 +299,10 @@ class SerialRobot(ChainRobot):
         return tuple(j.export_name or j.name for j in self.moving)
 
     @property
+    def stack_names(self) -> tuple[str, ...]:
+        return self.export_names
+
+    @property
     def has_beta(self) -> bool:
         return any(j.beta for j in self.joints)
 

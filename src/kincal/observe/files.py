@@ -155,7 +155,7 @@ def _need(t: Table, cols, fmt: ObservationFormat, what: str) -> None:
 
 
 def _joints(t: Table, robot: Robot, fmt: ObservationFormat) -> np.ndarray:
-    cols = list(fmt.joint_cols or robot.joint_names)
+    cols = list(fmt.joint_cols or robot.default_columns(t.header))
     if len(cols) != robot.n_joints:
         raise MeasurementError(f"{t.path}: {len(cols)} joint columns given ({', '.join(cols)}) but robot "
                                f"'{robot.name}' has {robot.n_joints} joints; give one column per joint")
