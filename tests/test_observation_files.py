@@ -499,4 +499,34 @@ def test_evaluate_a_pose_file_with_the_probe_as_calibrated(tmp_path, capsys):
     R = np.array(kincal.models.load_calibration_record(cal)["setup"]["target_rotation"])
     assert np.allclose(R @ R.T, np.eye(3), atol=1e-12) and np.linalg.det(R) == pytest.approx(1.0)
     code, again, _ = _run(capsys, ["evaluate", robot, odd, *cols])  # the nominal file: no set-up to keep
-    assert code == 0 and again["sessions"][0]["setup_as_trained"] == []
+    assert code == 0 and again["sessions"][0]["setup_as_trained"] == [] and again["sessions"][0]["nominal"] is None
+    # beside it, the nominal kinematics with their frame and target point fitted to the same file: the
+    # calibration's held-out "before" (its point registered to the training file instead) within 0.1 mm
+    assert got["mean_mm"] < got["nominal"]["mean_mm"] < held_nominal(fit)["mean_mm"] + 0.1
+
+
+def held_nominal(fit: dict) -> dict:
+    return fit["held_out_nominal"][0]
+
+
+def test_evaluate_a_moved_camera_judged_in_the_same_frame_names_the_cause(tmp_path, capsys):
+    """Odd rows of the positioner seen from a camera moved by 0.28 m and 0.3 rad, evaluated with
+    --same-frame: the error is hundreds of mm, and the likely cause is the position path's (the
+    frame re-registered brings it to the calibration's held-out error: the camera moved)."""
+    rows = list(csv.DictReader(open(ROOT / "data" / "positioner_6d" / "measurements.csv")))
+    keys = list(rows[0])
+    M, t = Rotation.from_rotvec([0.02, -0.01, 0.3]), np.array([0.25, -0.1, 0.05])
+    moved = []
+    for r in rows[1::2]:
+        p = M.apply([float(r[k]) for k in "xyz"]) + t
+        q = (M * Rotation.from_quat([float(r[k]) for k in ("qx", "qy", "qz", "qw")])).as_quat()
+        moved.append([*(r[k] for k in keys[:3]), *p, q[3], *q[:3]])
+    even = _write(tmp_path / "even.csv", keys, [[r[k] for k in keys] for r in rows[0::2]])
+    odd = _write(tmp_path / "moved.csv", keys[:3] + ["x", "y", "z", "qw", "qx", "qy", "qz"], moved)
+    robot = str(ROOT / "data" / "positioner_6d" / "positioner.yaml")
+    cols = ["--type", "pose", "--joint-cols", "q1,q2"]
+    assert _run(capsys, ["calibrate", robot, even, "-o", str(tmp_path / "cal.yaml"), *cols])[0] == 0
+    code, ev, _ = _run(capsys, ["evaluate", str(tmp_path / "cal.yaml"), odd, "--same-frame", *cols])
+    got = ev["sessions"][0]
+    assert code == 0 and got["mean_mm"] > 100 and "the tracker moved between sessions" in got["cause"]
+    assert "with the measurement frame re-registered it is 0.38" in got["cause"]

@@ -426,3 +426,27 @@ def test_sessions_fit_together_equal_the_alternation_run_to_convergence():
     def total(m):
         return sum(float(np.sum((refit_frame(m, s).forward(s.q) - s.xyz) ** 2)) for s in sessions)
     assert total(new.robot) <= total(model) * (1 + 1e-9)
+
+
+def test_evaluate_shows_the_nominal_figure_beside_the_calibrated_one(tmp_path, capsys):
+    """evaluate of a calibrated UR5 file on the held-out real session prints the nominal model's
+    figure beside the calibrated one: its frame and target point fitted to the session — the same
+    mean as an independent least-squares fit of those 9 numbers (scipy), to 1e-7 mm."""
+    from scipy.optimize import least_squares
+
+    units = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
+    cal = tmp_path / "cal.yaml"
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *units, "-o", str(cal)]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(cal), str(DATA / "ur5_random.csv"), *units, "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    nominal = kincal.load_robot("ur5")
+    meas = kincal.read_measurements(str(DATA / "ur5_random.csv"), nominal, UR5_COLS, length_unit="mm",
+                                    angle_unit="deg")
+    names = (*nominal.base_params(), *TOOL_NAMES)
+
+    def errors(x):
+        return (nominal.with_params(dict(zip(names, x))).forward(meas.q) - meas.xyz).ravel()
+    fit = least_squares(errors, [nominal.params[n] for n in names], xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    reference = float(np.mean(np.linalg.norm(fit.fun.reshape(-1, 3), axis=1)))
+    assert got["nominal_mean"] == pytest.approx(reference, abs=1e-10) and got["mean"] < 0.25 * reference

@@ -20,7 +20,7 @@ from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, add_data_flags, add_robot
                      hidden_alias, load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs,
                      row_list)
 from . import observe
-from .report import add_session_flags, data_record, json_path, save_figures, write_outputs
+from .report import add_session_flags, data_record, json_path, nominal_model, save_figures, write_outputs
 
 
 def _thresholds(args) -> kincal.Thresholds:
@@ -213,11 +213,17 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
     train_error = _training_error(record)
     cause = kincal.identify.heldout_cause(model, meas, train_error, not args.same_frame) if train_error else ""
     texts = [f"{r.name} on {path} ({how}): {stats}" + (f"\n  likely cause: {cause}" if cause else "")]
+    nominal = nominal_model(r, record, args.robot)
+    before = None if nominal is None else kincal.evaluate(
+        kincal.identify.register_mounting(nominal, meas.q, meas.xyz), meas).mean
+    if before is not None:
+        texts.append(f"  nominal, its frame and target point registered to these data: mean {before * MM:.4f} mm "
+                     f"→ calibrated {stats.mean * MM:.4f} mm")
     if stem:
         from kincal.report import evaluation_figures
 
         texts += save_figures(evaluation_figures(model, meas), stem)
-    return {"file": path, "registration": how, **stats.to_dict(), "cause": cause or None}, texts
+    return {"file": path, "registration": how, **stats.to_dict(), "nominal_mean": before, "cause": cause or None}, texts
 
 
 def _training_error(record: dict | None) -> float:

@@ -291,21 +291,51 @@ def cmd_identifiability(args, kind: str) -> int:
 def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: str | None) -> tuple[dict, list[str]]:
     """``robot`` on one observation file, its kinematics fixed; only the set-up parameters (and,
     unless --same-frame, the file's measurement frame) are fitted, the probe's rotation and the
-    markers held as calibrated (``record``): the JSON payload and the lines to print."""
-    from kincal.identify import fit_observations, stat_line, trained_setup
+    markers held as calibrated (``record``), and the nominal model the same way beside it: the JSON
+    payload and the lines to print, with the likely cause of an error far above the training error."""
+    from kincal.identify import stat_line, trained_setup
+    from .report import nominal_model
 
     held, anchors = trained_setup(record, args.robot)
-    obs = read_set(args, robot, path, kind)
+    obs = read_set(args, robot, path, kind).with_anchors(anchors)
     frame = () if args.same_frame or kind not in ABSOLUTE else robot.base_params()
-    fit = fit_observations(robot, [obs.with_anchors(anchors)], names=frame, base="estimate" if frame else "fixed",
-                           held=held)
-    s = fit.per_set[0]
+    fit = _fixed_kinematics(robot, obs, frame, held)
+    nominal = nominal_model(robot, record, args.robot)
+    mounting = (*(robot.base_params() if kind in ABSOLUTE else ()), *(n for n in robot.params.names
+                                                                      if n.startswith("tool.")))
+    s, before = fit.per_set[0], None if nominal is None else _fixed_kinematics(nominal, obs, mounting, held).per_set[0]
     kept = sorted({"probe rotation" if n.startswith("target.") else "marker points" for n in held if n in fit.nuisance})
     texts = [line for line in plots(stem, fit, "held-out").split("\n") if line]
     texts.append(f"{robot.name} on {path} ({kind}; kinematics fixed, {'frame and ' if frame else ''}set-up "
                  f"parameters fitted{', the ' + ' and '.join(kept) + ' as calibrated' if kept else ''}): "
-                 f"{stat_line(s)}")
+                 f"{stat_line(s)}" + ("" if before is None else f"  (nominal, its frame and target point fitted: "
+                                                                f"{stat_line(before)})"))
     texts += [f"  {g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
               f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
               for g in s.get("groups", [])]
-    return {"file": path, "frame_fitted": bool(frame), "setup_as_trained": kept, **s}, texts
+    cause = _cause(robot, obs, record, frame)
+    texts += [f"  likely cause: {cause}"] if cause else []
+    return {"file": path, "frame_fitted": bool(frame), "setup_as_trained": kept, **s, "nominal": before,
+            "cause": cause or None}, texts
+
+
+def _fixed_kinematics(robot, obs, frame: tuple, held: dict):
+    """``robot`` fitted to one set with its kinematics fixed: only ``frame`` and the set-up parameters
+    not ``held``."""
+    from kincal.identify import fit_observations
+
+    return fit_observations(robot, [obs], names=frame, base="estimate" if frame else "fixed", held=held)
+
+
+def _cause(robot, obs, record: dict | None, frame: tuple) -> str:
+    """For a set with positions judged in the calibration's frame: the position path's likely cause
+    of an error far above the training error (the tracker moved, another tool point, a scale)."""
+    from kincal.identify import heldout_cause
+
+    train = [s.get("mean_mm") for s in (record or {}).get("observations", []) if isinstance(s, dict)
+             and s.get("type") == obs.kind]
+    found = obs.positions()
+    if frame or found is None or not train or not isinstance(train[0], (int, float)) or train[0] <= 0:
+        return ""
+    meas = kincal.Measurements(found[0], found[1], robot.joint_names, obs.source, obs.rows)
+    return heldout_cause(robot, meas, float(train[0]) / 1e3, rebased=False)

@@ -153,6 +153,14 @@ def _use_q(value, robot, path: str) -> np.ndarray | None:
     return q
 
 
+def nominal_model(cal, record: dict | None, path: str):
+    """The nominal model a calibrated file was fitted from (its record's nominal values, checked), or
+    None for a file without a calibration record."""
+    if not record or "nominal" not in record:
+        return None
+    return cal.with_params(_nominal(record["nominal"], path))
+
+
 def _nominal(values, robot: str) -> dict[str, float]:
     """The record's nominal parameter values, checked to be numbers."""
     values = _mapping(values, robot, "nominal")

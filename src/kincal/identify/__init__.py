@@ -8,9 +8,10 @@ from .robust import LOSSES
 from .select import ErrorModelChoice
 from .stacked import observation_identifiability
 from .sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
+from .registration import register_mounting
 from .verdict import Reason, Thresholds, Verdict
 
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "RESIDUALS", "CalibrationResult", "EvaluationStats", "LOSSES",
            "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
            "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "observation_identifiability", "stat_line", "trained_setup",
-           "SCOPES", "refuse_inapplicable", "joined", "ABSOLUTE", "held_out_stats"]
+           "SCOPES", "refuse_inapplicable", "joined", "ABSOLUTE", "held_out_stats", "register_mounting"]
