@@ -2,11 +2,15 @@
 
 With the parameter covariance C (K × K, from the fit) the model's predicted position at joint values
 q has the covariance J C Jᵀ (J: the 3 × K position Jacobian of the fitted parameters), so its 3-D
-standard deviation is σ(q) = sqrt(trace(J C Jᵀ)). Where the calibration poses constrained the model,
-σ(q) stays near its median over those poses (they themselves reach about 1.8× it on real data); far
-from them it grows. A pose with σ(q) above ``EXTRAPOLATION_RATIO`` (2.5) times the training median
-lies where the data did not constrain the model: its prediction is an extrapolation, and the more
-flexible the error model, the less it should be trusted there.
+standard deviation is σ(q) = sqrt(trace(J C Jᵀ)). Inside the region the calibration poses spanned,
+σ(q) stays within what it is over that region: the reference is its 95th percentile over
+ENVELOPE_POSES poses drawn evenly in the training joint ranges (a designed set of poses, or a grid
+that spans a subspace, has a median σ 1–3× below that of the region it spans). A pose with σ(q)
+above ``ENVELOPE_FACTOR`` (1.25) times that reference lies where the data did not constrain the
+model: its prediction is an extrapolation (on the real UR5 grid 0.7 % of poses drawn in its own
+joint ranges, 24 % of poses drawn in ranges twice as wide); the more flexible the error model, the
+less it should be trusted there. A record without the reference (an older calibration) is judged by
+``EXTRAPOLATION_RATIO`` (2.5) times the median σ at the training poses.
 
 The training joint ranges (the envelope) are kept too. A model with joint-value terms (harmonics,
 compliance, gravity regressor) learned those terms only inside them: a pose with a joint more than
@@ -27,6 +31,8 @@ from ..models.yaml_io import load_calibration_record
 from ..units import DEG, MM
 
 EXTRAPOLATION_RATIO = 2.5
+ENVELOPE_FACTOR = 1.25
+ENVELOPE_POSES = 2000  # poses drawn in the training joint ranges for the reference σ (seed 0)
 ENVELOPE_MARGIN = 0.02
 SIGMA_CHUNK = 4096  # poses per parameter Jacobian when computing σ
 
@@ -40,12 +46,26 @@ class ModelUncertainty:
     training_median: float
     lower: np.ndarray | None = None  # (n,) training joint ranges (rad or m); None: not recorded
     upper: np.ndarray | None = None
+    envelope_sigma: float | None = None  # 95th percentile of σ over the training joint ranges (m); None: not recorded
 
     @classmethod
     def from_fit(cls, robot: Robot, names, covariance: np.ndarray, q_train: np.ndarray) -> "ModelUncertainty":
         unc = cls(tuple(names), np.asarray(covariance, dtype=float), 0.0)
-        return cls(unc.names, unc.covariance, float(np.median(unc.sigma(robot, q_train))), q_train.min(axis=0),
-                   q_train.max(axis=0))
+        lo, hi = q_train.min(axis=0), q_train.max(axis=0)
+        return cls(unc.names, unc.covariance, float(np.median(unc.sigma(robot, q_train))), lo, hi,
+                   unc._envelope_sigma(robot, lo, hi))
+
+    def _envelope_sigma(self, robot: Robot, lo: np.ndarray, hi: np.ndarray) -> float | None:
+        """The 95th percentile of σ at ENVELOPE_POSES feasible poses drawn evenly in the joint ranges
+        (lo, hi); None when fewer than a tenth of them are feasible (coupled joints)."""
+        q = np.random.default_rng(0).uniform(lo, hi, size=(ENVELOPE_POSES, len(lo)))
+        q = q[robot.feasible(q)]
+        if len(q) < ENVELOPE_POSES // 10:
+            return None
+        try:
+            return float(np.percentile(self.sigma(robot, q), 95))
+        except ModelError:  # a pose the model cannot compute (a closed chain outside its workspace)
+            return None
 
     def outside(self, q: np.ndarray, revolute: np.ndarray | None = None) -> np.ndarray:
         """(N,) bool: a joint lies outside its training range by more than ENVELOPE_MARGIN of it (the
@@ -76,14 +96,23 @@ class ModelUncertainty:
         return np.sqrt(np.maximum(var, 0.0))
 
     def extrapolated(self, sigma: np.ndarray) -> np.ndarray:
-        """(N,) bool: σ above EXTRAPOLATION_RATIO times the training median."""
-        return sigma > EXTRAPOLATION_RATIO * self.training_median
+        """(N,) bool: σ above the limit (:meth:`limit`)."""
+        return sigma > self.limit()
+
+    def limit(self) -> float:
+        """The σ (m) above which a prediction is an extrapolation: ENVELOPE_FACTOR times the training
+        region's 95th percentile, else EXTRAPOLATION_RATIO times the training median."""
+        if self.envelope_sigma is not None:
+            return ENVELOPE_FACTOR * self.envelope_sigma
+        return EXTRAPOLATION_RATIO * self.training_median
 
     def to_dict(self) -> dict:
         out = {"parameters": list(self.names), "covariance": self.covariance.tolist(),
                "training_median_sigma": self.training_median}
         if self.lower is not None and self.upper is not None:
             out["envelope"] = {"lower": self.lower.tolist(), "upper": self.upper.tolist()}
+        if self.envelope_sigma is not None:
+            out["envelope_sigma"] = self.envelope_sigma
         return out
 
     @classmethod
@@ -98,16 +127,19 @@ class ModelUncertainty:
             key = "envelope"
             env = data.get(key)
             lo, hi = (None, None) if env is None else (np.array(env["lower"], float), np.array(env["upper"], float))
+            key = "envelope_sigma"
+            ref = None if data.get(key) is None else float(data[key])
         except (KeyError, TypeError, ValueError) as exc:
             what = "is missing" if isinstance(exc, KeyError) and str(exc).strip("'") == key else "is malformed"
             raise ModelError(f"{label}: the 'calibration' section's '{key}' {what}; calibrate again or remove the "
                              f"section") from None
-        if cov.shape != (len(names), len(names)) or not np.all(np.isfinite(cov)) or not np.isfinite(med):
+        if cov.shape != (len(names), len(names)) or not np.all(np.isfinite(cov)) or not np.isfinite(med) or \
+                (ref is not None and not (np.isfinite(ref) and ref > 0)):
             raise ModelError(f"{label}: the 'calibration' covariance must be a finite {len(names)}x{len(names)} "
                              f"matrix; calibrate again or remove the section")
         if lo is not None and hi is not None and (lo.shape != hi.shape or lo.ndim != 1 or not np.all(lo <= hi)):
             raise ModelError(f"{label}: the 'calibration' envelope must give lower <= upper per joint")
-        return cls(names, cov, med, lo, hi)
+        return cls(names, cov, med, lo, hi, ref)
 
 
 def _listed(value) -> list:
@@ -125,9 +157,14 @@ def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncerta
         return None
     where = _beyond(q[bad], robot, unc) if q is not None and robot is not None else ""
     return (f"{int(bad.sum())} pose(s) lie where the calibration data did not constrain the model (predicted σ up to "
-            f"{sigma[bad].max() / unc.training_median:.1f}x the training median {unc.training_median * MM:.4f} mm, "
-            f"limit {EXTRAPOLATION_RATIO:g}x){where}: row(s) {listed(rows[bad])}; measure calibration poses "
-            f"there too")
+            f"{sigma[bad].max() * MM:.4f} mm, {sigma[bad].max() / unc.limit():.1f}x the limit {unc.limit() * MM:.4f} mm"
+            f"{_limit_words(unc)}){where}: row(s) {listed(rows[bad])}; measure calibration poses there too")
+
+
+def _limit_words(unc: ModelUncertainty) -> str:
+    if unc.envelope_sigma is not None:
+        return f": {ENVELOPE_FACTOR:g}x the 95th percentile over the training joint ranges"
+    return f": {EXTRAPOLATION_RATIO:g}x the median at the training poses"
 
 
 def _beyond(q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> str:
