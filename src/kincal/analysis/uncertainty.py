@@ -163,7 +163,7 @@ def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncerta
 
 def _limit_words(unc: ModelUncertainty) -> str:
     if unc.envelope_sigma is not None:
-        return f": {ENVELOPE_FACTOR:g}x the 95th percentile over the training joint ranges"
+        return f": {ENVELOPE_FACTOR:g}x its 95th percentile over the region the calibration poses span"
     return f": {EXTRAPOLATION_RATIO:g}x the median at the training poses"
 
 

@@ -301,14 +301,14 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
     frame = () if args.same_frame or kind not in ABSOLUTE else robot.base_params()
     fit = _fixed_kinematics(robot, obs, frame, held)
     nominal = nominal_model(robot, record, args.robot)
-    mounting = (*(robot.base_params() if kind in ABSOLUTE else ()), *(n for n in robot.params.names
-                                                                      if n.startswith("tool.")))
+    mounting = (*(robot.base_params() if kind in ABSOLUTE else ()),  # the point only where the data fix a scale
+                *(n for n in robot.params.names if n.startswith("tool.") and obs.reference))
     s, before = fit.per_set[0], None if nominal is None else _fixed_kinematics(nominal, obs, mounting, held).per_set[0]
     kept = sorted({"probe rotation" if n.startswith("target.") else "marker points" for n in held if n in fit.nuisance})
     texts = [line for line in plots(stem, fit, "held-out").split("\n") if line]
     texts.append(f"{robot.name} on {path} ({kind}; kinematics fixed, {'frame and ' if frame else ''}set-up "
                  f"parameters fitted{', the ' + ' and '.join(kept) + ' as calibrated' if kept else ''}): "
-                 f"{stat_line(s)}" + ("" if before is None else f"  (nominal, its frame and target point fitted: "
+                 f"{stat_line(s)}" + ("" if before is None else f"  (nominal, {_fitted_words(mounting)}: "
                                                                 f"{stat_line(before)})"))
     texts += [f"  {g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
               f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
@@ -317,6 +317,12 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
     texts += [f"  likely cause: {cause}"] if cause else []
     return {"file": path, "frame_fitted": bool(frame), "setup_as_trained": kept, **s, "nominal": before,
             "cause": cause or None}, texts
+
+
+def _fitted_words(names: tuple) -> str:
+    """'its frame and target point fitted' for the base and tool names fitted (or 'as declared')."""
+    parts = [w for w, p in (("frame", "base."), ("target point", "tool.")) if any(n.startswith(p) for n in names)]
+    return f"its {' and '.join(parts)} fitted" if parts else "its frame and target point as declared"
 
 
 def _fixed_kinematics(robot, obs, frame: tuple, held: dict):
