@@ -530,3 +530,21 @@ def test_evaluate_a_moved_camera_judged_in_the_same_frame_names_the_cause(tmp_pa
     got = ev["sessions"][0]
     assert code == 0 and got["mean_mm"] > 100 and "the tracker moved between sessions" in got["cause"]
     assert "with the measurement frame re-registered it is 0.38" in got["cause"]
+
+
+def test_an_euler_file_read_in_the_reversed_convention_is_named(tmp_path, capsys):
+    """UR10 poses written as intrinsic XYZ angles (simulate's hint says how to read them back) and
+    read as extrinsic ZYX — the same letters reversed and the other mode, the mistake the robot could
+    bend to: calibrate and evaluate refuse the file naming euler-xyz-intrinsic-deg; the hint's flags
+    read it and calibrate it good."""
+    units = ["--length-unit", "mm", "--angle-unit", "deg", "--tool", "0,0,100mm"]
+    path = str(tmp_path / "e.csv")
+    code, out, _ = _run(capsys, ["simulate", "ur10", "--type", "pose", "--perturb", "--poses", "80", "--orientation",
+                                 "euler-xyz-intrinsic-deg", "-o", path, *units])
+    assert code == 0 and "--orientation euler-xyz-intrinsic-deg" in out["flags"]
+    for command in ("calibrate", "evaluate"):
+        code, _, err = _run(capsys, [command, "ur10", path, "--type", "pose", "--orientation",
+                                     "euler-zyx-extrinsic-deg", *units])
+        assert code == 1 and "the file looks like euler-xyz-intrinsic-deg" in err, err
+    code, fit, _ = _run(capsys, ["calibrate", "ur10", path, *out["flags"].split()[2:], "--type", "pose", *units])
+    assert code == 0 and fit["verdict"]["status"] == "good"

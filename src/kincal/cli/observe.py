@@ -262,7 +262,8 @@ def cmd_simulate(args, kind: str, true, q) -> int:
     robot = load_robot(args)
     obs = planned(args, robot, true, kind, q, args.noise / 1e3, args.seed + 1)
     write_observations(args.output, obs, robot, format_of(args, kind))
-    use = flags_to_use(obs, args.length_unit) + units_to_use(args)
+    use = flags_to_use(obs, args.length_unit) + units_to_use(args) + (
+        f" --orientation {args.orientation}" if kind == "pose" and args.orientation != "quat-wxyz" else "")
     emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
          f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them with: {use}")
     return 0

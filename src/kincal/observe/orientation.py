@@ -20,6 +20,7 @@ import re
 import numpy as np
 
 from ..errors import MeasurementError
+from ..ties import first_best
 from ..units import ANGLE_UNITS, MRAD
 
 EULER = re.compile(r"^euler-([xyz]{3})-(intrinsic|extrinsic)-(deg|rad)$")
@@ -109,8 +110,13 @@ def _refuse(source: str, rows: np.ndarray, bad: np.ndarray, what: str, value: np
                                f" ({int(bad.sum())} such row(s)); check the columns and --orientation")
 
 
+TAIT_BRYAN = ("xyz", "xzy", "yxz", "yzx", "zxy", "zyx")  # the axis orders of roll-pitch-yaw angles
+
+
 def alternatives(name: str) -> list[str]:
-    """The common conventions a file declared as ``name`` may really be in."""
+    """The common conventions a file declared as ``name`` may really be in, in canonical order: for
+    Euler angles every axis order of their family (roll-pitch-yaw, or the declared proper-Euler order
+    and its reverse) intrinsic and extrinsic, then the other angle unit."""
     if name.startswith("quat"):
         return ["quat-xyzw" if name == "quat-wxyz" else "quat-wxyz"]
     if name.startswith("rotvec"):
@@ -118,9 +124,9 @@ def alternatives(name: str) -> list[str]:
     if name == "matrix":
         return []
     axes, how, unit = _euler(name)
-    other = "extrinsic" if how == "intrinsic" else "intrinsic"
-    return [f"euler-{axes}-{other}-{unit}", f"euler-{axes[::-1]}-{how}-{unit}",
-            f"euler-{axes}-{how}-{'rad' if unit == 'deg' else 'deg'}"]
+    orders = TAIT_BRYAN if axes in TAIT_BRYAN else (axes, axes[::-1])
+    return [f"euler-{a}-{h}-{unit}" for a in orders for h in ("intrinsic", "extrinsic") if (a, h) != (axes, how)] + \
+        [f"euler-{axes}-{how}-{'rad' if unit == 'deg' else 'deg'}"]
 
 
 def orientation_misfit(R_flange: np.ndarray, R_meas: np.ndarray, iterations: int = 30) -> float:
@@ -147,11 +153,14 @@ def convention_check(R_flange: np.ndarray, values: np.ndarray, name: str, source
     declared = orientation_misfit(R_flange, to_matrices(values, name, source, rows))
     if declared <= PLAUSIBLE:
         return declared
+    tried = []
     for other in alternatives(name):
         try:
-            misfit = orientation_misfit(R_flange, to_matrices(values, other, source, rows))
+            tried.append((other, orientation_misfit(R_flange, to_matrices(values, other, source, rows))))
         except MeasurementError:  # not even a rotation in that convention
             continue
+    if tried:
+        other, misfit = tried[first_best([m for _, m in tried], maximize=False)]  # ties: the canonical order
         if misfit * MARKEDLY < declared:
             raise MeasurementError(
                 f"{source}: read as {name}, the orientations differ from the robot file's by {declared * MRAD:.0f} "
