@@ -26,6 +26,9 @@ def cmd_design(args) -> int:
     r = load_robot(args)
     if args.params:
         r.params.indices(args.params)
+    if "link_radius" in args.given and not (args.floor or args.keep_out):
+        raise ValueError("--link-radius thickens the arm's links for --floor and --keep-out; give one of them, or "
+                         "leave --link-radius out")
     cell = _cell(args)
     if (args.type or ["point"])[0] in CONSTRAINTS:
         if args.program:
@@ -106,7 +109,7 @@ def _cell(args):
     cell = kincal.design.Cell(tuple(half), tuple(boxes), None if args.tracker is None else np.array(args.tracker),
                               tuple(args.tracker_range) if args.tracker_range else (0.0, np.inf),
                               np.deg2rad(args.cone), tuple(args.reflector_axis),
-                              np.deg2rad(args.joint_margin))
+                              np.deg2rad(args.joint_margin), args.link_radius[0])
     return None if cell.empty else cell
 
 
@@ -215,6 +218,9 @@ def register(cmd) -> None:
     c.add_argument("--reflector-axis", type=lengths(3, "0,0,1"), default=(0.0, 0.0, 1.0),
                    help="the reflector's opening direction in the flange frame (default 0,0,1)")
     c.add_argument("--joint-margin", type=nonneg_float, default=0.0, help="degrees kept from every revolute joint's limits")
+    c.add_argument("--link-radius", type=lengths(1, "50mm"), default=(0.05,),
+                   help="the arm's links as segments this thick (between its joint frames), kept above --floor and "
+                        "out of --keep-out boxes too (default 50mm)")
     _criterion_flags(s)
     s.add_argument("--params", type=csv_list, help="parameters to design for (default: identifiable set)")
     s.add_argument("--base", choices=list(kincal.analysis.BASE_MODES), default="estimate")

@@ -3,9 +3,11 @@ vectors that candidate pools, exchange designs and IDE all obey.
 
 A pose is allowed when its joints keep ``joint_margin`` from the limits, the target (the robot's
 tool point, in its base frame) lies on the allowed side of every half-space (a floor, a wall:
-n·p ≥ c) and outside every keep-out box, and, with a ``tracker``, within the tracker's range and
-seen by it: the reflector's opening (``reflector_axis`` in the flange frame) points within
-``cone`` of the line from the target to the tracker.
+n·p ≥ c) and outside every keep-out box, the arm does too — every link after the first joint's
+frame, as the segments between the robot's link points (:meth:`Robot.link_points`: its joint
+frames and the tool point) thickened by ``link_radius`` —, and, with a ``tracker``, the target is
+within the tracker's range and seen by it: the reflector's opening (``reflector_axis`` in the
+flange frame) points within ``cone`` of the line from the target to the tracker.
 """
 from __future__ import annotations
 
@@ -32,6 +34,7 @@ class Cell:
     cone: float = np.deg2rad(30.0)
     reflector_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
     joint_margin: float = 0.0
+    link_radius: float = 0.05  # m: the arm's links as segments this thick
 
     def __post_init__(self) -> None:
         for n, c in self.half_spaces:
@@ -45,8 +48,8 @@ class Cell:
             raise ValueError(f"tracker range {lo}..{hi} m: give 0 ≤ min < max")
         if not 0 < self.cone <= np.pi:
             raise ValueError(f"cone {np.rad2deg(self.cone):g} deg: give a half-angle in (0, 180] deg")
-        if not np.linalg.norm(self.reflector_axis) > 0 or self.joint_margin < 0:
-            raise ValueError("the reflector axis must be non-zero and the joint margin ≥ 0")
+        if not np.linalg.norm(self.reflector_axis) > 0 or self.joint_margin < 0 or not 0 <= self.link_radius < 1:
+            raise ValueError("the reflector axis must be non-zero, the joint margin ≥ 0 and the link radius in [0, 1) m")
 
     @property
     def empty(self) -> bool:
@@ -58,11 +61,16 @@ class Cell:
         q = robot.check_q(q)
         m = np.where([t == "revolute" for t in robot.joint_types], self.joint_margin, 0.0)
         out = {"joint margin": ~np.all((q >= robot.lower + m) & (q <= robot.upper - m), axis=1)}
-        p = robot.forward(q)
+        p, arm, r = robot.forward(q), self._arm(robot, q), self.link_radius
         for k, (n, c) in enumerate(self.half_spaces):
-            out[f"half-space {k + 1}"] = p @ (np.asarray(n, float) / np.linalg.norm(n)) < c
+            unit = np.asarray(n, float) / np.linalg.norm(n)
+            out[f"half-space {k + 1}"] = p @ unit < c
+            if arm is not None:  # a straight segment is lowest at one of its ends
+                out[f"arm through half-space {k + 1}"] = np.any(np.minimum(arm[0] @ unit, arm[1] @ unit) < c + r, axis=1)
         for k, (lo, hi) in enumerate(self.keep_out):
             out[f"keep-out {k + 1}"] = np.all((p > lo) & (p < hi), axis=1)
+            if arm is not None:
+                out[f"arm in keep-out {k + 1}"] = np.any(_crosses(*arm, np.asarray(lo) - r, np.asarray(hi) + r), axis=1)
         if self.tracker is not None:
             if not robot.has_tool_point:
                 raise ModelError(f"robot '{robot.name}' has no flange frame: a tracker's line of sight needs it")
@@ -73,6 +81,15 @@ class Cell:
             cos = np.einsum("ni,ni->n", axis, ray) / np.maximum(dist, 1e-300)
             out["line of sight"] = cos < np.cos(self.cone)
         return out
+
+    def _arm(self, robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """The links after the first joint's frame as segments between the robot's link points: their
+        starts and ends (N, S, 3) each; None for a robot that declares none or a cell with no
+        half-space or box."""
+        pts = robot.link_points(q) if self.half_spaces or self.keep_out else None
+        if pts is None or pts.shape[1] < 4:
+            return None
+        return pts[:, 2:-1], pts[:, 3:]
 
     def allows(self, robot: Robot, q: np.ndarray) -> np.ndarray:
         """(N,) bool: the robot's own constraints and every constraint of the cell hold."""
@@ -100,3 +117,16 @@ class Cell:
             raise ValueError(f"only {have} of {drawn} random poses fit the cell; '{name}' removes "
                              f"{100 * broken[name].mean():.0f} % of them: check its values and units")
         return np.concatenate(kept)[:n]
+
+
+def _crosses(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(N, S) bool: the segments a→b (N, S, 3) meet the box lo..hi (slab test: the parameter ranges in
+    which each axis is inside overlap within [0, 1])."""
+    d = b - a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (lo - a) / d, (hi - a) / d
+    parallel = d == 0  # inside the slab for every t, or for none
+    inside = (a >= lo) & (a <= hi)
+    enter = np.where(parallel, np.where(inside, -np.inf, np.inf), np.minimum(t1, t2)).max(axis=2)
+    leave = np.where(parallel, np.where(inside, np.inf, -np.inf), np.maximum(t1, t2)).min(axis=2)
+    return (enter <= leave) & (leave >= 0.0) & (enter <= 1.0)

@@ -51,6 +51,15 @@ def cos_sin(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (1.0 - t2) * inv, (2.0 * inv) * t
 
 
+def _about(axis: int, x: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations by the angles x (N,) rad about the frame's own axis ``axis``."""
+    c, s = cos_sin(x)
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    out = np.zeros((len(x), 3, 3))
+    out[:, axis, axis], out[:, i, i], out[:, j, j], out[:, i, j], out[:, j, i] = 1.0, c, c, -s, s
+    return out
+
+
 def _carve(n: int, *shapes: tuple[int, ...]) -> list[np.ndarray]:
     """Views of shapes ``shape + (n,)`` cut from one block (one allocation instead of many)."""
     sizes = [prod(sh) * n for sh in shapes]
@@ -178,6 +187,24 @@ class Chain:
                 V = W
         assert V is not None  # a chain has at least one segment
         return np.ascontiguousarray(np.broadcast_to(V, (3, n)).T)
+
+    def origins(self, values: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """(N, S + 1, 3) the chain's start and the end of every segment (the frame after each joint's
+        motion and the constants that follow it; the last is the end point), composed forward."""
+        ends, _, _ = self._segment_frames(values, False)
+        R, t = np.broadcast_to(np.eye(3), (len(q), 3, 3)), np.zeros((len(q), 3))
+        out = [t]
+        for M, head in zip(ends, self.heads):
+            if head is not None:
+                x = q[:, head.joint] + (values[head.param] + head.offset)
+                if head.motion == TRANS:
+                    t = t + R[:, :, head.axis] * x[:, None]
+                else:
+                    R = R @ _about(head.axis, x)
+            t = t + R @ M[3]
+            R = R @ M[:3].T
+            out.append(t)
+        return np.stack(out, axis=1)
 
     def forward_and_jacobian(self, values: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Positions (N,3) and parameter Jacobian (N,3,P) by forward propagation of frames.

@@ -259,6 +259,12 @@ class Robot(ABC):
             )
         return q
 
+    def link_points(self, q: np.ndarray) -> np.ndarray | None:
+        """(N, K, 3) points along the arm at joints q (N, n), m in the world frame: the base, each
+        joint's frame and the tool point, in chain order, for collision checks; None for a robot
+        that does not declare them (a closed chain)."""
+        return None
+
     @property
     def stack_names(self) -> tuple[str, ...]:
         """The joints' names in the robot stack (URDF, ROS: a robot file's ``names:``); default their own."""

@@ -147,6 +147,9 @@ class ChainRobot(Robot):
     def _pose_and_jacobian(self, q, values):
         return self._chain.pose_jacobian(self.chain_values(values), q)
 
+    def link_points(self, q: np.ndarray) -> np.ndarray | None:
+        return self._chain.origins(self.chain_values(), self.check_q(q))
+
     def _frame_and_rates(self, q, values):
         p, J, R, Jw = self._chain.frame_and_rates(self.chain_values(values), q)
         return p, J[:, :, :self.n_params], R, Jw[:, :, :self.n_params]  # extra chain columns (URDF joints) left out
