@@ -114,6 +114,11 @@ def test_repeated_poses_get_iso9283(ur5, tmp_path):
     d = np.linalg.norm(pts - mean, axis=1)
     assert groups[0]["ap"] == pytest.approx(ap * 1e3) and groups[0]["rp"] == pytest.approx((d.mean() + 3 * d.std(ddof=1)) * 1e3)
     assert groups[0]["rows"] == "62, 63, 64, 65, 66"
+    (summary,) = rep.data["iso"]["summary"]  # one session: 4 repeated poses, their median and largest AP, RP
+    aps, rps = [g["ap"] for g in groups], [g["rp"] for g in groups]
+    assert summary["poses"] == 4 and summary["ap_median"] == pytest.approx(np.median(aps))
+    assert summary["ap_max"] == max(aps) and summary["rp_median"] == pytest.approx(np.median(rps))
+    assert 'id="iso9283-summary"' in rep.html and "<details open>" in rep.html  # 4 rows: shown open
 
 
 def test_plots_for_calibrate_and_evaluate(real, tmp_path, capsys):

@@ -334,7 +334,18 @@ def _iso9283(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
         text = (f"No pose is visited more than once ({rule}), so ISO 9283 pose accuracy (AP) and repeatability (RP) "
                 f"cannot be computed from these data. The figures above are 3-D position errors over different poses: "
                 f"they describe the model's accuracy across the workspace, which is not ISO 9283 AP.")
-    return {"text": text, "groups": groups}
+    return {"text": text, "groups": groups, "summary": _iso_summary(groups)}
+
+
+def _iso_summary(groups: list[dict]) -> list[dict]:
+    """Per session: how many poses repeat, and the median and largest AP and RP (mm)."""
+    out = []
+    for session in dict.fromkeys(g["session"] for g in groups):
+        ap = np.array([g["ap"] for g in groups if g["session"] == session])
+        rp = np.array([g["rp"] for g in groups if g["session"] == session])
+        out.append({"session": session, "poses": len(ap), "ap_median": float(np.median(ap)), "ap_max": float(ap.max()),
+                    "rp_median": float(np.median(rp)), "rp_max": float(rp.max())})
+    return out
 
 
 def template() -> jinja2.Template:
