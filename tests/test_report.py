@@ -152,3 +152,22 @@ def test_report_refits_from_the_record_the_file_keeps(tmp_path, capsys):
     assert "differs from" not in cap.err
     data = json.loads((tmp_path / "r.json").read_text())
     assert data["error_model_choice"]["chosen"] == res["error_model_choice"]["chosen"] == "harmonics:2"
+
+
+def test_held_out_sessions_are_drawn_in_the_training_frame(ur5):
+    """A held-out session measured from a tracker moved by 2 m and turned by 0.8 rad: the report's
+    figures get its positions and error vectors in the training data's frame (equal to the truth
+    there within the model's error), not in the session's own."""
+    from kincal.models.transforms import rot_zyx
+    from kincal.report import build
+
+    true = kincal.perturb(ur5, seed=2)
+    res = kincal.calibrate(ur5, kincal.simulate(true, ur5.sample_joints(80, seed=1), 15e-6, seed=1))
+    q = ur5.sample_joints(30, seed=3)
+    here = kincal.simulate(true, q, 0.0)
+    R, t = rot_zyx(0.8, 0.0, 0.0), np.array([2.0, 1.0, 0.3])
+    moved = kincal.Measurements(q, here.xyz @ R.T + t, ur5.joint_names, "moved.csv")
+    models = build._held_out_models(res, [moved], False)
+    _, held = build._sets(res, [moved], models, res.options.thresholds)
+    assert np.abs(held.xyz - here.xyz).max() < 1e-3  # the session's own frame would be metres away
+    assert np.abs(held.after - (here.xyz - res.robot.forward(q))).max() < 1e-4

@@ -167,11 +167,22 @@ def _sets(result: CalibrationResult, tests: list[Measurements], models: list[tup
                       result.pose_z > result.outlier_z, "frame fitted with the model (nominal: registered to these data)")]
     for k, (meas, (nominal, model, how)) in enumerate(zip(tests, models)):
         z = robust_z(np.linalg.norm(meas.xyz - model.forward(meas.q), axis=1))
-        sets.append(dataclasses.replace(_pose_set("held-out", meas, nominal, model, z > th.outlier_limit(len(z)), how),
+        held = _pose_set("held-out", meas, nominal, model, z > th.outlier_limit(len(z)), how)
+        sets.append(dataclasses.replace(_in_training_frame(held, result.robot, model),
                                         name=Path(meas.source).name,
                                         key="held-out" if len(tests) == 1 else f"held-out-{k + 1}",
                                         colour=F.SESSION_COLOURS[k % len(F.SESSION_COLOURS)]))
     return sets
+
+
+def _in_training_frame(s: F.PoseSet, trained, registered) -> F.PoseSet:
+    """A held-out set measured where ``registered`` sees the robot, its positions and error vectors
+    expressed in the frame of the ``trained`` model (the first session's): every set in one frame."""
+    R0, t0 = trained.base_transform() if trained.base_params() else (np.eye(3), np.zeros(3))
+    Rs, ts = registered.base_transform() if registered.base_params() else (np.eye(3), np.zeros(3))
+    M = Rs @ R0.T
+    return dataclasses.replace(s, xyz=(s.xyz - ts) @ M + t0, after=s.after @ M,
+                               before=None if s.before is None else s.before @ M)
 
 
 def _pose_set(label: str, meas: Measurements, nominal, calibrated, outliers: np.ndarray, how: str) -> F.PoseSet:
@@ -227,7 +238,7 @@ def evaluation_figures(robot, meas: Measurements) -> dict:
     s = F.PoseSet("held-out", meas.rows, meas.q, meas.xyz, None, after,
                   _beyond(robust_z(np.linalg.norm(after, axis=1))))
     return {"per_pose": F.per_pose([s]), "histogram": F.histogram([s]), "per_axis": F.per_axis([s]),
-            "vs_joints": F.vs_joints([s], robot.joint_names, robot.joint_types), "workspace": F.workspace([s])}
+            "vs_joints": F.vs_joints([s], robot.joint_names, robot.joint_types), "workspace": F.workspace([s], "this file's measurement frame")}
 
 
 def _make_figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:

@@ -168,9 +168,9 @@ def vs_joints(sets: list[PoseSet], joint_names, joint_types) -> Figure:
 
 
 @_styled
-def workspace(sets: list[PoseSet]) -> Figure:
-    """Measured positions in three projections, coloured by the error after calibration; outliers
-    circled and named by input row."""
+def workspace(sets: list[PoseSet], frame: str = "the training data's frame") -> Figure:
+    """Measured positions in three projections (in ``frame``, for the title), coloured by the error
+    after calibration; outliers circled and named by input row."""
     fig = _figure(11.0, 3.6)
     all_err = np.concatenate([s.after_norm for s in sets]) * MM
     vmax = float(np.percentile(all_err, 99)) if all_err.size else 1.0
@@ -187,7 +187,7 @@ def workspace(sets: list[PoseSet]) -> Figure:
         ax.set_ylabel(f"{'xyz'[b]} (mm)")
         ax.set_aspect("equal", adjustable="datalim")
     fig.colorbar(sc, ax=fig.axes, label="error after (mm)", shrink=0.9)
-    fig.suptitle("workspace (each set in its own measurement frame): o training, ^ held-out; red circles: outliers")
+    fig.suptitle(f"workspace ({frame}): o training, ^ held-out; red circles: outliers")
     return fig
 
 
