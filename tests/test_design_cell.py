@@ -70,7 +70,6 @@ def test_designs_keep_the_whole_arm_above_the_floor_and_out_of_the_box(tmp_path,
     segments between the DH joint frames and to the probe, thickened by 50 mm) below the floor or
     into the box — checked with an independent forward kinematics; a cell without the arm check lets
     the elbow through the floor in some of the same pool's poses."""
-    import json
 
     from kincal.cli import main
 
