@@ -163,7 +163,7 @@ def test_dh_robot_exports_to_urdf_and_ur_file(ur5, tmp_path, capsys):
     # URDF, read by yourdfpy
     assert main(["export", str(cal), str(tmp_path / "cal.urdf"), "--tool-link", "smr"]) == 0
     capsys.readouterr()
-    robot_for_ref = kincal.load_robot(tmp_path / "cal.urdf", base_link="base", tip_link="smr")
+    robot_for_ref = kincal.load_robot(tmp_path / "cal.urdf", base_link="base_link_inertia", tip_link="smr")
     np.testing.assert_allclose(reference(tmp_path / "cal.urdf", robot_for_ref, q, "smr"), model, atol=1e-9)
     # the root is ROS's base_link, the DH base turned 180° about z (as in UR's own URDF), and the joints
     # carry UR's names
@@ -376,3 +376,71 @@ def test_a_socket_calibration_exports_the_fitted_ball(tmp_path, capsys):
     no_tool = cal.with_params({"tool.x": 0.0, "tool.y": 0.0, "tool.z": 0.0})
     np.testing.assert_allclose(reference(tmp_path / "cal.urdf", no_tool, q, "tool_point"),
                                without_base(cal).forward(q), atol=1e-9)
+
+
+UR10_KINEMATICS = {  # UR's ROS 2 description, config/ur10/default_kinematics.yaml: x y z (m), roll pitch yaw (rad)
+    "shoulder_pan_joint": ((0, 0, 0.1273), (0, 0, 0)),
+    "shoulder_lift_joint": ((0, 0, 0), (1.570796327, 0, 0)),
+    "elbow_joint": ((-0.612, 0, 0), (0, 0, 0)),
+    "wrist_1_joint": ((-0.5723, 0, 0.163941), (0, 0, 0)),
+    "wrist_2_joint": ((0, -0.1157, -2.373046667922381e-11), (1.570796327, 0, 0)),
+    "wrist_3_joint": ((0, 0.0922, -1.891053610911353e-11), (1.570796326589793, 3.141592653589793, 3.141592653589793)),
+}
+
+
+def _ur_description(kinematics: dict) -> str:
+    """UR's description chain as its ur_macro.xacro writes it (base_link, base_link_inertia turned by π,
+    the six joints at the kinematics' origins, wrist_3 → flange → tool0, base_link → base)."""
+    pi = np.pi
+    def fixed(parent, child, rpy):
+        return (f'<link name="{child}"/><joint name="{parent}-{child}" type="fixed"><parent link="{parent}"/>'
+                f'<child link="{child}"/><origin xyz="0 0 0" rpy="{" ".join(map(repr, rpy))}"/></joint>')
+    parts = ['<robot name="ur10_reference">', '<link name="base_link"/>', fixed("base_link", "base_link_inertia",
+                                                                              (0, 0, pi))]
+    parent = "base_link_inertia"
+    for joint, link in zip(kinematics, ("shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link",
+                                        "wrist_2_link", "wrist_3_link")):
+        xyz, rpy = kinematics[joint]
+        parts.append(f'<link name="{link}"/><joint name="{joint}" type="revolute"><parent link="{parent}"/>'
+                     f'<child link="{link}"/><origin xyz="{" ".join(map(repr, xyz))}" rpy="{" ".join(map(repr, rpy))}"/>'
+                     f'<axis xyz="0 0 1"/><limit lower="-6.28" upper="6.28" effort="1" velocity="1"/></joint>')
+        parent = link
+    parts += [fixed("wrist_3_link", "flange", (0, -pi / 2, -pi / 2)), fixed("flange", "tool0", (pi / 2, 0, pi / 2)),
+              fixed("base_link", "base", (0, 0, pi)), "</robot>"]
+    return "".join(parts)
+
+
+def test_the_ur10_urdf_has_urs_own_link_frames(tmp_path, capsys):
+    """kincal export ur10 → URDF: every link of UR's description (base, base_link_inertia, shoulder_link …
+    wrist_3_link, flange, tool0) sits where UR's own description chain (its ur_macro.xacro with the UR10's
+    default kinematics) puts it, within 1e-9 m and 1e-9 rad at random joints; both read by yourdfpy."""
+    assert main(["export", "ur10", str(tmp_path / "ur10.urdf")]) == 0
+    capsys.readouterr()
+    (tmp_path / "ref.urdf").write_text(_ur_description(UR10_KINEMATICS))
+    ours = yourdfpy.URDF.load(str(tmp_path / "ur10.urdf"), load_meshes=False, build_collision_scene_graph=False)
+    theirs = yourdfpy.URDF.load(str(tmp_path / "ref.urdf"), load_meshes=False, build_collision_scene_graph=False)
+    links = ("base", "base_link_inertia", "shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link",
+             "wrist_2_link", "wrist_3_link", "flange", "tool0")
+    for qi in kincal.load_robot("ur10").sample_joints(20, seed=3):
+        cfg = dict(zip(UR10_KINEMATICS, qi))
+        ours.update_cfg(cfg)
+        theirs.update_cfg(cfg)
+        for link in links:
+            np.testing.assert_allclose(ours.get_transform(link, "base_link"), theirs.get_transform(link, "base_link"),
+                                       atol=1e-9, err_msg=link)
+
+
+def test_the_ur10_calibration_file_has_urs_default_kinematics(tmp_path, capsys):
+    """kincal export ur10 --format ur on the nominal UR10: UR's own default_kinematics.yaml, entry by
+    entry — each joint origin within 1e-9 m, its rotation within 1e-9 (the rpy written may differ)."""
+    from kincal.models.urdf import rpy_matrix
+
+    assert main(["export", "ur10", str(tmp_path / "ur.yaml"), "--format", "ur"]) == 0
+    capsys.readouterr()
+    kin = yaml.safe_load((tmp_path / "ur.yaml").read_text())["kinematics"]
+    for (joint, (xyz, rpy)), entry in zip(UR10_KINEMATICS.items(), ("shoulder", "upper_arm", "forearm", "wrist_1",
+                                                                     "wrist_2", "wrist_3")):
+        got = kin[entry]
+        np.testing.assert_allclose([got["x"], got["y"], got["z"]], xyz, atol=1e-9, err_msg=joint)
+        np.testing.assert_allclose(rpy_matrix(got["roll"], got["pitch"], got["yaw"]), rpy_matrix(*rpy), atol=1e-9,
+                                   err_msg=joint)

@@ -47,9 +47,11 @@ def _motion(motion: str, axis: int, value: float) -> np.ndarray:
     return _h(np.eye(3), np.eye(3)[axis] * value)
 
 
-def joint_frames(robot: Robot) -> tuple[list[np.ndarray], np.ndarray]:
+def joint_frames(robot: Robot, slide: bool = False) -> tuple[list[np.ndarray], np.ndarray]:
     """Jₖ (4×4, z along joint k's axis, zero offset included) for every joint at q = 0, and the
-    flange frame F (the end of the chain without the tool point), both relative to the base frame."""
+    flange frame F (the end of the chain without the tool point), both relative to the base frame.
+    With ``slide`` each Jₖ is moved along its axis by the translation along it that follows the
+    joint (a DH d): the link frames robot descriptions use (UR's shoulder_link at d1)."""
     _geometric_only(robot)
     if not isinstance(robot, ChainRobot):
         raise ModelError(f"robot '{robot.name}' ({robot.structure}) is not a serial chain: it has no URDF or UR form")
@@ -57,12 +59,16 @@ def joint_frames(robot: Robot) -> tuple[list[np.ndarray], np.ndarray]:
     values[robot.params.indices(robot.base_params())] = 0.0
     values[robot.params.indices(("tool.x", "tool.y", "tool.z"))] = 0.0
     values = np.concatenate([values, np.zeros(robot.n_joints)])  # a URDF chain's joint-motion columns
-    M, frames = np.eye(4), []
-    for op in robot.chain.ops:
+    M, frames, ops = np.eye(4), [], robot.chain.ops
+    for k, op in enumerate(ops):
         value = op.offset + (values[op.param] if op.param >= 0 else 0.0)
         step = _motion(op.motion, op.axis, value)
         if op.joint >= 0:
             frames.append(M @ _h(_ALIGN[op.axis], np.zeros(3)) @ _motion(op.motion, 2, value))
+            after = ops[k + 1] if k + 1 < len(ops) else None
+            if slide and after is not None and after.motion != ROT and after.joint < 0 and after.axis == op.axis:
+                frames[-1] = frames[-1] @ _motion(after.motion, 2, after.offset + (values[after.param]
+                                                                                   if after.param >= 0 else 0.0))
         M = M @ step
     return frames, M
 
@@ -97,7 +103,7 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
     base_link faces the other way). What lies beyond the wrist-3 frame that the file cannot hold
     (the flange-to-TCP transform and the tool point) is returned in the summary for the controller.
     """
-    frames, flange = joint_frames(robot)
+    frames, flange = joint_frames(robot, slide=True)  # the link frames UR's description puts on the axes
     if robot.n_joints != 6 or any(t != "revolute" for t in robot.joint_types):
         raise ModelError(f"robot '{robot.name}': a UR calibration file holds 6 revolute joints, the robot has "
                          f"{robot.n_joints} ({', '.join(robot.joint_types)})")
@@ -161,7 +167,7 @@ def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = N
                              f"origins change")
         text, base, tip = _edit_urdf(robot, source), robot.source.get("base_link"), robot.source.get("tip_link")
     elif isinstance(robot, SerialRobot):
-        (text, base), tip = _new_urdf(robot, joint_names), "flange"
+        text, base, tip = _new_urdf(robot, joint_names)
     else:
         raise ModelError(f"robot '{robot.name}' ({robot.structure}) is not a serial chain: it has no URDF form")
     if tool_link:
@@ -197,41 +203,53 @@ def _edit_urdf(robot: URDFRobot, source: str) -> str:
     return source
 
 
-def _new_urdf(robot: SerialRobot, names: Sequence[str] | None = None) -> tuple[str, str]:
-    """A URDF of a DH/MDH chain: one link per joint, then ``flange``; joints named as the robot stack
-    names them, with the file's velocity and effort limits (left out where the file gives none,
-    never written as 0). A robot file that names a ``base_link`` frame (ROS) gets it as the root,
-    with the DH base as link ``base``, as UR's own descriptions do. Returns the text and the DH base
-    link's name."""
-    frames, flange = joint_frames(robot)
-    chain = [np.eye(4)] + frames
+UR_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+             "wrist_3_joint")
+UR_LINKS = ("shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link", "wrist_3_link")
+UR_TOOL0 = _h(rpy_matrix(np.pi / 2, 0.0, np.pi / 2), np.zeros(3))  # flange -> tool0 in UR's description
+
+
+def _new_urdf(robot: SerialRobot, names: Sequence[str] | None = None) -> tuple[str, str, str]:
+    """A URDF of a DH/MDH chain: one link per joint (its frame on the joint's axis where the DH d puts
+    it), then ``flange``; joints named as the robot stack names them, with the file's velocity and
+    effort limits (left out where the file gives none, never written as 0). A robot file that names a
+    ``base_link`` frame (ROS) gets it as the root, with the DH base as link ``base``. A UR arm (its
+    joints named as UR's) gets UR's description: base_link, base_link_inertia and base, the links
+    shoulder_link … wrist_3_link, flange and tool0 (the DH flange frame). Returns the text, the DH
+    base link's name and the tip link's."""
+    frames, flange = joint_frames(robot, slide=True)
     names = _joint_names(robot, names)
+    ur = tuple(names) == UR_JOINTS
+    links = UR_LINKS if ur else tuple(f"link_{k + 1}" for k in range(robot.n_joints))
     ros = robot.named_frames().get("base_link")
-    base = "base" if ros else "base_link"
+    base = "base_link_inertia" if ur else "base" if ros else "base_link"
     lines = ['<?xml version="1.0"?>', f"<!-- {robot.name} calibrated with kincal; joint origins in m and rad -->",
-             f'<robot name="{robot.name}">']
+             f'<robot name="{robot.name}">', '  <link name="base_link"/>']
     if ros:
-        xyz, rpy = _xyz_rpy(np.linalg.inv(_h(*ros)))
-        lines += ['  <link name="base_link"/>', '  <link name="base"/>', '  <joint name="base_link-base_fixed_joint" '
-                  'type="fixed">', '    <parent link="base_link"/>', '    <child link="base"/>',
-                  f'    <origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>', "  </joint>"]
-    else:
-        lines.append('  <link name="base_link"/>')
+        lines += _fixed("base_link", "base", np.linalg.inv(_h(*ros)))
+        lines += _fixed("base_link", "base_link_inertia", np.linalg.inv(_h(*ros))) if ur else []
     parent = base
-    for k, (a, b) in enumerate(zip(chain[:-1], chain[1:])):
+    for k, (a, b) in enumerate(zip([np.eye(4)] + frames[:-1], frames)):
         xyz, rpy = _xyz_rpy(np.linalg.inv(a) @ b)
-        child = f"link_{k + 1}"
-        lines += [f'  <link name="{child}"/>', f'  <joint name="{names[k]}" type="{robot.joint_types[k]}">',
-                  f'    <parent link="{parent}"/>', f'    <child link="{child}"/>',
+        lines += [f'  <link name="{links[k]}"/>', f'  <joint name="{names[k]}" type="{robot.joint_types[k]}">',
+                  f'    <parent link="{parent}"/>', f'    <child link="{links[k]}"/>',
                   f'    <origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>',
                   '    <axis xyz="0 0 1"/>', f"    {_limit(robot, k)}", "  </joint>"]
-        parent = child
-    xyz, rpy = _xyz_rpy(np.linalg.inv(frames[-1]) @ flange)
-    lines += ['  <link name="flange"/>', '  <joint name="flange_joint" type="fixed">', f'    <parent link="{parent}"/>',
-              '    <child link="flange"/>',
-              f'    <origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>', "  </joint>",
-              "</robot>", ""]
-    return "\n".join(lines), base
+        parent = links[k]
+    rest = np.linalg.inv(frames[-1]) @ flange
+    if ur:
+        lines += _fixed(parent, "flange", rest @ np.linalg.inv(UR_TOOL0)) + _fixed("flange", "tool0", UR_TOOL0)
+    else:
+        lines += _fixed(parent, "flange", rest)
+    return "\n".join(lines + ["</robot>", ""]), base, "tool0" if ur else "flange"
+
+
+def _fixed(parent: str, child: str, T: np.ndarray) -> list[str]:
+    """A fixed joint from ``parent`` to a new link ``child`` at the transform T (4x4)."""
+    xyz, rpy = _xyz_rpy(T)
+    return [f'  <link name="{child}"/>', f'  <joint name="{parent}-{child}" type="fixed">',
+            f'    <parent link="{parent}"/>', f'    <child link="{child}"/>',
+            f'    <origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>', "  </joint>"]
 
 
 def _joint_names(robot: SerialRobot, names: Sequence[str] | None) -> tuple[str, ...]:
