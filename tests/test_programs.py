@@ -106,6 +106,18 @@ def test_program_through_the_command_line(tmp_path, capsys, setting):
     assert 1e-5 < np.abs(new.targets[0].values - home).max() < np.deg2rad(5)  # corrected, same branch
 
 
+def test_a_variable_changed_after_its_literal_is_listed_not_compensated():
+    """Only a variable assigned once with a literal is compensated where it is written: one whose
+    element is set or that is changed in place (b[0] = …, c += …) is a move to an expression, listed."""
+    from kincal.io.program_ur import parse
+
+    text = ("def p():\n  global a = p[0.1, 0.2, 0.3, 0, 0, 0]\n  b = [0, 0, 0, 0, 0, 0]\n  b[0] = 0.5\n"
+            "  c = [1, 1, 1, 1, 1, 1]\n  c += 1\n  movel(a)\n  movej(b)\n  movej(c)\nend\n")
+    prog = parse("p.script", text)
+    assert [(t.variable, t.line, t.kind) for t in prog.targets] == [("a", 2, "pose")]
+    assert prog.not_literal == ((8, "movej", "b"), (9, "movej", "c"))
+
+
 def _ur10(seed=3):
     nominal = kincal.load_robot("ur10").with_tool_point([0.0, 0.0, 0.15]).with_params({"base.rz": 0.4, "base.x": 0.2})
     return nominal, kincal.perturb(nominal, seed=seed)

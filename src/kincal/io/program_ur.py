@@ -24,6 +24,7 @@ POSE = re.compile(r"^\s*p\s*\[(" + NUMBER + r"(?:," + NUMBER + r"){5})\]\s*$")
 JOINTS = re.compile(r"^\s*\[(" + NUMBER + r"(?:," + NUMBER + r")*)\]\s*$")
 ASSIGN = re.compile(r"^[ \t]*(?:(?:global|local)[ \t]+)?([A-Za-z_]\w*)[ \t]*=(?!=)[ \t]*([^\n]*)", re.M)
 NAME = re.compile(r"^\s*([A-Za-z_]\w*)\s*$")
+CHANGED = re.compile(r"^[ \t]*([A-Za-z_]\w*)[ \t]*(?:\[[^\]\n]*\][ \t]*=(?!=)|[-+*/]=)", re.M)  # x[0] = …, x += …
 SET_TCP = re.compile(r"\bset_tcp\s*\(")
 
 
@@ -111,6 +112,8 @@ def _bound_literals(code: str, text: str) -> dict[str, tuple[int, int]]:
         a = m.start(2)
         b = a + len(code[a:m.end(2)].rstrip())  # the comment after it is blank in the code
         spans.setdefault(m.group(1), []).append((a, b) if POSE.match(text[a:b]) or JOINTS.match(text[a:b]) else None)
+    for m in CHANGED.finditer(code):  # an element set, or the value changed in place: not one literal
+        spans.setdefault(m.group(1), []).append(None)
     return {k: v[0] for k, v in spans.items() if len(v) == 1 and v[0] is not None}
 
 
