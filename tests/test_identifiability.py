@@ -62,3 +62,21 @@ def test_too_few_poses_limit_the_rank(ur5):
     s = np.linalg.svd(Js, compute_uv=False)
     assert ident.rank == np.linalg.matrix_rank(Js, tol=kincal.analysis.RANK_TOL * s[0]) == 15
     assert len(ident.identifiable) == 15 and len(ident.dropped) == ur5.n_params - 15
+
+
+def test_confound_coefficients_carry_their_units():
+    """A dropped parameter's combination names each coefficient's unit when the kinds differ: a length
+    acting like an angle in mm/mrad (1 m/rad), an angle like a length in mrad/mm; same kinds none."""
+    import re
+
+    ur5 = kincal.load_robot("ur5")
+    ident = kincal.identifiability(ur5, ur5.sample_joints(60, seed=2))
+    kinds = dict(zip(ur5.params.names, ur5.params.kinds))
+    mixed = 0
+    for line in ident.confound_lines(""):
+        dropped, rhs = line.split("  ~  ")
+        for unit, kept in re.findall(r"[-+][0-9.e+-]+( mm/mrad| mrad/mm)?·(\S+)", rhs):
+            want = "" if kinds[dropped] == kinds[kept] else " mm/mrad" if kinds[dropped] == "length" else " mrad/mm"
+            assert unit == want, line
+            mixed += bool(unit)
+    assert mixed >= 2 and "mrad/mm·tool.y" in next(x for x in ident.confound_lines("") if x.startswith("j6.alpha"))

@@ -49,6 +49,7 @@ class Identifiability:
     rank_tol: float
     notes: tuple[str, ...] = field(default=())
     measured: str = "position only"  # what the data observe, for the summary line
+    kinds: dict = field(default_factory=dict)  # name -> "length" or "angle": the confounds' units
 
     @property
     def full_rank(self) -> bool:
@@ -85,9 +86,16 @@ class Identifiability:
         out = []
         for name in self.dropped:
             conf = self.confounds.get(name, ())
-            rhs = " ".join(f"{c:+.3g}·{n}" for n, c in conf) if conf else "no effect on the position"
+            rhs = " ".join(f"{c:+.3g}{self._unit(name, n)}·{n}" for n, c in conf) if conf else \
+                "no effect on the position"
             out.append(f"{indent}{name}  ~  {rhs}")
         return out
+
+    def _unit(self, dropped: str, kept: str) -> str:
+        """The unit of a confound coefficient: ' mm/mrad' for a length acting like an angle (m/rad is
+        mm/mrad), ' mrad/mm' the other way, '' for the same kind or kinds not known."""
+        a, b = self.kinds.get(dropped), self.kinds.get(kept)
+        return "" if a is None or b is None or a == b else " mm/mrad" if a == "length" else " mrad/mm"
 
     def __str__(self) -> str:
         lines = [
@@ -148,7 +156,22 @@ def identifiability(
     J = stacked_jacobian(robot, q, cand) if jacobian is None else jacobian.T[robot.params.indices(cand)].T
     ident = jacobian_identifiability(J, cand, [list(keep), list(robot.preferred_params())], robot.name, q.shape[0],
                                      rank_tol)
-    return dataclasses.replace(ident, notes=tuple(robot.structure_notes()) + ident.notes)
+    return dataclasses.replace(ident, notes=tuple(robot.structure_notes()) + ident.notes, kinds=kinds_of(robot, cand))
+
+
+ANGLE_SUFFIXES = (".rx", ".ry", ".rz", ".theta", ".alpha", ".beta", ".roll", ".pitch", ".yaw")
+
+
+def kinds_of(robot: Robot, names: Sequence[str]) -> dict[str, str]:
+    """"length" or "angle" per name: the robot's own parameters by their kind, set-up parameters by
+    their name (rotations and plane tilts are angles; points, offsets and drifts lengths)."""
+    own = dict(zip(robot.params.names, robot.params.kinds))
+    def kind(n: str) -> str:
+        if n in own:
+            return own[n]
+        tilt = n.startswith("plane[") and n.endswith((".a", ".b"))
+        return "angle" if tilt or n.endswith(ANGLE_SUFFIXES) else "length"
+    return {n: kind(n) for n in names}
 
 
 def jacobian_identifiability(J: np.ndarray, cand: Sequence[str], stages: Sequence[Sequence[str]], label: str,

@@ -21,7 +21,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .._threads import blas_threads
-from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_identifiability
+from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_identifiability, kinds_of
 from ..analysis.observability import live_columns
 from ..errors import IdentifiabilityError, MeasurementError
 from ..models.robot import Robot
@@ -290,7 +290,7 @@ def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, fu
                                 candidates=tuple(n for n in ident.candidates if n not in unseen), rank=len(free),
                                 dropped=tuple(n for n in ident.dropped if n not in unseen),
                                 confounds={k: v for k, v in ident.confounds.items() if k not in unseen},
-                                notes=ident.notes + notes)
+                                notes=ident.notes + notes, kinds=kinds_of(robot, cand + nuis))
     return ident
 
 
