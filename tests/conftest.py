@@ -68,3 +68,12 @@ def assert_jacobians(robot, q, param_tol=1e-6, joint_tol=1e-8, h=1e-6):
     Jq = np.stack([(robot.forward(q + h * e) - robot.forward(q - h * e)) / (2 * h) for e in np.eye(q.shape[1])],
                   axis=2)
     assert np.abs(robot.joint_jacobian(q) - Jq).max() < joint_tol
+
+
+def z_limit(n: int, alpha: float = 0.01) -> float:
+    """The bound on the largest |z| of n standard normal z-scores that a correct estimator exceeds with
+    probability alpha (two-sided, Bonferroni): 3.0 is exceeded by one of 128 honest z-scores 29 % of the
+    time, this bound (3.9 for 128) 1 % of the time."""
+    from scipy.stats import norm
+
+    return float(norm.isf(alpha / (2 * n)))

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 import yourdfpy
-from conftest import assert_jacobians
+from conftest import assert_jacobians, z_limit
 
 import kincal
 from kincal.analysis import stacked_jacobian
@@ -125,7 +125,7 @@ def test_simulated_compliance_and_harmonics_are_recovered(ur5):
         rms.append(kincal.evaluate(res.robot, kincal.simulate(true, qv, 0.0)).rms)
         J, Jv = stacked_jacobian(res.robot, q, res.names), stacked_jacobian(res.robot, qv, res.names)
         predicted.append(NOISE * np.sqrt(np.trace(Jv @ np.linalg.inv(J.T @ J) @ Jv.T) / len(qv)))
-    assert len(z) >= 125 and np.max(np.abs(z)) < 3.0
+    assert len(z) >= 125 and np.max(np.abs(z)) < z_limit(len(z))
     assert abs(np.mean(rms) / np.mean(predicted) - 1) < 0.10
 
 
