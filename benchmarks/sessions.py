@@ -12,7 +12,7 @@ import numpy as np
 
 import kincal
 from kincal._threads import blas_threads
-from kincal.identify.result import in_frame_of as _in_frame_of, joined
+from kincal.identify.positions import in_frame_of as _in_frame_of, joined
 from kincal.identify.sessions import refit_frame
 
 

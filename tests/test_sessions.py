@@ -402,7 +402,7 @@ def test_sessions_fit_together_equal_the_alternation_run_to_convergence():
     """Two sessions in two frames: the stacked fit of the kinematics and the frames gives the kinematics
     of the alternation (frames re-fitted, kinematics fitted, repeated until nothing moves 1e-13) within
     1e-9, and a total squared error no larger."""
-    from kincal.identify.result import in_frame_of as _in_frame_of, joined
+    from kincal.identify.positions import in_frame_of as _in_frame_of, joined
 
     robot = kincal.load_robot("ur5")
     true = kincal.perturb(robot, 0.5e-3, 0.5e-3, seed=4)

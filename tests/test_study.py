@@ -180,7 +180,7 @@ def test_seed_figures_show_the_study_numbers(tmp_path, capsys):
                                atol=1e-12)
     summary = figs["validation-summary"].axes[0]
     heights = sorted(p.get_height() for p in summary.patches)
-    table = sorted(v * 1e3 for row in kincal.identify.result.e_statistics(study.point_errors).values() for v in row)
+    table = sorted(v * 1e3 for row in kincal.identify.positions.e_statistics(study.point_errors).values() for v in row)
     np.testing.assert_allclose(heights, table, rtol=1e-12)
     for name, err in study.point_errors.items():
         e = np.asarray(err).mean(axis=1)

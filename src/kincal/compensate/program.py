@@ -25,6 +25,7 @@ from ..io.programs import Program, Target
 from ..models.robot import Robot
 from ..models.transforms import rotvec_matrix
 from ..models.ur import nearest_turns, ur_inverse, ur_lengths
+from ..ties import first_best
 from .commands import BRANCH_TOL
 from .poses import rotation_log, solve_poses
 
@@ -122,7 +123,7 @@ def controller_inverse(robot: Robot, p: np.ndarray, R: np.ndarray, near: np.ndar
         cand = _numeric_inverse(robot, p, R, near)
     if not len(cand):
         return None
-    return cand[int(np.argmin(np.linalg.norm(cand - near, axis=1)))]
+    return cand[first_best(np.linalg.norm(cand - near, axis=1), maximize=False)]  # ties: the canonical branch order
 
 
 def _numeric_inverse(robot: Robot, p: np.ndarray, R: np.ndarray, near: np.ndarray) -> np.ndarray:

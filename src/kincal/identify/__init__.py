@@ -2,7 +2,8 @@
 from .applies import SCOPES, refuse_inapplicable
 from .calibrate import ABSOLUTE, RESIDUALS, calibrate, calibrate_sessions, evaluate, fit_observations, held_out_stats
 from .options import METHODS, PRIOR_CHOICES, FitOptions, PSOOptions
-from .result import CalibrationResult, EvaluationStats, joined, stat_line, trained_setup
+from .positions import EvaluationStats, joined
+from .result import CalibrationResult, stat_line, trained_setup
 from .relevance import PRIORS
 from .robust import LOSSES
 from .select import ErrorModelChoice

@@ -26,7 +26,8 @@ from ..observe import InSession, JointObs, PointObs
 from .diagnosis import TRIGGERS, diagnose
 from .fitting import fit_stack
 from .options import FitOptions
-from .result import CalibrationResult, EvaluationStats, joined
+from .positions import EvaluationStats, joined
+from .result import CalibrationResult
 from .select import select_model
 from .verdict import (Reason, Verdict, correction_reasons, distinct_count, drift_reasons, duplicate_groups,
                       duplicate_reasons, fitted_drift_reasons, mounting_reasons, noise_level, outlier_reasons,

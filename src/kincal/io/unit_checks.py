@@ -7,6 +7,7 @@ import numpy as np
 
 from ..errors import MeasurementError
 from ..models.robot import Robot
+from ..ties import first_best
 from ..units import LENGTH_UNITS, OTHER_LENGTHS
 
 MIN_SPREAD = 1e-3  # m: below this the poses barely move the tool, and noise decides the spread
@@ -64,7 +65,7 @@ def frame_jump(xyz: np.ndarray, model: np.ndarray, min_part: int = MIN_PART) -> 
     tail = [t - h for t, h in zip(total, head)]
     two = _rigid_sse(*head) + _rigid_sse(*tail)
     one = float(_rigid_sse(*[t[None] for t in total])[0])
-    best = int(np.argmin(two))
+    best = first_best(two, maximize=False)  # splits that fit as well: the earliest
     rms_one, rms_two = float(np.sqrt(max(one, 0.0) / n)), float(np.sqrt(max(two[best], 0.0) / n))  # round-off: ≥ 0
     return (int(k[best]), rms_one, rms_two) if rms_two < JUMP_RATIO * rms_one else None
 

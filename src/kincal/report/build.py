@@ -21,7 +21,8 @@ from ..identify.calibrate import evaluate
 from ..identify.sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
 from ..identify.registration import register_mounting
 from ..identify.relevance import prior_lines
-from ..identify.result import CalibrationResult, EvaluationStats
+from ..identify.positions import EvaluationStats
+from ..identify.result import CalibrationResult
 from ..identify.weak import weak_note
 from ..identify.verdict import Thresholds, duplicate_groups, repeat_tolerance, robust_z
 from ..io.measurements import Measurements

@@ -7,7 +7,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from ..identify.result import EXACT, e_statistics
+from ..identify.positions import EXACT, e_statistics
 from ..units import MM
 from .figures import _figure, _styled
 

@@ -24,7 +24,7 @@ from ..checks import whole
 from ..analysis.separation import TYPES, Separation, gcn, param_type, separate_ill_conditioned
 from ..design import DesignOptions, candidate_pool, design_problem, pose_count_curve, select_poses
 from ..identify.calibrate import calibrate, evaluate
-from ..identify.result import EXACT, EvaluationStats, e_statistics
+from ..identify.positions import EXACT, EvaluationStats, e_statistics
 from ..models.yaml_io import load_robot
 from ..simulate import simulate
 from ..ties import first_best

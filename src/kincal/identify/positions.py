@@ -1,0 +1,112 @@
+"""Position data, the measured points of a calibration: their error statistics (evaluate, the
+studies), the sessions of several files joined or expressed in another's frame, and a fit's points
+as the fit kept them (outliers left out, in the first session's frame, drift taken out)."""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..io.measurements import Measurements
+from ..models.robot import Robot
+from ..observe.drifting import Drifting, acquisition
+from ..observe.sessions import InSession
+from ..units import MM
+
+
+@dataclass(frozen=True)
+class EvaluationStats:
+    """3-D position error statistics over n poses (m); with a model's uncertainty also the predicted
+    σ (m) at every pose and warnings where the model extrapolates."""
+
+    mean: float
+    rms: float
+    max: float
+    std: float
+    p95: float
+    n: int
+    predicted_sigma: tuple[float, ...] | None = None
+    extrapolated_rows: tuple[int, ...] = ()
+    warnings: tuple[str, ...] = ()
+
+    @classmethod
+    def from_errors(cls, err: np.ndarray) -> "EvaluationStats":
+        e = np.linalg.norm(np.asarray(err, dtype=float).reshape(-1, 3), axis=1)
+        return cls(float(e.mean()), float(np.sqrt(np.mean(e**2))), float(e.max()), float(e.std()),
+                   float(np.percentile(e, 95)), int(e.size))
+
+    def to_dict(self) -> dict:
+        out: dict[str, object] = {"mean": self.mean, "rms": self.rms, "max": self.max, "std": self.std,
+                                  "p95": self.p95, "n": self.n}
+        if self.predicted_sigma is not None:
+            out.update(predicted_sigma=list(self.predicted_sigma), extrapolated_rows=list(self.extrapolated_rows))
+        return {**out, "warnings": list(self.warnings)}
+
+    def __str__(self) -> str:
+        text = (f"n={self.n}  mean {self.mean * MM:.4f} mm  rms {self.rms * MM:.4f} mm  max {self.max * MM:.4f} mm"
+                f"  std {self.std * MM:.4f} mm  p95 {self.p95 * MM:.4f} mm")
+        if self.predicted_sigma is not None:
+            s = np.asarray(self.predicted_sigma)
+            text += f"\n  model's predicted σ at these poses: median {np.median(s) * MM:.4f} mm, max {s.max() * MM:.4f} mm"
+        return text + "".join(f"\n  warning: {w}" for w in self.warnings)
+
+
+def kept_positions(fit, sessions: list[Measurements]):
+    """The poses ``fit`` (a :class:`~kincal.identify.CalibrationResult`) fitted (outliers left out) in the first session's frame, their position errors
+    measured − predicted (N, 3) m (a fitted drift taken out), and the drift per axis (or None)."""
+    parts, errs, drift = [], [], None
+    for obs, s in zip(fit.observations, sessions):
+        kept = s.subset(np.flatnonzero(np.isin(s.rows, obs.rows)))
+        frame, inner, offset = fit.robot, obs, np.zeros((len(kept), 3))
+        if isinstance(inner, InSession):
+            frame = fit.robot.with_params({b: fit.nuisance[f"frame[{inner.session}].{b}"]
+                                           for b in fit.robot.base_params()})
+            inner = inner.inner
+        if isinstance(inner, Drifting):
+            d = np.array([fit.nuisance[n] for n in inner.names()])
+            offset = acquisition(inner.rows)[:, None] * d
+            drift = drift or {a: {"value": float(v), "std": float(fit.std[n])}
+                              for a, v, n in zip("xyz", d, inner.names())}
+        parts.append(in_frame_of(fit.robot, frame, kept))
+        errs.append(in_frame_of(fit.robot, frame, dataclasses.replace(kept, xyz=kept.xyz - offset)).xyz
+                    - fit.robot.forward(kept.q))
+    return joined(parts), np.concatenate(errs), drift
+
+
+def in_frame_of(model: Robot, registered: Robot, meas: Measurements) -> Measurements:
+    """``meas`` (taken in the frame where ``registered`` sees the robot) expressed in ``model``'s frame."""
+    if registered is model:
+        return meas
+    R0, t0 = model.base_transform()
+    Rs, ts = registered.base_transform()
+    xyz = (meas.xyz - ts) @ Rs @ R0.T + t0
+    std = None if meas.std is None else np.sqrt(meas.std**2 @ (Rs @ R0.T) ** 2)  # per-axis variances, rotated
+    return Measurements(meas.q, xyz, meas.joint_names, meas.source, meas.rows, std, meas.units, meas.session)
+
+
+def joined(sessions: list[Measurements]) -> Measurements:
+    """Several sessions as one set of measurements (their rows keep their own files' line numbers; each
+    pose is labelled with its session's source, so held-out sessions can be told apart)."""
+    if len(sessions) == 1:
+        return sessions[0]
+    std = None if any(s.std is None for s in sessions) else np.concatenate([s.std for s in sessions])
+    labels = [s.source if s.source not in [t.source for t in sessions[:i]] else f"{s.source} ({i + 1})"
+              for i, s in enumerate(sessions)]
+    return Measurements(np.concatenate([s.q for s in sessions]), np.concatenate([s.xyz for s in sessions]),
+                        sessions[0].joint_names, " + ".join(s.source for s in sessions),
+                        np.concatenate([s.rows for s in sessions]), std, sessions[0].units,
+                        np.concatenate([np.full(len(s), name) for s, name in zip(sessions, labels)]))
+
+
+EXACT = 1e-9  # m: a validation error below this is round-off (no noise, an exact model)
+
+
+def e_statistics(point_errors: dict) -> dict[str, tuple[float, float, float]]:
+    """Per model the paper's Table 8 statistics of e (the signed average of the three axis errors)
+    over the validation points: max |e|, mean |e|, std e (m)."""
+    out = {}
+    for k, err in point_errors.items():
+        e = np.asarray(err).mean(axis=1)
+        out[k] = (float(np.max(np.abs(e))), float(np.mean(np.abs(e))), float(np.std(e, ddof=1)))
+    return out
