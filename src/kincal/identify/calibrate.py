@@ -4,8 +4,8 @@
 observation set (a :class:`~kincal.observe.PointObs`, or a :class:`~kincal.observe.JointObs` for
 the joint-space residual; later sessions in their own frames, :class:`~kincal.observe.InSession`),
 runs the one fit (:func:`kincal.identify.fitting.fit_stack`), and reads it as a
-:class:`CalibrationResult`: the residuals of every pose in the first session's frame, the verdict of
-position data, and the differential diagnosis of a doubtful fit. ``fit_observations`` is the same
+:class:`CalibrationResult` with the data as given: the residuals of every pose in the first
+session's frame, the verdict of position data, and the differential diagnosis of a doubtful fit. ``fit_observations`` is the same
 fit for observation sets of any kinds.
 """
 from __future__ import annotations
@@ -29,9 +29,7 @@ from .options import FitOptions
 from .positions import EvaluationStats, joined
 from .result import CalibrationResult
 from .select import select_model
-from .verdict import (Reason, Verdict, correction_reasons, distinct_count, drift_reasons, duplicate_groups,
-                      duplicate_reasons, fitted_drift_reasons, mounting_reasons, noise_level, outlier_reasons,
-                      repeat_tolerance, residual_reasons)
+from .verdict import distinct_count, repeat_tolerance
 
 RESIDUALS = {"cartesian": PointObs, "joint": JointObs}  # FitOptions.residual -> the observation type fitted
 
@@ -83,8 +81,8 @@ def _calibrate(robot: Robot, sessions: list[Measurements], own_frames: bool, opt
         robot, choice = _error_model(robot, sessions, own_frames, options, say, use_q)
         fit_options = options.replace(error_model=None, diagnose=False)
         fit = fit_stack(robot, _sets(sessions, own_frames, options, robot), fit_options, say=say)
-        res = judge(dataclasses.replace(fit, options=options, error_model_choice=choice, use_q=use_q,
-                                        data=tuple(sessions), time_s=time.perf_counter() - t0))
+        res = dataclasses.replace(fit, options=options, error_model_choice=choice, use_q=use_q,
+                                  data=tuple(sessions), time_s=time.perf_counter() - t0)
         return diagnosed(res, robot, say) if options.diagnose else res
 
 
@@ -151,20 +149,14 @@ def diagnosed(res: CalibrationResult, robot: Robot, say=lambda msg: None) -> Cal
     doubts the data (:data:`TRIGGERS`). Position data are screened as fitted; other kinds on the
     positions of their one point or 6-D pose file in the robot's frame (fitted as positions from
     ``robot``, the model as given); markers, sockets, planes and sessions in their own frames are
-    not. Bad poses in a least-squares fit of positions steer the whole model: refused, not doubtful."""
+    not (the verdict puts the diagnosis first: :func:`kincal.identify.judge.verdict_of`)."""
     if not any(r.code in TRIGGERS for r in res.verdict.reasons):
         return res
     position = res if res.data else _positions_of(res, robot)
     if position is None:
         return res
     say("trying the common input mistakes")
-    found = diagnose(position)
-    best = found.best
-    status = "refused" if best and best.code == "outliers" and res.data and res.options.loss == "linear" \
-        else res.verdict.status
-    reason = Reason(status, f"cause-{best.code}" if best else "cause-unknown",
-                    found.message() + ("" if res.data else " (screened on the measured positions)"))
-    return dataclasses.replace(res, diagnosis=found, verdict=Verdict(status, (reason, *res.verdict.reasons)))
+    return dataclasses.replace(res, diagnosis=diagnose(position))
 
 
 def _positions_of(res: CalibrationResult, robot: Robot) -> CalibrationResult | None:
@@ -175,32 +167,6 @@ def _positions_of(res: CalibrationResult, robot: Robot) -> CalibrationResult | N
         return None
     q, xyz = sets[0].positions()
     return calibrate(robot, Measurements(q, xyz, robot.joint_names, sets[0].source, sets[0].rows), diagnose=False)
-
-
-def judge(res: CalibrationResult) -> CalibrationResult:
-    """The result with its verdict (limits: ``res.options.thresholds``) from its per-pose robust z-scores."""
-    meas, th, z, ident, err = res.measurements, res.options.thresholds, res.pose_z, res.identifiability, res.residuals
-    reasons = [] if res.converged else [Reason("refused", "not-converged", f"the fit did not converge "
-                                                                             f"({res.message})")]
-    loose = [n for n in res.nominal.base_params() if n in ident.dropped]
-    if res.options.base == "estimate" and loose:
-        reasons.append(Reason("refused", "base-underdetermined",
-                              f"the poses leave the base frame underdetermined ({', '.join(loose)}): measure "
-                              f"poses spread over the workspace, or use --base fixed if the base is known"))
-    corrections = res.corrections
-    reasons += correction_reasons(res.nominal, {n: corrections[n] for n in res.names if np.isfinite(res.std[n])}, th)
-    if res.mounting:
-        reasons += mounting_reasons(res.nominal.tool_point(), res.robot.tool_point(), th)
-    inliers = err[z <= th.outlier_limit(len(z))]  # outliers are named on their own, not smeared into σ
-    pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
-    noise = noise_level(meas.std, th)
-    reasons += drift_reasons(meas.rows, np.linalg.norm(err, axis=1))
-    reasons += residual_reasons(pos_sigma, noise, th)
-    reasons += outlier_reasons(meas.rows, z, th, res.options.loss)
-    reasons += duplicate_reasons(meas.rows, tuple(duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types,
-                                                                                            th))))
-    reasons += fitted_drift_reasons(res.drift, noise[0])
-    return dataclasses.replace(res, verdict=Verdict.from_reasons(reasons))
 
 
 def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,

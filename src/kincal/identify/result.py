@@ -17,7 +17,7 @@ from ..models.robot import TOOL_NAMES, Robot
 from ..observe.observations import Wrapper
 from ..units import MM, MRAD, display
 from .diagnosis import Diagnosis
-from .observed_verdict import MIN_SAMPLES, component_kinds, sample_norms
+from .judge import MIN_SAMPLES, component_kinds, sample_norms, verdict_of
 from .options import FitOptions
 from .positions import EvaluationStats, kept_positions
 from .relevance import prior_lines
@@ -62,7 +62,6 @@ class CalibrationResult:
     per_set: tuple[dict, ...]
     whitened_rms: float
     covariance: np.ndarray
-    verdict: Verdict
     converged: bool
     iterations: int
     observations: tuple = ()
@@ -84,6 +83,11 @@ class CalibrationResult:
     error_model_choice: ErrorModelChoice | None = None  # error_model "auto": the blocked-CV comparison
     use_q: np.ndarray | None = None  # (M, n) where the model will be used (the prediction-σ guard)
     data: tuple[Measurements, ...] = ()
+
+    @functools.cached_property
+    def verdict(self) -> Verdict:
+        """Good, suspect or refused, with reasons (:func:`kincal.identify.judge.verdict_of`)."""
+        return verdict_of(self)
 
     # --- the position view (data fitted by kincal.calibrate) ---
 

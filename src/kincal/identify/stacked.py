@@ -32,7 +32,7 @@ from .lm import LMResult
 from .options import FitOptions
 from .noise import extra_variance
 from .result import CalibrationResult
-from .observed_verdict import component_kinds, observation_verdict, outlier_samples, whitened_per_kind
+from .judge import component_kinds, outlier_samples, whitened_per_kind
 from .registration import register_base, register_mounting
 from .relevance import RelevanceFit
 from .rounds import Round, swarm
@@ -360,15 +360,13 @@ def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit,
     after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
     r = fit.residual * st.stated / st.inv_sigma  # whitened by the stated σ: what the user can restate
     per_kind = whitened_per_kind(st.sets, r)
-    th = o.thresholds
     return CalibrationResult(
         robot=calibrated, nominal=declared, registered=robot, before=before_model,
         names=tuple(n for n in free if n in robot.params.names), nuisance=dict(zip(st.nuis_names, full[P:])),
         std=std, identifiability=ident, gauge=gauge, per_set_before=before, per_set=after,
         whitened_rms=float(np.sqrt(np.mean(r**2))), covariance=cov,
-        verdict=observation_verdict(robot, calibrated, st.sets, r, per_kind, fit.converged, th),
         converged=bool(fit.converged), iterations=spent[0], observations=st.sets, weak=weak, prior=learned,
         whitened=per_kind, model_error={k: v for k, v in error.items() if v > 0},
-        outliers=outlier_samples(st.sets, r, th), whitened_residual=r, evaluations=spent[1],
+        outliers=outlier_samples(st.sets, r, o.thresholds), whitened_residual=r, evaluations=spent[1],
         message=fit.message if isinstance(fit, LMResult) else "prior learned", history=tuple(history),
         free=tuple(free), options=o)

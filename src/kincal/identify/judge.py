@@ -1,16 +1,25 @@
-"""The verdict of a fit from observation sets (:mod:`kincal.identify.stacked`): the whitened residual
-per kind of component against its stated σ, the corrections and the mounting against the user's
-limits, outlier samples and repeated poses per set (named by file and row), and what plane contacts
-alone cannot confirm."""
+"""The one verdict of a calibration (:class:`~kincal.identify.CalibrationResult`, any kinds): the
+fit's convergence and base frame, the corrections and the mounting against the user's limits
+(:class:`~kincal.identify.verdict.Thresholds`), then per kind of data: position data fitted by
+:func:`kincal.calibrate` by their residual σ against the tracker noise, per-pose outliers, repeated
+poses and warm-up drift; other sets by the whitened residual per kind of component against its
+stated σ, outlier samples and repeated poses per set (named by file and row), and what plane
+contacts alone cannot confirm. A differential diagnosis, when run, comes first."""
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..models.robot import Robot
 from ..units import MM
 from .._csv import listed
-from .verdict import (Reason, Thresholds, Verdict, correction_reasons, duplicate_groups, mounting_reasons,
-                      repeat_tolerance, robust_z)
+from .verdict import (Reason, Thresholds, Verdict, correction_reasons, drift_reasons, duplicate_groups,
+                      duplicate_reasons, fitted_drift_reasons, mounting_reasons, noise_level, outlier_reasons,
+                      repeat_tolerance, residual_reasons, robust_z)
+
+if TYPE_CHECKING:
+    from .result import CalibrationResult
 
 IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes (unseen) than across them
 MIN_SAMPLES = 10  # a set with fewer samples is not judged for outliers (no robust spread to judge by)
@@ -40,26 +49,73 @@ def whitened_per_kind(sets, r: np.ndarray) -> dict[str, float]:
     return {name: float(np.sqrt(np.mean(r[labels == k] ** 2))) for k, name in enumerate(names)}
 
 
-def observation_verdict(nominal: Robot, calibrated: Robot, sets, r: np.ndarray, per_kind: dict, converged: bool,
-                        th: Thresholds) -> Verdict:
-    """Good, suspect or refused with reasons, for the whitened residual ``r`` of ``sets`` at the fit."""
+def verdict_of(res: "CalibrationResult") -> Verdict:
+    """Good, suspect or refused with reasons (limits: ``res.options.thresholds``)."""
+    th = res.options.thresholds
+    reasons = [] if res.converged else [Reason("refused", "not-converged", f"the fit did not converge "
+                                                                             f"({res.message})")]
+    reasons += _base_reasons(res)
+    reasons += correction_reasons(res.nominal, {n: c for n, c in res.corrections.items() if np.isfinite(res.std[n])},
+                                  th)
+    if res.mounting:
+        reasons += mounting_reasons(res.nominal.tool_point(), res.robot.tool_point(), th)
+    reasons += _position_reasons(res, th) if res.data else _set_reasons(res, th)
+    verdict = Verdict.from_reasons(tuple(reasons))
+    return _diagnosed(res, verdict) if res.diagnosis is not None else verdict
+
+
+def _base_reasons(res: "CalibrationResult") -> list[Reason]:
+    """Position data that leave the base frame underdetermined (other kinds may leave it unseen:
+    sockets and planes carry frames of their own)."""
+    loose = [n for n in res.nominal.base_params() if n in res.identifiability.dropped]
+    if not res.data or res.options.base != "estimate" or not loose:
+        return []
+    return [Reason("refused", "base-underdetermined", f"the poses leave the base frame underdetermined "
+                   f"({', '.join(loose)}): measure poses spread over the workspace, or use --base fixed if the base "
+                   f"is known")]
+
+
+def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
+    """Position data as fitted: residual σ (outliers left out) against the tracker noise, warm-up
+    drift, per-pose outliers, repeated poses and a fitted drift."""
+    meas, z, err = res.measurements, res.pose_z, res.residuals
+    inliers = err[z <= th.outlier_limit(len(z))]  # outliers are named on their own, not smeared into σ
+    pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
+    noise = noise_level(meas.std, th)
+    return [*drift_reasons(meas.rows, np.linalg.norm(err, axis=1)), *residual_reasons(pos_sigma, noise, th),
+            *outlier_reasons(meas.rows, z, th, res.options.loss),
+            *duplicate_reasons(meas.rows, tuple(duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types,
+                                                                                          th)))),
+            *fitted_drift_reasons(res.drift, noise[0])]
+
+
+def _set_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
+    """Observation sets: the whitened residual per kind against its stated σ, outlier samples and
+    repeated poses per set, and what plane contacts alone cannot confirm."""
     reasons = []
-    if not converged:
-        reasons.append(Reason("refused", "not-converged", "the fit did not converge"))
-    for kind, rms in per_kind.items():
+    for kind, rms in res.whitened.items():
         if rms > 3.0:
             reasons.append(Reason("suspect", "residual", (
                 f"the {kind} residuals are {rms:.1f}x their stated σ ({STATED.get(kind, '--std-pos')}): the model "
                 f"leaves errors it cannot describe there, or that σ is too small; restate it if the instrument is "
-                f"noisier" + _other_kinds(per_kind, kind))))
-    reasons += correction_reasons(nominal, {n: calibrated.params[n] - nominal.params[n] for n in nominal.params.names},
-                                  th)
-    if nominal.has_tool_point:
-        reasons += mounting_reasons(nominal.tool_point(), calibrated.tool_point(), th)
-    reasons += sample_reasons(sets, r, nominal, th)
-    if all(o.kind == "plane" for o in sets):
-        reasons += _plane_reasons(nominal, calibrated, sets)
-    return Verdict.from_reasons(tuple(reasons))
+                f"noisier" + _other_kinds(res.whitened, kind))))
+    reasons += _sample_reasons(res.observations, res.outliers, res.registered, th)
+    if all(o.kind == "plane" for o in res.observations):
+        reasons += _plane_reasons(res.registered, res.robot, res.observations)
+    return reasons
+
+
+def _diagnosed(res: "CalibrationResult", verdict: Verdict) -> Verdict:
+    """The verdict with the differential diagnosis first. Bad poses in a least-squares fit of
+    positions steer the whole model: refused, not doubtful."""
+    found = res.diagnosis
+    assert found is not None
+    best = found.best
+    status = "refused" if best and best.code == "outliers" and res.data and res.options.loss == "linear" \
+        else verdict.status
+    reason = Reason(status, f"cause-{best.code}" if best else "cause-unknown",
+                    found.message() + ("" if res.data else " (screened on the measured positions)"))
+    return Verdict(status, (reason, *verdict.reasons))
 
 
 def sample_norms(sets, r: np.ndarray) -> list[np.ndarray]:
@@ -85,11 +141,12 @@ def outlier_samples(sets, r: np.ndarray, th: Thresholds) -> tuple[np.ndarray, ..
     return tuple(out)
 
 
-def sample_reasons(sets, r: np.ndarray, robot: Robot, th: Thresholds) -> list[Reason]:
-    """Outlier samples (whitened norm beyond ``th.outlier_limit`` robust σ) and repeated poses, per set."""
+def _sample_reasons(sets, outliers, robot: Robot, th: Thresholds) -> list[Reason]:
+    """Outlier samples (per set, indices beyond ``th.outlier_limit`` robust σ: :func:`outlier_samples`)
+    and repeated poses, per set."""
     out = []
     tol = repeat_tolerance(robot.joint_types, th)
-    for obs, found in zip(sets, outlier_samples(sets, r, th)):
+    for obs, found in zip(sets, outliers):
         limit, bad = th.outlier_limit(len(obs)), obs.rows[found]
         if bad.size:
             out.append(Reason("suspect", "outliers", f"{obs.source}: outlier sample(s) more than {limit:.3g} "
