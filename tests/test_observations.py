@@ -377,3 +377,18 @@ def test_markers_start_registered_in_the_camera_frame(ur5):
     for k, m in enumerate(obs.names):  # the marker points, in the flange frame
         got = np.array([fit.nuisance[f"marker[{m}].{a}"] for a in "xyz"])
         assert np.linalg.norm(got - points[k]) < 1e-3
+
+
+def test_marker_statistics_are_per_observed_marker(ur5):
+    """Each observed marker's error is its own 3-D distance (reference: the robot with its tool point
+    at that marker, one marker at a time), with markers missing in some samples."""
+    q = ur5.sample_joints(12, seed=3)
+    obs = simulate_markers(ur5, q, MARKERS, 0.0, 0.3, seed=4)
+    moved = dataclasses.replace(obs, xyz=obs.xyz + np.array([1e-3, -2e-3, 0.5e-3]) * np.arange(1, 4)[:, None])
+    nuis = MARKERS.ravel()
+    e = np.concatenate([np.linalg.norm(ur5.with_tool_point(m).forward(q[seen]) - moved.xyz[seen, k], axis=1)
+                        for k, (m, seen) in enumerate(zip(MARKERS, moved.seen().T))])
+    s = moved.stats(ur5, ur5.params.values, nuis)
+    assert s["observed"] == e.size < 36  # some cells unseen
+    assert s["mean_mm"] == pytest.approx(e.mean() * 1e3, rel=1e-9)
+    assert s["max_mm"] == pytest.approx(e.max() * 1e3, rel=1e-9)

@@ -1,24 +1,9 @@
-"""Observation types: what one kind of measurement says about the robot, each a residual object.
-
-An observation set holds the joint values of its samples and declares
-
-* ``sigma()``: (M,) the noise σ of every residual component (m or rad), from columns or stated; the
-  problem is whitened by it, so millimetres and milliradians are combined by the instrument's
-  noise, never by an arbitrary "1 mm weighs like x mrad";
-* ``nuisance``: the parameters it brings (target frame, marker points, socket points, planes) as
-  names, start values (given the starting robot) and kinds (length/angle);
-* ``evaluate(robot, values, nuis) -> (r (M,), Jr (M, P), Jn (M, K))``: predicted − measured and its
-  derivatives by the robot's parameters and by its own;
-* ``gauge``: robot parameters these data cannot see (a plate's sockets do not see where the robot
-  stands: the base frame), and ``reference``: whether they fix the length scale;
-* ``stats(...)``: per-type figures in mm and mrad.
-
-The kinematics of points on the flange come from the robot's position Jacobian alone: the tool
-point is a translation in the flange frame, so d p / d tool = R (the flange rotation). A full pose
-also needs the flange's rotation rate per parameter, :meth:`kincal.models.Robot.frame_and_rates`:
-a chain reads it off its ops' world axes; any other robot with a tool point derives it from unit
-steps of the tool point. Every robot with a tool point gets full poses and markers this way.
-"""
+"""Observation types: what one kind of measurement says about the robot, each a residual object (its interface:
+:class:`Observation`). Points on the flange need only the robot's position Jacobian: the tool point is a translation
+in the flange frame, so d p / d tool = R (the flange rotation). A full pose also needs the flange's rotation rate per
+parameter, :meth:`kincal.models.Robot.frame_and_rates` (a chain reads it off its ops' world axes; any other robot
+with a tool point derives it from unit steps of the tool point), so every robot with a tool point gets full poses
+and markers."""
 from __future__ import annotations
 
 import dataclasses
@@ -30,6 +15,7 @@ from ..errors import MeasurementError
 from ..models.robot import TOOL_NAMES, Robot
 from ..models.transforms import skew
 from ..units import MM, MRAD
+from .orientation import nearest_rotation
 
 
 def so3_left_inverse(phi: np.ndarray) -> np.ndarray:
@@ -52,9 +38,8 @@ def so3_right(omega: np.ndarray) -> np.ndarray:
 
 
 def component_major(r: np.ndarray, J: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(N, c) residuals and (N, c, P) derivatives -> (N·c,) and (N·c, K) for the columns ``cols``,
-    every sample's first component, then the second, …: J is the transposed view of one copy of the
-    columns (the kinematics keep them parameter-major)."""
+    """(N, c) residuals and (N, c, P) derivatives -> (N·c,) and (N·c, K) for the columns ``cols``, every sample's
+    first component, then the second, …: J is a transposed view of one copy (the kinematics are parameter-major)."""
     return r.T.ravel(), J.transpose(2, 1, 0)[cols].reshape(len(cols), -1).T
 
 
@@ -80,8 +65,7 @@ def flange_point(robot: Robot, q: np.ndarray, values: np.ndarray, point: np.ndar
 
 @dataclass(frozen=True, eq=False)
 class Observation:
-    """Common fields: joint values q (N, n) in rad/m, the input ``rows`` (line numbers), the
-    ``source`` file and an optional per-sample session label."""
+    """Common fields: joint values q (N, n) in rad/m, the input ``rows`` (line numbers) and the ``source`` file."""
 
     q: np.ndarray
     rows: np.ndarray
@@ -99,10 +83,8 @@ class Observation:
 
     def subset(self, idx: np.ndarray) -> "Observation":
         """The samples ``idx`` (every per-sample array indexed; distances, planes and frames kept)."""
-        n = len(self)
-        per_sample = {k: v[idx] for k, v in vars(self).items()
-                      if k in {f.name for f in dataclasses.fields(self)} and isinstance(v, np.ndarray)
-                      and v.shape[:1] == (n,)}
+        per_sample = {f.name: v[idx] for f in dataclasses.fields(self)
+                      if isinstance(v := vars(self)[f.name], np.ndarray) and v.shape[:1] == (len(self),)}
         return dataclasses.replace(self, **per_sample)
 
     def without_rows(self, rows) -> "Observation":
@@ -114,11 +96,13 @@ class Observation:
         return self.subset(np.flatnonzero(~np.isin(self.rows, [int(r) for r in rows])))
 
     def nuisance(self, robot: Robot) -> tuple[tuple[str, ...], np.ndarray, tuple[str, ...]]:
-        """Names, start values (at ``robot``) and kinds ('length'/'angle') of the parameters it brings."""
+        """Names, start values (at ``robot``) and kinds ('length'/'angle') of the set-up parameters it
+        brings (target frame, marker points, socket points, planes)."""
         return (), np.zeros(0), ()
 
     def gauge_params(self, robot: Robot) -> tuple[str, ...]:
-        """Robot parameters these data cannot see (left at their values, named as gauge freedoms)."""
+        """Robot parameters these data cannot see (left at their values, named as gauge freedoms): a
+        plate's sockets do not see where the robot stands (the base frame)."""
         return ()
 
     def prepare(self, robot: Robot) -> "Observation":
@@ -136,14 +120,13 @@ class Observation:
         raise NotImplementedError(f"{self.kind} data cannot be grouped by sample")
 
     def sigma(self) -> np.ndarray:
-        """(M,) the noise σ of every residual component (m or rad); every type declares it."""
+        """(M,) the noise σ of every residual component (m or rad); every type declares it. It whitens the
+        problem: mm and mrad are combined by the instrument's noise, never by an arbitrary "1 mm weighs like x mrad"."""
         raise NotImplementedError(f"{self.kind} data declare no σ")
 
-    def evaluate(self, robot: Robot, values: np.ndarray,
-                 nuis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Predicted − measured r (M,), its derivatives by the robot's parameters Jr (M, P) and by the
-        set's own nuisance parameters Jn (M, K), at robot parameter ``values`` and nuisance ``nuis``;
-        every type declares it."""
+    def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Predicted − measured r (M,), its derivatives by the robot's parameters Jr (M, P) and by the set's
+        own nuisance parameters Jn (M, K), at ``values`` and ``nuis``; every type declares it."""
         raise NotImplementedError(f"{self.kind} data declare no residual")
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
@@ -151,9 +134,8 @@ class Observation:
         raise NotImplementedError(f"{self.kind} data declare no statistics")
 
     def evaluate_cols(self, robot: Robot, values: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """r (M,) and its derivatives by the robot parameters ``cols`` only (M, K), the set-up
-        parameters at their starts: the position fit's view of a set (types whose Jacobian comes out
-        parameter-major override it and save a copy)."""
+        """r (M,) and its derivatives by the robot parameters ``cols`` only (M, K), set-up parameters at their
+        starts: the position fit's view (types whose Jacobian is parameter-major override it, saving a copy)."""
         r, Jr, _ = self.evaluate(robot, values, self.nuisance(robot)[1])
         return r, Jr[:, cols]
 
@@ -171,13 +153,12 @@ class Observation:
         raise NotImplementedError(f"{self.kind} data measure no position in an instrument's frame")
 
     def shifted(self, offset: np.ndarray) -> "Observation":
-        """The set with each sample's measured positions moved by ``offset`` (N, 3) m; types that
-        measure positions declare it."""
+        """The set with each sample's measured positions moved by ``offset`` (N, 3) m (as above)."""
         raise NotImplementedError(f"{self.kind} data measure no position in an instrument's frame")
 
     def anchors(self) -> dict:
-        """Start values its set-up parameters are measured from, which every set sharing those
-        parameters must share (a pose target's start rotation); none by default."""
+        """Start values its set-up parameters are measured from, which every set sharing them must share (a
+        pose target's start rotation); none by default."""
         return {}
 
     def with_anchors(self, anchors: dict) -> "Observation":
@@ -199,13 +180,8 @@ class Wrapper(Observation):
 
     inner: Observation
 
-    @property
-    def kind(self) -> str:  # the inner set's type
-        return self.inner.kind
-
-    @kind.setter
-    def kind(self, value: str) -> None:  # the base declares a plain attribute; here it is frozen like a field
-        raise dataclasses.FrozenInstanceError("cannot assign to field 'kind'")
+    def __post_init__(self) -> None:  # the inner set's type (frozen: it cannot be assigned afterwards)
+        object.__setattr__(self, "kind", self.inner.kind)
 
     @property
     def reference(self) -> bool:
@@ -283,10 +259,9 @@ class PointObs(Observation):
 
 @dataclass(frozen=True, eq=False)
 class PoseObs(Observation):
-    """Full 6-D poses of a target frame on the flange: positions xyz (N, 3) m and rotations R (N, 3, 3)
-    in the measurement frame. The target's origin is the robot's tool point; its orientation on the
-    flange is ``target_rotation`` (3, 3) times a fitted rotation vector (``target.rx/ry/rz``, rad).
-    σ: position (m) and rotation (rad), per sample (N,) or one number each."""
+    """Full 6-D poses of a target frame on the flange: positions xyz (N, 3) m and rotations R (N, 3, 3) in the
+    measurement frame. The target's origin is the tool point; its orientation on the flange is ``target_rotation``
+    (3, 3) times a fitted rotation vector (``target.rx/ry/rz``, rad). σ (m, rad): per sample (N,) or one number."""
 
     xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     R: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
@@ -305,8 +280,7 @@ class PoseObs(Observation):
         if self.anchored:
             return self
         _, _, Rf = flange_point(robot, self.q, robot.params.values, robot.tool_point())
-        U, _, Vt = np.linalg.svd(np.sum(Rf.transpose(0, 2, 1) @ self.R, axis=0))
-        return dataclasses.replace(self, target_rotation=U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt)
+        return dataclasses.replace(self, target_rotation=nearest_rotation(np.sum(Rf.transpose(0, 2, 1) @ self.R, 0)))
 
     def nuisance(self, robot: Robot):
         return ("target.rx", "target.ry", "target.rz"), np.zeros(3), ("angle",) * 3
@@ -329,9 +303,7 @@ class PoseObs(Observation):
         return dataclasses.replace(self, target_rotation=anchors["target_rotation"], anchored=True)
 
     def sigma(self) -> np.ndarray:
-        n = len(self)
-        sp = np.broadcast_to(np.asarray(self.std_pos, float), (n,))
-        sr = np.broadcast_to(np.asarray(self.std_rot, float), (n,))
+        sp, sr = (np.broadcast_to(np.asarray(s, float), (len(self),)) for s in (self.std_pos, self.std_rot))
         return np.concatenate([sp, sp, sp, sr, sr, sr])
 
     def target(self, nuis: np.ndarray) -> np.ndarray:
@@ -352,17 +324,13 @@ class PoseObs(Observation):
         if not jacobian:
             return p - self.xyz, phi, None
         Linv = so3_left_inverse(phi)
-        Jrot = Linv @ Jw
-        Jn = Linv @ (Rf @ (Rt @ so3_right(nuis[:3])))
-        return p - self.xyz, phi, (J, Jrot, Jn)
+        return p - self.xyz, phi, (J, Linv @ Jw, Linv @ (Rf @ (Rt @ so3_right(nuis[:3]))))
 
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
-        dp, phi, (J, Jrot, Jn) = self.errors(robot, values, nuis)
-        n, P = len(self), J.shape[2]
-        r = np.concatenate([dp.T.ravel(), phi.T.ravel()])
-        Jr = np.concatenate([J.transpose(1, 0, 2).reshape(-1, P), Jrot.transpose(1, 0, 2).reshape(-1, P)])
-        Jnn = np.concatenate([np.zeros((3 * n, 3)), Jn.transpose(1, 0, 2).reshape(-1, 3)])
-        return r, Jr, Jnn
+        dp, phi, (J, Jrot, Jn) = self.errors(robot, values, nuis)  # rows: x, y, z, then the 3 rotation components
+        return (np.concatenate([dp, phi], axis=1).T.ravel(),
+                np.concatenate([J, Jrot], axis=1).transpose(1, 0, 2).reshape(-1, J.shape[2]),
+                np.concatenate([np.zeros_like(Jn), Jn], axis=1).transpose(1, 0, 2).reshape(-1, 3))
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         dp, phi, _ = self.errors(robot, values, nuis, jacobian=False)
@@ -402,9 +370,8 @@ class MarkersObs(Observation):
             return self
         _, _, R = flange_point(robot, self.q, robot.params.values, np.zeros(3))
         origin = robot.forward(self.q, _with_tool(robot, robot.params.values, np.zeros(3)))
-        seen = self.seen()
-        start = np.array([np.einsum("nji,nj->ni", R[seen[:, m]], self.xyz[seen[:, m], m] - origin[seen[:, m]]).mean(0)
-                          if seen[:, m].any() else robot.tool_point() for m in range(seen.shape[1])])
+        start = np.array([np.einsum("nji,nj->ni", R[seen], self.xyz[seen, m] - origin[seen]).mean(0)
+                          if seen.any() else robot.tool_point() for m, seen in enumerate(self.seen().T)])
         return dataclasses.replace(self, start=start)
 
     def nuisance(self, robot: Robot):
@@ -420,21 +387,17 @@ class MarkersObs(Observation):
         return np.broadcast_to(np.asarray(self.std, float), (len(self),))[self.sample_rows()]
 
     def sample_rows(self) -> np.ndarray:
-        seen = self.seen()
-        return np.concatenate([np.tile(np.flatnonzero(seen[:, m]), 3) for m in range(seen.shape[1])])
+        return np.concatenate([np.tile(np.flatnonzero(seen), 3) for seen in self.seen().T])
 
     def position_axes(self) -> np.ndarray:
-        seen = self.seen()
-        return np.concatenate([np.repeat(np.arange(3), np.count_nonzero(seen[:, m])) for m in range(seen.shape[1])])
+        return np.concatenate([np.repeat(np.arange(3), np.count_nonzero(seen)) for seen in self.seen().T])
 
     def shifted(self, offset: np.ndarray) -> "MarkersObs":
         return dataclasses.replace(self, xyz=self.xyz + offset[:, None, :])
 
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
-        seen, k = self.seen(), self.xyz.shape[1]
-        r, Jr, Jn = [], [], []
-        for m in range(k):
-            rows = seen[:, m]
+        k, r, Jr, Jn = self.xyz.shape[1], [], [], []
+        for m, rows in enumerate(self.seen().T):
             p, J, R = flange_point(robot, self.q[rows], robot.param_values(values), nuis[3 * m:3 * m + 3])
             J = J.copy()
             J[:, :, robot.params.indices(TOOL_NAMES)] = 0.0
@@ -446,6 +409,7 @@ class MarkersObs(Observation):
         return np.concatenate(r), np.concatenate(Jr), np.concatenate(Jn)
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
-        r = self.evaluate(robot, values, nuis)[0].reshape(3, -1)
-        e = np.linalg.norm(r, axis=0)
+        r = self.evaluate(robot, values, nuis)[0]  # per marker: its x rows, then y, then z
+        ends = 3 * np.cumsum(np.count_nonzero(self.seen(), axis=0))[:-1]
+        e = np.concatenate([np.linalg.norm(b.reshape(3, -1), axis=0) for b in np.split(r, ends)])
         return error_stats(self, e, markers=len(self.names), observed=int(e.size))
