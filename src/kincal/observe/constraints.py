@@ -1,11 +1,10 @@
-"""Observation types without a measuring device: a ball seated in sockets (the same unknown point
-reached in many configurations, with known distances between points) and contacts with planes.
+"""Observation types without a measuring device: a ball seated in sockets (the same unknown point reached in many
+configurations, with known distances between points) and contacts with planes.
 
-Neither sees where the robot stands: the base frame is a gauge freedom (left at its value and named).
-Sockets without a known distance, and planes without two known parallel ones at different offsets,
-do not fix the length scale either: a robot shrunk towards a point (on a plane, or on the line where
-two planes meet) satisfies them as well, so such a fit is refused before it starts (MUKCa, Franzese
-et al. 2025, use the 50 mm between two sockets).
+Neither sees where the robot stands: the base frame is a gauge freedom (left at its value and named). Sockets without
+a known distance, and planes without two known parallel ones at different offsets, do not fix the length scale
+either: a robot shrunk towards a point (on a plane, or on the line where two planes meet) satisfies them as well, so
+such a fit is refused before it starts (MUKCa, Franzese et al. 2025, use the 50 mm between two sockets).
 """
 from __future__ import annotations
 
@@ -26,15 +25,14 @@ UNIT_FACTORS = {"mm": 1 / LENGTH_UNITS["mm"], "cm": 1 / OTHER_LENGTHS["cm"], "in
 
 
 def _labels_in_order(labels: np.ndarray) -> list[str]:
-    names, first = np.unique(labels, return_index=True)
-    return [str(n) for n in names[np.argsort(first)]]
+    return list(dict.fromkeys(str(x) for x in labels.tolist()))  # in order of first appearance
 
 
 @dataclass(frozen=True, eq=False)
 class SamePointObs(Observation):
-    """The tool point held at the same unknown point in every sample with the same label
-    (``point[<label>].x/y/z``, robot base frame), and known distances (m) between labelled points.
-    ``group``: per sample, the placement whose statistics are reported (default: one group)."""
+    """The tool point held at the same unknown point (``point[<label>].x/y/z``, robot base frame) in every sample
+    with that label, and known distances (m) between labelled points. ``group``: per sample, the placement whose
+    statistics are reported (default: one group)."""
 
     labels: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=str))
     distances: tuple[tuple[str, str, float], ...] = ()
@@ -51,11 +49,20 @@ class SamePointObs(Observation):
         return _labels_in_order(self.labels)
 
     def prepare(self, robot: Robot) -> "SamePointObs":
-        """Checks each known distance against where ``robot`` puts its two points (a unit mistake makes
-        them 10-1000x apart) and each label against the points named; returns the set unchanged."""
-        names, start, _ = self.nuisance(robot)
-        at = {lab: start[3 * k:3 * k + 3] for k, lab in enumerate(self.points())}
-        self._check_spread(robot, at)
+        """Checks that one label's samples are one point up to ``robot``'s error (samples of several places under one
+        label, a moved plate without its placement, are refused with that cause), each known distance against where
+        it puts the two points (a unit mistake makes them 10-1000x apart) and each label against the points named;
+        returns the set unchanged."""
+        p = robot.forward(self.q)
+        at = {lab: p[self.labels == lab].mean(axis=0) for lab in self.points()}  # the points' starts (nuisance)
+        for lab, centre in at.items():
+            d = np.linalg.norm(p[self.labels == lab] - centre, axis=1)
+            if d.mean() > SPREAD_LIMIT:
+                raise MeasurementError(
+                    f"{self.source}: the {d.size} samples labelled '{lab}' are not one point: the robot file puts them "
+                    f"{d.mean() * MM:.0f} mm from their centre on average (up to {d.max() * MM:.0f} mm), far more "
+                    f"than a robot's error; if the plate was moved between samples, label each placement (kincal "
+                    f"calibrate: --group-col), else check the joint columns and units")
         for a, b, d in self.distances:
             missing = [lab for lab in (a, b) if lab not in at]
             if missing:
@@ -72,19 +79,6 @@ class SamePointObs(Observation):
                                        f"puts those points {seen:.4g} m apart{hint}")
         return self
 
-    def _check_spread(self, robot: Robot, at: dict) -> None:
-        """One label's samples must be one point up to the robot's error: samples of several places
-        under one label (a moved plate without its placement) are refused with that cause."""
-        p = robot.forward(self.q)
-        for lab, centre in at.items():
-            d = np.linalg.norm(p[self.labels == lab] - centre, axis=1)
-            if d.mean() > SPREAD_LIMIT:
-                raise MeasurementError(
-                    f"{self.source}: the {d.size} samples labelled '{lab}' are not one point: the robot file puts them "
-                    f"{d.mean() * MM:.0f} mm from their centre on average (up to {d.max() * MM:.0f} mm), far more "
-                    f"than a robot's error; if the plate was moved between samples, label each placement (kincal "
-                    f"calibrate: --group-col), else check the joint columns and units")
-
     def nuisance(self, robot: Robot):
         p = robot.forward(self.q)
         start = np.concatenate([p[self.labels == lab].mean(axis=0) for lab in self.points()])
@@ -100,18 +94,14 @@ class SamePointObs(Observation):
         per_sample = np.broadcast_to(np.asarray(self.std, float), (len(self),))  # one number or (N,)
         return np.concatenate([np.tile(per_sample, 3), np.full(len(self.distances), self.std_distance)])
 
-    def _index(self) -> tuple[np.ndarray, dict[str, int]]:
-        pos = {lab: k for k, lab in enumerate(self.points())}
-        return np.array([pos[str(lab)] for lab in self.labels]), pos
-
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
         p, J = robot.forward_and_jacobian(self.q, values)
-        at, pos = self._index()
+        pos = {lab: k for k, lab in enumerate(self.points())}
+        at = np.array([pos[str(lab)] for lab in self.labels])  # each sample's point
         P = nuis.reshape(-1, 3)
         n, K = len(self), nuis.size
         Jn = np.zeros((3, n, K))
-        for a in range(3):
-            Jn[a, np.arange(n), 3 * at + a] = -1.0
+        Jn[np.arange(3)[:, None], np.arange(n), 3 * at + np.arange(3)[:, None]] = -1.0  # d (p − P[at]) / d P
         rd, Jd = np.empty(len(self.distances)), np.zeros((len(self.distances), K))
         for k, (a_lab, b_lab, d) in enumerate(self.distances):
             i, j = pos[a_lab], pos[b_lab]
@@ -123,9 +113,8 @@ class SamePointObs(Observation):
         return np.concatenate([(p - P[at]).T.ravel(), rd]), Jr, np.vstack([Jn.reshape(3 * n, K), Jd])
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
-        """Per group (placement), as the MUKCa paper defines them: the count-weighted mean over its
-        points of |p − that point's mean of p| and, for each known distance inside the group,
-        | ‖m_a − m_b‖ − d | with m the means of the predicted points."""
+        """Per group (placement), as the MUKCa paper defines them: the count-weighted mean over its points of
+        |p − that point's mean of p| and, per known distance inside it, | ‖m_a − m_b‖ − d | (m: the mean points)."""
         p = robot.forward(self.q, values)
         group = np.full(len(self), "all") if self.group is None else self.group
         out, devs = [], []
@@ -145,9 +134,9 @@ class SamePointObs(Observation):
 
 @dataclass(frozen=True, eq=False)
 class PlaneObs(Observation):
-    """The tool point touching a plane: per sample a plane label; a plane is known (unit normal n and
-    offset c, n·x = c in the robot base frame, m) or unknown (``plane[<label>].a/b/c``: the normal
-    tilted by a, b (rad) from its start and the offset c, m). Residual: n·p − c (m)."""
+    """The tool point touching a plane, per sample a plane label; a plane is known (unit normal n and offset c,
+    n·x = c in the robot base frame, m) or unknown (``plane[<label>].a/b/c``: the normal tilted by a, b (rad) from
+    its start and the offset c, m). Residual: n·p − c (m)."""
 
     labels: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=str))
     known: dict = field(default_factory=dict)  # label -> (n (3,), c)

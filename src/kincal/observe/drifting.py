@@ -1,11 +1,10 @@
 """A measuring instrument that drifts during a set: a set-up parameter of the set, not of the robot.
 
-A tracker or camera creeping while it measures (temperature, a settling tripod) moves every measured
-position by s·d, s the sample's place in acquisition (row) order, centred (−½ … +½), and d the drift
-over the whole set (``drift[<file>].x/y/z``, m). :class:`Drifting` wraps any set of measured
-positions (points, 6-D poses, markers; inside a session's own frame too) and fits d with the rest.
-The identifiability rule chooses the robot's parameters before it, so when the row order follows the
-joints (a grid scanned joint by joint) the drift is named as confounded, not fitted in their place.
+A tracker or camera creeping while it measures (temperature, a settling tripod) moves every measured position by
+s·d: s the sample's place in acquisition (row) order, centred (−½ … +½), d the drift over the whole set
+(``drift[<file>].x/y/z``, m). :class:`Drifting` wraps any set of measured positions (points, 6-D poses, markers; in
+a session's own frame too) and fits d with the rest. The identifiability rule chooses the robot's parameters first,
+so when the row order follows the joints (a grid scanned joint by joint) the drift is named as confounded.
 """
 from __future__ import annotations
 

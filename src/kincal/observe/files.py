@@ -7,16 +7,14 @@ Every type has the robot's joint columns (or ``joint_cols``) in ``angle_unit`` /
   :mod:`kincal.observe.orientation`; ``rot_cols`` renames them);
 * ``markers``: NAME.x, NAME.y, NAME.z for every marker NAME (all such triplets in the header, or
   ``markers``); an empty cell is a marker not seen in that sample;
-* ``same-point``: a label column (``label_col``, default ``point``) and optionally a group column
-  (``group_col``, e.g. the plate placement); ``distances`` are known distances between labels,
-  applied inside every group;
-* ``plane``: a label column (``label_col``, default ``plane``); ``planes`` gives the known ones
-  (unit normal and offset, n·p = c in the robot's base frame); the others are fitted.
+* ``same-point``: a label column (``label_col``, default ``point``) and optionally a group column (``group_col``,
+  e.g. the plate placement); ``distances`` are known distances between labels, applied inside every group;
+* ``plane``: a label column (``label_col``, default ``plane``); ``planes`` gives the known ones (unit normal and
+  offset, n·p = c in the robot's base frame); the others are fitted.
 
-σ are stated (``std_pos`` m, ``std_rot`` rad: a statement wins), or read per sample from the
-columns ``std_pos`` (the file's length unit) and, for poses, ``std_rot_mrad`` (mrad) — points:
-measurement_std_x/y/z —, or the type's default. A file whose columns do not fit the declared type
-is refused in one line, and every column is checked as the point reader checks it (``_csv.Table``).
+σ are stated (``std_pos`` m, ``std_rot`` rad: a statement wins), or read per sample from the columns ``std_pos``
+(the file's length unit) and, for poses, ``std_rot_mrad`` (mrad) — points: measurement_std_x/y/z —, or the type's
+default. A file whose columns do not fit the declared type is refused in one line.
 """
 from __future__ import annotations
 
@@ -37,7 +35,6 @@ KINDS = ("point", "pose", "markers", "same-point", "plane")
 DEFAULT_STD = {"point": (15e-6, None), "pose": (0.1e-3, 1e-3), "markers": (50e-6, None),
                "same-point": (50e-6, None), "plane": (50e-6, None)}
 POINT_STD = ("measurement_std_x", "measurement_std_y", "measurement_std_z")
-COLUMN_KINDS = "joint, position, orientation, marker, label or σ"  # what an observation file's columns are
 
 
 def check_pose_columns(orientation: str, length_unit: str, angle_unit: str, xyz_cols, rot_cols) -> None:
@@ -72,18 +69,15 @@ class ObservationFormat:
     std_rot: float | None = None  # rad
 
     def __post_init__(self) -> None:
+        """Every setting checked (ValueError): a known type, convention and units, σ > 0 that an instrument can
+        have; known distances: two labels, a length > 0 that a robot can span, each pair once (in either order;
+        a repeat with the same length is dropped); known planes: a normal and an offset a robot can reach."""
         if self.kind not in KINDS:
             raise ValueError(f"measurement type '{self.kind}': use one of {', '.join(KINDS)}")
         check_pose_columns(self.orientation, self.length_unit, self.angle_unit, self.xyz_cols, self.rot_cols)
         for what, v in (("std_pos", self.std_pos), ("std_rot", self.std_rot)):
             if v is not None and not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{what} must be a positive number, got {v}")
-        self._check_lengths()
-
-    def _check_lengths(self) -> None:
-        """Known distances: two labels, a length > 0 that a robot can span, each pair once (in either
-        order; a repeat with the same length is dropped); known planes: a normal and an offset a robot
-        can reach; σ that a robot can have (ValueError)."""
         lf = unit_factor(self.length_unit, "length")
         kept: dict[frozenset, tuple[str, str, float]] = {}
         for a, b, d in self.distances:
@@ -116,42 +110,28 @@ class ObservationFormat:
         return (self.std_pos or pos), (self.std_rot or rot)
 
 
-STD_POS, STD_ROT = "std_pos", "std_rot_mrad"  # per-sample σ columns: the file's length unit, and mrad
-
-
 def _stds(t: Table, fmt: ObservationFormat):
-    """The σ (m, rad): as stated (``fmt.std_pos``, ``fmt.std_rot``: a statement wins), else per sample
-    from the ``std_pos`` (length unit) and ``std_rot_mrad`` columns when the file has them, else the
-    type's default."""
-    pos, rot = fmt.std()
-    out: list = []
-    for col, unit, value, stated in ((STD_POS, fmt.length_unit, pos, fmt.std_pos),
-                                     (STD_ROT, "mrad", rot, fmt.std_rot)):
+    """The σ (m, rad) of position and rotation, as the module docstring says."""
+    def column(col: str, unit: str, value, stated: float | None):
         if stated is not None or col not in t.header:
-            out.append(value)
-            continue
+            return value
         v = t.numbers([col], unit)[:, 0]
         if (v <= 0).any():
             raise MeasurementError(f"{t.path}: row {t.rows[np.flatnonzero(v <= 0)[0]]}, column '{col}': a σ must "
                                    f"be > 0")
-        out.append(v)
-    return out[0], out[1]
+        return v
+    pos, rot = fmt.std()
+    return column("std_pos", fmt.length_unit, pos, fmt.std_pos), column("std_rot_mrad", "mrad", rot, fmt.std_rot)
 
 
 def read_observations(path: str, robot: Robot, fmt: ObservationFormat = ObservationFormat()) -> Observation:
-    """One observation set from ``path`` as ``fmt`` declares it (see the module docstring). Every
-    column is read as the point reader reads it (``_csv.Table``): named once in the header and used
-    for one thing, present, a number as a CSV cell writes it, finite and physically possible."""
-    path = str(path)
-    table = open_table(path, COLUMN_KINDS)
+    """One set from ``path`` as ``fmt`` declares it (module docstring), each column read as ``_csv.Table`` reads it:
+    named once in the header, used for one thing, present, a number as a CSV cell writes it, finite, physical."""
+    table = open_table(str(path), "joint, position, orientation, marker, label or σ")  # what its columns may be
     q = _joints(table, robot, fmt)
     lf = unit_factor(fmt.length_unit, "length")
     reader = {"point": _point, "pose": _pose, "markers": _markers, "same-point": _same_point, "plane": _plane}
     return reader[fmt.kind](table, robot, fmt, q, lf)
-
-
-def _need(t: Table, cols, fmt: ObservationFormat, what: str) -> None:
-    t.need(cols, f"--type {fmt.kind} needs {what}")
 
 
 def _joints(t: Table, robot: Robot, fmt: ObservationFormat) -> np.ndarray:
@@ -159,12 +139,12 @@ def _joints(t: Table, robot: Robot, fmt: ObservationFormat) -> np.ndarray:
     if len(cols) != robot.n_joints:
         raise MeasurementError(f"{t.path}: {len(cols)} joint columns given ({', '.join(cols)}) but robot "
                                f"'{robot.name}' has {robot.n_joints} joints; give one column per joint")
-    _need(t, cols, fmt, "the joint columns, named by --joint-cols")
+    t.need(cols, f"--type {fmt.kind} needs the joint columns, named by --joint-cols")
     return t.numbers(cols, joint_units(robot.joint_types, fmt.length_unit, fmt.angle_unit))
 
 
 def _point(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PointObs:
-    _need(t, fmt.xyz_cols, fmt, "the position columns (--xyz-cols)")
+    t.need(fmt.xyz_cols, f"--type {fmt.kind} needs the position columns (--xyz-cols)")
     xyz = t.numbers(fmt.xyz_cols, fmt.length_unit)
     columns = fmt.std_pos is None and all(c in t.header for c in POINT_STD)
     std = t.numbers(POINT_STD, fmt.length_unit) if columns else fmt.std()[0]
@@ -173,9 +153,9 @@ def _point(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PointObs:
 
 def _pose(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PoseObs:
     cols = list(fmt.rot_cols or default_columns(fmt.orientation))
-    _need(t, fmt.xyz_cols, fmt, "the position columns (--xyz-cols)")
-    _need(t, cols, fmt, f"orientation columns {', '.join(cols)} for --orientation {fmt.orientation} (other names: "
-                        f"--rot-cols; position only: --type point)")
+    t.need(fmt.xyz_cols, f"--type {fmt.kind} needs the position columns (--xyz-cols)")
+    t.need(cols, f"--type pose needs orientation columns {', '.join(cols)} for --orientation {fmt.orientation} (other "
+                 f"names: --rot-cols; position only: --type point)")
     xyz = t.numbers(fmt.xyz_cols, fmt.length_unit)
     values = t.numbers(cols)
     _, _, Rf = flange_point(robot, q, robot.params.values, robot.tool_point())
@@ -192,9 +172,8 @@ def _markers(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> MarkersOb
         raise MeasurementError(f"{t.path}: --type markers needs columns NAME.x, NAME.y, NAME.z per marker (none "
                                f"found); the header has: {', '.join(t.header)}")
     cols = [f"{m}.{a}" for m in names for a in "xyz"]
-    _need(t, cols, fmt, "the marker columns NAME.x, NAME.y, NAME.z")
-    xyz = t.numbers(cols, fmt.length_unit, empty_ok=True)
-    xyz = xyz.reshape(len(t.records), len(names), 3)
+    t.need(cols, "--type markers needs the marker columns NAME.x, NAME.y, NAME.z")
+    xyz = t.numbers(cols, fmt.length_unit, empty_ok=True).reshape(len(t.records), len(names), 3)
     partial = np.isnan(xyz).any(axis=2) & ~np.isnan(xyz).all(axis=2)
     if partial.any():
         r, m = np.argwhere(partial)[0]
@@ -204,8 +183,8 @@ def _markers(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> MarkersOb
 
 
 def _labels(t: Table, fmt: ObservationFormat) -> tuple[np.ndarray, np.ndarray | None]:
-    _need(t, [fmt.label] + ([fmt.group_col] if fmt.group_col else []), fmt,
-          f"a label column ('{fmt.label}', --label-col)" + (" and the group column" if fmt.group_col else ""))
+    t.need([fmt.label] + ([fmt.group_col] if fmt.group_col else []), f"--type {fmt.kind} needs a label column "
+           f"('{fmt.label}', --label-col)" + (" and the group column" if fmt.group_col else ""))
     labels = t.text(fmt.label)
     if (labels == "").any():
         raise MeasurementError(f"{t.path}: row {t.rows[np.flatnonzero(labels == '')[0]]}: empty label in column "
@@ -221,14 +200,13 @@ def _same_point(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> SamePo
         if unknown:
             raise MeasurementError(f"{t.path}: the distance {a}–{b} names label(s) {', '.join(unknown)} that column "
                                    f"'{fmt.label}' does not have (it has: {', '.join(sorted(known))})")
-    if group is None:
-        return SamePointObs(q, t.rows, t.path, labels=labels, distances=tuple((a, b, d * lf) for a, b, d in
-                                                                                fmt.distances), std=_stds(t, fmt)[0])
-    full = np.array([f"{g}/{lab}" for g, lab in zip(group, labels)])
-    have = set(full.tolist())
-    dist = tuple((f"{g}/{a}", f"{g}/{b}", d * lf) for g in dict.fromkeys(group.tolist()) for a, b, d in fmt.distances
-                 if f"{g}/{a}" in have and f"{g}/{b}" in have)
-    return SamePointObs(q, t.rows, t.path, labels=full, distances=dist, group=group, std=_stds(t, fmt)[0])
+    dist = tuple((a, b, d * lf) for a, b, d in fmt.distances)
+    if group is not None:  # labels "<group>/<label>", each distance applied inside every group that has both
+        labels = np.array([f"{g}/{lab}" for g, lab in zip(group, labels)])
+        have = set(labels.tolist())
+        dist = tuple((f"{g}/{a}", f"{g}/{b}", d) for g in dict.fromkeys(group.tolist()) for a, b, d in dist
+                     if f"{g}/{a}" in have and f"{g}/{b}" in have)
+    return SamePointObs(q, t.rows, t.path, labels=labels, distances=dist, group=group, std=_stds(t, fmt)[0])
 
 
 def _plane(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PlaneObs:

@@ -1,9 +1,8 @@
 """The joint-space residual as an observation type: measured positions against commanded joints.
 
-The 3-PUU error-model verification paper (eq. 4/11) compares the joint values that reach each
-measured point, by the model's closed-form inverse kinematics, with the commanded ones. The data
-are the same as a :class:`~kincal.observe.PointObs` (joint values and measured positions); only the
-residual differs, so robots with a closed-form inverse (``has_inverse``) only.
+The 3-PUU error-model verification paper (eq. 4/11) compares the joint values that reach each measured point, by
+the model's closed-form inverse kinematics, with the commanded ones. The data are a :class:`~kincal.observe.PointObs`'s
+(joint values and measured positions); only the residual differs: robots with a closed-form inverse (``has_inverse``).
 """
 from __future__ import annotations
 
@@ -49,8 +48,7 @@ class JointObs(Observation):
         return mean_square(robot.inverse_batch(self.xyz, values) - self.q)
 
     def check(self, robot: Robot, values: np.ndarray) -> None:
-        reach = robot.inverse(self.xyz, values, strict=False)
-        bad = ~np.all(np.isfinite(reach), axis=1)
+        bad = ~np.all(np.isfinite(robot.inverse(self.xyz, values, strict=False)), axis=1)
         if bad.any():
             raise MeasurementError(
                 f"{self.source}: the positions in row(s) {', '.join(str(r) for r in self.rows[bad][:10])} are out of "

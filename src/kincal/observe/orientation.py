@@ -4,14 +4,13 @@ Conventions (``--orientation``):
 
 * ``quat-wxyz`` (columns qw, qx, qy, qz) and ``quat-xyzw`` (qx, qy, qz, qw): unit quaternions;
 * ``matrix`` (r11, r12, r13, r21, …, r33): the rotation matrix, row by row;
-* ``rotvec`` (rx, ry, rz): a rotation vector in rad (the UR controller's pose);
-  ``rotvec-deg`` the same in deg;
-* ``euler-<axes>-<intrinsic|extrinsic>-<deg|rad>`` (e1, e2, e3), e.g. ``euler-zyx-intrinsic-deg``
-  (KUKA's A, B, C) or ``euler-xyz-extrinsic-deg`` (Fanuc's W, P, R): three angles about the named
-  axes, in that order, about the moving (intrinsic) or the fixed (extrinsic) axes.
+* ``rotvec`` (rx, ry, rz): a rotation vector in rad (the UR controller's pose); ``rotvec-deg`` the same in deg;
+* ``euler-<axes>-<intrinsic|extrinsic>-<deg|rad>`` (e1, e2, e3), e.g. ``euler-zyx-intrinsic-deg`` (KUKA's A, B, C)
+  or ``euler-xyz-extrinsic-deg`` (Fanuc's W, P, R): three angles about the named axes, in that order, about the
+  moving (intrinsic) or the fixed (extrinsic) axes.
 
-Nothing is guessed: :func:`convention_check` compares the declared reading with the common others
-on the nominal robot and, when another one fits markedly better, names it.
+Nothing is guessed: :func:`convention_check` compares the declared reading with the common others on the nominal
+robot and, when another one fits markedly better, names it.
 """
 from __future__ import annotations
 
@@ -65,8 +64,7 @@ def to_matrices(values: np.ndarray, name: str, source: str, rows: np.ndarray) ->
     if unit == "rad":
         big = np.abs(v).max(axis=1)
         _refuse(source, rows, big > 2 * np.pi + 1e-9, "has angles up to {} beyond 2π rad: degrees? (use ...-deg)", big)
-    seq = axes.upper() if how == "intrinsic" else axes
-    return Rotation.from_euler(seq, v, degrees=unit == "deg").as_matrix()
+    return Rotation.from_euler(axes.upper() if how == "intrinsic" else axes, v, degrees=unit == "deg").as_matrix()
 
 
 def _euler(name: str) -> tuple[str, str, str]:
@@ -75,8 +73,7 @@ def _euler(name: str) -> tuple[str, str, str]:
     found = EULER.match(check_convention(name))
     if found is None:
         raise ValueError(f"orientation '{name}' is not a convention of Euler angles")
-    axes, how, unit = found.groups()
-    return axes, how, unit
+    return found[1], found[2], found[3]
 
 
 def _quaternion_matrices(xyzw: np.ndarray) -> np.ndarray:
@@ -117,12 +114,9 @@ def alternatives(name: str) -> list[str]:
     """The common conventions a file declared as ``name`` may really be in, in canonical order: for
     Euler angles every axis order of their family (roll-pitch-yaw, or the declared proper-Euler order
     and its reverse) intrinsic and extrinsic, then the other angle unit."""
-    if name.startswith("quat"):
-        return ["quat-xyzw" if name == "quat-wxyz" else "quat-wxyz"]
-    if name.startswith("rotvec"):
-        return ["rotvec-deg" if name == "rotvec" else "rotvec"]
-    if name == "matrix":
-        return []
+    if name in FIXED:  # the other quaternion order or rotation-vector unit; none for a matrix
+        return {"quat-wxyz": ["quat-xyzw"], "quat-xyzw": ["quat-wxyz"], "rotvec": ["rotvec-deg"],
+                "rotvec-deg": ["rotvec"]}.get(name, [])
     axes, how, unit = _euler(name)
     orders = TAIT_BRYAN if axes in TAIT_BRYAN else (axes, axes[::-1])
     return [f"euler-{a}-{h}-{unit}" for a in orders for h in ("intrinsic", "extrinsic") if (a, h) != (axes, how)] + \
@@ -134,14 +128,15 @@ def orientation_misfit(R_flange: np.ndarray, R_meas: np.ndarray, iterations: int
     frame rotation F and target rotation T (alternating chordal means)."""
     T = np.eye(3)
     for _ in range(iterations):
-        F = _project(np.sum(R_meas @ (R_flange @ T).transpose(0, 2, 1), axis=0))
-        T = _project(np.sum((F @ R_flange).transpose(0, 2, 1) @ R_meas, axis=0))
+        F = nearest_rotation(np.sum(R_meas @ (R_flange @ T).transpose(0, 2, 1), axis=0))
+        T = nearest_rotation(np.sum((F @ R_flange).transpose(0, 2, 1) @ R_meas, axis=0))
     E = (F @ R_flange @ T).transpose(0, 2, 1) @ R_meas
     ang = np.arccos(np.clip((np.trace(E, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0))
     return float(np.sqrt(np.mean(ang**2)))
 
 
-def _project(M: np.ndarray) -> np.ndarray:
+def nearest_rotation(M: np.ndarray) -> np.ndarray:
+    """The rotation (3, 3) nearest to M (3, 3) in the Frobenius norm (a chordal mean of the matrices summed in M)."""
     U, _, Vt = np.linalg.svd(M)
     return U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
 

@@ -42,10 +42,12 @@ class InSession(Wrapper):
         """``robot`` with its base frame at this session's start frame."""
         return robot.with_params(dict(zip(robot.base_params(), self._start())))
 
-    def _values(self, robot: Robot, values: np.ndarray, frame: np.ndarray) -> np.ndarray:
+    def _split(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The robot's ``values`` with their base frame at this session's (the end of ``nuis``), and the inner set's
+        nuisance (the rest)."""
         v = np.array(values, float)
-        v[self._base(robot)] = frame
-        return v
+        v[self._base(robot)] = nuis[len(nuis) - len(robot.base_params()):]
+        return v, nuis[:len(nuis) - len(robot.base_params())]
 
     def positions(self):
         return None  # its positions are in its own frame, not the robot's
@@ -58,23 +60,19 @@ class InSession(Wrapper):
 
     def nuisance(self, robot: Robot):
         names, start, kinds = self.inner.nuisance(self._at_frame(robot))
-        base = robot.base_params()
-        frame = tuple(f"frame[{self.session}].{n}" for n in base)
-        base_kinds = tuple(robot.params.kinds[i] for i in self._base(robot))
-        return tuple(names) + frame, np.concatenate([start, self._start()]), tuple(kinds) + base_kinds
+        frame = tuple(f"frame[{self.session}].{n}" for n in robot.base_params())
+        return (tuple(names) + frame, np.concatenate([start, self._start()]),
+                tuple(kinds) + tuple(robot.params.kinds[i] for i in self._base(robot)))
 
     def gauge_params(self, robot: Robot) -> tuple[str, ...]:
         return tuple(dict.fromkeys(self.inner.gauge_params(robot) + robot.base_params()))
 
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
-        idx, k = self._base(robot), len(robot.base_params())
-        r, Jr, Jn = self.inner.evaluate(robot, self._values(robot, values, nuis[-k:]), nuis[:-k])
-        Jf = Jr[:, idx].copy()
-        Jr = Jr.copy()
+        r, Jr, Jn = self.inner.evaluate(robot, *self._split(robot, values, nuis))
+        idx = self._base(robot)
+        Jr, Jf = Jr.copy(), Jr[:, idx]  # the frame's columns move to the set's own
         Jr[:, idx] = 0.0
         return r, Jr, np.hstack([Jn, Jf])
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
-        k = len(robot.base_params())
-        out = self.inner.stats(robot, self._values(robot, values, nuis[-k:]), nuis[:-k])
-        return {**out, "session": self.session}
+        return {**self.inner.stats(robot, *self._split(robot, values, nuis)), "session": self.session}

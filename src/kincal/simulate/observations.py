@@ -1,8 +1,8 @@
 """Simulated observations of every type, so a set-up can be planned before anyone measures.
 
-Constraint data (sockets, planes) need configurations that put the tool point at a given point:
-found by damped least-squares inverse kinematics on the true robot from random starts (poses
-that do not reach within 1 nm, or leave the joint limits, are drawn again).
+Constraint data (sockets, planes) need configurations that put the tool point at a given point: found by damped
+least-squares inverse kinematics on the true robot from random starts (poses that do not reach within 1 nm, or
+leave the joint limits, are drawn again).
 """
 from __future__ import annotations
 
@@ -16,21 +16,17 @@ from ..models.robot import Robot
 IK_TOL = 1e-9  # m
 
 
-def _rotations(rng: np.random.Generator, sigma: float, n: int) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-    return Rotation.from_rotvec(sigma * rng.standard_normal((n, 3))).as_matrix()
-
-
 def simulate_poses(true: Robot, q: np.ndarray, target_rotation: np.ndarray, std_pos: float = 0.1e-3,
                    std_rot: float = 1e-3, seed: int = 0) -> PoseObs:
     """6-D poses of a target frame (origin: the true tool point; orientation ``target_rotation`` on
     the flange) at q (N, n), with isotropic noise ``std_pos`` (m) and ``std_rot`` (rad)."""
+    from scipy.spatial.transform import Rotation
     rng = np.random.default_rng(seed)
     q = true.check_q(q)
     p, _, Rf = flange_point(true, q, true.params.values, true.tool_point())
-    R = _rotations(rng, std_rot, len(q)) @ Rf @ target_rotation
-    return PoseObs(q, np.arange(2, len(q) + 2), f"simulated {true.name} poses", xyz=p + std_pos * rng.standard_normal(p.shape),
-                   R=R, std_pos=std_pos, std_rot=std_rot)
+    R = Rotation.from_rotvec(std_rot * rng.standard_normal((len(q), 3))).as_matrix() @ Rf @ target_rotation
+    return PoseObs(q, np.arange(2, len(q) + 2), f"simulated {true.name} poses", R=R, std_pos=std_pos, std_rot=std_rot,
+                   xyz=p + std_pos * rng.standard_normal(p.shape))
 
 
 def simulate_markers(true: Robot, q: np.ndarray, markers: np.ndarray, std: float = 15e-6, missing: float = 0.0,
@@ -57,14 +53,13 @@ def reach(true: Robot, targets: np.ndarray, seed: int = 0, max_rounds: int = 20,
     targets = np.asarray(targets, float)
     q = np.empty((len(targets), true.n_joints))
     todo = np.arange(len(targets))
-    for round_ in range(max_rounds):
+    for _ in range(max_rounds):
         if not todo.size:
             return q
         x = true.sample_joints(todo.size, seed=int(rng.integers(2**31)))
         for _ in range(60):
-            p = true.forward(x)
             J = true.joint_jacobian(x)
-            e = targets[todo] - p
+            e = targets[todo] - true.forward(x)
             JJt = J @ J.transpose(0, 2, 1) + 1e-6 * np.eye(3)
             x = x + np.einsum("nji,nj->ni", J, np.linalg.solve(JJt, e[..., None])[..., 0])
             x = np.clip(x, true.lower, true.upper)  # projected steps: a redundant arm slides along its limits
@@ -80,9 +75,8 @@ def reach(true: Robot, targets: np.ndarray, seed: int = 0, max_rounds: int = 20,
 
 def simulate_same_point(true: Robot, points: dict, per_point: int, distances=(), std: float = 0.05e-3,
                         std_distance: float = 0.1e-3, seed: int = 0) -> SamePointObs:
-    """A ball seated ``per_point`` times at each labelled point (``points``: label -> (3,) m in the
-    robot base frame), each time in another configuration, seated within ``std`` (m per axis);
-    ``distances`` ((a, b, d m), …) are stated as known."""
+    """A ball seated ``per_point`` times, each in another configuration, at each labelled point (``points``: label
+    -> (3,) m in the robot base frame), within ``std`` (m per axis); ``distances`` ((a, b, d m), …) are known."""
     rng = np.random.default_rng(seed)
     labels = np.repeat(np.array(list(points), dtype=str), per_point)
     where = np.repeat(np.array([points[k] for k in points], float), per_point, axis=0)
@@ -93,11 +87,10 @@ def simulate_same_point(true: Robot, points: dict, per_point: int, distances=(),
 
 def simulate_planes(true: Robot, planes: dict, per_plane: int, known=(), std: float = 0.05e-3,
                     seed: int = 0) -> PlaneObs:
-    """Contacts of the tool point with planes (``planes``: label -> (unit normal (3,), offset c m),
-    robot base frame) at random reachable points of each plane, within ``std`` (m) across it;
-    labels in ``known`` are stated as known planes."""
+    """Contacts of the tool point with planes (``planes``: label -> (unit normal (3,), offset c m), robot base frame)
+    at random reachable points of each, within ``std`` (m) across it; labels in ``known`` are stated as known."""
     rng = np.random.default_rng(seed)
-    labels, qs = [], []
+    qs = []
     for lab, (n, c) in planes.items():
         n = np.asarray(n, float) / np.linalg.norm(n)
         p = true.forward(true.sample_joints(4 * per_plane, seed=int(rng.integers(2**31))))
@@ -107,18 +100,16 @@ def simulate_planes(true: Robot, planes: dict, per_plane: int, known=(), std: fl
         if len(q) < per_plane:
             raise ModelError(f"plane {lab}: only {len(q)} of {per_plane} contacts are within reach of {true.name}")
         qs.append(q)
-        labels += [lab] * per_plane
     q = np.concatenate(qs)
-    return PlaneObs(q, np.arange(2, len(q) + 2), f"simulated {true.name} plane contacts", labels=np.array(labels),
-                    known={lab: planes[lab] for lab in known}, std=std)
+    return PlaneObs(q, np.arange(2, len(q) + 2), f"simulated {true.name} plane contacts",
+                    labels=np.repeat(list(planes), per_plane), known={lab: planes[lab] for lab in known}, std=std)
 
 
 def socket_plan(robot: Robot, placements: int = 4, spacing: float = 0.05, seed: int = 0) -> tuple[dict, tuple]:
-    """Where to put a two-socket plate: ``placements`` places within comfortable reach (40–70 % of
-    the farthest horizontal reach over random poses, and the middle 30 % of their heights, spread
-    around the base, both sockets reached by inverse kinematics), each with sockets
-    0 and 1 ``spacing`` m apart across the radial direction. Returns (points, distances) for
-    :func:`simulate_same_point` (labels "<placement>/<socket>")."""
+    """Where to put a two-socket plate: ``placements`` places within comfortable reach (40–70 % of the farthest
+    horizontal reach over random poses, and the middle 30 % of their heights, spread around the base, both sockets
+    reached by inverse kinematics), each with sockets 0 and 1 ``spacing`` m apart across the radial direction.
+    Returns (points, distances) for :func:`simulate_same_point` (labels "<placement>/<socket>")."""
     p = robot.forward(robot.sample_joints(2000, seed=seed))
     r = np.linalg.norm(p[:, :2], axis=1)
     lo, hi = np.percentile(p[:, 2], [35, 65])  # and heights in the middle: away from the edge of reach
