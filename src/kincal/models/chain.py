@@ -63,12 +63,8 @@ def _about(axis: int, x: np.ndarray) -> np.ndarray:
 def _carve(n: int, *shapes: tuple[int, ...]) -> list[np.ndarray]:
     """Views of shapes ``shape + (n,)`` cut from one block (one allocation instead of many)."""
     sizes = [prod(sh) * n for sh in shapes]
-    block = np.empty(sum(sizes))
-    out, at = [], 0
-    for sh, size in zip(shapes, sizes):
-        out.append(block[at:at + size].reshape(*sh, n))
-        at += size
-    return out
+    parts = np.split(np.empty(sum(sizes)), np.cumsum(sizes)[:-1])
+    return [part.reshape(*sh, n) for part, sh in zip(parts, shapes)]
 
 
 @lru_cache(maxsize=64)
@@ -92,7 +88,7 @@ class Chain:
         # segment 0: ops before the first joint; segment s: joint op and the constant ops after it
         self.segments = [tuple(ops[bounds[s]:bounds[s + 1]]) for s in range(len(bounds) - 1)]
         self.heads = [seg[0] if seg[0].joint >= 0 else None for seg in self.segments]
-        self.ops = tuple(op for seg in self.segments for op in seg)
+        self.ops = tuple(ops)  # the segments in order
         self.cols = np.array([op.param for op in self.ops])
         self.is_trans = np.array([op.motion == TRANS for op in self.ops])
         self.seg_slices = np.cumsum([0] + [len(s) for s in self.segments])
@@ -110,17 +106,15 @@ class Chain:
         z_rot_axes: list[int] = []
         z_trans_axes: list[int] = []
         for s, (a, b) in enumerate(zip(self.seg_slices[:-1], self.seg_slices[1:])):
-            lo = len(z_map)
-            z_rot_axes += [lo + m - a for m in range(a, b) if not self.is_trans[m]]
+            lo, rot = len(z_map), [m for m in range(a, b) if not self.is_trans[m]]
+            z_rot_axes += [lo + m - a for m in rot]
             z_trans_axes += [lo + m - a for m in range(a, b) if self.is_trans[m]]
             z_map += list(range(a, b))
             w0 = len(z_map)
             z_map += [2 * n_ops + 4 * s + r for r in range(3)]
             p0 = len(z_map)
-            rot = [m for m in range(a, b) if not self.is_trans[m]]
             z_points += range(p0, p0 + len(rot))
-            z_map += [n_ops + m for m in rot]
-            z_map.append(2 * n_ops + 4 * s + 3)
+            z_map += [n_ops + m for m in rot] + [2 * n_ops + 4 * s + 3]
             z_slices.append((lo, w0, p0, len(z_map)))
         self.z_map, self.z_slices, self.z_rows = np.array(z_map), z_slices, len(z_map)
         self.z_points, self.z_rot_axes = np.array(z_points, dtype=int), np.array(z_rot_axes, dtype=int)
@@ -216,8 +210,6 @@ class Chain:
         written in place: many small temporaries make glibc return and re-fault heap pages on every
         call, which costs more than the arithmetic here.
         """
-        if q.shape[0] <= BLOCK:
-            return self._block(values, q, self._constants(values))[:2]
         return self._blocks(values, q, False)[:2]
 
     def frame_and_rates(self, values: np.ndarray, q: np.ndarray
@@ -237,7 +229,7 @@ class Chain:
         R, WT = (np.empty((n, 3, 3)), np.zeros((self.n_params, 3, n))) if rates else (None, None)
         for lo in range(0, n, BLOCK):
             at = slice(lo, lo + BLOCK)
-            p[at], _, frame = self._block(values, q[at], G, JT[:, :, at], None if WT is None else WT[:, :, at])
+            p[at], frame = self._block(values, q[at], G, JT[:, :, at], None if WT is None else WT[:, :, at])
             if R is not None:
                 R[at] = frame
         return p, JT.transpose(2, 1, 0), R, None if WT is None else WT.transpose(2, 1, 0)
@@ -247,20 +239,19 @@ class Chain:
         ends, A, B = self._segment_frames(values, True)
         return np.concatenate([A, B, np.concatenate(ends)])[self.z_map]
 
-    def _block(self, values: np.ndarray, q: np.ndarray, G: np.ndarray, out: np.ndarray | None = None,
-               rates: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """Positions, Jacobian and (with ``rates``, zeros (P, 3, n) to write the rotation rates to) the
-        end frame's rotation of one block of configurations, ``G`` from :meth:`_constants`; the
-        Jacobian written to ``out`` (P, 3, n) if given."""
+    def _block(self, values: np.ndarray, q: np.ndarray, G: np.ndarray, out: np.ndarray,
+               rates: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """Positions and (with ``rates``, zeros (P, 3, n) to write the rotation rates to) the end
+        frame's rotation of one block of configurations, ``G`` from :meth:`_constants`; the Jacobian
+        written to ``out`` (P, 3, n)."""
         n = q.shape[0]
         n_rot = self.rot_idx.size
-        F, Z, o0, Cx, tmp = _carve(n, (3, 3), (self.z_rows, 3), (3,), (n_rot, 3), (max(n_rot, 3),))
+        F, Z, o, Cx, tmp = _carve(n, (3, 3), (self.z_rows, 3), (3,), (n_rot, 3), (max(n_rot, 3),))
         X = q.T[self.head_joint] + (values[self.head_param] + self.head_offset)[:, None]  # joint-op values, (n_joints, N)
         C, Sn = cos_sin(X)
         W = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n))  # W[k] = world axis k of the frame
         t3 = tmp[:3]
-        o = o0
-        o[...] = 0.0
+        o[...] = 0.0  # the frame's origin; at the end, the end point p
         k = 0
         for s, head in enumerate(self.heads):
             if head is None or head.motion == TRANS:  # F: the frame just after the joint op
@@ -283,18 +274,18 @@ class Chain:
             np.matmul(G[lo:hi], F.reshape(3, -1), out=Z[lo:hi].reshape(hi - lo, -1))
             Z[p0:hi] += o  # world points of the rotation ops, and the next origin
             W, o = Z[w0:w0 + 3], Z[hi - 1]
-        p = o
         frame = None if rates is None else W.transpose(2, 1, 0).copy()  # (n, 3, 3): column k is axis k
         if rates is not None:
             rates[self.cols_rot[self.rot_keep]] = Z[self.z_rot_axes][self.rot_keep]
         D = Z[self.z_points]
-        np.subtract(p, D, out=D)  # p − o for every rotation op
+        np.subtract(o, D, out=D)  # p − o for every rotation op
         Ur, tr = Z[self.z_rot_axes], tmp[:n_rot]
         for a, b, c_ in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
             np.multiply(Ur[:, b], D[:, c_], out=Cx[:, a])
             np.multiply(Ur[:, c_], D[:, b], out=tr)
             Cx[:, a] -= tr
-        return np.ascontiguousarray(p.T), self._columns(Cx, Z[self.z_trans_axes], n, out), frame
+        self._columns(Cx, Z[self.z_trans_axes], out)
+        return np.ascontiguousarray(o.T), frame
 
     def pose_jacobian(self, values: np.ndarray, q: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -325,21 +316,13 @@ class Chain:
             Ff = F.reshape(3, -1)
             o = o + (M[3] @ Ff).reshape(3, n)
             W = (M[:3] @ Ff).reshape(3, 3, n)
-        J = np.zeros((6, self.n_joints, n))  # rows: position x y z, angular velocity x y z
-        for k in range(self.n_joints):
-            if not revolute[k]:
-                J[:3, k] = U[k]
-                continue
-            d = o - O[k]
-            u = U[k]
-            J[0, k], J[1, k], J[2, k] = u[1] * d[2] - u[2] * d[1], u[2] * d[0] - u[0] * d[2], u[0] * d[1] - u[1] * d[0]
-            J[3:, k] = u
-        return o.T, W.transpose(2, 1, 0), J[:3].transpose(2, 0, 1), J[3:].transpose(2, 0, 1)
+        rev = revolute[:, None, None]  # a revolute joint moves the point by u × (p − o) and turns the frame by u
+        Jp, Jw = np.where(rev, np.cross(U, o - O, axis=1), U), np.where(rev, U, 0.0)  # (n_joints, 3, N)
+        return o.T, W.transpose(2, 1, 0), Jp.transpose(2, 1, 0), Jw.transpose(2, 1, 0)
 
-    def _columns(self, rot: np.ndarray, trans: np.ndarray, n: int, out: np.ndarray | None = None) -> np.ndarray:
-        """The Jacobian (N, 3, P) from the rotation columns u × (p − o) and the translation axes,
-        each (ops, 3, N); constant ops have no column, parameters without an op get zeros."""
-        JT = np.empty((self.n_params, 3, n)) if out is None else out
+    def _columns(self, rot: np.ndarray, trans: np.ndarray, JT: np.ndarray) -> None:
+        """The Jacobian, written transposed to JT (P, 3, N), from the rotation columns u × (p − o) and
+        the translation axes, each (ops, 3, N); constant ops have no column, parameters without an op get zeros."""
         if self.all_ops_have_params:
             JT[self.cols_rot] = rot
             JT[self.cols_trans] = trans
@@ -348,4 +331,3 @@ class Chain:
             JT[self.cols_trans[self.trans_keep]] = trans[self.trans_keep]
         if self.unused.size:
             JT[self.unused] = 0.0
-        return JT.transpose(2, 1, 0)

@@ -60,16 +60,14 @@ def joint_frames(robot: Robot, slide: bool = False) -> tuple[list[np.ndarray], n
     values[robot.params.indices(("tool.x", "tool.y", "tool.z"))] = 0.0
     values = np.concatenate([values, np.zeros(robot.n_joints)])  # a URDF chain's joint-motion columns
     M, frames, ops = np.eye(4), [], robot.chain.ops
+    value = [op.offset + (values[op.param] if op.param >= 0 else 0.0) for op in ops]
     for k, op in enumerate(ops):
-        value = op.offset + (values[op.param] if op.param >= 0 else 0.0)
-        step = _motion(op.motion, op.axis, value)
         if op.joint >= 0:
-            frames.append(M @ _h(_ALIGN[op.axis], np.zeros(3)) @ _motion(op.motion, 2, value))
+            frames.append(M @ _h(_ALIGN[op.axis], np.zeros(3)) @ _motion(op.motion, 2, value[k]))
             after = ops[k + 1] if k + 1 < len(ops) else None
             if slide and after is not None and after.motion != ROT and after.joint < 0 and after.axis == op.axis:
-                frames[-1] = frames[-1] @ _motion(after.motion, 2, after.offset + (values[after.param]
-                                                                                   if after.param >= 0 else 0.0))
-        M = M @ step
+                frames[-1] = frames[-1] @ _motion(after.motion, 2, value[k + 1])
+        M = M @ _motion(op.motion, op.axis, value[k])
     return frames, M
 
 
@@ -85,12 +83,12 @@ def _xyz_rpy(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return T[:3, 3].copy(), np.array([rx, ry, rz])
 
 
-def _origin(xyz, rpy) -> np.ndarray:
-    return _h(rpy_matrix(*rpy), xyz)
-
-
 def _fmt(x: float) -> str:
     return repr(float(x)) if x != 0 else "0"
+
+
+def _origin_tag(xyz, rpy) -> str:
+    return f'<origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>'
 
 
 # ---- Universal Robots calibration file ------------------------------------------------------------
@@ -123,7 +121,7 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
 
     digest = hashlib.sha256("\n".join(lines).encode()).hexdigest()
     text = "\n".join(lines + [f"  hash: calib_{int(digest[:15], 16)}", ""])
-    tool = np.array([robot.params[f"tool.{c}"] for c in "xyz"])
+    tool = robot.tool_point()
     summary = {"flange_to_tcp": rest.tolist(), "tool_point": (rest[:3, :3] @ tool + rest[:3, 3]).tolist(),
                "base_yaw": base_yaw}
     _check(robot, lambda q: _ur_forward(entries, q, base, rest, tool), "UR calibration file")
@@ -136,7 +134,7 @@ def _ur_forward(entries: dict, q: np.ndarray, base: np.ndarray, rest: np.ndarray
     for qi in q:
         T = base.copy()
         for (xyz, rpy), angle in zip(entries.values(), qi):
-            T = T @ _origin(xyz, rpy) @ _motion(ROT, 2, angle)
+            T = T @ _h(rpy_matrix(*rpy), xyz) @ _motion(ROT, 2, angle)
         out.append((T @ rest @ np.append(tool, 1.0))[:3])
     return np.array(out)
 
@@ -196,7 +194,7 @@ def _edit_urdf(robot: URDFRobot, source: str) -> str:
             raise ModelError(f"the URDF has no joint '{j.name}': give the file the robot was read from (--from)")
         end = source.index("</joint>", start.end())
         body = source[start.end():end]
-        tag = f'<origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>'
+        tag = _origin_tag(xyz, rpy)
         m = re.search(r"<origin\b[^>]*/>", body)
         body = body[:m.start()] + tag + body[m.end():] if m else "\n    " + tag + body
         source = source[:start.end()] + body + source[end:]
@@ -230,11 +228,8 @@ def _new_urdf(robot: SerialRobot, names: Sequence[str] | None = None) -> tuple[s
         lines += _fixed("base_link", "base_link_inertia", np.linalg.inv(_h(*ros))) if ur else []
     parent = base
     for k, (a, b) in enumerate(zip([np.eye(4)] + frames[:-1], frames)):
-        xyz, rpy = _xyz_rpy(np.linalg.inv(a) @ b)
-        lines += [f'  <link name="{links[k]}"/>', f'  <joint name="{names[k]}" type="{robot.joint_types[k]}">',
-                  f'    <parent link="{parent}"/>', f'    <child link="{links[k]}"/>',
-                  f'    <origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>',
-                  '    <axis xyz="0 0 1"/>', f"    {_limit(robot, k)}", "  </joint>"]
+        lines += _fixed(parent, links[k], np.linalg.inv(a) @ b, names[k], robot.joint_types[k],
+                        ['    <axis xyz="0 0 1"/>', f"    {_limit(robot, k)}"])
         parent = links[k]
     rest = np.linalg.inv(frames[-1]) @ flange
     if ur:
@@ -244,18 +239,19 @@ def _new_urdf(robot: SerialRobot, names: Sequence[str] | None = None) -> tuple[s
     return "\n".join(lines + ["</robot>", ""]), base, "tool0" if ur else "flange"
 
 
-def _fixed(parent: str, child: str, T: np.ndarray) -> list[str]:
-    """A fixed joint from ``parent`` to a new link ``child`` at the transform T (4x4)."""
-    xyz, rpy = _xyz_rpy(T)
-    return [f'  <link name="{child}"/>', f'  <joint name="{parent}-{child}" type="fixed">',
-            f'    <parent link="{parent}"/>', f'    <child link="{child}"/>',
-            f'    <origin xyz="{" ".join(map(_fmt, xyz))}" rpy="{" ".join(map(_fmt, rpy))}"/>', "  </joint>"]
+def _fixed(parent: str, child: str, T: np.ndarray, name: str = "", kind: str = "fixed",
+           extra: Sequence[str] = ()) -> list[str]:
+    """A joint (fixed unless ``kind``; named ``parent-child`` unless ``name``) from ``parent`` to a new
+    link ``child`` at the transform T (4x4), with ``extra`` lines (axis, limit) in it."""
+    return [f'  <link name="{child}"/>', f'  <joint name="{name or f"{parent}-{child}"}" type="{kind}">',
+            f'    <parent link="{parent}"/>', f'    <child link="{child}"/>', f"    {_origin_tag(*_xyz_rpy(T))}",
+            *extra, "  </joint>"]
 
 
 def _joint_names(robot: SerialRobot, names: Sequence[str] | None) -> tuple[str, ...]:
     """The URDF joint names: ``names`` (one per joint, distinct) or the robot file's."""
     if names is None:
-        return robot.export_names
+        return robot.stack_names
     names = tuple(str(n).strip() for n in names)
     if len(names) != robot.n_joints or len(set(names)) != len(names) or not all(names):
         raise ModelError(f"joint names {list(names)}: give {robot.n_joints} distinct names, one per joint "
@@ -273,19 +269,15 @@ def _limit(robot: SerialRobot, k: int) -> str:
 
 def missing_limits(robot: Robot) -> list[str]:
     """Joints of a DH/MDH chain whose velocity or effort limit the robot file does not give."""
-    if not isinstance(robot, SerialRobot):
-        return []
-    return [j.name for j in robot.moving if not (j.velocity and j.effort)]
+    return [j.name for j in robot.moving if not (j.velocity and j.effort)] if isinstance(robot, SerialRobot) else []
 
 
 def _add_tool(text: str, robot: Robot, tip: str, name: str) -> str:
     if re.search(rf'<link\b[^>]*\bname\s*=\s*["\']{re.escape(name)}["\']', text):
         raise ModelError(f"the URDF already has a link '{name}': choose another tool link name")
-    xyz = " ".join(_fmt(robot.params[f"tool.{c}"]) for c in "xyz")
-    block = (f'  <link name="{name}"/>\n  <joint name="{tip}-{name}" type="fixed">\n    <parent link="{tip}"/>\n'
-             f'    <child link="{name}"/>\n    <origin xyz="{xyz}" rpy="0 0 0"/>\n  </joint>\n')
+    block = _fixed(tip, name, _h(np.eye(3), robot.tool_point()))
     end = text.rindex("</robot>")
-    return text[:end] + block + text[end:]
+    return text[:end] + "\n".join(block) + "\n" + text[end:]
 
 
 FORMATS = ("urdf", "ur", "yaml")

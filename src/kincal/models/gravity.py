@@ -17,7 +17,7 @@ per link: the gravity regressor, four columns per (joint, link) pair, each ĝ·�
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -28,10 +28,6 @@ if TYPE_CHECKING:
 
 G = 9.80665  # m/s²
 COMPONENTS = ("m", "x", "y", "z")  # regressor columns per link: the mass, then its first moments
-
-
-def _offset_ops(c) -> list[Op]:
-    return [Op(TRANS, AXES[a], -1, offset=float(v)) for a, v in zip("xyz", c) if v != 0.0]
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,21 +45,15 @@ class GravityModel:
         object.__setattr__(self, "_values", values)
         object.__setattr__(self, "_cache", {})
 
-    def _jacobian(self, end: int, joints: int, offset) -> Callable[[np.ndarray], np.ndarray]:
+    def _jacobian(self, q: np.ndarray, end: int, joints: int, offset) -> np.ndarray:
         """The joint Jacobian (N, 3, joints) of the point ``offset`` in the frame after ``end`` ops."""
         key = ("chain", end, joints, tuple(float(c) for c in offset))
         if key not in self._cache:
-            self._cache[key] = self._compile(end, joints, offset)
-        return self._cache[key]
-
-    def _compile(self, end: int, joints: int, offset):
-        ops = self.robot.chain.ops[:end] + tuple(_offset_ops(offset))
-        chain = Chain(ops, len(self._values), joints)
-        cols = chain.joint_param
-
-        def jac(q: np.ndarray) -> np.ndarray:  # (N, 3, joints)
-            return chain.forward_and_jacobian(self._values, q[:, :joints])[1][:, :, cols]
-        return jac
+            ops = self.robot.chain.ops[:end] + tuple(Op(TRANS, AXES[a], -1, offset=float(v))
+                                                     for a, v in zip("xyz", offset) if v != 0.0)
+            self._cache[key] = Chain(ops, len(self._values), joints)
+        chain = self._cache[key]
+        return chain.forward_and_jacobian(self._values, q[:, :joints])[1][:, :, chain.joint_param]
 
     def _cached(self, key: str, q: np.ndarray, compute) -> np.ndarray:
         """compute(q), kept for the last q seen per key (a fit evaluates the same poses many times)."""
@@ -91,17 +81,16 @@ class GravityModel:
     def _torques(self, q: np.ndarray) -> np.ndarray:
         out = np.zeros(q.shape)
         for end, k, com, m in self._mass_points():
-            out[:, :k] -= G * m * self._jacobian(end, k, com)(q)[:, 2, :]  # g⃗ = −G ẑ
+            out[:, :k] -= G * m * self._jacobian(q, end, k, com)[:, 2, :]  # g⃗ = −G ẑ
         return out
 
     def links(self) -> list[tuple[str, int, int]]:
         """The links the regressor uses: the first frame after each moving joint (name, end, joints)."""
-        out, seen = [], set()
+        first: dict[int, tuple[str, int, int]] = {}
         for name, end, k, _, _ in self.robot.link_frames():
-            if k > 0 and k not in seen:
-                seen.add(k)
-                out.append((name, end, k))
-        return out
+            if k > 0:
+                first.setdefault(k, (name, end, k))
+        return list(first.values())
 
     def regressor(self, q: np.ndarray) -> np.ndarray:
         """(N, n, L, 4): for link ℓ and component (m, x, y, z) the load column on each joint, in m:
@@ -112,8 +101,8 @@ class GravityModel:
         links = self.links()
         out = np.zeros((len(q), self.robot.n_joints, len(links), 4))
         for ell, (_, end, k) in enumerate(links):
-            J0 = self._jacobian(end, k, (0.0, 0.0, 0.0))(q)[:, 2, :]
+            J0 = self._jacobian(q, end, k, (0.0, 0.0, 0.0))[:, 2, :]
             out[:, :k, ell, 0] = -J0
             for c, axis in enumerate(np.eye(3)):
-                out[:, :k, ell, c + 1] = J0 - self._jacobian(end, k, axis)(q)[:, 2, :]
+                out[:, :k, ell, c + 1] = J0 - self._jacobian(q, end, k, axis)[:, 2, :]
         return out

@@ -132,25 +132,19 @@ class ImplicitRobot(Robot):
         p = self.assembly_mode(p, q, values)
         if strict and not ok.all():
             bad = np.flatnonzero(~ok)
-            raise ModelError(
-                f"{self.name}: forward kinematics did not converge for {bad.size} configuration(s) "
-                f"(first at index {bad[0]}, q = {np.array2string(q[bad[0]], precision=6)}): outside the "
-                f"workspace or at a singularity; check the joint values and their units")
+            raise ModelError(f"{self.name}: forward kinematics did not converge for {bad.size} configuration(s) "
+                             f"(first at index {bad[0]}, q = {np.array2string(q[bad[0]], precision=6)}): outside "
+                             f"the workspace or at a singularity; check the joint values and their units")
         return p, ok
-
-    def _to_world(self, p_local: np.ndarray, values: np.ndarray) -> np.ndarray:
-        R, t = self._base(values)
-        return p_local @ R.T + t
 
     def _forward_and_jacobian(self, q, values, jacobian):
         p_local, _ = self._solve_local(q, values)
-        p = self._to_world(p_local, values)
+        R, t = self._base(values)
+        p = p_local @ R.T + t
         if not jacobian:
             return p, None
         fp, _, fs = self.constraint_derivatives(p_local, q, values)
-        fp_inv = self._checked_inverse(fp, q)
-        R, t = self._base(values)
-        J = -np.einsum("ij,njc,nck->nik", R, fp_inv, fs)  # IFT in the robot frame, then rotated
+        J = -np.einsum("ij,njc,nck->nik", R, self._checked_inverse(fp, q), fs)  # IFT in the robot frame, then rotated
         bi = self.params.indices(BASE_NAMES)
         J[:, :, bi[:3]] = np.eye(3)
         for k, axis in zip(bi[3:], self._base_axes(values)):  # rotation about the world axis through t

@@ -27,13 +27,10 @@ class Parameters:
     _index: dict[str, int] = field(init=False, repr=False)
 
     def __init__(self, names: Iterable[str], values: ArrayLike, kinds: Iterable[str]) -> None:
-        names = tuple(names)
-        kinds = tuple(kinds)
+        names, kinds = tuple(names), tuple(kinds)
         values = np.array(values, dtype=float).reshape(-1)
         if not (len(names) == len(kinds) == values.size):
-            raise ModelError(
-                f"parameters: {len(names)} names, {len(kinds)} kinds and {values.size} values must match"
-            )
+            raise ModelError(f"parameters: {len(names)} names, {len(kinds)} kinds and {values.size} values must match")
         if len(set(names)) != len(names):
             dup = sorted({n for n in names if names.count(n) > 1})
             raise ModelError(f"parameters: duplicate names {dup}")
@@ -41,10 +38,8 @@ class Parameters:
         if bad:
             raise ModelError(f"parameters: unknown kind(s) {sorted(set(bad))}; use 'length' or 'angle'")
         if not np.all(np.isfinite(values)):
-            raise ModelError(
-                "parameters: non-finite values for "
-                + ", ".join(n for n, v in zip(names, values) if not np.isfinite(v))
-            )
+            raise ModelError("parameters: non-finite values for "
+                             + ", ".join(n for n, v in zip(names, values) if not np.isfinite(v)))
         values.setflags(write=False)
         object.__setattr__(self, "names", names)
         object.__setattr__(self, "kinds", kinds)
@@ -60,20 +55,14 @@ class Parameters:
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Parameters):
             return NotImplemented
-        return (
-            self.names == other.names
-            and self.kinds == other.kinds
-            and np.array_equal(self.values, other.values)
-        )
+        return self.names == other.names and self.kinds == other.kinds and np.array_equal(self.values, other.values)
 
     def index(self, name: str) -> int:
         """Position of ``name``; ModelError naming the known parameters if absent."""
         try:
             return self._index[name]
         except KeyError:
-            raise ModelError(
-                f"unknown parameter '{name}'; this model has: {', '.join(self.names)}"
-            ) from None
+            raise ModelError(f"unknown parameter '{name}'; this model has: {', '.join(self.names)}") from None
 
     def indices(self, names: Iterable[str]) -> np.ndarray:
         return np.array([self.index(n) for n in names], dtype=int)

@@ -51,7 +51,6 @@ class PUU3Robot(ImplicitRobot):
     description: str = ""
     phi: tuple[float, float, float] = (0.0, 2 * np.pi / 3, 4 * np.pi / 3)
     joint_space: JointSpace = field(init=False, repr=False)
-    _idx: dict = field(init=False, repr=False)
     has_inverse: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
@@ -60,7 +59,6 @@ class PUU3Robot(ImplicitRobot):
             raise ModelError(f"{self.name}: parameters do not match the 3-PUU layout ({', '.join(names)})")
         if not self.h_lower < self.h_upper:
             raise ModelError(f"{self.name}: slider limits must have lower < upper")
-        object.__setattr__(self, "_idx", {n: i for i, n in enumerate(names)})
         object.__setattr__(self, "joint_space", JointSpace(("h1", "h2", "h3"), ("prismatic",) * 3,
                                                            [self.h_lower] * 3, [self.h_upper] * 3))
 
@@ -87,7 +85,7 @@ class PUU3Robot(ImplicitRobot):
         """Per leg: platform offset, base point, rail direction (..., 3, 3), h0 and L (..., 3), and the
         pieces needed for derivatives. ``values`` is (P,) or one parameter vector per row, (N, P)."""
         v = np.asarray(values, dtype=float)
-        g = lambda n: v[..., self._idx[n]]  # noqa: E731  () or (N,)
+        g = lambda n: v[..., self.params.index(n)]  # noqa: E731  () or (N,)
         r, R = g("r")[..., None], g("R")[..., None]
         L = np.stack([g("L1"), g("L2"), g("L3")], axis=-1)
         if self.extended:
@@ -129,19 +127,19 @@ class PUU3Robot(ImplicitRobot):
         fq = np.zeros((n, 3, 3))
         fq[:, [0, 1, 2], [0, 1, 2]] = -2.0 * du
         fs = np.zeros((n, 3, self.n_params))
-        ix = self._idx
+        ix = self.params.index
         d_eb, d_ea = dot(eb), dot(ea)
-        fs[:, :, ix["r"]] = 2.0 * d_eb
-        fs[:, :, ix["R"]] = -2.0 * d_ea
+        fs[:, :, ix("r")] = 2.0 * d_eb
+        fs[:, :, ix("R")] = -2.0 * d_ea
         for i in range(3):
-            fs[:, i, ix[f"L{i + 1}"]] = -2.0 * L[..., i]
+            fs[:, i, ix(f"L{i + 1}")] = -2.0 * L[..., i]
         if self.extended:
             leg = {name: 2.0 * x for name, x in (("dr", d_eb), ("dR", -d_ea), ("b", ri * dot(vb)),
                                                  ("a", -Ri * dot(va)), ("h0", -du), ("tx", -t * dot(du_dtx)),
                                                  ("ty", -t * dot(du_dty)))}
             for i in range(3):
                 for name, x in leg.items():
-                    fs[:, i, ix[f"leg{i + 1}.{name}"]] = x[:, i]
+                    fs[:, i, ix(f"leg{i + 1}.{name}")] = x[:, i]
         return fp, fq, fs
 
     def start_point(self, q, values):

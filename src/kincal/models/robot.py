@@ -74,10 +74,8 @@ class JointSpace:
             raise ModelError(f"joint type(s) {sorted(set(bad))}: use one of {JOINT_TYPES}")
         if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or not np.all(lo < hi):
             raise ModelError(f"joints {list(names)}: every limit needs lower < upper")
-        object.__setattr__(self, "names", names)
-        object.__setattr__(self, "types", types)
-        object.__setattr__(self, "lower", read_only(lo))
-        object.__setattr__(self, "upper", read_only(hi))
+        for key, value in (("names", names), ("types", types), ("lower", lo), ("upper", hi)):
+            object.__setattr__(self, key, value)
 
     def __len__(self) -> int:
         return len(self.names)
@@ -136,9 +134,8 @@ class Robot(ABC):
     # ---- kinematics ------------------------------------------------------------------------------
     def _batched(self, hook: Callable[..., Any], q, values, *args):
         """``hook`` on q as (N, n) and values as (P,); a single (n,) q gives unbatched results."""
-        single = np.ndim(q) == 1
         out = hook(self.check_q(q), self.param_values(values), *args)
-        if not single:
+        if np.ndim(q) != 1:
             return out
         return tuple(None if a is None else a[0] for a in out) if isinstance(out, tuple) else out[0]
 
@@ -148,12 +145,6 @@ class Robot(ABC):
     @overload
     def forward_and_jacobian(self, q: np.ndarray, values: np.ndarray | None = None, *,
                              jacobian: Literal[False]) -> tuple[np.ndarray, None]: ...
-    @overload
-    def forward_and_jacobian(self, q: np.ndarray, values: np.ndarray | None,
-                             jacobian: Literal[False]) -> tuple[np.ndarray, None]: ...
-    @overload
-    def forward_and_jacobian(self, q: np.ndarray, values: np.ndarray | None = None,
-                             jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]: ...
 
     def forward_and_jacobian(self, q: np.ndarray, values: np.ndarray | None = None,
                              jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
@@ -253,10 +244,8 @@ class Robot(ABC):
         if q.ndim == 1:
             q = q[None, :]
         if q.ndim != 2 or q.shape[1] != self.n_joints:
-            raise ModelError(
-                f"{self.name}: joint array has shape {q.shape}, expected (N, {self.n_joints}) "
-                f"for joints {', '.join(self.joint_names)}"
-            )
+            raise ModelError(f"{self.name}: joint array has shape {q.shape}, expected (N, {self.n_joints}) "
+                             f"for joints {', '.join(self.joint_names)}")
         return q
 
     def link_points(self, q: np.ndarray) -> np.ndarray | None:
@@ -377,11 +366,6 @@ class Robot(ABC):
         """Frames the robot file names (e.g. ROS ``base_link``): name -> (R, t), the frame's pose in the
         robot's base frame (a point p in it is R @ p + t in the base frame); none by default."""
         return {}
-
-    @property
-    def export_names(self) -> tuple[str, ...]:
-        """The joints' names in the robot stack (URDF, ROS); by default their own names."""
-        return self.joint_names
 
     # ---- the tool point (the measured target on the flange) ---------------------------------------
     @property

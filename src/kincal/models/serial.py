@@ -31,6 +31,7 @@ CONVENTIONS = ("dh", "mdh")
 ROW_TYPES = (*JOINT_TYPES, "fixed")  # a fixed row: a DH row without a joint (e.g. a tool row)
 BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
 PARALLEL_TOL = 1e-6  # |sin α| below this: consecutive axes are parallel
+ROW_PARAMS = (("theta", "angle"), ("d", "length"), ("a", "length"), ("alpha", "angle"), ("beta", "angle"))
 
 
 @dataclass(frozen=True)
@@ -59,9 +60,8 @@ class Joint:
         if self.type not in ROW_TYPES:
             raise ModelError(f"joint '{self.name}': type '{self.type}' is not one of {ROW_TYPES}")
         if not (np.isfinite(self.lower) and np.isfinite(self.upper) and self.lower < self.upper):
-            raise ModelError(
-                f"joint '{self.name}': limits [{self.lower}, {self.upper}] must be finite with lower < upper"
-            )
+            raise ModelError(f"joint '{self.name}': limits [{self.lower}, {self.upper}] must be finite with "
+                             f"lower < upper")
         if "." in self.name or not self.name:
             raise ModelError(f"joint name '{self.name}' must be non-empty and contain no '.'")
 
@@ -91,18 +91,10 @@ def check_frames(frames, where: str) -> tuple[tuple[str, tuple[float, ...]], ...
     return tuple(out)
 
 
-def _param_names(convention: str, joints: Sequence[Joint]) -> tuple[list[str], list[str]]:
-    names, kinds = list(BASE_NAMES), ["length"] * 3 + ["angle"] * 3
-    for jt in joints:
-        for suffix, kind in (("theta", "angle"), ("d", "length"), ("a", "length"), ("alpha", "angle")):
-            names.append(f"{jt.name}.{suffix}")
-            kinds.append(kind)
-        if jt.beta:
-            names.append(f"{jt.name}.beta")
-            kinds.append("angle")
-    names += TOOL_NAMES
-    kinds += ["length"] * 3
-    return names, kinds
+def _param_names(joints: Sequence[Joint]) -> tuple[list[str], list[str]]:
+    rows = [(f"{jt.name}.{s}", kind) for jt in joints for s, kind in ROW_PARAMS if s != "beta" or jt.beta]
+    names = list(BASE_NAMES) + [n for n, _ in rows] + list(TOOL_NAMES)
+    return names, ["length"] * 3 + ["angle"] * 3 + [k for _, k in rows] + ["length"] * 3
 
 
 class ChainRobot(Robot):
@@ -117,18 +109,31 @@ class ChainRobot(Robot):
     def base_ops(self) -> list[Op]:
         """The base frame's six ops, Tx Ty Tz Rz Ry Rx."""
         idx = self.params.index
-        x, y, z = AXES["x"], AXES["y"], AXES["z"]
-        return [Op(TRANS, x, idx("base.x")), Op(TRANS, y, idx("base.y")), Op(TRANS, z, idx("base.z")),
-                Op(ROT, z, idx("base.rz")), Op(ROT, y, idx("base.ry")), Op(ROT, x, idx("base.rx"))]
+        return ([Op(TRANS, AXES[a], idx(f"base.{a}")) for a in "xyz"]
+                + [Op(ROT, AXES[a], idx(f"base.r{a}")) for a in "zyx"])
 
     def tool_ops(self) -> list[Op]:
         idx = self.params.index
         return [Op(TRANS, AXES[a], idx(f"tool.{a}")) for a in "xyz"]
 
     @abstractmethod
+    def _rows(self) -> list[tuple[str, float, tuple[float, float, float], list[Op]]]:
+        """Per row (joint) of the chain, in order: its name, the mass (kg) and centre of mass (m) of
+        the link it moves, and its ops, which end in that link's frame."""
+
+    def _build_ops(self) -> tuple[Op, ...]:
+        return tuple(self.base_ops() + [op for *_, ops in self._rows() for op in ops] + self.tool_ops())
+
     def link_frames(self) -> list[tuple[str, int, int, float, tuple[float, float, float]]]:
-        """Per link of the chain: (name, number of chain ops up to its frame, number of joints
-        before it, mass kg, centre of mass m in its frame). Gravity terms place masses with this."""
+        """Per link of the chain (the frame at the end of each row): (name, number of chain ops up to
+        its frame, number of joints before it, mass kg, centre of mass m in its frame). Gravity terms
+        place masses with this."""
+        out, end, moving = [], len(self.base_ops()), 0
+        for name, mass, com, ops in self._rows():
+            end += len(ops)
+            moving += any(op.joint >= 0 for op in ops)
+            out.append((name, end, moving, mass, com))
+        return out
 
     def chain_values(self, values: np.ndarray | None = None) -> np.ndarray:
         """The values the compiled chain reads (the parameters, and any extra columns)."""
@@ -140,9 +145,19 @@ class ChainRobot(Robot):
         return self._chain
 
     def _forward_and_jacobian(self, q, values, jacobian):
+        values = self.chain_values(values)
         if not jacobian:
             return self._chain.forward(values, q), None
-        return self._chain.forward_and_jacobian(values, q)
+        p, J = self._chain.forward_and_jacobian(values, q)
+        return p, J[:, :, :self.n_params]  # extra chain columns (URDF joint motions) left out
+
+    def _forward_jacobians(self, q, values):
+        p, J = self._chain.forward_and_jacobian(self.chain_values(values), q)
+        # ∂p/∂qⱼ is the column of the parameter joint j's value adds to (θ or d; a URDF joint motion's own)
+        return p, J[:, :, :self.n_params], J[:, :, self._chain.joint_param]
+
+    def _joint_jacobian(self, q, values):
+        return self._forward_jacobians(q, values)[2]
 
     def _pose_and_jacobian(self, q, values):
         return self._chain.pose_jacobian(self.chain_values(values), q)
@@ -152,7 +167,7 @@ class ChainRobot(Robot):
 
     def _frame_and_rates(self, q, values):
         p, J, R, Jw = self._chain.frame_and_rates(self.chain_values(values), q)
-        return p, J[:, :, :self.n_params], R, Jw[:, :, :self.n_params]  # extra chain columns (URDF joints) left out
+        return p, J[:, :, :self.n_params], R, Jw[:, :, :self.n_params]
 
     def gravity(self, payload: float = 0.0) -> GravityModel:
         return GravityModel(self, float(payload))
@@ -189,7 +204,7 @@ class SerialRobot(ChainRobot):
             raise ModelError(f"robot '{self.name}': duplicate joint names {jn}")
         if all(j.type == "fixed" for j in joints):
             raise ModelError(f"robot '{self.name}': every row is fixed; a robot needs a moving joint")
-        names, kinds = _param_names(self.convention, joints)
+        names, kinds = _param_names(joints)
         if tuple(names) != self.params.names or tuple(kinds) != self.params.kinds:
             raise ModelError(f"robot '{self.name}': parameter names do not match the joint structure")
         moving = [j for j in joints if j.type != "fixed"]
@@ -201,32 +216,22 @@ class SerialRobot(ChainRobot):
 
     # ---- construction --------------------------------------------------------------------------
     @classmethod
-    def build(
-        cls,
-        name: str,
-        convention: str,
-        joints: Sequence[Joint],
-        dh: Sequence[Mapping[str, float]],
-        base: Mapping[str, float] | None = None,
-        tool: Mapping[str, float] | None = None,
-        description: str = "",
-        frames: Sequence[tuple[str, Sequence[float]]] = (),
-    ) -> "SerialRobot":
+    def build(cls, name: str, convention: str, joints: Sequence[Joint], dh: Sequence[Mapping[str, float]],
+              base: Mapping[str, float] | None = None, tool: Mapping[str, float] | None = None, description: str = "",
+              frames: Sequence[tuple[str, Sequence[float]]] = ()) -> "SerialRobot":
         """Robot from joint structures and per-joint values ``{"theta", "d", "a", "alpha", ["beta"]}`` (SI).
 
         ``base`` keys: x y z rx ry rz; ``tool`` keys: x y z (missing keys are 0).
         """
         if len(dh) != len(joints):
             raise ModelError(f"robot '{name}': {len(joints)} joints but {len(dh)} DH rows")
-        names, kinds = _param_names(convention, joints)
-        vals = {n: 0.0 for n in names}
-        for k, v in (base or {}).items():
-            vals[_checked(f"base.{k}", vals, name)] = float(v)
-        for k, v in (tool or {}).items():
-            vals[_checked(f"tool.{k}", vals, name)] = float(v)
-        for jt, row in zip(joints, dh):
-            for k, v in row.items():
-                vals[_checked(f"{jt.name}.{k}", vals, name)] = float(v)
+        names, kinds = _param_names(joints)
+        vals = dict.fromkeys(names, 0.0)
+        given = [(f"{f}.{k}", v) for f, kv in (("base", base), ("tool", tool)) for k, v in (kv or {}).items()]
+        for key, v in given + [(f"{jt.name}.{k}", v) for jt, row in zip(joints, dh) for k, v in row.items()]:
+            if key not in vals:
+                raise ModelError(f"robot '{name}': unknown parameter '{key}'; known: {', '.join(vals)}")
+            vals[key] = float(v)
         return cls(name, convention, tuple(joints), Parameters(names, [vals[n] for n in names], kinds), description,
                    tuple((n, tuple(p)) for n, p in frames))
 
@@ -235,61 +240,29 @@ class SerialRobot(ChainRobot):
         """The rows with a joint variable (``joints`` less the fixed rows)."""
         return tuple(j for j in self.joints if j.type != "fixed")
 
-    def _build_ops(self) -> tuple[Op, ...]:
-        ops = self.base_ops()
-        for k, jt in self._numbered():
-            ops += self._row_ops(k, jt)
-        return tuple(ops + self.tool_ops())
-
-    def _numbered(self) -> list[tuple[int, Joint]]:
-        """Each row with the index of its joint variable (-1 for a fixed row)."""
-        out, k = [], 0
-        for jt in self.joints:
-            out.append((k if jt.type != "fixed" else -1, jt))
-            k += jt.type != "fixed"
-        return out
+    def _rows(self) -> list[tuple[str, float, tuple[float, float, float], list[Op]]]:
+        """Link k is the frame at the end of joint k's row (DH and MDH alike)."""
+        moving = np.cumsum([j.type != "fixed" for j in self.joints]) - 1  # each row's joint index (unused if fixed)
+        return [(j.name, j.mass, j.com, self._row_ops(int(k), j)) for k, j in zip(moving, self.joints)]
 
     def _row_ops(self, k: int, jt: Joint) -> list[Op]:
         p = lambda s: self.params.index(f"{jt.name}.{s}")  # noqa: E731
         x, y, z = AXES["x"], AXES["y"], AXES["z"]
-        rev = jt.type == "revolute"
-        rz = Op(ROT, z, p("theta"), k if rev else -1)
+        rz = Op(ROT, z, p("theta"), k if jt.type == "revolute" else -1)
         tz = Op(TRANS, z, p("d"), k if jt.type == "prismatic" else -1)
         beta = [Op(ROT, y, p("beta"))] if jt.beta else []
         if self.convention == "dh":
             return [rz, tz, Op(TRANS, x, p("a")), Op(ROT, x, p("alpha"))] + beta
         return [Op(ROT, x, p("alpha")), Op(TRANS, x, p("a"))] + beta + [rz, tz]
 
-    def link_frames(self) -> list[tuple[str, int, int, float, tuple[float, float, float]]]:
-        """Link k is the frame at the end of joint k's row (DH and MDH alike)."""
-        out, end, moving = [], len(self.base_ops()), 0
-        for k, jt in self._numbered():
-            end += len(self._row_ops(k, jt))
-            moving += k >= 0
-            out.append((jt.name, end, moving, jt.mass, jt.com))
-        return out
-
     @property
     def structure(self) -> str:
         return self.convention
 
-    @property
-    def joint_columns(self) -> np.ndarray:
-        """(n,) parameter column of each joint: the θ (revolute) or d (prismatic) its value adds to,
-        so ∂p/∂qⱼ is that column of the parameter Jacobian."""
-        return self._chain.joint_param
-
-    def _joint_jacobian(self, q, values):
-        return self._chain.forward_and_jacobian(values, q)[1][..., self.joint_columns]
-
-    def _forward_jacobians(self, q, values):
-        p, J = self._chain.forward_and_jacobian(values, q)
-        return p, J, J[..., self.joint_columns]
-
     def with_joints(self, joints: Sequence[Joint], name: str | None = None) -> "SerialRobot":
         """Same values, new joint structures (e.g. β switched on/off); new β values start at 0."""
         old = self.params.as_dict()
-        names, kinds = _param_names(self.convention, joints)
+        names, kinds = _param_names(joints)
         vals = [old.get(n, 0.0) for n in names]
         return SerialRobot(name or self.name, self.convention, tuple(joints), Parameters(names, vals, kinds),
                            self.description, self.frames)
@@ -298,12 +271,8 @@ class SerialRobot(ChainRobot):
         return {n: (rot_zyx(v[5], v[4], v[3]), np.array(v[:3])) for n, v in self.frames}
 
     @property
-    def export_names(self) -> tuple[str, ...]:
-        return tuple(j.export_name or j.name for j in self.moving)
-
-    @property
     def stack_names(self) -> tuple[str, ...]:
-        return self.export_names
+        return tuple(j.export_name or j.name for j in self.moving)
 
     @property
     def has_beta(self) -> bool:
@@ -315,15 +284,10 @@ class SerialRobot(ChainRobot):
     # ---- structure -----------------------------------------------------------------------------
     def parallel_pairs(self) -> list[tuple[int, int]]:
         """Index pairs (i, i+1) of consecutive revolute joints whose nominal axes are parallel."""
-        out = []
-        for i in range(len(self.joints) - 1):
-            a, b = self.joints[i], self.joints[i + 1]
-            if a.type != "revolute" or b.type != "revolute":
-                continue
-            alpha = self.params[f"{(a if self.convention == 'dh' else b).name}.alpha"]
-            if abs(np.sin(alpha)) < PARALLEL_TOL:
-                out.append((i, i + 1))
-        return out
+        pairs = [(i, i + 1) for i in range(len(self.joints) - 1)
+                 if self.joints[i].type == self.joints[i + 1].type == "revolute"]
+        alpha = [self.params[f"{self.joints[self.beta_joint(p)].name}.alpha"] for p in pairs]  # between the two axes
+        return [p for p, a in zip(pairs, alpha) if abs(np.sin(a)) < PARALLEL_TOL]
 
     def beta_joint(self, pair: tuple[int, int]) -> int:
         """The joint that carries β for a parallel pair: the first in DH, the second in MDH."""
@@ -343,8 +307,3 @@ class SerialRobot(ChainRobot):
                 )
         return notes
 
-
-def _checked(key: str, vals: dict, robot: str) -> str:
-    if key not in vals:
-        raise ModelError(f"robot '{robot}': unknown parameter '{key}'; known: {', '.join(vals)}")
-    return key

@@ -46,10 +46,6 @@ MODELS = ("geometric", "nobeta", "compliance", "gravity-regressor", "harmonics:1
           "harmonics:4")
 
 
-def harmonic_names(joints: Sequence[str], order: int) -> list[str]:
-    return [f"{j}.h{k}{sc}" for j in joints for k in range(1, order + 1) for sc in ("s", "c")]
-
-
 def lever_joints(robot: Robot, q: np.ndarray) -> tuple[str, ...]:
     """Revolute joints whose rotation moves the tool by at least MIN_LEVER per rad (RMS over q)."""
     lever = np.sqrt(np.mean(np.sum(robot.joint_jacobian(robot.check_q(q)) ** 2, axis=1), axis=0))
@@ -73,24 +69,22 @@ class Harmonics:
 
     @property
     def names(self) -> tuple[str, ...]:
-        return tuple(harmonic_names(self.joint_names, self.order))
+        return tuple(f"{j}.h{k}{sc}" for j in self.joint_names for k in range(1, self.order + 1) for sc in "sc")
 
     def basis(self, q: np.ndarray) -> np.ndarray:
         kq = q[:, list(self.index), None] * np.arange(1, self.order + 1)
         sc = np.stack([np.sin(kq), np.cos(kq)], axis=-1).reshape(len(q), len(self.index), -1)  # (N, r, 2k)
-        B = np.zeros((len(q), q.shape[1], sc.shape[1] * sc.shape[2]))
-        for r, i in enumerate(self.index):
-            B[:, i, r * sc.shape[2]:(r + 1) * sc.shape[2]] = sc[:, r]
-        return B
+        B = np.zeros((len(q), q.shape[1]) + sc.shape[1:])  # (N, n, r, 2k): joint index[r] gets block r
+        B[:, list(self.index), np.arange(len(self.index))] = sc
+        return B.reshape(len(q), q.shape[1], -1)
 
     def slope(self, q: np.ndarray, theta: np.ndarray) -> np.ndarray:
         """(N, n, n): ∂Δq/∂q (diagonal)."""
         k = np.arange(1, self.order + 1)
         ab = theta.reshape(len(self.index), self.order, 2)
-        out = np.zeros((len(q), q.shape[1], q.shape[1]))
-        for r, i in enumerate(self.index):
-            kq = q[:, i, None] * k
-            out[:, i, i] = (k * (np.cos(kq) * ab[r, :, 0] - np.sin(kq) * ab[r, :, 1])).sum(axis=1)
+        out, index = np.zeros((len(q), q.shape[1], q.shape[1])), list(self.index)
+        kq = q[:, index, None] * k  # (N, r, order)
+        out[:, index, index] = (k * (np.cos(kq) * ab[:, :, 0] - np.sin(kq) * ab[:, :, 1])).sum(axis=2)
         return out
 
     def to_dict(self) -> dict:
@@ -122,22 +116,17 @@ class GravityTerm:
         return self.gravity._cached(f"basis:{self.columns}", q, self._basis)
 
     def _basis(self, q: np.ndarray) -> np.ndarray:
+        i, ell, c = np.array(self.columns, dtype=int).reshape(-1, 3).T
         B = np.zeros((len(q), q.shape[1], len(self.columns)))
         if self.token == "compliance":
-            tau = self.gravity.torques(q) / TAU_REF
-            for col, (i, _, _) in enumerate(self.columns):
-                B[:, i, col] = tau[:, i]
+            B[:, i, np.arange(len(i))] = self.gravity.torques(q)[:, i] / TAU_REF
         else:
-            Y = self.gravity.regressor(q)
-            for col, (i, ell, c) in enumerate(self.columns):
-                B[:, i, col] = Y[:, i, ell, c]
+            B[:, i, np.arange(len(i))] = self.gravity.regressor(q)[:, i, ell, c]
         return B
 
     def slope(self, q: np.ndarray, theta: np.ndarray) -> np.ndarray:
         out = np.empty((len(q), q.shape[1], q.shape[1]))
-        for k in range(q.shape[1]):
-            step = np.zeros(q.shape[1])
-            step[k] = SLOPE_STEP
+        for k, step in enumerate(SLOPE_STEP * np.eye(q.shape[1])):
             out[:, :, k] = (self.basis(q + step) - self.basis(q - step)) @ theta / (2 * SLOPE_STEP)
         return out
 

@@ -87,7 +87,7 @@ class TransmissionRobot(Wrapped):
     # ---- the transmission ----------------------------------------------------------------------
     def chain_q(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
         """Chain joint values (N, n_j) for actuator values q (N, n_a)."""
-        return self._transmit(self.check_q(q), self.param_values(values), derivatives=False)[0]
+        return self._transmit(self.check_q(q), self.param_values(values))[0]
 
     def actuator_q(self, chain_q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
         """Actuator values (N, n_a) that give the chain joint values ``chain_q`` (N, n_j): the inverse of
@@ -107,26 +107,22 @@ class TransmissionRobot(Wrapped):
                 phi[:, a], phi[:, b] = (s + d) / 2, (s - d) / 2
         return phi
 
-    def _transmit(self, phi: np.ndarray, values: np.ndarray, derivatives: bool = True):
+    def _transmit(self, phi: np.ndarray, values: np.ndarray):
         """q (N, n_j), ∂q/∂φ (N, n_j, n_a) and ∂q/∂drive (N, n_j, P_drive) for actuator values φ."""
         _, dv = self._split(values)
         n, n_j, drive = phi.shape[0], self.inner.n_joints, self.drive
-        q = np.empty((n, n_j))
-        dq_dphi = np.zeros((n, n_j, self.n_joints)) if derivatives else None
-        dq_ds = np.zeros((n, n_j, len(drive))) if derivatives else None
+        q, dq_dphi, dq_ds = np.empty((n, n_j)), np.zeros((n, n_j, self.n_joints)), np.zeros((n, n_j, len(drive)))
         for mp in self.maps:
             p = [dv[i] for i in drive.indices(mp.param_names)]
             if mp.type == "direct":
                 (a,), (j,) = mp.actuators, mp.chain_joints
                 q[:, j] = phi[:, a]
-                if dq_dphi is not None:
-                    dq_dphi[:, j, a] = 1.0
+                dq_dphi[:, j, a] = 1.0
             elif mp.type == "screw":
                 (a,), (j,), (lead,) = mp.actuators, mp.chain_joints, p
                 q[:, j] = lead * phi[:, a] / TWO_PI
-                if dq_dphi is not None and dq_ds is not None:
-                    dq_dphi[:, j, a] = lead / TWO_PI
-                    dq_ds[:, j, drive.index(mp.param_names[0])] = phi[:, a] / TWO_PI
+                dq_dphi[:, j, a] = lead / TWO_PI
+                dq_ds[:, j, drive.index(mp.param_names[0])] = phi[:, a] / TWO_PI
             else:
                 self._differential(mp, p, phi, q, dq_dphi, dq_ds)
         return q, dq_dphi, dq_ds
@@ -139,8 +135,6 @@ class TransmissionRobot(Wrapped):
         q[:, jt] = lead * s / (2 * TWO_PI)
         u = lead * d / (TWO_PI * arm)
         q[:, jr] = np.arctan(u)
-        if dq_dphi is None:
-            return
         g = 1.0 / (1.0 + u * u)  # d atan(u)/du
         dq_dphi[:, jt, a] = dq_dphi[:, jt, b] = lead / (2 * TWO_PI)
         dq_dphi[:, jr, a] = g * lead / (TWO_PI * arm)
@@ -152,7 +146,7 @@ class TransmissionRobot(Wrapped):
     # ---- Robot interface -----------------------------------------------------------------------
     def _forward_and_jacobian(self, q, values, jacobian):
         cv, _ = self._split(values)
-        qj, _, dq_ds = self._transmit(q, values, derivatives=jacobian)
+        qj, _, dq_ds = self._transmit(q, values)
         if not jacobian:
             return self.inner.forward(qj, cv), None
         p, Jc, Jq = self.inner.forward_jacobians(qj, cv)

@@ -111,12 +111,10 @@ class URDFRobot(ChainRobot):
     def moving_joints(self) -> tuple[URDFJoint, ...]:
         return tuple(j for j in self.joints if j.moving)
 
-    def _build_ops(self) -> tuple[Op, ...]:
-        ops, k = self.base_ops(), 0
-        for j in self.joints:
-            ops += self._joint_ops(j, k)
-            k += j.moving
-        return tuple(ops + self.tool_ops())
+    def _rows(self) -> list[tuple[str, float, tuple[float, float, float], list[Op]]]:
+        """Every joint's child link, named by its joint."""
+        moving = np.cumsum([j.moving for j in self.joints]) - 1  # each joint's index among the moving ones
+        return [(j.name, j.mass, j.com, self._joint_ops(j, int(k))) for k, j in zip(moving, self.joints)]
 
     def _joint_ops(self, j: URDFJoint, k: int) -> list[Op]:
         """The ops of one joint (k: its index among the moving joints); they end in the child link's frame."""
@@ -129,32 +127,9 @@ class URDFRobot(ChainRobot):
         pre, axis, post = _align(j.axis, f"robot '{self.name}', joint '{j.name}'")
         return ops + pre + [Op(kind, axis, len(self.params) + k, k)] + post
 
-    def link_frames(self) -> list[tuple[str, int, int, float, tuple[float, float, float]]]:
-        """Every joint's child link, named by its joint."""
-        out, end, k = [], len(self.base_ops()), 0
-        for j in self.joints:
-            end += len(self._joint_ops(j, k))
-            k += j.moving
-            out.append((j.name, end, k, j.mass, j.com))
-        return out
-
     def chain_values(self, values: np.ndarray | None = None) -> np.ndarray:
         """Parameter values followed by a zero per joint (the joint motions' own columns)."""
         return np.concatenate([self.param_values(values), np.zeros(self.n_joints)])
-
-    def _forward_and_jacobian(self, q, values, jacobian):
-        values = self.chain_values(values)
-        if not jacobian:
-            return self._chain.forward(values, q), None
-        p, J = self._chain.forward_and_jacobian(values, q)
-        return p, J[:, :, :self.n_params]
-
-    def _forward_jacobians(self, q, values):
-        p, J = self._chain.forward_and_jacobian(self.chain_values(values), q)
-        return p, J[:, :, :self.n_params], J[:, :, self.n_params:]
-
-    def _joint_jacobian(self, q, values):
-        return self._chain.forward_and_jacobian(self.chain_values(values), q)[1][:, :, self.n_params:]
 
     def origin(self, joint: URDFJoint, values: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """A moving joint's origin with its deviations as URDF xyz (3,) and rpy (3,): the file's rpy
@@ -174,8 +149,7 @@ def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
 
 def _constant_origin(xyz, rpy) -> list[Op]:
     """Tx Ty Tz Rz(yaw) Ry(pitch) Rx(roll) as constant motions (zero motions left out)."""
-    order = [(TRANS, "x", xyz[0]), (TRANS, "y", xyz[1]), (TRANS, "z", xyz[2]), (ROT, "z", rpy[2]),
-             (ROT, "y", rpy[1]), (ROT, "x", rpy[0])]
+    order = [(TRANS, a, v) for a, v in zip("xyz", xyz)] + [(ROT, a, v) for a, v in zip("zyx", rpy[::-1])]
     return [Op(kind, AXES[a], -1, offset=float(v)) for kind, a, v in order if v != 0.0]
 
 
@@ -186,9 +160,9 @@ def _align(axis: Sequence[float], where: str) -> tuple[list[Op], int, list[Op]]:
     if not (np.isfinite(n) and n > 1e-9):
         raise ModelError(f"{where}: the axis {list(a)} must be a non-zero vector")
     a = a / n
-    for k in range(3):
-        if a[k] > 1.0 - 1e-12:
-            return [], k, []
+    k = int(np.argmax(a))
+    if a[k] > 1.0 - 1e-12:  # along a frame axis already
+        return [], k, []
     phi, theta = math.atan2(a[1], a[0]), math.acos(max(-1.0, min(1.0, a[2])))
     pre = [Op(ROT, AXES["z"], -1, offset=phi), Op(ROT, AXES["y"], -1, offset=theta)]
     post = [Op(ROT, AXES["y"], -1, offset=-theta), Op(ROT, AXES["z"], -1, offset=-phi)]
@@ -200,9 +174,7 @@ def urdf_robot(name: str, joints: Sequence[URDFJoint], tool: Sequence[float] = (
     """A URDFRobot with its joints' nominal origins (no rotation deviations), base at the origin."""
     names, kinds = _param_layout(joints)
     values = dict.fromkeys(names, 0.0)
-    for j in joints:
-        if j.moving:
-            values.update({f"{j.name}.{c}": float(v) for c, v in zip("xyz", j.xyz)})
+    values.update({f"{j.name}.{c}": float(v) for j in joints if j.moving for c, v in zip("xyz", j.xyz)})
     values.update({f"tool.{c}": float(v) for c, v in zip("xyz", tool)})
     return URDFRobot(name, tuple(joints), Parameters(names, [values[n] for n in names], kinds), description,
                      dict(source or {}))

@@ -50,10 +50,6 @@ class Wrapped(Robot):
         return self.inner.named_frames()
 
     @property
-    def export_names(self) -> tuple[str, ...]:
-        return self.inner.export_names if self.inner.joint_names == self.joint_names else self.joint_names
-
-    @property
     def error_model(self) -> str:
         return self.inner.error_model
 

@@ -18,7 +18,6 @@ is absent it is switched on automatically where consecutive revolute axes are pa
 from __future__ import annotations
 
 import dataclasses
-
 import os
 from importlib import resources
 from pathlib import Path
@@ -38,7 +37,7 @@ from .urdf import URDFRobot, read_urdf
 from .yaml_kinds import (error_model_from_dict, error_model_yaml, puu3_from_dict, puu3_yaml, transmission_from_dict,
                          transmission_yaml, urdf_from_dict, urdf_yaml)
 from .yaml_values import (POSE_KEYS, base_pose, description_lines, fmt, frame_text, link_mass, mass_items, mapping, num,
-                          per_unit, pose_text, units)
+                          pair, per_unit, pose_text, units)
 
 _JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits", "mass", "com", "velocity", "effort"}
 _TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool", "actuators", "transmission",
@@ -210,17 +209,13 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     robot = SerialRobot.build(str(data["name"]), conv, joints, rows, base, tool, str(data.get("description", "")),
                               _frames(data.get("frames"), lf, af, label))
     # automatic beta where axes are parallel and the file does not say otherwise
-    auto = {robot.beta_joint(pair) for pair in robot.parallel_pairs()}
-    auto = {k for k in auto if explicit_beta[k] is None}
+    auto = {k for k in map(robot.beta_joint, robot.parallel_pairs()) if explicit_beta[k] is None}
     if auto:
-        joints = [dataclasses.replace(j, beta=True) if k in auto else j
-                  for k, j in enumerate(robot.joints)]
-        robot = robot.with_joints(joints)
+        robot = robot.with_joints([dataclasses.replace(j, beta=True) if k in auto else j
+                                   for k, j in enumerate(robot.joints)])
     if ("transmission" in data) != ("actuators" in data):
         raise ModelError(f"{label}: 'actuators' and 'transmission' go together; give both or neither")
-    if "transmission" in data:
-        return transmission_from_dict(robot, data, lf, af, label)
-    return robot
+    return transmission_from_dict(robot, data, lf, af, label) if "transmission" in data else robot
 
 
 def _export_names(joints: list[Joint], names, label: str) -> list[Joint]:
@@ -277,19 +272,16 @@ def _dh_joints(entries, lf: float, af: float, label: str) -> tuple[list[Joint], 
         if lim is None:
             lo, hi = (-np.pi, np.pi) if jtype == "revolute" else (-1.0, 1.0)
         else:
-            if not (isinstance(lim, list) and len(lim) == 2):
-                raise ModelError(f"{where}: 'limits' must be [lower, upper]")
-            lo, hi = num(lim[0], where, "limits") * qf, num(lim[1], where, "limits") * qf
+            lo, hi = (num(x, where, "limits") * qf for x in pair(lim, where))
         beta = jd.get("beta", None)
         explicit_beta.append(beta)
-        mass, com = link_mass(jd, lf, where)
-        speed = num(jd.get("velocity", 0.0), where, "velocity") * qf
-        effort = num(jd.get("effort", 0.0), where, "effort")
-        joints.append(Joint(str(jd.get("name", f"j{k + 1}")), jtype, not (beta is None or beta is False), lo, hi,
-                            mass, com, speed, effort))
+        on = not (beta is None or beta is False)
+        joints.append(Joint(str(jd.get("name", f"j{k + 1}")), jtype, on, lo, hi, *link_mass(jd, lf, where),
+                            num(jd.get("velocity", 0.0), where, "velocity") * qf,
+                            num(jd.get("effort", 0.0), where, "effort")))
         row = {key: num(jd.get(key, 0.0), where, key) * (lf if key in ("d", "a") else af)
                for key in ("theta", "d", "a", "alpha")}
-        if not (beta is None or beta is False):
+        if on:
             row["beta"] = num(beta, where, "beta") * af
         rows.append(row)
     return joints, rows, explicit_beta
@@ -317,9 +309,8 @@ def _chain_yaml(robot: SerialRobot, length_unit: str, angle_unit: str) -> str:
     lines += [f"convention: {robot.convention}", f"units: {{length: {length_unit}, angle: {angle_unit}}}", "joints:"]
     for j in robot.joints:
         qf = af if j.type == "revolute" else lf
-        items = [f"name: {j.name}", f"type: {j.type}"]
-        for key, f in (("theta", af), ("d", lf), ("a", lf), ("alpha", af)):
-            items.append(f"{key}: {fmt(v[f'{j.name}.{key}'] * f)}")
+        items = [f"name: {j.name}", f"type: {j.type}"] + [f"{key}: {fmt(v[f'{j.name}.{key}'] * f)}" for key, f in
+                                                           (("theta", af), ("d", lf), ("a", lf), ("alpha", af))]
         items.append(f"beta: {fmt(v[f'{j.name}.beta'] * af)}" if j.beta else "beta: false")
         if j.type != "fixed":
             items.append(f"limits: [{fmt(j.lower * qf)}, {fmt(j.upper * qf)}]")

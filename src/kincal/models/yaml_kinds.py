@@ -17,9 +17,8 @@ from .yaml_values import (base_pose, description_lines, fmt, frame_text, link_ma
                           per_unit, units, vector)
 
 URDF_JOINT_KEYS = {"name", "type", "axis", "limits", "xyz", "rpy", "roll", "pitch", "yaw", "mass", "com"}
-
-
 DRIVE_PREFIX = "drive."
+ROLES = {"direct": (), "screw": ("lead",), "differential_screw": ("lead", "arm")}  # a map's drive parameters
 
 
 def puu3_from_dict(data: dict, label: str) -> PUU3Robot:
@@ -33,9 +32,7 @@ def puu3_from_dict(data: dict, label: str) -> PUU3Robot:
             raise ModelError(f"{label}: unknown 3-PUU parameter '{key}'; known: {', '.join(names[6:])}")
         values[key] = num(v, f"{label}: parameters", key) * (lf if kind[key] == "length" else af)
     values.update({f"base.{k}": x for k, x in base_pose(data, label, lf, af, strict=True).items()})
-    lim = data.get("slider_limits", [380, 835] if lf == 1e-3 else [0.380, 0.835])
-    if not (isinstance(lim, list) and len(lim) == 2):
-        raise ModelError(f"{label}: 'slider_limits' must be [lower, upper]")
+    lim = pair(data.get("slider_limits", [380, 835] if lf == 1e-3 else [0.380, 0.835]), label, "slider_limits")
     lo, hi = num(lim[0], label, "slider_limits") * lf, num(lim[1], label, "slider_limits") * lf
     robot = PUU3Robot.build(str(data.get("name", "puu3")), extended=extended, h_range=(lo, hi),
                             description=str(data.get("description", "")))
@@ -107,8 +104,7 @@ def urdf_yaml(robot: URDFRobot, length_unit: str, angle_unit: str) -> str:
 
 
 def transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float, label: str) -> TransmissionRobot:
-    acts = data["actuators"]
-    tr = data["transmission"]
+    acts, tr = data["actuators"], data["transmission"]
     if not isinstance(acts, list) or not acts or not isinstance(tr, dict):
         raise ModelError(f"{label}: 'actuators' must be a list and 'transmission' a mapping with 'parameters' and 'maps'")
     actuators = []
@@ -131,7 +127,7 @@ def transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float,
         except KeyError as exc:
             raise ModelError(f"{where}: unknown actuator or joint {exc}; actuators: {', '.join(act_index)}; "
                              f"joints: {', '.join(joint_index)}") from None
-        roles = {"direct": (), "screw": ("lead",), "differential_screw": ("lead", "arm")}.get(md.get("type"), ())
+        roles = ROLES.get(md.get("type"), ())
         missing = [r for r in roles if r not in md]
         if missing:
             raise ModelError(f"{where}: missing {', '.join(missing)}")
@@ -141,16 +137,14 @@ def transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float,
 
 def transmission_yaml(robot: TransmissionRobot, length_unit: str, angle_unit: str) -> str:
     lf, af = per_unit(length_unit, angle_unit)
-    lines = ["actuators:"]
-    for name, lo, hi in zip(robot.joint_names, robot.lower, robot.upper):
-        lines.append(f"  - {{name: {name}, limits: [{fmt(lo * af)}, {fmt(hi * af)}]}}")
+    lines = ["actuators:"] + [f"  - {{name: {name}, limits: [{fmt(lo * af)}, {fmt(hi * af)}]}}"
+                              for name, lo, hi in zip(robot.joint_names, robot.lower, robot.upper)]
     params = ", ".join(f"{n[len(DRIVE_PREFIX):]}: {fmt(v * lf)}" for n, v in zip(robot.drive.names, robot.drive.values))
     lines += ["transmission:", f"  parameters: {{{params}}}", "  maps:"]
-    roles = {"direct": (), "screw": ("lead",), "differential_screw": ("lead", "arm")}
     for mp in robot.maps:
         items = [f"type: {mp.type}", f"actuators: [{', '.join(robot.joint_names[a] for a in mp.actuators)}]",
                  f"joints: [{', '.join(robot.inner.joint_names[j] for j in mp.chain_joints)}]"]
-        items += [f"{role}: {p[len(DRIVE_PREFIX):]}" for role, p in zip(roles[mp.type], mp.param_names)]
+        items += [f"{role}: {p[len(DRIVE_PREFIX):]}" for role, p in zip(ROLES[mp.type], mp.param_names)]
         lines.append("    - {" + ", ".join(items) + "}")
     return "\n".join(lines) + "\n"
 
@@ -167,8 +161,8 @@ def error_model_yaml(robot: ExtendedRobot) -> str:
 
 def error_model_from_dict(geometry: Robot, data, label: str) -> ExtendedRobot:
     where = f"{label}: error_model"
-    if not isinstance(data, dict) or set(data) - {"terms", "reference", "values"} or not isinstance(data.get("terms"),
-                                                                                                   list):
+    if not isinstance(data, dict) or set(data) - {"terms", "reference", "values"} \
+            or not isinstance(data.get("terms"), list):
         raise ModelError(f"{where}: a mapping with terms, values and (for gravity terms) reference")
     values = {str(k): num(v, where, str(k)) for k, v in mapping(data, "values", where).items()}
     reference = None

@@ -62,9 +62,9 @@ def vector(v, where: str, key: str) -> np.ndarray:
     return np.array([num(x, where, key) for x in v])
 
 
-def pair(v, where: str) -> list:
+def pair(v, where: str, key: str = "limits") -> list:
     if not (isinstance(v, list) and len(v) == 2):
-        raise ModelError(f"{where}: 'limits' must be [lower, upper]")
+        raise ModelError(f"{where}: '{key}' must be [lower, upper]")
     return v
 
 
