@@ -90,7 +90,6 @@ def test_design_options_are_checked_before_any_work(ur5, monkeypatch, changes, w
 ])
 def test_compensation_inputs_are_checked_before_any_work(ur5, monkeypatch, kwargs, words):
     compensate_module = importlib.import_module("kincal.compensate.commands")
-    monkeypatch.setattr(compensate_module, "_residual", _no_work)
     monkeypatch.setattr(compensate_module, "_checked", _no_work)
     q = ur5.sample_joints(5, seed=1)
     args = {"targets": ur5.forward(q), "q_start": q, **kwargs}

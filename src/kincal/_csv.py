@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import io
+import os
 import re
 from dataclasses import dataclass, field
 
@@ -35,11 +36,6 @@ def sniff_delimiter(header: str, path: str) -> str:
     if counts[best] == 0:
         raise MeasurementError(f"{path}: cannot find a ',', ';' or tab separator in the header line")
     return best
-
-
-def read_text(path: str) -> str:
-    """The file's text: UTF-8 (with or without the BOM Excel writes), else Latin-1."""
-    return _decoded(_read_bytes(path), "utf-8-sig")
 
 
 def _read_bytes(path: str, size: int = -1) -> bytes:
@@ -95,7 +91,7 @@ def why_not(cell: str) -> str:
 def read_table(path: str) -> tuple[list[str], list[tuple[int, list[str]]], str, int]:
     """The header (stripped names), the records as (line number, cells), the separator and the
     header's line number; every record has as many fields as the header."""
-    lines = data_lines(read_text(path))
+    lines = data_lines(_decoded(_read_bytes(path), "utf-8-sig"))  # Excel writes UTF-8 with a BOM
     if not lines:
         raise MeasurementError(f"{path}: the file is empty; expected a header line and one row per pose")
     delim = sniff_delimiter(lines[0][1], path)
@@ -341,9 +337,9 @@ class Stream:
         return self._careful(_decoded(raw), block.first_line, list(cols))
 
     def _careful(self, text: str, first_line: int, cols: list) -> tuple[np.ndarray, np.ndarray]:
-        lines = text.splitlines()
-        keep = [k for k, s in enumerate(lines) if s.strip() and not s.lstrip().startswith("#")]
-        records = list(zip([first_line + k for k in keep], csv.reader([lines[k] for k in keep], delimiter=self.delim)))
+        lines = data_lines(text)
+        records = list(zip([first_line + k - 1 for k, _ in lines], csv.reader([s for _, s in lines],
+                                                                                  delimiter=self.delim)))
         for k, rec in records:
             if len(rec) != len(self.header):
                 raise MeasurementError(f"{self.path}: row {k} has {len(rec)} fields, the header has {len(self.header)}")
@@ -366,8 +362,6 @@ def _last_line(raw: bytes, first_line: int) -> Block | None:
 def open_stream(path: str, block_bytes: int = BLOCK_BYTES) -> Stream:
     """The header of a CSV to stream (the first line that is not blank or a '#' comment; UTF-8 with or
     without a BOM, else Latin-1) and where its data start."""
-    import os
-
     head = _read_bytes(path, 1 << 16)
     size = os.path.getsize(path)
     start = 3 if head.startswith(b"\xef\xbb\xbf") else 0

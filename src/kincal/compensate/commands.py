@@ -15,8 +15,6 @@ from .frames import MISMATCH_TOL, frame_mismatch, orientation_change
 
 IK_TOL = 1e-10  # m
 IK_ITER = 100
-
-
 BRANCH_TOL = {"revolute": np.deg2rad(5.0), "prismatic": 5e-3}  # a correction larger than this changes branch
 GIVE_UP = 2.0  # pose solves stop a target this many times BRANCH_TOL from its nominal command
 START_TOL = 50e-3  # m: the model at the nominal command must be this close to the target
@@ -51,16 +49,15 @@ class Compensation:
     def to_dict(self) -> dict:
         ok = self.ok
         res = np.where(np.isfinite(self.residual), self.residual, np.nan)
+        accepted = lambda a: None if a is None else [float(x) if k else None for x, k in zip(a, ok)]  # noqa: E731
         return {"q": [qi.tolist() if k else None for qi, k in zip(self.q, ok)],
                 "residual": [float(r) if np.isfinite(r) else None for r in res],
                 "max_residual": float(np.nanmax(res[ok])) if ok.any() else None, "method": self.method,
                 "iterations": self.iterations, "ok": ok.tolist(), "problems": list(self.problems),
                 "predicted_sigma": None if self.predicted_sigma is None else
                 [float(x) if np.isfinite(x) else None for x in self.predicted_sigma], "warnings": list(self.warnings),
-                "orientation_change": None if self.orientation_change is None else
-                [float(x) if k else None for x, k in zip(self.orientation_change, ok)],
-                "rotation_residual": None if self.rotation_residual is None else
-                [float(x) if k else None for x, k in zip(self.rotation_residual, ok)]}
+                "orientation_change": accepted(self.orientation_change),
+                "rotation_residual": accepted(self.rotation_residual)}
 
 
 def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = None, *, damping: float = 1e-4,
@@ -93,7 +90,7 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
             return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
     if robot.has_inverse:
         q = robot.inverse(targets, strict=False)
-        comp = _checked(robot, q, _residual(robot, q, targets), "closed-form inverse", 0, targets, None, rows)
+        comp = _checked(robot, q, "closed-form inverse", 0, targets, None, rows)
         return _with_sigma(robot, comp, uncertainty)
     q, it = q0.copy(), 0
     for it in range(1, IK_ITER + 1):
@@ -103,7 +100,7 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
         Jq = robot.joint_jacobian(q)  # (N, 3, n)
         A = Jq @ np.swapaxes(Jq, 1, 2) + damping**2 * np.eye(3)
         q = q + np.einsum("nji,nj->ni", Jq, np.linalg.solve(A, e[..., None])[..., 0])
-    comp = _checked(robot, q, _residual(robot, q, targets), "damped least squares", it, targets, q0, rows, nominal)
+    comp = _checked(robot, q, "damped least squares", it, targets, q0, rows, nominal)
     comp = _with_sigma(robot, comp, uncertainty)
     if nominal is None or not robot.has_tool_point:
         return comp
@@ -143,18 +140,14 @@ def _with_sigma(robot: Robot, comp: Compensation, unc: ModelUncertainty | None) 
     return dataclasses.replace(comp, predicted_sigma=sigma, warnings=tuple(w for w in warnings if w))
 
 
-def _residual(robot: Robot, q: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    out = np.full(len(q), np.inf)
+def _checked(robot: Robot, q: np.ndarray, method: str, iterations: int, targets: np.ndarray, q0: np.ndarray | None,
+             rows: np.ndarray, nominal: Robot | None = None) -> Compensation:
+    """The compensation by commands q (how they were found; their model residuals: inf where q is not
+    finite) with every command checked; the first failed check of each row is reported."""
+    residual = np.full(len(q), np.inf)
     good = np.all(np.isfinite(q), axis=1)
     if good.any():
-        out[good] = np.linalg.norm(robot.forward(q[good]) - targets[good], axis=1)
-    return out
-
-
-def _checked(robot: Robot, q: np.ndarray, residual: np.ndarray, method: str, iterations: int, targets: np.ndarray,
-             q0: np.ndarray | None, rows: np.ndarray, nominal: Robot | None = None) -> Compensation:
-    """The compensation by commands q (their model residuals, how they were found) with every command
-    checked; the first failed check of each row is reported."""
+        residual[good] = np.linalg.norm(robot.forward(q[good]) - targets[good], axis=1)
     why: list[str | None] = [None] * len(targets)
     for bad, message in _checks(robot, q, residual, targets, q0, nominal):
         for k in np.flatnonzero(bad):
@@ -227,8 +220,7 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
             return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
     give_up = GIVE_UP * np.array([BRANCH_TOL[t] for t in robot.joint_types])  # refused by the branch check anyway
     sol = solve_poses(robot, targets, rotations, q0, give_up=give_up)
-    comp = _checked(robot, sol.q, _residual(robot, sol.q, targets), "pose (damped Newton)", sol.iterations, targets,
-                    q0, rows, nominal)
+    comp = _checked(robot, sol.q, "pose (damped Newton)", sol.iterations, targets, q0, rows, nominal)
     if robot.n_joints >= 6:
         bad = comp.ok & (sol.rotation_error > ROT_TOL)
         problems = comp.problems + tuple(f"row {r}: the model misses the target orientation by "

@@ -4,11 +4,10 @@ own (nominal) model; every other byte of the program kept.
 
 * a joint target: the pose the nominal model reaches there is the intended one; it becomes the
   corrected joints;
-* a pose target: the joints the controller would use — its inverse kinematics of the nominal model
-  on the branch nearest the previous target's joints (a UR arm: the closed form's eight branches,
-  :func:`kincal.models.ur.ur_inverse`; any other: Newton from the previous joints, then from spread
-  starts) — are corrected on the calibrated model, and the pose is replaced by the filtered pose,
-  the one the controller turns into the corrected joints.
+* a pose target: the joints the controller would use (:func:`controller_inverse`: its inverse
+  kinematics of the nominal model on the branch nearest the previous target's joints) are corrected
+  on the calibrated model, and the pose is replaced by the filtered pose, the one the controller
+  turns into the corrected joints.
 The TCP is the program's own where it sets one (``set_tcp``), else the given one. Each corrected
 target is checked (converged, on the nominal branch, within the joint limits); a target that fails
 keeps its text and is named by line.
@@ -114,8 +113,8 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None):
 def controller_inverse(robot: Robot, p: np.ndarray, R: np.ndarray, near: np.ndarray) -> np.ndarray | None:
     """The joints (n,) a controller moving with ``robot`` takes for the tool point at p (1, 3) m with
     the flange at R (1, 3, 3): of its inverse-kinematics solutions within the joint limits, the one
-    nearest ``near`` (n,) (a UR arm: its eight closed-form branches; any other: Newton from ``near``,
-    else from spread starts); None when no solution reaches the pose."""
+    nearest ``near`` (n,) (a UR arm: its eight closed-form branches, :func:`kincal.models.ur.ur_inverse`;
+    any other: Newton from ``near``, else from spread starts); None when no solution reaches the pose."""
     if ur_lengths(robot) is not None:
         sols, ok = ur_inverse(robot, p, R, near[None])
         cand = sols[0][ok[0]]

@@ -9,6 +9,7 @@ number of workers. The orientation convention is checked on the file's first row
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import sys
 from collections import deque
@@ -18,7 +19,7 @@ from typing import Callable, Iterator
 import numpy as np
 
 from .._atomic import AtomicFile
-from .._csv import BLOCK_BYTES, Block, Stream, check_once, open_stream
+from .._csv import BLOCK_BYTES, Block, Stream, check_once, check_present, open_stream
 from .._memory import keep_freed_memory
 from .._threads import limit_blas
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
@@ -148,20 +149,21 @@ def compensate_file(job: StreamJob, src: str, dst: str, *, skip_unreachable: boo
     if stream.size - stream.offset > block_bytes:
         keep_freed_memory()  # a long file: this process reads and writes every block
     layout = job.layout(dst)
-    total = _Totals()
+    parts = []
     with AtomicFile(dst) as out:
         out.write(layout.header())
         for part in _parts(job, stream, layout, _workers(workers, stream)):
-            total.add(part)
             out.write(part.text)
+            parts.append(dataclasses.replace(part, text=""))  # the summary only: the text is written
             if progress:
                 progress(part.end, stream.size)
-        written = total.n > 0 and (total.n_ok == total.n or (skip_unreachable and total.n_ok > 0))
+        n, n_ok = sum(p.n for p in parts), sum(p.n_ok for p in parts)
+        written = n > 0 and (n_ok == n or (skip_unreachable and n_ok > 0))
         if written:
             out.keep()
-    if total.n == 0:
+    if n == 0:
         raise MeasurementError(f"{src}: no data rows after the header")
-    return total.result(job, written)
+    return _result(job, parts, written)
 
 
 def _check_columns(job: StreamJob, stream: Stream) -> None:
@@ -174,19 +176,12 @@ def _check_columns(job: StreamJob, stream: Stream) -> None:
         if len(joints) != robot.n_joints:
             raise MeasurementError(f"{path}: {len(joints)} joint columns given ({', '.join(joints)}) but robot "
                                    f"'{robot.name}' has {robot.n_joints} joints; give one column per joint")
-        _need(stream, joints, "the nominal joint values (--joint-cols names them)")
-    _need(stream, t.xyz_cols, "the target position columns (--xyz-cols)")
+        check_present(path, header, joints, "needs the nominal joint values (--joint-cols names them)")
+    check_present(path, header, t.xyz_cols, "needs the target position columns (--xyz-cols)")
     if t.pose:
         rot = t.orientation_cols
-        _need(stream, rot, f"orientation columns {', '.join(rot)} for --orientation {t.orientation} (other names: "
-                           f"--rot-cols; position only: leave out --pose)")
-
-
-def _need(stream: Stream, cols, what: str) -> None:
-    missing = [c for c in cols if c not in stream.header]
-    if missing:
-        raise MeasurementError(f"{stream.path}: needs {what} ({', '.join(missing)} not found); the header has: "
-                               f"{', '.join(stream.header)}")
+        check_present(path, header, rot, f"needs orientation columns {', '.join(rot)} for --orientation "
+                                         f"{t.orientation} (other names: --rot-cols; position only: leave out --pose)")
 
 
 def _workers(workers: int | None, stream: Stream) -> int:
@@ -303,12 +298,9 @@ def _read(job: StreamJob, stream: Stream, block: Block, previous: Block | None):
     jcols = list(t.joint_cols or robot.joint_names) if job.needs_joints else []
     cols = jcols + list(t.xyz_cols) + (list(t.orientation_cols) if t.pose else [])
     parts = [stream.numbers(b, cols) for b in ((previous, block) if previous is not None else (block,))]
-    rows = np.concatenate([p[0] for p in parts])
-    v = np.concatenate([p[1] for p in parts])
+    rows, v = (np.concatenate(a) for a in zip(*parts))
     n = len(jcols)
-    q0 = None
-    if n:
-        q0 = v[:, :n] * np.array(joint_factors(robot.joint_types, t.length_unit, t.angle_unit))
+    q0 = v[:, :n] * np.array(joint_factors(robot.joint_types, t.length_unit, t.angle_unit)) if n else None
     xyz = v[:, n:n + 3] * unit_factor(t.length_unit, "length")
     R = to_matrices(v[:, n + 3:], t.orientation, stream.path, rows) if t.pose else None
     return rows, q0, xyz, R, (v[:, n + 3:] if t.pose else None)
@@ -317,64 +309,47 @@ def _read(job: StreamJob, stream: Stream, block: Block, previous: Block | None):
 def _summary(job: StreamJob, layout: CommandColumns, comp, rows, q0, xyz, k: int, problems, end: int) -> _Part:
     """The block's output lines and summary (``k`` leading context rows of ``comp`` dropped)."""
     ok = comp.ok[k:]
-    q = comp.q[k:]
+
+    def kept(a):  # the block's accepted rows
+        return None if a is None else a[k:][ok]
+    q, change = kept(comp.q), kept(comp.orientation_change)
     if job.kind == "cartesian":
-        p, Rf = (a[k:][ok] for a in comp.filtered)
-        text = layout.text(rows[ok], q[ok], p, rot_values=from_matrices(Rf, job.targets.orientation))
+        p, Rf = (kept(a) for a in comp.filtered)
+        text = layout.text(rows[ok], q, p, rot_values=from_matrices(Rf, job.targets.orientation))
     else:
-        oc = (comp.orientation_change[k:][ok] if comp.orientation_change is not None else
-              None if not layout.orientation_change else np.zeros(0))  # none: nothing was corrected
-        text = layout.text(rows[ok], q[ok], xyz[ok], None if q0 is None else q0[ok], oc)
-    sigma = np.zeros(0) if comp.predicted_sigma is None else comp.predicted_sigma[k:][ok]
-    unc = job.uncertainty
-    ext = unc.extrapolated(sigma) if unc is not None else np.zeros(len(sigma), bool)
-    out = (unc.outside(q[ok], np.array([t == "revolute" for t in job.robot.joint_types])) if unc is not None
-           else np.zeros(len(sigma), bool))
-    largest = {"residual": comp.residual[k:][ok],
-               "rotation_residual": None if comp.rotation_residual is None else comp.rotation_residual[k:][ok],
-               "orientation_change": None if comp.orientation_change is None else comp.orientation_change[k:][ok]}
-    largest = {n: float(v.max()) for n, v in largest.items() if v is not None and v.size}
+        oc = np.zeros(0) if change is None and layout.orientation_change else change  # none: nothing was corrected
+        text = layout.text(rows[ok], q, xyz[ok], None if q0 is None else q0[ok], oc)
+    sigma = np.zeros(0) if comp.predicted_sigma is None else kept(comp.predicted_sigma)
+    unc, none = job.uncertainty, np.zeros(len(sigma), bool)
+    ext = none if unc is None else unc.extrapolated(sigma)
+    out = none if unc is None else unc.outside(q, np.array([t == "revolute" for t in job.robot.joint_types]))
+    values = (("residual", kept(comp.residual)), ("rotation_residual", kept(comp.rotation_residual)),
+              ("orientation_change", change))
+    largest = {n: float(v.max()) for n, v in values if v is not None and v.size}
     if q0 is not None and ok.any():
-        largest["change"] = np.abs(q[ok] - q0[ok]).max(axis=0)
-    return _Part(text, len(rows), int(ok.sum()), problems, sigma, (rows[ok][ext], sigma[ext], q[ok][ext]),
-                 (rows[ok][out], q[ok][out]), largest, comp.method, comp.iterations, end)
+        largest["change"] = np.abs(q - q0[ok]).max(axis=0)
+    return _Part(text, len(rows), int(ok.sum()), problems, sigma, (rows[ok][ext], sigma[ext], q[ext]),
+                 (rows[ok][out], q[out]), largest, comp.method, comp.iterations, end)
 
 
-class _Totals:
-    """The blocks' summaries added up, in file order."""
-
-    def __init__(self) -> None:
-        self.n = self.n_ok = self.iterations = 0
-        self.problems: dict[str, None] = {}
-        self.sigma: list[np.ndarray] = []
-        self.ext: list[tuple] = []
-        self.out: list[tuple] = []
-        self.largest: dict = {}
-        self.method = ""
-
-    def add(self, part: _Part) -> None:
-        self.n += part.n
-        self.n_ok += part.n_ok
-        self.problems.update(dict.fromkeys(part.problems))  # a block-wide message once
-        self.sigma.append(part.sigma)
-        self.ext.append(part.extrapolated)
-        self.out.append(part.outside)
+def _result(job: StreamJob, parts: list[_Part], written: bool) -> StreamResult:
+    """The blocks' summaries (at least one) added up, in file order."""
+    sigma = np.concatenate([p.sigma for p in parts])
+    largest: dict = {}
+    for part in parts:
         for name, v in part.largest.items():
-            self.largest[name] = v if name not in self.largest else np.maximum(self.largest[name], v)
-        self.method, self.iterations = part.method, max(self.iterations, part.iterations)
-
-    def result(self, job: StreamJob, written: bool) -> StreamResult:
-        sigma = np.concatenate(self.sigma) if self.sigma else np.zeros(0)
-        warnings = []
-        unc, robot = job.uncertainty, job.robot
-        if unc is not None and sigma.size:
-            rows, s, q = (np.concatenate(a) for a in zip(*self.ext))
-            warnings.append(extrapolation_warning(rows, s, unc, q if len(q) else None, robot))
-            rows, q = (np.concatenate(a) for a in zip(*self.out))
-            warnings.append(envelope_warning(rows, q.reshape(-1, robot.n_joints), robot, unc)[1])
-        if job.targets.pose and robot.n_joints < 6 and "rotation_residual" in self.largest:
-            warnings.append(uncontrolled_warning(robot, self.largest["rotation_residual"]))
-        largest = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in self.largest.items()}
-        return StreamResult(self.n, self.n_ok, written, tuple(self.problems), tuple(w for w in warnings if w),
-                            self.method, self.iterations, largest,
-                            float(np.median(sigma)) if sigma.size else None, float(sigma.max()) if sigma.size else None)
+            largest[name] = v if name not in largest else np.maximum(largest[name], v)
+    warnings = []
+    unc, robot = job.uncertainty, job.robot
+    if unc is not None and sigma.size:
+        rows, s, q = (np.concatenate(a) for a in zip(*(p.extrapolated for p in parts)))
+        warnings.append(extrapolation_warning(rows, s, unc, q if len(q) else None, robot))
+        rows, q = (np.concatenate(a) for a in zip(*(p.outside for p in parts)))
+        warnings.append(envelope_warning(rows, q.reshape(-1, robot.n_joints), robot, unc)[1])
+    if job.targets.pose and robot.n_joints < 6 and "rotation_residual" in largest:
+        warnings.append(uncontrolled_warning(robot, largest["rotation_residual"]))
+    problems = dict.fromkeys(p for part in parts for p in part.problems)  # a block-wide message once
+    return StreamResult(sum(p.n for p in parts), sum(p.n_ok for p in parts), written, tuple(problems),
+                        tuple(w for w in warnings if w), parts[-1].method, max(p.iterations for p in parts),
+                        {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in largest.items()},
+                        float(np.median(sigma)) if sigma.size else None, float(sigma.max()) if sigma.size else None)

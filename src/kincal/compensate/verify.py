@@ -8,7 +8,6 @@ p″ tests the error model: p″ should equal p + Δp up to the measurement nois
 from __future__ import annotations
 
 import csv
-import io
 import os
 import re
 from dataclasses import dataclass
@@ -17,9 +16,9 @@ from typing import Sequence
 
 import numpy as np
 
-from .._atomic import write_text_atomic
 from ..analysis.sensitivity import UNIT
 from ..errors import MeasurementError
+from ..io.measurements import write_csv
 from ..units import MM, joint_factors, unit_factor
 from ..models.robot import Robot
 from .commands import compensate
@@ -51,16 +50,14 @@ class VerificationPlan:
         if len(cols) != robot.n_joints:
             raise MeasurementError(f"{path}: {len(cols)} joint columns given for {robot.n_joints} joints")
         qs, lf = np.array(joint_factors(robot.joint_types, length_unit, angle_unit)), unit_factor(length_unit, "length")
-        buf = io.StringIO()
-        buf.write(f"# kincal verification plan for {robot.name}; units: length={length_unit} angle={angle_unit}\n")
-        w = csv.writer(buf, lineterminator="\n")
         known = self.q_samples is not None
-        w.writerow(["case", "sample", *cols, "x_pred", "y_pred", "z_pred", *(f"input_{c}" for c in cols if known)])
         inputs = self.q_samples / qs if known else np.zeros(self.commands.shape[1:2] + (0,))
-        for case, cmds, pred in zip(self.cases, self.commands / qs, self.predicted / lf):
-            for k, (qc, pc, qi) in enumerate(zip(cmds, pred, inputs)):
-                w.writerow([case, k + 1, *(repr(float(v)) for v in (*qc, *pc, *qi))])
-        write_text_atomic(path, buf.getvalue())
+        rows = ([case, k + 1, *(repr(float(v)) for v in (*qc, *pc, *qi))]
+                for case, cmds, pred in zip(self.cases, self.commands / qs, self.predicted / lf)
+                for k, (qc, pc, qi) in enumerate(zip(cmds, pred, inputs)))
+        write_csv(path, ["case", "sample", *cols, "x_pred", "y_pred", "z_pred", *(f"input_{c}" for c in cols if known)],
+                  rows, first=f"# kincal verification plan for {robot.name}; units: length={length_unit} "
+                              f"angle={angle_unit}\n")
 
     @classmethod
     def read_csv(cls, path: str | os.PathLike, robot: Robot) -> "VerificationPlan":
@@ -87,8 +84,7 @@ class VerificationPlan:
             raise MeasurementError(f"{path}: every case needs the same number of samples")
         cmds = (vals[:, :n] * qs).reshape(len(cases), per, n)
         inputs = (vals[:per, n + 3:] * qs) if width == 2 * n + 5 else None  # the same for every case
-        if inputs is not None and not np.allclose(vals[:, n + 3:].reshape(len(cases), per, n), vals[:per, n + 3:],
-                                                  rtol=0, atol=0):
+        if inputs is not None and not (vals[:, n + 3:].reshape(len(cases), per, n) == vals[:per, n + 3:]).all():
             raise MeasurementError(f"{path}: the sample inputs differ between cases; write the plan again with -o")
         return cls(cases, inputs, (vals[:, n:n + 3] * lf).reshape(len(cases), per, 3), cmds)
 

@@ -47,16 +47,15 @@ class CommandColumns:
         """The lines of ``rows`` (N,): commands q (N, n), targets or poses to send xyz (N, 3) m, the
         nominal commands, orientation changes (N,) rad or the orientation columns (N, k), as the layout says."""
         rows = np.asarray(rows)
-        parts: list = [None]
         if self.kind == "cartesian":
-            parts += [xyz * self.length_scale, rot_values, q * self.joint_scale]
+            parts: list = [xyz * self.length_scale, rot_values, q * self.joint_scale]
         else:
-            parts += [q * self.joint_scale, xyz * self.length_scale]
+            parts = [q * self.joint_scale, xyz * self.length_scale]
             if self.changes:
                 parts.append((q - _given(q_start, "q_start")) * self.joint_scale)
             if self.orientation_change:
                 parts.append(_given(orientation_change, "orientation_change")[:, None] * 1e3)
-        table = np.column_stack(parts[1:])
+        table = np.column_stack(parts)
         text = fixed_lines(rows, table, DECIMALS)
         if text is None:  # a value beyond ~1e5 in the file's unit: printf, slower
             line = ",".join(["%d"] + [f"%.{DECIMALS}f"] * table.shape[1]) + "\n"

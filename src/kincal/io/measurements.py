@@ -19,7 +19,6 @@ from ..units import joint_factors, joint_units, unit_factor
 from .unit_checks import check_degrees, check_spread
 
 
-
 @dataclass(frozen=True, eq=False, init=False)
 class Measurements:
     """N measured poses: joint values q (N, n) in rad/m and positions xyz (N, 3) in m.
@@ -42,9 +41,8 @@ class Measurements:
                  session: ArrayLike | None = None) -> None:
         q, xyz = np.array(q, dtype=float), np.array(xyz, dtype=float)
         if q.ndim != 2 or xyz.ndim != 2 or xyz.shape[1] != 3 or q.shape[0] != xyz.shape[0]:
-            raise MeasurementError(
-                f"{source}: q must be (N, n) and xyz (N, 3) with the same N; got {q.shape} and {xyz.shape}"
-            )
+            raise MeasurementError(f"{source}: q must be (N, n) and xyz (N, 3) with the same N; got {q.shape} and "
+                                   f"{xyz.shape}")
         if q.shape[1] != len(joint_names):
             raise MeasurementError(f"{source}: {q.shape[1]} joint columns but {len(joint_names)} names")
         rows = np.arange(2, q.shape[0] + 2) if rows is None else np.asarray(rows, dtype=int)
@@ -108,10 +106,9 @@ class Measurements:
     def check_robot(self, robot: Robot, length_unit: str | None = None, angle_unit: str | None = None) -> None:
         """Raise MeasurementError if the data cannot belong to ``robot`` or its units look wrong."""
         if self.q.shape[1] != robot.n_joints:
-            raise MeasurementError(
-                f"{self.source}: {self.q.shape[1]} joint columns but robot '{robot.name}' has {robot.n_joints} "
-                f"joints ({', '.join(robot.joint_names)}); pass the right joint columns"
-            )
+            raise MeasurementError(f"{self.source}: {self.q.shape[1]} joint columns but robot '{robot.name}' has "
+                                   f"{robot.n_joints} joints ({', '.join(robot.joint_names)}); pass the right joint "
+                                   f"columns")
         check_degrees(self.source, self.q, robot, angle_unit)
         if len(self) >= 3:
             check_spread(self.source, self.q, self.xyz, robot, length_unit or (self.units[0] if self.units else None),
@@ -123,10 +120,8 @@ def _joint_columns(path: str, robot: Robot, joint_cols: Sequence[str] | None, he
     their robot-stack names), checked to be one per joint."""
     cols = list(joint_cols) if joint_cols is not None else robot.default_columns(header)
     if len(cols) != robot.n_joints:
-        raise MeasurementError(
-            f"{path}: {len(cols)} joint columns given ({', '.join(cols)}) but robot '{robot.name}' "
-            f"has {robot.n_joints} joints; give one column per joint"
-        )
+        raise MeasurementError(f"{path}: {len(cols)} joint columns given ({', '.join(cols)}) but robot '{robot.name}' "
+                               f"has {robot.n_joints} joints; give one column per joint")
     return cols
 
 
@@ -142,13 +137,8 @@ def _joint_scale(joint_types: Sequence[str], length_unit: str, angle_unit: str, 
     return np.array(joint_factors(joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError))
 
 
-def read_joints(
-    path: str | os.PathLike,
-    robot: Robot,
-    joint_cols: Sequence[str] | None = None,
-    length_unit: str = "m",
-    angle_unit: str = "rad",
-) -> np.ndarray:
+def read_joints(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None, length_unit: str = "m",
+                angle_unit: str = "rad") -> np.ndarray:
     """Joint values (N, n) in rad/m from a CSV with a header (e.g. poses to measure)."""
     path = str(path)
     units = _joint_units(robot.joint_types, length_unit, angle_unit, path)
@@ -171,15 +161,9 @@ def read_positions(path: str | os.PathLike, xyz_cols: Sequence[str] = ("x", "y",
     return (xyz, table.rows) if with_rows else xyz
 
 
-def read_measurements(
-    path: str | os.PathLike,
-    robot: Robot,
-    joint_cols: Sequence[str] | None = None,
-    xyz_cols: Sequence[str] = ("x", "y", "z"),
-    length_unit: str = "m",
-    angle_unit: str = "rad",
-    std_cols: Sequence[str] | None = None,
-) -> Measurements:
+def read_measurements(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None,
+                      xyz_cols: Sequence[str] = ("x", "y", "z"), length_unit: str = "m", angle_unit: str = "rad",
+                      std_cols: Sequence[str] | None = None) -> Measurements:
     """Read a CSV (header line; comma, semicolon or tab separated) of joint values and positions.
 
     joint_cols default to the robot's joint names. Revolute joints are in ``angle_unit``, prismatic
@@ -215,44 +199,24 @@ def _unit(unit: str, kind: str, path: str) -> float:
     return unit_factor(unit, kind, f"{path}: ", MeasurementError)
 
 
-def write_measurements(
-    path: str | os.PathLike,
-    meas: Measurements,
-    joint_types: Sequence[str] | None = None,
-    length_unit: str = "m",
-    angle_unit: str = "rad",
-    joint_cols: Sequence[str] | None = None,
-) -> None:
+def write_measurements(path: str | os.PathLike, meas: Measurements, joint_types: Sequence[str] | None = None,
+                       length_unit: str = "m", angle_unit: str = "rad",
+                       joint_cols: Sequence[str] | None = None) -> None:
     """Write measurements as a comma-separated CSV (atomically) in the given units."""
     types = list(joint_types) if joint_types is not None else ["revolute"] * meas.q.shape[1]
     scale = 1.0 / _joint_scale(types, length_unit, angle_unit, str(path))
     lf = 1.0 / _unit(length_unit, "length", str(path))
     cols = list(joint_cols) if joint_cols is not None else list(meas.joint_names)
-    buf = _io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(cols + ["x", "y", "z"])
-    for qi, pi in zip(meas.q * scale, meas.xyz * lf):
-        w.writerow([repr(float(v)) for v in qi] + [repr(float(v)) for v in pi])
-    write_text_atomic(path, buf.getvalue())
+    write_csv(path, cols + ["x", "y", "z"], ([repr(float(v)) for v in (*qi, *pi)]
+                                            for qi, pi in zip(meas.q * scale, meas.xyz * lf)))
 
 
-def write_joints(
-    path: str | os.PathLike,
-    q: np.ndarray,
-    robot: Robot,
-    joint_cols: Sequence[str] | None = None,
-    length_unit: str = "m",
-    angle_unit: str = "rad",
-) -> None:
+def write_joints(path: str | os.PathLike, q: np.ndarray, robot: Robot, joint_cols: Sequence[str] | None = None,
+                 length_unit: str = "m", angle_unit: str = "rad") -> None:
     """Write joint vectors (N, n) in SI units as a CSV of poses (atomically), e.g. poses to measure."""
     cols = _joint_columns(str(path), robot, joint_cols)
     scale = 1.0 / _joint_scale(robot.joint_types, length_unit, angle_unit, str(path))
-    buf = _io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(cols)
-    for qi in robot.check_q(q) * scale:
-        w.writerow([repr(float(v)) for v in qi])
-    write_text_atomic(path, buf.getvalue())
+    write_csv(path, cols, ([repr(float(v)) for v in qi] for qi in robot.check_q(q) * scale))
 
 
 def write_selected_rows(path: str | os.PathLike, source: str | os.PathLike, indices: Sequence[int] | np.ndarray
@@ -261,37 +225,34 @@ def write_selected_rows(path: str | os.PathLike, source: str | os.PathLike, indi
     ``source``, in that order, every column as the user gave it (IDs, names, other columns), after
     ``input_row``: the row's line number in ``source``; written atomically with the source's separator."""
     header, records, delim, _ = read_table(str(source))
-    buf = _io.StringIO()
-    w = csv.writer(buf, delimiter=delim, lineterminator="\n")
-    w.writerow(["input_row", *header] if "input_row" not in header else header)
-    for k in indices:
-        line, cells = records[int(k)]
-        w.writerow([line, *cells] if "input_row" not in header else cells)
-    write_text_atomic(path, buf.getvalue())
+    new = "input_row" not in header
+    picked = (records[int(k)] for k in indices)
+    write_csv(path, ["input_row", *header] if new else header,
+              ([line, *cells] if new else cells for line, cells in picked), delim)
 
 
-def write_residuals(
-    path: str | os.PathLike,
-    meas: Measurements,
-    predicted: np.ndarray,
-    z: np.ndarray,
-    outlier_z: float,
-    joint_types: Sequence[str],
-    length_unit: str = "mm",
-    angle_unit: str = "deg",
-) -> None:
+def write_residuals(path: str | os.PathLike, meas: Measurements, predicted: np.ndarray, z: np.ndarray, outlier_z: float,
+                    joint_types: Sequence[str], length_unit: str = "mm", angle_unit: str = "deg") -> None:
     """Per-pose residual table (atomically): input row, joints, measured, predicted, error vector and
     norm (all in the given units), robust z-score and an outlier flag."""
     scale = 1.0 / _joint_scale(joint_types, length_unit, angle_unit, str(path))
     lf = 1.0 / _unit(length_unit, "length", str(path))
     err = meas.xyz - predicted
-    buf = _io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
     u = f"_{length_unit}"
-    w.writerow(["row", *meas.joint_names, *(f"{a}_measured{u}" for a in "xyz"), *(f"{a}_predicted{u}" for a in "xyz"),
-                *(f"e{a}{u}" for a in "xyz"), f"norm{u}", "robust_z", "outlier"])
-    for r, qi, m, p, e, zi in zip(meas.rows, meas.q * scale, meas.xyz * lf, predicted * lf, err * lf, z):
-        w.writerow([int(r), *(f"{v:.10g}" for v in (*qi, *m, *p, *e, np.linalg.norm(e), zi)),
-                    "yes" if zi > outlier_z else "no"])
+    header = ["row", *meas.joint_names, *(f"{a}_measured{u}" for a in "xyz"), *(f"{a}_predicted{u}" for a in "xyz"),
+              *(f"e{a}{u}" for a in "xyz"), f"norm{u}", "robust_z", "outlier"]
+    rows = ([int(r), *(f"{v:.10g}" for v in (*qi, *m, *p, *e, np.linalg.norm(e), zi)),
+             "yes" if zi > outlier_z else "no"]
+            for r, qi, m, p, e, zi in zip(meas.rows, meas.q * scale, meas.xyz * lf, predicted * lf, err * lf, z))
+    write_csv(path, header, rows)
+
+
+def write_csv(path: str | os.PathLike, header, rows, delimiter: str = ",", first: str = "") -> None:
+    """``first`` (e.g. a comment line), then the CSV ``header`` and ``rows``, written atomically."""
+    buf = _io.StringIO()
+    buf.write(first)
+    w = csv.writer(buf, delimiter=delimiter, lineterminator="\n")
+    w.writerow(header)
+    w.writerows(rows)
     write_text_atomic(path, buf.getvalue())
 

@@ -26,27 +26,12 @@ ASSIGN = re.compile(r"^[ \t]*(?:(?:global|local)[ \t]+)?([A-Za-z_]\w*)[ \t]*=(?!
 NAME = re.compile(r"^\s*([A-Za-z_]\w*)\s*$")
 CHANGED = re.compile(r"^[ \t]*([A-Za-z_]\w*)[ \t]*(?:\[[^\]\n]*\][ \t]*=(?!=)|[-+*/]=)", re.M)  # x[0] = …, x += …
 SET_TCP = re.compile(r"\bset_tcp\s*\(")
+COMMENT_OR_STRING = re.compile(r"#[^\n]*|\"[^\"]*\"?|'[^']*'?")  # a string left open runs to the end
 
 
 def _masked(text: str) -> str:
     """The text with comments and string literals blanked (same length), so calls are found only in code."""
-    out = list(text)
-    i, n = 0, len(text)
-    while i < n:
-        c = text[i]
-        if c == "#":
-            j = text.find("\n", i)
-            j = n if j < 0 else j
-            out[i:j] = " " * (j - i)
-            i = j
-        elif c in "\"'":
-            j = text.find(c, i + 1)
-            j = n - 1 if j < 0 else j
-            out[i:j + 1] = " " * (j + 1 - i)
-            i = j + 1
-        else:
-            i += 1
-    return "".join(out)
+    return COMMENT_OR_STRING.sub(lambda m: " " * len(m.group()), text)
 
 
 def _arguments(code: str, open_at: int, source: str, line: int) -> list[tuple[int, int]]:

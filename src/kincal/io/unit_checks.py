@@ -35,8 +35,7 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
         return
     rev = np.array([t == "revolute" for t in robot.joint_types])
     if angle_unit == "deg" and rev.any():
-        as_rad = q.copy()
-        as_rad[:, rev] *= 180.0 / np.pi
+        as_rad = np.where(rev, q * (180.0 / np.pi), q)
         if 1 / SPREAD_RATIO < spread(xyz) / max(spread(robot.forward(as_rad)), 1e-300) < SPREAD_RATIO:
             raise MeasurementError(f"{source}: read as degrees, the joint values move the robot "
                                    f"{max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the "
