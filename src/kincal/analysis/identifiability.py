@@ -65,29 +65,19 @@ class Identifiability:
                                       f"no longer {', '.join(lost)}" if lost else "") if p)
 
     def to_dict(self) -> dict:
-        return {
-            "robot": self.robot,
-            "n_poses": self.n_poses,
-            "n_candidates": len(self.candidates),
-            "rank": self.rank,
-            "identifiable": list(self.identifiable),
-            "dropped": list(self.dropped),
-            "confounds": {k: [[n, c] for n, c in v] for k, v in self.confounds.items()},
-            "singular_values": [float(s) for s in self.singular_values],
-            "gap": _finite_or_none(self.gap),
-            "cond_raw": _finite_or_none(self.cond_raw),
-            "cond_scaled": _finite_or_none(self.cond_scaled),
-            "rank_tol": self.rank_tol,
-            "notes": list(self.notes),
-        }
+        return {"robot": self.robot, "n_poses": self.n_poses, "n_candidates": len(self.candidates), "rank": self.rank,
+                "identifiable": list(self.identifiable), "dropped": list(self.dropped),
+                "confounds": {k: [[n, c] for n, c in v] for k, v in self.confounds.items()},
+                "singular_values": [float(s) for s in self.singular_values], "gap": _finite_or_none(self.gap),
+                "cond_raw": _finite_or_none(self.cond_raw), "cond_scaled": _finite_or_none(self.cond_scaled),
+                "rank_tol": self.rank_tol, "notes": list(self.notes)}
 
     def confound_lines(self, indent: str = "    ") -> list[str]:
         """One line per dropped parameter: the kept parameters it acts like (physical units)."""
         out = []
         for name in self.dropped:
             conf = self.confounds.get(name, ())
-            rhs = " ".join(f"{c:+.3g}{self._unit(name, n)}·{n}" for n, c in conf) if conf else \
-                "no effect on the position"
+            rhs = " ".join(f"{c:+.3g}{self._unit(name, n)}·{n}" for n, c in conf) or "no effect on the position"
             out.append(f"{indent}{name}  ~  {rhs}")
         return out
 
@@ -98,19 +88,15 @@ class Identifiability:
         return "" if a is None or b is None or a == b else " mm/mrad" if a == "length" else " mrad/mm"
 
     def __str__(self) -> str:
-        lines = [
-            f"{self.robot}: {self.rank} of {len(self.candidates)} parameters identifiable from {self.n_poses} poses "
-            f"({self.measured})",
-            f"  condition number: raw {self.cond_raw:.3g}, column-scaled {self.cond_scaled:.3g}; "
-            f"rank gap {self.gap:.3g} (rank tolerance {self.rank_tol:g})",
-            f"  identifiable: {', '.join(self.identifiable)}",
-        ]
+        lines = [f"{self.robot}: {self.rank} of {len(self.candidates)} parameters identifiable from {self.n_poses} "
+                 f"poses ({self.measured})",
+                 f"  condition number: raw {self.cond_raw:.3g}, column-scaled {self.cond_scaled:.3g}; "
+                 f"rank gap {self.gap:.3g} (rank tolerance {self.rank_tol:g})",
+                 f"  identifiable: {', '.join(self.identifiable)}"]
         if self.dropped:
             lines.append(f"  not identifiable ({len(self.dropped)}), kept at their nominal values:")
             lines += self.confound_lines()
-        for note in self.notes:
-            lines.append(f"  note: {note}")
-        return "\n".join(lines)
+        return "\n".join(lines + [f"  note: {note}" for note in self.notes])
 
 
 def _finite_or_none(x: float):
@@ -126,15 +112,9 @@ def stacked_jacobian(robot: Robot, q: np.ndarray, names: Sequence[str] | None = 
     return J.reshape(J.shape[0] * J.shape[1], J.shape[2])
 
 
-def identifiability(
-    robot: Robot,
-    q: np.ndarray,
-    names: Sequence[str] | None = None,
-    keep: Sequence[str] = (),
-    exclude: Sequence[str] = (),
-    rank_tol: float = RANK_TOL,
-    jacobian: np.ndarray | None = None,
-) -> Identifiability:
+def identifiability(robot: Robot, q: np.ndarray, names: Sequence[str] | None = None, keep: Sequence[str] = (),
+                    exclude: Sequence[str] = (), rank_tol: float = RANK_TOL,
+                    jacobian: np.ndarray | None = None) -> Identifiability:
     """Identifiable and dropped parameters of ``robot`` from position data at joint values q (N, n).
 
     names    -- candidate parameter names (default: all); ``exclude`` removes names from them
@@ -166,12 +146,8 @@ def kinds_of(robot: Robot, names: Sequence[str]) -> dict[str, str]:
     """"length" or "angle" per name: the robot's own parameters by their kind, set-up parameters by
     their name (rotations and plane tilts are angles; points, offsets and drifts lengths)."""
     own = dict(zip(robot.params.names, robot.params.kinds))
-    def kind(n: str) -> str:
-        if n in own:
-            return own[n]
-        tilt = n.startswith("plane[") and n.endswith((".a", ".b"))
-        return "angle" if tilt or n.endswith(ANGLE_SUFFIXES) else "length"
-    return {n: kind(n) for n in names}
+    tilt = lambda n: n.startswith("plane[") and n.endswith((".a", ".b"))  # noqa: E731
+    return {n: own[n] if n in own else "angle" if tilt(n) or n.endswith(ANGLE_SUFFIXES) else "length" for n in names}
 
 
 def jacobian_identifiability(J: np.ndarray, cand: Sequence[str], stages: Sequence[Sequence[str]], label: str,
@@ -201,7 +177,9 @@ def jacobian_identifiability(J: np.ndarray, cand: Sequence[str], stages: Sequenc
     dead = [n for n, ok in zip(cand, live) if not ok]
     confounds.update(dict.fromkeys(dead, ()))
     dropped = tuple(live_names[k] for k in order[rank:]) + tuple(dead)
-    cond_raw, cond_scaled = _conditioning(R0, norms[live], sorted(order[:rank]))
+    kept, inf = sorted(order[:rank]), float("inf")  # condition numbers (raw, column-scaled) of the kept columns
+    cond_raw, cond_scaled = (float(np.linalg.cond(R0[:, kept] * norms[live][kept])),
+                             float(np.linalg.cond(R0[:, kept]))) if kept else (inf, inf)
     notes = _pair_notes(dropped, confounds)
     if rank and gap < 1e3:
         notes.append(f"the rank is not clear-cut (gap {gap:.3g} < 1e3): the poses hardly excite some "
@@ -227,14 +205,6 @@ def _confounds(R0: np.ndarray, norms: np.ndarray, order: list[int], rank: int,
         idx = idx[order_with_ties(np.abs(C[idx, j]))]
         out[names[k]] = tuple((kept[i], float(col[i])) for i in idx)
     return out
-
-
-def _conditioning(R0: np.ndarray, norms: np.ndarray, kept: list[int]) -> tuple[float, float]:
-    """Condition numbers (raw, column-scaled) of the kept columns; inf when nothing is kept."""
-    if not kept:
-        return float("inf"), float("inf")
-    Rs = R0[:, kept]
-    return float(np.linalg.cond(Rs * norms[kept])), float(np.linalg.cond(Rs))
 
 
 def _pair_notes(dropped, confounds) -> list[str]:
@@ -265,18 +235,14 @@ def free_parameters(robot: Robot, q: np.ndarray, base: str = "estimate", names: 
     if base not in BASE_MODES:
         raise ValueError(f"base='{base}' is not one of {BASE_MODES}")
     bn = list(robot.base_params())
-    if names is None:
-        return identifiability(robot, q, exclude=bn if base == "fixed" else (),
-                               keep=list(keep) + (bn if base == "estimate" else []), rank_tol=rank_tol,
-                               jacobian=jacobian)
-    chosen = list(dict.fromkeys(names))
-    clash = [n for n in chosen if n in bn]
-    if base == "fixed" and clash:
+    chosen = None if names is None else list(dict.fromkeys(names))
+    if chosen is not None and base == "fixed" and (clash := [n for n in chosen if n in bn]):
         raise ValueError(f"{', '.join(clash)} listed with base='fixed'; use base='estimate' to fit the base")
-    if base == "estimate":
+    if chosen is not None and base == "estimate":
         chosen = bn + [n for n in chosen if n not in bn]
+    # base="fixed" with names: excluding the base frame changes nothing (none of it is listed)
     return identifiability(robot, q, names=chosen, keep=list(keep) + (bn if base == "estimate" else []),
-                           rank_tol=rank_tol, jacobian=jacobian)
+                           exclude=bn if base == "fixed" else (), rank_tol=rank_tol, jacobian=jacobian)
 
 
 def _pivot_order(Js: np.ndarray, names: list[str], stages: list[list[str]], rank: int, cutoff: float) -> list[int]:

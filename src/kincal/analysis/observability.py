@@ -21,8 +21,6 @@ from __future__ import annotations
 import numpy as np
 
 SINGULAR = 1e-300
-
-
 ZERO_COLUMN = 1e-12  # per-pose RMS (m per unit) below which a column has no effect at all
 
 
@@ -45,9 +43,8 @@ def column_scale(J: np.ndarray) -> np.ndarray:
     A column with no effect (see :func:`live_columns`) keeps the factor 1: scaling rounding noise up
     to unit size would make an unidentifiable parameter look well conditioned.
     """
-    J = np.asarray(J, dtype=float)
-    rms = column_norms(J) / np.sqrt(max(J.shape[0] // 3, 1))
-    return np.where(live_columns(J), 1.0 / np.where(rms > 0, rms, 1.0), 1.0)
+    rms = column_norms(J) / np.sqrt(max(np.shape(J)[0] // 3, 1))
+    return np.where(rms > ZERO_COLUMN, 1.0 / np.where(rms > 0, rms, 1.0), 1.0)  # rms > ZERO_COLUMN: live_columns
 
 
 def indices_from_singular_values(s: np.ndarray, m: int) -> dict:

@@ -55,15 +55,12 @@ class Sensitivity:
         rows = -(-P // cols)
         fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.0 * rows), squeeze=False)
         x = np.arange(1, self.q.shape[0] + 1)
-        for k, ax in enumerate(axes.flat):
-            if k >= P:
-                ax.axis("off")
-                continue
+        for ax in axes.flat[P:]:
+            ax.axis("off")
+        for k, ax in enumerate(axes.flat[:P]):
             for a, label in enumerate("xyz"):
                 ax.plot(x, self.deltas[k, :, a] * MM, marker="o", ms=3, label=f"Δ{label}")
-            ax.set_title(self.names[k])
-            ax.set_xlabel("sample")
-            ax.set_ylabel("mm")
+            ax.set(title=self.names[k], xlabel="sample", ylabel="mm")
             ax.grid(alpha=0.3)
         axes.flat[0].legend()
         fig.tight_layout()

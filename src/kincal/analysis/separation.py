@@ -32,10 +32,9 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import ModelError
-
 from ..models.robot import Robot
 from ..ties import first_best
-from .identifiability import identifiability
+from .identifiability import Identifiability, identifiability
 from .observability import column_scale
 
 TYPES = ("theta", "alpha", "a", "d", "beta")
@@ -47,9 +46,7 @@ def gcn(J: np.ndarray, m: int) -> float:
     """cond(J)/m = σ_max / σ_min / m over the min(rows, cols) singular values, σ_min floored at
     GCN_FLOOR·σ_max (finite always)."""
     s = np.linalg.svd(J, compute_uv=False)
-    if s.size == 0 or s[0] == 0:
-        return float("inf")
-    return float(s[0] / max(s[-1], GCN_FLOOR * s[0]) / m)
+    return float("inf") if s.size == 0 or s[0] == 0 else float(s[0] / max(s[-1], GCN_FLOOR * s[0]) / m)
 
 
 def averaged_gcn(J: np.ndarray) -> float:
@@ -86,8 +83,8 @@ class Separation:
 
     def tables(self) -> str:
         """The paper's Tables 1–3 and the model comparison, as text."""
-        out = ["Table 1  GCN of each subdomain of the error model"]
-        out.append("  " + "  ".join(f"J_{SYMBOL[t]:<2} {self.subdomain_gcn[t]:10.4g}" for t in self.subdomain_gcn))
+        out = ["Table 1  GCN of each subdomain of the error model",
+               "  " + "  ".join(f"J_{SYMBOL[t]:<2} {self.subdomain_gcn[t]:10.4g}" for t in self.subdomain_gcn)]
         for n, (t, rows) in enumerate(self.branches.items(), start=2):
             out.append(f"Table {n}  GCN of J_{SYMBOL[t]} with one parameter separated (threshold {self.threshold:g})")
             out.append("  " + "  ".join(f"-{name:<9} {g:10.4g}" for name, g in rows))
@@ -128,42 +125,28 @@ def separate_ill_conditioned(robot: Robot, q: np.ndarray, names: Sequence[str] |
     J = J * column_scale(J.reshape(-1, len(names)))
     canon = [n for n in dict.fromkeys(keep) if n in names] + [n for n in names if n not in set(keep)]
     rank = {n: k for k, n in enumerate(canon)}
-    col = {n: i for i, n in enumerate(names)}
 
     def sub_gcn(members: Sequence[str]) -> float:
-        return averaged_gcn(J[:, :, [col[n] for n in names if n in set(members)]])
+        return averaged_gcn(J[:, :, [i for i, n in enumerate(names) if n in set(members)]])
 
     def model_gcn(removed: Sequence[str]) -> float:
-        return averaged_gcn(J[:, :, [col[n] for n in names if n not in set(removed)]])
+        return sub_gcn([n for n in names if n not in set(removed)])
 
-    subdomains = {t: tuple(n for n in names if param_type(n) == t) for t in TYPES}
-    subdomains = {t: v for t, v in subdomains.items() if v}
+    subdomains = {t: v for t in TYPES if (v := tuple(n for n in names if param_type(n) == t))}
     sub_values = {t: sub_gcn(v) for t, v in subdomains.items()}
     branches, candidates = {}, {}
     for t, members in subdomains.items():
         if sub_values[t] > threshold and len(members) > 1:
             branches[t], candidates[t] = _branch(members, sub_gcn, threshold, rank)
-    options = _reconstructions(list(candidates.values()), rank)
-    models = tuple((removed, model_gcn(removed)) for removed in options)
+    models = tuple((removed, model_gcn(removed)) for removed in _reconstructions(list(candidates.values()), rank))
     completed = [_verify(list(removed), g, names, model_gcn, threshold, rank) for removed, g in models]
     full = averaged_gcn(J)
     verified = [c for c in completed if c[1] <= threshold] or completed
     separated, reduced = _choose(verified, by_size=True) if verified else ((), full)
     paper_choice = _choose(verified, by_size=False)[0] if verified else ()
-    notes = _qr_notes(robot, q, names, separated, keep)
-    qr_dropped = identifiability(robot, q, names=names, keep=keep).dropped
-    return Separation(names, subdomains, sub_values, branches, candidates, models, tuple(separated),
-                      full, reduced, threshold, qr_dropped, tuple(paper_choice), tuple(notes))
-
-
-def _removal_order(names: Sequence[str], rank: dict[str, int]) -> list[str]:
-    """Candidates for removal, the one to remove first on a tie first (latest in canonical order)."""
-    return sorted(names, key=lambda n: -rank[n])
-
-
-def _set_key(removed: Sequence[str], rank: dict[str, int]) -> tuple:
-    """Canonical order of removed sets: smaller first, then the one whose members come latest."""
-    return (len(removed), tuple(-r for r in sorted((rank[n] for n in removed), reverse=True)))
+    qr = identifiability(robot, q, names=names, keep=keep)
+    return Separation(names, subdomains, sub_values, branches, candidates, models, tuple(separated), full, reduced,
+                      threshold, qr.dropped, tuple(paper_choice), tuple(_qr_notes(robot, q, names, separated, qr)))
 
 
 def _branch(members, sub_gcn, threshold: float, rank: dict[str, int]):
@@ -191,14 +174,16 @@ def _reconstructions(groups: list[tuple[str, ...]], rank: dict[str, int]) -> lis
     canon = lambda names: tuple(sorted(dict.fromkeys(names), key=rank.__getitem__))  # noqa: E731
     options = {canon(n for g in groups for n in g)}
     options.update(canon(pick) for pick in itertools.product(*groups))
-    return sorted(options, key=lambda s: _set_key(s, rank))
+    # canonical order of removed sets: smaller first, then the one whose members come latest
+    return sorted(options, key=lambda s: (len(s), tuple(-r for r in sorted((rank[n] for n in s), reverse=True))))
 
 
 def _verify(removed: list[str], g: float, names, model_gcn, threshold: float, rank: dict[str, int]):
     """Step 4: while the model's GCN exceeds the threshold, remove the parameter whose removal lowers
     it most. Returns (removed set in canonical order, GCN)."""
     while g > threshold and len(removed) < len(names) - 1:
-        trial = _removal_order([n for n in names if n not in set(removed)], rank)
+        # candidates for removal, the one to remove first on a tie first (latest in canonical order)
+        trial = sorted((n for n in names if n not in set(removed)), key=lambda n: -rank[n])
         values = [model_gcn(removed + [n]) for n in trial]
         k = first_best(values, maximize=False)
         removed.append(trial[k])
@@ -214,15 +199,14 @@ def _choose(models: list[tuple[tuple[str, ...], float]], by_size: bool) -> tuple
     return pool[first_best([g for _, g in pool], maximize=False)]
 
 
-def _qr_notes(robot: Robot, q: np.ndarray, names, separated, keep) -> list[str]:
-    """How the separation compares with QR identifiability of the same parameters."""
-    qr = identifiability(robot, q, names=names, keep=keep)
+def _qr_notes(robot: Robot, q: np.ndarray, names, separated, qr: Identifiability) -> list[str]:
+    """How the separation compares with ``qr``, the QR identifiability of the same parameters."""
     kept = [n for n in names if n not in set(separated)]
     qr_kept = identifiability(robot, q, names=kept)
     notes = [f"the reduced model keeps {len(kept)} parameters; QR rank of it {qr_kept.rank}, of the full model "
-             f"{qr.rank} ({'full rank' if qr_kept.rank == len(kept) else 'still rank-deficient'})"]
-    notes.append(f"QR identifiability of the same {len(names)} parameters drops {len(qr.dropped)}: "
-                 f"{', '.join(qr.dropped) or 'none'}")
+             f"{qr.rank} ({'full rank' if qr_kept.rank == len(kept) else 'still rank-deficient'})",
+             f"QR identifiability of the same {len(names)} parameters drops {len(qr.dropped)}: "
+             f"{', '.join(qr.dropped) or 'none'}"]
     both = [n for n in names if n in separated and n in qr.dropped]
     only_bb = [n for n in names if n in separated and n not in qr.dropped]
     only_qr = [n for n in names if n in qr.dropped and n not in separated]

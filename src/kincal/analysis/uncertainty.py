@@ -102,9 +102,8 @@ class ModelUncertainty:
     def limit(self) -> float:
         """The σ (m) above which a prediction is an extrapolation: ENVELOPE_FACTOR times the training
         region's 95th percentile, else EXTRAPOLATION_RATIO times the training median."""
-        if self.envelope_sigma is not None:
-            return ENVELOPE_FACTOR * self.envelope_sigma
-        return EXTRAPOLATION_RATIO * self.training_median
+        return EXTRAPOLATION_RATIO * self.training_median if self.envelope_sigma is None else \
+            ENVELOPE_FACTOR * self.envelope_sigma
 
     def to_dict(self) -> dict:
         out = {"parameters": list(self.names), "covariance": self.covariance.tolist(),
@@ -119,7 +118,9 @@ class ModelUncertainty:
     def from_dict(cls, data: dict, label: str = "calibration") -> "ModelUncertainty":
         key = "parameters"
         try:
-            names = tuple(str(n) for n in _listed(data[key]))
+            if not isinstance(data[key], (list, tuple)):  # not a string either
+                raise TypeError("a list")
+            names = tuple(str(n) for n in data[key])
             key = "covariance"
             cov = np.array(data[key], dtype=float)
             key = "training_median_sigma"
@@ -142,12 +143,6 @@ class ModelUncertainty:
         return cls(names, cov, med, lo, hi, ref)
 
 
-def _listed(value) -> list:
-    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
-        raise TypeError("a list")
-    return list(value)
-
-
 def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncertainty, q: np.ndarray | None = None,
                           robot: Robot | None = None) -> str | None:
     """A warning naming the poses whose predicted σ says the model extrapolates there — where they lie
@@ -156,15 +151,11 @@ def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncerta
     if not bad.any():
         return None
     where = _beyond(q[bad], robot, unc) if q is not None and robot is not None else ""
+    words = f": {ENVELOPE_FACTOR:g}x its 95th percentile over the region the calibration poses span" \
+        if unc.envelope_sigma is not None else f": {EXTRAPOLATION_RATIO:g}x the median at the training poses"
     return (f"{int(bad.sum())} pose(s) lie where the calibration data did not constrain the model (predicted σ up to "
             f"{sigma[bad].max() * MM:.4f} mm, {sigma[bad].max() / unc.limit():.1f}x the limit {unc.limit() * MM:.4f} mm"
-            f"{_limit_words(unc)}){where}: row(s) {listed(rows[bad])}; measure calibration poses there too")
-
-
-def _limit_words(unc: ModelUncertainty) -> str:
-    if unc.envelope_sigma is not None:
-        return f": {ENVELOPE_FACTOR:g}x its 95th percentile over the region the calibration poses span"
-    return f": {EXTRAPOLATION_RATIO:g}x the median at the training poses"
+            f"{words}){where}: row(s) {listed(rows[bad])}; measure calibration poses there too")
 
 
 def _beyond(q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> str:
@@ -175,8 +166,7 @@ def _beyond(q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> str:
     q = unc.turned(q, np.array([t == "revolute" for t in robot.joint_types]))
     parts = []
     for j in np.flatnonzero(np.any((q < unc.lower) | (q > unc.upper), axis=0)):
-        k = DEG if robot.joint_types[j] == "revolute" else MM
-        u = "deg" if robot.joint_types[j] == "revolute" else "mm"
+        k, u = (DEG, "deg") if robot.joint_types[j] == "revolute" else (MM, "mm")
         parts.append(f"{robot.joint_names[j]} at {q[:, j].min() * k:.1f}..{q[:, j].max() * k:.1f} {u} (calibrated on "
                      f"{unc.lower[j] * k:.1f}..{unc.upper[j] * k:.1f} {u})")
     return ", with " + "; ".join(parts) if parts else ", inside the training joint ranges"

@@ -82,10 +82,7 @@ def relaxed_bound(P: DesignProblem, m: int, gap_tol: float = 2e-3, max_iter: int
             w_new = _project(y + step * dy, m)
             f_new, d_new = _eval(P, w_new)
             diff = w_new - y
-            if f_new >= fy + dy @ diff - diff @ diff / (2 * step):
-                break
-            step *= 0.5
-            if step < 1e-14:
+            if f_new >= fy + dy @ diff - diff @ diff / (2 * step) or (step := step * 0.5) < 1e-14:
                 break
         if step < 1e-14:
             break
@@ -93,8 +90,7 @@ def relaxed_bound(P: DesignProblem, m: int, gap_tol: float = 2e-3, max_iter: int
             y, fy, dy, t = w, f, d, 1.0
             continue
         t_new = 0.5 * (1 + np.sqrt(1 + 4 * t * t))
-        y = w_new + (t - 1) / t_new * (w_new - w)
-        y = _project(y, m)
+        y = _project(w_new + (t - 1) / t_new * (w_new - w), m)
         fy, dy = _eval(P, y)
         if dy is None:
             y, fy, dy = w_new, f_new, d_new

@@ -87,16 +87,12 @@ class Cell:
         starts and ends (N, S, 3) each; None for a robot that declares none or a cell with no
         half-space or box."""
         pts = robot.link_points(q) if self.half_spaces or self.keep_out else None
-        if pts is None or pts.shape[1] < 4:
-            return None
-        return pts[:, 2:-1], pts[:, 3:]
+        return None if pts is None or pts.shape[1] < 4 else (pts[:, 2:-1], pts[:, 3:])
 
     def allows(self, robot: Robot, q: np.ndarray) -> np.ndarray:
         """(N,) bool: the robot's own constraints and every constraint of the cell hold."""
         ok = robot.feasible(q)
-        if self.empty:
-            return ok
-        return ok & ~np.any(list(self.violations(robot, q).values()), axis=0)
+        return ok if self.empty else ok & ~np.any(list(self.violations(robot, q).values()), axis=0)
 
     def pool(self, robot: Robot, n: int, seed: int | None = 0, max_draws: int = 2_000_000) -> np.ndarray:
         """n random poses (n, n_joints) the cell allows, by rejection from uniform feasible draws; an

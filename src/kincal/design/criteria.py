@@ -33,6 +33,5 @@ def score(M: np.ndarray, m: int, criterion: str, B: np.ndarray | None = None) ->
     singular = lam[..., 0] <= 1e-14 * np.maximum(lam[..., -1], 1e-300)  # rank-deficient: a zero σ
     lam[..., 0] = np.where(singular, 0.0, lam[..., 0])
     s = np.sqrt(lam)[..., ::-1]
-    if criterion == "comprehensive":
-        return np.asarray(comprehensive_index(s, m))
-    return np.asarray(indices_from_singular_values(s, m)[criterion])
+    return np.asarray(comprehensive_index(s, m) if criterion == "comprehensive" else
+                      indices_from_singular_values(s, m)[criterion])

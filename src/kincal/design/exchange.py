@@ -49,16 +49,13 @@ def inv3(A: np.ndarray) -> np.ndarray:
 
 def det_blocks(A: np.ndarray) -> np.ndarray:
     """Determinants of (r, r, ...) matrices: closed form for r = 3 (a tracker's blocks), else LU."""
-    if A.shape[0] == 3:
-        return det3(A)
-    return np.linalg.det(np.moveaxis(A, (0, 1), (-2, -1)))
+    return det3(A) if A.shape[0] == 3 else np.linalg.det(np.moveaxis(A, (0, 1), (-2, -1)))
 
 
 def inv_blocks(A: np.ndarray) -> np.ndarray:
     """Inverses of (r, r, ...) matrices, same layout."""
-    if A.shape[0] == 3:
-        return inv3(A)
-    return np.moveaxis(np.linalg.inv(np.moveaxis(A, (0, 1), (-2, -1))), (-2, -1), (0, 1))
+    return inv3(A) if A.shape[0] == 3 else \
+        np.moveaxis(np.linalg.inv(np.moveaxis(A, (0, 1), (-2, -1))), (-2, -1), (0, 1))
 
 
 def mm(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
@@ -86,15 +83,13 @@ class _State:
 
     def quad(self, A: np.ndarray) -> np.ndarray:
         """Jᵢ A Jᵢᵀ for every candidate, (r, r, N)."""
-        N, k, r = self.P.N, self.P.k, self.P.r
-        Y = (self.rows @ A).reshape(r, N, k)
-        Jr = self.rows.reshape(r, N, k)
-        return np.einsum("ank,bnk->abn", Y, Jr)
+        shape = (self.P.r, self.P.N, self.P.k)
+        return np.einsum("ank,bnk->abn", (self.rows @ A).reshape(shape), self.rows.reshape(shape))
 
-    def cross(self, j: int) -> np.ndarray:
-        """Cᵢⱼ = Jᵢ M⁻¹ Jⱼᵀ for every candidate i, (r, r, N)."""
-        r = self.P.r
-        return (self.rows @ (self.Minv @ self.P.J[j].T)).reshape(r, self.P.N, r).transpose(0, 2, 1)
+    def cross(self, j: int, A: np.ndarray | None = None) -> np.ndarray:
+        """Cᵢⱼ = Jᵢ A Jⱼᵀ (A: M⁻¹ unless given) for every candidate i, (r, r, N)."""
+        A, r = self.Minv if A is None else A, self.P.r
+        return (self.rows @ (A @ self.P.J[j].T)).reshape(r, self.P.N, r).transpose(0, 2, 1)
 
     def update(self, U: np.ndarray, sign: np.ndarray, G: np.ndarray) -> None:
         """M += Uᵀ diag(sign) U, with G = J M⁻¹ Uᵀ for every candidate (r, u, N)."""
@@ -109,13 +104,10 @@ def greedy(P: DesignProblem, m: int, ridge: float = 1e-8) -> list[int]:
     """Add, one at a time, the candidate that most increases det(M), from M = ridge·I."""
     st = _State(P, ridge * np.eye(P.k))
     chosen: list[int] = []
-    taken = np.zeros(P.N, bool)
     for _ in range(m):
         gain = st.A_det.copy()
-        gain[taken] = -np.inf
-        i = first_best(gain)
-        chosen.append(i)
-        taken[i] = True
+        gain[chosen] = -np.inf
+        chosen.append(i := first_best(gain))
         st.update(P.J[i], np.ones(P.r), st.cross(i))
     return chosen
 
@@ -133,8 +125,7 @@ def fedorov(P: DesignProblem, start: list[int], criterion: str = "D", B: np.ndar
     eye, sign = np.eye(P.r)[:, :, None], np.repeat([1.0, -1.0], P.r)
     exchanges = passes = 0
     for passes in range(1, max_passes + 1):
-        changed = False
-        H = R = None
+        before, H, R = exchanges, None, None
         for pos in range(len(design)):
             j = design[pos]
             C = st.cross(j)  # (r,r,N): Cᵢⱼ
@@ -147,19 +138,16 @@ def fedorov(P: DesignProblem, start: list[int], criterion: str = "D", B: np.ndar
                     H = st.Minv @ B @ st.Minv
                     R = st.quad(H)
                 score = _i_gain(st, C, Vj, R, H, j, in_design) / max(np.trace(st.Minv @ B), 1e-300)
-            score[in_design] = -np.inf
-            score[~np.isfinite(score)] = -np.inf
+            score[in_design | ~np.isfinite(score)] = -np.inf
             i = first_best(score + 1.0)  # ties judged on the ratio of the criteria
             if score[i] <= IMPROVE:
                 continue
-            U = np.vstack([P.J[i], P.J[j]])
-            st.update(U, sign, np.concatenate([st.cross(i), C], axis=1))
+            st.update(np.vstack([P.J[i], P.J[j]]), sign, np.concatenate([st.cross(i), C], axis=1))
             design[pos] = i
             in_design[i], in_design[j] = True, False
             exchanges += 1
-            changed = True
             H = R = None
-        if not changed:
+        if exchanges == before:
             break
         st = _State(P, P.information(design))  # wash out rounding from the updates
     return design, passes, exchanges
@@ -167,22 +155,16 @@ def fedorov(P: DesignProblem, start: list[int], criterion: str = "D", B: np.ndar
 
 def _i_gain(st: _State, C, Vj, R, H, j: int, in_design: np.ndarray) -> np.ndarray:
     """Decrease of tr(M⁻¹B) for exchanging j with each candidate: tr(K⁻¹ U H Uᵀ)."""
-    P = st.P
+    P, r, free = st.P, st.P.r, ~in_design
     out = np.full(P.N, -np.inf)
-    free = ~in_design
-    to_n = lambda X: np.moveaxis(X, 2, 0)[free]  # noqa: E731  (r,r,N) -> (n_free,r,r)
-    r = P.r
-    K = np.empty((int(free.sum()), 2 * r, 2 * r))
-    K[:, :r, :r] = to_n(np.eye(r)[:, :, None] + st.V)
-    K[:, :r, r:] = to_n(C)
-    K[:, r:, :r] = np.swapaxes(K[:, :r, r:], 1, 2)
-    K[:, r:, r:] = Vj[:, :, 0] - np.eye(r)
-    HJj = (st.rows @ (H @ P.J[j].T)).reshape(r, P.N, r).transpose(0, 2, 1)
-    Q = np.empty_like(K)
-    Q[:, :r, :r] = to_n(R)
-    Q[:, :r, r:] = to_n(HJj)
-    Q[:, r:, :r] = np.swapaxes(Q[:, :r, r:], 1, 2)
-    Q[:, r:, r:] = R[:, :, j]
+
+    def sym(A: np.ndarray, X: np.ndarray, D: np.ndarray) -> np.ndarray:
+        """[[A, X], [Xᵀ, D]] (n_free, 2r, 2r) of the free candidates from (r, r, N) stacks A, X and D (r, r)."""
+        A, X = np.moveaxis(A, 2, 0)[free], np.moveaxis(X, 2, 0)[free]
+        return np.block([[A, X], [np.swapaxes(X, 1, 2), np.broadcast_to(D, X.shape)]])
+
+    K = sym(np.eye(r)[:, :, None] + st.V, C, Vj[:, :, 0] - np.eye(r))
+    Q = sym(R, st.cross(j, H), R[:, :, j])  # Jᵢ H Jⱼᵀ off the diagonal
     with np.errstate(all="ignore"):
         out[free] = np.trace(np.linalg.solve(K, Q), axis1=1, axis2=2)
     return out

@@ -40,33 +40,20 @@ def mutation_factor(g: int, generations: int, F0: float) -> float:
 
 def _bounce(x: np.ndarray, best: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """Reverse-search boundary handling (eq. 23–24), elementwise for (m, n) designs."""
-    out = x.copy()
     with np.errstate(divide="ignore", invalid="ignore"):
-        up = x > hi
-        frac = np.abs(hi - x) / np.abs(best - x)
-        out = np.where(up, best + np.abs(hi - best) * frac, out)
-        down = x < lo
-        frac = np.abs(x - lo) / np.abs(best - x)
-        out = np.where(down, best - np.abs(best - lo) * frac, out)
+        out = np.where(x > hi, best + np.abs(hi - best) * (np.abs(hi - x) / np.abs(best - x)), x)
+        out = np.where(x < lo, best - np.abs(best - lo) * (np.abs(x - lo) / np.abs(best - x)), out)
     return np.clip(np.where(np.isfinite(out), out, best), lo, hi)
 
 
-def ide(
-    robot: Robot,
-    start: np.ndarray,
-    objective: Callable[[np.ndarray], float],
-    rng: np.random.Generator,
-    generations: int = 200,
-    population: int = 30,
-    F0: float = 0.2,
-    cr: float = 0.2,
-    init_scale: float = 1.0,
-    progress: Callable[[int, float], None] | None = None,
-    feasible: Callable[[np.ndarray], np.ndarray] | None = None,
-) -> tuple[np.ndarray, float, list[float]]:
+def ide(robot: Robot, start: np.ndarray, objective: Callable[[np.ndarray], float], rng: np.random.Generator,
+        generations: int = 200, population: int = 30, F0: float = 0.2, cr: float = 0.2, init_scale: float = 1.0,
+        progress: Callable[[int, float], None] | None = None,
+        feasible: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, float, list[float]]:
     """Maximise ``objective(design)`` over designs (m, n) near ``start``; returns the best design,
-    its value and the best value at generation 0 (the start) and after each generation (G + 1 values). A pose that ``feasible`` (default: the
-    robot's own constraints; e.g. a cell's) refuses keeps the incumbent's."""
+    its value and the best value at generation 0 (the start) and after each generation (G + 1
+    values). A pose that ``feasible`` (default: the robot's own constraints; e.g. a cell's) refuses
+    keeps the incumbent's."""
     lo, hi = robot.lower, robot.upper
     best = np.array(start, dtype=float)
     f_best = objective(best)

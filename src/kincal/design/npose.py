@@ -34,8 +34,7 @@ class PoseCountCurve:
 def pose_count_curve(P: DesignProblem, criterion: str = "comprehensive", m_max: int = 100, seed: int | None = 0,
                      window: int = 10, rel_gain: float = 0.01) -> PoseCountCurve:
     """Guo et al. 2024, Fig. 7: criterion against the number of random poses, and the flattening point."""
-    rng = np.random.default_rng(seed)
-    order = rng.permutation(P.N)[:m_max]
+    order = np.random.default_rng(seed).permutation(P.N)[:m_max]
     m_values = np.arange(1, order.size + 1)
     Ms = np.cumsum(np.einsum("nak,nal->nkl", P.J[order], P.J[order]), axis=0)
     values = np.array([float(score(Ms[i], i + 1, criterion)) for i in range(order.size)])

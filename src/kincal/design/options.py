@@ -73,9 +73,8 @@ class DesignOptions:
             set_("names", tuple(dict.fromkeys(self.names)))
         if self.certify not in (True, False):
             raise ValueError(f"certify={self.certify!r}: True or False")
-        set_("restarts", _whole("restarts", self.restarts, 0))
-        set_("generations", _whole("generations", self.generations, 1))
-        set_("population", _whole("population", self.population, 6))  # a mutant draws 6 distinct members
+        for name, least in (("restarts", 0), ("generations", 1), ("population", 6)):  # a mutant draws 6 distinct members
+            set_(name, _whole(name, self.__dict__[name], least))
         for name, lo, hi in (("f0", 0.0, 4.0), ("cr", 0.0, 1.0)):
             v = self.__dict__[name]
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo < v <= hi:
@@ -104,9 +103,7 @@ class DesignOptions:
     @property
     def stratified(self) -> bool:
         """Whether the design keeps one pose per stratum: ``coverage``, or None → on for IMSE by Fedorov."""
-        if self.coverage is None:
-            return self.criterion == "IMSE" and self.method == "fedorov"
-        return bool(self.coverage)
+        return self.criterion == "IMSE" and self.method == "fedorov" if self.coverage is None else bool(self.coverage)
 
     def replace(self, **changes: Any) -> "DesignOptions":
         """A copy with some fields changed (and checked again); an unknown field is named."""

@@ -50,9 +50,7 @@ class DesignProblem:
     def information(self, idx: Sequence[int] | np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
         """M = Σ wᵢ JᵢᵀJᵢ over the candidates ``idx`` (k, k)."""
         Js = self.J[np.asarray(idx)].reshape(-1, self.k)
-        if weights is None:
-            return Js.T @ Js
-        return (Js * np.repeat(np.asarray(weights, float), self.r)[:, None]).T @ Js
+        return Js.T @ Js if weights is None else (Js * np.repeat(np.asarray(weights, float), self.r)[:, None]).T @ Js
 
     def logdet(self, idx: Sequence[int] | np.ndarray) -> float:
         """log det M of a design (−inf if singular)."""

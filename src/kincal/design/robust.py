@@ -67,12 +67,11 @@ class RobustTerms:
     def imse_added(self, M0: np.ndarray, Q0: np.ndarray, Jc: np.ndarray, Kc: np.ndarray) -> np.ndarray:
         """IMSE/σ² of a design (M0, Q0) plus each candidate block Jc (c, r, k), Kc (c, r, p):
         M⁻¹ by the Woodbury identity from M0⁻¹ (M0 well conditioned), else directly."""
-        k = M0.shape[0]
         lam = np.linalg.eigvalsh(M0)
         if lam[0] <= WOODBURY_COND * lam[-1]:
             return self.imse(M0 + np.swapaxes(Jc, 1, 2) @ Jc, Q0 + np.swapaxes(Jc, 1, 2) @ Kc)
         G = np.linalg.inv(M0)
-        R = np.concatenate([np.broadcast_to(self.B, (len(Jc), k, k)), Q0 + np.swapaxes(Jc, 1, 2) @ Kc], axis=-1)
+        R = np.concatenate([np.broadcast_to(self.B, (len(Jc),) + M0.shape), Q0 + np.swapaxes(Jc, 1, 2) @ Kc], axis=-1)
         U = G @ np.swapaxes(Jc, 1, 2)  # (c, k, r)
         S = np.eye(Jc.shape[1]) + Jc @ U
         X = G @ R - U @ np.linalg.solve(S, np.swapaxes(U, 1, 2) @ R)

@@ -79,31 +79,21 @@ def detmax(P: DesignProblem, m: int, criterion: str, rng: np.random.Generator, B
     improves the criterion, then remove the design point whose removal leaves the best criterion;
     stop when the removed point is the one just added."""
     design = [int(i) for i in rng.choice(P.N, m, replace=False)]
-    in_design = np.zeros(P.N, bool)
-    in_design[design] = True
     st = _State(P, P.information(design)) if criterion == "D" else None
     for _ in range(max_iter or 20 * m):
-        free = np.flatnonzero(~in_design)
-        if st is not None:  # det M' / det M = det(I + V) for an addition
-            a = int(free[first_best(st.A_det[free])])
-        else:
-            M = P.information(design)
-            Ja = P.J[free]
-            vals = score(M + np.einsum("nak,nal->nkl", Ja, Ja), m + 1, criterion, B)
-            a = int(free[first_best(vals)])
+        free = np.setdiff1d(np.arange(P.N), design)
+        # an addition: det M'/det M = det(I + V)
+        gain = st.A_det[free] if st is not None else \
+            score(P.information(design) + np.einsum("nak,nal->nkl", P.J[free], P.J[free]), m + 1, criterion, B)
+        a = int(free[first_best(gain)])
         design.append(a)
-        in_design[a] = True
+        idx = np.asarray(design)
         if st is not None:
             st.update(P.J[a], np.ones(P.r), st.cross(a))
-            idx = np.asarray(design)
-            # removal: det M'/det M = det(I − Vⱼ)
-            r_pos = first_best(det_blocks(np.eye(P.r)[:, :, None] - st.V[:, :, idx]))
+            loss = det_blocks(np.eye(P.r)[:, :, None] - st.V[:, :, idx])  # a removal: det M'/det M = det(I − Vⱼ)
         else:
-            M = P.information(design)
-            Jd = P.J[np.asarray(design)]
-            r_pos = first_best(score(M - np.einsum("nak,nal->nkl", Jd, Jd), m, criterion, B))
-        r = design.pop(r_pos)
-        in_design[r] = False
+            loss = score(P.information(design) - np.einsum("nak,nal->nkl", P.J[idx], P.J[idx]), m, criterion, B)
+        r = design.pop(first_best(loss))
         if st is not None:
             st.update(P.J[r], -np.ones(P.r), st.cross(r))
         if r == a:
@@ -150,10 +140,9 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
     else:
         idx = _pool_design(P, o, B, rng)
         q, J = P.q[idx], P.J[idx]
-    if o.criterion == "IMSE" and not o.stratified:  # a random design, scored
-        value, note = design_imse(robot, P, idx, validation_q, o.weight)
-    elif not o.stratified:
-        value = _score_blocks(J, o.criterion, B)
+    if not o.stratified:  # IMSE without strata: a random design, scored
+        value, note = design_imse(robot, P, idx, validation_q, o.weight) if o.criterion == "IMSE" else \
+            (_score_blocks(J, o.criterion, B), "")
     elapsed = time.perf_counter() - t0
     if bound is None and o.certify:
         bound = relaxed_bound(P, o.m)
