@@ -4,11 +4,12 @@ JSON of the same numbers, and a terminal summary. Deterministic: the same input 
 from __future__ import annotations
 
 import dataclasses
-import datetime as _dt
+import functools
 import hashlib
 import json
 import os
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from importlib import resources
 from pathlib import Path
 from typing import Sequence
@@ -56,13 +57,12 @@ def json_path_for(path: str | os.PathLike) -> Path:
 def report_date() -> str:
     """Today (UTC), or the day of SOURCE_DATE_EPOCH (seconds since 1970) for reproducible builds."""
     epoch = os.environ.get("SOURCE_DATE_EPOCH")
-    if not epoch:
-        return _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d")
     try:
-        return _dt.datetime.fromtimestamp(int(epoch), _dt.timezone.utc).strftime("%Y-%m-%d")
+        day = datetime.fromtimestamp(int(epoch), timezone.utc) if epoch else datetime.now(timezone.utc)
     except (ValueError, OverflowError, OSError):
         raise ValueError(f"SOURCE_DATE_EPOCH='{epoch}' is not a number of seconds since 1970; unset it or fix "
                          f"it") from None
+    return day.strftime("%Y-%m-%d")
 
 
 def build_report(result: CalibrationResult, test: Measurements | Sequence | None = None, info: dict | None = None,
@@ -107,9 +107,11 @@ def _positions_part(result: CalibrationResult, tests: list[Measurements], same_f
     models = _held_out_models(result, tests, same_frame)
     sets = _sets(result, tests, models, result.options.thresholds)
     headline = [_headline(s, which) for s in sets for which in ("before", "after")]
-    part = {"outliers": [int(r) for s in sets for r in s.rows[s.outliers]], "headline": headline,
-            "warnings": _warnings(result, tests, models), "iso": _iso9283(sets, result),
-            "acquisition": _acquisition(result), **_figures(sets, result)}
+    part: dict = {"outliers": [int(r) for s in sets for r in s.rows[s.outliers]], "headline": headline,
+                  "warnings": _warnings(result, tests, models), "iso": _iso9283(sets, result),
+                  "acquisition": _acquisition(result)}
+    figs = _make_figures(sets, result)
+    part.update({g: [{"name": n, "svg": F.svg(figs[n])} for n in names] for g, names in GROUPS.items()})
     numbers = {k: part[k] for k in ("outliers", "warnings", "iso", "acquisition")}
     numbers["headline"] = [{**h, **{k: h[k] / MM for k in ("mean", "rms", "max", "p95")}} for h in headline]
     numbers["figures"] = [f["name"] for g in GROUPS for f in part[g]]
@@ -137,16 +139,16 @@ def _held_out_models(result: CalibrationResult, tests: list[Measurements], same_
     to the session (kinematics fixed), or with ``same_frame`` as calibrated (the nominal one registered
     to the training data). Computed once: the headline, the figures and the warnings share them."""
     if same_frame:
-        nominal = _before(result, result.measurements, result.options.base == "estimate")
-        return [(nominal, result.robot, AS_CALIBRATED) for _ in tests]
-    return [(_before(result, m), refit_frame(result.robot, m), REGISTERED) for m in tests]
+        return [(_training_nominal(result), result.robot, AS_CALIBRATED) for _ in tests]
+    return [(register_mounting(result.nominal, m.q, m.xyz), refit_frame(result.robot, m), REGISTERED) for m in tests]
 
 
-def _before(result: CalibrationResult, meas: Measurements, frame: bool = True):
-    """The nominal kinematics with the measurement frame (unless the base is known: ``frame`` False)
-    and the target point registered to ``meas``: "before" calibration, whatever target point was
-    declared (the improvement shown is the robot's)."""
-    return register_mounting(result.nominal, meas.q, meas.xyz, frame)
+def _training_nominal(result: CalibrationResult):
+    """The nominal kinematics with the measurement frame (unless the base is known) and the target
+    point registered to the training data: "before" calibration, whatever target point was declared
+    (the improvement shown is the robot's)."""
+    train = result.measurements
+    return register_mounting(result.nominal, train.q, train.xyz, result.options.base == "estimate")
 
 
 def _acquisition(result: CalibrationResult) -> dict:
@@ -164,13 +166,12 @@ def _sets(result: CalibrationResult, tests: list[Measurements], models: list[tup
     robust z), each with its errors before (nominal) and after (calibrated), both models registered
     the same way (``models``: per session, from :func:`_held_out_models`)."""
     train = result.measurements
-    sets = [_pose_set("training", train, _before(result, train, result.options.base == "estimate"), result.robot,
-                      result.pose_z > result.outlier_z, "frame fitted with the model (nominal: registered to these data)")]
+    sets = [_pose_set("training", train, _training_nominal(result), result.robot, result.pose_z > result.outlier_z,
+                      "frame fitted with the model (nominal: registered to these data)")]
     for k, (meas, (nominal, model, how)) in enumerate(zip(tests, models)):
         z = robust_z(np.linalg.norm(meas.xyz - model.forward(meas.q), axis=1))
         held = _pose_set("held-out", meas, nominal, model, z > th.outlier_limit(len(z)), how)
-        sets.append(dataclasses.replace(_in_training_frame(held, result.robot, model),
-                                        name=Path(meas.source).name,
+        sets.append(dataclasses.replace(_in_training_frame(held, result.robot, model), name=Path(meas.source).name,
                                         key="held-out" if len(tests) == 1 else f"held-out-{k + 1}",
                                         colour=F.SESSION_COLOURS[k % len(F.SESSION_COLOURS)]))
     return sets
@@ -188,15 +189,13 @@ def _in_training_frame(s: F.PoseSet, trained, registered) -> F.PoseSet:
 
 def _pose_set(label: str, meas: Measurements, nominal, calibrated, outliers: np.ndarray, how: str) -> F.PoseSet:
     """Errors before (``nominal``) and after (``calibrated``) on ``meas``."""
-    before = meas.xyz - nominal.forward(meas.q)
-    after = meas.xyz - calibrated.forward(meas.q)
-    return F.PoseSet(label, meas.rows, meas.q, meas.xyz, before, after, np.asarray(outliers, bool), registration=how)
+    return F.PoseSet(label, meas.rows, meas.q, meas.xyz, meas.xyz - nominal.forward(meas.q),
+                     meas.xyz - calibrated.forward(meas.q), np.asarray(outliers, bool), registration=how)
 
 
 def _headline(s: F.PoseSet, which: str) -> dict:
     errors = s.before if which == "before" else s.after
-    if errors is None:  # the report's sets carry both models' errors (_pose_set)
-        raise ValueError(f"{s.title}: no errors before calibration to summarise")
+    assert errors is not None  # the report's sets (from _pose_set) carry both models' errors
     st = EvaluationStats.from_errors(errors)
     model = "nominal (frame and target point registered)" if which == "before" else "calibrated"
     return {"data": s.title, "n": st.n, "model": model, "key": f"{s.key or s.label}.{which}", "mean": st.mean * MM,
@@ -205,11 +204,6 @@ def _headline(s: F.PoseSet, which: str) -> dict:
 
 GROUPS = {"figures_errors": ("per_pose", "histogram", "per_axis"), "figures_where": ("vs_joints", "workspace"),
           "figures_params": ("correlation",)}
-
-
-def _figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
-    figs = _make_figures(sets, result)
-    return {g: [{"name": n, "svg": F.svg(figs[n])} for n in names] for g, names in GROUPS.items()}
 
 
 def figure_set(result: CalibrationResult, test: Measurements | Sequence[Measurements] | None = None,
@@ -227,32 +221,22 @@ def figure_set(result: CalibrationResult, test: Measurements | Sequence[Measurem
     return figs
 
 
-def _beyond(z: np.ndarray) -> np.ndarray:
-    """Which robust z-scores are outliers under the default limits for this many poses."""
-    return z > Thresholds().outlier_limit(len(z))
-
-
 def evaluation_figures(robot, meas: Measurements) -> dict:
     """Figures of one model on one data set (``evaluate --plot``): errors per pose, distribution,
-    per axis, against the joints, in the workspace; outliers by robust z."""
+    per axis, against the joints, in the workspace; outliers by robust z (default limits)."""
     after = meas.xyz - robot.forward(meas.q)
-    s = F.PoseSet("held-out", meas.rows, meas.q, meas.xyz, None, after,
-                  _beyond(robust_z(np.linalg.norm(after, axis=1))))
-    return {"per_pose": F.per_pose([s]), "histogram": F.histogram([s]), "per_axis": F.per_axis([s]),
-            "vs_joints": F.vs_joints([s], robot.joint_names, robot.joint_types), "workspace": F.workspace([s], "this file's measurement frame")}
+    z = robust_z(np.linalg.norm(after, axis=1))
+    s = F.PoseSet("held-out", meas.rows, meas.q, meas.xyz, None, after, z > Thresholds().outlier_limit(len(z)))
+    return F.pose_figures([s], robot, "this file's measurement frame")
 
 
 def _make_figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
-    robot = result.robot
     ok = np.array([np.isfinite(result.std[n]) for n in result.names])
-    return {"per_pose": F.per_pose(sets), "histogram": F.histogram(sets), "per_axis": F.per_axis(sets),
-            "vs_joints": F.vs_joints(sets, robot.joint_names, robot.joint_types), "workspace": F.workspace(sets),
-            "correlation": F.correlation([n for n, k in zip(result.names, ok) if k],
-                                         result.correlation[np.ix_(ok, ok)])}
+    return {**F.pose_figures(sets, result.robot), "correlation": F.correlation(
+        [n for n, k in zip(result.names, ok) if k], result.correlation[np.ix_(ok, ok)])}
 
 
-def _value(v: float, kind: str, signed: bool = False) -> str:
-    return display(v, kind, signed, digits=(4, 4))
+_value = functools.partial(display, signed=False, digits=(4, 4))
 
 
 def _parameter_rows(result: CalibrationResult) -> list[dict]:
@@ -265,7 +249,7 @@ def _parameter_rows(result: CalibrationResult) -> list[dict]:
         big = abs(c) > (th.length_suspect if k == "length" else th.angle_suspect) and n not in base
         sd = result.std[n]
         rows.append({"name": n, "nominal": _value(result.nominal.params[n], k),
-                     "calibrated": _value(result.estimates[n], k), "correction": _value(c, k, True),
+                     "calibrated": _value(result.estimates[n], k), "correction": _value(c, k, signed=True),
                      "sigma": _value(sd, k) if np.isfinite(sd) else "undetermined",
                      "flag": "large" if big else ""})
     return rows
@@ -313,26 +297,22 @@ def _data_rows(result: CalibrationResult, tests: list, info: dict) -> list[dict]
     return [{"label": k, "value": v} for k, v in rows]
 
 
-def iso9283_group(xyz: np.ndarray, commanded: np.ndarray) -> tuple[float, float]:
-    """ISO 9283 pose accuracy AP and repeatability RP (position, m) of n ≥ 2 attained positions xyz
-    (n, 3) of one commanded pose at ``commanded`` (3,): AP = |barycentre − commanded|; RP = l̄ + 3·S_l
-    with l_j the distance of each attained position from the barycentre and S_l their sample std."""
-    bary = xyz.mean(axis=0)
-    dist = np.linalg.norm(xyz - bary, axis=1)
-    return float(np.linalg.norm(bary - commanded)), float(dist.mean() + 3 * dist.std(ddof=1))
-
-
 def _iso9283(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
-    """ISO 9283 AP and RP, per session, wherever a commanded pose repeats (commanded joints within the
-    thresholds' repeat tolerance); the command's position is the calibrated model's as used on that set."""
+    """ISO 9283 pose accuracy AP and repeatability RP, per session, wherever a commanded pose repeats
+    (commanded joints within the thresholds' repeat tolerance), from its n ≥ 2 attained positions:
+    AP = |barycentre − commanded|; RP = l̄ + 3·S_l with l_j the distance of each attained position from
+    the barycentre and S_l their sample std. The command's position is the calibrated model's as used
+    on that set."""
     tol = repeat_tolerance(result.robot.joint_types, result.options.thresholds)
     groups = []
     for s in sets:
         model = s.xyz - s.after  # the calibrated model's positions, registered as for this set
         for g in duplicate_groups(s.q, tol):
-            ap, rp = iso9283_group(s.xyz[g], model[g].mean(axis=0))
+            bary = s.xyz[g].mean(axis=0)
+            dist = np.linalg.norm(s.xyz[g] - bary, axis=1)
+            ap = float(np.linalg.norm(bary - model[g].mean(axis=0)))
             groups.append({"session": s.title, "rows": ", ".join(str(int(r)) for r in s.rows[g]), "n": len(g),
-                           "ap": ap * MM, "rp": rp * MM,
+                           "ap": ap * MM, "rp": float(dist.mean() + 3 * dist.std(ddof=1)) * MM,
                            "joint_spread": float(np.max(np.ptp(s.q[g], axis=0)))})
     th = result.options.thresholds
     rule = (f"poses whose commanded joints agree within {th.repeat_angle:g} rad (revolute) / "

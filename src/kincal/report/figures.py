@@ -6,7 +6,6 @@ has the same bytes for the same input.
 """
 from __future__ import annotations
 
-import functools
 import io
 import os
 import re
@@ -62,33 +61,32 @@ class PoseSet:
 SESSION_COLOURS = ("#d62728", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf")  # held-out sessions in turn
 
 
+_styled = matplotlib.rc_context(RC)  # a decorator: figures built and saved in the report's style, whatever rcParams
+
+
+@_styled
 def svg(fig: Figure) -> str:
     """The figure as an inline SVG string (no XML header, deterministic)."""
     buf = io.StringIO()
-    with matplotlib.rc_context(RC):
-        fig.savefig(buf, format="svg", dpi=SVG_DPI, metadata={"Date": None, "Creator": None})
-    text = buf.getvalue()
-    text = re.sub(r"\s*<metadata>.*?</metadata>", "", text, flags=re.S)  # creator/format RDF: noise in a page
+    fig.savefig(buf, format="svg", dpi=SVG_DPI, metadata={"Date": None, "Creator": None})
+    text = re.sub(r"\s*<metadata>.*?</metadata>", "", buf.getvalue(), flags=re.S)  # creator/format RDF: noise in a page
     return text[text.index("<svg"):]
 
 
+@_styled
 def save(fig: Figure, path: str | os.PathLike) -> None:
     """PNG or SVG by the file's extension."""
-    with matplotlib.rc_context(RC):
-        fig.savefig(path, dpi=130, metadata={"Date": None} if str(path).lower().endswith(".svg") else None)
-
-
-def _styled(make):
-    """Build a figure under the report's style (fonts, grid), whatever the caller's rcParams."""
-    @functools.wraps(make)
-    def wrapper(*args, **kwargs) -> Figure:
-        with matplotlib.rc_context(RC):
-            return make(*args, **kwargs)
-    return wrapper
+    fig.savefig(path, dpi=130, metadata={"Date": None} if str(path).lower().endswith(".svg") else None)
 
 
 def _figure(width: float, height: float) -> Figure:
     return Figure(figsize=(width, height), layout="constrained")
+
+
+def _axes(width: float, height: float, **kw) -> tuple[Figure, Any]:
+    """A figure with one axes (``kw``: for ``add_subplot``, e.g. a projection)."""
+    fig = _figure(width, height)
+    return fig, fig.add_subplot(**kw)
 
 
 @_styled
@@ -103,25 +101,21 @@ def per_pose(sets: list[PoseSet]) -> Figure:
                         label="before (nominal model, frame and target point registered)", rasterized=True)
         ax.semilogy(x, s.after_norm * MM, ".", ms=3, color=s.color,
                     label="after calibration" if s.before is not None else "model", rasterized=True)
-        ax.set_title(f"{s.title} poses ({len(x)}): position error per pose")
-        ax.set_xlabel("pose (file order)")
-        ax.set_ylabel("error (mm)")
+        ax.set(title=f"{s.title} poses ({len(x)}): position error per pose", xlabel="pose (file order)",
+               ylabel="error (mm)")
         ax.legend(loc="upper right", fontsize=8)
     return fig
 
 
 @_styled
 def histogram(sets: list[PoseSet]) -> Figure:
-    fig = _figure(4.6, 3.0)
-    ax = fig.add_subplot()
+    fig, ax = _axes(4.6, 3.0)
     top = max(float(s.after_norm.max()) for s in sets) * MM
     bins = np.linspace(0.0, top * 1.02 if top > 0 else 1.0, 31)
     for s in sets:
         ax.hist(s.after_norm * MM, bins=bins.tolist(), alpha=0.6, color=s.color, label=s.title,
                 weights=np.full(len(s.rows), 100.0 / len(s.rows)))
-    ax.set_title("distribution of the error after calibration")
-    ax.set_xlabel("position error (mm)")
-    ax.set_ylabel("poses (%)")
+    ax.set(title="distribution of the error after calibration", xlabel="position error (mm)", ylabel="poses (%)")
     ax.legend(fontsize=8)
     return fig
 
@@ -130,20 +124,17 @@ def histogram(sets: list[PoseSet]) -> Figure:
 def per_axis(sets: list[PoseSet]) -> Figure:
     """Box plots of the error per axis after calibration: one box per set (its colour, named in the
     legend) beside each other at x, y and z."""
-    fig = _figure(4.6, 3.0)
-    ax = fig.add_subplot()
+    fig, ax = _axes(4.6, 3.0)
     k = len(sets)
     data = [s.after[:, a] * MM for a in range(3) for s in sets]
     where = [a * (k + 1) + j + 1 for a in range(3) for j in range(k)]
     parts = ax.boxplot(data, positions=where, patch_artist=True, widths=0.6, flierprops={"markersize": 2})
     for patch, s in zip(parts["boxes"], [s for _ in range(3) for s in sets]):
-        patch.set_facecolor(s.color)
-        patch.set_alpha(0.5)
+        patch.set(facecolor=s.color, alpha=0.5)
     ax.set_xticks([a * (k + 1) + (k + 1) / 2 for a in range(3)], ["x", "y", "z"])
     if k > 1:
         ax.legend(parts["boxes"][:k], [s.title for s in sets], fontsize=7)
-    ax.set_title("error per axis after calibration")
-    ax.set_ylabel("measured − model (mm)")
+    ax.set(title="error per axis after calibration", ylabel="measured − model (mm)")
     return fig
 
 
@@ -160,8 +151,7 @@ def vs_joints(sets: list[PoseSet], joint_names, joint_types) -> Figure:
         for s in sets:
             ax.plot(s.q[:, j] * scale, s.after_norm * MM, ".", ms=3, color=s.color, label=s.title,
                     rasterized=True)
-        ax.set_xlabel(f"{joint_names[j]} ({unit})")
-        ax.set_ylabel("error (mm)")
+        ax.set(xlabel=f"{joint_names[j]} ({unit})", ylabel="error (mm)")
     fig.axes[0].legend(fontsize=7)
     fig.suptitle("error after calibration against each joint")
     return fig
@@ -183,9 +173,7 @@ def workspace(sets: list[PoseSet], frame: str = "the training data's frame") -> 
                 ax.scatter(p[a] * MM, p[b] * MM, s=80, facecolors="none", edgecolors="red", linewidths=1.2)
                 ax.annotate(f"row {r}", (p[a] * MM, p[b] * MM), xytext=(4, 4), textcoords="offset points",
                             color="red", fontsize=8)
-        ax.set_xlabel(f"{'xyz'[a]} (mm)")
-        ax.set_ylabel(f"{'xyz'[b]} (mm)")
-        ax.set_aspect("equal", adjustable="datalim")
+        ax.set(xlabel=f"{'xyz'[a]} (mm)", ylabel=f"{'xyz'[b]} (mm)", aspect="equal", adjustable="datalim")
     fig.colorbar(sc, ax=fig.axes, label="error after (mm)", shrink=0.9)
     fig.suptitle(f"workspace ({frame}): o training, ^ held-out; red circles: outliers")
     return fig
@@ -195,8 +183,7 @@ def workspace(sets: list[PoseSet], frame: str = "the training data's frame") -> 
 def correlation(names, corr: np.ndarray) -> Figure:
     k = len(names)
     size = max(4.0, min(10.0, 0.28 * k + 2.0))
-    fig = _figure(size + 1.0, size)
-    ax = fig.add_subplot()
+    fig, ax = _axes(size + 1.0, size)
     im = ax.imshow(corr, vmin=-1.0, vmax=1.0, cmap="RdBu_r")
     ax.set_xticks(range(k), names, rotation=90, fontsize=7)
     ax.set_yticks(range(k), names, fontsize=7)
@@ -204,3 +191,10 @@ def correlation(names, corr: np.ndarray) -> Figure:
     fig.colorbar(im, ax=ax, label="correlation", shrink=0.8)
     ax.set_title("correlation of the estimated parameters")
     return fig
+
+
+def pose_figures(sets: list[PoseSet], robot, frame: str = "the training data's frame") -> dict:
+    """The five figures of pose sets by name: errors per pose, distribution, per axis, against the
+    joints of ``robot``, in the workspace (``frame``, for its title)."""
+    return {"per_pose": per_pose(sets), "histogram": histogram(sets), "per_axis": per_axis(sets),
+            "vs_joints": vs_joints(sets, robot.joint_names, robot.joint_types), "workspace": workspace(sets, frame)}

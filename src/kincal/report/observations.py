@@ -46,22 +46,16 @@ def observation_figures(fit: CalibrationResult, label: str = "training") -> dict
         if obs.kind not in ("point", "pose") or isinstance(obs, InSession) or found is None:
             continue
         q, xyz = found
-        flags = np.zeros(len(q), bool)
-        flags[np.asarray(bad, int)] = True
         before = xyz - fit.before.forward(q) if label == "training" else None
-        sets.append(F.PoseSet(label, obs.rows, q, xyz, before, xyz - fit.robot.forward(q), flags, name=Path(obs.source).name))
-    if not sets:
-        return {}
-    names, types = fit.robot.joint_names, fit.robot.joint_types
-    return {"per_pose": F.per_pose(sets), "histogram": F.histogram(sets), "per_axis": F.per_axis(sets),
-            "vs_joints": F.vs_joints(sets, names, types), "workspace": F.workspace(sets)}
+        sets.append(F.PoseSet(label, obs.rows, q, xyz, before, xyz - fit.robot.forward(q),
+                              np.isin(np.arange(len(q)), np.asarray(bad, int)), name=Path(obs.source).name))
+    return F.pose_figures(sets, fit.robot) if sets else {}
 
 
 def _row(s: dict, data: str, model: str, key: str) -> dict:
     """One table row from a set's statistics (a socket set's mean is its mean |p − point|)."""
     row = {"data": f"{data}: {s['source']}", "type": s["type"], "samples": s["samples"], "model": model,
-           "key": f"{key}.{s['source']}"}
-    row.update({k: s.get(k) for k in COLUMNS})
+           "key": f"{key}.{s['source']}", **{k: s.get(k) for k in COLUMNS}}
     if "mean_abs_mm" in s:
         row["mean_mm"] = s["mean_abs_mm"]
     return row

@@ -9,7 +9,7 @@ from matplotlib.patches import Patch
 
 from ..identify.positions import EXACT, e_statistics
 from ..units import MM
-from .figures import _figure, _styled
+from .figures import _axes, _figure, _styled
 
 DESIGN_COLOURS = {"random": "#9a9a9a", "full-parameter optimised": "#1f77b4",
                   "separated-parameter optimised": "#d62728", "before calibration": "#555555"}
@@ -33,8 +33,7 @@ def ide_convergence(histories: dict) -> Figure:
 @_styled
 def pose_count(curve: dict, m: int) -> Figure:
     """Fig. 7: the comprehensive index against the number of poses (separated model)."""
-    fig = _figure(6.0, 3.2)
-    ax = fig.add_subplot()
+    fig, ax = _axes(6.0, 3.2)
     ax.plot(curve["m"], curve["values"], color=DESIGN_COLOURS["separated-parameter optimised"])
     ax.axvline(m, color="k", lw=0.8, ls="--")
     ax.annotate(f"{m} poses", (m, np.nanmin(curve["values"])), xytext=(4, 4), textcoords="offset points")
@@ -47,21 +46,19 @@ def eta_bars(eta: dict, names: list[str], stand_ins=(), clip: float = -100.0) ->
     """Fig. 8: identification accuracy η per parameter and design (bars below ``clip`` are cut and
     marked; ``stand_ins``, kept parameters that carry dependent ones, are hatched: their η against
     their own error alone is not their accuracy)."""
-    fig = _figure(max(6.0, 0.38 * len(names)), 3.4)
-    ax = fig.add_subplot()
+    fig, ax = _axes(max(6.0, 0.38 * len(names)), 3.4)
     designs = list(eta)
     width = 0.8 / len(designs)
     x = np.arange(len(names))
     for k, d in enumerate(designs):
         v = np.array([eta[d].get(n, np.nan) for n in names])
-        bars = ax.bar(x + (k - (len(designs) - 1) / 2) * width, np.maximum(v, clip), width, label=d,
-                      color=DESIGN_COLOURS.get(d))
+        pos = x + (k - (len(designs) - 1) / 2) * width
+        bars = ax.bar(pos, np.maximum(v, clip), width, label=d, color=DESIGN_COLOURS.get(d))
         for bar, n in zip(bars, names):
             if n in stand_ins:
                 bar.set_hatch("///")
         for i in np.flatnonzero(v < clip):
-            ax.annotate(f"{v[i]:.0f}", (x[i] + (k - (len(designs) - 1) / 2) * width, clip), fontsize=6,
-                        rotation=90, va="bottom", ha="center")
+            ax.annotate(f"{v[i]:.0f}", (pos[i], clip), fontsize=6, rotation=90, va="bottom", ha="center")
     ax.set_xticks(x, names, rotation=60, ha="right", fontsize=7)
     ax.set(ylabel="η (%)", ylim=(clip - 5, 110),
            title="Identification accuracy η per parameter (Fig. 8; hatched: stands for a combination; "
@@ -98,8 +95,7 @@ def validation_points(errors: dict) -> Figure:
 def validation_summary(errors: dict) -> Figure:
     """Fig. 13: max |e|, mean |e| and std e over the validation points, before calibration and per
     model after; values below 1 nm (no noise, exact model) are round-off, drawn as a note, not bars."""
-    fig = _figure(6.4, 3.4)
-    ax = fig.add_subplot()
+    fig, ax = _axes(6.4, 3.4)
     stats = e_statistics(errors)
     x = np.arange(3)
     shown: list[float] = []
@@ -113,9 +109,7 @@ def validation_summary(errors: dict) -> Figure:
         for p, val, ex in zip(pos, v, exact):  # the table's numbers on the bars; round-off is named, not drawn
             ax.annotate("< 1 nm" if ex else f"{val:.3g}", (p, 0.02 if ex else val), fontsize=6, rotation=90,
                         va="bottom", ha="center", xycoords=ax.get_xaxis_transform() if ex else "data")
-    ax.set_yscale("log")
-    ax.set_xlim(-0.5, 2.5)
-    ax.set_ylim(min(shown) / 4, max(shown) * 2.5)
+    ax.set(yscale="log", xlim=(-0.5, 2.5), ylim=(min(shown) / 4, max(shown) * 2.5))
     ax.set_xticks(x, ["max |e|", "mean |e|", "std e"])
     ax.set(ylabel="mm (log scale)", title="Validation on the 60-point grid, before and after calibration (Fig. 13)")
     ax.legend(handles=[Patch(color=DESIGN_COLOURS.get(n, "#999999"), label=n) for n in stats], fontsize=7)
@@ -125,8 +119,7 @@ def validation_summary(errors: dict) -> Figure:
 @_styled
 def gcn_against_poses(curve: dict) -> Figure:
     """Fig. 5: the GCN of the separated model's Jacobian against the number of measurement poses."""
-    fig = _figure(6.0, 3.2)
-    ax = fig.add_subplot()
+    fig, ax = _axes(6.0, 3.2)
     ax.semilogy(curve["m"], curve["gcn"], marker="o", ms=2, lw=0.8, color="#1f77b4")
     ax.set(xlabel="number of poses", ylabel="GCN (cond / m)",
            title=f"GCN of the separated model ({len(curve['parameters'])} parameters) against the poses (Fig. 5)")
@@ -136,11 +129,9 @@ def gcn_against_poses(curve: dict) -> Figure:
 @_styled
 def design_positions(positions: dict) -> Figure:
     """Fig. 10: where the designs put the tool in the workspace (mm)."""
-    fig = _figure(6.4, 4.8)
-    ax = fig.add_subplot(projection="3d")
+    fig, ax = _axes(6.4, 4.8, projection="3d")
     for name, p in positions.items():
-        p = np.asarray(p) * MM
-        ax.scatter(p[:, 0], p[:, 1], p[:, 2], s=10, label=name, color=DESIGN_COLOURS.get(name),
+        ax.scatter(*(np.asarray(p) * MM).T, s=10, label=name, color=DESIGN_COLOURS.get(name),
                    alpha=1.0 if "separated" in name else 0.45)
     ax.set(xlabel="x (mm)", ylabel="y (mm)", zlabel="z (mm)", title="Tool positions of the designs (Fig. 10)")
     ax.legend(fontsize=7, loc="upper left")
@@ -149,11 +140,11 @@ def design_positions(positions: dict) -> Figure:
 
 def guo2024_figures(study) -> dict:
     """The study's figures by name."""
-    names = [n for n in study.true_errors]
     chosen = {d: study.eta[d] for d in ("random", "separated-parameter optimised")}
     stand_ins = {label.split()[0] for combos in study.combinations.values() for label in combos}
     return {"ide-convergence": ide_convergence(study.histories), "pose-count": pose_count(study.curve, study.m),
-            "eta": eta_bars(chosen, names, stand_ins), "validation-points": validation_points(study.point_errors),
+            "eta": eta_bars(chosen, list(study.true_errors), stand_ins),
+            "validation-points": validation_points(study.point_errors),
             "validation-summary": validation_summary(study.point_errors), "gcn": gcn_against_poses(study.gcn_curve),
             "design-positions": design_positions(study.positions)}
 
@@ -161,8 +152,7 @@ def guo2024_figures(study) -> dict:
 @_styled
 def pso_fitness(history) -> Figure:
     """The 3-PUU paper's Fig. 7: the swarm's best mean squared residual per iteration."""
-    fig = _figure(6.0, 3.2)
-    ax = fig.add_subplot()
+    fig, ax = _axes(6.0, 3.2)
     h = np.asarray(history, dtype=float)
     ax.semilogy(np.arange(1, len(h) + 1), np.sqrt(h) * MM, color="#1f77b4")
     ax.set(xlabel="iteration", ylabel="best RMS residual (mm)", title="Particle swarm fitness (3-PUU paper, Fig. 7)")

@@ -67,10 +67,8 @@ class Guo2024Study:
                              for k, v in self.repeated.items()}, "repeats": self.repeats, "m": self.m}
 
     def __str__(self) -> str:
-        out = ["== Ill-conditioned parameter separation (100 random poses) ==", self.separation.tables(),
-               DEPENDENCE_NOTE, ""]
-        out += self._designs() + self._tables() + self._validation()
-        return "\n".join(out)
+        return "\n".join(["== Ill-conditioned parameter separation (100 random poses) ==", self.separation.tables(),
+                          DEPENDENCE_NOTE, "", *self._designs(), *self._tables(), *self._validation()])
 
     def _designs(self) -> list[str]:
         unit = "raw Jacobian in mm and rad" if self.units == "paper" else "unit-invariant scaled columns"
@@ -81,13 +79,16 @@ class Guo2024Study:
                        f"{self.design_values[d]:.4f}{paper}")
         return out + [""]
 
-    def _table(self, values: dict[str, float], fmt) -> list[str]:
+    def _table(self, values: dict[str, dict[str, float]], fmt) -> list[str]:
+        """Per design its ``values`` by joint (rows) and parameter type (columns)."""
         joints = sorted({n.split('.')[0] for n in self.true_errors})
-        rows = ["    joint " + "".join(f"{'Δ' + t:>10}" for t in TYPES)]
-        for j in joints:
-            cells = [f"{'':>10}" if f"{j}.{t}" not in self.true_errors else
-                     fmt(f"{j}.{t}", values[f"{j}.{t}"]) if f"{j}.{t}" in values else f"{'—':>10}" for t in TYPES]
-            rows.append(f"    {j:<5} " + "".join(cells))
+        rows = []
+        for d in DESIGNS:
+            rows += [f"  {d}", "    joint " + "".join(f"{'Δ' + t:>10}" for t in TYPES)]
+            for j in joints:
+                cells = [f"{'':>10}" if f"{j}.{t}" not in self.true_errors else fmt(f"{j}.{t}", values[d][f"{j}.{t}"])
+                         if f"{j}.{t}" in values[d] else f"{'—':>10}" for t in TYPES]
+                rows.append(f"    {j:<5} " + "".join(cells))
         return rows
 
     def _tables(self) -> list[str]:
@@ -99,12 +100,10 @@ class Guo2024Study:
         out = [f"== Identified errors, first repetition (Tables 4-5; mm and rad; {how}; set: "
                f"{self.true_errors[next(n for n in self.true_errors if param_type(n) == 'a')] * MM:.1f} mm, "
                f"{self.true_errors[next(n for n in self.true_errors if param_type(n) == 'theta')]:.2f} rad) =="]
-        for d in DESIGNS:
-            out += [f"  {d}"] + self._table(self.identified[d], as_units)
+        out += self._table(self.identified, as_units)
         out += ["", "== Identification accuracy η (eq. 29), first repetition: % per parameter error (— = not identifiable, "
                     "kept nominal) =="]
-        for d in DESIGNS:
-            out += [f"  {d}"] + self._table(self.eta[d], lambda n, v: f"{v:10.2f}")
+        out += self._table(self.eta, lambda n, v: f"{v:10.2f}")
         out += ["", "== η of the identifiable combinations (a kept parameter stands for kept + c·dependent) =="]
         for d in DESIGNS:
             out.append(f"  {d}")
@@ -125,7 +124,7 @@ class Guo2024Study:
                "   (e: the average of the three axis errors, signed, as the paper's Table 8)",
                f"  {'':<31} {'max |e|':>9} {'mean |e|':>9} {'std e':>9}"]
         for k, row in e_statistics(self.point_errors).items():
-            out.append(f"  {k:<31} " + " ".join(_mm(v) for v in row))
+            out.append(f"  {k:<31} " + " ".join(f"{'< 1 nm':>9}" if v < EXACT else f"{v * MM:9.4f}" for v in row))
         out += ["", f"== Repeated {self.repeats} times (new errors and noise each): mean ± sd (mm) ==",
                 f"  {'':<31} {'mean |e|':>22} {'std e':>22}"]
         for k, (mm, ms, sm, ss) in self.repeated.items():
@@ -135,13 +134,8 @@ class Guo2024Study:
         if max(v[0] for v in self.repeated.values()) < EXACT:
             return out + ["  every design reproduces the validation positions to < 1 nm (no noise): they tie, and the "
                           "differences shown are round-off, not a ranking"]
-        out.append(f"  mean |e| of '{best}' vs random: {100 * (1 - self.repeated[best][0] / rnd):+.1f} % reduction "
-                   f"(one random design; 'kincal study guo2024' gives the distribution)")
-        return out
-
-
-def _mm(v: float) -> str:
-    return f"{'< 1 nm':>9}" if v < EXACT else f"{v * MM:9.4f}"
+        return out + [f"  mean |e| of '{best}' vs random: {100 * (1 - self.repeated[best][0] / rnd):+.1f} % reduction "
+                      f"(one random design; 'kincal study guo2024' gives the distribution)"]
 
 
 DEPENDENCE_NOTE = """why these dependences differ from the paper's Tables 1-3 (a4/a5 and d2/d3 there):
@@ -198,17 +192,15 @@ def guo2024_study(repeats: int = 20, m: int = 60, pool_size: int = 1000, generat
     for name in DESIGNS:
         say(f"designing: {name}")
         P = design_problem(model, pool, design_names[name], units=units)
-        method = "random" if name == DESIGNS[0] else "detmax-ide"
-        d = select_poses(model, pool, m=m, method=method, criterion="comprehensive", seed=0, problem=P,
-                         certify=False, generations=generations)
+        d = select_poses(model, pool, m=m, method="random" if name == DESIGNS[0] else "detmax-ide", seed=0, problem=P,
+                         criterion="comprehensive", certify=False, generations=generations)
         designs[name], values[name], histories[name] = d.q, d.value, d.history
         if name == DESIGNS[2]:
             curve = pose_count_curve(P, "comprehensive", m_max=100, seed=0).to_dict()
             gcns = gcn_curve(model, pool, design_names[name])
     size = {n: length_error if model.params.kinds[model.params.index(n)] == "length" else angle_error for n in kin}
-    eta, combos, identified, validation, repeated, points = _identify(model, kin, designs, size, repeats,
-                                                                      0.0 if protocol == "paper" else noise, protocol,
-                                                                      say)
+    eta, combos, identified, validation, repeated, points = _identify(
+        model, kin, designs, size, repeats, 0.0 if protocol == "paper" else noise, protocol, say)
     return Guo2024Study(sep, design_names, values, eta, combos, identified, size, validation, repeated, repeats, m,
                         protocol, units, histories, curve, points, gcns,
                         {k: model.forward(q) for k, q in designs.items()})
@@ -218,8 +210,7 @@ def gcn_curve(robot, pool: np.ndarray, names, m_max: int = 100) -> dict:
     """Fig. 5: the GCN (cond/m) of the separated model's Jacobian in the paper's units (mm, rad) on
     the first m poses of the pool, m from the fewest that can identify it to ``m_max``."""
     J = design_problem(robot, pool[:m_max], names, units="paper").J
-    start = -(-J.shape[2] // 3)
-    ms = list(range(start, min(m_max, len(J)) + 1))
+    ms = list(range(-(-J.shape[2] // 3), min(m_max, len(J)) + 1))
     return {"m": ms, "gcn": [gcn(J[:m].reshape(-1, J.shape[2]), m) for m in ms], "parameters": list(names)}
 
 
@@ -227,6 +218,7 @@ def _identify(robot, kin, designs, size, repeats, noise, protocol, say):
     """Per repetition (random seed k): errors, identification from each design, validation; the
     first repetition keeps the details."""
     q_val = paper_grid(robot)
+    idents = {name: identifiability(robot, q, names=kin) for name, q in designs.items()}  # fixed by the design
     eta, combos, identified, validation, runs, points = {}, {}, {}, {}, {n: [] for n in DESIGNS}, {}
     for seed in range(repeats):
         say(f"identifying, repetition {seed + 1}/{repeats}")
@@ -240,27 +232,19 @@ def _identify(robot, kin, designs, size, repeats, noise, protocol, say):
             points["before calibration"] = val.xyz - robot.forward(val.q)
         for name in DESIGNS:
             meas = simulate(true, designs[name], noise, seed=1000 + seed)
-            ident = identifiability(robot, designs[name], names=kin)
-            if protocol == "paper":
-                fitted = paper_lm(robot, meas, kin)
-                corr = {n: fitted.params[n] - robot.params[n] for n in kin}
-            else:
-                fitted = calibrate(robot, meas, names=ident.identifiable, base="fixed", diagnose=False,
-                                   max_iter=200).robot
-                corr = {n: fitted.params[n] - robot.params[n] for n in ident.identifiable}
-            stats = evaluate(fitted, val)
-            e = (val.xyz - fitted.forward(val.q)).mean(axis=1)
+            names = kin if protocol == "paper" else idents[name].identifiable
+            fitted = paper_lm(robot, meas, kin) if protocol == "paper" else calibrate(
+                robot, meas, names=names, base="fixed", diagnose=False, max_iter=200).robot
+            corr = {n: fitted.params[n] - robot.params[n] for n in names}
+            err = val.xyz - fitted.forward(val.q)
+            e = err.mean(axis=1)
             runs[name].append((float(np.mean(np.abs(e))), float(np.std(e, ddof=1))))
             if seed == 0:
-                validation[name], identified[name] = stats, corr
-                points[name] = val.xyz - fitted.forward(val.q)
+                validation[name], identified[name], points[name] = evaluate(fitted, val), corr, err
                 eta[name] = {n: _eta(errors[n], corr[n]) for n in corr}
-                combos[name] = _combinations(ident, errors, corr)
-    repeated = {}
-    for name, r in runs.items():
-        a = np.array(r)
-        repeated[name] = (float(a[:, 0].mean()), float(a[:, 0].std(ddof=1)) if len(a) > 1 else 0.0,
-                          float(a[:, 1].mean()), float(a[:, 1].std(ddof=1)) if len(a) > 1 else 0.0)
+                combos[name] = _combinations(idents[name], errors, corr)
+    sd = (lambda x: float(x.std(ddof=1))) if repeats > 1 else (lambda x: 0.0)  # over the repetitions
+    repeated = {name: tuple(v for x in np.array(r).T for v in (float(x.mean()), sd(x))) for name, r in runs.items()}
     return eta, combos, identified, validation, repeated, points
 
 

@@ -23,6 +23,7 @@ Each trial's random numbers come from (seed, trial), so results do not depend on
 """
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -150,18 +151,15 @@ def settings(m: int = 60, generations: int = 150, seed: int = 0) -> dict:
 def summarise(records: list[dict]) -> list[dict]:
     """Per setting the distribution over trials of the reduction (%) optimised vs random."""
     rows = []
-    for truth in TRUTHS:
-        for rset in RANDOM_SETS:
-            for val in VALIDATIONS:
-                opt = np.array([r[f"{truth}/optimised/{val}"] for r in records])
-                rnd = np.array([r[f"{truth}/{rset}/{val}"] for r in records])
-                red = 100.0 * (1.0 - opt / rnd)
-                for k, metric in enumerate(METRICS):
-                    x = red[:, k]
-                    rows.append({"truth": truth, "random_set": rset, "validation": val, "metric": metric,
-                                 "median": float(np.median(x)), "p5": float(np.percentile(x, 5)),
-                                 "p95": float(np.percentile(x, 95)),
-                                 "at_least_paper": float(np.mean(x >= PAPER_REDUCTION)), "trials": int(len(x))})
+    for truth, rset, val in itertools.product(TRUTHS, RANDOM_SETS, VALIDATIONS):
+        opt = np.array([r[f"{truth}/optimised/{val}"] for r in records])
+        red = 100.0 * (1.0 - opt / np.array([r[f"{truth}/{rset}/{val}"] for r in records]))
+        for k, metric in enumerate(METRICS):
+            x = red[:, k]
+            rows.append({"truth": truth, "random_set": rset, "validation": val, "metric": metric,
+                         "median": float(np.median(x)), "p5": float(np.percentile(x, 5)),
+                         "p95": float(np.percentile(x, 95)), "at_least_paper": float(np.mean(x >= PAPER_REDUCTION)),
+                         "trials": int(len(x))})
     return rows
 
 

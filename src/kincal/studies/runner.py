@@ -4,13 +4,11 @@ file that lets an interrupted study resume.
 A study is a picklable function ``run(task) -> list[dict]`` (one record per trial; each trial draws
 its random numbers from its own trial number, so where and in which order it runs cannot change
 its result) and a list of :class:`Task`. :func:`run_tasks` submits the tasks that the results file
-does not hold yet to an executor — the standard library's process pool (:func:`make_executor`
-with ``workers``), or a Dask cluster (``scheduler``: an address such as ``tcp://host:8786``, or
-``local:N`` for a LocalCluster of N single-threaded worker processes; Dask is the optional extra
-``kincal[dask]``) — and appends each finished task to the file as one JSON line (flushed and
-synced), so a study stopped at any point resumes where it was. The first line names the study
-(its settings); a file of another study is refused. Records come back sorted by trial, so the
-same settings give the same numbers on one core, two, or a cluster.
+does not hold yet to an executor (:func:`make_executor`: a process pool or a Dask cluster) and
+appends each finished task to the file as one JSON line (flushed and synced), so a study stopped at
+any point resumes where it was. The first line names the study (its settings); a file of another
+study is refused. Records come back sorted by trial, so the same settings give the same numbers on
+one core, two, or a cluster.
 """
 from __future__ import annotations
 
@@ -18,7 +16,7 @@ import json
 import multiprocessing
 import os
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
@@ -70,7 +68,8 @@ def _stop_workers(pool: ProcessPoolExecutor) -> None:
 @contextmanager
 def make_executor(workers: int = 1, scheduler: str | None = None) -> Iterator[Executor]:
     """An executor for :func:`run_tasks`: in-process for one worker, else a process pool of
-    ``workers``; with ``scheduler`` a Dask cluster ("local:N" or a scheduler address)."""
+    ``workers``; with ``scheduler`` a Dask cluster (the optional extra ``kincal[dask]``): "local:N"
+    for a LocalCluster of N single-threaded worker processes, or an address such as tcp://host:8786."""
     if scheduler is None:
         if workers < 1:
             raise ValueError(f"workers={workers}: give 1 or more")
@@ -90,14 +89,9 @@ def make_executor(workers: int = 1, scheduler: str | None = None) -> Iterator[Ex
         from distributed import Client, LocalCluster
     except ImportError:
         raise ValueError("a Dask scheduler needs the optional extra: pip install 'kincal[dask]'") from None
-    if scheduler.startswith("local:"):
-        n = int(scheduler.split(":", 1)[1])
-        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-                Client(cluster) as client:
-            client.run(_single_thread)
-            yield client.get_executor()
-        return
-    with Client(scheduler) as client:
+    cluster = (LocalCluster(n_workers=int(scheduler.split(":", 1)[1]), threads_per_worker=1, processes=True,
+                            dashboard_address=None) if scheduler.startswith("local:") else nullcontext(scheduler))
+    with cluster as target, Client(target) as client:
         client.run(_single_thread)
         yield client.get_executor()
 
@@ -190,13 +184,12 @@ def run_tasks(run: Callable[[Task], list[dict]], tasks: Sequence[Task], executor
     with path.open("a", encoding="utf-8") as handle:
         if not done and path.stat().st_size == 0:
             _append(handle, {"study": header})
-        if progress:
-            progress(len(tasks) - len(todo), len(tasks))
+        tell = progress or (lambda *_: None)
+        tell(len(tasks) - len(todo), len(tasks))
         for task, records in _finished(run, todo, executor):
             done[task.first] = records
             _append(handle, {"task": task.first, "records": records})
-            if progress:
-                progress(sum(1 for t in tasks if t.first in done), len(tasks))
+            tell(sum(1 for t in tasks if t.first in done), len(tasks))
     _check_done(path, done, tasks)  # the new records against the old ones' keys
     records = [r for t in tasks for r in done[t.first]]
     return sorted(records, key=lambda r: r["trial"])
