@@ -10,53 +10,27 @@ import os
 import signal
 import sys
 
-_received: list = []  # (exit code, word) of a signal that came while loading
-
-
-class _Stop(BaseException):
-    def __init__(self, code: int, word: str) -> None:
-        super().__init__(word)
-        self.code, self.word = code, word
-
-
-def _remember(code: int, word: str):
-    def handler(signum, frame):
-        _received.append((code, word))
-    return handler
-
-
-def _raise(code: int, word: str):
-    def handler(signum, frame):
-        raise _Stop(code, word)
-    return handler
-
-
-def _stopped(code: int, word: str) -> int:
-    """One line; no traceback from a later signal while Python shuts down."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    sys.stderr.write(f"kincal: {word}; nothing half-written\n")
-    return code
+_received: list = []  # (word, exit code) of a signal that came while loading
 
 
 def run() -> int:
     """Load the command line with the signals handled, run it, and return its exit code."""
-    signal.signal(signal.SIGINT, _remember(130, "interrupted"))
-    signal.signal(signal.SIGTERM, _remember(143, "terminated"))
+    signal.signal(signal.SIGINT, lambda signum, frame: _received.append(("interrupted", 130)))
+    signal.signal(signal.SIGTERM, lambda signum, frame: _received.append(("terminated", 143)))
     if os.environ.get("KINCAL_PROGRESS"):
         sys.stderr.write("kincal: loading\n")
         sys.stderr.flush()
-    from kincal.cli import main
+    from kincal.cli import Terminated, main, on_sigterm, stopped
     try:
         signal.signal(signal.SIGINT, signal.default_int_handler)  # from here a signal stops at once
-        signal.signal(signal.SIGTERM, _raise(143, "terminated"))
+        signal.signal(signal.SIGTERM, on_sigterm)
         if _received:
-            return _stopped(*_received[0])
+            return stopped(*_received[0])
         code = main()
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
         return code
-    except _Stop as stop:
-        return _stopped(stop.code, stop.word)
+    except Terminated:
+        return stopped("terminated", 143)
     except KeyboardInterrupt:  # between main's own handlers and here
-        return _stopped(130, "interrupted")
+        return stopped("interrupted", 130)

@@ -16,7 +16,7 @@ import sys
 import kincal
 
 from . import design, identify, model, parallel, report, study
-from .common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED, err, line, progress_lines
+from .common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED, err, line, point, progress_lines
 
 EXIT_INTERNAL = 70  # a bug in kincal, not in the user's input (KINCAL_DEBUG=1 shows the traceback)
 
@@ -50,7 +50,7 @@ def prepared(parser: argparse.ArgumentParser, args: argparse.Namespace) -> argpa
     return args
 
 
-def _on_sigterm(signum, frame):
+def on_sigterm(signum, frame):
     raise Terminated()
 
 
@@ -59,9 +59,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"kincal {kincal.__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    def cmd(name, func, help_):
+    def cmd(name, func, help_, robot: str | None = "bundled name, kincal robot YAML or URDF file"):
+        """A command's parser: --json and, unless ``robot`` is None, the ROBOT argument (``robot``: its help)
+        with the tool point and the URDF chain flags."""
         s = sub.add_parser(name, help=help_, description=help_)
         s.add_argument("--json", action="store_true", help="machine-readable result on stdout (SI units)")
+        if robot is not None:
+            s.add_argument("robot", help=robot)
+            s.add_argument("--tool", type=point, metavar="X,Y,Z[UNIT]",
+                           help="the measured point (reflector, probe) in the flange frame, e.g. 0,0,93.2mm (unit m, "
+                                "mm or um after the numbers; m when none); replaces the robot file's tool point")
+            g = s.add_argument_group("URDF robots")
+            g.add_argument("--base-link", help="first link of the chain (default: the URDF's root link)")
+            g.add_argument("--tip-link", help="last link of the chain (default: the only end link)")
         s.set_defaults(func=func)
         return s
 
@@ -74,13 +84,13 @@ def main(argv: list[str] | None = None) -> int:
     """Run one command; exit 0 (done), 1 (bad input), 3 (not converged), 4 (refused by a check),
     70 (internal error), 130 (Ctrl-C), 143 (SIGTERM). Outputs are written atomically, so an
     interrupted command leaves no half-written file."""
-    previous = signal.signal(signal.SIGTERM, _on_sigterm), signal.getsignal(signal.SIGINT)
+    previous = signal.signal(signal.SIGTERM, on_sigterm), signal.getsignal(signal.SIGINT)
     try:
         return _run(argv)
     except KeyboardInterrupt:
-        return _stopped("interrupted", EXIT_INTERRUPTED)
+        return stopped("interrupted", EXIT_INTERRUPTED)
     except Terminated:
-        return _stopped("terminated", EXIT_TERMINATED)
+        return stopped("terminated", EXIT_TERMINATED)
     finally:
         signal.signal(signal.SIGTERM, previous[0])
         if previous[1] is not None:  # None: a handler not set from Python
@@ -105,8 +115,9 @@ def _negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[s
     return out
 
 
-def _stopped(word: str, code: int) -> int:
-    """One line for Ctrl-C or SIGTERM; a second signal while it is printed is ignored."""
+def stopped(word: str, code: int) -> int:
+    """One line for Ctrl-C or SIGTERM; a second signal while it is printed, or while Python shuts down, is
+    ignored."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     line(f"kincal: {word}; nothing half-written")
@@ -132,7 +143,3 @@ def _run(argv: list[str] | None) -> int:
         err.print(f"kincal: internal error ({type(exc).__name__}: {exc}); please report it with the command "
                   f"line (KINCAL_DEBUG=1 shows the details)", markup=False)
         return EXIT_INTERNAL
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -18,7 +18,9 @@ out = Console(highlight=False, soft_wrap=True)
 err = Console(stderr=True, highlight=False, soft_wrap=True)
 EXIT_ERROR, EXIT_NOT_CONVERGED, EXIT_REFUSED = 1, 3, 4
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
-PROGRESS_LINES = "KINCAL_PROGRESS"  # set to 1: progress as plain lines on stderr (logs, CI), also when piped
+MAX_TOOL = 2.0  # m: no tool point lies farther from the flange; larger values are mm written without a unit
+CELL_SIZE = 100.0  # m: a length beyond this in a robot cell, given without a unit, is taken for mm
+TYPES = ("point", "pose", "markers", "same-point", "plane")  # measurement types (--type)
 
 
 def csv_list(s: str) -> list[str]:
@@ -41,28 +43,25 @@ def nonneg_int(s: str) -> int:
     return 0 if s.strip() == "0" else positive_int(s)
 
 
-def _number(s: str) -> float:
-    """``s`` as a float (inf and nan included); ArgumentTypeError when it is not a number."""
+def _number(s: str, ok, need: str) -> float:
+    """``s`` as a float for which ``ok`` holds; an ArgumentTypeError saying ``need`` otherwise."""
     try:
-        return float(s)
+        v = float(s)
     except ValueError:
         raise argparse.ArgumentTypeError(f"'{s}' is not a number") from None
+    if not ok(v):
+        raise argparse.ArgumentTypeError(need)
+    return v
 
 
 def nonneg_float(s: str) -> float:
     """argparse type: a finite number ≥ 0."""
-    v = _number(s)
-    if not (np.isfinite(v) and v >= 0):
-        raise argparse.ArgumentTypeError(f"{s}: give a finite number >= 0")
-    return v
+    return _number(s, lambda v: np.isfinite(v) and v >= 0, f"{s}: give a finite number >= 0")
 
 
 def finite_float(s: str) -> float:
     """argparse type: a finite number."""
-    v = _number(s)
-    if not np.isfinite(v):
-        raise argparse.ArgumentTypeError(f"'{s}': give a finite number")
-    return v
+    return _number(s, np.isfinite, f"'{s}': give a finite number")
 
 
 def positive_float(s: str) -> float:
@@ -71,6 +70,16 @@ def positive_float(s: str) -> float:
     if v == 0:
         raise argparse.ArgumentTypeError(f"{s}: give a number > 0")
     return v
+
+
+def checked(check):
+    """An argparse type from ``check``, whose ValueError's message is the flag's error."""
+    def parse(s: str):
+        try:
+            return check(s)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    return parse
 
 
 def row_list(s: str) -> list[int]:
@@ -86,23 +95,6 @@ def row_list(s: str) -> list[int]:
             raise argparse.ArgumentTypeError(f"'{part}': rows are file line numbers from 2 (after the header)")
         rows += range(a, b + 1)
     return rows
-
-
-def add_robot(p: argparse.ArgumentParser, help_: str = "bundled name, kincal robot YAML or URDF file") -> None:
-    """The ROBOT argument, with the tool point and the URDF chain flags."""
-    p.add_argument("robot", help=help_)
-    p.add_argument("--tool", type=point, metavar="X,Y,Z[UNIT]",
-                   help="the measured point (reflector, probe) in the flange frame, e.g. 0,0,93.2mm (unit m, mm or "
-                        "um after the numbers; m when none); replaces the robot file's tool point")
-    g = p.add_argument_group("URDF robots")
-    g.add_argument("--base-link", help="first link of the chain (default: the URDF's root link)")
-    g.add_argument("--tip-link", help="last link of the chain (default: the only end link)")
-
-
-MAX_TOOL = 2.0  # m: no tool point lies farther from the flange; larger values are mm written without a unit
-
-
-CELL_SIZE = 100.0  # m: a length beyond this in a robot cell, given without a unit, is taken for mm
 
 
 def lengths(count: int, example: str, what: str = "", limit: float = CELL_SIZE, where: str = "the robot"):
@@ -159,11 +151,12 @@ def check_paths(inputs, outputs) -> None:
     seen: list[Path] = []
     for raw in (o for o in outputs if o):
         out_path = Path(raw)
-        for other in ins + seen:
-            if _same_file(out_path, other):
+        for other in ins + seen:  # an input that does not exist yet: the same path
+            if (os.path.samefile(out_path, other) if out_path.exists() and other.exists() else
+                    out_path.resolve() == other.resolve()):
                 raise ValueError(f"{raw}: the output would overwrite {other}, which this command reads (or writes "
                                  f"already); choose another output file")
-        folder = out_path.parent if str(out_path.parent) else Path(".")
+        folder = out_path.parent  # Path("out.csv").parent is Path(".")
         if out_path.is_dir():
             raise ValueError(f"{raw}: is a folder; give a file name for the output")
         if not folder.is_dir():
@@ -171,12 +164,6 @@ def check_paths(inputs, outputs) -> None:
         if not os.access(folder, os.W_OK):
             raise ValueError(f"{raw}: the folder {folder} is not writable; choose another output path")
         seen.append(out_path)
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    if a.exists() and b.exists():
-        return os.path.samefile(a, b)
-    return a.resolve() == b.resolve()
 
 
 def add_data_flags(p: argparse.ArgumentParser) -> None:
@@ -191,6 +178,12 @@ def add_data_flags(p: argparse.ArgumentParser) -> None:
                         "measurement_std_x,measurement_std_y,measurement_std_z when present; 'none' ignores them)")
 
 
+def joint_values(args, robot, path: str | None) -> np.ndarray:
+    """The joints of the CSV ``path`` (read as the data flags say), else ``args.poses`` random feasible poses."""
+    return (kincal.read_joints(path, robot, args.joint_cols, args.length_unit, args.angle_unit) if path
+            else robot.sample_joints(args.poses, seed=args.seed))
+
+
 def read(args, robot, path):
     std = None if args.std_cols is None else ([] if args.std_cols == ["none"] else args.std_cols)
     return kincal.read_measurements(path, robot, joint_cols=args.joint_cols, xyz_cols=args.xyz_cols,
@@ -199,7 +192,7 @@ def read(args, robot, path):
 
 def progress_lines() -> bool:
     """Whether progress goes to stderr as plain lines (``KINCAL_PROGRESS=1``, e.g. for a log)."""
-    return os.environ.get(PROGRESS_LINES, "") not in ("", "0")
+    return os.environ.get("KINCAL_PROGRESS", "") not in ("", "0")
 
 
 def line(text: str) -> None:
@@ -215,9 +208,8 @@ def progress(message: str, quiet: bool):
     """A spinner on stderr for work that may take over a second (off with --json); with
     ``KINCAL_PROGRESS=1`` each stage as a line ``kincal: <stage>`` instead, terminal or not."""
     if progress_lines():
-        say = lambda msg: line(f"kincal: {msg}")  # noqa: E731
-        say(message)
-        yield say
+        line(f"kincal: {message}")
+        yield lambda msg: line(f"kincal: {msg}")
         return
     if quiet or not err.is_terminal:
         yield lambda msg: None
@@ -226,52 +218,39 @@ def progress(message: str, quiet: bool):
         yield lambda msg: status.update(msg)
 
 
-class Bar:
+@contextmanager
+def progress_bar(args, label: str, total: int | None = None):
     """A progress bar on stderr for ``label``: tasks done of ``total``, or with no total a share of
-    bytes (the callback is then called with (done, total)); silent with --json or when stderr is not
+    bytes; yields the callback, called with (done, total). Silent with --json or when stderr is not
     a terminal; with ``KINCAL_PROGRESS=1`` a line ``kincal: <label> N %`` per tenth instead."""
+    lines = progress_lines() and not args.json
+    if args.json or not err.is_terminal or lines:
+        shown = [-1]  # the last tenth said
 
-    def __init__(self, args, label: str, total: int | None = None) -> None:
-        self.label, self.total, self.progress, self.shown = label, total, None, -1
-        self.lines = progress_lines() and not args.json
-        if not (args.json or not err.is_terminal or self.lines):
-            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TaskProgressColumn, TextColumn,
-                                       TimeRemainingColumn)
+        def say(done: int, of: int) -> None:
+            if lines and of > 0 and int(10 * done / of) > shown[0]:
+                shown[0] = int(10 * done / of)
+                line(f"kincal: {label} {100 * done // of} %")
+        yield say
+        return
+    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TaskProgressColumn, TextColumn,
+                               TimeRemainingColumn)
 
-            count = MofNCompleteColumn() if total is not None else TaskProgressColumn()
-            self.progress = Progress(TextColumn(label), BarColumn(), count, TimeRemainingColumn(), console=err,
-                                     transient=total is None)
-
-    def __enter__(self):
-        if self.progress is not None:
-            self.progress.start()
-            self.task = self.progress.add_task(self.label, total=self.total)
-        return self.update
-
-    def update(self, done: int, total: int) -> None:
-        if self.progress is not None:
-            self.progress.update(self.task, completed=done, total=total)
-        elif self.lines and total > 0 and int(10 * done / total) > self.shown:
-            self.shown = int(10 * done / total)
-            line(f"kincal: {self.label} {100 * done // total} %")
-
-    def __exit__(self, *exc) -> None:
-        if self.progress is not None:
-            self.progress.stop()
+    count = MofNCompleteColumn() if total is not None else TaskProgressColumn()
+    with Progress(TextColumn(label), BarColumn(), count, TimeRemainingColumn(), console=err,
+                  transient=total is None) as bar:
+        task = bar.add_task(label, total=total)
+        yield lambda done, of: bar.update(task, completed=done, total=of)
 
 
 def emit(args, payload: dict, text) -> None:
     if args.json:
         sys.stdout.write(json.dumps(payload, indent=2, default=json_default) + "\n")
-    elif isinstance(text, str):
-        out.print(text, markup=False)
-    else:
-        out.print(text)
+    else:  # plain text printed as it is: '[' in a parameter name is no rich markup
+        out.print(text, markup=False if isinstance(text, str) else None)
 
 
 def json_default(o):
-    if isinstance(o, np.ndarray):
+    if isinstance(o, (np.ndarray, np.generic)):  # a numpy scalar's tolist() is its item()
         return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")

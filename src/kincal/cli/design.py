@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
@@ -9,20 +10,22 @@ import kincal
 import kincal.io
 import kincal.analysis
 import kincal.design
+from kincal._atomic import write_text_atomic
+from kincal.io.program_ur import measurement_program
+from kincal.observe import read_observations, write_observations
 
 from . import observe
-from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, lengths, load_robot, nonneg_float, nonneg_int,
-                     positive_float, positive_int, progress, robot_inputs)
+from .common import (TYPES, check_paths, csv_list, emit, lengths, load_robot, nonneg_float,
+                     nonneg_int, positive_float, positive_int, progress, robot_inputs)
 
 
 def cmd_design(args) -> int:
     check_paths([*robot_inputs(args.robot), args.candidates, args.use], [args.output, _program_path(args)])
-    criterion = args.criterion or ("IMSE" if args.method in ("fedorov", "random") else "D")
-    options = kincal.DesignOptions(m=args.m, method=args.method, criterion=criterion, seed=args.seed,
-                                   names=args.params, base=args.base, certify=not args.no_bound,
-                                   restarts=args.restarts, generations=args.generations, units=args.units,
-                                   f0=args.f0, cr=args.cr, population=args.population, coverage=args.coverage,
-                                   weight=args.weight)
+    imse = args.method in ("fedorov", "random")  # the default criterion: IMSE for these, D for the others
+    options = kincal.DesignOptions(m=args.m, method=args.method, criterion=args.criterion or ("IMSE" if imse else "D"),
+                                   seed=args.seed, names=args.params, base=args.base, certify=not args.no_bound,
+                                   restarts=args.restarts, generations=args.generations, units=args.units, f0=args.f0,
+                                   cr=args.cr, population=args.population, coverage=args.coverage, weight=args.weight)
     r = load_robot(args)
     if args.params:
         r.params.indices(args.params)
@@ -58,9 +61,7 @@ def cmd_design(args) -> int:
         kincal.io.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, args.angle_unit)
         where = f"poses written to {args.output}" + (f" ({args.method} leaves the candidates: new poses, no input "
                                                      f"rows)" if args.candidates else "")
-    payload = d.to_dict()
-    payload["output"] = args.output
-    emit(args, {**payload, **_program(args, r, d.q)}, f"{d}\n{where}" + (
+    emit(args, {**d.to_dict(), "output": args.output, **_program(args, r, d.q)}, f"{d}\n{where}" + (
         f"\nmeasurement program written to {_program_path(args)} (movej through the poses, {args.settle:g} s to "
         f"settle at each; the predicted tool positions in its comments and the JSON)" if args.program else ""))
     return 0
@@ -68,8 +69,6 @@ def cmd_design(args) -> int:
 
 def _program_path(args) -> str | None:
     """Where design --program writes the measurement program: beside the poses, .script."""
-    from pathlib import Path
-
     return str(Path(args.output).with_suffix(".script")) if args.program else None
 
 
@@ -80,9 +79,6 @@ def _program(args, r, q: np.ndarray) -> dict:
         return {}
     if r.n_joints != 6:
         raise ValueError(f"--program ur writes URScript for a six-joint UR arm; {r.name} has {r.n_joints} joints")
-    from kincal._atomic import write_text_atomic
-    from kincal.io.program_ur import measurement_program
-
     tool, path = r.forward(q), str(_program_path(args))
     write_text_atomic(path, measurement_program(q, tool, args.settle, f"kincal design: {r.name}"))
     return {"program": path, "tool_positions": tool.tolist()}
@@ -120,18 +116,17 @@ PLAN_PER_LABEL = 40  # candidate samples per socket or plane in kincal's own pla
 def _observation_problem(args, robot, pool):
     """With --type pose or markers: the design problem of that measurement (whitened blocks with the
     set-up parameters), else None (tracker points, the default)."""
-    kinds = args.type or ["point"]
-    if kinds == ["point"]:
+    if (args.type or ["point"]) == ["point"]:
         return None
     _check_observation_design(args)
-    planned = observe.planned(args, robot, robot, kinds[0], pool, 0.0, args.seed)
-    return kincal.design.observation_problem(robot, planned)
+    return kincal.design.observation_problem(robot, observe.planned(args, robot, robot, args.type[0], pool, 0.0,
+                                                                    args.seed))
 
 
 def _check_observation_design(args) -> None:
     kinds = args.type or ["point"]
-    if len(kinds) != 1 or kinds[0] not in observe.TYPES:
-        raise ValueError(f"design --type {','.join(kinds)}: give one of {', '.join(observe.TYPES)}")
+    if len(kinds) != 1 or kinds[0] not in TYPES:
+        raise ValueError(f"design --type {','.join(kinds)}: give one of {', '.join(TYPES)}")
     if args.method in ("ide", "detmax-ide") or args.params:
         raise ValueError("design --type: use --method detmax or fedorov (the IDE leaves the pool) and no --params")
 
@@ -140,17 +135,13 @@ def _design_constraints(args, robot, options, cell) -> int:
     """design --type same-point|plane: choose samples of a plan (a plate's sockets, a table and a step:
     the candidates file, e.g. from 'simulate --type', or kincal's own plan) by the stacked, whitened
     problem; known distances count as exact constraints on the socket points."""
-    from kincal.observe import read_observations, write_observations
-
     kind = args.type[0]
     _check_observation_design(args)
     if cell is not None:
         raise ValueError(f"design --type {kind}: the cell flags filter poses of a tracker, pose or markers design; "
                          f"a {kind} plan already says where the robot goes (plan it inside the cell)")
-    if args.candidates:
-        plan = read_observations(args.candidates, robot, observe.format_of(args, kind))
-    else:
-        plan = observe.planned(args, robot, robot, kind, None, 0.0, args.seed, per=PLAN_PER_LABEL)
+    plan = (read_observations(args.candidates, robot, observe.format_of(args, kind)) if args.candidates
+            else observe.planned(args, robot, robot, kind, None, 0.0, args.seed, per=PLAN_PER_LABEL))
     problem = kincal.design.observation_problem(robot, plan)
     with progress("designing samples", args.json) as say:
         say(f"{args.method} on {len(plan)} candidates")
@@ -193,9 +184,8 @@ def cmd_separate(args) -> int:
 
 
 def register(cmd) -> None:
-    """Add the commands to the parser through ``cmd(name, func, help)``."""
+    """Add the commands to the parser through ``cmd(name, func, help[, robot help or None])``."""
     s = cmd("design", cmd_design, "choose measurement poses (writes a poses CSV)")
-    add_robot(s)
     s.add_argument("-m", type=positive_int, default=60, help="number of poses (default 60)")
     s.add_argument("-o", "--output", required=True, help="poses CSV to write")
     s.add_argument("--program", choices=("ur",), help="also write the measurement program (ur: URScript, beside "
@@ -233,12 +223,10 @@ def register(cmd) -> None:
     s.add_argument("--units", choices=list(kincal.design.UNITS), default="scaled",
                    help="index units: scaled (unit-invariant, default) or paper (raw Jacobian in mm and rad)")
     s.add_argument("--seed", type=int, default=0)
-    add_data_flags(s)
     observe.add_flags(s)  # --type: design for that measurement (sockets, planes: samples of a plan)
 
     s = cmd("npose", cmd_npose, "how many poses: Guo et al. 2024's eq. 18 minimum and where the criterion curve "
                                 "flattens")
-    add_robot(s)
     s.add_argument("--criterion", default="comprehensive", choices=list(kincal.design.CRITERIA))
     s.add_argument("--max", type=positive_int, default=100, help="largest number of poses on the curve (default 100)")
     s.add_argument("--units", choices=list(kincal.design.UNITS), default="scaled",
@@ -247,7 +235,6 @@ def register(cmd) -> None:
     s.add_argument("--seed", type=int, default=0)
 
     s = cmd("separate", cmd_separate, "GCN branch-and-bound separation of ill-conditioned parameters")
-    add_robot(s)
     s.add_argument("--poses", type=positive_int, default=100, help="random poses (default 100)")
     s.add_argument("--threshold", type=positive_float, default=1e2, help="GCN threshold (default 1e2)")
     s.add_argument("--keep", type=csv_list, help="parameters to remove last when removals tie")

@@ -4,7 +4,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import operator
-
 from pathlib import Path
 
 import numpy as np
@@ -14,41 +13,28 @@ import kincal.analysis
 import kincal.identify
 import kincal.io
 import kincal.models
+from kincal.identify import held_out_stats, stat_line
 from kincal.units import DEG, MM
 
-from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, add_data_flags, add_robot, check_paths, csv_list, emit, err,
-                     hidden_alias, load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs,
-                     row_list)
+from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, check_paths, checked, csv_list, emit, err, hidden_alias,
+                     load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list)
 from . import observe
 from .report import add_session_flags, data_record, json_path, nominal_model, save_figures, write_outputs
 
 
-def _thresholds(args) -> kincal.Thresholds:
-    ls, lr = args.length_limits
-    a_s, a_r = args.angle_limits
-    return kincal.Thresholds(length_suspect=ls / MM, length_refuse=lr / MM, angle_suspect=a_s / DEG,
-                             angle_refuse=a_r / DEG, tracker_noise=args.tracker_noise / MM)
-
-
-def error_model_name(s: str) -> str:
-    """argparse type: an error model name (see kincal.ErrorModel) or auto."""
-    try:
-        return kincal.ErrorModel(s).name
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+error_model_name = checked(lambda s: kincal.ErrorModel(s).name)  # argparse type: an error model name or auto
 
 
 FORMS: dict[str, dict] = {"names": {"type": csv_list}, "count": {"type": positive_int},
                           "switch": {"action": "store_true"}}  # argparse forms of FitOptions fields
+FLAGGED = [f for f in dataclasses.fields(kincal.FitOptions) if "flag" in f.metadata]  # the fields with a flag
 
 
 def add_fit_flags(s) -> None:
     """The flags of :class:`kincal.FitOptions`' fields, declared once, in the record: flag, help, the
     form of the value, choices and default (the record's)."""
-    for f in dataclasses.fields(kincal.FitOptions):
+    for f in FLAGGED:
         m = f.metadata
-        if "flag" not in m:
-            continue
         kw: dict = {"dest": f.name, "help": m["help"], **FORMS.get(m["form"], {})}
         if m["choices"]:
             kw["choices"] = list(m["choices"])
@@ -64,9 +50,12 @@ def fit_options(args) -> kincal.FitOptions:
         raise ValueError(f"--payload {args.payload:g}: only the gravity terms use it; give --error-model compliance, "
                          f"gravity-regressor or auto")
     error_model = None if args.error_model is None else kincal.ErrorModel(args.error_model, args.payload)
-    flags = [f.name for f in dataclasses.fields(kincal.FitOptions) if "flag" in f.metadata]
-    given: dict = {k: v for k, v in zip(flags, operator.attrgetter(*flags)(args)) if v is not None}  # None: a list
-    return kincal.FitOptions(**given, thresholds=_thresholds(args), error_model=error_model)  # flag not given
+    (ls, lr), (a_s, a_r) = args.length_limits, args.angle_limits
+    thresholds = kincal.Thresholds(length_suspect=ls / MM, length_refuse=lr / MM, angle_suspect=a_s / DEG,
+                                   angle_refuse=a_r / DEG, tracker_noise=args.tracker_noise / MM)
+    names = [f.name for f in FLAGGED]
+    given: dict = {k: v for k, v in zip(names, operator.attrgetter(*names)(args)) if v is not None}  # None: a list
+    return kincal.FitOptions(**given, thresholds=thresholds, error_model=error_model)  # flag not given
 
 
 def cmd_calibrate(args) -> int:
@@ -83,8 +72,13 @@ def cmd_calibrate(args) -> int:
         kincal.save_robot(res.robot, args.output, calibration={**res.record(), "data": data_record(args, kinds)})
     lines, held = held_out(res, tests, args.same_frame)
     text = "\n".join([str(res), *([res.dropped_text()] if res.identifiability.dropped else []), *lines])
-    if args.residuals:
-        _write_residuals(args, res, robot)
+    if args.residuals:  # per pose (position data: rows, joints in the file's units, errors, robust z) or per sample
+        if res.data:
+            meas = res.measurements
+            kincal.io.write_residuals(args.residuals, meas, meas.xyz - res.residuals, res.pose_z, res.outlier_z,
+                                      robot.joint_types, "mm", "deg")
+        else:
+            res.write_residuals(args.residuals)
         text += f"\nper-sample residuals written to {args.residuals}"
     if args.output:
         text += (f"\ncalibrated robot written to {args.output}" + (" (forced despite the verdict)" if refused else "")
@@ -112,21 +106,12 @@ def _exit_code(res) -> int:
     return 0
 
 
-def _write_residuals(args, res, robot) -> None:
-    """Per pose (position data: rows, joints in the file's units, errors, robust z) or per sample."""
-    if not res.data:
-        return res.write_residuals(args.residuals)
-    meas = res.measurements
-    kincal.io.write_residuals(args.residuals, meas, meas.xyz - res.residuals, res.pose_z, res.outlier_z,
-                              robot.joint_types, "mm", "deg")
-
-
 def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], options, use_q="held"):
-    """The files read (``args``: how; held-out ``tests`` in the first file's kind) and fitted from
-    ``robot`` with ``options``: (the result, the held-out sets); ``use_q``: the poses of use of
-    position data (the prediction-σ guard of an "auto" error model), by default the held-out ones. Position files are fitted by
-    :func:`kincal.calibrate` (one frame with --same-frame, else a frame per session), other kinds
-    by :func:`kincal.identify.fit_observations` (each absolute file after the first in its own frame)."""
+    """The files read (``args``: how; held-out ``tests`` in the first file's kind) and fitted from ``robot`` with
+    ``options``: (the result, the held-out sets); ``use_q``: the poses of use of position data (the prediction-σ
+    guard of an "auto" error model), by default the held-out ones. Position files are fitted by :func:`kincal.calibrate`
+    (one frame with --same-frame, else a frame per session), other kinds by :func:`kincal.identify.fit_observations`
+    (each absolute file after the first in its own frame)."""
     if args.exclude and len(data) > 1:
         raise ValueError("--exclude names rows of one file; with several files leave the rows out of their files")
     options.check(robot)
@@ -155,15 +140,10 @@ def held_out(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
     (their report and figures show them)."""
     if res.data:
         return [], {}
-    from kincal.identify import held_out_stats, stat_line
-
     held = [(held_out_stats(res, t, res.before, same_frame), held_out_stats(res, t, res.robot, same_frame))
             for t in tests]
     out = [f"  held out {h['type']} ({h['source']}): {stat_line(b)}  →  {stat_line(h)}" for b, h in held]
-    for which, sets in (("training", res.per_set), ("held out", [h for _, h in held])):
-        out += [f"  {which} {g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
-                f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
-                for s in sets for g in s.get("groups", [])]
+    out += observe.group_lines(res.per_set, "training ") + observe.group_lines([h for _, h in held], "held out ")
     return out, {"held_out": [h for _, h in held], "held_out_nominal": [b for b, _ in held]}
 
 
@@ -174,7 +154,6 @@ def _kinds_checked(args) -> list[str]:
         raise ValueError(f"{twice[0]} is given twice as a session: each pose would count twice (the σ too small, "
                          f"and a session held out against its own copy); give each session file once")
     kinds = observe.types_of(args)
-    kincal.identify.refuse_inapplicable(kinds, args.given)
     if args.same_frame and len(args.data) == 1 and not args.test:
         raise ValueError("--same-frame declares one measurement frame for several files (sessions or --test); "
                          "with one file and no --test it changes nothing: leave it out")
@@ -184,7 +163,6 @@ def _kinds_checked(args) -> list[str]:
 def cmd_evaluate(args) -> int:
     check_paths([*robot_inputs(args.robot), *args.data], [args.plot])
     kinds = observe.types_of(args)
-    kincal.identify.refuse_inapplicable(kinds, args.given)
     if len(set(kinds)) > 1:
         raise ValueError("evaluate --type: one type for all files")
     r = load_robot(args)
@@ -210,7 +188,8 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
     how = kincal.identify.AS_CALIBRATED if args.same_frame else kincal.identify.REGISTERED
     model = r if args.same_frame else kincal.identify.refit_frame(r, meas)
     stats = kincal.evaluate(model, meas, uncertainty=kincal.analysis.load_uncertainty(args.robot) if record else None)
-    train_error = _training_error(record)
+    value = (record or {}).get("training_error")  # the mean error on the training data (m); 0 when unknown
+    train_error = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else 0.0
     cause = kincal.identify.heldout_cause(model, meas, train_error, not args.same_frame) if train_error else ""
     texts = [f"{r.name} on {path} ({how}): {stats}" + (f"\n  likely cause: {cause}" if cause else "")]
     nominal = nominal_model(r, record, args.robot)
@@ -226,12 +205,6 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
     return {"file": path, "registration": how, **stats.to_dict(), "nominal_mean": before, "cause": cause or None}, texts
 
 
-def _training_error(record: dict | None) -> float:
-    """The calibrated model's mean error on its training data (m), from its calibration record; 0 when unknown."""
-    value = (record or {}).get("training_error")
-    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else 0.0
-
-
 def _pair(s: str) -> tuple[float, float]:
     try:
         a, b = (float(x) for x in csv_list(s))
@@ -242,27 +215,9 @@ def _pair(s: str) -> tuple[float, float]:
     return a, b
 
 
-def _verdict_and_output_flags(s) -> None:
-    """calibrate's report, figures, the verdict's limits and how the files are read."""
-    s.add_argument("--report", help="HTML report to write (self-contained; its JSON goes beside it)")
-    s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
-    th = kincal.Thresholds()  # the defaults are the record's
-    s.add_argument("--tracker-noise", type=positive_float, default=th.tracker_noise * MM,
-                   help=f"expected tracker noise, mm (default {th.tracker_noise * MM:g})")
-    s.add_argument("--length-limits", type=_pair, default=(th.length_suspect * MM, th.length_refuse * MM),
-                   metavar="SUSPECT,REFUSE", help=f"largest plausible length corrections, mm (default "
-                                                  f"{th.length_suspect * MM:g},{th.length_refuse * MM:g})")
-    s.add_argument("--angle-limits", type=_pair, default=(th.angle_suspect * DEG, th.angle_refuse * DEG),
-                   metavar="SUSPECT,REFUSE", help=f"largest plausible angle corrections, deg (default "
-                                                  f"{th.angle_suspect * DEG:g},{th.angle_refuse * DEG:g})")
-    add_data_flags(s)
-    observe.add_flags(s)
-
-
 def register(cmd) -> None:
-    """Add the commands to the parser through ``cmd(name, func, help)``."""
+    """Add the commands to the parser through ``cmd(name, func, help[, robot help or None])``."""
     s = cmd("calibrate", cmd_calibrate, "identify the robot's parameters from measurements")
-    add_robot(s)
     s.add_argument("data", nargs="+", help="measurement CSV, one per session (the tracker may move between sessions: "
                                            "each gets its own measurement frame, the kinematics are shared)")
     s.add_argument("-o", "--output", help="calibrated robot YAML to write")
@@ -281,15 +236,24 @@ def register(cmd) -> None:
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")
     add_session_flags(s)  # held-out sessions for the report and figures; with --error-model auto also the
     # poses where the model will be used (the prediction-σ guard)
-    _verdict_and_output_flags(s)
+    s.add_argument("--report", help="HTML report to write (self-contained; its JSON goes beside it)")
+    s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
+    th = kincal.Thresholds()  # the defaults are the record's
+    s.add_argument("--tracker-noise", type=positive_float, default=th.tracker_noise * MM,
+                   help=f"expected tracker noise, mm (default {th.tracker_noise * MM:g})")
+    s.add_argument("--length-limits", type=_pair, default=(th.length_suspect * MM, th.length_refuse * MM),
+                   metavar="SUSPECT,REFUSE", help=f"largest plausible length corrections, mm (default "
+                                                  f"{th.length_suspect * MM:g},{th.length_refuse * MM:g})")
+    s.add_argument("--angle-limits", type=_pair, default=(th.angle_suspect * DEG, th.angle_refuse * DEG),
+                   metavar="SUSPECT,REFUSE", help=f"largest plausible angle corrections, deg (default "
+                                                  f"{th.angle_suspect * DEG:g},{th.angle_refuse * DEG:g})")
+    observe.add_flags(s)
 
     s = cmd("evaluate", cmd_evaluate, "position error statistics of a robot model on measurements")
-    add_robot(s)
     s.add_argument("data", nargs="+", help="measurement CSV, one per session")
     s.add_argument("--same-frame", action="store_true",
                    help="the data were measured in the model's measurement frame (the tracker did not move): use "
                         "the model as it is; by default each session's frame is re-fitted first (kinematics fixed)")
     s.add_argument("--rebase", action="store_true", help=argparse.SUPPRESS)  # the default now; accepted
     s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
-    add_data_flags(s)
     observe.add_flags(s)

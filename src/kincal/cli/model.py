@@ -8,26 +8,22 @@ import numpy as np
 import kincal
 import kincal.analysis
 import kincal.models
+from kincal.identify import observation_identifiability
+from kincal.observe import describe, read_observations, write_observations
 from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM
 
 from . import observe
-from .common import (add_data_flags, add_robot, check_paths, csv_list, emit, finite_float, hidden_alias, load_robot,
-                     nonneg_float, out, positive_float, positive_int, robot_inputs)
-
-
-def _summary(description: str) -> str:
-    """The first clause of a robot's description: up to a colon or the end of the first sentence."""
-    return re.split(r"\. (?=[A-Z])|: ", description)[0]
+from .common import (TYPES, check_paths, csv_list, emit, finite_float, hidden_alias, joint_values,
+                     load_robot, nonneg_float, out, positive_float, positive_int, robot_inputs)
 
 
 def cmd_robots(args) -> int:
     from rich.table import Table
 
-    names = kincal.bundled_robots()
-    rows = [(n, kincal.load_robot(n)) for n in names]
+    rows = [(n, kincal.load_robot(n)) for n in kincal.bundled_robots()]
     t = Table("robot", "joints", "parameters", "structure", "description")
-    for n, r in rows:
-        t.add_row(n, str(r.n_joints), str(r.n_params), r.structure, _summary(r.description))
+    for n, r in rows:  # the description up to a colon or the end of its first sentence
+        t.add_row(n, str(r.n_joints), str(r.n_params), r.structure, re.split(r"\. (?=[A-Z])|: ", r.description)[0])
     emit(args, {"robots": [{"name": n, "joints": r.n_joints, "parameters": r.n_params,
                             "structure": r.structure, "description": r.description} for n, r in rows]}, t)
     return 0
@@ -47,14 +43,10 @@ def cmd_show(args) -> int:
     notes = r.structure_notes()
     payload = {"name": r.name, "structure": r.structure, "description": r.description,
                "parameters": r.params.as_dict(), "kinds": dict(zip(r.params.names, r.params.kinds)),
-               "joints": [{"name": n, "type": t, "limits": [float(lo) if np.isfinite(lo) else None,
-                                                           float(hi) if np.isfinite(hi) else None]}
+               "joints": [{"name": n, "type": t, "limits": [float(v) if np.isfinite(v) else None for v in (lo, hi)]}
                           for n, t, lo, hi in zip(r.joint_names, r.joint_types, r.lower, r.upper)], "notes": notes}
-    kind = _one_type(args)
     if args.type:
-        from kincal.observe import describe
-
-        payload["measurement"] = describe(r, observe.format_of(args, kind))
+        payload["measurement"] = describe(r, observe.format_of(args, _one_type(args)))
     if args.json:
         emit(args, payload, None)
     else:
@@ -68,33 +60,39 @@ def cmd_show(args) -> int:
 def cmd_identifiability(args) -> int:
     check_paths([*robot_inputs(args.robot), args.data], [])
     kind = _one_type(args)
-    if kind != "point":
-        return observe.cmd_identifiability(args, kind)
     r = load_robot(args)
-    if args.data:
-        q = kincal.read_joints(args.data, r, args.joint_cols, args.length_unit, args.angle_unit)
-    else:
-        q = r.sample_joints(args.poses, seed=args.seed)
-    ident = kincal.analysis.free_parameters(r, q, base=args.base, keep=args.keep or (), rank_tol=args.rank_tol)
-    emit(args, ident.to_dict(), str(ident))
+    if kind == "point":
+        ident = kincal.analysis.free_parameters(r, joint_values(args, r, args.data), base=args.base,
+                                                keep=args.keep or (), rank_tol=args.rank_tol)
+        emit(args, ident.to_dict(), str(ident))
+        return 0
+    if kind in ("same-point", "plane"):  # the samples of a file or of kincal's own plan
+        obs = (read_observations(args.data, r, observe.format_of(args, kind)) if args.data
+               else observe.planned(args, r, r, kind, None, 0.0, args.seed))
+    else:  # the type's observations at the poses of a file or at random ones
+        obs = observe.planned(args, r, r, kind, joint_values(args, r, args.data), 0.0, args.seed)
+    ident, gauge = observation_identifiability(r, [obs], keep=args.keep or (), rank_tol=args.rank_tol)
+    emit(args, {**ident.to_dict(), "gauge": list(gauge), "type": kind}, str(ident))
     return 0
 
 
 def cmd_simulate(args) -> int:
     check_paths([*robot_inputs(args.robot), args.poses_file], [args.output, args.save_true])
     r = load_robot(args)
-    true = r
-    if args.perturb:
-        true = kincal.perturb(r, length=args.length_error / MM, angle=args.angle_error / DEG, seed=args.seed)
-    if args.poses_file:
-        q = kincal.read_joints(args.poses_file, r, args.joint_cols, args.length_unit, args.angle_unit)
-    else:
-        q = r.sample_joints(args.poses, seed=args.seed)
+    true = (kincal.perturb(r, length=args.length_error / MM, angle=args.angle_error / DEG, seed=args.seed)
+            if args.perturb else r)
+    q = joint_values(args, r, args.poses_file)
     kind = _one_type(args)
     if args.save_true:
         kincal.save_robot(true, args.save_true)
-    if kind != "point":
-        return observe.cmd_simulate(args, kind, true, q)
+    if kind != "point":  # observations of the type, written in its columns
+        obs = observe.planned(args, r, true, kind, q, args.noise / MM, args.seed + 1)
+        write_observations(args.output, obs, r, observe.format_of(args, kind))
+        use = observe.flags_to_use(obs, args.length_unit) + observe.units_to_use(args) + (
+            f" --orientation {args.orientation}" if kind == "pose" and args.orientation != "quat-wxyz" else "")
+        emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
+             f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them with: {use}")
+        return 0
     meas = kincal.simulate(true, q, noise=args.noise / MM, seed=args.seed + 1)
     kincal.write_measurements(args.output, meas, r.joint_types, args.length_unit, args.angle_unit,
                               joint_cols=args.joint_cols)
@@ -109,8 +107,8 @@ def cmd_simulate(args) -> int:
 
 def _one_type(args) -> str:
     kinds = args.type or ["point"]
-    if len(kinds) != 1 or kinds[0] not in observe.TYPES:
-        raise ValueError(f"--type: give one of {', '.join(observe.TYPES)}")
+    if len(kinds) != 1 or kinds[0] not in TYPES:
+        raise ValueError(f"--type: give one of {', '.join(TYPES)}")
     return kinds[0]
 
 
@@ -129,18 +127,17 @@ def cmd_export(args) -> int:
     r = load_robot(args)
     info = kincal.export_robot(r, args.output, args.format, args.source, args.tool_link, args.base_yaw / DEG,
                                args.length_unit, args.angle_unit, args.joint_names)
-    base = info["base_frame"]
     lines = [f"{r.name}: {info['format']} written to {args.output} (checked: it reproduces the model, tool point "
              f"included, to 1e-9 m)"]
     if info.get("tool_link") and not args.tool_link:
         where = ", ".join(f"{v * MM:.3f}" for v in r.tool_point())
         lines.append(f"the tool point ({where}) mm on the flange is the fixed link '{info['tool_link']}' "
                      f"(--tool-link names it)")
-    if base:
+    if info["base_frame"]:
         kinds = dict(zip(r.params.names, r.params.kinds))
         lines.append("base frame found by the calibration (where the tracker saw the robot; not part of the robot "
                      "description): " + ", ".join(f"{k} {v * MM:+.4f} mm" if kinds[k] == "length" else
-                                                  f"{k} {v * DEG:+.4f} deg" for k, v in base.items()))
+                                                  f"{k} {v * DEG:+.4f} deg" for k, v in info["base_frame"].items()))
     if info.get("missing_limits"):
         lines.append(f"note: the robot file gives no velocity/effort limit for {', '.join(info['missing_limits'])}: "
                      f"the URDF leaves them out (add 'velocity:' and 'effort:' to those joints)")
@@ -154,15 +151,12 @@ def cmd_export(args) -> int:
 
 
 def register(cmd) -> None:
-    """Add the commands to the parser through ``cmd(name, func, help)``."""
-    cmd("robots", cmd_robots, "list the bundled robots")
+    """Add the commands to the parser through ``cmd(name, func, help[, robot help or None])``."""
+    cmd("robots", cmd_robots, "list the bundled robots", None)
     s = cmd("show", cmd_show, "show a robot's parameters (mm, deg), joints and structure notes")
-    add_robot(s)
-    add_data_flags(s)
     observe.add_flags(s)  # --type: also what a file of that measurement type holds for this robot
 
     s = cmd("identifiability", cmd_identifiability, "which parameters position data can identify")
-    add_robot(s)
     s.add_argument("--data", help="CSV of poses (joint columns) to analyse (default: random poses)")
     s.add_argument("--poses", type=positive_int, default=100, help="number of random poses (default 100)")
     s.add_argument("--seed", type=int, default=0)
@@ -172,11 +166,9 @@ def register(cmd) -> None:
                    help=f"relative singular-value tolerance, as calibrate and design use (default "
                         f"{kincal.analysis.RANK_TOL:g})")
     hidden_alias(s, "--tol", "rank_tol", type=positive_float)
-    add_data_flags(s)
     observe.add_flags(s)
 
     s = cmd("simulate", cmd_simulate, "simulate tracker measurements of a (perturbed) robot")
-    add_robot(s)
     s.add_argument("-o", "--output", required=True, help="CSV to write")
     s.add_argument("--poses", type=positive_int, default=60, help="random poses within the joint limits (default 60)")
     s.add_argument("--poses-file", help="CSV of joint values to use instead of random poses (e.g. a design)")
@@ -187,11 +179,9 @@ def register(cmd) -> None:
     s.add_argument("--noise", type=nonneg_float, default=0.015, help="tracker noise, mm per axis (default 0.015)")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--save-true", help="write the simulated 'true' robot to this YAML")
-    add_data_flags(s)
     observe.add_flags(s)
 
     s = cmd("export", cmd_export, "write a calibrated robot as URDF, UR calibration file or kincal YAML")
-    add_robot(s)
     s.add_argument("output", help="file to write (.urdf: URDF; otherwise kincal YAML unless --format ur)")
     s.add_argument("--format", choices=list(kincal.models.FORMATS), help="urdf, ur (Universal Robots' kinematics "
                    "file for the ROS driver) or yaml (default: from the file name)")
@@ -205,7 +195,6 @@ def register(cmd) -> None:
     s.add_argument("--angle-unit", default="rad", choices=list(ANGLE_UNITS), help="kincal YAML: angle unit")
 
     s = cmd("sensitivity", cmd_sensitivity, "position error caused by a unit error of each parameter")
-    add_robot(s)
     s.add_argument("--samples", type=positive_int, default=10)
     s.add_argument("--params", type=csv_list)
     s.add_argument("--plot", help="PNG or SVG file for the plot")

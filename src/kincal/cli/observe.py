@@ -9,49 +9,50 @@ from pathlib import Path
 import numpy as np
 
 import kincal
-from kincal.identify import ABSOLUTE
+from kincal.identify import ABSOLUTE, fit_observations, heldout_cause, refuse_inapplicable, stat_line, trained_setup
+from kincal.io import check_degrees, check_radians, check_spread
+from kincal.observe import InSession, ObservationFormat, PointObs, read_observations
+from kincal.simulate import (plane_plan, simulate_markers, simulate_planes, simulate_poses, simulate_same_point,
+                             socket_plan)
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS, MRAD
 
-from .common import csv_list, emit, load_robot
-from .report import save_figures
-
-TYPES = ("point", "pose", "markers", "same-point", "plane")
-
+from .common import TYPES, add_data_flags, csv_list
+from .report import nominal_model, save_figures
 
 def types_of(args) -> list[str]:
-    """One measurement type per data file (one given for all, or one per file)."""
+    """One measurement type per data file (one given for all, or one per file), after the check that
+    the flags given apply to them (:func:`kincal.identify.refuse_inapplicable`)."""
     kinds = args.type or ["point"]
     if len(kinds) not in (1, len(args.data)):
         raise ValueError(f"--type: give one type for all {len(args.data)} files or one per file, got {len(kinds)}")
     bad = [k for k in kinds if k not in TYPES]
     if bad:
         raise ValueError(f"--type {bad[0]}: use one of {', '.join(TYPES)}")
-    return kinds * len(args.data) if len(kinds) == 1 else list(kinds)
+    kinds = kinds * len(args.data) if len(kinds) == 1 else list(kinds)
+    refuse_inapplicable(kinds, args.given)
+    return kinds
 
 
-def _quantity(s: str, table: dict, kind: str, example: str) -> float:
-    text = s.strip()
-    unit = next((u for u in sorted(table, key=len, reverse=True) if text.endswith(u)), None)
-    if unit is None:
-        raise argparse.ArgumentTypeError(f"'{s}': give a number and {'an' if kind[0] in 'aeiou' else 'a'} {kind} unit "
-                                         f"({', '.join(table)}), e.g. {example}")
-    try:
-        v = float(text[:-len(unit)]) * table[unit]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{s}': give a number and a unit, e.g. {example}") from None
-    if not (np.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"'{s}': give a number > 0")
-    return v
+def _quantity(table: dict, kind: str, example: str):
+    """argparse type: a number > 0 with a ``kind`` unit of ``table`` after it (e.g. ``example``), in SI."""
+    def parse(s: str) -> float:
+        text = s.strip()
+        unit = next((u for u in sorted(table, key=len, reverse=True) if text.endswith(u)), None)
+        if unit is None:
+            raise argparse.ArgumentTypeError(f"'{s}': give a number and {'an' if kind[0] in 'aeiou' else 'a'} {kind} "
+                                             f"unit ({', '.join(table)}), e.g. {example}")
+        try:
+            v = float(text[:-len(unit)]) * table[unit]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{s}': give a number and a unit, e.g. {example}") from None
+        if not (np.isfinite(v) and v > 0):
+            raise argparse.ArgumentTypeError(f"'{s}': give a number > 0")
+        return v
+    return parse
 
 
-def length(s: str) -> float:
-    """argparse type: a positive length with its unit ('0.1mm'), in m."""
-    return _quantity(s, LENGTH_UNITS, "length", "0.1mm")
-
-
-def angle(s: str) -> float:
-    """argparse type: a positive angle with its unit ('1mrad', '0.05deg'), in rad."""
-    return _quantity(s, {**ANGLE_UNITS, "mrad": 1.0 / MRAD}, "angle", "1mrad")
+length = _quantity(LENGTH_UNITS, "length", "0.1mm")  # '0.1mm', in m
+angle = _quantity({**ANGLE_UNITS, "mrad": 1.0 / MRAD}, "angle", "1mrad")  # '1mrad', '0.05deg', in rad
 
 
 def _flag_number(text: str) -> float | None:
@@ -118,6 +119,8 @@ def _flag_text(value) -> str:
 
 
 def add_flags(p: argparse.ArgumentParser) -> None:
+    """The data flags (:func:`add_data_flags`) and those of the measurement types."""
+    add_data_flags(p)
     g = p.add_argument_group("measurement types (see the README's 'Other measurements')")
     g.add_argument("--type", type=csv_list, metavar="TYPE[,TYPE...]",
                    help="point (default: one 3-D point per pose), pose (position + orientation), markers (NAME.x/.y/.z "
@@ -141,8 +144,6 @@ def add_flags(p: argparse.ArgumentParser) -> None:
 
 
 def format_of(args, kind: str):
-    from kincal.observe import ObservationFormat
-
     return ObservationFormat(kind, tuple(args.joint_cols) if args.joint_cols else None, args.length_unit,
                              args.angle_unit, tuple(args.xyz_cols), args.orientation,
                              tuple(args.rot_cols) if args.rot_cols else None,
@@ -153,54 +154,21 @@ def format_of(args, kind: str):
 def read_set(args, robot, path: str, kind: str):
     """One observation file of ``kind`` read as ``args`` say, its joints and positions checked
     against the declared units before any fit (a wrong unit is fitted by a shrunk or blown-up robot)."""
-    from kincal.observe import read_observations
-
     obs = read_observations(path, robot, format_of(args, kind))
-    _check_units([obs], robot, args)
+    check_degrees(obs.source, obs.q, robot, args.angle_unit)
+    check_radians(obs.source, obs.q, robot, args.angle_unit)
+    found = obs.positions()
+    if found is not None:
+        check_spread(obs.source, *found, robot, args.length_unit, args.angle_unit, rows=obs.rows)
     return obs
-
-
-def plots(stem: str | None, fit, label: str) -> str:
-    """The figures of ``fit``'s sets with positions written as ``stem``-<figure>.png/.svg, said in a
-    line ("" without ``stem``); when no set has one position per sample in the fit's frame, a line
-    that says so."""
-    if not stem:
-        return ""
-    from kincal.report import observation_figures
-
-    figures = observation_figures(fit, label)
-    if not figures:
-        return ("\nno figures written: they show each sample's 3-D position error, and no file here has one in the "
-                "robot's frame (sessions in their own frames); the report (--report) shows every file")
-    return "\n" + "\n".join(save_figures(figures, stem))
-
-
-def _check_units(sets: list, robot, args) -> None:
-    """Joint values and positions in the declared units, before any fit (a wrong unit is fitted by a
-    shrunk or blown-up robot otherwise)."""
-    from kincal.io import check_degrees, check_radians, check_spread
-
-    for obs in sets:
-        check_degrees(obs.source, obs.q, robot, args.angle_unit)
-        check_radians(obs.source, obs.q, robot, args.angle_unit)
-        found = obs.positions()
-        if found is not None:
-            q, xyz = found
-            check_spread(obs.source, q, xyz, robot, args.length_unit, args.angle_unit, rows=obs.rows)
 
 
 def sessions(sets: list, same_frame: bool) -> list:
     """Each absolute file after the first in its own frame (the tracker or camera may have moved),
     named by its file; with ``same_frame`` all in the robot's base frame."""
-    from kincal.observe import InSession
-
-    absolute = [k for k, o in enumerate(sets) if o.kind in ABSOLUTE]
-    if same_frame or len(absolute) < 2:
-        return sets
-    out = list(sets)
-    for n, k in enumerate(absolute[1:], start=2):
-        out[k] = InSession.of(sets[k], f"{n}:{Path(sets[k].source).name}")
-    return out
+    absolute = [] if same_frame else [k for k, o in enumerate(sets) if o.kind in ABSOLUTE]
+    names = {k: f"{n}:{Path(sets[k].source).name}" for n, k in enumerate(absolute[1:], start=2)}
+    return [InSession.of(o, names[k]) if k in names else o for k, o in enumerate(sets)]
 
 
 PLAN_MARKERS = ((0.04, 0.0, 0.0), (0.0, 0.04, 0.0), (-0.03, -0.03, 0.02))  # m around the tool point: a small nest
@@ -212,12 +180,7 @@ def planned(args, robot, true, kind: str, q, std: float, seed: int, per: int | N
     """Observations of ``true`` of the type ``kind``: at the joints q (point, pose, markers), or at a
     planned plate (sockets) or table with a step (planes), ``per`` samples per socket or plane
     (default 15 and 30). With ``std`` = 0 they are exact."""
-    from kincal.observe import PointObs
-    from kincal.simulate import plane_plan, simulate_markers, simulate_planes, simulate_poses, simulate_same_point, \
-        socket_plan
-
-    fmt = format_of(args, kind)
-    pos, rot = fmt.std()
+    pos, rot = format_of(args, kind).std()
     if kind == "point":
         m = kincal.simulate(true, q, std, seed=seed)
         return PointObs(m.q, m.rows, m.source, xyz=m.xyz, std=pos)
@@ -255,48 +218,11 @@ def units_to_use(args) -> str:
                    if unit != default)
 
 
-def cmd_simulate(args, kind: str, true, q) -> int:
-    """simulate --type: write simulated observations of the (perturbed) robot in the type's columns."""
-    from kincal.observe import write_observations
-
-    robot = load_robot(args)
-    obs = planned(args, robot, true, kind, q, args.noise / 1e3, args.seed + 1)
-    write_observations(args.output, obs, robot, format_of(args, kind))
-    use = flags_to_use(obs, args.length_unit) + units_to_use(args) + (
-        f" --orientation {args.orientation}" if kind == "pose" and args.orientation != "quat-wxyz" else "")
-    emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
-         f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them with: {use}")
-    return 0
-
-
-def cmd_identifiability(args, kind: str) -> int:
-    """identifiability --type: which parameters the planned measurements identify, before measuring."""
-    from kincal.identify import observation_identifiability
-    from kincal.observe import read_observations
-
-    robot = load_robot(args)
-    if kind in ("same-point", "plane"):
-        if args.data:
-            obs = read_observations(args.data, robot, format_of(args, kind))
-        else:
-            obs = planned(args, robot, robot, kind, None, 0.0, args.seed)
-    else:
-        q = (kincal.read_joints(args.data, robot, args.joint_cols, args.length_unit, args.angle_unit) if args.data
-             else robot.sample_joints(args.poses, seed=args.seed))
-        obs = planned(args, robot, robot, kind, q, 0.0, args.seed)
-    ident, gauge = observation_identifiability(robot, [obs], keep=args.keep or (), rank_tol=args.rank_tol)
-    emit(args, {**ident.to_dict(), "gauge": list(gauge), "type": kind}, str(ident))
-    return 0
-
-
 def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: str | None) -> tuple[dict, list[str]]:
     """``robot`` on one observation file, its kinematics fixed; only the set-up parameters (and,
     unless --same-frame, the file's measurement frame) are fitted, the probe's rotation and the
     markers held as calibrated (``record``), and the nominal model the same way beside it: the JSON
     payload and the lines to print, with the likely cause of an error far above the training error."""
-    from kincal.identify import stat_line, trained_setup
-    from .report import nominal_model
-
     held, anchors = trained_setup(record, args.robot)
     obs = read_set(args, robot, path, kind).with_anchors(anchors)
     frame = () if args.same_frame or kind not in ABSOLUTE else robot.base_params()
@@ -306,43 +232,38 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
                 *(n for n in robot.params.names if n.startswith("tool.") and obs.reference))
     s, before = fit.per_set[0], None if nominal is None else _fixed_kinematics(nominal, obs, mounting, held).per_set[0]
     kept = sorted({"probe rotation" if n.startswith("target.") else "marker points" for n in held if n in fit.nuisance})
-    texts = [line for line in plots(stem, fit, "held-out").split("\n") if line]
+    parts = [w for w, p in (("frame", "base."), ("target point", "tool.")) if any(n.startswith(p) for n in mounting)]
+    fitted = f"its {' and '.join(parts)} fitted" if parts else "its frame and target point as declared"  # nominal's
+    texts: list[str] = []
+    if stem:  # the figures of the set with positions: stem-<figure>.png/.svg
+        from kincal.report import observation_figures
+
+        texts = save_figures(observation_figures(fit, "held-out"), stem)
     texts.append(f"{robot.name} on {path} ({kind}; kinematics fixed, {'frame and ' if frame else ''}set-up "
                  f"parameters fitted{', the ' + ' and '.join(kept) + ' as calibrated' if kept else ''}): "
-                 f"{stat_line(s)}" + ("" if before is None else f"  (nominal, {_fitted_words(mounting)}: "
-                                                                f"{stat_line(before)})"))
-    texts += [f"  {g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
-              f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
-              for g in s.get("groups", [])]
-    cause = _cause(robot, obs, record, frame)
+                 f"{stat_line(s)}" + ("" if before is None else f"  (nominal, {fitted}: {stat_line(before)})"))
+    texts += group_lines([s], "")
+    train = [t.get("mean_mm") for t in (record or {}).get("observations", []) if isinstance(t, dict)
+             and t.get("type") == obs.kind]  # the training error of this kind (mm)
+    found, cause = obs.positions(), ""
+    if not (frame or found is None or not train or not isinstance(train[0], (int, float)) or train[0] <= 0):
+        # positions judged in the calibration's frame: the position path's likely cause of an error far above
+        # the training error (the tracker moved, another tool point, a scale)
+        meas = kincal.Measurements(found[0], found[1], robot.joint_names, obs.source, obs.rows)
+        cause = heldout_cause(robot, meas, float(train[0]) / 1e3, rebased=False)
     texts += [f"  likely cause: {cause}"] if cause else []
     return {"file": path, "frame_fitted": bool(frame), "setup_as_trained": kept, **s, "nominal": before,
             "cause": cause or None}, texts
 
 
-def _fitted_words(names: tuple) -> str:
-    """'its frame and target point fitted' for the base and tool names fitted (or 'as declared')."""
-    parts = [w for w, p in (("frame", "base."), ("target point", "tool.")) if any(n.startswith(p) for n in names)]
-    return f"its {' and '.join(parts)} fitted" if parts else "its frame and target point as declared"
+def group_lines(sets: list, which: str) -> list[str]:
+    """A line per placement (group) of sockets in the sets' statistics: samples, mean distance to its point, error
+    of the known distances; ``which`` before its name."""
+    return [f"  {which}{g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
+            f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
+            for s in sets for g in s.get("groups", [])]
 
 
 def _fixed_kinematics(robot, obs, frame: tuple, held: dict):
-    """``robot`` fitted to one set with its kinematics fixed: only ``frame`` and the set-up parameters
-    not ``held``."""
-    from kincal.identify import fit_observations
-
+    """``robot`` fitted to one set with its kinematics fixed: only ``frame`` and the set-up parameters not ``held``."""
     return fit_observations(robot, [obs], names=frame, base="estimate" if frame else "fixed", held=held)
-
-
-def _cause(robot, obs, record: dict | None, frame: tuple) -> str:
-    """For a set with positions judged in the calibration's frame: the position path's likely cause
-    of an error far above the training error (the tracker moved, another tool point, a scale)."""
-    from kincal.identify import heldout_cause
-
-    train = [s.get("mean_mm") for s in (record or {}).get("observations", []) if isinstance(s, dict)
-             and s.get("type") == obs.kind]
-    found = obs.positions()
-    if frame or found is None or not train or not isinstance(train[0], (int, float)) or train[0] <= 0:
-        return ""
-    meas = kincal.Measurements(found[0], found[1], robot.joint_names, obs.source, obs.rows)
-    return heldout_cause(robot, meas, float(train[0]) / 1e3, rebased=False)

@@ -2,8 +2,6 @@
 and the 3-PUU error-model verification paper's verification (commands to run, then the comparison)."""
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 
 import kincal
@@ -11,12 +9,12 @@ import kincal.analysis
 import kincal.io
 import kincal.models
 from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, VerificationPlan, command_models,
-                               compensate_file, tool_carry,
-                               compensate_program, verification_plan)
+                               compensate_file, compensate_program, tool_carry, verification_plan)
+from kincal.observe import check_convention
 from kincal.units import DEG, MM
 
-from .common import (EXIT_REFUSED, Bar, add_data_flags, add_robot, check_paths, csv_list, emit, load_robot,
-                     nonneg_float, point, positive_float, positive_int, robot_inputs)
+from .common import (EXIT_REFUSED, add_data_flags, check_paths, checked, csv_list, emit, load_robot,
+                     nonneg_float, point, positive_float, positive_int, progress_bar, robot_inputs)
 
 
 def cmd_compensate(args) -> int:
@@ -42,7 +40,7 @@ def cmd_compensate(args) -> int:
                         args.orientation, tuple(args.rot_cols) if args.rot_cols else None, args.length_unit,
                         args.angle_unit)
     job = StreamJob(r, nominal, fmt, uncertainty, args.output_kind, args.path)
-    with Bar(args, "compensating") as bar:
+    with progress_bar(args, "compensating") as bar:
         res = compensate_file(job, args.targets, args.output, skip_unreachable=args.skip_unreachable,
                               workers=args.workers, progress=bar)
     payload = {**res.to_dict(), "output": args.output if res.written else None, "target_frame": args.target_frame,
@@ -164,19 +162,10 @@ def _measured(args, r, plan) -> np.ndarray:
     return xyz
 
 
-def _convention(s: str) -> str:
-    from kincal.observe import check_convention
-
-    try:
-        return check_convention(s)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
 def register(cmd) -> None:
-    """Add the commands to the parser through ``cmd(name, func, help)``."""
-    s = cmd("compensate", cmd_compensate, "joint commands that the calibrated model says reach target positions")
-    add_robot(s, "the calibrated robot (YAML)")
+    """Add the commands to the parser through ``cmd(name, func, help[, robot help or None])``."""
+    s = cmd("compensate", cmd_compensate, "joint commands that the calibrated model says reach target positions",
+            "the calibrated robot (YAML)")
     s.add_argument("targets", help="CSV of target positions (serial robots: with the nominal joint values too)")
     s.add_argument("-o", "--output", required=True, help="commands CSV to write")
     s.add_argument("--skip-unreachable", action="store_true",
@@ -190,7 +179,7 @@ def register(cmd) -> None:
                         f"the link's error, a larger one is the target's mounting and is not")
     s.add_argument("--pose", action="store_true",
                    help="the targets are full poses: position and the orientation columns of --orientation")
-    s.add_argument("--orientation", default="quat-wxyz", type=_convention,
+    s.add_argument("--orientation", default="quat-wxyz", type=checked(check_convention),
                    help="--pose: quat-wxyz (default), quat-xyzw, matrix, rotvec, rotvec-deg or "
                         "euler-<axes>-<intrinsic|extrinsic>-<deg|rad>")
     s.add_argument("--rot-cols", type=csv_list, help="--pose: the orientation columns, in the convention's order")
@@ -211,8 +200,7 @@ def register(cmd) -> None:
     add_data_flags(s)
 
     s = cmd("verify", cmd_verify, "error-model verification (the 3-PUU paper): commands to run, then the comparison "
-                                  "(its Table 5)")
-    add_robot(s, "the identified (actual) robot model")
+                                  "(its Table 5)", "the identified (actual) robot model")
     s.add_argument("--samples", type=positive_int, default=10)
     s.add_argument("--params", type=csv_list)
     s.add_argument("--seed", type=int, default=0)

@@ -11,7 +11,7 @@ import kincal.identify
 import kincal.models
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS
 
-from .common import EXIT_REFUSED, add_robot, check_paths, csv_list, emit, err, load_robot, progress, robot_inputs
+from .common import EXIT_REFUSED, TYPES, check_paths, csv_list, emit, err, load_robot, progress, robot_inputs
 
 
 def json_path(html: str) -> Path:
@@ -48,26 +48,24 @@ def write_outputs(args, res, tests: list, info: dict) -> list[str]:
     if args.plot:
         from kincal.report import figure_set
 
-        figures = figure_set(res, tests, args.same_frame)
-        lines += save_figures(figures, args.plot) if figures else [
-            "no figures written: they show each sample's 3-D position error, and no file here has one in the robot's "
-            "frame (sessions in their own frames); the report (--report) shows every file"]
+        lines += save_figures(figure_set(res, tests, args.same_frame), args.plot)
     return lines
 
 
 def save_figures(figures: dict, stem: str) -> list[str]:
-    """Each figure as ``<stem>-<name>.<ext>`` (ext from ``stem``, default png)."""
-    path = Path(stem)
-    ext = path.suffix if path.suffix.lower() in (".png", ".svg") else ".png"
-    base = path.with_suffix("") if path.suffix.lower() in (".png", ".svg") else path
+    """Each figure as ``<stem>-<name>.<ext>`` (ext from ``stem``, default png); the line to print. No figures:
+    no file has one position per sample in the fit's frame, and the line says so."""
     from kincal.report import save_figure
 
-    written = []
-    for name, fig in figures.items():
-        target = base.parent / f"{base.name}-{name}{ext}"
+    if not figures:
+        return ["no figures written: they show each sample's 3-D position error, and no file here has one in the "
+                "robot's frame (sessions in their own frames); the report (--report) shows every file"]
+    path = Path(stem)
+    base, ext = (path.with_suffix(""), path.suffix) if path.suffix.lower() in (".png", ".svg") else (path, ".png")
+    targets = [base.parent / f"{base.name}-{name}{ext}" for name in figures]
+    for fig, target in zip(figures.values(), targets):
         save_figure(fig, target)
-        written.append(str(target))
-    return [f"figures written: {', '.join(written)}"]
+    return [f"figures written: {', '.join(map(str, targets))}"]
 
 
 def cmd_report(args) -> int:
@@ -76,7 +74,7 @@ def cmd_report(args) -> int:
     record = kincal.models.load_calibration_record(args.robot) or {}
     data, options = _record_parts(args.robot, record, args.train)
     given = {"joint_cols": args.joint_cols, "xyz_cols": args.xyz_cols, "length_unit": args.length_unit,
-             "angle_unit": args.angle_unit}
+             "angle_unit": args.angle_unit}  # read as attributes: tests track which flags a command reads
     default = {"xyz_cols": ["x", "y", "z"], "length_unit": "m", "angle_unit": "rad", "orientation": "quat-wxyz"}
     reading = argparse.Namespace(**{k: given[k] if given.get(k) is not None else data["reading"].get(k, default.get(k))
                                     for k in READING}, json=args.json, data=data["file"],
@@ -84,12 +82,11 @@ def cmd_report(args) -> int:
     reading.distance = [tuple(d) for d in reading.distance or []]
     reading.exclude = None if args.train else reading.exclude  # recorded rows are rows of the recorded files
     reading.plane = [(lab, (tuple(n), c)) for lab, (n, c) in reading.plane or []]
-    train = data["file"]
-    check_paths([*robot_inputs(args.robot), *train, *args.test], [args.output, json_path(args.output)])
+    check_paths([*robot_inputs(args.robot), *data["file"], *args.test], [args.output, json_path(args.output)])
     cal = load_robot(args)
-    nominal = cal.with_params(_nominal(record["nominal"], args.robot))
+    nominal = nominal_model(cal, record, args.robot)  # the record has one (checked by _record_parts)
     with progress("refitting the calibration", args.json):
-        res, tests = fit_files(reading, nominal, data["kinds"], train, args.test, options,
+        res, tests = fit_files(reading, nominal, data["kinds"], data["file"], args.test, options,
                                _use_q(record.get("use_q"), nominal, args.robot))
     gap = float(np.max(np.abs(res.robot.params.values - cal.params.values)))
     info = {"robot": f"{args.robot} (nominal values from its calibration record)",
@@ -120,8 +117,6 @@ def _record_parts(path: str, record: dict, train: list[str] | None) -> tuple[dic
     files = train or recorded
     if not isinstance(files, list) or not files or not all(isinstance(f, str) for f in files):
         raise ValueError(f"{path}: the calibration record names no data files; give the training data with --train")
-    from .observe import TYPES
-
     if "kinds" in data and not isinstance(data.get("reading"), dict):
         raise ValueError(f"{path}: the calibration record lacks data: reading (how the files were read; edited by "
                          f"hand, or written by another version); calibrate again to write it")
@@ -154,20 +149,15 @@ def _use_q(value, robot, path: str) -> np.ndarray | None:
 
 
 def nominal_model(cal, record: dict | None, path: str):
-    """The nominal model a calibrated file was fitted from (its record's nominal values, checked), or
-    None for a file without a calibration record."""
+    """The nominal model a calibrated file was fitted from (its record's nominal values, checked to be
+    numbers), or None for a file without a calibration record."""
     if not record or "nominal" not in record:
         return None
-    return cal.with_params(_nominal(record["nominal"], path))
-
-
-def _nominal(values, robot: str) -> dict[str, float]:
-    """The record's nominal parameter values, checked to be numbers."""
-    values = _mapping(values, robot, "nominal")
+    values = _mapping(record["nominal"], path, "nominal")
     bad = [k for k, v in values.items() if isinstance(v, bool) or not isinstance(v, (int, float))]
     if bad:
-        raise ValueError(f"{robot}: the calibration record's nominal value of {bad[0]} is not a number; calibrate again")
-    return {str(k): float(v) for k, v in values.items()}
+        raise ValueError(f"{path}: the calibration record's nominal value of {bad[0]} is not a number; calibrate again")
+    return cal.with_params({str(k): float(v) for k, v in values.items()})
 
 
 def add_session_flags(p) -> None:
@@ -183,8 +173,8 @@ def add_session_flags(p) -> None:
 
 
 def register(cmd) -> None:
-    s = cmd("report", cmd_report, "the calibration report (HTML with plots, and JSON) of a calibrated robot")
-    add_robot(s, "the calibrated robot file written by 'kincal calibrate -o'")
+    s = cmd("report", cmd_report, "the calibration report (HTML with plots, and JSON) of a calibrated robot",
+            "the calibrated robot file written by 'kincal calibrate -o'")
     s.add_argument("--train", nargs="+", help="the calibration data, one file per session (default: the files named "
                                               "in the robot's record)")
     add_session_flags(s)

@@ -9,7 +9,7 @@ import kincal.studies
 from kincal.papers import GUO2024
 from kincal.studies import guo2024, guo2024_mc, runner
 
-from .common import EXIT_INTERRUPTED, Bar, check_paths, emit, hidden_alias, line, positive_int, progress
+from .common import EXIT_INTERRUPTED, check_paths, emit, hidden_alias, line, positive_int, progress, progress_bar
 
 STUDIES = {"guo2024": "guo2024", "seed1": "guo2024"}  # study names (and the 0.1 name, still accepted)
 
@@ -39,7 +39,7 @@ def cmd_study(args) -> int:
         trials = guo2024_mc.prepare(m=args.poses, generations=args.generations, seed=args.seed, say=say)
     tasks = runner.tasks_for(args.trials, args.per_task)
     try:
-        with runner.make_executor(args.workers, args.scheduler) as ex, Bar(args, "study", len(tasks)) as bar:
+        with runner.make_executor(args.workers, args.scheduler) as ex, progress_bar(args, "study", len(tasks)) as bar:
             records = runner.run_tasks(trials.run, tasks, ex, out, header, bar)
     except KeyboardInterrupt:
         line(f"kincal: interrupted; the finished tasks are kept in {out}: run the same command to resume")
@@ -71,9 +71,9 @@ def _scheduler(s: str) -> str:
 
 
 def register(cmd) -> None:
-    """Add the commands to the parser through ``cmd(name, func, help)``."""
+    """Add the commands to the parser through ``cmd(name, func, help[, robot help or None])``."""
     s = cmd("demo", cmd_demo, f"{GUO2024} (measurement-pose optimisation) reproduced on the 3T2R robot, in "
-                              f"simulation")
+                              f"simulation", None)
     s.add_argument("--poses", type=positive_int, default=60, help="poses per design (default 60)")
     s.add_argument("--repeats", type=positive_int, default=20,
                    help="repetitions with new errors and noise, each from its own random seed (default 20)")
@@ -86,7 +86,8 @@ def register(cmd) -> None:
                         "fixed mu = 1, all 21 parameters)")
     s.add_argument("--units", choices=["scaled", "paper"], default="scaled",
                    help="comprehensive index on scaled columns (default) or the raw Jacobian in mm and rad (paper)")
-    s = cmd("study", cmd_study, f"Monte-Carlo study: {GUO2024}'s optimised against random poses, as a distribution")
+    s = cmd("study", cmd_study, f"Monte-Carlo study: {GUO2024}'s optimised against random poses, as a distribution",
+            None)
     s.add_argument("name", type=_study, metavar="STUDY", help=f"the study: guo2024 ({GUO2024}'s 62 %% claim)")
     s.add_argument("--trials", type=positive_int, default=200,
                    help="trials, each a new random design, parameter errors and noise (default 200)")
