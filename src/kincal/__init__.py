@@ -42,12 +42,9 @@ __all__ = [
     "KincalError", "ModelError", "MeasurementError", "IdentifiabilityError", "ConvergenceError",
 ]
 
-_LAZY = {"build_report": "report"}  # name -> room loaded on first use (matplotlib, Jinja2)
-
 
 def __getattr__(name: str):
-    if name in _LAZY:
-        import importlib
-
-        return vars(importlib.import_module(f".{_LAZY[name]}", __name__))[name]
+    if name == "build_report":  # the report room is loaded on first use (matplotlib, Jinja2)
+        from .report import build_report
+        return build_report
     raise AttributeError(f"module 'kincal' has no attribute '{name}'")

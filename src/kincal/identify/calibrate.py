@@ -52,7 +52,7 @@ def calibrate(robot: Robot, meas: Measurements, options: FitOptions | None = Non
     reasons. BLAS runs single-threaded inside: the problems are small, and threads fight for cores.
     """
     parts = [meas] if meas.session is None or len(meas.sessions()) < 2 else \
-        [_relabelled(meas.subset(np.flatnonzero(meas.session == s)), s) for s in meas.sessions()]
+        [dataclasses.replace(meas.subset(np.flatnonzero(meas.session == s)), source=s) for s in meas.sessions()]
     return _calibrate(robot, parts, False, options, use_q, progress, changes)
 
 
@@ -84,10 +84,6 @@ def _calibrate(robot: Robot, sessions: list[Measurements], own_frames: bool, opt
         res = dataclasses.replace(fit, options=options, error_model_choice=choice, use_q=use_q,
                                   data=tuple(sessions), time_s=time.perf_counter() - t0)
         return diagnosed(res, robot, say) if options.diagnose else res
-
-
-def _relabelled(meas: Measurements, label: str) -> Measurements:
-    return dataclasses.replace(meas, source=label)
 
 
 def _sets(sessions: list[Measurements], own_frames: bool, o: FitOptions, robot: Robot) -> list:

@@ -31,7 +31,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, Callable
 
 import numpy as np
@@ -69,8 +69,7 @@ class Cause:
     rows: tuple[int, ...] = ()
 
     def to_dict(self) -> dict:
-        return {"code": self.code, "cause": self.cause, "fix": self.fix, "sigma": self.sigma, "status": self.status,
-                "rows": list(self.rows)}
+        return {**asdict(self), "rows": list(self.rows)}
 
 
 @dataclass(frozen=True)
@@ -106,32 +105,21 @@ class Diagnosis:
 Change = Callable[[Robot, Measurements, FitOptions], tuple[Robot, "Measurements | list[Measurements]", FitOptions]]
 
 
-def _data(change: Callable[[Measurements], Measurements]) -> Change:
-    return lambda robot, meas, options: (robot, change(meas), options)
+def _data(change: Callable[..., Measurements], **bound) -> Change:
+    """The data changed to ``change(meas, **bound)``."""
+    return lambda robot, meas, options: (robot, change(meas, **bound), options)
 
 
-def _times_xyz(k: float) -> Change:
-    """The positions times ``k``."""
-    return _data(lambda m: _with(m, xyz=m.xyz * k))
-
-
-def _negated(j: int) -> Change:
-    """Joint column ``j`` negated."""
-    return _data(lambda m: _with(m, q=_set(m.q, [j], -m.q[:, [j]])))
-
-
-def _offset(j: int, deg: float) -> Change:
-    """``deg`` degrees added to joint column ``j``."""
-    return _data(lambda m: _with(m, q=_set(m.q, [j], m.q[:, [j]] + np.deg2rad(deg))))
-
-
-def _swap(n: int, a: int, b: int) -> Change:
-    """Joint columns ``a`` and ``b`` (of ``n``) swapped."""
-    return _data(lambda m: _with(m, q=m.q[:, _swapped(n, a, b)]))
+def _columns(cols: list[int], f: Callable[..., np.ndarray], **bound) -> Change:
+    """The joint columns ``cols`` replaced by ``f(columns, **bound)``."""
+    def changed(m: Measurements) -> Measurements:
+        q = m.q.copy()
+        q[:, cols] = f(m.q[:, cols], **bound)
+        return _with(m, q=q)
+    return _data(changed)
 
 
 def _other_robot(other: Robot) -> Change:
-    """The robot replaced by ``other``."""
     return lambda r, m, o: (other, m, o)
 
 
@@ -151,7 +139,7 @@ def _length_units(meas: Measurements) -> list[tuple[Cause, Change]]:
                f"convert them to mm (x{f / 1e-3:g}) and read them with --length-unit mm")
         k = f / table[declared]
         out.append((Cause("length-unit", f"the positions are in {name}, read as {declared}", fix),
-                    _times_xyz(k)))
+                    _data(lambda m, k: _with(m, xyz=m.xyz * k), k=k)))
     return out
 
 
@@ -162,22 +150,13 @@ def _angle_units(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]
     rev = [j for j, t in enumerate(robot.joint_types) if t == "revolute"]
     if not rev:
         return []
-
-    def scaled(cols):
-        return _data(lambda m: _with(m, q=_set(m.q, cols, m.q[:, cols] * k)))
     out = [(Cause("angle-unit", f"the joint values are in {other}, read as {declared}",
-                  f"read them with --angle-unit {other}"), scaled(rev))]
+                  f"read them with --angle-unit {other}"), _columns(rev, lambda c: c * k))]
     for j in rev:
         name = robot.joint_names[j]
         out.append((Cause("joint-unit", f"{name}'s column is in {other}, the other joints' in {declared}",
-                          f"convert {name}'s column to {declared}"), scaled([j])))
+                          f"convert {name}'s column to {declared}"), _columns([j], lambda c: c * k)))
     return out
-
-
-def _set(q: np.ndarray, cols, values) -> np.ndarray:
-    q = q.copy()
-    q[:, cols] = values
-    return q
 
 
 def _joint_columns(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]:
@@ -186,7 +165,7 @@ def _joint_columns(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change
     for j, name in enumerate(names):
         out.append((Cause("joint-sign", f"{name} counts the other way (its column is negated)",
                           f"negate {name}'s column, or check its axis direction in the robot file"),
-                    _negated(j)))
+                    _columns([j], np.negative)))
     for j, name in enumerate(names):
         if robot.joint_types[j] != "revolute":
             continue
@@ -194,18 +173,13 @@ def _joint_columns(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change
             out.append((Cause("joint-zero", f"{name}'s column is {deg:g} deg short of the robot file's joint angle "
                                             f"(the controller's zero differs)",
                               f"add {deg:g} deg to {name}'s column, or move the joint's zero in the robot file"),
-                        _offset(j, deg)))
+                        _columns([j], lambda c, rad: c + rad, rad=np.deg2rad(deg))))
     for a, b in itertools.combinations(range(len(names)), 2):
+        order = [b if i == a else a if i == b else i for i in range(len(names))]
         out.append((Cause("joint-order", f"the columns of {names[a]} and {names[b]} are swapped",
                           "swap them (give --joint-cols in the robot's joint order)"),
-                    _swap(len(names), a, b)))
+                    _data(lambda m, order: _with(m, q=m.q[:, order]), order=order)))
     return out
-
-
-def _swapped(n: int, a: int, b: int) -> list[int]:
-    order = list(range(n))
-    order[a], order[b] = b, a
-    return order
 
 
 def _frame_and_rows() -> list[tuple[Cause, Change]]:

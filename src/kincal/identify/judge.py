@@ -19,6 +19,7 @@ from .verdict import (Reason, Thresholds, Verdict, correction_reasons, drift_rea
                       repeat_tolerance, residual_reasons, robust_z)
 
 if TYPE_CHECKING:
+    from .diagnosis import Diagnosis
     from .result import CalibrationResult
 
 IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes (unseen) than across them
@@ -61,7 +62,7 @@ def verdict_of(res: "CalibrationResult") -> Verdict:
         reasons += mounting_reasons(res.nominal.tool_point(), res.robot.tool_point(), th)
     reasons += _position_reasons(res, th) if res.data else _set_reasons(res, th)
     verdict = Verdict.from_reasons(tuple(reasons))
-    return _diagnosed(res, verdict) if res.diagnosis is not None else verdict
+    return verdict if res.diagnosis is None else _diagnosed(res, res.diagnosis, verdict)
 
 
 def _base_reasons(res: "CalibrationResult") -> list[Reason]:
@@ -95,21 +96,20 @@ def _set_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     reasons = []
     for kind, rms in res.whitened.items():
         if rms > 3.0:
+            fine = [k for k, v in res.whitened.items() if k != kind and v <= 3.0]
             reasons.append(Reason("suspect", "residual", (
                 f"the {kind} residuals are {rms:.1f}x their stated σ ({STATED.get(kind, '--std-pos')}): the model "
                 f"leaves errors it cannot describe there, or that σ is too small; restate it if the instrument is "
-                f"noisier" + _other_kinds(res.whitened, kind))))
+                f"noisier" + (f" (the {', '.join(fine)} residuals are within 3x their stated σ)" if fine else ""))))
     reasons += _sample_reasons(res.observations, res.outliers, res.registered, th)
     if all(o.kind == "plane" for o in res.observations):
         reasons += _plane_reasons(res.registered, res.robot, res.observations)
     return reasons
 
 
-def _diagnosed(res: "CalibrationResult", verdict: Verdict) -> Verdict:
-    """The verdict with the differential diagnosis first. Bad poses in a least-squares fit of
-    positions steer the whole model: refused, not doubtful."""
-    found = res.diagnosis
-    assert found is not None
+def _diagnosed(res: "CalibrationResult", found: "Diagnosis", verdict: Verdict) -> Verdict:
+    """The verdict with the differential diagnosis ``found`` first. Bad poses in a least-squares fit
+    of positions steer the whole model: refused, not doubtful."""
     best = found.best
     status = "refused" if best and best.code == "outliers" and res.data and res.options.loss == "linear" \
         else verdict.status
@@ -134,11 +134,9 @@ def sample_norms(sets, r: np.ndarray) -> list[np.ndarray]:
 def outlier_samples(sets, r: np.ndarray, th: Thresholds) -> tuple[np.ndarray, ...]:
     """Per set, the indices of its samples whose whitened norm (of ``r``, stacked in the order of
     ``sets``) is more than ``th.outlier_limit`` robust σ off; none in a set of fewer than MIN_SAMPLES."""
-    out = []
-    for obs, norms in zip(sets, sample_norms(sets, r)):
-        z = robust_z(norms) if len(obs) >= MIN_SAMPLES else np.zeros(len(obs))
-        out.append(np.flatnonzero(z > th.outlier_limit(len(z))))
-    return tuple(out)
+    zs = [robust_z(norms) if len(obs) >= MIN_SAMPLES else np.zeros(len(obs))
+          for obs, norms in zip(sets, sample_norms(sets, r))]
+    return tuple(np.flatnonzero(z > th.outlier_limit(len(z))) for z in zs)
 
 
 def _sample_reasons(sets, outliers, robot: Robot, th: Thresholds) -> list[Reason]:
@@ -153,19 +151,8 @@ def _sample_reasons(sets, outliers, robot: Robot, th: Thresholds) -> list[Reason
                                                      f"robust σ off: row(s) {listed(bad)}; check them (a blocked line "
                                                      f"of sight, a wrong seat); --reject-outliers leaves them out, "
                                                      f"--loss huber down-weights them"))
-        groups = duplicate_groups(obs.q, tol)
-        if groups:
-            shown = "; ".join(f"rows {listed(obs.rows[g])}" for g in groups[:5])
-            out.append(Reason("suspect", "repeated-poses",
-                              f"{obs.source}: {sum(len(g) for g in groups)} samples repeat the same joint values "
-                              f"({shown}): repeated poses count as independent and make the stated σ look too "
-                              f"small; average them or leave the copies out"))
+        out += duplicate_reasons(obs.rows, duplicate_groups(obs.q, tol), obs.source)
     return out
-
-
-def _other_kinds(per_kind: dict, kind: str) -> str:
-    fine = [k for k, v in per_kind.items() if k != kind and v <= 3.0]
-    return f" (the {', '.join(fine)} residuals are within 3x their stated σ)" if fine else ""
 
 
 def _plane_reasons(nominal: Robot, calibrated: Robot, sets) -> list[Reason]:
@@ -174,7 +161,8 @@ def _plane_reasons(nominal: Robot, calibrated: Robot, sets) -> list[Reason]:
     along, across = [], []
     for obs in sets:
         moved = calibrated.forward(obs.q) - nominal.forward(obs.q)
-        planes = obs.planes(_start(obs))  # the normals the fit started from: changes across them are what moved
+        # the normals the fit started from (no tilt, the start offsets): changes across them are what moved
+        planes = obs.planes(np.array([v for lab in obs.unknown() for v in (0.0, 0.0, obs.start[lab][1])]))
         normal = np.array([planes[lab][0] for lab in obs.labels])
         n_part = np.sum(moved * normal, axis=1)
         across.append(n_part)
@@ -192,8 +180,3 @@ def _plane_reasons(nominal: Robot, calibrated: Robot, sets) -> list[Reason]:
                           f"cannot confirm that motion, so the absolute error may have grown while the plane residual "
                           f"fell; check with absolute data"))
     return out
-
-
-def _start(obs) -> np.ndarray:
-    """The nuisance values a plane set starts from (no tilt, the start offsets)."""
-    return np.array([v for lab in obs.unknown() for v in (0.0, 0.0, obs.start[lab][1])])

@@ -73,14 +73,8 @@ def _damped_step(fun, x, cost, H, g, D, mu: float, floor: float = 0.0) -> _Step:
     return _Step(False, x, np.empty(0), np.empty(0), cost, np.zeros_like(g), mu, evals)
 
 
-def levenberg_marquardt(
-    fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
-    x0: np.ndarray,
-    max_iter: int = 100,
-    xtol: float = 1e-10,
-    ftol: float = 1e-12,
-    gtol: float = 1e-12,
-) -> LMResult:
+def levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], x0: np.ndarray, max_iter: int = 100,
+                        xtol: float = 1e-10, ftol: float = 1e-12, gtol: float = 1e-12) -> LMResult:
     """Minimise ½‖r(x)‖²; converged when the scaled step, the relative cost decrease or the scaled
     gradient falls below its tolerance, or when no step lowers the cost at a point where the residual
     is orthogonal to every scaled column within ``STATIONARY`` (the cosine; round-off level)."""

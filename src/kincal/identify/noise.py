@@ -10,9 +10,9 @@ rᵢ² / (σᵢ² + s²), so a few outliers are named as outliers, not taken for
 from __future__ import annotations
 
 from statistics import NormalDist
+from typing import Callable
 
 import numpy as np
-
 
 
 def extra_variance(r2: np.ndarray, var: np.ndarray, dof: float) -> float:
@@ -28,14 +28,17 @@ def extra_variance(r2: np.ndarray, var: np.ndarray, dof: float) -> float:
     chi2 = float(np.sum(r2 / var)) / dof  # 1 ± √(2/dof) when the stated σ are right
     if chi2 <= 1.0 + SIGNIFICANT * np.sqrt(2.0 / dof) or float(np.median(r2 / var)) <= target:
         return 0.0
-    lo, hi = 0.0, float(np.max(r2)) / target  # at hi every ratio is below the target
-    for _ in range(200):  # bisection on a decreasing function; 200 halvings reach round-off
+    hi = float(np.max(r2)) / target  # at hi every ratio is below the target
+    return decreasing_root(lambda s2: float(np.median(r2 / (var + s2))) - target, 0.0, hi, 1e-12)
+
+
+def decreasing_root(f: Callable[[float], float], lo: float, hi: float, rtol: float = 0.0) -> float:
+    """The root of a decreasing ``f`` in [lo, hi] by bisection: 200 halvings (round-off), or until the
+    bracket is within ``rtol`` of its upper end."""
+    for _ in range(200):
         mid = 0.5 * (lo + hi)
-        if float(np.median(r2 / (var + mid))) > target:
-            lo = mid
-        else:
-            hi = mid
-        if hi - lo <= 1e-12 * hi:
+        lo, hi = (mid, hi) if f(mid) > 0 else (lo, mid)
+        if hi - lo <= rtol * hi:
             break
     return 0.5 * (lo + hi)
 

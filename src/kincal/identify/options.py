@@ -143,21 +143,15 @@ class FitOptions:
         if self.names != "auto":
             set_("names", _names("names", self.names))
         set_("keep", _names("keep", self.keep))
-        _one_of("base", self.base, BASE_MODES)
-        _one_of("loss", self.loss, LOSSES)
-        _one_of("method", self.method, METHODS)
-        _one_of("residual", self.residual, RESIDUAL_NAMES)
-        _one_of("prior", self.prior, PRIOR_CHOICES)
+        for k, allowed in (("base", BASE_MODES), ("loss", LOSSES), ("method", METHODS), ("residual", RESIDUAL_NAMES),
+                           ("prior", PRIOR_CHOICES)):
+            _one_of(k, self.__dict__[k], allowed)
         if self.f_scale is not None:
             set_("f_scale", _number("f_scale", self.f_scale, unit="m"))
         set_("rank_tol", _number("rank_tol", self.rank_tol))
         if not self.rank_tol < 1:
             raise ValueError(f"rank_tol={self.rank_tol!r}: the relative singular-value tolerance must lie in (0, 1)")
         set_("max_iter", _whole("max_iter", self.max_iter, 1))
-        self._check_combinations()
-
-    def _check_combinations(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
         if self.loss != "linear" and self.method != "lm":
             raise ValueError(f"loss='{self.loss}' needs method='lm' (got method='{self.method}'): robust reweighting "
                              f"refits with Levenberg-Marquardt; use loss='linear' with '{self.method}', or method='lm'")
@@ -166,8 +160,7 @@ class FitOptions:
             if self.method == "lm":
                 raise ValueError(f"pso={self.pso.to_dict()}: particle-swarm options apply to method='pso' or 'pso+lm' "
                                  f"only (method='lm')")
-        if not isinstance(self.thresholds, Thresholds):
-            set_("thresholds", Thresholds.of(self.thresholds))
+        set_("thresholds", Thresholds.of(self.thresholds))
         if self.error_model is not None:
             set_("error_model", ErrorModel.of(self.error_model))
         if self.drift not in (True, False) or (self.drift and self.residual != "cartesian"):
@@ -202,20 +195,12 @@ class FitOptions:
                              f"{', '.join(f.name for f in dataclasses.fields(self))}")
         return dataclasses.replace(self, **changes)
 
-    @property
-    def pso_settings(self) -> PSOOptions:
-        """The swarm's settings (the defaults when none were given)."""
-        return self.pso or PSOOptions()
-
     def to_dict(self) -> dict:
         """The record a calibrated robot file keeps (SI; plain lists, numbers and strings)."""
-        return {"names": self.names if isinstance(self.names, str) else list(self.names), "base": self.base,
-                "loss": self.loss, "f_scale": self.f_scale, "method": self.method, "residual": self.residual,
-                "keep": list(self.keep), "rank_tol": self.rank_tol, "max_iter": self.max_iter,
-                "pso": None if self.pso is None else self.pso.to_dict(), "thresholds": self.thresholds.to_dict(),
-                "error_model": None if self.error_model is None else self.error_model.to_dict(),
-                "drift": self.drift, "reject_outliers": self.reject_outliers, "diagnose": self.diagnose,
-                "prior": self.prior}
+        return {**self.__dict__, "names": self.names if isinstance(self.names, str) else list(self.names),
+                "keep": list(self.keep), "pso": None if self.pso is None else self.pso.to_dict(),
+                "thresholds": self.thresholds.to_dict(),
+                "error_model": None if self.error_model is None else self.error_model.to_dict()}
 
     @classmethod
     def from_dict(cls, data: Mapping, where: str = "calibration record") -> "FitOptions":

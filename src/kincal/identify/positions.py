@@ -105,8 +105,6 @@ EXACT = 1e-9  # m: a validation error below this is round-off (no noise, an exac
 def e_statistics(point_errors: dict) -> dict[str, tuple[float, float, float]]:
     """Per model the paper's Table 8 statistics of e (the signed average of the three axis errors)
     over the validation points: max |e|, mean |e|, std e (m)."""
-    out = {}
-    for k, err in point_errors.items():
-        e = np.asarray(err).mean(axis=1)
-        out[k] = (float(np.max(np.abs(e))), float(np.mean(np.abs(e))), float(np.std(e, ddof=1)))
-    return out
+    means = {k: np.asarray(err).mean(axis=1) for k, err in point_errors.items()}
+    return {k: (float(np.max(np.abs(e))), float(np.mean(np.abs(e))), float(np.std(e, ddof=1)))
+            for k, e in means.items()}

@@ -10,7 +10,6 @@ from typing import Callable
 
 import numpy as np
 
-
 HALF_WIDTH = {"length": 8e-3, "angle": 8e-3}  # the paper's position limits ±8 (mm), per kind
 V_MAX = {"length": 0.5e-3, "angle": 0.5e-3}  # and velocity limits ±0.5 (mm per iteration)
 
@@ -24,18 +23,9 @@ class PSOResult:
     iterations: int
 
 
-def pso(
-    objective: Callable[[np.ndarray], np.ndarray],
-    center: np.ndarray,
-    half_width: np.ndarray,
-    v_max: np.ndarray,
-    particles: int = 500,
-    iterations: int = 200,
-    w: float = 0.8,
-    c1: float = 0.5,
-    c2: float = 1.2,
-    seed: int | None = 0,
-) -> PSOResult:
+def pso(objective: Callable[[np.ndarray], np.ndarray], center: np.ndarray, half_width: np.ndarray, v_max: np.ndarray,
+        particles: int = 500, iterations: int = 200, w: float = 0.8, c1: float = 0.5, c2: float = 1.2,
+        seed: int | None = 0) -> PSOResult:
     """Minimise ``objective`` (batched over the swarm) for x in [center − half_width, center + half_width].
 
     Velocities are clipped to ±v_max and positions to the box (the paper's "position limits ±8 mm,

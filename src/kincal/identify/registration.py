@@ -45,7 +45,6 @@ def register_mounting(robot: Robot, q: np.ndarray, xyz: np.ndarray, frame: bool 
     frame = frame and bool(robot.base_params())
     if not robot.has_tool_point or len(q) < 3:
         return register_base(robot, q, xyz) if frame else robot
-    moved = robot
     p, Jp = robot.forward_and_jacobian(q)  # the flange frames, once: d p / d tool point = the flange rotation
     Rf = Jp[:, :, robot.params.indices(TOOL_NAMES)]
     origin = p - Rf @ robot.tool_point()
@@ -66,6 +65,6 @@ def register_mounting(robot: Robot, q: np.ndarray, xyz: np.ndarray, frame: bool 
         if np.linalg.norm(step) < MOUNTING_TOL:
             break
     if not frame:
-        return moved.with_tool_point(point)
-    Rb, tb = moved.base_transform()
-    return moved.with_base_transform(R @ Rb, R @ tb + t).with_tool_point(point)
+        return robot.with_tool_point(point)
+    Rb, tb = robot.base_transform()
+    return robot.with_base_transform(R @ Rb, R @ tb + t).with_tool_point(point)

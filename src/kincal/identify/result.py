@@ -169,18 +169,12 @@ class CalibrationResult:
     @property
     def correlation(self) -> np.ndarray:
         """(K, K) correlation of the fitted robot parameters, in the order of ``names``."""
-        cov = self.name_covariance
+        at = [self.free.index(n) for n in self.names]
         sd = np.array([self.std[n] for n in self.names])
         with np.errstate(invalid="ignore", divide="ignore"):
-            corr = np.where(np.isfinite(sd[:, None] * sd), cov / np.outer(sd, sd), 0.0)
+            corr = np.where(np.isfinite(sd[:, None] * sd), self.covariance[np.ix_(at, at)] / np.outer(sd, sd), 0.0)
         np.fill_diagonal(corr, 1.0)
         return corr
-
-    @property
-    def name_covariance(self) -> np.ndarray:
-        """(K, K) covariance of the fitted robot parameters, in the order of ``names``."""
-        at = [self.free.index(n) for n in self.names]
-        return self.covariance[np.ix_(at, at)]
 
     @property
     def mounting(self) -> str:

@@ -25,9 +25,8 @@ if TYPE_CHECKING:  # the stack evaluates itself; this room only calls it
 
 @dataclass(frozen=True)
 class Round:
-    """One fit of a set of free columns: LM from a start, parameters the data hardly see kept nominal,
-    then (by default) the learned prior. The columns not fitted stay at ``x0`` (the nominal values,
-    the set-up parameters' starts), which is also the prior's centre."""
+    """One fit of a set of free columns (module docstring). The columns not fitted stay at ``x0`` (the
+    nominal values, the set-up parameters' starts), which is also the prior's centre."""
 
     robot: Robot
     st: _Stack
@@ -44,9 +43,8 @@ class Round:
 
     def fit(self, free: list[str], start: np.ndarray, evaluated):
         """(full vector, fit, free names, weak, the stack with its weights, s per kind) from the full
-        vector ``start`` (its evaluation ``evaluated`` (r, J) over all columns, or None): least squares
-        (robustly reweighted with a robust loss) and the weak hold, the model error per kind estimated
-        and the fit repeated until it settles, then the learned prior."""
+        vector ``start`` (its evaluation ``evaluated`` (r, J) over all columns, or None), as the module
+        docstring says."""
         st, candidates = self.st, list(free)
         error: dict[str, float] = {}
         for _ in range(NOISE_ROUNDS):
@@ -78,8 +76,7 @@ class Round:
                 fit, used = self._lm(fun, start[fcols]), st
             else:  # reweighted from the start: a least-squares fit pulled by outliers is a poor place to begin
                 used, fit = self._reweighted(st, fcols, start[fcols], fun(start[fcols])[0])
-            worst = weakest(self.robot, free, fit.jacobian * used.weak_scale(fit.residual, len(free))[:, None],
-                            fit.residual, noise=1.0)
+            worst = weakest(self.robot, free, fit.jacobian * used.weak_scale(fit.residual, len(free))[:, None], 1.0)
             if worst is None:
                 return fcols, fit, free, weak, used
             weak[worst[0]] = worst[1]

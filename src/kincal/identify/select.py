@@ -210,8 +210,7 @@ def _session_error(ext: Robot, meas: Measurements, held: np.ndarray, calibrate, 
 
 
 def _eligibility(r: dict, geo: dict) -> str:
-    if r is geo:
-        return "kept (reference)"
+    """Why a candidate is kept or dropped (geometric's own decision is set by the caller)."""
     if "why" in r:
         return f"not applicable: {r['why']}"
     if not r["fits_ok"]:
@@ -220,12 +219,7 @@ def _eligibility(r: dict, geo: dict) -> str:
         return "dropped: no better than geometric on held-out regions"
     if r["sigma_ratio"] > SIGMA_FACTOR:
         return f"dropped: predicted σ {r['sigma_ratio']:.1f}x geometric's where it would be used (limit {SIGMA_FACTOR:g}x)"
-    return _session_eligibility(r, geo)
-
-
-def _session_eligibility(r: dict, geo: dict) -> str:
-    """The leave-one-session-out test: no held-out session may be worse than with geometric."""
-    if not r["sessions"]:
+    if not r["sessions"]:  # then the leave-one-session-out test: no held-out session worse than with geometric
         return "kept"
     judged = [(i, e, g) for i, (e, g) in enumerate(zip(r["sessions"], geo["sessions"]))
               if np.isfinite(e) and np.isfinite(g)]

@@ -31,11 +31,6 @@ def refit_frame(robot: Robot, meas: Measurements) -> Robot:
     return calibrate(robot, meas, names=(), base="estimate", diagnose=False).robot
 
 
-def _spread_ratio(robot: Robot, meas: Measurements) -> float:
-    """Measured spread / predicted spread of the positions at the same joints."""
-    return spread(meas.xyz) / max(spread(robot.forward(meas.q)), 1e-300)
-
-
 def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased: bool) -> str:
     """A sentence naming the likely cause when ``robot`` (as used on ``meas``: registered or not)
     misses ``meas`` by more than HELDOUT_RATIO times its mean training error ``train_error`` (m);
@@ -59,7 +54,7 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
             return (f"{head}; a tool point {gap * MM:.2f} mm from the calibrated one (at {where} mm in the flange "
                     f"frame) brings it to {again * MM:.3f} mm: the target was mounted differently in this session "
                     f"(another probe, adapter or seat); give that session's tool point with --tool")
-    ratio = _spread_ratio(robot, meas)
+    ratio = spread(meas.xyz) / max(spread(robot.forward(meas.q)), 1e-300)  # measured / predicted at the same joints
     if abs(np.log(ratio)) > SCALE_TOL:
         return (f"{head}; the measured positions spread {ratio:.4f}x the model's at the same joints: a scale error "
                 f"(length unit, tracker compensation, or joint columns in another unit)")

@@ -29,7 +29,7 @@ from ..observe.drifting import DRIFT
 from ..observe.sessions import InSession
 from .covariance import parameter_statistics
 from .lm import LMResult
-from .options import FitOptions
+from .options import FitOptions, PSOOptions
 from .noise import extra_variance
 from .result import CalibrationResult
 from .judge import component_kinds, outlier_samples, whitened_per_kind
@@ -110,30 +110,27 @@ def _stack(robot: Robot, observations: Sequence) -> _Stack:
         anchors = {**o.anchors(), **anchors}
         prepared.append(o)
     sets = tuple(prepared)
-    names: list[str] = []
-    start: list[float] = []
-    slots, late = [], []
+    start: dict[str, float] = {}  # a name shared by several sets is one parameter, started from the first's value
+    own, late = [], []
     for obs in sets:
         n, v, k = obs.nuisance(robot)
         late += [name for name, kind in zip(n, k) if kind == DRIFT]
         for name, value in zip(n, v):
-            if name not in names:
-                names.append(name)
-                start.append(float(value))
-        slots.append(np.array([names.index(name) for name in n], dtype=int))
+            start.setdefault(name, float(value))
+        own.append(n)
+    names = list(start)
+    slots = [np.array([names.index(name) for name in n], dtype=int) for n in own]
     sigma = np.concatenate([o.sigma() for o in sets])
     if not np.all(np.isfinite(sigma) & (sigma > 0)):
         raise MeasurementError("every measurement σ must be a positive number (m or rad)")
     labels, kinds = component_kinds(sets)
-    return _Stack(sets, robot, tuple(names), np.array(start), tuple(slots), 1.0 / sigma, 1.0 / sigma, labels, kinds,
-                  tuple(late))
+    return _Stack(sets, robot, tuple(names), np.array(list(start.values())), tuple(slots), 1.0 / sigma, 1.0 / sigma,
+                  labels, kinds, tuple(late))
 
 
 def _gauge(robot: Robot, sets) -> tuple[str, ...]:
     """Robot parameters no set sees (the intersection of the sets' gauge freedoms)."""
-    common = set(robot.params.names)
-    for obs in sets:
-        common &= set(obs.gauge_params(robot))
+    common = set(robot.params.names).intersection(*(obs.gauge_params(robot) for obs in sets))
     return tuple(n for n in robot.params.names if n in common)
 
 
@@ -152,7 +149,8 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
         rounds = Round(robot, st, x0, o.max_iter, prior, loss, o.f_scale)
         free0, swarmed = list(ident.identifiable), None
         if o.method != "lm":
-            swarmed = swarm(st, x0, rounds.cols(list(ident.candidates)), o.pso_settings)
+            swarmed = swarm(st, x0, rounds.cols(list(ident.candidates)), o.pso or PSOOptions())
+            rounds.spent[:] = [swarmed.iterations, swarmed.evaluations]  # every solver run counts
             if o.method == "pso":
                 return _result(models, st, gauge, ident, list(ident.candidates), x0, swarmed.fit, {}, o, {},
                                swarmed.history, ident.dropped)
@@ -173,11 +171,10 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
                       f"solution",)
             ident = again
             full, fit, free, weak, fitted, error = rounds.fit(list(ident.identifiable), full, None)
-        ident = dataclasses.replace(_without_weak(ident, free, weak), notes=ident.notes + notes)
-        before = (swarmed.iterations, swarmed.evaluations) if swarmed else (0, 0)
-        spent = (rounds.spent[0] + before[0], rounds.spent[1] + before[1])
+        ident = dataclasses.replace(ident, identifiable=tuple(free) if weak else ident.identifiable,
+                                    notes=ident.notes + notes)
         return _result(models, fitted, gauge, ident, free, x0, fit, weak, o, error,
-                       swarmed.history if swarmed else (), spent=spent)
+                       swarmed.history if swarmed else (), spent=tuple(rounds.spent))
 
 
 JUDGED = 3  # refits when the identifiable set at the solution differs from the start's
@@ -292,13 +289,6 @@ def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, fu
                                 confounds={k: v for k, v in ident.confounds.items() if k not in unseen},
                                 notes=ident.notes + notes, kinds=kinds_of(robot, cand + nuis))
     return ident
-
-
-def _without_weak(ident: Identifiability, free: list[str], weak: dict) -> Identifiability:
-    if not weak:
-        return ident
-    note = (f"kept at nominal, determined worse than a real robot's error (10 mm, 2 deg): {', '.join(weak)}",)
-    return dataclasses.replace(ident, identifiable=tuple(free), notes=ident.notes + note)
 
 
 def _before(robot: Robot, sets, frame: bool) -> Robot:

@@ -41,6 +41,7 @@ import numpy as np
 from ..io.measurements import MAX_LISTED, listed
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import DEG, MM
+from .noise import decreasing_root
 
 STATUSES = ("good", "suspect", "refused")
 FALSE_ALARM = 0.01  # chance that pure noise names an outlier in one calibration (any number of poses)
@@ -51,21 +52,13 @@ def _chi3_sf(x: float) -> float:
     return math.erfc(x / math.sqrt(2.0)) + math.sqrt(2.0 / math.pi) * x * math.exp(-0.5 * x * x)
 
 
-def _solve(f, lo: float, hi: float) -> float:
-    """The root of a decreasing ``f`` in [lo, hi] by bisection (to round-off)."""
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if f(mid) > 0 else (lo, mid)
-    return 0.5 * (lo + hi)
-
-
 @functools.lru_cache(maxsize=64)
 def _chi3_robust_z(tail: float) -> float:
     """The robust z ((x − median) / (1.4826·MAD), as :func:`robust_z`) of the χ₃ quantile with upper
     tail probability ``tail``."""
-    med = _solve(lambda x: _chi3_sf(x) - 0.5, 0.0, 10.0)
-    mad = _solve(lambda d: 0.5 - (_chi3_sf(max(med - d, 0.0)) - _chi3_sf(med + d)), 0.0, 10.0)
-    x = _solve(lambda x: _chi3_sf(x) - tail, 0.0, 40.0)
+    med = decreasing_root(lambda x: _chi3_sf(x) - 0.5, 0.0, 10.0)
+    mad = decreasing_root(lambda d: 0.5 - (_chi3_sf(max(med - d, 0.0)) - _chi3_sf(med + d)), 0.0, 10.0)
+    x = decreasing_root(lambda x: _chi3_sf(x) - tail, 0.0, 40.0)
     return (x - med) / (1.4826 * mad)
 
 
@@ -126,9 +119,6 @@ class Reason:
     code: str
     message: str
 
-    def to_dict(self) -> dict:
-        return {"level": self.level, "code": self.code, "message": self.message}
-
 
 @dataclass(frozen=True)
 class Verdict:
@@ -142,12 +132,10 @@ class Verdict:
         return cls(status, tuple(reasons))
 
     def to_dict(self) -> dict:
-        return {"status": self.status, "reasons": [r.to_dict() for r in self.reasons]}
+        return {"status": self.status, "reasons": [dataclasses.asdict(r) for r in self.reasons]}
 
     def __str__(self) -> str:
-        lines = [f"verdict: {self.status.upper()}"]
-        lines += [f"  {r.level}: {r.message}" for r in self.reasons]
-        return "\n".join(lines)
+        return "\n".join([f"verdict: {self.status.upper()}", *(f"  {r.level}: {r.message}" for r in self.reasons)])
 
 
 def robust_z(norms: np.ndarray) -> np.ndarray:
@@ -253,7 +241,6 @@ def correction_reasons(robot: Robot, corrections: dict[str, float], th: Threshol
     """Implausibly large corrections (the base frame and the tool point, mounting results, excluded)."""
     base = set(robot.base_params()) | set(TOOL_NAMES)
     kinds = dict(zip(robot.params.names, robot.params.kinds))
-    out = []
     for level, lim_len, lim_ang in (("refused", th.length_refuse, th.angle_refuse),
                                     ("suspect", th.length_suspect, th.angle_suspect)):
         big = [(n, c) for n, c in corrections.items() if n not in base and
@@ -262,11 +249,10 @@ def correction_reasons(robot: Robot, corrections: dict[str, float], th: Threshol
             shown = ", ".join(f"{n} {c * MM:+.1f} mm" if kinds[n] == "length" else f"{n} {c * DEG:+.2f} deg"
                               for n, c in sorted(big, key=lambda x: -abs(x[1]))[:MAX_LISTED])
             what = "implausible" if level == "refused" else "large"
-            out.append(Reason(level, f"{what}-correction",
-                              f"{what} corrections ({shown}; limits {lim_len * MM:g} mm, {lim_ang * DEG:g} "
-                              f"deg): the data and the robot file disagree by far more than a real robot's errors"))
-            break
-    return out
+            return [Reason(level, f"{what}-correction",
+                           f"{what} corrections ({shown}; limits {lim_len * MM:g} mm, {lim_ang * DEG:g} "
+                           f"deg): the data and the robot file disagree by far more than a real robot's errors")]
+    return []
 
 
 def mounting_line(declared: np.ndarray, fitted: np.ndarray) -> str:
@@ -343,14 +329,17 @@ def fitted_drift_reasons(drift: dict | None, noise: float) -> list[Reason]:
                                               f"measure again (or repeat a reference pose to track the drift)")]
 
 
-def duplicate_reasons(rows: np.ndarray, groups) -> list[Reason]:
-    """Repeated poses (groups of indices, see :func:`duplicate_groups`), named by input row."""
+def duplicate_reasons(rows: np.ndarray, groups, source: str | None = None) -> list[Reason]:
+    """Repeated poses (groups of indices, see :func:`duplicate_groups`), named by input row (of the
+    observation set from ``source``, when given)."""
     if not groups:
         return []
     shown = "; ".join(f"rows {listed(rows[g])}" for g in groups[:5])
+    head, what, look = ("", "rows", "") if source is None else (f"{source}: ", "samples", " look")
     return [Reason("suspect", "repeated-poses",
-                   f"{sum(len(g) for g in groups)} rows repeat the same joint values ({shown}): repeated poses count "
-                   f"as independent and make the stated σ too small; average them or leave the copies out")]
+                   f"{head}{sum(len(g) for g in groups)} {what} repeat the same joint values ({shown}): repeated "
+                   f"poses count as independent and make the stated σ{look} too small; average them or leave the "
+                   f"copies out")]
 
 
 DRIFT_RATIO, DRIFT_Z, DRIFT_MIN_POSES, DRIFT_NOISE = 1.5, 3.0, 50, 2.0

@@ -16,21 +16,17 @@ import numpy as np
 from ..models.robot import Robot
 from ..ties import first_best
 from ..units import MM, MRAD
-from .covariance import normal_inverse, parameter_statistics
+from .covariance import normal_inverse
 from .verdict import Thresholds
 
 
-def weakest(robot: Robot, free: Sequence[str], jacobian: np.ndarray, residual: np.ndarray,
-            noise: float | None = None) -> tuple[str, float] | None:
+def weakest(robot: Robot, free: Sequence[str], jacobian: np.ndarray, noise: float) -> tuple[str, float] | None:
     """The robot parameter among ``free`` (the columns of ``jacobian``) the data determine worst, with
     its σ (m or rad), when that σ exceeds the plausible correction limits; None when none does. The
-    base frame (a set-up) is never held. σ from the residual's own scale, or with ``noise`` (the
-    instrument's, m) from the poses alone: what the poses can determine, so data that do not fit the
-    robot (swapped joints) keep their implausible corrections in view instead of hiding them as weak."""
-    if noise is None:
-        sd = parameter_statistics(jacobian, residual, free)[0]
-    else:
-        sd = noise * np.sqrt(np.maximum(np.diag(normal_inverse(jacobian)), 0.0))
+    base frame (a set-up) is never held. σ from ``noise`` (the instrument's, in the Jacobian's units)
+    and the poses alone, not from the residual's scale: so data that do not fit the robot (swapped
+    joints) keep their implausible corrections in view instead of hiding them as weak."""
+    sd = noise * np.sqrt(np.maximum(np.diag(normal_inverse(jacobian)), 0.0))
     th = Thresholds()
     kinds = dict(zip(robot.params.names, robot.params.kinds))
     over = [(float(s / (th.length_suspect if kinds[n] == "length" else th.angle_suspect)), n, float(s))
