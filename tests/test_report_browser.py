@@ -106,7 +106,7 @@ def test_socket_report_in_a_real_browser(tmp_path, monkeypatch, capsys):
     dom = render(browser, report.as_uri(), tmp_path, "--dump-dom")
     assert dom.returncode == 0, dom.stderr[-2000:]
     shown = {k: float(v) for k, v in re.findall(r'data-key="held out\.([^"]+)">([-0-9.]+)<', dom.stdout)}
-    assert shown == {g["group"]: pytest.approx(g["mean_abs_mm"], abs=5e-5) for g in data["held_out"][0]["groups"]}
+    assert shown == {g["group"]: pytest.approx(g["mean_abs"] * 1e3, abs=5e-5) for g in data["held_out"][0]["groups"]}
     assert len(shown) == 7 and re.search(r'id="verdict-status">GOOD<', dom.stdout)
     png = tmp_path / "sockets.png"
     shot = render(browser, report.as_uri(), tmp_path, "--window-size=1200,2400", f"--screenshot={png}")
@@ -145,7 +145,7 @@ def test_pose_calibration_reported_again_in_a_real_browser(tmp_path, monkeypatch
         pages.append(_shown_rows(dom.stdout))
     data = json.loads(again.with_suffix(".json").read_text())
     held = data["held_out"][0]
-    assert pages[0] == pages[1] and held["mean_mm"] <= 0.50 and held["mean_mrad"] <= 0.90
+    assert pages[0] == pages[1] and held["mean"] * 1e3 <= 0.50 and held["mean_rotation"] * 1e3 <= 0.90
     key = f"held_out.{held['source']}"
-    assert pages[1][f"{key}.mean_mm"] == pytest.approx(held["mean_mm"], abs=5e-5)
-    assert pages[1][f"{key}.mean_mrad"] == pytest.approx(held["mean_mrad"], abs=5e-5)
+    assert pages[1][f"{key}.mean_mm"] == pytest.approx(held["mean"] * 1e3, abs=5e-5)
+    assert pages[1][f"{key}.mean_mrad"] == pytest.approx(held["mean_rotation"] * 1e3, abs=5e-5)

@@ -8,7 +8,8 @@ units engineers read; this module converts between the two and nothing else does
 * :func:`joint_units` / :func:`joint_factors`: each joint's unit (and its SI factor) by the joint's type;
 * ``MM``, ``DEG``: display factors, an SI value times the factor is in that unit
   (``0.0012 * MM == 1.2`` mm; ``1.2 / MM`` m); ``MRAD`` likewise (1 rad = 1000 mrad);
-* :func:`display` writes a parameter value as mm or deg by its kind.
+* :func:`display` writes a parameter value as mm or deg by its kind; :func:`in_display` turns a
+  set's statistics (m, rad) into mm and mrad, each key named with its unit.
 
 A leaf module: it imports nothing of kincal.
 """
@@ -55,3 +56,23 @@ def display(value: float, kind: str, signed: bool = True, digits: tuple[int, int
     if kind == "length":
         return f"{value * MM:{sign}.{digits[0]}f} mm"
     return f"{value * DEG:{sign}.{digits[1]}f} deg"
+
+
+STAT_UNITS = {"mean": "mm", "rms": "mm", "max": "mm", "mean_abs": "mm", "distance_error": "mm", "drift": "mm",
+              "mean_rotation": "mrad", "rms_rotation": "mrad", "max_rotation": "mrad"}  # statistics in m or rad
+
+
+def in_display(stats: dict) -> dict:
+    """A set's statistics (an observation type's ``stats()``: m and rad, :data:`STAT_UNITS`) with those
+    values in mm and mrad under keys that name the unit ("mean" -> "mean_mm", "mean_rotation" ->
+    "mean_mrad"), per-group statistics too; other keys as they are; None stays None."""
+    def shown(key: str, value):
+        factor = MM if STAT_UNITS[key] == "mm" else MRAD
+        return None if value is None else [v * factor for v in value] if isinstance(value, list) else value * factor
+    out = {}
+    for key, value in stats.items():
+        if key in STAT_UNITS:
+            out[f"{key.removesuffix('_rotation')}_{STAT_UNITS[key]}"] = shown(key, value)
+        else:
+            out[key] = [in_display(g) for g in value] if key == "groups" else value
+    return out

@@ -14,7 +14,7 @@ from kincal.io import check_degrees, check_radians, check_spread
 from kincal.observe import InSession, ObservationFormat, PointObs, read_observations
 from kincal.simulate import (plane_plan, simulate_markers, simulate_planes, simulate_poses, simulate_same_point,
                              socket_plan)
-from kincal.units import ANGLE_UNITS, LENGTH_UNITS, MRAD
+from kincal.units import ANGLE_UNITS, LENGTH_UNITS, MRAD, in_display
 
 from .common import TYPES, add_data_flags, csv_list
 from .report import nominal_model, save_figures
@@ -243,14 +243,14 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
                  f"parameters fitted{', the ' + ' and '.join(kept) + ' as calibrated' if kept else ''}): "
                  f"{stat_line(s)}" + ("" if before is None else f"  (nominal, {fitted}: {stat_line(before)})"))
     texts += group_lines([s], "")
-    train = [t.get("mean_mm") for t in (record or {}).get("observations", []) if isinstance(t, dict)
-             and t.get("type") == obs.kind]  # the training error of this kind (mm)
+    train = [t.get("mean") for t in (record or {}).get("observations", []) if isinstance(t, dict)
+             and t.get("type") == obs.kind]  # the training error of this kind (m)
     found, cause = obs.positions(), ""
     if not (frame or found is None or not train or not isinstance(train[0], (int, float)) or train[0] <= 0):
         # positions judged in the calibration's frame: the position path's likely cause of an error far above
         # the training error (the tracker moved, another tool point, a scale)
         meas = kincal.Measurements(found[0], found[1], robot.joint_names, obs.source, obs.rows)
-        cause = heldout_cause(robot, meas, float(train[0]) / 1e3, rebased=False)
+        cause = heldout_cause(robot, meas, float(train[0]), rebased=False)
     texts += [f"  likely cause: {cause}"] if cause else []
     return {"file": path, "frame_fitted": bool(frame), "setup_as_trained": kept, **s, "nominal": before,
             "cause": cause or None}, texts
@@ -261,7 +261,7 @@ def group_lines(sets: list, which: str) -> list[str]:
     of the known distances; ``which`` before its name."""
     return [f"  {which}{g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
             f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
-            for s in sets for g in s.get("groups", [])]
+            for s in sets for g in in_display(s).get("groups", [])]
 
 
 def _fixed_kinematics(robot, obs, frame: tuple, held: dict):

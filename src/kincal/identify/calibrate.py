@@ -197,7 +197,7 @@ ABSOLUTE = ("point", "pose", "markers")  # kinds measured in an instrument's fra
 
 
 def held_out_stats(fit: CalibrationResult, obs, robot: Robot, same_frame: bool) -> dict:
-    """A held-out set's statistics (mm, mrad) under ``robot`` (the calibrated model, or ``fit.before``):
+    """A held-out set's statistics (m, rad) under ``robot`` (the calibrated model, or ``fit.before``):
     in the training frame with the training set-up parameters (``same_frame``; sockets and planes need
     no frame), else with its own frame fitted (the tracker or camera may have moved), the kinematics
     fixed and the set-up parameters it shares with the training files (a target's rotation, markers)

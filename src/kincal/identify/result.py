@@ -15,7 +15,7 @@ from ..analysis.uncertainty import ModelUncertainty
 from ..io.measurements import Measurements
 from ..models.robot import TOOL_NAMES, Robot
 from ..observe.observations import Wrapper
-from ..units import MM, MRAD, display
+from ..units import MM, MRAD, display, in_display
 from .diagnosis import Diagnosis
 from .judge import MIN_SAMPLES, component_kinds, sample_norms, verdict_of
 from .options import FitOptions
@@ -40,7 +40,7 @@ class CalibrationResult:
     std          -- 1-σ of robot and set-up parameters (m or rad; a posteriori, or posterior with a
                     learned ``prior``); inf: not determined
     covariance   -- (F, F) over ``free`` (robot and set-up parameters fitted, in that order)
-    per_set_before, per_set -- each set's statistics (mm, mrad) before and after
+    per_set_before, per_set -- each set's statistics (m, rad) before and after
     whitened_rms -- RMS of the residual whitened by the stated σ (1 when they are right); per kind
                     in ``whitened``; ``model_error``: what the model leaves beyond them (m or rad)
     observations -- the sets fitted (outliers left out); ``outliers``: per set, the samples beyond
@@ -391,8 +391,9 @@ def _cell(text: str) -> str:
     return f'"{text.replace(chr(34), chr(34) * 2)}"' if "," in text or '"' in text else text
 
 
-def stat_line(s: dict) -> str:
-    """One set's statistics (``stats()`` of an observation type) in a few words, mm and mrad."""
+def stat_line(stats: dict) -> str:
+    """One set's statistics (``stats()`` of an observation type, m and rad) in a few words, mm and mrad."""
+    s = in_display(stats)
     if "mean_abs_mm" in s:
         return f"mean |p − point| {s['mean_abs_mm']:.4f} mm"
     rot = f", mean {s['mean_mrad']:.4f} mrad" if "mean_mrad" in s else ""

@@ -124,12 +124,12 @@ class SamePointObs(Observation):
             dev = np.concatenate([np.linalg.norm(p[mine & (self.labels == lab)] - m, axis=1) for lab, m in means.items()])
             dist = [abs(float(np.linalg.norm(means[a] - means[b])) - d) for a, b, d in self.distances
                     if a in means and b in means]
-            out.append({"group": g, "samples": int(mine.sum()), "mean_abs_mm": float(dev.mean() * MM),
-                        "distance_error_mm": float(np.mean(dist) * MM) if dist else None})
+            out.append({"group": g, "samples": int(mine.sum()), "mean_abs": float(dev.mean()),
+                        "distance_error": float(np.mean(dist)) if dist else None})
             devs.append(dev)
-        dev_all = np.concatenate(devs) * MM
-        return {"type": self.kind, "source": self.source, "samples": len(self), "mean_abs_mm": float(dev_all.mean()),
-                "rms_mm": float(np.sqrt(np.mean(dev_all**2))), "max_mm": float(dev_all.max()), "groups": out}
+        dev_all = np.concatenate(devs)
+        return {"type": self.kind, "source": self.source, "samples": len(self), "mean_abs": float(dev_all.mean()),
+                "rms": float(np.sqrt(np.mean(dev_all**2))), "max": float(dev_all.max()), "groups": out}
 
 
 @dataclass(frozen=True, eq=False)

@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 
 from ..models.robot import Robot
-from ..units import MM
 from .observations import Observation, Wrapper
 
 DRIFT = "drift"  # the kind of a drift's set-up parameters (chosen after the robot's, see the module docstring)
@@ -56,4 +55,4 @@ class Drifting(Wrapper):
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         out = self._corrected(nuis[-3:]).stats(robot, values, nuis[:-3])
-        return {**out, "drift_mm": [float(v * MM) for v in nuis[-3:]]}
+        return {**out, "drift": [float(v) for v in nuis[-3:]]}

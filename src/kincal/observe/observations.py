@@ -14,7 +14,6 @@ import numpy as np
 from ..errors import MeasurementError
 from ..models.robot import TOOL_NAMES, Robot
 from ..models.transforms import skew
-from ..units import MM, MRAD
 from .orientation import nearest_rotation
 
 
@@ -130,7 +129,7 @@ class Observation:
         raise NotImplementedError(f"{self.kind} data declare no residual")
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
-        """Per-type figures (mm, mrad) at ``values`` and ``nuis``; every type declares them."""
+        """Per-type figures (m, rad) at ``values`` and ``nuis``; every type declares them."""
         raise NotImplementedError(f"{self.kind} data declare no statistics")
 
     def evaluate_cols(self, robot: Robot, values: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -168,9 +167,10 @@ class Observation:
 
 def error_stats(obs: Observation, e: np.ndarray, **counts) -> dict:
     """The summary of an observation's errors ``e`` (m, one per sample or per observed point): its type,
-    source and samples, then ``counts`` (e.g. markers=4), then the mean, RMS and largest error in mm."""
-    return {"type": obs.kind, "source": obs.source, "samples": len(obs), **counts, "mean_mm": float(e.mean() * MM),
-            "rms_mm": float(np.sqrt(np.mean(e**2)) * MM), "max_mm": float(e.max() * MM)}
+    source and samples, then ``counts`` (e.g. markers=4), then the mean, RMS and largest error (m;
+    :func:`kincal.units.in_display` shows them in mm)."""
+    return {"type": obs.kind, "source": obs.source, "samples": len(obs), **counts, "mean": float(e.mean()),
+            "rms": float(np.sqrt(np.mean(e**2))), "max": float(e.max())}
 
 
 @dataclass(frozen=True, eq=False)
@@ -335,8 +335,8 @@ class PoseObs(Observation):
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         dp, phi, _ = self.errors(robot, values, nuis, jacobian=False)
         e, a = np.linalg.norm(dp, axis=1), np.linalg.norm(phi, axis=1)
-        return {**error_stats(self, e), "mean_mrad": float(a.mean() * MRAD),
-                "rms_mrad": float(np.sqrt(np.mean(a**2)) * MRAD), "max_mrad": float(a.max() * MRAD)}
+        return {**error_stats(self, e), "mean_rotation": float(a.mean()), "rms_rotation": float(np.sqrt(np.mean(a**2))),
+                "max_rotation": float(a.max())}
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,6 +1,7 @@
 """The report's sections for a calibration from observation sets (poses, markers, sockets, planes, or
-points in sessions of their own): the residuals per set and type (mm, mrad), per-placement
-statistics, the figures of sets with positions, and held-out sets under both models."""
+points in sessions of their own): the residuals per set and type (shown in mm, mrad), per-placement
+statistics, the figures of sets with positions, and held-out sets under both models (m, rad in the
+JSON)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -13,6 +14,7 @@ from ..identify.result import CalibrationResult
 from ..observe.sessions import InSession
 from . import figures as F
 from .._csv import listed
+from ..units import in_display
 
 COLUMNS = ("mean_mm", "rms_mm", "max_mm", "mean_mrad", "rms_mrad", "max_mrad")
 
@@ -52,8 +54,10 @@ def observation_figures(fit: CalibrationResult, label: str = "training") -> dict
     return F.pose_figures(sets, fit.robot) if sets else {}
 
 
-def _row(s: dict, data: str, model: str, key: str) -> dict:
-    """One table row from a set's statistics (a socket set's mean is its mean |p − point|)."""
+def _row(stats: dict, data: str, model: str, key: str) -> dict:
+    """One table row (mm, mrad) from a set's statistics (m, rad; a socket set's mean is its mean
+    |p − point|)."""
+    s = in_display(stats)
     row = {"data": f"{data}: {s['source']}", "type": s["type"], "samples": s["samples"], "model": model,
            "key": f"{key}.{s['source']}", **{k: s.get(k) for k in COLUMNS}}
     if "mean_abs_mm" in s:
@@ -63,6 +67,7 @@ def _row(s: dict, data: str, model: str, key: str) -> dict:
 
 def _groups(before: Sequence[dict], after: Sequence[dict], data: str) -> list[dict]:
     out = []
+    before, after = [in_display(s) for s in before], [in_display(s) for s in after]
     for k, s in enumerate(after):
         prior = {g["group"]: g for g in before[k].get("groups", [])} if k < len(before) else {}
         for g in s.get("groups", []):
