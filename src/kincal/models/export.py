@@ -21,7 +21,7 @@ from .._atomic import write_text_atomic
 from ..errors import ModelError
 from ..units import MM
 from .chain import ROT
-from .robot import Robot
+from .robot import TOOL_NAMES, Robot
 from .serial import ChainRobot, SerialRobot
 from .transforms import rot_zyx, zyx_from_matrix
 from .urdf import URDFRobot, read_urdf, rpy_matrix
@@ -55,10 +55,8 @@ def joint_frames(robot: Robot, slide: bool = False) -> tuple[list[np.ndarray], n
     _geometric_only(robot)
     if not isinstance(robot, ChainRobot):
         raise ModelError(f"robot '{robot.name}' ({robot.structure}) is not a serial chain: it has no URDF or UR form")
-    values = robot.params.values.copy()
-    values[robot.params.indices(robot.base_params())] = 0.0
-    values[robot.params.indices(("tool.x", "tool.y", "tool.z"))] = 0.0
-    values = np.concatenate([values, np.zeros(robot.n_joints)])  # a URDF chain's joint-motion columns
+    values = robot.chain_values().copy()  # a URDF chain's joint-motion columns too
+    values[robot.params.indices(robot.base_params() + TOOL_NAMES)] = 0.0
     M, frames, ops = np.eye(4), [], robot.chain.ops
     value = [op.offset + (values[op.param] if op.param >= 0 else 0.0) for op in ops]
     for k, op in enumerate(ops):
@@ -187,7 +185,7 @@ def tool_link_of(robot: Robot, name: str | None) -> str | None:
 
 
 def _edit_urdf(robot: URDFRobot, source: str) -> str:
-    for j in robot.moving_joints:
+    for j in robot.moving:
         xyz, rpy = robot.origin(j)
         start = re.search(rf'<joint\b[^>]*\bname\s*=\s*["\']{re.escape(j.name)}["\'][^>]*>', source)
         if start is None:

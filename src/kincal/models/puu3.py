@@ -94,16 +94,13 @@ class PUU3Robot(ImplicitRobot):
             leg = np.zeros(v.shape[:-1] + (3, len(LEG_PARAMS)))
         dR, dr, a, b, h0, tx, ty = np.moveaxis(leg, -1, 0)  # each (..., 3)
         phi = np.asarray(self.phi)
-        zero, one = np.zeros_like(a), np.ones_like(a)
-        ea = np.stack([np.cos(phi + a), np.sin(phi + a), zero], axis=-1)
-        eb = np.stack([np.cos(phi + b), np.sin(phi + b), zero], axis=-1)
-        va = np.stack([-np.sin(phi + a), np.cos(phi + a), zero], axis=-1)  # d e(θ)/dθ
-        vb = np.stack([-np.sin(phi + b), np.cos(phi + b), zero], axis=-1)
-        w = np.stack([tx, ty, one], axis=-1)
+        vec = lambda x, y, z=np.zeros_like(a): np.stack([x, y, z], axis=-1)  # noqa: E731
+        ea, eb = vec(np.cos(phi + a), np.sin(phi + a)), vec(np.cos(phi + b), np.sin(phi + b))
+        va, vb = vec(-np.sin(phi + a), np.cos(phi + a)), vec(-np.sin(phi + b), np.cos(phi + b))  # d e(θ)/dθ
+        w = vec(tx, ty, np.ones_like(a))
         nv = np.linalg.norm(w, axis=-1)[..., None]
         u = w / nv
-        du_dtx = (np.array([1.0, 0, 0]) - u * u[..., :1]) / nv
-        du_dty = (np.array([0, 1.0, 0]) - u * u[..., 1:2]) / nv
+        du_dtx, du_dty = ((np.eye(3)[k] - u * u[..., k:k + 1]) / nv for k in (0, 1))
         plat = (r + dr)[..., None] * eb
         base = (R + dR)[..., None] * ea
         return plat, base, u, h0, L, (ea, eb, va, vb, du_dtx, du_dty, r + dr, R + dR)

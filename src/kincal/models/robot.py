@@ -373,21 +373,21 @@ class Robot(ABC):
         """Whether the model ends with a tool point ``tool.x/y/z`` (m, in the flange frame)."""
         return all(n in self.params.names for n in TOOL_NAMES)
 
-    def _no_tool_point(self) -> ModelError:
-        return ModelError(f"robot '{self.name}' ({self.structure}) has no tool point (tool.x, tool.y, tool.z): its "
-                          f"measured point is part of its structure")
+    def _tool_indices(self) -> np.ndarray:
+        """The positions of ``tool.x/y/z`` among the parameters; ModelError for a model without them."""
+        if not self.has_tool_point:
+            raise ModelError(f"robot '{self.name}' ({self.structure}) has no tool point (tool.x, tool.y, tool.z): its "
+                             f"measured point is part of its structure")
+        return self.params.indices(TOOL_NAMES)
 
     def tool_point(self) -> np.ndarray:
         """The tool point (3,) in m in the flange frame."""
-        if not self.has_tool_point:
-            raise self._no_tool_point()
-        return np.array([self.params[n] for n in TOOL_NAMES])
+        return self.params.values[self._tool_indices()]
 
     def with_tool_point(self: R, xyz) -> R:
         """A copy whose tool point is ``xyz`` (3,) m in the flange frame."""
         t = np.asarray(xyz, dtype=float).reshape(-1)
-        if not self.has_tool_point:
-            raise self._no_tool_point()
+        self._tool_indices()
         if t.size != 3 or not np.all(np.isfinite(t)):
             raise ModelError(f"robot '{self.name}': a tool point is three finite numbers (m), got {xyz!r}")
         return self.with_params(dict(zip(TOOL_NAMES, map(float, t))))
@@ -401,10 +401,8 @@ class Robot(ABC):
 
     def _tool_steps(self, values: np.ndarray) -> np.ndarray:
         """(3, P): ``values`` with the tool point moved 1 m along each flange axis."""
-        if not self.has_tool_point:
-            raise self._no_tool_point()
         steps = np.repeat(np.asarray(values, dtype=float)[None], 3, axis=0)
-        steps[np.arange(3), self.params.indices(TOOL_NAMES)] += 1.0
+        steps[np.arange(3), self._tool_indices()] += 1.0
         return steps
 
     # ---- the error model beyond geometry ---------------------------------------------------------

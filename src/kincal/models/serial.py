@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 from abc import abstractmethod
 from dataclasses import dataclass, field
-from typing import ClassVar, Mapping, Sequence
+from typing import ClassVar, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -30,6 +30,7 @@ from .transforms import rot_zyx
 CONVENTIONS = ("dh", "mdh")
 ROW_TYPES = (*JOINT_TYPES, "fixed")  # a fixed row: a DH row without a joint (e.g. a tool row)
 BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
+POSE_KINDS = ("length",) * 3 + ("angle",) * 3  # of x y z rx ry rz (the base frame's, a URDF origin's)
 PARALLEL_TOL = 1e-6  # |sin α| below this: consecutive axes are parallel
 ROW_PARAMS = (("theta", "angle"), ("d", "length"), ("a", "length"), ("alpha", "angle"), ("beta", "angle"))
 
@@ -91,10 +92,15 @@ def check_frames(frames, where: str) -> tuple[tuple[str, tuple[float, ...]], ...
     return tuple(out)
 
 
+def chain_layout(rows: Iterable[tuple[str, str]]) -> tuple[list[str], list[str]]:
+    """Parameter names and kinds of a chain: the base frame, the ``rows`` (name, kind), the tool point."""
+    pairs = list(rows)
+    names = [*BASE_NAMES, *(n for n, _ in pairs), *TOOL_NAMES]
+    return names, [*POSE_KINDS, *(k for _, k in pairs), *("length",) * 3]
+
+
 def _param_names(joints: Sequence[Joint]) -> tuple[list[str], list[str]]:
-    rows = [(f"{jt.name}.{s}", kind) for jt in joints for s, kind in ROW_PARAMS if s != "beta" or jt.beta]
-    names = list(BASE_NAMES) + [n for n, _ in rows] + list(TOOL_NAMES)
-    return names, ["length"] * 3 + ["angle"] * 3 + [k for _, k in rows] + ["length"] * 3
+    return chain_layout((f"{jt.name}.{s}", kind) for jt in joints for s, kind in ROW_PARAMS if s != "beta" or jt.beta)
 
 
 class ChainRobot(Robot):
@@ -103,6 +109,7 @@ class ChainRobot(Robot):
     (``tool.x/y/z``): DH/MDH chains and URDF chains share their kinematics, base handling and
     gravity loads."""
 
+    joints: tuple  # the chain's rows (DH) or joints (URDF): name, type, limits, mass and com each
     _chain: Chain
     has_gravity: ClassVar[bool] = True
 
@@ -116,10 +123,27 @@ class ChainRobot(Robot):
         idx = self.params.index
         return [Op(TRANS, AXES[a], idx(f"tool.{a}")) for a in "xyz"]
 
+    @property
+    def moving(self) -> tuple:
+        """The joints with a joint variable (``joints`` less the fixed ones)."""
+        return tuple(j for j in self.joints if j.type != "fixed")
+
+    def _compile(self, types: Sequence[str], columns: int) -> None:
+        """Set ``joint_space`` (the moving joints, of ``types``) and the chain compiled for ``columns`` values."""
+        moving = self.moving
+        object.__setattr__(self, "joint_space", JointSpace([j.name for j in moving], types, [j.lower for j in moving],
+                                                           [j.upper for j in moving]))
+        object.__setattr__(self, "_chain", compiled(self._build_ops(), columns, len(moving)))
+
     @abstractmethod
+    def _joint_ops(self, joint, k: int) -> list[Op]:
+        """The ops of one row (k: its joint's index among the moving ones); they end in its link's frame."""
+
     def _rows(self) -> list[tuple[str, float, tuple[float, float, float], list[Op]]]:
         """Per row (joint) of the chain, in order: its name, the mass (kg) and centre of mass (m) of
-        the link it moves, and its ops, which end in that link's frame."""
+        the link it moves (link k is the frame at the end of row k), and its ops."""
+        moving = np.cumsum([j.type != "fixed" for j in self.joints]) - 1  # each row's joint index (unused if fixed)
+        return [(j.name, j.mass, j.com, self._joint_ops(j, int(k))) for k, j in zip(moving, self.joints)]
 
     def _build_ops(self) -> tuple[Op, ...]:
         return tuple(self.base_ops() + [op for *_, ops in self._rows() for op in ops] + self.tool_ops())
@@ -207,12 +231,9 @@ class SerialRobot(ChainRobot):
         names, kinds = _param_names(joints)
         if tuple(names) != self.params.names or tuple(kinds) != self.params.kinds:
             raise ModelError(f"robot '{self.name}': parameter names do not match the joint structure")
-        moving = [j for j in joints if j.type != "fixed"]
         object.__setattr__(self, "joints", joints)
         object.__setattr__(self, "frames", check_frames(self.frames, f"robot '{self.name}'"))
-        object.__setattr__(self, "joint_space", JointSpace(tuple(j.name for j in moving), tuple(j.type for j in moving),
-                                                           [j.lower for j in moving], [j.upper for j in moving]))
-        object.__setattr__(self, "_chain", compiled(self._build_ops(), len(self.params), len(moving)))
+        self._compile([j.type for j in self.moving], len(self.params))
 
     # ---- construction --------------------------------------------------------------------------
     @classmethod
@@ -235,17 +256,7 @@ class SerialRobot(ChainRobot):
         return cls(name, convention, tuple(joints), Parameters(names, [vals[n] for n in names], kinds), description,
                    tuple((n, tuple(p)) for n, p in frames))
 
-    @property
-    def moving(self) -> tuple[Joint, ...]:
-        """The rows with a joint variable (``joints`` less the fixed rows)."""
-        return tuple(j for j in self.joints if j.type != "fixed")
-
-    def _rows(self) -> list[tuple[str, float, tuple[float, float, float], list[Op]]]:
-        """Link k is the frame at the end of joint k's row (DH and MDH alike)."""
-        moving = np.cumsum([j.type != "fixed" for j in self.joints]) - 1  # each row's joint index (unused if fixed)
-        return [(j.name, j.mass, j.com, self._row_ops(int(k), j)) for k, j in zip(moving, self.joints)]
-
-    def _row_ops(self, k: int, jt: Joint) -> list[Op]:
+    def _joint_ops(self, jt: Joint, k: int) -> list[Op]:
         p = lambda s: self.params.index(f"{jt.name}.{s}")  # noqa: E731
         x, y, z = AXES["x"], AXES["y"], AXES["z"]
         rz = Op(ROT, z, p("theta"), k if jt.type == "revolute" else -1)

@@ -31,10 +31,10 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..errors import ModelError
-from .chain import AXES, ROT, TRANS, Chain, Op, compiled
+from .chain import AXES, ROT, TRANS, Chain, Op
 from .parameters import Parameters
-from .robot import TOOL_NAMES, JointSpace
-from .serial import BASE_NAMES, ChainRobot, check_mass
+from .robot import JointSpace
+from .serial import POSE_KINDS, ChainRobot, chain_layout, check_mass
 from .transforms import rot_zyx, zyx_from_matrix
 
 ORIGIN = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -66,12 +66,7 @@ class URDFJoint:
 
 
 def _param_layout(joints: Sequence[URDFJoint]) -> tuple[list[str], list[str]]:
-    names, kinds = list(BASE_NAMES), ["length"] * 3 + ["angle"] * 3
-    for j in joints:
-        if j.moving:
-            names += [f"{j.name}.{k}" for k in ORIGIN]
-            kinds += ["length"] * 3 + ["angle"] * 3
-    return names + list(TOOL_NAMES), kinds + ["length"] * 3
+    return chain_layout((f"{j.name}.{k}", kind) for j in joints if j.moving for k, kind in zip(ORIGIN, POSE_KINDS))
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -90,34 +85,22 @@ class URDFRobot(ChainRobot):
         names, kinds = _param_layout(self.joints)
         if self.params.names != tuple(names) or self.params.kinds != tuple(kinds):
             raise ModelError(f"robot '{self.name}': parameters do not match the URDF chain")
-        moving = [j for j in self.joints if j.moving]
-        if not moving:
+        if not self.moving:
             raise ModelError(f"robot '{self.name}': the chain has no moving joint")
         for j in self.joints:
             if "." in j.name or not j.name:
                 raise ModelError(f"robot '{self.name}': joint name '{j.name}' must be non-empty and contain no '.'")
         object.__setattr__(self, "source", MappingProxyType(dict(self.source)))
-        object.__setattr__(self, "joint_space", JointSpace(tuple(j.name for j in moving),
-                                                           tuple(MOVING[j.type] for j in moving),
-                                                           [j.lower for j in moving], [j.upper for j in moving]))
         # each joint motion gets a column of its own after the parameters: ∂p/∂q (joint_jacobian)
-        object.__setattr__(self, "_chain", compiled(self._build_ops(), len(self.params) + len(moving), len(moving)))
+        self._compile([MOVING[j.type] for j in self.moving], len(self.params) + len(self.moving))
 
     @property
     def structure(self) -> str:
         return "urdf"
 
-    @property
-    def moving_joints(self) -> tuple[URDFJoint, ...]:
-        return tuple(j for j in self.joints if j.moving)
-
-    def _rows(self) -> list[tuple[str, float, tuple[float, float, float], list[Op]]]:
-        """Every joint's child link, named by its joint."""
-        moving = np.cumsum([j.moving for j in self.joints]) - 1  # each joint's index among the moving ones
-        return [(j.name, j.mass, j.com, self._joint_ops(j, int(k))) for k, j in zip(moving, self.joints)]
-
     def _joint_ops(self, j: URDFJoint, k: int) -> list[Op]:
-        """The ops of one joint (k: its index among the moving joints); they end in the child link's frame."""
+        """The ops of one joint (k: its index among the moving joints); they end in its child link's
+        frame, the link named by the joint."""
         if not j.moving:
             return _constant_origin(j.xyz, j.rpy)
         idx = self.params.index

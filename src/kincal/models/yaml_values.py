@@ -8,14 +8,11 @@ from .. import units as U
 from ..errors import ModelError
 
 
-def unit_factor(unit: str, kind: str, where: str = "") -> float:
-    """SI factor of a length or angle unit in a robot file (ModelError naming the choices)."""
-    return U.unit_factor(unit, kind, where, ModelError)
-
-
 def per_unit(length_unit: str, angle_unit: str) -> tuple[float, float]:
-    """File units per m and per rad, to write a robot file in ``length_unit`` and ``angle_unit``."""
-    return 1.0 / unit_factor(length_unit, "length"), 1.0 / unit_factor(angle_unit, "angle")
+    """File units per m and per rad, to write a robot file in ``length_unit`` and ``angle_unit`` (a
+    ModelError naming the choices for an unknown unit)."""
+    return (1.0 / U.unit_factor(length_unit, "length", "", ModelError),
+            1.0 / U.unit_factor(angle_unit, "angle", "", ModelError))
 
 
 POSE_KEYS = ("x", "y", "z", "rx", "ry", "rz")  # a frame's pose in a robot file: position, then rotations
@@ -41,8 +38,8 @@ def units(data: dict, label: str) -> tuple[float, float]:
     extra = set(units) - {"length", "angle"}
     if extra:
         raise ModelError(f"{label}: 'units' takes only 'length' and 'angle', got {sorted(map(str, extra))}")
-    return (unit_factor(str(units.get("length", "m")), "length", f"{label}: "),
-            unit_factor(str(units.get("angle", "rad")), "angle", f"{label}: "))
+    return (U.unit_factor(str(units.get("length", "m")), "length", f"{label}: ", ModelError),
+            U.unit_factor(str(units.get("angle", "rad")), "angle", f"{label}: ", ModelError))
 
 
 def base_pose(data: dict, label: str, lf: float, af: float, strict: bool = False) -> dict:
