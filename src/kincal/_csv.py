@@ -232,8 +232,7 @@ class Table:
     def use(self, cols) -> None:
         """Mark ``cols`` read: each once, named once in the header, present."""
         cols = list(cols)
-        check_once(self.path, self.header, self.used + cols, self.kinds)
-        check_present(self.path, self.header, cols, "", self.header_line)
+        self.need(self.used + cols)  # the columns read before are present: only these can be missing
         self.used.extend(cols)
 
     def text(self, col: str) -> np.ndarray:
@@ -247,20 +246,16 @@ class Table:
         cols = list(cols)
         self.use(cols)
         values = cell_numbers(self.path, self.records, self.header, cols, self.delim, empty_ok, finite=False)
-        rows = self.rows
-        skip = None
-        if empty_ok:
-            idx = [self.header.index(c) for c in cols]
-            skip = np.array([[rec[i].strip() == "" for i in idx] for _, rec in self.records], dtype=bool)
-        check_finite(self.path, values, rows, cols, what, skip)
+        rows, idx = self.rows, [self.header.index(c) for c in cols]
+        empty = np.array([[rec[i].strip() == "" for i in idx] for _, rec in self.records], bool) if empty_ok else None
+        check_finite(self.path, values, rows, cols, what, empty)
         units = [units] * len(cols) if units is None or isinstance(units, str) else list(units)
         return in_si(self.path, values, rows, cols, units)
 
 
 def open_table(path: str, kinds: str = "joint, position or σ") -> Table:
     """The CSV at ``path`` read whole (``read_table``) as a ``Table``."""
-    header, records, delim, header_line = read_table(path)
-    return Table(path, header, records, delim, header_line, kinds)
+    return Table(path, *read_table(path), kinds)
 
 
 BLOCK_BYTES = 4 << 20  # a streamed file is read this many bytes at a time (whole lines)

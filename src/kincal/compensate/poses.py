@@ -170,22 +170,15 @@ def _step(J: np.ndarray, e: np.ndarray) -> np.ndarray:
     if n == 6:  # square: one LU per target; the damped normal equations for the singular ones
         try:
             return np.linalg.solve(J, e[..., None])[..., 0]
-        except np.linalg.LinAlgError:  # which ones, so that no target's step depends on the others
+        except np.linalg.LinAlgError:  # target by target, so that no target's step depends on the others
             out = np.empty(e.shape)
-            singular = np.array([_singular(Jk) for Jk in J])
-            if (~singular).any():
-                out[~singular] = np.linalg.solve(J[~singular], e[~singular, :, None])[..., 0]
-            out[singular] = _damped_step(J[singular], e[singular])
+            for k in range(len(J)):
+                try:
+                    out[k] = np.linalg.solve(J[k], e[k, :, None])[:, 0]
+                except np.linalg.LinAlgError:
+                    out[k] = _damped_step(J[k:k + 1], e[k:k + 1])[0]
             return out
     return _damped_step(J, e)
-
-
-def _singular(J: np.ndarray) -> bool:
-    try:
-        np.linalg.solve(J, np.zeros(len(J)))
-        return False
-    except np.linalg.LinAlgError:
-        return True
 
 
 def _damped_step(J: np.ndarray, e: np.ndarray) -> np.ndarray:
@@ -207,5 +200,4 @@ def _damped(A: np.ndarray) -> np.ndarray:
 def filtered_poses(controller: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The poses to send to a controller that moves with ``controller``'s kinematics so that its inverse
     kinematics produce the commands q (N, n): its own forward kinematics at q (positions m, rotations)."""
-    p, R, _, _ = controller.pose_and_jacobian(q)
-    return p, R
+    return controller.pose_and_jacobian(q)[:2]

@@ -1,5 +1,5 @@
 """Compensation of a targets file of any length: read, solved, checked and written block by block
-(about 8 MB of text at a time, so memory stays bounded), in worker processes when the file has
+(about 4 MB of text at a time, so memory stays bounded), in worker processes when the file has
 several blocks, while the next blocks are read.
 
 Each target's command depends on its own row only, a path's continuity check carries the previous
@@ -25,6 +25,7 @@ from .._threads import limit_blas
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
 from ..errors import MeasurementError
 from ..io.commands import CommandColumns, command_columns
+from ..io.measurements import _joint_columns
 from ..io.unit_checks import SPREAD_RATIO, check_degrees, check_radians, check_spread
 from ..models.robot import Robot
 from ..observe.files import check_pose_columns
@@ -173,9 +174,7 @@ def _check_columns(job: StreamJob, stream: Stream) -> None:
     cols = [*joints, *t.xyz_cols, *(t.orientation_cols if t.pose else ())]
     check_once(path, header, cols, "joint, position or orientation")
     if job.needs_joints:
-        if len(joints) != robot.n_joints:
-            raise MeasurementError(f"{path}: {len(joints)} joint columns given ({', '.join(joints)}) but robot "
-                                   f"'{robot.name}' has {robot.n_joints} joints; give one column per joint")
+        _joint_columns(path, robot, joints)  # one per joint
         check_present(path, header, joints, "needs the nominal joint values (--joint-cols names them)")
     check_present(path, header, t.xyz_cols, "needs the target position columns (--xyz-cols)")
     if t.pose:
@@ -267,27 +266,19 @@ def _block(job: StreamJob, stream: Stream, layout: CommandColumns, block: Block,
 def _first_checks(job: StreamJob, stream: Stream, rows, q0, xyz, rot) -> None:
     """On the file's first rows: the units (degrees read as radians and back, positions whose spread
     is not the robot's at the nominal joints: the unit they are really in is named) and the
-    orientation convention (another that fits markedly better is named)."""
-    t, robot = job.targets, job.nominal or job.robot
-    m = min(len(rows), CONVENTION_ROWS)
+    orientation convention (another that fits markedly better is named). The spread is first judged by
+    the median distance from the median: a few rows far off are refused by row later, not taken for a unit."""
     if q0 is None:
         return
-    check_degrees(stream.path, q0[:m], robot, t.angle_unit)
-    check_radians(stream.path, q0[:m], robot, t.angle_unit)
-    if not _spread_plausible(xyz[:m], robot.forward(q0[:m])):  # a unit, named; a few wild rows: named by row later
-        check_spread(stream.path, q0[:m], xyz[:m], robot, t.length_unit, t.angle_unit, "target positions")
+    t, robot, m = job.targets, job.nominal or job.robot, CONVENTION_ROWS
+    q0, xyz = q0[:m], xyz[:m]
+    check_degrees(stream.path, q0, robot, t.angle_unit)
+    check_radians(stream.path, q0, robot, t.angle_unit)
+    size = lambda x: float(np.median(np.linalg.norm(x - np.median(x, axis=0), axis=1)))  # noqa: E731
+    if not 1 / SPREAD_RATIO < size(xyz) / max(size(robot.forward(q0)), 1e-300) < SPREAD_RATIO:
+        check_spread(stream.path, q0, xyz, robot, t.length_unit, t.angle_unit, "target positions")
     if t.pose and job.nominal is not None:
-        convention_check(job.nominal.flange_rotation(q0[:m]), rot[:m], t.orientation, stream.path, rows[:m])
-
-
-def _spread_plausible(xyz: np.ndarray, reached: np.ndarray) -> bool:
-    """The targets' spread (median distance from their median) within SPREAD_RATIO of the nominal
-    model's at the nominal joints: robust to a few rows far off (those are refused by row)."""
-    def size(x: np.ndarray) -> float:
-        return float(np.median(np.linalg.norm(x - np.median(x, axis=0), axis=1)))
-
-    ratio = size(xyz) / max(size(reached), 1e-300)
-    return 1 / SPREAD_RATIO < ratio < SPREAD_RATIO
+        convention_check(job.nominal.flange_rotation(q0), rot[:m], t.orientation, stream.path, rows[:m])
 
 
 def _read(job: StreamJob, stream: Stream, block: Block, previous: Block | None):

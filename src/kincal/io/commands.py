@@ -13,7 +13,7 @@ import numpy as np
 
 from .._numtext import fixed_lines
 from ..models.robot import Robot
-from .measurements import _joint_columns, _joint_scale, _unit
+from .measurements import _file_scales, _joint_columns
 
 DECIMALS = 10
 
@@ -38,9 +38,8 @@ class CommandColumns:
         j = list(self.joint_cols)
         if self.kind == "cartesian":
             return ",".join(["row", "x", "y", "z", *self.rot_cols, *j]) + "\n"
-        extra = [f"d_{c}" for c in j] if self.changes else []
-        return ",".join(["row", *j, "x", "y", "z", *extra] + (["orientation_change_mrad"] if self.orientation_change
-                                                               else [])) + "\n"
+        return ",".join(["row", *j, "x", "y", "z", *(f"d_{c}" for c in j if self.changes),
+                         *(["orientation_change_mrad"] if self.orientation_change else [])]) + "\n"
 
     def text(self, rows: np.ndarray, q: np.ndarray, xyz: np.ndarray, q_start: np.ndarray | None = None,
              orientation_change: np.ndarray | None = None, rot_values: np.ndarray | None = None) -> str:
@@ -74,7 +73,6 @@ def command_columns(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[
                     orientation_change: bool = False, rot_cols: Sequence[str] = ()) -> CommandColumns:
     """The layout of a commands file at ``path`` for ``robot`` in the given units (see CommandColumns)."""
     cols = _joint_columns(str(path), robot, joint_cols)
-    scale = 1.0 / _joint_scale(robot.joint_types, length_unit, angle_unit, str(path))
-    lf = 1.0 / _unit(length_unit, "length", str(path))
+    scale, lf = _file_scales(robot.joint_types, length_unit, angle_unit, str(path))
     return CommandColumns(kind, tuple(cols), scale, lf, changes, orientation_change, tuple(rot_cols))
 

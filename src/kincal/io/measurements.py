@@ -56,14 +56,13 @@ class Measurements:
             if bad.any():
                 raise MeasurementError(f"{source}: measurement σ must be > 0; row(s) "
                                        f"{', '.join(map(str, rows[bad][:MAX_LISTED]))} give 0 or less")
-            std.setflags(write=False)
         if session is not None:
             session = np.asarray(session, dtype=str)
             if session.shape != (q.shape[0],):
                 raise MeasurementError(f"{source}: one session label per pose expected, got {session.shape}")
-            session.setflags(write=False)
-        for a in (q, xyz, rows):
-            a.setflags(write=False)
+        for a in (q, xyz, rows, std, session):
+            if a is not None:
+                a.setflags(write=False)
         for name, value in (("q", q), ("xyz", xyz), ("joint_names", tuple(joint_names)), ("source", source),
                             ("rows", rows), ("std", std), ("units", units), ("session", session)):
             object.__setattr__(self, name, value)
@@ -132,9 +131,11 @@ def _joint_units(joint_types: Sequence[str], length_unit: str, angle_unit: str, 
     return joint_units(joint_types, length_unit, angle_unit)
 
 
-def _joint_scale(joint_types: Sequence[str], length_unit: str, angle_unit: str, path: str) -> np.ndarray:
-    """SI factor per joint: angle unit for revolute joints, length unit for prismatic ones."""
-    return np.array(joint_factors(joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError))
+def _file_scales(joint_types: Sequence[str], length_unit: str, angle_unit: str, path: str) -> tuple[np.ndarray, float]:
+    """Factors from SI to a file's units: per joint (angle unit for revolute joints, length unit for
+    prismatic ones; both units checked) and for lengths."""
+    factors = np.array(joint_factors(joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError))
+    return 1.0 / factors, 1.0 / _unit(length_unit, "length", path)
 
 
 def read_joints(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None, length_unit: str = "m",
@@ -204,8 +205,7 @@ def write_measurements(path: str | os.PathLike, meas: Measurements, joint_types:
                        joint_cols: Sequence[str] | None = None) -> None:
     """Write measurements as a comma-separated CSV (atomically) in the given units."""
     types = list(joint_types) if joint_types is not None else ["revolute"] * meas.q.shape[1]
-    scale = 1.0 / _joint_scale(types, length_unit, angle_unit, str(path))
-    lf = 1.0 / _unit(length_unit, "length", str(path))
+    scale, lf = _file_scales(types, length_unit, angle_unit, str(path))
     cols = list(joint_cols) if joint_cols is not None else list(meas.joint_names)
     write_csv(path, cols + ["x", "y", "z"], ([repr(float(v)) for v in (*qi, *pi)]
                                             for qi, pi in zip(meas.q * scale, meas.xyz * lf)))
@@ -215,7 +215,7 @@ def write_joints(path: str | os.PathLike, q: np.ndarray, robot: Robot, joint_col
                  length_unit: str = "m", angle_unit: str = "rad") -> None:
     """Write joint vectors (N, n) in SI units as a CSV of poses (atomically), e.g. poses to measure."""
     cols = _joint_columns(str(path), robot, joint_cols)
-    scale = 1.0 / _joint_scale(robot.joint_types, length_unit, angle_unit, str(path))
+    scale, _ = _file_scales(robot.joint_types, length_unit, angle_unit, str(path))
     write_csv(path, cols, ([repr(float(v)) for v in qi] for qi in robot.check_q(q) * scale))
 
 
@@ -235,8 +235,7 @@ def write_residuals(path: str | os.PathLike, meas: Measurements, predicted: np.n
                     joint_types: Sequence[str], length_unit: str = "mm", angle_unit: str = "deg") -> None:
     """Per-pose residual table (atomically): input row, joints, measured, predicted, error vector and
     norm (all in the given units), robust z-score and an outlier flag."""
-    scale = 1.0 / _joint_scale(joint_types, length_unit, angle_unit, str(path))
-    lf = 1.0 / _unit(length_unit, "length", str(path))
+    scale, lf = _file_scales(joint_types, length_unit, angle_unit, str(path))
     err = meas.xyz - predicted
     u = f"_{length_unit}"
     header = ["row", *meas.joint_names, *(f"{a}_measured{u}" for a in "xyz"), *(f"{a}_predicted{u}" for a in "xyz"),

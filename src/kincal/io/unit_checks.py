@@ -43,7 +43,12 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
                                    f"(CLI: --angle-unit rad)")
     jump = frame_jump(xyz, robot.forward(q))
     if jump is not None:
-        raise MeasurementError(jump_text(source, jump, rows))
+        k, one, two = jump
+        row = int(rows[k]) if rows is not None else k + 2  # default: the data rows after a header line
+        raise MeasurementError(f"{source}: the measurement frame jumps at row {row}: the rows before it and those from "
+                               f"it on each fit the robot in a frame of their own (RMS {two * 1e3:.3g} mm against "
+                               f"{one * 1e3:.3g} mm in one frame): two set-ups in one file, or the tracker was moved "
+                               f"or bumped there; give one file per session (each gets its own frame)")
     if predicted > MIN_SPREAD:
         raise MeasurementError(f"{source}: {unit_hint(ratio, length_unit, what)}")
 
@@ -76,17 +81,6 @@ def _rigid_sse(n, sx, sp, sq, sxp) -> np.ndarray:
     s = np.linalg.svd(H, compute_uv=False)
     s[:, -1] *= np.sign(np.linalg.det(H))  # a reflection is not a frame
     return sq - (np.sum(sx**2, 1) + np.sum(sp**2, 1)) / n - 2 * s.sum(axis=1)
-
-
-def jump_text(source: str, jump: tuple[int, float, float], rows: np.ndarray | None) -> str:
-    """The message naming a frame jump found by :func:`frame_jump` (``rows``: the file's line of each
-    position; default: the data rows after a header line)."""
-    k, one, two = jump
-    row = int(rows[k]) if rows is not None else k + 2
-    return (f"{source}: the measurement frame jumps at row {row}: the rows before it and those from it on each fit "
-            f"the robot in a frame of their own (RMS {two * 1e3:.3g} mm against {one * 1e3:.3g} mm in one frame): two "
-            f"set-ups in one file, or the tracker was moved or bumped there; give one file per session (each gets "
-            f"its own frame)")
 
 
 def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | None) -> None:
