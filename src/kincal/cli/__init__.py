@@ -3,7 +3,8 @@
 One module per concept: ``model`` (robots and their kinematics), ``design`` (pose design, separation),
 ``identify`` (calibrate, evaluate), ``report`` (the calibration report), ``parallel`` (compensation
 and the 3-PUU paper's error-model verification), ``study`` (Guo et al. 2024 reproduced, and its
-Monte-Carlo study).
+Monte-Carlo study). Each adds its commands with ``register(cmd)``, through ``cmd(name, func, help[, robot help
+or None])`` (:func:`build_parser`).
 """
 from __future__ import annotations
 
@@ -39,9 +40,8 @@ def given_flags(parser: argparse.ArgumentParser, args: argparse.Namespace) -> di
 
 
 def prepared(parser: argparse.ArgumentParser, args: argparse.Namespace) -> argparse.Namespace:
-    """``args`` with ``given`` (:func:`given_flags`), after the checks of flags that several commands
-    share: a flag that asks for the default while another contradicts it, a flag without the one it
-    modifies (ValueError)."""
+    """``args`` with ``given`` (:func:`given_flags`), after the checks of flags that several commands share: a flag
+    that asks for the default while another contradicts it, a flag without the one it modifies (ValueError)."""
     args.given = given_flags(parser, args)
     if "rebase" in args.given and args.rebase and args.same_frame:
         raise ValueError("--rebase (each session's frame re-fitted, the default) contradicts --same-frame; give one")
@@ -98,9 +98,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
-    """``--tool -1,-7,1.6mm`` as ``--tool=-1,-7,1.6mm``: argparse takes a value that starts with '-' and
-    is not one plain number for another flag ("expected one argument"). Only after a flag of the
-    command that takes a value."""
+    """``--tool -1,-7,1.6mm`` as ``--tool=-1,-7,1.6mm``: argparse takes a value that starts with '-' and is not
+    one plain number for another flag ("expected one argument"). Only after a flag of the command that takes a value."""
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     command = sub.choices.get(argv[0]) if argv else None
     if command is None:
@@ -116,8 +115,7 @@ def _negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[s
 
 
 def stopped(word: str, code: int) -> int:
-    """One line for Ctrl-C or SIGTERM; a second signal while it is printed, or while Python shuts down, is
-    ignored."""
+    """One line for Ctrl-C or SIGTERM; a second signal while it is printed, or while Python shuts down, is ignored."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     line(f"kincal: {word}; nothing half-written")

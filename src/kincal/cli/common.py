@@ -27,15 +27,21 @@ def csv_list(s: str) -> list[str]:
     return [c.strip() for c in s.split(",") if c.strip()]
 
 
+def _number(s: str, ok, need: str, parse=float, what: str = "a number"):
+    """``s`` read by ``parse`` (``what``) for which ``ok`` holds; an ArgumentTypeError saying ``need`` (with ``s``
+    and the value ``v`` put in) otherwise."""
+    try:
+        v = parse(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}' is not {what}") from None
+    if not ok(v):
+        raise argparse.ArgumentTypeError(need.format(s=s, v=v))
+    return v
+
+
 def positive_int(s: str) -> int:
     """argparse type: a whole number ≥ 1."""
-    try:
-        v = int(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{s}' is not a whole number") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"{v}: give at least 1")
-    return v
+    return _number(s, lambda v: v >= 1, "{v}: give at least 1", int, "a whole number")
 
 
 def nonneg_int(s: str) -> int:
@@ -43,25 +49,14 @@ def nonneg_int(s: str) -> int:
     return 0 if s.strip() == "0" else positive_int(s)
 
 
-def _number(s: str, ok, need: str) -> float:
-    """``s`` as a float for which ``ok`` holds; an ArgumentTypeError saying ``need`` otherwise."""
-    try:
-        v = float(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{s}' is not a number") from None
-    if not ok(v):
-        raise argparse.ArgumentTypeError(need)
-    return v
-
-
 def nonneg_float(s: str) -> float:
     """argparse type: a finite number ≥ 0."""
-    return _number(s, lambda v: np.isfinite(v) and v >= 0, f"{s}: give a finite number >= 0")
+    return _number(s, lambda v: np.isfinite(v) and v >= 0, "{s}: give a finite number >= 0")
 
 
 def finite_float(s: str) -> float:
     """argparse type: a finite number."""
-    return _number(s, np.isfinite, f"'{s}': give a finite number")
+    return _number(s, np.isfinite, "'{s}': give a finite number")
 
 
 def positive_float(s: str) -> float:
@@ -122,8 +117,19 @@ def lengths(count: int, example: str, what: str = "", limit: float = CELL_SIZE, 
 point = lengths(3, "0,0,93.2mm", "three finite numbers X,Y,Z", MAX_TOOL, "the flange")
 
 
-def load_robot(args):
-    """The command's robot, with the URDF chain flags when given."""
+def one_type(args, flag: str = "--type") -> str:
+    """The one measurement type --type gives (point when none); a ValueError starting with ``flag`` otherwise."""
+    kinds = args.type or ["point"]
+    if len(kinds) != 1 or kinds[0] not in TYPES:
+        raise ValueError(f"{flag}: give one of {', '.join(TYPES)}")
+    return kinds[0]
+
+
+def load_robot(args, inputs=None, outputs=()):
+    """The command's robot, with the URDF chain flags when given; with ``inputs`` (files the command reads), first
+    :func:`check_paths` of them, the robot's own files and ``outputs``."""
+    if inputs is not None:
+        check_paths([*robot_inputs(args.robot), *inputs], outputs)
     return kincal.load_robot(args.robot, base_link=args.base_link, tip_link=args.tip_link, tool=args.tool)
 
 
@@ -243,11 +249,13 @@ def progress_bar(args, label: str, total: int | None = None):
         yield lambda done, of: bar.update(task, completed=done, total=of)
 
 
-def emit(args, payload: dict, text) -> None:
+def emit(args, payload: dict, text, code: int = 0) -> int:
+    """Print the result (``payload`` as JSON with --json, else ``text``); return the exit ``code``."""
     if args.json:
         sys.stdout.write(json.dumps(payload, indent=2, default=json_default) + "\n")
     else:  # plain text printed as it is: '[' in a parameter name is no rich markup
         out.print(text, markup=False if isinstance(text, str) else None)
+    return code
 
 
 def json_default(o):

@@ -15,8 +15,8 @@ from kincal.io.program_ur import measurement_program
 from kincal.observe import read_observations, write_observations
 
 from . import observe
-from .common import (TYPES, check_paths, csv_list, emit, lengths, load_robot, nonneg_float,
-                     nonneg_int, positive_float, positive_int, progress, robot_inputs)
+from .common import (check_paths, csv_list, emit, lengths, load_robot, nonneg_float, nonneg_int, one_type,
+                     positive_float, positive_int, progress, robot_inputs)
 
 
 def cmd_design(args) -> int:
@@ -61,10 +61,9 @@ def cmd_design(args) -> int:
         kincal.io.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, args.angle_unit)
         where = f"poses written to {args.output}" + (f" ({args.method} leaves the candidates: new poses, no input "
                                                      f"rows)" if args.candidates else "")
-    emit(args, {**d.to_dict(), "output": args.output, **_program(args, r, d.q)}, f"{d}\n{where}" + (
+    return emit(args, {**d.to_dict(), "output": args.output, **_program(args, r, d.q)}, f"{d}\n{where}" + (
         f"\nmeasurement program written to {_program_path(args)} (movej through the poses, {args.settle:g} s to "
         f"settle at each; the predicted tool positions in its comments and the JSON)" if args.program else ""))
-    return 0
 
 
 def _program_path(args) -> str | None:
@@ -124,9 +123,7 @@ def _observation_problem(args, robot, pool):
 
 
 def _check_observation_design(args) -> None:
-    kinds = args.type or ["point"]
-    if len(kinds) != 1 or kinds[0] not in TYPES:
-        raise ValueError(f"design --type {','.join(kinds)}: give one of {', '.join(TYPES)}")
+    one_type(args, f"design --type {','.join(args.type or ['point'])}")
     if args.method in ("ide", "detmax-ide") or args.params:
         raise ValueError("design --type: use --method detmax or fedorov (the IDE leaves the pool) and no --params")
 
@@ -154,8 +151,7 @@ def _design_constraints(args, robot, options, cell) -> int:
     else:
         write_observations(args.output, plan.subset(d.indices), robot, observe.format_of(args, kind))
         where = f"samples written to {args.output}; measure them and calibrate with: {flags}"
-    emit(args, {**d.to_dict(), "output": args.output, "type": kind, "flags": flags}, f"{d}\n{where}")
-    return 0
+    return emit(args, {**d.to_dict(), "output": args.output, "type": kind, "flags": flags}, f"{d}\n{where}")
 
 
 def cmd_npose(args) -> int:
@@ -168,23 +164,21 @@ def cmd_npose(args) -> int:
     step = max(1, args.max // 10)
     rows = "\n".join(f"  m = {m:4d}   {args.criterion} = {v:.5g}" for m, v in
                      zip(curve.m_values[step - 1::step], curve.values[step - 1::step]))
-    emit(args, payload, f"{r.name}: {P.k} parameters, {r.n_joints} joints\n"
-         f"minimum number of poses (eq. 18): {low}\n{rows}\n"
-         + (f"the curve flattens (< 1 % gain over 10 more poses) at m = {curve.chosen}" if curve.flattened else
-            f"the curve does not flatten within m <= {args.max} (< 1 % gain over 10 more poses): try a larger --max"))
-    return 0
+    return emit(args, payload, f"{r.name}: {P.k} parameters, {r.n_joints} joints\n"
+                f"minimum number of poses (eq. 18): {low}\n{rows}\n"
+                + (f"the curve flattens (< 1 % gain over 10 more poses) at m = {curve.chosen}" if curve.flattened
+                   else f"the curve does not flatten within m <= {args.max} (< 1 % gain over 10 more poses): try a "
+                        f"larger --max"))
 
 
 def cmd_separate(args) -> int:
     r = load_robot(args)
     sep = kincal.analysis.separate_ill_conditioned(r, kincal.candidate_pool(r, args.poses, seed=args.seed),
                                                    threshold=args.threshold, keep=args.keep or ())
-    emit(args, sep.to_dict(), sep.tables())
-    return 0
+    return emit(args, sep.to_dict(), sep.tables())
 
 
 def register(cmd) -> None:
-    """Add the commands to the parser through ``cmd(name, func, help[, robot help or None])``."""
     s = cmd("design", cmd_design, "choose measurement poses (writes a poses CSV)")
     s.add_argument("-m", type=positive_int, default=60, help="number of poses (default 60)")
     s.add_argument("-o", "--output", required=True, help="poses CSV to write")

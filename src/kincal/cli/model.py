@@ -13,8 +13,8 @@ from kincal.observe import describe, read_observations, write_observations
 from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM
 
 from . import observe
-from .common import (TYPES, check_paths, csv_list, emit, finite_float, hidden_alias, joint_values,
-                     load_robot, nonneg_float, out, positive_float, positive_int, robot_inputs)
+from .common import (check_paths, csv_list, emit, finite_float, hidden_alias, joint_values, load_robot, nonneg_float,
+                     one_type, out, positive_float, positive_int, robot_inputs)
 
 
 def cmd_robots(args) -> int:
@@ -24,9 +24,8 @@ def cmd_robots(args) -> int:
     t = Table("robot", "joints", "parameters", "structure", "description")
     for n, r in rows:  # the description up to a colon or the end of its first sentence
         t.add_row(n, str(r.n_joints), str(r.n_params), r.structure, re.split(r"\. (?=[A-Z])|: ", r.description)[0])
-    emit(args, {"robots": [{"name": n, "joints": r.n_joints, "parameters": r.n_params,
-                            "structure": r.structure, "description": r.description} for n, r in rows]}, t)
-    return 0
+    return emit(args, {"robots": [{"name": n, "joints": r.n_joints, "parameters": r.n_params,
+                                   "structure": r.structure, "description": r.description} for n, r in rows]}, t)
 
 
 def cmd_show(args) -> int:
@@ -46,43 +45,39 @@ def cmd_show(args) -> int:
                "joints": [{"name": n, "type": t, "limits": [float(v) if np.isfinite(v) else None for v in (lo, hi)]}
                           for n, t, lo, hi in zip(r.joint_names, r.joint_types, r.lower, r.upper)], "notes": notes}
     if args.type:
-        payload["measurement"] = describe(r, observe.format_of(args, _one_type(args)))
+        payload["measurement"] = describe(r, observe.format_of(args, one_type(args)))
     if args.json:
-        emit(args, payload, None)
-    else:
-        out.print(t)
-        out.print(lim)
-        for n in notes + payload.get("measurement", []):
-            out.print(f"note: {n}" if n in notes else n, markup=False)
+        return emit(args, payload, None)
+    out.print(t)
+    out.print(lim)
+    for n in notes + payload.get("measurement", []):
+        out.print(f"note: {n}" if n in notes else n, markup=False)
     return 0
 
 
 def cmd_identifiability(args) -> int:
     check_paths([*robot_inputs(args.robot), args.data], [])
-    kind = _one_type(args)
+    kind = one_type(args)
     r = load_robot(args)
     if kind == "point":
         ident = kincal.analysis.free_parameters(r, joint_values(args, r, args.data), base=args.base,
                                                 keep=args.keep or (), rank_tol=args.rank_tol)
-        emit(args, ident.to_dict(), str(ident))
-        return 0
+        return emit(args, ident.to_dict(), str(ident))
     if kind in ("same-point", "plane"):  # the samples of a file or of kincal's own plan
         obs = (read_observations(args.data, r, observe.format_of(args, kind)) if args.data
                else observe.planned(args, r, r, kind, None, 0.0, args.seed))
     else:  # the type's observations at the poses of a file or at random ones
         obs = observe.planned(args, r, r, kind, joint_values(args, r, args.data), 0.0, args.seed)
     ident, gauge = observation_identifiability(r, [obs], keep=args.keep or (), rank_tol=args.rank_tol)
-    emit(args, {**ident.to_dict(), "gauge": list(gauge), "type": kind}, str(ident))
-    return 0
+    return emit(args, {**ident.to_dict(), "gauge": list(gauge), "type": kind}, str(ident))
 
 
 def cmd_simulate(args) -> int:
-    check_paths([*robot_inputs(args.robot), args.poses_file], [args.output, args.save_true])
-    r = load_robot(args)
+    r = load_robot(args, [args.poses_file], [args.output, args.save_true])
     true = (kincal.perturb(r, length=args.length_error / MM, angle=args.angle_error / DEG, seed=args.seed)
             if args.perturb else r)
     q = joint_values(args, r, args.poses_file)
-    kind = _one_type(args)
+    kind = one_type(args)
     if args.save_true:
         kincal.save_robot(true, args.save_true)
     if kind != "point":  # observations of the type, written in its columns
@@ -90,41 +85,30 @@ def cmd_simulate(args) -> int:
         write_observations(args.output, obs, r, observe.format_of(args, kind))
         use = observe.flags_to_use(obs, args.length_unit) + observe.units_to_use(args) + (
             f" --orientation {args.orientation}" if kind == "pose" and args.orientation != "quat-wxyz" else "")
-        emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
-             f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them with: {use}")
-        return 0
+        return emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
+                    f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them "
+                    f"with: {use}")
     meas = kincal.simulate(true, q, noise=args.noise / MM, seed=args.seed + 1)
     kincal.write_measurements(args.output, meas, r.joint_types, args.length_unit, args.angle_unit,
                               joint_cols=args.joint_cols)
     payload = {"output": args.output, "n": len(meas), "noise": args.noise / MM, "perturbed": bool(args.perturb),
                "true_robot": args.save_true, "true_parameters": true.params.as_dict()}
     use = observe.units_to_use(args) + ("" if args.joint_cols is None else f" --joint-cols {','.join(args.joint_cols)}")
-    emit(args, {**payload, "flags": use.strip()}, f"wrote {len(meas)} simulated measurements of {true.name} to "
-         f"{args.output}" + (f" (true robot saved to {args.save_true})" if args.save_true else "")
-         + (f"; calibrate them with: {use.strip()}" if use else ""))
-    return 0
-
-
-def _one_type(args) -> str:
-    kinds = args.type or ["point"]
-    if len(kinds) != 1 or kinds[0] not in TYPES:
-        raise ValueError(f"--type: give one of {', '.join(TYPES)}")
-    return kinds[0]
+    return emit(args, {**payload, "flags": use.strip()}, f"wrote {len(meas)} simulated measurements of {true.name} to "
+                f"{args.output}" + (f" (true robot saved to {args.save_true})" if args.save_true else "")
+                + (f"; calibrate them with: {use.strip()}" if use else ""))
 
 
 def cmd_sensitivity(args) -> int:
-    check_paths(robot_inputs(args.robot), [args.plot])
-    r = load_robot(args)
+    r = load_robot(args, [], [args.plot])
     s = kincal.analysis.sensitivity(r, r.sample_joints(args.samples, seed=args.seed), args.params)
     if args.plot:
         s.plot(args.plot)
-    emit(args, s.to_dict(), s.table() + (f"\nplot written to {args.plot}" if args.plot else ""))
-    return 0
+    return emit(args, s.to_dict(), s.table() + (f"\nplot written to {args.plot}" if args.plot else ""))
 
 
 def cmd_export(args) -> int:
-    check_paths([*robot_inputs(args.robot), args.source], [args.output])
-    r = load_robot(args)
+    r = load_robot(args, [args.source], [args.output])
     info = kincal.export_robot(r, args.output, args.format, args.source, args.tool_link, args.base_yaw / DEG,
                                args.length_unit, args.angle_unit, args.joint_names)
     lines = [f"{r.name}: {info['format']} written to {args.output} (checked: it reproduces the model, tool point "
@@ -146,12 +130,10 @@ def cmd_export(args) -> int:
         lines.append(f"set the TCP on the controller to x {tcp[0]:+.4f}, y {tcp[1]:+.4f}, z {tcp[2]:+.4f} mm (the "
                      f"tool point in the UR flange frame); the driver will warn that the file's hash does not match "
                      f"the robot's factory calibration: expected for a tracker calibration (see the README)")
-    emit(args, {**info, "output": args.output}, "\n".join(lines))
-    return 0
+    return emit(args, {**info, "output": args.output}, "\n".join(lines))
 
 
 def register(cmd) -> None:
-    """Add the commands to the parser through ``cmd(name, func, help[, robot help or None])``."""
     cmd("robots", cmd_robots, "list the bundled robots", None)
     s = cmd("show", cmd_show, "show a robot's parameters (mm, deg), joints and structure notes")
     observe.add_flags(s)  # --type: also what a file of that measurement type holds for this robot

@@ -13,13 +13,12 @@ from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, Verific
 from kincal.observe import check_convention
 from kincal.units import DEG, MM
 
-from .common import (EXIT_REFUSED, add_data_flags, check_paths, checked, csv_list, emit, load_robot,
-                     nonneg_float, point, positive_float, positive_int, progress_bar, robot_inputs)
+from .common import (EXIT_REFUSED, add_data_flags, checked, csv_list, emit, load_robot, nonneg_float, point,
+                     positive_float, positive_int, progress_bar, robot_inputs)
 
 
 def cmd_compensate(args) -> int:
-    check_paths([*robot_inputs(args.robot), args.targets], [args.output])
-    cal = load_robot(args)
+    cal = load_robot(args, [args.targets], [args.output])
     record = kincal.models.load_calibration_record(args.robot) if robot_inputs(args.robot) else None
     nominal_values = (record or {}).get("nominal")
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
@@ -45,8 +44,8 @@ def cmd_compensate(args) -> int:
                               workers=args.workers, progress=bar)
     payload = {**res.to_dict(), "output": args.output if res.written else None, "target_frame": args.target_frame,
                "output_kind": args.output_kind, "tool_carry": carry or None}
-    emit(args, payload, _compensation_text(args, res, r) + (f"\nTCP: {carry}" if carry else ""))
-    return 0 if res.written else EXIT_REFUSED
+    return emit(args, payload, _compensation_text(args, res, r) + (f"\nTCP: {carry}" if carry else ""),
+                0 if res.written else EXIT_REFUSED)
 
 
 SHOWN_PROBLEMS = 50  # refused rows listed on the terminal (all of them with --json)
@@ -104,11 +103,10 @@ def _compensate_program(args, r, nominal, carry: str, models) -> int:
         "measured target (the calibration's tool point); give --tcp with the controller's TCP if it is another"]
     lines += [f"refused: {p}" for p in res.problems]
     lines += [f"left as is (not a literal): line {n} {move}({arg}, …)" for n, move, arg in res.not_literal]
-    emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
-                "not_literal": [{"line": n, "move": m, "target": a} for n, m, a in res.not_literal],
-                "output": args.output if written else None, "tool_carry": carry or None},
-         "\n".join(lines + ([f"TCP: {carry}"] if carry else [])))
-    return 0 if written else EXIT_REFUSED
+    return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
+                       "not_literal": [{"line": n, "move": m, "target": a} for n, m, a in res.not_literal],
+                       "output": args.output if written else None, "tool_carry": carry or None},
+                "\n".join(lines + ([f"TCP: {carry}"] if carry else [])), 0 if written else EXIT_REFUSED)
 
 
 PLAN_JOINT_TOL = 1e-5  # rad or m: measured joint values must repeat the plan's commands this closely
@@ -116,8 +114,7 @@ PLAN_COPY_TOL = 1e-12  # relative: "measurements" this close to the predictions 
 
 
 def cmd_verify(args) -> int:
-    check_paths([*robot_inputs(args.robot), args.plan, args.measured, args.simulate], [args.output])
-    r = load_robot(args)
+    r = load_robot(args, [args.plan, args.measured, args.simulate], [args.output])
     if args.measured and not args.plan:
         raise ValueError("--measured needs --plan FILE: the plan written with -o, whose commands were measured")
     if not (args.output or args.measured or args.simulate):
@@ -128,14 +125,12 @@ def cmd_verify(args) -> int:
     if args.output:
         plan.write_csv(args.output, r, args.joint_cols, args.length_unit, args.angle_unit)
     if not (args.measured or args.simulate):
-        emit(args, {"cases": list(plan.cases), "commands": plan.commands.tolist(), "output": args.output},
-             f"{len(plan.cases)} cases x {plan.commands.shape[1]} samples: commands written to {args.output} "
-             f"({args.length_unit}, {args.angle_unit}); measure them in this order, then run with --plan "
-             f"{args.output} --measured FILE")
-        return 0
+        return emit(args, {"cases": list(plan.cases), "commands": plan.commands.tolist(), "output": args.output},
+                    f"{len(plan.cases)} cases x {plan.commands.shape[1]} samples: commands written to {args.output} "
+                    f"({args.length_unit}, {args.angle_unit}); measure them in this order, then run with --plan "
+                    f"{args.output} --measured FILE")
     result = plan.compare(_measured(args, r, plan), args.tolerance / MM)
-    emit(args, result.to_dict(), result.table())
-    return 0 if result.passed.all() else EXIT_REFUSED
+    return emit(args, result.to_dict(), result.table(), 0 if result.passed.all() else EXIT_REFUSED)
 
 
 def _measured(args, r, plan) -> np.ndarray:
@@ -143,8 +138,7 @@ def _measured(args, r, plan) -> np.ndarray:
     if args.simulate:
         true = kincal.load_robot(args.simulate)
         return np.array([kincal.simulate(true, c, args.noise / MM, seed=k).xyz for k, c in enumerate(plan.commands)])
-    meas = kincal.read_measurements(args.measured, r, args.joint_cols, args.xyz_cols, args.length_unit,
-                                    args.angle_unit)
+    meas = kincal.read_measurements(args.measured, r, args.joint_cols, args.xyz_cols, args.length_unit, args.angle_unit)
     cmds = plan.commands.reshape(-1, r.n_joints)
     if len(meas) != len(cmds):
         raise kincal.MeasurementError(f"{args.measured}: {len(meas)} rows, the plan {args.plan} has {len(cmds)} "
@@ -163,7 +157,6 @@ def _measured(args, r, plan) -> np.ndarray:
 
 
 def register(cmd) -> None:
-    """Add the commands to the parser through ``cmd(name, func, help[, robot help or None])``."""
     s = cmd("compensate", cmd_compensate, "joint commands that the calibrated model says reach target positions",
             "the calibrated robot (YAML)")
     s.add_argument("targets", help="CSV of target positions (serial robots: with the nominal joint values too)")

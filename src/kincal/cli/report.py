@@ -11,7 +11,7 @@ import kincal.identify
 import kincal.models
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS
 
-from .common import EXIT_REFUSED, TYPES, check_paths, csv_list, emit, err, load_robot, progress, robot_inputs
+from .common import EXIT_REFUSED, TYPES, csv_list, emit, err, load_robot, progress
 
 
 def json_path(html: str) -> Path:
@@ -82,8 +82,7 @@ def cmd_report(args) -> int:
     reading.distance = [tuple(d) for d in reading.distance or []]
     reading.exclude = None if args.train else reading.exclude  # recorded rows are rows of the recorded files
     reading.plane = [(lab, (tuple(n), c)) for lab, (n, c) in reading.plane or []]
-    check_paths([*robot_inputs(args.robot), *data["file"], *args.test], [args.output, json_path(args.output)])
-    cal = load_robot(args)
+    cal = load_robot(args, [*data["file"], *args.test], [args.output, json_path(args.output)])
     nominal = nominal_model(cal, record, args.robot)  # the record has one (checked by _record_parts)
     with progress("refitting the calibration", args.json):
         res, tests = fit_files(reading, nominal, data["kinds"], data["file"], args.test, options,
@@ -97,16 +96,15 @@ def cmd_report(args) -> int:
         err.print(f"kincal: warning: {info['note']}", markup=False)
     rep = kincal.build_report(res, tests, info, Path(args.output).name, same_frame=reading.same_frame)
     json_file = rep.write(args.output)
-    emit(args, {**rep.data, "output": args.output, "json": str(json_file)},
-         f"{rep.summary}\nreport written to {args.output} (numbers in {json_file})")
-    return 0 if res.verdict.status != "refused" else EXIT_REFUSED
+    return emit(args, {**rep.data, "output": args.output, "json": str(json_file)},
+                f"{rep.summary}\nreport written to {args.output} (numbers in {json_file})",
+                0 if res.verdict.status != "refused" else EXIT_REFUSED)
 
 
 def _record_parts(path: str, record: dict, train: list[str] | None) -> tuple[dict, "kincal.FitOptions"]:
-    """The record's options (checked) and data: the files (``train`` when given), their kinds, how
-    they were read and whether in one frame; a record that does not say (written by hand) takes
-    ``train`` as position files read as the report's flags say. A ValueError names the file and
-    what is missing."""
+    """The record's options (checked) and data: the files (``train`` when given), their kinds, how they were read
+    and whether in one frame; a record that does not say (written by hand) takes ``train`` as position files read
+    as the report's flags say. A ValueError names the file and what is missing."""
     if not record or "nominal" not in record or "options" not in record:
         raise ValueError(f"{path}: not a calibrated robot file (no calibration record: the nominal values and "
                          f"options the report refits); calibrate first, e.g. 'kincal calibrate {path} DATA.csv "

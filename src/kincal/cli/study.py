@@ -25,8 +25,7 @@ def cmd_demo(args) -> int:
 
         from .report import save_figures
         text += "\n" + "\n".join(save_figures(guo2024_figures(study), args.plot))
-    emit(args, study.to_dict(), text)
-    return 0
+    return emit(args, study.to_dict(), text)
 
 
 def cmd_study(args) -> int:
@@ -50,9 +49,8 @@ def cmd_study(args) -> int:
         raise ValueError(f"{out}: its trial records lack the study's results (key or value {exc} missing or "
                          f"malformed); the file was changed or written by another version; give a new output file "
                          f"or remove this one") from None
-    emit(args, {"results_file": str(out), "trials": len(records), "settings": header, "reduction": rows},
-         guo2024_mc.report(rows) + f"\nper-trial results: {out}")
-    return 0
+    return emit(args, {"results_file": str(out), "trials": len(records), "settings": header, "reduction": rows},
+                guo2024_mc.report(rows) + f"\nper-trial results: {out}")
 
 
 def _study(s: str) -> str:
@@ -71,7 +69,6 @@ def _scheduler(s: str) -> str:
 
 
 def register(cmd) -> None:
-    """Add the commands to the parser through ``cmd(name, func, help[, robot help or None])``."""
     s = cmd("demo", cmd_demo, f"{GUO2024} (measurement-pose optimisation) reproduced on the 3T2R robot, in "
                               f"simulation", None)
     s.add_argument("--poses", type=positive_int, default=60, help="poses per design (default 60)")
