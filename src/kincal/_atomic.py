@@ -5,12 +5,6 @@ import os
 from pathlib import Path
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
 def write_text_atomic(path: str | os.PathLike, text: str, encoding: str = "utf-8") -> None:
     """Write a file via a temporary file and rename, so no half-written file is ever left."""
     with AtomicFile(path, encoding) as fh:
@@ -43,7 +37,9 @@ class AtomicFile:
         try:
             self._fh.close()
             if exc_type is None and self._keep:
-                os.chmod(self._tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
+                mask = os.umask(0)  # (read by setting it: there is no other way)
+                os.umask(mask)
+                os.chmod(self._tmp, 0o666 & ~mask)  # mkstemp makes 0600; outputs get the usual permissions
                 os.replace(self._tmp, self.path)
         finally:  # not renamed (not kept, an error, or the close, chmod or rename failed): no temporary left
             if os.path.exists(self._tmp):

@@ -121,14 +121,20 @@ def _diagnosed(res: "CalibrationResult", found: "Diagnosis", verdict: Verdict) -
 def sample_norms(sets, r: np.ndarray) -> list[np.ndarray]:
     """Per set, the norm of each sample's whitened residual block (a pose's 6 rows, a marker sample's
     seen markers, a socket seat's 3); rows of no one sample (a known distance) left out."""
-    out, start = [], 0
+    owner, n = owners(sets)
+    keep = owner >= 0
+    norms = np.sqrt(np.bincount(owner[keep], r[keep] ** 2, minlength=n))
+    return np.split(norms, np.cumsum([len(obs) for obs in sets])[:-1])
+
+
+def owners(sets) -> tuple[np.ndarray, int]:
+    """Each stacked row's sample, numbered over all sets (−1: a row of no one sample), and the count."""
+    out, n = [], 0
     for obs in sets:
-        m = obs.sigma().size
-        rows, owner = r[start:start + m], obs.sample_rows()
-        keep = owner >= 0
-        out.append(np.sqrt(np.bincount(owner[keep], rows[keep] ** 2, minlength=len(obs))))
-        start += m
-    return out
+        rows = obs.sample_rows()
+        out.append(np.where(rows >= 0, rows + n, -1))
+        n += len(obs)
+    return np.concatenate(out), n
 
 
 def outlier_samples(sets, r: np.ndarray, th: Thresholds) -> tuple[np.ndarray, ...]:

@@ -101,8 +101,7 @@ def relevance_fit(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], fi
     docstring); ``kinds`` per column ("length"/"angle"; others: no group) sets the first σ.
     Gauss–Newton steps interleaved with the evidence updates; Levenberg–Marquardt for the final
     prior if a step does not lower the cost or the steps have not settled."""
-    with_prior = np.array([g is not None for g in groups])
-    prec = np.where(with_prior, [1.0 / START.get(k, 1e-3) ** 2 for k in kinds], 0.0)
+    prec = np.array([0.0 if g is None else 1.0 / START.get(k, 1e-3) ** 2 for g, k in zip(groups, kinds)])
     x, r, J, s2 = fit.x, fit.residual, fit.jacobian, 1.0
     it = 0
     for it in range(1, RELINEARISE + 1):

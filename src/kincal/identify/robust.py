@@ -15,16 +15,6 @@ MAX_IRLS = 20
 WEIGHT_TOL = 1e-4  # reweighting stops when no weight changes by more than this
 
 
-def robust_weights(norms: np.ndarray, loss: str, f_scale: float) -> np.ndarray:
-    """IRLS weights ρ'(z), z = (‖rᵢ‖/f_scale)², per pose."""
-    z = (norms / f_scale) ** 2
-    if loss == "huber":
-        return np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1.0)))
-    if loss == "soft_l1":
-        return 1.0 / np.sqrt(1.0 + z)
-    return np.ones_like(z)
-
-
 def chi_median(d: np.ndarray) -> np.ndarray:
     """The median of the norm of d independent unit Gaussians (Wilson–Hilferty; within 2 % for d ≥ 1)."""
     d = np.asarray(d, float)
@@ -41,8 +31,12 @@ def block_weights(r: np.ndarray, owner: np.ndarray, n: int, loss: str, scale: fl
     dims = np.bincount(owner[mine], minlength=n)
     has = dims > 0
     sigma = float(np.median(norms[has] / chi_median(dims[has]))) if has.any() else 0.0
-    w = np.ones(n)
-    w[has] = robust_weights(norms[has], loss, max(3.0 * sigma, 1e-12) if scale is None else scale)
+    w = np.ones(n)  # the IRLS weights ρ'(z), z = (‖rᵢ‖/scale)² (linear: 1)
+    z = (norms[has] / (max(3.0 * sigma, 1e-12) if scale is None else scale)) ** 2
+    if loss == "huber":
+        w[has] = np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1.0)))
+    elif loss == "soft_l1":
+        w[has] = 1.0 / np.sqrt(1.0 + z)
     out = np.ones(r.size)
     out[mine] = np.sqrt(w[owner[mine]])
     return out

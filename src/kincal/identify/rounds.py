@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from ..models.robot import Robot
+from .judge import owners
 from .lm import LMResult, levenberg_marquardt
 from .pso import HALF_WIDTH, V_MAX, pso
 from .relevance import with_learned_prior
@@ -70,8 +71,8 @@ class Round:
         weak: dict[str, float] = {}
         while True:
             fcols = self.cols(free)
-            fun = (fun_from(st, self.x0, fcols, evaluated) if evaluated is not None and
-                   np.array_equal(start, self.x0) else lambda x, c=fcols: fun_at(st, self.x0, c, x))
+            at_start = evaluated if evaluated is not None and np.array_equal(start, self.x0) else None
+            fun = partial(fun_at, st, self.x0, fcols, start=at_start)
             if self.loss == "linear":
                 fit, used = self._lm(fun, start[fcols]), st
             else:  # reweighted from the start: a least-squares fit pulled by outliers is a poor place to begin
@@ -106,30 +107,16 @@ class Round:
         return fit
 
 
-def owners(sets) -> tuple[np.ndarray, int]:
-    """Each stacked row's sample, numbered over all sets (−1: a row of no one sample), and the count."""
-    out, n = [], 0
-    for obs in sets:
-        rows = obs.sample_rows()
-        out.append(np.where(rows >= 0, rows + n, -1))
-        n += len(obs)
-    return np.concatenate(out), n
-
-
 NOISE_ROUNDS = 4  # least-squares fits at most, the model error per kind re-estimated after each
 NOISE_SETTLED = 0.02  # relative change of every weight that ends them
 
 
-def fun_from(st: _Stack, x0: np.ndarray, fcols: np.ndarray, start: tuple[np.ndarray, np.ndarray]):
-    """:func:`_fun` of the columns ``fcols``, the start's evaluation (all columns) reused at the start."""
-    def fun(x):
-        if np.array_equal(x, x0[fcols]):
-            return start[0], start[1][:, fcols]
-        return fun_at(st, x0, fcols, x)
-    return fun
-
-
-def fun_at(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray):
+def fun_at(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray,
+           start: tuple[np.ndarray, np.ndarray] | None = None):
+    """The stack's whitened residual and Jacobian in the columns ``fcols`` at ``x`` (the others at ``x0``);
+    ``start``, the evaluation (all columns) at ``x0``, is reused there."""
+    if start is not None and np.array_equal(x, x0[fcols]):
+        return start[0], start[1][:, fcols]
     full = x0.copy()
     full[fcols] = x
     P = st.robot.n_params

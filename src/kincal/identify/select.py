@@ -80,13 +80,12 @@ class ErrorModelChoice:
                  f"  {'error model':<20} {'params':>6} {'CV mean mm':>11} {'± se':>8} {'σ ratio':>8}"
                  + "".join(f" {f'session {i + 1} mm':>12}" for i in range(len(self.sessions))) + "  decision"]
         for r in self.rows:
-            if not np.isfinite(r["cv_mean"]):
-                lines.append(f"  {r['error_model']:<20} {'-':>6} {'-':>11} {'-':>8} {'-':>8}"
-                             + f" {'-':>12}" * len(self.sessions) + f"  {r['decision']}")
-                continue
-            lines.append(f"  {r['error_model']:<20} {r['parameters']:>6} {r['cv_mean'] * MM:11.4f} {r['cv_se'] * MM:8.4f} "
-                         f"{r['sigma_ratio']:8.2f}" + "".join(f" {e * MM:12.4f}" if np.isfinite(e) else f" {'-':>12}"
-                                                             for e in r["sessions"]) + f"  {r['decision']}")
+            judged = np.isfinite(r["cv_mean"])  # else '-' throughout
+            cells = (f"{r['parameters']:>6} {r['cv_mean'] * MM:11.4f} {r['cv_se'] * MM:8.4f} {r['sigma_ratio']:8.2f}"
+                     if judged else f"{'-':>6} {'-':>11} {'-':>8} {'-':>8}")
+            lines.append(f"  {r['error_model']:<20} {cells}" + "".join(f" {e * MM:12.4f}" if judged and np.isfinite(e)
+                                                                       else f" {'-':>12}" for e in r["sessions"])
+                         + f"  {r['decision']}")
         lines += [f"  session {i + 1}: {name} (held out; its frame re-registered)" for i, name in enumerate(self.sessions)]
         lines += [f"  not held out: {name} (more than half of the poses: a model fitted without it would be judged "
                   f"on too little data)" for name in self.not_held_out]

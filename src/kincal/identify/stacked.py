@@ -128,12 +128,6 @@ def _stack(robot: Robot, observations: Sequence) -> _Stack:
                   labels, kinds, tuple(late))
 
 
-def _gauge(robot: Robot, sets) -> tuple[str, ...]:
-    """Robot parameters no set sees (the intersection of the sets' gauge freedoms)."""
-    common = set(robot.params.names).intersection(*(obs.gauge_params(robot) for obs in sets))
-    return tuple(n for n in robot.params.names if n in common)
-
-
 def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, loss: str,
              held: Mapping[str, float]) -> CalibrationResult:
     """The one fit of ``observations`` with the options ``o`` (the learned ``prior`` resolved, the
@@ -244,7 +238,8 @@ def _problem(robot: Robot, observations: Sequence, wanted: tuple[str, ...], keep
             "known parallel planes at different heights, are explained as well by a robot shrunk towards a point, so "
             "the scale is unobservable; give a known distance between two labelled points, a known step between two "
             "parallel planes, or some absolute measurements (a tracker, a camera)")
-    gauge = _gauge(robot, observations)
+    unseen = set(robot.params.names).intersection(*(obs.gauge_params(robot) for obs in observations))
+    gauge = tuple(n for n in robot.params.names if n in unseen)  # robot parameters no set sees
     if set(robot.base_params()) & set(wanted):  # a base that is not fitted stays where it is
         robot = _registered(robot, observations, gauge)
     st = _stack(robot, [_session_start(robot, o) for o in observations])
@@ -283,12 +278,11 @@ def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, fu
     unseen = set(gauge)
     free = tuple(n for n in ident.identifiable if n not in unseen)
     notes = (f"not seen by these data (gauge freedoms, kept at their values): {', '.join(gauge)}",) if gauge else ()
-    ident = dataclasses.replace(ident, measured=" + ".join(dict.fromkeys(o.kind for o in st.sets)), identifiable=free,
-                                candidates=tuple(n for n in ident.candidates if n not in unseen), rank=len(free),
-                                dropped=tuple(n for n in ident.dropped if n not in unseen),
-                                confounds={k: v for k, v in ident.confounds.items() if k not in unseen},
-                                notes=ident.notes + notes, kinds=kinds_of(robot, cand + nuis))
-    return ident
+    return dataclasses.replace(ident, measured=" + ".join(dict.fromkeys(o.kind for o in st.sets)), identifiable=free,
+                               candidates=tuple(n for n in ident.candidates if n not in unseen), rank=len(free),
+                               dropped=tuple(n for n in ident.dropped if n not in unseen),
+                               confounds={k: v for k, v in ident.confounds.items() if k not in unseen},
+                               notes=ident.notes + notes, kinds=kinds_of(robot, cand + nuis))
 
 
 def _before(robot: Robot, sets, frame: bool) -> Robot:
@@ -297,10 +291,8 @@ def _before(robot: Robot, sets, frame: bool) -> Robot:
     (:func:`register_mounting`), so the figure does not depend on where the target was declared."""
     found = [o.positions() for o in sets if o.kind in ("point", "pose") and not isinstance(o, InSession)]
     found = [f for f in found if f is not None]
-    if not found:
-        return robot
     return register_mounting(robot, np.concatenate([f[0] for f in found]), np.concatenate([f[1] for f in found]),
-                             frame)
+                             frame) if found else robot
 
 
 def _registered(robot: Robot, sets, gauge) -> Robot:

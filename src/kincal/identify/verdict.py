@@ -264,18 +264,19 @@ def mounting_line(declared: np.ndarray, fitted: np.ndarray) -> str:
 
 def mounting_reasons(declared: np.ndarray, fitted: np.ndarray, th: Thresholds) -> list[Reason]:
     """The fitted tool point against the declared one: a mounting result, with its own limits."""
-    gap = float(np.linalg.norm(fitted - declared))
+    gap, line = float(np.linalg.norm(fitted - declared)), mounting_line(declared, fitted)
     tool = ",".join(f"{x * MM:.2f}" for x in fitted)
-    if gap > th.tool_refuse:
-        return [Reason("refused", "tool-point", f"{mounting_line(declared, fitted)}: no probe or reflector is "
-                                                f"mounted {gap:.2f} m from its declared place; check that the "
-                                                f"data belong to this robot (joint columns, robot file)")]
-    if gap > th.tool_suspect:
-        return [Reason("suspect", "tool-point", f"{mounting_line(declared, fitted)}: if the target is mounted "
-                                                f"there, declare it (--tool {tool}mm) so that the tool point is "
-                                                f"known and the commands use it; otherwise check the probe and "
-                                                f"its adapter")]
-    return []
+    return _graded("tool-point", gap, (th.tool_refuse, th.tool_suspect), (
+        f"{line}: no probe or reflector is mounted {gap:.2f} m from its declared place; check that the data belong "
+        f"to this robot (joint columns, robot file)",
+        f"{line}: if the target is mounted there, declare it (--tool {tool}mm) so that the tool point is known and "
+        f"the commands use it; otherwise check the probe and its adapter"))
+
+
+def _graded(code: str, value: float, limits: tuple[float, float], messages: tuple[str, str]) -> list[Reason]:
+    """A refused reason (messages[0]) when ``value`` exceeds limits[0], else a suspect one beyond limits[1]."""
+    return [Reason(level, code, m) for level, limit, m in zip(("refused", "suspect"), limits, messages)
+            if value > limit][:1]
 
 
 def noise_level(std: np.ndarray | None, th: Thresholds) -> tuple[float, str]:
@@ -291,13 +292,10 @@ def residual_reasons(sigma: float, noise: tuple[float, str], th: Thresholds) -> 
     ratio = sigma / noise[0]
     msg = (f"residual σ per axis {sigma * MM:.3f} mm is {ratio:.0f}x the tracker noise "
            f"({noise[0] * MM:.3g} mm: {noise[1]})")
-    if ratio > th.residual_refuse:
-        return [Reason("refused", "residual", msg + ": data and model do not belong together")]
-    if ratio > th.residual_suspect:
-        return [Reason("suspect", "residual", msg + ": the model leaves errors it cannot describe (non-geometric "
-                                                    "errors, a moved tracker, bad poses); look at the per-pose "
-                                                    "residuals")]
-    return []
+    return _graded("residual", ratio, (th.residual_refuse, th.residual_suspect), (
+        msg + ": data and model do not belong together",
+        msg + ": the model leaves errors it cannot describe (non-geometric errors, a moved tracker, bad poses); look "
+              "at the per-pose residuals"))
 
 
 def outlier_reasons(rows: np.ndarray, z: np.ndarray, th: Thresholds, loss: str = "linear") -> list[Reason]:

@@ -195,9 +195,8 @@ def guo2024_study(repeats: int = 20, m: int = 60, pool_size: int = 1000, generat
         d = select_poses(model, pool, m=m, method="random" if name == DESIGNS[0] else "detmax-ide", seed=0, problem=P,
                          criterion="comprehensive", certify=False, generations=generations)
         designs[name], values[name], histories[name] = d.q, d.value, d.history
-        if name == DESIGNS[2]:
-            curve = pose_count_curve(P, "comprehensive", m_max=100, seed=0).to_dict()
-            gcns = gcn_curve(model, pool, design_names[name])
+    curve = pose_count_curve(P, "comprehensive", m_max=100, seed=0).to_dict()  # P: the separated model's
+    gcns = gcn_curve(model, pool, reduced)
     size = {n: length_error if model.params.kinds[model.params.index(n)] == "length" else angle_error for n in kin}
     eta, combos, identified, validation, repeated, points = _identify(
         model, kin, designs, size, repeats, 0.0 if protocol == "paper" else noise, protocol, say)
@@ -237,8 +236,7 @@ def _identify(robot, kin, designs, size, repeats, noise, protocol, say):
                 robot, meas, names=names, base="fixed", diagnose=False, max_iter=200).robot
             corr = {n: fitted.params[n] - robot.params[n] for n in names}
             err = val.xyz - fitted.forward(val.q)
-            e = err.mean(axis=1)
-            runs[name].append((float(np.mean(np.abs(e))), float(np.std(e, ddof=1))))
+            runs[name].append(e_statistics({name: err})[name][1:])  # mean |e|, std e
             if seed == 0:
                 validation[name], identified[name], points[name] = evaluate(fitted, val), corr, err
                 eta[name] = {n: _eta(errors[n], corr[n]) for n in corr}
