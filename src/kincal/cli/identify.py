@@ -59,7 +59,14 @@ def fit_options(args) -> kincal.FitOptions:
 
 
 def cmd_calibrate(args) -> int:
-    kinds = _kinds_checked(args)
+    twice = [d for k, d in enumerate(args.data) if Path(d).resolve() in {Path(e).resolve() for e in args.data[:k]}]
+    if twice:
+        raise ValueError(f"{twice[0]} is given twice as a session: each pose would count twice (the σ too small, "
+                         f"and a session held out against its own copy); give each session file once")
+    kinds = observe.types_of(args)
+    if args.same_frame and len(args.data) == 1 and not args.test:
+        raise ValueError("--same-frame declares one measurement frame for several files (sessions or --test); "
+                         "with one file and no --test it changes nothing: leave it out")
     reports = [args.report, json_path(args.report)] if args.report else []
     check_paths([*robot_inputs(args.robot), *args.data, *args.test],
                 [args.output, args.residuals, *reports, args.plot])
@@ -87,12 +94,7 @@ def cmd_calibrate(args) -> int:
         "robot": args.robot, "units": f"{args.length_unit}, {args.angle_unit}"}))
     emit(args, {**res.to_dict(), **held, "output": args.output if written else None, "residuals_file": args.residuals,
                 "sessions": list(args.data) if len(args.data) > 1 else None}, text)
-    return _exit_code(res)
-
-
-def _exit_code(res) -> int:
-    """EXIT_REFUSED when the data are refused (named, with the likely cause: more telling than the
-    non-convergence they usually cause), EXIT_NOT_CONVERGED when the fit did not converge, else 0."""
+    # refused data are named, with the likely cause: more telling than the non-convergence they usually cause
     data_problems = [r.code for r in res.verdict.reasons if r.level == "refused" and r.code != "not-converged"
                      and not r.code.startswith("cause-")]
     if data_problems:
@@ -147,19 +149,6 @@ def held_out(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
     return out, {"held_out": [h for _, h in held], "held_out_nominal": [b for b, _ in held]}
 
 
-def _kinds_checked(args) -> list[str]:
-    """The measurement kind of every data file, after the checks of the files and flags given."""
-    twice = [d for k, d in enumerate(args.data) if Path(d).resolve() in {Path(e).resolve() for e in args.data[:k]}]
-    if twice:
-        raise ValueError(f"{twice[0]} is given twice as a session: each pose would count twice (the σ too small, "
-                         f"and a session held out against its own copy); give each session file once")
-    kinds = observe.types_of(args)
-    if args.same_frame and len(args.data) == 1 and not args.test:
-        raise ValueError("--same-frame declares one measurement frame for several files (sessions or --test); "
-                         "with one file and no --test it changes nothing: leave it out")
-    return kinds
-
-
 def cmd_evaluate(args) -> int:
     check_paths([*robot_inputs(args.robot), *args.data], [args.plot])
     kinds = observe.types_of(args)
@@ -168,16 +157,13 @@ def cmd_evaluate(args) -> int:
     r = load_robot(args)
     record = kincal.models.load_calibration_record(args.robot) if robot_inputs(args.robot) else None
     judge = _evaluate_points if kinds[0] == "point" else observe.evaluate_set
-    payloads, texts = [], []
-    with progress("evaluating", args.json):
-        for k, path in enumerate(args.data):
-            stem = args.plot and (args.plot if len(args.data) == 1 else f"{args.plot}-{k + 1}")
-            payload, lines = judge(args, r, record, path, kinds[0], stem)
-            payloads.append(payload)
-            texts += lines
-    emit(args, {**payloads[0], "sessions": payloads} if len(payloads) == 1 else {"sessions": payloads},
-         "\n".join(texts))
-    return 0
+    with progress("evaluating", args.json):  # the figures of each file: STEM, or STEM-<k> for several
+        judged = [judge(args, r, record, path, kinds[0],
+                        args.plot and (args.plot if len(args.data) == 1 else f"{args.plot}-{k + 1}"))
+                  for k, path in enumerate(args.data)]
+    payloads = [payload for payload, _ in judged]
+    return emit(args, {**payloads[0], "sessions": payloads} if len(payloads) == 1 else {"sessions": payloads},
+                "\n".join(text for _, lines in judged for text in lines))
 
 
 def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: str | None) -> tuple[dict, list[str]]:

@@ -203,8 +203,7 @@ def flags_to_use(obs, length_unit: str) -> str:
     """The calibrate flags that read a written plan back: labels, distances, planes."""
     f = 1.0 / LENGTH_UNITS[length_unit]
     if obs.kind == "same-point":
-        d = obs.distances[0][2] * f
-        return f"--type same-point --label-col point --group-col placement --distance 0,1,{d:g}"
+        return f"--type same-point --label-col point --group-col placement --distance 0,1,{obs.distances[0][2] * f:g}"
     if obs.kind == "plane":
         return "--type plane " + " ".join(f"--plane {lab}:{n[0]:g},{n[1]:g},{n[2]:g},{c * f:.6g}"
                                           for lab, (n, c) in obs.known.items())

@@ -42,7 +42,6 @@ class Report:
 
     def write(self, path: str | os.PathLike) -> Path:
         """Write the HTML to ``path`` and the JSON beside it (same name, .json); returns the JSON path."""
-        path = Path(path)
         json_path = json_path_for(path)
         write_text_atomic(path, self.html)
         write_text_atomic(json_path, json.dumps(self.data, indent=2, sort_keys=True) + "\n")
@@ -164,38 +163,29 @@ def _acquisition(result: CalibrationResult) -> dict:
 def _sets(result: CalibrationResult, tests: list[Measurements], models: list[tuple], th: Thresholds) -> list[F.PoseSet]:
     """The training set (outliers as judged by the calibration) and one set per held-out session (by
     robust z), each with its errors before (nominal) and after (calibrated), both models registered
-    the same way (``models``: per session, from :func:`_held_out_models`)."""
-    train = result.measurements
-    sets = [_pose_set("training", train, _training_nominal(result), result.robot, result.pose_z > result.outlier_z,
-                      "frame fitted with the model (nominal: registered to these data)")]
+    the same way (``models``: per session, from :func:`_held_out_models`). A held-out set, measured where
+    its registered model sees the robot, has its positions and error vectors expressed in the frame of the
+    trained model (the first session's): every set in one frame."""
+    train, nominal = result.measurements, _training_nominal(result)
+    sets = [F.PoseSet("training", train.rows, train.q, train.xyz, train.xyz - nominal.forward(train.q),
+                      train.xyz - result.robot.forward(train.q), np.asarray(result.pose_z > result.outlier_z, bool),
+                      registration="frame fitted with the model (nominal: registered to these data)")]
+    R0, t0 = result.robot.base_transform() if result.robot.base_params() else (np.eye(3), np.zeros(3))
     for k, (meas, (nominal, model, how)) in enumerate(zip(tests, models)):
-        z = robust_z(np.linalg.norm(meas.xyz - model.forward(meas.q), axis=1))
-        held = _pose_set("held-out", meas, nominal, model, z > th.outlier_limit(len(z)), how)
-        sets.append(dataclasses.replace(_in_training_frame(held, result.robot, model), name=Path(meas.source).name,
-                                        key="held-out" if len(tests) == 1 else f"held-out-{k + 1}",
-                                        colour=F.SESSION_COLOURS[k % len(F.SESSION_COLOURS)]))
+        after = meas.xyz - model.forward(meas.q)
+        z = robust_z(np.linalg.norm(after, axis=1))
+        Rs, ts = model.base_transform() if model.base_params() else (np.eye(3), np.zeros(3))
+        M = Rs @ R0.T
+        sets.append(F.PoseSet("held-out", meas.rows, meas.q, (meas.xyz - ts) @ M + t0,
+                              (meas.xyz - nominal.forward(meas.q)) @ M, after @ M, z > th.outlier_limit(len(z)),
+                              name=Path(meas.source).name, colour=F.SESSION_COLOURS[k % len(F.SESSION_COLOURS)],
+                              registration=how, key="held-out" if len(tests) == 1 else f"held-out-{k + 1}"))
     return sets
-
-
-def _in_training_frame(s: F.PoseSet, trained, registered) -> F.PoseSet:
-    """A held-out set measured where ``registered`` sees the robot, its positions and error vectors
-    expressed in the frame of the ``trained`` model (the first session's): every set in one frame."""
-    R0, t0 = trained.base_transform() if trained.base_params() else (np.eye(3), np.zeros(3))
-    Rs, ts = registered.base_transform() if registered.base_params() else (np.eye(3), np.zeros(3))
-    M = Rs @ R0.T
-    return dataclasses.replace(s, xyz=(s.xyz - ts) @ M + t0, after=s.after @ M,
-                               before=None if s.before is None else s.before @ M)
-
-
-def _pose_set(label: str, meas: Measurements, nominal, calibrated, outliers: np.ndarray, how: str) -> F.PoseSet:
-    """Errors before (``nominal``) and after (``calibrated``) on ``meas``."""
-    return F.PoseSet(label, meas.rows, meas.q, meas.xyz, meas.xyz - nominal.forward(meas.q),
-                     meas.xyz - calibrated.forward(meas.q), np.asarray(outliers, bool), registration=how)
 
 
 def _headline(s: F.PoseSet, which: str) -> dict:
     errors = s.before if which == "before" else s.after
-    assert errors is not None  # the report's sets (from _pose_set) carry both models' errors
+    assert errors is not None  # the report's sets (from _sets) carry both models' errors
     st = EvaluationStats.from_errors(errors)
     model = "nominal (frame and target point registered)" if which == "before" else "calibrated"
     return {"data": s.title, "n": st.n, "model": model, "key": f"{s.key or s.label}.{which}", "mean": st.mean * MM,
@@ -247,10 +237,9 @@ def _parameter_rows(result: CalibrationResult) -> list[dict]:
     for n in result.names:
         k, c = kinds[n], result.corrections[n]
         big = abs(c) > (th.length_suspect if k == "length" else th.angle_suspect) and n not in base
-        sd = result.std[n]
         rows.append({"name": n, "nominal": _value(result.nominal.params[n], k),
                      "calibrated": _value(result.estimates[n], k), "correction": _value(c, k, signed=True),
-                     "sigma": _value(sd, k) if np.isfinite(sd) else "undetermined",
+                     "sigma": _value(result.std[n], k) if np.isfinite(result.std[n]) else "undetermined",
                      "flag": "large" if big else ""})
     return rows
 
@@ -303,7 +292,8 @@ def _iso9283(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
     AP = |barycentre − commanded|; RP = l̄ + 3·S_l with l_j the distance of each attained position from
     the barycentre and S_l their sample std. The command's position is the calibrated model's as used
     on that set."""
-    tol = repeat_tolerance(result.robot.joint_types, result.options.thresholds)
+    th = result.options.thresholds
+    tol = repeat_tolerance(result.robot.joint_types, th)
     groups = []
     for s in sets:
         model = s.xyz - s.after  # the calibrated model's positions, registered as for this set
@@ -314,30 +304,21 @@ def _iso9283(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
             groups.append({"session": s.title, "rows": ", ".join(str(int(r)) for r in s.rows[g]), "n": len(g),
                            "ap": ap * MM, "rp": float(dist.mean() + 3 * dist.std(ddof=1)) * MM,
                            "joint_spread": float(np.max(np.ptp(s.q[g], axis=0)))})
-    th = result.options.thresholds
     rule = (f"poses whose commanded joints agree within {th.repeat_angle:g} rad (revolute) / "
             f"{th.repeat_length * MM:g} mm (prismatic) count as one pose")
-    if groups:
-        text = (f"Some poses are visited more than once ({rule}): for those, ISO 9283 pose accuracy AP (distance of "
-                f"the barycentre of the attained positions from the commanded position, through the calibrated model) "
-                f"and repeatability RP (mean distance from the barycentre plus three sample standard deviations) are "
-                f"below, per session. The error statistics above are over different poses and are not AP.")
-    else:
-        text = (f"No pose is visited more than once ({rule}), so ISO 9283 pose accuracy (AP) and repeatability (RP) "
-                f"cannot be computed from these data. The figures above are 3-D position errors over different poses: "
-                f"they describe the model's accuracy across the workspace, which is not ISO 9283 AP.")
-    return {"text": text, "groups": groups, "summary": _iso_summary(groups)}
-
-
-def _iso_summary(groups: list[dict]) -> list[dict]:
-    """Per session: how many poses repeat, and the median and largest AP and RP (mm)."""
-    out = []
+    text = (f"Some poses are visited more than once ({rule}): for those, ISO 9283 pose accuracy AP (distance of "
+            f"the barycentre of the attained positions from the commanded position, through the calibrated model) "
+            f"and repeatability RP (mean distance from the barycentre plus three sample standard deviations) are "
+            f"below, per session. The error statistics above are over different poses and are not AP." if groups else
+            f"No pose is visited more than once ({rule}), so ISO 9283 pose accuracy (AP) and repeatability (RP) "
+            f"cannot be computed from these data. The figures above are 3-D position errors over different poses: "
+            f"they describe the model's accuracy across the workspace, which is not ISO 9283 AP.")
+    summary = []  # per session: how many poses repeat, and the median and largest AP and RP (mm)
     for session in dict.fromkeys(g["session"] for g in groups):
-        ap = np.array([g["ap"] for g in groups if g["session"] == session])
-        rp = np.array([g["rp"] for g in groups if g["session"] == session])
-        out.append({"session": session, "poses": len(ap), "ap_median": float(np.median(ap)), "ap_max": float(ap.max()),
-                    "rp_median": float(np.median(rp)), "rp_max": float(rp.max())})
-    return out
+        ap, rp = np.array([(g["ap"], g["rp"]) for g in groups if g["session"] == session]).T
+        summary.append({"session": session, "poses": len(ap), "ap_median": float(np.median(ap)),
+                        "ap_max": float(ap.max()), "rp_median": float(np.median(rp)), "rp_max": float(rp.max())})
+    return {"text": text, "groups": groups, "summary": summary}
 
 
 def template() -> jinja2.Template:

@@ -58,11 +58,9 @@ def _row(stats: dict, data: str, model: str, key: str) -> dict:
     """One table row (mm, mrad) from a set's statistics (m, rad; a socket set's mean is its mean
     |p − point|)."""
     s = in_display(stats)
-    row = {"data": f"{data}: {s['source']}", "type": s["type"], "samples": s["samples"], "model": model,
-           "key": f"{key}.{s['source']}", **{k: s.get(k) for k in COLUMNS}}
-    if "mean_abs_mm" in s:
-        row["mean_mm"] = s["mean_abs_mm"]
-    return row
+    s = {**s, "mean_mm": s["mean_abs_mm"]} if "mean_abs_mm" in s else s
+    return {"data": f"{data}: {s['source']}", "type": s["type"], "samples": s["samples"], "model": model,
+            "key": f"{key}.{s['source']}", **{k: s.get(k) for k in COLUMNS}}
 
 
 def _groups(before: Sequence[dict], after: Sequence[dict], data: str) -> list[dict]:
@@ -71,9 +69,8 @@ def _groups(before: Sequence[dict], after: Sequence[dict], data: str) -> list[di
     for k, s in enumerate(after):
         prior = {g["group"]: g for g in before[k].get("groups", [])} if k < len(before) else {}
         for g in s.get("groups", []):
-            b = prior.get(g["group"])
+            b = prior.get(g["group"], dict.fromkeys(("mean_abs_mm", "distance_error_mm")))  # None: no such group before
             out.append({"data": f"{data}: {s['source']}", "group": g["group"], "samples": g["samples"],
-                        "before": None if b is None else b["mean_abs_mm"], "after": g["mean_abs_mm"],
-                        "dist_before": None if b is None else b["distance_error_mm"],
+                        "before": b["mean_abs_mm"], "after": g["mean_abs_mm"], "dist_before": b["distance_error_mm"],
                         "dist_after": g["distance_error_mm"], "key": f"{data}.{g['group']}"})
     return out
