@@ -1,12 +1,11 @@
 """Identification of kinematic parameters from measured positions: ``calibrate`` and ``evaluate``.
 
-``calibrate`` checks every option first, turns the measured positions of each session into an
-observation set (a :class:`~kincal.observe.PointObs`, or a :class:`~kincal.observe.JointObs` for
-the joint-space residual; later sessions in their own frames, :class:`~kincal.observe.InSession`),
-runs the one fit (:func:`kincal.identify.fitting.fit_stack`), and reads it as a
-:class:`CalibrationResult` with the data as given: the residuals of every pose in the first
-session's frame, the verdict of position data, and the differential diagnosis of a doubtful fit. ``fit_observations`` is the same
-fit for observation sets of any kinds.
+``calibrate`` checks every option first, turns the measured positions of each session into an observation set (a
+:class:`~kincal.observe.PointObs`, or a :class:`~kincal.observe.JointObs` for the joint-space residual; later sessions
+in their own frames, :class:`~kincal.observe.InSession`), runs the one fit (:func:`kincal.identify.fitting.fit_stack`),
+and reads it as a :class:`CalibrationResult` with the data as given: the residuals of every pose in the first
+session's frame, the verdict of position data, and the differential diagnosis of a doubtful fit.
+``fit_observations`` is the same fit for observation sets of any kinds.
 """
 from __future__ import annotations
 
@@ -72,8 +71,7 @@ def _calibrate(robot: Robot, sessions: list[Measurements], own_frames: bool, opt
                changes) -> CalibrationResult:
     t0 = time.perf_counter()
     options = (options or FitOptions()).replace(**changes).check(robot)
-    if use_q is not None:
-        use_q = robot.check_q(use_q)
+    use_q = None if use_q is None else robot.check_q(use_q)
     say = progress or (lambda msg: None)
     for s in sessions:
         s.check_robot(robot)
@@ -90,18 +88,15 @@ def _sets(sessions: list[Measurements], own_frames: bool, o: FitOptions, robot: 
     """One observation set per session (later ones in their own frames with ``own_frames``), after
     the check that registering the frame needs: 3 distinct poses."""
     kind = RESIDUALS[o.residual]
-    n = sum(len(s) for s in sessions)
-    distinct = distinct_count(np.concatenate([s.q for s in sessions]), repeat_tolerance(robot.joint_types,
-                                                                                        o.thresholds), 3)
+    q = np.concatenate([s.q for s in sessions])
+    distinct = distinct_count(q, repeat_tolerance(robot.joint_types, o.thresholds), 3)
     if o.base == "estimate" and robot.base_params() and distinct < 3:
         raise MeasurementError(f"{sessions[0].source}: registering the base frame needs at least 3 distinct poses, "
-                               f"got {distinct} ({n} rows); measure poses spread over the workspace")
+                               f"got {distinct} ({len(q)} rows); measure poses spread over the workspace")
     sigma = {} if kind is JointObs else {"std": o.thresholds.tracker_noise}
     sets = [kind(s.q, s.rows, s.source, xyz=s.xyz, **({"std": s.std} if s.std is not None and sigma else sigma))
             for s in sessions]
-    if not own_frames:
-        return sets
-    return [sets[0], *(InSession.of(x, f"{k}:{x.source}") for k, x in enumerate(sets[1:], start=2))]
+    return [sets[0], *(InSession.of(x, f"{k}:{x.source}") for k, x in enumerate(sets[1:], 2))] if own_frames else sets
 
 
 def _error_model(robot: Robot, sessions: list[Measurements], own_frames: bool, options: FitOptions, say, use_q):
@@ -114,8 +109,7 @@ def _error_model(robot: Robot, sessions: list[Measurements], own_frames: bool, o
     if spec.name == "auto":
         say("choosing the error model (joint-space blocked cross-validation)")
         quiet = options.replace(error_model=None, diagnose=False, reject_outliers=False)
-        data = joined(sessions) if not own_frames else _calibrate(robot, sessions, True, quiet, None, None,
-                                                                    {}).measurements
+        data = _calibrate(robot, sessions, True, quiet, None, None, {}).measurements if own_frames else joined(sessions)
         choice = select_model(robot, data, calibrate, quiet, use_q=use_q, payload=spec.payload)
         spec = dataclasses.replace(spec, name=choice.chosen)
     return extend(robot, spec, np.concatenate([s.q for s in sessions])), choice
@@ -124,15 +118,14 @@ def _error_model(robot: Robot, sessions: list[Measurements], own_frames: bool, o
 def fit_observations(robot: Robot, observations: Sequence, options: FitOptions | None = None, *,
                      held: Mapping[str, float] | None = None, progress: Callable[[str], None] | None = None,
                      **changes) -> CalibrationResult:
-    """Calibrate ``robot`` from observation sets of any kinds (:mod:`kincal.observe`) by the one fit,
-    with ``options`` (a :class:`FitOptions`; ``changes`` are fields of it to change). Defaults of
-    this entry: the prior "auto" (learned for poses, markers, sockets and planes; none for positions
-    alone), no diagnosis. With ``diagnose`` a doubtful fit of one point or pose file is screened for
-    the common input mistakes on its measured positions. ``held``: set-up parameters held at these
-    values, not fitted (a held-out file judged with the probe's rotation and the markers as trained).
-    ``base="fixed"`` leaves the base frame out; ``residual`` and ``f_scale`` belong to position data
-    (:func:`calibrate`). Identifiability is judged at the start and again at the solution (see
-    :func:`kincal.identify.stacked.fit_sets`)."""
+    """Calibrate ``robot`` from observation sets of any kinds (:mod:`kincal.observe`) by the one fit, with
+    ``options`` (a :class:`FitOptions`; ``changes`` are fields of it to change). Defaults of this entry: the prior
+    "auto" (learned for poses, markers, sockets and planes; none for positions alone), no diagnosis. With
+    ``diagnose`` a doubtful fit of one point or pose file is screened for the common input mistakes on its measured
+    positions. ``held``: set-up parameters held at these values, not fitted (a held-out file judged with the probe's
+    rotation and the markers as trained). ``base="fixed"`` leaves the base frame out; ``residual`` and ``f_scale``
+    belong to position data (:func:`calibrate`). Identifiability is judged at the start and again at the solution
+    (see :func:`kincal.identify.stacked.fit_sets`)."""
     t0 = time.perf_counter()
     options = (options or FitOptions(diagnose=False)).replace(**changes).check(robot)
     fit = fit_stack(robot, observations, options, held, progress or (lambda msg: None))
@@ -197,11 +190,10 @@ ABSOLUTE = ("point", "pose", "markers")  # kinds measured in an instrument's fra
 
 
 def held_out_stats(fit: CalibrationResult, obs, robot: Robot, same_frame: bool) -> dict:
-    """A held-out set's statistics (m, rad) under ``robot`` (the calibrated model, or ``fit.before``):
-    in the training frame with the training set-up parameters (``same_frame``; sockets and planes need
-    no frame), else with its own frame fitted (the tracker or camera may have moved), the kinematics
-    fixed and the set-up parameters it shares with the training files (a target's rotation, markers)
-    held as trained."""
+    """A held-out set's statistics (m, rad) under ``robot`` (the calibrated model, or ``fit.before``): in the training
+    frame with the training set-up parameters (``same_frame``; sockets and planes need no frame), else with its own
+    frame fitted (the tracker or camera may have moved), the kinematics fixed and the set-up parameters it shares with
+    the training files (a target's rotation, markers) held as trained."""
     if same_frame or obs.kind not in ABSOLUTE:
         return fit.held_out(obs, robot)
     anchors = {k: v for o in fit.observations for k, v in o.anchors().items()}

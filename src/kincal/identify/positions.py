@@ -37,11 +37,10 @@ class EvaluationStats:
                    float(np.percentile(e, 95)), int(e.size))
 
     def to_dict(self) -> dict:
-        out: dict[str, object] = {"mean": self.mean, "rms": self.rms, "max": self.max, "std": self.std,
-                                  "p95": self.p95, "n": self.n}
-        if self.predicted_sigma is not None:
-            out.update(predicted_sigma=list(self.predicted_sigma), extrapolated_rows=list(self.extrapolated_rows))
-        return {**out, "warnings": list(self.warnings)}
+        out = {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}
+        if self.predicted_sigma is None:
+            del out["predicted_sigma"], out["extrapolated_rows"]
+        return out
 
     def __str__(self) -> str:
         text = (f"n={self.n}  mean {self.mean * MM:.4f} mm  rms {self.rms * MM:.4f} mm  max {self.max * MM:.4f} mm"
@@ -80,9 +79,8 @@ def in_frame_of(model: Robot, registered: Robot, meas: Measurements) -> Measurem
         return meas
     R0, t0 = model.base_transform()
     Rs, ts = registered.base_transform()
-    xyz = (meas.xyz - ts) @ Rs @ R0.T + t0
     std = None if meas.std is None else np.sqrt(meas.std**2 @ (Rs @ R0.T) ** 2)  # per-axis variances, rotated
-    return Measurements(meas.q, xyz, meas.joint_names, meas.source, meas.rows, std, meas.units, meas.session)
+    return dataclasses.replace(meas, xyz=(meas.xyz - ts) @ Rs @ R0.T + t0, std=std)
 
 
 def joined(sessions: list[Measurements]) -> Measurements:

@@ -2,7 +2,6 @@
 frozen, printable in mm/deg/mrad, ``to_dict`` in SI, ``record`` for the calibrated robot file."""
 from __future__ import annotations
 
-import dataclasses
 import functools
 from dataclasses import dataclass, field
 
@@ -33,7 +32,7 @@ class CalibrationResult:
     robot        -- the calibrated robot (save it with ``kincal.save_robot``)
     nominal      -- the model as given (corrections are from it; commands are in its base frame)
     registered   -- the same with its measurement frame registered to the data: where the fit began
-    before       -- the same with the target point registered too: the model "before" is judged by
+    before       -- the same with the target point registered too: what "before" calibration is judged on
     names        -- the robot parameters fitted; every other kept its value
     nuisance     -- the set-up parameters' values (frames of later sessions, a probe's rotation,
                     markers, sockets, planes, drift), m or rad
@@ -121,9 +120,8 @@ class CalibrationResult:
     @property
     def sigma(self) -> float:
         """The residual σ per axis (m), by the data's relative σ when given."""
-        meas, err = self.measurements, self.residuals
-        stated = np.ones_like(err) if meas.std is None else meas.std / float(np.median(meas.std))
-        scale = 1.0 if meas.std is None else float(np.median(meas.std))
+        err, std = self.residuals, self.measurements.std
+        stated, scale = (1.0, 1.0) if std is None else (std / float(np.median(std)), float(np.median(std)))
         return float(np.sqrt(np.sum((err / stated) ** 2) / max(err.size - len(self.names), 1)) * scale)
 
     @property
@@ -233,17 +231,17 @@ class CalibrationResult:
         """The set-up the next measurement of this robot shares, in absolute form: the 6-D probe's
         rotation on the flange (3, 3) and the marker points on the flange (m), as fitted."""
         out: dict = {"markers": {n: float(v) for n, v in self.nuisance.items() if n.startswith("marker[")}}
-        poses = [_unwrapped(o) for o in self.observations if o.kind == "pose"]
-        if poses:
-            rot = np.array([self.nuisance[n] for n in ("target.rx", "target.ry", "target.rz")])
-            out["target_rotation"] = poses[0].target(rot).tolist()
+        pose = next((o for o in self.observations if o.kind == "pose"), None)
+        while isinstance(pose, Wrapper):  # the set under a session's frame or a drifting instrument
+            pose = pose.inner
+        if pose is not None:
+            out["target_rotation"] = pose.target(np.array([self.nuisance[f"target.r{a}"] for a in "xyz"])).tolist()
         return out
 
     def sample_table(self) -> list[dict]:
-        """Per sample of every set: file, row, kind, position error (mm: the norm of the sample's
-        position residuals, all its seen markers together), rotation error (mrad; poses), the norm
-        of its residual whitened by the stated σ, its robust z within the set and the outlier flag
-        (the verdict's rule)."""
+        """Per sample of every set: file, row, kind, position error (mm: the norm of the sample's position residuals,
+        all its seen markers together), rotation error (mrad; poses), the norm of its residual whitened by the stated
+        σ, its robust z within the set and the outlier flag (the verdict's rule)."""
         out, start = [], 0
         for obs, bad in zip(self.observations, self.outliers or ((),) * len(self.observations)):
             names, nuis0, _ = obs.nuisance(self.robot)
@@ -267,7 +265,9 @@ class CalibrationResult:
         lines = ["file,row,kind,position_error_mm,rotation_error_mrad,whitened_norm,robust_z,outlier"]
         for s in self.sample_table():
             rot = "" if s["rotation_mrad"] is None else f"{s['rotation_mrad']:.6g}"
-            lines.append(",".join([_cell(s["file"]), str(s["row"]), s["kind"], f"{s['position_mm']:.6g}", rot,
+            src = s["file"]  # a CSV cell: quoted when it holds a comma or a quote
+            src = f'"{src.replace(chr(34), chr(34) * 2)}"' if "," in src or '"' in src else src
+            lines.append(",".join([src, str(s["row"]), s["kind"], f"{s['position_mm']:.6g}", rot,
                                    f"{s['whitened']:.6g}", f"{s['robust_z']:.4g}", "yes" if s["outlier"] else "no"]))
         write_text_atomic(path, "\n".join(lines) + "\n")
 
@@ -276,14 +276,10 @@ class CalibrationResult:
         nominal one): set-up parameters the fit shares with it (a target's rotation, markers) at their
         fitted values; a pose set also takes the training target's start rotation."""
         robot = self.robot if robot is None else robot
-        poses = [_unwrapped(o) for o in self.observations if o.kind == "pose"]
-        if obs.kind == "pose" and poses:
-            obs = dataclasses.replace(obs, target_rotation=poses[0].target_rotation)
-        else:
-            obs = obs.prepare(robot)
+        anchors: dict = next((o.anchors() for o in self.observations if o.kind == "pose"), {})  # the first target's
+        obs = obs.with_anchors(anchors).prepare(robot)  # anchored: prepare keeps the training target's rotation
         names, start, _ = obs.nuisance(robot)
-        nuis = np.array([self.nuisance.get(n, v) for n, v in zip(names, start)])
-        return obs.stats(robot, robot.params.values, nuis)
+        return obs.stats(robot, robot.params.values, np.array([self.nuisance.get(n, v) for n, v in zip(names, start)]))
 
     def to_dict(self) -> dict:
         out = {"robot": self.robot.name, "converged": self.converged, "message": self.message,
@@ -320,10 +316,16 @@ class CalibrationResult:
                  + f": {'converged' if self.converged else 'NOT CONVERGED'} ({self.message}) in {self.iterations} "
                  f"iterations, {self.time_s * 1e3:.1f} ms; {len(self.names)} robot and {len(self.nuisance)} set-up "
                  f"parameters; loss {self.options.loss}, base {self.options.base}"]
-        lines += self.parameter_lines()
+        # the fitted robot parameters as a table: estimate, correction from nominal, σ (mm, deg)
+        param_kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
+        lines.append(f"{'parameter':<22} {'estimate':>16} {'correction':>16} {'σ':>14}")
+        for n in self.names:
+            k, sd = param_kinds[n], self.std.get(n, np.inf)
+            lines.append(f"{n:<22} {display(self.robot.params[n], k):>16} "
+                         f"{display(self.robot.params[n] - self.nominal.params[n], k):>16} "
+                         f"{display(sd, k).lstrip('+') if np.isfinite(sd) else 'undetermined':>14}")
         lines += self._data_lines()
-        if self.mounting:
-            lines.append(f"mounting: {self.mounting}")
+        lines += [f"mounting: {self.mounting}"] if self.mounting else []
         if self.gauge:
             lines.append(f"not seen by these data (gauge freedoms, kept at their values): {', '.join(self.gauge)}")
         lines += [weak_note(self.robot, self.weak)] if self.weak else []
@@ -331,22 +333,10 @@ class CalibrationResult:
         if self.rejected:
             lines.append(f"left out as outliers (a robust refit put them beyond the outlier limit): "
                          f"{self.rejected_text()}")
-        if self.error_model_choice is not None:
-            lines.append(str(self.error_model_choice))
+        lines += [] if self.error_model_choice is None else [str(self.error_model_choice)]
         lines += [f"compliance of {j}: {c:.3g} rad/(N·m)" for j, c in self.robot.compliances().items()]
         lines += [f"note: {n}" for n in self.notes]
         return "\n".join([*lines, str(self.verdict)])
-
-    def parameter_lines(self) -> list[str]:
-        """The fitted robot parameters as a table: estimate, correction from nominal, σ (mm, deg)."""
-        kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
-        lines = [f"{'parameter':<22} {'estimate':>16} {'correction':>16} {'σ':>14}"]
-        for n in self.names:
-            k, sd = kinds[n], self.std.get(n, np.inf)
-            lines.append(f"{n:<22} {display(self.robot.params[n], k):>16} "
-                         f"{display(self.robot.params[n] - self.nominal.params[n], k):>16} "
-                         f"{display(sd, k).lstrip('+') if np.isfinite(sd) else 'undetermined':>14}")
-        return lines
 
     def _data_lines(self) -> list[str]:
         """The residuals: per set before → after; for position data the residual σ against the
@@ -369,26 +359,11 @@ class CalibrationResult:
             lines.append("weighted by 1/(σ² + s²), s what the model leaves beyond the stated σ: " + ", ".join(
                 f"{k} {v * MRAD:.3g} mrad" if k.endswith("rotation") else f"{k} {v * MM:.3g} mm"
                 for k, v in self.model_error.items()))
-        return lines + self._drift_lines()
-
-    def _drift_lines(self) -> list[str]:
-        """Each set's fitted instrument drift over its rows (first to last sample), mm with σ."""
+        # each set's fitted instrument drift over its rows (first to last sample), mm with σ
         sets = dict.fromkeys(n.rsplit(".", 1)[0] for n in self.nuisance if n.startswith("drift["))
-        return [f"{s} over the file (first to last sample): " + ", ".join(
+        return lines + [f"{s} over the file (first to last sample): " + ", ".join(
             f"{a} {self.nuisance[f'{s}.{a}'] * MM:+.4f} ± {self.std.get(f'{s}.{a}', np.inf) * MM:.4f} mm"
             for a in "xyz" if f"{s}.{a}" in self.nuisance) for s in sets]
-
-
-def _unwrapped(obs):
-    """The set under its wrappers (a session's frame, a drifting instrument)."""
-    while isinstance(obs, Wrapper):
-        obs = obs.inner
-    return obs
-
-
-def _cell(text: str) -> str:
-    """A CSV cell: quoted when it holds a comma or a quote."""
-    return f'"{text.replace(chr(34), chr(34) * 2)}"' if "," in text or '"' in text else text
 
 
 def stat_line(stats: dict) -> str:

@@ -21,8 +21,7 @@ DRIFT = "drift"  # the kind of a drift's set-up parameters (chosen after the rob
 
 def acquisition(rows: np.ndarray) -> np.ndarray:
     """(N,) place of each sample in row order, centred on 0 and spanning 1 (ties keep input order)."""
-    rank = np.empty(len(rows))
-    rank[np.argsort(rows, kind="stable")] = np.arange(len(rows))
+    rank = np.argsort(np.argsort(rows, kind="stable")).astype(float)
     return (rank - rank.mean()) / max(len(rows) - 1, 1)
 
 
@@ -54,5 +53,4 @@ class Drifting(Wrapper):
         return r, Jr, np.hstack([Jn, Jd])
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
-        out = self._corrected(nuis[-3:]).stats(robot, values, nuis[:-3])
-        return {**out, "drift": [float(v) for v in nuis[-3:]]}
+        return self._corrected(nuis[-3:]).stats(robot, values, nuis[:-3]) | {"drift": [float(v) for v in nuis[-3:]]}

@@ -334,9 +334,8 @@ class PoseObs(Observation):
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         dp, phi, _ = self.errors(robot, values, nuis, jacobian=False)
-        e, a = np.linalg.norm(dp, axis=1), np.linalg.norm(phi, axis=1)
-        return {**error_stats(self, e), "mean_rotation": float(a.mean()), "rms_rotation": float(np.sqrt(np.mean(a**2))),
-                "max_rotation": float(a.max())}
+        rot = error_stats(self, np.linalg.norm(phi, axis=1))
+        return error_stats(self, np.linalg.norm(dp, axis=1)) | {f"{k}_rotation": rot[k] for k in ("mean", "rms", "max")}
 
 
 @dataclass(frozen=True, eq=False)
