@@ -5,7 +5,8 @@ from .constraints import PlaneObs, SamePointObs
 from .drifting import Drifting
 from .files import KINDS, ObservationFormat, describe, read_observations, write_observations
 from .joint import JointObs
-from .observations import MarkersObs, Observation, PointObs, PoseObs
+from .markers import MarkersObs
+from .observations import Observation, PointObs, PoseObs
 from .orientation import check_convention, default_columns, from_matrices, to_matrices
 from .sessions import InSession
 

@@ -28,7 +28,8 @@ from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..units import joint_factors, joint_units, unit_factor
 from .constraints import PlaneObs, SamePointObs
-from .observations import MarkersObs, Observation, PointObs, PoseObs, flange_point
+from .markers import MarkersObs
+from .observations import Observation, PointObs, PoseObs, flange_point
 from .orientation import check_convention, convention_check, default_columns, from_matrices, to_matrices
 
 KINDS = ("point", "pose", "markers", "same-point", "plane")

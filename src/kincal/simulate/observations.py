@@ -10,7 +10,8 @@ import numpy as np
 
 from ..errors import ModelError
 from ..observe.constraints import PlaneObs, SamePointObs
-from ..observe.observations import MarkersObs, PoseObs, flange_point
+from ..observe.markers import MarkersObs
+from ..observe.observations import PoseObs, flange_point
 from ..models.robot import Robot
 
 IK_TOL = 1e-9  # m

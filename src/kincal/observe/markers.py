@@ -1,0 +1,87 @@
+"""Markers: several points on the flange seen at once (motion capture, reflectors on a nest), each
+an unknown point of the set-up, so the robot's own tool point is a gauge freedom."""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..models.robot import TOOL_NAMES, Robot
+from .observations import Observation, error_stats, flange_point, with_tool
+
+
+@dataclass(frozen=True, eq=False)
+class MarkersObs(Observation):
+    """k markers per sample (mocap, several reflectors on a nest): xyz (N, k, 3) m in the measurement
+    frame, NaN where a marker was not seen; each marker is an unknown point on the flange
+    (``marker[<name>].x/y/z``), so the robot's own tool point is a gauge freedom here."""
+
+    xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 1, 3)))
+    names: tuple[str, ...] = ()
+    start: np.ndarray | None = None  # (k, 3) m: start values of the marker points (default: the tool point)
+    std: np.ndarray | float = 15e-6  # m, one number or per sample
+    kind = "markers"
+
+    def seen(self) -> np.ndarray:
+        return np.all(np.isfinite(self.xyz), axis=2)  # (N, k)
+
+    def positions(self):
+        """A point near the tool per sample, to register the measurement frame: the markers' centroid
+        where every marker was seen (at least 3 such samples), else the first marker where seen."""
+        seen = self.seen()
+        every = np.all(seen, axis=1)
+        if np.count_nonzero(every) >= 3:
+            return self.q[every], self.xyz[every].mean(axis=1)
+        return self.q[seen[:, 0]], self.xyz[seen[:, 0], 0]
+
+    def prepare(self, robot: Robot) -> "MarkersObs":
+        """Without given starts, each marker starts where the (registered) robot's flange frames put
+        its measurements on average: mean of Rᵢᵀ(xᵢ − tᵢ) over the samples that saw it."""
+        if self.start is not None:
+            return self
+        _, _, R = flange_point(robot, self.q, robot.params.values, np.zeros(3))
+        origin = robot.forward(self.q, with_tool(robot, robot.params.values, np.zeros(3)))
+        start = np.array([np.einsum("nji,nj->ni", R[seen], self.xyz[seen, m] - origin[seen]).mean(0)
+                          if seen.any() else robot.tool_point() for m, seen in enumerate(self.seen().T)])
+        return dataclasses.replace(self, start=start)
+
+    def nuisance(self, robot: Robot):
+        k = self.xyz.shape[1]
+        start = np.tile(robot.tool_point(), (k, 1)) if self.start is None else np.asarray(self.start, float)
+        names = tuple(f"marker[{m}].{a}" for m in self.names for a in "xyz")
+        return names, start.ravel(), ("length",) * (3 * k)
+
+    def gauge_params(self, robot: Robot) -> tuple[str, ...]:
+        return TOOL_NAMES
+
+    def sigma(self) -> np.ndarray:
+        return np.broadcast_to(np.asarray(self.std, float), (len(self),))[self.sample_rows()]
+
+    def sample_rows(self) -> np.ndarray:
+        return np.concatenate([np.tile(np.flatnonzero(seen), 3) for seen in self.seen().T])
+
+    def position_axes(self) -> np.ndarray:
+        return np.concatenate([np.repeat(np.arange(3), np.count_nonzero(seen)) for seen in self.seen().T])
+
+    def shifted(self, offset: np.ndarray) -> "MarkersObs":
+        return dataclasses.replace(self, xyz=self.xyz + offset[:, None, :])
+
+    def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
+        k, r, Jr, Jn = self.xyz.shape[1], [], [], []
+        for m, rows in enumerate(self.seen().T):
+            p, J, R = flange_point(robot, self.q[rows], robot.param_values(values), nuis[3 * m:3 * m + 3])
+            J = J.copy()
+            J[:, :, robot.params.indices(TOOL_NAMES)] = 0.0
+            Jm = np.zeros((rows.sum(), 3, 3 * k))
+            Jm[:, :, 3 * m:3 * m + 3] = R
+            r.append((p - self.xyz[rows, m]).T.ravel())
+            Jr.append(J.transpose(1, 0, 2).reshape(-1, J.shape[2]))
+            Jn.append(Jm.transpose(1, 0, 2).reshape(-1, 3 * k))
+        return np.concatenate(r), np.concatenate(Jr), np.concatenate(Jn)
+
+    def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
+        r = self.evaluate(robot, values, nuis)[0]  # per marker: its x rows, then y, then z
+        ends = 3 * np.cumsum(np.count_nonzero(self.seen(), axis=0))[:-1]
+        e = np.concatenate([np.linalg.norm(b.reshape(3, -1), axis=0) for b in np.split(r, ends)])
+        return error_stats(self, e, markers=len(self.names), observed=int(e.size))
