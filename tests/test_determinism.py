@@ -98,6 +98,30 @@ def test_tie_rules():
     assert not improves(1.0 + 1e-12, 1.0) and improves(1.0 + 1e-6, 1.0) and not improves(np.nan, 1.0)
     assert improves(0.5, 1.0, maximize=False) and improves(1.0, -np.inf)
     assert order_with_ties([1.0, 3.0, 2.0, 3.0 * (1 - 1e-13)]) == [1, 3, 2, 0]
+    assert order_with_ties([np.nan, 1.0, np.nan]) == [1, 0, 2]  # NaN last, in canonical order (no endless loop)
+
+
+def _ordered_by_definition(v, descending):
+    """order_with_ties as its docstring defines it: repeatedly the first best of what is left, then
+    every value tied with it, in canonical order."""
+    rest, out = list(range(len(v))), []
+    while rest:
+        k = rest[first_best(v[rest], maximize=descending)]
+        tied = [i for i in rest if i == k or v[i] == v[k] or abs(v[i] - v[k]) <= 1e-9 * abs(v[k])]
+        out += tied
+        rest = [i for i in rest if i not in tied]
+    return out
+
+
+def test_order_with_ties_equals_its_definition():
+    """The sorted fast path (no ties) and the tie loop agree with the definition, ties and NaN included."""
+    rng = np.random.default_rng(7)
+    pool = [0.0, -0.0, 1.0, 1 + 1e-10, 1 - 2e-9, -1.0, 3.0, 3 + 3e-9, np.inf, -np.inf, np.nan, 1e-300]
+    for k in range(3000):
+        n = int(rng.integers(0, 9))
+        v = rng.choice(pool, n) if k % 2 else rng.normal(size=n) * 10.0 ** rng.integers(-5, 5)
+        for descending in (True, False):
+            assert order_with_ties(v, descending) == _ordered_by_definition(v, descending), (v, descending)
 
 
 def test_zero_column_is_not_scaled_up():

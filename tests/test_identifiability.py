@@ -80,3 +80,19 @@ def test_confound_coefficients_carry_their_units():
             assert unit == want, line
             mixed += bool(unit)
     assert mixed >= 2 and "mrad/mm·tool.y" in next(x for x in ident.confound_lines("") if x.startswith("j6.alpha"))
+
+
+def test_tall_r_factor_equals_one_householder_qr():
+    """The blocked QR of a tall Jacobian has the same Gram matrix RᵀR = JᵀJ and singular values as
+    NumPy's one QR, rank deficiency included (a column the sum of two others)."""
+    from kincal.analysis.identifiability import QR_ROWS, r_factor
+
+    rng = np.random.default_rng(3)
+    J = rng.normal(size=(5 * QR_ROWS + 17, 12)) * np.logspace(-3, 2, 12)
+    J[:, 5] = J[:, 3] + J[:, 4]
+    R, R1 = r_factor(J), np.linalg.qr(J, mode="r")
+    assert R.shape == (12, 12) and np.allclose(np.tril(R, -1), 0.0)
+    np.testing.assert_allclose(R.T @ R, R1.T @ R1, rtol=1e-10, atol=1e-9 * np.abs(R1.T @ R1).max())
+    s, s1 = np.linalg.svd(R, compute_uv=False), np.linalg.svd(R1, compute_uv=False)
+    np.testing.assert_allclose(s[:-1], s1[:-1], rtol=1e-10)
+    assert s[-1] < 1e-12 * s[0] and s1[-1] < 1e-12 * s1[0]

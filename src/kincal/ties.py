@@ -16,6 +16,7 @@ means something in calibration.
 """
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import numpy as np
@@ -36,11 +37,14 @@ def first_best(values: Sequence[float] | np.ndarray, maximize: bool = True, rtol
     if v.size == 0:
         raise ValueError("first_best of an empty sequence")
     s = v if maximize else -v
-    s = np.where(np.isnan(s), -np.inf, s)
-    best = float(np.max(s))
-    if not np.isfinite(best):
-        return int(np.argmax(s)) if best == np.inf else 0
-    return int(np.flatnonzero(s >= best - tie_tolerance(best, rtol, atol))[0])
+    k = int(np.argmax(s))  # (the first NaN, if any)
+    if math.isnan(s[k]):
+        s = np.where(np.isnan(s), -np.inf, s)
+        k = int(np.argmax(s))
+    best = float(s[k])
+    if not math.isfinite(best):
+        return k if best == math.inf else 0
+    return int(np.argmax(s >= best - tie_tolerance(best, rtol, atol)))  # the first True
 
 
 def improves(new: float, incumbent: float, maximize: bool = True, rtol: float = TIE_RTOL,
@@ -58,12 +62,16 @@ def order_with_ties(values: Sequence[float] | np.ndarray, descending: bool = Tru
                     rtol: float = TIE_RTOL) -> list[int]:
     """Indices sorted by value; values tied with the head of their run keep canonical order."""
     v = np.asarray(values, dtype=float)
+    ranked = np.argsort(-v if descending else v, kind="stable")
+    s = v[ranked]
+    if np.all(np.isfinite(s)) and np.all(np.abs(np.diff(s)) > rtol * np.abs(s[:-1])):
+        return ranked.tolist()  # no two values tie: the plain order (the loop below gives the same)
     rest = list(range(v.size))
     out: list[int] = []
     while rest:
         k = rest[first_best(v[rest], maximize=descending, rtol=rtol)]
         band = tie_tolerance(float(v[k]), rtol)
-        tied = [i for i in rest if v[i] == v[k] or abs(v[i] - v[k]) <= band]  # equal first: inf - inf is nan
+        tied = [i for i in rest if i == k or v[i] == v[k] or abs(v[i] - v[k]) <= band]  # (inf - inf, NaN: nan)
         out += tied
         rest = [i for i in rest if i not in tied]
     return out

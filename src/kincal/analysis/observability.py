@@ -25,10 +25,10 @@ ZERO_COLUMN = 1e-12  # per-pose RMS (m per unit) below which a column has no eff
 
 
 def column_norms(J: np.ndarray) -> np.ndarray:
-    """(k,) Euclidean norms of the columns of J (M, k), one dot product each: no (M, k) temporary of
-    squares (10⁵ poses, 33 columns: 5 ms against 34 ms)."""
+    """(k,) Euclidean norms of the columns of J (M, k), summed in place by ``einsum``: no (M, k)
+    temporary of squares (10⁵ poses, 33 columns: 5 ms against 34 ms), no loop over the columns."""
     J = np.asarray(J, dtype=float)
-    return np.sqrt(np.array([c @ c for c in J.T])) if J.shape[0] else np.zeros(J.shape[1])
+    return np.sqrt(np.einsum("ij,ij->j", J, J))
 
 
 def live_columns(J: np.ndarray, scale: float = 1.0) -> np.ndarray:

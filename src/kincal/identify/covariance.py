@@ -20,11 +20,11 @@ def spd_inverse(M: np.ndarray) -> np.ndarray:
 
 
 def normal_inverse(J: np.ndarray) -> np.ndarray:
-    """(JᵀJ)⁻¹ (pseudo-inverse) computed on unit-norm columns (stable), in the original units."""
+    """(JᵀJ)⁻¹ (pseudo-inverse) computed on unit-norm columns (stable), in the original units (the
+    normal matrix scaled, not J: no copy of J)."""
     d = column_norms(J)
     d[d == 0] = 1.0
-    A = J / d
-    return spd_inverse(A.T @ A) / np.outer(d, d)
+    return spd_inverse((J.T @ J) / np.outer(d, d)) / np.outer(d, d)
 
 
 def parameter_statistics(J: np.ndarray, r: np.ndarray, names: Sequence[str],
