@@ -51,15 +51,6 @@ def cos_sin(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (1.0 - t2) * inv, (2.0 * inv) * t
 
 
-def _about(axis: int, x: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) rotations by the angles x (N,) rad about the frame's own axis ``axis``."""
-    c, s = cos_sin(x)
-    i, j = (axis + 1) % 3, (axis + 2) % 3
-    out = np.zeros((len(x), 3, 3))
-    out[:, axis, axis], out[:, i, i], out[:, j, j], out[:, i, j], out[:, j, i] = 1.0, c, c, -s, s
-    return out
-
-
 def _carve(n: int, *shapes: tuple[int, ...]) -> list[np.ndarray]:
     """Views of shapes ``shape + (n,)`` cut from one block (one allocation instead of many)."""
     sizes = [prod(sh) * n for sh in shapes]
@@ -174,31 +165,10 @@ class Chain:
             else:
                 c, s = cos_sin(x)
                 i, j = (head.axis + 1) % 3, (head.axis + 2) % 3
-                W = np.empty((3, n))
-                W[i] = c * V[i] - s * V[j]
-                W[j] = s * V[i] + c * V[j]
-                W[head.axis] = V[head.axis]
-                V = W
+                V = np.array(V)  # a copy, turned in place
+                V[i], V[j] = c * V[i] - s * V[j], s * V[i] + c * V[j]
         assert V is not None  # a chain has at least one segment
         return np.ascontiguousarray(np.broadcast_to(V, (3, n)).T)
-
-    def origins(self, values: np.ndarray, q: np.ndarray) -> np.ndarray:
-        """(N, S + 1, 3) the chain's start and the end of every segment (the frame after each joint's
-        motion and the constants that follow it; the last is the end point), composed forward."""
-        ends, _, _ = self._segment_frames(values, False)
-        R, t = np.broadcast_to(np.eye(3), (len(q), 3, 3)), np.zeros((len(q), 3))
-        out = [t]
-        for M, head in zip(ends, self.heads):
-            if head is not None:
-                x = q[:, head.joint] + (values[head.param] + head.offset)
-                if head.motion == TRANS:
-                    t = t + R[:, :, head.axis] * x[:, None]
-                else:
-                    R = R @ _about(head.axis, x)
-            t = t + R @ M[3]
-            R = R @ M[:3].T
-            out.append(t)
-        return np.stack(out, axis=1)
 
     def forward_and_jacobian(self, values: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Positions (N,3) and parameter Jacobian (N,3,P) by forward propagation of frames.
@@ -210,21 +180,18 @@ class Chain:
         written in place: many small temporaries make glibc return and re-fault heap pages on every
         call, which costs more than the arithmetic here.
         """
-        return self._blocks(values, q, False)[:2]
+        return self.frame_and_rates(values, q, rates=False)[:2]
 
-    def frame_and_rates(self, values: np.ndarray, q: np.ndarray
-                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def frame_and_rates(self, values: np.ndarray, q: np.ndarray, rates: bool = True
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
         """Positions (N, 3), their parameter Jacobian (N, 3, P), the end frame's rotation (N, 3, 3:
-        columns are its axes) and its world rotation rate per parameter (N, 3, P): a rotation op
-        turns the frame about its world axis, a translation op does not turn it. In blocks of
-        ``BLOCK`` configurations: memory traffic, not arithmetic, limits, so a block fits the cache."""
-        p, J, R, Jw = self._blocks(values, q, True)
-        assert R is not None and Jw is not None  # asked for
-        return p, J, R, Jw
-
-    def _blocks(self, values: np.ndarray, q: np.ndarray, rates: bool):
-        """(p, J, R, Jw) of :meth:`frame_and_rates` block by block (R and Jw None without ``rates``)."""
-        n, G = q.shape[0], self._constants(values)
+        columns are its axes) and its world rotation rate per parameter (N, 3, P) (these two None
+        without ``rates``): a rotation op turns the frame about its world axis, a translation op does
+        not turn it. In blocks of ``BLOCK`` configurations: memory traffic, not arithmetic, limits, so
+        a block fits the cache."""
+        ends, A, B = self._segment_frames(values, True)
+        G = np.concatenate([A, B, np.concatenate(ends)])[self.z_map]  # each segment's constant part, op axes and points
+        n = q.shape[0]
         p, JT = np.empty((n, 3)), np.empty((self.n_params, 3, n))
         R, WT = (np.empty((n, 3, 3)), np.zeros((self.n_params, 3, n))) if rates else (None, None)
         for lo in range(0, n, BLOCK):
@@ -234,16 +201,11 @@ class Chain:
                 R[at] = frame
         return p, JT.transpose(2, 1, 0), R, None if WT is None else WT.transpose(2, 1, 0)
 
-    def _constants(self, values: np.ndarray) -> np.ndarray:
-        """(z_rows, 3): every segment's constant part, op axes and op points, stacked for :meth:`_block`."""
-        ends, A, B = self._segment_frames(values, True)
-        return np.concatenate([A, B, np.concatenate(ends)])[self.z_map]
-
     def _block(self, values: np.ndarray, q: np.ndarray, G: np.ndarray, out: np.ndarray,
                rates: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
         """Positions and (with ``rates``, zeros (P, 3, n) to write the rotation rates to) the end
-        frame's rotation of one block of configurations, ``G`` from :meth:`_constants`; the Jacobian
-        written to ``out`` (P, 3, n)."""
+        frame's rotation of one block of configurations, ``G`` (z_rows, 3) from :meth:`frame_and_rates`;
+        the Jacobian written to ``out`` (P, 3, n)."""
         n = q.shape[0]
         n_rot = self.rot_idx.size
         F, Z, o, Cx, tmp = _carve(n, (3, 3), (self.z_rows, 3), (3,), (n_rot, 3), (max(n_rot, 3),))
@@ -288,15 +250,18 @@ class Chain:
         return np.ascontiguousarray(o.T), frame
 
     def pose_jacobian(self, values: np.ndarray, q: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """End point (N, 3), end frame orientation (N, 3, 3: columns are its axes in the world) and the
-        joint Jacobians of the position and of the frame's angular velocity, (N, 3, n) each: the frames
-        carried forward only from joint to joint (the constant part of each segment is one 3×3 mix),
-        so it costs a few forward passes, not a parameter Jacobian."""
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """End point (N, 3), end frame orientation (N, 3, 3: columns are its axes in the world), the
+        joint Jacobians of the position and of the frame's angular velocity, (N, 3, n) each, and the
+        chain's start and the end of every segment (N, S + 1, 3: the frame after each joint's motion
+        and the constants that follow it; the last is the end point): the frames carried forward only
+        from joint to joint (the constant part of each segment is one 3×3 mix), so it costs a few
+        forward passes, not a parameter Jacobian."""
         n = q.shape[0]
         ends, _, _ = self._segment_frames(values, False)
         W = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n))  # W[k]: world axis k, (3, N)
         o = np.zeros((3, n))
+        path = [o]  # the origin at the start and after every segment
         U, O = np.zeros((self.n_joints, 3, n)), np.zeros((self.n_joints, 3, n))
         revolute = np.zeros(self.n_joints, bool)
         for M, head in zip(ends, self.heads):
@@ -316,9 +281,11 @@ class Chain:
             Ff = F.reshape(3, -1)
             o = o + (M[3] @ Ff).reshape(3, n)
             W = (M[:3] @ Ff).reshape(3, 3, n)
+            path.append(o)
         rev = revolute[:, None, None]  # a revolute joint moves the point by u × (p − o) and turns the frame by u
         Jp, Jw = np.where(rev, np.cross(U, o - O, axis=1), U), np.where(rev, U, 0.0)  # (n_joints, 3, N)
-        return o.T, W.transpose(2, 1, 0), Jp.transpose(2, 1, 0), Jw.transpose(2, 1, 0)
+        origins = np.stack(path).transpose(2, 0, 1)  # (N, S + 1, 3)
+        return o.T, W.transpose(2, 1, 0), Jp.transpose(2, 1, 0), Jw.transpose(2, 1, 0), origins
 
     def _columns(self, rot: np.ndarray, trans: np.ndarray, JT: np.ndarray) -> None:
         """The Jacobian, written transposed to JT (P, 3, N), from the rotation columns u × (p − o) and

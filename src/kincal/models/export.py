@@ -24,7 +24,7 @@ from .chain import ROT
 from .robot import TOOL_NAMES, Robot
 from .serial import ChainRobot, SerialRobot
 from .transforms import rot_zyx, zyx_from_matrix
-from .urdf import URDFRobot, read_urdf, rpy_matrix
+from .urdf import ORIGIN, URDFRobot, read_urdf, rpy_matrix
 from .yaml_io import robot_to_yaml
 
 EXPORT_TOL = 1e-9  # m: an export must reproduce the model this closely
@@ -114,7 +114,7 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
     lines = ["kinematics:"]
     for name, (xyz, rpy) in entries.items():
         lines.append(f"  {name}:")
-        lines += [f"    {k}: {_fmt(v)}" for k, v in zip(("x", "y", "z", "roll", "pitch", "yaw"), (*xyz, *rpy))]
+        lines += [f"    {k}: {_fmt(v)}" for k, v in zip(ORIGIN, (*xyz, *rpy))]
     import hashlib  # the UR file's hash line only
 
     digest = hashlib.sha256("\n".join(lines).encode()).hexdigest()

@@ -68,13 +68,10 @@ class ImplicitRobot(Robot):
         return BASE_NAMES
 
     def _base(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        b = values[self.params.indices(BASE_NAMES)]
-        return rot_zyx(b[5], b[4], b[3]), b[:3]
-
-    def _base_rows(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Base frames of parameter rows (M, P): R (M, 3, 3), t (M, 3)."""
-        b = values[:, self.params.indices(BASE_NAMES)]
-        return np.moveaxis(rot_zyx(b[:, 5], b[:, 4], b[:, 3]), -1, 0), b[:, :3]
+        """Base frame of a parameter vector (P,), R (3, 3) and t (3,), or of parameter rows (M, P),
+        R (M, 3, 3) and t (M, 3)."""
+        b = values[..., self.params.indices(BASE_NAMES)]
+        return np.moveaxis(rot_zyx(b[..., 5], b[..., 4], b[..., 3]), (0, 1), (-2, -1)), b[..., :3]
 
     def _batch(self, values: np.ndarray) -> np.ndarray:
         """``values`` as an (S, P) array; ModelError for another shape."""
@@ -90,7 +87,7 @@ class ImplicitRobot(Robot):
         values = self._batch(values)
         rows = np.repeat(values, q.shape[0], axis=0)  # one parameter row per configuration
         p_local, ok = self._solve_local(np.tile(q, (len(values), 1)), rows, strict=False)
-        R, t = self._base_rows(rows)
+        R, t = self._base(rows)
         p = np.einsum("mij,mj->mi", R, p_local) + t
         return np.where(ok[:, None], p, np.nan).reshape(len(values), q.shape[0], 3)
 
@@ -100,15 +97,20 @@ class ImplicitRobot(Robot):
         over the positions (``values`` reach ``inverse_local`` as (S, 1, P))."""
         p = np.atleast_2d(np.asarray(p, float))
         values = self._batch(values)
-        R, t = self._base_rows(values)
+        R, t = self._base(values)
         p_local = np.einsum("sni,sij->snj", p[None] - t[:, None], R)
         return self.inverse_local(p_local, values[:, None, :], strict=False)
 
-    def _base_axes(self, values: np.ndarray) -> list[np.ndarray]:
-        """World axes of the base rotations rx, ry, rz (R = Rz Ry Rx: each turns about its axis
-        as already moved by the rotations before it in the product)."""
+    def _base_jacobian(self, values: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """d world position / d base x y z rx ry rz (N, 3, 6) at world positions p (N, 3): unit steps,
+        then turns about the world axes of rx, ry, rz through t (R = Rz Ry Rx: each turns about its
+        axis as already moved by the rotations before it in the product)."""
         b = values[self.params.indices(BASE_NAMES)]
-        return [rot_zyx(b[5], b[4], 0.0) @ [1.0, 0, 0], rot_zyx(b[5], 0.0, 0.0) @ [0, 1.0, 0], np.array([0, 0, 1.0])]
+        axes = [rot_zyx(b[5], b[4], 0.0) @ [1.0, 0, 0], rot_zyx(b[5], 0.0, 0.0) @ [0, 1.0, 0], np.array([0, 0, 1.0])]
+        J = np.zeros((len(p), 3, 6))
+        J[:, :, :3] = np.eye(3)
+        J[:, :, 3:] = np.stack([np.cross(axis, p - b[:3]) for axis in axes], axis=2)
+        return J
 
     # ---- generic kinematics -------------------------------------------------------------------
     def _solve_local(self, q: np.ndarray, values: np.ndarray, strict: bool = True):
@@ -145,10 +147,7 @@ class ImplicitRobot(Robot):
             return p, None
         fp, _, fs = self.constraint_derivatives(p_local, q, values)
         J = -np.einsum("ij,njc,nck->nik", R, self._checked_inverse(fp, q), fs)  # IFT in the robot frame, then rotated
-        bi = self.params.indices(BASE_NAMES)
-        J[:, :, bi[:3]] = np.eye(3)
-        for k, axis in zip(bi[3:], self._base_axes(values)):  # rotation about the world axis through t
-            J[:, :, k] = np.cross(axis, p - t)
+        J[:, :, self.params.indices(BASE_NAMES)] = self._base_jacobian(values, p)
         return p, J
 
     def _checked_inverse(self, fp: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -188,10 +187,7 @@ class ImplicitRobot(Robot):
         q = self.inverse_local(p_local, values)
         fp, fq, fs = self.constraint_derivatives(p_local, q, values)
         dpl = np.zeros((p.shape[0], 3, self.n_params))  # ∂p_local/∂(base parameters)
-        bi = self.params.indices(BASE_NAMES)
-        dpl[:, :, bi[:3]] = -R.T
-        for k, axis in zip(bi[3:], self._base_axes(values)):
-            dpl[:, :, k] = -np.cross(axis, p - t) @ R
+        dpl[:, :, self.params.indices(BASE_NAMES)] = -R.T @ self._base_jacobian(values, p)
         rhs = fs + np.einsum("nci,nik->nck", fp, dpl)
         return q, -np.linalg.solve(fq, rhs)
 

@@ -121,22 +121,18 @@ class PUU3Robot(ImplicitRobot):
         fp = 2.0 * d
         dot = lambda x: np.sum(d * x, axis=-1)  # noqa: E731  d·x per leg, (N, 3)
         du = dot(u)
-        fq = np.zeros((n, 3, 3))
-        fq[:, [0, 1, 2], [0, 1, 2]] = -2.0 * du
+        fq, legs = np.zeros((n, 3, 3)), [0, 1, 2]
+        fq[:, legs, legs] = -2.0 * du
         fs = np.zeros((n, 3, self.n_params))
         ix = self.params.index
         d_eb, d_ea = dot(eb), dot(ea)
         fs[:, :, ix("r")] = 2.0 * d_eb
         fs[:, :, ix("R")] = -2.0 * d_ea
-        for i in range(3):
-            fs[:, i, ix(f"L{i + 1}")] = -2.0 * L[..., i]
+        fs[:, legs, self.params.indices(("L1", "L2", "L3"))] = -2.0 * L
         if self.extended:
-            leg = {name: 2.0 * x for name, x in (("dr", d_eb), ("dR", -d_ea), ("b", ri * dot(vb)),
-                                                 ("a", -Ri * dot(va)), ("h0", -du), ("tx", -t * dot(du_dtx)),
-                                                 ("ty", -t * dot(du_dty)))}
-            for i in range(3):
-                for name, x in leg.items():
-                    fs[:, i, ix(f"leg{i + 1}.{name}")] = x[:, i]
+            for name, x in (("dr", d_eb), ("dR", -d_ea), ("b", ri * dot(vb)), ("a", -Ri * dot(va)), ("h0", -du),
+                            ("tx", -t * dot(du_dtx)), ("ty", -t * dot(du_dty))):
+                fs[:, legs, self.params.indices(f"leg{i}.{name}" for i in (1, 2, 3))] = 2.0 * x
         return fp, fq, fs
 
     def start_point(self, q, values):

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 from abc import ABC, abstractmethod
+from contextlib import suppress
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable, ClassVar, Iterable, Literal, Mapping, Sequence, TypeVar, overload
 
@@ -45,13 +46,6 @@ R = TypeVar("R", bound="Robot")
 ParamValues = Mapping[str, float] | Sequence[float] | np.ndarray | Parameters
 
 
-def read_only(a: ArrayLike) -> np.ndarray:
-    """A float copy of ``a`` that cannot be changed in place."""
-    out = np.array(a, dtype=float)
-    out.setflags(write=False)
-    return out
-
-
 @dataclass(frozen=True, eq=False, init=False)
 class JointSpace:
     """The joints a user commands: names, types ("revolute" or "prismatic") and limits (rad or m;
@@ -64,7 +58,7 @@ class JointSpace:
 
     def __init__(self, names: Iterable[str], types: Iterable[str], lower: ArrayLike, upper: ArrayLike) -> None:
         names, types = tuple(names), tuple(types)
-        lo, hi = read_only(lower).reshape(-1), read_only(upper).reshape(-1)
+        lo, hi = np.array(lower, dtype=float).reshape(-1), np.array(upper, dtype=float).reshape(-1)
         if not (len(names) == len(types) == lo.size == hi.size):
             raise ModelError(f"joints {list(names)}: names, types and limits must have one entry per joint")
         if len(set(names)) != len(names) or any(not n or "." in n for n in names):
@@ -74,6 +68,8 @@ class JointSpace:
             raise ModelError(f"joint type(s) {sorted(set(bad))}: use one of {JOINT_TYPES}")
         if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or not np.all(lo < hi):
             raise ModelError(f"joints {list(names)}: every limit needs lower < upper")
+        lo.setflags(write=False)  # read-only
+        hi.setflags(write=False)
         for key, value in (("names", names), ("types", types), ("lower", lo), ("upper", hi)):
             object.__setattr__(self, key, value)
 
@@ -125,10 +121,9 @@ class Robot(ABC):
         and the rotation rate is ½ Σₖ aₖ × d aₖ (exact: positions are linear in the tool point)."""
         p, J = self._forward_and_jacobian(q, values, True)
         assert J is not None  # asked for
-        R, Jw = J[:, :, self.params.indices(TOOL_NAMES)], np.zeros_like(J)
-        for k, v in enumerate(self._tool_steps(values)):
-            Jk = self._forward_and_jacobian(q, v, True)[1]
-            Jw += 0.5 * np.cross(R[:, :, k][:, :, None], Jk - J, axisa=1, axisb=1, axisc=1)
+        R = J[:, :, self.params.indices(TOOL_NAMES)]
+        Jw = sum(0.5 * np.cross(R[:, :, k, None], self._forward_and_jacobian(q, v, True)[1] - J, axis=1)
+                 for k, v in enumerate(self._tool_steps(values)))
         return p, J, R, Jw
 
     # ---- kinematics ------------------------------------------------------------------------------
@@ -190,10 +185,8 @@ class Robot(ABC):
         q = self.check_q(q)
         out = np.full((len(values), q.shape[0], 3), np.nan)
         for k, v in enumerate(np.asarray(values, dtype=float)):
-            try:
+            with suppress(ModelError):
                 out[k] = self.forward(q, v)
-            except ModelError:
-                pass
         return out
 
     # ---- inverse kinematics (has_inverse) --------------------------------------------------------

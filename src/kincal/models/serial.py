@@ -110,18 +110,8 @@ class ChainRobot(Robot):
     gravity loads."""
 
     joints: tuple  # the chain's rows (DH) or joints (URDF): name, type, limits, mass and com each
-    _chain: Chain
+    chain: Chain  # the compiled op sequence (read-only use: exports walk it)
     has_gravity: ClassVar[bool] = True
-
-    def base_ops(self) -> list[Op]:
-        """The base frame's six ops, Tx Ty Tz Rz Ry Rx."""
-        idx = self.params.index
-        return ([Op(TRANS, AXES[a], idx(f"base.{a}")) for a in "xyz"]
-                + [Op(ROT, AXES[a], idx(f"base.r{a}")) for a in "zyx"])
-
-    def tool_ops(self) -> list[Op]:
-        idx = self.params.index
-        return [Op(TRANS, AXES[a], idx(f"tool.{a}")) for a in "xyz"]
 
     @property
     def moving(self) -> tuple:
@@ -133,7 +123,7 @@ class ChainRobot(Robot):
         moving = self.moving
         object.__setattr__(self, "joint_space", JointSpace([j.name for j in moving], types, [j.lower for j in moving],
                                                            [j.upper for j in moving]))
-        object.__setattr__(self, "_chain", compiled(self._build_ops(), columns, len(moving)))
+        object.__setattr__(self, "chain", compiled(self._build_ops(), columns, len(moving)))
 
     @abstractmethod
     def _joint_ops(self, joint, k: int) -> list[Op]:
@@ -146,13 +136,18 @@ class ChainRobot(Robot):
         return [(j.name, j.mass, j.com, self._joint_ops(j, int(k))) for k, j in zip(moving, self.joints)]
 
     def _build_ops(self) -> tuple[Op, ...]:
-        return tuple(self.base_ops() + [op for *_, ops in self._rows() for op in ops] + self.tool_ops())
+        """The base frame's six ops Tx Ty Tz Rz Ry Rx, the rows' ops, the tool point's Tx Ty Tz."""
+        idx = self.params.index
+        base = [Op(TRANS, AXES[a], idx(f"base.{a}")) for a in "xyz"]
+        base += [Op(ROT, AXES[a], idx(f"base.r{a}")) for a in "zyx"]
+        tool = [Op(TRANS, AXES[a], idx(f"tool.{a}")) for a in "xyz"]
+        return tuple(base + [op for *_, ops in self._rows() for op in ops] + tool)
 
     def link_frames(self) -> list[tuple[str, int, int, float, tuple[float, float, float]]]:
         """Per link of the chain (the frame at the end of each row): (name, number of chain ops up to
         its frame, number of joints before it, mass kg, centre of mass m in its frame). Gravity terms
         place masses with this."""
-        out, end, moving = [], len(self.base_ops()), 0
+        out, end, moving = [], len(BASE_NAMES), 0  # the chain starts with the base frame's six ops
         for name, mass, com, ops in self._rows():
             end += len(ops)
             moving += any(op.joint >= 0 for op in ops)
@@ -163,34 +158,29 @@ class ChainRobot(Robot):
         """The values the compiled chain reads (the parameters, and any extra columns)."""
         return self.param_values(values)
 
-    @property
-    def chain(self) -> Chain:
-        """The compiled op sequence (read-only use: exports walk it)."""
-        return self._chain
-
     def _forward_and_jacobian(self, q, values, jacobian):
         values = self.chain_values(values)
         if not jacobian:
-            return self._chain.forward(values, q), None
-        p, J = self._chain.forward_and_jacobian(values, q)
+            return self.chain.forward(values, q), None
+        p, J = self.chain.forward_and_jacobian(values, q)
         return p, J[:, :, :self.n_params]  # extra chain columns (URDF joint motions) left out
 
     def _forward_jacobians(self, q, values):
-        p, J = self._chain.forward_and_jacobian(self.chain_values(values), q)
+        p, J = self.chain.forward_and_jacobian(self.chain_values(values), q)
         # ∂p/∂qⱼ is the column of the parameter joint j's value adds to (θ or d; a URDF joint motion's own)
-        return p, J[:, :, :self.n_params], J[:, :, self._chain.joint_param]
+        return p, J[:, :, :self.n_params], J[:, :, self.chain.joint_param]
 
     def _joint_jacobian(self, q, values):
         return self._forward_jacobians(q, values)[2]
 
     def _pose_and_jacobian(self, q, values):
-        return self._chain.pose_jacobian(self.chain_values(values), q)
+        return self.chain.pose_jacobian(self.chain_values(values), q)[:4]
 
     def link_points(self, q: np.ndarray) -> np.ndarray | None:
-        return self._chain.origins(self.chain_values(), self.check_q(q))
+        return self.chain.pose_jacobian(self.chain_values(), self.check_q(q))[4]
 
     def _frame_and_rates(self, q, values):
-        p, J, R, Jw = self._chain.frame_and_rates(self.chain_values(values), q)
+        p, J, R, Jw = self.chain.frame_and_rates(self.chain_values(values), q)
         return p, J[:, :, :self.n_params], R, Jw[:, :, :self.n_params]
 
     def gravity(self, payload: float = 0.0) -> GravityModel:
@@ -215,7 +205,7 @@ class SerialRobot(ChainRobot):
     description: str = ""
     frames: tuple[tuple[str, tuple[float, ...]], ...] = ()  # named frames: (name, (x y z m, rx ry rz rad) in base)
     joint_space: JointSpace = field(init=False, repr=False)
-    _chain: Chain = field(init=False, repr=False)
+    chain: Chain = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.convention not in CONVENTIONS:

@@ -247,14 +247,12 @@ class ErrorModel:
     payload: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.name != "auto":
-            parse_model(self.name)
+        tokens = parse_model(self.name) if self.name != "auto" else ()
         object.__setattr__(self, "payload", number("payload", self.payload, positive=False, unit="kg at the tool"))
         if self.payload > MAX_PAYLOAD:
             raise ValueError(f"payload={self.payload:g} kg: more than any robot carries ({MAX_PAYLOAD:g} kg); give the "
                              f"payload at the tool in kg")
-        if self.payload > 0 and self.name != "auto" and not {"compliance", "gravity-regressor"} & set(
-                parse_model(self.name)):
+        if self.payload > 0 and self.name != "auto" and not {"compliance", "gravity-regressor"} & set(tokens):
             raise ValueError(f"payload={self.payload:g} kg: only the gravity terms (compliance, gravity-regressor) use "
                              f"it, and error model '{self.name}' has none")
 

@@ -79,7 +79,7 @@ class URDFRobot(ChainRobot):
     description: str = ""
     source: Mapping[str, str] = field(default_factory=dict)  # file, base_link, tip_link
     joint_space: JointSpace = field(init=False, repr=False)
-    _chain: Chain = field(init=False, repr=False)
+    chain: Chain = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         names, kinds = _param_layout(self.joints)
