@@ -137,3 +137,11 @@ def test_missing_file_and_unknown_robot(capsys, tmp_path):
     assert code == 1 and "nope.csv" in err
     code, _, err = run_cli(capsys, "show", "ur55")
     assert code == 1 and "neither a bundled robot" in err
+
+
+@pytest.mark.parametrize("tool", ["1,2", [1, 2], [1, 2, float("nan")], [1, "x", 2]])
+def test_a_bad_tool_point_names_the_robot_once(tool):
+    """A tool point that is not three finite numbers: a ModelError naming the robot once and the value."""
+    with pytest.raises(kincal.ModelError) as err:
+        kincal.load_robot("ur5", tool=tool)
+    assert str(err.value) == f"bundled robot 'ur5': the tool point must be three finite numbers (m), got {tool!r}"

@@ -61,7 +61,7 @@ def load_robot(name_or_path: str | os.PathLike, base_link: str | None = None, ti
     text, label = _robot_text(name_or_path)
     if _is_urdf(name_or_path, text):
         try:
-            return read_urdf(text, label, base_link, tip_link, _tool(tool, label))
+            return read_urdf(text, label, base_link, tip_link, _tool(tool))
         except ModelError as exc:
             if str(exc).startswith(label):
                 raise
@@ -85,17 +85,21 @@ def load_robot(name_or_path: str | os.PathLike, base_link: str | None = None, ti
     if tool is None:
         return robot
     try:
-        return robot.with_tool_point(_tool(tool, label))
+        return robot.with_tool_point(_tool(tool))
     except ModelError as exc:
         raise ModelError(f"{label}: {exc}") from None
 
 
-def _tool(tool, label: str) -> tuple[float, float, float]:
+def _tool(tool) -> tuple[float, float, float]:
+    """The tool point (m) as three floats; a ModelError (the caller names the file) otherwise."""
     if tool is None:
         return (0.0, 0.0, 0.0)
-    t = tuple(float(v) for v in tool)
+    try:
+        t = tuple(float(v) for v in tool)
+    except (TypeError, ValueError):
+        t = ()
     if len(t) != 3 or not all(np.isfinite(t)):
-        raise ModelError(f"{label}: the tool point must be three finite numbers (m), got {tool!r}")
+        raise ModelError(f"the tool point must be three finite numbers (m), got {tool!r}")
     return t
 
 
