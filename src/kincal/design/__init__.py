@@ -2,10 +2,9 @@
 from .bound import Bound, relaxed_bound
 from .criteria import CRITERIA, score
 from .npose import PoseCountCurve, minimum_poses, pose_count_curve
-from .pool import candidate_pool
 from .options import DESIGN_CRITERIA, METHODS, DesignOptions
 from .problem import UNITS, DesignProblem, design_problem, observation_problem
-from .cell import Cell
+from .cell import Cell, candidate_pool
 from .select import Design, select_poses
 
 __all__ = ["UNITS", "Bound", "relaxed_bound", "CRITERIA", "score", "candidate_pool", "DesignProblem", "design_problem",

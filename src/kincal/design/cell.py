@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import whole
 from ..errors import ModelError
 from ..models.robot import Robot
 from ..ties import first_best
@@ -113,6 +114,12 @@ class Cell:
             raise ValueError(f"only {have} of {drawn} random poses fit the cell; '{name}' removes "
                              f"{100 * broken[name].mean():.0f} % of them: check its values and units")
         return np.concatenate(kept)[:n]
+
+
+def candidate_pool(robot: Robot, n: int, seed: int | None = 0) -> np.ndarray:
+    """n joint vectors drawn uniformly within the limits and kept only where ``robot.feasible`` holds
+    (coupled constraints, assembly), (n, n_joints): ``robot.sample_joints``; the pool of no cell."""
+    return robot.sample_joints(whole("n", n, 1), seed)
 
 
 def _crosses(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

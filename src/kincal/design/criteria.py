@@ -6,6 +6,7 @@ import numpy as np
 from ..analysis.observability import comprehensive_index, indices_from_singular_values
 
 CRITERIA = ("D", "A", "E", "I", "O1", "O2", "O3", "O4", "O5", "O6", "comprehensive")
+SINGULAR = 1e-12  # smallest eigenvalue of M below this times its mean: singular (criteria I and IMSE)
 
 
 def score(M: np.ndarray, m: int, criterion: str, B: np.ndarray | None = None) -> np.ndarray:
@@ -27,7 +28,7 @@ def score(M: np.ndarray, m: int, criterion: str, B: np.ndarray | None = None) ->
                 val = -np.trace(X, axis1=-2, axis2=-1) / np.trace(B)
             except np.linalg.LinAlgError:
                 return np.full(M.shape[:-2], -np.inf)
-        ok = np.linalg.eigvalsh(M)[..., 0] > 1e-12 * np.trace(M, axis1=-2, axis2=-1) / M.shape[-1]
+        ok = np.linalg.eigvalsh(M)[..., 0] > SINGULAR * np.trace(M, axis1=-2, axis2=-1) / M.shape[-1]
         return np.where(ok & np.isfinite(val), val, -np.inf)
     lam = np.clip(np.linalg.eigvalsh(M), 0.0, None)  # ascending
     singular = lam[..., 0] <= 1e-14 * np.maximum(lam[..., -1], 1e-300)  # rank-deficient: a zero σ

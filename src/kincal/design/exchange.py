@@ -36,15 +36,11 @@ def det3(A: np.ndarray) -> np.ndarray:
 
 
 def inv3(A: np.ndarray) -> np.ndarray:
-    """Inverses of (3, 3, ...) matrices in closed form (adjugate / determinant)."""
-    adj = np.empty_like(A)
-    for i in range(3):
-        for j in range(3):
-            r = [x for x in range(3) if x != j]
-            c = [x for x in range(3) if x != i]
-            minor = A[r[0], c[0]] * A[r[1], c[1]] - A[r[0], c[1]] * A[r[1], c[0]]
-            adj[i, j] = minor if (i + j) % 2 == 0 else -minor
-    return adj / det3(A)
+    """Inverses of (3, 3, ...) matrices in closed form (adjugate / determinant): the cofactor of
+    element (j, i) is A[j+1, i+1]·A[j+2, i+2] − A[j+2, i+1]·A[j+1, i+2], indices mod 3 (A tiled 2×2)."""
+    T = np.tile(A, (2, 2) + (1,) * (A.ndim - 2))
+    cof = T[1:4, 1:4] * T[2:5, 2:5] - T[2:5, 1:4] * T[1:4, 2:5]
+    return cof.swapaxes(0, 1) / det3(A)
 
 
 def det_blocks(A: np.ndarray) -> np.ndarray:

@@ -11,6 +11,7 @@ from ..analysis.observability import column_scale, live_columns
 from ..errors import IdentifiabilityError
 from ..models.robot import Robot
 from ..ties import first_best
+from .criteria import score
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,8 +55,7 @@ class DesignProblem:
 
     def logdet(self, idx: Sequence[int] | np.ndarray) -> float:
         """log det M of a design (−inf if singular)."""
-        sign, val = np.linalg.slogdet(self.information(idx))
-        return float(val) if sign > 0 else -np.inf
+        return float(score(self.information(idx), len(idx), "D"))
 
 
 UNITS = ("scaled", "paper")
@@ -115,8 +115,7 @@ def _pool_parameters(robot: Robot, pool_q: np.ndarray, base: str, distinct: int)
                                 f"calibration on it keeps these nominal, as one on every candidate would")
 
 
-def observation_problem(robot: Robot, planned, names: Sequence[str] | None = None,
-                        rank_tol: float = RANK_TOL) -> DesignProblem:
+def observation_problem(robot: Robot, planned, names: Sequence[str] | None = None) -> DesignProblem:
     """The design problem of a planned observation set (``kincal.observe``; one sample per candidate
     pose, values as the nominal robot predicts them): each candidate's block holds its whitened
     residual rows (6 for a full pose, 3 per marker), its columns the robot's and the set-up
@@ -137,7 +136,7 @@ def observation_problem(robot: Robot, planned, names: Sequence[str] | None = Non
     if names is None:
         ident = jacobian_identifiability(J, all_names, [list(nuis_names), list(robot.base_params()),
                                                         list(robot.preferred_params())], robot.name, len(obs),
-                                         rank_tol, live_columns(raw))
+                                         RANK_TOL, live_columns(raw))
         names = ident.identifiable
     cols = [all_names.index(n) for n in names]
     Jb = blocks[:, :, cols]

@@ -29,12 +29,11 @@ from ..errors import ModelError
 from ..models.robot import Robot
 from ..models.terms import extend
 from ..ties import first_best, tie_tolerance
-from .criteria import score
+from .criteria import SINGULAR, score
 from .problem import DesignProblem
 
 UNMODELLED = "gravity-regressor+harmonics:1"  # what geometry cannot describe, to first order
 KMEANS_ITERATIONS = 100
-SINGULAR = 1e-12  # smallest eigenvalue of M below this times its mean: singular
 WOODBURY_COND = 1e-9  # M0's eigenvalue ratio below this: solve directly (the update would lose digits)
 
 
@@ -77,6 +76,11 @@ class RobustTerms:
         X = G @ R - U @ np.linalg.solve(S, np.swapaxes(U, 1, 2) @ R)
         return self._from_solution(X)
 
+    def of_design(self, P: DesignProblem, design) -> float:
+        """IMSE/σ² of a design of the pool of ``P`` (indices)."""
+        Jd, Kd = P.J[design].reshape(1, -1, P.k), self.K[design].reshape(1, len(design) * P.r, -1)
+        return float(self.imse(np.swapaxes(Jd, 1, 2) @ Jd, np.swapaxes(Jd, 1, 2) @ Kd)[0])
+
     def _from_solution(self, X: np.ndarray) -> np.ndarray:
         """IMSE/σ² from X = M⁻¹[B | Q] (c, k, k + p)."""
         k = self.B.shape[0]
@@ -87,18 +91,25 @@ class RobustTerms:
         return np.where(np.isfinite(out), out, np.inf)
 
 
-def robust_terms(robot: Robot, P: DesignProblem, region_q: np.ndarray | None, weight: float,
-                 error_model: str = UNMODELLED) -> tuple[RobustTerms, str]:
+def robust_terms(robot: Robot, P: DesignProblem, region_q: np.ndarray | None, weight: float) -> tuple[RobustTerms, str]:
     """The left-out terms of ``robot`` on the pool of ``P`` and the region (default: the pool), and a
-    note when there are none (a robot without such terms, or blocks other than tool positions)."""
+    note when there are none (a robot without such terms, or blocks other than tool positions).
+    The region's scaled Jacobian blocks Ju (n_u, r, k) give its mean information B; another region
+    than the pool only for tool positions."""
     point = P.r == 3 and set(P.names) <= set(robot.params.names)
-    Ju, B = region_jacobian(robot, P, region_q)
+    if region_q is None:
+        Ju = P.J
+    elif point:
+        Ju = robot.param_jacobian(region_q)[:, :, robot.params.indices(P.names)] * P.scale
+    else:
+        raise ValueError("a region of use other than the pool is supported for tool-position (point) designs only")
+    B = np.einsum("nak,nal->kl", Ju, Ju) / len(Ju)
     none = RobustTerms(np.zeros(P.J.shape[:2] + (0,)), B, np.zeros((P.k, 0)), 0.0, ())
     if not point or weight == 0.0:
         why = "weight 0" if weight == 0.0 else "the measurement is not a tool position"
         return none, f"no left-out error terms counted ({why}): IMSE is I-optimality here"
     try:
-        ext = extend(robot, error_model, P.q)
+        ext = extend(robot, UNMODELLED, P.q)
     except ModelError as e:
         return none, f"no left-out error terms counted ({e}): IMSE is I-optimality here"
     names = tuple(n for n in ext.params.names if n not in robot.params.names)
@@ -112,19 +123,7 @@ def robust_terms(robot: Robot, P: DesignProblem, region_q: np.ndarray | None, we
     n = len(Ju)
     terms = RobustTerms(np.ascontiguousarray(K), B, np.einsum("nak,nap->kp", Ju, Ku) / n,
                         float(np.sum(Ku ** 2)) / n, tuple(np.asarray(names)[keep]))
-    return terms, f"{len(terms.names)} left-out error terms ({error_model}), weight {weight:g} σ² each"
-
-
-def region_jacobian(robot: Robot, P: DesignProblem, region_q: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """Scaled Jacobian blocks (n_u, r, k) of the region of use (the pool, or the poses ``region_q``)
-    and its mean information B (k, k); another region than the pool only for tool positions."""
-    if region_q is None:
-        Ju = P.J
-    elif P.r == 3 and set(P.names) <= set(robot.params.names):
-        Ju = robot.param_jacobian(region_q)[:, :, robot.params.indices(P.names)] * P.scale
-    else:
-        raise ValueError("a region of use other than the pool is supported for tool-position (point) designs only")
-    return Ju, np.einsum("nak,nal->kl", Ju, Ju) / len(Ju)
+    return terms, f"{len(terms.names)} left-out error terms ({UNMODELLED}), weight {weight:g} σ² each"
 
 
 def strata(q: np.ndarray, m: int, rng: np.random.Generator) -> np.ndarray:
@@ -186,32 +185,20 @@ def exchange_in_strata(P: DesignProblem, lab: np.ndarray, start: list[int],
     return design
 
 
-def stratified_design(robot: Robot, P: DesignProblem, m: int, criterion: str, region_q: np.ndarray | None,
-                      weight: float, rng: np.random.Generator) -> tuple[list[int], float, str]:
-    """One pose per stratum, exchanged within its stratum for criterion IMSE, D or I over the region.
-
-    Returns the pool indices (in stratum order), the criterion of the design (IMSE/σ², smaller is
-    better; D and I as :func:`kincal.design.score`) and a note on what was counted.
-    """
-    terms, note = robust_terms(robot, P, region_q, weight if criterion == "IMSE" else 0.0)
+def stratified_design(P: DesignProblem, terms: RobustTerms, m: int, criterion: str,
+                      rng: np.random.Generator) -> list[int]:
+    """One pose per stratum, exchanged within its stratum for criterion IMSE, D or I over the region
+    of ``terms`` (from :func:`robust_terms`); returns the pool indices, in stratum order."""
     if criterion == "IMSE":
         value = lambda M0, Q0, Jc, Kc: -terms.imse_added(M0, Q0, Jc, Kc)  # noqa: E731
     else:
         value = lambda M0, Q0, Jc, Kc: score(M0 + np.swapaxes(Jc, 1, 2) @ Jc, m, criterion, terms.B)  # noqa: E731
-        note = f"{criterion}-optimal within the strata"
     lab = strata(P.q, m, rng)
-    design = exchange_in_strata(P, lab, medoids(P.q, lab), value, terms.K)
-    return design, _value(terms, P, design, criterion), note
+    return exchange_in_strata(P, lab, medoids(P.q, lab), value, terms.K)
 
 
 def design_imse(robot: Robot, P: DesignProblem, design, region_q: np.ndarray | None,
                 weight: float) -> tuple[float, str]:
     """IMSE/σ² of any pool design (indices), and the note on the terms counted."""
     terms, note = robust_terms(robot, P, region_q, weight)
-    return _value(terms, P, list(design), "IMSE"), note
-
-
-def _value(terms: RobustTerms, P: DesignProblem, design: list[int], criterion: str) -> float:
-    Jd, Kd = P.J[design].reshape(1, -1, P.k), terms.K[design].reshape(1, len(design) * P.r, -1)
-    M, Q = np.swapaxes(Jd, 1, 2) @ Jd, np.swapaxes(Jd, 1, 2) @ Kd
-    return float(terms.imse(M, Q)[0]) if criterion == "IMSE" else float(score(M, len(design), criterion, terms.B)[0])
+    return terms.of_design(P, list(design)), note

@@ -17,7 +17,7 @@ from .exchange import _State, det_blocks, fedorov, greedy
 from .ide import ide
 from .options import DesignOptions
 from .problem import DesignProblem, design_problem
-from .robust import design_imse, region_jacobian, stratified_design
+from .robust import robust_terms, stratified_design
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,14 +73,13 @@ def _score_blocks(J: np.ndarray, criterion: str, B) -> float:
     return float(score(np.einsum("nak,nal->kl", J, J), J.shape[0], criterion, B))
 
 
-def detmax(P: DesignProblem, m: int, criterion: str, rng: np.random.Generator, B=None,
-           max_iter: int | None = None) -> list[int]:
+def detmax(P: DesignProblem, m: int, criterion: str, rng: np.random.Generator, B=None) -> list[int]:
     """DETMAX (Guo et al. 2024, §3.2 steps 1–3): from a random m-subset, add the candidate that most
     improves the criterion, then remove the design point whose removal leaves the best criterion;
     stop when the removed point is the one just added."""
     design = [int(i) for i in rng.choice(P.N, m, replace=False)]
     st = _State(P, P.information(design)) if criterion == "D" else None
-    for _ in range(max_iter or 20 * m):
+    for _ in range(20 * m):
         free = np.setdiff1d(np.arange(P.N), design)
         # an addition: det M'/det M = det(I + V)
         gain = st.A_det[free] if st is not None else \
@@ -127,22 +126,22 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
     if P.r * o.m < P.k:
         raise IdentifiabilityError(f"{o.m} poses give {P.r * o.m} equations for {P.k} parameters; choose "
                                    f"m ≥ {-(-P.k // P.r)}")
-    B = region_jacobian(robot, P, validation_q)[1] if o.criterion == "I" else None
+    # the left-out terms count for IMSE only; B, the region's mean information, steers criterion I
+    terms, note = robust_terms(robot, P, validation_q, o.weight if o.criterion == "IMSE" else 0.0)
     rng = np.random.default_rng(o.seed)
-    idx, note = None, ""
+    idx = None
     history: Sequence[float] = ()
     if o.method in ("ide", "detmax-ide"):
-        q, J, history = _continuous_design(robot, P, o, B, rng, progress, cell)
-    elif o.stratified:
-        chosen, value, note = stratified_design(robot, P, o.m, o.criterion, validation_q, o.weight, rng)
-        idx = np.asarray(chosen, dtype=int)
-        q, J = P.q[idx], P.J[idx]
+        q, J, history = _continuous_design(robot, P, o, terms.B, rng, progress, cell)
     else:
-        idx = _pool_design(P, o, B, rng)
+        idx = np.asarray(stratified_design(P, terms, o.m, o.criterion, rng) if o.stratified else
+                         _pool_design(P, o, terms.B, rng), dtype=int)
         q, J = P.q[idx], P.J[idx]
-    if not o.stratified:  # IMSE without strata: a random design, scored
-        value, note = design_imse(robot, P, idx, validation_q, o.weight) if o.criterion == "IMSE" else \
-            (_score_blocks(J, o.criterion, B), "")
+    if o.criterion == "IMSE":  # stratified, or (method random) a random design, scored
+        value = terms.of_design(P, idx)
+    else:
+        value = _score_blocks(J, o.criterion, terms.B)
+        note = f"{o.criterion}-optimal within the strata" if o.stratified else ""
     elapsed = time.perf_counter() - t0
     if bound is None and o.certify:
         bound = relaxed_bound(P, o.m)
@@ -180,17 +179,15 @@ def _check_cell(robot: Robot, pool_q: np.ndarray, cell: Cell) -> None:
                          f"candidate {k + 1}, {why}); leave them out or loosen the cell")
 
 
-def _pool_design(P: DesignProblem, o: DesignOptions, B, rng: np.random.Generator) -> np.ndarray:
+def _pool_design(P: DesignProblem, o: DesignOptions, B, rng: np.random.Generator) -> list[int]:
     """Indices of a design of pool candidates by ``o.method`` (random, detmax, fedorov)."""
     if o.method == "random":
-        idx = [int(i) for i in rng.choice(P.N, o.m, replace=False)]
-    elif o.method == "detmax":
-        idx = detmax(P, o.m, o.criterion, rng, B)
-    else:
-        starts = [greedy(P, o.m)] + [[int(i) for i in rng.choice(P.N, o.m, replace=False)] for _ in range(o.restarts)]
-        runs = [fedorov(P, start, o.criterion, B)[0] for start in starts]
-        idx = runs[first_best([_score_blocks(P.J[np.asarray(d)], o.criterion, B) for d in runs])]
-    return np.asarray(idx, dtype=int)
+        return [int(i) for i in rng.choice(P.N, o.m, replace=False)]
+    if o.method == "detmax":
+        return detmax(P, o.m, o.criterion, rng, B)
+    starts = [greedy(P, o.m)] + [[int(i) for i in rng.choice(P.N, o.m, replace=False)] for _ in range(o.restarts)]
+    runs = [fedorov(P, start, o.criterion, B)[0] for start in starts]
+    return runs[first_best([_score_blocks(P.J[np.asarray(d)], o.criterion, B) for d in runs])]
 
 
 def _continuous_design(robot: Robot, P: DesignProblem, o: DesignOptions, B, rng, progress, cell: Cell | None):
