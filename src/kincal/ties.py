@@ -24,13 +24,12 @@ import numpy as np
 TIE_RTOL = 1e-9
 
 
-def tie_tolerance(best: float, rtol: float = TIE_RTOL, atol: float = 0.0) -> float:
+def tie_tolerance(best: float, rtol: float = TIE_RTOL) -> float:
     """Width of the tie band around ``best``."""
-    return rtol * abs(best) + atol
+    return rtol * abs(best)
 
 
-def first_best(values: Sequence[float] | np.ndarray, maximize: bool = True, rtol: float = TIE_RTOL,
-               atol: float = 0.0) -> int:
+def first_best(values: Sequence[float] | np.ndarray, maximize: bool = True, rtol: float = TIE_RTOL) -> int:
     """Index of the first value (canonical order) that ties with the best one; −inf/nan never win
     unless nothing else is there (then 0)."""
     v = np.asarray(values, dtype=float)
@@ -44,18 +43,17 @@ def first_best(values: Sequence[float] | np.ndarray, maximize: bool = True, rtol
     best = float(s[k])
     if not math.isfinite(best):
         return k if best == math.inf else 0
-    return int(np.argmax(s >= best - tie_tolerance(best, rtol, atol)))  # the first True
+    return int(np.argmax(s >= best - tie_tolerance(best, rtol)))  # the first True
 
 
-def improves(new: float, incumbent: float, maximize: bool = True, rtol: float = TIE_RTOL,
-             atol: float = 0.0) -> bool:
+def improves(new: float, incumbent: float, maximize: bool = True, rtol: float = TIE_RTOL) -> bool:
     """True when ``new`` beats ``incumbent`` by more than the tie band (the incumbent wins ties)."""
     if np.isnan(new):
         return False
     if np.isnan(incumbent) or np.isinf(new) or np.isinf(incumbent):
         return bool(np.isnan(incumbent) or (new > incumbent if maximize else new < incumbent))
     gap = (new - incumbent) if maximize else (incumbent - new)
-    return bool(gap > tie_tolerance(incumbent, rtol, atol))
+    return bool(gap > tie_tolerance(incumbent, rtol))
 
 
 def order_with_ties(values: Sequence[float] | np.ndarray, descending: bool = True,

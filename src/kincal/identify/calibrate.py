@@ -20,7 +20,6 @@ from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapola
 from ..errors import MeasurementError
 from ..io.measurements import Measurements
 from ..models.robot import Robot
-from ..models.terms import extend
 from ..observe import InSession, JointObs, PointObs
 from .diagnosis import TRIGGERS, diagnose
 from .fitting import fit_stack
@@ -76,8 +75,8 @@ def _calibrate(robot: Robot, sessions: list[Measurements], own_frames: bool, opt
     for s in sessions:
         s.check_robot(robot)
     with blas_threads(1):
-        robot, choice = _error_model(robot, sessions, own_frames, options, say, use_q)
-        fit_options = options.replace(error_model=None, diagnose=False)
+        spec, choice = _error_model(robot, sessions, own_frames, options, say, use_q)
+        fit_options = options.replace(error_model=spec, diagnose=False)  # fit_stack extends the robot by it
         fit = fit_stack(robot, _sets(sessions, own_frames, options, robot), fit_options, say=say)
         res = dataclasses.replace(fit, options=options, error_model_choice=choice, use_q=use_q,
                                   data=tuple(sessions), time_s=time.perf_counter() - t0)
@@ -100,19 +99,16 @@ def _sets(sessions: list[Measurements], own_frames: bool, o: FitOptions, robot: 
 
 
 def _error_model(robot: Robot, sessions: list[Measurements], own_frames: bool, options: FitOptions, say, use_q):
-    """The robot extended by the requested error model, and the model comparison when it is "auto"
+    """The requested error model (for "auto" the one chosen), and the model comparison when it is "auto"
     (on the sessions in the first one's frame as the geometric fit aligns them)."""
     spec = options.error_model
-    if spec is None:
-        return robot, None
-    choice = None
-    if spec.name == "auto":
-        say("choosing the error model (joint-space blocked cross-validation)")
-        quiet = options.replace(error_model=None, diagnose=False, reject_outliers=False)
-        data = _calibrate(robot, sessions, True, quiet, None, None, {}).measurements if own_frames else joined(sessions)
-        choice = select_model(robot, data, calibrate, quiet, use_q=use_q, payload=spec.payload)
-        spec = dataclasses.replace(spec, name=choice.chosen)
-    return extend(robot, spec, np.concatenate([s.q for s in sessions])), choice
+    if spec is None or spec.name != "auto":
+        return spec, None
+    say("choosing the error model (joint-space blocked cross-validation)")
+    quiet = options.replace(error_model=None, diagnose=False, reject_outliers=False)
+    data = _calibrate(robot, sessions, True, quiet, None, None, {}).measurements if own_frames else joined(sessions)
+    choice = select_model(robot, data, calibrate, quiet, use_q=use_q, payload=spec.payload)
+    return dataclasses.replace(spec, name=choice.chosen), choice
 
 
 def fit_observations(robot: Robot, observations: Sequence, options: FitOptions | None = None, *,

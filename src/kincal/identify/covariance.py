@@ -8,23 +8,25 @@ import numpy as np
 from ..analysis.observability import column_norms
 
 
-def spd_inverse(M: np.ndarray) -> np.ndarray:
-    """The inverse of a symmetric positive semi-definite matrix scaled to a unit diagonal: directly
-    when a Cholesky factor shows it definite, else the pseudo-inverse by SVD (LAPACK's symmetric
+def spd_inverse(M: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """The inverse of a symmetric positive semi-definite matrix M, computed on M scaled to a unit
+    diagonal by ``d`` (its diagonal's square roots; 0 taken as 1), in M's units: directly when a
+    Cholesky factor shows it definite, else the pseudo-inverse by SVD (LAPACK's symmetric
     eigensolver failed to converge on such a matrix: condition 776, entries from 1 down to 1e-28)."""
+    d = np.where(d == 0, 1.0, d)
+    s = np.outer(d, d)
+    A = M / s
     try:
-        np.linalg.cholesky(M)
-        return np.linalg.inv(M)
+        np.linalg.cholesky(A)
+        return np.linalg.inv(A) / s
     except np.linalg.LinAlgError:
-        return np.linalg.pinv(M)
+        return np.linalg.pinv(A) / s
 
 
 def normal_inverse(J: np.ndarray) -> np.ndarray:
     """(JᵀJ)⁻¹ (pseudo-inverse) computed on unit-norm columns (stable), in the original units (the
     normal matrix scaled, not J: no copy of J)."""
-    d = column_norms(J)
-    d[d == 0] = 1.0
-    return spd_inverse((J.T @ J) / np.outer(d, d)) / np.outer(d, d)
+    return spd_inverse(J.T @ J, column_norms(J))
 
 
 def parameter_statistics(J: np.ndarray, r: np.ndarray, names: Sequence[str],

@@ -159,7 +159,7 @@ def _angle_units(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]
     return out
 
 
-def _joint_columns(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]:
+def _joint_columns(robot: Robot) -> list[tuple[Cause, Change]]:
     names = robot.joint_names
     out: list[tuple[Cause, Change]] = []
     for j, name in enumerate(names):
@@ -293,7 +293,7 @@ def diagnose(res: CalibrationResult) -> Diagnosis:
     """Try the candidate causes of a doubtful fit ``res`` (a :class:`CalibrationResult` with its
     measurements) and rank those that explain the data; see the module docstring."""
     robot, meas, options = res.nominal, res.measurements, res.options
-    data = (_length_units(meas) + _angle_units(robot, meas) + _joint_columns(robot, meas) + _frame_and_rows()
+    data = (_length_units(meas) + _angle_units(robot, meas) + _joint_columns(robot) + _frame_and_rows()
             + _robot_files(robot))
     block = meas.subset(np.arange(min(len(meas), SCREEN_POSES)))  # consecutive: row shifts stay row shifts
     screened = [_screen(*change(robot, block, options)[:2]) for _, change in data]

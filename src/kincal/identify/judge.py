@@ -44,12 +44,6 @@ def component_kinds(sets) -> tuple[np.ndarray, tuple[str, ...]]:
     return np.concatenate(labels) if labels else np.zeros(0, int), tuple(names)
 
 
-def whitened_per_kind(sets, r: np.ndarray) -> dict[str, float]:
-    """RMS of the whitened residual ``r`` (stacked in the order of ``sets``) per kind of component."""
-    labels, names = component_kinds(sets)
-    return {name: float(np.sqrt(np.mean(r[labels == k] ** 2))) for k, name in enumerate(names)}
-
-
 def verdict_of(res: "CalibrationResult") -> Verdict:
     """Good, suspect or refused with reasons (limits: ``res.options.thresholds``)."""
     th = res.options.thresholds

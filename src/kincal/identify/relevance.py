@@ -94,8 +94,7 @@ def prior_groups(names: Sequence[str], kinds: dict, excluded: Sequence[str] = ()
 
 
 def relevance_fit(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], fit: LMResult,
-                  nominal: np.ndarray, groups: Sequence[str | None], kinds: Sequence[str],
-                  max_iter: int = 100) -> RelevanceFit:
+                  nominal: np.ndarray, groups: Sequence[str | None], kinds: Sequence[str]) -> RelevanceFit:
     """Refit the columns of ``fun`` (whitened data residual and Jacobian), from their least-squares
     ``fit``, with a Gaussian prior around ``nominal`` whose σ per group is learned (module
     docstring); ``kinds`` per column ("length"/"angle"; others: no group) sets the first σ.
@@ -113,7 +112,7 @@ def relevance_fit(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], fi
         if not _lower(r_new, x + step - nominal, r, x - nominal, prec, s2):
             break
         x, r, J = x + step, r_new, J_new
-    lm = levenberg_marquardt(_augmented(fun, nominal, prec, s2), x, max_iter=max_iter)
+    lm = levenberg_marquardt(_augmented(fun, nominal, prec, s2), x)
     r, J = fun(lm.x)
     return _relevance_result(lm.x, r, J, prec, s2, groups, lm.converged, it + lm.iterations)
 
@@ -134,9 +133,7 @@ def _relevance_result(x, r, J, prec, s2, groups, converged: bool, iterations: in
 def _posterior(A: np.ndarray, prec: np.ndarray) -> np.ndarray:
     """(A + diag(prec))⁻¹, computed on unit-diagonal scaling (columns in m, rad and whitened units)."""
     H = A + np.diag(prec)
-    D = np.sqrt(np.diag(H))
-    D[D == 0] = 1.0
-    return spd_inverse(H / np.outer(D, D)) / np.outer(D, D)
+    return spd_inverse(H, np.sqrt(np.diag(H)))
 
 
 def _augmented(fun, nominal: np.ndarray, prec: np.ndarray, s2: float):

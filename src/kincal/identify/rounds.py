@@ -8,7 +8,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from functools import partial
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,10 +38,6 @@ class Round:
     f_scale: float | None = None  # m: the robust loss's scale on a sample's position norm (None: 3 robust σ)
     spent: list = dataclasses.field(default_factory=lambda: [0, 0])  # LM iterations and evaluations so far
 
-    def cols(self, free: Sequence[str]) -> np.ndarray:
-        all_names = list(self.robot.params.names) + list(self.st.nuis_names)
-        return np.array([all_names.index(n) for n in free], dtype=int)
-
     def fit(self, free: list[str], start: np.ndarray, evaluated):
         """(full vector, fit, free names, weak, the stack with its weights, s per kind) from the full
         vector ``start`` (its evaluation ``evaluated`` (r, J) over all columns, or None), as the module
@@ -70,7 +66,7 @@ class Round:
         repeated: (columns, fit, free names, weak, the stack with the robust factors in its weights)."""
         weak: dict[str, float] = {}
         while True:
-            fcols = self.cols(free)
+            fcols = self.st.cols(free)
             at_start = evaluated if evaluated is not None and np.array_equal(start, self.x0) else None
             fun = partial(fun_at, st, self.x0, fcols, start=at_start)
             if self.loss == "linear":
@@ -123,21 +119,11 @@ def fun_at(st: _Stack, x0: np.ndarray, fcols: np.ndarray, x: np.ndarray,
     return st.evaluate(full[:P], full[P:], fcols)
 
 
-@dataclass(frozen=True)
-class Swarm:
-    """A particle swarm's outcome: the full vector, the fit evaluated there (no iterations of its own),
-    the best mean squared residual per iteration, its iterations and evaluations."""
-
-    full: np.ndarray
-    fit: LMResult
-    history: tuple[float, ...]
-    iterations: int
-    evaluations: int
-
-
-def swarm(st: _Stack, x0: np.ndarray, cols: np.ndarray, settings) -> Swarm:
+def swarm(st: _Stack, x0: np.ndarray, cols: np.ndarray, settings) -> tuple[np.ndarray, LMResult, tuple[float, ...]]:
     """Particle swarm (:mod:`kincal.identify.pso`) over the robot parameters ``cols`` on the sets'
-    batched mean squared residual, around ``x0``; sets with set-up parameters cannot take part."""
+    batched mean squared residual, around ``x0``; sets with set-up parameters cannot take part. Returns
+    the full vector, the fit evaluated there (no iterations of its own: it carries the swarm's iterations
+    and evaluations) and the best mean squared residual per iteration."""
     P = st.robot.n_params
     if st.nuis_names or np.any(cols >= P):
         raise ValueError("a particle swarm fits the robot's parameters to points or joint-space residuals only: "
@@ -155,4 +141,4 @@ def swarm(st: _Stack, x0: np.ndarray, cols: np.ndarray, settings) -> Swarm:
     r, J = fun_at(st, x0, cols, found.x)
     fit = LMResult(found.x, 0.5 * float(r @ r), r, J, found.iterations, found.evaluations, True,
                    "particle swarm finished its iterations")
-    return Swarm(full, fit, tuple(map(float, found.history)), found.iterations, found.evaluations)
+    return full, fit, tuple(map(float, found.history))

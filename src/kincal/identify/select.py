@@ -41,6 +41,7 @@ from ..ties import first_best, improves
 from ..units import MM
 
 SIGMA_FACTOR = 1.25
+FOLDS = 5  # k-means regions of joint space, each held out in turn
 
 
 def default_candidates(robot: Robot) -> tuple[str, ...]:
@@ -115,18 +116,17 @@ def blocked_folds(robot: Robot, q: np.ndarray, k: int, iterations: int = 30) -> 
     return [np.flatnonzero(labels == j) for j in range(k) if np.any(labels == j)]
 
 
-def select_model(robot: Robot, meas: Measurements, calibrate, options, candidates=None, folds: int = 5,
-                 use_q: np.ndarray | None = None, payload: float = 0.0) -> ErrorModelChoice:
-    """Compare ``candidates`` on ``meas`` and choose one (see the module docstring). ``calibrate`` is
-    the calibration function (passed in to keep this room below it), ``options`` its FitOptions
-    (without an error model); ``folds`` is the number of k-means regions; ``meas.session`` labels
-    (several sessions) add the leave-one-session-out test; ``candidates`` default to
-    :func:`default_candidates`; ``payload`` (kg) loads the gravity terms."""
-    regions = blocked_folds(robot, meas.q, folds)
+def select_model(robot: Robot, meas: Measurements, calibrate, options, use_q: np.ndarray | None = None,
+                 payload: float = 0.0) -> ErrorModelChoice:
+    """Compare the :func:`default_candidates` on ``meas`` and choose one (see the module docstring).
+    ``calibrate`` is the calibration function (passed in to keep this room below it), ``options`` its
+    FitOptions (without an error model); the regions are FOLDS k-means regions; ``meas.session`` labels
+    (several sessions) add the leave-one-session-out test; ``payload`` (kg) loads the gravity terms."""
+    regions = blocked_folds(robot, meas.q, FOLDS)
     sessions = _held_out_sessions(meas)
     use = meas.q if use_q is None else robot.check_q(use_q)
     rows = [_cross_validate(robot, meas, ErrorModel(name, payload), regions, sessions, calibrate, options, use)
-            for name in (candidates or default_candidates(robot))]
+            for name in default_candidates(robot)]
     geo = rows[0]
     for r in rows:
         r["sigma_ratio"] = r.pop("sigma") / geo["sigma"] if r is not geo else 1.0

@@ -32,7 +32,7 @@ from .lm import LMResult
 from .options import FitOptions, PSOOptions
 from .noise import extra_variance
 from .result import CalibrationResult
-from .judge import component_kinds, outlier_samples, whitened_per_kind
+from .judge import component_kinds, outlier_samples
 from .registration import register_base, register_mounting
 from .relevance import RelevanceFit
 from .rounds import Round, swarm
@@ -54,6 +54,11 @@ class _Stack:
     kinds: tuple[str, ...]  # "pose position", "pose rotation", "markers", ...
     late: tuple[str, ...] = ()  # set-up parameters chosen after the robot's when confounded (an instrument's drift)
     held: tuple[str, ...] = ()  # set-up parameters held at their start values (a held-out file's probe as trained)
+
+    def cols(self, names: Sequence[str]) -> np.ndarray:
+        """The positions of the robot and set-up parameters ``names`` in the full vector (robot's, then set-up's)."""
+        all_names = list(self.robot.params.names) + list(self.nuis_names)
+        return np.array([all_names.index(n) for n in names], dtype=int)
 
     def with_model_error(self, r: np.ndarray, n_free: int) -> tuple["_Stack", dict]:
         """The stack weighted by 1/(σ² + s²) per kind of component, s² what the whitened residual
@@ -141,15 +146,16 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
         _check_equations(st, start[0].size, len(ident.identifiable if o.method == "lm" else ident.candidates))
         x0 = np.concatenate([robot.params.values, st.nuis0])
         rounds = Round(robot, st, x0, o.max_iter, prior, loss, o.f_scale)
-        free0, swarmed = list(ident.identifiable), None
+        begin = x0  # where Levenberg-Marquardt starts
+        history: tuple[float, ...] = ()  # the particle swarm's best value per iteration, when it runs
         if o.method != "lm":
-            swarmed = swarm(st, x0, rounds.cols(list(ident.candidates)), o.pso or PSOOptions())
+            begin, swarmed, history = swarm(st, x0, st.cols(ident.candidates), o.pso or PSOOptions())
             rounds.spent[:] = [swarmed.iterations, swarmed.evaluations]  # every solver run counts
             if o.method == "pso":
-                return _result(models, st, gauge, ident, list(ident.candidates), x0, swarmed.fit, {}, o, {},
-                               swarmed.history, ident.dropped)
+                return _result(models, st, gauge, ident, list(ident.candidates), x0, swarmed, {}, o, {}, history,
+                               ident.dropped)
             start = None
-        full, fit, free, weak, fitted, error = rounds.fit(free0, x0 if swarmed is None else swarmed.full, start)
+        full, fit, free, weak, fitted, error = rounds.fit(list(ident.identifiable), begin, start)
         notes: tuple[str, ...] = ()
         for k in range(JUDGED + 1):
             # the fitted set first among confounded ones: only a real change of what the data see counts
@@ -168,7 +174,7 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
         ident = dataclasses.replace(ident, identifiable=tuple(free) if weak else ident.identifiable,
                                     notes=ident.notes + notes)
         return _result(models, fitted, gauge, ident, free, x0, fit, weak, o, error,
-                       swarmed.history if swarmed else (), spent=tuple(rounds.spent))
+                       history, spent=tuple(rounds.spent))
 
 
 JUDGED = 3  # refits when the identifiable set at the solution differs from the start's
@@ -263,9 +269,8 @@ def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, fu
     # an unseen base) is dropped as confounded with them, not fitted to the residuals' curvature alone
     cand = list(gauge) + [n for n in wanted if n not in set(gauge)]
     P = robot.n_params
-    all_names = list(robot.params.names) + list(st.nuis_names)
     nuis = [n for n in st.nuis_names if n not in st.held]
-    cols = np.array([all_names.index(n) for n in cand + nuis], dtype=int)
+    cols = st.cols(cand + nuis)
     J0 = evaluated[1][:, cols] if evaluated else st.evaluate(full[:P], full[P:], cols)[1]
     w = st.inv_sigma
     # no effect: judged in m and rad, not whitened (one σ for every row: a scale of the column norms)
@@ -287,10 +292,9 @@ def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, fu
 
 def _before(robot: Robot, sets, frame: bool) -> Robot:
     """The nominal kinematics as judged "before" calibration: with the measurement frame (when it is
-    fitted, ``frame``) and the target point registered to the measured points and pose positions
-    (:func:`register_mounting`), so the figure does not depend on where the target was declared."""
-    found = [o.positions() for o in sets if o.kind in ("point", "pose") and not isinstance(o, InSession)]
-    found = [f for f in found if f is not None]
+    fitted, ``frame``) and the target point registered to the measured points and pose positions in the robot's
+    frame (:func:`register_mounting`), so the figure does not depend on where the target was declared."""
+    found = [f for f in (o.positions() for o in sets if o.kind in ("point", "pose")) if f is not None]
     return register_mounting(robot, np.concatenate([f[0] for f in found]), np.concatenate([f[1] for f in found]),
                              frame) if found else robot
 
@@ -309,7 +313,7 @@ def _session_start(robot: Robot, obs):
     """A set in its own session frame, with the frame's start registered rigidly to its positions."""
     if not isinstance(obs, InSession) or obs.frame0 is not None:
         return obs
-    found = obs.session_positions()
+    found = obs.inner.positions()  # in the session's own frame
     if found is None or len(found[0]) < 3:
         raise MeasurementError(f"{obs.source}: a session in its own frame needs at least 3 absolute positions")
     moved = register_base(robot, *found)
@@ -324,9 +328,8 @@ def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit,
     evaluations of every solver run, default the fit's own)."""
     declared, robot, before_model = models
     spent = spent or (fit.iterations, fit.evaluations)
-    all_names = list(robot.params.names) + list(st.nuis_names)
     full = x0.copy()
-    full[[all_names.index(n) for n in free]] = fit.x
+    full[st.cols(free)] = fit.x
     P = robot.n_params
     calibrated = robot.with_params(dict(zip(robot.params.names, full[:P])))
     if isinstance(fit, RelevanceFit):
@@ -341,14 +344,14 @@ def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit,
                    for o, slot in zip(st.sets, st.slots))
     after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
     r = fit.residual * st.stated / st.inv_sigma  # whitened by the stated σ: what the user can restate
-    per_kind = whitened_per_kind(st.sets, r)
     return CalibrationResult(
         robot=calibrated, nominal=declared, registered=robot, before=before_model,
         names=tuple(n for n in free if n in robot.params.names), nuisance=dict(zip(st.nuis_names, full[P:])),
         std=std, identifiability=ident, gauge=gauge, per_set_before=before, per_set=after,
         whitened_rms=float(np.sqrt(np.mean(r**2))), covariance=cov,
         converged=bool(fit.converged), iterations=spent[0], observations=st.sets, weak=weak, prior=learned,
-        whitened=per_kind, model_error={k: v for k, v in error.items() if v > 0},
+        whitened={name: float(np.sqrt(np.mean(r[st.labels == k] ** 2))) for k, name in enumerate(st.kinds)},
+        model_error={k: v for k, v in error.items() if v > 0},
         outliers=outlier_samples(st.sets, r, o.thresholds), whitened_residual=r, evaluations=spent[1],
         message=fit.message if isinstance(fit, LMResult) else "prior learned", history=tuple(history),
         free=tuple(free), options=o)

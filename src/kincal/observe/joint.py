@@ -6,26 +6,23 @@ the model's closed-form inverse kinematics, with the commanded ones. The data ar
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
-from .observations import Observation, component_major, error_stats, mean_square
+from .observations import MeasuredPositions, component_major, mean_square
 
 
 @dataclass(frozen=True, eq=False)
-class JointObs(Observation):
+class JointObs(MeasuredPositions):
     """Measured positions xyz (N, 3) m at commanded joints q (N, n); residual: inverse kinematics of
-    xyz − q, (N, n) rad or m. σ (rad or m, one number): the joints' reading noise, stated."""
+    xyz − q, (N, n) rad or m. σ (rad or m, one number): the joints' reading noise, stated. Its statistics
+    are the position errors (m)."""
 
-    xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     std: float = 1e-4
     kind = "joint"
-
-    def positions(self):
-        return self.q, self.xyz
 
     def sample_rows(self) -> np.ndarray:
         return np.tile(np.arange(len(self)), self.q.shape[1])
@@ -54,6 +51,3 @@ class JointObs(Observation):
                 f"{self.source}: the positions in row(s) {', '.join(str(r) for r in self.rows[bad][:10])} are out of "
                 f"reach of the starting model, so the joint-space residual is undefined there; use "
                 f"residual='cartesian' or leave those rows out")
-
-    def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
-        return error_stats(self, np.linalg.norm(robot.forward(self.q, values) - self.xyz, axis=1))

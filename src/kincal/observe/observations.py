@@ -219,16 +219,29 @@ class Wrapper(Observation):
 
 
 @dataclass(frozen=True, eq=False)
-class PointObs(Observation):
-    """One 3-D point per sample (a tracker's reflector): xyz (N, 3) m in the measurement frame (the
-    robot's base frame parameters), σ (N, 3) m or one number."""
+class MeasuredPositions(Observation):
+    """A set with one measured tool position per sample, xyz (N, 3) m in the measurement frame: its
+    positions, the set with them moved, and the statistics of their errors (types with more override them)."""
 
     xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
-    std: np.ndarray | float = 15e-6
-    kind = "point"
 
     def positions(self):
         return self.q, self.xyz
+
+    def shifted(self, offset: np.ndarray) -> "MeasuredPositions":
+        return dataclasses.replace(self, xyz=self.xyz + offset)
+
+    def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
+        return error_stats(self, np.linalg.norm(robot.forward(self.q, values) - self.xyz, axis=1))
+
+
+@dataclass(frozen=True, eq=False)
+class PointObs(MeasuredPositions):
+    """One 3-D point per sample (a tracker's reflector): xyz (N, 3) m in the measurement frame (the
+    robot's base frame parameters), σ (N, 3) m or one number."""
+
+    std: np.ndarray | float = 15e-6
+    kind = "point"
 
     def sample_rows(self) -> np.ndarray:
         return np.tile(np.arange(len(self)), 3)
@@ -250,29 +263,19 @@ class PointObs(Observation):
     def position_axes(self) -> np.ndarray:
         return np.repeat(np.arange(3), len(self))
 
-    def shifted(self, offset: np.ndarray) -> "PointObs":
-        return dataclasses.replace(self, xyz=self.xyz + offset)
-
-    def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
-        return error_stats(self, np.linalg.norm(robot.forward(self.q, values) - self.xyz, axis=1))
-
 
 @dataclass(frozen=True, eq=False)
-class PoseObs(Observation):
+class PoseObs(MeasuredPositions):
     """Full 6-D poses of a target frame on the flange: positions xyz (N, 3) m and rotations R (N, 3, 3) in the
     measurement frame. The target's origin is the tool point; its orientation on the flange is ``target_rotation``
     (3, 3) times a fitted rotation vector (``target.rx/ry/rz``, rad). σ (m, rad): per sample (N,) or one number."""
 
-    xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     R: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
     target_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
     std_pos: np.ndarray | float = 0.1e-3
     std_rot: np.ndarray | float = 1e-3
     anchored: bool = False  # the target rotation given (another set's, a training file's): prepare keeps it
     kind = "pose"
-
-    def positions(self):
-        return self.q, self.xyz
 
     def prepare(self, robot: Robot) -> "PoseObs":
         """A copy whose target rotation starts at the chordal mean of flangeᵀ·measured over the samples
@@ -293,9 +296,6 @@ class PoseObs(Observation):
 
     def position_axes(self) -> np.ndarray:
         return np.concatenate([np.repeat(np.arange(3), len(self)), np.full(3 * len(self), -1)])
-
-    def shifted(self, offset: np.ndarray) -> "PoseObs":
-        return dataclasses.replace(self, xyz=self.xyz + offset)
 
     def with_anchors(self, anchors: dict) -> "PoseObs":
         if "target_rotation" not in anchors:

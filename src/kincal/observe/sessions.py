@@ -52,9 +52,6 @@ class InSession(Wrapper):
     def positions(self):
         return None  # its positions are in its own frame, not the robot's
 
-    def session_positions(self):
-        return self.inner.positions()
-
     def prepare(self, robot: Robot) -> "InSession":
         return dataclasses.replace(self, inner=self.inner.prepare(self._at_frame(robot)))
 
