@@ -28,6 +28,10 @@ MAX_LISTED = 10  # rows named in an error message
 LIMIT = {"length": 1e4, "angle": 1e5, "number": 1e4}
 LIMIT_TEXT = {"length": "10 km from the robot's base", "angle": "100000 rad (16000 turns)",
               "number": "10000 (orientation values are at most 1 or a few turns)"}
+# (kind, SI factor) of a file unit: a length ('mm'), an angle ('deg', 'mrad') or None (plain numbers)
+FILE_UNITS: dict[str | None, tuple[str, float]] = {
+    None: ("number", 1.0), "mrad": ("angle", 1.0 / MRAD), **{u: ("length", f) for u, f in LENGTH_UNITS.items()},
+    **{u: ("angle", f) for u, f in ANGLE_UNITS.items()}}
 
 
 def sniff_delimiter(header: str, path: str) -> str:
@@ -88,9 +92,10 @@ def why_not(cell: str) -> str:
     return ""
 
 
-def read_table(path: str) -> tuple[list[str], list[tuple[int, list[str]]], str, int]:
-    """The header (stripped names), the records as (line number, cells), the separator and the
-    header's line number; every record has as many fields as the header."""
+def open_table(path: str, kinds: str = "joint, position or σ") -> Table:
+    """The CSV at ``path`` read whole as a ``Table`` (``kinds``: what its columns may be, for messages):
+    the header (stripped names), the records as (line number, cells), the separator and the header's
+    line number; every record has as many fields as the header."""
     lines = data_lines(_decoded(_read_bytes(path), "utf-8-sig"))  # Excel writes UTF-8 with a BOM
     if not lines:
         raise MeasurementError(f"{path}: the file is empty; expected a header line and one row per pose")
@@ -104,10 +109,10 @@ def read_table(path: str) -> tuple[list[str], list[tuple[int, list[str]]], str, 
             raise MeasurementError(f"{path}: row {k} has {len(rec)} fields, the header has {len(header)}{hint}")
     if len(records) < 2:
         raise MeasurementError(f"{path}: no data rows after the header")
-    return header, [(k, rec) for k, rec in records[1:]], delim, records[0][0]
+    return Table(path, header, records[1:], delim, records[0][0], kinds)
 
 
-def check_once(path: str, header: list[str], columns, kinds: str = "joint, position or σ") -> None:
+def check_once(path: str, header: list[str], columns, kinds: str) -> None:
     """Each of ``columns`` asked for once and named once in the header, else an error saying which
     (``kinds``: what the columns are, for the message)."""
     columns = list(columns)
@@ -165,24 +170,14 @@ def check_finite(path: str, values: np.ndarray, rows: np.ndarray, cols, what: st
                                f"row {rows[r]}, column '{list(cols)[c]}'); remove or fix those rows")
 
 
-def unit_of(unit: str | None) -> tuple[str, float]:
-    """(kind, SI factor) of a file unit: a length ('mm'), an angle ('deg', 'mrad') or None (plain numbers)."""
-    if unit in LENGTH_UNITS:
-        return "length", LENGTH_UNITS[unit]
-    if unit in ANGLE_UNITS:
-        return "angle", ANGLE_UNITS[unit]
-    if unit == "mrad":
-        return "angle", 1.0 / MRAD
-    if unit is not None:
-        raise ValueError(f"unknown unit '{unit}'")
-    return "number", 1.0
-
-
 def in_si(path: str, values: np.ndarray, rows: np.ndarray, cols, units) -> np.ndarray:
     """``values`` (N, len(cols)) given in the file's ``units`` (one per column; None: plain numbers)
     in SI; a value no robot can have (beyond ``LIMIT``) is refused naming the row, column and unit.
     NaN (empty cells) pass."""
-    kinds, factors = zip(*(unit_of(u) for u in units)) if len(units) else ((), ())
+    unknown = [u for u in units if u not in FILE_UNITS]
+    if unknown:
+        raise ValueError(f"unknown unit '{unknown[0]}'")
+    kinds, factors = zip(*(FILE_UNITS[u] for u in units)) if len(units) else ((), ())
     si = values * np.array(factors)
     with np.errstate(invalid="ignore"):
         over = np.abs(si) > np.array([LIMIT[k] for k in kinds])
@@ -216,8 +211,8 @@ class Table:
     header: list[str]
     records: list  # (line number, cells)
     delim: str
-    header_line: int = 1
-    kinds: str = "joint, position or σ"
+    header_line: int
+    kinds: str
     used: list = field(default_factory=list)  # the columns read so far
 
     @property
@@ -251,11 +246,6 @@ class Table:
         check_finite(self.path, values, rows, cols, what, empty)
         units = [units] * len(cols) if units is None or isinstance(units, str) else list(units)
         return in_si(self.path, values, rows, cols, units)
-
-
-def open_table(path: str, kinds: str = "joint, position or σ") -> Table:
-    """The CSV at ``path`` read whole (``read_table``) as a ``Table``."""
-    return Table(path, *read_table(path), kinds)
 
 
 BLOCK_BYTES = 4 << 20  # a streamed file is read this many bytes at a time (whole lines)

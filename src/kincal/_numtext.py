@@ -55,8 +55,7 @@ def _cells(v: np.ndarray, d: int) -> np.ndarray | None:
     out = np.zeros(v.shape + (total + (3 if d else 2),), np.uint8)
     out[..., 0] = np.where((v < 0) & (m > 0), ord("-"), 0)
     out[..., 1:1 + w] = digits[..., skip:skip + w]
-    for p in range(w - 1):  # leading zeros (the units digit stays)
-        out[..., 1 + p] *= whole >= 10 ** (w - 1 - p)
+    out[..., 1:w] *= whole[..., None] >= 10 ** np.arange(w - 1, 0, -1)  # leading zeros blanked (the units digit stays)
     if d:
         out[..., 1 + w] = ord(".")
         out[..., 2 + w:2 + w + d] = digits[..., skip + w:]

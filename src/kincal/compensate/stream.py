@@ -24,8 +24,8 @@ from .._memory import keep_freed_memory
 from .._threads import limit_blas
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
 from ..errors import MeasurementError
-from ..io.commands import CommandColumns, command_columns
-from ..io.measurements import _joint_columns
+from ..io.commands import CommandColumns
+from ..io.measurements import _file_scales, _joint_columns
 from ..io.unit_checks import SPREAD_RATIO, check_degrees, check_radians, check_spread
 from ..models.robot import Robot
 from ..observe.files import check_pose_columns
@@ -84,10 +84,13 @@ class StreamJob:
         return self.targets.pose or not self.robot.has_inverse
 
     def layout(self, dst: str) -> CommandColumns:
-        t = self.targets
-        change = not t.pose and not self.robot.has_inverse and self.nominal is not None and self.robot.has_tool_point
-        return command_columns(dst, self.robot, t.joint_cols, t.length_unit, t.angle_unit, self.kind,
-                               self.needs_joints, change, t.orientation_cols if self.kind == "cartesian" else ())
+        """The commands file's layout at ``dst`` (its joint columns, one per joint, and units checked)."""
+        t, robot = self.targets, self.robot
+        change = not t.pose and not robot.has_inverse and self.nominal is not None and robot.has_tool_point
+        cols = tuple(_joint_columns(dst, robot, t.joint_cols))
+        scale, lf = _file_scales(robot.joint_types, t.length_unit, t.angle_unit, dst)
+        return CommandColumns(self.kind, cols, scale, lf, self.needs_joints, change,
+                              t.orientation_cols if self.kind == "cartesian" else ())
 
 
 @dataclass(frozen=True)

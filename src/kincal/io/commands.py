@@ -5,15 +5,11 @@ controller's resolution, and formatted a whole block at a time, so a million row
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
 from .._numtext import fixed_lines
-from ..models.robot import Robot
-from .measurements import _file_scales, _joint_columns
 
 DECIMALS = 10
 
@@ -66,13 +62,3 @@ def _given(values: np.ndarray | None, what: str) -> np.ndarray:
     if values is None:
         raise ValueError(f"this commands layout has a column for {what}: give it")
     return values
-
-
-def command_columns(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None,
-                    length_unit: str = "m", angle_unit: str = "rad", kind: str = "joints", changes: bool = False,
-                    orientation_change: bool = False, rot_cols: Sequence[str] = ()) -> CommandColumns:
-    """The layout of a commands file at ``path`` for ``robot`` in the given units (see CommandColumns)."""
-    cols = _joint_columns(str(path), robot, joint_cols)
-    scale, lf = _file_scales(robot.joint_types, length_unit, angle_unit, str(path))
-    return CommandColumns(kind, tuple(cols), scale, lf, changes, orientation_change, tuple(rot_cols))
-

@@ -12,7 +12,7 @@ from numpy.typing import ArrayLike
 
 from .._atomic import write_text_atomic
 from .._csv import MAX_LISTED as MAX_LISTED, listed as listed  # for messages naming rows, here and in identify/
-from .._csv import check_finite, open_table, read_table
+from .._csv import check_finite, open_table
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..units import joint_factors, joint_units, unit_factor
@@ -90,8 +90,7 @@ class Measurements:
         """The session labels in order of first appearance (one session without labels: its source)."""
         if self.session is None:
             return (self.source,)
-        names, first = np.unique(self.session, return_index=True)
-        return tuple(str(n) for n in names[np.argsort(first)])
+        return tuple(dict.fromkeys(self.session.tolist()))
 
     def without_rows(self, rows: Sequence[int]) -> "Measurements":
         """The measurements less the given input rows (file line numbers, header = 1)."""
@@ -224,11 +223,11 @@ def write_selected_rows(path: str | os.PathLike, source: str | os.PathLike, indi
     """The data rows ``indices`` (0-based, in file order, blank and '#' lines not counted) of the CSV
     ``source``, in that order, every column as the user gave it (IDs, names, other columns), after
     ``input_row``: the row's line number in ``source``; written atomically with the source's separator."""
-    header, records, delim, _ = read_table(str(source))
-    new = "input_row" not in header
-    picked = (records[int(k)] for k in indices)
-    write_csv(path, ["input_row", *header] if new else header,
-              ([line, *cells] if new else cells for line, cells in picked), delim)
+    table = open_table(str(source))
+    new = "input_row" not in table.header
+    picked = (table.records[int(k)] for k in indices)
+    write_csv(path, ["input_row", *table.header] if new else table.header,
+              ([line, *cells] if new else cells for line, cells in picked), table.delim)
 
 
 def write_residuals(path: str | os.PathLike, meas: Measurements, predicted: np.ndarray, z: np.ndarray, outlier_z: float,

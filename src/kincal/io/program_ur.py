@@ -29,11 +29,6 @@ SET_TCP = re.compile(r"\bset_tcp\s*\(")
 COMMENT_OR_STRING = re.compile(r"#[^\n]*|\"[^\"]*\"?|'[^']*'?")  # a string left open runs to the end
 
 
-def _masked(text: str) -> str:
-    """The text with comments and string literals blanked (same length), so calls are found only in code."""
-    return COMMENT_OR_STRING.sub(lambda m: " " * len(m.group()), text)
-
-
 def _arguments(code: str, open_at: int, source: str, line: int) -> list[tuple[int, int]]:
     """Spans of the top-level arguments of the call whose '(' is at ``open_at``."""
     depth, start, spans = 0, open_at + 1, []
@@ -55,7 +50,8 @@ def _arguments(code: str, open_at: int, source: str, line: int) -> list[tuple[in
 def parse(source: str, text: str) -> Program:
     """The literal targets (in the order the moves come), the non-literal moves and the TCPs set in
     a URScript program."""
-    code = _masked(text)
+    # the text with comments and string literals blanked (same length), so calls are found only in code
+    code = COMMENT_OR_STRING.sub(lambda m: " " * len(m.group()), text)
     bound = _bound_literals(code, text)
     targets, not_literal, seen = [], [], set()
     for m in CALL.finditer(code):
