@@ -26,23 +26,17 @@ class Terminated(Exception):
     """SIGTERM, turned into an exception so files being written are cleaned up like on Ctrl-C."""
 
 
-def given_flags(parser: argparse.ArgumentParser, args: argparse.Namespace) -> dict[str, str]:
-    """The options of the command that differ from their defaults: destination -> the flag (its long
-    spelling), what :func:`kincal.identify.refuse_inapplicable` judges against the data's kinds."""
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    out = {}
-    for action in sub.choices[args.command]._actions:
-        if action.option_strings and action.default is not argparse.SUPPRESS and action.dest not in out:
-            if vars(args).get(action.dest, action.default) != action.default:
-                out[action.dest] = action.option_strings[-1] if action.option_strings[-1].startswith("--") \
-                    else action.option_strings[0]
-    return out
-
-
 def prepared(parser: argparse.ArgumentParser, args: argparse.Namespace) -> argparse.Namespace:
-    """``args`` with ``given`` (:func:`given_flags`), after the checks of flags that several commands share: a flag
-    that asks for the default while another contradicts it, a flag without the one it modifies (ValueError)."""
-    args.given = given_flags(parser, args)
+    """``args`` with ``given``: the options of the command that differ from their defaults, destination -> the
+    flag (its long spelling), what :func:`kincal.identify.refuse_inapplicable` judges against the data's kinds;
+    after the checks of flags that several commands share: a flag that asks for the default while another
+    contradicts it, a flag without the one it modifies (ValueError)."""
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    args.given = {}
+    for action in sub.choices[args.command]._actions:
+        if action.option_strings and action.default is not argparse.SUPPRESS and action.dest not in args.given:
+            if vars(args).get(action.dest, action.default) != action.default:
+                args.given[action.dest] = action.option_strings[-1]  # declared short first: "-o", "--output"
     if "rebase" in args.given and args.rebase and args.same_frame:
         raise ValueError("--rebase (each session's frame re-fitted, the default) contradicts --same-frame; give one")
     if "force" in args.given and args.force and not args.output:
@@ -86,7 +80,24 @@ def main(argv: list[str] | None = None) -> int:
     interrupted command leaves no half-written file."""
     previous = signal.signal(signal.SIGTERM, on_sigterm), signal.getsignal(signal.SIGINT)
     try:
-        return _run(argv)
+        parser = build_parser()
+        args = parser.parse_args(_negative_values(parser, list(sys.argv[1:] if argv is None else argv)))
+        if progress_lines():  # a log (or a test) learns that Ctrl-C and SIGTERM are handled from here on
+            line(f"kincal: {args.command} started")
+        try:  # a signal while an error is printed is still caught below
+            return args.func(prepared(parser, args))
+        except (kincal.KincalError, ValueError, OSError) as exc:
+            msg = " ".join(str(exc).split()) if not isinstance(exc, kincal.IdentifiabilityError) else str(exc)
+            err.print(f"kincal: error: {msg}", markup=False)
+            return EXIT_ERROR
+        except Terminated:  # an Exception, but no internal error: stopped below
+            raise
+        except Exception as exc:  # never a bare traceback for a user
+            if os.environ.get("KINCAL_DEBUG"):
+                raise
+            err.print(f"kincal: internal error ({type(exc).__name__}: {exc}); please report it with the command "
+                      f"line (KINCAL_DEBUG=1 shows the details)", markup=False)
+            return EXIT_INTERNAL
     except KeyboardInterrupt:
         return stopped("interrupted", EXIT_INTERRUPTED)
     except Terminated:
@@ -120,24 +131,3 @@ def stopped(word: str, code: int) -> int:
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     line(f"kincal: {word}; nothing half-written")
     return code
-
-
-def _run(argv: list[str] | None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(_negative_values(parser, list(sys.argv[1:] if argv is None else argv)))
-    if progress_lines():  # a log (or a test) learns that Ctrl-C and SIGTERM are handled from here on
-        line(f"kincal: {args.command} started")
-    try:
-        return args.func(prepared(parser, args))
-    except (kincal.KincalError, ValueError, OSError) as exc:
-        msg = " ".join(str(exc).split()) if not isinstance(exc, kincal.IdentifiabilityError) else str(exc)
-        err.print(f"kincal: error: {msg}", markup=False)
-        return EXIT_ERROR
-    except (KeyboardInterrupt, Terminated):
-        raise
-    except Exception as exc:  # never a bare traceback for a user
-        if os.environ.get("KINCAL_DEBUG"):
-            raise
-        err.print(f"kincal: internal error ({type(exc).__name__}: {exc}); please report it with the command "
-                  f"line (KINCAL_DEBUG=1 shows the details)", markup=False)
-        return EXIT_INTERNAL

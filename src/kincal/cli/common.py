@@ -20,7 +20,7 @@ EXIT_ERROR, EXIT_NOT_CONVERGED, EXIT_REFUSED = 1, 3, 4
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
 MAX_TOOL = 2.0  # m: no tool point lies farther from the flange; larger values are mm written without a unit
 CELL_SIZE = 100.0  # m: a length beyond this in a robot cell, given without a unit, is taken for mm
-TYPES = ("point", "pose", "markers", "same-point", "plane")  # measurement types (--type)
+TYPES = kincal.observe.KINDS  # measurement types (--type)
 
 
 def csv_list(s: str) -> list[str]:

@@ -10,11 +10,11 @@ import kincal.analysis
 import kincal.models
 from kincal.identify import observation_identifiability
 from kincal.observe import describe, read_observations, write_observations
-from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM
+from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM, display
 
 from . import observe
-from .common import (check_paths, csv_list, emit, finite_float, hidden_alias, joint_values, load_robot, nonneg_float,
-                     one_type, out, positive_float, positive_int, robot_inputs)
+from .common import (csv_list, emit, finite_float, hidden_alias, joint_values, load_robot, nonneg_float, one_type, out,
+                     positive_float, positive_int)
 
 
 def cmd_robots(args) -> int:
@@ -56,7 +56,6 @@ def cmd_show(args) -> int:
 
 
 def cmd_identifiability(args) -> int:
-    check_paths([*robot_inputs(args.robot), args.data], [])
     kind = one_type(args)
     r = load_robot(args)
     if kind == "point":
@@ -120,8 +119,8 @@ def cmd_export(args) -> int:
     if info["base_frame"]:
         kinds = dict(zip(r.params.names, r.params.kinds))
         lines.append("base frame found by the calibration (where the tracker saw the robot; not part of the robot "
-                     "description): " + ", ".join(f"{k} {v * MM:+.4f} mm" if kinds[k] == "length" else
-                                                  f"{k} {v * DEG:+.4f} deg" for k, v in info["base_frame"].items()))
+                     "description): " + ", ".join(f"{k} {display(v, kinds[k], digits=(4, 4))}"
+                                                  for k, v in info["base_frame"].items()))
     if info.get("missing_limits"):
         lines.append(f"note: the robot file gives no velocity/effort limit for {', '.join(info['missing_limits'])}: "
                      f"the URDF leaves them out (add 'velocity:' and 'effort:' to those joints)")

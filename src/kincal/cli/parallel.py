@@ -14,25 +14,25 @@ from kincal.observe import check_convention
 from kincal.units import DEG, MM
 
 from .common import (EXIT_REFUSED, add_data_flags, checked, csv_list, emit, load_robot, nonneg_float, point,
-                     positive_float, positive_int, progress_bar, robot_inputs)
+                     positive_float, positive_int, progress_bar)
 
 
 def cmd_compensate(args) -> int:
     cal = load_robot(args, [args.targets], [args.output])
-    record = kincal.models.load_calibration_record(args.robot) if robot_inputs(args.robot) else None
-    nominal_values = (record or {}).get("nominal")
+    nominal_values = (kincal.models.load_calibration_record(args.robot) or {}).get("nominal")  # None: bundled, URDF
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
     values = nominal_values if isinstance(nominal_values, dict) else None
     if "link_error_max" in args.given and args.tcp is None and not args.program:  # a program may set its TCP
         raise ValueError("--link-error-max decides how much of the calibration's move of the measured target is "
                          "carried over to the controller's TCP; without --tcp the commands are for the measured "
                          "target itself: give --tcp, or leave --link-error-max out")
-    r, nominal = command_models(cal, values, args.tcp, args.target_frame, args.link_error_max / MM)
+
+    def models(tcp):  # the models for a TCP: --tcp's, or one a program sets (set_tcp)
+        return command_models(cal, values, tcp, args.target_frame, args.link_error_max / MM)
+    r, nominal = models(args.tcp)
     carry = "" if not cal.has_tool_point else tool_carry(
         cal.tool_point(), (cal.with_params(values) if values else cal).tool_point(), args.link_error_max / MM)[1]
     if args.program:
-        def models(tcp):  # the models for a TCP the program sets (set_tcp)
-            return command_models(cal, values, tcp, args.target_frame, args.link_error_max / MM)
         return _compensate_program(args, r, nominal, carry, models)
     carry = carry if args.tcp is not None else ""
     fmt = TargetsFormat(args.pose, tuple(args.joint_cols) if args.joint_cols else None, tuple(args.xyz_cols),

@@ -10,6 +10,7 @@ from kincal.papers import GUO2024
 from kincal.studies import guo2024, guo2024_mc, runner
 
 from .common import EXIT_INTERRUPTED, check_paths, emit, hidden_alias, line, positive_int, progress, progress_bar
+from .report import save_figures
 
 STUDIES = {"guo2024": "guo2024", "seed1": "guo2024"}  # study names (and the 0.1 name, still accepted)
 
@@ -23,7 +24,6 @@ def cmd_demo(args) -> int:
     if args.plot:
         from kincal.report import guo2024_figures
 
-        from .report import save_figures
         text += "\n" + "\n".join(save_figures(guo2024_figures(study), args.plot))
     return emit(args, study.to_dict(), text)
 
