@@ -251,3 +251,11 @@ def test_files_with_the_robot_stacks_joint_names_are_read_without_joint_cols(tmp
     (tmp_path / "other.csv").write_text("\n".join([lines[0].replace("j1,", "a1,"), *lines[1:]]) + "\n")
     with pytest.raises(MeasurementError, match="j1"):
         kincal.read_measurements(str(tmp_path / "other.csv"), robot)
+
+
+@pytest.mark.parametrize("command", [["compensate", "ur5", "targets.csv", "-o", "out.csv"], ["verify", "puu3", "-o", "plan.csv"]])
+def test_sigma_columns_are_refused_where_nothing_reads_them(command, capsys):
+    """Targets and verification readings carry no σ: --std-cols does not exist there (refused, not ignored)."""
+    with pytest.raises(SystemExit) as stop:
+        main([*command, "--std-cols", "sx,sy,sz"])
+    assert stop.value.code == 2 and "unrecognized arguments: --std-cols" in capsys.readouterr().err

@@ -172,16 +172,19 @@ def check_paths(inputs, outputs) -> None:
         seen.append(out_path)
 
 
-def add_data_flags(p: argparse.ArgumentParser) -> None:
+def add_data_flags(p: argparse.ArgumentParser, std: bool = True) -> None:
+    """The columns and units of a data file; ``std``: the file may carry σ columns (measurements do,
+    targets and verification readings do not: there the flag does not exist, so it is refused)."""
     g = p.add_argument_group("data columns and units")
     g.add_argument("--joint-cols", type=csv_list, default=None,
                    help="comma-separated joint columns (default: the robot's joint names)")
     g.add_argument("--xyz-cols", type=csv_list, default=["x", "y", "z"], help="position columns (default x,y,z)")
     g.add_argument("--length-unit", default="m", choices=list(LENGTH_UNITS), help="positions, prismatic joints")
     g.add_argument("--angle-unit", default="rad", choices=list(ANGLE_UNITS), help="revolute joints")
-    g.add_argument("--std-cols", type=csv_list, default=None,
-                   help="the instrument's σ per sample, X,Y,Z columns in the length unit (default: "
-                        "measurement_std_x,measurement_std_y,measurement_std_z when present; 'none' ignores them)")
+    if std:
+        g.add_argument("--std-cols", type=csv_list, default=None,
+                       help="the instrument's σ per sample, X,Y,Z columns in the length unit (default: "
+                            "measurement_std_x,measurement_std_y,measurement_std_z when present; 'none' ignores them)")
 
 
 def joint_values(args, robot, path: str | None) -> np.ndarray:

@@ -190,7 +190,7 @@ def register(cmd) -> None:
     s.add_argument("--target-frame", default="base",
                    help="the frame of the targets: base (the robot's own, default), measurement (the calibration's "
                         "tracker frame), or a frame the robot file names (e.g. base_link for UR arms, as in ROS)")
-    add_data_flags(s)
+    add_data_flags(s, std=False)
 
     s = cmd("verify", cmd_verify, "error-model verification (the 3-PUU paper): commands to run, then the comparison "
                                   "(its Table 5)", "the identified (actual) robot model")
@@ -203,4 +203,4 @@ def register(cmd) -> None:
     s.add_argument("--tolerance", type=positive_float, default=0.05, help="largest deviation per axis to pass, mm (default 0.05)")
     s.add_argument("--simulate", help="a 'true' robot YAML to simulate the measurements instead")
     s.add_argument("--noise", type=nonneg_float, default=0.015, help="simulated tracker noise, mm per axis")
-    add_data_flags(s)
+    add_data_flags(s, std=False)
