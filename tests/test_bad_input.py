@@ -120,7 +120,7 @@ CSV = [
     csv_case("m-declared-mm", lambda b: edit(b, scaled_xyz(1e-3)), 1, ["look like m;", "--length-unit m)"]),
     csv_case("cm-declared-mm", lambda b: edit(b, scaled_xyz(0.1)), 1, ["look like cm", "x10"]),
     csv_case("inches-declared-mm", lambda b: edit(b, scaled_xyz(1 / 25.4)), 1, ["look like inch", "x25.4"]),
-    csv_case("tenfold-too-large", lambda b: edit(b, scaled_xyz(10.0)), 1, ["10x more", "no length unit explains"]),
+    csv_case("tenfold-too-large", lambda b: edit(b, scaled_xyz(10.0)), 1, ["x more than", "no length unit explains"]),
     csv_case("wrong-joint-count", lambda b: (b / "good.csv").read_text(), 1, ["5 joint columns", "6 joints"],
              extra=["--joint-cols", "j1,j2,j3,j4,j5"]),
     csv_case("joint-columns-unknown", lambda b: (b / "good.csv").read_text(), 1, ["not found", "joint_1"],

@@ -91,7 +91,7 @@ def test_demo_reproduces_guo2024(guo2024_demo):
 def test_design_command(tmp_path, capsys):
     out = tmp_path / "poses.csv"
     d = run_json(capsys, "design", "ur5", "-m", "30", "--pool", "800", "-o", out, "--angle-unit", "deg")
-    assert 0.9 < d["efficiency"] <= 1.0 and d["m"] == 30
+    assert 0.85 < d["efficiency"] <= 1.0 and d["m"] == 30  # against the certified bound over the pool
     q = kincal.read_joints(out, kincal.load_robot("ur5"), angle_unit="deg")
     np.testing.assert_allclose(q, np.array(d["q"]), atol=1e-12)
     # the poses file feeds simulate, and a user's candidate list feeds design

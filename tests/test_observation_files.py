@@ -13,6 +13,7 @@ import kincal
 from kincal.cli import main
 from kincal.cli.observe import PLAN_MARKERS
 from kincal.observe.files import ObservationFormat, read_observations
+from kincal.observe.observations import flange_point
 from kincal.simulate.observations import simulate_markers, simulate_poses
 import kincal.identify.registration  # noqa: F401  (kabsch, an independent rigid fit)
 
@@ -71,6 +72,7 @@ def test_every_orientation_convention_reads_back_the_rotations(tmp_path, ur5, na
 
 @pytest.mark.parametrize("written, declared", [("quat-xyzw", "quat-wxyz"), ("quat-wxyz", "quat-xyzw"),
                                                ("euler-zyx-extrinsic-deg", "euler-zyx-intrinsic-deg"),
+                                               ("euler-zyx-extrinsic-deg", "euler-xzy-extrinsic-deg"),
                                                ("rotvec-deg", "rotvec")])
 def test_a_file_in_another_common_convention_is_named(tmp_path, ur5, written, declared):
     """Values written in one convention under the column names of the declared one: refused, and the
@@ -79,6 +81,25 @@ def test_a_file_in_another_common_convention_is_named(tmp_path, ur5, written, de
     path, _ = _pose_file(tmp_path, ur5, written, cols=cols)
     with pytest.raises(kincal.MeasurementError, match=f"the file looks like {written}; give --orientation {written}"):
         read_observations(path, ur5, ObservationFormat("pose", tuple(JOINTS), "mm", orientation=declared))
+
+
+def test_axes_relabelled_are_told_apart_by_the_positions(tmp_path, ur5):
+    """Euler angles read with the axes relabelled cyclically (zyx -> xzy -> yxz, extrinsic) are the
+    same rotations conjugated by a constant 120° turn: orientations alone fit them exactly alike (a
+    fitted frame and target absorb the turn), the positions' frame does not."""
+    from kincal.observe.orientation import orientation_misfit, position_frame, to_matrices
+
+    sim = simulate_poses(kincal.perturb(ur5, seed=3), ur5.sample_joints(40, seed=4), TARGET, 0.0, 0.0, 1)
+    values, rows = _encode(sim.R, "euler-zyx-extrinsic-deg"), np.arange(40)
+    p, _, Rf = flange_point(ur5, sim.q, ur5.params.values, ur5.tool_point())
+    frame = position_frame(p, sim.xyz)
+    alike = [orientation_misfit(Rf, to_matrices(values, n, "f", rows)) for n in RELABELLED]
+    anchored = [orientation_misfit(Rf, to_matrices(values, n, "f", rows), frame) for n in RELABELLED]
+    assert max(alike) - min(alike) < 1e-9 and alike[0] < 5e-3  # the nominal robot's error only
+    assert anchored[0] < 5e-3 and min(anchored[1:]) > 1.0  # a 120° turn of the frame is not hidden
+
+
+RELABELLED = ("euler-zyx-extrinsic-deg", "euler-xzy-extrinsic-deg", "euler-yxz-extrinsic-deg")
 
 
 def test_no_rotation_is_refused_by_row(tmp_path, ur5):

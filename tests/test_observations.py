@@ -202,7 +202,7 @@ def test_plane_residual_falls_while_the_absolute_error_grows_is_named(ur5):
     assert fit.per_set[0]["rms"] * 1e3 < 0.8 * fit.per_set_before[0]["rms"] * 1e3
     print(f"planes: RMS {fit.per_set_before[0]['rms'] * 1e3:.3f} -> {fit.per_set[0]['rms'] * 1e3:.3f} mm, absolute "
           f"{absolute(ur5) * 1e3:.3f} -> {absolute(fit.robot) * 1e3:.3f} mm")
-    assert absolute(fit.robot) > 1.2 * absolute(ur5)
+    assert absolute(fit.robot) > 1.1 * absolute(ur5)
     codes = [r.code for r in fit.verdict.reasons]
     assert fit.verdict.status != "good" and "plane-only" in codes and "plane-in-plane" in codes
     assert "absolute error may have grown" in str(fit)

@@ -33,10 +33,16 @@ def test_compliance_from_poses():
     ur5, true, obs, q = _case(2e-4)
     geometric = fit_observations(ur5, [obs])
     fit = fit_observations(ur5, [obs], error_model="compliance")
-    assert fit.robot.error_model == "compliance" and fit.notes == ()
+    assert fit.robot.error_model == "compliance"
     assert _error(fit.robot, true, q) < 0.5 * _error(geometric.robot, true, q)
-    for n in true.term_names:  # the true compliance within 4 σ
-        assert abs(fit.robot.params[n] - true.params[n]) < 4 * fit.std[n], n
+    assert {"j2.compliance", "j3.compliance"} <= set(fit.robot.params.names)  # the joints gravity loads most
+    for n in true.term_names:
+        if n in fit.robot.params.names:  # the true compliance within 4 σ
+            assert abs(fit.robot.params[n] - true.params[n]) < 4 * fit.std[n], n
+        else:  # dropped as negative: only a term the data barely see (its true value within 4 σ of the estimate)
+            note = next(x for x in fit.notes if x.startswith(n.split(".")[0] + ":"))
+            estimate, sigma = float(note.split("(")[1].split()[0]), float(note.split("σ ")[1].split(")")[0])
+            assert abs(estimate - true.params[n] / TAU_REF) < 4 * sigma, note
     with pytest.raises(ValueError, match="auto"):
         fit_observations(ur5, [obs], error_model="auto")
 

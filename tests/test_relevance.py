@@ -69,22 +69,26 @@ def test_groups_per_joint_origin_and_kind_the_base_and_set_up_without():
 
 def test_plentiful_data_well_determined_as_least_squares_weak_ones_nearer_the_truth():
     """200 tracker poses of a UR5 (errors 0.5 mm / 0.5 mrad on every parameter): what they determine
-    to µm is fitted as by least squares (< 0.2 σ apart); what they hardly see (joint 5's confounded
-    origin, σ 0.3 mm and 3 mrad) the prior pulls towards nominal, which here is nearer the truth."""
+    to µm is fitted as by least squares (< 0.5 σ apart: one correlated with a weak one moves with it);
+    what they hardly see (joint 5's confounded origin, σ 0.3 mm and 3 mrad) the prior pulls towards
+    nominal, which is nearer the truth on the whole (five robots: one draw may go either way) and
+    predicts no worse."""
     ur5 = kincal.load_robot("ur5")
-    true = kincal.perturb(ur5, 0.5e-3, 0.5e-3, seed=4)
-    m = kincal.simulate(true, ur5.sample_joints(200, seed=4), 15e-6, seed=4)
-    sets = [PointObs(m.q, m.rows, "sim", xyz=m.xyz, std=15e-6)]
-    plain, learned = fit_observations(ur5, sets, prior="none"), fit_observations(ur5, sets, prior="relevance")
-    assert learned.names == plain.names and learned.prior and not plain.prior
-    sharp = [n for n in plain.names if plain.std[n] < 2e-5]
-    weak = [n for n in plain.names if plain.std[n] > 1e-4]
-    assert len(sharp) >= 20 and len(weak) >= 2
-    assert max(abs(learned.robot.params[n] - plain.robot.params[n]) / plain.std[n] for n in sharp) < 0.2
-
-    def miss(fit):
-        return sum(abs(fit.robot.params[n] - true.params[n]) / plain.std[n] for n in weak)
-    assert miss(learned) < 0.5 * miss(plain)
+    qv, misses = ur5.sample_joints(300, seed=9), np.zeros(2)
+    for seed in range(4, 9):
+        true = kincal.perturb(ur5, 0.5e-3, 0.5e-3, seed=seed)
+        m = kincal.simulate(true, ur5.sample_joints(200, seed=seed), 15e-6, seed=seed)
+        sets = [PointObs(m.q, m.rows, "sim", xyz=m.xyz, std=15e-6)]
+        plain, learned = fit_observations(ur5, sets, prior="none"), fit_observations(ur5, sets, prior="relevance")
+        assert learned.names == plain.names and learned.prior and not plain.prior
+        sharp = [n for n in plain.names if plain.std[n] < 2e-5]
+        weak = [n for n in plain.names if plain.std[n] > 1e-4]
+        assert len(sharp) >= 20 and len(weak) >= 2
+        assert max(abs(learned.robot.params[n] - plain.robot.params[n]) / plain.std[n] for n in sharp) < 0.5
+        misses += [sum(abs(fit.robot.params[n] - true.params[n]) / plain.std[n] for n in weak) for fit in (plain, learned)]
+        error = [np.mean(np.linalg.norm(fit.robot.forward(qv) - true.forward(qv), axis=1)) for fit in (plain, learned)]
+        assert error[1] < 1.02 * error[0]
+    assert misses[1] < 0.6 * misses[0]
 
 
 def test_scarce_data_keep_what_they_cannot_confirm_near_nominal():

@@ -401,7 +401,7 @@ def test_sessions_calibrate_jointly_each_in_its_own_frame(tmp_path, capsys):
 def test_sessions_fit_together_equal_the_alternation_run_to_convergence():
     """Two sessions in two frames: the stacked fit of the kinematics and the frames gives the kinematics
     of the alternation (frames re-fitted, kinematics fitted, repeated until nothing moves 1e-13) within
-    1e-9, and a total squared error no larger."""
+    1e-9 m at 500 poses, and a total squared error no larger."""
     from kincal.identify.positions import in_frame_of as _in_frame_of, joined
 
     robot = kincal.load_robot("ur5")
@@ -421,7 +421,11 @@ def test_sessions_fit_together_equal_the_alternation_run_to_convergence():
         previous = kin
     new = kincal.identify.calibrate_sessions(robot, sessions, diagnose=False)
     names = [n for n in robot.params.names if n not in robot.base_params()]
-    assert max(abs(new.robot.params[n] - model.params[n]) for n in names) < 1e-9
+    qv = robot.sample_joints(500, seed=9)  # the same kinematics: the same positions everywhere
+    assert np.abs(new.robot.forward(qv) - model.forward(qv)).max() < 1e-9
+    # each parameter within 1e-9, or within 1e-5 σ where the data hardly see it (the alternation
+    # creeps along such a direction: 1e-13 per round)
+    assert all(abs(new.robot.params[n] - model.params[n]) < max(1e-9, 1e-5 * new.std.get(n, 0.0)) for n in names)
 
     def total(m):
         return sum(float(np.sum((refit_frame(m, s).forward(s.q) - s.xyz) ** 2)) for s in sessions)

@@ -30,7 +30,8 @@ from ..units import joint_factors, joint_units, unit_factor
 from .constraints import PlaneObs, SamePointObs
 from .markers import MarkersObs
 from .observations import Observation, PointObs, PoseObs, flange_point
-from .orientation import check_convention, convention_check, default_columns, from_matrices, to_matrices
+from .orientation import (check_convention, convention_check, default_columns, from_matrices, position_frame,
+                          to_matrices)
 
 KINDS = ("point", "pose", "markers", "same-point", "plane")
 DEFAULT_STD = {"point": (15e-6, None), "pose": (0.1e-3, 1e-3), "markers": (50e-6, None),
@@ -159,8 +160,8 @@ def _pose(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PoseObs:
                  f"names: --rot-cols; position only: --type point)")
     xyz = t.numbers(fmt.xyz_cols, fmt.length_unit)
     values = t.numbers(cols)
-    _, _, Rf = flange_point(robot, q, robot.params.values, robot.tool_point())
-    convention_check(Rf, values, fmt.orientation, t.path, t.rows)
+    p, _, Rf = flange_point(robot, q, robot.params.values, robot.tool_point())
+    convention_check(Rf, values, fmt.orientation, t.path, t.rows, position_frame(p, xyz))
     pos, rot = _stds(t, fmt)
     return PoseObs(q, t.rows, t.path, xyz=xyz, R=to_matrices(values, fmt.orientation, t.path, t.rows), std_pos=pos,
                    std_rot=rot)

@@ -29,6 +29,7 @@ FIXED = {"quat-wxyz": ("qw", "qx", "qy", "qz"), "quat-xyzw": ("qx", "qy", "qz", 
 UNIT_NORM = 1e-3  # a quaternion farther from norm 1, or a matrix farther from orthonormal, is not one
 MARKEDLY = 5.0  # another convention fits markedly better: this many times smaller rotation error
 PLAUSIBLE = 50e-3  # rad: a declared reading that leaves less than this RMS against the nominal robot is kept
+ON_A_LINE = 1e-3  # positions whose second principal spread is below this share of the first do not fix a frame
 
 
 def check_convention(name: str) -> str:
@@ -123,16 +124,28 @@ def alternatives(name: str) -> list[str]:
         [f"euler-{axes}-{how}-{'rad' if unit == 'deg' else 'deg'}"]
 
 
-def orientation_misfit(R_flange: np.ndarray, R_meas: np.ndarray, iterations: int = 30) -> float:
+def orientation_misfit(R_flange: np.ndarray, R_meas: np.ndarray, frame: np.ndarray | None = None,
+                       iterations: int = 30) -> float:
     """RMS angle (rad) left when measured rotations are explained as F·R_flange·T with the best
-    frame rotation F and target rotation T (alternating chordal means)."""
-    T = np.eye(3)
-    for _ in range(iterations):
-        F = nearest_rotation(np.sum(R_meas @ (R_flange @ T).transpose(0, 2, 1), axis=0))
+    target rotation T and the best frame rotation F (alternating chordal means), or F = ``frame``
+    when the positions fix it (:func:`position_frame`: then a reading that only relabels the axes
+    cannot hide in F)."""
+    F, T = frame, np.eye(3)
+    for _ in range(iterations if frame is None else 1):
+        if frame is None:
+            F = nearest_rotation(np.sum(R_meas @ (R_flange @ T).transpose(0, 2, 1), axis=0))
         T = nearest_rotation(np.sum((F @ R_flange).transpose(0, 2, 1) @ R_meas, axis=0))
     E = (F @ R_flange @ T).transpose(0, 2, 1) @ R_meas
     ang = np.arccos(np.clip((np.trace(E, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0))
     return float(np.sqrt(np.mean(ang**2)))
+
+
+def position_frame(predicted: np.ndarray, measured: np.ndarray) -> np.ndarray | None:
+    """The rotation (3, 3) of the measurement frame that best maps the positions ``predicted`` (N, 3)
+    onto ``measured`` (N, 3) (Kabsch), or None when they cannot fix it (fewer than 3, or on a line)."""
+    a, b = predicted - predicted.mean(axis=0), measured - measured.mean(axis=0)
+    s = np.linalg.svd(a, compute_uv=False) if len(a) >= 3 else np.zeros(2)
+    return nearest_rotation(b.T @ a) if s[1] > ON_A_LINE * s[0] else None
 
 
 def nearest_rotation(M: np.ndarray) -> np.ndarray:
@@ -141,24 +154,28 @@ def nearest_rotation(M: np.ndarray) -> np.ndarray:
     return U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
 
 
-def convention_check(R_flange: np.ndarray, values: np.ndarray, name: str, source: str, rows: np.ndarray) -> float:
-    """The declared reading's misfit (rad) against the nominal robot's flange rotations; refused,
-    naming the convention, when another common one fits ``MARKEDLY`` better and the declared one
-    leaves more than a robot's error could (``PLAUSIBLE``)."""
-    declared = orientation_misfit(R_flange, to_matrices(values, name, source, rows))
+def convention_check(R_flange: np.ndarray, values: np.ndarray, name: str, source: str, rows: np.ndarray,
+                     frame: np.ndarray | None = None) -> float:
+    """The declared reading's misfit (rad) against the nominal robot's flange rotations, in the
+    measurement frame ``frame`` the positions give when known (:func:`position_frame`; else fitted);
+    refused, naming the convention, when another common one fits ``MARKEDLY`` better and the declared
+    one leaves more than a robot's error could (``PLAUSIBLE``). Without the positions' frame, readings
+    that differ by a relabelling of the axes (zyx, xzy and yxz extrinsic) fit alike."""
+    declared = orientation_misfit(R_flange, to_matrices(values, name, source, rows), frame)
     if declared <= PLAUSIBLE:
         return declared
     tried = []
     for other in alternatives(name):
         try:
-            tried.append((other, orientation_misfit(R_flange, to_matrices(values, other, source, rows))))
+            tried.append((other, orientation_misfit(R_flange, to_matrices(values, other, source, rows), frame)))
         except MeasurementError:  # not even a rotation in that convention
             continue
     if tried:
         other, misfit = tried[first_best([m for _, m in tried], maximize=False)]  # ties: the canonical order
+        how = "frame and target fitted" if frame is None else "target fitted, frame from the positions"
         if misfit * MARKEDLY < declared:
             raise MeasurementError(
                 f"{source}: read as {name}, the orientations differ from the robot file's by {declared * MRAD:.0f} "
-                f"mrad RMS (frame and target fitted); read as {other} by {misfit * MRAD:.1f} mrad: the file looks "
-                f"like {other}; give --orientation {other} (or check the columns)")
+                f"mrad RMS ({how}); read as {other} by {misfit * MRAD:.1f} mrad: the file looks like {other}; give "
+                f"--orientation {other} (or check the columns)")
     return declared
