@@ -15,10 +15,9 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from ..models.robot import Robot
-from ..models.terms import ErrorModel, drop_terms, extend
+from ..models.terms import TAU_REF, ErrorModel, drop_terms, extend
 from ..observe.drifting import Drifting
 from ..observe.sessions import InSession
-from .compliance import negative_compliances
 from .result import CalibrationResult
 from .options import FitOptions
 from .stacked import fit_sets
@@ -34,6 +33,17 @@ def resolved_prior(prior: str, observations: Sequence) -> str:
     if prior != "auto":
         return prior
     return "none" if all(o.kind in POSITION_KINDS for o in observations) else "relevance"
+
+
+def negative_compliances(names: Sequence[str], estimates: Mapping[str, float], std: Mapping[str, float]
+                         ) -> tuple[list[str], tuple[str, ...]]:
+    """The fitted compliance parameters that came out negative, and a note for each (rad/(N·m)): a
+    joint that bends against its load is not a spring, so such a term describes something else; it
+    is dropped and the fit repeated without it."""
+    neg = [n for n in names if n.endswith(".compliance") and estimates[n] < 0.0]
+    notes = tuple(f"{n.split('.')[0]}: compliance came out negative ({estimates[n] / TAU_REF:+.3g} rad/(N·m), "
+                  f"σ {std[n] / TAU_REF:.2g}) and was dropped; the fit was repeated without it" for n in neg)
+    return neg, notes
 
 
 def fit_stack(robot: Robot, observations: Sequence, options: FitOptions, held: Mapping[str, float] | None = None,

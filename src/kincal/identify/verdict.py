@@ -38,7 +38,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..io.measurements import MAX_LISTED, listed
+from .._csv import MAX_LISTED, listed
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import DEG, MM
 from .noise import decreasing_root

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._atomic import write_text_atomic
-from .._csv import MAX_LISTED as MAX_LISTED, listed as listed  # for messages naming rows, here and in identify/
+from .._csv import MAX_LISTED, listed  # for messages naming rows
 from .._csv import check_finite, open_table
 from ..errors import MeasurementError
 from ..models.robot import Robot
