@@ -68,8 +68,8 @@ def _dh_origins(q, d, a, alpha, tool):
 def test_designs_keep_the_whole_arm_above_the_floor_and_out_of_the_box(tmp_path, capsys):
     """design ur10 --floor 0mm --keep-out … --tracker …: none of the 60 poses puts any link (the
     segments between the DH joint frames and to the probe, thickened by 50 mm) below the floor or
-    into the box — checked with an independent forward kinematics; a cell without the arm check lets
-    the elbow through the floor in some of the same pool's poses."""
+    into the box — checked with an independent forward kinematics — or beyond UR's joint limits; a
+    cell without the arm check lets the elbow through the floor in some of the same pool's poses."""
 
     from kincal.cli import main
 
@@ -87,6 +87,7 @@ def test_designs_keep_the_whole_arm_above_the_floor_and_out_of_the_box(tmp_path,
     assert len(q) == 60 and np.all(seg[:, :, 2] >= 0.05 - 1e-9)  # 50 mm of link radius above the floor
     inside = np.all((seg > np.array([0.3, -0.3, 0.0]) - 0.05) & (seg < np.array([0.7, 0.3, 0.4]) + 0.05), axis=2)
     assert not inside.any()
+    assert np.abs(q[:, 2]).max() <= np.pi and np.abs(q).max() <= 2 * np.pi  # UR's limits: elbow ±180°, others ±360°
     bare = Cell(half_spaces=(((0.0, 0.0, 1.0), 0.0),), link_radius=0.0)
     pool = kincal.candidate_pool(robot, 1500, seed=0)
     tip_only = bare.violations(robot, pool)
