@@ -58,9 +58,8 @@ class Identifiability:
     def change_from(self, before: "Identifiability") -> str:
         """How the identifiable set differs from ``before``'s, in words ('now also a, b; no longer c');
         '' when it is the same set."""
-        old, new = set(before.identifiable), set(self.identifiable)
-        gained = [n for n in self.identifiable if n not in old]
-        lost = [n for n in before.identifiable if n not in new]
+        gained = [n for n in self.identifiable if n not in before.identifiable]
+        lost = [n for n in before.identifiable if n not in self.identifiable]
         return "; ".join(p for p in (f"now also {', '.join(gained)}" if gained else "",
                                       f"no longer {', '.join(lost)}" if lost else "") if p)
 
@@ -74,12 +73,9 @@ class Identifiability:
 
     def confound_lines(self, indent: str = "    ") -> list[str]:
         """One line per dropped parameter: the kept parameters it acts like (physical units)."""
-        out = []
-        for name in self.dropped:
-            conf = self.confounds.get(name, ())
-            rhs = " ".join(f"{c:+.3g}{self._unit(name, n)}·{n}" for n, c in conf) or "no effect on the position"
-            out.append(f"{indent}{name}  ~  {rhs}")
-        return out
+        rhs = {d: " ".join(f"{c:+.3g}{self._unit(d, n)}·{n}" for n, c in self.confounds.get(d, ()))
+               for d in self.dropped}
+        return [f"{indent}{d}  ~  {rhs[d] or 'no effect on the position'}" for d in self.dropped]
 
     def _unit(self, dropped: str, kept: str) -> str:
         """The unit of a confound coefficient: ' mm/mrad' for a length acting like an angle (m/rad is

@@ -113,7 +113,6 @@ def comprehensive_index(s: np.ndarray, m: int):
     divide O5 and O6 by their weights, so a larger weight would lower its index, which defeats the
     weighting. Singular designs score 0.
     """
-    s = np.asarray(s, dtype=float)
     ind = indices_from_singular_values(s, m)
     w = entropy_weights(s)
     o = np.stack([np.asarray(ind["O1"]), np.asarray(ind["O5"]), np.asarray(ind["O6"])], axis=-1)

@@ -45,15 +45,13 @@ class Sensitivity:
 
     def plot(self, path: str | os.PathLike) -> None:
         """Δx, Δy, Δz against the sample for each parameter (Figs. 8–9), as PNG or SVG by extension."""
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from matplotlib.figure import Figure
 
         P = len(self.names)
         cols = min(P, 3)
         rows = -(-P // cols)
-        fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.0 * rows), squeeze=False)
+        fig = Figure(figsize=(4.2 * cols, 3.0 * rows))
+        axes = fig.subplots(rows, cols, squeeze=False)
         x = np.arange(1, self.q.shape[0] + 1)
         for ax in axes.flat[P:]:
             ax.axis("off")
@@ -65,7 +63,6 @@ class Sensitivity:
         axes.flat[0].legend()
         fig.tight_layout()
         fig.savefig(path)
-        plt.close(fig)
 
 
 def sensitivity(robot: Robot, q: np.ndarray, names: Sequence[str] | None = None) -> Sensitivity:
@@ -77,10 +74,7 @@ def sensitivity(robot: Robot, q: np.ndarray, names: Sequence[str] | None = None)
     idx = robot.params.indices(names)
     units = tuple(UNIT[robot.params.kinds[i]] for i in idx)
     p0, J = robot.forward_and_jacobian(q)
-    deltas = []
-    for i, u in zip(idx, units):
-        v = robot.params.values.copy()
-        v[i] += u
-        deltas.append(robot.forward(q, v) - p0)
+    step = np.eye(len(robot.params.values))  # a unit error of parameter i: u * step[i]
+    deltas = [robot.forward(q, robot.params.values + u * step[i]) - p0 for i, u in zip(idx, units)]
     kinds = tuple(robot.params.kinds[i] for i in idx)
     return Sensitivity(names, kinds, units, q, np.array(deltas), np.moveaxis(J[:, :, idx] * np.array(units), 2, 0))

@@ -140,13 +140,12 @@ def separate_ill_conditioned(robot: Robot, q: np.ndarray, names: Sequence[str] |
             branches[t], candidates[t] = _branch(members, sub_gcn, threshold, rank)
     models = tuple((removed, model_gcn(removed)) for removed in _reconstructions(list(candidates.values()), rank))
     completed = [_verify(list(removed), g, names, model_gcn, threshold, rank) for removed, g in models]
-    full = averaged_gcn(J)
-    verified = [c for c in completed if c[1] <= threshold] or completed
-    separated, reduced = _choose(verified, by_size=True) if verified else ((), full)
-    paper_choice = _choose(verified, by_size=False)[0] if verified else ()
+    verified = [c for c in completed if c[1] <= threshold] or completed  # never empty: one model at least
+    separated, reduced = _choose(verified, by_size=True)
     qr = identifiability(robot, q, names=names, keep=keep)
-    return Separation(names, subdomains, sub_values, branches, candidates, models, tuple(separated), full, reduced,
-                      threshold, qr.dropped, tuple(paper_choice), tuple(_qr_notes(robot, q, names, separated, qr)))
+    return Separation(names, subdomains, sub_values, branches, candidates, models, tuple(separated), averaged_gcn(J),
+                      reduced, threshold, qr.dropped, tuple(_choose(verified, by_size=False)[0]),
+                      tuple(_qr_notes(robot, q, names, separated, qr)))
 
 
 def _branch(members, sub_gcn, threshold: float, rank: dict[str, int]):

@@ -50,22 +50,18 @@ class ModelUncertainty:
 
     @classmethod
     def from_fit(cls, robot: Robot, names, covariance: np.ndarray, q_train: np.ndarray) -> "ModelUncertainty":
+        """The training joint ranges, and the envelope's reference: the 95th percentile of σ at ENVELOPE_POSES
+        feasible poses drawn evenly in them (None when fewer than a tenth of them are feasible: coupled joints)."""
         unc = cls(tuple(names), np.asarray(covariance, dtype=float), 0.0)
         lo, hi = q_train.min(axis=0), q_train.max(axis=0)
-        return cls(unc.names, unc.covariance, float(np.median(unc.sigma(robot, q_train))), lo, hi,
-                   unc._envelope_sigma(robot, lo, hi))
-
-    def _envelope_sigma(self, robot: Robot, lo: np.ndarray, hi: np.ndarray) -> float | None:
-        """The 95th percentile of σ at ENVELOPE_POSES feasible poses drawn evenly in the joint ranges
-        (lo, hi); None when fewer than a tenth of them are feasible (coupled joints)."""
+        median = float(np.median(unc.sigma(robot, q_train)))
         q = np.random.default_rng(0).uniform(lo, hi, size=(ENVELOPE_POSES, len(lo)))
         q = q[robot.feasible(q)]
-        if len(q) < ENVELOPE_POSES // 10:
-            return None
         try:
-            return float(np.percentile(self.sigma(robot, q), 95))
+            ref = float(np.percentile(unc.sigma(robot, q), 95)) if len(q) >= ENVELOPE_POSES // 10 else None
         except ModelError:  # a pose the model cannot compute (a closed chain outside its workspace)
-            return None
+            ref = None
+        return cls(unc.names, unc.covariance, median, lo, hi, ref)
 
     def outside(self, q: np.ndarray, revolute: np.ndarray | None = None) -> np.ndarray:
         """(N,) bool: a joint lies outside its training range by more than ENVELOPE_MARGIN of it (the

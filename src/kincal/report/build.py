@@ -3,7 +3,6 @@ JSON of the same numbers, and a terminal summary. Deterministic: the same input 
 (the date is the day, or SOURCE_DATE_EPOCH when set)."""
 from __future__ import annotations
 
-import dataclasses
 import functools
 import hashlib
 import json

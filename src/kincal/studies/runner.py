@@ -117,14 +117,10 @@ def _single_thread() -> None:
     blas_threads(1).__enter__()  # left entered on purpose: the limit lasts as long as the worker
 
 
-def check_results_file(path: str | os.PathLike, header: dict) -> None:
+def check_results_file(path: str | os.PathLike, header: dict) -> dict[int, list[dict]]:
     """Before any work: ``path`` is absent or holds results of the study ``header`` names (ValueError
-    otherwise)."""
-    _read(Path(path), json.loads(json.dumps(header)))
-
-
-def _read(path: Path, header: dict) -> dict[int, list[dict]]:
-    """Finished tasks in the results file (a torn last line from an interruption is ignored)."""
+    otherwise). Returns its finished tasks (a torn last line from an interruption is ignored)."""
+    path, header = Path(path), json.loads(json.dumps(header))  # the header as read back from the file
     if not path.exists():
         return {}
     lines = path.read_text(encoding="utf-8").splitlines()
@@ -177,8 +173,8 @@ def run_tasks(run: Callable[[Task], list[dict]], tasks: Sequence[Task], executor
     """Run the ``tasks`` the results file at ``path`` does not hold yet, appending each as it finishes;
     return every trial's record, sorted by trial. ``header``: the study's settings (JSON), checked
     against the file; ``progress(done, total)`` is called as tasks finish."""
-    path, header = Path(path), json.loads(json.dumps(header))
-    done = _read(path, header)
+    path = Path(path)
+    done = check_results_file(path, header)
     _check_done(path, done, tasks)
     todo = [t for t in tasks if t.first not in done]
     with path.open("a", encoding="utf-8") as handle:
