@@ -127,6 +127,9 @@ def test_pose_targets_through_the_command_line(tmp_path, capsys):
     assert np.abs(Rn - to_matrices(f[:, 4:7], "euler-zyx-intrinsic-deg", "f", f[:, 0])).max() < 1e-9
     assert main(base + ["-o", str(tmp_path / "x.csv"), "--orientation", "euler-zyx-extrinsic-deg"]) == 1
     assert "the file looks like euler-zyx-intrinsic-deg" in capsys.readouterr().err
+    # the axes relabelled (xzy: the same rotations turned by 120°, which a frame fitted to them alone absorbs)
+    assert main(base + ["-o", str(tmp_path / "y.csv"), "--orientation", "euler-xzy-intrinsic-deg"]) == 1
+    assert "the file looks like euler-zyx-intrinsic-deg" in capsys.readouterr().err
 
 
 def test_a_path_through_a_wrist_near_singularity_keeps_its_branch_and_names_where_continuity_is_lost():

@@ -29,7 +29,7 @@ from ..io.measurements import _file_scales, _joint_columns
 from ..io.unit_checks import SPREAD_RATIO, check_degrees, check_radians, check_spread
 from ..models.robot import Robot
 from ..observe.files import check_pose_columns
-from ..observe.orientation import convention_check, default_columns, from_matrices, to_matrices
+from ..observe.orientation import convention_check, default_columns, from_matrices, position_frame, to_matrices
 from ..units import joint_factors, unit_factor
 from .commands import compensate, path_checked, uncontrolled_warning
 
@@ -281,7 +281,8 @@ def _first_checks(job: StreamJob, stream: Stream, rows, q0, xyz, rot) -> None:
     if not 1 / SPREAD_RATIO < size(xyz) / max(size(robot.forward(q0)), 1e-300) < SPREAD_RATIO:
         check_spread(stream.path, q0, xyz, robot, t.length_unit, t.angle_unit, "target positions")
     if t.pose and job.nominal is not None:
-        convention_check(job.nominal.flange_rotation(q0), rot[:m], t.orientation, stream.path, rows[:m])
+        convention_check(job.nominal.flange_rotation(q0), rot[:m], t.orientation, stream.path, rows[:m],
+                         position_frame(robot.forward(q0), xyz))  # (a relabelling of the axes cannot hide in a frame)
 
 
 def _read(job: StreamJob, stream: Stream, block: Block, previous: Block | None):
