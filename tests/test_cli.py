@@ -253,9 +253,23 @@ def test_files_with_the_robot_stacks_joint_names_are_read_without_joint_cols(tmp
         kincal.read_measurements(str(tmp_path / "other.csv"), robot)
 
 
-@pytest.mark.parametrize("command", [["compensate", "ur5", "targets.csv", "-o", "out.csv"], ["verify", "puu3", "-o", "plan.csv"]])
+@pytest.mark.parametrize("command", [["compensate", "ur5", "targets.csv", "-o", "out.csv"], ["verify", "puu3", "-o", "plan.csv"],
+                                     ["simulate", "ur5", "-o", "sim.csv"]])
 def test_sigma_columns_are_refused_where_nothing_reads_them(command, capsys):
-    """Targets and verification readings carry no σ: --std-cols does not exist there (refused, not ignored)."""
+    """Targets, verification readings and simulated files carry no σ: --std-cols does not exist there
+    (refused, not ignored)."""
     with pytest.raises(SystemExit) as stop:
         main([*command, "--std-cols", "sx,sy,sz"])
     assert stop.value.code == 2 and "unrecognized arguments: --std-cols" in capsys.readouterr().err
+
+
+def test_simulate_writes_the_position_columns_asked_for(tmp_path, capsys):
+    """simulate --xyz-cols names the position columns it writes (it wrote x,y,z whatever was asked),
+    and the hint it prints reads them back: the same positions as the true robot's within the noise."""
+    out, true = tmp_path / "sim.csv", tmp_path / "true.yaml"
+    d = run_json(capsys, "simulate", "ur5", "-o", out, "--xyz-cols", "px,py,pz", "--length-unit", "mm", "--noise", "0",
+                 "--perturb", "--save-true", true)
+    assert out.read_text().splitlines()[0] == "j1,j2,j3,j4,j5,j6,px,py,pz" and "--xyz-cols px,py,pz" in d["flags"]
+    robot = kincal.load_robot(str(true))
+    meas = kincal.read_measurements(out, robot, xyz_cols=["px", "py", "pz"], length_unit="mm")
+    np.testing.assert_allclose(meas.xyz, robot.forward(meas.q), atol=1e-12)

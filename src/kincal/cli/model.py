@@ -89,10 +89,11 @@ def cmd_simulate(args) -> int:
                     f"with: {use}")
     meas = kincal.simulate(true, q, noise=args.noise / MM, seed=args.seed + 1)
     kincal.write_measurements(args.output, meas, r.joint_types, args.length_unit, args.angle_unit,
-                              joint_cols=args.joint_cols)
+                              joint_cols=args.joint_cols, xyz_cols=args.xyz_cols)
     payload = {"output": args.output, "n": len(meas), "noise": args.noise / MM, "perturbed": bool(args.perturb),
                "true_robot": args.save_true, "true_parameters": true.params.as_dict()}
     use = observe.units_to_use(args) + ("" if args.joint_cols is None else f" --joint-cols {','.join(args.joint_cols)}")
+    use += "" if list(args.xyz_cols) == ["x", "y", "z"] else f" --xyz-cols {','.join(args.xyz_cols)}"
     return emit(args, {**payload, "flags": use.strip()}, f"wrote {len(meas)} simulated measurements of {true.name} to "
                 f"{args.output}" + (f" (true robot saved to {args.save_true})" if args.save_true else "")
                 + (f"; calibrate them with: {use.strip()}" if use else ""))
@@ -160,7 +161,7 @@ def register(cmd) -> None:
     s.add_argument("--noise", type=nonneg_float, default=0.015, help="tracker noise, mm per axis (default 0.015)")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--save-true", help="write the simulated 'true' robot to this YAML")
-    observe.add_flags(s)
+    observe.add_flags(s, std=False)  # simulated files carry no σ columns
 
     s = cmd("export", cmd_export, "write a calibrated robot as URDF, UR calibration file or kincal YAML")
     s.add_argument("output", help="file to write (.urdf: URDF; otherwise kincal YAML unless --format ur)")

@@ -118,9 +118,9 @@ def _flag_text(value) -> str:
     return f"{label}:{n[0]:g},{n[1]:g},{n[2]:g},{c:g}"
 
 
-def add_flags(p: argparse.ArgumentParser) -> None:
-    """The data flags (:func:`add_data_flags`) and those of the measurement types."""
-    add_data_flags(p)
+def add_flags(p: argparse.ArgumentParser, std: bool = True) -> None:
+    """The data flags (:func:`add_data_flags`, ``std``: with --std-cols) and those of the measurement types."""
+    add_data_flags(p, std)
     g = p.add_argument_group("measurement types (see the README's 'Other measurements')")
     g.add_argument("--type", type=csv_list, metavar="TYPE[,TYPE...]",
                    help="point (default: one 3-D point per pose), pose (position + orientation), markers (NAME.x/.y/.z "

@@ -201,12 +201,15 @@ def _unit(unit: str, kind: str, path: str) -> float:
 
 def write_measurements(path: str | os.PathLike, meas: Measurements, joint_types: Sequence[str] | None = None,
                        length_unit: str = "m", angle_unit: str = "rad",
-                       joint_cols: Sequence[str] | None = None) -> None:
-    """Write measurements as a comma-separated CSV (atomically) in the given units."""
+                       joint_cols: Sequence[str] | None = None, xyz_cols: Sequence[str] = ("x", "y", "z")) -> None:
+    """Write measurements as a comma-separated CSV (atomically) in the given units, the positions
+    under the three names ``xyz_cols``."""
     types = list(joint_types) if joint_types is not None else ["revolute"] * meas.q.shape[1]
     scale, lf = _file_scales(types, length_unit, angle_unit, str(path))
     cols = list(joint_cols) if joint_cols is not None else list(meas.joint_names)
-    write_csv(path, cols + ["x", "y", "z"], ([repr(float(v)) for v in (*qi, *pi)]
+    if len(xyz_cols) != 3:
+        raise ValueError(f"{path}: three position columns are needed, got {', '.join(xyz_cols)}")
+    write_csv(path, cols + list(xyz_cols), ([repr(float(v)) for v in (*qi, *pi)]
                                             for qi, pi in zip(meas.q * scale, meas.xyz * lf)))
 
 
