@@ -254,10 +254,11 @@ def test_files_with_the_robot_stacks_joint_names_are_read_without_joint_cols(tmp
 
 
 @pytest.mark.parametrize("command", [["compensate", "ur5", "targets.csv", "-o", "out.csv"], ["verify", "puu3", "-o", "plan.csv"],
-                                     ["simulate", "ur5", "-o", "sim.csv"]])
+                                     ["simulate", "ur5", "-o", "sim.csv"], ["design", "ur5", "-o", "poses.csv"],
+                                     ["show", "ur5"], ["identifiability", "ur5"]])
 def test_sigma_columns_are_refused_where_nothing_reads_them(command, capsys):
-    """Targets, verification readings and simulated files carry no σ: --std-cols does not exist there
-    (refused, not ignored)."""
+    """Targets, verification readings, simulated files, designs and joint-only analyses read no σ
+    columns: --std-cols does not exist there (refused, not ignored)."""
     with pytest.raises(SystemExit) as stop:
         main([*command, "--std-cols", "sx,sy,sz"])
     assert stop.value.code == 2 and "unrecognized arguments: --std-cols" in capsys.readouterr().err

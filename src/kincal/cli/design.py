@@ -217,7 +217,7 @@ def register(cmd) -> None:
     s.add_argument("--units", choices=list(kincal.design.UNITS), default="scaled",
                    help="index units: scaled (unit-invariant, default) or paper (raw Jacobian in mm and rad)")
     s.add_argument("--seed", type=int, default=0)
-    observe.add_flags(s)  # --type: design for that measurement (sockets, planes: samples of a plan)
+    observe.add_flags(s, std=False)  # --type: design for that measurement (sockets, planes: samples of a plan)
 
     s = cmd("npose", cmd_npose, "how many poses: Guo et al. 2024's eq. 18 minimum and where the criterion curve "
                                 "flattens")

@@ -136,7 +136,7 @@ def cmd_export(args) -> int:
 def register(cmd) -> None:
     cmd("robots", cmd_robots, "list the bundled robots", None)
     s = cmd("show", cmd_show, "show a robot's parameters (mm, deg), joints and structure notes")
-    observe.add_flags(s)  # --type: also what a file of that measurement type holds for this robot
+    observe.add_flags(s, std=False)  # --type: also what a file of that measurement type holds for this robot
 
     s = cmd("identifiability", cmd_identifiability, "which parameters position data can identify")
     s.add_argument("--data", help="CSV of poses (joint columns) to analyse (default: random poses)")
@@ -148,7 +148,7 @@ def register(cmd) -> None:
                    help=f"relative singular-value tolerance, as calibrate and design use (default "
                         f"{kincal.analysis.RANK_TOL:g})")
     hidden_alias(s, "--tol", "rank_tol", type=positive_float)
-    observe.add_flags(s)
+    observe.add_flags(s, std=False)  # poses only: no σ columns read
 
     s = cmd("simulate", cmd_simulate, "simulate tracker measurements of a (perturbed) robot")
     s.add_argument("-o", "--output", required=True, help="CSV to write")
