@@ -278,11 +278,12 @@ def _first_checks(job: StreamJob, stream: Stream, rows, q0, xyz, rot) -> None:
     check_degrees(stream.path, q0, robot, t.angle_unit)
     check_radians(stream.path, q0, robot, t.angle_unit)
     size = lambda x: float(np.median(np.linalg.norm(x - np.median(x, axis=0), axis=1)))  # noqa: E731
-    if not 1 / SPREAD_RATIO < size(xyz) / max(size(robot.forward(q0)), 1e-300) < SPREAD_RATIO:
+    p0 = robot.forward(q0)
+    if not 1 / SPREAD_RATIO < size(xyz) / max(size(p0), 1e-300) < SPREAD_RATIO:
         check_spread(stream.path, q0, xyz, robot, t.length_unit, t.angle_unit, "target positions")
     if t.pose and job.nominal is not None:
         convention_check(job.nominal.flange_rotation(q0), rot[:m], t.orientation, stream.path, rows[:m],
-                         position_frame(robot.forward(q0), xyz))  # (a relabelling of the axes cannot hide in a frame)
+                         position_frame(p0, xyz))  # (a relabelling of the axes cannot hide in a frame)
 
 
 def _read(job: StreamJob, stream: Stream, block: Block, previous: Block | None):
