@@ -35,11 +35,8 @@ def first_best(values: Sequence[float] | np.ndarray, maximize: bool = True, rtol
     v = np.asarray(values, dtype=float)
     if v.size == 0:
         raise ValueError("first_best of an empty sequence")
-    s = v if maximize else -v
-    k = int(np.argmax(s))  # (the first NaN, if any)
-    if math.isnan(s[k]):
-        s = np.where(np.isnan(s), -np.inf, s)
-        k = int(np.argmax(s))
+    s = np.where(np.isnan(v), -np.inf, v if maximize else -v)  # NaN never wins
+    k = int(np.argmax(s))
     best = float(s[k])
     if not math.isfinite(best):
         return k if best == math.inf else 0

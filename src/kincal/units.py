@@ -36,17 +36,18 @@ def unit_factor(unit: str, kind: str, where: str = "", error: type[Exception] = 
     return table[unit]
 
 
-def joint_units(types: Iterable[str], length_unit: str, angle_unit: str) -> list[str]:
-    """Each joint's unit: ``angle_unit`` for a revolute joint, ``length_unit`` for a prismatic one."""
+def joint_units(types: Iterable[str], length_unit: str, angle_unit: str, where: str = "",
+                error: type[Exception] = ValueError) -> list[str]:
+    """Each joint's unit: ``angle_unit`` for a revolute joint, ``length_unit`` for a prismatic one; both
+    units are checked first, length then angle (:func:`unit_factor`, with ``where`` and ``error``)."""
+    unit_factor(length_unit, "length", where, error), unit_factor(angle_unit, "angle", where, error)
     return [angle_unit if t == "revolute" else length_unit for t in types]
 
 
 def joint_factors(types: Iterable[str], length_unit: str, angle_unit: str, where: str = "",
                   error: type[Exception] = ValueError) -> list[float]:
-    """SI factor of each joint's unit (:func:`joint_units`; rad or m per unit); both units are checked
-    first, length then angle (:func:`unit_factor`, with ``where`` and ``error``)."""
-    lf, af = unit_factor(length_unit, "length", where, error), unit_factor(angle_unit, "angle", where, error)
-    return [af if t == "revolute" else lf for t in types]
+    """SI factor of each joint's unit (:func:`joint_units`, both units checked; rad or m per unit)."""
+    return [{**LENGTH_UNITS, **ANGLE_UNITS}[u] for u in joint_units(types, length_unit, angle_unit, where, error)]
 
 
 def display(value: float, kind: str, signed: bool = True, digits: tuple[int, int] = (4, 5)) -> str:

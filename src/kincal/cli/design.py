@@ -15,18 +15,17 @@ from kincal.io.program_ur import measurement_program
 from kincal.observe import read_observations, write_observations
 
 from . import observe
-from .common import (check_paths, csv_list, emit, lengths, load_robot, nonneg_float, nonneg_int, one_type,
-                     positive_float, positive_int, progress, robot_inputs)
+from .common import (csv_list, emit, lengths, load_robot, nonneg_float, nonneg_int, one_type, positive_float,
+                     positive_int, progress)
 
 
 def cmd_design(args) -> int:
-    check_paths([*robot_inputs(args.robot), args.candidates, args.use], [args.output, _program_path(args)])
+    r = load_robot(args, [args.candidates, args.use], [args.output, _program_path(args)])
     imse = args.method in ("fedorov", "random")  # the default criterion: IMSE for these, D for the others
     options = kincal.DesignOptions(m=args.m, method=args.method, criterion=args.criterion or ("IMSE" if imse else "D"),
                                    seed=args.seed, names=args.params, base=args.base, certify=not args.no_bound,
                                    restarts=args.restarts, generations=args.generations, units=args.units, f0=args.f0,
                                    cr=args.cr, population=args.population, coverage=args.coverage, weight=args.weight)
-    r = load_robot(args)
     if args.params:
         r.params.indices(args.params)
     if "link_radius" in args.given and not (args.floor or args.keep_out):

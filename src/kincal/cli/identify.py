@@ -16,7 +16,7 @@ import kincal.models
 from kincal.identify import held_out_stats, stat_line
 from kincal.units import DEG, MM
 
-from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, check_paths, checked, csv_list, emit, err, hidden_alias,
+from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, csv_list, emit, err, hidden_alias,
                      load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list)
 from . import observe
 from .report import add_session_flags, data_record, json_path, nominal_model, save_figures, write_outputs
@@ -68,10 +68,8 @@ def cmd_calibrate(args) -> int:
         raise ValueError("--same-frame declares one measurement frame for several files (sessions or --test); "
                          "with one file and no --test it changes nothing: leave it out")
     reports = [args.report, json_path(args.report)] if args.report else []
-    check_paths([*robot_inputs(args.robot), *args.data, *args.test],
-                [args.output, args.residuals, *reports, args.plot])
+    robot = load_robot(args, [*args.data, *args.test], [args.output, args.residuals, *reports, args.plot])
     options = fit_options(args)
-    robot = load_robot(args)
     res, tests = fit_files(args, robot, kinds, args.data, args.test, options)
     refused = res.verdict.status == "refused"
     written = bool(args.output) and (not refused or args.force)
@@ -117,23 +115,22 @@ def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], 
     if args.exclude and len(data) > 1:
         raise ValueError("--exclude names rows of one file; with several files leave the rows out of their files")
     options.check(robot)
-    if set(kinds) == {"point"}:
-        sessions = [read(args, robot, path) for path in data]
-        held = [read(args, robot, t) for t in tests]
-        sessions = [sessions[0].without_rows(args.exclude)] if args.exclude else sessions
-        if isinstance(use_q, str):
-            use_q = np.concatenate([t.q for t in held]) if held else None
-        with progress("calibrating", args.json) as say:
-            if len(sessions) == 1 or args.same_frame:  # one frame: the files are one session
-                return kincal.calibrate(robot, kincal.identify.joined(sessions), options, use_q=use_q,
-                                        progress=say), held
-            say(f"calibrating {len(sessions)} sessions, each in its own measurement frame")
-            return kincal.identify.calibrate_sessions(robot, sessions, options, use_q=use_q), held
-    sets = [observe.read_set(args, robot, path, k) for path, k in zip(data, kinds)]
+    points = set(kinds) == {"point"}
+
+    def load(path: str, kind: str):
+        return read(args, robot, path) if points else observe.read_set(args, robot, path, kind)
+    sets = [load(path, k) for path, k in zip(data, kinds)]
     sets = [sets[0].without_rows(args.exclude)] if args.exclude else sets
-    held = [observe.read_set(args, robot, path, kinds[0]) for path in tests]
-    with progress("calibrating", args.json):
-        return kincal.identify.fit_observations(robot, observe.sessions(sets, args.same_frame), options), held
+    held = [load(path, kinds[0]) for path in tests]
+    if points and isinstance(use_q, str):
+        use_q = np.concatenate([t.q for t in held]) if held else None
+    with progress("calibrating", args.json) as say:
+        if not points:
+            return kincal.identify.fit_observations(robot, observe.sessions(sets, args.same_frame), options), held
+        if len(sets) == 1 or args.same_frame:  # one frame: the files are one session
+            return kincal.calibrate(robot, kincal.identify.joined(sets), options, use_q=use_q, progress=say), held
+        say(f"calibrating {len(sets)} sessions, each in its own measurement frame")
+        return kincal.identify.calibrate_sessions(robot, sets, options, use_q=use_q), held
 
 
 def held_out(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
@@ -150,11 +147,10 @@ def held_out(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
 
 
 def cmd_evaluate(args) -> int:
-    check_paths([*robot_inputs(args.robot), *args.data], [args.plot])
+    r = load_robot(args, args.data, [args.plot])
     kinds = observe.types_of(args)
     if len(set(kinds)) > 1:
         raise ValueError("evaluate --type: one type for all files")
-    r = load_robot(args)
     record = kincal.models.load_calibration_record(args.robot) if robot_inputs(args.robot) else None
     judge = _evaluate_points if kinds[0] == "point" else observe.evaluate_set
     with progress("evaluating", args.json):  # the figures of each file: STEM, or STEM-<k> for several

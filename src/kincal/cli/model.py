@@ -13,7 +13,7 @@ from kincal.observe import describe, read_observations, write_observations
 from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM, display
 
 from . import observe
-from .common import (csv_list, emit, finite_float, hidden_alias, joint_values, load_robot, nonneg_float, one_type, out,
+from .common import (csv_list, emit, finite_float, hidden_alias, joint_values, load_robot, nonneg_float, one_type,
                      positive_float, positive_int)
 
 
@@ -29,7 +29,9 @@ def cmd_robots(args) -> int:
 
 
 def cmd_show(args) -> int:
+    from rich.console import Group
     from rich.table import Table
+    from rich.text import Text
 
     r = load_robot(args)
     t = Table("parameter", "value", "unit", title=f"{r.name} ({r.structure}, {r.n_joints} joints)")
@@ -46,13 +48,8 @@ def cmd_show(args) -> int:
                           for n, t, lo, hi in zip(r.joint_names, r.joint_types, r.lower, r.upper)], "notes": notes}
     if args.type:
         payload["measurement"] = describe(r, observe.format_of(args, one_type(args)))
-    if args.json:
-        return emit(args, payload, None)
-    out.print(t)
-    out.print(lim)
-    for n in notes + payload.get("measurement", []):
-        out.print(f"note: {n}" if n in notes else n, markup=False)
-    return 0
+    lines = [Text(f"note: {n}" if n in notes else n) for n in notes + payload.get("measurement", [])]  # no markup
+    return emit(args, payload, Group(t, lim, *lines))
 
 
 def cmd_identifiability(args) -> int:

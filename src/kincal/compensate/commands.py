@@ -87,21 +87,19 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
         if why:
             none = np.zeros(len(targets), bool)
             return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
-    if robot.has_inverse:
-        q = robot.inverse(targets, strict=False)
-        comp = _checked(robot, q, "closed-form inverse", 0, targets, None, rows)
-        return _with_sigma(robot, comp, uncertainty)
-    q, it = q0.copy(), 0
-    for it in range(1, IK_ITER + 1):
-        e = targets - robot.forward(q)
-        if np.max(np.linalg.norm(e, axis=1)) < IK_TOL:
-            break
-        Jq = robot.joint_jacobian(q)  # (N, 3, n)
-        A = Jq @ np.swapaxes(Jq, 1, 2) + damping**2 * np.eye(3)
-        q = q + np.einsum("nji,nj->ni", Jq, np.linalg.solve(A, e[..., None])[..., 0])
-    comp = _checked(robot, q, "damped least squares", it, targets, q0, rows, nominal)
-    comp = _with_sigma(robot, comp, uncertainty)
-    if nominal is None or not robot.has_tool_point:
+    if robot.has_inverse:  # (no nominal commands q0 to check against)
+        q, method, it = robot.inverse(targets, strict=False), "closed-form inverse", 0
+    else:
+        q, method, it = q0.copy(), "damped least squares", 0
+        for it in range(1, IK_ITER + 1):
+            e = targets - robot.forward(q)
+            if np.max(np.linalg.norm(e, axis=1)) < IK_TOL:
+                break
+            Jq = robot.joint_jacobian(q)  # (N, 3, n)
+            A = Jq @ np.swapaxes(Jq, 1, 2) + damping**2 * np.eye(3)
+            q = q + np.einsum("nji,nj->ni", Jq, np.linalg.solve(A, e[..., None])[..., 0])
+    comp = _with_sigma(robot, _checked(robot, q, method, it, targets, q0, rows, nominal), uncertainty)
+    if nominal is None or q0 is None or not robot.has_tool_point:
         return comp
     return dataclasses.replace(comp, orientation_change=orientation_change(robot, q, nominal, q0))
 

@@ -51,9 +51,8 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
     """Compensate every literal target of ``program`` (see the module docstring). ``q_start``: the
     joints the robot stands at before the first move (default: the first joint target's); ``models``:
     the models for a TCP the program sets (default: refuse the targets after a set_tcp)."""
-    first = next((t.values for t in program.targets if t.kind == "joints"), None)
-    q_prev = q_start if q_start is not None else first
-    q_prev = None if q_prev is None else np.asarray(q_prev, dtype=float)
+    q_prev = (next((t.values for t in program.targets if t.kind == "joints"), None) if q_start is None
+              else np.asarray(q_start, dtype=float))
     texts, refused, qs = {}, {}, np.full((len(program.targets), model.n_joints), np.nan)
     for k, t in enumerate(program.targets):
         tcp = program.tcp_at(t.at)

@@ -21,7 +21,7 @@ import numpy as np
 from .._atomic import AtomicFile
 from .._csv import BLOCK_BYTES, Block, Stream, check_once, check_present, open_stream
 from .._memory import keep_freed_memory
-from .._threads import limit_blas
+from .._threads import blas_threads
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
 from ..errors import MeasurementError
 from ..io.commands import CommandColumns
@@ -240,7 +240,7 @@ def _init(job: StreamJob, stream: Stream, layout: CommandColumns) -> None:
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the main process's to handle (it stops the pool)
-    limit_blas(1)
+    blas_threads(1)
     keep_freed_memory()
     _WORK = (job, stream, layout)
 

@@ -1,6 +1,7 @@
 """Identification: calibration problems, residuals, solvers (LM, PSO), robust weighting, covariance."""
 from .applies import SCOPES, refuse_inapplicable
-from .calibrate import ABSOLUTE, RESIDUALS, calibrate, calibrate_sessions, evaluate, fit_observations, held_out_stats
+from .calibrate import RESIDUALS, calibrate, calibrate_sessions, evaluate, fit_observations, held_out_stats
+from .fitting import ABSOLUTE
 from .options import METHODS, PRIOR_CHOICES, FitOptions, PSOOptions
 from .positions import EvaluationStats, joined
 from .result import CalibrationResult, stat_line, trained_setup

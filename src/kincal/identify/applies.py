@@ -29,10 +29,6 @@ class Scope:
     alone: bool = False
 
 
-_POSITION_FIT = ("position data alone are fitted with particle swarms; other kinds, and files of several kinds "
-                 "together, are not yet")
-
-
 def _points_alone(why: str) -> Scope:
     return Scope(("point",), why, alone=True)
 
@@ -40,7 +36,8 @@ def _points_alone(why: str) -> Scope:
 SCOPES: dict[str, Scope] = {
     "f_scale": _points_alone("it scales the robust loss of position data in m; the other kinds' samples are scaled "
                              "by their stated σ"),
-    "method": _points_alone("the particle swarm searches the position residual; " + _POSITION_FIT),
+    "method": _points_alone("the particle swarm searches the position residual; position data alone are fitted with "
+                            "particle swarms; other kinds, and files of several kinds together, are not yet"),
     "pso": _points_alone("the particle swarm searches the position residual"),
     "residual": _points_alone("the joint-space residual inverts measured positions"),
     "drift": Scope(("point", "pose", "markers"), "sockets and planes have no measuring instrument that could drift"),

@@ -22,7 +22,7 @@ from ..io.measurements import Measurements
 from ..models.robot import Robot
 from ..observe import InSession, JointObs, PointObs
 from .diagnosis import TRIGGERS, diagnose
-from .fitting import fit_stack
+from .fitting import ABSOLUTE, fit_stack
 from .options import FitOptions
 from .positions import EvaluationStats, joined
 from .result import CalibrationResult
@@ -180,9 +180,6 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
     flagged = uncertainty.extrapolated(sigma) | outside
     return dataclasses.replace(stats, predicted_sigma=tuple(map(float, sigma)),
                                extrapolated_rows=tuple(int(r) for r in meas.rows[flagged]), warnings=warnings)
-
-
-ABSOLUTE = ("point", "pose", "markers")  # kinds measured in an instrument's frame (which may move between files)
 
 
 def held_out_stats(fit: CalibrationResult, obs, robot: Robot, same_frame: bool) -> dict:

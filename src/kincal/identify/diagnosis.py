@@ -131,16 +131,11 @@ def _with(meas: Measurements, q=None, xyz=None, index=None) -> Measurements:
 def _length_units(meas: Measurements) -> list[tuple[Cause, Change]]:
     table = {**LENGTH_UNITS, **OTHER_LENGTHS}
     declared = meas.units[0] if meas.units else "m"
-    out: list[tuple[Cause, Change]] = []
-    for name, f in table.items():
-        if name == declared:
-            continue
-        fix = (f"read them with --length-unit {name}" if name in LENGTH_UNITS else
-               f"convert them to mm (x{f / 1e-3:g}) and read them with --length-unit mm")
-        k = f / table[declared]
-        out.append((Cause("length-unit", f"the positions are in {name}, read as {declared}", fix),
-                    _data(lambda m, k: _with(m, xyz=m.xyz * k), k=k)))
-    return out
+    return [(Cause("length-unit", f"the positions are in {name}, read as {declared}",
+                   f"read them with --length-unit {name}" if name in LENGTH_UNITS else
+                   f"convert them to mm (x{f / 1e-3:g}) and read them with --length-unit mm"),
+             _data(lambda m, k: _with(m, xyz=m.xyz * k), k=f / table[declared]))
+            for name, f in table.items() if name != declared]
 
 
 def _angle_units(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]:
@@ -161,19 +156,14 @@ def _angle_units(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]
 
 def _joint_columns(robot: Robot) -> list[tuple[Cause, Change]]:
     names = robot.joint_names
-    out: list[tuple[Cause, Change]] = []
-    for j, name in enumerate(names):
-        out.append((Cause("joint-sign", f"{name} counts the other way (its column is negated)",
-                          f"negate {name}'s column, or check its axis direction in the robot file"),
-                    _columns([j], np.negative)))
-    for j, name in enumerate(names):
-        if robot.joint_types[j] != "revolute":
-            continue
-        for deg in (90.0, -90.0, 180.0):
-            out.append((Cause("joint-zero", f"{name}'s column is {deg:g} deg short of the robot file's joint angle "
-                                            f"(the controller's zero differs)",
-                              f"add {deg:g} deg to {name}'s column, or move the joint's zero in the robot file"),
-                        _columns([j], lambda c, rad: c + rad, rad=np.deg2rad(deg))))
+    out = [(Cause("joint-sign", f"{name} counts the other way (its column is negated)",
+                  f"negate {name}'s column, or check its axis direction in the robot file"), _columns([j], np.negative))
+           for j, name in enumerate(names)]
+    out += [(Cause("joint-zero", f"{name}'s column is {deg:g} deg short of the robot file's joint angle "
+                                 f"(the controller's zero differs)",
+                   f"add {deg:g} deg to {name}'s column, or move the joint's zero in the robot file"),
+             _columns([j], lambda c, rad: c + rad, rad=np.deg2rad(deg)))
+            for j, name in enumerate(names) if robot.joint_types[j] == "revolute" for deg in (90.0, -90.0, 180.0)]
     for a, b in itertools.combinations(range(len(names)), 2):
         order = [b if i == a else a if i == b else i for i in range(len(names))]
         out.append((Cause("joint-order", f"the columns of {names[a]} and {names[b]} are swapped",

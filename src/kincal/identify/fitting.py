@@ -24,6 +24,7 @@ from .stacked import fit_sets
 from .verdict import MAX_OUTLIER_SHARE
 
 POSITION_KINDS = ("point", "joint")  # kinds whose default prior is none (held-out evidence: README, "prior")
+ABSOLUTE = ("point", "pose", "markers")  # kinds measured in an instrument's frame (which may move between files)
 
 
 def resolved_prior(prior: str, observations: Sequence) -> str:
@@ -86,7 +87,7 @@ def _without_outliers(fit, observations: Sequence, res: CalibrationResult, loss:
 
 def _drifting(obs):
     """``obs`` measured by a drifting instrument (in its session's frame, if it has one)."""
-    if obs.kind not in ("point", "pose", "markers"):
+    if obs.kind not in ABSOLUTE:
         raise ValueError(f"drift: {obs.kind} data ({obs.source}) have no measuring instrument that could drift; the "
                          f"drift term is for points, poses and markers")
     return dataclasses.replace(obs, inner=Drifting.of(obs.inner)) if isinstance(obs, InSession) else Drifting.of(obs)

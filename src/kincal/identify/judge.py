@@ -79,8 +79,7 @@ def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     noise = noise_level(meas.std, th)
     return [*drift_reasons(meas.rows, np.linalg.norm(err, axis=1)), *residual_reasons(pos_sigma, noise, th),
             *outlier_reasons(meas.rows, z, th, res.options.loss),
-            *duplicate_reasons(meas.rows, tuple(duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types,
-                                                                                          th)))),
+            *duplicate_reasons(meas.rows, duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types, th))),
             *fitted_drift_reasons(res.drift, noise[0])]
 
 

@@ -7,11 +7,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._atomic import write_text_atomic
 from .._csv import listed
 from ..analysis.identifiability import Identifiability
 from ..analysis.uncertainty import ModelUncertainty
-from ..io.measurements import Measurements
+from ..io.measurements import Measurements, write_csv
 from ..models.robot import TOOL_NAMES, Robot
 from ..observe.observations import Wrapper
 from ..units import MM, MRAD, display, in_display
@@ -242,17 +241,14 @@ class CalibrationResult:
         """Per sample of every set: file, row, kind, position error (mm: the norm of the sample's position residuals,
         all its seen markers together), rotation error (mrad; poses), the norm of its residual whitened by the stated
         σ, its robust z within the set and the outlier flag (the verdict's rule)."""
-        out, start = [], 0
-        for obs, bad in zip(self.observations, self.outliers or ((),) * len(self.observations)):
+        out, sets = [], self.observations
+        for obs, bad, norms in zip(sets, self.outliers or ((),) * len(sets), sample_norms(sets, self.whitened_residual)):
             names, nuis0, _ = obs.nuisance(self.robot)
             r = obs.evaluate(self.robot, self.robot.params.values,
                              np.array([self.nuisance.get(n, v) for n, v in zip(names, nuis0)]))[0]
             labels, kinds = component_kinds([obs])
-            owner, rot = obs.sample_rows(), np.array([kinds[k] == "pose rotation" for k in labels], bool)
-            per = lambda rows: np.sqrt(np.bincount(owner[rows], r[rows] ** 2, minlength=len(obs)))  # noqa: E731
-            pos, ang = per((owner >= 0) & ~rot), per((owner >= 0) & rot)
-            norms = sample_norms([obs], self.whitened_residual[start:start + r.size])[0]
-            start += r.size
+            rot = np.array([kinds[k] == "pose rotation" for k in labels], bool)
+            pos, ang = (sample_norms([obs], np.where(rot == turned, r, 0.0))[0] for turned in (False, True))
             z = robust_z(norms) if len(obs) >= MIN_SAMPLES else np.zeros(len(obs))
             flagged = set(int(i) for i in bad)
             out += [{"file": obs.source, "row": int(obs.rows[i]), "kind": obs.kind, "position_mm": float(pos[i] * MM),
@@ -262,14 +258,10 @@ class CalibrationResult:
 
     def write_residuals(self, path: str) -> None:
         """:meth:`sample_table` as CSV (atomically): mm, mrad, whitened norms, robust z, outlier yes/no."""
-        lines = ["file,row,kind,position_error_mm,rotation_error_mrad,whitened_norm,robust_z,outlier"]
-        for s in self.sample_table():
-            rot = "" if s["rotation_mrad"] is None else f"{s['rotation_mrad']:.6g}"
-            src = s["file"]  # a CSV cell: quoted when it holds a comma or a quote
-            src = f'"{src.replace(chr(34), chr(34) * 2)}"' if "," in src or '"' in src else src
-            lines.append(",".join([src, str(s["row"]), s["kind"], f"{s['position_mm']:.6g}", rot,
-                                   f"{s['whitened']:.6g}", f"{s['robust_z']:.4g}", "yes" if s["outlier"] else "no"]))
-        write_text_atomic(path, "\n".join(lines) + "\n")
+        header = ["file", "row", "kind", "position_error_mm", "rotation_error_mrad", "whitened_norm", "robust_z", "outlier"]
+        write_csv(path, header, ([s["file"], s["row"], s["kind"], f"{s['position_mm']:.6g}",
+                                  "" if s["rotation_mrad"] is None else f"{s['rotation_mrad']:.6g}", f"{s['whitened']:.6g}",
+                                  f"{s['robust_z']:.4g}", "yes" if s["outlier"] else "no"] for s in self.sample_table()))
 
     def held_out(self, obs, robot: Robot | None = None) -> dict:
         """Statistics of a held-out set (same types) under the calibrated robot (or ``robot``, e.g. the

@@ -152,8 +152,8 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
             begin, swarmed, history = swarm(st, x0, st.cols(ident.candidates), o.pso or PSOOptions())
             rounds.spent[:] = [swarmed.iterations, swarmed.evaluations]  # every solver run counts
             if o.method == "pso":
-                return _result(models, st, gauge, ident, list(ident.candidates), x0, swarmed, {}, o, {}, history,
-                               ident.dropped)
+                return _result(models, st, gauge, ident, list(ident.candidates), x0, swarmed, {}, o, {}, rounds.spent,
+                               history, ident.dropped)
             start = None
         full, fit, free, weak, fitted, error = rounds.fit(list(ident.identifiable), begin, start)
         notes: tuple[str, ...] = ()
@@ -173,8 +173,7 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
             full, fit, free, weak, fitted, error = rounds.fit(list(ident.identifiable), full, None)
         ident = dataclasses.replace(ident, identifiable=tuple(free) if weak else ident.identifiable,
                                     notes=ident.notes + notes)
-        return _result(models, fitted, gauge, ident, free, x0, fit, weak, o, error,
-                       history, spent=tuple(rounds.spent))
+        return _result(models, fitted, gauge, ident, free, x0, fit, weak, o, error, rounds.spent, history)
 
 
 JUDGED = 3  # refits when the identifiable set at the solution differs from the start's
@@ -321,13 +320,12 @@ def _session_start(robot: Robot, obs):
 
 
 def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit, weak, o: FitOptions, error: dict,
-            history=(), undetermined=(), spent=None) -> CalibrationResult:
+            spent: list, history: tuple[float, ...], undetermined=()) -> CalibrationResult:
     """The fit of the columns ``free`` as a :class:`CalibrationResult` with options ``o`` (``models``: the model as given,
     as registered, where the fit began, and as judged "before", :func:`_before`; ``undetermined``:
     moved by a particle swarm but not determined by the data, σ = inf; ``spent``: iterations and
-    evaluations of every solver run, default the fit's own)."""
+    evaluations of every solver run)."""
     declared, robot, before_model = models
-    spent = spent or (fit.iterations, fit.evaluations)
     full = x0.copy()
     full[st.cols(free)] = fit.x
     P = robot.n_params

@@ -60,11 +60,10 @@ class Measurements:
             session = np.asarray(session, dtype=str)
             if session.shape != (q.shape[0],):
                 raise MeasurementError(f"{source}: one session label per pose expected, got {session.shape}")
-        for a in (q, xyz, rows, std, session):
-            if a is not None:
-                a.setflags(write=False)
         for name, value in (("q", q), ("xyz", xyz), ("joint_names", tuple(joint_names)), ("source", source),
                             ("rows", rows), ("std", std), ("units", units), ("session", session)):
+            if isinstance(value, np.ndarray):  # the arrays read-only
+                value.setflags(write=False)
             object.__setattr__(self, name, value)
 
     def __len__(self) -> int:
@@ -123,13 +122,6 @@ def _joint_columns(path: str, robot: Robot, joint_cols: Sequence[str] | None, he
     return cols
 
 
-def _joint_units(joint_types: Sequence[str], length_unit: str, angle_unit: str, path: str) -> list[str]:
-    """The file's unit of each joint column (checked): the angle unit for revolute joints, the length
-    unit for prismatic ones."""
-    _unit(length_unit, "length", path), _unit(angle_unit, "angle", path)
-    return joint_units(joint_types, length_unit, angle_unit)
-
-
 def _file_scales(joint_types: Sequence[str], length_unit: str, angle_unit: str, path: str) -> tuple[np.ndarray, float]:
     """Factors from SI to a file's units: per joint (angle unit for revolute joints, length unit for
     prismatic ones; both units checked) and for lengths."""
@@ -141,7 +133,7 @@ def read_joints(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str]
                 angle_unit: str = "rad") -> np.ndarray:
     """Joint values (N, n) in rad/m from a CSV with a header (e.g. poses to measure)."""
     path = str(path)
-    units = _joint_units(robot.joint_types, length_unit, angle_unit, path)
+    units = joint_units(robot.joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError)
     table = open_table(path)
     q = table.numbers(_joint_columns(path, robot, joint_cols, table.header), units, what="joint values")
     check_degrees(path, q, robot, angle_unit)
@@ -179,7 +171,7 @@ def read_measurements(path: str | os.PathLike, robot: Robot, joint_cols: Sequenc
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
     if std_cols is not None and len(std_cols) not in (0, 3):
         raise MeasurementError(f"{path}: give three σ columns (x, y, z) or none, got {list(std_cols)}")
-    units = _joint_units(robot.joint_types, length_unit, angle_unit, path)
+    units = joint_units(robot.joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError)
     table = open_table(path)
     cols = _joint_columns(path, robot, joint_cols, table.header)
     if std_cols is None:  # the σ columns by their usual names when the header has all three

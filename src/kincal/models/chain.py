@@ -82,7 +82,6 @@ class Chain:
         self.ops = tuple(ops)  # the segments in order
         self.cols = np.array([op.param for op in self.ops])
         self.is_trans = np.array([op.motion == TRANS for op in self.ops])
-        self.seg_slices = np.cumsum([0] + [len(s) for s in self.segments])
         self.n_params, self.n_joints = n_params, n_joints
         self.unused = np.setdiff1d(np.arange(n_params), self.cols)
         # Rows of the per-segment product, for segment s: the axes of its ops, the next frame's axes
@@ -94,22 +93,18 @@ class Chain:
         z_map: list[int] = []
         z_slices: list[tuple[int, int, int, int]] = []
         z_points: list[int] = []
-        z_rot_axes: list[int] = []
-        z_trans_axes: list[int] = []
-        for s, (a, b) in enumerate(zip(self.seg_slices[:-1], self.seg_slices[1:])):
+        axis_row = np.empty(n_ops, dtype=int)  # the row of each op's axis
+        for s, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
             lo, rot = len(z_map), [m for m in range(a, b) if not self.is_trans[m]]
-            z_rot_axes += [lo + m - a for m in rot]
-            z_trans_axes += [lo + m - a for m in range(a, b) if self.is_trans[m]]
-            z_map += list(range(a, b))
-            w0 = len(z_map)
-            z_map += [2 * n_ops + 4 * s + r for r in range(3)]
+            axis_row[a:b] = range(lo, lo + b - a)
+            z_map += list(range(a, b)) + [2 * n_ops + 4 * s + r for r in range(3)]
             p0 = len(z_map)
             z_points += range(p0, p0 + len(rot))
             z_map += [n_ops + m for m in rot] + [2 * n_ops + 4 * s + 3]
-            z_slices.append((lo, w0, p0, len(z_map)))
+            z_slices.append((lo, lo + b - a, p0, len(z_map)))
         self.z_map, self.z_slices, self.z_rows = np.array(z_map), z_slices, len(z_map)
-        self.z_points, self.z_rot_axes = np.array(z_points, dtype=int), np.array(z_rot_axes, dtype=int)
-        self.z_trans_axes = np.array(z_trans_axes, dtype=int)
+        self.z_points = np.array(z_points, dtype=int)
+        self.z_rot_axes, self.z_trans_axes = axis_row[self.rot_idx], axis_row[self.is_trans]
         self.cols_rot = self.cols[self.rot_idx]
         self.cols_trans = self.cols[self.is_trans]
         self.rot_keep = np.flatnonzero(self.cols_rot >= 0)  # constant ops have no column

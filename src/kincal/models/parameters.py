@@ -41,10 +41,9 @@ class Parameters:
             raise ModelError("parameters: non-finite values for "
                              + ", ".join(n for n, v in zip(names, values) if not np.isfinite(v)))
         values.setflags(write=False)
-        object.__setattr__(self, "names", names)
-        object.__setattr__(self, "kinds", kinds)
-        object.__setattr__(self, "values", values)
-        object.__setattr__(self, "_index", {n: i for i, n in enumerate(names)})
+        for key, value in (("names", names), ("kinds", kinds), ("values", values),
+                           ("_index", {n: i for i, n in enumerate(names)})):
+            object.__setattr__(self, key, value)
 
     def __len__(self) -> int:
         return len(self.names)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from itertools import product
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -331,12 +332,10 @@ def term_from_dict(geometry: Robot, reference: Robot | None, data: dict, where: 
     gravity = reference.gravity(float(payload))
     if term_type == "compliance":
         return GravityTerm(term_type, gravity, tuple((index[j], 0, 0) for j in joints))
-    links = {ln[0]: k for k, ln in enumerate(gravity.links())}
-    cols = []
-    for name in data.get("columns", []) if isinstance(data.get("columns"), list) else [None]:
-        joint, _, rest = str(name).partition(".g_")
-        link, _, comp = rest.rpartition("_")
-        if joint not in index or link not in links or comp not in COMPONENTS:
+    every = GravityTerm(term_type, gravity, tuple(product(range(len(index)), range(len(gravity.links())), range(4))))
+    known = dict(zip(every.names, every.columns))  # <joint>.g_<link>_<m|x|y|z> -> column
+    names = [str(n) for n in data["columns"]] if isinstance(data.get("columns"), list) else ["None"]
+    for name in names:
+        if name not in known:
             raise ModelError(f"{where}: gravity-regressor column '{name}' is not <joint>.g_<link>_<m|x|y|z>")
-        cols.append((index[joint], links[link], COMPONENTS.index(comp)))
-    return GravityTerm(term_type, gravity, tuple(cols))
+    return GravityTerm(term_type, gravity, tuple(known[n] for n in names))

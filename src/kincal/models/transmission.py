@@ -75,8 +75,7 @@ class TransmissionRobot(Wrapped):
         used = sorted(a for mp in self.maps for a in mp.actuators)
         if used != list(range(n_a)):
             raise ModelError(f"{chain.name}: every actuator must feed exactly one map (uses {used})")
-        for mp in self.maps:
-            self.drive.indices(mp.param_names)
+        self.drive.indices([n for mp in self.maps for n in mp.param_names])
         if set(self.joint_space.types) != {"revolute"} or not np.all(np.isfinite(self.lower + self.upper)):
             raise ModelError(f"{chain.name}: actuators are revolute (motor angles) with finite limits")
 
@@ -96,7 +95,7 @@ class TransmissionRobot(Wrapped):
         _, dv = self._split(self.param_values(values))
         phi = np.empty((len(qc), self.n_joints))
         for mp in self.maps:
-            p = [dv[i] for i in self.drive.indices(mp.param_names)]
+            p = dv[self.drive.indices(mp.param_names)]
             if mp.type == "direct":
                 phi[:, mp.actuators[0]] = qc[:, mp.chain_joints[0]]
             elif mp.type == "screw":
@@ -113,24 +112,23 @@ class TransmissionRobot(Wrapped):
         n, n_j, drive = phi.shape[0], self.inner.n_joints, self.drive
         q, dq_dphi, dq_ds = np.empty((n, n_j)), np.zeros((n, n_j, self.n_joints)), np.zeros((n, n_j, len(drive)))
         for mp in self.maps:
-            p = [dv[i] for i in drive.indices(mp.param_names)]
+            ix = drive.indices(mp.param_names)
             if mp.type == "direct":
                 (a,), (j,) = mp.actuators, mp.chain_joints
                 q[:, j] = phi[:, a]
                 dq_dphi[:, j, a] = 1.0
             elif mp.type == "screw":
-                (a,), (j,), (lead,) = mp.actuators, mp.chain_joints, p
+                (a,), (j,), (lead,), (il,) = mp.actuators, mp.chain_joints, dv[ix], ix
                 q[:, j] = lead * phi[:, a] / TWO_PI
                 dq_dphi[:, j, a] = lead / TWO_PI
-                dq_ds[:, j, drive.index(mp.param_names[0])] = phi[:, a] / TWO_PI
+                dq_ds[:, j, il] = phi[:, a] / TWO_PI
             else:
-                self._differential(mp, p, phi, q, dq_dphi, dq_ds)
+                self._differential(mp, dv[ix], ix, phi, q, dq_dphi, dq_ds)
         return q, dq_dphi, dq_ds
 
-    def _differential(self, mp: Map, p, phi, q, dq_dphi, dq_ds) -> None:
+    def _differential(self, mp: Map, p, ix, phi, q, dq_dphi, dq_ds) -> None:
         """A differential screw pair: carriage travel and lever turn (and their derivatives, in place)."""
-        (a, b), (jt, jr), (lead, arm) = mp.actuators, mp.chain_joints, p
-        il, ia = self.drive.index(mp.param_names[0]), self.drive.index(mp.param_names[1])
+        (a, b), (jt, jr), (lead, arm), (il, ia) = mp.actuators, mp.chain_joints, p, ix
         s, d = phi[:, a] + phi[:, b], phi[:, a] - phi[:, b]
         q[:, jt] = lead * s / (2 * TWO_PI)
         u = lead * d / (TWO_PI * arm)

@@ -178,16 +178,15 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
         raise ModelError(f"{label}: a xacro file (macros, not yet a URDF); expand it first, e.g. 'xacro {label} > "
                          f"robot.urdf' (or 'ros2 run xacro xacro ...'), and give the URDF")
     links = _links(root, label)
-    masses = {el.get("name"): _inertial(el, label) for el in root.findall("link")}
     joints = {}
     for el in root.findall("joint"):
-        name, parsed = _joint(el, label, links, masses)
+        name, parsed = _joint(el, label, links)
         if name in joints:
             raise ModelError(f"{label}: joint '{name}' is defined twice")
         joints[name] = parsed
     parent_of = _parents(joints, label)
     base = base_link or _root(links, parent_of, label)
-    tip = tip_link or _tip(base, joints, parent_of, label)
+    tip = tip_link or _tip(base, joints, label)
     for what, link in (("base_link", base), ("tip_link", tip)):
         if link not in links:
             raise ModelError(f"{label}: {what} '{link}' is not a link of the file (links: {', '.join(sorted(links))})")
@@ -220,14 +219,15 @@ def _check_lengths(chain: Sequence[URDFJoint], label: str) -> None:
                      f"{total:.4g} m): implausible for a robot; check the <origin xyz> values (metres)")
 
 
-def _links(root, label: str) -> set[str]:
+def _links(root, label: str) -> dict[str, tuple[float, tuple[float, float, float]]]:
+    """Each link's mass (kg) and centre of mass (see :func:`_inertial`) by name."""
     names = [el.get("name") for el in root.findall("link")]
     if any(not n for n in names):
         raise ModelError(f"{label}: a <link> has no name")
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
         raise ModelError(f"{label}: link(s) {', '.join(twice)} defined twice")
-    return set(names)
+    return {el.get("name"): _inertial(el, label) for el in root.findall("link")}
 
 
 def _inertial(link, label: str) -> tuple[float, tuple[float, float, float]]:
@@ -242,7 +242,7 @@ def _inertial(link, label: str) -> tuple[float, tuple[float, float, float]]:
     return mass, _triple(node.find("origin"), "xyz", where, (0.0, 0.0, 0.0))
 
 
-def _joint(el, label: str, links: set[str], masses: dict) -> tuple[str, dict]:
+def _joint(el, label: str, links: dict) -> tuple[str, dict]:
     name, jtype = el.get("name"), el.get("type")
     where = f"{label}: joint '{name}'"
     if not name:
@@ -270,7 +270,7 @@ def _joint(el, label: str, links: set[str], masses: dict) -> tuple[str, dict]:
         lower, upper = _floats(limit, "lower", 1, where)[0], _floats(limit, "upper", 1, where)[0]
         if not lower < upper:
             raise ModelError(f"{where}: limit lower {lower} must be below upper {upper}")
-    joint = URDFJoint(name, jtype, xyz, rpy, axis, lower, upper, *masses[ends["child"]])
+    joint = URDFJoint(name, jtype, xyz, rpy, axis, lower, upper, *links[ends["child"]])
     return name, {"joint": joint, "mimic": el.find("mimic") is not None, **ends}
 
 
@@ -305,15 +305,15 @@ def _parents(joints: dict, label: str) -> dict[str, str]:
     return parent_of
 
 
-def _root(links: set[str], parent_of: dict[str, str], label: str) -> str:
-    roots = sorted(links - set(parent_of))
+def _root(links: dict, parent_of: dict[str, str], label: str) -> str:
+    roots = sorted(links.keys() - parent_of.keys())
     if len(roots) != 1:
         raise ModelError(f"{label}: {len(roots)} root links ({', '.join(roots) or 'none: the joints form a loop'}); "
                          f"choose the chain's base with base_link (CLI: --base-link)")
     return roots[0]
 
 
-def _tip(base: str, joints: dict, parent_of: dict[str, str], label: str) -> str:
+def _tip(base: str, joints: dict, label: str) -> str:
     children: dict[str, list[str]] = {}
     for j in joints.values():
         children.setdefault(j["parent"], []).append(j["child"])

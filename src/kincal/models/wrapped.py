@@ -48,14 +48,3 @@ class Wrapped(Robot):
 
     def named_frames(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         return self.inner.named_frames()
-
-    @property
-    def error_model(self) -> str:
-        return self.inner.error_model
-
-    @property
-    def term_names(self) -> tuple[str, ...]:
-        return self.inner.term_names
-
-    def compliances(self) -> dict[str, float]:
-        return self.inner.compliances()

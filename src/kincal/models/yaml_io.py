@@ -36,8 +36,8 @@ from .terms import ExtendedRobot
 from .urdf import URDFRobot, read_urdf
 from .yaml_kinds import (error_model_from_dict, error_model_yaml, puu3_from_dict, puu3_yaml, transmission_from_dict,
                          transmission_yaml, urdf_from_dict, urdf_yaml)
-from .yaml_values import (POSE_KEYS, base_pose, description_lines, fmt, frame_text, link_mass, mass_items, mapping, num,
-                          pair, per_unit, pose_text, units)
+from .yaml_values import (POSE_KEYS, base_pose, description_lines, fmt, frame_text, limits, link_mass, mass_items,
+                          mapping, num, per_unit, pose_text, units)
 
 _JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits", "mass", "com", "velocity", "effort"}
 _TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool", "actuators", "transmission",
@@ -170,16 +170,9 @@ class _UniqueKeys:
         return super().construct_mapping(node, deep)
 
 
-class _PyUniqueKeyLoader(_UniqueKeys, yaml.SafeLoader):
-    """PyYAML's own parser, where PyYAML was built without libyaml."""
-
-
-_UniqueKeyLoader: type[yaml.SafeLoader | yaml.CSafeLoader] = _PyUniqueKeyLoader
-if yaml.__with_libyaml__:
-    class _CUniqueKeyLoader(_UniqueKeys, yaml.CSafeLoader):
-        """libyaml's parser (5-10x faster on a calibrated file's covariance) where PyYAML has it."""
-
-    _UniqueKeyLoader = _CUniqueKeyLoader
+# libyaml's parser (5-10x faster on a calibrated file's covariance) where PyYAML has it, else PyYAML's own
+_UniqueKeyLoader = type("_UniqueKeyLoader", (_UniqueKeys, yaml.CSafeLoader if yaml.__with_libyaml__ else
+                                             yaml.SafeLoader), {})
 
 
 def robot_from_dict(data: dict, label: str = "robot") -> Robot:
@@ -276,7 +269,7 @@ def _dh_joints(entries, lf: float, af: float, label: str) -> tuple[list[Joint], 
         if lim is None:
             lo, hi = (-np.pi, np.pi) if jtype == "revolute" else (-1.0, 1.0)
         else:
-            lo, hi = (num(x, where, "limits") * qf for x in pair(lim, where))
+            lo, hi = limits(lim, where, qf)
         beta = jd.get("beta", None)
         explicit_beta.append(beta)
         on = not (beta is None or beta is False)
@@ -321,7 +314,7 @@ def _chain_yaml(robot: SerialRobot, length_unit: str, angle_unit: str) -> str:
         items += [f"velocity: {fmt(j.velocity * qf)}"] if j.velocity else []
         items += [f"effort: {fmt(j.effort)}"] if j.effort else []
         lines.append("  - {" + ", ".join(items + mass_items(j, lf)) + "}")
-    lines += [f"base: {{{frame_text(v, 'base', lf, af)}}}", f"tool: {{{frame_text(v, 'tool', lf, af)}}}"]
+    lines += [frame_text(v, "base", lf, af), frame_text(v, "tool", lf, af)]
     named = {j.name: j.export_name for j in robot.joints if j.export_name}
     if named:
         lines.append("names: {" + ", ".join(f"{k}: {n}" for k, n in named.items()) + "}")

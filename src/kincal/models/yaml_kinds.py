@@ -13,7 +13,7 @@ from .transmission import Map, TransmissionRobot, build_transmission_robot
 from .robot import Robot
 from .terms import ExtendedRobot, term_from_dict
 from .urdf import URDFJoint, URDFRobot, urdf_robot
-from .yaml_values import (base_pose, description_lines, fmt, frame_text, link_mass, mapping, mass_items, num, pair,
+from .yaml_values import (base_pose, description_lines, fmt, frame_text, limits, link_mass, mapping, mass_items, num,
                           per_unit, units, vector)
 
 URDF_JOINT_KEYS = {"name", "type", "axis", "limits", "xyz", "rpy", "roll", "pitch", "yaw", "mass", "com"}
@@ -32,8 +32,7 @@ def puu3_from_dict(data: dict, label: str) -> PUU3Robot:
             raise ModelError(f"{label}: unknown 3-PUU parameter '{key}'; known: {', '.join(names[6:])}")
         values[key] = num(v, f"{label}: parameters", key) * (lf if kind[key] == "length" else af)
     values.update({f"base.{k}": x for k, x in base_pose(data, label, lf, af, strict=True).items()})
-    lim = pair(data.get("slider_limits", [380, 835] if lf == 1e-3 else [0.380, 0.835]), label, "slider_limits")
-    lo, hi = num(lim[0], label, "slider_limits") * lf, num(lim[1], label, "slider_limits") * lf
+    lo, hi = limits(data.get("slider_limits", [380, 835] if lf == 1e-3 else [0.380, 0.835]), label, lf, "slider_limits")
     robot = PUU3Robot.build(str(data.get("name", "puu3")), extended=extended, h_range=(lo, hi),
                             description=str(data.get("description", "")))
     return robot.with_params(values)
@@ -47,7 +46,7 @@ def puu3_yaml(robot: PUU3Robot, length_unit: str, angle_unit: str) -> str:
     lines = [f"name: {robot.name}", "type: puu3", *description_lines(robot.description)]
     lines += [f"units: {{length: {length_unit}, angle: {angle_unit}}}", f"extended: {str(robot.extended).lower()}",
               f"parameters: {{{params}}}", f"slider_limits: [{fmt(robot.h_lower * lf)}, {fmt(robot.h_upper * lf)}]",
-              f"base: {{{frame_text(v, 'base', lf, af)}}}", ""]
+              frame_text(v, "base", lf, af), ""]
     return "\n".join(lines)
 
 
@@ -67,7 +66,7 @@ def urdf_from_dict(data: dict, label: str) -> URDFRobot:
                for key in ("xyz", "rpy", "axis")}
         qf = lf if jtype == "prismatic" else af
         lim = jd.get("limits")
-        lo, hi = (-np.inf, np.inf) if lim is None else tuple(num(x, where, "limits") * qf for x in pair(lim, where))
+        lo, hi = (-np.inf, np.inf) if lim is None else limits(lim, where, qf)
         joints.append(URDFJoint(name, jtype, tuple(vec["xyz"] * lf), tuple(vec["rpy"] * af), tuple(vec["axis"]), lo, hi,
                                 *link_mass(jd, lf, where)))
         if jtype != "fixed":
@@ -99,8 +98,7 @@ def urdf_yaml(robot: URDFRobot, length_unit: str, angle_unit: str) -> str:
         if np.isfinite(j.lower) and np.isfinite(j.upper):
             items.append(f"limits: [{fmt(j.lower * qf)}, {fmt(j.upper * qf)}]")
         lines.append("  - {" + ", ".join(items + mass_items(j, lf)) + "}")
-    return "\n".join(lines + [f"base: {{{frame_text(v, 'base', lf, af)}}}", f"tool: {{{frame_text(v, 'tool', lf, af)}}}",
-                              ""])
+    return "\n".join(lines + [frame_text(v, "base", lf, af), frame_text(v, "tool", lf, af), ""])
 
 
 def transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float, label: str) -> TransmissionRobot:
@@ -113,7 +111,7 @@ def transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float,
         lim = ad.get("limits") if isinstance(ad, dict) else None
         if not (isinstance(lim, list) and len(lim) == 2) or "name" not in ad:
             raise ModelError(f"{where}: give a name and limits: [lower, upper]")
-        actuators.append((str(ad["name"]), num(lim[0], where, "limits") * af, num(lim[1], where, "limits") * af))
+        actuators.append((str(ad["name"]), *limits(lim, where, af)))
     act_index = {a[0]: i for i, a in enumerate(actuators)}
     joint_index = {name: i for i, name in enumerate(chain.joint_names)}
     drive = {DRIVE_PREFIX + str(key): (num(v, f"{label}: transmission parameters", key) * lf, "length")

@@ -59,10 +59,11 @@ def vector(v, where: str, key: str) -> np.ndarray:
     return np.array([num(x, where, key) for x in v])
 
 
-def pair(v, where: str, key: str = "limits") -> list:
+def limits(v, where: str, factor: float, key: str = "limits") -> tuple[float, float]:
+    """``[lower, upper]`` in SI (``factor``: SI per file unit)."""
     if not (isinstance(v, list) and len(v) == 2):
         raise ModelError(f"{where}: '{key}' must be [lower, upper]")
-    return v
+    return num(v[0], where, key) * factor, num(v[1], where, key) * factor
 
 
 def num(v, where: str, key: str) -> float:
@@ -99,8 +100,9 @@ def pose_text(pose, lf: float, af: float) -> str:
 
 
 def frame_text(values: dict, frame: str, lf: float, af: float) -> str:
-    """:func:`pose_text` of the ``base`` (x … rz) or ``tool`` (x y z) parameters in ``values`` (SI)."""
-    return pose_text([values[f"{frame}.{k}"] for k in (POSE_KEYS if frame == "base" else POSE_KEYS[:3])], lf, af)
+    """The ``base: {x … rz}`` or ``tool: {x, y, z}`` line of the parameters in ``values`` (SI): :func:`pose_text`."""
+    keys = POSE_KEYS if frame == "base" else POSE_KEYS[:3]
+    return f"{frame}: {{{pose_text([values[f'{frame}.{k}'] for k in keys], lf, af)}}}"
 
 
 def link_mass(jd: dict, lf: float, where: str) -> tuple[float, tuple[float, float, float]]:

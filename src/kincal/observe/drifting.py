@@ -29,10 +29,6 @@ def acquisition(rows: np.ndarray) -> np.ndarray:
 class Drifting(Wrapper):
     """``inner`` measured by an instrument that drifts linearly over the set's row order."""
 
-    @classmethod
-    def of(cls, inner: Observation) -> "Drifting":
-        return cls(inner.q, inner.rows, inner.source, inner=inner)
-
     def names(self) -> tuple[str, ...]:
         return tuple(f"drift[{Path(self.source).name}].{a}" for a in "xyz")
 

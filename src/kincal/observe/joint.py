@@ -30,10 +30,6 @@ class JointObs(MeasuredPositions):
     def sigma(self) -> np.ndarray:
         return np.full(self.q.size, float(self.std))
 
-    def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
-        r, J = self.evaluate_cols(robot, values, np.arange(robot.n_params))
-        return r, J, np.zeros((r.size, 0))
-
     def evaluate_cols(self, robot: Robot, values: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         try:
             qh, J = robot.inverse_and_jacobian(self.xyz, values)

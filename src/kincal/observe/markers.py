@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..models.robot import TOOL_NAMES, Robot
-from .observations import Observation, error_stats, flange_point, with_tool
+from .observations import Observation, error_stats, flange_point
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,8 +40,7 @@ class MarkersObs(Observation):
         its measurements on average: mean of Rᵢᵀ(xᵢ − tᵢ) over the samples that saw it."""
         if self.start is not None:
             return self
-        _, _, R = flange_point(robot, self.q, robot.params.values, np.zeros(3))
-        origin = robot.forward(self.q, with_tool(robot, robot.params.values, np.zeros(3)))
+        origin, _, R = flange_point(robot, self.q, robot.params.values, np.zeros(3))
         start = np.array([np.einsum("nji,nj->ni", R[seen], self.xyz[seen, m] - origin[seen]).mean(0)
                           if seen.any() else robot.tool_point() for m, seen in enumerate(self.seen().T)])
         return dataclasses.replace(self, start=start)

@@ -49,17 +49,13 @@ def mean_square(r: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(val), val, np.inf)
 
 
-def with_tool(robot: Robot, values: np.ndarray, point: np.ndarray) -> np.ndarray:
-    v = values.copy()
-    v[robot.params.indices(TOOL_NAMES)] = point
-    return v
-
-
 def flange_point(robot: Robot, q: np.ndarray, values: np.ndarray, point: np.ndarray):
     """Positions (N, 3) of ``point`` (3,) m in the flange frame, their parameter Jacobian (N, 3, P)
     and the flange rotation (N, 3, 3), which is the Jacobian's tool columns (d p / d point = R)."""
-    p, J = robot.forward_and_jacobian(q, with_tool(robot, values, point))
-    return p, J, J[:, :, robot.params.indices(TOOL_NAMES)]
+    v, tool = values.copy(), robot.params.indices(TOOL_NAMES)
+    v[tool] = point
+    p, J = robot.forward_and_jacobian(q, v)
+    return p, J, J[:, :, tool]
 
 
 @dataclass(frozen=True, eq=False)
@@ -183,6 +179,11 @@ class Wrapper(Observation):
     def __post_init__(self) -> None:  # the inner set's type (frozen: it cannot be assigned afterwards)
         object.__setattr__(self, "kind", self.inner.kind)
 
+    @classmethod
+    def of(cls, inner: Observation, *fields) -> "Wrapper":
+        """``inner`` wrapped (its samples, rows and source); ``fields``: the wrapper's own, in order."""
+        return cls(inner.q, inner.rows, inner.source, inner, *fields)
+
     @property
     def reference(self) -> bool:
         return self.inner.reference
@@ -221,9 +222,14 @@ class Wrapper(Observation):
 @dataclass(frozen=True, eq=False)
 class MeasuredPositions(Observation):
     """A set with one measured tool position per sample, xyz (N, 3) m in the measurement frame: its
-    positions, the set with them moved, and the statistics of their errors (types with more override them)."""
+    positions, the set with them moved, the statistics of their errors (types with more override them) and, for
+    types without set-up parameters, the residual of :meth:`evaluate_cols` over every robot parameter."""
 
     xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
+        r, J = self.evaluate_cols(robot, values, np.arange(robot.n_params))
+        return r, J, np.zeros((r.size, 0))
 
     def positions(self):
         return self.q, self.xyz
@@ -248,10 +254,6 @@ class PointObs(MeasuredPositions):
 
     def sigma(self) -> np.ndarray:
         return np.broadcast_to(np.asarray(self.std, float), self.xyz.shape).T.ravel()
-
-    def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
-        p, J = robot.forward_and_jacobian(self.q, values)
-        return (p - self.xyz).T.ravel(), J.transpose(1, 0, 2).reshape(-1, J.shape[2]), np.zeros((p.size, 0))
 
     def evaluate_cols(self, robot: Robot, values: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         p, J = robot.forward_and_jacobian(self.q, values)

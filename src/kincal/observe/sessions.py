@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..models.robot import Robot
-from .observations import Observation, Wrapper
+from .observations import Wrapper
 
 
 @dataclass(frozen=True, eq=False)
@@ -21,10 +21,6 @@ class InSession(Wrapper):
 
     session: str = ""
     frame0: np.ndarray | None = None
-
-    @classmethod
-    def of(cls, inner: Observation, session: str) -> "InSession":
-        return cls(inner.q, inner.rows, inner.source, inner=inner, session=session)
 
     def _base(self, robot: Robot) -> np.ndarray:
         if not robot.base_params():
