@@ -13,6 +13,19 @@ from threadpoolctl import threadpool_limits
 import kincal
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "ur5_wam_gts3800"
+
+
+def shared_dataset(name: str) -> Path:
+    """A folder of the shared real datasets, used in place: ``../shared/datasets/<name>`` beside the checkout
+    (or beside any folder above it, or where KINCAL_SHARED_DATASETS points)."""
+    here = Path(__file__).resolve().parents[1]
+    roots = [Path(os.environ["KINCAL_SHARED_DATASETS"])] if "KINCAL_SHARED_DATASETS" in os.environ else []
+    roots += [parent / "shared" / "datasets" for parent in here.parents]
+    for root in roots:
+        if (root / name).is_dir():
+            return root / name
+    raise FileNotFoundError(f"the shared dataset '{name}' is not beside this checkout (looked in "
+                            f"{', '.join(map(str, roots[:3]))}, …); set KINCAL_SHARED_DATASETS to its folder")
 UR5_COLS = [f"joint_{i}" for i in range(1, 7)]
 WAM_COLS = [f"joint_{i}" for i in range(1, 8)]
 

@@ -237,8 +237,8 @@ YAML = [
     yaml_case("puu3-unknown-parameter", PUU3_YAML.replace("r: 100", "rr: 100"), 1, ["unknown 3-PUU parameter", "rr"]),
     yaml_case("puu3-slider-limits", PUU3_YAML + "slider_limits: 380\n", 1, ["slider_limits"]),
     yaml_case("puu3-base-unknown", PUU3_YAML + "base: {w: 1}\n", 1, ["unknown base key", "w"]),
-    yaml_case("unknown-type", UR5_YAML.replace("convention: dh", "convention: dh\ntype: delta"), 1,
-              ["unknown robot type", "delta"]),
+    yaml_case("unknown-type", UR5_YAML.replace("convention: dh", "convention: dh\ntype: cable"), 1,
+              ["unknown robot type", "cable", "stewart", "delta"]),
     yaml_case("actuators-alone", UR5_YAML + "actuators: [{name: m1, limits: [0, 1]}]\n", 1, ["go together"]),
     yaml_case("transmission-malformed", UR5_YAML + "actuators: [{name: m1, limits: [0, 1]}]\ntransmission: "
               "{parameters: {sx: 10}, maps: [5]}\n", 1, ["robot.yaml", "malformed"]),

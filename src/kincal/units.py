@@ -19,7 +19,7 @@ import math
 from typing import Iterable
 
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}  # SI value (m) of one unit
-ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}  # SI value (rad) of one unit
+ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0, "rev": 2.0 * math.pi}  # SI value (rad) of one unit (rev: a motor's revolutions)
 OTHER_LENGTHS = {"cm": 1e-2, "inch": 0.0254}  # units files are sometimes written in: named in advice only
 
 MM = 1e3  # mm per m
@@ -50,13 +50,21 @@ def joint_factors(types: Iterable[str], length_unit: str, angle_unit: str, where
     return [{**LENGTH_UNITS, **ANGLE_UNITS}[u] for u in joint_units(types, length_unit, angle_unit, where, error)]
 
 
+SHOWN = {"length": ("mm", MM), "angle": ("deg", DEG), "ratio": ("%", 100.0)}  # a parameter's value by its kind
+FINE = {"length": ("mm", MM), "angle": ("mrad", MRAD), "ratio": ("‰", 1e3)}  # its small changes: σ, steps, limits
+
+
 def display(value: float, kind: str, signed: bool = True, digits: tuple[int, int] = (4, 5)) -> str:
-    """A parameter value as engineers read it: lengths in mm, angles in deg (``kind``: "length" or
-    "angle"); ``digits``: decimals for mm and for deg."""
-    sign = "+" if signed else ""
-    if kind == "length":
-        return f"{value * MM:{sign}.{digits[0]}f} mm"
-    return f"{value * DEG:{sign}.{digits[1]}f} deg"
+    """A parameter value as engineers read it: lengths in mm, angles in deg, ratios (an actuator's
+    scale) in % (``kind``: "length", "angle" or "ratio"); ``digits``: decimals for mm and % and for deg."""
+    unit, factor = SHOWN[kind]
+    return f"{value * factor:{'+' if signed else ''}.{digits[kind == 'angle']}f} {unit}"
+
+
+def fine(value: float, kind: str, spec: str = ".3g") -> str:
+    """A small change of a parameter (a σ, a step, a limit) in mm, mrad or ‰ by its ``kind``, formatted by ``spec``."""
+    unit, factor = FINE[kind]
+    return f"{value * factor:{spec}} {unit}"
 
 
 STAT_UNITS = {"mean": "mm", "rms": "mm", "max": "mm", "mean_abs": "mm", "distance_error": "mm", "drift": "mm",

@@ -50,6 +50,8 @@ class Identifiability:
     notes: tuple[str, ...] = field(default=())
     measured: str = "position only"  # what the data observe, for the summary line
     kinds: dict = field(default_factory=dict)  # name -> "length" or "angle": the confounds' units
+    frames: tuple[str, ...] = ()  # held as gauge freedoms of a closed chain's design frames (Robot.frame_freedoms)
+    frames_note: str = ""  # which frames, in words
 
     @property
     def full_rank(self) -> bool:
@@ -69,7 +71,8 @@ class Identifiability:
                 "confounds": {k: [[n, c] for n, c in v] for k, v in self.confounds.items()},
                 "singular_values": [float(s) for s in self.singular_values], "gap": _finite_or_none(self.gap),
                 "cond_raw": _finite_or_none(self.cond_raw), "cond_scaled": _finite_or_none(self.cond_scaled),
-                "rank_tol": self.rank_tol, "notes": list(self.notes)}
+                "rank_tol": self.rank_tol, "notes": list(self.notes), "frames": list(self.frames),
+                "frames_note": self.frames_note}
 
     def confound_lines(self, indent: str = "    ") -> list[str]:
         """One line per dropped parameter: the kept parameters it acts like (physical units)."""

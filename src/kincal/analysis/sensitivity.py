@@ -9,9 +9,9 @@ from typing import Sequence
 import numpy as np
 
 from ..models.robot import Robot
-from ..units import MM, MRAD
+from ..units import MM, MRAD, fine
 
-UNIT = {"length": 1.0 / MM, "angle": 1.0 / MRAD}  # one unit error: 1 mm, 1 mrad (SI)
+UNIT = {"length": 1.0 / MM, "angle": 1.0 / MRAD, "ratio": 1e-3}  # one unit error: 1 mm, 1 mrad, 1 ‰ (SI)
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,7 +38,7 @@ class Sensitivity:
         out = [f"{'parameter':<12} {'unit':>6} {'mean|dx| mm':>12} {'mean|dy| mm':>12} {'mean|dz| mm':>12} "
                f"{'max|dp| mm':>11}"]
         for n, kind, m, d in zip(self.names, self.kinds, self.mean_abs(), self.deltas):
-            unit = "1 mm" if kind == "length" else "1 mrad"
+            unit = fine(UNIT[kind], kind, "g")
             out.append(f"{n:<12} {unit:>6} {m[0] * MM:12.4f} {m[1] * MM:12.4f} {m[2] * MM:12.4f} "
                        f"{np.linalg.norm(d, axis=1).max() * MM:11.4f}")
         return "\n".join(out)

@@ -159,10 +159,11 @@ def _beyond(q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> str:
     ``q`` leave the training ranges; '' when none does or the ranges are not known."""
     if unc.lower is None or unc.upper is None or len(unc.lower) != q.shape[1]:
         return ""
-    q = unc.turned(q, np.array([t == "revolute" for t in robot.joint_types]))
+    q = unc.turned(q, robot.periodic)
     parts = []
     for j in np.flatnonzero(np.any((q < unc.lower) | (q > unc.upper), axis=0)):
-        k, u = (DEG, "deg") if robot.joint_types[j] == "revolute" else (MM, "mm")
+        turns = robot.joint_types[j] == "revolute" and not robot.periodic[j]  # a multi-turn motor: revolutions
+        k, u = (1 / (2 * np.pi), "rev") if turns else (DEG, "deg") if robot.joint_types[j] == "revolute" else (MM, "mm")
         parts.append(f"{robot.joint_names[j]} at {q[:, j].min() * k:.1f}..{q[:, j].max() * k:.1f} {u} (calibrated on "
                      f"{unc.lower[j] * k:.1f}..{unc.upper[j] * k:.1f} {u})")
     return ", with " + "; ".join(parts) if parts else ", inside the training joint ranges"
@@ -171,14 +172,14 @@ def _beyond(q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> str:
 def envelope_warning(rows: np.ndarray, q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> tuple[np.ndarray, str | None]:
     """For a model with joint-value terms: the poses outside the training joint ranges and a warning
     naming the joint ranges and the first rows (else no pose and None)."""
-    terms = robot.error_model
-    if terms == "geometric" or unc.lower is None or len(unc.lower) != q.shape[1]:
+    terms = robot.reading_terms()
+    if not terms or unc.lower is None or len(unc.lower) != q.shape[1]:
         return np.zeros(len(q), bool), None
-    bad = unc.outside(q, np.array([t == "revolute" for t in robot.joint_types]))
+    bad = unc.outside(q, robot.periodic)
     if not bad.any():
         return bad, None
-    return bad, (f"{int(bad.sum())} pose(s) lie outside the joint ranges the terms ({terms}) were fitted on"
-                 f"{_beyond(q[bad], robot, unc)}: row(s) {listed(rows[bad])}; the terms extrapolate there")
+    return bad, (f"{int(bad.sum())} pose(s) lie outside the joint ranges {terms} were fitted on"
+                 f"{_beyond(q[bad], robot, unc)}: row(s) {listed(rows[bad])}; they extrapolate there")
 
 
 def load_uncertainty(name_or_path) -> ModelUncertainty | None:

@@ -67,6 +67,9 @@ def cmd_calibrate(args) -> int:
     if args.same_frame and len(args.data) == 1 and not args.test:
         raise ValueError("--same-frame declares one measurement frame for several files (sessions or --test); "
                          "with one file and no --test it changes nothing: leave it out")
+    if args.refit_target and not args.test:
+        raise ValueError("--refit-target re-fits the target of held-out files (--test); there are none: leave it out "
+                         "(the training files' target is fitted anyway)")
     reports = [args.report, json_path(args.report)] if args.report else []
     robot = load_robot(args, [*args.data, *args.test], [args.output, args.residuals, *reports, args.plot])
     options = fit_options(args)
@@ -117,11 +120,11 @@ def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], 
     options.check(robot)
     points = set(kinds) == {"point"}
 
-    def load(path: str, kind: str):
-        return read(args, robot, path) if points else observe.read_set(args, robot, path, kind)
+    def load(path: str, kind: str, held_out: bool = False):
+        return read(args, robot, path) if points else observe.read_set(args, robot, path, kind, held_out)
     sets = [load(path, k) for path, k in zip(data, kinds)]
     sets = [sets[0].without_rows(args.exclude)] if args.exclude else sets
-    held = [load(path, kinds[0]) for path in tests]
+    held = [load(path, kinds[0], True) for path in tests]
     if points and isinstance(use_q, str):
         use_q = np.concatenate([t.q for t in held]) if held else None
     with progress("calibrating", args.json) as say:
@@ -142,6 +145,8 @@ def held_out(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
     held = [(held_out_stats(res, t, res.before, same_frame), held_out_stats(res, t, res.robot, same_frame))
             for t in tests]
     out = [f"  held out {h['type']} ({h['source']}): {stat_line(b)}  →  {stat_line(h)}" for b, h in held]
+    envelopes = [kincal.analysis.envelope_warning(t.rows, t.q, res.robot, res.uncertainty())[1] for t in tests]
+    out += [f"  warning: {w}" for w in envelopes if w]
     out += observe.group_lines(res.per_set, "training ") + observe.group_lines([h for _, h in held], "held out ")
     return out, {"held_out": [h for _, h in held], "held_out_nominal": [b for b, _ in held]}
 
@@ -238,4 +243,5 @@ def register(cmd) -> None:
                         "the model as it is; by default each session's frame is re-fitted first (kinematics fixed)")
     s.add_argument("--rebase", action="store_true", help=argparse.SUPPRESS)  # the default now; accepted
     s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
+    observe.add_refit_target(s)
     observe.add_flags(s)

@@ -10,7 +10,7 @@ import kincal.analysis
 import kincal.models
 from kincal.identify import observation_identifiability
 from kincal.observe import describe, read_observations, write_observations
-from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM, display
+from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM, SHOWN, display
 
 from . import observe
 from .common import (csv_list, emit, finite_float, hidden_alias, joint_values, load_robot, nonneg_float, one_type,
@@ -36,7 +36,7 @@ def cmd_show(args) -> int:
     r = load_robot(args)
     t = Table("parameter", "value", "unit", title=f"{r.name} ({r.structure}, {r.n_joints} joints)")
     for n, k, v in zip(r.params.names, r.params.kinds, r.params.values):
-        t.add_row(n, f"{v * MM:.6g}" if k == "length" else f"{v * DEG:.6g}", "mm" if k == "length" else "deg")
+        t.add_row(n, f"{v * SHOWN[k][1]:.6g}", SHOWN[k][0])
     lim = Table("joint", "type", "lower", "upper")
     for name, typ, lo, hi in zip(r.joint_names, r.joint_types, r.lower, r.upper):
         f = DEG if typ == "revolute" else MM

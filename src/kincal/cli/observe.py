@@ -143,23 +143,30 @@ def add_flags(p: argparse.ArgumentParser, std: bool = True) -> None:
     g.add_argument("--std-rot", type=angle, help="pose: orientation σ with its unit, e.g. 1mrad (default 1mrad)")
 
 
-def format_of(args, kind: str):
+def add_refit_target(p: argparse.ArgumentParser) -> None:
+    """--refit-target, of the commands that judge held-out files (calibrate, report, evaluate)."""
+    p.add_argument("--refit-target", action="store_true",
+                   help="pose, held-out files: re-fit the target's frame on the flange too, its point and rotation "
+                        "(a rigid body defined anew between sessions), not kept as calibrated")
+
+
+def format_of(args, kind: str, own_target: bool = False):
     return ObservationFormat(kind, tuple(args.joint_cols) if args.joint_cols else None, args.length_unit,
                              args.angle_unit, tuple(args.xyz_cols), args.orientation,
                              tuple(args.rot_cols) if args.rot_cols else None,
                              tuple(args.markers) if args.markers else None, args.label_col, args.group_col,
-                             tuple(args.distance), dict(args.plane), args.std_pos, args.std_rot)
+                             tuple(args.distance), dict(args.plane), args.std_pos, args.std_rot, own_target)
 
 
-def read_set(args, robot, path: str, kind: str):
+def read_set(args, robot, path: str, kind: str, held_out: bool = False):
     """One observation file of ``kind`` read as ``args`` say, its joints and positions checked
     against the declared units before any fit (a wrong unit is fitted by a shrunk or blown-up robot)."""
-    obs = read_observations(path, robot, format_of(args, kind))
-    check_degrees(obs.source, obs.q, robot, args.angle_unit)
-    check_radians(obs.source, obs.q, robot, args.angle_unit)
-    found = obs.positions()
+    obs = read_observations(path, robot, format_of(args, kind, held_out and args.refit_target))
+    found = obs.positions()  # the positions name the unit first (degrees, radians or revolutions), where there are any
     if found is not None:
         check_spread(obs.source, *found, robot, args.length_unit, args.angle_unit, rows=obs.rows)
+    check_degrees(obs.source, obs.q, robot, args.angle_unit)
+    check_radians(obs.source, obs.q, robot, args.angle_unit)
     return obs
 
 
@@ -223,8 +230,11 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
     markers held as calibrated (``record``), and the nominal model the same way beside it: the JSON
     payload and the lines to print, with the likely cause of an error far above the training error."""
     held, anchors = trained_setup(record, args.robot)
-    obs = read_set(args, robot, path, kind).with_anchors(anchors)
-    frame = () if args.same_frame or kind not in ABSOLUTE else robot.base_params()
+    obs = read_set(args, robot, path, kind, held_out=True).with_anchors(anchors)
+    own = obs.refitted(robot)  # --refit-target: the target's point and rotation are the file's own
+    held = {n: v for n, v in held.items() if n not in own}
+    frame = (() if args.same_frame or kind not in ABSOLUTE else robot.base_params()) + tuple(
+        n for n in own if n in robot.params)
     fit = _fixed_kinematics(robot, obs, frame, held)
     nominal = nominal_model(robot, record, args.robot)
     mounting = (*(robot.base_params() if kind in ABSOLUTE else ()),  # the point only where the data fix a scale
@@ -251,8 +261,11 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
         meas = kincal.Measurements(found[0], found[1], robot.joint_names, obs.source, obs.rows)
         cause = heldout_cause(robot, meas, float(train[0]), rebased=False)
     texts += [f"  likely cause: {cause}"] if cause else []
+    unc = kincal.analysis.load_uncertainty(args.robot) if record else None
+    envelope = None if unc is None else kincal.analysis.envelope_warning(obs.rows, obs.q, robot, unc)[1]
+    texts += [f"  warning: {envelope}"] if envelope else []
     return {"file": path, "frame_fitted": bool(frame), "setup_as_trained": kept, **s, "nominal": before,
-            "cause": cause or None}, texts
+            "cause": cause or None, "warnings": [envelope] if envelope else []}, texts
 
 
 def group_lines(sets: list, which: str) -> list[str]:

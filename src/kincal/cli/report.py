@@ -11,6 +11,7 @@ import kincal.identify
 import kincal.models
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS
 
+from . import observe
 from .common import EXIT_REFUSED, TYPES, csv_list, emit, err, load_robot, progress
 
 
@@ -22,7 +23,8 @@ def json_path(html: str) -> Path:
 
 
 READING = ("joint_cols", "length_unit", "angle_unit", "xyz_cols", "std_cols", "orientation", "rot_cols", "markers",
-           "label_col", "group_col", "distance", "plane", "std_pos", "std_rot", "exclude")  # how files are read
+           "label_col", "group_col", "distance", "plane", "std_pos", "std_rot", "exclude",
+           "refit_target")  # how files are read
 
 
 def data_record(args, kinds: list[str]) -> dict:
@@ -74,8 +76,10 @@ def cmd_report(args) -> int:
     record = kincal.models.load_calibration_record(args.robot) or {}
     data, options = _record_parts(args.robot, record, args.train)
     given = {"joint_cols": args.joint_cols, "xyz_cols": args.xyz_cols, "length_unit": args.length_unit,
-             "angle_unit": args.angle_unit}  # read as attributes: tests track which flags a command reads
-    default = {"xyz_cols": ["x", "y", "z"], "length_unit": "m", "angle_unit": "rad", "orientation": "quat-wxyz"}
+             "angle_unit": args.angle_unit,  # read as attributes: tests track which flags a command reads
+             "refit_target": args.refit_target or None}
+    default = {"xyz_cols": ["x", "y", "z"], "length_unit": "m", "angle_unit": "rad", "orientation": "quat-wxyz",
+               "refit_target": False}
     reading = argparse.Namespace(**{k: given[k] if given.get(k) is not None else data["reading"].get(k, default.get(k))
                                     for k in READING}, json=args.json, data=data["file"],
                                  same_frame=bool(args.same_frame or data.get("same_frame")))
@@ -168,6 +172,7 @@ def add_session_flags(p) -> None:
                    help="the held-out sessions were measured in the training data's frame (the tracker did not "
                         "move): use the models' frames as they are")
     p.add_argument("--rebase", action="store_true", help=argparse.SUPPRESS)  # the default now; accepted
+    observe.add_refit_target(p)
 
 
 def register(cmd) -> None:

@@ -133,6 +133,6 @@ def _numeric_inverse(robot: Robot, p: np.ndarray, R: np.ndarray, near: np.ndarra
         sol = solve_poses(robot, np.repeat(p, len(starts), 0), np.repeat(R, len(starts), 0), starts,
                           max_iter=SEARCH[0], max_travel=SEARCH[1])
     q = sol.q[sol.converged]
-    turns = np.array([j == "revolute" for j in robot.joint_types])
+    turns = robot.periodic
     q = np.where(turns, nearest_turns(q, near, robot.lower, robot.upper), q)
     return q[robot.within_limits(q)] if len(q) else q

@@ -318,7 +318,7 @@ def _summary(job: StreamJob, layout: CommandColumns, comp, rows, q0, xyz, k: int
     sigma = np.zeros(0) if comp.predicted_sigma is None else kept(comp.predicted_sigma)
     unc, none = job.uncertainty, np.zeros(len(sigma), bool)
     ext = none if unc is None else unc.extrapolated(sigma)
-    out = none if unc is None else unc.outside(q, np.array([t == "revolute" for t in job.robot.joint_types]))
+    out = none if unc is None else unc.outside(q, job.robot.periodic)
     values = (("residual", kept(comp.residual)), ("rotation_residual", kept(comp.rotation_residual)),
               ("orientation_change", change))
     largest = {n: float(v.max()) for n, v in values if v is not None and v.size}

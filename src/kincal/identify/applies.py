@@ -39,7 +39,7 @@ SCOPES: dict[str, Scope] = {
     "method": _points_alone("the particle swarm searches the position residual; position data alone are fitted with "
                             "particle swarms; other kinds, and files of several kinds together, are not yet"),
     "pso": _points_alone("the particle swarm searches the position residual"),
-    "residual": _points_alone("the joint-space residual inverts measured positions"),
+    "residual": Scope(("point", "pose"), "the joint-space residual inverts measured positions or poses"),
     "drift": Scope(("point", "pose", "markers"), "sockets and planes have no measuring instrument that could drift"),
     "plot": Scope(("point", "pose"), "the figures show each sample's 3-D position error; the report (--report) "
                                      "shows every kind"),
@@ -48,6 +48,7 @@ SCOPES: dict[str, Scope] = {
     "base": Scope(("point", "pose", "markers"), "sockets and planes do not see the measurement frame (the base is "
                                                 "a gauge freedom for them)"),
     "orientation": Scope(("pose",), "only pose files have orientation columns"),
+    "refit_target": Scope(("pose",), "only a 6-D target has a frame of its own on the flange"),
     "rot_cols": Scope(("pose",), "only pose files have orientation columns"),
     "std_rot": Scope(("pose",), "only poses measure an orientation"),
     "std_pos": Scope(OBSERVED, "position files state σ per axis with --std-cols (measurement_std_x/y/z) or "

@@ -190,5 +190,7 @@ def held_out_stats(fit: CalibrationResult, obs, robot: Robot, same_frame: bool) 
     if same_frame or obs.kind not in ABSOLUTE:
         return fit.held_out(obs, robot)
     anchors = {k: v for o in fit.observations for k, v in o.anchors().items()}
-    held = {n: v for n, v in fit.nuisance.items() if not n.startswith(("frame[", "drift["))}
-    return fit_observations(robot, [obs.with_anchors(anchors)], names=robot.base_params(), held=held).per_set[0]
+    own = obs.refitted(robot)  # a target defined anew: its point and rotation are the set's own
+    held = {n: v for n, v in fit.nuisance.items() if not n.startswith(("frame[", "drift[")) and n not in own}
+    names = (*robot.base_params(), *(n for n in own if n in robot.params))
+    return fit_observations(robot, [obs.with_anchors(anchors)], names=names, held=held).per_set[0]

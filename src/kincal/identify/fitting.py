@@ -17,6 +17,7 @@ import numpy as np
 from ..models.robot import Robot
 from ..models.terms import TAU_REF, ErrorModel, drop_terms, extend
 from ..observe.drifting import Drifting
+from ..observe.joint import in_joint_space
 from ..observe.sessions import InSession
 from .result import CalibrationResult
 from .options import FitOptions
@@ -54,7 +55,8 @@ def fit_stack(robot: Robot, observations: Sequence, options: FitOptions, held: M
     compliance refit and outlier rejection; ``held``: set-up parameters held at these values (a held-
     out file judged with the probe as trained). No diagnosis: the callers add theirs."""
     robot = _with_error_model(robot, observations, options.error_model)
-    sets = [_drifting(o) for o in observations] if options.drift else list(observations)
+    sets = [in_joint_space(o) for o in observations] if options.residual == "joint" else list(observations)
+    sets = [_drifting(o) for o in sets] if options.drift else sets
     prior = resolved_prior(options.prior, sets)
     kinds = " + ".join(dict.fromkeys(o.kind for o in sets))
     say(f"fitting {kinds} data ({sum(len(o) for o in sets)} samples)")

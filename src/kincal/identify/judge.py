@@ -26,7 +26,8 @@ IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes
 MIN_SAMPLES = 10  # a set with fewer samples is not judged for outliers (no robust spread to judge by)
 
 
-STATED = {"pose position": "--std-pos", "pose rotation": "--std-rot"}  # the flag that states each kind's σ
+STATED = {"pose position": "--std-pos", "pose rotation": "--std-rot",  # the flag that states each kind's σ
+          "joint": "the joints' reading noise, 1e-4 rad or m"}
 
 
 def component_kinds(sets) -> tuple[np.ndarray, tuple[str, ...]]:

@@ -10,8 +10,8 @@ from typing import Callable
 
 import numpy as np
 
-HALF_WIDTH = {"length": 8e-3, "angle": 8e-3}  # the paper's position limits ±8 (mm), per kind
-V_MAX = {"length": 0.5e-3, "angle": 0.5e-3}  # and velocity limits ±0.5 (mm per iteration)
+HALF_WIDTH = {"length": 8e-3, "angle": 8e-3, "ratio": 8e-3}  # the paper's position limits ±8 (mm), per kind
+V_MAX = {"length": 0.5e-3, "angle": 0.5e-3, "ratio": 0.5e-3}  # and velocity limits ±0.5 (mm per iteration)
 
 
 @dataclass(frozen=True)

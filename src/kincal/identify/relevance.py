@@ -25,13 +25,13 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..units import MM, MRAD
+from ..units import fine
 from .covariance import spd_inverse
 from .lm import LMResult, levenberg_marquardt
 
 PRIORS = ("relevance", "none")
 
-START = {"length": 1e-3, "angle": 1e-3}  # m, rad: the first prior σ of every group
+START = {"length": 1e-3, "angle": 1e-3, "ratio": 1e-3}  # m, rad, 1: the first prior σ of every group
 WIDEST = 1.0  # m or rad: a group's σ is at most this (a flat prior, in effect)
 NARROWEST = 1e-10  # m or rad: and at least this (held at nominal, in effect)
 RELINEARISE = 8  # Gauss–Newton steps at most, each after the evidence on the linearised problem
@@ -79,8 +79,7 @@ def prior_lines(sigma: dict) -> list[str]:
              f"{len(sigma) - len(held)} of {len(sigma)} groups fitted"]
     if held:
         lines.append(f"  held at nominal (the data do not confirm their corrections): {', '.join(held)}")
-    fitted = [f"{g} ±{v * MM:.3g} mm" if g.endswith("lengths") else f"{g} ±{v * MRAD:.3g} mrad"
-              for g, v in sigma.items() if v >= HELD]
+    fitted = [f"{g} ±{fine(v, g.rsplit(' ', 1)[1][:-1])}" for g, v in sigma.items() if v >= HELD]
     if fitted:
         lines.append(f"  prior σ of the others: {', '.join(fitted)}")
     return lines

@@ -301,6 +301,11 @@ class CalibrationResult:
                        after=self.stats_after.to_dict(), drift=self.drift, poses=self.pose_records())
         return out
 
+    @property
+    def _turning_joints(self) -> bool:
+        """Whether the robot's joints all turn (a joint-space residual in rad, else in m)."""
+        return all(t == "revolute" for t in self.robot.joint_types)
+
     def __str__(self) -> str:
         kinds = " + ".join(dict.fromkeys(s["type"] for s in self.per_set))
         lines = [f"calibration of {self.robot.name} from {kinds} data"
@@ -320,6 +325,7 @@ class CalibrationResult:
         lines += [f"mounting: {self.mounting}"] if self.mounting else []
         if self.gauge:
             lines.append(f"not seen by these data (gauge freedoms, kept at their values): {', '.join(self.gauge)}")
+        lines += [self.identifiability.frames_note] if self.identifiability.frames else []
         lines += [weak_note(self.robot, self.weak)] if self.weak else []
         lines += prior_lines(self.prior)
         if self.rejected:
@@ -349,8 +355,8 @@ class CalibrationResult:
                      + ", ".join(f"{k} {v:.3g}" for k, v in self.whitened.items()))
         if self.model_error:
             lines.append("weighted by 1/(σ² + s²), s what the model leaves beyond the stated σ: " + ", ".join(
-                f"{k} {v * MRAD:.3g} mrad" if k.endswith("rotation") else f"{k} {v * MM:.3g} mm"
-                for k, v in self.model_error.items()))
+                f"{k} {v * MRAD:.3g} mrad" if k.endswith("rotation") or (k == "joint" and self._turning_joints)
+                else f"{k} {v * MM:.3g} mm" for k, v in self.model_error.items()))
         # each set's fitted instrument drift over its rows (first to last sample), mm with σ
         sets = dict.fromkeys(n.rsplit(".", 1)[0] for n in self.nuisance if n.startswith("drift["))
         return lines + [f"{s} over the file (first to last sample): " + ", ".join(

@@ -102,7 +102,7 @@ def _json(v):
 
 def blocked_folds(robot: Robot, q: np.ndarray, k: int, iterations: int = 30) -> list[np.ndarray]:
     """k regions of joint space (index arrays, in pose order): deterministic k-means."""
-    rev = np.array([t == "revolute" for t in robot.joint_types])
+    rev = robot.periodic
     span = np.ptp(q, axis=0) + 1e-12
     X = np.hstack([np.cos(q[:, rev]), np.sin(q[:, rev]), (q[:, ~rev] - q[:, ~rev].min(axis=0)) / span[~rev]])
     centres = [X[first_best(-np.sum((X - X.mean(axis=0)) ** 2, axis=1))]]

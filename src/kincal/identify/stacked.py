@@ -279,6 +279,7 @@ def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, fu
                                       list(robot.base_params()),
                                       list(robot.preferred_params())], robot.name,
                                      sum(len(o) for o in st.sets), rank_tol, live)
+    ident = _design_frames(robot, ident)
     unseen = set(gauge)
     free = tuple(n for n in ident.identifiable if n not in unseen)
     notes = (f"not seen by these data (gauge freedoms, kept at their values): {', '.join(gauge)}",) if gauge else ()
@@ -287,6 +288,25 @@ def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, fu
                                dropped=tuple(n for n in ident.dropped if n not in unseen),
                                confounds={k: v for k, v in ident.confounds.items() if k not in unseen},
                                notes=ident.notes + notes, kinds=kinds_of(robot, cand + nuis))
+
+
+def _design_frames(robot: Robot, ident: Identifiability) -> Identifiability:
+    """``ident`` with the parameters it drops among a design frame's (:meth:`Robot.frame_freedoms`) named as that
+    frame's gauge freedoms (``frames``) instead of as confounded, when no more are dropped there than the frame
+    has freedoms (more would be a weakness of the data, said as such)."""
+    held: list[str] = []
+    said = []
+    for what, members, count in robot.frame_freedoms():
+        inside = [n for n in ident.dropped if n in set(members)]
+        if 0 < len(inside) <= count:
+            held += inside
+            said.append(f"{what} ({len(inside)}: {', '.join(inside)})")
+    if not held:
+        return ident
+    return dataclasses.replace(ident, dropped=tuple(n for n in ident.dropped if n not in set(held)),
+                               confounds={k: v for k, v in ident.confounds.items() if k not in set(held)},
+                               frames=tuple(held), frames_note=f"{len(held)} gauge freedoms of the design frames, "
+                               f"held at their values (no prediction depends on them): " + "; ".join(said))
 
 
 def _before(robot: Robot, sets, frame: bool) -> Robot:

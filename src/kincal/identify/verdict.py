@@ -40,7 +40,7 @@ import numpy as np
 
 from .._csv import MAX_LISTED, listed
 from ..models.robot import TOOL_NAMES, Robot
-from ..units import DEG, MM
+from ..units import DEG, MM, SHOWN, display
 from .noise import decreasing_root
 
 STATUSES = ("good", "suspect", "refused")
@@ -80,6 +80,10 @@ class Thresholds:
     tool_refuse: float = 1.0
     repeat_angle: float = 1e-4  # rad: commanded joint angles this close are the same pose (a repeat)
     repeat_length: float = 1e-5  # m: the same for prismatic joints
+    ratio_suspect: float = 0.02  # an actuator's scale this far off its nominal travel (2 %)
+    ratio_refuse: float = 0.2
+    mounting_suspect: float = 50e-3  # m: a closed chain's design points, whose design frames are not the measured ones
+    mounting_refuse: float = 0.5
 
     def __post_init__(self) -> None:
         bad = [k for k, v in self.__dict__.items()
@@ -87,9 +91,19 @@ class Thresholds:
         if bad:
             raise ValueError(f"thresholds: {', '.join(bad)} must be positive numbers")
         for a, b in (("length_suspect", "length_refuse"), ("angle_suspect", "angle_refuse"),
-                     ("residual_suspect", "residual_refuse"), ("tool_suspect", "tool_refuse")):
+                     ("residual_suspect", "residual_refuse"), ("tool_suspect", "tool_refuse"),
+                     ("ratio_suspect", "ratio_refuse"), ("mounting_suspect", "mounting_refuse")):
             if self.__dict__[a] > self.__dict__[b]:
                 raise ValueError(f"thresholds: {a} must not exceed {b}")
+
+    def suspect(self, kind: str, mounting: bool = False) -> float:
+        """The correction of a parameter of ``kind`` beyond which a calibration is suspect (m, rad or a
+        ratio); ``mounting``: a closed chain's design point (:meth:`kincal.Robot.mounting_params`)."""
+        return self.mounting_suspect if mounting else self.__dict__[f"{kind}_suspect"]
+
+    def refuse(self, kind: str, mounting: bool = False) -> float:
+        """The same beyond which it is refused."""
+        return self.mounting_refuse if mounting else self.__dict__[f"{kind}_refuse"]
 
     def outlier_limit(self, n: int) -> float:
         """The robust z beyond which one of ``n`` error norms is an outlier: ``outlier_z``, raised for
@@ -237,21 +251,28 @@ def repeat_tolerance(joint_types, th: "Thresholds") -> np.ndarray:
     return np.array([th.repeat_angle if t == "revolute" else th.repeat_length for t in joint_types])
 
 
+LIMIT_KIND = {"mounting": "length"}  # a design point's limit is a length
+
+
 def correction_reasons(robot: Robot, corrections: dict[str, float], th: Thresholds) -> list[Reason]:
     """Implausibly large corrections (the base frame and the tool point, mounting results, excluded)."""
     base = set(robot.base_params()) | set(TOOL_NAMES)
     kinds = dict(zip(robot.params.names, robot.params.kinds))
-    for level, lim_len, lim_ang in (("refused", th.length_refuse, th.angle_refuse),
-                                    ("suspect", th.length_suspect, th.angle_suspect)):
-        big = [(n, c) for n, c in corrections.items() if n not in base and
-               abs(c) > (lim_len if kinds[n] == "length" else lim_ang)]
+    mounting = set(robot.mounting_params())
+    for level, limit in (("refused", th.refuse), ("suspect", th.suspect)):
+        lim = {n: limit(kinds[n], n in mounting) for n in corrections if n not in base}
+        big = [(n, c) for n, c in corrections.items() if n in lim and abs(c) > lim[n]]
         if big:
-            shown = ", ".join(f"{n} {c * MM:+.1f} mm" if kinds[n] == "length" else f"{n} {c * DEG:+.2f} deg"
-                              for n, c in sorted(big, key=lambda x: -abs(x[1]))[:MAX_LISTED])
+            shown = ", ".join(f"{n} {display(c, kinds[n], digits=(1, 2))}"
+                              for n, c in sorted(big, key=lambda x: -abs(x[1] / lim[x[0]]))[:MAX_LISTED])
+            used = {("mounting" if n in mounting else kinds[n]) for n in lim}
+            limits = ", ".join(f"{limit(k, k == 'mounting') * SHOWN[LIMIT_KIND.get(k, k)][1]:g} "
+                               f"{SHOWN[LIMIT_KIND.get(k, k)][0]}{' (design points)' if k == 'mounting' else ''}"
+                               for k in ("length", "angle", "ratio", "mounting") if k in used)
             what = "implausible" if level == "refused" else "large"
             return [Reason(level, f"{what}-correction",
-                           f"{what} corrections ({shown}; limits {lim_len * MM:g} mm, {lim_ang * DEG:g} "
-                           f"deg): the data and the robot file disagree by far more than a real robot's errors")]
+                           f"{what} corrections ({shown}; limits {limits}): the data and the robot file disagree by "
+                           f"far more than a real robot's errors")]
     return []
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..models.robot import Robot
 from ..ties import first_best
-from ..units import MM, MRAD
+from ..units import fine
 from .covariance import normal_inverse
 from .verdict import Thresholds
 
@@ -29,7 +29,7 @@ def weakest(robot: Robot, free: Sequence[str], jacobian: np.ndarray, noise: floa
     sd = noise * np.sqrt(np.maximum(np.diag(normal_inverse(jacobian)), 0.0))
     th = Thresholds()
     kinds = dict(zip(robot.params.names, robot.params.kinds))
-    over = [(float(s / (th.length_suspect if kinds[n] == "length" else th.angle_suspect)), n, float(s))
+    over = [(float(s / th.suspect(kinds[n])), n, float(s))
             for n, s in zip(free, sd) if n in kinds and n not in robot.base_params()]
     over = [r for r in over if r[0] > 1.0]
     return None if not over else over[first_best([r[0] for r in over])][1:]
@@ -40,5 +40,5 @@ def weak_note(robot: Robot, weak: dict[str, float]) -> str:
     if not weak:
         return ""
     kinds = dict(zip(robot.params.names, robot.params.kinds))
-    shown = [f"{n} ±{v * MM:.1f} mm" if kinds[n] == "length" else f"{n} ±{v * MRAD:.0f} mrad" for n, v in weak.items()]
+    shown = [f"{n} ±{fine(v, kinds[n], '.1f' if kinds[n] == 'length' else '.0f')}" for n, v in weak.items()]
     return f"kept at nominal, determined worse than a real robot's error (10 mm, 2 deg): {', '.join(shown)}"

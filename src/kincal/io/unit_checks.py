@@ -3,12 +3,14 @@ measured spread of positions against the robot's own at the same joints (which n
 numbers are really in). Used by every reader of joint values and by the measurement checks."""
 from __future__ import annotations
 
+from contextlib import suppress
+
 import numpy as np
 
-from ..errors import MeasurementError
+from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
 from ..ties import first_best
-from ..units import LENGTH_UNITS, OTHER_LENGTHS
+from ..units import ANGLE_UNITS, LENGTH_UNITS, OTHER_LENGTHS
 
 MIN_SPREAD = 1e-3  # m: below this the poses barely move the tool, and noise decides the spread
 SPREAD_RATIO = 2.0  # measured vs predicted spread at the same poses; model errors change it by < 1 %
@@ -33,14 +35,12 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
     ratio = spread(xyz) / max(predicted, 1e-300)
     if predicted > MIN_SPREAD and 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
         return
-    rev = np.array([t == "revolute" for t in robot.joint_types])
-    if angle_unit == "deg" and rev.any():
-        as_rad = np.where(rev, q * (180.0 / np.pi), q)
-        if 1 / SPREAD_RATIO < spread(xyz) / max(spread(robot.forward(as_rad)), 1e-300) < SPREAD_RATIO:
-            raise MeasurementError(f"{source}: read as degrees, the joint values move the robot "
-                                   f"{max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the "
-                                   f"{what} spread, read as radians they match: use angle unit 'rad' "
-                                   f"(CLI: --angle-unit rad)")
+    other = _other_angle_unit(q, xyz, robot, angle_unit)
+    if other is not None:
+        raise MeasurementError(f"{source}: read as {ANGLE_WORDS[str(angle_unit)]}, the joint values move the robot "
+                               f"{max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the {what} "
+                               f"spread, read as {ANGLE_WORDS[other]} they match: use angle unit '{other}' (CLI: "
+                               f"--angle-unit {other})")
     jump = frame_jump(xyz, robot.forward(q))
     if jump is not None:
         k, one, two = jump
@@ -51,6 +51,25 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
                                f"or bumped there; give one file per session (each gets its own frame)")
     if predicted > MIN_SPREAD:
         raise MeasurementError(f"{source}: {unit_hint(ratio, length_unit, what)}")
+
+
+ANGLE_WORDS = {"rad": "radians", "deg": "degrees", "rev": "revolutions"}
+
+
+def _other_angle_unit(q: np.ndarray, xyz: np.ndarray, robot: Robot, angle_unit: str | None) -> str | None:
+    """The angle unit (of ``ANGLE_UNITS``, in their order) whose reading of the revolute joints makes the
+    robot move as far as the measured positions xyz, when the declared ``angle_unit`` does not; None if none does."""
+    rev = np.array([t == "revolute" for t in robot.joint_types])
+    if angle_unit not in ANGLE_UNITS or not rev.any():
+        return None
+    for unit, factor in ANGLE_UNITS.items():
+        if unit == angle_unit:
+            continue
+        with suppress(ModelError):  # joints no configuration of the robot has: not this unit
+            moved = spread(robot.forward(np.where(rev, q * (factor / ANGLE_UNITS[angle_unit]), q)))
+            if 1 / SPREAD_RATIO < spread(xyz) / max(moved, 1e-300) < SPREAD_RATIO:
+                return unit
+    return None
 
 
 def frame_jump(xyz: np.ndarray, model: np.ndarray, min_part: int = MIN_PART) -> tuple[int, float, float] | None:

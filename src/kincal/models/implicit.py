@@ -1,16 +1,20 @@
-"""Closed-loop robots defined by constraints f(p, q, s) = 0 (one per leg; the 3-PUU error-model verification
-paper, eq. 1).
+"""Closed-loop robots defined by constraints f(x, q, s) = 0 (the 3-PUU error-model verification paper, eq. 1),
+with the platform's position or its whole pose as the unknown x.
 
-p is the end-effector position in the robot frame, q the joint inputs, s the structural parameters.
-A subclass supplies the constraints and their derivatives (and, where it exists, a closed-form
-inverse); everything else is generic and batched:
+x is the platform's position (``UNKNOWN = "position"``, 3 coordinates) or its pose (``"pose"``: a rotation
+R and a translation t, 6 coordinates: a small change is a twist (dt, δ) with R ← exp(δ×) R) in the
+robot frame; q are the joint inputs, s the structural parameters. A subclass supplies the constraints
+and their derivatives by the twist (and, where it exists, a closed-form inverse); everything else is
+generic and batched:
 
-* ``forward(q)``: Newton's method on f(p) = 0 from the model's start point; configurations where it
-  does not converge, or where ∂f/∂p is singular, raise a ModelError that names them;
-* ``param_jacobian``: implicit-function theorem, dp = −(∂f/∂p)⁻¹ (∂f/∂s) ds (eq. 3, 9);
-* ``joint_jacobian``: dp = −(∂f/∂p)⁻¹ (∂f/∂q) dq;
+* ``forward(q)``: Newton's method on f(x) = 0 from the model's start; configurations where it does not
+  converge, or where ∂f/∂x is singular, raise a ModelError that names them;
+* ``param_jacobian``: implicit-function theorem, dx = −(∂f/∂x)⁻¹ (∂f/∂s) ds (eq. 3, 9);
+* ``joint_jacobian``: dx = −(∂f/∂x)⁻¹ (∂f/∂q) dq;
+* the measured point is the platform position, or for a pose the tool point ``tool.x/y/z`` on the
+  platform (m, in its frame), whose frame is the flange frame of a 6-D measurement;
 * a 6-parameter base frame places the robot frame in the measurement frame, as for serial robots,
-  so tracker data can be registered: world = R_b p + t_b, R_b = Rz(rz) Ry(ry) Rx(rx);
+  so tracker data can be registered: world = R_b x + t_b, R_b = Rz(rz) Ry(ry) Rx(rx);
 * ``forward_batch`` / ``inverse_batch``: many parameter vectors at once (a particle swarm) in one
   batched pass, every configuration carrying its own parameter row. Subclasses therefore write the
   constraint methods so ``values`` may be (P,) or one row per configuration, (N, P).
@@ -18,47 +22,87 @@ inverse); everything else is generic and batched:
 from __future__ import annotations
 
 from abc import abstractmethod
+from typing import ClassVar
 
 import numpy as np
 
 from ..errors import ModelError
-from .robot import Robot
+from .robot import TOOL_NAMES, Robot
 from .serial import BASE_NAMES
-from .transforms import rot_zyx
+from .transforms import rot_zyx, skew
 
-NEWTON_TOL = 1e-13  # m², constraint residual
+NEWTON_TOL = 1e-13  # constraint residual (the constraints' own unit: m or m²)
 NEWTON_ITER = 50
 SINGULAR_COND = 1e10
+UNKNOWNS = {"position": 3, "pose": 6}  # coordinates of each kind of unknown
+
+
+def twist_exp(w: np.ndarray) -> np.ndarray:
+    """Rotation matrices (N, 3, 3) of rotation vectors w (N, 3) rad (Rodrigues, series near 0)."""
+    th2 = np.einsum("ni,ni->n", w, w)[:, None, None]
+    small = th2 < 1e-12
+    th = np.sqrt(np.where(small, 1.0, th2))
+    a = np.where(small, 1.0 - th2 / 6.0, np.sin(th) / th)
+    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(th)) / np.where(small, 1.0, th2))
+    K = skew(w)
+    return np.eye(3) + a * K + b * (K @ K)
 
 
 class ImplicitRobot(Robot):
     """Base class: subclasses are frozen dataclasses that set ``name``, ``description``,
-    ``joint_space``, ``params`` (the first six being the base frame) and implement the constraint
-    methods below (robot frame, SI units). A subclass with a closed-form inverse implements
-    ``inverse_local`` and sets ``has_inverse = True``."""
+    ``joint_space``, ``params`` (the first six being the base frame; with a pose as the unknown also
+    ``tool.x/y/z``), ``UNKNOWN`` ("position" or "pose") and implement the constraint methods below
+    (robot frame, SI units). A subclass with a closed-form inverse implements ``inverse_local`` and
+    sets ``has_inverse = True``."""
+
+    UNKNOWN: ClassVar[str] = "position"
 
     # ---- to implement -------------------------------------------------------------------------
     @abstractmethod
-    def constraints(self, p: np.ndarray, q: np.ndarray, values: np.ndarray) -> np.ndarray:
-        """f (N, c) for positions p (N, 3) in the robot frame."""
+    def constraints(self, x: np.ndarray, q: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """f (N, c) for the unknown x: positions (N, 3), or poses (N, 3, 4) = [R | t], in the robot frame."""
 
     @abstractmethod
-    def constraint_derivatives(self, p: np.ndarray, q: np.ndarray, values: np.ndarray):
-        """(∂f/∂p (N,c,3), ∂f/∂q (N,c,n), ∂f/∂s (N,c,P)); ∂f/∂s may leave the base columns 0."""
+    def constraint_derivatives(self, x: np.ndarray, q: np.ndarray, values: np.ndarray):
+        """(∂f/∂x (N, c, d), ∂f/∂q (N, c, n), ∂f/∂s (N, c, P)); ∂f/∂s may leave the base columns 0.
+        For a pose, ∂f/∂x is by the twist (dt, δ): t ← t + dt, R ← exp(δ×) R."""
+
+    def constraint_jacobian(self, x: np.ndarray, q: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """∂f/∂x (N, c, d) alone, what Newton's method needs (models with a cheaper way override it)."""
+        return self.constraint_derivatives(x, q, values)[0]
 
     @abstractmethod
     def start_point(self, q: np.ndarray, values: np.ndarray) -> np.ndarray:
-        """A starting position (N, 3) for Newton's method, in the desired assembly mode."""
+        """A start for Newton's method (a position (N, 3) or a pose (N, 3, 4)), in the desired assembly mode."""
 
-    def assembly_mode(self, p: np.ndarray, q: np.ndarray, values: np.ndarray) -> np.ndarray:
-        """Map converged solutions (N, 3) onto the model's nominal assembly mode; identity by default."""
-        return p
+    def assembly_mode(self, x: np.ndarray, q: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """Map converged solutions onto the model's nominal assembly mode; identity by default."""
+        return x
 
     def inverse_local(self, p: np.ndarray, values: np.ndarray, strict: bool = True) -> np.ndarray:
         """Closed-form inverse kinematics in the robot frame, (N, n); optional (``has_inverse``).
         Unreachable positions raise a ModelError, or give NaN rows when not ``strict``. Batched
         callers pass p (S, N, 3) with values (S, 1, P) and get (S, N, n)."""
         raise self._no_inverse()
+
+    # ---- the unknown ----------------------------------------------------------------------------
+    def _retract(self, x: np.ndarray, step: np.ndarray) -> np.ndarray:
+        """x moved by ``step`` (N, d): a position by the step, a pose by the twist (dt, δ)."""
+        if self.UNKNOWN == "position":
+            return x + step
+        return np.concatenate([twist_exp(step[:, 3:]) @ x[:, :, :3], (x[:, :, 3] + step[:, :3])[:, :, None]], axis=2)
+
+    def _end(self, x: np.ndarray, values: np.ndarray):
+        """The measured point (N, 3) in the robot frame, its derivatives by the unknown's coordinates
+        (N, 3, d) and by the parameters (N, 3, P), and the platform's rotation (N, 3, 3; None for a position)."""
+        n = x.shape[0]
+        Es = np.zeros((n, 3, self.n_params))
+        if self.UNKNOWN == "position":
+            return x, np.broadcast_to(np.eye(3), (n, 3, 3)), Es, None
+        R, tool = x[:, :, :3], np.asarray(values)[..., self.params.indices(TOOL_NAMES)]
+        a = np.einsum("nij,nj->ni", R, np.broadcast_to(tool, (n, 3)))
+        Es[:, :, self.params.indices(TOOL_NAMES)] = R
+        return a + x[:, :, 3], np.concatenate([np.broadcast_to(np.eye(3), (n, 3, 3)), -skew(a)], axis=2), Es, R
 
     # ---- base frame ---------------------------------------------------------------------------
     def base_params(self) -> tuple[str, ...]:
@@ -86,9 +130,9 @@ class ImplicitRobot(Robot):
         q = self.check_q(q)
         values = self._batch(values)
         rows = np.repeat(values, q.shape[0], axis=0)  # one parameter row per configuration
-        p_local, ok = self._solve_local(np.tile(q, (len(values), 1)), rows, strict=False)
+        x, ok = self._solve_local(np.tile(q, (len(values), 1)), rows, strict=False)
         R, t = self._base(rows)
-        p = np.einsum("mij,mj->mi", R, p_local) + t
+        p = np.einsum("mij,mj->mi", R, self._end(x, rows)[0]) + t
         return np.where(ok[:, None], p, np.nan).reshape(len(values), q.shape[0], 3)
 
     def inverse_batch(self, p: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -101,70 +145,145 @@ class ImplicitRobot(Robot):
         p_local = np.einsum("sni,sij->snj", p[None] - t[:, None], R)
         return self.inverse_local(p_local, values[:, None, :], strict=False)
 
-    def _base_jacobian(self, values: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """d world position / d base x y z rx ry rz (N, 3, 6) at world positions p (N, 3): unit steps,
-        then turns about the world axes of rx, ry, rz through t (R = Rz Ry Rx: each turns about its
-        axis as already moved by the rotations before it in the product)."""
+    def _base_jacobian(self, values: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """d world position / d base x y z rx ry rz (N, 3, 6) at world positions p (N, 3), and the world
+        axes (3, 3) the rotations rx, ry, rz turn about (columns): unit steps, then turns about the
+        axes through t (R = Rz Ry Rx: each turns about its axis as already moved by the rotations
+        before it in the product)."""
         b = values[self.params.indices(BASE_NAMES)]
-        axes = [rot_zyx(b[5], b[4], 0.0) @ [1.0, 0, 0], rot_zyx(b[5], 0.0, 0.0) @ [0, 1.0, 0], np.array([0, 0, 1.0])]
+        axes = np.column_stack([rot_zyx(b[5], b[4], 0.0) @ [1.0, 0, 0], rot_zyx(b[5], 0.0, 0.0) @ [0, 1.0, 0],
+                                [0, 0, 1.0]])
         J = np.zeros((len(p), 3, 6))
         J[:, :, :3] = np.eye(3)
-        J[:, :, 3:] = np.stack([np.cross(axis, p - b[:3]) for axis in axes], axis=2)
-        return J
+        J[:, :, 3:] = np.cross(axes.T[None], (p - b[:3])[:, None], axis=2).transpose(0, 2, 1)
+        return J, axes
 
     # ---- generic kinematics -------------------------------------------------------------------
     def _solve_local(self, q: np.ndarray, values: np.ndarray, strict: bool = True):
-        """Newton on f(p) = 0; returns p (N,3) and a converged mask (raises if ``strict``)."""
-        p = self.start_point(q, values)
+        """Newton on f(x) = 0; returns x and a converged mask (N,) (raises if ``strict``)."""
+        x = self.start_point(q, values)
         ok = np.zeros(q.shape[0], bool)
         for _ in range(NEWTON_ITER):
-            f = self.constraints(p, q, values)
+            f = self.constraints(x, q, values)
+            self._check_count(f.shape[1])
             ok = np.all(np.abs(f) < NEWTON_TOL, axis=1)
             if ok.all():
                 break
-            fp = self.constraint_derivatives(p, q, values)[0]
+            fx = self.constraint_jacobian(x, q, values)
             with np.errstate(all="ignore"):
                 try:
-                    step = np.linalg.solve(fp, f[..., None])[..., 0]
+                    step = np.linalg.solve(fx, f[..., None])[..., 0]
                 except np.linalg.LinAlgError:
-                    step = np.einsum("nij,nj->ni", np.linalg.pinv(fp), f)
-            step = np.where(np.isfinite(step), step, 0.0)
-            p = p - np.where(ok[:, None], 0.0, step)
-        ok &= np.all(np.isfinite(p), axis=1)
-        p = self.assembly_mode(p, q, values)
+                    step = np.einsum("nij,nj->ni", np.linalg.pinv(fx), f)
+            step = np.where(np.isfinite(step) & ~ok[:, None], step, 0.0)
+            x = self._retract(x, -step)
+        ok &= np.all(np.isfinite(x.reshape(x.shape[0], -1)), axis=1)
+        x = self.assembly_mode(x, q, values)
         if strict and not ok.all():
             bad = np.flatnonzero(~ok)
             raise ModelError(f"{self.name}: forward kinematics did not converge for {bad.size} configuration(s) "
                              f"(first at index {bad[0]}, q = {np.array2string(q[bad[0]], precision=6)}): outside "
                              f"the workspace or at a singularity; check the joint values and their units")
-        return p, ok
+        return x, ok
+
+    def _check_count(self, c: int) -> None:
+        """ModelError unless the constraints are as many as the unknown's coordinates."""
+        d = UNKNOWNS[self.UNKNOWN]
+        if c != d:
+            raise ModelError(f"{self.name}: {c} constraint(s) for a {self.UNKNOWN} unknown of {d} coordinates: the "
+                             f"model needs exactly {d} (one per actuated leg); "
+                             f"{'a pose unknown' if d == 3 else 'a position unknown'} needs "
+                             f"{6 if d == 3 else 3}")
+
+    def _rates(self, q: np.ndarray, values: np.ndarray, joints: bool, x: np.ndarray | None = None):
+        """The measured point p (N, 3) in the world at the solved unknown (or at ``x``), its Jacobian by
+        the parameters (N, 3, P) or, with ``joints``, by the joints (N, 3, n), the world rotation of the
+        platform (N, 3, 3; None for a position) and its rotation rate (N, 3, P or n; None for a position)."""
+        x = self._solve_local(q, values)[0] if x is None else x
+        e, Ex, Es, Rl = self._end(x, values)
+        Rb, tb = self._base(values)
+        p = e @ Rb.T + tb
+        fx, fq, fs = self.constraint_derivatives(x, q, values)
+        dx = -self._checked_inverse(fx, q) @ (fq if joints else fs)  # implicit-function theorem
+        J = np.einsum("ij,njk->nik", Rb, Ex @ dx + (0.0 if joints else Es))
+        W = None if Rl is None else np.einsum("ij,njk->nik", Rb, dx[:, 3:])
+        if not joints:
+            J[:, :, self.params.indices(BASE_NAMES)], axes = self._base_jacobian(values, p)
+            if W is not None:
+                W[:, :, self.params.indices(BASE_NAMES)] = np.concatenate([np.zeros((3, 3)), axes], axis=1)
+        return p, J, None if Rl is None else Rb @ Rl, W
+
+    def _pose_local(self, R: np.ndarray, p: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """The platform pose (N, 3, 4) in the robot frame whose frame is at world rotations R (N, 3, 3)
+        with its tool point at world positions p (N, 3)."""
+        Rb, tb = self._base(values)
+        Rl = np.einsum("ji,njk->nik", Rb, R)
+        t = (p - tb) @ Rb - np.einsum("nij,j->ni", Rl, values[self.params.indices(TOOL_NAMES)])
+        return np.concatenate([Rl, t[:, :, None]], axis=2)
+
+    def inverse_pose(self, R: np.ndarray, p: np.ndarray, values: np.ndarray | None = None,
+                     strict: bool = True) -> np.ndarray:
+        """Joint values (N, n) that put the platform frame at world rotations R (N, 3, 3) with the tool
+        point at world positions p (N, 3): the closed-form inverse (``has_inverse``) of a pose unknown."""
+        v = self.param_values(values)
+        if self.UNKNOWN != "pose":
+            raise ModelError(f"{self.name}: its platform only translates; give positions (inverse)")
+        return self.inverse_local(self._pose_local(np.asarray(R, float), np.atleast_2d(np.asarray(p, float)), v), v,
+                                  strict)
+
+    def inverse_pose_and_jacobian(self, R: np.ndarray, p: np.ndarray, values: np.ndarray | None = None):
+        """Joint values (N, n) for platform poses (world rotations R (N, 3, 3), tool points p (N, 3)),
+        their derivatives by the parameters at the fixed pose (N, n, P), and by a turn of the pose about
+        world axes through the tool point (N, n, 3): dq = −(∂f/∂q)⁻¹ (∂f/∂x · dx + ∂f/∂s ds), where the
+        platform's pose in the robot frame, x, moves with the base frame and the tool point only."""
+        v = self.param_values(values)
+        x = self._pose_local(np.asarray(R, float), np.atleast_2d(np.asarray(p, float)), v)
+        q = self.inverse_local(x, v)
+        fx, fq, fs = self.constraint_derivatives(x, q, v)
+        Rb, _ = self._base(v)
+        n, Rl, t = len(q), x[:, :, :3], x[:, :, 3]
+        dx = np.zeros((n, 6, self.n_params))  # the platform's twist (dt, δ) per parameter
+        dx[:, :3, self.params.indices(TOOL_NAMES)] = -Rl
+        base = self.params.indices(BASE_NAMES)
+        dx[:, :3, base[:3]] = -Rb.T
+        delta = -Rb.T @ self._base_jacobian(v, p[:1])[1]  # (3, 3): δ per base rotation
+        dx[:, 3:, base[3:]] = delta
+        dx[:, :3, base[3:]] = np.cross(delta.T[None], t[:, None], axis=2).transpose(0, 2, 1)
+        turn = np.concatenate([np.cross((Rl @ v[self.params.indices(TOOL_NAMES)])[:, None], Rb[None], axis=2)
+                               .transpose(0, 2, 1), np.broadcast_to(Rb.T, (n, 3, 3))], axis=1)  # twist per world turn
+        solve = lambda rhs: -np.linalg.solve(fq, rhs)  # noqa: E731
+        return q, solve(fx @ dx + fs), solve(fx @ turn)
 
     def _forward_and_jacobian(self, q, values, jacobian):
-        p_local, _ = self._solve_local(q, values)
-        R, t = self._base(values)
-        p = p_local @ R.T + t
         if not jacobian:
-            return p, None
-        fp, _, fs = self.constraint_derivatives(p_local, q, values)
-        J = -np.einsum("ij,njc,nck->nik", R, self._checked_inverse(fp, q), fs)  # IFT in the robot frame, then rotated
-        J[:, :, self.params.indices(BASE_NAMES)] = self._base_jacobian(values, p)
-        return p, J
+            x, _ = self._solve_local(q, values)
+            Rb, tb = self._base(values)
+            return self._end(x, values)[0] @ Rb.T + tb, None
+        return self._rates(q, values, False)[:2]
 
-    def _checked_inverse(self, fp: np.ndarray, q: np.ndarray) -> np.ndarray:
-        cond = np.linalg.cond(fp)
+    def _frame_and_rates(self, q, values):
+        if self.UNKNOWN == "position":
+            return super()._frame_and_rates(q, values)
+        return self._rates(q, values, False)
+
+    def _pose_and_jacobian(self, q, values):
+        if self.UNKNOWN == "position":
+            return super()._pose_and_jacobian(q, values)
+        p, Jp, R, Jw = self._rates(q, values, True)
+        return p, R, Jp, Jw
+
+    def _checked_inverse(self, fx: np.ndarray, q: np.ndarray) -> np.ndarray:
+        cond = np.linalg.cond(fx)
         bad = ~(cond < SINGULAR_COND)
         if bad.any():
             k = int(np.flatnonzero(bad)[0])
-            raise ModelError(f"{self.name}: {int(bad.sum())} configuration(s) are singular (∂f/∂p has condition "
+            raise ModelError(f"{self.name}: {int(bad.sum())} configuration(s) are singular (∂f/∂x has condition "
                              f"number {cond[k]:.3g} at index {k}, q = {np.array2string(q[k], precision=6)}); "
                              f"leave them out")
-        return np.linalg.inv(fp)
+        return np.linalg.inv(fx)
 
     def _joint_jacobian(self, q, values):
-        p_local, _ = self._solve_local(q, values)
-        fp, fq, _ = self.constraint_derivatives(p_local, q, values)
-        R, _ = self._base(values)
-        return -np.einsum("ij,njc,nck->nik", R, self._checked_inverse(fp, q), fq)
+        return self._rates(q, values, True)[1]
 
     def inverse(self, p: np.ndarray, values: np.ndarray | None = None, strict: bool = True) -> np.ndarray:
         """Joint values (N, n) that place the end effector at world positions p (N, 3); unreachable
@@ -187,7 +306,7 @@ class ImplicitRobot(Robot):
         q = self.inverse_local(p_local, values)
         fp, fq, fs = self.constraint_derivatives(p_local, q, values)
         dpl = np.zeros((p.shape[0], 3, self.n_params))  # ∂p_local/∂(base parameters)
-        dpl[:, :, self.params.indices(BASE_NAMES)] = -R.T @ self._base_jacobian(values, p)
+        dpl[:, :, self.params.indices(BASE_NAMES)] = -R.T @ self._base_jacobian(values, p)[0]
         rhs = fs + np.einsum("nci,nik->nck", fp, dpl)
         return q, -np.linalg.solve(fq, rhs)
 

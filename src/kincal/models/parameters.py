@@ -9,7 +9,7 @@ from numpy.typing import ArrayLike
 
 from ..errors import ModelError
 
-KINDS = ("length", "angle")
+KINDS = ("length", "angle", "ratio")  # ratio: a dimensionless factor (an actuator's scale, 1 nominal)
 
 
 @dataclass(frozen=True, eq=False, init=False)
@@ -36,7 +36,7 @@ class Parameters:
             raise ModelError(f"parameters: duplicate names {dup}")
         bad = [k for k in kinds if k not in KINDS]
         if bad:
-            raise ModelError(f"parameters: unknown kind(s) {sorted(set(bad))}; use 'length' or 'angle'")
+            raise ModelError(f"parameters: unknown kind(s) {sorted(set(bad))}; use one of {KINDS}")
         if not np.all(np.isfinite(values)):
             raise ModelError("parameters: non-finite values for "
                              + ", ".join(n for n, v in zip(names, values) if not np.isfinite(v)))

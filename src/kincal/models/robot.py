@@ -208,6 +208,19 @@ class Robot(ABC):
         """Joint values (S, N, n) for positions p (N, 3) and S parameter vectors (S, P); NaN where out of reach."""
         raise self._no_inverse()
 
+    def inverse_pose(self, R: np.ndarray, p: np.ndarray, values: np.ndarray | None = None,
+                     strict: bool = True) -> np.ndarray:
+        """Joint values (N, n) that put the flange frame at world rotations R (N, 3, 3) with the tool point at
+        world positions p (N, 3) m, in closed form (a hexapod's legs from its platform pose)."""
+        raise self._no_inverse()
+
+    def inverse_pose_and_jacobian(self, R: np.ndarray, p: np.ndarray, values: np.ndarray | None = None
+                                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Joint values (N, n) for flange poses (R (N, 3, 3), tool points p (N, 3)), their parameter
+        derivatives at the fixed pose (N, n, P) and their derivatives by a turn of the pose about world
+        axes through the tool point (N, n, 3)."""
+        raise self._no_inverse()
+
     # ---- joints ----------------------------------------------------------------------------------
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -216,6 +229,12 @@ class Robot(ABC):
     @property
     def joint_types(self) -> tuple[str, ...]:
         return self.joint_space.types
+
+    @property
+    def periodic(self) -> np.ndarray:
+        """(n,) bool: joints whose configuration repeats every whole turn (revolute joints; a motor
+        that drives a leg through a screw does not: its turns add up)."""
+        return np.array([t == "revolute" for t in self.joint_types], bool)
 
     @property
     def lower(self) -> np.ndarray:
@@ -321,6 +340,24 @@ class Robot(ABC):
         if not dataclasses.is_dataclass(self):
             raise ModelError(f"robot '{self.name}': a robot that is not a dataclass must override _rebuild")
         return dataclasses.replace(self, params=params)
+
+    def reading_terms(self) -> str:
+        """What of the model acts on the joint readings themselves, in words ('the terms (compliance)',
+        'the legs' zeros and scales'): fitted on the training joint ranges, it extrapolates beyond them;
+        '' for none (a geometric serial chain)."""
+        return "" if self.error_model == "geometric" else f"the terms ({self.error_model})"
+
+    def frame_freedoms(self) -> tuple[tuple[str, tuple[str, ...], int], ...]:
+        """Gauge freedoms of design frames: (what they are, the parameters among which they lie, how
+        many), e.g. where a hexapod's robot frame stands among its base points (6); the rank rule holds
+        that many of those parameters at their values, which changes no prediction. None by default."""
+        return ()
+
+    def mounting_params(self) -> tuple[str, ...]:
+        """Parameters whose design frame is not the frame they are measured in (a hexapod's base and
+        platform points, its legs' zero lengths): judged by the verdict's mounting limits, not a serial
+        arm's; none by default."""
+        return ()
 
     def preferred_params(self) -> tuple[str, ...]:
         """Names to keep first when parameters are confounded (after any the user lists)."""

@@ -43,6 +43,12 @@ class Wrapped(Robot):
     def structure_notes(self) -> list[str]:
         return self.inner.structure_notes()
 
+    def mounting_params(self) -> tuple[str, ...]:
+        return self.inner.mounting_params()
+
+    def frame_freedoms(self) -> tuple[tuple[str, tuple[str, ...], int], ...]:
+        return self.inner.frame_freedoms()
+
     def base_params(self) -> tuple[str, ...]:
         return self.inner.base_params()
 

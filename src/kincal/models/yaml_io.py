@@ -29,20 +29,23 @@ from .._atomic import write_text_atomic
 from ..errors import ModelError
 from ..units import DEG
 from .puu3 import PUU3Robot
+from .stewart import StewartRobot
+from .delta import DeltaRobot
 from .robot import Robot
 from .serial import CONVENTIONS, Joint, SerialRobot
 from .transmission import TransmissionRobot
 from .terms import ExtendedRobot
 from .urdf import URDFRobot, read_urdf
-from .yaml_kinds import (error_model_from_dict, error_model_yaml, puu3_from_dict, puu3_yaml, transmission_from_dict,
-                         transmission_yaml, urdf_from_dict, urdf_yaml)
+from .yaml_kinds import (delta_from_dict, delta_yaml, error_model_from_dict, error_model_yaml, puu3_from_dict,
+                         puu3_yaml, stewart_from_dict, stewart_yaml, transmission_from_dict, transmission_yaml,
+                         urdf_from_dict, urdf_yaml)
 from .yaml_values import (POSE_KEYS, base_pose, description_lines, fmt, frame_text, limits, link_mass, mass_items,
                           mapping, num, per_unit, pose_text, units)
 
 _JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits", "mass", "com", "velocity", "effort"}
 _TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool", "actuators", "transmission",
              "type", "extended", "parameters", "slider_limits", "calibration", "source", "error_model", "names",
-             "frames"}
+             "frames", "legs", "reading", "arms", "arm_limits"}
 def bundled_robots() -> list[str]:
     """Names of the robots shipped with kincal."""
     folder = resources.files("kincal.models") / "robots"
@@ -189,8 +192,13 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
         return puu3_from_dict(data, label)
     if data.get("type") == "urdf":
         return urdf_from_dict(data, label)
+    if data.get("type") == "stewart":
+        return stewart_from_dict(data, label)
+    if data.get("type") == "delta":
+        return delta_from_dict(data, label)
     if data.get("type", "serial") != "serial":
-        raise ModelError(f"{label}: unknown robot type '{data.get('type')}'; use 'serial' (default), 'puu3' or 'urdf'")
+        raise ModelError(f"{label}: unknown robot type '{data.get('type')}'; use 'serial' (default), 'puu3', "
+                         f"'stewart', 'delta' or 'urdf'")
     for key in ("name", "convention", "joints"):
         if key not in data:
             raise ModelError(f"{label}: missing required key '{key}'")
@@ -292,6 +300,10 @@ def robot_to_yaml(robot: Robot, length_unit: str = "m", angle_unit: str = "rad")
         return puu3_yaml(robot, length_unit, angle_unit)
     if isinstance(robot, URDFRobot):
         return urdf_yaml(robot, length_unit, angle_unit)
+    if isinstance(robot, StewartRobot):
+        return stewart_yaml(robot, length_unit, angle_unit)
+    if isinstance(robot, DeltaRobot):
+        return delta_yaml(robot, length_unit, angle_unit)
     if isinstance(robot, TransmissionRobot):
         return _chain_yaml(robot.inner, length_unit, angle_unit) + transmission_yaml(robot, length_unit, angle_unit)
     if not isinstance(robot, SerialRobot):

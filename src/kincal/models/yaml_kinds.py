@@ -6,9 +6,13 @@ import re
 import numpy as np
 import yaml
 
+from .. import units as U
 from ..errors import ModelError
 from .puu3 import PUU3Robot, puu3_names
 from .serial import SerialRobot
+from .stewart import StewartRobot
+from .delta import DeltaRobot, delta_names
+from .serial import BASE_NAMES
 from .transmission import Map, TransmissionRobot, build_transmission_robot
 from .robot import Robot
 from .terms import ExtendedRobot, term_from_dict
@@ -183,3 +187,97 @@ def error_model_from_dict(geometry: Robot, data, label: str) -> ExtendedRobot:
 
 
 MAX_HARMONIC = 0.05  # rad: a joint-angle harmonic beyond this is not a transmission error (3 deg)
+
+
+LEG_KEYS = {"base", "platform", "zero", "scale", "lead", "range"}
+
+
+def stewart_from_dict(data: dict, label: str) -> StewartRobot:
+    """A hexapod (type: stewart): six ``legs`` ({base, platform: [x, y, z], zero, range: [lower, upper],
+    with a motor ``reading`` also lead (length per reading unit), optionally scale}) in the file's units."""
+    lf, af = units(data, label)
+    reading = mapping(data, "reading", label)
+    rf = U.unit_factor(str(reading.get("unit", "rad")), "angle", f"{label}: reading: ", ModelError) if reading else lf
+    legs = data.get("legs")
+    if not (isinstance(legs, list) and len(legs) == 6 and all(isinstance(leg, dict) for leg in legs)):
+        raise ModelError(f"{label}: 'legs' must list the six legs, each like {{base: [x, y, z], platform: [x, y, z], "
+                         f"zero: …, range: [lower, upper]{', lead: …' if reading else ''}}}")
+    values: dict[str, float] = {}
+    lo, hi, lead = [], [], []
+    for i, leg in enumerate(legs, 1):
+        where = f"{label}: legs[{i}]"
+        if extra := set(leg) - LEG_KEYS:
+            raise ModelError(f"{where}: unknown key(s) {sorted(map(str, extra))}; use {', '.join(sorted(LEG_KEYS))}")
+        if ("lead" in leg) != bool(reading):
+            raise ModelError(f"{where}: 'lead' (travel per reading unit) goes with a motor 'reading: {{unit: rev}}'; "
+                             f"{'give it' if reading else 'leave it out for legs read as lengths'}")
+        for key, ax in (("base", "b"), ("platform", "p")):
+            values.update(zip((f"leg{i}.{ax}{c}" for c in "xyz"), vector(leg.get(key), where, key) * lf))
+        values[f"leg{i}.zero"] = num(leg.get("zero"), where, "zero") * lf
+        values[f"leg{i}.scale"] = num(leg.get("scale", 1.0), where, "scale")
+        lo_hi = limits(leg.get("range"), where, rf, "range")
+        lo.append(lo_hi[0])
+        hi.append(lo_hi[1])
+        lead.append(num(leg["lead"], where, "lead") * lf / rf if reading else 1.0)
+    values.update({f"base.{k}": x for k, x in base_pose(data, label, lf, af, strict=True).items()})
+    values.update({f"tool.{k}": num(v, f"{label}: tool", k) * lf for k, v in mapping(data, "tool", label).items()})
+    b = [[values[f"leg{i}.b{c}"] for c in "xyz"] for i in range(1, 7)]
+    p = [[values[f"leg{i}.p{c}"] for c in "xyz"] for i in range(1, 7)]
+    robot = StewartRobot.build(str(data.get("name", "stewart")), b, p, [values[f"leg{i}.zero"] for i in range(1, 7)],
+                               (lo, hi), lead if reading else None, str(data.get("description", "")))
+    return robot.with_params(values)
+
+
+def stewart_yaml(robot: StewartRobot, length_unit: str, angle_unit: str, reading_unit: str = "rev") -> str:
+    """The robot file of a hexapod (legs read as motor angles are written in ``reading_unit``)."""
+    lf, af = per_unit(length_unit, angle_unit)
+    motor = robot.joint_types[0] == "revolute"
+    rf = 1.0 / U.unit_factor(reading_unit, "angle", "", ModelError) if motor else lf
+    v = robot.params.as_dict()
+    lines = [f"name: {robot.name}", "type: stewart", *description_lines(robot.description),
+             f"units: {{length: {length_unit}, angle: {angle_unit}}}"]
+    lines += [f"reading: {{unit: {reading_unit}}}"] if motor else []
+    lines.append("legs:")
+    for i in range(1, 7):
+        items = [f"{key}: [{', '.join(fmt(v[f'leg{i}.{ax}{c}'] * lf) for c in 'xyz')}]"
+                 for key, ax in (("base", "b"), ("platform", "p"))]
+        items += [f"zero: {fmt(v[f'leg{i}.zero'] * lf)}", f"scale: {fmt(v[f'leg{i}.scale'])}"]
+        items += [f"lead: {fmt(robot.lead[i - 1] * lf / rf)}"] if motor else []
+        items.append(f"range: [{fmt(robot.lower[i - 1] * rf)}, {fmt(robot.upper[i - 1] * rf)}]")
+        lines.append(f"  - {{{', '.join(items)}}}")
+    lines += [frame_text(v, "base", lf, af), frame_text(v, "tool", lf, af), ""]
+    return "\n".join(lines)
+
+
+def delta_from_dict(data: dict, label: str) -> DeltaRobot:
+    """A delta robot (type: delta): the design ``arms: {R, r, L, l}`` shared by the three arms, per-arm
+    ``parameters`` (arm<i>.R … arm<i>.phi) on top, ``arm_limits: [lower, upper]`` in the file's units."""
+    lf, af = units(data, label)
+    names, kinds = delta_names()
+    kind = dict(zip(names, kinds))
+    design = mapping(data, "arms", label)
+    if extra := set(design) - {"R", "r", "L", "l"}:
+        raise ModelError(f"{label}: 'arms' takes R, r, L and l (the design shared by the three arms), got "
+                         f"{sorted(map(str, extra))}")
+    values = {f"arm{i}.{k}": num(x, f"{label}: arms", k) * lf for k, x in design.items() for i in (1, 2, 3)}
+    for key, v in mapping(data, "parameters", label).items():
+        if key not in kind or key in BASE_NAMES:
+            raise ModelError(f"{label}: unknown delta parameter '{key}'; known: {', '.join(names[6:])}")
+        values[key] = num(v, f"{label}: parameters", key) * (lf if kind[key] == "length" else af)
+    values.update({f"base.{k}": x for k, x in base_pose(data, label, lf, af, strict=True).items()})
+    robot = DeltaRobot.build(str(data.get("name", "delta")), q_range=limits(data.get("arm_limits"), label, af,
+                                                                            "arm_limits"),
+                             description=str(data.get("description", "")))
+    return robot.with_params(values)
+
+
+def delta_yaml(robot: DeltaRobot, length_unit: str, angle_unit: str) -> str:
+    lf, af = per_unit(length_unit, angle_unit)
+    v = robot.params.as_dict()
+    kinds = dict(zip(robot.params.names, robot.params.kinds))
+    params = ", ".join(f"{n}: {fmt(v[n] * (lf if kinds[n] == 'length' else af))}" for n in robot.params.names[6:])
+    lines = [f"name: {robot.name}", "type: delta", *description_lines(robot.description),
+             f"units: {{length: {length_unit}, angle: {angle_unit}}}", f"parameters: {{{params}}}",
+             f"arm_limits: [{fmt(robot.q_lower * af)}, {fmt(robot.q_upper * af)}]",
+             frame_text(v, "base", lf, af), ""]
+    return "\n".join(lines)

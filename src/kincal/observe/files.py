@@ -69,6 +69,7 @@ class ObservationFormat:
     planes: dict = field(default_factory=dict)  # label -> (normal (3,), offset)
     std_pos: float | None = None  # m
     std_rot: float | None = None  # rad
+    own_target: bool = False  # pose, held out: its target's frame on the flange is its own (re-fitted)
 
     def __post_init__(self) -> None:
         """Every setting checked (ValueError): a known type, convention and units, σ > 0 that an instrument can
@@ -164,7 +165,7 @@ def _pose(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PoseObs:
     convention_check(Rf, values, fmt.orientation, t.path, t.rows, position_frame(p, xyz))
     pos, rot = _stds(t, fmt)
     return PoseObs(q, t.rows, t.path, xyz=xyz, R=to_matrices(values, fmt.orientation, t.path, t.rows), std_pos=pos,
-                   std_rot=rot)
+                   std_rot=rot, own_target=fmt.own_target)
 
 
 def _markers(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> MarkersObs:

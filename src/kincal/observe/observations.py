@@ -151,6 +151,11 @@ class Observation:
         """The set with each sample's measured positions moved by ``offset`` (N, 3) m (as above)."""
         raise NotImplementedError(f"{self.kind} data measure no position in an instrument's frame")
 
+    def refitted(self, robot: Robot) -> tuple[str, ...]:
+        """Robot and set-up parameters the set re-fits as its own when it is held out, beside its
+        measurement frame (a 6-D target defined anew: its point and rotation); none by default."""
+        return ()
+
     def anchors(self) -> dict:
         """Start values its set-up parameters are measured from, which every set sharing them must share (a
         pose target's start rotation); none by default."""
@@ -199,6 +204,9 @@ class Wrapper(Observation):
 
     def anchors(self) -> dict:
         return self.inner.anchors()
+
+    def refitted(self, robot: Robot) -> tuple[str, ...]:
+        return self.inner.refitted(robot)
 
     def with_anchors(self, anchors: dict) -> "Wrapper":
         return dataclasses.replace(self, inner=self.inner.with_anchors(anchors))
@@ -277,6 +285,7 @@ class PoseObs(MeasuredPositions):
     std_pos: np.ndarray | float = 0.1e-3
     std_rot: np.ndarray | float = 1e-3
     anchored: bool = False  # the target rotation given (another set's, a training file's): prepare keeps it
+    own_target: bool = False  # held out: the target's point and rotation are re-fitted (a rigid body defined anew)
     kind = "pose"
 
     def prepare(self, robot: Robot) -> "PoseObs":
@@ -292,6 +301,9 @@ class PoseObs(MeasuredPositions):
 
     def anchors(self) -> dict:
         return {"target_rotation": self.target_rotation}
+
+    def refitted(self, robot: Robot) -> tuple[str, ...]:
+        return (*TOOL_NAMES, *self.nuisance(robot)[0]) if self.own_target else ()
 
     def sample_rows(self) -> np.ndarray:
         return np.tile(np.arange(len(self)), 6)

@@ -235,7 +235,7 @@ def _parameter_rows(result: CalibrationResult) -> list[dict]:
     rows = []
     for n in result.names:
         k, c = kinds[n], result.corrections[n]
-        big = abs(c) > (th.length_suspect if k == "length" else th.angle_suspect) and n not in base
+        big = abs(c) > th.suspect(k, n in result.robot.mounting_params()) and n not in base
         rows.append({"name": n, "nominal": _value(result.nominal.params[n], k),
                      "calibrated": _value(result.estimates[n], k), "correction": _value(c, k, signed=True),
                      "sigma": _value(result.std[n], k) if np.isfinite(result.std[n]) else "undetermined",

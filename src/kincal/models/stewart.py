@@ -1,0 +1,207 @@
+"""The Stewart–Gough platform (6-UPS / 6-SPS hexapod): six legs of variable length join six base
+points to six platform points; the unknown of its forward kinematics is the platform's whole pose.
+
+Leg i (1..6) joins the base point bᵢ (robot frame) to the platform point pᵢ (platform frame). With the
+platform pose (R, t) its length is ‖R pᵢ + t − bᵢ‖ = zeroᵢ + scaleᵢ · leadᵢ · qᵢ: qᵢ is the actuator's
+reading, a length (m) for a prismatic actuator (lead 1) or a motor angle (rad; files may give
+revolutions, ``rev``) for a revolute one, whose nominal travel per radian is leadᵢ (m/rad: the
+robot file states it per revolution); ``zero`` is the leg's length at reading 0 and ``scale`` the
+ratio of its true travel to the nominal one (1 nominal). The measured point is the tool point
+``tool.x/y/z`` in the platform frame; a 6-D measurement sees the platform's frame.
+
+Parameters: the base frame (the measurement frame's view of the robot frame), then per leg
+``leg<i>.bx by bz`` and ``leg<i>.px py pz`` (m), ``leg<i>.zero`` (m) and ``leg<i>.scale`` (ratio),
+then ``tool.x tool.y tool.z`` (m).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar, Sequence
+
+import numpy as np
+
+from ..errors import ModelError
+from .implicit import ImplicitRobot, twist_exp
+from .parameters import Parameters
+from .robot import TOOL_NAMES, JointSpace
+from .serial import BASE_NAMES
+
+LEG_NAMES = ("bx", "by", "bz", "px", "py", "pz", "zero", "scale")
+LEG_KINDS = ("length",) * 7 + ("ratio",)
+N_LEGS = 6
+
+
+def stewart_names(n_legs: int = N_LEGS) -> tuple[list[str], list[str]]:
+    """The parameter names and kinds of a platform with ``n_legs`` legs."""
+    names, kinds = list(BASE_NAMES), ["length"] * 3 + ["angle"] * 3
+    for i in range(1, n_legs + 1):
+        names += [f"leg{i}.{p}" for p in LEG_NAMES]
+        kinds += LEG_KINDS
+    return names + list(TOOL_NAMES), kinds + ["length"] * 3
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class StewartRobot(ImplicitRobot):
+    """A 6-UPS / 6-SPS hexapod; joints are the six legs' actuators (lengths, m, or motor angles, rad)."""
+
+    name: str
+    params: Parameters
+    leg_lower: np.ndarray
+    leg_upper: np.ndarray
+    lead: np.ndarray  # (6,) nominal travel per joint unit: 1 (a length reading) or m/rad (a motor angle)
+    description: str = ""
+    joint_space: JointSpace = field(init=False, repr=False)
+    UNKNOWN: ClassVar[str] = "pose"
+    has_inverse: ClassVar[bool] = True
+
+    def __post_init__(self) -> None:
+        names, kinds = stewart_names()
+        if self.params.names != tuple(names) or self.params.kinds != tuple(kinds):
+            raise ModelError(f"{self.name}: parameters do not match the hexapod layout ({', '.join(names[:14])}, …)")
+        lead = np.array(self.lead, float).reshape(-1)
+        if lead.shape != (N_LEGS,) or not np.all(np.isfinite(lead) & (lead > 0)):
+            raise ModelError(f"{self.name}: each of the 6 legs needs a positive lead (travel per joint unit), got "
+                             f"{self.lead!r}")
+        lead.setflags(write=False)
+        object.__setattr__(self, "lead", lead)
+        kind = "prismatic" if np.all(lead == 1.0) else "revolute"
+        object.__setattr__(self, "joint_space", JointSpace([f"leg{i}" for i in range(1, N_LEGS + 1)],
+                                                           (kind,) * N_LEGS, self.leg_lower, self.leg_upper))
+
+    @classmethod
+    def build(cls, name: str, base_points: Sequence, platform_points: Sequence, zero: Sequence[float],
+              leg_range: tuple[Sequence[float], Sequence[float]], lead: Sequence[float] | None = None,
+              description: str = "") -> "StewartRobot":
+        """A hexapod from its design: base points (6, 3) m in the robot frame, platform points (6, 3) m
+        in the platform frame, leg lengths at reading 0 (6,) m, the readings' range (lower, upper) (6,)
+        each, and ``lead``: None for legs read as lengths (m), else each revolute actuator's nominal
+        travel per radian (6,) m/rad; scales 1, tool point at the platform frame's origin."""
+        b, p = np.asarray(base_points, float), np.asarray(platform_points, float)
+        z = np.asarray(zero, float).reshape(-1)
+        if b.shape != (N_LEGS, 3) or p.shape != (N_LEGS, 3) or z.shape != (N_LEGS,):
+            raise ModelError(f"{name}: a hexapod needs 6 base points, 6 platform points (x, y, z each) and 6 leg "
+                             f"lengths; got {b.shape}, {p.shape} and {z.shape}")
+        names, kinds = stewart_names()
+        v = dict.fromkeys(names, 0.0)
+        for i in range(N_LEGS):
+            v.update(zip((f"leg{i + 1}.{k}" for k in LEG_NAMES), (*b[i], *p[i], z[i], 1.0)))
+        lo, hi = (np.asarray(x, float).reshape(-1) * np.ones(N_LEGS) for x in leg_range)
+        return cls(name, Parameters(names, [v[n] for n in names], kinds), lo, hi,
+                   np.ones(N_LEGS) if lead is None else np.asarray(lead, float), description)
+
+    @property
+    def structure(self) -> str:
+        return "stewart (implicit, 6-D)"
+
+    @property
+    def periodic(self) -> np.ndarray:
+        """No leg repeats: a motor's turns add up to the leg's travel."""
+        return np.zeros(N_LEGS, bool)
+
+    def reading_terms(self) -> str:
+        return "the legs' zeros and scales"
+
+    def frame_freedoms(self) -> tuple[tuple[str, tuple[str, ...], int], ...]:
+        """The robot frame among the base points, and the platform frame among the platform points (with
+        the tool point and a 6-D target's rotation): each may stand anywhere, the legs' lengths alike."""
+        legs = range(1, N_LEGS + 1)
+        return (("where the robot frame stands among the base points", BASE_NAMES + tuple(
+                    f"leg{i}.b{c}" for i in legs for c in "xyz"), 6),
+                ("where the platform frame stands among the platform points and the target", TOOL_NAMES + tuple(
+                    f"leg{i}.p{c}" for i in legs for c in "xyz") + ("target.rx", "target.ry", "target.rz"), 6))
+
+    def mounting_params(self) -> tuple[str, ...]:
+        """The base and platform points and the legs' zero lengths: a hexapod's design frames are not the
+        frames it is measured in, and a leg's length at reading 0 is set where its actuator is homed."""
+        return tuple(f"leg{i}.{k}" for i in range(1, N_LEGS + 1) for k in LEG_NAMES[:7])
+
+    # ---- geometry ---------------------------------------------------------------------------------
+    def _legs(self, values: np.ndarray):
+        """Base points, platform points (…, 6, 3), zero lengths and scales (…, 6) of ``values`` (P,) or (N, P)."""
+        v = np.asarray(values, dtype=float)
+        leg = v[..., 6:6 + 8 * N_LEGS].reshape(v.shape[:-1] + (N_LEGS, 8))
+        return leg[..., 0:3], leg[..., 3:6], leg[..., 6], leg[..., 7]
+
+    def _vectors(self, x: np.ndarray, values: np.ndarray):
+        """Leg vectors d = R p + t − b (N, 6, 3), their lengths (N, 6) and R p (N, 6, 3)."""
+        b, p, _, _ = self._legs(values)
+        Rp = p @ x[:, :, :3].transpose(0, 2, 1)  # (N, 6, 3): each platform point turned
+        d = Rp + x[:, None, :, 3] - b
+        return d, np.linalg.norm(d, axis=-1), Rp
+
+    def _lengths(self, q: np.ndarray, values: np.ndarray) -> np.ndarray:
+        _, _, zero, scale = self._legs(values)
+        return zero + scale * self.lead * q
+
+    def constraints(self, x, q, values):
+        return self._vectors(x, values)[1] - self._lengths(q, values)
+
+    def constraint_jacobian(self, x, q, values):
+        d, length, Rp = self._vectors(x, values)
+        u = d / length[..., None]
+        return np.concatenate([u, np.cross(Rp, u)], axis=2)  # by (dt, δ): d moves by dt + δ × R p
+
+    def constraint_derivatives(self, x, q, values):
+        d, length, Rp = self._vectors(x, values)
+        u = d / length[..., None]
+        n = x.shape[0]
+        fx = np.concatenate([u, np.cross(Rp, u)], axis=2)
+        _, _, _, scale = self._legs(values)
+        legs = np.arange(N_LEGS)
+        fq = np.zeros((n, N_LEGS, N_LEGS))
+        fq[:, legs, legs] = -np.broadcast_to(scale * self.lead, (n, N_LEGS))
+        fs = np.zeros((n, N_LEGS, self.n_params))
+        cols = 6 + 8 * legs[:, None] + np.arange(8)  # (6, 8): each leg's columns
+        fs[:, legs[:, None], cols[:, 0:3]] = -u
+        fs[:, legs[:, None], cols[:, 3:6]] = np.einsum("nkj,nji->nki", u, x[:, :, :3])  # uᵀ R
+        fs[:, legs, cols[:, 6]] = -1.0
+        fs[:, legs, cols[:, 7]] = -self.lead * q
+        return fx, fq, fs
+
+    def start_point(self, q, values):
+        """The platform parallel to the base, over the base points' centre, at the mean height the legs reach."""
+        b, p, _, _ = self._legs(values)
+        L = self._lengths(q, values)
+        b, p = np.broadcast_to(b, L.shape + (3,)), np.broadcast_to(p, L.shape + (3,))
+        xy = b[..., :2].mean(axis=-2) - p[..., :2].mean(axis=-2)  # (N, 2)
+        flat = p[..., :2] + xy[:, None] - b[..., :2]
+        h = np.sqrt(np.maximum(L**2 - np.sum(flat**2, axis=-1), 0.0)) - p[..., 2] + b[..., 2]
+        t = np.column_stack([xy, h.mean(axis=1)])
+        return np.concatenate([np.broadcast_to(np.eye(3), (len(t), 3, 3)), t[:, :, None]], axis=2)
+
+    def in_working_mode(self, x, q, values):
+        """The platform above the base (the legs' upper assembly, the one the start leads to), not turned over."""
+        return (x[:, 2, 3] > 0.0) & (x[:, 2, 2] > 0.0)
+
+    def inverse_local(self, x, values, strict=True):
+        """Leg readings (N, 6) (m or rad) for platform poses x (N, 3, 4) in the robot frame: closed form,
+        each leg's length through its zero, scale and lead."""
+        _, _, zero, scale = self._legs(values)
+        return (self._vectors(x, values)[1] - zero) / (scale * self.lead)
+
+    def sample_joints(self, n: int, seed: int | None = 0, max_tries: int = 50) -> np.ndarray:
+        """n leg readings (n, 6) of platform poses drawn uniformly around the pose at mid-range legs
+        (translations within half a leg stroke, turns within the stroke over the platform's radius) and
+        mapped to the legs in closed form, kept where every leg is inside its range and the platform
+        assembles in the working mode: every sampled configuration exists."""
+        rng = np.random.default_rng(seed)
+        v = self.params.values
+        mid = 0.5 * (self.lower + self.upper)[None]
+        home = self._solve_local(mid, v)[0]
+        _, p, zero, scale = self._legs(v)
+        stroke = float(np.min(scale * self.lead * (self.upper - self.lower)))
+        turn = stroke / max(float(np.max(np.linalg.norm(p, axis=1))), 1e-9)
+        kept, have = [], 0
+        for _ in range(max_tries):
+            m = max(4 * (int(n) - have), 64)
+            x = np.concatenate([twist_exp(rng.uniform(-0.5, 0.5, (m, 3)) * turn) @ home[:, :, :3],
+                                (home[:, :, 3] + rng.uniform(-0.5, 0.5, (m, 3)) * stroke)[:, :, None]], axis=2)
+            q = self.inverse_local(x, v)
+            q = q[self.within_limits(q)]
+            q = q[self.feasible(q)] if len(q) else q
+            kept.append(q)
+            have += len(q)
+            if have >= n:
+                return np.concatenate(kept)[:int(n)]
+        raise ModelError(f"{self.name}: only {have} of {n} platform poses drawn around mid-range legs keep every leg "
+                         f"inside its range; check the leg ranges and the geometry")

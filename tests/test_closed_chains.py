@@ -1,0 +1,248 @@
+"""The Stewart–Gough platform (6-D implicit model): kinematics against independent references (finite
+differences, closed-form leg lengths, the robot file read back), recovery of simulated parameters, sampling that
+only gives poses that exist, and the real Jugglebot hexapod (``../shared/datasets/stewart_jugglebot``)."""
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from scipy.spatial.transform import Rotation
+
+import kincal
+from kincal.errors import ModelError
+from kincal.identify.calibrate import fit_observations
+from kincal.models.stewart import StewartRobot
+from kincal.observe import in_joint_space
+from kincal.simulate import simulate_poses
+
+from conftest import shared_dataset
+
+ROOT = Path(__file__).resolve().parents[1]
+JUGGLEBOT = shared_dataset("stewart_jugglebot")
+
+
+@pytest.fixture(scope="module")
+def hexapod():
+    return kincal.load_robot("hexapod")
+
+
+def _perturbed(robot, seed=3, size=2e-3):
+    """``robot`` with every parameter off by up to ``size`` (m; scales by up to 0.2 %, rotations 2 mrad)."""
+    rng = np.random.default_rng(seed)
+    kinds = np.array(robot.params.kinds)
+    step = np.where(kinds == "length", size, np.where(kinds == "ratio", 2e-3, 2e-3))
+    return robot.with_params(robot.params.values + rng.uniform(-1, 1, robot.n_params) * step)
+
+
+def _leg_lengths(robot, R, t):
+    """Each leg's length (N, 6) from the platform pose (world R (N, 3, 3), tool point t (N, 3)) written out
+    from the definition: base and platform points through the base frame and the tool point."""
+    v = robot.params.as_dict()
+    Rb = Rotation.from_euler("ZYX", [v["base.rz"], v["base.ry"], v["base.rx"]]).as_matrix()
+    tb = np.array([v["base.x"], v["base.y"], v["base.z"]])
+    tool = np.array([v["tool.x"], v["tool.y"], v["tool.z"]])
+    out = np.zeros((len(t), 6))
+    for i in range(6):
+        b = Rb @ np.array([v[f"leg{i + 1}.b{c}"] for c in "xyz"]) + tb
+        p = np.array([v[f"leg{i + 1}.p{c}"] for c in "xyz"])
+        out[:, i] = np.linalg.norm(np.einsum("nij,j->ni", R, p - tool) + t - b, axis=1)
+    return out
+
+
+def test_forward_kinematics_closes_every_leg(hexapod):
+    true = _perturbed(hexapod)
+    q = true.sample_joints(50, seed=1)
+    p, _, R, _ = true.frame_and_rates(q)
+    v = true.params.as_dict()
+    lead = true.lead
+    expected = np.array([v[f"leg{i}.zero"] for i in range(1, 7)]) + np.array(
+        [v[f"leg{i}.scale"] for i in range(1, 7)]) * lead * q
+    assert np.abs(_leg_lengths(true, R, p) - expected).max() < 1e-12
+    assert np.abs(true.inverse_pose(R, p) - q).max() < 1e-9
+
+
+def _fd(fun, x, h):
+    return np.stack([(fun(x + h * e) - fun(x - h * e)) / (2 * h) for e in np.eye(x.size)], axis=-1)
+
+
+def test_jacobians_match_finite_differences(hexapod):
+    robot = _perturbed(hexapod)
+    q = robot.sample_joints(4, seed=2)
+    p, J, R, W = robot.frame_and_rates(q)
+    v0 = robot.params.values
+    assert np.abs(J - _fd(lambda v: robot.forward(q, v), v0, 1e-7)).max() < 1e-7
+    turn = lambda v: Rotation.from_matrix(robot.frame_and_rates(q, v)[2] @ R.transpose(0, 2, 1)).as_rotvec()  # noqa: E731
+    assert np.abs(W - _fd(turn, v0, 1e-7)).max() < 1e-7
+    _, _, Jq, Wq = robot.pose_and_jacobian(q)
+    for k in range(6):
+        e = np.zeros(6)
+        e[k] = 1e-6
+        assert np.abs(Jq[:, :, k] - (robot.forward(q + e) - robot.forward(q - e)) / 2e-6).max() < 1e-7
+        dR = robot.pose_and_jacobian(q + e)[1] @ robot.pose_and_jacobian(q - e)[1].transpose(0, 2, 1)
+        assert np.abs(Wq[:, :, k] - Rotation.from_matrix(dR).as_rotvec() / 2e-6).max() < 1e-7
+    qq, dq, dw = robot.inverse_pose_and_jacobian(R, p)
+    assert np.abs(dq - _fd(lambda v: robot.inverse_pose(R, p, v), v0, 1e-7)).max() < 1e-6
+    for k in range(3):
+        w = np.zeros(3)
+        w[k] = 1e-7
+        turned = [Rotation.from_rotvec(s * w).as_matrix() @ R for s in (1, -1)]
+        assert np.abs(dw[:, :, k] - (robot.inverse_pose(turned[0], p) - robot.inverse_pose(turned[1], p)) / 2e-7
+                      ).max() < 1e-6
+
+
+def test_robot_file_round_trip_and_units(hexapod, tmp_path):
+    robot = _perturbed(hexapod)
+    for units in (("m", "rad"), ("mm", "deg")):
+        path = tmp_path / f"hexapod-{units[0]}.yaml"
+        kincal.save_robot(robot, path, *units)
+        back = kincal.load_robot(path)
+        tol = 0.0 if units == ("m", "rad") else 1e-15
+        assert back.params.names == robot.params.names
+        assert np.abs(back.params.values - robot.params.values).max() <= tol
+        assert np.abs(back.lead - robot.lead).max() <= 1e-15 and np.array_equal(back.joint_types, robot.joint_types)
+    text = yaml.safe_load((tmp_path / "hexapod-mm.yaml").read_text())
+    nominal = yaml.safe_load((JUGGLEBOT / "nominal.yaml").read_text())
+    leads = [leg["lead"] for leg in yaml.safe_load((ROOT / "src/kincal/models/robots/hexapod.yaml").read_text())["legs"]]
+    assert leads == nominal["mm_per_rev"] and text["reading"] == {"unit": "rev"}
+    assert np.allclose(hexapod.lead * 2 * np.pi * 1e3, nominal["mm_per_rev"], rtol=1e-15)
+
+
+def test_sampled_configurations_exist_and_cover_the_legs(hexapod):
+    q = hexapod.sample_joints(400, seed=4)
+    assert q.shape == (400, 6) and hexapod.within_limits(q).all()
+    x, ok = hexapod._solve_local(q, hexapod.params.values, strict=False)
+    assert ok.all()
+    stroke = hexapod.upper - hexapod.lower
+    assert np.all(q.max(0) - q.min(0) > 0.5 * stroke)  # the draws reach across most of each leg's range
+    assert np.array_equal(q, hexapod.sample_joints(400, seed=4))
+
+
+def test_a_constraint_count_that_does_not_match_the_unknown_is_named():
+    class Five(StewartRobot):
+        def constraints(self, x, q, values):
+            return super().constraints(x, q, values)[:, :5]
+    robot = kincal.load_robot("hexapod")
+    five = Five(robot.name, robot.params, robot.lower, robot.upper, robot.lead)
+    with pytest.raises(ModelError, match="5 constraint.*pose unknown of 6 coordinates"):
+        five.forward(robot.sample_joints(2))
+
+
+@pytest.mark.parametrize("residual", ["cartesian", "joint"])
+def test_simulated_hexapod_recovers_every_identifiable_parameter(hexapod, residual):
+    true = _perturbed(hexapod, seed=5)
+    q = hexapod.sample_joints(60, seed=6)
+    target = Rotation.from_rotvec([0.01, -0.02, 0.03]).as_matrix()
+    obs = dataclasses.replace(simulate_poses(true, q, target, std_pos=0.0, std_rot=0.0), std_pos=15e-6, std_rot=5e-5)
+    obs = obs if residual == "cartesian" else in_joint_space(obs)
+    res = fit_observations(hexapod, [obs], prior="none")
+    gauge = res.identifiability.frames  # the design frames' 12 freedoms, named as such; nothing else dropped
+    assert len(res.names) + len(res.nuisance) == 48 and len(gauge) == 12 and not res.identifiability.dropped
+    assert "where the robot frame stands among the base points (6:" in str(res)
+    # the 12 gauge freedoms leave the predictions alone: every pose of the true robot is reproduced
+    q_test = hexapod.sample_joints(40, seed=7)
+    p, _, R, _ = true.frame_and_rates(q_test)
+    ph, _, Rh, _ = res.robot.frame_and_rates(q_test)
+    fitted = res.observations[0]
+    turn = Rh @ fitted.target(np.array([res.nuisance[f"target.r{c}"] for c in "xyz"])) @ (R @ target).transpose(0, 2, 1)
+    assert np.abs(ph - p).max() < 1e-9 and np.abs(Rotation.from_matrix(turn).as_rotvec()).max() < 1e-9
+    # started with the gauge parameters at their true values, the fit finds every other one
+    start = hexapod.with_params({n: true.params[n] for n in gauge})
+    again = fit_observations(start, [obs], prior="none")
+    assert set(again.identifiability.frames) == set(gauge)
+    for n in again.names:
+        assert abs(again.robot.params[n] - true.params[n]) <= 1e-9 * max(abs(true.params[n]), 1e-3), n
+
+
+# ---- the delta robot ---------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def delta():
+    return kincal.load_robot("delta")
+
+
+def test_delta_closes_every_forearm_and_inverts_in_closed_form(delta):
+    true = _perturbed(delta, seed=8)
+    q = true.sample_joints(80, seed=9)
+    p = true.forward(q)
+    v = true.params.as_dict()
+    Rb = Rotation.from_euler("ZYX", [v["base.rz"], v["base.ry"], v["base.rx"]]).as_matrix()
+    local = (p - [v["base.x"], v["base.y"], v["base.z"]]) @ Rb
+    for i in range(3):  # the definition written out: elbow from the motor angle, forearm length from the platform
+        a = np.deg2rad(120.0 * i) + v[f"arm{i + 1}.phi"]
+        e = np.array([np.cos(a), np.sin(a), 0.0])
+        alpha = q[:, i] + v[f"arm{i + 1}.zero"]
+        elbow = v[f"arm{i + 1}.R"] * e + v[f"arm{i + 1}.L"] * (np.cos(alpha)[:, None] * e
+                                                                - np.sin(alpha)[:, None] * [0, 0, 1.0])
+        reach = np.linalg.norm(local + v[f"arm{i + 1}.r"] * e - elbow, axis=1)
+        assert np.abs(reach - v[f"arm{i + 1}.l"]).max() < 1e-12
+        assert np.all(elbow[:, 2] > local[:, 2])  # the platform hangs below the elbows
+    assert np.abs(true.inverse(p) - q).max() < 1e-9
+    J = true.param_jacobian(q[:5])
+    assert np.abs(J - _fd(lambda x: true.forward(q[:5], x), true.params.values, 1e-7)).max() < 1e-7
+    for k in range(3):
+        assert np.abs(true.joint_jacobian(q[k]) - _fd(lambda x: true.forward(x), q[k], 1e-7)).max() < 1e-7
+
+
+def test_delta_robot_file_round_trip(delta, tmp_path):
+    robot = _perturbed(delta, seed=10)
+    kincal.save_robot(robot, tmp_path / "d.yaml")
+    back = kincal.load_robot(tmp_path / "d.yaml")
+    assert np.array_equal(back.params.values, robot.params.values) and np.array_equal(back.lower, robot.lower)
+
+
+def test_simulated_delta_recovers_every_identifiable_parameter(delta):
+    true = _perturbed(delta, seed=11)
+    q = delta.sample_joints(80, seed=12)
+    meas = kincal.simulate(true, q, noise=0.0, seed=0)
+    res = kincal.calibrate(delta, meas)
+    start = delta.with_params({n: true.params[n] for n in res.identifiability.dropped})
+    again = kincal.calibrate(start, meas)
+    assert set(again.identifiability.dropped) == set(res.identifiability.dropped)
+    for n in again.names:
+        assert abs(again.robot.params[n] - true.params[n]) <= 1e-9 * max(abs(true.params[n]), 1e-3), n
+
+
+# ---- the noise the fit predicts (Cramér–Rao) against what it does ---------------------------------------------
+
+
+def _validation_ratio(robot, fit, bound, seeds=8):
+    """RMS of the fitted model's position error at fresh poses over ``seeds`` draws of the noise, over the
+    RMS the Cramér–Rao bound predicts there: σ² = trace(J C Jᵀ), ``bound(res)`` giving C over ``res.names``."""
+    true = _perturbed(robot, seed=20)
+    q_val = robot.sample_joints(50, seed=21)
+    p_true = true.forward(q_val)
+    err2, pred2 = [], []
+    for seed in range(seeds):
+        res = fit(true, seed)
+        J = res.robot.param_jacobian(q_val)[:, :, res.robot.params.indices(res.names)]
+        pred2.append(np.einsum("nip,pq,niq->n", J, bound(res), J).mean())
+        err2.append(np.mean(np.sum((res.robot.forward(q_val) - p_true) ** 2, axis=1)))
+    return np.sqrt(np.mean(err2) / np.mean(pred2))
+
+
+def test_hexapod_validation_error_matches_its_cramer_rao_prediction(hexapod):
+    target = Rotation.from_rotvec([0.01, -0.02, 0.03]).as_matrix()
+    q = hexapod.sample_joints(60, seed=22)
+
+    def fit(true, seed):
+        obs = simulate_poses(true, q, target, std_pos=15e-6, std_rot=0.05e-3, seed=seed)
+        return fit_observations(hexapod, [obs], prior="none")
+
+    def bound(res):  # the fit's covariance σ̂²(JᵀJ)⁻¹ (whitened by the stated σ) without its estimate σ̂²
+        rows = 6 * len(q)
+        at = [res.free.index(n) for n in res.names]
+        return res.covariance[np.ix_(at, at)] * (rows - len(res.free)) / (res.whitened_rms**2 * rows)
+    assert 0.80 <= _validation_ratio(hexapod, fit, bound) <= 1.10  # (below 1 only by the draws: 8 seeds spread ±8 %)
+
+
+def test_delta_validation_error_matches_its_cramer_rao_prediction(delta):
+    q = delta.sample_joints(60, seed=23)
+
+    def bound(res):  # σ²(JᵀJ)⁻¹ of the training poses' position Jacobian, from the model itself
+        J = res.robot.param_jacobian(q)[:, :, res.robot.params.indices(res.names)].reshape(-1, len(res.names))
+        return (15e-6) ** 2 * np.linalg.inv(J.T @ J)
+    ratio = _validation_ratio(delta, lambda true, seed: kincal.calibrate(delta, kincal.simulate(true, q, noise=15e-6,
+                                                                                                  seed=seed)), bound)
+    assert 0.80 <= ratio <= 1.10
