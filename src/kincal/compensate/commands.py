@@ -81,6 +81,9 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     if rotations is not None:
         return compensate_poses(robot, targets, rotations, q_start, rows=rows, uncertainty=uncertainty,
                                 nominal=nominal)
+    if robot.has_pose_inverse:
+        raise ModelError(f"robot '{robot.name}' ({robot.structure}): its joints are set by the platform's whole pose; "
+                         f"give 6-D targets (position and orientation: --type pose)")
     targets, q0, rows = _checked_inputs(robot, targets, q_start, damping, rows)
     if nominal is not None and q0 is not None:
         why = frame_mismatch(nominal, q0, targets, rows)
@@ -114,7 +117,7 @@ def _checked_inputs(robot: Robot, targets, q_start, damping: float, rows):
     rows = np.arange(1, len(targets) + 1) if rows is None else np.asarray(rows)
     if rows.shape != (len(targets),):
         raise ValueError(f"rows: {rows.shape[0] if rows.ndim else 0} row numbers for {len(targets)} targets")
-    if robot.has_inverse:
+    if robot.has_inverse or robot.has_pose_inverse:
         return targets, None, rows
     if q_start is None:
         raise ModelError(f"robot '{robot.name}' has no closed-form inverse: give the nominal joint values of the "
@@ -210,6 +213,8 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
 
     targets, q0, rows = _checked_inputs(robot, targets, q_start, 1e-4, rows)
     rotations = _checked_rotations(rotations, len(targets))
+    if robot.has_pose_inverse:  # a hexapod: the legs of each pose in closed form, checked through the forward model
+        return _with_sigma(robot, _closed_form_poses(robot, targets, rotations, rows, nominal), uncertainty)
     if nominal is not None:
         why = frame_mismatch(nominal, q0, targets, rows) or _orientation_mismatch(nominal, q0, rotations)
         if why:
@@ -228,6 +233,27 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
         comp = dataclasses.replace(comp, warnings=comp.warnings + (
             uncontrolled_warning(robot, float(sol.rotation_error[comp.ok].max())),))
     return comp if nominal is None else dataclasses.replace(comp, filtered=filtered_poses(nominal, sol.q))
+
+
+def _closed_form_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, rows: np.ndarray,
+                       nominal: Robot | None) -> Compensation:
+    """Commands of a robot whose joints follow from the pose in closed form (its legs), checked like
+    every command: limits, and the calibrated forward kinematics back at the target (position and
+    orientation); with the ``nominal`` model, the filtered poses (what its inverse turns into them)."""
+    from .poses import filtered_poses, rotation_log
+
+    with np.errstate(invalid="ignore"):
+        q = robot.inverse_pose(rotations, targets, strict=False)
+    comp = _checked(robot, q, "closed-form inverse (poses)", 0, targets, None, rows, nominal)
+    finite = np.all(np.isfinite(q), axis=1)
+    turn = np.full(len(q), np.inf)
+    if finite.any():
+        R = robot.frame_and_rates(q[finite])[2]
+        turn[finite] = np.linalg.norm(rotation_log(R @ np.swapaxes(rotations[finite], 1, 2)), axis=1)
+    bad = comp.ok & (turn > ROT_TOL)
+    comp = dataclasses.replace(comp, ok=comp.ok & ~bad, rotation_residual=turn, problems=comp.problems + tuple(
+        f"row {r}: the model misses the target orientation by {e * 1e3:.4f} mrad" for r, e in zip(rows[bad], turn[bad])))
+    return comp if nominal is None or not finite.all() else dataclasses.replace(comp, filtered=filtered_poses(nominal, q))
 
 
 def uncontrolled_warning(robot: Robot, left: float) -> str:

@@ -81,6 +81,8 @@ class StreamJob:
 
     @property
     def needs_joints(self) -> bool:
+        if self.robot.has_pose_inverse:  # a hexapod: its legs follow from the pose alone
+            return False
         return self.targets.pose or not self.robot.has_inverse
 
     def layout(self, dst: str) -> CommandColumns:

@@ -182,7 +182,7 @@ class FitOptions:
         if self.names != "auto":
             robot.params.indices(self.names)  # unknown names raise, naming them
         robot.params.indices(self.keep)
-        if self.residual == "joint" and not robot.has_inverse:
+        if self.residual == "joint" and not (robot.has_inverse or robot.has_pose_inverse):
             raise ValueError(f"residual='joint' needs a robot with closed-form inverse kinematics; robot "
                              f"'{robot.name}' has none: use residual='cartesian'")
         return self

@@ -139,6 +139,8 @@ class ImplicitRobot(Robot):
         """Joint values (S, N, n) that reach world positions p (N, 3) for S parameter vectors (S, P);
         NaN where a position is out of reach. The geometry is built once per vector and broadcast
         over the positions (``values`` reach ``inverse_local`` as (S, 1, P))."""
+        if not self.has_inverse:  # (a pose unknown: its joints need the whole pose, inverse_pose)
+            raise self._no_inverse()
         p = np.atleast_2d(np.asarray(p, float))
         values = self._batch(values)
         R, t = self._base(values)
@@ -288,6 +290,8 @@ class ImplicitRobot(Robot):
     def inverse(self, p: np.ndarray, values: np.ndarray | None = None, strict: bool = True) -> np.ndarray:
         """Joint values (N, n) that place the end effector at world positions p (N, 3); unreachable
         positions raise a ModelError (or give NaN rows when not ``strict``)."""
+        if not self.has_inverse:  # (a pose unknown: its joints need the whole pose, inverse_pose)
+            raise self._no_inverse()
         values = self.param_values(values)
         R, t = self._base(values)
         return self.inverse_local((np.atleast_2d(np.asarray(p, float)) - t) @ R, values, strict)
@@ -299,6 +303,8 @@ class ImplicitRobot(Robot):
     def inverse_and_jacobian(self, p: np.ndarray, values: np.ndarray | None = None):
         """Joint values (N, n) for world positions p (N, 3) and their derivatives with respect to the
         parameters at fixed p, (N, n, P): dq = −(∂f/∂q)⁻¹ (∂f/∂p · ∂p_local/∂s + ∂f/∂s) ds."""
+        if not self.has_inverse:  # (a pose unknown: its joints need the whole pose, inverse_pose)
+            raise self._no_inverse()
         values = self.param_values(values)
         p = np.atleast_2d(np.asarray(p, float))
         R, t = self._base(values)

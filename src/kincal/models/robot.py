@@ -88,7 +88,8 @@ class Robot(ABC):
     params: Parameters
     joint_space: JointSpace
 
-    has_inverse: ClassVar[bool] = False  # closed-form inverse kinematics
+    has_inverse: ClassVar[bool] = False  # closed-form inverse kinematics of positions
+    has_pose_inverse: ClassVar[bool] = False  # closed-form inverse kinematics of whole poses (a hexapod's legs)
     has_gravity: ClassVar[bool] = False  # a chain whose links can carry masses (gravity terms)
 
     # ---- what a model implements (batched: q (N, n), values (P,)) -------------------------------

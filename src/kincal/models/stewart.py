@@ -52,7 +52,7 @@ class StewartRobot(ImplicitRobot):
     description: str = ""
     joint_space: JointSpace = field(init=False, repr=False)
     UNKNOWN: ClassVar[str] = "pose"
-    has_inverse: ClassVar[bool] = True
+    has_pose_inverse: ClassVar[bool] = True  # (not of positions: the legs need the platform's whole pose)
 
     def __post_init__(self) -> None:
         names, kinds = stewart_names()
