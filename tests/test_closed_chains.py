@@ -315,3 +315,43 @@ def test_jugglebot_mistakes_are_named(tmp_path, capsys):
         argv = ["calibrate", "hexapod", s1, *[unit if a == "rev" else a for a in JUGGLE], *out]
         code, _, err = _kincal(capsys, argv)
         assert code == 1 and said in err and "read as revolutions they match" in err and "--angle-unit rev" in err
+
+
+LAB_HEXAPOD = """name: lab_hexapod
+type: stewart
+description: "a small precision hexapod, legs read as lengths by linear encoders"
+units: {length: mm, angle: deg}
+legs:
+  - {base: [120.0, 20.0, 0.0], platform: [60.0, 45.0, 0.0], zero: 180.0, range: [0, 60]}
+  - {base: [-42.7, 113.9, 0.0], platform: [8.97, 74.46, 0.0], zero: 180.0, range: [0, 60]}
+  - {base: [-77.3, 93.9, 0.0], platform: [-68.97, 29.46, 0.0], zero: 180.0, range: [0, 60]}
+  - {base: [-77.3, -93.9, 0.0], platform: [-68.97, -29.46, 0.0], zero: 180.0, range: [0, 60]}
+  - {base: [-42.7, -113.9, 0.0], platform: [8.97, -74.46, 0.0], zero: 180.0, range: [0, 60]}
+  - {base: [120.0, -20.0, 0.0], platform: [60.0, -45.0, 0.0], zero: 180.0, range: [0, 60]}
+tool: {x: 0, y: 0, z: 20}
+"""
+
+
+def test_a_users_hexapod_file_calibrates_saves_reloads_and_reports(tmp_path, capsys):
+    """A hexapod of other dimensions written by hand, legs read as lengths: simulated, calibrated with a
+    report, reloaded and reported again from its record, with no Python code (the command line only)."""
+    robot_file, data, true_file = tmp_path / "lab.yaml", str(tmp_path / "sim.csv"), str(tmp_path / "true.yaml")
+    robot_file.write_text(LAB_HEXAPOD)
+    noise = ["--std-pos", "0.01mm", "--std-rot", "0.05mrad"]
+    code, _, _ = _kincal(capsys, ["simulate", str(robot_file), "--poses", "80", "--perturb", "--type", "pose",
+                                  "--length-unit", "mm", *noise, "-o", data, "--save-true", true_file])
+    assert code == 0
+    cal = str(tmp_path / "cal.yaml")
+    code, out, _ = _kincal(capsys, ["calibrate", str(robot_file), data, "--type", "pose", "--length-unit", "mm",
+                                    *noise, "-o", cal, "--report", str(tmp_path / "r.html"), "--json"])
+    assert code == 0 and out["verdict"]["status"] == "good" and len(out["identifiability"]["frames"]) == 12
+    code, _, text = _kincal(capsys, ["report", cal, "-o", str(tmp_path / "again.html")])
+    assert code == 0 and "calibrated): mean 0.0" in text
+    back, true = kincal.load_robot(cal), kincal.load_robot(true_file)
+    assert back.structure.startswith("stewart") and back.joint_types == ("prismatic",) * 6
+    q = back.sample_joints(200, seed=40)  # the calibrated file predicts the true robot to the noise's level
+    gap = np.linalg.norm(back.forward(q) - true.forward(q), axis=1)  # (simulated in the true robot's frame)
+    assert gap.mean() < 0.02e-3 and gap.max() < 0.04e-3
+    lengths = yaml.safe_load(robot_file.read_text())["legs"][0]
+    assert lengths["zero"] == 180.0 and abs(back.params["leg1.zero"] - 0.18) < 2e-3  # mm in the file, m inside
+
