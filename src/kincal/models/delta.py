@@ -120,23 +120,22 @@ class DeltaRobot(ImplicitRobot):
             fs[:, arms, cols[:, k]] = 2.0 * value
         return 2.0 * d, fq, fs
 
+    def _centres(self, q, values) -> tuple[np.ndarray, np.ndarray]:
+        """The spheres the platform's centre lies on: centres Eᵢ − rᵢeᵢ (N, 3, 3) and radii lᵢ (…, 3)."""
+        R, r, L, l, zero, e, _ = self._arms(values)
+        alpha = (q + zero)[..., None]
+        return (R - r)[..., None] * e + L[..., None] * (np.cos(alpha) * e - np.sin(alpha) * [0.0, 0.0, 1.0]), l
+
     def start_point(self, q, values):
         """On the axis, below the three elbows by the forearms' mean reach."""
-        R, r, L, _, zero, e, _ = self._arms(values)
-        alpha = q + zero
-        centre = (R - r)[..., None] * e + L[..., None] * (np.cos(alpha)[..., None] * e
-                                                        - np.sin(alpha)[..., None] * np.array([0.0, 0.0, 1.0]))
-        l = self._arms(values)[3]
+        centre, l = self._centres(q, values)
         rho = np.linalg.norm(centre[..., :2], axis=-1)
         z = centre[..., 2].mean(axis=1) - np.sqrt(np.maximum(np.mean(l**2 - rho**2, axis=-1), 1e-12))
-        return np.column_stack([centre[..., 0].mean(axis=1) * 0.0, centre[..., 1].mean(axis=1) * 0.0, z])
+        return np.column_stack([np.zeros_like(z), np.zeros_like(z), z])
 
     def assembly_mode(self, x, q, values):
         """The platform hangs below the three sphere centres Eᵢ − rᵢeᵢ; a solution above them is reflected."""
-        R, r, L, _, zero, e, _ = self._arms(values)
-        alpha = q + zero
-        c = (R - r)[..., None] * e + L[..., None] * (np.cos(alpha)[..., None] * e
-                                                   - np.sin(alpha)[..., None] * np.array([0.0, 0.0, 1.0]))
+        c = self._centres(q, values)[0]
         nrm = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
         nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
         nrm *= np.sign(nrm[:, 2:3])

@@ -52,8 +52,8 @@ class ImplicitRobot(Robot):
     """Base class: subclasses are frozen dataclasses that set ``name``, ``description``,
     ``joint_space``, ``params`` (the first six being the base frame; with a pose as the unknown also
     ``tool.x/y/z``), ``UNKNOWN`` ("position" or "pose") and implement the constraint methods below
-    (robot frame, SI units). A subclass with a closed-form inverse implements ``inverse_local`` and
-    sets ``has_inverse = True``."""
+    (robot frame, SI units). A subclass with a closed-form inverse of its unknown implements
+    ``inverse_local`` and sets ``has_inverse = True`` (a position) or ``has_pose_inverse = True`` (a pose)."""
 
     UNKNOWN: ClassVar[str] = "position"
 
