@@ -42,14 +42,19 @@ def puu3_from_dict(data: dict, label: str) -> PUU3Robot:
     return robot.with_params(values)
 
 
+def _parameters_text(robot: Robot, lf: float, af: float) -> str:
+    """'parameters: {…}' of every parameter after the base frame, in the file's units (``lf``, ``af``: per m, rad)."""
+    v, kinds = robot.params.as_dict(), dict(zip(robot.params.names, robot.params.kinds))
+    return "parameters: {" + ", ".join(f"{n}: {fmt(v[n] * (lf if kinds[n] == 'length' else af))}"
+                                       for n in robot.params.names[6:]) + "}"
+
+
 def puu3_yaml(robot: PUU3Robot, length_unit: str, angle_unit: str) -> str:
     lf, af = per_unit(length_unit, angle_unit)
     v = robot.params.as_dict()
-    kinds = dict(zip(robot.params.names, robot.params.kinds))
-    params = ", ".join(f"{n}: {fmt(v[n] * (lf if kinds[n] == 'length' else af))}" for n in robot.params.names[6:])
     lines = [f"name: {robot.name}", "type: puu3", *description_lines(robot.description)]
     lines += [f"units: {{length: {length_unit}, angle: {angle_unit}}}", f"extended: {str(robot.extended).lower()}",
-              f"parameters: {{{params}}}", f"slider_limits: [{fmt(robot.h_lower * lf)}, {fmt(robot.h_upper * lf)}]",
+              _parameters_text(robot, lf, af), f"slider_limits: [{fmt(robot.h_lower * lf)}, {fmt(robot.h_upper * lf)}]",
               frame_text(v, "base", lf, af), ""]
     return "\n".join(lines)
 
@@ -274,10 +279,8 @@ def delta_from_dict(data: dict, label: str) -> DeltaRobot:
 def delta_yaml(robot: DeltaRobot, length_unit: str, angle_unit: str) -> str:
     lf, af = per_unit(length_unit, angle_unit)
     v = robot.params.as_dict()
-    kinds = dict(zip(robot.params.names, robot.params.kinds))
-    params = ", ".join(f"{n}: {fmt(v[n] * (lf if kinds[n] == 'length' else af))}" for n in robot.params.names[6:])
     lines = [f"name: {robot.name}", "type: delta", *description_lines(robot.description),
-             f"units: {{length: {length_unit}, angle: {angle_unit}}}", f"parameters: {{{params}}}",
+             f"units: {{length: {length_unit}, angle: {angle_unit}}}", _parameters_text(robot, lf, af),
              f"arm_limits: [{fmt(robot.q_lower * af)}, {fmt(robot.q_upper * af)}]",
              frame_text(v, "base", lf, af), ""]
     return "\n".join(lines)

@@ -16,20 +16,28 @@ from ..models.robot import Robot
 from .observations import MeasuredPositions, PointObs, PoseObs, Wrapper, component_major, mean_square, so3_right
 
 
+class InJoints:
+    """What a residual in joint space is, whatever was measured: one row per sample and joint, each with
+    the joints' reading noise ``std`` (rad or m) as its σ."""
+
+    kind = "joint"
+    q: np.ndarray
+    std: float
+
+    def sample_rows(self) -> np.ndarray:
+        return np.tile(np.arange(len(self.q)), self.q.shape[1])
+
+    def sigma(self) -> np.ndarray:
+        return np.full(self.q.size, float(self.std))
+
+
 @dataclass(frozen=True, eq=False)
-class JointObs(MeasuredPositions):
+class JointObs(InJoints, MeasuredPositions):
     """Measured positions xyz (N, 3) m at commanded joints q (N, n); residual: inverse kinematics of
     xyz − q, (N, n) rad or m. σ (rad or m, one number): the joints' reading noise, stated. Its statistics
     are the position errors (m)."""
 
     std: float = 1e-4
-    kind = "joint"
-
-    def sample_rows(self) -> np.ndarray:
-        return np.tile(np.arange(len(self)), self.q.shape[1])
-
-    def sigma(self) -> np.ndarray:
-        return np.full(self.q.size, float(self.std))
 
     def evaluate_cols(self, robot: Robot, values: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         try:
@@ -51,7 +59,7 @@ class JointObs(MeasuredPositions):
 
 
 @dataclass(frozen=True, eq=False)
-class PoseJointObs(PoseObs):
+class PoseJointObs(InJoints, PoseObs):
     """Measured 6-D poses (xyz (N, 3) m, R (N, 3, 3)) at read joints q (N, n); residual: the joints that
     put the platform at the measured pose by the model's closed-form inverse (a hexapod's legs from its
     pose, no forward solve) − q, (N, n) m or rad. The platform's frame is the measured one turned back
@@ -59,13 +67,6 @@ class PoseJointObs(PoseObs):
     the joints' reading noise, stated. Its statistics are the pose errors (forward kinematics)."""
 
     std: float = 1e-4
-    kind = "joint"
-
-    def sample_rows(self) -> np.ndarray:
-        return np.tile(np.arange(len(self)), self.q.shape[1])
-
-    def sigma(self) -> np.ndarray:
-        return np.full(self.q.size, float(self.std))
 
     def position_axes(self) -> np.ndarray:
         return np.full(self.q.size, -1)
