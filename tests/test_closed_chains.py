@@ -355,3 +355,13 @@ def test_a_users_hexapod_file_calibrates_saves_reloads_and_reports(tmp_path, cap
     lengths = yaml.safe_load(robot_file.read_text())["legs"][0]
     assert lengths["zero"] == 180.0 and abs(back.params["leg1.zero"] - 0.18) < 2e-3  # mm in the file, m inside
 
+
+
+def test_a_key_of_another_robot_type_is_refused(tmp_path):
+    path = tmp_path / "d.yaml"
+    path.write_text("name: d\ntype: delta\nunits: {length: mm, angle: deg}\narms: {R: 200, r: 50, L: 350, l: 800}\n"
+                    "arm_limits: [-35, 80]\njoints: []\n")
+    with pytest.raises(ModelError, match="joints do.es. not belong to a 'delta' robot .keys of serial, urdf."):
+        kincal.load_robot(path)
+    path.write_text(path.read_text().replace("joints: []\n", ""))
+    assert kincal.load_robot(path).structure == "delta (implicit)"

@@ -43,9 +43,11 @@ from .yaml_values import (POSE_KEYS, base_pose, description_lines, fmt, frame_te
                           mapping, num, per_unit, pose_text, units)
 
 _JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits", "mass", "com", "velocity", "effort"}
-_TOP_KEYS = {"name", "description", "convention", "units", "joints", "base", "tool", "actuators", "transmission",
-             "type", "extended", "parameters", "slider_limits", "calibration", "source", "error_model", "names",
-             "frames", "legs", "reading", "arms", "arm_limits"}
+_COMMON_KEYS = {"name", "description", "type", "units", "base", "calibration", "source", "error_model"}
+_TYPE_KEYS = {"serial": {"convention", "joints", "tool", "actuators", "transmission", "names", "frames"},
+              "puu3": {"extended", "parameters", "slider_limits"}, "urdf": {"joints", "tool"},
+              "stewart": {"legs", "reading", "tool"}, "delta": {"arms", "parameters", "arm_limits"}}  # beside the common
+_TOP_KEYS = _COMMON_KEYS.union(*_TYPE_KEYS.values())
 def bundled_robots() -> list[str]:
     """Names of the robots shipped with kincal."""
     folder = resources.files("kincal.models") / "robots"
@@ -188,6 +190,12 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     unknown = set(data) - _TOP_KEYS
     if unknown:
         raise ModelError(f"{label}: unknown key(s) {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
+    kind = str(data.get("type", "serial"))
+    foreign = sorted(set(data) - _COMMON_KEYS - _TYPE_KEYS.get(kind, _TOP_KEYS))
+    if foreign:  # a key of another kind of robot would be ignored: refused instead
+        raise ModelError(f"{label}: {', '.join(foreign)} do(es) not belong to a '{kind}' robot (keys of "
+                         f"{', '.join(t for t, keys in _TYPE_KEYS.items() if keys & set(foreign))}); remove them or "
+                         f"give the right 'type'")
     if data.get("type", "serial") == "puu3":
         return puu3_from_dict(data, label)
     if data.get("type") == "urdf":
