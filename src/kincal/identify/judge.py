@@ -26,8 +26,8 @@ IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes
 MIN_SAMPLES = 10  # a set with fewer samples is not judged for outliers (no robust spread to judge by)
 
 
-STATED = {"pose position": "--std-pos", "pose rotation": "--std-rot",  # the flag that states each kind's σ
-          "joint": "the joints' reading noise, 1e-4 rad or m"}
+STATED = {"pose position": "--std-pos", "pose rotation": "--std-rot"}  # the flag that states each kind's σ
+ASSUMED = {"joint": "the joints' reading noise taken as 1e-4 rad or m; no flag states it yet"}  # σ no flag states
 
 
 def component_kinds(sets) -> tuple[np.ndarray, tuple[str, ...]]:
@@ -92,9 +92,10 @@ def _set_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
         if rms > 3.0:
             fine = [k for k, v in res.whitened.items() if k != kind and v <= 3.0]
             reasons.append(Reason("suspect", "residual", (
-                f"the {kind} residuals are {rms:.1f}x their stated σ ({STATED.get(kind, '--std-pos')}): the model "
-                f"leaves errors it cannot describe there, or that σ is too small; restate it if the instrument is "
-                f"noisier" + (f" (the {', '.join(fine)} residuals are within 3x their stated σ)" if fine else ""))))
+                f"the {kind} residuals are {rms:.1f}x their stated σ ({STATED.get(kind, ASSUMED.get(kind, '--std-pos'))})"
+                f": the model leaves errors it cannot describe there, or that σ is too small"
+                + ("" if kind in ASSUMED else "; restate it if the instrument is noisier")
+                + (f" (the {', '.join(fine)} residuals are within 3x their stated σ)" if fine else ""))))
     reasons += _sample_reasons(res.observations, res.outliers, res.registered, th)
     if all(o.kind == "plane" for o in res.observations):
         reasons += _plane_reasons(res.registered, res.robot, res.observations)

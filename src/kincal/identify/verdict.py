@@ -251,6 +251,13 @@ def repeat_tolerance(joint_types, th: "Thresholds") -> np.ndarray:
     return np.array([th.repeat_angle if t == "revolute" else th.repeat_length for t in joint_types])
 
 
+def _scale_hint(big: list[tuple[str, float]], kinds) -> str:
+    """What a large correction of an actuator's scale says: its travel per unit in the robot file is off."""
+    scales = [n.rsplit(".", 1)[0] for n, _ in big if kinds[n] == "ratio"]
+    return (f"; {', '.join(scales)}: the travel per reading unit (a leg's lead) in the robot file is off by that "
+            f"much, or the readings are in another unit" if scales else "")
+
+
 LIMIT_KIND = {"mounting": "length"}  # a design point's limit is a length
 
 
@@ -272,7 +279,7 @@ def correction_reasons(robot: Robot, corrections: dict[str, float], th: Threshol
             what = "implausible" if level == "refused" else "large"
             return [Reason(level, f"{what}-correction",
                            f"{what} corrections ({shown}; limits {limits}): the data and the robot file disagree by "
-                           f"far more than a real robot's errors")]
+                           f"far more than a real robot's errors" + _scale_hint(big, kinds))]
     return []
 
 
