@@ -125,7 +125,7 @@ def test_a_constraint_count_that_does_not_match_the_unknown_is_named():
         def constraints(self, x, q, values):
             return super().constraints(x, q, values)[:, :5]
     robot = kincal.load_robot("hexapod")
-    five = Five(robot.name, robot.params, robot.lower, robot.upper, robot.lead)
+    five = Five(robot.name, robot.params, robot.lower, robot.upper, robot.lead, robot.motor)
     with pytest.raises(ModelError, match="5 constraint.*pose unknown of 6 coordinates"):
         five.forward(robot.sample_joints(2))
 

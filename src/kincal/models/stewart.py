@@ -49,6 +49,7 @@ class StewartRobot(ImplicitRobot):
     leg_lower: np.ndarray
     leg_upper: np.ndarray
     lead: np.ndarray  # (6,) nominal travel per joint unit: 1 (a length reading) or m/rad (a motor angle)
+    motor: bool = False  # legs read as motor angles (revolute joints), else as lengths (prismatic)
     description: str = ""
     joint_space: JointSpace = field(init=False, repr=False)
     UNKNOWN: ClassVar[str] = "pose"
@@ -64,7 +65,10 @@ class StewartRobot(ImplicitRobot):
                              f"{self.lead!r}")
         lead.setflags(write=False)
         object.__setattr__(self, "lead", lead)
-        kind = "prismatic" if np.all(lead == 1.0) else "revolute"
+        if not self.motor and not np.all(lead == 1.0):
+            raise ModelError(f"{self.name}: legs read as lengths have no lead (travel per unit 1); motor readings "
+                             f"(motor=True) do")
+        kind = "revolute" if self.motor else "prismatic"
         object.__setattr__(self, "joint_space", JointSpace([f"leg{i}" for i in range(1, N_LEGS + 1)],
                                                            (kind,) * N_LEGS, self.leg_lower, self.leg_upper))
 
@@ -87,7 +91,7 @@ class StewartRobot(ImplicitRobot):
             v.update(zip((f"leg{i + 1}.{k}" for k in LEG_NAMES), (*b[i], *p[i], z[i], 1.0)))
         lo, hi = (np.asarray(x, float).reshape(-1) * np.ones(N_LEGS) for x in leg_range)
         return cls(name, Parameters(names, [v[n] for n in names], kinds), lo, hi,
-                   np.ones(N_LEGS) if lead is None else np.asarray(lead, float), description)
+                   np.ones(N_LEGS) if lead is None else np.asarray(lead, float), lead is not None, description)
 
     @property
     def structure(self) -> str:

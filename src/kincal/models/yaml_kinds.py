@@ -236,7 +236,7 @@ def stewart_from_dict(data: dict, label: str) -> StewartRobot:
 def stewart_yaml(robot: StewartRobot, length_unit: str, angle_unit: str, reading_unit: str = "rev") -> str:
     """The robot file of a hexapod (legs read as motor angles are written in ``reading_unit``)."""
     lf, af = per_unit(length_unit, angle_unit)
-    motor = robot.joint_types[0] == "revolute"
+    motor = robot.motor
     rf = 1.0 / U.unit_factor(reading_unit, "angle", "", ModelError) if motor else lf
     v = robot.params.as_dict()
     lines = [f"name: {robot.name}", "type: stewart", *description_lines(robot.description),
