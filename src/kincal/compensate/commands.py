@@ -83,7 +83,7 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
                                 nominal=nominal)
     if robot.has_pose_inverse:
         raise ModelError(f"robot '{robot.name}' ({robot.structure}): its joints are set by the platform's whole pose; "
-                         f"give 6-D targets (position and orientation: --type pose)")
+                         f"give 6-D targets (position and orientation: --pose)")
     targets, q0, rows = _checked_inputs(robot, targets, q_start, damping, rows)
     if nominal is not None and q0 is not None:
         why = frame_mismatch(nominal, q0, targets, rows)

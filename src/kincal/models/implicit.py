@@ -147,14 +147,18 @@ class ImplicitRobot(Robot):
         p_local = np.einsum("sni,sij->snj", p[None] - t[:, None], R)
         return self.inverse_local(p_local, values[:, None, :], strict=False)
 
+    def _base_axes(self, values: np.ndarray) -> np.ndarray:
+        """The world axes (3, 3) the base rotations rx, ry, rz turn about, as columns."""
+        b = values[self.params.indices(BASE_NAMES)]
+        return np.column_stack([rot_zyx(b[5], b[4], 0.0) @ [1.0, 0, 0], rot_zyx(b[5], 0.0, 0.0) @ [0, 1.0, 0],
+                                [0, 0, 1.0]])
+
     def _base_jacobian(self, values: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """d world position / d base x y z rx ry rz (N, 3, 6) at world positions p (N, 3), and the world
         axes (3, 3) the rotations rx, ry, rz turn about (columns): unit steps, then turns about the
         axes through t (R = Rz Ry Rx: each turns about its axis as already moved by the rotations
         before it in the product)."""
-        b = values[self.params.indices(BASE_NAMES)]
-        axes = np.column_stack([rot_zyx(b[5], b[4], 0.0) @ [1.0, 0, 0], rot_zyx(b[5], 0.0, 0.0) @ [0, 1.0, 0],
-                                [0, 0, 1.0]])
+        b, axes = values[self.params.indices(BASE_NAMES)], self._base_axes(values)
         J = np.zeros((len(p), 3, 6))
         J[:, :, :3] = np.eye(3)
         J[:, :, 3:] = np.cross(axes.T[None], (p - b[:3])[:, None], axis=2).transpose(0, 2, 1)
@@ -248,7 +252,7 @@ class ImplicitRobot(Robot):
         dx[:, :3, self.params.indices(TOOL_NAMES)] = -Rl
         base = self.params.indices(BASE_NAMES)
         dx[:, :3, base[:3]] = -Rb.T
-        delta = -Rb.T @ self._base_jacobian(v, p[:1])[1]  # (3, 3): δ per base rotation
+        delta = -Rb.T @ self._base_axes(v)  # (3, 3): δ per base rotation
         dx[:, 3:, base[3:]] = delta
         dx[:, :3, base[3:]] = np.cross(delta.T[None], t[:, None], axis=2).transpose(0, 2, 1)
         turn = np.concatenate([np.cross((Rl @ v[self.params.indices(TOOL_NAMES)])[:, None], Rb[None], axis=2)

@@ -220,6 +220,9 @@ def stewart_from_dict(data: dict, label: str) -> StewartRobot:
             values.update(zip((f"leg{i}.{ax}{c}" for c in "xyz"), vector(leg.get(key), where, key) * lf))
         values[f"leg{i}.zero"] = num(leg.get("zero"), where, "zero") * lf
         values[f"leg{i}.scale"] = num(leg.get("scale", 1.0), where, "scale")
+        if not 0.5 < values[f"leg{i}.scale"] < 2.0:
+            raise ModelError(f"{where}: 'scale' {values[f'leg{i}.scale']:g} is the ratio of the leg's true travel to "
+                             f"its nominal one (1 nominal); a leg off by a factor of 2 has the wrong lead or unit")
         lo_hi = limits(leg.get("range"), where, rf, "range")
         lo.append(lo_hi[0])
         hi.append(lo_hi[1])
