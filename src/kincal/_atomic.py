@@ -12,6 +12,12 @@ def write_text_atomic(path: str | os.PathLike, text: str, encoding: str = "utf-8
         fh.keep()
 
 
+def json_path_for(path: str | os.PathLike) -> Path:
+    """Where a report's JSON goes: beside its HTML, same name, .json (``x.html`` -> ``x.json``, ``x`` -> ``x.json``)."""
+    path = Path(path)
+    return path.with_suffix(".json") if path.suffix.lower() in (".html", ".htm") else Path(f"{path}.json")
+
+
 class AtomicFile:
     """A text file written through a temporary file beside ``path``: it appears at ``path`` (renamed)
     only when :meth:`keep` was called before the ``with`` block ends; else, or on an error, the

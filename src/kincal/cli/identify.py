@@ -13,13 +13,14 @@ import kincal.analysis
 import kincal.identify
 import kincal.io
 import kincal.models
+from kincal._atomic import json_path_for
 from kincal.identify import held_out_stats, stat_line
 from kincal.units import DEG, MM
 
 from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, csv_list, emit, err, hidden_alias,
                      load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list)
 from . import observe
-from .report import add_session_flags, data_record, json_path, nominal_model, save_figures, write_outputs
+from .report import add_session_flags, data_record, nominal_model, save_figures, write_outputs
 
 
 error_model_name = checked(lambda s: kincal.ErrorModel(s).name)  # argparse type: an error model name or auto
@@ -70,7 +71,7 @@ def cmd_calibrate(args) -> int:
     if args.refit_target and not args.test:
         raise ValueError("--refit-target re-fits the target of held-out files (--test); there are none: leave it out "
                          "(the training files' target is fitted anyway)")
-    reports = [args.report, json_path(args.report)] if args.report else []
+    reports = [args.report, json_path_for(args.report)] if args.report else []
     robot = load_robot(args, [*args.data, *args.test], [args.output, args.residuals, *reports, args.plot])
     options = fit_options(args)
     res, tests = fit_files(args, robot, kinds, args.data, args.test, options)
@@ -228,12 +229,10 @@ def register(cmd) -> None:
     th = kincal.Thresholds()  # the defaults are the record's
     s.add_argument("--tracker-noise", type=positive_float, default=th.tracker_noise * MM,
                    help=f"expected tracker noise, mm (default {th.tracker_noise * MM:g})")
-    s.add_argument("--length-limits", type=_pair, default=(th.length_suspect * MM, th.length_refuse * MM),
-                   metavar="SUSPECT,REFUSE", help=f"largest plausible length corrections, mm (default "
-                                                  f"{th.length_suspect * MM:g},{th.length_refuse * MM:g})")
-    s.add_argument("--angle-limits", type=_pair, default=(th.angle_suspect * DEG, th.angle_refuse * DEG),
-                   metavar="SUSPECT,REFUSE", help=f"largest plausible angle corrections, deg (default "
-                                                  f"{th.angle_suspect * DEG:g},{th.angle_refuse * DEG:g})")
+    for kind, unit, lo, hi in (("length", "mm", th.length_suspect * MM, th.length_refuse * MM),
+                               ("angle", "deg", th.angle_suspect * DEG, th.angle_refuse * DEG)):
+        s.add_argument(f"--{kind}-limits", type=_pair, default=(lo, hi), metavar="SUSPECT,REFUSE",
+                       help=f"largest plausible {kind} corrections, {unit} (default {lo:g},{hi:g})")
     observe.add_flags(s)
 
     s = cmd("evaluate", cmd_evaluate, "position error statistics of a robot model on measurements")

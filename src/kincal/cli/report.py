@@ -9,17 +9,11 @@ import numpy as np
 import kincal
 import kincal.identify
 import kincal.models
+from kincal._atomic import json_path_for  # kincal.report.json_path_for, without loading the plotting room
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS
 
 from . import observe
 from .common import EXIT_REFUSED, TYPES, csv_list, emit, err, load_robot, progress
-
-
-def json_path(html: str) -> Path:
-    """Where the report's JSON goes: beside the HTML, same name, .json (kincal.report.json_path_for;
-    the same rule without loading the plotting room before any work)."""
-    path = Path(html)
-    return path.with_suffix(".json") if path.suffix.lower() in (".html", ".htm") else Path(f"{path}.json")
 
 
 READING = ("joint_cols", "length_unit", "angle_unit", "xyz_cols", "std_cols", "orientation", "rot_cols", "markers",
@@ -86,7 +80,7 @@ def cmd_report(args) -> int:
     reading.distance = [tuple(d) for d in reading.distance or []]
     reading.exclude = None if args.train else reading.exclude  # recorded rows are rows of the recorded files
     reading.plane = [(lab, (tuple(n), c)) for lab, (n, c) in reading.plane or []]
-    cal = load_robot(args, [*data["file"], *args.test], [args.output, json_path(args.output)])
+    cal = load_robot(args, [*data["file"], *args.test], [args.output, json_path_for(args.output)])
     nominal = nominal_model(cal, record, args.robot)  # the record has one (checked by _record_parts)
     with progress("refitting the calibration", args.json):
         res, tests = fit_files(reading, nominal, data["kinds"], data["file"], args.test, options,

@@ -85,15 +85,14 @@ def _calibrate(robot: Robot, sessions: list[Measurements], own_frames: bool, opt
 
 def _sets(sessions: list[Measurements], own_frames: bool, o: FitOptions, robot: Robot) -> list:
     """One observation set per session (later ones in their own frames with ``own_frames``), after
-    the check that registering the frame needs: 3 distinct poses."""
-    kind = RESIDUALS[o.residual]
+    the check that registering the frame needs: 3 distinct poses. The fit turns them into the
+    ``o.residual`` type (:data:`RESIDUALS`, :func:`kincal.observe.in_joint_space`)."""
     q = np.concatenate([s.q for s in sessions])
     distinct = distinct_count(q, repeat_tolerance(robot.joint_types, o.thresholds), 3)
     if o.base == "estimate" and robot.base_params() and distinct < 3:
         raise MeasurementError(f"{sessions[0].source}: registering the base frame needs at least 3 distinct poses, "
                                f"got {distinct} ({len(q)} rows); measure poses spread over the workspace")
-    sigma = {} if kind is JointObs else {"std": o.thresholds.tracker_noise}
-    sets = [kind(s.q, s.rows, s.source, xyz=s.xyz, **({"std": s.std} if s.std is not None and sigma else sigma))
+    sets = [PointObs(s.q, s.rows, s.source, xyz=s.xyz, std=o.thresholds.tracker_noise if s.std is None else s.std)
             for s in sessions]
     return [sets[0], *(InSession.of(x, f"{k}:{x.source}") for k, x in enumerate(sets[1:], 2))] if own_frames else sets
 

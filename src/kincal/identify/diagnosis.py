@@ -115,17 +115,12 @@ def _columns(cols: list[int], f: Callable[..., np.ndarray], **bound) -> Change:
     def changed(m: Measurements) -> Measurements:
         q = m.q.copy()
         q[:, cols] = f(m.q[:, cols], **bound)
-        return _with(m, q=q)
+        return replace(m, q=q)
     return _data(changed)
 
 
 def _other_robot(other: Robot) -> Change:
     return lambda r, m, o: (other, m, o)
-
-
-def _with(meas: Measurements, q=None, xyz=None, index=None) -> Measurements:
-    m = meas if index is None else meas.subset(index)
-    return replace(m, q=m.q if q is None else q, xyz=m.xyz if xyz is None else xyz)
 
 
 def _length_units(meas: Measurements) -> list[tuple[Cause, Change]]:
@@ -134,7 +129,7 @@ def _length_units(meas: Measurements) -> list[tuple[Cause, Change]]:
     return [(Cause("length-unit", f"the positions are in {name}, read as {declared}",
                    f"read them with --length-unit {name}" if name in LENGTH_UNITS else
                    f"convert them to mm (x{f / 1e-3:g}) and read them with --length-unit mm"),
-             _data(lambda m, k: _with(m, xyz=m.xyz * k), k=f / table[declared]))
+             _data(lambda m, k: replace(m, xyz=m.xyz * k), k=f / table[declared]))
             for name, f in table.items() if name != declared]
 
 
@@ -168,7 +163,7 @@ def _joint_columns(robot: Robot) -> list[tuple[Cause, Change]]:
         order = [b if i == a else a if i == b else i for i in range(len(names))]
         out.append((Cause("joint-order", f"the columns of {names[a]} and {names[b]} are swapped",
                           "swap them (give --joint-cols in the robot's joint order)"),
-                    _data(lambda m, order: _with(m, q=m.q[:, order]), order=order)))
+                    _data(lambda m, order: replace(m, q=m.q[:, order]), order=order)))
     return out
 
 
@@ -176,13 +171,13 @@ def _frame_and_rows() -> list[tuple[Cause, Change]]:
     return [
         (Cause("mirrored", "the positions are mirrored (a left-handed measurement frame: two axes swapped or one "
                            "negated)", "check the instrument's axis order and signs; kincal needs a right-handed "
-                                       "frame"), _data(lambda m: _with(m, xyz=m.xyz * [1.0, 1.0, -1.0]))),
+                                       "frame"), _data(lambda m: replace(m, xyz=m.xyz * [1.0, 1.0, -1.0]))),
         (Cause("row-shift", "each position is one row late (it belongs to the joints one row above)",
                "move the position columns up by one row (check the export's timing)"),
-         _data(lambda m: _with(m, q=m.q[:-1], index=np.arange(1, len(m))))),
+         _data(lambda m: replace(m.subset(np.arange(1, len(m))), q=m.q[:-1]))),
         (Cause("row-shift", "each position is one row early (it belongs to the joints one row below)",
                "move the position columns down by one row (check the export's timing)"),
-         _data(lambda m: _with(m, q=m.q[1:], index=np.arange(len(m) - 1)))),
+         _data(lambda m: replace(m.subset(np.arange(len(m) - 1)), q=m.q[1:]))),
     ]
 
 

@@ -33,15 +33,13 @@ ASSUMED = {"joint": "the joints' reading noise taken as 1e-4 rad or m; no flag s
 def component_kinds(sets) -> tuple[np.ndarray, tuple[str, ...]]:
     """Each stacked row's kind of component (M,), an index into the kinds' names (in order of first
     appearance): a pose's position and rotation rows apart (each has its own σ), other kinds whole."""
-    names: list[str] = []
+    names: dict[str, int] = {}  # name -> its index, in order of first appearance
     labels = []
     for obs in sets:
         m = obs.sigma().size
         parts = (("pose position", m // 2), ("pose rotation", m - m // 2)) if obs.kind == "pose" else ((obs.kind, m),)
         for name, count in parts:
-            if name not in names:
-                names.append(name)
-            labels.append(np.full(count, names.index(name)))
+            labels.append(np.full(count, names.setdefault(name, len(names))))
     return np.concatenate(labels) if labels else np.zeros(0, int), tuple(names)
 
 

@@ -12,7 +12,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..models.robot import Robot
 from .judge import owners
 from .lm import LMResult, levenberg_marquardt
 from .pso import HALF_WIDTH, V_MAX, pso
@@ -29,7 +28,6 @@ class Round:
     """One fit of a set of free columns (module docstring). The columns not fitted stay at ``x0`` (the
     nominal values, the set-up parameters' starts), which is also the prior's centre."""
 
-    robot: Robot
     st: _Stack
     x0: np.ndarray
     max_iter: int
@@ -55,7 +53,7 @@ class Round:
                 break
             st, error = again, found
         if self.prior == "relevance":
-            fit = with_learned_prior(lambda x: fun_at(used, self.x0, fcols, x), fit, self.x0[fcols], free, self.robot)
+            fit = with_learned_prior(lambda x: fun_at(used, self.x0, fcols, x), fit, self.x0[fcols], free, self.st.robot)
         full = self.x0.copy()
         full[fcols] = fit.x
         return full, fit, free, weak, used, error
@@ -73,7 +71,7 @@ class Round:
                 fit, used = self._lm(fun, start[fcols]), st
             else:  # reweighted from the start: a least-squares fit pulled by outliers is a poor place to begin
                 used, fit = self._reweighted(st, fcols, start[fcols], fun(start[fcols])[0])
-            worst = weakest(self.robot, free, fit.jacobian * used.weak_scale(fit.residual, len(free))[:, None], 1.0)
+            worst = weakest(self.st.robot, free, fit.jacobian * used.weak_scale(fit.residual, len(free))[:, None], 1.0)
             if worst is None:
                 return fcols, fit, free, weak, used
             weak[worst[0]] = worst[1]

@@ -145,7 +145,7 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
         _check_strict(ident, o, st)
         _check_equations(st, start[0].size, len(ident.identifiable if o.method == "lm" else ident.candidates))
         x0 = np.concatenate([robot.params.values, st.nuis0])
-        rounds = Round(robot, st, x0, o.max_iter, prior, loss, o.f_scale)
+        rounds = Round(st, x0, o.max_iter, prior, loss, o.f_scale)
         begin = x0  # where Levenberg-Marquardt starts
         history: tuple[float, ...] = ()  # the particle swarm's best value per iteration, when it runs
         if o.method != "lm":

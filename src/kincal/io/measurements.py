@@ -126,7 +126,7 @@ def _file_scales(joint_types: Sequence[str], length_unit: str, angle_unit: str, 
     """Factors from SI to a file's units: per joint (angle unit for revolute joints, length unit for
     prismatic ones; both units checked) and for lengths."""
     factors = np.array(joint_factors(joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError))
-    return 1.0 / factors, 1.0 / _unit(length_unit, "length", path)
+    return 1.0 / factors, 1.0 / unit_factor(length_unit, "length", f"{path}: ", MeasurementError)
 
 
 def read_joints(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None, length_unit: str = "m",
@@ -147,7 +147,7 @@ def read_positions(path: str | os.PathLike, xyz_cols: Sequence[str] = ("x", "y",
     path = str(path)
     if len(xyz_cols) != 3:
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
-    _unit(length_unit, "length", path)
+    unit_factor(length_unit, "length", f"{path}: ", MeasurementError)
     table = open_table(path)
     xyz = table.numbers(list(xyz_cols), [length_unit] * 3, what="positions")
     return (xyz, table.rows) if with_rows else xyz
@@ -185,10 +185,6 @@ def read_measurements(path: str | os.PathLike, robot: Robot, joint_cols: Sequenc
 
 
 STD_COLUMNS = ("measurement_std_x", "measurement_std_y", "measurement_std_z")
-
-
-def _unit(unit: str, kind: str, path: str) -> float:
-    return unit_factor(unit, kind, f"{path}: ", MeasurementError)
 
 
 def write_measurements(path: str | os.PathLike, meas: Measurements, joint_types: Sequence[str] | None = None,

@@ -64,35 +64,28 @@ def load_robot(name_or_path: str | os.PathLike, base_link: str | None = None, ti
     the tool point ``tool`` (default the tip link's origin).
     """
     text, label = _robot_text(name_or_path)
-    if _is_urdf(name_or_path, text):
-        try:
-            return read_urdf(text, label, base_link, tip_link, _tool(tool))
-        except ModelError as exc:
-            if str(exc).startswith(label):
-                raise
-            raise ModelError(f"{label}: {exc}") from None
-        except (TypeError, ValueError) as exc:
-            raise ModelError(f"{label}: malformed URDF ({exc})") from None
-    if base_link or tip_link:
+    urdf = _is_urdf(name_or_path, text)
+    if (base_link or tip_link) and not urdf:
         raise ModelError(f"{label}: base_link and tip_link apply to URDF files only; a kincal robot file holds its "
                          f"own chain")
-    data = _parse(text, label)
-    try:
+    data = {} if urdf else _parse(text, label)  # a URDF is no YAML
+    try:  # a message gets the file's label unless it has it
+        if urdf:
+            return read_urdf(text, label, base_link, tip_link, _tool(tool))
         robot = robot_from_dict(data, label)
+        _check_plausible(robot, isinstance(data, dict) and "units" in data, label)
+        return robot if tool is None else robot.with_tool_point(_tool(tool))
     except ModelError as exc:
         if str(exc).startswith(label):
             raise
         raise ModelError(f"{label}: {exc}") from None
     except (TypeError, AttributeError, KeyError, ValueError, IndexError) as exc:  # a shape no check foresaw
-        raise ModelError(f"{label}: malformed robot file ({type(exc).__name__}: {exc}); see the robot YAML "
-                         f"format in the README") from None
-    _check_plausible(robot, isinstance(data, dict) and "units" in data, label)
-    if tool is None:
-        return robot
-    try:
-        return robot.with_tool_point(_tool(tool))
-    except ModelError as exc:
-        raise ModelError(f"{label}: {exc}") from None
+        if not urdf:
+            raise ModelError(f"{label}: malformed robot file ({type(exc).__name__}: {exc}); see the robot YAML "
+                             f"format in the README") from None
+        if not isinstance(exc, (TypeError, ValueError)):
+            raise
+        raise ModelError(f"{label}: malformed URDF ({exc})") from None
 
 
 def _tool(tool) -> tuple[float, float, float]:

@@ -16,7 +16,7 @@ from typing import Sequence
 import jinja2
 import numpy as np
 
-from .._atomic import write_text_atomic
+from .._atomic import json_path_for, write_text_atomic
 from ..identify.calibrate import evaluate
 from ..identify.sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
 from ..identify.registration import register_mounting
@@ -45,11 +45,6 @@ class Report:
         write_text_atomic(path, self.html)
         write_text_atomic(json_path, json.dumps(self.data, indent=2, sort_keys=True) + "\n")
         return json_path
-
-
-def json_path_for(path: str | os.PathLike) -> Path:
-    path = Path(path)
-    return path.with_suffix(".json") if path.suffix.lower() in (".html", ".htm") else Path(f"{path}.json")
 
 
 def report_date() -> str:
