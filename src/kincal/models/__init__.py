@@ -5,7 +5,8 @@ from .export import FORMATS, export_robot, joint_frames, ur_calibration, urdf_te
 from .implicit import ImplicitRobot
 from .parameters import Parameters
 from .puu3 import PUU3Robot
-from .robot import JointSpace, Robot
+from .joint_space import JointSpace
+from .robot import Robot
 from .wrapped import Wrapped
 from .serial import ChainRobot, Joint, SerialRobot
 from .terms import ErrorModel, ExtendedRobot, extend, parse_model

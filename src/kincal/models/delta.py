@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import ModelError
 from .implicit import ImplicitRobot
 from .parameters import Parameters
-from .robot import JointSpace
+from .joint_space import JointSpace
 from .serial import BASE_NAMES
 
 ARM_NAMES = ("R", "r", "L", "l", "zero", "phi")

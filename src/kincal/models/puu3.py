@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import ModelError
 from .implicit import ImplicitRobot
 from .parameters import Parameters
-from .robot import JointSpace
+from .joint_space import JointSpace
 from .serial import BASE_NAMES
 
 LEG_PARAMS = ("dR", "dr", "a", "b", "h0", "tx", "ty")

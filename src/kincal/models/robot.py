@@ -9,8 +9,9 @@ ability says so with a :class:`~kincal.errors.ModelError` through the same metho
   unbatched results): ``forward``, ``forward_and_jacobian``, ``param_jacobian``, ``joint_jacobian``,
   ``forward_jacobians``, ``forward_batch``. A subclass implements the batched hooks
   ``_forward_and_jacobian`` and ``_joint_jacobian``; shapes are handled here, once;
-* joints: ``joint_names``, ``joint_types``, ``lower``, ``upper``, ``check_q``, ``within_limits``,
-  ``feasible`` (coupled constraints too), ``sample_joints`` (feasible poses only);
+* joints (:class:`~kincal.models.joint_space.Joints`): ``joint_names``, ``joint_types``, ``lower``,
+  ``upper``, ``check_q``, ``within_limits``, ``feasible`` (coupled constraints too), ``sample_joints``
+  (feasible poses only);
 * parameters: ``with_params`` (one implementation: a copy with new values, re-validated),
   ``param_values``, ``preferred_params`` (kept first among confounded ones), ``structure_notes``;
 * the base frame: ``base_params``, ``base_transform``, ``with_base_transform``;
@@ -27,57 +28,24 @@ from __future__ import annotations
 import dataclasses
 from abc import ABC, abstractmethod
 from contextlib import suppress
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, ClassVar, Iterable, Literal, Mapping, Sequence, TypeVar, overload
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Literal, Mapping, Sequence, TypeVar, overload
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 from ..errors import ModelError
+from .joint_space import Joints, JointSpace
 from .parameters import Parameters
 from .transforms import rot_zyx, zyx_from_matrix
 
 if TYPE_CHECKING:
     from .gravity import GravityModel
 
-JOINT_TYPES = ("revolute", "prismatic")
 TOOL_NAMES = ("tool.x", "tool.y", "tool.z")  # the measured point in the flange frame (m), where a model has one
 R = TypeVar("R", bound="Robot")
 ParamValues = Mapping[str, float] | Sequence[float] | np.ndarray | Parameters
 
 
-@dataclass(frozen=True, eq=False, init=False)
-class JointSpace:
-    """The joints a user commands: names, types ("revolute" or "prismatic") and limits (rad or m;
-    ±inf for an unlimited joint), all immutable."""
-
-    names: tuple[str, ...]
-    types: tuple[str, ...]
-    lower: np.ndarray
-    upper: np.ndarray
-
-    def __init__(self, names: Iterable[str], types: Iterable[str], lower: ArrayLike, upper: ArrayLike) -> None:
-        names, types = tuple(names), tuple(types)
-        lo, hi = np.array(lower, dtype=float).reshape(-1), np.array(upper, dtype=float).reshape(-1)
-        if not (len(names) == len(types) == lo.size == hi.size):
-            raise ModelError(f"joints {list(names)}: names, types and limits must have one entry per joint")
-        if len(set(names)) != len(names) or any(not n or "." in n for n in names):
-            raise ModelError(f"joint names {list(names)} must be distinct, non-empty and contain no '.'")
-        bad = [t for t in types if t not in JOINT_TYPES]
-        if bad:
-            raise ModelError(f"joint type(s) {sorted(set(bad))}: use one of {JOINT_TYPES}")
-        if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or not np.all(lo < hi):
-            raise ModelError(f"joints {list(names)}: every limit needs lower < upper")
-        lo.setflags(write=False)  # read-only
-        hi.setflags(write=False)
-        for key, value in (("names", names), ("types", types), ("lower", lo), ("upper", hi)):
-            object.__setattr__(self, key, value)
-
-    def __len__(self) -> int:
-        return len(self.names)
-
-
-class Robot(ABC):
+class Robot(Joints, ABC):
     """A robot with named joints, joint limits and a named parameter vector (see the module
     docstring for the whole interface). Subclasses are frozen dataclasses that set ``name``,
     ``description``, ``params`` and ``joint_space`` and implement the two kinematic hooks. Units are
@@ -221,93 +189,6 @@ class Robot(ABC):
         derivatives at the fixed pose (N, n, P) and their derivatives by a turn of the pose about world
         axes through the tool point (N, n, 3)."""
         raise self._no_inverse()
-
-    # ---- joints ----------------------------------------------------------------------------------
-    @property
-    def joint_names(self) -> tuple[str, ...]:
-        return self.joint_space.names
-
-    @property
-    def joint_types(self) -> tuple[str, ...]:
-        return self.joint_space.types
-
-    @property
-    def periodic(self) -> np.ndarray:
-        """(n,) bool: joints whose configuration repeats every whole turn (revolute joints; a motor
-        that drives a leg through a screw does not: its turns add up)."""
-        return np.array([t == "revolute" for t in self.joint_types], bool)
-
-    @property
-    def lower(self) -> np.ndarray:
-        """(n,) joint lower limits, rad or m (read-only)."""
-        return self.joint_space.lower
-
-    @property
-    def upper(self) -> np.ndarray:
-        """(n,) joint upper limits, rad or m (read-only)."""
-        return self.joint_space.upper
-
-    @property
-    def n_joints(self) -> int:
-        return len(self.joint_space)
-
-    def check_q(self, q: np.ndarray) -> np.ndarray:
-        """q as a float (N, n) array; ModelError if the joint count is wrong."""
-        q = np.asarray(q, dtype=float)
-        if q.ndim == 1:
-            q = q[None, :]
-        if q.ndim != 2 or q.shape[1] != self.n_joints:
-            raise ModelError(f"{self.name}: joint array has shape {q.shape}, expected (N, {self.n_joints}) "
-                             f"for joints {', '.join(self.joint_names)}")
-        return q
-
-    def link_points(self, q: np.ndarray) -> np.ndarray | None:
-        """(N, K, 3) points along the arm at joints q (N, n), m in the world frame: the base, each
-        joint's frame and the tool point, in chain order, for collision checks; None for a robot
-        that does not declare them (a closed chain)."""
-        return None
-
-    @property
-    def stack_names(self) -> tuple[str, ...]:
-        """The joints' names in the robot stack (URDF, ROS: a robot file's ``names:``); default their own."""
-        return self.joint_names
-
-    def default_columns(self, header: Sequence[str]) -> list[str]:
-        """The joint columns of a file with ``header`` when none are given: the joints' own names, or
-        their robot-stack names (UR's shoulder_pan_joint …) when the file has those and not these."""
-        own, stack = list(self.joint_names), list(self.stack_names)
-        return stack if not set(own) <= set(header) and set(stack) <= set(header) else own
-
-    def within_limits(self, q: np.ndarray, margin: float = 1e-12) -> np.ndarray:
-        """(N,) bool: every joint inside its limits (widened by ``margin``, rad or m)."""
-        q = self.check_q(q)
-        return np.all((q >= self.lower - margin) & (q <= self.upper + margin), axis=1)
-
-    def feasible(self, q: np.ndarray) -> np.ndarray:
-        """(N,) bool: joint limits and any coupled constraints of the model hold."""
-        return self.within_limits(q)
-
-    def sampling_limits(self) -> tuple[np.ndarray, np.ndarray]:
-        """Joint limits for drawing random poses: the limits, with ±π for unlimited (continuous) joints."""
-        lo, hi = self.lower, self.upper
-        return np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
-
-    def sample_joints(self, n: int, seed: int | None = 0, max_tries: int = 50) -> np.ndarray:
-        """n joint vectors (n, n_joints) drawn uniformly inside the limits where ``feasible`` holds
-        (coupled constraints, assembly), by rejection. Where every draw is feasible the result is the
-        first n uniform draws of the generator."""
-        rng = np.random.default_rng(seed)
-        kept, have = [], 0
-        lo, hi = self.sampling_limits()
-        for _ in range(max_tries):
-            q = rng.uniform(lo, hi, size=(max(2 * (int(n) - have), 16), self.n_joints))
-            q = q[self.feasible(q)]
-            kept.append(q)
-            have += q.shape[0]
-            if have >= n:
-                return np.concatenate(kept)[:int(n)]
-        raise ModelError(f"{self.name}: only {have} of {n} random joint vectors satisfy the robot's constraints; "
-                         f"check the joint limits and coupled constraints")
 
     # ---- parameters ------------------------------------------------------------------------------
     @property

@@ -25,7 +25,8 @@ from ..errors import ModelError
 from .chain import AXES, ROT, TRANS, Chain, Op, compiled
 from .gravity import GravityModel
 from .parameters import Parameters
-from .robot import JOINT_TYPES, TOOL_NAMES, JointSpace, Robot
+from .joint_space import JOINT_TYPES, JointSpace
+from .robot import TOOL_NAMES, Robot
 from .transforms import rot_zyx
 
 CONVENTIONS = ("dh", "mdh")

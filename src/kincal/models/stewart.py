@@ -23,7 +23,8 @@ import numpy as np
 from ..errors import ModelError
 from .implicit import ImplicitRobot, twist_exp
 from .parameters import Parameters
-from .robot import TOOL_NAMES, JointSpace
+from .joint_space import JointSpace
+from .robot import TOOL_NAMES
 from .serial import BASE_NAMES
 
 LEG_NAMES = ("bx", "by", "bz", "px", "py", "pz", "zero", "scale")

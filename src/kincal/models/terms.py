@@ -33,7 +33,8 @@ from ..checks import number
 from ..errors import ModelError
 from .gravity import COMPONENTS, GravityModel
 from .parameters import Parameters
-from .robot import JointSpace, Robot
+from .joint_space import JointSpace
+from .robot import Robot
 from .wrapped import Wrapped
 
 MIN_LEVER = 0.01  # m per rad: RMS tool motion per joint rotation below which angle terms are not modelled

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import ModelError
 from .parameters import Parameters
-from .robot import JointSpace
+from .joint_space import JointSpace
 from .wrapped import Wrapped
 from .serial import SerialRobot
 

@@ -33,7 +33,7 @@ import numpy as np
 from ..errors import ModelError
 from .chain import AXES, ROT, TRANS, Chain, Op
 from .parameters import Parameters
-from .robot import JointSpace
+from .joint_space import JointSpace
 from .serial import POSE_KINDS, ChainRobot, chain_layout, check_mass
 from .transforms import rot_zyx, zyx_from_matrix
 
