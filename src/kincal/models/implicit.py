@@ -213,10 +213,11 @@ class ImplicitRobot(Robot):
         dx = -self._checked_inverse(fx, q) @ (fq if joints else fs)  # implicit-function theorem
         J = np.einsum("ij,njk->nik", Rb, Ex @ dx + (0.0 if joints else Es))
         W = None if Rl is None else np.einsum("ij,njk->nik", Rb, dx[:, 3:])
-        if not joints:
-            J[:, :, self.params.indices(BASE_NAMES)], axes = self._base_jacobian(values, p)
+        if not joints:  # the base frame moves the point rigidly (and through constraints that depend on it)
+            base, axes = self._base_jacobian(values, p)
+            J[:, :, self.params.indices(BASE_NAMES)] += base
             if W is not None:
-                W[:, :, self.params.indices(BASE_NAMES)] = np.concatenate([np.zeros((3, 3)), axes], axis=1)
+                W[:, :, self.params.indices(BASE_NAMES)] += np.concatenate([np.zeros((3, 3)), axes], axis=1)
         return p, J, None if Rl is None else Rb @ Rl, W
 
     def _pose_local(self, R: np.ndarray, p: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -59,6 +59,7 @@ class Robot(Joints, ABC):
     has_inverse: ClassVar[bool] = False  # closed-form inverse kinematics of positions
     has_pose_inverse: ClassVar[bool] = False  # closed-form inverse kinematics of whole poses (a hexapod's legs)
     has_gravity: ClassVar[bool] = False  # a chain whose links can carry masses (gravity terms)
+    has_load_compliance: ClassVar[bool] = False  # its own model of giving under its load (a hexapod's legs)
 
     # ---- what a model implements (batched: q (N, n), values (P,)) -------------------------------
     @abstractmethod
@@ -335,6 +336,11 @@ class Robot(Joints, ABC):
     def compliances(self) -> dict[str, float]:
         """Per joint with a compliance term its compliance in rad/(N·m); none by default."""
         return {}
+
+    def with_load_compliance(self: R) -> R:
+        """The robot with its own compliance under its load as parameters (``has_load_compliance``: the
+        error model ``compliance`` of a model that is not a chain; a chain's is a term on its joints)."""
+        raise ModelError(f"robot '{self.name}' ({self.structure}) has no compliance of its own")
 
     # ---- gravity and β ---------------------------------------------------------------------------
     def gravity(self, payload: float = 0.0) -> "GravityModel":

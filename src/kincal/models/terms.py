@@ -284,6 +284,8 @@ def extend(robot: Robot, error_model: ErrorModel | str, q: np.ndarray | None = N
     inner = robot.inner if isinstance(robot, ExtendedRobot) else robot
     if "nobeta" in tokens:
         inner = inner.without_beta()
+    if "compliance" in tokens and inner.has_load_compliance:  # the model's own (a hexapod's legs), not a term
+        inner, tokens = inner.with_load_compliance(), tuple(t for t in tokens if t != "compliance")
     q = inner.sample_joints(200, seed=0) if q is None else inner.check_q(q)
     terms = [_term(inner, tok, q, spec.payload) for tok in tokens if tok not in ("geometric", "nobeta")]
     return ExtendedRobot.build(inner, terms) if terms else inner

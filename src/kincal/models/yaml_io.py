@@ -46,7 +46,7 @@ _JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits", "ma
 _COMMON_KEYS = {"name", "description", "type", "units", "base", "calibration", "source", "error_model"}
 _TYPE_KEYS = {"serial": {"convention", "joints", "tool", "actuators", "transmission", "names", "frames"},
               "puu3": {"extended", "parameters", "slider_limits"}, "urdf": {"joints", "tool"},
-              "stewart": {"legs", "reading", "tool"}, "delta": {"arms", "parameters", "arm_limits"}}  # beside the common
+              "stewart": {"legs", "reading", "tool", "compliance"}, "delta": {"arms", "parameters", "arm_limits"}}  # beside the common
 _TOP_KEYS = _COMMON_KEYS.union(*_TYPE_KEYS.values())
 def bundled_robots() -> list[str]:
     """Names of the robots shipped with kincal."""

@@ -10,7 +10,7 @@ from .. import units as U
 from ..errors import ModelError
 from .puu3 import PUU3Robot, puu3_names
 from .serial import SerialRobot
-from .stewart import StewartRobot
+from .stewart import COMPLIANCE, StewartRobot
 from .delta import DeltaRobot, delta_names
 from .serial import BASE_NAMES
 from .transmission import Map, TransmissionRobot, build_transmission_robot
@@ -199,7 +199,8 @@ LEG_KEYS = {"base", "platform", "zero", "scale", "lead", "range"}
 
 def stewart_from_dict(data: dict, label: str) -> StewartRobot:
     """A hexapod (type: stewart): six ``legs`` ({base, platform: [x, y, z], zero, range: [lower, upper],
-    with a motor ``reading`` also lead (length per reading unit), optionally scale}) in the file's units."""
+    with a motor ``reading`` also lead (length per reading unit), optionally scale}) in the file's units;
+    ``compliance``: the legs' give under the platform's whole weight (a length), which adds that term."""
     lf, af = units(data, label)
     reading = mapping(data, "reading", label)
     rf = U.unit_factor(str(reading.get("unit", "rad")), "angle", f"{label}: reading: ", ModelError) if reading else lf
@@ -233,6 +234,9 @@ def stewart_from_dict(data: dict, label: str) -> StewartRobot:
     p = [[values[f"leg{i}.p{c}"] for c in "xyz"] for i in range(1, 7)]
     robot = StewartRobot.build(str(data.get("name", "stewart")), b, p, [values[f"leg{i}.zero"] for i in range(1, 7)],
                                (lo, hi), lead if reading else None, str(data.get("description", "")))
+    if "compliance" in data:
+        robot = robot.with_load_compliance()
+        values[COMPLIANCE] = num(data["compliance"], label, "compliance") * lf
     return robot.with_params(values)
 
 
@@ -253,6 +257,8 @@ def stewart_yaml(robot: StewartRobot, length_unit: str, angle_unit: str, reading
         items += [f"lead: {fmt(robot.lead[i - 1] * lf / rf)}"] if motor else []
         items.append(f"range: [{fmt(robot.lower[i - 1] * rf)}, {fmt(robot.upper[i - 1] * rf)}]")
         lines.append(f"  - {{{', '.join(items)}}}")
+    lines += [f"compliance: {fmt(v[COMPLIANCE] * lf)}  # the legs' give under the platform's whole weight"] \
+        if robot.compliance else []
     lines += [frame_text(v, "base", lf, af), frame_text(v, "tool", lf, af), ""]
     return "\n".join(lines)
 
