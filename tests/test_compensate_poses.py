@@ -9,7 +9,7 @@ import pytest
 
 import kincal
 from kincal.compensate import solve_poses
-from kincal.compensate.poses import rotation_log
+from kincal.models.transforms import rotation_log
 
 PANDA = Path(__file__).resolve().parent / "data" / "urdf" / "panda" / "panda.urdf"
 

@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 import kincal
 from kincal.cli import main
 from kincal.compensate import compensate_program, solve_poses
-from kincal.compensate.poses import rotation_log
+from kincal.models.transforms import rotation_log
 from kincal.io import read_program, write_program
 
 

@@ -240,7 +240,8 @@ def _closed_form_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray,
     """Commands of a robot whose joints follow from the pose in closed form (its legs), checked like
     every command: limits, and the calibrated forward kinematics back at the target (position and
     orientation); with the ``nominal`` model, the filtered poses (what its inverse turns into them)."""
-    from .poses import filtered_poses, rotation_log
+    from ..models.transforms import rotation_log
+    from .poses import filtered_poses
 
     with np.errstate(invalid="ignore"):
         q = robot.inverse_pose(rotations, targets, strict=False)
@@ -277,7 +278,7 @@ def _checked_rotations(rotations, n: int) -> np.ndarray:
 def _orientation_mismatch(nominal: Robot, q0: np.ndarray, rotations: np.ndarray) -> str:
     """A constant rotation between the nominal flange at the nominal joints and the targets' orientation
     (in the flange frame): the TCP's orientation or the convention differs; '' when they match."""
-    from .poses import rotation_log
+    from ..models.transforms import rotation_log
 
     Rn = nominal.flange_rotation(q0)
     local = rotation_log(np.swapaxes(Rn, 1, 2) @ rotations)  # target in the nominal flange frame

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..models.robot import Robot
+from ..models.transforms import rotation_log
 
 POS_TOL = 1e-12  # m: converged (commands then agree to ~1e-10 rad)
 ROT_TOL = 1e-12  # rad
@@ -43,23 +44,6 @@ class PoseSolution:
     rotation_error: np.ndarray
     converged: np.ndarray
     iterations: int
-
-
-def rotation_log(R: np.ndarray) -> np.ndarray:
-    """Rotation vectors (N, 3) of rotation matrices (N, 3, 3) (rad): in closed form from the skew part
-    (θ / (2 sin θ) · vee(R − Rᵀ), its series near 0); angles near π, where that part vanishes, by
-    scipy's Rotation."""
-    v = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
-    cos = np.clip((np.trace(R, axis1=1, axis2=2) - 1.0) * 0.5, -1.0, 1.0)
-    theta = np.arccos(cos)
-    small = theta < 1e-4
-    f = np.where(small, 0.5 + theta**2 / 12.0, theta / (2.0 * np.sin(np.where(small, 1.0, theta))))
-    out = v * f[:, None]
-    wide = theta > 3.0
-    if wide.any():
-        from scipy.spatial.transform import Rotation
-        out[wide] = Rotation.from_matrix(R[wide]).as_rotvec()
-    return out
 
 
 def pose_errors(model: Robot, q: np.ndarray, p_t: np.ndarray, R_t: np.ndarray):

@@ -22,11 +22,11 @@ import numpy as np
 from ..io.program_ur import joints_literal, pose_literal
 from ..io.programs import Program, Target
 from ..models.robot import Robot
-from ..models.transforms import rotvec_matrix
+from ..models.transforms import rotation_log, rotvec_matrix
 from ..models.ur import nearest_turns, ur_inverse, ur_lengths
 from ..ties import first_best
 from .commands import BRANCH_TOL
-from .poses import rotation_log, solve_poses
+from .poses import solve_poses
 
 STARTS = 24  # spread starts of the numeric inverse when Newton from the previous joints fails
 SEARCH = (200, 20.0)  # iterations and travel (m) of the numeric inverse: from afar, not a small correction

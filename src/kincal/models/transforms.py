@@ -1,5 +1,5 @@
 """Small rotation helpers shared by the rooms: fixed-axis roll/pitch/yaw (R = Rz(rz) Ry(ry) Rx(rx)),
-cross-product matrices and the matrix of a rotation vector."""
+cross-product matrices, the matrix of a rotation vector and the rotation vectors of matrices."""
 from __future__ import annotations
 
 import numpy as np
@@ -41,3 +41,20 @@ def rotvec_matrix(w: np.ndarray) -> np.ndarray:
     if th < 1e-12:
         return np.eye(3) + K
     return np.eye(3) + np.sin(th) / th * K + (1 - np.cos(th)) / th**2 * (K @ K)
+
+
+def rotation_log(R: np.ndarray) -> np.ndarray:
+    """Rotation vectors (N, 3) of rotation matrices (N, 3, 3) (rad): in closed form from the skew part
+    (θ / (2 sin θ) · vee(R − Rᵀ), its series near 0); angles near π, where that part vanishes, by
+    scipy's Rotation."""
+    v = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
+    cos = np.clip((np.trace(R, axis1=1, axis2=2) - 1.0) * 0.5, -1.0, 1.0)
+    theta = np.arccos(cos)
+    small = theta < 1e-4
+    f = np.where(small, 0.5 + theta**2 / 12.0, theta / (2.0 * np.sin(np.where(small, 1.0, theta))))
+    out = v * f[:, None]
+    wide = theta > 3.0
+    if wide.any():
+        from scipy.spatial.transform import Rotation
+        out[wide] = Rotation.from_matrix(R[wide]).as_rotvec()
+    return out
