@@ -102,9 +102,9 @@ def _compensate_program(args, r, nominal, carry: str, models) -> int:
         "warning: the program sets no TCP (set_tcp) and no --tcp was given: its poses are taken as poses of the "
         "measured target (the calibration's tool point); give --tcp with the controller's TCP if it is another"]
     lines += [f"refused: {p}" for p in res.problems]
-    lines += [f"left as is (not a literal): line {n} {move}({arg}, …)" for n, move, arg in res.not_literal]
+    lines += [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal]
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
-                       "not_literal": [{"line": n, "move": m, "target": a} for n, m, a in res.not_literal],
+                       "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal],
                        "output": args.output if written else None, "tool_carry": carry or None},
                 "\n".join(lines + ([f"TCP: {carry}"] if carry else [])), 0 if written else EXIT_REFUSED)
 

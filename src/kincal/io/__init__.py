@@ -1,9 +1,9 @@
-"""Measurement data in and out (CSV)."""
+"""Measurement data in and out (CSV), and robot programs read and written again (one dialect per vendor language)."""
 from .measurements import (Measurements, read_joints, read_measurements, read_positions, write_joints,
                            write_measurements, write_residuals, write_selected_rows)
-from .programs import Program, Target, read_program, write_program
+from .programs import Dialect, Program, Target, dialect_of, dialects, read_program, write_program
 from .unit_checks import check_degrees, check_radians, check_spread
 
 __all__ = ["Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements",
            "write_residuals", "write_selected_rows", "check_degrees", "check_radians", "check_spread",
-           "Program", "Target", "read_program", "write_program"]
+           "Program", "Target", "Dialect", "dialect_of", "dialects", "read_program", "write_program"]

@@ -15,7 +15,7 @@ import re
 import numpy as np
 
 from ..errors import MeasurementError
-from .programs import Program, Target
+from .programs import Dialect, Program, Target
 
 MOVES = {"movej": 1, "movel": 1, "movep": 1, "movec": 2, "servoj": 1}  # move -> number of target arguments
 CALL = re.compile(r"\b(" + "|".join(MOVES) + r")\s*\(")
@@ -26,6 +26,7 @@ ASSIGN = re.compile(r"^[ \t]*(?:(?:global|local)[ \t]+)?([A-Za-z_]\w*)[ \t]*=(?!
 NAME = re.compile(r"^\s*([A-Za-z_]\w*)\s*$")
 CHANGED = re.compile(r"^[ \t]*([A-Za-z_]\w*)[ \t]*(?:\[[^\]\n]*\][ \t]*=(?!=)|[-+*/]=)", re.M)  # x[0] = …, x += …
 SET_TCP = re.compile(r"\bset_tcp\s*\(")
+NOT_ONE_LITERAL = "its target is an expression or a variable not assigned once with a literal: known at run time"
 COMMENT_OR_STRING = re.compile(r"#[^\n]*|\"[^\"]*\"?|'[^']*'?")  # a string left open runs to the end
 
 
@@ -67,7 +68,7 @@ def parse(source: str, text: str) -> Program:
                 continue
             found = _literal(text, a, b, line, move, m.start())
             if found is None:
-                not_literal.append((line, move, text[a:b].strip()))
+                not_literal.append((line, f"{move}({text[a:b].strip()})", NOT_ONE_LITERAL))
             else:
                 targets.append(found)
     return Program(source, text, tuple(targets), tuple(not_literal), tcps=_tcps(code, text, source))
@@ -115,6 +116,14 @@ def pose_literal(values: np.ndarray) -> str:
 
 def joints_literal(values: np.ndarray) -> str:
     return "[" + ", ".join(f"{v:.10f}" for v in values) + "]"
+
+
+def _whole(text: str, target: Target, values: np.ndarray) -> str:
+    """A URScript target written whole (10 decimals), whatever it was written as."""
+    return pose_literal(values) if target.kind == "pose" else joints_literal(values)
+
+
+DIALECT = Dialect("ur", (".script", ".urscript"), "#", parse, _whole)
 
 
 def measurement_program(q: np.ndarray, tool: np.ndarray, settle: float, title: str) -> str:

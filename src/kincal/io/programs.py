@@ -1,18 +1,30 @@
 """Robot programs: the move targets in a program's text, and the text with new targets put back.
 
-One module per vendor language (``program_ur.py`` for Universal Robots' URScript) finds the moves
-and their literal targets; everything else — comments, variables, speeds, blends, other commands,
-spacing — stays byte for byte, because only the spans of the literal targets are replaced. A move
-whose target is not a literal (a variable, an expression) is listed, never touched.
+One module per vendor language — a :class:`Dialect` — finds the moves and their literal targets:
+``program_ur.py`` (Universal Robots' URScript), ``program_krl.py`` (KUKA KRL), ``program_rapid.py``
+(ABB RAPID), ``program_fanuc.py`` (FANUC TP, ASCII ``.ls``) and ``program_inform.py`` (Yaskawa
+INFORM ``.JBI``). Everything else — comments, declarations, speeds, blends, other commands, spacing,
+line endings, a byte-order mark — stays byte for byte, because only the spans of the literal targets
+(URScript) or of their numbers (the other languages: each written again in its own style,
+:mod:`kincal._numstyle`) are replaced. A move whose target is not a literal (a variable filled at
+run time, an offset computed by the controller) is listed with its line and why, never touched.
+
+A target's values are in SI and one convention for every language: a pose is x, y, z (m) and a
+rotation vector (rad) of the TCP in the program's frame; joints are rad (revolute) or m. Its
+``config`` keeps the branch as written (KRL S and T, RAPID cf1/cf4/cf6/cfx, FANUC ``CONFIG``,
+INFORM ``RCONF``) and its ``frames`` the tool and base (work object, user frame) the program names.
 """
 from __future__ import annotations
 
 import dataclasses
+import os
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
 from .._atomic import write_text_atomic
+from .._numstyle import restyle
 from ..errors import MeasurementError
 
 
@@ -21,7 +33,11 @@ class Target:
     """One literal target: its span in the text and its line, the move, and its values: a pose (x, y,
     z in m, rotation vector in rad; ``kind`` "pose") or joint values (rad; "joints"); where the move
     is in the text (``at``) and the variable it moves to ('' for a literal in the move; the span and
-    line are then those of the variable's literal)."""
+    line are then those of the variable's literal). In the vendor languages ``fields`` are the spans of
+    the numbers that carry ``values`` (in the language's order and units: what a rewrite replaces),
+    ``config`` the branch as written ((S, T); (cf1, cf4, cf6, cfx); ('N U T', turn1, turn2, turn3);
+    the RCONF digits) and ``frames`` the (tool, base) the target is in, as the program names them ('' for
+    none named: the controller's default)."""
 
     start: int
     end: int
@@ -31,13 +47,16 @@ class Target:
     values: np.ndarray
     at: int = -1
     variable: str = ""
+    fields: tuple[tuple[int, int], ...] = ()
+    config: tuple = ()
+    frames: tuple[str, str] = ("", "")
 
 
 @dataclass(frozen=True)
 class Program:
-    """A program's text, its literal targets in the order of the moves, the moves whose targets are
-    not literals (line, move, the argument's text), the TCPs it sets (position in the text, the pose
-    (6,) or None when not a literal) and its language's comment mark."""
+    """A program's text, its literal targets in the order of the moves, what is listed, never touched
+    (line, what: the move or item as written, why: the reason a user reads), the TCPs it sets (position in the text, the pose
+    (6,) or None when not a literal), its language's comment mark and its dialect's name."""
 
     source: str
     text: str
@@ -46,6 +65,7 @@ class Program:
     encoding: str = "utf-8"
     tcps: tuple = ()
     comment: str = "#"
+    dialect: str = "ur"
 
     def tcp_at(self, at: int):
         """The TCP set last before position ``at`` (its pose (6,), None if not a literal), or () when none."""
@@ -63,6 +83,46 @@ class Program:
             at = b
         return "".join(out) + self.text[at:]
 
+    def with_values(self, values: dict[int, np.ndarray], marks: dict[int, str] | None = None) -> str:
+        """The text with target k written again from ``values[k]`` (SI, the target's kind) by the
+        program's dialect — in the vendor languages number by number, each in the style it had — and
+        every other byte as it is; ``marks`` as in :meth:`with_targets`."""
+        write = dialects()[self.dialect].write
+        texts = {k: write(self.text, self.targets[k], np.asarray(v, dtype=float)) for k, v in values.items()}
+        return self.with_targets(texts, marks)
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """A vendor language: its name, the file suffixes it is read from (lower case), its comment mark,
+    its reader ``parse(source, text) -> Program`` and its writer ``write(text, target, values) -> str``:
+    the new text of the target's span for new SI values (see :func:`fields_text`)."""
+
+    name: str
+    suffixes: tuple[str, ...]
+    comment: str
+    parse: Callable[[str, str], Program]
+    write: Callable[[str, Target, np.ndarray], str]
+
+
+def fields_text(text: str, target: Target, numbers: np.ndarray, resolution: np.ndarray) -> str:
+    """The target's span of ``text`` with the numbers of its fields replaced by ``numbers`` (F,) (in the
+    fields' units), each written in its old style with at least the decimals that carry it to
+    ``resolution`` (F,) (:func:`kincal._numstyle.restyle`); every other byte of the span as it is."""
+    pieces, at = [], target.start
+    for (a, b), x, res in zip(target.fields, numbers, resolution):
+        pieces += [text[at:a], restyle(text[a:b], float(x), float(res))]
+        at = b
+    return "".join(pieces) + text[at:target.end]
+
+
+def dialects() -> dict[str, Dialect]:
+    """The vendor languages kincal reads, by name (the modules load when first asked for)."""
+    from . import program_fanuc, program_inform, program_krl, program_rapid, program_ur
+
+    return {d.name: d for d in (program_ur.DIALECT, program_krl.DIALECT, program_rapid.DIALECT, program_fanuc.DIALECT,
+                                program_inform.DIALECT)}
+
 
 def _marks(program: Program, marks: dict[int, str]) -> list[tuple[int, int, str]]:
     """Insertions (at the end of each marked target's line, before its line ending) of one comment
@@ -76,13 +136,22 @@ def _marks(program: Program, marks: dict[int, str]) -> list[tuple[int, int, str]
     return [(e, e, f"  {program.comment} kincal: not compensated: {'; '.join(w)}") for e, w in by_end.items()]
 
 
-def read_program(path: str, dialect: str = "ur") -> Program:
-    """The program at ``path`` in the vendor ``dialect`` ("ur": URScript)."""
-    from . import program_ur
+def dialect_of(path: str) -> str:
+    """The dialect whose suffixes (any case) name the file at ``path``; ValueError naming them all."""
+    suffix = os.path.splitext(str(path))[1].lower()
+    found = [d.name for d in dialects().values() if suffix in d.suffixes]
+    if not found:
+        known = ", ".join(f"{s} ({d.name})" for d in dialects().values() for s in d.suffixes)
+        raise ValueError(f"{path}: a robot program's suffix says its language; kincal reads {known}")
+    return found[0]
 
-    readers = {"ur": program_ur.parse}
-    if dialect not in readers:
-        raise ValueError(f"robot program dialect '{dialect}': kincal reads {', '.join(readers)}")
+
+def read_program(path: str, dialect: str = "ur") -> Program:
+    """The program at ``path`` in the vendor ``dialect`` (:func:`dialects`: "ur", …), read byte for
+    byte: UTF-8 (a byte-order mark kept), else Latin-1; line endings as they are."""
+    known = dialects()
+    if dialect not in known:
+        raise ValueError(f"robot program dialect '{dialect}': kincal reads {', '.join(known)}")
     try:
         raw = open(path, "rb").read()
     except OSError as exc:
@@ -91,10 +160,17 @@ def read_program(path: str, dialect: str = "ur") -> Program:
         text, encoding = raw.decode("utf-8"), "utf-8"
     except UnicodeDecodeError:
         text, encoding = raw.decode("latin-1"), "latin-1"
-    return dataclasses.replace(readers[dialect](path, text), encoding=encoding)
+    found = known[dialect].parse(path, text)
+    return dataclasses.replace(found, encoding=encoding, dialect=dialect, comment=known[dialect].comment)
 
 
 def write_program(path: str, program: Program, texts: dict[int, str], marks: dict[int, str] | None = None) -> None:
     """The program with the given targets replaced and the marked ones commented, in its own encoding
     (atomically)."""
     write_text_atomic(path, program.with_targets(texts, marks), program.encoding)
+
+
+def line_column(text: str, at: int) -> tuple[int, int]:
+    """The line and column (both from 1) of position ``at`` in ``text``."""
+    line = text.count("\n", 0, at) + 1
+    return line, at - (text.rfind("\n", 0, at) + 1) + 1

@@ -1,8 +1,11 @@
 """Small rotation helpers shared by the rooms: fixed-axis roll/pitch/yaw (R = Rz(rz) Ry(ry) Rx(rx)),
-cross-product matrices, the matrix of a rotation vector and the rotation vectors of matrices."""
+cross-product matrices, the matrix of a rotation vector, the rotation vectors of matrices, and the
+roll/pitch/yaw of a rotation nearest given ones (a program's angles written again)."""
 from __future__ import annotations
 
 import numpy as np
+
+from ..ties import first_best
 
 
 def rot_zyx(rz: float | np.ndarray, ry: float | np.ndarray, rx: float | np.ndarray) -> np.ndarray:
@@ -58,3 +61,24 @@ def rotation_log(R: np.ndarray) -> np.ndarray:
         from scipy.spatial.transform import Rotation
         out[wide] = Rotation.from_matrix(R[wide]).as_rotvec()
     return out
+
+
+def zyx_nearest(R: np.ndarray, old: np.ndarray) -> np.ndarray:
+    """(rz, ry, rx) rad with R (3, 3) = Rz Ry Rx, the triple nearest ``old`` (3,) rad — what a program writes
+    again where it wrote ``old``: ``old`` itself when it is R (to 1e-12 rad); else of R's two triples, each
+    with the whole turns that bring it nearest, the nearer (ties: the one with |ry| ≤ π/2), ry to full
+    precision near ±π/2 (atan2, where an arcsine loses half the digits), and at ±π/2, where only rz ∓ rx
+    is defined, the old rx kept."""
+    old = np.asarray(old, dtype=float)
+    if np.linalg.norm(rotation_log((rot_zyx(*old).T @ R)[None])[0]) < 1e-12:
+        return old.copy()
+    cy = float(np.hypot(R[0, 0], R[1, 0]))
+    ry = float(np.arctan2(-R[2, 0], cy))
+    if cy < 1e-10:
+        rx = float(old[2])
+        options = [np.array([np.arctan2(-R[0, 1], R[1, 1]) + np.copysign(1.0, ry) * rx, ry, rx])]
+    else:
+        rz, rx = float(np.arctan2(R[1, 0], R[0, 0])), float(np.arctan2(R[2, 1], R[2, 2]))
+        options = [np.array([rz, ry, rx]), np.array([rz + np.pi, np.pi - ry, rx + np.pi])]
+    near = [o + 2 * np.pi * np.round((old - o) / (2 * np.pi)) for o in options]
+    return near[first_best(np.array([np.abs(c - old).sum() for c in near]), maximize=False)]

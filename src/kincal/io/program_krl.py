@@ -1,0 +1,444 @@
+"""KUKA KRL (``.src``, ``.dat``, ``.sub``): the literal targets of a module file, one file at a time.
+
+What is read. Comments (``;`` to the end of the line) and strings (``"…"``) are blanked first, so
+nothing in them (the ``;FOLD PTP P1 Vel=100 %`` lines of the inline forms included) is a move. Names
+are case-insensitive. A position aggregate is ``{X …, Y …, Z …, A …, B …, C …, S …, T …, E1 …}``
+(E6POS, POS, FRAME) or ``{A1 …, …, A6 …, E1 …}`` (E6AXIS, AXIS), with or without its type
+(``{AXIS: A1 0, …}``), components in any order.
+
+What is a target (kind "pose" or "joints"):
+
+* the literal of a move: ``PTP {A1 0, A2 -90, …}``, ``LIN {X …}``, both points of ``CIRC``/``SCIRC``,
+  ``SPTP``, ``SLIN``, ``SPL`` (``move`` the instruction, ``variable`` '');
+* a point variable of type E6POS, POS, E6AXIS or AXIS given one literal in the file: a ``.dat``
+  declaration (``DECL E6POS XP1={…}``, ``GLOBAL E6AXIS …``, or with no DECL keyword), an array element
+  (``XP[3]={…}``), or an assignment in a ``.src`` (``HOME = {AXIS: …}``); also an undeclared variable
+  given one position-shaped literal (its type read from its components). ``move`` is the first move of
+  the file that goes to it, or else its type ("E6POS", …); ``variable`` its name (with the index).
+  A ``.dat`` point is a target even though its moves are in the sibling ``.src``: a reader of one
+  file knows only that file.
+* a FRAME variable is tool or base data (``TOOL_DATA[1]``, a base), not a place the robot goes to:
+  it is a target only where a move of this file moves to it (``LIN F1``: KRL takes a FRAME as a
+  Cartesian target); otherwise it is listed, never changed.
+
+Frames: a point ``X<name>`` with a ``DECL FDAT F<name>={TOOL_NO t, BASE_NO b, …}`` in the same file
+(the inline forms' naming) has ``frames`` ("TOOL_NO t", "BASE_NO b"). Any other target has the values
+last assigned in the text before it to ``$TOOL`` and ``$BASE`` as written (e.g. "TOOL_DATA[1]",
+"$NULLFRAME"), or '' where the file sets none. A ``.src`` move ``PTP XP1 … C_PTP`` whose point and
+FDAT are in the ``.dat`` is listed in the ``.src`` (its literal is compensated in the ``.dat``).
+
+Listed in ``not_literal`` (line, what, why), never changed: relative moves (``PTP_REL``, ``LIN_REL``,
+…: an offset from wherever the robot is at run time); moves to the current position (``$POS_ACT``,
+``$AXIS_ACT``, ``$AXIS_ACT_MEAS``, any ``$`` variable); moves to a variable with no single literal in
+the file (declared in another file, filled or changed at run time: ``robopos.X = start.X + dx``,
+assigned more than once); frame products ``{…}:{…}`` and calls; partial literals (``{A1 10}``: the
+axes not written keep their run-time values); and every other position-shaped literal that is no
+target: FRAMEs no move uses, controller settings (``$stiffness.maxforce = {X 300.0, …}``, ``$TOOL =
+{…}``), positions inside other data (``JPos_log[1]={cmdIdx 71, cmdPos {A1 …}}``, a log: no move goes
+to it as a literal).
+
+Conventions: X, Y, Z in mm, A, B, C in degrees with R = Rz(A)·Ry(B)·Rx(C); A1..A6 in degrees.
+``values`` are SI: a pose is [x, y, z (m), rotation vector (rad)], joints [A1..A6] (rad). ``fields``
+are X, Y, Z, A, B, C or A1..A6 (in that order); S, T and E1..E6 stay byte for byte; ``config`` is
+(S, T) as ints (``'B010'`` read as binary), () when neither is written.
+"""
+from __future__ import annotations
+
+import dataclasses
+import re
+
+import numpy as np
+
+from ..errors import MeasurementError
+from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix, zyx_nearest
+from .programs import Dialect, Program, Target, fields_text, line_column
+
+POSE_KEYS = ("X", "Y", "Z", "A", "B", "C")
+AXIS_KEYS = ("A1", "A2", "A3", "A4", "A5", "A6")
+EXTERNAL = ("E1", "E2", "E3", "E4", "E5", "E6")
+POINT_TYPES = ("E6POS", "POS", "E6AXIS", "AXIS", "FRAME")
+NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+BITS = re.compile(r"'([BbHh])([0-9A-Fa-f]+)'")
+COMMENT_OR_STRING = re.compile(r"\"[^\"\n]*\"?|;[^\n]*")
+MOVE = re.compile(r"^[ \t]*(PTP_REL|LIN_REL|CIRC_REL|SPTP_REL|SLIN_REL|SCIRC_REL|PTP|LIN|CIRC|SPTP|SLIN|SCIRC|SPL)"
+                  r"(?![\w$])", re.M | re.I)
+DECLARE = re.compile(r"^[ \t]*(?:GLOBAL[ \t]+)?(?:DECL[ \t]+)?(?:GLOBAL[ \t]+)?(E6POS|POS|E6AXIS|AXIS|FRAME)[ \t]+"
+                     r"([A-Za-z_]\w*(?:[ \t]*\[[^\]\n]*\])?(?:[ \t]*,[ \t]*[A-Za-z_]\w*(?:[ \t]*\[[^\]\n]*\])?)*)",
+                     re.M | re.I)
+ASSIGN = re.compile(r"^[ \t]*(?:(?:GLOBAL|DECL)[ \t]+)*(?:[A-Za-z_]\w*[ \t]+)?(\$?[A-Za-z_]\w*)[ \t]*(\[[^\]\n]*\])?"
+                    r"((?:[ \t]*\.[ \t]*\w+)*)[ \t]*=(?!=)[ \t]*", re.M | re.I)
+OPERAND = re.compile(r"\$?[A-Za-z_]\w*(?:[ \t]*\[[^\]\n]*\])?(?:[ \t]*\.[ \t]*\w+)*")
+FDAT = re.compile(r"^[ \t]*(?:GLOBAL[ \t]+)?DECL[ \t]+(?:GLOBAL[ \t]+)?FDAT[ \t]+F(\w+)[ \t]*=[ \t]*\{", re.M | re.I)
+RUN_TIME = "the robot's position when the move starts, read at run time"
+
+
+def _fail(source: str, text: str, at: int, what: str) -> MeasurementError:
+    line, column = line_column(text, at)
+    return MeasurementError(f"{source}: line {line}, column {column}: {what}")
+
+
+def _blank(text: str) -> str:
+    """The text with comments and strings replaced by blanks of the same length."""
+    return COMMENT_OR_STRING.sub(lambda m: " " * len(m.group()), text)
+
+
+def _check_brackets(source: str, text: str, code: str) -> dict[int, int]:
+    """Every '{' and '[' closed by its own kind (else MeasurementError at the culprit): the end (after
+    the '}') of each '{' by its position."""
+    stack: list[int] = []
+    ends: dict[int, int] = {}
+    for i, c in enumerate(code):
+        if c in "{[":
+            stack.append(i)
+        elif c in "}]":
+            if not stack or code[stack[-1]] != {"}": "{", "]": "["}[c]:
+                raise _fail(source, text, i, f"a '{c}' with no '{'{' if c == '}' else '['}' open before it")
+            a = stack.pop()
+            ends[a] = i + 1
+    if stack:
+        raise _fail(source, text, stack[-1], f"a '{code[stack[-1]]}' that is never closed")
+    return ends
+
+
+@dataclasses.dataclass
+class _Aggregate:
+    """An aggregate {…}: its span, the type written before ':' and its components (KEY -> value span)."""
+
+    start: int
+    end: int
+    typed: str
+    parts: dict[str, tuple[int, int]]
+    nested: list[int]  # starts of aggregates that are component values
+
+    @property
+    def shape(self) -> str:
+        """"pose" or "joints" (position-shaped: only position components), else ''."""
+        keys = set(self.parts)
+        if self.nested or not keys:
+            return ""
+        if keys <= set(POSE_KEYS + EXTERNAL + ("S", "T")) and keys & set(POSE_KEYS):
+            return "pose"
+        if keys <= set(AXIS_KEYS + EXTERNAL) and keys & set(AXIS_KEYS):
+            return "joints"
+        return ""
+
+    @property
+    def missing(self) -> list[str]:
+        return [k for k in (POSE_KEYS if self.shape == "pose" else AXIS_KEYS) if k not in self.parts]
+
+
+def _aggregate(source: str, text: str, code: str, ends: dict[int, int], a: int) -> _Aggregate:
+    """The aggregate whose '{' is at ``a``; MeasurementError for a component without a value."""
+    b = ends[a]
+    i, typed = a + 1, ""
+    m = re.compile(r"[ \t]*([A-Za-z_]\w*)[ \t]*:(?!=)").match(code, i)
+    if m:
+        typed, i = m.group(1).upper(), m.end()
+    parts: dict[str, tuple[int, int]] = {}
+    nested: list[int] = []
+    key = re.compile(r"\s*([A-Za-z_$]\w*)(\[\])?\s*")
+    while i < b - 1:
+        k = key.match(code, i)
+        if not k:
+            return _Aggregate(a, b, typed, {}, [])  # not name-value components: not a position
+        j = k.end()
+        if code[j] == "{":
+            nested.append(j)
+            j = ends[j]
+        while code[j] not in ",}":
+            j = ends[j] if code[j] in "{[" else j + 1
+        lo, hi = k.end(), j
+        while hi > lo and code[hi - 1].isspace():
+            hi -= 1
+        if lo == hi and not k.group(2):
+            raise _fail(source, text, k.start(1), f"the component {k.group(1)} has no value")
+        parts[k.group(1).upper()] = (lo, hi)
+        i = j + 1
+    return _Aggregate(a, b, typed, parts, nested)
+
+
+def _check_numbers(source: str, text: str, agg: _Aggregate) -> None:
+    """Every component of a position is a number (S and T may be 'B…' bits)."""
+    for k, (lo, hi) in agg.parts.items():
+        value = text[lo:hi]
+        if NUMBER.fullmatch(value) or (k in ("S", "T") and BITS.fullmatch(value)):
+            continue
+        raise _fail(source, text, lo, f"'{value}' is not a number (component {k} of a position)")
+
+
+def _integer(value: str) -> int:
+    bits = BITS.fullmatch(value)
+    if bits:
+        return int(bits.group(2), 2 if bits.group(1) in "Bb" else 16)
+    return int(float(value))
+
+
+def _target(text: str, agg: _Aggregate, move: str, at: int, variable: str, frames: tuple[str, str]) -> Target:
+    """The Target of a complete position aggregate (checked already)."""
+    keys = POSE_KEYS if agg.shape == "pose" else AXIS_KEYS
+    fields = tuple(agg.parts[k] for k in keys)
+    raw = np.array([float(text[a:b]) for a, b in fields])
+    if agg.shape == "pose":
+        rot = rot_zyx(*np.radians(raw[3:6]))
+        values = np.concatenate([raw[:3] * 1e-3, rotation_log(rot[None])[0]])
+    else:
+        values = np.radians(raw)
+    config: tuple = ()
+    if "S" in agg.parts or "T" in agg.parts:
+        config = tuple(_integer(text[slice(*agg.parts[k])]) if k in agg.parts else None for k in ("S", "T"))
+    line = text.count("\n", 0, agg.start) + 1
+    return Target(agg.start, agg.end, line, move, agg.shape, values, at, variable, fields, config, frames)
+
+
+def _operand(code: str, i: int, ends: dict[int, int]) -> int:
+    """The end of one operand (an aggregate, a name with index/components, a call) from ``i``."""
+    if code[i:i + 1] == "{":
+        return ends[i]
+    m = OPERAND.match(code, i)
+    if not m:
+        return i
+    j = m.end()
+    k = len(code[j:]) - len(code[j:].lstrip(" \t"))
+    if code[j + k:j + k + 1] == "(":
+        depth = 0
+        for j in range(j + k, len(code)):
+            depth += {"(": 1, ")": -1}.get(code[j], 0)
+            if depth == 0 or code[j] == "\n":
+                return j + 1
+    return j
+
+
+def _move_arguments(source: str, text: str, code: str, ends: dict[int, int], m: re.Match) -> list[tuple[int, int]]:
+    """Spans of the target arguments of the move ``m`` (two for CIRC/SCIRC), with frame products ':'."""
+    count = 2 if m.group(1).upper() in ("CIRC", "SCIRC", "CIRC_REL", "SCIRC_REL") else 1
+    spans, i = [], m.end()
+    for n in range(count):
+        while code[i:i + 1] in (" ", "\t"):
+            i += 1
+        a, j = i, _operand(code, i, ends)
+        if j == a:
+            raise _fail(source, text, a, f"{m.group(1)} without its {'auxiliary point' if n < count - 1 else 'target'}")
+        while True:  # frame products a:b:c
+            k = j + len(code[j:]) - len(code[j:].lstrip(" \t"))
+            if code[k:k + 1] != ":":
+                break
+            k += 1 + len(code[k + 1:]) - len(code[k + 1:].lstrip(" \t"))
+            j = _operand(code, k, ends)
+        spans.append((a, j))
+        i = j + len(code[j:]) - len(code[j:].lstrip(" \t"))
+        if n < count - 1:
+            if code[i:i + 1] != ",":
+                raise _fail(source, text, i, f"{m.group(1)} needs an auxiliary point and a target, separated by ','")
+            i += 1
+    return spans
+
+
+def _key(name: str) -> str:
+    """A variable's name as KRL compares it: upper case, no blanks."""
+    return re.sub(r"\s+", "", name).upper()
+
+
+def _declared(code: str) -> dict[str, str]:
+    """Point variables declared in the file: NAME -> type (E6POS, POS, E6AXIS, AXIS, FRAME)."""
+    out = {}
+    for m in DECLARE.finditer(code):
+        for name in re.findall(r"[A-Za-z_]\w*(?=[ \t]*(?:\[[^\]\n]*\])?[ \t]*(?:,|$))", m.group(2)):
+            out[name.upper()] = m.group(1).upper()
+    return out
+
+
+def _assignments(code: str, ends: dict[int, int]) -> list[tuple[str, str, int, int, str]]:
+    """Every assignment: (variable as compared, e.g. "XP[1]", the component set ('' for the whole
+    variable), where its statement starts, the start of its '{' literal or -1 for any other value, the
+    variable as written)."""
+    out = []
+    for m in ASSIGN.finditer(code):
+        var = _key(m.group(1) + (m.group(2) or ""))
+        part = _key(m.group(3) or "")
+        literal = m.end() if code[m.end():m.end() + 1] == "{" else -1
+        if literal >= 0:
+            after = code[ends[literal]:code.find("\n", ends[literal]) if "\n" in code[ends[literal]:] else len(code)]
+            literal = literal if after.strip() == "" else -1  # {…}:{…}, {…} + …: computed
+        out.append((var, part, m.start(1), literal, re.sub(r"\s+", "", m.group(1) + (m.group(2) or ""))))
+    return out
+
+
+@dataclasses.dataclass
+class _File:
+    """One file being read: its text, the blanked code, its aggregates and assignments, and what the
+    passes found (targets, listed items, aggregates used, the first move to each variable)."""
+
+    source: str
+    text: str
+    code: str
+    ends: dict[int, int]
+    aggs: dict[int, _Aggregate]
+    declared: dict[str, str]
+    assigns: list[tuple[str, str, int, int, str]]
+    targets: list[Target] = dataclasses.field(default_factory=list)
+    listed: list[tuple[int, str, str]] = dataclasses.field(default_factory=list)
+    used: set[int] = dataclasses.field(default_factory=set)
+    first_move: dict[str, tuple[str, int]] = dataclasses.field(default_factory=dict)
+
+    def line(self, at: int) -> int:
+        return self.text.count("\n", 0, at) + 1
+
+    def note(self, at: int, what: str, why: str) -> None:
+        self.listed.append((self.line(at), " ".join(what.split()), why))
+
+    def bound(self) -> dict[str, int]:
+        """Variables (not $ system variables) assigned exactly once in the file, whole, with a literal:
+        name (with index) -> the literal's '{'."""
+        count: dict[str, list[int]] = {}
+        for var, part, _, literal, _ in self.assigns:
+            count.setdefault(var, []).append(literal if not part else -1)
+        return {v: s[0] for v, s in count.items() if len(s) == 1 and s[0] >= 0 and not v.startswith("$")}
+
+    def frames(self, at: int, variable: str) -> tuple[str, str]:
+        """(tool, base) of a target at ``at``: the FDAT F<name> of a point X<name>, else the last
+        $TOOL and $BASE set before it ('' for none)."""
+        name = variable.split("[")[0].upper()
+        for m in FDAT.finditer(self.code):
+            if name[:1] == "X" and m.group(1).upper() == name[1:]:
+                parts = self.aggs[m.end() - 1].parts
+                got = [f"{k} {self.text[slice(*parts[k])]}" if k in parts else "" for k in ("TOOL_NO", "BASE_NO")]
+                return got[0], got[1]
+        out = ["", ""]
+        for m in re.finditer(r"^[ \t]*\$(TOOL|BASE)[ \t]*=[ \t]*([^\n]*?)[ \t\r]*$", self.code[:at], re.M | re.I):
+            out[m.group(1).upper() == "BASE"] = self.text[m.start(2):m.end(2)]
+        return out[0], out[1]
+
+
+def _variable_reason(f: _File, var: str, shown: str) -> str:
+    """Why a move to the variable ``var`` (compared upper case; ``shown`` as written) with no single
+    literal in the file is not compensated."""
+    if var.startswith("$"):
+        if re.match(r"\$(POS|AXIS)_", var):
+            return f"{shown} is {RUN_TIME}"
+        return f"{shown} is a system variable, set by the controller at run time"
+    if any(a[0] == var for a in f.assigns):
+        return f"{shown} is filled or changed at run time in this file (not one literal)"
+    if var.split("[")[0] in f.declared:
+        return f"{shown} has no literal in this file: it is filled at run time"
+    return (f"{shown} is not declared in this file: its literal (and its FDAT) are where it is declared, "
+            "e.g. the module's .dat, and are compensated there")
+
+
+def _moves(f: _File) -> None:
+    """Each move's targets: inline literals become targets; everything else is listed."""
+    bound = f.bound()
+    for m in MOVE.finditer(f.code):
+        move = m.group(1).upper()
+        for a, b in _move_arguments(f.source, f.text, f.code, f.ends, m):
+            arg = f.code[a:b]
+            inside = [s for s in f.aggs if a <= s < b]
+            f.used.update(inside)
+            if move.endswith("_REL"):
+                f.note(a, f"{move} {arg}", f"a relative move: an offset from {RUN_TIME}")
+            elif arg.startswith("{") and f.ends[a] == b:
+                _inline(f, f.aggs[a], move, m.start())
+            elif inside or "(" in arg or ":" in arg:
+                f.note(a, f"{move} {arg}", "a target computed at run time (a frame product ':' or a call)")
+            elif _key(arg) in bound:
+                f.first_move.setdefault(_key(arg), (move, m.start()))
+            else:
+                f.note(a, f"{move} {arg}", _variable_reason(f, _key(arg), "".join(arg.split())))
+
+
+def _inline(f: _File, agg: _Aggregate, move: str, at: int) -> None:
+    """A literal written in a move: a target, or listed when partial; not a position: an error."""
+    if not agg.shape:
+        raise _fail(f.source, f.text, agg.start, f"the {move} target is not a position (components "
+                    f"{', '.join(agg.parts) or 'none'}; a position has X, Y, Z, A, B, C or A1..A6)")
+    if agg.missing:
+        f.note(agg.start, f"{move} {f.text[agg.start:agg.end]}", _partial(agg))
+        return
+    f.targets.append(_target(f.text, agg, move, at, "", f.frames(at, "")))
+
+
+def _partial(agg: _Aggregate) -> str:
+    return (f"a partial target: {', '.join(agg.missing)} not written, so the controller keeps their values "
+            "at run time")
+
+
+def _points(f: _File) -> None:
+    """Variables given one literal: targets (point types, FRAMEs a move uses), else listed."""
+    names = {literal: name for *_, literal, name in f.assigns}
+    for var, a in f.bound().items():
+        agg, shown = f.aggs[a], names[a]
+        kind = f.declared.get(var.split("[")[0]) or agg.typed
+        if not agg.shape:
+            if kind in POINT_TYPES:
+                raise _fail(f.source, f.text, a, f"{shown} ({kind}) is not given a position (components "
+                            f"{', '.join(agg.parts) or 'none'})")
+            continue
+        if kind in POINT_TYPES and (kind in ("E6AXIS", "AXIS")) != (agg.shape == "joints"):
+            raise _fail(f.source, f.text, a, f"{shown} is {kind} but is given {', '.join(agg.parts)}")
+        f.used.add(a)
+        move, at = f.first_move.get(var, ("", -1))
+        if kind and kind not in POINT_TYPES:
+            f.note(a, shown, f"a position-like value of type {kind}, not a move target")
+        elif kind == "FRAME" and not move:
+            f.note(a, shown, "a FRAME (tool or base data), not a move target: no move of this file goes to it")
+        elif agg.missing:
+            f.note(a, shown, _partial(agg))
+        else:
+            kind = kind or ("E6" if set(agg.parts) & set(EXTERNAL) else "") + ("POS" if agg.shape == "pose" else "AXIS")
+            f.targets.append(_target(f.text, agg, move or kind, at if move else a, shown, f.frames(a, var)))
+
+
+def _leftovers(f: _File) -> None:
+    """Every position-shaped literal that is no target and not listed yet, listed with why."""
+    nested = {s for agg in f.aggs.values() for s in agg.nested}
+    by_literal = {literal: (var, part, name) for var, part, _, literal, name in f.assigns if literal >= 0}
+    counts: dict[str, int] = {}
+    for var, *_ in f.assigns:
+        counts[var] = counts.get(var, 0) + 1
+    for a, agg in sorted(f.aggs.items()):
+        if not agg.shape or a in f.used:
+            continue
+        what, why = f.text[a:agg.end], "a position that no move of this file goes to"
+        if a in nested:
+            why = "a position inside other data (a structure field, e.g. a log): no move goes to it as a literal"
+        elif a in by_literal:
+            var, part, name = by_literal[a]
+            what = name + part
+            if var.startswith("$") or part:
+                why = f"sets {name}{part}: a controller setting or frame, not a move target"
+            elif counts[var] > 1:
+                why = f"{name} is assigned more than once or changed in this file: not one literal"
+        f.note(a, what, why)
+
+
+def parse(source: str, text: str) -> Program:
+    """The literal targets (text order) and the listed moves and positions of one KRL file."""
+    code = _blank(text)
+    ends = _check_brackets(source, text, code)
+    aggs = {a: _aggregate(source, text, code, ends, a) for a in sorted(ends) if code[a] == "{"}
+    for agg in aggs.values():
+        if agg.shape:
+            _check_numbers(source, text, agg)
+    f = _File(source, text, code, ends, aggs, _declared(code), _assignments(code, ends))
+    _moves(f)
+    _points(f)
+    _leftovers(f)
+    targets = sorted(f.targets, key=lambda t: t.start)
+    return Program(source, text, tuple(targets), tuple(sorted(f.listed, key=lambda x: x[0])))
+
+
+def write(text: str, target: Target, values: np.ndarray) -> str:
+    """The target's span for new SI values: X, Y, Z (mm, to 1e-7), A, B, C (deg, to 1e-8) or A1..A6
+    (deg, to 1e-8), each number in its old style; every other byte (S, T, E1..E6) as it is."""
+    values = np.asarray(values, dtype=float)
+    if target.kind == "pose":
+        old = np.array([float(text[a:b]) for a, b in target.fields[3:6]])
+        numbers = np.concatenate([values[:3] * 1e3, np.degrees(zyx_nearest(rotvec_matrix(values[3:6]), np.radians(old)))])
+        resolution = np.array([1e-7] * 3 + [1e-8] * 3)
+    else:
+        numbers, resolution = np.degrees(values), np.full(len(values), 1e-8)
+    order = np.argsort([a for a, _ in target.fields])  # fields_text walks the span from left to right
+    ordered = dataclasses.replace(target, fields=tuple(target.fields[k] for k in order))
+    return fields_text(text, ordered, numbers[order], resolution[order])
+
+
+DIALECT = Dialect("krl", (".src", ".dat", ".sub"), ";", parse, write)

@@ -1,0 +1,675 @@
+"""ABB RAPID (``.mod``, ``.modx``, ``.sys``, ``.prg``): the literal robtargets and jointtargets of a module.
+
+What is read
+    * ``robtarget`` literals ``[[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [eax_a, …, eax_f]]``
+      (mm; the quaternion q1..q4 = w, x, y, z; the configuration; external axes, ``9E9``/``9E+09`` where
+      unused) and ``jointtarget`` literals ``[[rax_1, …, rax_6], [eax_a, …, eax_f]]`` (deg).
+    * Declarations ``[LOCAL|TASK] CONST|PERS|VAR robtarget|jointtarget name[{n[,m]}] [:= value];`` at module
+      level or inside a PROC/FUNC/TRAP (local there: a routine's names hide the module's), arrays included.
+    * The moves MoveJ, MoveL, MoveC (two targets: the circle point and the end point), MoveAbsJ (a
+      jointtarget), MoveJDO/MoveLDO/MoveCDO, MoveJSync/…, MoveJAO/…, MoveJGO/…, TriggJ/TriggL/TriggC and
+      SearchL/SearchC (their ToPoint; SearchPoint is an output): the target argument(s), the tool argument
+      and ``\\WObj:=`` (or ``\\WObj?name``) give a target's ``frames`` (tool, work object) as written ('' for
+      a work object not named: wobj0, the controller's default). MoveExtJ moves external axes only: its
+      jointtarget is not a robot target.
+    * ``tooldata`` and ``wobjdata`` declarations are read and checked (a broken one is an error); their
+      frames are NOT targets (compensating a move must not move the tool or the work object) and are not
+      put in ``Program.tcps`` (RAPID names the tool in every move, not once before it): they are exposed by
+      :func:`declared_frames` (tool frame, user and object frames, in SI), by the names the targets'
+      ``frames`` use.
+
+What is a target (``Program.targets``, in text order)
+    * every literal in a move's target argument (``variable`` '', ``move`` the instruction as written);
+    * every robtarget/jointtarget declared with a literal and never changed in the file (``move``
+      "robtarget"/"jointtarget", ``variable`` its name, ``p{2}`` for an array element; ``at`` the first
+      move to it, else the declaration; ``frames`` those of the first move to it, directly or as the base
+      of ``Offs``/``RelTool``). A declared point is a target even when no move of this file uses it
+      (modules keep data apart from motion) or when the moves use it only as the base of
+      ``Offs``/``RelTool`` (compensating the base carries the displaced moves along).
+
+What is listed (``Program.not_literal``: line, what, why) and never touched
+    * moves to ``Offs()``, ``RelTool()``, ``CRobT()``, ``CJointT()``, ``CalcRobT()``, any other function or
+      expression (computed at run time);
+    * moves to a variable assigned at run time (``p := …``, ``p.trans.x := …``, ``p{i} := …``, the
+      SearchPoint of a search), to a routine parameter, to data declared without a value or not in this
+      file; a declared literal that is assigned at run time (at its declaration);
+    * a literal built from names (``[[x0, 0, 0], …]``), a declaration from an expression;
+    * a later move to a declared point with another tool or work object than the first (the point is
+      compensated for the first);
+    * a robtarget-shaped literal (or a jointtarget-shaped one with an unused-axis ``9E9``) anywhere else: an
+      assignment, a call of a routine of the program.
+
+Conventions: ``values`` of a pose are x, y, z (m) and the rotation vector (rad) of the unit quaternion
+(the written one divided by its norm); ``fields`` are the spans of x, y, z, q1, q2, q3, q4; ``config``
+(cf1, cf4, cf6, cfx) as ints. Joints are rax_1..rax_6 in rad (an axis written 9E9, unused, is not one);
+external axes are never fields. A quaternion is written back in the hemisphere of the old numbers and
+with their norm, so an unchanged target is written byte for byte. Names and keywords are
+case-insensitive; comments (``!`` to the end of the line) and strings are skipped. A ``.modx`` is read
+as RAPID text (the ones seen are plain modules); an XML file is refused. Broken input raises
+:class:`~kincal.errors.MeasurementError` "source: line L, column C: what is wrong".
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import MeasurementError
+from .programs import Dialect, Program, Target, fields_text, line_column
+
+NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+BROKEN_NUMBER = re.compile(r"[-+]?[\d.][\w.]*(?:[eE][-+][\w.]*)?")  # starts like a number: must be one
+COMMENT_OR_STRING = re.compile(r'!.*|"(?:[^"\n]|"")*"|"')  # a lone '"': a string not closed on its line
+OPEN = {"]": "[", ")": "(", "}": "{"}
+ROUTINE = re.compile(r"\b(?:PROC|TRAP|FUNC\s+\w+)\s+(\w+)", re.I)
+ROUTINE_END = re.compile(r"\bEND(?:PROC|TRAP|FUNC)\b", re.I)
+DECL = re.compile(r"\b(CONST|PERS|VAR)\s+(robtarget|jointtarget|tooldata|wobjdata)\s+(\w+)\s*(?:\{([^}]*)\})?"
+                  r"\s*(:=)?", re.I)
+ASSIGN = re.compile(r"(?<![\w.\\])([A-Za-z]\w*)\s*(?:\{[^}]*\})?\s*(?:\.\s*\w+\s*)*:=")
+NAME = re.compile(r"([A-Za-z]\w*)\s*(?:\{([^}]*)\})?")
+CALL = re.compile(r"([A-Za-z]\w*)\s*\(")
+# instruction -> (its target arguments, its tool argument), as positions among its positional arguments
+MOVES = {**{m: ((0,), 3) for m in ("movej", "movel", "moveabsj", "movejdo", "moveldo", "movejsync", "movelsync",
+                                   "movejao", "movelao", "movejgo", "movelgo")},
+         **{m: ((0, 1), 4) for m in ("movec", "movecdo", "movecsync", "movecao", "movecgo")},
+         "triggj": ((0,), 4), "triggl": ((0,), 4), "triggc": ((0, 1), 5), "searchl": ((2,), 4),
+         "searchc": ((2, 3), 5)}
+SEARCH_POINT = {"searchl": 1, "searchc": 1}  # the output argument of a search: changed at run time
+MOVE = re.compile(r"(?<![\w.\\%])(" + "|".join(MOVES) + r")\b", re.I)
+SHAPES = {"robtarget": (3, 4, 4, 6), "jointtarget": (6, 6)}
+FORMS = {"robtarget": "[[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],[eax_a,…,eax_f]]",
+         "jointtarget": "[[rax_1,…,rax_6],[eax_a,…,eax_f]]",
+         "tooldata": "[robhold,[[x,y,z],[q1,q2,q3,q4]],[mass,[x,y,z],[q1,q2,q3,q4],ix,iy,iz]]",
+         "wobjdata": "[robhold,ufprog,ufmec,[[x,y,z],[q1,q2,q3,q4]],[[x,y,z],[q1,q2,q3,q4]]]"}
+UNUSED = 8.9e9  # an axis written 9E9 (or more) is not there
+RUNTIME = {"offs": "Offs() displaces {base} at run time", "reltool": "RelTool() displaces {base} at run time",
+           "crobt": "CRobT() reads the robot's position at run time",
+           "cjointt": "CJointT() reads the robot's joints at run time",
+           "calcrobt": "CalcRobT() computes it at run time", "calcjointt": "CalcJointT() computes it at run time"}
+LENGTH_RES, ANGLE_RES, QUATERNION_RES = 1e-7, 1e-8, 1e-10  # mm, deg, quaternion component
+
+
+@dataclass
+class Node:
+    """An aggregate ``[…]`` (``items``) or a leaf (an expression: ``items`` None), spans in the text."""
+
+    start: int
+    end: int
+    items: list[Node] | None = None
+
+
+@dataclass
+class Decl:
+    """A declaration: type (lower case), name as written, scope (routine index, -1: the module), the
+    position of the declaration and of its name, array sizes, its value (None: none) and its line."""
+
+    kind: str
+    name: str
+    scope: int
+    start: int
+    name_at: int
+    dims: tuple[int, ...]
+    value: tuple[int, int] | None
+    line: int
+    changed: int = 0  # the line where it is first set at run time (0: never)
+
+
+@dataclass
+class Use:
+    """The moves to one declared point: the first one's position and frames, and the later moves."""
+
+    at: int
+    frames: tuple[str, str]
+    direct: bool
+    later: list[tuple[int, str, tuple[str, str]]] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class FrameData:
+    """A tooldata or wobjdata declaration: name, kind, line, robhold (None: not a literal), the tool
+    frame (tooldata) or user frame (wobjdata) and the object frame (wobjdata; None for a tool) as
+    x, y, z (m) and rotation vector (rad) (None: not a literal), and the line where the program changes
+    it at run time (0: never)."""
+
+    name: str
+    kind: str
+    line: int
+    robhold: bool | None
+    frame: np.ndarray | None
+    oframe: np.ndarray | None
+    changed: int
+
+
+class _Scan:
+    """One module's text, the text with comments blanked and strings filled (``code``: the same
+    length, nothing in them found), its routines and its declarations."""
+
+    def __init__(self, source: str, text: str) -> None:
+        self.source, self.text = source, text
+        if text.lstrip("\ufeff \t\r\n").startswith("<?xml"):
+            raise self.fail(text.find("<"), "an XML file, not RAPID text (a .modx is read as a plain module)")
+        self.code = COMMENT_OR_STRING.sub(self._blank, text)
+        _check_brackets(self)
+        self.routines = _routines(self)
+        self.decls = _declarations(self)
+        self.by_name = {(d.scope, d.name.lower()): d for d in self.decls}
+
+    def _blank(self, m: re.Match) -> str:
+        if m.group() == '"':
+            raise self.fail(m.start(), "a string not closed on its line")
+        if m.group().startswith("!"):
+            return " " * len(m.group())
+        return '"' + "_" * (len(m.group()) - 2) + '"'  # a string keeps its quotes: a field, not a blank
+
+    def fail(self, at: int, what: str) -> MeasurementError:
+        line, column = line_column(self.text, at)
+        return MeasurementError(f"{self.source}: line {line}, column {column}: {what}")
+
+    def line(self, at: int) -> int:
+        return self.text.count("\n", 0, at) + 1
+
+    def words(self, a: int, b: int) -> str:
+        """The code of a span with its blanks collapsed (for messages)."""
+        return " ".join(self.code[a:b].split())
+
+    def end_of_statement(self, at: int, what: str) -> int:
+        end = self.code.find(";", at)
+        if end < 0:
+            raise self.fail(at, f"{what} without its closing ';'")
+        return end
+
+    def scope_of(self, at: int) -> int:
+        return next((k for k, (a, b, _, _) in enumerate(self.routines) if a <= at < b), -1)
+
+    def resolve(self, at: int, name: str) -> Decl | str | None:
+        """The declaration ``name`` means at position ``at``, "param" for a routine parameter, or None."""
+        k, low = self.scope_of(at), name.lower()
+        if k >= 0 and low in self.routines[k][3]:
+            return "param"
+        return self.by_name.get((k, low)) or self.by_name.get((-1, low))
+
+
+def _check_brackets(s: _Scan) -> None:
+    """Every '[', '(' and '{' closed by its own kind, and none open at a ';'."""
+    stack: list[int] = []
+    for m in re.finditer(r"[\[\](){};]", s.code):
+        c = m.group()
+        if c in "[({":
+            stack.append(m.start())
+        elif c == ";" and stack:
+            raise s.fail(stack[-1], f"'{s.code[stack[-1]]}' not closed before the ';' of line {s.line(m.start())}")
+        elif c != ";":
+            if not stack or s.code[stack[-1]] != OPEN[c]:
+                raise s.fail(m.start(), f"'{c}' without its opening '{OPEN[c]}'")
+            stack.pop()
+    if stack:
+        raise s.fail(stack[-1], f"'{s.code[stack[-1]]}' never closed")
+
+
+def _closing(code: str, at: int) -> int:
+    """The position of the bracket that closes the one at ``at`` (brackets are balanced)."""
+    depth = 0
+    for i in range(at, len(code)):
+        depth += (code[i] in "[({") - (code[i] in "])}")
+        if depth == 0:
+            return i
+    return len(code)
+
+
+def _routines(s: _Scan) -> list[tuple[int, int, tuple[int, int], set[str]]]:
+    """Each PROC/FUNC/TRAP: its span, the span of its parameter list and its parameters' names (lower)."""
+    out = []
+    for m in ROUTINE.finditer(s.code):
+        end = ROUTINE_END.search(s.code, m.end())
+        if end is None:
+            raise s.fail(m.start(), f"routine {m.group(1)} without its END")
+        rest = s.code[m.end():end.start()]
+        params, names = (m.end(), m.end()), set()
+        if rest.lstrip().startswith("("):
+            a = m.end() + rest.index("(")
+            params = (a, _closing(s.code, a))
+            for piece in re.split(r"[,\\|]", re.sub(r"\{[^}]*\}", "", s.code[a + 1:params[1]])):
+                words = re.findall(r"\w+", piece)
+                names |= {words[-1].lower()} if words else set()
+        out.append((m.start(), end.end(), params, names))
+    return out
+
+
+def _declarations(s: _Scan) -> list[Decl]:
+    """The robtarget, jointtarget, tooldata and wobjdata declarations (not a routine's parameters)."""
+    out = []
+    for m in DECL.finditer(s.code):
+        if any(a < m.start() < b for _, _, (a, b), _ in s.routines):
+            continue
+        kind, name = m.group(2).lower(), m.group(3)
+        end = s.end_of_statement(m.start(), f"the declaration of {name}")
+        if not m.group(5) and s.code[m.end():end].strip():
+            raise s.fail(m.end(), f"':=' or ';' expected after {name}")
+        dims = _dims(s, m) if m.group(4) is not None else ()
+        value = None
+        if m.group(5):
+            a = m.end() + len(s.code[m.end():end]) - len(s.code[m.end():end].lstrip())
+            value = (a, end - (len(s.code[a:end]) - len(s.code[a:end].rstrip())))
+            if value[0] >= value[1]:
+                raise s.fail(end, f"no value after ':=' for {name}")
+        out.append(Decl(kind, name, s.scope_of(m.start()), m.start(), m.start(3), dims, value, s.line(m.start())))
+    return out
+
+
+def _dims(s: _Scan, m: re.Match) -> tuple[int, ...]:
+    sizes = [x.strip() for x in m.group(4).split(",")]
+    if not all(x.isdigit() and int(x) > 0 for x in sizes):
+        raise s.fail(m.start(4), f"array sizes of {m.group(3)} must be whole numbers: {{{m.group(4)}}}")
+    return tuple(int(x) for x in sizes)
+
+
+def _aggregate(s: _Scan, at: int) -> Node:
+    """The aggregate whose '[' is at ``at``: its items, nested aggregates or leaves."""
+    node, i = Node(at, _closing(s.code, at) + 1, []), at + 1
+    items: list[Node] = []
+    while True:
+        while s.code[i] in " \t\r\n":
+            i += 1
+        if s.code[i] == "]" and not items and s.code[at + 1:i].strip() == "":
+            break
+        if s.code[i] == "[":
+            item = _aggregate(s, i)
+            j = item.end
+        else:
+            j = i
+            while s.code[j] not in ",]":
+                j = _closing(s.code, j) + 1 if s.code[j] in "({[" else j + 1
+            b = j - (len(s.code[i:j]) - len(s.code[i:j].rstrip()))
+            if b <= i:
+                raise s.fail(i, "an empty field in an aggregate")
+            item = Node(i, b)
+        items.append(item)
+        while s.code[j] in " \t\r\n":
+            j += 1
+        if s.code[j] not in ",]":
+            raise s.fail(j, "',' or ']' expected in an aggregate")
+        if s.code[j] == "]":
+            break
+        i = j + 1
+    node.items = items
+    return node
+
+
+def _number(s: _Scan, leaf: Node) -> float | None:
+    """The number a leaf is written as, None for an expression; a broken number is an error."""
+    word = s.code[leaf.start:leaf.end]
+    if NUMBER.fullmatch(word):
+        return float(word)
+    if BROKEN_NUMBER.fullmatch(word):
+        raise s.fail(leaf.start, f"'{word}' is not a number")
+    return None
+
+
+def _shaped(s: _Scan, node: Node, kind: str) -> None:
+    """Check that ``node`` has the shape of a robtarget or jointtarget (an error says where not)."""
+    sizes = SHAPES[kind]
+    if node.items is None or len(node.items) != len(sizes):
+        n = "an expression" if node.items is None else f"{len(node.items)} parts"
+        raise s.fail(node.start, f"a {kind} is {FORMS[kind]}: this one has {n}")
+    for part, size in zip(node.items, sizes):
+        if part.items is None or len(part.items) != size or any(x.items is not None for x in part.items):
+            n = "an expression" if part.items is None else f"{len(part.items)} values"
+            raise s.fail(part.start, f"a {kind} is {FORMS[kind]}: this part has {n}, not {size} numbers")
+
+
+def _literal(s: _Scan, node: Node, kind: str, move: str, at: int, variable: str = "",
+             frames: tuple[str, str] = ("", "")) -> Target | str:
+    """The target written as ``node`` (a robtarget or jointtarget), or why it is not a literal."""
+    _shaped(s, node, kind)
+    assert node.items is not None
+    parts = [p.items or [] for p in node.items]
+    numbers = [[_number(s, x) for x in p] for p in parts]
+    fixed = numbers[0] + numbers[1] + (numbers[2] if kind == "robtarget" else [])
+    if any(v is None for v in fixed):
+        names = [s.code[x.start:x.end] for x, v in zip(parts[0] + parts[1] + parts[2][:len(fixed) - 7], fixed)
+                 if v is None]
+        return f"the {kind} is built from values computed at run time ({', '.join(names)})"
+    line = s.line(node.start)
+    if kind == "jointtarget":
+        axes = [(x, v) for x, v in zip(parts[0], fixed) if v is not None and abs(v) < UNUSED]
+        return Target(node.start, node.end, line, move, "joints", np.radians([v for _, v in axes]), at, variable,
+                      tuple((x.start, x.end) for x, _ in axes), (), frames)
+    q = np.array(fixed[3:7], dtype=float)
+    if not np.linalg.norm(q) > 0:
+        raise s.fail(parts[1][0].start, "a quaternion of norm 0 is no orientation")
+    config = [float(v) for v in fixed[7:] if v is not None]
+    bad = next((x for x, v in zip(parts[2], config) if not v.is_integer()), None)
+    if bad is not None:
+        raise s.fail(bad.start, "cf1, cf4, cf6 and cfx must be whole numbers")
+    values = np.concatenate([np.array(fixed[:3], dtype=float) * 1e-3, _rotvec(q)])
+    return Target(node.start, node.end, line, move, "pose", values, at, variable,
+                  tuple((x.start, x.end) for x in parts[0] + parts[1]), tuple(int(v) for v in config), frames)
+
+
+def _rotvec(q: np.ndarray) -> np.ndarray:
+    """The rotation vector (rad) of the quaternion q = (w, x, y, z) (any norm > 0; angle in [0, pi])."""
+    q = q / np.linalg.norm(q)
+    q = -q if q[0] < 0 else q
+    s = float(np.linalg.norm(q[1:]))
+    return q[1:] * (2.0 * np.arctan2(s, q[0]) / s if s > 1e-12 else 2.0 / q[0])
+
+
+def _quaternion(w: np.ndarray) -> np.ndarray:
+    """The unit quaternion (w, x, y, z) of the rotation vector ``w`` (rad)."""
+    th = float(np.linalg.norm(w))
+    return np.concatenate([[np.cos(th / 2)], np.asarray(w, float) * 0.5 * np.sinc(th / (2 * np.pi))])
+
+
+@dataclass
+class _Move:
+    """One move: its instruction as written, where it is, its target arguments' spans, its frames."""
+
+    name: str
+    at: int
+    targets: list[tuple[int, int]]
+    frames: tuple[str, str]
+
+
+def _pieces(code: str, a: int, b: int) -> list[tuple[tuple[int, int], list[tuple[str, str]]]]:
+    """The comma-separated arguments of code[a:b]: each its positional part's span (empty: none) and
+    its optional arguments (name, value)."""
+    out, start, i = [], a, a
+    while i <= b:
+        if i == b or code[i] == ",":
+            out.append(_piece(code, start, i))
+            start = i + 1
+        if i < b and code[i] in "([{":
+            i = _closing(code, i)
+        i += 1
+    return out
+
+
+def _piece(code: str, a: int, b: int) -> tuple[tuple[int, int], list[tuple[str, str]]]:
+    cuts, i = [], a
+    while i < b:
+        if code[i] in "([{":
+            i = _closing(code, i)
+        elif code[i] == "\\":
+            cuts.append(i)
+        i += 1
+    head_end = cuts[0] if cuts else b
+    lead = len(code[a:head_end]) - len(code[a:head_end].lstrip())
+    head = (a + lead, head_end - (len(code[a:head_end]) - len(code[a:head_end].rstrip())))
+    options = []
+    for c, d in zip(cuts, cuts[1:] + [b]):
+        m = re.match(r"\\\s*(\w+)\s*(?::=|\?)?\s*", code[c:d])
+        if m:
+            options.append((m.group(1).lower(), " ".join(code[c + m.end():d].split())))
+    return (head if head[0] < head[1] else (head[0], head[0])), options
+
+
+def _moves(s: _Scan) -> list[_Move]:
+    """Every move of the table :data:`MOVES`, with its target arguments and frames."""
+    found = list(MOVE.finditer(s.code))
+    out = []
+    for k, m in enumerate(found):
+        end = s.end_of_statement(m.end(), m.group(1))
+        if k + 1 < len(found) and found[k + 1].start() < end:
+            raise s.fail(m.start(), f"{m.group(1)} without its closing ';' before the {found[k + 1].group(1)} "
+                                    f"of line {s.line(found[k + 1].start())}")
+        pieces = _pieces(s.code, m.end(), end)
+        empty = next((h for h, opts in pieces if h[0] == h[1] and not opts), None)
+        if empty is not None and s.code[m.end():end].strip():
+            raise s.fail(empty[0], f"an empty argument of {m.group(1)}")
+        heads = [h for h, _ in pieces if h[0] < h[1]]
+        targets, tool_at = MOVES[m.group(1).lower()]
+        if len(heads) <= max(targets):
+            raise s.fail(m.start(), f"{m.group(1)} without its target argument")
+        wobj = next((v for _, opts in pieces for n, v in opts if n == "wobj"), "")
+        tool = s.words(*heads[tool_at]) if len(heads) > tool_at else ""
+        out.append(_Move(m.group(1), m.start(), [heads[t] for t in targets], (tool, wobj)))
+        search = SEARCH_POINT.get(m.group(1).lower())
+        if search is not None and len(heads) > search:
+            _changed_by(s, heads[search][0], s.code[heads[search][0]:heads[search][1]], m.start())
+    return out
+
+
+def _changed_by(s: _Scan, at: int, written: str, where: int) -> None:
+    """Mark the variable written at ``at`` (``p``, ``p{i}``, ``p.trans``) as set at run time."""
+    name = NAME.match(written)
+    found = s.resolve(at, name.group(1)) if name else None
+    if isinstance(found, Decl) and not found.changed:
+        found.changed = s.line(where)
+
+
+def _assignments(s: _Scan) -> None:
+    """Mark every declared variable that a statement assigns (``p := …``, ``p.trans.x := …``)."""
+    names = {d.name_at for d in s.decls}
+    for m in ASSIGN.finditer(s.code):
+        if m.start(1) not in names:
+            _changed_by(s, m.start(1), m.group(1), m.start())
+
+
+def _elements(s: _Scan, d: Decl) -> list[tuple[str, tuple[int, ...], Node]] | str:
+    """A declared value's literal aggregates: (name, index, node) per element, or why it is not one."""
+    assert d.value is not None
+    a, b = d.value
+    if s.code[a] != "[" or _closing(s.code, a) + 1 != b:
+        return f"declared from an expression ({s.words(a, b)}), not a literal"
+    nodes: list[tuple[tuple[int, ...], Node]] = [((), _aggregate(s, a))]
+    for size in d.dims:
+        nested: list[tuple[tuple[int, ...], Node]] = []
+        for index, node in nodes:
+            if node.items is None or len(node.items) != size:
+                n = "an expression" if node.items is None else len(node.items)
+                raise s.fail(node.start, f"{d.name} is declared with {size} elements here; the value has {n}")
+            nested += [(index + (k + 1,), item) for k, item in enumerate(node.items)]
+        nodes = nested
+    return [(d.name + ("{" + ",".join(map(str, i)) + "}" if i else ""), i, n) for i, n in nodes]
+
+
+def _index(s: _Scan, text: str | None) -> tuple[int, ...] | None:
+    """The literal index of ``p{1}``/``p{2,3}`` (() for none), or None for a computed one."""
+    if text is None:
+        return ()
+    parts = [x.strip() for x in text.split(",")]
+    return tuple(int(x) for x in parts) if all(x.isdigit() for x in parts) else None
+
+
+def _use(uses: dict, key: tuple[int, tuple[int, ...] | None], move: _Move, direct: bool) -> None:
+    """Record a move to a declared point (``key``: the declaration and its index; None: any element)."""
+    first = uses.get(key)
+    if first is None or (direct and not first.direct):
+        uses[key] = Use(move.at, move.frames, direct, first.later if first else [])
+    elif direct:
+        first.later.append((move.at, move.name, move.frames))
+
+
+def _argument(s: _Scan, move: _Move, a: int, b: int, uses: dict, out: list, listed: list) -> None:
+    """One target argument of a move: a literal (a target), a declared point (a use) or listed."""
+    word = s.words(a, b)
+    kind = "jointtarget" if move.name.lower() == "moveabsj" else "robtarget"
+    what, line = f"{move.name} {word}", s.line(move.at)
+    name, call = NAME.fullmatch(s.code[a:b].strip()), CALL.match(s.code[a:b])
+    if s.code[a] == "[" and _closing(s.code, a) + 1 == b:
+        found = _literal(s, _aggregate(s, a), kind, move.name, move.at, "", move.frames)
+        out.append(found) if isinstance(found, Target) else listed.append((line, what, found))
+    elif name:
+        listed += _named(s, move, name, uses, what)
+    elif call:
+        listed.append((line, what, _call_reason(s, move, call, a, uses)))
+    else:
+        listed.append((line, what, "an expression computed at run time"))
+
+
+def _named(s: _Scan, move: _Move, name: re.Match, uses: dict, what: str) -> list[tuple[int, str, str]]:
+    found, line = s.resolve(move.at, name.group(1)), s.line(move.at)
+    if found == "param":
+        return [(line, what, f"{name.group(1)} is a parameter of the routine: its value comes from the caller")]
+    if found is None:
+        return [(line, what, f"{name.group(1)} is not declared in this file (data of another module?): it is "
+                             "compensated where it is declared")]
+    assert isinstance(found, Decl)
+    if found.changed:
+        return [(line, what, f"{found.name} is assigned at run time (line {found.changed})")]
+    if found.value is None:
+        return [(line, what, f"{found.name} is declared without a value (line {found.line})")]
+    _use(uses, (id(found), _index(s, name.group(2))), move, True)
+    return []
+
+
+def _call_reason(s: _Scan, move: _Move, call: re.Match, a: int, uses: dict) -> str:
+    """Why a move to a function's result is listed (and the base of Offs/RelTool recorded as a use)."""
+    low = call.group(1).lower()
+    if low not in RUNTIME:
+        return f"{call.group(1)}() computes it at run time"
+    base = ""
+    if low in ("offs", "reltool"):
+        open_at = a + call.end() - 1
+        first = _pieces(s.code, open_at + 1, _closing(s.code, open_at))[0][0]
+        base = s.words(*first)
+        name = NAME.fullmatch(base)
+        found = s.resolve(a, name.group(1)) if name else None
+        if name and isinstance(found, Decl) and found.value is not None and not found.changed:
+            _use(uses, (id(found), _index(s, name.group(2))), move, False)
+            base += f" (compensated where it is declared, line {found.line})"
+    return RUNTIME[low].format(base=base or "its base") + "; only literal targets are compensated"
+
+
+def _declared(s: _Scan, uses: dict, out: list, listed: list) -> list[tuple[int, int]]:
+    """The targets declared with literals (and the listed declarations); the spans of the values read."""
+    spans = []
+    for d in s.decls:
+        if d.kind not in SHAPES or d.value is None:
+            continue
+        spans.append(d.value)
+        what = f"{d.kind} {d.name}"
+        if d.changed:
+            listed.append((d.line, what, f"declared with a literal but assigned at run time (line {d.changed}): "
+                                         "the moves use the value set then"))
+            continue
+        elements = _elements(s, d)
+        if isinstance(elements, str):
+            listed.append((d.line, what, elements))
+            continue
+        for name, index, node in elements:
+            use = uses.get((id(d), index)) or uses.get((id(d), None))
+            at, frames = (use.at, use.frames) if use else (d.start, ("", ""))
+            found = _literal(s, node, d.kind, d.kind, at, name, frames)
+            out.append(found) if isinstance(found, Target) else listed.append((s.line(node.start), what, found))
+            for later_at, move, other in (use.later if use else []):
+                if other != frames:
+                    listed.append((s.line(later_at), f"{move} {name}",
+                                   f"with tool {other[0] or '(none)'} and work object {other[1] or 'wobj0'}, but "
+                                   f"{name} is compensated for {frames[0] or '(none)'} and {frames[1] or 'wobj0'} "
+                                   f"(line {s.line(at)})"))
+    return spans
+
+
+def _strays(s: _Scan, claimed: list[tuple[int, int]]) -> list[tuple[int, str, str]]:
+    """Target-shaped literals outside the moves and declarations read: an assignment, a routine call."""
+    out, after = [], -1
+    for m in re.finditer(r"\[\s*\[", s.code):
+        if m.start() < after or any(a <= m.start() < b for a, b in claimed):
+            continue
+        node = _aggregate(s, m.start())
+        after = node.end
+        for kind, sizes in SHAPES.items():
+            parts = node.items or []
+            if len(parts) != len(sizes) or any(p.items is None or len(p.items) != n for p, n in zip(parts, sizes)):
+                continue
+            values = [_number(s, x) if x.items is None else None for p in parts for x in p.items or []]
+            if kind == "jointtarget" and not any(v is not None and abs(v) >= UNUSED for v in values[6:]):
+                continue
+            out.append((s.line(m.start()), f"{kind} literal {s.words(node.start, node.end)}",
+                        "outside a move or a robtarget/jointtarget declaration (an assignment or a call of a "
+                        "routine of the program): not compensated"))
+    return out
+
+
+def parse(source: str, text: str) -> Program:
+    """The literal targets (text order) and the listed moves and declarations of a RAPID module."""
+    s = _Scan(source, text)
+    _frames(s)  # tooldata and wobjdata are checked (and exposed by declared_frames)
+    moves = _moves(s)
+    _assignments(s)
+    targets: list[Target] = []
+    listed: list[tuple[int, str, str]] = []
+    uses: dict = {}
+    for move in moves:
+        for a, b in move.targets:
+            _argument(s, move, a, b, uses, targets, listed)
+    claimed = _declared(s, uses, targets, listed)
+    claimed += [(m.at, s.end_of_statement(m.at, m.name)) for m in moves]
+    claimed += [d.value for d in s.decls if d.value is not None]
+    listed += _strays(s, claimed)
+    targets.sort(key=lambda t: t.start)
+    return Program(source, text, tuple(targets), tuple(sorted(listed, key=lambda x: x[0])), comment="!",
+                   dialect="rapid")
+
+
+def _frames(s: _Scan) -> list[FrameData]:
+    """The tooldata and wobjdata declarations, read (a broken literal is an error)."""
+    out = []
+    for d in s.decls:
+        if d.kind in SHAPES:
+            continue
+        robhold, frame, oframe = None, None, None
+        if d.value is not None and not d.dims and s.code[d.value[0]] == "[":
+            node = _aggregate(s, d.value[0])
+            sizes = (3, 5)[d.kind == "wobjdata"]
+            if node.items is None or len(node.items) != sizes:
+                raise s.fail(node.start, f"a {d.kind} is {FORMS[d.kind]}: this one has {len(node.items or [])} parts")
+            word = s.code[node.items[0].start:node.items[0].end].strip().upper()
+            robhold = {"TRUE": True, "FALSE": False}.get(word)
+            poses = node.items[1:2] if d.kind == "tooldata" else node.items[3:5]
+            found = [_pose(s, p, d.kind) for p in poses]
+            frame, oframe = found[0], (found[1] if d.kind == "wobjdata" else None)
+        out.append(FrameData(d.name, d.kind, d.line, robhold, frame, oframe, d.changed))
+    return out
+
+
+def _pose(s: _Scan, node: Node, kind: str) -> np.ndarray | None:
+    """A pose [[x,y,z],[q1..q4]] as x, y, z (m) and a rotation vector (rad); None if not literal."""
+    parts = node.items or []
+    if len(parts) != 2 or [len(p.items or []) for p in parts] != [3, 4]:
+        raise s.fail(node.start, f"a {kind} is {FORMS[kind]}: this frame is not [[x,y,z],[q1,q2,q3,q4]]")
+    values = [_number(s, x) for p in parts for x in p.items or []]
+    if any(v is None for v in values):
+        return None
+    v = np.array(values, dtype=float)
+    if not np.linalg.norm(v[3:]) > 0:
+        raise s.fail(parts[1].start, "a quaternion of norm 0 is no orientation")
+    return np.concatenate([v[:3] * 1e-3, _rotvec(v[3:])])
+
+
+def declared_frames(program: Program) -> dict[str, FrameData]:
+    """The tooldata and wobjdata declared in a RAPID program, by name in lower case (the names its
+    targets' ``frames`` use; RAPID names are case-insensitive). The built-in tool0 and wobj0 (the
+    flange, the world frame) are not declared in a module and not here."""
+    s = _Scan(program.source, program.text)
+    _moves(s)
+    _assignments(s)
+    out: dict[str, FrameData] = {}
+    for f in _frames(s):
+        out.setdefault(f.name.lower(), f)
+    return out
+
+
+def write(text: str, target: Target, values: np.ndarray) -> str:
+    """The target's span for new SI values: rax (deg) or x, y, z (mm) and the quaternion (in the old
+    numbers' hemisphere and with their norm); every other byte of the span as it was."""
+    old = np.array([float(text[a:b]) for a, b in target.fields])
+    values = np.asarray(values, dtype=float)
+    if target.kind == "joints":
+        if values.shape != (len(target.fields),):
+            raise ValueError(f"a jointtarget of {len(target.fields)} axes cannot take {values.shape} values")
+        numbers, resolution = np.degrees(values), np.full(len(values), ANGLE_RES)
+    else:
+        if values.shape != (6,):
+            raise ValueError(f"a robtarget takes 6 values (x, y, z, rotation vector), not {values.shape}")
+        q = _quaternion(values[3:])
+        q = (-q if q @ old[3:] < 0 else q) * np.linalg.norm(old[3:])
+        numbers = np.concatenate([values[:3] * 1e3, q])
+        resolution = np.array([LENGTH_RES] * 3 + [QUATERNION_RES] * 4)
+    numbers = np.where(numbers == 0, np.copysign(0.0, old), numbers)  # a zero keeps its written sign
+    return fields_text(text, target, numbers, resolution)
+
+
+DIALECT = Dialect("rapid", (".mod", ".modx", ".prg", ".sys"), "!", parse, write)
