@@ -1,0 +1,110 @@
+"""Programs whose targets state their branch, compensated on it (kincal.compensate.branch): a KRL module of
+E6POS (S/T) and E6AXIS targets written from a nominal arm's poses, compensated for a perturbed arm. Checked
+independently of the module's own check: the text read again, each Cartesian target turned into joints on its
+bits and moved through the perturbed arm, lands on the pose the original text meant."""
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import kincal
+from kincal.compensate.branch import compensate_branches, controller_inverse
+from kincal.io import read_program
+
+
+def config_of(robot, q):
+    """A KUKA-like (S, T) for the UR10 of the test, naming each of its eight branches: S bit 0 the shoulder (the
+    wrist behind the first axis, in the frame joint 1 turns), bit 1 the elbow (j3 < 0), bit 2 the wrist (j5 < 0);
+    T bit i: joint i+1 negative (so whole turns are told apart)."""
+    q = np.asarray(q, dtype=float)
+    wrist = robot.link_points(q[None])[0, 4]  # (elbow and wrist as sin < 0: the UR10 turns them beyond 180 deg)
+    behind = np.cos(q[0]) * wrist[0] + np.sin(q[0]) * wrist[1] < 0
+    s = int(behind) + 2 * int(np.sin(q[2]) < 0) + 4 * int(np.sin(q[4]) < 0)
+    return s, int(sum(1 << i for i in range(6) if q[i] < 0))
+
+
+TOOL = np.eye(4)
+TOOL[:3, :3] = Rotation.from_euler("x", 30, degrees=True).as_matrix()
+TOOL[:3, 3] = [0.01, -0.02, 0.15]  # a tool 150 mm long, turned 30 deg
+BASE = np.eye(4)
+BASE[:3, 3] = [0.3, -0.1, 0.05]
+
+
+def _arms():
+    nominal = kincal.load_robot("ur10")
+    return nominal, kincal.perturb(nominal, seed=4)
+
+
+def _module(nominal, q):
+    """A .dat with one E6POS per joint vector (the TCP in BASE, mm and deg, its S/T) and one E6AXIS."""
+    lines = ["DEFDAT  TEST PUBLIC"]
+    for k, qk in enumerate(q, 1):
+        p, R, _, _ = nominal.with_tool_point(np.zeros(3)).pose_and_jacobian(qk[None])
+        flange = np.eye(4)
+        flange[:3, :3], flange[:3, 3] = R[0], p[0]
+        T = np.linalg.inv(BASE) @ flange @ TOOL
+        a, b, c = Rotation.from_matrix(T[:3, :3]).as_euler("ZYX", degrees=True)
+        s, t = config_of(nominal, qk)
+        x, y, z = T[:3, 3] * 1e3
+        lines += [f"DECL E6POS XP{k}={{X {x:.4f},Y {y:.4f},Z {z:.4f},A {a:.4f},B {b:.4f},C {c:.4f},S {s},T {t},"
+                  f"E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}}",
+                  f"DECL FDAT FP{k}={{TOOL_NO 1,BASE_NO 2,IPO_FRAME #BASE,POINT2[] \" \"}}"]
+    axes = ",".join(f"A{i + 1} {v:.5f}" for i, v in enumerate(np.degrees(q[0])))
+    lines += [f"DECL E6AXIS XHOME={{{axes},E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}}", "ENDDAT", ""]
+    return "\r\n".join(lines)
+
+
+def _intended(nominal, values):
+    """The flange pose (p (3,), R (3, 3)) a Cartesian target means: BASE · T · TOOL⁻¹."""
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = Rotation.from_rotvec(values[3:]).as_matrix(), values[:3]
+    F = BASE @ T @ np.linalg.inv(TOOL)
+    return F[:3, 3], F[:3, :3]
+
+
+def test_cartesian_and_joint_targets_land_where_the_program_meant_on_their_own_branch(tmp_path):
+    nominal, true = _arms()
+    rng = np.random.default_rng(2)
+    q = rng.uniform(-2.5, 2.5, (6, 6)) * [1, 0.6, 0.8, 1, 1, 1]
+    path = tmp_path / "test.dat"
+    path.write_bytes(_module(nominal, q).encode())
+    prog = read_program(str(path), "krl")
+    assert [t.kind for t in prog.targets] == ["pose"] * 6 + ["joints"]
+    frames = {"TOOL_NO 1": TOOL, "BASE_NO 2": BASE}
+    res = compensate_branches(true, nominal, prog, config_of, frames=frames, q_start=q[0])
+    assert not res.problems and len(res.texts) == 7
+    out = tmp_path / "test_cal.dat"
+    kincal.io.write_program(str(out), prog, res.texts)
+    again = read_program(str(out), "krl")
+    flange = [m.with_tool_point(np.zeros(3)) for m in (nominal, true)]
+    for old, new, qk in zip(prog.targets[:6], again.targets[:6], q):
+        assert new.config == old.config  # the bits as written, and the corrected joints have them too
+        p, R = _intended(nominal, old.values)
+        pn, Rn = _intended(nominal, new.values)
+        q_ctrl = controller_inverse(flange[0], pn[None], Rn[None], qk, new.config, config_of)
+        assert not isinstance(q_ctrl, str) and config_of(nominal, q_ctrl) == old.config
+        pt, Rt, _, _ = flange[1].pose_and_jacobian(q_ctrl[None])
+        assert np.linalg.norm(pt[0] - p) < 1e-9  # m: within 1e-6 mm
+        assert np.linalg.norm(Rotation.from_matrix(Rt[0] @ R.T).as_rotvec()) < 1e-9
+        assert 1e-5 < np.linalg.norm(pn - p) < 0.02  # the target moved, by a calibration's few mm
+    home = again.targets[6].values  # the joint target: the true arm's pose there is the nominal one at the old joints
+    pa, Ra, _, _ = flange[1].pose_and_jacobian(home[None])
+    pb, Rb, _, _ = flange[0].pose_and_jacobian(prog.targets[6].values[None])
+    assert np.linalg.norm(pa - pb) < 1e-9 and np.abs(Ra - Rb).max() < 1e-9
+    # every byte outside the targets' numbers is the same
+    strip = lambda text, targets: "".join(  # noqa: E731
+        ch for i, ch in enumerate(text) if not any(a <= i < b for t in targets for a, b in t.fields))
+    assert strip(again.text, again.targets) == strip(prog.text, prog.targets)
+
+
+def test_a_missing_frame_or_an_unreachable_branch_is_refused_by_line(tmp_path):
+    nominal, true = _arms()
+    q = np.array([[0.3, -1.2, 1.4, -0.5, 1.1, 0.4]])
+    path = tmp_path / "test.dat"
+    path.write_bytes(_module(nominal, q).encode())
+    prog = read_program(str(path), "krl")
+    res = compensate_branches(true, nominal, prog, config_of, frames={"TOOL_NO 1": TOOL}, q_start=q[0])
+    assert res.refused[0].startswith("its base frame 'BASE_NO 2' is not given")
+    assert "line 2" in res.problems[0] and 1 in res.texts  # the joint target needs no frame
+    wrong = lambda robot, qq: (config_of(robot, qq)[0], 63)  # noqa: E731  (every joint negative: no solution)
+    res = compensate_branches(true, nominal, prog, wrong, frames={"TOOL_NO 1": TOOL, "BASE_NO 2": BASE}, q_start=q[0])
+    assert "reaches this pose on no branch with the target's bits" in res.refused[0]
