@@ -12,6 +12,11 @@ Maps (a transmission is a list of them, each driving its own joints):
 * ``differential_screw``: ξ = lead (φa + φb) / 4π,  ψ = atan(lead (φa − φb) / (2π L))
   two parallel screws driven together translate a carriage by ξ and, driven differentially, turn
   it by ψ about a lever of length L (the 3T2R robot's J1/J2).
+* ``coupled``:            qa = φa,  qb = φb + k φa               (k: a fixed number, the map's ``factor``)
+  a joint whose controller value is measured from the previous link's neighbour, not from its own
+  link: a FANUC arm's J3 is the forearm's angle from the horizontal, so the chain's third angle is
+  J3 + J2 (k = 1; ROS-Industrial's fanuc_driver ``J23_factor``). k is a convention of the
+  controller, not a quantity of the robot: it is not a parameter and is never identified.
 """
 from __future__ import annotations
 
@@ -27,18 +32,21 @@ from .wrapped import Wrapped
 from .serial import SerialRobot
 
 TWO_PI = 2.0 * np.pi
-MAP_SHAPES = {"direct": (1, 1, 0), "screw": (1, 1, 1), "differential_screw": (2, 2, 2)}  # actuators, joints, params
+MAP_SHAPES = {"direct": (1, 1, 0), "screw": (1, 1, 1), "differential_screw": (2, 2, 2),
+              "coupled": (2, 2, 0)}  # actuators, joints, params
 
 
 @dataclass(frozen=True)
 class Map:
-    """One transmission element of ``type`` direct, screw or differential_screw: the indices of the
-    actuators it reads and of the chain joints it drives, and the names of its drive parameters."""
+    """One transmission element of ``type`` direct, screw, differential_screw or coupled: the indices of
+    the actuators it reads and of the chain joints it drives, the names of its drive parameters and
+    (``coupled`` only) the fixed ``factor`` k of qb = φb + k φa."""
 
     type: str
     actuators: tuple[int, ...]
     chain_joints: tuple[int, ...]
     param_names: tuple[str, ...] = ()
+    factor: float = 1.0
 
     def __post_init__(self) -> None:
         if self.type not in MAP_SHAPES:
@@ -47,6 +55,8 @@ class Map:
         if (len(self.actuators), len(self.chain_joints), len(self.param_names)) != shape:
             raise ModelError(f"transmission: a '{self.type}' map takes {shape[0]} actuator(s), {shape[1]} joint(s) "
                              f"and {shape[2]} parameter(s)")
+        if not np.isfinite(self.factor) or (self.type != "coupled" and self.factor != 1.0):
+            raise ModelError(f"transmission: a factor (here {self.factor!r}) is a finite number of a 'coupled' map")
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -100,6 +110,9 @@ class TransmissionRobot(Wrapped):
                 phi[:, mp.actuators[0]] = qc[:, mp.chain_joints[0]]
             elif mp.type == "screw":
                 phi[:, mp.actuators[0]] = TWO_PI * qc[:, mp.chain_joints[0]] / p[0]
+            elif mp.type == "coupled":
+                (a, b), (ja, jb) = mp.actuators, mp.chain_joints
+                phi[:, a], phi[:, b] = qc[:, ja], qc[:, jb] - mp.factor * qc[:, ja]
             else:
                 (a, b), (jt, jr), (lead, arm) = mp.actuators, mp.chain_joints, p
                 s, d = 2 * TWO_PI * qc[:, jt] / lead, TWO_PI * arm * np.tan(qc[:, jr]) / lead
@@ -122,6 +135,11 @@ class TransmissionRobot(Wrapped):
                 q[:, j] = lead * phi[:, a] / TWO_PI
                 dq_dphi[:, j, a] = lead / TWO_PI
                 dq_ds[:, j, il] = phi[:, a] / TWO_PI
+            elif mp.type == "coupled":
+                (a, b), (ja, jb) = mp.actuators, mp.chain_joints
+                q[:, ja], q[:, jb] = phi[:, a], phi[:, b] + mp.factor * phi[:, a]
+                dq_dphi[:, ja, a] = dq_dphi[:, jb, b] = 1.0
+                dq_dphi[:, jb, a] = mp.factor
             else:
                 self._differential(mp, dv[ix], ix, phi, q, dq_dphi, dq_ds)
         return q, dq_dphi, dq_ds

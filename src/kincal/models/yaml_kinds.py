@@ -22,7 +22,7 @@ from .yaml_values import (base_pose, description_lines, fmt, frame_text, limits,
 
 URDF_JOINT_KEYS = {"name", "type", "axis", "limits", "xyz", "rpy", "roll", "pitch", "yaw", "mass", "com"}
 DRIVE_PREFIX = "drive."
-ROLES = {"direct": (), "screw": ("lead",), "differential_screw": ("lead", "arm")}  # a map's drive parameters
+ROLES = {"direct": (), "screw": ("lead",), "differential_screw": ("lead", "arm"), "coupled": ()}  # drive parameters
 
 
 def puu3_from_dict(data: dict, label: str) -> PUU3Robot:
@@ -138,7 +138,8 @@ def transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float,
         missing = [r for r in roles if r not in md]
         if missing:
             raise ModelError(f"{where}: missing {', '.join(missing)}")
-        maps.append(Map(str(md.get("type")), a, j, tuple(DRIVE_PREFIX + str(md[r]) for r in roles)))
+        factor = num(md["factor"], where, "factor") if "factor" in md else 1.0  # coupled: qb = φb + factor·φa
+        maps.append(Map(str(md.get("type")), a, j, tuple(DRIVE_PREFIX + str(md[r]) for r in roles), factor))
     return build_transmission_robot(chain, actuators, maps, drive)
 
 
@@ -152,6 +153,7 @@ def transmission_yaml(robot: TransmissionRobot, length_unit: str, angle_unit: st
         items = [f"type: {mp.type}", f"actuators: [{', '.join(robot.joint_names[a] for a in mp.actuators)}]",
                  f"joints: [{', '.join(robot.inner.joint_names[j] for j in mp.chain_joints)}]"]
         items += [f"{role}: {p[len(DRIVE_PREFIX):]}" for role, p in zip(ROLES[mp.type], mp.param_names)]
+        items += [f"factor: {fmt(mp.factor)}"] if mp.type == "coupled" else []
         lines.append("    - {" + ", ".join(items) + "}")
     return "\n".join(lines) + "\n"
 
