@@ -107,4 +107,4 @@ def test_a_missing_frame_or_an_unreachable_branch_is_refused_by_line(tmp_path):
     assert "line 2" in res.problems[0] and 1 in res.texts  # the joint target needs no frame
     wrong = lambda robot, qq: (config_of(robot, qq)[0], 63)  # noqa: E731  (every joint negative: no solution)
     res = compensate_branches(true, nominal, prog, wrong, frames={"TOOL_NO 1": TOOL, "BASE_NO 2": BASE}, q_start=q[0])
-    assert "reaches this pose on no branch with the target's bits" in res.refused[0]
+    assert "reaches this pose, but on no branch with the target's bits (1, 10)" in res.refused[0]

@@ -39,7 +39,9 @@ from .program import ProgramCompensation
 STARTS = 24  # spread starts of the controller's inverse when Newton from the previous joints finds no solution
 SEARCH = (200, 20.0)  # iterations and travel (m) of that inverse: from afar, not a small correction
 CHECK_TOL = 1e-9  # m and rad: a written target must reproduce its intended pose this closely
-IDENTITY_FRAMES = {"rapid": ("tool0", "wobj0")}  # frames a language defines as the identity
+SINGULAR = 1e3  # condition number of the pose Jacobian (m, rad) beyond which a failed correction is named as such
+IDENTITY_FRAMES = {"rapid": (("tool0",), ("wobj0", ""))}  # (tools, bases) a language defines as the identity
+# (RAPID: tool0 is the flange, wobj0 the world frame, and a move without \WObj is in wobj0)
 Config = Callable[[Robot, np.ndarray], tuple]
 
 
@@ -47,22 +49,25 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, config_o
                         frames: Mapping[str, np.ndarray] | None = None,
                         q_start: np.ndarray | None = None) -> ProgramCompensation:
     """Compensate every literal target of ``program`` on the branch it states (module docstring);
-    ``config_of(robot, q) -> bits`` as the language writes them; ``frames``: the program's tool and base
-    frames by name (4x4, m); ``q_start``: the joints before the first move (default: the first joint
-    target's). The replacement texts are checked end to end (:func:`check_written`)."""
-    write = dialects()[program.dialect].write
+    ``config_of(robot, q) -> bits`` as the language writes them (:data:`kincal.io.branches.BITS`); ``frames``:
+    the program's tool and base frames by name (4x4, m), beside those it declares itself (RAPID's tooldata and
+    wobjdata; a given one wins); ``q_start``: the joints before the first move (default: the first joint
+    target's, else the zero pose: the bits choose the branch). The replacement texts are checked end to end
+    (:func:`check_written`)."""
+    dialect = dialects()[program.dialect]
+    frames = {**dialect.frames(program), **(frames or {})}  # the program's declared frames, unless given
     model, nominal = model.with_tool_point(np.zeros(3)), nominal.with_tool_point(np.zeros(3))  # flange poses
-    q_prev = (next((t.values for t in program.targets if t.kind == "joints"), None) if q_start is None
-              else np.asarray(q_start, dtype=float))
+    q_prev = (next((t.values for t in program.targets if t.kind == "joints"), np.clip(0.0, model.lower, model.upper))
+              if q_start is None else np.asarray(q_start, dtype=float))
     texts, refused, qs = {}, {}, np.full((len(program.targets), model.n_joints), np.nan)
     for k, t in enumerate(program.targets):
-        found = _target(model, nominal, t, _frames(program.dialect, t, frames or {}), config_of, q_prev)
+        found = _target(model, nominal, t, _frames(program.dialect, t, frames), config_of, q_prev)
         if isinstance(found, str):
             refused[k] = found
             continue
         qs[k], q_prev, values = found
-        texts[k] = write(program.text, t, values)
-    for k, why in check_written(model, nominal, program, texts, qs, config_of, frames or {}).items():
+        texts[k] = dialect.write(program.text, t, values)
+    for k, why in check_written(model, nominal, program, texts, qs, config_of, frames).items():
         texts.pop(k)
         refused[k] = why
     problems = tuple(f"{program.source}: line {program.targets[k].line} ({program.targets[k].move}"
@@ -72,19 +77,21 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, config_o
 
 
 def _frames(dialect: str, t: Target, frames: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray] | str:
-    """The target's tool and base frames (4x4 each), or why they are not known."""
-    known = {name: np.eye(4) for name in IDENTITY_FRAMES.get(dialect, ())}
-    known.update({k: np.asarray(v, dtype=float) for k, v in frames.items()})
+    """The target's tool and base frames (4x4 each; names in any case), or why they are not known."""
+    given = {k.lower(): np.asarray(v, dtype=float) for k, v in frames.items()}
     out = []
-    for what, name in zip(("tool", "base"), t.frames):
-        if name not in known:
+    for what, name, identity in zip(("tool", "base"), t.frames, IDENTITY_FRAMES.get(dialect, ((), ()))):
+        if name.lower() in identity:
+            out.append(np.eye(4))
+        elif name and name.lower() in given:
+            out.append(given[name.lower()])
+        else:
             return (f"its {what} frame {name!r} is not given (give it with the frames; it is not taken as the "
                     f"identity)" if name else f"the program names no {what} frame here: give the one in force")
-        out.append(known[name])
     return out[0], out[1]
 
 
-def _target(model: Robot, nominal: Robot, t: Target, frames, config_of: Config, q_prev: np.ndarray | None):
+def _target(model: Robot, nominal: Robot, t: Target, frames, config_of: Config, q_prev: np.ndarray):
     """(corrected joints, the joints the next target starts from, new SI values) or why not."""
     if t.kind == "joints":  # (joints need no frame)
         if t.values.size != model.n_joints:
@@ -95,8 +102,6 @@ def _target(model: Robot, nominal: Robot, t: Target, frames, config_of: Config, 
         if isinstance(frames, str):
             return frames
         tool, base = frames
-        if q_prev is None:
-            return "a pose target with no joints before it to start from (give the start joints)"
         p, R = _flange(base @ _pose(t.values) @ np.linalg.inv(tool))
         found = controller_inverse(nominal, p, R, q_prev, t.config, config_of)
         if isinstance(found, str):
@@ -110,12 +115,22 @@ def _target(model: Robot, nominal: Robot, t: Target, frames, config_of: Config, 
            "the corrected joints break the joint limits" if not model.within_limits(q[None])[0] else
            _bits_kept(model, q, t.config, config_of))
     if why:
-        return why
+        return why + _singular(nominal, q_nom)
     if t.kind == "joints":
         return q, q, q
     pf, Rf, _, _ = nominal.pose_and_jacobian(q[None])
     target = np.linalg.inv(base) @ _pose_of(pf[0], Rf[0]) @ tool
     return q, q, np.concatenate([target[:3, 3], rotation_log(target[None, :3, :3])[0]])
+
+
+def _singular(robot: Robot, q: np.ndarray) -> str:
+    """A note when the arm is near a singularity at q (its pose Jacobian's condition number above SINGULAR):
+    there the pose does not fix every joint, the usual cause of a correction that fails; else ''."""
+    _, _, Jp, Jw = robot.pose_and_jacobian(q[None])
+    s = np.linalg.svd(np.concatenate([Jp[0], Jw[0]]), compute_uv=False)
+    cond = s[0] / max(s[-1], 1e-300)
+    return f" (the arm is at or near a singularity here: condition number {cond:.1e}; move the target off it)" \
+        if cond > SINGULAR else ""
 
 
 def _bits_kept(model: Robot, q: np.ndarray, config: tuple, config_of: Config) -> str:
@@ -132,16 +147,19 @@ def controller_inverse(robot: Robot, p: np.ndarray, R: np.ndarray, near: np.ndar
     flange at R (1, 3, 3) on the branch ``config`` (all branches for ()): of the solutions within the joint
     limits whose bits equal it, the one nearest ``near`` (ties: the first in the order found); or why none."""
     cand: list[np.ndarray] = []
+    reached = False
     for starts in (near[None], robot.sample_joints(STARTS, seed=0)):  # the spread starts only when needed
         sol = solve_poses(robot, np.repeat(p, len(starts), 0), np.repeat(R, len(starts), 0), starts,
                           max_iter=SEARCH[0], max_travel=SEARCH[1])
-        cand += [c for q in sol.q[sol.converged] for c in _turns(robot, q)
-                 if not config or tuple(config_of(robot, c)) == tuple(config)]
+        every = [c for q in sol.q[sol.converged] for c in _turns(robot, q)]
+        reached |= bool(every)
+        cand += [c for c in every if not config or tuple(config_of(robot, c)) == tuple(config)]
         if cand:
             break
     if not cand:
-        return (f"the nominal model reaches this pose on no branch with the target's bits {tuple(config)} within "
-                f"the joint limits" if config else "the nominal model does not reach this pose within the joint limits")
+        return (f"the nominal model reaches this pose, but on no branch with the target's bits {tuple(config)} "
+                f"within the joint limits" if reached else "the nominal model does not reach this pose within the "
+                f"joint limits (out of reach, or the wrong robot or frames)")
     c = np.array(cand)
     return c[first_best(np.linalg.norm(c - near, axis=1), maximize=False)]
 

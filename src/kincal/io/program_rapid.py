@@ -56,6 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import MeasurementError
+from ..models.transforms import rotvec_matrix
 from .programs import Dialect, Program, Target, fields_text, line_column
 
 NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
@@ -672,4 +673,23 @@ def write(text: str, target: Target, values: np.ndarray) -> str:
     return fields_text(text, target, numbers, resolution)
 
 
-DIALECT = Dialect("rapid", (".mod", ".modx", ".prg", ".sys"), "!", parse, write)
+def frame_poses(program: Program) -> dict[str, np.ndarray]:
+    """The tools (their tool frame) and work objects (user frame · object frame) the module declares with
+    literal values and never changes at run time, as 4x4 poses (m) by lower-case name; a stationary tool or a
+    work object moved by the robot (robhold, not the usual way round) is left out: its targets are refused."""
+    out = {}
+    for name, f in declared_frames(program).items():
+        if f.frame is None or f.changed or (f.oframe is None) != (f.kind == "tooldata") \
+                or f.robhold is None or f.robhold != (f.kind == "tooldata"):
+            continue
+        parts = [f.frame] if f.oframe is None else [f.frame, f.oframe]
+        T = np.eye(4)
+        for x in parts:
+            step = np.eye(4)
+            step[:3, :3], step[:3, 3] = rotvec_matrix(x[3:6]), x[:3]
+            T = T @ step
+        out[name] = T
+    return out
+
+
+DIALECT = Dialect("rapid", (".mod", ".modx", ".prg", ".sys"), "!", parse, write, frame_poses)

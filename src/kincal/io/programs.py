@@ -92,17 +92,24 @@ class Program:
         return self.with_targets(texts, marks)
 
 
+def no_frames(program: Program) -> dict[str, np.ndarray]:
+    """A language whose programs declare no frame values of their own: none."""
+    return {}
+
+
 @dataclass(frozen=True)
 class Dialect:
     """A vendor language: its name, the file suffixes it is read from (lower case), its comment mark,
-    its reader ``parse(source, text) -> Program`` and its writer ``write(text, target, values) -> str``:
-    the new text of the target's span for new SI values (see :func:`fields_text`)."""
+    its reader ``parse(source, text) -> Program``, its writer ``write(text, target, values) -> str`` (the
+    new text of the target's span for new SI values, see :func:`fields_text`) and ``frames(program)``: the
+    tool and base frames a program declares with their values, by the names its targets use (4x4, m)."""
 
     name: str
     suffixes: tuple[str, ...]
     comment: str
     parse: Callable[[str, str], Program]
     write: Callable[[str, Target, np.ndarray], str]
+    frames: Callable[[Program], dict[str, np.ndarray]] = no_frames
 
 
 def fields_text(text: str, target: Target, numbers: np.ndarray, resolution: np.ndarray) -> str:
