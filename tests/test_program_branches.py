@@ -108,3 +108,62 @@ def test_a_missing_frame_or_an_unreachable_branch_is_refused_by_line(tmp_path):
     wrong = lambda robot, qq: (config_of(robot, qq)[0], 63)  # noqa: E731  (every joint negative: no solution)
     res = compensate_branches(true, nominal, prog, wrong, frames={"TOOL_NO 1": TOOL, "BASE_NO 2": BASE}, q_start=q[0])
     assert "reaches this pose, but on no branch with the target's bits (1, 10)" in res.refused[0]
+
+
+def _kincal(capsys, argv):
+    from kincal.cli import main
+
+    code = main(argv)
+    out = capsys.readouterr()
+    return code, out.err + out.out
+
+
+def test_a_kuka_program_through_the_command_line(tmp_path, capsys):
+    """kincal compensate cal.yaml pick.dat --program krl --frames frames.yaml -o pick_cal.dat, on the bundled KR 6
+    R900 sixx with its own S/T rule: the written E6POS, turned into joints on its bits by the nominal arm, lands
+    on the pose the original meant on the calibrated arm; a forgotten --frames is refused by line, a flag that
+    does not apply is refused, and the output never replaces the input."""
+    from kincal.io import BITS
+
+    nominal = kincal.load_robot("kuka_kr6r900sixx").with_tool_point([0.0, 0.0, 0.05])  # a reflector on the flange
+    measured = kincal.simulate(kincal.perturb(nominal, seed=3), nominal.sample_joints(60, seed=1), noise=0.0)
+    res = kincal.calibrate(nominal, measured)
+    cal = tmp_path / "cal.yaml"
+    kincal.save_robot(res.robot, cal, calibration=res.record())
+    true = res.robot  # the calibrated arm: what the program must land on
+    q = np.radians([[10, -80, 100, 20, 40, 30], [-25, -100, 110, -30, -50, 60], [40, -60, 80, 90, 30, -120]])
+    text = ["DEFDAT  PICK"]
+    flange = nominal.with_tool_point(np.zeros(3))
+    for k, qk in enumerate(q, 1):
+        p, R, _, _ = flange.pose_and_jacobian(qk[None])
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R[0], p[0]
+        T = np.linalg.inv(BASE) @ T @ TOOL
+        a, b, c = Rotation.from_matrix(T[:3, :3]).as_euler("ZYX", degrees=True)
+        s, t = BITS["krl"](nominal, qk)
+        x, y, z = T[:3, 3] * 1e3
+        text += [f"DECL E6POS XP{k}={{X {x:.3f},Y {y:.3f},Z {z:.3f},A {a:.3f},B {b:.3f},C {c:.3f},S {s},T {t},"
+                 f"E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}}", f"DECL FDAT FP{k}={{TOOL_NO 1,BASE_NO 2}}"]
+    dat = tmp_path / "pick.dat"
+    dat.write_text("\n".join(text + ["ENDDAT", ""]))
+    frames = tmp_path / "frames.yaml"
+    tool_rpy = Rotation.from_matrix(TOOL[:3, :3]).as_euler("ZYX", degrees=True)
+    frames.write_text(f"TOOL_NO 1: {{x: 10, y: -20, z: 150, rz: {tool_rpy[0]}, ry: {tool_rpy[1]}, rx: {tool_rpy[2]}}}\n"
+                      f"BASE_NO 2: {{x: 300, y: -100, z: 50}}\n")
+    out = tmp_path / "pick_cal.dat"
+    code, said = _kincal(capsys, ["compensate", str(cal), str(dat), "--program", "krl", "-o", str(out)])
+    assert code != 0 and "line 2 (E6POS XP1): its tool frame 'TOOL_NO 1' is not given" in said and not out.exists()
+    code, said = _kincal(capsys, ["compensate", str(cal), str(dat), "--program", "krl", "--frames", str(frames),
+                                  "--tcp", "0,0,100mm", "-o", str(out)])
+    assert code != 0 and "--tcp: not for a krl program" in said
+    code, said = _kincal(capsys, ["compensate", str(cal), str(dat), "--program", "krl", "--frames", str(frames),
+                                  "-o", str(out)])
+    assert code == 0 and "3 of 3 literal targets compensated on their own branch" in said
+    old, new = read_program(str(dat), "krl"), read_program(str(out), "krl")
+    for t_old, t_new, qk in zip(old.targets, new.targets, q):
+        assert t_new.config == t_old.config
+        p, R = _intended(nominal, t_old.values)
+        pn, Rn = _intended(nominal, t_new.values)
+        q_ctrl = controller_inverse(flange, pn[None], Rn[None], qk, t_new.config, BITS["krl"])
+        pt, Rt, _, _ = true.with_tool_point(np.zeros(3)).pose_and_jacobian(q_ctrl[None])
+        assert np.linalg.norm(pt[0] - p) < 1e-9 and np.linalg.norm(Rotation.from_matrix(Rt[0] @ R.T).as_rotvec()) < 1e-9

@@ -20,7 +20,7 @@ FILES = sorted(p for p in FOLDER.rglob("*") if p.suffix.lower() in DIALECT.suffi
 
 def test_the_dialect_is_registered():
     assert dialects()["fanuc"] is DIALECT
-    assert DIALECT.suffixes == (".ls",) and DIALECT.comment == "!"
+    assert DIALECT.suffixes == (".ls",) and DIALECT.comment == ""  # TP has no comment after a /POS entry: refusals are reported, not marked
     assert len(FILES) == 30 and any(p.suffix == ".LS" for p in FILES)
 
 
@@ -293,5 +293,5 @@ def test_a_file_read_from_disk_keeps_its_bom_and_line_endings(tmp_path):
     path = tmp_path / "SYNTH.LS"
     path.write_bytes(SYNTH.encode("utf-8"))
     prog = read_program(str(path), "fanuc")
-    assert prog.dialect == "fanuc" and prog.comment == "!" and len(prog.targets) == 7
+    assert prog.dialect == "fanuc" and prog.comment == "" and len(prog.targets) == 7
     assert prog.with_values({k: t.values for k, t in enumerate(prog.targets)}).encode(prog.encoding) == path.read_bytes()

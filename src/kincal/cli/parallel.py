@@ -9,7 +9,7 @@ import kincal.analysis
 import kincal.io
 import kincal.models
 from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, VerificationPlan, command_models,
-                               compensate_file, compensate_program, tool_carry, verification_plan)
+                               compensate_branches, compensate_file, compensate_program, tool_carry, verification_plan)
 from kincal.observe import check_convention
 from kincal.units import DEG, MM
 
@@ -32,6 +32,11 @@ def cmd_compensate(args) -> int:
     r, nominal = models(args.tcp)
     carry = "" if not cal.has_tool_point else tool_carry(
         cal.tool_point(), (cal.with_params(values) if values else cal).tool_point(), args.link_error_max / MM)[1]
+    if args.program and args.program != "ur":
+        return _compensate_branches(args, cal, values)
+    if "frames" in args.given:
+        raise ValueError("--frames gives the frames a KRL, RAPID, FANUC or INFORM program names; URScript sets its TCP "
+                         "with set_tcp (or give --tcp)")
     if args.program:
         return _compensate_program(args, r, nominal, carry, models)
     carry = carry if args.tcp is not None else ""
@@ -81,6 +86,35 @@ def _compensation_text(args, res, r) -> str:
         text += (f"\nmodel's predicted σ at the commands: median {res.sigma_median * MM:.4f} mm, "
                  f"max {res.sigma_max * MM:.4f} mm")
     return (text + "".join(f"\nwarning: {w}" for w in res.warnings)).strip()
+
+
+NOT_FOR_BRANCHES = ("tcp", "link_error_max", "pose", "orientation", "rot_cols", "path", "output_kind", "workers",
+                    "target_frame", "joint_cols", "xyz_cols", "length_unit", "angle_unit")
+
+
+def _compensate_branches(args, cal, values) -> int:
+    """compensate --program krl|rapid|fanuc|inform: the program compensated on the branch each target states
+    (kincal.compensate.branch), written to -o only when every target passed or with --skip-unreachable."""
+    flags = [args.given[k] for k in NOT_FOR_BRANCHES if k in args.given]
+    if flags:
+        raise ValueError(f"{', '.join(flags)}: not for a {args.program} program, whose targets carry their own frames "
+                         f"(--frames), units and orientation")
+    nominal = cal.with_params(values) if values else cal
+    prog = kincal.io.read_program(args.targets, args.program)
+    frames = kincal.io.read_frames(args.frames) if args.frames else {}
+    res = compensate_branches(cal, nominal, prog, kincal.io.BITS[args.program], frames)
+    written = bool(res.texts) and (not res.problems or args.skip_unreachable)
+    if written:
+        kincal.io.write_program(args.output, prog, res.texts, res.refused)
+    lines = [f"{len(res.texts)} of {len(prog.targets)} literal targets compensated on their own branch, each "
+             f"checked as written" + (f"; program written to {args.output} (every other byte as it was)" if written
+                                      else f"; nothing written to {args.output}" + (
+                                          " (--skip-unreachable writes the others)" if res.texts else ""))]
+    lines += [f"refused: {p}" for p in res.problems]
+    lines += [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal]
+    return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
+                       "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal],
+                       "output": args.output if written else None}, "\n".join(lines), 0 if written else EXIT_REFUSED)
 
 
 def _compensate_program(args, r, nominal, carry: str, models) -> int:
@@ -176,9 +210,14 @@ def register(cmd) -> None:
                    help="--pose: quat-wxyz (default), quat-xyzw, matrix, rotvec, rotvec-deg or "
                         "euler-<axes>-<intrinsic|extrinsic>-<deg|rad>")
     s.add_argument("--rot-cols", type=csv_list, help="--pose: the orientation columns, in the convention's order")
-    s.add_argument("--program", choices=("ur",),
-                   help="the targets file is a robot program (ur: URScript .script): its literal move targets are "
-                        "compensated in place, every other byte kept; the result goes to -o")
+    s.add_argument("--program", choices=kincal.io.DIALECT_NAMES,
+                   help="the targets file is a robot program (ur: URScript .script; krl: KUKA .src/.dat; rapid: ABB "
+                        ".mod; fanuc: FANUC TP .ls; inform: Yaskawa .JBI): its literal move targets are compensated "
+                        "in place, every other byte kept, on the branch each target states; the result goes to -o")
+    s.add_argument("--frames", metavar="FILE",
+                   help="--program krl|rapid|fanuc|inform: the tool and base frames the program names, YAML {name: "
+                        "{x, y, z, rx, ry, rz}} in mm and deg (a RAPID module's own tooldata and wobjdata are read "
+                        "from it); a frame neither gives is refused, never taken as the identity")
     s.add_argument("--path", action="store_true",
                    help="the rows are consecutive targets of one path: a row whose corrected command jumps much "
                         "more from the previous one than the nominal commands do is refused and named")

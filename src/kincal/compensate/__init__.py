@@ -3,8 +3,9 @@ use), and error-model verification plans (the 3-PUU error-model verification pap
 from .commands import Compensation, compensate, compensate_poses, path_checked
 from .poses import PoseSolution, filtered_poses, solve_poses
 from .program import ProgramCompensation, compensate_program
+from .branch import compensate_branches
 from .frames import LINK_ERROR_MAX, TARGET_FRAMES, command_models, frame_mismatch, tool_carry
 from .stream import StreamJob, StreamResult, TargetsFormat, compensate_file
 from .verify import Verification, VerificationPlan, verification_plan
 
-__all__ = ["Compensation", "compensate", "compensate_poses", "path_checked", "ProgramCompensation", "compensate_program", "PoseSolution", "solve_poses", "filtered_poses", "TARGET_FRAMES", "LINK_ERROR_MAX", "command_models", "frame_mismatch", "tool_carry", "StreamJob", "StreamResult", "TargetsFormat", "compensate_file", "Verification", "VerificationPlan", "verification_plan"]
+__all__ = ["Compensation", "compensate", "compensate_poses", "path_checked", "ProgramCompensation", "compensate_program", "compensate_branches", "PoseSolution", "solve_poses", "filtered_poses", "TARGET_FRAMES", "LINK_ERROR_MAX", "command_models", "frame_mismatch", "tool_carry", "StreamJob", "StreamResult", "TargetsFormat", "compensate_file", "Verification", "VerificationPlan", "verification_plan"]

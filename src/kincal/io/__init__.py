@@ -1,9 +1,12 @@
 """Measurement data in and out (CSV), and robot programs read and written again (one dialect per vendor language)."""
 from .measurements import (Measurements, read_joints, read_measurements, read_positions, write_joints,
                            write_measurements, write_residuals, write_selected_rows)
-from .programs import Dialect, Program, Target, dialect_of, dialects, read_program, write_program
+from .programs import (DIALECT_NAMES, Dialect, Program, Target, dialect_of, dialects, read_frames, read_program,
+                       write_program)
+from .branches import BITS
 from .unit_checks import check_degrees, check_radians, check_spread
 
 __all__ = ["Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements",
            "write_residuals", "write_selected_rows", "check_degrees", "check_radians", "check_spread",
-           "Program", "Target", "Dialect", "dialect_of", "dialects", "read_program", "write_program"]
+           "Program", "Target", "Dialect", "DIALECT_NAMES", "dialect_of", "dialects", "read_frames", "read_program", "BITS",
+           "write_program"]

@@ -139,7 +139,7 @@ def parse(source: str, text: str) -> Program:
         elif e.number not in used:
             targets.append(e.target)
     not_literal.sort(key=lambda n: n[0])
-    return Program(source, text, tuple(targets), tuple(not_literal), comment="!", dialect="fanuc")
+    return Program(source, text, tuple(targets), tuple(not_literal), comment="", dialect="fanuc")
 
 
 def _with_move(t: Target, use: _Use) -> Target:
@@ -367,4 +367,4 @@ def write(text: str, target: Target, values: np.ndarray) -> str:
     return fields_text(text, target, numbers, np.array([LENGTH_RES] * 3 + [ANGLE_RES] * 3))
 
 
-DIALECT = Dialect("fanuc", (".ls",), "!", parse, write)
+DIALECT = Dialect("fanuc", (".ls",), "", parse, write)  # no comment: TP allows none after a /POS entry

@@ -340,7 +340,7 @@ def parse(source: str, text: str) -> Program:
         if kind == "P" and n not in variables:
             listed.append((p.line, p.name, "a global position variable this job carries and does not use"))
     return Program(source, text, tuple(sorted(targets, key=lambda t: t.start)),
-                   tuple(sorted(listed, key=lambda item: item[0])), comment="'", dialect="inform")
+                   tuple(sorted(listed, key=lambda item: item[0])), comment="", dialect="inform")
 
 
 def write(text: str, target: Target, values: np.ndarray) -> str:
@@ -354,4 +354,4 @@ def write(text: str, target: Target, values: np.ndarray) -> str:
     return fields_text(text, target, numbers, RESOLUTION)
 
 
-DIALECT = Dialect("inform", (".jbi",), "'", parse, write)
+DIALECT = Dialect("inform", (".jbi",), "", parse, write)  # no comment: INFORM allows none after a position line

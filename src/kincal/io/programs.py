@@ -123,8 +123,11 @@ def fields_text(text: str, target: Target, numbers: np.ndarray, resolution: np.n
     return "".join(pieces) + text[at:target.end]
 
 
+DIALECT_NAMES = ("ur", "krl", "rapid", "fanuc", "inform")  # what dialects() holds (known without loading them)
+
+
 def dialects() -> dict[str, Dialect]:
-    """The vendor languages kincal reads, by name (the modules load when first asked for)."""
+    """The vendor languages kincal reads, by name (:data:`DIALECT_NAMES`; the modules load when first asked)."""
     from . import program_fanuc, program_inform, program_krl, program_rapid, program_ur
 
     return {d.name: d for d in (program_ur.DIALECT, program_krl.DIALECT, program_rapid.DIALECT, program_fanuc.DIALECT,
@@ -135,6 +138,8 @@ def _marks(program: Program, marks: dict[int, str]) -> list[tuple[int, int, str]
     """Insertions (at the end of each marked target's line, before its line ending) of one comment
     per line with the reasons of every marked target on it."""
     by_end: dict[int, list[str]] = {}
+    if not program.comment:  # a language with no comment at the end of a target's line (FANUC /POS, INFORM //POS)
+        return []
     for k, why in marks.items():
         t = program.targets[k]
         end = program.text.find("\n", t.end)
@@ -175,6 +180,38 @@ def write_program(path: str, program: Program, texts: dict[int, str], marks: dic
     """The program with the given targets replaced and the marked ones commented, in its own encoding
     (atomically)."""
     write_text_atomic(path, program.with_targets(texts, marks), program.encoding)
+
+
+def read_frames(path: str) -> dict[str, np.ndarray]:
+    """The tool and base frames of a frames file: YAML ``{name: {x, y, z, rx, ry, rz}}`` (the frame in the flange
+    or the robot's base frame; R = Rz(rz) Ry(ry) Rx(rx)), lengths in mm and angles in deg unless ``units:
+    {length: …, angle: …}`` says otherwise; missing coordinates are 0. As 4x4 poses (m) by name. ValueError
+    naming the file and the frame for anything else."""
+    import yaml
+
+    from ..models.transforms import rot_zyx
+    from ..units import unit_factor
+
+    try:
+        data = yaml.safe_load(open(path, encoding="utf-8").read())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ValueError(f"{path}: cannot read the frames file ({exc})") from None
+    units = data.pop("units", {}) if isinstance(data, dict) else {}
+    if not isinstance(data, dict) or not isinstance(units, dict):
+        raise ValueError(f"{path}: a frames file maps each frame's name to {{x, y, z, rx, ry, rz}} (mm, deg)")
+    lf = unit_factor(str(units.get("length", "mm")), "length", f"{path}: ")
+    af = unit_factor(str(units.get("angle", "deg")), "angle", f"{path}: ")
+    out = {}
+    for name, f in data.items():
+        keys = ("x", "y", "z", "rx", "ry", "rz")
+        if not isinstance(f, dict) or set(f) - set(keys) or not all(
+                isinstance(f.get(k, 0.0), (int, float)) and not isinstance(f.get(k, 0.0), bool) for k in keys):
+            raise ValueError(f"{path}: frame {name!r} must be {{x, y, z, rx, ry, rz}} with numbers (missing ones 0)")
+        v = [float(f.get(k, 0.0)) for k in keys]
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = rot_zyx(v[5] * af, v[4] * af, v[3] * af), np.array(v[:3]) * lf
+        out[str(name)] = T
+    return out
 
 
 def line_column(text: str, at: int) -> tuple[int, int]:
