@@ -153,6 +153,8 @@ def test_a_kuka_program_through_the_command_line(tmp_path, capsys):
     out = tmp_path / "pick_cal.dat"
     code, said = _kincal(capsys, ["compensate", str(cal), str(dat), "--program", "krl", "-o", str(out)])
     assert code != 0 and "line 2 (E6POS XP1): its tool frame 'TOOL_NO 1' is not given" in said and not out.exists()
+    code, said = _kincal(capsys, ["compensate", str(cal), str(dat), "--program", "rapid", "-o", str(out)])
+    assert code != 0 and "its suffix is a krl program's, not rapid's; give --program krl" in said
     code, said = _kincal(capsys, ["compensate", str(cal), str(dat), "--program", "krl", "--frames", str(frames),
                                   "--tcp", "0,0,100mm", "-o", str(out)])
     assert code != 0 and "--tcp: not for a krl program" in said

@@ -32,6 +32,8 @@ def cmd_compensate(args) -> int:
     r, nominal = models(args.tcp)
     carry = "" if not cal.has_tool_point else tool_carry(
         cal.tool_point(), (cal.with_params(values) if values else cal).tool_point(), args.link_error_max / MM)[1]
+    if args.program:
+        _same_language(args.targets, args.program)
     if args.program and args.program != "ur":
         return _compensate_branches(args, cal, values)
     if "frames" in args.given:
@@ -86,6 +88,18 @@ def _compensation_text(args, res, r) -> str:
         text += (f"\nmodel's predicted σ at the commands: median {res.sigma_median * MM:.4f} mm, "
                  f"max {res.sigma_max * MM:.4f} mm")
     return (text + "".join(f"\nwarning: {w}" for w in res.warnings)).strip()
+
+
+def _same_language(path: str, program: str) -> None:
+    """ValueError when the file's suffix names another language than --program (read as the wrong one, a program
+    shows no targets at all)."""
+    try:
+        named = kincal.io.dialect_of(path)
+    except ValueError:
+        return  # a suffix no language claims: --program says what it is
+    if named != program:
+        raise ValueError(f"{path}: its suffix is a {named} program's, not {program}'s; give --program {named} (or "
+                         f"rename the file if it really is {program})")
 
 
 NOT_FOR_BRANCHES = ("tcp", "link_error_max", "pose", "orientation", "rot_cols", "path", "output_kind", "workers",
