@@ -2,6 +2,8 @@
 E6POS (S/T) and E6AXIS targets written from a nominal arm's poses, compensated for a perturbed arm. Checked
 independently of the module's own check: the text read again, each Cartesian target turned into joints on its
 bits and moved through the perturbed arm, lands on the pose the original text meant."""
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -105,6 +107,12 @@ def test_a_missing_frame_or_an_unreachable_branch_is_refused_by_line(tmp_path):
     res = compensate_branches(true, nominal, prog, config_of, frames={"TOOL_NO 1": TOOL}, q_start=q[0])
     assert res.refused[0].startswith("its base frame 'BASE_NO 2' is not given")
     assert "line 2" in res.problems[0] and 1 in res.texts  # the joint target needs no frame
+    unnamed = dataclasses.replace(prog, targets=tuple(dataclasses.replace(t, frames=("", "")) for t in prog.targets))
+    res = compensate_branches(true, nominal, unnamed, config_of, frames={"TOOL_NO 1": TOOL}, q_start=q[0])
+    assert res.refused[0] == "the program names no tool frame here: give the one in force (frames: 'default tool')"
+    res = compensate_branches(true, nominal, unnamed, config_of, frames={"default tool": TOOL, "default base": BASE},
+                              q_start=q[0])
+    assert not res.refused
     wrong = lambda robot, qq: (config_of(robot, qq)[0], 63)  # noqa: E731  (every joint negative: no solution)
     res = compensate_branches(true, nominal, prog, wrong, frames={"TOOL_NO 1": TOOL, "BASE_NO 2": BASE}, q_start=q[0])
     assert "reaches this pose, but on no branch with the target's bits (1, 10)" in res.refused[0]

@@ -230,8 +230,9 @@ def register(cmd) -> None:
                         "in place, every other byte kept, on the branch each target states; the result goes to -o")
     s.add_argument("--frames", metavar="FILE",
                    help="--program krl|rapid|fanuc|inform: the tool and base frames the program names, YAML {name: "
-                        "{x, y, z, rx, ry, rz}} in mm and deg (a RAPID module's own tooldata and wobjdata are read "
-                        "from it); a frame neither gives is refused, never taken as the identity")
+                        "{x, y, z, rx, ry, rz}} in mm and deg ('default tool', 'default base': those in force where the "
+                        "program names none; a RAPID module's own tooldata and wobjdata are read from it); a frame "
+                        "neither gives is refused, never taken as the identity")
     s.add_argument("--path", action="store_true",
                    help="the rows are consecutive targets of one path: a row whose corrected command jumps much "
                         "more from the previous one than the nominal commands do is refused and named")

@@ -17,7 +17,8 @@ The bits are derived again from q (``config_of``): they must equal the target's,
 refused with its line (as when the correction does not converge, leaves the nominal branch or breaks
 a joint limit). Frames are the program's own names (``Target.frames``): each must be given in
 ``frames`` (name -> 4x4 pose, m) unless the language defines it as the identity (RAPID's tool0 and
-wobj0); a frame that is missing is refused, never taken as the identity. The written program is read
+wobj0); a frame that is missing is refused, never taken as the identity; where the program names none, the frames'
+``default tool`` and ``default base`` are the ones in force. The written program is read
 again and every compensated target checked end to end: the controller's joints of the text as written
 reach the intended pose on the calibrated model (``CHECK_TOL``).
 """
@@ -81,13 +82,15 @@ def _frames(dialect: str, t: Target, frames: Mapping[str, np.ndarray]) -> tuple[
     given = {k.lower(): np.asarray(v, dtype=float) for k, v in frames.items()}
     out = []
     for what, name, identity in zip(("tool", "base"), t.frames, IDENTITY_FRAMES.get(dialect, ((), ()))):
+        key = name.lower() or f"default {what}"  # the frame in force where the program names none
         if name.lower() in identity:
             out.append(np.eye(4))
-        elif name and name.lower() in given:
-            out.append(given[name.lower()])
+        elif key in given:
+            out.append(given[key])
         else:
             return (f"its {what} frame {name!r} is not given (give it with the frames; it is not taken as the "
-                    f"identity)" if name else f"the program names no {what} frame here: give the one in force")
+                    f"identity)" if name else f"the program names no {what} frame here: give the one in force "
+                    f"(frames: 'default {what}')")
     return out[0], out[1]
 
 
