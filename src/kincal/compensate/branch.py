@@ -33,12 +33,9 @@ from ..io.programs import Program, Target, dialects
 from ..models.robot import Robot
 from ..models.transforms import rotation_log, rotvec_matrix
 from ..ties import first_best
-from .commands import BRANCH_TOL
 from .poses import solve_poses
-from .program import ProgramCompensation
+from .program import SEARCH, STARTS, ProgramCompensation, corrected
 
-STARTS = 24  # spread starts of the controller's inverse when Newton from the previous joints finds no solution
-SEARCH = (200, 20.0)  # iterations and travel (m) of that inverse: from afar, not a small correction
 CHECK_TOL = 1e-9  # m and rad: a written target must reproduce its intended pose this closely
 SINGULAR = 1e3  # condition number of the pose Jacobian (m, rad) beyond which a failed correction is named as such
 IDENTITY_FRAMES = {"rapid": (("tool0",), ("wobj0", ""))}  # (tools, bases) a language defines as the identity
@@ -110,13 +107,8 @@ def _target(model: Robot, nominal: Robot, t: Target, frames, config_of: Config, 
         if isinstance(found, str):
             return found
         q_nom = found
-    sol = solve_poses(model, p, R, q_nom[None])
-    q = sol.q[0]
-    tol = np.array([BRANCH_TOL[j] for j in model.joint_types])
-    why = ("the correction did not converge" if not sol.converged[0] else
-           "the corrected joints leave the nominal branch" if (np.abs(q - q_nom) > tol).any() else
-           "the corrected joints break the joint limits" if not model.within_limits(q[None])[0] else
-           _bits_kept(model, q, t.config, config_of))
+    q, why = corrected(model, p, R, q_nom)
+    why = why or _bits_kept(model, q, t.config, config_of)
     if why:
         return why + _singular(nominal, q_nom)
     if t.kind == "joints":

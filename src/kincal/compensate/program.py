@@ -95,18 +95,25 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None):
         if found is None:
             return "the nominal model does not reach this pose on any branch within the joint limits"
         q_nom = found
-    sol = solve_poses(model, p, R, q_nom[None])
-    q = sol.q[0]
-    tol = np.array([BRANCH_TOL[j] for j in model.joint_types])
-    why = ("the correction did not converge" if not sol.converged[0] else
-           "the corrected joints leave the nominal branch" if (np.abs(q - q_nom) > tol).any() else
-           "the corrected joints break the joint limits" if not model.within_limits(q[None])[0] else "")
+    q, why = corrected(model, p, R, q_nom)
     if why:
         return why
     if t.kind == "joints":
         return q, q_nom, joints_literal(q)
     pf, Rf, _, _ = nominal.pose_and_jacobian(q[None])
     return q, q_nom, pose_literal(np.concatenate([pf[0], rotation_log(Rf @ turn)[0]]))
+
+
+def corrected(model: Robot, p: np.ndarray, R: np.ndarray, q_nom: np.ndarray) -> tuple[np.ndarray, str]:
+    """The joints (n,) at which ``model`` puts its tool point at p (1, 3) m with the flange at R (1, 3, 3), by
+    Newton from the nominal joints q_nom (n,), and why they are refused ('' when they are not): the correction
+    did not converge, leaves the nominal branch (a joint moves more than BRANCH_TOL) or breaks a joint limit."""
+    sol = solve_poses(model, p, R, q_nom[None])
+    q = sol.q[0]
+    tol = np.array([BRANCH_TOL[j] for j in model.joint_types])
+    return q, ("the correction did not converge" if not sol.converged[0] else
+               "the corrected joints leave the nominal branch" if (np.abs(q - q_nom) > tol).any() else
+               "the corrected joints break the joint limits" if not model.within_limits(q[None])[0] else "")
 
 
 def controller_inverse(robot: Robot, p: np.ndarray, R: np.ndarray, near: np.ndarray) -> np.ndarray | None:
