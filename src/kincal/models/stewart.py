@@ -45,6 +45,13 @@ N_LEGS = 6
 COMPLIANCE = "legs.compliance"  # m: a leg's give under the platform's whole weight
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b over the last axis (broadcast): np.cross without its axis handling, which dominates small batches."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def stewart_names(n_legs: int = N_LEGS, compliance: bool = False) -> tuple[list[str], list[str]]:
     """The parameter names and kinds of a platform with ``n_legs`` legs (and its legs' compliance)."""
     names, kinds = list(BASE_NAMES), ["length"] * 3 + ["angle"] * 3
@@ -189,14 +196,14 @@ class StewartRobot(ImplicitRobot):
         frame's choice moves it) and up (N, 3) in the robot frame."""
         _, p, _, _ = self._legs(values)
         m = (p - p.mean(axis=-2, keepdims=True)) @ x[:, :, :3].transpose(0, 2, 1)
-        JT = np.concatenate([u, np.cross(m, u)], axis=2).transpose(0, 2, 1)
+        JT = np.concatenate([u, _cross(m, u)], axis=2).transpose(0, 2, 1)
         up = np.broadcast_to(self._up(values)[0], (len(u), 3))
         return np.linalg.solve(JT, np.concatenate([up, np.zeros((len(u), 3))], axis=1)[..., None])[..., 0], JT, m, up
 
-    def _load_rates(self, x, u, length, Rp, values):
-        """The loads f (N, 6) and their derivatives: by the twist (N, 6, 6), by each leg's base and platform
-        point (N, 6, 6, 3) each (load j by leg i's coordinate a) and by the base rotations (N, 6, 3), from
-        Jᵀ df = dw − Σᵢ fᵢ d(row i), the rows (uᵢ, mᵢ × uᵢ) and the wrench w = (up, 0)."""
+    def _load_rates(self, x, u, length, Rp, values, params: bool = True):
+        """The loads f (N, 6) and their derivatives: by the twist (N, 6, 6) and, with ``params``, by each leg's
+        base and platform point (N, 6, 6, 3) each (load j by leg i's coordinate a) and by the base rotations
+        (N, 6, 3), from Jᵀ df = dw − Σᵢ fᵢ d(row i), the rows (uᵢ, mᵢ × uᵢ) and the wrench w = (up, 0)."""
         n = len(u)
         f, JT, m, up = self._loads(x, u, values)
         P = (np.eye(3) - u[..., :, None] * u[..., None, :]) / length[..., None, None]  # du = P dd
@@ -204,23 +211,25 @@ class StewartRobot(ImplicitRobot):
 
         def rows(dd, dm):  # changes (N, 6, D, 6) of each leg's row, weighted by its load, for dd, dm (N, 6, D, 3)
             du = np.einsum("nkij,nkaj->nkai", P, dd)
-            return f[:, :, None, None] * np.concatenate([du, np.cross(dm, u[:, :, None]) + np.cross(
+            return f[:, :, None, None] * np.concatenate([du, _cross(dm, u[:, :, None]) + _cross(
                 m[:, :, None], du)], axis=3)
 
         def turned(w):  # eₐ × wᵢ (N, 6, 3, 3)
-            return np.cross(np.eye(3)[None, None], w[:, :, None, :])
-
-        R_e = np.moveaxis(x[:, :, :3], 1, 2)  # [n, a] = R eₐ
-        dp = rows(np.broadcast_to(R_e[:, None], E.shape), np.broadcast_to(R_e[:, None], E.shape))
-        dp[..., 3:] -= np.cross(R_e, up[:, None])[:, None] / N_LEGS  # p̄ moves too: Σᵢ fᵢ uᵢ = up
-        dw = np.zeros((n, 6, 3))
-        dw[:, :3] = self._up(values)[1]
+            return _cross(np.eye(3)[None, None], w[:, :, None, :])
 
         def solve(g):  # −(Jᵀ)⁻¹ g for changes g (N, D, 6) → (N, 6, D)
             return -np.linalg.solve(JT, g.reshape(n, -1, 6).transpose(0, 2, 1))
-        return (f, solve(rows(np.concatenate([E, turned(Rp)], 2), np.concatenate([zero, turned(m)], 2)).sum(1)),
-                solve(rows(-E, zero)).reshape(n, N_LEGS, N_LEGS, 3), solve(dp).reshape(n, N_LEGS, N_LEGS, 3),
-                np.linalg.solve(JT, dw))
+        by_x = solve(rows(np.concatenate([E, turned(Rp)], 2), np.concatenate([zero, turned(m)], 2)).sum(1))
+        if not params:  # what Newton's method needs
+            return f, by_x
+        R_e = np.moveaxis(x[:, :, :3], 1, 2)  # [n, a] = R eₐ
+        dp = rows(np.broadcast_to(R_e[:, None], E.shape), np.broadcast_to(R_e[:, None], E.shape))
+        dp[..., 3:] -= _cross(R_e, up[:, None])[:, None] / N_LEGS  # p̄ moves too: Σᵢ fᵢ uᵢ = up
+        dw = np.zeros((n, 6, 3))
+        dw[:, :3] = self._up(values)[1]
+
+        return (f, by_x, solve(rows(-E, zero)).reshape(n, N_LEGS, N_LEGS, 3),
+                solve(dp).reshape(n, N_LEGS, N_LEGS, 3), np.linalg.solve(JT, dw))
 
     def constraints(self, x, q, values):
         d, length, Rp = self._vectors(x, values)
@@ -229,17 +238,18 @@ class StewartRobot(ImplicitRobot):
         return length - self._lengths(q, values) + self._give(values) * self._loads(x, d / length[..., None], values)[0]
 
     def constraint_jacobian(self, x, q, values):
-        if self.compliance:
-            return self.constraint_derivatives(x, q, values)[0]
         d, length, Rp = self._vectors(x, values)
         u = d / length[..., None]
-        return np.concatenate([u, np.cross(Rp, u)], axis=2)  # by (dt, δ): d moves by dt + δ × R p
+        fx = np.concatenate([u, _cross(Rp, u)], axis=2)  # by (dt, δ): d moves by dt + δ × R p
+        if not self.compliance:
+            return fx
+        return fx + self._give(values)[..., None] * self._load_rates(x, u, length, Rp, values, params=False)[1]
 
     def constraint_derivatives(self, x, q, values):
         d, length, Rp = self._vectors(x, values)
         u = d / length[..., None]
         n = x.shape[0]
-        fx = np.concatenate([u, np.cross(Rp, u)], axis=2)
+        fx = np.concatenate([u, _cross(Rp, u)], axis=2)
         _, _, _, scale = self._legs(values)
         legs = np.arange(N_LEGS)
         fq = np.zeros((n, N_LEGS, N_LEGS))
