@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 import kincal
 from kincal.compensate.branch import compensate_branches, controller_inverse
-from kincal.io import read_program
+from kincal.io import dialects, read_program
 
 
 def config_of(robot, q):
@@ -177,3 +177,33 @@ def test_a_kuka_program_through_the_command_line(tmp_path, capsys):
         q_ctrl = controller_inverse(flange, pn[None], Rn[None], qk, t_new.config, BITS["krl"])
         pt, Rt, _, _ = true.with_tool_point(np.zeros(3)).pose_and_jacobian(q_ctrl[None])
         assert np.linalg.norm(pt[0] - p) < 1e-9 and np.linalg.norm(Rotation.from_matrix(Rt[0] @ R.T).as_rotvec()) < 1e-9
+
+
+@pytest.mark.parametrize("language, arm", [("krl", "kuka_kr6r900sixx"), ("fanuc", "fanuc_lrmate200id")])
+def test_every_real_target_is_compensated_and_checked_or_refused_by_line(language, arm):
+    """The data folder's KRL and FANUC programs with a calibration of the vendor's bundled arm: each literal target
+    is compensated (its text read again reaches the meant pose on the calibrated arm, which the module checks) or
+    refused with its line and why; nothing else happens to it."""
+    from conftest import shared_dataset
+    from kincal.io import BITS, dialect_of
+
+    nominal = kincal.load_robot(arm)
+    cal = kincal.perturb(nominal, seed=1)
+    compensated = refused = 0
+    for path in sorted((shared_dataset("robot_programs") / language).rglob("*")):
+        if not path.is_file() or dialect_of(str(path)) != language:
+            continue
+        prog = read_program(str(path), language)
+        res = compensate_branches(cal, nominal, prog, BITS[language])
+        assert set(res.texts) | set(res.refused) == set(range(len(prog.targets)))
+        assert not set(res.texts) & set(res.refused) and all(res.refused.values())
+        assert all(f"line {prog.targets[k].line} " in p for k, p in zip(sorted(res.refused), res.problems))
+        for k in res.texts:  # a joint target: the calibrated arm at the new joints is where the nominal one was
+            if prog.targets[k].kind == "joints":
+                new = read_program(str(path), language).targets[k]  # (unchanged file: the original)
+                again = dialects()[language].parse(str(path), prog.with_targets(res.texts)).targets[k]
+                pa = cal.with_tool_point(np.zeros(3)).pose_and_jacobian(again.values[None])[0]
+                pb = nominal.with_tool_point(np.zeros(3)).pose_and_jacobian(new.values[None])[0]
+                assert np.linalg.norm(pa - pb) < 1e-9
+        compensated, refused = compensated + len(res.texts), refused + len(res.refused)
+    assert compensated >= 1 and compensated + refused == {"krl": 22, "fanuc": 2}[language]
