@@ -8,7 +8,7 @@ import numpy as np
 
 import kincal
 from kincal.compensate import compensate_branches
-from kincal.io import BITS, read_program
+from kincal.io import BITS, ROWS, read_program
 
 
 def program(nominal, n: int, path: str) -> None:
@@ -32,7 +32,7 @@ def main() -> None:
     program(nominal, n, "/tmp/kincal_bench.dat")
     prog = read_program("/tmp/kincal_bench.dat", "krl")
     t0 = time.perf_counter()
-    res = compensate_branches(cal, nominal, prog, BITS["krl"], {"default tool": np.eye(4), "default base": np.eye(4)})
+    res = compensate_branches(cal, nominal, prog, ROWS["krl"], {"default tool": np.eye(4), "default base": np.eye(4)})
     took = time.perf_counter() - t0
     print(f"{'case':<60} {'time':>9} {'target':>8}")
     print(f"{f'KRL program, {n} E6POS targets, compensated and checked':<60} {took:8.2f}s {f'{2 * n / 1e4:g} s':>8}")

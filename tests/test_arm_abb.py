@@ -204,4 +204,4 @@ def test_cf1_of_real_robtargets_where_the_target_alone_fixes_axis_1():
 
 def wrist_centre(robot, q):
     """The wrist centre: nearest the axes 4, 5 and 6."""
-    return six_axes(robot, q, "the wrist centre")[3]
+    return six_axes(robot, q, "the wrist centre")[3][0]

@@ -24,6 +24,11 @@ def config_of(robot, q):
     return s, int(sum(1 << i for i in range(6) if q[i] < 0))
 
 
+def rows(robot, q):
+    """The test's bits of each row of q (N, 6)."""
+    return [config_of(robot, qk) for qk in q]
+
+
 TOOL = np.eye(4)
 TOOL[:3, :3] = Rotation.from_euler("x", 30, degrees=True).as_matrix()
 TOOL[:3, 3] = [0.01, -0.02, 0.15]  # a tool 150 mm long, turned 30 deg
@@ -72,7 +77,7 @@ def test_cartesian_and_joint_targets_land_where_the_program_meant_on_their_own_b
     prog = read_program(str(path), "krl")
     assert [t.kind for t in prog.targets] == ["pose"] * 6 + ["joints"]
     frames = {"TOOL_NO 1": TOOL, "BASE_NO 2": BASE}
-    res = compensate_branches(true, nominal, prog, config_of, frames=frames, q_start=q[0])
+    res = compensate_branches(true, nominal, prog, rows, frames=frames, q_start=q[0])
     assert not res.problems and len(res.texts) == 7
     out = tmp_path / "test_cal.dat"
     kincal.io.write_program(str(out), prog, res.texts)
@@ -104,16 +109,16 @@ def test_a_missing_frame_or_an_unreachable_branch_is_refused_by_line(tmp_path):
     path = tmp_path / "test.dat"
     path.write_bytes(_module(nominal, q).encode())
     prog = read_program(str(path), "krl")
-    res = compensate_branches(true, nominal, prog, config_of, frames={"TOOL_NO 1": TOOL}, q_start=q[0])
+    res = compensate_branches(true, nominal, prog, rows, frames={"TOOL_NO 1": TOOL}, q_start=q[0])
     assert res.refused[0].startswith("its base frame 'BASE_NO 2' is not given")
     assert "line 2" in res.problems[0] and 1 in res.texts  # the joint target needs no frame
     unnamed = dataclasses.replace(prog, targets=tuple(dataclasses.replace(t, frames=("", "")) for t in prog.targets))
-    res = compensate_branches(true, nominal, unnamed, config_of, frames={"TOOL_NO 1": TOOL}, q_start=q[0])
+    res = compensate_branches(true, nominal, unnamed, rows, frames={"TOOL_NO 1": TOOL}, q_start=q[0])
     assert res.refused[0] == "the program names no tool frame here: give the one in force (frames: 'default tool')"
-    res = compensate_branches(true, nominal, unnamed, config_of, frames={"default tool": TOOL, "default base": BASE},
+    res = compensate_branches(true, nominal, unnamed, rows, frames={"default tool": TOOL, "default base": BASE},
                               q_start=q[0])
     assert not res.refused
-    wrong = lambda robot, qq: (config_of(robot, qq)[0], 63)  # noqa: E731  (every joint negative: no solution)
+    wrong = lambda robot, qq: [(config_of(robot, x)[0], 63) for x in qq]  # noqa: E731  (every joint negative: none)
     res = compensate_branches(true, nominal, prog, wrong, frames={"TOOL_NO 1": TOOL, "BASE_NO 2": BASE}, q_start=q[0])
     assert "reaches this pose, but on no branch with the target's bits (1, 10)" in res.refused[0]
 
@@ -185,7 +190,7 @@ def test_every_real_target_is_compensated_and_checked_or_refused_by_line(languag
     is compensated (its text read again reaches the meant pose on the calibrated arm, which the module checks) or
     refused with its line and why; nothing else happens to it."""
     from conftest import shared_dataset
-    from kincal.io import BITS, dialect_of
+    from kincal.io import ROWS, dialect_of
 
     nominal = kincal.load_robot(arm)
     cal = kincal.perturb(nominal, seed=1)
@@ -194,7 +199,7 @@ def test_every_real_target_is_compensated_and_checked_or_refused_by_line(languag
         if not path.is_file() or dialect_of(str(path)) != language:
             continue
         prog = read_program(str(path), language)
-        res = compensate_branches(cal, nominal, prog, BITS[language])
+        res = compensate_branches(cal, nominal, prog, ROWS[language])
         assert set(res.texts) | set(res.refused) == set(range(len(prog.targets)))
         assert not set(res.texts) & set(res.refused) and all(res.refused.values())
         assert all(f"line {prog.targets[k].line} " in p for k, p in zip(sorted(res.refused), res.problems))

@@ -116,7 +116,7 @@ def _compensate_branches(args, cal, values) -> int:
     nominal = cal.with_params(values) if values else cal
     prog = kincal.io.read_program(args.targets, args.program)
     frames = kincal.io.read_frames(args.frames) if args.frames else {}
-    res = compensate_branches(cal, nominal, prog, kincal.io.BITS[args.program], frames)
+    res = compensate_branches(cal, nominal, prog, kincal.io.ROWS[args.program], frames)
     written = bool(res.texts) and (not res.problems or args.skip_unreachable)
     if written:
         kincal.io.write_program(args.output, prog, res.texts, res.refused)

@@ -24,6 +24,7 @@ reach the intended pose on the calibrated model (``CHECK_TOL``).
 """
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from typing import Callable, Mapping
 
@@ -34,44 +35,185 @@ from ..models.robot import Robot
 from ..models.transforms import rotation_log, rotvec_matrix
 from ..ties import first_best
 from .poses import solve_poses
-from .program import SEARCH, STARTS, ProgramCompensation, corrected
+from .commands import BRANCH_TOL
+from .program import SEARCH, STARTS, ProgramCompensation
 
 CHECK_TOL = 1e-9  # m and rad: a written target must reproduce its intended pose this closely
 SINGULAR = 1e3  # condition number of the pose Jacobian (m, rad) beyond which a failed correction is named as such
 IDENTITY_FRAMES = {"rapid": (("tool0",), ("wobj0", ""))}  # (tools, bases) a language defines as the identity
 # (RAPID: tool0 is the flange, wobj0 the world frame, and a move without \WObj is in wobj0)
 Config = Callable[[Robot, np.ndarray], tuple]
+Rows = Callable[[Robot, np.ndarray], list]
 
 
-def compensate_branches(model: Robot, nominal: Robot, program: Program, config_of: Config,
+def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Rows,
                         frames: Mapping[str, np.ndarray] | None = None,
                         q_start: np.ndarray | None = None) -> ProgramCompensation:
     """Compensate every literal target of ``program`` on the branch it states (module docstring);
-    ``config_of(robot, q) -> bits`` as the language writes them (:data:`kincal.io.branches.BITS`); ``frames``:
-    the program's tool and base frames by name (4x4, m), beside those it declares itself (RAPID's tooldata and
-    wobjdata; a given one wins); ``q_start``: the joints before the first move (default: the first joint
-    target's, else the zero pose: the bits choose the branch). The replacement texts are checked end to end
-    (:func:`check_written`)."""
+    ``rows(robot, q (N, 6)) -> bits per row`` as the language writes them (:data:`kincal.io.branches.ROWS`);
+    ``frames``: the program's tool and base frames by name (4x4, m), beside those it declares itself (RAPID's
+    tooldata and wobjdata; a given one wins); ``q_start``: the joints before the first move (default: the first
+    joint target's, else the zero pose: the bits choose the branch). Batched: the controller's joints of all
+    targets are solved together, each from the start and then from its predecessor's joints, and only what
+    that leaves is searched one by one. The replacement texts are checked end to end (:func:`check_written`)."""
     dialect = dialects()[program.dialect]
     frames = {**dialect.frames(program), **(frames or {})}  # the program's declared frames, unless given
     model, nominal = model.with_tool_point(np.zeros(3)), nominal.with_tool_point(np.zeros(3))  # flange poses
-    q_prev = (next((t.values for t in program.targets if t.kind == "joints"), np.clip(0.0, model.lower, model.upper))
-              if q_start is None else np.asarray(q_start, dtype=float))
-    texts, refused, qs = {}, {}, np.full((len(program.targets), model.n_joints), np.nan)
-    for k, t in enumerate(program.targets):
-        found = _target(model, nominal, t, _frames(program.dialect, t, frames), config_of, q_prev)
-        if isinstance(found, str):
-            refused[k] = found
-            continue
-        qs[k], q_prev, values = found
-        texts[k] = dialect.write(program.text, t, values)
-    for k, why in check_written(model, nominal, program, texts, qs, config_of, frames).items():
+    q0 = (next((t.values for t in program.targets if t.kind == "joints"), np.clip(0.0, model.lower, model.upper))
+          if q_start is None else np.asarray(q_start, dtype=float))
+    goals, tools, refused = _goals(nominal, program, frames)
+    q_nom = _controller_joints(nominal, program, goals, rows, q0, refused)
+    qs = _corrected_all(model, nominal, program, goals, q_nom, rows, refused)
+    values = _written(nominal, program.targets, qs, tools, [k for k in range(len(qs)) if k not in refused])
+    texts = {k: dialect.write(program.text, program.targets[k], v) for k, v in values.items()}
+    for k, why in check_written(model, nominal, program, texts, qs, rows, frames).items():
         texts.pop(k)
         refused[k] = why
     problems = tuple(f"{program.source}: line {program.targets[k].line} ({program.targets[k].move}"
                      f"{' ' + program.targets[k].variable if program.targets[k].variable else ''}): {why}; left as is"
                      for k, why in sorted(refused.items()))
     return ProgramCompensation(texts, qs, problems, program.not_literal, refused)
+
+
+def _goals(nominal: Robot, program: Program, frames: Mapping[str, np.ndarray]):
+    """Each target's flange pose (p (N, 3), R (N, 3, 3); NaN where refused), its (tool, base) frames (None for
+    joints) and the refusals so far (index -> why): a joint target's pose is the nominal model's there."""
+    n = len(program.targets)
+    p, R = np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)
+    tools: list = [None] * n
+    refused: dict[int, str] = {}
+    joints = [k for k, t in enumerate(program.targets) if t.kind == "joints"]
+    for k in joints:
+        if program.targets[k].values.size != nominal.n_joints:
+            refused[k] = f"{program.targets[k].values.size} joint values for a {nominal.n_joints}-joint robot"
+    ok = [k for k in joints if k not in refused]
+    if ok:
+        p[ok], R[ok], _, _ = nominal.pose_and_jacobian(np.array([program.targets[k].values for k in ok]))
+    for k, t in enumerate(program.targets):
+        if t.kind != "joints":
+            known = _frames(program.dialect, t, frames)
+            if isinstance(known, str):
+                refused[k] = known
+                continue
+            tools[k] = known
+            F = known[1] @ _pose(t.values) @ np.linalg.inv(known[0])
+            p[k], R[k] = F[:3, 3], F[:3, :3]
+    return (p, R), tools, refused
+
+
+def _controller_joints(nominal: Robot, program: Program, goals, rows: Rows, q0: np.ndarray,
+                       refused: dict[int, str]) -> np.ndarray:
+    """The controller's joints (N, n) of every target (NaN where refused; refusals added): joint targets as
+    written; pose targets by batched Newton passes, each from the joints of the last target before it that is
+    solved (q0 before any), kept when its bits are the target's (without bits: only from its predecessor's
+    joints, the nearest branch); where a pass finds nothing new, the first target left is searched alone
+    (:func:`controller_inverse`), and the passes go on from it."""
+    p, R = goals
+    targets = program.targets
+    q_nom = np.full((len(targets), nominal.n_joints), np.nan)
+    for k, t in enumerate(targets):
+        if t.kind == "joints" and k not in refused:
+            q_nom[k] = t.values
+    pending = [k for k, t in enumerate(targets) if t.kind != "joints" and k not in refused]
+    tried: dict[int, int] = {}  # target -> the target whose joints it last started from (-1: q0)
+    while pending:
+        starts = _starts(q_nom, pending, tried, targets)
+        if starts:
+            _pass(nominal, program, goals, rows, q_nom, starts, q0)
+            tried.update(starts)
+        before = len(pending)
+        pending = [k for k in pending if np.isnan(q_nom[k, 0])]
+        if len(pending) == before and pending:  # nothing new: the first one left, alone
+            k = pending.pop(0)
+            near = _last_solved(q_nom, k)
+            found = controller_inverse(nominal, p[k][None], R[k][None], q0 if near < 0 else q_nom[near],
+                                       targets[k].config, _single(rows))
+            if isinstance(found, str):
+                refused[k] = found
+            else:
+                q_nom[k] = found
+    return q_nom
+
+
+def _last_solved(q_nom: np.ndarray, k: int) -> int:
+    """The last target before k whose controller joints are known (-1: none)."""
+    known = np.flatnonzero(~np.isnan(q_nom[:k, 0]))
+    return int(known[-1]) if known.size else -1
+
+
+def _starts(q_nom: np.ndarray, pending: list[int], tried: dict[int, int], targets) -> dict[int, int]:
+    """For each pending target a start not tried yet: the last solved target before it (-1: q0); a target
+    without bits starts only from its immediate predecessor (the nearest branch is the controller's)."""
+    solved = np.where(~np.isnan(q_nom[:, 0]), np.arange(len(q_nom)), -1)
+    last = np.concatenate([[-1], np.maximum.accumulate(solved)[:-1]])  # the last solved before each target
+    out = {}
+    for k in pending:
+        j = int(last[k])
+        if tried.get(k) != j and (targets[k].config or j == k - 1 or (j < 0 and k == pending[0])):
+            out[k] = j
+    return out
+
+
+def _pass(nominal: Robot, program: Program, goals, rows: Rows, q_nom: np.ndarray, starts: dict[int, int],
+          q0: np.ndarray) -> None:
+    """One batched Newton pass of the controller's joints from the given starts; a solution within the joint
+    limits is kept (in q_nom) when its bits are the target's (any, for a target without bits)."""
+    ks = np.array(sorted(starts))
+    q_start = np.array([q0 if starts[k] < 0 else q_nom[starts[k]] for k in ks])
+    sol = solve_poses(nominal, goals[0][ks], goals[1][ks], q_start, max_iter=SEARCH[0], max_travel=SEARCH[1])
+    fine = sol.converged & nominal.within_limits(sol.q)
+    bits = rows(nominal, sol.q[fine]) if fine.any() else []
+    for k, q, b in zip(ks[fine], sol.q[fine], bits):
+        config = tuple(program.targets[k].config)
+        if not config or tuple(b) == config:
+            q_nom[k] = q
+
+
+def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom: np.ndarray, rows: Rows,
+                   refused: dict[int, str]) -> np.ndarray:
+    """The corrected joints (N, n) of every target not refused (NaN elsewhere; refusals added): Newton on the
+    calibrated model from the controller's joints, together; refused where it did not converge, left the nominal
+    branch, broke a joint limit or changed the target's bits (each named, with a singularity's condition)."""
+    p, R = goals
+    qs = np.full_like(q_nom, np.nan)
+    idx = np.array([k for k in range(len(q_nom)) if k not in refused], dtype=int)
+    if not idx.size:
+        return qs
+    sol = solve_poses(model, p[idx], R[idx], q_nom[idx])
+    tol = np.array([BRANCH_TOL[j] for j in model.joint_types])
+    off = (np.abs(sol.q - q_nom[idx]) > tol).any(axis=1)
+    outside = ~model.within_limits(sol.q)
+    bits = rows(model, np.where(np.isfinite(sol.q), sol.q, 0.0))
+    for i, k in enumerate(idx):
+        config = tuple(program.targets[k].config)
+        why = ("the correction did not converge" if not sol.converged[i] else
+               "the corrected joints leave the nominal branch" if off[i] else
+               "the corrected joints break the joint limits" if outside[i] else
+               f"the corrected joints' configuration bits {tuple(bits[i])} differ from the target's {config}"
+               if config and tuple(bits[i]) != config else "")
+        if why:
+            refused[int(k)] = why + _singular(nominal, q_nom[k])
+        else:
+            qs[k] = sol.q[i]
+    return qs
+
+
+def _written(nominal: Robot, targets, qs: np.ndarray, tools: list, ks: list[int]) -> dict[int, np.ndarray]:
+    """The new SI values of the targets ks: the corrected joints, or the pose the nominal model reaches there in
+    the program's frames (the filtered pose, which the controller turns back into them); all at once."""
+    out = {k: qs[k] for k in ks if targets[k].kind == "joints"}
+    poses = [k for k in ks if targets[k].kind != "joints"]
+    if poses:
+        pf, Rf, _, _ = nominal.pose_and_jacobian(qs[poses])
+        T = [np.linalg.inv(tools[k][1]) @ _pose_of(p, R) @ tools[k][0] for k, p, R in zip(poses, pf, Rf)]
+        rot = rotation_log(np.array([x[:3, :3] for x in T]))
+        out.update({k: np.concatenate([x[:3, 3], r]) for k, x, r in zip(poses, T, rot)})
+    return out
+
+
+def _single(rows: Rows) -> Config:
+    """The bits of one joint vector, from the rule for rows."""
+    return lambda robot, q: tuple(rows(robot, np.asarray(q, dtype=float)[None])[0])
 
 
 def _frames(dialect: str, t: Target, frames: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray] | str:
@@ -91,33 +233,6 @@ def _frames(dialect: str, t: Target, frames: Mapping[str, np.ndarray]) -> tuple[
     return out[0], out[1]
 
 
-def _target(model: Robot, nominal: Robot, t: Target, frames, config_of: Config, q_prev: np.ndarray):
-    """(corrected joints, the joints the next target starts from, new SI values) or why not."""
-    if t.kind == "joints":  # (joints need no frame)
-        if t.values.size != model.n_joints:
-            return f"{t.values.size} joint values for a {model.n_joints}-joint robot"
-        q_nom = t.values
-        p, R, _, _ = nominal.pose_and_jacobian(q_nom[None])
-    else:
-        if isinstance(frames, str):
-            return frames
-        tool, base = frames
-        p, R = _flange(base @ _pose(t.values) @ np.linalg.inv(tool))
-        found = controller_inverse(nominal, p, R, q_prev, t.config, config_of)
-        if isinstance(found, str):
-            return found
-        q_nom = found
-    q, why = corrected(model, p, R, q_nom)
-    why = why or _bits_kept(model, q, t.config, config_of)
-    if why:
-        return why + _singular(nominal, q_nom)
-    if t.kind == "joints":
-        return q, q, q
-    pf, Rf, _, _ = nominal.pose_and_jacobian(q[None])
-    target = np.linalg.inv(base) @ _pose_of(pf[0], Rf[0]) @ tool
-    return q, q, np.concatenate([target[:3, 3], rotation_log(target[None, :3, :3])[0]])
-
-
 def _singular(robot: Robot, q: np.ndarray) -> str:
     """A note when the arm is near a singularity at q (its pose Jacobian's condition number above SINGULAR):
     there the pose does not fix every joint, the usual cause of a correction that fails; else ''."""
@@ -126,14 +241,6 @@ def _singular(robot: Robot, q: np.ndarray) -> str:
     cond = s[0] / max(s[-1], 1e-300)
     return f" (the arm is at or near a singularity here: condition number {cond:.1e}; move the target off it)" \
         if cond > SINGULAR else ""
-
-
-def _bits_kept(model: Robot, q: np.ndarray, config: tuple, config_of: Config) -> str:
-    if not config:
-        return ""
-    again = tuple(config_of(model, q))
-    return "" if again == tuple(config) else (f"the corrected joints' configuration bits {again} differ from the "
-                                             f"target's {tuple(config)}")
 
 
 def controller_inverse(robot: Robot, p: np.ndarray, R: np.ndarray, near: np.ndarray, config: tuple,
@@ -167,38 +274,38 @@ def _turns(robot: Robot, q: np.ndarray) -> list[np.ndarray]:
     return [np.array(c) for c in itertools.product(*options)]
 
 
-def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, qs: np.ndarray, config_of: Config,
+def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, qs: np.ndarray, rows: Rows,
                   frames: Mapping[str, np.ndarray]) -> dict[int, str]:
-    """The compensated targets whose text, read again, does not bring the robot where the program meant:
-    for each, why (the controller's joints of the written target, on its bits from the corrected joints,
-    must reach the intended pose on the calibrated model to ``CHECK_TOL``)."""
+    """The compensated targets whose text, read again, does not bring the robot where the program meant, and
+    why: a written pose target's controller joints (Newton on the nominal model from the corrected joints, on
+    the target's bits) and a written joint target's joints must put the calibrated model's flange on the
+    intended pose to ``CHECK_TOL``. All together."""
     if not texts:
         return {}
     model, nominal = model.with_tool_point(np.zeros(3)), nominal.with_tool_point(np.zeros(3))  # flange poses
     again = dialects()[program.dialect].parse(program.source, program.with_targets(texts))
-    bad = {}
-    for k in texts:
-        old, new = program.targets[k], again.targets[k]
-        known = _frames(program.dialect, old, frames)
-        if old.kind == "joints":
-            p, R, _, _ = nominal.pose_and_jacobian(old.values[None])
-            q = new.values
-        elif isinstance(known, str):  # (it was solved, so its frames are known)
-            bad[k] = known
-            continue
-        else:
-            tool, base = known
-            p, R = _flange(base @ _pose(old.values) @ np.linalg.inv(tool))
-            found = controller_inverse(nominal, *_flange(base @ _pose(new.values) @ np.linalg.inv(tool)), qs[k],
-                                       new.config, config_of)
-            if isinstance(found, str):
-                bad[k] = f"the written target does not come back: {found}"
-                continue
-            q = found
-        pm, Rm, _, _ = model.pose_and_jacobian(q[None])
-        miss, turn = np.linalg.norm(pm - p), np.linalg.norm(rotation_log(Rm @ np.swapaxes(R, 1, 2)))
-        if miss > CHECK_TOL or turn > CHECK_TOL:
-            bad[k] = f"the written target misses by {miss * 1e3:.2e} mm / {turn:.2e} rad (checked as read again)"
+    ks = sorted(texts)
+    old = [program.targets[k] for k in ks]
+    goals, _, _ = _goals(nominal, dataclasses.replace(program, targets=tuple(old)), frames)
+    new = dataclasses.replace(program, targets=tuple(again.targets[k] for k in ks))
+    written, _, _ = _goals(nominal, new, frames)
+    poses = np.array([t.kind != "joints" for t in old])
+    q = np.array([again.targets[k].values if t.kind == "joints" else qs[k] for k, t in zip(ks, old)])
+    bad: dict[int, str] = {}
+    if poses.any():
+        sol = solve_poses(nominal, written[0][poses], written[1][poses], q[poses])
+        q[poses] = sol.q
+        bits = rows(nominal, np.where(np.isfinite(sol.q), sol.q, 0.0))
+        for i, k in enumerate(np.array(ks)[poses]):
+            config = tuple(program.targets[k].config)
+            if not sol.converged[i] or (config and tuple(bits[i]) != config):
+                bad[int(k)] = "the written target does not come back on its branch when read again"
+    pm, Rm, _, _ = model.pose_and_jacobian(q)
+    miss = np.linalg.norm(pm - goals[0], axis=1)
+    turn = np.linalg.norm(rotation_log(Rm @ np.swapaxes(goals[1], 1, 2)), axis=1)
+    for k, m, r in zip(ks, miss, turn):
+        if k not in bad and not (m <= CHECK_TOL and r <= CHECK_TOL):
+            bad[k] = f"the written target misses by {m * 1e3:.2e} mm / {r:.2e} rad (checked as read again)"
     return bad
 
 

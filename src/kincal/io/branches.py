@@ -32,20 +32,35 @@ def kuka_status_turn(robot: Robot, q: np.ndarray) -> tuple[int, int]:
     (bit 1: wrist in front of the A2–A3 line; bit 2: A5 < 0); Siemens SINUMERIK ONE 6FC5398-2EP40-0BA0 pp. 710,
     713; robot-forum thread 45777 reports some KUKA documents wrong about bit 2 and, tested on a KR 60-3, that it
     follows A5's sign; real programs carry "S 2, T 2" and "S 6, T 50"."""
+    return kuka_rows(robot, np.asarray(q, dtype=float)[None])[0]
+
+
+def kuka_rows(robot: Robot, q: np.ndarray) -> list[tuple]:
+    """:func:`kuka_status_turn` of each row of q (N, 6)."""
     q, points, axes, wrist = six_axes(robot, q, "KUKA status and turn")
-    overhead = (wrist - points[0]) @ np.cross(axes[0], axes[1]) < 0.0
-    in_front = axes[2] @ np.cross(points[2] - points[1], wrist - points[2]) >= 0.0
-    flipped = (q[4] + np.pi) % (2.0 * np.pi) < np.pi
-    turn = sum(1 << k for k, a in enumerate(q) if a < 0.0)
-    return int(overhead) | int(in_front) << 1 | int(flipped) << 2, int(turn)
+    overhead = _dot(wrist - points[:, 0], np.cross(axes[:, 0], axes[:, 1])) < 0.0
+    in_front = _dot(axes[:, 2], np.cross(points[:, 2] - points[:, 1], wrist - points[:, 2])) >= 0.0
+    flipped = (q[:, 4] + np.pi) % (2.0 * np.pi) < np.pi
+    s = overhead.astype(int) | in_front.astype(int) << 1 | flipped.astype(int) << 2
+    turn = ((q < 0.0).astype(int) << np.arange(6)).sum(axis=1)
+    return [(int(a), int(b)) for a, b in zip(s, turn)]
 
 
-def quadrant(angle: float) -> int:
-    """ABB's quadrant number of a joint angle (rad): floor(angle / 90°) — 0 for 0..90°, −1 for 0..−90°, …
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("ni,ni->n", a, b)
+
+
+def quadrant(angle):
+    """(See :func:`quadrants`.)"""
+    return int(quadrants(np.asarray([angle], dtype=float))[0])
+
+
+def quadrants(angle: np.ndarray) -> np.ndarray:
+    """ABB's quadrant numbers of joint angles (rad): floor(angle / 90°) — 0 for 0..90°, −1 for 0..−90°, …
     (RAPID confdata: "the current quadrant of the axis, as a positive or negative integer"), the angle
     rounded to 1e-9° first so that a written multiple of 90° keeps its quadrant through rad. On a boundary
     the manual does not say; floor puts −90° in −1."""
-    return int(np.floor(round(float(np.degrees(angle)), QUADRANT_DECIMALS) / 90.0))
+    return np.floor(np.round(np.degrees(angle), QUADRANT_DECIMALS) / 90.0).astype(int)
 
 
 def abb_confdata(robot: Robot, q: np.ndarray) -> tuple[int, int, int, int]:
@@ -55,18 +70,25 @@ def abb_confdata(robot: Robot, q: np.ndarray) -> tuple[int, int, int, int]:
     planes are its three singularities. Source: ABB, Technical reference manual RAPID Instructions, Functions
     and Data types, ``confdata``, as reproduced in py-opw-kinematics' AXIS_CONFIGURATION.md and ARTE's
     compute_configuration.m (ABB's own text was not in reach)."""
+    return abb_rows(robot, np.asarray(q, dtype=float)[None])[0]
+
+
+def abb_rows(robot: Robot, q: np.ndarray) -> list[tuple]:
+    """:func:`abb_confdata` of each row of q (N, 6)."""
     q, points, axes, wrist = six_axes(robot, q, "ABB confdata")
-    arm = points[2] - points[1]
-    arm -= (arm @ axes[1]) * axes[1]  # axes 2 and 3 are parallel: their common normal
-    behind_axis1 = (wrist - points[0]) @ np.cross(axes[1], axes[0]) < 0
-    behind_arm = (wrist - points[1]) @ np.cross(axes[1], arm) < 0
-    return quadrant(q[0]), quadrant(q[3]), quadrant(q[5]), 4 * int(behind_axis1) + 2 * int(behind_arm) + int(q[4] < 0)
+    arm = points[:, 2] - points[:, 1]
+    arm -= _dot(arm, axes[:, 1])[:, None] * axes[:, 1]  # axes 2 and 3 are parallel: their common normal
+    behind_axis1 = _dot(wrist - points[:, 0], np.cross(axes[:, 1], axes[:, 0])) < 0
+    behind_arm = _dot(wrist - points[:, 1], np.cross(axes[:, 1], arm)) < 0
+    cfx = 4 * behind_axis1.astype(int) + 2 * behind_arm.astype(int) + (q[:, 4] < 0).astype(int)
+    cf = quadrants(q[:, [0, 3, 5]])
+    return [(int(a), int(b), int(c), int(x)) for (a, b, c), x in zip(cf, cfx)]
 
 
-def _fanuc_turn(angle: float) -> int:
-    """FANUC's turn number of a joint angle (rad): 0 on (−180°, 180°), ±1 from ±180° on, every 360°."""
-    deg = float(np.degrees(angle))
-    return int(np.floor((deg + 180.0) / 360.0)) if deg >= 0 else -int(np.floor((180.0 - deg) / 360.0))
+def _fanuc_turns(angle: np.ndarray) -> np.ndarray:
+    """FANUC's turn numbers of joint angles (rad): 0 on (−180°, 180°), ±1 from ±180° on, every 360°."""
+    deg = np.degrees(angle)
+    return np.where(deg >= 0, np.floor((deg + 180.0) / 360.0), -np.floor((180.0 - deg) / 360.0)).astype(int)
 
 
 def fanuc_config(robot: Robot, q: np.ndarray) -> tuple[str, int, int, int]:
@@ -77,16 +99,22 @@ def fanuc_config(robot: Robot, q: np.ndarray) -> tuple[str, int, int, int]:
     through J1's axis across the arm, B behind. Turns: RoboDK's FANUC R-30iA post processor (``angle_2_turn``).
     Sources: Tesseract's ``getRobotConfig`` (robot_config.h, SwRI, Apache-2.0) for the letters; FANUC's own
     manual text was not in reach, and one web page states the flip letter the other way round."""
+    return fanuc_rows(robot, np.asarray(q, dtype=float)[None])[0]
+
+
+def fanuc_rows(robot: Robot, q: np.ndarray) -> list[tuple]:
+    """:func:`fanuc_config` of each row of q (N, 6)."""
     q, points, axes, wrist = six_axes(robot, q, "FANUC CONFIG letters")
-    elbow = np.dot(np.cross(points[2] - points[1], wrist - points[2]), axes[1])
-    front = np.dot(np.cross(axes[1], axes[0]), wrist - points[0])
-    letters = f"{'F' if q[4] >= 0 else 'N'} {'U' if elbow > 0 else 'D'} {'T' if front >= 0 else 'B'}"
-    return letters, _fanuc_turn(q[0]), _fanuc_turn(q[3]), _fanuc_turn(q[5])
+    elbow = _dot(np.cross(points[:, 2] - points[:, 1], wrist - points[:, 2]), axes[:, 1])
+    front = _dot(np.cross(axes[:, 1], axes[:, 0]), wrist - points[:, 0])
+    turns = _fanuc_turns(q[:, [0, 3, 5]])
+    return [(f"{'F' if j5 >= 0 else 'N'} {'U' if e > 0 else 'D'} {'T' if f >= 0 else 'B'}", int(a), int(b), int(c))
+            for j5, e, f, (a, b, c) in zip(q[:, 4], elbow, front, turns)]
 
 
-def _beyond_180(angle: float) -> int:
+def _beyond_180(angle: np.ndarray) -> np.ndarray:
     """1 where an axis angle (rad) is outside −180° < θ ≤ 180° (the "≥ 180" digit), else 0."""
-    return int(not -math.pi < angle <= math.pi)
+    return (~((-math.pi < angle) & (angle <= math.pi))).astype(int)
 
 
 def yaskawa_rconf(robot: Robot, q: np.ndarray, digits: int = RCONF_DIGITS) -> tuple[int, ...]:
@@ -98,14 +126,21 @@ def yaskawa_rconf(robot: Robot, q: np.ndarray, digits: int = RCONF_DIGITS) -> tu
     Yaskawa America's YMConnect SDK header (enums FlipOrNoFlip, UpperOrLower, FrontOrBack, AxisAngle); the NX100
     operator's manual (3.9) words the flip by the R axis instead, and its R/T/S table's negative side was not in
     reach."""
+    return yaskawa_rows(robot, np.asarray(q, dtype=float)[None], digits)[0]
+
+
+def yaskawa_rows(robot: Robot, q: np.ndarray, digits: int = RCONF_DIGITS) -> list[tuple]:
+    """:func:`yaskawa_rconf` of each row of q (N, 6)."""
     q, points, axes, wrist = six_axes(robot, q, "Yaskawa RCONF digits")
     if digits < RCONF_DIGITS:
         raise ValueError(f"RCONF has at least {RCONF_DIGITS} digits, not {digits}")
-    rear = int(float((wrist - points[0]) @ np.cross(axes[1], axes[0])) < 0.0)
-    lower = int(float(np.cross(points[1] - points[2], wrist - points[2]) @ axes[1]) > 0.0)
-    found = (int(q[4] < 0.0), lower, rear, _beyond_180(q[3]), _beyond_180(q[5]), _beyond_180(q[0]))
-    return found + (0,) * (digits - RCONF_DIGITS)
+    rear = (_dot(wrist - points[:, 0], np.cross(axes[:, 1], axes[:, 0])) < 0.0).astype(int)
+    lower = (_dot(np.cross(points[:, 1] - points[:, 2], wrist - points[:, 2]), axes[:, 1]) > 0.0).astype(int)
+    found = np.column_stack([(q[:, 4] < 0.0).astype(int), lower, rear, _beyond_180(q[:, [3, 5, 0]])])
+    return [tuple(int(x) for x in row) + (0,) * (digits - RCONF_DIGITS) for row in found]
 
 
 BITS: dict[str, Callable[[Robot, np.ndarray], tuple]] = {
     "krl": kuka_status_turn, "rapid": abb_confdata, "fanuc": fanuc_config, "inform": yaskawa_rconf}
+ROWS: dict[str, Callable[[Robot, np.ndarray], list[tuple]]] = {
+    "krl": kuka_rows, "rapid": abb_rows, "fanuc": fanuc_rows, "inform": yaskawa_rows}  # the same, row by row of (N, 6)

@@ -44,7 +44,9 @@ are X, Y, Z, A, B, C or A1..A6 (in that order); S, T and E1..E6 stay byte for by
 """
 from __future__ import annotations
 
+import bisect
 import dataclasses
+import functools
 import re
 
 import numpy as np
@@ -280,8 +282,29 @@ class _File:
     used: set[int] = dataclasses.field(default_factory=set)
     first_move: dict[str, tuple[str, int]] = dataclasses.field(default_factory=dict)
 
+    @functools.cached_property
+    def _breaks(self) -> list[int]:
+        """Where each line break is (a line is found by bisection: a long .dat is read in linear time)."""
+        return [m.start() for m in re.finditer("\n", self.text)]
+
+    @functools.cached_property
+    def _fdat(self) -> dict[str, tuple[str, str]]:
+        """FDAT F<name> -> its (tool, base) as written ('' where it names none), by upper-case name."""
+        out: dict[str, tuple[str, str]] = {}
+        for m in FDAT.finditer(self.code):
+            parts = self.aggs[m.end() - 1].parts
+            got = [f"{k} {self.text[slice(*parts[k])]}" if k in parts else "" for k in ("TOOL_NO", "BASE_NO")]
+            out.setdefault(m.group(1).upper(), (got[0], got[1]))
+        return out
+
+    @functools.cached_property
+    def _settings(self) -> list[tuple[int, int, str]]:
+        """Each $TOOL / $BASE assignment: (where, 0 tool or 1 base, the value as written), in text order."""
+        return [(m.start(), int(m.group(1).upper() == "BASE"), self.text[m.start(2):m.end(2)])
+                for m in re.finditer(r"^[ \t]*\$(TOOL|BASE)[ \t]*=[ \t]*([^\n]*?)[ \t\r]*$", self.code, re.M | re.I)]
+
     def line(self, at: int) -> int:
-        return self.text.count("\n", 0, at) + 1
+        return bisect.bisect_left(self._breaks, at) + 1
 
     def note(self, at: int, what: str, why: str) -> None:
         self.listed.append((self.line(at), " ".join(what.split()), why))
@@ -298,14 +321,13 @@ class _File:
         """(tool, base) of a target at ``at``: the FDAT F<name> of a point X<name>, else the last
         $TOOL and $BASE set before it ('' for none)."""
         name = variable.split("[")[0].upper()
-        for m in FDAT.finditer(self.code):
-            if name[:1] == "X" and m.group(1).upper() == name[1:]:
-                parts = self.aggs[m.end() - 1].parts
-                got = [f"{k} {self.text[slice(*parts[k])]}" if k in parts else "" for k in ("TOOL_NO", "BASE_NO")]
-                return got[0], got[1]
+        if name[:1] == "X" and name[1:] in self._fdat:
+            return self._fdat[name[1:]]
         out = ["", ""]
-        for m in re.finditer(r"^[ \t]*\$(TOOL|BASE)[ \t]*=[ \t]*([^\n]*?)[ \t\r]*$", self.code[:at], re.M | re.I):
-            out[m.group(1).upper() == "BASE"] = self.text[m.start(2):m.end(2)]
+        for where, which, value in self._settings:
+            if where >= at:
+                break
+            out[which] = value
         return out[0], out[1]
 
 

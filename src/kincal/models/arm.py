@@ -17,41 +17,43 @@ from .transmission import TransmissionRobot
 
 
 def axis_lines(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A point on each joint axis (n, 3) m and its unit direction (n, 3), in the sense of the joint's positive
-    turn, at joint values q (n,) rad (a transmission: its chain's axes at the joints the actuators give).
-    ModelError unless every (chain) joint is revolute and q is n finite values."""
-    q = np.asarray(q, dtype=float).reshape(-1)
-    if q.size != robot.n_joints or not np.all(np.isfinite(q)):
-        raise ModelError(f"robot '{robot.name}': {robot.n_joints} finite joint values expected, got {q.size}")
+    """A point on each joint axis and its unit direction, in the sense of the joint's positive turn, at joint
+    values q (n,) rad, each (n, 3); or for q (N, n), each (N, n, 3) (a transmission: its chain's axes at the
+    joints the actuators give). ModelError unless every (chain) joint is revolute and q holds n finite values."""
+    q = np.asarray(q, dtype=float)
+    Q = np.atleast_2d(q)
+    if Q.ndim != 2 or Q.shape[1] != robot.n_joints or not np.all(np.isfinite(Q)):
+        raise ModelError(f"robot '{robot.name}': {robot.n_joints} finite joint values expected, got {q.shape[-1]}")
     chain: Robot = robot
     if isinstance(robot, TransmissionRobot):
-        chain, q = robot.inner, robot.chain_q(q[None])[0]
+        chain, Q = robot.inner, robot.chain_q(Q)
     if set(chain.joint_types) != {"revolute"}:
         raise ModelError(f"robot '{robot.name}' ({robot.structure}): the branch bits are for arms of revolute axes")
-    p, _, Jp, Jw = chain.pose_and_jacobian(q)
-    u = Jw.T / np.linalg.norm(Jw.T, axis=1, keepdims=True)
-    return p + np.cross(u, Jp.T), u
+    p, _, Jp, Jw = chain.pose_and_jacobian(Q)
+    u = np.swapaxes(Jw, 1, 2)
+    u = u / np.linalg.norm(u, axis=2, keepdims=True)
+    points = p[:, None, :] + np.cross(u, np.swapaxes(Jp, 1, 2))
+    return (points[0], u[0]) if q.ndim == 1 else (points, u)
 
 
 def nearest_point(points: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """The point (3,) m nearest (least squares) to the lines through ``points`` (k, 3) along the unit
-    ``directions`` (k, 3): where they meet, or nearly meet (a calibrated wrist). ModelError when the lines
-    are all parallel."""
-    A, b = np.zeros((3, 3)), np.zeros(3)
-    for c, u in zip(points, directions):
-        P = np.eye(3) - np.outer(u, u)
-        A, b = A + P, b + P @ c
-    if np.linalg.matrix_rank(A, tol=1e-9) < 3:
+    ``directions`` (k, 3) — where they meet, or nearly meet (a calibrated wrist); for (N, k, 3) each, (N, 3).
+    ModelError when the lines are all parallel."""
+    P = np.eye(3) - directions[..., :, None] * directions[..., None, :]  # (…, k, 3, 3): across each line
+    A, b = P.sum(axis=-3), np.einsum("...kij,...kj->...i", P, points)
+    if np.any(np.linalg.svd(A, compute_uv=False)[..., -1] < 1e-9):
         raise ModelError("the wrist's axes are parallel: the arm has no wrist centre")
-    return np.linalg.solve(A, b)
+    return np.linalg.solve(A, b[..., None])[..., 0]
 
 
 def six_axes(robot: Robot, q: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(q (6,), axis points (6, 3), directions (6, 3), the wrist centre: nearest the axes 4, 5, 6) of a six-axis
-    arm at joints q (rad); ModelError naming ``what`` (the bits asked for) for another joint count."""
-    q = np.asarray(q, dtype=float).reshape(-1)
-    if q.size != 6 or robot.n_joints != 6:
-        raise ModelError(f"robot '{robot.name}': {what} are defined for six-axis arms; got {q.size} joint values for "
-                         f"{robot.n_joints} joints")
-    points, axes = axis_lines(robot, q)
-    return q, points, axes, nearest_point(points[3:], axes[3:])
+    """(q (N, 6), axis points (N, 6, 3), directions (N, 6, 3), wrist centres (N, 3): nearest the axes 4, 5, 6) of
+    a six-axis arm at joints q (6,) or (N, 6) rad; ModelError naming ``what`` (the bits asked for) for another
+    joint count."""
+    Q = np.atleast_2d(np.asarray(q, dtype=float))
+    if Q.ndim != 2 or Q.shape[1] != 6 or robot.n_joints != 6:
+        raise ModelError(f"robot '{robot.name}': {what} are defined for six-axis arms; got {Q.shape[-1]} joint values "
+                         f"for {robot.n_joints} joints")
+    points, axes = axis_lines(robot, Q)
+    return Q, points, axes, nearest_point(points[:, 3:], axes[:, 3:])
