@@ -175,8 +175,9 @@ def _integer(value: str) -> int:
     return int(float(value))
 
 
-def _target(text: str, agg: _Aggregate, move: str, at: int, variable: str, frames: tuple[str, str]) -> Target:
-    """The Target of a complete position aggregate (checked already)."""
+def _target(text: str, agg: _Aggregate, move: str, at: int, variable: str, frames: tuple[str, str],
+            line: int) -> Target:
+    """The Target of a complete position aggregate (checked already) on ``line``."""
     keys = POSE_KEYS if agg.shape == "pose" else AXIS_KEYS
     fields = tuple(agg.parts[k] for k in keys)
     raw = np.array([float(text[a:b]) for a, b in fields])
@@ -188,7 +189,6 @@ def _target(text: str, agg: _Aggregate, move: str, at: int, variable: str, frame
     config: tuple = ()
     if "S" in agg.parts or "T" in agg.parts:
         config = tuple(_integer(text[slice(*agg.parts[k])]) if k in agg.parts else None for k in ("S", "T"))
-    line = text.count("\n", 0, agg.start) + 1
     return Target(agg.start, agg.end, line, move, agg.shape, values, at, variable, fields, config, frames)
 
 
@@ -375,7 +375,7 @@ def _inline(f: _File, agg: _Aggregate, move: str, at: int) -> None:
     if agg.missing:
         f.note(agg.start, f"{move} {f.text[agg.start:agg.end]}", _partial(agg))
         return
-    f.targets.append(_target(f.text, agg, move, at, "", f.frames(at, "")))
+    f.targets.append(_target(f.text, agg, move, at, "", f.frames(at, ""), f.line(agg.start)))
 
 
 def _partial(agg: _Aggregate) -> str:
@@ -406,7 +406,8 @@ def _points(f: _File) -> None:
             f.note(a, shown, _partial(agg))
         else:
             kind = kind or ("E6" if set(agg.parts) & set(EXTERNAL) else "") + ("POS" if agg.shape == "pose" else "AXIS")
-            f.targets.append(_target(f.text, agg, move or kind, at if move else a, shown, f.frames(a, var)))
+            f.targets.append(_target(f.text, agg, move or kind, at if move else a, shown, f.frames(a, var),
+                                     f.line(agg.start)))
 
 
 def _leftovers(f: _File) -> None:
