@@ -7,20 +7,22 @@ target's configuration bits name. For each literal target of such a program:
 * a joint target q₀ means the pose the nominal model reaches there; the corrected joints q reach that
   pose on the calibrated model (Newton from q₀) and are written as they are;
 * a pose target T (the TCP in the program's base frame B, with the program's tool frame U) is turned
-  into the controller's joints q₀: of the nominal model's inverse-kinematics solutions within the joint
-  limits (Newton from the previous target's joints, then from spread starts, each with the whole turns
-  the limits allow), those whose bits equal the target's, the one nearest the previous joints. The
+  into the controller's joints q₀: a nominal inverse-kinematics solution within the joint limits whose
+  bits equal the target's (all targets together by Newton passes, each from the joints of the last
+  target before it already solved; what they leave, one by one from spread starts with the whole turns
+  the limits allow; a target without bits takes the branch nearest its predecessor's joints). The
   corrected joints q reach T on the calibrated model; the target is replaced by the filtered pose, the
   one the nominal model reaches at q, which the controller turns back into q.
 
-The bits are derived again from q (``config_of``): they must equal the target's, else the target is
-refused with its line (as when the correction does not converge, leaves the nominal branch or breaks
-a joint limit). Frames are the program's own names (``Target.frames``): each must be given in
-``frames`` (name -> 4x4 pose, m) unless the language defines it as the identity (RAPID's tool0 and
-wobj0); a frame that is missing is refused, never taken as the identity; where the program names none, the frames'
-``default tool`` and ``default base`` are the ones in force. The written program is read
-again and every compensated target checked end to end: the controller's joints of the text as written
-reach the intended pose on the calibrated model (``CHECK_TOL``).
+The bits are derived again from q (the language's rule, :data:`kincal.io.branches.ROWS`): they must equal
+the target's, else the target is refused with its line (as when the correction does not converge, leaves
+the nominal branch or breaks a joint limit; at a singularity the refusal says so). Frames are the
+program's own names (``Target.frames``): each must be given in ``frames`` (name -> 4x4 pose, m) unless the
+language defines it as the identity (RAPID's tool0 and wobj0); a frame that is missing is refused, never
+taken as the identity; where the program names none, the frames' ``default tool`` and ``default base``
+are the ones in force. The written program is read again and every compensated target checked end to
+end: the controller's joints of the text as written reach the intended pose on the calibrated model
+(``CHECK_TOL``).
 """
 from __future__ import annotations
 

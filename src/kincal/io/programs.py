@@ -55,8 +55,9 @@ class Target:
 @dataclass(frozen=True)
 class Program:
     """A program's text, its literal targets in the order of the moves, what is listed, never touched
-    (line, what: the move or item as written, why: the reason a user reads), the TCPs it sets (position in the text, the pose
-    (6,) or None when not a literal), its language's comment mark and its dialect's name."""
+    (line, what: the move or item as written, why: the reason a user reads), the TCPs it sets (position in
+    the text, the pose (6,) or None when not a literal), its language's comment mark ('' for a language that
+    allows none beside a target) and its dialect's name."""
 
     source: str
     text: str
