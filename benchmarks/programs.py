@@ -8,7 +8,7 @@ import numpy as np
 
 import kincal
 from kincal.compensate import compensate_branches
-from kincal.io import BITS, ROWS, read_program
+from kincal.io import ROWS, read_program
 
 
 def program(nominal, n: int, path: str) -> None:
@@ -17,9 +17,10 @@ def program(nominal, n: int, path: str) -> None:
     q = np.radians([10, -80, 100, 20, 40, 30]) + t * np.radians([60, 30, -40, 90, 30, 120])
     p, R, _, _ = nominal.with_tool_point(np.zeros(3)).pose_and_jacobian(q)
     lines = ["DEFDAT  BENCH"]
+    bits = ROWS["krl"](nominal, q)
     for k in range(n):
         a, b, c = np.degrees(kincal.models.transforms.zyx_nearest(R[k], np.zeros(3)))
-        s, tt = BITS["krl"](nominal, q[k])
+        s, tt = bits[k]
         x, y, z = p[k] * 1e3
         lines.append(f"DECL E6POS XP{k}={{X {x:.3f},Y {y:.3f},Z {z:.3f},A {a:.3f},B {b:.3f},C {c:.3f},S {s},T {tt}}}")
     open(path, "w").write("\n".join(lines + ["ENDDAT", ""]))

@@ -203,12 +203,11 @@ def test_every_real_target_is_compensated_and_checked_or_refused_by_line(languag
         assert set(res.texts) | set(res.refused) == set(range(len(prog.targets)))
         assert not set(res.texts) & set(res.refused) and all(res.refused.values())
         assert all(f"line {prog.targets[k].line} " in p for k, p in zip(sorted(res.refused), res.problems))
+        again = dialects()[language].parse(str(path), prog.with_targets(res.texts)).targets
         for k in res.texts:  # a joint target: the calibrated arm at the new joints is where the nominal one was
             if prog.targets[k].kind == "joints":
-                new = read_program(str(path), language).targets[k]  # (unchanged file: the original)
-                again = dialects()[language].parse(str(path), prog.with_targets(res.texts)).targets[k]
-                pa = cal.with_tool_point(np.zeros(3)).pose_and_jacobian(again.values[None])[0]
-                pb = nominal.with_tool_point(np.zeros(3)).pose_and_jacobian(new.values[None])[0]
-                assert np.linalg.norm(pa - pb) < 1e-9
+                pa = cal.with_tool_point(np.zeros(3)).pose_and_jacobian(again[k].values[None])[0]
+                pb = nominal.with_tool_point(np.zeros(3)).pose_and_jacobian(prog.targets[k].values[None])[0]
+                assert np.linalg.norm(pa - pb) < 1e-9 and not np.allclose(again[k].values, prog.targets[k].values)
         compensated, refused = compensated + len(res.texts), refused + len(res.refused)
     assert compensated >= 1 and compensated + refused == {"krl": 22, "fanuc": 2}[language]

@@ -18,7 +18,7 @@ from .common import (EXIT_REFUSED, add_data_flags, checked, csv_list, emit, load
 
 
 def cmd_compensate(args) -> int:
-    cal = load_robot(args, [args.targets], [args.output])
+    cal = load_robot(args, [args.targets, *([args.frames] if args.frames else [])], [args.output])
     nominal_values = (kincal.models.load_calibration_record(args.robot) or {}).get("nominal")  # None: bundled, URDF
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
     values = nominal_values if isinstance(nominal_values, dict) else None

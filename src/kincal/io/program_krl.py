@@ -51,17 +51,12 @@ import re
 
 import numpy as np
 
-from ..errors import MeasurementError
 from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix, zyx_nearest
-from .programs import Dialect, Program, Target, fields_text, line_column
+from .programs import Dialect, Program, Target, fields_text
+from .krl_scan import (AXIS_KEYS, EXTERNAL, POSE_KEYS, _Aggregate, _aggregate, _blank, _check_brackets, _check_numbers,
+                       _fail, _integer)
 
-POSE_KEYS = ("X", "Y", "Z", "A", "B", "C")
-AXIS_KEYS = ("A1", "A2", "A3", "A4", "A5", "A6")
-EXTERNAL = ("E1", "E2", "E3", "E4", "E5", "E6")
 POINT_TYPES = ("E6POS", "POS", "E6AXIS", "AXIS", "FRAME")
-NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
-BITS = re.compile(r"'([BbHh])([0-9A-Fa-f]+)'")
-COMMENT_OR_STRING = re.compile(r"\"[^\"\n]*\"?|;[^\n]*")
 MOVE = re.compile(r"^[ \t]*(PTP_REL|LIN_REL|CIRC_REL|SPTP_REL|SLIN_REL|SCIRC_REL|PTP|LIN|CIRC|SPTP|SLIN|SCIRC|SPL)"
                   r"(?![\w$])", re.M | re.I)
 DECLARE = re.compile(r"^[ \t]*(?:GLOBAL[ \t]+)?(?:DECL[ \t]+)?(?:GLOBAL[ \t]+)?(E6POS|POS|E6AXIS|AXIS|FRAME)[ \t]+"
@@ -72,107 +67,6 @@ ASSIGN = re.compile(r"^[ \t]*(?:(?:GLOBAL|DECL)[ \t]+)*(?:[A-Za-z_]\w*[ \t]+)?(\
 OPERAND = re.compile(r"\$?[A-Za-z_]\w*(?:[ \t]*\[[^\]\n]*\])?(?:[ \t]*\.[ \t]*\w+)*")
 FDAT = re.compile(r"^[ \t]*(?:GLOBAL[ \t]+)?DECL[ \t]+(?:GLOBAL[ \t]+)?FDAT[ \t]+F(\w+)[ \t]*=[ \t]*\{", re.M | re.I)
 RUN_TIME = "the robot's position when the move starts, read at run time"
-
-
-def _fail(source: str, text: str, at: int, what: str) -> MeasurementError:
-    line, column = line_column(text, at)
-    return MeasurementError(f"{source}: line {line}, column {column}: {what}")
-
-
-def _blank(text: str) -> str:
-    """The text with comments and strings replaced by blanks of the same length."""
-    return COMMENT_OR_STRING.sub(lambda m: " " * len(m.group()), text)
-
-
-def _check_brackets(source: str, text: str, code: str) -> dict[int, int]:
-    """Every '{' and '[' closed by its own kind (else MeasurementError at the culprit): the end (after
-    the '}') of each '{' by its position."""
-    stack: list[int] = []
-    ends: dict[int, int] = {}
-    for i, c in enumerate(code):
-        if c in "{[":
-            stack.append(i)
-        elif c in "}]":
-            if not stack or code[stack[-1]] != {"}": "{", "]": "["}[c]:
-                raise _fail(source, text, i, f"a '{c}' with no '{'{' if c == '}' else '['}' open before it")
-            a = stack.pop()
-            ends[a] = i + 1
-    if stack:
-        raise _fail(source, text, stack[-1], f"a '{code[stack[-1]]}' that is never closed")
-    return ends
-
-
-@dataclasses.dataclass
-class _Aggregate:
-    """An aggregate {…}: its span, the type written before ':' and its components (KEY -> value span)."""
-
-    start: int
-    end: int
-    typed: str
-    parts: dict[str, tuple[int, int]]
-    nested: list[int]  # starts of aggregates that are component values
-
-    @property
-    def shape(self) -> str:
-        """"pose" or "joints" (position-shaped: only position components), else ''."""
-        keys = set(self.parts)
-        if self.nested or not keys:
-            return ""
-        if keys <= set(POSE_KEYS + EXTERNAL + ("S", "T")) and keys & set(POSE_KEYS):
-            return "pose"
-        if keys <= set(AXIS_KEYS + EXTERNAL) and keys & set(AXIS_KEYS):
-            return "joints"
-        return ""
-
-    @property
-    def missing(self) -> list[str]:
-        return [k for k in (POSE_KEYS if self.shape == "pose" else AXIS_KEYS) if k not in self.parts]
-
-
-def _aggregate(source: str, text: str, code: str, ends: dict[int, int], a: int) -> _Aggregate:
-    """The aggregate whose '{' is at ``a``; MeasurementError for a component without a value."""
-    b = ends[a]
-    i, typed = a + 1, ""
-    m = re.compile(r"[ \t]*([A-Za-z_]\w*)[ \t]*:(?!=)").match(code, i)
-    if m:
-        typed, i = m.group(1).upper(), m.end()
-    parts: dict[str, tuple[int, int]] = {}
-    nested: list[int] = []
-    key = re.compile(r"\s*([A-Za-z_$]\w*)(\[\])?\s*")
-    while i < b - 1:
-        k = key.match(code, i)
-        if not k:
-            return _Aggregate(a, b, typed, {}, [])  # not name-value components: not a position
-        j = k.end()
-        if code[j] == "{":
-            nested.append(j)
-            j = ends[j]
-        while code[j] not in ",}":
-            j = ends[j] if code[j] in "{[" else j + 1
-        lo, hi = k.end(), j
-        while hi > lo and code[hi - 1].isspace():
-            hi -= 1
-        if lo == hi and not k.group(2):
-            raise _fail(source, text, k.start(1), f"the component {k.group(1)} has no value")
-        parts[k.group(1).upper()] = (lo, hi)
-        i = j + 1
-    return _Aggregate(a, b, typed, parts, nested)
-
-
-def _check_numbers(source: str, text: str, agg: _Aggregate) -> None:
-    """Every component of a position is a number (S and T may be 'B…' bits)."""
-    for k, (lo, hi) in agg.parts.items():
-        value = text[lo:hi]
-        if NUMBER.fullmatch(value) or (k in ("S", "T") and BITS.fullmatch(value)):
-            continue
-        raise _fail(source, text, lo, f"'{value}' is not a number (component {k} of a position)")
-
-
-def _integer(value: str) -> int:
-    bits = BITS.fullmatch(value)
-    if bits:
-        return int(bits.group(2), 2 if bits.group(1) in "Bb" else 16)
-    return int(float(value))
 
 
 def _target(text: str, agg: _Aggregate, move: str, at: int, variable: str, frames: tuple[str, str],

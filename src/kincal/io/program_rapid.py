@@ -56,10 +56,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import MeasurementError
-from ..models.transforms import rotvec_matrix
+from ..models.transforms import quaternion_rotvec, rotvec_matrix, rotvec_quaternion
 from .programs import Dialect, Program, Target, fields_text
-from .rapid_scan import (Decl, FORMS, FrameData, Node, SHAPES, UNUSED, Use, _Scan, _aggregate, _closing, _number,
-                         _shaped)
+from .rapid_scan import (Decl, FORMS, FrameData, Node, SHAPES, UNUSED, Use, _Scan, _aggregate, _closing, _literal,
+                         _number, _pieces, _shaped)
 
 ASSIGN = re.compile(r"(?<![\w.\\])([A-Za-z]\w*)\s*(?:\{[^}]*\})?\s*(?:\.\s*\w+\s*)*:=")
 NAME = re.compile(r"([A-Za-z]\w*)\s*(?:\{([^}]*)\})?")
@@ -79,49 +79,6 @@ RUNTIME = {"offs": "Offs() displaces {base} at run time", "reltool": "RelTool() 
 LENGTH_RES, ANGLE_RES, QUATERNION_RES = 1e-7, 1e-8, 1e-10  # mm, deg, quaternion component
 
 
-def _literal(s: _Scan, node: Node, kind: str, move: str, at: int, variable: str = "",
-             frames: tuple[str, str] = ("", "")) -> Target | str:
-    """The target written as ``node`` (a robtarget or jointtarget), or why it is not a literal."""
-    _shaped(s, node, kind)
-    assert node.items is not None
-    parts = [p.items or [] for p in node.items]
-    numbers = [[_number(s, x) for x in p] for p in parts]
-    fixed = numbers[0] + numbers[1] + (numbers[2] if kind == "robtarget" else [])
-    if any(v is None for v in fixed):
-        names = [s.code[x.start:x.end] for x, v in zip(parts[0] + parts[1] + parts[2][:len(fixed) - 7], fixed)
-                 if v is None]
-        return f"the {kind} is built from values computed at run time ({', '.join(names)})"
-    line = s.line(node.start)
-    if kind == "jointtarget":
-        axes = [(x, v) for x, v in zip(parts[0], fixed) if v is not None and abs(v) < UNUSED]
-        return Target(node.start, node.end, line, move, "joints", np.radians([v for _, v in axes]), at, variable,
-                      tuple((x.start, x.end) for x, _ in axes), (), frames)
-    q = np.array(fixed[3:7], dtype=float)
-    if not np.linalg.norm(q) > 0:
-        raise s.fail(parts[1][0].start, "a quaternion of norm 0 is no orientation")
-    config = [float(v) for v in fixed[7:] if v is not None]
-    bad = next((x for x, v in zip(parts[2], config) if not v.is_integer()), None)
-    if bad is not None:
-        raise s.fail(bad.start, "cf1, cf4, cf6 and cfx must be whole numbers")
-    values = np.concatenate([np.array(fixed[:3], dtype=float) * 1e-3, _rotvec(q)])
-    return Target(node.start, node.end, line, move, "pose", values, at, variable,
-                  tuple((x.start, x.end) for x in parts[0] + parts[1]), tuple(int(v) for v in config), frames)
-
-
-def _rotvec(q: np.ndarray) -> np.ndarray:
-    """The rotation vector (rad) of the quaternion q = (w, x, y, z) (any norm > 0; angle in [0, pi])."""
-    q = q / np.linalg.norm(q)
-    q = -q if q[0] < 0 else q
-    s = float(np.linalg.norm(q[1:]))
-    return q[1:] * (2.0 * np.arctan2(s, q[0]) / s if s > 1e-12 else 2.0 / q[0])
-
-
-def _quaternion(w: np.ndarray) -> np.ndarray:
-    """The unit quaternion (w, x, y, z) of the rotation vector ``w`` (rad)."""
-    th = float(np.linalg.norm(w))
-    return np.concatenate([[np.cos(th / 2)], np.asarray(w, float) * 0.5 * np.sinc(th / (2 * np.pi))])
-
-
 @dataclass
 class _Move:
     """One move: its instruction as written, where it is, its target arguments' spans, its frames."""
@@ -130,39 +87,6 @@ class _Move:
     at: int
     targets: list[tuple[int, int]]
     frames: tuple[str, str]
-
-
-def _pieces(code: str, a: int, b: int) -> list[tuple[tuple[int, int], list[tuple[str, str]]]]:
-    """The comma-separated arguments of code[a:b]: each its positional part's span (empty: none) and
-    its optional arguments (name, value)."""
-    out, start, i = [], a, a
-    while i <= b:
-        if i == b or code[i] == ",":
-            out.append(_piece(code, start, i))
-            start = i + 1
-        if i < b and code[i] in "([{":
-            i = _closing(code, i)
-        i += 1
-    return out
-
-
-def _piece(code: str, a: int, b: int) -> tuple[tuple[int, int], list[tuple[str, str]]]:
-    cuts, i = [], a
-    while i < b:
-        if code[i] in "([{":
-            i = _closing(code, i)
-        elif code[i] == "\\":
-            cuts.append(i)
-        i += 1
-    head_end = cuts[0] if cuts else b
-    lead = len(code[a:head_end]) - len(code[a:head_end].lstrip())
-    head = (a + lead, head_end - (len(code[a:head_end]) - len(code[a:head_end].rstrip())))
-    options = []
-    for c, d in zip(cuts, cuts[1:] + [b]):
-        m = re.match(r"\\\s*(\w+)\s*(?::=|\?)?\s*", code[c:d])
-        if m:
-            options.append((m.group(1).lower(), " ".join(code[c + m.end():d].split())))
-    return (head if head[0] < head[1] else (head[0], head[0])), options
 
 
 def _moves(s: _Scan) -> list[_Move]:
@@ -397,7 +321,7 @@ def _pose(s: _Scan, node: Node, kind: str) -> np.ndarray | None:
     v = np.array(values, dtype=float)
     if not np.linalg.norm(v[3:]) > 0:
         raise s.fail(parts[1].start, "a quaternion of norm 0 is no orientation")
-    return np.concatenate([v[:3] * 1e-3, _rotvec(v[3:])])
+    return np.concatenate([v[:3] * 1e-3, quaternion_rotvec(v[3:])])
 
 
 def declared_frames(program: Program) -> dict[str, FrameData]:
@@ -425,7 +349,7 @@ def write(text: str, target: Target, values: np.ndarray) -> str:
     else:
         if values.shape != (6,):
             raise ValueError(f"a robtarget takes 6 values (x, y, z, rotation vector), not {values.shape}")
-        q = _quaternion(values[3:])
+        q = rotvec_quaternion(values[3:])
         q = (-q if q @ old[3:] < 0 else q) * np.linalg.norm(old[3:])
         numbers = np.concatenate([values[:3] * 1e3, q])
         resolution = np.array([LENGTH_RES] * 3 + [QUATERNION_RES] * 4)

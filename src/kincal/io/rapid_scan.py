@@ -1,7 +1,7 @@
 """The RAPID module scanner behind :mod:`kincal.io.program_rapid`: the text with comments blanked and strings
-filled, brackets matched, routines and declarations found, and the literal aggregates (robtarget,
-jointtarget, tooldata, wobjdata) read into trees of numbers with their spans, each checked for its shape —
-every error one line with the file, line and column."""
+filled, brackets matched, routines, declarations and a call's arguments found, and the literal aggregates
+(robtarget, jointtarget, tooldata, wobjdata) read into trees of numbers with their spans, each checked for
+its shape (a robot target made of it) — every error one line with the file, line and column."""
 from __future__ import annotations
 
 import re
@@ -10,7 +10,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import MeasurementError
-from .programs import line_column
+from ..models.transforms import quaternion_rotvec
+from .programs import Target, line_column
 
 NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
@@ -272,3 +273,65 @@ def _shaped(s: _Scan, node: Node, kind: str) -> None:
         if part.items is None or len(part.items) != size or any(x.items is not None for x in part.items):
             n = "an expression" if part.items is None else f"{len(part.items)} values"
             raise s.fail(part.start, f"a {kind} is {FORMS[kind]}: this part has {n}, not {size} numbers")
+
+
+def _pieces(code: str, a: int, b: int) -> list[tuple[tuple[int, int], list[tuple[str, str]]]]:
+    """The comma-separated arguments of code[a:b]: each its positional part's span (empty: none) and
+    its optional arguments (name, value)."""
+    out, start, i = [], a, a
+    while i <= b:
+        if i == b or code[i] == ",":
+            out.append(_piece(code, start, i))
+            start = i + 1
+        if i < b and code[i] in "([{":
+            i = _closing(code, i)
+        i += 1
+    return out
+
+
+def _piece(code: str, a: int, b: int) -> tuple[tuple[int, int], list[tuple[str, str]]]:
+    cuts, i = [], a
+    while i < b:
+        if code[i] in "([{":
+            i = _closing(code, i)
+        elif code[i] == "\\":
+            cuts.append(i)
+        i += 1
+    head_end = cuts[0] if cuts else b
+    lead = len(code[a:head_end]) - len(code[a:head_end].lstrip())
+    head = (a + lead, head_end - (len(code[a:head_end]) - len(code[a:head_end].rstrip())))
+    options = []
+    for c, d in zip(cuts, cuts[1:] + [b]):
+        m = re.match(r"\\\s*(\w+)\s*(?::=|\?)?\s*", code[c:d])
+        if m:
+            options.append((m.group(1).lower(), " ".join(code[c + m.end():d].split())))
+    return (head if head[0] < head[1] else (head[0], head[0])), options
+
+
+def _literal(s: _Scan, node: Node, kind: str, move: str, at: int, variable: str = "",
+             frames: tuple[str, str] = ("", "")) -> Target | str:
+    """The target written as ``node`` (a robtarget or jointtarget), or why it is not a literal."""
+    _shaped(s, node, kind)
+    assert node.items is not None
+    parts = [p.items or [] for p in node.items]
+    numbers = [[_number(s, x) for x in p] for p in parts]
+    fixed = numbers[0] + numbers[1] + (numbers[2] if kind == "robtarget" else [])
+    if any(v is None for v in fixed):
+        names = [s.code[x.start:x.end] for x, v in zip(parts[0] + parts[1] + parts[2][:len(fixed) - 7], fixed)
+                 if v is None]
+        return f"the {kind} is built from values computed at run time ({', '.join(names)})"
+    line = s.line(node.start)
+    if kind == "jointtarget":
+        axes = [(x, v) for x, v in zip(parts[0], fixed) if v is not None and abs(v) < UNUSED]
+        return Target(node.start, node.end, line, move, "joints", np.radians([v for _, v in axes]), at, variable,
+                      tuple((x.start, x.end) for x, _ in axes), (), frames)
+    q = np.array(fixed[3:7], dtype=float)
+    if not np.linalg.norm(q) > 0:
+        raise s.fail(parts[1][0].start, "a quaternion of norm 0 is no orientation")
+    config = [float(v) for v in fixed[7:] if v is not None]
+    bad = next((x for x, v in zip(parts[2], config) if not v.is_integer()), None)
+    if bad is not None:
+        raise s.fail(bad.start, "cf1, cf4, cf6 and cfx must be whole numbers")
+    values = np.concatenate([np.array(fixed[:3], dtype=float) * 1e-3, quaternion_rotvec(q)])
+    return Target(node.start, node.end, line, move, "pose", values, at, variable,
+                  tuple((x.start, x.end) for x in parts[0] + parts[1]), tuple(int(v) for v in config), frames)

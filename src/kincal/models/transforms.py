@@ -1,6 +1,7 @@
 """Small rotation helpers shared by the rooms: fixed-axis roll/pitch/yaw (R = Rz(rz) Ry(ry) Rx(rx)),
-cross-product matrices, the matrix of a rotation vector, the rotation vectors of matrices, and the
-roll/pitch/yaw of a rotation nearest given ones (a program's angles written again)."""
+cross-product matrices, the matrix of a rotation vector, the rotation vectors of matrices, the
+roll/pitch/yaw of a rotation nearest given ones (a program's angles written again), and quaternions
+(w, x, y, z) to rotation vectors and back."""
 from __future__ import annotations
 
 import numpy as np
@@ -82,3 +83,17 @@ def zyx_nearest(R: np.ndarray, old: np.ndarray) -> np.ndarray:
         options = [np.array([rz, ry, rx]), np.array([rz + np.pi, np.pi - ry, rx + np.pi])]
     near = [o + 2 * np.pi * np.round((old - o) / (2 * np.pi)) for o in options]
     return near[first_best(np.array([np.abs(c - old).sum() for c in near]), maximize=False)]
+
+
+def quaternion_rotvec(q: np.ndarray) -> np.ndarray:
+    """The rotation vector (rad) of the quaternion q = (w, x, y, z) (any norm > 0; angle in [0, pi])."""
+    q = q / np.linalg.norm(q)
+    q = -q if q[0] < 0 else q
+    s = float(np.linalg.norm(q[1:]))
+    return q[1:] * (2.0 * np.arctan2(s, q[0]) / s if s > 1e-12 else 2.0 / q[0])
+
+
+def rotvec_quaternion(w: np.ndarray) -> np.ndarray:
+    """The unit quaternion (w, x, y, z) of the rotation vector ``w`` (rad)."""
+    th = float(np.linalg.norm(w))
+    return np.concatenate([[np.cos(th / 2)], np.asarray(w, float) * 0.5 * np.sinc(th / (2 * np.pi))])
