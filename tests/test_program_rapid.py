@@ -260,9 +260,9 @@ def test_a_changed_rewrite_reparses_to_the_new_values_and_keeps_every_other_byte
 def test_write_refuses_values_of_the_wrong_size():
     prog = parse("synth.mod", SYNTH)
     with pytest.raises(ValueError):
-        write(SYNTH, prog.targets[0], np.zeros(5))
+        write(SYNTH, [prog.targets[0]], [np.zeros(5)])
     with pytest.raises(ValueError):
-        write(SYNTH, prog.targets[5], np.zeros(7))
+        write(SYNTH, [prog.targets[5]], [np.zeros(7)])
 
 
 GOOD = "[[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]]"

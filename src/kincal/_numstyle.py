@@ -14,17 +14,16 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from typing import NamedTuple
 
-NUMBER = re.compile(r"(?P<sign>[-+]?)(?P<int>\d*)(?:(?P<dot>\.)(?P<frac>\d*))?(?:(?P<e>[eE])(?P<exp>[-+]?\d+))?")
+NUMBER = re.compile(r"([-+]?)(\d*)(?:(\.)(\d*))?(?:([eE])([-+]?\d+))?")  # sign, whole, point, decimals, e, exponent
 MAX_DECIMALS = 12  # a field never gets more decimals than this (1 pm in mm)
 
 
-@dataclass(frozen=True)
-class Style:
+class Style(NamedTuple):
     """How one number is written: an explicit '+' (``plus``), digits before the point (``lead``:
     False for ``-.242``), how many at least (``width``: 2 for ``05``, else 1), a point (``dot``), the decimals,
-    and the exponent as written ('' if none)."""
+    and the exponent as written ('' if none). (A named tuple: one is made for every number written.)"""
 
     plus: bool
     lead: bool
@@ -37,12 +36,13 @@ class Style:
     def of(cls, text: str) -> Style:
         """The style of ``text``, a plain decimal number (ValueError otherwise)."""
         m = NUMBER.fullmatch(text)
-        if m is None or not (m.group("int") or m.group("frac")):
+        if m is None:
             raise ValueError(f"'{text}' is not a number")
-        whole = m.group("int")
+        sign, whole, dot, frac, e, exp = m.groups()
+        if not (whole or frac):
+            raise ValueError(f"'{text}' is not a number")
         width = len(whole) if whole.startswith("0") else 1  # zero-padded ("05") keeps its width; "10" is not padded
-        return cls(m.group("sign") == "+", bool(whole), width, bool(m.group("dot")), len(m.group("frac") or ""),
-                   (m.group("e") or "") + (m.group("exp") or ""))
+        return cls(sign == "+", bool(whole), width, bool(dot), len(frac or ""), (e or "") + (exp or ""))
 
     def write(self, value: float, resolution: float) -> tuple[str, int]:
         """``value`` in this style with the fewest decimals (at least this style's) that carry it to
@@ -52,16 +52,30 @@ class Style:
         scale = 10.0 ** int(self.exponent[1:]) if self.exponent else 1.0
         mantissa, tol = value / scale, resolution / scale
         d = self.decimals
-        while d < MAX_DECIMALS and abs(round(mantissa, d) - mantissa) > tol:
-            d += 1
+        if d < MAX_DECIMALS and abs(round(mantissa, d) - mantissa) > tol:
+            d = _fewest(mantissa, tol, d + 1)
         digits = f"{abs(mantissa):0{self.width + (d > 0) + d}.{d}f}"
         if d == 0 and self.dot:
             digits += "."
         if not self.lead and digits.startswith("0."):
             digits = digits[1:]
-        negative = math.copysign(1.0, mantissa) < 0 and (float(digits) != 0.0 or mantissa == 0.0)
+        negative = math.copysign(1.0, mantissa) < 0 and (mantissa == 0.0 or digits.strip("0.") != "")
         sign = "-" if negative else "+" if self.plus else ""
         return sign + digits + self.exponent, d
+
+
+def _fewest(x: float, tol: float, lo: int) -> int:
+    """The fewest decimals from ``lo`` (at most MAX_DECIMALS) that carry x to ``tol``, by bisection: x rounded
+    to d decimals is also a number of d + 1 decimals, so the error only falls as d grows, and
+    ceil(log10(0.5 / tol)) decimals always carry it (the error is at most half their last digit)."""
+    hi = max(lo, min(MAX_DECIMALS, math.ceil(math.log10(0.5 / tol)) if tol > 0 else MAX_DECIMALS))
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if abs(round(x, mid) - x) > tol:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 def restyle(old: str, value: float, resolution: float) -> str:

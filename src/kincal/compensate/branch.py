@@ -32,7 +32,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from ..io.programs import Program, Target, dialects
+from ..io.programs import Program, dialects
 from ..models.robot import Robot
 from ..models.transforms import rotation_log, rotvec_matrix
 from ..ties import first_best
@@ -42,6 +42,7 @@ from .program import SEARCH, STARTS, ProgramCompensation
 
 CHECK_TOL = 1e-9  # m and rad: a written target must reproduce its intended pose this closely
 SINGULAR = 1e3  # condition number of the pose Jacobian (m, rad) beyond which a failed correction is named as such
+CHAIN = 512  # targets per Newton pass of the controller's joints (the next ones start from the joints found)
 IDENTITY_FRAMES = {"rapid": (("tool0",), ("wobj0", ""))}  # (tools, bases) a language defines as the identity
 # (RAPID: tool0 is the flange, wobj0 the world frame, and a move without \WObj is in wobj0)
 Config = Callable[[Robot, np.ndarray], tuple]
@@ -67,7 +68,7 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     q_nom = _controller_joints(nominal, program, goals, rows, q0, refused)
     qs = _corrected_all(model, nominal, program, goals, q_nom, rows, refused)
     values = _written(nominal, program.targets, qs, tools, [k for k in range(len(qs)) if k not in refused])
-    texts = {k: dialect.write(program.text, program.targets[k], v) for k, v in values.items()}
+    texts = dict(zip(values, dialect.write(program.text, [program.targets[k] for k in values], list(values.values()))))
     for k, why in check_written(model, nominal, program, texts, qs, rows, frames).items():
         texts.pop(k)
         refused[k] = why
@@ -79,27 +80,35 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
 
 def _goals(nominal: Robot, program: Program, frames: Mapping[str, np.ndarray]):
     """Each target's flange pose (p (N, 3), R (N, 3, 3); NaN where refused), its (tool, base) frames (None for
-    joints) and the refusals so far (index -> why): a joint target's pose is the nominal model's there."""
+    joints) and the refusals so far (index -> why): a joint target's pose is the nominal model's there, a pose
+    target's is B·T·U⁻¹ (all at once)."""
     n = len(program.targets)
     p, R = np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)
     tools: list = [None] * n
     refused: dict[int, str] = {}
-    joints = [k for k, t in enumerate(program.targets) if t.kind == "joints"]
-    for k in joints:
-        if program.targets[k].values.size != nominal.n_joints:
-            refused[k] = f"{program.targets[k].values.size} joint values for a {nominal.n_joints}-joint robot"
-    ok = [k for k in joints if k not in refused]
+    given = {k.lower(): np.asarray(v, dtype=float) for k, v in frames.items()}
+    known: dict[tuple[str, str], tuple | str] = {}
+    for k, t in enumerate(program.targets):
+        if t.kind == "joints":
+            if t.values.size != nominal.n_joints:
+                refused[k] = f"{t.values.size} joint values for a {nominal.n_joints}-joint robot"
+            continue
+        if t.frames not in known:
+            known[t.frames] = _frames(program.dialect, t.frames, given)
+        found = known[t.frames]
+        if isinstance(found, str):
+            refused[k] = found
+        else:
+            tools[k] = found
+    ok = [k for k, t in enumerate(program.targets) if t.kind == "joints" and k not in refused]
     if ok:
         p[ok], R[ok], _, _ = nominal.pose_and_jacobian(np.array([program.targets[k].values for k in ok]))
-    for k, t in enumerate(program.targets):
-        if t.kind != "joints":
-            known = _frames(program.dialect, t, frames)
-            if isinstance(known, str):
-                refused[k] = known
-                continue
-            tools[k] = known
-            F = known[1] @ _pose(t.values) @ np.linalg.inv(known[0])
-            p[k], R[k] = F[:3, 3], F[:3, :3]
+    poses = [k for k in range(n) if tools[k] is not None]
+    if poses:
+        v = np.array([program.targets[k].values[:6] for k in poses])
+        F = np.array([tools[k][1] for k in poses]) @ _poses(v[:, :3], rotvec_matrix(v[:, 3:6])) \
+            @ np.linalg.inv(np.array([tools[k][0] for k in poses]))
+        p[poses], R[poses] = F[:, :3, 3], F[:, :3, :3]
     return (p, R), tools, refused
 
 
@@ -108,8 +117,9 @@ def _controller_joints(nominal: Robot, program: Program, goals, rows: Rows, q0: 
     """The controller's joints (N, n) of every target (NaN where refused; refusals added): joint targets as
     written; pose targets by batched Newton passes, each from the joints of the last target before it that is
     solved (q0 before any), kept when its bits are the target's (without bits: only from its predecessor's
-    joints, the nearest branch); where a pass finds nothing new, the first target left is searched alone
-    (:func:`controller_inverse`), and the passes go on from it."""
+    joints, the nearest branch); a pass takes the first ``CHAIN`` targets with a start not tried yet, in the
+    program's order, so the next ones start from joints near theirs; where no target has a start left to try,
+    the first target left is searched alone (:func:`controller_inverse`), and the passes go on from it."""
     p, R = goals
     targets = program.targets
     q_nom = np.full((len(targets), nominal.n_joints), np.nan)
@@ -123,9 +133,8 @@ def _controller_joints(nominal: Robot, program: Program, goals, rows: Rows, q0: 
         if starts:
             _pass(nominal, program, goals, rows, q_nom, starts, q0)
             tried.update(starts)
-        before = len(pending)
-        pending = [k for k in pending if np.isnan(q_nom[k, 0])]
-        if len(pending) == before and pending:  # nothing new: the first one left, alone
+            pending = [k for k in pending if np.isnan(q_nom[k, 0])]
+        else:  # no start left to try: the first one left, alone
             k = pending.pop(0)
             near = _last_solved(q_nom, k)
             found = controller_inverse(nominal, p[k][None], R[k][None], q0 if near < 0 else q_nom[near],
@@ -144,15 +153,19 @@ def _last_solved(q_nom: np.ndarray, k: int) -> int:
 
 
 def _starts(q_nom: np.ndarray, pending: list[int], tried: dict[int, int], targets) -> dict[int, int]:
-    """For each pending target a start not tried yet: the last solved target before it (-1: q0); a target
-    without bits starts only from its immediate predecessor (the nearest branch is the controller's)."""
+    """For the first CHAIN pending targets that have one, a start not tried yet: the last solved target before it; only the first pending
+    one starts from q0 (-1) while none before it is solved (the others wait for its joints: a start nearer
+    them); a target without bits starts only from its immediate predecessor (the nearest branch is the
+    controller's)."""
     solved = np.where(~np.isnan(q_nom[:, 0]), np.arange(len(q_nom)), -1)
     last = np.concatenate([[-1], np.maximum.accumulate(solved)[:-1]])  # the last solved before each target
     out = {}
     for k in pending:
         j = int(last[k])
-        if tried.get(k) != j and (targets[k].config or j == k - 1 or (j < 0 and k == pending[0])):
+        if tried.get(k) != j and (j == k - 1 or (j < 0 and k == pending[0]) or (targets[k].config and j >= 0)):
             out[k] = j
+            if len(out) == CHAIN:
+                break
     return out
 
 
@@ -207,8 +220,9 @@ def _written(nominal: Robot, targets, qs: np.ndarray, tools: list, ks: list[int]
     poses = [k for k in ks if targets[k].kind != "joints"]
     if poses:
         pf, Rf, _, _ = nominal.pose_and_jacobian(qs[poses])
-        T = [np.linalg.inv(tools[k][1]) @ _pose_of(p, R) @ tools[k][0] for k, p, R in zip(poses, pf, Rf)]
-        rot = rotation_log(np.array([x[:3, :3] for x in T]))
+        T = np.linalg.inv(np.array([tools[k][1] for k in poses])) @ _poses(pf, Rf) \
+            @ np.array([tools[k][0] for k in poses])
+        rot = rotation_log(T[:, :3, :3])
         out.update({k: np.concatenate([x[:3, 3], r]) for k, x, r in zip(poses, T, rot)})
     return out
 
@@ -218,11 +232,12 @@ def _single(rows: Rows) -> Config:
     return lambda robot, q: tuple(rows(robot, np.asarray(q, dtype=float)[None])[0])
 
 
-def _frames(dialect: str, t: Target, frames: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray] | str:
-    """The target's tool and base frames (4x4 each; names in any case), or why they are not known."""
-    given = {k.lower(): np.asarray(v, dtype=float) for k, v in frames.items()}
+def _frames(dialect: str, names: tuple[str, str], given: Mapping[str, np.ndarray]
+            ) -> tuple[np.ndarray, np.ndarray] | str:
+    """The tool and base frames (4x4 each) of a target naming ``names`` (any case; ``given`` by lower-case
+    name), or why they are not known."""
     out = []
-    for what, name, identity in zip(("tool", "base"), t.frames, IDENTITY_FRAMES.get(dialect, ((), ()))):
+    for what, name, identity in zip(("tool", "base"), names, IDENTITY_FRAMES.get(dialect, ((), ()))):
         key = name.lower() or f"default {what}"  # the frame in force where the program names none
         if name.lower() in identity:
             out.append(np.eye(4))
@@ -311,17 +326,8 @@ def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, q
     return bad
 
 
-def _pose(values: np.ndarray) -> np.ndarray:
-    """A 4x4 pose of x, y, z (m) and a rotation vector (rad)."""
-    return _pose_of(values[:3], rotvec_matrix(values[3:6]))
-
-
-def _pose_of(p: np.ndarray, R: np.ndarray) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, p
+def _poses(p: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """4x4 poses (N, 4, 4) of positions p (N, 3) and rotations R (N, 3, 3)."""
+    T = np.zeros((len(p), 4, 4))
+    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, p, 1.0
     return T
-
-
-def _flange(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The flange's position (1, 3) and rotation (1, 3, 3) of a 4x4 flange pose."""
-    return T[None, :3, 3], T[None, :3, :3]

@@ -4,6 +4,7 @@ S/T bits), every error one line with the file, line and column."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import re
 
 from ..errors import MeasurementError
@@ -14,6 +15,11 @@ AXIS_KEYS = ("A1", "A2", "A3", "A4", "A5", "A6")
 EXTERNAL = ("E1", "E2", "E3", "E4", "E5", "E6")
 NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 BITS = re.compile(r"'([BbHh])([0-9A-Fa-f]+)'")
+TYPED = re.compile(r"[ \t]*([A-Za-z_]\w*)[ \t]*:(?!=)")  # {E6POS: …}
+KEY = re.compile(r"\s*([A-Za-z_$]\w*)(\[\])?\s*")  # a component's name
+BRACKET = re.compile(r"[{}\[\]]")
+FLAT = re.compile(r"[^,{}\[\]]*")  # a component's value without brackets
+SEPARATOR = re.compile(r"[,}{\[]")  # what ends a component's value, or opens a nested one
 COMMENT_OR_STRING = re.compile(r"\"[^\"\n]*\"?|;[^\n]*")
 
 
@@ -32,10 +38,11 @@ def _check_brackets(source: str, text: str, code: str) -> dict[int, int]:
     the '}') of each '{' by its position."""
     stack: list[int] = []
     ends: dict[int, int] = {}
-    for i, c in enumerate(code):
+    for m in BRACKET.finditer(code):
+        i, c = m.start(), m.group()
         if c in "{[":
             stack.append(i)
-        elif c in "}]":
+        else:
             if not stack or code[stack[-1]] != {"}": "{", "]": "["}[c]:
                 raise _fail(source, text, i, f"a '{c}' with no '{'{' if c == '}' else '['}' open before it")
             a = stack.pop()
@@ -55,7 +62,7 @@ class _Aggregate:
     parts: dict[str, tuple[int, int]]
     nested: list[int]  # starts of aggregates that are component values
 
-    @property
+    @functools.cached_property
     def shape(self) -> str:
         """"pose" or "joints" (position-shaped: only position components), else ''."""
         keys = set(self.parts)
@@ -76,22 +83,26 @@ def _aggregate(source: str, text: str, code: str, ends: dict[int, int], a: int) 
     """The aggregate whose '{' is at ``a``; MeasurementError for a component without a value."""
     b = ends[a]
     i, typed = a + 1, ""
-    m = re.compile(r"[ \t]*([A-Za-z_]\w*)[ \t]*:(?!=)").match(code, i)
+    m = TYPED.match(code, i)
     if m:
         typed, i = m.group(1).upper(), m.end()
     parts: dict[str, tuple[int, int]] = {}
     nested: list[int] = []
-    key = re.compile(r"\s*([A-Za-z_$]\w*)(\[\])?\s*")
     while i < b - 1:
-        k = key.match(code, i)
+        k = KEY.match(code, i)
         if not k:
             return _Aggregate(a, b, typed, {}, [])  # not name-value components: not a position
         j = k.end()
+        flat = FLAT.match(code, j)  # the common case: a value with no brackets, then ',' or '}'
+        if flat and code[flat.end()] in ",}" and (flat.end() > j or k.group(2)):
+            parts[k.group(1).upper()] = (j, j + len(flat.group().rstrip()))
+            i = flat.end() + 1
+            continue
         if code[j] == "{":
             nested.append(j)
             j = ends[j]
         while code[j] not in ",}":
-            j = ends[j] if code[j] in "{[" else j + 1
+            j = ends[j] if code[j] in "{[" else SEPARATOR.search(code, j).end() - 1  # type: ignore[union-attr]
         lo, hi = k.end(), j
         while hi > lo and code[hi - 1].isspace():
             hi -= 1

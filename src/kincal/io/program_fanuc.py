@@ -41,13 +41,14 @@ numbering and ``LINE_COUNT``; write FANUC programs without marks.
 from __future__ import annotations
 
 import re
+from typing import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import MeasurementError
 from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix, zyx_nearest
-from .programs import Dialect, Program, Target, fields_text, line_column
+from .programs import Dialect, Program, Target, line_column, old_numbers, write_fields
 
 SECTION = re.compile(r"^[ \t]*/(PROG|ATTR|APPL|MN|POS|END)\b", re.M | re.I)
 NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
@@ -353,18 +354,22 @@ def _use(text: str, code: str, letter: str, at: int, ref: tuple[int, int], seg_e
 
 # --- writing ------------------------------------------------------------------------------------
 
-def write(text: str, target: Target, values: np.ndarray) -> str:
-    """The target's {…} with its fields written for new SI ``values``: X, Y, Z in mm and W, P, R in deg
-    (the triple nearest the old numbers), or J1…Jn in deg (mm for an axis written in mm)."""
-    values = np.asarray(values, dtype=float)
-    if target.kind == "joints":
-        scale = np.array([1e3 if re.match(r"[ \t]*mm\b", text[b:b + 8]) else 180 / np.pi for _, b in target.fields])
-        numbers = values * scale
-        resolution = np.where(scale == 1e3, LENGTH_RES, ANGLE_RES)
-        return fields_text(text, target, numbers, resolution)
-    old = np.radians([float(text[a:b]) for a, b in target.fields[5:2:-1]])  # R, P, W: about z, y, x
-    numbers = np.concatenate([values[:3] * 1e3, np.degrees(zyx_nearest(rotvec_matrix(values[3:]), old))[::-1]])
-    return fields_text(text, target, numbers, np.array([LENGTH_RES] * 3 + [ANGLE_RES] * 3))
+def _fields(text: str, targets: list[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The fields of targets of one kind for new SI values (G, V): X, Y, Z in mm and W, P, R in deg (the
+    triple nearest the old numbers), or J1…Jn in deg (mm for an axis written in mm)."""
+    if targets[0].kind == "joints":
+        scale = np.array([[1e3 if re.match(r"[ \t]*mm\b", text[b:b + 8]) else 180 / np.pi for _, b in t.fields]
+                          for t in targets])
+        return values * scale, np.where(scale == 1e3, LENGTH_RES, ANGLE_RES)
+    old = np.radians(old_numbers(text, targets, slice(5, 2, -1)))  # R, P, W: about z, y, x
+    angles = np.degrees(zyx_nearest(rotvec_matrix(values[:, 3:6]), old))[:, ::-1]
+    return np.concatenate([values[:, :3] * 1e3, angles], axis=1), np.array([LENGTH_RES] * 3 + [ANGLE_RES] * 3)
+
+
+def write(text: str, targets: Sequence[Target], values: Sequence[np.ndarray]) -> list[str]:
+    """The targets' {…} with their fields written for new SI values (:func:`_fields`), each number in its old
+    style; every other byte as it is."""
+    return write_fields(text, targets, values, _fields)
 
 
 DIALECT = Dialect("fanuc", (".ls",), "", parse, write)  # no comment: TP allows none after a /POS entry

@@ -47,13 +47,14 @@ from __future__ import annotations
 
 import math
 import re
+from typing import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import MeasurementError
 from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix, zyx_nearest
-from .programs import Dialect, Program, Target, fields_text, line_column
+from .programs import Dialect, Program, Target, line_column, old_numbers, write_fields
 
 NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 SECTION = re.compile(r"[ \t\ufeff]*//(?!/)[ \t]*([A-Za-z]*)")
@@ -343,15 +344,19 @@ def parse(source: str, text: str) -> Program:
                    tuple(sorted(listed, key=lambda item: item[0])), comment="", dialect="inform")
 
 
-def write(text: str, target: Target, values: np.ndarray) -> str:
-    """The position's numbers for new SI values: X, Y, Z (mm; 1e-7 mm) and Rx, Ry, Rz (deg; 1e-8°)
-    each in its old style, the equivalent angle triple nearest the old one; the rest of the line as is."""
-    old = np.array([float(text[a:b]) for a, b in target.fields])
-    R = rotvec_matrix(np.asarray(values[3:6], float))
-    angles = np.degrees(zyx_nearest(R, np.radians(old[5:2:-1])))[::-1]  # Rx, Ry, Rz from (rz, ry, rx)
-    numbers = np.concatenate([np.asarray(values[:3], float) * 1e3, angles])
-    numbers = np.where(np.abs(numbers - old) <= RESOLUTION / 2, old, numbers)  # rounding noise: the old number
-    return fields_text(text, target, numbers, RESOLUTION)
+def _fields(text: str, targets: list[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The positions' numbers for new SI values (G, 6): X, Y, Z (mm; 1e-7 mm) and Rx, Ry, Rz (deg; 1e-8°), the
+    equivalent angle triple nearest the old one; a number that moved only by rounding noise stays the old one."""
+    old = old_numbers(text, targets)
+    angles = np.degrees(zyx_nearest(rotvec_matrix(values[:, 3:6]), np.radians(old[:, 5:2:-1])))[:, ::-1]
+    numbers = np.concatenate([values[:, :3] * 1e3, angles], axis=1)  # Rx, Ry, Rz from (rz, ry, rx)
+    return np.where(np.abs(numbers - old) <= RESOLUTION / 2, old, numbers), RESOLUTION
+
+
+def write(text: str, targets: Sequence[Target], values: Sequence[np.ndarray]) -> list[str]:
+    """The positions' numbers for new SI values (:func:`_fields`), each in its old style; the rest of the
+    line as it is."""
+    return write_fields(text, targets, values, _fields)
 
 
 DIALECT = Dialect("inform", (".jbi",), "", parse, write)  # no comment: INFORM allows none after a position line

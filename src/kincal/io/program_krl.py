@@ -48,11 +48,12 @@ import bisect
 import dataclasses
 import functools
 import re
+from typing import Sequence
 
 import numpy as np
 
 from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix, zyx_nearest
-from .programs import Dialect, Program, Target, fields_text
+from .programs import Dialect, Program, Target, old_numbers, write_fields
 from .krl_scan import (AXIS_KEYS, EXTERNAL, POSE_KEYS, _Aggregate, _aggregate, _blank, _check_brackets, _check_numbers,
                        _fail, _integer)
 
@@ -71,19 +72,32 @@ RUN_TIME = "the robot's position when the move starts, read at run time"
 
 def _target(text: str, agg: _Aggregate, move: str, at: int, variable: str, frames: tuple[str, str],
             line: int) -> Target:
-    """The Target of a complete position aggregate (checked already) on ``line``."""
+    """The Target of a complete position aggregate (checked already) on ``line``, its values as written (mm,
+    deg: :func:`_in_si` converts them all at once)."""
     keys = POSE_KEYS if agg.shape == "pose" else AXIS_KEYS
     fields = tuple(agg.parts[k] for k in keys)
-    raw = np.array([float(text[a:b]) for a, b in fields])
-    if agg.shape == "pose":
-        rot = rot_zyx(*np.radians(raw[3:6]))
-        values = np.concatenate([raw[:3] * 1e-3, rotation_log(rot[None])[0]])
-    else:
-        values = np.radians(raw)
+    values = np.array([float(text[a:b]) for a, b in fields])
     config: tuple = ()
     if "S" in agg.parts or "T" in agg.parts:
         config = tuple(_integer(text[slice(*agg.parts[k])]) if k in agg.parts else None for k in ("S", "T"))
     return Target(agg.start, agg.end, line, move, agg.shape, values, at, variable, fields, config, frames)
+
+
+def _in_si(targets: list[Target]) -> list[Target]:
+    """The targets with their values as written (X, Y, Z mm, A, B, C deg; A1..A6 deg) turned into SI in place
+    (the arrays are this reader's own until it returns them): a pose as x, y, z (m) and a rotation vector (rad)
+    of Rz(A)·Ry(B)·Rx(C), joints in rad; all at once."""
+    poses = [t for t in targets if t.kind == "pose"]
+    for t in targets:
+        if t.kind != "pose":
+            t.values[:] = np.radians(t.values)
+    if poses:
+        raw = np.array([t.values for t in poses])
+        a, b, c = np.radians(raw[:, 3:6]).T
+        rot = rotation_log(np.moveaxis(rot_zyx(a, b, c), -1, 0))
+        for t, xyz, r in zip(poses, raw[:, :3] * 1e-3, rot):
+            t.values[:3], t.values[3:] = xyz, r
+    return targets
 
 
 def _operand(code: str, i: int, ends: dict[int, int]) -> int:
@@ -153,7 +167,8 @@ def _assignments(code: str, ends: dict[int, int]) -> list[tuple[str, str, int, i
         part = _key(m.group(3) or "")
         literal = m.end() if code[m.end():m.end() + 1] == "{" else -1
         if literal >= 0:
-            after = code[ends[literal]:code.find("\n", ends[literal]) if "\n" in code[ends[literal]:] else len(code)]
+            line_end = code.find("\n", ends[literal])
+            after = code[ends[literal]:line_end if line_end >= 0 else len(code)]
             literal = literal if after.strip() == "" else -1  # {…}:{…}, {…} + …: computed
         out.append((var, part, m.start(1), literal, re.sub(r"\s+", "", m.group(1) + (m.group(2) or ""))))
     return out
@@ -339,23 +354,24 @@ def parse(source: str, text: str) -> Program:
     _moves(f)
     _points(f)
     _leftovers(f)
-    targets = sorted(f.targets, key=lambda t: t.start)
+    targets = _in_si(sorted(f.targets, key=lambda t: t.start))
     return Program(source, text, tuple(targets), tuple(sorted(f.listed, key=lambda x: x[0])))
 
 
-def write(text: str, target: Target, values: np.ndarray) -> str:
-    """The target's span for new SI values: X, Y, Z (mm, to 1e-7), A, B, C (deg, to 1e-8) or A1..A6
-    (deg, to 1e-8), each number in its old style; every other byte (S, T, E1..E6) as it is."""
-    values = np.asarray(values, dtype=float)
-    if target.kind == "pose":
-        old = np.array([float(text[a:b]) for a, b in target.fields[3:6]])
-        numbers = np.concatenate([values[:3] * 1e3, np.degrees(zyx_nearest(rotvec_matrix(values[3:6]), np.radians(old)))])
-        resolution = np.array([1e-7] * 3 + [1e-8] * 3)
-    else:
-        numbers, resolution = np.degrees(values), np.full(len(values), 1e-8)
-    order = np.argsort([a for a, _ in target.fields])  # fields_text walks the span from left to right
-    ordered = dataclasses.replace(target, fields=tuple(target.fields[k] for k in order))
-    return fields_text(text, ordered, numbers[order], resolution[order])
+def _fields(text: str, targets: list[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The fields of targets of one kind for new SI values (G, V): X, Y, Z (mm, to 1e-7), A, B, C (deg, to
+    1e-8; the triple nearest the old numbers) or A1..A6 (deg, to 1e-8)."""
+    if targets[0].kind != "pose":
+        return np.degrees(values), np.full(values.shape[1], 1e-8)
+    old = np.radians(old_numbers(text, targets, slice(3, 6)))
+    angles = np.degrees(zyx_nearest(rotvec_matrix(values[:, 3:6]), old))
+    return np.concatenate([values[:, :3] * 1e3, angles], axis=1), np.array([1e-7] * 3 + [1e-8] * 3)
+
+
+def write(text: str, targets: Sequence[Target], values: Sequence[np.ndarray]) -> list[str]:
+    """The targets' spans for new SI values, each number in its old style (:func:`_fields`); every other
+    byte (S, T, E1..E6) as it is."""
+    return write_fields(text, targets, values, _fields)
 
 
 DIALECT = Dialect("krl", (".src", ".dat", ".sub"), ";", parse, write)

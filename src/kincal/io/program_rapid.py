@@ -51,13 +51,14 @@ as RAPID text (the ones seen are plain modules); an XML file is refused. Broken 
 from __future__ import annotations
 
 import re
+from typing import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import MeasurementError
 from ..models.transforms import quaternion_rotvec, rotvec_matrix, rotvec_quaternion
-from .programs import Dialect, Program, Target, fields_text
+from .programs import Dialect, Program, Target, old_numbers, write_fields
 from .rapid_scan import (Decl, FORMS, FrameData, Node, SHAPES, UNUSED, Use, _Scan, _aggregate, _closing, _literal,
                          _number, _pieces, _shaped)
 
@@ -337,24 +338,28 @@ def declared_frames(program: Program) -> dict[str, FrameData]:
     return out
 
 
-def write(text: str, target: Target, values: np.ndarray) -> str:
-    """The target's span for new SI values: rax (deg) or x, y, z (mm) and the quaternion (in the old
-    numbers' hemisphere and with their norm); every other byte of the span as it was."""
-    old = np.array([float(text[a:b]) for a, b in target.fields])
-    values = np.asarray(values, dtype=float)
-    if target.kind == "joints":
-        if values.shape != (len(target.fields),):
-            raise ValueError(f"a jointtarget of {len(target.fields)} axes cannot take {values.shape} values")
-        numbers, resolution = np.degrees(values), np.full(len(values), ANGLE_RES)
+def _fields(text: str, targets: list[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The fields of targets of one kind for new SI values (G, V): rax (deg) or x, y, z (mm) and the quaternion
+    (in the old numbers' hemisphere and with their norm); a zero keeps its written sign."""
+    old = old_numbers(text, targets)
+    if targets[0].kind == "joints":
+        if values.shape[1] != old.shape[1]:
+            raise ValueError(f"a jointtarget of {old.shape[1]} axes cannot take {values.shape[1]} values")
+        numbers, resolution = np.degrees(values), np.full(values.shape[1], ANGLE_RES)
     else:
-        if values.shape != (6,):
-            raise ValueError(f"a robtarget takes 6 values (x, y, z, rotation vector), not {values.shape}")
-        q = rotvec_quaternion(values[3:])
-        q = (-q if q @ old[3:] < 0 else q) * np.linalg.norm(old[3:])
-        numbers = np.concatenate([values[:3] * 1e3, q])
+        if values.shape[1] != 6:
+            raise ValueError(f"a robtarget takes 6 values (x, y, z, rotation vector), not {values.shape[1]}")
+        q = rotvec_quaternion(values[:, 3:])
+        q *= np.where(np.einsum("ni,ni->n", q, old[:, 3:]) < 0, -1.0, 1.0)[:, None]
+        numbers = np.concatenate([values[:, :3] * 1e3, q * np.linalg.norm(old[:, 3:], axis=1)[:, None]], axis=1)
         resolution = np.array([LENGTH_RES] * 3 + [QUATERNION_RES] * 4)
-    numbers = np.where(numbers == 0, np.copysign(0.0, old), numbers)  # a zero keeps its written sign
-    return fields_text(text, target, numbers, resolution)
+    return np.where(numbers == 0, np.copysign(0.0, old), numbers), resolution
+
+
+def write(text: str, targets: Sequence[Target], values: Sequence[np.ndarray]) -> list[str]:
+    """The targets' spans for new SI values (:func:`_fields`), each number in its old style; every other byte
+    of the span as it was."""
+    return write_fields(text, targets, values, _fields)
 
 
 def frame_poses(program: Program) -> dict[str, np.ndarray]:

@@ -11,6 +11,7 @@ as it is.
 from __future__ import annotations
 
 import re
+from typing import Sequence
 
 import numpy as np
 
@@ -118,9 +119,9 @@ def joints_literal(values: np.ndarray) -> str:
     return "[" + ", ".join(f"{v:.10f}" for v in values) + "]"
 
 
-def _whole(text: str, target: Target, values: np.ndarray) -> str:
-    """A URScript target written whole (10 decimals), whatever it was written as."""
-    return pose_literal(values) if target.kind == "pose" else joints_literal(values)
+def _whole(text: str, targets: Sequence[Target], values: Sequence[np.ndarray]) -> list[str]:
+    """URScript targets written whole (10 decimals), whatever they were written as."""
+    return [pose_literal(v) if t.kind == "pose" else joints_literal(v) for t, v in zip(targets, values)]
 
 
 DIALECT = Dialect("ur", (".script", ".urscript"), "#", parse, _whole)

@@ -19,7 +19,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -88,9 +88,9 @@ class Program:
         """The text with target k written again from ``values[k]`` (SI, the target's kind) by the
         program's dialect — in the vendor languages number by number, each in the style it had — and
         every other byte as it is; ``marks`` as in :meth:`with_targets`."""
-        write = dialects()[self.dialect].write
-        texts = {k: write(self.text, self.targets[k], np.asarray(v, dtype=float)) for k, v in values.items()}
-        return self.with_targets(texts, marks)
+        ks = list(values)
+        new = dialects()[self.dialect].write(self.text, [self.targets[k] for k in ks], [values[k] for k in ks])
+        return self.with_targets(dict(zip(ks, new)), marks)
 
 
 def no_frames(program: Program) -> dict[str, np.ndarray]:
@@ -101,25 +101,54 @@ def no_frames(program: Program) -> dict[str, np.ndarray]:
 @dataclass(frozen=True)
 class Dialect:
     """A vendor language: its name, the file suffixes it is read from (lower case), its comment mark,
-    its reader ``parse(source, text) -> Program``, its writer ``write(text, target, values) -> str`` (the
-    new text of the target's span for new SI values, see :func:`fields_text`) and ``frames(program)``: the
-    tool and base frames a program declares with their values, by the names its targets use (4x4, m)."""
+    its reader ``parse(source, text) -> Program``, its writer ``write(text, targets, values) -> texts`` (the
+    new texts of the targets' spans for new SI values, all at once; see :func:`write_fields`) and
+    ``frames(program)``: the tool and base frames a program declares with their values, by the names its
+    targets use (4x4, m)."""
 
     name: str
     suffixes: tuple[str, ...]
     comment: str
     parse: Callable[[str, str], Program]
-    write: Callable[[str, Target, np.ndarray], str]
+    write: Callable[[str, Sequence[Target], Sequence[np.ndarray]], list[str]]
     frames: Callable[[Program], dict[str, np.ndarray]] = no_frames
+
+
+Numbers = Callable[[str, Sequence[Target], np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+def write_fields(text: str, targets: Sequence[Target], values: Sequence[np.ndarray], numbers: Numbers) -> list[str]:
+    """The new texts of the targets' spans for new SI ``values``, field by field (:func:`fields_text`): the
+    targets are taken in groups of one kind and one number of values, and ``numbers(text, group, values (G, V))``
+    gives each group's field numbers (G, F) in the fields' units and their resolution (G, F) or (F,), all at
+    once (a 10^4-target program is converted in one step per group, not target by target)."""
+    out = [""] * len(targets)
+    groups: dict[tuple[str, int], list[int]] = {}
+    for k, (t, v) in enumerate(zip(targets, values)):
+        groups.setdefault((t.kind, np.size(v)), []).append(k)
+    for ks in groups.values():
+        group = [targets[k] for k in ks]
+        found, resolution = numbers(text, group, np.array([values[k] for k in ks], dtype=float))
+        resolution = np.broadcast_to(resolution, found.shape)
+        for k, t, row, res in zip(ks, group, found, resolution):
+            out[k] = fields_text(text, t, row, res)
+    return out
+
+
+def old_numbers(text: str, targets: Sequence[Target], fields: slice = slice(None)) -> np.ndarray:
+    """The numbers (G, F) the targets' ``fields`` hold in ``text`` now (each target the same count)."""
+    return np.array([[float(text[a:b]) for a, b in t.fields[fields]] for t in targets], dtype=float).reshape(
+        len(targets), -1)
 
 
 def fields_text(text: str, target: Target, numbers: np.ndarray, resolution: np.ndarray) -> str:
     """The target's span of ``text`` with the numbers of its fields replaced by ``numbers`` (F,) (in the
-    fields' units), each written in its old style with at least the decimals that carry it to
+    fields' units and order), each written in its old style with at least the decimals that carry it to
     ``resolution`` (F,) (:func:`kincal._numstyle.restyle`); every other byte of the span as it is."""
     pieces, at = [], target.start
-    for (a, b), x, res in zip(target.fields, numbers, resolution):
-        pieces += [text[at:a], restyle(text[a:b], float(x), float(res))]
+    for k in sorted(range(len(target.fields)), key=lambda k: target.fields[k][0]):  # the span left to right
+        a, b = target.fields[k]
+        pieces += [text[at:a], restyle(text[a:b], float(numbers[k]), float(resolution[k]))]
         at = b
     return "".join(pieces) + text[at:target.end]
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..ties import first_best
+from ..ties import tie_tolerance
 
 
 def rot_zyx(rz: float | np.ndarray, ry: float | np.ndarray, rx: float | np.ndarray) -> np.ndarray:
@@ -39,12 +39,15 @@ def skew(v: np.ndarray) -> np.ndarray:
 
 
 def rotvec_matrix(w: np.ndarray) -> np.ndarray:
-    """The rotation matrix (3, 3) of the rotation vector w (3,) rad (Rodrigues)."""
-    th = float(np.linalg.norm(w))
-    K = skew(np.asarray(w, float))
-    if th < 1e-12:
-        return np.eye(3) + K
-    return np.eye(3) + np.sin(th) / th * K + (1 - np.cos(th)) / th**2 * (K @ K)
+    """The rotation matrices (…, 3, 3) of rotation vectors w (…, 3) rad (Rodrigues; (3,) gives (3, 3))."""
+    w = np.asarray(w, dtype=float)
+    th = np.linalg.norm(w, axis=-1)[..., None, None]
+    K = skew(w)
+    small = th < 1e-12
+    safe = np.where(small, 1.0, th)
+    a = np.where(small, 1.0, np.sin(safe) / safe)
+    b = np.where(small, 0.0, (1 - np.cos(safe)) / safe**2)
+    return np.eye(3) + a * K + b * (K @ K)
 
 
 def rotation_log(R: np.ndarray) -> np.ndarray:
@@ -65,24 +68,29 @@ def rotation_log(R: np.ndarray) -> np.ndarray:
 
 
 def zyx_nearest(R: np.ndarray, old: np.ndarray) -> np.ndarray:
-    """(rz, ry, rx) rad with R (3, 3) = Rz Ry Rx, the triple nearest ``old`` (3,) rad — what a program writes
-    again where it wrote ``old``: ``old`` itself when it is R (to 1e-12 rad); else of R's two triples, each
-    with the whole turns that bring it nearest, the nearer (ties: the one with |ry| ≤ π/2), ry to full
-    precision near ±π/2 (atan2, where an arcsine loses half the digits), and at ±π/2, where only rz ∓ rx
-    is defined, the old rx kept."""
-    old = np.asarray(old, dtype=float)
-    if np.linalg.norm(rotation_log((rot_zyx(*old).T @ R)[None])[0]) < 1e-12:
-        return old.copy()
-    cy = float(np.hypot(R[0, 0], R[1, 0]))
-    ry = float(np.arctan2(-R[2, 0], cy))
-    if cy < 1e-10:
-        rx = float(old[2])
-        options = [np.array([np.arctan2(-R[0, 1], R[1, 1]) + np.copysign(1.0, ry) * rx, ry, rx])]
-    else:
-        rz, rx = float(np.arctan2(R[1, 0], R[0, 0])), float(np.arctan2(R[2, 1], R[2, 2]))
-        options = [np.array([rz, ry, rx]), np.array([rz + np.pi, np.pi - ry, rx + np.pi])]
-    near = [o + 2 * np.pi * np.round((old - o) / (2 * np.pi)) for o in options]
-    return near[first_best(np.array([np.abs(c - old).sum() for c in near]), maximize=False)]
+    """(rz, ry, rx) rad (…, 3) with R (…, 3, 3) = Rz Ry Rx, the triple nearest ``old`` (…, 3) rad — what a
+    program writes again where it wrote ``old``: ``old`` itself when it is R (to 1e-12 rad); else of R's two
+    triples, each with the whole turns that bring it nearest, the nearer (ties, :func:`kincal.ties.first_best`'s
+    rule row by row: the one with |ry| ≤ π/2), ry to full precision near ±π/2 (atan2, where an arcsine loses
+    half the digits), and at ±π/2, where only rz ∓ rx is defined, the old rx kept. Row by row, all at once."""
+    R, old = np.asarray(R, dtype=float), np.asarray(old, dtype=float)
+    shape = old.shape
+    R, old = R.reshape(-1, 3, 3), old.reshape(-1, 3)
+    was = np.moveaxis(rot_zyx(old[:, 0], old[:, 1], old[:, 2]), -1, 0)
+    same = np.linalg.norm(rotation_log(np.swapaxes(was, 1, 2) @ R), axis=1) < 1e-12
+    cy = np.hypot(R[:, 0, 0], R[:, 1, 0])
+    ry = np.arctan2(-R[:, 2, 0], cy)
+    lock = cy < 1e-10
+    rx = np.where(lock, old[:, 2], np.arctan2(R[:, 2, 1], R[:, 2, 2]))
+    rz = np.where(lock, np.arctan2(-R[:, 0, 1], R[:, 1, 1]) + np.copysign(1.0, ry) * old[:, 2],
+                  np.arctan2(R[:, 1, 0], R[:, 0, 0]))
+    one = np.stack([rz, ry, rx], axis=1)
+    other = np.stack([rz + np.pi, np.pi - ry, rx + np.pi], axis=1)
+    one, other = (o + 2 * np.pi * np.round((old - o) / (2 * np.pi)) for o in (one, other))
+    d_one, d_other = np.abs(one - old).sum(axis=1), np.abs(other - old).sum(axis=1)
+    wins = ~lock & (d_one > d_other + tie_tolerance(d_other))  # the other only when nearer beyond a tie
+    out = np.where(same[:, None], old, np.where(wins[:, None], other, one))
+    return out.reshape(shape)
 
 
 def quaternion_rotvec(q: np.ndarray) -> np.ndarray:
@@ -94,6 +102,7 @@ def quaternion_rotvec(q: np.ndarray) -> np.ndarray:
 
 
 def rotvec_quaternion(w: np.ndarray) -> np.ndarray:
-    """The unit quaternion (w, x, y, z) of the rotation vector ``w`` (rad)."""
-    th = float(np.linalg.norm(w))
-    return np.concatenate([[np.cos(th / 2)], np.asarray(w, float) * 0.5 * np.sinc(th / (2 * np.pi))])
+    """The unit quaternions (w, x, y, z) (…, 4) of the rotation vectors ``w`` (…, 3) rad."""
+    w = np.asarray(w, dtype=float)
+    th = np.linalg.norm(w, axis=-1, keepdims=True)
+    return np.concatenate([np.cos(th / 2), w * 0.5 * np.sinc(th / (2 * np.pi))], axis=-1)
