@@ -1,5 +1,6 @@
 """Issue 34's speed target: a KRL program of many E6POS targets (the bundled KR 6 R900 sixx, a calibration of it)
-compensated on each target's own branch, checked as written (target: 10^4 targets in 2 s). Prints a table.
+compensated on each target's own branch and checked as read again (target: 10^4 targets in 2 s); the read
+and the write beside it. Prints a table.
 Usage: python benchmarks/programs.py [N]"""
 import sys
 import time
@@ -8,7 +9,7 @@ import numpy as np
 
 import kincal
 from kincal.compensate import compensate_branches
-from kincal.io import ROWS, read_program
+from kincal.io import ROWS, read_program, write_program
 
 
 def program(nominal, n: int, path: str) -> None:
@@ -31,12 +32,24 @@ def main() -> None:
     nominal = kincal.load_robot("kuka_kr6r900sixx")
     cal = kincal.perturb(nominal, seed=1)
     program(nominal, n, "/tmp/kincal_bench.dat")
-    prog = read_program("/tmp/kincal_bench.dat", "krl")
-    t0 = time.perf_counter()
-    res = compensate_branches(cal, nominal, prog, ROWS["krl"], {"default tool": np.eye(4), "default base": np.eye(4)})
-    took = time.perf_counter() - t0
-    print(f"{'case':<60} {'time':>9} {'target':>8}")
-    print(f"{f'KRL program, {n} E6POS targets, compensated and checked':<60} {took:8.2f}s {f'{2 * n / 1e4:g} s':>8}")
+    frames = {"default tool": np.eye(4), "default base": np.eye(4)}
+    best = {"read": np.inf, "compensate": np.inf, "write": np.inf, "all": np.inf}
+    for _ in range(5):  # the best of five: a shared machine's noise only ever adds
+        t0 = time.perf_counter()
+        prog = read_program("/tmp/kincal_bench.dat", "krl")
+        t1 = time.perf_counter()
+        res = compensate_branches(cal, nominal, prog, ROWS["krl"], frames)
+        t2 = time.perf_counter()
+        write_program("/tmp/kincal_bench_out.dat", prog, res.texts)
+        t3 = time.perf_counter()
+        for key, took in zip(best, (t1 - t0, t2 - t1, t3 - t2, t3 - t0)):
+            best[key] = min(best[key], took)
+    print(f"{'case (best of 5)':<72} {'time':>8} {'target':>8}")
+    print(f"{f'KRL .dat of {n} E6POS targets: read':<72} {best['read']:7.2f}s")
+    print(f"{'  compensated on their branches and checked as read again (target)':<72} {best['compensate']:7.2f}s "
+          f"{f'{2 * n / 1e4:g} s':>8}")
+    print(f"{'  written':<72} {best['write']:7.2f}s")
+    print(f"{'  read, compensated, checked and written':<72} {best['all']:7.2f}s")
     print(f"({len(res.texts)} of {len(prog.targets)} compensated)")
 
 

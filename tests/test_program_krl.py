@@ -244,3 +244,19 @@ def test_broken_programs(text, line, column, what):
     message = str(err.value)
     assert message.startswith(f"broken.src: line {line}, column {column}: ") and what in message
     assert "\n" not in message
+
+
+def test_flat_components_read_in_one_scan_as_part_by_part(monkeypatch):
+    """The scanner's one-scan reading of flat aggregates and its one-scan number check give every real KRL
+    file the same targets and listed items as reading each component on its own."""
+    from kincal.io import krl_scan
+
+    fast = [read_program(str(p), "krl") for p in FILES]
+    monkeypatch.setattr(krl_scan, "_flat", lambda code, i, b: None)
+    monkeypatch.setattr(krl_scan, "ALL_NUMBERS", re.compile(r"(?!)"))
+    for path, f in zip(FILES, fast):
+        s = read_program(str(path), "krl")
+        assert [(t.start, t.end, t.fields, t.config, t.frames, t.variable) for t in f.targets] == \
+               [(t.start, t.end, t.fields, t.config, t.frames, t.variable) for t in s.targets], path.name
+        assert all(np.array_equal(a.values, b.values) for a, b in zip(f.targets, s.targets))
+        assert f.not_literal == s.not_literal

@@ -14,9 +14,12 @@ from __future__ import annotations
 
 import math
 import re
-from typing import NamedTuple
+from typing import NamedTuple, Sequence
+
+import numpy as np
 
 NUMBER = re.compile(r"([-+]?)(\d*)(?:(\.)(\d*))?(?:([eE])([-+]?\d+))?")  # sign, whole, point, decimals, e, exponent
+MANY = re.compile(r"^([-+]?)(?=\d|\.\d)(\d*)(?:(\.)(\d*))?(?:([eE])([-+]?\d+))?\n", re.M)  # numbers, one a line
 MAX_DECIMALS = 12  # a field never gets more decimals than this (1 pm in mm)
 
 
@@ -54,14 +57,7 @@ class Style(NamedTuple):
         d = self.decimals
         if d < MAX_DECIMALS and abs(round(mantissa, d) - mantissa) > tol:
             d = _fewest(mantissa, tol, d + 1)
-        digits = f"{abs(mantissa):0{self.width + (d > 0) + d}.{d}f}"
-        if d == 0 and self.dot:
-            digits += "."
-        if not self.lead and digits.startswith("0."):
-            digits = digits[1:]
-        negative = math.copysign(1.0, mantissa) < 0 and (mantissa == 0.0 or digits.strip("0.") != "")
-        sign = "-" if negative else "+" if self.plus else ""
-        return sign + digits + self.exponent, d
+        return _text(mantissa, d, self.width, self.dot, self.lead, self.plus) + self.exponent, d
 
 
 def _fewest(x: float, tol: float, lo: int) -> int:
@@ -81,3 +77,43 @@ def _fewest(x: float, tol: float, lo: int) -> int:
 def restyle(old: str, value: float, resolution: float) -> str:
     """``value`` written in the style of the number ``old`` (see the module docstring)."""
     return Style.of(old).write(value, resolution)[0]
+
+
+def restyle_all(olds: Sequence[str], values: np.ndarray, resolution: np.ndarray) -> list[str]:
+    """Each value (M,) written in the style of its old number, to its resolution (M,): :func:`restyle` for many
+    numbers at once, the same texts (the styles read by one scan, the decimals chosen by array operations where
+    scaled rounding is exact, |mantissa| · 10^MAX_DECIMALS < 2^52, and one by one elsewhere)."""
+    values, resolution = np.asarray(values, dtype=float), np.asarray(resolution, dtype=float)
+    found = MANY.findall("\n".join(olds) + "\n")
+    if len(found) != len(olds) or not np.isfinite(values).all():  # the culprit named, one by one
+        return [restyle(o, float(v), float(r)) for o, v, r in zip(olds, values, resolution)]
+    exponent = [e + x for *_, e, x in found]
+    scale = np.array([10.0 ** int(x[1:]) if x else 1.0 for x in exponent])
+    mantissa, tol = values / scale, resolution / scale
+    decimals = np.array([len(f[3]) for f in found])
+    d = np.arange(MAX_DECIMALS + 1)
+    carried = np.abs(np.round(mantissa[:, None] * 10.0 ** d) / 10.0 ** d - mantissa[:, None]) <= tol[:, None]
+    carried |= d == MAX_DECIMALS
+    need = np.maximum(decimals, np.argmax(carried & (d >= decimals[:, None]), axis=1))
+    exact = np.abs(mantissa) * 10.0 ** MAX_DECIMALS < 2.0**52
+    out = []
+    for (sign, whole, dot, frac, _, _), x, m, t, k, ok in zip(found, exponent, mantissa.tolist(), tol.tolist(),
+                                                             need.tolist(), exact.tolist()):
+        if not ok:
+            k = len(frac) if len(frac) >= MAX_DECIMALS or abs(round(m, len(frac)) - m) <= t else _fewest(
+                m, t, len(frac) + 1)
+        out.append(_text(m, k, len(whole) if whole.startswith("0") else 1, bool(dot), bool(whole), sign == "+") + x)
+    return out
+
+
+def _text(mantissa: float, decimals: int, width: int, dot: bool, lead: bool, plus: bool) -> str:
+    """A mantissa with ``decimals`` decimals, at least ``width`` digits before the point, a point without
+    decimals when ``dot``, no leading zero unless ``lead``, a '+' when ``plus``; '-' for a negative number that
+    is not written as zero (and for -0.0)."""
+    digits = "%0*.*f" % (width + (decimals > 0) + decimals, decimals, abs(mantissa))
+    if decimals == 0 and dot:
+        digits += "."
+    if not lead and digits.startswith("0."):
+        digits = digits[1:]
+    negative = math.copysign(1.0, mantissa) < 0 and (mantissa == 0.0 or digits.strip("0.") != "")
+    return ("-" if negative else "+" if plus else "") + digits

@@ -69,7 +69,7 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     qs = _corrected_all(model, nominal, program, goals, q_nom, rows, refused)
     values = _written(nominal, program.targets, qs, tools, [k for k in range(len(qs)) if k not in refused])
     texts = dict(zip(values, dialect.write(program.text, [program.targets[k] for k in values], list(values.values()))))
-    for k, why in check_written(model, nominal, program, texts, qs, rows, frames).items():
+    for k, why in check_written(model, nominal, program, texts, qs, rows, frames, goals).items():
         texts.pop(k)
         refused[k] = why
     problems = tuple(f"{program.source}: line {program.targets[k].line} ({program.targets[k].move}"
@@ -133,7 +133,7 @@ def _controller_joints(nominal: Robot, program: Program, goals, rows: Rows, q0: 
         if starts:
             _pass(nominal, program, goals, rows, q_nom, starts, q0)
             tried.update(starts)
-            pending = [k for k in pending if np.isnan(q_nom[k, 0])]
+            pending = np.array(pending)[np.isnan(q_nom[pending, 0])].tolist()
         else:  # no start left to try: the first one left, alone
             k = pending.pop(0)
             near = _last_solved(q_nom, k)
@@ -292,18 +292,19 @@ def _turns(robot: Robot, q: np.ndarray) -> list[np.ndarray]:
 
 
 def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, qs: np.ndarray, rows: Rows,
-                  frames: Mapping[str, np.ndarray]) -> dict[int, str]:
+                  frames: Mapping[str, np.ndarray], intended) -> dict[int, str]:
     """The compensated targets whose text, read again, does not bring the robot where the program meant, and
     why: a written pose target's controller joints (Newton on the nominal model from the corrected joints, on
     the target's bits) and a written joint target's joints must put the calibrated model's flange on the
-    intended pose to ``CHECK_TOL``. All together."""
+    intended pose (``intended``: p (N, 3), R (N, 3, 3) of every target, from :func:`_goals`) to ``CHECK_TOL``.
+    All together."""
     if not texts:
         return {}
     model, nominal = model.with_tool_point(np.zeros(3)), nominal.with_tool_point(np.zeros(3))  # flange poses
     again = dialects()[program.dialect].parse(program.source, program.with_targets(texts))
     ks = sorted(texts)
     old = [program.targets[k] for k in ks]
-    goals, _, _ = _goals(nominal, dataclasses.replace(program, targets=tuple(old)), frames)
+    goals = intended[0][ks], intended[1][ks]
     new = dataclasses.replace(program, targets=tuple(again.targets[k] for k in ks))
     written, _, _ = _goals(nominal, new, frames)
     poses = np.array([t.kind != "joints" for t in old])

@@ -15,10 +15,12 @@ AXIS_KEYS = ("A1", "A2", "A3", "A4", "A5", "A6")
 EXTERNAL = ("E1", "E2", "E3", "E4", "E5", "E6")
 NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 BITS = re.compile(r"'([BbHh])([0-9A-Fa-f]+)'")
+_PART = rf"\s*(?:[A-Za-z_]\w*\s*{NUMBER.pattern}|[ST]\s*'[BbHh][0-9A-Fa-f]+')\s*"
+ALL_NUMBERS = re.compile(rf"(?:[ \t]*[A-Za-z_]\w*[ \t]*:)?{_PART}(?:,{_PART})*", re.I)  # a body of numbers (and bits)
 TYPED = re.compile(r"[ \t]*([A-Za-z_]\w*)[ \t]*:(?!=)")  # {E6POS: …}
 KEY = re.compile(r"\s*([A-Za-z_$]\w*)(\[\])?\s*")  # a component's name
 BRACKET = re.compile(r"[{}\[\]]")
-FLAT = re.compile(r"[^,{}\[\]]*")  # a component's value without brackets
+COMPONENT = re.compile(r"(\s*)([A-Za-z_$]\w*)(\[\]|)(\s*)([^,{}\[\]]*)(,|$)")  # a name and a flat value
 SEPARATOR = re.compile(r"[,}{\[]")  # what ends a component's value, or opens a nested one
 COMMENT_OR_STRING = re.compile(r"\"[^\"\n]*\"?|;[^\n]*")
 
@@ -86,6 +88,9 @@ def _aggregate(source: str, text: str, code: str, ends: dict[int, int], a: int) 
     m = TYPED.match(code, i)
     if m:
         typed, i = m.group(1).upper(), m.end()
+    flat = _flat(code, i, b)
+    if flat is not None:
+        return _Aggregate(a, b, typed, flat, [])
     parts: dict[str, tuple[int, int]] = {}
     nested: list[int] = []
     while i < b - 1:
@@ -93,11 +98,6 @@ def _aggregate(source: str, text: str, code: str, ends: dict[int, int], a: int) 
         if not k:
             return _Aggregate(a, b, typed, {}, [])  # not name-value components: not a position
         j = k.end()
-        flat = FLAT.match(code, j)  # the common case: a value with no brackets, then ',' or '}'
-        if flat and code[flat.end()] in ",}" and (flat.end() > j or k.group(2)):
-            parts[k.group(1).upper()] = (j, j + len(flat.group().rstrip()))
-            i = flat.end() + 1
-            continue
         if code[j] == "{":
             nested.append(j)
             j = ends[j]
@@ -113,8 +113,24 @@ def _aggregate(source: str, text: str, code: str, ends: dict[int, int], a: int) 
     return _Aggregate(a, b, typed, parts, nested)
 
 
+def _flat(code: str, i: int, b: int) -> dict[str, tuple[int, int]] | None:
+    """The components (KEY -> value span) of an aggregate from ``i`` to its '}' at b - 1 when each is a name
+    and a value without brackets (the common case, in one scan); else None (read part by part)."""
+    parts, at = {}, i
+    for lead, key, empty, gap, value, _ in COMPONENT.findall(code, i, b - 1):
+        lo = at + len(lead) + len(key) + len(empty) + len(gap)
+        trimmed = value.rstrip()
+        if not trimmed and not empty:
+            return None
+        parts[key.upper()] = (lo, lo + len(trimmed))
+        at = lo + len(value) + 1
+    return parts if at == b and parts else None
+
+
 def _check_numbers(source: str, text: str, agg: _Aggregate) -> None:
     """Every component of a position is a number (S and T may be 'B…' bits)."""
+    if ALL_NUMBERS.fullmatch(text, agg.start + 1, agg.end - 1):  # the common case, in one scan
+        return
     for k, (lo, hi) in agg.parts.items():
         value = text[lo:hi]
         if NUMBER.fullmatch(value) or (k in ("S", "T") and BITS.fullmatch(value)):

@@ -24,7 +24,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .._atomic import write_text_atomic
-from .._numstyle import restyle
+from .._numstyle import restyle_all
 from ..errors import MeasurementError
 
 
@@ -118,10 +118,12 @@ Numbers = Callable[[str, Sequence[Target], np.ndarray], tuple[np.ndarray, np.nda
 
 
 def write_fields(text: str, targets: Sequence[Target], values: Sequence[np.ndarray], numbers: Numbers) -> list[str]:
-    """The new texts of the targets' spans for new SI ``values``, field by field (:func:`fields_text`): the
-    targets are taken in groups of one kind and one number of values, and ``numbers(text, group, values (G, V))``
-    gives each group's field numbers (G, F) in the fields' units and their resolution (G, F) or (F,), all at
-    once (a 10^4-target program is converted in one step per group, not target by target)."""
+    """The new texts of the targets' spans for new SI ``values``, field by field: the targets are taken in
+    groups of one kind and one number of values, ``numbers(text, group, values (G, V))`` gives each group's
+    field numbers (G, F) in the fields' units and their resolution (G, F) or (F,), and each number is written
+    in its old style with at least the decimals that carry it to its resolution
+    (:func:`kincal._numstyle.restyle_all`); every other byte of a span as it is. All at once per group (a
+    10^4-target program is converted in one step, not target by target)."""
     out = [""] * len(targets)
     groups: dict[tuple[str, int], list[int]] = {}
     for k, (t, v) in enumerate(zip(targets, values)):
@@ -129,9 +131,10 @@ def write_fields(text: str, targets: Sequence[Target], values: Sequence[np.ndarr
     for ks in groups.values():
         group = [targets[k] for k in ks]
         found, resolution = numbers(text, group, np.array([values[k] for k in ks], dtype=float))
-        resolution = np.broadcast_to(resolution, found.shape)
-        for k, t, row, res in zip(ks, group, found, resolution):
-            out[k] = fields_text(text, t, row, res)
+        olds = [text[a:b] for t in group for a, b in t.fields]
+        new = iter(restyle_all(olds, found.ravel(), np.broadcast_to(resolution, found.shape).ravel()))
+        for k, t in zip(ks, group):
+            out[k] = _spliced(text, t, [next(new) for _ in t.fields])
     return out
 
 
@@ -141,14 +144,11 @@ def old_numbers(text: str, targets: Sequence[Target], fields: slice = slice(None
         len(targets), -1)
 
 
-def fields_text(text: str, target: Target, numbers: np.ndarray, resolution: np.ndarray) -> str:
-    """The target's span of ``text`` with the numbers of its fields replaced by ``numbers`` (F,) (in the
-    fields' units and order), each written in its old style with at least the decimals that carry it to
-    ``resolution`` (F,) (:func:`kincal._numstyle.restyle`); every other byte of the span as it is."""
+def _spliced(text: str, target: Target, numbers: list[str]) -> str:
+    """The target's span of ``text`` with its fields' texts replaced by ``numbers`` (in the fields' order)."""
     pieces, at = [], target.start
-    for k in sorted(range(len(target.fields)), key=lambda k: target.fields[k][0]):  # the span left to right
-        a, b = target.fields[k]
-        pieces += [text[at:a], restyle(text[a:b], float(numbers[k]), float(resolution[k]))]
+    for (a, b), new in sorted(zip(target.fields, numbers)):  # the span left to right
+        pieces += [text[at:a], new]
         at = b
     return "".join(pieces) + text[at:target.end]
 
