@@ -76,7 +76,7 @@ class _Aggregate:
             return "joints"
         return ""
 
-    @property
+    @functools.cached_property
     def missing(self) -> list[str]:
         return [k for k in (POSE_KEYS if self.shape == "pose" else AXIS_KEYS) if k not in self.parts]
 
@@ -139,6 +139,8 @@ def _check_numbers(source: str, text: str, agg: _Aggregate) -> None:
 
 
 def _integer(value: str) -> int:
+    if value.isdigit():
+        return int(value)
     bits = BITS.fullmatch(value)
     if bits:
         return int(bits.group(2), 2 if bits.group(1) in "Bb" else 16)

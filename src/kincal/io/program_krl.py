@@ -74,12 +74,12 @@ def _target(text: str, agg: _Aggregate, move: str, at: int, variable: str, frame
             line: int) -> Target:
     """The Target of a complete position aggregate (checked already) on ``line``, its values as written (mm,
     deg: :func:`_in_si` converts them all at once)."""
-    keys = POSE_KEYS if agg.shape == "pose" else AXIS_KEYS
-    fields = tuple(agg.parts[k] for k in keys)
+    parts = agg.parts
+    fields = tuple([parts[k] for k in (POSE_KEYS if agg.shape == "pose" else AXIS_KEYS)])
     values = np.array([float(text[a:b]) for a, b in fields])
     config: tuple = ()
-    if "S" in agg.parts or "T" in agg.parts:
-        config = tuple(_integer(text[slice(*agg.parts[k])]) if k in agg.parts else None for k in ("S", "T"))
+    if "S" in parts or "T" in parts:
+        config = tuple([_integer(text[parts[k][0]:parts[k][1]]) if k in parts else None for k in ("S", "T")])
     return Target(agg.start, agg.end, line, move, agg.shape, values, at, variable, fields, config, frames)
 
 
@@ -145,7 +145,7 @@ def _move_arguments(source: str, text: str, code: str, ends: dict[int, int], m: 
 
 def _key(name: str) -> str:
     """A variable's name as KRL compares it: upper case, no blanks."""
-    return re.sub(r"\s+", "", name).upper()
+    return "".join(name.split()).upper()
 
 
 def _declared(code: str) -> dict[str, str]:
@@ -163,14 +163,15 @@ def _assignments(code: str, ends: dict[int, int]) -> list[tuple[str, str, int, i
     variable as written)."""
     out = []
     for m in ASSIGN.finditer(code):
-        var = _key(m.group(1) + (m.group(2) or ""))
-        part = _key(m.group(3) or "")
+        name, index, part = m.group(1, 2, 3)
+        shown = "".join((name + (index or "")).split())
+        var, part = shown.upper(), _key(part) if part else ""
         literal = m.end() if code[m.end():m.end() + 1] == "{" else -1
         if literal >= 0:
             line_end = code.find("\n", ends[literal])
             after = code[ends[literal]:line_end if line_end >= 0 else len(code)]
             literal = literal if after.strip() == "" else -1  # {…}:{…}, {…} + …: computed
-        out.append((var, part, m.start(1), literal, re.sub(r"\s+", "", m.group(1) + (m.group(2) or ""))))
+        out.append((var, part, m.start(1), literal, shown))
     return out
 
 
