@@ -211,3 +211,22 @@ def test_every_real_target_is_compensated_and_checked_or_refused_by_line(languag
                 assert np.linalg.norm(pa - pb) < 1e-9 and not np.allclose(again[k].values, prog.targets[k].values)
         compensated, refused = compensated + len(res.texts), refused + len(res.refused)
     assert compensated >= 1 and compensated + refused == {"krl": 22, "fanuc": 2}[language]
+
+
+def test_a_redundant_arms_pose_targets_are_refused_with_the_reason(tmp_path):
+    """A 7-joint arm (the bundled WAM): the controller picks the redundancy of a Cartesian target (KRL E1, RAPID
+    eax_a), so its pose targets are refused with that reason, by line; an E6AXIS (A1..A6, six values) is refused
+    for the count, and neither is written."""
+    from kincal.compensate.branch import REDUNDANT
+
+    nominal = kincal.load_robot("wam")
+    true = kincal.perturb(nominal, seed=2)
+    text = ("DEFDAT  SEVEN\r\nDECL E6POS XP1={X 400.0,Y 0.0,Z 500.0,A 0.0,B 90.0,C 0.0,S 2,T 10,E1 12.5}\r\n"
+            "DECL E6AXIS XP2={A1 0,A2 10,A3 0,A4 90,A5 0,A6 0,E1 12.5}\r\nENDDAT\r\n")
+    path = tmp_path / "seven.dat"
+    path.write_bytes(text.encode())
+    prog = read_program(str(path), "krl")
+    res = compensate_branches(true, nominal, prog, lambda robot, qq: [(0, 0)] * len(qq),
+                              frames={"default tool": np.eye(4), "default base": np.eye(4)})
+    assert res.refused == {0: REDUNDANT, 1: "6 joint values for a 7-joint robot"} and not res.texts
+    assert "line 2" in res.problems[0] and "E1" in res.problems[0] and "line 3" in res.problems[1]

@@ -16,7 +16,9 @@ target's configuration bits name. For each literal target of such a program:
 
 The bits are derived again from q (the language's rule, :data:`kincal.io.branches.ROWS`): they must equal
 the target's, else the target is refused with its line (as when the correction does not converge, leaves
-the nominal branch or breaks a joint limit; at a singularity the refusal says so). Frames are the
+the nominal branch or breaks a joint limit; at a singularity the refusal says so). A pose target of an
+arm with more than six joints is refused (``REDUNDANT``: the controller's redundancy rule is not modelled);
+its joint targets are compensated. Frames are the
 program's own names (``Target.frames``): each must be given in ``frames`` (name -> 4x4 pose, m) unless the
 language defines it as the identity (RAPID's tool0 and wobj0); a frame that is missing is refused, never
 taken as the identity; where the program names none, the frames' ``default tool`` and ``default base``
@@ -45,6 +47,9 @@ SINGULAR = 1e3  # condition number of the pose Jacobian (m, rad) beyond which a 
 CHAIN = 512  # targets per Newton pass of the controller's joints (the next ones start from the joints found)
 IDENTITY_FRAMES = {"rapid": (("tool0",), ("wobj0", ""))}  # (tools, bases) a language defines as the identity
 # (RAPID: tool0 is the flange, wobj0 the world frame, and a move without \WObj is in wobj0)
+REDUNDANT = ("a pose target of a redundant arm: the controller chooses the redundancy (the elbow's arm angle, "
+             "KRL's E1 or RAPID's eax_a) by a rule kincal does not model, so the joints it would take are unknown; "
+             "give joint targets (E6AXIS, jointtarget) to compensate")
 Config = Callable[[Robot, np.ndarray], tuple]
 Rows = Callable[[Robot, np.ndarray], list]
 
@@ -92,6 +97,9 @@ def _goals(nominal: Robot, program: Program, frames: Mapping[str, np.ndarray]):
         if t.kind == "joints":
             if t.values.size != nominal.n_joints:
                 refused[k] = f"{t.values.size} joint values for a {nominal.n_joints}-joint robot"
+            continue
+        if nominal.n_joints > 6:
+            refused[k] = REDUNDANT
             continue
         if t.frames not in known:
             known[t.frames] = _frames(program.dialect, t.frames, given)
