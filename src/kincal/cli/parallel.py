@@ -124,9 +124,13 @@ def _compensate_branches(args, cal, values) -> int:
              f"checked as written" + (f"; program written to {args.output} (every other byte as it was)" if written
                                       else f"; nothing written to {args.output}" + (
                                           " (--skip-unreachable writes the others)" if res.texts else ""))]
+    declared = kincal.io.dialects()[args.program].frames(prog)
+    known = sorted(k for k, v in declared.items() if not isinstance(v, str))
+    lines += [f"frames the program declares or holds beside it: {', '.join(known)}"] if known else []
     lines += [f"refused: {p}" for p in res.problems]
     lines += [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal]
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
+                       "declared_frames": known,
                        "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal],
                        "output": args.output if written else None}, "\n".join(lines), 0 if written else EXIT_REFUSED)
 
@@ -149,9 +153,13 @@ def _compensate_program(args, r, nominal, carry: str, models) -> int:
         if prog.tcps else [] if args.tcp is not None else [
         "warning: the program sets no TCP (set_tcp) and no --tcp was given: its poses are taken as poses of the "
         "measured target (the calibration's tool point); give --tcp with the controller's TCP if it is another"]
+    declared = kincal.io.dialects()[args.program].frames(prog)
+    known = sorted(k for k, v in declared.items() if not isinstance(v, str))
+    lines += [f"frames the program declares or holds beside it: {', '.join(known)}"] if known else []
     lines += [f"refused: {p}" for p in res.problems]
     lines += [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal]
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
+                       "declared_frames": known,
                        "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal],
                        "output": args.output if written else None, "tool_carry": carry or None},
                 "\n".join(lines + ([f"TCP: {carry}"] if carry else [])), 0 if written else EXIT_REFUSED)
@@ -231,8 +239,10 @@ def register(cmd) -> None:
     s.add_argument("--frames", metavar="FILE",
                    help="--program krl|rapid|fanuc|inform: the tool and base frames the program names, YAML {name: "
                         "{x, y, z, rx, ry, rz}} in mm and deg ('default tool', 'default base': those in force where the "
-                        "program names none; a RAPID module's own tooldata and wobjdata are read from it); a frame "
-                        "neither gives is refused, never taken as the identity")
+                        "program names none), or a KUKA $config.dat; a RAPID module's own tooldata and wobjdata and "
+                        "the $config.dat beside a KRL program (R1/System, with $ROBROOT_C from STEU/Mada/$machine.dat "
+                        "for its bases) are read without it; a frame none of them gives is refused, never taken as "
+                        "the identity")
     s.add_argument("--path", action="store_true",
                    help="the rows are consecutive targets of one path: a row whose corrected command jumps much "
                         "more from the previous one than the nominal commands do is refused and named")

@@ -45,8 +45,9 @@ from .program import SEARCH, STARTS, ProgramCompensation
 CHECK_TOL = 1e-9  # m and rad: a written target must reproduce its intended pose this closely
 SINGULAR = 1e3  # condition number of the pose Jacobian (m, rad) beyond which a failed correction is named as such
 CHAIN = 512  # targets per Newton pass of the controller's joints (the next ones start from the joints found)
-IDENTITY_FRAMES = {"rapid": (("tool0",), ("wobj0", ""))}  # (tools, bases) a language defines as the identity
-# (RAPID: tool0 is the flange, wobj0 the world frame, and a move without \WObj is in wobj0)
+IDENTITY_FRAMES = {"rapid": (("tool0",), ("wobj0", "")), "krl": (("$nullframe",), ())}  # (tools, bases) a language
+# defines as the identity (RAPID: tool0 is the flange, wobj0 the world frame, and a move without \WObj is in wobj0;
+# KRL: $TOOL = $NULLFRAME is the flange, while $BASE = $NULLFRAME is the world, given with $ROBROOT_C)
 REDUNDANT = ("a pose target of a redundant arm: the controller chooses the redundancy (the elbow's arm angle, "
              "KRL's E1 or RAPID's eax_a) by a rule kincal does not model, so the joints it would take are unknown; "
              "give joint targets (E6AXIS, jointtarget) to compensate")
@@ -55,7 +56,7 @@ Rows = Callable[[Robot, np.ndarray], list]
 
 
 def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Rows,
-                        frames: Mapping[str, np.ndarray] | None = None,
+                        frames: Mapping[str, np.ndarray | str] | None = None,
                         q_start: np.ndarray | None = None) -> ProgramCompensation:
     """Compensate every literal target of ``program`` on the branch it states (module docstring);
     ``rows(robot, q (N, 6)) -> bits per row`` as the language writes them (:data:`kincal.io.branches.ROWS`);
@@ -83,7 +84,7 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     return ProgramCompensation(texts, qs, problems, program.not_literal, refused)
 
 
-def _goals(nominal: Robot, program: Program, frames: Mapping[str, np.ndarray]):
+def _goals(nominal: Robot, program: Program, frames: Mapping[str, np.ndarray | str]):
     """Each target's flange pose (p (N, 3), R (N, 3, 3); NaN where refused), its (tool, base) frames (None for
     joints) and the refusals so far (index -> why): a joint target's pose is the nominal model's there, a pose
     target's is B·T·U⁻¹ (all at once)."""
@@ -91,7 +92,7 @@ def _goals(nominal: Robot, program: Program, frames: Mapping[str, np.ndarray]):
     p, R = np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)
     tools: list = [None] * n
     refused: dict[int, str] = {}
-    given = {k.lower(): np.asarray(v, dtype=float) for k, v in frames.items()}
+    given = {k.lower(): v if isinstance(v, str) else np.asarray(v, dtype=float) for k, v in frames.items()}
     known: dict[tuple[str, str], tuple | str] = {}
     for k, t in enumerate(program.targets):
         if t.kind == "joints":
@@ -240,17 +241,18 @@ def _single(rows: Rows) -> Config:
     return lambda robot, q: tuple(rows(robot, np.asarray(q, dtype=float)[None])[0])
 
 
-def _frames(dialect: str, names: tuple[str, str], given: Mapping[str, np.ndarray]
+def _frames(dialect: str, names: tuple[str, str], given: Mapping[str, np.ndarray | str]
             ) -> tuple[np.ndarray, np.ndarray] | str:
     """The tool and base frames (4x4 each) of a target naming ``names`` (any case; ``given`` by lower-case
     name), or why they are not known."""
     out = []
     for what, name, identity in zip(("tool", "base"), names, IDENTITY_FRAMES.get(dialect, ((), ()))):
         key = name.lower() or f"default {what}"  # the frame in force where the program names none
-        if name.lower() in identity:
-            out.append(np.eye(4))
-        elif key in given:
-            out.append(given[key])
+        found = np.eye(4) if name.lower() in identity else given.get(key)
+        if isinstance(found, str):
+            return f"its {what} frame {name!r} is not known: {found}"
+        if found is not None:
+            out.append(found)
         else:
             return (f"its {what} frame {name!r} is not given (give it with the frames; it is not taken as the "
                     f"identity)" if name else f"the program names no {what} frame here: give the one in force "
@@ -300,7 +302,7 @@ def _turns(robot: Robot, q: np.ndarray) -> list[np.ndarray]:
 
 
 def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, qs: np.ndarray, rows: Rows,
-                  frames: Mapping[str, np.ndarray], intended) -> dict[int, str]:
+                  frames: Mapping[str, np.ndarray | str], intended) -> dict[int, str]:
     """The compensated targets whose text, read again, does not bring the robot where the program meant, and
     why: a written pose target's controller joints (Newton on the nominal model from the corrected joints, on
     the target's bits) and a written joint target's joints must put the calibrated model's flange on the

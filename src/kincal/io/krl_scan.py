@@ -102,7 +102,7 @@ def _aggregate(source: str, text: str, code: str, ends: dict[int, int], a: int) 
             nested.append(j)
             j = ends[j]
         while code[j] not in ",}":
-            j = ends[j] if code[j] in "{[" else SEPARATOR.search(code, j).end() - 1  # type: ignore[union-attr]
+            j = ends[j] if code[j] in "{[" else _next_separator(code, j)
         lo, hi = k.end(), j
         while hi > lo and code[hi - 1].isspace():
             hi -= 1
@@ -111,6 +111,12 @@ def _aggregate(source: str, text: str, code: str, ends: dict[int, int], a: int) 
         parts[k.group(1).upper()] = (lo, hi)
         i = j + 1
     return _Aggregate(a, b, typed, parts, nested)
+
+
+def _next_separator(code: str, j: int) -> int:
+    """Where the next ',', '}', '{' or '[' after j is (an aggregate's closing '}' is always there)."""
+    m = SEPARATOR.search(code, j)
+    return len(code) if m is None else m.start()
 
 
 def _flat(code: str, i: int, b: int) -> dict[str, tuple[int, int]] | None:

@@ -354,7 +354,7 @@ def _use(text: str, code: str, letter: str, at: int, ref: tuple[int, int], seg_e
 
 # --- writing ------------------------------------------------------------------------------------
 
-def _fields(text: str, targets: list[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _fields(text: str, targets: Sequence[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The fields of targets of one kind for new SI values (G, V): X, Y, Z in mm and W, P, R in deg (the
     triple nearest the old numbers), or J1…Jn in deg (mm for an axis written in mm)."""
     if targets[0].kind == "joints":

@@ -344,7 +344,7 @@ def parse(source: str, text: str) -> Program:
                    tuple(sorted(listed, key=lambda item: item[0])), comment="", dialect="inform")
 
 
-def _fields(text: str, targets: list[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _fields(text: str, targets: Sequence[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The positions' numbers for new SI values (G, 6): X, Y, Z (mm; 1e-7 mm) and Rx, Ry, Rz (deg; 1e-8°), the
     equivalent angle triple nearest the old one; a number that moved only by rounding noise stays the old one."""
     old = old_numbers(text, targets)

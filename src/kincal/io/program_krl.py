@@ -359,7 +359,7 @@ def parse(source: str, text: str) -> Program:
     return Program(source, text, tuple(targets), tuple(sorted(f.listed, key=lambda x: x[0])))
 
 
-def _fields(text: str, targets: list[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _fields(text: str, targets: Sequence[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The fields of targets of one kind for new SI values (G, V): X, Y, Z (mm, to 1e-7), A, B, C (deg, to
     1e-8; the triple nearest the old numbers) or A1..A6 (deg, to 1e-8)."""
     if targets[0].kind != "pose":
@@ -375,4 +375,11 @@ def write(text: str, targets: Sequence[Target], values: Sequence[np.ndarray]) ->
     return write_fields(text, targets, values, _fields)
 
 
-DIALECT = Dialect("krl", (".src", ".dat", ".sub"), ";", parse, write)
+def _frames(program: Program) -> dict[str, np.ndarray | str]:
+    """The tools and bases of the controller's $config.dat beside the program (:mod:`kincal.io.krl_config`)."""
+    from .krl_config import program_frames
+
+    return program_frames(program)
+
+
+DIALECT = Dialect("krl", (".src", ".dat", ".sub"), ";", parse, write, _frames)

@@ -338,7 +338,7 @@ def declared_frames(program: Program) -> dict[str, FrameData]:
     return out
 
 
-def _fields(text: str, targets: list[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _fields(text: str, targets: Sequence[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The fields of targets of one kind for new SI values (G, V): rax (deg) or x, y, z (mm) and the quaternion
     (in the old numbers' hemisphere and with their norm); a zero keeps its written sign."""
     old = old_numbers(text, targets)

@@ -19,7 +19,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -103,15 +103,15 @@ class Dialect:
     """A vendor language: its name, the file suffixes it is read from (lower case), its comment mark,
     its reader ``parse(source, text) -> Program``, its writer ``write(text, targets, values) -> texts`` (the
     new texts of the targets' spans for new SI values, all at once; see :func:`write_fields`) and
-    ``frames(program)``: the tool and base frames a program declares with their values, by the names its
-    targets use (4x4, m)."""
+    ``frames(program)``: the tool and base frames a program declares (or its controller holds beside it) with
+    their values, by the names its targets use (4x4, m; or why a frame it names cannot be known)."""
 
     name: str
     suffixes: tuple[str, ...]
     comment: str
     parse: Callable[[str, str], Program]
     write: Callable[[str, Sequence[Target], Sequence[np.ndarray]], list[str]]
-    frames: Callable[[Program], dict[str, np.ndarray]] = no_frames
+    frames: Callable[[Program], Mapping[str, np.ndarray | str]] = no_frames
 
 
 Numbers = Callable[[str, Sequence[Target], np.ndarray], tuple[np.ndarray, np.ndarray]]
@@ -212,12 +212,20 @@ def write_program(path: str, program: Program, texts: dict[int, str], marks: dic
     write_text_atomic(path, program.with_targets(texts, marks), program.encoding)
 
 
-def read_frames(path: str) -> dict[str, np.ndarray]:
+def read_frames(path: str) -> Mapping[str, np.ndarray | str]:
     """The tool and base frames of a frames file: YAML ``{name: {x, y, z, rx, ry, rz}}`` (the frame in the flange
     or the robot's base frame; R = Rz(rz) Ry(ry) Rx(rx)), lengths in mm and angles in deg unless ``units:
-    {length: …, angle: …}`` says otherwise; missing coordinates are 0. As 4x4 poses (m) by name. ValueError
-    naming the file and the frame for anything else."""
+    {length: …, angle: …}`` says otherwise; missing coordinates are 0; or a KUKA ``$config.dat`` (its TOOL_DATA,
+    and its BASE_DATA with the $ROBROOT_C of a ``$machine.dat`` found from it: :mod:`kincal.io.krl_config`).
+    As 4x4 poses (m) by name (a $config.dat's base without $ROBROOT_C: why it is not known). ValueError naming
+    the file and the frame for anything else."""
     import yaml
+
+    if os.path.basename(str(path)).lower() == "$config.dat":
+        from .krl_config import config_frames, robroot, sibling
+
+        machine = sibling(str(path), "$machine.dat")
+        return config_frames(str(path), None if machine is None else robroot(machine))
 
     from ..models.transforms import rot_zyx
     from ..units import unit_factor
