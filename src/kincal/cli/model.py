@@ -1,13 +1,16 @@
 """Commands about robots and their kinematics: robots, show, identifiability, simulate, sensitivity."""
 from __future__ import annotations
 
+import argparse
 import re
 
 import numpy as np
 
 import kincal
 import kincal.analysis
+import kincal.io
 import kincal.models
+from kincal.compensate import fit_frames_only
 from kincal.identify import observation_identifiability
 from kincal.observe import describe, read_observations, write_observations
 from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM, SHOWN, display
@@ -105,6 +108,10 @@ def cmd_sensitivity(args) -> int:
 
 
 def cmd_export(args) -> int:
+    if "tool_load" in args.given and args.format != "frames-rapid":
+        raise ValueError("--tool-load is the load a RAPID tooldata carries: for --format frames-rapid only")
+    if args.format in kincal.io.FRAMES_FORMATS:
+        return _export_frames(args)
     r = load_robot(args, [args.source], [args.output])
     info = kincal.export_robot(r, args.output, args.format, args.source, args.tool_link, args.base_yaw / DEG,
                                args.length_unit, args.angle_unit, args.joint_names)
@@ -128,6 +135,65 @@ def cmd_export(args) -> int:
                      f"tool point in the UR flange frame); the driver will warn that the file's hash does not match "
                      f"the robot's factory calibration: expected for a tracker calibration (see the README)")
     return emit(args, {**info, "output": args.output}, "\n".join(lines))
+
+
+NOT_FOR_FRAMES = ("source", "tool_link", "joint_names", "base_yaw", "length_unit", "angle_unit")
+
+
+def _export_frames(args) -> int:
+    """export --format frames-krl|frames-rapid|frames-urscript: the base and tool that bring the nominal model
+    nearest the calibrated one (kincal.compensate.fit_frames_only), as the controller's own data, read back
+    before it is written, with what the frames leave of the calibration."""
+    flags = [args.given[k] for k in NOT_FOR_FRAMES if k in args.given]
+    if flags:
+        raise ValueError(f"{', '.join(flags)}: not for frames data, which hold only a base and a tool")
+    kincal.io.check_frames_output(args.output, args.format, tuple(args.tool_load) if args.tool_load else None)
+    cal = load_robot(args, [], [args.output])
+    values = (kincal.models.load_calibration_record(args.robot) or {}).get("nominal")
+    if not isinstance(values, dict):
+        raise ValueError(f"{args.robot}: frames data need the nominal model the controller moves with; export them "
+                         f"from a calibration's robot file (kincal calibrate … -o cal.yaml), which records it")
+    if not cal.has_tool_point:
+        cal = cal.with_tool_point(np.zeros(3))
+    unc = kincal.analysis.load_uncertainty(args.robot)
+    region = None if unc is None or unc.lower is None or unc.upper is None else (unc.lower, unc.upper)
+    fit = fit_frames_only(cal, cal.with_params(values), region=region)
+    where = "the joint ranges of the calibration's data" if region else "the joint limits"
+    base = np.linalg.inv(fit.base)  # the measurement frame (where targets are) in the robot's base
+    note = [f"kincal frames-only correction of {cal.name}: base = the calibration's measurement frame in the "
+            f"robot's base, tool = the TCP in the flange",
+            f"left by the frames: RMS {fit.after_rms * 1e3:.3f} mm, max {fit.after_max * 1e3:.3f} mm over "
+            f"{fit.samples} poses within {where} (compensated commands carry the rest)"]
+    kincal.io.write_frames_data(args.output, args.format, base, fit.tool, note,
+                                tuple(args.tool_load) if args.tool_load else None)
+    lines = [f"{cal.name}: {args.format} written to {args.output} (read back by the language's reader: the frames "
+             f"to 1e-9 m and 1e-9 rad)", _frame_line("base (the measurement frame in the robot's base)", base),
+             _frame_line("tool (the TCP in the flange)", fit.tool),
+             "angles ZYX: KUKA A, B, C; FANUC W, P, R and Yaskawa Rx, Ry, Rz are C, B, A (enter these on the pendant)",
+             f"the frames alone leave RMS {fit.after_rms * 1e3:.3f} mm, max {fit.after_max * 1e3:.3f} mm, "
+             f"{np.degrees(fit.rotation_after):.4f} deg of the calibrated model over {fit.samples} poses within {where} "
+             f"(the nominal model with the calibration's base frame and tool point: RMS "
+             f"{fit.before_rms * 1e3:.3f} mm, max {fit.before_max * 1e3:.3f} mm); compensated commands "
+             f"(kincal compensate) carry the whole calibration"]
+    return emit(args, {**fit.to_dict(), "format": args.format, "output": args.output, "written_base": base.tolist()},
+                "\n".join(lines))
+
+
+def _frame_line(what: str, T: np.ndarray) -> str:
+    x, y, z, a, b, c = kincal.io.frame_numbers(T)
+    return f"{what}: X {x:.4f}, Y {y:.4f}, Z {z:.4f} mm, A {a:.5f}, B {b:.5f}, C {c:.5f} deg"
+
+
+def _tool_load(s: str) -> tuple[float, ...]:
+    """argparse type: MASS,X,Y,Z: a mass > 0 (kg) and a centre of gravity (mm), finite."""
+    try:
+        v = tuple(float(x) for x in csv_list(s))
+    except ValueError:
+        v = ()
+    if len(v) != 4 or not np.isfinite(v).all() or v[0] <= 0:
+        raise argparse.ArgumentTypeError(f"'{s}': give the tool's mass (kg, > 0) and its centre of gravity x, y, z "
+                                         f"(mm, tool frame), e.g. 2.5,0,0,80")
+    return v
 
 
 def register(cmd) -> None:
@@ -162,8 +228,12 @@ def register(cmd) -> None:
 
     s = cmd("export", cmd_export, "write a calibrated robot as URDF, UR calibration file or kincal YAML")
     s.add_argument("output", help="file to write (.urdf: URDF; otherwise kincal YAML unless --format ur)")
-    s.add_argument("--format", choices=list(kincal.models.FORMATS), help="urdf, ur (Universal Robots' kinematics "
-                   "file for the ROS driver) or yaml (default: from the file name)")
+    s.add_argument("--format", choices=[*kincal.models.FORMATS, *kincal.io.FRAMES_FORMATS], help="urdf, ur "
+                   "(Universal Robots' kinematics file for the ROS driver), yaml (default: from the file name), or "
+                   "frames-krl, frames-rapid, frames-urscript: a calibration as a base and a tool in the controller's "
+                   "own data, for a controller that keeps its nominal kinematics (what the frames leave is printed)")
+    s.add_argument("--tool-load", type=_tool_load, metavar="MASS,X,Y,Z", help="--format frames-rapid: the tool's "
+                   "load its tooldata carries (kg; centre of gravity in mm in the tool frame), as your tool has it")
     s.add_argument("--from", dest="source", help="the URDF a URDF robot was read from (default: the file it names)")
     s.add_argument("--tool-link", help="add the tool point to the URDF as a fixed joint and link of this name")
     s.add_argument("--joint-names", type=csv_list, help="URDF of a DH robot: the joints' names in your robot stack, "

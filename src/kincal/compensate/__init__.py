@@ -6,6 +6,7 @@ from .program import ProgramCompensation, compensate_program
 from .branch import compensate_branches
 from .frames import LINK_ERROR_MAX, TARGET_FRAMES, command_models, frame_mismatch, tool_carry
 from .stream import StreamJob, StreamResult, TargetsFormat, compensate_file
+from .frames_only import FramesOnly, fit_frames_only
 from .verify import Verification, VerificationPlan, verification_plan
 
-__all__ = ["Compensation", "compensate", "compensate_poses", "path_checked", "ProgramCompensation", "compensate_program", "compensate_branches", "PoseSolution", "solve_poses", "filtered_poses", "TARGET_FRAMES", "LINK_ERROR_MAX", "command_models", "frame_mismatch", "tool_carry", "StreamJob", "StreamResult", "TargetsFormat", "compensate_file", "Verification", "VerificationPlan", "verification_plan"]
+__all__ = ["Compensation", "compensate", "compensate_poses", "path_checked", "ProgramCompensation", "compensate_program", "compensate_branches", "PoseSolution", "solve_poses", "filtered_poses", "TARGET_FRAMES", "LINK_ERROR_MAX", "command_models", "frame_mismatch", "tool_carry", "StreamJob", "StreamResult", "TargetsFormat", "compensate_file", "Verification", "VerificationPlan", "verification_plan", "FramesOnly", "fit_frames_only"]

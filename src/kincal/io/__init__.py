@@ -4,9 +4,10 @@ from .measurements import (Measurements, read_joints, read_measurements, read_po
 from .programs import (DIALECT_NAMES, Dialect, Program, Target, dialect_of, dialects, read_frames, read_program,
                        write_program)
 from .branches import BITS, ROWS
+from .frames_data import FRAMES_FORMATS, check_frames_output, frame_numbers, write_frames_data
 from .unit_checks import check_degrees, check_radians, check_spread
 
 __all__ = ["Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements",
            "write_residuals", "write_selected_rows", "check_degrees", "check_radians", "check_spread",
            "Program", "Target", "Dialect", "DIALECT_NAMES", "dialect_of", "dialects", "read_frames", "read_program", "BITS", "ROWS",
-           "write_program"]
+           "write_program", "FRAMES_FORMATS", "check_frames_output", "frame_numbers", "write_frames_data"]

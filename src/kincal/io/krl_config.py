@@ -65,7 +65,12 @@ def _text(path: str) -> str:
 
 def _frames_in(path: str, pattern: re.Pattern) -> list[tuple[re.Match, np.ndarray]]:
     """Each assignment of a FRAME literal the pattern finds in the file, with its 4x4 pose (m)."""
-    text = _text(path)
+    return frames_in(path, _text(path), pattern)
+
+
+def frames_in(path: str, text: str, pattern: re.Pattern) -> list[tuple[re.Match, np.ndarray]]:
+    """Each assignment of a FRAME literal the pattern finds in the text (of the file at ``path``), with its 4x4 pose
+    (m); a frame without its six components or with a value that is not a number: MeasurementError by line."""
     code = _blank(text)
     ends = _check_brackets(path, text, code)
     out = []

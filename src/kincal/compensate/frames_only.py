@@ -1,0 +1,85 @@
+"""A calibration as a controller can hold it without new kinematics: a corrected base and a corrected tool.
+
+A controller moves with its own (nominal) kinematics; most accept no link lengths or joint zeros from outside,
+but every one holds a base (work object, user frame) and a tool. :func:`fit_frames_only` finds the base B
+(the nominal robot's base in the calibration's base frame, the measurement frame) and the tool U (the TCP in
+the nominal flange) that bring the nominal model nearest the calibrated one over the joint ranges: the TCP
+positions and the flange's rotation (weighted by ``ROT_LEVER`` m per rad), by least squares over sampled
+joints (within the joint ranges the calibration's data cover, where its model is trusted, when given).
+What the frames cannot carry (link lengths, joint zeros, twists) is left: its RMS and largest size over
+the samples say how much of the calibration the controller then gets; the full model needs
+the commands compensated (``kincal compensate``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..models.robot import Robot
+from ..models.transforms import rotation_log, rotvec_matrix
+
+ROT_LEVER = 0.1  # m per rad: the flange's rotation error counts as a point this far out
+SAMPLES = 500  # joint vectors within the limits the frames are fitted on and the residual measured over
+
+
+@dataclass(frozen=True)
+class FramesOnly:
+    """base (4, 4): the nominal robot's base in the calibration's base (measurement) frame; tool (4, 4): the TCP
+    frame in the nominal flange (its rotation: the calibrated flange's); before_rms, before_max: the TCP position
+    error (m) of the nominal model with the calibration's base frame and tool point; after_rms, after_max: left
+    with the fitted frames (m); rotation_after: the largest flange rotation error left (rad); samples."""
+
+    base: np.ndarray
+    tool: np.ndarray
+    before_rms: float
+    before_max: float
+    after_rms: float
+    after_max: float
+    rotation_after: float
+    samples: int
+
+    def to_dict(self) -> dict:
+        return {"base": self.base.tolist(), "tool": self.tool.tolist(), "before_rms_m": self.before_rms,
+                "before_max_m": self.before_max, "after_rms_m": self.after_rms, "after_max_m": self.after_max,
+                "rotation_after_rad": self.rotation_after, "samples": self.samples}
+
+
+def _frame(x: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = rotvec_matrix(x[3:6]), x[:3]
+    return T
+
+
+def _errors(x: np.ndarray, nominal: Robot, q: np.ndarray, target) -> np.ndarray:
+    """TCP position errors (N, 3) m and ROT_LEVER × flange rotation errors (N, 3) of B·N(q)·U against the target."""
+    B, U = _frame(x[:6]), _frame(x[6:])
+    p_n, R_n = target[2], target[3]
+    R = B[:3, :3] @ R_n @ U[:3, :3]
+    p = (B[:3, :3] @ (p_n + R_n @ U[:3, 3])[..., None])[..., 0] + B[:3, 3]
+    return np.concatenate([p - target[0], ROT_LEVER * rotation_log(R @ np.swapaxes(target[1], 1, 2))], axis=1)
+
+
+def fit_frames_only(calibrated: Robot, nominal: Robot, samples: int = SAMPLES, seed: int = 0,
+                    region: tuple[np.ndarray, np.ndarray] | None = None) -> FramesOnly:
+    """The base and tool (module docstring) that bring ``nominal`` nearest ``calibrated`` (both with a tool point:
+    the calibrated one is the TCP) over ``samples`` joint vectors drawn uniformly within ``region`` (lower, upper
+    (n,): the joint ranges the calibration's data cover, where its model is trusted) or, without it, within the
+    calibrated robot's limits."""
+    from scipy.optimize import least_squares
+
+    q = calibrated.sample_joints(samples, seed=seed) if region is None else \
+        np.random.default_rng(seed).uniform(region[0], region[1], (samples, len(region[0])))
+    p_c, R_c, _, _ = calibrated.pose_and_jacobian(q)  # the TCP, and the flange's rotation
+    p_n, R_n, _, _ = nominal.with_tool_point(np.zeros(3)).pose_and_jacobian(q)  # the nominal flange
+    target = (p_c, R_c, p_n, R_n)
+    x0 = np.concatenate([np.zeros(6), calibrated.tool_point(), np.zeros(3)])
+    fit = least_squares(lambda x: _errors(x, nominal, q, target).ravel(), x0, method="lm", xtol=1e-15, ftol=1e-15)
+    after = _errors(fit.x, nominal, q, target)
+    registered = nominal.with_params({n: calibrated.params[n] for n in calibrated.base_params()})
+    p_before, _, _, _ = registered.with_tool_point(calibrated.tool_point()).pose_and_jacobian(q)
+    before = np.linalg.norm(p_before - p_c, axis=1)
+    left = np.linalg.norm(after[:, :3], axis=1)
+    return FramesOnly(_frame(fit.x[:6]), _frame(fit.x[6:]), float(np.sqrt(np.mean(before**2))), float(before.max()),
+                      float(np.sqrt(np.mean(left**2))), float(left.max()),
+                      float(np.linalg.norm(after[:, 3:], axis=1).max() / ROT_LEVER), samples)
