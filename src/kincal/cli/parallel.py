@@ -9,7 +9,8 @@ import kincal.analysis
 import kincal.io
 import kincal.models
 from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, VerificationPlan, command_models,
-                               compensate_branches, compensate_file, compensate_program, tool_carry, verification_plan)
+                               compensate_branches, compensate_file, compensate_program, resolve_taught, tool_carry,
+                               verification_plan)
 from kincal.observe import check_convention
 from kincal.units import DEG, MM
 
@@ -127,12 +128,27 @@ def _compensate_branches(args, cal, values) -> int:
     declared = kincal.io.dialects()[args.program].frames(prog)
     known = sorted(k for k, v in declared.items() if not isinstance(v, str))
     lines += [f"frames the program declares or holds beside it: {', '.join(known)}"] if known else []
+    lines += _taught_lines(cal, nominal, frames)
     lines += [f"refused: {p}" for p in res.problems]
     lines += [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal]
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
                        "declared_frames": known,
                        "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal],
                        "output": args.output if written else None}, "\n".join(lines), 0 if written else EXIT_REFUSED)
+
+
+def _taught_lines(cal, nominal, frames) -> list[str]:
+    """How far each taught frame of the frames file really is from the controller's (as compensate used it)."""
+    flange = np.zeros(3)
+    resolved = resolve_taught(frames, nominal.with_tool_point(flange), cal.with_tool_point(flange))
+    out = []
+    for name, f in frames.items():
+        if isinstance(f, kincal.io.TaughtFrame):
+            got = resolved[name]
+            out.append(f"taught frame {name}: corrected as a measurement: its origin really is "
+                       f"{np.linalg.norm(got[1][:3, 3] - got[0][:3, 3]) * MM:.3f} mm from the controller's"
+                       if isinstance(got, tuple) else f"taught frame {name}: {got}")
+    return out
 
 
 def _compensate_program(args, r, nominal, carry: str, models) -> int:
@@ -153,13 +169,9 @@ def _compensate_program(args, r, nominal, carry: str, models) -> int:
         if prog.tcps else [] if args.tcp is not None else [
         "warning: the program sets no TCP (set_tcp) and no --tcp was given: its poses are taken as poses of the "
         "measured target (the calibration's tool point); give --tcp with the controller's TCP if it is another"]
-    declared = kincal.io.dialects()[args.program].frames(prog)
-    known = sorted(k for k, v in declared.items() if not isinstance(v, str))
-    lines += [f"frames the program declares or holds beside it: {', '.join(known)}"] if known else []
     lines += [f"refused: {p}" for p in res.problems]
     lines += [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal]
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
-                       "declared_frames": known,
                        "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal],
                        "output": args.output if written else None, "tool_carry": carry or None},
                 "\n".join(lines + ([f"TCP: {carry}"] if carry else [])), 0 if written else EXIT_REFUSED)

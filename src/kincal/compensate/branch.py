@@ -40,6 +40,7 @@ from ..models.transforms import rotation_log, rotvec_matrix
 from ..ties import first_best
 from .poses import solve_poses
 from .commands import BRANCH_TOL
+from .taught import resolve_taught
 from .program import SEARCH, STARTS, ProgramCompensation
 
 CHECK_TOL = 1e-9  # m and rad: a written target must reproduce its intended pose this closely
@@ -56,7 +57,7 @@ Rows = Callable[[Robot, np.ndarray], list]
 
 
 def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Rows,
-                        frames: Mapping[str, np.ndarray | str] | None = None,
+                        frames: Mapping[str, object] | None = None,
                         q_start: np.ndarray | None = None) -> ProgramCompensation:
     """Compensate every literal target of ``program`` on the branch it states (module docstring);
     ``rows(robot, q (N, 6)) -> bits per row`` as the language writes them (:data:`kincal.io.branches.ROWS`);
@@ -66,8 +67,8 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     targets are solved together, each from the start and then from its predecessor's joints, and only what
     that leaves is searched one by one. The replacement texts are checked end to end (:func:`check_written`)."""
     dialect = dialects()[program.dialect]
-    frames = {**dialect.frames(program), **(frames or {})}  # the program's declared frames, unless given
     model, nominal = model.with_tool_point(np.zeros(3)), nominal.with_tool_point(np.zeros(3))  # flange poses
+    frames = resolve_taught({**dialect.frames(program), **(frames or {})}, nominal, model)  # declared, unless given
     q0 = (next((t.values for t in program.targets if t.kind == "joints"), np.clip(0.0, model.lower, model.upper))
           if q_start is None else np.asarray(q_start, dtype=float))
     goals, tools, refused = _goals(nominal, program, frames)
@@ -84,15 +85,16 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     return ProgramCompensation(texts, qs, problems, program.not_literal, refused)
 
 
-def _goals(nominal: Robot, program: Program, frames: Mapping[str, np.ndarray | str]):
-    """Each target's flange pose (p (N, 3), R (N, 3, 3); NaN where refused), its (tool, base) frames (None for
-    joints) and the refusals so far (index -> why): a joint target's pose is the nominal model's there, a pose
-    target's is B·T·U⁻¹ (all at once)."""
+def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side: int = 1):
+    """Each target's flange pose (p (N, 3), R (N, 3, 3); NaN where refused), its (tool, base) frames (each a
+    (controller, physical) pair; None for joints) and the refusals so far (index -> why): a joint target's pose
+    is the nominal model's there, a pose target's is B·T·U⁻¹ with the ``side`` of its frames (1: the physical
+    ones, what the program means; 0: the controller's, what it turns a written target with); all at once."""
     n = len(program.targets)
     p, R = np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)
     tools: list = [None] * n
     refused: dict[int, str] = {}
-    given = {k.lower(): v if isinstance(v, str) else np.asarray(v, dtype=float) for k, v in frames.items()}
+    given = {k.lower(): v if isinstance(v, (str, tuple)) else np.asarray(v, dtype=float) for k, v in frames.items()}
     known: dict[tuple[str, str], tuple | str] = {}
     for k, t in enumerate(program.targets):
         if t.kind == "joints":
@@ -115,8 +117,8 @@ def _goals(nominal: Robot, program: Program, frames: Mapping[str, np.ndarray | s
     poses = [k for k in range(n) if tools[k] is not None]
     if poses:
         v = np.array([program.targets[k].values[:6] for k in poses])
-        F = np.array([tools[k][1] for k in poses]) @ _poses(v[:, :3], rotvec_matrix(v[:, 3:6])) \
-            @ np.linalg.inv(np.array([tools[k][0] for k in poses]))
+        F = np.array([tools[k][1][side] for k in poses]) @ _poses(v[:, :3], rotvec_matrix(v[:, 3:6])) \
+            @ np.linalg.inv(np.array([tools[k][0][side] for k in poses]))
         p[poses], R[poses] = F[:, :3, 3], F[:, :3, :3]
     return (p, R), tools, refused
 
@@ -224,13 +226,14 @@ def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom:
 
 def _written(nominal: Robot, targets, qs: np.ndarray, tools: list, ks: list[int]) -> dict[int, np.ndarray]:
     """The new SI values of the targets ks: the corrected joints, or the pose the nominal model reaches there in
-    the program's frames (the filtered pose, which the controller turns back into them); all at once."""
+    the program's frames as the controller holds them (the filtered pose, which the controller turns back into
+    them); all at once."""
     out = {k: qs[k] for k in ks if targets[k].kind == "joints"}
     poses = [k for k in ks if targets[k].kind != "joints"]
     if poses:
         pf, Rf, _, _ = nominal.pose_and_jacobian(qs[poses])
-        T = np.linalg.inv(np.array([tools[k][1] for k in poses])) @ _poses(pf, Rf) \
-            @ np.array([tools[k][0] for k in poses])
+        T = np.linalg.inv(np.array([tools[k][1][0] for k in poses])) @ _poses(pf, Rf) \
+            @ np.array([tools[k][0][0] for k in poses])  # the controller's frames
         rot = rotation_log(T[:, :3, :3])
         out.update({k: np.concatenate([x[:3, 3], r]) for k, x, r in zip(poses, T, rot)})
     return out
@@ -241,22 +244,21 @@ def _single(rows: Rows) -> Config:
     return lambda robot, q: tuple(rows(robot, np.asarray(q, dtype=float)[None])[0])
 
 
-def _frames(dialect: str, names: tuple[str, str], given: Mapping[str, np.ndarray | str]
-            ) -> tuple[np.ndarray, np.ndarray] | str:
-    """The tool and base frames (4x4 each) of a target naming ``names`` (any case; ``given`` by lower-case
-    name), or why they are not known."""
+def _frames(dialect: str, names: tuple[str, str], given: Mapping[str, object]) -> tuple[tuple, tuple] | str:
+    """The tool and base frames of a target naming ``names`` (any case; ``given`` by lower-case name), each a
+    (controller, physical) pair of 4x4 frames (the same frame twice unless it was taught), or why they are
+    not known."""
     out = []
     for what, name, identity in zip(("tool", "base"), names, IDENTITY_FRAMES.get(dialect, ((), ()))):
         key = name.lower() or f"default {what}"  # the frame in force where the program names none
         found = np.eye(4) if name.lower() in identity else given.get(key)
         if isinstance(found, str):
             return f"its {what} frame {name!r} is not known: {found}"
-        if found is not None:
-            out.append(found)
-        else:
+        if found is None:
             return (f"its {what} frame {name!r} is not given (give it with the frames; it is not taken as the "
                     f"identity)" if name else f"the program names no {what} frame here: give the one in force "
                     f"(frames: 'default {what}')")
+        out.append(found if isinstance(found, tuple) else (found, found))
     return out[0], out[1]
 
 
@@ -302,7 +304,7 @@ def _turns(robot: Robot, q: np.ndarray) -> list[np.ndarray]:
 
 
 def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, qs: np.ndarray, rows: Rows,
-                  frames: Mapping[str, np.ndarray | str], intended) -> dict[int, str]:
+                  frames: Mapping[str, object], intended) -> dict[int, str]:
     """The compensated targets whose text, read again, does not bring the robot where the program meant, and
     why: a written pose target's controller joints (Newton on the nominal model from the corrected joints, on
     the target's bits) and a written joint target's joints must put the calibrated model's flange on the
@@ -316,7 +318,7 @@ def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, q
     old = [program.targets[k] for k in ks]
     goals = intended[0][ks], intended[1][ks]
     new = dataclasses.replace(program, targets=tuple(again.targets[k] for k in ks))
-    written, _, _ = _goals(nominal, new, frames)
+    written, _, _ = _goals(nominal, new, frames, side=0)  # the controller turns the written text with its frames
     poses = np.array([t.kind != "joints" for t in old])
     q = np.array([again.targets[k].values if t.kind == "joints" else qs[k] for k, t in zip(ks, old)])
     bad: dict[int, str] = {}

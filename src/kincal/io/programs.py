@@ -212,46 +212,6 @@ def write_program(path: str, program: Program, texts: dict[int, str], marks: dic
     write_text_atomic(path, program.with_targets(texts, marks), program.encoding)
 
 
-def read_frames(path: str) -> Mapping[str, np.ndarray | str]:
-    """The tool and base frames of a frames file: YAML ``{name: {x, y, z, rx, ry, rz}}`` (the frame in the flange
-    or the robot's base frame; R = Rz(rz) Ry(ry) Rx(rx)), lengths in mm and angles in deg unless ``units:
-    {length: …, angle: …}`` says otherwise; missing coordinates are 0; or a KUKA ``$config.dat`` (its TOOL_DATA,
-    and its BASE_DATA with the $ROBROOT_C of a ``$machine.dat`` found from it: :mod:`kincal.io.krl_config`).
-    As 4x4 poses (m) by name (a $config.dat's base without $ROBROOT_C: why it is not known). ValueError naming
-    the file and the frame for anything else."""
-    import yaml
-
-    if os.path.basename(str(path)).lower() == "$config.dat":
-        from .krl_config import config_frames, robroot, sibling
-
-        machine = sibling(str(path), "$machine.dat")
-        return config_frames(str(path), None if machine is None else robroot(machine))
-
-    from ..models.transforms import rot_zyx
-    from ..units import unit_factor
-
-    try:
-        data = yaml.safe_load(open(path, encoding="utf-8").read())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ValueError(f"{path}: cannot read the frames file ({exc})") from None
-    units = data.pop("units", {}) if isinstance(data, dict) else {}
-    if not isinstance(data, dict) or not isinstance(units, dict):
-        raise ValueError(f"{path}: a frames file maps each frame's name to {{x, y, z, rx, ry, rz}} (mm, deg)")
-    lf = unit_factor(str(units.get("length", "mm")), "length", f"{path}: ")
-    af = unit_factor(str(units.get("angle", "deg")), "angle", f"{path}: ")
-    out = {}
-    for name, f in data.items():
-        keys = ("x", "y", "z", "rx", "ry", "rz")
-        if not isinstance(f, dict) or set(f) - set(keys) or not all(
-                isinstance(f.get(k, 0.0), (int, float)) and not isinstance(f.get(k, 0.0), bool) for k in keys):
-            raise ValueError(f"{path}: frame {name!r} must be {{x, y, z, rx, ry, rz}} with numbers (missing ones 0)")
-        v = [float(f.get(k, 0.0)) for k in keys]
-        T = np.eye(4)
-        T[:3, :3], T[:3, 3] = rot_zyx(v[5] * af, v[4] * af, v[3] * af), np.array(v[:3]) * lf
-        out[str(name)] = T
-    return out
-
-
 def line_column(text: str, at: int) -> tuple[int, int]:
     """The line and column (both from 1) of position ``at`` in ``text``."""
     line = text.count("\n", 0, at) + 1

@@ -1,0 +1,83 @@
+"""Frames taught on the robot, corrected as the measurements they are.
+
+A controller computes a taught base from the TCP positions its nominal model gives at the teach poses, and a
+taught tool from the flange poses its nominal model gives; the TCP and the flange were really where the
+calibrated model puts them at those joints. So each taught frame (:class:`kincal.io.TaughtFrame`) gives two
+frames: the controller's (the nominal model at the teach poses: what the controller holds and turns written
+targets with) and the physical one (the calibrated model at the same poses: where the fixture or the tool
+really is, which the program's targets mean). A frame written in the file as well is the controller's (a
+tool always is: the controller's fit of disagreeing nominal poses is its own); it must agree with the one its
+joints give to ``TAUGHT_TOL`` (a tool: plus three times how far its nominal poses disagree), else it is refused
+with the sizes (wrong joints, tool, rule or robot). Rules: :data:`kincal.io.frames_file.RULES`.
+"""
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from ..io import TaughtFrame
+from ..models.robot import Robot
+from ..models.transforms import rotation_log
+
+TAUGHT_TOL = (1e-4, 5e-4)  # m, rad: a written taught frame and the one its joints give on the nominal model
+Pair = tuple[np.ndarray, np.ndarray]  # (controller, physical) 4x4 frames
+
+
+def base_of_points(rule: str, P: np.ndarray) -> np.ndarray:
+    """The base (4x4) that ``rule`` builds from three TCP positions P (3, 3) m: origin-x-xy (origin P0, +x toward
+    P1, P2 in the xy plane on the +y side) or x1-x2-y1 (x from P0 to P1, P2 on +y, the origin its foot on x)."""
+    x = (P[1] - P[0]) / np.linalg.norm(P[1] - P[0])
+    origin = P[0] if rule == "origin-x-xy" else P[0] + ((P[2] - P[0]) @ x) * x
+    z = np.cross(x, P[2] - P[0])
+    z /= np.linalg.norm(z)
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = np.column_stack([x, np.cross(z, x), z]), origin
+    return T
+
+
+def tool_of_poses(p: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, float]:
+    """The TCP (4x4 in the flange, the flange's axes) that flange poses p (K, 3), R (K, 3, 3) all put on one
+    fixed point: R_k t + p_k = c, by least squares over t and c; and the RMS distance (m) of the K TCP positions
+    from that point (how far the poses disagree)."""
+    A = np.concatenate([R, -np.broadcast_to(np.eye(3), R.shape)], axis=2).reshape(-1, 6)
+    x = np.linalg.lstsq(A, -p.reshape(-1), rcond=None)[0]
+    T = np.eye(4)
+    T[:3, 3] = x[:3]
+    spread = np.linalg.norm(np.einsum("kij,j->ki", R, x[:3]) + p - x[3:], axis=1)
+    return T, float(np.sqrt(np.mean(spread**2)))
+
+
+def _taught(f: TaughtFrame, robot: Robot, tool: np.ndarray | None) -> tuple[np.ndarray, float]:
+    """The frame ``f``'s teach poses give on ``robot`` (a flange model), a base with the TCP of ``tool``; and for
+    a tool how far its poses disagree (m; 0 for a base, whose rule is an exact construction)."""
+    p, R, _, _ = robot.pose_and_jacobian(robot.check_q(f.joints))
+    if f.kind == "tool":
+        return tool_of_poses(p, R)
+    return base_of_points(f.rule, p + np.einsum("kij,j->ki", R, np.zeros(3) if tool is None else tool[:3, 3])), 0.0
+
+
+def resolve_taught(frames: Mapping[str, object], nominal: Robot, calibrated: Robot) -> dict[str, object]:
+    """``frames`` with every taught frame replaced by its (controller, physical) pair (module docstring), or by
+    why it cannot be used; ``nominal`` and ``calibrated`` are flange models (no tool point)."""
+    out = dict(frames)
+    taught = {n: f for n, f in frames.items() if isinstance(f, TaughtFrame)}
+    for name in sorted(taught, key=lambda n: (taught[n].kind != "tool", n)):  # tools first: bases use them
+        out[name] = _pair(taught[name], out, nominal, calibrated)
+    return out
+
+
+def _pair(f: TaughtFrame, known: Mapping[str, object], nominal: Robot, calibrated: Robot) -> Pair | str:
+    tool = known.get(f.tool) if f.kind == "base" else None
+    if isinstance(tool, str):
+        return f"it was taught with tool {f.tool!r}, which is not known: {tool}"
+    pair = tool if isinstance(tool, tuple) else (tool, tool)
+    (controller, spread), (physical, _) = _taught(f, nominal, pair[0]), _taught(f, calibrated, pair[1])
+    if f.declared is None:
+        return controller, physical
+    off = np.linalg.norm(f.declared[:3, 3] - controller[:3, 3])
+    turn = np.linalg.norm(rotation_log((f.declared[:3, :3] @ controller[:3, :3].T)[None])[0])
+    if off > TAUGHT_TOL[0] + 3 * spread or turn > TAUGHT_TOL[1]:
+        return (f"as written it is {off * 1e3:.3f} mm and {turn * 1e3:.3f} mrad from the frame its taught joints give "
+                f"on the nominal model ({f.rule}): not the joints, tool, rule or robot it was taught with")
+    return f.declared, physical  # the controller's frame as it holds it; the real one, from the calibrated model

@@ -1,0 +1,115 @@
+"""The frames file of ``kincal compensate --program …``: the tool and base frames a program names.
+
+YAML, one entry per frame name: ``{x, y, z, rx, ry, rz}`` (the frame in the flange or in the robot's base
+frame; R = Rz(rz)·Ry(ry)·Rx(rx)), lengths in mm and angles in deg unless ``units: {length: …, angle: …}``
+says otherwise; missing coordinates are 0. Or a KUKA ``$config.dat`` (:mod:`kincal.io.krl_config`).
+
+A frame taught on the robot is itself a measurement: the controller computed it from where its nominal model
+put the TCP, while the TCP really was where the calibrated model puts it. Such an entry says how it was taught
+(``taught:``): the joints of its teach poses (in the file's angle unit, as the controller shows them), the rule
+(``origin-x-xy``: a base from its origin, a point on +x and a point in the xy plane with y > 0, as KUKA's and
+FANUC's three-point methods; ``x1-x2-y1``: ABB's user frame from two points on x and one on y, the origin the
+foot of y1 on the x line; ``fixed-point``: a tool's TCP from four or more flange poses touching one point,
+the TCP's axes the flange's) and, for a base, the tool it was taught with (a frame name of this file). Its
+values (x … rz), when given, are the controller's frame, checked against the one the taught joints give.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+KEYS = ("x", "y", "z", "rx", "ry", "rz")
+RULES = {"origin-x-xy": ("base", 3), "x1-x2-y1": ("base", 3), "fixed-point": ("tool", 4)}  # -> kind, least poses
+
+
+@dataclass(frozen=True)
+class TaughtFrame:
+    """A frame taught on the robot: its name, the rule (:data:`RULES`), the joints of its teach poses (K, n) rad,
+    the tool a base was taught with ('' for a tool), and the controller's frame as written (4x4, m; None when
+    the file gives none: the taught joints then give it)."""
+
+    name: str
+    rule: str
+    joints: np.ndarray
+    tool: str
+    declared: np.ndarray | None
+
+    @property
+    def kind(self) -> str:
+        return RULES[self.rule][0]
+
+
+def read_frames(path: str) -> Mapping[str, np.ndarray | str | TaughtFrame]:
+    """The frames of a frames file (module docstring) by name: 4x4 poses (m), a taught frame's
+    :class:`TaughtFrame`, or (a $config.dat's base without $ROBROOT_C) why one is not known. ValueError naming
+    the file and the frame for anything else."""
+    import yaml
+
+    if os.path.basename(str(path)).lower() == "$config.dat":
+        from .krl_config import config_frames, robroot, sibling
+
+        machine = sibling(str(path), "$machine.dat")
+        return config_frames(str(path), None if machine is None else robroot(machine))
+    from ..units import unit_factor
+
+    try:
+        data = yaml.safe_load(open(path, encoding="utf-8").read())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ValueError(f"{path}: cannot read the frames file ({exc})") from None
+    units = data.pop("units", {}) if isinstance(data, dict) else {}
+    if not isinstance(data, dict) or not isinstance(units, dict):
+        raise ValueError(f"{path}: a frames file maps each frame's name to {{x, y, z, rx, ry, rz}} (mm, deg)")
+    lf = unit_factor(str(units.get("length", "mm")), "length", f"{path}: ")
+    af = unit_factor(str(units.get("angle", "deg")), "angle", f"{path}: ")
+    out: dict[str, np.ndarray | str | TaughtFrame] = {}
+    for name, f in data.items():
+        out[str(name)] = _entry(path, str(name), f, lf, af)
+    for name, f in out.items():
+        if isinstance(f, TaughtFrame) and f.kind == "base" and f.tool not in out:
+            raise ValueError(f"{path}: frame {name!r} was taught with tool {f.tool!r}, which the file does not give")
+    return out
+
+
+def _entry(path: str, name: str, f, lf: float, af: float) -> np.ndarray | TaughtFrame:
+    """One frame of the file: its 4x4 pose, or its TaughtFrame."""
+    from ..models.transforms import rot_zyx
+
+    if not isinstance(f, dict) or set(f) - set(KEYS) - {"taught"} or not all(_number(f.get(k, 0.0)) for k in KEYS):
+        raise ValueError(f"{path}: frame {name!r} must be {{x, y, z, rx, ry, rz}} with numbers (missing ones 0), "
+                         f"and 'taught:' for a frame taught on the robot")
+    v = [float(f.get(k, 0.0)) for k in KEYS]
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = rot_zyx(v[5] * af, v[4] * af, v[3] * af), np.array(v[:3]) * lf
+    if "taught" not in f:
+        return T
+    taught = f["taught"]
+    if isinstance(taught, dict) and taught.get("rule") == "fixed-point" and not set(f) & set(KEYS):
+        raise ValueError(f"{path}: frame {name!r}: a taught tool needs its x, y, z as the controller shows them (its "
+                         f"fit of the teach poses is the controller's own); 'taught:' then corrects it")
+    return _taught(path, name, taught, af, T if set(f) & set(KEYS) else None)
+
+
+def _taught(path: str, name: str, t, af: float, declared: np.ndarray | None) -> TaughtFrame:
+    """A frame's 'taught:' entry: {rule, joints: [[…], …], tool (a base's)}."""
+    where = f"{path}: frame {name!r}: taught"
+    if not isinstance(t, dict) or set(t) - {"rule", "joints", "tool"} or t.get("rule") not in RULES:
+        raise ValueError(f"{where} needs {{rule: {' | '.join(RULES)}, joints: [[…], …], tool: NAME (a base's)}}")
+    kind, least = RULES[t["rule"]]
+    joints = t.get("joints")
+    if not (isinstance(joints, list) and joints and all(isinstance(j, list) and j and all(map(_number, j))
+                                                         and len(j) == len(joints[0]) for j in joints)):
+        raise ValueError(f"{where}: joints must be a list of teach poses, each a list of joint values")
+    if len(joints) < least or (kind == "base" and len(joints) != 3):
+        raise ValueError(f"{where}: the {t['rule']} rule takes {'3' if kind == 'base' else 'at least 4'} teach poses, "
+                         f"not {len(joints)}")
+    if (kind == "base") != ("tool" in t):
+        raise ValueError(f"{where}: " + ("a base names the tool it was taught with (tool: NAME)" if kind == "base"
+                                         else "a tool is taught with the flange: no tool"))
+    return TaughtFrame(name, t["rule"], np.array(joints, dtype=float) * af, str(t.get("tool", "")), declared)
+
+
+def _number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and bool(np.isfinite(x))
