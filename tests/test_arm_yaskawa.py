@@ -194,8 +194,10 @@ def test_config_of_refuses_what_is_not_a_six_axis_arm(gp7):
 
 def test_the_data_folders_jobs_carry_no_cartesian_c_target():
     """The shared INFORM jobs hold no RECTAN C position a move goes to (their RCONF lines stand before P
-    variables of an MH180, listed, not compensated): config_of is checked on built configurations above."""
+    variables of an MH180, listed, not compensated; their moves go to PULSE positions): config_of is checked on
+    built configurations above."""
     folder = shared_dataset("robot_programs") / "inform"
     files = sorted(p for p in folder.rglob("*") if p.suffix.lower() == ".jbi")
     assert files
-    assert sum(len(read_program(str(p), "inform").targets) for p in files) == 0
+    kinds = [t.kind for p in files for t in read_program(str(p), "inform").targets]
+    assert "pose" not in kinds and kinds.count("pulses") == len(kinds) == 8  # only PULSE positions: move targets

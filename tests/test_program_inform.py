@@ -2,6 +2,7 @@
 is listed in them checked against the raw text, and jobs written from the format's documentation (DX100 /
 NX100 "Job Data Format": //POS with ///NPOS, ///TOOL, ///USER, ///POSTYPE, ///PULSE, ///RECTAN, ///RCONF,
 Cnnnnn=X,Y,Z,Rx,Ry,Rz[,Re] with R = Rz·Ry·Rx) with every kind of position, rewritten with new values."""
+import dataclasses
 import math
 import re
 
@@ -16,13 +17,17 @@ from kincal.io.programs import dialects
 
 DATA = shared_dataset("robot_programs") / "inform"
 FILES = sorted(p for p in DATA.rglob("*") if p.suffix.lower() == ".jbi")
-PULSE_WHY = "a PULSE position (encoder counts)"
 
 
 def _read(tmp_path, text: str, name: str = "TEST.JBI"):
     path = tmp_path / name
     path.write_bytes(text.encode("utf-8"))
     return read_program(str(path), "inform")
+
+
+def _poses(prog):
+    """The job's Cartesian targets only (its PULSE targets left out)."""
+    return dataclasses.replace(prog, targets=tuple(t for t in prog.targets if t.kind == "pose"))
 
 
 def _identity(prog) -> bytes:
@@ -43,25 +48,30 @@ def test_every_real_job_reads_and_writes_back_byte_for_byte(path):
     blocks = re.split(r"^///(RECTAN|PULSE)\s*$", raw.split("//INST")[0], flags=re.M)
     rectan_c = sum(len(re.findall(r"^C\d+=", body, re.M)) for kind, body in zip(blocks[1::2], blocks[2::2])
                    if kind == "RECTAN")
-    assert len(prog.targets) == rectan_c == 0
     inst = raw.split("//INST")[1]
-    moves_to_c = re.findall(r"^\s*MOV[JLCS] (C\d+)", inst, re.M)
+    moves_to_c = re.findall(r"^\s*MOV[JLCS] C(\d+)", inst, re.M)
     p_uses = re.findall(r"^\s*(\w+) (P\d+)\b", inst, re.M)
-    assert [w for _, w, y in prog.not_literal if y.startswith(PULSE_WHY)] == [f"MOVJ {c}" for c in moves_to_c]
+    # every C a move goes to is a PULSE target (once), its counts those of its line
+    assert rectan_c == 0 and all(t.kind == "pulses" for t in prog.targets)
+    assert sorted(int(t.variable[1:]) for t in prog.targets) == sorted({int(c) for c in moves_to_c})
+    for t in prog.targets:
+        line = re.search(rf"^{t.variable}=([^\r\n]*)", raw, re.M).group(1)
+        assert t.values.tolist() == [float(v) for v in line.split(",")] and len(t.fields) == len(t.values)
     assert [w for _, w, y in prog.not_literal if "global position variable" in y] == [f"{a} {b}" for a, b in p_uses]
-    assert len(prog.not_literal) == len(moves_to_c) + len(p_uses)
+    assert len(prog.not_literal) == len(p_uses)
 
 
 def test_what_is_listed_in_real_jobs_with_the_lines_read_by_eye():
     prog = read_program(str(DATA / "AGSweeney__Motoman_EnIP_ToolChanger/MH180_Progs/FORMCUT.JBI"), "inform")
-    assert [(line, what) for line, what, _ in prog.not_literal] == [
-        (22, "MOVJ C00000"), (23, "FORMAPR P018"), (25, "MOVL P018"), (26, "MOVJ C00001")]
-    assert "pulses per degree" in prog.not_literal[0][2] and "global position variable" in prog.not_literal[2][2]
+    assert [(line, what) for line, what, _ in prog.not_literal] == [(23, "FORMAPR P018"), (25, "MOVL P018")]
+    assert [(t.move, t.variable, t.line) for t in prog.targets] == [("MOVJ", "C00000", 8), ("MOVJ", "C00001", 9)]
+    assert "global position variable" in prog.not_literal[1][2]
     prog = read_program(str(DATA / "AGSweeney__Motoman_EnIP_ToolChanger/MH180_Progs/TC_HARDENED/TC_FULL_CHANGE.JBI"),
                         "inform")
     assert [(line, what) for line, what, _ in prog.not_literal] == [
-        (57, "MOVJ C00000"), (65, "MOVJ P025"), (69, "MOVL P026"), (77, "MOVL P024"), (80, "MOVL P027"),
-        (85, "MOVL P026"), (90, "MOVL P026"), (98, "MOVL P025"), (99, "MOVL P024"), (100, "MOVJ C00001")]
+        (65, "MOVJ P025"), (69, "MOVL P026"), (77, "MOVL P024"), (80, "MOVL P027"),
+        (85, "MOVL P026"), (90, "MOVL P026"), (98, "MOVL P025"), (99, "MOVL P024")]
+    assert [(t.move, t.variable) for t in prog.targets] == [("MOVJ", "C00000"), ("MOVJ", "C00001")]
     prog = read_program(str(DATA / "Yaskawa-Global__motoros2/robot_jobs/single_arm/INIT_ROS.JBI"), "inform")
     assert prog.targets == () and prog.not_literal == ()
 
@@ -115,10 +125,14 @@ LINES = [
     "MOVL P[I000] V=10.0\n", "END",  # 58, 59: no final newline
 ]
 TEXT = "".join(LINES)
+PULSES_8 = "0,-1000,2000,0,0,0"  # C00000, line 8
 
 
 def test_a_documented_job_every_position_kind(tmp_path):
     prog = _read(tmp_path, TEXT)
+    pulse = [t for t in prog.targets if t.kind == "pulses"]  # MOVJ C0000 (line 39) goes to a PULSE position
+    assert [(t.line, t.move, t.variable, TEXT[t.start:t.end]) for t in pulse] == [(8, "MOVJ", "C00000", PULSES_8)]
+    prog = dataclasses.replace(prog, targets=tuple(t for t in prog.targets if t.kind != "pulses"))
     assert [(t.line, t.move, t.variable, t.frames, t.config) for t in prog.targets] == [
         (13, "MOVL", "C00001", ("TOOL 1", "BASE"), ()),
         (15, "MOVL", "C00002", ("TOOL 1", "BASE"), (1, 0, 0, 0, 0, 0, 0, 0)),
@@ -131,11 +145,11 @@ def test_a_documented_job_every_position_kind(tmp_path):
     assert TEXT[prog.targets[3].start:prog.targets[3].end] == "10,20,30,10.5,-20.25,30.75,45.0000"  # Re in the span
     assert TEXT[slice(*prog.targets[3].fields[-1])] == "30.75"  # ... not a field
     assert [(line, what) for line, what, _ in prog.not_literal] == [
-        (28, "C00008"), (32, "P00012"), (39, "MOVJ C0000"), (45, "MOVL C00006"), (47, "SMOVL C00009"),
+        (28, "C00008"), (32, "P00012"), (45, "MOVL C00006"), (47, "SMOVL C00009"),
         (48, "SETE P010"), (49, "MFRAME P010"), (49, "MFRAME P011"), (50, "SFTON P010"), (51, "IMOV P010"),
         (52, "MOVL P010"), (54, "MOVJ LP000"), (58, "MOVL P[I000]")]
     why = dict(((line, what), y) for line, what, y in prog.not_literal)
-    assert why[(39, "MOVJ C0000")].startswith(PULSE_WHY) and "TOOL coordinates" in why[(45, "MOVL C00006")]
+    assert "TOOL coordinates" in why[(45, "MOVL C00006")]
     assert "assigned at run time by SETE" in why[(48, "SETE P010")] and "user frame" in why[(49, "MFRAME P011")]
     assert "no instruction" in why[(28, "C00008")] and "does not use" in why[(32, "P00012")]
     assert "local" in why[(54, "MOVJ LP000")] and "indirect" in why[(58, "MOVL P[I000]")]
@@ -146,7 +160,7 @@ def _matrix(rx, ry, rz):
 
 
 def test_values_against_closed_forms(tmp_path):
-    t = _read(tmp_path, TEXT).targets
+    t = _poses(_read(tmp_path, TEXT)).targets
     np.testing.assert_allclose(t[0].values, [0.5, 0.0, 0.3, 0.0, 0.0, math.pi / 2], atol=1e-15)  # Rz = 90°
     np.testing.assert_allclose(t[1].values[:3], [-0.000242, 0.15, 0.005], atol=1e-15)  # -.242, 1.5E+02, +5.0 mm
     np.testing.assert_allclose(np.abs(t[1].values[3:]), [math.pi, 0.0, 0.0], atol=1e-12)  # Rx = 180°
@@ -161,7 +175,7 @@ def test_identity_is_byte_for_byte_with_bom_mixed_endings_and_no_final_newline(t
     prog = _read(tmp_path, TEXT)
     assert prog.encoding == "utf-8" and _identity(prog) == TEXT.encode()
     prog = _read(tmp_path, TEXT.replace("\n", "\r\n").replace("\r\r", "\r"))
-    assert len(prog.targets) == 6 and _identity(prog) == TEXT.replace("\n", "\r\n").replace("\r\r", "\r").encode()
+    assert len(prog.targets) == 7 and _identity(prog) == TEXT.replace("\n", "\r\n").replace("\r\r", "\r").encode()
 
 
 def _outside(text, targets):
@@ -174,14 +188,14 @@ def _outside(text, targets):
 
 
 def test_a_rewrite_with_new_values_reads_back_and_keeps_every_other_byte(tmp_path):
-    prog = _read(tmp_path, TEXT)
+    prog = _poses(_read(tmp_path, TEXT))
     rng = np.random.default_rng(3)
     new = {}
     for k, t in enumerate(prog.targets):
         R = Rotation.from_rotvec(t.values[3:]) * Rotation.from_rotvec(rng.normal(0, 1e-3, 3))
         new[k] = np.concatenate([t.values[:3] + rng.normal(0, 1e-3, 3), R.as_rotvec()])
     written = prog.with_values(new)
-    again = _read(tmp_path, written, "NEW.JBI")
+    again = _poses(_read(tmp_path, written, "NEW.JBI"))
     assert _outside(written, again.targets) == _outside(TEXT, prog.targets)
     assert [(t.variable, t.frames, t.config) for t in again.targets] == [
         (t.variable, t.frames, t.config) for t in prog.targets]
@@ -193,7 +207,7 @@ def test_a_rewrite_with_new_values_reads_back_and_keeps_every_other_byte(tmp_pat
 
 
 def test_the_angle_triple_nearest_the_old_one_is_written(tmp_path):
-    prog = _read(tmp_path, TEXT)
+    prog = _poses(_read(tmp_path, TEXT))
     t = prog.targets[4]  # Rx -179.9988, Rz 190: the same rotation as 180.0012 / -170 is kept as written
     R = Rotation.from_rotvec(t.values[3:]) * Rotation.from_euler("z", 1e-4, degrees=True)
     text = prog.with_values({4: np.concatenate([t.values[:3], R.as_rotvec()])})

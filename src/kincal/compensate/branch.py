@@ -36,6 +36,8 @@ import numpy as np
 
 from ..io.programs import Program, dialects
 from ..models.robot import Robot
+from ..models.serial import SerialRobot
+from ..models.wrapped import Wrapped
 from ..models.transforms import rotation_log, rotvec_matrix
 from ..ties import first_best
 from .poses import solve_poses
@@ -52,6 +54,8 @@ IDENTITY_FRAMES = {"rapid": (("tool0",), ("wobj0", "")), "krl": (("$nullframe",)
 REDUNDANT = ("a pose target of a redundant arm: the controller chooses the redundancy (the elbow's arm angle, "
              "KRL's E1 or RAPID's eax_a) by a rule kincal does not model, so the joints it would take are unknown; "
              "give joint targets (E6AXIS, jointtarget) to compensate")
+PULSES_WHY = ("a PULSE position (encoder counts): turning it into joint angles needs each joint's pulses per degree "
+              "(the controller's parameters): give pulses_per_degree on the robot file's joints")
 Config = Callable[[Robot, np.ndarray], tuple]
 Rows = Callable[[Robot, np.ndarray], list]
 
@@ -69,14 +73,17 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     dialect = dialects()[program.dialect]
     model, nominal = model.with_tool_point(np.zeros(3)), nominal.with_tool_point(np.zeros(3))  # flange poses
     frames = resolve_taught({**dialect.frames(program), **(frames or {})}, nominal, model)  # declared, unless given
-    q0 = (next((t.values for t in program.targets if t.kind == "joints"), np.clip(0.0, model.lower, model.upper))
+    scale = pulse_scale(nominal)
+    work = in_joints(program, scale)  # PULSE positions as joint targets (rad)
+    q0 = (next((t.values for t in work.targets if t.kind == "joints"), np.clip(0.0, model.lower, model.upper))
           if q_start is None else np.asarray(q_start, dtype=float))
-    goals, tools, refused = _goals(nominal, program, frames)
-    q_nom = _controller_joints(nominal, program, goals, rows, q0, refused)
-    qs = _corrected_all(model, nominal, program, goals, q_nom, rows, refused)
-    values = _written(nominal, program.targets, qs, tools, [k for k in range(len(qs)) if k not in refused])
+    goals, tools, refused = _goals(nominal, work, frames)
+    q_nom = _controller_joints(nominal, work, goals, rows, q0, refused)
+    qs = _corrected_all(model, nominal, work, goals, q_nom, rows, refused)
+    values = _written(nominal, work.targets, qs, tools, [k for k in range(len(qs)) if k not in refused])
+    values = {k: np.round(v * scale) if program.targets[k].kind == "pulses" else v for k, v in values.items()}
     texts = dict(zip(values, dialect.write(program.text, [program.targets[k] for k in values], list(values.values()))))
-    for k, why in check_written(model, nominal, program, texts, qs, rows, frames, goals).items():
+    for k, why in check_written(model, nominal, program, texts, qs, rows, frames, goals, scale).items():
         texts.pop(k)
         refused[k] = why
     problems = tuple(f"{program.source}: line {program.targets[k].line} ({program.targets[k].move}"
@@ -97,6 +104,10 @@ def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side:
     given = {k.lower(): v if isinstance(v, (str, tuple)) else np.asarray(v, dtype=float) for k, v in frames.items()}
     known: dict[tuple[str, str], tuple | str] = {}
     for k, t in enumerate(program.targets):
+        if t.kind == "pulses":  # what in_joints could not turn into joints
+            refused[k] = PULSES_WHY if pulse_scale(nominal) is None else \
+                f"{t.values.size} pulse counts for a {nominal.n_joints}-joint robot"
+            continue
         if t.kind == "joints":
             if t.values.size != nominal.n_joints:
                 refused[k] = f"{t.values.size} joint values for a {nominal.n_joints}-joint robot"
@@ -304,18 +315,20 @@ def _turns(robot: Robot, q: np.ndarray) -> list[np.ndarray]:
 
 
 def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, qs: np.ndarray, rows: Rows,
-                  frames: Mapping[str, object], intended) -> dict[int, str]:
+                  frames: Mapping[str, object], intended, scale: np.ndarray | None = None) -> dict[int, str]:
     """The compensated targets whose text, read again, does not bring the robot where the program meant, and
     why: a written pose target's controller joints (Newton on the nominal model from the corrected joints, on
     the target's bits) and a written joint target's joints must put the calibrated model's flange on the
-    intended pose (``intended``: p (N, 3), R (N, 3, 3) of every target, from :func:`_goals`) to ``CHECK_TOL``.
-    All together."""
+    intended pose (``intended``: p (N, 3), R (N, 3, 3) of every target, from :func:`_goals`) to ``CHECK_TOL``;
+    a PULSE position's counts (``scale``: pulses per rad or m) must be the corrected joints' nearest, and then
+    miss by no more than half a pulse on every joint moves the flange. All together."""
     if not texts:
         return {}
     model, nominal = model.with_tool_point(np.zeros(3)), nominal.with_tool_point(np.zeros(3))  # flange poses
-    again = dialects()[program.dialect].parse(program.source, program.with_targets(texts))
+    again = in_joints(dialects()[program.dialect].parse(program.source, program.with_targets(texts)), scale)
     ks = sorted(texts)
-    old = [program.targets[k] for k in ks]
+    work = in_joints(program, scale).targets
+    old = [work[k] for k in ks]
     goals = intended[0][ks], intended[1][ks]
     new = dataclasses.replace(program, targets=tuple(again.targets[k] for k in ks))
     written, _, _ = _goals(nominal, new, frames, side=0)  # the controller turns the written text with its frames
@@ -330,13 +343,39 @@ def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, q
             config = tuple(program.targets[k].config)
             if not sol.converged[i] or (config and tuple(bits[i]) != config):
                 bad[int(k)] = "the written target does not come back on its branch when read again"
-    pm, Rm, _, _ = model.pose_and_jacobian(q)
+    pm, Rm, Jp, Jw = model.pose_and_jacobian(q)
     miss = np.linalg.norm(pm - goals[0], axis=1)
     turn = np.linalg.norm(rotation_log(Rm @ np.swapaxes(goals[1], 1, 2)), axis=1)
-    for k, m, r in zip(ks, miss, turn):
-        if k not in bad and not (m <= CHECK_TOL and r <= CHECK_TOL):
+    pulsed = np.array([program.targets[k].kind == "pulses" for k in ks])
+    half = np.zeros(q.shape[1]) if scale is None else 0.5 / np.abs(scale)  # half a pulse of each joint
+    tol_p = CHECK_TOL + np.where(pulsed, np.linalg.norm(Jp, axis=1) @ half, 0.0)
+    tol_r = CHECK_TOL + np.where(pulsed, np.linalg.norm(Jw, axis=1) @ half, 0.0)
+    for i, (k, m, r) in enumerate(zip(ks, miss, turn)):
+        if pulsed[i] and not np.array_equal(np.round(q[i] * scale), np.round(qs[k] * scale)):
+            bad[k] = "the written pulse counts are not the corrected joints' nearest (checked as read again)"
+        if k not in bad and not (m <= tol_p[i] and r <= tol_r[i]):
             bad[k] = f"the written target misses by {m * 1e3:.2e} mm / {r:.2e} rad (checked as read again)"
     return bad
+
+
+def pulse_scale(robot: Robot) -> np.ndarray | None:
+    """Pulses per rad (per m for a prismatic joint) of each joint: the robot file's pulses_per_degree; None unless
+    every joint gives it (a chain robot's, through the terms wrapped around it)."""
+    while isinstance(robot, Wrapped) and robot.inner.joint_names == robot.joint_names:
+        robot = robot.inner
+    if not isinstance(robot, SerialRobot) or not all(j.pulses for j in robot.moving):
+        return None
+    return np.array([j.pulses * (180 / np.pi if j.type == "revolute" else 1e3) for j in robot.moving])
+
+
+def in_joints(program: Program, scale: np.ndarray | None) -> Program:
+    """The program with each PULSE target (counts) as a joint target (rad or m) where ``scale`` (pulses per rad
+    or m) has its joints; the others as they are (a PULSE target left is refused with the reason)."""
+    if scale is None or not any(t.kind == "pulses" for t in program.targets):
+        return program
+    return dataclasses.replace(program, targets=tuple(
+        dataclasses.replace(t, kind="joints", values=t.values / scale)
+        if t.kind == "pulses" and t.values.size == scale.size else t for t in program.targets))
 
 
 def _poses(p: np.ndarray, R: np.ndarray) -> np.ndarray:

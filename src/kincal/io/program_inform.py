@@ -22,9 +22,12 @@ before any); ``frames`` ("TOOL n", "USER m" | "BASE" | "ROBOT") from ``///TOOL``
 ('' where the job names no tool). A C position used by two moves is compensated once, where it is written.
 Values: x, y, z in m and the rotation vector (rad) of the TCP in that frame.
 
+A C position in PULSE form that a move goes to is a target of kind "pulses": its values are the encoder
+counts as written (every count a field, written back as whole counts); turning them into joint angles
+needs each joint's pulses per degree, the controller's parameters, which a robot file gives
+(``pulses_per_degree``): without them the compensation refuses it with that reason.
+
 **Listed, never touched** (``not_literal``: line, what, why):
-- C positions in PULSE form (encoder counts: turning them into joint angles needs each axis's pulses per
-  degree, which are in the controller's parameters, not in the job);
 - C positions in TOOL or MTOOL coordinates (a frame that moves with the robot or another manipulator);
 - C positions used by an instruction that is not MOVJ/MOVL/MOVC/MOVS (e.g. ``REFP``, ``SMOVL``), and C
   positions no instruction uses (at their position line);
@@ -72,8 +75,6 @@ POSTYPES = ("PULSE", "BASE", "ROBOT", "USER", "TOOL", "MTOOL")
 NPOS_KINDS = ("C", "BC", "EC", "P", "BP", "EX")
 ROBOT_VARIABLES = ("P", "LP", "PX", "LPX")
 ASSIGNS = ("SET", "SETE", "ADD", "SUB", "MUL", "DIV", "CNVRT", "GETS", "MSHIFT", "CLEAR", "SETEXPRESS")
-PULSE_WHY = ("a PULSE position (encoder counts): turning it into joint angles needs each axis's pulses per degree, "
-             "which the job does not hold")
 RESOLUTION = np.array([1e-7, 1e-7, 1e-7, 1e-8, 1e-8, 1e-8])  # mm, mm, mm, deg, deg, deg
 
 
@@ -297,6 +298,12 @@ def _target(p: _Position, ref: _Reference) -> Target:
                   tuple((a, b) for a, b, _ in p.numbers[:6]), p.rconf, (p.tool, base))
 
 
+def _pulse_target(p: _Position, ref: _Reference) -> Target:
+    """A PULSE position's target: its encoder counts as written (kind "pulses"), every count a field."""
+    return Target(p.start, p.end, p.line, ref.word, "pulses", np.array([v for _, _, v in p.numbers]), ref.at, p.name,
+                  tuple((a, b) for a, b, _ in p.numbers))
+
+
 def _moves(found: dict, refs: list[_Reference]) -> tuple[list, list, set]:
     """Targets and listed items of the C positions that moves and other instructions name; the keys
     of the positions accounted for."""
@@ -311,7 +318,7 @@ def _moves(found: dict, refs: list[_Reference]) -> tuple[list, list, set]:
         elif ("C", r.number) in used:
             continue
         elif p.form == "PULSE":
-            listed.append((r.line, what, PULSE_WHY))
+            targets.append(_pulse_target(p, r))
         elif p.postype in ("TOOL", "MTOOL"):
             listed.append((r.line, what, f"a position in {p.postype} coordinates, a frame that moves with the "
                                          "robot: not a fixed target"))
@@ -347,6 +354,8 @@ def parse(source: str, text: str) -> Program:
 def _fields(text: str, targets: Sequence[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The positions' numbers for new SI values (G, 6): X, Y, Z (mm; 1e-7 mm) and Rx, Ry, Rz (deg; 1e-8°), the
     equivalent angle triple nearest the old one; a number that moved only by rounding noise stays the old one."""
+    if targets[0].kind == "pulses":  # whole counts
+        return np.round(values), np.full(values.shape[1], 0.5)
     old = old_numbers(text, targets)
     angles = np.degrees(zyx_nearest(rotvec_matrix(values[:, 3:6]), np.radians(old[:, 5:2:-1])))[:, ::-1]
     numbers = np.concatenate([values[:, :3] * 1e3, angles], axis=1)  # Rx, Ry, Rz from (rz, ry, rx)

@@ -31,7 +31,8 @@ from ..errors import MeasurementError
 @dataclass(frozen=True)
 class Target:
     """One literal target: its span in the text and its line, the move, and its values: a pose (x, y,
-    z in m, rotation vector in rad; ``kind`` "pose") or joint values (rad; "joints"); where the move
+    z in m, rotation vector in rad; ``kind`` "pose"), joint values (rad; "joints") or a Yaskawa PULSE
+    position's encoder counts as written ("pulses": joints once the robot's pulses per degree are known); where the move
     is in the text (``at``) and the variable it moves to ('' for a literal in the move; the span and
     line are then those of the variable's literal). In the vendor languages ``fields`` are the spans of
     the numbers that carry ``values`` (in the language's order and units: what a rewrite replaces),

@@ -52,9 +52,13 @@ class Joint:
     velocity: float = 0.0  # rad/s or m/s; 0: not given
     effort: float = 0.0  # N·m or N; 0: not given
     export_name: str = ""  # the joint's name in the robot stack (URDF, ROS); default its own name
+    pulses: float = 0.0  # the controller's encoder pulses per degree (per mm), signed by its counting; 0: not given
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "com", check_mass(self.mass, self.com, f"joint '{self.name}'"))
+        if not np.isfinite(self.pulses):
+            raise ModelError(f"joint '{self.name}': pulses_per_degree {self.pulses} must be a finite number (0: not "
+                             f"given)")
         for key in ("velocity", "effort"):
             value = self.__dict__[key]
             if not (np.isfinite(value) and value >= 0.0):

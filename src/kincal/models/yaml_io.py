@@ -42,7 +42,8 @@ from .yaml_kinds import (delta_from_dict, delta_yaml, error_model_from_dict, err
 from .yaml_values import (POSE_KEYS, base_pose, description_lines, fmt, frame_text, limits, link_mass, mass_items,
                           mapping, num, per_unit, pose_text, units)
 
-_JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits", "mass", "com", "velocity", "effort"}
+_JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits", "mass", "com", "velocity", "effort",
+               "pulses_per_degree"}
 _COMMON_KEYS = {"name", "description", "type", "units", "base", "calibration", "source", "error_model"}
 _TYPE_KEYS = {"serial": {"convention", "joints", "tool", "actuators", "transmission", "names", "frames"},
               "puu3": {"extended", "parameters", "slider_limits"}, "urdf": {"joints", "tool"},
@@ -284,7 +285,8 @@ def _dh_joints(entries, lf: float, af: float, label: str) -> tuple[list[Joint], 
         on = not (beta is None or beta is False)
         joints.append(Joint(str(jd.get("name", f"j{k + 1}")), jtype, on, lo, hi, *link_mass(jd, lf, where),
                             num(jd.get("velocity", 0.0), where, "velocity") * qf,
-                            num(jd.get("effort", 0.0), where, "effort")))
+                            num(jd.get("effort", 0.0), where, "effort"),
+                            pulses=num(jd.get("pulses_per_degree", 0.0), where, "pulses_per_degree")))
         row = {key: num(jd.get(key, 0.0), where, key) * (lf if key in ("d", "a") else af)
                for key in ("theta", "d", "a", "alpha")}
         if on:
@@ -326,6 +328,7 @@ def _chain_yaml(robot: SerialRobot, length_unit: str, angle_unit: str) -> str:
             items.append(f"limits: [{fmt(j.lower * qf)}, {fmt(j.upper * qf)}]")
         items += [f"velocity: {fmt(j.velocity * qf)}"] if j.velocity else []
         items += [f"effort: {fmt(j.effort)}"] if j.effort else []
+        items += [f"pulses_per_degree: {fmt(j.pulses)}"] if j.pulses else []
         lines.append("  - {" + ", ".join(items + mass_items(j, lf)) + "}")
     lines += [frame_text(v, "base", lf, af), frame_text(v, "tool", lf, af)]
     named = {j.name: j.export_name for j in robot.joints if j.export_name}
