@@ -2,6 +2,8 @@
 and the 3-PUU error-model verification paper's verification (commands to run, then the comparison)."""
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 import kincal
@@ -9,8 +11,9 @@ import kincal.analysis
 import kincal.io
 import kincal.models
 from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, VerificationPlan, command_models,
-                               compensate_branches, compensate_file, compensate_program, resolve_taught, tool_carry,
-                               verification_plan)
+                               check_folder_output, compensate_branches, compensate_file, compensate_folder,
+                               compensate_program,
+                               resolve_taught, tool_carry, verification_plan, write_folder)
 from kincal.observe import check_convention
 from kincal.units import DEG, MM
 
@@ -19,6 +22,8 @@ from .common import (EXIT_REFUSED, add_data_flags, checked, csv_list, emit, load
 
 
 def cmd_compensate(args) -> int:
+    if args.program and os.path.isdir(args.targets):
+        return _compensate_folder(args)
     cal = load_robot(args, [args.targets, *([args.frames] if args.frames else [])], [args.output])
     nominal_values = (kincal.models.load_calibration_record(args.robot) or {}).get("nominal")  # None: bundled, URDF
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
@@ -135,6 +140,42 @@ def _compensate_branches(args, cal, values) -> int:
                        "declared_frames": known,
                        "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal],
                        "output": args.output if written else None}, "\n".join(lines), 0 if written else EXIT_REFUSED)
+
+
+def _compensate_folder(args) -> int:
+    """compensate FOLDER --program krl|rapid|fanuc|inform -o NEW_FOLDER: every program file of the language,
+    with one report (kincal.compensate.folder); written only when nothing is refused or unreadable, or with
+    --skip-unreachable."""
+    if args.program == "ur":
+        raise ValueError(f"{args.targets}: a folder of programs: --program krl, rapid, fanuc or inform (URScript "
+                         f"programs are compensated one file at a time)")
+    flags = [args.given[k] for k in NOT_FOR_BRANCHES if k in args.given]
+    if flags:
+        raise ValueError(f"{', '.join(flags)}: not for {args.program} programs, whose targets carry their own frames "
+                         f"(--frames), units and orientation")
+    check_folder_output(args.targets, args.output)
+    cal = load_robot(args, [*([args.frames] if args.frames else [])], [])
+    values = (kincal.models.load_calibration_record(args.robot) or {}).get("nominal")
+    nominal = cal.with_params(values) if isinstance(values, dict) else cal
+    frames = kincal.io.read_frames(args.frames) if args.frames else {}
+    res = compensate_folder(cal, nominal, args.targets, args.program, kincal.io.ROWS[args.program], frames)
+    if not res.files:
+        raise ValueError(f"{args.targets}: no {args.program} program in this folder (suffixes "
+                         f"{', '.join(kincal.io.dialects()[args.program].suffixes)})")
+    stuck = res.count("refused") + res.count("unreadable")
+    written = not stuck or args.skip_unreachable
+    if written:
+        write_folder(res, args.output)
+    lines = [f"{f.path}: " + (f"unreadable: {f.rows[0][3]}" if f.count("unreadable") else
+                              f"{f.count('compensated')} of {f.targets} targets compensated, {f.count('refused')} "
+                              f"refused, {f.count('listed')} listed") for f in res.files]
+    lines.append(f"{len(res.files)} files: {res.count('compensated')} targets compensated, {res.count('refused')} "
+                 f"refused, {res.count('listed')} listed, {res.count('unreadable')} files unreadable; " +
+                 (f"written to {args.output} (every {args.program} file, compensated or as it was; report "
+                  f"{args.output}/kincal_report.csv)" if written else
+                  f"nothing written (--skip-unreachable writes the folder with those left as they are)"))
+    return emit(args, {**res.to_dict(), "output": args.output if written else None}, "\n".join(lines),
+                0 if written else EXIT_REFUSED)
 
 
 def _taught_lines(cal, nominal, frames) -> list[str]:

@@ -199,6 +199,8 @@ def read_program(path: str, dialect: str = "ur") -> Program:
         raw = open(path, "rb").read()
     except OSError as exc:
         raise MeasurementError(f"{path}: cannot read the program ({exc.strerror})") from None
+    if b"\x00" in raw:
+        raise MeasurementError(f"{path}: holds binary data (an encrypted or compiled module?), not a program's text")
     try:
         text, encoding = raw.decode("utf-8"), "utf-8"
     except UnicodeDecodeError:

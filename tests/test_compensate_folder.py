@@ -1,0 +1,91 @@
+"""A controller's programs compensated as a folder (kincal.compensate.folder, kincal compensate FOLDER): a KRC
+backup built from known frames with an encrypted (binary) module, a broken one and a file of another kind: the
+report names every target and item with its status and the unreadable files with their line; nothing is written
+while something is refused or unreadable unless --skip-unreachable; the written folder holds each program
+compensated exactly as one file at a time would be, the others byte for byte; an output that exists or lies in
+the folder read is refused before any work."""
+import csv
+
+import pytest
+
+import kincal
+from kincal.cli import main
+from kincal.compensate import compensate_folder
+from kincal.compensate.branch import compensate_branches
+from kincal.io import ROWS, read_program
+
+from test_krl_config import _cell
+
+
+def _backup(tmp_path):
+    nominal = kincal.load_robot("kuka_kr6r900sixx")
+    program = _cell(tmp_path, nominal)
+    (program / "secret.src").write_bytes(b"DEF secret()\n\x00\x17\x9c\x00encrypted\n")
+    (program / "broken.src").write_text("DEF broken()\nLIN {X 1, Y 2\nEND\n")
+    (program / "notes.txt").write_text("not a program\n")
+    measured = kincal.simulate(kincal.perturb(nominal.with_tool_point([0, 0, 0.05]), seed=3),
+                               nominal.sample_joints(60, seed=1), noise=0.0)
+    res = kincal.calibrate(nominal.with_tool_point([0, 0, 0.05]), measured)
+    kincal.save_robot(res.robot, tmp_path / "cal.yaml", calibration=res.record())
+    return res.robot, res.robot.with_params(res.record()["nominal"])
+
+
+def _run(capsys, *argv):
+    code = main(["compensate", *argv])
+    out = capsys.readouterr()
+    return code, out.err + out.out
+
+
+def test_a_backup_folder_compensated_with_its_report(tmp_path, capsys):
+    cal, nominal = _backup(tmp_path)
+    krc = tmp_path / "KRC"
+    res = compensate_folder(cal, nominal, str(krc), "krl", ROWS["krl"])
+    assert [f.path for f in res.files] == ["R1/Program/broken.src", "R1/Program/move.src", "R1/Program/pick.dat",
+                                           "R1/Program/secret.src", "R1/System/$config.dat", "STEU/Mada/$machine.dat"]
+    status = {f.path: [(r[0], r[2]) for r in f.rows] for f in res.files}
+    assert status["R1/Program/broken.src"] == [(2, "unreadable")] and status["R1/Program/secret.src"] == [
+        (0, "unreadable")]
+    assert "binary data" in res.files[3].rows[0][3] and "line 2, column" in res.files[0].rows[0][3]
+    assert status["R1/Program/pick.dat"] == [(2, "compensated"), (4, "compensated"), (6, "compensated")]
+    out = tmp_path / "KRC_cal"
+    code, said = _run(capsys, str(tmp_path / "cal.yaml"), str(krc), "--program", "krl", "-o", str(out))
+    assert code == 4 and "2 files unreadable; nothing written" in said and not out.exists()
+    code, said = _run(capsys, str(tmp_path / "cal.yaml"), str(krc), "--program", "krl", "-o", str(out),
+                      "--skip-unreachable")
+    assert code == 0 and "4 targets compensated" in said
+    one = read_program(str(krc / "R1/Program/pick.dat"), "krl")  # one file at a time gives the same text
+    alone = compensate_branches(cal, nominal, one, ROWS["krl"])
+    assert (out / "R1/Program/pick.dat").read_bytes() == one.with_targets(alone.texts).encode()
+    for same in ("R1/Program/secret.src", "R1/Program/broken.src", "R1/System/$config.dat"):
+        assert (out / same).read_bytes() == (krc / same).read_bytes()
+    assert not (out / "R1/Program/notes.txt").exists()
+    rows = list(csv.DictReader(open(out / "kincal_report.csv", encoding="utf-8")))
+    assert sum(r["status"] == "compensated" for r in rows) == 4 and sum(r["status"] == "unreadable" for r in rows) == 2
+    code, said = _run(capsys, str(tmp_path / "cal.yaml"), str(krc), "--program", "krl", "-o", str(out))
+    assert code != 0 and "exists; kincal writes a compensated folder only where there is none" in said
+    code, said = _run(capsys, str(tmp_path / "cal.yaml"), str(krc), "--program", "krl", "-o", str(krc / "new"))
+    assert code != 0 and "inside the folder read" in said
+
+
+def test_the_real_krl_folder_report_counts_every_target_and_item(tmp_path):
+    """The data folder's KRL programs: the report's rows are, file by file, the reader's targets (compensated
+    or refused) and listed items."""
+    from conftest import shared_dataset
+
+    folder = shared_dataset("robot_programs") / "krl"
+    nominal = kincal.load_robot("kuka_kr6r900sixx")
+    res = compensate_folder(kincal.perturb(nominal, seed=1), nominal, str(folder), "krl", ROWS["krl"])
+    assert len(res.files) == 82 and res.count("unreadable") == 0
+    for f in res.files:
+        prog = read_program(str(folder / f.path), "krl")
+        assert f.count("compensated") + f.count("refused") == len(prog.targets) == f.targets
+        assert f.count("listed") == len(prog.not_literal)
+    assert res.count("compensated") + res.count("refused") == 22 and res.count("listed") == 311
+
+
+@pytest.mark.parametrize("flag", [["--program", "ur"], ["--program", "krl", "--tcp", "0,0,0.1"]])
+def test_a_folder_with_what_does_not_apply_is_refused(tmp_path, capsys, flag):
+    _backup(tmp_path)
+    code, said = _run(capsys, str(tmp_path / "cal.yaml"), str(tmp_path / "KRC"), *flag, "-o", str(tmp_path / "o"))
+    assert code != 0 and ("a folder of programs" in said or "--tcp: not for krl programs" in said)
+    assert not (tmp_path / "o").exists()
