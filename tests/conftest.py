@@ -39,6 +39,12 @@ def pytest_configure(config):
         threadpool_limits(1, user_api="blas")  # numpy's, loaded already
 
 
+def pytest_collection_modifyitems(config, items):
+    """The tests marked slow first, each group in collection order: make test's two workers then share the long
+    ones from the start, and the short ones even out the end (the last long test no longer runs alone)."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
 @pytest.fixture(scope="session")
 def ur5():
     return kincal.load_robot("ur5")

@@ -171,8 +171,8 @@ def _export_frames(args) -> int:
              _frame_line("tool (the TCP in the flange)", fit.tool),
              "angles ZYX: KUKA A, B, C; FANUC W, P, R and Yaskawa Rx, Ry, Rz are C, B, A (enter these on the pendant)",
              f"the frames alone leave RMS {fit.after_rms * 1e3:.3f} mm, max {fit.after_max * 1e3:.3f} mm, "
-             f"{np.degrees(fit.rotation_after):.4f} deg of the calibrated model over {fit.samples} poses within {where} "
-             f"(the nominal model with the calibration's base frame and tool point: RMS "
+             f"{np.degrees(fit.rotation_after):.4f} deg of the calibrated model over {fit.samples} poses within "
+             f"{where} (the nominal model with the calibration's base frame and tool point: RMS "
              f"{fit.before_rms * 1e3:.3f} mm, max {fit.before_max * 1e3:.3f} mm); compensated commands "
              f"(kincal compensate) carry the whole calibration"]
     return emit(args, {**fit.to_dict(), "format": args.format, "output": args.output, "written_base": base.tolist()},

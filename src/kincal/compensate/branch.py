@@ -175,10 +175,10 @@ def _last_solved(q_nom: np.ndarray, k: int) -> int:
 
 
 def _starts(q_nom: np.ndarray, pending: list[int], tried: dict[int, int], targets) -> dict[int, int]:
-    """For the first CHAIN pending targets that have one, a start not tried yet: the last solved target before it; only the first pending
-    one starts from q0 (-1) while none before it is solved (the others wait for its joints: a start nearer
-    them); a target without bits starts only from its immediate predecessor (the nearest branch is the
-    controller's)."""
+    """For the first CHAIN pending targets that have one, a start not tried yet: the last solved target before
+    it; only the first pending one starts from q0 (-1) while none before it is solved (the others wait for its
+    joints: a start nearer them); a target without bits starts only from its immediate predecessor (the
+    nearest branch is the controller's)."""
     solved = np.where(~np.isnan(q_nom[:, 0]), np.arange(len(q_nom)), -1)
     last = np.concatenate([[-1], np.maximum.accumulate(solved)[:-1]])  # the last solved before each target
     out = {}

@@ -64,7 +64,8 @@ class FolderCompensation:
     def to_dict(self) -> dict:
         return {"folder": self.folder, "dialect": self.dialect,
                 **{s: self.count(s) for s in ("compensated", "refused", "listed", "unreadable")},
-                "files": [{"path": f.path, "targets": f.targets, "rows": [list(r) for r in f.rows]} for f in self.files]}
+                "files": [{"path": f.path, "targets": f.targets, "rows": [list(r) for r in f.rows]}
+                          for f in self.files]}
 
 
 def program_files(folder: str, dialect: str) -> list[str]:
