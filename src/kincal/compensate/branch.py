@@ -34,6 +34,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+from .._collector import paused_collector
 from ..io.programs import Program, dialects
 from ..models.robot import Robot
 from ..models.serial import SerialRobot
@@ -60,6 +61,7 @@ Config = Callable[[Robot, np.ndarray], tuple]
 Rows = Callable[[Robot, np.ndarray], list]
 
 
+@paused_collector
 def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Rows,
                         frames: Mapping[str, object] | None = None,
                         q_start: np.ndarray | None = None) -> ProgramCompensation:

@@ -20,7 +20,7 @@ ALL_NUMBERS = re.compile(rf"(?:[ \t]*[A-Za-z_]\w*[ \t]*:)?{_PART}(?:,{_PART})*",
 TYPED = re.compile(r"[ \t]*([A-Za-z_]\w*)[ \t]*:(?!=)")  # {E6POS: …}
 KEY = re.compile(r"\s*([A-Za-z_$]\w*)(\[\])?\s*")  # a component's name
 BRACKET = re.compile(r"[{}\[\]]")
-COMPONENT = re.compile(r"(\s*)([A-Za-z_$]\w*)(\[\]|)(\s*)([^,{}\[\]]*)(,|$)")  # a name and a flat value
+COMPONENT = re.compile(r"(\s*([A-Za-z_$]\w*)(?:\[\])?\s*)((?:[^,{}\[\]\s]|\s+(?=[^,{}\[\]\s]))*)(\s*)(?:,|$)")  # name, value
 SEPARATOR = re.compile(r"[,}{\[]")  # what ends a component's value, or opens a nested one
 COMMENT_OR_STRING = re.compile(r"\"[^\"\n]*\"?|;[^\n]*")
 
@@ -56,29 +56,30 @@ def _check_brackets(source: str, text: str, code: str) -> dict[int, int]:
 
 @dataclasses.dataclass
 class _Aggregate:
-    """An aggregate {…}: its span, the type written before ':' and its components (KEY -> value span)."""
+    """An aggregate {…}: its span, the type written before ':', its components (KEY -> value span), the
+    aggregates nested in them, its shape ("pose" or "joints": only position components; else '') and the
+    position components it lacks."""
 
     start: int
     end: int
     typed: str
     parts: dict[str, tuple[int, int]]
     nested: list[int]  # starts of aggregates that are component values
+    shape: str = dataclasses.field(init=False)
+    missing: tuple[str, ...] = dataclasses.field(init=False)
 
-    @functools.cached_property
-    def shape(self) -> str:
-        """"pose" or "joints" (position-shaped: only position components), else ''."""
-        keys = set(self.parts)
-        if self.nested or not keys:
-            return ""
-        if keys <= set(POSE_KEYS + EXTERNAL + ("S", "T")) and keys & set(POSE_KEYS):
-            return "pose"
-        if keys <= set(AXIS_KEYS + EXTERNAL) and keys & set(AXIS_KEYS):
-            return "joints"
-        return ""
+    def __post_init__(self) -> None:
+        self.shape, self.missing = ("", ()) if self.nested else _shape(frozenset(self.parts))
 
-    @functools.cached_property
-    def missing(self) -> list[str]:
-        return [k for k in (POSE_KEYS if self.shape == "pose" else AXIS_KEYS) if k not in self.parts]
+
+@functools.lru_cache(maxsize=256)
+def _shape(keys: frozenset[str]) -> tuple[str, tuple[str, ...]]:
+    """The shape of an aggregate with these component names, and the position components it lacks."""
+    if keys and keys <= set(POSE_KEYS + EXTERNAL + ("S", "T")) and keys & set(POSE_KEYS):
+        return "pose", tuple(k for k in POSE_KEYS if k not in keys)
+    if keys and keys <= set(AXIS_KEYS + EXTERNAL) and keys & set(AXIS_KEYS):
+        return "joints", tuple(k for k in AXIS_KEYS if k not in keys)
+    return "", ()
 
 
 def _aggregate(source: str, text: str, code: str, ends: dict[int, int], a: int) -> _Aggregate:
@@ -123,13 +124,13 @@ def _flat(code: str, i: int, b: int) -> dict[str, tuple[int, int]] | None:
     """The components (KEY -> value span) of an aggregate from ``i`` to its '}' at b - 1 when each is a name
     and a value without brackets (the common case, in one scan); else None (read part by part)."""
     parts, at = {}, i
-    for lead, key, empty, gap, value, _ in COMPONENT.findall(code, i, b - 1):
-        lo = at + len(lead) + len(key) + len(empty) + len(gap)
-        trimmed = value.rstrip()
-        if not trimmed and not empty:
+    for head, key, value, tail in COMPONENT.findall(code, i, b - 1):
+        lo = at + len(head)
+        at = lo + len(value)
+        if not value and not head.rstrip().endswith("[]"):
             return None
-        parts[key.upper()] = (lo, lo + len(trimmed))
-        at = lo + len(value) + 1
+        parts[key.upper()] = (lo, at)
+        at += len(tail) + 1
     return parts if at == b and parts else None
 
 

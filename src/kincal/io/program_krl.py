@@ -219,6 +219,7 @@ class _File:
     def note(self, at: int, what: str, why: str) -> None:
         self.listed.append((self.line(at), " ".join(what.split()), why))
 
+    @functools.cached_property
     def bound(self) -> dict[str, int]:
         """Variables (not $ system variables) assigned exactly once in the file, whole, with a literal:
         name (with index) -> the literal's '{'."""
@@ -258,7 +259,7 @@ def _variable_reason(f: _File, var: str, shown: str) -> str:
 
 def _moves(f: _File) -> None:
     """Each move's targets: inline literals become targets; everything else is listed."""
-    bound = f.bound()
+    bound = f.bound
     for m in MOVE.finditer(f.code):
         move = m.group(1).upper()
         for a, b in _move_arguments(f.source, f.text, f.code, f.ends, m):
@@ -296,7 +297,7 @@ def _partial(agg: _Aggregate) -> str:
 def _points(f: _File) -> None:
     """Variables given one literal: targets (point types, FRAMEs a move uses), else listed."""
     names = {literal: name for *_, literal, name in f.assigns}
-    for var, a in f.bound().items():
+    for var, a in f.bound.items():
         agg, shown = f.aggs[a], names[a]
         kind = f.declared.get(var.split("[")[0]) or agg.typed
         if not agg.shape:

@@ -24,6 +24,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from .._atomic import write_text_atomic
+from .._collector import paused_collector
 from .._numstyle import restyle_all
 from ..errors import MeasurementError
 
@@ -189,6 +190,7 @@ def dialect_of(path: str) -> str:
     return found[0]
 
 
+@paused_collector
 def read_program(path: str, dialect: str = "ur") -> Program:
     """The program at ``path`` in the vendor ``dialect`` (:func:`dialects`: "ur", …), read byte for
     byte: UTF-8 (a byte-order mark kept), else Latin-1; line endings as they are."""
