@@ -12,6 +12,8 @@ import kincal
 from kincal.compensate.branch import compensate_branches, controller_inverse
 from kincal.io import dialects, read_program
 
+from test_taught_frames import _program
+
 
 def config_of(robot, q):
     """A KUKA-like (S, T) for the UR10 of the test, naming each of its eight branches: S bit 0 the shoulder (the
@@ -145,20 +147,9 @@ def test_a_kuka_program_through_the_command_line(tmp_path, capsys):
     kincal.save_robot(res.robot, cal, calibration=res.record())
     true = res.robot  # the calibrated arm: what the program must land on
     q = np.radians([[10, -80, 100, 20, 40, 30], [-25, -100, 110, -30, -50, 60], [40, -60, 80, 90, 30, -120]])
-    text = ["DEFDAT  PICK"]
     flange = nominal.with_tool_point(np.zeros(3))
-    for k, qk in enumerate(q, 1):
-        p, R, _, _ = flange.pose_and_jacobian(qk[None])
-        T = np.eye(4)
-        T[:3, :3], T[:3, 3] = R[0], p[0]
-        T = np.linalg.inv(BASE) @ T @ TOOL
-        a, b, c = Rotation.from_matrix(T[:3, :3]).as_euler("ZYX", degrees=True)
-        s, t = BITS["krl"](nominal, qk)
-        x, y, z = T[:3, 3] * 1e3
-        text += [f"DECL E6POS XP{k}={{X {x:.3f},Y {y:.3f},Z {z:.3f},A {a:.3f},B {b:.3f},C {c:.3f},S {s},T {t},"
-                 f"E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}}", f"DECL FDAT FP{k}={{TOOL_NO 1,BASE_NO 2}}"]
     dat = tmp_path / "pick.dat"
-    dat.write_text("\n".join(text + ["ENDDAT", ""]))
+    _program(dat, nominal, flange, BASE, TOOL, q)  # E6POS in TOOL_NO 1 / BASE_NO 2, with their S/T
     frames = tmp_path / "frames.yaml"
     tool_rpy = Rotation.from_matrix(TOOL[:3, :3]).as_euler("ZYX", degrees=True)
     frames.write_text(f"TOOL_NO 1: {{x: 10, y: -20, z: 150, rz: {tool_rpy[0]}, ry: {tool_rpy[1]}, rx: {tool_rpy[2]}}}\n"
