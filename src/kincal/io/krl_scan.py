@@ -20,7 +20,8 @@ ALL_NUMBERS = re.compile(rf"(?:[ \t]*[A-Za-z_]\w*[ \t]*:)?{_PART}(?:,{_PART})*",
 TYPED = re.compile(r"[ \t]*([A-Za-z_]\w*)[ \t]*:(?!=)")  # {E6POS: …}
 KEY = re.compile(r"\s*([A-Za-z_$]\w*)(\[\])?\s*")  # a component's name
 BRACKET = re.compile(r"[{}\[\]]")
-COMPONENT = re.compile(r"(\s*([A-Za-z_$]\w*)(?:\[\])?\s*)((?:[^,{}\[\]\s]|\s+(?=[^,{}\[\]\s]))*)(\s*)(?:,|$)")  # name, value
+# a component: (the name and the blanks after it, the name, the value without blanks around it, the blanks after)
+COMPONENT = re.compile(r"(\s*([A-Za-z_$]\w*)(?:\[\])?\s*)((?:[^,{}\[\]\s]|\s+(?=[^,{}\[\]\s]))*)(\s*)(?:,|$)")
 SEPARATOR = re.compile(r"[,}{\[]")  # what ends a component's value, or opens a nested one
 COMMENT_OR_STRING = re.compile(r"\"[^\"\n]*\"?|;[^\n]*")
 

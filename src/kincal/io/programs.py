@@ -33,8 +33,8 @@ from ..errors import MeasurementError
 class Target:
     """One literal target: its span in the text and its line, the move, and its values: a pose (x, y,
     z in m, rotation vector in rad; ``kind`` "pose"), joint values (rad; "joints") or a Yaskawa PULSE
-    position's encoder counts as written ("pulses": joints once the robot's pulses per degree are known); where the move
-    is in the text (``at``) and the variable it moves to ('' for a literal in the move; the span and
+    position's encoder counts as written ("pulses": joints once the robot's pulses per degree are known);
+    where the move is in the text (``at``) and the variable it moves to ('' for a literal in the move; the span and
     line are then those of the variable's literal). In the vendor languages ``fields`` are the spans of
     the numbers that carry ``values`` (in the language's order and units: what a rewrite replaces),
     ``config`` the branch as written ((S, T); (cf1, cf4, cf6, cfx); ('N U T', turn1, turn2, turn3);
