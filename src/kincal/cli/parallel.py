@@ -268,10 +268,13 @@ def _measured(args, r, plan) -> np.ndarray:
 def register(cmd) -> None:
     s = cmd("compensate", cmd_compensate, "joint commands that the calibrated model says reach target positions",
             "the calibrated robot (YAML)")
-    s.add_argument("targets", help="CSV of target positions (serial robots: with the nominal joint values too)")
-    s.add_argument("-o", "--output", required=True, help="commands CSV to write")
+    s.add_argument("targets", help="CSV of target positions (serial robots: with the nominal joint values too); with "
+                   "--program a robot program, or a folder of them (a controller's backup: every file of the language)")
+    s.add_argument("-o", "--output", required=True, help="commands CSV to write (--program: the program, or the new "
+                   "folder, which must not exist yet, with kincal_report.csv)")
     s.add_argument("--skip-unreachable", action="store_true",
-                   help="write the commands that pass every check and list the refused targets")
+                   help="write the commands that pass every check and list the refused targets (--program: write the "
+                        "program or folder with the refused targets and unreadable files left as they are)")
     s.add_argument("--tcp", type=point, metavar="X,Y,Z[UNIT]",
                    help="the controller's TCP in the flange frame, e.g. 0,0,109mm: the point the targets are for "
                         "(default: the calibrated tool point)")
@@ -295,7 +298,8 @@ def register(cmd) -> None:
                         "program names none), or a KUKA $config.dat; a RAPID module's own tooldata and wobjdata and "
                         "the $config.dat beside a KRL program (R1/System, with $ROBROOT_C from STEU/Mada/$machine.dat "
                         "for its bases) are read without it; a frame none of them gives is refused, never taken as "
-                        "the identity")
+                        "the identity; a frame taught on the robot (taught: {rule, joints, tool}) is corrected as the "
+                        "measurement it is (README)")
     s.add_argument("--path", action="store_true",
                    help="the rows are consecutive targets of one path: a row whose corrected command jumps much "
                         "more from the previous one than the nominal commands do is refused and named")
