@@ -39,6 +39,15 @@ def pytest_configure(config):
         threadpool_limits(1, user_api="blas")  # numpy's, loaded already
 
 
+def skeleton(text: str, targets) -> list[str]:
+    """The pieces of a program's text between its targets' fields: what a rewrite must leave as they were."""
+    out, at = [], 0
+    for a, b in sorted(f for t in targets for f in t.fields):
+        out.append(text[at:a])
+        at = b
+    return out + [text[at:]]
+
+
 def pytest_collection_modifyitems(config, items):
     """The tests marked slow first, each group in collection order: make test's two workers then share the long
     ones from the start, and the short ones even out the end (the last long test no longer runs alone)."""

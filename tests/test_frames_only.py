@@ -117,3 +117,11 @@ def test_the_command_line_writes_frames_a_calibration_leaves(tmp_path, capsys):
     v = np.array(re.search(r"KINCAL_TOOL=\{X (\S+),Y (\S+),Z (\S+),A (\S+),B (\S+),C ([^}]+)\}",
                            (tmp_path / "t.dat").read_text()).groups(), float)
     assert np.abs(v[:3] / 1e3 - fit.tool[:3, 3]).max() < 1e-9
+
+
+@pytest.mark.parametrize("terms", [None, "compliance"])
+def test_a_parallel_robot_is_refused_with_the_reason(terms):
+    hexapod = kincal.load_robot("hexapod")
+    robot = kincal.extend(hexapod, terms) if terms else hexapod
+    with pytest.raises(kincal.errors.ModelError, match="frames data are a serial arm's base and tool"):
+        fit_frames_only(robot, robot)

@@ -12,6 +12,7 @@ import kincal
 from kincal.compensate.branch import compensate_branches, controller_inverse
 from kincal.io import dialects, read_program
 
+from conftest import skeleton
 from test_taught_frames import _program
 
 
@@ -100,9 +101,7 @@ def test_cartesian_and_joint_targets_land_where_the_program_meant_on_their_own_b
     pb, Rb, _, _ = flange[0].pose_and_jacobian(prog.targets[6].values[None])
     assert np.linalg.norm(pa - pb) < 1e-9 and np.abs(Ra - Rb).max() < 1e-9
     # every byte outside the targets' numbers is the same
-    strip = lambda text, targets: "".join(  # noqa: E731
-        ch for i, ch in enumerate(text) if not any(a <= i < b for t in targets for a, b in t.fields))
-    assert strip(again.text, again.targets) == strip(prog.text, prog.targets)
+    assert skeleton(again.text, again.targets) == skeleton(prog.text, prog.targets)
 
 
 def test_a_missing_frame_or_an_unreachable_branch_is_refused_by_line(tmp_path):

@@ -6,7 +6,7 @@ import re
 
 import numpy as np
 import pytest
-from conftest import shared_dataset
+from conftest import shared_dataset, skeleton
 
 from kincal.errors import MeasurementError
 from kincal.io import read_program
@@ -225,23 +225,13 @@ def test_identity_is_byte_for_byte_and_a_change_touches_only_the_fields():
             assert np.allclose(rotvec_matrix(t.values[3:]), rotvec_matrix(new[k][3:]), atol=1e-9)
         else:
             assert np.allclose(t.values, new[k], atol=1e-9)
-    assert _skeleton(SYNTH, prog) == _skeleton(text, again)
+    assert skeleton(SYNTH, prog.targets) == skeleton(text, again.targets)
     assert text != SYNTH and len(text) > len(SYNTH)
 
 
 def _rotvec(R):
     from kincal.models.transforms import rotation_log
     return rotation_log(R[None])[0]
-
-
-def _skeleton(text, prog):
-    """The text with every field cut out."""
-    spans = sorted(f for t in prog.targets for f in t.fields)
-    out, at = [], 0
-    for a, b in spans:
-        out.append(text[at:a])
-        at = b
-    return out + [text[at:]]
 
 
 def test_the_orientation_written_is_the_triple_nearest_the_old_one():

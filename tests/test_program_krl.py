@@ -7,7 +7,7 @@ import re
 
 import numpy as np
 import pytest
-from conftest import shared_dataset
+from conftest import shared_dataset, skeleton
 
 from kincal.errors import MeasurementError
 from kincal.io import programs
@@ -197,16 +197,6 @@ def test_synthetic_dat_points_frames_and_arrays():
     assert listed[9].startswith("a FRAME") and listed[10].startswith("a partial target")
 
 
-def _skeleton(text, prog):
-    """The text with every field replaced by '#': what a rewrite must leave as it is."""
-    spans = sorted(f for t in prog.targets for f in t.fields)
-    out, at = [], 0
-    for a, b in spans:
-        out += [text[at:a], "#"]
-        at = b
-    return "".join(out) + text[at:]
-
-
 @pytest.mark.parametrize("text,source", [(SRC, "demo.src"), (DAT, "demo.dat")])
 def test_synthetic_identity_and_changed_rewrite(text, source):
     prog = _parse(text, source)
@@ -218,7 +208,7 @@ def test_synthetic_identity_and_changed_rewrite(text, source):
         new[k] = t.values + step
     out = prog.with_values(new)
     again = _parse(out, source)
-    assert len(again.targets) == len(prog.targets) and _skeleton(out, again) == _skeleton(text, prog)
+    assert len(again.targets) == len(prog.targets) and skeleton(out, again.targets) == skeleton(text, prog.targets)
     for k, t in enumerate(again.targets):
         if t.kind == "joints":
             np.testing.assert_allclose(t.values, new[k], atol=math.radians(1e-8))

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import shared_dataset
+from conftest import shared_dataset, skeleton
 from scipy.spatial.transform import Rotation
 
 from kincal.errors import MeasurementError
@@ -222,16 +222,6 @@ def test_synthetic_module_lists_what_is_not_a_literal():
     np.testing.assert_allclose(frames["wtable"].frame, [0.5, 0, 0, 0, 0, 0])
 
 
-def _skeleton(text: str, prog) -> str:
-    """The text with every field cut out: what a rewrite must leave as it was."""
-    cuts = sorted(f for t in prog.targets for f in t.fields)
-    out, at = [], 0
-    for a, b in cuts:
-        out += [text[at:a], "#"]
-        at = b
-    return "".join(out) + text[at:]
-
-
 def test_a_changed_rewrite_reparses_to_the_new_values_and_keeps_every_other_byte():
     prog = parse("synth.mod", SYNTH)
     rng = np.random.default_rng(4)
@@ -249,7 +239,7 @@ def test_a_changed_rewrite_reparses_to_the_new_values_and_keeps_every_other_byte
         np.testing.assert_allclose(t.values[:3], new[k][:3], atol=2e-10)  # 1e-7 mm
         turn = Rotation.from_rotvec(t.values[3:]).inv() * Rotation.from_rotvec(new[k][3:])
         assert turn.magnitude() < 1e-9  # the same rotation (past pi it reads back as its shorter twin)
-    assert _skeleton(text, again) == _skeleton(SYNTH, prog)
+    assert skeleton(text, again.targets) == skeleton(SYNTH, prog.targets)
     neg = again.targets[2]  # pNeg keeps its hemisphere (w < 0) and arr{1} its norm 2
     assert text[neg.fields[3][0]] == "-"
     q = [float(text[a:b]) for a, b in again.targets[3].fields[3:]]

@@ -161,3 +161,19 @@ def test_a_broken_taught_entry_is_named(tmp_path, entry, says):
 def re_escape(s):
     import re
     return re.escape(s)
+
+
+def test_teach_poses_of_another_joint_count_refuse_the_frame_with_the_reason(tmp_path):
+    nominal, true = _arms()
+    tool_q, base_q = _teach(true)
+    import yaml
+
+    _frames_file(tmp_path / "frames.yaml", tool_q, base_q)
+    entries = yaml.safe_load((tmp_path / "frames.yaml").read_text())
+    entries["TOOL_NO 1"]["taught"]["joints"] = [q[:5] for q in entries["TOOL_NO 1"]["taught"]["joints"]]  # 5 of 6
+    (tmp_path / "frames.yaml").write_text(yaml.safe_dump(entries))
+    U_c, B_c = _controller_frames(nominal, tool_q, base_q)
+    _program(tmp_path / "one.dat", nominal, nominal, B_c, U_c, np.radians([[10, -80, 100, 20, 40, 30]]))
+    res = compensate_branches(true, nominal, read_program(str(tmp_path / "one.dat"), "krl"), ROWS["krl"],
+                              read_frames(str(tmp_path / "frames.yaml")))
+    assert res.refused[0].startswith("its tool frame 'TOOL_NO 1' is not known: its teach poses do not fit this robot")

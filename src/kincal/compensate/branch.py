@@ -105,10 +105,10 @@ def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side:
     refused: dict[int, str] = {}
     given = {k.lower(): v if isinstance(v, (str, tuple)) else np.asarray(v, dtype=float) for k, v in frames.items()}
     known: dict[tuple[str, str], tuple | str] = {}
+    no_scale = any(t.kind == "pulses" for t in program.targets) and pulse_scale(nominal) is None
     for k, t in enumerate(program.targets):
         if t.kind == "pulses":  # what in_joints could not turn into joints
-            refused[k] = PULSES_WHY if pulse_scale(nominal) is None else \
-                f"{t.values.size} pulse counts for a {nominal.n_joints}-joint robot"
+            refused[k] = PULSES_WHY if no_scale else f"{t.values.size} pulse counts for a {nominal.n_joints}-joint robot"
             continue
         if t.kind == "joints":
             if t.values.size != nominal.n_joints:

@@ -16,7 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ModelError
+from ..models.implicit import ImplicitRobot
 from ..models.robot import Robot
+from ..models.wrapped import Wrapped
 from ..models.transforms import rotation_log, rotvec_matrix
 
 ROT_LEVER = 0.1  # m per rad: the flange's rotation error counts as a point this far out
@@ -68,6 +71,13 @@ def fit_frames_only(calibrated: Robot, nominal: Robot, samples: int = SAMPLES, s
     calibrated robot's limits."""
     from scipy.optimize import least_squares
 
+    inner = calibrated
+    while isinstance(inner, Wrapped):  # a robot with error-model terms: the one they are on
+        inner = inner.inner
+    if isinstance(inner, ImplicitRobot):
+        raise ModelError(f"robot '{calibrated.name}' ({calibrated.structure}): frames data are a serial arm's base "
+                         f"and tool; a parallel robot's controller takes its own leg geometry (compensate its "
+                         f"commands instead)")
     q = calibrated.sample_joints(samples, seed=seed) if region is None else \
         np.random.default_rng(seed).uniform(region[0], region[1], (samples, len(region[0])))
     p_c, R_c, _, _ = calibrated.pose_and_jacobian(q)  # the TCP, and the flange's rotation

@@ -16,6 +16,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ..errors import ModelError
 from ..io import TaughtFrame
 from ..models.robot import Robot
 from ..models.transforms import rotation_log
@@ -72,7 +73,10 @@ def _pair(f: TaughtFrame, known: Mapping[str, object], nominal: Robot, calibrate
     if isinstance(tool, str):
         return f"it was taught with tool {f.tool!r}, which is not known: {tool}"
     pair = tool if isinstance(tool, tuple) else (tool, tool)
-    (controller, spread), (physical, _) = _taught(f, nominal, pair[0]), _taught(f, calibrated, pair[1])
+    try:
+        (controller, spread), (physical, _) = _taught(f, nominal, pair[0]), _taught(f, calibrated, pair[1])
+    except ModelError as exc:  # teach poses of another joint count
+        return f"its teach poses do not fit this robot ({exc})"
     if f.declared is None:
         return controller, physical
     off = np.linalg.norm(f.declared[:3, 3] - controller[:3, 3])

@@ -155,8 +155,7 @@ def _positions(source: str, text: str, a: int, b: int) -> list[_Entry]:
     out: list[_Entry] = []
     at = a
     while True:
-        while at < b and text[at] in " \t\r\n":
-            at += 1
+        at = _skip(text, at, b, " \t\r\n")
         if at >= b:
             return out
         head = HEAD.match(text, at, b)
@@ -167,12 +166,17 @@ def _positions(source: str, text: str, a: int, b: int) -> list[_Entry]:
         if any(e.number == number for e in out):
             raise _fail(source, text, at, f"P[{number}] is in /POS twice")
         out.append(_entry(source, text, number, at, (brace, close)))
-        at = close + 1
-        while at < b and text[at] in " \t":
-            at += 1
+        at = _skip(text, close + 1, b, " \t")
         if text[at:at + 1] != ";":
             raise _fail(source, text, close, f"P[{number}]: '}}' without its ';'")
         at += 1
+
+
+def _skip(text: str, at: int, b: int, chars: str) -> int:
+    """The first position from ``at`` (before ``b``) whose character is not one of ``chars``."""
+    while at < b and text[at] in chars:
+        at += 1
+    return at
 
 
 def _closing(source: str, text: str, brace: int, b: int, number: int) -> int:
@@ -212,8 +216,7 @@ def _items(source: str, text: str, a: int, b: int, number: int) -> list[tuple[st
     out: list[tuple[str, int, str, str]] = []
     at = a
     while True:
-        while at < b and text[at] in " \t\r\n,":
-            at += 1
+        at = _skip(text, at, b, " \t\r\n,")
         if at >= b:
             return out
         m = ITEM.match(text, at, b)
