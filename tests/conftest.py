@@ -105,3 +105,57 @@ def z_limit(n: int, alpha: float = 0.01) -> float:
     from scipy.stats import norm
 
     return float(norm.isf(alpha / (2 * n)))
+
+
+def postgres_binary(name: str) -> str:
+    """PostgreSQL's program ``name`` (initdb, pg_ctl) on PATH or in /usr/lib/postgresql/*/bin (newest first); the
+    test fails, saying how to install it, when there is none."""
+    import glob
+    import shutil
+
+    found = shutil.which(name)
+    if found:
+        return found
+    for folder in sorted(glob.glob("/usr/lib/postgresql/*/bin"), key=lambda p: int(p.split("/")[-2]), reverse=True):
+        if os.access(os.path.join(folder, name), os.X_OK):
+            return os.path.join(folder, name)
+    pytest.fail(f"PostgreSQL's {name} is not installed (looked on PATH and in /usr/lib/postgresql/*/bin): the store's "
+                f"tests run a real server; install Debian's postgresql (apt-get install postgresql; .ci/run does)")
+
+
+@pytest.fixture(scope="session")
+def postgres_url():
+    """A real PostgreSQL server for the tests' session: initdb into a temporary folder, started with pg_ctl on a
+    Unix socket in that folder (no TCP) and a free port number, as the postgres user when the tests run as root;
+    stopped and removed at the end (fsync off: a throwaway server; a killed client, which the tests kill, is
+    unaffected). The URL of its 'postgres' database (trust authentication)."""
+    import pwd
+    import shutil
+    import socket
+    import subprocess
+    import tempfile
+
+    initdb, pg_ctl = postgres_binary("initdb"), postgres_binary("pg_ctl")
+    root = Path(tempfile.mkdtemp(prefix="kincal-pg-"))  # in /tmp: short enough for a socket path
+    as_user: list[str] = []
+    if os.geteuid() == 0:  # the server refuses to run as root
+        shutil.chown(root, "postgres", pwd.getpwnam("postgres").pw_gid)
+        as_user = ["runuser", "-u", "postgres", "--"]
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    data, log = root / "data", root / "server.log"
+
+    def run(*cmd: str) -> None:
+        done = subprocess.run([*as_user, *cmd], capture_output=True, text=True)
+        if done.returncode:
+            pytest.fail(f"{' '.join(cmd[:2])} failed ({done.returncode}): {done.stderr.strip() or done.stdout.strip()}"
+                        + (f"\n{log.read_text()}" if log.exists() else ""))
+    run(initdb, "-D", str(data), "-U", "postgres", "--auth=trust", "-E", "UTF8", "--no-sync")
+    run(pg_ctl, "-D", str(data), "-l", str(log), "-w", "-o",
+        f"-k {root} -p {port} -c listen_addresses='' -c max_connections=200 -c fsync=off", "start")
+    try:
+        yield f"postgresql://postgres@/postgres?host={root}&port={port}"
+    finally:
+        run(pg_ctl, "-D", str(data), "-m", "immediate", "-w", "stop")
+        shutil.rmtree(root, ignore_errors=True)

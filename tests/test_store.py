@@ -1,0 +1,451 @@
+"""The calibration store and `kincal history`: records kept exactly (every field, floats bit for bit), in time
+order, migrated from older schemas, refused when newer; two writers at once and writers killed at random points
+lose and corrupt nothing — each on SQLite and on a real PostgreSQL server; the history table, JSON and plot
+against the records added."""
+import hashlib
+import io
+import json
+import os
+import re
+import signal
+import time
+import traceback
+import uuid
+from contextlib import redirect_stdout
+from datetime import datetime, timezone
+
+import numpy as np
+import pytest
+import sqlalchemy as sa
+
+import kincal
+from kincal.history import (SCHEMA_VERSION, Identity, InputFile, Record, StoreError, calibration_record,
+                            event_record, fingerprint, history_figure, migrate, model_hash, open_store,
+                            save_history_figure, store_url, utc_time)
+from kincal.history.store import _engine, _tables
+
+HASH = "ab" * 32
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def url(request, tmp_path):
+    """A new, empty store: an SQLite file, or a new database on the tests' PostgreSQL server."""
+    if request.param == "sqlite":
+        return str(tmp_path / "store.db")
+    import psycopg
+
+    server = sa.make_url(request.getfixturevalue("postgres_url"))
+    name = f"t_{uuid.uuid4().hex[:12]}"
+    with psycopg.connect(dbname="postgres", user="postgres", host=server.query["host"], port=server.query["port"],
+                         autocommit=True) as conn:
+        conn.execute(f'CREATE DATABASE "{name}"')
+    return server.set(database=name).render_as_string(hide_password=False)
+
+
+def sample(k: int, time="2024-03-01T10:00:00Z", name="cell-3", serial="SN-1", model=HASH, n=24, kind="calibration"):
+    """A record with every field filled, its numbers drawn from seed ``k`` (no round values: exactness shows)."""
+    rng = np.random.default_rng(k)
+    names = [f"j{i // 4 + 1}.{'adtb'[i % 4]}" for i in range(n)]
+    values = dict(zip(names, rng.normal(0.0, 0.3, n).tolist()))
+    sigmas = {p: float(abs(s)) for p, s in zip(names, rng.normal(0.0, 1e-5, n))} | {names[-1]: None}
+    ident = names[:-1]
+    a = rng.normal(size=(len(ident), len(ident)))
+    return Record(Identity(name, serial, model), kind, time, "good" if k % 2 else "suspect",
+                  tuple(InputFile(f"data/run{k}-{i}.csv", hashlib.sha256(f"{k}{i}".encode()).hexdigest(),
+                                  int(rng.integers(1, 10**9))) for i in range(3)),
+                  values, sigmas, tuple(ident), {"names": ident, "matrix": (a @ a.T * 1e-12).tolist()},
+                  {"training_mean": float(rng.uniform(1e-5, 1e-4)), "heldout_mean": float(rng.uniform(1e-5, 1e-4)),
+                   "training_n": 40.0}, {"text": "target 0.2 mm off", "tool_point": rng.normal(size=3).tolist()},
+                  {"temperature": (293.15 + float(rng.random()), 297.0 + float(rng.random()))}, f"record {k} ü",
+                  {"command": f"kincal calibrate ur5 run{k}.csv", "kinds": {p: "length" for p in names},
+                   "nested": {"list": [1, 0.1 + 0.2, None, "x", True], "tiny": 5e-300}})
+
+
+def rows_of(store) -> tuple[dict, dict, dict]:
+    """Every record's payload, parameter rows and input rows, read from the tables themselves."""
+    t = store.tables
+    with store.engine.connect() as conn:
+        records = {r.id: r.payload for r in conn.execute(t["records"].select())}
+        params: dict = {}
+        for r in conn.execute(t["parameters"].select()):
+            params.setdefault(r.record_id, {})[r.name] = (r.value, r.sigma, bool(r.identifiable))
+        inputs: dict = {}
+        for r in conn.execute(t["inputs"].select()):
+            inputs.setdefault(r.record_id, set()).add((r.path, r.sha256, r.size))
+    return records, params, inputs
+
+
+def assert_complete(store) -> dict:
+    """Every record readable and whole: its parameter and input rows are those of its payload, and no row
+    belongs to a record that is not there. The records by id."""
+    records, params, inputs = rows_of(store)
+    assert set(params) <= set(records) and set(inputs) <= set(records)  # no rows without their record
+    out = {}
+    for rid, payload in records.items():
+        rec = store.get(rid)
+        assert rec == Record.from_dict(payload)
+        assert params.get(rid, {}) == {n: (v, rec.sigmas.get(n), n in rec.identifiable)
+                                       for n, v in rec.parameters.items()}
+        assert inputs.get(rid, set()) == {(i.path, i.sha256, i.size) for i in rec.inputs}
+        out[rid] = rec
+    return out
+
+
+def test_round_trip_every_field_and_time_order(url):
+    added = [sample(1, "2024-03-02T10:00:00Z"), sample(2, "2024-03-01T11:00:00+01:00"),
+             sample(3, "2024-03-01T10:00:00Z"), sample(4, "2024-03-05T08:30:00Z", serial="SN-2"),
+             sample(5, "2024-03-03T00:00:00Z", kind="evaluation"), event_record(Identity("cell-3", "SN-1"), "crash",
+                                                                               "2024-03-02T12:00:00Z")]
+    with open_store(url) as store:
+        ids = [store.add(r) for r in added]
+        assert store.version == SCHEMA_VERSION
+        got = store.records("cell-3", "SN-1")
+        # 2 and 3 at the same instant (11:00+01:00 is 10:00 UTC): by id
+        assert [i for i, _ in got] == [ids[1], ids[2], ids[0], ids[5], ids[4]]
+        for i, r in got:
+            assert r == added[ids.index(i)] and r.to_dict() == added[ids.index(i)].to_dict()
+        assert got[0][1].time == "2024-03-01T10:00:00.000000Z"
+        assert got[0][1].payload["nested"]["list"][1] == 0.1 + 0.2 and got[0][1].payload["nested"]["tiny"] == 5e-300
+        assert [i for i, _ in store.records("cell-3")] == [ids[1], ids[2], ids[0], ids[5], ids[4], ids[3]]
+        assert [i for i, _ in store.records("cell-3", kind="evaluation")] == [ids[4]]
+        assert store.records("cell-9") == []
+        assert store.robots() == [(Identity("cell-3", "SN-1", HASH), 5, "2024-03-01T10:00:00.000000Z",
+                                   "2024-03-03T00:00:00.000000Z"),
+                                  (Identity("cell-3", "SN-2", HASH), 1, *(["2024-03-05T08:30:00.000000Z"] * 2))]
+        assert set(assert_complete(store)) == set(ids)
+        with pytest.raises(StoreError, match="no record 999"):
+            store.get(999)
+    with open_store(url) as again:  # opened again: the same records
+        assert again.records("cell-3", "SN-1") == got
+
+
+def test_a_changed_nominal_model_is_recorded_and_flagged(url):
+    with open_store(url) as store:
+        a = store.add(sample(1, "2024-01-01T00:00Z"))
+        e = store.add(event_record(Identity("cell-3", "SN-1"), "new robot file", "2024-01-02T00:00Z"))
+        b = store.add(sample(2, "2024-01-03T00:00Z", model="cd" * 32))
+        c = store.add(sample(3, "2024-01-04T00:00Z", model="cd" * 32))
+        assert store.model_changes("cell-3") == {b} and {a, e, c}.isdisjoint(store.model_changes("cell-3", "SN-1"))
+        assert store.robots()[0][0].model_hash == "cd" * 32
+        assert [r.identity.model_hash for _, r in store.records("cell-3")] == [HASH, "", "cd" * 32, "cd" * 32]
+
+
+def test_a_version_1_store_is_migrated_and_keeps_its_records(url):
+    engine = _engine(url)
+    assert migrate(engine, 1) == 1
+    old = [sample(1, "2024-01-01T00:00Z"), sample(2, "2024-01-02T00:00Z", model="cd" * 32)]
+    t = _tables(1).tables
+    with engine.begin() as conn:  # written as version 1 wrote them
+        robot = conn.execute(t["robots"].insert().values(name="cell-3", serial="SN-1", model_hash=HASH)
+                             ).inserted_primary_key[0]
+        for r in old:
+            rid = conn.execute(t["records"].insert().values(robot_id=robot, kind=r.kind, time=r.time, verdict=r.verdict,
+                                                            note=r.note, payload=r.to_dict())).inserted_primary_key[0]
+            conn.execute(t["parameters"].insert(), [{"record_id": rid, "name": n, "value": v, "sigma": r.sigmas[n],
+                                                     "identifiable": n in r.identifiable}
+                                                    for n, v in r.parameters.items()])
+            conn.execute(t["inputs"].insert(), [{"record_id": rid, **i.to_dict()} for i in r.inputs])
+    engine.dispose()
+    with open_store(url) as store:
+        assert store.version == SCHEMA_VERSION == 3
+        assert [r for _, r in store.records("cell-3", "SN-1")] == old
+        ids = [i for i, _ in store.records("cell-3")]
+        assert store.model_changes("cell-3") == {ids[1]}  # filled in from the payloads
+        new = store.add(sample(3, "2024-01-03T00:00Z"))
+        assert store.model_changes("cell-3") == {ids[1], new}
+        assert len(assert_complete(store)) == 3
+        with store.engine.connect() as conn:
+            assert {i["name"] for i in sa.inspect(conn).get_indexes("records")} == {"records_robot_time"}
+            assert conn.execute(sa.text("SELECT version FROM schema_version")).scalars().all() == [3]
+
+
+def test_a_store_newer_than_kincal_is_refused(url):
+    with open_store(url) as store, store.engine.begin() as conn:
+        conn.execute(sa.text("UPDATE schema_version SET version = 99"))
+    with pytest.raises(StoreError, match="schema version 99, newer than this kincal's \\(3\\): upgrade kincal"):
+        open_store(url)
+
+
+def _child(work) -> None:
+    """Run ``work`` in a forked child and leave without running the parent's clean-up (exit 0, or 1 with the
+    traceback on stderr)."""
+    code = 1
+    try:
+        work()
+        code = 0
+    except BaseException:
+        traceback.print_exc()
+    finally:
+        os._exit(code)
+
+
+@pytest.mark.slow  # 200 transactions one after the other: 2-4 s
+def test_two_processes_writing_at_once_lose_nothing(url):
+    open_store(url).close()  # created (and migrated) once; the writers open it themselves
+    go_r, go_w = os.pipe()
+    pids = []
+    for w in range(2):
+        pid = os.fork()
+        if pid == 0:
+            os.close(go_w)
+
+            def write(w=w):
+                with open_store(url) as store:
+                    os.read(go_r, 1)  # both start together
+                    for k in range(100):
+                        store.add(sample(1000 * w + k, utc_time(datetime(2024, 1, 1, tzinfo=timezone.utc)), n=8))
+            _child(write)
+        pids.append(pid)
+    os.write(go_w, b"go")
+    assert [os.waitpid(pid, 0)[1] for pid in pids] == [0, 0]
+    with open_store(url) as store:
+        records = assert_complete(store)
+        assert sorted(r.note for r in records.values()) == sorted(f"record {1000 * w + k} ü" for w in range(2)
+                                                                  for k in range(100))
+        assert len(store.records("cell-3", "SN-1")) == 200
+
+
+@pytest.mark.slow  # 50 writers forked and killed: about 2 s
+def test_a_writer_killed_at_random_points_leaves_whole_records(url):
+    open_store(url).close()
+    rng = np.random.default_rng(35)
+    reported: list[int] = []
+    for trial in range(50):
+        read, written = os.pipe()
+        pid = os.fork()
+        if pid == 0:
+            os.close(read)
+
+            def write(trial=trial):
+                with open_store(url) as store:
+                    os.write(written, b"open\n")
+                    for k in range(1000):
+                        rid = store.add(sample(100 * trial + k, n=40))
+                        os.write(written, f"{rid}\n".encode())  # committed
+            _child(write)
+        os.close(written)
+        fh = os.fdopen(read)
+        if trial % 5 == 0:  # now and then while it opens the store
+            time.sleep(float(rng.uniform(0.0, 0.03)))
+        else:  # mostly while it writes (a record takes a few ms): in a transaction, or between two
+            assert fh.readline() == "open\n"
+            time.sleep(float(rng.uniform(0.0, 0.015)))
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+        with fh:
+            reported += [int(x) for x in fh.read().split() if x != "open"]
+    with open_store(url) as store:
+        records = assert_complete(store)
+        assert set(reported) <= set(records)  # every record its writer saw committed is there, whole
+        after = store.add(sample(9999))  # the store takes new records afterwards
+        assert store.get(after) == sample(9999) and len(assert_complete(store)) == len(records) + 1
+
+
+def test_store_urls_and_where_the_store_is(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "config"))
+    monkeypatch.delenv("KINCAL_STORE", raising=False)
+    assert store_url(None) is None  # off by default
+    config = tmp_path / "config" / "kincal" / "config.yaml"
+    config.parent.mkdir(parents=True)
+    config.write_text("store: ~/robots.db\n")
+    assert store_url(None) == "~/robots.db"
+    monkeypatch.setenv("KINCAL_STORE", "/srv/env.db")
+    assert store_url(None) == "/srv/env.db" and store_url("given.db") == "given.db"
+    monkeypatch.delenv("KINCAL_STORE")
+    config.write_text("store: [1, 2]\n")
+    with pytest.raises(ValueError, match="'store:' must be a path"):
+        store_url(None)
+    with pytest.raises(StoreError, match="the folder .*missing does not exist"):
+        open_store(str(tmp_path / "missing" / "s.db"))
+    with pytest.raises(StoreError, match="is a folder"):
+        open_store(str(tmp_path))
+    with pytest.raises(StoreError, match="give a file path or sqlite:///PATH"):
+        open_store("mysql://u@h/db")
+    (tmp_path / "text.db").write_text("not a database, " * 100)
+    with pytest.raises(StoreError, match="text.db cannot be opened: file is not a database"):
+        open_store(str(tmp_path / "text.db"))
+    import importlib.util
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "psycopg" else real(name, *a))
+    with pytest.raises(StoreError, match=r"pip install 'kincal\[postgres\]'"):
+        open_store("postgresql://u:secret@host/db")
+    with open_store(f"sqlite:///{tmp_path / 'url.db'}") as store:  # the URL form of a path
+        store.add(sample(1))
+    assert (tmp_path / "url.db").is_file()
+
+
+def test_record_of_a_calibration(tmp_path):
+    nominal = kincal.load_robot("ur5")
+    meas = kincal.simulate(kincal.perturb(nominal, seed=1), nominal.sample_joints(40, seed=2), 15e-6, seed=3)
+    res = kincal.calibrate(nominal, meas)
+    data = tmp_path / "grid.csv"
+    data.write_bytes(os.urandom(3 << 20))  # three 1 MiB blocks and more
+    inputs = [fingerprint(data)]
+    assert inputs[0] == InputFile(str(data), hashlib.sha256(data.read_bytes()).hexdigest(), 3 << 20)
+    held = kincal.evaluate(res.robot, meas)
+    rec = calibration_record(res, Identity("cell-3", "SN-1", model_hash(nominal)), inputs, heldout=[held], note="n",
+                             command="kincal calibrate", covariates={"temperature": (293.0, 296.5)})
+    assert rec.parameters == dict(zip(res.robot.params.names, res.robot.params.values.tolist()))
+    assert rec.sigmas == {n: float(res.std[n]) for n in res.names} and rec.verdict == res.verdict.status
+    assert rec.identifiable == tuple(n for n in res.robot.params.names if n in res.names and np.isfinite(res.std[n]))
+    at = [res.free.index(n) for n in rec.identifiable]
+    np.testing.assert_array_equal(rec.covariance["matrix"], res.covariance[np.ix_(at, at)])
+    err = np.linalg.norm(res.residuals, axis=1)
+    assert rec.figures["training_mean"] == pytest.approx(err.mean(), rel=1e-12)
+    assert rec.figures["training_rms"] == pytest.approx(np.sqrt(np.mean(err**2)), rel=1e-12)
+    assert rec.figures["heldout_mean"] == held.mean and rec.figures["heldout_n"] == 40
+    assert rec.payload["calibration"]["nominal"] == nominal.params.as_dict() and rec.covariates["temperature"] == (
+        293.0, 296.5)
+    assert Record.from_dict(json.loads(json.dumps(rec.to_dict(), allow_nan=False))) == rec
+
+
+def test_model_hash_is_the_robots_own_geometry():
+    ur5 = kincal.load_robot("ur5")
+    h = model_hash(ur5)
+    assert len(h) == 64 and h == model_hash(kincal.load_robot("ur5"))
+    assert model_hash(ur5.with_params({"base.x": 1.2, "tool.z": 0.09})) == h  # set-up, not the robot
+    assert model_hash(ur5.with_params({"j2.a": ur5.params["j2.a"] + 1e-9})) != h
+    assert model_hash(ur5.with_params({"j2.a": ur5.params["j2.a"] + 1e-14})) == h  # below 1e-12 m
+    assert model_hash(kincal.load_robot("ur10")) != h
+
+
+def test_times_are_utc_iso_text_that_sorts():
+    assert utc_time("2024-05-03T14:00:00+02:00") == "2024-05-03T12:00:00.000000Z"
+    assert utc_time(datetime(2024, 5, 3, 12, 0, 0, 5, tzinfo=timezone.utc)) == "2024-05-03T12:00:00.000005Z"
+    with pytest.raises(ValueError, match="'yesterday' is not an ISO 8601 time"):
+        utc_time("yesterday")
+    with pytest.raises(ValueError, match="kind 'party' is not one of"):
+        Record(Identity("r"), "party", "2024-01-01T00:00Z")
+    with pytest.raises(ValueError, match="the value of 'j1.a' must be a finite number"):
+        Record(Identity("r"), "calibration", "2024-01-01T00:00Z", parameters={"j1.a": float("nan")})
+
+
+KINDS = {"j2.a": "length", "j3.d": "length", "j1.theta": "angle", "base.x": "length"}
+NOMINAL = {"j2.a": -0.425, "j3.d": 0.1, "j1.theta": 0.0, "base.x": 1.0}
+SIG = {"j2.a": 1e-5, "j3.d": 2e-5, "j1.theta": 1e-5}
+
+
+def _cal(time, changes, figures):
+    return Record(Identity("cell-3", "", HASH), "calibration", time, "good", (), {**NOMINAL, **changes}, SIG,
+                  tuple(SIG), None, figures, None, {}, "", {"kinds": KINDS, "frame": ["base.x"]})
+
+
+def history(path) -> list[Record]:
+    """Three calibrations (j2.a +50 µm and j1.theta +30 µrad, then j3.d +1 µm; the frame moving each time), an
+    event between the last two, an evaluation; added out of time order."""
+    added = [_cal("2024-01-01T00:00Z", {}, {"training_mean": 2e-5, "heldout_mean": 3e-5}),
+             _cal("2024-03-01T00:00Z", {"j2.a": -0.425 + 50e-6, "j3.d": 0.1 + 1e-6, "j1.theta": 3e-5, "base.x": 1.2},
+                  {"training_mean": 2e-5, "heldout_mean": 4e-5}),
+             _cal("2024-02-01T00:00Z", {"j2.a": -0.425 + 50e-6, "j1.theta": 3e-5, "base.x": 1.5},
+                  {"training_mean": 2.5e-5}),
+             event_record(Identity("cell-3"), "gearbox 3 replaced", "2024-02-15T00:00Z"),
+             Record(Identity("cell-3", "", HASH), "evaluation", "2024-03-02T00:00Z", figures={"heldout_mean": 5e-5})]
+    with open_store(str(path)) as store:
+        for r in added:
+            store.add(r)
+    return [added[k] for k in (0, 2, 3, 1, 4)]
+
+
+@pytest.fixture
+def kincal_main(monkeypatch):
+    """kincal's main with the history command (registered here until the command line lists it)."""
+    import kincal.cli as cli
+    from kincal.cli import history as history_cli, study
+
+    subs = next(a for a in cli.build_parser()._actions if a.dest == "command")
+    if "history" not in subs.choices:
+        original = study.register
+        monkeypatch.setattr(study, "register", lambda cmd: (original(cmd), history_cli.register(cmd)))
+    return cli.main
+
+
+def test_history_table_and_json_against_the_records(tmp_path, kincal_main, capsys):
+    records = history(tmp_path / "s.db")
+    assert kincal_main(["history", "cell-3", "--store", str(tmp_path / "s.db"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert [Record.from_dict({k: v for k, v in r.items() if k not in ("id", "model_changed")})
+            for r in out["records"]] == records
+    moves = {(m["before"], m["after"], m["parameter"]): m for m in out["moves"]}
+    ids = [r["id"] for r in out["records"]]
+    first, second, third = ids[0], ids[1], ids[3]
+    assert set(moves) == {(first, second, "j2.a"), (first, second, "j1.theta"), (first, second, "base.x"),
+                          (second, third, "j3.d"), (second, third, "base.x")}
+    for (a, b, name), delta, sigma in (((first, second, "j2.a"), 50e-6, np.hypot(1e-5, 1e-5)),
+                                       ((first, second, "j1.theta"), 3e-5, np.hypot(1e-5, 1e-5)),
+                                       ((second, third, "j3.d"), 1e-6, np.hypot(2e-5, 2e-5))):
+        m = moves[(a, b, name)]
+        assert m["change"] == pytest.approx(delta, rel=1e-9) and m["sigma"] == pytest.approx(sigma, rel=1e-12)
+        assert m["z"] == pytest.approx(delta / sigma, rel=1e-9) and not m["frame"]
+    assert moves[(first, second, "base.x")]["frame"] and moves[(first, second, "base.x")]["change"] == 0.5
+    assert kincal_main(["history", "cell-3", "--store", str(tmp_path / "s.db")]) == 0
+    text = capsys.readouterr().out
+    assert "j2.a" in text and "+0.0500 mm" in text and "z +3.5" in text  # 50 µm / (√2 · 10 µm)
+    assert "+0.00172 deg  σ 0.00081 deg  z +2.1" in text  # 30 µrad against √2 · 10 µrad
+    assert "no parameter moved beyond 2σ" in text and "j3.d" not in text  # 1 µm: z 0.04
+    for mm in ("0.0300", "0.0400", "0.0250", "0.0500"):
+        assert mm in text
+    assert "gearbox" in text and "replaced" in text and "base.*" in text  # the note (wrapped at 80 columns)
+
+
+@pytest.mark.slow  # matplotlib's first import and drawing: 2-4 s
+def test_history_plot_shows_the_records(tmp_path, kincal_main):
+    import matplotlib.dates as mdates
+
+    records = history(tmp_path / "s.db")
+    with open_store(str(tmp_path / "s.db")) as store:
+        rows = store.records("cell-3")
+    fig = history_figure(rows)
+    panels = {ax.get_title(loc="left"): ax for ax in fig.axes}
+    assert set(panels) == {"j2.a", "j3.d", "j1.theta", "position error"}  # the frame (base.x) left out
+    cals = [r for r in records if r.kind == "calibration"]
+    days = mdates.date2num([datetime.fromisoformat(r.time.replace("Z", "+00:00")) for r in cals])
+    for name, factor in (("j2.a", 1e3), ("j3.d", 1e3), ("j1.theta", 1e3)):  # mm, mrad
+        line = next(li for li in panels[name].lines if li.get_label() == name)
+        want = [(r.parameters[name] - cals[0].parameters[name]) * factor for r in cals]
+        np.testing.assert_allclose(mdates.date2num(line.get_xdata()), days)
+        np.testing.assert_allclose(line.get_ydata(), want, atol=1e-12)
+        band = panels[name].collections[0].get_paths()[0].vertices
+        for x, y in zip(days, want):
+            at = band[np.isclose(band[:, 0], x), 1]
+            np.testing.assert_allclose([at.min(), at.max()], [y - SIG[name] * factor, y + SIG[name] * factor])
+    series = {li.get_label(): li for li in panels["position error"].lines}
+    np.testing.assert_allclose(series["calibration, held-out data"].get_ydata(), [0.03, 0.04])
+    np.testing.assert_allclose(series["calibration, training data"].get_ydata(), [0.025])
+    np.testing.assert_allclose(series["evaluation"].get_ydata(), [0.05])
+    event = mdates.date2num(datetime(2024, 2, 15, tzinfo=timezone.utc))
+    for ax in fig.axes:
+        assert any(np.allclose(mdates.date2num(li.get_xdata()), event) for li in ax.lines)
+    assert [t.get_text() for t in panels["position error"].texts] == ["gearbox 3 replaced"]
+    save_history_figure(fig, tmp_path / "h.svg")
+    assert (tmp_path / "h.svg").read_text().count("<svg") == 1
+    assert kincal_main(["history", "cell-3", "--store", str(tmp_path / "s.db"), "--plot", str(tmp_path / "h.png"),
+                        "--parameters", "j2.a,base.x"]) == 0
+    assert (tmp_path / "h.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_history_bad_inputs_and_events(tmp_path, kincal_main, capsys, monkeypatch):
+    monkeypatch.delenv("KINCAL_STORE", raising=False)
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "nothing"))
+    assert kincal_main(["history", "cell-3"]) == 1
+    said = capsys.readouterr().err
+    assert "no calibration store is set" in said and "--store" in said and "KINCAL_STORE" in said
+    assert "config.yaml" in said
+    history(tmp_path / "s.db")
+    monkeypatch.setenv("KINCAL_STORE", str(tmp_path / "s.db"))
+    for argv, message in ((["cell-9"], "no robot 'cell-9' in the store .* it holds: cell-3"),
+                          (["cell-3", "--serial", "X"], "no robot 'cell-3' with serial 'X'"),
+                          (["cell-3", "--at", "2024-01-01"], "--at gives the time of an --event"),
+                          (["cell-3", "--event", "crash", "--at", "noon"], "'noon' is not an ISO 8601 time"),
+                          (["cell-3", "--plot", str(tmp_path / "h.jpg")], "give a .png or .svg file"),
+                          (["cell-3", "--plot", str(tmp_path / "no" / "h.png")], "does not exist"),
+                          (["cell-3", "--parameters", "j2.a"], "--parameters chooses the panels of the plot"),
+                          (["cell-3", "--event", "x", "--plot", str(tmp_path / "h.png"), "--parameters", "j9.a"],
+                           "j9.a is in no calibration of this robot; its parameters: j2.a, j3.d, j1.theta, base.x")):
+        assert kincal_main(["history", *argv]) == 1, argv
+        assert re.search(message, " ".join(capsys.readouterr().err.split())), (argv, message)
+    assert kincal_main(["history", "cell-3", "--event", "crash into the fence", "--at", "2024-02-20T10:00Z"]) == 0
+    assert "event recorded" in capsys.readouterr().out
+    with open_store(str(tmp_path / "s.db")) as store:
+        events = [r for _, r in store.records("cell-3", kind="event")]
+    assert [(r.note, r.time) for r in events] == [("gearbox 3 replaced", "2024-02-15T00:00:00.000000Z"),
+                                                  ("crash into the fence", "2024-02-20T10:00:00.000000Z")]
