@@ -16,7 +16,7 @@ SAMPLE = {"--loss": ["huber"], "--method": ["pso"], "--residual": ["joint"], "--
           "--prior": ["none"], "--orientation": ["quat-xyzw"], "--rot-cols": ["a,b,c,d"], "--std-rot": ["1mrad"],
           "--std-pos": ["0.1mm"], "--markers": ["m1"], "--label-col": ["socket"], "--group-col": ["plate"],
           "--distance": ["0,1,50"], "--plane": ["t:0,0,1,0"], "--xyz-cols": ["a,b,c"], "--same-frame": [],
-          "--refit-target": []}
+          "--refit-target": [], "--covariate-cols": ["temperature"]}
 NOT_TYPED = {"help", "given", "func", "command"}
 
 

@@ -44,6 +44,7 @@ SCOPES: dict[str, Scope] = {
     "plot": Scope(("point", "pose"), "the figures show each sample's 3-D position error; the report (--report) "
                                      "shows every kind"),
     "tracker_noise": _points_alone("the other kinds state their noise with --std-pos (and --std-rot)"),
+    "covariate_cols": _points_alone("the other kinds' files are read without covariate columns yet"),
     "std_cols": _points_alone("the other kinds read σ from the columns std_pos and std_rot_mrad"),
     "base": Scope(("point", "pose", "markers"), "sockets and planes do not see the measurement frame (the base is "
                                                 "a gauge freedom for them)"),

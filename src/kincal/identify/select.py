@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import KincalError
 from ..io.measurements import Measurements
 from ..models.robot import Robot
-from ..models.terms import ErrorModel, extend
+from ..models.terms import ErrorModel, ExtendedRobot, extend
 from ..ties import first_best, improves
 from ..units import MM
 
@@ -47,13 +47,17 @@ FOLDS = 5  # k-means regions of joint space, each held out in turn
 def default_candidates(robot: Robot) -> tuple[str, ...]:
     """The models ``auto`` compares: geometric; without the automatic β tilts (DH/MDH chains that
     have them); compliance (chains with link masses) and the gravity regressor (chains); joint-angle
-    harmonics of order 1 and 2."""
+    harmonics of order 1 and 2; the thermal growth of each covariate the robot reads
+    (``thermal:<covariate>``, :mod:`kincal.models.covariates`), judged by the same rules as any term:
+    the regions of joint space are also regions of the covariate (k-means sees it as a scaled,
+    non-periodic input), and leave-one-session-out holds out whole sessions (a warm-up, a cold morning)."""
+    geometry = robot.inner if isinstance(robot, ExtendedRobot) else robot
     out = ["geometric"]
-    if robot.has_beta:
+    if geometry.has_beta:
         out.append("nobeta")
-    if robot.has_gravity:
+    if geometry.has_gravity:
         out += ["compliance", "gravity-regressor"]
-    return tuple(out + ["harmonics:1", "harmonics:2"])
+    return tuple(out + ["harmonics:1", "harmonics:2"] + [f"thermal:{c}" for c in robot.covariate_names])
 
 
 @dataclass(frozen=True)

@@ -106,6 +106,9 @@ class Measurements:
             raise MeasurementError(f"{self.source}: {self.q.shape[1]} joint columns but robot '{robot.name}' has "
                                    f"{robot.n_joints} joints ({', '.join(robot.joint_names)}); pass the right joint "
                                    f"columns")
+        outside, why = robot.inputs_outside(self.q)
+        if outside.any():
+            raise MeasurementError(f"{self.source}: {self.describe_rows(np.flatnonzero(outside))}: {why}")
         check_degrees(self.source, self.q, robot, angle_unit)
         if len(self) >= 3:
             check_spread(self.source, self.q, self.xyz, robot, length_unit or (self.units[0] if self.units else None),
@@ -114,8 +117,18 @@ class Measurements:
 
 def _joint_columns(path: str, robot: Robot, joint_cols: Sequence[str] | None, header: Sequence[str] = ()) -> list[str]:
     """The joint columns: as given, else the robot's default for this header (its joints' names, or
-    their robot-stack names), checked to be one per joint."""
+    their robot-stack names), checked to be one per joint; then the covariates the robot reads, by
+    their names (``joint_cols`` may name the joints alone). A covariate column missing from a non-empty
+    ``header`` is refused naming the file, the column and the columns present."""
     cols = list(joint_cols) if joint_cols is not None else robot.default_columns(header)
+    covariates = list(robot.covariate_names)
+    if covariates and len(cols) == robot.n_joints - len(covariates):
+        cols += covariates
+    missing = [c for c in covariates if header and c not in header]
+    if missing:
+        raise MeasurementError(f"{path}: no column {', '.join(missing)} (the covariate(s) the model reads); the file's "
+                               f"columns are {', '.join(header)}; add it, or name the column that holds it "
+                               f"(--covariate-cols)")
     if len(cols) != robot.n_joints:
         raise MeasurementError(f"{path}: {len(cols)} joint columns given ({', '.join(cols)}) but robot '{robot.name}' "
                                f"has {robot.n_joints} joints; give one column per joint")
@@ -124,16 +137,24 @@ def _joint_columns(path: str, robot: Robot, joint_cols: Sequence[str] | None, he
 
 def _file_scales(joint_types: Sequence[str], length_unit: str, angle_unit: str, path: str) -> tuple[np.ndarray, float]:
     """Factors from SI to a file's units: per joint (angle unit for revolute joints, length unit for
-    prismatic ones; both units checked) and for lengths."""
+    prismatic ones; both units checked; a covariate as it is) and for lengths."""
     factors = np.array(joint_factors(joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError))
+    factors[[t == "covariate" for t in joint_types]] = 1.0
     return 1.0 / factors, 1.0 / unit_factor(length_unit, "length", f"{path}: ", MeasurementError)
+
+
+def _input_units(robot: Robot, length_unit: str, angle_unit: str, path: str) -> list:
+    """The file unit of each input column: a joint's (:func:`kincal.units.joint_units`), None (the
+    number as written) for a covariate."""
+    units = joint_units(robot.joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError)
+    return [None if t == "covariate" else u for t, u in zip(robot.joint_types, units)]
 
 
 def read_joints(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None, length_unit: str = "m",
                 angle_unit: str = "rad") -> np.ndarray:
     """Joint values (N, n) in rad/m from a CSV with a header (e.g. poses to measure)."""
     path = str(path)
-    units = joint_units(robot.joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError)
+    units = _input_units(robot, length_unit, angle_unit, path)
     table = open_table(path)
     q = table.numbers(_joint_columns(path, robot, joint_cols, table.header), units, what="joint values")
     check_degrees(path, q, robot, angle_unit)
@@ -158,9 +179,10 @@ def read_measurements(path: str | os.PathLike, robot: Robot, joint_cols: Sequenc
                       std_cols: Sequence[str] | None = None) -> Measurements:
     """Read a CSV (header line; comma, semicolon or tab separated) of joint values and positions.
 
-    joint_cols default to the robot's joint names. Revolute joints are in ``angle_unit``, prismatic
-    joints and positions in ``length_unit``. Values are returned in SI units; data whose scale looks
-    like the wrong unit is refused with the unit to use. ``std_cols``: the instrument's σ per sample
+    joint_cols default to the robot's joint names; the covariates a robot reads after its joints
+    (:func:`kincal.models.with_covariates`: a temperature column) are read by their names, as written.
+    Revolute joints are in ``angle_unit``, prismatic joints and positions in ``length_unit``. Values
+    are returned in SI units; data whose scale looks like the wrong unit is refused with the unit to use. ``std_cols``: the instrument's σ per sample
     and axis (length unit); by default ``measurement_std_x/y/z`` when the file has them (they weight
     the fit and set the noise level of the verdict); ``[]`` ignores them. Blank and '#' lines are
     skipped; every column is checked as ``_csv.Table`` checks it, errors naming the file, row and column.
@@ -171,7 +193,7 @@ def read_measurements(path: str | os.PathLike, robot: Robot, joint_cols: Sequenc
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
     if std_cols is not None and len(std_cols) not in (0, 3):
         raise MeasurementError(f"{path}: give three σ columns (x, y, z) or none, got {list(std_cols)}")
-    units = joint_units(robot.joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError)
+    units = _input_units(robot, length_unit, angle_unit, path)
     table = open_table(path)
     cols = _joint_columns(path, robot, joint_cols, table.header)
     if std_cols is None:  # the σ columns by their usual names when the header has all three

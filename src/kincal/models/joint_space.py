@@ -13,12 +13,13 @@ from numpy.typing import ArrayLike
 
 from ..errors import ModelError
 
-JOINT_TYPES = ("revolute", "prismatic")
+JOINT_TYPES = ("revolute", "prismatic", "covariate")  # a covariate: an input after the joints (models/covariates.py)
 
 @dataclass(frozen=True, eq=False, init=False)
 class JointSpace:
     """The joints a user commands: names, types ("revolute" or "prismatic") and limits (rad or m;
-    ±inf for an unlimited joint), all immutable."""
+    ±inf for an unlimited joint), all immutable; then any covariate inputs (type "covariate": a
+    temperature, a time, in the column's unit, limited to the range a term was fitted on)."""
 
     names: tuple[str, ...]
     types: tuple[str, ...]
@@ -60,6 +61,16 @@ class Joints:
     @property
     def joint_types(self) -> tuple[str, ...]:
         return self.joint_space.types
+
+    @property
+    def covariate_names(self) -> tuple[str, ...]:
+        """The names of the inputs after the joints that are not joints (a temperature column)."""
+        return tuple(n for n, t in zip(self.joint_names, self.joint_types) if t == "covariate")
+
+    def inputs_outside(self, q: np.ndarray) -> tuple[np.ndarray, str]:
+        """(N,) bool: rows where the model may not predict — a covariate a term reads beyond the range
+        it was fitted on — and why ('' when none); none by default."""
+        return np.zeros(len(q), bool), ""
 
     @property
     def periodic(self) -> np.ndarray:

@@ -11,6 +11,12 @@ basis B (N, n, m) per term, linear in the term's parameters θ:
   joint that carries at least ``TAU_MIN`` RMS load.
 * ``gravity-regressor``: the same deflections with the masses unknown: Δqᵢ = Σ_links,k θᵢℓₖ Yᵢℓₖ(q),
   Y the regressor columns in m; ``<joint>.g_<link>_<m|x|y|z>`` (rad at a 1 m arm).
+* ``thermal:<covariate>``: the links' thermal growth with a covariate input (a temperature column),
+  a term on the tool point itself (``acts_on`` "position"): :mod:`kincal.models.covariates`.
+
+Covariates are inputs after the joints (``ExtendedRobot.covariates``, type "covariate"): every q of
+such a robot carries them; a term reading one refuses values beyond its fitted range
+(:meth:`ExtendedRobot.inputs_outside`). A robot may carry covariates and no term ("geometric").
 
 Terms go on revolute joints whose angle moves the tool point by at least ``MIN_LEVER`` per radian
 (a joint turning the tool about itself cannot show its angle errors). All are bounded functions of
@@ -24,13 +30,13 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from itertools import product
-from typing import Mapping, Sequence
+from typing import ClassVar, Mapping, Sequence
 
 import numpy as np
 
 from ..checks import number
 from ..errors import ModelError
+from .covariates import Covariate, thermal_term
 from .gravity import COMPONENTS, GravityModel
 from .parameters import Parameters
 from .joint_space import JointSpace
@@ -42,7 +48,8 @@ TAU_REF = 100.0  # N·m: a compliance parameter is the deflection at this load
 TAU_MIN = 0.5  # N·m: RMS load below which a joint gets no compliance
 REGRESSOR_MIN = 1e-6  # m: RMS of a regressor column below which it is left out (no load in any pose)
 SLOPE_STEP = 1e-6  # rad
-TERMS = ("compliance", "gravity-regressor", "harmonics")
+TERMS = ("compliance", "gravity-regressor", "harmonics", "thermal")
+THERMAL = "thermal:"  # the token of a thermal term is THERMAL + the covariate's name
 MAX_PAYLOAD = 3000.0  # kg: the heaviest industrial robots carry about 2300 kg
 MODELS = ("geometric", "nobeta", "compliance", "gravity-regressor", "harmonics:1", "harmonics:2", "harmonics:3",
           "harmonics:4")
@@ -60,6 +67,8 @@ class Harmonics:
     """Joint-angle harmonics of ``order`` on the joints ``joint_names`` (at positions ``index`` among
     the robot's joints)."""
 
+    acts_on: ClassVar[str] = "joints"  # Δq (N, n, m) on the joint values
+    kind: ClassVar[str] = "angle"
     order: int
     index: tuple[int, ...]
     joint_names: tuple[str, ...]
@@ -98,6 +107,8 @@ class GravityTerm:
     """``compliance`` (one column per loaded joint: its load / TAU_REF) or ``gravity-regressor``
     (the regressor ``columns``: (joint index, link index, component))."""
 
+    acts_on: ClassVar[str] = "joints"
+    kind: ClassVar[str] = "angle"
     token: str
     gravity: GravityModel
     columns: tuple[tuple[int, int, int], ...]
@@ -142,73 +153,133 @@ class GravityTerm:
 
 @dataclass(frozen=True, eq=False, repr=False)
 class ExtendedRobot(Wrapped):
-    """A geometric robot (``inner``) with non-geometric ``terms``; ``params`` = inner's, then each term's."""
+    """A geometric robot (``inner``) with non-geometric ``terms`` and the ``covariates`` it reads after
+    its joints; ``params`` = inner's, then each term's. q has inner's n joints, then one column per
+    covariate."""
 
     terms: tuple
+    covariates: tuple[Covariate, ...] = ()
     joint_space: JointSpace = field(init=False, repr=False)
     _sizes: tuple[int, ...] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if isinstance(self.inner, ExtendedRobot) or not self.terms:
+        if isinstance(self.inner, ExtendedRobot) or not (self.terms or self.covariates):
             raise ModelError(f"robot '{self.inner.name}': terms go on a geometric model")
         names = list(self.inner.params.names) + [n for t in self.terms for n in t.names]
         if self.params.names != tuple(names):
             raise ModelError(f"robot '{self.inner.name}': parameters do not match the error model")
-        object.__setattr__(self, "joint_space", self.inner.joint_space)
+        js, limits = self.inner.joint_space, [c.limits() for c in self.covariates]
+        space = js if not self.covariates else JointSpace(
+            js.names + tuple(c.name for c in self.covariates), js.types + ("covariate",) * len(self.covariates),
+            [*js.lower, *(lo for lo, _ in limits)], [*js.upper, *(hi for _, hi in limits)])
+        object.__setattr__(self, "joint_space", space)
         object.__setattr__(self, "_sizes", tuple(len(t.names) for t in self.terms))
 
     @classmethod
-    def build(cls, inner: Robot, terms: Sequence, values: Mapping[str, float] | None = None) -> "ExtendedRobot":
+    def build(cls, inner: Robot, terms: Sequence, values: Mapping[str, float] | None = None,
+              covariates: Sequence[Covariate] = ()) -> "ExtendedRobot":
         names = [n for t in terms for n in t.names]
         params = Parameters(list(inner.params.names) + names, list(inner.params.values) + [0.0] * len(names),
-                            list(inner.params.kinds) + ["angle"] * len(names))
-        robot = cls(inner, params, tuple(terms))
+                            list(inner.params.kinds) + [t.kind for t in terms for _ in t.names])
+        robot = cls(inner, params, tuple(terms), tuple(covariates))
         return robot.with_params(dict(values)) if values else robot
 
     # ---- the Robot interface, delegated to the geometry at the corrected joint values -----------
     @property
     def error_model(self) -> str:
-        return "+".join(t.token for t in self.terms)
+        return "+".join(t.token for t in self.terms) or "geometric"
 
     @property
     def structure(self) -> str:
-        return f"{self.inner.structure} + {self.error_model}"
+        return self.inner.structure + ("" if not self.terms else f" + {self.error_model}")
 
     @property
     def term_names(self) -> tuple[str, ...]:
         return self.params.names[self.inner.n_params:]
+
+    def inputs_outside(self, q: np.ndarray) -> tuple[np.ndarray, str]:
+        """(N,) bool: the rows whose covariates a term reads lie beyond the range it was fitted on, and
+        why, naming each such covariate and its range ('' when none)."""
+        bad, why = np.zeros(len(q), bool), []
+        for t in self.terms:
+            if t.acts_on == "position":
+                out = t.covariate.outside(q[:, t.index])
+                if out.any():
+                    bad |= out
+                    got = ", ".join(f"{v:g}" for v in q[out, t.index][:3])
+                    why.append(f"covariate {t.covariate.describe()}, got {got}")
+        return bad, ("; ".join(why) + ": the model does not extrapolate its covariate terms; measure inside the "
+                     "range or calibrate over a wider one") if why else ""
+
+    def _refuse_outside(self, q: np.ndarray) -> None:
+        bad, why = self.inputs_outside(q)
+        if bad.any():
+            raise ModelError(f"robot '{self.name}': {int(bad.sum())} of {len(q)} sample(s): {why}")
 
     def _thetas(self, values: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
         """(the geometry's values, each term's parameters) of a (P,) vector."""
         cuts = np.cumsum((self.inner.n_params,) + self._sizes)
         return values[:cuts[0]], [values[a:b] for a, b in zip(cuts[:-1], cuts[1:])]
 
+    def _joint_terms(self, thetas) -> list:
+        return [(t, th) for t, th in zip(self.terms, thetas) if t.acts_on == "joints"]
+
     def corrected(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
+        """The joint values (N, n) the geometry uses (inner's joints: covariates are not joints)."""
         q = self.check_q(q)
         _, thetas = self._thetas(self.param_values(values))
-        return q + sum(t.basis(q) @ th for t, th in zip(self.terms, thetas))
+        qj = q[:, :self.inner.n_joints]
+        return qj + sum(t.basis(qj) @ th for t, th in self._joint_terms(thetas))
 
     def _forward_and_jacobian(self, q, values, jacobian):
+        self._refuse_outside(q)
         inner_values, thetas = self._thetas(values)
-        bases = [t.basis(q) for t in self.terms]
-        qc = q + sum(B @ th for B, th in zip(bases, thetas))
+        qj = q[:, :self.inner.n_joints]
+        bases = [t.basis(qj if t.acts_on == "joints" else q) for t in self.terms]
+        on_joints = [t.acts_on == "joints" for t in self.terms]
+        qc = qj + sum(B @ th for B, th, j in zip(bases, thetas, on_joints) if j)
+        moved = sum(B @ th for B, th, j in zip(bases, thetas, on_joints) if not j)
         if not jacobian:
-            return self.inner.forward_and_jacobian(qc, inner_values, jacobian=False)
+            return self.inner.forward_and_jacobian(qc, inner_values, jacobian=False)[0] + moved, None
         p, Jb, Jq = self.inner.forward_jacobians(qc, inner_values)  # Jq: (N, 3, n)
-        return p, np.concatenate([Jb] + [Jq @ B for B in bases], axis=2)
+        return p + moved, np.concatenate([Jb] + [Jq @ B if j else B for B, j in zip(bases, on_joints)], axis=2)
 
     def _joint_jacobian(self, q, values):
+        self._refuse_outside(q)
         inner_values, thetas = self._thetas(values)
+        qj = q[:, :self.inner.n_joints]
         J = self.inner.joint_jacobian(self.corrected(q, values), inner_values)
-        return J + sum(J @ t.slope(q, th) for t, th in zip(self.terms, thetas))
+        J = J + sum(J @ t.slope(qj, th) for t, th in self._joint_terms(thetas))
+        out = np.concatenate([J, np.zeros((len(q), 3, len(self.covariates)))], axis=2)
+        return out + sum(t.slope(q, th) for t, th in zip(self.terms, thetas) if t.acts_on == "position")
 
     def feasible(self, q: np.ndarray) -> np.ndarray:
-        return self.inner.feasible(q)
+        q = self.check_q(q)
+        return self.inner.feasible(q[:, :self.inner.n_joints]) & self.within_limits(q)
 
     def compliances(self) -> dict[str, float]:
         """Per joint with a compliance term: the compliance in rad/(N·m)."""
         return {n.split(".")[0]: self.params[n] / TAU_REF for n in self.term_names if n.endswith(".compliance")}
+
+
+def with_covariates(robot: Robot, names: Sequence[str] | None) -> Robot:
+    """``robot`` reading the covariate columns ``names`` after its joints (not yet fitted: any value),
+    with no term on them yet (the error model ``thermal:<name>`` adds one); ``robot`` itself for none, or
+    when it reads exactly these already (a calibrated file). ValueError when it reads others."""
+    names = tuple(names or ())
+    have = robot.covariates if isinstance(robot, ExtendedRobot) else ()
+    if not names or tuple(c.name for c in have) == names:
+        return robot
+    if have:
+        raise ValueError(f"--covariate-cols {','.join(names)}: the model reads the covariate(s) "
+                         f"{', '.join(c.name for c in have)}; give those columns, or leave the flag out")
+    if len(set(names)) != len(names):
+        raise ValueError(f"--covariate-cols {','.join(names)}: a column is named twice")
+    covs = tuple(Covariate(n) for n in names)  # ModelError for a name no column can have
+    if isinstance(robot, ExtendedRobot):  # terms on the joints already (a robot file's harmonics)
+        return dataclasses.replace(robot, covariates=covs)
+    return ExtendedRobot.build(robot, (), covariates=covs)
 
 
 def drop_terms(robot: Robot, names: Sequence[str]) -> Robot:
@@ -222,20 +293,27 @@ def drop_terms(robot: Robot, names: Sequence[str]) -> Robot:
         if t.names:
             terms.append(t)
     values = {n: robot.params[n] for t in terms for n in t.names}
-    return ExtendedRobot.build(robot.inner, terms, values) if terms else robot.inner
+    return ExtendedRobot.build(robot.inner, terms, values, robot.covariates) if terms or robot.covariates \
+        else robot.inner
 
 
 def parse_model(name: str) -> tuple[str, ...]:
     """The tokens of an error-model name such as "compliance+harmonics:2" (ValueError naming the choices)."""
     tokens = tuple(name.split("+")) if isinstance(name, str) else ()
-    families = [t.split(":")[0] for t in tokens]
-    ok = bool(tokens) and all(t in MODELS for t in tokens) and len(set(families)) == len(families)
+    families = [t if t.startswith(THERMAL) else t.split(":")[0] for t in tokens]
+    ok = bool(tokens) and all(t in MODELS or _thermal_token(t) for t in tokens) and len(set(families)) == len(families)
     ok = ok and ("geometric" not in tokens or len(tokens) == 1)
     ok = ok and not {"compliance", "gravity-regressor"} <= set(tokens)
     if not ok:
         raise ValueError(f"error model '{name}': use geometric, or one or more of nobeta, compliance or "
-                         f"gravity-regressor, harmonics:1..4 joined by '+' (e.g. compliance+harmonics:2), or auto")
+                         f"gravity-regressor, harmonics:1..4, thermal:<covariate column> joined by '+' (e.g. "
+                         f"compliance+harmonics:2), or auto")
     return tokens
+
+
+def _thermal_token(token: str) -> bool:
+    name = token[len(THERMAL):]
+    return token.startswith(THERMAL) and bool(name) and not any(c in name for c in ".,: ")
 
 
 @dataclass(frozen=True)
@@ -276,19 +354,27 @@ class ErrorModel:
 def extend(robot: Robot, error_model: ErrorModel | str, q: np.ndarray | None = None) -> Robot:
     """``robot`` with the error model (see :class:`ErrorModel`; not "auto"): terms on the joints with
     a lever arm at the poses q (default: 200 random poses); gravity terms load the robot's link
-    masses and the payload at the tool point, with ``robot``'s geometry as reference."""
+    masses and the payload at the tool point, with ``robot``'s geometry as reference; the covariates
+    ``robot`` reads are fitted on q (median and range: :class:`~kincal.models.covariates.Covariate`),
+    and a thermal term grows the links of that geometry with one of them."""
     spec = ErrorModel.of(error_model)
     if spec.name == "auto":
         raise ValueError("error model 'auto' is chosen by calibrate(); extend() takes a named model")
     tokens = parse_model(spec.name)
-    inner = robot.inner if isinstance(robot, ExtendedRobot) else robot
+    inner, covs = (robot.inner, robot.covariates) if isinstance(robot, ExtendedRobot) else (robot, ())
+    n = inner.n_joints
+    if q is None:
+        q = robot.sample_joints(200, seed=0)
+    else:
+        q = robot.check_q(q)
+        covs = tuple(Covariate.of_data(c.name, q[:, n + i]) for i, c in enumerate(covs))
     if "nobeta" in tokens:
         inner = inner.without_beta()
     if "compliance" in tokens and inner.has_load_compliance:  # the model's own (a hexapod's legs), not a term
         inner, tokens = inner.with_load_compliance(), tuple(t for t in tokens if t != "compliance")
-    q = inner.sample_joints(200, seed=0) if q is None else inner.check_q(q)
-    terms = [_term(inner, tok, q, spec.payload) for tok in tokens if tok not in ("geometric", "nobeta")]
-    return ExtendedRobot.build(inner, terms) if terms else inner
+    terms = [thermal_term(inner, tok[len(THERMAL):], covs) if tok.startswith(THERMAL) else
+             _term(inner, tok, q[:, :n], spec.payload) for tok in tokens if tok not in ("geometric", "nobeta")]
+    return ExtendedRobot.build(inner, terms, covariates=covs) if terms or covs else inner
 
 
 def _term(geometry: Robot, token: str, q: np.ndarray, payload: float):
@@ -312,33 +398,3 @@ def _term(geometry: Robot, token: str, q: np.ndarray, payload: float):
     if not cols:
         raise ModelError(f"robot '{geometry.name}': no joint carries a gravity load at these poses for '{token}'")
     return GravityTerm(token, gravity, cols)
-
-
-def term_from_dict(geometry: Robot, reference: Robot | None, data: dict, where: str):
-    """A term saved by :meth:`to_dict` (``reference``: the geometry of its gravity loads)."""
-    term_type = data.get("type") if isinstance(data, dict) else None
-    index = {j: i for i, j in enumerate(geometry.joint_names)}
-    joints = data.get("joints", []) if isinstance(data, dict) else None
-    if term_type not in TERMS or not isinstance(joints, list) or any(j not in index for j in joints):
-        raise ModelError(f"{where}: a term is {{type: harmonics|compliance|gravity-regressor, ...}} on joints of "
-                         f"the robot ({', '.join(geometry.joint_names)})")
-    if term_type == "harmonics":
-        order = data.get("order")
-        if not isinstance(order, int) or isinstance(order, bool) or not 1 <= order <= 4:
-            raise ModelError(f"{where}: harmonics 'order' must be a whole number from 1 to 4")
-        return Harmonics(order, tuple(index[j] for j in joints), tuple(joints))
-    payload = data.get("payload", 0.0)
-    if reference is None or not reference.has_gravity or isinstance(payload, bool) \
-            or not isinstance(payload, (int, float)) or not 0 <= payload <= MAX_PAYLOAD:
-        raise ModelError(f"{where}: a gravity term needs a serial chain, its 'reference' geometry and a payload in kg "
-                         f"(0 to {MAX_PAYLOAD:g})")
-    gravity = reference.gravity(float(payload))
-    if term_type == "compliance":
-        return GravityTerm(term_type, gravity, tuple((index[j], 0, 0) for j in joints))
-    every = GravityTerm(term_type, gravity, tuple(product(range(len(index)), range(len(gravity.links())), range(4))))
-    known = dict(zip(every.names, every.columns))  # <joint>.g_<link>_<m|x|y|z> -> column
-    names = [str(n) for n in data["columns"]] if isinstance(data.get("columns"), list) else ["None"]
-    for name in names:
-        if name not in known:
-            raise ModelError(f"{where}: gravity-regressor column '{name}' is not <joint>.g_<link>_<m|x|y|z>")
-    return GravityTerm(term_type, gravity, tuple(known[n] for n in names))

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import re
+from itertools import product
 
 import numpy as np
 import yaml
@@ -15,7 +16,8 @@ from .delta import DeltaRobot, delta_names
 from .serial import BASE_NAMES
 from .transmission import Map, TransmissionRobot, build_transmission_robot
 from .robot import Robot
-from .terms import ExtendedRobot, term_from_dict
+from .covariates import Covariate, covariate_from_dict, thermal_from_dict
+from .terms import MAX_PAYLOAD, TERMS, ExtendedRobot, GravityTerm, Harmonics
 from .urdf import URDFJoint, URDFRobot, urdf_robot
 from .yaml_values import (base_pose, description_lines, fmt, frame_text, limits, link_mass, mapping, mass_items, num,
                           per_unit, units, vector)
@@ -159,8 +161,12 @@ def transmission_yaml(robot: TransmissionRobot, length_unit: str, angle_unit: st
 
 
 def error_model_yaml(robot: ExtendedRobot) -> str:
-    """The non-geometric terms (always SI: rad, kg, m), and the geometry their gravity loads use."""
+    """The non-geometric terms (always SI: rad, kg, m; a thermal term per unit of its covariate), the
+    geometry their gravity loads and thermal growth use, and the covariates the robot reads with the
+    reference and range they were fitted on (in the column's unit)."""
     block: dict = {"terms": [t.to_dict() for t in robot.terms]}
+    if robot.covariates:
+        block["covariates"] = [c.to_dict() for c in robot.covariates]
     refs = [t.reference for t in robot.terms if t.reference is not None]
     if refs:
         block["reference"] = {n: float(v) for n, v in zip(refs[0].params.names, refs[0].params.values)}
@@ -170,18 +176,24 @@ def error_model_yaml(robot: ExtendedRobot) -> str:
 
 def error_model_from_dict(geometry: Robot, data, label: str) -> ExtendedRobot:
     where = f"{label}: error_model"
-    if not isinstance(data, dict) or set(data) - {"terms", "reference", "values"} \
-            or not isinstance(data.get("terms"), list):
-        raise ModelError(f"{where}: a mapping with terms, values and (for gravity terms) reference")
+    if not isinstance(data, dict) or set(data) - {"terms", "reference", "values", "covariates"} \
+            or not isinstance(data.get("terms"), list) or not isinstance(data.get("covariates", []), list):
+        raise ModelError(f"{where}: a mapping with terms, values, (for gravity and thermal terms) reference and "
+                         f"(for covariates the model reads) covariates")
     values = {str(k): num(v, where, str(k)) for k, v in mapping(data, "values", where).items()}
+    covariates = tuple(covariate_from_dict(c, f"{where}: covariate {k + 1}")
+                       for k, c in enumerate(data.get("covariates", [])))
     reference = None
     if "reference" in data:
         ref = {str(k): num(v, f"{where}: reference", str(k)) for k, v in mapping(data, "reference", where).items()}
         if set(ref) != set(geometry.params.names):
             raise ModelError(f"{where}: 'reference' must give every parameter of the robot ({len(geometry.params)})")
         reference = geometry.with_params(ref)
-    terms = [term_from_dict(geometry, reference, t, f"{where}: term {k + 1}") for k, t in enumerate(data["terms"])]
-    robot = ExtendedRobot.build(geometry, terms)
+    terms = [term_from_dict(geometry, reference, t, f"{where}: term {k + 1}", covariates)
+             for k, t in enumerate(data["terms"])]
+    if not terms and not covariates:
+        raise ModelError(f"{where}: no terms and no covariates: leave the error_model section out")
+    robot = ExtendedRobot.build(geometry, terms, covariates=covariates)
     unknown = sorted(set(values) - set(robot.term_names))
     if unknown:
         raise ModelError(f"{where}: unknown term(s) {', '.join(unknown)}")
@@ -295,3 +307,38 @@ def delta_yaml(robot: DeltaRobot, length_unit: str, angle_unit: str) -> str:
              f"arm_limits: [{fmt(robot.q_lower * af)}, {fmt(robot.q_upper * af)}]",
              frame_text(v, "base", lf, af), ""]
     return "\n".join(lines)
+
+
+def term_from_dict(geometry: Robot, reference: Robot | None, data: dict, where: str,
+                   covariates: tuple[Covariate, ...] = ()):
+    """A term saved by :meth:`to_dict` (``reference``: the geometry of its gravity loads and thermal
+    growth; ``covariates``: the robot's, for a thermal term)."""
+    term_type = data.get("type") if isinstance(data, dict) else None
+    if term_type == "thermal":
+        return thermal_from_dict(geometry if reference is None else reference, covariates, data, where)
+    index = {j: i for i, j in enumerate(geometry.joint_names)}
+    joints = data.get("joints", []) if isinstance(data, dict) else None
+    if term_type not in TERMS or not isinstance(joints, list) or any(j not in index for j in joints):
+        raise ModelError(f"{where}: a term is {{type: harmonics|compliance|gravity-regressor|thermal, ...}} on joints "
+                         f"of "
+                         f"the robot ({', '.join(geometry.joint_names)})")
+    if term_type == "harmonics":
+        order = data.get("order")
+        if not isinstance(order, int) or isinstance(order, bool) or not 1 <= order <= 4:
+            raise ModelError(f"{where}: harmonics 'order' must be a whole number from 1 to 4")
+        return Harmonics(order, tuple(index[j] for j in joints), tuple(joints))
+    payload = data.get("payload", 0.0)
+    if reference is None or not reference.has_gravity or isinstance(payload, bool) \
+            or not isinstance(payload, (int, float)) or not 0 <= payload <= MAX_PAYLOAD:
+        raise ModelError(f"{where}: a gravity term needs a serial chain, its 'reference' geometry and a payload in kg "
+                         f"(0 to {MAX_PAYLOAD:g})")
+    gravity = reference.gravity(float(payload))
+    if term_type == "compliance":
+        return GravityTerm(term_type, gravity, tuple((index[j], 0, 0) for j in joints))
+    every = GravityTerm(term_type, gravity, tuple(product(range(len(index)), range(len(gravity.links())), range(4))))
+    known = dict(zip(every.names, every.columns))  # <joint>.g_<link>_<m|x|y|z> -> column
+    names = [str(n) for n in data["columns"]] if isinstance(data.get("columns"), list) else ["None"]
+    for name in names:
+        if name not in known:
+            raise ModelError(f"{where}: gravity-regressor column '{name}' is not <joint>.g_<link>_<m|x|y|z>")
+    return GravityTerm(term_type, gravity, tuple(known[n] for n in names))

@@ -10,6 +10,7 @@ from ..io.measurements import Measurements
 from ..models.robot import Robot
 from .observations import (plane_plan, reach, simulate_markers, simulate_planes, simulate_poses, simulate_same_point,
                            socket_plan)
+from .thermal import ALUMINIUM, STEEL, link_growth, simulate_thermal, warm_up
 
 DEFAULT_NOISE = 15e-6  # m, per axis: a laser tracker's typical 1-sigma
 DEFAULT_LENGTH_ERROR = 0.5e-3  # m
@@ -42,4 +43,5 @@ def perturb(robot: Robot, length: float = DEFAULT_LENGTH_ERROR, angle: float = D
 
 
 __all__ = ["simulate", "perturb", "simulate_poses", "simulate_markers", "simulate_same_point", "simulate_planes",
-           "reach", "socket_plan", "plane_plan", "DEFAULT_NOISE", "DEFAULT_LENGTH_ERROR", "DEFAULT_ANGLE_ERROR"]
+           "reach", "socket_plan", "plane_plan", "simulate_thermal", "warm_up", "link_growth", "ALUMINIUM", "STEEL",
+           "DEFAULT_NOISE", "DEFAULT_LENGTH_ERROR", "DEFAULT_ANGLE_ERROR"]

@@ -1,0 +1,140 @@
+"""Covariates: a temperature column as an input of the error model (models/covariates.py), its range
+kept and enforced, read from CSV, chosen by `auto` only on held-out evidence, and the warm-up
+acceptance (issue 35, acceptance 4)."""
+import numpy as np
+import pytest
+from conftest import assert_jacobians
+
+import kincal
+from kincal.cli import main
+from kincal.errors import MeasurementError, ModelError
+from kincal.models import extend, with_covariates
+from kincal.simulate import link_growth, simulate_thermal, warm_up
+
+DRIFT = 0.3e-3  # m: the largest drift of a training pose over the session (acceptance 4)
+
+
+@pytest.fixture(scope="module")
+def warm():
+    """A UR5 with geometric errors warming up over 120 poses (a real warm-up lasts 100–150) by the rise
+    that moves its farthest training pose 0.3 mm (aluminium links); 40 held-out poses at temperatures
+    inside the range, exact (no noise)."""
+    nominal = kincal.load_robot("ur5")
+    true = kincal.perturb(nominal, seed=1)
+    q = nominal.sample_joints(120, seed=2)
+    per_kelvin = np.linalg.norm(true.param_jacobian(q) @ link_growth(true, 23e-6), axis=1).max()  # m/K
+    rise = DRIFT / per_kelvin
+    train = simulate_thermal(true, q, warm_up(120, 20.0, rise), reference=20.0)
+    qh = nominal.sample_joints(40, seed=3)
+    Th = np.random.default_rng(4).uniform(20.0, 20.0 + rise, 40)
+    held = simulate_thermal(true, qh, Th, reference=20.0, noise=0.0)
+    return nominal, train, held, rise
+
+
+def test_thermal_term_jacobians_match_central_differences():
+    robot = with_covariates(kincal.load_robot("ur5"), ["temperature"])
+    q = np.column_stack([robot.inner.sample_joints(6, seed=5), np.linspace(18.0, 31.0, 6)])
+    ext = extend(robot, "thermal:temperature+harmonics:1", q)
+    values = ext.params.values.copy()
+    values[ext.params.indices(ext.term_names)] = np.random.default_rng(6).uniform(-3e-4, 3e-4, len(ext.term_names))
+    ext = ext.with_params(values)
+    assert [n for n in ext.term_names if n.endswith(".temperature")] == [f"j{i}.temperature" for i in range(1, 7)]
+    assert_jacobians(ext, q, param_tol=1e-6, joint_tol=1e-7)
+
+
+def test_growth_model_equals_the_simulated_growth():
+    """The term with every link's rate α reproduces the links grown by α·ΔT (an exact per-sample
+    rebuild of the robot): a chain's tool point is linear in its lengths."""
+    true = kincal.perturb(kincal.load_robot("ur5"), seed=1)
+    q, T = true.sample_joints(8, seed=7), np.linspace(20.0, 35.0, 8)
+    meas = simulate_thermal(true, q, T, alpha=23e-6, reference=27.5, noise=0.0)
+    model = extend(with_covariates(true, ["temperature"]), "thermal:temperature", meas.q)
+    assert model.covariates[0].reference == pytest.approx(27.5)
+    model = model.with_params({n: 23e-6 for n in model.term_names})
+    assert np.abs(model.forward(meas.q) - meas.xyz).max() < 1e-6 * np.abs(meas.xyz - true.forward(q)).max()
+
+
+def test_calibrated_file_keeps_the_range_and_reference(tmp_path, warm):
+    nominal, train, _, rise = warm
+    res = kincal.calibrate(with_covariates(nominal, ["temperature"]), train, error_model="thermal:temperature",
+                           diagnose=False)
+    path = tmp_path / "cal.yaml"
+    kincal.save_robot(res.robot, path)
+    back = kincal.load_robot(path)
+    cov = back.covariates[0]
+    assert (cov.name, cov.lower, cov.upper) == ("temperature", 20.0, pytest.approx(train.q[:, -1].max(), abs=1e-12))
+    assert cov.reference == pytest.approx(np.median(train.q[:, -1]))
+    assert back.term_names == res.robot.term_names
+    q = train.q[::7]
+    assert np.abs(back.forward(q) - res.robot.forward(q)).max() < 1e-9
+    with pytest.raises(ModelError, match=r"'temperature' was fitted on \[20, "):
+        back.forward(np.column_stack([q[:, :6], np.full(len(q), 20.0 + 2 * rise)]))
+
+
+def test_warm_up_drift_removed_on_held_out_data_and_refused_outside(warm):
+    """Acceptance 4: held-out RMS error against the drift-free truth — geometric fit vs geometric +
+    thermal fit of the same warm-up session — falls by at least 80 %; outside the range: refused."""
+    nominal, train, held, rise = warm
+    robot = with_covariates(nominal, ["temperature"])
+    rms = {}
+    for model in ("geometric", "thermal:temperature"):
+        fitted = kincal.calibrate(robot, train, error_model=model, diagnose=False).robot
+        rms[model] = np.sqrt(np.mean(np.sum((fitted.forward(held.q) - held.xyz) ** 2, axis=1)))
+    assert rms["geometric"] > 30e-6  # the drift a geometric model cannot follow
+    assert 1.0 - rms["thermal:temperature"] / rms["geometric"] >= 0.8
+    hot = held.q.copy()
+    hot[:, -1] = 20.0 + 1.5 * rise
+    with pytest.raises(ModelError, match="temperature"):
+        fitted.forward(hot)
+
+
+@pytest.mark.slow
+def test_auto_keeps_the_thermal_term_only_when_it_wins_held_out(warm):
+    nominal, train, _, rise = warm
+    robot, train = with_covariates(nominal, ["temperature"]), train.subset(np.arange(0, len(train), 2))  # 60 poses
+    chosen = kincal.calibrate(robot, train, error_model="auto", diagnose=False).error_model_choice
+    assert chosen.chosen == "thermal:temperature"
+    true = kincal.perturb(nominal, seed=1)
+    still = simulate_thermal(true, train.q[:, :6], train.q[:, -1], alpha=0.0)  # the same temperatures, no growth
+    rows = {r["error_model"]: r for r in kincal.calibrate(robot, still, error_model="auto",
+                                                          diagnose=False).error_model_choice.rows}
+    assert not rows["thermal:temperature"]["decision"].startswith(("chosen", "kept"))
+
+
+def _csv(path, meas, temperature=True):
+    cols = ["j1", "j2", "j3", "j4", "j5", "j6", *(["temperature"] if temperature else []), "x", "y", "z"]
+    q = meas.q if temperature else meas.q[:, :6]
+    rows = [",".join(f"{v:.12g}" for v in (*qi, *p)) for qi, p in zip(q, meas.xyz)]
+    path.write_text(",".join(cols) + "\n" + "\n".join(rows) + "\n")
+    return str(path)
+
+
+def test_cli_refuses_a_temperature_outside_the_range_naming_it(tmp_path, warm, capsys):
+    _, train, held, rise = warm
+    data, cal = _csv(tmp_path / "warm.csv", train.subset(np.arange(0, len(train), 2))), str(tmp_path / "cal.yaml")
+    assert main(["calibrate", "ur5", data, "--covariate-cols", "temperature", "--error-model", "thermal:temperature",
+                 "-o", cal, "--json"]) == 0
+    hot = kincal.Measurements(np.column_stack([held.q[:, :6], np.full(len(held), 20.0 + 3 * rise)]), held.xyz,
+                              held.joint_names)
+    capsys.readouterr()
+    assert main(["evaluate", cal, _csv(tmp_path / "hot.csv", hot)]) == 1
+    message = capsys.readouterr().err
+    assert "hot.csv" in message and "'temperature' was fitted on [20, " in message and "row(s) 2" in message
+    assert main(["evaluate", cal, _csv(tmp_path / "held.csv", held), "--same-frame"]) == 0  # inside: accepted
+
+
+def test_a_missing_covariate_column_is_named_with_the_columns_present(tmp_path, warm, capsys):
+    _, train, _, _ = warm
+    data = _csv(tmp_path / "plain.csv", train, temperature=False)
+    assert main(["calibrate", "ur5", data, "--covariate-cols", "temperature"]) == 1
+    message = capsys.readouterr().err
+    assert "plain.csv" in message and "temperature" in message and "j1, j2, j3, j4, j5, j6, x, y, z" in message
+    with pytest.raises(MeasurementError, match="no column temperature"):
+        kincal.read_measurements(data, with_covariates(kincal.load_robot("ur5"), ["temperature"]))
+
+
+def test_covariate_flag_is_refused_for_other_measurement_kinds(tmp_path, warm, capsys):
+    _, train, _, _ = warm
+    assert main(["calibrate", "ur5", _csv(tmp_path / "w.csv", train), "--covariate-cols", "temperature",
+                 "--type", "pose"]) == 1
+    assert "--covariate-cols does not apply to pose data" in capsys.readouterr().err
