@@ -16,7 +16,7 @@ import sys
 
 import kincal
 
-from . import design, identify, model, parallel, report, study
+from . import change, design, history, identify, model, parallel, report, study
 from .common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED, err, line, point, progress_lines
 
 EXIT_INTERNAL = 70  # a bug in kincal, not in the user's input (KINCAL_DEBUG=1 shows the traceback)
@@ -69,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
         s.set_defaults(func=func)
         return s
 
-    for room in (model, identify, report, design, parallel, study):
+    for room in (model, identify, report, design, parallel, study, change, history):
         room.register(cmd)
     return p
 

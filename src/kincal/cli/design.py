@@ -10,16 +10,23 @@ import kincal
 import kincal.io
 import kincal.analysis
 import kincal.design
+import kincal.identify
+import kincal.models
 from kincal._atomic import write_text_atomic
 from kincal.io.program_ur import measurement_program
 from kincal.observe import read_observations, write_observations
 
 from . import observe
 from .common import (csv_list, emit, lengths, load_robot, nonneg_float, nonneg_int, one_type, positive_float,
-                     positive_int, progress)
+                     positive_int, progress, check_paths)
+
+
+CHECK_FLAGS = {"m", "output", "pool", "candidates", "joint_cols", "length_unit", "angle_unit", "seed", "check", "json"}
 
 
 def cmd_design(args) -> int:
+    if args.check:
+        return _design_check(args)
     r = load_robot(args, [args.candidates, args.use], [args.output, _program_path(args)])
     imse = args.method in ("fedorov", "random")  # the default criterion: IMSE for these, D for the others
     options = kincal.DesignOptions(m=args.m, method=args.method, criterion=args.criterion or ("IMSE" if imse else "D"),
@@ -63,6 +70,35 @@ def cmd_design(args) -> int:
     return emit(args, {**d.to_dict(), "output": args.output, **_program(args, r, d.q)}, f"{d}\n{where}" + (
         f"\nmeasurement program written to {_program_path(args)} (movej through the poses, {args.settle:g} s to "
         f"settle at each; the predicted tool positions in its comments and the JSON)" if args.program else ""))
+
+
+def _design_check(args) -> int:
+    """design CAL --check: the poses of a short check of a calibrated robot (kincal.design.check_poses), from the
+    user's candidate rows or from random poses in the joint ranges the calibration was fitted in."""
+    wrong = sorted(flag for dest, flag in args.given.items() if dest not in CHECK_FLAGS)
+    if wrong:
+        raise ValueError(f"design --check chooses the poses of a check of a calibrated robot; {', '.join(wrong)} "
+                         f"do(es) not apply to it (it takes -m, --pool or --candidates, the data columns, --seed)")
+    check_paths([args.robot, args.candidates], [args.output])
+    cal = kincal.identify.Calibrated.of(kincal.load_robot(args.robot),
+                                        kincal.models.load_calibration_record(args.robot), args.robot)
+    m = args.m if "m" in args.given else 10
+    if args.candidates:
+        pool = kincal.read_joints(args.candidates, cal.robot, args.joint_cols, args.length_unit, args.angle_unit)
+    else:
+        rng = np.random.default_rng(args.seed)
+        pool = rng.uniform(cal.lower, cal.upper, size=(4 * min(args.pool, 2000), len(cal.lower)))
+        pool = pool[cal.robot.feasible(pool)][:min(args.pool, 2000)]
+    with progress("designing the check", args.json):
+        chosen = kincal.design.check_poses(cal.robot, pool, m, cal.repeat)
+    if args.candidates:
+        kincal.io.write_selected_rows(args.output, args.candidates, chosen)
+    else:
+        kincal.io.write_joints(args.output, pool[chosen], cal.robot, args.joint_cols, args.length_unit, args.angle_unit)
+    return emit(args, {"poses": len(chosen), "rows": (chosen + 2).tolist() if args.candidates else None,
+                       "output": args.output},
+                f"{len(chosen)} check poses of {len(pool)} candidates written to {args.output}: measure them, then "
+                f"kincal check {args.robot} <measurements.csv>")
 
 
 def _program_path(args) -> str | None:
@@ -179,6 +215,8 @@ def cmd_separate(args) -> int:
 
 def register(cmd) -> None:
     s = cmd("design", cmd_design, "choose measurement poses (writes a poses CSV)")
+    s.add_argument("--check", action="store_true", help="ROBOT is a calibrated file: choose the poses of a short "
+                                                        "check of it (default -m 10; kincal check judges them)")
     s.add_argument("-m", type=positive_int, default=60, help="number of poses (default 60)")
     s.add_argument("-o", "--output", required=True, help="poses CSV to write")
     s.add_argument("--program", choices=("ur",), help="also write the measurement program (ur: URScript, beside "

@@ -14,12 +14,14 @@ import kincal.identify
 import kincal.io
 import kincal.models
 from kincal._atomic import json_path_for
+from kincal.history import calibration_record, fingerprint
 from kincal.identify import held_out_stats, stat_line
 from kincal.units import DEG, MM
 
 from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, csv_list, emit, err, hidden_alias,
                      load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list)
 from . import observe
+from .history import add_store_flag, store_record
 from .report import add_session_flags, data_record, nominal_model, save_figures, write_outputs
 
 
@@ -72,7 +74,8 @@ def cmd_calibrate(args) -> int:
         raise ValueError("--refit-target re-fits the target of held-out files (--test); there are none: leave it out "
                          "(the training files' target is fitted anyway)")
     reports = [args.report, json_path_for(args.report)] if args.report else []
-    robot = load_robot(args, [*args.data, *args.test], [args.output, args.residuals, *reports, args.plot])
+    robot = covariates_of(args, load_robot(args, [*args.data, *args.test],
+                                           [args.output, args.residuals, *reports, args.plot]))
     options = fit_options(args)
     res, tests = fit_files(args, robot, kinds, args.data, args.test, options)
     refused = res.verdict.status == "refused"
@@ -94,6 +97,10 @@ def cmd_calibrate(args) -> int:
                  if written else f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")
     text += "".join("\n" + line for line in write_outputs(args, res, tests, {
         "robot": args.robot, "units": f"{args.length_unit}, {args.angle_unit}"}))
+    stored = store_record(args, robot, lambda identity, command: calibration_record(
+        res, identity, [fingerprint(p) for p in [*args.data, *args.test]], heldout=held.get("held_out"),
+        command=command))
+    text += f"\n{stored}" if stored else ""
     emit(args, {**res.to_dict(), **held, "output": args.output if written else None, "residuals_file": args.residuals,
                 "sessions": list(args.data) if len(args.data) > 1 else None}, text)
     # refused data are named, with the likely cause: more telling than the non-convergence they usually cause
@@ -153,7 +160,7 @@ def held_out(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
 
 
 def cmd_evaluate(args) -> int:
-    r = load_robot(args, args.data, [args.plot])
+    r = covariates_of(args, load_robot(args, args.data, [args.plot]))
     kinds = observe.types_of(args)
     if len(set(kinds)) > 1:
         raise ValueError("evaluate --type: one type for all files")
@@ -193,6 +200,20 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
     return {"file": path, "registration": how, **stats.to_dict(), "nominal_mean": before, "cause": cause or None}, texts
 
 
+def add_covariate_flag(s) -> None:
+    """--covariate-cols, of calibrate and evaluate: columns read after the joints as covariates."""
+    s.add_argument("--covariate-cols", type=csv_list, default=None, metavar="COL[,COL...]",
+                   help="covariate columns (a temperature, the time since power-on), read as written: the error model "
+                        "thermal:COL grows the links with them and auto tries it; a model calibrated with them "
+                        "reads them itself and refuses values outside the range it was fitted on")
+
+
+def covariates_of(args, robot):
+    """``robot`` reading the --covariate-cols after its joints (position data only: refused for the other kinds
+    by :func:`kincal.identify.refuse_inapplicable`)."""
+    return kincal.models.with_covariates(robot, args.covariate_cols)
+
+
 def _pair(s: str) -> tuple[float, float]:
     try:
         a, b = (float(x) for x in csv_list(s))
@@ -211,9 +232,9 @@ def register(cmd) -> None:
     s.add_argument("-o", "--output", help="calibrated robot YAML to write")
     add_fit_flags(s)
     s.add_argument("--error-model", type=error_model_name,
-                   help="error model: geometric, nobeta, compliance, gravity-regressor, harmonics:1..4, terms joined "
-                        "by '+' (e.g. compliance+harmonics:2), or auto (chosen by joint-space blocked "
-                        "cross-validation); default: the robot file's own")
+                   help="error model: geometric, nobeta, compliance, gravity-regressor, harmonics:1..4, thermal:COL "
+                        "(with --covariate-cols COL), terms joined by '+' (e.g. compliance+harmonics:2), or auto "
+                        "(chosen by joint-space blocked cross-validation); default: the robot file's own")
     hidden_alias(s, "--model", "error_model", type=error_model_name)
     s.add_argument("--payload", type=nonneg_float, default=0.0,
                    help="payload at the tool in kg, for the gravity terms (default 0)")
@@ -222,6 +243,7 @@ def register(cmd) -> None:
                                        "the other kinds per sample: position and rotation error (mm, mrad), the "
                                        "residual against its stated σ, robust z, outlier")
     s.add_argument("--force", action="store_true", help="write the model even when the verdict is 'refused'")
+    add_covariate_flag(s)
     add_session_flags(s)  # held-out sessions for the report and figures; with --error-model auto also the
     # poses where the model will be used (the prediction-σ guard)
     s.add_argument("--report", help="HTML report to write (self-contained; its JSON goes beside it)")
@@ -234,6 +256,7 @@ def register(cmd) -> None:
         s.add_argument(f"--{kind}-limits", type=_pair, default=(lo, hi), metavar="SUSPECT,REFUSE",
                        help=f"largest plausible {kind} corrections, {unit} (default {lo:g},{hi:g})")
     observe.add_flags(s)
+    add_store_flag(s)
 
     s = cmd("evaluate", cmd_evaluate, "position error statistics of a robot model on measurements")
     s.add_argument("data", nargs="+", help="measurement CSV, one per session")
@@ -241,6 +264,7 @@ def register(cmd) -> None:
                    help="the data were measured in the model's measurement frame (the tracker did not move): use "
                         "the model as it is; by default each session's frame is re-fitted first (kinematics fixed)")
     s.add_argument("--rebase", action="store_true", help=argparse.SUPPRESS)  # the default now; accepted
+    add_covariate_flag(s)
     s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     observe.add_refit_target(s)
     observe.add_flags(s)

@@ -5,8 +5,9 @@ from .npose import PoseCountCurve, minimum_poses, pose_count_curve
 from .options import DESIGN_CRITERIA, METHODS, DesignOptions
 from .problem import UNITS, DesignProblem, design_problem, observation_problem
 from .cell import Cell, candidate_pool
+from .check import check_poses
 from .select import Design, select_poses
 
 __all__ = ["UNITS", "Bound", "relaxed_bound", "CRITERIA", "score", "candidate_pool", "DesignProblem", "design_problem",
            "METHODS", "DESIGN_CRITERIA", "Cell", "DesignOptions", "Design", "select_poses", "PoseCountCurve", "minimum_poses",
-           "pose_count_curve", "observation_problem"]
+           "pose_count_curve", "observation_problem", "check_poses"]

@@ -1,5 +1,6 @@
 """Identification: calibration problems, residuals, solvers (LM, PSO), robust weighting, covariance."""
 from .applies import SCOPES, refuse_inapplicable
+from .change import ALPHA, Calibrated, ChangeTest, Suspect, check, compare
 from .calibrate import RESIDUALS, calibrate, calibrate_sessions, evaluate, fit_observations, held_out_stats
 from .fitting import ABSOLUTE
 from .options import METHODS, PRIOR_CHOICES, FitOptions, PSOOptions
@@ -16,4 +17,5 @@ from .verdict import Reason, Thresholds, Verdict
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "RESIDUALS", "CalibrationResult", "EvaluationStats", "LOSSES",
            "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
            "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "observation_identifiability", "stat_line", "trained_setup",
-           "SCOPES", "refuse_inapplicable", "joined", "ABSOLUTE", "held_out_stats", "register_mounting"]
+           "SCOPES", "refuse_inapplicable", "joined", "ABSOLUTE", "held_out_stats", "register_mounting",
+           "ALPHA", "Calibrated", "ChangeTest", "Suspect", "check", "compare"]

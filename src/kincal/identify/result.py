@@ -19,6 +19,7 @@ from .judge import MIN_SAMPLES, component_kinds, sample_norms, verdict_of
 from .options import FitOptions
 from .positions import EvaluationStats, kept_positions
 from .relevance import prior_lines
+from ..analysis.changes import Repeat
 from .select import ErrorModelChoice
 from .verdict import Verdict, mounting_line, noise_level, robust_z
 from .weak import weak_note
@@ -81,6 +82,7 @@ class CalibrationResult:
     error_model_choice: ErrorModelChoice | None = None  # error_model "auto": the blocked-CV comparison
     use_q: np.ndarray | None = None  # (M, n) where the model will be used (the prediction-σ guard)
     data: tuple[Measurements, ...] = ()
+    repeat: Repeat | None = None  # what a repeat calibration on other poses would differ by (compare, check)
 
     @functools.cached_property
     def verdict(self) -> Verdict:
@@ -224,6 +226,8 @@ class CalibrationResult:
             out["training_error"] = self.stats_after.mean
         if self.use_q is not None:
             out["use_q"] = self.use_q.tolist()
+        if self.repeat is not None:
+            out["repeat"] = self.repeat.restricted([n for n in self.names if n in self.repeat.names]).to_dict()
         return out
 
     def setup(self) -> dict:

@@ -28,6 +28,8 @@ from ..models.robot import Robot
 from ..observe.drifting import DRIFT
 from ..observe.sessions import InSession
 from .covariance import parameter_statistics
+from ..analysis.changes import Repeat
+from .repeat import repeat_of
 from .lm import LMResult
 from .options import FitOptions, PSOOptions
 from .noise import extra_variance
@@ -372,4 +374,10 @@ def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit,
         model_error={k: v for k, v in error.items() if v > 0},
         outliers=outlier_samples(st.sets, r, o.thresholds), whitened_residual=r, evaluations=spent[1],
         message=fit.message if isinstance(fit, LMResult) else "prior learned", history=tuple(history),
-        free=tuple(free), options=o)
+        free=tuple(free), options=o, repeat=_repeat(calibrated, st, fit, free))
+
+
+def _repeat(robot: Robot, st, fit, free) -> Repeat:
+    """What a repeat calibration on other poses of the region would differ by (:mod:`kincal.identify.repeat`)."""
+    posterior = fit.covariance / fit.noise2 if isinstance(fit, RelevanceFit) else None
+    return repeat_of(robot, st.sets, free, fit.jacobian, fit.residual, posterior, fit.residual / st.inv_sigma)

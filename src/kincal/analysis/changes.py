@@ -1,0 +1,157 @@
+"""What a change of a calibrated robot looks like at given poses: the directions ``kincal compare``, ``kincal check``
+and ``kincal design --check`` test and name, and the record of what a repeat calibration differs by (:class:`Repeat`,
+computed by :mod:`kincal.identify.repeat`).
+
+A change that happens to a robot is one of a few kinds, each a direction in the space of predicted positions at the
+poses of use (3 rows per pose): a **joint zero** (a motor or encoder replaced, a crash: the joint's column of the joint
+Jacobian, for any robot), a **link** (a length parameter: a bent or replaced part), a **joint axis** (an angle
+parameter of the model other than a joint's zero), the **tool** point, and the **frame** (where the robot stands in the
+instrument's frame: only when the instrument did not move, else it is re-fitted and no change of it can be seen).
+Directions that coincide at the poses (a DH θ and the joint's zero; a joint 1 zero and the frame's turn) are one
+candidate, named by the first in this order: joint zeros, then the model's parameters in their own order (the rule of
+:mod:`kincal.ties`). ``STEPS`` are the sizes of change that matter, for a pose design: 0.01° and 0.1 mm.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ModelError
+from ..models.robot import TOOL_NAMES, Robot
+
+STEPS = {"joint zero": np.deg2rad(0.01), "link": 1e-4, "joint axis": np.deg2rad(0.01), "tool": 1e-4,
+         "frame": 1e-4}  # m or rad: changes a check should see (a frame's angles: 0.01°, below)
+PARALLEL = 1e-5  # 1 − |cos| below which two directions are one candidate (within 4.5 mrad)
+NEGLIGIBLE = 1e-9  # m per unit change (RMS over the rows) below which a direction is not seen at all
+
+
+@dataclass(frozen=True, eq=False)
+class Repeat:
+    """names      -- the robot and set-up parameters of the fit (the columns of ``covariance``)
+    covariance -- (K, K) repeat (sandwich) covariance (m, rad)
+    dof        -- samples − K: the degrees of freedom the covariance was estimated with
+    sigma      -- m per axis a prediction at a new pose of the region misses by, beside the joints' part (None: the
+                  data had no absolute positions)
+    joints     -- σ per joint (rad or m): the miss that acts like joint errors (transmission, harmonics), so it grows
+                  with the lever arm, as the changes a check looks for do
+    dispersion -- ≥ 1, the whitened squared position misses' variance over a Gaussian's (1: Gaussian)"""
+
+    names: tuple[str, ...]
+    covariance: np.ndarray
+    dof: int
+    sigma: float | None
+    joints: tuple[float, ...]
+    dispersion: float
+
+    def restricted(self, names) -> "Repeat":
+        """The same record over the parameters ``names`` (a subset of :attr:`names`)."""
+        at = [self.names.index(n) for n in names]
+        return Repeat(tuple(names), self.covariance[np.ix_(at, at)], self.dof, self.sigma, self.joints,
+                      self.dispersion)
+
+    def miss(self, robot: Robot, q: np.ndarray) -> np.ndarray:
+        """(3M,) the miss σ per axis (m) of a prediction at each pose q (M, n), pose-major: σ² + Σ_j σ_j² |∂p/∂q_j|² / 3
+        (ModelError without a miss: no absolute positions in the calibration's data)."""
+        if self.sigma is None or len(self.joints) != robot.n_joints:
+            raise ModelError("the calibration's data had no absolute positions: there is no prediction miss to judge "
+                             "measured positions against (calibrate from positions or poses)")
+        lever = np.sum(robot.joint_jacobian(q)[:, :3, :] ** 2, axis=1) @ np.square(self.joints) / 3.0
+        return np.repeat(np.sqrt(self.sigma**2 + lever), 3)
+
+    def to_dict(self) -> dict:
+        return {"parameters": list(self.names), "covariance": self.covariance.tolist(), "dof": self.dof,
+                "sigma": self.sigma, "joints": list(self.joints), "dispersion": self.dispersion}
+
+    @classmethod
+    def from_dict(cls, data, label: str) -> "Repeat":
+        """The record of a calibrated file's ``calibration: repeat:`` section; ModelError naming ``label`` when it is
+        missing (a file calibrated before kincal kept it) or malformed."""
+        if not isinstance(data, dict):
+            raise ModelError(f"{label}: the calibration keeps no repeat covariance (calibrated by an older kincal); "
+                             f"calibrate again to compare or check it")
+        try:
+            names = tuple(str(n) for n in data["parameters"])
+            cov = np.array(data["covariance"], dtype=float).reshape(len(names), len(names))
+            sigma = None if data.get("sigma") is None else float(data["sigma"])
+            joints = tuple(float(v) for v in data["joints"])
+            out = cls(names, cov, int(data["dof"]), sigma, joints, float(data["dispersion"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ModelError(f"{label}: the calibration's 'repeat' section is malformed ({exc}); calibrate again") \
+                from None
+        if not (np.all(np.isfinite(cov)) and out.dof > 0 and out.dispersion >= 1.0):
+            raise ModelError(f"{label}: the calibration's 'repeat' section is malformed; calibrate again")
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class Candidates:
+    """names -- one per candidate change ("j2 zero", "j3.a", "tool.z", "base.rx")
+    kinds -- "joint zero", "link", "joint axis", "tool" or "frame" per candidate
+    units -- "length" or "angle" per candidate (what its size is in)
+    G     -- (3M, C) the predicted positions' change per unit change of each (m per m or m per rad), pose-major"""
+
+    names: tuple[str, ...]
+    kinds: tuple[str, ...]
+    units: tuple[str, ...]
+    G: np.ndarray
+
+    def steps(self) -> np.ndarray:
+        """(C,) the size of change of each candidate that matters (``STEPS``; a frame angle 0.01°)."""
+        return np.array([np.deg2rad(0.01) if k == "frame" and u == "angle" else STEPS[k]
+                         for k, u in zip(self.kinds, self.units)])
+
+
+def candidates(robot: Robot, q: np.ndarray, basis: np.ndarray | None) -> Candidates:
+    """The candidate changes of ``robot`` at the poses q (M, n): joint zeros, the tool point, then the model's other
+    parameters; the base frame's too when ``basis`` is None (the instrument did not move), else every direction with
+    its part along the re-fitted frame's ``basis`` (:func:`frame_basis`) removed, so what a frame absorbs is not seen.
+    Directions that coincide (after that) are merged into the first."""
+    q = robot.check_q(q)
+    base, kinds = set(robot.base_params()), dict(zip(robot.params.names, robot.params.kinds))
+    params = sorted(robot.params.names, key=lambda n: _kind(n, kinds[n], base) != "tool")  # stable: tool first
+    names = [f"{j} zero" for j in robot.joint_names] + params
+    units = ["angle" if t == "revolute" else "length" for t in robot.joint_types] + [kinds[n] for n in params]
+    what = ["joint zero"] * robot.n_joints + [_kind(n, kinds[n], base) for n in params]
+    G = np.concatenate([robot.joint_jacobian(q)[:, :3, :].reshape(3 * len(q), -1),
+                        robot.param_jacobian(q)[..., robot.params.indices(params)].reshape(3 * len(q), -1)], axis=1)
+    keep = [k for k, w in enumerate(what) if w != "frame" or basis is None]
+    G = G[:, keep] if basis is None else without(basis, G[:, keep])
+    kept = _distinct(G)
+    return Candidates(tuple(names[keep[k]] for k in kept), tuple(what[keep[k]] for k in kept),
+                      tuple(units[keep[k]] for k in kept), G[:, kept])
+
+
+def _kind(name: str, unit: str, base: set) -> str:
+    if name in base:
+        return "frame"
+    if name in TOOL_NAMES or name.startswith("tool."):
+        return "tool"
+    return "link" if unit == "length" else "joint axis"
+
+
+def _distinct(G: np.ndarray) -> list[int]:
+    """The columns of G (in order) that move the positions at all and are not parallel to an earlier kept one."""
+    norms = np.sqrt(np.mean(G**2, axis=0))
+    unit = G / np.where(norms > 0, norms, 1.0) / np.sqrt(G.shape[0])
+    kept: list[int] = []
+    for k in range(G.shape[1]):
+        if norms[k] > NEGLIGIBLE and all(abs(float(unit[:, k] @ unit[:, j])) < 1 - PARALLEL for j in kept):
+            kept.append(k)
+    return kept
+
+
+def frame_basis(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """(3M, r) orthonormal basis of what moving the instrument's frame does to the positions at q (M, n): the
+    directions a re-fitted frame absorbs (r ≤ 6; empty when the model has no base frame)."""
+    names = list(robot.base_params())
+    if not names:
+        return np.zeros((3 * len(q), 0))
+    J = robot.param_jacobian(robot.check_q(q))[..., robot.params.indices(names)].reshape(-1, len(names))
+    U, s, _ = np.linalg.svd(J, full_matrices=False)
+    return U[:, s > s[0] * 1e-9] if s.size and s[0] > 0 else np.zeros((3 * len(q), 0))
+
+
+def without(basis: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """X (3M, …) with its part along the orthonormal ``basis`` (3M, r) removed."""
+    return X - basis @ (basis.T @ X)

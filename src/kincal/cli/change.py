@@ -1,0 +1,93 @@
+"""Has the robot changed? ``kincal compare A B`` (two calibrations) and ``kincal check CAL data.csv`` (a short
+check of a calibrated model on a few measured poses, those ``kincal design CAL --check`` chose), each recorded in
+the calibration store when one is set."""
+from __future__ import annotations
+
+import kincal
+from kincal.identify import ALPHA, Calibrated, ChangeTest, check, compare
+
+from .common import EXIT_REFUSED, add_data_flags, check_paths, emit, positive_float
+from .history import add_store_flag, store_record
+
+
+def calibrated(path: str) -> Calibrated:
+    """The calibrated robot file ``path`` with its calibration record (a clear error for any other file)."""
+    check_paths([path], [])
+    return Calibrated.of(kincal.load_robot(path), kincal.models.load_calibration_record(path), path)
+
+
+def _alpha(s: str) -> float:
+    value = positive_float(s)
+    if not value < 0.5:
+        raise ValueError(f"--alpha {s}: the false-alarm probability must be below 0.5 (e.g. 0.05)")
+    return value
+
+
+def lines_of(test: ChangeTest) -> list[str]:
+    """The test in words: the verdict with its false-alarm probability, the figures, the suspects, the notes."""
+    frame = "re-fitted" if test.frame_refitted else "kept (--same-frame)"
+    out = [f"verdict: {test.verdict}  (false-alarm probability {test.alpha:.0%}; p = {test.p_value:.3g})",
+           f"{test.poses} poses, frame {frame}: discrepancy {test.rms * kincal.units.MM:.4f} mm RMS per pose, "
+           f"whitened {test.statistic:.1f} on {test.dof} degrees of freedom"]
+    if test.changed:
+        out.append("most likely single change (ranked; sizes with σ):")
+    else:
+        out.append("largest candidate changes, none significant:")
+    out += [f"  {s.line()}" for s in test.suspects[:3]]
+    return out + [f"note: {n}" for n in test.notes]
+
+
+def record(args, test: ChangeTest, path: str, robot, inputs: list[str]) -> str | None:
+    """The test in the calibration store when one is set, for the robot whose calibrated file is ``path``."""
+    from kincal.history import Record, fingerprint, utc_time
+
+    from .report import nominal_model  # noqa: PLC0415  (the report's module imports the observation commands')
+
+    nominal = nominal_model(robot, kincal.models.load_calibration_record(path), path) or robot
+    return store_record(args, nominal, lambda identity, command: Record(
+        identity, "check" if test.question == "check" else "comparison", utc_time(), test.verdict,
+        tuple(fingerprint(p) for p in inputs), figures={"heldout_rms": test.rms},
+        payload={"command": command, "test": test.to_dict()}))
+
+
+def cmd_compare(args) -> int:
+    a, b = calibrated(args.first), calibrated(args.second)
+    test = compare(a, b, same_frame=args.same_frame, alpha=args.alpha)
+    stored = record(args, test, args.second, b.robot, [args.first, args.second])
+    return emit(args, test.to_dict(), "\n".join(lines_of(test) + ([stored] if stored else [])))
+
+
+def cmd_check(args) -> int:
+    cal = calibrated(args.calibration)
+    check_paths([args.data], [])
+    meas = kincal.read_measurements(args.data, cal.robot, joint_cols=args.joint_cols, xyz_cols=args.xyz_cols,
+                                    length_unit=args.length_unit, angle_unit=args.angle_unit)
+    test = check(cal, meas.q, meas.xyz, same_frame=args.same_frame, alpha=args.alpha)
+    stored = record(args, test, args.calibration, cal.robot, [args.calibration, args.data])
+    emit(args, test.to_dict(), "\n".join(lines_of(test) + ([stored] if stored else [])))
+    return EXIT_REFUSED if test.changed else 0
+
+
+def register(cmd) -> None:
+    """Add compare and check through ``cmd(name, func, help, None)``."""
+    s = cmd("compare", cmd_compare, "did the robot change between two calibrations? (the parameters that moved, "
+                                    "with a stated false-alarm probability)", None)
+    s.add_argument("first", metavar="A", help="the earlier calibrated robot file")
+    s.add_argument("second", metavar="B", help="the later calibrated robot file (sizes are B − A)")
+    _common(s)
+    s = cmd("check", cmd_check, "is a calibrated model still good? a few measured poses (those `design --check` "
+                                "chose) against it: 'still good' or 're-calibrate' with what moved; exit 4 when "
+                                "re-calibration is advised", None)
+    s.add_argument("calibration", metavar="CAL", help="the calibrated robot file")
+    s.add_argument("data", help="the check's measurements CSV (joints and measured positions, like calibrate's)")
+    add_data_flags(s, std=False)
+    _common(s)
+
+
+def _common(s) -> None:
+    s.add_argument("--same-frame", action="store_true",
+                   help="the instrument kept its frame (a tracker not moved): a frame change counts as a change; "
+                        "by default the frame is re-fitted and only the robot is judged")
+    s.add_argument("--alpha", type=_alpha, default=ALPHA,
+                   help=f"false-alarm probability of the test (default {ALPHA:g})")
+    add_store_flag(s)

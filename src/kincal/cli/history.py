@@ -1,0 +1,160 @@
+"""A robot over its life: ``kincal history ROBOT`` (its records from the calibration store, what moved
+between calibrations, the plot, events) and the --store flag the recording commands share."""
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+
+from kincal.history import (MOVED_Z, Identity, Move, Record, Store, changed_parameters, event_record, history_figure,
+                            how_to_set, moves, open_store, save_history_figure, store_url, utc_time)
+from kincal.units import MM, display
+
+from .common import check_paths, csv_list, emit
+
+
+def add_store_flag(parser: argparse.ArgumentParser) -> None:
+    """--store URL: the calibration store to record in (or read) and --serial, the robot's serial number there;
+    declared once for every command that uses them."""
+    parser.add_argument("--serial", help="the robot's serial number in the calibration store (robots are known by "
+                                         "their name and serial)")
+    parser.add_argument("--store", metavar="URL",
+                        help="the calibration store: an SQLite file (created when missing) or "
+                             "postgresql://USER@HOST/DATABASE; default: $KINCAL_STORE, else 'store:' in "
+                             "~/.config/kincal/config.yaml, else none")
+
+
+def store_record(args, nominal, build) -> str | None:
+    """Record in the calibration store, when one is set (flag, KINCAL_STORE or the config file), the record
+    ``build(identity, command)`` makes for the robot whose nominal model is ``nominal`` (named by its name and
+    --serial); what was done, in words. --serial without a store is refused (it would be ignored)."""
+    url = store_url(args.store)
+    if url is None:
+        if args.serial is not None:
+            raise ValueError(f"--serial names the robot in the calibration store, and none is set: {how_to_set()}")
+        return None
+    from kincal.history import model_hash  # noqa: PLC0415  (hashing loads nothing heavy, the store does)
+
+    identity = Identity(nominal.name, args.serial or "", model_hash(nominal))
+    with open_store(url) as store:
+        number = store.add(build(identity, shlex.join(["kincal", *sys.argv[1:]])))
+    return f"recorded in the calibration store {url} as record {number} (robot '{identity.name}'" + \
+        (f", serial {identity.serial})" if identity.serial else ")")
+
+
+def store_for(given: str | None) -> str:
+    """The store's URL (:func:`kincal.history.store_url`); a ValueError saying how to set one when none is."""
+    url = store_url(given)
+    if url is None:
+        raise ValueError(f"no calibration store is set: {how_to_set()}")
+    return url
+
+
+def robot_in(store: Store, name: str, serial: str | None) -> Identity:
+    """The robot ``name`` (of ``serial``) as the store knows it; a ValueError listing the known robots."""
+    known = [ident for ident, *_ in store.robots()]
+    found = [i for i in known if i.name == name and (serial is None or i.serial == serial)]
+    if not found:
+        listed = ", ".join(i.name + (f" (serial {i.serial})" if i.serial else "") for i in known)
+        wanted = f"'{name}'" + (f" with serial '{serial}'" if serial is not None else "")
+        raise ValueError(f"no robot {wanted} in the store {store.url}; "
+                         + (f"it holds: {listed}" if known else "it is empty: calibrate with --store to record one"))
+    if len(found) > 1:
+        serials = ", ".join(i.serial or "none" for i in found)
+        raise ValueError(f"the store holds robot '{name}' with several serials ({serials}): give --serial")
+    return found[0]
+
+
+def _mm(record: Record, figure: str) -> str:
+    value = record.figures.get(figure)
+    return "" if value is None else f"{value * MM:.4f}"
+
+
+def _table(rows: list[tuple[int, Record]], changed: set[int]):
+    from rich.table import Table
+
+    table = Table(title=None, show_edge=False, pad_edge=False)
+    table.add_column("#", justify="right")
+    for head in ("time (UTC)", "kind", "verdict"):
+        table.add_column(head, no_wrap=True)
+    for head in ("training mean mm", "held-out mean mm"):
+        table.add_column(head, justify="right")
+    table.add_column("note")
+    for rid, r in rows:
+        note = "; ".join(filter(None, ["nominal model changed" if rid in changed else "", r.note]))
+        table.add_row(str(rid), r.time[:16].replace("T", " "), r.kind, r.verdict or "", _mm(r, "training_mean"),
+                      _mm(r, "heldout_mean"), note)
+    return table
+
+
+def move_lines(steps: list[Move], rows: list[tuple[int, Record]]) -> list[str]:
+    """The moves between consecutive calibrations in words: per step the parameters beyond MOVED_Z σ (or
+    without σ), their change in mm/deg, σ and z."""
+    when = {rid: r.time[:16].replace("T", " ") for rid, r in rows}
+    pairs = list(dict.fromkeys((m.before, m.after) for m in steps))
+    lines = []
+    for a, b in pairs:
+        shown = [m for m in steps if (m.before, m.after) == (a, b) and m.shown]
+        lines.append(f"#{a} ({when[a]}) → #{b} ({when[b]}):" + ("" if shown else f" no parameter moved beyond "
+                                                                  f"{MOVED_Z:g}σ"))
+        lines += [f"  {m.name:<16} {display(m.delta, m.kind):>14}" + (
+            f"  σ {display(m.sigma, m.kind, signed=False)}  z {m.z:+.1f}" if m.sigma and m.z is not None
+            else "  (no σ)") for m in shown]
+    if any(m.frame for m in steps):
+        lines.append("the measurement frame (base.*) is left out: it moves whenever the tracker does")
+    return lines
+
+
+def cmd_history(args) -> int:
+    if args.at and not args.event:
+        raise ValueError("--at gives the time of an --event: add --event TEXT")
+    if args.parameters and not args.plot:
+        raise ValueError("--parameters chooses the panels of the plot: add --plot FILE.png")
+    url, at = store_for(args.store), utc_time(args.at) if args.at else None
+    if args.plot:
+        if not args.plot.lower().endswith((".png", ".svg")):
+            raise ValueError(f"--plot {args.plot}: give a .png or .svg file")
+        check_paths([], [args.plot])
+    with open_store(url) as store:
+        robot = robot_in(store, args.robot, args.serial)
+        rows = store.records(robot.name, robot.serial)
+        changed_parameters(rows, args.parameters)  # checked before anything is recorded
+        added = None
+        if args.event:
+            added = store.add(event_record(Identity(robot.name, robot.serial), args.event, at,
+                                           command=" ".join(["kincal", *sys.argv[1:]])))
+            rows = store.records(robot.name, robot.serial)
+        changed = store.model_changes(robot.name, robot.serial)
+    steps = moves(rows)
+    lines = [f"event recorded (#{added})"] if added is not None else []
+    if args.plot:
+        save_history_figure(history_figure(rows, args.parameters), args.plot)
+        lines.append(f"plot written to {args.plot}")
+    payload = {"robot": robot.name, "serial": robot.serial, "records": [
+        {"id": rid, "model_changed": rid in changed, **r.to_dict()} for rid, r in rows],
+        "moves": [m.to_dict() for m in steps], "moved_z": MOVED_Z, "event": added, "plot": args.plot}
+    if args.json:
+        return emit(args, payload, "")
+    from rich.console import Group
+    from rich.text import Text
+
+    head = f"{robot.name}" + (f" (serial {robot.serial})" if robot.serial else "") + f": {len(rows)} records"
+    body = "\n".join(["", "parameters moved between consecutive calibrations (|z| = |Δ|/σ ≥ "
+                      f"{MOVED_Z:g}, σ of both in quadrature):", *move_lines(steps, rows)] if steps else [])
+    return emit(args, payload, Group(Text(head), _table(rows, changed), Text("\n".join([body, *lines]).strip("\n"))))
+
+
+def register(cmd) -> None:
+    """Add the history command through ``cmd(name, func, help, None)``."""
+    s = cmd("history", cmd_history, "a robot's calibrations, evaluations, checks and events from the calibration "
+                                    "store: a table, what moved, a plot; record an event", None)
+    s.add_argument("robot", help="the robot's name, as given when it was calibrated with --store")
+    add_store_flag(s)
+    s.add_argument("--plot", metavar="FILE", help="the history plot to write (.png or .svg): each parameter that "
+                                                  "moved against the first calibration with its ±σ band, the "
+                                                  "position errors, the events")
+    s.add_argument("--parameters", type=csv_list, metavar="A,B",
+                   help="the parameters to plot (default: every one that changed, the measurement frame left out)")
+    s.add_argument("--event", metavar="TEXT", help="record an event in the robot's life (a crash, a gearbox change)")
+    s.add_argument("--at", metavar="TIME", help="when the --event happened, ISO 8601 (e.g. 2024-05-03T14:00, local "
+                                                "time; 2024-05-03T12:00Z, UTC); default: now")

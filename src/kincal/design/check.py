@@ -1,0 +1,81 @@
+"""Poses for a short check of a calibrated robot (``kincal design CAL --check``): few poses whose measured positions
+are most sensitive to the changes that happen to a robot — a joint zero (a motor or encoder replaced), a link, the
+tool — after the measurement frame is re-fitted, which absorbs anything a frame change does.
+
+Each candidate change c (:func:`kincal.analysis.changes.candidates`) moves the positions at a pose set S along g_c;
+with the frame re-fitted only its part P g_c off the frame's directions is seen, and against the prediction miss σ per
+axis its detectability is the non-centrality λ_c(S) = |P g_c|² (step_c / σ)², step_c the change that matters (0.01°,
+0.1 mm; ``STEPS``). The design maximises Σ_c log(λ_c + 1) over the joint zeros, links and tool: every one of them
+seen, none sacrificed to another (a maximin would be held hostage by a change no pose shows well). Greedy from the
+empty set (the first three poses without the frame, which needs them), then exchange passes (modified Fedorov)
+until no swap improves it by more than the tie tolerance (:mod:`kincal.ties`: the earliest pool pose wins ties).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..analysis.changes import Repeat, candidates
+from ..errors import ModelError
+from ..models.robot import Robot
+from ..ties import TIE_RTOL
+
+KINDS = ("joint zero", "link", "tool")  # the changes a check is designed for
+PASSES = 3  # exchange passes at most
+
+
+def check_poses(robot: Robot, pool: np.ndarray, m: int, repeat: Repeat) -> np.ndarray:
+    """Indices (m,) into ``pool`` (P, n) of the check poses for the calibrated ``robot`` whose predictions miss as its
+    ``repeat`` record says (each pose's rows whitened by its miss, the joints' part included). ModelError when the
+    pool has fewer than m poses."""
+    pool = robot.check_q(pool)
+    if len(pool) < m:
+        raise ModelError(f"the pool has {len(pool)} poses; a check of {m} needs at least as many")
+    cands = candidates(robot, pool, None)
+    mine = [k for k, kind in enumerate(cands.kinds) if kind in KINDS]
+    per_pose = repeat.miss(robot, pool)[::3]  # (P,) m per axis
+    G = cands.G[:, mine].reshape(len(pool), 3, len(mine)) * cands.steps()[mine] / per_pose[:, None, None]
+    names = list(robot.base_params())
+    F = robot.param_jacobian(pool)[..., robot.params.indices(names)] if names else np.zeros((len(pool), 3, 0))
+    chosen: list[int] = []
+    for _ in range(m):
+        chosen.append(_best_addition(G, F, chosen))
+    for _ in range(PASSES):
+        if not _exchange_pass(G, F, chosen):
+            break
+    return np.array(chosen)
+
+
+def sensitivities(G: np.ndarray, F: np.ndarray, chosen: list[int]) -> np.ndarray:
+    """(P,) Σ_c log(λ_c + 1) of the poses ``chosen`` with each pool pose added (−inf for those chosen already):
+    G (P, 3, C) the whitened change directions, F (P, 3, 6) the frame's; the frame re-fitted from 3 poses on."""
+    P = len(G)
+    g = np.concatenate([np.broadcast_to(G[chosen].reshape(1, -1, G.shape[-1]), (P, 3 * len(chosen), G.shape[-1])),
+                        G], axis=1)  # (P, 3(s+1), C)
+    if len(chosen) + 1 >= 3 and F.shape[-1]:
+        f = np.concatenate([np.broadcast_to(F[chosen].reshape(1, -1, F.shape[-1]),
+                                            (P, 3 * len(chosen), F.shape[-1])), F], axis=1)
+        Q = np.linalg.qr(f)[0]
+        g = g - Q @ (np.swapaxes(Q, 1, 2) @ g)
+    out = np.sum(np.log1p(np.sum(g**2, axis=1)), axis=1)
+    out[chosen] = -np.inf
+    return out
+
+
+def _best_addition(G: np.ndarray, F: np.ndarray, chosen: list[int]) -> int:
+    values = sensitivities(G, F, chosen)
+    return int(np.flatnonzero(values >= values.max() - TIE_RTOL * abs(values.max()))[0])
+
+
+def _exchange_pass(G: np.ndarray, F: np.ndarray, chosen: list[int]) -> bool:
+    """One pass of exchanges: each chosen pose replaced by the pool pose that improves the sensitivity most (in
+    place); whether any swap was made."""
+    swapped = False
+    for slot in range(len(chosen)):
+        rest = chosen[:slot] + chosen[slot + 1:]
+        values = sensitivities(G, F, rest)
+        best = float(values[chosen[slot]])
+        k = _best_addition(G, F, rest)
+        if values[k] > best + TIE_RTOL * abs(best):
+            chosen[slot] = k
+            swapped = True
+    return swapped

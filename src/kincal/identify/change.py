@@ -1,0 +1,226 @@
+"""Has the robot changed? Two calibrations compared (``kincal compare``), or a short check of a calibrated model on a
+few measured poses (``kincal check``), each a test with a stated false-alarm probability that names what moved.
+
+Both judge a discrepancy d over the poses of use against what it would be on an unchanged robot:
+
+* **compare A B**: d = the positions B predicts minus those A predicts, at ``REGION_POSES`` poses drawn (seed 0) in the
+  joint ranges both calibrations were fitted in; its covariance the sum of each calibration's repeat covariance
+  carried to those poses (:class:`kincal.analysis.changes.Repeat`: what a calibration on other poses of the same
+  robot differs by, what the model cannot describe included);
+* **check CAL data**: d = measured − predicted at the check poses, its covariance the calibration's prediction miss
+  σ² per axis (noise and what the model cannot describe) plus the repeat covariance carried to the poses.
+
+Unless the instrument kept its frame (``same_frame``), the frame is re-fitted and every direction a frame change
+makes is taken out first. Two tests, each at half the level α: an omnibus test of the whole discrepancy (its squared
+whitened norm, an F reference with the degrees of freedom the covariance was estimated with, and for a check the
+heavier-than-Gaussian spread of the calibration's own residuals, ``dispersion``), and a directed test of each single
+candidate change (:func:`kincal.analysis.changes.candidates`: joint zeros, links, joint axes, the tool, the frame),
+Bonferroni over the candidates. The false-alarm probability is therefore at most α; simulated (UR5 and Panda, 15 µm
+noise, a 0.1 mm unmodelled harmonic, 200 pairs) it is measured by ``benchmarks/change_detection.py``. The suspects are
+ranked by their directed statistic: the first is the single change that best explains the discrepancy.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..analysis.changes import Candidates, Repeat, candidates, frame_basis, without
+from ..errors import MeasurementError, ModelError
+from ..models.robot import Robot
+from ..units import DEG, MM
+from .registration import register_base
+
+ALPHA = 0.05
+REGION_POSES = 200
+MIN_CHECK_POSES = 4  # a re-fitted frame takes 6 of 3n rows
+RANK_RTOL = 1e-6  # singular values of the discrepancy's covariance factor below this × the largest: not seen
+SHOWN = 5  # suspects kept in a result
+
+
+@dataclass(frozen=True)
+class Suspect:
+    """One candidate change: its name, kind ("joint zero", "link", "joint axis", "tool", "frame"), unit ("length",
+    "angle"), the size that best explains the discrepancy alone (m or rad), its σ and z = size / σ."""
+
+    name: str
+    kind: str
+    unit: str
+    size: float
+    sigma: float
+    z: float
+
+    def line(self) -> str:
+        factor, unit = (MM, "mm") if self.unit == "length" else (DEG, "°")
+        return (f"{self.name} ({self.kind}): {self.size * factor:+.4f} {unit} ± {self.sigma * factor:.4f} "
+                f"(z = {self.z:+.1f})")
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "kind": self.kind, "unit": self.unit, "size": self.size, "sigma": self.sigma,
+                "z": self.z}
+
+
+@dataclass(frozen=True)
+class ChangeTest:
+    """question -- "compare" or "check"; changed -- the verdict at level ``alpha`` (the false-alarm probability);
+    p_value -- the test's (Bonferroni over its two parts); statistic, dof -- the omnibus test's squared whitened
+    norm and degrees of freedom; suspects -- the candidate changes ranked (the first best explains the discrepancy
+    alone); poses -- how many the discrepancy was taken at; frame_refitted; rms -- the discrepancy's RMS per pose (m,
+    after the frame); notes -- what the reader should know (poses outside the calibrated ranges, a frame shift)."""
+
+    question: str
+    changed: bool
+    alpha: float
+    p_value: float
+    statistic: float
+    dof: int
+    suspects: tuple[Suspect, ...]
+    poses: int
+    frame_refitted: bool
+    rms: float
+    notes: tuple[str, ...] = ()
+
+    @property
+    def verdict(self) -> str:
+        if self.question == "check":
+            return f"re-calibrate ({self.suspects[0].kind}: {self.suspects[0].name})" if self.changed else \
+                "still good"
+        return f"changed ({self.suspects[0].kind}: {self.suspects[0].name})" if self.changed else \
+            "no significant change"
+
+    def to_dict(self) -> dict:
+        return {"question": self.question, "verdict": self.verdict, "changed": self.changed, "alpha": self.alpha,
+                "p_value": self.p_value, "statistic": self.statistic, "dof": self.dof, "poses": self.poses,
+                "frame_refitted": self.frame_refitted, "rms": self.rms,
+                "suspects": [s.to_dict() for s in self.suspects], "notes": list(self.notes)}
+
+
+@dataclass(frozen=True, eq=False)
+class Calibrated:
+    """A calibrated robot with what a repeat calibration would differ by and the joint ranges it was fitted in."""
+
+    robot: Robot
+    repeat: Repeat
+    lower: np.ndarray
+    upper: np.ndarray
+    label: str
+
+    @classmethod
+    def of(cls, robot: Robot, record: dict | None, label: str) -> "Calibrated":
+        """From a calibrated robot and its file's ``calibration`` section (ModelError naming ``label`` without it)."""
+        if not record or "envelope" not in record:
+            raise ModelError(f"{label}: not a calibrated robot file (no 'calibration' section with the joint ranges "
+                             f"of its data); give the file `kincal calibrate -o` wrote")
+        rep = Repeat.from_dict(record.get("repeat"), label)
+        missing = [n for n in rep.names if n not in robot.params.names]
+        if missing:
+            raise ModelError(f"{label}: the repeat covariance names parameters the robot does not have: {missing}")
+        env = record["envelope"]
+        return cls(robot, rep, np.asarray(env["lower"], float), np.asarray(env["upper"], float), label)
+
+    def factor(self, q: np.ndarray) -> np.ndarray:
+        """(3M, K) U with U Uᵀ the repeat covariance carried to the positions at q (M, n)."""
+        w, V = np.linalg.eigh(self.repeat.covariance)
+        J = self.robot.param_jacobian(q)[..., self.robot.params.indices(self.repeat.names)]
+        return J.reshape(3 * len(q), -1) @ (V * np.sqrt(np.clip(w, 0.0, None)))
+
+
+def compare(a: Calibrated, b: Calibrated, same_frame: bool = False, alpha: float = ALPHA,
+            poses: int = REGION_POSES) -> ChangeTest:
+    """Did the robot change from calibration ``a`` to ``b``? The positions each predicts at ``poses`` poses of the
+    joint ranges both were fitted in (seed 0), against both repeat covariances; ``same_frame``: the instrument kept
+    its frame (a frame change is then a change), else the frame is re-fitted. Sizes are b − a."""
+    _same_model(a, b)
+    q = _region(a, b, poses)
+    d = (b.robot.forward(q) - a.robot.forward(q)).ravel()
+    U = np.concatenate([a.factor(q), b.factor(q)], axis=1)
+    basis = None if same_frame else frame_basis(b.robot, q)
+    notes = [] if same_frame else [_frame_shift(a.robot, b.robot)]
+    return _judged("compare", d, U, candidates(b.robot, q, basis), basis, a.repeat.dof + b.repeat.dof, 1.0, alpha,
+                   len(q), tuple(n for n in notes if n))
+
+
+def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = False,
+          alpha: float = ALPHA) -> ChangeTest:
+    """Is the calibrated model still good? The positions xyz (M, 3) m measured at joints q (M, n), against the
+    calibration's prediction miss and repeat covariance; the frame re-fitted unless ``same_frame``."""
+    q = cal.robot.check_q(q)
+    if len(q) < MIN_CHECK_POSES:
+        raise MeasurementError(f"a check needs at least {MIN_CHECK_POSES} poses (the frame takes 6 of the 3 per "
+                               f"pose); {len(q)} given. Measure the poses `kincal design CAL --check` chose")
+    robot = cal.robot if same_frame else register_base(cal.robot, q, xyz)
+    d = (xyz - robot.forward(q)).ravel()
+    U = np.concatenate([np.diag(cal.repeat.miss(robot, q)), Calibrated(robot, cal.repeat, cal.lower, cal.upper,
+                                                              cal.label).factor(q)], axis=1)
+    basis = None if same_frame else frame_basis(robot, q)
+    return _judged("check", d, U, candidates(robot, q, basis), basis, cal.repeat.dof, cal.repeat.dispersion, alpha,
+                   len(q), tuple(_outside(cal, q)))
+
+
+def _judged(question: str, d: np.ndarray, U: np.ndarray, cands: Candidates, basis: np.ndarray | None, nu: int,
+            dispersion: float, alpha: float, poses: int, notes: tuple[str, ...]) -> ChangeTest:
+    """The two tests of the discrepancy d (3M,) whose covariance is U Uᵀ, frame directions ``basis`` taken out."""
+    from scipy.special import fdtrc  # noqa: PLC0415  (SciPy loaded when a test is made)
+
+    if basis is not None:
+        d, U = without(basis, d), without(basis, U)
+    W, s, _ = np.linalg.svd(U, full_matrices=False)
+    keep = s > s[0] * RANK_RTOL
+    W, s = W[:, keep], s[keep]
+    u = (W.T @ d) / s
+    G = (W.T @ cands.G) / s[:, None]
+    norms = np.linalg.norm(G, axis=0)
+    seen = norms > 1e-12 * max(float(norms.max()), 1e-300)
+    z = np.where(seen, (G.T @ u) / np.where(seen, norms, 1.0), 0.0)
+    dof, T = int(keep.sum()), float(u @ u)
+    p_omni = float(fdtrc(dof / dispersion, nu, T / dof))
+    p_dir = min(1.0, int(seen.sum()) * float(fdtrc(1.0, max(dof / dispersion, 1.0) if dispersion > 1 else nu,
+                                                   float(np.max(z**2)))))
+    order = sorted(np.flatnonzero(seen), key=lambda k: -z[k] ** 2)[:SHOWN]  # stable: candidates' order on ties
+    suspects = tuple(Suspect(cands.names[k], cands.kinds[k], cands.units[k], float(z[k] / norms[k]),
+                             float(1.0 / norms[k]), float(z[k])) for k in order)
+    changed = min(p_omni, p_dir) < alpha / 2
+    rms = float(np.sqrt(np.sum(d**2) / poses))
+    return ChangeTest(question, bool(changed), alpha, min(1.0, 2 * min(p_omni, p_dir)), T, dof, suspects, poses,
+                      basis is not None, rms, notes)
+
+
+def _same_model(a: Calibrated, b: Calibrated) -> None:
+    if a.robot.params.names != b.robot.params.names or a.robot.joint_names != b.robot.joint_names:
+        raise ModelError(f"{a.label} and {b.label} are calibrations of different models (joints or parameters "
+                         f"differ): compare two calibrations of the same robot file")
+
+
+def _region(a: Calibrated, b: Calibrated, poses: int) -> np.ndarray:
+    """``poses`` joint vectors (seed 0) drawn uniformly in the joint ranges both calibrations were fitted in."""
+    lo, hi = np.maximum(a.lower, b.lower), np.minimum(a.upper, b.upper)
+    empty = [j for j, l, h in zip(a.robot.joint_names, lo, hi) if l > h]
+    if empty:
+        raise MeasurementError(f"{a.label} and {b.label} were fitted on joint ranges that do not overlap for "
+                               f"{', '.join(empty)}: there is no region where both can be compared")
+    q = np.random.default_rng(0).uniform(lo, hi, size=(4 * poses, len(lo)))
+    q = q[a.robot.feasible(q)][:poses]
+    if len(q) < poses // 2:
+        raise MeasurementError(f"too few feasible poses in the joint ranges both calibrations share ({len(q)})")
+    return q
+
+
+def _frame_shift(a: Robot, b: Robot) -> str:
+    """The re-fitted frame's change from a to b in words (mm, mrad), or '' for a model without one."""
+    names = a.base_params()
+    if not names:
+        return ""
+    da = b.params.values[b.params.indices(names)] - a.params.values[a.params.indices(names)]
+    move = float(np.linalg.norm(da[:3])) * MM
+    turn = float(np.linalg.norm(da[3:])) * 1e3
+    return f"the measurement frame differs by {move:.3f} mm and {turn:.3f} mrad (re-fitted: not judged)"
+
+
+def _outside(cal: Calibrated, q: np.ndarray) -> list[str]:
+    """A note when check poses lie outside the joint ranges the calibration was fitted in."""
+    span = np.maximum(cal.upper - cal.lower, 1e-9)
+    out = np.any((q < cal.lower - 0.02 * span) | (q > cal.upper + 0.02 * span), axis=1)
+    if not out.any():
+        return []
+    return [f"{int(out.sum())} of {len(q)} poses lie outside the joint ranges the calibration was fitted in: its "
+            f"model error was not measured there (rows {', '.join(str(i + 1) for i in np.flatnonzero(out)[:10])})"]

@@ -1,0 +1,84 @@
+"""What a repeat calibration of the same, unchanged robot would differ by: the record that ``kincal compare`` and
+``kincal check`` judge a change against.
+
+Two calibrations of one unchanged robot on different poses differ by more than their noise σ: the part of what the
+model cannot describe (an unmodelled harmonic, a warm-up) that each pose set pushes into the parameters is not the
+same. The ordinary covariance σ̂²(JᵀJ)⁻¹ treats that part as white noise and is too small (on a simulated UR5 with a
+0.1 mm harmonic, a test on it calls 18–25 % of unchanged pairs changed at a 5 % level). The sandwich (robust)
+covariance A (Σ_s g_s g_sᵀ) A · n/(n − K), with A the fit's (JᵀJ + prior)⁻¹ and g_s = Σ J_rowᵀ r_row over the rows of
+sample s, is what the parameters vary by when the poses are drawn anew from the same region, whatever the residual's
+structure (White 1980; Freedman 2006): the same test on it calls 3.5 % of 200 unchanged pairs changed at 5 %.
+
+Beside it, what a prediction at a new pose of the region misses by per axis (``sigma``, m: the position residual
+with the degrees of freedom the fit took back) and how much heavier than Gaussian that miss is (``dispersion``: the
+variance of each sample's squared whitened position residual over its Gaussian value, ≥ 1), so a check of a few
+poses states its false-alarm probability honestly.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..analysis.changes import Repeat
+from ..models.robot import Robot
+from .covariance import normal_inverse
+from .judge import owners
+
+
+FLOOR = 0.01  # the position part of the miss is at least this share of the mean squared residual per axis
+
+
+def repeat_of(robot: Robot, sets, free, J: np.ndarray, r: np.ndarray, posterior: np.ndarray | None,
+              positions: np.ndarray) -> Repeat:
+    """The :class:`Repeat` record of a fit of the observation ``sets`` over the columns ``free`` of the calibrated
+    ``robot``: J (M, K) and r (M,) whitened at the solution; ``posterior`` (K, K) the fit's (JᵀJ + prior)⁻¹ (None:
+    least squares); ``positions`` (M,) the residual rows in m (the miss is read off the point and pose samples)."""
+    owner, n = owners(sets)
+    lone = owner < 0  # a row of no sample (a known distance) is a sample of its own
+    owner = np.where(lone, n + np.cumsum(lone) - 1, owner)
+    groups = n + int(lone.sum())
+    K = J.shape[1]
+    g = np.zeros((groups, K))
+    np.add.at(g, owner, J * r[:, None])
+    A = normal_inverse(J) if posterior is None else posterior
+    dof = max(groups - K, 1)
+    cov = A @ (g.T @ g) @ A * (groups / dof)
+    q, res = _position_samples(sets, positions)
+    sigma, joints, dispersion = miss_model(robot, q, res, K * 3 * len(q) / max(r.size, 1))
+    return Repeat(tuple(free), 0.5 * (cov + cov.T), dof, sigma, joints, dispersion)
+
+
+def _position_samples(sets, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The joints (N, n) and position residuals (N, 3) m of every point and pose sample of ``sets``."""
+    qs, rs, at = [], [], 0
+    for o in sets:
+        m = o.sigma().size
+        if o.kind in ("point", "pose"):
+            axes, sample = o.position_axes(), o.sample_rows()
+            res, rows = np.zeros((len(o), 3)), axes >= 0
+            res[sample[rows], axes[rows]] = positions[at:at + m][rows]
+            qs.append(o.positions()[0])
+            rs.append(res)
+        at += m
+    return (np.concatenate(qs), np.concatenate(rs)) if qs else (np.zeros((0, 0)), np.zeros((0, 3)))
+
+
+def miss_model(robot: Robot, q: np.ndarray, res: np.ndarray, taken: float) -> tuple[float | None, tuple, float]:
+    """What a prediction misses by at a new pose: σ_p (m per axis) and σ_j per joint (rad or m), the miss per axis at
+    joints q being σ_p² + Σ_j σ_j² |∂p/∂q_j|² / 3 (isotropic: what the model leaves is not along the joints' motions
+    alone, a geometric fit absorbs part of each), fitted to the residuals res (N, 3) at q (N, n) by non-negative least
+    squares of their squared norms (``taken`` degrees of freedom given back); and the dispersion of the whitened
+    squared norms (their variance over 2·3, the Gaussian value; ≥ 1). None, (), 1 without enough samples."""
+    from scipy.optimize import nnls  # noqa: PLC0415  (SciPy is loaded by the fit already)
+
+    if len(res) * 3 <= taken + robot.n_joints + 2:
+        return None, (), 1.0
+    Jq = robot.joint_jacobian(q)[:, :3, :]
+    lever = np.sum(Jq**2, axis=1)  # (N, n)
+    A = np.concatenate([np.full((len(q), 1), 3.0), lever], axis=1)
+    scale = np.where(A.max(axis=0) > 0, A.max(axis=0), 1.0)  # a joint that moves nothing (a covariate): 0
+    x, _ = nnls(A / scale, np.sum(res**2, axis=1))
+    x = x / scale * (3 * len(q) / (3 * len(q) - taken))
+    x[0] = max(x[0], FLOOR * float(np.mean(res**2)), 1e-18)  # never a pose without a miss (a singular whitening)
+    w = np.sum(res**2, axis=1) / (x[0] + lever @ x[1:] / 3.0)
+    disp = float(np.var(w) / 6.0) if len(w) > 2 else 1.0
+    return float(np.sqrt(x[0])), tuple(float(v) for v in np.sqrt(x[1:])), max(1.0, disp)

@@ -1,0 +1,111 @@
+"""compare, check and design --check: has the robot changed? Against closed forms (a DH θ is the joint's zero, a
+translation of the base is a link's d), simulated changes of known size, and the real UR5 (acceptance 2)."""
+import math
+
+import numpy as np
+import pytest
+import yaml
+
+import kincal
+from kincal.analysis.changes import candidates, frame_basis
+from kincal.cli import main
+from kincal.design import check_poses
+from kincal.design.check import sensitivities
+from kincal.identify import Calibrated, check, compare
+
+from conftest import DATA, UR5_COLS
+
+UR5 = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
+
+
+def _fit(true, seed, n=80):
+    nominal = kincal.load_robot("ur5")
+    q = nominal.sample_joints(n, seed=seed)
+    res = kincal.calibrate(nominal, kincal.simulate(true, q, 15e-6, seed), kincal.FitOptions(diagnose=False))
+    return Calibrated.of(res.robot, res.record(), f"fit {seed}")
+
+
+@pytest.fixture(scope="module")
+def true():
+    return kincal.perturb(kincal.load_robot("ur5"), seed=3)
+
+
+def test_a_dh_theta_is_the_joint_zero_and_what_a_frame_absorbs_is_not_seen(ur5):
+    q = ur5.sample_joints(12, seed=1)
+    free = candidates(ur5, q, None)
+    assert "j2 zero" in free.names and "j2.theta" not in free.names  # the same direction: merged into the first
+    step = 1e-6  # the joint's zero by finite differences of the joint value: the candidate's column
+    dq = np.zeros(6)
+    dq[1] = step
+    fd = ((ur5.forward(q + dq) - ur5.forward(q - dq)) / (2 * step)).ravel()
+    assert np.allclose(free.G[:, free.names.index("j2 zero")], fd, atol=1e-8)
+    refit = candidates(ur5, q, frame_basis(ur5, q))
+    assert "j1 zero" not in refit.names  # a turn about the base's z axis: what a re-fitted frame does
+    assert not any(k == "frame" for k in refit.kinds)
+
+
+def test_compare_names_a_link_change_and_passes_an_unchanged_robot(true):
+    a, b = _fit(true, 1), _fit(true, 2)
+    same = compare(a, b)
+    assert not same.changed and same.verdict == "no significant change"
+    v = true.params.as_dict()
+    v["j3.a"] += 1e-4  # 0.1 mm
+    c = _fit(true.with_params(v), 2)
+    moved = compare(a, c)
+    assert moved.changed and moved.suspects[0].name == "j3.a" and moved.suspects[0].kind == "link"
+    assert abs(moved.suspects[0].size - 1e-4) < 3 * moved.suspects[0].sigma + 5e-6
+
+
+def test_check_of_a_joint_zero_change_on_designed_poses(true):
+    cal = _fit(true, 5, n=100)
+    pool = kincal.load_robot("ur5").sample_joints(300, seed=9)
+    chosen = check_poses(cal.robot, pool, 10, cal.repeat)
+    assert len(set(chosen.tolist())) == 10
+    q = pool[chosen]
+    shifted = q.copy()
+    shifted[:, 2] += math.radians(0.05)  # joint 3's zero moved 0.05°: the robot reaches its joints 0.05° further
+    meas = kincal.simulate(true, shifted, 15e-6, 7)
+    test = check(cal, q, meas.xyz)
+    assert test.changed and test.suspects[0].name == "j3 zero"
+    assert abs(test.suspects[0].size - math.radians(0.05)) < 3 * test.suspects[0].sigma
+    assert not check(cal, q, kincal.simulate(true, q, 15e-6, 7).xyz).changed
+
+
+def test_the_designed_check_sees_more_than_random_poses(true):
+    """The design's criterion (Σ log(1 + λ)) beats every one of 20 random sets of the same size from its pool."""
+    cal = _fit(true, 6)
+    pool = kincal.load_robot("ur5").sample_joints(200, seed=4)
+    chosen = check_poses(cal.robot, pool, 8, cal.repeat).tolist()
+    cands = candidates(cal.robot, pool, None)
+    mine = [k for k, kind in enumerate(cands.kinds) if kind in ("joint zero", "link", "tool")]
+    per = cal.repeat.miss(cal.robot, pool)[::3]
+    G = cands.G[:, mine].reshape(len(pool), 3, -1) * cands.steps()[mine] / per[:, None, None]
+    F = cal.robot.param_jacobian(pool)[..., cal.robot.params.indices(list(cal.robot.base_params()))]
+    value = lambda s: float(sensitivities(G, F, s[:-1])[s[-1]])  # noqa: E731
+    rng = np.random.default_rng(0)
+    assert all(value(chosen) > value(rng.choice(len(pool), 8, replace=False).tolist()) for _ in range(20))
+
+
+@pytest.mark.slow
+def test_real_ur5_check_still_good_then_a_shifted_joint_2_zero(tmp_path, capsys):
+    """Acceptance 2: calibrated on the grid, 10 poses of the random set chosen by design --check (one tracker
+    set-up: --same-frame); the same with joint 2's zero moved 0.02° in the file → re-calibrate, joint 2 named."""
+    cal, poses = tmp_path / "cal.yaml", tmp_path / "check.csv"
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *UR5, "-o", str(cal)]) == 0
+    assert main(["design", str(cal), "--check", "--candidates", str(DATA / "ur5_random.csv"), *UR5,
+                 "-o", str(poses)]) == 0
+    assert len(poses.read_text().splitlines()) == 11
+    capsys.readouterr()
+    assert main(["check", str(cal), str(poses), *UR5, "--same-frame", "--json"]) == 0
+    import json
+    assert json.loads(capsys.readouterr().out)["verdict"] == "still good"
+    data = yaml.safe_load(cal.read_text())
+    next(j for j in data["joints"] if j["name"] == "j2")["theta"] += math.radians(0.02)
+    moved = tmp_path / "moved.yaml"
+    moved.write_text(yaml.safe_dump(data, sort_keys=False))
+    assert main(["check", str(moved), str(poses), *UR5, "--same-frame", "--json"]) == 4
+    out = json.loads(capsys.readouterr().out)
+    assert out["verdict"].startswith("re-calibrate") and out["suspects"][0]["name"] == "j2 zero"
+    assert abs(out["suspects"][0]["size"] + math.radians(0.02)) < 3 * out["suspects"][0]["sigma"]
+    assert main(["design", str(cal), "--check", "--method", "ide", "-o", str(tmp_path / "x.csv")]) == 1
+    assert "--method" in capsys.readouterr().err
