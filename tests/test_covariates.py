@@ -138,3 +138,13 @@ def test_covariate_flag_is_refused_for_other_measurement_kinds(tmp_path, warm, c
     assert main(["calibrate", "ur5", _csv(tmp_path / "w.csv", train), "--covariate-cols", "temperature",
                  "--type", "pose"]) == 1
     assert "--covariate-cols does not apply to pose data" in capsys.readouterr().err
+
+
+def test_compensation_refuses_a_model_with_covariate_terms(warm):
+    """A covariate model's commands depend on the covariate at each target, which compensation does not take:
+    refused with that reason (was an internal error)."""
+    nominal, train, _, _ = warm
+    model = extend(with_covariates(nominal, ["temperature"]), "thermal:temperature", train.q)
+    targets = nominal.forward(nominal.sample_joints(3, seed=1))
+    with pytest.raises(ModelError, match="covariate terms \\(temperature\\)"):
+        kincal.compensate(model, targets)

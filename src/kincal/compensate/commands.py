@@ -78,6 +78,10 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     predicted change of the tool orientation is reported. With target ``rotations`` (N, 3, 3) of the
     flange the targets are full poses (:func:`compensate_poses`). Every argument is checked before any work.
     """
+    if robot.covariate_names:
+        raise ModelError(f"robot '{robot.name}' has covariate terms ({', '.join(robot.covariate_names)}): its "
+                         f"commands depend on the covariate's value at each target, which compensation does not take "
+                         f"yet; compensate with a calibration without the covariate term")
     if rotations is not None:
         return compensate_poses(robot, targets, rotations, q_start, rows=rows, uncertainty=uncertainty,
                                 nominal=nominal)
