@@ -834,7 +834,37 @@ READERS = _reader_cases() + [
           extra=["--plane", "table:0,0,1,1e300"]),
 ]
 
-ALL = CSV + CSV_GOOD + YAML + YAML_GOOD + PATHS + ARGS + COMPENSATE + ROUND2 + OBSERVE + READERS
+
+def _few(base):
+    """good.csv's first three poses: too few for a check (its frame takes 6 of the 9 rows)."""
+    return "\n".join(good_lines(base)[:4]) + "\n"
+
+
+CHANGE = [  # compare, check, history: a robot's life
+    pytest.param({**_cal(["compare", "ur5", "{d}/cal.yaml"]), "code": 1, "words": ["ur5: not a calibrated robot file"]},
+                 id="compare-a-bundled-robot"),
+    rcase("compare-without-repeat", ["compare", "{d}/cal.yaml", "{d}/cal.yaml"], 1,
+          ["cal.yaml: the calibration keeps no repeat covariance", "calibrate again"], repeat=None),
+    rcase("compare-malformed-repeat", ["compare", "{d}/cal.yaml", "{d}/cal.yaml"], 1,
+          ["cal.yaml: the calibration's 'repeat' section is malformed"], repeat={"parameters": ["j2.a"]}),
+    pytest.param({**_cal(["check", "{d}/cal.yaml", "{d}/few.csv", *MMDEG]), "code": 1,
+                  "words": ["at least 4 poses", "3 given", "design CAL --check"]}, id="check-three-poses"),
+    pytest.param({**_cal(["check", "{d}/cal.yaml", "{base}/good.csv", "--alpha", "0.7"]), "code": 2,
+                  "words": ["--alpha", "below 0.5"]}, id="check-alpha-too-large"),
+    pytest.param({**_cal(["check", "{d}/cal.yaml", "{base}/good.csv", "--angle-unit", "deg"]), "code": 1,
+                  "words": ["good.csv", "look like mm", "--length-unit mm"]}, id="check-mm-read-as-m"),
+    pytest.param({**_cal(["check", "{d}/cal.yaml", "{base}/good.csv", "--length-unit", "mm"]), "code": 1,
+                  "words": ["good.csv", "look like degrees", "--angle-unit deg"]}, id="check-deg-read-as-rad"),
+    pytest.param({**_cal(["design", "{d}/cal.yaml", "--check", "--criterion", "D", "-o", "{d}/p.csv"]), "code": 1,
+                  "words": ["--criterion", "does not apply"]}, id="design-check-with-a-criterion"),
+    case("history-without-a-store", ["history", "ur5"], 1, ["no calibration store is set", "KINCAL_STORE"]),
+    case("check-serial-without-a-store", ["calibrate", "ur5", "{base}/good.csv", *MMDEG, "--serial", "7"], 1,
+         ["--serial names the robot in the calibration store"]),
+]
+for _p in CHANGE[3:4]:
+    _p.values[0]["files"]["few.csv"] = _few
+
+ALL = CSV + CSV_GOOD + YAML + YAML_GOOD + PATHS + ARGS + COMPENSATE + ROUND2 + OBSERVE + READERS + CHANGE
 
 
 @pytest.mark.parametrize("spec", ALL)

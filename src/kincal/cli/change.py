@@ -3,6 +3,8 @@ check of a calibrated model on a few measured poses, those ``kincal design CAL -
 the calibration store when one is set."""
 from __future__ import annotations
 
+import argparse
+
 import kincal
 from kincal.identify import ALPHA, Calibrated, ChangeTest, check, compare
 
@@ -19,7 +21,7 @@ def calibrated(path: str) -> Calibrated:
 def _alpha(s: str) -> float:
     value = positive_float(s)
     if not value < 0.5:
-        raise ValueError(f"--alpha {s}: the false-alarm probability must be below 0.5 (e.g. 0.05)")
+        raise argparse.ArgumentTypeError(f"'{s}': the false-alarm probability must be below 0.5 (e.g. 0.05)")
     return value
 
 

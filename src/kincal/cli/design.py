@@ -78,7 +78,8 @@ def _design_check(args) -> int:
     wrong = sorted(flag for dest, flag in args.given.items() if dest not in CHECK_FLAGS)
     if wrong:
         raise ValueError(f"design --check chooses the poses of a check of a calibrated robot; {', '.join(wrong)} "
-                         f"do(es) not apply to it (it takes -m, --pool or --candidates, the data columns, --seed)")
+                         f"{'does' if len(wrong) == 1 else 'do'} not apply to it (it takes -m, --pool or "
+                         f"--candidates, the data columns, --seed)")
     check_paths([args.robot, args.candidates], [args.output])
     cal = kincal.identify.Calibrated.of(kincal.load_robot(args.robot),
                                         kincal.models.load_calibration_record(args.robot), args.robot)

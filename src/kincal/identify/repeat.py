@@ -52,11 +52,12 @@ def _position_samples(sets, positions: np.ndarray) -> tuple[np.ndarray, np.ndarr
     qs, rs, at = [], [], 0
     for o in sets:
         m = o.sigma().size
-        if o.kind in ("point", "pose"):
+        found = o.positions() if o.kind in ("point", "pose") else None  # None: a session in its own frame
+        if found is not None:
             axes, sample = o.position_axes(), o.sample_rows()
             res, rows = np.zeros((len(o), 3)), axes >= 0
             res[sample[rows], axes[rows]] = positions[at:at + m][rows]
-            qs.append(o.positions()[0])
+            qs.append(found[0])
             rs.append(res)
         at += m
     return (np.concatenate(qs), np.concatenate(rs)) if qs else (np.zeros((0, 0)), np.zeros((0, 3)))
