@@ -6,11 +6,12 @@ tool position over the joint ranges). Each pair: two calibrations on different r
 15 µm noise), or a calibration and a 10-pose check chosen by `design --check` from 400 random poses. A change
 is a 0.01° joint zero (the robot reaches its joint 0.01° further) or a 0.1 mm link length.
 
-    python benchmarks/change_detection.py [PAIRS] [ROBOT]      # defaults: 40 ur5
+    python benchmarks/change_detection.py [PAIRS] [ROBOT]      # defaults: 40 ur5; ROBOT: ur5 or panda
 Prints a table: rejection rate (false alarms for "none") and how often the changed parameter is named first.
 """
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -70,13 +71,18 @@ def run(nominal, true, change, pairs):
     return out
 
 
+PANDA = Path(__file__).resolve().parents[1] / "tests" / "data" / "urdf" / "panda" / "panda.urdf"
+LINKS = {"ur5": "j3.a", "panda": "panda_joint5.z"}  # the forearm: 0.392 m and 0.384 m long
+
+
 def main():
     pairs = int(sys.argv[1]) if len(sys.argv) > 1 else 40
     robot = sys.argv[2] if len(sys.argv) > 2 else "ur5"
-    nominal = kincal.load_robot(robot)
+    nominal = kincal.load_robot(PANDA, tip_link="ball_link") if robot == "panda" else kincal.load_robot(robot)
     true = truth(nominal)
-    cases = [("none", None), ("joint 2 zero +0.01°", ("zero", 1, np.deg2rad(0.01))),
-             ("joint 3 zero +0.01°", ("zero", 2, np.deg2rad(0.01))), ("j3.a +0.1 mm", ("param", "j3.a", 1e-4))]
+    cases = [("none", None)] + [(f"joint {j + 1} zero +0.01°", ("zero", j, np.deg2rad(0.01)))
+                                for j in range(min(nominal.n_joints, 6))] + \
+        [(f"{LINKS[robot]} +0.1 mm", ("param", LINKS[robot], 1e-4))]
     print(f"{robot}: {POSES} poses per calibration, {NOISE * 1e6:.0f} µm noise, {HARMONIC * 1e3:.1f} mm unmodelled "
           f"harmonic, {pairs} pairs per case")
     print(f"{'case':24s} {'test':8s} {'rejected':>9s} {'named first':>12s} {'s':>6s}")

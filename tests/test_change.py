@@ -78,10 +78,10 @@ def test_the_designed_check_sees_more_than_random_poses(true):
     chosen = check_poses(cal.robot, pool, 8, cal.repeat).tolist()
     cands = candidates(cal.robot, pool, None)
     mine = [k for k, kind in enumerate(cands.kinds) if kind in ("joint zero", "link", "tool")]
-    per = cal.repeat.miss(cal.robot, pool)[::3]
-    G = cands.G[:, mine].reshape(len(pool), 3, -1) * cands.steps()[mine] / per[:, None, None]
+    G = cands.G[:, mine].reshape(len(pool), 3, -1) * cands.steps()[mine]
     F = cal.robot.param_jacobian(pool)[..., cal.robot.params.indices(list(cal.robot.base_params()))]
-    value = lambda s: float(sensitivities(G, F, s[:-1])[s[-1]])  # noqa: E731
+    A = cal.repeat.miss(cal.robot, pool)
+    value = lambda s: float(sensitivities(G, F, A, s[:-1])[s[-1]])  # noqa: E731
     rng = np.random.default_rng(0)
     assert all(value(chosen) > value(rng.choice(len(pool), 8, replace=False).tolist()) for _ in range(20))
 

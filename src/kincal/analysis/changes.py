@@ -35,7 +35,9 @@ class Repeat:
                   data had no absolute positions)
     joints     -- σ per joint (rad or m): the miss that acts like joint errors (transmission, harmonics), so it grows
                   with the lever arm, as the changes a check looks for do
-    dispersion -- ≥ 1, the whitened squared position misses' variance over a Gaussian's (1: Gaussian)"""
+    dispersion -- ≥ 1, the whitened squared position misses' variance over a Gaussian's (1: Gaussian)
+    length     -- rad: how far a revolute joint turns before its part of the miss is another (0: at every pose; a
+                  transmission error is a smooth function of the joint's angle, so poses at near angles share it)"""
 
     names: tuple[str, ...]
     covariance: np.ndarray
@@ -43,25 +45,26 @@ class Repeat:
     sigma: float | None
     joints: tuple[float, ...]
     dispersion: float
+    length: float = 0.0
 
     def restricted(self, names) -> "Repeat":
         """The same record over the parameters ``names`` (a subset of :attr:`names`)."""
         at = [self.names.index(n) for n in names]
         return Repeat(tuple(names), self.covariance[np.ix_(at, at)], self.dof, self.sigma, self.joints,
-                      self.dispersion)
+                      self.dispersion, self.length)
 
     def miss(self, robot: Robot, q: np.ndarray) -> np.ndarray:
-        """(3M,) the miss σ per axis (m) of a prediction at each pose q (M, n), pose-major: σ² + Σ_j σ_j² |∂p/∂q_j|² / 3
-        (ModelError without a miss: no absolute positions in the calibration's data)."""
+        """(M, M) the covariance per axis (m²) of what predictions at the poses q (M, n) miss by, the same for x, y
+        and z (:func:`miss_covariance`); ModelError without a miss (no absolute positions in the calibration's data)."""
         if self.sigma is None or len(self.joints) != robot.n_joints:
             raise ModelError("the calibration's data had no absolute positions: there is no prediction miss to judge "
                              "measured positions against (calibrate from positions or poses)")
-        lever = np.sum(robot.joint_jacobian(q)[:, :3, :] ** 2, axis=1) @ np.square(self.joints) / 3.0
-        return np.repeat(np.sqrt(self.sigma**2 + lever), 3)
+        revolute = np.array([t == "revolute" for t in robot.joint_types])
+        return miss_covariance(robot.joint_jacobian(q)[:, :3, :], q, revolute, self.sigma, self.joints, self.length)
 
     def to_dict(self) -> dict:
         return {"parameters": list(self.names), "covariance": self.covariance.tolist(), "dof": self.dof,
-                "sigma": self.sigma, "joints": list(self.joints), "dispersion": self.dispersion}
+                "sigma": self.sigma, "joints": list(self.joints), "dispersion": self.dispersion, "length": self.length}
 
     @classmethod
     def from_dict(cls, data, label: str) -> "Repeat":
@@ -75,13 +78,29 @@ class Repeat:
             cov = np.array(data["covariance"], dtype=float).reshape(len(names), len(names))
             sigma = None if data.get("sigma") is None else float(data["sigma"])
             joints = tuple(float(v) for v in data["joints"])
-            out = cls(names, cov, int(data["dof"]), sigma, joints, float(data["dispersion"]))
+            out = cls(names, cov, int(data["dof"]), sigma, joints, float(data["dispersion"]), float(data["length"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelError(f"{label}: the calibration's 'repeat' section is malformed ({exc}); calibrate again") \
                 from None
         if not (np.all(np.isfinite(cov)) and out.dof > 0 and out.dispersion >= 1.0):
             raise ModelError(f"{label}: the calibration's 'repeat' section is malformed; calibrate again")
         return out
+
+
+def miss_covariance(Jq: np.ndarray, q: np.ndarray, revolute: np.ndarray, sigma: float, joints, length: float):
+    """(M, M) per-axis covariance (m²) of the miss at poses q (M, n) with joint Jacobian Jq (M, 3, n): σ² δ_ik plus,
+    per joint j, σ_j² k_j(q_ij − q_kj) (∂p/∂q_j at i · ∂p/∂q_j at k) / 3, k_j = exp(−2 sin²(Δ/2) / length²) for a
+    revolute joint (periodic, smooth; length 0: δ), δ for a prismatic one. Positive semi-definite: each term is a
+    product of a kernel and a Gram matrix."""
+    A = sigma**2 * np.eye(len(q))
+    for j, s in enumerate(joints):
+        if s > 0:
+            if length > 0 and revolute[j]:
+                K = np.exp(-2.0 * np.sin((q[:, j, None] - q[None, :, j]) / 2.0) ** 2 / length**2)
+            else:
+                K = np.eye(len(q))
+            A += s**2 * K * (Jq[:, :, j] @ Jq[:, :, j].T) / 3.0
+    return A
 
 
 @dataclass(frozen=True, eq=False)

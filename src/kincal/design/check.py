@@ -25,56 +25,65 @@ PASSES = 3  # exchange passes at most
 
 def check_poses(robot: Robot, pool: np.ndarray, m: int, repeat: Repeat) -> np.ndarray:
     """Indices (m,) into ``pool`` (P, n) of the check poses for the calibrated ``robot`` whose predictions miss as its
-    ``repeat`` record says (each pose's rows whitened by its miss, the joints' part included). ModelError when the
-    pool has fewer than m poses."""
+    ``repeat`` record says (the miss's covariance over the poses whitens them: poses at near joint angles share
+    their transmission errors, so they add less). ModelError when the pool has fewer than m poses."""
     pool = robot.check_q(pool)
     if len(pool) < m:
         raise ModelError(f"the pool has {len(pool)} poses; a check of {m} needs at least as many")
     cands = candidates(robot, pool, None)
     mine = [k for k, kind in enumerate(cands.kinds) if kind in KINDS]
-    per_pose = repeat.miss(robot, pool)[::3]  # (P,) m per axis
-    G = cands.G[:, mine].reshape(len(pool), 3, len(mine)) * cands.steps()[mine] / per_pose[:, None, None]
+    G = cands.G[:, mine].reshape(len(pool), 3, len(mine)) * cands.steps()[mine]
     names = list(robot.base_params())
     F = robot.param_jacobian(pool)[..., robot.params.indices(names)] if names else np.zeros((len(pool), 3, 0))
+    A = repeat.miss(robot, pool)
     chosen: list[int] = []
     for _ in range(m):
-        chosen.append(_best_addition(G, F, chosen))
+        chosen.append(_best_addition(G, F, A, chosen))
     for _ in range(PASSES):
-        if not _exchange_pass(G, F, chosen):
+        if not _exchange_pass(G, F, A, chosen):
             break
     return np.array(chosen)
 
 
-def sensitivities(G: np.ndarray, F: np.ndarray, chosen: list[int]) -> np.ndarray:
+def sensitivities(G: np.ndarray, F: np.ndarray, A: np.ndarray, chosen: list[int]) -> np.ndarray:
     """(P,) Σ_c log(λ_c + 1) of the poses ``chosen`` with each pool pose added (−inf for those chosen already):
-    G (P, 3, C) the whitened change directions, F (P, 3, 6) the frame's; the frame re-fitted from 3 poses on."""
-    P = len(G)
-    g = np.concatenate([np.broadcast_to(G[chosen].reshape(1, -1, G.shape[-1]), (P, 3 * len(chosen), G.shape[-1])),
-                        G], axis=1)  # (P, 3(s+1), C)
-    if len(chosen) + 1 >= 3 and F.shape[-1]:
-        f = np.concatenate([np.broadcast_to(F[chosen].reshape(1, -1, F.shape[-1]),
-                                            (P, 3 * len(chosen), F.shape[-1])), F], axis=1)
-        Q = np.linalg.qr(f)[0]
+    G (P, 3, C) the change directions (m per step), F (P, 3, 6) the frame's, A (P, P) the miss's covariance per
+    axis; both whitened by it, the frame re-fitted from 3 poses on."""
+    P, s = len(G), len(chosen)
+    B = np.empty((P, s + 1, s + 1))
+    B[:, :s, :s] = A[np.ix_(chosen, chosen)]
+    B[:, :s, s] = B[:, s, :s] = A[chosen].T
+    B[:, s, s] = np.diag(A)
+    B[chosen] = np.eye(s + 1)  # a pose twice: its value is −inf below
+    L = np.linalg.cholesky(B)
+
+    def whitened(X: np.ndarray) -> np.ndarray:  # (P, 3, K) with the chosen poses' rows first
+        rows = np.concatenate([np.broadcast_to(X[chosen], (P, s, *X.shape[1:])), X[:, None]], axis=1)
+        return np.linalg.solve(L, rows.reshape(P, s + 1, -1)).reshape(P, 3 * (s + 1), X.shape[-1])
+
+    g = whitened(G)
+    if s + 1 >= 3 and F.shape[-1]:
+        Q = np.linalg.qr(whitened(F))[0]
         g = g - Q @ (np.swapaxes(Q, 1, 2) @ g)
     out = np.sum(np.log1p(np.sum(g**2, axis=1)), axis=1)
     out[chosen] = -np.inf
     return out
 
 
-def _best_addition(G: np.ndarray, F: np.ndarray, chosen: list[int]) -> int:
-    values = sensitivities(G, F, chosen)
+def _best_addition(G: np.ndarray, F: np.ndarray, A: np.ndarray, chosen: list[int]) -> int:
+    values = sensitivities(G, F, A, chosen)
     return int(np.flatnonzero(values >= values.max() - TIE_RTOL * abs(values.max()))[0])
 
 
-def _exchange_pass(G: np.ndarray, F: np.ndarray, chosen: list[int]) -> bool:
+def _exchange_pass(G: np.ndarray, F: np.ndarray, A: np.ndarray, chosen: list[int]) -> bool:
     """One pass of exchanges: each chosen pose replaced by the pool pose that improves the sensitivity most (in
     place); whether any swap was made."""
     swapped = False
     for slot in range(len(chosen)):
         rest = chosen[:slot] + chosen[slot + 1:]
-        values = sensitivities(G, F, rest)
+        values = sensitivities(G, F, A, rest)
         best = float(values[chosen[slot]])
-        k = _best_addition(G, F, rest)
+        k = _best_addition(G, F, A, rest)
         if values[k] > best + TIE_RTOL * abs(best):
             chosen[slot] = k
             swapped = True

@@ -150,7 +150,8 @@ def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = Fa
                                f"pose); {len(q)} given. Measure the poses `kincal design CAL --check` chose")
     robot = cal.robot if same_frame else register_base(cal.robot, q, xyz)
     d = (xyz - robot.forward(q)).ravel()
-    U = np.concatenate([np.diag(cal.repeat.miss(robot, q)), Calibrated(robot, cal.repeat, cal.lower, cal.upper,
+    w, V = np.linalg.eigh(cal.repeat.miss(robot, q))
+    U = np.concatenate([np.kron(V * np.sqrt(np.clip(w, 0.0, None)), np.eye(3)), Calibrated(robot, cal.repeat, cal.lower, cal.upper,
                                                               cal.label).factor(q)], axis=1)
     basis = None if same_frame else frame_basis(robot, q)
     return _judged("check", d, U, candidates(robot, q, basis), basis, cal.repeat.dof, cal.repeat.dispersion, alpha,

@@ -18,12 +18,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..analysis.changes import Repeat
+from ..analysis.changes import Repeat, miss_covariance
 from ..models.robot import Robot
+from ..ties import first_best
 from .covariance import normal_inverse
 from .judge import owners
 
 
+LENGTHS = (0.0, 0.1, 0.2, 0.4, 0.8, 1.6)  # rad: the correlation lengths tried (0: a miss of its own at every pose)
+LIKELIHOOD = 300  # samples the length is chosen on (the likelihood is cubic in them)
 FLOOR = 0.01  # the position part of the miss is at least this share of the mean squared residual per axis
 
 
@@ -44,7 +47,26 @@ def repeat_of(robot: Robot, sets, free, J: np.ndarray, r: np.ndarray, posterior:
     cov = A @ (g.T @ g) @ A * (groups / dof)
     q, res = _position_samples(sets, positions)
     sigma, joints, dispersion = miss_model(robot, q, res, K * 3 * len(q) / max(r.size, 1))
-    return Repeat(tuple(free), 0.5 * (cov + cov.T), dof, sigma, joints, dispersion)
+    length = miss_length(robot, q, res, sigma, joints) if sigma is not None else 0.0
+    return Repeat(tuple(free), 0.5 * (cov + cov.T), dof, sigma, joints, dispersion, length)
+
+
+def miss_length(robot: Robot, q: np.ndarray, res: np.ndarray, sigma: float, joints: tuple) -> float:
+    """The joints' correlation length (rad, one of ``LENGTHS``; 0: none) under which the residuals res (N, 3) at q
+    (N, n) are likeliest as a Gaussian with :func:`kincal.analysis.changes.miss_covariance` (at most ``LIKELIHOOD``
+    samples, evenly by row; ties: the shortest, :mod:`kincal.ties`)."""
+    at = np.unique(np.linspace(0, len(q) - 1, min(len(q), LIKELIHOOD)).astype(int))
+    Jq, rev = robot.joint_jacobian(q[at])[:, :3, :], np.array([t == "revolute" for t in robot.joint_types])
+    values = []
+    for length in LENGTHS:
+        try:
+            L = np.linalg.cholesky(miss_covariance(Jq, q[at], rev, sigma, joints, length))
+        except np.linalg.LinAlgError:
+            values.append(-np.inf)
+            continue
+        z = np.linalg.solve(L, res[at])
+        values.append(-0.5 * float(np.sum(z**2)) - 3.0 * float(np.sum(np.log(np.diag(L)))))
+    return LENGTHS[first_best(values)]
 
 
 def _position_samples(sets, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
