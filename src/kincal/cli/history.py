@@ -42,6 +42,23 @@ def store_record(args, nominal, build) -> str | None:
         (f", serial {identity.serial})" if identity.serial else ")")
 
 
+def history_for_report(args, nominal) -> dict | None:
+    """The robot's history for its calibration report (rows of display texts, the plot, the store), when a store
+    is set and holds records of the robot (named by the nominal model's name and --serial); None otherwise."""
+    url = store_url(args.store)
+    if url is None:
+        return None
+    with open_store(url) as store:
+        rows = store.records(nominal.name, args.serial or "")
+    if not rows:
+        return None
+    shown = [{"time": r.time[:16].replace("T", " "), "kind": r.kind, "verdict": r.verdict or "",
+              "training": _mm(r, "training_mean") and f"{_mm(r, 'training_mean')} mm",
+              "held_out": _mm(r, "heldout_mean") and f"{_mm(r, 'heldout_mean')} mm", "note": r.note}
+             for _, r in rows]
+    return {"rows": shown, "figure": history_figure(rows), "store": url}
+
+
 def store_for(given: str | None) -> str:
     """The store's URL (:func:`kincal.history.store_url`); a ValueError saying how to set one when none is."""
     url = store_url(given)
@@ -75,11 +92,12 @@ def _table(rows: list[tuple[int, Record]], changed: set[int]):
 
     table = Table(title=None, show_edge=False, pad_edge=False)
     table.add_column("#", justify="right")
-    for head in ("time (UTC)", "kind", "verdict"):
+    for head in ("time (UTC)", "kind"):
         table.add_column(head, no_wrap=True)
-    for head in ("training mean mm", "held-out mean mm"):
-        table.add_column(head, justify="right")
-    table.add_column("note")
+    table.add_column("verdict", overflow="fold")
+    for head in ("train mm", "held-out mm"):  # mean position errors: never squeezed out of a narrow terminal
+        table.add_column(head, justify="right", no_wrap=True, min_width=len(head))
+    table.add_column("note", overflow="fold")
     for rid, r in rows:
         note = "; ".join(filter(None, ["nominal model changed" if rid in changed else "", r.note]))
         table.add_row(str(rid), r.time[:16].replace("T", " "), r.kind, r.verdict or "", _mm(r, "training_mean"),

@@ -95,12 +95,12 @@ def cmd_calibrate(args) -> int:
     if args.output:
         text += (f"\ncalibrated robot written to {args.output}" + (" (forced despite the verdict)" if refused else "")
                  if written else f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")
-    text += "".join("\n" + line for line in write_outputs(args, res, tests, {
-        "robot": args.robot, "units": f"{args.length_unit}, {args.angle_unit}"}))
     stored = store_record(args, robot, lambda identity, command: calibration_record(
         res, identity, [fingerprint(p) for p in [*args.data, *args.test]], heldout=held.get("held_out"),
-        command=command))
+        command=command))  # before the report, which shows the robot's history with this calibration in it
     text += f"\n{stored}" if stored else ""
+    text += "".join("\n" + line for line in write_outputs(args, res, tests, {
+        "robot": args.robot, "units": f"{args.length_unit}, {args.angle_unit}"}))
     emit(args, {**res.to_dict(), **held, "output": args.output if written else None, "residuals_file": args.residuals,
                 "sessions": list(args.data) if len(args.data) > 1 else None}, text)
     # refused data are named, with the likely cause: more telling than the non-convergence they usually cause

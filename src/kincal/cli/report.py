@@ -13,6 +13,7 @@ from kincal._atomic import json_path_for  # kincal.report.json_path_for, without
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS
 
 from . import observe
+from .history import add_store_flag, history_for_report
 from .common import EXIT_REFUSED, TYPES, csv_list, emit, err, load_robot, progress
 
 
@@ -38,7 +39,8 @@ def write_outputs(args, res, tests: list, info: dict) -> list[str]:
     lines = []
     if args.report:
         with progress("writing the report", args.json):
-            rep = kincal.build_report(res, tests, info, Path(args.report).name, same_frame=args.same_frame)
+            rep = kincal.build_report(res, tests, info, Path(args.report).name, same_frame=args.same_frame,
+                                      history=history_for_report(args, res.nominal))
             json_file = rep.write(args.report)
         lines.append(f"report written to {args.report} (numbers in {json_file})")
     if args.plot:
@@ -92,7 +94,8 @@ def cmd_report(args) -> int:
         info["note"] = (f"a fit of these data differs from {args.robot} by up to {gap:.3g} (SI): the report shows "
                         f"the fit of these data, not the file")
         err.print(f"kincal: warning: {info['note']}", markup=False)
-    rep = kincal.build_report(res, tests, info, Path(args.output).name, same_frame=reading.same_frame)
+    rep = kincal.build_report(res, tests, info, Path(args.output).name, same_frame=reading.same_frame,
+                              history=history_for_report(args, nominal))
     json_file = rep.write(args.output)
     return emit(args, {**rep.data, "output": args.output, "json": str(json_file)},
                 f"{rep.summary}\nreport written to {args.output} (numbers in {json_file})",
@@ -181,4 +184,5 @@ def register(cmd) -> None:
     g.add_argument("--xyz-cols", type=csv_list)
     g.add_argument("--length-unit", choices=list(LENGTH_UNITS))
     g.add_argument("--angle-unit", choices=list(ANGLE_UNITS))
+    add_store_flag(s)  # the robot's history beside the report, when a store holds it
 

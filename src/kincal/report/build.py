@@ -59,7 +59,7 @@ def report_date() -> str:
 
 
 def build_report(result: CalibrationResult, test: Measurements | Sequence | None = None, info: dict | None = None,
-                 html_name: str = "report.html", same_frame: bool = False) -> Report:
+                 html_name: str = "report.html", same_frame: bool = False, history: dict | None = None) -> Report:
     """The report of ``result`` (a calibration from any kinds of data) and, if given, held-out sessions
     ``test`` (position data: one set of measurements or several, one per session; other kinds:
     observation sets of the training data's kind).
@@ -69,6 +69,9 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
                   to it, for the nominal and the calibrated model alike (kinematics fixed)
     info       -- labels for the data section: "robot" (the robot file or name), "units", and anything
                   else to show (key -> text)
+    history    -- the robot's history from the calibration store, shown beside the calibration: "rows" (one
+                  dict of display texts per record: time, kind, verdict, training, held_out, note), "figure"
+                  (a matplotlib Figure, :func:`kincal.history.history_figure`) and "store" (where it is)
     """
     from .. import __version__
 
@@ -85,10 +88,13 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
            "data": _data_rows(result, tests, dict(info or {})), "json_name": json_path_for(html_name).name,
            "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
            "error_model_notes": list(result.notes), "compliance": result.robot.compliances(),
-           "mounting": result.mounting, **part}
+           "mounting": result.mounting, **part,
+           "history": None if history is None else {"rows": history["rows"], "store": history["store"],
+                                                    "svg": F.svg(history["figure"])}}
     data = {k: ctx[k] for k in ("robot", "version", "date", "structure", "verdict", "parameters", "setup",
                                 "not_estimated", "data", "error_model_choice", "error_model_notes", "compliance",
                                 "mounting", "whitened_rms")}
+    data["history"] = None if history is None else history["rows"]
     return Report(template().render(**ctx), {**data, **numbers, "calibration": result.to_dict()},
                   "\n".join([f"verdict: {result.verdict.status.upper()}",
                              *(f"  {r.level}: {r.message}" for r in result.verdict.reasons), *summary]))
