@@ -90,8 +90,12 @@ def test_the_designed_check_sees_more_than_random_poses(true):
 def test_real_ur5_check_still_good_then_a_shifted_joint_2_zero(tmp_path, capsys):
     """Acceptance 2: calibrated on the grid, 10 poses of the random set chosen by design --check (one tracker
     set-up: --same-frame); the same with joint 2's zero moved 0.02° in the file → re-calibrate, joint 2 named."""
-    cal, poses = tmp_path / "cal.yaml", tmp_path / "check.csv"
-    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *UR5, "-o", str(cal)]) == 0
+    cal, poses, store = tmp_path / "cal.yaml", tmp_path / "check.csv", ["--store", str(tmp_path / "h.db")]
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *UR5, "-o", str(cal), *store,
+                 "--report", str(tmp_path / "r.html")]) == 0
+    page = (tmp_path / "r.html").read_text()  # the report shows the robot's history: this calibration, its figure
+    history = page[page.index("This robot's history"):page.index("</figure>", page.index("This robot's history"))]
+    assert history.count("<tr>") == 2 and "calibration" in history and "0.1020 mm" in history and "<svg" in history
     assert main(["design", str(cal), "--check", "--candidates", str(DATA / "ur5_random.csv"), *UR5,
                  "-o", str(poses)]) == 0
     assert len(poses.read_text().splitlines()) == 11
@@ -103,8 +107,11 @@ def test_real_ur5_check_still_good_then_a_shifted_joint_2_zero(tmp_path, capsys)
     next(j for j in data["joints"] if j["name"] == "j2")["theta"] += math.radians(0.02)
     moved = tmp_path / "moved.yaml"
     moved.write_text(yaml.safe_dump(data, sort_keys=False))
-    assert main(["check", str(moved), str(poses), *UR5, "--same-frame", "--json"]) == 4
+    assert main(["check", str(moved), str(poses), *UR5, "--same-frame", "--json", *store]) == 4
     out = json.loads(capsys.readouterr().out)
+    assert main(["history", "ur5", *store, "--json"]) == 0
+    kinds = [(r["kind"], r["verdict"]) for r in json.loads(capsys.readouterr().out)["records"]]
+    assert kinds == [("calibration", "good"), ("check", out["verdict"])]
     assert out["verdict"].startswith("re-calibrate") and out["suspects"][0]["name"] == "j2 zero"
     assert abs(out["suspects"][0]["size"] + math.radians(0.02)) < 3 * out["suspects"][0]["sigma"]
     assert main(["design", str(cal), "--check", "--method", "ide", "-o", str(tmp_path / "x.csv")]) == 1

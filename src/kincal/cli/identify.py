@@ -14,7 +14,7 @@ import kincal.identify
 import kincal.io
 import kincal.models
 from kincal._atomic import json_path_for
-from kincal.history import calibration_record, fingerprint
+from kincal.history import calibration_record, evaluation_record, fingerprint
 from kincal.identify import held_out_stats, stat_line
 from kincal.units import DEG, MM
 
@@ -171,8 +171,10 @@ def cmd_evaluate(args) -> int:
                         args.plot and (args.plot if len(args.data) == 1 else f"{args.plot}-{k + 1}"))
                   for k, path in enumerate(args.data)]
     payloads = [payload for payload, _ in judged]
+    stored = store_record(args, nominal_model(r, record, args.robot) or r, lambda identity, command: evaluation_record(
+        payloads, identity, [fingerprint(p) for p in args.data], command=command, robot=r))
     return emit(args, {**payloads[0], "sessions": payloads} if len(payloads) == 1 else {"sessions": payloads},
-                "\n".join(text for _, lines in judged for text in lines))
+                "\n".join([text for _, lines in judged for text in lines] + ([stored] if stored else [])))
 
 
 def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: str | None) -> tuple[dict, list[str]]:
@@ -268,3 +270,4 @@ def register(cmd) -> None:
     s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     observe.add_refit_target(s)
     observe.add_flags(s)
+    add_store_flag(s)
