@@ -116,3 +116,18 @@ def test_real_ur5_check_still_good_then_a_shifted_joint_2_zero(tmp_path, capsys)
     assert abs(out["suspects"][0]["size"] + math.radians(0.02)) < 3 * out["suspects"][0]["sigma"]
     assert main(["design", str(cal), "--check", "--method", "ide", "-o", str(tmp_path / "x.csv")]) == 1
     assert "--method" in capsys.readouterr().err
+
+
+def test_f_tail_against_scipy():
+    """kincal's F survival function (no SciPy import in a check) against SciPy's, over the degrees of freedom a check
+    and a comparison use."""
+    from scipy.special import fdtrc
+
+    from kincal._stats import betainc, f_sf
+
+    rng = np.random.default_rng(0)
+    for d1, d2, x in zip(rng.uniform(0.5, 200, 300), rng.uniform(1, 5000, 300), rng.uniform(0, 20, 300) ** 2 / 10):
+        ref = fdtrc(d1, d2, x)  # down to 1e-100 to 1e-10; below (no test is decided there) to 1e-4
+        assert f_sf(x, d1, d2) == pytest.approx(ref, rel=1e-10 if ref > 1e-100 else 1e-4, abs=1e-300)
+    assert betainc(2.0, 3.0, 0.5) == pytest.approx(11 / 16, rel=1e-14)  # 1 − Σ_{j<2} C(4,j) 0.5⁴: closed form
+    assert f_sf(0.0, 3, 10) == 1.0

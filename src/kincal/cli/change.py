@@ -9,7 +9,7 @@ import kincal
 from kincal.identify import ALPHA, Calibrated, ChangeTest, check, compare
 
 from .common import EXIT_REFUSED, add_data_flags, check_paths, emit, positive_float
-from .history import add_store_flag, store_record
+from .history import add_store_flag, store_of, store_record
 
 
 def calibrated(path: str) -> Calibrated:
@@ -41,6 +41,8 @@ def lines_of(test: ChangeTest) -> list[str]:
 
 def record(args, test: ChangeTest, path: str, robot, inputs: list[str]) -> str | None:
     """The test in the calibration store when one is set, for the robot whose calibrated file is ``path``."""
+    if store_of(args) is None:
+        return None
     from kincal.history import Record, fingerprint, utc_time
 
     from .report import nominal_model  # noqa: PLC0415  (the report's module imports the observation commands')

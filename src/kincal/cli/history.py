@@ -28,7 +28,7 @@ def store_record(args, nominal, build) -> str | None:
     """Record in the calibration store, when one is set (flag, KINCAL_STORE or the config file), the record
     ``build(identity, command)`` makes for the robot whose nominal model is ``nominal`` (named by its name and
     --serial); what was done, in words. --serial without a store is refused (it would be ignored)."""
-    url = _store_of(args)
+    url = store_of(args)
     if url is None:
         return None
     from kincal.history import model_hash  # noqa: PLC0415  (hashing loads nothing heavy, the store does)
@@ -40,7 +40,7 @@ def store_record(args, nominal, build) -> str | None:
         (f", serial {identity.serial})" if identity.serial else ")")
 
 
-def _store_of(args) -> str | None:
+def store_of(args) -> str | None:
     """The store a recording command uses (None: none set); --serial without one is refused (it would be ignored)."""
     url = store_url(args.store)
     if url is None and args.serial is not None:
@@ -51,7 +51,7 @@ def _store_of(args) -> str | None:
 def history_for_report(args, nominal) -> dict | None:
     """The robot's history for its calibration report (rows of display texts, the plot, the store), when a store
     is set and holds records of the robot (named by the nominal model's name and --serial); None otherwise."""
-    url = _store_of(args)
+    url = store_of(args)
     if url is None:
         return None
     with open_store(url) as store:

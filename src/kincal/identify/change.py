@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._stats import f_sf
 from ..analysis.changes import Candidates, Repeat, candidates, frame_basis, without
 from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
@@ -161,8 +162,6 @@ def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = Fa
 def _judged(question: str, d: np.ndarray, U: np.ndarray, cands: Candidates, basis: np.ndarray | None, nu: int,
             dispersion: float, alpha: float, poses: int, notes: tuple[str, ...]) -> ChangeTest:
     """The two tests of the discrepancy d (3M,) whose covariance is U Uᵀ, frame directions ``basis`` taken out."""
-    from scipy.special import fdtrc  # noqa: PLC0415  (SciPy loaded when a test is made)
-
     if basis is not None:
         d, U = without(basis, d), without(basis, U)
     W, s, _ = np.linalg.svd(U, full_matrices=False)
@@ -174,9 +173,9 @@ def _judged(question: str, d: np.ndarray, U: np.ndarray, cands: Candidates, basi
     seen = norms > 1e-12 * max(float(norms.max()), 1e-300)
     z = np.where(seen, (G.T @ u) / np.where(seen, norms, 1.0), 0.0)
     dof, T = int(keep.sum()), float(u @ u)
-    p_omni = float(fdtrc(dof / dispersion, nu, T / dof))
-    p_dir = min(1.0, int(seen.sum()) * float(fdtrc(1.0, max(dof / dispersion, 1.0) if dispersion > 1 else nu,
-                                                   float(np.max(z**2)))))
+    p_omni = f_sf(T / dof, dof / dispersion, nu)
+    p_dir = min(1.0, int(seen.sum()) * f_sf(float(np.max(z**2)), 1.0, max(dof / dispersion, 1.0) if dispersion > 1
+                                            else nu))
     order = sorted(np.flatnonzero(seen), key=lambda k: -z[k] ** 2)[:SHOWN]  # stable: candidates' order on ties
     suspects = tuple(Suspect(cands.names[k], cands.kinds[k], cands.units[k], float(z[k] / norms[k]),
                              float(1.0 / norms[k]), float(z[k])) for k in order)
