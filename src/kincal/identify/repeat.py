@@ -96,11 +96,13 @@ def miss_model(robot: Robot, q: np.ndarray, res: np.ndarray, taken: float) -> tu
     if len(res) * 3 <= taken + robot.n_joints + 2:
         return None, (), 1.0
     Jq = robot.joint_jacobian(q)[:, :3, :]
-    lever = np.sum(Jq**2, axis=1)  # (N, n)
-    A = np.concatenate([np.full((len(q), 1), 3.0), lever], axis=1)
-    scale = np.where(A.max(axis=0) > 0, A.max(axis=0), 1.0)  # a joint that moves nothing (a covariate): 0
-    x, _ = nnls(A / scale, np.sum(res**2, axis=1))
-    x = x / scale * (3 * len(q) / (3 * len(q) - taken))
+    revolute = np.array([t == "revolute" for t in robot.joint_types])
+    lever = np.sum(Jq**2, axis=1) * revolute  # (N, n): one σ for every revolute joint's angle
+    A = np.stack([np.full(len(q), 3.0), lever.sum(axis=1)], axis=1)
+    scale = np.where(A.max(axis=0) > 0, A.max(axis=0), 1.0)  # no revolute joint: 0
+    x2, _ = nnls(A / scale, np.sum(res**2, axis=1))
+    x2 = x2 / scale * (3 * len(q) / (3 * len(q) - taken))
+    x = np.concatenate([x2[:1], np.where(revolute, x2[1], 0.0)])
     x[0] = max(x[0], FLOOR * float(np.mean(res**2)), 1e-18)  # never a pose without a miss (a singular whitening)
     w = np.sum(res**2, axis=1) / (x[0] + lever @ x[1:] / 3.0)
     disp = float(np.var(w) / 6.0) if len(w) > 2 else 1.0
