@@ -394,9 +394,11 @@ def test_history_plot_shows_the_records(tmp_path, kincal_main):
     records = history(tmp_path / "s.db")
     with open_store(str(tmp_path / "s.db")) as store:
         rows = store.records("cell-3")
-    fig = history_figure(rows)
+    assert {ax.get_title(loc="left") for ax in history_figure(rows).axes} == {"j2.a", "j1.theta", "position error"}
+    # the frame (base.x) left out, and j3.d: its 1 µm step is 0.04 σ; asked for, it is drawn
+    fig = history_figure(rows, ["j2.a", "j3.d", "j1.theta"])
     panels = {ax.get_title(loc="left"): ax for ax in fig.axes}
-    assert set(panels) == {"j2.a", "j3.d", "j1.theta", "position error"}  # the frame (base.x) left out
+    assert set(panels) == {"j2.a", "j3.d", "j1.theta", "position error"}
     cals = [r for r in records if r.kind == "calibration"]
     days = mdates.date2num([datetime.fromisoformat(r.time.replace("Z", "+00:00")) for r in cals])
     for name, factor in (("j2.a", 1e3), ("j3.d", 1e3), ("j1.theta", 1e3)):  # mm, mrad

@@ -21,9 +21,9 @@ def frame_names(records: Sequence[tuple[int, Record]]) -> set[str]:
 
 
 def changed_parameters(records: Sequence[tuple[int, Record]], parameters: Sequence[str] | None = None) -> list[str]:
-    """``parameters`` (checked: each in some calibration), else every robot parameter whose value differs from
-    the first calibration's in a later one, the measurement frame left out (it moves with the tracker), in the
-    order of the models."""
+    """``parameters`` (checked: each in some calibration), else every robot parameter that moved between two
+    consecutive calibrations by at least ``MOVED_Z`` σ (or at all, without a σ), the measurement frame left out (it
+    moves with the tracker), in the order of the models: a panel for a change within the noise says nothing."""
     cals = [r for _, r in calibrations(records)]
     order = list(dict.fromkeys(n for r in cals for n in r.parameters))
     if parameters is not None:
@@ -32,12 +32,8 @@ def changed_parameters(records: Sequence[tuple[int, Record]], parameters: Sequen
             raise ValueError(f"--parameters: {', '.join(unknown)} is in no calibration of this robot; its "
                              f"parameters: {', '.join(order) or 'none (no calibration recorded)'}")
         return list(parameters)
-    first: dict[str, float] = {}
-    for r in cals:
-        for n, v in r.parameters.items():
-            first.setdefault(n, v)
-    frame = frame_names(records)
-    return [n for n in order if n not in frame and any(r.parameters.get(n, first[n]) != first[n] for r in cals)]
+    moved = {m.name for m in moves(records) if not m.frame and (m.z is None or abs(m.z) >= MOVED_Z)}
+    return [n for n in order if n in moved]
 
 
 @dataclass(frozen=True)
