@@ -4,10 +4,10 @@
 Two calibrations of one unchanged robot on different poses differ by more than their noise σ: the part of what the
 model cannot describe (an unmodelled harmonic, a warm-up) that each pose set pushes into the parameters is not the
 same. The ordinary covariance σ̂²(JᵀJ)⁻¹ treats that part as white noise and is too small (on a simulated UR5 with a
-0.1 mm harmonic, a test on it calls 18–25 % of unchanged pairs changed at a 5 % level). The sandwich (robust)
+0.1 mm harmonic, a test of the parameters on it called 18–25 % of unchanged pairs changed at a 5 % level). The sandwich (robust)
 covariance A (Σ_s g_s g_sᵀ) A · n/(n − K), with A the fit's (JᵀJ + prior)⁻¹ and g_s = Σ J_rowᵀ r_row over the rows of
 sample s, is what the parameters vary by when the poses are drawn anew from the same region, whatever the residual's
-structure (White 1980; Freedman 2006): the same test on it calls 3.5 % of 200 unchanged pairs changed at 5 %.
+structure (White 1980; Freedman 2006): the same test on it called 3.5 % of 200 unchanged pairs changed at 5 %.
 
 Beside it, what a prediction at a new pose of the region misses by per axis (``sigma``, m: the position residual
 with the degrees of freedom the fit took back) and how much heavier than Gaussian that miss is (``dispersion``: the
@@ -86,11 +86,14 @@ def _position_samples(sets, positions: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def miss_model(robot: Robot, q: np.ndarray, res: np.ndarray, taken: float) -> tuple[float | None, tuple, float]:
-    """What a prediction misses by at a new pose: σ_p (m per axis) and σ_j per joint (rad or m), the miss per axis at
-    joints q being σ_p² + Σ_j σ_j² |∂p/∂q_j|² / 3 (isotropic: what the model leaves is not along the joints' motions
-    alone, a geometric fit absorbs part of each), fitted to the residuals res (N, 3) at q (N, n) by non-negative least
-    squares of their squared norms (``taken`` degrees of freedom given back); and the dispersion of the whitened
-    squared norms (their variance over 2·3, the Gaussian value; ≥ 1). None, (), 1 without enough samples."""
+    """What a prediction misses by at a new pose: σ_p (m per axis) and σ_q, one for every revolute joint's angle
+    (rad; 0 for other joints), the miss per axis at joints q being σ_p² + σ_q² Σ_revolute |∂p/∂q_j|² / 3
+    (isotropic: what the model leaves is not along the joints' motions alone, a geometric fit absorbs part of
+    each), fitted to the residuals res (N, 3) at q (N, n) by non-negative least squares of their squared norms
+    (``taken`` degrees of freedom given back). One σ_q, not one per joint: the residuals rarely tell the joints
+    apart, and a σ of 0 for a joint they could not see made a check designed on it trust poses it should not.
+    Also the dispersion of the whitened squared norms (their variance over 2·3, the Gaussian value; ≥ 1).
+    None, (), 1 without enough samples."""
     from scipy.optimize import nnls  # noqa: PLC0415  (SciPy is loaded by the fit already)
 
     if len(res) * 3 <= taken + robot.n_joints + 2:
