@@ -4,15 +4,17 @@
 Two calibrations of one unchanged robot on different poses differ by more than their noise σ: the part of what the
 model cannot describe (an unmodelled harmonic, a warm-up) that each pose set pushes into the parameters is not the
 same. The ordinary covariance σ̂²(JᵀJ)⁻¹ treats that part as white noise and is too small (on a simulated UR5 with a
-0.1 mm harmonic, a test of the parameters on it called 18–25 % of unchanged pairs changed at a 5 % level). The sandwich (robust)
-covariance A (Σ_s g_s g_sᵀ) A · n/(n − K), with A the fit's (JᵀJ + prior)⁻¹ and g_s = Σ J_rowᵀ r_row over the rows of
-sample s, is what the parameters vary by when the poses are drawn anew from the same region, whatever the residual's
-structure (White 1980; Freedman 2006): the same test on it called 3.5 % of 200 unchanged pairs changed at 5 %.
+0.1 mm harmonic, a test of the parameters on it called 18–25 % of unchanged pairs changed at a 5 % level). The
+sandwich (robust) covariance A (Σ_s g_s g_sᵀ) A · n/(n − K), with A the fit's (JᵀJ + prior)⁻¹ and
+g_s = Σ J_rowᵀ r_row over the rows of sample s, is what the parameters vary by when the poses are drawn anew from the
+same region, whatever the residual's structure (White 1980; Freedman 2006): the same test on it called 3.5 % of 200
+unchanged pairs changed at 5 %.
 
-Beside it, what a prediction at a new pose of the region misses by per axis (``sigma``, m: the position residual
-with the degrees of freedom the fit took back) and how much heavier than Gaussian that miss is (``dispersion``: the
-variance of each sample's squared whitened position residual over its Gaussian value, ≥ 1), so a check of a few
-poses states its false-alarm probability honestly.
+Beside it, what a prediction at a new pose of the region misses by (``sigma`` per axis, m, and ``joints``: the part
+that acts like joint-angle errors, growing with the lever arm, correlated over poses whose joints stand at near
+angles, ``length``) and how much heavier than Gaussian that miss is (``dispersion``: the variance of each sample's
+squared whitened position residual over its Gaussian value, ≥ 1), so a check of a few poses states its false-alarm
+probability honestly.
 """
 from __future__ import annotations
 
