@@ -1,6 +1,7 @@
 """Identification: calibration problems, residuals, solvers (LM, PSO), robust weighting, covariance."""
 from .applies import SCOPES, refuse_inapplicable
-from .change import ALPHA, Calibrated, ChangeTest, Suspect, check, compare
+from ..analysis.changes import ALPHA
+from .change import Calibrated, ChangeTest, Suspect, check, compare
 from .calibrate import RESIDUALS, calibrate, calibrate_sessions, evaluate, fit_observations, held_out_stats
 from .fitting import ABSOLUTE
 from .options import METHODS, PRIOR_CHOICES, FitOptions, PSOOptions

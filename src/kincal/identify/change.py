@@ -26,13 +26,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._stats import f_sf
-from ..analysis.changes import Candidates, Repeat, candidates, frame_basis, without
+from ..analysis.changes import ALPHA, Candidates, Repeat, candidates, frame_basis, without
 from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
 from ..units import DEG, MM
 from .registration import register_base
 
-ALPHA = 0.05
 REGION_POSES = 200
 MIN_CHECK_POSES = 4  # a re-fitted frame takes 6 of 3n rows
 RANK_RTOL = 1e-6  # singular values of the discrepancy's covariance factor below this × the largest: not seen
