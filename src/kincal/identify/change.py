@@ -35,6 +35,8 @@ from .registration import register_base
 REGION_POSES = 200
 MIN_CHECK_POSES = 4  # a re-fitted frame takes 6 of 3n rows
 RANK_RTOL = 1e-6  # singular values of the discrepancy's covariance factor below this × the largest: not seen
+RESOLUTION = 1e-8  # m: nor below this σ (0.01 µm, no instrument's): what is left of one calibration's frame
+# directions after another's are removed, and a model's second order, would otherwise look certain
 SHOWN = 5  # suspects kept in a result
 
 
@@ -118,10 +120,15 @@ class Calibrated:
         env = record["envelope"]
         return cls(robot, rep, np.asarray(env["lower"], float), np.asarray(env["upper"], float), label)
 
-    def factor(self, q: np.ndarray) -> np.ndarray:
-        """(3M, K) U with U Uᵀ the repeat covariance carried to the positions at q (M, n)."""
-        w, V = np.linalg.eigh(self.repeat.covariance)
-        J = self.robot.param_jacobian(q)[..., self.robot.params.indices(self.repeat.names)]
+    def factor(self, q: np.ndarray, refitted: bool = False) -> np.ndarray:
+        """(3M, K) U with U Uᵀ the repeat covariance carried to the positions at q (M, n); ``refitted``: the frame
+        is re-fitted, so its parameters' part (frame directions, removed anyway) is left out first: through another
+        calibration's slightly different frame it would leave remnants that look like tiny, certain directions."""
+        rep = self.repeat
+        if refitted:
+            rep = rep.restricted([n for n in rep.names if n not in set(self.robot.base_params())])
+        w, V = np.linalg.eigh(rep.covariance)
+        J = self.robot.param_jacobian(q)[..., self.robot.params.indices(rep.names)]
         return J.reshape(3 * len(q), -1) @ (V * np.sqrt(np.clip(w, 0.0, None)))
 
 
@@ -133,7 +140,7 @@ def compare(a: Calibrated, b: Calibrated, same_frame: bool = False, alpha: float
     _same_model(a, b)
     q = _region(a, b, poses)
     d = (b.robot.forward(q) - a.robot.forward(q)).ravel()
-    U = np.concatenate([a.factor(q), b.factor(q)], axis=1)
+    U = np.concatenate([a.factor(q, not same_frame), b.factor(q, not same_frame)], axis=1)
     basis = None if same_frame else frame_basis(b.robot, q)
     notes = [] if same_frame else [_frame_shift(a.robot, b.robot)]
     return _judged("compare", d, U, candidates(b.robot, q, basis), basis, a.repeat.dof + b.repeat.dof, 1.0, alpha,
@@ -152,7 +159,7 @@ def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = Fa
     d = (xyz - robot.forward(q)).ravel()
     w, V = np.linalg.eigh(cal.repeat.miss(robot, q))
     U = np.concatenate([np.kron(V * np.sqrt(np.clip(w, 0.0, None)), np.eye(3)), Calibrated(robot, cal.repeat, cal.lower, cal.upper,
-                                                              cal.label).factor(q)], axis=1)
+                                                              cal.label).factor(q, not same_frame)], axis=1)
     basis = None if same_frame else frame_basis(robot, q)
     return _judged("check", d, U, candidates(robot, q, basis), basis, cal.repeat.dof, cal.repeat.dispersion, alpha,
                    len(q), tuple(_outside(cal, q)))
@@ -164,7 +171,7 @@ def _judged(question: str, d: np.ndarray, U: np.ndarray, cands: Candidates, basi
     if basis is not None:
         d, U = without(basis, d), without(basis, U)
     W, s, _ = np.linalg.svd(U, full_matrices=False)
-    keep = s > s[0] * RANK_RTOL
+    keep = s > max(s[0] * RANK_RTOL, RESOLUTION)
     W, s = W[:, keep], s[keep]
     u = (W.T @ d) / s
     G = (W.T @ cands.G) / s[:, None]

@@ -33,10 +33,12 @@ FLOOR = 0.01  # the position part of the miss is at least this share of the mean
 
 
 def repeat_of(robot: Robot, sets, free, J: np.ndarray, r: np.ndarray, posterior: np.ndarray | None,
-              positions: np.ndarray) -> Repeat:
+              positions: np.ndarray, held: dict | None = None) -> Repeat:
     """The :class:`Repeat` record of a fit of the observation ``sets`` over the columns ``free`` of the calibrated
     ``robot``: J (M, K) and r (M,) whitened at the solution; ``posterior`` (K, K) the fit's (JᵀJ + prior)⁻¹ (None:
-    least squares); ``positions`` (M,) the residual rows in m (the miss is read off the point and pose samples)."""
+    least squares); ``positions`` (M,) the residual rows in m (the miss is read off the point and pose samples);
+    ``held``: parameters kept nominal because the data determine them too weakly, name -> the σ the data gave them
+    (m or rad): another calibration may fit them, so they join the covariance with that variance (a finite one)."""
     owner, n = owners(sets)
     lone = owner < 0  # a row of no sample (a known distance) is a sample of its own
     owner = np.where(lone, n + np.cumsum(lone) - 1, owner)
@@ -50,7 +52,10 @@ def repeat_of(robot: Robot, sets, free, J: np.ndarray, r: np.ndarray, posterior:
     q, res = _position_samples(sets, positions)
     sigma, joints, dispersion = miss_model(robot, q, res, K * 3 * len(q) / max(r.size, 1))
     length = miss_length(robot, q, res, sigma, joints) if sigma is not None else 0.0
-    return Repeat(tuple(free), 0.5 * (cov + cov.T), dof, sigma, joints, dispersion, length)
+    extra = {n: float(v) ** 2 for n, v in (held or {}).items() if np.isfinite(v) and n not in free}
+    cov = np.block([[0.5 * (cov + cov.T), np.zeros((K, len(extra)))],
+                    [np.zeros((len(extra), K)), np.diag(list(extra.values())).reshape(len(extra), len(extra))]])
+    return Repeat((*free, *extra), cov, dof, sigma, joints, dispersion, length)
 
 
 def miss_length(robot: Robot, q: np.ndarray, res: np.ndarray, sigma: float, joints: tuple) -> float:

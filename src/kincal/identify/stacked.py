@@ -374,10 +374,12 @@ def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit,
         model_error={k: v for k, v in error.items() if v > 0},
         outliers=outlier_samples(st.sets, r, o.thresholds), whitened_residual=r, evaluations=spent[1],
         message=fit.message if isinstance(fit, LMResult) else "prior learned", history=tuple(history),
-        free=tuple(free), options=o, repeat=_repeat(calibrated, st, fit, free))
+        free=tuple(free), options=o, repeat=_repeat(calibrated, st, fit, free, weak))
 
 
-def _repeat(robot: Robot, st, fit, free) -> Repeat:
-    """What a repeat calibration on other poses of the region would differ by (:mod:`kincal.identify.repeat`)."""
+def _repeat(robot: Robot, st, fit, free, weak: dict) -> Repeat:
+    """What a repeat calibration on other poses of the region would differ by (:mod:`kincal.identify.repeat`), the
+    parameters kept nominal because the data determine them too weakly with the σ the data gave them."""
     posterior = fit.covariance / fit.noise2 if isinstance(fit, RelevanceFit) else None
-    return repeat_of(robot, st.sets, free, fit.jacobian, fit.residual, posterior, fit.residual / st.inv_sigma)
+    return repeat_of(robot, st.sets, free, fit.jacobian, fit.residual, posterior, fit.residual / st.inv_sigma,
+                     weak)
