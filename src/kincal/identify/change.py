@@ -120,15 +120,16 @@ class Calibrated:
         env = record["envelope"]
         return cls(robot, rep, np.asarray(env["lower"], float), np.asarray(env["upper"], float), label)
 
-    def factor(self, q: np.ndarray, refitted: bool = False) -> np.ndarray:
-        """(3M, K) U with U Uᵀ the repeat covariance carried to the positions at q (M, n); ``refitted``: the frame
-        is re-fitted, so its parameters' part (frame directions, removed anyway) is left out first: through another
-        calibration's slightly different frame it would leave remnants that look like tiny, certain directions."""
-        rep = self.repeat
+    def factor(self, q: np.ndarray, refitted: bool = False, robot: Robot | None = None) -> np.ndarray:
+        """(3M, K) U with U Uᵀ the repeat covariance carried to the positions at q (M, n) by ``robot`` (default: the
+        calibrated one; a check's has its frame re-fitted); ``refitted``: the frame is re-fitted, so its
+        parameters' part (frame directions, removed anyway) is left out first: through another calibration's
+        slightly different frame it would leave remnants that look like tiny, certain directions."""
+        rep, robot = self.repeat, robot or self.robot
         if refitted:
-            rep = rep.restricted([n for n in rep.names if n not in set(self.robot.base_params())])
+            rep = rep.restricted([n for n in rep.names if n not in set(robot.base_params())])
         w, V = np.linalg.eigh(rep.covariance)
-        J = self.robot.param_jacobian(q)[..., self.robot.params.indices(rep.names)]
+        J = robot.param_jacobian(q)[..., robot.params.indices(rep.names)]
         return J.reshape(3 * len(q), -1) @ (V * np.sqrt(np.clip(w, 0.0, None)))
 
 
@@ -157,9 +158,9 @@ def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = Fa
                                f"pose); {len(q)} given. Measure the poses `kincal design CAL --check` chose")
     robot = cal.robot if same_frame else register_base(cal.robot, q, xyz)
     d = (xyz - robot.forward(q)).ravel()
-    w, V = np.linalg.eigh(cal.repeat.miss(robot, q))
-    U = np.concatenate([np.kron(V * np.sqrt(np.clip(w, 0.0, None)), np.eye(3)), Calibrated(robot, cal.repeat, cal.lower, cal.upper,
-                                                              cal.label).factor(q, not same_frame)], axis=1)
+    w, V = np.linalg.eigh(cal.repeat.miss(robot, q))  # per axis, the same for x, y, z: pose-major rows
+    U = np.concatenate([np.kron(V * np.sqrt(np.clip(w, 0.0, None)), np.eye(3)),
+                        cal.factor(q, not same_frame, robot)], axis=1)
     basis = None if same_frame else frame_basis(robot, q)
     return _judged("check", d, U, candidates(robot, q, basis), basis, cal.repeat.dof, cal.repeat.dispersion, alpha,
                    len(q), tuple(_outside(cal, q)))
@@ -182,7 +183,8 @@ def _judged(question: str, d: np.ndarray, U: np.ndarray, cands: Candidates, basi
     p_omni = f_sf(T / dof, dof / dispersion, nu)
     p_dir = min(1.0, int(seen.sum()) * f_sf(float(np.max(z**2)), 1.0, max(dof / dispersion, 1.0) if dispersion > 1
                                             else nu))
-    order = sorted(np.flatnonzero(seen), key=lambda k: -z[k] ** 2)[:SHOWN]  # stable: candidates' order on ties
+    rank = np.round(z**2 / max(float(np.max(z**2)), 1e-300), 9)  # ties (kincal.ties): the candidates' order
+    order = sorted(np.flatnonzero(seen), key=lambda k: -rank[k])[:SHOWN]
     suspects = tuple(Suspect(cands.names[k], cands.kinds[k], cands.units[k], float(z[k] / norms[k]),
                              float(1.0 / norms[k]), float(z[k])) for k in order)
     changed = min(p_omni, p_dir) < alpha / 2
