@@ -112,8 +112,14 @@ def _csv(path, meas, temperature=True):
 def test_cli_refuses_a_temperature_outside_the_range_naming_it(tmp_path, warm, capsys):
     _, train, held, rise = warm
     data, cal = _csv(tmp_path / "warm.csv", train.subset(np.arange(0, len(train), 2))), str(tmp_path / "cal.yaml")
+    store = str(tmp_path / "h.db")
     assert main(["calibrate", "ur5", data, "--covariate-cols", "temperature", "--error-model", "thermal:temperature",
-                 "-o", cal, "--json"]) == 0
+                 "-o", cal, "--json", "--store", store]) == 0
+    from kincal.history import open_store
+    with open_store(store) as st:  # the store keeps the covariate's range in the training data
+        (_, rec), = st.records("ur5")
+    used = train.q[::2, 6]
+    assert rec.covariates == {"temperature": pytest.approx((used.min(), used.max()), rel=1e-12)}
     hot = kincal.Measurements(np.column_stack([held.q[:, :6], np.full(len(held), 20.0 + 3 * rise)]), held.xyz,
                               held.joint_names)
     capsys.readouterr()

@@ -97,7 +97,7 @@ def cmd_calibrate(args) -> int:
                  if written else f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")
     stored = store_record(args, robot, lambda identity, command: calibration_record(
         res, identity, [fingerprint(p) for p in [*args.data, *args.test]], heldout=held.get("held_out"),
-        command=command))  # before the report, which shows the robot's history with this calibration in it
+        command=command, covariates=_covariate_ranges(res)))  # before the report: it shows the history with it
     text += f"\n{stored}" if stored else ""
     text += "".join("\n" + line for line in write_outputs(args, res, tests, {
         "robot": args.robot, "units": f"{args.length_unit}, {args.angle_unit}"}))
@@ -157,6 +157,13 @@ def held_out(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
     out += [f"  warning: {w}" for w in envelopes if w]
     out += observe.group_lines(res.per_set, "training ") + observe.group_lines([h for _, h in held], "held out ")
     return out, {"held_out": [h for _, h in held], "held_out_nominal": [b for b, _ in held]}
+
+
+def _covariate_ranges(res) -> dict:
+    """Each covariate column's range in the training data (as read: °C, K, s), name -> (low, high)."""
+    at = [res.robot.joint_names.index(n) for n in res.robot.covariate_names]
+    q = np.concatenate([m.q for m in res.data]) if res.data and at else np.zeros((0, 0))
+    return {n: (float(q[:, k].min()), float(q[:, k].max())) for n, k in zip(res.robot.covariate_names, at) if len(q)}
 
 
 def cmd_evaluate(args) -> int:
