@@ -6,7 +6,8 @@ tool position over the joint ranges). Each pair: two calibrations on different r
 15 µm noise), or a calibration and a 10-pose check chosen by `design --check` from 400 random poses. A change
 is a 0.01° joint zero (the robot reaches its joint 0.01° further) or a 0.1 mm link length.
 
-    python benchmarks/change_detection.py [PAIRS] [ROBOT]      # defaults: 40 ur5; ROBOT: ur5 or panda
+    python benchmarks/change_detection.py [PAIRS] [ROBOT] [CASES]   # defaults: 40 ur5 all; ROBOT: ur5 or panda;
+                                                                    # CASES e.g. none,2,3,link (joint numbers)
 Prints a table: rejection rate (false alarms for "none") and how often the changed parameter is named first.
 """
 import sys
@@ -83,6 +84,10 @@ def main():
     cases = [("none", None)] + [(f"joint {j + 1} zero +0.01°", ("zero", j, np.deg2rad(0.01)))
                                 for j in range(min(nominal.n_joints, 6))] + \
         [(f"{LINKS[robot]} +0.1 mm", ("param", LINKS[robot], 1e-4))]
+    if len(sys.argv) > 3:
+        wanted = sys.argv[3].split(",")
+        keys = ["none"] + [str(j + 1) for j in range(min(nominal.n_joints, 6))] + ["link"]
+        cases = [c for c, k in zip(cases, keys) if k in wanted]
     print(f"{robot}: {POSES} poses per calibration, {NOISE * 1e6:.0f} µm noise, {HARMONIC * 1e3:.1f} mm unmodelled "
           f"harmonic, {pairs} pairs per case")
     print(f"{'case':24s} {'test':8s} {'rejected':>9s} {'named first':>12s} {'s':>6s}")
