@@ -34,6 +34,7 @@ def test_a_dh_theta_is_the_joint_zero_and_what_a_frame_absorbs_is_not_seen(ur5):
     q = ur5.sample_joints(12, seed=1)
     free = candidates(ur5, q, None)
     assert "j2 zero" in free.names and "j2.theta" not in free.names  # the same direction: merged into the first
+    assert "j2.theta" in free.also[free.names.index("j2 zero")]  # and named beside it
     step = 1e-6  # the joint's zero by finite differences of the joint value: the candidate's column
     dq = np.zeros(6)
     dq[1] = step

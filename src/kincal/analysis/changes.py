@@ -109,12 +109,15 @@ class Candidates:
     """names -- one per candidate change ("j2 zero", "j3.a", "tool.z", "base.rx")
     kinds -- "joint zero", "link", "joint axis", "tool" or "frame" per candidate
     units -- "length" or "angle" per candidate (what its size is in)
-    G     -- (3M, C) the predicted positions' change per unit change of each (m per m or m per rad), pose-major"""
+    G     -- (3M, C) the predicted positions' change per unit change of each (m per m or m per rad), pose-major
+    also  -- per candidate, the names of the changes that act the same at these poses (merged into it), "−" before
+             one that acts the same with the opposite sign"""
 
     names: tuple[str, ...]
     kinds: tuple[str, ...]
     units: tuple[str, ...]
     G: np.ndarray
+    also: tuple[tuple[str, ...], ...] = ()
 
     def steps(self) -> np.ndarray:
         """(C,) the size of change of each candidate that matters (``STEPS``; a frame angle 0.01°)."""
@@ -137,9 +140,11 @@ def candidates(robot: Robot, q: np.ndarray, basis: np.ndarray | None) -> Candida
                         robot.param_jacobian(q)[..., robot.params.indices(params)].reshape(3 * len(q), -1)], axis=1)
     keep = [k for k, w in enumerate(what) if w != "frame" or basis is None]
     G = G[:, keep] if basis is None else without(basis, G[:, keep])
-    kept = _distinct(G)
+    kept, merged = _distinct(G)
     return Candidates(tuple(names[keep[k]] for k in kept), tuple(what[keep[k]] for k in kept),
-                      tuple(units[keep[k]] for k in kept), G[:, kept])
+                      tuple(units[keep[k]] for k in kept), G[:, kept],
+                      tuple(tuple(("" if sign > 0 else "−") + names[keep[j]] for j, sign in merged.get(k, ()))
+                            for k in kept))
 
 
 def _kind(name: str, unit: str, base: set) -> str:
@@ -150,15 +155,23 @@ def _kind(name: str, unit: str, base: set) -> str:
     return "link" if unit == "length" else "joint axis"
 
 
-def _distinct(G: np.ndarray) -> list[int]:
-    """The columns of G (in order) that move the positions at all and are not parallel to an earlier kept one."""
+def _distinct(G: np.ndarray) -> tuple[list[int], dict[int, list[tuple[int, float]]]]:
+    """The columns of G (in order) that move the positions at all and are not parallel to an earlier kept one, and
+    for each kept column the later ones merged into it (the same change under other names) with the sign of their
+    direction against it."""
     norms = np.sqrt(np.mean(G**2, axis=0))
     unit = G / np.where(norms > 0, norms, 1.0) / np.sqrt(G.shape[0])
     kept: list[int] = []
+    merged: dict[int, list[tuple[int, float]]] = {}
     for k in range(G.shape[1]):
-        if norms[k] > NEGLIGIBLE and all(abs(float(unit[:, k] @ unit[:, j])) < 1 - PARALLEL for j in kept):
+        if norms[k] <= NEGLIGIBLE:
+            continue
+        same = [j for j in kept if abs(float(unit[:, k] @ unit[:, j])) >= 1 - PARALLEL]
+        if same:
+            merged.setdefault(same[0], []).append((k, float(np.sign(unit[:, k] @ unit[:, same[0]]))))
+        else:
             kept.append(k)
-    return kept
+    return kept, merged
 
 
 def frame_basis(robot: Robot, q: np.ndarray) -> np.ndarray:

@@ -51,15 +51,17 @@ class Suspect:
     size: float
     sigma: float
     z: float
+    also: tuple[str, ...] = ()  # changes that act the same at these poses (a link's length in two frames' terms)
 
     def line(self) -> str:
         factor, unit = (MM, "mm") if self.unit == "length" else (DEG, "°")
-        return (f"{self.name} ({self.kind}): {self.size * factor:+.4f} {unit} ± {self.sigma * factor:.4f} "
+        same = f"; the same at these poses as {', '.join(self.also)}" if self.also else ""
+        return (f"{self.name} ({self.kind}{same}): {self.size * factor:+.4f} {unit} ± {self.sigma * factor:.4f} "
                 f"(z = {self.z:+.1f})")
 
     def to_dict(self) -> dict:
         return {"name": self.name, "kind": self.kind, "unit": self.unit, "size": self.size, "sigma": self.sigma,
-                "z": self.z}
+                "z": self.z, "also": list(self.also)}
 
 
 @dataclass(frozen=True)
@@ -186,7 +188,8 @@ def _judged(question: str, d: np.ndarray, U: np.ndarray, cands: Candidates, basi
     rank = np.round(z**2 / max(float(np.max(z**2)), 1e-300), 9)  # ties (kincal.ties): the candidates' order
     order = sorted(np.flatnonzero(seen), key=lambda k: -rank[k])[:SHOWN]
     suspects = tuple(Suspect(cands.names[k], cands.kinds[k], cands.units[k], float(z[k] / norms[k]),
-                             float(1.0 / norms[k]), float(z[k])) for k in order)
+                             float(1.0 / norms[k]), float(z[k]), cands.also[k] if cands.also else ())
+                     for k in order)
     changed = min(p_omni, p_dir) < alpha / 2
     rms = float(np.sqrt(np.sum(d**2) / poses))
     return ChangeTest(question, bool(changed), alpha, min(1.0, 2 * min(p_omni, p_dir)), T, dof, suspects, poses,
