@@ -132,3 +132,16 @@ def test_f_tail_against_scipy():
         assert f_sf(x, d1, d2) == pytest.approx(ref, rel=1e-10 if ref > 1e-100 else 1e-4, abs=1e-300)
     assert betainc(2.0, 3.0, 0.5) == pytest.approx(11 / 16, rel=1e-14)  # 1 − Σ_{j<2} C(4,j) 0.5⁴: closed form
     assert f_sf(0.0, 3, 10) == 1.0
+
+
+def test_the_two_column_nonnegative_fit_matches_scipy():
+    """The prediction miss's two variances by non-negative least squares, against SciPy's nnls."""
+    from scipy.optimize import nnls
+
+    from kincal.identify.repeat import nonnegative_2
+
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        A = np.abs(rng.standard_normal((30, 2))) * rng.uniform(0.1, 10, 2)
+        b = A @ rng.uniform(-1, 1, 2) + 0.3 * rng.standard_normal(30)
+        assert np.allclose(nonnegative_2(A, b), nnls(A, b)[0], atol=1e-10)
