@@ -93,14 +93,26 @@ def miss_covariance(Jq: np.ndarray, q: np.ndarray, revolute: np.ndarray, sigma: 
     per joint j, σ_j² k_j(q_ij − q_kj) (∂p/∂q_j at i · ∂p/∂q_j at k) / 3, k_j = exp(−2 sin²(Δ/2) / length²) for a
     revolute joint (periodic, smooth; length 0: δ), δ for a prismatic one. Positive semi-definite: each term is a
     product of a kernel and a Gram matrix."""
-    A = sigma**2 * np.eye(len(q))
+    return miss_from_parts(miss_parts(Jq, q, revolute, joints), sigma, length, len(q))
+
+
+def miss_parts(Jq: np.ndarray, q: np.ndarray, revolute: np.ndarray,
+               joints) -> list[tuple[np.ndarray | None, np.ndarray]]:
+    """Per joint with a σ: (sin²(Δq/2) (M, M), or None for a kernel δ; σ_j² · Gram / 3 (M, M)), what
+    :func:`miss_covariance` builds for any length (computed once when several lengths are tried)."""
+    out = []
     for j, s in enumerate(joints):
         if s > 0:
-            if length > 0 and revolute[j]:
-                K = np.exp(-2.0 * np.sin((q[:, j, None] - q[None, :, j]) / 2.0) ** 2 / length**2)
-            else:
-                K = np.eye(len(q))
-            A += s**2 * K * (Jq[:, :, j] @ Jq[:, :, j].T) / 3.0
+            half = np.sin((q[:, j, None] - q[None, :, j]) / 2.0) ** 2 if revolute[j] else None
+            out.append((half, s**2 * (Jq[:, :, j] @ Jq[:, :, j].T) / 3.0))
+    return out
+
+
+def miss_from_parts(parts, sigma: float, length: float, M: int) -> np.ndarray:
+    """:func:`miss_covariance` of M poses from its :func:`miss_parts`."""
+    A = sigma**2 * np.eye(M)
+    for half, gram in parts:
+        A += (np.exp(-2.0 * half / length**2) if length > 0 and half is not None else np.eye(M)) * gram
     return A
 
 
