@@ -35,9 +35,18 @@ def _functions():
                 yield path, node
 
 
+def _code_lines(f) -> int:
+    """A function's lines, its docstring left out (the numpydoc sections a reader needs are not code)."""
+    lines = f.end_lineno - f.lineno + 1
+    first = f.body[0]
+    if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(first.value.value, str):
+        lines -= first.end_lineno - first.lineno + 1
+    return lines
+
+
 def test_every_function_fits_on_a_screen():
-    long = [f"{p.relative_to(SRC)}:{f.name} ({f.end_lineno - f.lineno + 1} lines)" for p, f in _functions()
-            if f.end_lineno - f.lineno + 1 > MAX_LINES and f"{p.relative_to(SRC)}:{f.name}" not in LONG_FUNCTIONS]
+    long = [f"{p.relative_to(SRC)}:{f.name} ({_code_lines(f)} lines)" for p, f in _functions()
+            if _code_lines(f) > MAX_LINES and f"{p.relative_to(SRC)}:{f.name}" not in LONG_FUNCTIONS]
     assert not long, long
 
 
@@ -141,9 +150,13 @@ def _json_keys(obj, out):
 @pytest.mark.slow
 @pytest.mark.xdist_group("guo2024-demo")
 def test_papers_are_cited_not_nicknamed(tmp_path, capsys, guo2024_demo):
-    """No user-visible "seed" meaning a paper: README, --help of every command, bundled robot files,
-    JSON keys of the results."""
+    """No user-visible "seed" meaning a paper: README, the documentation's pages and examples, --help of every
+    command, bundled robot files, JSON keys of the results."""
     texts = {"README.md": (ROOT / "README.md").read_text()}
+    for page in sorted([*(ROOT / "docs").rglob("*.md"), *(ROOT / "docs").rglob("*.rst"),
+                        *(ROOT / "examples").glob("*.py")]):
+        if "_build" not in page.parts:
+            texts[str(page.relative_to(ROOT))] = page.read_text()
     parser = build_parser()
     texts["kincal --help"] = parser.format_help()
     subs = next(a for a in parser._actions if a.dest == "command")
