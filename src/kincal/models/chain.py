@@ -31,9 +31,30 @@ BLOCK = 2048  # configurations per block of the parameter Jacobian (~3 MB of int
 
 @dataclass(frozen=True)
 class Op:
-    """One elementary motion: ``motion`` R/T about/along local ``axis`` (0,1,2) by
-    ``offset + values[param]`` (+ ``q[:, joint]`` if ``joint >= 0``). ``param = -1``: a constant
-    motion by ``offset`` with no parameter (e.g. a URDF fixed joint, or aligning a joint axis)."""
+    """One elementary motion of a chain: a rotation about, or a translation along, one local axis.
+
+    The motion is by ``offset + values[param]``, plus ``q[:, joint]`` for a joint op.
+
+    Parameters
+    ----------
+    motion : str
+        "R" (a rotation, rad) or "T" (a translation, m).
+    axis : int
+        The axis of the current frame: 0 (x), 1 (y) or 2 (z).
+    param : int
+        Index of the parameter whose value the motion adds; -1 for a constant motion by ``offset`` alone
+        (e.g. a URDF fixed joint, or the alignment of a joint axis).
+    joint : int, optional
+        Index of the joint whose value the motion adds (default -1: no joint).
+    offset : float, optional
+        A constant added to the motion, rad or m (default 0).
+
+    Examples
+    --------
+    >>> from kincal.models import Op
+    >>> Op("R", 2, 1, joint=0)  # about z by values[1] + q[:, 0]
+    Op(motion='R', axis=2, param=1, joint=0, offset=0.0)
+    """
 
     motion: str
     axis: int
@@ -66,7 +87,43 @@ def compiled(ops: tuple[Op, ...], n_params: int, n_joints: int) -> "Chain":
 
 
 class Chain:
-    """Compiled op sequence for ``n_params`` parameters and ``n_joints`` joints (each joint in exactly one op)."""
+    """A compiled sequence of elementary motions: positions and analytic Jacobians, batched.
+
+    The ops are cut into segments, each joint op and the constant ops after it, so one call costs a few small
+    products per joint (see the module docstring).
+
+    Parameters
+    ----------
+    ops : tuple of Op
+        The motions from the base to the end point. The chain starts with a constant segment: at least one op
+        comes before the first joint op.
+    n_params : int
+        Length P of the value vectors the chain reads (parameters that no op uses get zero Jacobian columns).
+    n_joints : int
+        Number n of joints; each joint drives exactly one op.
+
+    Raises
+    ------
+    ModelError
+        When a joint drives no op or several, or a joint op has no parameter (its zero offset).
+
+    Examples
+    --------
+    A lift of ``values[0]`` along z, a turn of ``values[1] + q`` about z, then an arm of ``values[2]`` along x:
+
+    >>> import numpy as np
+    >>> from kincal.models import Chain, Op
+    >>> chain = Chain((Op("T", 2, 0), Op("R", 2, 1, joint=0), Op("T", 0, 2)), n_params=3, n_joints=1)
+    >>> values, q = np.array([0.1, 0.0, 0.5]), np.array([[0.0], [np.pi / 2]])
+    >>> np.round(chain.forward(values, q), 6) + 0.0
+    array([[0.5, 0. , 0.1],
+           [0. , 0.5, 0.1]])
+    >>> p, J = chain.forward_and_jacobian(values, q)
+    >>> np.round(J[1], 6) + 0.0  # rows x y z, columns the three values
+    array([[ 0. , -0.5,  0. ],
+           [ 0. ,  0. ,  1. ],
+           [ 1. ,  0. ,  0. ]])
+    """
 
     def __init__(self, ops: tuple[Op, ...], n_params: int, n_joints: int) -> None:
         joint_ops = [k for k, op in enumerate(ops) if op.joint >= 0]

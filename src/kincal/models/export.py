@@ -48,10 +48,43 @@ def _motion(motion: str, axis: int, value: float) -> np.ndarray:
 
 
 def joint_frames(robot: Robot, slide: bool = False) -> tuple[list[np.ndarray], np.ndarray]:
-    """Jₖ (4×4, z along joint k's axis, zero offset included) for every joint at q = 0, and the
-    flange frame F (the end of the chain without the tool point), both relative to the base frame.
-    With ``slide`` each Jₖ is moved along its axis by the translation along it that follows the
-    joint (a DH d): the link frames robot descriptions use (UR's shoulder_link at d1)."""
+    """The joint frames of a chain at zero joint values, and its flange frame.
+
+    Jₖ is the frame whose z axis is joint k's axis, with the joint's zero offset applied; F is the end of
+    the chain without the tool point. Both are relative to the robot's base frame (the base frame parameters
+    are left out). Any chain then reads J₁ Rz(q₁) (J₁⁻¹J₂) Rz(q₂) … Jₙ Rz(qₙ) (Jₙ⁻¹F).
+
+    Parameters
+    ----------
+    robot : Robot
+        A geometric serial chain (DH/MDH or URDF).
+    slide : bool, optional
+        Move each Jₖ along its axis by the translation along it that follows the joint (a DH d): the link
+        frames robot descriptions use, e.g. UR's shoulder_link at d1 (default False).
+
+    Returns
+    -------
+    frames : list of ndarray, shape (4, 4)
+        Jₖ for every joint, homogeneous transforms in the base frame, m.
+    flange : ndarray, shape (4, 4)
+        The flange frame F in the base frame, m.
+
+    Raises
+    ------
+    ModelError
+        When the robot has joint-value terms (an error model) or is not a serial chain.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.models import joint_frames
+    >>> frames, flange = joint_frames(kincal.load_robot("ur5"))
+    >>> len(frames), frames[0].shape
+    (6, (4, 4))
+    >>> np.round(frames[1][:3, 3], 6) + 0.0  # joint 2's axis passes d1 above the base, m
+    array([0.      , 0.      , 0.089159])
+    """
     _geometric_only(robot)
     if not isinstance(robot, ChainRobot):
         raise ModelError(f"robot '{robot.name}' ({robot.structure}) is not a serial chain: it has no URDF or UR form")
@@ -91,13 +124,53 @@ def _origin_tag(xyz, rpy) -> str:
 
 # ---- Universal Robots calibration file ------------------------------------------------------------
 def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
-    """The ``kinematics:`` file of UR's ROS driver for a 6-joint revolute chain, and a summary.
+    """Write the ``kinematics:`` calibration file of UR's ROS driver for a 6-joint revolute chain.
 
-    The six entries are each joint's origin (parent-to-joint transform at zero angle: x y z m,
-    roll pitch yaw rad) relative to UR's Base frame, which is the model's base frame turned by
-    ``base_yaw`` (rad) about z (0 for kincal's DH ur5, whose base is UR's Base; π for a URDF whose
-    base_link faces the other way). What lies beyond the wrist-3 frame that the file cannot hold
-    (the flange-to-TCP transform and the tool point) is returned in the summary for the controller.
+    The six entries (shoulder … wrist_3) are each joint's origin, the parent-to-joint transform at zero angle
+    (x y z m, roll pitch yaw rad), relative to UR's Base frame, which is the model's base frame turned by
+    ``base_yaw`` about z. What lies beyond the wrist-3 frame, which the file cannot hold, is returned in the
+    summary for the controller. The file is checked before it is returned: its numbers, rebuilt by the
+    driver's rules, must reproduce the model within 1e-9 m at random poses.
+
+    Parameters
+    ----------
+    robot : Robot
+        A geometric serial chain with 6 revolute joints (DH/MDH or URDF).
+    base_yaw : float, optional
+        Turn of UR's Base frame from the model's base frame about z, rad (default 0, right for kincal's DH
+        ur5, whose base is UR's Base; π for a URDF whose base_link faces the other way).
+
+    Returns
+    -------
+    text : str
+        The file's text, ending with its ``hash:`` line.
+    summary : dict
+        "flange_to_tcp" (4×4 nested list, m: the flange frame in the file's wrist-3 frame), "tool_point"
+        (3 floats, m, in the wrist-3 frame) and "base_yaw" (rad).
+
+    Raises
+    ------
+    ModelError
+        When the robot has joint-value terms, is not a serial chain, does not have 6 revolute joints, or the
+        file would not reproduce the model.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.models import ur_calibration
+    >>> text, summary = ur_calibration(kincal.load_robot("ur5"))
+    >>> for line in text.splitlines()[:8]:
+    ...     print(line)
+    kinematics:
+      shoulder:
+        x: 0
+        y: 0
+        z: 0.089159
+        roll: 0
+        pitch: 0
+        yaw: 0
+    >>> sorted(summary)
+    ['base_yaw', 'flange_to_tcp', 'tool_point']
     """
     frames, flange = joint_frames(robot, slide=True)  # the link frames UR's description puts on the axes
     if robot.n_joints != 6 or any(t != "revolute" for t in robot.joint_types):
@@ -150,11 +223,52 @@ def _check(robot: Robot, forward, what: str) -> None:
 # ---- URDF ----------------------------------------------------------------------------------------
 def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = None,
               joint_names: Sequence[str] | None = None) -> str:
-    """URDF of a calibrated chain. A URDF robot needs its ``source`` text: only the ``<origin>`` of
-    its moving joints changes (comments, ``<gazebo>``, ``<transmission>``… stay as they are). A DH/MDH
-    robot gets a new URDF (base_link, one link per joint, flange). The tool point (a probe, a ball the
-    calibration fitted) is a fixed joint and link named ``tool_link`` (default TOOL_LINK when it is
-    not zero). The result is read back and checked against the model, tool point included."""
+    """Write the URDF of a calibrated serial chain.
+
+    A URDF robot needs the text it was read from: only the ``<origin>`` of its moving joints changes (comments,
+    ``<gazebo>``, ``<transmission>`` … stay as they are). A DH/MDH robot gets a new URDF: base_link, one link
+    per joint, flange (a UR arm, its joints named as UR's, gets UR's link names and tool0). The tool point (a
+    probe, a ball the calibration fitted) becomes a fixed joint and link. The result is read back and checked
+    against the model, tool point included, within 1e-9 m at random poses.
+
+    Parameters
+    ----------
+    robot : Robot
+        A geometric serial chain (DH/MDH or URDF).
+    source : str, optional
+        For a URDF robot, the text of the URDF it was read from (required there; unused otherwise).
+    tool_link : str, optional
+        Name of the link that carries the tool point (default "tool_point" when the tool point is not zero,
+        else none).
+    joint_names : sequence of str, optional
+        DH/MDH robot: the URDF joints' names, one per joint, distinct (default: the robot file's
+        ``names:``, else the joints' own).
+
+    Returns
+    -------
+    str
+        The URDF text, lengths in m and angles in rad.
+
+    Raises
+    ------
+    ModelError
+        When the robot has joint-value terms or is not a serial chain, a URDF robot comes without its
+        ``source``, a name is not valid or taken, or the URDF would not reproduce the model.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.models import read_urdf, urdf_text
+    >>> robot = kincal.load_robot("scara")
+    >>> text = urdf_text(robot)
+    >>> text.splitlines()[2]
+    '<robot name="scara">'
+    >>> back = read_urdf(text, "scara.urdf", tip_link="tool_point")
+    >>> q = robot.sample_joints(5, seed=1)
+    >>> bool(np.allclose(back.forward(q), robot.forward(q), atol=1e-9))
+    True
+    """
     _geometric_only(robot)
     tool_link = tool_link_of(robot, tool_link)
     if isinstance(robot, URDFRobot):
@@ -284,13 +398,62 @@ FORMATS = ("urdf", "ur", "yaml")
 def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, tool_link: str | None = None,
                  base_yaw: float = 0.0, length_unit: str = "m", angle_unit: str = "rad",
                  joint_names: Sequence[str] | None = None) -> dict:
-    """Write ``robot`` as URDF, UR calibration file or kincal YAML (atomically, checked first).
+    """Write a robot as a URDF, a UR calibration file or a kincal robot YAML file.
 
-    fmt         -- "urdf", "ur" or "yaml"; default from the file name (.urdf, else kincal YAML)
-    source_path -- for a URDF robot, the URDF it was read from (default: the one it names)
-    joint_names -- URDF of a DH/MDH robot: the joints' names (default: the robot file's ``names:``)
-    Returns a summary: the format, the base frame the calibration found (where the tracker saw
-    the robot: not part of a robot description) and, for UR, what belongs on the controller.
+    The file is written atomically, and only after its kinematics have been checked against the model (see
+    :func:`urdf_text` and :func:`ur_calibration`).
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot (URDF and UR: a geometric serial chain).
+    path : str or path-like
+        The file to write.
+    fmt : str, optional
+        "urdf", "ur" or "yaml" (``FORMATS``); default from the file name: .urdf is a URDF, anything else
+        kincal YAML.
+    source_path : str or path-like, optional
+        URDF of a URDF robot: the URDF it was read from (default: the file its ``source`` names).
+    tool_link : str, optional
+        URDF: the link that carries the tool point (default "tool_point" when the tool point is not zero).
+    base_yaw : float, optional
+        UR: turn of UR's Base frame from the model's base frame about z, rad (default 0).
+    length_unit : str, optional
+        YAML: unit of the lengths in the file (default "m").
+    angle_unit : str, optional
+        YAML: unit of the angles in the file (default "rad").
+    joint_names : sequence of str, optional
+        URDF of a DH/MDH robot: the joints' names (default: the robot file's ``names:``).
+
+    Returns
+    -------
+    dict
+        A summary: "format", "base_frame" (the base parameters the calibration found, m and rad: where the
+        tracker saw the robot, not part of a robot description); URDF: "missing_limits" (joints without
+        velocity or effort limits) and "tool_link"; UR: "flange_to_tcp", "tool_point" and "base_yaw", what
+        belongs on the controller.
+
+    Raises
+    ------
+    ValueError
+        When ``fmt`` is not one of ``FORMATS``.
+    ModelError
+        When the robot has no form in that format, a source URDF is missing or not readable (or given for a
+        robot that does not come from a URDF), or the export would not reproduce the model.
+
+    Examples
+    --------
+    >>> import os
+    >>> import tempfile
+    >>> import kincal
+    >>> robot = kincal.load_robot("ur5")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     summary = kincal.export_robot(robot, os.path.join(folder, "ur5.urdf"))
+    ...     first = open(os.path.join(folder, "ur5.urdf")).readline().strip()
+    >>> summary["format"], summary["tool_link"], summary["missing_limits"], first
+    ('urdf', 'tool_point', [], '<?xml version="1.0"?>')
+    >>> summary["base_frame"]["base.x"]
+    0.0
     """
     fmt = fmt or ("urdf" if str(path).lower().endswith(".urdf") else "yaml")
     if fmt not in FORMATS:

@@ -49,11 +49,35 @@ def twist_exp(w: np.ndarray) -> np.ndarray:
 
 
 class ImplicitRobot(Robot):
-    """Base class: subclasses are frozen dataclasses that set ``name``, ``description``,
-    ``joint_space``, ``params`` (the first six being the base frame; with a pose as the unknown also
-    ``tool.x/y/z``), ``UNKNOWN`` ("position" or "pose") and implement the constraint methods below
-    (robot frame, SI units). A subclass with a closed-form inverse of its unknown implements
-    ``inverse_local`` and sets ``has_inverse = True`` (a position) or ``has_pose_inverse = True`` (a pose)."""
+    """A closed-loop robot defined by constraints f(x, q, s) = 0: the base class of parallel robots.
+
+    Forward kinematics solves the constraints for the platform's position (or pose) x by Newton's method; the
+    Jacobians follow from the implicit-function theorem (see the module docstring). Subclasses are frozen
+    dataclasses that set ``name``, ``description``, ``joint_space``, ``params`` (the first six being the base
+    frame; with a pose as the unknown also ``tool.x/y/z``), ``UNKNOWN`` ("position" or "pose") and implement the
+    constraint methods below (robot frame, SI units). A subclass with a closed-form inverse of its unknown
+    implements ``inverse_local`` and sets ``has_inverse = True`` (a position) or ``has_pose_inverse = True``
+    (a pose).
+
+    Attributes
+    ----------
+    UNKNOWN : str
+        "position" (3 coordinates, the default) or "pose" (6: a rotation and a translation).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> robot = kincal.load_robot("puu3")
+    >>> isinstance(robot, kincal.ImplicitRobot), robot.UNKNOWN, robot.has_inverse
+    (True, 'position', True)
+    >>> q = robot.sample_joints(4, seed=1)
+    >>> p, J = robot.forward_and_jacobian(q)
+    >>> p.shape, J.shape
+    ((4, 3), (4, 3, 11))
+    >>> bool(np.allclose(robot.inverse(p), q, atol=1e-9))
+    True
+    """
 
     UNKNOWN: ClassVar[str] = "position"
 

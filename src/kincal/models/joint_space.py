@@ -17,9 +17,42 @@ JOINT_TYPES = ("revolute", "prismatic", "covariate")  # a covariate: an input af
 
 @dataclass(frozen=True, eq=False, init=False)
 class JointSpace:
-    """The joints a user commands: names, types ("revolute" or "prismatic") and limits (rad or m;
-    ±inf for an unlimited joint), all immutable; then any covariate inputs (type "covariate": a
-    temperature, a time, in the column's unit, limited to the range a term was fitted on)."""
+    """The joints a user commands, then any covariate inputs: names, types and limits, all immutable.
+
+    A robot's inputs q (N, n) have one column per entry, in this order. The limits are stored as read-only
+    arrays.
+
+    Parameters
+    ----------
+    names : iterable of str
+        Distinct, non-empty names without a dot.
+    types : iterable of str
+        Per entry "revolute" or "prismatic" (a joint), or "covariate" (an input after the joints: a
+        temperature, a time).
+    lower : array_like, shape (n,)
+        Lower limits: rad (revolute), m (prismatic), the column's unit (covariate, limited to the range a
+        term was fitted on); -inf for an unlimited joint.
+    upper : array_like, shape (n,)
+        Upper limits in the same units, each above its lower limit; +inf for an unlimited joint.
+
+    Raises
+    ------
+    ModelError
+        When the four do not have one entry per joint, a name is repeated, empty or has a dot, a type is
+        unknown, or a lower limit is not below its upper limit.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.models import JointSpace
+    >>> space = JointSpace(["j1", "slide"], ["revolute", "prismatic"], [-np.pi, 0.0], [np.pi, 0.2])
+    >>> len(space), space.names, space.types
+    (2, ('j1', 'slide'), ('revolute', 'prismatic'))
+    >>> space.upper
+    array([3.14159265, 0.2       ])
+    >>> space.lower.flags.writeable
+    False
+    """
 
     names: tuple[str, ...]
     types: tuple[str, ...]

@@ -14,11 +14,39 @@ KINDS = ("length", "angle", "ratio")  # ratio: a dimensionless factor (an actuat
 
 @dataclass(frozen=True, eq=False, init=False)
 class Parameters:
-    """Ordered parameter vector.
+    """An ordered, immutable vector of named kinematic parameters in SI units.
 
-    names  -- stable names such as ``j2.a``, ``base.rz``, ``tool.z``
-    values -- (P,) SI values (m, rad), read-only
-    kinds  -- ``"length"`` or ``"angle"`` per entry
+    Every entry has a stable name, a value and a kind; the values are stored as a read-only float array, and a
+    change makes new Parameters (:meth:`replace`).
+
+    Parameters
+    ----------
+    names : iterable of str
+        Distinct, stable names such as ``j2.a``, ``base.rz``, ``tool.z``.
+    values : array_like, shape (P,)
+        The values in SI units: m for a length, rad for an angle, 1 for a ratio; all finite.
+    kinds : iterable of str
+        The kind of each entry: ``"length"``, ``"angle"`` or ``"ratio"`` (a dimensionless factor such as an
+        actuator's scale, 1 nominal).
+
+    Raises
+    ------
+    ModelError
+        When the three do not have the same length, a name is given twice, a kind is unknown or a value is not
+        finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.models import Parameters
+    >>> p = Parameters(["j1.a", "j1.alpha", "tool.z"], [0.3, np.pi / 2, 0.05], ["length", "angle", "length"])
+    >>> len(p), p["j1.a"], p.index("tool.z"), "j1.a" in p
+    (3, 0.3, 2, True)
+    >>> p.is_length()
+    array([ True, False,  True])
+    >>> longer = p.replace({"tool.z": 0.1})
+    >>> longer["tool.z"], p["tool.z"], longer == p
+    (0.1, 0.05, False)
     """
 
     names: tuple[str, ...]
@@ -64,12 +92,14 @@ class Parameters:
             raise ModelError(f"unknown parameter '{name}'; this model has: {', '.join(self.names)}") from None
 
     def indices(self, names: Iterable[str]) -> np.ndarray:
+        """Positions (int array) of ``names``; ModelError for a name that is not a parameter."""
         return np.array([self.index(n) for n in names], dtype=int)
 
     def __getitem__(self, name: str) -> float:
         return float(self.values[self.index(name)])
 
     def as_dict(self) -> dict[str, float]:
+        """The values by name, as floats (SI units)."""
         return {n: float(v) for n, v in zip(self.names, self.values)}
 
     def replace(self, values: Mapping[str, float] | Sequence[float] | np.ndarray) -> "Parameters":

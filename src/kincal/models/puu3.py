@@ -41,7 +41,55 @@ def puu3_names(extended: bool) -> tuple[list[str], list[str]]:
 
 @dataclass(frozen=True, eq=False, repr=False)
 class PUU3Robot(ImplicitRobot):
-    """3-PUU translational parallel robot; joints are the three slider heights h1..h3 (m)."""
+    """The 3-PUU translational parallel robot; its joints are the three slider heights h1, h2, h3 (m).
+
+    Three legs, each a slider on a rail and a link to the platform, which only translates; the measured point
+    is the platform's position, found from the three leg constraints (see the module docstring). Build one with
+    :meth:`PUU3Robot.build` or load "puu3" / "puu3-extended".
+
+    Parameters
+    ----------
+    name : str
+        The robot's name.
+    params : Parameters
+        The base frame, ``r R L1 L2 L3`` (platform radius, base radius, link lengths, m) and, when
+        ``extended``, per leg ``leg<i>.dR .dr .a .b .h0 .tx .ty``, in that order; SI units.
+    h_lower : float
+        Lower limit of every slider height, m.
+    h_upper : float
+        Upper limit of every slider height, m, above ``h_lower``.
+    extended : bool, optional
+        Whether the parameters include each leg's radius, angle, zero and rail-tilt offsets (default False:
+        the paper's five).
+    description : str, optional
+        Free text (default "").
+    phi : tuple of 3 float, optional
+        The legs' nominal directions φᵢ, rad (default 0°, 120°, 240°).
+
+    Attributes
+    ----------
+    joint_space : JointSpace
+        The three prismatic sliders h1, h2, h3 with the limits above.
+
+    Raises
+    ------
+    ModelError
+        When the parameters do not match the layout, or ``h_lower`` is not below ``h_upper``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.models import PUU3Robot
+    >>> robot = PUU3Robot.build()
+    >>> robot.joint_names, robot.params.names[6:], robot.structure
+    (('h1', 'h2', 'h3'), ('r', 'R', 'L1', 'L2', 'L3'), 'puu3 (implicit)')
+    >>> q = robot.sample_joints(3, seed=1)
+    >>> p = robot.forward(q)  # the platform's positions, m
+    >>> bool(np.allclose(robot.inverse(p), q, atol=1e-9))  # the closed-form inverse gives the sliders back
+    True
+    >>> PUU3Robot.build(extended=True).n_params
+    32
+    """
 
     name: str
     params: Parameters
@@ -66,6 +114,37 @@ class PUU3Robot(ImplicitRobot):
     def build(cls, name: str = "puu3", r: float = 0.1, R: float = 0.2, L: float = 0.35,
               h_range: tuple[float, float] = (0.380, 0.835), extended: bool = False,
               values: dict | None = None, description: str = "") -> "PUU3Robot":
+        """Build a 3-PUU robot from its nominal dimensions.
+
+        Parameters
+        ----------
+        name : str, optional
+            The robot's name (default "puu3").
+        r : float, optional
+            Platform radius, m (default 0.1).
+        R : float, optional
+            Base radius, m (default 0.2).
+        L : float, optional
+            Length of every link, m (default 0.35).
+        h_range : tuple of 2 float, optional
+            Lower and upper slider limits, m (default (0.380, 0.835)).
+        extended : bool, optional
+            Include each leg's offsets (default False).
+        values : dict, optional
+            Other parameter values by name, SI units (default: all 0 but r, R and the link lengths).
+        description : str, optional
+            Free text (default "").
+
+        Returns
+        -------
+        PUU3Robot
+            The robot, its base frame at the origin.
+
+        Raises
+        ------
+        ModelError
+            When ``values`` names an unknown parameter, or the limits are not valid.
+        """
         names, kinds = puu3_names(extended)
         v = dict.fromkeys(names, 0.0)
         v.update({"r": r, "R": R, "L1": L, "L2": L, "L3": L})

@@ -46,10 +46,39 @@ ParamValues = Mapping[str, float] | Sequence[float] | np.ndarray | Parameters
 
 
 class Robot(Joints, ABC):
-    """A robot with named joints, joint limits and a named parameter vector (see the module
-    docstring for the whole interface). Subclasses are frozen dataclasses that set ``name``,
-    ``description``, ``params`` and ``joint_space`` and implement the two kinematic hooks. Units are
-    SI (m, rad)."""
+    """A robot with named joints, joint limits and a named parameter vector: the interface of every model.
+
+    Everything a robot can do is declared here (see the module docstring for the whole interface), so callers
+    never probe for an attribute; a model that lacks an ability says so with a ModelError. Subclasses are frozen
+    dataclasses that set ``name``, ``description``, ``params`` and ``joint_space`` and implement the two batched
+    kinematic hooks ``_forward_and_jacobian`` and ``_joint_jacobian``. Units are SI (m, rad).
+
+    Attributes
+    ----------
+    name : str
+        The robot's name (e.g. "ur5").
+    description : str
+        Free text from the robot file.
+    params : Parameters
+        The named parameters (P,), SI units.
+    joint_space : JointSpace
+        Names, types and read-only limits of the n joints (and any covariate inputs after them).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> robot = kincal.load_robot("ur5")
+    >>> robot.name, robot.n_joints, robot.n_params, robot.structure
+    ('ur5', 6, 35, 'dh')
+    >>> robot.joint_names
+    ('j1', 'j2', 'j3', 'j4', 'j5', 'j6')
+    >>> q = robot.sample_joints(10, seed=1)
+    >>> robot.forward(q).shape, robot.param_jacobian(q).shape, robot.joint_jacobian(q).shape
+    ((10, 3), (10, 3, 35), (10, 3, 6))
+    >>> bool(robot.feasible(q).all())
+    True
+    """
 
     name: str
     description: str
@@ -113,8 +142,25 @@ class Robot(Joints, ABC):
 
     def forward_and_jacobian(self, q: np.ndarray, values: np.ndarray | None = None,
                              jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
-        """Tool positions (N, 3) m and the parameter Jacobian (N, 3, P) (None unless ``jacobian``)
-        in one pass; ``values`` (P,) default to the robot's own."""
+        """Tool positions and their parameter Jacobian in one pass.
+
+        Parameters
+        ----------
+        q : ndarray, shape (N, n)
+            Joint values, rad (m for a prismatic joint); a single (n,) vector gives unbatched results.
+        values : ndarray, shape (P,), optional
+            Parameter values, SI units (default: the robot's own).
+        jacobian : bool, optional
+            Compute the Jacobian too (default True).
+
+        Returns
+        -------
+        p : ndarray, shape (N, 3)
+            Positions of the tool point in the world frame, m.
+        J : ndarray, shape (N, 3, P), or None
+            ∂p/∂parameters (m per parameter unit), columns in the order of ``params.names``; None unless
+            ``jacobian``.
+        """
         return self._batched(self._forward_and_jacobian, q, values, jacobian)
 
     def frame_and_rates(self, q: np.ndarray, values: np.ndarray | None = None
@@ -125,15 +171,90 @@ class Robot(Joints, ABC):
         return self._batched(self._frame_and_rates, q, values)
 
     def forward(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
-        """Tool point position (N, 3) in m for joint values q (N, n)."""
+        """Forward kinematics: the tool point's position in the world frame.
+
+        Parameters
+        ----------
+        q : ndarray, shape (N, n)
+            Joint values, rad (m for a prismatic joint); a single (n,) vector gives one (3,) position.
+        values : ndarray, shape (P,), optional
+            Parameter values, SI units (default: the robot's own).
+
+        Returns
+        -------
+        ndarray, shape (N, 3)
+            Positions of the tool point in the world frame, m.
+
+        Raises
+        ------
+        ModelError
+            When q does not have one column per joint, ``values`` has the wrong size, or (a closed chain) a
+            configuration does not assemble.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import kincal
+        >>> robot = kincal.load_robot("ur5")
+        >>> np.round(robot.forward(np.zeros(6)), 6).tolist()
+        [-0.81725, -0.22245, -0.005401]
+        >>> robot.forward(np.zeros((4, 6))).shape
+        (4, 3)
+        """
         return self.forward_and_jacobian(q, values, jacobian=False)[0]
 
     def param_jacobian(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
-        """d position / d parameters, (N, 3, P); columns in the order of ``params.names``."""
+        """The parameter Jacobian: derivatives of the tool point's position by every parameter.
+
+        Parameters
+        ----------
+        q : ndarray, shape (N, n)
+            Joint values, rad (m for a prismatic joint); a single (n,) vector gives one (3, P) Jacobian.
+        values : ndarray, shape (P,), optional
+            Parameter values at which to differentiate, SI units (default: the robot's own).
+
+        Returns
+        -------
+        ndarray, shape (N, 3, P)
+            ∂p/∂parameters: m/m for a length, m/rad for an angle; columns in the order of ``params.names``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import kincal
+        >>> robot = kincal.load_robot("ur5")
+        >>> q = robot.sample_joints(3, seed=1)
+        >>> J = robot.param_jacobian(q)
+        >>> J.shape
+        (3, 3, 35)
+        >>> J[:, :, robot.params.index("base.x")].tolist()  # the base frame's x moves every pose along x
+        [[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+
+        A column against a finite difference:
+
+        >>> k, h = robot.params.index("j2.a"), 1e-7
+        >>> v = robot.params.values.copy()
+        >>> v[k] += h
+        >>> bool(np.allclose((robot.forward(q, v) - robot.forward(q)) / h, J[:, :, k], atol=1e-6))
+        True
+        """
         return self.forward_and_jacobian(q, values)[1]
 
     def joint_jacobian(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
-        """d position / d joint values, (N, 3, n)."""
+        """The joint Jacobian: derivatives of the tool point's position by the joint values.
+
+        Parameters
+        ----------
+        q : ndarray, shape (N, n)
+            Joint values, rad (m for a prismatic joint); a single (n,) vector gives one (3, n) Jacobian.
+        values : ndarray, shape (P,), optional
+            Parameter values, SI units (default: the robot's own).
+
+        Returns
+        -------
+        ndarray, shape (N, 3, n)
+            ∂p/∂q: m/rad for a revolute joint, m/m for a prismatic one.
+        """
         return self._batched(self._joint_jacobian, q, values)
 
     def forward_jacobians(self, q: np.ndarray, values: np.ndarray | None = None
@@ -211,8 +332,33 @@ class Robot(Joints, ABC):
         return v
 
     def with_params(self: R, values: ParamValues) -> R:
-        """A new robot with changed parameter values: by name (a mapping), a full (P,) vector, or
-        Parameters of the same names and kinds."""
+        """A copy of the robot with changed parameter values (the robot itself is never changed).
+
+        Parameters
+        ----------
+        values : mapping of str to float, ndarray of shape (P,), or Parameters
+            New values by name (the others keep theirs), a full vector, or Parameters of the same names and
+            kinds; SI units.
+
+        Returns
+        -------
+        Robot
+            A robot of the same type and structure with the new values.
+
+        Raises
+        ------
+        ModelError
+            When a name is unknown, the vector has the wrong size, the Parameters' names or kinds differ, or
+            the model refuses the values.
+
+        Examples
+        --------
+        >>> import kincal
+        >>> robot = kincal.load_robot("ur5")
+        >>> longer = robot.with_params({"j2.a": -0.426})
+        >>> longer.params["j2.a"], robot.params["j2.a"], type(longer).__name__
+        (-0.426, -0.425, 'SerialRobot')
+        """
         new = values if isinstance(values, Parameters) else self.params.replace(values)
         if (new.names, new.kinds) != (self.params.names, self.params.kinds):
             raise ModelError(f"robot '{self.name}': the new parameters must have the same names and kinds")
@@ -256,13 +402,59 @@ class Robot(Joints, ABC):
         return ()
 
     def base_transform(self) -> tuple[np.ndarray, np.ndarray]:
-        """Base frame as (R (3,3), t (3,) m): world = R @ robot + t, from the base parameters x y z (m)
-        and rx ry rz (rad, R = Rz(rz) Ry(ry) Rx(rx))."""
+        """The base frame: where the robot stands in the world (measurement) frame.
+
+        From the base parameters x y z (m) and rx ry rz (rad): R = Rz(rz) Ry(ry) Rx(rx), and a point p in the
+        robot's frame is R @ p + t in the world frame.
+
+        Returns
+        -------
+        R : ndarray, shape (3, 3)
+            The base frame's rotation.
+        t : ndarray, shape (3,)
+            The base frame's origin in the world frame, m.
+
+        Raises
+        ------
+        ModelError
+            When the model has no base frame.
+        """
         x, y, z, rx, ry, rz = (self.params[n] for n in self._base_names())
         return rot_zyx(rz, ry, rx), np.array([x, y, z])
 
     def with_base_transform(self: R, R_: np.ndarray, t: np.ndarray) -> R:
-        """A copy whose base frame is (R_ (3,3), t (3,) m)."""
+        """A copy of the robot standing at another base frame.
+
+        Parameters
+        ----------
+        R_ : ndarray, shape (3, 3)
+            The new base frame's rotation (a point p in the robot's frame is ``R_ @ p + t`` in the world).
+        t : ndarray, shape (3,)
+            The new base frame's origin in the world frame, m.
+
+        Returns
+        -------
+        Robot
+            The copy, its base parameters x y z rx ry rz set from ``R_`` and ``t``.
+
+        Raises
+        ------
+        ModelError
+            When the model has no base frame.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import kincal
+        >>> robot = kincal.load_robot("ur5")
+        >>> turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # 90° about z
+        >>> moved = robot.with_base_transform(turn, [1.0, 2.0, 0.5])
+        >>> [round(moved.params[n], 6) for n in ("base.x", "base.y", "base.z", "base.rz")]
+        [1.0, 2.0, 0.5, 1.570796]
+        >>> q = robot.sample_joints(3, seed=1)
+        >>> bool(np.allclose(moved.forward(q), robot.forward(q) @ turn.T + [1.0, 2.0, 0.5]))
+        True
+        """
         names = self._base_names()
         rz, ry, rx = zyx_from_matrix(np.asarray(R_, dtype=float))
         x, y, z = (float(c) for c in t)

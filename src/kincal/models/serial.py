@@ -39,8 +39,50 @@ ROW_PARAMS = (("theta", "angle"), ("d", "length"), ("a", "length"), ("alpha", "a
 
 @dataclass(frozen=True)
 class Joint:
-    """Structure of one joint: name, type, whether it carries β, limits (rad or m), and the mass (kg)
-    and centre of mass (m, in the link frame at the end of the joint's row) of the link it moves."""
+    """The structure of one joint (one row) of a DH/MDH chain; its geometry is in the robot's parameters.
+
+    Parameters
+    ----------
+    name : str
+        The joint's name, non-empty and without a dot (parameter names are ``<name>.theta`` …).
+    type : str, optional
+        "revolute" (default), "prismatic", or "fixed" (a row without a joint, e.g. a tool row).
+    beta : bool, optional
+        Whether the row carries Hayati's β tilt ``<name>.beta`` (default False).
+    lower : float, optional
+        Lower joint limit, rad (m for a prismatic joint), finite (default -π).
+    upper : float, optional
+        Upper joint limit in the same unit, above ``lower`` (default π).
+    mass : float, optional
+        Mass of the link the joint moves, kg, 0 or more (default 0: no gravity load).
+    com : tuple of 3 float, optional
+        Centre of mass of that link in the link frame at the end of the joint's row, m (default the origin).
+    velocity : float, optional
+        Velocity limit, rad/s (m/s), 0 or more (default 0: not given).
+    effort : float, optional
+        Effort limit, N·m (N), 0 or more (default 0: not given).
+    export_name : str, optional
+        The joint's name in the robot stack (URDF, ROS), e.g. "shoulder_pan_joint" (default "": its own name).
+    pulses : float, optional
+        The controller's encoder pulses per degree (per mm for a prismatic joint), signed by its counting
+        direction (default 0: not given).
+
+    Raises
+    ------
+    ModelError
+        When the name is empty or has a dot, the type is unknown, the limits are not finite with lower < upper,
+        or a mass, centre of mass, velocity, effort or pulse count is not valid.
+
+    Examples
+    --------
+    >>> from kincal.models import Joint
+    >>> j = Joint("j1")
+    >>> j.type, j.beta, round(j.lower, 6), round(j.upper, 6), j.mass
+    ('revolute', False, -3.141593, 3.141593, 0.0)
+    >>> slide = Joint("z", type="prismatic", lower=0.0, upper=0.2)
+    >>> slide.type, slide.upper
+    ('prismatic', 0.2)
+    """
 
     name: str
     type: str = "revolute"
@@ -110,10 +152,20 @@ def _param_names(joints: Sequence[Joint]) -> tuple[list[str], list[str]]:
 
 
 class ChainRobot(Robot):
-    """A robot computed by a :class:`~kincal.models.chain.Chain` of elementary motions that starts
-    with the standard base frame (``base.x`` … ``base.rz``) and ends with the tool point
-    (``tool.x/y/z``): DH/MDH chains and URDF chains share their kinematics, base handling and
-    gravity loads."""
+    """A robot computed by a :class:`~kincal.models.chain.Chain` of elementary motions.
+
+    The chain starts with the standard base frame (``base.x`` … ``base.rz``) and ends with the tool point
+    (``tool.x/y/z``): DH/MDH chains (:class:`SerialRobot`) and URDF chains (:class:`URDFRobot`) share their
+    kinematics, base handling and gravity loads. Not built directly: a subclass is a frozen dataclass that sets
+    ``joints`` and compiles its ``chain``.
+
+    Attributes
+    ----------
+    joints : tuple
+        The chain's rows (DH) or joints (URDF): name, type, limits, mass and centre of mass each.
+    chain : Chain
+        The compiled op sequence (read-only: exports walk it).
+    """
 
     joints: tuple  # the chain's rows (DH) or joints (URDF): name, type, limits, mass and com each
     chain: Chain  # the compiled op sequence (read-only use: exports walk it)
@@ -210,7 +262,57 @@ class ChainRobot(Robot):
 
 @dataclass(frozen=True, eq=False, repr=False)
 class SerialRobot(ChainRobot):
-    """An open serial chain. Build with :meth:`SerialRobot.build` or load from YAML."""
+    """An open serial chain in standard or modified DH, with Hayati's β, a base frame and a tool point.
+
+    Build one with :meth:`SerialRobot.build` or load it from a robot file (:func:`load_robot`); the constructor
+    takes Parameters already laid out as the joints ask (see the module docstring for the names).
+
+    Parameters
+    ----------
+    name : str
+        The robot's name.
+    convention : str
+        "dh" (Craig's Rz(θ) Tz(d) Tx(a) Rx(α)) or "mdh" (Rx(α) Tx(a) Rz(θ) Tz(d)).
+    joints : tuple of Joint
+        The rows of the chain, base to tip, with distinct names; at least one is not fixed.
+    params : Parameters
+        The base frame, each row's θ d a α [β] and the tool point, in that order, SI units (m, rad).
+    description : str, optional
+        Free text (default "").
+    frames : tuple of (str, tuple of 6 float), optional
+        Named frames of the robot description (e.g. ROS ``base_link``): (name, (x, y, z m, rx, ry, rz rad)),
+        the frame's pose in the robot's base frame (default none).
+
+    Attributes
+    ----------
+    joint_space : JointSpace
+        The moving joints' names, types and limits (set from ``joints``).
+    chain : Chain
+        The compiled op sequence.
+
+    Raises
+    ------
+    ModelError
+        When the convention is unknown, there is no joint or no moving joint, joint names repeat, the parameter
+        names do not match the joints, or a named frame is not valid.
+
+    Examples
+    --------
+    A planar arm of two links, 0.4 m and 0.3 m, with a tool point 0.05 m along the last link:
+
+    >>> import numpy as np
+    >>> from kincal.models import Joint, SerialRobot
+    >>> arm = SerialRobot.build("planar", "dh", [Joint("j1"), Joint("j2")], [{"a": 0.4}, {"a": 0.3}],
+    ...                         tool={"x": 0.05})
+    >>> arm
+    SerialRobot(name='planar', joints=2, params=17)
+    >>> arm.params.names[6:10]
+    ('j1.theta', 'j1.d', 'j1.a', 'j1.alpha')
+    >>> np.round(arm.forward([0.0, np.pi / 2]), 6).tolist()
+    [0.4, 0.35, 0.0]
+    >>> arm.parallel_pairs()  # the two axes are parallel: a β on j1 would model their tilt
+    [(0, 1)]
+    """
 
     name: str
     convention: str
@@ -244,9 +346,37 @@ class SerialRobot(ChainRobot):
     def build(cls, name: str, convention: str, joints: Sequence[Joint], dh: Sequence[Mapping[str, float]],
               base: Mapping[str, float] | None = None, tool: Mapping[str, float] | None = None, description: str = "",
               frames: Sequence[tuple[str, Sequence[float]]] = ()) -> "SerialRobot":
-        """Robot from joint structures and per-joint values ``{"theta", "d", "a", "alpha", ["beta"]}`` (SI).
+        """Build a robot from joint structures and per-joint DH values.
 
-        ``base`` keys: x y z rx ry rz; ``tool`` keys: x y z (missing keys are 0).
+        Parameters
+        ----------
+        name : str
+            The robot's name.
+        convention : str
+            "dh" or "mdh".
+        joints : sequence of Joint
+            The rows of the chain, base to tip.
+        dh : sequence of mapping of str to float
+            One mapping per joint with keys among "theta", "d", "a", "alpha" and (a joint with β) "beta";
+            m and rad; missing keys are 0.
+        base : mapping of str to float, optional
+            The base frame, keys among x y z (m) and rx ry rz (rad); missing keys are 0.
+        tool : mapping of str to float, optional
+            The tool point in the flange frame, keys among x y z (m); missing keys are 0.
+        description : str, optional
+            Free text (default "").
+        frames : sequence of (str, sequence of 6 float), optional
+            Named frames: (name, (x, y, z m, rx, ry, rz rad)) in the robot's base frame (default none).
+
+        Returns
+        -------
+        SerialRobot
+            The robot.
+
+        Raises
+        ------
+        ModelError
+            When ``dh`` does not have one row per joint, a key is not a parameter, or the robot is not valid.
         """
         if len(dh) != len(joints):
             raise ModelError(f"robot '{name}': {len(joints)} joints but {len(dh)} DH rows")

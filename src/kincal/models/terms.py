@@ -153,9 +153,53 @@ class GravityTerm:
 
 @dataclass(frozen=True, eq=False, repr=False)
 class ExtendedRobot(Wrapped):
-    """A geometric robot (``inner``) with non-geometric ``terms`` and the ``covariates`` it reads after
-    its joints; ``params`` = inner's, then each term's. q has inner's n joints, then one column per
-    covariate."""
+    """A geometric robot with non-geometric error terms, and the covariates it reads after its joints.
+
+    The geometry reads each joint at its corrected value q + Δq(q) (terms on the joints: harmonics, compliance,
+    gravity regressor); a term on the position (thermal growth) adds to the tool point. Build one with
+    :func:`extend` or :meth:`ExtendedRobot.build`. Its inputs q are ``inner``'s n joints, then one column per
+    covariate.
+
+    Parameters
+    ----------
+    inner : Robot
+        The geometric robot (not itself an ExtendedRobot).
+    params : Parameters
+        ``inner``'s parameters, then each term's, in the order of ``terms`` (rad for joint terms).
+    terms : tuple
+        The error terms (each with its parameter names, basis and slope); may be empty when ``covariates``
+        is not.
+    covariates : tuple of Covariate, optional
+        The inputs read after the joints (a temperature column), each limited to the range it was fitted on
+        (default none).
+
+    Attributes
+    ----------
+    joint_space : JointSpace
+        ``inner``'s joints, then the covariates (type "covariate").
+
+    Raises
+    ------
+    ModelError
+        When ``inner`` is an ExtendedRobot, there is neither a term nor a covariate, or ``params`` does not
+        match ``inner`` and the terms.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> robot = kincal.extend(kincal.load_robot("ur5"), "harmonics:1")
+    >>> type(robot).__name__, robot.structure, robot.n_params
+    ('ExtendedRobot', 'dh + harmonics:1', 45)
+    >>> robot.term_names[:4]
+    ('j1.h1s', 'j1.h1c', 'j2.h1s', 'j2.h1c')
+    >>> q = robot.sample_joints(3, seed=1)
+    >>> bool(np.array_equal(robot.corrected(q), q))  # all terms 0: the joints read as they are
+    True
+    >>> tilted = robot.with_params({"j2.h1s": 1e-4})  # 0.1 mrad · sin(q2) on joint 2
+    >>> bool(np.allclose(tilted.corrected(q)[:, 1] - q[:, 1], 1e-4 * np.sin(q[:, 1])))
+    True
+    """
 
     terms: tuple
     covariates: tuple[Covariate, ...] = ()
@@ -179,6 +223,8 @@ class ExtendedRobot(Wrapped):
     @classmethod
     def build(cls, inner: Robot, terms: Sequence, values: Mapping[str, float] | None = None,
               covariates: Sequence[Covariate] = ()) -> "ExtendedRobot":
+        """Build the robot with its term parameters laid out after ``inner``'s, all 0 unless ``values`` (by
+        name, SI units) gives them; ``covariates`` are the inputs read after the joints."""
         names = [n for t in terms for n in t.names]
         params = Parameters(list(inner.params.names) + names, list(inner.params.values) + [0.0] * len(names),
                             list(inner.params.kinds) + [t.kind for t in terms for _ in t.names])
@@ -264,9 +310,42 @@ class ExtendedRobot(Wrapped):
 
 
 def with_covariates(robot: Robot, names: Sequence[str] | None) -> Robot:
-    """``robot`` reading the covariate columns ``names`` after its joints (not yet fitted: any value),
-    with no term on them yet (the error model ``thermal:<name>`` adds one); ``robot`` itself for none, or
-    when it reads exactly these already (a calibrated file). ValueError when it reads others."""
+    """Make a robot read covariate columns (a temperature) after its joints.
+
+    The covariates are not yet fitted (any value is accepted) and no term reads them yet: the error model
+    ``thermal:<name>`` (:func:`extend`) adds one.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+    names : sequence of str or None
+        The covariate columns, in order; None or empty for none.
+
+    Returns
+    -------
+    Robot
+        An ExtendedRobot whose inputs are ``robot``'s joints, then the covariates; ``robot`` itself for no
+        names, or when it reads exactly these covariates already (a calibrated robot file).
+
+    Raises
+    ------
+    ValueError
+        When ``robot`` reads other covariates, or a name is given twice.
+    ModelError
+        When a name cannot be a column's.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.models import with_covariates
+    >>> robot = kincal.load_robot("ur5")
+    >>> warm = with_covariates(robot, ["temperature"])
+    >>> warm.joint_names, warm.covariate_names, warm.error_model
+    (('j1', 'j2', 'j3', 'j4', 'j5', 'j6', 'temperature'), ('temperature',), 'geometric')
+    >>> with_covariates(robot, None) is robot, with_covariates(warm, ["temperature"]) is warm
+    (True, True)
+    """
     names = tuple(names or ())
     have = robot.covariates if isinstance(robot, ExtendedRobot) else ()
     if not names or tuple(c.name for c in have) == names:
@@ -298,7 +377,39 @@ def drop_terms(robot: Robot, names: Sequence[str]) -> Robot:
 
 
 def parse_model(name: str) -> tuple[str, ...]:
-    """The tokens of an error-model name such as "compliance+harmonics:2" (ValueError naming the choices)."""
+    """Split and check an error-model name such as "compliance+harmonics:2".
+
+    A name is "geometric", or one or more of nobeta, compliance or gravity-regressor (not both),
+    harmonics:1 to harmonics:4 and thermal:<covariate column>, joined by '+', each family at most once.
+    ("auto" is not a model name here: :class:`ErrorModel` takes it.)
+
+    Parameters
+    ----------
+    name : str
+        The error-model name.
+
+    Returns
+    -------
+    tuple of str
+        Its tokens, in the order given.
+
+    Raises
+    ------
+    ValueError
+        When the name is not valid; the message names the choices.
+
+    Examples
+    --------
+    >>> from kincal.models import parse_model
+    >>> parse_model("compliance+harmonics:2")
+    ('compliance', 'harmonics:2')
+    >>> parse_model("nobeta+thermal:temperature")
+    ('nobeta', 'thermal:temperature')
+    >>> parse_model("harmonics:5")
+    Traceback (most recent call last):
+    ...
+    ValueError: error model 'harmonics:5': use geometric, or one or more of nobeta, ...
+    """
     tokens = tuple(name.split("+")) if isinstance(name, str) else ()
     families = [t if t.startswith(THERMAL) else t.split(":")[0] for t in tokens]
     ok = bool(tokens) and all(t in MODELS or _thermal_token(t) for t in tokens) and len(set(families)) == len(families)
@@ -318,10 +429,35 @@ def _thermal_token(token: str) -> bool:
 
 @dataclass(frozen=True)
 class ErrorModel:
-    """What to model beyond the geometry, validated when built: ``name`` is "geometric", terms joined
-    by '+' ("compliance+harmonics:2"; see :func:`parse_model`) or "auto" (chosen by joint-space
-    blocked cross-validation in :func:`kincal.calibrate`); ``payload`` (kg) at the tool point loads
-    the gravity terms."""
+    """What to model beyond the geometry: an error-model name and the payload, validated when built.
+
+    Parameters
+    ----------
+    name : str, optional
+        "geometric" (default), terms joined by '+' such as "compliance+harmonics:2" (see :func:`parse_model`),
+        or "auto" (chosen by joint-space blocked cross-validation in :func:`kincal.calibrate`).
+    payload : float, optional
+        Mass at the tool point, kg (default 0), at most ``MAX_PAYLOAD``; it loads the gravity terms
+        (compliance, gravity-regressor), so only a model with one of them (or "auto") takes a payload.
+
+    Raises
+    ------
+    ValueError
+        When the name is not valid, or the payload is negative, not finite, heavier than any robot carries, or
+        given to a model without gravity terms.
+
+    Examples
+    --------
+    >>> from kincal.models import ErrorModel
+    >>> ErrorModel("compliance", payload=2.0)
+    ErrorModel(name='compliance', payload=2.0)
+    >>> ErrorModel.of("compliance+harmonics:2").to_dict()
+    {'name': 'compliance+harmonics:2', 'payload': 0.0}
+    >>> ErrorModel("harmonics:2", payload=3.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: payload=3 kg: only the gravity terms (compliance, gravity-regressor) use it, ...
+    """
 
     name: str = "geometric"
     payload: float = 0.0
@@ -352,11 +488,51 @@ class ErrorModel:
 
 
 def extend(robot: Robot, error_model: ErrorModel | str, q: np.ndarray | None = None) -> Robot:
-    """``robot`` with the error model (see :class:`ErrorModel`; not "auto"): terms on the joints with
-    a lever arm at the poses q (default: 200 random poses); gravity terms load the robot's link
-    masses and the payload at the tool point, with ``robot``'s geometry as reference; the covariates
-    ``robot`` reads are fitted on q (median and range: :class:`~kincal.models.covariates.Covariate`),
-    and a thermal term grows the links of that geometry with one of them."""
+    """Add an error model's terms to a robot, all terms starting at 0.
+
+    Terms go on the revolute joints whose rotation moves the tool point by at least ``MIN_LEVER`` per rad at
+    the poses q. Gravity terms load the robot's link masses and the payload at the tool point, with ``robot``'s
+    geometry as reference; the covariates ``robot`` reads are fitted on q (median and range:
+    :class:`~kincal.models.covariates.Covariate`), and a thermal term grows the links of that geometry with one
+    of them. "nobeta" drops the β tilts; "compliance" on a model with its own load compliance (a hexapod's legs)
+    is that model's, not a term.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot; if it carries terms already, they are replaced: its geometry (``inner``) gets the new ones.
+    error_model : ErrorModel or str
+        The error model, or its name (see :class:`ErrorModel`); not "auto".
+    q : ndarray, shape (N, n), optional
+        Poses that judge the lever arms and gravity loads and fit the covariates (default: 200 random poses,
+        seed 0; the covariates then keep the ranges they have).
+
+    Returns
+    -------
+    Robot
+        An ExtendedRobot, or the geometry alone when the model adds no term and ``robot`` reads no covariate
+        ("geometric", "nobeta").
+
+    Raises
+    ------
+    ValueError
+        When the error model is "auto" or its name is not valid.
+    ModelError
+        When no revolute joint moves the tool enough for joint-angle terms, compliance finds no link mass and
+        no payload, no joint carries a gravity load, or a thermal term names a covariate the robot does not read.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> robot = kincal.load_robot("ur5")
+    >>> extended = kincal.extend(robot, "harmonics:1")
+    >>> extended.error_model, extended.n_params - robot.n_params
+    ('harmonics:1', 10)
+    >>> kincal.extend(robot, kincal.ErrorModel("compliance", payload=2.0)).term_names
+    ('j2.compliance', 'j3.compliance', 'j4.compliance', 'j5.compliance')
+    >>> kincal.extend(robot, "geometric") is robot
+    True
+    """
     spec = ErrorModel.of(error_model)
     if spec.name == "auto":
         raise ValueError("error model 'auto' is chosen by calibrate(); extend() takes a named model")

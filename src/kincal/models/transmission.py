@@ -38,9 +38,40 @@ MAP_SHAPES = {"direct": (1, 1, 0), "screw": (1, 1, 1), "differential_screw": (2,
 
 @dataclass(frozen=True)
 class Map:
-    """One transmission element of ``type`` direct, screw, differential_screw or coupled: the indices of
-    the actuators it reads and of the chain joints it drives, the names of its drive parameters and
-    (``coupled`` only) the fixed ``factor`` k of qb = φb + k φa."""
+    """One element of a transmission: which actuators drive which chain joints, and how.
+
+    The types (see the module docstring for their formulas): ``direct`` (q = φ), ``screw`` (motor angle to
+    travel), ``differential_screw`` (two screws: a carriage's travel and turn) and ``coupled`` (qb = φb + k φa).
+
+    Parameters
+    ----------
+    type : str
+        "direct", "screw", "differential_screw" or "coupled".
+    actuators : tuple of int
+        Indices of the actuators it reads (1 for direct and screw, 2 otherwise).
+    chain_joints : tuple of int
+        Indices of the chain joints it drives, as many as actuators.
+    param_names : tuple of str, optional
+        Names of its drive parameters: none for direct and coupled, the lead (m per turn) for a screw, the
+        lead and the lever length L (m) for a differential screw (default none).
+    factor : float, optional
+        The fixed factor k of a coupled map, a convention of the controller that is never identified
+        (default 1; other maps keep 1).
+
+    Raises
+    ------
+    ModelError
+        When the type is unknown, the counts of actuators, joints and parameters do not fit it, or a factor is
+        given to a map that is not coupled (or is not finite).
+
+    Examples
+    --------
+    >>> from kincal.models import Map
+    >>> Map("screw", (0,), (0,), ("drive.lead",))
+    Map(type='screw', actuators=(0,), chain_joints=(0,), param_names=('drive.lead',), factor=1.0)
+    >>> Map("coupled", (1, 2), (1, 2)).factor  # a FANUC arm's J2/J3
+    1.0
+    """
 
     type: str
     actuators: tuple[int, ...]
@@ -61,9 +92,49 @@ class Map:
 
 @dataclass(frozen=True, eq=False, repr=False)
 class TransmissionRobot(Wrapped):
-    """A serial chain (``inner``) whose joint variables are driven by actuators through a
-    transmission. Its joints (``joint_space``) are the actuators; ``params`` are the chain's followed
-    by the transmission's own (``drive``)."""
+    """A serial chain whose joint variables are driven by actuators through a transmission.
+
+    Its joints (what a user commands and a data file lists) are the actuators; the chain's joint variables
+    follow from them through the maps. Its parameters are the chain's followed by the transmission's own
+    (``drive``), so the drive parameters are identified like any other.
+
+    Parameters
+    ----------
+    inner : SerialRobot
+        The DH/MDH chain.
+    params : Parameters
+        The chain's parameters, then the transmission's (SI units: a screw lead in m per turn).
+    joint_space : JointSpace
+        The actuators: revolute (motor angles, rad) with finite limits.
+    maps : tuple of Map
+        The transmission: together they read every actuator once and drive every chain joint once.
+
+    Attributes
+    ----------
+    drive : Parameters
+        The transmission's own parameters (the end of ``params``).
+
+    Raises
+    ------
+    ModelError
+        When ``inner`` is not a SerialRobot, the maps do not drive each chain joint and read each actuator
+        exactly once, a map names an unknown drive parameter, or an actuator is not revolute with finite limits.
+
+    Examples
+    --------
+    A FANUC arm's J3 is the forearm's angle from the horizontal: the chain's third angle is J2 + J3.
+
+    >>> import numpy as np
+    >>> import kincal
+    >>> robot = kincal.load_robot("fanuc_lrmate200id")
+    >>> robot.structure, robot.joint_names[:3], robot.inner.joint_names[:3]
+    ('dh + transmission', ('J1', 'J2', 'J3'), ('j1', 'j2', 'j3'))
+    >>> chain = robot.chain_q(np.radians([0.0, 10.0, 20.0, 0.0, 0.0, 0.0]))
+    >>> np.degrees(chain).round(6).tolist()
+    [[0.0, 10.0, 30.0, 0.0, 0.0, 0.0]]
+    >>> np.degrees(robot.actuator_q(chain)).round(6).tolist()
+    [[0.0, 10.0, 20.0, 0.0, 0.0, 0.0]]
+    """
 
     inner: SerialRobot  # checked in __post_init__
     joint_space: JointSpace
@@ -173,7 +244,8 @@ class TransmissionRobot(Wrapped):
         return self.inner.joint_jacobian(qj, self._split(values)[0]) @ dq_dphi
 
     def feasible(self, q: np.ndarray) -> np.ndarray:
-        """Actuator limits and the chain's joint limits (e.g. |ψ| ≤ 45°, carriage travel) hold."""
+        """(N,) bool: the actuator limits and the chain's joint limits (e.g. ``abs(ψ) ≤ 45°``, the carriage's
+        travel) hold at actuator values q (N, n_a)."""
         q = self.check_q(q)
         return self.within_limits(q) & self.inner.within_limits(self.chain_q(q))
 

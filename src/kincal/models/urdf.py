@@ -44,8 +44,41 @@ KNOWN = set(MOVING) | {"fixed", "floating", "planar"}
 
 @dataclass(frozen=True)
 class URDFJoint:
-    """One joint of the chain: its origin (xyz m, rpy rad), unit axis, type and limits, and the mass
-    (kg) and centre of mass (m, child link frame) of its child link (URDF ``<inertial>``)."""
+    """One joint of a URDF chain, as the file gives it.
+
+    Parameters
+    ----------
+    name : str
+        The joint's name in the URDF (parameter names are ``<name>.x`` …).
+    type : str
+        "revolute", "continuous" (revolute without limits), "prismatic" or "fixed".
+    xyz : tuple of 3 float, optional
+        The origin's position in the parent link's frame, m (default 0).
+    rpy : tuple of 3 float, optional
+        The origin's roll, pitch, yaw, rad: R = Rz(yaw) Ry(pitch) Rx(roll) (default 0).
+    axis : tuple of 3 float, optional
+        The joint axis in the joint's frame (default +x, as in URDF).
+    lower : float, optional
+        Lower limit, rad (m for a prismatic joint) (default -inf: unlimited).
+    upper : float, optional
+        Upper limit in the same unit (default +inf).
+    mass : float, optional
+        Mass of the child link, kg (URDF ``<inertial>``; default 0).
+    com : tuple of 3 float, optional
+        Centre of mass of the child link in its frame, m (default the origin).
+
+    Raises
+    ------
+    ModelError
+        When the mass is negative or not finite, or the centre of mass is not three finite numbers.
+
+    Examples
+    --------
+    >>> from kincal.models import URDFJoint
+    >>> elbow = URDFJoint("elbow", "revolute", xyz=(0.4, 0.0, 0.0), axis=(0.0, 0.0, 1.0), lower=-3.0, upper=3.0)
+    >>> elbow.moving, elbow.rpy
+    (True, (0.0, 0.0, 0.0))
+    """
 
     name: str
     type: str  # revolute | continuous | prismatic | fixed
@@ -71,7 +104,51 @@ def _param_layout(joints: Sequence[URDFJoint]) -> tuple[list[str], list[str]]:
 
 @dataclass(frozen=True, eq=False, repr=False)
 class URDFRobot(ChainRobot):
-    """A serial chain read from a URDF (or from its kincal YAML). Build with :func:`urdf_robot`."""
+    """A serial chain read from a URDF (or from its kincal YAML), with the origin deviations of every moving joint.
+
+    Read one with :func:`read_urdf` or :func:`load_robot`. Its parameters are the base frame, per moving joint
+    ``<joint>.x .y .z`` (the origin's position, m) and ``<joint>.roll .pitch .yaw`` (small rotations about the
+    joint frame's axes after the file's rpy, rad), then the tool point ``tool.x/y/z`` in the tip link's frame.
+
+    Parameters
+    ----------
+    name : str
+        The robot's name (the URDF's ``<robot name>``).
+    joints : tuple of URDFJoint
+        The chain's joints from the base link to the tip link, fixed ones included; at least one moves.
+    params : Parameters
+        The parameters in the layout above, SI units.
+    description : str, optional
+        Free text (default "").
+    source : mapping of str to str, optional
+        Where the chain came from: "file", "base_link", "tip_link" (default empty); stored read-only.
+
+    Attributes
+    ----------
+    joint_space : JointSpace
+        The moving joints' names, types and limits.
+    chain : Chain
+        The compiled op sequence (each joint motion with a column of its own after the parameters).
+
+    Raises
+    ------
+    ModelError
+        When the parameters do not match the joints, no joint moves, or a joint name is empty or has a dot.
+
+    Examples
+    --------
+    >>> from kincal.models import read_urdf
+    >>> text = ('<robot name="turntable"> <link name="floor"/> <link name="plate"/>'
+    ...         ' <joint name="turn" type="continuous"> <parent link="floor"/> <child link="plate"/>'
+    ...         ' <origin xyz="0 0 0.2" rpy="0 0 0"/> <axis xyz="0 0 1"/> </joint> </robot>')
+    >>> robot = read_urdf(text, "turntable.urdf", tool=(0.1, 0.0, 0.0))
+    >>> type(robot).__name__, robot.structure, robot.joint_names, robot.joints[0].xyz
+    ('URDFRobot', 'urdf', ('turn',), (0.0, 0.0, 0.2))
+    >>> robot.params.names[6:12]
+    ('turn.x', 'turn.y', 'turn.z', 'turn.roll', 'turn.pitch', 'turn.yaw')
+    >>> robot.lower, robot.upper  # a continuous joint has no limits
+    (array([-inf]), array([inf]))
+    """
 
     name: str
     joints: tuple[URDFJoint, ...]
@@ -166,8 +243,55 @@ def urdf_robot(name: str, joints: Sequence[URDFJoint], tool: Sequence[float] = (
 # ---- reading URDF --------------------------------------------------------------------------------
 def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str | None = None,
               tool: Sequence[float] | None = None) -> URDFRobot:
-    """The chain from ``base_link`` (default: the root link) to ``tip_link`` (default: the only end
-    link below the base) of a URDF document; errors name the file and the element."""
+    """Read the serial chain between two links of a URDF document.
+
+    Revolute, continuous, prismatic and fixed joints are read with their origins, axes, limits and the
+    ``<inertial>`` mass of their child links; the chain's joints start at their nominal origins, its base
+    frame at the origin.
+
+    Parameters
+    ----------
+    text : str
+        The URDF document (XML; a xacro file must be expanded first).
+    label : str
+        The file's name, for messages and the robot's ``source``.
+    base_link : str, optional
+        The chain's first link (default: the root link).
+    tip_link : str, optional
+        The chain's last link (default: the only end link below the base).
+    tool : sequence of 3 float, optional
+        The tool point in the tip link's frame, m (default: the tip link's origin).
+
+    Returns
+    -------
+    URDFRobot
+        The chain, named as the URDF's ``<robot>``, with ``source`` {"file", "base_link", "tip_link"}.
+
+    Raises
+    ------
+    ModelError
+        When the text is not a URDF (not XML, a xacro file, another root element), an element is missing or
+        malformed, the links do not form one chain from base to tip (closed loops, several roots or tips), a
+        joint is mimic, floating or planar, or the lengths add up to more than a robot's (e.g. written in
+        mm); messages name the file and the element.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.models import read_urdf
+    >>> text = ('<robot name="two_link"> <link name="base"/> <link name="upper"/> <link name="fore"/>'
+    ...         ' <joint name="shoulder" type="revolute"> <parent link="base"/> <child link="upper"/>'
+    ...         ' <origin xyz="0 0 0.1"/> <axis xyz="0 0 1"/> <limit lower="-3" upper="3"/> </joint>'
+    ...         ' <joint name="elbow" type="revolute"> <parent link="upper"/> <child link="fore"/>'
+    ...         ' <origin xyz="0.4 0 0"/> <axis xyz="0 0 1"/> <limit lower="-3" upper="3"/> </joint> </robot>')
+    >>> robot = read_urdf(text, "two_link.urdf", tool=(0.3, 0.0, 0.0))
+    >>> robot.name, robot.joint_names, robot.n_params
+    ('two_link', ('shoulder', 'elbow'), 21)
+    >>> dict(robot.source)
+    {'file': 'two_link.urdf', 'base_link': 'base', 'tip_link': 'fore'}
+    >>> np.round(robot.forward([0.0, np.pi / 2]), 6).tolist()
+    [0.4, 0.3, 0.1]
+    """
     try:
         root = ET.fromstring(text)
     except ET.ParseError as exc:

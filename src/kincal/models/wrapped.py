@@ -13,9 +13,41 @@ from .robot import Robot
 
 @dataclass(frozen=True, eq=False, repr=False)
 class Wrapped(Robot):
-    """A robot built on another one, ``inner``: its parameters are ``inner``'s followed by its own
-    (``params``), and its name, description, base frame, structure notes and preferences among
-    confounded parameters are ``inner``'s."""
+    """A robot built on another one: its parameters are the inner robot's followed by its own.
+
+    Its name, description, base frame, named frames, structure notes, mounting parameters, frame freedoms and
+    preferences among confounded parameters are those of ``inner``. Subclasses (an error model on the joints,
+    a transmission) are frozen dataclasses that add their fields and kinematics.
+
+    Parameters
+    ----------
+    inner : Robot
+        The robot it is built on.
+    params : Parameters
+        All its parameters: ``inner``'s (same names, in order) followed by its own, SI units.
+
+    Attributes
+    ----------
+    name : str
+        ``inner``'s name.
+    description : str
+        ``inner``'s description.
+
+    Raises
+    ------
+    ModelError
+        When ``params`` does not start with ``inner``'s parameter names.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.models import Wrapped
+    >>> robot = kincal.extend(kincal.load_robot("ur5"), "harmonics:1")
+    >>> isinstance(robot, Wrapped), robot.inner.n_params, robot.n_params
+    (True, 35, 45)
+    >>> robot.params.names[:35] == robot.inner.params.names
+    True
+    """
 
     inner: Robot
     params: Parameters

@@ -52,19 +52,72 @@ _TYPE_KEYS = {"serial": {"convention", "joints", "tool", "actuators", "transmiss
               "stewart": {"legs", "reading", "tool", "compliance"}, "delta": {"arms", "parameters", "arm_limits"}}  # beside the common
 _TOP_KEYS = _COMMON_KEYS.union(*_TYPE_KEYS.values())
 def bundled_robots() -> list[str]:
-    """Names of the robots shipped with kincal."""
+    """List the robots shipped with kincal.
+
+    Returns
+    -------
+    list of str
+        The bundled robots' names, sorted; each loads with :func:`load_robot`.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> names = kincal.bundled_robots()
+    >>> "ur5" in names, "puu3" in names, names == sorted(names)
+    (True, True, True)
+    """
     folder = resources.files("kincal.models") / "robots"
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
 
 
 def load_robot(name_or_path: str | os.PathLike, base_link: str | None = None, tip_link: str | None = None,
                tool: tuple[float, float, float] | None = None) -> Robot:
-    """A bundled robot by name (see :func:`bundled_robots`), a robot YAML file or a URDF file.
+    """Load a robot: a bundled one by name, a kincal robot YAML file or a URDF file.
 
-    ``tool`` (m, in the flange (tip link) frame): the measured point, replacing the file's own tool
-    point. For a URDF (a ``.urdf`` file, or any file whose text starts with ``<``): the serial chain
-    from ``base_link`` (default: the root link) to ``tip_link`` (default: the only end link), with
-    the tool point ``tool`` (default the tip link's origin).
+    A file is a URDF when its name ends in ``.urdf`` or its text starts with ``<``; the robot is then the
+    serial chain from ``base_link`` to ``tip_link``. A robot YAML file's values are checked for plausibility:
+    without a ``units`` key, values that look like mm or degrees are refused with advice.
+
+    Parameters
+    ----------
+    name_or_path : str or path-like
+        A bundled robot's name (see :func:`bundled_robots`) or the path of a robot file. A name that is also a
+        file in the current folder is refused as ambiguous (write ``./<name>`` for the file).
+    base_link : str, optional
+        URDF only: the chain's first link (default: the root link).
+    tip_link : str, optional
+        URDF only: the chain's last link (default: the only end link below the base).
+    tool : tuple of 3 float, optional
+        The measured point in the flange (tip link) frame, m, replacing the file's own tool point (default: the
+        file's; for a URDF the tip link's origin).
+
+    Returns
+    -------
+    Robot
+        The robot (a SerialRobot, URDFRobot, TransmissionRobot, parallel robot, or an ExtendedRobot when the
+        file has an error model), in SI units.
+
+    Raises
+    ------
+    ModelError
+        When the robot or file is not found or cannot be read, the file is malformed or implausible,
+        ``base_link`` or ``tip_link`` is given for a file that is not a URDF, or ``tool`` is not three finite
+        numbers; the message names the file.
+
+    See Also
+    --------
+    save_robot : Write a robot file that loads back exactly.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> robot = kincal.load_robot("ur5")
+    >>> robot.name, robot.structure, robot.n_joints, robot.n_params
+    ('ur5', 'dh', 6, 35)
+    >>> [round(float(v), 6) for v in robot.tool_point()]  # a reflector on the flange, m
+    [0.0, 9e-05, 0.031]
+    >>> kincal.load_robot("ur5", tool=(0.0, 0.0, 0.1)).tool_point().tolist()
+    [0.0, 0.0, 0.1]
     """
     text, label = _robot_text(name_or_path)
     urdf = _is_urdf(name_or_path, text)
@@ -350,10 +403,52 @@ def _chain_yaml(robot: SerialRobot, length_unit: str, angle_unit: str) -> str:
 
 def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", angle_unit: str = "rad",
                calibration: dict | None = None) -> None:
-    """Save a robot YAML (atomically). SI units round-trip exactly; mm/deg are easier to read.
+    """Save a robot as a kincal robot YAML file (written atomically).
 
-    calibration -- an optional mapping stored under ``calibration:`` (always SI), e.g. the parameter
-                   covariance of a calibrated model (read back with :func:`read_section`)
+    In SI units (the default) loading the file gives the same robot exactly; mm and degrees are easier to
+    read, and round-trip to within floating-point round-off.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot: a DH/MDH chain (with or without a transmission), a URDF chain, a parallel robot (3-PUU,
+        hexapod, delta), or any of these with an error model.
+    path : str or path-like
+        The file to write.
+    length_unit : str, optional
+        Unit of the lengths in the file, e.g. "m" (default) or "mm".
+    angle_unit : str, optional
+        Unit of the angles in the file, e.g. "rad" (default) or "deg".
+    calibration : dict, optional
+        A mapping stored under ``calibration:``, always in SI units, e.g. the parameter covariance of a
+        calibrated model; read it back with :func:`load_calibration_record` (default: none).
+
+    Raises
+    ------
+    ModelError
+        When kincal has no robot file for this kind of model.
+
+    See Also
+    --------
+    load_robot : Read the file back.
+
+    Examples
+    --------
+    >>> import os
+    >>> import tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> robot = kincal.load_robot("ur5")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "ur5.yaml")
+    ...     kincal.save_robot(robot, path)
+    ...     same = kincal.load_robot(path)
+    ...     kincal.save_robot(robot, path, length_unit="mm", angle_unit="deg")
+    ...     readable = kincal.load_robot(path)
+    >>> same.params == robot.params, same.joint_names == robot.joint_names
+    (True, True)
+    >>> bool(np.allclose(readable.params.values, robot.params.values, rtol=0.0, atol=1e-12))
+    True
     """
     text = robot_to_yaml(robot, length_unit, angle_unit)
     if calibration:
@@ -375,8 +470,40 @@ def _is_urdf(name_or_path: str | os.PathLike, text: str) -> bool:
 
 
 def load_calibration_record(name_or_path: str | os.PathLike) -> dict | None:
-    """The ``calibration:`` section a calibrated robot file keeps (covariance, nominal values, options,
-    data settings; see :meth:`kincal.CalibrationResult.record`), or None."""
+    """Read the ``calibration:`` section a calibrated robot file keeps.
+
+    Parameters
+    ----------
+    name_or_path : str or path-like
+        A robot file, or a bundled robot's name.
+
+    Returns
+    -------
+    dict or None
+        The section as saved (covariance, nominal values, options, data settings; see
+        :meth:`kincal.CalibrationResult.record`), in SI units; None for a bundled robot, a URDF, or a file
+        without one.
+
+    Raises
+    ------
+    ModelError
+        When the file cannot be read or parsed, or the section is not a mapping.
+
+    Examples
+    --------
+    >>> import os
+    >>> import tempfile
+    >>> import kincal
+    >>> from kincal.models import load_calibration_record
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "ur5.yaml")
+    ...     kincal.save_robot(kincal.load_robot("ur5"), path, calibration={"rms": 5e-05})
+    ...     record = load_calibration_record(path)
+    >>> record
+    {'rms': 5e-05}
+    >>> load_calibration_record("ur5") is None
+    True
+    """
     section = read_section(name_or_path, "calibration")
     if section is not None and not isinstance(section, dict):
         raise ModelError(f"{name_or_path}: the 'calibration' section must be a mapping")
