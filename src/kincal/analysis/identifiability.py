@@ -33,7 +33,77 @@ RANK_TOL = 3e-5
 
 @dataclass(frozen=True)
 class Identifiability:
-    """Identifiability of a parameter set at a set of poses (all quantities for scaled columns unless raw)."""
+    """Identifiability of a parameter set at a set of poses (all quantities for scaled columns unless raw).
+
+    Built by :func:`identifiability` (and :func:`free_parameters`) from the stacked position Jacobian, its
+    columns scaled to unit norm; the other observation types of a fit use the same rule on their whitened
+    Jacobian.
+
+    Parameters
+    ----------
+    robot : str
+        The robot's name (the label of the summary line).
+    candidates : tuple of str
+        The parameter names asked about, in the order given (model order by default).
+    identifiable : tuple of str
+        The parameters the poses determine (the chosen columns), in the order of ``candidates``.
+    dropped : tuple of str
+        The other candidates, kept at their values: confounded ones in pivot order, then those with no
+        effect on the measurements at all.
+    confounds : dict of str to tuple of (str, float)
+        Per dropped parameter, the kept parameters it acts like, largest first: a change δ of the
+        dropped parameter acts like a change ``c·δ`` of each kept one, ``c`` in physical units (m/m,
+        rad/rad, m/rad or rad/m); an empty tuple for a parameter with no effect.
+    rank : int
+        The numerical rank: singular values above ``rank_tol`` times the largest.
+    n_poses : int
+        The number of poses (or samples) the Jacobian was stacked over.
+    singular_values : ndarray, shape (K,)
+        Singular values of the column-scaled stacked Jacobian, descending (K: the candidates with an
+        effect).
+    gap : float
+        ``s[rank - 1] / s[rank]``, the gap at the rank; inf when full rank.
+    cond_raw : float
+        Condition number of the raw (unscaled) Jacobian of the identifiable columns; inf when none.
+    cond_scaled : float
+        The same after unit-norm column scaling.
+    rank_tol : float
+        The relative singular-value tolerance used (:data:`RANK_TOL` by default).
+    notes : tuple of str, optional
+        Remarks in words: the robot's structure notes, pairs that act only through their sum or
+        difference, a rank that is not clear-cut (default none).
+    measured : str, optional
+        What the data observe, for the summary line (default ``"position only"``).
+    kinds : dict, optional
+        Parameter name to its kind (``"length"``, ``"angle"``, or the robot's own, e.g. ``"ratio"``):
+        the units of the confound coefficients (default empty: shown without units).
+    frames : tuple of str, optional
+        Parameters held as gauge freedoms of a closed chain's design frames (default none).
+    frames_note : str, optional
+        Which frames, in words (default ``""``).
+
+    See Also
+    --------
+    identifiability : Build this record for position data.
+    free_parameters : The same with the base-frame rule of a calibration.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.analysis import identifiability
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = robot.sample_joints(30, seed=2)
+    >>> ident = identifiability(robot, q)
+    >>> ident.rank, len(ident.candidates), ident.full_rank
+    (27, 35, False)
+    >>> ident.dropped
+    ('j1.theta', 'j1.d', 'j3.d', 'j4.d', 'j6.theta', 'j6.d', 'j6.a', 'j6.alpha')
+    >>> [(name, round(c, 6)) for name, c in ident.confounds["j1.d"]]
+    [('base.z', 1.0)]
+    >>> without_tool = identifiability(robot, q, exclude=["tool.x", "tool.y", "tool.z"])
+    >>> print(ident.change_from(without_tool))
+    now also tool.x, tool.y, tool.z; no longer j6.theta, j6.d, j6.alpha
+    """
 
     robot: str
     candidates: tuple[str, ...]
@@ -104,7 +174,45 @@ def _finite_or_none(x: float):
 
 def stacked_jacobian(robot: Robot, q: np.ndarray, names: Sequence[str] | None = None,
                      values: np.ndarray | None = None) -> np.ndarray:
-    """(3N, K) position Jacobian for the named parameters (all when None)."""
+    """Stack the position Jacobian over the poses for the named parameters.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot model.
+    q : ndarray, shape (N, n)
+        Joint values, rad (m for a prismatic joint).
+    names : sequence of str, optional
+        The parameters whose columns to keep, in this order (default: all of ``robot.params``).
+    values : ndarray, shape (P,), optional
+        Parameter values to evaluate at, SI (default: the robot's own).
+
+    Returns
+    -------
+    ndarray, shape (3N, K)
+        Derivatives of the tool positions by the parameters, m/m for lengths and m/rad for angles;
+        rows 3i, 3i + 1, 3i + 2 are pose i's x, y, z.
+
+    Raises
+    ------
+    ModelError
+        For an unknown parameter name or joint values of the wrong shape.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.analysis import stacked_jacobian
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = robot.sample_joints(4, seed=0)
+    >>> stacked_jacobian(robot, q).shape
+    (12, 35)
+    >>> J = stacked_jacobian(robot, q, ["j1.d", "base.z"])
+    >>> J.shape
+    (12, 2)
+    >>> bool(np.allclose(J[2::3], 1.0))  # every pose's z moves 1:1 with either offset
+    True
+    """
     J = robot.param_jacobian(robot.check_q(q), values)
     if names is not None:
         J = J[:, :, robot.params.indices(names)]
@@ -114,15 +222,63 @@ def stacked_jacobian(robot: Robot, q: np.ndarray, names: Sequence[str] | None = 
 def identifiability(robot: Robot, q: np.ndarray, names: Sequence[str] | None = None, keep: Sequence[str] = (),
                     exclude: Sequence[str] = (), rank_tol: float = RANK_TOL,
                     jacobian: np.ndarray | None = None) -> Identifiability:
-    """Identifiable and dropped parameters of ``robot`` from position data at joint values q (N, n).
+    """Identifiable and dropped parameters of ``robot`` from position data at joint values ``q``.
 
-    names    -- candidate parameter names (default: all); ``exclude`` removes names from them
-    keep     -- names to choose first when parameters are confounded; after them come the model's own
-                ``robot.preferred_params()`` (for serial robots the tool point, then the base frame),
-                so a dropped tool offset is never replaced by a huge joint-angle change
-    rank_tol -- relative singular-value tolerance on the column-scaled Jacobian (:data:`RANK_TOL`)
-    jacobian -- the stacked position Jacobian at q over every parameter, (3N, P) in any row order, if
-                already computed (a fit's first evaluation)
+    The stacked position Jacobian's columns are scaled to unit norm, its numerical rank taken from the
+    singular values, and the columns to keep chosen by QR with column pivoting (see the module
+    description); each dropped parameter is written as a combination of kept ones.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot model, at the values the Jacobian is taken at.
+    q : ndarray, shape (N, n)
+        Joint values of the poses, rad (m for a prismatic joint).
+    names : sequence of str, optional
+        Candidate parameter names (default: all of the robot's).
+    keep : sequence of str, optional
+        Names to choose first when parameters are confounded; after them come the model's own
+        ``robot.preferred_params()`` (for serial robots the tool point, then the base frame), so a
+        dropped tool offset is never replaced by a huge joint-angle change (default none).
+    exclude : sequence of str, optional
+        Names removed from the candidates (default none).
+    rank_tol : float, optional
+        Relative singular-value tolerance on the column-scaled Jacobian, in (0, 1) (default
+        :data:`RANK_TOL`, 3e-5).
+    jacobian : ndarray, shape (3N, P), optional
+        The stacked position Jacobian at ``q`` over every parameter, rows in any order, if already
+        computed (a fit's first evaluation); default: computed here.
+
+    Returns
+    -------
+    Identifiability
+        The identifiable and dropped parameters, the confounds, singular values and condition numbers,
+        with the robot's structure notes.
+
+    Raises
+    ------
+    ValueError
+        When ``rank_tol`` is not in (0, 1).
+    ModelError
+        For an unknown name in ``names`` or ``exclude``, or ``q`` of the wrong shape.
+
+    See Also
+    --------
+    free_parameters : The parameters a calibration fits (the base-frame rule).
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.analysis import identifiability
+    >>> robot = kincal.load_robot("ur5")
+    >>> ident = identifiability(robot, robot.sample_joints(30, seed=2))
+    >>> print(str(ident).splitlines()[0])
+    ur5: 27 of 35 parameters identifiable from 30 poses (position only)
+    >>> "j1.d" in ident.dropped, "j1.d" in ident.identifiable
+    (True, False)
+    >>> preferred = identifiability(robot, robot.sample_joints(30, seed=2), keep=["j1.d"])
+    >>> "j1.d" in preferred.identifiable, "base.z" in preferred.dropped
+    (True, True)
     """
     if not 0 < rank_tol < 1:
         raise ValueError(f"rank_tol={rank_tol}: the relative singular-value tolerance must lie in (0, 1)")
@@ -237,13 +393,59 @@ BASE_MODES = ("fixed", "estimate")
 def free_parameters(robot: Robot, q: np.ndarray, base: str = "estimate", names: Sequence[str] | None = None,
                     keep: Sequence[str] = (), rank_tol: float = RANK_TOL,
                     jacobian: np.ndarray | None = None) -> Identifiability:
-    """Identifiability of the parameters a calibration or a design would fit: the one home of the
-    base-mode rule. ``base="fixed"``: the base frame is known, so its parameters are left out (an
-    explicit ``names`` list naming one is an error); ``"estimate"``: the base frame is fitted too and
-    its parameters are chosen first among confounded ones (after ``keep``), so a base offset, not a
-    joint term, absorbs where the tracker stands. ``names`` None: every parameter is a candidate;
-    otherwise exactly those (plus the base frame when estimated). The fit's free parameters are
-    ``.identifiable``; ``.candidates`` is the list asked for; ``jacobian``: see :func:`identifiability`."""
+    """Identifiability of the parameters a calibration or a design would fit.
+
+    The one home of the base-mode rule. ``base="fixed"``: the base frame is known, so its parameters
+    are left out; ``"estimate"``: the base frame is fitted too and its parameters are chosen first
+    among confounded ones (after ``keep``), so a base offset, not a joint term, absorbs where the
+    tracker stands. The fit's free parameters are ``.identifiable``; ``.candidates`` is the list asked
+    for.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot model.
+    q : ndarray, shape (N, n)
+        Joint values of the poses, rad (m for a prismatic joint).
+    base : {"estimate", "fixed"}, optional
+        Whether the base frame is fitted (default ``"estimate"``; :data:`BASE_MODES`).
+    names : sequence of str, optional
+        The candidates: None (default) for every parameter, otherwise exactly those (plus the base
+        frame when estimated).
+    keep : sequence of str, optional
+        Names to choose first among confounded parameters (default none).
+    rank_tol : float, optional
+        Relative singular-value tolerance, in (0, 1) (default :data:`RANK_TOL`).
+    jacobian : ndarray, shape (3N, P), optional
+        The stacked position Jacobian at ``q`` if already computed (see :func:`identifiability`).
+
+    Returns
+    -------
+    Identifiability
+        The identifiable set (the fit's free parameters) and what the poses do not determine.
+
+    Raises
+    ------
+    ValueError
+        When ``base`` is not one of :data:`BASE_MODES`, when ``names`` lists a base-frame parameter
+        with ``base="fixed"``, or when ``rank_tol`` is not in (0, 1).
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.analysis import free_parameters
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = robot.sample_joints(30, seed=2)
+    >>> free_parameters(robot, q).rank
+    27
+    >>> fixed = free_parameters(robot, q, base="fixed")
+    >>> fixed.rank, "base.x" in fixed.candidates
+    (23, False)
+    >>> free_parameters(robot, q, base="fixed", names=["base.x", "j2.a"])
+    Traceback (most recent call last):
+    ...
+    ValueError: base.x listed with base='fixed'; use base='estimate' to fit the base
+    """
     if base not in BASE_MODES:
         raise ValueError(f"base='{base}' is not one of {BASE_MODES}")
     bn = list(robot.base_params())

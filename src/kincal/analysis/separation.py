@@ -57,7 +57,59 @@ def averaged_gcn(J: np.ndarray) -> float:
 
 @dataclass(frozen=True)
 class Separation:
-    """Outcome of the branch-and-bound separation (GCN values averaged over 1…M poses)."""
+    """Outcome of the branch-and-bound separation (GCN values averaged over 1…M poses).
+
+    Built by :func:`separate_ill_conditioned`; :meth:`tables` prints the paper's Tables 1–3 (Guo et
+    al. 2024, "Measurement configuration optimization for robot kinematic calibration based on
+    ill-conditioned parameter separation", §3.1).
+
+    Parameters
+    ----------
+    names : tuple of str
+        The error-model parameters examined.
+    subdomains : dict of str to tuple of str
+        Parameter type (``"theta"``, ``"alpha"``, ``"a"``, ``"d"``, ``"beta"``) to its parameters.
+    subdomain_gcn : dict of str to float
+        The GCN of each subdomain's columns (dimensionless, columns scaled).
+    branches : dict of str to tuple of (str, float)
+        Per offending subdomain (GCN above ``threshold``), each single removal and the subdomain's GCN
+        after it.
+    candidates : dict of str to tuple of str
+        Per offending subdomain, its candidate ill-conditioned parameters.
+    models : tuple of (tuple of str, float)
+        The reconstructed models (eq. 27–28): the removed set and the GCN of what remains, before
+        step 4.
+    separated : tuple of str
+        The parameters separated (kincal's choice: the verified model that keeps the most
+        parameters, then the lowest GCN).
+    gcn_full : float
+        GCN of the full model.
+    gcn_reduced : float
+        GCN of the reduced model (``names`` without ``separated``).
+    threshold : float
+        The GCN threshold a subdomain or model must not exceed.
+    qr_dropped : tuple of str
+        What the QR identifiability of the same parameters drops (:func:`identifiability`), for
+        comparison.
+    paper_choice : tuple of str, optional
+        The separated set by the paper's rule, the lowest GCN (default empty).
+    notes : tuple of str, optional
+        How the separation compares with QR, in words (default none).
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.analysis import separate_ill_conditioned
+    >>> robot = kincal.load_robot("ur5")
+    >>> sep = separate_ill_conditioned(robot, robot.sample_joints(8, seed=2),
+    ...                                names=["j2.a", "j3.a", "j2.d", "j3.d", "j4.d"])
+    >>> sep.subdomains
+    {'a': ('j2.a', 'j3.a'), 'd': ('j2.d', 'j3.d', 'j4.d')}
+    >>> sep.candidates  # the parallel offsets along the joint axes
+    {'d': ('j4.d', 'j2.d', 'j3.d')}
+    >>> print(sep.tables().splitlines()[-4])
+    separated (ill-conditioned): j3.d, j4.d
+    """
 
     names: tuple[str, ...]
     subdomains: dict[str, tuple[str, ...]]
@@ -107,10 +159,58 @@ def param_type(name: str) -> str:
 
 def separate_ill_conditioned(robot: Robot, q: np.ndarray, names: Sequence[str] | None = None,
                              threshold: float = 1e2, keep: Sequence[str] = ()) -> Separation:
-    """Branch-and-bound separation of ill-conditioned parameters at poses q (M, n).
+    """Separate the ill-conditioned parameters at poses ``q`` by GCN and branch-and-bound.
 
-    names  -- the error-model parameters (default: every θ, α, a, d, β of the robot, as the paper)
-    keep   -- parameters to remove last when removals tie (canonical order: keep, then model order)
+    The procedure of Guo et al. 2024, "Measurement configuration optimization for robot kinematic
+    calibration based on ill-conditioned parameter separation", §3.1 (see the module description):
+    subdomains by parameter type, backward elimination in each whose GCN exceeds ``threshold``, the
+    reconstructed models, and their verification.
+
+    Parameters
+    ----------
+    robot : Robot
+        A robot with DH parameters (θ, α, a, d, β).
+    q : ndarray, shape (M, n)
+        Joint values of the M poses, rad (m for a prismatic joint); a subdomain's GCN is averaged over
+        the first 1, 2, …, M of them.
+    names : sequence of str, optional
+        The error-model parameters (default: every θ, α, a, d, β of the robot, as the paper).
+    threshold : float, optional
+        The GCN above which a subdomain or model is ill-conditioned, > 0 (default 1e2).
+    keep : sequence of str, optional
+        Parameters to remove last when removals tie (canonical order: ``keep``, then model order;
+        default none).
+
+    Returns
+    -------
+    Separation
+        The tables of the procedure, the separated parameters and the GCN before and after, with the
+        QR identifiability of the same parameters for comparison.
+
+    Raises
+    ------
+    ValueError
+        When ``threshold`` is not a positive number.
+    ModelError
+        When the robot has no DH parameters to separate (a URDF or a parallel robot), or for an
+        unknown name.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.analysis import separate_ill_conditioned
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = robot.sample_joints(8, seed=2)
+    >>> sep = separate_ill_conditioned(robot, q, names=["j2.a", "j3.a", "j2.d", "j3.d", "j4.d"])
+    >>> sep.separated, sep.qr_dropped
+    (('j3.d', 'j4.d'), ('j3.d', 'j4.d'))
+    >>> sep.gcn_full > sep.threshold, round(sep.gcn_reduced, 3)
+    (True, 0.473)
+    >>> hexapod = kincal.load_robot("hexapod")
+    >>> separate_ill_conditioned(hexapod, hexapod.sample_joints(3, seed=0))
+    Traceback (most recent call last):
+    ...
+    kincal.errors.ModelError: robot 'hexapod' has no DH parameters (θ, d, a, α, β) to separate: ...
     """
     q = robot.check_q(q)
     if not threshold > 0:

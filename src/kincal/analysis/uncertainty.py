@@ -39,7 +39,46 @@ SIGMA_CHUNK = 4096  # poses per parameter Jacobian when computing σ
 
 @dataclass(frozen=True, eq=False)
 class ModelUncertainty:
-    """Covariance (K, K) of the fitted ``names`` (SI) and the median predicted σ at the training poses (m)."""
+    """The parameter covariance of a calibrated model, and the references its predictions are judged by.
+
+    With the covariance C the predicted position at joint values q has the 3-D standard deviation
+    σ(q) = sqrt(trace(J C Jᵀ)) (:meth:`sigma`); a pose whose σ exceeds :meth:`limit` is an extrapolation,
+    and with joint-value terms a pose outside the training joint ranges too (:meth:`outside`). Built by
+    :meth:`from_fit` (``CalibrationResult.uncertainty()``) or read back with :func:`load_uncertainty`.
+
+    Parameters
+    ----------
+    names : tuple of str
+        The K fitted robot parameters the covariance is over.
+    covariance : ndarray, shape (K, K)
+        Their covariance, SI (m², rad², m·rad).
+    training_median : float
+        Median predicted σ at the training poses, m.
+    lower : ndarray, shape (n,), optional
+        The training joint ranges' lower ends, rad (m for a prismatic joint); None: not recorded
+        (default).
+    upper : ndarray, shape (n,), optional
+        Their upper ends, the same units; None: not recorded (default).
+    envelope_sigma : float, optional
+        95th percentile of σ over the training joint ranges, m; None: not recorded (default), then
+        the limit is :data:`EXTRAPOLATION_RATIO` times ``training_median``.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> robot = kincal.load_robot("ur5")
+    >>> true = kincal.perturb(robot, seed=1)
+    >>> meas = kincal.simulate(true, robot.sample_joints(30, seed=2), seed=3)
+    >>> res = kincal.calibrate(robot, meas, diagnose=False)
+    >>> unc = res.uncertainty()
+    >>> len(unc.names), unc.covariance.shape
+    (26, (26, 26))
+    >>> sigma = unc.sigma(res.robot, robot.sample_joints(4, seed=9))  # (N,) m
+    >>> sigma.shape, bool(sigma.max() < unc.limit())
+    ((4,), True)
+    >>> f"limit {unc.limit() * 1e3:.3f} mm", round(unc.limit() / unc.envelope_sigma, 6)  # ENVELOPE_FACTOR x
+    ('limit 0.029 mm', 1.25)
+    """
 
     names: tuple[str, ...]
     covariance: np.ndarray
@@ -170,8 +209,51 @@ def _beyond(q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> str:
 
 
 def envelope_warning(rows: np.ndarray, q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> tuple[np.ndarray, str | None]:
-    """For a model with joint-value terms: the poses outside the training joint ranges and a warning
-    naming the joint ranges and the first rows (else no pose and None)."""
+    """Name the poses outside the training joint ranges of a model with joint-value terms.
+
+    Terms of the joint values (harmonics, compliance, a gravity regressor) were learned only inside the
+    training joint ranges; a pose with a joint more than ``ENVELOPE_MARGIN`` (2 %) of its range outside
+    (a revolute joint taken the whole turns nearest its range) is an extrapolation. A model without such
+    terms, or an uncertainty without the ranges, flags nothing.
+
+    Parameters
+    ----------
+    rows : ndarray, shape (N,)
+        The poses' input rows, for the warning.
+    q : ndarray, shape (N, n)
+        Joint values of the poses, rad (m for a prismatic joint).
+    robot : Robot
+        The calibrated model (its joint-value terms, joint names and types).
+    unc : ModelUncertainty
+        Its uncertainty, with the training joint ranges.
+
+    Returns
+    -------
+    outside : ndarray of bool, shape (N,)
+        The poses outside the training joint ranges (all False without terms or ranges).
+    warning : str or None
+        A warning naming the joint ranges and the first rows; None when no pose is outside.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.analysis import ModelUncertainty, envelope_warning
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = np.zeros((3, 6))
+    >>> q[1, 2] = 1.5  # j3 at 1.5 rad in the second pose
+    >>> model = kincal.extend(robot, "harmonics:1", q)  # terms of the joint values
+    >>> # trained on joint ranges of ±1 rad (ModelUncertainty.from_fit records those of a fit's poses)
+    >>> trained = ModelUncertainty((), np.zeros((0, 0)), 0.0, lower=np.full(6, -1.0), upper=np.full(6, 1.0))
+    >>> outside, warning = envelope_warning(np.array([2, 3, 4]), q, model, trained)
+    >>> outside
+    array([False,  True, False])
+    >>> print(warning)
+    1 pose(s) lie outside the joint ranges the terms (harmonics:1) were fitted on, with j3 at 85.9..85.9 deg
+    (calibrated on -57.3..57.3 deg): row(s) 3; they extrapolate there
+    >>> envelope_warning(np.array([2, 3, 4]), q, robot, trained)  # no joint-value terms: nothing to flag
+    (array([False, False, False]), None)
+    """
     terms = robot.reading_terms()
     if not terms or unc.lower is None or len(unc.lower) != q.shape[1]:
         return np.zeros(len(q), bool), None
@@ -183,6 +265,40 @@ def envelope_warning(rows: np.ndarray, q: np.ndarray, robot: Robot, unc: ModelUn
 
 
 def load_uncertainty(name_or_path) -> ModelUncertainty | None:
-    """The uncertainty saved with a calibrated robot file (its ``calibration:`` section), or None."""
+    """Read the uncertainty saved with a calibrated robot file (its ``calibration:`` section).
+
+    Parameters
+    ----------
+    name_or_path : str or os.PathLike
+        A robot file, or the name of a bundled robot (which has no such section).
+
+    Returns
+    -------
+    ModelUncertainty or None
+        The covariance, training median σ and (when recorded) the training joint ranges; None for a
+        file without a ``calibration:`` section.
+
+    Raises
+    ------
+    ModelError
+        When the section is malformed (not a mapping, a missing key, a covariance of the wrong shape or
+        not finite, an envelope with lower above upper).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.analysis import ModelUncertainty, load_uncertainty
+    >>> load_uncertainty("ur5") is None  # a bundled robot: no calibration section
+    True
+    >>> unc = ModelUncertainty(("j2.a", "j3.a"), np.diag([1e-10, 4e-10]), 2e-5)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "ur5_calibrated.yaml")
+    ...     kincal.save_robot(kincal.load_robot("ur5"), path, calibration=unc.to_dict())
+    ...     back = load_uncertainty(path)
+    >>> back.names, back.training_median, back.limit()  # no envelope recorded: 2.5 x the median
+    (('j2.a', 'j3.a'), 2e-05, 5e-05)
+    """
     section = load_calibration_record(name_or_path)
     return None if section is None else ModelUncertainty.from_dict(section, str(name_or_path))

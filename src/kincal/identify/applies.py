@@ -65,8 +65,35 @@ SCOPES: dict[str, Scope] = {
 
 
 def refuse_inapplicable(kinds: Iterable[str], given: Mapping[str, str]) -> None:
-    """ValueError for the first option in ``given`` (option name -> the flag as the user wrote it)
-    that none of ``kinds`` uses, naming the flag, the kinds and why."""
+    """Refuse an option that none of the data's kinds uses, instead of ignoring it.
+
+    An option not in :data:`SCOPES` applies to every kind; with several kinds, an option is accepted
+    when at least one of them uses it (or, for the position fit's options, when every file is of those
+    kinds).
+
+    Parameters
+    ----------
+    kinds : iterable of str
+        The measurement kinds of the files (``"point"``, ``"pose"``, ``"markers"``, ``"same-point"``,
+        ``"plane"``).
+    given : mapping of str to str
+        The options given: option name (a key of :data:`SCOPES`) to the flag as the user wrote it.
+
+    Raises
+    ------
+    ValueError
+        For the first option in ``given`` that none of ``kinds`` uses, naming the flag, the kinds and why.
+
+    Examples
+    --------
+    >>> from kincal.identify import refuse_inapplicable
+    >>> refuse_inapplicable(["point"], {"drift": "--drift"})  # accepted: returns None
+    >>> refuse_inapplicable(["plane"], {"drift": "--drift"})
+    Traceback (most recent call last):
+    ...
+    ValueError: --drift does not apply to plane data: sockets and planes have no measuring instrument that
+    could drift; leave it out (it applies to point, pose or markers data)
+    """
     kinds = tuple(dict.fromkeys(kinds))
     for name, flag in given.items():
         scope = SCOPES.get(name)

@@ -36,18 +36,67 @@ def calibrate(robot: Robot, meas: Measurements, options: FitOptions | None = Non
               progress: Callable[[str], None] | None = None, **changes) -> CalibrationResult:
     """Identify ``robot``'s parameters from measured tool positions.
 
-    options  -- a :class:`FitOptions` record (default: its defaults); ``changes`` are fields of it
-                to change, e.g. ``calibrate(robot, meas, base="fixed", loss="huber")``
-    use_q    -- (M, n) joint values where the calibrated model will be used: with
-                ``error_model="auto"`` the prediction-σ guard judges candidate terms there (default:
-                the calibration poses). Kept in ``result.use_q`` and in the calibration record
-    progress -- called with a message at each stage
-
     Several sessions joined in one frame (``meas.session`` labels) are one set each. Every option is
-    checked before any work (ValueError naming it). MeasurementError for data that cannot belong to
-    the robot or is too little, IdentifiabilityError for an explicit ``names`` list
-    Levenberg–Marquardt cannot identify. The result carries a verdict (good, suspect, refused) with
-    reasons. BLAS runs single-threaded inside: the problems are small, and threads fight for cores.
+    checked before any work. The result carries a verdict (good, suspect, refused) with reasons. BLAS
+    runs single-threaded inside: the problems are small, and threads fight for cores.
+
+    Parameters
+    ----------
+    robot : Robot
+        The nominal robot (the model as given; corrections are from it).
+    meas : Measurements
+        The measured tool positions (N, 3) m at joint values (N, n) rad (m for a prismatic joint).
+    options : FitOptions, optional
+        How to calibrate (default: ``FitOptions()``).
+    use_q : ndarray, shape (M, n), optional
+        Joint values where the calibrated model will be used, rad (m for a prismatic joint): with
+        ``error_model="auto"`` the prediction-σ guard judges candidate terms there (default: the
+        calibration poses). Kept in ``result.use_q`` and in the calibration record.
+    progress : callable, optional
+        Called with a message (str) at each stage (default: silent).
+    **changes
+        Fields of ``options`` to change, e.g. ``calibrate(robot, meas, base="fixed", loss="huber")``.
+
+    Returns
+    -------
+    CalibrationResult
+        The calibrated robot, the estimates with their σ and covariance, the residuals of every pose in
+        the first session's frame and the verdict (with the differential diagnosis of a doubtful fit
+        when ``diagnose``).
+
+    Raises
+    ------
+    ValueError
+        For an unknown or invalid option, naming it.
+    ModelError
+        For an unknown parameter name in ``names`` or ``keep``.
+    MeasurementError
+        For data that cannot belong to the robot, or too little of it (fewer than 3 distinct poses to
+        register the frame, fewer equations than parameters).
+    IdentifiabilityError
+        When an explicit ``names`` list fitted by Levenberg–Marquardt cannot be identified.
+
+    See Also
+    --------
+    evaluate : Error statistics of a model on other measurements.
+    calibrate_sessions : Sessions measured in different frames.
+    fit_observations : Observation sets of any kinds.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> robot = kincal.load_robot("ur5")
+    >>> true = kincal.perturb(robot, seed=1)  # errors up to 0.5 mm and 0.05 deg
+    >>> meas = kincal.simulate(true, robot.sample_joints(30, seed=2), seed=3)  # σ 15 µm per axis
+    >>> res = kincal.calibrate(robot, meas, diagnose=False)
+    >>> res.converged, res.verdict.status
+    (True, 'good')
+    >>> f"mean error {res.stats_before.mean * 1e3:.2f} mm -> {res.stats_after.mean * 1e3:.3f} mm"
+    'mean error 0.91 mm -> 0.022 mm'
+    >>> kincal.calibrate(robot, meas, loss="cauchy")
+    Traceback (most recent call last):
+    ...
+    ValueError: loss='cauchy' is not one of linear, huber, soft_l1
     """
     parts = [meas] if meas.session is None or len(meas.sessions()) < 2 else \
         [dataclasses.replace(meas.subset(np.flatnonzero(meas.session == s)), source=s) for s in meas.sessions()]
@@ -57,10 +106,53 @@ def calibrate(robot: Robot, meas: Measurements, options: FitOptions | None = Non
 def calibrate_sessions(robot: Robot, sessions, options: FitOptions | None = None, *,
                        use_q: np.ndarray | None = None, progress: Callable[[str], None] | None = None,
                        **changes) -> CalibrationResult:
-    """Calibrate shared kinematics from several sessions, each measured in its own frame (the tracker
-    moved between them): every later session's frame is six set-up parameters of the one fit. The
-    result's data are the sessions in the first one's frame. ``options``, ``use_q``, ``changes``: as
-    :func:`calibrate`; one session is simply calibrated."""
+    """Calibrate shared kinematics from several sessions, each measured in its own frame.
+
+    The tracker moved between the sessions: every later session's frame is six set-up parameters of
+    the one fit (``frame[k:source].base.x`` … in ``result.nuisance``, m and rad). The result's data are
+    the sessions in the first one's frame. One session is simply calibrated.
+
+    Parameters
+    ----------
+    robot : Robot
+        The nominal robot.
+    sessions : Measurements or sequence of Measurements
+        The sessions, each in its own measurement frame; the first one's frame is the robot's.
+    options : FitOptions, optional
+        How to calibrate (default: ``FitOptions()``), as :func:`calibrate`.
+    use_q : ndarray, shape (M, n), optional
+        Joint values where the model will be used, rad (m for a prismatic joint), as :func:`calibrate`.
+    progress : callable, optional
+        Called with a message (str) at each stage (default: silent).
+    **changes
+        Fields of ``options`` to change, as :func:`calibrate`.
+
+    Returns
+    -------
+    CalibrationResult
+        The calibrated robot (in the first session's frame) and the later sessions' frames.
+
+    Raises
+    ------
+    ValueError, ModelError, MeasurementError, IdentifiabilityError
+        As :func:`calibrate`.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.identify import calibrate_sessions
+    >>> robot = kincal.load_robot("ur5")
+    >>> true = kincal.perturb(robot, seed=1)
+    >>> first = kincal.simulate(true, robot.sample_joints(30, seed=2), seed=3)
+    >>> moved = true.with_params({"base.x": 0.5, "base.rz": 0.3})  # the tracker 0.5 m and 0.3 rad away
+    >>> second = kincal.simulate(moved, robot.sample_joints(20, seed=6), seed=7)
+    >>> res = calibrate_sessions(robot, [first, second], diagnose=False)
+    >>> res.verdict.status, len(res.measurements)
+    ('good', 50)
+    >>> frame = {k.rsplit(".", 1)[1]: round(float(v), 3) for k, v in res.nuisance.items()}
+    >>> frame["x"], frame["rz"]
+    (0.5, 0.3)
+    """
     sessions = [sessions] if isinstance(sessions, Measurements) else list(sessions)
     return _calibrate(robot, sessions, len(sessions) > 1 and bool(robot.base_params()), options, use_q, progress,
                       changes)
@@ -113,14 +205,59 @@ def _error_model(robot: Robot, sessions: list[Measurements], own_frames: bool, o
 def fit_observations(robot: Robot, observations: Sequence, options: FitOptions | None = None, *,
                      held: Mapping[str, float] | None = None, progress: Callable[[str], None] | None = None,
                      **changes) -> CalibrationResult:
-    """Calibrate ``robot`` from observation sets of any kinds (:mod:`kincal.observe`) by the one fit, with
-    ``options`` (a :class:`FitOptions`; ``changes`` are fields of it to change). Defaults of this entry: the prior
-    "auto" (learned for poses, markers, sockets and planes; none for positions alone), no diagnosis. With
-    ``diagnose`` a doubtful fit of one point or pose file is screened for the common input mistakes on its measured
-    positions. ``held``: set-up parameters held at these values, not fitted (a held-out file judged with the probe's
-    rotation and the markers as trained). ``base="fixed"`` leaves the base frame out; ``residual`` and ``f_scale``
-    belong to position data (:func:`calibrate`). Identifiability is judged at the start and again at the solution
-    (see :func:`kincal.identify.stacked.fit_sets`)."""
+    """Calibrate ``robot`` from observation sets of any kinds (:mod:`kincal.observe`) by the one fit.
+
+    Defaults of this entry: the prior "auto" (learned for poses, markers, sockets and planes; none for
+    positions alone), no diagnosis. With ``diagnose`` a doubtful fit of one point or pose file is screened
+    for the common input mistakes on its measured positions. ``base="fixed"`` leaves the base frame out;
+    ``residual`` and ``f_scale`` belong to position data (:func:`calibrate`). Identifiability is judged at
+    the start and again at the solution (see :func:`kincal.identify.stacked.fit_sets`).
+
+    Parameters
+    ----------
+    robot : Robot
+        The nominal robot.
+    observations : sequence of Observation
+        The observation sets (points, poses, markers, sockets, planes, sessions in their own frames).
+    options : FitOptions, optional
+        How to calibrate (default: ``FitOptions(diagnose=False)``).
+    held : mapping of str to float, optional
+        Set-up parameters held at these values (m or rad), not fitted: a held-out file judged with the
+        probe's rotation and the markers as trained (default none).
+    progress : callable, optional
+        Called with a message (str) at each stage (default: silent).
+    **changes
+        Fields of ``options`` to change.
+
+    Returns
+    -------
+    CalibrationResult
+        The fit; its position view (``measurements``, ``residuals``) is empty, ``per_set`` gives each
+        set's statistics (m, rad).
+
+    Raises
+    ------
+    ValueError
+        For an unknown or invalid option, naming it.
+    MeasurementError
+        For no observations, data that do not fix the length scale, or too few samples.
+    IdentifiabilityError
+        When an explicit ``names`` list fitted by Levenberg–Marquardt cannot be identified.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.identify import fit_observations, stat_line
+    >>> from kincal.observe import PointObs
+    >>> robot = kincal.load_robot("ur5")
+    >>> meas = kincal.simulate(kincal.perturb(robot, seed=1), robot.sample_joints(30, seed=2), seed=3)
+    >>> points = PointObs(meas.q, meas.rows, "tracker.csv", xyz=meas.xyz, std=15e-6)
+    >>> fit = fit_observations(robot, [points])
+    >>> fit.verdict.status, fit.per_set[0]["samples"]
+    ('good', 30)
+    >>> stat_line(fit.per_set_before[0]), stat_line(fit.per_set[0])
+    ('mean 0.9125 mm', 'mean 0.0215 mm')
+    """
     t0 = time.perf_counter()
     options = (options or FitOptions(diagnose=False)).replace(**changes).check(robot)
     fit = fit_stack(robot, observations, options, held, progress or (lambda msg: None))
@@ -157,10 +294,48 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
              uncertainty: ModelUncertainty | None = None) -> EvaluationStats:
     """Position error statistics of ``robot`` on ``meas`` (m).
 
-    rebase      -- first re-fit only the 6 base-frame parameters (the tracker moved between sessions)
-    uncertainty -- the model's parameter covariance (``result.uncertainty()``, or
-                   :func:`kincal.load_uncertainty` of a saved calibration): adds the predicted σ at
-                   every pose and a warning naming the rows where the model extrapolates
+    Parameters
+    ----------
+    robot : Robot
+        The model to judge (a calibrated one, or the nominal).
+    meas : Measurements
+        Measured tool positions (N, 3) m at joint values (N, n) rad (m for a prismatic joint).
+    rebase : bool, optional
+        First re-fit only the 6 base-frame parameters, kinematics fixed: the tracker moved between
+        sessions (default False).
+    uncertainty : ModelUncertainty, optional
+        The model's parameter covariance (``result.uncertainty()``, or
+        :func:`kincal.analysis.load_uncertainty` of a saved calibration): adds the predicted σ at every
+        pose and a warning naming the rows where the model extrapolates (default None).
+
+    Returns
+    -------
+    EvaluationStats
+        Mean, RMS, maximum, standard deviation and 95th percentile of the 3-D error norms, m; with
+        ``uncertainty`` also the predicted σ per pose (m), the rows flagged as extrapolated and the
+        warnings.
+
+    Raises
+    ------
+    ValueError
+        When ``rebase`` is not True or False.
+    MeasurementError
+        For data that cannot belong to the robot, or no poses.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> robot = kincal.load_robot("ur5")
+    >>> true = kincal.perturb(robot, seed=1)
+    >>> res = kincal.calibrate(robot, kincal.simulate(true, robot.sample_joints(30, seed=2), seed=3),
+    ...                        diagnose=False)
+    >>> unseen = kincal.simulate(true, robot.sample_joints(20, seed=4), seed=5)
+    >>> stats = kincal.evaluate(res.robot, unseen, uncertainty=res.uncertainty())
+    >>> stats.n, f"{stats.mean * 1e3:.3f} mm", len(stats.predicted_sigma), stats.warnings
+    (20, '0.032 mm', 20, ())
+    >>> moved = kincal.simulate(true.with_params({"base.x": 0.2}), unseen.q, seed=5)  # the tracker moved
+    >>> f"{kincal.evaluate(res.robot, moved, rebase=True).mean * 1e3:.3f} mm"
+    '0.029 mm'
     """
     if rebase not in (True, False):
         raise ValueError(f"rebase={rebase!r}: True or False")
@@ -182,10 +357,43 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
 
 
 def held_out_stats(fit: CalibrationResult, obs, robot: Robot, same_frame: bool) -> dict:
-    """A held-out set's statistics (m, rad) under ``robot`` (the calibrated model, or ``fit.before``): in the training
-    frame with the training set-up parameters (``same_frame``; sockets and planes need no frame), else with its own
-    frame fitted (the tracker or camera may have moved), the kinematics fixed and the set-up parameters it shares with
-    the training files (a target's rotation, markers) held as trained."""
+    """A held-out set's statistics (m, rad) under ``robot``.
+
+    In the training frame with the training set-up parameters (``same_frame``; sockets and planes need
+    no frame), else with its own frame fitted (the tracker or camera may have moved), the kinematics
+    fixed and the set-up parameters it shares with the training files (a target's rotation, markers)
+    held as trained.
+
+    Parameters
+    ----------
+    fit : CalibrationResult
+        The fit of the training sets.
+    obs : Observation
+        The held-out set (of a kind the fit was trained on).
+    robot : Robot
+        The model to judge: the calibrated one (``fit.robot``) or ``fit.before``.
+    same_frame : bool
+        Whether the held-out set was measured in the training frame.
+
+    Returns
+    -------
+    dict
+        The set's statistics as its type's ``stats()`` gives them: ``type``, ``source``, ``samples``
+        and errors in m (and rad for rotations), e.g. ``mean``, ``rms``, ``max``.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.identify import fit_observations, held_out_stats
+    >>> from kincal.observe import PointObs
+    >>> robot = kincal.load_robot("ur5")
+    >>> true = kincal.perturb(robot, seed=1)
+    >>> train, test = (kincal.simulate(true, robot.sample_joints(n, seed=s), seed=s) for n, s in ((30, 2), (20, 4)))
+    >>> fit = fit_observations(robot, [PointObs(train.q, train.rows, "train.csv", xyz=train.xyz)])
+    >>> stats = held_out_stats(fit, PointObs(test.q, test.rows, "test.csv", xyz=test.xyz), fit.robot, True)
+    >>> stats["source"], stats["samples"], bool(stats["mean"] < 0.05e-3)
+    ('test.csv', 20, True)
+    """
     if same_frame or obs.kind not in ABSOLUTE:
         return fit.held_out(obs, robot)
     anchors = {k: v for o in fit.observations for k, v in o.anchors().items()}

@@ -42,8 +42,26 @@ SHOWN = 5  # suspects kept in a result
 
 @dataclass(frozen=True)
 class Suspect:
-    """One candidate change: its name, kind ("joint zero", "link", "joint axis", "tool", "frame"), unit ("length",
-    "angle"), the size that best explains the discrepancy alone (m or rad), its σ and z = size / σ."""
+    """One candidate change, with the size that best explains the discrepancy alone.
+
+    Parameters
+    ----------
+    name : str
+        The change: "j2 zero", a model parameter ("j3.a"), "tool.z", "base.rx".
+    kind : str
+        "joint zero", "link", "joint axis", "tool" or "frame".
+    unit : str
+        "length" or "angle": what ``size`` and ``sigma`` are in.
+    size : float
+        The size of this change alone that best explains the discrepancy, m or rad.
+    sigma : float
+        Its standard deviation, m or rad.
+    z : float
+        size / sigma.
+    also : tuple of str, optional
+        Changes that act the same at these poses (merged into this one; "−" before one that acts with the
+        opposite sign), e.g. a link's length in two frames' terms.
+    """
 
     name: str
     kind: str
@@ -66,11 +84,42 @@ class Suspect:
 
 @dataclass(frozen=True)
 class ChangeTest:
-    """question -- "compare" or "check"; changed -- the verdict at level ``alpha`` (the false-alarm probability);
-    p_value -- the test's (Bonferroni over its two parts); statistic, dof -- the omnibus test's squared whitened
-    norm and degrees of freedom; suspects -- the candidate changes ranked (the first best explains the discrepancy
-    alone); poses -- how many the discrepancy was taken at; frame_refitted; rms -- the discrepancy's RMS per pose (m,
-    after the frame); notes -- what the reader should know (poses outside the calibrated ranges, a frame shift)."""
+    """The answer of ``compare`` or ``check``: has the robot changed, and what moved.
+
+    Parameters
+    ----------
+    question : str
+        "compare" or "check".
+    changed : bool
+        The verdict at level ``alpha``.
+    alpha : float
+        The false-alarm probability the test was run at.
+    p_value : float
+        The test's p-value (Bonferroni over its two parts).
+    statistic : float
+        The omnibus test's squared whitened norm of the discrepancy.
+    dof : int
+        Its degrees of freedom (the directions the discrepancy was judged in).
+    suspects : tuple of Suspect
+        The candidate changes ranked by their directed statistic: the first best explains the discrepancy alone.
+    poses : int
+        How many poses the discrepancy was taken at.
+    frame_refitted : bool
+        Whether the measurement frame was re-fitted (then frame changes are not judged).
+    rms : float
+        The discrepancy's RMS per pose after the frame, m.
+    notes : tuple of str, optional
+        What the reader should know (poses outside the calibrated ranges, a frame shift).
+
+    Examples
+    --------
+    >>> t = ChangeTest("check", False, 0.05, 0.6, 20.1, 24, (Suspect("j2 zero", "joint zero", "angle", 1e-6,
+    ...                2e-6, 0.5),), 10, True, 3e-5)
+    >>> t.verdict
+    'still good'
+    >>> print(t.suspects[0].line())
+    j2 zero (joint zero): +0.0001 ° ± 0.0001 (z = +0.5)
+    """
 
     question: str
     changed: bool
@@ -101,7 +150,19 @@ class ChangeTest:
 
 @dataclass(frozen=True, eq=False)
 class Calibrated:
-    """A calibrated robot with what a repeat calibration would differ by and the joint ranges it was fitted in."""
+    """A calibrated robot with what a repeat calibration would differ by and the joint ranges it was fitted in.
+
+    Parameters
+    ----------
+    robot : Robot
+        The calibrated robot.
+    repeat : Repeat
+        What a calibration on other poses of the same robot differs by (:class:`kincal.analysis.changes.Repeat`).
+    lower, upper : ndarray, shape (n,)
+        The joint ranges of the calibration's data, rad (m for a prismatic joint).
+    label : str
+        How messages name it (its file).
+    """
 
     robot: Robot
     repeat: Repeat
@@ -111,7 +172,26 @@ class Calibrated:
 
     @classmethod
     def of(cls, robot: Robot, record: dict | None, label: str) -> "Calibrated":
-        """From a calibrated robot and its file's ``calibration`` section (ModelError naming ``label`` without it)."""
+        """From a calibrated robot and its file's ``calibration`` section.
+
+        Parameters
+        ----------
+        robot : Robot
+            The calibrated robot read from the file.
+        record : dict or None
+            The file's ``calibration`` section.
+        label : str
+            The file's name, for messages.
+
+        Returns
+        -------
+        Calibrated
+
+        Raises
+        ------
+        ModelError
+            Naming ``label``, when the file has no calibration record or its repeat record is missing or malformed.
+        """
         if not record or "envelope" not in record:
             raise ModelError(f"{label}: not a calibrated robot file (no 'calibration' section with the joint ranges "
                              f"of its data); give the file `kincal calibrate -o` wrote")
@@ -137,9 +217,34 @@ class Calibrated:
 
 def compare(a: Calibrated, b: Calibrated, same_frame: bool = False, alpha: float = ALPHA,
             poses: int = REGION_POSES) -> ChangeTest:
-    """Did the robot change from calibration ``a`` to ``b``? The positions each predicts at ``poses`` poses of the
-    joint ranges both were fitted in (seed 0), against both repeat covariances; ``same_frame``: the instrument kept
-    its frame (a frame change is then a change), else the frame is re-fitted. Sizes are b − a."""
+    """Did the robot change from calibration ``a`` to ``b``?
+
+    The positions each predicts at ``poses`` poses drawn (random seed 0) in the joint ranges both were fitted in,
+    judged against both repeat covariances.
+
+    Parameters
+    ----------
+    a, b : Calibrated
+        Two calibrations of the same robot model, the earlier first.
+    same_frame : bool, optional
+        The instrument kept its frame (a frame change is then a change); default False: the frame is re-fitted.
+    alpha : float, optional
+        The false-alarm probability (default ``ALPHA``, 0.05).
+    poses : int, optional
+        How many poses of the shared region the predictions are compared at (default 200).
+
+    Returns
+    -------
+    ChangeTest
+        The verdict, its p-value and the suspects; sizes are b − a.
+
+    Raises
+    ------
+    ModelError
+        When a and b are calibrations of different models.
+    MeasurementError
+        When their joint ranges do not overlap.
+    """
     _same_model(a, b)
     q = _region(a, b, poses)
     d = (b.robot.forward(q) - a.robot.forward(q)).ravel()
@@ -152,8 +257,33 @@ def compare(a: Calibrated, b: Calibrated, same_frame: bool = False, alpha: float
 
 def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = False,
           alpha: float = ALPHA) -> ChangeTest:
-    """Is the calibrated model still good? The positions xyz (M, 3) m measured at joints q (M, n), against the
-    calibration's prediction miss and repeat covariance; the frame re-fitted unless ``same_frame``."""
+    """Is the calibrated model still good? A short check on a few measured poses.
+
+    Parameters
+    ----------
+    cal : Calibrated
+        The calibration to check.
+    q : ndarray, shape (M, n)
+        Joint values of the check poses, rad (m for a prismatic joint); M ≥ 4.
+    xyz : ndarray, shape (M, 3)
+        The positions measured there, m.
+    same_frame : bool, optional
+        The instrument kept the calibration's frame; default False: the frame is re-fitted.
+    alpha : float, optional
+        The false-alarm probability (default ``ALPHA``, 0.05).
+
+    Returns
+    -------
+    ChangeTest
+        "still good" or "re-calibrate (kind: name)", with the suspects (sizes: measured − model).
+
+    Raises
+    ------
+    MeasurementError
+        With fewer than 4 poses.
+    ModelError
+        When the calibration's data had no absolute positions (no prediction miss to judge against).
+    """
     q = cal.robot.check_q(q)
     if len(q) < MIN_CHECK_POSES:
         raise MeasurementError(f"a check needs at least {MIN_CHECK_POSES} poses (the frame takes 6 of the 3 per "

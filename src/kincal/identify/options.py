@@ -44,7 +44,37 @@ PRIOR_CHOICES = ("auto", *PRIORS)  # "auto": each kind's default, chosen by held
 
 @dataclass(frozen=True)
 class PSOOptions:
-    """Particle swarm settings (defaults: the 3-PUU paper's Table 2)."""
+    """Particle swarm settings (defaults: the 3-PUU error-model verification paper's Table 2).
+
+    Every field is checked when the record is built (ValueError naming it).
+
+    Parameters
+    ----------
+    particles : int, optional
+        Swarm size, 2 or more (default 500).
+    iterations : int, optional
+        Iterations, 1 or more (default 200).
+    w : float, optional
+        Inertia weight, ≥ 0 (default 0.8).
+    c1 : float, optional
+        Cognitive (own best) coefficient, ≥ 0 (default 0.5).
+    c2 : float, optional
+        Social (swarm best) coefficient, ≥ 0 (default 1.2).
+    seed : int or None, optional
+        Random seed of the swarm, ≥ 0; None: a fresh one each run (default 0).
+
+    Examples
+    --------
+    >>> from kincal.identify import FitOptions, PSOOptions
+    >>> PSOOptions(particles=50, iterations=20)
+    PSOOptions(particles=50, iterations=20, w=0.8, c1=0.5, c2=1.2, seed=0)
+    >>> FitOptions(method="pso+lm", pso={"particles": 50}).pso.particles  # a mapping of its fields works too
+    50
+    >>> PSOOptions(particles=1)
+    Traceback (most recent call last):
+    ...
+    ValueError: pso particles=1: give a whole number, 2 or more
+    """
 
     particles: int = 500
     iterations: int = 200
@@ -79,33 +109,84 @@ class PSOOptions:
 
 @dataclass(frozen=True)
 class FitOptions:
-    """How to calibrate. Every field is checked when the record is built (ValueError naming it).
+    """How to calibrate: one frozen record of the options, checked when it is built.
 
-    names      -- "auto" (the identifiable set at the poses) or the parameter names to estimate
-    base       -- "estimate": register the measurement frame (Kabsch), then fit the base frame with
-                  the rest; "fixed": the base frame is known
-    loss       -- "linear", or "huber" / "soft_l1" on each sample's whitened residual block (a pose's
-                  3-D residual; ``f_scale`` m on position data, default 3 robust σ); method "lm" only
-    method     -- "lm" (Levenberg–Marquardt), "pso" (particle swarm; ``pso``), "pso+lm"
-    residual   -- "cartesian" (positions) or "joint" (commanded − inverse kinematics of the measured
-                  positions, the 3-PUU paper's residual; robots with a closed-form inverse)
-    keep       -- names to prefer among confounded parameters
-    rank_tol   -- relative singular-value tolerance of the identifiable set (the one rule shared with
-                  pose design, :data:`kincal.analysis.RANK_TOL`)
-    max_iter   -- Levenberg–Marquardt iteration limit
-    pso        -- :class:`PSOOptions` for method "pso" / "pso+lm" (None: its defaults)
-    thresholds -- the verdict's limits (:class:`~kincal.Thresholds`)
-    error_model-- None (the robot as given), or an :class:`~kincal.ErrorModel` (a name is accepted:
-                  "compliance+harmonics:2", "auto")
-    drift      -- also fit a base drift over acquisition (row) order (cartesian residual only)
-    reject_outliers -- leave out the poses a robust refit puts beyond ``thresholds.outlier_z`` robust σ
-                  (at most a tenth of them), named by row in the result
-    diagnose   -- when the verdict doubts the data, try the common input mistakes and name the one
-                  that explains them (:mod:`kincal.identify.diagnosis`)
-    prior      -- "none" (least squares), "relevance": a prior σ per joint origin's lengths and
-                  angles learned from the data (:mod:`kincal.identify.relevance`), after the
-                  least-squares fit (not with a particle swarm alone), or "auto": none for position
-                  data, relevance for the other kinds (:func:`kincal.identify.fitting.resolved_prior`)
+    Every field is checked in ``__post_init__`` (ValueError naming it); :meth:`check` adds the checks
+    that need the robot. A calibrated robot file keeps the record (:meth:`to_dict`, :meth:`from_dict`).
+
+    Parameters
+    ----------
+    names : "auto" or sequence of str, optional
+        ``"auto"`` (default): the identifiable set at the poses; or the parameter names to estimate.
+    base : {"estimate", "fixed"}, optional
+        ``"estimate"`` (default): register the measurement frame (Kabsch), then fit the base frame with
+        the rest; ``"fixed"``: the base frame is known.
+    loss : {"linear", "huber", "soft_l1"}, optional
+        ``"linear"`` (default), or a robust loss on each sample's whitened residual block (a pose's
+        3-D residual), reweighted from the start; method ``"lm"`` only.
+    f_scale : float or None, optional
+        The robust loss's scale, m on position data (default None: 3 robust σ of the residuals).
+    method : {"lm", "pso", "pso+lm"}, optional
+        ``"lm"`` (Levenberg–Marquardt, default), ``"pso"`` (particle swarm; ``pso``) or ``"pso+lm"``.
+    residual : {"cartesian", "joint"}, optional
+        ``"cartesian"`` (positions, default) or ``"joint"`` (commanded − inverse kinematics of the
+        measured positions, the 3-PUU error-model verification paper's residual; robots with a
+        closed-form inverse).
+    keep : sequence of str, optional
+        Names to prefer among confounded parameters (default none).
+    rank_tol : float, optional
+        Relative singular-value tolerance of the identifiable set, in (0, 1) (the one rule shared with
+        pose design; default :data:`kincal.analysis.RANK_TOL`, 3e-5).
+    max_iter : int, optional
+        Levenberg–Marquardt iteration limit, 1 or more (default 100).
+    pso : PSOOptions or mapping or None, optional
+        Particle swarm settings for method ``"pso"`` / ``"pso+lm"`` (default None: its defaults; refused
+        with ``"lm"``).
+    thresholds : Thresholds or mapping, optional
+        The verdict's limits (default ``Thresholds()``).
+    error_model : ErrorModel or str or None, optional
+        None (default: the robot as given), or an error model (a name is accepted:
+        ``"compliance+harmonics:2"``, ``"auto"``).
+    drift : bool, optional
+        Also fit the instrument's drift over acquisition (row) order, cartesian residual only (default
+        False).
+    reject_outliers : bool, optional
+        Leave out the poses a robust refit puts beyond ``thresholds.outlier_z`` robust σ (at most a
+        tenth of them), named by row in the result; method ``"lm"`` only (default False).
+    diagnose : bool, optional
+        When the verdict doubts the data, try the common input mistakes and name the one that explains
+        them (:mod:`kincal.identify.diagnosis`; default True).
+    prior : {"auto", "relevance", "none"}, optional
+        ``"none"`` (least squares); ``"relevance"``: a prior σ per joint origin's lengths and angles
+        learned from the data (:mod:`kincal.identify.relevance`), after the least-squares fit (not with
+        a particle swarm alone); ``"auto"`` (default): none for position data, relevance for the other
+        kinds (:func:`kincal.identify.fitting.resolved_prior`).
+
+    Raises
+    ------
+    ValueError
+        For an invalid value or a combination that does not work (a robust loss or outlier rejection
+        without ``"lm"``, ``pso`` with ``"lm"``, ``drift`` with the joint residual, the relevance prior
+        with a particle swarm alone), naming the option.
+
+    Examples
+    --------
+    >>> from kincal.identify import FitOptions
+    >>> options = FitOptions(base="fixed", loss="huber")
+    >>> options.base, options.loss, options.method, options.names
+    ('fixed', 'huber', 'lm', 'auto')
+    >>> options.replace(max_iter=20).max_iter
+    20
+    >>> FitOptions.from_dict(options.to_dict()) == options  # the record a calibrated robot file keeps
+    True
+    >>> FitOptions(loss="huber", method="pso")
+    Traceback (most recent call last):
+    ...
+    ValueError: loss='huber' needs method='lm' (got method='pso'): robust reweighting refits with ...
+    >>> options.replace(tolerance=1e-6)
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown calibration option(s) tolerance; the options are names, base, loss, ...
     """
 
     names: str | tuple[str, ...] = _flag("auto", "--params", "parameters to estimate (default: the identifiable set)",

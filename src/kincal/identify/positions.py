@@ -17,8 +17,42 @@ from ..units import MM
 
 @dataclass(frozen=True)
 class EvaluationStats:
-    """3-D position error statistics over n poses (m); with a model's uncertainty also the predicted
-    σ (m) at every pose and warnings where the model extrapolates."""
+    """3-D position error statistics over n poses (m).
+
+    Returned by :func:`evaluate`; with a model's uncertainty also the predicted σ at every pose and
+    warnings where the model extrapolates. Printed in mm.
+
+    Parameters
+    ----------
+    mean : float
+        Mean of the error norms, m.
+    rms : float
+        Root mean square of the error norms, m.
+    max : float
+        Largest error norm, m.
+    std : float
+        Standard deviation of the error norms, m.
+    p95 : float
+        95th percentile of the error norms, m.
+    n : int
+        Number of poses.
+    predicted_sigma : tuple of float or None, optional
+        The model's predicted 3-D σ at every pose, m; None (default): no uncertainty given.
+    extrapolated_rows : tuple of int, optional
+        Input rows of the poses where the model extrapolates (default none).
+    warnings : tuple of str, optional
+        Warnings naming those poses (default none).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.identify import EvaluationStats
+    >>> stats = EvaluationStats.from_errors(np.array([[3e-6, 4e-6, 0.0], [0.0, 0.0, 10e-6]]))  # (N, 3) m
+    >>> print(stats)
+    n=2  mean 0.0075 mm  rms 0.0079 mm  max 0.0100 mm  std 0.0025 mm  p95 0.0097 mm
+    >>> sorted(stats.to_dict())
+    ['max', 'mean', 'n', 'p95', 'rms', 'std', 'warnings']
+    """
 
     mean: float
     rms: float
@@ -84,8 +118,37 @@ def in_frame_of(model: Robot, registered: Robot, meas: Measurements) -> Measurem
 
 
 def joined(sessions: list[Measurements]) -> Measurements:
-    """Several sessions as one set of measurements (their rows keep their own files' line numbers; each
-    pose is labelled with its session's source, so held-out sessions can be told apart)."""
+    """Join several sessions into one set of measurements.
+
+    Their rows keep their own files' line numbers; each pose is labelled with its session's source (a
+    repeated source gets its position added, ``"a.csv (2)"``), so held-out sessions can be told apart.
+    The positions are joined as given: use this for sessions measured in one frame
+    (:func:`calibrate_sessions` fits each later session's frame).
+
+    Parameters
+    ----------
+    sessions : list of Measurements
+        The sessions, with the same joints.
+
+    Returns
+    -------
+    Measurements
+        All poses in order, ``source`` the sources joined by ``" + "``, ``session`` the labels; one
+        session is returned as it is.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.identify import joined
+    >>> robot = kincal.load_robot("ur5")
+    >>> a = kincal.simulate(robot, robot.sample_joints(3, seed=1))
+    >>> b = kincal.simulate(robot, robot.sample_joints(2, seed=2))
+    >>> both = joined([a, b])
+    >>> len(both), both.rows.tolist()
+    (5, [2, 3, 4, 2, 3])
+    >>> both.sessions()
+    ('simulated ur5', 'simulated ur5 (2)')
+    """
     if len(sessions) == 1:
         return sessions[0]
     std = None if any(s.std is None for s in sessions) else np.concatenate([s.std for s in sessions])

@@ -30,15 +30,47 @@ MOUNTING_POSES = 200  # poses the frame and the point are fitted to at most (9 u
 
 
 def register_mounting(robot: Robot, q: np.ndarray, xyz: np.ndarray, frame: bool = True) -> Robot:
-    """``robot`` with its base frame and its tool point moved so its predictions at q best match xyz
-    (N, 3), its kinematics as they are: the measurement frame and the target's mounting, the set-up
-    a model is judged "before" calibration with, so the figure does not depend on where the target
-    was declared. The flange frames are computed once; Gauss–Newton on the frame's rotation and
-    translation and the point (9 unknowns), from the frame registered with the declared point.
-    Without a tool point, or with fewer than 3 poses: the frame alone (:func:`register_base`); with
-    ``frame`` False (the base is known) or a robot without a base frame: the point alone. On a
-    long file both are fitted to MOUNTING_POSES poses spread evenly over it (a reference figure: the
-    difference is far below the noise; 10⁵ poses in a few ms instead of 0.45 s)."""
+    """Register the measurement frame and the target's mounting to measured positions, kinematics as they are.
+
+    The set-up a model is judged "before" calibration with, so the figure does not depend on where the
+    target was declared. The flange frames are computed once; Gauss–Newton on the frame's rotation and
+    translation and the point (9 unknowns), from the frame registered with the declared point. Without
+    a tool point, or with fewer than 3 poses: the frame alone (rigid registration, Kabsch); with
+    ``frame`` False (the base is known) or a robot without a base frame: the point alone. On a long file
+    both are fitted to ``MOUNTING_POSES`` (200) poses spread evenly over it (a reference figure: the
+    difference is far below the noise; 10⁵ poses in a few ms instead of 0.45 s).
+
+    Parameters
+    ----------
+    robot : Robot
+        The model whose frame and tool point to move.
+    q : ndarray, shape (N, n)
+        Joint values, rad (m for a prismatic joint).
+    xyz : ndarray, shape (N, 3)
+        Measured tool positions at ``q``, m.
+    frame : bool, optional
+        Whether to fit the base (measurement) frame too (default True); False: the base is known.
+
+    Returns
+    -------
+    Robot
+        ``robot`` with its base frame and tool point moved so its predictions at ``q`` best match
+        ``xyz`` in the least-squares sense.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.identify import register_mounting
+    >>> robot = kincal.load_robot("ur5")
+    >>> seen = robot.with_params({"base.x": 0.4, "base.rz": 0.2}).with_tool_point([0.0, 0.02, 0.1])
+    >>> q = robot.sample_joints(20, seed=1)
+    >>> mounted = register_mounting(robot, q, seen.forward(q))
+    >>> np.round(mounted.tool_point(), 6) + 0.0  # m in the flange frame
+    array([0.  , 0.02, 0.1 ])
+    >>> round(mounted.params["base.x"], 6), round(mounted.params["base.rz"], 6)
+    (0.4, 0.2)
+    """
     if len(q) > MOUNTING_POSES:
         pick = np.unique(np.linspace(0, len(q) - 1, MOUNTING_POSES).round().astype(int))
         q, xyz = q[pick], xyz[pick]

@@ -29,23 +29,108 @@ from .weak import weak_note
 class CalibrationResult:
     """A calibration from measurement sets of any kinds, by the one fit.
 
-    robot        -- the calibrated robot (save it with ``kincal.save_robot``)
-    nominal      -- the model as given (corrections are from it; commands are in its base frame)
-    registered   -- the same with its measurement frame registered to the data: where the fit began
-    before       -- the same with the target point registered too: what "before" calibration is judged on
-    names        -- the robot parameters fitted; every other kept its value
-    nuisance     -- the set-up parameters' values (frames of later sessions, a probe's rotation,
-                    markers, sockets, planes, drift), m or rad
-    std          -- 1-σ of robot and set-up parameters (m or rad; a posteriori, or posterior with a
-                    learned ``prior``); inf: not determined
-    covariance   -- (F, F) over ``free`` (robot and set-up parameters fitted, in that order)
-    per_set_before, per_set -- each set's statistics (m, rad) before and after
-    whitened_rms -- RMS of the residual whitened by the stated σ (1 when they are right); per kind
-                    in ``whitened``; ``model_error``: what the model leaves beyond them (m or rad)
-    observations -- the sets fitted (outliers left out); ``outliers``: per set, the samples beyond
-                    the outlier limit; ``rejected``: file -> rows left out as outliers
-    data         -- the position data as given when fitted by :func:`kincal.calibrate` (one per
-                    session): the position view (``measurements``, ``residuals``, ``stats_after``…)
+    Returned by :func:`calibrate`, :func:`calibrate_sessions` and :func:`fit_observations`; frozen,
+    printable in mm/deg/mrad, :meth:`to_dict` in SI, :meth:`record` for the calibrated robot file. Data
+    fitted by :func:`calibrate` also have the position view (``measurements``, ``residuals``,
+    ``stats_before``, ``stats_after``…).
+
+    Parameters
+    ----------
+    robot : Robot
+        The calibrated robot (save it with ``kincal.save_robot``).
+    nominal : Robot
+        The model as given (corrections are from it; commands are in its base frame).
+    registered : Robot
+        The same with its measurement frame registered to the data: where the fit began.
+    before : Robot
+        The same with the target point registered too: what "before" calibration is judged on.
+    names : tuple of str
+        The robot parameters fitted; every other kept its value.
+    nuisance : dict of str to float
+        The set-up parameters' values (frames of later sessions, a probe's rotation, markers, sockets,
+        planes, drift), m or rad.
+    std : dict of str to float
+        1-σ of robot and set-up parameters, m or rad (a posteriori, or posterior with a learned
+        ``prior``); inf: not determined.
+    identifiability : Identifiability
+        What the data determine among the robot and set-up parameters (gauge freedoms left out).
+    gauge : tuple of str
+        Robot parameters no set sees (gauge freedoms), kept at their values.
+    per_set_before : tuple of dict
+        Each set's statistics (m, rad) under the ``before`` model.
+    per_set : tuple of dict
+        Each set's statistics (m, rad) after the fit.
+    whitened_rms : float
+        RMS of the residual whitened by the stated σ (1 when they are right).
+    covariance : ndarray, shape (F, F)
+        Covariance over ``free`` (robot and set-up parameters fitted, in that order), SI.
+    converged : bool
+        Whether the last solver run converged.
+    iterations : int
+        Iterations of every solver run, summed.
+    observations : tuple of Observation, optional
+        The sets fitted (outliers left out).
+    weak : dict of str to float, optional
+        Parameters kept nominal because the data determine them too weakly: name to the σ the data gave
+        it, m or rad.
+    prior : dict of str to float, optional
+        The learned prior σ per group, m or rad (empty: no prior).
+    whitened : dict of str to float, optional
+        The whitened RMS per kind of component (e.g. ``"pose rotation"``).
+    model_error : dict of str to float, optional
+        Per kind, what the model leaves beyond the stated σ, m or rad.
+    outliers : tuple of ndarray, optional
+        Per set, the indices of the samples beyond the outlier limit.
+    rejected : dict of str to tuple of int, optional
+        File to the rows left out as outliers (``reject_outliers``).
+    notes : tuple of str, optional
+        What the fit changed on its way (an error-model term dropped, a refit).
+    whitened_residual : ndarray, shape (M,), optional
+        The residual whitened by the stated σ.
+    diagnosis : Diagnosis or None, optional
+        The differential diagnosis of a doubtful fit, if run.
+    evaluations : int, optional
+        Evaluations of the stacked residual (a particle swarm's included).
+    message : str, optional
+        How the last solver stopped.
+    history : tuple of float, optional
+        Particle swarm: the best mean squared residual per iteration.
+    free : tuple of str, optional
+        The robot and set-up parameters fitted, in the order of ``covariance``.
+    options : FitOptions, optional
+        The options used (to reproduce the fit).
+    time_s : float, optional
+        Wall time of the calibration, s.
+    error_model_choice : ErrorModelChoice or None, optional
+        With ``error_model="auto"``: the blocked cross-validation comparison.
+    use_q : ndarray, shape (M, n), optional
+        Joint values where the model will be used (the prediction-σ guard), rad (m for a prismatic
+        joint); None: not given.
+    data : tuple of Measurements, optional
+        The position data as given when fitted by :func:`calibrate` (one per session); empty for a fit
+        of observation sets.
+    repeat : Repeat or None, optional
+        What a repeat calibration on other poses would differ by (for ``compare`` and ``check``).
+
+    Examples
+    --------
+    >>> import kincal
+    >>> robot = kincal.load_robot("ur5")
+    >>> true = kincal.perturb(robot, seed=1)
+    >>> res = kincal.calibrate(robot, kincal.simulate(true, robot.sample_joints(30, seed=2), seed=3),
+    ...                        diagnose=False)
+    >>> res.names[:6] == robot.base_params()  # the measurement frame is fitted too
+    True
+    >>> found, sd = res.corrections["j2.a"], res.std["j2.a"]  # m
+    >>> truth = true.params["j2.a"] - robot.params["j2.a"]
+    >>> f"j2.a {found * 1e3:+.3f} ± {sd * 1e3:.3f} mm (true {truth * 1e3:+.3f})"
+    'j2.a +0.333 ± 0.004 mm (true +0.328)'
+    >>> res.residuals.shape, res.covariance.shape
+    ((30, 3), (26, 26))
+    >>> list(res.weak)  # kept nominal: 30 poses determine it too weakly
+    ['j5.theta']
+    >>> print(res.verdict)
+    verdict: GOOD
     """
 
     robot: Robot
@@ -369,7 +454,27 @@ class CalibrationResult:
 
 
 def stat_line(stats: dict) -> str:
-    """One set's statistics (``stats()`` of an observation type, m and rad) in a few words, mm and mrad."""
+    """One set's statistics in a few words, mm and mrad.
+
+    Parameters
+    ----------
+    stats : dict
+        The set's statistics, as an observation type's ``stats()`` gives them (m and rad): ``mean``,
+        and ``mean_rotation`` for poses, or ``mean_abs`` for data judged by an absolute deviation.
+
+    Returns
+    -------
+    str
+        E.g. ``"mean 0.0215 mm"``, ``"mean 0.0300 mm, mean 0.1000 mrad"``.
+
+    Examples
+    --------
+    >>> from kincal.identify import stat_line
+    >>> stat_line({"type": "point", "samples": 30, "mean": 21.5e-6, "rms": 24e-6, "max": 41e-6})
+    'mean 0.0215 mm'
+    >>> stat_line({"type": "pose", "mean": 30e-6, "mean_rotation": 0.1e-3})
+    'mean 0.0300 mm, mean 0.1000 mrad'
+    """
     s = in_display(stats)
     if "mean_abs_mm" in s:
         return f"mean |p − point| {s['mean_abs_mm']:.4f} mm"
@@ -378,9 +483,45 @@ def stat_line(stats: dict) -> str:
 
 
 def trained_setup(record: dict | None, where: str = "calibration record") -> tuple[dict, dict]:
-    """From a calibration record's ``setup``: the set-up parameters to hold (name -> value) and the
-    anchors (a 6-D probe's rotation) a held-out file is judged with, so its probe and markers stay as
-    trained; ({}, {}) for a record without one. ``where`` names the file in an error."""
+    """Read the set-up a held-out file is judged with from a calibration record.
+
+    From the record's ``setup``: the set-up parameters to hold and the anchors (a 6-D probe's rotation)
+    a held-out file is judged with, so its probe and markers stay as trained.
+
+    Parameters
+    ----------
+    record : dict or None
+        A calibration record (:meth:`CalibrationResult.record`, the ``calibration:`` section of a
+        calibrated robot file), or None.
+    where : str, optional
+        Names the file in an error (default ``"calibration record"``).
+
+    Returns
+    -------
+    held : dict of str to float
+        Set-up parameters to hold at these values (m or rad): the markers, and the probe's rotation
+        vector at 0 when the rotation is anchored.
+    anchors : dict
+        ``{"target_rotation": R}``, R (3, 3), when the record has a 6-D probe's rotation, else empty.
+        Both are empty for a record without a ``setup``.
+
+    Raises
+    ------
+    ValueError
+        When ``setup.target_rotation`` is not a 3 x 3 rotation matrix.
+
+    Examples
+    --------
+    >>> from kincal.identify import trained_setup
+    >>> trained_setup(None)
+    ({}, {})
+    >>> held, anchors = trained_setup({"setup": {"markers": {"marker[a].x": 0.01},
+    ...                                          "target_rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}})
+    >>> held
+    {'marker[a].x': 0.01, 'target.rx': 0.0, 'target.ry': 0.0, 'target.rz': 0.0}
+    >>> anchors["target_rotation"].shape
+    (3, 3)
+    """
     setup = (record or {}).get("setup")
     if not isinstance(setup, dict):
         return {}, {}

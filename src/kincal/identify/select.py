@@ -62,10 +62,28 @@ def default_candidates(robot: Robot) -> tuple[str, ...]:
 
 @dataclass(frozen=True)
 class ErrorModelChoice:
-    """The comparison: per error model its parameter count, blocked-CV mean error and standard error
-    (m), predicted-σ ratio to geometric, mean error on each held-out session (m; inf: not judged),
-    whether it was eligible and why; and the model chosen. ``sessions``: the held-out sessions' labels
-    (empty for one session); ``not_held_out``: the sessions kept in every fit (more than half the poses)."""
+    """The comparison of error models by joint-space blocked cross-validation, and the model chosen.
+
+    Made by ``calibrate(..., error_model="auto")`` and kept in ``CalibrationResult.error_model_choice``;
+    printed as a table (mm), :meth:`to_dict` in SI (inf as None).
+
+    Parameters
+    ----------
+    rows : tuple of dict
+        One per candidate error model: ``error_model`` (its name), ``parameters`` (the count estimated),
+        ``cv_mean`` and ``cv_se`` (blocked-CV mean error and its standard error, m; inf: not judged),
+        ``sigma_ratio`` (predicted σ where the model will be used, over geometric's), ``fits_ok``,
+        ``sessions`` (mean error on each held-out session, m; inf: not judged) and ``decision`` (kept or
+        dropped, and why); ``why`` when the model does not apply to the robot.
+    chosen : str
+        The name of the error model chosen.
+    folds : int
+        The number of joint-space regions held out in turn.
+    sessions : tuple of str, optional
+        The held-out sessions' labels (default empty: one session).
+    not_held_out : tuple of str, optional
+        The sessions kept in every fit, with more than half of the poses (default empty).
+    """
 
     rows: tuple[dict, ...]
     chosen: str

@@ -24,17 +24,82 @@ AS_CALIBRATED = "frame as calibrated: told the measurement frame did not move"
 
 
 def refit_frame(robot: Robot, meas: Measurements) -> Robot:
-    """``robot`` with only its measurement (base) frame re-fitted to ``meas``; a robot without a
-    base frame is returned as it is."""
+    """Re-fit only the measurement (base) frame of ``robot`` to ``meas``, kinematics fixed.
+
+    Parameters
+    ----------
+    robot : Robot
+        The model (nominal or calibrated).
+    meas : Measurements
+        Measured tool positions (N, 3) m at joint values (N, n) rad (m for a prismatic joint), in a frame
+        of their own; at least 3 distinct poses.
+
+    Returns
+    -------
+    Robot
+        ``robot`` with its six base-frame parameters fitted to ``meas``; a robot without a base frame is
+        returned as it is.
+
+    Raises
+    ------
+    MeasurementError
+        For data that cannot belong to the robot, or fewer than 3 distinct poses.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.identify import refit_frame
+    >>> robot = kincal.load_robot("ur5")
+    >>> moved = robot.with_params({"base.x": 0.5, "base.rz": 0.3})  # the tracker moved
+    >>> meas = kincal.simulate(moved, robot.sample_joints(20, seed=1), seed=2)
+    >>> again = refit_frame(robot, meas)
+    >>> round(again.params["base.x"], 4), round(again.params["base.rz"], 4)
+    (0.5, 0.3)
+    """
     if not robot.base_params():
         return robot
     return calibrate(robot, meas, names=(), base="estimate", diagnose=False).robot
 
 
 def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased: bool) -> str:
-    """A sentence naming the likely cause when ``robot`` (as used on ``meas``: registered or not)
-    misses ``meas`` by more than HELDOUT_RATIO times its mean training error ``train_error`` (m);
-    '' otherwise. Tries, in order: the frame not re-registered, another tool point, a scale error."""
+    """Name the likely cause when a model misses a held-out session by far more than its training data.
+
+    When ``robot`` misses ``meas`` by more than ``HELDOUT_RATIO`` (10) times its mean training error, tries
+    in order: the frame not re-registered, another tool point, a scale error (length unit, tracker
+    compensation); else says what else it may be.
+
+    Parameters
+    ----------
+    robot : Robot
+        The model as used on ``meas`` (registered to it or not).
+    meas : Measurements
+        The held-out session: tool positions (N, 3) m at joint values (N, n) rad (m for a prismatic joint).
+    train_error : float
+        The model's mean error on its training data, m.
+    rebased : bool
+        Whether the frame was already re-registered to ``meas``.
+
+    Returns
+    -------
+    str
+        A sentence naming the session, its error against the training error and the likely cause; ``""``
+        when the error is within ``HELDOUT_RATIO`` times the training error (or ``train_error`` is not
+        positive).
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.identify import heldout_cause
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = robot.sample_joints(20, seed=1)
+    >>> heldout_cause(robot, kincal.simulate(robot, q, seed=2), 20e-6, rebased=False)
+    ''
+    >>> moved = kincal.simulate(robot.with_params({"base.x": 0.5}), q, seed=2)
+    >>> print(heldout_cause(robot, moved, 20e-6, rebased=False))
+    simulated ur5: mean error 499.99... mm is 25000x the training error (0.020 mm); with the measurement frame
+    re-registered it is 0.0... mm: the tracker moved between sessions (leave out --same-frame so that each
+    session's frame is registered)
+    """
     error = _mean_error(robot, meas)
     if not train_error > 0 or error <= HELDOUT_RATIO * train_error:
         return ""

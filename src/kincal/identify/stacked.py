@@ -223,9 +223,51 @@ def _check_equations(st: "_Stack", equations: int, unknowns: int) -> None:
 def observation_identifiability(robot: Robot, observations: Sequence, names: Sequence[str] | str = "auto",
                                 keep: Sequence[str] = (), rank_tol: float = RANK_TOL
                                 ) -> tuple[Identifiability, tuple[str, ...]]:
-    """Which robot and set-up parameters the observation sets identify (the rule of
-    :func:`fit_observations`, at ``robot``), and the gauge freedoms no set sees: for planned
-    measurements (simulated at the nominal robot) before anyone measures."""
+    """Which robot and set-up parameters the observation sets identify, and the gauge freedoms no set sees.
+
+    The rule of :func:`~kincal.identify.fit_observations`, at ``robot``: for planned measurements
+    (simulated at the nominal robot) before anyone measures.
+
+    Parameters
+    ----------
+    robot : Robot
+        The nominal robot.
+    observations : sequence of Observation
+        The planned observation sets (points, poses, markers, sockets, planes).
+    names : "auto" or sequence of str, optional
+        The robot parameters to consider (default ``"auto"``: all of them).
+    keep : sequence of str, optional
+        Names to prefer among confounded parameters (default none).
+    rank_tol : float, optional
+        Relative singular-value tolerance (default :data:`~kincal.analysis.RANK_TOL`, 3e-5).
+
+    Returns
+    -------
+    identifiability : Identifiability
+        What the sets determine among the robot and set-up parameters (the gauge left out).
+    gauge : tuple of str
+        The robot parameters no set sees (gauge freedoms: a base frame that sockets or planes do not
+        see), kept at their values.
+
+    Raises
+    ------
+    MeasurementError
+        For no observations, or data that do not fix the length scale.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.identify import observation_identifiability
+    >>> from kincal.observe import PointObs
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = robot.sample_joints(30, seed=2)
+    >>> plan = PointObs(q, list(range(2, 32)), "plan.csv", xyz=robot.forward(q))
+    >>> ident, gauge = observation_identifiability(robot, [plan])
+    >>> ident.rank, len(ident.candidates), gauge
+    (27, 35, ())
+    >>> ident.dropped[:4]
+    ('j1.theta', 'j1.d', 'j3.d', 'j4.d')
+    """
     wanted = robot.params.names if names == "auto" else tuple(names)
     with blas_threads(1):
         _, _, gauge, ident, _ = _problem(robot, observations, wanted, keep, rank_tol)

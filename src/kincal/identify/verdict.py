@@ -66,7 +66,70 @@ MAX_OUTLIER_SHARE = 0.1  # "a few bad poses": outliers are left out only up to t
 
 @dataclass(frozen=True)
 class Thresholds:
-    """Verdict thresholds (SI units: m, rad; ratios are to ``tracker_noise``)."""
+    """Verdict thresholds (SI units: m, rad; the residual ratios are to ``tracker_noise``).
+
+    Every field must be a positive number and no ``*_suspect`` may exceed its ``*_refuse`` (ValueError).
+    Corrections of the base frame (where the tracker stands) and of the tool point (where the target is
+    mounted) are not judged by the length and angle limits.
+
+    Parameters
+    ----------
+    length_suspect : float, optional
+        A length correction beyond which a calibration is suspect, m (default 10e-3).
+    length_refuse : float, optional
+        A length correction beyond which it is refused, m (default 50e-3).
+    angle_suspect : float, optional
+        An angle correction beyond which it is suspect, rad (default 2°).
+    angle_refuse : float, optional
+        An angle correction beyond which it is refused, rad (default 10°).
+    tracker_noise : float, optional
+        The instrument's σ per axis when the data state none, m (default 0.05e-3).
+    residual_suspect : float, optional
+        Residual σ per axis over ``tracker_noise`` beyond which the fit is suspect: errors the model
+        cannot describe (default 10).
+    residual_refuse : float, optional
+        The same ratio beyond which it is refused: data and model do not belong together (default 100).
+    outlier_z : float, optional
+        Robust σ (1.4826·MAD) above the median error norm beyond which a pose is an outlier, raised for
+        many poses by :meth:`outlier_limit` (default 5).
+    tool_suspect : float, optional
+        Distance of the fitted tool point from the declared one beyond which it is suspect, m (default
+        50e-3).
+    tool_refuse : float, optional
+        The same beyond which it is refused, m (default 1.0: no probe is that long).
+    repeat_angle : float, optional
+        Commanded joint angles this close are the same pose (a repeat), rad (default 1e-4).
+    repeat_length : float, optional
+        The same for prismatic joints, m (default 1e-5).
+    ratio_suspect : float, optional
+        An actuator's scale this far off its nominal travel is suspect (default 0.02: 2 %).
+    ratio_refuse : float, optional
+        The same beyond which it is refused (default 0.2).
+    mounting_suspect : float, optional
+        A correction of a closed chain's design point beyond which it is suspect, m (default 50e-3).
+    mounting_refuse : float, optional
+        The same beyond which it is refused, m (default 0.5).
+
+    Raises
+    ------
+    ValueError
+        For a field that is not a positive number, or a suspect limit above its refuse limit.
+
+    Examples
+    --------
+    >>> from kincal.identify import Thresholds
+    >>> th = Thresholds(tracker_noise=20e-6)
+    >>> th.tracker_noise, th.length_suspect, th.refuse("length")
+    (2e-05, 0.01, 0.05)
+    >>> th.outlier_limit(100), round(th.outlier_limit(100_000), 2)  # raised for many poses
+    (5.0, 6.47)
+    >>> Thresholds.of({"outlier_z": 4.0}).outlier_z
+    4.0
+    >>> Thresholds(length_suspect=0.1)
+    Traceback (most recent call last):
+    ...
+    ValueError: thresholds: length_suspect must not exceed length_refuse
+    """
 
     length_suspect: float = 10e-3
     length_refuse: float = 50e-3
@@ -127,7 +190,23 @@ class Thresholds:
 
 @dataclass(frozen=True)
 class Reason:
-    """One finding: its level ("suspect" or "refused"), a short code and a message with what to do."""
+    """One finding of a verdict: its level, a short code and a message with what to do.
+
+    Parameters
+    ----------
+    level : str
+        ``"suspect"`` or ``"refused"``.
+    code : str
+        A short, stable code, e.g. ``"large-correction"``, ``"outliers"``, ``"drift"``.
+    message : str
+        What was found and what to do, in words.
+
+    Examples
+    --------
+    >>> from kincal.identify import Reason
+    >>> Reason("suspect", "drift", "the first 5 poses average 0.1 mm of error: warm-up?").level
+    'suspect'
+    """
 
     level: str
     code: str
@@ -136,6 +215,31 @@ class Reason:
 
 @dataclass(frozen=True)
 class Verdict:
+    """Whether to believe a calibration: good, suspect or refused, with the reasons.
+
+    ``CalibrationResult.verdict``; :meth:`from_reasons` takes the worst level of its reasons.
+
+    Parameters
+    ----------
+    status : str
+        ``"good"``, ``"suspect"`` (warnings; the model is written) or ``"refused"`` (the model is not
+        written unless forced).
+    reasons : tuple of Reason, optional
+        The findings, each with what to do (default none).
+
+    Examples
+    --------
+    >>> from kincal.identify import Reason, Verdict
+    >>> verdict = Verdict.from_reasons([Reason("suspect", "drift", "the first 5 poses average 0.1 mm of error")])
+    >>> verdict.status
+    'suspect'
+    >>> print(verdict)
+    verdict: SUSPECT
+      suspect: the first 5 poses average 0.1 mm of error
+    >>> Verdict.from_reasons([]).status
+    'good'
+    """
+
     status: str
     reasons: tuple[Reason, ...] = field(default=())
 
