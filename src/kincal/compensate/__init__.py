@@ -11,4 +11,9 @@ from .taught import resolve_taught
 from .folder import FolderCompensation, check_folder_output, compensate_folder, write_folder
 from .verify import Verification, VerificationPlan, verification_plan
 
-__all__ = ["Compensation", "compensate", "compensate_poses", "path_checked", "ProgramCompensation", "compensate_program", "compensate_branches", "PoseSolution", "solve_poses", "filtered_poses", "TARGET_FRAMES", "LINK_ERROR_MAX", "command_models", "frame_mismatch", "tool_carry", "StreamJob", "StreamResult", "TargetsFormat", "compensate_file", "Verification", "VerificationPlan", "verification_plan", "FramesOnly", "fit_frames_only", "resolve_taught", "FolderCompensation", "check_folder_output", "compensate_folder", "write_folder"]
+__all__ = ["Compensation", "compensate", "compensate_poses", "path_checked", "ProgramCompensation",
+           "compensate_program", "compensate_branches", "PoseSolution", "solve_poses", "filtered_poses",
+           "TARGET_FRAMES", "LINK_ERROR_MAX", "command_models", "frame_mismatch", "tool_carry", "StreamJob",
+           "StreamResult", "TargetsFormat", "compensate_file", "Verification", "VerificationPlan", "verification_plan",
+           "FramesOnly", "fit_frames_only", "resolve_taught", "FolderCompensation", "check_folder_output",
+           "compensate_folder", "write_folder"]

@@ -65,13 +65,82 @@ Rows = Callable[[Robot, np.ndarray], list]
 def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Rows,
                         frames: Mapping[str, object] | None = None,
                         q_start: np.ndarray | None = None) -> ProgramCompensation:
-    """Compensate every literal target of ``program`` on the branch it states (module docstring);
-    ``rows(robot, q (N, 6)) -> bits per row`` as the language writes them (:data:`kincal.io.branches.ROWS`);
-    ``frames``: the program's tool and base frames by name (4x4, m), beside those it declares itself (RAPID's
-    tooldata and wobjdata; a given one wins); ``q_start``: the joints before the first move (default: the first
-    joint target's, else the zero pose: the bits choose the branch). Batched: the controller's joints of all
-    targets are solved together, each from the start and then from its predecessor's joints, and only what
-    that leaves is searched one by one. The replacement texts are checked end to end (:func:`check_written`)."""
+    """Compensate every literal target of a program on the branch it states (KUKA S/T, ABB confdata, ...).
+
+    A joint target means the pose the nominal model reaches there; a pose target means the TCP in the
+    program's base and tool frames, reached by the controller on the branch its bits name (module
+    docstring). Batched: the controller's joints of all targets are solved together, each from the start and
+    then from its predecessor's joints, and only what that leaves is searched one by one. The replacement
+    texts are read again and checked end to end (:func:`check_written`); a target that fails any check keeps
+    its text and is named by line.
+
+    Parameters
+    ----------
+    model : Robot
+        The calibrated model (where the robot really goes), in the controller's world frame.
+    nominal : Robot
+        The controller's (nominal) model, same frame.
+    program : Program
+        The program read (:func:`kincal.io.read_program`), in a language whose targets state their branch.
+    rows : callable
+        ``rows(robot, q) -> bits per row`` for joints q (N, 6) rad, as the language writes them
+        (:data:`kincal.io.ROWS`).
+    frames : mapping of str to ndarray, str or TaughtFrame, optional
+        The program's tool and base frames by name (4x4, m; a taught frame, :func:`resolve_taught`), beside
+        those it declares itself (RAPID's tooldata and wobjdata; a given one wins). Where the program names
+        none, ``"default tool"`` and ``"default base"`` are in force; a frame that is needed and missing
+        refuses its targets (never taken as the identity).
+    q_start : ndarray, shape (n,), optional
+        The joints before the first move, rad (default: the first joint target's, else the zero pose: the
+        bits choose the branch).
+
+    Returns
+    -------
+    ProgramCompensation
+        The replacement texts by target index, the corrected joints (K, n), and the refused targets.
+
+    Examples
+    --------
+    A KRL module with an axis target and a Cartesian target (mm, deg, its S and T), written into a temporary
+    folder and read:
+
+    >>> import os
+    >>> import tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import compensate_branches
+    >>> from kincal.io import ROWS, read_program
+    >>> nominal = kincal.load_robot("kuka_kr6r900sixx")
+    >>> real = kincal.perturb(nominal, seed=1)
+    >>> text = ("DEF demo()\\n"
+    ...         "PTP {A1 20, A2 -70, A3 80, A4 10, A5 40, A6 5}\\n"
+    ...         "LIN {X 609.5, Y -231.3, Z 728.6, A -29.83, B 49.15, C -20.16, S 2, T 2}\\n"
+    ...         "END\\n")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "demo.src")
+    ...     with open(path, "w") as f:
+    ...         _ = f.write(text)
+    ...     program = read_program(path, "krl")
+    >>> [(t.line, t.kind, t.config) for t in program.targets]
+    [(2, 'joints', ()), (3, 'pose', (2, 2))]
+
+    The module names no tool or base: its pose target is refused until the frames in force are given.
+
+    >>> compensate_branches(real, nominal, program, ROWS["krl"]).refused
+    {1: "the program names no tool frame here: give the one in force (frames: 'default tool')"}
+    >>> frames = {"default tool": np.eye(4), "default base": np.eye(4)}
+    >>> res = compensate_branches(real, nominal, program, ROWS["krl"], frames)
+    >>> res.problems
+    ()
+    >>> print(program.with_targets(res.texts), end="")
+    DEF demo()
+    PTP {A1 19.8158..., A2 -70.0937..., A3 80.1103..., A4 10.2834..., A5 40.0511..., A6 4.6542...}
+    LIN {X 609.4226..., Y -229.3217..., Z 728.7163..., A -29.9386..., B 49.1673..., C -20.2546..., S 2, T 2}
+    END
+    >>> np.round(np.degrees(res.q), 2)
+    array([[ 19.82, -70.09,  80.11,  10.28,  40.05,   4.65],
+           [ 19.81, -70.1 ,  80.11,  10.29,  40.05,   4.65]])
+    """
     dialect = dialects()[program.dialect]
     model, nominal = model.with_tool_point(np.zeros(3)), nominal.with_tool_point(np.zeros(3))  # flange poses
     frames = resolve_taught({**dialect.frames(program), **(frames or {})}, nominal, model)  # declared, unless given
@@ -108,7 +177,8 @@ def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side:
     no_scale = any(t.kind == "pulses" for t in program.targets) and pulse_scale(nominal) is None
     for k, t in enumerate(program.targets):
         if t.kind == "pulses":  # what in_joints could not turn into joints
-            refused[k] = PULSES_WHY if no_scale else f"{t.values.size} pulse counts for a {nominal.n_joints}-joint robot"
+            refused[k] = (PULSES_WHY if no_scale else
+                          f"{t.values.size} pulse counts for a {nominal.n_joints}-joint robot")
             continue
         if t.kind == "joints":
             if t.values.size != nominal.n_joints:

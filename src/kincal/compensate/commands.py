@@ -23,10 +23,65 @@ REACH_MARGIN = 1.2  # targets farther from the base than this times the reach bo
 
 @dataclass(frozen=True)
 class Compensation:
-    """q (N, n): commands; residual (N,): |model(q) − target| in m; method: how q was found.
+    """Joint commands that the calibrated model says reach given targets, each checked before use.
 
-    ok (N,) says which commands passed every check (reach, joint limits, branch, model residual);
-    problems holds one message per refused target, naming its input row (rows (N,): the targets' rows).
+    ``ok`` says which commands passed every check (reach, joint limits, branch, model residual);
+    ``problems`` holds one message per refused target, naming its input row (``rows``).
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, n)
+        The commands, rad (m for a prismatic joint); the nominal commands when nothing was corrected.
+    residual : ndarray, shape (N,)
+        ``abs(model(q) - target)``, m (inf where no command was found).
+    method : str
+        How ``q`` was found: "damped least squares", "closed-form inverse", "pose (damped Newton)",
+        "closed-form inverse (poses)", or "not corrected" (a set-up mismatch refused every row).
+    iterations : int
+        Iterations of the solve (0 for a closed form).
+    ok : ndarray of bool, shape (N,)
+        Which commands passed every check.
+    problems : tuple of str
+        One message per refused target ("row r: why"), or one for all on a set-up mismatch.
+    rows : ndarray, shape (N,)
+        The targets' row numbers, as the messages name them.
+    predicted_sigma : ndarray, shape (N,), optional
+        The model's predicted σ of the position at each accepted command, m (NaN at refused ones), where
+        the model's uncertainty is known; None else.
+    warnings : tuple of str, optional
+        Warnings for accepted commands: where the model extrapolates or leaves the joint envelope of its
+        data, rotations a robot with fewer than six joints does not control.
+    orientation_change : ndarray, shape (N,), optional
+        How far the tool orientation the model predicts at ``q`` lies from the one the nominal model
+        promises at the nominal command, rad (position targets compensated with the nominal model).
+    rotation_residual : ndarray, shape (N,), optional
+        Pose targets: ``abs(log(R_target R(q)ᵀ))``, rad.
+    filtered : tuple of ndarray, optional
+        Pose targets with the nominal model: the positions (N, 3) m and rotations (N, 3, 3) to send a
+        controller moving with the nominal model (:func:`filtered_poses`).
+
+    See Also
+    --------
+    compensate : Makes it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import compensate
+    >>> nominal = kincal.load_robot("ur5")
+    >>> real = kincal.perturb(nominal, seed=1)
+    >>> q0 = nominal.sample_joints(3, seed=2)
+    >>> comp = compensate(real, nominal.forward(q0), q0, nominal=nominal)
+    >>> comp.method, comp.all_ok, comp.rows.tolist(), comp.problems
+    ('damped least squares', True, [1, 2, 3], ())
+    >>> bool(comp.residual.max() < 1e-9)
+    True
+    >>> np.round(comp.orientation_change * 1e3, 2)  # mrad
+    array([3.36, 0.46, 2.78])
+    >>> sorted(comp.to_dict())
+    ['iterations', 'max_residual', 'method', 'ok', 'orientation_change', 'predicted_sigma', 'problems', 'q',
+     'residual', 'rotation_residual', 'warnings']
     """
 
     q: np.ndarray
@@ -44,9 +99,11 @@ class Compensation:
 
     @property
     def all_ok(self) -> bool:
+        """True when every command passed every check."""
         return bool(self.ok.all())
 
     def to_dict(self) -> dict:
+        """The result as plain JSON values (None for the commands and values of refused rows), m and rad."""
         ok = self.ok
         res = np.where(np.isfinite(self.residual), self.residual, np.nan)
         accepted = lambda a: None if a is None else [float(x) if k else None for x, k in zip(a, ok)]  # noqa: E731
@@ -62,21 +119,85 @@ class Compensation:
 def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = None, *, damping: float = 1e-4,
                rows: np.ndarray | None = None, uncertainty: ModelUncertainty | None = None,
                nominal: Robot | None = None, rotations: np.ndarray | None = None) -> Compensation:
-    """Joint commands that place ``robot``'s tool at targets (N, 3) m, each checked before use.
+    """Joint commands that place ``robot``'s tool at the targets, each checked before use.
 
     Robots with a closed-form inverse (parallel robots) use it. Otherwise (serial robots) a damped
-    least-squares iteration on the model, started from ``q_start`` (N, n) — normally the commands the
-    nominal model gives for the targets — converges to the nearest solution; the damping (m) keeps
+    least-squares iteration on the model, started from ``q_start`` — normally the commands the
+    nominal model gives for the targets — converges to the nearest solution; the damping keeps
     steps small near singularities. Every command is then checked: the target must be within reach
     (and plausibly in the declared unit), the command inside the joint limits, on the same branch
     as the nominal command (no joint moving more than ``BRANCH_TOL``), with a model residual under
-    1 µm. ``ok`` and ``problems`` (rows are ``rows``, default 1-based positions) report the checks.
-    With the model's ``uncertainty`` the predicted σ at every command is reported, with a warning
-    naming the rows where the model extrapolates. With the ``nominal`` model (same frame and tool
-    point, see :func:`kincal.compensate.command_models`) the nominal joints must first reach the targets
-    through it: a TCP or frame mismatch refuses every row, named with its size and direction; and the
-    predicted change of the tool orientation is reported. With target ``rotations`` (N, 3, 3) of the
-    flange the targets are full poses (:func:`compensate_poses`). Every argument is checked before any work.
+    1 µm. ``ok`` and ``problems`` report the checks. Every argument is checked before any work.
+
+    Parameters
+    ----------
+    robot : Robot
+        The calibrated model (where the robot really goes), in the targets' frame.
+    targets : ndarray, shape (N, 3)
+        Target positions of the tool point, m.
+    q_start : ndarray, shape (N, n), optional
+        The nominal commands of the targets, rad (m for a prismatic joint): the start of the iteration and
+        the branch every command must stay on. Required unless the robot has a closed-form inverse.
+    damping : float, optional
+        Damping of the least-squares steps, m (default 1e-4).
+    rows : ndarray, shape (N,), optional
+        The row numbers the messages name (default 1, 2, ..., N).
+    uncertainty : ModelUncertainty, optional
+        The model's uncertainty: the predicted σ at every accepted command is reported, with a warning
+        naming the rows where the model extrapolates.
+    nominal : Robot, optional
+        The nominal (controller's) model, same frame and tool point (:func:`command_models`). The nominal
+        joints must first reach the targets through it: a TCP or frame mismatch refuses every row, named
+        with its size and direction (:func:`frame_mismatch`); the predicted change of the tool orientation
+        is reported.
+    rotations : ndarray, shape (N, 3, 3), optional
+        Target rotations of the flange: the targets are full poses (:func:`compensate_poses`).
+
+    Returns
+    -------
+    Compensation
+        The commands (N, n), their residuals (N,) m, which passed every check and why the others did not.
+
+    Raises
+    ------
+    ModelError
+        When the robot has covariate terms, is a hexapod given position targets only, has no inverse and
+        no ``q_start``, or the targets or start joints are not finite or do not match in number.
+    ValueError
+        When ``rows`` does not give one number per target.
+
+    See Also
+    --------
+    compensate_poses, path_checked, command_models
+
+    Examples
+    --------
+    A UR5 whose link lengths and joint zeros are off by up to 1 mm and 1 mrad, sent to three targets that the
+    nominal model reaches at ``q0``:
+
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import compensate
+    >>> nominal = kincal.load_robot("ur5")
+    >>> real = kincal.perturb(nominal, seed=1)
+    >>> q0 = nominal.sample_joints(3, seed=2)
+    >>> targets = nominal.forward(q0)
+    >>> comp = compensate(real, targets, q0)
+    >>> comp.ok.tolist()
+    [True, True, True]
+    >>> round(float(np.abs(comp.q - q0).max()) * 1e3, 2)  # the largest correction, mrad
+    3.54
+    >>> bool(np.linalg.norm(real.forward(comp.q) - targets, axis=1).max() < 1e-9)
+    True
+
+    Targets in mm read as m are out of reach, and each row says so:
+
+    >>> bad = compensate(real, targets * 1e3, q0, rows=np.array([10, 11, 12]))
+    >>> bad.ok.tolist()
+    [False, False, False]
+    >>> print(bad.problems[0])
+    row 10: target ... mm from the base, beyond the robot's reach (1225.4 mm): out of reach, or not in the
+    declared length unit
     """
     if robot.covariate_names:
         raise ModelError(f"robot '{robot.name}' has covariate terms ({', '.join(robot.covariate_names)}): its "
@@ -208,11 +329,61 @@ ORIENT_MISMATCH = 1e-3  # rad: the nominal command's orientation must match the 
 def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q_start: np.ndarray | None, *,
                      rows: np.ndarray | None = None, uncertainty: ModelUncertainty | None = None,
                      nominal: Robot | None = None) -> Compensation:
-    """Joint commands that put ``robot``'s tool point at targets (N, 3) m with its flange at
-    ``rotations`` (N, 3, 3), from the nominal commands q_start (N, n), each checked like a position
-    command and, with six joints or more, for the orientation too (fewer joints: the rotation they
-    cannot control is reported). With the ``nominal`` (controller's) model also the filtered poses:
-    what to send that controller so that its inverse kinematics give these commands."""
+    """Joint commands that put ``robot``'s tool point at target poses, each checked before use.
+
+    Each command is checked like a position command (:func:`compensate`) and, with six joints or more,
+    for the orientation too (to 1 µrad); with fewer joints the rotation they cannot control is reported
+    (``rotation_residual`` and a warning). A hexapod's legs follow from the poses in closed form.
+
+    Parameters
+    ----------
+    robot : Robot
+        The calibrated model, with a tool point and flange frame, in the targets' frame.
+    targets : ndarray, shape (N, 3)
+        Target positions of the tool point, m.
+    rotations : ndarray, shape (N, 3, 3)
+        Target rotations of the flange.
+    q_start : ndarray, shape (N, n) or None
+        The nominal commands of the targets, rad (m for a prismatic joint): the start of the solve and the
+        branch every command must stay on (None for a robot with a closed-form inverse).
+    rows : ndarray, shape (N,), optional
+        The row numbers the messages name (default 1, 2, ..., N).
+    uncertainty : ModelUncertainty, optional
+        The model's uncertainty: the predicted σ at every accepted command.
+    nominal : Robot, optional
+        The nominal (controller's) model: the set-up is checked first (a TCP, frame or orientation
+        mismatch refuses every row), and the filtered poses are given: what to send that controller so
+        that its inverse kinematics give these commands.
+
+    Returns
+    -------
+    Compensation
+        The commands (N, n) with ``rotation_residual`` (N,) rad and, with ``nominal``, ``filtered``.
+
+    Raises
+    ------
+    ModelError
+        When the rotations are not finite right-handed rotation matrices (N, 3, 3), the robot has no tool
+        point, or the targets or start joints are not finite or do not match in number.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import compensate_poses
+    >>> nominal = kincal.load_robot("ur5")
+    >>> real = kincal.perturb(nominal, seed=1)
+    >>> q0 = nominal.sample_joints(3, seed=2)
+    >>> p, R, _, _ = nominal.pose_and_jacobian(q0)  # the poses the controller means at q0
+    >>> comp = compensate_poses(real, p, R, q0, nominal=nominal)
+    >>> comp.method, comp.all_ok
+    ('pose (damped Newton)', True)
+    >>> bool(comp.rotation_residual.max() < 1e-9)
+    True
+    >>> p_send, R_send = comp.filtered
+    >>> p_send.shape, R_send.shape
+    ((3, 3), (3, 3, 3))
+    """
     from .poses import filtered_poses, solve_poses
 
     targets, q0, rows = _checked_inputs(robot, targets, q_start, 1e-4, rows)
@@ -257,8 +428,11 @@ def _closed_form_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray,
         turn[finite] = np.linalg.norm(rotation_log(R @ np.swapaxes(rotations[finite], 1, 2)), axis=1)
     bad = comp.ok & (turn > ROT_TOL)
     comp = dataclasses.replace(comp, ok=comp.ok & ~bad, rotation_residual=turn, problems=comp.problems + tuple(
-        f"row {r}: the model misses the target orientation by {e * 1e3:.4f} mrad" for r, e in zip(rows[bad], turn[bad])))
-    return comp if nominal is None or not finite.all() else dataclasses.replace(comp, filtered=filtered_poses(nominal, q))
+        f"row {r}: the model misses the target orientation by {e * 1e3:.4f} mrad"
+        for r, e in zip(rows[bad], turn[bad])))
+    if nominal is None or not finite.all():
+        return comp
+    return dataclasses.replace(comp, filtered=filtered_poses(nominal, q))
 
 
 def uncontrolled_warning(robot: Robot, left: float) -> str:
@@ -300,15 +474,59 @@ PATH_RATIO = 3.0  # ... or this many times the nominal step, whichever is larger
 
 
 def path_checked(robot: Robot, comp: Compensation, q_start: np.ndarray) -> Compensation:
-    """``comp`` as a path (consecutive rows are consecutive targets): a row whose corrected command
-    steps from the previous row's much more than the nominal commands do (more than PATH_RATIO times
-    the nominal step and PATH_TOL) loses continuity: refused and named, with the joint and both steps."""
+    """Check a compensation as a path, whose consecutive rows are consecutive targets.
+
+    A row whose corrected command steps from the previous row's much more than the nominal commands do
+    (more than ``PATH_RATIO`` times the nominal step and more than ``PATH_TOL``: 0.5 deg, 0.5 mm) loses
+    continuity: it is refused and named, with the joint and both steps. Rows refused already keep their
+    first reason.
+
+    Parameters
+    ----------
+    robot : Robot
+        The calibrated model the commands are for (its joint types and names).
+    comp : Compensation
+        The compensation of the path's targets, in order.
+    q_start : ndarray, shape (N, n)
+        The nominal commands of the path, rad (m for a prismatic joint).
+
+    Returns
+    -------
+    Compensation
+        ``comp`` with the rows that lose continuity refused and named in ``problems``.
+
+    Examples
+    --------
+    >>> import dataclasses
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import compensate, path_checked
+    >>> nominal = kincal.load_robot("ur5")
+    >>> real = kincal.perturb(nominal, seed=1)
+    >>> q_start = np.array([0.3, -1.2, 1.5, -1.9, 1.2, 0.4]) + np.linspace(0.0, 0.02, 5)[:, None]
+    >>> comp = compensate(real, nominal.forward(q_start), q_start)
+    >>> path_checked(real, comp, q_start).ok.tolist()
+    [True, True, True, True, True]
+
+    A command that jumps (here made up: 50 mrad more on the first joint at row 3) is refused, and so is the
+    step back at row 4:
+
+    >>> q = comp.q.copy()
+    >>> q[2, 0] += 0.05
+    >>> jumped = path_checked(real, dataclasses.replace(comp, q=q), q_start)
+    >>> jumped.ok.tolist()
+    [True, True, False, False, True]
+    >>> print(jumped.problems[0])
+    row 3: the corrected command jumps 3.15 deg on j1 from the previous row where the nominal path moves 0.29 deg:
+    continuity of the path is lost here (near a singularity?)
+    """
     q, q0 = comp.q, np.asarray(q_start, dtype=float)
     d_cor, d_nom = np.abs(np.diff(q, axis=0)), np.abs(np.diff(q0, axis=0))
     tol = np.array([PATH_TOL[t] for t in robot.joint_types])
     over = (d_cor > np.maximum(PATH_RATIO * d_nom, tol)) & np.all(np.isfinite(q[1:]), axis=1)[:, None]
     bad = np.flatnonzero(over.any(axis=1) & comp.ok[1:]) + 1  # rows refused already keep their first reason
-    fmt = lambda j, v: f"{np.rad2deg(v):.2f} deg" if robot.joint_types[j] == "revolute" else f"{v * 1e3:.2f} mm"  # noqa: E731
+    fmt = lambda j, v: (f"{np.rad2deg(v):.2f} deg" if robot.joint_types[j] == "revolute"  # noqa: E731
+                        else f"{v * 1e3:.2f} mm")
     problems = []
     for k in bad:
         j = int(np.argmax(np.where(over[k - 1], d_cor[k - 1] - d_nom[k - 1], -np.inf)))

@@ -44,13 +44,53 @@ class FileCompensation:
 
 @dataclass(frozen=True)
 class FolderCompensation:
-    """Every program file of the folder (sorted by path) and what happened to each target."""
+    """Every program file of a folder and what happened to each of its targets.
+
+    Parameters
+    ----------
+    folder : str
+        The folder read.
+    dialect : str
+        The language of its programs (:func:`kincal.io.dialects`: "krl", "rapid", ...).
+    files : tuple of FileCompensation
+        Every program file of the language under the folder, sorted by relative path: its targets, its
+        new text (None: unchanged or not read) and one row (line, what, status, why) per target or item,
+        with status "compensated", "refused", "listed" or "unreadable".
+
+    See Also
+    --------
+    compensate_folder : Makes it.
+    write_folder : Writes it.
+
+    Examples
+    --------
+    A folder whose only KRL module cannot be read:
+
+    >>> import os
+    >>> import tempfile
+    >>> import kincal
+    >>> from kincal.compensate import compensate_folder
+    >>> from kincal.io import ROWS
+    >>> nominal = kincal.load_robot("kuka_kr6r900sixx")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     with open(os.path.join(folder, "broken.src"), "w") as f:
+    ...         _ = f.write("DEF broken()\\nLIN {X 1, Y 2\\nEND\\n")
+    ...     res = compensate_folder(nominal, nominal, folder, "krl", ROWS["krl"])
+    >>> res.count("unreadable"), res.count("compensated")
+    (1, 0)
+    >>> print(res.report(), end="")
+    file,line,what,status,why
+    broken.src,2,,unreadable,"line 2, column 5: a '{' that is never closed"
+    >>> {k: v for k, v in res.to_dict().items() if k not in ("folder", "files")}
+    {'dialect': 'krl', 'compensated': 0, 'refused': 0, 'listed': 0, 'unreadable': 1}
+    """
 
     folder: str
     dialect: str
     files: tuple[FileCompensation, ...]
 
     def count(self, status: str) -> int:
+        """The targets and items of every file with this ``status`` ("compensated", "refused", ...)."""
         return sum(f.count(status) for f in self.files)
 
     def report(self) -> str:
@@ -62,6 +102,7 @@ class FolderCompensation:
         return out.getvalue()
 
     def to_dict(self) -> dict:
+        """The folder, the counts by status and every file's rows as plain JSON values."""
         return {"folder": self.folder, "dialect": self.dialect,
                 **{s: self.count(s) for s in ("compensated", "refused", "listed", "unreadable")},
                 "files": [{"path": f.path, "targets": f.targets, "rows": [list(r) for r in f.rows]}
@@ -78,7 +119,69 @@ def program_files(folder: str, dialect: str) -> list[str]:
 
 def compensate_folder(model: Robot, nominal: Robot, folder: str, dialect: str, rows: Rows,
                       frames: Mapping[str, object] | None = None) -> FolderCompensation:
-    """Every program file of ``dialect`` under ``folder``, compensated (module docstring)."""
+    """Compensate every program file of one language under a folder, each on its own branches.
+
+    Each file is read and compensated alone (:func:`compensate_branches`); a file that cannot be read (an
+    encrypted, binary or broken module) is reported with its line, never stops the others.
+
+    Parameters
+    ----------
+    model : Robot
+        The calibrated model (where the robot really goes), in the controller's world frame.
+    nominal : Robot
+        The controller's (nominal) model, same frame.
+    folder : str
+        The folder read (a controller's backup); every file whose suffix is the language's, at any depth.
+    dialect : str
+        The language (:func:`kincal.io.dialects`: "krl", "rapid", "fanuc", "inform").
+    rows : callable
+        ``rows(robot, q) -> bits per row`` for joints q (N, 6) rad, as the language writes them
+        (:data:`kincal.io.ROWS`).
+    frames : mapping of str to object, optional
+        The programs' tool and base frames by name (4x4, m; or taught frames), as for
+        :func:`compensate_branches`.
+
+    Returns
+    -------
+    FolderCompensation
+        Every program file (sorted by path) and what happened to each target and item.
+
+    Examples
+    --------
+    A KRC backup with a module to compensate (an axis target, a Cartesian target and a move to the current
+    position, which is listed), a broken module and a file of another kind:
+
+    >>> import os
+    >>> import tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import compensate_folder
+    >>> from kincal.io import ROWS
+    >>> nominal = kincal.load_robot("kuka_kr6r900sixx")
+    >>> real = kincal.perturb(nominal, seed=1)
+    >>> texts = {"demo.src": ("DEF demo()\\nPTP {A1 20, A2 -70, A3 80, A4 10, A5 40, A6 5}\\n"
+    ...                       "LIN {X 609.5, Y -231.3, Z 728.6, A -29.83, B 49.15, C -20.16, S 2, T 2}\\n"
+    ...                       "PTP $POS_ACT\\nEND\\n"),
+    ...          "broken.src": "DEF broken()\\nLIN {X 1, Y 2\\nEND\\n",
+    ...          "notes.txt": "not a program\\n"}
+    >>> frames = {"default tool": np.eye(4), "default base": np.eye(4)}
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     os.makedirs(os.path.join(tmp, "R1", "Program"))
+    ...     for name, text in texts.items():
+    ...         with open(os.path.join(tmp, "R1", "Program", name), "w") as f:
+    ...             _ = f.write(text)
+    ...     res = compensate_folder(real, nominal, tmp, "krl", ROWS["krl"], frames)
+    >>> [f.path for f in res.files]
+    ['R1/Program/broken.src', 'R1/Program/demo.src']
+    >>> {status: res.count(status) for status in ("compensated", "refused", "listed", "unreadable")}
+    {'compensated': 2, 'refused': 0, 'listed': 1, 'unreadable': 1}
+    >>> print(res.report(), end="")
+    file,line,what,status,why
+    R1/Program/broken.src,2,,unreadable,"line 2, column 5: a '{' that is never closed"
+    R1/Program/demo.src,2,PTP,compensated,
+    R1/Program/demo.src,3,LIN,compensated,
+    R1/Program/demo.src,4,PTP $POS_ACT,listed,"$POS_ACT is the robot's position when the move starts, read at run time"
+    """
     return FolderCompensation(folder, dialect, tuple(_one(model, nominal, folder, p, dialect, rows, frames)
                                                      for p in program_files(folder, dialect)))
 
@@ -107,8 +210,35 @@ def _line_of(message: str) -> int:
 
 
 def check_folder_output(folder: str, out: str) -> None:
-    """ValueError unless a compensated folder can be written at ``out``: it does not exist, is not inside
-    ``folder`` (nor the folder itself) and its parent folder does."""
+    """Check that a compensated folder can be written at ``out``, before any work.
+
+    Parameters
+    ----------
+    folder : str
+        The folder read.
+    out : str
+        Where the compensated folder is to be written.
+
+    Raises
+    ------
+    ValueError
+        When ``out`` exists, lies inside ``folder`` (or is the folder itself) or its parent folder does not
+        exist.
+
+    Examples
+    --------
+    >>> import os
+    >>> import tempfile
+    >>> from kincal.compensate import check_folder_output
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     backup = os.path.join(tmp, "KRC")
+    ...     os.mkdir(backup)
+    ...     check_folder_output(backup, os.path.join(tmp, "KRC_cal"))  # fine: nothing said
+    ...     check_folder_output(backup, os.path.join(backup, "new"))
+    Traceback (most recent call last):
+    ...
+    ValueError: /.../KRC/new: inside the folder read (/.../KRC); write the compensated folder elsewhere
+    """
     src, dst = os.path.realpath(folder), os.path.realpath(out)
     if os.path.exists(out):
         raise ValueError(f"{out}: exists; kincal writes a compensated folder only where there is none (never over one)")
@@ -119,8 +249,48 @@ def check_folder_output(folder: str, out: str) -> None:
 
 
 def write_folder(result: FolderCompensation, out: str) -> None:
-    """The compensated folder at ``out`` (which must not exist, nor lie inside the folder read): every program
-    file, compensated or copied as it was, and the report; built beside ``out`` and renamed into place."""
+    """Write a compensated folder: every program file, compensated or copied as it was, and the report.
+
+    The folder is built beside ``out`` and renamed into place only when complete, so there is never half of
+    one; the files keep their relative paths and encodings, and the report is ``kincal_report.csv``
+    (:meth:`FolderCompensation.report`).
+
+    Parameters
+    ----------
+    result : FolderCompensation
+        The compensated folder (:func:`compensate_folder`).
+    out : str
+        Where to write it: it must not exist, nor lie inside the folder read (:func:`check_folder_output`).
+
+    Raises
+    ------
+    ValueError
+        When ``out`` cannot be written (:func:`check_folder_output`).
+
+    Examples
+    --------
+    >>> import os
+    >>> import tempfile
+    >>> import kincal
+    >>> from kincal.compensate import compensate_folder, write_folder
+    >>> from kincal.io import ROWS
+    >>> nominal = kincal.load_robot("kuka_kr6r900sixx")
+    >>> real = kincal.perturb(nominal, seed=1)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     backup = os.path.join(tmp, "KRC")
+    ...     os.makedirs(os.path.join(backup, "R1"))
+    ...     with open(os.path.join(backup, "R1", "home.src"), "w") as f:
+    ...         _ = f.write("DEF home()\\nPTP {A1 20, A2 -70, A3 80, A4 10, A5 40, A6 5}\\nEND\\n")
+    ...     res = compensate_folder(real, nominal, backup, "krl", ROWS["krl"])
+    ...     write_folder(res, os.path.join(tmp, "KRC_cal"))
+    ...     print(sorted(os.listdir(os.path.join(tmp, "KRC_cal"))))
+    ...     with open(os.path.join(tmp, "KRC_cal", "R1", "home.src")) as f:
+    ...         print(f.read(), end="")
+    ['R1', 'kincal_report.csv']
+    DEF home()
+    PTP {A1 19.8158..., A2 -70.0937..., A3 80.1103..., A4 10.2834..., A5 40.0511..., A6 4.6542...}
+    END
+    """
     check_folder_output(result.folder, out)
     dst = os.path.realpath(out)
     work = tempfile.mkdtemp(prefix=".kincal-", dir=os.path.dirname(dst))

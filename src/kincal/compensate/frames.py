@@ -28,13 +28,72 @@ LINK_ERROR_MAX = 1e-3  # m: the most a real robot's last link is off; a larger m
 def command_models(calibrated: Robot, nominal_values: Mapping[str, float] | None = None,
                    tcp: np.ndarray | None = None, frame: str = "base",
                    link_error_max: float = LINK_ERROR_MAX) -> tuple[Robot, Robot]:
-    """(model, nominal model) for commands: the calibrated and the nominal parameters (``nominal_values``,
-    default the calibrated ones), both in the target ``frame`` ("base": the robot's own base frame;
-    "measurement": the calibration's measurement frame; or a frame the robot file names). Without a
-    ``tcp`` the targets are for the measured target: the nominal model uses its declared point and the
-    calibrated model the fitted one. With the controller's ``tcp`` (m, flange frame) the nominal model
-    uses it, and the calibrated model it moved by what :func:`tool_carry` carries over of the
-    calibration's move of the declared point (up to ``link_error_max``, m)."""
+    """Return the calibrated and the nominal model for commands, both in the targets' frame and for their TCP.
+
+    Commands are computed with the calibrated kinematics in the robot's own base frame (the nominal one: the
+    part of the base frame the tracker saw is where it stood, not the robot) unless the targets are in the
+    measurement frame, composed with a named target frame (module docstring).
+
+    Parameters
+    ----------
+    calibrated : Robot
+        The calibrated model (its base frame: the measurement frame).
+    nominal_values : mapping of str to float, optional
+        The nominal parameters by name, m and rad (default: the calibrated ones).
+    tcp : ndarray, shape (3,), optional
+        The controller's TCP in the flange frame, m. The nominal model uses it, and the calibrated model it
+        moved by what :func:`tool_carry` carries over of the calibration's move of the declared point.
+        Without it the targets are for the measured target: the nominal model uses its declared point and
+        the calibrated model the fitted one.
+    frame : str, optional
+        The targets' frame: "base" (the robot's own base frame, the default), "measurement" (the
+        calibration's measurement frame) or a frame the robot file names (such as ROS ``base_link``).
+    link_error_max : float, optional
+        The largest move of the declared target point carried over to the TCP, m (default
+        ``LINK_ERROR_MAX``, 1e-3).
+
+    Returns
+    -------
+    model : Robot
+        The calibrated model in the target frame, with the TCP.
+    nominal : Robot
+        The nominal model in the target frame, with the TCP.
+
+    Raises
+    ------
+    ValueError
+        When ``frame`` is none of the target frames.
+    ModelError
+        When a ``tcp`` is given for a robot without a tool point.
+
+    Examples
+    --------
+    A UR5 calibrated with the tracker 1.2 m in front of it: in the robot's base frame both models agree to
+    the robot's errors, in the measurement frame both stand where the tracker saw the robot:
+
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import command_models
+    >>> nominal = kincal.load_robot("ur5")
+    >>> calibrated = kincal.perturb(nominal, seed=1).with_params({"base.x": 1.2, "base.y": -0.3})
+    >>> q = nominal.sample_joints(3, seed=2)
+    >>> model, nom = command_models(calibrated, nominal.params.as_dict())
+    >>> np.round(np.linalg.norm(model.forward(q) - nom.forward(q), axis=1) * 1e3, 2)  # mm
+    array([1.42, 1.26, 0.86])
+    >>> model, nom = command_models(calibrated, nominal.params.as_dict(), frame="measurement")
+    >>> np.round(nom.forward(q) - nominal.forward(q), 6)[:, :2]  # x and y, m (z: 0)
+    array([[ 1.2, -0.3],
+           [ 1.2, -0.3],
+           [ 1.2, -0.3]])
+
+    With the controller's TCP, the calibrated model's is moved as the calibration moved the declared point:
+
+    >>> model, nom = command_models(calibrated, nominal.params.as_dict(), tcp=[0.0, 0.0, 0.15])
+    >>> nom.tool_point().tolist()
+    [0.0, 0.0, 0.15]
+    >>> np.round((model.tool_point() - nom.tool_point()) * 1e3, 3)  # mm
+    array([ 0.041, -0.223, -0.339])
+    """
     nominal = calibrated.with_params(dict(nominal_values)) if nominal_values else calibrated
     named = calibrated.named_frames()
     if frame not in TARGET_FRAMES and frame not in named:
@@ -54,11 +113,45 @@ def command_models(calibrated: Robot, nominal_values: Mapping[str, float] | None
 
 
 def tool_carry(fitted: np.ndarray, declared: np.ndarray, limit: float = LINK_ERROR_MAX) -> tuple[np.ndarray, str]:
-    """What of the calibration's move of the declared target point (fitted − declared, m, flange
-    frame) is carried over to the controller's TCP, and a sentence that says so. The data cannot tell
-    a target declared in the wrong place from an error of the last link, which the TCP shares: a move
-    up to ``limit`` (m) is taken for the link's and carried over; a larger one is the target's
-    mounting (declared wrong: no real link is that far off) and is carried over as nothing."""
+    """Return what of the calibration's move of the declared target point is carried over to the controller's TCP.
+
+    The data cannot tell a target declared in the wrong place from an error of the last link, which the TCP
+    shares: a move up to ``limit`` is taken for the link's and carried over; a larger one is the target's
+    mounting (declared wrong: no real link is that far off) and is carried over as nothing.
+
+    Parameters
+    ----------
+    fitted : ndarray, shape (3,)
+        The target point the calibration fitted, m, flange frame.
+    declared : ndarray, shape (3,)
+        The target point as declared (the nominal one), m, flange frame.
+    limit : float, optional
+        The largest move taken for the last link's error, m (default ``LINK_ERROR_MAX``, 1e-3).
+
+    Returns
+    -------
+    shift : ndarray, shape (3,)
+        What is added to the TCP, m, flange frame: ``fitted - declared``, or zeros.
+    why : str
+        A sentence that says so.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.compensate import tool_carry
+    >>> shift, why = tool_carry(np.array([0.0002, 0.0, 0.1503]), np.array([0.0, 0.0, 0.15]))
+    >>> np.round(shift * 1e3, 3)  # mm
+    array([0.2, 0. , 0.3])
+    >>> print(why)
+    the calibration moved the declared target point by 0.361 mm: taken as the last link's error and carried
+    over to the TCP (up to 1 mm, --link-error-max)
+    >>> shift, why = tool_carry(np.array([0.0, 0.0, 0.16]), np.array([0.0, 0.0, 0.15]))
+    >>> shift.tolist()
+    [0.0, 0.0, 0.0]
+    >>> print(why)
+    the calibration moved the declared target point by 10.00 mm, more than a link's error (1 mm,
+    --link-error-max): taken as the target's mounting (declared wrong), not carried over to the TCP
+    """
     shift = fitted - declared
     size = float(np.linalg.norm(shift))
     if size <= limit:
@@ -78,10 +171,50 @@ def _direction(v: np.ndarray, frame: str) -> str:
 
 
 def frame_mismatch(nominal: Robot, q: np.ndarray, targets: np.ndarray, rows: np.ndarray) -> str:
-    """The set-up mismatch that keeps the nominal model at the nominal joints q (N, n) from the targets
-    (N, 3), or '': a constant offset in the flange frame is a TCP mismatch, one in the base frame a
-    frame offset; targets that fit a named frame of the robot file are in that frame. Scattered
-    misses are not a set-up mismatch (the per-row checks name them)."""
+    """Name the set-up mismatch that keeps the nominal model at the nominal joints from the targets, if any.
+
+    A constant offset in the flange frame is a TCP mismatch, one in the base frame a frame offset (each
+    must explain the misses to ``EXPLAINED`` of their RMS); targets that fit a named frame of the robot file
+    are in that frame. Scattered misses are not a set-up mismatch (the per-row checks name them), nor are
+    misses of fewer than ``MIN_ROWS`` (3) targets or a median miss within ``MISMATCH_TOL`` (0.1 mm).
+
+    Parameters
+    ----------
+    nominal : Robot
+        The nominal (controller's) model, with the TCP, in the frame the targets should be in.
+    q : ndarray, shape (N, n)
+        The nominal joints of the targets, rad (m for a prismatic joint).
+    targets : ndarray, shape (N, 3)
+        The target positions, m.
+    rows : ndarray, shape (N,)
+        The targets' row numbers (unused in the message: a set-up mismatch concerns every row).
+
+    Returns
+    -------
+    str
+        The mismatch, its size and direction and what to give instead; '' when there is none.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import frame_mismatch
+    >>> nominal = kincal.load_robot("ur5")
+    >>> q = nominal.sample_joints(5, seed=2)
+    >>> rows = np.arange(1, 6)
+    >>> frame_mismatch(nominal, q, nominal.forward(q), rows)
+    ''
+    >>> print(frame_mismatch(nominal, q, nominal.forward(q) + [0.0, 0.002, 0.0], rows))
+    TCP/frame mismatch of 2.0 mm along the base frame +y: the targets are in another frame than the model's;
+    say which with --target-frame. Not corrected: a constant offset is a set-up mismatch, not a robot error
+    >>> longer = nominal.forward(q) + nominal.flange_rotation(q) @ np.array([0.0, 0.0, 0.01])
+    >>> print(frame_mismatch(nominal, q, longer, rows))
+    TCP/frame mismatch of 10.0 mm along the flange +z: the targets were computed for a tool point at (0.00, 0.09,
+    41.00) mm in the flange frame, not the model's; give the controller's TCP with --tcp. Not corrected: a
+    constant offset is a set-up mismatch, not a robot error
+    >>> print(frame_mismatch(nominal, q, nominal.forward(q) * [-1.0, -1.0, 1.0], rows))
+    the targets are in the robot's 'base_link' frame, not its base frame: give --target-frame base_link
+    """
     reached = nominal.forward(q)
     e = targets - reached
     norms = np.linalg.norm(e, axis=1)

@@ -35,9 +35,61 @@ Models = Callable[[np.ndarray], tuple[Robot, Robot]]  # a TCP point (3,) m -> (c
 
 @dataclass(frozen=True)
 class ProgramCompensation:
-    """Replacement texts by target index, the corrected joints per target (NaN where refused), the
-    problems (by line), why each refused target was left (by index: the mark written beside it) and
-    the moves left as they are (non-literal targets)."""
+    """A robot program's literal targets compensated: their replacement texts and what was left as it is.
+
+    Parameters
+    ----------
+    texts : dict of int to str
+        Replacement texts by target index (into ``Program.targets``), for
+        :meth:`kincal.io.Program.with_targets`.
+    q : ndarray, shape (K, n)
+        The corrected joints of each of the program's K targets, rad (m for a prismatic joint); NaN where
+        refused.
+    problems : tuple of str
+        One message per refused target, naming the file and line.
+    not_literal : tuple of tuple of (int, str, str)
+        The moves left as they are (line, the move as written, why): their targets are not literals.
+    refused : dict of int to str
+        Why each refused target was left, by target index: the mark written beside it.
+
+    See Also
+    --------
+    compensate_program, compensate_branches : Make it.
+
+    Examples
+    --------
+    A URScript program that sets its TCP: the move after ``set_tcp`` needs models for that TCP, so without
+    them it is refused and marked, while the move before it is compensated:
+
+    >>> import os
+    >>> import tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import compensate_program
+    >>> from kincal.io import read_program
+    >>> nominal = kincal.load_robot("ur5")
+    >>> real = kincal.perturb(nominal, seed=1)
+    >>> text = ("movej([0.3, -1.2, 1.5, -1.9, 1.2, 0.4])\\n"
+    ...         "set_tcp(p[0, 0, 0.1, 0, 0, 0])\\n"
+    ...         "movej([0.5, -1.0, 1.3, -1.6, 1.0, 0.2])\\n")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "tcp.script")
+    ...     with open(path, "w") as f:
+    ...         _ = f.write(text)
+    ...     program = read_program(path, "ur")
+    >>> res = compensate_program(real, nominal, program)
+    >>> sorted(res.texts), res.q.shape, bool(np.isnan(res.q[1]).all())
+    ([0], (2, 6), True)
+    >>> res.refused
+    {1: 'the program sets its TCP (set_tcp) and no models were given for it'}
+    >>> print(res.problems[0])
+    /.../tcp.script: line 3 (movej): the program sets its TCP (set_tcp) and no models were given for it; left as is
+    >>> print(program.with_targets(res.texts, res.refused))
+    movej([0.29794..., -1.19963..., 1.50174..., -1.90109..., 1.20108..., 0.40139...])
+    set_tcp(p[0, 0, 0.1, 0, 0, 0])
+    movej([0.5, -1.0, 1.3, -1.6, 1.0, 0.2])  # kincal: not compensated: the program sets its TCP (set_tcp) and no
+    models were given for it
+    """
 
     texts: dict
     q: np.ndarray
@@ -48,9 +100,71 @@ class ProgramCompensation:
 
 def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: np.ndarray | None = None,
                        models: Models | None = None) -> ProgramCompensation:
-    """Compensate every literal target of ``program`` (see the module docstring). ``q_start``: the
-    joints the robot stands at before the first move (default: the first joint target's); ``models``:
-    the models for a TCP the program sets (default: refuse the targets after a set_tcp)."""
+    """Compensate every literal target of a robot program for a controller that moves with its nominal model.
+
+    A joint target means the pose the nominal model reaches there, and becomes the joints at which the
+    calibrated model reaches it; a pose target's controller joints (:func:`controller_inverse`) are corrected
+    the same way, and the pose is replaced by the filtered pose (module docstring). Each corrected target is
+    checked (converged, on the nominal branch, within the joint limits); a target that fails keeps its text
+    and is named by line. Every other byte of the program is kept.
+
+    Parameters
+    ----------
+    model : Robot
+        The calibrated model (where the robot really goes), with the program's TCP, in its base frame.
+    nominal : Robot
+        The controller's (nominal) model, same TCP and frame.
+    program : Program
+        The program read (:func:`kincal.io.read_program`).
+    q_start : ndarray, shape (n,), optional
+        The joints the robot stands at before the first move, rad (default: the first joint target's).
+    models : callable, optional
+        ``models(tcp) -> (calibrated, nominal)``: the models for a TCP (3,) m the program sets with
+        ``set_tcp`` (default: the targets after a ``set_tcp`` are refused).
+
+    Returns
+    -------
+    ProgramCompensation
+        The replacement texts by target index, the corrected joints (K, n), and the refused targets.
+
+    Examples
+    --------
+    A URScript program with a joint target, a pose target and a relative move (listed, never touched),
+    written into a temporary folder, read, compensated for a perturbed UR5 and written again:
+
+    >>> import os
+    >>> import tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import compensate_program
+    >>> from kincal.io import read_program, write_program
+    >>> nominal = kincal.load_robot("ur5")
+    >>> real = kincal.perturb(nominal, seed=1)
+    >>> text = ("def demo():\\n"
+    ...         "  movej([0.3, -1.2, 1.5, -1.9, 1.2, 0.4], a=1.4, v=1.05)\\n"
+    ...         "  movel(p[-0.551, -0.4952, 0.3974, 0.5627, 0.3079, -0.7644], a=1.2, v=0.25)\\n"
+    ...         "  movel(pose_trans(get_actual_tcp_pose(), p[0, 0, 0.01, 0, 0, 0]))\\n"
+    ...         "end\\n")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "demo.script")
+    ...     with open(path, "w") as f:
+    ...         _ = f.write(text)
+    ...     program = read_program(path, "ur")
+    ...     res = compensate_program(real, nominal, program)
+    ...     write_program(os.path.join(folder, "out.script"), program, res.texts)
+    ...     with open(os.path.join(folder, "out.script")) as f:
+    ...         print(f.read(), end="")
+    def demo():
+      movej([0.29794..., -1.19963..., 1.50174..., -1.90109..., 1.20108..., 0.40139...], a=1.4, v=1.05)
+      movel(p[-0.55178..., -0.49415..., 0.39652..., 0.56346..., 0.30603..., -0.76474...], a=1.2, v=0.25)
+      movel(pose_trans(get_actual_tcp_pose(), p[0, 0, 0.01, 0, 0, 0]))
+    end
+    >>> res.problems, [line for line, _, _ in res.not_literal]
+    ((), [4])
+    >>> np.round(res.q, 3)
+    array([[ 0.298, -1.2  ,  1.502, -1.901,  1.201,  0.401],
+           [ 0.498, -1.   ,  1.302, -1.601,  1.001,  0.201]])
+    """
     q_prev = (next((t.values for t in program.targets if t.kind == "joints"), None) if q_start is None
               else np.asarray(q_start, dtype=float))
     texts, refused, qs = {}, {}, np.full((len(program.targets), model.n_joints), np.nan)
@@ -107,7 +221,8 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None):
 def corrected(model: Robot, p: np.ndarray, R: np.ndarray, q_nom: np.ndarray) -> tuple[np.ndarray, str]:
     """The joints (n,) at which ``model`` puts its tool point at p (1, 3) m with the flange at R (1, 3, 3), by
     Newton from the nominal joints q_nom (n,), and why they are refused ('' when they are not): the correction
-    did not converge, leaves the nominal branch (a joint moves more than BRANCH_TOL) or breaks a joint limit."""
+    did not converge, leaves the nominal branch (a joint moves more than ``BRANCH_TOL``) or breaks a joint
+    limit."""
     sol = solve_poses(model, p, R, q_nom[None])
     q = sol.q[0]
     tol = np.array([BRANCH_TOL[j] for j in model.joint_types])

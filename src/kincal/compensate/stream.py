@@ -39,9 +39,43 @@ IN_FLIGHT = 2  # blocks queued per worker
 
 @dataclass(frozen=True)
 class TargetsFormat:
-    """The columns of a targets file: joints (the nominal commands, ``joint_cols``, default the
-    robot's names), the position (``xyz_cols``) and, for full poses (``pose``), the orientation in
-    the convention ``orientation`` (columns ``rot_cols``, default the convention's); units as given."""
+    """The columns of a targets file and their units.
+
+    Parameters
+    ----------
+    pose : bool, optional
+        The targets are full poses: the file has orientation columns too (default False: positions).
+    joint_cols : tuple of str, optional
+        The columns of the nominal commands, one per joint (default: the robot's joint names).
+    xyz_cols : tuple of str, optional
+        The columns of the target position (default ("x", "y", "z")).
+    orientation : str, optional
+        The orientation convention of pose targets: "quat-wxyz" (the default), "quat-xyzw", "matrix",
+        "rotvec", "rotvec-deg" or ``"euler-<axes>-<intrinsic|extrinsic>-<deg|rad>"``.
+    rot_cols : tuple of str, optional
+        The orientation columns (default: the convention's, :attr:`orientation_cols`).
+    length_unit : str, optional
+        The unit of the positions and prismatic joints: "m" (the default), "mm" or "um".
+    angle_unit : str, optional
+        The unit of the revolute joints: "rad" (the default), "deg" or "rev".
+
+    Raises
+    ------
+    ValueError
+        When a unit or the orientation convention is unknown, or ``rot_cols`` does not fit the convention.
+
+    Examples
+    --------
+    >>> from kincal.compensate import TargetsFormat
+    >>> TargetsFormat(pose=True).orientation_cols
+    ('qw', 'qx', 'qy', 'qz')
+    >>> TargetsFormat(pose=True, orientation="rotvec", length_unit="mm").orientation_cols
+    ('rx', 'ry', 'rz')
+    >>> TargetsFormat(length_unit="furlong")
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown length unit 'furlong'; use one of m, mm, um
+    """
 
     pose: bool = False
     joint_cols: tuple[str, ...] | None = None
@@ -56,15 +90,50 @@ class TargetsFormat:
 
     @property
     def orientation_cols(self) -> tuple[str, ...]:
+        """The orientation columns: ``rot_cols``, or the convention's."""
         return tuple(self.rot_cols or default_columns(self.orientation))
 
 
 @dataclass(frozen=True)
 class StreamJob:
-    """What to do with every target: ``robot`` the calibrated model (where the robot really goes) and
-    ``nominal`` the controller's, both in the targets' frame (:func:`command_models`); the output
-    ``kind`` ("joints": corrected commands, "cartesian": the filtered poses to send); ``path``: the
-    rows are consecutive targets of one path (continuity checked)."""
+    """What to do with every target of a targets file.
+
+    Parameters
+    ----------
+    robot : Robot
+        The calibrated model (where the robot really goes), in the targets' frame (:func:`command_models`).
+    nominal : Robot or None
+        The controller's model, same frame and TCP (None: no set-up check, no orientation change).
+    targets : TargetsFormat, optional
+        The file's columns and units (default: joints by the robot's names, x, y, z; m and rad).
+    uncertainty : ModelUncertainty, optional
+        The model's uncertainty: the predicted σ of every accepted command is summed up.
+    kind : str, optional
+        What to write: "joints" (the corrected commands, the default) or "cartesian" (the filtered poses to
+        send a controller moving with ``nominal``; needs pose targets).
+    path : bool, optional
+        The rows are consecutive targets of one path: continuity is checked (:func:`path_checked`).
+
+    Raises
+    ------
+    ValueError
+        When ``kind`` is neither, or "cartesian" without pose targets and a nominal model.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.compensate import StreamJob, TargetsFormat
+    >>> nominal = kincal.load_robot("ur5")
+    >>> job = StreamJob(kincal.perturb(nominal, seed=1), nominal, TargetsFormat(length_unit="mm", angle_unit="deg"))
+    >>> job.needs_joints
+    True
+    >>> print(job.layout("commands.csv").header(), end="")
+    row,j1,j2,j3,j4,j5,j6,x,y,z,d_j1,d_j2,d_j3,d_j4,d_j5,d_j6,orientation_change_mrad
+    >>> StreamJob(nominal, nominal, kind="cartesian")
+    Traceback (most recent call last):
+    ...
+    ValueError: --output-kind cartesian writes filtered poses: give --pose (targets with orientation)
+    """
 
     robot: Robot
     nominal: Robot | None
@@ -81,6 +150,7 @@ class StreamJob:
 
     @property
     def needs_joints(self) -> bool:
+        """True when the file must give the nominal joints (pose targets, or a robot without an inverse)."""
         if self.robot.has_pose_inverse:  # a hexapod: its legs follow from the pose alone
             return False
         return self.targets.pose or not self.robot.has_inverse
@@ -115,9 +185,44 @@ class _Part:
 
 @dataclass(frozen=True)
 class StreamResult:
-    """The summary of a streamed compensation: targets read, commands written (0 when the file was
-    not written), the refused rows' reasons, warnings, the largest model residual (m), rotation
-    residual (rad), orientation change (rad) and change per joint (rad or m), the predicted σ (m)."""
+    """The summary of a streamed compensation (:func:`compensate_file`).
+
+    Parameters
+    ----------
+    targets : int
+        Targets read.
+    accepted : int
+        Targets whose commands passed every check.
+    written : bool
+        Whether the commands file was written.
+    problems : tuple of str
+        The refused rows' reasons ("row r: why"), each message once.
+    warnings : tuple of str
+        Warnings: where the model extrapolates or leaves its data's joint envelope, rotations a robot with
+        fewer than six joints does not control.
+    method : str
+        How the commands were found (:attr:`Compensation.method`).
+    iterations : int
+        The most iterations of any block.
+    largest : dict, optional
+        The largest value over the accepted rows, by name: "residual" (m), "rotation_residual" (rad),
+        "orientation_change" (rad) and "change" (per joint, list: rad or m).
+    sigma_median : float, optional
+        The median predicted σ of the accepted commands, m (None without the model's uncertainty).
+    sigma_max : float, optional
+        The largest predicted σ, m (None without the model's uncertainty).
+
+    Examples
+    --------
+    See :func:`compensate_file`; the summary as plain JSON values:
+
+    >>> from kincal.compensate import StreamResult
+    >>> res = StreamResult(3, 2, False, ("row 4: ...",), (), "damped least squares", 3, {"residual": 1e-12})
+    >>> res.all_ok
+    False
+    >>> res.to_dict()["written"], res.to_dict()["max_residual"]
+    (0, 1e-12)
+    """
 
     targets: int
     accepted: int
@@ -132,9 +237,11 @@ class StreamResult:
 
     @property
     def all_ok(self) -> bool:
+        """True when every target was accepted."""
         return self.accepted == self.targets
 
     def to_dict(self) -> dict:
+        """The summary as plain JSON values (``written``: the commands written, 0 when none; ``max_<name>``)."""
         return {"targets": self.targets, "accepted": self.accepted, "written": self.accepted if self.written else 0,
                 "problems": list(self.problems), "warnings": list(self.warnings), "method": self.method,
                 "iterations": self.iterations, **{f"max_{k}": v for k, v in self.largest.items()},
@@ -144,12 +251,84 @@ class StreamResult:
 
 def compensate_file(job: StreamJob, src: str, dst: str, *, skip_unreachable: bool = False, workers: int | None = None,
                     progress: Callable[[int, int], None] | None = None, block_bytes: int = BLOCK_BYTES) -> StreamResult:
-    """Compensate every target of the CSV ``src`` and write the commands to ``dst`` (never half a file:
-    written only when every row passes, or with ``skip_unreachable`` the rows that pass). ``workers``
-    processes (default: one per core) share the blocks (``block_bytes`` of text each; the output does
-    not depend on the workers) of a file longer than one; ``progress(bytes done, bytes total)`` is
-    called after each block. For a file of several blocks the calling process, like the workers, keeps
-    freed memory for the next block (glibc's thresholds, :mod:`kincal._memory`)."""
+    """Compensate every target of a CSV targets file and write the commands, block by block.
+
+    Never half a file: ``dst`` is written only when every row passes, or with ``skip_unreachable`` the rows
+    that pass. Each row is checked like a target of :func:`compensate` (reach, limits, branch, model
+    residual, orientation, TCP/frame mismatch, and continuity for a path); the units and the orientation
+    convention are checked on the file's first rows (module docstring). For a file of several blocks the
+    calling process, like the workers, keeps freed memory for the next block (glibc's thresholds,
+    :mod:`kincal._memory`).
+
+    Parameters
+    ----------
+    job : StreamJob
+        The models, the file's columns and units, and what to write.
+    src : str
+        The targets file (CSV with a header line).
+    dst : str
+        The commands file to write (atomically): a row column (the targets' line numbers), then the
+        commands and targets (or the filtered poses) in the targets' units.
+    skip_unreachable : bool, optional
+        Write the rows that pass even when some are refused (default False: nothing is written then).
+    workers : int, optional
+        Processes sharing the blocks of a file longer than one block (default: one per core); the output
+        does not depend on them.
+    progress : callable, optional
+        ``progress(bytes done, bytes total)``, called after each block.
+    block_bytes : int, optional
+        The text of one block, bytes (default about 4 MB).
+
+    Returns
+    -------
+    StreamResult
+        Targets read and accepted, whether the file was written, the refused rows' reasons, warnings and the
+        largest values.
+
+    Raises
+    ------
+    MeasurementError
+        When the file has no data rows, misses a column the job reads or names one twice, or its units or
+        orientation convention do not fit the robot.
+
+    Examples
+    --------
+    Four targets of a UR5 whose nominal commands reach them, one of them moved 50 mm (a target that does not
+    belong to its joints), written into a temporary folder:
+
+    >>> import os
+    >>> import tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import StreamJob, compensate_file
+    >>> nominal = kincal.load_robot("ur5")
+    >>> job = StreamJob(kincal.perturb(nominal, seed=1), nominal)
+    >>> q0 = nominal.sample_joints(4, seed=2)
+    >>> xyz = nominal.forward(q0)
+    >>> xyz[2, 2] += 0.05
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     src, dst = os.path.join(folder, "targets.csv"), os.path.join(folder, "commands.csv")
+    ...     np.savetxt(src, np.column_stack([q0, xyz]), delimiter=",", header="j1,j2,j3,j4,j5,j6,x,y,z",
+    ...                comments="")
+    ...     refused = compensate_file(job, src, dst)
+    ...     written = os.path.exists(dst)
+    ...     res = compensate_file(job, src, dst, skip_unreachable=True)
+    ...     with open(dst) as f:
+    ...         lines = f.read().splitlines()
+    >>> refused.accepted, refused.written, written
+    (3, False, False)
+    >>> print(refused.problems[0])
+    row 4: the nominal command lands 50.000 mm from the target through the nominal model: the joint values and
+    the target do not belong together (units, column order, TCP or frame?)
+    >>> res.targets, res.accepted, res.written
+    (4, 3, True)
+    >>> lines[0]
+    'row,j1,j2,j3,j4,j5,j6,x,y,z,d_j1,d_j2,d_j3,d_j4,d_j5,d_j6,orientation_change_mrad'
+    >>> [line.split(",")[0] for line in lines[1:]]  # the targets' lines in the file read
+    ['2', '3', '5']
+    >>> round(res.largest["orientation_change"] * 1e3, 2)  # mrad
+    3.36
+    """
     stream = open_stream(src, block_bytes)
     _check_columns(job, stream)
     if stream.size - stream.offset > block_bytes:

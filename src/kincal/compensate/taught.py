@@ -59,8 +59,57 @@ def _taught(f: TaughtFrame, robot: Robot, tool: np.ndarray | None) -> tuple[np.n
 
 
 def resolve_taught(frames: Mapping[str, object], nominal: Robot, calibrated: Robot) -> dict[str, object]:
-    """``frames`` with every taught frame replaced by its (controller, physical) pair (module docstring), or by
-    why it cannot be used; ``nominal`` and ``calibrated`` are flange models (no tool point)."""
+    """Replace every taught frame by the frame the controller holds and the one that is physically there.
+
+    The controller's frame is what its nominal model gives at the teach poses (what it turns written targets
+    with); the physical frame is what the calibrated model gives at the same poses (where the fixture or the
+    tool really is, which the program's targets mean). A frame written in the file as well is the
+    controller's; it must agree with the one its joints give to ``TAUGHT_TOL`` (0.1 mm, 0.5 mrad; a tool:
+    plus three times how far its nominal poses disagree), else it is refused with the sizes. Tools are
+    resolved first: a base uses the tool it was taught with.
+
+    Parameters
+    ----------
+    frames : mapping of str to ndarray, str or TaughtFrame
+        Frames by name: 4x4 poses (m, kept as they are), why a frame is not known (kept), or taught frames
+        (:class:`kincal.io.TaughtFrame`).
+    nominal : Robot
+        The controller's (nominal) model, a flange model (no tool point).
+    calibrated : Robot
+        The calibrated model, a flange model (no tool point).
+
+    Returns
+    -------
+    dict of str to object
+        ``frames`` with every taught frame replaced by its (controller, physical) pair of 4x4 frames (m), or
+        by why it cannot be used (str).
+
+    Examples
+    --------
+    A base taught by three TCP positions (origin, a point on +x, a point in the xy plane) on a perturbed arm:
+
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import resolve_taught
+    >>> from kincal.io import TaughtFrame
+    >>> nominal = kincal.load_robot("kuka_kr6r900sixx").with_tool_point(np.zeros(3))
+    >>> real = kincal.perturb(nominal, seed=1)
+    >>> q = np.radians([[0, -90, 90, 0, 45, 0], [15, -90, 90, 0, 45, 0], [0, -70, 80, 0, 45, 0]])
+    >>> frames = resolve_taught({"table": TaughtFrame("table", "origin-x-xy", q, "", None)}, nominal, real)
+    >>> controller, physical = frames["table"]
+    >>> np.round(controller[[0, 2], 3], 4)  # the origin the controller holds: x and z, m (y is 0)
+    array([0.5016, 0.8334])
+    >>> np.round((physical[:3, 3] - controller[:3, 3]) * 1e3, 3)  # where it really is, mm from there
+    array([ 0.475, -1.865, -0.602])
+
+    A frame written beside its taught joints must be the one they give:
+
+    >>> written = controller.copy()
+    >>> written[0, 3] += 0.002
+    >>> print(resolve_taught({"table": TaughtFrame("table", "origin-x-xy", q, "", written)}, nominal, real)["table"])
+    as written it is 2.000 mm and 0.000 mrad from the frame its taught joints give on the nominal model
+    (origin-x-xy): not the joints, tool, rule or robot it was taught with
+    """
     out = dict(frames)
     taught = {n: f for n, f in frames.items() if isinstance(f, TaughtFrame)}
     for name in sorted(taught, key=lambda n: (taught[n].kind != "tool", n)):  # tools first: bases use them

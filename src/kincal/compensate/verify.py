@@ -26,8 +26,52 @@ from .commands import compensate
 
 @dataclass(frozen=True, eq=False)
 class VerificationPlan:
-    """For each case (parameter) and sample: the predicted position (C, N, 3) and commands (C, N, n),
-    from the sample inputs q_samples (N, n) (None in a plan file written before kincal kept them)."""
+    """Commands that test an error model, with the positions it predicts, case (parameter) by case.
+
+    Parameters
+    ----------
+    cases : tuple of str
+        The C parameters, each given a unit error (1 mm or 1 mrad) in turn.
+    q_samples : ndarray, shape (N, n) or None
+        The sample inputs the commands were made from, rad (m for a prismatic joint); None in a plan file
+        written before kincal kept them.
+    predicted : ndarray, shape (C, N, 3)
+        The positions the error model predicts for each case at each sample, m.
+    commands : ndarray, shape (C, N, n)
+        The commands that realise them on the actual robot, rad (m for a prismatic joint).
+
+    See Also
+    --------
+    verification_plan : Makes it.
+
+    Examples
+    --------
+    A plan written in mm and read back, then the positions measured at its commands compared with the
+    predictions:
+
+    >>> import os
+    >>> import tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import VerificationPlan, verification_plan
+    >>> robot = kincal.load_robot("puu3")
+    >>> plan = verification_plan(robot, robot.sample_joints(4, seed=1), names=["L1", "L2"])
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "plan.csv")
+    ...     plan.write_csv(path, robot, length_unit="mm")
+    ...     with open(path) as f:
+    ...         print(f.readline() + f.readline(), end="")
+    ...     again = VerificationPlan.read_csv(path, robot)
+    # kincal verification plan for puu3; units: length=mm angle=rad
+    case,sample,h1,h2,h3,x_pred,y_pred,z_pred,input_h1,input_h2,input_h3
+    >>> again.cases, again.commands.shape
+    (('L1', 'L2'), (2, 4, 3))
+    >>> bool(np.abs(again.commands - plan.commands).max() < 1e-12)
+    True
+    >>> measured = robot.forward(plan.commands.reshape(-1, 3))  # a robot with no noise at all
+    >>> plan.compare(measured).passed.tolist()
+    [True, True]
+    """
 
     cases: tuple[str, ...]
     q_samples: np.ndarray | None
@@ -35,17 +79,49 @@ class VerificationPlan:
     commands: np.ndarray
 
     def compare(self, measured: np.ndarray, tolerance: float = 50e-6) -> "Verification":
-        """Deviations of the measured positions (C, N, 3) from the predictions, judged against
-        ``tolerance`` (m, per axis)."""
+        """Compare the positions measured at the commands with the predictions.
+
+        Parameters
+        ----------
+        measured : ndarray, shape (C, N, 3)
+            The positions measured at the commands, m (any shape with C·N·3 values, in that order).
+        tolerance : float, optional
+            The largest deviation per axis of a case that passes, m (default 50e-6).
+
+        Returns
+        -------
+        Verification
+            The deviations (C, N, 3) m, judged against ``tolerance``.
+        """
         dev = np.asarray(measured, float).reshape(self.predicted.shape) - self.predicted
         return Verification(self.cases, dev, tolerance)
 
     def write_csv(self, path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None,
                   length_unit: str = "m", angle_unit: str = "rad") -> None:
-        """The commands to run, case by case, with the predicted positions, in the given units
-        (atomically). A first comment line records the units; columns: case, sample, one per joint,
-        x_pred, y_pred, z_pred, then the sample inputs the commands were made from (``input_<joint>``).
-        :meth:`read_csv` reads it back."""
+        """Write the commands to run, case by case, with the predicted positions, in the given units (atomically).
+
+        A first comment line records the units; columns: case, sample, one per joint, x_pred, y_pred, z_pred,
+        then the sample inputs the commands were made from (``input_<joint>``). :meth:`read_csv` reads it
+        back.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write.
+        robot : Robot
+            The robot of the plan (its name, joint names and types).
+        joint_cols : sequence of str, optional
+            The joint columns, one per joint (default: the robot's joint names).
+        length_unit : str, optional
+            The unit of the positions and prismatic joints: "m" (the default), "mm" or "um".
+        angle_unit : str, optional
+            The unit of the revolute joints: "rad" (the default), "deg" or "rev".
+
+        Raises
+        ------
+        MeasurementError
+            When ``joint_cols`` does not give one column per joint.
+        """
         cols = list(joint_cols) if joint_cols else list(robot.joint_names)
         if len(cols) != robot.n_joints:
             raise MeasurementError(f"{path}: {len(cols)} joint columns given for {robot.n_joints} joints")
@@ -61,7 +137,26 @@ class VerificationPlan:
 
     @classmethod
     def read_csv(cls, path: str | os.PathLike, robot: Robot) -> "VerificationPlan":
-        """A plan written by :meth:`write_csv` (its units line says how to read it)."""
+        """Read a plan written by :meth:`write_csv` (its units line says how to read it).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The plan file.
+        robot : Robot
+            The robot of the plan.
+
+        Returns
+        -------
+        VerificationPlan
+            The plan, in m and rad.
+
+        Raises
+        ------
+        MeasurementError
+            When the file is not a plan written by kincal, has the wrong number of columns, a value that
+            is no number, or cases of different sizes.
+        """
         lines = Path(path).read_text(encoding="utf-8-sig").splitlines()
         m = re.match(r"# kincal verification plan .*units: length=(\w+) angle=(\w+)", lines[0] if lines else "")
         if not m:
@@ -91,8 +186,48 @@ class VerificationPlan:
 
 @dataclass(frozen=True, eq=False)
 class Verification:
-    """Deviations (C, N, 3) of measured − predicted positions (m), judged against ``tolerance`` (m):
-    a case passes when no axis deviates by more than the tolerance."""
+    """Measured positions against an error model's predictions: a case passes when no axis deviates by more
+    than the tolerance.
+
+    Parameters
+    ----------
+    cases : tuple of str
+        The C parameters of the plan.
+    deviations : ndarray, shape (C, N, 3)
+        Measured minus predicted positions, m.
+    tolerance : float, optional
+        The largest deviation per axis of a case that passes, m (default 50e-6).
+
+    See Also
+    --------
+    VerificationPlan.compare : Makes it.
+
+    Examples
+    --------
+    Positions measured with 5 µm of noise at the commands of a plan, judged against 50 µm, then 1 µm:
+
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import verification_plan
+    >>> robot = kincal.load_robot("puu3")
+    >>> plan = verification_plan(robot, robot.sample_joints(4, seed=1), names=["L1", "L2"])
+    >>> noise = np.random.default_rng(0).normal(0.0, 5e-6, (8, 3))
+    >>> measured = robot.forward(plan.commands.reshape(-1, 3)) + noise
+    >>> result = plan.compare(measured)
+    >>> result.passed.tolist(), result.to_dict()["pass"]
+    ([True, True], True)
+    >>> print(result.table())
+    case           axis     max mm   mean mm  verdict (tolerance 0.05 mm)
+    ΔL1 = 1        x        0.0065    0.0035  PASS
+                   y        0.0047    0.0028
+                   z        0.0035    0.0022
+    ΔL2 = 1        x        0.0116    0.0060  PASS
+                   y        0.0052    0.0031
+                   z        0.0062    0.0026
+    error model confirmed: 2 of 2 cases within 0.05 mm
+    >>> print(plan.compare(measured, tolerance=1e-6).table().splitlines()[-1])
+    error model NOT confirmed: 0 of 2 cases within 0.001 mm
+    """
 
     cases: tuple[str, ...]
     deviations: np.ndarray
@@ -100,9 +235,11 @@ class Verification:
 
     @property
     def passed(self) -> np.ndarray:
+        """Which cases pass, (C,) bool."""
         return np.abs(self.deviations).max(axis=(1, 2)) <= self.tolerance
 
     def to_dict(self) -> dict:
+        """The verdict and, per case, the largest and mean deviation per axis (m) as plain JSON values."""
         a = np.abs(self.deviations)
         return {"units": "m", "tolerance": self.tolerance, "pass": bool(self.passed.all()),
                 "cases": {c: {"max": a[k].max(axis=0).tolist(), "mean": a[k].mean(axis=0).tolist(),
@@ -123,9 +260,49 @@ class Verification:
 
 
 def verification_plan(robot: Robot, q_samples: np.ndarray, names: Sequence[str] | None = None) -> VerificationPlan:
-    """Commands that realise, on the actual robot (``robot``: the identified model), the error
-    model's prediction for a unit error of each parameter (default: all but the base frame) at the
-    sample inputs (N, n)."""
+    """Plan the commands that realise, on the actual robot, the error model's prediction for a unit error.
+
+    For each parameter error Δs (one unit: 1 mm or 1 mrad) the error model predicts the position
+    p + Δp = FK(q′; s′ + Δs) at each sample input q′; the actual model's inverse maps it onto the commands
+    q″ = IK(p + Δp; s′) (module docstring).
+
+    Parameters
+    ----------
+    robot : Robot
+        The identified ("actual") model s′.
+    q_samples : ndarray, shape (N, n)
+        The sample inputs q′, rad (m for a prismatic joint).
+    names : sequence of str, optional
+        The parameters to test (default: all but the base frame's).
+
+    Returns
+    -------
+    VerificationPlan
+        The cases, the sample inputs, the predicted positions (C, N, 3) m and the commands (C, N, n).
+
+    Raises
+    ------
+    ModelError
+        When a name is not a parameter of the robot or the sample inputs do not fit it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import verification_plan
+    >>> robot = kincal.load_robot("puu3")
+    >>> q = robot.sample_joints(4, seed=1)
+    >>> plan = verification_plan(robot, q)
+    >>> plan.cases
+    ('r', 'R', 'L1', 'L2', 'L3')
+    >>> plan.predicted.shape, plan.commands.shape
+    ((5, 4, 3), (5, 4, 3))
+
+    At its commands the actual model reaches the predicted positions:
+
+    >>> bool(np.abs(robot.forward(plan.commands[2]) - plan.predicted[2]).max() < 1e-9)
+    True
+    """
     q = robot.check_q(q_samples)
     names = tuple(names) if names is not None else tuple(
         n for n in robot.params.names if n not in set(robot.base_params()))
