@@ -13,7 +13,27 @@ def write_text_atomic(path: str | os.PathLike, text: str, encoding: str = "utf-8
 
 
 def json_path_for(path: str | os.PathLike) -> Path:
-    """Where a report's JSON goes: beside its HTML, same name, .json (``x.html`` -> ``x.json``, ``x`` -> ``x.json``)."""
+    """Where a report's JSON goes: beside its HTML, the same name with .json.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The report's HTML file.
+
+    Returns
+    -------
+    Path
+        ``x.html`` (or ``.htm``, any case) -> ``x.json``; any other name gets .json added (``x`` ->
+        ``x.json``).
+
+    Examples
+    --------
+    >>> from kincal.report import json_path_for
+    >>> json_path_for("reports/ur5.html").as_posix()
+    'reports/ur5.json'
+    >>> json_path_for("ur5-report").as_posix()
+    'ur5-report.json'
+    """
     path = Path(path)
     return path.with_suffix(".json") if path.suffix.lower() in (".html", ".htm") else Path(f"{path}.json")
 

@@ -23,10 +23,61 @@ from ..ties import first_best
 
 @dataclass(frozen=True, eq=False)
 class Cell:
-    """Constraints of the cell (SI, robot base frame): half_spaces ((normal (3,), c): n·p ≥ c kept),
-    keep_out ((lower (3,), upper (3,)) boxes the target may not enter), tracker (3,) position or None,
-    tracker_range (min, max) m, cone (rad, half-angle of the reflector's acceptance), reflector_axis
-    (3,) in the flange frame, joint_margin (rad kept from each revolute joint's limits)."""
+    """The constraints of the cell around the robot, SI, in the robot's base frame.
+
+    A pose is allowed when its joints keep ``joint_margin`` from the limits, the target (the tool point)
+    and the arm (its links as segments thickened by ``link_radius``) lie on the allowed side of every
+    half-space and outside every keep-out box, and, with a ``tracker``, the target is within its range and
+    seen by it (see the module's description).
+
+    Parameters
+    ----------
+    half_spaces : tuple of (array_like, float), optional
+        ((normal (3,), c), ...): the points p with n·p ≥ c are kept (n normalised; c in m), e.g. a floor
+        or a wall (default none).
+    keep_out : tuple of (array_like, array_like), optional
+        ((lower (3,), upper (3,)), ...): boxes, m, that the target and the arm may not enter (default
+        none).
+    tracker : ndarray, shape (3,), optional
+        Position of the tracker, m, or None (default: no tracker, no range or line-of-sight check).
+    tracker_range : tuple of float, optional
+        (min, max) distance of the target from the tracker, m, with 0 ≤ min < max (default (0, inf)).
+    cone : float, optional
+        Half-angle of the reflector's acceptance, rad, in (0, π] (default 30° = 0.5236 rad).
+    reflector_axis : tuple of float, optional
+        The reflector's opening (3,) in the flange frame, non-zero (default (0, 0, 1)).
+    joint_margin : float, optional
+        Kept from each revolute joint's limits, rad, ≥ 0 (default 0).
+    link_radius : float, optional
+        The arm's links as segments this thick, m, in [0, 1) (default 0.05).
+
+    Attributes
+    ----------
+    empty : bool
+        True when the cell has no half-space, box, tracker or joint margin (it allows what the robot
+        allows).
+
+    Raises
+    ------
+    ValueError
+        When a half-space, box, range, cone, axis, margin or radius is not valid.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.design import Cell
+    >>> robot = kincal.load_robot("ur5")
+    >>> cell = Cell(half_spaces=(((0.0, 0.0, 1.0), 0.0),))  # a floor through the base: z ≥ 0 m
+    >>> q = cell.pool(robot, 50, seed=0)
+    >>> q.shape, bool(cell.allows(robot, q).all()), bool((robot.forward(q)[:, 2] >= 0.0).all())
+    ((50, 6), True, True)
+    >>> sorted(cell.violations(robot, q))
+    ['arm through half-space 1', 'half-space 1', 'joint margin']
+    >>> Cell(tracker_range=(2.0, 1.0))
+    Traceback (most recent call last):
+        ...
+    ValueError: tracker range 2.0..1.0 m: give 0 ≤ min < max
+    """
 
     half_spaces: tuple = ()
     keep_out: tuple = ()
@@ -54,6 +105,7 @@ class Cell:
 
     @property
     def empty(self) -> bool:
+        """Whether the cell adds no constraint to the robot's own."""
         return not (self.half_spaces or self.keep_out or self.tracker is not None or self.joint_margin)
 
     def violations(self, robot: Robot, q: np.ndarray) -> dict[str, np.ndarray]:
@@ -117,8 +169,41 @@ class Cell:
 
 
 def candidate_pool(robot: Robot, n: int, seed: int | None = 0) -> np.ndarray:
-    """n joint vectors drawn uniformly within the limits and kept only where ``robot.feasible`` holds
-    (coupled constraints, assembly), (n, n_joints): ``robot.sample_joints``; the pool of no cell."""
+    """The candidate pool of no cell: n feasible joint vectors drawn uniformly within the limits.
+
+    Draws are kept only where ``robot.feasible`` holds (coupled constraints, assembly):
+    ``robot.sample_joints``. A :class:`Cell` draws its own pool with :meth:`Cell.pool`.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot whose limits and constraints the poses keep.
+    n : int
+        Number of poses, 1 or more.
+    seed : int or None, optional
+        Random seed (default 0; None draws a fresh one).
+
+    Returns
+    -------
+    ndarray, shape (n, n_joints)
+        Joint values, rad (m for a prismatic joint).
+
+    Raises
+    ------
+    ValueError
+        When ``n`` is not a whole number of 1 or more.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.design import candidate_pool
+    >>> robot = kincal.load_robot("ur5")
+    >>> pool = candidate_pool(robot, 200, seed=1)
+    >>> pool.shape, bool(robot.feasible(pool).all())
+    ((200, 6), True)
+    >>> bool((candidate_pool(robot, 200, seed=1) == pool).all())  # the same seed, the same pool
+    True
+    """
     return robot.sample_joints(whole("n", n, 1), seed)
 
 

@@ -10,10 +10,48 @@ SINGULAR = 1e-12  # smallest eigenvalue of M below this times its mean: singular
 
 
 def score(M: np.ndarray, m: int, criterion: str, B: np.ndarray | None = None) -> np.ndarray:
-    """Criterion of information matrices M (..., k, k) of m-pose designs.
+    """Criterion of information matrices M (..., k, k) of m-pose designs; larger is better.
 
-    "I" is −tr(M⁻¹B)/tr(B) (minus the average prediction variance over the region whose mean
-    information is B); the others come from the singular values of the stacked Jacobian, √eig(M).
+    "D" is log det M; "I" is −tr(M⁻¹B)/tr(B) (minus the average prediction variance over the region whose
+    mean information is B); the others ("A", "E", "O1"…"O6", "comprehensive") come from the singular values
+    of the stacked Jacobian, √eig(M) (:func:`kincal.analysis.observability.indices_from_singular_values`,
+    :func:`kincal.analysis.observability.comprehensive_index`).
+
+    Parameters
+    ----------
+    M : ndarray, shape (..., k, k)
+        Information matrices JᵀJ of the designs (any stack of them), in the problem's units.
+    m : int
+        Number of poses of each design (the indices that divide by it, e.g. O1).
+    criterion : str
+        One of :data:`CRITERIA`: "D", "A", "E", "I", "O1"…"O6", "comprehensive".
+    B : ndarray, shape (k, k), optional
+        Mean information over the region of use; needed by "I" only.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        The criterion of each matrix (a 0-d array for one matrix). A singular M scores −inf for "D", "A"
+        and "I", 0 for the others.
+
+    Raises
+    ------
+    ValueError
+        When ``criterion`` is "I" and ``B`` is None.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.design import score
+    >>> M = np.diag([4.0, 1.0])
+    >>> round(float(score(M, 2, "D")), 6)  # log det M = log 4
+    1.386294
+    >>> score(np.stack([M, 2 * M]), 2, "D").round(4)  # a stack (2, 2, 2) gives (2,)
+    array([1.3863, 2.7726])
+    >>> float(score(M, 2, "I", B=np.eye(2)))  # −(1/4 + 1)/2
+    -0.625
+    >>> float(score(np.zeros((2, 2)), 2, "D"))
+    -inf
     """
     M = np.asarray(M, dtype=float)
     if criterion == "D":

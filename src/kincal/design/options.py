@@ -17,29 +17,88 @@ DESIGN_CRITERIA = ("IMSE",) + CRITERIA
 
 @dataclass(frozen=True)
 class DesignOptions:
-    """How to choose measurement poses. Every field is checked when the record is built.
+    """How to choose measurement poses: one frozen record, every field checked when it is built.
 
-    m           -- number of poses
-    method      -- "random"; "detmax" (add–compare–remove–compare exchange); "fedorov" (greedy
-                   start, then modified Fedorov exchange with low-rank updates; D and I criteria
-                   only), with ``restarts`` extra random starts, keeping the best; "ide" (improved
-                   differential evolution over continuous poses from a random pool design,
-                   ``generations``); "detmax-ide" (Guo et al. 2024's two steps: DETMAX on the pool,
-                   then IDE from its design)
-    criterion   -- "IMSE" (default: mean squared prediction error over the region of use, counting the
-                   bias of error terms geometry cannot describe; see :mod:`kincal.design.robust`),
-                   "D", "A", "E", "I" (average prediction variance over the region of use), "O1"…"O6",
-                   "comprehensive" (Guo et al. 2024's entropy-weighted index)
-    coverage    -- keep one pose per stratum of the pool (k-means in joint space), exchanging within
-                   strata (method "fedorov"); None: on for IMSE (which is searched that way), off otherwise
-    weight      -- IMSE: the variance of each left-out term's effect, in units of the noise variance
-    seed        -- the random seed (random starts, IDE); None draws a fresh one
-    names       -- parameters to design for (default: the identifiable set at the pool)
-    base        -- "estimate" or "fixed": whether the base frame is fitted (the base-mode rule)
-    certify     -- compute the certified relaxation bound, so the design reports its D-efficiency
-    units       -- "scaled" (unit-invariant columns) or "paper" (raw Jacobian in mm and rad)
-    f0, cr, population -- IDE's initial mutation factor (eq. 21), crossover probability (eq. 25) and
-                   population size
+    Parameters
+    ----------
+    m : int, optional
+        Number of poses, 1 or more (default 60).
+    method : str, optional
+        One of :data:`METHODS` (default "fedorov"):
+
+        - "random": m distinct candidates drawn at random;
+        - "detmax": add–compare–remove–compare exchange;
+        - "fedorov": greedy start, then modified Fedorov exchange with low-rank updates (criteria IMSE,
+          D and I only), with ``restarts`` extra random starts, keeping the best;
+        - "ide": improved differential evolution over continuous poses from a random pool design, for
+          ``generations``;
+        - "detmax-ide": Guo et al. 2024's two steps, DETMAX on the pool, then IDE from its design.
+    criterion : str, optional
+        One of :data:`DESIGN_CRITERIA` (default "IMSE"): "IMSE" (mean squared prediction error over the
+        region of use, counting the bias of error terms geometry cannot describe; see
+        :mod:`kincal.design.robust`), "D", "A", "E", "I" (average prediction variance over the region of
+        use), "O1"…"O6", "comprehensive" (Guo et al. 2024's entropy-weighted index). IMSE is searched
+        one pose per joint-space stratum by method "fedorov".
+    seed : int or None, optional
+        The random seed of the random starts and of IDE, 0 or more (default 0); None draws a fresh one.
+    names : sequence of str or None, optional
+        Parameters to design for, kept in order without repeats (default None: the identifiable set at
+        the pool).
+    base : str, optional
+        "estimate" (default) or "fixed": whether the base frame is fitted (the base-mode rule).
+    certify : bool, optional
+        Compute the certified relaxation bound, so the design reports its D-efficiency (default True).
+    restarts : int, optional
+        Extra random starts of method "fedorov", 0 or more (default 0).
+    generations : int, optional
+        IDE's generations, 1 or more (default 200).
+    units : str, optional
+        "scaled" (default: unit-invariant columns) or "paper" (raw Jacobian in mm and rad).
+    f0 : float, optional
+        IDE's initial mutation factor (eq. 21), in (0, 4] (default 0.2).
+    cr : float, optional
+        IDE's crossover probability (eq. 25), in (0, 1] (default 0.2).
+    population : int, optional
+        IDE's population size, 6 or more (a mutant draws 6 distinct members; default 30).
+    coverage : bool or None, optional
+        Keep one pose per stratum of the pool (k-means in joint space), exchanging within strata (method
+        "fedorov" with criterion IMSE, D or I); None (default): on for IMSE, off otherwise.
+    weight : float, optional
+        IMSE: the variance of each left-out error term's effect, in units of the noise variance, in
+        [0, 1e6) (default 0.3).
+
+    Attributes
+    ----------
+    stratified : bool
+        Whether the design keeps one pose per stratum (``coverage``, or for None: IMSE by "fedorov").
+
+    Raises
+    ------
+    ValueError
+        Naming the field, when a value is not allowed or a combination cannot be searched (e.g. IMSE by a
+        method other than "fedorov" or "random", or method "fedorov" with a criterion other than IMSE, D
+        or I).
+
+    See Also
+    --------
+    select_poses : takes these options, or changes of them as keywords.
+
+    Examples
+    --------
+    >>> from kincal.design import DesignOptions
+    >>> o = DesignOptions(m=30, criterion="D")
+    >>> o.method, o.stratified
+    ('fedorov', False)
+    >>> o.replace(method="detmax", criterion="A").method
+    'detmax'
+    >>> DesignOptions(method="exchange")
+    Traceback (most recent call last):
+        ...
+    ValueError: method 'exchange' is not one of random, detmax, fedorov, ide, detmax-ide
+    >>> DesignOptions(method="detmax")  # IMSE, the default criterion, is searched by "fedorov"
+    Traceback (most recent call last):
+        ...
+    ValueError: criterion 'IMSE' (the default) is searched one pose per joint-space stratum by method ...
     """
 
     m: int = 60
@@ -106,7 +165,23 @@ class DesignOptions:
         return self.criterion == "IMSE" and self.method == "fedorov" if self.coverage is None else bool(self.coverage)
 
     def replace(self, **changes: Any) -> "DesignOptions":
-        """A copy with some fields changed (and checked again); an unknown field is named."""
+        """A copy with some fields changed (and checked again).
+
+        Parameters
+        ----------
+        **changes
+            Fields and their new values.
+
+        Returns
+        -------
+        DesignOptions
+            The new record.
+
+        Raises
+        ------
+        ValueError
+            Naming an unknown field, or a value that is not allowed.
+        """
         known = [f.name for f in dataclasses.fields(self)]
         unknown = sorted(set(changes) - set(known))
         if unknown:
@@ -114,6 +189,7 @@ class DesignOptions:
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict:
+        """The options as JSON-ready values (``names`` as a list or None)."""
         out = dataclasses.asdict(self)
         out["names"] = None if self.names is None else list(self.names)
         return out

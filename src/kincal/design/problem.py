@@ -16,12 +16,54 @@ from .criteria import score
 
 @dataclass(frozen=True, eq=False)
 class DesignProblem:
-    """Candidate poses q (N, n) and their scaled Jacobian blocks J (N, r, k) for ``names``: r = 3
-    position rows per pose for a tracker; other measurement types give other blocks (6 for a full
-    pose, whitened by its σ).
+    """The design problem: candidate poses and their scaled Jacobian blocks for the parameters ``names``.
 
-    ``scale`` (k,) multiplies the raw columns (see :func:`kincal.analysis.observability.column_scale`);
-    it is fixed by the pool so every design of this problem is measured in the same units.
+    Each candidate has a block of r rows: r = 3 position rows per pose for a tracker; other measurement
+    types give other blocks (6 for a full pose, whitened by its σ). The columns are the raw Jacobian's
+    times ``scale``, fixed by the pool, so every design of this problem is measured in the same units.
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, n)
+        Candidate joint values, rad (m for a prismatic joint).
+    J : ndarray, shape (N, r, k)
+        Scaled Jacobian blocks of the candidates: the raw position Jacobian (m per m, m per rad; whitened
+        by σ for other measurement types) times ``scale``.
+    names : tuple of str
+        The k parameters designed for, in column order.
+    scale : ndarray, shape (k,)
+        Factors applied to the raw columns (see :func:`kincal.analysis.observability.column_scale`; 1 for
+        lengths and 1000 for angles in "paper" units).
+    note : str, optional
+        Parameters the pool cannot identify that spread poses would, and what they act like ('' when
+        none; default '').
+
+    Attributes
+    ----------
+    N : int
+        Number of candidates.
+    k : int
+        Number of parameters (columns).
+    r : int
+        Rows per candidate.
+    rows : ndarray, shape (rN, k)
+        The stacked blocks.
+
+    See Also
+    --------
+    design_problem : builds it for position measurements.
+    observation_problem : builds it for a planned observation set.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.design import DesignProblem
+    >>> J = np.arange(24.0).reshape(4, 3, 2)  # 4 candidates, 3 rows each, 2 parameters
+    >>> P = DesignProblem(np.zeros((4, 1)), J, ("a", "b"), np.ones(2))
+    >>> P.N, P.r, P.k, P.rows.shape
+    (4, 3, 2, (12, 2))
+    >>> bool(np.allclose(P.information([0, 2]), J[0].T @ J[0] + J[2].T @ J[2]))
+    True
     """
 
     q: np.ndarray
@@ -32,10 +74,12 @@ class DesignProblem:
 
     @property
     def N(self) -> int:
+        """Number of candidates."""
         return self.J.shape[0]
 
     @property
     def k(self) -> int:
+        """Number of parameters (columns)."""
         return self.J.shape[2]
 
     @property
@@ -49,7 +93,8 @@ class DesignProblem:
         return self.J.reshape(-1, self.k)
 
     def information(self, idx: Sequence[int] | np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
-        """M = Σ wᵢ JᵢᵀJᵢ over the candidates ``idx`` (k, k)."""
+        """The information matrix M = Σ wᵢ JᵢᵀJᵢ (k, k) over the candidates ``idx`` (all wᵢ = 1 without
+        ``weights``, one per index)."""
         Js = self.J[np.asarray(idx)].reshape(-1, self.k)
         return Js.T @ Js if weights is None else (Js * np.repeat(np.asarray(weights, float), self.r)[:, None]).T @ Js
 
@@ -63,14 +108,51 @@ UNITS = ("scaled", "paper")
 
 def design_problem(robot: Robot, pool_q: np.ndarray, names: Sequence[str] | None = None,
                    base: str = "estimate", units: str = "scaled") -> DesignProblem:
-    """Build the problem for ``robot`` on the candidate pool (N, n).
+    """Build the design problem of position measurements for ``robot`` on a candidate pool.
 
-    names  -- parameters to design for, exactly these; default: the identifiable set at the pool
-              by the base-mode rule of :func:`kincal.analysis.free_parameters`, as
-              :func:`kincal.calibrate` would fit.
-    units  -- "scaled" (default): every column at unit RMS over the pool, so indices do not depend
-              on the units of lengths and angles; "paper": the raw Jacobian in mm and rad (position
-              in mm per mm of length, per rad of angle), as Guo et al. 2024 compute their indices.
+    Parameters
+    ----------
+    robot : Robot
+        The nominal robot.
+    pool_q : ndarray, shape (N, n)
+        Candidate joint values, rad (m for a prismatic joint); at least 2 distinct poses.
+    names : sequence of str, optional
+        Parameters to design for, exactly these (each must be identifiable at the pool). Default: the
+        identifiable set at the pool by the base-mode rule of :func:`kincal.analysis.free_parameters`, as
+        :func:`kincal.calibrate` would fit; when spread poses would identify more, the problem's ``note``
+        names those the pool cannot (a pool that loses half of them or more is refused).
+    base : str, optional
+        "estimate" (default) or "fixed": whether the base frame is fitted (used for the default
+        ``names``).
+    units : str, optional
+        "scaled" (default): every column at unit RMS over the pool, so indices do not depend on the units
+        of lengths and angles; "paper": the raw Jacobian in mm and rad (position in mm per mm of length,
+        per rad of angle), as Guo et al. 2024 compute their indices.
+
+    Returns
+    -------
+    DesignProblem
+        The pool, its scaled Jacobian blocks (N, 3, k), the names and the column scale.
+
+    Raises
+    ------
+    ValueError
+        When ``units`` is not one of :data:`UNITS`.
+    IdentifiabilityError
+        When the pool holds fewer than 2 distinct poses, cannot identify all the given ``names``, or its
+        candidates are too alike to design from.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.design import candidate_pool, design_problem
+    >>> robot = kincal.load_robot("ur5")
+    >>> pool = candidate_pool(robot, 60, seed=1)
+    >>> P = design_problem(robot, pool, names=["j2.theta", "j3.theta", "j4.theta", "j2.a", "j3.a"])
+    >>> P.J.shape, P.names[:2]
+    ((60, 3, 5), ('j2.theta', 'j3.theta'))
+    >>> P.scale[3:].round(6).tolist()  # a link length moves the point one to one (m per m): scale 1
+    [1.0, 1.0]
     """
     if units not in UNITS:
         raise ValueError(f"units='{units}' is not one of {UNITS}")
@@ -116,10 +198,35 @@ def _pool_parameters(robot: Robot, pool_q: np.ndarray, base: str, distinct: int)
 
 
 def observation_problem(robot: Robot, planned, names: Sequence[str] | None = None) -> DesignProblem:
-    """The design problem of a planned observation set (``kincal.observe``; one sample per candidate
-    pose, values as the nominal robot predicts them): each candidate's block holds its whitened
-    residual rows (6 for a full pose, 3 per marker), its columns the robot's and the set-up
-    parameters the pool identifies (set-up parameters first, as the fit chooses them) or ``names``."""
+    """The design problem of a planned observation set (one sample per candidate pose).
+
+    The samples' values are as the nominal robot predicts them. Each candidate's block holds its
+    whitened residual rows (6 for a full pose, 3 per marker); the columns are the robot's and the set-up
+    parameters the pool identifies (set-up parameters first, as the fit chooses them), or ``names``.
+    Known distances between socket points are exact constraints on the set-up parameters, eliminated
+    before the blocks are formed.
+
+    Parameters
+    ----------
+    robot : Robot
+        The nominal robot.
+    planned : Observation
+        The planned observation set (:mod:`kincal.observe`: poses, markers, sockets, planes), one sample
+        per candidate pose.
+    names : sequence of str, optional
+        Parameters to design for (robot and set-up parameters); default: those the pool identifies.
+
+    Returns
+    -------
+    DesignProblem
+        The candidates' joint values, their whitened, scaled blocks (N, r, k), the names and the scale.
+
+    Raises
+    ------
+    IdentifiabilityError
+        When the data are not one block of the same size per pose (markers not seen in some), or a
+        constraint involves robot parameters.
+    """
     obs = planned.prepare(robot)
     nuis_names, start, _ = obs.nuisance(robot)
     _, Jr, Jn = obs.evaluate(robot, robot.params.values, start)

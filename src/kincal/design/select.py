@@ -22,16 +22,48 @@ from .robust import robust_terms, stratified_design
 
 @dataclass(frozen=True, eq=False)
 class Design:
-    """m chosen poses of a pool.
+    """m chosen measurement poses of a pool, and how good they are.
 
-    indices    -- positions in the pool (None for ide / detmax-ide, whose poses leave the pool);
-                  q: the joint values (m, n)
-    value      -- the criterion of the design; logdet: log det of its scaled information matrix
-    bound      -- certified upper bound on logdet over all m-pose designs of the pool (or None)
-    efficiency -- D-efficiency (det M / exp(bound))^(1/k): how far from the best possible design
-                  of the pool (≤ 1 for pool designs; continuous designs may exceed the pool's bound)
-    history    -- ide / detmax-ide: the best criterion at generation 0 and after each one (Guo et al. 2024, Fig. 6)
-    note       -- what the criterion counted (IMSE: the left-out error terms), or ""
+    Parameters
+    ----------
+    indices : ndarray of int, shape (m,), or None
+        Positions of the poses in the pool; None for methods "ide" and "detmax-ide", whose poses leave
+        the pool.
+    q : ndarray, shape (m, n)
+        The poses' joint values, rad (m for a prismatic joint).
+    method : str
+        The method that chose them (one of :data:`METHODS`).
+    criterion : str
+        The criterion designed for (one of :data:`DESIGN_CRITERIA`).
+    value : float
+        The criterion of the design (IMSE: the mean squared prediction error in units of the noise
+        variance, smaller is better; the others: larger is better).
+    logdet : float
+        log det of the design's scaled information matrix (−inf when singular).
+    names : tuple of str
+        The k parameters designed for.
+    bound : Bound or None
+        Certified upper bound on ``logdet`` over all m-pose designs of the pool, or None (not certified).
+    time_s : float
+        Time the design took, s (the certificate left out).
+    seed : int or None
+        The random seed used (None: a fresh one was drawn).
+    history : tuple of float, optional
+        Methods "ide" and "detmax-ide": the best criterion at generation 0 and after each generation
+        (Guo et al. 2024, Fig. 6); () otherwise.
+    note : str, optional
+        What the criterion counted (IMSE: the left-out error terms) and the pool's note, or ''.
+
+    Attributes
+    ----------
+    efficiency : float or None
+        D-efficiency (det M / exp(bound.upper))^(1/k): how far from the best possible design of the pool
+        (≤ 1 for pool designs; continuous designs may exceed the pool's bound); None without a bound or
+        for a singular design.
+
+    See Also
+    --------
+    select_poses : makes it.
     """
 
     indices: np.ndarray | None
@@ -49,11 +81,13 @@ class Design:
 
     @property
     def efficiency(self) -> float | None:
+        """D-efficiency against the certified bound, in (0, 1] for pool designs; None without a bound."""
         if self.bound is None or not np.isfinite(self.logdet):
             return None
         return float(np.exp((self.logdet - self.bound.upper) / len(self.names)))
 
     def to_dict(self) -> dict:
+        """The design as JSON-ready values (SI: joint values in rad or m)."""
         return {"method": self.method, "criterion": self.criterion, "m": int(self.q.shape[0]),
                 "indices": None if self.indices is None else self.indices.tolist(), "q": self.q.tolist(), "value": self.value,
                 "logdet": self.logdet, "bound": None if self.bound is None else self.bound.to_dict(),
@@ -104,18 +138,63 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
                  problem: DesignProblem | None = None, bound: Bound | None = None,
                  validation_q: np.ndarray | None = None, progress=None, cell: Cell | None = None,
                  **changes) -> Design:
-    """Choose measurement poses from the candidate pool (N, n).
+    """Choose measurement poses from a candidate pool.
 
-    options      -- a :class:`DesignOptions` record (default: its defaults); ``changes`` are fields
-                    of it to change, e.g. ``select_poses(robot, pool, m=30, method="detmax")``
-    problem      -- a prebuilt :class:`DesignProblem` of this pool to reuse (its parameters win)
-    bound        -- a certified bound of this problem and m to reuse
-    validation_q -- the region of use: poses where the IMSE and I criteria lower the prediction error
-                    (default: the pool)
-    progress     -- called as ``progress(generation, best)`` by IDE
-    cell         -- the :class:`Cell`'s constraints: every candidate must meet them, and IDE keeps to them
+    Every option is checked before any work (a ValueError naming it). The design is searched on the
+    problem's scaled information (see :class:`DesignProblem`); with ``certify`` its D-efficiency against a
+    certified relaxation bound is reported.
 
-    Every option is checked before any work (ValueError naming it).
+    Parameters
+    ----------
+    robot : Robot
+        The nominal robot.
+    pool_q : ndarray, shape (N, n)
+        Candidate joint values, rad (m for a prismatic joint); at least m distinct poses.
+    options : DesignOptions, optional
+        How to choose (default: ``DesignOptions()``).
+    problem : DesignProblem, optional
+        A prebuilt problem of this pool to reuse (its parameters win over ``options.names``).
+    bound : Bound, optional
+        A certified bound of this problem and m to reuse.
+    validation_q : ndarray, shape (V, n), optional
+        The region of use: poses where the IMSE and I criteria lower the prediction error, rad (default:
+        the pool). Only with those two criteria.
+    progress : callable, optional
+        Called as ``progress(generation, best)`` by IDE.
+    cell : Cell, optional
+        The cell's constraints: every candidate must meet them, and IDE keeps to them.
+    **changes
+        Fields of ``options`` to change, e.g. ``select_poses(robot, pool, m=30, method="detmax")``.
+
+    Returns
+    -------
+    Design
+        The chosen poses, their criterion, log det, certificate and timing.
+
+    Raises
+    ------
+    ValueError
+        When an option is not valid, the pool holds fewer than m distinct poses, a candidate breaks the
+        cell's constraints, or ``validation_q`` is given for a criterion other than IMSE or I.
+    IdentifiabilityError
+        When m poses give fewer equations than parameters, or the pool cannot identify the parameters.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.design import candidate_pool, select_poses
+    >>> robot = kincal.load_robot("ur5")
+    >>> pool = candidate_pool(robot, 60, seed=1)
+    >>> names = ["j2.theta", "j3.theta", "j4.theta", "j2.a", "j3.a"]
+    >>> d = select_poses(robot, pool, m=10, criterion="D", names=names)
+    >>> d.q.shape, d.method, len(set(d.indices.tolist()))
+    ((10, 6), 'fedorov', 10)
+    >>> round(d.value, 3), bool(0.9 < d.efficiency <= 1.0)
+    (10.829, True)
+    >>> select_poses(robot, pool, m=100, criterion="D", names=names)
+    Traceback (most recent call last):
+        ...
+    ValueError: m = 100 poses, but the candidate pool holds 60 distinct pose(s) in 60 rows: ...
     """
     o = (options or DesignOptions()).replace(**changes)
     pool_q = _checked_pool(robot, pool_q, o, problem, validation_q)

@@ -21,9 +21,43 @@ def frame_names(records: Sequence[tuple[int, Record]]) -> set[str]:
 
 
 def changed_parameters(records: Sequence[tuple[int, Record]], parameters: Sequence[str] | None = None) -> list[str]:
-    """``parameters`` (checked: each in some calibration), else every robot parameter that moved between two
-    consecutive calibrations by at least ``MOVED_Z`` σ (or at all, without a σ), the measurement frame left out (it
-    moves with the tracker), in the order of the models: a panel for a change within the noise says nothing."""
+    """The parameters a history plot shows: those that moved between calibrations, or those asked for.
+
+    Without ``parameters``: every robot parameter that moved between two consecutive calibrations by at
+    least ``MOVED_Z`` σ (or at all, without a σ), the measurement frame left out (it moves with the
+    tracker), in the order of the models: a panel for a change within the noise says nothing.
+
+    Parameters
+    ----------
+    records : sequence of (int, Record)
+        (id, record) of one robot in time order (as :meth:`Store.records` gives them); only the
+        calibrations count.
+    parameters : sequence of str, optional
+        The parameters to show, each checked to be in some calibration (default: those that moved).
+
+    Returns
+    -------
+    list of str
+        The parameters' names.
+
+    Raises
+    ------
+    ValueError
+        When a given parameter is in no calibration of the records.
+
+    Examples
+    --------
+    >>> from kincal.history import Identity, Record, changed_parameters
+    >>> arm = Identity("cell-3 arm")
+    >>> first = Record(arm, "calibration", "2024-05-01T08:00Z", parameters={"j2.theta": 0.0, "j3.a": 0.425},
+    ...                sigmas={"j2.theta": 1e-4, "j3.a": 1e-5})
+    >>> second = Record(arm, "calibration", "2024-06-01T08:00Z", parameters={"j2.theta": 2e-3, "j3.a": 0.42501},
+    ...                 sigmas={"j2.theta": 1e-4, "j3.a": 1e-5})
+    >>> changed_parameters([(1, first), (2, second)])  # j3.a moved by 0.7 σ only
+    ['j2.theta']
+    >>> changed_parameters([(1, first), (2, second)], ["j3.a"])
+    ['j3.a']
+    """
     cals = [r for _, r in calibrations(records)]
     order = list(dict.fromkeys(n for r in cals for n in r.parameters))
     if parameters is not None:
@@ -38,9 +72,35 @@ def changed_parameters(records: Sequence[tuple[int, Record]], parameters: Sequen
 
 @dataclass(frozen=True)
 class Move:
-    """One parameter's step between consecutive calibrations ``before`` and ``after`` (record ids): the change
-    ``delta`` (m or rad), the combined σ (the two σ in quadrature; one when the other is unknown; None when
-    both are), z = Δ/σ (None without σ), the parameter's kind and whether it is the measurement frame."""
+    """One parameter's step between consecutive calibrations.
+
+    Parameters
+    ----------
+    before : int
+        Id of the earlier calibration record.
+    after : int
+        Id of the later calibration record.
+    time : str
+        The later calibration's time, UTC ISO 8601 (:func:`utc_time`).
+    name : str
+        The parameter.
+    kind : str
+        Its kind: "length", "angle" or "ratio".
+    delta : float
+        The change, later minus earlier value, m or rad.
+    sigma : float or None
+        The combined σ of the change, m or rad: the two σ in quadrature, one when the other is unknown,
+        None when both are.
+    z : float or None
+        ``delta / sigma`` (None without a σ).
+    frame : bool
+        Whether the parameter is the measurement frame (base.*: where the tracker saw the robot).
+
+    Attributes
+    ----------
+    shown : bool
+        Whether it is a move to show: beyond ``MOVED_Z`` σ, or a change without a σ; never the frame.
+    """
 
     before: int
     after: int
@@ -53,6 +113,7 @@ class Move:
     frame: bool
 
     def to_dict(self) -> dict:
+        """The step as JSON-ready values (SI: m or rad)."""
         return {"before": self.before, "after": self.after, "time": self.time, "parameter": self.name,
                 "kind": self.kind, "change": self.delta, "sigma": self.sigma, "z": self.z, "frame": self.frame}
 
@@ -63,8 +124,34 @@ class Move:
 
 
 def moves(records: Sequence[tuple[int, Record]]) -> list[Move]:
-    """Every parameter whose value differs between consecutive calibrations, per step in time order, the
-    largest |z| first (a change without σ after those with one)."""
+    """Every parameter whose value differs between consecutive calibrations, with its size and z = Δ/σ.
+
+    Per step in time order, the largest ``abs(z)`` first (a change without σ after those with one).
+
+    Parameters
+    ----------
+    records : sequence of (int, Record)
+        (id, record) of one robot in time order (as :meth:`Store.records` gives them); only the
+        calibrations count, and a parameter counts in a step when both calibrations have it.
+
+    Returns
+    -------
+    list of Move
+        One per parameter and step.
+
+    Examples
+    --------
+    >>> from kincal.history import Identity, Record, moves
+    >>> arm = Identity("cell-3 arm")
+    >>> first = Record(arm, "calibration", "2024-05-01T08:00Z", parameters={"j2.theta": 0.0, "j3.a": 0.425},
+    ...                sigmas={"j2.theta": 1e-4, "j3.a": 1e-5}, payload={"kinds": {"j2.theta": "angle"}})
+    >>> second = Record(arm, "calibration", "2024-06-01T08:00Z", parameters={"j2.theta": 2e-3, "j3.a": 0.42501},
+    ...                 sigmas={"j2.theta": 1e-4, "j3.a": 1e-5}, payload={"kinds": {"j2.theta": "angle"}})
+    >>> for m in moves([(1, first), (2, second)]):
+    ...     print(m.name, m.kind, f"{m.delta:.4g}", round(m.z, 2), m.shown)
+    j2.theta angle 0.002 14.14 True
+    j3.a length 1e-05 0.71 False
+    """
     cals, frame, out = calibrations(records), frame_names(records), []
     for (ia, a), (ib, b) in zip(cals, cals[1:]):
         step = []

@@ -33,9 +33,32 @@ def _grid(n: int) -> int:
 
 
 def history_figure(records: Sequence[tuple[int, Record]], parameters: Sequence[str] | None = None) -> "Figure":
-    """The history of one robot, ``records`` in time order: a panel per parameter (``parameters``, or each that
-    changed, :func:`changed_parameters`) with its value minus the first calibration's (mm, mrad or ‰) and the
-    ±σ band, a panel of the mean position errors (mm), events as vertical lines with their note."""
+    """The history plot of one robot: its parameters, position errors and events on one time axis.
+
+    A panel per parameter shows its value minus the first calibration's (mm, mrad or ‰) with the ±σ band
+    (no band where σ is unknown: the value was held); a panel of the mean position errors (mm) shows
+    each calibration's held-out mean (its training mean without held-out data), each evaluation's and
+    check's; events are dashed vertical lines, with their note on the error panel. matplotlib is
+    loaded when the plot is drawn.
+
+    Parameters
+    ----------
+    records : sequence of (int, Record)
+        (id, record) of one robot in time order (:meth:`Store.records`).
+    parameters : sequence of str, optional
+        The parameters to show (each in some calibration); default: each that changed
+        (:func:`changed_parameters`).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (not attached to pyplot); save it with :func:`save_history_figure`.
+
+    Raises
+    ------
+    ValueError
+        When a given parameter is in no calibration of the records.
+    """
     import matplotlib
     from matplotlib.figure import Figure
 
@@ -116,7 +139,20 @@ def _dates(ax: Any) -> None:
 
 
 def save_history_figure(fig: "Figure", path: str | Path) -> None:
-    """The figure as PNG or SVG by the file's extension, written atomically (a temporary file, then a rename)."""
+    """Save a history plot as PNG or SVG by the file's extension, atomically (a temporary file, then a rename).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure (:func:`history_figure`).
+    path : str or Path
+        The file: .png (130 dpi) or .svg; its folder must exist.
+
+    Raises
+    ------
+    ValueError
+        When the extension is neither .png nor .svg, or the folder does not exist.
+    """
     path = Path(path)
     ext = path.suffix.lower()
     if ext not in (".png", ".svg"):

@@ -21,8 +21,41 @@ HASH_DIGITS = 12  # nominal values rounded to 1e-12 (m, rad) in the model hash
 
 
 def utc_time(value: str | datetime | None = None) -> str:
-    """A time as the store's UTC ISO 8601 text ('2024-05-03T14:00:00.000000Z'); ``None``: now. A text or
-    datetime without a zone is this computer's local time; a ValueError names a text that is no ISO 8601 time."""
+    """A time as the store's UTC ISO 8601 text, e.g. '2024-05-03T14:00:00.000000Z'.
+
+    The text has microseconds always, so it sorts as the time does.
+
+    Parameters
+    ----------
+    value : str or datetime, optional
+        An ISO 8601 text ('Z' or an offset for UTC or another zone) or a datetime; one without a zone is
+        this computer's local time. None (default): now.
+
+    Returns
+    -------
+    str
+        The time in UTC, ``YYYY-MM-DDTHH:MM:SS.ffffffZ``.
+
+    Raises
+    ------
+    ValueError
+        Naming a text that is no ISO 8601 time.
+
+    Examples
+    --------
+    >>> from datetime import datetime, timezone
+    >>> from kincal.history import utc_time
+    >>> utc_time("2024-05-03T12:00Z")
+    '2024-05-03T12:00:00.000000Z'
+    >>> utc_time("2024-05-03T14:00+02:00")
+    '2024-05-03T12:00:00.000000Z'
+    >>> utc_time(datetime(2024, 5, 3, 12, 0, 30, tzinfo=timezone.utc))
+    '2024-05-03T12:00:30.000000Z'
+    >>> utc_time("May 3rd")
+    Traceback (most recent call last):
+        ...
+    ValueError: 'May 3rd' is not an ISO 8601 time; write e.g. 2024-05-03T14:00 (local time) or ...
+    """
     if value is None:
         moment = datetime.now(timezone.utc)
     elif isinstance(value, datetime):
@@ -40,7 +73,29 @@ def utc_time(value: str | datetime | None = None) -> str:
 
 
 def parse_time(text: str) -> datetime:
-    """The store's time text as an aware UTC datetime."""
+    """The store's time text as an aware UTC datetime.
+
+    Parameters
+    ----------
+    text : str
+        A time as :func:`utc_time` writes it, ``YYYY-MM-DDTHH:MM:SS.ffffffZ``.
+
+    Returns
+    -------
+    datetime
+        The time, with the UTC zone.
+
+    Raises
+    ------
+    ValueError
+        When the text is not in the store's format.
+
+    Examples
+    --------
+    >>> from kincal.history import parse_time
+    >>> parse_time("2024-05-03T12:00:00.000000Z")
+    datetime.datetime(2024, 5, 3, 12, 0, tzinfo=datetime.timezone.utc)
+    """
     return datetime.strptime(text, TIME_FORMAT).replace(tzinfo=timezone.utc)
 
 
@@ -64,8 +119,33 @@ def json_safe(obj: Any) -> Any:
 
 @dataclass(frozen=True)
 class Identity:
-    """A robot as the user names it: ``name`` and ``serial`` ('' when none given), and ``model_hash``, the
-    sha256 of its nominal model (:func:`model_hash`; '' for an event, which has no model)."""
+    """A robot as the user names it, and its nominal model.
+
+    Parameters
+    ----------
+    name : str
+        The robot's name (the name given at calibration); not empty.
+    serial : str, optional
+        Its serial number ('' when none given; default '').
+    model_hash : str, optional
+        The sha256 of its nominal model (:func:`model_hash`; '' for an event, which has no model;
+        default '').
+
+    Raises
+    ------
+    ValueError
+        When ``name`` is empty.
+
+    Examples
+    --------
+    >>> from kincal.history import Identity
+    >>> Identity("cell-3 arm", "SN42").to_dict()
+    {'name': 'cell-3 arm', 'serial': 'SN42', 'model_hash': ''}
+    >>> Identity(" ")
+    Traceback (most recent call last):
+        ...
+    ValueError: a robot in the store needs a name (the name given at calibration)
+    """
 
     name: str
     serial: str = ""
@@ -76,31 +156,77 @@ class Identity:
             raise ValueError("a robot in the store needs a name (the name given at calibration)")
 
     def to_dict(self) -> dict:
+        """The identity as JSON-ready values."""
         return {"name": self.name, "serial": self.serial, "model_hash": self.model_hash}
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "Identity":
+        """The identity from :meth:`to_dict`'s values (serial and model hash '' when missing)."""
         return cls(str(d["name"]), str(d.get("serial") or ""), str(d.get("model_hash") or ""))
 
 
 @dataclass(frozen=True)
 class InputFile:
-    """An input file's fingerprint: its path as given, the sha256 of its bytes (hex) and its size (bytes)."""
+    """An input file's fingerprint.
+
+    Parameters
+    ----------
+    path : str
+        The file's path as given.
+    sha256 : str
+        The sha256 of its bytes, 64 hexadecimal digits.
+    size : int
+        Its size, bytes.
+
+    See Also
+    --------
+    fingerprint : takes it from a file.
+    """
 
     path: str
     sha256: str
     size: int
 
     def to_dict(self) -> dict:
+        """The fingerprint as JSON-ready values."""
         return {"path": self.path, "sha256": self.sha256, "size": self.size}
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "InputFile":
+        """The fingerprint from :meth:`to_dict`'s values."""
         return cls(str(d["path"]), str(d["sha256"]), int(d["size"]))
 
 
 def fingerprint(path: str | Path) -> InputFile:
-    """The sha256 (read in 1 MiB blocks, any size) and size of the file ``path``."""
+    """The sha256 and size of a file (read in 1 MiB blocks: any size).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    InputFile
+        Its path as given, the sha256 of its bytes (hex) and its size, bytes.
+
+    Raises
+    ------
+    OSError
+        When the file cannot be read.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from kincal.history import fingerprint
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     data = Path(folder) / "run1.csv"
+    ...     _ = data.write_bytes(b"q1,q2,q3\\n")
+    ...     found = fingerprint(data)
+    >>> found.size, found.sha256[:16], found.path.endswith("run1.csv")
+    (9, '4530e8e323239ec0', True)
+    """
     digest, size = hashlib.sha256(), 0
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
@@ -110,10 +236,35 @@ def fingerprint(path: str | Path) -> InputFile:
 
 
 def model_hash(robot: Robot) -> str:
-    """sha256 of a canonical JSON of the robot's own nominal model: its structure, joint names and types, and
-    its parameters' names, kinds and values rounded to 1e-12 (m, rad). The measurement frame (base) and the
-    measured point (tool) are the set-up, not the robot: left out, so a moved tracker or reflector is no new
-    model. Pass the nominal robot (a calibrated file's nominal values), not the calibrated one."""
+    """The sha256 of the robot's own nominal model, which tells when a robot's model was changed.
+
+    The hash is taken of a canonical JSON of its structure, joint names and types, and its parameters'
+    names, kinds and values rounded to 1e-12 (m, rad). The measurement frame (base) and the measured point
+    (tool) are the set-up, not the robot: left out, so a moved tracker or reflector is no new model.
+
+    Parameters
+    ----------
+    robot : Robot
+        The nominal robot (a calibrated file's nominal values), not the calibrated one.
+
+    Returns
+    -------
+    str
+        64 hexadecimal digits.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.history import model_hash
+    >>> robot = kincal.load_robot("ur5")
+    >>> h = model_hash(robot)
+    >>> len(h)
+    64
+    >>> model_hash(robot.with_params({"tool.z": robot.params["tool.z"] + 0.01})) == h  # the set-up
+    True
+    >>> model_hash(robot.with_params({"j2.a": robot.params["j2.a"] + 1e-3})) == h  # the robot
+    False
+    """
     setup = set(robot.base_params()) | set(TOOL_NAMES)
     params = [[n, k, round(float(v), HASH_DIGITS) + 0.0]  # + 0.0: -0.0 and 0.0 hash alike
               for n, k, v in zip(robot.params.names, robot.params.kinds, robot.params.values) if n not in setup]
@@ -138,22 +289,71 @@ def _floats(d: Mapping | None, where: str, none_ok: bool = False) -> dict:
 
 @dataclass(frozen=True)
 class Record:
-    """One entry of a robot's history (SI: m, rad).
+    """One entry of a robot's history, SI (m, rad) and JSON-safe (None where a value is unknown).
 
-    identity    -- the robot; kind -- one of KINDS; time -- UTC ISO 8601 (:func:`utc_time`)
-    verdict     -- "good", "suspect", "refused" (a calibration), a check's answer, or None
-    inputs      -- the input files' fingerprints
-    parameters  -- name -> value of every robot parameter of the model (a calibration)
-    sigmas      -- name -> 1-σ of each fitted robot parameter (None: undetermined)
-    identifiable -- the robot parameters the data determined (finite σ), in model order
-    covariance  -- {"names": [...], "matrix": [[...]]} over ``identifiable``, or None
-    figures     -- name -> value: training_mean, training_rms, training_max, training_n, heldout_mean, … (m)
-    mounting    -- the tool point found against the declared one ({"tool_point", "declared_tool_point",
-                   "text"}), or None
-    covariates  -- name -> (low, high): the range of each covariate in the data (temperature in K, time in s)
-    note        -- the user's words (an event's description)
-    payload     -- any other JSON detail: the calibrated file's ``calibration`` section, the command line,
-                   kincal's version, the parameters' kinds
+    The numbers are checked finite when the record is built, the time is brought to UTC
+    (:func:`utc_time`) and ``covariance``, ``mounting`` and ``payload`` are made plain JSON values.
+
+    Parameters
+    ----------
+    identity : Identity
+        The robot.
+    kind : str
+        One of :data:`KINDS`: "calibration", "evaluation", "check", "comparison", "event".
+    time : str or datetime
+        When it happened, as :func:`utc_time` reads it (kept as UTC ISO 8601 text).
+    verdict : str or None, optional
+        "good", "suspect", "refused" (a calibration), a check's answer, or None (default).
+    inputs : tuple of InputFile, optional
+        The input files' fingerprints (default none).
+    parameters : dict, optional
+        name -> value of every robot parameter of the model (a calibration), m or rad.
+    sigmas : dict, optional
+        name -> 1-σ of each fitted robot parameter, m or rad (None: undetermined).
+    identifiable : tuple of str, optional
+        The robot parameters the data determined (finite σ), in model order.
+    covariance : dict or None, optional
+        ``{"names": [...], "matrix": [[...]]}`` over ``identifiable`` (m², rad², m·rad), or None.
+    figures : dict, optional
+        name -> value: training_mean, training_rms, training_max, training_n, heldout_mean, … (m; the
+        ``_n`` figures count samples).
+    mounting : dict or None, optional
+        The tool point found against the declared one (``{"tool_point", "declared_tool_point",
+        "text"}``), or None.
+    covariates : dict, optional
+        name -> (low, high): the range of each covariate in the data (temperature in K, time in s).
+    note : str, optional
+        The user's words (an event's description).
+    payload : dict, optional
+        Any other JSON detail: the calibrated file's ``calibration`` section, the command line, kincal's
+        version, the parameters' kinds.
+
+    Attributes
+    ----------
+    kinds : dict
+        name -> "length", "angle" or "ratio" of the parameters (from the payload; "length" when
+        unknown).
+
+    Raises
+    ------
+    ValueError
+        When ``kind`` is not one of :data:`KINDS`, the time is not an ISO 8601 time, or a number is not
+        finite.
+
+    Examples
+    --------
+    >>> from kincal.history import Identity, Record
+    >>> r = Record(Identity("cell-3 arm"), "calibration", "2024-05-03T14:00+02:00", "good",
+    ...            parameters={"j2.theta": 1e-3, "j3.a": 0.425}, sigmas={"j2.theta": 2e-5, "j3.a": None},
+    ...            payload={"kinds": {"j2.theta": "angle"}})
+    >>> r.time, r.kinds
+    ('2024-05-03T12:00:00.000000Z', {'j2.theta': 'angle', 'j3.a': 'length'})
+    >>> Record.from_dict(r.to_dict()) == r
+    True
+    >>> Record(Identity("cell-3 arm"), "repair", "2024-05-03T14:00")
+    Traceback (most recent call last):
+        ...
+    ValueError: store record: kind 'repair' is not one of calibration, evaluation, check, comparison, event
     """
 
     identity: Identity
@@ -195,6 +395,7 @@ class Record:
         return {n: str(kinds.get(n, "length")) for n in self.parameters}
 
     def to_dict(self) -> dict:
+        """The record as JSON-ready values (what the store keeps)."""
         return {"identity": self.identity.to_dict(), "kind": self.kind, "time": self.time, "verdict": self.verdict,
                 "inputs": [i.to_dict() for i in self.inputs], "parameters": dict(self.parameters),
                 "sigmas": dict(self.sigmas), "identifiable": list(self.identifiable), "covariance": self.covariance,
@@ -204,6 +405,7 @@ class Record:
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "Record":
+        """The record from :meth:`to_dict`'s values (the fields that are missing take their defaults)."""
         return cls(Identity.from_dict(d["identity"]), str(d["kind"]), str(d["time"]), d.get("verdict"),
                    tuple(InputFile.from_dict(i) for i in d.get("inputs") or ()), dict(d.get("parameters") or {}),
                    dict(d.get("sigmas") or {}), tuple(d.get("identifiable") or ()), d.get("covariance"),
@@ -248,11 +450,53 @@ def _about(command: str, robot: Robot | None = None) -> dict:
 def calibration_record(result: Any, identity: Identity, inputs: Iterable[InputFile],
                        heldout: Iterable[Any] | None = None, note: str = "", command: str = "",
                        covariates: Mapping | None = None, time: str | datetime | None = None) -> Record:
-    """The record of a :class:`kincal.CalibrationResult`: every robot parameter's value, the fitted ones' σ,
-    the identifiable set (finite σ) and its covariance, the verdict, the training figures (the kept poses of
-    position data, else every set's position statistics) and the ``heldout`` ones (EvaluationStats or sets'
-    statistics dicts, m), the mounting, ``covariates`` (name -> (low, high)) and, in the payload, the calibrated
-    file's ``calibration`` section. ``time``: now when None."""
+    """The record of a calibration.
+
+    It keeps every robot parameter's value, the fitted ones' σ, the identifiable set (finite σ) and its
+    covariance, the verdict, the training figures (the kept poses of position data, else every set's
+    position statistics) and the held-out ones, the mounting, the covariates and, in the payload, the
+    calibrated file's ``calibration`` section, the command, kincal's version and the parameters' kinds.
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        The calibration (:func:`kincal.calibrate`).
+    identity : Identity
+        The robot.
+    inputs : iterable of InputFile
+        The input files' fingerprints (:func:`fingerprint`).
+    heldout : iterable, optional
+        Held-out statistics: :class:`kincal.EvaluationStats` or sets' statistics dicts, m (default none).
+    note : str, optional
+        The user's words (default '').
+    command : str, optional
+        The command line (default '').
+    covariates : mapping, optional
+        name -> (low, high): the range of each covariate in the data (temperature in K, time in s).
+    time : str or datetime, optional
+        When it was calibrated (:func:`utc_time`); None (default): now.
+
+    Returns
+    -------
+    Record
+        A record of kind "calibration".
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.history import Identity, calibration_record, model_hash
+    >>> robot = kincal.load_robot("ur5")
+    >>> true = kincal.perturb(robot, seed=1)
+    >>> meas = kincal.simulate(true, robot.sample_joints(40, seed=2), 15e-6, seed=3)
+    >>> test = kincal.simulate(true, robot.sample_joints(20, seed=4), 15e-6, seed=5)
+    >>> result = kincal.calibrate(robot, meas)
+    >>> rec = calibration_record(result, Identity("cell-3 arm", "SN42", model_hash(robot)), [],
+    ...                          heldout=[kincal.evaluate(result.robot, test)], time="2024-05-03T12:00Z")
+    >>> rec.kind, rec.verdict, len(rec.parameters), len(rec.identifiable)
+    ('calibration', 'good', 35, 27)
+    >>> rec.figures["training_n"], rec.figures["heldout_n"]
+    (40.0, 20.0)
+    """
     robot = result.robot
     sigmas = {n: _finite(result.std.get(n)) for n in result.names}
     ident = tuple(n for n in robot.params.names if sigmas.get(n) is not None)
@@ -271,9 +515,44 @@ def calibration_record(result: Any, identity: Identity, inputs: Iterable[InputFi
 def evaluation_record(stats: Any, identity: Identity, inputs: Iterable[InputFile], note: str = "",
                       command: str = "", covariates: Mapping | None = None, time: str | datetime | None = None,
                       robot: Robot | None = None) -> Record:
-    """The record of an evaluation: ``stats`` (one :class:`kincal.EvaluationStats` or a statistics dict per
-    file, m) as its held-out figures (data the model was not fitted on), each file's statistics in the payload;
-    ``robot``: the model evaluated (its parameters' kinds in the payload)."""
+    """The record of an evaluation: a model's errors on data it was not fitted on.
+
+    The statistics are combined into the held-out figures (heldout_mean, heldout_rms, heldout_max,
+    heldout_n; m); each file's statistics are kept in the payload.
+
+    Parameters
+    ----------
+    stats : EvaluationStats or dict, or a list or tuple of them
+        One :class:`kincal.EvaluationStats` or statistics dict per file, m.
+    identity : Identity
+        The robot.
+    inputs : iterable of InputFile
+        The input files' fingerprints (:func:`fingerprint`).
+    note : str, optional
+        The user's words (default '').
+    command : str, optional
+        The command line (default '').
+    covariates : mapping, optional
+        name -> (low, high): the range of each covariate in the data (temperature in K, time in s).
+    time : str or datetime, optional
+        When it was evaluated (:func:`utc_time`); None (default): now.
+    robot : Robot, optional
+        The model evaluated (its parameters' kinds in the payload).
+
+    Returns
+    -------
+    Record
+        A record of kind "evaluation".
+
+    Examples
+    --------
+    >>> from kincal.history import Identity, evaluation_record
+    >>> stats = [{"mean": 40e-6, "rms": 50e-6, "max": 0.1e-3, "n": 30},
+    ...          {"mean": 70e-6, "rms": 80e-6, "max": 0.2e-3, "n": 10}]
+    >>> rec = evaluation_record(stats, Identity("cell-3 arm"), [], time="2024-05-03T12:00Z")
+    >>> {k: round(v, 9) for k, v in rec.figures.items()}  # weighted by the samples
+    {'heldout_mean': 4.75e-05, 'heldout_rms': 5.8949e-05, 'heldout_n': 40.0, 'heldout_max': 0.0002}
+    """
     parts = list(stats) if isinstance(stats, (list, tuple)) else [stats]
     figures = _combined(parts, "heldout")
     details = [dict(p) if isinstance(p, Mapping) else p.to_dict() for p in parts]
@@ -283,7 +562,36 @@ def evaluation_record(stats: Any, identity: Identity, inputs: Iterable[InputFile
 
 
 def event_record(identity: Identity, note: str, time: str | datetime | None = None, command: str = "") -> Record:
-    """An event in the robot's life (a crash, a gearbox change) at ``time`` (now when None), in the user's words."""
+    """An event in the robot's life (a crash, a gearbox change), in the user's words.
+
+    Parameters
+    ----------
+    identity : Identity
+        The robot.
+    note : str
+        What happened; not empty (kept without leading and trailing spaces).
+    time : str or datetime, optional
+        When it happened (:func:`utc_time`); None (default): now.
+    command : str, optional
+        The command line (default '').
+
+    Returns
+    -------
+    Record
+        A record of kind "event".
+
+    Raises
+    ------
+    ValueError
+        When ``note`` is empty.
+
+    Examples
+    --------
+    >>> from kincal.history import Identity, event_record
+    >>> e = event_record(Identity("cell-3 arm"), "gearbox of joint 3 replaced ", "2024-05-03T12:00Z")
+    >>> e.kind, e.time, e.note
+    ('event', '2024-05-03T12:00:00.000000Z', 'gearbox of joint 3 replaced')
+    """
     if not note.strip():
         raise ValueError("an event needs its description, e.g. --event 'gearbox of joint 3 replaced'")
     return Record(identity, "event", utc_time(time), note=note.strip(), payload=_about(command))

@@ -173,14 +173,81 @@ def _shown(url: str) -> str:
 
 
 def open_store(url: str) -> "Store":
-    """The store at ``url`` (a path or sqlite:///PATH: created when missing; postgresql://…: a server's database),
-    migrated to this kincal's schema. A StoreError says why it cannot be opened."""
+    """Open the calibration store at ``url``, migrated to this kincal's schema.
+
+    Parameters
+    ----------
+    url : str
+        A file path or sqlite:///PATH (an SQLite file, created when missing; its folder must exist), or
+        postgresql://USER@HOST/DATABASE (a server's database; needs the psycopg driver).
+
+    Returns
+    -------
+    Store
+        The open store (a context manager that closes it).
+
+    Raises
+    ------
+    StoreError
+        Saying why it cannot be opened: a missing folder, a folder given for the file, an unknown URL
+        scheme, no driver, a schema newer than this kincal's, or the database's own error.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from kincal.history import Identity, event_record, open_store
+    >>> arm = Identity("cell-3 arm", "SN42")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     with open_store(str(Path(folder) / "robots.db")) as store:
+    ...         rid = store.add(event_record(arm, "gearbox of joint 3 replaced", "2024-05-03T12:00Z"))
+    ...         kept = store.records("cell-3 arm")
+    ...         version = store.version
+    >>> rid, version, [(i, r.kind, r.time, r.note) for i, r in kept]
+    (1, 3, [(1, 'event', '2024-05-03T12:00:00.000000Z', 'gearbox of joint 3 replaced')])
+    >>> open_store("/no/such/folder/robots.db")
+    Traceback (most recent call last):
+        ...
+    kincal.history.store.StoreError: store /no/such/folder/robots.db: the folder /no/such/folder does not exist; ...
+    """
     return Store(_engine(url), url)
 
 
 def migrate(engine, upto: int = SCHEMA_VERSION) -> int:
-    """Bring the store to schema ``upto`` in one write transaction (nothing when it is there already); the
-    version it has now. A store newer than this kincal is refused."""
+    """Bring a store to schema ``upto`` in one write transaction (nothing when it is there already).
+
+    The steps of :data:`MIGRATIONS` from the store's version to ``upto`` are applied in order, under the
+    writers' lock (another process may have migrated it meanwhile). :func:`open_store` migrates every
+    store it opens.
+
+    Parameters
+    ----------
+    engine : sqlalchemy.engine.Engine
+        The store's engine (:attr:`Store.engine`).
+    upto : int, optional
+        The schema version wanted (default :data:`SCHEMA_VERSION`, this kincal's).
+
+    Returns
+    -------
+    int
+        The version the store has now.
+
+    Raises
+    ------
+    StoreError
+        When the store's schema is newer than this kincal's.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from kincal.history import SCHEMA_VERSION, migrate, open_store
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     with open_store(str(Path(folder) / "robots.db")) as store:
+    ...         now = migrate(store.engine)  # opened at this kincal's version: nothing to do
+    >>> now == SCHEMA_VERSION
+    True
+    """
     import sqlalchemy as sa
 
     def version(conn) -> int:
@@ -230,7 +297,52 @@ def as_record(payload: Any, rid: int) -> Record:
 
 
 class Store:
-    """A calibration store (:func:`open_store`); a context manager that closes it. Writes are transactions."""
+    """A calibration store: every record of every robot in one database; a context manager that closes it.
+
+    Open one with :func:`open_store`. Every write is one transaction; reads return records in time
+    order.
+
+    Parameters
+    ----------
+    engine : sqlalchemy.engine.Engine
+        The database's engine (SQLite or PostgreSQL); the store is migrated to this kincal's schema.
+    url : str
+        The store's path or URL, as given (shown in messages without its password).
+
+    Attributes
+    ----------
+    engine : sqlalchemy.engine.Engine
+        The database's engine.
+    url : str
+        The store's path or URL.
+    version : int
+        The schema version of the store (:data:`SCHEMA_VERSION` once opened).
+
+    Raises
+    ------
+    StoreError
+        When the database cannot be opened or migrated.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from kincal.history import Identity, Record, event_record, open_store
+    >>> arm = Identity("cell-3 arm", "SN42")
+    >>> calibrated = Record(arm, "calibration", "2024-05-01T08:00Z", "good", parameters={"j2.theta": 1e-3})
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     with open_store(str(Path(folder) / "robots.db")) as store:
+    ...         first = store.add(calibrated)
+    ...         second = store.add(event_record(arm, "crash at 40 % speed", "2024-05-03T12:00Z"))
+    ...         robots = store.robots()
+    ...         back = store.get(first)
+    ...         events = store.records("cell-3 arm", kind="event")
+    >>> robots
+    [(Identity(name='cell-3 arm', serial='SN42', model_hash=''), 2, '2024-05-01T08:00:00.000000Z',
+      '2024-05-03T12:00:00.000000Z')]
+    >>> back == calibrated, [i for i, _ in events]
+    (True, [2])
+    """
 
     def __init__(self, engine, url: str) -> None:
         import sqlalchemy as sa
@@ -250,6 +362,7 @@ class Store:
         self.close()
 
     def close(self) -> None:
+        """Close the store's connections."""
         self.engine.dispose()
 
     def add(self, record: Record) -> int:

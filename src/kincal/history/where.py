@@ -10,14 +10,47 @@ ENV = "KINCAL_STORE"
 
 
 def config_path() -> Path:
-    """kincal's configuration file: $XDG_CONFIG_HOME/kincal/config.yaml (~/.config when the variable is unset)."""
+    """kincal's configuration file: $XDG_CONFIG_HOME/kincal/config.yaml (~/.config when the variable is unset).
+
+    Returns
+    -------
+    Path
+        The file's path (it need not exist).
+
+    Examples
+    --------
+    >>> from kincal.history import config_path
+    >>> config_path().parts[-2:]
+    ('kincal', 'config.yaml')
+    """
     base = os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")
     return Path(base) / "kincal" / "config.yaml"
 
 
 def store_url(given: str | None = None) -> str | None:
-    """The store's path or URL: ``given`` (the --store flag), else $KINCAL_STORE, else the configuration file's
-    ``store:``, else None (off). A configuration file that cannot be read is a ValueError naming it."""
+    """The store's path or URL: ``given``, else $KINCAL_STORE, else the configuration file's ``store:``.
+
+    Parameters
+    ----------
+    given : str, optional
+        The --store flag (a path, sqlite:///PATH or postgresql://…); wins when given.
+
+    Returns
+    -------
+    str or None
+        The store's path or URL, or None when none is set (recording is off).
+
+    Raises
+    ------
+    ValueError
+        Naming the configuration file, when it cannot be read or its ``store:`` is not a path or URL.
+
+    Examples
+    --------
+    >>> from kincal.history import store_url
+    >>> store_url("~/kincal/robots.db")
+    '~/kincal/robots.db'
+    """
     if given:
         return given
     if os.environ.get(ENV, "").strip():
@@ -41,6 +74,19 @@ def store_url(given: str | None = None) -> str | None:
 
 
 def how_to_set() -> str:
-    """How a user turns the store on, in one sentence."""
+    """How a user turns the store on, in one sentence.
+
+    Returns
+    -------
+    str
+        The sentence: the --store flag, the environment variable ``ENV`` or the configuration file.
+
+    Examples
+    --------
+    >>> from kincal.history import how_to_set
+    >>> print(how_to_set())
+    give --store PATH (an SQLite file) or --store postgresql://USER@HOST/DATABASE, set KINCAL_STORE, or write
+    'store: PATH' in .../kincal/config.yaml
+    """
     return (f"give --store PATH (an SQLite file) or --store postgresql://USER@HOST/DATABASE, set {ENV}, or write "
             f"'store: PATH' in {config_path()}")

@@ -35,12 +35,51 @@ from .study_figures import pso_fitness
 
 @dataclass(frozen=True)
 class Report:
+    """A calibration report: the HTML page, the JSON of the same numbers and a terminal summary.
+
+    Parameters
+    ----------
+    html : str
+        The self-contained page (inline SVG, no JavaScript, no network).
+    data : dict
+        The same numbers, SI units (m, rad), JSON-ready.
+    summary : str
+        A few lines for the terminal: the verdict, its reasons and the headline errors (mm).
+
+    See Also
+    --------
+    build_report : makes it.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from kincal.report import Report
+    >>> report = Report("<html><body>ur5</body></html>", {"robot": "ur5"}, "verdict: GOOD")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     written = report.write(Path(folder) / "ur5.html")
+    ...     names = sorted(p.name for p in Path(folder).iterdir())
+    >>> written.name, names
+    ('ur5.json', ['ur5.html', 'ur5.json'])
+    """
+
     html: str
     data: dict  # the same numbers, SI units
     summary: str  # a few lines for the terminal
 
     def write(self, path: str | os.PathLike) -> Path:
-        """Write the HTML to ``path`` and the JSON beside it (same name, .json); returns the JSON path."""
+        """Write the HTML to ``path`` and the JSON beside it (same name, .json), each atomically.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The HTML file.
+
+        Returns
+        -------
+        Path
+            The JSON file (:func:`json_path_for`).
+        """
         json_path = json_path_for(path)
         write_text_atomic(path, self.html)
         write_text_atomic(json_path, json.dumps(self.data, indent=2, sort_keys=True) + "\n")
@@ -60,18 +99,43 @@ def report_date() -> str:
 
 def build_report(result: CalibrationResult, test: Measurements | Sequence | None = None, info: dict | None = None,
                  html_name: str = "report.html", same_frame: bool = False, history: dict | None = None) -> Report:
-    """The report of ``result`` (a calibration from any kinds of data) and, if given, held-out sessions
-    ``test`` (position data: one set of measurements or several, one per session; other kinds:
-    observation sets of the training data's kind).
+    """The report of a calibration (from any kinds of data) and, if given, of held-out sessions.
 
-    same_frame -- the held-out sessions were measured in the training data's frame (the tracker did not
-                  move): the models are used as they are. By default each session's frame is re-fitted
-                  to it, for the nominal and the calibrated model alike (kinematics fixed)
-    info       -- labels for the data section: "robot" (the robot file or name), "units", and anything
-                  else to show (key -> text)
-    history    -- the robot's history from the calibration store, shown beside the calibration: "rows" (one
-                  dict of display texts per record: time, kind, verdict, training, held_out, note), "figure"
-                  (a matplotlib Figure, :func:`kincal.history.history_figure`) and "store" (where it is)
+    Deterministic: the same input gives the same bytes (the date is the day, or SOURCE_DATE_EPOCH when
+    set). Position data give the errors before and after calibration per session, the figures, warnings,
+    ISO 9283 pose accuracy and repeatability where a pose repeats, and the acquisition order; observation
+    sets give their residuals per set and type.
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        The calibration (:func:`kincal.calibrate`).
+    test : Measurements or sequence, optional
+        Held-out sessions: position data as one set of measurements or several, one per session; other
+        kinds: observation sets of the training data's kind (default none).
+    info : dict, optional
+        Labels for the data section: "robot" (the robot file or name), "units", "design", and anything
+        else to show (key -> text).
+    html_name : str, optional
+        The page's file name, which names the JSON it links to (default "report.html").
+    same_frame : bool, optional
+        The held-out sessions were measured in the training data's frame (the tracker did not move): the
+        models are used as they are. False (default): each session's frame is re-fitted to it, for the
+        nominal and the calibrated model alike (kinematics fixed).
+    history : dict, optional
+        The robot's history from the calibration store, shown beside the calibration: "rows" (one dict of
+        display texts per record: time, kind, verdict, training, held_out, note), "figure" (a matplotlib
+        Figure, :func:`kincal.history.history_figure`) and "store" (where it is).
+
+    Returns
+    -------
+    Report
+        The HTML page, its numbers (SI) and the terminal summary; :meth:`Report.write` saves them.
+
+    Raises
+    ------
+    ValueError
+        When SOURCE_DATE_EPOCH is set to something that is not a number of seconds.
     """
     from .. import __version__
 
@@ -198,9 +262,29 @@ GROUPS = {"figures_errors": ("per_pose", "histogram", "per_axis"), "figures_wher
 
 def figure_set(result: CalibrationResult, test: Measurements | Sequence[Measurements] | None = None,
                same_frame: bool = False) -> dict:
-    """The report's figures as matplotlib Figures by name (``--plot`` saves them as PNG or SVG); with a
-    particle swarm also its fitness per iteration (the 3-PUU paper's Fig. 7). Observation sets: the
-    figures of the sets with positions in the robot's frame ({} when none has)."""
+    """The report's figures as matplotlib Figures by name (``--plot`` saves them as PNG or SVG).
+
+    Position data: errors per pose ("per_pose"), their distribution ("histogram"), per axis ("per_axis"),
+    against the joints ("vs_joints"), in the workspace ("workspace") and the correlation of the estimated
+    parameters ("correlation"); with a particle swarm also its fitness per iteration ("pso-fitness", the
+    3-PUU paper's Fig. 7). Observation sets: the figures of the sets with positions in the robot's frame
+    (:func:`observation_figures`).
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        The calibration.
+    test : Measurements or sequence of Measurements, optional
+        Held-out sessions of position data (default none).
+    same_frame : bool, optional
+        The held-out sessions were measured in the training data's frame; False (default): each
+        session's frame is re-fitted to it.
+
+    Returns
+    -------
+    dict
+        name -> matplotlib Figure ({} for observation sets of which none has positions).
+    """
     if not result.data:
         return observation_figures(result)
     tests = [test] if isinstance(test, Measurements) else list(test or [])
@@ -212,8 +296,35 @@ def figure_set(result: CalibrationResult, test: Measurements | Sequence[Measurem
 
 
 def evaluation_figures(robot, meas: Measurements) -> dict:
-    """Figures of one model on one data set (``evaluate --plot``): errors per pose, distribution,
-    per axis, against the joints, in the workspace; outliers by robust z (default limits)."""
+    """Figures of one model on one data set (``evaluate --plot``), in that data's measurement frame.
+
+    Errors per pose, their distribution, per axis, against the joints and in the workspace; outliers by
+    robust z (the default :class:`kincal.Thresholds`).
+
+    Parameters
+    ----------
+    robot : Robot
+        The model evaluated (its base frame that of the data).
+    meas : Measurements
+        Joint values and measured positions (N, 3), m.
+
+    Returns
+    -------
+    dict
+        name -> matplotlib Figure: "per_pose", "histogram", "per_axis", "vs_joints", "workspace".
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.report import evaluation_figures
+    >>> robot = kincal.load_robot("ur5")
+    >>> meas = kincal.simulate(kincal.perturb(robot, seed=1), robot.sample_joints(20, seed=2), 15e-6, seed=3)
+    >>> figures = evaluation_figures(robot, meas)
+    >>> sorted(figures)
+    ['histogram', 'per_axis', 'per_pose', 'vs_joints', 'workspace']
+    >>> len(figures["vs_joints"].axes)  # one panel per joint
+    6
+    """
     after = meas.xyz - robot.forward(meas.q)
     z = robust_z(np.linalg.norm(after, axis=1))
     s = F.PoseSet("held-out", meas.rows, meas.q, meas.xyz, None, after, z > Thresholds().outlier_limit(len(z)))
@@ -322,7 +433,7 @@ def _iso9283(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
 
 
 def template() -> jinja2.Template:
-    """The report's page template."""
+    """The report's page template (Jinja2, autoescaped, undefined names an error)."""
     folder = resources.files("kincal.report") / "templates"
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined,
                              loader=jinja2.FunctionLoader(lambda n: (folder / n).read_text()))

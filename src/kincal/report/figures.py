@@ -75,7 +75,31 @@ def svg(fig: Figure) -> str:
 
 @_styled
 def save(fig: Figure, path: str | os.PathLike) -> None:
-    """PNG or SVG by the file's extension."""
+    """Save a figure as PNG or SVG by the file's extension, in the report's style.
+
+    PNG at 130 dpi; SVG without a date, so the same figure gives the same bytes.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure, e.g. one of :func:`kincal.report.figure_set`'s.
+    path : str or os.PathLike
+        The file (.png or .svg; another extension is left to matplotlib).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from matplotlib.figure import Figure
+    >>> from kincal.report import save_figure
+    >>> fig = Figure(figsize=(3.0, 2.0))
+    >>> _ = fig.add_subplot().plot([0.0, 1.0], [0.0, 0.2])
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     save_figure(fig, Path(folder) / "errors.svg")
+    ...     text = (Path(folder) / "errors.svg").read_text()
+    >>> "<svg" in text, "dc:date" in text
+    (True, False)
+    """
     fig.savefig(path, dpi=130, metadata={"Date": None} if str(path).lower().endswith(".svg") else None)
 
 

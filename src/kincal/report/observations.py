@@ -38,10 +38,26 @@ def sets_part(result: CalibrationResult, tests: Sequence, same_frame: bool):
 
 
 def observation_figures(fit: CalibrationResult, label: str = "training") -> dict:
-    """The report's figures of the sets with one measured position per sample (points, 6-D poses;
-    sets in a session's own frame left out): errors per sample, distribution, per axis, against the
-    joints and in the workspace, before (the registered nominal model) and after calibration, or of
-    the model alone (``label`` "held-out", e.g. ``evaluate``); {} when no set has such positions."""
+    """The report's figures of the observation sets with one measured position per sample.
+
+    Points and 6-D poses count; sets in a session's own frame are left out. The figures show errors per
+    sample, their distribution, per axis, against the joints and in the workspace, before (the
+    registered nominal model) and after calibration, or of the model alone (``label`` "held-out").
+
+    Parameters
+    ----------
+    fit : CalibrationResult
+        A calibration from observation sets.
+    label : str, optional
+        "training" (default: before and after calibration) or "held-out" (the model alone, e.g.
+        ``evaluate``).
+
+    Returns
+    -------
+    dict
+        name -> matplotlib Figure: "per_pose", "histogram", "per_axis", "vs_joints", "workspace"; {} when no
+        set has such positions.
+    """
     sets = []
     for obs, bad in zip(fit.observations, fit.outliers or ((),) * len(fit.observations)):
         found = obs.positions()

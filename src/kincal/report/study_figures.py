@@ -139,7 +139,22 @@ def design_positions(positions: dict) -> Figure:
 
 
 def guo2024_figures(study) -> dict:
-    """The study's figures by name."""
+    """The figures of Guo et al. 2024's study, by name.
+
+    "ide-convergence" (Fig. 6), "pose-count" (Fig. 7), "eta" (Fig. 8: random and separated-parameter
+    designs), "validation-points" (Fig. 12), "validation-summary" (Fig. 13), "gcn" (Fig. 5) and
+    "design-positions" (Fig. 10).
+
+    Parameters
+    ----------
+    study : Guo2024Study
+        The study's results (:func:`kincal.studies.guo2024_study`).
+
+    Returns
+    -------
+    dict
+        name -> matplotlib Figure.
+    """
     chosen = {d: study.eta[d] for d in ("random", "separated-parameter optimised")}
     stand_ins = {label.split()[0] for combos in study.combinations.values() for label in combos}
     return {"ide-convergence": ide_convergence(study.histories), "pose-count": pose_count(study.curve, study.m),

@@ -36,6 +36,67 @@ DESIGNS = ("random", "full-parameter optimised", "separated-parameter optimised"
 
 @dataclass(frozen=True, eq=False)
 class Guo2024Study:
+    """The results of Guo et al. 2024's study reproduced: separation, three designs, identification, validation.
+
+    The designs are keyed "random", "full-parameter optimised" and "separated-parameter optimised"; the
+    validation and its point errors also hold "before calibration" (the nominal model). Printed
+    (``str``), it gives the paper's tables side by side with kincal's numbers.
+
+    Parameters
+    ----------
+    separation : Separation
+        The ill-conditioned parameter separation on 100 random poses
+        (:func:`kincal.analysis.separation.separate_ill_conditioned`).
+    design_params : dict of str to tuple of str
+        Per design, the parameters it was designed for.
+    design_values : dict of str to float
+        Per design, its comprehensive index.
+    eta : dict of str to dict of str to float
+        Per design, the identification accuracy η (eq. 29) of each identified parameter, % (first
+        repetition).
+    combinations : dict of str to dict of str to dict
+        Per design, each identifiable combination (a kept parameter standing for kept + c·dependent) with
+        its "set" and "identified" values and its "eta" (%, None for a combination set to 0; first
+        repetition).
+    identified : dict of str to dict of str to float
+        Per design, the identified error of each parameter, m or rad (first repetition).
+    true_errors : dict of str to float
+        The size of the error set on each kinematic parameter, m or rad (the first repetition sets
+        each with a + sign, as the paper does; the others draw the signs).
+    validation : dict of str to EvaluationStats
+        The 3-D errors on the paper's 60-point grid, first repetition: "before calibration" and each
+        design.
+    repeated : dict of str to tuple of float
+        Per design over the repetitions: (mean, sd) of the mean ``abs(e)`` and (mean, sd) of the std of e,
+        m (e: the average of the three axis errors).
+    repeats : int
+        Number of repetitions.
+    m : int
+        Poses per design.
+    protocol : str, optional
+        "kincal" (default: tracker noise, adaptive LM, the identifiable parameters) or "paper" (no noise,
+        LM with a fixed damping, all parameters).
+    units : str, optional
+        The designs' index: "scaled" (default, unit-invariant) or "paper" (raw Jacobian in mm and rad).
+    histories : dict, optional
+        Per design, IDE's best index per generation, generation 0 first (Fig. 6).
+    curve : dict, optional
+        The index against the number of poses, separated model (Fig. 7; :meth:`PoseCountCurve.to_dict`).
+    point_errors : dict, optional
+        First repetition: the validation errors (60, 3), m, of "before calibration" and each design
+        (Fig. 12).
+    gcn_curve : dict, optional
+        The GCN of the separated model's Jacobian against the number of poses: "m", "gcn", "parameters"
+        (Fig. 5).
+    positions : dict, optional
+        Per design, the tool positions (m, 3), m (Fig. 10).
+
+    See Also
+    --------
+    guo2024_study : runs the study.
+    kincal.report.guo2024_figures : its figures.
+    """
+
     separation: Separation
     design_params: dict[str, tuple[str, ...]]
     design_values: dict[str, float]
@@ -56,6 +117,7 @@ class Guo2024Study:
     positions: dict = field(default_factory=dict)  # design -> tool positions (m, 3) m (Fig. 10)
 
     def to_dict(self) -> dict:
+        """The study as JSON-ready values (SI: m, rad; η in %)."""
         return {"separation": self.separation.to_dict(), "design_params": {k: list(v) for k, v in self.design_params.items()},
                 "design_values": self.design_values, "eta_percent": self.eta, "identified_errors": self.identified,
                 "combinations": self.combinations, "protocol": self.protocol, "units": self.units,
@@ -166,13 +228,63 @@ def guo2024_study(repeats: int = 20, m: int = 60, pool_size: int = 1000, generat
                   noise: float = 15e-6, length_error: float = 0.5e-3, angle_error: float = 0.05,
                   progress: Callable[[str], None] | None = None, protocol: str = "kincal",
                   units: str = "scaled", robot: str = "guo3t2r") -> Guo2024Study:
-    """Run the study (about half a minute with the defaults).
+    """Run Guo et al. 2024's study on the 3T2R robot (about half a minute with the defaults).
 
-    protocol -- "kincal": tracker noise, adaptive LM, the identifiable parameters (η of each kept
-                parameter against the combination it stands for); "paper": no noise, LM with a fixed
-                damping μ = 1 in mm and rad, all 21 parameters (η for each, and for the combinations)
-    units    -- the designs' index: "scaled" (unit-invariant) or "paper" (raw Jacobian in mm, rad)
-    robot    -- "guo3t2r", or "guo3t2r-paper" (the paper's rows: a fixed A5 tool row instead of a tool point)
+    Separates the ill-conditioned parameters on 100 random poses, designs ``m`` poses three ways (random,
+    full-parameter and separated-parameter DETMAX-IDE on the comprehensive index) from a pool of
+    ``pool_size`` candidates, identifies parameter errors from each design and validates on the paper's
+    60-point grid, ``repeats`` times (repetition k draws its errors and noise from random seed k; the
+    first sets every error with a + sign, as the paper does). Every option is checked before any work.
+
+    Parameters
+    ----------
+    repeats : int, optional
+        Repetitions, 1 or more (default 20).
+    m : int, optional
+        Poses per design (default 60).
+    pool_size : int, optional
+        Candidate poses the designs choose from (default 1000).
+    generations : int, optional
+        IDE generations (default 150).
+    noise : float, optional
+        σ per axis of the tracker noise, m (default 15e-6; protocol "kincal" only).
+    length_error : float, optional
+        Size of the error set on each length parameter, m (default 0.5e-3).
+    angle_error : float, optional
+        Size of the error set on each angle parameter, rad (default 0.05).
+    progress : callable, optional
+        Called with a line of text at each step.
+    protocol : str, optional
+        "kincal" (default): tracker noise, adaptive LM, the identifiable parameters (η of each kept
+        parameter against the combination it stands for); "paper": no noise, LM with a fixed damping
+        μ = 1 in mm and rad, all 21 parameters (η for each, and for the combinations).
+    units : str, optional
+        The designs' index: "scaled" (default, unit-invariant) or "paper" (raw Jacobian in mm, rad).
+    robot : str, optional
+        "guo3t2r" (default), or "guo3t2r-paper" (the paper's rows: a fixed A5 tool row instead of a tool
+        point).
+
+    Returns
+    -------
+    Guo2024Study
+        The separation, designs, identified errors, η, validation and repetitions.
+
+    Raises
+    ------
+    ValueError
+        When ``protocol``, ``units``, ``m``, ``generations`` or ``repeats`` is not valid.
+
+    Examples
+    --------
+    >>> from kincal.studies import guo2024_study
+    >>> guo2024_study(protocol="fast")  # checked before any work
+    Traceback (most recent call last):
+        ...
+    ValueError: protocol='fast' is not one of ('kincal', 'paper')
+    >>> guo2024_study(repeats=0)
+    Traceback (most recent call last):
+        ...
+    ValueError: repeats=0: give a whole number, 1 or more
     """
     if protocol not in PROTOCOLS:
         raise ValueError(f"protocol='{protocol}' is not one of {PROTOCOLS}")
