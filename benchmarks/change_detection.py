@@ -6,8 +6,8 @@ tool position over the joint ranges). Each pair: two calibrations on different r
 15 µm noise), or a calibration and a 10-pose check chosen by `design --check` from 400 random poses. A change
 is a 0.01° joint zero (the robot reaches its joint 0.01° further) or a 0.1 mm link length.
 
-    python benchmarks/change_detection.py [PAIRS] [ROBOT] [CASES]   # defaults: 40 ur5 all; ROBOT: ur5 or panda;
-                                                                    # CASES e.g. none,2,3,link (joint numbers)
+    python benchmarks/change_detection.py [PAIRS] [ROBOT] [CASES] [TESTS]   # defaults: 40 ur5 all compare,check;
+                            # ROBOT: ur5 or panda; CASES e.g. none,2,3,link (joint numbers); TESTS: compare, check
 Prints a table: rejection rate (false alarms for "none") and how often the changed parameter is named first (itself, or
 a change that acts the same at the poses, which the suspect lists: a link's length in its two frames' terms).
 """
@@ -59,19 +59,22 @@ def _named(test, name):
     return name in (first.name, *(a.lstrip("−") for a in first.also))
 
 
-def run(nominal, true, change, pairs):
+def run(nominal, true, change, pairs, tests=("compare", "check")):
     changed = true
     if change and change[0] == "param":
         v = true.params.as_dict()
         v[change[1]] += change[2]
         changed = true.with_params(v)
     name = None if change is None else (f"{nominal.joint_names[change[1]]} zero" if change[0] == "zero" else change[1])
-    out = {"compare": [], "check": []}
+    out: dict = {t: [] for t in tests}
     for k in range(pairs):
         a = calibrated(nominal, true, nominal.sample_joints(POSES, seed=100 + 2 * k), None, k)
-        b = calibrated(nominal, changed, nominal.sample_joints(POSES, seed=101 + 2 * k), change, 1000 + k)
-        t = compare(a, b)
-        out["compare"].append((t.changed, _named(t, name)))
+        if "compare" in tests:
+            b = calibrated(nominal, changed, nominal.sample_joints(POSES, seed=101 + 2 * k), change, 1000 + k)
+            t = compare(a, b)
+            out["compare"].append((t.changed, _named(t, name)))
+        if "check" not in tests:
+            continue
         pool = nominal.sample_joints(400, seed=3000 + k)
         q = pool[check_poses(a.robot, pool, 10, a.repeat)]
         t = check(a, q, measure(changed, q, change, 2000 + k))
@@ -95,12 +98,13 @@ def main():
         wanted = sys.argv[3].split(",")
         keys = ["none"] + [str(j + 1) for j in range(min(nominal.n_joints, 6))] + ["link"]
         cases = [c for c, k in zip(cases, keys) if k in wanted]
+    tests = tuple(sys.argv[4].split(",")) if len(sys.argv) > 4 else ("compare", "check")
     print(f"{robot}: {POSES} poses per calibration, {NOISE * 1e6:.0f} µm noise, {HARMONIC * 1e3:.1f} mm unmodelled "
           f"harmonic, {pairs} pairs per case")
     print(f"{'case':24s} {'test':8s} {'rejected':>9s} {'named first':>12s} {'s':>6s}")
     for label, change in cases:
         t0 = time.perf_counter()
-        out = run(nominal, true, change, pairs)
+        out = run(nominal, true, change, pairs, tests)
         for test, rows in out.items():
             rej = np.mean([r for r, _ in rows])
             named = np.mean([n for r, n in rows]) if change else float("nan")

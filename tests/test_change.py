@@ -73,7 +73,8 @@ def test_check_of_a_joint_zero_change_on_designed_poses(true):
 
 
 def test_the_designed_check_sees_more_than_random_poses(true):
-    """The design's criterion (Σ log(1 + λ)) beats every one of 20 random sets of the same size from its pool."""
+    """The design's criterion (Σ Φ(√λ − t), the summed chance of detection) beats every one of 20 random sets of the
+    same size from its pool."""
     cal = _fit(true, 6)
     pool = kincal.load_robot("ur5").sample_joints(200, seed=4)
     chosen = check_poses(cal.robot, pool, 8, cal.repeat).tolist()
@@ -145,3 +146,48 @@ def test_the_two_column_nonnegative_fit_matches_scipy():
         A = np.abs(rng.standard_normal((30, 2))) * rng.uniform(0.1, 10, 2)
         b = A @ rng.uniform(-1, 1, 2) + 0.3 * rng.standard_normal(30)
         assert np.allclose(nonnegative_2(A, b), nnls(A, b)[0], atol=1e-10)
+
+
+def test_the_miss_predicted_from_the_calibration_samples_is_the_gaussian_conditional():
+    """Repeat.conditioned against the same Gaussian conditional by another identity: the precision matrix of the
+    joint covariance (samples and new poses), whose new-pose block inverts to the conditional covariance and gives
+    the mean as −Λ_cc⁻¹ Λ_cs r_s. A record without samples (an older file) gives a zero mean and the prior."""
+    from kincal.analysis.changes import Repeat, miss_covariance
+
+    ur5 = kincal.load_robot("ur5")
+    qs, qc = ur5.sample_joints(40, seed=1), ur5.sample_joints(7, seed=2)
+    res = np.random.default_rng(0).normal(0, 30e-6, (40, 3))
+    rep = Repeat(("j2.a",), np.eye(1) * 1e-10, 30, 12e-6, (5e-5,) * 6, 1.0, 0.4, qs, res)
+    mean, cov = rep.conditioned(ur5, qc)
+    qa = np.concatenate([qs, qc])
+    C = miss_covariance(ur5.joint_jacobian(qa)[:, :3, :], qa, np.ones(6, bool), 12e-6, (5e-5,) * 6, 0.4)
+    Lam = np.linalg.inv(C)
+    assert np.allclose(cov, np.linalg.inv(Lam[40:, 40:]), rtol=1e-6, atol=1e-18)
+    assert np.allclose(mean, -np.linalg.solve(Lam[40:, 40:], Lam[40:, :40] @ res), rtol=1e-6, atol=1e-12)
+    bare = Repeat.from_dict({k: v for k, v in rep.to_dict().items() if k not in ("poses", "residuals")}, "old.yaml")
+    mean0, cov0 = bare.conditioned(ur5, qc)
+    assert np.all(mean0 == 0) and np.allclose(cov0, bare.miss(ur5, qc))
+    again = Repeat.from_dict(rep.to_dict(), "new.yaml")
+    assert np.array_equal(again.poses, qs) and np.array_equal(again.residuals, res)
+
+
+def test_the_calibration_keeps_what_it_missed_its_samples_by_in_the_robots_base_frame(true):
+    """The samples a calibration keeps are its measured − predicted positions turned into the robot's base frame:
+    measured by a tracker turned 30° about z, the misses the record predicts at its own poses match the residuals
+    computed here, turned back (the harmonic the geometry cannot describe is most of them)."""
+    nominal = kincal.load_robot("ur5")
+    turned = true.with_params({**true.params.as_dict(), "base.rz": math.radians(30), "base.x": 0.4})
+    q = nominal.sample_joints(80, seed=11)
+    ext = kincal.models.extend(turned, "harmonics:1")
+    v = ext.params.as_dict()
+    for j in ("j2", "j3"):
+        v[f"{j}.h1s"] = 3e-4  # 0.3 mrad of first harmonic on the shoulder and the elbow
+    meas = kincal.simulate(ext.with_params(v), q, 5e-6, 3)
+    res = kincal.calibrate(nominal, meas, kincal.FitOptions(diagnose=False))
+    rep = Calibrated.of(res.robot, res.record(), "turned").repeat
+    R = res.robot.base_transform()[0]
+    assert abs(math.degrees(math.atan2(R[1, 0], R[0, 0])) - 30) < 0.1
+    miss_base = (meas.xyz - res.robot.forward(q)) @ R
+    assert len(rep.poses) == 80 and np.allclose(rep.residuals, miss_base, atol=1e-9)
+    predicted = rep.conditioned(res.robot, q[:20])[0]
+    assert np.corrcoef(predicted.ravel(), miss_base[:20].ravel())[0, 1] > 0.8  # noise and smoothing: 0.85

@@ -13,7 +13,7 @@ candidate, named by the first in this order: joint zeros, then the model's param
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -25,6 +25,7 @@ STEPS = {"joint zero": np.deg2rad(0.01), "link": 1e-4, "joint axis": np.deg2rad(
          "frame": 1e-4}  # m or rad: changes a check should see (a frame's angles: 0.01°, below)
 PARALLEL = 1e-5  # 1 − |cos| below which two directions are one candidate (within 4.5 mrad)
 NEGLIGIBLE = 1e-9  # m per unit change (RMS over the rows) below which a direction is not seen at all
+SAMPLES = 300  # calibration samples a Repeat keeps to predict the miss from (a check's cost is cubic in them)
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,7 +39,10 @@ class Repeat:
                   with the lever arm, as the changes a check looks for do
     dispersion -- ≥ 1, the whitened squared position misses' variance over a Gaussian's (1: Gaussian)
     length     -- rad: how far a revolute joint turns before its part of the miss is another (0: at every pose; a
-                  transmission error is a smooth function of the joint's angle, so poses at near angles share it)"""
+                  transmission error is a smooth function of the joint's angle, so poses at near angles share it)
+    poses      -- (S, n) joints of up to ``SAMPLES`` of the calibration's position samples (evenly by row) ...
+    residuals  -- (S, 3) m: ... and what the calibrated model missed them by, in the robot's base frame (measured −
+                  predicted): the miss at a new pose is predicted from them (:meth:`conditioned`)"""
 
     names: tuple[str, ...]
     covariance: np.ndarray
@@ -47,25 +51,67 @@ class Repeat:
     joints: tuple[float, ...]
     dispersion: float
     length: float = 0.0
+    poses: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    residuals: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     def restricted(self, names) -> "Repeat":
         """The same record over the parameters ``names`` (a subset of :attr:`names`)."""
         at = [self.names.index(n) for n in names]
-        return Repeat(tuple(names), self.covariance[np.ix_(at, at)], self.dof, self.sigma, self.joints,
-                      self.dispersion, self.length)
+        return replace(self, names=tuple(names), covariance=self.covariance[np.ix_(at, at)])
 
     def miss(self, robot: Robot, q: np.ndarray) -> np.ndarray:
         """(M, M) the covariance per axis (m²) of what predictions at the poses q (M, n) miss by, the same for x, y
         and z (:func:`miss_covariance`); ModelError without a miss (no absolute positions in the calibration's data)."""
+        return self._prior(robot, q)
+
+    def _prior(self, robot: Robot, q: np.ndarray) -> np.ndarray:
         if self.sigma is None or len(self.joints) != robot.n_joints:
             raise ModelError("the calibration's data had no absolute positions: there is no prediction miss to judge "
                              "measured positions against (calibrate from positions or poses)")
         revolute = np.array([t == "revolute" for t in robot.joint_types])
         return miss_covariance(robot.joint_jacobian(q)[:, :3, :], q, revolute, self.sigma, self.joints, self.length)
 
+    def conditioned(self, robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """What predictions at the poses q (M, n) will miss by, given what the calibration missed its own samples by.
+
+        The miss is a Gaussian field over the joints (:func:`miss_covariance`); the calibration's samples
+        (:attr:`poses`, :attr:`residuals`) show it where they were taken, and a transmission error shared by poses at
+        near joint angles is then predicted, not only allowed for (Gaussian-process regression, Rasmussen and
+        Williams 2006, eq. 2.19). Without samples: a zero mean and :meth:`miss`.
+
+        Parameters
+        ----------
+        robot : Robot
+            The calibrated robot (its joint Jacobian gives the joints' lever arms).
+        q : ndarray, shape (M, n)
+            Joint values, rad (m for a prismatic joint).
+
+        Returns
+        -------
+        mean : ndarray, shape (M, 3)
+            The expected miss (measured − predicted) in the robot's base frame, m.
+        covariance : ndarray, shape (M, M)
+            Its covariance per axis around that mean, the same for x, y and z, m².
+
+        Raises
+        ------
+        ModelError
+            When the calibration's data had no absolute positions.
+        """
+        S = len(self.poses)
+        if S == 0:
+            return np.zeros((len(q), 3)), self._prior(robot, q)
+        A = self._prior(robot, np.concatenate([self.poses, q]))
+        L = np.linalg.cholesky(A[:S, :S])
+        W = np.linalg.solve(L, A[:S, S:])
+        mean = W.T @ np.linalg.solve(L, self.residuals)
+        cov = A[S:, S:] - W.T @ W
+        return mean, 0.5 * (cov + cov.T)
+
     def to_dict(self) -> dict:
         return {"parameters": list(self.names), "covariance": self.covariance.tolist(), "dof": self.dof,
-                "sigma": self.sigma, "joints": list(self.joints), "dispersion": self.dispersion, "length": self.length}
+                "sigma": self.sigma, "joints": list(self.joints), "dispersion": self.dispersion, "length": self.length,
+                "poses": self.poses.tolist(), "residuals": self.residuals.tolist()}
 
     @classmethod
     def from_dict(cls, data, label: str) -> "Repeat":
@@ -79,11 +125,15 @@ class Repeat:
             cov = np.array(data["covariance"], dtype=float).reshape(len(names), len(names))
             sigma = None if data.get("sigma") is None else float(data["sigma"])
             joints = tuple(float(v) for v in data["joints"])
-            out = cls(names, cov, int(data["dof"]), sigma, joints, float(data["dispersion"]), float(data["length"]))
+            poses = np.array(data.get("poses", []), dtype=float).reshape(-1, max(len(joints), 1))[:, :len(joints)]
+            residuals = np.array(data.get("residuals", []), dtype=float).reshape(len(poses), 3)
+            out = cls(names, cov, int(data["dof"]), sigma, joints, float(data["dispersion"]), float(data["length"]),
+                      poses, residuals)
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelError(f"{label}: the calibration's 'repeat' section is malformed ({exc}); calibrate again") \
                 from None
-        if not (np.all(np.isfinite(cov)) and out.dof > 0 and out.dispersion >= 1.0):
+        if not (np.all(np.isfinite(cov)) and np.all(np.isfinite(out.residuals)) and out.dof > 0
+                and out.dispersion >= 1.0):
             raise ModelError(f"{label}: the calibration's 'repeat' section is malformed; calibrate again")
         return out
 

@@ -27,9 +27,32 @@ PASSES = 3  # exchange passes at most
 
 
 def check_poses(robot: Robot, pool: np.ndarray, m: int, repeat: Repeat) -> np.ndarray:
-    """Indices (m,) into ``pool`` (P, n) of the check poses for the calibrated ``robot`` whose predictions miss as its
-    ``repeat`` record says (the miss's covariance over the poses whitens them: poses at near joint angles share
-    their transmission errors, so they add less). ModelError when the pool has fewer than m poses."""
+    """Choose the poses of a short check of a calibrated robot (``kincal design CAL --check``).
+
+    The miss's covariance over the poses whitens them: poses at near joint angles share their transmission
+    errors, so they add less.
+
+    Parameters
+    ----------
+    robot : Robot
+        The calibrated robot.
+    pool : ndarray, shape (P, n)
+        Candidate joint values, rad (m for a prismatic joint).
+    m : int
+        How many poses to choose (``kincal design --check`` takes 10).
+    repeat : Repeat
+        The calibration's repeat record: how its predictions miss (:class:`kincal.analysis.changes.Repeat`).
+
+    Returns
+    -------
+    ndarray of int, shape (m,)
+        Indices into ``pool`` of the chosen poses, in the order they were chosen.
+
+    Raises
+    ------
+    ModelError
+        When the pool has fewer than m poses, or the calibration had no absolute positions.
+    """
     pool = robot.check_q(pool)
     if len(pool) < m:
         raise ModelError(f"the pool has {len(pool)} poses; a check of {m} needs at least as many")
@@ -38,7 +61,7 @@ def check_poses(robot: Robot, pool: np.ndarray, m: int, repeat: Repeat) -> np.nd
     G = cands.G[:, mine].reshape(len(pool), 3, len(mine)) * cands.steps()[mine]
     names = list(robot.base_params())
     F = robot.param_jacobian(pool)[..., robot.params.indices(names)] if names else np.zeros((len(pool), 3, 0))
-    A = repeat.miss(robot, pool)
+    A = repeat.conditioned(robot, pool)[1]  # what is left of the miss where the calibration's samples show it
     from scipy.special import ndtri  # noqa: PLC0415  (0.4 s to import: not at kincal's start)
 
     seen = sum(kind != "frame" for kind in cands.kinds)  # the directed test's family, Bonferroni at half of α

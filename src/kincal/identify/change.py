@@ -7,8 +7,10 @@ Both judge a discrepancy d over the poses of use against what it would be on an 
   joint ranges both calibrations were fitted in; its covariance the sum of each calibration's repeat covariance
   carried to those poses (:class:`kincal.analysis.changes.Repeat`: what a calibration on other poses of the same
   robot differs by, what the model cannot describe included);
-* **check CAL data**: d = measured − predicted at the check poses, its covariance the calibration's prediction miss
-  σ² per axis (noise and what the model cannot describe) plus the repeat covariance carried to the poses.
+* **check CAL data**: d = measured − predicted at the check poses less the miss the calibration's own samples
+  predict there (a transmission error shared with poses at near joint angles:
+  :meth:`kincal.analysis.changes.Repeat.conditioned`), its covariance what is left of the prediction miss per axis
+  (noise and what the model cannot describe) plus the repeat covariance carried to the poses.
 
 Unless the instrument kept its frame (``same_frame``), the frame is re-fitted and every direction a frame change
 makes is taken out first. Two tests, each at half the level α: an omnibus test of the whole discrepancy (its squared
@@ -288,14 +290,22 @@ def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = Fa
     if len(q) < MIN_CHECK_POSES:
         raise MeasurementError(f"a check needs at least {MIN_CHECK_POSES} poses (the frame takes 6 of the 3 per "
                                f"pose); {len(q)} given. Measure the poses `kincal design CAL --check` chose")
-    robot = cal.robot if same_frame else register_base(cal.robot, q, xyz)
-    d = (xyz - robot.forward(q)).ravel()
-    w, V = np.linalg.eigh(cal.repeat.miss(robot, q))  # per axis, the same for x, y, z: pose-major rows
+    expected, A = cal.repeat.conditioned(cal.robot, q)  # what the calibration's own samples say it misses by here
+    robot = cal.robot
+    if not same_frame:  # the frame of the measured positions less that expected miss
+        robot = register_base(robot, q, xyz - _in_frame(register_base(robot, q, xyz), expected))
+    d = (xyz - _in_frame(robot, expected) - robot.forward(q)).ravel()
+    w, V = np.linalg.eigh(A)  # per axis, the same for x, y, z: pose-major rows
     U = np.concatenate([np.kron(V * np.sqrt(np.clip(w, 0.0, None)), np.eye(3)),
                         cal.factor(q, not same_frame, robot)], axis=1)
     basis = None if same_frame else frame_basis(robot, q)
     return _judged("check", d, U, candidates(robot, q, basis), basis, cal.repeat.dof, cal.repeat.dispersion, alpha,
                    len(q), tuple(_outside(cal, q)))
+
+
+def _in_frame(robot: Robot, base: np.ndarray) -> np.ndarray:
+    """Vectors (M, 3) given in the robot's base frame, in the measurement frame ``robot`` stands in."""
+    return base @ robot.base_transform()[0].T if robot.base_params() else base
 
 
 def _judged(question: str, d: np.ndarray, U: np.ndarray, cands: Candidates, basis: np.ndarray | None, nu: int,

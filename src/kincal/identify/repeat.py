@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..analysis.changes import Repeat, miss_from_parts, miss_parts
+from ..analysis.changes import SAMPLES, Repeat, miss_from_parts, miss_parts
 from ..models.robot import Robot
 from ..ties import first_best
 from .covariance import normal_inverse
@@ -52,6 +52,7 @@ def repeat_of(robot: Robot, sets, free, J: np.ndarray, r: np.ndarray, posterior:
     dof = max(groups - K, 1)
     cov = A @ (g.T @ g) @ A * (groups / dof)
     q, res = _position_samples(sets, positions)
+    kept = _kept_samples(robot, q, res)
     taken = K * 3 * len(q) / max(r.size, 1)
     if len(q) > MISS_SAMPLES:  # two variances need no more: evenly by row, the degrees of freedom in proportion
         at = np.unique(np.linspace(0, len(q) - 1, MISS_SAMPLES).astype(int))
@@ -61,7 +62,17 @@ def repeat_of(robot: Robot, sets, free, J: np.ndarray, r: np.ndarray, posterior:
     extra = {n: float(v) ** 2 for n, v in (held or {}).items() if np.isfinite(v) and n not in free}
     cov = np.block([[0.5 * (cov + cov.T), np.zeros((K, len(extra)))],
                     [np.zeros((len(extra), K)), np.diag(list(extra.values())).reshape(len(extra), len(extra))]])
-    return Repeat((*free, *extra), cov, dof, sigma, joints, dispersion, length)
+    return Repeat((*free, *extra), cov, dof, sigma, joints, dispersion, length, *kept)
+
+
+def _kept_samples(robot: Robot, q: np.ndarray, res: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Up to ``SAMPLES`` samples evenly by row: their joints (S, n) and misses measured − predicted (S, 3) m in the
+    robot's base frame (the residuals ``res`` are predicted − measured in the measurement frame)."""
+    if len(q) == 0:
+        return np.zeros((0, robot.n_joints)), np.zeros((0, 3))
+    at = np.unique(np.linspace(0, len(q) - 1, min(len(q), SAMPLES)).astype(int))
+    R = robot.base_transform()[0] if robot.base_params() else np.eye(3)
+    return q[at].copy(), -res[at] @ R
 
 
 def miss_length(robot: Robot, q: np.ndarray, res: np.ndarray, sigma: float, joints: tuple) -> float:
