@@ -9,5 +9,6 @@ from .unit_checks import check_degrees, check_radians, check_spread
 
 __all__ = ["Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements",
            "write_residuals", "write_selected_rows", "check_degrees", "check_radians", "check_spread",
-           "Program", "Target", "Dialect", "DIALECT_NAMES", "dialect_of", "dialects", "read_frames", "TaughtFrame", "read_program", "BITS", "ROWS",
-           "write_program", "FRAMES_FORMATS", "check_frames_output", "frame_numbers", "write_frames_data"]
+           "Program", "Target", "Dialect", "DIALECT_NAMES", "dialect_of", "dialects", "read_frames", "TaughtFrame",
+           "read_program", "BITS", "ROWS", "write_program", "FRAMES_FORMATS", "check_frames_output", "frame_numbers",
+           "write_frames_data"]

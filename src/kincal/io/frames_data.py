@@ -27,7 +27,28 @@ NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,23}$")  # a KRL module's or a RAPID 
 
 
 def frame_numbers(T: np.ndarray) -> tuple[float, ...]:
-    """x, y, z (mm) and A, B, C (deg, R = Rz(A)·Ry(B)·Rx(C)) of a 4x4 frame (m)."""
+    """The six numbers a KUKA frame is written with.
+
+    Parameters
+    ----------
+    T : ndarray, shape (4, 4)
+        The frame (its position in m).
+
+    Returns
+    -------
+    tuple of float
+        x, y, z (mm) and A, B, C (deg, R = Rz(A)·Ry(B)·Rx(C)).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.io import frame_numbers
+    >>> from kincal.models.transforms import rot_zyx
+    >>> T = np.eye(4)
+    >>> T[:3, :3], T[:3, 3] = rot_zyx(*np.radians([90.0, 30.0, 10.0])), [0.8, -0.2, 0.05]
+    >>> [round(v, 9) for v in frame_numbers(T)]
+    [800.0, -200.0, 50.0, 90.0, 30.0, 10.0]
+    """
     rz, ry, rx = np.degrees(zyx_from_matrix(T[:3, :3]))
     return (*(float(v) for v in T[:3, 3] * 1e3), float(rz), float(ry), float(rx))
 
@@ -102,8 +123,35 @@ def _pose(v: np.ndarray) -> np.ndarray:
 
 
 def check_frames_output(path: str, fmt: str, load: tuple[float, ...] | None = None) -> None:
-    """ValueError, before any work, for frames data that cannot be written: an unknown format, a KRL or RAPID
-    file whose name cannot name its module, a RAPID tooldata without the tool's load."""
+    """Refuse, before any work, frames data that cannot be written.
+
+    Parameters
+    ----------
+    path : str
+        The file to write (a KRL or RAPID module is named after it).
+    fmt : str
+        The format, one of :data:`FRAMES_FORMATS`.
+    load : tuple of float, optional
+        The tool's load: mass (kg) and centre of gravity x, y, z (mm, in the tool frame); a RAPID tooldata
+        needs it (default None).
+
+    Raises
+    ------
+    ValueError
+        For an unknown format, a KRL or RAPID file whose name cannot name its module (letters, digits and _, at
+        most 24, not starting with a digit), a RAPID tooldata without the tool's load.
+
+    Examples
+    --------
+    >>> from kincal.io import check_frames_output
+    >>> check_frames_output("out/kincal_frames.dat", "frames-krl")  # nothing to say
+    >>> check_frames_output("out/2nd-cell.dat", "frames-krl")
+    Traceback (most recent call last):
+    ...
+    ValueError: out/2nd-cell.dat: a KRL module is named after its file: letters, digits and _ (at most 24, not
+    starting with a digit)
+    >>> check_frames_output("out/KincalFrames.mod", "frames-rapid", load=(1.5, 0.0, 0.0, 80.0))
+    """
     if fmt not in FRAMES_FORMATS:
         raise ValueError(f"frames format '{fmt}': kincal writes {', '.join(FRAMES_FORMATS)}")
     name = os.path.splitext(os.path.basename(str(path)))[0]
@@ -117,8 +165,55 @@ def check_frames_output(path: str, fmt: str, load: tuple[float, ...] | None = No
 
 def write_frames_data(path: str, fmt: str, base: np.ndarray, tool: np.ndarray, note: list[str],
                       load: tuple[float, ...] | None = None) -> None:
-    """The frames data of ``fmt`` written to ``path`` (its module named after the file), after its text read back
-    by the language's reader gives ``base`` and ``tool`` to CHECK_TOL (ValueError otherwise; nothing written)."""
+    """Write a base and a tool frame as a controller's own program data.
+
+    The text (a KRL ``.dat`` of two FRAMEs, a RAPID module with a ``wobjdata`` and a ``tooldata``, or URScript:
+    a base pose and ``set_tcp``; the module named after the file) is read back by the language's own reader
+    first: it is written (atomically) only when it gives ``base`` and ``tool`` to ``CHECK_TOL`` (1e-9 m and
+    1e-9 rad).
+
+    Parameters
+    ----------
+    path : str
+        The file to write.
+    fmt : str
+        The format, one of :data:`FRAMES_FORMATS`: "frames-krl", "frames-rapid" or "frames-urscript".
+    base : ndarray, shape (4, 4)
+        The frame targets are written in, in the robot's base frame, m.
+    tool : ndarray, shape (4, 4)
+        The TCP frame in the flange, m.
+    note : list of str
+        Comment lines written at the top.
+    load : tuple of float, optional
+        The tool's load for RAPID's tooldata: mass (kg) and centre of gravity x, y, z (mm, in the tool frame)
+        (default None; RAPID needs it).
+
+    Raises
+    ------
+    ValueError
+        When :func:`check_frames_output` refuses the output, or the text read back is off (nothing written).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> from kincal.io import write_frames_data
+    >>> from kincal.models.transforms import rot_zyx
+    >>> base, tool = np.eye(4), np.eye(4)
+    >>> base[:3, :3], base[:3, 3] = rot_zyx(*np.radians([90.0, 30.0, 10.0])), [0.8, -0.2, 0.05]
+    >>> tool[:3, :3], tool[:3, 3] = rot_zyx(0.0, 0.0, np.radians(30.0)), [0.0, 0.0, 0.15]
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "kincal_frames.dat")
+    ...     write_frames_data(path, "frames-krl", base, tool, ["calibrated frames"])
+    ...     with open(path, newline="") as f:
+    ...         print(f.read().replace("\\r\\n", "\\n"), end="")
+    &ACCESS RVP
+    DEFDAT  KINCAL_FRAMES PUBLIC
+    ; calibrated frames
+    DECL GLOBAL FRAME KINCAL_BASE={X 800.000000,Y -200.000000,Z 50.000000,A 90.00000000,B 30.00000000,C 10.00000000}
+    DECL GLOBAL FRAME KINCAL_TOOL={X 0.000000,Y 0.000000,Z 150.000000,A 0.00000000,B 0.00000000,C 30.00000000}
+    ENDDAT
+    """
     name = os.path.splitext(os.path.basename(str(path)))[0]
     check_frames_output(path, fmt, load)
     text = frames_text(fmt, name, base, tool, note, load)

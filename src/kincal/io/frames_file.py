@@ -27,9 +27,35 @@ RULES = {"origin-x-xy": ("base", 3), "x1-x2-y1": ("base", 3), "fixed-point": ("t
 
 @dataclass(frozen=True)
 class TaughtFrame:
-    """A frame taught on the robot: its name, the rule (:data:`RULES`), the joints of its teach poses (K, n) rad,
-    the tool a base was taught with ('' for a tool), and the controller's frame as written (4x4, m; None when
-    the file gives none: the taught joints then give it)."""
+    """A frame taught on the robot, as a frames file's ``taught:`` entry gives it.
+
+    Parameters
+    ----------
+    name : str
+        The frame's name in the file.
+    rule : str
+        How it was taught, one of :data:`RULES`: "origin-x-xy" and "x1-x2-y1" (a base, 3 teach poses),
+        "fixed-point" (a tool, 4 or more).
+    joints : ndarray, shape (K, n)
+        The joints of its teach poses, rad.
+    tool : str
+        The tool a base was taught with (a frame name of the same file); '' for a tool.
+    declared : ndarray, shape (4, 4) or None
+        The controller's frame as written, m (None when the file gives none: the taught joints then give it).
+
+    See Also
+    --------
+    read_frames : The frames file that holds it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.io import TaughtFrame
+    >>> joints = np.radians([[0, -90, 90, 0, 45, 0], [10, -90, 90, 0, 45, 0], [0, -80, 90, 0, 45, 0]])
+    >>> plate = TaughtFrame("plate", "origin-x-xy", joints, tool="gripper", declared=None)
+    >>> plate.kind, plate.joints.shape
+    ('base', (3, 6))
+    """
 
     name: str
     rule: str
@@ -43,9 +69,66 @@ class TaughtFrame:
 
 
 def read_frames(path: str) -> Mapping[str, np.ndarray | str | TaughtFrame]:
-    """The frames of a frames file (module docstring) by name: 4x4 poses (m), a taught frame's
-    :class:`TaughtFrame`, or (a $config.dat's base without $ROBROOT_C) why one is not known. ValueError naming
-    the file and the frame for anything else."""
+    """Read the frames of a frames file, by name.
+
+    A YAML file maps each frame's name to ``{x, y, z, rx, ry, rz}`` (the frame in the flange or in the
+    robot's base frame; R = Rz(rz)·Ry(ry)·Rx(rx); missing coordinates are 0), lengths in mm and angles in deg
+    unless ``units: {length: …, angle: …}`` says otherwise, and a frame taught on the robot has a ``taught:``
+    entry (``{rule, joints: [[…], …], tool}``, the joints in the file's angle unit). A file named
+    ``$config.dat`` is read as KUKA's (:mod:`kincal.io.krl_config`), its bases turned into the robot's base
+    frame with the ``$ROBROOT_C`` of the ``$machine.dat`` beside it.
+
+    Parameters
+    ----------
+    path : str
+        The frames file.
+
+    Returns
+    -------
+    Mapping of str to ndarray, TaughtFrame or str
+        Each frame by name: its pose (4, 4), m; a taught frame's :class:`TaughtFrame`; or (a ``$config.dat``'s
+        base without ``$ROBROOT_C``) a str: why it is not known.
+
+    Raises
+    ------
+    ValueError
+        When the file cannot be read or is not such a mapping, a unit is unknown, or an entry is not a frame
+        (naming the file and the frame): unknown keys, values that are not numbers, a ``taught:`` entry with an
+        unknown rule, too few teach poses, a base without the tool it was taught with (or one the file does not
+        give), a taught tool without its x, y, z.
+    MeasurementError
+        When a ``$config.dat`` or its ``$machine.dat`` cannot be read, or a frame in it lacks a component.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> from kincal.io import frame_numbers, read_frames
+    >>> text = "\\n".join([
+    ...     "units: {length: mm, angle: deg}",
+    ...     "table: {x: 800, y: -200, z: 50, rz: 90}",
+    ...     "gripper: {z: 150, rx: 30}",
+    ...     "plate:",
+    ...     "  x: 600",
+    ...     "  taught:",
+    ...     "    rule: origin-x-xy",
+    ...     "    tool: gripper",
+    ...     "    joints: [[0, -90, 90, 0, 45, 0], [10, -90, 90, 0, 45, 0], [0, -80, 90, 0, 45, 0]]"])
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "frames.yaml")
+    ...     with open(path, "w") as f:
+    ...         _ = f.write(text)
+    ...     frames = read_frames(path)
+    >>> list(frames)
+    ['table', 'gripper', 'plate']
+    >>> frames["table"][:3, 3].tolist()
+    [0.8, -0.2, 0.05]
+    >>> [round(v, 9) for v in frame_numbers(frames["gripper"])]
+    [0.0, 0.0, 150.0, 0.0, 0.0, 30.0]
+    >>> plate = frames["plate"]
+    >>> plate.rule, plate.tool, np.round(np.degrees(plate.joints[1]), 9).tolist(), plate.declared[:3, 3].tolist()
+    ('origin-x-xy', 'gripper', [10.0, -90.0, 90.0, 0.0, 45.0, 0.0], [0.6, 0.0, 0.0])
+    """
     import yaml
 
     if os.path.basename(str(path)).lower() == "$config.dat":

@@ -23,8 +23,63 @@ from .unit_checks import check_degrees, check_spread
 class Measurements:
     """N measured poses: joint values q (N, n) in rad/m and positions xyz (N, 3) in m.
 
-    ``rows`` are the 1-based line numbers in ``source`` (header = line 1) so errors can name them
-    (default: 2, 3, …, as written by ``write_measurements``).
+    A frozen record, checked when it is built; its arrays are read-only copies. ``rows`` are the 1-based
+    line numbers in ``source`` (header = line 1) so errors can name them.
+
+    Parameters
+    ----------
+    q : array_like, shape (N, n)
+        Joint values, rad (m for a prismatic joint).
+    xyz : array_like, shape (N, 3)
+        Measured positions of the tool point in the measurement frame, m.
+    joint_names : sequence of str
+        One name per column of ``q``.
+    source : str, optional
+        Where the data come from (a file's path), named in every error (default "<memory>").
+    rows : array_like of int, shape (N,), optional
+        The 1-based line number of each pose in ``source``, header = line 1 (default None: 2, 3, …, as
+        written by :func:`write_measurements`).
+    std : array_like, shape (N, 3), optional
+        The instrument's σ per sample and axis, m, each > 0 (default None: not given).
+    units : tuple of (str, str), optional
+        The (length, angle) units the file was read in, for advice in messages (default None: SI).
+    session : array_like of str, shape (N,), optional
+        The session (file) of each pose (default None: one session).
+
+    Raises
+    ------
+    MeasurementError
+        When ``q`` is not (N, n) and ``xyz`` (N, 3) with the same N, ``joint_names`` does not name every
+        column of ``q``, a value is NaN or infinite (named by row and column), ``std`` is not (N, 3) of finite
+        values > 0, or ``session`` does not give one label per pose.
+
+    See Also
+    --------
+    read_measurements : Measurements from a CSV file, in its units.
+    kincal.simulate : Simulated measurements of a robot.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.io import Measurements
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = robot.sample_joints(4, seed=1)
+    >>> meas = Measurements(q, robot.forward(q), robot.joint_names, source="poses.csv")
+    >>> len(meas), meas.q.shape, meas.xyz.shape, meas.rows.tolist()
+    (4, (4, 6), (4, 3), [2, 3, 4, 5])
+    >>> meas.subset([0, 2]).rows.tolist(), meas.without_rows([3]).rows.tolist()
+    ([2, 4], [2, 4, 5])
+    >>> meas.describe_rows([1, 3])
+    'row(s) 3, 5'
+    >>> meas.q.flags.writeable
+    False
+
+    Every check names the source:
+
+    >>> Measurements(q, robot.forward(q)[:3], robot.joint_names, source="poses.csv")
+    Traceback (most recent call last):
+    ...
+    kincal.errors.MeasurementError: poses.csv: q must be (N, n) and xyz (N, 3) with the same N; got (4, 6) and (3, 3)
     """
 
     q: np.ndarray
@@ -152,7 +207,57 @@ def _input_units(robot: Robot, length_unit: str, angle_unit: str, path: str) -> 
 
 def read_joints(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None, length_unit: str = "m",
                 angle_unit: str = "rad") -> np.ndarray:
-    """Joint values (N, n) in rad/m from a CSV with a header (e.g. poses to measure)."""
+    """Read joint values from a CSV with a header (e.g. poses to measure).
+
+    The file is read as :func:`read_measurements` reads it (comma, semicolon or tab separated; blank and '#'
+    lines skipped; every value checked, errors naming the file, row and column). Revolute joints are read in
+    ``angle_unit``, prismatic joints in ``length_unit``; the values come back in SI.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The CSV file.
+    robot : Robot
+        The robot the joint values are for (its joints' number, types and limits).
+    joint_cols : sequence of str, optional
+        The joint columns, one per joint (default None: the robot's default for the file's header, its joint
+        names; the covariates a robot reads after its joints by their names).
+    length_unit : str, optional
+        The file's unit of prismatic joints: "m", "mm" or "um" (default "m").
+    angle_unit : str, optional
+        The file's unit of revolute joints: "rad", "deg" or "rev" (default "rad").
+
+    Returns
+    -------
+    ndarray, shape (N, n)
+        Joint values, rad (m for a prismatic joint).
+
+    Raises
+    ------
+    MeasurementError
+        When the file cannot be read, a unit is unknown, the joint columns are not one per joint or are
+        missing, a cell is not a finite number, or the values look like degrees read as radians
+        (:func:`check_degrees`).
+
+    See Also
+    --------
+    write_joints : The inverse: joint values written as a CSV of poses.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.io import read_joints, write_joints
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = robot.sample_joints(3, seed=1)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "poses.csv")
+    ...     write_joints(path, q, robot, angle_unit="deg")
+    ...     back = read_joints(path, robot, angle_unit="deg")
+    >>> back.shape, bool(np.allclose(back, q, rtol=0.0, atol=1e-12))
+    ((3, 6), True)
+    """
     path = str(path)
     units = _input_units(robot, length_unit, angle_unit, path)
     table = open_table(path)
@@ -163,8 +268,44 @@ def read_joints(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str]
 
 def read_positions(path: str | os.PathLike, xyz_cols: Sequence[str] = ("x", "y", "z"),
                    length_unit: str = "m", with_rows: bool = False):
-    """Positions (N, 3) in m from a CSV with a header (e.g. targets to reach); with ``with_rows``
-    also their 1-based line numbers (N,)."""
+    """Read positions from a CSV with a header (e.g. targets to reach).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The CSV file (comma, semicolon or tab separated; blank and '#' lines skipped).
+    xyz_cols : sequence of str, optional
+        The three position columns (default ("x", "y", "z")).
+    length_unit : str, optional
+        The file's length unit: "m", "mm" or "um" (default "m").
+    with_rows : bool, optional
+        Also return the positions' line numbers (default False).
+
+    Returns
+    -------
+    xyz : ndarray, shape (N, 3)
+        The positions, m.
+    rows : ndarray of int, shape (N,)
+        Their 1-based line numbers in the file, header = line 1; only with ``with_rows``.
+
+    Raises
+    ------
+    MeasurementError
+        When not exactly three position columns are given, the unit is unknown, the file cannot be read, a
+        column is missing or a cell is not a finite number.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from kincal.io import read_positions
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "targets.csv")
+    ...     with open(path, "w") as f:
+    ...         _ = f.write("name;x;y;z\\n# the first two\\nA;400;-100;300\\nB;450;-100;300\\n")
+    ...     xyz, rows = read_positions(path, length_unit="mm", with_rows=True)
+    >>> xyz.tolist(), rows.tolist()
+    ([[0.4, -0.1, 0.3], [0.45, -0.1, 0.3]], [3, 4])
+    """
     path = str(path)
     if len(xyz_cols) != 3:
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
@@ -179,13 +320,73 @@ def read_measurements(path: str | os.PathLike, robot: Robot, joint_cols: Sequenc
                       std_cols: Sequence[str] | None = None) -> Measurements:
     """Read a CSV (header line; comma, semicolon or tab separated) of joint values and positions.
 
-    joint_cols default to the robot's joint names; the covariates a robot reads after its joints
-    (:func:`kincal.models.with_covariates`: a temperature column) are read by their names, as written.
-    Revolute joints are in ``angle_unit``, prismatic joints and positions in ``length_unit``. Values
-    are returned in SI units; data whose scale looks like the wrong unit is refused with the unit to use. ``std_cols``: the instrument's σ per sample
-    and axis (length unit); by default ``measurement_std_x/y/z`` when the file has them (they weight
-    the fit and set the noise level of the verdict); ``[]`` ignores them. Blank and '#' lines are
-    skipped; every column is checked as ``_csv.Table`` checks it, errors naming the file, row and column.
+    Revolute joints are in ``angle_unit``, prismatic joints and positions in ``length_unit``; values are
+    returned in SI units, and data whose scale looks like the wrong unit is refused with the unit to use
+    (:func:`check_degrees`, :func:`check_spread`). Blank and '#' lines are skipped; every column is checked
+    as ``_csv.Table`` checks it (named once, present, a number, finite, physically possible), errors naming
+    the file, row and column.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The CSV file.
+    robot : Robot
+        The robot the data belong to (its joints' number, types and limits, its reach).
+    joint_cols : sequence of str, optional
+        The joint columns (default None: the robot's joint names); the covariates a robot reads after its
+        joints (:func:`kincal.models.with_covariates`: a temperature column) are read by their names, as
+        written.
+    xyz_cols : sequence of str, optional
+        The three position columns (default ("x", "y", "z")).
+    length_unit : str, optional
+        The file's unit of positions and prismatic joints: "m", "mm" or "um" (default "m").
+    angle_unit : str, optional
+        The file's unit of revolute joints: "rad", "deg" or "rev" (default "rad").
+    std_cols : sequence of str, optional
+        Three columns of the instrument's σ per sample and axis, in ``length_unit`` (they weight the fit and
+        set the noise level of the verdict); ``[]`` ignores them (default None: ``measurement_std_x/y/z``
+        when the file has all three).
+
+    Returns
+    -------
+    Measurements
+        q (N, n) rad/m, xyz (N, 3) m, σ (N, 3) m or None, with the file's path as ``source``, the data's line
+        numbers as ``rows`` and (``length_unit``, ``angle_unit``) as ``units``.
+
+    Raises
+    ------
+    MeasurementError
+        When the columns are not one per joint and three positions (and three σ or none), a unit is unknown,
+        the file cannot be read, a cell is missing, not a number or not finite, a joint value is outside what
+        the robot can take, or the data look like another unit (named, with the option to use).
+
+    See Also
+    --------
+    write_measurements : The inverse: measurements written as a CSV in given units.
+
+    Examples
+    --------
+    Simulated "ur5" data written in mm and deg, read back in SI:
+
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.io import read_measurements, write_measurements
+    >>> robot = kincal.load_robot("ur5")
+    >>> meas = kincal.simulate(robot, robot.sample_joints(5, seed=1), seed=0)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "ur5.csv")
+    ...     write_measurements(path, meas, robot.joint_types, length_unit="mm", angle_unit="deg")
+    ...     back = read_measurements(path, robot, length_unit="mm", angle_unit="deg")
+    ...     read_measurements(path, robot, angle_unit="deg")
+    Traceback (most recent call last):
+    ...
+    kincal.errors.MeasurementError: ...ur5.csv: measured positions spread 1e+03x more than the robot moves at the
+    same joint values (read as 'm'): they look like mm; use length unit 'mm' (CLI: --length-unit mm)
+    >>> back.units, back.rows.tolist()
+    (('mm', 'deg'), [2, 3, 4, 5, 6])
+    >>> float(np.abs(back.q - meas.q).max()) < 1e-12, float(np.abs(back.xyz - meas.xyz).max()) < 1e-12
+    (True, True)
     """
     path = str(path)
     _joint_columns(path, robot, joint_cols)  # one per joint, before the file is read
@@ -212,8 +413,61 @@ STD_COLUMNS = ("measurement_std_x", "measurement_std_y", "measurement_std_z")
 def write_measurements(path: str | os.PathLike, meas: Measurements, joint_types: Sequence[str] | None = None,
                        length_unit: str = "m", angle_unit: str = "rad",
                        joint_cols: Sequence[str] | None = None, xyz_cols: Sequence[str] = ("x", "y", "z")) -> None:
-    """Write measurements as a comma-separated CSV (atomically) in the given units, the positions
-    under the three names ``xyz_cols``."""
+    """Write measurements as a comma-separated CSV (atomically) in the given units.
+
+    The header is the joint columns, then the three names ``xyz_cols``; each value is written in full
+    precision (``repr``), so :func:`read_measurements` gives the same numbers back (up to the unit
+    conversion's round-off).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write (replaced whole, or left as it was).
+    meas : Measurements
+        The measurements (SI).
+    joint_types : sequence of str, optional
+        Each joint's type, "revolute" or "prismatic" ("covariate": a covariate column, written as it is)
+        (default None: all revolute).
+    length_unit : str, optional
+        The file's unit of positions and prismatic joints: "m", "mm" or "um" (default "m").
+    angle_unit : str, optional
+        The file's unit of revolute joints: "rad", "deg" or "rev" (default "rad").
+    joint_cols : sequence of str, optional
+        The joint columns' names (default None: ``meas.joint_names``).
+    xyz_cols : sequence of str, optional
+        The three position columns' names (default ("x", "y", "z")).
+
+    Raises
+    ------
+    MeasurementError
+        When a unit is unknown.
+    ValueError
+        When ``xyz_cols`` does not name three columns.
+
+    See Also
+    --------
+    read_measurements : The inverse.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.io import write_measurements
+    >>> robot = kincal.load_robot("ur5")
+    >>> meas = kincal.simulate(robot, robot.sample_joints(2, seed=1), seed=0)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "ur5.csv")
+    ...     write_measurements(path, meas, robot.joint_types, length_unit="mm", angle_unit="deg",
+    ...                        xyz_cols=("X", "Y", "Z"))
+    ...     with open(path) as f:
+    ...         lines = f.read().splitlines()
+    >>> lines[0], len(lines)
+    ('j1,j2,j3,j4,j5,j6,X,Y,Z', 3)
+    >>> first = np.array(lines[1].split(","), dtype=float)
+    >>> bool(np.allclose(np.radians(first[:6]), meas.q[0])), bool(np.allclose(first[6:] / 1e3, meas.xyz[0]))
+    (True, True)
+    """
     types = list(joint_types) if joint_types is not None else ["revolute"] * meas.q.shape[1]
     scale, lf = _file_scales(types, length_unit, angle_unit, str(path))
     cols = list(joint_cols) if joint_cols is not None else list(meas.joint_names)
@@ -225,7 +479,52 @@ def write_measurements(path: str | os.PathLike, meas: Measurements, joint_types:
 
 def write_joints(path: str | os.PathLike, q: np.ndarray, robot: Robot, joint_cols: Sequence[str] | None = None,
                  length_unit: str = "m", angle_unit: str = "rad") -> None:
-    """Write joint vectors (N, n) in SI units as a CSV of poses (atomically), e.g. poses to measure."""
+    """Write joint vectors in SI units as a CSV of poses (atomically), e.g. poses to measure.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write (replaced whole, or left as it was).
+    q : ndarray, shape (N, n)
+        Joint values, rad (m for a prismatic joint); a single (n,) vector is one pose.
+    robot : Robot
+        The robot (its joints' number and types).
+    joint_cols : sequence of str, optional
+        The columns' names, one per joint (default None: the robot's joint names).
+    length_unit : str, optional
+        The file's unit of prismatic joints: "m", "mm" or "um" (default "m").
+    angle_unit : str, optional
+        The file's unit of revolute joints: "rad", "deg" or "rev" (default "rad").
+
+    Raises
+    ------
+    MeasurementError
+        When the columns are not one per joint or a unit is unknown.
+    ModelError
+        When ``q`` does not have one column per joint.
+
+    See Also
+    --------
+    read_joints : The inverse.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.io import write_joints
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = np.radians([[0.0, -90.0, 90.0, -90.0, -90.0, 0.0]])
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "poses.csv")
+    ...     write_joints(path, q, robot, joint_cols=["A1", "A2", "A3", "A4", "A5", "A6"], angle_unit="deg")
+    ...     with open(path) as f:
+    ...         header, row = f.read().splitlines()
+    >>> header
+    'A1,A2,A3,A4,A5,A6'
+    >>> [round(float(v), 9) for v in row.split(",")]
+    [0.0, -90.0, 90.0, -90.0, -90.0, 0.0]
+    """
     cols = _joint_columns(str(path), robot, joint_cols)
     scale, _ = _file_scales(robot.joint_types, length_unit, angle_unit, str(path))
     write_csv(path, cols, ([repr(float(v)) for v in qi] for qi in robot.check_q(q) * scale))
@@ -233,9 +532,43 @@ def write_joints(path: str | os.PathLike, q: np.ndarray, robot: Robot, joint_col
 
 def write_selected_rows(path: str | os.PathLike, source: str | os.PathLike, indices: Sequence[int] | np.ndarray
                         ) -> None:
-    """The data rows ``indices`` (0-based, in file order, blank and '#' lines not counted) of the CSV
-    ``source``, in that order, every column as the user gave it (IDs, names, other columns), after
-    ``input_row``: the row's line number in ``source``; written atomically with the source's separator."""
+    """Write chosen data rows of a CSV, every column as the user gave it (IDs, names, other columns).
+
+    The rows come in the order of ``indices``, each after ``input_row``: its line number in ``source``
+    (header = line 1; a source that has an ``input_row`` column keeps its own). Written atomically with the
+    source's separator.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write.
+    source : str or os.PathLike
+        The CSV the rows come from.
+    indices : sequence of int or ndarray
+        The data rows to write, 0-based in file order (blank and '#' lines not counted).
+
+    Raises
+    ------
+    MeasurementError
+        When ``source`` cannot be read as a CSV.
+    IndexError
+        When an index is beyond the source's data rows.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from kincal.io import write_selected_rows
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     source, path = os.path.join(tmp, "all.csv"), os.path.join(tmp, "chosen.csv")
+    ...     with open(source, "w") as f:
+    ...         _ = f.write("id;j1\\nP1;0.1\\n# skipped\\nP2;0.2\\nP3;0.3\\n")
+    ...     write_selected_rows(path, source, [2, 0])
+    ...     with open(path) as f:
+    ...         print(f.read(), end="")
+    input_row;id;j1
+    5;P3;0.3
+    2;P1;0.1
+    """
     table = open_table(str(source))
     new = "input_row" not in table.header
     picked = (table.records[int(k)] for k in indices)
@@ -245,8 +578,55 @@ def write_selected_rows(path: str | os.PathLike, source: str | os.PathLike, indi
 
 def write_residuals(path: str | os.PathLike, meas: Measurements, predicted: np.ndarray, z: np.ndarray, outlier_z: float,
                     joint_types: Sequence[str], length_unit: str = "mm", angle_unit: str = "deg") -> None:
-    """Per-pose residual table (atomically): input row, joints, measured, predicted, error vector and
-    norm (all in the given units), robust z-score and an outlier flag."""
+    """Write the per-pose residual table (atomically).
+
+    One row per pose: its input row, joints, measured and predicted positions, the error vector (measured −
+    predicted) and its norm, all in the given units (the position columns' names end in ``_<length_unit>``),
+    then the robust z-score and an outlier flag ("yes" where z > ``outlier_z``).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write.
+    meas : Measurements
+        The measurements (SI).
+    predicted : ndarray, shape (N, 3)
+        The positions a model predicts at the poses, m.
+    z : ndarray, shape (N,)
+        The robust z-score of each pose's error.
+    outlier_z : float
+        The z-score beyond which a pose is flagged as an outlier.
+    joint_types : sequence of str
+        Each joint's type, "revolute" or "prismatic" ("covariate": written as it is).
+    length_unit : str, optional
+        The table's length unit: "m", "mm" or "um" (default "mm").
+    angle_unit : str, optional
+        The table's unit of revolute joints: "rad", "deg" or "rev" (default "deg").
+
+    Raises
+    ------
+    MeasurementError
+        When a unit is unknown.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.io import write_residuals
+    >>> robot = kincal.load_robot("ur5")
+    >>> meas = kincal.simulate(robot, robot.sample_joints(3, seed=1), seed=0)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "residuals.csv")
+    ...     write_residuals(path, meas, robot.forward(meas.q), np.array([0.5, 4.0, 1.0]), 3.5, robot.joint_types)
+    ...     with open(path) as f:
+    ...         lines = f.read().splitlines()
+    >>> print(*lines[0].split(","))
+    row j1 j2 j3 j4 j5 j6 x_measured_mm y_measured_mm z_measured_mm x_predicted_mm y_predicted_mm z_predicted_mm
+    ex_mm ey_mm ez_mm norm_mm robust_z outlier
+    >>> [line.split(",")[-1] for line in lines[1:]]
+    ['no', 'yes', 'no']
+    """
     scale, lf = _file_scales(joint_types, length_unit, angle_unit, str(path))
     err = meas.xyz - predicted
     u = f"_{length_unit}"

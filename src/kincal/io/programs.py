@@ -31,15 +31,69 @@ from ..errors import MeasurementError
 
 @dataclass(frozen=True)
 class Target:
-    """One literal target: its span in the text and its line, the move, and its values: a pose (x, y,
-    z in m, rotation vector in rad; ``kind`` "pose"), joint values (rad; "joints") or a Yaskawa PULSE
-    position's encoder counts as written ("pulses": joints once the robot's pulses per degree are known);
-    where the move is in the text (``at``) and the variable it moves to ('' for a literal in the move; the span and
-    line are then those of the variable's literal). In the vendor languages ``fields`` are the spans of
-    the numbers that carry ``values`` (in the language's order and units: what a rewrite replaces),
-    ``config`` the branch as written ((S, T); (cf1, cf4, cf6, cfx); ('N U T', turn1, turn2, turn3);
-    the RCONF digits) and ``frames`` the (tool, base) the target is in, as the program names them ('' for
-    none named: the controller's default)."""
+    """One literal target of a robot program: where it is in the text, the move, and its values.
+
+    Parameters
+    ----------
+    start, end : int
+        The span of the literal in the program's text (character positions; for a move to a variable, the
+        span of the variable's literal).
+    line : int
+        The line of the literal, from 1.
+    move : str
+        The move as the program names it ("movel", "PTP", …; for a variable no move of the file goes to, its
+        type).
+    kind : str
+        "pose", "joints" or "pulses".
+    values : ndarray, shape (6,) or (n,)
+        A pose: x, y, z (m) and a rotation vector (rad) of the TCP in the program's frame (``kind`` "pose");
+        joint values (rad, m for a prismatic joint; "joints"); or a Yaskawa PULSE position's encoder counts
+        as written ("pulses": joints once the robot's pulses per degree are known).
+    at : int, optional
+        Where the move is in the text, a character position (default -1: not given).
+    variable : str, optional
+        The variable the move goes to (default '': a literal in the move).
+    fields : tuple of (int, int), optional
+        In the vendor languages, the spans of the numbers that carry ``values``, in the language's order
+        and units: what a rewrite replaces (default (): URScript, whose whole literal is replaced).
+    config : tuple, optional
+        The branch as written: KRL (S, T); RAPID (cf1, cf4, cf6, cfx); FANUC ('N U T', turn1, turn2,
+        turn3); INFORM's RCONF digits (default (): none written).
+    frames : tuple of (str, str), optional
+        The (tool, base) the target is in, as the program names them ('' for none named: the controller's
+        default; default ('', '')).
+
+    See Also
+    --------
+    Program : The text and its targets.
+
+    Examples
+    --------
+    A KUKA KRL program: the numbers as written, in mm and deg, and the values in SI:
+
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> from kincal.io import read_program
+    >>> text = ("DEF prog()\\r\\n"
+    ...         "  $BASE = BASE_DATA[1]\\r\\n"
+    ...         "  PTP {A1 0, A2 -90, A3 90, A4 0, A5 45, A6 0}\\r\\n"
+    ...         "  LIN {X 500.0, Y 0.0, Z 400.0, A 0.0, B 90.0, C 0.0, S 2, T 2} ; approach\\r\\n"
+    ...         "END\\r\\n")
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "prog.src")
+    ...     with open(path, "w", newline="") as f:
+    ...         _ = f.write(text)
+    ...     program = read_program(path, "krl")
+    >>> ptp, lin = program.targets
+    >>> ptp.move, ptp.kind, ptp.line, np.round(np.degrees(ptp.values), 6).tolist()
+    ('PTP', 'joints', 3, [0.0, -90.0, 90.0, 0.0, 45.0, 0.0])
+    >>> lin.move, lin.kind, lin.config, lin.frames
+    ('LIN', 'pose', (2, 2), ('', 'BASE_DATA[1]'))
+    >>> [text[a:b] for a, b in lin.fields]
+    ['500.0', '0.0', '400.0', '0.0', '90.0', '0.0']
+    >>> np.round(lin.values, 6).tolist()
+    [0.5, 0.0, 0.4, 0.0, 1.570796, 0.0]
+    """
 
     start: int
     end: int
@@ -56,10 +110,59 @@ class Target:
 
 @dataclass(frozen=True)
 class Program:
-    """A program's text, its literal targets in the order of the moves, what is listed, never touched
-    (line, what: the move or item as written, why: the reason a user reads), the TCPs it sets (position in
-    the text, the pose (6,) or None when not a literal), its language's comment mark ('' for a language that
-    allows none beside a target) and its dialect's name."""
+    """A robot program's text and its literal targets, as :func:`read_program` finds them.
+
+    Parameters
+    ----------
+    source : str
+        Where the text comes from (a file's path), named in messages.
+    text : str
+        The program's text, byte for byte as decoded (line endings and a byte-order mark kept).
+    targets : tuple of Target
+        The literal targets, in the order of the moves.
+    not_literal : tuple of (int, str, str), optional
+        What is listed, never touched: (line, what: the move or item as written, why: the reason a user
+        reads) (default ()).
+    encoding : str, optional
+        The text's encoding, "utf-8" or "latin-1", in which it is written again (default "utf-8").
+    tcps : tuple of (int, ndarray or None), optional
+        The TCPs the program sets: (position in the text, the pose (6,) in m and rad, or None when not a
+        literal) (default ()).
+    comment : str, optional
+        The language's comment mark ('' for a language that allows none beside a target) (default "#").
+    dialect : str, optional
+        The dialect's name, one of :data:`DIALECT_NAMES` (default "ur").
+
+    See Also
+    --------
+    read_program : A program read from its file.
+    write_program : The program written with new targets.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> from kincal.io import read_program
+    >>> text = ("def prog():\\n"
+    ...         "  set_tcp(p[0, 0, 0.15, 0, 0, 0])\\n"
+    ...         "  movel(p[0.4, -0.1, 0.3, 0, 1.5708, 0])  # approach\\n"
+    ...         "end\\n")
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "prog.script")
+    ...     with open(path, "w") as f:
+    ...         _ = f.write(text)
+    ...     program = read_program(path)
+    >>> program.dialect, program.encoding, program.comment, len(program.targets)
+    ('ur', 'utf-8', '#', 1)
+    >>> program.tcp_at(program.targets[0].at).tolist()
+    [0.0, 0.0, 0.15, 0.0, 0.0, 0.0]
+
+    The target written again 1 mm higher, every other byte as it was:
+
+    >>> new = program.with_values({0: program.targets[0].values + [0.0, 0.0, 1e-3, 0.0, 0.0, 0.0]})
+    >>> print(new.splitlines()[2])
+      movel(p[0.4000000000, -0.1000000000, 0.3010000000, 0.0000000000, 1.5708000000, 0.0000000000])  # approach
+    """
 
     source: str
     text: str
@@ -102,11 +205,37 @@ def no_frames(program: Program) -> dict[str, np.ndarray]:
 
 @dataclass(frozen=True)
 class Dialect:
-    """A vendor language: its name, the file suffixes it is read from (lower case), its comment mark,
-    its reader ``parse(source, text) -> Program``, its writer ``write(text, targets, values) -> texts`` (the
-    new texts of the targets' spans for new SI values, all at once; see :func:`write_fields`) and
-    ``frames(program)``: the tool and base frames a program declares (or its controller holds beside it) with
-    their values, by the names its targets use (4x4, m; or why a frame it names cannot be known)."""
+    """A vendor language: how its programs are read and written again.
+
+    Parameters
+    ----------
+    name : str
+        The dialect's name, one of :data:`DIALECT_NAMES`.
+    suffixes : tuple of str
+        The file suffixes it is read from, lower case (".script", …).
+    comment : str
+        Its comment mark ('' for a language that allows none beside a target).
+    parse : callable
+        Its reader, ``parse(source, text) -> Program``.
+    write : callable
+        Its writer, ``write(text, targets, values) -> texts``: the new texts of the targets' spans for new SI
+        values, all at once (see :func:`write_fields`).
+    frames : callable, optional
+        ``frames(program)``: the tool and base frames a program declares (or its controller holds beside it)
+        with their values, by the names its targets use (4x4, m; or a str: why a frame it names cannot be
+        known) (default: none).
+
+    See Also
+    --------
+    dialects : The dialects kincal reads, by name.
+
+    Examples
+    --------
+    >>> from kincal.io import dialects
+    >>> krl = dialects()["krl"]
+    >>> krl.name, krl.suffixes, krl.comment
+    ('krl', ('.src', '.dat', '.sub'), ';')
+    """
 
     name: str
     suffixes: tuple[str, ...]
@@ -159,7 +288,20 @@ DIALECT_NAMES = ("ur", "krl", "rapid", "fanuc", "inform")  # what dialects() hol
 
 
 def dialects() -> dict[str, Dialect]:
-    """The vendor languages kincal reads, by name (:data:`DIALECT_NAMES`; the modules load when first asked)."""
+    """The vendor languages kincal reads, by name (the modules load when first asked).
+
+    Returns
+    -------
+    dict of str to Dialect
+        Each dialect by its name, in the order of :data:`DIALECT_NAMES`.
+
+    Examples
+    --------
+    >>> from kincal.io import dialects
+    >>> {name: d.suffixes for name, d in dialects().items()}
+    {'ur': ('.script', '.urscript'), 'krl': ('.src', '.dat', '.sub'), 'rapid': ('.mod', '.modx', '.prg', '.sys'),
+     'fanuc': ('.ls',), 'inform': ('.jbi',)}
+    """
     from . import program_fanuc, program_inform, program_krl, program_rapid, program_ur
 
     return {d.name: d for d in (program_ur.DIALECT, program_krl.DIALECT, program_rapid.DIALECT, program_fanuc.DIALECT,
@@ -181,7 +323,29 @@ def _marks(program: Program, marks: dict[int, str]) -> list[tuple[int, int, str]
 
 
 def dialect_of(path: str) -> str:
-    """The dialect whose suffixes (any case) name the file at ``path``; ValueError naming them all."""
+    """The dialect of a robot program, by its file's suffix (any case).
+
+    Parameters
+    ----------
+    path : str
+        The program's path.
+
+    Returns
+    -------
+    str
+        The name of the dialect whose suffixes hold the file's.
+
+    Raises
+    ------
+    ValueError
+        When no dialect reads that suffix, naming every suffix kincal reads.
+
+    Examples
+    --------
+    >>> from kincal.io import dialect_of
+    >>> dialect_of("cell/PICK.SRC"), dialect_of("pick.script"), dialect_of("Main.mod")
+    ('krl', 'ur', 'rapid')
+    """
     suffix = os.path.splitext(str(path))[1].lower()
     found = [d.name for d in dialects().values() if suffix in d.suffixes]
     if not found:
@@ -192,8 +356,59 @@ def dialect_of(path: str) -> str:
 
 @paused_collector
 def read_program(path: str, dialect: str = "ur") -> Program:
-    """The program at ``path`` in the vendor ``dialect`` (:func:`dialects`: "ur", …), read byte for
-    byte: UTF-8 (a byte-order mark kept), else Latin-1; line endings as they are."""
+    """Read a robot program and find its literal targets.
+
+    The file is read byte for byte: UTF-8 (a byte-order mark kept), else Latin-1; line endings as they are.
+    The dialect finds the moves and their literal targets; a move whose target is not a literal is listed
+    in ``not_literal`` with its line and why.
+
+    Parameters
+    ----------
+    path : str
+        The program's file.
+    dialect : str, optional
+        The vendor language, one of :data:`DIALECT_NAMES` (:func:`dialects`; default "ur";
+        :func:`dialect_of` names it from the file's suffix).
+
+    Returns
+    -------
+    Program
+        The text, its targets (SI values) and what is listed, with the file's encoding, the dialect's
+        comment mark and name.
+
+    Raises
+    ------
+    ValueError
+        When the dialect is unknown.
+    MeasurementError
+        When the file cannot be read, holds binary data (an encrypted or compiled module), or its text breaks
+        the language's rules (named with the line).
+
+    See Also
+    --------
+    write_program : The program written again with new targets.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from kincal.io import read_program
+    >>> text = ("def prog():\\n"
+    ...         "  movej([0.1, -1.5, 1.6, -1.7, -1.6, 0.2], a=1.4, v=1.05)\\n"
+    ...         "  movel(p[0.4, -0.1, 0.3, 0, 1.5708, 0], a=1.2, v=0.25)\\n"
+    ...         "  movel(pose_add(get_actual_tcp_pose(), p[0, 0, 0.01, 0, 0, 0]))\\n"
+    ...         "end\\n")
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "prog.script")
+    ...     with open(path, "w") as f:
+    ...         _ = f.write(text)
+    ...     program = read_program(path, "ur")
+    >>> [(t.move, t.kind, t.line, t.values.tolist()) for t in program.targets]
+    [('movej', 'joints', 2, [0.1, -1.5, 1.6, -1.7, -1.6, 0.2]),
+     ('movel', 'pose', 3, [0.4, -0.1, 0.3, 0.0, 1.5708, 0.0])]
+    >>> line, what, why = program.not_literal[0]
+    >>> line, what
+    (4, 'movel(pose_add(get_actual_tcp_pose(), p[0, 0, 0.01, 0, 0, 0]))')
+    """
     known = dialects()
     if dialect not in known:
         raise ValueError(f"robot program dialect '{dialect}': kincal reads {', '.join(known)}")
@@ -212,8 +427,48 @@ def read_program(path: str, dialect: str = "ur") -> Program:
 
 
 def write_program(path: str, program: Program, texts: dict[int, str], marks: dict[int, str] | None = None) -> None:
-    """The program with the given targets replaced and the marked ones commented, in its own encoding
-    (atomically)."""
+    """Write a program with the given targets replaced and the marked ones commented (atomically).
+
+    Every other byte is as it was (:meth:`Program.with_targets`); the text is written in the program's own
+    encoding.
+
+    Parameters
+    ----------
+    path : str
+        The file to write.
+    program : Program
+        The program as read.
+    texts : dict of int to str
+        The new text of target k's span, by k (the index in ``program.targets``); the others stay as they are.
+    marks : dict of int to str, optional
+        A reason for target k, written as a comment (``kincal: not compensated: …``) at the end of its line
+        (default None: none; a language without comments beside a target gets none).
+
+    See Also
+    --------
+    Program.with_values : The text with targets written again from new SI values, in the language's own style.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from kincal.io import read_program, write_program
+    >>> text = ("def prog():\\n"
+    ...         "  movej([0.1, -1.5, 1.6, -1.7, -1.6, 0.2])\\n"
+    ...         "  movel(p[0.4, -0.1, 0.3, 0, 1.5708, 0])\\n"
+    ...         "end\\n")
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path, out = os.path.join(tmp, "prog.script"), os.path.join(tmp, "new.script")
+    ...     with open(path, "w") as f:
+    ...         _ = f.write(text)
+    ...     program = read_program(path)
+    ...     write_program(out, program, {1: "p[0.4, -0.1, 0.31, 0, 1.5708, 0]"}, marks={0: "kept as taught"})
+    ...     with open(out) as f:
+    ...         print(f.read(), end="")
+    def prog():
+      movej([0.1, -1.5, 1.6, -1.7, -1.6, 0.2])  # kincal: not compensated: kept as taught
+      movel(p[0.4, -0.1, 0.31, 0, 1.5708, 0])
+    end
+    """
     write_text_atomic(path, program.with_targets(texts, marks), program.encoding)
 
 

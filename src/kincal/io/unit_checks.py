@@ -27,10 +27,59 @@ def spread(x: np.ndarray) -> float:
 
 def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, length_unit: str | None,
                  angle_unit: str | None, what: str = "measured positions", rows: np.ndarray | None = None) -> None:
-    """MeasurementError when the measured spread of ``xyz`` (N, 3) differs from the robot's at the
-    joints ``q`` by more than SPREAD_RATIO: a unit mistake, named (the joint values read in the
-    other angle unit first, then a frame that jumps inside the file, at its row of ``rows``, then the
-    unit the positions are really in)."""
+    """Refuse measured positions whose spread is not the robot's at the same joints: a unit mistake, named.
+
+    The RMS distance of ``xyz`` from its centroid is compared with that of the robot's tool point at the
+    joints ``q``; when they differ by more than ``SPREAD_RATIO`` (2x; model errors change it by < 1 %), the
+    cause is named: the joint values read in the other angle unit first, then a frame that jumps inside the
+    file (at its row of ``rows``), then the unit the positions are really in. Where the robot's own spread is
+    below ``MIN_SPREAD`` (1 mm: noise decides the spread) only the first two are looked for.
+
+    Parameters
+    ----------
+    source : str
+        Where the data come from (a file's path), named in the message.
+    q : ndarray, shape (N, n)
+        Joint values as read, rad (m for a prismatic joint).
+    xyz : ndarray, shape (N, 3)
+        Measured positions as read, m.
+    robot : Robot
+        The robot the data belong to.
+    length_unit : str or None
+        The length unit the positions were read in (None: "m"), to name the one they are really in.
+    angle_unit : str or None
+        The angle unit the joint values were read in (None: unknown; the other angle units are then not tried).
+    what : str, optional
+        What the positions are, for the message (default "measured positions").
+    rows : ndarray of int, shape (N,), optional
+        The 1-based line numbers of the samples, header = line 1 (default None: 2, 3, …).
+
+    Raises
+    ------
+    MeasurementError
+        When the spreads differ: with the angle unit that makes them agree, the row where the measurement frame
+        jumps, or the length unit that explains the factor (or that none does).
+
+    See Also
+    --------
+    check_degrees : Degrees read as radians, from the joint values alone.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.io import check_spread
+    >>> robot = kincal.load_robot("ur5")
+    >>> meas = kincal.simulate(robot, robot.sample_joints(12, seed=1), seed=0)
+    >>> check_spread("ur5.csv", meas.q, meas.xyz, robot, "m", "rad")  # as measured: nothing to say
+
+    Millimetres read as metres:
+
+    >>> check_spread("ur5.csv", meas.q, meas.xyz * 1e3, robot, "m", "rad")
+    Traceback (most recent call last):
+    ...
+    kincal.errors.MeasurementError: ur5.csv: measured positions spread 1e+03x more than the robot moves at the same
+    joint values (read as 'm'): they look like mm; use length unit 'mm' (CLI: --length-unit mm)
+    """
     predicted = spread(robot.forward(q))
     ratio = spread(xyz) / max(predicted, 1e-300)
     if predicted > MIN_SPREAD and 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
@@ -103,8 +152,45 @@ def _rigid_sse(n, sx, sp, sq, sxp) -> np.ndarray:
 
 
 def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | None) -> None:
-    """MeasurementError when revolute joint values (rad) go beyond two turns and well beyond the joint
-    limits, and would lie within them read as degrees: degrees read as radians."""
+    """Refuse revolute joint values that look like degrees read as radians.
+
+    They do when some go beyond their joint's reach, the larger of two turns and 1.5 times the joint's
+    largest limit, and all would lie within it read as degrees.
+
+    Parameters
+    ----------
+    source : str
+        Where the values come from (a file's path), named in the message.
+    q : ndarray, shape (N, n)
+        Joint values as read, rad (m for a prismatic joint; not checked).
+    robot : Robot
+        The robot (its joint types and limits).
+    angle_unit : str or None
+        The angle unit the values were read in, named in the message (None: not named).
+
+    Raises
+    ------
+    MeasurementError
+        When the values look like degrees, naming the largest and the unit to use.
+
+    See Also
+    --------
+    check_radians : The other mistake: radians read as degrees.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.io import check_degrees
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = robot.sample_joints(5, seed=1)
+    >>> check_degrees("poses.csv", q, robot, "rad")  # within the limits: nothing to say
+    >>> check_degrees("poses.csv", np.degrees(q), robot, "rad")
+    Traceback (most recent call last):
+    ...
+    kincal.errors.MeasurementError: poses.csv: revolute joint values reach ... rad ('rad' was given), far beyond
+    the joint limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)
+    """
     rev = np.array([t == "revolute" for t in robot.joint_types])
     if not rev.any():
         return
@@ -119,8 +205,49 @@ def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
 
 
 def check_radians(source: str, q: np.ndarray, robot: Robot, angle_unit: str | None) -> None:
-    """MeasurementError when joint values declared in degrees never leave ±2π, over poses meant to
-    span the workspace (at least 10): radians read as degrees, which barely move the robot."""
+    """Refuse joint values declared in degrees that look like radians read as degrees.
+
+    They do when, over poses meant to span the workspace (at least 10), the numbers as written never leave
+    ±2π while some joint moves by more than 0.5 of them: radians read as degrees, which barely move the
+    robot. Values declared in another unit are not checked.
+
+    Parameters
+    ----------
+    source : str
+        Where the values come from (a file's path), named in the message.
+    q : ndarray, shape (N, n)
+        Joint values as read, rad (m for a prismatic joint; not checked).
+    robot : Robot
+        The robot (its joint types).
+    angle_unit : str or None
+        The angle unit the values were read in; only "deg" is checked.
+
+    Raises
+    ------
+    MeasurementError
+        When the values look like radians, naming the unit to use.
+
+    See Also
+    --------
+    check_degrees : The other mistake: degrees read as radians.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.io import check_radians
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = robot.sample_joints(12, seed=1)
+    >>> check_radians("poses.csv", q, robot, "deg")  # degrees read as degrees: nothing to say
+
+    A file of radians read as degrees gives joint values 57.3 times too small:
+
+    >>> check_radians("poses.csv", np.radians(q), robot, "deg")
+    Traceback (most recent call last):
+    ...
+    kincal.errors.MeasurementError: poses.csv: read as degrees, no revolute joint moves more than ... deg over 12
+    samples: the values look like radians; use angle unit 'rad' (CLI: --angle-unit rad)
+    """
     rev = np.array([t == "revolute" for t in robot.joint_types])
     if angle_unit != "deg" or not rev.any() or len(q) < 10:
         return

@@ -1,6 +1,6 @@
 """Observation types: what a measurement says about the robot (a point, the joints that reach it, markers, a full
 pose, the same point with known distances, plane contacts), each a residual object with its noise σ and the
-set-up parameters it brings. The stacked fit is :func:`kincal.identify.stacked.fit_observations`."""
+set-up parameters it brings. The stacked fit is :func:`kincal.identify.fit_observations`."""
 from .constraints import PlaneObs, SamePointObs
 from .drifting import Drifting
 from .files import KINDS, ObservationFormat, describe, read_observations, write_observations
@@ -10,6 +10,6 @@ from .observations import Observation, PointObs, PoseObs
 from .orientation import check_convention, default_columns, from_matrices, to_matrices
 from .sessions import InSession
 
-__all__ = ["Observation", "PointObs", "JointObs", "PoseJointObs", "in_joint_space", "PoseObs", "MarkersObs", "SamePointObs", "PlaneObs", "InSession", "Drifting", "KINDS",
-           "ObservationFormat", "read_observations", "write_observations", "describe", "check_convention", "default_columns",
-           "from_matrices", "to_matrices"]
+__all__ = ["Observation", "PointObs", "JointObs", "PoseJointObs", "in_joint_space", "PoseObs", "MarkersObs",
+           "SamePointObs", "PlaneObs", "InSession", "Drifting", "KINDS", "ObservationFormat", "read_observations",
+           "write_observations", "describe", "check_convention", "default_columns", "from_matrices", "to_matrices"]

@@ -30,9 +30,62 @@ def _labels_in_order(labels: np.ndarray) -> list[str]:
 
 @dataclass(frozen=True, eq=False)
 class SamePointObs(Observation):
-    """The tool point held at the same unknown point (``point[<label>].x/y/z``, robot base frame) in every sample
-    with that label, and known distances (m) between labelled points. ``group``: per sample, the placement whose
-    statistics are reported (default: one group)."""
+    """The tool point held at the same unknown point in every sample with that label (a ball in a socket).
+
+    Each labelled point is a set-up parameter (``point[<label>].x/y/z``, m, in the robot's base frame); known
+    distances between labelled points fix the length scale (without one the set is no reference and such a
+    fit is refused). The base frame is a gauge freedom: the sockets do not see where the robot stands. The
+    residual is each sample's tool point − its label's point (x rows, then y, then z), then each known
+    distance's error.
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, n)
+        Joint values, rad (m for a prismatic joint).
+    rows : ndarray of int, shape (N,)
+        Each sample's 1-based line number in ``source`` (header = line 1).
+    source : str
+        Where the data come from (a file's path), named in messages.
+    labels : ndarray of str, shape (N,)
+        Each sample's point.
+    distances : tuple of (str, str, float), optional
+        Known distances between labelled points: (label a, label b, distance m), … (default ()).
+    group : ndarray of str, shape (N,), optional
+        Per sample, the placement whose statistics are reported (default None: one group).
+    std : ndarray, shape (N,), or float, optional
+        How well the ball seats, σ per axis, per sample or one number, m (default 0.05e-3).
+    std_distance : float, optional
+        How well the distances are known, σ, m (default 0.1e-3).
+
+    Examples
+    --------
+    Two sockets 0.31 m apart, each reached in three configurations of a SCARA:
+
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.simulate import simulate_same_point
+    >>> robot = kincal.load_robot("scara")
+    >>> a, b = robot.forward(np.array([[0.3, 0.5, 0.1, 0.0], [-0.4, 0.8, 0.05, 0.0]]))
+    >>> d = float(np.linalg.norm(a - b))
+    >>> obs = simulate_same_point(robot, {"a": a, "b": b}, per_point=3, distances=[("a", "b", d)])
+    >>> type(obs).__name__, obs.labels.tolist(), obs.reference
+    ('SamePointObs', ['a', 'a', 'a', 'b', 'b', 'b'], True)
+    >>> obs.nuisance(robot)[0]
+    ('point[a].x', 'point[a].y', 'point[a].z', 'point[b].x', 'point[b].y', 'point[b].z')
+    >>> obs.gauge_params(robot)
+    ('base.x', 'base.y', 'base.z', 'base.rx', 'base.ry', 'base.rz')
+    >>> obs.sigma().shape  # 3 per sample, then the distance
+    (19,)
+
+    A distance stated in mm where metres are meant is refused before a fit starts:
+
+    >>> import dataclasses
+    >>> dataclasses.replace(obs, distances=(("a", "b", d * 1e3),)).prepare(robot)
+    Traceback (most recent call last):
+    ...
+    kincal.errors.MeasurementError: simulated scara sockets: the distance a–b is stated as 313.686 m, but the
+    robot file puts those points 0.3137 m apart: it looks like mm; give distances in m
+    """
 
     labels: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=str))
     distances: tuple[tuple[str, str, float], ...] = ()
@@ -113,7 +166,8 @@ class SamePointObs(Observation):
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         """Per group (placement), as the MUKCa paper defines them: the count-weighted mean over its points of
-        |p − that point's mean of p| and, per known distance inside it, | ‖m_a − m_b‖ − d | (m: the mean points)."""
+        ``|p − that point's mean of p|`` and, per known distance inside it, ``| ‖m_a − m_b‖ − d |`` (m: the mean
+        points)."""
         p = robot.forward(self.q, values)
         group = np.full(len(self), "all") if self.group is None else self.group
         out, devs = [], []
@@ -132,9 +186,58 @@ class SamePointObs(Observation):
 
 @dataclass(frozen=True, eq=False)
 class PlaneObs(Observation):
-    """The tool point touching a plane, per sample a plane label; a plane is known (unit normal n and offset c,
-    n·x = c in the robot base frame, m) or unknown (``plane[<label>].a/b/c``: the normal tilted by a, b (rad) from
-    its start and the offset c, m). Residual: n·p − c (m)."""
+    """The tool point touching a plane: per sample a plane label.
+
+    A plane is known (unit normal n and offset c, n·x = c in the robot's base frame, m) or unknown (the
+    set-up parameters ``plane[<label>].a/b/c``: the normal tilted by a, b (rad) from its start and the offset
+    c, m). The residual is n·p − c (m) per sample. Only two known parallel planes at different offsets (a
+    gauge block's step) fix the length scale; unknown planes alone leave the base frame a gauge freedom.
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, n)
+        Joint values, rad (m for a prismatic joint).
+    rows : ndarray of int, shape (N,)
+        Each sample's 1-based line number in ``source`` (header = line 1).
+    source : str
+        Where the data come from (a file's path), named in messages.
+    labels : ndarray of str, shape (N,)
+        Each sample's plane.
+    known : dict, optional
+        The known planes: label -> (normal (3,), offset c in m); the normal is normalised here (default {}).
+    std : ndarray, shape (N,), or float, optional
+        σ of the contacts across the plane, per sample or one number, m (default 0.05e-3).
+    start : dict, optional
+        The unknown planes' starts: label -> (unit normal (3,), offset c in m) (default {}; :meth:`prepare`
+        sets them from the data).
+
+    Examples
+    --------
+    A SCARA's tool point height depends on its third (prismatic) joint alone: touches of a table and of a
+    gauge-block step 50 mm above it.
+
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.observe import PlaneObs
+    >>> robot = kincal.load_robot("scara")
+    >>> q = np.array([[0.3, 0.5, 0.10, 0.0], [-0.4, 0.8, 0.10, 1.0], [0.9, -0.6, 0.10, 0.0],
+    ...               [0.2, 1.2, 0.05, 0.3], [-0.7, 0.4, 0.05, 0.0]])
+    >>> z = robot.forward(q)[:, 2]
+    >>> labels = np.array(["table"] * 3 + ["step"] * 2)
+    >>> known = {"table": ((0.0, 0.0, 1.0), float(z[0])), "step": ((0.0, 0.0, 1.0), float(z[3]))}
+    >>> obs = PlaneObs(q, np.arange(2, 7), "touches.csv", labels=labels, known=known)
+    >>> round(float(z[3] - z[0]), 9), obs.reference, obs.unknown()
+    (0.05, True, [])
+    >>> r, _, _ = obs.evaluate(robot, robot.params.values, np.zeros(0))
+    >>> bool(np.abs(r).max() < 1e-12)
+    True
+
+    The same planes unknown: fitted, starting from the planes through the nominal points, and no length scale:
+
+    >>> unknown = PlaneObs(q, np.arange(2, 7), "touches.csv", labels=labels).prepare(robot)
+    >>> unknown.reference, unknown.nuisance(robot)[0]
+    (False, ('plane[table].a', 'plane[table].b', 'plane[table].c', 'plane[step].a', 'plane[step].b', 'plane[step].c'))
+    """
 
     labels: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=str))
     known: dict = field(default_factory=dict)  # label -> (n (3,), c)

@@ -27,7 +27,39 @@ def acquisition(rows: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Drifting(Wrapper):
-    """``inner`` measured by an instrument that drifts linearly over the set's row order."""
+    """A set measured by an instrument that drifts linearly over the set's row order.
+
+    Every measured position moves by s·d: s the sample's place in acquisition (row) order, centred (−½ … +½),
+    d the drift over the whole set (the set-up parameters ``drift[<file>].x/y/z``, m), fitted with the rest.
+    Build it with ``Drifting.of(inner)``.
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, n)
+        Joint values, rad (m for a prismatic joint): the inner set's.
+    rows : ndarray of int, shape (N,)
+        Each sample's 1-based line number in ``source``: the inner set's (their order is the acquisition
+        order).
+    source : str
+        Where the data come from: the inner set's (its file name names the drift).
+    inner : Observation
+        The set of measured positions (points, 6-D poses, markers; in a session's own frame too).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.observe import Drifting, PointObs
+    >>> robot = kincal.load_robot("ur5")
+    >>> meas = kincal.simulate(robot, robot.sample_joints(6, seed=1), seed=0)
+    >>> obs = Drifting.of(PointObs(meas.q, meas.rows, "data/run1.csv", xyz=meas.xyz))
+    >>> names, start, kinds = obs.nuisance(robot)
+    >>> names, start.tolist(), kinds
+    (('drift[run1.csv].x', 'drift[run1.csv].y', 'drift[run1.csv].z'), [0.0, 0.0, 0.0], ('drift', 'drift', 'drift'))
+    >>> r, Jr, Jn = obs.evaluate(robot, robot.params.values, start)
+    >>> Jn.shape, np.round(Jn[:6, 0], 6).tolist()  # x rows: each sample's place in the row order
+    ((18, 3), [-0.5, -0.3, -0.1, 0.1, 0.3, 0.5])
+    """
 
     def names(self) -> tuple[str, ...]:
         return tuple(f"drift[{Path(self.source).name}].{a}" for a in "xyz")

@@ -53,7 +53,70 @@ def check_pose_columns(orientation: str, length_unit: str, angle_unit: str, xyz_
 
 @dataclass(frozen=True)
 class ObservationFormat:
-    """How to read one observation file (units of ``distances`` and ``planes``' offsets: ``length_unit``)."""
+    """How to read (and write) one observation file: its type, columns and units.
+
+    A frozen record; every setting is checked when it is built (ValueError). The columns each type has are
+    listed in :mod:`kincal.observe.files`.
+
+    Parameters
+    ----------
+    kind : str, optional
+        The type, one of :data:`KINDS`: "point", "pose", "markers", "same-point" or "plane" (default "point").
+    joint_cols : tuple of str, optional
+        The joint columns (default None: the robot's default for the file's header, its joint names).
+    length_unit : str, optional
+        The file's length unit, "m", "mm" or "um": positions, prismatic joints, ``std_pos`` columns,
+        ``distances`` and the planes' offsets (default "m").
+    angle_unit : str, optional
+        The file's unit of revolute joints, "rad", "deg" or "rev" (default "rad").
+    xyz_cols : tuple of str, optional
+        The three position columns of points and poses (default ("x", "y", "z")).
+    orientation : str, optional
+        The orientation convention of poses (:func:`check_convention`; default "quat-wxyz").
+    rot_cols : tuple of str, optional
+        The orientation columns, as many as the convention has (default None: :func:`default_columns`).
+    markers : tuple of str, optional
+        The markers' names (default None: every NAME with NAME.x, NAME.y, NAME.z columns in the header).
+    label_col : str, optional
+        The label column of same-point and plane files (default None: "point" and "plane").
+    group_col : str, optional
+        A same-point file's group column, e.g. the plate placement (default None: one group).
+    distances : tuple of (str, str, float), optional
+        Known distances between same-point labels, in ``length_unit``, applied inside every group: each pair
+        once (in either order; a repeat with the same length is dropped), a length > 0 that a robot can span
+        (default ()).
+    planes : dict, optional
+        The known planes: label -> (normal (3,), offset c in ``length_unit``), n·p = c in the robot's base
+        frame; the others are fitted (default {}).
+    std_pos : float, optional
+        σ of positions, m: a statement wins over the file's columns (default None: per sample from the
+        file's ``std_pos`` column, in its length unit (points: measurement_std_x/y/z), else the type's
+        default).
+    std_rot : float, optional
+        σ of rotations, rad (default None: per sample from a pose file's ``std_rot_mrad`` column, mrad, else
+        the type's default).
+    own_target : bool, optional
+        A held-out pose file: its target's frame on the flange is its own, re-fitted (default False).
+
+    Raises
+    ------
+    ValueError
+        For an unknown type, convention or unit, not three position columns, orientation columns that do not
+        fit the convention, a σ that is not > 0 or beyond any instrument's, a distance that is not > 0 between
+        two labels, beyond any robot's span or given twice with two lengths, a plane without a non-zero normal
+        or with an offset beyond reach.
+
+    Examples
+    --------
+    >>> from kincal.observe import ObservationFormat
+    >>> fmt = ObservationFormat(kind="same-point", length_unit="mm", distances=[("a", "b", 50.0), ("b", "a", 50.0)])
+    >>> fmt.distances, fmt.label, fmt.std()
+    ((('a', 'b', 50.0),), 'point', (5e-05, None))
+    >>> ObservationFormat(kind="sphere")
+    Traceback (most recent call last):
+    ...
+    ValueError: measurement type 'sphere': use one of point, pose, markers, same-point, plane
+    """
 
     kind: str = "point"
     joint_cols: tuple[str, ...] | None = None
@@ -128,8 +191,66 @@ def _stds(t: Table, fmt: ObservationFormat):
 
 
 def read_observations(path: str, robot: Robot, fmt: ObservationFormat = ObservationFormat()) -> Observation:
-    """One set from ``path`` as ``fmt`` declares it (module docstring), each column read as ``_csv.Table`` reads it:
-    named once in the header, used for one thing, present, a number as a CSV cell writes it, finite, physical."""
+    """Read one set of observations from a CSV file, as its format declares it.
+
+    The columns of each type are listed in :mod:`kincal.observe.files`; each column is read as ``_csv.Table``
+    reads it: named once in the header, used for one thing, present, a number as a CSV cell writes it,
+    finite, physical. Values come back in SI. Pose orientations are checked against the nominal robot
+    (another common convention that fits markedly better is named).
+
+    Parameters
+    ----------
+    path : str
+        The CSV file.
+    robot : Robot
+        The robot the data belong to (its joints and, for poses, its nominal flange rotations).
+    fmt : ObservationFormat, optional
+        The file's type, columns and units (default: points, m and rad).
+
+    Returns
+    -------
+    Observation
+        A :class:`PointObs`, :class:`PoseObs`, :class:`MarkersObs`, :class:`SamePointObs` (labels
+        "<group>/<label>" with a group column; distances in m) or :class:`PlaneObs` (known planes' offsets in
+        m), with the file's path as ``source`` and the data's line numbers as ``rows``.
+
+    Raises
+    ------
+    MeasurementError
+        When the file cannot be read, its columns do not fit the type (named, with the option that names
+        them), a cell is not a finite number or a σ is not > 0, a marker has some coordinates empty, a label
+        is empty, a known distance or plane names a label the file does not have, an orientation is no
+        rotation in its convention or looks like another convention.
+
+    See Also
+    --------
+    write_observations : The inverse.
+    describe : What a file of a type must hold.
+
+    Examples
+    --------
+    Two sockets 0.31 m apart, reached by a SCARA, written in mm and deg and read back (the known distance is
+    stated in the file's unit):
+
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.observe import ObservationFormat, read_observations, write_observations
+    >>> from kincal.simulate import simulate_same_point
+    >>> robot = kincal.load_robot("scara")
+    >>> a, b = robot.forward(np.array([[0.3, 0.5, 0.1, 0.0], [-0.4, 0.8, 0.05, 0.0]]))
+    >>> obs = simulate_same_point(robot, {"a": a, "b": b}, per_point=2)
+    >>> d = round(float(np.linalg.norm(a - b)) * 1e3, 3)
+    >>> fmt = ObservationFormat(kind="same-point", length_unit="mm", angle_unit="deg", distances=[("a", "b", d)])
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "sockets.csv")
+    ...     write_observations(path, obs, robot, fmt)
+    ...     back = read_observations(path, robot, fmt)
+    >>> type(back).__name__, back.labels.tolist(), back.rows.tolist()
+    ('SamePointObs', ['a', 'a', 'b', 'b'], [2, 3, 4, 5])
+    >>> [(x, y, round(m, 9)) for x, y, m in back.distances], bool(np.allclose(back.q, obs.q, rtol=0.0, atol=1e-9))
+    ([('a', 'b', 0.313686)], True)
+    """
     table = open_table(str(path), "joint, position, orientation, marker, label or σ")  # what its columns may be
     q = _joints(table, robot, fmt)
     lf = unit_factor(fmt.length_unit, "length")
@@ -223,8 +344,55 @@ def _plane(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PlaneObs:
 
 
 def write_observations(path: str, obs: Observation, robot: Robot, fmt: ObservationFormat = ObservationFormat()) -> None:
-    """Write ``obs`` (its type: ``obs.kind``) in the columns ``read_observations`` reads with ``fmt``
-    (atomically): what ``kincal simulate --type`` writes, so a planned set-up can be calibrated."""
+    """Write a set of observations in the columns :func:`read_observations` reads with a format (atomically).
+
+    What ``kincal simulate --type`` writes, so a planned set-up can be calibrated: the type's own columns
+    (positions, orientations, markers, labels) then the joints, in the format's units, numbers to 12
+    significant digits (an unseen marker as an empty cell). Known distances and planes are not written: they
+    are the format's.
+
+    Parameters
+    ----------
+    path : str
+        The file to write.
+    obs : Observation
+        The set (its type: ``obs.kind``), in SI.
+    robot : Robot
+        The robot (its joint names and types).
+    fmt : ObservationFormat, optional
+        The file's columns and units (default: m and rad, the default column names).
+
+    Raises
+    ------
+    ValueError
+        When the set is of no type a file holds (a :class:`JointObs`, or a wrapper: a session's or a
+        drifting set).
+
+    See Also
+    --------
+    read_observations : The inverse.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.observe import ObservationFormat, PointObs, read_observations, write_observations
+    >>> robot = kincal.load_robot("ur5")
+    >>> meas = kincal.simulate(robot, robot.sample_joints(4, seed=1), seed=0)
+    >>> obs = PointObs(meas.q, meas.rows, meas.source, xyz=meas.xyz)
+    >>> fmt = ObservationFormat(length_unit="mm", angle_unit="deg")
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "points.csv")
+    ...     write_observations(path, obs, robot, fmt)
+    ...     with open(path) as f:
+    ...         header = f.readline().strip()
+    ...     back = read_observations(path, robot, fmt)
+    >>> header
+    'x,y,z,j1,j2,j3,j4,j5,j6'
+    >>> type(back).__name__, bool(np.allclose(back.xyz, obs.xyz, rtol=0.0, atol=1e-9)), back.std
+    ('PointObs', True, 1.5e-05)
+    """
     lf = unit_factor(fmt.length_unit, "length")
     scale = np.array(joint_factors(robot.joint_types, fmt.length_unit, fmt.angle_unit))
     header = list(fmt.joint_cols or robot.joint_names)
@@ -267,7 +435,33 @@ SCALE = {"point": "yes", "pose": "yes", "markers": "yes",
 
 
 def describe(robot: Robot, fmt: ObservationFormat) -> list[str]:
-    """What a file of the type ``fmt.kind`` must hold for ``robot``, and what the fit adds."""
+    """What a file of a type must hold for a robot, and what the fit adds.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot (its joint names).
+    fmt : ObservationFormat
+        The file's type, columns and units.
+
+    Returns
+    -------
+    list of str
+        Four lines: the columns, the set-up parameters fitted with the robot, whether the type fixes the
+        length scale, and the σ used.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.observe import ObservationFormat, describe
+    >>> for line in describe(kincal.load_robot("ur5"), ObservationFormat(kind="pose", angle_unit="deg")):
+    ...     print(line)
+    pose files: columns j1, j2, j3, j4, j5, j6 (deg / m) and x, y, z, qw, qx, qy, qz (quat-wxyz)
+    set-up parameters fitted with the robot: target.rx, target.ry, target.rz: the target frame's orientation on
+    the flange (its origin is the tool point); the measurement frame is the robot's base frame
+    fixes the length scale: yes
+    σ used: 0.1 mm, 1 mrad (--std-pos, --std-rot)
+    """
     joints = ", ".join(fmt.joint_cols or robot.joint_names)
     own = {"point": ", ".join(fmt.xyz_cols), "pose": ", ".join(list(fmt.xyz_cols) + list(
                fmt.rot_cols or default_columns(fmt.orientation))) + f" ({fmt.orientation})",

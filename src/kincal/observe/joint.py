@@ -33,9 +33,40 @@ class InJoints:
 
 @dataclass(frozen=True, eq=False)
 class JointObs(InJoints, MeasuredPositions):
-    """Measured positions xyz (N, 3) m at commanded joints q (N, n); residual: inverse kinematics of
-    xyz − q, (N, n) rad or m. σ (rad or m, one number): the joints' reading noise, stated. Its statistics
-    are the position errors (m)."""
+    """Measured positions at commanded joints, with the residual in joint space.
+
+    The residual is the inverse kinematics of xyz − q, (N, n) rad or m: robots with a closed-form inverse
+    (``has_inverse``). Its σ is the joints' reading noise, stated; its statistics are the position errors (m).
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, n)
+        The commanded joint values, rad (m for a prismatic joint).
+    rows : ndarray of int, shape (N,)
+        Each sample's 1-based line number in ``source`` (header = line 1).
+    source : str
+        Where the data come from (a file's path), named in messages.
+    xyz : ndarray, shape (N, 3)
+        The measured positions of the tool point, m.
+    std : float, optional
+        σ of every joint's reading, rad or m (default 1e-4).
+
+    See Also
+    --------
+    in_joint_space : A set of points or poses with its residual in joint space.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.observe import JointObs
+    >>> robot = kincal.load_robot("puu3")
+    >>> meas = kincal.simulate(robot, robot.sample_joints(5, seed=1), noise=0.0)
+    >>> obs = JointObs(meas.q, meas.rows, meas.source, xyz=meas.xyz, std=1e-5)
+    >>> r, Jr, _ = obs.evaluate(robot, robot.params.values, np.zeros(0))
+    >>> obs.kind, r.shape, bool(np.abs(r).max() < 1e-9), obs.sigma()[:3].tolist()
+    ('joint', (15,), True, [1e-05, 1e-05, 1e-05])
+    """
 
     std: float = 1e-4
 
@@ -60,11 +91,56 @@ class JointObs(InJoints, MeasuredPositions):
 
 @dataclass(frozen=True, eq=False)
 class PoseJointObs(InJoints, PoseObs):
-    """Measured 6-D poses (xyz (N, 3) m, R (N, 3, 3)) at read joints q (N, n); residual: the joints that
-    put the platform at the measured pose by the model's closed-form inverse (a hexapod's legs from its
-    pose, no forward solve) − q, (N, n) m or rad. The platform's frame is the measured one turned back
-    by the target's rotation (a set-up parameter, as for :class:`PoseObs`). σ (m or rad, one number):
-    the joints' reading noise, stated. Its statistics are the pose errors (forward kinematics)."""
+    """Measured 6-D poses at read joints, with the residual in joint space.
+
+    The residual is the joints that put the platform at the measured pose by the model's closed-form inverse
+    (a hexapod's legs from its pose, no forward solve: ``has_pose_inverse``) − q, (N, n) m or rad. The
+    platform's frame is the measured one turned back by the target's rotation (a set-up parameter, as for
+    :class:`PoseObs`). Its σ is the joints' reading noise, stated; its statistics are the pose errors
+    (forward kinematics).
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, n)
+        The read joint values, m or rad.
+    rows : ndarray of int, shape (N,)
+        Each sample's 1-based line number in ``source`` (header = line 1).
+    source : str
+        Where the data come from (a file's path), named in messages.
+    xyz : ndarray, shape (N, 3)
+        The measured positions of the target's origin, m.
+    R : ndarray, shape (N, 3, 3)
+        The measured rotations of the target (columns: its axes in the measurement frame).
+    target_rotation : ndarray, shape (3, 3), optional
+        The target's orientation on the platform that the fitted rotation vector starts from (default
+        identity).
+    std_pos : ndarray, shape (N,), or float, optional
+        σ of the positions, m, as for :class:`PoseObs` (default 0.1e-3; the residual's σ is ``std``).
+    std_rot : ndarray, shape (N,), or float, optional
+        σ of the rotations, rad, as for :class:`PoseObs` (default 1e-3; the residual's σ is ``std``).
+    anchored : bool, optional
+        The target rotation was given: :meth:`prepare` keeps it (default False).
+    own_target : bool, optional
+        Held out: the target's point and rotation are re-fitted (default False).
+    std : float, optional
+        σ of every joint's reading, m or rad (default 1e-4).
+
+    See Also
+    --------
+    in_joint_space : A set of poses with its residual in joint space.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.observe import PoseJointObs
+    >>> robot = kincal.load_robot("hexapod")
+    >>> q = robot.sample_joints(4, seed=1)
+    >>> p, R, _, _ = robot.pose_and_jacobian(q)
+    >>> obs = PoseJointObs(q, np.arange(2, 6), "platform.csv", xyz=p, R=R, std=1e-5)
+    >>> obs.kind, obs.sigma().shape, obs.nuisance(robot)[0]
+    ('joint', (24,), ('target.rx', 'target.ry', 'target.rz'))
+    """
 
     std: float = 1e-4
 
@@ -93,9 +169,38 @@ class PoseJointObs(InJoints, PoseObs):
 
 
 def in_joint_space(obs):
-    """``obs`` with its residual in joint space (``residual='joint'``): points as :class:`JointObs`, 6-D poses as
-    :class:`PoseJointObs` (σ the joints' reading noise, ``std``), a session's set inside its session; a set
-    already in joint space as it is. A ValueError for the kinds that measure no pose to invert."""
+    """A set with its residual in joint space (``residual='joint'``).
+
+    Points become a :class:`JointObs`, 6-D poses a :class:`PoseJointObs` (σ: the joints' reading noise,
+    their default ``std``), a session's or a drifting instrument's set is converted inside its wrapper; a
+    set already in joint space is returned as it is.
+
+    Parameters
+    ----------
+    obs : Observation
+        The set (points, poses, or a wrapper of them).
+
+    Returns
+    -------
+    Observation
+        The same samples with the joint-space residual.
+
+    Raises
+    ------
+    ValueError
+        For the kinds that measure no position or pose to invert (markers, same-point, plane).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.observe import PointObs, in_joint_space
+    >>> robot = kincal.load_robot("puu3")
+    >>> meas = kincal.simulate(robot, robot.sample_joints(4, seed=1))
+    >>> obs = in_joint_space(PointObs(meas.q, meas.rows, meas.source, xyz=meas.xyz))
+    >>> type(obs).__name__, obs.kind, in_joint_space(obs) is obs
+    ('JointObs', 'joint', True)
+    """
     if obs.kind == "joint":
         return obs
     if isinstance(obs, Wrapper):

@@ -60,7 +60,41 @@ def flange_point(robot: Robot, q: np.ndarray, values: np.ndarray, point: np.ndar
 
 @dataclass(frozen=True, eq=False)
 class Observation:
-    """Common fields: joint values q (N, n) in rad/m, the input ``rows`` (line numbers) and the ``source`` file."""
+    """What one kind of measurement says about the robot: the interface of every observation type.
+
+    A set of N samples with their joint values; each type adds what was measured and declares its residual
+    (:meth:`evaluate`: predicted − measured, with its derivatives by the robot's parameters and by the set's
+    own set-up parameters, :meth:`nuisance`), the noise σ of every residual component (:meth:`sigma`) and
+    its statistics. The stacked fit is :func:`kincal.identify.fit_observations`.
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, n)
+        Joint values, rad (m for a prismatic joint).
+    rows : ndarray of int, shape (N,)
+        The input rows: each sample's 1-based line number in ``source`` (header = line 1).
+    source : str
+        Where the data come from (a file's path), named in messages.
+
+    See Also
+    --------
+    PointObs, PoseObs, JointObs, MarkersObs, SamePointObs, PlaneObs : The observation types.
+    read_observations : A set read from its file.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.observe import Observation
+    >>> obs = Observation(np.zeros((3, 6)), np.array([2, 3, 4]), "poses.csv")
+    >>> len(obs), obs.kind, obs.reference
+    (3, 'observation', True)
+    >>> obs.without_rows([3]).rows.tolist()
+    [2, 4]
+    >>> obs.sigma()
+    Traceback (most recent call last):
+    ...
+    NotImplementedError: observation data declare no σ
+    """
 
     q: np.ndarray
     rows: np.ndarray
@@ -251,8 +285,40 @@ class MeasuredPositions(Observation):
 
 @dataclass(frozen=True, eq=False)
 class PointObs(MeasuredPositions):
-    """One 3-D point per sample (a tracker's reflector): xyz (N, 3) m in the measurement frame (the
-    robot's base frame parameters), σ (N, 3) m or one number."""
+    """One 3-D point per sample (a tracker's reflector), measured in the measurement frame.
+
+    The measurement frame is given by the robot's base frame parameters. The residual is the tool point's
+    predicted − measured position, component by component: the x of every sample, then y, then z.
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, n)
+        Joint values, rad (m for a prismatic joint).
+    rows : ndarray of int, shape (N,)
+        Each sample's 1-based line number in ``source`` (header = line 1).
+    source : str
+        Where the data come from (a file's path), named in messages.
+    xyz : ndarray, shape (N, 3)
+        The measured points, m.
+    std : ndarray, shape (N, 3), or float, optional
+        σ per sample and axis, or one number for all, m (default 15e-6: a laser tracker's).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.observe import PointObs
+    >>> robot = kincal.load_robot("ur5")
+    >>> meas = kincal.simulate(robot, robot.sample_joints(6, seed=1), noise=15e-6, seed=0)
+    >>> obs = PointObs(meas.q, meas.rows, meas.source, xyz=meas.xyz, std=15e-6)
+    >>> obs.kind, len(obs), obs.reference, obs.positions() is not None
+    ('point', 6, True, True)
+    >>> r, Jr, Jn = obs.evaluate(robot, robot.params.values, np.zeros(0))
+    >>> r.shape, Jr.shape == (18, robot.n_params), Jn.shape, obs.sigma().shape
+    ((18,), True, (18, 0), (18,))
+    >>> bool(np.abs(r).max() < 6 * 15e-6)
+    True
+    """
 
     std: np.ndarray | float = 15e-6
     kind = "point"
@@ -276,9 +342,54 @@ class PointObs(MeasuredPositions):
 
 @dataclass(frozen=True, eq=False)
 class PoseObs(MeasuredPositions):
-    """Full 6-D poses of a target frame on the flange: positions xyz (N, 3) m and rotations R (N, 3, 3) in the
-    measurement frame. The target's origin is the tool point; its orientation on the flange is ``target_rotation``
-    (3, 3) times a fitted rotation vector (``target.rx/ry/rz``, rad). σ (m, rad): per sample (N,) or one number."""
+    """Full 6-D poses of a target frame on the flange, measured in the measurement frame.
+
+    The target's origin is the tool point; its orientation on the flange is ``target_rotation`` times a fitted
+    rotation vector (the set-up parameters ``target.rx/ry/rz``, rad). The residual is the position error (m)
+    and the rotation error (rad: the world-frame rotation vector of predicted·measuredᵀ) of every sample.
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, n)
+        Joint values, rad (m for a prismatic joint).
+    rows : ndarray of int, shape (N,)
+        Each sample's 1-based line number in ``source`` (header = line 1).
+    source : str
+        Where the data come from (a file's path), named in messages.
+    xyz : ndarray, shape (N, 3)
+        The measured positions of the target's origin, m.
+    R : ndarray, shape (N, 3, 3)
+        The measured rotations of the target (columns: its axes in the measurement frame).
+    target_rotation : ndarray, shape (3, 3), optional
+        The target's orientation on the flange that the fitted rotation vector starts from (default identity;
+        :meth:`prepare` sets it from the data unless ``anchored``).
+    std_pos : ndarray, shape (N,), or float, optional
+        σ of the positions per axis, per sample or one number, m (default 0.1e-3).
+    std_rot : ndarray, shape (N,), or float, optional
+        σ of the rotations per axis, per sample or one number, rad (default 1e-3).
+    anchored : bool, optional
+        The target rotation was given (another set's, a training file's): :meth:`prepare` keeps it (default
+        False).
+    own_target : bool, optional
+        Held out: the target's point and rotation are re-fitted, a rigid body defined anew (default False).
+
+    Examples
+    --------
+    Poses of the nominal "ur5", with a target turned 90° about the flange's z axis:
+
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.observe import PoseObs
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = robot.sample_joints(5, seed=1)
+    >>> p, R, _, _ = robot.pose_and_jacobian(q)  # the tool point and the flange's rotation
+    >>> turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    >>> obs = PoseObs(q, np.arange(2, 7), "poses.csv", xyz=p, R=R @ turn, std_pos=50e-6, std_rot=0.5e-3)
+    >>> obs.kind, obs.sigma().shape, obs.nuisance(robot)[0]
+    ('pose', (30,), ('target.rx', 'target.ry', 'target.rz'))
+    >>> bool(np.allclose(obs.prepare(robot).target_rotation, turn))
+    True
+    """
 
     R: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
     target_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))

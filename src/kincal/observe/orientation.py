@@ -33,7 +33,35 @@ ON_A_LINE = 1e-3  # positions whose second principal spread is below this share 
 
 
 def check_convention(name: str) -> str:
-    """``name`` if it is a convention kincal reads, else a ValueError listing them."""
+    """Check that an orientation convention is one kincal reads.
+
+    Parameters
+    ----------
+    name : str
+        The convention: "quat-wxyz", "quat-xyzw", "matrix", "rotvec", "rotvec-deg" or
+        ``euler-<axes>-<intrinsic|extrinsic>-<deg|rad>`` (e.g. "euler-zyx-intrinsic-deg", KUKA's A, B, C).
+
+    Returns
+    -------
+    str
+        ``name``, as it is.
+
+    Raises
+    ------
+    ValueError
+        When kincal does not read it, listing the conventions it reads.
+
+    Examples
+    --------
+    >>> from kincal.observe import check_convention
+    >>> check_convention("euler-xyz-extrinsic-deg")
+    'euler-xyz-extrinsic-deg'
+    >>> check_convention("euler-zyx-deg")
+    Traceback (most recent call last):
+    ...
+    ValueError: orientation 'euler-zyx-deg': use quat-wxyz, quat-xyzw, matrix, rotvec, rotvec-deg or
+    euler-<axes>-<intrinsic|extrinsic>-<deg|rad>, e.g. euler-zyx-intrinsic-deg
+    """
     if name in FIXED or EULER.match(name):
         return name
     raise ValueError(f"orientation '{name}': use quat-wxyz, quat-xyzw, matrix, rotvec, rotvec-deg or "
@@ -41,12 +69,78 @@ def check_convention(name: str) -> str:
 
 
 def default_columns(name: str) -> tuple[str, ...]:
+    """The orientation columns a file of a convention has unless they are renamed.
+
+    Parameters
+    ----------
+    name : str
+        The convention (:func:`check_convention`).
+
+    Returns
+    -------
+    tuple of str
+        The columns' names: qw, qx, qy, qz (quat-wxyz); qx, qy, qz, qw (quat-xyzw); r11, r12, …, r33 (matrix,
+        row by row); rx, ry, rz (rotvec, rotvec-deg); e1, e2, e3 (Euler angles).
+
+    Raises
+    ------
+    ValueError
+        When kincal does not read the convention.
+
+    Examples
+    --------
+    >>> from kincal.observe import default_columns
+    >>> default_columns("quat-wxyz"), default_columns("euler-zyx-intrinsic-deg")
+    (('qw', 'qx', 'qy', 'qz'), ('e1', 'e2', 'e3'))
+    """
     return FIXED.get(check_convention(name), ("e1", "e2", "e3"))
 
 
 def to_matrices(values: np.ndarray, name: str, source: str, rows: np.ndarray) -> np.ndarray:
-    """Rotation matrices (N, 3, 3) from the orientation columns (N, k) read as ``name``; values that
-    are no rotation in that convention are refused, naming the row."""
+    """Rotation matrices from orientation columns read in a convention.
+
+    Values that are no rotation in that convention are refused, naming the row: a quaternion whose norm is
+    off 1 by more than ``UNIT_NORM`` (1e-3; the others are normalised), a matrix farther than that from
+    orthonormal or with a negative determinant, Euler angles in rad beyond 2π.
+
+    Parameters
+    ----------
+    values : ndarray, shape (N, k)
+        The orientation columns, k as the convention has (:func:`default_columns`).
+    name : str
+        The convention (:func:`check_convention`).
+    source : str
+        Where the values come from (a file's path), named in messages.
+    rows : ndarray of int, shape (N,)
+        Each sample's 1-based line number in ``source``, named in messages.
+
+    Returns
+    -------
+    ndarray, shape (N, 3, 3)
+        The rotations (columns: the measured frame's axes).
+
+    Raises
+    ------
+    MeasurementError
+        When a row is no rotation in the convention.
+
+    See Also
+    --------
+    from_matrices : The inverse.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.observe import to_matrices
+    >>> R = to_matrices([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]], "quat-wxyz", "poses.csv", np.array([2, 3]))
+    >>> R[1].tolist()  # half a turn about z
+    [[-1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0]]
+    >>> to_matrices([[1.0, 0.0, 0.0, 0.1]], "quat-wxyz", "poses.csv", np.array([7]))
+    Traceback (most recent call last):
+    ...
+    kincal.errors.MeasurementError: poses.csv: row 7: the orientation is not a unit quaternion (norm 1.005;
+    quat-wxyz) (1 such row(s)); check the columns and --orientation
+    """
     v = np.asarray(values, float)
     if name.startswith("quat"):
         norm = np.linalg.norm(v, axis=1)
@@ -87,7 +181,30 @@ def _quaternion_matrices(xyzw: np.ndarray) -> np.ndarray:
 
 
 def from_matrices(R: np.ndarray, name: str) -> np.ndarray:
-    """The orientation columns (N, k) of rotations R (N, 3, 3) in the convention ``name``."""
+    """The orientation columns of rotations in a convention.
+
+    Parameters
+    ----------
+    R : ndarray, shape (N, 3, 3)
+        The rotations.
+    name : str
+        The convention (:func:`check_convention`).
+
+    Returns
+    -------
+    ndarray, shape (N, k)
+        The orientation columns, in the order of :func:`default_columns` (rotation vectors and Euler angles in
+        the convention's unit).
+
+    Raises
+    ------
+    ValueError
+        When kincal does not read the convention.
+
+    See Also
+    --------
+    to_matrices : The inverse.
+    """
     from scipy.spatial.transform import Rotation
     rot = Rotation.from_matrix(R)
     if name.startswith("quat"):

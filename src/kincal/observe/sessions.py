@@ -16,8 +16,51 @@ from .observations import Wrapper
 
 @dataclass(frozen=True, eq=False)
 class InSession(Wrapper):
-    """``inner`` (an absolute set) measured in the frame of ``session``; ``frame0``: the frame's start
-    values in the order and units of ``robot.base_params()`` (set by the fit from a registration)."""
+    """An absolute set (points, poses, markers) measured in a session's own frame.
+
+    The set is evaluated with the robot's base-frame parameters replaced by the session's frame (set-up
+    parameters ``frame[<session>].<base parameter>``), so the kinematics are shared and each session keeps
+    its frame; the base frame is then a gauge freedom of the set. Build it with ``InSession.of(inner,
+    session, frame0)``.
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, n)
+        Joint values, rad (m for a prismatic joint): the inner set's.
+    rows : ndarray of int, shape (N,)
+        Each sample's 1-based line number in ``source``: the inner set's.
+    source : str
+        Where the data come from: the inner set's.
+    inner : Observation
+        The set measured in the session's frame.
+    session : str, optional
+        The session's name (default '').
+    frame0 : ndarray, shape (B,), optional
+        The frame's start values, in the order and units of ``robot.base_params()`` (m, rad) (default None:
+        set by the fit from a registration).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.observe import InSession, PointObs
+    >>> robot = kincal.load_robot("ur5")
+    >>> meas = kincal.simulate(robot, robot.sample_joints(6, seed=1), seed=0)
+    >>> points = PointObs(meas.q, meas.rows, "tripod-2.csv", xyz=meas.xyz)
+    >>> frame0 = robot.params.values[robot.params.indices(robot.base_params())]
+    >>> obs = InSession.of(points, "tripod-2", frame0)
+    >>> obs.kind, obs.positions() is None
+    ('point', True)
+    >>> names, start, kinds = obs.nuisance(robot)
+    >>> names[:3]
+    ('frame[tripod-2].base.x', 'frame[tripod-2].base.y', 'frame[tripod-2].base.z')
+
+    At its start frame (the robot's base) the residual is the inner set's:
+
+    >>> r, Jr, Jn = obs.evaluate(robot, robot.params.values, start)
+    >>> bool(np.allclose(r, points.evaluate(robot, robot.params.values, np.zeros(0))[0])), Jn.shape
+    (True, (18, 6))
+    """
 
     session: str = ""
     frame0: np.ndarray | None = None
