@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY      = $(VENV)/bin/python
 STAMP   = $(VENV)/.installed
 
-.PHONY: setup demo test test-fast bench clean
+.PHONY: setup demo test test-fast docs bench clean
 
 setup: $(STAMP)
 
@@ -49,6 +49,17 @@ test: setup
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
 
+# the documentation site: warnings are errors, the gallery's scripts run, every internal link is checked
+DOCS_STAMP = $(VENV)/.docs-installed
+$(DOCS_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet --disable-pip-version-check -e '.[dev,docs]'
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	$(VENV)/bin/sphinx-build -W --keep-going -q -b html docs docs/_build/html
+	$(PY) docs/check_links.py docs/_build/html
+	@echo "the site: docs/_build/html/index.html"
+
 bench: setup
 	$(PY) benchmarks/startup.py
 	$(PY) benchmarks/core.py
@@ -59,4 +70,4 @@ bench: setup
 	$(PY) benchmarks/models.py
 
 clean:
-	rm -rf $(VENV) build src/*.egg-info .pytest_cache
+	rm -rf $(VENV) build src/*.egg-info .pytest_cache docs/_build docs/tutorials docs/reference/api
