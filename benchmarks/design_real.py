@@ -8,16 +8,19 @@ grid. The default (IMSE with coverage) is also drawn with 6 stratification seeds
 designs and in how many of the 6 they beat the random median show how much the seed matters.
 (IDE-based methods move poses off the pool, where nothing was measured, so they cannot take part.)
 
-    python benchmarks/design_real.py [ur5|wam]
+    python benchmarks/design_real.py [ur5|wam] [--random N] [--docs]
+
+``--random N``: N random subsets instead of 20. ``--docs`` (or KINCAL_DOCS_TABLES=folder) also writes the
+tables for the documentation site: every criterion, and a summary (random median, D-optimal, the default).
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
 
 import kincal
+from _docs_table import Table, arguments
 from kincal.analysis import free_parameters
 from kincal.design import design_problem
 
@@ -44,7 +47,29 @@ def load(name: str):
     return robot, read(f"{name}_grid.csv"), read(f"{name}_random.csv")
 
 
-def run(name: str, n_random: int = 20) -> list[str]:
+PROTOCOL = ("data/ur5_wam_gts3800: the measured grid poses of each robot (UR5 1000, WAM 216) are the candidate "
+            "pool; each criterion chooses m of them, the geometric calibration on their measurements is scored by "
+            "the mean 3-D position error, mm, on the 20 unseen random poses (test) and on the grid poses not chosen "
+            "(rest). Random: the median of {n} random subsets (seeds 0 to {last}). The default (IMSE, weight 0.3, "
+            "with coverage) is also drawn with {seeds} stratification seeds.")
+
+
+def tables(n_random: int) -> tuple[Table, Table]:
+    """The full table (every criterion) and the summary (random median, D-optimal, the default)."""
+    protocol = PROTOCOL.format(n=n_random, last=n_random - 1, seeds=SEEDS)
+    full = Table("design_real", "Pose design on the measured grids: every criterion", protocol + (
+        " The last column says whether a design beats the random median on each score; for the random row it "
+        "gives the quartiles, for the seeds row in how many seeds the default beat it."),
+        ["robot", "m", "criterion", "test", "rest", "beats the random median?"], widths=[5, 3, 34, 7, 7, 0],
+        align="lrlrrl")
+    summary = Table("design_summary", "Pose design on the measured grids: the default against random and D",
+                    protocol + " Whole grid: the calibration on every grid pose, scored on the test poses.",
+                    ["robot", "m", "random median test / rest", "D-optimal test / rest", "IMSE (default) test / rest",
+                     "whole grid test"], align="lrrrrr")
+    return full, summary
+
+
+def run(name: str, full: Table, n_random: int = 20) -> list[list]:
     robot, grid, test = load(name)
     names = free_parameters(robot, grid.q, "estimate").identifiable  # what a fit on this grid can identify
     P = design_problem(robot, grid.q, names)
@@ -58,25 +83,29 @@ def run(name: str, n_random: int = 20) -> list[str]:
         return kincal.select_poses(robot, grid.q, m=m, problem=P, certify=False, **kw).indices
 
     everything = kincal.calibrate(robot, grid)
-    lines = [f"\n{name.upper()}: pool = {len(grid)} measured grid poses, {P.k} parameters; test = {len(test)} random "
-             f"poses; error in mm (mean)",
-             f"nominal model: test {kincal.evaluate(robot, test).mean * 1e3:.4f}; calibrated on the whole grid: test "
-             f"{kincal.evaluate(everything.robot, test).mean * 1e3:.4f}, grid {everything.stats_after.mean * 1e3:.4f}",
-             f"{'m':>3} {'criterion':<34} {'test':>7} {'rest':>7}   beats the random median?"]
+    whole = kincal.evaluate(everything.robot, test).mean * 1e3
+    print(f"\n{name.upper()}: pool = {len(grid)} measured grid poses, {P.k} parameters; test = {len(test)} random "
+          f"poses; error in mm (mean)\nnominal model: test {kincal.evaluate(robot, test).mean * 1e3:.4f}; calibrated "
+          f"on the whole grid: test {whole:.4f}, grid {everything.stats_after.mean * 1e3:.4f}", flush=True)
+    summary = []
     for m in (30, 60):
         rand = np.array([score(design(m, method="random", criterion="D", seed=s)) for s in range(n_random)])
         med = np.median(rand, axis=0)
         q1, q3 = np.percentile(rand, [25, 75], axis=0)
-        lines.append(f"{m:>3} {f'random, median of {n_random}':<34} {med[0]:7.4f} {med[1]:7.4f}   quartiles test "
-                     f"{q1[0]:.4f}–{q3[0]:.4f}, rest {q1[1]:.4f}–{q3[1]:.4f}")
+        full.row(name.upper(), m, f"random, median of {n_random}", f"{med[0]:.4f}", f"{med[1]:.4f}",
+                 f"quartiles test {q1[0]:.4f}–{q3[0]:.4f}, rest {q1[1]:.4f}–{q3[1]:.4f}")
+        shown = {}
         for label, kw, region in CRITERIA:
             e = score(design(m, validation_q=test.q if region else None, **kw))
-            lines.append(f"{m:>3} {label:<34} {e[0]:7.4f} {e[1]:7.4f}   {_beats(e, med)}")
+            shown[label] = f"{e[0]:.4f} / {e[1]:.4f}"
+            full.row(name.upper(), m, label, f"{e[0]:.4f}", f"{e[1]:.4f}", _beats(e, med))
         seeds = np.array([score(design(m, seed=s)) for s in range(SEEDS)])
         wins = (seeds < med).sum(axis=0)
-        lines.append(f"{m:>3} {f'default, median of {SEEDS} seeds':<34} {np.median(seeds[:, 0]):7.4f} "
-                     f"{np.median(seeds[:, 1]):7.4f}   seeds beating it: test {wins[0]}/{SEEDS}, rest {wins[1]}/{SEEDS}")
-    return lines
+        full.row(name.upper(), m, f"default, median of {SEEDS} seeds", f"{np.median(seeds[:, 0]):.4f}",
+                 f"{np.median(seeds[:, 1]):.4f}", f"seeds beating it: test {wins[0]}/{SEEDS}, rest {wins[1]}/{SEEDS}")
+        summary.append([name.upper(), m, f"{med[0]:.4f} / {med[1]:.4f}", shown["D (Fedorov)"],
+                        shown["IMSE, weight 0.3 (default)"], f"{whole:.4f}"])
+    return summary
 
 
 def _beats(e: np.ndarray, med: np.ndarray) -> str:
@@ -84,8 +113,18 @@ def _beats(e: np.ndarray, med: np.ndarray) -> str:
 
 
 def main() -> None:
-    for name in sys.argv[1:] or ["ur5", "wam"]:
-        print("\n".join(run(name)), flush=True)
+    args = arguments()
+    n_random = 20
+    if "--random" in args:
+        i = args.index("--random")
+        n_random, args = int(args[i + 1]), args[:i] + args[i + 2:]
+    full, summary = tables(n_random)
+    rows = [r for name in args or ["ur5", "wam"] for r in run(name, full, n_random)]
+    full.close()
+    print()
+    for r in rows:
+        summary.row(*r)
+    summary.close()
 
 
 if __name__ == "__main__":
