@@ -73,14 +73,16 @@ def register(cmd) -> None:
                               f"simulation", None)
     s.add_argument("--poses", type=positive_int, default=60, help="poses per design (default 60)")
     s.add_argument("--repeats", type=positive_int, default=20,
-                   help="repetitions with new errors and noise, each from its own random seed (default 20)")
+                   help="repetitions, each with new parameter errors (and, protocol kincal, new noise) from its "
+                        "own random seed; the designs stay (default 20)")
     hidden_alias(s, "--seeds", "repeats", type=positive_int)
     s.add_argument("--robot", choices=["guo3t2r", "guo3t2r-paper"], default="guo3t2r",
                    help="the model: guo3t2r (tool point) or guo3t2r-paper (the paper's fixed A5 tool row)")
     s.add_argument("--plot", help="figures to write (Figs. 5-8, 10, 12-13): STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     s.add_argument("--protocol", choices=list(guo2024.PROTOCOLS), default="kincal",
-                   help="identification: kincal (noise, adaptive LM, identifiable set; default) or paper (no noise, "
-                        "fixed mu = 1, all 21 parameters)")
+                   help="kincal (default): errors only on the identifiable kinematic parameters, 0.015 mm tracker "
+                        "noise, adaptive LM over them; paper: errors on every kinematic parameter (21 on guo3t2r, "
+                        "25 on guo3t2r-paper), no noise, LM with a fixed mu = 1 over all of them")
     s.add_argument("--units", choices=["scaled", "paper"], default="scaled",
                    help="comprehensive index on scaled columns (default) or the raw Jacobian in mm and rad (paper)")
     s = cmd("study", cmd_study, f"Monte-Carlo study: {GUO2024}'s optimised against random poses, as a distribution",

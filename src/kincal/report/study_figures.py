@@ -118,11 +118,17 @@ def validation_summary(errors: dict) -> Figure:
 
 @_styled
 def gcn_against_poses(curve: dict) -> Figure:
-    """Fig. 5: the GCN of the separated model's Jacobian against the number of measurement poses."""
+    """Fig. 5: the GCN of the separated model's Jacobian against the number of measurement poses.
+
+    The Jacobian is raw, in mm and rad (as the paper's Fig. 5), where the separation's tables (kincal
+    tables S1, S2, …) give the GCN of scaled columns: the figure says so in its legend and axis label.
+    """
     fig, ax = _axes(6.0, 3.2)
-    ax.semilogy(curve["m"], curve["gcn"], marker="o", ms=2, lw=0.8, color="#1f77b4")
-    ax.set(xlabel="number of poses", ylabel="GCN (cond / m)",
+    ax.semilogy(curve["m"], curve["gcn"], marker="o", ms=2, lw=0.8, color="#1f77b4",
+                label="raw Jacobian in mm and rad (columns not scaled,\nunlike the separation tables S1, S2, ...)")
+    ax.set(xlabel="number of poses", ylabel="GCN (cond / m), mm and rad",
            title=f"GCN of the separated model ({len(curve['parameters'])} parameters) against the poses (Fig. 5)")
+    ax.legend(fontsize=7, loc="upper right")
     return fig
 
 
@@ -142,8 +148,10 @@ def guo2024_figures(study) -> dict:
     """The figures of Guo et al. 2024's study, by name.
 
     "ide-convergence" (Fig. 6), "pose-count" (Fig. 7), "eta" (Fig. 8: random and separated-parameter
-    designs), "validation-points" (Fig. 12), "validation-summary" (Fig. 13), "gcn" (Fig. 5) and
-    "design-positions" (Fig. 10).
+    designs), "validation-points" (Fig. 12), "validation-summary" (Fig. 13), "gcn" (Fig. 5: raw Jacobian
+    in mm and rad, not the scaled columns of the separation's tables) and "design-positions" (Fig. 10).
+    The identification and validation figures (8, 12, 13) show the first repetition under the study's
+    protocol (``study.protocol``).
 
     Parameters
     ----------
@@ -157,11 +165,17 @@ def guo2024_figures(study) -> dict:
     """
     chosen = {d: study.eta[d] for d in ("random", "separated-parameter optimised")}
     stand_ins = {label.split()[0] for combos in study.combinations.values() for label in combos}
-    return {"ide-convergence": ide_convergence(study.histories), "pose-count": pose_count(study.curve, study.m),
+    figs = {"ide-convergence": ide_convergence(study.histories), "pose-count": pose_count(study.curve, study.m),
             "eta": eta_bars(chosen, list(study.true_errors), stand_ins),
             "validation-points": validation_points(study.point_errors),
             "validation-summary": validation_summary(study.point_errors), "gcn": gcn_against_poses(study.gcn_curve),
             "design-positions": design_positions(study.positions)}
+    index = "the raw Jacobian in mm and rad" if study.units == "paper" else "scaled columns"
+    for name in ("ide-convergence", "pose-count", "design-positions"):  # each figure states its protocol
+        figs[name].supxlabel(f"{study.m}-pose designs, comprehensive index on {index}", fontsize=6)
+    for name in ("eta", "validation-points", "validation-summary"):
+        figs[name].supxlabel(f"first repetition; {study.protocol_text()}", fontsize=6)
+    return figs
 
 
 @_styled

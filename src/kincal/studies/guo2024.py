@@ -2,18 +2,32 @@
 ill-conditioned parameter separation") reproduced on the 3T2R robot: ill-conditioned parameter
 separation, three 60-pose designs
 (random, full-parameter optimised, separated-parameter optimised, both by DETMAX-IDE on the
-comprehensive index), LM identification of parameter errors of 0.5 mm / 0.05 rad with tracker noise,
-identification accuracy η (eq. 29) and validation errors (Table 8), repeated several times (repetition
-k draws its errors and noise from random seed k; the first sets every error as the paper does).
+comprehensive index), LM identification of parameter errors of 0.5 mm / 0.05 rad, identification
+accuracy η (eq. 29) and validation errors (Table 8), repeated several times (repetition k draws its
+errors, and in protocol "kincal" its noise, from random seed k; the first sets every error with a +
+sign, as the paper does).
+
+Two protocols. "kincal" (default): errors are set only on the kinematic parameters that poses spread
+over the workspace identify (the Monte-Carlo study's exact model, :mod:`kincal.studies.guo2024_mc`),
+15 µm tracker noise, adaptive LM over the same identifiable parameters: the fitted model can equal the
+truth (< 1 µm training RMS without noise), so the designs are ranked by how they propagate noise, not
+by a misfit no design can remove (errors on every parameter left about 0.15 mm of misfit: 0.05 rad
+errors break the dependent parameters' first-order dependences). "paper": the paper's own simulation
+(its §4), errors on every kinematic parameter, no noise, LM with a fixed damping μ = 1 in mm and rad
+over all of them.
 
 Deviation from the paper, by necessity: an error model with exact dependences has a zero singular
 value, so every index of it is 0 (or rounding noise) and it cannot steer a design. The "full" model
-is therefore the 21 kinematic parameters less QR's exact dependences, and the "separated" model
-leaves out the branch-and-bound's choice by the paper's rule (the lowest GCN; see
-:func:`~kincal.analysis.separation.separate_ill_conditioned`).
+is therefore the kinematic parameters (21 on guo3t2r, 25 on guo3t2r-paper) less QR's exact
+dependences, and the "separated" model leaves out the branch-and-bound's choice by the paper's rule
+(the lowest GCN; see :func:`~kincal.analysis.separation.separate_ill_conditioned`).
+
+kincal numbers its own separation tables S1, S2, … and names every other printed table after the paper's
+table it is the analogue of, so that no kincal table is read as the paper's.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -21,15 +35,14 @@ import numpy as np
 
 from ..analysis.identifiability import identifiability
 from ..checks import whole
-from ..analysis.separation import TYPES, Separation, gcn, param_type, separate_ill_conditioned
+from ..analysis.separation import SYMBOL, TYPES, Separation, gcn, param_type, separate_ill_conditioned
 from ..design import DesignOptions, candidate_pool, design_problem, pose_count_curve, select_poses
 from ..identify.calibrate import calibrate, evaluate
 from ..identify.positions import EXACT, EvaluationStats, e_statistics
 from ..models.yaml_io import load_robot
 from ..simulate import simulate
-from ..ties import first_best
 from ..units import MM
-from .guo2024_mc import paper_grid
+from .guo2024_mc import PAPER_REDUCTION, paper_grid
 
 DESIGNS = ("random", "full-parameter optimised", "separated-parameter optimised")
 
@@ -40,7 +53,9 @@ class Guo2024Study:
 
     The designs are keyed "random", "full-parameter optimised" and "separated-parameter optimised"; the
     validation and its point errors also hold "before calibration" (the nominal model). Printed
-    (``str``), it gives the paper's tables side by side with kincal's numbers.
+    (``str``), it gives kincal's tables beside the paper's numbers: the separation's as kincal tables
+    S1, S2, … (each naming the paper's table it stands for, if any), the others headed "analogue of the
+    paper's Table k", each with its protocol.
 
     Parameters
     ----------
@@ -61,8 +76,10 @@ class Guo2024Study:
     identified : dict of str to dict of str to float
         Per design, the identified error of each parameter, m or rad (first repetition).
     true_errors : dict of str to float
-        The size of the error set on each kinematic parameter, m or rad (the first repetition sets
-        each with a + sign, as the paper does; the others draw the signs).
+        The size of the error set on each parameter given one, m or rad (the first repetition sets each
+        with a + sign, as the paper does; the others draw the signs): protocol "kincal" the identifiable
+        kinematic parameters only (the others keep their nominal values), protocol "paper" every
+        kinematic parameter.
     validation : dict of str to EvaluationStats
         The 3-D errors on the paper's 60-point grid, first repetition: "before calibration" and each
         design.
@@ -74,8 +91,9 @@ class Guo2024Study:
     m : int
         Poses per design.
     protocol : str, optional
-        "kincal" (default: tracker noise, adaptive LM, the identifiable parameters) or "paper" (no noise,
-        LM with a fixed damping, all parameters).
+        "kincal" (default: errors on the identifiable kinematic parameters, tracker noise, adaptive LM
+        over them) or "paper" (errors on every kinematic parameter, no noise, LM with a fixed damping
+        over all of them).
     units : str, optional
         The designs' index: "scaled" (default, unit-invariant) or "paper" (raw Jacobian in mm and rad).
     histories : dict, optional
@@ -87,9 +105,15 @@ class Guo2024Study:
         (Fig. 12).
     gcn_curve : dict, optional
         The GCN of the separated model's Jacobian against the number of poses: "m", "gcn", "parameters"
-        (Fig. 5).
+        (Fig. 5; raw Jacobian in mm and rad, as the paper, where the separation's tables scale the
+        columns).
     positions : dict, optional
         Per design, the tool positions (m, 3), m (Fig. 10).
+    train_rms : dict, optional
+        First repetition: per design, the RMS of the 3-D residuals on its own poses after the fit, m
+        (below 1 µm without noise when the model can equal the truth).
+    noise : float, optional
+        σ per axis of the simulated tracker noise, m (default 15e-6; 0 in protocol "paper").
 
     See Also
     --------
@@ -115,6 +139,8 @@ class Guo2024Study:
     point_errors: dict = field(default_factory=dict)  # first repetition: validation errors (60, 3) m per model (Fig. 12)
     gcn_curve: dict = field(default_factory=dict)  # GCN of the separated model's Jacobian vs number of poses (Fig. 5)
     positions: dict = field(default_factory=dict)  # design -> tool positions (m, 3) m (Fig. 10)
+    train_rms: dict = field(default_factory=dict)  # first repetition: design -> RMS residual on its own poses, m
+    noise: float = 15e-6  # σ per axis of the tracker noise, m (0 in protocol "paper")
 
     def to_dict(self) -> dict:
         """The study as JSON-ready values (SI: m, rad; η in %)."""
@@ -124,31 +150,53 @@ class Guo2024Study:
                 "ide_history": {k: list(v) for k, v in self.histories.items()}, "pose_count_curve": self.curve,
                 "validation_point_errors": {k: np.asarray(v).tolist() for k, v in self.point_errors.items()},
                 "gcn_curve": self.gcn_curve, "positions": {k: np.asarray(v).tolist() for k, v in self.positions.items()},
-                "true_errors": self.true_errors, "validation": {k: v.to_dict() for k, v in self.validation.items()},
+                "true_errors": self.true_errors, "train_rms": self.train_rms, "noise": self.noise,
+                "validation": {k: v.to_dict() for k, v in self.validation.items()},
                 "repeated": {k: {"mean_of_mean": v[0], "sd_of_mean": v[1], "mean_of_std": v[2], "sd_of_std": v[3]}
                              for k, v in self.repeated.items()}, "repeats": self.repeats, "m": self.m}
 
     def __str__(self) -> str:
-        return "\n".join(["== Ill-conditioned parameter separation (100 random poses) ==", self.separation.tables(),
-                          DEPENDENCE_NOTE, "", *self._designs(), *self._tables(), *self._validation()])
+        return "\n".join(["== Ill-conditioned parameter separation (100 random poses; GCN of scaled columns; kincal "
+                          "tables S1, S2, ..., numbered apart from the paper's) ==",
+                          _relabel_separation(self.separation.tables()), DEPENDENCE_NOTE, "", *self._designs(),
+                          *self._tables(), *self._validation()])
+
+    def protocol_text(self) -> str:
+        """The identification protocol in words (where the errors are set, the noise, the fit).
+
+        Returns
+        -------
+        str
+            One line, e.g. "kincal protocol: errors on the 16 identifiable kinematic parameters only,
+            15 µm noise, adaptive LM over them".
+        """
+        if self.protocol == "paper":
+            return (f"paper protocol: errors on all {len(self.true_errors)} kinematic parameters, no noise, LM with "
+                    f"fixed μ = 1 (mm, rad) over all of them")
+        noise = f"{self.noise * MM * 1e3:g} µm noise" if self.noise else "no noise"
+        return (f"kincal protocol: errors on the {len(self.true_errors)} identifiable kinematic parameters only, "
+                f"{noise}, adaptive LM over them")
 
     def _designs(self) -> list[str]:
         unit = "raw Jacobian in mm and rad" if self.units == "paper" else "unit-invariant scaled columns"
-        out = [f"== Designs of {self.m} poses (DETMAX-IDE, comprehensive index on {unit}) =="]
+        out = [f"== Designs of {self.m} poses (DETMAX-IDE, comprehensive index on {unit}; the final design's "
+               f"index, then the DETMAX design IDE starts from) =="]
         for d in DESIGNS:
             paper = f" (paper: {PAPER_INDEX[d]})" if d in PAPER_INDEX else ""
+            start = f", DETMAX {self.histories[d][0]:.4f}" if len(self.histories.get(d, ())) else ""
             out.append(f"  {d:<31} {len(self.design_params[d]):2d} parameters, comprehensive index "
-                       f"{self.design_values[d]:.4f}{paper}")
+                       f"{self.design_values[d]:.4f}{paper}{start}")
         return out + [""]
 
     def _table(self, values: dict[str, dict[str, float]], fmt) -> list[str]:
         """Per design its ``values`` by joint (rows) and parameter type (columns)."""
-        joints = sorted({n.split('.')[0] for n in self.true_errors})
+        kin = self.separation.names  # every kinematic parameter; blank: the robot has no such parameter
+        joints = sorted({n.split('.')[0] for n in kin})
         rows = []
         for d in DESIGNS:
             rows += [f"  {d}", "    joint " + "".join(f"{'Δ' + t:>10}" for t in TYPES)]
             for j in joints:
-                cells = [f"{'':>10}" if f"{j}.{t}" not in self.true_errors else fmt(f"{j}.{t}", values[d][f"{j}.{t}"])
+                cells = [f"{'':>10}" if f"{j}.{t}" not in kin else fmt(f"{j}.{t}", values[d][f"{j}.{t}"])
                          if f"{j}.{t}" in values[d] else f"{'—':>10}" for t in TYPES]
                 rows.append(f"    {j:<5} " + "".join(cells))
         return rows
@@ -156,48 +204,73 @@ class Guo2024Study:
     def _tables(self) -> list[str]:
         def as_units(name: str, v: float) -> str:  # mm for lengths, rad for angles, as the paper's tables
             return f"{v * MM:10.4f}" if param_type(name) in ("a", "d") else f"{v:10.4f}"
-        how = (f"paper protocol: no noise, LM with fixed μ = 1 (mm, rad), all {len(self.true_errors)} parameters"
-               if self.protocol == "paper"
-               else "kincal protocol: 15 µm noise, adaptive LM, the identifiable parameters")
-        out = [f"== Identified errors, first repetition (Tables 4-5; mm and rad; {how}; set: "
+        out = [f"== Identified errors, first repetition (analogue of the paper's Tables 4-5; mm and rad; "
+               f"{self.protocol_text()}; set: "
                f"{self.true_errors[next(n for n in self.true_errors if param_type(n) == 'a')] * MM:.1f} mm, "
                f"{self.true_errors[next(n for n in self.true_errors if param_type(n) == 'theta')]:.2f} rad) =="]
         out += self._table(self.identified, as_units)
-        out += ["", "== Identification accuracy η (eq. 29), first repetition: % per parameter error (— = not identifiable, "
-                    "kept nominal) =="]
+        out += ["", "== Identification accuracy η (eq. 29; analogue of the paper's Fig. 8), first repetition: % per "
+                    "parameter error (— = not identifiable: no error set on it, kept nominal) =="]
         out += self._table(self.eta, lambda n, v: f"{v:10.2f}")
-        out += ["", "== η of the identifiable combinations (a kept parameter stands for kept + c·dependent) =="]
+        out += ["", "== η of the identifiable combinations (a kept parameter stands for kept + c·dependent"
+                + ("; kincal protocol: the dependent parameters carry no error, so a combination's set value is "
+                   "its kept parameter's)" if self.protocol != "paper" else ")") + " =="]
         for d in DESIGNS:
             out.append(f"  {d}")
             out += [f"    {k:<48} set {c['set']:+.5f}  identified {c['identified']:+.5f}  η "
                     + ("—" if c["eta"] is None else f"{c['eta']:.2f} %") for k, c in self.combinations[d].items()]
-        out += ["", "== Table 6 (η %, optimised vs random; paper row k+1 is kincal joint k for k >= 2, its coupled A1 "
-                    "is kincal's j1 and j2, its A5 tool row guo3t2r-paper's a5 (guo3t2r: the tool point)) =="]
+        out += ["", "== Analogue of the paper's Table 6 (η %, separated-parameter optimised vs random, first "
+                    "repetition; the paper's joint k is kincal's joint k + 1 for k = 2-4 (Δd2 -> j3.d), its coupled "
+                    "A1 is kincal's j1 and j2, its A5 tool row guo3t2r-paper's a5 (guo3t2r: the tool point)) =="]
         opt, rnd = DESIGNS[2], DESIGNS[0]
         for label, (name, paper) in PAPER_TABLE6.items():
             mine = (f"{self.eta[opt][name]:8.2f} {self.eta[rnd][name]:8.2f}" if name and name in self.eta[opt]
                     and name in self.eta[rnd] else f"{'—':>8} {'—':>8}")
-            shown = name if name in self.true_errors else "(tool)"
+            shown = name if name in self.separation.names else "(tool)"
             out.append(f"  {label:<5} {shown:<9} kincal {mine}   paper {paper[0]:8.3f} {paper[1]:8.3f}")
         return out + [""]
 
     def _validation(self) -> list[str]:
-        out = ["== Validation on the paper's 60-point grid, first repetition (Table 8, Figs. 12-13): error e in mm ==",
+        out = [f"== Validation on the paper's 60-point grid, first repetition (analogue of the paper's Table 8, "
+               f"Figs. 12-13; {self.protocol_text()}): error e in mm ==",
                "   (e: the average of the three axis errors, signed, as the paper's Table 8)",
                f"  {'':<31} {'max |e|':>9} {'mean |e|':>9} {'std e':>9}"]
         for k, row in e_statistics(self.point_errors).items():
             out.append(f"  {k:<31} " + " ".join(f"{'< 1 nm':>9}" if v < EXACT else f"{v * MM:9.4f}" for v in row))
-        out += ["", f"== Repeated {self.repeats} times (new errors and noise each): mean ± sd (mm) ==",
+        if self.train_rms:
+            out.append("  RMS residual of each fit on its own design's poses (3-D, mm): " + ", ".join(
+                f"{k} " + ("< 1 nm" if v < EXACT else f"{v * MM:.4f}") for k, v in self.train_rms.items()))
+        what = "new errors and noise from random seed k" if self.noise else "new errors from random seed k, no noise"
+        out += ["", f"== Repeated {self.repeats} times (repetition k: {what}; the designs stay): mean ± sd (mm) ==",
                 f"  {'':<31} {'mean |e|':>22} {'std e':>22}"]
         for k, (mm, ms, sm, ss) in self.repeated.items():
             out.append(f"  {k:<31} {mm * MM:10.4f} ± {ms * MM:<9.4f} {sm * MM:10.4f} ± {ss * MM:<9.4f}")
-        best = DESIGNS[1:][first_best([self.repeated[d][0] for d in DESIGNS[1:]], maximize=False)]
-        rnd = self.repeated["random"][0]
         if max(v[0] for v in self.repeated.values()) < EXACT:
             return out + ["  every design reproduces the validation positions to < 1 nm (no noise): they tie, and the "
                           "differences shown are round-off, not a ranking"]
-        return out + [f"  mean |e| of '{best}' vs random: {100 * (1 - self.repeated[best][0] / rnd):+.1f} % reduction "
-                      f"(one random design; 'kincal study guo2024' gives the distribution)"]
+        rnd = self.repeated["random"][0]
+        red = {d: 100 * (1 - self.repeated[d][0] / rnd) for d in DESIGNS[1:]}
+        return out + [f"  mean |e|, '{DESIGNS[2]}' vs random (the paper's comparison; its Table 8: "
+                      f"{PAPER_REDUCTION} %): {red[DESIGNS[2]]:+.1f} % reduction; '{DESIGNS[1]}' vs random: "
+                      f"{red[DESIGNS[1]]:+.1f} %",
+                      "  (one random design; 'kincal study guo2024' gives the distribution over random designs)"]
+
+
+def _relabel_separation(text: str) -> str:
+    """The separation's tables, numbered 1, 2, … by :meth:`Separation.tables`, as kincal tables S1, S2, …,
+    each naming the paper's table it is the analogue of (its Table 1: the subdomains; Tables 2-3: J_a
+    and J_d), so that none is read under the paper's numbers."""
+    out = []
+    for line in text.splitlines():
+        m = re.match(r"Table (\d+)  (.*)$", line)
+        if m is None:
+            out.append(line)
+            continue
+        sub = re.match(r"GCN of J_(\S+) ", m.group(2))
+        paper = 1 if m.group(1) == "1" else PAPER_SEPARATION_TABLES.get(_TYPE_OF.get(sub.group(1), "") if sub else "")
+        where = f"the paper's Table {paper}" if paper else "none in the paper"
+        out.append(f"kincal table S{m.group(1)}  {m.group(2)}  [analogue: {where}]")
+    return "\n".join(out)
 
 
 DEPENDENCE_NOTE = """why these dependences differ from the paper's Tables 1-3 (a4/a5 and d2/d3 there):
@@ -218,6 +291,8 @@ DEPENDENCE_NOTE = """why these dependences differ from the paper's Tables 1-3 (a
 
 PROTOCOLS = ("kincal", "paper")
 # the paper's Tables 4-6 (the first repetition sets every error as the paper: +0.5 mm, +0.05 rad)
+PAPER_SEPARATION_TABLES = {"a": 2, "d": 3}  # subdomain -> the paper's table of it (Tables 2-3: J_a, J_d)
+_TYPE_OF = {symbol: t for t, symbol in SYMBOL.items()}  # "θ" -> "theta", as the separation's tables print it
 PAPER_INDEX = {"full-parameter optimised": 1.833, "separated-parameter optimised": 2.049}
 PAPER_TABLE6 = {"Δα4": ("j5.alpha", (17.159, 15.964)), "Δd2": ("j3.d", (98.068, 96.673)),
                 "Δd3": ("j4.d", (98.066, 96.671)), "Δd4": ("j5.d", (19.557, 18.796)),
@@ -233,8 +308,9 @@ def guo2024_study(repeats: int = 20, m: int = 60, pool_size: int = 1000, generat
     Separates the ill-conditioned parameters on 100 random poses, designs ``m`` poses three ways (random,
     full-parameter and separated-parameter DETMAX-IDE on the comprehensive index) from a pool of
     ``pool_size`` candidates, identifies parameter errors from each design and validates on the paper's
-    60-point grid, ``repeats`` times (repetition k draws its errors and noise from random seed k; the
-    first sets every error with a + sign, as the paper does). Every option is checked before any work.
+    60-point grid, ``repeats`` times (repetition k draws its errors, and in protocol "kincal" its noise,
+    from random seed k; the first sets every error with a + sign, as the paper does). Every option is
+    checked before any work.
 
     Parameters
     ----------
@@ -247,7 +323,8 @@ def guo2024_study(repeats: int = 20, m: int = 60, pool_size: int = 1000, generat
     generations : int, optional
         IDE generations (default 150).
     noise : float, optional
-        σ per axis of the tracker noise, m (default 15e-6; protocol "kincal" only).
+        σ per axis of the tracker noise, m (default 15e-6; protocol "kincal" only: protocol "paper" has
+        none, as the paper's simulation).
     length_error : float, optional
         Size of the error set on each length parameter, m (default 0.5e-3).
     angle_error : float, optional
@@ -255,9 +332,12 @@ def guo2024_study(repeats: int = 20, m: int = 60, pool_size: int = 1000, generat
     progress : callable, optional
         Called with a line of text at each step.
     protocol : str, optional
-        "kincal" (default): tracker noise, adaptive LM, the identifiable parameters (η of each kept
-        parameter against the combination it stands for); "paper": no noise, LM with a fixed damping
-        μ = 1 in mm and rad, all 21 parameters (η for each, and for the combinations).
+        "kincal" (default): errors only on the kinematic parameters the pool identifies (the others keep
+        their nominal values, so the fitted model can equal the truth: < 1 µm training RMS without
+        noise), tracker noise, adaptive LM over the parameters each design identifies (η of each kept
+        parameter, and of the combination it stands for); "paper": errors on every kinematic parameter
+        (21 on guo3t2r, 25 on guo3t2r-paper), no noise, LM with a fixed damping μ = 1 in mm and rad over
+        all of them (η for each, and for the combinations).
     units : str, optional
         The designs' index: "scaled" (default, unit-invariant) or "paper" (raw Jacobian in mm, rad).
     robot : str, optional
@@ -309,33 +389,37 @@ def guo2024_study(repeats: int = 20, m: int = 60, pool_size: int = 1000, generat
         designs[name], values[name], histories[name] = d.q, d.value, d.history
     curve = pose_count_curve(P, "comprehensive", m_max=100, seed=0).to_dict()  # P: the separated model's
     gcns = gcn_curve(model, pool, reduced)
-    size = {n: length_error if model.params.kinds[model.params.index(n)] == "length" else angle_error for n in kin}
-    eta, combos, identified, validation, repeated, points = _identify(
-        model, kin, designs, size, repeats, 0.0 if protocol == "paper" else noise, protocol, say)
+    noise = 0.0 if protocol == "paper" else noise
+    drawn = kin if protocol == "paper" else full  # the paper sets every error; kincal's exact model the identifiable
+    size = {n: length_error if model.params.kinds[model.params.index(n)] == "length" else angle_error for n in drawn}
+    eta, combos, identified, validation, repeated, points, train = _identify(
+        model, kin, designs, size, repeats, noise, protocol, say)
     return Guo2024Study(sep, design_names, values, eta, combos, identified, size, validation, repeated, repeats, m,
                         protocol, units, histories, curve, points, gcns,
-                        {k: model.forward(q) for k, q in designs.items()})
+                        {k: model.forward(q) for k, q in designs.items()}, train, noise)
 
 
 def gcn_curve(robot, pool: np.ndarray, names, m_max: int = 100) -> dict:
     """Fig. 5: the GCN (cond/m) of the separated model's Jacobian in the paper's units (mm, rad) on
-    the first m poses of the pool, m from the fewest that can identify it to ``m_max``."""
+    the first m poses of the pool, m from the fewest that can identify it to ``m_max``. The columns are
+    raw, as the paper's Fig. 5, where the separation's tables (kincal tables S1, S2, …) scale them, so
+    the two are not on one scale."""
     J = design_problem(robot, pool[:m_max], names, units="paper").J
     ms = list(range(-(-J.shape[2] // 3), min(m_max, len(J)) + 1))
     return {"m": ms, "gcn": [gcn(J[:m].reshape(-1, J.shape[2]), m) for m in ms], "parameters": list(names)}
 
 
 def _identify(robot, kin, designs, size, repeats, noise, protocol, say):
-    """Per repetition (random seed k): errors, identification from each design, validation; the
-    first repetition keeps the details."""
+    """Per repetition (random seed k): errors on the parameters ``size`` names (the others stay
+    nominal), identification from each design, validation; the first repetition keeps the details."""
     q_val = paper_grid(robot)
     idents = {name: identifiability(robot, q, names=kin) for name, q in designs.items()}  # fixed by the design
-    eta, combos, identified, validation, runs, points = {}, {}, {}, {}, {n: [] for n in DESIGNS}, {}
+    eta, combos, identified, validation, runs, points, train = {}, {}, {}, {}, {n: [] for n in DESIGNS}, {}, {}
     for seed in range(repeats):
         say(f"identifying, repetition {seed + 1}/{repeats}")
         rng = np.random.default_rng(seed)
-        sign = np.ones(len(kin)) if seed == 0 else rng.choice([-1.0, 1.0], len(kin))
-        errors = {n: s * size[n] for n, s in zip(kin, sign)}
+        sign = np.ones(len(size)) if seed == 0 else rng.choice([-1.0, 1.0], len(size))
+        errors = {n: 0.0 for n in kin} | {n: s * size[n] for n, s in zip(size, sign)}
         true = robot.with_params({n: robot.params[n] + e for n, e in errors.items()})
         val = simulate(true, q_val, 0.0)
         if seed == 0:
@@ -351,11 +435,12 @@ def _identify(robot, kin, designs, size, repeats, noise, protocol, say):
             runs[name].append(e_statistics({name: err})[name][1:])  # mean |e|, std e
             if seed == 0:
                 validation[name], identified[name], points[name] = evaluate(fitted, val), corr, err
-                eta[name] = {n: _eta(errors[n], corr[n]) for n in corr}
+                eta[name] = {n: _eta(errors[n], corr[n]) for n in corr if errors[n]}  # η needs an error set
                 combos[name] = _combinations(idents[name], errors, corr)
+                train[name] = float(evaluate(fitted, meas).rms)  # the fit's residual on its own poses
     sd = (lambda x: float(x.std(ddof=1))) if repeats > 1 else (lambda x: 0.0)  # over the repetitions
     repeated = {name: tuple(v for x in np.array(r).T for v in (float(x.mean()), sd(x))) for name, r in runs.items()}
-    return eta, combos, identified, validation, repeated, points
+    return eta, combos, identified, validation, repeated, points, train
 
 
 def _eta(true: float, est: float) -> float:
