@@ -171,6 +171,27 @@ def test_the_miss_predicted_from_the_calibration_samples_is_the_gaussian_conditi
     assert np.array_equal(again.poses, qs) and np.array_equal(again.residuals, res)
 
 
+def test_the_leave_one_out_scale_against_refits_without_each_sample():
+    """loo_scale's closed form against conditioning each sample on the others by brute force; misses drawn twice as
+    large as the covariance says give a scale near 4, misses drawn from it near 1 (never below 1)."""
+    from kincal.analysis.changes import loo_scale, miss_covariance
+
+    ur5 = kincal.load_robot("ur5")
+    q = ur5.sample_joints(60, seed=4)
+    A = miss_covariance(ur5.joint_jacobian(q)[:, :3, :], q, np.ones(6, bool), 10e-6, (4e-5,) * 6, 0.4)
+    rng = np.random.default_rng(5)
+    L = np.linalg.cholesky(A)
+    res = 2.0 * (L @ rng.standard_normal((60, 3)))
+    z2 = []
+    for i in range(60):
+        o = [k for k in range(60) if k != i]
+        w = np.linalg.solve(A[np.ix_(o, o)], A[o, i])
+        z2.append(np.sum((res[i] - w @ res[o]) ** 2) / (A[i, i] - A[i, o] @ w))
+    assert loo_scale(A, res) == pytest.approx(np.mean(z2) / 3, rel=1e-8)
+    assert 3.0 < loo_scale(A, res) < 5.5
+    assert loo_scale(A, res / 2.0) < 1.4 and loo_scale(A, res / 20.0) == 1.0
+
+
 def test_the_calibration_keeps_what_it_missed_its_samples_by_in_the_robots_base_frame(true):
     """The samples a calibration keeps are its measured − predicted positions turned into the robot's base frame:
     measured by a tracker turned 30° about z, the misses the record predicts at its own poses match the residuals

@@ -42,7 +42,9 @@ class Repeat:
                   transmission error is a smooth function of the joint's angle, so poses at near angles share it)
     poses      -- (S, n) joints of up to ``SAMPLES`` of the calibration's position samples (evenly by row) ...
     residuals  -- (S, 3) m: ... and what the calibrated model missed them by, in the robot's base frame (measured −
-                  predicted): the miss at a new pose is predicted from them (:meth:`conditioned`)"""
+                  predicted): the miss at a new pose is predicted from them (:meth:`conditioned`)
+    scale      -- ≥ 1, how much larger the kept samples' leave-one-out misses are than the conditioned covariance
+                  says (:func:`loo_scale`): the covariance :meth:`conditioned` gives is multiplied by it"""
 
     names: tuple[str, ...]
     covariance: np.ndarray
@@ -53,6 +55,7 @@ class Repeat:
     length: float = 0.0
     poses: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     residuals: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    scale: float = 1.0
 
     def restricted(self, names) -> "Repeat":
         """The same record over the parameters ``names`` (a subset of :attr:`names`)."""
@@ -105,13 +108,13 @@ class Repeat:
         L = np.linalg.cholesky(A[:S, :S])
         W = np.linalg.solve(L, A[:S, S:])
         mean = W.T @ np.linalg.solve(L, self.residuals)
-        cov = A[S:, S:] - W.T @ W
+        cov = (A[S:, S:] - W.T @ W) * self.scale
         return mean, 0.5 * (cov + cov.T)
 
     def to_dict(self) -> dict:
         return {"parameters": list(self.names), "covariance": self.covariance.tolist(), "dof": self.dof,
                 "sigma": self.sigma, "joints": list(self.joints), "dispersion": self.dispersion, "length": self.length,
-                "poses": self.poses.tolist(), "residuals": self.residuals.tolist()}
+                "poses": self.poses.tolist(), "residuals": self.residuals.tolist(), "scale": self.scale}
 
     @classmethod
     def from_dict(cls, data, label: str) -> "Repeat":
@@ -128,12 +131,12 @@ class Repeat:
             poses = np.array(data.get("poses", []), dtype=float).reshape(-1, max(len(joints), 1))[:, :len(joints)]
             residuals = np.array(data.get("residuals", []), dtype=float).reshape(len(poses), 3)
             out = cls(names, cov, int(data["dof"]), sigma, joints, float(data["dispersion"]), float(data["length"]),
-                      poses, residuals)
+                      poses, residuals, float(data.get("scale", 1.0)))
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelError(f"{label}: the calibration's 'repeat' section is malformed ({exc}); calibrate again") \
                 from None
         if not (np.all(np.isfinite(cov)) and np.all(np.isfinite(out.residuals)) and out.dof > 0
-                and out.dispersion >= 1.0):
+                and out.dispersion >= 1.0 and out.scale >= 1.0):
             raise ModelError(f"{label}: the calibration's 'repeat' section is malformed; calibrate again")
         return out
 
@@ -144,6 +147,20 @@ def miss_covariance(Jq: np.ndarray, q: np.ndarray, revolute: np.ndarray, sigma: 
     revolute joint (periodic, smooth; length 0: δ), δ for a prismatic one. Positive semi-definite: each term is a
     product of a kernel and a Gram matrix."""
     return miss_from_parts(miss_parts(Jq, q, revolute, joints), sigma, length, len(q))
+
+
+def loo_scale(A: np.ndarray, residuals: np.ndarray) -> float:
+    """≥ 1: the mean squared standardised leave-one-out miss of samples whose misses ``residuals`` (S, 3) have the
+    per-axis covariance A (S, S), each predicted from the others by the Gaussian conditional (closed form:
+    residual (A⁻¹ r)ᵢ / (A⁻¹)ᵢᵢ with variance 1 / (A⁻¹)ᵢᵢ; Rasmussen and Williams 2006, eq. 5.12). Above 1 when
+    the field's σ or correlation length, estimated from the same samples, make the conditional too sure of itself.
+    """
+    if len(residuals) < 2:
+        return 1.0
+    inv = np.linalg.inv(A)
+    d = np.diag(inv)
+    z2 = np.sum((inv @ residuals) ** 2, axis=1) / d  # per sample: Σ over the axes of (miss / σ)², 3 on average
+    return max(1.0, float(np.mean(z2)) / 3.0)
 
 
 def miss_parts(Jq: np.ndarray, q: np.ndarray, revolute: np.ndarray,

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._threads import blas_threads
 from ..analysis.changes import ALPHA, Repeat, candidates
 from ..errors import ModelError
 from ..models.robot import Robot
@@ -61,7 +62,8 @@ def check_poses(robot: Robot, pool: np.ndarray, m: int, repeat: Repeat) -> np.nd
     G = cands.G[:, mine].reshape(len(pool), 3, len(mine)) * cands.steps()[mine]
     names = list(robot.base_params())
     F = robot.param_jacobian(pool)[..., robot.params.indices(names)] if names else np.zeros((len(pool), 3, 0))
-    A = repeat.conditioned(robot, pool)[1]  # what is left of the miss where the calibration's samples show it
+    with blas_threads(1):  # OpenBLAS threads spinning on a busy machine make this small dense work 100x slower
+        A = repeat.conditioned(robot, pool)[1]  # what is left of the miss where the calibration's samples show it
     from scipy.special import ndtri  # noqa: PLC0415  (0.4 s to import: not at kincal's start)
 
     seen = sum(kind != "frame" for kind in cands.kinds)  # the directed test's family, Bonferroni at half of α

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._stats import f_sf
+from .._threads import blas_threads
 from ..analysis.changes import ALPHA, Candidates, Repeat, candidates, frame_basis, without
 from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
@@ -290,7 +291,8 @@ def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = Fa
     if len(q) < MIN_CHECK_POSES:
         raise MeasurementError(f"a check needs at least {MIN_CHECK_POSES} poses (the frame takes 6 of the 3 per "
                                f"pose); {len(q)} given. Measure the poses `kincal design CAL --check` chose")
-    expected, A = cal.repeat.conditioned(cal.robot, q)  # what the calibration's own samples say it misses by here
+    with blas_threads(1):  # small dense work: OpenBLAS threads spinning on a busy machine cost 100x (0.4 s)
+        expected, A = cal.repeat.conditioned(cal.robot, q)  # what the calibration's own samples say it misses by
     robot = cal.robot
     if not same_frame:  # the frame of the measured positions less that expected miss
         robot = register_base(robot, q, xyz - _in_frame(register_base(robot, q, xyz), expected))

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..analysis.changes import SAMPLES, Repeat, miss_from_parts, miss_parts
+from ..analysis.changes import SAMPLES, Repeat, loo_scale, miss_from_parts, miss_parts
 from ..models.robot import Robot
 from ..ties import first_best
 from .covariance import normal_inverse
@@ -62,7 +62,13 @@ def repeat_of(robot: Robot, sets, free, J: np.ndarray, r: np.ndarray, posterior:
     extra = {n: float(v) ** 2 for n, v in (held or {}).items() if np.isfinite(v) and n not in free}
     cov = np.block([[0.5 * (cov + cov.T), np.zeros((K, len(extra)))],
                     [np.zeros((len(extra), K)), np.diag(list(extra.values())).reshape(len(extra), len(extra))]])
-    return Repeat((*free, *extra), cov, dof, sigma, joints, dispersion, length, *kept)
+    scale = 1.0
+    if sigma is not None and len(kept[0]):
+        rev = np.array([t == "revolute" for t in robot.joint_types])
+        A = miss_from_parts(miss_parts(robot.joint_jacobian(kept[0])[:, :3, :], kept[0], rev, joints), sigma, length,
+                            len(kept[0]))
+        scale = loo_scale(A, kept[1])
+    return Repeat((*free, *extra), cov, dof, sigma, joints, dispersion, length, *kept, scale)
 
 
 def _kept_samples(robot: Robot, q: np.ndarray, res: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
