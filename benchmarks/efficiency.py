@@ -11,7 +11,7 @@ sockets together) on a UR5 (DH) and the Panda (URDF), N seeds each, 150 poses, 1
 """
 from __future__ import annotations
 
-import dataclasses
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -23,9 +23,6 @@ from kincal.analysis import stacked_jacobian
 from kincal.identify import fit_observations
 from kincal.identify.registration import kabsch
 from kincal.models.transforms import rot_zyx
-from kincal.observe.observations import PointObs
-from kincal.simulate.observations import (simulate_markers, simulate_planes, simulate_poses, simulate_same_point,
-                                          socket_plan)
 
 NOISE = 15e-6
 ROOT = Path(__file__).resolve().parents[1]
@@ -35,6 +32,9 @@ MARKERS = np.array([[0.05, 0.0, 0.1], [-0.03, 0.05, 0.08], [0.0, -0.06, 0.12]])
 PLANES = {"table": (np.array([0, 0, 1.0]), -0.05), "step": (np.array([0, 0, 1.0]), 0.05),
           "wall": (np.array([1.0, 0, 0]), 0.35), "side": (np.array([0, 1.0, 0.0]), -0.3)}
 KINDS = ["point", "pose", "markers", "same-point", "plane", "mixed"]
+
+sys.path.insert(0, str(ROOT / "tests"))  # the simulated sets and the Cramér–Rao check are the tests' own
+from test_observations import _columns, _cramer_rao, _sets, _sockets, _validation  # noqa: E402
 
 
 def run(seeds: int) -> None:
@@ -71,70 +71,6 @@ def run(seeds: int) -> None:
     table.row("mean", "", f"{m[0]:.2f}", f"{m[1]:.2f}", f"{m[0] / m[1]:.3f}",
               "", f"{m[2]:.2f}", f"{m[3]:.2f}", f"{m[2] / m[3]:.3f}")
     table.close()
-
-
-def _sockets(true, seed: int, per: int = 25):
-    """A two-socket plate (50 mm) at 6 places the robot reaches comfortably, 1 µm seat scatter."""
-    pts, dist = socket_plan(true, placements=6, seed=seed)
-    return simulate_same_point(true, pts, per, dist, NOISE, 1e-6, seed)
-
-
-def _sets(kind: str, true, q: np.ndarray, seed: int) -> list:
-    """The simulated data of one kind at joints q (N, n) rad: 15 µm and 0.05 mrad noise."""
-    if kind == "point":
-        m = kincal.simulate(true, q, NOISE, seed=seed)
-        return [PointObs(m.q, m.rows, "sim", xyz=m.xyz, std=NOISE)]
-    if kind == "pose":
-        return [simulate_poses(true, q, TARGET, NOISE, 0.05e-3, seed)]
-    if kind == "markers":
-        return [simulate_markers(true, q, MARKERS, NOISE, 0.1, seed)]
-    if kind == "same-point":
-        return [_sockets(true, seed)]
-    if kind == "mixed":  # a tracker session and socket data in one calibration
-        return _sets("point", true, q[:40], seed) + [_sockets(true, seed, per=10)]
-    return [simulate_planes(true, PLANES, 60, known=("table", "step"), std=NOISE, seed=seed)]
-
-
-def _cramer_rao(fit) -> np.ndarray:
-    """(JᵀΣ⁻¹J)⁻¹ at the stated σ: the fit's covariance without its a-posteriori scale χ²/dof."""
-    M = sum(o.sigma().size for o in fit.observations)
-    dof = max(M - len(fit.identifiability.identifiable), 1)
-    return fit.covariance / (fit.whitened_rms**2 * M / dof)
-
-
-def _columns(fit, names: list[str], Jr: np.ndarray, Jn: np.ndarray) -> np.ndarray:
-    """The columns of the fit's free parameters (its covariance order) from robot and set-up Jacobians."""
-    allJ = np.hstack([Jr, Jn])
-    return np.column_stack([allJ[:, names.index(n)] for n in fit.identifiability.identifiable])
-
-
-def _validation(kind: str, fit, true, seed: int) -> tuple[float, float]:
-    """Validation RMS and its Cramér–Rao prediction, m, on what the kind observes: positions at 200 new poses
-    with rigid motions projected out (points, poses, sockets, mixed), the first marker (markers: the flange is
-    not seen), 60 new contacts (planes: distances only)."""
-    qv = true.sample_joints(200, seed=100 + seed)
-    names = list(fit.robot.params.names) + list(fit.nuisance)
-    if kind == "plane":
-        val = dataclasses.replace(simulate_planes(true, PLANES, 60, known=(), std=0.0, seed=seed + 50),
-                                  known={k: PLANES[k] for k in ("table", "step")}, start=fit.observations[0].start)
-        r, Jr, Jn = val.evaluate(fit.robot, fit.robot.params.values, np.array(list(fit.nuisance.values())))
-        J = _columns(fit, names, Jr, Jn)
-        return float(np.sqrt(np.mean(r**2))), float(np.sqrt(np.trace(J @ _cramer_rao(fit) @ J.T) / r.size))
-    if kind == "markers":
-        val = dataclasses.replace(simulate_markers(true, qv, MARKERS[:1], 0.0, 0.0, seed), names=("m1",))
-        r, Jr, Jn3 = val.evaluate(fit.robot, fit.robot.params.values,
-                                  np.array([fit.nuisance[f"marker[m1].{a}"] for a in "xyz"]))
-        Jn = np.zeros((r.size, len(fit.nuisance)))
-        Jn[:, :3] = Jn3
-    else:
-        p, Jp = fit.robot.forward_and_jacobian(qv)
-        r, Jr = (p - true.forward(qv)).T.ravel(), Jp.transpose(1, 0, 2).reshape(-1, Jp.shape[2])
-        Jn = np.zeros((r.size, len(fit.nuisance)))
-    J = _columns(fit, names, Jr, Jn)
-    base = Jr[:, [list(fit.robot.params.names).index(n) for n in fit.robot.base_params()]]
-    proj = np.eye(r.size) - base @ np.linalg.pinv(base)  # rigid motions: not what a calibration is judged on
-    return (float(np.sqrt(np.sum((proj @ r) ** 2) / len(qv))),
-            float(np.sqrt(np.trace(proj @ J @ _cramer_rao(fit) @ J.T @ proj) / len(qv))))
 
 
 def _setup_z(kind: str, fit, true, sets: list) -> list[float]:
