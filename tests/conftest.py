@@ -31,12 +31,12 @@ WAM_COLS = [f"joint_{i}" for i in range(1, 8)]
 
 
 def pytest_configure(config):
-    """Under pytest-xdist (make test: -n 2) each worker shares the two cores with the other: one BLAS
-    thread each, here and in the commands the tests start. OpenBLAS threads that spin on a busy machine
-    make the designs and separations that kincal does not limit itself 5-10x slower."""
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        os.environ["OPENBLAS_NUM_THREADS"] = "1"  # libraries loaded later, and child processes
-        threadpool_limits(1, user_api="blas")  # numpy's, loaded already
+    """One BLAS thread, here and in the commands the tests start: under pytest-xdist (make test: -n 2) each
+    worker shares the two cores with the other, and alone (make test-fast) the tests share them with the rest
+    of the machine. OpenBLAS threads that spin on a busy machine make the designs and separations that kincal
+    does not limit itself 5-10x slower (a pose design 0.3 s -> 20 s) for matrices this small."""
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"  # libraries loaded later, and child processes
+    threadpool_limits(1, user_api="blas")  # numpy's, loaded already
 
 
 def skeleton(text: str, targets) -> list[str]:
@@ -48,10 +48,26 @@ def skeleton(text: str, targets) -> list[str]:
     return out + [text[at:]]
 
 
+@pytest.hookimpl(trylast=True)  # after pytest-xdist's own hook, which names each test's group
 def pytest_collection_modifyitems(config, items):
     """The tests marked slow first, each group in collection order: make test's two workers then share the long
-    ones from the start, and the short ones even out the end (the last long test no longer runs alone)."""
+    ones from the start, and the short ones even out the end (the last long test no longer runs alone).
+
+    Under ``--dist loadgroup`` each test of an ``xdist_group`` must reach the scheduler as ``<id>@<group>``:
+    pytest-xdist 3.8 writes that suffix where pytest ≤ 9.1 kept the id, and pytest 9.2 no longer reads it from
+    there, so every group was silently split over both workers (a shared session fixture computed twice). The
+    suffix is set here where it is missing, and left alone where pytest-xdist set it."""
     items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+    if not os.environ.get("PYTEST_XDIST_WORKER") or not vars(config.option).get("loadgroup"):
+        return
+    for item in items:
+        groups = sorted({str(m.args[0] if m.args else m.kwargs.get("name", "default"))
+                         for m in item.iter_markers("xdist_group")})
+        suffix = "@" + "_".join(groups)
+        if groups and not item.nodeid.endswith(suffix):
+            from _pytest.nodeid import NodeId  # pytest 9.2's structured id, only where the suffix did not hold
+
+            item._id = NodeId.parse(item.nodeid + suffix)
 
 
 @pytest.fixture(scope="session")

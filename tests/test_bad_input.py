@@ -88,8 +88,8 @@ def yaml_case(name, text, code, words, cmd=("show",)):
                          "words": words}, id=name)
 
 
-def case(name, argv, code, words, files=None):
-    return pytest.param({"files": files or {}, "argv": argv, "code": code, "words": words}, id=name)
+def case(name, argv, code, words, files=None, marks=()):
+    return pytest.param({"files": files or {}, "argv": argv, "code": code, "words": words}, id=name, marks=marks)
 
 
 CSV = [
@@ -320,7 +320,8 @@ ARGS = [
     case("sensitivity-zero-samples", ["sensitivity", "ur5", "--samples", "0"], 2, ["at least 1"]),
     case("sensitivity-unknown-param", ["sensitivity", "ur5", "--params", "j9.a"], 1, ["j9.a"]),
     case("demo-zero-repeats", ["demo", "--repeats", "0"], 2, ["at least 1"]),
-    case("demo-too-few-poses", ["demo", "--poses", "2", "--repeats", "1"], 1, ["choose m"]),
+    case("demo-too-few-poses", ["demo", "--poses", "2", "--repeats", "1"], 1, ["choose m"],
+         marks=pytest.mark.slow),  # the separation runs first (~1.3 s)
     case("verify-nothing-to-do", ["verify", "puu3"], 1, ["nothing to do", "-o FILE"]),
     case("verify-measured-without-plan", ["verify", "puu3", "--measured", "{base}/good.csv"], 1, ["needs --plan"]),
     case("verify-plan-not-a-plan", ["verify", "puu3", "--plan", "{base}/good.csv", "--measured", "{base}/good.csv"], 1,
@@ -550,12 +551,13 @@ ROUND2 = [
           options={"reject_outliers": "yes"}),
     # study results files
     case("study-line-not-a-record", STUDY, 1, ["line 2 is not a task record"], files={"s.jsonl": STUDY_HEAD + "[1]\n"}),
+    # these three read the records after the study's preparation (~1.5 s each): slow
     case("study-empty-record-list", STUDY, 1, ["task 0", "one result per trial"],
-         files={"s.jsonl": STUDY_HEAD + '{"task":0,"records":[]}\n'}),
+         files={"s.jsonl": STUDY_HEAD + '{"task":0,"records":[]}\n'}, marks=pytest.mark.slow),
     case("study-records-without-results", STUDY, 1, ["lack the study's results"],
-         files={"s.jsonl": STUDY_HEAD + '{"task":0,"records":[{"trial":0},{"trial":1}]}\n'}),
+         files={"s.jsonl": STUDY_HEAD + '{"task":0,"records":[{"trial":0},{"trial":1}]}\n'}, marks=pytest.mark.slow),
     case("study-records-of-other-trials", STUDY, 1, ["task 0"],
-         files={"s.jsonl": STUDY_HEAD + '{"task":0,"records":[{"trial":5},{"trial":6}]}\n'}),
+         files={"s.jsonl": STUDY_HEAD + '{"task":0,"records":[{"trial":5},{"trial":6}]}\n'}, marks=pytest.mark.slow),
     case("study-header-a-number", STUDY, 1, ["another study"], files={"s.jsonl": "5\n"}),
     # exports: never over what the robot was read from; values checked before writing
     case("export-over-the-source-urdf", ["export", "{d}/cal.yaml", "arm.urdf"], 1, ["would overwrite", "arm.urdf"],

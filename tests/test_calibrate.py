@@ -80,6 +80,7 @@ def test_standard_deviations_match_monte_carlo(ur5):
     assert np.abs(res.correlation - np.eye(len(names))).max() > 0.5  # strongly correlated pairs exist
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("loss", ["huber", "soft_l1"])
 def test_robust_loss_resists_outliers(ur5, loss):
     true = kincal.perturb(ur5, seed=4)

@@ -34,6 +34,7 @@ def test_ur5_real_tracker_data(tmp_path, capsys):
     assert after["mean"] <= 0.105e-3
 
 
+@pytest.mark.slow
 def test_wam_real_tracker_data(tmp_path, capsys):
     out = tmp_path / "wam_cal.yaml"
     run_json(capsys, "calibrate", "wam", DATA / "wam_grid.csv", "-o", out, *units(WAM_COLS))
@@ -109,6 +110,7 @@ def test_separate_command(capsys):
     assert d["subdomain_gcn"]["a"] > 1e8 and "j4.theta" in d["separated"] and "j3.theta" not in d["separated"]
 
 
+@pytest.mark.slow
 def test_console_script_is_installed():
     proc = subprocess.run([sys.executable, "-m", "kincal.cli", "robots", "--json"], capture_output=True, text=True)
     assert proc.returncode == 0 and "ur5" in proc.stdout

@@ -94,6 +94,7 @@ def test_designs_keep_the_whole_arm_above_the_floor_and_out_of_the_box(tmp_path,
     assert (tip_only["arm through half-space 1"] & ~tip_only["half-space 1"]).sum() > 50  # the elbow, not the tip
 
 
+@pytest.mark.slow
 def test_the_segment_box_test_agrees_with_dense_sampling():
     """Segments against a box, 2000 random cases (a tenth parallel to a face): the slab test equals
     'some of 4001 points along the segment lie in the box' wherever that answer is the same for the

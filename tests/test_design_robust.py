@@ -145,6 +145,7 @@ def _settle(true, q, targets):
     return x
 
 
+@pytest.mark.slow
 def test_socket_design_known_distance_as_exact_constraint_and_better_than_random():
     """Sockets: the known distances are eliminated as exact constraints (the reduced problem's
     information on the robot equals the full problem's as the distance σ goes to 0); the chosen 40

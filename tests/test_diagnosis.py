@@ -177,6 +177,7 @@ def test_correct_data_get_no_diagnosis(setups):
     assert res.verdict.status == "good" and res.diagnosis is None
 
 
+@pytest.mark.slow
 def test_reject_outliers_matches_the_outlier_free_fit_and_the_report_names_the_row(tmp_path, capsys):
     """One 50 mm outlier among 80 poses: left out by row, the validation RMS within 1.05x of the fit
     without it; the report names the row."""
@@ -258,6 +259,7 @@ def _bumped(shift, turn, at=149, n=300):
     return robot, true, kincal.Measurements(q, xyz, robot.joint_names, "bumped.csv")
 
 
+@pytest.mark.slow
 def test_a_bumped_tracker_is_named_with_its_row():
     """A frame that moves by 2 mm and turns by 3 mrad at row 151 of one file: the diagnosis names the
     jump and its row first, and with the file split the residual falls to the noise; the data as
@@ -274,6 +276,7 @@ def test_a_bumped_tracker_is_named_with_its_row():
     assert frame_jump(clean.xyz, kincal.calibrate(robot, clean).robot.forward(clean.q)) is None
 
 
+@pytest.mark.slow
 def test_two_set_ups_in_one_file_are_named_not_a_unit(tmp_path, capsys):
     """Two tracker set-ups 0.8 m and 23 deg apart in one file: the calibration is refused with the row
     where the frame jumps as its likely cause (not a length unit, not the joint columns)."""

@@ -103,6 +103,7 @@ def test_round_trip_is_exact(ur5, model, tmp_path):
     assert np.abs(back.forward(q) - robot.forward(q)).max() < 1e-12
 
 
+@pytest.mark.slow
 def test_simulated_compliance_and_harmonics_are_recovered(ur5):
     """Known compliances and harmonic errors + 15 µm noise: every term within 3σ over 10 seeds, and
     the validation RMS within 10 % of the Cramér–Rao prediction of the extended model."""

@@ -106,6 +106,7 @@ def test_small_public_face():
         assert getattr(kincal, name) is not None
 
 
+@pytest.mark.slow
 def test_import_loads_no_heavy_library():
     code = f"import sys, kincal; print([m for m in sys.modules if m.split('.')[0] in {HEAVY!r}])"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout

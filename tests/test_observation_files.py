@@ -419,7 +419,7 @@ def test_per_sample_sigma_from_columns(tmp_path, ur5):
         read_observations(path, ur5, ObservationFormat("pose", tuple(JOINTS), "mm"))
 
 
-@pytest.mark.parametrize("kind", ["same-point", "plane"])
+@pytest.mark.parametrize("kind", [pytest.param("same-point", marks=pytest.mark.slow), "plane"])  # ~1 s, 0.5 s
 def test_design_chooses_samples_of_a_socket_or_plane_plan(tmp_path, capsys, kind):
     """design --type same-point|plane: from kincal's own plan, m samples written in the type's columns
     (read back by the flags it prints), identifying what the whole plan identifies; from a simulated
@@ -481,6 +481,7 @@ def test_known_distances_and_planes_are_checked_once_and_in_reach():
         ObservationFormat("plane", planes={"table": ((0.0, 0.0, 1.0), 1e300)})
 
 
+@pytest.mark.slow
 def test_report_of_an_edited_record_names_what_is_missing(tmp_path, capsys):
     """kincal report on a pose calibration whose record lost how the files were read: one line naming
     the file and the key, exit 1; the intact record reports (exit 0)."""

@@ -60,6 +60,7 @@ def test_negative_compliance_is_dropped():
     np.testing.assert_allclose(fit.robot.params.values, plain.robot.params.values, rtol=0, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_command_line_error_model_for_poses(tmp_path, capsys):
     ur5, true, obs, q = _case(2e-4)
     path, cal = tmp_path / "poses.csv", tmp_path / "cal.yaml"

@@ -3,6 +3,7 @@ robot's base frame) for 6-D poses, checked against the library's fit of the same
 import json
 
 import numpy as np
+import pytest
 from conftest import DATA
 from scipy.spatial.transform import Rotation
 
@@ -36,6 +37,7 @@ def test_base_fixed_for_poses(tmp_path, capsys):
     assert "the base frame is known" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_exclude_rows_of_a_pose_file(tmp_path, capsys):
     ur5 = kincal.load_robot("ur5").with_tool_point([0.05, 0.02, 0.1])
     obs = simulate_poses(kincal.perturb(ur5, seed=3), ur5.sample_joints(80, seed=1),
@@ -60,6 +62,7 @@ def test_exclude_rows_of_a_pose_file(tmp_path, capsys):
     assert "rows of one file" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_figures_for_poses(tmp_path, capsys):
     """--plot for pose data (calibrate and evaluate) writes the five figures, the report embeds them, and
     the per-sample position errors of the same fit (its --residuals file) are the calibrated model's
@@ -121,6 +124,7 @@ def test_learned_prior_for_points_is_the_one_fit_s():
         kincal.FitOptions(prior="relevance", method="pso")
 
 
+@pytest.mark.slow
 def test_diagnosis_of_poses_names_a_negated_joint():
     """6-D poses whose joint 2 column is negated: the fit doubts them, and the one diagnosis, run on
     their positions, names the joint; clean poses are not screened (nothing to explain)."""

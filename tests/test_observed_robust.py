@@ -88,6 +88,7 @@ def test_marker_samples_are_judged_whole(case):
     assert fit.rejected == {obs.source: (int(obs.rows[11]), int(obs.rows[90]))}
 
 
+@pytest.mark.slow
 def test_command_line_leaves_out_bad_poses(case, tmp_path, capsys):
     ur5, true, clean, dirty, q = case
     path = tmp_path / "poses.csv"
@@ -105,6 +106,7 @@ def test_command_line_leaves_out_bad_poses(case, tmp_path, capsys):
     assert "outlier sample(s)" in out and "verdict: SUSPECT" in out  # still named, but down-weighted
 
 
+@pytest.mark.slow
 def test_residuals_file_per_sample(case, tmp_path, capsys):
     """--residuals for pose data: each sample's position and rotation error against the fitted model
     computed here from the written robot and set-up, the outliers flagged where the verdict names them."""

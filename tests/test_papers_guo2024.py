@@ -16,6 +16,7 @@ def noisy():
     return guo2024_study(**{**SHORT, "repeats": 2})
 
 
+@pytest.mark.slow
 def test_the_default_protocol_fits_the_truth_without_noise():
     """Errors only on the identifiable parameters: with no noise every design's fit equals the truth
     (training RMS < 1 µm), so no structural misfit decides the ranking of the designs."""
@@ -27,6 +28,8 @@ def test_the_default_protocol_fits_the_truth_without_noise():
     assert drawn == set(study.design_params["random"]) and drawn < set(study.separation.names)
 
 
+@pytest.mark.slow
+@pytest.mark.xdist_group("guo2024-noisy")
 def test_with_noise_the_fit_is_at_the_noise_level(noisy):
     """15 µm per axis: the 3-D residual RMS is about √3 · 15 µm (less the fitted degrees of freedom),
     not the ~0.15 mm of misfit that errors on the dependent parameters left."""
@@ -34,6 +37,7 @@ def test_with_noise_the_fit_is_at_the_noise_level(noisy):
         assert 15e-6 < rms < np.sqrt(3) * 15e-6 * 1.2, (name, rms)
 
 
+@pytest.mark.xdist_group("guo2024-noisy")
 def test_the_comparison_is_the_papers_and_the_tables_are_kincals(noisy):
     text = str(noisy)
     assert "'separated-parameter optimised' vs random (the paper's comparison" in text
@@ -50,6 +54,7 @@ def test_the_comparison_is_the_papers_and_the_tables_are_kincals(noisy):
         assert "kincal protocol: errors on the 16 identifiable kinematic parameters only, 15 µm noise" in line
 
 
+@pytest.mark.xdist_group("guo2024-noisy")
 def test_the_paper_protocol_is_said_to_have_no_noise(noisy):
     paper = dataclasses.replace(noisy, protocol="paper", noise=0.0)
     how = paper.protocol_text()

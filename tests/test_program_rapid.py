@@ -1,6 +1,7 @@
 """ABB RAPID reader/rewriter: every real module of the shared data read and written back byte for byte,
 targets and listed moves checked against numbers read independently, a synthetic module from the RAPID
 manual's forms (values against closed forms, a changed rewrite), and one broken module per failure."""
+import functools
 import re
 from pathlib import Path
 
@@ -24,6 +25,13 @@ def _rel(path: Path) -> str:
     return str(path.relative_to(FOLDER))
 
 
+@functools.cache
+def _read(path: Path):
+    """A module of the data folder as read_program reads it, once for the tests below that only look at it (a
+    Program is frozen)."""
+    return read_program(str(path), "rapid")
+
+
 def _rotvec(q_wxyz) -> np.ndarray:
     """Independent: scipy's rotation vector of a (w, x, y, z) quaternion."""
     w, x, y, z = q_wxyz
@@ -32,14 +40,14 @@ def _rotvec(q_wxyz) -> np.ndarray:
 
 @pytest.mark.parametrize("path", FILES, ids=_rel)
 def test_every_file_is_read_and_written_back_byte_for_byte(path):
-    prog = read_program(str(path), "rapid")
+    prog = _read(path)
     out = prog.with_values({k: t.values for k, t in enumerate(prog.targets)}).encode(prog.encoding)
     assert out == path.read_bytes()
 
 
 def test_the_data_folder_holds_31_modules_with_312_targets():
     assert len(FILES) == 31
-    kinds = [t.kind for p in FILES for t in read_program(str(p), "rapid").targets]
+    kinds = [t.kind for p in FILES for t in _read(p).targets]
     assert (kinds.count("pose"), kinds.count("joints")) == (300, 12)
 
 
@@ -54,7 +62,7 @@ def test_target_counts_match_a_regex_over_the_raw_text(path):
     raw = path.read_text(encoding="latin-1")
     expected = len(DECLARED.findall(raw)) + len(INLINE.findall(raw))
     expected -= next((n for k, n in CHANGED_IN_FILE.items() if _rel(path).endswith(k)), 0)
-    assert len(read_program(str(path), "rapid").targets) == expected
+    assert len(_read(path).targets) == expected
 
 
 @pytest.mark.parametrize("path", [EGM / "ABB/CRB15000/RAPID/T_ROB1/Module1.modx",

@@ -22,7 +22,8 @@ def fixed_date(monkeypatch):
 
 @pytest.fixture(scope="module")
 def real(tmp_path_factory):
-    """The real UR5 calibration with its report (calibrate --report), and the calibrated robot file."""
+    """The real UR5 calibration with its report (calibrate --report), and the calibrated robot file; the tests
+    that read it share the xdist group "report-real", so that make test's workers compute it once."""
     d = tmp_path_factory.mktemp("report")
     mp = pytest.MonkeyPatch()
     mp.setenv("SOURCE_DATE_EPOCH", "1795000000")
@@ -37,6 +38,7 @@ def page_numbers(html: str) -> dict:
     return {k: float(v) for k, v in re.findall(r'data-key="([^"]+)\.mean">([-0-9.]+)<', html)}
 
 
+@pytest.mark.xdist_group("report-real")
 def test_report_content_matches_its_json(real):
     html = (real / "report.html").read_text()
     data = json.loads((real / "report.json").read_text())
@@ -54,6 +56,7 @@ def test_report_content_matches_its_json(real):
     assert "sha256" in html and "ISO 9283" in html and "j1.d  ~  +1·base.z" in html
 
 
+@pytest.mark.xdist_group("report-real")
 def test_same_input_same_bytes(real, tmp_path, capsys):
     """calibrate --report twice gives the same bytes; kincal report of the saved file the same content."""
     code = main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *UNITS, "--test", str(DATA / "ur5_random.csv"),
@@ -121,6 +124,7 @@ def test_repeated_poses_get_iso9283(ur5, tmp_path):
     assert 'id="iso9283-summary"' in rep.html and "<details open>" in rep.html  # 4 rows: shown open
 
 
+@pytest.mark.xdist_group("report-real")
 def test_plots_for_calibrate_and_evaluate(real, tmp_path, capsys):
     assert main(["evaluate", str(real / "cal.yaml"), str(DATA / "ur5_random.csv"), *UNITS, "--plot",
                  str(tmp_path / "ev.png")]) == 0

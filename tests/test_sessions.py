@@ -34,6 +34,7 @@ def mean_error(robot, meas):
     return float(np.mean(np.linalg.norm(meas.xyz - robot.forward(meas.q), axis=1)))
 
 
+@pytest.mark.slow
 def test_report_registers_each_held_out_session_for_both_models():
     nominal, a, b = ur10_cell()
     res = kincal.calibrate(nominal, a)
@@ -289,6 +290,7 @@ def test_joint_names_flag_renames_the_urdf_joints(tmp_path, capsys):
 
 
 # ---- ISO 9283 on repeated poses --------------------------------------------------------------------
+@pytest.mark.slow
 def test_iso9283_groups_repeats_with_joint_jitter_and_follows_the_standard():
     """An ISO-cube-like session: 5 poses, each measured 3 times with joint readings jittering by up to
     5e-5 rad and 20 µm of tracker noise. AP and RP by the standard's formulas, computed here."""
@@ -332,6 +334,7 @@ def sigma_file(tmp_path, std: np.ndarray, meas, name="s.csv"):
     return path
 
 
+@pytest.mark.slow
 def test_sigma_columns_weight_the_fit_and_set_the_noise_level(tmp_path, capsys):
     robot = kincal.load_robot("ur5")
     true = kincal.perturb(robot, seed=6)
@@ -369,6 +372,7 @@ def test_sigma_columns_must_be_positive(tmp_path):
 
 
 # ---- calibrating from several sessions -------------------------------------------------------------
+@pytest.mark.slow
 def test_sessions_calibrate_jointly_each_in_its_own_frame(tmp_path, capsys):
     nominal, a, b = ur10_cell()
     a, b = a.subset(np.arange(20)), b.subset(np.arange(20))  # two short sessions

@@ -27,6 +27,7 @@ def records(path):
     return lines[0], sorted([r for t in lines[1:] for r in t["records"]], key=lambda r: r["trial"])
 
 
+@pytest.mark.xdist_group("guo2024-small")
 def test_grid_is_the_equally_spaced_one(small):
     q = small.robot.chain_q(small.grid)
     assert small.robot.feasible(small.grid).all() and len(q) == 60
@@ -37,6 +38,7 @@ def test_grid_is_the_equally_spaced_one(small):
     assert part[:, 0].max() <= 0.5 and part[:, 2].min() >= -0.25 and len(part) > 500
 
 
+@pytest.mark.xdist_group("guo2024-small")
 def test_quill_sag_is_quadratic_in_the_extension(small):
     q = small.grid[:6]
     ext = -small.robot.chain_q(q)[:, 2] / 0.5
@@ -240,6 +242,7 @@ def test_the_paper_row_structure_gives_the_papers_a4_a5_pair(capsys):
     assert len(d["identified_errors"]["random"]) == len(kin) == 25
 
 
+@pytest.mark.xdist_group("guo2024-small")
 def test_the_exact_model_is_exact_without_noise(small):
     """Errors are drawn only where spread poses identify them, so every design's fit can equal the
     truth: < 1 µm training RMS with no noise (errors on dependent parameters left ~0.15 mm); with

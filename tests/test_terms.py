@@ -125,6 +125,7 @@ def test_compensate_uses_the_terms(ur5, model):
     assert np.linalg.norm(true.forward(comp.q) - targets, axis=1).mean() < 3 * NOISE
 
 
+@pytest.mark.slow
 def test_warm_up_drift_is_named(ur5):
     true = kincal.perturb(ur5, seed=1)
     q = ur5.sample_joints(200, seed=2)
@@ -192,6 +193,7 @@ def _session(true, nominal, phase, seed, frame):
     return dataclasses.replace(meas, source=f"session{seed}.csv")
 
 
+@pytest.mark.slow
 def test_auto_with_sessions_refuses_a_term_that_does_not_carry_over():
     """Pooled, the harmonics win on held-out regions; on a third, later session they are 30 % worse
     than geometric. Left out one session at a time they lose on both: auto keeps geometric."""
@@ -218,6 +220,7 @@ def test_auto_with_sessions_refuses_a_term_that_does_not_carry_over():
     assert "leave-one-session-out (2 of 2 sessions held out)" in str(choice)
 
 
+@pytest.mark.slow
 def test_auto_with_real_ur5_sessions_holds_out_the_smaller_one(ur5, grid):
     """1000 grid poses and 20 random ones as two sessions: only the 20 are held out (a model fitted to 20
     poses would be judged on how little data it had); the harmonics carry over to them and are kept."""

@@ -68,6 +68,7 @@ def test_real_ur5_grid_is_good(tmp_path, capsys):
     assert len(ev["predicted_sigma"]) == 20 and max(ev["predicted_sigma"]) < 0.05e-3
 
 
+@pytest.mark.slow
 def test_outlier_is_named_and_robust_fits_recover(ur5, sim, tmp_path, capsys):
     true, meas, val = sim
     clean = kincal.evaluate(kincal.calibrate(ur5, meas).robot, val).mean
@@ -153,6 +154,7 @@ def test_extrapolation_fires_rarely_inside_the_training_ranges(ur5):
     assert np.mean(s_in > kincal.analysis.EXTRAPOLATION_RATIO * unc.training_median) > 0.5  # what the old rule did
 
 
+@pytest.mark.slow
 def test_predicted_sigma_matches_monte_carlo(ur5, sim):
     """σ(q) = sqrt(tr(J C Jᵀ)) against the scatter of predictions over repeated noisy calibrations."""
     true, meas, _ = sim

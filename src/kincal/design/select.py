@@ -7,6 +7,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .._threads import blas_threads
 from ..errors import IdentifiabilityError
 from ..models.robot import Robot
 from ..ties import first_best
@@ -196,37 +197,38 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
         ...
     ValueError: m = 100 poses, but the candidate pool holds 60 distinct pose(s) in 60 rows: ...
     """
-    o = (options or DesignOptions()).replace(**changes)
-    pool_q = _checked_pool(robot, pool_q, o, problem, validation_q)
-    if cell is not None:
-        _check_cell(robot, pool_q, cell)
-    t0 = time.perf_counter()
-    P = problem or design_problem(robot, pool_q, o.names, o.base, o.units)
-    if P.r * o.m < P.k:
-        raise IdentifiabilityError(f"{o.m} poses give {P.r * o.m} equations for {P.k} parameters; choose "
-                                   f"m ≥ {-(-P.k // P.r)}")
-    # the left-out terms count for IMSE only; B, the region's mean information, steers criterion I
-    terms, note = robust_terms(robot, P, validation_q, o.weight if o.criterion == "IMSE" else 0.0)
-    rng = np.random.default_rng(o.seed)
-    idx = None
-    history: Sequence[float] = ()
-    if o.method in ("ide", "detmax-ide"):
-        q, J, history = _continuous_design(robot, P, o, terms.B, rng, progress, cell)
-    else:
-        idx = np.asarray(stratified_design(P, terms, o.m, o.criterion, rng) if o.stratified else
-                         _pool_design(P, o, terms.B, rng), dtype=int)
-        q, J = P.q[idx], P.J[idx]
-    if o.criterion == "IMSE":  # stratified, or (method random) a random design, scored
-        value = terms.of_design(P, idx)
-    else:
-        value = _score_blocks(J, o.criterion, terms.B)
-        note = f"{o.criterion}-optimal within the strata" if o.stratified else ""
-    elapsed = time.perf_counter() - t0
-    if bound is None and o.certify:
-        bound = relaxed_bound(P, o.m)
-    note = "\n  ".join(n for n in (P.note, note) if n)
-    return Design(idx, q, o.method, o.criterion, value, _score_blocks(J, "D", None), P.names, bound, elapsed, o.seed,
-                  tuple(float(h) for h in history), note)
+    with blas_threads(1):  # small dense work: OpenBLAS threads spinning on a busy machine cost 20-70x
+        o = (options or DesignOptions()).replace(**changes)
+        pool_q = _checked_pool(robot, pool_q, o, problem, validation_q)
+        if cell is not None:
+            _check_cell(robot, pool_q, cell)
+        t0 = time.perf_counter()
+        P = problem or design_problem(robot, pool_q, o.names, o.base, o.units)
+        if P.r * o.m < P.k:
+            raise IdentifiabilityError(f"{o.m} poses give {P.r * o.m} equations for {P.k} parameters; choose "
+                                       f"m ≥ {-(-P.k // P.r)}")
+        # the left-out terms count for IMSE only; B, the region's mean information, steers criterion I
+        terms, note = robust_terms(robot, P, validation_q, o.weight if o.criterion == "IMSE" else 0.0)
+        rng = np.random.default_rng(o.seed)
+        idx = None
+        history: Sequence[float] = ()
+        if o.method in ("ide", "detmax-ide"):
+            q, J, history = _continuous_design(robot, P, o, terms.B, rng, progress, cell)
+        else:
+            idx = np.asarray(stratified_design(P, terms, o.m, o.criterion, rng) if o.stratified else
+                             _pool_design(P, o, terms.B, rng), dtype=int)
+            q, J = P.q[idx], P.J[idx]
+        if o.criterion == "IMSE":  # stratified, or (method random) a random design, scored
+            value = terms.of_design(P, idx)
+        else:
+            value = _score_blocks(J, o.criterion, terms.B)
+            note = f"{o.criterion}-optimal within the strata" if o.stratified else ""
+        elapsed = time.perf_counter() - t0
+        if bound is None and o.certify:
+            bound = relaxed_bound(P, o.m)
+        note = "\n  ".join(n for n in (P.note, note) if n)
+        return Design(idx, q, o.method, o.criterion, value, _score_blocks(J, "D", None), P.names, bound, elapsed,
+                      o.seed, tuple(float(h) for h in history), note)
 
 
 def _checked_pool(robot: Robot, pool_q: np.ndarray, o: DesignOptions, problem: DesignProblem | None,
