@@ -33,7 +33,8 @@ PLANES = {"table": (np.array([0, 0, 1.0]), -0.05), "step": (np.array([0, 0, 1.0]
           "wall": (np.array([1.0, 0, 0]), 0.35), "side": (np.array([0, 1.0, 0.0]), -0.3)}
 KINDS = ["point", "pose", "markers", "same-point", "plane", "mixed"]
 
-sys.path.insert(0, str(ROOT / "tests"))  # the simulated sets and the Cramér–Rao check are the tests' own
+sys.path[:0] = [str(ROOT / "tests" / "observe"), str(ROOT / "tests")]  # the simulated sets and the Cramér–Rao
+# check are the tests' own (tests/observe/test_observations.py, which reads tests/conftest.py)
 from test_observations import _columns, _cramer_rao, _sets, _sockets, _validation  # noqa: E402
 
 

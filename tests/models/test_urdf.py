@@ -14,7 +14,7 @@ from kincal.analysis import stacked_jacobian
 from kincal.cli import main
 
 
-UR5_URDF = Path(__file__).parent / "data" / "urdf" / "ur5_robot.urdf"
+UR5_URDF = Path(__file__).parents[1] / "data" / "urdf" / "ur5_robot.urdf"
 SMR = (0.0, 0.09e-3, 31.0e-3)  # the data set's reflector in the flange (tool0) frame, m
 UNITS = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
 

@@ -10,7 +10,7 @@ from kincal.cli import main
 from kincal.models.gravity import G, GravityModel
 
 NOISE = 15e-6
-UR5_URDF = __import__("pathlib").Path(__file__).parent / "data" / "urdf" / "ur5_robot.urdf"
+UR5_URDF = __import__("pathlib").Path(__file__).parents[1] / "data" / "urdf" / "ur5_robot.urdf"
 
 
 def dh_potential(robot, q, payload):

@@ -15,7 +15,7 @@ import kincal
 from kincal.errors import MeasurementError
 from kincal.models.transforms import rot_zyx
 
-PANDA = Path(__file__).parent / "data" / "urdf" / "panda" / "panda.urdf"
+PANDA = Path(__file__).parents[1] / "data" / "urdf" / "panda" / "panda.urdf"
 TOOL = (0.05, 0.02, 0.10)  # m: a probe off the flange axis, so that every joint moves it
 UNIT_WORDS = ("--length-unit", "--angle-unit", "length unit", "angle unit", " cm", "inch")
 UNIT_CAUSES = ("length-unit", "angle-unit", "joint-unit")

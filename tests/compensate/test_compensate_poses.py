@@ -11,7 +11,7 @@ import kincal
 from kincal.compensate import solve_poses
 from kincal.models.transforms import rotation_log
 
-PANDA = Path(__file__).resolve().parent / "data" / "urdf" / "panda" / "panda.urdf"
+PANDA = Path(__file__).resolve().parents[1] / "data" / "urdf" / "panda" / "panda.urdf"
 
 
 def _case(nominal, n=400, seed=3):

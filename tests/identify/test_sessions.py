@@ -14,7 +14,7 @@ from kincal.identify import refit_frame
 from kincal.models.robot import TOOL_NAMES
 from kincal.models.transforms import rot_zyx
 
-UR5_URDF = Path(__file__).parent / "data" / "urdf" / "ur5_robot.urdf"
+UR5_URDF = Path(__file__).parents[1] / "data" / "urdf" / "ur5_robot.urdf"
 PROBE = np.array([0.0, 0.0, 0.0932])  # the probe on the UR10's flange (m)
 
 

@@ -12,7 +12,7 @@ import kincal
 from kincal.design import design_problem
 from kincal.design.robust import design_imse, exchange_in_strata, medoids, robust_terms, strata
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,7 @@ from kincal.simulate import simulate_poses
 
 from conftest import shared_dataset
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 JUGGLEBOT = shared_dataset("stewart_jugglebot")
 
 

@@ -23,7 +23,7 @@ from kincal.simulate.observations import (
     socket_plan,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PANDA = ROOT / "tests" / "data" / "urdf" / "panda"
 SOCKETS = ROOT / "data" / "panda_sockets"
 TOOL = np.array([0.05, 0.02, 0.1])
