@@ -42,3 +42,14 @@ def test_separation_on_the_3t2r_robot():
     assert kincal.identifiability(robot, candidate_pool(robot, 100, seed=0), names=kept).full_rank
     assert sep.gcn_reduced < 1e2 < sep.gcn_full
     assert "Table 1" in sep.tables() and "QR" in sep.tables()
+
+
+def test_a_group_that_is_all_candidates_keeps_one_member():
+    """Three parameters that act as one (the UR5's d offsets along parallel axes): every one is a candidate, and
+    removing them all would leave no model; the separation keeps one, as QR does."""
+    import kincal
+    from kincal.analysis import separate_ill_conditioned
+
+    ur5 = kincal.load_robot("ur5")
+    sep = separate_ill_conditioned(ur5, ur5.sample_joints(50, seed=0), names=["j2.d", "j3.d", "j4.d"])
+    assert len(sep.separated) == 2 and set(sep.separated) == set(sep.qr_dropped)

@@ -50,8 +50,11 @@ def gcn(J: np.ndarray, m: int) -> float:
 
 
 def averaged_gcn(J: np.ndarray) -> float:
-    """Mean GCN of the first 1…M poses of J (M, 3, k)."""
+    """Mean GCN of the first 1…M poses of J (M, 3, k); inf without columns (no model left to condition: a
+    separation that would remove every parameter is never the best)."""
     M, _, k = J.shape
+    if k == 0:
+        return float("inf")
     return float(np.mean([gcn(J[:m].reshape(-1, k), m) for m in range(1, M + 1)]))
 
 
