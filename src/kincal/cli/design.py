@@ -124,7 +124,7 @@ def _criterion_flags(s) -> None:
     s.add_argument("--criterion", choices=list(kincal.design.DESIGN_CRITERIA),
                    help="IMSE (default for fedorov and random): the smallest mean squared prediction error where the "
                         "robot is used, counting error terms geometry cannot describe (it won on the real UR5 and WAM, "
-                        "see the README); D for detmax and the IDE")
+                        "see docs/explanation/validation.md); D for detmax and the IDE")
     s.add_argument("--use", help="CSV of joint values where the robot will work (the region of use of IMSE and I; "
                                  "default: the candidates)")
     s.add_argument("--coverage", action=argparse.BooleanOptionalAction, default=None,

@@ -133,7 +133,7 @@ def cmd_export(args) -> int:
         tcp = np.array(info["tool_point"]) * MM
         lines.append(f"set the TCP on the controller to x {tcp[0]:+.4f}, y {tcp[1]:+.4f}, z {tcp[2]:+.4f} mm (the "
                      f"tool point in the UR flange frame); the driver will warn that the file's hash does not match "
-                     f"the robot's factory calibration: expected for a tracker calibration (see the README)")
+                     f"the robot's factory calibration: expected for a tracker calibration (see docs/howto/export.md)")
     return emit(args, {**info, "output": args.output}, "\n".join(lines))
 
 

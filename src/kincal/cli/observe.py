@@ -121,7 +121,7 @@ def _flag_text(value) -> str:
 def add_flags(p: argparse.ArgumentParser, std: bool = True) -> None:
     """The data flags (:func:`add_data_flags`, ``std``: with --std-cols) and those of the measurement types."""
     add_data_flags(p, std)
-    g = p.add_argument_group("measurement types (see the README's 'Other measurements')")
+    g = p.add_argument_group("measurement types (see docs/howto/measurements.md)")
     g.add_argument("--type", type=csv_list, metavar="TYPE[,TYPE...]",
                    help="point (default: one 3-D point per pose), pose (position + orientation), markers (NAME.x/.y/.z "
                         "columns), same-point (sockets: a label column, known distances), plane (plane contacts); "

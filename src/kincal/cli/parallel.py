@@ -299,7 +299,7 @@ def register(cmd) -> None:
                         "the $config.dat beside a KRL program (R1/System, with $ROBROOT_C from STEU/Mada/$machine.dat "
                         "for its bases) are read without it; a frame none of them gives is refused, never taken as "
                         "the identity; a frame taught on the robot (taught: {rule, joints, tool}) is corrected as the "
-                        "measurement it is (README)")
+                        "measurement it is (docs/howto/compensate.md)")
     s.add_argument("--path", action="store_true",
                    help="the rows are consecutive targets of one path: a row whose corrected command jumps much "
                         "more from the previous one than the nominal commands do is refused and named")

@@ -24,7 +24,7 @@ from .options import FitOptions
 from .stacked import fit_sets
 from .verdict import MAX_OUTLIER_SHARE
 
-POSITION_KINDS = ("point", "joint")  # kinds whose default prior is none (held-out evidence: README, "prior")
+POSITION_KINDS = ("point", "joint")  # kinds whose default prior is none (held-out: docs/howto/measurements.md)
 ABSOLUTE = ("point", "pose", "markers")  # kinds measured in an instrument's frame (which may move between files)
 
 

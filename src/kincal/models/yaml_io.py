@@ -138,7 +138,7 @@ def load_robot(name_or_path: str | os.PathLike, base_link: str | None = None, ti
     except (TypeError, AttributeError, KeyError, ValueError, IndexError) as exc:  # a shape no check foresaw
         if not urdf:
             raise ModelError(f"{label}: malformed robot file ({type(exc).__name__}: {exc}); see the robot YAML "
-                             f"format in the README") from None
+                             f"format in docs/reference/formats.md") from None
         if not isinstance(exc, (TypeError, ValueError)):
             raise
         raise ModelError(f"{label}: malformed URDF ({exc})") from None
