@@ -39,6 +39,7 @@ from .observability import column_scale
 
 TYPES = ("theta", "alpha", "a", "d", "beta")
 SYMBOL = {"theta": "θ", "alpha": "α", "a": "a", "d": "d", "beta": "β"}
+PAPER_TABLES = {"a": 2, "d": 3}  # subdomain -> the paper's table of it (Guo et al. 2024, Tables 2-3: J_a, J_d)
 GCN_FLOOR = 1e-10  # singular values below this fraction of σ_max are an exact dependence
 
 
@@ -62,9 +63,9 @@ def averaged_gcn(J: np.ndarray) -> float:
 class Separation:
     """Outcome of the branch-and-bound separation (GCN values averaged over 1…M poses).
 
-    Built by :func:`separate_ill_conditioned`; :meth:`tables` prints the paper's Tables 1–3 (Guo et
-    al. 2024, "Measurement configuration optimization for robot kinematic calibration based on
-    ill-conditioned parameter separation", §3.1).
+    Built by :func:`separate_ill_conditioned`; :meth:`tables` prints kincal's tables S1, S2, …, the
+    analogues of the paper's Tables 1–3 (Guo et al. 2024, "Measurement configuration optimization for robot
+    kinematic calibration based on ill-conditioned parameter separation", §3.1), each naming its analogue.
 
     Parameters
     ----------
@@ -137,11 +138,15 @@ class Separation:
                 "notes": list(self.notes)}
 
     def tables(self) -> str:
-        """The paper's Tables 1–3 and the model comparison, as text."""
-        out = ["Table 1  GCN of each subdomain of the error model",
+        """kincal's tables S1, S2, … (analogues of the paper's Tables 1–3, named so that none is read under the
+        paper's numbers) and the model comparison, as text."""
+        out = ["kincal table S1  GCN of each subdomain of the error model  [analogue: the paper's Table 1]",
                "  " + "  ".join(f"J_{SYMBOL[t]:<2} {self.subdomain_gcn[t]:10.4g}" for t in self.subdomain_gcn)]
         for n, (t, rows) in enumerate(self.branches.items(), start=2):
-            out.append(f"Table {n}  GCN of J_{SYMBOL[t]} with one parameter separated (threshold {self.threshold:g})")
+            paper = PAPER_TABLES.get(t)
+            where = f"the paper's Table {paper}" if paper else "none in the paper"
+            out.append(f"kincal table S{n}  GCN of J_{SYMBOL[t]} with one parameter separated (threshold "
+                       f"{self.threshold:g})  [analogue: {where}]")
             out.append("  " + "  ".join(f"-{name:<9} {g:10.4g}" for name, g in rows))
         out.append("Reconstructed models (eq. 27-28): GCN with the candidates removed (before step 4)")
         for removed, g in self.models:

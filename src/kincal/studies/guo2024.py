@@ -27,7 +27,6 @@ table it is the analogue of, so that no kincal table is read as the paper's.
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -35,7 +34,7 @@ import numpy as np
 
 from ..analysis.identifiability import identifiability
 from ..checks import whole
-from ..analysis.separation import SYMBOL, TYPES, Separation, gcn, param_type, separate_ill_conditioned
+from ..analysis.separation import TYPES, Separation, gcn, param_type, separate_ill_conditioned
 from ..design import DesignOptions, candidate_pool, design_problem, pose_count_curve, select_poses
 from ..identify.calibrate import calibrate, evaluate
 from ..identify.positions import EXACT, EvaluationStats, e_statistics
@@ -158,7 +157,7 @@ class Guo2024Study:
     def __str__(self) -> str:
         return "\n".join(["== Ill-conditioned parameter separation (100 random poses; GCN of scaled columns; kincal "
                           "tables S1, S2, ..., numbered apart from the paper's) ==",
-                          _relabel_separation(self.separation.tables()), DEPENDENCE_NOTE, "", *self._designs(),
+                          self.separation.tables(), DEPENDENCE_NOTE, "", *self._designs(),
                           *self._tables(), *self._validation()])
 
     def protocol_text(self) -> str:
@@ -256,23 +255,6 @@ class Guo2024Study:
                       "  (one random design; 'kincal study guo2024' gives the distribution over random designs)"]
 
 
-def _relabel_separation(text: str) -> str:
-    """The separation's tables, numbered 1, 2, … by :meth:`Separation.tables`, as kincal tables S1, S2, …,
-    each naming the paper's table it is the analogue of (its Table 1: the subdomains; Tables 2-3: J_a
-    and J_d), so that none is read under the paper's numbers."""
-    out = []
-    for line in text.splitlines():
-        m = re.match(r"Table (\d+)  (.*)$", line)
-        if m is None:
-            out.append(line)
-            continue
-        sub = re.match(r"GCN of J_(\S+) ", m.group(2))
-        paper = 1 if m.group(1) == "1" else PAPER_SEPARATION_TABLES.get(_TYPE_OF.get(sub.group(1), "") if sub else "")
-        where = f"the paper's Table {paper}" if paper else "none in the paper"
-        out.append(f"kincal table S{m.group(1)}  {m.group(2)}  [analogue: {where}]")
-    return "\n".join(out)
-
-
 DEPENDENCE_NOTE = """why these dependences differ from the paper's Tables 1-3 (a4/a5 and d2/d3 there):
   - the paper sets the partial derivatives of its coupled A1 by theta1, alpha1, a1, d1 to zero (its section 1),
     so they cannot take part in a dependence; kincal models A1 as two DH rows (carriage j1, arm j2) whose
@@ -291,8 +273,6 @@ DEPENDENCE_NOTE = """why these dependences differ from the paper's Tables 1-3 (a
 
 PROTOCOLS = ("kincal", "paper")
 # the paper's Tables 4-6 (the first repetition sets every error as the paper: +0.5 mm, +0.05 rad)
-PAPER_SEPARATION_TABLES = {"a": 2, "d": 3}  # subdomain -> the paper's table of it (Tables 2-3: J_a, J_d)
-_TYPE_OF = {symbol: t for t, symbol in SYMBOL.items()}  # "θ" -> "theta", as the separation's tables print it
 PAPER_INDEX = {"full-parameter optimised": 1.833, "separated-parameter optimised": 2.049}
 PAPER_TABLE6 = {"Δα4": ("j5.alpha", (17.159, 15.964)), "Δd2": ("j3.d", (98.068, 96.673)),
                 "Δd3": ("j4.d", (98.066, 96.671)), "Δd4": ("j5.d", (19.557, 18.796)),
