@@ -118,6 +118,9 @@ def test_pose_targets_through_the_command_line(tmp_path, capsys):
     assert out["max_rotation_residual"] < 1e-6 and out["written"] == len(rows) and out["targets"] == 80
     pm, Rm, _, _ = model.pose_and_jacobian(np.deg2rad(cmd[:, 1:7]))
     assert np.abs(pm - p[rows]).max() < 1e-6
+    # calibrated from points: the flange is turned to the targets as the nominal model predicts, and said so
+    assert out["orientation_from"] == "nominal"
+    assert np.abs(nominal.pose_and_jacobian(np.deg2rad(cmd[:, 1:7]))[1] - R[rows]).max() < 1e-6
     assert main(base + ["-o", str(tmp_path / "f.csv"), "--orientation", "euler-zyx-intrinsic-deg",
                         "--output-kind", "cartesian"]) == 0
     capsys.readouterr()
@@ -188,3 +191,29 @@ def test_a_six_d_calibration_commands_in_the_robots_base_frame(tmp_path, capsys)
     assert len(done) >= 18
     miss = np.linalg.norm(robot_frame.forward(cmd) - goals.xyz[done], axis=1)
     assert miss.max() < 0.05e-3, miss.max()
+
+
+def test_a_calibration_from_positions_does_not_turn_the_flange_it_never_saw():
+    """Position data cannot see every turn of the flange their parameters imply (the reflector on the flange's
+    axis): compensating pose targets with such a calibration turned the true flange further from the targets than
+    the nominal commands did. With the nominal model's orientation the true flange is as far as with the nominal
+    commands (no worse), and the positions are still corrected."""
+    from kincal.compensate import compensate_poses
+    from kincal.models.transforms import rotation_log
+
+    nominal = kincal.load_robot("ur5")
+    true = kincal.perturb(nominal, seed=2)
+    q = nominal.sample_joints(200, seed=1)
+    cal = kincal.calibrate(nominal, kincal.simulate(true, q, 15e-6, 1), kincal.FitOptions(diagnose=False)).robot
+    qt = nominal.sample_joints(30, seed=7)
+    R, p = nominal.flange_rotation(qt), nominal.forward(qt)
+    turn = lambda A, B: np.linalg.norm(rotation_log(A @ np.swapaxes(B, 1, 2)), axis=1)  # noqa: E731
+    own = compensate_poses(cal, p, R, qt, nominal=nominal)
+    kept = compensate_poses(cal, p, R, qt, nominal=nominal, orientation=nominal)
+    ok = own.ok & kept.ok
+    before = turn(true.flange_rotation(qt[ok]), R[ok]).mean()
+    assert turn(true.flange_rotation(own.q[ok]), R[ok]).mean() > 1.4 * before  # the unseen turn, applied
+    assert abs(turn(true.flange_rotation(kept.q[ok]), R[ok]).mean() - before) < 0.02 * before
+    assert np.abs(nominal.flange_rotation(kept.q[ok]) - R[ok]).max() < 1e-6 and kept.rotation_residual[ok].max() < 1e-6
+    assert np.linalg.norm(true.forward(kept.q[ok]) - p[ok], axis=1).max() < 0.05 * np.linalg.norm(
+        true.forward(qt[ok]) - p[ok], axis=1).mean()

@@ -21,6 +21,20 @@ from .common import (EXIT_REFUSED, add_data_flags, checked, csv_list, emit, load
                      positive_float, positive_int, progress_bar)
 
 
+ORIENTATION_NOTE = ("orientation: the calibration measured positions only, so the turns of the flange its parameters "
+                    "imply were never seen; the commands turn the flange to the targets as the nominal model predicts "
+                    "and correct the positions with the calibrated one (calibrate from 6-D poses or markers to "
+                    "correct the orientation too)")
+
+
+def _orientation_model(args, nominal):
+    """The model whose flange pose targets are turned to: the nominal one when the calibration measured no
+    orientation (its data were points, sockets or planes), else None (the calibrated model itself)."""
+    record = kincal.models.load_calibration_record(args.robot) or {}
+    kinds = set((record.get("data") or {}).get("kinds") or [])
+    return nominal if args.pose and kinds and not kinds & {"pose", "markers"} else None
+
+
 def cmd_compensate(args) -> int:
     if args.program and os.path.isdir(args.targets):
         return _compensate_folder(args)
@@ -51,14 +65,17 @@ def cmd_compensate(args) -> int:
     fmt = TargetsFormat(args.pose, tuple(args.joint_cols) if args.joint_cols else None, tuple(args.xyz_cols),
                         args.orientation, tuple(args.rot_cols) if args.rot_cols else None, args.length_unit,
                         args.angle_unit)
-    job = StreamJob(r, nominal, fmt, uncertainty, args.output_kind, args.path)
+    turned = _orientation_model(args, nominal)
+    job = StreamJob(r, nominal, fmt, uncertainty, args.output_kind, args.path, turned)
     with progress_bar(args, "compensating") as bar:
         res = compensate_file(job, args.targets, args.output, skip_unreachable=args.skip_unreachable,
                               workers=args.workers, progress=bar)
     payload = {**res.to_dict(), "output": args.output if res.written else None, "target_frame": args.target_frame,
-               "output_kind": args.output_kind, "tool_carry": carry or None}
-    return emit(args, payload, _compensation_text(args, res, r) + (f"\nTCP: {carry}" if carry else ""),
-                0 if res.written else EXIT_REFUSED)
+               "output_kind": args.output_kind, "tool_carry": carry or None,
+               "orientation_from": "nominal" if turned is not None else "calibrated"}
+    text = _compensation_text(args, res, r) + (f"\nTCP: {carry}" if carry else "") + \
+        (f"\n{ORIENTATION_NOTE}" if turned is not None else "")
+    return emit(args, payload, text, 0 if res.written else EXIT_REFUSED)
 
 
 SHOWN_PROBLEMS = 50  # refused rows listed on the terminal (all of them with --json)

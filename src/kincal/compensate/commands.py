@@ -118,7 +118,8 @@ class Compensation:
 
 def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = None, *, damping: float = 1e-4,
                rows: np.ndarray | None = None, uncertainty: ModelUncertainty | None = None,
-               nominal: Robot | None = None, rotations: np.ndarray | None = None) -> Compensation:
+               nominal: Robot | None = None, rotations: np.ndarray | None = None,
+               orientation: Robot | None = None) -> Compensation:
     """Joint commands that place ``robot``'s tool at the targets, each checked before use.
 
     Robots with a closed-form inverse (parallel robots) use it. Otherwise (serial robots) a damped
@@ -152,6 +153,10 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
         is reported.
     rotations : ndarray, shape (N, 3, 3), optional
         Target rotations of the flange: the targets are full poses (:func:`compensate_poses`).
+
+    orientation : Robot, optional
+        With ``rotations``: the model whose flange is turned to them (:func:`compensate_poses`); the nominal
+        model when the calibration measured no orientation.
 
     Returns
     -------
@@ -205,7 +210,10 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
                          f"yet; compensate with a calibration without the covariate term")
     if rotations is not None:
         return compensate_poses(robot, targets, rotations, q_start, rows=rows, uncertainty=uncertainty,
-                                nominal=nominal)
+                                nominal=nominal, orientation=orientation)
+    if orientation is not None:
+        raise ValueError("orientation names the model whose flange is turned to target rotations: it applies to "
+                         "pose targets only (give rotations)")
     if robot.has_pose_inverse:
         raise ModelError(f"robot '{robot.name}' ({robot.structure}): its joints are set by the platform's whole pose; "
                          f"give 6-D targets (position and orientation: --pose)")
@@ -323,12 +331,13 @@ def _reach(robot: Robot, targets: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 ROT_TOL = 1e-6  # rad: a pose command must reproduce the target orientation this closely (6 joints or more)
+ORIENTATION_ROUNDS = 4  # rounds that put another model's flange at the target rotations (each ~1e-3 of the last)
 ORIENT_MISMATCH = 1e-3  # rad: the nominal command's orientation must match the target's this closely
 
 
 def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q_start: np.ndarray | None, *,
                      rows: np.ndarray | None = None, uncertainty: ModelUncertainty | None = None,
-                     nominal: Robot | None = None) -> Compensation:
+                     nominal: Robot | None = None, orientation: Robot | None = None) -> Compensation:
     """Joint commands that put ``robot``'s tool point at target poses, each checked before use.
 
     Each command is checked like a position command (:func:`compensate`) and, with six joints or more,
@@ -354,6 +363,13 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
         The nominal (controller's) model: the set-up is checked first (a TCP, frame or orientation
         mismatch refuses every row), and the filtered poses are given: what to send that controller so
         that its inverse kinematics give these commands.
+
+    orientation : Robot, optional
+        The model whose flange the commands turn to the target rotations (default: ``robot``). Give the nominal
+        model when the calibration measured no orientation (points, sockets, planes): its parameters are then
+        fitted to positions alone, and the turns of the flange they imply are not seen by the data (a UR5
+        calibrated from a reflector on the flange's axis turned the true flange 0.17° from its targets, against
+        0.10° for the nominal commands); the positions still come from ``robot``.
 
     Returns
     -------
@@ -389,7 +405,11 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
     targets, q0, rows = _checked_inputs(robot, targets, q_start, 1e-4, rows)
     rotations = _checked_rotations(rotations, len(targets))
     if robot.has_pose_inverse:  # a hexapod: the legs of each pose in closed form, checked through the forward model
-        return _with_sigma(robot, _closed_form_poses(robot, targets, rotations, rows, nominal), uncertainty)
+        goal = rotations if orientation is None else _closed_form_goal(orientation, robot, targets, rotations)
+        comp = _closed_form_poses(robot, targets, goal, rows, nominal)
+        if orientation is not None:
+            comp = dataclasses.replace(comp, rotation_residual=_model_turn(orientation, comp.q, rotations))
+        return _with_sigma(robot, comp, uncertainty)
     if nominal is not None:
         why = frame_mismatch(nominal, q0, targets, rows) or _orientation_mismatch(nominal, q0, rotations)
         if why:
@@ -397,6 +417,8 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
             return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
     give_up = GIVE_UP * np.array([BRANCH_TOL[t] for t in robot.joint_types])  # refused by the branch check anyway
     sol = solve_poses(robot, targets, rotations, q0, give_up=give_up)
+    if orientation is not None:
+        sol = _turned_as(orientation, robot, targets, rotations, sol, q0, give_up)
     comp = _checked(robot, sol.q, "pose (damped Newton)", sol.iterations, targets, q0, rows, nominal)
     if robot.n_joints >= 6:
         bad = comp.ok & (sol.rotation_error > ROT_TOL)
@@ -408,6 +430,48 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
         comp = dataclasses.replace(comp, warnings=comp.warnings + (
             uncontrolled_warning(robot, float(sol.rotation_error[comp.ok].max())),))
     return comp if nominal is None else dataclasses.replace(comp, filtered=filtered_poses(nominal, sol.q))
+
+
+def _goal(model: Robot, robot: Robot, q: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) the rotations ``robot``'s flange must reach for ``model``'s to reach ``rotations`` at about q
+    (N, n): R_robot(q) R_model(q)ᵀ R* (rows with no finite q keep R*)."""
+    ok = np.all(np.isfinite(q), axis=1)
+    goal = rotations.copy()
+    goal[ok] = robot.flange_rotation(q[ok]) @ np.swapaxes(model.flange_rotation(q[ok]), 1, 2) @ rotations[ok]
+    return goal
+
+
+def _model_turn(model: Robot, q: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+    """(N,) rad: how far ``model``'s flange at q (N, n) stands from ``rotations`` (inf where q is not finite)."""
+    from ..models.transforms import rotation_log
+
+    left = np.full(len(q), np.inf)
+    ok = np.all(np.isfinite(q), axis=1)
+    left[ok] = np.linalg.norm(rotation_log(model.flange_rotation(q[ok]) @ np.swapaxes(rotations[ok], 1, 2)), axis=1)
+    return left
+
+
+def _turned_as(model: Robot, robot: Robot, targets: np.ndarray, rotations: np.ndarray, sol, q0: np.ndarray,
+               give_up: np.ndarray):
+    """Commands at which ``robot``'s tool point reaches the targets and ``model``'s flange (not ``robot``'s) the
+    target rotations: ``robot`` is solved for :func:`_goal`, whose fixed point has R_model(q) = R* (the two
+    differ by fractions of a degree, so a few rounds settle it); the rotation error reported is ``model``'s."""
+    from .poses import solve_poses
+
+    for _ in range(ORIENTATION_ROUNDS):
+        start = np.where(np.all(np.isfinite(sol.q), axis=1)[:, None], sol.q, q0)
+        sol = solve_poses(robot, targets, _goal(model, robot, sol.q, rotations), start, give_up=give_up)
+    return dataclasses.replace(sol, rotation_error=_model_turn(model, sol.q, rotations))
+
+
+def _closed_form_goal(model: Robot, robot: Robot, targets: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+    """:func:`_goal` for a robot whose joints follow from the pose in closed form (a hexapod's legs)."""
+    goal = rotations
+    for _ in range(ORIENTATION_ROUNDS):
+        with np.errstate(invalid="ignore"):
+            q = robot.inverse_pose(goal, targets, strict=False)
+        goal = _goal(model, robot, q, rotations)
+    return goal
 
 
 def _closed_form_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, rows: np.ndarray,

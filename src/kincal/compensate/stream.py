@@ -113,6 +113,9 @@ class StreamJob:
         send a controller moving with ``nominal``; needs pose targets).
     path : bool, optional
         The rows are consecutive targets of one path: continuity is checked (:func:`path_checked`).
+    orientation : Robot or None, optional
+        For pose targets, the model whose flange is turned to the target rotations (default: ``robot``); the
+        nominal model when the calibration measured no orientation (:func:`compensate_poses`).
 
     Raises
     ------
@@ -141,6 +144,7 @@ class StreamJob:
     uncertainty: ModelUncertainty | None = None
     kind: str = "joints"
     path: bool = False
+    orientation: Robot | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in ("joints", "cartesian"):
@@ -439,7 +443,8 @@ def _block(job: StreamJob, stream: Stream, layout: CommandColumns, block: Block,
     rows, q0, xyz, R, rot = _read(job, stream, block, previous if ctx else None)
     if first:
         _first_checks(job, stream, rows, q0, xyz, rot)
-    comp = compensate(job.robot, xyz, q0, rows=rows, rotations=R, nominal=job.nominal, uncertainty=job.uncertainty)
+    comp = compensate(job.robot, xyz, q0, rows=rows, rotations=R, nominal=job.nominal, uncertainty=job.uncertainty,
+                      orientation=job.orientation if R is not None else None)
     if job.path and q0 is not None:
         comp = path_checked(job.robot, comp, q0)
     k = 1 if ctx else 0
