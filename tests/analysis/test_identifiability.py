@@ -1,5 +1,6 @@
 """Identifiability: rank counts from theory, named confounds that hold exactly."""
 import numpy as np
+import pytest
 
 import kincal
 from kincal import Joint
@@ -96,3 +97,9 @@ def test_tall_r_factor_equals_one_householder_qr():
     s, s1 = np.linalg.svd(R, compute_uv=False), np.linalg.svd(R1, compute_uv=False)
     np.testing.assert_allclose(s[:-1], s1[:-1], rtol=1e-10)
     assert s[-1] < 1e-12 * s[0] and s1[-1] < 1e-12 * s1[0]
+
+
+def test_a_name_to_prefer_that_the_robot_does_not_have_is_refused(ur5):
+    """keep names parameters to prefer among confounded ones: a name the robot lacks was silently ignored."""
+    with pytest.raises(kincal.ModelError, match="unknown parameter 'j9.d'"):
+        kincal.identifiability(ur5, ur5.sample_joints(20, seed=1), keep=["j9.d"])

@@ -154,3 +154,12 @@ def test_pool_designs_keep_the_coupled_constraints(method):
     pool = candidate_pool(robot, 500, seed=6)
     d = select_poses(robot, pool, m=25, method=method, criterion="D", seed=1, certify=False)
     assert np.all(robot.feasible(d.q)) and np.all(np.abs(robot.chain_q(d.q)[:, 1]) <= np.pi / 4 + 1e-12)
+
+
+def test_score_refuses_a_criterion_it_cannot_compute():
+    """IMSE needs the design's left-out terms (select_poses computes it); score named no criterion, a KeyError."""
+    from kincal.design import score
+
+    with pytest.raises(ValueError, match="criterion 'IMSE': score takes one of D, A, E, I"):
+        score(np.eye(2), 2, "IMSE")
+    assert float(score(np.eye(2) * 2, 2, "D")) == pytest.approx(2 * np.log(2))

@@ -284,7 +284,8 @@ def identifiability(robot: Robot, q: np.ndarray, names: Sequence[str] | None = N
         raise ValueError(f"rank_tol={rank_tol}: the relative singular-value tolerance must lie in (0, 1)")
     q = robot.check_q(q)
     excluded = set(exclude)
-    robot.params.indices(excluded)  # unknown names raise
+    robot.params.indices(sorted(excluded))  # unknown names raise
+    robot.params.indices(list(keep))  # and so do names to prefer that the robot does not have
     cand = [n for n in (names if names is not None else robot.params.names) if n not in excluded]
     robot.params.indices(cand)
     # a given Jacobian's columns are taken as rows of its transpose: column-major stays column-major

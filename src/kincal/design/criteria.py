@@ -37,7 +37,8 @@ def score(M: np.ndarray, m: int, criterion: str, B: np.ndarray | None = None) ->
     Raises
     ------
     ValueError
-        When ``criterion`` is "I" and ``B`` is None.
+        When ``criterion`` is not one of ``CRITERIA`` (IMSE included: it needs the design's left-out terms), or
+        is "I" and ``B`` is None.
 
     Examples
     --------
@@ -53,6 +54,9 @@ def score(M: np.ndarray, m: int, criterion: str, B: np.ndarray | None = None) ->
     >>> float(score(np.zeros((2, 2)), 2, "D"))
     -inf
     """
+    if criterion not in CRITERIA:
+        raise ValueError(f"criterion '{criterion}': score takes one of {', '.join(CRITERIA)} (IMSE scores a "
+                         f"design with its left-out terms: select_poses)")
     M = np.asarray(M, dtype=float)
     if criterion == "D":
         sign, val = np.linalg.slogdet(M)
