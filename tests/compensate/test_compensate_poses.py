@@ -217,3 +217,21 @@ def test_a_calibration_from_positions_does_not_turn_the_flange_it_never_saw():
     assert np.abs(nominal.flange_rotation(kept.q[ok]) - R[ok]).max() < 1e-6 and kept.rotation_residual[ok].max() < 1e-6
     assert np.linalg.norm(true.forward(kept.q[ok]) - p[ok], axis=1).max() < 0.05 * np.linalg.norm(
         true.forward(qt[ok]) - p[ok], axis=1).mean()
+
+
+def test_a_hexapod_turned_as_its_nominal_model():
+    """The legs of a pose follow in closed form; with the nominal model's orientation they put the calibrated
+    platform's point at the target and the nominal platform's rotation at the target rotation."""
+    from kincal.compensate import compensate_poses
+    from kincal.models.transforms import rotation_log
+
+    nominal = kincal.load_robot("hexapod")
+    real = kincal.perturb(nominal, seed=3)
+    q = nominal.sample_joints(5, seed=1)
+    p, R = nominal.forward(q), nominal.flange_rotation(q)
+    comp = compensate_poses(real, p, R, None, orientation=nominal)
+    assert comp.all_ok and np.abs(real.forward(comp.q) - p).max() < 1e-9
+    turn = np.linalg.norm(rotation_log(nominal.flange_rotation(comp.q) @ np.swapaxes(R, 1, 2)), axis=1)
+    assert turn.max() < 1e-9 and np.allclose(comp.rotation_residual, turn)
+    own = np.linalg.norm(rotation_log(real.flange_rotation(comp.q) @ np.swapaxes(R, 1, 2)), axis=1)
+    assert own.min() > 1e-5  # the real platform's own rotation is not what was reached

@@ -135,7 +135,8 @@ class Repeat:
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelError(f"{label}: the calibration's 'repeat' section is malformed ({exc}); calibrate again") \
                 from None
-        if not (np.all(np.isfinite(cov)) and np.all(np.isfinite(out.residuals)) and out.dof > 0
+        if not (np.all(np.isfinite(cov)) and np.all(np.isfinite(out.poses)) and np.all(np.isfinite(out.residuals))
+                and out.dof > 0
                 and out.dispersion >= 1.0 and out.scale >= 1.0):
             raise ModelError(f"{label}: the calibration's 'repeat' section is malformed; calibrate again")
         return out

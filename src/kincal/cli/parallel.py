@@ -27,11 +27,12 @@ ORIENTATION_NOTE = ("orientation: the calibration measured positions only, so th
                     "correct the orientation too)")
 
 
-def _orientation_model(args, nominal):
-    """The model whose flange pose targets are turned to: the nominal one when the calibration measured no
-    orientation (its data were points, sockets or planes), else None (the calibrated model itself)."""
-    record = kincal.models.load_calibration_record(args.robot) or {}
-    kinds = set((record.get("data") or {}).get("kinds") or [])
+def _orientation_model(args, record: dict, nominal):
+    """The model whose flange pose targets are turned to: the nominal one when the calibration (its file's
+    ``record``) measured no orientation (its data were points, sockets or planes), else None (the calibrated model
+    itself)."""
+    data = record.get("data")
+    kinds = {str(k) for k in data.get("kinds") or []} if isinstance(data, dict) else set()
     return nominal if args.pose and kinds and not kinds & {"pose", "markers"} else None
 
 
@@ -39,7 +40,8 @@ def cmd_compensate(args) -> int:
     if args.program and os.path.isdir(args.targets):
         return _compensate_folder(args)
     cal = load_robot(args, [args.targets, *([args.frames] if args.frames else [])], [args.output])
-    nominal_values = (kincal.models.load_calibration_record(args.robot) or {}).get("nominal")  # None: bundled, URDF
+    record = kincal.models.load_calibration_record(args.robot) or {}  # empty: a bundled robot, a URDF
+    nominal_values = record.get("nominal")
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
     values = nominal_values if isinstance(nominal_values, dict) else None
     if "link_error_max" in args.given and args.tcp is None and not args.program:  # a program may set its TCP
@@ -65,14 +67,14 @@ def cmd_compensate(args) -> int:
     fmt = TargetsFormat(args.pose, tuple(args.joint_cols) if args.joint_cols else None, tuple(args.xyz_cols),
                         args.orientation, tuple(args.rot_cols) if args.rot_cols else None, args.length_unit,
                         args.angle_unit)
-    turned = _orientation_model(args, nominal)
+    turned = _orientation_model(args, record, nominal)
     job = StreamJob(r, nominal, fmt, uncertainty, args.output_kind, args.path, turned)
     with progress_bar(args, "compensating") as bar:
         res = compensate_file(job, args.targets, args.output, skip_unreachable=args.skip_unreachable,
                               workers=args.workers, progress=bar)
     payload = {**res.to_dict(), "output": args.output if res.written else None, "target_frame": args.target_frame,
                "output_kind": args.output_kind, "tool_carry": carry or None,
-               "orientation_from": "nominal" if turned is not None else "calibrated"}
+               "orientation_from": None if not args.pose else "nominal" if turned is not None else "calibrated"}
     text = _compensation_text(args, res, r) + (f"\nTCP: {carry}" if carry else "") + \
         (f"\n{ORIENTATION_NOTE}" if turned is not None else "")
     return emit(args, payload, text, 0 if res.written else EXIT_REFUSED)
