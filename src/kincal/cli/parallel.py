@@ -12,7 +12,7 @@ import kincal.io
 import kincal.models
 from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, VerificationPlan, command_models,
                                check_folder_output, compensate_branches, compensate_file, compensate_folder,
-                               compensate_program,
+                               compensate_program, flange_turn,
                                resolve_taught, tool_carry, verification_plan, write_folder)
 from kincal.observe import check_convention
 from kincal.units import DEG, MM
@@ -21,19 +21,27 @@ from .common import (EXIT_REFUSED, add_data_flags, checked, csv_list, emit, load
                      positive_float, positive_int, progress_bar)
 
 
-ORIENTATION_NOTE = ("orientation: the calibration measured positions only, so the turns of the flange its parameters "
-                    "imply were never seen; the commands turn the flange to the targets as the nominal model predicts "
-                    "and correct the positions with the calibrated one (calibrate from 6-D poses or markers to "
-                    "correct the orientation too)")
-
-
-def _orientation_model(args, record: dict, nominal):
-    """The model whose flange pose targets are turned to: the nominal one when the calibration (its file's
-    ``record``) measured no orientation (its data were points, sockets or planes), else None (the calibrated model
-    itself)."""
+def _orientation(args, record: dict, cal, values, nominal):
+    """The model whose flange pose targets (a targets file with --pose, or a program's targets) are turned to, and
+    why: after a calibration whose data held no orientation (points, sockets or planes: its file's ``record``),
+    the nominal model (``nominal``, the commands' frame and TCP) unless the data's lever determined the calibrated
+    turn of the flange (:func:`kincal.compensate.flange_turn`); else None (the calibrated model itself), with no
+    reason."""
     data = record.get("data")
     kinds = {str(k) for k in data.get("kinds") or []} if isinstance(data, dict) else set()
-    return nominal if args.pose and kinds and not kinds & {"pose", "markers"} else None
+    if not (args.pose or args.program) or not kinds or kinds & {"pose", "markers"}:
+        return None, None
+    unc = kincal.analysis.load_uncertainty(args.robot)
+    turn = flange_turn(cal, cal.with_params(values) if values else cal, None if unc is None else unc.covariance,
+                       () if unc is None else unc.names, cal.lower if unc is None or unc.lower is None else unc.lower,
+                       cal.upper if unc is None or unc.upper is None else unc.upper)
+    return (None if turn.determined else nominal), turn
+
+
+def _orientation_from(turned, turn) -> dict:
+    """The JSON fields that say which model turned the flange, and why."""
+    return {"orientation_from": "nominal" if turned is not None else "calibrated",
+            "flange_turn": None if turn is None else turn.to_dict()}
 
 
 def cmd_compensate(args) -> int:
@@ -57,26 +65,27 @@ def cmd_compensate(args) -> int:
     if args.program:
         _same_language(args.targets, args.program)
     if args.program and args.program != "ur":
-        return _compensate_branches(args, cal, values)
+        return _compensate_branches(args, cal, values, _orientation(args, record, cal, values, cal.with_params(
+            values) if values else cal))
     if "frames" in args.given:
         raise ValueError("--frames gives the frames a KRL, RAPID, FANUC or INFORM program names; URScript sets its TCP "
                          "with set_tcp (or give --tcp)")
     if args.program:
-        return _compensate_program(args, r, nominal, carry, models)
+        return _compensate_program(args, r, nominal, carry, models, _orientation(args, record, cal, values, nominal))
     carry = carry if args.tcp is not None else ""
     fmt = TargetsFormat(args.pose, tuple(args.joint_cols) if args.joint_cols else None, tuple(args.xyz_cols),
                         args.orientation, tuple(args.rot_cols) if args.rot_cols else None, args.length_unit,
                         args.angle_unit)
-    turned = _orientation_model(args, record, nominal)
+    turned, turn = _orientation(args, record, cal, values, nominal)
     job = StreamJob(r, nominal, fmt, uncertainty, args.output_kind, args.path, turned)
     with progress_bar(args, "compensating") as bar:
         res = compensate_file(job, args.targets, args.output, skip_unreachable=args.skip_unreachable,
                               workers=args.workers, progress=bar)
     payload = {**res.to_dict(), "output": args.output if res.written else None, "target_frame": args.target_frame,
                "output_kind": args.output_kind, "tool_carry": carry or None,
-               "orientation_from": None if not args.pose else "nominal" if turned is not None else "calibrated"}
+               **(_orientation_from(turned, turn) if args.pose else {"orientation_from": None})}
     text = _compensation_text(args, res, r) + (f"\nTCP: {carry}" if carry else "") + \
-        (f"\n{ORIENTATION_NOTE}" if turned is not None else "")
+        (f"\n{turn.note()}" if turn is not None else "")
     return emit(args, payload, text, 0 if res.written else EXIT_REFUSED)
 
 
@@ -131,7 +140,7 @@ NOT_FOR_BRANCHES = ("tcp", "link_error_max", "pose", "orientation", "rot_cols", 
                     "target_frame", "joint_cols", "xyz_cols", "length_unit", "angle_unit")
 
 
-def _compensate_branches(args, cal, values) -> int:
+def _compensate_branches(args, cal, values, orientation) -> int:
     """compensate --program krl|rapid|fanuc|inform: the program compensated on the branch each target states
     (kincal.compensate.branch), written to -o only when every target passed or with --skip-unreachable."""
     flags = [args.given[k] for k in NOT_FOR_BRANCHES if k in args.given]
@@ -141,7 +150,8 @@ def _compensate_branches(args, cal, values) -> int:
     nominal = cal.with_params(values) if values else cal
     prog = kincal.io.read_program(args.targets, args.program)
     frames = kincal.io.read_frames(args.frames) if args.frames else {}
-    res = compensate_branches(cal, nominal, prog, kincal.io.ROWS[args.program], frames)
+    turned, turn = orientation
+    res = compensate_branches(cal, nominal, prog, kincal.io.ROWS[args.program], frames, orientation=turned)
     written = bool(res.texts) and (not res.problems or args.skip_unreachable)
     if written:
         kincal.io.write_program(args.output, prog, res.texts, res.refused)
@@ -155,10 +165,12 @@ def _compensate_branches(args, cal, values) -> int:
     lines += _taught_lines(cal, nominal, frames)
     lines += [f"refused: {p}" for p in res.problems]
     lines += [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal]
+    lines += [turn.note()] if turn is not None else []
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
                        "declared_frames": known,
                        "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal],
-                       "output": args.output if written else None}, "\n".join(lines), 0 if written else EXIT_REFUSED)
+                       "output": args.output if written else None, **_orientation_from(turned, turn)},
+                "\n".join(lines), 0 if written else EXIT_REFUSED)
 
 
 def _compensate_folder(args) -> int:
@@ -174,10 +186,12 @@ def _compensate_folder(args) -> int:
                          f"(--frames), units and orientation")
     check_folder_output(args.targets, args.output)
     cal = load_robot(args, [*([args.frames] if args.frames else [])], [])
-    values = (kincal.models.load_calibration_record(args.robot) or {}).get("nominal")
+    record = kincal.models.load_calibration_record(args.robot) or {}
+    values = record.get("nominal")
     nominal = cal.with_params(values) if isinstance(values, dict) else cal
     frames = kincal.io.read_frames(args.frames) if args.frames else {}
-    res = compensate_folder(cal, nominal, args.targets, args.program, kincal.io.ROWS[args.program], frames)
+    turned, turn = _orientation(args, record, cal, values if isinstance(values, dict) else None, nominal)
+    res = compensate_folder(cal, nominal, args.targets, args.program, kincal.io.ROWS[args.program], frames, turned)
     if not res.files:
         raise ValueError(f"{args.targets}: no {args.program} program in this folder (suffixes "
                          f"{', '.join(kincal.io.dialects()[args.program].suffixes)})")
@@ -193,8 +207,9 @@ def _compensate_folder(args) -> int:
                  (f"written to {args.output} (every {args.program} file, compensated or as it was; report "
                   f"{args.output}/kincal_report.csv)" if written else
                   f"nothing written (--skip-unreachable writes the folder with those left as they are)"))
-    return emit(args, {**res.to_dict(), "output": args.output if written else None}, "\n".join(lines),
-                0 if written else EXIT_REFUSED)
+    lines += [turn.note()] if turn is not None else []
+    return emit(args, {**res.to_dict(), "output": args.output if written else None, **_orientation_from(turned, turn)},
+                "\n".join(lines), 0 if written else EXIT_REFUSED)
 
 
 def _taught_lines(cal, nominal, frames) -> list[str]:
@@ -211,11 +226,12 @@ def _taught_lines(cal, nominal, frames) -> list[str]:
     return out
 
 
-def _compensate_program(args, r, nominal, carry: str, models) -> int:
+def _compensate_program(args, r, nominal, carry: str, models, orientation) -> int:
     """compensate --program ur: a robot program compensated in place, written to -o (never over it);
     with --skip-unreachable each target left as it is gets a comment saying why."""
     prog = kincal.io.read_program(args.targets, args.program)
-    res = compensate_program(r, nominal, prog, models=models)
+    turned, turn = orientation
+    res = compensate_program(r, nominal, prog, models=models, orientation=turned)
     written = bool(res.texts) and (not res.problems or args.skip_unreachable)  # never half a program silently
     if written:
         kincal.io.write_program(args.output, prog, res.texts, res.refused)
@@ -233,8 +249,10 @@ def _compensate_program(args, r, nominal, carry: str, models) -> int:
     lines += [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal]
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
                        "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal],
-                       "output": args.output if written else None, "tool_carry": carry or None},
-                "\n".join(lines + ([f"TCP: {carry}"] if carry else [])), 0 if written else EXIT_REFUSED)
+                       "output": args.output if written else None, "tool_carry": carry or None,
+                       **_orientation_from(turned, turn)},
+                "\n".join(lines + ([f"TCP: {carry}"] if carry else []) + ([turn.note()] if turn is not None else [])),
+                0 if written else EXIT_REFUSED)
 
 
 PLAN_JOINT_TOL = 1e-5  # rad or m: measured joint values must repeat the plan's commands this closely

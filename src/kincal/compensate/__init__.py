@@ -8,6 +8,7 @@ from .frames import LINK_ERROR_MAX, TARGET_FRAMES, command_models, frame_mismatc
 from .stream import StreamJob, StreamResult, TargetsFormat, compensate_file
 from .frames_only import FramesOnly, fit_frames_only
 from .taught import resolve_taught
+from .turn import FlangeTurn, flange_turn
 from .folder import FolderCompensation, check_folder_output, compensate_folder, write_folder
 from .verify import Verification, VerificationPlan, verification_plan
 
@@ -16,4 +17,4 @@ __all__ = ["Compensation", "compensate", "compensate_poses", "path_checked", "Pr
            "TARGET_FRAMES", "LINK_ERROR_MAX", "command_models", "frame_mismatch", "tool_carry", "StreamJob",
            "StreamResult", "TargetsFormat", "compensate_file", "Verification", "VerificationPlan", "verification_plan",
            "FramesOnly", "fit_frames_only", "resolve_taught", "FolderCompensation", "check_folder_output",
-           "compensate_folder", "write_folder"]
+           "compensate_folder", "write_folder", "FlangeTurn", "flange_turn"]

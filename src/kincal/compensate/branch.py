@@ -64,7 +64,7 @@ Rows = Callable[[Robot, np.ndarray], list]
 @paused_collector
 def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Rows,
                         frames: Mapping[str, object] | None = None,
-                        q_start: np.ndarray | None = None) -> ProgramCompensation:
+                        q_start: np.ndarray | None = None, orientation: Robot | None = None) -> ProgramCompensation:
     """Compensate every literal target of a program on the branch it states (KUKA S/T, ABB confdata, ...).
 
     A joint target means the pose the nominal model reaches there; a pose target means the TCP in the
@@ -93,6 +93,10 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     q_start : ndarray, shape (n,), optional
         The joints before the first move, rad (default: the first joint target's, else the zero pose: the
         bits choose the branch).
+    orientation : Robot, optional
+        The model whose flange the corrected joints turn to each target's rotation, in the end-to-end check too
+        (default: the calibrated model). Give the nominal model when the calibration measured no orientation
+        (points, sockets, planes): the turns of the flange its parameters imply were never seen.
 
     Returns
     -------
@@ -142,6 +146,7 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
            [ 19.81, -70.1 ,  80.11,  10.29,  40.05,   4.65]])
     """
     dialect = dialects()[program.dialect]
+    measured = model.tool_point() if model.has_tool_point else np.zeros(3)  # the point the calibration measured
     model, nominal = model.with_tool_point(np.zeros(3)), nominal.with_tool_point(np.zeros(3))  # flange poses
     frames = resolve_taught({**dialect.frames(program), **(frames or {})}, nominal, model)  # declared, unless given
     scale = pulse_scale(nominal)
@@ -150,11 +155,13 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
           if q_start is None else np.asarray(q_start, dtype=float))
     goals, tools, refused = _goals(nominal, work, frames)
     q_nom = _controller_joints(nominal, work, goals, rows, q0, refused)
-    qs = _corrected_all(model, nominal, work, goals, q_nom, rows, refused)
+    tcp_goals = _at_tcp(goals, tools, measured)
+    qs = _corrected_all(model, nominal, work, tcp_goals, q_nom, rows, refused, orientation)
     values = _written(nominal, work.targets, qs, tools, [k for k in range(len(qs)) if k not in refused])
     values = {k: np.round(v * scale) if program.targets[k].kind == "pulses" else v for k, v in values.items()}
     texts = dict(zip(values, dialect.write(program.text, [program.targets[k] for k in values], list(values.values()))))
-    for k, why in check_written(model, nominal, program, texts, qs, rows, frames, goals, scale).items():
+    for k, why in check_written(model, nominal, program, texts, qs, rows, frames, tcp_goals, scale,
+                                orientation).items():
         texts.pop(k)
         refused[k] = why
     problems = tuple(f"{program.source}: line {program.targets[k].line} ({program.targets[k].move}"
@@ -278,24 +285,35 @@ def _pass(nominal: Robot, program: Program, goals, rows: Rows, q_nom: np.ndarray
             q_nom[k] = q
 
 
-def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom: np.ndarray, rows: Rows,
-                   refused: dict[int, str]) -> np.ndarray:
-    """The corrected joints (N, n) of every target not refused (NaN elsewhere; refusals added): Newton on the
-    calibrated model from the controller's joints, together; refused where it did not converge, left the nominal
-    branch, broke a joint limit or changed the target's bits (each named, with a singularity's condition)."""
+def _at_tcp(goals, tools: list, measured: np.ndarray):
+    """The goals (flange poses p (N, 3), R (N, 3, 3)) with the TCP point of each target's physical tool: p (N, 3), R
+    and the TCP in the flange frame (N, 3) m (for a joint target, which names no tool, the point the calibration
+    measured, ``measured`` (3,) m). The calibrated model's position is trusted at that point, not at the flange:
+    where the flange is turned as another model's (``orientation``), the two differ by the models' turn times the
+    point's lever."""
     p, R = goals
+    lever = np.array([measured if t is None else t[0][1][:3, 3] for t in tools]).reshape(-1, 3)
+    return p + np.einsum("nij,nj->ni", R, lever), R, lever
+
+
+def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom: np.ndarray, rows: Rows,
+                   refused: dict[int, str], orientation: Robot | None = None) -> np.ndarray:
+    """The corrected joints (N, n) of every target not refused (NaN elsewhere; refusals added): Newton on the
+    calibrated model from the controller's joints (the TCP at the goals of :func:`_at_tcp`, the flange turned as
+    ``orientation``'s), together; refused where it did not converge, left the nominal branch, broke a joint limit
+    or changed the target's bits (each named, with a singularity's condition)."""
     qs = np.full_like(q_nom, np.nan)
     idx = np.array([k for k in range(len(q_nom)) if k not in refused], dtype=int)
     if not idx.size:
         return qs
-    sol = solve_poses(model, p[idx], R[idx], q_nom[idx])
+    q, converged = _solve_levers(model, [g[idx] for g in goals], q_nom[idx], orientation)
     tol = np.array([BRANCH_TOL[j] for j in model.joint_types])
-    off = (np.abs(sol.q - q_nom[idx]) > tol).any(axis=1)
-    outside = ~model.within_limits(sol.q)
-    bits = rows(model, np.where(np.isfinite(sol.q), sol.q, 0.0))
+    off = (np.abs(q - q_nom[idx]) > tol).any(axis=1)
+    outside = ~model.within_limits(q)
+    bits = rows(model, np.where(np.isfinite(q), q, 0.0))
     for i, k in enumerate(idx):
         config = tuple(program.targets[k].config)
-        why = ("the correction did not converge" if not sol.converged[i] else
+        why = ("the correction did not converge" if not converged[i] else
                "the corrected joints leave the nominal branch" if off[i] else
                "the corrected joints break the joint limits" if outside[i] else
                f"the corrected joints' configuration bits {tuple(bits[i])} differ from the target's {config}"
@@ -303,8 +321,21 @@ def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom:
         if why:
             refused[int(k)] = why + _singular(nominal, q_nom[k])
         else:
-            qs[k] = sol.q[i]
+            qs[k] = q[i]
     return qs
+
+
+def _solve_levers(model: Robot, goals, q0: np.ndarray, orientation: Robot | None) -> tuple[np.ndarray, np.ndarray]:
+    """The commands (N, n) and which converged (N,) of :func:`solve_poses` on goals (TCP points p (N, 3) m, flange
+    rotations R (N, 3, 3), TCPs in the flange frame (N, 3) m) from q0 (N, n): one solve per distinct TCP."""
+    p, R, lever = goals
+    q, converged = np.full_like(q0, np.nan), np.zeros(len(q0), bool)
+    _, which = np.unique(lever, axis=0, return_inverse=True)
+    for g in range(int(which.max()) + 1):
+        at = np.flatnonzero(which.reshape(-1) == g)
+        sol = solve_poses(model.with_tool_point(lever[at[0]]), p[at], R[at], q0[at], turned_as=orientation)
+        q[at], converged[at] = sol.q, sol.converged
+    return q, converged
 
 
 def _written(nominal: Robot, targets, qs: np.ndarray, tools: list, ks: list[int]) -> dict[int, np.ndarray]:
@@ -387,13 +418,15 @@ def _turns(robot: Robot, q: np.ndarray) -> list[np.ndarray]:
 
 
 def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, qs: np.ndarray, rows: Rows,
-                  frames: Mapping[str, object], intended, scale: np.ndarray | None = None) -> dict[int, str]:
+                  frames: Mapping[str, object], intended, scale: np.ndarray | None = None,
+                  orientation: Robot | None = None) -> dict[int, str]:
     """The compensated targets whose text, read again, does not bring the robot where the program meant, and
     why: a written pose target's controller joints (Newton on the nominal model from the corrected joints, on
-    the target's bits) and a written joint target's joints must put the calibrated model's flange on the
-    intended pose (``intended``: p (N, 3), R (N, 3, 3) of every target, from :func:`_goals`) to ``CHECK_TOL``;
-    a PULSE position's counts (``scale``: pulses per rad or m) must be the corrected joints' nearest, and then
-    miss by no more than half a pulse on every joint moves the flange. All together."""
+    the target's bits) and a written joint target's joints must put the calibrated model's TCP on the intended
+    point and its flange (``orientation``'s, when given) on the intended rotation (``intended``: TCP points
+    (N, 3) m, flange rotations (N, 3, 3) and TCPs in the flange (N, 3) m of every target, from :func:`_at_tcp`)
+    to ``CHECK_TOL``; a PULSE position's counts (``scale``: pulses per rad or m) must be the corrected joints'
+    nearest, and then miss by no more than half a pulse on every joint moves the TCP. All together."""
     if not texts:
         return {}
     model, nominal = model.with_tool_point(np.zeros(3)), nominal.with_tool_point(np.zeros(3))  # flange poses
@@ -401,7 +434,7 @@ def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, q
     ks = sorted(texts)
     work = in_joints(program, scale).targets
     old = [work[k] for k in ks]
-    goals = intended[0][ks], intended[1][ks]
+    goals = [g[ks] for g in intended]
     new = dataclasses.replace(program, targets=tuple(again.targets[k] for k in ks))
     written, _, _ = _goals(nominal, new, frames, side=0)  # the controller turns the written text with its frames
     poses = np.array([t.kind != "joints" for t in old])
@@ -415,9 +448,7 @@ def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, q
             config = tuple(program.targets[k].config)
             if not sol.converged[i] or (config and tuple(bits[i]) != config):
                 bad[int(k)] = "the written target does not come back on its branch when read again"
-    pm, Rm, Jp, Jw = model.pose_and_jacobian(q)
-    miss = np.linalg.norm(pm - goals[0], axis=1)
-    turn = np.linalg.norm(rotation_log(Rm @ np.swapaxes(goals[1], 1, 2)), axis=1)
+    miss, turn, Jp, Jw = _misses(model, orientation or model, q, goals)
     pulsed = np.array([program.targets[k].kind == "pulses" for k in ks])
     half = np.zeros(q.shape[1]) if scale is None else 0.5 / np.abs(scale)  # half a pulse of each joint
     tol_p = CHECK_TOL + np.where(pulsed, np.linalg.norm(Jp, axis=1) @ half, 0.0)
@@ -428,6 +459,20 @@ def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, q
         if k not in bad and not (m <= tol_p[i] and r <= tol_r[i]):
             bad[k] = f"the written target misses by {m * 1e3:.2e} mm / {r:.2e} rad (checked as read again)"
     return bad
+
+
+def _misses(model: Robot, orientation: Robot, q: np.ndarray, goals):
+    """How far ``model``'s TCP (m) and ``orientation``'s flange (rad) stand from goals (TCP points (N, 3), flange
+    rotations (N, 3, 3), TCPs in the flange (N, 3)) at q (N, n), each (N,), with the TCP's and the flange's joint
+    Jacobians (N, 3, n)."""
+    p, R, lever = goals
+    pm, Rm, Jp, Jw = model.with_tool_point(np.zeros(3)).pose_and_jacobian(q)
+    arm = np.einsum("nij,nj->ni", Rm, lever)  # the TCP from the flange, in the world
+    Jp = Jp + np.cross(np.swapaxes(Jw, 1, 2), arm[:, None, :]).swapaxes(1, 2)  # v = v_flange + ω × arm
+    if orientation is not model:
+        _, Rm, _, Jw = orientation.with_tool_point(np.zeros(3)).pose_and_jacobian(q)
+    miss = np.linalg.norm(pm + arm - p, axis=1)
+    return miss, np.linalg.norm(rotation_log(Rm @ np.swapaxes(R, 1, 2)), axis=1), Jp, Jw
 
 
 def pulse_scale(robot: Robot) -> np.ndarray | None:

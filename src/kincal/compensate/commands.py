@@ -331,7 +331,6 @@ def _reach(robot: Robot, targets: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 ROT_TOL = 1e-6  # rad: a pose command must reproduce the target orientation this closely (6 joints or more)
-ORIENTATION_ROUNDS = 4  # rounds that put another model's flange at the target rotations (each ~1e-3 of the last)
 ORIENT_MISMATCH = 1e-3  # rad: the nominal command's orientation must match the target's this closely
 
 
@@ -400,7 +399,7 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
     >>> p_send.shape, R_send.shape
     ((3, 3), (3, 3, 3))
     """
-    from .poses import filtered_poses, solve_poses
+    from .poses import filtered_poses, model_turn, solve_poses
 
     targets, q0, rows = _checked_inputs(robot, targets, q_start, 1e-4, rows)
     rotations = _checked_rotations(rotations, len(targets))
@@ -408,7 +407,7 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
         goal = rotations if orientation is None else _closed_form_goal(orientation, robot, targets, rotations)
         comp = _closed_form_poses(robot, targets, goal, rows, nominal)
         if orientation is not None:
-            comp = dataclasses.replace(comp, rotation_residual=_model_turn(orientation, comp.q, rotations))
+            comp = dataclasses.replace(comp, rotation_residual=model_turn(orientation, comp.q, rotations))
         return _with_sigma(robot, comp, uncertainty)
     if nominal is not None:
         why = frame_mismatch(nominal, q0, targets, rows) or _orientation_mismatch(nominal, q0, rotations)
@@ -416,9 +415,7 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
             none = np.zeros(len(targets), bool)
             return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
     give_up = GIVE_UP * np.array([BRANCH_TOL[t] for t in robot.joint_types])  # refused by the branch check anyway
-    sol = solve_poses(robot, targets, rotations, q0, give_up=give_up)
-    if orientation is not None:
-        sol = _turned_as(orientation, robot, targets, rotations, sol, q0, give_up)
+    sol = solve_poses(robot, targets, rotations, q0, give_up=give_up, turned_as=orientation)
     comp = _checked(robot, sol.q, "pose (damped Newton)", sol.iterations, targets, q0, rows, nominal)
     if robot.n_joints >= 6:
         bad = comp.ok & (sol.rotation_error > ROT_TOL)
@@ -432,45 +429,16 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
     return comp if nominal is None else dataclasses.replace(comp, filtered=filtered_poses(nominal, sol.q))
 
 
-def _goal(model: Robot, robot: Robot, q: np.ndarray, rotations: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) the rotations ``robot``'s flange must reach for ``model``'s to reach ``rotations`` at about q
-    (N, n): R_robot(q) R_model(q)ᵀ R* (rows with no finite q keep R*)."""
-    ok = np.all(np.isfinite(q), axis=1)
-    goal = rotations.copy()
-    goal[ok] = robot.flange_rotation(q[ok]) @ np.swapaxes(model.flange_rotation(q[ok]), 1, 2) @ rotations[ok]
-    return goal
-
-
-def _model_turn(model: Robot, q: np.ndarray, rotations: np.ndarray) -> np.ndarray:
-    """(N,) rad: how far ``model``'s flange at q (N, n) stands from ``rotations`` (inf where q is not finite)."""
-    from ..models.transforms import rotation_log
-
-    left = np.full(len(q), np.inf)
-    ok = np.all(np.isfinite(q), axis=1)
-    left[ok] = np.linalg.norm(rotation_log(model.flange_rotation(q[ok]) @ np.swapaxes(rotations[ok], 1, 2)), axis=1)
-    return left
-
-
-def _turned_as(model: Robot, robot: Robot, targets: np.ndarray, rotations: np.ndarray, sol, q0: np.ndarray,
-               give_up: np.ndarray):
-    """Commands at which ``robot``'s tool point reaches the targets and ``model``'s flange (not ``robot``'s) the
-    target rotations: ``robot`` is solved for :func:`_goal`, whose fixed point has R_model(q) = R* (the two
-    differ by fractions of a degree, so a few rounds settle it); the rotation error reported is ``model``'s."""
-    from .poses import solve_poses
-
-    for _ in range(ORIENTATION_ROUNDS):
-        start = np.where(np.all(np.isfinite(sol.q), axis=1)[:, None], sol.q, q0)
-        sol = solve_poses(robot, targets, _goal(model, robot, sol.q, rotations), start, give_up=give_up)
-    return dataclasses.replace(sol, rotation_error=_model_turn(model, sol.q, rotations))
-
-
 def _closed_form_goal(model: Robot, robot: Robot, targets: np.ndarray, rotations: np.ndarray) -> np.ndarray:
-    """:func:`_goal` for a robot whose joints follow from the pose in closed form (a hexapod's legs)."""
+    """The rotations of :func:`kincal.compensate.poses.turn_goal` for a robot whose joints follow from the pose in
+    closed form (a hexapod's legs)."""
+    from .poses import TURN_ROUNDS, turn_goal
+
     goal = rotations
-    for _ in range(ORIENTATION_ROUNDS):
+    for _ in range(TURN_ROUNDS):
         with np.errstate(invalid="ignore"):
             q = robot.inverse_pose(goal, targets, strict=False)
-        goal = _goal(model, robot, q, rotations)
+        goal = turn_goal(model, robot, q, rotations)
     return goal
 
 

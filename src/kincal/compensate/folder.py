@@ -118,7 +118,8 @@ def program_files(folder: str, dialect: str) -> list[str]:
 
 
 def compensate_folder(model: Robot, nominal: Robot, folder: str, dialect: str, rows: Rows,
-                      frames: Mapping[str, object] | None = None) -> FolderCompensation:
+                      frames: Mapping[str, object] | None = None,
+                      orientation: Robot | None = None) -> FolderCompensation:
     """Compensate every program file of one language under a folder, each on its own branches.
 
     Each file is read and compensated alone (:func:`compensate_branches`); a file that cannot be read (an
@@ -139,6 +140,10 @@ def compensate_folder(model: Robot, nominal: Robot, folder: str, dialect: str, r
         (:data:`kincal.io.ROWS`).
     frames : mapping of str to object, optional
         The programs' tool and base frames by name (4x4, m; or taught frames), as for
+        :func:`compensate_branches`.
+    orientation : Robot, optional
+        The model whose flange the corrected joints turn to the targets' rotations (default: the calibrated
+        model; give the nominal one after a calibration from positions alone), as for
         :func:`compensate_branches`.
 
     Returns
@@ -182,19 +187,19 @@ def compensate_folder(model: Robot, nominal: Robot, folder: str, dialect: str, r
     R1/Program/demo.src,3,LIN,compensated,
     R1/Program/demo.src,4,PTP $POS_ACT,listed,"$POS_ACT is the robot's position when the move starts, read at run time"
     """
-    return FolderCompensation(folder, dialect, tuple(_one(model, nominal, folder, p, dialect, rows, frames)
+    return FolderCompensation(folder, dialect, tuple(_one(model, nominal, folder, p, dialect, rows, frames, orientation)
                                                      for p in program_files(folder, dialect)))
 
 
 def _one(model: Robot, nominal: Robot, folder: str, path: str, dialect: str, rows: Rows,
-         frames: Mapping[str, object] | None) -> FileCompensation:
+         frames: Mapping[str, object] | None, orientation: Robot | None) -> FileCompensation:
     full = os.path.join(folder, path)
     try:
         prog = read_program(full, dialect)
     except KincalError as exc:
         line = _line_of(str(exc))
         return FileCompensation(path, 0, None, "utf-8", ((line, "", "unreadable", str(exc).replace(full + ": ", "")),))
-    res = compensate_branches(model, nominal, prog, rows, frames)
+    res = compensate_branches(model, nominal, prog, rows, frames, orientation=orientation)
     out = [(t.line, t.variable or t.move, "compensated", "") for k, t in enumerate(prog.targets) if k in res.texts]
     out += [(prog.targets[k].line, prog.targets[k].variable or prog.targets[k].move, "refused", why)
             for k, why in res.refused.items()]

@@ -9,6 +9,7 @@ rotation error is reported, per target, as not controlled.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +32,7 @@ ROT_LEVER = 0.1  # m per rad: a wrist joint turning the tool counts as moving a 
 FINAL = 1e-9  # m and rad: an error below this is gone after one more Newton step (it leaves ~1e-18 at
 #               the model's curvature of about 1 per m), so that step ends the solve without another evaluation
 MAX_TRAVEL = 0.1  # m: a correction that has moved the tool this far is another arm configuration; given up
+TURN_ROUNDS = 4  # rounds that put another model's flange at the target rotations (each ~1e-3 of the last)
 
 
 @dataclass(frozen=True)
@@ -88,7 +90,7 @@ def pose_errors(model: Robot, q: np.ndarray, p_t: np.ndarray, R_t: np.ndarray):
 
 def solve_poses(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, max_iter: int = MAX_ITER,
                 fixed: tuple[int, ...] = (), chunk: int = CHUNK, give_up: np.ndarray | None = None,
-                max_travel: float = MAX_TRAVEL) -> PoseSolution:
+                max_travel: float = MAX_TRAVEL, turned_as: Robot | None = None) -> PoseSolution:
     """Solve for the commands that put ``model``'s tool point and flange at target poses.
 
     Damped Newton steps on the 6-D pose error from ``q0`` (module docstring); only unconverged targets
@@ -120,6 +122,12 @@ def solve_poses(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, 
         A target whose steps have moved its tool point this far in all stops unconverged, m (default
         ``MAX_TRAVEL``, 0.1: a correction that far is another configuration; an inverse from afar gives a
         larger one).
+    turned_as : Robot, optional
+        The model whose flange must reach the target rotations (default: ``model``); the tool point is still
+        ``model``'s. Give the nominal model when ``model`` was calibrated from positions alone: the turns of
+        the flange its parameters imply were never measured. Solved as rounds of ``model`` on the rotations it
+        must reach for ``turned_as`` to reach R_t (:func:`turn_goal`), ``TURN_ROUNDS`` of them; the rotation
+        error reported is ``turned_as``'s.
 
     Returns
     -------
@@ -154,6 +162,36 @@ def solve_poses(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, 
     """
     if not model.has_tool_point:
         raise ModelError(f"robot '{model.name}' has no tool point and flange frame: give position targets")
+    sol = _solve(model, p_t, R_t, q0, max_iter, fixed, chunk, give_up, max_travel)
+    if turned_as is None:
+        return sol
+    for _ in range(TURN_ROUNDS):
+        start = np.where(np.all(np.isfinite(sol.q), axis=1)[:, None], sol.q, q0)
+        sol = _solve(model, p_t, turn_goal(turned_as, model, sol.q, R_t), start, max_iter, fixed, chunk, give_up,
+                     max_travel)
+    return dataclasses.replace(sol, rotation_error=model_turn(turned_as, sol.q, R_t))
+
+
+def turn_goal(model: Robot, robot: Robot, q: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) the rotations ``robot``'s flange must reach for ``model``'s to reach ``rotations`` at about q
+    (N, n): R_robot(q) R_model(q)ᵀ R* (rows with no finite q keep R*)."""
+    ok = np.all(np.isfinite(q), axis=1)
+    goal = np.array(rotations, dtype=float)
+    goal[ok] = robot.flange_rotation(q[ok]) @ np.swapaxes(model.flange_rotation(q[ok]), 1, 2) @ goal[ok]
+    return goal
+
+
+def model_turn(model: Robot, q: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+    """(N,) rad: how far ``model``'s flange at q (N, n) stands from ``rotations`` (inf where q is not finite)."""
+    left = np.full(len(q), np.inf)
+    ok = np.all(np.isfinite(q), axis=1)
+    left[ok] = np.linalg.norm(rotation_log(model.flange_rotation(q[ok]) @ np.swapaxes(rotations[ok], 1, 2)), axis=1)
+    return left
+
+
+def _solve(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, max_iter: int, fixed: tuple[int, ...],
+           chunk: int, give_up: np.ndarray | None, max_travel: float) -> PoseSolution:
+    """:func:`solve_poses` on ``model``'s own flange."""
     q = np.array(q0, dtype=float)
     moving = np.ones(q.shape[1], bool)
     moving[list(fixed)] = False

@@ -99,7 +99,7 @@ class ProgramCompensation:
 
 
 def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: np.ndarray | None = None,
-                       models: Models | None = None) -> ProgramCompensation:
+                       models: Models | None = None, orientation: Robot | None = None) -> ProgramCompensation:
     """Compensate every literal target of a robot program for a controller that moves with its nominal model.
 
     A joint target means the pose the nominal model reaches there, and becomes the joints at which the
@@ -121,6 +121,10 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
     models : callable, optional
         ``models(tcp) -> (calibrated, nominal)``: the models for a TCP (3,) m the program sets with
         ``set_tcp`` (default: the targets after a ``set_tcp`` are refused).
+    orientation : Robot, optional
+        The model whose flange the corrected joints turn to each target's rotation (default: the calibrated
+        model). Give the nominal model when the calibration measured no orientation (points, sockets, planes):
+        the turns of the flange its parameters imply were never seen (:func:`compensate_poses`).
 
     Returns
     -------
@@ -170,7 +174,8 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
     texts, refused, qs = {}, {}, np.full((len(program.targets), model.n_joints), np.nan)
     for k, t in enumerate(program.targets):
         tcp = program.tcp_at(t.at)
-        found = _target(t, tcp, (model, nominal) if isinstance(tcp, tuple) else _for_tcp(models, tcp), q_prev)
+        found = _target(t, tcp, (model, nominal) if isinstance(tcp, tuple) else _for_tcp(models, tcp), q_prev,
+                        orientation)
         if isinstance(found, str):
             refused[k] = found
             continue
@@ -189,7 +194,7 @@ def _for_tcp(models: Models | None, tcp) -> tuple[Robot, Robot] | str:
     return models(tcp[:3])
 
 
-def _target(t: Target, tcp, models, q_prev: np.ndarray | None):
+def _target(t: Target, tcp, models, q_prev: np.ndarray | None, orientation: Robot | None):
     """(corrected joints, nominal joints, replacement text) of one target, or why it is refused."""
     if isinstance(models, str):
         return models
@@ -209,7 +214,7 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None):
         if found is None:
             return "the nominal model does not reach this pose on any branch within the joint limits"
         q_nom = found
-    q, why = corrected(model, p, R, q_nom)
+    q, why = corrected(model, p, R, q_nom, orientation)
     if why:
         return why
     if t.kind == "joints":
@@ -218,12 +223,13 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None):
     return q, q_nom, pose_literal(np.concatenate([pf[0], rotation_log(Rf @ turn)[0]]))
 
 
-def corrected(model: Robot, p: np.ndarray, R: np.ndarray, q_nom: np.ndarray) -> tuple[np.ndarray, str]:
-    """The joints (n,) at which ``model`` puts its tool point at p (1, 3) m with the flange at R (1, 3, 3), by
-    Newton from the nominal joints q_nom (n,), and why they are refused ('' when they are not): the correction
-    did not converge, leaves the nominal branch (a joint moves more than ``BRANCH_TOL``) or breaks a joint
-    limit."""
-    sol = solve_poses(model, p, R, q_nom[None])
+def corrected(model: Robot, p: np.ndarray, R: np.ndarray, q_nom: np.ndarray,
+              orientation: Robot | None = None) -> tuple[np.ndarray, str]:
+    """The joints (n,) at which ``model`` puts its tool point at p (1, 3) m with the flange (``orientation``'s, default
+    ``model``'s) at R (1, 3, 3), by Newton from the nominal joints q_nom (n,), and why they are refused ('' when they
+    are not): the correction did not converge, leaves the nominal branch (a joint moves more than ``BRANCH_TOL``) or
+    breaks a joint limit."""
+    sol = solve_poses(model, p, R, q_nom[None], turned_as=orientation)
     q = sol.q[0]
     tol = np.array([BRANCH_TOL[j] for j in model.joint_types])
     return q, ("the correction did not converge" if not sol.converged[0] else

@@ -1,0 +1,146 @@
+"""Whose flange orientation pose commands follow after a calibration from positions alone.
+
+Position data see the flange's orientation only through the lever from the flange to the measured point. With
+a long lever (a reflector 150 mm out) the calibrated model's turn of the flange is measured to a few hundredths
+of a mrad and is worth following; with the point on the flange's axis near the flange (a UR5's 31 mm) the
+parameters that turn the flange are fitted in combinations the positions cannot tell apart, and the turn they
+imply is noise several mrad wide. :func:`flange_turn` weighs the calibrated model's turn from the nominal model
+against its standard deviation from the calibration's covariance, over poses of the calibration's joint ranges,
+both relative to each model's base (where the tracker stood is not a turn of the robot).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..models.robot import Robot
+from ..models.transforms import rotation_log
+
+TURN_Z = 3.0  # the calibrated turn is followed when it is at least this many standard deviations
+TURN_POSES = 200  # poses the turn and its σ are taken over (uniform in the calibration's joint ranges, seed 0)
+FD_STEP = 1e-6  # rad or m: the parameter step of the rotation's finite differences
+
+
+@dataclass(frozen=True)
+class FlangeTurn:
+    """How far a calibrated model turns the flange from the nominal model, and how well its data determine it.
+
+    Parameters
+    ----------
+    change : float
+        The RMS over the poses of the calibrated flange's rotation from the nominal one, rad.
+    sigma : float
+        The RMS over the poses of that rotation's standard deviation (the calibration's covariance), rad; inf
+        when the calibration recorded no covariance.
+    determined : bool
+        ``change`` is at least ``TURN_Z`` (3) times ``sigma``: pose commands follow the calibrated flange.
+
+    See Also
+    --------
+    flange_turn : Makes it.
+    """
+
+    change: float
+    sigma: float
+    determined: bool
+
+    def to_dict(self) -> dict:
+        """The fields, rad, with ``sigma`` None where it is not known (JSON has no inf)."""
+        return {"change": self.change, "sigma": self.sigma if np.isfinite(self.sigma) else None,
+                "determined": self.determined}
+
+    def note(self) -> str:
+        """One line for the user: whose orientation the commands follow and why (mrad)."""
+        sizes = (f"a turn of {self.change * 1e3:.3f} mrad from the nominal flange, σ "
+                 + (f"{self.sigma * 1e3:.3f} mrad" if np.isfinite(self.sigma) else "unknown (no covariance recorded)"))
+        if self.determined:
+            return (f"orientation: from the calibrated model; it was fitted to positions only, but their lever "
+                    f"determines {sizes}")
+        return (f"orientation: as the nominal model turns the flange; the calibration measured positions only and "
+                f"leaves the flange's turn undetermined ({sizes}), so the commands correct the positions with the "
+                f"calibrated model and turn the flange as the nominal one predicts (measure a point further from the "
+                f"flange's axis, or calibrate from 6-D poses or markers, to correct the orientation too)")
+
+
+def flange_turn(calibrated: Robot, nominal: Robot, covariance: np.ndarray | None, names, lower: np.ndarray,
+                upper: np.ndarray) -> FlangeTurn:
+    """Weigh the calibrated model's turn of the flange against what its data determine (module docstring).
+
+    Parameters
+    ----------
+    calibrated : Robot
+        The calibrated model.
+    nominal : Robot
+        The nominal model, the same structure.
+    covariance : ndarray, shape (K, K) or None
+        The calibration's covariance of the parameters ``names`` (m and rad); None: not recorded.
+    names : sequence of str
+        The K parameters of ``covariance``; the base frame's are left out (a turn of the base is not the flange's).
+    lower, upper : ndarray, shape (n,)
+        The joint ranges the poses are drawn from (the calibration's), rad (m for a prismatic joint).
+
+    Returns
+    -------
+    FlangeTurn
+        The RMS turn and its σ, rad, and whether the turn is determined.
+
+    Examples
+    --------
+    A UR5 calibrated from a point 31 mm out on the flange's axis, and with the point 120 mm out and off the
+    axis: the first leaves the turn undetermined, the second determines it.
+
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate import flange_turn
+    >>> for tool in ([0, 0, 0.031], [0.03, -0.02, 0.12]):
+    ...     nominal = kincal.load_robot("ur5").with_tool_point(tool)
+    ...     q = nominal.sample_joints(200, seed=1)
+    ...     data = kincal.simulate(kincal.perturb(nominal, seed=2), q, 15e-6, 1)
+    ...     fit = kincal.calibrate(nominal, data, kincal.FitOptions(diagnose=False))
+    ...     unc = fit.uncertainty()
+    ...     turn = flange_turn(fit.robot, nominal, unc.covariance, unc.names, nominal.lower, nominal.upper)
+    ...     print(turn.determined, round(turn.change / turn.sigma, 1))
+    False 0.5
+    True 22.2
+    """
+    q = _poses(calibrated, lower, upper)
+    turn = _relative(calibrated, q, None, nominal)
+    change = float(np.sqrt(np.mean(np.sum(turn**2, axis=1))))
+    sigma = np.inf if covariance is None else _sigma(calibrated, q, np.asarray(covariance, float), tuple(names))
+    return FlangeTurn(change, sigma, bool(change >= TURN_Z * sigma))
+
+
+def _poses(robot: Robot, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """TURN_POSES joint vectors (N, n), uniform in [lower, upper] within the robot's limits, seed 0."""
+    lo, hi = np.maximum(lower, robot.lower), np.minimum(upper, robot.upper)
+    lo, hi = np.where(hi >= lo, lo, robot.lower), np.where(hi >= lo, hi, robot.upper)
+    return lo + np.random.default_rng(0).random((TURN_POSES, robot.n_joints)) * (hi - lo)
+
+
+def _base_rotation(robot: Robot) -> np.ndarray:
+    """The base frame's rotation (3, 3) (the identity for a robot without one)."""
+    return robot.base_transform()[0] if robot.base_params() else np.eye(3)
+
+
+def _relative(robot: Robot, q: np.ndarray, values: np.ndarray | None, other: Robot) -> np.ndarray:
+    """(N, 3) rad: the rotation vectors from ``other``'s flange to ``robot``'s (at ``values``, its base frame's
+    parameters as they are) at q, each relative to its own base."""
+    Ra = _base_rotation(robot).T @ robot.flange_rotation(q, values)
+    Rb = _base_rotation(other).T @ other.flange_rotation(q)
+    return rotation_log(Ra @ np.swapaxes(Rb, 1, 2))
+
+
+def _sigma(robot: Robot, q: np.ndarray, covariance: np.ndarray, names: tuple[str, ...]) -> float:
+    """The RMS over q of the turn's standard deviation (rad): forward differences of the flange's rotation
+    relative to the base in each parameter but the base frame's, through the covariance."""
+    keep = [k for k, n in enumerate(names) if n not in set(robot.base_params())]
+    v0 = robot.param_values(None)
+    idx = robot.params.indices([names[k] for k in keep])
+    J = np.empty((len(q), 3, len(keep)))
+    for j, i in enumerate(idx):
+        v = v0.copy()
+        v[i] += FD_STEP
+        J[:, :, j] = _relative(robot, q, v, robot) / FD_STEP
+    C = covariance[np.ix_(keep, keep)]
+    return float(np.sqrt(np.mean(np.einsum("nik,kl,nil->n", J, C, J))))
