@@ -253,3 +253,22 @@ def test_design_writes_a_measurement_program_that_compensate_reads_whole(tmp_pat
     assert main(["compensate", str(tmp_path / "ur10.yaml"), data["program"], "--program", "ur", "-o",
                  str(tmp_path / "again.script")]) == 0
     assert (tmp_path / "again.script").read_text() == prog.text
+
+
+def test_a_program_written_in_millimetres_is_refused_with_that_cause(tmp_path):
+    """URScript's set_tcp and poses are in metres: a TCP of p[0, 0, 109, …] and a pose of p[-572.3, …] are
+    named as millimetres (not as a correction that did not converge, or a pose no branch reaches)."""
+    nominal, true = _ur10()
+    q0 = np.array([0.3, -1.2, 1.4, -1.9, -1.5, 0.6])
+    pose = _pose(nominal, q0 + 0.1)
+    in_mm = np.concatenate([pose[:3] * 1e3, pose[3:]])
+    (tmp_path / "a.script").write_text(_program([f"movej({_fmt(q0, False)})", f"movel({_fmt(in_mm, True)})"]))
+    res = compensate_program(true, nominal, read_program(str(tmp_path / "a.script"), "ur"))
+    assert list(res.texts) == [0]
+    assert res.refused[1] == (f"the pose is {np.linalg.norm(in_mm[:3]):g} m from the base: URScript's poses are in "
+                              f"metres and radians")
+    (tmp_path / "b.script").write_text(_program(["set_tcp(p[0, 0, 109, 0, 0, 0])", f"movej({_fmt(q0, False)})"]))
+    res = compensate_program(true, nominal, read_program(str(tmp_path / "b.script"), "ur"),
+                             models=lambda tcp: (true.with_tool_point(tcp), nominal.with_tool_point(tcp)))
+    assert res.refused == {0: "the TCP set_tcp sets is 109 m from the flange: URScript's poses are in metres "
+                              "(p[0, 0, 0.109, …] is 109 mm)"}

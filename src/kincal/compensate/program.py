@@ -29,6 +29,8 @@ from .commands import BRANCH_TOL
 from .poses import solve_poses
 
 STARTS = 24  # spread starts of the numeric inverse when Newton from the previous joints fails
+TCP_MAX = 2.0  # m: no tool puts its TCP this far from the flange (a set_tcp written in mm, not m)
+POSE_MAX = 20.0  # m: no arm's pose target lies this far from its base (a pose written in mm, not m)
 SEARCH = (200, 20.0)  # iterations and travel (m) of the numeric inverse: from afar, not a small correction
 Models = Callable[[np.ndarray], tuple[Robot, Robot]]  # a TCP point (3,) m -> (calibrated, nominal) models for it
 
@@ -189,6 +191,9 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
 def _for_tcp(models: Models | None, tcp) -> tuple[Robot, Robot] | str:
     if tcp is None:
         return "the TCP is set from a variable (set_tcp of a non-literal); set it with a literal p[…]"
+    if np.linalg.norm(tcp[:3]) > TCP_MAX:
+        return (f"the TCP set_tcp sets is {np.linalg.norm(tcp[:3]):g} m from the flange: URScript's poses are in "
+                f"metres (p[0, 0, 0.109, …] is 109 mm)")
     if models is None:
         return "the program sets its TCP (set_tcp) and no models were given for it"
     return models(tcp[:3])
@@ -209,6 +214,9 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None, orientation: Robo
         if q_prev is None:
             return ("a pose target with no joints to start the inverse kinematics from (no joint target before it "
                     "and no start joints given)")
+        if np.linalg.norm(t.values[:3]) > POSE_MAX:
+            return (f"the pose is {np.linalg.norm(t.values[:3]):g} m from the base: URScript's poses are in metres "
+                    f"and radians")
         p, R = t.values[None, :3], (rotvec_matrix(t.values[3:]) @ turn.T)[None]
         found = controller_inverse(nominal, p, R, q_prev)
         if found is None:
