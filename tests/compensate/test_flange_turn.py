@@ -189,3 +189,20 @@ def test_the_command_line_says_whose_orientation_a_program_follows_and_why(tmp_p
         said = ("orientation: as the nominal model turns the flange" if expected == "nominal" else
                 "orientation: from the calibrated model")
         assert said in text and f"σ {turn['sigma'] * 1e3:.3f} mrad" in text
+
+
+def test_a_calibration_from_six_d_poses_determines_the_turn_and_a_single_marker_does_not():
+    """6-D poses see the flange's turn directly: determined. One marker 31 mm out on the flange's axis is a point:
+    the turn is not told apart from noise, as for the same point measured by a tracker."""
+    from kincal.identify import fit_observations
+    from kincal.simulate.observations import simulate_markers, simulate_poses
+
+    ur5 = kincal.load_robot("ur5")
+    true = kincal.perturb(ur5, seed=5)
+    q = ur5.sample_joints(150, seed=6)
+    for obs, determined in ((simulate_poses(true, q, np.eye(3), 20e-6, 0.2e-3, seed=7), True),
+                            (simulate_markers(true, q, np.array([[0.0, 0.0, 0.031]]), 20e-6, seed=7), False)):
+        fit = fit_observations(ur5, [obs])
+        unc = fit.uncertainty()
+        turn = flange_turn(fit.robot, fit.nominal, unc.covariance, unc.names, ur5.lower, ur5.upper)
+        assert turn.determined is determined, turn

@@ -23,13 +23,11 @@ from .common import (EXIT_REFUSED, add_data_flags, checked, csv_list, emit, load
 
 def _orientation(args, record: dict, cal, values, nominal):
     """The model whose flange pose targets (a targets file with --pose, or a program's targets) are turned to, and
-    why: after a calibration whose data held no orientation (points, sockets or planes: its file's ``record``),
-    the nominal model (``nominal``, the commands' frame and TCP) unless the data's lever determined the calibrated
-    turn of the flange (:func:`kincal.compensate.flange_turn`); else None (the calibrated model itself), with no
-    reason."""
-    data = record.get("data")
-    kinds = {str(k) for k in data.get("kinds") or []} if isinstance(data, dict) else set()
-    if not (args.pose or args.program) or not kinds or kinds & {"pose", "markers"}:
+    why: for a calibrated file (its ``record``), the nominal model (``nominal``, the commands' frame and TCP) unless
+    the calibration's data determine its turn of the flange (:func:`kincal.compensate.flange_turn`: points far
+    enough from the flange's axis, 6-D poses, several markers); else (a bundled robot, a URDF) None, the model
+    itself, with no reason."""
+    if not (args.pose or args.program) or not record:
         return None, None
     unc = kincal.analysis.load_uncertainty(args.robot)
     turn = flange_turn(cal, cal.with_params(values) if values else cal, None if unc is None else unc.covariance,

@@ -1,12 +1,13 @@
-"""Whose flange orientation pose commands follow after a calibration from positions alone.
+"""Whose flange orientation pose commands follow: the calibrated model's where its data determine it.
 
 Position data see the flange's orientation only through the lever from the flange to the measured point. With
 a long lever (a reflector 150 mm out) the calibrated model's turn of the flange is measured to a few hundredths
 of a mrad and is worth following; with the point on the flange's axis near the flange (a UR5's 31 mm) the
 parameters that turn the flange are fitted in combinations the positions cannot tell apart, and the turn they
-imply is noise several mrad wide. :func:`flange_turn` weighs the calibrated model's turn from the nominal model
-against its standard deviation from the calibration's covariance, over poses of the calibration's joint ranges,
-both relative to each model's base (where the tracker stood is not a turn of the robot).
+imply is noise several mrad wide. 6-D poses and several markers see the turn directly. :func:`flange_turn`
+weighs the calibrated model's turn from the nominal model against its standard deviation from the calibration's
+covariance, over poses of the calibration's joint ranges, both relative to each model's base (where the tracker
+stood is not a turn of the robot).
 """
 from __future__ import annotations
 
@@ -52,15 +53,14 @@ class FlangeTurn:
 
     def note(self) -> str:
         """One line for the user: whose orientation the commands follow and why (mrad)."""
-        sizes = (f"a turn of {self.change * 1e3:.3f} mrad from the nominal flange, σ "
-                 + (f"{self.sigma * 1e3:.3f} mrad" if np.isfinite(self.sigma) else "unknown (no covariance recorded)"))
+        sigma = f"{self.sigma * 1e3:.3f} mrad" if np.isfinite(self.sigma) else "unknown: no covariance recorded"
         if self.determined:
-            return (f"orientation: from the calibrated model; it was fitted to positions only, but their lever "
-                    f"determines {sizes}")
-        return (f"orientation: as the nominal model turns the flange; the calibration measured positions only and "
-                f"leaves the flange's turn undetermined ({sizes}), so the commands correct the positions with the "
-                f"calibrated model and turn the flange as the nominal one predicts (measure a point further from the "
-                f"flange's axis, or calibrate from 6-D poses or markers, to correct the orientation too)")
+            return (f"orientation: from the calibrated model, whose data determine its turn of the flange "
+                    f"({self.change * 1e3:.3f} mrad from the nominal model, σ {sigma})")
+        return (f"orientation: as the nominal model turns the flange; the calibrated model's turn of it "
+                f"({self.change * 1e3:.3f} mrad from the nominal model, σ {sigma}) is within {TURN_Z:g}σ, not told "
+                f"apart from noise, so the commands correct the positions with the calibrated model only (a measured "
+                f"point further from the flange's axis, 6-D poses or several markers determine the turn)")
 
 
 def flange_turn(calibrated: Robot, nominal: Robot, covariance: np.ndarray | None, names, lower: np.ndarray,
