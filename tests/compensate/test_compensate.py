@@ -63,6 +63,20 @@ def test_verification_in_simulation_is_at_noise_level():
     assert "Table" not in plan.compare(measured).table() and "ΔL1 = 1" in plan.compare(measured).table()
 
 
+def test_a_plan_whose_command_would_break_a_joint_limit_is_refused():
+    """A sample at the legs' upper limit: the unit error in R asks for a leg beyond it (the command that reaches
+    the prediction is 0.8353 m against 0.835). The plan is refused, naming the case and the sample, instead of
+    writing that command for the robot."""
+    from kincal.compensate import verification_plan
+    robot = kincal.load_robot("puu3")
+    q = robot.sample_joints(3, seed=1)
+    q[1] = robot.upper
+    with pytest.raises(kincal.ModelError, match=r"verification case R: the commands of sample\(s\) 2 were refused "
+                                                r"\(row 2: .*joint limit"):
+        verification_plan(robot, q)
+    assert verification_plan(robot, q, ["r"]).commands.shape == (1, 3, 3)  # r moves the leg inward: kept
+
+
 def test_a_plan_read_back_keeps_its_sample_inputs(tmp_path):
     """Written in mm and degrees and read back, a plan has the inputs its commands were made from
     (not the first case's commands): each prediction is the model with that unit error at them."""

@@ -17,7 +17,7 @@ from typing import Sequence
 import numpy as np
 
 from ..analysis.sensitivity import UNIT
-from ..errors import MeasurementError
+from ..errors import MeasurementError, ModelError
 from ..io.measurements import write_csv
 from ..units import MM, joint_factors, unit_factor
 from ..models.robot import Robot
@@ -290,7 +290,8 @@ def verification_plan(robot: Robot, q_samples: np.ndarray, names: Sequence[str] 
     Raises
     ------
     ModelError
-        When a name is not a parameter of the robot or the sample inputs do not fit it.
+        When a name is not a parameter of the robot or the sample inputs do not fit it, or a case's command for
+        a sample is refused (:func:`compensate`: beyond a joint limit, off the branch, not reached).
 
     Examples
     --------
@@ -320,6 +321,12 @@ def verification_plan(robot: Robot, q_samples: np.ndarray, names: Sequence[str] 
         v = robot.params.values.copy()
         v[i] += UNIT[robot.params.kinds[i]]
         target = robot.forward(q, v)
+        comp = compensate(robot, target, q)
+        if not comp.ok.all():  # a command no robot should be sent: beyond a limit, off the branch, unreachable
+            raise ModelError(f"verification case {name}: the commands of sample(s) "
+                             f"{', '.join(str(int(r)) for r in comp.rows[~comp.ok][:10])} were refused "
+                             f"({comp.problems[0]}); choose sample inputs away from the joint limits and "
+                             f"singularities")
         predicted.append(target)
-        commands.append(compensate(robot, target, q).q)
+        commands.append(comp.q)
     return VerificationPlan(names, q, np.array(predicted), np.array(commands))
