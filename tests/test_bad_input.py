@@ -968,3 +968,13 @@ def test_signals_under_load_end_in_one_line(tmp_path, cpu_hog, command, sig, cod
         assert "Traceback" not in err and "Error" not in err, (delay, err)
         assert lines[-1] == f"kincal: {word}; nothing half-written" and sum(word in x for x in lines) == 1, (delay, err)
         assert not list(tmp_path.glob(f"{command}-{delay}*")), (delay, list(tmp_path.iterdir()))
+
+
+@pytest.mark.parametrize("index", [-1, 3])
+def test_a_row_index_outside_the_file_is_refused_and_nothing_written(tmp_path, index):
+    """write_selected_rows: -1 would silently pick the last row, 3 is past the three data rows."""
+    from kincal.io import write_selected_rows
+    (tmp_path / "all.csv").write_text("id,j1\nP1,0.1\nP2,0.2\nP3,0.3\n")
+    with pytest.raises(IndexError, match=f"data row index {index} is outside 0..2"):
+        write_selected_rows(tmp_path / "chosen.csv", tmp_path / "all.csv", [0, index])
+    assert not (tmp_path / "chosen.csv").exists()

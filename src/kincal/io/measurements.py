@@ -552,7 +552,7 @@ def write_selected_rows(path: str | os.PathLike, source: str | os.PathLike, indi
     MeasurementError
         When ``source`` cannot be read as a CSV.
     IndexError
-        When an index is beyond the source's data rows.
+        When an index is negative or beyond the source's data rows (nothing is written).
 
     Examples
     --------
@@ -571,6 +571,10 @@ def write_selected_rows(path: str | os.PathLike, source: str | os.PathLike, indi
     """
     table = open_table(str(source))
     new = "input_row" not in table.header
+    wrong = [int(k) for k in indices if not 0 <= int(k) < len(table.records)]
+    if wrong:  # a negative index would silently count from the end
+        raise IndexError(f"{source}: data row index {wrong[0]} is outside 0..{len(table.records) - 1} (0-based, file "
+                         f"order)")
     picked = (table.records[int(k)] for k in indices)
     write_csv(path, ["input_row", *table.header] if new else table.header,
               ([line, *cells] if new else cells for line, cells in picked), table.delim)
