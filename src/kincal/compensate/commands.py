@@ -219,7 +219,7 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
                          f"give 6-D targets (position and orientation: --pose)")
     targets, q0, rows = _checked_inputs(robot, targets, q_start, damping, rows)
     if nominal is not None and q0 is not None:
-        why = frame_mismatch(nominal, q0, targets, rows)
+        why = frame_mismatch(nominal, q0, targets)
         if why:
             none = np.zeros(len(targets), bool)
             return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
@@ -410,7 +410,7 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
             comp = dataclasses.replace(comp, rotation_residual=model_turn(orientation, comp.q, rotations))
         return _with_sigma(robot, comp, uncertainty)
     if nominal is not None:
-        why = frame_mismatch(nominal, q0, targets, rows) or _orientation_mismatch(nominal, q0, rotations)
+        why = frame_mismatch(nominal, q0, targets) or _orientation_mismatch(nominal, q0, rotations)
         if why:
             none = np.zeros(len(targets), bool)
             return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)

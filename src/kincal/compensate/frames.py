@@ -170,7 +170,7 @@ def _direction(v: np.ndarray, frame: str) -> str:
     return f"the {frame} direction ({', '.join(f'{c:.2f}' for c in v)})"
 
 
-def frame_mismatch(nominal: Robot, q: np.ndarray, targets: np.ndarray, rows: np.ndarray) -> str:
+def frame_mismatch(nominal: Robot, q: np.ndarray, targets: np.ndarray) -> str:
     """Name the set-up mismatch that keeps the nominal model at the nominal joints from the targets, if any.
 
     A constant offset in the flange frame is a TCP mismatch, one in the base frame a frame offset (each
@@ -186,8 +186,6 @@ def frame_mismatch(nominal: Robot, q: np.ndarray, targets: np.ndarray, rows: np.
         The nominal joints of the targets, rad (m for a prismatic joint).
     targets : ndarray, shape (N, 3)
         The target positions, m.
-    rows : ndarray, shape (N,)
-        The targets' row numbers (unused in the message: a set-up mismatch concerns every row).
 
     Returns
     -------
@@ -201,18 +199,17 @@ def frame_mismatch(nominal: Robot, q: np.ndarray, targets: np.ndarray, rows: np.
     >>> from kincal.compensate import frame_mismatch
     >>> nominal = kincal.load_robot("ur5")
     >>> q = nominal.sample_joints(5, seed=2)
-    >>> rows = np.arange(1, 6)
-    >>> frame_mismatch(nominal, q, nominal.forward(q), rows)
+    >>> frame_mismatch(nominal, q, nominal.forward(q))
     ''
-    >>> print(frame_mismatch(nominal, q, nominal.forward(q) + [0.0, 0.002, 0.0], rows))
+    >>> print(frame_mismatch(nominal, q, nominal.forward(q) + [0.0, 0.002, 0.0]))
     TCP/frame mismatch of 2.0 mm along the base frame +y: the targets are in another frame than the model's;
     say which with --target-frame. Not corrected: a constant offset is a set-up mismatch, not a robot error
     >>> longer = nominal.forward(q) + nominal.flange_rotation(q) @ np.array([0.0, 0.0, 0.01])
-    >>> print(frame_mismatch(nominal, q, longer, rows))
+    >>> print(frame_mismatch(nominal, q, longer))
     TCP/frame mismatch of 10.0 mm along the flange +z: the targets were computed for a tool point at (0.00, 0.09,
     41.00) mm in the flange frame, not the model's; give the controller's TCP with --tcp. Not corrected: a
     constant offset is a set-up mismatch, not a robot error
-    >>> print(frame_mismatch(nominal, q, nominal.forward(q) * [-1.0, -1.0, 1.0], rows))
+    >>> print(frame_mismatch(nominal, q, nominal.forward(q) * [-1.0, -1.0, 1.0]))
     the targets are in the robot's 'base_link' frame, not its base frame: give --target-frame base_link
     """
     reached = nominal.forward(q)
