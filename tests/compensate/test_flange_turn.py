@@ -206,3 +206,27 @@ def test_a_calibration_from_six_d_poses_determines_the_turn_and_a_single_marker_
         unc = fit.uncertainty()
         turn = flange_turn(fit.robot, fit.nominal, unc.covariance, unc.names, ur5.lower, ur5.upper)
         assert turn.determined is determined, turn
+
+
+def test_a_taught_base_takes_the_nominal_turn_where_the_calibration_leaves_it_undetermined():
+    """A UR5 measured 31 mm out on the flange's axis (its turn undetermined); bases taught by three points of a
+    TCP 120 mm beyond the measured point. The physical base's origin from the calibrated model with the nominal
+    turn is nearer the true one than with the calibrated turn, which the data never saw: the lever carries the
+    turn's error."""
+    from kincal.compensate import resolve_taught
+    from kincal.io import TaughtFrame
+
+    nominal, true, fit = _case("ur5", [0.0, 0.0, 0.031])
+    lever = np.array([0.0, 0.0, 0.12])  # the TCP from the measured point, in the flange's axes
+    tool = np.eye(4)
+    tool[:3, 3] = fit.robot.tool_point() + lever
+    errors = {"calibrated": [], "nominal": []}
+    for k in range(10):
+        q = nominal.sample_joints(3, seed=20 + k)
+        taught = {"tcp": (tool, tool), "b": TaughtFrame("b", "origin-x-xy", q, "tcp", None)}
+        true_origin = true.forward(q[:1])[0] + true.flange_rotation(q[:1])[0] @ lever
+        flange = nominal.with_tool_point(np.zeros(3))
+        for name, orientation in (("calibrated", None), ("nominal", nominal)):
+            physical = resolve_taught(taught, flange, fit.robot, orientation)["b"][1]
+            errors[name].append(np.linalg.norm(physical[:3, 3] - true_origin))
+    assert np.mean(errors["nominal"]) < 0.7 * np.mean(errors["calibrated"]), errors

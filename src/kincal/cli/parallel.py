@@ -160,7 +160,7 @@ def _compensate_branches(args, cal, values, orientation) -> int:
     declared = kincal.io.dialects()[args.program].frames(prog)
     known = sorted(k for k, v in declared.items() if not isinstance(v, str))
     lines += [f"frames the program declares or holds beside it: {', '.join(known)}"] if known else []
-    lines += _taught_lines(cal, nominal, frames)
+    lines += _taught_lines(cal, nominal, frames, turned)
     lines += [f"refused: {p}" for p in res.problems]
     lines += [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal]
     lines += [turn.note()] if turn is not None else []
@@ -210,10 +210,9 @@ def _compensate_folder(args) -> int:
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
 
 
-def _taught_lines(cal, nominal, frames) -> list[str]:
+def _taught_lines(cal, nominal, frames, turned) -> list[str]:
     """How far each taught frame of the frames file really is from the controller's (as compensate used it)."""
-    flange = np.zeros(3)
-    resolved = resolve_taught(frames, nominal.with_tool_point(flange), cal.with_tool_point(flange))
+    resolved = resolve_taught(frames, nominal.with_tool_point(np.zeros(3)), cal, turned)
     out = []
     for name, f in frames.items():
         if isinstance(f, kincal.io.TaughtFrame):

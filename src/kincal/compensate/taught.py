@@ -49,16 +49,29 @@ def tool_of_poses(p: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, float]:
     return T, float(np.sqrt(np.mean(spread**2)))
 
 
-def _taught(f: TaughtFrame, robot: Robot, tool: np.ndarray | None) -> tuple[np.ndarray, float]:
-    """The frame ``f``'s teach poses give on ``robot`` (a flange model), a base with the TCP of ``tool``; and for
-    a tool how far its poses disagree (m; 0 for a base, whose rule is an exact construction)."""
-    p, R, _, _ = robot.pose_and_jacobian(robot.check_q(f.joints))
+def _flange_poses(robot: Robot, q: np.ndarray, orientation: Robot | None) -> tuple[np.ndarray, np.ndarray]:
+    """The flange poses p (K, 3) m, R (K, 3, 3) at q (K, n): ``robot``'s tool point where ``robot`` puts it, the
+    flange turned as ``orientation``'s (default ``robot``'s) about it; the flange's origin follows from both."""
+    robot = robot if robot.has_tool_point else robot.with_tool_point(np.zeros(3))
+    P, R, _, _ = robot.pose_and_jacobian(robot.check_q(q))
+    if orientation is not None:
+        R = orientation.flange_rotation(q)
+    return P - R @ robot.tool_point(), R
+
+
+def _taught(f: TaughtFrame, robot: Robot, tool: np.ndarray | None,
+            orientation: Robot | None = None) -> tuple[np.ndarray, float]:
+    """The frame ``f``'s teach poses give on ``robot`` (its flange poses, :func:`_flange_poses`), a base with the
+    TCP of ``tool``; and for a tool how far its poses disagree (m; 0 for a base, whose rule is an exact
+    construction)."""
+    p, R = _flange_poses(robot, f.joints, orientation)
     if f.kind == "tool":
         return tool_of_poses(p, R)
     return base_of_points(f.rule, p + np.einsum("kij,j->ki", R, np.zeros(3) if tool is None else tool[:3, 3])), 0.0
 
 
-def resolve_taught(frames: Mapping[str, object], nominal: Robot, calibrated: Robot) -> dict[str, object]:
+def resolve_taught(frames: Mapping[str, object], nominal: Robot, calibrated: Robot,
+                   orientation: Robot | None = None) -> dict[str, object]:
     """Replace every taught frame by the frame the controller holds and the one that is physically there.
 
     The controller's frame is what its nominal model gives at the teach poses (what it turns written targets
@@ -76,7 +89,11 @@ def resolve_taught(frames: Mapping[str, object], nominal: Robot, calibrated: Rob
     nominal : Robot
         The controller's (nominal) model, a flange model (no tool point).
     calibrated : Robot
-        The calibrated model, a flange model (no tool point).
+        The calibrated model, with the point the calibration measured as its tool point (or a flange model).
+    orientation : Robot, optional
+        The model whose flange turn the physical frames take (default: the calibrated model's): give the nominal
+        model where the calibration's data do not determine the turn (:func:`flange_turn`). The flange then
+        stands where the calibrated model puts the measured point, turned as this model's about it.
 
     Returns
     -------
@@ -113,17 +130,19 @@ def resolve_taught(frames: Mapping[str, object], nominal: Robot, calibrated: Rob
     out = dict(frames)
     taught = {n: f for n, f in frames.items() if isinstance(f, TaughtFrame)}
     for name in sorted(taught, key=lambda n: (taught[n].kind != "tool", n)):  # tools first: bases use them
-        out[name] = _pair(taught[name], out, nominal, calibrated)
+        out[name] = _pair(taught[name], out, nominal, calibrated, orientation)
     return out
 
 
-def _pair(f: TaughtFrame, known: Mapping[str, object], nominal: Robot, calibrated: Robot) -> Pair | str:
+def _pair(f: TaughtFrame, known: Mapping[str, object], nominal: Robot, calibrated: Robot,
+          orientation: Robot | None) -> Pair | str:
     tool = known.get(f.tool) if f.kind == "base" else None
     if isinstance(tool, str):
         return f"it was taught with tool {f.tool!r}, which is not known: {tool}"
     pair = tool if isinstance(tool, tuple) else (tool, tool)
     try:
-        (controller, spread), (physical, _) = _taught(f, nominal, pair[0]), _taught(f, calibrated, pair[1])
+        (controller, spread) = _taught(f, nominal, pair[0])
+        physical, _ = _taught(f, calibrated, pair[1], orientation)
     except ModelError as exc:  # teach poses of another joint count
         return f"its teach poses do not fit this robot ({exc})"
     if f.declared is None:
