@@ -117,7 +117,7 @@ def resolve_taught(frames: Mapping[str, object], nominal: Robot, calibrated: Rob
     >>> np.round(controller[[0, 2], 3], 4)  # the origin the controller holds: x and z, m (y is 0)
     array([0.5016, 0.8334])
     >>> np.round((physical[:3, 3] - controller[:3, 3]) * 1e3, 3)  # where it really is, mm from there
-    array([ 0.475, -1.865, -0.602])
+    array([ 0.413, -1.881,  0.002])
 
     A frame written beside its taught joints must be the one they give:
 
