@@ -37,17 +37,20 @@ def unit_factor(unit: str, kind: str, where: str = "", error: type[Exception] = 
 
 
 def joint_units(types: Iterable[str], length_unit: str, angle_unit: str, where: str = "",
-                error: type[Exception] = ValueError) -> list[str]:
-    """Each joint's unit: ``angle_unit`` for a revolute joint, ``length_unit`` for a prismatic one; both
-    units are checked first, length then angle (:func:`unit_factor`, with ``where`` and ``error``)."""
+                error: type[Exception] = ValueError) -> list[str | None]:
+    """Each input's unit: ``angle_unit`` for a revolute joint, ``length_unit`` for a prismatic one, None for a
+    covariate (a temperature or a time: its number as written); both units are checked first, length then angle
+    (:func:`unit_factor`, with ``where`` and ``error``)."""
     unit_factor(length_unit, "length", where, error), unit_factor(angle_unit, "angle", where, error)
-    return [angle_unit if t == "revolute" else length_unit for t in types]
+    return [angle_unit if t == "revolute" else None if t == "covariate" else length_unit for t in types]
 
 
 def joint_factors(types: Iterable[str], length_unit: str, angle_unit: str, where: str = "",
                   error: type[Exception] = ValueError) -> list[float]:
-    """SI factor of each joint's unit (:func:`joint_units`, both units checked; rad or m per unit)."""
-    return [{**LENGTH_UNITS, **ANGLE_UNITS}[u] for u in joint_units(types, length_unit, angle_unit, where, error)]
+    """SI factor of each input's unit (:func:`joint_units`, both units checked; rad or m per unit, 1 for a
+    covariate)."""
+    units = joint_units(types, length_unit, angle_unit, where, error)
+    return [1.0 if u is None else {**LENGTH_UNITS, **ANGLE_UNITS}[u] for u in units]
 
 
 SHOWN = {"length": ("mm", MM), "angle": ("deg", DEG), "ratio": ("%", 100.0)}  # a parameter's value by its kind

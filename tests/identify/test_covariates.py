@@ -154,3 +154,30 @@ def test_compensation_refuses_a_model_with_covariate_terms(warm):
     targets = nominal.forward(nominal.sample_joints(3, seed=1))
     with pytest.raises(ModelError, match="covariate terms \\(temperature\\)"):
         kincal.compensate(model, targets)
+
+
+def test_a_covariate_is_read_as_written_and_shown_as_one_whatever_the_length_unit(tmp_path, warm, capsys):
+    """A file in mm with a temperature column: the positions are scaled, the temperature not (its calibrated
+    range is the file's 20–25 °C, not 0.02–0.025); show counts six joints beside the covariate and prints its
+    range as written (it printed 19000–31000 through the mm factor)."""
+    import json
+    from kincal.units import joint_factors
+    assert joint_factors(("revolute", "prismatic", "covariate"), "mm", "deg") == [np.pi / 180, 1e-3, 1.0]
+    _, train, _, _ = warm
+    part = train.subset(np.arange(0, len(train), 2))
+    mm = kincal.Measurements(part.q, part.xyz * 1e3, part.joint_names)
+    data, cal = _csv(tmp_path / "mm.csv", mm), str(tmp_path / "cal.yaml")
+    assert main(["calibrate", "ur5", data, "--covariate-cols", "temperature", "--error-model", "thermal:temperature",
+                 "--length-unit", "mm", "-o", cal]) == 0
+    robot = kincal.load_robot(cal)
+    k = robot.joint_names.index("temperature")
+    capsys.readouterr()
+    assert main(["show", cal, "--json"]) == 0
+    shown = json.loads(capsys.readouterr().out)["joints"][k]
+    assert shown["limits"] == pytest.approx([robot.lower[k], robot.upper[k]])
+    assert robot.lower[k] < part.q[:, 6].min() < part.q[:, 6].max() < robot.upper[k] < 2 * part.q[:, 6].max()
+    assert main(["show", cal]) == 0
+    text = capsys.readouterr().out
+    assert "6 joints; covariates temperature" in text
+    row = next(line for line in text.splitlines() if "covariate" in line and "│" in line)
+    assert [float(v) for v in row.split("│")[3:5]] == pytest.approx([robot.lower[k], robot.upper[k]], rel=1e-5)

@@ -194,15 +194,7 @@ def _file_scales(joint_types: Sequence[str], length_unit: str, angle_unit: str, 
     """Factors from SI to a file's units: per joint (angle unit for revolute joints, length unit for
     prismatic ones; both units checked; a covariate as it is) and for lengths."""
     factors = np.array(joint_factors(joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError))
-    factors[[t == "covariate" for t in joint_types]] = 1.0
     return 1.0 / factors, 1.0 / unit_factor(length_unit, "length", f"{path}: ", MeasurementError)
-
-
-def _input_units(robot: Robot, length_unit: str, angle_unit: str, path: str) -> list:
-    """The file unit of each input column: a joint's (:func:`kincal.units.joint_units`), None (the
-    number as written) for a covariate."""
-    units = joint_units(robot.joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError)
-    return [None if t == "covariate" else u for t, u in zip(robot.joint_types, units)]
 
 
 def read_joints(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None, length_unit: str = "m",
@@ -259,7 +251,7 @@ def read_joints(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str]
     ((3, 6), True)
     """
     path = str(path)
-    units = _input_units(robot, length_unit, angle_unit, path)
+    units = joint_units(robot.joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError)
     table = open_table(path)
     q = table.numbers(_joint_columns(path, robot, joint_cols, table.header), units, what="joint values")
     check_degrees(path, q, robot, angle_unit)
@@ -394,7 +386,7 @@ def read_measurements(path: str | os.PathLike, robot: Robot, joint_cols: Sequenc
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
     if std_cols is not None and len(std_cols) not in (0, 3):
         raise MeasurementError(f"{path}: give three σ columns (x, y, z) or none, got {list(std_cols)}")
-    units = _input_units(robot, length_unit, angle_unit, path)
+    units = joint_units(robot.joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError)
     table = open_table(path)
     cols = _joint_columns(path, robot, joint_cols, table.header)
     if std_cols is None:  # the σ columns by their usual names when the header has all three
