@@ -71,7 +71,7 @@ class Repeat:
         if self.sigma is None or len(self.joints) != robot.n_joints:
             raise ModelError("the calibration's data had no absolute positions: there is no prediction miss to judge "
                              "measured positions against (calibrate from positions or poses)")
-        revolute = np.array([t == "revolute" for t in robot.joint_types])
+        revolute = robot.revolute
         return miss_covariance(robot.joint_jacobian(q)[:, :3, :], q, revolute, self.sigma, self.joints, self.length)
 
     def conditioned(self, robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -112,7 +112,7 @@ class Cell:
         """(N,) bool per constraint broken by the poses q (N, n): 'joint margin', 'half-space k',
         'keep-out k', 'tracker range', 'line of sight'."""
         q = robot.check_q(q)
-        m = np.where([t == "revolute" for t in robot.joint_types], self.joint_margin, 0.0)
+        m = np.where(robot.revolute, self.joint_margin, 0.0)
         out = {"joint margin": ~np.all((q >= robot.lower + m) & (q <= robot.upper - m), axis=1)}
         p, arm, r = robot.forward(q), self._arm(robot, q), self.link_radius
         for k, (n, c) in enumerate(self.half_spaces):

@@ -64,7 +64,7 @@ def repeat_of(robot: Robot, sets, free, J: np.ndarray, r: np.ndarray, posterior:
                     [np.zeros((len(extra), K)), np.diag(list(extra.values())).reshape(len(extra), len(extra))]])
     scale = 1.0
     if sigma is not None and len(kept[0]):
-        rev = np.array([t == "revolute" for t in robot.joint_types])
+        rev = robot.revolute
         A = miss_from_parts(miss_parts(robot.joint_jacobian(kept[0])[:, :3, :], kept[0], rev, joints), sigma, length,
                             len(kept[0]))
         scale = loo_scale(A, kept[1])
@@ -86,7 +86,7 @@ def miss_length(robot: Robot, q: np.ndarray, res: np.ndarray, sigma: float, join
     (N, n) are likeliest as a Gaussian with :func:`kincal.analysis.changes.miss_covariance` (at most ``LIKELIHOOD``
     samples, evenly by row; ties: the shortest, :mod:`kincal.ties`)."""
     at = np.unique(np.linspace(0, len(q) - 1, min(len(q), LIKELIHOOD)).astype(int))
-    Jq, rev = robot.joint_jacobian(q[at])[:, :3, :], np.array([t == "revolute" for t in robot.joint_types])
+    Jq, rev = robot.joint_jacobian(q[at])[:, :3, :], robot.revolute
     parts, values = miss_parts(Jq, q[at], rev, joints), []
     for length in LENGTHS:
         A = miss_from_parts(parts, sigma, length, len(at))
@@ -144,7 +144,7 @@ def miss_model(robot: Robot, q: np.ndarray, res: np.ndarray, taken: float) -> tu
     if len(res) * 3 <= taken + robot.n_joints + 2:
         return None, (), 1.0
     Jq = robot.joint_jacobian(q)[:, :3, :]
-    revolute = np.array([t == "revolute" for t in robot.joint_types])
+    revolute = robot.revolute
     lever = np.sum(Jq**2, axis=1) * revolute  # (N, n): one σ for every revolute joint's angle
     A = np.stack([np.full(len(q), 3.0), lever.sum(axis=1)], axis=1)
     scale = np.where(A.max(axis=0) > 0, A.max(axis=0), 1.0)  # no revolute joint: 0

@@ -108,7 +108,7 @@ ANGLE_WORDS = {"rad": "radians", "deg": "degrees", "rev": "revolutions"}
 def _other_angle_unit(q: np.ndarray, xyz: np.ndarray, robot: Robot, angle_unit: str | None) -> str | None:
     """The angle unit (of ``ANGLE_UNITS``, in their order) whose reading of the revolute joints makes the
     robot move as far as the measured positions xyz, when the declared ``angle_unit`` does not; None if none does."""
-    rev = np.array([t == "revolute" for t in robot.joint_types])
+    rev = robot.revolute
     if angle_unit not in ANGLE_UNITS or not rev.any():
         return None
     for unit, factor in ANGLE_UNITS.items():
@@ -191,7 +191,7 @@ def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
     kincal.errors.MeasurementError: poses.csv: revolute joint values reach ... rad ('rad' was given), far beyond
     the joint limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)
     """
-    rev = np.array([t == "revolute" for t in robot.joint_types])
+    rev = robot.revolute
     if not rev.any():
         return
     lim = np.maximum(np.abs(robot.lower), np.abs(robot.upper))
@@ -248,7 +248,7 @@ def check_radians(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
     kincal.errors.MeasurementError: poses.csv: read as degrees, no revolute joint moves more than ... deg over 12
     samples: the values look like radians; use angle unit 'rad' (CLI: --angle-unit rad)
     """
-    rev = np.array([t == "revolute" for t in robot.joint_types])
+    rev = robot.revolute
     if angle_unit != "deg" or not rev.any() or len(q) < 10:
         return
     as_read = np.abs(q[:, rev]) * 180.0 / np.pi

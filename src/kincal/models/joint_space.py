@@ -106,10 +106,15 @@ class Joints:
         return np.zeros(len(q), bool), ""
 
     @property
+    def revolute(self) -> np.ndarray:
+        """(n,) bool: the revolute joints (their values are angles)."""
+        return np.array([t == "revolute" for t in self.joint_types], bool)
+
+    @property
     def periodic(self) -> np.ndarray:
         """(n,) bool: joints whose configuration repeats every whole turn (revolute joints; a motor
         that drives a leg through a screw does not: its turns add up)."""
-        return np.array([t == "revolute" for t in self.joint_types], bool)
+        return self.revolute
 
     @property
     def lower(self) -> np.ndarray:
