@@ -11,6 +11,8 @@ import numpy as np
 
 from ..identify.calibrate import held_out_stats
 from ..identify.result import CalibrationResult
+from ..identify.sessions import heldout_cause
+from ..io.measurements import Measurements
 from ..observe.sessions import InSession
 from . import figures as F
 from .._csv import listed
@@ -30,11 +32,25 @@ def sets_part(result: CalibrationResult, tests: Sequence, same_frame: bool):
     residuals += [_row(s, f"held out {k + 1}", "calibrated", "held_out") for k, s in enumerate(held)]
     groups = _groups(result.per_set_before, result.per_set, "training") + _groups(nominal, held, "held out")
     figures = [{"name": n, "svg": F.svg(f)} for n, f in observation_figures(result).items()]
-    part = {"residuals": residuals, "groups": groups, "figures": figures,
+    warnings = [c for c in (_cause(result, t) for t in tests) if c] if same_frame else []
+    part = {"residuals": residuals, "groups": groups, "figures": figures, "warnings": warnings,
             "rejected": {k: listed(v) for k, v in result.rejected.items()}}
     summary = [f"  {r['data']} {r['type']} ({r['model']}): mean {r['mean_mm']:.4f} mm" for r in residuals
-               if r["mean_mm"] is not None]
-    return part, {"held_out": held, "held_out_nominal": nominal, "residuals": residuals, "groups": groups}, summary
+               if r["mean_mm"] is not None] + [f"  warning: {w}" for w in warnings]
+    return part, {"held_out": held, "held_out_nominal": nominal, "residuals": residuals, "groups": groups,
+                  "warnings": warnings}, summary
+
+
+def _cause(result: CalibrationResult, obs) -> str:
+    """The likely cause of a held-out set's error far above the training error of its kind, judged on its positions
+    in the calibration's frame (``--same-frame``: the tracker moved, another tool point, a scale), as ``evaluate``
+    names it; '' for a set without positions or within the limit."""
+    found = obs.positions()
+    train = [s["mean"] for s in result.per_set if s.get("type") == obs.kind and s.get("mean")]
+    if found is None or not train:
+        return ""
+    meas = Measurements(found[0], found[1], result.robot.joint_names, obs.source, obs.rows)
+    return heldout_cause(result.robot, meas, float(train[0]), rebased=False)
 
 
 def observation_figures(fit: CalibrationResult, label: str = "training") -> dict:
