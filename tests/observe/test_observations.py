@@ -405,3 +405,24 @@ def test_statistics_are_in_si_and_shown_in_mm_and_mrad(ur5):
     assert shown["mean_mm"] == pytest.approx(np.sqrt(3) * 2.0, rel=1e-9) and shown["max_mrad"] == s["max_rotation"] * 1e3
     assert shown["groups"] == [{"group": "a", "mean_abs_mm": pytest.approx(0.1), "distance_error_mm": None}]
     assert "mean" not in shown and shown["type"] == "pose"
+
+
+def test_two_camera_sessions_forced_into_one_frame_are_refused_like_points(ur5):
+    """A second pose session from a camera moved 0.12 m, fitted in the first one's frame: its positions are
+    hundreds of times their stated σ. Refused, as position data at that ratio to the tracker noise are
+    (the same residual_refuse threshold), not merely suspect with advice to restate σ; a leg's assumed σ (no flag
+    states it) only makes a fit suspect."""
+    from kincal.identify.judge import _whitened_reason
+    from kincal.identify.verdict import Thresholds
+
+    true = kincal.perturb(ur5, seed=5)
+    a = simulate_poses(true, ur5.sample_joints(80, seed=6), np.eye(3), 20e-6, 0.2e-3, seed=7)
+    b = simulate_poses(true.with_params({"base.x": 0.12}), ur5.sample_joints(80, seed=8), np.eye(3), 20e-6, 0.2e-3,
+                       seed=9)
+    fit = fit_observations(ur5, [a, b])  # one frame for both
+    assert fit.whitened["pose position"] > Thresholds().residual_refuse
+    assert fit.verdict.status == "refused", fit.verdict
+    assert "data and model do not belong together" in fit.verdict.reasons[0].message
+    assert _whitened_reason("joint", 361.0, {"joint": 361.0}, Thresholds()).level == "suspect"
+    from kincal.observe.sessions import InSession
+    assert fit_observations(ur5, [a, InSession.of(b, "2:b")]).verdict.status == "good"  # a frame of its own
