@@ -319,3 +319,15 @@ def test_distinct_count_equals_the_number_of_repeat_groups():
         expected = len(q) - sum(len(g) - 1 for g in groups)
         for most in (1, 2, 3, 10):
             assert distinct_count(q, 1e-3, most) == min(expected, most)
+
+
+def test_similarity_scale_recovers_a_known_similarity():
+    """b = s R a + t with s = 1.013, R a rotation of 0.7 rad and any t: the scale comes back to 1e-12; a mirror
+    (det -1) is not taken as a rotation."""
+    from scipy.spatial.transform import Rotation
+    from kincal.identify.judge import similarity_scale
+    a = np.random.default_rng(1).normal(size=(50, 3))
+    R = Rotation.from_rotvec([0.3, -0.5, 0.4]).as_matrix()
+    b = 1.013 * a @ R.T + [0.4, -1.0, 2.0]
+    assert abs(similarity_scale(a, b) - 1.013) < 1e-12
+    assert similarity_scale(a, a * [1, 1, -1]) < 1.0  # a reflection cannot be matched by a rotation

@@ -300,6 +300,28 @@ def test_two_pose_sessions_each_in_its_own_frame(tmp_path, capsys, ur5):
 
 
 @pytest.mark.slow
+def test_a_socket_distance_two_percent_off_is_named_not_good(tmp_path, capsys):
+    """The Panda's sockets are 50 mm apart; stated as 51 mm the fit scales the whole arm (its placements still agree
+    to 0.35 mm: nothing else shows it). The verdict says the model is larger than the nominal one as a whole and
+    names the distance; at 50 mm it stays good, with no such reason."""
+    rows = list(csv.DictReader(open(SOCKETS / "samples.csv")))
+    keys = list(rows[0])
+    train = _write(tmp_path / "train.csv", keys, [[r[k] for k in keys] for r in rows if r["placement"] == "front_center"])
+    base = ["calibrate", str(PANDA / "panda.urdf"), "--tip-link", "ball_link", "--type", "same-point", "--joint-cols",
+            ",".join(f"q{k}" for k in range(1, 8)), "--label-col", "socket", "--length-unit", "mm", train,
+            "--group-col", "placement"]
+    verdicts = {}
+    for d in ("50", "51"):
+        code, out, _ = _run(capsys, base + ["--distance", f"0,1,{d}"])
+        verdicts[d] = out["verdict"]
+    assert verdicts["50"]["status"] == "good" and not any(r["code"] == "size" for r in verdicts["50"]["reasons"])
+    size = [r for r in verdicts["51"]["reasons"] if r["code"] == "size"]
+    assert verdicts["51"]["status"] == "suspect" and len(size) == 1
+    assert "larger than the nominal one as a whole" in size[0]["message"] and "--distance" in size[0]["message"]
+    grown = float(size[0]["message"].split("model is ")[1].split(" %")[0])
+    assert 1.0 < grown < 2.0  # of the 2 % the distance is off, the ball's offset takes a part
+
+
 def test_points_and_sockets_together_through_the_command_line(tmp_path, capsys):
     """A tracker session and socket samples in one calibration: the points give the frame and the
     scale, the sockets add configurations; the result is near the truth."""

@@ -22,6 +22,8 @@ if TYPE_CHECKING:
     from .diagnosis import Diagnosis
     from .result import CalibrationResult
 
+SIZE_SUSPECT = 5e-3  # a calibrated model this much larger or smaller than its drawings as a whole: no robot's error
+SIZE_POSES = 500  # poses of the joint ranges the two models' sizes are compared over (seed 0)
 IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes (unseen) than across them
 MIN_SAMPLES = 10  # a set with fewer samples is not judged for outliers (no robust spread to judge by)
 
@@ -54,8 +56,38 @@ def verdict_of(res: "CalibrationResult") -> Verdict:
     if res.mounting:
         reasons += mounting_reasons(res.nominal.tool_point(), res.robot.tool_point(), th)
     reasons += _position_reasons(res, th) if res.data else _set_reasons(res, th)
+    reasons += _size_reasons(res)
     verdict = Verdict.from_reasons(tuple(reasons))
     return verdict if res.diagnosis is None else _diagnosed(res, res.diagnosis, verdict)
+
+
+def _size_reasons(res: "CalibrationResult") -> list[Reason]:
+    """A calibrated model larger or smaller than the nominal one as a whole (the scale of a similarity fit of their
+    flange positions at SIZE_POSES poses of the joint ranges) by more than SIZE_SUSPECT: the length that sets the data's
+    scale is off — a known distance between sockets or planes where the data have one, else the instrument's scale
+    (or the robot file's lengths)."""
+    q = res.nominal.sample_joints(SIZE_POSES, seed=0)
+    flanges = [m.with_tool_point(np.zeros(3)) if m.has_tool_point else m for m in (res.nominal, res.robot)]
+    a, b = (m.forward_batch(q, m.param_values(None)[None])[0] for m in flanges)  # NaN where a model does not reach
+    ok = np.all(np.isfinite(a) & np.isfinite(b), axis=1)
+    scale = similarity_scale(a[ok], b[ok]) if ok.sum() >= 4 else 1.0
+    if abs(scale - 1.0) <= SIZE_SUSPECT:
+        return []
+    known = any(o.kind in ("same-point", "plane") and o.reference for o in res.observations)
+    why = ("the known distance that sets the scale (--distance, or the planes' known offsets) is likely off" if known
+           else "the instrument's length scale or the robot file's lengths are likely off")
+    return [Reason("suspect", "size", f"the calibrated model is {abs(scale - 1) * 100:.1f} % "
+                                      f"{'larger' if scale > 1 else 'smaller'} than the nominal one as a whole (a "
+                                      f"similarity fit of their flange positions over the joint ranges): no real robot is "
+                                      f"that far from its drawings; {why}")]
+
+
+def similarity_scale(a: np.ndarray, b: np.ndarray) -> float:
+    """The scale s of the similarity b ≈ s R a + t that best maps points a (N, 3) onto b (N, 3) (Umeyama)."""
+    a, b = a - a.mean(axis=0), b - b.mean(axis=0)
+    U, S, Vt = np.linalg.svd(b.T @ a)
+    S[-1] *= np.sign(np.linalg.det(U @ Vt))
+    return float(S.sum() / max(np.sum(a**2), 1e-300))
 
 
 def _base_reasons(res: "CalibrationResult") -> list[Reason]:
