@@ -272,3 +272,24 @@ def test_a_program_written_in_millimetres_is_refused_with_that_cause(tmp_path):
                              models=lambda tcp: (true.with_tool_point(tcp), nominal.with_tool_point(tcp)))
     assert res.refused == {0: "the TCP set_tcp sets is 109 m from the flange: URScript's poses are in metres "
                               "(p[0, 0, 0.109, …] is 109 mm)"}
+
+
+def test_a_program_for_another_robot_is_refused(tmp_path, capsys):
+    """A KUKA calibration and a URScript program (or a folder of RAPID modules): refused, naming the robot's language
+    from its robot file, nothing written; the UR program with a UR calibration is compensated."""
+    kuka = kincal.perturb(kincal.load_robot("kuka_kr6r900sixx"), seed=1)
+    kincal.save_robot(kuka, tmp_path / "kuka.yaml")
+    ur = kincal.perturb(kincal.load_robot("ur5"), seed=1)
+    kincal.save_robot(ur, tmp_path / "ur.yaml")
+    q0 = np.array([0.3, -1.2, 1.4, -1.9, -1.5, 0.6])
+    (tmp_path / "p.script").write_text(_program([f"movej({_fmt(q0, False)})"]))
+    base = [str(tmp_path / "p.script"), "--program", "ur", "-o", str(tmp_path / "out.script")]
+    assert main(["compensate", str(tmp_path / "kuka.yaml"), *base]) == 1
+    assert "robot 'kuka_kr6r900sixx' runs krl programs (its robot file says language: krl); this is a ur program" in \
+        capsys.readouterr().err and not (tmp_path / "out.script").exists()
+    (tmp_path / "rapid").mkdir()
+    (tmp_path / "rapid" / "m.mod").write_text("MODULE m\nENDMODULE\n")
+    assert main(["compensate", str(tmp_path / "kuka.yaml"), str(tmp_path / "rapid"), "--program", "rapid", "-o",
+                 str(tmp_path / "new")]) == 1
+    assert "this is a rapid program" in capsys.readouterr().err and not (tmp_path / "new").exists()
+    assert main(["compensate", str(tmp_path / "ur.yaml"), *base]) == 0

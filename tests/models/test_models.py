@@ -227,3 +227,25 @@ def test_rotation_helpers_against_scipy():
     np.testing.assert_allclose(np.einsum("nij,nj->ni", skew(v), u), np.cross(v, u), atol=1e-14)
     for w in (rng.normal(size=3), 1e-13 * rng.normal(size=3), np.array([0.0, 0.0, np.pi - 1e-9])):
         np.testing.assert_allclose(rotvec_matrix(w), Rotation.from_rotvec(w).as_matrix(), atol=1e-12)
+
+
+def test_a_robot_file_states_its_controllers_language_and_keeps_it(tmp_path):
+    """language: the bundled vendor arms say theirs (the languages kincal.io reads, and URScript); a calibrated
+    robot saved and loaded keeps it, an error model's wrapper reports its inner robot's, and a language kincal does
+    not read is refused naming the ones it does."""
+    from kincal.io import dialects
+    from kincal.models.yaml_io import LANGUAGES
+    assert set(LANGUAGES) == {"ur", *dialects()}
+    said = {n: kincal.load_robot(n).program_language() for n in ("ur5", "ur10", "kuka_kr6r900sixx", "abb_irb120",
+                                                                 "fanuc_lrmate200id", "motoman_gp7", "wam")}
+    assert said == {"ur5": "ur", "ur10": "ur", "kuka_kr6r900sixx": "krl", "abb_irb120": "rapid",
+                    "fanuc_lrmate200id": "fanuc", "motoman_gp7": "inform", "wam": ""}
+    robot = kincal.perturb(kincal.load_robot("kuka_kr6r900sixx"), seed=1)
+    kincal.save_robot(robot, tmp_path / "k.yaml", "mm", "deg")
+    assert kincal.load_robot(tmp_path / "k.yaml").program_language() == "krl"
+    from kincal.models.terms import extend
+    assert extend(robot, "harmonics:1", robot.sample_joints(20, seed=1)).program_language() == "krl"
+    text = (tmp_path / "k.yaml").read_text().replace("language: krl", "language: karel")
+    (tmp_path / "bad.yaml").write_text(text)
+    with pytest.raises(kincal.ModelError, match="language 'karel' is not one of ur, krl, rapid, fanuc, inform"):
+        kincal.load_robot(tmp_path / "bad.yaml")

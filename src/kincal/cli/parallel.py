@@ -62,6 +62,7 @@ def cmd_compensate(args) -> int:
         cal.tool_point(), (cal.with_params(values) if values else cal).tool_point(), args.link_error_max / MM)[1]
     if args.program:
         _same_language(args.targets, args.program)
+        _program_for(cal, args.program, args.robot)
     if args.program and args.program != "ur":
         return _compensate_branches(args, cal, values, _orientation(args, record, cal, values, cal.with_params(
             values) if values else cal))
@@ -134,6 +135,15 @@ def _same_language(path: str, program: str) -> None:
                          f"rename the file if it really is {program})")
 
 
+def _program_for(robot, program: str, source) -> None:
+    """ValueError when the robot file says its controller runs programs of another language than --program (a
+    calibration applied to another robot's program would be compensated on the wrong geometry, every check passing)."""
+    own = robot.program_language()
+    if own and own != program:
+        raise ValueError(f"{source}: robot '{robot.name}' runs {own} programs (its robot file says language: {own}); "
+                         f"this is a {program} program: give the calibration of the robot it was written for")
+
+
 NOT_FOR_BRANCHES = ("tcp", "link_error_max", "pose", "orientation", "rot_cols", "path", "output_kind", "workers",
                     "target_frame", "joint_cols", "xyz_cols", "length_unit", "angle_unit")
 
@@ -184,6 +194,7 @@ def _compensate_folder(args) -> int:
                          f"(--frames), units and orientation")
     check_folder_output(args.targets, args.output)
     cal = load_robot(args, [*([args.frames] if args.frames else [])], [])
+    _program_for(cal, args.program, args.robot)
     record = kincal.models.load_calibration_record(args.robot) or {}
     values = record.get("nominal")
     nominal = cal.with_params(values) if isinstance(values, dict) else cal

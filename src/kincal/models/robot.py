@@ -467,6 +467,11 @@ class Robot(Joints, ABC):
             raise ModelError(f"robot '{self.name}' has no base frame")
         return names
 
+    def program_language(self) -> str:
+        """The language of its controller's programs ("ur", "krl", "rapid", "fanuc", "inform"), as its robot file
+        states it; '' when it does not (the default)."""
+        return ""
+
     def named_frames(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Frames the robot file names (e.g. ROS ``base_link``): name -> (R, t), the frame's pose in the
         robot's base frame (a point p in it is R @ p + t in the base frame); none by default."""

@@ -282,6 +282,9 @@ class SerialRobot(ChainRobot):
     frames : tuple of (str, tuple of 6 float), optional
         Named frames of the robot description (e.g. ROS ``base_link``): (name, (x, y, z m, rx, ry, rz rad)),
         the frame's pose in the robot's base frame (default none).
+    language : str, optional
+        The language of its controller's programs, one of ``LANGUAGES`` ("ur", "krl", "rapid", "fanuc",
+        "inform"); '' (default) when not known. ``compensate`` refuses a program of another language.
 
     Attributes
     ----------
@@ -320,6 +323,7 @@ class SerialRobot(ChainRobot):
     params: Parameters
     description: str = ""
     frames: tuple[tuple[str, tuple[float, ...]], ...] = ()  # named frames: (name, (x y z m, rx ry rz rad) in base)
+    language: str = ""  # the language of its controller's programs (LANGUAGES); '' not known
     joint_space: JointSpace = field(init=False, repr=False)
     chain: Chain = field(init=False, repr=False)
 
@@ -345,7 +349,7 @@ class SerialRobot(ChainRobot):
     @classmethod
     def build(cls, name: str, convention: str, joints: Sequence[Joint], dh: Sequence[Mapping[str, float]],
               base: Mapping[str, float] | None = None, tool: Mapping[str, float] | None = None, description: str = "",
-              frames: Sequence[tuple[str, Sequence[float]]] = ()) -> "SerialRobot":
+              frames: Sequence[tuple[str, Sequence[float]]] = (), language: str = "") -> "SerialRobot":
         """Build a robot from joint structures and per-joint DH values.
 
         Parameters
@@ -367,6 +371,8 @@ class SerialRobot(ChainRobot):
             Free text (default "").
         frames : sequence of (str, sequence of 6 float), optional
             Named frames: (name, (x, y, z m, rx, ry, rz rad)) in the robot's base frame (default none).
+        language : str, optional
+            The language of its controller's programs (default '': not known).
 
         Returns
         -------
@@ -388,7 +394,7 @@ class SerialRobot(ChainRobot):
                 raise ModelError(f"robot '{name}': unknown parameter '{key}'; known: {', '.join(vals)}")
             vals[key] = float(v)
         return cls(name, convention, tuple(joints), Parameters(names, [vals[n] for n in names], kinds), description,
-                   tuple((n, tuple(p)) for n, p in frames))
+                   tuple((n, tuple(p)) for n, p in frames), language)
 
     def _joint_ops(self, jt: Joint, k: int) -> list[Op]:
         p = lambda s: self.params.index(f"{jt.name}.{s}")  # noqa: E731
@@ -410,7 +416,10 @@ class SerialRobot(ChainRobot):
         names, kinds = _param_names(joints)
         vals = [old.get(n, 0.0) for n in names]
         return SerialRobot(name or self.name, self.convention, tuple(joints), Parameters(names, vals, kinds),
-                           self.description, self.frames)
+                           self.description, self.frames, self.language)
+
+    def program_language(self) -> str:
+        return self.language
 
     def named_frames(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         return {n: (rot_zyx(v[5], v[4], v[3]), np.array(v[:3])) for n, v in self.frames}

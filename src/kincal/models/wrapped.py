@@ -86,3 +86,6 @@ class Wrapped(Robot):
 
     def named_frames(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         return self.inner.named_frames()
+
+    def program_language(self) -> str:
+        return self.inner.program_language()

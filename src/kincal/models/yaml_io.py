@@ -13,7 +13,9 @@ Format (units apply to every length/angle in the file)::
     tool: {x: 0, y: 0.09, z: 31.0}
 
 ``beta``: a number switches Hayati's β on for that joint, ``false`` switches it off, and when the key
-is absent it is switched on automatically where consecutive revolute axes are parallel.
+is absent it is switched on automatically where consecutive revolute axes are parallel. ``language``
+(optional): the language of the controller's programs (``LANGUAGES``: ur, krl, rapid, fanuc, inform);
+``compensate`` refuses a program in another one.
 """
 from __future__ import annotations
 
@@ -47,7 +49,7 @@ from .yaml_values import (POSE_KEYS, base_pose, description_lines, fmt, frame_te
 _JOINT_KEYS = {"name", "type", "theta", "d", "a", "alpha", "beta", "limits", "mass", "com", "velocity", "effort",
                "pulses_per_degree"}
 _COMMON_KEYS = {"name", "description", "type", "units", "base", "calibration", "source", "error_model"}
-_TYPE_KEYS = {"serial": {"convention", "joints", "tool", "actuators", "transmission", "names", "frames"},
+_TYPE_KEYS = {"serial": {"convention", "joints", "tool", "actuators", "transmission", "names", "frames", "language"},
               "puu3": {"extended", "parameters", "slider_limits"}, "urdf": {"joints", "tool"},
               "stewart": {"legs", "reading", "tool", "compliance"}, "delta": {"arms", "parameters", "arm_limits"}}  # beside the common
 _TOP_KEYS = _COMMON_KEYS.union(*_TYPE_KEYS.values())
@@ -276,7 +278,7 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     tool = {k: num(v, f"{label}: tool", k) * lf for k, v in mapping(data, "tool", label).items()}
     joints = _export_names(joints, data.get("names"), label)
     robot = SerialRobot.build(str(data["name"]), conv, joints, rows, base, tool, str(data.get("description", "")),
-                              _frames(data.get("frames"), lf, af, label))
+                              _frames(data.get("frames"), lf, af, label), _language(data.get("language"), label))
     # automatic beta where axes are parallel and the file does not say otherwise
     auto = {k for k in map(robot.beta_joint, robot.parallel_pairs()) if explicit_beta[k] is None}
     if auto:
@@ -285,6 +287,19 @@ def robot_from_dict(data: dict, label: str = "robot") -> Robot:
     if ("transmission" in data) != ("actuators" in data):
         raise ModelError(f"{label}: 'actuators' and 'transmission' go together; give both or neither")
     return transmission_from_dict(robot, data, lf, af, label) if "transmission" in data else robot
+
+
+LANGUAGES = ("ur", "krl", "rapid", "fanuc", "inform")  # robot programs kincal reads (kincal.io.dialects, and URScript)
+
+
+def _language(value, label: str) -> str:
+    """A robot file's ``language:`` (the language of its controller's programs), checked; '' when not given."""
+    if value is None:
+        return ""
+    if str(value) not in LANGUAGES:
+        raise ModelError(f"{label}: language '{value}' is not one of {', '.join(LANGUAGES)} (the language of the "
+                         f"controller's programs; leave it out when it is none of them)")
+    return str(value)
 
 
 def _export_names(joints: list[Joint], names, label: str) -> list[Joint]:
@@ -398,6 +413,7 @@ def _chain_yaml(robot: SerialRobot, length_unit: str, angle_unit: str) -> str:
         lines.append("names: {" + ", ".join(f"{k}: {n}" for k, n in named.items()) + "}")
     if robot.frames:
         lines.append("frames: {" + ", ".join(f"{n}: {{{pose_text(p, lf, af)}}}" for n, p in robot.frames) + "}")
+    lines += [f"language: {robot.language}"] if robot.language else []
     return "\n".join(lines + [""])
 
 
