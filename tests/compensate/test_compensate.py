@@ -140,3 +140,36 @@ def test_a_probe_declared_off_is_its_mounting_not_the_robots(tmp_path, capsys, k
     from kincal.compensate import tool_carry
     shift, said = tool_carry(np.array([0.0, 0.0, 0.1094]), np.array([0.0, 0.0, 0.109]))
     assert np.allclose(shift, [0.0, 0.0, 0.4e-3]) and "carried over to the TCP" in said
+
+
+def test_commands_in_the_base_frame_say_which_errors_they_keep(tmp_path, capsys):
+    """A UR5 whose joint 1 zero is 0.7 mrad off and whose joint 1 height is 0.26 mm off, calibrated from a tracker
+    0.4 m away: the base frame takes both (they act like base.rz and base.z), so commands in the robot's base frame
+    miss the true robot by about what they cause while the predicted σ is µm. The output names j1.theta and j1.d;
+    in the tracker's frame the same targets are hit."""
+    import json
+    from kincal.cli import main
+    ur5 = kincal.load_robot("ur5")
+    true = kincal.perturb(ur5, seed=3).with_params({"j1.theta": 0.7e-3, "j1.d": ur5.params["j1.d"] - 0.26e-3})
+    seen = true.with_params({"base.x": 0.4, "base.rz": 0.2})
+    kincal.write_measurements(tmp_path / "m.csv", kincal.simulate(seen, ur5.sample_joints(150, seed=4), 10e-6, 5),
+                              ur5.joint_types)
+    assert main(["calibrate", "ur5", str(tmp_path / "m.csv"), "-o", str(tmp_path / "cal.yaml")]) == 0
+    q = ur5.sample_joints(20, seed=6)
+    for frame, robot in (("base", true), ("measurement", seen)):
+        nominal = ur5 if frame == "base" else kincal.load_robot(tmp_path / "cal.yaml").with_params(
+            {n: v for n, v in ur5.params.as_dict().items() if not n.startswith("base.")})  # the tracker's frame
+        goals = kincal.Measurements(q, nominal.forward(q), ur5.joint_names)  # where the controller means to go
+        kincal.write_measurements(tmp_path / f"{frame}.csv", goals, ur5.joint_types)
+        capsys.readouterr()
+        assert main(["compensate", str(tmp_path / "cal.yaml"), str(tmp_path / f"{frame}.csv"), "--target-frame", frame,
+                     "-o", str(tmp_path / f"{frame}_cmd.csv"), "--json", "--skip-unreachable"]) == 0
+        out = json.loads(capsys.readouterr().out)
+        rows = np.genfromtxt(tmp_path / f"{frame}_cmd.csv", delimiter=",", names=True)
+        cmd = np.column_stack([rows[f"j{k}"] for k in range(1, 7)])
+        miss = np.linalg.norm(robot.forward(cmd) - goals.xyz[(rows["row"] - 2).astype(int)], axis=1)
+        if frame == "base":  # joint 1's errors kept, and said
+            assert out["base_note"].startswith("base frame: j1.theta, j1.d not corrected")
+            assert miss.mean() > 0.2e-3 and out["predicted_sigma"]["max"] < 0.05e-3
+        else:
+            assert out["base_note"] is None and miss.max() < 0.05e-3

@@ -39,10 +39,10 @@ def _walk(robot, start_deg, n=20, seed=7):
 def test_the_turns_sigma_is_the_spread_of_calibrations_drawn_from_the_covariance():
     """σ of the turn (finite differences through the covariance, the base frame left out) against the RMS turn of
     400 parameter vectors drawn from the same covariance (a Monte-Carlo reference), within 10 %."""
-    from kincal.compensate.turn import _poses, _relative, _sigma
+    from kincal.compensate.turn import _relative, _sigma, poses_in
     nominal, _, fit = _case("ur5", [0.03, -0.02, 0.12])
     unc = fit.uncertainty()
-    q = _poses(fit.robot, nominal.lower, nominal.upper)[:50]
+    q = poses_in(fit.robot, nominal.lower, nominal.upper)[:50]
     keep = [k for k, n in enumerate(unc.names) if n not in set(fit.robot.base_params())]
     idx = fit.robot.params.indices([unc.names[k] for k in keep])
     draws = np.random.default_rng(3).multivariate_normal(np.zeros(len(keep)), unc.covariance[np.ix_(keep, keep)], 400)

@@ -10,10 +10,11 @@ import kincal
 import kincal.analysis
 import kincal.io
 import kincal.models
-from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, VerificationPlan, command_models,
+from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, VerificationPlan, base_note, command_models,
                                check_folder_output, compensate_branches, compensate_file, compensate_folder,
                                compensate_program, flange_turn,
-                               resolve_taught, tool_carry, verification_plan, write_folder)
+                               resolve_taught, tool_carry, unseen_in_base, verification_plan, write_folder)
+from kincal.compensate.turn import poses_in
 from kincal.observe import check_convention
 from kincal.units import DEG, MM
 
@@ -34,6 +35,20 @@ def _orientation(args, record: dict, cal, values, nominal):
                        () if unc is None else unc.names, cal.lower if unc is None or unc.lower is None else unc.lower,
                        cal.upper if unc is None or unc.upper is None else unc.upper)
     return (None if turn.determined else nominal), turn
+
+
+def _base_line(args, record: dict, cal) -> str:
+    """The note on the parameters a base frame fitted to the tracker leaves as the controller has them, for commands
+    in the robot's base frame (a targets file's --target-frame other than measurement, or a program's world); ''
+    when the calibration knew its base (--base fixed) or the targets are in the tracker's frame."""
+    options, fitted = record.get("options"), record.get("parameters")
+    estimated = isinstance(options, dict) and options.get("base") == "estimate" and isinstance(fitted, list) and \
+        bool(set(cal.base_params()) & set(map(str, fitted)))
+    if not estimated or (not args.program and args.target_frame == "measurement"):
+        return ""
+    unc = kincal.analysis.load_uncertainty(args.robot)
+    ranges = None if unc is None or unc.lower is None or unc.upper is None else (unc.lower, unc.upper)
+    return base_note(unseen_in_base(cal, poses_in(cal, *(ranges or (cal.lower, cal.upper)))), not args.program)
 
 
 def _orientation_from(turned, turn) -> dict:
@@ -65,12 +80,13 @@ def cmd_compensate(args) -> int:
         _program_for(cal, args.program, args.robot)
     if args.program and args.program != "ur":
         return _compensate_branches(args, cal, values, _orientation(args, record, cal, values, cal.with_params(
-            values) if values else cal))
+            values) if values else cal), _base_line(args, record, cal))
     if "frames" in args.given:
         raise ValueError("--frames gives the frames a KRL, RAPID, FANUC or INFORM program names; URScript sets its TCP "
                          "with set_tcp (or give --tcp)")
     if args.program:
-        return _compensate_program(args, r, nominal, carry, models, _orientation(args, record, cal, values, nominal))
+        return _compensate_program(args, r, nominal, carry, models, _orientation(args, record, cal, values, nominal),
+                                   _base_line(args, record, cal))
     carry = carry if args.tcp is not None else ""
     fmt = TargetsFormat(args.pose, tuple(args.joint_cols) if args.joint_cols else None, tuple(args.xyz_cols),
                         args.orientation, tuple(args.rot_cols) if args.rot_cols else None, args.length_unit,
@@ -83,8 +99,10 @@ def cmd_compensate(args) -> int:
     payload = {**res.to_dict(), "output": args.output if res.written else None, "target_frame": args.target_frame,
                "output_kind": args.output_kind, "tool_carry": carry or None,
                **(_orientation_from(turned, turn) if args.pose else {"orientation_from": None})}
+    unseen = _base_line(args, record, cal)
+    payload["base_note"] = unseen or None
     text = _compensation_text(args, res, r) + (f"\nTCP: {carry}" if carry else "") + \
-        (f"\n{turn.note()}" if turn is not None else "")
+        (f"\n{turn.note()}" if turn is not None else "") + (f"\n{unseen}" if unseen else "")
     return emit(args, payload, text, 0 if res.written else EXIT_REFUSED)
 
 
@@ -148,7 +166,7 @@ NOT_FOR_BRANCHES = ("tcp", "link_error_max", "pose", "orientation", "rot_cols", 
                     "target_frame", "joint_cols", "xyz_cols", "length_unit", "angle_unit")
 
 
-def _compensate_branches(args, cal, values, orientation) -> int:
+def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
     """compensate --program krl|rapid|fanuc|inform: the program compensated on the branch each target states
     (kincal.compensate.branch), written to -o only when every target passed or with --skip-unreachable."""
     flags = [args.given[k] for k in NOT_FOR_BRANCHES if k in args.given]
@@ -173,11 +191,12 @@ def _compensate_branches(args, cal, values, orientation) -> int:
     lines += _taught_lines(cal, nominal, frames, turned)
     lines += [f"refused: {p}" for p in res.problems]
     lines += [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal]
-    lines += [turn.note()] if turn is not None else []
+    lines += ([turn.note()] if turn is not None else []) + ([unseen] if unseen else [])
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
                        "declared_frames": known,
                        "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal],
-                       "output": args.output if written else None, **_orientation_from(turned, turn)},
+                       "output": args.output if written else None, **_orientation_from(turned, turn),
+                       "base_note": unseen or None},
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
 
 
@@ -216,8 +235,10 @@ def _compensate_folder(args) -> int:
                  (f"written to {args.output} (every {args.program} file, compensated or as it was; report "
                   f"{args.output}/kincal_report.csv)" if written else
                   f"nothing written (--skip-unreachable writes the folder with those left as they are)"))
-    lines += [turn.note()] if turn is not None else []
-    return emit(args, {**res.to_dict(), "output": args.output if written else None, **_orientation_from(turned, turn)},
+    unseen = _base_line(args, record, cal)
+    lines += ([turn.note()] if turn is not None else []) + ([unseen] if unseen else [])
+    return emit(args, {**res.to_dict(), "output": args.output if written else None, **_orientation_from(turned, turn),
+                       "base_note": unseen or None},
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
 
 
@@ -234,7 +255,7 @@ def _taught_lines(cal, nominal, frames, turned) -> list[str]:
     return out
 
 
-def _compensate_program(args, r, nominal, carry: str, models, orientation) -> int:
+def _compensate_program(args, r, nominal, carry: str, models, orientation, unseen: str) -> int:
     """compensate --program ur: a robot program compensated in place, written to -o (never over it);
     with --skip-unreachable each target left as it is gets a comment saying why."""
     prog = kincal.io.read_program(args.targets, args.program)
@@ -258,9 +279,9 @@ def _compensate_program(args, r, nominal, carry: str, models, orientation) -> in
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
                        "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal],
                        "output": args.output if written else None, "tool_carry": carry or None,
-                       **_orientation_from(turned, turn)},
-                "\n".join(lines + ([f"TCP: {carry}"] if carry else []) + ([turn.note()] if turn is not None else [])),
-                0 if written else EXIT_REFUSED)
+                       **_orientation_from(turned, turn), "base_note": unseen or None},
+                "\n".join(lines + ([f"TCP: {carry}"] if carry else []) + ([turn.note()] if turn is not None else [])
+                          + ([unseen] if unseen else [])), 0 if written else EXIT_REFUSED)
 
 
 PLAN_JOINT_TOL = 1e-5  # rad or m: measured joint values must repeat the plan's commands this closely

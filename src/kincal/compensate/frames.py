@@ -247,3 +247,73 @@ def orientation_change(model: Robot, q: np.ndarray, nominal: Robot, q0: np.ndarr
     Ra, Rb = model.flange_rotation(q), nominal.flange_rotation(q0)
     cos = (np.einsum("nij,nij->n", Ra, Rb) - 1.0) / 2.0
     return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
+def unseen_in_base(calibrated: Robot, q: np.ndarray) -> tuple[str, ...]:
+    """The robot parameters a calibration that fitted its measurement frame cannot tell from that frame.
+
+    Their effect on every position is a move of the frame (a DH arm's joint 1 zero and height: ``j1.theta`` acts
+    like ``base.rz``, ``j1.d`` like ``base.z``), so the fit keeps them nominal and the frame takes their real
+    values. Commands in the robot's base frame (the nominal one) therefore keep them as the controller has them.
+
+    Parameters
+    ----------
+    calibrated : Robot
+        The calibrated model, with a base frame.
+    q : ndarray, shape (N, n)
+        Poses of the calibration's joint ranges, rad (m for a prismatic joint).
+
+    Returns
+    -------
+    tuple of str
+        The names, in the robot's order; () for a robot without a base frame.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.compensate import unseen_in_base
+    >>> robot = kincal.load_robot("ur5")
+    >>> unseen_in_base(robot, robot.sample_joints(100, seed=1))
+    ('j1.theta', 'j1.d')
+    """
+    from ..analysis.identifiability import free_parameters
+
+    if not calibrated.base_params():
+        return ()
+    ident = free_parameters(calibrated, q)
+    base = set(calibrated.base_params())
+    return tuple(n for n in ident.dropped if ident.confounds.get(n) and all(k in base for k, _ in ident.confounds[n]))
+
+
+def base_note(names: tuple[str, ...], measurement_frame: bool = True) -> str:
+    """Say what commands in the robot's base frame leave as the controller has it.
+
+    Parameters
+    ----------
+    names : tuple of str
+        The parameters :func:`unseen_in_base` names.
+    measurement_frame : bool, optional
+        Say that targets in the tracker's frame (``--target-frame measurement``) are not affected (default True;
+        False for programs, whose frames are their own).
+
+    Returns
+    -------
+    str
+        One line for the user; '' for no names.
+
+    Examples
+    --------
+    >>> from kincal.compensate import base_note
+    >>> print(base_note(("j1.theta", "j1.d"), measurement_frame=False))
+    base frame: j1.theta, j1.d not corrected: position data cannot tell them from where the tracker stood, so in the
+    robot's base frame they stay as the controller has them; targets located on the robot's mounting can miss by
+    their real errors, targets in frames taught with this robot do not
+    """
+    if not names:
+        return ""
+    return (f"base frame: {', '.join(names)} not corrected: position data cannot tell them from where the tracker "
+            f"stood, so in the robot's base frame they stay as the controller has them; targets located on the "
+            f"robot's mounting can miss by their real errors, targets "
+            + ("in the tracker's frame (--target-frame measurement) or " if measurement_frame else "")
+            + "in frames taught with this robot do not")
+

@@ -104,14 +104,14 @@ def flange_turn(calibrated: Robot, nominal: Robot, covariance: np.ndarray | None
     False 0.5
     True 22.2
     """
-    q = _poses(calibrated, lower, upper)
+    q = poses_in(calibrated, lower, upper)
     turn = _relative(calibrated, q, None, nominal)
     change = float(np.sqrt(np.mean(np.sum(turn**2, axis=1))))
     sigma = np.inf if covariance is None else _sigma(calibrated, q, np.asarray(covariance, float), tuple(names))
     return FlangeTurn(change, sigma, bool(change >= TURN_Z * sigma))
 
 
-def _poses(robot: Robot, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+def poses_in(robot: Robot, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """TURN_POSES joint vectors (N, n), uniform in [lower, upper] within the robot's limits, seed 0."""
     lo, hi = np.maximum(lower, robot.lower), np.minimum(upper, robot.upper)
     lo, hi = np.where(hi >= lo, lo, robot.lower), np.where(hi >= lo, hi, robot.upper)
