@@ -220,3 +220,30 @@ def test_a_redundant_arms_pose_targets_are_refused_with_the_reason(tmp_path):
                               frames={"default tool": np.eye(4), "default base": np.eye(4)})
     assert res.refused == {0: REDUNDANT, 1: "6 joint values for a 7-joint robot"} and not res.texts
     assert "line 2" in res.problems[0] and "E1" in res.problems[0] and "line 3" in res.problems[1]
+
+
+def test_a_joint_taught_at_zero_and_written_to_three_decimals_is_named_as_such(tmp_path):
+    """E6POS written to 3 decimals (mm, deg) from joints with A6 at 0° or A1 at 0°: the pose's own inverse puts that
+    joint at about -0.001°, across the sign bit from the target's T. Refused naming the joint, its angle and why
+    (it said only 'on no branch with the target's bits'); the same pose with A6 at 0.5° is compensated."""
+    from kincal.io import ROWS
+    from kincal.models.transforms import zyx_from_matrix
+    nominal = kincal.load_robot("kuka_kr6r900sixx").with_tool_point([0.0, 0.0, 0.15])
+    qs = np.radians([[10, -80, 100, 5, 30, 0], [0, -90, 90, 0.5, 45, 0.5], [10, -80, 100, 5, 30, 0.5]])
+    lines = ["DEFDAT EDGE PUBLIC"]
+    for k, q in enumerate(qs):
+        P, R = nominal.forward(q[None])[0] * 1e3, nominal.flange_rotation(q[None])[0]
+        (a, b, c), (s, t) = np.degrees(zyx_from_matrix(R)), ROWS["krl"](nominal, q[None])[0]
+        lines.append(f"DECL E6POS XP{k + 1}={{X {P[0]:.3f},Y {P[1]:.3f},Z {P[2]:.3f},A {a:.3f},B {b:.3f},C {c:.3f},"
+                     f"S {s},T {t}}}")
+    (tmp_path / "edge.dat").write_text("\n".join(lines + ["ENDDAT", ""]))
+    program = read_program(str(tmp_path / "edge.dat"), "krl")
+    tool = np.eye(4)
+    tool[2, 3] = 0.15
+    res = compensate_branches(kincal.perturb(nominal, seed=1), nominal, program, ROWS["krl"],
+                              {"default tool": tool, "default base": np.eye(4)})
+    assert sorted(res.refused) == [0, 1] and 2 in res.texts
+    for k, joint in ((0, "a6"), (1, "a1")):
+        why = res.refused[k]
+        assert why.startswith(f"the pose puts {joint} at -0.00") and "on the other side of 0" in why, why
+        assert float(why.split(" at ")[1].split("°")[0]) > -0.01

@@ -47,6 +47,7 @@ from .taught import resolve_taught
 from .program import SEARCH, STARTS, ProgramCompensation
 
 CHECK_TOL = 1e-9  # m and rad: a written target must reproduce its intended pose this closely
+BIT_EDGE = np.radians(0.01)  # rad: a joint this near 0 sits on the edge of its sign bit (a pose's last decimals)
 SINGULAR = 1e3  # condition number of the pose Jacobian (m, rad) beyond which a failed correction is named as such
 CHAIN = 512  # targets per Newton pass of the controller's joints (the next ones start from the joints found)
 IDENTITY_FRAMES = {"rapid": (("tool0",), ("wobj0", "")), "krl": (("$nullframe",), ())}  # (tools, bases) a language
@@ -393,21 +394,37 @@ def controller_inverse(robot: Robot, p: np.ndarray, R: np.ndarray, near: np.ndar
     flange at R (1, 3, 3) on the branch ``config`` (all branches for ()): of the solutions within the joint
     limits whose bits equal it, the one nearest ``near`` (ties: the first in the order found); or why none."""
     cand: list[np.ndarray] = []
-    reached = False
+    reached: list[np.ndarray] = []
     for starts in (near[None], robot.sample_joints(STARTS, seed=0)):  # the spread starts only when needed
         sol = solve_poses(robot, np.repeat(p, len(starts), 0), np.repeat(R, len(starts), 0), starts,
                           max_iter=SEARCH[0], max_travel=SEARCH[1])
         every = [c for q in sol.q[sol.converged] for c in _turns(robot, q)]
-        reached |= bool(every)
+        reached += every
         cand += [c for c in every if not config or tuple(config_of(robot, c)) == tuple(config)]
         if cand:
             break
     if not cand:
-        return (f"the nominal model reaches this pose, but on no branch with the target's bits {tuple(config)} "
+        return (_at_bit_edge(robot, reached, tuple(config), config_of) or
+                f"the nominal model reaches this pose, but on no branch with the target's bits {tuple(config)} "
                 f"within the joint limits" if reached else "the nominal model does not reach this pose within the "
                 f"joint limits (out of reach, or the wrong robot or frames)")
     c = np.array(cand)
     return c[first_best(np.linalg.norm(c - near, axis=1), maximize=False)]
+
+
+def _at_bit_edge(robot: Robot, reached: list[np.ndarray], config: tuple, config_of: Config) -> str:
+    """Why a reached pose has none of the target's bits when a joint sits within BIT_EDGE of 0, the edge of its sign
+    bit, and the bits of its mirror (−q) are the target's: the pose was written to fewer decimals than the
+    controller keeps, or taught at 0; '' otherwise."""
+    for q in reached:
+        for j in np.flatnonzero(np.abs(q) < BIT_EDGE):
+            mirrored = q.copy()
+            mirrored[j] = -q[j]
+            if robot.within_limits(mirrored[None])[0] and tuple(config_of(robot, mirrored)) == config:
+                return (f"the pose puts {robot.joint_names[j]} at {np.degrees(q[j]):+.4f}°, on the other side of 0 "
+                        f"from what the target's bits {config} say (a joint at 0 taught, or a pose written to fewer "
+                        f"decimals than the controller keeps): give it as an axis position, or with more decimals")
+    return ""
 
 
 def _turns(robot: Robot, q: np.ndarray) -> list[np.ndarray]:
