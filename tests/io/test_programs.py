@@ -293,3 +293,19 @@ def test_a_program_for_another_robot_is_refused(tmp_path, capsys):
                  str(tmp_path / "new")]) == 1
     assert "this is a rapid program" in capsys.readouterr().err and not (tmp_path / "new").exists()
     assert main(["compensate", str(tmp_path / "ur.yaml"), *base]) == 0
+
+
+def test_joint_targets_outside_the_limits_are_named_and_are_no_start(tmp_path):
+    """A movej written in degrees: refused as outside the limits, looking like degrees (it said 'the corrected joints
+    break the joint limits'), and it is no start for the pose moves after it, which are compensated (they were all
+    refused as unreachable from joints of 91 rad)."""
+    nominal, true = _ur10()
+    q0 = np.array([0.3, -1.2, 1.4, -1.9, -1.5, 0.6])
+    lines = [f"movej({_fmt(np.degrees(q0), False)})", f"movej({_fmt(q0, False)})"]
+    lines += [f"movel({_fmt(_pose(nominal, q0 + 0.05 * k), True)})" for k in range(1, 4)]
+    (tmp_path / "p.script").write_text(_program(lines))
+    res = compensate_program(true, nominal, read_program(str(tmp_path / "p.script"), "ur"))
+    assert list(res.refused) == [0] and sorted(res.texts) == [1, 2, 3, 4]
+    why = res.refused[0]
+    assert why.startswith("the target's own joints are outside the robot's limits: ")
+    assert why.endswith("(URScript's joints are in radians; these look like degrees)")

@@ -44,7 +44,7 @@ from ..ties import first_best
 from .poses import solve_poses
 from .commands import BRANCH_TOL
 from .taught import resolve_taught
-from .program import SEARCH, STARTS, ProgramCompensation
+from .program import SEARCH, STARTS, ProgramCompensation, outside_limits
 
 CHECK_TOL = 1e-9  # m and rad: a written target must reproduce its intended pose this closely
 BIT_EDGE = np.radians(0.01)  # rad: a joint this near 0 sits on the edge of its sign bit (a pose's last decimals)
@@ -192,6 +192,8 @@ def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side:
         if t.kind == "joints":
             if t.values.size != nominal.n_joints:
                 refused[k] = f"{t.values.size} joint values for a {nominal.n_joints}-joint robot"
+            elif outside_limits(nominal, t.values):
+                refused[k] = outside_limits(nominal, t.values)
             continue
         if nominal.n_joints > 6:
             refused[k] = REDUNDANT

@@ -171,8 +171,9 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
     array([[ 0.298, -1.2  ,  1.502, -1.901,  1.201,  0.401],
            [ 0.498, -1.   ,  1.302, -1.601,  1.001,  0.201]])
     """
-    q_prev = (next((t.values for t in program.targets if t.kind == "joints"), None) if q_start is None
-              else np.asarray(q_start, dtype=float))
+    q_prev = (next((t.values for t in program.targets if t.kind == "joints" and t.values.size == model.n_joints
+                    and not outside_limits(nominal, t.values)), None) if q_start is None
+              else np.asarray(q_start, dtype=float))  # a refused joint target is no start
     texts, refused, qs = {}, {}, np.full((len(program.targets), model.n_joints), np.nan)
     for k, t in enumerate(program.targets):
         tcp = program.tcp_at(t.at)
@@ -208,6 +209,10 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None, orientation: Robo
     if t.kind == "joints":
         if t.values.size != model.n_joints:
             return f"{t.values.size} joint values for a {model.n_joints}-joint robot"
+        outside = outside_limits(nominal, t.values)
+        if outside:
+            return outside + (" (URScript's joints are in radians; these look like degrees)"
+                              if np.abs(t.values).max() > 2 * np.pi else "")
         q_nom = t.values
         p, R, _, _ = nominal.pose_and_jacobian(q_nom[None])
     else:
@@ -229,6 +234,19 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None, orientation: Robo
         return q, q_nom, joints_literal(q)
     pf, Rf, _, _ = nominal.pose_and_jacobian(q[None])
     return q, q_nom, pose_literal(np.concatenate([pf[0], rotation_log(Rf @ turn)[0]]))
+
+
+def outside_limits(robot: Robot, q: np.ndarray) -> str:
+    """Why a joint target (n,) rad or m is refused before any correction: the first joint outside the robot's limits,
+    with its value and the limits (deg or mm); '' when all are inside."""
+    off = np.flatnonzero((q < robot.lower - 1e-12) | (q > robot.upper + 1e-12))
+    if not off.size:
+        return ""
+    j = int(off[0])
+    f, unit = (np.degrees(1.0), "°") if robot.joint_types[j] == "revolute" else (1e3, " mm")
+    return (f"the target's own joints are outside the robot's limits: {robot.joint_names[j]} {q[j] * f:.3f}{unit} "
+            f"(limits {robot.lower[j] * f:.3f}…{robot.upper[j] * f:.3f}{unit}): written for another robot, or in other "
+            f"units")
 
 
 def corrected(model: Robot, p: np.ndarray, R: np.ndarray, q_nom: np.ndarray,
