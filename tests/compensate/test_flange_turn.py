@@ -230,3 +230,22 @@ def test_a_taught_base_takes_the_nominal_turn_where_the_calibration_leaves_it_un
             physical = resolve_taught(taught, flange, fit.robot, orientation)["b"][1]
             errors[name].append(np.linalg.norm(physical[:3, 3] - true_origin))
     assert np.mean(errors["nominal"]) < 0.7 * np.mean(errors["calibrated"]), errors
+
+
+def test_a_tcp_far_from_the_measured_point_is_named_as_the_cause_of_its_sigma():
+    """Targets for a TCP 120 mm beyond a point measured 31 mm out on the flange's axis: their σ is beyond the limit
+    because of that lever (the turn the data leave undetermined), not because of where the poses are; the warning
+    says so instead of 'measure calibration poses there too'. At the measured point the same targets draw no
+    warning, and the file keeps the measured point."""
+    from kincal.analysis.uncertainty import ModelUncertainty
+    nominal, _, fit = _case("ur5", [0.0, 0.0, 0.031])
+    unc = fit.uncertainty()
+    assert np.allclose(unc.measured_point, fit.robot.tool_point())
+    assert np.allclose(ModelUncertainty.from_dict(unc.to_dict()).measured_point, unc.measured_point)
+    q = nominal.sample_joints(20, seed=3)
+    tcp = fit.robot.with_tool_point(fit.robot.tool_point() + [0.0, 0.0, 0.12])
+    far = kincal.compensate(tcp, nominal.with_tool_point(tcp.tool_point()).forward(q), q, uncertainty=unc)
+    (warning,) = [w for w in far.warnings if "predicted σ" in w]
+    assert "the TCP is 120 mm from that point" in warning and "measure at the TCP" in warning
+    near = kincal.compensate(fit.robot, nominal.forward(q), q, uncertainty=unc)
+    assert not [w for w in near.warnings if "predicted σ" in w]

@@ -62,6 +62,9 @@ class ModelUncertainty:
     envelope_sigma : float, optional
         95th percentile of σ over the training joint ranges, m; None: not recorded (default), then
         the limit is :data:`EXTRAPOLATION_RATIO` times ``training_median``.
+    measured_point : ndarray, shape (3,), optional
+        The point the calibration measured, in the flange frame, m (the references are σ there); None: not
+        recorded (default).
 
     Examples
     --------
@@ -86,6 +89,7 @@ class ModelUncertainty:
     lower: np.ndarray | None = None  # (n,) training joint ranges (rad or m); None: not recorded
     upper: np.ndarray | None = None
     envelope_sigma: float | None = None  # 95th percentile of σ over the training joint ranges (m); None: not recorded
+    measured_point: np.ndarray | None = None  # (3,) m in the flange frame: where the references' σ are; None: unknown
 
     @classmethod
     def from_fit(cls, robot: Robot, names, covariance: np.ndarray, q_train: np.ndarray) -> "ModelUncertainty":
@@ -100,7 +104,8 @@ class ModelUncertainty:
             ref = float(np.percentile(unc.sigma(robot, q), 95)) if len(q) >= ENVELOPE_POSES // 10 else None
         except ModelError:  # a pose the model cannot compute (a closed chain outside its workspace)
             ref = None
-        return cls(unc.names, unc.covariance, median, lo, hi, ref)
+        return cls(unc.names, unc.covariance, median, lo, hi, ref,
+                   robot.tool_point() if robot.has_tool_point else None)
 
     def outside(self, q: np.ndarray, revolute: np.ndarray | None = None) -> np.ndarray:
         """(N,) bool: a joint lies outside its training range by more than ENVELOPE_MARGIN of it (the
@@ -147,6 +152,8 @@ class ModelUncertainty:
             out["envelope"] = {"lower": self.lower.tolist(), "upper": self.upper.tolist()}
         if self.envelope_sigma is not None:
             out["envelope_sigma"] = self.envelope_sigma
+        if self.measured_point is not None:
+            out["measured_point"] = self.measured_point.tolist()
         return out
 
     @classmethod
@@ -165,6 +172,8 @@ class ModelUncertainty:
             lo, hi = (None, None) if env is None else (np.array(env["lower"], float), np.array(env["upper"], float))
             key = "envelope_sigma"
             ref = None if data.get(key) is None else float(data[key])
+            key = "measured_point"
+            point = None if data.get(key) is None else np.array(data[key], float).reshape(3)
         except (KeyError, TypeError, ValueError) as exc:
             what = "is missing" if isinstance(exc, KeyError) and str(exc).strip("'") == key else "is malformed"
             raise ModelError(f"{label}: the 'calibration' section's '{key}' {what}; calibrate again or remove the "
@@ -175,7 +184,9 @@ class ModelUncertainty:
                              f"matrix; calibrate again or remove the section")
         if lo is not None and hi is not None and (lo.shape != hi.shape or lo.ndim != 1 or not np.all(lo <= hi)):
             raise ModelError(f"{label}: the 'calibration' envelope must give lower <= upper per joint")
-        return cls(names, cov, med, lo, hi, ref)
+        if point is not None and not np.all(np.isfinite(point)):
+            raise ModelError(f"{label}: the 'calibration' measured_point must be three finite numbers")
+        return cls(names, cov, med, lo, hi, ref, point)
 
 
 def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncertainty, q: np.ndarray | None = None,
@@ -185,12 +196,34 @@ def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncerta
     bad = unc.extrapolated(sigma)
     if not bad.any():
         return None
+    lever = _lever(sigma, bad, unc, q, robot) if q is not None and robot is not None else ""
+    if lever:
+        return lever
     where = _beyond(q[bad], robot, unc) if q is not None and robot is not None else ""
     words = f": {ENVELOPE_FACTOR:g}x its 95th percentile over the region the calibration poses span" \
         if unc.envelope_sigma is not None else f": {EXTRAPOLATION_RATIO:g}x the median at the training poses"
     return (f"{int(bad.sum())} pose(s) lie where the calibration data did not constrain the model (predicted σ up to "
             f"{sigma[bad].max() * MM:.4f} mm, {sigma[bad].max() / unc.limit():.1f}x the limit {unc.limit() * MM:.4f} mm"
             f"{words}){where}: row(s) {listed(rows[bad])}; measure calibration poses there too")
+
+
+LEVER = 1e-3  # m: a TCP this far from the measured point may owe its σ to the lever, not to the poses
+
+
+def _lever(sigma: np.ndarray, bad: np.ndarray, unc: ModelUncertainty, q: np.ndarray, robot: Robot) -> str:
+    """The warning when the poses' σ is beyond the limit at the TCP but within it at the point the calibration
+    measured: the lever from that point to the TCP, through a flange turn the data determine poorly; ''
+    otherwise."""
+    if unc.measured_point is None or not robot.has_tool_point:
+        return ""
+    arm = float(np.linalg.norm(robot.tool_point() - unc.measured_point))
+    if arm <= LEVER or unc.sigma(robot.with_tool_point(unc.measured_point), q[bad]).max() > unc.limit():
+        return ""
+    return (f"{int(bad.sum())} pose(s) have a predicted σ at the TCP up to {sigma[bad].max() * MM:.4f} mm "
+            f"({sigma[bad].max() / unc.limit():.1f}x the limit {unc.limit() * MM:.4f} mm) where the point the "
+            f"calibration measured is within it: the TCP is {arm * MM:.0f} mm from that point and the flange's turn "
+            f"that carries it there is poorly determined; measure at the TCP, or at a point off the flange's axis "
+            f"(or 6-D poses), rather than more poses")
 
 
 def _beyond(q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> str:
