@@ -105,15 +105,19 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
         return ""
     head = (f"{meas.source}: mean error {error * MM:.3f} mm is {error / train_error:.0f}x the training error "
             f"({train_error * MM:.3f} mm)")
+    enough, moved = HELDOUT_RATIO * train_error, ""  # a cause must bring the error within the limit, not just lower it
     if not rebased and robot.base_params():
         again = _mean_error(refit_frame(robot, meas), meas)
-        if again < 0.5 * error:
+        if again <= enough:
             return (f"{head}; with the measurement frame re-registered it is {again * MM:.3f} mm: the tracker moved "
                     f"between sessions (leave out --same-frame so that each session's frame is registered)")
+        moved = (f"; re-registering the measurement frame brings it to {again * MM:.3f} mm (the tracker moved too: "
+                 f"leave out --same-frame), still {again / train_error:.0f}x the training error" if again < 0.5 * error
+                 else f"; re-registering the measurement frame leaves {again * MM:.3f} mm")
     if robot.has_tool_point and robot.base_params() and len(meas) >= 4:
         tooled = calibrate(robot, meas, names=TOOL_NAMES, base="estimate", diagnose=False).robot
         again = _mean_error(tooled, meas)
-        if again < 0.5 * error:
+        if again <= enough:
             gap = np.linalg.norm(tooled.tool_point() - robot.tool_point())
             where = ", ".join(f"{x * MM:.2f}" for x in tooled.tool_point())
             return (f"{head}; a tool point {gap * MM:.2f} mm from the calibrated one (at {where} mm in the flange "
@@ -121,8 +125,8 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
                     f"(another probe, adapter or seat); give that session's tool point with --tool")
     ratio = spread(meas.xyz) / max(spread(robot.forward(meas.q)), 1e-300)  # measured / predicted at the same joints
     if abs(np.log(ratio)) > SCALE_TOL:
-        return (f"{head}; the measured positions spread {ratio:.4f}x the model's at the same joints: a scale error "
-                f"(length unit, tracker compensation, or joint columns in another unit)")
-    return (f"{head}; neither a moved frame, another tool point nor a scale error explains it: the poses may lie "
+        return (f"{head}{moved}; the measured positions spread {ratio:.4f}x the model's at the same joints: a scale "
+                f"error (length unit, tracker compensation, or joint columns in another unit), or another robot's data")
+    return (f"{head}{moved}; no moved frame, other tool point or scale error explains it: the poses may lie "
             f"outside the calibrated region (see the predicted σ), the robot may have been disturbed (collision, "
             f"re-mastering), or the joint columns differ from the training data")
