@@ -472,3 +472,20 @@ def test_a_held_out_cause_must_bring_the_error_within_the_limit():
     assert "a tool point 31.00 mm from the calibrated one" in said and "tracker moved" not in said
     moved = kincal.simulate(robot.with_params({"base.x": 0.3, "base.rz": 0.1}), q, 10e-6, seed=2)
     assert "the tracker moved between sessions" in heldout_cause(robot, moved, 0.1e-3, rebased=False)
+
+
+def test_outliers_and_drift_of_joined_files_are_named_by_file():
+    """Two files in one frame: each file's rows start at 2, so a row number alone is ambiguous. Three gross
+    outliers in the second file are named with that file, and the advice is to leave them out of it (--exclude
+    names rows of one file only)."""
+    from kincal.identify import joined
+    robot = kincal.load_robot("ur5")
+    true = kincal.perturb(robot, seed=2)
+    a = dataclasses.replace(kincal.simulate(true, robot.sample_joints(60, seed=1), 10e-6, seed=1), source="a.csv")
+    b = dataclasses.replace(kincal.simulate(true, robot.sample_joints(60, seed=2), 10e-6, seed=2), source="b.csv")
+    xyz = b.xyz.copy()
+    xyz[:3] += 3e-3
+    res = kincal.calibrate(robot, joined([a, dataclasses.replace(b, xyz=xyz)]), diagnose=False)
+    (reason,) = [r for r in res.verdict.reasons if r.code == "outliers"]
+    assert reason.message.startswith("b.csv: outlier pose(s)") and "row(s) 2, 3, 4;" in reason.message
+    assert "leave them out of their file" in reason.message and "--exclude" not in reason.message

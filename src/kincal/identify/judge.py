@@ -108,9 +108,14 @@ def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     inliers = err[z <= th.outlier_limit(len(z))]  # outliers are named on their own, not smeared into σ
     pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
     noise = noise_level(meas.std, th)
-    return [*drift_reasons(meas.rows, np.linalg.norm(err, axis=1)), *residual_reasons(pos_sigma, noise, th),
-            *outlier_reasons(meas.rows, z, th, res.options.loss),
-            *duplicate_reasons(meas.rows, duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types, th))),
+    norms = np.linalg.norm(err, axis=1)
+    files = meas.session if meas.session is not None and len(set(meas.session)) > 1 else None  # rows are per file
+    parts = [(None, np.ones(len(z), bool))] if files is None else [(str(f), files == f) for f in dict.fromkeys(files)]
+    reasons = [r for f, m in parts for r in drift_reasons(meas.rows[m], norms[m], f)]
+    reasons += residual_reasons(pos_sigma, noise, th)
+    reasons += [r for f, m in parts for r in outlier_reasons(meas.rows[m], z[m], th, res.options.loss, f)]
+    return [*reasons, *duplicate_reasons(meas.rows, duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types,
+                                                                                                 th))),
             *fitted_drift_reasons(res.drift, noise[0])]
 
 

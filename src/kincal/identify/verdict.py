@@ -430,16 +430,19 @@ def residual_reasons(sigma: float, noise: tuple[float, str], th: Thresholds) -> 
               "at the per-pose residuals"))
 
 
-def outlier_reasons(rows: np.ndarray, z: np.ndarray, th: Thresholds, loss: str = "linear") -> list[Reason]:
-    """Poses more than ``outlier_z`` robust σ off, named by row, with what to do (given the loss used)."""
+def outlier_reasons(rows: np.ndarray, z: np.ndarray, th: Thresholds, loss: str = "linear",
+                    source: str | None = None) -> list[Reason]:
+    """Poses more than ``outlier_z`` robust σ off, named by row (of the file ``source``, one of several), with what
+    to do (given the loss used)."""
     limit = th.outlier_limit(len(z))
     bad = rows[z > limit]
     if bad.size == 0:
         return []
-    exclude = ",".join(map(str, bad[:MAX_LISTED]))
-    todo = (f"the {loss} loss already down-weights them; --reject-outliers leaves them out (or --exclude {exclude})"
-            if loss != "linear" else f"use --reject-outliers (or --exclude {exclude}), or --loss huber")
-    return [Reason("suspect", "outliers", f"outlier pose(s) more than {limit:.3g} robust σ off: row(s) "
+    exclude = f"--exclude {','.join(map(str, bad[:MAX_LISTED]))}" if source is None else "leave them out of their file"
+    todo = (f"the {loss} loss already down-weights them; --reject-outliers leaves them out (or {exclude})"
+            if loss != "linear" else f"use --reject-outliers (or {exclude}), or --loss huber")
+    head = "" if source is None else f"{source}: "
+    return [Reason("suspect", "outliers", f"{head}outlier pose(s) more than {limit:.3g} robust σ off: row(s) "
                                           f"{listed(bad)}; {todo}")]
 
 
@@ -475,8 +478,9 @@ def duplicate_reasons(rows: np.ndarray, groups, source: str | None = None) -> li
 DRIFT_RATIO, DRIFT_Z, DRIFT_MIN_POSES, DRIFT_NOISE = 1.5, 3.0, 50, 2.0
 
 
-def drift_reasons(rows: np.ndarray, norms: np.ndarray) -> list[Reason]:
-    """Warm-up drift: the first tenth of the poses by input row against the rest."""
+def drift_reasons(rows: np.ndarray, norms: np.ndarray, source: str | None = None) -> list[Reason]:
+    """Warm-up drift: the first tenth of the poses by input row (of the file ``source``, one of several) against
+    the rest."""
     if len(rows) < DRIFT_MIN_POSES:
         return []
     order = np.argsort(rows, kind="stable")
@@ -484,7 +488,8 @@ def drift_reasons(rows: np.ndarray, norms: np.ndarray) -> list[Reason]:
     first, rest = norms[order[:k]], norms[order[k:]]
     if first.mean() > DRIFT_RATIO * rest.mean() and first.mean() > rest.mean() + DRIFT_Z * rest.std(ddof=1) / np.sqrt(k):
         a, b = rows[order[0]], rows[order[k - 1]]
-        return [Reason("suspect", "drift", f"the first {k} poses (rows {a}-{b}) average {first.mean() * MM:.3f} mm "
-                                           f"of error against {rest.mean() * MM:.3f} mm for the rest: tracker or "
-                                           f"robot warm-up? leave them out (--exclude {a}-{b}) and check the set-up")]
+        head, out = ("", f"--exclude {a}-{b}") if source is None else (f"{source}: ", "of their file")
+        return [Reason("suspect", "drift", f"{head}the first {k} poses (rows {a}-{b}) average {first.mean() * MM:.3f} "
+                                           f"mm of error against {rest.mean() * MM:.3f} mm for the rest: tracker or "
+                                           f"robot warm-up? leave them out ({out}) and check the set-up")]
     return []
