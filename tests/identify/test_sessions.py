@@ -489,3 +489,19 @@ def test_outliers_and_drift_of_joined_files_are_named_by_file():
     (reason,) = [r for r in res.verdict.reasons if r.code == "outliers"]
     assert reason.message.startswith("b.csv: outlier pose(s)") and "row(s) 2, 3, 4;" in reason.message
     assert "leave them out of their file" in reason.message and "--exclude" not in reason.message
+
+
+@pytest.mark.slow
+def test_files_forced_into_one_frame_are_diagnosed_as_two_frames():
+    """Two files, the tracker moved 0.2 m and 0.1 rad between them, calibrated in one frame (--same-frame): the
+    diagnosis names the files' frames and the fix (it tried 57 other mistakes and found none)."""
+    from kincal.identify import joined
+    robot = kincal.load_robot("ur5")
+    true = kincal.perturb(robot, seed=2)
+    a = dataclasses.replace(kincal.simulate(true, robot.sample_joints(60, seed=1), 10e-6, seed=1), source="a.csv")
+    moved = true.with_params({"base.x": 0.2, "base.rz": 0.1})
+    b = dataclasses.replace(kincal.simulate(moved, robot.sample_joints(60, seed=2), 10e-6, seed=2), source="b.csv")
+    res = kincal.calibrate(robot, joined([a, b]))
+    best = res.diagnosis.best
+    assert best is not None and best.code == "same-frame" and "leave out --same-frame" in best.fix
+    assert best.sigma < 0.05e-3 < res.sigma

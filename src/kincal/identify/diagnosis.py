@@ -16,7 +16,8 @@ fit's set-up, listed in this canonical order (ties go to the earlier one, :mod:`
 7. the frame: ``base="fixed"`` on data measured in another frame (a tracker's);
 8. the tool point: not estimated, and mounted elsewhere than declared;
 9. a frame that jumps inside the file (two set-ups, a bumped tracker): the split
-   (:func:`kincal.io.unit_checks.frame_jump` on the fitted model) fitted as two sessions;
+   (:func:`kincal.io.unit_checks.frame_jump` on the fitted model) fitted as two sessions; several files
+   fitted in one frame (``--same-frame``): each in a frame of its own;
 10. a few bad poses: the rows a robust refit puts beyond ``outlier_z`` robust σ, left out.
 
 Two stages keep it cheap. Candidates 1–6 change the data; each is screened by registering the
@@ -232,6 +233,19 @@ def _jump(res: CalibrationResult) -> list[tuple[Cause, Change]]:
              lambda r, m, o: (r, parts, o))]
 
 
+def _sessions(res: CalibrationResult) -> list[tuple[Cause, Change]]:
+    """Several files fitted in one frame (--same-frame): each in a frame of its own (the tracker moved between
+    them)."""
+    meas = res.measurements
+    labels = list(dict.fromkeys(meas.session)) if meas.session is not None else []
+    if len(labels) < 2:
+        return []
+    parts = [meas.subset(np.flatnonzero(meas.session == s)) for s in labels]
+    return [(Cause("same-frame", "the files were not measured in one frame (the tracker moved between them)",
+                   "leave out --same-frame: each file then gets its own measurement frame"),
+             lambda r, m, o: (r, parts, o))]
+
+
 def outlier_poses(robot: Robot, meas: Measurements, options: FitOptions) -> np.ndarray:
     """Indices into ``meas`` of the poses a robust (Huber) refit puts more than ``outlier_z`` robust σ
     off, at most MAX_OUTLIER_SHARE of the poses (none when more are that far off: then it is not a few
@@ -284,7 +298,7 @@ def diagnose(res: CalibrationResult) -> Diagnosis:
     screened = [_screen(*change(robot, block, options)[:2]) for _, change in data]
     as_given = _screen(robot, block)
     order = [k for k in order_with_ties(screened, descending=False) if screened[k] < EXPLAIN_RATIO * as_given]
-    trials = [data[k] for k in sorted(order[:MAX_FULL])] + _setups(robot, options) + _jump(res)
+    trials = [data[k] for k in sorted(order[:MAX_FULL])] + _setups(robot, options) + _jump(res) + _sessions(res)
     bad = outlier_poses(robot, meas, options) if len(meas) > 10 else np.zeros(0, dtype=int)
     if len(bad):
         rows = meas.rows[bad]
