@@ -978,3 +978,16 @@ def test_a_row_index_outside_the_file_is_refused_and_nothing_written(tmp_path, i
     with pytest.raises(IndexError, match=f"data row index {index} is outside 0..2"):
         write_selected_rows(tmp_path / "chosen.csv", tmp_path / "all.csv", [0, index])
     assert not (tmp_path / "chosen.csv").exists()
+
+
+def test_a_pose_number_column_given_as_a_joint_is_named_not_blamed_on_the_unit(tmp_path, capsys):
+    """--joint-cols pose,joint_1,… with --angle-unit deg: the pose numbers (1…1000) read as joint 1's degrees reach
+    999 deg. It said 'they look like degrees; use angle unit deg', which was already given; now it names the column
+    read as that joint and the joint columns."""
+    from conftest import DATA
+    cols = "pose,joint_1,joint_2,joint_3,joint_4,joint_5"
+    code = main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), "--length-unit", "mm",
+                 "--angle-unit", "deg", "--joint-cols", cols, "-o", str(tmp_path / "c.yaml")])
+    err = capsys.readouterr().err
+    assert code == 1 and "the column read as joint j1 reaches 999 deg as written ('deg' was given)" in err
+    assert "--joint-cols" in err and "use angle unit" not in err and not (tmp_path / "c.yaml").exists()

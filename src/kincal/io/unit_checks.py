@@ -200,6 +200,12 @@ def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
     if over and np.all(np.abs(q[:, rev]) * np.pi / 180.0 <= reach):  # read as degrees, they would fit
         qmax = float(np.max(np.abs(q[:, rev])))
         given = f" ('{angle_unit}' was given)" if angle_unit else ""
+        if angle_unit == "deg":  # already read as degrees: not an angle at all
+            j = np.flatnonzero(rev)[int(np.argmax(np.max(np.abs(q[:, rev]), axis=0)))]
+            raise MeasurementError(f"{source}: the column read as joint {robot.joint_names[j]} reaches "
+                                   f"{np.degrees(qmax):.4g} deg as written ('deg' was given), far beyond its limits: "
+                                   f"not a joint angle (a pose number or another quantity?); check the joint columns "
+                                   f"(CLI: --joint-cols)")
         raise MeasurementError(f"{source}: revolute joint values reach {qmax:.4g} rad{given}, far beyond the joint "
                                f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)")
 
