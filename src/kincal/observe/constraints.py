@@ -28,6 +28,28 @@ def _labels_in_order(labels: np.ndarray) -> list[str]:
     return list(dict.fromkeys(str(x) for x in labels.tolist()))  # in order of first appearance
 
 
+def _tool_hint(robot: Robot, q: np.ndarray, labels: np.ndarray) -> str:
+    """Where the samples say the ball is when a tool point puts each label's samples on one point (least squares: the
+    flange poses, one tool point, one centre per label) within a robot's error, the robot file's being elsewhere:
+    '' when none does."""
+    if not robot.has_tool_point:
+        return ""
+    P, R, _, _ = robot.pose_and_jacobian(q)
+    flange = P - R @ robot.tool_point()
+    names = list(dict.fromkeys(labels))
+    A = np.zeros((3 * len(q), 3 + 3 * len(names)))
+    A[:, :3] = R.reshape(-1, 3)
+    for k, lab in enumerate(labels):
+        A[3 * k:3 * k + 3, 3 + 3 * names.index(lab):6 + 3 * names.index(lab)] = -np.eye(3)
+    x = np.linalg.lstsq(A, -flange.reshape(-1), rcond=None)[0]
+    spread = np.linalg.norm((A @ x + flange.reshape(-1)).reshape(-1, 3), axis=1).mean()
+    if spread > 0.25 * SPREAD_LIMIT:  # a robot's error left (an uncalibrated arm: several mm), not places
+        return ""
+    where = ", ".join(f"{v * MM:.1f}" for v in x[:3])
+    return (f"a tool point at ({where}) mm in the flange frame puts them within {spread * MM:.1f} mm of one point: the "
+            f"ball is not where the robot file puts the tool (check --tip-link, or declare it with --tool)")
+
+
 @dataclass(frozen=True, eq=False)
 class SamePointObs(Observation):
     """The tool point held at the same unknown point in every sample with that label (a ball in a socket).
@@ -114,8 +136,9 @@ class SamePointObs(Observation):
                 raise MeasurementError(
                     f"{self.source}: the {d.size} samples labelled '{lab}' are not one point: the robot file puts them "
                     f"{d.mean() * MM:.0f} mm from their centre on average (up to {d.max() * MM:.0f} mm), far more "
-                    f"than a robot's error; if the plate was moved between samples, label each placement (kincal "
-                    f"calibrate: --group-col), else check the joint columns and units")
+                    f"than a robot's error; " + (_tool_hint(robot, self.q, self.labels) or
+                                                "if the plate was moved between samples, label each placement (kincal "
+                                                "calibrate: --group-col), else check the joint columns and units"))
         for a, b, d in self.distances:
             missing = [lab for lab in (a, b) if lab not in at]
             if missing:
