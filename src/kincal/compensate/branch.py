@@ -477,7 +477,8 @@ def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, q
         if pulsed[i] and not np.array_equal(np.round(q[i] * scale), np.round(qs[k] * scale)):
             bad[k] = "the written pulse counts are not the corrected joints' nearest (checked as read again)"
         if k not in bad and not (m <= tol_p[i] and r <= tol_r[i]):
-            bad[k] = f"the written target misses by {m * 1e3:.2e} mm / {r:.2e} rad (checked as read again)"
+            bad[k] = (f"the written target misses by {m * 1e3:.2e} mm / {r:.2e} rad (checked as read again)"
+                      + _singular(nominal, q[i]))
     return bad
 
 
