@@ -127,3 +127,18 @@ def test_a_broken_frame_is_named_by_file_line_and_column(tmp_path):
     bad.write_text("DEFDAT  $CONFIG\nTOOL_DATA[1]={X 0.0,Y 0.0,Z 1OO.0,A 0.0,B 0.0,C 0.0}\nENDDAT\n")
     with pytest.raises(MeasurementError, match=r"line 2, column 29: '1OO.0' is not a number"):
         read_frames(str(bad))
+
+
+def test_a_frames_file_written_in_metres_is_refused_naming_the_unit(tmp_path):
+    """A 150 mm tool written as z: 0.15 in a frames file read in mm (the default) was taken as a 0.15 mm tool; now
+    refused as metres. Declared units are taken as they are, and a file of zero frames is fine."""
+    from kincal.io import read_frames
+    (tmp_path / "m.yaml").write_text("TOOL_NO 1: {z: 0.15}\nBASE_NO 0: {}\n")
+    with pytest.raises(ValueError, match=r"within 0\.15 mm as read in mm \(the default\): they look like metres"):
+        read_frames(str(tmp_path / "m.yaml"))
+    (tmp_path / "ok.yaml").write_text("units: {length: m}\nTOOL_NO 1: {z: 0.15}\n")
+    assert read_frames(str(tmp_path / "ok.yaml"))["TOOL_NO 1"][2, 3] == pytest.approx(0.15)
+    (tmp_path / "small.yaml").write_text("units: {length: mm}\nTOOL_NO 1: {z: 0.15}\n")
+    assert read_frames(str(tmp_path / "small.yaml"))["TOOL_NO 1"][2, 3] == pytest.approx(0.15e-3)
+    (tmp_path / "zero.yaml").write_text("BASE_NO 0: {}\n")
+    assert np.array_equal(read_frames(str(tmp_path / "zero.yaml"))["BASE_NO 0"], np.eye(4))

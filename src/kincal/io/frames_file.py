@@ -150,10 +150,25 @@ def read_frames(path: str) -> Mapping[str, np.ndarray | str | TaughtFrame]:
     out: dict[str, np.ndarray | str | TaughtFrame] = {}
     for name, f in data.items():
         out[str(name)] = _entry(path, str(name), f, lf, af)
+    if "length" not in units:
+        _not_metres(str(path), out)
     for name, f in out.items():
         if isinstance(f, TaughtFrame) and f.kind == "base" and f.tool not in out:
             raise ValueError(f"{path}: frame {name!r} was taught with tool {f.tool!r}, which the file does not give")
     return out
+
+
+METRES_LOOK = 2e-3  # m: frames whose translations all stay within this, read as mm, were written in metres
+
+
+def _not_metres(path: str, frames: dict) -> None:
+    """Refuse frames read in the default mm whose translations are all within METRES_LOOK (and some not 0): written
+    in metres (a 150 mm tool as z: 0.15)."""
+    t = [np.linalg.norm(f[:3, 3]) for f in frames.values() if isinstance(f, np.ndarray)]
+    if t and 0.0 < max(t) <= METRES_LOOK:
+        raise ValueError(f"{path}: every frame's translation is within {max(t) * 1e3:.3g} mm as read in mm (the "
+                         f"default): they look like metres; say so with 'units: {{length: m}}' (or, if they really "
+                         f"are this small, 'units: {{length: mm}}')")
 
 
 def _entry(path: str, name: str, f, lf: float, af: float) -> np.ndarray | TaughtFrame:
