@@ -89,3 +89,20 @@ def test_a_folder_with_what_does_not_apply_is_refused(tmp_path, capsys, flag):
     code, said = _run(capsys, str(tmp_path / "cal.yaml"), str(tmp_path / "KRC"), *flag, "-o", str(tmp_path / "o"))
     assert code != 0 and ("a folder of programs" in said or "--tcp: not for krl programs" in said)
     assert not (tmp_path / "o").exists()
+
+
+def test_a_refused_folder_says_why_each_target_was_refused(tmp_path, capsys):
+    """Nothing written without --skip-unreachable: the output lists each refused target with its file, line and
+    reason (it gave only counts, and the report CSV is written only with the folder)."""
+    kuka = kincal.perturb(kincal.load_robot("kuka_kr6r900sixx"), seed=2)
+    kincal.save_robot(kuka, tmp_path / "cal.yaml")
+    folder = tmp_path / "KRC" / "R1" / "Program"
+    folder.mkdir(parents=True)
+    (folder / "a.src").write_text("DEF a()\nPTP {A1 10, A2 -80, A3 100, A4 5, A5 30, A6 10}\n"
+                                  "PTP {A1 10, A2 -200, A3 100, A4 5, A5 30, A6 10}\nEND\n")
+    code, said = _run(capsys, str(tmp_path / "cal.yaml"), str(tmp_path / "KRC"), "--program", "krl", "-o",
+                      str(tmp_path / "out"))
+    assert code == 4 and not (tmp_path / "out").exists()
+    (line,) = [x for x in said.splitlines() if x.startswith("refused: ")]
+    assert line.startswith("refused: R1/Program/a.src: line 3 (PTP): the target's own joints are outside the robot's "
+                           "limits: a2 -200.000°")

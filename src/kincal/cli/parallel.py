@@ -227,6 +227,8 @@ def _compensate_folder(args) -> int:
     written = not stuck or args.skip_unreachable
     if written:
         write_folder(res, args.output)
+    refused = [f"refused: {f.path}: line {line} ({what}): {why}" for f in res.files for line, what, status, why in f.rows
+               if status == "refused"]
     lines = [f"{f.path}: " + (f"unreadable: {f.rows[0][3]}" if f.count("unreadable") else
                               f"{f.count('compensated')} of {f.targets} targets compensated, {f.count('refused')} "
                               f"refused, {f.count('listed')} listed") for f in res.files]
@@ -236,6 +238,8 @@ def _compensate_folder(args) -> int:
                   f"{args.output}/kincal_report.csv)" if written else
                   f"nothing written (--skip-unreachable writes the folder with those left as they are)"))
     unseen = _base_line(args, record, cal)
+    lines += refused[:SHOWN_PROBLEMS] + ([f"… and {len(refused) - SHOWN_PROBLEMS} more refused targets (all of them "
+                                          f"with --json)"] if len(refused) > SHOWN_PROBLEMS else [])
     lines += ([turn.note()] if turn is not None else []) + ([unseen] if unseen else [])
     return emit(args, {**res.to_dict(), "output": args.output if written else None, **_orientation_from(turned, turn),
                        "base_note": unseen or None},
