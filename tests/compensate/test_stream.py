@@ -167,3 +167,11 @@ def test_a_unit_mistake_is_named_before_any_row_is_refused_for_it(tmp_path):
     with pytest.raises(MeasurementError, match="look like degrees"):
         compensate_file(job, str(src), str(tmp_path / "c.csv"))
     assert sorted(x.name for x in tmp_path.iterdir()) == ["t.csv"]
+
+
+def test_refused_rows_are_listed_in_file_order():
+    """Each check names its rows in turn (reach, then branch, then orientation), so the list came out as rows 7, 28,
+    16; it is sorted by row, messages about every row first, ties kept in the order given."""
+    from kincal.compensate.stream import _row_of
+    given = ["row 28: b", "row 7: a", "the targets' frame: all", "row 16: c", "row 7: d"]
+    assert sorted(given, key=_row_of) == ["the targets' frame: all", "row 7: a", "row 7: d", "row 16: c", "row 28: b"]

@@ -488,6 +488,12 @@ def _read(job: StreamJob, stream: Stream, block: Block, previous: Block | None):
     return rows, q0, xyz, R, (v[:, n + 3:] if t.pose else None)
 
 
+def _row_of(problem: str) -> tuple[int, int]:
+    """Sort key of a problem: messages about every row first, then those of one row by its number."""
+    head = problem.split(":", 1)[0]
+    return (1, int(head[4:])) if head.startswith("row ") and head[4:].isdigit() else (0, 0)
+
+
 def _summary(job: StreamJob, layout: CommandColumns, comp, rows, q0, xyz, k: int, problems, end: int) -> _Part:
     """The block's output lines and summary (``k`` leading context rows of ``comp`` dropped)."""
     ok = comp.ok[k:]
@@ -530,7 +536,8 @@ def _result(job: StreamJob, parts: list[_Part], written: bool) -> StreamResult:
         warnings.append(envelope_warning(rows, q.reshape(-1, robot.n_joints), robot, unc)[1])
     if job.targets.pose and robot.n_joints < 6 and "rotation_residual" in largest:
         warnings.append(uncontrolled_warning(robot, largest["rotation_residual"]))
-    problems = dict.fromkeys(p for part in parts for p in part.problems)  # a block-wide message once
+    problems = dict.fromkeys(sorted((p for part in parts for p in part.problems), key=_row_of))  # a block-wide
+    # message once; the rows in file order (each check names its rows in turn)
     return StreamResult(sum(p.n for p in parts), sum(p.n_ok for p in parts), written, tuple(problems),
                         tuple(w for w in warnings if w), parts[-1].method, max(p.iterations for p in parts),
                         {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in largest.items()},
