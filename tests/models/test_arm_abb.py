@@ -205,3 +205,12 @@ def test_cf1_of_real_robtargets_where_the_target_alone_fixes_axis_1():
 def wrist_centre(robot, q):
     """The wrist centre: nearest the axes 4, 5 and 6."""
     return six_axes(robot, q, "the wrist centre")[3][0]
+
+
+def test_one_joint_vector_of_the_wrong_shape_is_named_by_its_shape(irb120):
+    """abb_confdata takes one joint vector (6,): given (1, 6) it said 'got 6 joint values for 6 joints'."""
+    from kincal.io.branches import abb_confdata
+    with pytest.raises(ModelError, match=r"takes one joint vector \(6,\), got shape \(1, 6\); abb_rows takes \(N, 6\)"):
+        abb_confdata(irb120, np.zeros((1, 6)))
+    assert abb_confdata(irb120, np.radians([10, 20, 30, 40, 50, 60])) == abb_confdata(irb120, np.radians(
+        [10, 20, 30, 40, 50, 60]).tolist())

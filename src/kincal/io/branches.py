@@ -13,6 +13,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import ModelError
 from ..models.arm import six_axes
 from ..models.robot import Robot
 
@@ -70,7 +71,10 @@ def abb_confdata(robot: Robot, q: np.ndarray) -> tuple[int, int, int, int]:
     planes are its three singularities. Source: ABB, Technical reference manual RAPID Instructions, Functions
     and Data types, ``confdata``, as reproduced in py-opw-kinematics' AXIS_CONFIGURATION.md and ARTE's
     compute_configuration.m (ABB's own text was not in reach)."""
-    return abb_rows(robot, np.asarray(q, dtype=float)[None])[0]
+    q = np.asarray(q, dtype=float)
+    if q.ndim != 1:
+        raise ModelError(f"abb_confdata takes one joint vector (6,), got shape {q.shape}; abb_rows takes (N, 6)")
+    return abb_rows(robot, q[None])[0]
 
 
 def abb_rows(robot: Robot, q: np.ndarray) -> list[tuple]:

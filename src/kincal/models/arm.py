@@ -52,7 +52,9 @@ def six_axes(robot: Robot, q: np.ndarray, what: str) -> tuple[np.ndarray, np.nda
     a six-axis arm at joints q (6,) or (N, 6) rad; ModelError naming ``what`` (the bits asked for) for another
     joint count."""
     Q = np.atleast_2d(np.asarray(q, dtype=float))
-    if Q.ndim != 2 or Q.shape[1] != 6 or robot.n_joints != 6:
+    if Q.ndim != 2:
+        raise ModelError(f"robot '{robot.name}': {what} take joints of shape (6,) or (N, 6); got shape {Q.shape}")
+    if Q.shape[1] != 6 or robot.n_joints != 6:
         raise ModelError(f"robot '{robot.name}': {what} are defined for six-axis arms; got {Q.shape[-1]} joint values "
                          f"for {robot.n_joints} joints")
     points, axes = axis_lines(robot, Q)
