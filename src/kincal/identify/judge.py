@@ -62,12 +62,17 @@ def verdict_of(res: "CalibrationResult") -> Verdict:
 
 
 def _size_reasons(res: "CalibrationResult") -> list[Reason]:
-    """A calibrated model larger or smaller than the nominal one as a whole (the scale of a similarity fit of their
-    flange positions at SIZE_POSES poses of the joint ranges) by more than SIZE_SUSPECT: the length that sets the data's
-    scale is off — a known distance between sockets or planes where the data have one, else the instrument's scale
-    (or the robot file's lengths)."""
+    """A calibrated model larger or smaller than the nominal one as a whole by more than SIZE_SUSPECT: the length that
+    sets the data's scale is off — a known distance between sockets or planes where the data have one, else the
+    instrument's scale (or the robot file's lengths). The size is the scale of a similarity fit of their flange
+    positions at SIZE_POSES poses of the joint ranges, both with the calibrated actuator scales (a lead is judged as
+    a correction); only for arms of whole-turn joints, whose positions scale with their lengths."""
+    if not res.nominal.periodic.all():  # a prismatic joint or a leg's motor: positions do not scale with the lengths
+        return []
     q = res.nominal.sample_joints(SIZE_POSES, seed=0)
-    flanges = [m.with_tool_point(np.zeros(3)) if m.has_tool_point else m for m in (res.nominal, res.robot)]
+    ratios = {n: res.robot.params[n] for n, k in zip(res.robot.params.names, res.robot.params.kinds) if k == "ratio"}
+    nominal = res.nominal.with_params(ratios) if ratios else res.nominal  # a leg's lead is not the arm's size
+    flanges = [m.with_tool_point(np.zeros(3)) if m.has_tool_point else m for m in (nominal, res.robot)]
     a, b = (m.forward_batch(q, m.param_values(None)[None])[0] for m in flanges)  # NaN where a model does not reach
     ok = np.all(np.isfinite(a) & np.isfinite(b), axis=1)
     scale = similarity_scale(a[ok], b[ok]) if ok.sum() >= 4 else 1.0
