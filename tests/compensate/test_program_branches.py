@@ -245,5 +245,5 @@ def test_a_joint_taught_at_zero_and_written_to_three_decimals_is_named_as_such(t
     assert sorted(res.refused) == [0, 1] and 2 in res.texts
     for k, joint in ((0, "a6"), (1, "a1")):
         why = res.refused[k]
-        assert why.startswith(f"the pose puts {joint} at -0.00") and "on the other side of 0" in why, why
-        assert float(why.split(" at ")[1].split("°")[0]) > -0.01
+        assert why.startswith(f"the pose puts {joint} at -") and "on the other side of 0" in why, why
+        assert -0.01 < float(why.split(" at ")[1].split("°")[0]) < 0

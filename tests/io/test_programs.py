@@ -309,3 +309,13 @@ def test_joint_targets_outside_the_limits_are_named_and_are_no_start(tmp_path):
     why = res.refused[0]
     assert why.startswith("the target's own joints are outside the robot's limits: ")
     assert why.endswith("(URScript's joints are in radians; these look like degrees)")
+
+
+def test_radians_just_beyond_a_limit_are_not_called_degrees(tmp_path):
+    """movej with joint 6 at 7.0 rad (beyond ±2π): outside the limits, but read as degrees they would not be the
+    joints the program means either way; no 'these look like degrees' (it said so whenever a value passed 2π)."""
+    nominal, true = _ur10()
+    q = np.array([0.1, -1.5, 1.4, -1.4, -1.57, 7.0])
+    (tmp_path / "p.script").write_text(_program([f"movej({_fmt(q, False)})"]))
+    why = compensate_program(true, nominal, read_program(str(tmp_path / "p.script"), "ur")).refused[0]
+    assert why.startswith("the target's own joints are outside the robot's limits: ") and "degrees" not in why

@@ -423,7 +423,7 @@ def _at_bit_edge(robot: Robot, reached: list[np.ndarray], config: tuple, config_
             mirrored = q.copy()
             mirrored[j] = -q[j]
             if robot.within_limits(mirrored[None])[0] and tuple(config_of(robot, mirrored)) == config:
-                return (f"the pose puts {robot.joint_names[j]} at {np.degrees(q[j]):+.4f}°, on the other side of 0 "
+                return (f"the pose puts {robot.joint_names[j]} at {np.degrees(q[j]):+.2e}°, on the other side of 0 "
                         f"from what the target's bits {config} say (a joint at 0 taught, or a pose written to fewer "
                         f"decimals than the controller keeps): give it as an axis position, or with more decimals")
     return ""

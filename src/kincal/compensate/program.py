@@ -212,7 +212,7 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None, orientation: Robo
         outside = outside_limits(nominal, t.values)
         if outside:
             return outside + (" (URScript's joints are in radians; these look like degrees)"
-                              if np.abs(t.values).max() > 2 * np.pi else "")
+                              if not outside_limits(nominal, np.radians(t.values)) else "")
         q_nom = t.values
         p, R, _, _ = nominal.pose_and_jacobian(q_nom[None])
     else:
