@@ -211,8 +211,8 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None, orientation: Robo
             return f"{t.values.size} joint values for a {model.n_joints}-joint robot"
         outside = outside_limits(nominal, t.values)
         if outside:
-            return outside + (" (URScript's joints are in radians; these look like degrees)"
-                              if not outside_limits(nominal, np.radians(t.values)) else "")
+            degrees = np.sum(np.abs(t.values) > 2 * np.pi) >= 2 and not outside_limits(nominal, np.radians(t.values))
+            return outside + (" (URScript's joints are in radians; these look like degrees)" if degrees else "")
         q_nom = t.values
         p, R, _, _ = nominal.pose_and_jacobian(q_nom[None])
     else:
