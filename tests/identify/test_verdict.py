@@ -331,3 +331,14 @@ def test_similarity_scale_recovers_a_known_similarity():
     b = 1.013 * a @ R.T + [0.4, -1.0, 2.0]
     assert abs(similarity_scale(a, b) - 1.013) < 1e-12
     assert similarity_scale(a, a * [1, 1, -1]) < 1.0  # a reflection cannot be matched by a rotation
+
+
+def test_the_size_check_is_for_robots_whose_positions_grow_with_their_lengths():
+    """A UR5, a WAM and a delta grow with their lengths at the same joints; a transmission (the 3T2R's ball screws,
+    whose leads are lengths), a hexapod's legs and prismatic joints do not, and their size is not judged (the
+    3T2R's 2-5 % lead errors were called the arm's size)."""
+    from kincal.identify.judge import _scales_with_lengths
+    said = {n: _scales_with_lengths(kincal.load_robot(n)) for n in ("ur5", "wam", "delta", "guo3t2r", "hexapod",
+                                                                     "puu3", "scara")}
+    assert said == {"ur5": True, "wam": True, "delta": True, "guo3t2r": False, "hexapod": False, "puu3": False,
+                    "scara": False}

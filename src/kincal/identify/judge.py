@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..models.robot import Robot
+from ..models.robot import TOOL_NAMES, Robot
 from ..units import MM
 from .._csv import listed
 from .verdict import (Reason, Thresholds, Verdict, correction_reasons, drift_reasons, duplicate_groups,
@@ -22,8 +22,9 @@ if TYPE_CHECKING:
     from .diagnosis import Diagnosis
     from .result import CalibrationResult
 
-SIZE_SUSPECT = 5e-3  # a calibrated model this much larger or smaller than its drawings as a whole: no robot's error
-SIZE_POSES = 500  # poses of the joint ranges the two models' sizes are compared over (seed 0)
+SIZE_SUSPECT = 1e-2  # a calibrated model this much larger or smaller than its drawings as a whole: no robot's error (one
+# plate placement's 50 mm fixes the scale only to about 0.5 %)
+SIZE_POSES = 200  # poses of the joint ranges the two models' sizes are compared over (seed 0)
 IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes (unseen) than across them
 MIN_SAMPLES = 10  # a set with fewer samples is not judged for outliers (no robust spread to judge by)
 
@@ -62,29 +63,50 @@ def verdict_of(res: "CalibrationResult") -> Verdict:
 
 
 def _size_reasons(res: "CalibrationResult") -> list[Reason]:
-    """A calibrated model larger or smaller than the nominal one as a whole by more than SIZE_SUSPECT: the length that
-    sets the data's scale is off — a known distance between sockets or planes where the data have one, else the
-    instrument's scale (or the robot file's lengths). The size is the scale of a similarity fit of their flange
-    positions at SIZE_POSES poses of the joint ranges, both with the calibrated actuator scales (a lead is judged as
-    a correction); only for arms of whole-turn joints, whose positions scale with their lengths."""
-    if not res.nominal.periodic.all():  # a prismatic joint or a leg's motor: positions do not scale with the lengths
+    """A calibrated model larger or smaller than the nominal one as a whole by more than SIZE_SUSPECT (1 %) and three
+    of its σ: the length that sets the data's scale is off — a known distance between sockets or planes where the data
+    have one, else the instrument's scale (or the robot file's lengths). The size is the scale of a similarity fit of
+    the two models' flange positions at SIZE_POSES poses of the joint ranges (σ through the fit's covariance);
+    judged only for a robot whose positions scale with its lengths (not a leg's or a screw's reading)."""
+    if not _scales_with_lengths(res.nominal):
         return []
+    flange = [m.with_tool_point(np.zeros(3)) if m.has_tool_point else m for m in (res.nominal, res.robot)]
     q = res.nominal.sample_joints(SIZE_POSES, seed=0)
-    ratios = {n: res.robot.params[n] for n, k in zip(res.robot.params.names, res.robot.params.kinds) if k == "ratio"}
-    nominal = res.nominal.with_params(ratios) if ratios else res.nominal  # a leg's lead is not the arm's size
-    flanges = [m.with_tool_point(np.zeros(3)) if m.has_tool_point else m for m in (nominal, res.robot)]
-    a, b = (m.forward_batch(q, m.param_values(None)[None])[0] for m in flanges)  # NaN where a model does not reach
-    ok = np.all(np.isfinite(a) & np.isfinite(b), axis=1)
-    scale = similarity_scale(a[ok], b[ok]) if ok.sum() >= 4 else 1.0
-    if abs(scale - 1.0) <= SIZE_SUSPECT:
+    a = _positions(flange[0], q, flange[0].param_values(None)[None])[0]
+    values = flange[1].param_values(None)
+    ok = [n for n in res.names if np.isfinite(res.std[n]) and n in flange[1].params.names and n not in TOOL_NAMES]
+    idx = flange[1].params.indices(ok)
+    step = np.where(np.array(flange[1].params.kinds)[idx] == "length", 1e-6, 1e-7)
+    trial = np.repeat(values[None], len(idx) + 1, axis=0)
+    trial[np.arange(1, len(idx) + 1), idx] += step
+    b = _positions(flange[1], q, trial)
+    fine = np.all(np.isfinite(a), axis=1) & np.all(np.isfinite(b), axis=(0, 2))
+    if fine.sum() < 4:
+        return []
+    scales = np.array([similarity_scale(a[fine], x[fine]) for x in b])
+    grad = (scales[1:] - scales[0]) / step
+    at = [res.free.index(n) for n in ok]
+    sigma = float(np.sqrt(max(grad @ res.covariance[np.ix_(at, at)] @ grad, 0.0)))
+    if abs(scales[0] - 1.0) <= max(SIZE_SUSPECT, 3 * sigma):
         return []
     known = any(o.kind in ("same-point", "plane") and o.reference for o in res.observations)
     why = ("the known distance that sets the scale (--distance, or the planes' known offsets) is likely off" if known
            else "the instrument's length scale or the robot file's lengths are likely off")
-    return [Reason("suspect", "size", f"the calibrated model is {abs(scale - 1) * 100:.1f} % "
-                                      f"{'larger' if scale > 1 else 'smaller'} than the nominal one as a whole (a "
-                                      f"similarity fit of their flange positions over the joint ranges): no real robot is "
-                                      f"that far from its drawings; {why}")]
+    return [Reason("suspect", "size", f"the calibrated model is {abs(scales[0] - 1) * 100:.1f} % ± "
+                                      f"{sigma * 100:.1f} % {'larger' if scales[0] > 1 else 'smaller'} than the "
+                                      f"nominal one as a whole (a similarity fit of their flange positions over the "
+                                      f"joint ranges): no real robot is that far from its drawings; {why}")]
+
+
+def _positions(robot: Robot, q: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """(S, N, 3) m: the robot's positions at q (N, n) for S parameter vectors (NaN where it does not reach)."""
+    return robot.forward_batch(q, values)
+
+
+def _scales_with_lengths(robot: Robot) -> bool:
+    """Whether the robot's positions grow with its lengths at the same joint readings: an arm of whole-turn joints,
+    not a leg's or a screw's travel read as a motor turn (a prismatic joint, a transmission, a hexapod's legs)."""
+    return bool(robot.periodic.all()) and not robot.reading_terms() and "transmission" not in robot.structure
 
 
 def similarity_scale(a: np.ndarray, b: np.ndarray) -> float:
