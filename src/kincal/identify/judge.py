@@ -164,7 +164,8 @@ def _whitened_reason(kind: str, rms: float, whitened: dict, th: Thresholds) -> R
     if rms > th.residual_refuse and kind not in ASSUMED:
         return Reason("refused", "residual", f"the {kind} residuals are {rms:.0f}x their stated σ ({flag}): data and "
                                              f"model do not belong together (another robot's or another session's "
-                                             f"data in one frame, a moved camera, wrong columns or units)")
+                                             f"data in one frame, a moved camera, wrong columns or units), unless "
+                                             f"that σ is stated {rms:.0f} times too small")
     fine = [k for k, v in whitened.items() if k != kind and v <= 3.0]
     return Reason("suspect", "residual", (
         f"the {kind} residuals are {rms:.1f}x their stated σ ({flag}): the model leaves errors it cannot describe "

@@ -61,6 +61,20 @@ def refit_frame(robot: Robot, meas: Measurements) -> Robot:
     return calibrate(robot, meas, names=(), base="estimate", diagnose=False).robot
 
 
+def _tool_fix(robot: Robot, meas: Measurements) -> tuple[float, str] | None:
+    """The mean error (m) with the session's own tool point (and frame) fitted, and what that says; None when the
+    robot has no tool point or frame to fit, or too few poses."""
+    if not (robot.has_tool_point and robot.base_params() and len(meas) >= 4):
+        return None
+    tooled = calibrate(robot, meas, names=TOOL_NAMES, base="estimate", diagnose=False).robot
+    again = _mean_error(tooled, meas)
+    gap = np.linalg.norm(tooled.tool_point() - robot.tool_point())
+    where = ", ".join(f"{x * MM:.2f}" for x in tooled.tool_point())
+    return again, (f"a tool point {gap * MM:.2f} mm from the calibrated one (at {where} mm in the flange frame) brings "
+                   f"it to {again * MM:.3f} mm: the target was mounted differently in this session (another probe, "
+                   f"adapter or seat); give that session's tool point with --tool")
+
+
 def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased: bool) -> str:
     """Name the likely cause when a model misses a held-out session by far more than its training data.
 
@@ -106,23 +120,18 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
     head = (f"{meas.source}: mean error {error * MM:.3f} mm is {error / train_error:.0f}x the training error "
             f"({train_error * MM:.3f} mm)")
     enough, moved = HELDOUT_RATIO * train_error, ""  # a cause must bring the error within the limit, not just lower it
-    if not rebased and robot.base_params():
-        again = _mean_error(refit_frame(robot, meas), meas)
-        if again <= enough:
-            return (f"{head}; with the measurement frame re-registered it is {again * MM:.3f} mm: the tracker moved "
-                    f"between sessions (leave out --same-frame so that each session's frame is registered)")
-        moved = (f"; re-registering the measurement frame brings it to {again * MM:.3f} mm (the tracker moved too: "
-                 f"leave out --same-frame), still {again / train_error:.0f}x the training error" if again < 0.5 * error
-                 else f"; re-registering the measurement frame leaves {again * MM:.3f} mm")
-    if robot.has_tool_point and robot.base_params() and len(meas) >= 4:
-        tooled = calibrate(robot, meas, names=TOOL_NAMES, base="estimate", diagnose=False).robot
-        again = _mean_error(tooled, meas)
-        if again <= enough:
-            gap = np.linalg.norm(tooled.tool_point() - robot.tool_point())
-            where = ", ".join(f"{x * MM:.2f}" for x in tooled.tool_point())
-            return (f"{head}; a tool point {gap * MM:.2f} mm from the calibrated one (at {where} mm in the flange "
-                    f"frame) brings it to {again * MM:.3f} mm: the target was mounted differently in this session "
-                    f"(another probe, adapter or seat); give that session's tool point with --tool")
+    framed = _mean_error(refit_frame(robot, meas), meas) if not rebased and robot.base_params() else np.inf
+    tool = _tool_fix(robot, meas)
+    if tool is not None and tool[0] <= enough and tool[0] < 0.5 * framed:  # the tool explains more than the frame
+        also = " (and the tracker moved: leave out --same-frame)" if framed < 0.5 * error else ""
+        return f"{head}; {tool[1]}{also}"
+    if framed <= enough:
+        return (f"{head}; with the measurement frame re-registered it is {framed * MM:.3f} mm: the tracker moved "
+                f"between sessions (leave out --same-frame so that each session's frame is registered)")
+    if np.isfinite(framed):
+        moved = (f"; re-registering the measurement frame brings it to {framed * MM:.3f} mm (the tracker moved too: "
+                 f"leave out --same-frame), still {framed / train_error:.0f}x the training error" if framed < 0.5 * error
+                 else f"; re-registering the measurement frame leaves {framed * MM:.3f} mm")
     ratio = spread(meas.xyz) / max(spread(robot.forward(meas.q)), 1e-300)  # measured / predicted at the same joints
     if abs(np.log(ratio)) > SCALE_TOL:
         return (f"{head}{moved}; the measured positions spread {ratio:.4f}x the model's at the same joints: a scale "
