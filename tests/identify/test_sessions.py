@@ -508,15 +508,19 @@ def test_files_forced_into_one_frame_are_diagnosed_as_two_frames():
 
 
 def test_a_tool_that_explains_more_than_the_frame_is_named_first():
-    """A target mounted 2.5 mm further out, the tracker unmoved: re-registering the frame alone brings the error
-    under 10x the training error (so the tracker was named), but the tool point brings it to the noise. The tool is
+    """A target mounted 2.5 mm further out, the tracker unmoved, poses with the wrist nearly still: re-registering the
+    frame alone brings the error under 10x the training error (so the tracker was named), but the tool point brings
+    it to the noise. The tool is
     named; with the tracker moved as well, both are."""
     from kincal.identify import heldout_cause
     robot = kincal.load_robot("ur5").with_tool_point([0.0, 0.0, 0.031])
-    q = robot.sample_joints(40, seed=1)
+    q0 = np.array([0.3, -1.2, 1.4, -1.8, -1.57, 0.2])  # the wrist nearly still: the tool's offset nearly a shift
+    q = q0 + np.random.default_rng(1).normal(0, 1, (40, 6)) * [0.4, 0.2, 0.2, 0.03, 0.03, 0.03]
     longer = robot.with_tool_point([0.0, 0.0, 0.0335])
-    said = heldout_cause(robot, kincal.simulate(longer, q, 10e-6, seed=2), 0.2e-3, rebased=False)
-    assert "a tool point 2.50 mm from the calibrated one" in said and "tracker moved" not in said, said
+    meas = kincal.simulate(longer, q, 10e-6, seed=2)
+    assert np.linalg.norm(refit_frame(robot, meas).forward(q) - meas.xyz, axis=1).mean() < 1e-3  # < 10x 0.1 mm
+    said = heldout_cause(robot, meas, 0.1e-3, rebased=False)
+    assert "a tool point 2.50 mm" in said and "brings it to 0.01" in said and "tracker moved" not in said, said
     both = kincal.simulate(longer.with_params({"base.x": 0.2}), q, 10e-6, seed=2)
-    said = heldout_cause(robot, both, 0.2e-3, rebased=False)
-    assert "a tool point 2.50 mm" in said and said.endswith("(and the tracker moved: leave out --same-frame)"), said
+    said = heldout_cause(robot, both, 0.1e-3, rebased=False)
+    assert "a tool point 2." in said and said.endswith("(and the tracker moved: leave out --same-frame)"), said

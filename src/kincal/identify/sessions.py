@@ -61,12 +61,12 @@ def refit_frame(robot: Robot, meas: Measurements) -> Robot:
     return calibrate(robot, meas, names=(), base="estimate", diagnose=False).robot
 
 
-def _tool_fix(robot: Robot, meas: Measurements) -> tuple[float, str] | None:
-    """The mean error (m) with the session's own tool point (and frame) fitted, and what that says; None when the
-    robot has no tool point or frame to fit, or too few poses."""
+def _tool_fix(robot: Robot, meas: Measurements, base: str) -> tuple[float, str] | None:
+    """The mean error (m) with the session's own tool point fitted (and its frame, with ``base="estimate"``), and
+    what that says; None when the robot has no tool point or frame to fit, or too few poses."""
     if not (robot.has_tool_point and robot.base_params() and len(meas) >= 4):
         return None
-    tooled = calibrate(robot, meas, names=TOOL_NAMES, base="estimate", diagnose=False).robot
+    tooled = calibrate(robot, meas, names=TOOL_NAMES, base=base, diagnose=False).robot
     again = _mean_error(tooled, meas)
     gap = np.linalg.norm(tooled.tool_point() - robot.tool_point())
     where = ", ".join(f"{x * MM:.2f}" for x in tooled.tool_point())
@@ -121,10 +121,10 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
             f"({train_error * MM:.3f} mm)")
     enough, moved = HELDOUT_RATIO * train_error, ""  # a cause must bring the error within the limit, not just lower it
     framed = _mean_error(refit_frame(robot, meas), meas) if not rebased and robot.base_params() else np.inf
-    tool = _tool_fix(robot, meas)
-    if tool is not None and tool[0] <= enough and tool[0] < 0.5 * framed:  # the tool explains more than the frame
-        also = " (and the tracker moved: leave out --same-frame)" if framed < 0.5 * error else ""
-        return f"{head}; {tool[1]}{also}"
+    for base, also in (("fixed", ""), ("estimate", " (and the tracker moved: leave out --same-frame)")):
+        tool = _tool_fix(robot, meas, base) if base == "fixed" or not rebased else None
+        if tool is not None and tool[0] <= enough and tool[0] < 0.5 * framed:  # the tool explains more than the frame
+            return f"{head}; {tool[1]}{also}"
     if framed <= enough:
         return (f"{head}; with the measurement frame re-registered it is {framed * MM:.3f} mm: the tracker moved "
                 f"between sessions (leave out --same-frame so that each session's frame is registered)")
