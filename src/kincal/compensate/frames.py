@@ -250,7 +250,8 @@ def orientation_change(model: Robot, q: np.ndarray, nominal: Robot, q0: np.ndarr
 
 
 def unseen_in_base(calibrated: Robot, q: np.ndarray) -> tuple[str, ...]:
-    """The robot parameters a calibration that fitted its measurement frame cannot tell from that frame.
+    """The robot parameters a calibration that fitted its measurement frame cannot tell from that frame (a tracker's or
+    a camera's).
 
     Their effect on every position is a move of the frame (a DH arm's joint 1 zero and height: ``j1.theta`` acts
     like ``base.rz``, ``j1.d`` like ``base.z``), so the fit keeps them nominal and the frame takes their real
@@ -305,15 +306,15 @@ def base_note(names: tuple[str, ...], measurement_frame: bool = True) -> str:
     --------
     >>> from kincal.compensate import base_note
     >>> print(base_note(("j1.theta", "j1.d"), measurement_frame=False))
-    base frame: j1.theta, j1.d not corrected: position data cannot tell them from where the tracker stood, so in the
-    robot's base frame they stay as the controller has them; targets located on the robot's mounting can miss by
-    their real errors, targets in frames taught with this robot do not
+    base frame: j1.theta, j1.d not corrected: the measurements cannot tell them from where the instrument stood, so
+    in the robot's base frame they stay as the controller has them; targets located on the robot's mounting can miss
+    by their real errors, targets in frames taught with this robot do not
     """
     if not names:
         return ""
-    return (f"base frame: {', '.join(names)} not corrected: position data cannot tell them from where the tracker "
-            f"stood, so in the robot's base frame they stay as the controller has them; targets located on the "
-            f"robot's mounting can miss by their real errors, targets "
-            + ("in the tracker's frame (--target-frame measurement) or " if measurement_frame else "")
+    return (f"base frame: {', '.join(names)} not corrected: the measurements cannot tell them from where the "
+            f"instrument stood, so in the robot's base frame they stay as the controller has them; targets located on "
+            f"the robot's mounting can miss by their real errors, targets "
+            + ("in the instrument's frame (--target-frame measurement) or " if measurement_frame else "")
             + "in frames taught with this robot do not")
 
