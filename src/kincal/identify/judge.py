@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 
 SIZE_SUSPECT = 1e-2  # a calibrated model this much larger or smaller than its drawings as a whole: no robot's error (one
 # plate placement's 50 mm fixes the scale only to about 0.5 %)
-SIZE_POSES = 200  # poses of the joint ranges the two models' sizes are compared over (seed 0)
+SIZE_POSES = 100  # poses of the joint ranges the two models' sizes are compared over (seed 0)
 IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes (unseen) than across them
 MIN_SAMPLES = 10  # a set with fewer samples is not judged for outliers (no robust spread to judge by)
 
@@ -73,29 +73,36 @@ def _size_reasons(res: "CalibrationResult") -> list[Reason]:
     flange = [m.with_tool_point(np.zeros(3)) if m.has_tool_point else m for m in (res.nominal, res.robot)]
     q = res.nominal.sample_joints(SIZE_POSES, seed=0)
     a = _positions(flange[0], q, flange[0].param_values(None)[None])[0]
-    values = flange[1].param_values(None)
-    ok = [n for n in res.names if np.isfinite(res.std[n]) and n in flange[1].params.names and n not in TOOL_NAMES]
-    idx = flange[1].params.indices(ok)
-    step = np.where(np.array(flange[1].params.kinds)[idx] == "length", 1e-6, 1e-7)
-    trial = np.repeat(values[None], len(idx) + 1, axis=0)
-    trial[np.arange(1, len(idx) + 1), idx] += step
-    b = _positions(flange[1], q, trial)
-    fine = np.all(np.isfinite(a), axis=1) & np.all(np.isfinite(b), axis=(0, 2))
-    if fine.sum() < 4:
+    b = _positions(flange[1], q, flange[1].param_values(None)[None])[0]
+    fine = np.all(np.isfinite(a) & np.isfinite(b), axis=1)
+    scale = similarity_scale(a[fine], b[fine]) if fine.sum() >= 4 else 1.0
+    if abs(scale - 1.0) <= SIZE_SUSPECT:  # the common case: no σ needed
         return []
-    scales = np.array([similarity_scale(a[fine], x[fine]) for x in b])
-    grad = (scales[1:] - scales[0]) / step
-    at = [res.free.index(n) for n in ok]
-    sigma = float(np.sqrt(max(grad @ res.covariance[np.ix_(at, at)] @ grad, 0.0)))
-    if abs(scales[0] - 1.0) <= max(SIZE_SUSPECT, 3 * sigma):
+    sigma = _size_sigma(res, flange[1], q[fine], a[fine], scale)
+    if abs(scale - 1.0) <= 3 * sigma:
         return []
     known = any(o.kind in ("same-point", "plane") and o.reference for o in res.observations)
     why = ("the known distance that sets the scale (--distance, or the planes' known offsets) is likely off" if known
            else "the instrument's length scale or the robot file's lengths are likely off")
-    return [Reason("suspect", "size", f"the calibrated model is {abs(scales[0] - 1) * 100:.1f} % ± "
-                                      f"{sigma * 100:.1f} % {'larger' if scales[0] > 1 else 'smaller'} than the "
+    return [Reason("suspect", "size", f"the calibrated model is {abs(scale - 1) * 100:.1f} % ± "
+                                      f"{sigma * 100:.1f} % {'larger' if scale > 1 else 'smaller'} than the "
                                       f"nominal one as a whole (a similarity fit of their flange positions over the "
                                       f"joint ranges): no real robot is that far from its drawings; {why}")]
+
+
+def _size_sigma(res: "CalibrationResult", robot: Robot, q: np.ndarray, a: np.ndarray, scale: float) -> float:
+    """The σ of the similarity scale of ``robot``'s flange positions at q (N, n) against a (N, 3): forward differences
+    in each fitted parameter (the tool point aside) through the fit's covariance."""
+    values = robot.param_values(None)
+    ok = [n for n in res.names if np.isfinite(res.std[n]) and n in robot.params.names and n not in TOOL_NAMES]
+    idx = robot.params.indices(ok)
+    step = np.where(np.array(robot.params.kinds)[idx] == "length", 1e-6, 1e-7)
+    trial = np.repeat(values[None], len(idx), axis=0)
+    trial[np.arange(len(idx)), idx] += step
+    b = _positions(robot, q, trial)
+    grad = (np.array([similarity_scale(a, x) if np.all(np.isfinite(x)) else scale for x in b]) - scale) / step
+    at = [res.free.index(n) for n in ok]
+    return float(np.sqrt(max(grad @ res.covariance[np.ix_(at, at)] @ grad, 0.0)))
 
 
 def _positions(robot: Robot, q: np.ndarray, values: np.ndarray) -> np.ndarray:
