@@ -247,3 +247,22 @@ def test_a_joint_taught_at_zero_and_written_to_three_decimals_is_named_as_such(t
         why = res.refused[k]
         assert why.startswith(f"the pose puts {joint} at -") and "on the other side of 0" in why, why
         assert -0.01 < float(why.split(" at ")[1].split("°")[0]) < 0
+
+
+def test_a_correction_that_moves_a_joint_across_0_names_it(tmp_path):
+    """A KRL pose taught with A6 at 0 (written to 3 decimals: +0.001° on the controller's side of the T bit); the
+    real robot needs A6 at -0.45° there, across the sign bit, so the target is refused as before, but the reason
+    now names A6 and both angles (it said only that the bits differ)."""
+    from kincal.io import ROWS
+    from kincal.models.transforms import zyx_from_matrix
+    nominal = kincal.load_robot("kuka_kr6r900sixx")
+    q = np.radians([10, -80, 100, 25, 30, 0])
+    P, R = nominal.forward(q[None])[0] * 1e3, nominal.flange_rotation(q[None])[0]
+    (a, b, c), (s, t) = np.degrees(zyx_from_matrix(R)), ROWS["krl"](nominal, q[None])[0]
+    (tmp_path / "x.src").write_text(f"DEF x()\nPTP {{X {P[0]:.3f}, Y {P[1]:.3f}, Z {P[2]:.3f}, A {a:.3f}, B {b:.3f}, "
+                                    f"C {c:.3f}, S {s}, T {t}}}\nEND\n")
+    res = compensate_branches(kincal.perturb(nominal, seed=1), nominal, read_program(str(tmp_path / "x.src"), "krl"),
+                              ROWS["krl"], {"default tool": np.eye(4), "default base": np.eye(4)})
+    why = res.refused[0]
+    assert why.startswith("the corrected joints' configuration bits (2, 34) differ from the target's (2, 2)")
+    assert "(a6 moves from +0.00" in why and "to -0.4" in why and "across 0" in why, why

@@ -321,12 +321,20 @@ def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom:
                "the corrected joints leave the nominal branch" if off[i] else
                "the corrected joints break the joint limits" if outside[i] else
                f"the corrected joints' configuration bits {tuple(bits[i])} differ from the target's {config}"
-               if config and tuple(bits[i]) != config else "")
+               + _crossed(model, q_nom[k], q[i]) if config and tuple(bits[i]) != config else "")
         if why:
             refused[int(k)] = why + _singular(nominal, q_nom[k])
         else:
             qs[k] = q[i]
     return qs
+
+
+def _crossed(robot: Robot, q_nom: np.ndarray, q: np.ndarray) -> str:
+    """The joints the correction moves across 0 (the edge of a sign bit), named with both angles; '' for none."""
+    moved = [j for j in range(len(q)) if robot.joint_types[j] == "revolute" and np.sign(q[j]) != np.sign(q_nom[j])]
+    return "".join(f" ({robot.joint_names[j]} moves from {np.degrees(q_nom[j]):+.3f}° to {np.degrees(q[j]):+.3f}°, "
+                   f"across 0: a joint taught at 0 whose sign bit the correction changes; give the target as an axis "
+                   f"position)" for j in moved[:1])
 
 
 def _solve_levers(model: Robot, goals, q0: np.ndarray, orientation: Robot | None) -> tuple[np.ndarray, np.ndarray]:
