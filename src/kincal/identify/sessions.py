@@ -18,7 +18,7 @@ from .calibrate import calibrate
 from .select import _mean_error
 
 HELDOUT_RATIO = 10.0  # a held-out error this many times the training error needs a named cause
-SCALE_TOL = 0.01  # measured vs predicted spread off by more than 1 %: a scale (unit, compensation) error
+SCALE_TOL = 0.005  # measured vs predicted spread off by more than 0.5 %: a scale (unit, compensation) error
 REGISTERED = "frame re-registered to these data (both models; kinematics fixed)"
 AS_CALIBRATED = "frame as calibrated: told the measurement frame did not move"
 
