@@ -22,22 +22,26 @@ from .common import (EXIT_REFUSED, add_data_flags, checked, csv_list, emit, load
                      positive_float, positive_int, progress_bar)
 
 
-def _orientation(args, record: dict, cal, values, nominal):
+def _ranges(cal, unc) -> tuple:
+    """The calibration's joint ranges (lower, upper) (the robot's limits where its file records none): where the
+    flange's turn and what the base frame hides are judged."""
+    return (cal.lower, cal.upper) if unc is None or unc.lower is None or unc.upper is None else (unc.lower, unc.upper)
+
+
+def _orientation(args, record: dict, cal, values, nominal, unc):
     """The model whose flange pose targets (a targets file with --pose, or a program's targets) are turned to, and
-    why: for a calibrated file (its ``record``), the nominal model (``nominal``, the commands' frame and TCP) unless
-    the calibration's data determine its turn of the flange (:func:`kincal.compensate.flange_turn`: points far
-    enough from the flange's axis, 6-D poses, several markers); else (a bundled robot, a URDF) None, the model
-    itself, with no reason."""
+    why: for a calibrated file (its ``record``; ``unc`` its uncertainty), the nominal model (``nominal``, the
+    commands' frame and TCP) unless the calibration's data determine its turn of the flange
+    (:func:`kincal.compensate.flange_turn`: points far enough from the flange's axis, 6-D poses, several markers);
+    else (a bundled robot, a URDF) None, the model itself, with no reason."""
     if not (args.pose or args.program) or not record:
         return None, None
-    unc = kincal.analysis.load_uncertainty(args.robot)
     turn = flange_turn(cal, cal.with_params(values) if values else cal, None if unc is None else unc.covariance,
-                       () if unc is None else unc.names, cal.lower if unc is None or unc.lower is None else unc.lower,
-                       cal.upper if unc is None or unc.upper is None else unc.upper)
+                       () if unc is None else unc.names, *_ranges(cal, unc))
     return (None if turn.determined else nominal), turn
 
 
-def _base_line(args, record: dict, cal) -> str:
+def _base_line(args, record: dict, cal, unc) -> str:
     """The note on the parameters a base frame fitted to the tracker leaves as the controller has them, for commands
     in the robot's base frame (a targets file's --target-frame other than measurement, or a program's world); ''
     when the calibration knew its base (--base fixed) or the targets are in the tracker's frame."""
@@ -46,9 +50,7 @@ def _base_line(args, record: dict, cal) -> str:
         bool(set(cal.base_params()) & set(map(str, fitted)))
     if not estimated or (not args.program and args.target_frame == "measurement"):
         return ""
-    unc = kincal.analysis.load_uncertainty(args.robot)
-    ranges = None if unc is None or unc.lower is None or unc.upper is None else (unc.lower, unc.upper)
-    return base_note(unseen_in_base(cal, poses_in(cal, *(ranges or (cal.lower, cal.upper)))), not args.program)
+    return base_note(unseen_in_base(cal, poses_in(cal, *_ranges(cal, unc))), not args.program)
 
 
 def _orientation_from(turned, turn) -> dict:
@@ -80,18 +82,19 @@ def cmd_compensate(args) -> int:
         _program_for(cal, args.program, args.robot)
     if args.program and args.program != "ur":
         return _compensate_branches(args, cal, values, _orientation(args, record, cal, values, cal.with_params(
-            values) if values else cal), _base_line(args, record, cal))
+            values) if values else cal, uncertainty), _base_line(args, record, cal, uncertainty))
     if "frames" in args.given:
         raise ValueError("--frames gives the frames a KRL, RAPID, FANUC or INFORM program names; URScript sets its TCP "
                          "with set_tcp (or give --tcp)")
     if args.program:
-        return _compensate_program(args, r, nominal, carry, models, _orientation(args, record, cal, values, nominal),
-                                   _base_line(args, record, cal))
+        return _compensate_program(args, r, nominal, carry, models,
+                                   _orientation(args, record, cal, values, nominal, uncertainty),
+                                   _base_line(args, record, cal, uncertainty))
     carry = carry if args.tcp is not None else ""
     fmt = TargetsFormat(args.pose, tuple(args.joint_cols) if args.joint_cols else None, tuple(args.xyz_cols),
                         args.orientation, tuple(args.rot_cols) if args.rot_cols else None, args.length_unit,
                         args.angle_unit)
-    turned, turn = _orientation(args, record, cal, values, nominal)
+    turned, turn = _orientation(args, record, cal, values, nominal, uncertainty)
     job = StreamJob(r, nominal, fmt, uncertainty, args.output_kind, args.path, turned)
     with progress_bar(args, "compensating") as bar:
         res = compensate_file(job, args.targets, args.output, skip_unreachable=args.skip_unreachable,
@@ -99,7 +102,7 @@ def cmd_compensate(args) -> int:
     payload = {**res.to_dict(), "output": args.output if res.written else None, "target_frame": args.target_frame,
                "output_kind": args.output_kind, "tool_carry": carry or None,
                **(_orientation_from(turned, turn) if args.pose else {"orientation_from": None})}
-    unseen = _base_line(args, record, cal)
+    unseen = _base_line(args, record, cal, uncertainty)
     payload["base_note"] = unseen or None
     text = _compensation_text(args, res, r) + (f"\nTCP: {carry}" if carry else "") + \
         (f"\n{turn.note()}" if turn is not None else "") + (f"\n{unseen}" if unseen else "")
@@ -218,7 +221,8 @@ def _compensate_folder(args) -> int:
     values = record.get("nominal")
     nominal = cal.with_params(values) if isinstance(values, dict) else cal
     frames = kincal.io.read_frames(args.frames) if args.frames else {}
-    turned, turn = _orientation(args, record, cal, values if isinstance(values, dict) else None, nominal)
+    unc = kincal.analysis.load_uncertainty(args.robot)
+    turned, turn = _orientation(args, record, cal, values if isinstance(values, dict) else None, nominal, unc)
     res = compensate_folder(cal, nominal, args.targets, args.program, kincal.io.ROWS[args.program], frames, turned)
     if not res.files:
         raise ValueError(f"{args.targets}: no {args.program} program in this folder (suffixes "
@@ -237,7 +241,7 @@ def _compensate_folder(args) -> int:
                  (f"written to {args.output} (every {args.program} file, compensated or as it was; report "
                   f"{args.output}/kincal_report.csv)" if written else
                   f"nothing written (--skip-unreachable writes the folder with those left as they are)"))
-    unseen = _base_line(args, record, cal)
+    unseen = _base_line(args, record, cal, unc)
     lines += refused[:SHOWN_PROBLEMS] + ([f"… and {len(refused) - SHOWN_PROBLEMS} more refused targets (all of them "
                                           f"with --json)"] if len(refused) > SHOWN_PROBLEMS else [])
     lines += ([turn.note()] if turn is not None else []) + ([unseen] if unseen else [])

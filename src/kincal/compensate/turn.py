@@ -137,10 +137,12 @@ def _sigma(robot: Robot, q: np.ndarray, covariance: np.ndarray, names: tuple[str
     keep = [k for k, n in enumerate(names) if n not in set(robot.base_params())]
     v0 = robot.param_values(None)
     idx = robot.params.indices([names[k] for k in keep])
+    B, back = _base_rotation(robot), np.swapaxes(robot.flange_rotation(q), 1, 2)  # the base frame's parameters held
     J = np.empty((len(q), 3, len(keep)))
     for j, i in enumerate(idx):
         v = v0.copy()
         v[i] += FD_STEP
-        J[:, :, j] = _relative(robot, q, v, robot) / FD_STEP
+        J[:, :, j] = rotation_log(B.T @ robot.flange_rotation(q, v) @ back @ B) / FD_STEP  # as _relative, relative to
+        # the base
     C = covariance[np.ix_(keep, keep)]
     return float(np.sqrt(np.mean(np.einsum("nik,kl,nil->n", J, C, J))))

@@ -72,8 +72,8 @@ def _size_reasons(res: "CalibrationResult") -> list[Reason]:
         return []
     flange = [m.with_tool_point(np.zeros(3)) if m.has_tool_point else m for m in (res.nominal, res.robot)]
     q = res.nominal.sample_joints(SIZE_POSES, seed=0)
-    a = _positions(flange[0], q, flange[0].param_values(None)[None])[0]
-    b = _positions(flange[1], q, flange[1].param_values(None)[None])[0]
+    a = flange[0].forward_batch(q, flange[0].param_values(None)[None])[0]
+    b = flange[1].forward_batch(q, flange[1].param_values(None)[None])[0]
     fine = np.all(np.isfinite(a) & np.isfinite(b), axis=1)
     scale = similarity_scale(a[fine], b[fine]) if fine.sum() >= 4 else 1.0
     if abs(scale - 1.0) <= SIZE_SUSPECT:  # the common case: no σ needed
@@ -99,15 +99,10 @@ def _size_sigma(res: "CalibrationResult", robot: Robot, q: np.ndarray, a: np.nda
     step = np.where(np.array(robot.params.kinds)[idx] == "length", 1e-6, 1e-7)
     trial = np.repeat(values[None], len(idx), axis=0)
     trial[np.arange(len(idx)), idx] += step
-    b = _positions(robot, q, trial)
+    b = robot.forward_batch(q, trial)  # NaN where the robot does not reach
     grad = (np.array([similarity_scale(a, x) if np.all(np.isfinite(x)) else scale for x in b]) - scale) / step
     at = [res.free.index(n) for n in ok]
     return float(np.sqrt(max(grad @ res.covariance[np.ix_(at, at)] @ grad, 0.0)))
-
-
-def _positions(robot: Robot, q: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """(S, N, 3) m: the robot's positions at q (N, n) for S parameter vectors (NaN where it does not reach)."""
-    return robot.forward_batch(q, values)
 
 
 def _scales_with_lengths(robot: Robot) -> bool:
