@@ -13,10 +13,16 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-compile -e '.[dev]'  # bytecode on first import: 15 s less
 	touch $(STAMP)
 
-DATA = data/ur5_wam_gts3800
+# the real datasets are used where they are, never copied here: ../shared/datasets beside this checkout (or beside
+# a folder above it), or the folder KINCAL_SHARED_DATASETS names
+DATASETS ?= $(or $(KINCAL_SHARED_DATASETS),$(shell d="$(CURDIR)"; while [ "$$d" != / ]; do d=$$(dirname "$$d"); \
+              [ -d "$$d/shared/datasets" ] && { echo "$$d/shared/datasets"; break; }; done))
+DATA = $(DATASETS)/ur5_wam_gts3800
 UR5  = --length-unit mm --angle-unit deg --joint-cols joint_1,joint_2,joint_3,joint_4,joint_5,joint_6
 
 demo: setup
+	@test -f "$(DATA)/ur5_grid.csv" || { echo "make demo: the UR5 laser-tracker data ($(DATA)/ur5_grid.csv) \
+	is not here: put the shared datasets beside this checkout (../shared/datasets) or set KINCAL_SHARED_DATASETS"; exit 1; }
 	$(VENV)/bin/kincal demo
 	@echo
 	@echo "Guo et al. 2024's 62 % claim as a Monte-Carlo study (200 trials; resumes from .venv/guo2024_study_v2.jsonl)"

@@ -13,7 +13,6 @@ a change that acts the same at the poses, which the suspect lists: a link's leng
 """
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -22,6 +21,7 @@ from kincal.design import check_poses
 from kincal.identify import Calibrated, check, compare
 from kincal.models import extend
 
+from _datasets import dataset
 from _docs_table import Table
 
 NOISE, HARMONIC, POSES = 15e-6, 0.1e-3, 100
@@ -84,7 +84,7 @@ def run(nominal, true, change, pairs, tests=("compare", "check")):
     return out
 
 
-PANDA = Path(__file__).resolve().parents[1] / "tests" / "data" / "urdf" / "panda" / "panda.urdf"
+PANDA = dataset("panda_sockets") / "panda.urdf"
 LINKS = {"ur5": "j3.a", "panda": "panda_joint5.z"}  # the forearm: 0.392 m and 0.384 m long
 
 

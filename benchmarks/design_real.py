@@ -15,16 +15,16 @@ tables for the documentation site: every criterion, and a summary (random median
 """
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
 import kincal
+from _datasets import dataset
 from _docs_table import Table, arguments
 from kincal.analysis import free_parameters
 from kincal.design import design_problem
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "ur5_wam_gts3800"
+DATA = dataset("ur5_wam_gts3800")
 SEEDS = 6
 CRITERIA = [  # label, select_poses options, region of use
     ("D (Fedorov)", {"criterion": "D"}, None),
@@ -47,7 +47,7 @@ def load(name: str):
     return robot, read(f"{name}_grid.csv"), read(f"{name}_random.csv")
 
 
-PROTOCOL = ("data/ur5_wam_gts3800: the measured grid poses of each robot (UR5 1000, WAM 216) are the candidate "
+PROTOCOL = ("ur5_wam_gts3800: the measured grid poses of each robot (UR5 1000, WAM 216) are the candidate "
             "pool; each criterion chooses m of them, the geometric calibration on their measurements is scored by "
             "the mean 3-D position error, mm, on the 20 unseen random poses (test) and on the grid poses not chosen "
             "(rest). Random: the median of {n} random subsets (seeds 0 to {last}). The default (IMSE, weight 0.3, "

@@ -18,6 +18,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 import kincal
+from _datasets import dataset
 from _docs_table import Table, arguments
 from kincal.analysis import stacked_jacobian
 from kincal.identify import fit_observations
@@ -111,7 +112,7 @@ def kind_trial(robot, kind: str, seed: int) -> tuple[float, list[float]]:
 
 def run_kinds(seeds: int) -> None:
     robots = {"UR5 (DH)": kincal.load_robot("ur5").with_tool_point(TOOL),
-              "Panda (URDF)": kincal.load_robot(ROOT / "tests" / "data" / "urdf" / "panda" / "panda.urdf",
+              "Panda (URDF)": kincal.load_robot(dataset("panda_sockets") / "panda.urdf",
                                                 tip_link="ball_link")}
     table = Table("cramer_rao", "Every kind of measurement against the Cramér–Rao prediction (simulation)", (
         f"Simulated, {seeds} seeds per robot and kind: uniform random errors up to 0.5 mm and 0.5 mrad on every "

@@ -7,7 +7,6 @@ commands by the calibrated model (target 1 s). The data are used in place from .
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -15,9 +14,9 @@ import kincal
 from kincal.compensate import compensate
 from kincal.identify import fit_observations
 from kincal.observe import ObservationFormat, in_joint_space, read_observations
+from _datasets import dataset
 
-DATA = next(p / "shared" / "datasets" / "stewart_jugglebot" for p in Path(__file__).resolve().parents
-            if (p / "shared" / "datasets" / "stewart_jugglebot").is_dir())
+DATA = dataset("stewart_jugglebot")
 
 
 def timed(fn, repeat: int = 7) -> tuple[float, float]:

@@ -2,7 +2,7 @@
 regressor, joint-angle harmonics and a combination vs auto
 (joint-space blocked cross-validation with the prediction-σ guard), and their cost. Targets: auto
 ≤ 0.090 mm on the UR5's 20 held-out poses; a single extended fit ≤ 100 ms and auto ≤ 2 s (1000 poses).
-First, the bundled data before and after a geometric calibration.
+First, the laser-tracker data before and after a geometric calibration.
 
     python benchmarks/models.py [--runs N] [--docs]
 
@@ -13,14 +13,14 @@ the documentation site, without the fit times (they depend on the machine's load
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
 import kincal
+from _datasets import dataset
 from _docs_table import Table, arguments
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "ur5_wam_gts3800"
+DATA = dataset("ur5_wam_gts3800")
 
 
 def timed(fn, repeat: int = 5):
@@ -41,9 +41,9 @@ def load(name: str, n: int):
 
 def bundled() -> None:
     """The nominal model as it is, with only the measurement frame and the tool point fitted, and calibrated."""
-    print("bundled tracker data: mean error on the random (test) poses, mm")
-    table = Table("bundled_data", "The bundled tracker data: nominal and calibrated", (
-        "data/ur5_wam_gts3800 (GTS3800 laser tracker): each robot fitted on its grid poses, judged on its "
+    print("laser-tracker data: mean error on the random (test) poses, mm")
+    table = Table("bundled_data", "The laser-tracker data: nominal and calibrated", (
+        "ur5_wam_gts3800 (GTS3800 laser tracker): each robot fitted on its grid poses, judged on its "
         "random poses, which no fit sees. Mean 3-D position error on those poses, mm: the nominal model in "
         "the data's frame; the nominal model with the measurement frame and the tool point fitted on the grid "
         "(the set-up registered, the robot untouched); the geometric calibration (kincal's default options)."),
@@ -65,7 +65,7 @@ def main() -> None:
     bundled()
     print("\nerror models: fitted on the grid, mean error on the random poses")
     table = Table("models", "Error models on the real UR5 and WAM", (
-        "data/ur5_wam_gts3800: each error model fitted on the grid poses (UR5 1000, WAM 216) and judged on the "
+        "ur5_wam_gts3800: each error model fitted on the grid poses (UR5 1000, WAM 216) and judged on the "
         "20 random poses no fit sees; mean 3-D position error, mm. `auto` chooses by joint-space blocked "
         "cross-validation with the prediction-σ guard, shown as auto=(the model chosen); compliance only where "
         "the robot file has link masses. The fit times the benchmark prints are left out here: they depend on the "

@@ -16,18 +16,16 @@ from __future__ import annotations
 import csv
 import platform
 import time
-from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 import kincal
+from _datasets import POSITIONER_MODEL, dataset
 from _docs_table import Table, arguments
 from kincal.identify import fit_observations
 from kincal.observe import PoseObs, SamePointObs
 from kincal.simulate.observations import simulate_poses
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def _median_ms(fn, runs: int = 7) -> tuple[float, object]:
@@ -49,8 +47,8 @@ def _poses():
 
 
 def _sockets():
-    robot = kincal.load_robot(ROOT / "tests" / "data" / "urdf" / "panda" / "panda.urdf", tip_link="ball_link")
-    rows = list(csv.DictReader(open(ROOT / "data" / "panda_sockets" / "samples.csv")))
+    robot = kincal.load_robot(dataset("panda_sockets") / "panda.urdf", tip_link="ball_link")
+    rows = list(csv.DictReader(open(dataset("panda_sockets") / "samples.csv")))
     q = np.array([[float(r[f"q{k}"]) for k in range(1, 8)] for r in rows])
     place = np.array([r["placement"] for r in rows])
     labels = np.array([f"{r['placement']}/{r['socket']}" for r in rows])
@@ -61,8 +59,8 @@ def _sockets():
 
 def _panda():
     """The nominal Panda (URDF, to its ball), the placements (N,) and the socket set of a mask of samples."""
-    robot = kincal.load_robot(ROOT / "tests" / "data" / "urdf" / "panda" / "panda.urdf", tip_link="ball_link")
-    rows = list(csv.DictReader(open(ROOT / "data" / "panda_sockets" / "samples.csv")))
+    robot = kincal.load_robot(dataset("panda_sockets") / "panda.urdf", tip_link="ball_link")
+    rows = list(csv.DictReader(open(dataset("panda_sockets") / "samples.csv")))
     q = np.array([[float(r[f"q{k}"]) for k in range(1, 8)] for r in rows])
     place = np.array([r["placement"] for r in rows])
     labels = np.array([f"{r['placement']}/{r['socket']}" for r in rows])
@@ -78,10 +76,10 @@ def real_sockets() -> None:
     """MUKCa's protocol on its own data: trained on front_center, tested on the 7 other placements."""
     robot, place, sockets = _panda()
     train = place == "front_center"
-    authors = kincal.load_robot(ROOT / "data" / "panda_sockets" / "panda_2_calibrated_by_authors.urdf",
+    authors = kincal.load_robot(dataset("panda_sockets") / "panda_2_calibrated_by_authors.urdf",
                                 tip_link="ball_link")
     table = Table("panda_sockets", "Panda sockets, real data: trained on one placement, tested on seven", (
-        "data/panda_sockets (497 samples, a ball on the flange seated in two sockets 50 mm apart on a plate "
+        "panda_sockets (497 samples, a ball on the flange seated in two sockets 50 mm apart on a plate "
         "put at 8 places): fitted on the front_center placement, tested on the other 7, as the data's authors "
         "did. Their metrics, mm: consistency = the mean over the samples of the distance of each predicted "
         "ball centre from its socket's mean (training and test placements); distance error = the error of the "
@@ -104,14 +102,14 @@ def real_sockets() -> None:
 
 def real_positioner() -> None:
     """The positioner's 6-D poses: even rows fitted, odd rows held out, at three stated rotation σ."""
-    robot = kincal.load_robot(ROOT / "data" / "positioner_6d" / "positioner.yaml")
-    rows = list(csv.DictReader(open(ROOT / "data" / "positioner_6d" / "measurements.csv")))
+    robot = kincal.load_robot(POSITIONER_MODEL)
+    rows = list(csv.DictReader(open(dataset("positioner_6d") / "measurements.csv")))
     q = np.array([[float(r["q1"]), float(r["q2"])] for r in rows])
     xyz = np.array([[float(r[k]) for k in "xyz"] for r in rows])
     R = Rotation.from_quat([[float(r[k]) for k in ("qx", "qy", "qz", "qw")] for r in rows]).as_matrix()
     even, odd = np.arange(0, len(q), 2), np.arange(1, len(q), 2)
     table = Table("positioner_6d", "Positioner seen by a camera, real 6-D poses: held out", (
-        f"data/positioner_6d ({len(q)} poses of a target on a two-axis positioner, seen by a camera): fitted on "
+        f"positioner_6d ({len(q)} poses of a target on a two-axis positioner, seen by a camera): fitted on "
         "the even rows with the position σ stated as 0.1 mm and the rotation σ as in the first column, judged "
         "on the odd rows strictly: in the fitted camera frame with the fitted target, nothing re-fitted; "
         "mean position error, mm, and mean rotation error, mrad. Whitened RMS: the training residual over its "

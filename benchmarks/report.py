@@ -11,8 +11,9 @@ import time
 from pathlib import Path
 
 import kincal
+from _datasets import dataset
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "ur5_wam_gts3800"
+DATA = dataset("ur5_wam_gts3800")
 COLS = [f"joint_{i}" for i in range(1, 7)]
 
 

@@ -31,7 +31,9 @@ from kincal.units import display
 # the repository's root, relative to the working folder so that printed file names stay short
 # (sphinx-gallery runs an example in its own folder, without __file__)
 ROOT = Path(os.path.relpath(Path(__file__).resolve().parents[1])) if "__file__" in globals() else Path("..")
-DATA = ROOT / "data" / "ur5_wam_gts3800"
+# the real datasets, used where they are: beside the checkout, or where KINCAL_SHARED_DATASETS points
+DATASETS = Path(os.environ.get("KINCAL_SHARED_DATASETS", ROOT / ".." / "shared" / "datasets"))
+DATA = DATASETS / "ur5_wam_gts3800"
 JOINTS = [f"joint_{k}" for k in range(1, 7)]
 
 robot = kincal.load_robot("ur5")

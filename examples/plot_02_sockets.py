@@ -37,8 +37,10 @@ from kincal.observe import ObservationFormat, describe, read_observations
 # the repository's root, relative to the working folder so that printed file names stay short
 # (sphinx-gallery runs an example in its own folder, without __file__)
 ROOT = Path(os.path.relpath(Path(__file__).resolve().parents[1])) if "__file__" in globals() else Path("..")
-URDF = ROOT / "tests" / "data" / "urdf" / "panda" / "panda.urdf"
-DATA = ROOT / "data" / "panda_sockets"
+# the real datasets, used where they are: beside the checkout, or where KINCAL_SHARED_DATASETS points
+DATASETS = Path(os.environ.get("KINCAL_SHARED_DATASETS", ROOT / ".." / "shared" / "datasets"))
+DATA = DATASETS / "panda_sockets"
+URDF = DATA / "panda.urdf"
 
 robot = kincal.load_robot(URDF, tip_link="ball_link")
 authors = kincal.load_robot(DATA / "panda_2_calibrated_by_authors.urdf", tip_link="ball_link")

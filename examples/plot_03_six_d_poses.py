@@ -13,7 +13,7 @@ someone chose. The model is fitted on the even rows and judged on the odd rows.
 # The model and the poses
 # -----------------------
 #
-# ``positioner.yaml`` is the nominal model: the positioner's base in the world, two DH rows and the
+# ``examples/positioner.yaml`` is the nominal model: the positioner's base in the world, two DH rows and the
 # target's origin on the plate as the example's initial guess. The measurements are the target's
 # position (m) and its orientation as a quaternion, scalar first (``quat-wxyz``), in the camera frame.
 # The stated noise σ is 0.1 mm for positions and 1 mrad for rotations; ``describe`` prints what a pose
@@ -32,10 +32,12 @@ from kincal.observe import ObservationFormat, describe, read_observations
 # the repository's root, relative to the working folder so that printed file names stay short
 # (sphinx-gallery runs an example in its own folder, without __file__)
 ROOT = Path(os.path.relpath(Path(__file__).resolve().parents[1])) if "__file__" in globals() else Path("..")
-DATA = ROOT / "data" / "positioner_6d"
+# the real datasets, used where they are: beside the checkout, or where KINCAL_SHARED_DATASETS points
+DATASETS = Path(os.environ.get("KINCAL_SHARED_DATASETS", ROOT / ".." / "shared" / "datasets"))
+DATA = DATASETS / "positioner_6d"
 DEG = 180.0 / np.pi
 
-robot = kincal.load_robot(DATA / "positioner.yaml")
+robot = kincal.load_robot(ROOT / "examples" / "positioner.yaml")
 fmt = ObservationFormat(kind="pose", joint_cols=("q1", "q2"), orientation="quat-wxyz", std_pos=0.1e-3,
                         std_rot=1e-3)
 poses = read_observations(DATA / "measurements.csv", robot, fmt)

@@ -1,4 +1,5 @@
-"""Shared fixtures: bundled robots, the bundled GTS3800 laser-tracker data, the Guo et al. 2024 demo."""
+"""Shared fixtures: bundled robots, the real datasets used in place (``../shared/datasets``), the Guo et al. 2024
+demo."""
 import contextlib
 import io
 import json
@@ -12,8 +13,6 @@ from threadpoolctl import threadpool_limits
 
 import kincal
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "ur5_wam_gts3800"
-
 
 def shared_dataset(name: str) -> Path:
     """A folder of the shared real datasets, used in place: ``../shared/datasets/<name>`` beside the checkout
@@ -26,6 +25,15 @@ def shared_dataset(name: str) -> Path:
             return root / name
     raise FileNotFoundError(f"the shared dataset '{name}' is not beside this checkout (looked in "
                             f"{', '.join(map(str, roots[:3]))}, …); set KINCAL_SHARED_DATASETS to its folder")
+
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = shared_dataset("ur5_wam_gts3800")  # a UR5 and a WAM with a GTS3800 laser tracker
+SOCKETS = shared_dataset("panda_sockets")  # a Panda's ball seated in plate sockets, with the Panda's URDF
+POSITIONER = shared_dataset("positioner_6d")  # a two-axis positioner's target seen by a camera (6-D poses)
+POSITIONER_MODEL = ROOT / "examples" / "positioner.yaml"  # its nominal model (kincal's, not the dataset's)
+UR5_URDF = shared_dataset("urdf") / "ur5_robot.urdf"  # UR's UR5 description (example-robot-data)
+PANDA_URDF = SOCKETS / "panda.urdf"
 UR5_COLS = [f"joint_{i}" for i in range(1, 7)]
 WAM_COLS = [f"joint_{i}" for i in range(1, 8)]
 

@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 import kincal
-from conftest import default_sigint
+from conftest import UR5_URDF, default_sigint
 
 from kincal.cli import main
 
@@ -421,7 +421,7 @@ def _tight_calibrated():
     return kincal.models.yaml_io.robot_to_yaml(cal) + yaml.safe_dump({"calibration": record})
 
 
-URDF = Path(__file__).parent / "data" / "urdf" / "ur5_robot.urdf"
+URDF = UR5_URDF
 URDF_FLAGS = ["--tip-link", "tool0", "--joint-cols", "j1,j2,j3,j4,j5,j6"]
 _CALIBRATED: dict = {}
 

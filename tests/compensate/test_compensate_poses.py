@@ -2,7 +2,6 @@
 filtered targets that the controller's own inverse kinematics turn into the same commands; a UR5
 (six joints), the Panda (seven: the controller's redundancy parameter is joint 7) and the 5-joint
 hybrid of Guo et al. 2024 (it controls the position and two rotations; the third is reported)."""
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,8 +9,9 @@ import pytest
 import kincal
 from kincal.compensate import solve_poses
 from kincal.models.transforms import rotation_log
+from conftest import PANDA_URDF
 
-PANDA = Path(__file__).resolve().parents[1] / "data" / "urdf" / "panda" / "panda.urdf"
+PANDA = PANDA_URDF
 
 
 def _case(nominal, n=400, seed=3):

@@ -3,7 +3,6 @@ the exchange within strata, and the options and notes around it."""
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,8 +10,8 @@ import pytest
 import kincal
 from kincal.design import design_problem
 from kincal.design.robust import design_imse, exchange_in_strata, medoids, robust_terms, strata
+from conftest import PANDA_URDF
 
-ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -155,7 +154,7 @@ def test_socket_design_known_distance_as_exact_constraint_and_better_than_random
     from kincal.identify import fit_observations
     from kincal.simulate.observations import simulate_same_point, socket_plan
 
-    robot = kincal.load_robot(ROOT / "tests" / "data" / "urdf" / "panda" / "panda.urdf", tip_link="ball_link")
+    robot = kincal.load_robot(PANDA_URDF, tip_link="ball_link")
     pts, dist = socket_plan(robot, placements=4, seed=0)
     plan = dataclasses.replace(simulate_same_point(robot, pts, 40, dist, 0.0, 0.0, seed=0), std=50e-6,
                                std_distance=0.1e-3)

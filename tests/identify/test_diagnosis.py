@@ -6,7 +6,6 @@ cause kincal names first — the error raised while reading, the first reason of
 mistake that was made in at least 90 % of the cases, and no case whose units are right may get unit
 advice."""
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,8 +13,9 @@ import pytest
 import kincal
 from kincal.errors import MeasurementError
 from kincal.models.transforms import rot_zyx
+from conftest import PANDA_URDF
 
-PANDA = Path(__file__).parents[1] / "data" / "urdf" / "panda" / "panda.urdf"
+PANDA = PANDA_URDF
 TOOL = (0.05, 0.02, 0.10)  # m: a probe off the flange axis, so that every joint moves it
 UNIT_WORDS = ("--length-unit", "--angle-unit", "length unit", "angle unit", " cm", "inch")
 UNIT_CAUSES = ("length-unit", "angle-unit", "joint-unit")

@@ -2,11 +2,10 @@
 mounting result (declared with --tool for every robot kind, never given unit advice)."""
 import dataclasses
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import DATA, UR5_COLS
+from conftest import DATA, UR5_COLS, UR5_URDF
 
 import kincal
 from kincal.cli import main
@@ -14,7 +13,6 @@ from kincal.identify import refit_frame
 from kincal.models.robot import TOOL_NAMES
 from kincal.models.transforms import rot_zyx
 
-UR5_URDF = Path(__file__).parents[1] / "data" / "urdf" / "ur5_robot.urdf"
 PROBE = np.array([0.0, 0.0, 0.0932])  # the probe on the UR10's flange (m)
 
 

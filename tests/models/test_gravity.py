@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 import yourdfpy
-from conftest import assert_jacobians, z_limit
+from conftest import UR5_URDF, assert_jacobians, z_limit
 
 import kincal
 from kincal.analysis import stacked_jacobian
@@ -10,7 +10,6 @@ from kincal.cli import main
 from kincal.models.gravity import G, GravityModel
 
 NOISE = 15e-6
-UR5_URDF = __import__("pathlib").Path(__file__).parents[1] / "data" / "urdf" / "ur5_robot.urdf"
 
 
 def dh_potential(robot, q, payload):

@@ -1,10 +1,9 @@
 """Robot models: forward kinematics against independent computations, analytic Jacobians against
 central differences, robot YAML files."""
-from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import DATA, UR5_COLS, central_jacobian
+from conftest import DATA, PANDA_URDF, UR5_COLS, central_jacobian
 
 import kincal
 from kincal import Joint, ModelError, SerialRobot
@@ -94,7 +93,7 @@ def test_frame_rates_match_central_differences(name):
     differences of the flange rotation, which comes from positions alone; over two blocks of configurations."""
     from kincal.models.chain import BLOCK
     from scipy.spatial.transform import Rotation
-    base = (kincal.load_robot(Path(__file__).parents[1] / "data" / "urdf" / "panda" / "panda.urdf", tip_link="ball_link")
+    base = (kincal.load_robot(PANDA_URDF, tip_link="ball_link")
             if name == "panda"
             else kincal.load_robot(name))
     robot = kincal.perturb(base.with_tool_point([0.05, -0.02, 0.1]), 1e-3, 1e-2, seed=5, include_base=True)

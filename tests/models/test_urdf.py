@@ -1,11 +1,10 @@
 """URDF robots in, calibrated kinematics out (URDF, Universal Robots' kinematics file, kincal YAML)."""
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
-from conftest import DATA, UR5_COLS, central_jacobian
+from conftest import DATA, PANDA_URDF, SOCKETS, UR5_COLS, UR5_URDF, central_jacobian
 
 import yourdfpy  # an independent URDF parser, test-time only (the dev extra installs it)
 
@@ -14,7 +13,6 @@ from kincal.analysis import stacked_jacobian
 from kincal.cli import main
 
 
-UR5_URDF = Path(__file__).parents[1] / "data" / "urdf" / "ur5_robot.urdf"
 SMR = (0.0, 0.09e-3, 31.0e-3)  # the data set's reflector in the flange (tool0) frame, m
 UNITS = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
 
@@ -357,14 +355,13 @@ def test_a_socket_calibration_exports_the_fitted_ball(tmp_path, capsys):
     reproduces the calibrated ball within 1e-9 m at random joints."""
     import csv as _csv
 
-    root = DATA.parents[1]
-    rows = [r for r in _csv.DictReader(open(root / "data" / "panda_sockets" / "samples.csv"))
+    rows = [r for r in _csv.DictReader(open(SOCKETS / "samples.csv"))
             if r["placement"] == "front_center"]
     with open(tmp_path / "train.csv", "w", newline="") as f:
         w = _csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    assert main(["calibrate", str(root / "tests" / "data" / "urdf" / "panda" / "panda.urdf"), str(tmp_path / "train.csv"),
+    assert main(["calibrate", str(PANDA_URDF), str(tmp_path / "train.csv"),
                  "--tip-link", "ball_link", "--type", "same-point", "--joint-cols", ",".join(f"q{k}" for k in range(1, 8)),
                  "--label-col", "socket", "--group-col", "placement", "--distance", "0,1,50", "--length-unit", "mm",
                  "-o", str(tmp_path / "cal.yaml")]) == 0

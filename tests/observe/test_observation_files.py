@@ -17,7 +17,8 @@ from kincal.observe.observations import flange_point
 from kincal.simulate.observations import simulate_markers, simulate_poses
 import kincal.identify.registration  # noqa: F401  (kabsch, an independent rigid fit)
 
-from test_observations import MARKERS, PANDA, ROOT, SOCKETS, TOOL
+from test_observations import MARKERS, TOOL
+from conftest import PANDA_URDF, POSITIONER, POSITIONER_MODEL, SOCKETS
 
 JOINTS = [f"joint_{i}" for i in range(1, 7)]
 TARGET = Rotation.from_rotvec([0.1, 0.2, -0.3]).as_matrix()
@@ -147,11 +148,11 @@ def _run(capsys, argv):
 
 @pytest.mark.slow
 def test_positioner_through_the_command_line(tmp_path, capsys):
-    rows = list(csv.DictReader(open(ROOT / "data" / "positioner_6d" / "measurements.csv")))
+    rows = list(csv.DictReader(open(POSITIONER / "measurements.csv")))
     keys = list(rows[0])
     even = _write(tmp_path / "even.csv", keys, [[r[k] for k in keys] for r in rows[0::2]])
     odd = _write(tmp_path / "odd.csv", keys, [[r[k] for k in keys] for r in rows[1::2]])
-    base = ["calibrate", str(ROOT / "data" / "positioner_6d" / "positioner.yaml"), even, "--test", odd, "--type", "pose",
+    base = ["calibrate", str(POSITIONER_MODEL), even, "--test", odd, "--type", "pose",
             "--joint-cols", "q1,q2", "--std-pos", "0.1mm"]
     for std in ("1mrad", "0.1mrad"):  # the same camera: judged in the training frame and target
         code, out, _ = _run(capsys, base + ["--std-rot", std, "--same-frame"])
@@ -173,7 +174,7 @@ def test_panda_sockets_through_the_command_line(tmp_path, capsys):
     train = _write(tmp_path / "train.csv", keys, [[r[k] for k in keys] for r in rows if r["placement"] == "front_center"])
     test = _write(tmp_path / "test.csv", keys, [[r[k] for k in keys] for r in rows if r["placement"] != "front_center"])
     report = tmp_path / "sockets.html"
-    base = ["calibrate", str(PANDA / "panda.urdf"), "--tip-link", "ball_link", "--type", "same-point",
+    base = ["calibrate", str(PANDA_URDF), "--tip-link", "ball_link", "--type", "same-point",
             "--joint-cols", ",".join(f"q{k}" for k in range(1, 8)), "--label-col", "socket", "--length-unit", "mm"]
     code, out, _ = _run(capsys, base + [train, "--test", test, "--group-col", "placement", "--distance", "0,1,50",
                                         "--report", str(report), "-o", str(tmp_path / "panda.yaml")])
@@ -187,7 +188,7 @@ def test_panda_sockets_through_the_command_line(tmp_path, capsys):
     assert "held at nominal (the data do not confirm their corrections): panda_joint4 lengths" in page
     saved = kincal.load_robot(tmp_path / "panda.yaml")
     q = np.array([[float(r[f"q{k}"]) for k in range(1, 8)] for r in rows[:5]])
-    assert np.abs(saved.forward(q) - kincal.load_robot(PANDA / "panda.urdf", tip_link="ball_link").forward(q)).max() > 1e-4
+    assert np.abs(saved.forward(q) - kincal.load_robot(PANDA_URDF, tip_link="ball_link").forward(q)).max() > 1e-4
     code, out, _ = _run(capsys, base + [train, "--test", test, "--group-col", "placement", "--distance", "0,1,50",
                                         "--prior", "none"])
     assert code == 0 and not out["prior"] and out["held_out"][0]["mean_abs"] * 1e3 > held["mean_abs"] * 1e3 + 0.02
@@ -307,13 +308,13 @@ def test_the_wrong_tip_link_is_named_as_the_tool_not_a_moved_plate(tmp_path, cap
     rows = list(csv.DictReader(open(SOCKETS / "samples.csv")))
     keys = list(rows[0])
     train = _write(tmp_path / "train.csv", keys, [[r[k] for k in keys] for r in rows if r["placement"] == "front_center"])
-    base = ["calibrate", str(PANDA / "panda.urdf"), "--type", "same-point", "--joint-cols",
+    base = ["calibrate", str(PANDA_URDF), "--type", "same-point", "--joint-cols",
             ",".join(f"q{k}" for k in range(1, 8)), "--label-col", "socket", "--length-unit", "mm", "--distance", "0,1,50"]
     code, _, err = _run(capsys, base + ["--tip-link", "panda_link8", train, "--group-col", "placement"])
     assert code == 1 and "not one point" in err and "a tool point at (" in err and "check --tip-link" in err
     tool = [float(v) for v in err.split("a tool point at (")[1].split(")")[0].split(",")]
-    ball = kincal.load_robot(PANDA / "panda.urdf", tip_link="ball_link")
-    flange = kincal.load_robot(PANDA / "panda.urdf", tip_link="panda_link8")
+    ball = kincal.load_robot(PANDA_URDF, tip_link="ball_link")
+    flange = kincal.load_robot(PANDA_URDF, tip_link="panda_link8")
     q = np.zeros((1, 7))
     offset = flange.flange_rotation(q)[0].T @ (ball.forward(q)[0] - flange.forward(q)[0]) * 1e3  # the URDF's ball
     assert np.linalg.norm(np.array(tool) - offset) < 15.0, (tool, offset)  # 133.5 mm in the URDF; the uncalibrated
@@ -329,7 +330,7 @@ def test_a_socket_distance_two_percent_off_is_named_not_good(tmp_path, capsys):
     rows = list(csv.DictReader(open(SOCKETS / "samples.csv")))
     keys = list(rows[0])
     train = _write(tmp_path / "train.csv", keys, [[r[k] for k in keys] for r in rows if r["placement"] == "front_center"])
-    base = ["calibrate", str(PANDA / "panda.urdf"), "--tip-link", "ball_link", "--type", "same-point", "--joint-cols",
+    base = ["calibrate", str(PANDA_URDF), "--tip-link", "ball_link", "--type", "same-point", "--joint-cols",
             ",".join(f"q{k}" for k in range(1, 8)), "--label-col", "socket", "--length-unit", "mm", train,
             "--group-col", "placement"]
     verdicts = {}
@@ -366,8 +367,8 @@ def test_points_and_sockets_together_through_the_command_line(tmp_path, capsys):
 def test_pose_positions_in_the_wrong_unit_are_named(capsys):
     """Metres read as mm: without the check, a robot shrunk a thousandfold into the base and tool
     fitted the 6-D poses to 0.0004 mm and was called good."""
-    code, _, err = _run(capsys, ["calibrate", str(ROOT / "data" / "positioner_6d" / "positioner.yaml"),
-                                 str(ROOT / "data" / "positioner_6d" / "measurements.csv"), "--type", "pose",
+    code, _, err = _run(capsys, ["calibrate", str(POSITIONER_MODEL),
+                                 str(POSITIONER / "measurements.csv"), "--type", "pose",
                                  "--joint-cols", "q1,q2", "--length-unit", "mm"])
     assert code == 1 and "they look like m; use length unit 'm'" in err
 
@@ -382,7 +383,7 @@ def test_evaluate_observation_files_with_the_kinematics_fixed(tmp_path, capsys):
     test = _write(tmp_path / "test.csv", keys, [[r[k] for k in keys] for r in rows if r["placement"] != "front_center"])
     cols = ["--type", "same-point", "--joint-cols", ",".join(f"q{k}" for k in range(1, 8)), "--label-col", "socket",
             "--group-col", "placement", "--length-unit", "mm"]
-    code, fit, _ = _run(capsys, ["calibrate", str(PANDA / "panda.urdf"), "--tip-link", "ball_link", train, "--test",
+    code, fit, _ = _run(capsys, ["calibrate", str(PANDA_URDF), "--tip-link", "ball_link", train, "--test",
                                  test, "--distance", "0,1,50", "-o", str(tmp_path / "cal.yaml"), *cols])
     assert code == 0
     code, ev, _ = _run(capsys, ["evaluate", str(tmp_path / "cal.yaml"), test, *cols])
@@ -391,8 +392,8 @@ def test_evaluate_observation_files_with_the_kinematics_fixed(tmp_path, capsys):
     assert [g["mean_abs"] * 1e3 for g in got["groups"]] == pytest.approx([g["mean_abs"] * 1e3 for g in
                                                                        fit["held_out"][0]["groups"]], abs=1e-9)
     assert all(g["distance_error"] is None for g in got["groups"])  # no distance given: none judged
-    positioner = [str(ROOT / "data" / "positioner_6d" / "positioner.yaml"),
-                  str(ROOT / "data" / "positioner_6d" / "measurements.csv"), "--type", "pose", "--joint-cols", "q1,q2"]
+    positioner = [str(POSITIONER_MODEL),
+                  str(POSITIONER / "measurements.csv"), "--type", "pose", "--joint-cols", "q1,q2"]
     code, fitted, _ = _run(capsys, ["evaluate", *positioner])
     code2, same, _ = _run(capsys, ["evaluate", *positioner, "--same-frame"])
     # the frame fitted by least squares explains the nominal robot better than its declared frame
@@ -548,11 +549,11 @@ def test_evaluate_a_pose_file_with_the_probe_as_calibrated(tmp_path, capsys):
     file on the odd rows keeps the probe's rotation as the calibration fitted it (only the frame is
     re-fitted), so it gives the calibration's held-out figures; with the rotation refitted per file, as
     before, it would read better than the model is. The recorded rotation is a rotation."""
-    rows = list(csv.DictReader(open(ROOT / "data" / "positioner_6d" / "measurements.csv")))
+    rows = list(csv.DictReader(open(POSITIONER / "measurements.csv")))
     keys = list(rows[0])
     even = _write(tmp_path / "even.csv", keys, [[r[k] for k in keys] for i, r in enumerate(rows) if i % 2 == 0])
     odd = _write(tmp_path / "odd.csv", keys, [[r[k] for k in keys] for i, r in enumerate(rows) if i % 2 == 1])
-    robot = str(ROOT / "data" / "positioner_6d" / "positioner.yaml")
+    robot = str(POSITIONER_MODEL)
     cols = ["--type", "pose", "--joint-cols", "q1,q2", "--orientation", "quat-xyzw", "--rot-cols", "qx,qy,qz,qw"]
     cal = tmp_path / "cal.yaml"
     code, fit, _ = _run(capsys, ["calibrate", robot, even, "--test", odd, "-o", str(cal), *cols])
@@ -579,7 +580,7 @@ def test_evaluate_a_moved_camera_judged_in_the_same_frame_names_the_cause(tmp_pa
     """Odd rows of the positioner seen from a camera moved by 0.28 m and 0.3 rad, evaluated with
     --same-frame: the error is hundreds of mm, and the likely cause is the position path's (the
     frame re-registered brings it to the calibration's held-out error: the camera moved)."""
-    rows = list(csv.DictReader(open(ROOT / "data" / "positioner_6d" / "measurements.csv")))
+    rows = list(csv.DictReader(open(POSITIONER / "measurements.csv")))
     keys = list(rows[0])
     M, t = Rotation.from_rotvec([0.02, -0.01, 0.3]), np.array([0.25, -0.1, 0.05])
     moved = []
@@ -589,7 +590,7 @@ def test_evaluate_a_moved_camera_judged_in_the_same_frame_names_the_cause(tmp_pa
         moved.append([*(r[k] for k in keys[:3]), *p, q[3], *q[:3]])
     even = _write(tmp_path / "even.csv", keys, [[r[k] for k in keys] for r in rows[0::2]])
     odd = _write(tmp_path / "moved.csv", keys[:3] + ["x", "y", "z", "qw", "qx", "qy", "qz"], moved)
-    robot = str(ROOT / "data" / "positioner_6d" / "positioner.yaml")
+    robot = str(POSITIONER_MODEL)
     cols = ["--type", "pose", "--joint-cols", "q1,q2"]
     assert _run(capsys, ["calibrate", robot, even, "-o", str(tmp_path / "cal.yaml"), *cols])[0] == 0
     code, ev, _ = _run(capsys, ["evaluate", str(tmp_path / "cal.yaml"), odd, "--same-frame", *cols])

@@ -3,11 +3,10 @@ calibrations against the Cramér–Rao prediction, and the two real data sets (P
 positioner seen by a camera) against their published figures."""
 import csv
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import z_limit
+from conftest import PANDA_URDF, POSITIONER, POSITIONER_MODEL, SOCKETS, z_limit
 from scipy.spatial.transform import Rotation
 
 import kincal
@@ -23,9 +22,6 @@ from kincal.simulate.observations import (
     socket_plan,
 )
 
-ROOT = Path(__file__).resolve().parents[2]
-PANDA = ROOT / "tests" / "data" / "urdf" / "panda"
-SOCKETS = ROOT / "data" / "panda_sockets"
 TOOL = np.array([0.05, 0.02, 0.1])
 MARKERS = np.array([[0.05, 0.0, 0.1], [-0.03, 0.05, 0.08], [0.0, -0.06, 0.12]])
 PLANES = {"table": (np.array([0, 0, 1.0]), -0.05), "step": (np.array([0, 0, 1.0]), 0.05),
@@ -40,7 +36,7 @@ def ur5():
 @pytest.fixture(scope="module")
 def robots(ur5):
     """The simulation robots: a UR5 (DH) and the Panda (URDF, to its ball)."""
-    return {"ur5": ur5, "panda": kincal.load_robot(PANDA / "panda.urdf", tip_link="ball_link")}
+    return {"ur5": ur5, "panda": kincal.load_robot(PANDA_URDF, tip_link="ball_link")}
 
 
 def _sockets(true, seed, per=25):
@@ -213,7 +209,7 @@ def test_plane_residual_falls_while_the_absolute_error_grows_is_named(ur5):
 
 
 def _panda_sockets():
-    robot = kincal.load_robot(PANDA / "panda.urdf", tip_link="ball_link")
+    robot = kincal.load_robot(PANDA_URDF, tip_link="ball_link")
     rows = list(csv.DictReader(open(SOCKETS / "samples.csv")))
     place = np.array([r["placement"] for r in rows])
     q = np.array([[float(r[f"q{k}"]) for k in range(1, 8)] for r in rows])
@@ -261,8 +257,8 @@ def test_panda_sockets_as_the_authors_protocol(tmp_path):
 
 
 def test_positioner_6d_even_rows_fit_odd_rows_held_out():
-    robot = kincal.load_robot(ROOT / "data" / "positioner_6d" / "positioner.yaml")
-    rows = list(csv.DictReader(open(ROOT / "data" / "positioner_6d" / "measurements.csv")))
+    robot = kincal.load_robot(POSITIONER_MODEL)
+    rows = list(csv.DictReader(open(POSITIONER / "measurements.csv")))
     q = np.array([[float(r["q1"]), float(r["q2"])] for r in rows])
     xyz = np.array([[float(r[k]) for k in "xyz"] for r in rows])
     R = Rotation.from_quat([[float(r[k]) for k in ("qx", "qy", "qz", "qw")] for r in rows]).as_matrix()

@@ -10,7 +10,7 @@ import shutil
 import subprocess
 
 import pytest
-from conftest import DATA, UR5_COLS
+from conftest import DATA, PANDA_URDF, POSITIONER, POSITIONER_MODEL, SOCKETS, UR5_COLS
 from PIL import Image
 
 from kincal.cli import main
@@ -82,8 +82,7 @@ def test_socket_report_in_a_real_browser(tmp_path, monkeypatch, capsys):
 
     browser = find_browser()
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "1795000000")
-    root = DATA.parents[1]
-    rows = list(_csv.DictReader(open(root / "data" / "panda_sockets" / "samples.csv")))
+    rows = list(_csv.DictReader(open(SOCKETS / "samples.csv")))
     files = {}
     for name, keep in (("train", lambda r: r["placement"] == "front_center"),
                        ("test", lambda r: r["placement"] != "front_center")):
@@ -93,7 +92,7 @@ def test_socket_report_in_a_real_browser(tmp_path, monkeypatch, capsys):
             w.writeheader()
             w.writerows(r for r in rows if keep(r))
     report = tmp_path / "sockets.html"
-    assert main(["calibrate", str(root / "tests" / "data" / "urdf" / "panda" / "panda.urdf"), str(files["train"]),
+    assert main(["calibrate", str(PANDA_URDF), str(files["train"]),
                  "--test", str(files["test"]), "--tip-link", "ball_link", "--type", "same-point", "--joint-cols",
                  ",".join(f"q{k}" for k in range(1, 8)), "--label-col", "socket", "--group-col", "placement",
                  "--distance", "0,1,50", "--length-unit", "mm", "--report", str(report), "-o",
@@ -127,13 +126,13 @@ def test_pose_calibration_reported_again_in_a_real_browser(tmp_path, monkeypatch
     as in the calibration's own report, and both pages show the residual table."""
     browser = find_browser()
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "1795000000")
-    root = DATA.parents[1] / "data" / "positioner_6d"
+    root = POSITIONER
     lines = (root / "measurements.csv").read_text().splitlines()
     even, odd = tmp_path / "even.csv", tmp_path / "odd.csv"
     even.write_text("\n".join([lines[0], *lines[1::2]]) + "\n")
     odd.write_text("\n".join([lines[0], *lines[2::2]]) + "\n")
     cal, first, again = tmp_path / "cal.yaml", tmp_path / "first.html", tmp_path / "again.html"
-    assert main(["calibrate", str(root / "positioner.yaml"), str(even), "--test", str(odd), "--type", "pose",
+    assert main(["calibrate", str(POSITIONER_MODEL), str(even), "--test", str(odd), "--type", "pose",
                  "--joint-cols", "q1,q2", "--std-pos", "0.1mm", "--std-rot", "1mrad", "-o", str(cal),
                  "--report", str(first)]) == 0
     assert main(["report", str(cal), "--test", str(odd), "-o", str(again)]) == 0
