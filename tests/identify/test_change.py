@@ -116,6 +116,15 @@ def test_real_ur5_check_still_good_then_a_shifted_joint_2_zero(tmp_path, capsys)
     assert kinds == [("calibration", "good"), ("check", out["verdict"])]
     assert out["verdict"].startswith("re-calibrate") and out["suspects"][0]["name"] == "j2 zero"
     assert abs(out["suspects"][0]["size"] + math.radians(0.02)) < 3 * out["suspects"][0]["sigma"]
+    rows = poses.read_text().splitlines()  # the tracker bumped 0.5 mm along no axis of the base: the frame named
+    head = rows[0].split(",")
+    bumped = tmp_path / "bumped.csv"
+    bumped.write_text("\n".join([rows[0]] + [",".join(f"{float(v) + {'x': 0.3, 'y': 0.3, 'z': 0.26}[c]:.6f}"
+                                                       if c in "xyz" else v for c, v in zip(head, r.split(",")))
+                                             for r in rows[1:]]) + "\n")
+    assert main(["check", str(cal), str(bumped), *UR5, "--same-frame"]) == 4
+    said = capsys.readouterr().out
+    assert "re-calibrate (frame: measurement frame)" in said and "without --same-frame" in said
     assert main(["design", str(cal), "--check", "--method", "ide", "-o", str(tmp_path / "x.csv")]) == 1
     assert "--method" in capsys.readouterr().err
 
@@ -212,3 +221,28 @@ def test_the_calibration_keeps_what_it_missed_its_samples_by_in_the_robots_base_
     assert len(rep.poses) == 80 and np.allclose(rep.residuals, miss_base, atol=1e-9)
     predicted = rep.conditioned(res.robot, q[:20])[0]
     assert np.corrcoef(predicted.ravel(), miss_base[:20].ravel())[0, 1] > 0.8  # noise and smoothing: 0.85
+
+
+def test_a_moved_instrument_with_the_frame_kept_is_named_as_the_frame_not_the_robot(true):
+    """--same-frame after the tracker moved 0.5 mm along no axis of the base: no single parameter explains it (a link
+    or a joint zero came first before), the frame's move as a whole does, within 3σ of the true move, with the advice
+    to re-fit it; the same poses re-fitted say still good, and a real joint-zero change is still named as the joint."""
+    cal = _fit(true, 5, n=100)
+    pool = kincal.load_robot("ur5").sample_joints(300, seed=9)
+    q = pool[check_poses(cal.robot, pool, 10, cal.repeat)]
+    meas = kincal.simulate(true, q, 15e-6, 7).xyz
+    shift = np.array([0.3e-3, -0.3e-3, 0.26e-3])
+    moved = check(cal, q, meas + shift, same_frame=True)
+    top = moved.suspects[0]
+    assert moved.changed and top.name == "measurement frame" and top.kind == "frame"
+    parts = {p.name: p for p in top.parts}
+    for axis, size in zip("xyz", shift):
+        assert abs(parts[f"base.{axis}"].size - size) < 3 * parts[f"base.{axis}"].sigma + 1e-6
+    assert any("without --same-frame" in n for n in moved.notes) and "measurement frame" in top.line()
+    assert top.to_dict()["parts"][0]["name"] == "base.x"
+    assert not check(cal, q, meas + shift).changed
+    shifted = q.copy()
+    shifted[:, 2] += math.radians(0.05)
+    joint = check(cal, q, kincal.simulate(true, shifted, 15e-6, 7).xyz, same_frame=True)
+    assert joint.changed and joint.suspects[0].name == "j3 zero"
+    assert not any("without --same-frame" in n for n in joint.notes)
