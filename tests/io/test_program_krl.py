@@ -35,9 +35,9 @@ def test_every_real_file_is_read_and_written_back_byte_for_byte(path):
 
 
 # independent counts from the raw text: uncommented inline move literals, declarations of points with a
-# literal, typed point aggregates assigned in a .src
+# literal (less, in a .dat, those its module's .src assigns at run time), typed point aggregates assigned in a .src
 INLINE = re.compile(r"^[ \t]*(?:PTP|LIN|SPTP|SLIN|SPL)[ \t]*\{", re.M | re.I)
-DECLARED = re.compile(r"^[ \t]*(?:(?:GLOBAL|DECL)[ \t]+)*(?:E6POS|POS|E6AXIS|AXIS)[ \t]+\w+[ \t]*=[ \t]*\{", re.M | re.I)
+DECLARED = re.compile(r"^[ \t]*(?:(?:GLOBAL|DECL)[ \t]+)*(?:E6POS|POS|E6AXIS|AXIS)[ \t]+(\w+)[ \t]*=[ \t]*\{", re.M | re.I)
 TYPED = re.compile(r"^[ \t]*\w+[ \t]*=[ \t]*\{[ \t]*(?:E6POS|POS|E6AXIS|AXIS)[ \t]*:", re.M | re.I)
 
 
@@ -45,7 +45,12 @@ TYPED = re.compile(r"^[ \t]*\w+[ \t]*=[ \t]*\{[ \t]*(?:E6POS|POS|E6AXIS|AXIS)[ \
 def test_target_counts_match_an_independent_reading(path):
     raw = path.read_bytes().decode("latin-1")
     prog = read_program(str(path), "krl")
-    assert len(prog.targets) == sum(len(r.findall(raw)) for r in (INLINE, DECLARED, TYPED))
+    src = path.with_suffix(".src")
+    module = src.read_bytes().decode("latin-1") if path.suffix.lower() == ".dat" and src.exists() else ""
+    filled = [n for n in DECLARED.findall(raw)
+              if re.search(rf"^[ \t]*{n}[ \t]*(\.[ \t]*\w+[ \t]*)?=(?!=)", module, re.M | re.I)]
+    assert len(prog.targets) == sum(len(r.findall(raw)) for r in (INLINE, DECLARED, TYPED)) - len(filled)
+    assert sum("at run time by its module" in why for _, _, why in prog.not_literal) == len(filled)
     # every logged position inside other data is listed, not a target
     nested = len(re.findall(r"cmdPos \{", raw))
     assert sum("inside other data" in why for _, _, why in prog.not_literal) == nested
@@ -54,7 +59,7 @@ def test_target_counts_match_an_independent_reading(path):
 def test_the_data_folder_totals():
     progs = [read_program(str(p), "krl") for p in FILES]
     kinds = [t.kind for p in progs for t in p.targets]
-    assert (kinds.count("pose"), kinds.count("joints")) == (3, 19)
+    assert (kinds.count("pose"), kinds.count("joints")) == (3, 11)  # 8 more .dat points their modules fill at run time
     whys = [why for p in progs for _, _, why in p.not_literal]
     assert sum(w.startswith("a relative move") for w in whys) == 6
     assert sum("read at run time" in w and w.startswith("$") for w in whys) == 24
@@ -77,11 +82,15 @@ def test_kuka_ros_driver_dat():
     prog = read_program(str(KRL / "ros-industrial__kuka_experimental/kuka_kss_hw_interface/krl/KSS_85/Program/"
                                   "ROS/kuka_ros_driver.dat"), "krl")
     names = [t.variable for t in prog.targets]
-    assert names == ["ROS_Meas_Pos", "ROS_Meas_Vel", "ROS_Meas_Torque", "g_joint_pos_empty", "ROS_joint_pos_tgt",
-                     "Xdrop4"]
-    pos = prog.targets[0]  # line 13: E6AXIS ROS_Meas_Pos={A1 -41.7453308,A2 -34.9608841,A3 9.83097839, ...}
-    assert pos.line == 13 and pos.config == () and pos.frames == ("", "")
-    np.testing.assert_allclose(np.degrees(pos.values[:3]), [-41.7453308, -34.9608841, 9.83097839], atol=1e-9)
+    assert names == ["g_joint_pos_empty", "Xdrop4"]  # the measured position, velocity, torque and the target the
+    # module's .src fills at run time (ROS_Meas_Vel = ROS_getVel(), line 149) are listed, not compensated
+    filled = {(line, what): why for line, what, why in prog.not_literal if "by its module" in why}
+    assert list(filled) == [(13, "ROS_Meas_Pos"), (14, "ROS_Meas_Vel"), (15, "ROS_Meas_Torque"),
+                            (231, "ROS_joint_pos_tgt")]
+    assert "kuka_ros_driver.src line 149" in filled[(14, "ROS_Meas_Vel")]
+    empty = prog.targets[0]  # line 230: GLOBAL E6AXIS g_joint_pos_empty={A1 0.0, ...}: no assignment in the module
+    assert empty.line == 230 and empty.config == () and empty.frames == ("", "")
+    np.testing.assert_allclose(empty.values, 0.0)
     drop = prog.targets[-1]  # line 555, its FDAT Fdrop4 on line 554 has TOOL_NO 10, BASE_NO 0
     assert (drop.line, drop.config, drop.frames) == (555, (0, 0), ("TOOL_NO 10", "BASE_NO 0"))
     assert drop.values[0] == pytest.approx(666.666688)
@@ -250,3 +259,36 @@ def test_flat_components_read_in_one_scan_as_part_by_part(monkeypatch):
                [(t.start, t.end, t.fields, t.config, t.frames, t.variable) for t in s.targets], path.name
         assert all(np.array_equal(a.values, b.values) for a, b in zip(f.targets, s.targets))
         assert f.not_literal == s.not_literal
+
+
+@pytest.mark.parametrize("suffix", [".src", ".SRC"])
+def test_a_dat_point_its_module_fills_at_run_time_is_listed_not_compensated(tmp_path, suffix):
+    """A .dat alone cannot tell a taught point from a record its module fills at run time (a measured position,
+    a velocity); the module's .src beside it can: an assignment there, whole, in part or through an index
+    computed at run time, lists the point; a point the .src only moves to stays a target."""
+    dat = ("DEFDAT demo\n"
+           "DECL E6AXIS HOMEPOS={A1 0.0,A2 -90.0,A3 90.0,A4 0.0,A5 30.0,A6 0.0,E1 0.0}\n"
+           "DECL E6AXIS VEL={A1 10.0,A2 20.0,A3 30.0,A4 40.0,A5 50.0,A6 60.0,E1 0.0}\n"
+           "DECL E6POS XP[2]\n"
+           "XP[1]={X 500.0,Y 0.0,Z 600.0,A 0.0,B 90.0,C 0.0,S 2,T 2}\n"
+           "XP[2]={X 400.0,Y 0.0,Z 600.0,A 0.0,B 90.0,C 0.0,S 2,T 2}\n"
+           "DECL E6POS XTOOL={X 450.0,Y 50.0,Z 500.0,A 0.0,B 90.0,C 0.0,S 2,T 2}\n"
+           "ENDDAT\n")
+    src = ("DEF demo()\n"
+           "PTP HOMEPOS\n"
+           "VEL = $VEL_AXIS_ACT  ; the record is a velocity\n"
+           "FOR i = 1 TO 2\n"
+           "  XP[i] = $POS_ACT\n"
+           "ENDFOR\n"
+           "XTOOL.Z = 480.0\n"
+           "LIN XTOOL\n"
+           "END\n")
+    (tmp_path / "demo.dat").write_text(dat)
+    prog = read_program(str(tmp_path / "demo.dat"), "krl")  # no .src beside it: every point is a target
+    assert [t.variable for t in prog.targets] == ["HOMEPOS", "VEL", "XP[1]", "XP[2]", "XTOOL"]
+    (tmp_path / f"demo{suffix}").write_text(src)
+    prog = read_program(str(tmp_path / "demo.dat"), "krl")
+    assert [t.variable for t in prog.targets] == ["HOMEPOS"]
+    listed = {what: why for _, what, why in prog.not_literal}
+    assert f"demo{suffix} line 3" in listed["VEL"] and f"demo{suffix} line 5" in listed["XP[1]"]
+    assert f"demo{suffix} line 5" in listed["XP[2]"] and f"demo{suffix} line 7" in listed["XTOOL"]

@@ -15,8 +15,10 @@ What is a target (kind "pose" or "joints"):
   (``XP[3]={…}``), or an assignment in a ``.src`` (``HOME = {AXIS: …}``); also an undeclared variable
   given one position-shaped literal (its type read from its components). ``move`` is the first move of
   the file that goes to it, or else its type ("E6POS", …); ``variable`` its name (with the index).
-  A ``.dat`` point is a target even though its moves are in the sibling ``.src``: a reader of one
-  file knows only that file.
+  A ``.dat`` point is a target even though its moves are in its module's ``.src`` (the file of the same
+  name beside it), unless that ``.src`` assigns it too, whole or in part (``ROS_Meas_Vel = ROS_getVel()``):
+  then it is filled or changed at run time (a measured position, a velocity, a torque) and listed, like a
+  variable assigned twice in one file.
 * a FRAME variable is tool or base data (``TOOL_DATA[1]``, a base), not a place the robot goes to:
   it is a target only where a move of this file moves to it (``LIN F1``: KRL takes a FRAME as a
   Cartesian target); otherwise it is listed, never changed.
@@ -47,6 +49,7 @@ from __future__ import annotations
 import bisect
 import dataclasses
 import functools
+import os
 import re
 from typing import Sequence
 
@@ -187,6 +190,7 @@ class _File:
     aggs: dict[int, _Aggregate]
     declared: dict[str, str]
     assigns: list[tuple[str, str, int, int, str]]
+    module: dict[str, tuple[str, int]] = dataclasses.field(default_factory=dict)  # what the module's .src assigns
     targets: list[Target] = dataclasses.field(default_factory=list)
     listed: list[tuple[int, str, str]] = dataclasses.field(default_factory=list)
     used: set[int] = dataclasses.field(default_factory=set)
@@ -226,7 +230,13 @@ class _File:
         count: dict[str, list[int]] = {}
         for var, part, _, literal, _ in self.assigns:
             count.setdefault(var, []).append(literal if not part else -1)
-        return {v: s[0] for v, s in count.items() if len(s) == 1 and s[0] >= 0 and not v.startswith("$")}
+        return {v: s[0] for v, s in count.items()
+                if len(s) == 1 and s[0] >= 0 and not v.startswith("$") and not self.elsewhere(v)}
+
+    def elsewhere(self, var: str) -> str:
+        """Where the module's ``.src`` assigns the variable ``var`` (compared upper case), in words, or ''."""
+        found = self.module.get(var) or self.module.get(var.split("[")[0])
+        return f"{found[0]} line {found[1]}" if found else ""
 
     def frames(self, at: int, variable: str) -> tuple[str, str]:
         """(tool, base) of a target at ``at``: the FDAT F<name> of a point X<name>, else the last
@@ -339,9 +349,35 @@ def _leftovers(f: _File) -> None:
             what = name + part
             if var.startswith("$") or part:
                 why = f"sets {name}{part}: a controller setting or frame, not a move target"
+            elif f.elsewhere(var):
+                why = (f"{name} is filled or changed at run time by its module ({f.elsewhere(var)}): not one "
+                       f"literal")
             elif counts[var] > 1:
                 why = f"{name} is assigned more than once or changed in this file: not one literal"
         f.note(a, what, why)
+
+
+def _module(source: str) -> dict[str, tuple[str, int]]:
+    """For a ``.dat``: the variables the ``.src`` of its module (beside it, the same name) assigns, whole or in
+    part, as compared ("XP[1]"; the bare name for an index computed at run time) -> (that file's name, the line
+    of the first); {} for any other file, or a ``.dat`` with no such ``.src``."""
+    folder, name = os.path.split(source)
+    stem, suffix = os.path.splitext(name)
+    if suffix.lower() != ".dat":
+        return {}
+    for other in (stem + s for s in (".src", ".SRC", ".Src")):
+        try:
+            with open(os.path.join(folder, other), "rb") as fh:
+                code = _blank(fh.read().decode("latin-1"))  # names are ASCII; comments may be anything
+        except OSError:
+            continue
+        out: dict[str, tuple[str, int]] = {}
+        for m in ASSIGN.finditer(code):
+            index = "".join((m.group(2) or "").split())
+            var = m.group(1).upper() + (index if index[1:-1].isdigit() else "")
+            out.setdefault(var, (other, code.count("\n", 0, m.start()) + 1))
+        return out
+    return {}
 
 
 def parse(source: str, text: str) -> Program:
@@ -352,7 +388,7 @@ def parse(source: str, text: str) -> Program:
     for agg in aggs.values():
         if agg.shape:
             _check_numbers(source, text, agg)
-    f = _File(source, text, code, ends, aggs, _declared(code), _assignments(code, ends))
+    f = _File(source, text, code, ends, aggs, _declared(code), _assignments(code, ends), _module(source))
     _moves(f)
     _points(f)
     _leftovers(f)
