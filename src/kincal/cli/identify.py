@@ -196,17 +196,29 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
     train_error = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else 0.0
     cause = kincal.identify.heldout_cause(model, meas, train_error, not args.same_frame) if train_error else ""
     texts = [f"{r.name} on {path} ({how}): {stats}" + (f"\n  likely cause: {cause}" if cause else "")]
-    nominal = nominal_model(r, record, args.robot)
-    before = None if nominal is None else kincal.evaluate(
-        kincal.identify.register_mounting(nominal, meas.q, meas.xyz), meas).mean
+    before, registered = _nominal_before(args, r, record, meas)
     if before is not None:
-        texts.append(f"  nominal, its frame and target point registered to these data: mean {before * MM:.4f} mm "
-                     f"→ calibrated {stats.mean * MM:.4f} mm")
+        texts.append(f"  nominal, {registered}: mean {before * MM:.4f} mm → calibrated {stats.mean * MM:.4f} mm")
     if stem:
         from kincal.report import evaluation_figures
 
         texts += save_figures(evaluation_figures(model, meas), stem)
-    return {"file": path, "registration": how, **stats.to_dict(), "nominal_mean": before, "cause": cause or None}, texts
+    return {"file": path, "registration": how, **stats.to_dict(), "nominal_mean": before,
+            "nominal_registration": registered or None, "cause": cause or None}, texts
+
+
+def _nominal_before(args, r, record: dict | None, meas) -> tuple[float | None, str]:
+    """The nominal kinematics' mean error on ``meas`` (m), registered as the calibrated model is judged: with
+    --same-frame its frame and target point as registered on the training data (the calibration record's, as
+    the report does), else registered to these data; and how, in words. (None, '') without a record."""
+    kept = nominal_model(r, record, args.robot, "before_mounting") if args.same_frame else None
+    if kept is not None:
+        return kincal.evaluate(kept, meas).mean, "its frame and target point as registered on the training data"
+    nominal = nominal_model(r, record, args.robot)
+    if nominal is None:
+        return None, ""
+    return (kincal.evaluate(kincal.identify.register_mounting(nominal, meas.q, meas.xyz), meas).mean,
+            "its frame and target point registered to these data")
 
 
 def add_covariate_flag(s) -> None:

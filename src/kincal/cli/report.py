@@ -147,16 +147,22 @@ def _use_q(value, robot, path: str) -> np.ndarray | None:
     return q
 
 
-def nominal_model(cal, record: dict | None, path: str):
+def nominal_model(cal, record: dict | None, path: str, key: str = "nominal"):
     """The nominal model a calibrated file was fitted from (its record's nominal values, checked to be
-    numbers), or None for a file without a calibration record."""
-    if not record or "nominal" not in record:
+    numbers), or None for a file without a calibration record; ``key="before_mounting"``: that model with
+    its frame and target point as registered on the training data ("before" calibration), or None for a record
+    without them (a file written before they were kept)."""
+    if not record or "nominal" not in record or key not in record:
         return None
-    values = _mapping(record["nominal"], path, "nominal")
-    bad = [k for k, v in values.items() if isinstance(v, bool) or not isinstance(v, (int, float))]
+    values = {str(k): v for k, v in _mapping(record["nominal"], path, "nominal").items()}
+    if key != "nominal":
+        values.update({str(k): v for k, v in _mapping(record[key], path, key).items()})
+    bad = [k for k, v in values.items() if isinstance(v, bool) or not isinstance(v, (int, float)) or k not in
+           cal.params.names]
     if bad:
-        raise ValueError(f"{path}: the calibration record's nominal value of {bad[0]} is not a number; calibrate again")
-    return cal.with_params({str(k): float(v) for k, v in values.items()})
+        raise ValueError(f"{path}: the calibration record's {key.replace('_', ' ')} value of {bad[0]} is not a "
+                         f"number of this model; calibrate again")
+    return cal.with_params({k: float(v) for k, v in values.items()})
 
 
 def add_session_flags(p) -> None:
