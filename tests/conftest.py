@@ -12,26 +12,11 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 import kincal
+from shared_data import POSITIONER_MODEL, ROOT, shared_dataset  # noqa: F401  (the tests import them from here)
 
-
-def shared_dataset(name: str) -> Path:
-    """A folder of the shared real datasets, used in place: ``../shared/datasets/<name>`` beside the checkout
-    (or beside any folder above it, or where KINCAL_SHARED_DATASETS points)."""
-    here = Path(__file__).resolve().parents[1]
-    roots = [Path(os.environ["KINCAL_SHARED_DATASETS"])] if "KINCAL_SHARED_DATASETS" in os.environ else []
-    roots += [parent / "shared" / "datasets" for parent in here.parents]
-    for root in roots:
-        if (root / name).is_dir():
-            return root / name
-    raise FileNotFoundError(f"the shared dataset '{name}' is not beside this checkout (looked in "
-                            f"{', '.join(map(str, roots[:3]))}, …); set KINCAL_SHARED_DATASETS to its folder")
-
-
-ROOT = Path(__file__).resolve().parents[1]
 DATA = shared_dataset("ur5_wam_gts3800")  # a UR5 and a WAM with a GTS3800 laser tracker
 SOCKETS = shared_dataset("panda_sockets")  # a Panda's ball seated in plate sockets, with the Panda's URDF
 POSITIONER = shared_dataset("positioner_6d")  # a two-axis positioner's target seen by a camera (6-D poses)
-POSITIONER_MODEL = ROOT / "examples" / "positioner.yaml"  # its nominal model (kincal's, not the dataset's)
 UR5_URDF = shared_dataset("urdf") / "ur5_robot.urdf"  # UR's UR5 description (example-robot-data)
 PANDA_URDF = SOCKETS / "panda.urdf"
 UR5_COLS = [f"joint_{i}" for i in range(1, 7)]
