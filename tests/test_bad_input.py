@@ -546,6 +546,8 @@ ROUND2 = [
     rcase("report-record-error-model-number", [*REPORT], 1, ["error model 5"], options={"error_model": 5}),
     rcase("report-record-unknown-option", [*REPORT], 1, ["unknown calibration option"], options={"colour": 1}),
     rcase("report-record-nominal-text", [*REPORT], 1, ["nominal value", "not a number"], nominal={"j2.a": "long"}),
+    rcase("report-test-is-the-training-file", [*REPORT, "--test", "{base}/good.csv"], 1,
+          ["same data as the training file", "good.csv"]),
     rcase("evaluate-record-before-mounting-text", [*EVAL, "--same-frame"], 1, ["before mounting value of tool.z",
                                                                             "not a number"],
           before_mounting={"tool.z": "far"}),
@@ -996,3 +998,20 @@ def test_a_pose_number_column_given_as_a_joint_is_named_not_blamed_on_the_unit(t
     err = capsys.readouterr().err
     assert code == 1 and "the column read as joint j1 reaches 999 deg as written ('deg' was given)" in err
     assert "--joint-cols" in err and "use angle unit" not in err and not (tmp_path / "c.yaml").exists()
+
+
+@pytest.mark.parametrize("copy", [False, True])
+def test_a_held_out_file_that_is_the_training_file_is_refused(tmp_path, capsys, copy):
+    """--test given the training file, or a copy of it under another name (a sockets user did): its "held-out"
+    figures were the training error, reported as held out under a GOOD verdict; now refused, nothing written."""
+    from conftest import DATA
+    test = DATA / "ur5_random.csv"
+    if copy:
+        test = tmp_path / "session2.csv"
+        test.write_bytes((DATA / "ur5_random.csv").read_bytes())
+    code = main(["calibrate", "ur5", str(DATA / "ur5_random.csv"), "--test", str(test), "--length-unit", "mm",
+                 "--angle-unit", "deg", "--joint-cols", ",".join(f"joint_{i}" for i in range(1, 7)),
+                 "-o", str(tmp_path / "c.yaml")])
+    err = capsys.readouterr().err
+    assert code == 1 and f"--test {test} holds the same data as the training file" in err
+    assert not (tmp_path / "c.yaml").exists()

@@ -125,6 +125,7 @@ def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], 
     (each absolute file after the first in its own frame)."""
     if args.exclude and len(data) > 1:
         raise ValueError("--exclude names rows of one file; with several files leave the rows out of their files")
+    _not_training(data, tests)
     options.check(robot)
     points = set(kinds) == {"point"}
 
@@ -142,6 +143,18 @@ def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], 
             return kincal.calibrate(robot, kincal.identify.joined(sets), options, use_q=use_q, progress=say), held
         say(f"calibrating {len(sets)} sessions, each in its own measurement frame")
         return kincal.identify.calibrate_sessions(robot, sets, options, use_q=use_q), held
+
+
+def _not_training(data: list[str], tests: list[str]) -> None:
+    """Refuse a held-out file that is a training file (the same file, or the same bytes under another name): its
+    "held-out" figures would be the training error, presented as what the model does on poses it never saw."""
+    known = {fingerprint(d).sha256: d for d in data}
+    for path in tests:
+        same = known.get(fingerprint(path).sha256)
+        if same is not None:
+            raise ValueError(f"--test {path} holds the same data as the training file {same}: its figures would be "
+                             f"the training error, not a held-out one; hold out a file of poses the fit does not "
+                             f"see (another session, or the rows left out of the training file)")
 
 
 def held_out(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
