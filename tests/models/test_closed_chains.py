@@ -11,7 +11,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import kincal
-from kincal.compensate import compensate
+from kincal.compensate import command_models, compensate
 from kincal.errors import ModelError
 from kincal.identify.calibrate import fit_observations
 from kincal.models.stewart import StewartRobot
@@ -350,6 +350,18 @@ def test_jugglebot_session_to_session_through_the_command_line(tmp_path, capsys)
     # leg 1's hand-measured lead (75.69 mm/rev) is 6 % off the others' and the data's: named as such
     said = " ".join(r["message"] for r in out["verdict"]["reasons"])
     assert "leg1.scale -6.1 %" in said and "leg1: the travel per reading unit (a leg's lead)" in said
+    targets = tmp_path / "targets.csv"  # pose commands from the calibrated file: the orientation rule's poses are
+    # drawn where the legs assemble (it drew each leg in its own range, and ended in a forward-kinematics error)
+    targets.write_text("x,y,z,qx,qy,qz,qw\n0,0,700,0,0,0,1\n20,-10,720,0,0,0,1\n-15,25,690,0.0436,0,0,0.999\n")
+    code, _, text = _kincal(capsys, ["compensate", str(tmp_path / "s1.yaml"), str(targets), "--pose",
+                                     *JUGGLE[2:], "-o", str(tmp_path / "legs.csv")])
+    assert code == 0 and "3 of 3 targets" in text and "orientation: from the calibrated model" in text
+    cal = kincal.load_robot(str(tmp_path / "s1.yaml"))
+    nominal = kincal.models.load_calibration_record(str(tmp_path / "s1.yaml"))["nominal"]
+    model, _ = command_models(cal, nominal)
+    rows = np.loadtxt(tmp_path / "legs.csv", delimiter=",", skiprows=1)
+    reached = model.forward(rows[:, 1:7] * 2 * np.pi)  # rev -> rad, the legs' reading unit
+    assert np.abs(reached * 1e3 - np.loadtxt(targets, delimiter=",", skiprows=1)[:, :3]).max() < 1e-6
     code, out, text = _kincal(capsys, ["calibrate", "hexapod", s2, "--test", s1, *JUGGLE, *common,
                                        "-o", str(tmp_path / "s2.yaml")])
     assert code in (0, 4) and out["held_out"][0]["mean"] * 1e3 <= 1.268

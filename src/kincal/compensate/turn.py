@@ -15,11 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ModelError
 from ..models.robot import Robot
 from ..models.transforms import rotation_log
 
 TURN_Z = 3.0  # the calibrated turn is followed when it is at least this many standard deviations
 TURN_POSES = 200  # poses the turn and its σ are taken over (uniform in the calibration's joint ranges, seed 0)
+TURN_TRIES = 20  # rounds of TURN_POSES draws at most, for a parallel robot whose legs' ranges do not all assemble
 FD_STEP = 1e-6  # rad or m: the parameter step of the rotation's finite differences
 
 
@@ -59,8 +61,9 @@ class FlangeTurn:
                     f"({self.change * 1e3:.3f} mrad from the nominal model, σ {sigma})")
         return (f"orientation: as the nominal model turns the flange; the calibrated model's turn of it "
                 f"({self.change * 1e3:.3f} mrad from the nominal model, σ {sigma}) is within {TURN_Z:g}σ, not told "
-                f"apart from noise, so the commands correct the positions with the calibrated model only (a measured "
-                f"point further from the flange's axis, 6-D poses or several markers determine the turn)")
+                f"apart from noise, so the commands correct the positions with the calibrated model only (what determines "
+                f"it: 6-D poses or several markers, or a measured point further from the flange's axis, at poses "
+                f"spread over more of the joints' ranges)")
 
 
 def flange_turn(calibrated: Robot, nominal: Robot, covariance: np.ndarray | None, names, lower: np.ndarray,
@@ -104,18 +107,34 @@ def flange_turn(calibrated: Robot, nominal: Robot, covariance: np.ndarray | None
     False 0.5
     True 22.2
     """
-    q = poses_in(calibrated, lower, upper)
+    q = poses_in(calibrated, lower, upper, nominal)
     turn = _relative(calibrated, q, None, nominal)
     change = float(np.sqrt(np.mean(np.sum(turn**2, axis=1))))
     sigma = np.inf if covariance is None else _sigma(calibrated, q, np.asarray(covariance, float), tuple(names))
     return FlangeTurn(change, sigma, bool(change >= TURN_Z * sigma))
 
 
-def poses_in(robot: Robot, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """TURN_POSES joint vectors (N, n), uniform in [lower, upper] within the robot's limits, seed 0."""
+def poses_in(robot: Robot, lower: np.ndarray, upper: np.ndarray, *others: Robot) -> np.ndarray:
+    """TURN_POSES joint vectors (N, n), uniform in [lower, upper] within the robot's limits, seed 0, where the robot
+    (and each of ``others``) assembles: a parallel robot's legs drawn each in its own range often do not (a serial
+    arm's always do: its first TURN_POSES draws). Fewer when fewer than TURN_POSES of TURN_TRIES rounds assemble;
+    ModelError when none does."""
     lo, hi = np.maximum(lower, robot.lower), np.minimum(upper, robot.upper)
     lo, hi = np.where(hi >= lo, lo, robot.lower), np.where(hi >= lo, hi, robot.upper)
-    return lo + np.random.default_rng(0).random((TURN_POSES, robot.n_joints)) * (hi - lo)
+    rng, kept = np.random.default_rng(0), []
+    for _ in range(TURN_TRIES):
+        q = lo + rng.random((TURN_POSES, robot.n_joints)) * (hi - lo)
+        ok = robot.feasible(q)
+        for other in others:
+            ok &= other.feasible(q)
+        kept.append(q[ok])
+        if sum(len(k) for k in kept) >= TURN_POSES:
+            break
+    q = np.concatenate(kept)[:TURN_POSES]
+    if not len(q):
+        raise ModelError(f"{robot.name}: none of {TURN_TRIES * TURN_POSES} poses drawn in the calibration's joint "
+                         f"ranges assembles; the calibrated file's joint ranges do not fit its model")
+    return q
 
 
 def _base_rotation(robot: Robot) -> np.ndarray:
