@@ -94,8 +94,11 @@ def test_a_folder_with_what_does_not_apply_is_refused(tmp_path, capsys, flag):
 def test_a_refused_folder_says_why_each_target_was_refused(tmp_path, capsys):
     """Nothing written without --skip-unreachable: the output lists each refused target with its file, line and
     reason (it gave only counts, and the report CSV is written only with the folder)."""
-    kuka = kincal.perturb(kincal.load_robot("kuka_kr6r900sixx"), seed=2)
-    kincal.save_robot(kuka, tmp_path / "cal.yaml")
+    nominal = kincal.load_robot("kuka_kr6r900sixx")
+    q = nominal.sample_joints(60, seed=1)
+    res = kincal.calibrate(nominal, kincal.simulate(kincal.perturb(nominal, seed=2), q, noise=0.0),
+                           kincal.FitOptions(diagnose=False))
+    kincal.save_robot(res.robot, tmp_path / "cal.yaml", calibration=res.record())
     folder = tmp_path / "KRC" / "R1" / "Program"
     folder.mkdir(parents=True)
     (folder / "a.src").write_text("DEF a()\nPTP {A1 10, A2 -80, A3 100, A4 5, A5 30, A6 10}\n"

@@ -86,8 +86,10 @@ REAL_AS_C = ("/JOB\n//NAME SAMPLE_C\n//POS\n///NPOS 1,0,0,0,0,0\n///TOOL 1\n///P
 def test_a_real_cartesian_position_read_against_an_independent_conversion(tmp_path):
     prog = _read(tmp_path, REAL_AS_C)
     (t,) = prog.targets
-    assert (t.move, t.variable, t.kind, t.line, t.frames) == ("MOVJ", "C00000", "pose", 9, ("TOOL 1", "BASE"))
-    assert t.config == (0,) * 24 and t.at == REAL_AS_C.index("MOVJ C00000")
+    # ///POSTYPE BASE in a job with no base axis (///GROUP1 RB1): the robot frame; of RCONF's 24 digits the six
+    # a six-axis arm's branch has (the others stay as written)
+    assert (t.move, t.variable, t.kind, t.line, t.frames) == ("MOVJ", "C00000", "pose", 9, ("TOOL 1", "ROBOT"))
+    assert t.config == (0,) * 6 and t.at == REAL_AS_C.index("MOVJ C00000")
     assert REAL_AS_C[t.start:t.end] == "755.000,1321.000,-446.500,-179.9988,-0.0019,-0.0019"
     assert [REAL_AS_C[a:b] for a, b in t.fields] == ["755.000", "1321.000", "-446.500", "-179.9988", "-0.0019",
                                                      "-0.0019"]
@@ -135,7 +137,7 @@ def test_a_documented_job_every_position_kind(tmp_path):
     prog = dataclasses.replace(prog, targets=tuple(t for t in prog.targets if t.kind != "pulses"))
     assert [(t.line, t.move, t.variable, t.frames, t.config) for t in prog.targets] == [
         (13, "MOVL", "C00001", ("TOOL 1", "BASE"), ()),
-        (15, "MOVL", "C00002", ("TOOL 1", "BASE"), (1, 0, 0, 0, 0, 0, 0, 0)),
+        (15, "MOVL", "C00002", ("TOOL 1", "BASE"), (1, 0, 0, 0, 0, 0)),  # BASE: the job has a base axis (BS1)
         (20, "MOVC", "C00003", ("TOOL 3", "USER 2"), (0, 1, 1, 0, 0, 1)),
         (21, "MOVC", "C00004", ("TOOL 3", "USER 2"), (0, 1, 1, 0, 0, 1)),
         (23, "MOVS", "C00005", ("TOOL 3", "ROBOT"), (0, 1, 1, 0, 0, 1)),

@@ -124,6 +124,14 @@ def _ur10(seed=3):
     return nominal, kincal.perturb(nominal, seed=seed)
 
 
+def _save_calibrated(true, nominal, path, n=60):
+    """``true`` as a calibrated robot file of ``nominal`` (with the calibration record compensate reads), by a fit
+    to noise-free positions of ``true`` at n poses."""
+    q = nominal.sample_joints(n, seed=0)
+    res = kincal.calibrate(nominal, kincal.simulate(true, q, 0.0, 0), kincal.FitOptions(diagnose=False))
+    kincal.save_robot(res.robot, str(path), calibration=res.record())
+
+
 def _wrapped(q):
     return (q + np.pi) % (2 * np.pi) - np.pi
 
@@ -214,7 +222,7 @@ def test_skip_unreachable_marks_each_target_left_as_is(tmp_path, capsys):
     """A pose 3 m away cannot be reached: refused and nothing written; with --skip-unreachable the
     program is written with a comment naming why beside that target, the rest compensated."""
     nominal, true = _ur10()
-    kincal.save_robot(true, str(tmp_path / "cal.yaml"))
+    _save_calibrated(true, nominal, tmp_path / "cal.yaml")
     q0 = np.array([0.3, -1.2, 1.4, -1.9, -1.5, 0.6])
     far = np.concatenate([[3.0, 0.0, 0.5], _pose(nominal, q0)[3:]])
     text = _program([f"movej({_fmt(q0, False)})", f"movel({_fmt(far, True)})  # too far",
@@ -228,7 +236,7 @@ def test_skip_unreachable_marks_each_target_left_as_is(tmp_path, capsys):
     out = (tmp_path / "out.script").read_text().splitlines()
     assert out[2].endswith("# too far  # kincal: not compensated: the nominal model does not reach this pose on "
                            "any branch within the joint limits")
-    assert "kincal" not in out[1] + out[3] and out[1] != text.splitlines()[1]
+    assert "kincal" not in out[1] + out[3] and out[1] != text.splitlines()[1] and out[3] != text.splitlines()[3]
 
 
 def test_design_writes_a_measurement_program_that_compensate_reads_whole(tmp_path, capsys):
@@ -249,7 +257,7 @@ def test_design_writes_a_measurement_program_that_compensate_reads_whole(tmp_pat
     assert np.abs(np.array([t.values for t in prog.targets]) - q).max() < 1e-10
     assert prog.text.count("sleep(1.5)") == 12
     assert np.abs(np.array(data["tool_positions"]) - robot.forward(q)).max() < 1e-12
-    kincal.save_robot(robot, str(tmp_path / "ur10.yaml"))
+    _save_calibrated(robot, robot, tmp_path / "ur10.yaml")  # its own nominal: corrections below the last digit
     assert main(["compensate", str(tmp_path / "ur10.yaml"), data["program"], "--program", "ur", "-o",
                  str(tmp_path / "again.script")]) == 0
     assert (tmp_path / "again.script").read_text() == prog.text
@@ -277,10 +285,10 @@ def test_a_program_written_in_millimetres_is_refused_with_that_cause(tmp_path):
 def test_a_program_for_another_robot_is_refused(tmp_path, capsys):
     """A KUKA calibration and a URScript program (or a folder of RAPID modules): refused, naming the robot's language
     from its robot file, nothing written; the UR program with a UR calibration is compensated."""
-    kuka = kincal.perturb(kincal.load_robot("kuka_kr6r900sixx"), seed=1)
-    kincal.save_robot(kuka, tmp_path / "kuka.yaml")
-    ur = kincal.perturb(kincal.load_robot("ur5"), seed=1)
-    kincal.save_robot(ur, tmp_path / "ur.yaml")
+    kuka = kincal.load_robot("kuka_kr6r900sixx")
+    _save_calibrated(kincal.perturb(kuka, seed=1), kuka, tmp_path / "kuka.yaml")
+    ur = kincal.load_robot("ur5")
+    _save_calibrated(kincal.perturb(ur, seed=1), ur, tmp_path / "ur.yaml")
     q0 = np.array([0.3, -1.2, 1.4, -1.9, -1.5, 0.6])
     (tmp_path / "p.script").write_text(_program([f"movej({_fmt(q0, False)})"]))
     base = [str(tmp_path / "p.script"), "--program", "ur", "-o", str(tmp_path / "out.script")]

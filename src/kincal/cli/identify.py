@@ -148,9 +148,14 @@ def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], 
 def _not_training(data: list[str], tests: list[str]) -> None:
     """Refuse a held-out file that is a training file (the same file, or the same bytes under another name): its
     "held-out" figures would be the training error, presented as what the model does on poses it never saw."""
-    known = {fingerprint(d).sha256: d for d in data}
+    def digest(path: str) -> str:
+        try:
+            return fingerprint(path).sha256
+        except OSError:  # the reader names what is wrong with it
+            return path
+    known = {digest(d): d for d in data}
     for path in tests:
-        same = known.get(fingerprint(path).sha256)
+        same = known.get(digest(path))
         if same is not None:
             raise ValueError(f"--test {path} holds the same data as the training file {same}: its figures would be "
                              f"the training error, not a held-out one; hold out a file of poses the fit does not "

@@ -63,10 +63,8 @@ def cmd_compensate(args) -> int:
     if args.program and os.path.isdir(args.targets):
         return _compensate_folder(args)
     cal = load_robot(args, [args.targets, *([args.frames] if args.frames else [])], [args.output])
-    record = kincal.models.load_calibration_record(args.robot) or {}  # empty: a bundled robot, a URDF
-    nominal_values = record.get("nominal")
+    record, values = _calibration(args)
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
-    values = nominal_values if isinstance(nominal_values, dict) else None
     if "link_error_max" in args.given and args.tcp is None and not args.program:  # a program may set its TCP
         raise ValueError("--link-error-max decides how much of the calibration's move of the measured target is "
                          "carried over to the controller's TCP; without --tcp the commands are for the measured "
@@ -203,6 +201,18 @@ def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
 
 
+def _calibration(args) -> tuple[dict, dict | None]:
+    """The robot file's calibration record ({} for a bundled robot or a URDF) and its nominal values (None without);
+    refused for a program, whose targets are the controller's nominal model's: with one model nothing corrects."""
+    record = kincal.models.load_calibration_record(args.robot) or {}
+    values = record.get("nominal") if isinstance(record.get("nominal"), dict) else None
+    if values is None and args.program:
+        raise ValueError(f"{args.robot} holds one model and no calibration record: a program's targets are the "
+                         f"controller's nominal model's, corrected with the calibrated one, so there is nothing to "
+                         f"correct; give the file `kincal calibrate -o` wrote")
+    return record, values
+
+
 def _compensate_folder(args) -> int:
     """compensate FOLDER --program krl|rapid|fanuc|inform -o NEW_FOLDER: every program file of the language,
     with one report (kincal.compensate.folder); written only when nothing is refused or unreadable, or with
@@ -217,12 +227,11 @@ def _compensate_folder(args) -> int:
     check_folder_output(args.targets, args.output)
     cal = load_robot(args, [*([args.frames] if args.frames else [])], [])
     _program_for(cal, args.program, args.robot)
-    record = kincal.models.load_calibration_record(args.robot) or {}
-    values = record.get("nominal")
-    nominal = cal.with_params(values) if isinstance(values, dict) else cal
+    record, values = _calibration(args)
+    nominal = cal.with_params(values) if values else cal
     frames = kincal.io.read_frames(args.frames) if args.frames else {}
     unc = kincal.analysis.load_uncertainty(args.robot)
-    turned, turn = _orientation(args, record, cal, values if isinstance(values, dict) else None, nominal, unc)
+    turned, turn = _orientation(args, record, cal, values, nominal, unc)
     res = compensate_folder(cal, nominal, args.targets, args.program, kincal.io.ROWS[args.program], frames, turned)
     if not res.files:
         raise ValueError(f"{args.targets}: no {args.program} program in this folder (suffixes "

@@ -50,9 +50,10 @@ CHECK_TOL = 1e-9  # m and rad: a written target must reproduce its intended pose
 BIT_EDGE = np.radians(0.01)  # rad: a joint this near 0 sits on the edge of its sign bit (a pose's last decimals)
 SINGULAR = 1e3  # condition number of the pose Jacobian (m, rad) beyond which a failed correction is named as such
 CHAIN = 512  # targets per Newton pass of the controller's joints (the next ones start from the joints found)
-IDENTITY_FRAMES = {"rapid": (("tool0",), ("wobj0", "")), "krl": (("$nullframe",), ())}  # (tools, bases) a language
-# defines as the identity (RAPID: tool0 is the flange, wobj0 the world frame, and a move without \WObj is in wobj0;
-# KRL: $TOOL = $NULLFRAME is the flange, while $BASE = $NULLFRAME is the world, given with $ROBROOT_C)
+IDENTITY_FRAMES = {"rapid": (("tool0",), ("wobj0", "")), "krl": (("$nullframe",), ()),  # (tools, bases) a language
+                   "inform": ((), ("robot",))}  # defines as the identity (RAPID: tool0 is the flange, wobj0 the
+# world frame, and a move without \WObj is in wobj0; KRL: $TOOL = $NULLFRAME is the flange, while $BASE = $NULLFRAME
+# is the world, given with $ROBROOT_C; INFORM: ROBOT coordinates, and BASE ones where no base axis moves the robot)
 REDUNDANT = ("a pose target of a redundant arm: the controller chooses the redundancy (the elbow's arm angle, "
              "KRL's E1 or RAPID's eax_a) by a rule kincal does not model, so the joints it would take are unknown; "
              "give joint targets (E6AXIS, jointtarget) to compensate")

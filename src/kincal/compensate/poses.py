@@ -32,7 +32,8 @@ ROT_LEVER = 0.1  # m per rad: a wrist joint turning the tool counts as moving a 
 FINAL = 1e-9  # m and rad: an error below this is gone after one more Newton step (it leaves ~1e-18 at
 #               the model's curvature of about 1 per m), so that step ends the solve without another evaluation
 MAX_TRAVEL = 0.1  # m: a correction that has moved the tool this far is another arm configuration; given up
-TURN_ROUNDS = 4  # rounds that put another model's flange at the target rotations (each ~1e-3 of the last)
+TURN_ROUNDS = 8  # rounds at most that put another model's flange at the target rotations (each leaves 1e-3 to 1e-2
+# of the last: a 10 mrad turn is within ROT_TOL after 4 to 6; a rotation left at 1e-10 rad shows as 1e-8° in a program)
 
 
 @dataclass(frozen=True)
@@ -126,8 +127,9 @@ def solve_poses(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, 
         The model whose flange must reach the target rotations (default: ``model``); the tool point is still
         ``model``'s. Give the nominal model when ``model`` was calibrated from positions alone: the turns of
         the flange its parameters imply were never measured. Solved as rounds of ``model`` on the rotations it
-        must reach for ``turned_as`` to reach R_t (:func:`turn_goal`), ``TURN_ROUNDS`` of them; the rotation
-        error reported is ``turned_as``'s.
+        must reach for ``turned_as`` to reach R_t (:func:`turn_goal`), until ``turned_as``'s flange is within
+        ``ROT_TOL`` of R_t wherever the solve converged (``TURN_ROUNDS`` at most); the rotation error reported is
+        ``turned_as``'s.
 
     Returns
     -------
@@ -169,7 +171,10 @@ def solve_poses(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, 
         start = np.where(np.all(np.isfinite(sol.q), axis=1)[:, None], sol.q, q0)
         sol = _solve(model, p_t, turn_goal(turned_as, model, sol.q, R_t), start, max_iter, fixed, chunk, give_up,
                      max_travel)
-    return dataclasses.replace(sol, rotation_error=model_turn(turned_as, sol.q, R_t))
+        left = model_turn(turned_as, sol.q, R_t)
+        if not np.any(sol.converged & (left > ROT_TOL)):
+            break
+    return dataclasses.replace(sol, rotation_error=left)
 
 
 def turn_goal(model: Robot, robot: Robot, q: np.ndarray, rotations: np.ndarray) -> np.ndarray:

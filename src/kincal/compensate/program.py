@@ -19,7 +19,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..io.program_ur import joints_literal, pose_literal
+from ..io.program_ur import write as write_ur
 from ..io.programs import Program, Target
 from ..models.robot import Robot
 from ..models.transforms import rotation_log, rotvec_matrix
@@ -174,7 +174,7 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
     q_prev = (next((t.values for t in program.targets if t.kind == "joints" and t.values.size == model.n_joints
                     and not outside_limits(nominal, t.values)), None) if q_start is None
               else np.asarray(q_start, dtype=float))  # a refused joint target is no start
-    texts, refused, qs = {}, {}, np.full((len(program.targets), model.n_joints), np.nan)
+    values, refused, qs = {}, {}, np.full((len(program.targets), model.n_joints), np.nan)
     for k, t in enumerate(program.targets):
         tcp = program.tcp_at(t.at)
         found = _target(t, tcp, (model, nominal) if isinstance(tcp, tuple) else _for_tcp(models, tcp), q_prev,
@@ -182,7 +182,8 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
         if isinstance(found, str):
             refused[k] = found
             continue
-        qs[k], q_prev, texts[k] = found
+        qs[k], q_prev, values[k] = found
+    texts = dict(zip(values, write_ur(program.text, [program.targets[k] for k in values], list(values.values()))))
     problems = tuple(f"{program.source}: line {program.targets[k].line} ({program.targets[k].move}"
                      f"{' ' + program.targets[k].variable if program.targets[k].variable else ''}): {why}; left as is"
                      for k, why in refused.items())
@@ -201,7 +202,8 @@ def _for_tcp(models: Models | None, tcp) -> tuple[Robot, Robot] | str:
 
 
 def _target(t: Target, tcp, models, q_prev: np.ndarray | None, orientation: Robot | None):
-    """(corrected joints, nominal joints, replacement text) of one target, or why it is refused."""
+    """(corrected joints, nominal joints, the values to write: the joints, or the TCP pose as p[…] holds it) of one
+    target, or why it is refused."""
     if isinstance(models, str):
         return models
     model, nominal = models
@@ -231,9 +233,9 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None, orientation: Robo
     if why:
         return why
     if t.kind == "joints":
-        return q, q_nom, joints_literal(q)
+        return q, q_nom, q
     pf, Rf, _, _ = nominal.pose_and_jacobian(q[None])
-    return q, q_nom, pose_literal(np.concatenate([pf[0], rotation_log(Rf @ turn)[0]]))
+    return q, q_nom, np.concatenate([pf[0], rotation_log(Rf @ turn)[0]])
 
 
 def outside_limits(robot: Robot, q: np.ndarray) -> str:

@@ -17,9 +17,11 @@ MOVJ, MOVL, MOVC or MOVS of the instruction section moves to (``MOVL C0003 V=…
 the number with another width; C positions are matched by number). Its ``move`` is the instruction, its
 ``variable`` the name in the position section (``C00003``), ``at`` the instruction's offset, its span and
 line those of the position line's numbers; ``fields`` are X, Y, Z, Rx, Ry, Rz (the 7-axis arms' Re, and
-BC/EC base and station axes, stay byte for byte); ``config`` the digits of the ``///RCONF`` in force (()
-before any); ``frames`` ("TOOL n", "USER m" | "BASE" | "ROBOT") from ``///TOOL``/``///USER``/``///POSTYPE``
-('' where the job names no tool). A C position used by two moves is compensated once, where it is written.
+BC/EC base and station axes, stay byte for byte); ``config`` the first six digits of the ``///RCONF`` in force
+(() before any; jobs write 6, 8 or 24, the digits past the sixth unused by a six-axis arm and kept as written);
+``frames`` ("TOOL n", "USER m" | "BASE" | "ROBOT") from ``///TOOL``/``///USER``/``///POSTYPE`` ('' where the job
+names no tool), ``///POSTYPE BASE`` named "ROBOT" in a job whose groups have no base axis (no ``BSn`` in a
+``///GROUPn`` line): without a travel track the base frame is the robot frame. A C position used by two moves is compensated once, where it is written.
 Values: x, y, z in m and the rotation vector (rad) of the TCP in that frame.
 
 A C position in PULSE form that a move goes to is a target of kind "pulses": its values are the encoder
@@ -57,6 +59,7 @@ import numpy as np
 
 from ..errors import MeasurementError
 from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix, zyx_nearest
+from .branches import RCONF_DIGITS
 from .programs import Dialect, Program, Target, line_column, old_numbers, write_fields
 
 NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
@@ -72,6 +75,7 @@ WORD = re.compile(r"[ \t]*([A-Za-z]\w*)")
 PLUS_MOVE = re.compile(r"\+[ \t]*(S?MOV[JLCS])\b", re.I)
 MOVES = ("MOVJ", "MOVL", "MOVC", "MOVS")
 POSTYPES = ("PULSE", "BASE", "ROBOT", "USER", "TOOL", "MTOOL")
+BASE_AXIS = re.compile(r"^[ \t]*///GROUP\d+[ \t]+[^\n]*\bBS\d", re.M | re.I)  # a group with a base axis (travel track)
 NPOS_KINDS = ("C", "BC", "EC", "P", "BP", "EX")
 ROBOT_VARIABLES = ("P", "LP", "PX", "LPX")
 ASSIGNS = ("SET", "SETE", "ADD", "SUB", "MUL", "DIV", "CNVRT", "GETS", "MSHIFT", "CLEAR", "SETEXPRESS")
@@ -292,10 +296,10 @@ def _pose(p: _Position) -> np.ndarray:
     return np.concatenate([np.array([x, y, z]) * 1e-3, rotation_log(np.asarray(R)[None])[0]])
 
 
-def _target(p: _Position, ref: _Reference) -> Target:
-    base = p.user if p.postype == "USER" else p.postype
+def _target(p: _Position, ref: _Reference, base_axis: bool) -> Target:
+    base = p.user if p.postype == "USER" else "ROBOT" if p.postype == "BASE" and not base_axis else p.postype
     return Target(p.start, p.end, p.line, ref.word, "pose", _pose(p), ref.at, p.name,
-                  tuple((a, b) for a, b, _ in p.numbers[:6]), p.rconf, (p.tool, base))
+                  tuple((a, b) for a, b, _ in p.numbers[:6]), p.rconf[:RCONF_DIGITS], (p.tool, base))
 
 
 def _pulse_target(p: _Position, ref: _Reference) -> Target:
@@ -304,9 +308,9 @@ def _pulse_target(p: _Position, ref: _Reference) -> Target:
                   tuple((a, b) for a, b, _ in p.numbers))
 
 
-def _moves(found: dict, refs: list[_Reference]) -> tuple[list, list, set]:
-    """Targets and listed items of the C positions that moves and other instructions name; the keys
-    of the positions accounted for."""
+def _moves(found: dict, refs: list[_Reference], base_axis: bool) -> tuple[list, list, set]:
+    """Targets and listed items of the C positions that moves and other instructions name (``base_axis``: the
+    job moves a base axis); the keys of the positions accounted for."""
     targets, listed, used = [], [], set()
     for r in refs:
         if r.kind != "C":
@@ -323,7 +327,7 @@ def _moves(found: dict, refs: list[_Reference]) -> tuple[list, list, set]:
             listed.append((r.line, what, f"a position in {p.postype} coordinates, a frame that moves with the "
                                          "robot: not a fixed target"))
         else:
-            targets.append(_target(p, r))
+            targets.append(_target(p, r, base_axis))
         used.add(("C", r.number))
     return targets, listed, used
 
@@ -336,7 +340,7 @@ def parse(source: str, text: str) -> Program:
     for r in refs:
         if r.kind == "C" and ("C", r.number) not in found:
             raise _fail(source, text, r.where, f"{r.text}: the job's //POS section holds no such C position")
-    targets, listed, used = _moves(found, refs)
+    targets, listed, used = _moves(found, refs, bool(BASE_AXIS.search(text)))
     variables = set()
     for r in refs:
         if r.kind in ROBOT_VARIABLES:

@@ -16,7 +16,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import MeasurementError
-from .programs import Dialect, Program, Target
+from .programs import Dialect, Program, Target, old_numbers, write_fields
 
 MOVES = {"movej": 1, "movel": 1, "movep": 1, "movec": 2, "servoj": 1}  # move -> number of target arguments
 CALL = re.compile(r"\b(" + "|".join(MOVES) + r")\s*\(")
@@ -29,6 +29,8 @@ CHANGED = re.compile(r"^[ \t]*([A-Za-z_]\w*)[ \t]*(?:\[[^\]\n]*\][ \t]*=(?!=)|[-
 SET_TCP = re.compile(r"\bset_tcp\s*\(")
 NOT_ONE_LITERAL = "its target is an expression or a variable not assigned once with a literal: known at run time"
 COMMENT_OR_STRING = re.compile(r"#[^\n]*|\"[^\"]*\"?|'[^']*'?")  # a string left open runs to the end
+VALUE = re.compile(NUMBER.strip(r"\s*"))  # one number of a literal
+RESOLUTION = 1e-10  # m and rad: what a rewritten number carries (0.1 nm, 0.1 nrad)
 
 
 def _arguments(code: str, open_at: int, source: str, line: int) -> list[tuple[int, int]]:
@@ -84,7 +86,9 @@ def _literal(text: str, a: int, b: int, line: int, move: str, at: int, variable:
         return None
     values = np.array([float(x) for x in found.group(1).split(",")])
     lead, tail = len(arg) - len(arg.lstrip()), len(arg) - len(arg.rstrip())
-    return Target(a + lead, b - tail, line, move, "pose" if pose else "joints", values, at, variable)
+    at0 = a + found.start(1)
+    fields = tuple((at0 + m.start(), at0 + m.end()) for m in VALUE.finditer(found.group(1)))
+    return Target(a + lead, b - tail, line, move, "pose" if pose else "joints", values, at, variable, fields)
 
 
 def _bound_literals(code: str, text: str) -> dict[str, tuple[int, int]]:
@@ -110,21 +114,24 @@ def _tcps(code: str, text: str, source: str) -> tuple[tuple[int, np.ndarray | No
     return tuple(out)
 
 
-def pose_literal(values: np.ndarray) -> str:
-    """p[x, y, z, rx, ry, rz] with 10 decimals (0.1 nm, 0.1 nrad)."""
-    return "p[" + ", ".join(f"{v:.10f}" for v in values) + "]"
-
-
 def joints_literal(values: np.ndarray) -> str:
     return "[" + ", ".join(f"{v:.10f}" for v in values) + "]"
 
 
-def _whole(text: str, targets: Sequence[Target], values: Sequence[np.ndarray]) -> list[str]:
-    """URScript targets written whole (10 decimals), whatever they were written as."""
-    return [pose_literal(v) if t.kind == "pose" else joints_literal(v) for t, v in zip(targets, values)]
+def _fields(text: str, targets: Sequence[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The literals' numbers for new SI values (G, F): as they are (m and rad), a number that moved only by
+    rounding noise (below half ``RESOLUTION``) the old one."""
+    old = old_numbers(text, targets)
+    return np.where(np.abs(values - old) <= RESOLUTION / 2, old, values), np.full(values.shape[1], RESOLUTION)
 
 
-DIALECT = Dialect("ur", (".script", ".urscript"), "#", parse, _whole)
+def write(text: str, targets: Sequence[Target], values: Sequence[np.ndarray]) -> list[str]:
+    """The literals' numbers for new SI values, each in its old style with the decimals that carry it to
+    ``RESOLUTION``; the separators and blanks between them as they are."""
+    return write_fields(text, targets, values, _fields)
+
+
+DIALECT = Dialect("ur", (".script", ".urscript"), "#", parse, write)
 
 
 def measurement_program(q: np.ndarray, tool: np.ndarray, settle: float, title: str) -> str:
