@@ -46,11 +46,17 @@ def test_target_counts_match_an_independent_reading(path):
     raw = path.read_bytes().decode("latin-1")
     prog = read_program(str(path), "krl")
     src = path.with_suffix(".src")
-    module = src.read_bytes().decode("latin-1") if path.suffix.lower() == ".dat" and src.exists() else ""
+    module = src.read_bytes().decode("latin-1") if path.suffix.lower() == ".dat" and src.exists() else None
     filled = [n for n in DECLARED.findall(raw)
-              if re.search(rf"^[ \t]*{n}[ \t]*(\.[ \t]*\w+[ \t]*)?=(?!=)", module, re.M | re.I)]
-    assert len(prog.targets) == sum(len(r.findall(raw)) for r in (INLINE, DECLARED, TYPED)) - len(filled)
+              if re.search(rf"^[ \t]*{n}[ \t]*(\.[ \t]*\w+[ \t]*)?=(?!=)", module or "", re.M | re.I)]
+    moves = "\n".join(re.findall(r"^[ \t]*(?:PTP|LIN|CIRC|SPTP|SLIN|SCIRC|SPL)\b[^\n;]*", module or "", re.M | re.I))
+    local = [n for n in DECLARED.findall(raw) if n not in filled and module is not None
+             and not re.search(rf"\b{n}\b", moves, re.I)
+             and not re.search(rf"^[ \t]*(?:DECL[ \t]+)?GLOBAL\b[^\n]*\b{n}\b", raw, re.M | re.I)]
+    found = sum(len(r.findall(raw)) for r in (INLINE, DECLARED, TYPED))
+    assert len(prog.targets) == found - len(filled) - len(local)
     assert sum("at run time by its module" in why for _, _, why in prog.not_literal) == len(filled)
+    assert sum("no move of its module" in why for _, _, why in prog.not_literal) == len(local)
     # every logged position inside other data is listed, not a target
     nested = len(re.findall(r"cmdPos \{", raw))
     assert sum("inside other data" in why for _, _, why in prog.not_literal) == nested
@@ -59,14 +65,20 @@ def test_target_counts_match_an_independent_reading(path):
 def test_the_data_folder_totals():
     progs = [read_program(str(p), "krl") for p in FILES]
     kinds = [t.kind for p in progs for t in p.targets]
-    assert (kinds.count("pose"), kinds.count("joints")) == (3, 11)  # 8 more .dat points their modules fill at run time
+    assert (kinds.count("pose"), kinds.count("joints")) == (0, 11)  # 8 .dat points their modules fill at run time,
+    # 3 inline forms' points no move of their modules names any more: listed
     whys = [why for p in progs for _, _, why in p.not_literal]
     assert sum(w.startswith("a relative move") for w in whys) == 6
     assert sum("read at run time" in w and w.startswith("$") for w in whys) == 24
 
 
-def test_friccontrol_dat_points_with_their_fdat():
-    prog = read_program(str(KRL / "CentroEPiaggio__kuka-lwr/FRILibrary/KRL/FRIControl.dat"), "krl")
+def test_friccontrol_dat_points_with_their_fdat(tmp_path):
+    real = KRL / "CentroEPiaggio__kuka-lwr/FRILibrary/KRL/FRIControl.dat"
+    here = read_program(str(real), "krl")  # its module's .src moves to neither (the inline forms were deleted)
+    assert here.targets == () and [(line, what) for line, what, why in here.not_literal
+                                   if "no move of its module (FRIControl.src)" in why] == [(43, "XP1"), (46, "XP2")]
+    (tmp_path / "FRIControl.dat").write_bytes(real.read_bytes())  # read alone, each point is a target
+    prog = read_program(str(tmp_path / "FRIControl.dat"), "krl")
     xp1, xp2 = prog.targets
     # line 43: DECL E6POS XP1={X -525.592529,Y -0.0128466198,Z 659.265625,A 0.00409000413,B -45.2178993,
     #          C -0.00150612905,S 5,T 28,E1 -0.00314998603,...}; line 44: DECL FDAT FP1={TOOL_NO 1,BASE_NO 0,...}
@@ -78,19 +90,23 @@ def test_friccontrol_dat_points_with_their_fdat():
     assert xp2.line == 46 and xp2.values[1] == pytest.approx(-3.44777509e-08)  # -3.44777509E-05 mm
 
 
-def test_kuka_ros_driver_dat():
-    prog = read_program(str(KRL / "ros-industrial__kuka_experimental/kuka_kss_hw_interface/krl/KSS_85/Program/"
-                                  "ROS/kuka_ros_driver.dat"), "krl")
+def test_kuka_ros_driver_dat(tmp_path):
+    real = KRL / "ros-industrial__kuka_experimental/kuka_kss_hw_interface/krl/KSS_85/Program/ROS/kuka_ros_driver.dat"
+    prog = read_program(str(real), "krl")
     names = [t.variable for t in prog.targets]
-    assert names == ["g_joint_pos_empty", "Xdrop4"]  # the measured position, velocity, torque and the target the
-    # module's .src fills at run time (ROS_Meas_Vel = ROS_getVel(), line 149) are listed, not compensated
+    assert names == ["g_joint_pos_empty"]  # GLOBAL: another module may move there. The measured position, velocity,
+    # torque and the target the module's .src fills at run time (ROS_Meas_Vel = ROS_getVel(), line 149) are listed,
+    # and so is Xdrop4, an inline form's point no move of the .src names any more
     filled = {(line, what): why for line, what, why in prog.not_literal if "by its module" in why}
     assert list(filled) == [(13, "ROS_Meas_Pos"), (14, "ROS_Meas_Vel"), (15, "ROS_Meas_Torque"),
                             (231, "ROS_joint_pos_tgt")]
     assert "kuka_ros_driver.src line 149" in filled[(14, "ROS_Meas_Vel")]
+    assert any(line == 555 and "no move of its module" in why for line, _, why in prog.not_literal)
     empty = prog.targets[0]  # line 230: GLOBAL E6AXIS g_joint_pos_empty={A1 0.0, ...}: no assignment in the module
     assert empty.line == 230 and empty.config == () and empty.frames == ("", "")
     np.testing.assert_allclose(empty.values, 0.0)
+    (tmp_path / "kuka_ros_driver.dat").write_bytes(real.read_bytes())  # read alone: every point a target
+    prog = read_program(str(tmp_path / "kuka_ros_driver.dat"), "krl")
     drop = prog.targets[-1]  # line 555, its FDAT Fdrop4 on line 554 has TOOL_NO 10, BASE_NO 0
     assert (drop.line, drop.config, drop.frames) == (555, (0, 0), ("TOOL_NO 10", "BASE_NO 0"))
     assert drop.values[0] == pytest.approx(666.666688)
@@ -292,3 +308,22 @@ def test_a_dat_point_its_module_fills_at_run_time_is_listed_not_compensated(tmp_
     listed = {what: why for _, what, why in prog.not_literal}
     assert f"demo{suffix} line 3" in listed["VEL"] and f"demo{suffix} line 5" in listed["XP[1]"]
     assert f"demo{suffix} line 5" in listed["XP[2]"] and f"demo{suffix} line 7" in listed["XTOOL"]
+
+
+def test_a_local_dat_point_no_move_of_its_module_names_is_listed(tmp_path):
+    """A limit in an IF, a speed, a torque record, declared in the .dat without GLOBAL and named by no move of the
+    module's .src: listed (a torque of {A4 1.0} was 'compensated' to 4.63). A GLOBAL point stays a target: other
+    modules may move there."""
+    (tmp_path / "m.dat").write_text(
+        "DEFDAT m\n"
+        "DECL E6AXIS XHOME={A1 0.0,A2 -90.0,A3 90.0,A4 10.0,A5 30.0,A6 0.0,E1 0.0}\n"
+        "DECL E6AXIS XLIMIT={A1 45.0,A2 -60.0,A3 80.0,A4 20.0,A5 40.0,A6 10.0,E1 0.0}\n"
+        "DECL AXIS XTORQUE={A1 12.5,A2 -40.0,A3 20.0,A4 1.0,A5 2.0,A6 0.5}\n"
+        "DECL GLOBAL E6AXIS XSHARED={A1 5.0,A2 -80.0,A3 85.0,A4 0.0,A5 20.0,A6 0.0,E1 0.0}\n"
+        "ENDDAT\n")
+    (tmp_path / "m.src").write_text("DEF m()\n  PTP XHOME\n  IF $AXIS_ACT.A1 > XLIMIT.A1 THEN\n    HALT\n  ENDIF\n"
+                                    "  ; PTP XTORQUE (a comment names it, no move does)\nEND\n")
+    prog = read_program(str(tmp_path / "m.dat"), "krl")
+    assert [t.variable for t in prog.targets] == ["XHOME", "XSHARED"]
+    listed = {what: why for _, what, why in prog.not_literal}
+    assert set(listed) == {"XLIMIT", "XTORQUE"} and all("no move of its module (m.src)" in w for w in listed.values())

@@ -18,7 +18,9 @@ What is a target (kind "pose" or "joints"):
   A ``.dat`` point is a target even though its moves are in its module's ``.src`` (the file of the same
   name beside it), unless that ``.src`` assigns it too, whole or in part (``ROS_Meas_Vel = ROS_getVel()``):
   then it is filled or changed at run time (a measured position, a velocity, a torque) and listed, like a
-  variable assigned twice in one file.
+  variable assigned twice in one file; or unless it is not ``GLOBAL`` (only its module sees it) and no move of
+  that ``.src`` names it: a value the module uses otherwise (a limit in an ``IF``, a speed, a record), listed.
+  A ``.dat`` with no ``.src`` beside it is read alone: each point is a target.
 * a FRAME variable is tool or base data (``TOOL_DATA[1]``, a base), not a place the robot goes to:
   it is a target only where a move of this file moves to it (``LIN F1``: KRL takes a FRAME as a
   Cartesian target); otherwise it is listed, never changed.
@@ -190,7 +192,7 @@ class _File:
     aggs: dict[int, _Aggregate]
     declared: dict[str, str]
     assigns: list[tuple[str, str, int, int, str]]
-    module: dict[str, tuple[str, int]] = dataclasses.field(default_factory=dict)  # what the module's .src assigns
+    module: "_Module | None" = None  # what the module's .src (beside a .dat) does with its variables
     targets: list[Target] = dataclasses.field(default_factory=list)
     listed: list[tuple[int, str, str]] = dataclasses.field(default_factory=list)
     used: set[int] = dataclasses.field(default_factory=set)
@@ -235,8 +237,21 @@ class _File:
 
     def elsewhere(self, var: str) -> str:
         """Where the module's ``.src`` assigns the variable ``var`` (compared upper case), in words, or ''."""
-        found = self.module.get(var) or self.module.get(var.split("[")[0])
-        return f"{found[0]} line {found[1]}" if found else ""
+        if self.module is None:
+            return ""
+        line = self.module.assigned.get(var) or self.module.assigned.get(var.split("[")[0])
+        return f"{self.module.name} line {line}" if line else ""
+
+    def unmoved(self, var: str) -> bool:
+        """Whether ``var`` is local to a module whose ``.src`` moves to it nowhere (False without a module)."""
+        name = var.split("[")[0]
+        return self.module is not None and name not in self.module.moved and name not in self.globals
+
+    @functools.cached_property
+    def globals(self) -> frozenset[str]:
+        """The point variables (upper case) the file declares GLOBAL: other modules see them."""
+        return frozenset(name.upper() for m in DECLARE.finditer(self.code) if "GLOBAL" in m.group(0).upper()
+                         for name in re.findall(r"[A-Za-z_]\w*", re.sub(r"\[[^\]]*\]", "", m.group(2))))
 
     def frames(self, at: int, variable: str) -> tuple[str, str]:
         """(tool, base) of a target at ``at``: the FDAT F<name> of a point X<name>, else the last
@@ -325,6 +340,9 @@ def _points(f: _File) -> None:
             f.note(a, shown, "a FRAME (tool or base data), not a move target: no move of this file goes to it")
         elif agg.missing:
             f.note(a, shown, _partial(agg))
+        elif f.unmoved(var):
+            f.note(a, shown, f"no move of its module ({f.module.name if f.module else ''}) goes to it, and it is not "
+                             f"GLOBAL: a value the module uses otherwise (a limit, a speed, a record), not a move target")
         else:
             kind = kind or ("E6" if set(agg.parts) & set(EXTERNAL) else "") + ("POS" if agg.shape == "pose" else "AXIS")
             f.targets.append(_target(f.text, agg, move or kind, at if move else a, shown, f.frames(a, var),
@@ -357,27 +375,38 @@ def _leftovers(f: _File) -> None:
         f.note(a, what, why)
 
 
-def _module(source: str) -> dict[str, tuple[str, int]]:
-    """For a ``.dat``: the variables the ``.src`` of its module (beside it, the same name) assigns, whole or in
-    part, as compared ("XP[1]"; the bare name for an index computed at run time) -> (that file's name, the line
-    of the first); {} for any other file, or a ``.dat`` with no such ``.src``."""
+@dataclasses.dataclass(frozen=True)
+class _Module:
+    """What the ``.src`` of a ``.dat``'s module (beside it, the same name) does with the ``.dat``'s variables."""
+
+    name: str  # the .src's file name
+    assigned: dict[str, int]  # each variable it assigns, whole or in part, as compared ("XP[1]"; the bare name for
+    # an index computed at run time) -> the line of the first
+    moved: frozenset[str]  # the names (upper case) its moves' lines hold
+
+
+def _module(source: str) -> _Module | None:
+    """For a ``.dat``: its module's ``.src``, as :class:`_Module`; None for any other file or a ``.dat`` without one."""
     folder, name = os.path.split(source)
     stem, suffix = os.path.splitext(name)
     if suffix.lower() != ".dat":
-        return {}
+        return None
     for other in (stem + s for s in (".src", ".SRC", ".Src")):
         try:
             with open(os.path.join(folder, other), "rb") as fh:
                 code = _blank(fh.read().decode("latin-1"))  # names are ASCII; comments may be anything
         except OSError:
             continue
-        out: dict[str, tuple[str, int]] = {}
+        assigned: dict[str, int] = {}
         for m in ASSIGN.finditer(code):
             index = "".join((m.group(2) or "").split())
             var = m.group(1).upper() + (index if index[1:-1].isdigit() else "")
-            out.setdefault(var, (other, code.count("\n", 0, m.start()) + 1))
-        return out
-    return {}
+            assigned.setdefault(var, code.count("\n", 0, m.start()) + 1)
+        ends = [(m.end(), code.find("\n", m.end())) for m in MOVE.finditer(code)]  # each move's line after its word
+        moved = {n.upper() for a, b in ends for n in re.findall(r"[A-Za-z_]\w*", code[a:b if b >= 0 else None])}
+        return _Module(other, assigned, frozenset(moved))
+    return None
+
 
 
 def parse(source: str, text: str) -> Program:
