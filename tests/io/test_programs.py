@@ -327,3 +327,33 @@ def test_radians_just_beyond_a_limit_are_not_called_degrees(tmp_path):
     (tmp_path / "p.script").write_text(_program([f"movej({_fmt(q, False)})"]))
     why = compensate_program(true, nominal, read_program(str(tmp_path / "p.script"), "ur")).refused[0]
     assert why.startswith("the target's own joints are outside the robot's limits: ") and "degrees" not in why
+
+
+def test_a_program_with_nothing_to_compensate_or_in_another_language(tmp_path, capsys):
+    """A RAPID module read as KRL from a .txt (no move, no position found): refused naming the language; a KRL
+    program whose only moves are to run-time variables: written as it was (it said '0 of 0' and exit 4 with no
+    reason); a robtarget written in metres: its refusal asks whether it is; with --skip-unreachable a program whose
+    every target is refused is written with each marked (it wrote nothing)."""
+    abb, kuka = kincal.load_robot("abb_irb120"), kincal.load_robot("kuka_kr6r900sixx")
+    _save_calibrated(kincal.perturb(abb, seed=1), abb, tmp_path / "abb.yaml")
+    _save_calibrated(kincal.perturb(kuka, seed=1), kuka, tmp_path / "kuka.yaml")
+    module = ("MODULE MT\n    CONST robtarget p1:=[[0.374,0.0,0.630],[0.7071068,0,0.7071068,0],[0,0,0,0],"
+              "[9E9,9E9,9E9,9E9,9E9,9E9]];\n    PROC main()\n        MoveL p1,v100,fine,tool0;\n    ENDPROC\n"
+              "ENDMODULE\n")
+    (tmp_path / "sys.txt").write_text(module)
+    assert main(["compensate", str(tmp_path / "kuka.yaml"), str(tmp_path / "sys.txt"), "--program", "krl", "-o",
+                 str(tmp_path / "m.src")]) == 1
+    assert "is it a krl program?" in capsys.readouterr().err and not (tmp_path / "m.src").exists()
+    krl = "DEF run()\n  DECL E6POS goal\n  goal = $POS_ACT\n  LIN goal\nEND\n"
+    (tmp_path / "run.src").write_text(krl)
+    assert main(["compensate", str(tmp_path / "kuka.yaml"), str(tmp_path / "run.src"), "--program", "krl", "-o",
+                 str(tmp_path / "run_cal.src")]) == 0
+    assert "0 of 0 literal targets" in capsys.readouterr().out and (tmp_path / "run_cal.src").read_text() == krl
+    (tmp_path / "mt.mod").write_text(module)
+    base = ["compensate", str(tmp_path / "abb.yaml"), str(tmp_path / "mt.mod"), "--program", "rapid", "-o",
+            str(tmp_path / "mt_cal.mod")]
+    assert main(base) == 4 and not (tmp_path / "mt_cal.mod").exists()
+    assert "(0.374, 0, 0.63 mm): written in metres?" in capsys.readouterr().out
+    assert main(base + ["--skip-unreachable"]) == 0
+    written = (tmp_path / "mt_cal.mod").read_text().splitlines()
+    assert written[1].startswith(module.splitlines()[1]) and "not compensated" in written[1]

@@ -175,11 +175,11 @@ def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
         raise ValueError(f"{', '.join(flags)}: not for a {args.program} program, whose targets carry their own frames "
                          f"(--frames), units and orientation")
     nominal = cal.with_params(values) if values else cal
-    prog = kincal.io.read_program(args.targets, args.program)
+    prog = _read_program(args)
     frames = kincal.io.read_frames(args.frames) if args.frames else {}
     turned, turn = orientation
     res = compensate_branches(cal, nominal, prog, kincal.io.ROWS[args.program], frames, orientation=turned)
-    written = bool(res.texts) and (not res.problems or args.skip_unreachable)
+    written = not res.problems or args.skip_unreachable  # no target at all: the program as it was
     if written:
         kincal.io.write_program(args.output, prog, res.texts, res.refused)
     lines = [f"{len(res.texts)} of {len(prog.targets)} literal targets compensated on their own branch, each "
@@ -199,6 +199,18 @@ def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
                        "output": args.output if written else None, **_orientation_from(turned, turn),
                        "base_note": unseen or None},
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
+
+
+def _read_program(args):
+    """The program --program reads; a file in which that language finds nothing at all and whose suffix is none
+    of the language's is refused (another language's file, or no program: 0 of 0 targets said nothing)."""
+    prog = kincal.io.read_program(args.targets, args.program)
+    suffixes = kincal.io.dialects()[args.program].suffixes
+    if not prog.targets and not prog.not_literal and os.path.splitext(args.targets)[1].lower() not in suffixes:
+        raise ValueError(f"{args.targets}: read as {args.program}, it holds no move and no position, and its suffix "
+                         f"is none of {args.program}'s ({', '.join(suffixes)}): is it a {args.program} program? "
+                         f"(--program names the language)")
+    return prog
 
 
 def _calibration(args) -> tuple[dict, dict | None]:
@@ -275,10 +287,10 @@ def _taught_lines(cal, nominal, frames, turned) -> list[str]:
 def _compensate_program(args, r, nominal, carry: str, models, orientation, unseen: str) -> int:
     """compensate --program ur: a robot program compensated in place, written to -o (never over it);
     with --skip-unreachable each target left as it is gets a comment saying why."""
-    prog = kincal.io.read_program(args.targets, args.program)
+    prog = _read_program(args)
     turned, turn = orientation
     res = compensate_program(r, nominal, prog, models=models, orientation=turned)
-    written = bool(res.texts) and (not res.problems or args.skip_unreachable)  # never half a program silently
+    written = not res.problems or args.skip_unreachable  # never half a program silently; none at all: as it was
     if written:
         kincal.io.write_program(args.output, prog, res.texts, res.refused)
     lines = [f"{len(res.texts)} of {len(prog.targets)} literal targets compensated"

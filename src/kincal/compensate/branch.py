@@ -47,6 +47,7 @@ from .taught import resolve_taught
 from .program import SEARCH, STARTS, ProgramCompensation, outside_limits
 
 CHECK_TOL = 1e-9  # m and rad: a written target must reproduce its intended pose this closely
+METRES_LOOK = 5.0  # mm: a pose target within this of its frame's origin in every coordinate looks written in metres
 BIT_EDGE = np.radians(0.01)  # rad: a joint this near 0 sits on the edge of its sign bit (a pose's last decimals)
 SINGULAR = 1e3  # condition number of the pose Jacobian (m, rad) beyond which a failed correction is named as such
 CHAIN = 512  # targets per Newton pass of the controller's joints (the next ones start from the joints found)
@@ -246,10 +247,20 @@ def _controller_joints(nominal: Robot, program: Program, goals, rows: Rows, q0: 
             found = controller_inverse(nominal, p[k][None], R[k][None], q0 if near < 0 else q_nom[near],
                                        targets[k].config, _single(rows))
             if isinstance(found, str):
-                refused[k] = found
+                refused[k] = found + _in_metres(targets[k])
             else:
                 q_nom[k] = found
     return q_nom
+
+
+def _in_metres(target) -> str:
+    """A hint when a pose target the nominal model does not reach is written as if in metres: every coordinate
+    within ``METRES_LOOK`` of its frame's origin (a vendor's positions are in mm); else ''."""
+    if target.kind != "pose" or np.abs(target.values[:3]).max() * 1e3 > METRES_LOOK:
+        return ""
+    return (f"; its coordinates are all within {METRES_LOOK:g} mm of its frame's origin "
+            f"({', '.join(f'{v * 1e3:g}' for v in target.values[:3])} mm): written in metres? This language's "
+            f"positions are in mm")
 
 
 def _last_solved(q_nom: np.ndarray, k: int) -> int:
