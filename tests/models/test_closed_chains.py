@@ -362,6 +362,16 @@ def test_jugglebot_session_to_session_through_the_command_line(tmp_path, capsys)
     rows = np.loadtxt(tmp_path / "legs.csv", delimiter=",", skiprows=1)
     reached = model.forward(rows[:, 1:7] * 2 * np.pi)  # rev -> rad, the legs' reading unit
     assert np.abs(reached * 1e3 - np.loadtxt(targets, delimiter=",", skiprows=1)[:, :3]).max() < 1e-6
+    # the calibrated model exported to a robot file: the base it writes is the nominal one (it wrote the motion
+    # capture frame, 48 mm and 2.2° away, and its commands aimed there), so its commands are the calibrated file's
+    code, _, text = _kincal(capsys, ["export", str(tmp_path / "s1.yaml"), str(tmp_path / "exported.yaml")])
+    assert code == 0 and "the file keeps the nominal model's base" in text
+    assert kincal.load_robot(str(tmp_path / "exported.yaml")).base_transform()[1].tolist() == [0.0, 0.0, 0.0]
+    code, _, text = _kincal(capsys, ["compensate", str(tmp_path / "exported.yaml"), str(targets), "--pose",
+                                     *JUGGLE[2:], "-o", str(tmp_path / "legs_exported.csv")])
+    assert code == 0 and "has no calibration record" in text
+    again = np.loadtxt(tmp_path / "legs_exported.csv", delimiter=",", skiprows=1)
+    assert np.abs(again[:, 1:7] - rows[:, 1:7]).max() < 1e-9
     code, out, text = _kincal(capsys, ["calibrate", "hexapod", s2, "--test", s1, *JUGGLE, *common,
                                        "-o", str(tmp_path / "s2.yaml")])
     assert code in (0, 4) and out["held_out"][0]["mean"] * 1e3 <= 1.268

@@ -115,8 +115,10 @@ def cmd_export(args) -> int:
     if args.format in kincal.io.FRAMES_FORMATS:
         return _export_frames(args)
     r = load_robot(args, [args.source], [args.output])
+    values = (kincal.models.load_calibration_record(args.robot) or {}).get("nominal")
+    base = {n: values[n] for n in r.base_params() if n in values} if isinstance(values, dict) else None
     info = kincal.export_robot(r, args.output, args.format, args.source, args.tool_link, args.base_yaw / DEG,
-                               args.length_unit, args.angle_unit, args.joint_names)
+                               args.length_unit, args.angle_unit, args.joint_names, base if base else None)
     lines = [f"{r.name}: {info['format']} written to {args.output} (checked: it reproduces the model, tool point "
              f"included, to 1e-9 m)"]
     if info.get("tool_link") and not args.tool_link:
@@ -125,9 +127,10 @@ def cmd_export(args) -> int:
                      f"(--tool-link names it)")
     if info["base_frame"]:
         kinds = dict(zip(r.params.names, r.params.kinds))
-        lines.append("base frame found by the calibration (where the tracker saw the robot; not part of the robot "
-                     "description): " + ", ".join(f"{k} {display(v, kinds[k], digits=(4, 4))}"
-                                                  for k, v in info["base_frame"].items()))
+        kept = " (the file keeps the nominal model's base)" if info["format"] == "yaml" and base else ""
+        lines.append(f"base frame found by the calibration (where the instrument saw the robot; not part of the "
+                     f"robot description{kept}): " + ", ".join(f"{k} {display(v, kinds[k], digits=(4, 4))}"
+                                                               for k, v in info["base_frame"].items()))
     if info.get("missing_limits"):
         lines.append(f"note: the robot file gives no velocity/effort limit for {', '.join(info['missing_limits'])}: "
                      f"the URDF leaves them out (add 'velocity:' and 'effort:' to those joints)")

@@ -102,8 +102,11 @@ def cmd_compensate(args) -> int:
                **(_orientation_from(turned, turn) if args.pose else {"orientation_from": None})}
     unseen = _base_line(args, record, cal, uncertainty)
     payload["base_note"] = unseen or None
+    alone = "" if values else (f"note: {args.robot} has no calibration record: the commands are this model's own "
+                               f"inverse kinematics, orientation included (no nominal model to correct, no σ)")
     text = _compensation_text(args, res, r) + (f"\nTCP: {carry}" if carry else "") + \
-        (f"\n{turn.note()}" if turn is not None else "") + (f"\n{unseen}" if unseen else "")
+        (f"\n{turn.note()}" if turn is not None else "") + (f"\n{unseen}" if unseen else "") + \
+        (f"\n{alone}" if alone else "")
     return emit(args, payload, text, 0 if res.written else EXIT_REFUSED)
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -397,7 +397,7 @@ FORMATS = ("urdf", "ur", "yaml")
 
 def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, tool_link: str | None = None,
                  base_yaw: float = 0.0, length_unit: str = "m", angle_unit: str = "rad",
-                 joint_names: Sequence[str] | None = None) -> dict:
+                 joint_names: Sequence[str] | None = None, base: Mapping[str, float] | None = None) -> dict:
     """Write a robot as a URDF, a UR calibration file or a kincal robot YAML file.
 
     The file is written atomically, and only after its kinematics have been checked against the model (see
@@ -424,6 +424,10 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
         YAML: unit of the angles in the file (default "rad").
     joint_names : sequence of str, optional
         URDF of a DH/MDH robot: the joints' names (default: the robot file's ``names:``).
+    base : mapping of str to float, optional
+        YAML: the base frame's parameters to write (the nominal model's: where the robot stands in its own
+        description) in place of the measurement frame a calibration found, m and rad; default: as they are. The
+        URDF and UR file hold no measurement frame either.
 
     Returns
     -------
@@ -466,7 +470,8 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
         text, extra = ur_calibration(robot, base_yaw)
         summary.update(extra)
     else:
-        text = robot_to_yaml(robot, length_unit, angle_unit)
+        mounted = robot.with_params({n: float(base[n]) for n in robot.base_params()}) if base else robot
+        text = robot_to_yaml(mounted, length_unit, angle_unit)
     write_text_atomic(path, text)
     return summary
 
