@@ -161,7 +161,7 @@ class Program:
 
     >>> new = program.with_values({0: program.targets[0].values + [0.0, 0.0, 1e-3, 0.0, 0.0, 0.0]})
     >>> print(new.splitlines()[2])
-      movel(p[0.4000000000, -0.1000000000, 0.3010000000, 0.0000000000, 1.5708000000, 0.0000000000])  # approach
+      movel(p[0.4, -0.1, 0.301, 0, 1.5708, 0])  # approach
     """
 
     source: str
