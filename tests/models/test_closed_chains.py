@@ -1,6 +1,7 @@
 """The Stewart–Gough platform (6-D implicit model): kinematics against independent references (finite
 differences, closed-form leg lengths, the robot file read back), recovery of simulated parameters, sampling that
 only gives poses that exist, and the real Jugglebot hexapod (``../shared/datasets/stewart_jugglebot``)."""
+import csv
 import dataclasses
 import json
 from pathlib import Path
@@ -342,7 +343,15 @@ def test_jugglebot_session_to_session_through_the_command_line(tmp_path, capsys)
     s1, s2 = str(JUGGLEBOT / "S1.csv"), str(JUGGLEBOT / "S2.csv")
     common = ["--residual", "joint", "--refit-target", "--json"]
     code, out, _ = _kincal(capsys, ["calibrate", "hexapod", s1, "--test", s2, *JUGGLE, *common,
-                                    "-o", str(tmp_path / "s1.yaml")])
+                                    "-o", str(tmp_path / "s1.yaml"), "--residuals", str(tmp_path / "res.csv")])
+    # the per-sample file: the legs' misses in motor mrad (they were written as position errors in "mm", 100x the
+    # fit's 0.84 mm); through the mean lead, 0.41 mm RMS per leg, the dataset README's fit of the same model
+    rows = list(csv.DictReader(open(tmp_path / "res.csv")))
+    assert rows[0]["position_error_mm"] == "" and len(rows) == len(open(s1).read().splitlines()) - 1
+    legs = np.array([float(r["joint_error_mrad"]) for r in rows])
+    lead = np.mean([leg["lead"] for leg in yaml.safe_load(
+        (ROOT / "src/kincal/models/robots/hexapod.yaml").read_text())["legs"]])  # mm per rev
+    assert abs(np.sqrt(np.mean(legs**2) / 6) * 1e-3 / (2 * np.pi) * lead - 0.41) < 0.01
     held = out["held_out"][0]
     assert code in (0, 4) and held["mean"] * 1e3 <= 0.611 and np.degrees(held["mean_rotation"]) <= 0.1120
     assert len(out["estimated"]) + len(out["nuisance"]) == 48 and len(out["identifiability"]["frames"]) == 12
@@ -388,7 +397,15 @@ def test_jugglebot_legs_give_under_the_platforms_weight(tmp_path, capsys):
     s1, s2 = str(JUGGLEBOT / "S1.csv"), str(JUGGLEBOT / "S2.csv")
     common = ["--residual", "joint", "--refit-target", "--error-model", "compliance", "--json"]
     code, out, _ = _kincal(capsys, ["calibrate", "hexapod", s1, "--test", s2, *JUGGLE, *common,
-                                    "-o", str(tmp_path / "s1.yaml")])
+                                    "-o", str(tmp_path / "s1.yaml"), "--residuals", str(tmp_path / "res.csv")])
+    # the per-sample file: the legs' misses in motor mrad (they were written as position errors in "mm", 100x the
+    # fit's 0.84 mm); through the mean lead, 0.41 mm RMS per leg, the dataset README's fit of the same model
+    rows = list(csv.DictReader(open(tmp_path / "res.csv")))
+    assert rows[0]["position_error_mm"] == "" and len(rows) == len(open(s1).read().splitlines()) - 1
+    legs = np.array([float(r["joint_error_mrad"]) for r in rows])
+    lead = np.mean([leg["lead"] for leg in yaml.safe_load(
+        (ROOT / "src/kincal/models/robots/hexapod.yaml").read_text())["legs"]])  # mm per rev
+    assert abs(np.sqrt(np.mean(legs**2) / 6) * 1e-3 / (2 * np.pi) * lead - 0.41) < 0.01
     held = out["held_out"][0]
     assert code in (0, 4) and held["mean"] * 1e3 <= 0.60 and np.degrees(held["mean_rotation"]) <= 0.11
     assert len(out["estimated"]) + len(out["nuisance"]) == 49 and len(out["identifiability"]["frames"]) == 12

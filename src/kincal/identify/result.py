@@ -330,8 +330,10 @@ class CalibrationResult:
 
     def sample_table(self) -> list[dict]:
         """Per sample of every set: file, row, kind, position error (mm: the norm of the sample's position residuals,
-        all its seen markers together), rotation error (mrad; poses), the norm of its residual whitened by the stated
-        σ, its robust z within the set and the outlier flag (the verdict's rule)."""
+        all its seen markers together; None for a residual in joint space), rotation error (mrad; poses), joint
+        error (a residual in joint space: the norm of its joints' misses, mrad or mm as the joints are; else None),
+        the norm of its residual whitened by the stated σ, its robust z within the set and the outlier flag (the
+        verdict's rule)."""
         out, sets = [], self.observations
         for obs, bad, norms in zip(sets, self.outliers or ((),) * len(sets), sample_norms(sets, self.whitened_residual)):
             names, nuis0, _ = obs.nuisance(self.robot)
@@ -342,17 +344,29 @@ class CalibrationResult:
             pos, ang = (sample_norms([obs], np.where(rot == turned, r, 0.0))[0] for turned in (False, True))
             z = robust_z(norms) if len(obs) >= MIN_SAMPLES else np.zeros(len(obs))
             flagged = set(int(i) for i in bad)
-            out += [{"file": obs.source, "row": int(obs.rows[i]), "kind": obs.kind, "position_mm": float(pos[i] * MM),
-                     "rotation_mrad": float(ang[i] * MRAD) if rot.any() else None, "whitened": float(norms[i]),
+            joints = obs.kind == "joint"  # its rows are the joints' misses (rad or m): 1e3 -> mrad or mm
+            out += [{"file": obs.source, "row": int(obs.rows[i]), "kind": obs.kind,
+                     "position_mm": None if joints else float(pos[i] * MM),
+                     "rotation_mrad": float(ang[i] * MRAD) if rot.any() else None,
+                     "joint_milli": float(pos[i] * 1e3) if joints else None, "whitened": float(norms[i]),
                      "robust_z": float(z[i]), "outlier": i in flagged} for i in range(len(obs))]
         return out
 
     def write_residuals(self, path: str) -> None:
-        """:meth:`sample_table` as CSV (atomically): mm, mrad, whitened norms, robust z, outlier yes/no."""
-        header = ["file", "row", "kind", "position_error_mm", "rotation_error_mrad", "whitened_norm", "robust_z", "outlier"]
-        write_csv(path, header, ([s["file"], s["row"], s["kind"], f"{s['position_mm']:.6g}",
-                                  "" if s["rotation_mrad"] is None else f"{s['rotation_mrad']:.6g}", f"{s['whitened']:.6g}",
-                                  f"{s['robust_z']:.4g}", "yes" if s["outlier"] else "no"] for s in self.sample_table()))
+        """:meth:`sample_table` as CSV (atomically): mm, mrad, the joints' misses (mrad for revolute joints, mm for
+        prismatic ones; a column only for a residual in joint space), whitened norms, robust z, outlier yes/no."""
+        table = self.sample_table()
+        types = set(self.robot.joint_types)
+        joint = "joint_error_" + ("mrad" if types == {"revolute"} else "mm" if types == {"prismatic"} else "mrad_mm")
+        joints = any(s["joint_milli"] is not None for s in table)
+        header = ["file", "row", "kind", "position_error_mm", "rotation_error_mrad", *([joint] if joints else []),
+                  "whitened_norm", "robust_z", "outlier"]
+
+        def cell(v):
+            return "" if v is None else f"{v:.6g}"
+        write_csv(path, header, ([s["file"], s["row"], s["kind"], cell(s["position_mm"]), cell(s["rotation_mrad"]),
+                                  *([cell(s["joint_milli"])] if joints else []), cell(s["whitened"]),
+                                  f"{s['robust_z']:.4g}", "yes" if s["outlier"] else "no"] for s in table))
 
     def held_out(self, obs, robot: Robot | None = None) -> dict:
         """Statistics of a held-out set (same types) under the calibrated robot (or ``robot``, e.g. the
