@@ -161,6 +161,15 @@ def test_positioner_through_the_command_line(tmp_path, capsys):
         # the nominal kinematics with the camera frame and the target registered: the model gains 10 % here,
         # the rest of the 16 mm "before" of a registration by the frame alone was the target's mounting
         assert held["mean"] * 1e3 < out["held_out_nominal"][0]["mean"] * 1e3 < 1.3 * held["mean"] * 1e3
+    # evaluate --same-frame of the calibrated file: both models judged as calibrate judged them (the nominal one
+    # was registered to the held-out file itself, 0.4218 against 0.4269 mm, while the calibrated one kept its frame)
+    code, out, _ = _run(capsys, base + ["--std-rot", "1mrad", "--same-frame", "-o", str(tmp_path / "cal.yaml")])
+    assert code == 0
+    code, again, _ = _run(capsys, ["evaluate", str(tmp_path / "cal.yaml"), odd, "--type", "pose", "--joint-cols",
+                                   "q1,q2", "--same-frame", "--json"])
+    assert code == 0 and again["mean"] == pytest.approx(out["held_out"][0]["mean"], abs=1e-9)
+    assert again["nominal"]["mean"] == pytest.approx(out["held_out_nominal"][0]["mean"], abs=1e-9)
+    assert again["frame_fitted"] is False
     code, out, _ = _run(capsys, base + ["--std-rot", "1mrad"])  # by default the test file's frame is fitted
     assert code == 0 and out["held_out"][0]["mean"] * 1e3 <= held["mean"] * 1e3 + 1e-9
     code, _, err = _run(capsys, base + ["--rot-cols", "qx,qy,qz,qw"])  # the columns given in the other order

@@ -236,20 +236,15 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
     frame = (() if args.same_frame or kind not in ABSOLUTE else robot.base_params()) + tuple(
         n for n in own if n in robot.params)
     fit = _fixed_kinematics(robot, obs, frame, held)
-    nominal = nominal_model(robot, record, args.robot)
-    mounting = (*(robot.base_params() if kind in ABSOLUTE else ()),  # the point only where the data fix a scale
-                *(n for n in robot.params.names if n.startswith("tool.") and obs.reference))
-    s, before = fit.per_set[0], None if nominal is None else _fixed_kinematics(nominal, obs, mounting, held).per_set[0]
+    s, (before, fitted) = fit.per_set[0], _nominal_beside(args, robot, record, obs, held)
     kept = sorted({"probe rotation" if n.startswith("target.") else "marker points" for n in held if n in fit.nuisance})
-    parts = [w for w, p in (("frame", "base."), ("target point", "tool.")) if any(n.startswith(p) for n in mounting)]
-    fitted = f"its {' and '.join(parts)} fitted" if parts else "its frame and target point as declared"  # nominal's
     texts: list[str] = []
     if stem:  # the figures of the set with positions: stem-<figure>.png/.svg
         from kincal.report import observation_figures
 
         texts = save_figures(observation_figures(fit, "held-out"), stem)
-    texts.append(f"{robot.name} on {path} ({kind}; kinematics fixed, {'frame and ' if frame else ''}set-up "
-                 f"parameters fitted{', the ' + ' and '.join(kept) + ' as calibrated' if kept else ''}): "
+    texts.append(f"{robot.name} on {path} ({kind}; kinematics fixed, {_fitted_here(robot, frame, own, fit, held)}"
+                 f"{', the ' + ' and '.join(kept) + ' as calibrated' if kept else ''}): "
                  f"{stat_line(s)}" + ("" if before is None else f"  (nominal, {fitted}: {stat_line(before)})"))
     texts += group_lines([s], "")
     train = [t.get("mean") for t in (record or {}).get("observations", []) if isinstance(t, dict)
@@ -274,6 +269,33 @@ def group_lines(sets: list, which: str) -> list[str]:
     return [f"  {which}{g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
             f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
             for s in sets for g in in_display(s).get("groups", [])]
+
+
+def _fitted_here(robot, frame: tuple, own: tuple, fit, held: dict) -> str:
+    """What a held-out set's fit moved, in words: its frame, the target --refit-target names, the set-up
+    parameters not held as calibrated; or that nothing was fitted."""
+    parts = ["frame"] if set(frame) & set(robot.base_params()) else []
+    parts += ["the target (--refit-target)"] if own else []
+    parts += ["set-up parameters"] if [n for n in fit.nuisance if n not in held and n not in own] else []
+    return (" and ".join(parts) + " fitted") if parts else "nothing fitted"
+
+
+def _nominal_beside(args, robot, record: dict | None, obs, held: dict) -> tuple[dict | None, str]:
+    """The nominal model's statistics on a held-out set, judged as the calibrated one is: with --same-frame its
+    frame and target point as registered on the training data (the record's, as the report does), else registered
+    to this set (the point only where the data fix a scale); and how, in words. (None, '') without a record."""
+    kept = nominal_model(robot, record, args.robot, "before_mounting") if args.same_frame else None
+    if kept is not None:
+        return _fixed_kinematics(kept, obs, (), held).per_set[0], "its frame and target point as registered on the " \
+            "training data"
+    nominal = nominal_model(robot, record, args.robot)
+    if nominal is None:
+        return None, ""
+    mounting = (*(robot.base_params() if obs.kind in ABSOLUTE else ()),
+                *(n for n in robot.params.names if n.startswith("tool.") and obs.reference))
+    parts = [w for w, p in (("frame", "base."), ("target point", "tool.")) if any(n.startswith(p) for n in mounting)]
+    return _fixed_kinematics(nominal, obs, mounting, held).per_set[0], \
+        f"its {' and '.join(parts)} fitted" if parts else "its frame and target point as declared"
 
 
 def _fixed_kinematics(robot, obs, frame: tuple, held: dict):

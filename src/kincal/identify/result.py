@@ -309,8 +309,8 @@ class CalibrationResult:
                "setup": self.setup(), "weakly_determined": {n: float(v) for n, v in self.weak.items()}}
         if self.data:
             out["training_error"] = self.stats_after.mean
-            nominal = self.nominal.params.as_dict()  # "before": its frame and target point registered on the data
-            out["before_mounting"] = {n: float(v) for n, v in self.before.params.as_dict().items() if v != nominal[n]}
+        nominal = self.nominal.params.as_dict()  # "before": its frame and target point registered on the data
+        out["before_mounting"] = {n: float(v) for n, v in self.before.params.as_dict().items() if v != nominal[n]}
         if self.use_q is not None:
             out["use_q"] = self.use_q.tolist()
         if self.repeat is not None:
