@@ -1021,3 +1021,23 @@ def test_a_held_out_file_that_is_the_training_file_is_refused(tmp_path, capsys, 
     err = capsys.readouterr().err
     assert code == 1 and f"--test {test} holds the same data as the training file" in err
     assert not (tmp_path / "c.yaml").exists()
+
+
+def test_a_sample_number_column_given_as_a_joint_is_named(tmp_path, capsys):
+    """--joint-cols sample,q2,… on the Panda's socket file (radians, as declared): the sample numbers 0…36, counting
+    up within each placement, were called degrees ('use angle unit deg'); now the column is named a counter. A joint
+    swept in degrees and read as radians is still degrees (its neighbours are degrees too)."""
+    from conftest import PANDA_URDF, SOCKETS
+    cols = "sample,q2,q3,q4,q5,q6,q7"
+    code = main(["calibrate", str(PANDA_URDF), "--tip-link", "ball_link", str(SOCKETS / "samples.csv"), "--type",
+                 "same-point", "--label-col", "socket", "--group-col", "placement", "--distance", "0,1,50",
+                 "--length-unit", "mm", "--joint-cols", cols, "-o", str(tmp_path / "c.yaml")])
+    err = capsys.readouterr().err
+    assert code == 1 and "panda_joint1 holds the whole numbers 0 to 36, counting up by 1" in err
+    assert "look like degrees" not in err and not (tmp_path / "c.yaml").exists()
+    from kincal.io import check_degrees
+    robot = kincal.load_robot("ur5")
+    sweep = np.degrees(robot.sample_joints(40, seed=1))
+    sweep[:, 0] = np.arange(40.0)  # joint 1 stepped 1° per row, every joint written in degrees
+    with pytest.raises(kincal.errors.MeasurementError, match="they look like degrees"):
+        check_degrees("sweep.csv", sweep, robot, "rad")

@@ -200,14 +200,29 @@ def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
     if over and np.all(np.abs(q[:, rev]) * np.pi / 180.0 <= reach):  # read as degrees, they would fit
         qmax = float(np.max(np.abs(q[:, rev])))
         given = f" ('{angle_unit}' was given)" if angle_unit else ""
+        j = np.flatnonzero(rev)[int(np.argmax(np.max(np.abs(q[:, rev]), axis=0)))]
+        written = q[:, j] * (180.0 / np.pi if angle_unit == "deg" else 1.0)
+        alone = int(np.sum(np.any(np.abs(q[:, rev]) > reach, axis=0))) == 1  # the other joints fit as given
+        if alone and _counter(written):
+            raise MeasurementError(f"{source}: the column read as joint {robot.joint_names[j]} holds the whole numbers "
+                                   f"{written.min():.0f} to {written.max():.0f}, counting up by 1 from row to row: a row "
+                                   f"or sample number, not a joint angle; check the joint columns (CLI: --joint-cols)")
         if angle_unit == "deg":  # already read as degrees: not an angle at all
-            j = np.flatnonzero(rev)[int(np.argmax(np.max(np.abs(q[:, rev]), axis=0)))]
             raise MeasurementError(f"{source}: the column read as joint {robot.joint_names[j]} reaches "
                                    f"{np.degrees(qmax):.4g} deg as written ('deg' was given), far beyond its limits: "
                                    f"not a joint angle (a pose number or another quantity?); check the joint columns "
                                    f"(CLI: --joint-cols)")
         raise MeasurementError(f"{source}: revolute joint values reach {qmax:.4g} rad{given}, far beyond the joint "
                                f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)")
+
+
+def _counter(values: np.ndarray) -> bool:
+    """Whether values (N,) as written, N ≥ 5, are a counter: whole numbers that go up by 1 from row to row, but for
+    restarts (a sample number within each placement)."""
+    v = np.round(values, 9)
+    steps = np.diff(v)
+    return bool(len(v) >= 5 and np.all(v == np.round(v)) and np.all((steps == 1) | (steps < 0))
+                and np.mean(steps == 1) >= 0.8)
 
 
 def check_radians(source: str, q: np.ndarray, robot: Robot, angle_unit: str | None) -> None:
