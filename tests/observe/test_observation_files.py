@@ -203,6 +203,10 @@ def test_panda_sockets_through_the_command_line(tmp_path, capsys):
     assert code == 0 and not out["prior"] and out["held_out"][0]["mean_abs"] * 1e3 > held["mean_abs"] * 1e3 + 0.02
     code, _, err = _run(capsys, base + [test, "--distance", "0,1,50"])  # the placement column forgotten
     assert code == 1 and "not one point" in err and "--group-col" in err
+    swapped = [a for a in base if a != "q1,q2,q3,q4,q5,q6,q7"]  # joints 1 and 3 swapped, the placements given: the
+    swapped.insert(base.index("q1,q2,q3,q4,q5,q6,q7"), "q3,q2,q1,q4,q5,q6,q7")  # columns named, not --group-col
+    code, _, err = _run(capsys, swapped + [test, "--group-col", "placement", "--distance", "0,1,50"])
+    assert code == 1 and "not one point" in err and "--group-col" not in err and "check the joint columns" in err
     code, _, err = _run(capsys, base + [train, "--group-col", "placement"])  # no distance
     assert code == 1 and "scale is unobservable" in err
     code, _, err = _run(capsys, base + [train, "--group-col", "placement", "--distance", "0,1,50", "--angle-unit", "deg"])

@@ -123,6 +123,15 @@ class SamePointObs(Observation):
     def points(self) -> list[str]:
         return _labels_in_order(self.labels)
 
+    def _spread_hint(self) -> str:
+        """What to check when one label's samples are not one point: the placements (when none are labelled), then
+        the joint columns (their order, one given twice) and units."""
+        columns = "check the joint columns (their order, and that each is the joint it names) and their units"
+        if self.group is None:
+            return (f"if the plate was moved between samples, label each placement (kincal calibrate: --group-col), "
+                    f"else {columns}")
+        return f"the placements are labelled (each label within its placement), so {columns}"
+
     def prepare(self, robot: Robot) -> "SamePointObs":
         """Checks that one label's samples are one point up to ``robot``'s error (samples of several places under one
         label, a moved plate without its placement, are refused with that cause), each known distance against where
@@ -136,9 +145,7 @@ class SamePointObs(Observation):
                 raise MeasurementError(
                     f"{self.source}: the {d.size} samples labelled '{lab}' are not one point: the robot file puts them "
                     f"{d.mean() * MM:.0f} mm from their centre on average (up to {d.max() * MM:.0f} mm), far more "
-                    f"than a robot's error; " + (_tool_hint(robot, self.q, self.labels) or
-                                                "if the plate was moved between samples, label each placement (kincal "
-                                                "calibrate: --group-col), else check the joint columns and units"))
+                    f"than a robot's error; " + (_tool_hint(robot, self.q, self.labels) or self._spread_hint()))
         for a, b, d in self.distances:
             missing = [lab for lab in (a, b) if lab not in at]
             if missing:
