@@ -1002,7 +1002,7 @@ def test_a_pose_number_column_given_as_a_joint_is_named_not_blamed_on_the_unit(t
     code = main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), "--length-unit", "mm",
                  "--angle-unit", "deg", "--joint-cols", cols, "-o", str(tmp_path / "c.yaml")])
     err = capsys.readouterr().err
-    assert code == 1 and "the column read as joint j1 reaches 999 deg as written ('deg' was given)" in err
+    assert code == 1 and "the column read as joint j1 holds the whole numbers 0 to 999, counting up by 1" in err
     assert "--joint-cols" in err and "use angle unit" not in err and not (tmp_path / "c.yaml").exists()
 
 

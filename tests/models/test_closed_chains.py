@@ -397,15 +397,7 @@ def test_jugglebot_legs_give_under_the_platforms_weight(tmp_path, capsys):
     s1, s2 = str(JUGGLEBOT / "S1.csv"), str(JUGGLEBOT / "S2.csv")
     common = ["--residual", "joint", "--refit-target", "--error-model", "compliance", "--json"]
     code, out, _ = _kincal(capsys, ["calibrate", "hexapod", s1, "--test", s2, *JUGGLE, *common,
-                                    "-o", str(tmp_path / "s1.yaml"), "--residuals", str(tmp_path / "res.csv")])
-    # the per-sample file: the legs' misses in motor mrad (they were written as position errors in "mm", 100x the
-    # fit's 0.84 mm); through the mean lead, 0.41 mm RMS per leg, the dataset README's fit of the same model
-    rows = list(csv.DictReader(open(tmp_path / "res.csv")))
-    assert rows[0]["position_error_mm"] == "" and len(rows) == len(open(s1).read().splitlines()) - 1
-    legs = np.array([float(r["joint_error_mrad"]) for r in rows])
-    lead = np.mean([leg["lead"] for leg in yaml.safe_load(
-        (ROOT / "src/kincal/models/robots/hexapod.yaml").read_text())["legs"]])  # mm per rev
-    assert abs(np.sqrt(np.mean(legs**2) / 6) * 1e-3 / (2 * np.pi) * lead - 0.41) < 0.01
+                                    "-o", str(tmp_path / "s1.yaml")])
     held = out["held_out"][0]
     assert code in (0, 4) and held["mean"] * 1e3 <= 0.60 and np.degrees(held["mean_rotation"]) <= 0.11
     assert len(out["estimated"]) + len(out["nuisance"]) == 49 and len(out["identifiability"]["frames"]) == 12
@@ -428,6 +420,19 @@ def test_jugglebot_mistakes_are_named(tmp_path, capsys):
         argv = ["calibrate", "hexapod", s1, *[unit if a == "rev" else a for a in JUGGLE], *out]
         code, _, err = _kincal(capsys, argv)
         assert code == 1 and said in err and "read as revolutions they match" in err and "--angle-unit rev" in err
+    # the positions' x and y swapped: the fit drove the model where it no longer assembles, and the error blamed
+    # the joint values; now the position columns are named first
+    code, _, err = _kincal(capsys, ["calibrate", "hexapod", s1, *JUGGLE, "--xyz-cols", "y,x,z", *out])
+    assert code == 1 and "no longer assembles" in err and "--xyz-cols" in err
+    # the legs written as mm of travel (rev × 71 mm) and declared rev: the column and its range, as written
+    lines = open(s1).read().splitlines()
+    head = lines[0].split(",")
+    legs = [k for k, c in enumerate(head) if c.startswith("leg")]
+    mm = [",".join(f"{float(v) * 71.2:.4f}" if k in legs else v for k, v in enumerate(r.split(","))) for r in lines[1:]]
+    (tmp_path / "S1_mm.csv").write_text("\n".join([lines[0], *mm]) + "\n")
+    code, _, err = _kincal(capsys, ["calibrate", "hexapod", str(tmp_path / "S1_mm.csv"), *JUGGLE, *out])
+    assert code == 1 and "the column read as joint leg1 holds" in err and "while its range is 0 to 4.2 rev" in err
+    assert "did not converge" not in err
 
 
 LAB_HEXAPOD = """name: lab_hexapod

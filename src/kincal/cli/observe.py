@@ -10,7 +10,7 @@ import numpy as np
 
 import kincal
 from kincal.identify import ABSOLUTE, fit_observations, heldout_cause, refuse_inapplicable, stat_line, trained_setup
-from kincal.io import check_degrees, check_radians, check_spread
+from kincal.io import check_joints, check_spread
 from kincal.observe import InSession, ObservationFormat, PointObs, read_observations
 from kincal.simulate import (plane_plan, simulate_markers, simulate_planes, simulate_poses, simulate_same_point,
                              socket_plan)
@@ -165,8 +165,7 @@ def read_set(args, robot, path: str, kind: str, held_out: bool = False):
     found = obs.positions()  # the positions name the unit first (degrees, radians or revolutions), where there are any
     if found is not None:
         check_spread(obs.source, *found, robot, args.length_unit, args.angle_unit, rows=obs.rows)
-    check_degrees(obs.source, obs.q, robot, args.angle_unit)
-    check_radians(obs.source, obs.q, robot, args.angle_unit)
+    check_joints(obs.source, obs.q, robot, args.length_unit, args.angle_unit)
     return obs
 
 

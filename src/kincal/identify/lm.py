@@ -13,6 +13,7 @@ from typing import Callable
 import numpy as np
 
 from ..analysis.observability import column_norms
+from ..errors import ModelError
 
 MU_LIMIT = 1e20  # damping beyond this (relative to the largest diagonal entry) means no step helps
 STATIONARY = 1e-6  # when no step helps, a residual this close to orthogonal to every column is an optimum
@@ -62,8 +63,12 @@ def _damped_step(fun, x, cost, H, g, D, mu: float, floor: float = 0.0) -> _Step:
         if predicted <= floor:
             return _Step(False, x, np.empty(0), np.empty(0), cost, np.zeros_like(g), mu, evals, True)
         x_new = x + h / D
-        r_new, J_new = fun(x_new)
         evals += 1
+        try:
+            r_new, J_new = fun(x_new)
+        except ModelError:  # a trial the model cannot take (a closed chain that no longer assembles): a shorter one
+            mu, nu = mu * nu, nu * 2.0
+            continue
         cost_new = 0.5 * float(r_new @ r_new)
         rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
         if np.isfinite(cost_new) and rho > 0:

@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..errors import MeasurementError, ModelError
+
 from .judge import owners
 from .lm import LMResult, levenberg_marquardt
 from .pso import HALF_WIDTH, V_MAX, pso
@@ -42,8 +44,17 @@ class Round:
         docstring says."""
         st, candidates = self.st, list(free)
         error: dict[str, float] = {}
-        for _ in range(NOISE_ROUNDS):
-            fcols, fit, free, weak, used = self._least_squares(st, list(candidates), start, evaluated)
+        for k in range(NOISE_ROUNDS):
+            try:
+                fcols, fit, free, weak, used = self._least_squares(st, list(candidates), start, evaluated)
+            except ModelError:  # the first round starts where the data's own joints were checked
+                if k == 0:
+                    raise
+                files = ", ".join(sorted({o.source for o in st.sets}))
+                raise MeasurementError(f"{files}: the fit moved the model where it no longer assembles at some of the "
+                                       f"measured joints: the data and the model do not belong together; check the "
+                                       f"position columns (their order and axes: --xyz-cols), the joint columns and "
+                                       f"their units") from None
             start, evaluated = self.x0.copy(), None
             start[fcols] = fit.x
             again, found = used.with_model_error(fit.residual, len(free))

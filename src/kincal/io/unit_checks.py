@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
 from ..ties import first_best
-from ..units import ANGLE_UNITS, LENGTH_UNITS, OTHER_LENGTHS
+from ..units import ANGLE_UNITS, LENGTH_UNITS, OTHER_LENGTHS, joint_units
 
 MIN_SPREAD = 1e-3  # m: below this the poses barely move the tool, and noise decides the spread
 SPREAD_RATIO = 2.0  # measured vs predicted spread at the same poses; model errors change it by < 1 %
@@ -80,7 +80,10 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
     kincal.errors.MeasurementError: ur5.csv: measured positions spread 1e+03x more than the robot moves at the same
     joint values (read as 'm'): they look like mm; use length unit 'mm' (CLI: --length-unit mm)
     """
-    predicted = spread(robot.forward(q))
+    try:
+        predicted = spread(robot.forward(q))
+    except ModelError:  # a closed chain that does not assemble at these joints: the joints' checks name why
+        return
     ratio = spread(xyz) / max(predicted, 1e-300)
     if predicted > MIN_SPREAD and 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
         return
@@ -192,7 +195,7 @@ def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
     the joint limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)
     """
     rev = robot.revolute
-    if not rev.any():
+    if not rev.any() or angle_unit not in (None, "rad", "deg"):  # revolutions: no degrees-for-radians mistake
         return
     lim = np.maximum(np.abs(robot.lower), np.abs(robot.upper))
     reach = np.maximum(4 * np.pi, 1.5 * np.where(np.isfinite(lim), lim, 0.0))[rev]
@@ -214,6 +217,87 @@ def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
                                    f"(CLI: --joint-cols)")
         raise MeasurementError(f"{source}: revolute joint values reach {qmax:.4g} rad{given}, far beyond the joint "
                                f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)")
+
+
+def check_limits(source: str, q: np.ndarray, robot: Robot, length_unit: str | None, angle_unit: str | None) -> None:
+    """Refuse a joint column whose values lie, in most rows, further outside the robot's limits than the limits are
+    wide: another unit, or another quantity in that column (run after the degree and radian checks).
+
+    Parameters
+    ----------
+    source : str
+        Where the values come from (a file's path), named in the message.
+    q : ndarray, shape (N, n)
+        Joint values as read, rad or m.
+    robot : Robot
+        The robot (its limits and joint types).
+    length_unit, angle_unit : str or None
+        The units the values were read in (None: SI), to show them as written.
+
+    Raises
+    ------
+    MeasurementError
+        Naming the column, its values and the limits as written.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.io import check_limits
+    >>> robot = kincal.load_robot("hexapod")
+    >>> q = robot.sample_joints(10, seed=1)
+    >>> check_limits("legs.csv", q, robot, "mm", "rev")  # within the legs' ranges: nothing to say
+    >>> check_limits("legs.csv", q * 40.0, robot, "mm", "rev")
+    Traceback (most recent call last):
+    ...
+    kincal.errors.MeasurementError: legs.csv: the column read as joint leg... holds ... rev as written, while
+    its range is 0 to 4.2 rev: far outside it in most rows: another unit, or another quantity in that column? ...
+    """
+    width = robot.upper - robot.lower
+    med = np.median(q, axis=0)
+    far = np.isfinite(width) & (width > 0) & ((med > robot.upper + width) | (med < robot.lower - width))
+    if not far.any():
+        return
+    j = int(np.flatnonzero(far)[0])
+    unit = joint_units(robot.joint_types, length_unit or "m", angle_unit or "rad")[j] or ""
+    f = {**LENGTH_UNITS, **ANGLE_UNITS}.get(unit, 1.0)
+    raise MeasurementError(f"{source}: the column read as joint {robot.joint_names[j]} holds {q[:, j].min() / f:.4g} "
+                           f"to {q[:, j].max() / f:.4g} {unit} as written, while its range is {robot.lower[j] / f:.4g} "
+                           f"to {robot.upper[j] / f:.4g} {unit}: far outside it in most rows: another unit, or another "
+                           f"quantity in that column? check the joint columns and their unit (CLI: --joint-cols, "
+                           f"--{'angle' if robot.joint_types[j] == 'revolute' else 'length'}-unit)")
+
+
+def check_joints(source: str, q: np.ndarray, robot: Robot, length_unit: str | None, angle_unit: str | None) -> None:
+    """The joint values' unit and column checks, in order: :func:`check_degrees`, :func:`check_radians`,
+    :func:`check_limits`.
+
+    Parameters
+    ----------
+    source : str
+        Where the values come from (a file's path), named in the message.
+    q : ndarray, shape (N, n)
+        Joint values as read, rad or m.
+    robot : Robot
+        The robot.
+    length_unit, angle_unit : str or None
+        The units the values were read in.
+
+    Raises
+    ------
+    MeasurementError
+        From the first check that finds a mistake.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.io import check_joints
+    >>> robot = kincal.load_robot("ur5")
+    >>> check_joints("poses.csv", robot.sample_joints(5, seed=1), robot, "mm", "rad")  # nothing to say
+    """
+    check_degrees(source, q, robot, angle_unit)
+    check_radians(source, q, robot, angle_unit)
+    check_limits(source, q, robot, length_unit, angle_unit)
 
 
 def _counter(values: np.ndarray) -> bool:

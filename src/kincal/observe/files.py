@@ -24,7 +24,7 @@ import numpy as np
 
 from .._atomic import write_text_atomic
 from .._csv import LIMIT, Table, open_table
-from ..errors import MeasurementError
+from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
 from ..units import joint_factors, joint_units, unit_factor
 from .constraints import PlaneObs, SamePointObs
@@ -282,8 +282,12 @@ def _pose(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> PoseObs:
                  f"names: --rot-cols; position only: --type point)")
     xyz = t.numbers(fmt.xyz_cols, fmt.length_unit)
     values = t.numbers(cols)
-    p, _, Rf = flange_point(robot, q, robot.params.values, robot.tool_point())
-    convention_check(Rf, values, fmt.orientation, t.path, t.rows, position_frame(p, xyz))
+    try:
+        p, _, Rf = flange_point(robot, q, robot.params.values, robot.tool_point())
+    except ModelError:  # a closed chain that does not assemble at the file's joints: the joints' checks name why
+        pass
+    else:
+        convention_check(Rf, values, fmt.orientation, t.path, t.rows, position_frame(p, xyz))
     pos, rot = _stds(t, fmt)
     return PoseObs(q, t.rows, t.path, xyz=xyz, R=to_matrices(values, fmt.orientation, t.path, t.rows), std_pos=pos,
                    std_rot=rot, own_target=fmt.own_target)
