@@ -125,7 +125,8 @@ def cmd_export(args) -> int:
         where = ", ".join(f"{v * MM:.3f}" for v in r.tool_point())
         lines.append(f"the tool point ({where}) mm on the flange is the fixed link '{info['tool_link']}' "
                      f"(--tool-link names it)")
-    if info["base_frame"]:
+    found = info["base_frame"]
+    if found and any(abs(v - (base or {}).get(n, 0.0)) > 1e-12 for n, v in found.items()):  # not the nominal base
         kinds = dict(zip(r.params.names, r.params.kinds))
         kept = " (the file keeps the nominal model's base)" if info["format"] == "yaml" and base else ""
         lines.append(f"base frame found by the calibration (where the instrument saw the robot; not part of the "

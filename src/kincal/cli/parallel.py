@@ -2,6 +2,7 @@
 and the 3-PUU error-model verification paper's verification (commands to run, then the comparison)."""
 from __future__ import annotations
 
+import contextlib
 import os
 
 import numpy as np
@@ -62,6 +63,13 @@ def _orientation_from(turned, turn) -> dict:
 def cmd_compensate(args) -> int:
     if args.program and os.path.isdir(args.targets):
         return _compensate_folder(args)
+    language = None
+    if not args.program and not os.path.isdir(args.targets):
+        with contextlib.suppress(ValueError):  # a suffix no language has: a targets file
+            language = kincal.io.dialect_of(args.targets)
+    if language:
+        raise ValueError(f"{args.targets} looks like a {language} program (its suffix): give --program {language} "
+                         f"(without it the file is read as a CSV of targets)")
     cal = load_robot(args, [args.targets, *([args.frames] if args.frames else [])], [args.output])
     record, values = _calibration(args)
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
