@@ -71,6 +71,9 @@ def test_human_output_uses_mm_and_deg(capsys):
     assert main(["show", "ur5"]) == 0
     text = capsys.readouterr().out
     assert "-425" in text and "mm" in text and "deg" in text
+    assert main(["show", "hexapod"]) == 0  # the joints' limits with their unit (1512 of what? deg, the motor angle)
+    leg = next(line for line in capsys.readouterr().out.splitlines() if line.strip("│ ").startswith("leg1 "))
+    assert [c.strip() for c in leg.split("│")[1:-1]] == ["leg1", "revolute", "0", "1512", "deg"]
 
 
 @pytest.mark.slow

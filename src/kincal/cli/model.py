@@ -13,7 +13,7 @@ import kincal.models
 from kincal.compensate import fit_frames_only
 from kincal.identify import observation_identifiability
 from kincal.observe import describe, read_observations, write_observations
-from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM, SHOWN, display, joint_factors
+from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM, SHOWN, display, joint_factors, joint_units
 
 from . import observe
 from .common import (csv_list, emit, finite_float, hidden_alias, joint_values, load_robot, nonneg_float, one_type,
@@ -42,10 +42,10 @@ def cmd_show(args) -> int:
               + (f"; covariates {', '.join(covariates)}" if covariates else "") + ")")
     for n, k, v in zip(r.params.names, r.params.kinds, r.params.values):
         t.add_row(n, f"{v * SHOWN[k][1]:.6g}", SHOWN[k][0])
-    lim = Table("joint", "type", "lower", "upper")
-    for name, typ, lo, hi, f in zip(r.joint_names, r.joint_types, r.lower, r.upper,
-                                    joint_factors(r.joint_types, "mm", "deg")):
-        lim.add_row(name, typ, f"{lo / f:.6g}", f"{hi / f:.6g}")
+    lim = Table("joint", "type", "lower", "upper", "unit")
+    for name, typ, lo, hi, f, u in zip(r.joint_names, r.joint_types, r.lower, r.upper,
+                                       joint_factors(r.joint_types, "mm", "deg"), joint_units(r.joint_types, "mm", "deg")):
+        lim.add_row(name, typ, f"{lo / f:.6g}", f"{hi / f:.6g}", u or "as written")
     notes = r.structure_notes()
     payload = {"name": r.name, "structure": r.structure, "description": r.description,
                "parameters": r.params.as_dict(), "kinds": dict(zip(r.params.names, r.params.kinds)),
