@@ -433,6 +433,13 @@ def test_jugglebot_mistakes_are_named(tmp_path, capsys):
     code, _, err = _kincal(capsys, ["calibrate", "hexapod", str(tmp_path / "S1_mm.csv"), *JUGGLE, *out])
     assert code == 1 and "the column read as joint leg1 holds" in err and "while its range is 0 to 4.2 rev" in err
     assert "did not converge" not in err
+    # legs 1 and 2 read in each other's columns: the fit relabels the legs (its held-out error unchanged), and the
+    # file would command each by the other's column; refused with that cause (it named leg 1's lead), nothing written
+    code, out, _ = _kincal(capsys, ["calibrate", "hexapod", s1, *JUGGLE, "--residual", "joint", "--joint-cols",
+                                    "leg2,leg1,leg3,leg4,leg5,leg6", "--json", *out])
+    said = " ".join(r["message"] for r in out["verdict"]["reasons"])
+    assert out["verdict"]["status"] == "refused" and not (tmp_path / "x.yaml").exists()
+    assert "put leg1 where leg2 is drawn, leg2 where leg1 is drawn" in said and "lead" not in said
 
 
 LAB_HEXAPOD = """name: lab_hexapod

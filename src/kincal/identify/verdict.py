@@ -373,6 +373,9 @@ def correction_reasons(robot: Robot, corrections: dict[str, float], th: Threshol
     for level, limit in (("refused", th.refuse), ("suspect", th.suspect)):
         lim = {n: limit(kinds[n], n in mounting) for n in corrections if n not in base}
         big = [(n, c) for n, c in corrections.items() if n in lim and abs(c) > lim[n]]
+        cause = robot.correction_hint(robot.with_params({n: robot.params[n] + c for n, c in corrections.items()})) \
+            if big else ""
+        level = "refused" if cause else level
         if big:
             shown = ", ".join(f"{n} {display(c, kinds[n], digits=(1, 2))}"
                               for n, c in sorted(big, key=lambda x: -abs(x[1] / lim[x[0]]))[:MAX_LISTED])
@@ -383,7 +386,7 @@ def correction_reasons(robot: Robot, corrections: dict[str, float], th: Threshol
             what = "implausible" if level == "refused" else "large"
             return [Reason(level, f"{what}-correction",
                            f"{what} corrections ({shown}; limits {limits}): the data and the robot file disagree by "
-                           f"far more than a real robot's errors" + _scale_hint(big, kinds))]
+                           f"far more than a real robot's errors" + (cause or _scale_hint(big, kinds)))]
     return []
 
 

@@ -392,6 +392,13 @@ class Robot(Joints, ABC):
         """Names to keep first when parameters are confounded (after any the user lists)."""
         return ()
 
+    def correction_hint(self, calibrated: "Robot") -> str:
+        """The cause large corrections from this (nominal) model to ``calibrated`` (the same structure) reveal that
+        makes the calibrated file wrong to use as it is, in words (a hexapod's legs relabelled: its joint columns
+        read in another order, so each leg would be commanded by another's column); the verdict refuses with it.
+        '' by default."""
+        return ""
+
     def structure_notes(self) -> list[str]:
         """Warnings about the model's structure (e.g. parallel axes without β); none by default."""
         return []

@@ -36,12 +36,13 @@ from ..errors import ModelError
 from .implicit import ImplicitRobot, twist_exp
 from .parameters import Parameters
 from .joint_space import JointSpace
-from .robot import TOOL_NAMES
+from .robot import TOOL_NAMES, Robot
 from .serial import BASE_NAMES
 
 LEG_NAMES = ("bx", "by", "bz", "px", "py", "pz", "zero", "scale")
 LEG_KINDS = ("length",) * 7 + ("ratio",)
 N_LEGS = 6
+RELABEL_MARGIN = 0.05  # m: a leg whose points lie this much nearer another leg's drawing than its own was relabelled
 COMPLIANCE = "legs.compliance"  # m: a leg's give under the platform's whole weight
 
 
@@ -128,6 +129,25 @@ class StewartRobot(ImplicitRobot):
 
     def reading_terms(self) -> str:
         return "the legs' zeros and scales"
+
+    def correction_hint(self, calibrated: Robot) -> str:
+        """Legs the calibration put where other legs are drawn (base and platform points each nearer another leg's
+        than their own by more than ``RELABEL_MARGIN``): the joint columns in another order, a relabelling the
+        fit follows (the model then commands each leg by another's column)."""
+        mine, theirs = self._anchors(self.params.values), self._anchors(calibrated.params.values)
+        gap = np.linalg.norm(theirs[:, None] - mine[None], axis=2)  # (calibrated leg, drawn leg)
+        moved = [(i, int(np.argmin(gap[i]))) for i in range(N_LEGS)
+                 if gap[i].min() + RELABEL_MARGIN < gap[i, i]]
+        if not moved:
+            return ""
+        pairs = ", ".join(f"leg{i + 1} where leg{j + 1} is drawn" for i, j in moved)
+        return (f"; the calibration put {pairs}: the leg columns are read in another order than the robot file's "
+                f"legs (--joint-cols names them in its order: leg1 … leg6)")
+
+    def _anchors(self, values: np.ndarray) -> np.ndarray:
+        """(6, 6) each leg's base and platform points, m."""
+        names = [f"leg{i}.{k}" for i in range(1, N_LEGS + 1) for k in ("bx", "by", "bz", "px", "py", "pz")]
+        return values[self.params.indices(names)].reshape(N_LEGS, 6)
 
     def frame_freedoms(self) -> tuple[tuple[str, tuple[str, ...], int], ...]:
         """The robot frame among the base points, and the platform frame among the platform points (with
