@@ -382,8 +382,10 @@ def test_jugglebot_session_to_session_through_the_command_line(tmp_path, capsys)
     again = np.loadtxt(tmp_path / "legs_exported.csv", delimiter=",", skiprows=1)
     assert np.abs(again[:, 1:7] - rows[:, 1:7]).max() < 1e-9
     code, out, text = _kincal(capsys, ["calibrate", "hexapod", s2, "--test", s1, *JUGGLE, *common,
-                                       "-o", str(tmp_path / "s2.yaml")])
+                                       "-o", str(tmp_path / "s2.yaml"), "--report", str(tmp_path / "s2.html")])
     assert code in (0, 4) and out["held_out"][0]["mean"] * 1e3 <= 1.268
+    page = (tmp_path / "s2.html").read_text()  # a fit in joint space still has its positions' figures (it had none)
+    assert page.count("<svg") >= 5 and "position error per pose" in page
     code, out, text = _kincal(capsys, ["evaluate", str(tmp_path / "s2.yaml"), s1, *JUGGLE, "--refit-target"])
     assert code == 0 and "lie outside the joint ranges the legs' zeros and scales were fitted on" in text
     assert "leg1 at 0.7..3.7 rev (calibrated on 1.2..3.3 rev)" in text  # S1 spreads the legs wider than S2

@@ -56,7 +56,7 @@ def _cause(result: CalibrationResult, obs) -> str:
 def observation_figures(fit: CalibrationResult, label: str = "training") -> dict:
     """The report's figures of the observation sets with one measured position per sample.
 
-    Points and 6-D poses count; sets in a session's own frame are left out. The figures show errors per
+    Points, 6-D poses and measured positions fitted in joint space count; sets in a session's own frame are left out. The figures show errors per
     sample, their distribution, per axis, against the joints and in the workspace, before (the
     registered nominal model) and after calibration, or of the model alone (``label`` "held-out").
 
@@ -77,7 +77,7 @@ def observation_figures(fit: CalibrationResult, label: str = "training") -> dict
     sets = []
     for obs, bad in zip(fit.observations, fit.outliers or ((),) * len(fit.observations)):
         found = obs.positions()
-        if obs.kind not in ("point", "pose") or isinstance(obs, InSession) or found is None:
+        if obs.kind not in ("point", "pose", "joint") or isinstance(obs, InSession) or found is None:
             continue
         q, xyz = found
         before = xyz - fit.before.forward(q) if label == "training" else None
