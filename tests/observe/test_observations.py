@@ -254,6 +254,9 @@ def test_panda_sockets_as_the_authors_protocol(tmp_path):
     in_m_read_as_mm = dataclasses.replace(sockets(train), distances=(("front_center/0", "front_center/1", 0.05e-3),))
     with pytest.raises(kincal.MeasurementError, match="as if metres were stated in a file read in mm"):
         fit_observations(robot, [in_m_read_as_mm])
+    in_cm_read_as_mm = dataclasses.replace(sockets(train), distances=(("front_center/0", "front_center/1", 5e-3),))
+    with pytest.raises(kincal.MeasurementError, match="0.1 times theirs, a power of ten: stated in another unit"):
+        fit_observations(robot, [in_cm_read_as_mm])  # 5 (cm) written where the file's unit is mm: it said nothing
 
 
 def test_positioner_6d_even_rows_fit_odd_rows_held_out():

@@ -154,7 +154,10 @@ class SamePointObs(Observation):
             seen = float(np.linalg.norm(at[a] - at[b]))
             if not (d > 0 and SCALE_LIMIT ** -1 < d / max(seen, 1e-12) < SCALE_LIMIT):
                 unit = next((u for u, f in UNIT_FACTORS.items() if abs(np.log(d / max(seen, 1e-12) / f)) < 0.3), None)
-                hint = f": it looks like {unit}; give distances in m" if unit else ""
+                tens = round(float(np.log10(max(d, 1e-300) / max(seen, 1e-12))))
+                hint = f": it looks like {unit}; give distances in m" if unit else (
+                    f": {10.0 ** tens:g} times theirs, a power of ten: stated in another unit than the file's?"
+                    if tens and abs(np.log(d / max(seen, 1e-12) / 10.0 ** tens)) < 0.3 else "")
                 if abs(np.log(d / max(seen, 1e-12) * 1e3)) < 0.3:  # metres stated where the file's unit is mm
                     hint = ": a thousandth of it, as if metres were stated in a file read in mm; state distances " \
                            "in the file's length unit"
