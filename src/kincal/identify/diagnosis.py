@@ -220,9 +220,11 @@ def _setups(robot: Robot, options: FitOptions) -> list[tuple[Cause, Change]]:
 
 
 def _jump(res: CalibrationResult) -> list[tuple[Cause, Change]]:
-    """A frame that jumps inside one file, where the fitted model sees it: the file as two sessions."""
+    """A frame that jumps inside one file: the file as two sessions, split where one rigid frame each fits the
+    fitted model best (tried whatever the split leaves: a fit the jump has bent hides part of it, and the
+    nominal model's own error the rest; the trial fit decides)."""
     meas = res.measurements
-    found = frame_jump(meas.xyz, res.robot.forward(meas.q)) if meas.session is None else None
+    found = frame_jump(meas.xyz, res.robot.forward(meas.q), ratio=1.0) if meas.session is None else None
     if found is None:
         return []
     k, row = found[0], int(meas.rows[found[0]])

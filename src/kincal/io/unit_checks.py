@@ -124,11 +124,13 @@ def _other_angle_unit(q: np.ndarray, xyz: np.ndarray, robot: Robot, angle_unit: 
     return None
 
 
-def frame_jump(xyz: np.ndarray, model: np.ndarray, min_part: int = MIN_PART) -> tuple[int, float, float] | None:
+def frame_jump(xyz: np.ndarray, model: np.ndarray, min_part: int = MIN_PART,
+               ratio: float = JUMP_RATIO) -> tuple[int, float, float] | None:
     """Where the measurement frame jumps inside one file: the first index k of the second part and
     the RMS (m) of the positions xyz (N, 3) against the model's model (N, 3) with one rigid frame for
     all and with one for each part (rows before k and from k on), for the k that fits best; None
-    unless two frames leave less than JUMP_RATIO of one frame's RMS (two set-ups, a bumped tracker)."""
+    unless two frames leave less than ``ratio`` (default JUMP_RATIO) of one frame's RMS (two set-ups, a bumped
+    tracker); ``ratio`` 1: the best split whatever it leaves (a candidate to try)."""
     n = len(xyz)
     if n < 2 * min_part:
         return None
@@ -142,7 +144,7 @@ def frame_jump(xyz: np.ndarray, model: np.ndarray, min_part: int = MIN_PART) -> 
     one = float(_rigid_sse(*[t[None] for t in total])[0])
     best = first_best(two, maximize=False)  # splits that fit as well: the earliest
     rms_one, rms_two = float(np.sqrt(max(one, 0.0) / n)), float(np.sqrt(max(two[best], 0.0) / n))  # round-off: ≥ 0
-    return (int(k[best]), rms_one, rms_two) if rms_two < JUMP_RATIO * rms_one else None
+    return (int(k[best]), rms_one, rms_two) if rms_two < ratio * rms_one else None
 
 
 def _rigid_sse(n, sx, sp, sq, sxp) -> np.ndarray:
