@@ -546,6 +546,8 @@ ROUND2 = [
     rcase("report-record-error-model-number", [*REPORT], 1, ["error model 5"], options={"error_model": 5}),
     rcase("report-record-unknown-option", [*REPORT], 1, ["unknown calibration option"], options={"colour": 1}),
     rcase("report-record-nominal-text", [*REPORT], 1, ["nominal value", "not a number"], nominal={"j2.a": "long"}),
+    rcase("report-named-json", ["report", "{d}/cal.yaml", "-o", "{d}/r.json"], 1,
+          ["r.json: the report is an HTML page: give it a .html name"]),
     rcase("report-test-is-the-training-file", [*REPORT, "--test", "{base}/good.csv"], 1,
           ["same data as the training file", "good.csv"]),
     rcase("evaluate-record-before-mounting-text", [*EVAL, "--same-frame"], 1, ["before mounting value of tool.z",

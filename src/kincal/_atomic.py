@@ -26,6 +26,11 @@ def json_path_for(path: str | os.PathLike) -> Path:
         ``x.html`` (or ``.htm``, any case) -> ``x.json``; any other name gets .json added (``x`` ->
         ``x.json``).
 
+    Raises
+    ------
+    ValueError
+        For a name ending in .json: the page would be HTML under a JSON name, its numbers in ``x.json.json``.
+
     Examples
     --------
     >>> from kincal.report import json_path_for
@@ -35,6 +40,9 @@ def json_path_for(path: str | os.PathLike) -> Path:
     'ur5-report.json'
     """
     path = Path(path)
+    if path.suffix.lower() == ".json":
+        raise ValueError(f"{path}: the report is an HTML page: give it a .html name (its numbers are written "
+                         f"beside it as {path.with_suffix('.json').name})")
     return path.with_suffix(".json") if path.suffix.lower() in (".html", ".htm") else Path(f"{path}.json")
 
 

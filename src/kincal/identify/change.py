@@ -94,7 +94,8 @@ class Suspect:
             shares = ", ".join(f"{p.name} {p.size * (MM if p.unit == 'length' else DEG):+.4f}"
                                f"{' mm' if p.unit == 'length' else '°'}" for p in self.parts)
             return (f"{self.name} ({self.kind}: the instrument or the robot's base moved; {shares}): moved "
-                    f"{self.size * MM:.4f} mm ± {self.sigma * MM:.4f} (z = {self.z:+.1f})")
+                    f"{self.size * MM:.4f} mm ± {self.sigma * MM:.4f} (explains {self.z ** 2:.1f} of the whitened "
+                    f"discrepancy)")
         same = f"; the same at these poses as {', '.join(self.also)}" if self.also else ""
         return (f"{self.name} ({self.kind}{same}): {self.size * factor:+.4f} {unit} ± {self.sigma * factor:.4f} "
                 f"(z = {self.z:+.1f})")
