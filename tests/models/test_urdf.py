@@ -442,3 +442,16 @@ def test_the_ur10_calibration_file_has_urs_default_kinematics(tmp_path, capsys):
         np.testing.assert_allclose([got["x"], got["y"], got["z"]], xyz, atol=1e-9, err_msg=joint)
         np.testing.assert_allclose(rpy_matrix(got["roll"], got["pitch"], got["yaw"]), rpy_matrix(*rpy), atol=1e-9,
                                    err_msg=joint)
+
+
+def test_a_tool_declared_in_another_links_axes_is_suspect(capsys):
+    """The UR5 URDF calibrated at ee_link (turned 90° from tool0, the frame the reflector's 31 mm was declared in):
+    the fitted point is as far out, along another axis, 46 mm from the declared one, under the 50 mm mounting limit;
+    it was GOOD, now suspect naming --tip-link. At tool0 the same data are good."""
+    grid = kincal.read_measurements(DATA / "ur5_grid.csv", kincal.load_robot(UR5_URDF, tip_link="tool0"), UR5_COLS,
+                                    length_unit="mm", angle_unit="deg")
+    for tip, status in (("ee_link", "suspect"), ("tool0", "good")):
+        robot = kincal.load_robot(UR5_URDF, tip_link=tip).with_tool_point([0.0, 0.09e-3, 0.031])
+        res = kincal.calibrate(robot, kincal.Measurements(grid.q, grid.xyz, robot.joint_names, "ur5_grid.csv"))
+        said = " ".join(r.message for r in res.verdict.reasons)
+        assert res.verdict.status == status and (("turned 90°" in said and "--tip-link" in said) == (tip == "ee_link"))

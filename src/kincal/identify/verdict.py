@@ -401,11 +401,32 @@ def mounting_reasons(declared: np.ndarray, fitted: np.ndarray, th: Thresholds) -
     """The fitted tool point against the declared one: a mounting result, with its own limits."""
     gap, line = float(np.linalg.norm(fitted - declared)), mounting_line(declared, fitted)
     tool = ",".join(f"{x * MM:.2f}" for x in fitted)
+    turned = _turned(declared, fitted)
+    if turned and gap <= th.tool_suspect:  # as far out, another way: the frame the tool was declared in
+        return [Reason("suspect", "tool-point", f"{line}: as far from the flange as declared but turned {turned:.0f}° "
+                                                f"from it: the tip link's frame is turned from the one the tool was "
+                                                f"declared in; check --tip-link, or declare the tool in that link's "
+                                                f"axes (--tool {tool}mm)")]
     return _graded("tool-point", gap, (th.tool_refuse, th.tool_suspect), (
         f"{line}: no probe or reflector is mounted {gap:.2f} m from its declared place; check that the data belong "
         f"to this robot (joint columns, robot file)",
         f"{line}: if the target is mounted there, declare it (--tool {tool}mm) so that the tool point is known and "
         f"the commands use it; otherwise check the probe and its adapter"))
+
+
+TURNED_LENGTH = 0.1  # the fitted tool point's distance from the flange within this share of the declared one ...
+TURNED_ANGLE = 30.0  # deg ... but its direction turned more than this: declared in another link's axes
+TURNED_MIN = 10e-3  # m: a point this close to the flange has no direction to speak of
+
+
+def _turned(declared: np.ndarray, fitted: np.ndarray) -> float:
+    """The angle (deg) between the declared and fitted tool points when they are as far from the flange within
+    TURNED_LENGTH but point more than TURNED_ANGLE apart (a tool declared in another frame's axes); else 0."""
+    a, b = float(np.linalg.norm(declared)), float(np.linalg.norm(fitted))
+    if min(a, b) < TURNED_MIN or abs(a - b) > TURNED_LENGTH * a:
+        return 0.0
+    angle = float(np.degrees(np.arccos(np.clip(declared @ fitted / (a * b), -1.0, 1.0))))
+    return angle if angle > TURNED_ANGLE else 0.0
 
 
 def _graded(code: str, value: float, limits: tuple[float, float], messages: tuple[str, str]) -> list[Reason]:
