@@ -7,6 +7,7 @@ import argparse
 
 import kincal
 from kincal.identify import ALPHA, Calibrated, ChangeTest, check, compare
+from kincal.identify.change import EXPLAINED_MIN
 
 from .common import EXIT_REFUSED, add_data_flags, check_paths, emit, positive_float
 from .history import add_store_flag, store_of, store_record
@@ -31,7 +32,9 @@ def lines_of(test: ChangeTest) -> list[str]:
     out = [f"verdict: {test.verdict}  (false-alarm probability {test.alpha:.0%}; p = {test.p_value:.3g})",
            f"{test.poses} poses, frame {frame}: discrepancy {test.rms * kincal.units.MM:.4f} mm RMS per pose, "
            f"whitened {test.statistic:.1f} on {test.dof} degrees of freedom"]
-    if test.changed:
+    if test.changed and test.explained < EXPLAINED_MIN:
+        out.append("single changes, none explaining it alone (ranked; sizes with σ):")
+    elif test.changed:
         out.append("most likely single change (ranked; sizes with σ):")
     else:
         out.append("largest candidate changes, none significant:")

@@ -45,6 +45,7 @@ RANK_RTOL = 1e-6  # singular values of the discrepancy's covariance factor below
 RESOLUTION = 1e-8  # m: nor below this σ (0.01 µm, no instrument's): what is left of one calibration's frame
 # directions after another's are removed, and a model's second order, would otherwise look certain
 SHOWN = 5  # suspects kept in a result
+EXPLAINED_MIN = 0.5  # the first suspect must explain this share of the whitened discrepancy alone to be named
 ODDS = {"joint zero": 3.0}  # prior odds of a kind of change against any other (1): how suspects are ranked. A
 # joint's zero moves when a motor, encoder or gearbox is replaced, at a re-mastering or a crash, the commonest
 # events in a robot's life; a link's length or a joint's axis moves only when a part is bent or replaced. Where a
@@ -134,6 +135,9 @@ class ChangeTest:
         The discrepancy's RMS per pose after the frame, m.
     notes : tuple of str, optional
         What the reader should know (poses outside the calibrated ranges, a frame shift).
+    explained : float, optional
+        The share of the whitened discrepancy the first suspect explains alone (1 by default); below
+        ``EXPLAINED_MIN`` no single change is named in the verdict.
 
     Examples
     --------
@@ -156,19 +160,20 @@ class ChangeTest:
     frame_refitted: bool
     rms: float
     notes: tuple[str, ...] = ()
+    explained: float = 1.0
 
     @property
     def verdict(self) -> str:
-        if self.question == "check":
-            return f"re-calibrate ({self.suspects[0].kind}: {self.suspects[0].name})" if self.changed else \
-                "still good"
-        return f"changed ({self.suspects[0].kind}: {self.suspects[0].name})" if self.changed else \
-            "no significant change"
+        if not self.changed:
+            return "still good" if self.question == "check" else "no significant change"
+        what = "no single change explains it" if self.explained < EXPLAINED_MIN else \
+            f"{self.suspects[0].kind}: {self.suspects[0].name}"
+        return f"{'re-calibrate' if self.question == 'check' else 'changed'} ({what})"
 
     def to_dict(self) -> dict:
         return {"question": self.question, "verdict": self.verdict, "changed": self.changed, "alpha": self.alpha,
                 "p_value": self.p_value, "statistic": self.statistic, "dof": self.dof, "poses": self.poses,
-                "frame_refitted": self.frame_refitted, "rms": self.rms,
+                "frame_refitted": self.frame_refitted, "rms": self.rms, "explained": self.explained,
                 "suspects": [s.to_dict() for s in self.suspects], "notes": list(self.notes)}
 
 
@@ -390,13 +395,19 @@ def _judged(question: str, d: np.ndarray, U: np.ndarray, cands: Candidates, basi
     rank = np.round(ev / max(float(np.max(np.abs(ev))), 1e-300), 9)  # ties (kincal.ties): their order
     suspects = tuple(pool[k][1] for k in sorted(range(len(pool)), key=lambda k: -rank[k])[:SHOWN])
     changed = min(p_omni, p_dir) < alpha / 2
+    share = min(1.0, suspects[0].z ** 2 / T) if suspects and T > 0 else 1.0
+    if changed and share < EXPLAINED_MIN:
+        notes += (f"the most likely single change explains only {share:.0%} of the discrepancy: these poses are "
+                  f"missed by more than the calibration predicts, in ways no one change describes (a model that "
+                  f"does not carry over to them, or several changes); re-calibrate, and look at that calibration's "
+                  f"verdict",)
     if changed and whole is not None and suspects[0].kind == "frame":
         notes += (f"a move of the measurement frame alone explains {explained:.1f} of the whitened "
                   f"{T:.1f}: if the instrument or the robot's base may have moved, run again without --same-frame "
                   f"(the frame re-fitted, the robot judged alone)",)
     rms = float(np.sqrt(np.sum(d**2) / poses))
     return ChangeTest(question, bool(changed), alpha, min(1.0, 2 * min(p_omni, p_dir)), T, dof, suspects, poses,
-                      basis is not None, rms, notes)
+                      basis is not None, rms, notes, share)
 
 
 def _same_model(a: Calibrated, b: Calibrated) -> None:
