@@ -79,7 +79,9 @@ def robot_yaml(**changes):
 
 
 def csv_case(name, content, code, words, extra=(), robot="ur5", cmd="calibrate"):
-    return pytest.param({"files": {"data.csv": content}, "argv": [cmd, robot, "{d}/data.csv", *MMDEG, *extra],
+    """A command on one data file with MMDEG's units, those ``extra`` gives replaced (a flag is given once)."""
+    units = [x for k in range(0, len(MMDEG), 2) if MMDEG[k] not in extra for x in MMDEG[k:k + 2]]
+    return pytest.param({"files": {"data.csv": content}, "argv": [cmd, robot, "{d}/data.csv", *units, *extra],
                          "code": code, "words": words}, id=name)
 
 
@@ -724,6 +726,16 @@ OBSERVE = [
                                             "{d}/out.script"], 4, ["line 2 (movel): a pose target with no joints"],
          files={"prog.script": "def p():\n  movel(p[0.3, -0.2, 0.4, 0, 3.14, 0])\nend\n",
                 "cal.yaml": lambda b: _calibrated(b)}),
+    case("a-flag-given-twice", ["design", "ur5", "-m", "10", "--seed", "1", "--seed", "2", "-o", "{d}/p.csv"], 1,
+         ["--seed is given twice (only the last would count)"]),
+    case("a-flag-given-twice-with-equals", ["design", "ur5", "-m", "10", "--seed=1", "--seed", "2", "-o", "{d}/p.csv"],
+         1, ["--seed is given twice"]),
+    case("a-search-setting-of-another-method", ["design", "ur5", "-m", "10", "--method", "fedorov", "--generations",
+                                                "50", "-o", "{d}/p.csv"], 1,
+         ["--generations is for --method ide or detmax-ide, not fedorov"]),
+    case("search-settings-of-another-method", ["design", "ur5", "-m", "10", "--method", "random", "--f0", "0.9",
+                                               "--population", "7", "-o", "{d}/p.csv"], 1,
+         ["--f0 is for --method ide or detmax-ide", "--population is for", "not random: leave them out"]),
     case("program-without-its-flag", ["compensate", "ur5", "{d}/prog.script", "-o", "{d}/out.script"], 1,
          ["prog.script looks like a ur program", "--program ur"],
          files={"prog.script": "def p():\n  movej([0, -1.5, 1.5, -1.5, -1.5, 0], a=1.4)\nend\n"}),

@@ -81,10 +81,12 @@ def main(argv: list[str] | None = None) -> int:
     previous = signal.signal(signal.SIGTERM, on_sigterm), signal.getsignal(signal.SIGINT)
     try:
         parser = build_parser()
-        args = parser.parse_args(_negative_values(parser, list(sys.argv[1:] if argv is None else argv)))
+        tokens = _negative_values(parser, list(sys.argv[1:] if argv is None else argv))
+        args = parser.parse_args(tokens)
         if progress_lines():  # a log (or a test) learns that Ctrl-C and SIGTERM are handled from here on
             line(f"kincal: {args.command} started")
         try:  # a signal while an error is printed is still caught below
+            _once(parser, tokens)
             return args.func(prepared(parser, args))
         except (kincal.KincalError, ValueError, OSError) as exc:
             msg = " ".join(str(exc).split()) if not isinstance(exc, kincal.IdentifiabilityError) else str(exc)
@@ -106,6 +108,24 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signal.SIGTERM, previous[0])
         if previous[1] is not None:  # None: a handler not set from Python
             signal.signal(signal.SIGINT, previous[1])
+
+
+def _once(parser: argparse.ArgumentParser, argv: list[str]) -> None:
+    """Refuse a flag that takes one value given more than once (``--seed 1 --seed 2``: argparse keeps the last
+    silently); repeatable flags (``--test``, ``--keep-out``) may repeat."""
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    command = sub.choices.get(argv[0]) if argv else None
+    if command is None:
+        return
+    seen: dict[str, str] = {}
+    for token in argv[1:]:
+        action = command._option_string_actions.get(token.split("=", 1)[0]) if token.startswith("-") else None
+        if type(action) not in (argparse._StoreAction, argparse._StoreTrueAction, argparse._StoreConstAction):
+            continue  # repeatable: --test, --keep-out, --distance and --plane (each judged on its own)
+        if action.dest in seen:
+            raise ValueError(f"{token.split('=', 1)[0]} is given twice (only the last would count): "
+                             f"give it once")
+        seen[action.dest] = token
 
 
 def _negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:

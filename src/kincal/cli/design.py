@@ -22,11 +22,22 @@ from .common import (csv_list, emit, lengths, load_robot, nonneg_float, nonneg_i
 
 
 CHECK_FLAGS = {"m", "output", "pool", "candidates", "joint_cols", "length_unit", "angle_unit", "seed", "check", "json"}
+METHOD_FLAGS = {"generations": ("ide", "detmax-ide"), "f0": ("ide", "detmax-ide"), "cr": ("ide", "detmax-ide"),
+                "population": ("ide", "detmax-ide"), "restarts": ("fedorov",)}  # a search's own settings
+
+
+def _method_flags(args) -> None:
+    """Refuse a search's own settings given with another --method (they were ignored)."""
+    other = [k for k, methods in METHOD_FLAGS.items() if k in args.given and args.method not in methods]
+    if other:
+        said = "; ".join(f"{args.given[k]} is for --method {' or '.join(METHOD_FLAGS[k])}" for k in other)
+        raise ValueError(f"{said}, not {args.method}: leave {'them' if len(other) > 1 else 'it'} out")
 
 
 def cmd_design(args) -> int:
     if args.check:
         return _design_check(args)
+    _method_flags(args)
     r = load_robot(args, [args.candidates, args.use], [args.output, _program_path(args)])
     imse = args.method in ("fedorov", "random")  # the default criterion: IMSE for these, D for the others
     options = kincal.DesignOptions(m=args.m, method=args.method, criterion=args.criterion or ("IMSE" if imse else "D"),
