@@ -736,6 +736,11 @@ OBSERVE = [
     case("search-settings-of-another-method", ["design", "ur5", "-m", "10", "--method", "random", "--f0", "0.9",
                                                "--population", "7", "-o", "{d}/p.csv"], 1,
          ["--f0 is for --method ide or detmax-ide", "--population is for", "not random: leave them out"]),
+    case("puu3-pool-in-mm-read-as-m", ["design", "puu3", "-m", "12", "--candidates", "{d}/pool.csv", "-o",
+                                       "{d}/p.csv"], 1,
+         ["the column read as joint h1 holds", "read as mm they lie within it", "--length-unit mm"],
+         files={"pool.csv": lambda b: "h1,h2,h3\n" + "".join(f"{400 + 20 * k},{420 + 15 * k},{450 + 10 * k}\n"
+                                                              for k in range(20))}),
     case("program-without-its-flag", ["compensate", "ur5", "{d}/prog.script", "-o", "{d}/out.script"], 1,
          ["prog.script looks like a ur program", "--program ur"],
          files={"prog.script": "def p():\n  movej([0, -1.5, 1.5, -1.5, -1.5, 0], a=1.4)\nend\n"}),

@@ -120,7 +120,8 @@ def _once(parser: argparse.ArgumentParser, argv: list[str]) -> None:
     seen: dict[str, str] = {}
     for token in argv[1:]:
         action = command._option_string_actions.get(token.split("=", 1)[0]) if token.startswith("-") else None
-        if type(action) not in (argparse._StoreAction, argparse._StoreTrueAction, argparse._StoreConstAction):
+        if action is None or type(action) not in (argparse._StoreAction, argparse._StoreTrueAction,
+                                                  argparse._StoreConstAction):
             continue  # repeatable: --test, --keep-out, --distance and --plane (each judged on its own)
         if action.dest in seen:
             raise ValueError(f"{token.split('=', 1)[0]} is given twice (only the last would count): "

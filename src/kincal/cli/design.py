@@ -57,6 +57,7 @@ def cmd_design(args) -> int:
         return _design_constraints(args, r, options, cell)
     if args.candidates:
         pool = kincal.read_joints(args.candidates, r, args.joint_cols, args.length_unit, args.angle_unit)
+        kincal.io.check_joints(args.candidates, pool, r, args.length_unit, args.angle_unit)  # a unit, named
         bad = ~r.feasible(pool)
         if bad.any():
             raise kincal.MeasurementError(f"{args.candidates}: {int(bad.sum())} candidate pose(s) break the joint "

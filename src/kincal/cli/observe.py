@@ -165,7 +165,7 @@ def read_set(args, robot, path: str, kind: str, held_out: bool = False):
     found = obs.positions()  # the positions name the unit first (degrees, radians or revolutions), where there are any
     if found is not None:
         check_spread(obs.source, *found, robot, args.length_unit, args.angle_unit, rows=obs.rows)
-    check_joints(obs.source, obs.q, robot, args.length_unit, args.angle_unit)
+    check_joints(obs.source, obs.q, robot, args.length_unit, args.angle_unit, suggest=found is None)
     return obs
 
 

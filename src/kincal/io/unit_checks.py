@@ -82,8 +82,8 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
     """
     try:
         predicted = spread(robot.forward(q))
-    except ModelError:  # a closed chain that does not assemble at these joints: the joints' checks name why
-        return
+    except ModelError:  # a closed chain that does not assemble at these joints: another angle unit, or the joints'
+        predicted = 0.0  # own checks name why
     ratio = spread(xyz) / max(predicted, 1e-300)
     if predicted > MIN_SPREAD and 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
         return
@@ -93,6 +93,8 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
                                f"{max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the {what} "
                                f"spread, read as {ANGLE_WORDS[other]} they match: use angle unit '{other}' (CLI: "
                                f"--angle-unit {other})")
+    if not predicted:
+        return
     jump = frame_jump(xyz, robot.forward(q))
     if jump is not None:
         k, one, two = jump
@@ -221,9 +223,12 @@ def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
                                f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)")
 
 
-def check_limits(source: str, q: np.ndarray, robot: Robot, length_unit: str | None, angle_unit: str | None) -> None:
+def check_limits(source: str, q: np.ndarray, robot: Robot, length_unit: str | None, angle_unit: str | None,
+                 suggest: bool = True) -> None:
     """Refuse a joint column whose values lie, in most rows, further outside the robot's limits than the limits are
-    wide: another unit, or another quantity in that column (run after the degree and radian checks).
+    wide: another unit, or another quantity in that column (run after the degree and radian checks); with
+    ``suggest``, a unit in which every value lies within the limits is named (without it, when measured positions
+    were already checked for the unit that moves the robot as far as they spread, none is).
 
     Parameters
     ----------
@@ -235,6 +240,8 @@ def check_limits(source: str, q: np.ndarray, robot: Robot, length_unit: str | No
         The robot (its limits and joint types).
     length_unit, angle_unit : str or None
         The units the values were read in (None: SI), to show them as written.
+    suggest : bool, optional
+        Name a unit that puts every value within the limits (default True).
 
     Raises
     ------
@@ -262,15 +269,21 @@ def check_limits(source: str, q: np.ndarray, robot: Robot, length_unit: str | No
         return
     j = int(np.flatnonzero(far)[0])
     unit = joint_units(robot.joint_types, length_unit or "m", angle_unit or "rad")[j] or ""
-    f = {**LENGTH_UNITS, **ANGLE_UNITS}.get(unit, 1.0)
-    raise MeasurementError(f"{source}: the column read as joint {robot.joint_names[j]} holds {q[:, j].min() / f:.4g} "
-                           f"to {q[:, j].max() / f:.4g} {unit} as written, while its range is {robot.lower[j] / f:.4g} "
-                           f"to {robot.upper[j] / f:.4g} {unit}: far outside it in most rows: another unit, or another "
-                           f"quantity in that column? check the joint columns and their unit (CLI: --joint-cols, "
-                           f"--{'angle' if robot.joint_types[j] == 'revolute' else 'length'}-unit)")
+    units = ANGLE_UNITS if robot.joint_types[j] == "revolute" else LENGTH_UNITS
+    f, flag = {**LENGTH_UNITS, **ANGLE_UNITS}.get(unit, 1.0), "angle" if units is ANGLE_UNITS else "length"
+    written = q[:, j] / f
+    fits = [u for u, g in units.items() if u != unit and np.all((written * g >= robot.lower[j] - 1e-12)
+                                                                 & (written * g <= robot.upper[j] + 1e-12))]
+    hint = f": read as {fits[0]} they lie within it; use {flag} unit '{fits[0]}' (CLI: --{flag}-unit {fits[0]})" if \
+        fits and suggest else (f": another unit, or another quantity in that column? check the joint columns and their unit "
+                   f"(CLI: --joint-cols, --{flag}-unit)")
+    raise MeasurementError(f"{source}: the column read as joint {robot.joint_names[j]} holds {written.min():.4g} "
+                           f"to {written.max():.4g} {unit} as written, while its range is {robot.lower[j] / f:.4g} "
+                           f"to {robot.upper[j] / f:.4g} {unit}: far outside it in most rows{hint}")
 
 
-def check_joints(source: str, q: np.ndarray, robot: Robot, length_unit: str | None, angle_unit: str | None) -> None:
+def check_joints(source: str, q: np.ndarray, robot: Robot, length_unit: str | None, angle_unit: str | None,
+                 suggest: bool = True) -> None:
     """The joint values' unit and column checks, in order: :func:`check_degrees`, :func:`check_radians`,
     :func:`check_limits`.
 
@@ -284,6 +297,8 @@ def check_joints(source: str, q: np.ndarray, robot: Robot, length_unit: str | No
         The robot.
     length_unit, angle_unit : str or None
         The units the values were read in.
+    suggest : bool, optional
+        Passed to :func:`check_limits` (default True).
 
     Raises
     ------
@@ -299,7 +314,7 @@ def check_joints(source: str, q: np.ndarray, robot: Robot, length_unit: str | No
     """
     check_degrees(source, q, robot, angle_unit)
     check_radians(source, q, robot, angle_unit)
-    check_limits(source, q, robot, length_unit, angle_unit)
+    check_limits(source, q, robot, length_unit, angle_unit, suggest)
 
 
 def _counter(values: np.ndarray) -> bool:
