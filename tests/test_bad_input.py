@@ -313,7 +313,8 @@ ARGS = [
     case("design-identical-candidates", ["design", "ur5", "-m", "10", "--candidates", "{d}/c.csv", "-o", "{d}/p.csv"],
          1, ["1 distinct pose"], files={"c.csv": "j1,j2,j3,j4,j5,j6\n" + "0.1,0.2,0.3,0.4,0.5,0.6\n" * 50}),
     case("design-candidates-beyond-limits", ["design", "guo3t2r", "-m", "10", "--candidates", "{d}/c.csv", "-o",
-                                             "{d}/p.csv"], 1, ["break the joint limits", "row 2"],
+                                             "{d}/p.csv"], 1, ["joint phi1 holds 9e+04 to 9e+04 rad as written",
+                                                                "far outside"],
          files={"c.csv": "phi1,phi2,phi3,phi4,phi5\n9e4,0,0,0,0\n"}),  # 1e6 rad: not physically possible
     case("design-negative-restarts", ["design", "ur5", "-o", "{d}/p.csv", "--restarts", "-1"], 2, ["at least 1"]),
     case("npose-max-zero", ["npose", "ur5", "--max", "0"], 2, ["at least 1"]),
@@ -727,7 +728,7 @@ OBSERVE = [
          files={"prog.script": "def p():\n  movel(p[0.3, -0.2, 0.4, 0, 3.14, 0])\nend\n",
                 "cal.yaml": lambda b: _calibrated(b)}),
     case("a-flag-given-twice", ["design", "ur5", "-m", "10", "--seed", "1", "--seed", "2", "-o", "{d}/p.csv"], 1,
-         ["--seed is given twice (only the last would count)"]),
+         ["--seed is given twice, as 1 and 2 (only the last would count)"]),
     case("a-flag-given-twice-with-equals", ["design", "ur5", "-m", "10", "--seed=1", "--seed", "2", "-o", "{d}/p.csv"],
          1, ["--seed is given twice"]),
     case("a-search-setting-of-another-method", ["design", "ur5", "-m", "10", "--method", "fedorov", "--generations",

@@ -117,16 +117,18 @@ def _once(parser: argparse.ArgumentParser, argv: list[str]) -> None:
     command = sub.choices.get(argv[0]) if argv else None
     if command is None:
         return
-    seen: dict[str, str] = {}
-    for token in argv[1:]:
-        action = command._option_string_actions.get(token.split("=", 1)[0]) if token.startswith("-") else None
+    seen: dict[str, str | None] = {}
+    for k, token in enumerate(argv[1:], start=1):
+        flag, _, inline = token.partition("=")
+        action = command._option_string_actions.get(flag) if token.startswith("-") else None
         if action is None or type(action) not in (argparse._StoreAction, argparse._StoreTrueAction,
                                                   argparse._StoreConstAction):
             continue  # repeatable: --test, --keep-out, --distance and --plane (each judged on its own)
-        if action.dest in seen:
-            raise ValueError(f"{token.split('=', 1)[0]} is given twice (only the last would count): "
-                             f"give it once")
-        seen[action.dest] = token
+        value = (inline or None) if "=" in token else (argv[k + 1] if action.nargs != 0 and k + 1 < len(argv) else None)
+        if action.dest in seen and seen[action.dest] != value:  # the same value again changes nothing
+            raise ValueError(f"{flag} is given twice, as {seen[action.dest]} and {value} (only the last would "
+                             f"count): give it once")
+        seen[action.dest] = value
 
 
 def _negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:

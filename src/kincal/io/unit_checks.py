@@ -256,11 +256,21 @@ def check_limits(source: str, q: np.ndarray, robot: Robot, length_unit: str | No
     >>> robot = kincal.load_robot("hexapod")
     >>> q = robot.sample_joints(10, seed=1)
     >>> check_limits("legs.csv", q, robot, "mm", "rev")  # within the legs' ranges: nothing to say
-    >>> check_limits("legs.csv", q * 40.0, robot, "mm", "rev")
+    >>> check_limits("legs.csv", q * 40.0, robot, "mm", "rev", suggest=False)
     Traceback (most recent call last):
     ...
     kincal.errors.MeasurementError: legs.csv: the column read as joint leg... holds ... rev as written, while
     its range is 0 to 4.2 rev: far outside it in most rows: another unit, or another quantity in that column? ...
+
+    A 3-PUU's slides in mm read as metres: the unit that puts them all within their range is named:
+
+    >>> puu = kincal.load_robot("puu3")
+    >>> check_limits("pool.csv", puu.sample_joints(10, seed=1) * 1e3, puu, "m", "rad")
+    Traceback (most recent call last):
+    ...
+    kincal.errors.MeasurementError: pool.csv: the column read as joint h1 holds ... m as written, while its range
+    is 0.38 to 0.835 m: far outside it in most rows: read as mm they lie within it; use length unit 'mm' (CLI:
+    --length-unit mm)
     """
     width = robot.upper - robot.lower
     med = np.median(q, axis=0)
