@@ -163,3 +163,17 @@ def test_score_refuses_a_criterion_it_cannot_compute():
     with pytest.raises(ValueError, match="criterion 'IMSE': score takes one of D, A, E, I"):
         score(np.eye(2), 2, "IMSE")
     assert float(score(np.eye(2) * 2, 2, "D")) == pytest.approx(2 * np.log(2))
+
+
+def test_ide_designs_claim_no_pool_efficiency():
+    """The certified bound covers designs drawn from the candidate pool; IDE moves poses off it, and reported a
+    'certified' D-efficiency of 1.0051 on the delta. Its designs now carry no bound and say why; the same pool's
+    DETMAX design keeps its efficiency, at most 1."""
+    robot = kincal.load_robot("delta")
+    pool = candidate_pool(robot, 400, seed=0)
+    ide = select_poses(robot, pool, kincal.DesignOptions(m=20, method="detmax-ide", criterion="D", generations=20,
+                                                         seed=0))
+    assert ide.bound is None and ide.efficiency is None and "IDE moves poses off it" in ide.note
+    detmax = select_poses(robot, pool, kincal.DesignOptions(m=20, method="detmax", criterion="D", seed=0))
+    assert detmax.efficiency is not None and 0 < detmax.efficiency <= 1.0
+    assert ide.logdet > detmax.logdet - 1e-9  # it starts from DETMAX's design and keeps the better

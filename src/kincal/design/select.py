@@ -59,7 +59,7 @@ class Design:
     ----------
     efficiency : float or None
         D-efficiency (det M / exp(bound.upper))^(1/k): how far from the best possible design of the pool
-        (≤ 1 for pool designs; continuous designs may exceed the pool's bound); None without a bound or
+        (≤ 1 for pool designs; None for IDE's, whose poses leave the pool the bound covers); None without a bound or
         for a singular design.
 
     See Also
@@ -224,9 +224,14 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
             value = _score_blocks(J, o.criterion, terms.B)
             note = f"{o.criterion}-optimal within the strata" if o.stratified else ""
         elapsed = time.perf_counter() - t0
-        if bound is None and o.certify:
+        beyond = o.method in ("ide", "detmax-ide")  # poses off the pool: its bound does not bound them
+        if beyond:
+            bound = None
+        elif bound is None and o.certify:
             bound = relaxed_bound(P, o.m)
-        note = "\n  ".join(n for n in (P.note, note) if n)
+        note = "\n  ".join(n for n in (P.note, note, "no D-efficiency: the certified bound holds for designs from the "
+                                                      "candidate pool, and IDE moves poses off it" if beyond and
+                                                      o.certify else "") if n)
         return Design(idx, q, o.method, o.criterion, value, _score_blocks(J, "D", None), P.names, bound, elapsed,
                       o.seed, tuple(float(h) for h in history), note)
 
