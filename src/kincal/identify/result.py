@@ -441,6 +441,11 @@ class CalibrationResult:
         lines += [f"note: {n}" for n in self.notes]
         return "\n".join([*lines, str(self.verdict)])
 
+    def _registered(self) -> str:
+        """How the "before" model was registered to the data, in words."""
+        return "target point registered, frame as given (--base fixed)" if self.options.base == "fixed" else \
+            "frame and target point registered"
+
     def _data_lines(self) -> list[str]:
         """The residuals: per set before → after; for position data the residual σ against the
         tracker noise, the statistics before and after and a fitted drift; σ per kind otherwise."""
@@ -450,7 +455,7 @@ class CalibrationResult:
             noise = noise_level(self.measurements.std, self.options.thresholds)
             lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm (tracker noise for the verdict "
                       f"{noise[0] * MM:.3g} mm: {noise[1]})",
-                      f"before (nominal, frame and target point registered): {self.stats_before}",
+                      f"before (nominal, {self._registered()}): {self.stats_before}",
                       f"after:  {self.stats_after}"]
             if self.drift:
                 lines.append("drift over the session (first to last pose): " + ", ".join(
