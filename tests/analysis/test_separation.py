@@ -42,6 +42,10 @@ def test_separation_on_the_3t2r_robot():
     assert kincal.identifiability(robot, candidate_pool(robot, 100, seed=0), names=kept).full_rank
     assert sep.gcn_reduced < 1e2 < sep.gcn_full
     assert "kincal table S1" in sep.tables() and "the paper's Table 1" in sep.tables() and "QR" in sep.tables()
+    # a GCN that comes from the floor (an exact dependence) is printed as such, never as a number: every such set
+    # averaged the same 4.187e+08, which read as a measurement
+    S3 = next(line for line in sep.tables().splitlines()[1:] if line.strip().startswith("-j1.a"))
+    assert "-j1.a       dependent" in S3 and f"-j2.a      {rows['j2.a']:10.4g}" in S3 and "e+08" not in sep.tables()
 
 
 def test_a_group_that_is_all_candidates_keeps_one_member():

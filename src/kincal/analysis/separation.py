@@ -50,6 +50,14 @@ def gcn(J: np.ndarray, m: int) -> float:
     return float("inf") if s.size == 0 or s[0] == 0 else float(s[0] / max(s[-1], GCN_FLOOR * s[0]) / m)
 
 
+DEPENDENT = 1e6  # an averaged GCN this large comes from the floor: an exact dependence (a real one stays below 1e4)
+
+
+def _shown(g: float) -> str:
+    """A GCN as the tables print it (10 characters): 'dependent' where it comes from the floor."""
+    return f"{'dependent':>10}" if g >= DEPENDENT else f"{g:10.4g}"
+
+
 def averaged_gcn(J: np.ndarray) -> float:
     """Mean GCN of the first 1…M poses of J (M, 3, k); inf without columns (no model left to condition: a
     separation that would remove every parameter is never the best)."""
@@ -111,7 +119,7 @@ class Separation:
     {'a': ('j2.a', 'j3.a'), 'd': ('j2.d', 'j3.d', 'j4.d')}
     >>> sep.candidates  # the parallel offsets along the joint axes
     {'d': ('j4.d', 'j2.d', 'j3.d')}
-    >>> print(sep.tables().splitlines()[-4])
+    >>> print(sep.tables().splitlines()[-5])
     separated (ill-conditioned): j3.d, j4.d
     """
 
@@ -141,22 +149,28 @@ class Separation:
         """kincal's tables S1, S2, … (analogues of the paper's Tables 1–3, named so that none is read under the
         paper's numbers) and the model comparison, as text."""
         out = ["kincal table S1  GCN of each subdomain of the error model  [analogue: the paper's Table 1]",
-               "  " + "  ".join(f"J_{SYMBOL[t]:<2} {self.subdomain_gcn[t]:10.4g}" for t in self.subdomain_gcn)]
+               "  " + "  ".join(f"J_{SYMBOL[t]:<2} {_shown(self.subdomain_gcn[t])}" for t in self.subdomain_gcn)]
         for n, (t, rows) in enumerate(self.branches.items(), start=2):
             paper = PAPER_TABLES.get(t)
             where = f"the paper's Table {paper}" if paper else "none in the paper"
             out.append(f"kincal table S{n}  GCN of J_{SYMBOL[t]} with one parameter separated (threshold "
                        f"{self.threshold:g})  [analogue: {where}]")
-            out.append("  " + "  ".join(f"-{name:<9} {g:10.4g}" for name, g in rows))
+            out.append("  " + "  ".join(f"-{name:<9} {_shown(g)}" for name, g in rows))
         out.append("Reconstructed models (eq. 27-28): GCN with the candidates removed (before step 4)")
         for removed, g in self.models:
-            out.append(f"  without {', '.join(removed):<40} GCN {g:10.4g}")
-        out.append(f"  full model GCN {self.gcn_full:.4g}  ->  reduced model GCN {self.gcn_reduced:.4g} "
+            out.append(f"  without {', '.join(removed):<40} GCN {_shown(g)}")
+        out.append(f"  full model GCN {_shown(self.gcn_full).strip()}  ->  reduced model GCN "
+                   f"{_shown(self.gcn_reduced).strip()} "
                    f"({len(self.names) - len(self.separated)} of {len(self.names)} parameters kept)")
         out.append(f"separated (ill-conditioned): {', '.join(self.separated) or 'none'}")
         if set(self.paper_choice) != set(self.separated):
-            out.append(f"by the paper's rule (lowest GCN) the separated set would be: {', '.join(self.paper_choice)}")
+            out.append(f"by the paper's rule (the lowest GCN once step 4 has verified each model) the separated set "
+                       f"would be: {', '.join(self.paper_choice)}")
         out += [f"note: {n}" for n in self.notes]
+        if any(g >= DEPENDENT for g in (*self.subdomain_gcn.values(), *(g for _, g in self.models))):
+            out.append("note: 'dependent': an exact dependence among the columns, its smallest singular value rounding "
+                       "noise; its GCN is the floor's (GCN_FLOOR), the same for every such set, so those sets are not "
+                       "ranked by it (the paper prints round-off there: 1e12-1e16)")
         return "\n".join(out)
 
 
