@@ -1064,3 +1064,16 @@ def test_a_sample_number_column_given_as_a_joint_is_named(tmp_path, capsys):
     sweep[:, 0] = np.arange(40.0)  # joint 1 stepped 1° per row, every joint written in degrees
     with pytest.raises(kincal.errors.MeasurementError, match="they look like degrees"):
         check_degrees("sweep.csv", sweep, robot, "rad")
+
+
+def test_another_robots_file_with_more_joints_is_named(tmp_path, capsys):
+    """The WAM's grid calibrated as a UR5 on its first six joint columns: refused as before, and now the unread
+    joint_7 column is named (it said only that no common mistake explains the data)."""
+    from conftest import DATA
+    code = main(["calibrate", "ur5", str(DATA / "wam_grid.csv"), "--length-unit", "mm", "--angle-unit", "deg",
+                 "--joint-cols", ",".join(f"joint_{i}" for i in range(1, 7))])
+    out = capsys.readouterr().out
+    assert code == 4 and "also has the column(s) joint_7, which no joint of ur5 reads (6 joints)" in out
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), "--length-unit", "mm", "--angle-unit", "deg",
+                 "--joint-cols", ",".join(f"joint_{i}" for i in range(1, 7))]) == 0
+    assert "which no joint" not in capsys.readouterr().out

@@ -199,6 +199,25 @@ def read(args, robot, path):
                                     length_unit=args.length_unit, angle_unit=args.angle_unit, std_cols=std)
 
 
+def unread_joints(path: str, robot, joint_cols) -> list[str]:
+    """Columns of a data file named like its joint columns with another number (joint_7 beside the joint_1 …
+    joint_6 a six-joint robot reads): a robot with more joints may have made the file."""
+    import re
+
+    from kincal._csv import open_table
+    try:
+        header = open_table(path).header
+    except (OSError, kincal.KincalError, ValueError):
+        return []
+    cols = list(joint_cols) if joint_cols else robot.default_columns(header)
+    found = [re.fullmatch(r"(.*?)(\d+)", c) for c in cols]
+    prefixes = {f.group(1) for f in found if f is not None}
+    if None in found or len(prefixes) != 1:
+        return []
+    prefix = prefixes.pop()
+    return [h for h in header if h not in cols and re.fullmatch(re.escape(prefix) + r"\d+", h)]
+
+
 def progress_lines() -> bool:
     """Whether progress goes to stderr as plain lines (``KINCAL_PROGRESS=1``, e.g. for a log)."""
     return os.environ.get("KINCAL_PROGRESS", "") not in ("", "0")

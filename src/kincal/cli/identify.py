@@ -18,8 +18,8 @@ from kincal.history import calibration_record, evaluation_record, fingerprint
 from kincal.identify import held_out_stats, stat_line
 from kincal.units import DEG, MM
 
-from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, csv_list, emit, err, hidden_alias,
-                     load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list)
+from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, csv_list, emit, err, hidden_alias, load_robot,
+                     nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list, unread_joints)
 from . import observe
 from .history import add_store_flag, store_record
 from .report import add_session_flags, data_record, nominal_model, save_figures, write_outputs
@@ -83,6 +83,10 @@ def cmd_calibrate(args) -> int:
     if written:
         kincal.save_robot(res.robot, args.output, calibration={**res.record(), "data": data_record(args, kinds)})
     lines, held = held_out(res, tests, args.same_frame)
+    if res.verdict.status != "good" and set(kinds) == {"point"}:  # a file of a robot with more joints?
+        lines += [f"note: {path} also has the column(s) {', '.join(extra)}, which no joint of {robot.name} reads "
+                  f"({robot.n_joints} joints): data of a robot with more joints?"
+                  for path in args.data if (extra := unread_joints(path, robot, args.joint_cols))]
     text = "\n".join([str(res), *([res.dropped_text()] if res.identifiability.dropped else []), *lines])
     if args.residuals:  # per pose (position data: rows, joints in the file's units, errors, robust z) or per sample
         if res.data:
