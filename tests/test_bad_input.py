@@ -542,6 +542,8 @@ ROUND2 = [
           training_median_sigma=None),
     rcase("compensate-record-covariance-text", COMP, 1, ["cal.yaml", "'covariance' is malformed"], covariance="x"),
     rcase("compensate-record-parameters-missing", COMP, 1, ["'parameters' is missing"], parameters=None),
+    rcase("compensate-with-a-suspect-calibration", COMP, 0, ["calibrated with the verdict SUSPECT",
+                                                             "these commands carry that doubt"], verdict="suspect"),
     rcase("report-record-options-a-list", [*REPORT], 1, ["options must be a mapping"], options=[1, 2]),
     rcase("report-record-data-a-number", [*REPORT], 1, ["'data' must be a mapping"], data=5),
     rcase("report-record-thresholds-text", [*REPORT], 1, ["thresholds"], options={"thresholds": "high"}),

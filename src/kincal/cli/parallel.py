@@ -19,7 +19,7 @@ from kincal.compensate.turn import poses_in
 from kincal.observe import check_convention
 from kincal.units import DEG, MM
 
-from .common import (EXIT_REFUSED, add_data_flags, checked, csv_list, emit, load_robot, nonneg_float, point,
+from .common import (EXIT_REFUSED, add_data_flags, checked, csv_list, emit, err, load_robot, nonneg_float, point,
                      positive_float, positive_int, progress_bar)
 
 
@@ -73,6 +73,9 @@ def cmd_compensate(args) -> int:
     cal = load_robot(args, [args.targets, *([args.frames] if args.frames else [])], [args.output])
     record, values = _calibration(args)
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
+    if record.get("verdict") in ("suspect", "refused"):  # on stderr: the commands' output stays as it is
+        err.print(f"warning: {args.robot} was calibrated with the verdict {str(record['verdict']).upper()} (its "
+                  f"report says why): these commands carry that doubt", markup=False)
     if "link_error_max" in args.given and args.tcp is None and not args.program:  # a program may set its TCP
         raise ValueError("--link-error-max decides how much of the calibration's move of the measured target is "
                          "carried over to the controller's TCP; without --tcp the commands are for the measured "

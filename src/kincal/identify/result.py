@@ -309,6 +309,7 @@ class CalibrationResult:
                "setup": self.setup(), "weakly_determined": {n: float(v) for n, v in self.weak.items()}}
         if self.data:
             out["training_error"] = self.stats_after.mean
+        out["verdict"] = self.verdict.status  # what the commands made with this file carry
         nominal = self.nominal.params.as_dict()  # "before": its frame and target point registered on the data
         out["before_mounting"] = {n: float(v) for n, v in self.before.params.as_dict().items() if v != nominal[n]}
         if self.use_q is not None:
