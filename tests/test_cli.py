@@ -279,3 +279,21 @@ def test_simulate_writes_the_position_columns_asked_for(tmp_path, capsys):
     robot = kincal.load_robot(str(true))
     meas = kincal.read_measurements(out, robot, xyz_cols=["px", "py", "pz"], length_unit="mm")
     np.testing.assert_allclose(meas.xyz, robot.forward(meas.q), atol=1e-12)
+
+
+def test_a_base_frame_near_gimbal_lock_says_its_outer_angles_mean_only_together(tmp_path, capsys):
+    """guo3t2r's base stands at base.ry = 90°: a calibration moves base.rx and base.rz by about −90° each (σ 0.4°),
+    a frame equal to the nominal one up to its small error, with its positions right; it printed those 'corrections'
+    without a word. Now a note says they mean only together; a UR5 (base.ry 0) gets none."""
+    data, true = tmp_path / "g.csv", tmp_path / "true.yaml"
+    assert main(["simulate", "guo3t2r", "--perturb", "--poses", "80", "--seed", "3", "-o", str(data),
+                 "--save-true", str(true)]) == 0
+    capsys.readouterr()
+    assert main(["calibrate", "guo3t2r", str(data), "-o", str(tmp_path / "cal.yaml")]) == 0
+    said = capsys.readouterr().out
+    assert "near ±90°: base.rx and base.rz then turn about nearly the same axis (gimbal lock)" in said
+    q = kincal.load_robot("guo3t2r").sample_joints(50, seed=1)
+    cal, truth = kincal.load_robot(str(tmp_path / "cal.yaml")), kincal.load_robot(str(true))
+    assert np.abs(cal.forward(q) - truth.forward(q)).max() < 1e-4  # the frame it makes is right
+    ur5 = kincal.simulate(kincal.perturb(kincal.load_robot("ur5"), seed=1), kincal.load_robot("ur5").sample_joints(60))
+    assert "gimbal" not in str(kincal.calibrate(kincal.load_robot("ur5"), ur5))

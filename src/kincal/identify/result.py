@@ -24,6 +24,8 @@ from .select import ErrorModelChoice
 from .verdict import Verdict, mounting_line, noise_level, robust_z
 from .weak import weak_note
 
+GIMBAL_NEAR = np.radians(5.0)  # the base frame's middle angle this near ±90°: its outer angles turn alike
+
 
 @dataclass(frozen=True, eq=False)
 class CalibrationResult:
@@ -440,7 +442,21 @@ class CalibrationResult:
         lines += [] if self.error_model_choice is None else [str(self.error_model_choice)]
         lines += [f"compliance of {j}: {c:.3g} rad/(N·m)" for j, c in self.robot.compliances().items()]
         lines += [f"note: {n}" for n in self.notes]
+        lines += [f"note: {n}" for n in [self._gimbal_note()] if n]
         return "\n".join([*lines, str(self.verdict)])
+
+    def _gimbal_note(self) -> str:
+        """A note when the base frame's middle angle (R = Rz·Ry·Rx) lies within GIMBAL_NEAR of ±90°: there base.rx
+        and base.rz turn about nearly one axis, and their values, large and opposite or alike, mean only together."""
+        names = self.robot.params.names
+        if not {"base.rx", "base.ry", "base.rz"} <= set(names) or "base.rx" not in self.names:
+            return ""
+        ry = float(self.robot.params["base.ry"])
+        if abs(abs(ry) - np.pi / 2) > GIMBAL_NEAR:
+            return ""
+        return (f"base.ry is {np.degrees(ry):.3f}°, near ±90°: base.rx and base.rz then turn about nearly the same "
+                f"axis (gimbal lock), so their values mean only together (the frame they make, which the fit "
+                f"determines); their σ and corrections apart do not describe the robot")
 
     def _registered(self) -> str:
         """How the "before" model was registered to the data, in words."""
