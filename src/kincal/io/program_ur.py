@@ -58,6 +58,7 @@ def parse(source: str, text: str) -> Program:
     code = COMMENT_OR_STRING.sub(lambda m: " " * len(m.group()), text)
     bound = _bound_literals(code, text)
     targets, not_literal, seen = [], [], set()
+    uses: dict[str, list[tuple[int, int]]] = {}  # variable -> (where, line) of each move to it
     for m in CALL.finditer(code):
         move, line = m.group(1), text.count("\n", 0, m.start()) + 1
         for a, b in _arguments(code, m.end() - 1, source, line)[:MOVES[move]]:
@@ -65,6 +66,7 @@ def parse(source: str, text: str) -> Program:
             if name and name.group(1) in bound:
                 a0, b0 = bound[name.group(1)]
                 lit = _literal(text, a0, b0, text.count("\n", 0, a0) + 1, move, m.start(), name.group(1))
+                uses.setdefault(name.group(1), []).append((m.start(), line))
                 if lit is not None and name.group(1) not in seen:  # compensated once, where it is written
                     seen.add(name.group(1))
                     targets.append(lit)
@@ -74,7 +76,26 @@ def parse(source: str, text: str) -> Program:
                 not_literal.append((line, f"{move}({text[a:b].strip()})", NOT_ONE_LITERAL))
             else:
                 targets.append(found)
-    return Program(source, text, tuple(targets), tuple(not_literal), tcps=_tcps(code, text, source))
+    tcps = _tcps(code, text, source)
+    torn = _under_two_tcps(uses, tcps)
+    not_literal += [(t.line, t.variable, torn[t.variable]) for t in targets if t.variable in torn]
+    return Program(source, text, tuple(t for t in targets if t.variable not in torn),
+                   tuple(sorted(not_literal, key=lambda item: item[0])), tcps=tcps)
+
+
+def _under_two_tcps(uses: dict[str, list[tuple[int, int]]], tcps) -> dict[str, str]:
+    """Variables whose moves come under different TCPs (a set_tcp between them): one literal cannot be right for
+    both, so each is listed, never compensated for one of them only; name -> why."""
+    def tcp_at(at: int):
+        before = [pose for where, pose in tcps if where < at]
+        return "none" if not before else "variable" if before[-1] is None else tuple(np.round(before[-1], 12))
+    out = {}
+    for name, found in uses.items():
+        if len({tcp_at(at) for at, _ in found}) > 1:
+            lines = ", ".join(str(line) for _, line in found)
+            out[name] = (f"{name} is moved to under different TCPs (lines {lines}, a set_tcp between them): one "
+                         f"literal cannot be right for both; give each TCP's move its own pose")
+    return out
 
 
 def _literal(text: str, a: int, b: int, line: int, move: str, at: int, variable: str = "") -> Target | None:
