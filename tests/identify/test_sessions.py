@@ -545,3 +545,18 @@ def test_a_one_percent_scale_is_named_as_a_scale():
     scaled = dataclasses.replace(meas, xyz=meas.xyz * 1.01)
     said = heldout_cause(robot, scaled, 0.1e-3, rebased=True)
     assert "the measured positions spread 1.0100x the model's at the same joints: a scale error" in said, said
+
+
+def test_calibrate_with_a_held_out_file_says_how_it_did(tmp_path, capsys):
+    """calibrate --test on position data printed nothing about the held-out file without --report (a flag given
+    and not answered); it prints what evaluate does, frame re-fitted or kept, and the JSON carries the figures."""
+    units = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
+    for extra, before, after in (([], 0.4283, 0.0922), (["--same-frame"], 0.4926, 0.1005)):
+        assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *units, "--test", str(DATA / "ur5_random.csv"),
+                     *extra]) == 0
+        said = capsys.readouterr().out
+        assert f"held out ur5_random.csv" in said and f"mean {before:.4f} mm → {after:.4f} mm" in said
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *units, "--test", str(DATA / "ur5_random.csv"),
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["held_out"][0]["mean"] == pytest.approx(0.0922e-3, abs=1e-7) and out["held_out"][0]["n"] == 20

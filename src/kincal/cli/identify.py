@@ -168,10 +168,9 @@ def _not_training(data: list[str], tests: list[str]) -> None:
 
 def held_out(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
     """Held-out observation sets under the nominal ("before") and the calibrated model, and the
-    placements of the training and held-out sets, as lines and as JSON; none for position data
-    (their report and figures show them)."""
+    placements of the training and held-out sets, as lines and as JSON (position data: :func:`_held_out_points`)."""
     if res.data:
-        return [], {}
+        return _held_out_points(res, tests, same_frame)
     held = [(held_out_stats(res, t, res.before, same_frame), held_out_stats(res, t, res.robot, same_frame))
             for t in tests]
     out = [f"  held out {h['type']} ({h['source']}): {stat_line(b)}  →  {stat_line(h)}" for b, h in held]
@@ -179,6 +178,23 @@ def held_out(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
     out += [f"  warning: {w}" for w in envelopes if w]
     out += observe.group_lines(res.per_set, "training ") + observe.group_lines([h for _, h in held], "held out ")
     return out, {"held_out": [h for _, h in held], "held_out_nominal": [b for b, _ in held]}
+
+
+def _held_out_points(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
+    """Held-out position files judged as the report judges them: with ``same_frame`` both models as calibrated
+    (the nominal one registered on the training data), else each file's frame re-fitted for both (its mean
+    before → after in mm; the statistics in SI in the JSON)."""
+    how = kincal.identify.AS_CALIBRATED if same_frame else kincal.identify.REGISTERED
+    lines, after, before = [], [], []
+    for t in tests:
+        model = res.robot if same_frame else kincal.identify.refit_frame(res.robot, t)
+        nominal = res.before if same_frame else kincal.identify.register_mounting(res.nominal, t.q, t.xyz)
+        after.append(kincal.evaluate(model, t))
+        before.append(kincal.evaluate(nominal, t))
+        lines.append(f"  held out {Path(t.source).name} ({how}): n={after[-1].n}  mean {before[-1].mean * MM:.4f} mm "
+                     f"→ {after[-1].mean * MM:.4f} mm, max {after[-1].max * MM:.4f} mm")
+    return lines, ({"held_out": [{"file": t.source, "registration": how, **a.to_dict()} for t, a in zip(tests, after)],
+                    "held_out_nominal": [b.to_dict() for b in before]} if tests else {})
 
 
 def _covariate_ranges(res) -> dict:
