@@ -1079,3 +1079,15 @@ def test_another_robots_file_with_more_joints_is_named(tmp_path, capsys):
     assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), "--length-unit", "mm", "--angle-unit", "deg",
                  "--joint-cols", ",".join(f"joint_{i}" for i in range(1, 7))]) == 0
     assert "which no joint" not in capsys.readouterr().out
+
+
+def test_a_store_that_cannot_be_written_is_refused_before_the_model_is(tmp_path, capsys):
+    """--store in a folder that does not exist, or the same path as -o: the calibrated file was written, then the
+    store failed ('file is not a database' for the second); both are refused before any work now."""
+    from conftest import DATA
+    units = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(f"joint_{i}" for i in range(1, 7))]
+    out = tmp_path / "cal.yaml"
+    for store, said in ((tmp_path / "nodir" / "robots.db", "does not exist"), (out, "would overwrite")):
+        assert main(["calibrate", "ur5", str(DATA / "ur5_random.csv"), *units, "-o", str(out), "--store",
+                     str(store)]) == 1
+        assert said in capsys.readouterr().err and not out.exists()

@@ -48,6 +48,15 @@ def store_of(args) -> str | None:
     return url
 
 
+def store_file(args) -> str | None:
+    """The store's file when it is one (a path or sqlite:///PATH), for the checks before any work (its folder
+    exists, it is no input and no other output); None for none or a server."""
+    url = store_url(args.store)
+    if url is None or ("://" in url and not url.startswith("sqlite:///")):
+        return None
+    return url[len("sqlite:///"):] if url.startswith("sqlite:///") else url
+
+
 def history_for_report(args, nominal) -> dict | None:
     """The robot's history for its calibration report (rows of display texts, the plot, the store), when a store
     is set and holds records of the robot (named by the nominal model's name and --serial); None otherwise."""

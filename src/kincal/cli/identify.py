@@ -21,7 +21,7 @@ from kincal.units import DEG, MM
 from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, csv_list, emit, err, hidden_alias, load_robot,
                      nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list, unread_joints)
 from . import observe
-from .history import add_store_flag, store_record
+from .history import add_store_flag, store_file, store_record
 from .report import add_session_flags, data_record, nominal_model, save_figures, write_outputs
 
 
@@ -75,7 +75,7 @@ def cmd_calibrate(args) -> int:
                          "(the training files' target is fitted anyway)")
     reports = [args.report, json_path_for(args.report)] if args.report else []
     robot = covariates_of(args, load_robot(args, [*args.data, *args.test],
-                                           [args.output, args.residuals, *reports, args.plot]))
+                                           [args.output, args.residuals, *reports, args.plot, store_file(args)]))
     options = fit_options(args)
     res, tests = fit_files(args, robot, kinds, args.data, args.test, options)
     refused = res.verdict.status == "refused"
