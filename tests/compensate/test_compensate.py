@@ -1,9 +1,14 @@
 """Compensation: commanding the compensated inputs reaches held-out targets to the calibration accuracy."""
+import json
+
 import numpy as np
 import pytest
 
 import kincal
-from kincal.compensate import compensate
+from kincal.cli import main
+from kincal.compensate import command_models, compensate
+
+from conftest import DATA, UR5_COLS
 
 NOISE = 15e-6
 
@@ -173,3 +178,34 @@ def test_commands_in_the_base_frame_say_which_errors_they_keep(tmp_path, capsys)
             assert miss.mean() > 0.2e-3 and out["predicted_sigma"]["max"] < 0.05e-3
         else:
             assert out["base_note"] is None and miss.max() < 0.05e-3
+
+
+def test_the_predicted_sigma_of_commands_in_a_robot_frame_leaves_the_tracker_frame_out(tmp_path, capsys):
+    """The real UR5's calibration, targets in its base frame and the same targets in base_link (turned 180°): the
+    commands are the same, and so is their predicted σ now, the robot parameters' covariance block carried to the
+    TCP (it took in the tracker frame's parameters and their correlations: 0.0299 mm in base, 0.0643 in base_link)."""
+    units = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
+    cal = tmp_path / "cal.yaml"
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *units, "-o", str(cal)]) == 0
+    nominal = kincal.load_robot("ur5").with_tool_point([0.0, 0.0, 0.15])
+    q = nominal.sample_joints(12, seed=4)
+    xyz = nominal.forward(q)
+    sigma = {}
+    for frame, turn in (("base", [1.0, 1.0, 1.0]), ("base_link", [-1.0, -1.0, 1.0])):
+        path = tmp_path / f"{frame}.csv"
+        kincal.write_measurements(str(path), kincal.Measurements(q, xyz * turn, nominal.joint_names, "t"),
+                                  nominal.joint_types, length_unit="mm", angle_unit="deg")
+        capsys.readouterr()
+        assert main(["compensate", str(cal), str(path), "--length-unit", "mm", "--angle-unit", "deg", "--tcp",
+                     "0,0,150mm", "--target-frame", frame, "-o", str(tmp_path / f"{frame}_cmd.csv"), "--json"]) == 0
+        sigma[frame] = json.loads(capsys.readouterr().out)["predicted_sigma"]["median"]
+    assert sigma["base"] == pytest.approx(sigma["base_link"], rel=1e-9)
+    unc = kincal.analysis.load_uncertainty(str(cal))
+    robot = [n for n in unc.names if not n.startswith("base.")]
+    model, _ = command_models(kincal.load_robot(str(cal)), kincal.models.load_calibration_record(str(cal))["nominal"],
+                              tcp=[0.0, 0.0, 0.15])
+    cmds = np.radians(np.loadtxt(tmp_path / "base_cmd.csv", delimiter=",", skiprows=1, usecols=range(1, 7)))
+    J = model.param_jacobian(cmds)[..., model.params.indices(robot)]
+    C = unc.covariance[np.ix_([unc.names.index(n) for n in robot], [unc.names.index(n) for n in robot])]
+    independent = np.sqrt(np.einsum("nak,kl,nal->n", J, C, J))
+    assert sigma["base"] == pytest.approx(float(np.median(independent)), rel=1e-6)

@@ -20,6 +20,8 @@ a controller's −360° is its 0° (joint 6 at −360° against a ±62° range i
 """
 from __future__ import annotations
 
+import dataclasses
+from contextlib import suppress
 from dataclasses import dataclass
 
 import numpy as np
@@ -106,6 +108,36 @@ class ModelUncertainty:
             ref = None
         return cls(unc.names, unc.covariance, median, lo, hi, ref,
                    robot.tool_point() if robot.has_tool_point else None)
+
+    def without(self, names, robot: Robot) -> "ModelUncertainty":
+        """The same uncertainty with the parameters ``names`` left out (their covariance's marginal: the others'
+        block), its envelope reference recomputed the same way over the training ranges; for predictions that do
+        not depend on them (positions in the robot's base frame do not on the frame the instrument stood in).
+
+        Parameters
+        ----------
+        names : iterable of str
+            The parameters to leave out (those not in it are ignored).
+        robot : Robot
+            The calibrated robot, for the envelope reference.
+
+        Returns
+        -------
+        ModelUncertainty
+            ``self`` when none of ``names`` is in it.
+        """
+        keep = [k for k, n in enumerate(self.names) if n not in set(names)]
+        if len(keep) == len(self.names):
+            return self
+        unc = dataclasses.replace(self, names=tuple(self.names[k] for k in keep),
+                                  covariance=self.covariance[np.ix_(keep, keep)])
+        if self.lower is None or self.upper is None or self.envelope_sigma is None:
+            return unc
+        q = np.random.default_rng(0).uniform(self.lower, self.upper, size=(ENVELOPE_POSES, len(self.lower)))
+        q = q[robot.feasible(q)]
+        with suppress(ModelError):
+            return dataclasses.replace(unc, envelope_sigma=float(np.percentile(unc.sigma(robot, q), 95)))
+        return unc
 
     def outside(self, q: np.ndarray, revolute: np.ndarray | None = None) -> np.ndarray:
         """(N,) bool: a joint lies outside its training range by more than ENVELOPE_MARGIN of it (the

@@ -104,7 +104,9 @@ def cmd_compensate(args) -> int:
                         args.orientation, tuple(args.rot_cols) if args.rot_cols else None, args.length_unit,
                         args.angle_unit)
     turned, turn = _orientation(args, record, cal, values, nominal, uncertainty)
-    job = StreamJob(r, nominal, fmt, uncertainty, args.output_kind, args.path, turned)
+    in_robot = uncertainty if uncertainty is None or args.target_frame == "measurement" else \
+        uncertainty.without(cal.base_params(), cal)  # commands in a robot frame do not depend on the tracker's
+    job = StreamJob(r, nominal, fmt, in_robot, args.output_kind, args.path, turned)
     with progress_bar(args, "compensating") as bar:
         res = compensate_file(job, args.targets, args.output, skip_unreachable=args.skip_unreachable,
                               workers=args.workers, progress=bar)
