@@ -362,6 +362,19 @@ def _before(robot: Robot, sets, frame: bool) -> Robot:
                              frame) if found else robot
 
 
+def _before_nuisance(model: Robot, obs, nuis: np.ndarray) -> np.ndarray:
+    """A set's set-up values for its "before" figures: as the fit started, but a session's own frame registered
+    to its positions with the "before" model (it kept the frame the fit started from, with the declared tool
+    point: 2.86 mm on the second half of the UR5 grid, whose nominal registered alone gives 0.65 mm)."""
+    found = obs.inner.positions() if isinstance(obs, InSession) else None
+    if found is None or not model.base_params():
+        return nuis
+    framed = register_base(model, found[0], found[1])
+    out = np.array(nuis, float)
+    out[len(out) - len(model.base_params()):] = framed.params.values[framed.params.indices(model.base_params())]
+    return out
+
+
 def _registered(robot: Robot, sets, gauge) -> Robot:
     """``robot`` with its measurement frame registered rigidly to the absolute positions in ``sets``
     (none, or a base the data do not see: unchanged)."""
@@ -402,7 +415,7 @@ def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit,
         learned = {}
     std = {n: float(v) for n, v in zip(free, sd)}
     std.update({n: np.inf for n in st.nuis_names if n not in std})
-    before = tuple(o.stats(before_model, before_model.params.values, x0[P:][slot])
+    before = tuple(o.stats(before_model, before_model.params.values, _before_nuisance(before_model, o, x0[P:][slot]))
                    for o, slot in zip(st.sets, st.slots))
     after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
     r = fit.residual * st.stated / st.inv_sigma  # whitened by the stated σ: what the user can restate
