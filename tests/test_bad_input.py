@@ -744,6 +744,12 @@ OBSERVE = [
          ["the column read as joint h1 holds", "read as mm they lie within it", "--length-unit mm"],
          files={"pool.csv": lambda b: "h1,h2,h3\n" + "".join(f"{400 + 20 * k},{420 + 15 * k},{450 + 10 * k}\n"
                                                               for k in range(20))}),
+    case("program-tcp-that-no-move-uses", ["compensate", "{d}/cal.yaml", "{d}/prog.script", "--program", "ur", "--tcp",
+                                           "0,0,100mm", "-o", "{d}/out.script"], 1,
+         ["--tcp is the TCP of the moves before the program's first set_tcp", "leave --tcp out"],
+         files={"prog.script": "def p():\n  set_tcp(p[0, 0, 0.15, 0, 0, 0])\n"
+                               "  movej([0, -1.5, 1.5, -1.5, -1.5, 0], a=1.4)\nend\n",
+                "cal.yaml": lambda b: _calibrated(b)}),
     case("program-without-its-flag", ["compensate", "ur5", "{d}/prog.script", "-o", "{d}/out.script"], 1,
          ["prog.script looks like a ur program", "--program ur"],
          files={"prog.script": "def p():\n  movej([0, -1.5, 1.5, -1.5, -1.5, 0], a=1.4)\nend\n"}),

@@ -304,6 +304,9 @@ def _compensate_program(args, r, nominal, carry: str, models, orientation, unsee
     """compensate --program ur: a robot program compensated in place, written to -o (never over it);
     with --skip-unreachable each target left as it is gets a comment saying why."""
     prog = _read_program(args)
+    if args.tcp is not None and prog.targets and not any(isinstance(prog.tcp_at(t.at), tuple) for t in prog.targets):
+        raise ValueError(f"--tcp is the TCP of the moves before the program's first set_tcp, and {args.targets} sets "
+                         f"its TCP before every move: leave --tcp out (the program's set_tcp is used)")
     turned, turn = orientation
     res = compensate_program(r, nominal, prog, models=models, orientation=turned)
     written = not res.problems or args.skip_unreachable  # never half a program silently; none at all: as it was
