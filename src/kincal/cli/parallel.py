@@ -63,19 +63,11 @@ def _orientation_from(turned, turn) -> dict:
 def cmd_compensate(args) -> int:
     if args.program and os.path.isdir(args.targets):
         return _compensate_folder(args)
-    language = None
-    if not args.program and not os.path.isdir(args.targets):
-        with contextlib.suppress(ValueError):  # a suffix no language has: a targets file
-            language = kincal.io.dialect_of(args.targets)
-    if language:
-        raise ValueError(f"{args.targets} looks like a {language} program (its suffix): give --program {language} "
-                         f"(without it the file is read as a CSV of targets)")
+    _not_a_program(args)
     cal = load_robot(args, [args.targets, *([args.frames] if args.frames else [])], [args.output])
     record, values = _calibration(args)
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
-    if record.get("verdict") in ("suspect", "refused"):  # on stderr: the commands' output stays as it is
-        err.print(f"warning: {args.robot} was calibrated with the verdict {str(record['verdict']).upper()} (its "
-                  f"report says why): these commands carry that doubt", markup=False)
+    _doubt(args, record)
     if "link_error_max" in args.given and args.tcp is None and not args.program:  # a program may set its TCP
         raise ValueError("--link-error-max decides how much of the calibration's move of the measured target is "
                          "carried over to the controller's TCP; without --tcp the commands are for the measured "
@@ -215,6 +207,24 @@ def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
                        "output": args.output if written else None, **_orientation_from(turned, turn),
                        "base_note": unseen or None},
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
+
+
+def _not_a_program(args) -> None:
+    """Refuse a targets file whose suffix is a robot program's, given without --program."""
+    language = None
+    if not args.program and not os.path.isdir(args.targets):
+        with contextlib.suppress(ValueError):  # a suffix no language has: a targets file
+            language = kincal.io.dialect_of(args.targets)
+    if language:
+        raise ValueError(f"{args.targets} looks like a {language} program (its suffix): give --program {language} "
+                         f"(without it the file is read as a CSV of targets)")
+
+
+def _doubt(args, record: dict) -> None:
+    """On stderr (the commands' output stays as it is): the calibration's verdict when it was not good."""
+    if record.get("verdict") in ("suspect", "refused"):
+        err.print(f"warning: {args.robot} was calibrated with the verdict {str(record['verdict']).upper()} (its "
+                  f"report says why): these commands carry that doubt", markup=False)
 
 
 def _read_program(args):
