@@ -244,6 +244,9 @@ def test_panda_sockets_as_the_authors_protocol(tmp_path):
     assert set(fit.weak) == {"panda_joint7.roll", "panda_joint7.pitch"} and min(fit.weak.values()) > np.deg2rad(2)
     assert not set(fit.weak) & set(fit.names) and "large-correction" not in [r.code for r in fit.verdict.reasons]
     assert "kept at nominal, determined worse than a real robot" in str(fit)
+    held = [n for n in fit.names if fit.sigma_text(n) == "held by the prior"]  # shown so, not as ± 0.0000
+    assert held and all(fit.std[n] < 1e-7 for n in held) and f"{held[0]:<22}" in str(fit)
+    assert all(line.endswith("held by the prior") for line in str(fit).splitlines() if line.startswith(held[0] + " "))
     assert max(g["distance_error"] * 1e3 for g in test["groups"]) < 0.35  # the scale carries over
     with pytest.raises(kincal.MeasurementError, match="scale is unobservable"):
         fit_observations(robot, [sockets(train, distance=False)])

@@ -25,6 +25,7 @@ from .verdict import Verdict, mounting_line, noise_level, robust_z
 from .weak import weak_note
 
 GIMBAL_NEAR = np.radians(5.0)  # the base frame's middle angle this near ±90°: its outer angles turn alike
+PRIOR_HELD = 1e-7  # m or rad: a σ this small under a learned prior is the prior holding the parameter, not data
 
 
 @dataclass(frozen=True, eq=False)
@@ -425,10 +426,10 @@ class CalibrationResult:
         param_kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
         lines.append(f"{'parameter':<22} {'estimate':>16} {'correction':>16} {'σ':>14}")
         for n in self.names:
-            k, sd = param_kinds[n], self.std.get(n, np.inf)
+            k = param_kinds[n]
             lines.append(f"{n:<22} {display(self.robot.params[n], k):>16} "
                          f"{display(self.robot.params[n] - self.nominal.params[n], k):>16} "
-                         f"{display(sd, k).lstrip('+') if np.isfinite(sd) else 'undetermined':>14}")
+                         f"{self.sigma_text(n) or display(self.std[n], k).lstrip('+'):>14}")
         lines += self._data_lines()
         lines += [f"mounting: {self.mounting}"] if self.mounting else []
         if self.gauge:
@@ -457,6 +458,14 @@ class CalibrationResult:
         return (f"base.ry is {np.degrees(ry):.3f}°, near ±90°: base.rx and base.rz then turn about nearly the same "
                 f"axis (gimbal lock), so their values mean only together (the frame they make, which the fit "
                 f"determines); their σ and corrections apart do not describe the robot")
+
+    def sigma_text(self, name: str) -> str:
+        """The words for a parameter's σ where a number would mislead: 'undetermined' (not determined by the data),
+        'held by the prior' (a learned prior keeps it at nominal, σ below PRIOR_HELD); '' otherwise."""
+        sd = self.std.get(name, np.inf)
+        if not np.isfinite(sd):
+            return "undetermined"
+        return "held by the prior" if self.prior and sd < PRIOR_HELD else ""
 
     def _registered(self) -> str:
         """How the "before" model was registered to the data, in words."""

@@ -350,7 +350,7 @@ def _parameter_rows(result: CalibrationResult) -> list[dict]:
         big = abs(c) > th.suspect(k, n in result.robot.mounting_params()) and n not in base
         rows.append({"name": n, "nominal": _value(result.nominal.params[n], k),
                      "calibrated": _value(result.estimates[n], k), "correction": _value(c, k, signed=True),
-                     "sigma": _value(result.std[n], k) if np.isfinite(result.std[n]) else "undetermined",
+                     "sigma": result.sigma_text(n) or _value(result.std[n], k),
                      "flag": "large" if big else ""})
     return rows
 
