@@ -750,6 +750,8 @@ OBSERVE = [
          files={"prog.script": "def p():\n  set_tcp(p[0, 0, 0.15, 0, 0, 0])\n"
                                "  movej([0, -1.5, 1.5, -1.5, -1.5, 0], a=1.4)\nend\n",
                 "cal.yaml": lambda b: _calibrated(b)}),
+    case("history-of-a-store-that-does-not-exist", ["history", "ur5", "--store", "{d}/none.db"], 1,
+         ["no calibration store at", "none.db", "creates it"]),
     case("program-without-its-flag", ["compensate", "ur5", "{d}/prog.script", "-o", "{d}/out.script"], 1,
          ["prog.script looks like a ur program", "--program ur"],
          files={"prog.script": "def p():\n  movej([0, -1.5, 1.5, -1.5, -1.5, 0], a=1.4)\nend\n"}),

@@ -3,6 +3,7 @@ between calibrations, the plot, events) and the --store flag the recording comma
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import sys
 
@@ -144,6 +145,10 @@ def cmd_history(args) -> int:
     if args.parameters and not args.plot:
         raise ValueError("--parameters chooses the panels of the plot: add --plot FILE.png")
     url, at = store_for(args.store), utc_time(args.at) if args.at else None
+    path = store_file(args)
+    if path is not None and not args.event and not os.path.exists(path):  # reading must not create one
+        raise ValueError(f"no calibration store at {path}: the first command that records into it (calibrate, "
+                         f"evaluate, check or compare with --store) creates it")
     if args.plot:
         if not args.plot.lower().endswith((".png", ".svg")):
             raise ValueError(f"--plot {args.plot}: give a .png or .svg file")
