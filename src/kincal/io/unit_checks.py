@@ -80,10 +80,11 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
     kincal.errors.MeasurementError: ur5.csv: measured positions spread 1e+03x more than the robot moves at the same
     joint values (read as 'm'): they look like mm; use length unit 'mm' (CLI: --length-unit mm)
     """
+    assembles = True
     try:
         predicted = spread(robot.forward(q))
     except ModelError:  # a closed chain that does not assemble at these joints: another angle unit, or the joints'
-        predicted = 0.0  # own checks name why
+        predicted, assembles = 0.0, False  # own checks name why
     ratio = spread(xyz) / max(predicted, 1e-300)
     if predicted > MIN_SPREAD and 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
         return
@@ -93,7 +94,7 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
                                f"{max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the {what} "
                                f"spread, read as {ANGLE_WORDS[other]} they match: use angle unit '{other}' (CLI: "
                                f"--angle-unit {other})")
-    if not predicted:
+    if not assembles:
         return
     jump = frame_jump(xyz, robot.forward(q))
     if jump is not None:
