@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -12,6 +13,7 @@ import numpy as np
 from rich.console import Console
 
 import kincal
+from kincal._csv import open_table
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS
 
 out = Console(highlight=False, soft_wrap=True)
@@ -202,9 +204,6 @@ def read(args, robot, path):
 def unread_joints(path: str, robot, joint_cols) -> list[str]:
     """Columns of a data file named like its joint columns with another number (joint_7 beside the joint_1 …
     joint_6 a six-joint robot reads): a robot with more joints may have made the file."""
-    import re
-
-    from kincal._csv import open_table
     try:
         header = open_table(path).header
     except (OSError, kincal.KincalError, ValueError):
