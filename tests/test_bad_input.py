@@ -733,6 +733,8 @@ OBSERVE = [
          ["--seed is given twice, as 1 and 2 (only the last would count)"]),
     case("a-flag-given-twice-with-equals", ["design", "ur5", "-m", "10", "--seed=1", "--seed", "2", "-o", "{d}/p.csv"],
          1, ["--seed is given twice"]),
+    case("an-on-off-flag-given-both-ways", ["design", "ur5", "-m", "10", "--coverage", "--no-coverage", "-o",
+                                            "{d}/p.csv"], 1, ["--coverage and --no-coverage are both given"]),
     case("a-search-setting-of-another-method", ["design", "ur5", "-m", "10", "--method", "fedorov", "--generations",
                                                 "50", "-o", "{d}/p.csv"], 1,
          ["--generations is for --method ide or detmax-ide, not fedorov"]),

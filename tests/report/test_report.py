@@ -72,6 +72,26 @@ def test_same_input_same_bytes(real, tmp_path, capsys):
     assert strip(first) == strip(again)
 
 
+@pytest.mark.xdist_group("report-real")
+def test_report_frame_as_recorded_or_turned_off(real, tmp_path, capsys):
+    """The calibration was made with --same-frame: kincal report judges the held-out file in the training frame
+    by default (0.1005 mm, the README's figure) and re-fits its frame with --no-same-frame (0.0922 mm), as
+    calibrate without --same-frame does."""
+    def held_after(*flags: str) -> float:
+        assert main(["report", str(real / "cal.yaml"), "--test", str(DATA / "ur5_random.csv"), *flags, "-o",
+                     str(tmp_path / "r.html"), "--json"]) == 0
+        data = json.loads(capsys.readouterr().out)
+        return next(h["mean"] for h in data["headline"] if h["key"] == "held-out.after")
+
+    assert held_after() == pytest.approx(0.1005e-3, abs=0.00005e-3)
+    assert held_after("--no-same-frame") == pytest.approx(0.0922e-3, abs=0.00005e-3)
+    cal = kincal.load_robot(str(real / "cal.yaml"))
+    meas = kincal.read_measurements(DATA / "ur5_random.csv", cal, UR5_COLS, length_unit="mm", angle_unit="deg")
+    refit = kincal.identify.refit_frame(cal, meas)  # the frame alone, kinematics fixed
+    independent = float(np.linalg.norm(refit.forward(meas.q) - meas.xyz, axis=1).mean())
+    assert held_after("--no-same-frame") == pytest.approx(independent, abs=2e-6)
+
+
 def test_bad_calibration_says_so_at_the_top(ur5, tmp_path, capsys):
     true = kincal.perturb(ur5, seed=1)
     meas = kincal.simulate(true, ur5.sample_joints(80, seed=3), 15e-6, seed=0)

@@ -122,9 +122,14 @@ def _once(parser: argparse.ArgumentParser, argv: list[str]) -> None:
         flag, _, inline = token.partition("=")
         action = command._option_string_actions.get(flag) if token.startswith("-") else None
         if action is None or type(action) not in (argparse._StoreAction, argparse._StoreTrueAction,
-                                                  argparse._StoreConstAction):
+                                                  argparse._StoreConstAction, argparse.BooleanOptionalAction):
             continue  # repeatable: --test, --keep-out, --distance and --plane (each judged on its own)
         value = (inline or None) if "=" in token else (argv[k + 1] if action.nargs != 0 and k + 1 < len(argv) else None)
+        if isinstance(action, argparse.BooleanOptionalAction):  # --coverage and --no-coverage: two values
+            value = "off" if flag.startswith("--no-") else "on"
+        if action.dest in seen and seen[action.dest] != value and isinstance(action, argparse.BooleanOptionalAction):
+            raise ValueError(f"{' and '.join(action.option_strings)} are both given (only the last would count): "
+                             f"give one")
         if action.dest in seen and seen[action.dest] != value:  # the same value again changes nothing
             raise ValueError(f"{flag} is given twice, as {seen[action.dest]} and {value} (only the last would "
                              f"count): give it once")

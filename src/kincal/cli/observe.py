@@ -143,11 +143,21 @@ def add_flags(p: argparse.ArgumentParser, std: bool = True) -> None:
     g.add_argument("--std-rot", type=angle, help="pose: orientation σ with its unit, e.g. 1mrad (default 1mrad)")
 
 
-def add_refit_target(p: argparse.ArgumentParser) -> None:
+AS_RECORDED = " (default: as the calibration was made; --no-... turns it off)"
+
+
+def switch(recorded: bool) -> dict:
+    """argparse keywords of an on/off flag: off by default, or, for a command that refits a calibration
+    (``recorded``), None by default (the calibration record's value) with a --no- form."""
+    return {"action": argparse.BooleanOptionalAction, "default": None} if recorded else {"action": "store_true"}
+
+
+def add_refit_target(p: argparse.ArgumentParser, recorded: bool = False) -> None:
     """--refit-target, of the commands that judge held-out files (calibrate, report, evaluate)."""
-    p.add_argument("--refit-target", action="store_true",
+    p.add_argument("--refit-target", **switch(recorded),
                    help="pose, held-out files: re-fit the target's frame on the flange too, its point and rotation "
-                        "(a rigid body defined anew between sessions), not kept as calibrated")
+                        "(a rigid body defined anew between sessions), not kept as calibrated"
+                        + AS_RECORDED * recorded)
 
 
 def format_of(args, kind: str, own_target: bool = False):

@@ -73,12 +73,12 @@ def cmd_report(args) -> int:
     data, options = _record_parts(args.robot, record, args.train)
     given = {"joint_cols": args.joint_cols, "xyz_cols": args.xyz_cols, "length_unit": args.length_unit,
              "angle_unit": args.angle_unit,  # read as attributes: tests track which flags a command reads
-             "refit_target": args.refit_target or None}
+             "refit_target": args.refit_target}
     default = {"xyz_cols": ["x", "y", "z"], "length_unit": "m", "angle_unit": "rad", "orientation": "quat-wxyz",
                "refit_target": False}
     reading = argparse.Namespace(**{k: given[k] if given.get(k) is not None else data["reading"].get(k, default.get(k))
                                     for k in READING}, json=args.json, data=data["file"],
-                                 same_frame=bool(args.same_frame or data.get("same_frame")))
+                                 same_frame=bool(data.get("same_frame") if args.same_frame is None else args.same_frame))
     reading.distance = [tuple(d) for d in reading.distance or []]
     reading.exclude = None if args.train else reading.exclude  # recorded rows are rows of the recorded files
     reading.plane = [(lab, (tuple(n), c)) for lab, (n, c) in reading.plane or []]
@@ -165,17 +165,18 @@ def nominal_model(cal, record: dict | None, path: str, key: str = "nominal"):
     return cal.with_params({k: float(v) for k, v in values.items()})
 
 
-def add_session_flags(p) -> None:
-    """--test (repeatable: one file per session) and --same-frame."""
+def add_session_flags(p, recorded: bool = False) -> None:
+    """--test (repeatable: one file per session), --same-frame and --refit-target; with ``recorded`` (a command
+    that refits a calibration) the last two default to the calibration's record and have a --no- form."""
     p.add_argument("--test", action="append", default=[], metavar="FILE",
                    help="held-out measurements, one file per session (repeat --test for several sessions); each "
                         "session's measurement frame is re-fitted to it for the nominal and the calibrated model "
                         "alike, kinematics fixed")
-    p.add_argument("--same-frame", action="store_true",
+    p.add_argument("--same-frame", **observe.switch(recorded),
                    help="the held-out sessions were measured in the training data's frame (the tracker did not "
-                        "move): use the models' frames as they are")
+                        "move): use the models' frames as they are" + observe.AS_RECORDED * recorded)
     p.add_argument("--rebase", action="store_true", help=argparse.SUPPRESS)  # the default now; accepted
-    observe.add_refit_target(p)
+    observe.add_refit_target(p, recorded)
 
 
 def register(cmd) -> None:
@@ -183,7 +184,7 @@ def register(cmd) -> None:
             "the calibrated robot file written by 'kincal calibrate -o'")
     s.add_argument("--train", nargs="+", help="the calibration data, one file per session (default: the files named "
                                               "in the robot's record)")
-    add_session_flags(s)
+    add_session_flags(s, recorded=True)
     s.add_argument("-o", "--output", required=True, help="HTML file to write (the JSON goes beside it)")
     g = s.add_argument_group("data columns and units (default: as recorded by calibrate)")
     g.add_argument("--joint-cols", type=csv_list)
