@@ -113,3 +113,32 @@ def test_the_segment_box_test_agrees_with_dense_sampling():
     clear = small == big  # not grazing a face: the same answer for the box 2 mm smaller and larger
     assert clear.sum() > 1900 and 100 < small[clear].sum() < 1900
     assert np.array_equal(_crosses(a, b, lo, hi)[0][clear], small[clear])
+
+
+def test_verification_plans_keep_to_the_cell(tmp_path, capsys):
+    """verify ur10 -o plan.csv draws its samples over the whole joint range: commands under the mounting plane
+    are counted on stderr (the count recomputed with an independent forward kinematics); with --floor 0mm and a
+    keep-out box every command's arm (50 mm link radius) stays above the floor and out of the box; the cell flags
+    with --plan (a plan already made) are refused."""
+    from kincal.cli import main
+
+    def commands(path):
+        rows = [r.split(",") for r in path.read_text().splitlines()[2:]]
+        return np.array([[float(x) for x in r[2:8]] for r in rows])  # m, rad: the plan's first line says so
+
+    dh = ([0.1273, 0, 0, 0.163941, 0.1157, 0.0922], [0, -0.612, -0.5723, 0, 0, 0],
+          [np.pi / 2, 0, 0, np.pi / 2, -np.pi / 2, 0], [0.0, 0.0, 0.0])
+    free, kept = tmp_path / "free.csv", tmp_path / "kept.csv"
+    assert main(["verify", "ur10", "--params", "j2.a,j3.a", "-o", str(free)]) == 0
+    below = int((_dh_origins(commands(free), *dh)[:, -1, 2] < 0).sum())
+    assert below > 0 and f"warning: {below} of 20 commands put the tool point below" in capsys.readouterr().err
+    assert main(["verify", "ur10", "--params", "j2.a,j3.a", "--samples", "15", "--floor", "0mm", "--keep-out",
+                 "300,-300,0,700,300,400mm", "-o", str(kept)]) == 0
+    assert "warning" not in capsys.readouterr().err
+    pts = _dh_origins(commands(kept), *dh)
+    seg = pts[:, 2:-1, None] + np.linspace(0, 1, 11)[None, None, :, None] * (pts[:, 3:] - pts[:, 2:-1])[:, :, None]
+    seg = seg.reshape(len(pts), -1, 3)
+    assert len(pts) == 30 and np.all(seg[:, :, 2] >= 0.05 - 1e-9)
+    assert not np.all((seg > np.array([0.3, -0.3, 0.0]) - 0.05) & (seg < np.array([0.7, 0.3, 0.4]) + 0.05), axis=2).any()
+    assert main(["verify", "ur10", "--plan", str(kept), "--floor", "0mm", "--simulate", "ur10"]) == 1
+    assert "--plan" in capsys.readouterr().err

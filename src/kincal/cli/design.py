@@ -49,7 +49,7 @@ def cmd_design(args) -> int:
     if "link_radius" in args.given and not (args.floor or args.keep_out):
         raise ValueError("--link-radius thickens the arm's links for --floor and --keep-out; give one of them, or "
                          "leave --link-radius out")
-    cell = _cell(args)
+    cell = cell_of(args)
     if (args.type or ["point"])[0] in CONSTRAINTS:
         if args.program:
             raise ValueError("--program writes a program through designed poses; sockets and planes are touched by "
@@ -145,7 +145,27 @@ def _criterion_flags(s) -> None:
                    help="IMSE: variance of each left-out error term, in units of the noise variance (default 0.3)")
 
 
-def _cell(args):
+def add_cell_flags(s, obeys: str) -> None:
+    """The cell's flags (:func:`cell_of`), of the commands that choose where the robot goes (design, verify)."""
+    c = s.add_argument_group(f"the cell (robot base frame; {obeys})")
+    c.add_argument("--floor", type=lengths(1, "0mm"), help="the target stays above this height, e.g. 0mm (the "
+                                                         "mounting plane)")
+    c.add_argument("--keep-out", type=lengths(6, "200,-300,0,600,300,400mm"), action="append",
+                   help="X0,Y0,Z0,X1,Y1,Z1[UNIT]: a box the target may not enter (repeatable)")
+    c.add_argument("--tracker", type=lengths(3, "3000,0,500mm"), help="the tracker's position: poses it cannot see "
+                                                                   "are left out")
+    c.add_argument("--tracker-range", type=lengths(2, "500,20000mm"), help="MIN,MAX[UNIT] distance to the tracker")
+    c.add_argument("--cone", type=positive_float, default=30.0,
+                   help="half-angle (deg) of the reflector's acceptance around its axis (default 30)")
+    c.add_argument("--reflector-axis", type=lengths(3, "0,0,1"), default=(0.0, 0.0, 1.0),
+                   help="the reflector's opening direction in the flange frame (default 0,0,1)")
+    c.add_argument("--joint-margin", type=nonneg_float, default=0.0, help="degrees kept from every revolute joint's limits")
+    c.add_argument("--link-radius", type=lengths(1, "50mm"), default=(0.05,),
+                   help="the arm's links as segments this thick (between its joint frames), kept above --floor and "
+                        "out of --keep-out boxes too (default 50mm)")
+
+
+def cell_of(args):
     """The cell's constraints from the flags (SI, the robot's base frame), or None when none is given."""
     half = [((0.0, 0.0, 1.0), args.floor[0])] if args.floor else []
     boxes = [(np.array(b[:3]), np.array(b[3:])) for b in args.keep_out or []]
@@ -239,22 +259,7 @@ def register(cmd) -> None:
     src = s.add_mutually_exclusive_group()
     src.add_argument("--pool", type=positive_int, default=5000, help="random feasible candidates (default 5000)")
     src.add_argument("--candidates", help="CSV of candidate poses (e.g. the poses you can reach)")
-    c = s.add_argument_group("the cell (robot base frame; every pose of the pool and the design obeys it)")
-    c.add_argument("--floor", type=lengths(1, "0mm"), help="the target stays above this height, e.g. 0mm (the "
-                                                         "mounting plane)")
-    c.add_argument("--keep-out", type=lengths(6, "200,-300,0,600,300,400mm"), action="append",
-                   help="X0,Y0,Z0,X1,Y1,Z1[UNIT]: a box the target may not enter (repeatable)")
-    c.add_argument("--tracker", type=lengths(3, "3000,0,500mm"), help="the tracker's position: poses it cannot see "
-                                                                   "are left out")
-    c.add_argument("--tracker-range", type=lengths(2, "500,20000mm"), help="MIN,MAX[UNIT] distance to the tracker")
-    c.add_argument("--cone", type=positive_float, default=30.0,
-                   help="half-angle (deg) of the reflector's acceptance around its axis (default 30)")
-    c.add_argument("--reflector-axis", type=lengths(3, "0,0,1"), default=(0.0, 0.0, 1.0),
-                   help="the reflector's opening direction in the flange frame (default 0,0,1)")
-    c.add_argument("--joint-margin", type=nonneg_float, default=0.0, help="degrees kept from every revolute joint's limits")
-    c.add_argument("--link-radius", type=lengths(1, "50mm"), default=(0.05,),
-                   help="the arm's links as segments this thick (between its joint frames), kept above --floor and "
-                        "out of --keep-out boxes too (default 50mm)")
+    add_cell_flags(s, "every pose of the pool and the design obeys it")
     _criterion_flags(s)
     s.add_argument("--params", type=csv_list, help="parameters to design for (default: identifiable set)")
     s.add_argument("--base", choices=list(kincal.analysis.BASE_MODES), default="estimate")

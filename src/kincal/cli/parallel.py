@@ -19,6 +19,7 @@ from kincal.compensate.turn import poses_in
 from kincal.observe import check_convention
 from kincal.units import DEG, MM
 
+from .design import add_cell_flags, cell_of
 from .common import (EXIT_REFUSED, add_data_flags, checked, csv_list, emit, err, load_robot, nonneg_float, point,
                      positive_float, positive_int, progress_bar)
 
@@ -353,8 +354,7 @@ def cmd_verify(args) -> int:
     if not (args.output or args.measured or args.simulate):
         raise ValueError("nothing to do: give -o FILE to write the commands to run; after measuring them, run "
                          "again with --plan FILE --measured MEASUREMENTS (or --simulate TRUE_ROBOT to try it)")
-    plan = (VerificationPlan.read_csv(args.plan, r) if args.plan else
-            verification_plan(r, r.sample_joints(args.samples, seed=args.seed), args.params))
+    plan = _plan(args, r)
     if args.output:
         plan.write_csv(args.output, r, args.joint_cols, args.length_unit, args.angle_unit)
     if not (args.measured or args.simulate):
@@ -364,6 +364,27 @@ def cmd_verify(args) -> int:
                     f"{args.output} --measured FILE")
     result = plan.compare(_measured(args, r, plan), args.tolerance / MM)
     return emit(args, result.to_dict(), result.table(), 0 if result.passed.all() else EXIT_REFUSED)
+
+
+def _plan(args, r) -> VerificationPlan:
+    """The plan to run: read (--plan), or drawn inside the cell the flags give, else within the joint limits (a
+    warning on stderr when such samples put the tool point under the base plane while others are above it)."""
+    cell = cell_of(args)
+    if args.plan:
+        if cell is not None:
+            raise ValueError(f"the cell flags (--floor, --keep-out, --tracker, --joint-margin ...) choose where a new "
+                             f"plan's samples go; --plan {args.plan} already says where the robot goes: give one or "
+                             f"the other")
+        return VerificationPlan.read_csv(args.plan, r)
+    q = r.sample_joints(args.samples, seed=args.seed) if cell is None else cell.pool(r, args.samples, seed=args.seed)
+    plan = verification_plan(r, q, args.params)
+    z = r.forward(plan.commands.reshape(-1, r.n_joints))[:, 2]
+    if cell is None and (z < 0).any() and (z > 0).any():
+        err.print(f"kincal: warning: {int((z < 0).sum())} of {z.size} commands put the tool point below the robot's "
+                  f"base plane (z < 0 in its base frame, down to {z.min() * MM:.0f} mm): a robot on a table would "
+                  f"hit it; the samples were drawn over the whole joint range: give --floor 0mm (and --keep-out "
+                  f"boxes) to draw them inside the cell", markup=False)
+    return plan
 
 
 def _measured(args, r, plan) -> np.ndarray:
@@ -436,12 +457,18 @@ def register(cmd) -> None:
                    help="the frame of the targets: base (the robot's own, default), measurement (the calibration's "
                         "tracker frame), or a frame the robot file names (e.g. base_link for UR arms, as in ROS)")
     add_data_flags(s, std=False)
+    _register_verify(cmd)
 
+
+def _register_verify(cmd) -> None:
+    """verify's flags: a new plan (its samples, in the cell), or a plan measured (or simulated) and judged."""
     s = cmd("verify", cmd_verify, "error-model verification (the 3-PUU paper): commands to run, then the comparison "
                                   "(its Table 5)", "the identified (actual) robot model")
-    s.add_argument("--samples", type=positive_int, default=10)
-    s.add_argument("--params", type=csv_list)
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--samples", type=positive_int, default=10, help="sample inputs of a new plan (default 10)")
+    s.add_argument("--params", type=csv_list, help="the parameters to test, one case each (default: all but the "
+                                                   "base frame's)")
+    s.add_argument("--seed", type=int, default=0, help="random seed of a new plan's samples (default 0)")
+    add_cell_flags(s, "a new plan's samples obey it")
     s.add_argument("-o", "--output", help="CSV of the commands to run, case by case (in --length-unit/--angle-unit)")
     s.add_argument("--plan", help="the plan CSV written with -o (whose commands were measured)")
     s.add_argument("--measured", help="measurements of the plan's commands, in the same order")
