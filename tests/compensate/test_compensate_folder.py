@@ -78,9 +78,14 @@ def test_the_real_krl_folder_report_counts_every_target_and_item(tmp_path):
     assert len(res.files) == 82 and res.count("unreadable") == 0
     for f in res.files:
         prog = read_program(str(folder / f.path), "krl")
-        assert f.count("compensated") + f.count("refused") == len(prog.targets) == f.targets
+        assert f.count("compensated") + f.count("refused") + f.count("kept") == len(prog.targets) == f.targets
         assert f.count("listed") == len(prog.not_literal)
-    assert res.count("compensated") + res.count("refused") == 11 and res.count("listed") == 322
+    assert res.count("compensated") + res.count("refused") + res.count("kept") == 11 and res.count("listed") == 322
+    kept = [(f.path, line) for f in res.files for line, _, status, _ in f.rows if status == "kept"]
+    assert len(kept) == res.count("kept") >= 1  # KUKA's home, A5 = 0: the wrist's axes in line
+    for path, line in kept:
+        q = next(t.values for t in read_program(str(folder / path), "krl").targets if t.line == line)
+        assert abs(q[4]) < 1e-9
 
 
 @pytest.mark.parametrize("flag", [["--program", "ur"], ["--program", "krl", "--tcp", "0,0,0.1"]])

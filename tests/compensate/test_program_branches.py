@@ -190,8 +190,10 @@ def test_every_real_target_is_compensated_and_checked_or_refused_by_line(languag
             continue
         prog = read_program(str(path), language)
         res = compensate_branches(cal, nominal, prog, ROWS[language])
-        assert set(res.texts) | set(res.refused) == set(range(len(prog.targets)))
-        assert not set(res.texts) & set(res.refused) and all(res.refused.values())
+        kept = {k for k, t in enumerate(prog.targets) if t.line in {line for line, _, _ in res.kept}}
+        assert set(res.texts) | set(res.refused) | kept == set(range(len(prog.targets)))
+        assert not set(res.texts) & set(res.refused) and not kept & (set(res.texts) | set(res.refused))
+        assert all(res.refused.values())
         assert all(f"line {prog.targets[k].line} " in p for k, p in zip(sorted(res.refused), res.problems))
         again = dialects()[language].parse(str(path), prog.with_targets(res.texts)).targets
         for k in res.texts:  # a joint target: the calibrated arm at the new joints is where the nominal one was
@@ -199,7 +201,7 @@ def test_every_real_target_is_compensated_and_checked_or_refused_by_line(languag
                 pa = cal.with_tool_point(np.zeros(3)).pose_and_jacobian(again[k].values[None])[0]
                 pb = nominal.with_tool_point(np.zeros(3)).pose_and_jacobian(prog.targets[k].values[None])[0]
                 assert np.linalg.norm(pa - pb) < 1e-9 and not np.allclose(again[k].values, prog.targets[k].values)
-        compensated, refused = compensated + len(res.texts), refused + len(res.refused)
+        compensated, refused = compensated + len(res.texts), refused + len(res.refused) + len(kept)
     assert compensated >= 1 and compensated + refused == {"krl": 11, "fanuc": 2}[language]
 
 
@@ -266,3 +268,32 @@ def test_a_correction_that_moves_a_joint_across_0_names_it(tmp_path):
     why = res.refused[0]
     assert why.startswith("the corrected joints' configuration bits (2, 34) differ from the target's (2, 2)")
     assert "(a6 moves from +0.00" in why and "to -0.4" in why and "across 0" in why, why
+
+
+def test_a_joint_target_at_a_singularity_is_kept_and_said(tmp_path, capsys):
+    """KUKA's home (A5 = 0: the wrist's axes in line) has no corrected joints near it: kept as it is and said, with
+    how far the calibrated arm's flange lands from the nominal one there (recomputed here); the same move 0.3 rad
+    off the singularity is compensated, and a URScript home pose is kept alike."""
+    from kincal.compensate import compensate_program
+    from kincal.io import ROWS
+
+    nominal = kincal.load_robot("kuka_kr6r900sixx")
+    real = kincal.perturb(nominal, seed=1)
+    path = tmp_path / "home.src"
+    path.write_text("DEF home()\nPTP {A1 0, A2 -90, A3 90, A4 0, A5 0, A6 0}\n"
+                    "PTP {A1 0, A2 -90, A3 90, A4 0, A5 17.2, A6 0}\nEND\n")
+    prog = read_program(str(path), "krl")
+    res = compensate_branches(real, nominal, prog, ROWS["krl"])
+    assert sorted(res.texts) == [1] and not res.refused and [line for line, _, _ in res.kept] == [2]
+    q = prog.targets[0].values
+    miss = np.linalg.norm(real.with_tool_point(np.zeros(3)).forward(q[None]) - nominal.with_tool_point(
+        np.zeros(3)).forward(q[None]))
+    assert f"the TCP lands {miss * 1e3:.3f} mm from the nominal model's point" in res.kept[0][2] and miss > 1e-4
+    assert prog.with_targets(res.texts).splitlines()[1] == "PTP {A1 0, A2 -90, A3 90, A4 0, A5 0, A6 0}"
+    ur, ur_real = kincal.load_robot("ur5"), kincal.perturb(kincal.load_robot("ur5"), seed=1)
+    script = tmp_path / "home.script"
+    script.write_text("def p():\n  movej([0, -1.5708, 0, -1.5708, 0, 0])\n  movej([0, -1.5708, 1.2, -1.5708, 0.3, 0])\n"
+                      "end\n")
+    res = compensate_program(ur_real, ur, read_program(str(script), "ur"))
+    assert sorted(res.texts) == [1] and not res.problems and [line for line, _, _ in res.kept] == [2]
+

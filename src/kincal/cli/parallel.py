@@ -200,11 +200,10 @@ def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
     lines += [f"frames the program declares or holds beside it: {', '.join(known)}"] if known else []
     lines += _taught_lines(cal, nominal, frames, turned)
     lines += [f"refused: {p}" for p in res.problems]
-    lines += [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal]
+    lines += _left_lines(res)
     lines += ([turn.note()] if turn is not None else []) + ([unseen] if unseen else [])
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
-                       "declared_frames": known,
-                       "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal],
+                       "declared_frames": known, **_left_dict(res),
                        "output": args.output if written else None, **_orientation_from(turned, turn),
                        "base_note": unseen or None},
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
@@ -283,9 +282,11 @@ def _compensate_folder(args) -> int:
                if status == "refused"]
     lines = [f"{f.path}: " + (f"unreadable: {f.rows[0][3]}" if f.count("unreadable") else
                               f"{f.count('compensated')} of {f.targets} targets compensated, {f.count('refused')} "
-                              f"refused, {f.count('listed')} listed") for f in res.files]
+                              f"refused, {f.count('listed')} listed" + _kept_count(f.count("kept")))
+             for f in res.files]
     lines.append(f"{len(res.files)} files: {res.count('compensated')} targets compensated, {res.count('refused')} "
-                 f"refused, {res.count('listed')} listed, {res.count('unreadable')} files unreadable; " +
+                 f"refused{_kept_count(res.count('kept'))}, {res.count('listed')} listed, {res.count('unreadable')} "
+                 f"files unreadable; " +
                  (f"written to {args.output} (every {args.program} file, compensated or as it was; report "
                   f"{args.output}/kincal_report.csv)" if written else
                   f"nothing written (--skip-unreachable writes the folder with those left as they are)"))
@@ -334,13 +335,28 @@ def _compensate_program(args, r, nominal, carry: str, models, orientation, unsee
         "warning: the program sets no TCP (set_tcp) and no --tcp was given: its poses are taken as poses of the "
         "measured target (the calibration's tool point); give --tcp with the controller's TCP if it is another"]
     lines += [f"refused: {p}" for p in res.problems]
-    lines += [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal]
+    lines += _left_lines(res)
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
-                       "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal],
+                       **_left_dict(res),
                        "output": args.output if written else None, "tool_carry": carry or None,
                        **_orientation_from(turned, turn), "base_note": unseen or None},
                 "\n".join(lines + ([f"TCP: {carry}"] if carry else []) + ([turn.note()] if turn is not None else [])
                           + ([unseen] if unseen else [])), 0 if written else EXIT_REFUSED)
+
+
+def _kept_count(n: int) -> str:
+    return f", {n} kept (joint targets at a singularity)" if n else ""
+
+
+def _left_lines(res) -> list[str]:
+    """The lines of a program's targets kept as they are and of its moves left as they are."""
+    return ([f"kept as is: line {n}: {what}: {why}" for n, what, why in res.kept]
+            + [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal])
+
+
+def _left_dict(res) -> dict:
+    return {"kept": [{"line": n, "what": w, "why": y} for n, w, y in res.kept],
+            "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal]}
 
 
 PLAN_JOINT_TOL = 1e-5  # rad or m: measured joint values must repeat the plan's commands this closely

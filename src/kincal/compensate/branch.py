@@ -44,12 +44,11 @@ from ..ties import first_best
 from .poses import solve_poses
 from .commands import BRANCH_TOL
 from .taught import resolve_taught
-from .program import SEARCH, STARTS, ProgramCompensation, outside_limits
+from .program import SEARCH, STARTS, ProgramCompensation, kept_joints, outside_limits, singular
 
 CHECK_TOL = 1e-9  # m and rad: a written target must reproduce its intended pose this closely
 METRES_LOOK = 5.0  # mm: a pose target within this of its frame's origin in every coordinate looks written in metres
 BIT_EDGE = np.radians(0.01)  # rad: a joint this near 0 sits on the edge of its sign bit (a pose's last decimals)
-SINGULAR = 1e3  # condition number of the pose Jacobian (m, rad) beyond which a failed correction is named as such
 CHAIN = 512  # targets per Newton pass of the controller's joints (the next ones start from the joints found)
 IDENTITY_FRAMES = {"rapid": (("tool0",), ("wobj0", "")), "krl": (("$nullframe",), ()),  # (tools, bases) a language
                    "inform": ((), ("robot",))}  # defines as the identity (RAPID: tool0 is the flange, wobj0 the
@@ -160,8 +159,9 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     goals, tools, refused = _goals(nominal, work, frames)
     q_nom = _controller_joints(nominal, work, goals, rows, q0, refused)
     tcp_goals = _at_tcp(goals, tools, measured)
-    qs = _corrected_all(model, nominal, work, tcp_goals, q_nom, rows, refused, orientation)
-    values = _written(nominal, work.targets, qs, tools, [k for k in range(len(qs)) if k not in refused])
+    kept: dict[int, str] = {}
+    qs = _corrected_all(model, nominal, work, tcp_goals, q_nom, rows, (refused, kept), orientation)
+    values = _written(nominal, work.targets, qs, tools, [k for k in range(len(qs)) if k not in refused | kept])
     values = {k: np.round(v * scale) if program.targets[k].kind == "pulses" else v for k, v in values.items()}
     texts = dict(zip(values, dialect.write(program.text, [program.targets[k] for k in values], list(values.values()))))
     for k, why in check_written(model, nominal, program, texts, qs, rows, frames, tcp_goals, scale,
@@ -171,7 +171,8 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     problems = tuple(f"{program.source}: line {program.targets[k].line} ({program.targets[k].move}"
                      f"{' ' + program.targets[k].variable if program.targets[k].variable else ''}): {why}; left as is"
                      for k, why in sorted(refused.items()))
-    return ProgramCompensation(texts, qs, problems, program.not_literal, refused)
+    return ProgramCompensation(texts, qs, problems, program.not_literal, refused, tuple(
+        (program.targets[k].line, program.targets[k].move, why) for k, why in sorted(kept.items())))
 
 
 def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side: int = 1):
@@ -313,11 +314,13 @@ def _at_tcp(goals, tools: list, measured: np.ndarray):
 
 
 def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom: np.ndarray, rows: Rows,
-                   refused: dict[int, str], orientation: Robot | None = None) -> np.ndarray:
-    """The corrected joints (N, n) of every target not refused (NaN elsewhere; refusals added): Newton on the
-    calibrated model from the controller's joints (the TCP at the goals of :func:`_at_tcp`, the flange turned as
-    ``orientation``'s), together; refused where it did not converge, left the nominal branch, broke a joint limit
-    or changed the target's bits (each named, with a singularity's condition)."""
+                   out: tuple[dict[int, str], dict[int, str]], orientation: Robot | None = None) -> np.ndarray:
+    """The corrected joints (N, n) of every target not refused (NaN elsewhere; refusals added to ``out``'s first
+    dict): Newton on the calibrated model from the controller's joints (the TCP at the goals of :func:`_at_tcp`,
+    the flange turned as ``orientation``'s), together; refused where it did not converge, left the nominal branch,
+    broke a joint limit or changed the target's bits (each named, with a singularity's condition), except a joint
+    target at a singularity: kept as it is (its joints; why in ``out``'s second dict, :func:`kept_joints`)."""
+    refused, kept = out
     qs = np.full_like(q_nom, np.nan)
     idx = np.array([k for k in range(len(q_nom)) if k not in refused], dtype=int)
     if not idx.size:
@@ -334,8 +337,13 @@ def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom:
                "the corrected joints break the joint limits" if outside[i] else
                f"the corrected joints' configuration bits {tuple(bits[i])} differ from the target's {config}"
                + _crossed(model, q_nom[k], q[i]) if config and tuple(bits[i]) != config else "")
-        if why:
-            refused[int(k)] = why + _singular(nominal, q_nom[k])
+        lever = goals[2][k]  # the TCP in the flange frame (a joint target: the point the calibration measured)
+        keep = kept_joints(model.with_tool_point(lever), nominal.with_tool_point(lever), q_nom[k], why) \
+            if why and program.targets[k].kind == "joints" else ""
+        if keep:
+            kept[int(k)], qs[k] = keep, q_nom[k]
+        elif why:
+            refused[int(k)] = why + singular(nominal, q_nom[k])
         else:
             qs[k] = q[i]
     return qs
@@ -398,16 +406,6 @@ def _frames(dialect: str, names: tuple[str, str], given: Mapping[str, object]) -
                     f"(frames: 'default {what}')")
         out.append(found if isinstance(found, tuple) else (found, found))
     return out[0], out[1]
-
-
-def _singular(robot: Robot, q: np.ndarray) -> str:
-    """A note when the arm is near a singularity at q (its pose Jacobian's condition number above SINGULAR):
-    there the pose does not fix every joint, the usual cause of a correction that fails; else ''."""
-    _, _, Jp, Jw = robot.pose_and_jacobian(q[None])
-    s = np.linalg.svd(np.concatenate([Jp[0], Jw[0]]), compute_uv=False)
-    cond = s[0] / max(s[-1], 1e-300)
-    return f" (the arm is at or near a singularity here: condition number {cond:.1e}; move the target off it)" \
-        if cond > SINGULAR else ""
 
 
 def controller_inverse(robot: Robot, p: np.ndarray, R: np.ndarray, near: np.ndarray, config: tuple,
@@ -498,7 +496,7 @@ def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, q
             bad[k] = "the written pulse counts are not the corrected joints' nearest (checked as read again)"
         if k not in bad and not (m <= tol_p[i] and r <= tol_r[i]):
             bad[k] = (f"the written target misses by {m * 1e3:.2e} mm / {r:.2e} rad (checked as read again)"
-                      + _singular(nominal, q[i]))
+                      + singular(nominal, q[i]))
     return bad
 
 

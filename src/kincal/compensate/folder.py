@@ -24,6 +24,7 @@ from ..models.robot import Robot
 from .branch import Rows, compensate_branches
 
 REPORT = "kincal_report.csv"  # in the written folder: one row per target, listed item or unreadable file
+STATUSES = ("compensated", "refused", "kept", "listed", "unreadable")  # of a report row
 
 
 @dataclass(frozen=True)
@@ -55,7 +56,8 @@ class FolderCompensation:
     files : tuple of FileCompensation
         Every program file of the language under the folder, sorted by relative path: its targets, its
         new text (None: unchanged or not read) and one row (line, what, status, why) per target or item,
-        with status "compensated", "refused", "listed" or "unreadable".
+        with status "compensated", "refused", "kept" (a joint target at a singularity, its joints kept),
+        "listed" or "unreadable".
 
     See Also
     --------
@@ -82,7 +84,7 @@ class FolderCompensation:
     file,line,what,status,why
     broken.src,2,,unreadable,"line 2, column 5: a '{' that is never closed"
     >>> {k: v for k, v in res.to_dict().items() if k not in ("folder", "files")}
-    {'dialect': 'krl', 'compensated': 0, 'refused': 0, 'listed': 0, 'unreadable': 1}
+    {'dialect': 'krl', 'compensated': 0, 'refused': 0, 'kept': 0, 'listed': 0, 'unreadable': 1}
     """
 
     folder: str
@@ -104,7 +106,7 @@ class FolderCompensation:
     def to_dict(self) -> dict:
         """The folder, the counts by status and every file's rows as plain JSON values."""
         return {"folder": self.folder, "dialect": self.dialect,
-                **{s: self.count(s) for s in ("compensated", "refused", "listed", "unreadable")},
+                **{s: self.count(s) for s in STATUSES},
                 "files": [{"path": f.path, "targets": f.targets, "rows": [list(r) for r in f.rows]}
                           for f in self.files]}
 
@@ -203,6 +205,7 @@ def _one(model: Robot, nominal: Robot, folder: str, path: str, dialect: str, row
     out = [(t.line, t.variable or t.move, "compensated", "") for k, t in enumerate(prog.targets) if k in res.texts]
     out += [(prog.targets[k].line, prog.targets[k].variable or prog.targets[k].move, "refused", why)
             for k, why in res.refused.items()]
+    out += [(line, what, "kept", why) for line, what, why in res.kept]
     out += [(line, what, "listed", why) for line, what, why in res.not_literal]
     text = prog.with_targets(res.texts, res.refused) if res.texts or res.refused else None
     return FileCompensation(path, len(prog.targets), text, prog.encoding, tuple(sorted(out)))

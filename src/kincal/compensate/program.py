@@ -32,6 +32,7 @@ STARTS = 24  # spread starts of the numeric inverse when Newton from the previou
 TCP_MAX = 2.0  # m: no tool puts its TCP this far from the flange (a set_tcp written in mm, not m)
 POSE_MAX = 20.0  # m: no arm's pose target lies this far from its base (a pose written in mm, not m)
 SEARCH = (200, 20.0)  # iterations and travel (m) of the numeric inverse: from afar, not a small correction
+SINGULAR = 1e3  # condition number of the pose Jacobian (m, rad) beyond which a failed correction is named as such
 Models = Callable[[np.ndarray], tuple[Robot, Robot]]  # a TCP point (3,) m -> (calibrated, nominal) models for it
 
 
@@ -51,6 +52,9 @@ class ProgramCompensation:
         One message per refused target, naming the file and line.
     not_literal : tuple of tuple of (int, str, str)
         The moves left as they are (line, the move as written, why): their targets are not literals.
+    kept : tuple of tuple of (int, str, str)
+        The joint targets kept as they are (line, the move as written, why): at a singularity of the arm no
+        joints near theirs put the calibrated TCP at their nominal pose; the robot goes where it went before.
     refused : dict of int to str
         Why each refused target was left, by target index: the mark written beside it.
 
@@ -98,6 +102,7 @@ class ProgramCompensation:
     problems: tuple[str, ...]
     not_literal: tuple[tuple[int, str, str], ...]
     refused: dict
+    kept: tuple[tuple[int, str, str], ...] = ()
 
 
 def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: np.ndarray | None = None,
@@ -175,6 +180,7 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
                     and not outside_limits(nominal, t.values)), None) if q_start is None
               else np.asarray(q_start, dtype=float))  # a refused joint target is no start
     values, refused, qs = {}, {}, np.full((len(program.targets), model.n_joints), np.nan)
+    kept = []
     for k, t in enumerate(program.targets):
         tcp = program.tcp_at(t.at)
         found = _target(t, tcp, (model, nominal) if isinstance(tcp, tuple) else _for_tcp(models, tcp), q_prev,
@@ -182,12 +188,15 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
         if isinstance(found, str):
             refused[k] = found
             continue
-        qs[k], q_prev, values[k] = found
+        qs[k], q_prev, values[k] = found[:3]
+        if len(found) > 3:  # a joint target kept as it is: nothing rewritten
+            kept.append((t.line, t.move, found[3]))
+            del values[k]
     texts = dict(zip(values, write_ur(program.text, [program.targets[k] for k in values], list(values.values()))))
     problems = tuple(f"{program.source}: line {program.targets[k].line} ({program.targets[k].move}"
                      f"{' ' + program.targets[k].variable if program.targets[k].variable else ''}): {why}; left as is"
                      for k, why in refused.items())
-    return ProgramCompensation(texts, qs, problems, program.not_literal, refused)
+    return ProgramCompensation(texts, qs, problems, program.not_literal, refused, tuple(kept))
 
 
 def _for_tcp(models: Models | None, tcp) -> tuple[Robot, Robot] | str:
@@ -230,8 +239,11 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None, orientation: Robo
             return "the nominal model does not reach this pose on any branch within the joint limits"
         q_nom = found
     q, why = corrected(model, p, R, q_nom, orientation)
+    keep = kept_joints(model, nominal, q_nom, why) if why and t.kind == "joints" else ""
+    if keep:
+        return q_nom, q_nom, q_nom, keep
     if why:
-        return why
+        return why + singular(nominal, q_nom)
     if t.kind == "joints":
         return q, q_nom, q
     pf, Rf, _, _ = nominal.pose_and_jacobian(q[None])
@@ -249,6 +261,34 @@ def outside_limits(robot: Robot, q: np.ndarray) -> str:
     return (f"the target's own joints are outside the robot's limits: {robot.joint_names[j]} {q[j] * f:.3f}{unit} "
             f"(limits {robot.lower[j] * f:.3f}…{robot.upper[j] * f:.3f}{unit}): written for another robot, or in other "
             f"units")
+
+
+def condition(robot: Robot, q: np.ndarray) -> float:
+    """The condition number of ``robot``'s pose Jacobian (position rows in m, rotation rows in rad) at q (n,)."""
+    _, _, Jp, Jw = robot.pose_and_jacobian(q[None])
+    s = np.linalg.svd(np.concatenate([Jp[0], Jw[0]]), compute_uv=False)
+    return float(s[0] / max(s[-1], 1e-300))
+
+
+def singular(robot: Robot, q: np.ndarray) -> str:
+    """A note when the arm is near a singularity at q (its pose Jacobian's condition number above SINGULAR):
+    there the pose does not fix every joint, the usual cause of a correction that fails; else ''."""
+    cond = condition(robot, q)
+    return f" (the arm is at or near a singularity here: condition number {cond:.1e}; move the target off it)" \
+        if cond > SINGULAR else ""
+
+
+def kept_joints(model: Robot, nominal: Robot, q: np.ndarray, why: str) -> str:
+    """Why a joint target q (n,) whose correction failed (``why``) is kept as it is, or '' when it is refused:
+    kept at a singularity of the arm (a home pose with the wrist's axes in line), where no joints near q put
+    ``model``'s TCP at ``nominal``'s pose and the program's joints are what the robot should go to; the note
+    says how far the calibrated TCP lands from the nominal one there."""
+    cond = condition(nominal, q)
+    if cond <= SINGULAR:
+        return ""
+    miss = float(np.linalg.norm(model.forward(q[None])[0] - nominal.forward(q[None])[0]))
+    return (f"a joint target at a singularity of the arm (condition number {cond:.1e}; {why}): its joints are kept, "
+            f"and the TCP lands {miss * 1e3:.3f} mm from the nominal model's point there, as before calibration")
 
 
 def corrected(model: Robot, p: np.ndarray, R: np.ndarray, q_nom: np.ndarray,
