@@ -56,7 +56,7 @@ def random_robot(convention, seed):
     types = ["revolute", "revolute", "revolute", "prismatic", "revolute", "revolute"]
     joints, rows = [], []
     for k, t in enumerate(types):
-        joints.append(Joint(f"j{k + 1}", t, beta=(k in (1, 4)), lower=-2.0, upper=2.0))
+        joints.append(Joint(f"j{k + 1}", t, beta=(k in (1, 4)), lower=-2.0, upper=2.0, velocity=1.0, effort=10.0))
         rows.append({"theta": rng.uniform(-1, 1), "d": rng.uniform(-0.3, 0.3), "a": rng.uniform(-0.5, 0.5),
                      "alpha": rng.uniform(-2, 2), "beta": rng.uniform(-0.1, 0.1)})
         if not joints[-1].beta:

@@ -302,10 +302,10 @@ FIXED_ROW = """name: fixedrow
 convention: dh
 units: {length: mm, angle: deg}
 joints:
-  - {name: j1, type: revolute, theta: 10, d: 300, a: 50, alpha: 90, limits: [-170, 170]}
+  - {name: j1, type: revolute, theta: 10, d: 300, a: 50, alpha: 90, limits: [-170, 170], velocity: 90, effort: 40}
   - {name: plate, type: fixed, theta: 30, d: 40, a: 120, alpha: -20}
-  - {name: j2, type: prismatic, theta: 0, d: 100, a: 20, alpha: 0, limits: [0, 400]}
-  - {name: j3, type: revolute, theta: 0, d: 10, a: 200, alpha: 0, limits: [-120, 120]}
+  - {name: j2, type: prismatic, theta: 0, d: 100, a: 20, alpha: 0, limits: [0, 400], velocity: 250, effort: 300}
+  - {name: j3, type: revolute, theta: 0, d: 10, a: 200, alpha: 0, limits: [-120, 120], velocity: 180, effort: 12}
   - {name: tcp, type: fixed, theta: 0, d: 80, a: 30, alpha: 0}
 tool: {x: 5, y: 0, z: 0}
 """
@@ -455,3 +455,22 @@ def test_a_tool_declared_in_another_links_axes_is_suspect(capsys):
         res = kincal.calibrate(robot, kincal.Measurements(grid.q, grid.xyz, robot.joint_names, "ur5_grid.csv"))
         said = " ".join(r.message for r in res.verdict.reasons)
         assert res.verdict.status == status and (("turned 90°" in said and "--tip-link" in said) == (tip == "ee_link"))
+
+
+def test_a_urdf_needs_every_joints_velocity_and_effort(tmp_path, capsys):
+    """ROS's URDF parser refuses a <limit> without effort and velocity: a DH file that does not give them for a
+    joint is refused before anything is written, naming the joint; given, they are written in SI (90 deg/s is
+    1.5708 rad/s, 250 mm/s is 0.25 m/s)."""
+    import xml.etree.ElementTree as ET
+
+    (tmp_path / "f.yaml").write_text(FIXED_ROW.replace(", velocity: 180, effort: 12", ""))
+    assert main(["export", str(tmp_path / "f.yaml"), str(tmp_path / "f.urdf")]) == 1
+    said = capsys.readouterr().err
+    assert "gives none for j3: add 'velocity:'" in said and not (tmp_path / "f.urdf").exists()
+    (tmp_path / "g.yaml").write_text(FIXED_ROW)
+    assert main(["export", str(tmp_path / "g.yaml"), str(tmp_path / "g.urdf")]) == 0
+    limits = {j.get("name"): j.find("limit").attrib for j in ET.parse(tmp_path / "g.urdf").getroot().iter("joint")
+              if j.find("limit") is not None}
+    assert float(limits["j1"]["velocity"]) == pytest.approx(np.pi / 2) and float(limits["j1"]["effort"]) == 40
+    assert float(limits["j2"]["velocity"]) == pytest.approx(0.25) and float(limits["j2"]["effort"]) == 300
+

@@ -132,9 +132,6 @@ def cmd_export(args) -> int:
         lines.append(f"base frame found by the calibration (where the instrument saw the robot; not part of the "
                      f"robot description{kept}): " + ", ".join(f"{k} {display(v, kinds[k], digits=(4, 4))}"
                                                                for k, v in info["base_frame"].items()))
-    if info.get("missing_limits"):
-        lines.append(f"note: the robot file gives no velocity/effort limit for {', '.join(info['missing_limits'])}: "
-                     f"the URDF leaves them out (add 'velocity:' and 'effort:' to those joints)")
     if info["format"] == "ur":
         tcp = np.array(info["tool_point"]) * MM
         lines.append(f"set the TCP on the controller to x {tcp[0]:+.4f}, y {tcp[1]:+.4f}, z {tcp[2]:+.4f} mm (the "

@@ -253,18 +253,19 @@ def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = N
     ------
     ModelError
         When the robot has joint-value terms or is not a serial chain, a URDF robot comes without its
-        ``source``, a name is not valid or taken, or the URDF would not reproduce the model.
+        ``source``, a DH/MDH joint has no velocity or effort limit, a name is not valid or taken, or the URDF
+        would not reproduce the model.
 
     Examples
     --------
     >>> import numpy as np
     >>> import kincal
     >>> from kincal.models import read_urdf, urdf_text
-    >>> robot = kincal.load_robot("scara")
+    >>> robot = kincal.load_robot("ur5")
     >>> text = urdf_text(robot)
     >>> text.splitlines()[2]
-    '<robot name="scara">'
-    >>> back = read_urdf(text, "scara.urdf", tip_link="tool_point")
+    '<robot name="ur5">'
+    >>> back = read_urdf(text, "ur5.urdf", base_link="base_link_inertia", tip_link="tool_point")  # the DH base
     >>> q = robot.sample_joints(5, seed=1)
     >>> bool(np.allclose(back.forward(q), robot.forward(q), atol=1e-9))
     True
@@ -277,6 +278,7 @@ def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = N
                              f"origins change")
         text, base, tip = _edit_urdf(robot, source), robot.source.get("base_link"), robot.source.get("tip_link")
     elif isinstance(robot, SerialRobot):
+        _limits_given(robot)
         text, base, tip = _new_urdf(robot, joint_names)
     else:
         raise ModelError(f"robot '{robot.name}' ({robot.structure}) is not a serial chain: it has no URDF form")
@@ -322,7 +324,7 @@ UR_TOOL0 = _h(rpy_matrix(np.pi / 2, 0.0, np.pi / 2), np.zeros(3))  # flange -> t
 def _new_urdf(robot: SerialRobot, names: Sequence[str] | None = None) -> tuple[str, str, str]:
     """A URDF of a DH/MDH chain: one link per joint (its frame on the joint's axis where the DH d puts
     it), then ``flange``; joints named as the robot stack names them, with the file's velocity and
-    effort limits (left out where the file gives none, never written as 0). A robot file that names a
+    effort limits (:func:`_limits_given`: a file without them is refused, never written as 0). A robot file that names a
     ``base_link`` frame (ROS) gets it as the root, with the DH base as link ``base``. A UR arm (its
     joints named as UR's) gets UR's description: base_link, base_link_inertia and base, the links
     shoulder_link … wrist_3_link, flange and tool0 (the DH flange frame). Returns the text, the DH
@@ -372,16 +374,23 @@ def _joint_names(robot: SerialRobot, names: Sequence[str] | None) -> tuple[str, 
 
 
 def _limit(robot: SerialRobot, k: int) -> str:
-    """The ``<limit>`` of moving joint k: position limits, and velocity and effort where given."""
+    """The ``<limit>`` of moving joint k: position limits, velocity and effort (given: :func:`_limits_given`)."""
     joint = robot.moving[k]
-    extra = (f' effort="{joint.effort:.10g}"' if joint.effort else "") + \
-        (f' velocity="{joint.velocity:.10g}"' if joint.velocity else "")
+    extra = f' effort="{joint.effort:.10g}" velocity="{joint.velocity:.10g}"'
     return f'<limit lower="{_fmt(robot.lower[k])}" upper="{_fmt(robot.upper[k])}"{extra}/>'
 
 
-def missing_limits(robot: Robot) -> list[str]:
-    """Joints of a DH/MDH chain whose velocity or effort limit the robot file does not give."""
-    return [j.name for j in robot.moving if not (j.velocity and j.effort)] if isinstance(robot, SerialRobot) else []
+def _limits_given(robot: Robot) -> None:
+    """Refuse a URDF of a DH/MDH chain with a moving joint whose velocity or effort limit the robot file does not
+    give: the URDF format requires both in every ``<limit>`` (ROS's parser, urdfdom, refuses the file without)."""
+    missing = [j.name for j in robot.moving if j.velocity is None or j.effort is None] \
+        if isinstance(robot, SerialRobot) else []
+    if missing:
+        raise ModelError(f"robot '{robot.name}': a URDF needs a velocity and an effort limit on every moving joint "
+                         f"(ROS's parser refuses a <limit> without them), and the robot file gives none for "
+                         f"{', '.join(missing)}: add 'velocity:' (the file's angle unit per second, or its length "
+                         f"unit per second for a prismatic joint) and 'effort:' (N·m, or N) to those joints, from "
+                         f"the arm's data sheet")
 
 
 def _add_tool(text: str, robot: Robot, tip: str, name: str) -> str:
@@ -433,8 +442,7 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
     -------
     dict
         A summary: "format", "base_frame" (the base parameters the calibration found, m and rad: where the
-        tracker saw the robot, not part of a robot description); URDF: "missing_limits" (joints without
-        velocity or effort limits) and "tool_link"; UR: "flange_to_tcp", "tool_point" and "base_yaw", what
+        tracker saw the robot, not part of a robot description); URDF: "tool_link"; UR: "flange_to_tcp", "tool_point" and "base_yaw", what
         belongs on the controller.
 
     Raises
@@ -454,8 +462,8 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
     >>> with tempfile.TemporaryDirectory() as folder:
     ...     summary = kincal.export_robot(robot, os.path.join(folder, "ur5.urdf"))
     ...     first = open(os.path.join(folder, "ur5.urdf")).readline().strip()
-    >>> summary["format"], summary["tool_link"], summary["missing_limits"], first
-    ('urdf', 'tool_point', [], '<?xml version="1.0"?>')
+    >>> summary["format"], summary["tool_link"], first
+    ('urdf', 'tool_point', '<?xml version="1.0"?>')
     >>> summary["base_frame"]["base.x"]
     0.0
     """
@@ -465,7 +473,7 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
     summary: dict = {"format": fmt, "base_frame": {n: float(robot.params[n]) for n in robot.base_params()}}
     if fmt == "urdf":
         text = urdf_text(robot, _source(robot, source_path), tool_link, joint_names)
-        summary.update(missing_limits=missing_limits(robot), tool_link=tool_link_of(robot, tool_link))
+        summary.update(tool_link=tool_link_of(robot, tool_link))
     elif fmt == "ur":
         text, extra = ur_calibration(robot, base_yaw)
         summary.update(extra)

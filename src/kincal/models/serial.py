@@ -57,10 +57,11 @@ class Joint:
         Mass of the link the joint moves, kg, 0 or more (default 0: no gravity load).
     com : tuple of 3 float, optional
         Centre of mass of that link in the link frame at the end of the joint's row, m (default the origin).
-    velocity : float, optional
-        Velocity limit, rad/s (m/s), 0 or more (default 0: not given).
-    effort : float, optional
-        Effort limit, N·m (N), 0 or more (default 0: not given).
+    velocity : float or None, optional
+        Velocity limit, rad/s (m/s), 0 or more (default None: not given).
+    effort : float or None, optional
+        Effort limit, N·m (N), 0 or more (default None: not given; 0 is a value, as ROS-Industrial's
+        descriptions write it where the maker publishes none).
     export_name : str, optional
         The joint's name in the robot stack (URDF, ROS), e.g. "shoulder_pan_joint" (default "": its own name).
     pulses : float, optional
@@ -91,8 +92,8 @@ class Joint:
     upper: float = np.pi
     mass: float = 0.0
     com: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    velocity: float = 0.0  # rad/s or m/s; 0: not given
-    effort: float = 0.0  # N·m or N; 0: not given
+    velocity: float | None = None  # rad/s or m/s; None: not given
+    effort: float | None = None  # N·m or N; None: not given
     export_name: str = ""  # the joint's name in the robot stack (URDF, ROS); default its own name
     pulses: float = 0.0  # the controller's encoder pulses per degree (per mm), signed by its counting; 0: not given
 
@@ -103,9 +104,8 @@ class Joint:
                              f"given)")
         for key in ("velocity", "effort"):
             value = self.__dict__[key]
-            if not (np.isfinite(value) and value >= 0.0):
-                raise ModelError(f"joint '{self.name}': {key} limit {value} must be a finite number, 0 or more "
-                                 f"(0: not given)")
+            if value is not None and not (np.isfinite(value) and value >= 0.0):
+                raise ModelError(f"joint '{self.name}': {key} limit {value} must be a finite number, 0 or more")
         if self.type not in ROW_TYPES:
             raise ModelError(f"joint '{self.name}': type '{self.type}' is not one of {ROW_TYPES}")
         if not (np.isfinite(self.lower) and np.isfinite(self.upper) and self.lower < self.upper):

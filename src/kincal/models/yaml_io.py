@@ -361,8 +361,8 @@ def _dh_joints(entries, lf: float, af: float, label: str) -> tuple[list[Joint], 
         explicit_beta.append(beta)
         on = not (beta is None or beta is False)
         joints.append(Joint(str(jd.get("name", f"j{k + 1}")), jtype, on, lo, hi, *link_mass(jd, lf, where),
-                            num(jd.get("velocity", 0.0), where, "velocity") * qf,
-                            num(jd.get("effort", 0.0), where, "effort"),
+                            None if jd.get("velocity") is None else num(jd["velocity"], where, "velocity") * qf,
+                            None if jd.get("effort") is None else num(jd["effort"], where, "effort"),
                             pulses=num(jd.get("pulses_per_degree", 0.0), where, "pulses_per_degree")))
         row = {key: num(jd.get(key, 0.0), where, key) * (lf if key in ("d", "a") else af)
                for key in ("theta", "d", "a", "alpha")}
@@ -403,8 +403,8 @@ def _chain_yaml(robot: SerialRobot, length_unit: str, angle_unit: str) -> str:
         items.append(f"beta: {fmt(v[f'{j.name}.beta'] * af)}" if j.beta else "beta: false")
         if j.type != "fixed":
             items.append(f"limits: [{fmt(j.lower * qf)}, {fmt(j.upper * qf)}]")
-        items += [f"velocity: {fmt(j.velocity * qf)}"] if j.velocity else []
-        items += [f"effort: {fmt(j.effort)}"] if j.effort else []
+        items += [f"velocity: {fmt(j.velocity * qf)}"] if j.velocity is not None else []
+        items += [f"effort: {fmt(j.effort)}"] if j.effort is not None else []
         items += [f"pulses_per_degree: {fmt(j.pulses)}"] if j.pulses else []
         lines.append("  - {" + ", ".join(items + mass_items(j, lf)) + "}")
     lines += [frame_text(v, "base", lf, af), frame_text(v, "tool", lf, af)]
