@@ -174,6 +174,40 @@ def test_a_kuka_program_through_the_command_line(tmp_path, capsys):
         assert np.linalg.norm(pt[0] - p) < 1e-9 and np.linalg.norm(Rotation.from_matrix(Rt[0] @ R.T).as_rotvec()) < 1e-9
 
 
+def test_where_the_tracker_stood_does_not_change_the_program(tmp_path, capsys):
+    """The same arm calibrated from a tracker at its base and from one 1.26 m away and turned 34°: the
+    program and the folder written from each are the same to 1e-9 (the commands are in the robot's base frame,
+    the controller's world, never the tracker's), and land on the poses the program meant (the first test's
+    check)."""
+    nominal = kincal.load_robot("kuka_kr6r900sixx").with_tool_point([0.0, 0.0, 0.05])
+    arm = kincal.perturb(nominal, seed=3)
+    q = nominal.sample_joints(60, seed=1)
+    flange = nominal.with_tool_point(np.zeros(3))
+    _program(tmp_path / "pick.dat", nominal, flange, BASE, TOOL, np.radians([[10, -80, 100, 20, 40, 30],
+                                                                             [-25, -100, 110, -30, -50, 60]]))
+    tool_rpy = Rotation.from_matrix(TOOL[:3, :3]).as_euler("ZYX", degrees=True)
+    (tmp_path / "frames.yaml").write_text(f"TOOL_NO 1: {{x: 10, y: -20, z: 150, rz: {tool_rpy[0]}, ry: "
+                                          f"{tool_rpy[1]}, rx: {tool_rpy[2]}}}\nBASE_NO 2: {{x: 300, y: -100, z: 50}}\n")
+    (tmp_path / "cell").mkdir()
+    (tmp_path / "cell" / "pick.dat").write_bytes((tmp_path / "pick.dat").read_bytes())
+    written = []
+    for k, where in enumerate(({}, {"base.x": 1.2, "base.y": -0.3, "base.z": 0.1, "base.rz": 0.6})):
+        res = kincal.calibrate(nominal, kincal.simulate(arm.with_params(where), q, noise=0.0))
+        kincal.save_robot(res.robot, tmp_path / f"cal{k}.yaml", calibration=res.record())
+        out = tmp_path / f"pick{k}.dat"
+        code, said = _kincal(capsys, ["compensate", str(tmp_path / f"cal{k}.yaml"), str(tmp_path / "pick.dat"),
+                                      "--program", "krl", "--frames", str(tmp_path / "frames.yaml"), "-o", str(out)])
+        assert code == 0 and "2 of 2 literal targets compensated" in said, said
+        code, said = _kincal(capsys, ["compensate", str(tmp_path / f"cal{k}.yaml"), str(tmp_path / "cell"), "--program",
+                                      "krl", "--frames", str(tmp_path / "frames.yaml"), "-o", str(tmp_path / f"out{k}")])
+        assert code == 0, said
+        assert (tmp_path / f"out{k}" / "pick.dat").read_bytes() == out.read_bytes()
+        written.append(np.array([t.values for t in read_program(str(out), "krl").targets]))
+    assert np.abs(written[0] - written[1]).max() < 1e-9
+    assert np.abs(written[0] - np.array([t.values for t in read_program(str(tmp_path / "pick.dat"), "krl").targets])
+                  ).max() > 1e-5  # compensated: the arm's errors moved them
+
+
 @pytest.mark.parametrize("language, arm", [("krl", "kuka_kr6r900sixx"), ("fanuc", "fanuc_lrmate200id")])
 def test_every_real_target_is_compensated_and_checked_or_refused_by_line(language, arm):
     """The data folder's KRL and FANUC programs with a calibration of the vendor's bundled arm: each literal target

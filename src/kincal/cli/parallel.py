@@ -183,11 +183,11 @@ def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
     if flags:
         raise ValueError(f"{', '.join(flags)}: not for a {args.program} program, whose targets carry their own frames "
                          f"(--frames), units and orientation")
-    nominal = cal.with_params(values) if values else cal
+    model, nominal = command_models(cal, values)  # both in the robot's base frame, the controller's world
     prog = _read_program(args)
     frames = kincal.io.read_frames(args.frames) if args.frames else {}
     turned, turn = orientation
-    res = compensate_branches(cal, nominal, prog, kincal.io.ROWS[args.program], frames, orientation=turned)
+    res = compensate_branches(model, nominal, prog, kincal.io.ROWS[args.program], frames, orientation=turned)
     written = not res.problems or args.skip_unreachable  # no target at all: the program as it was
     if written:
         kincal.io.write_program(args.output, prog, res.texts, res.refused)
@@ -198,7 +198,7 @@ def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
     declared = kincal.io.dialects()[args.program].frames(prog)
     known = sorted(k for k, v in declared.items() if not isinstance(v, str))
     lines += [f"frames the program declares or holds beside it: {', '.join(known)}"] if known else []
-    lines += _taught_lines(cal, nominal, frames, turned)
+    lines += _taught_lines(model, nominal, frames, turned)
     lines += [f"refused: {p}" for p in res.problems]
     lines += _left_lines(res)
     lines += ([turn.note()] if turn is not None else []) + ([unseen] if unseen else [])
@@ -266,11 +266,11 @@ def _compensate_folder(args) -> int:
     cal = load_robot(args, [*([args.frames] if args.frames else [])], [])
     _program_for(cal, args.program, args.robot)
     record, values = _calibration(args)
-    nominal = cal.with_params(values) if values else cal
+    model, nominal = command_models(cal, values)  # both in the robot's base frame, the controller's world
     frames = kincal.io.read_frames(args.frames) if args.frames else {}
     unc = kincal.analysis.load_uncertainty(args.robot)
     turned, turn = _orientation(args, record, cal, values, nominal, unc)
-    res = compensate_folder(cal, nominal, args.targets, args.program, kincal.io.ROWS[args.program], frames, turned)
+    res = compensate_folder(model, nominal, args.targets, args.program, kincal.io.ROWS[args.program], frames, turned)
     if not res.files:
         raise ValueError(f"{args.targets}: no {args.program} program in this folder (suffixes "
                          f"{', '.join(kincal.io.dialects()[args.program].suffixes)})")
