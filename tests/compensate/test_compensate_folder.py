@@ -10,7 +10,7 @@ import pytest
 
 import kincal
 from kincal.cli import main
-from kincal.compensate import compensate_folder
+from kincal.compensate import command_models, compensate_folder
 from kincal.compensate.branch import compensate_branches
 from kincal.io import ROWS, read_program
 
@@ -27,7 +27,7 @@ def _backup(tmp_path):
                                nominal.sample_joints(60, seed=1), noise=0.0)
     res = kincal.calibrate(nominal.with_tool_point([0, 0, 0.05]), measured)
     kincal.save_robot(res.robot, tmp_path / "cal.yaml", calibration=res.record())
-    return res.robot, res.robot.with_params(res.record()["nominal"])
+    return command_models(res.robot, res.record()["nominal"])  # both in the robot's base frame, as compensate
 
 
 def _run(capsys, *argv):

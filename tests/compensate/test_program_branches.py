@@ -9,6 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import kincal
+from kincal.compensate import command_models
 from kincal.compensate.branch import compensate_branches, controller_inverse
 from kincal.io import dialects, read_program
 
@@ -144,7 +145,7 @@ def test_a_kuka_program_through_the_command_line(tmp_path, capsys):
     res = kincal.calibrate(nominal, measured)
     cal = tmp_path / "cal.yaml"
     kincal.save_robot(res.robot, cal, calibration=res.record())
-    true = res.robot  # the calibrated arm: what the program must land on
+    true = command_models(res.robot, res.record()["nominal"])[0]  # the calibrated arm in its base frame
     q = np.radians([[10, -80, 100, 20, 40, 30], [-25, -100, 110, -30, -50, 60], [40, -60, 80, 90, 30, -120]])
     flange = nominal.with_tool_point(np.zeros(3))
     dat = tmp_path / "pick.dat"

@@ -339,7 +339,7 @@ def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom:
                + _crossed(model, q_nom[k], q[i]) if config and tuple(bits[i]) != config else "")
         lever = goals[2][k]  # the TCP in the flange frame (a joint target: the point the calibration measured)
         keep = kept_joints(model.with_tool_point(lever), nominal.with_tool_point(lever), q_nom[k], why) \
-            if why and program.targets[k].kind == "joints" else ""
+            if program.targets[k].kind == "joints" else ""
         if keep:
             kept[int(k)], qs[k] = keep, q_nom[k]
         elif why:

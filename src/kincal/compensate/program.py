@@ -33,6 +33,8 @@ TCP_MAX = 2.0  # m: no tool puts its TCP this far from the flange (a set_tcp wri
 POSE_MAX = 20.0  # m: no arm's pose target lies this far from its base (a pose written in mm, not m)
 SEARCH = (200, 20.0)  # iterations and travel (m) of the numeric inverse: from afar, not a small correction
 SINGULAR = 1e3  # condition number of the pose Jacobian (m, rad) beyond which a failed correction is named as such
+SINGULAR_EXACT = 1e8  # ... beyond which a joint target is at the singularity itself (a UR5's wrist 6e-8 rad from it; a
+# literal 0): its correction, where one converges, is a split of a turn between joints in line that round-off decides
 Models = Callable[[np.ndarray], tuple[Robot, Robot]]  # a TCP point (3,) m -> (calibrated, nominal) models for it
 
 
@@ -239,7 +241,7 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None, orientation: Robo
             return "the nominal model does not reach this pose on any branch within the joint limits"
         q_nom = found
     q, why = corrected(model, p, R, q_nom, orientation)
-    keep = kept_joints(model, nominal, q_nom, why) if why and t.kind == "joints" else ""
+    keep = kept_joints(model, nominal, q_nom, why) if t.kind == "joints" else ""
     if keep:
         return q_nom, q_nom, q_nom, keep
     if why:
@@ -279,13 +281,15 @@ def singular(robot: Robot, q: np.ndarray) -> str:
 
 
 def kept_joints(model: Robot, nominal: Robot, q: np.ndarray, why: str) -> str:
-    """Why a joint target q (n,) whose correction failed (``why``) is kept as it is, or '' when it is refused:
-    kept at a singularity of the arm (a home pose with the wrist's axes in line), where no joints near q put
-    ``model``'s TCP at ``nominal``'s pose and the program's joints are what the robot should go to; the note
-    says how far the calibrated TCP lands from the nominal one there."""
+    """Why a joint target q (n,) is kept as it is, or '' when it is not: its correction failed (``why``) at or near
+    a singularity of the arm (a home pose with the wrist's axes in line), where no joints near q put ``model``'s
+    TCP at ``nominal``'s pose; or q is at the singularity itself (SINGULAR_EXACT), where a correction that
+    converges splits a turn between joints in line as round-off decides. The program's joints are what the
+    robot should go to; the note says how far the calibrated TCP lands from the nominal one there."""
     cond = condition(nominal, q)
-    if cond <= SINGULAR:
+    if cond <= SINGULAR or (not why and cond <= SINGULAR_EXACT):
         return ""
+    why = why or "at the singularity itself the pose does not fix how joints in line share a turn"
     miss = float(np.linalg.norm(model.forward(q[None])[0] - nominal.forward(q[None])[0]))
     return (f"a joint target at a singularity of the arm (condition number {cond:.1e}; {why}): its joints are kept, "
             f"and the TCP lands {miss * 1e3:.3f} mm from the nominal model's point there, as before calibration")
