@@ -474,3 +474,38 @@ def test_a_urdf_needs_every_joints_velocity_and_effort(tmp_path, capsys):
     assert float(limits["j1"]["velocity"]) == pytest.approx(np.pi / 2) and float(limits["j1"]["effort"]) == 40
     assert float(limits["j2"]["velocity"]) == pytest.approx(0.25) and float(limits["j2"]["effort"]) == 300
 
+
+
+def test_the_ur5_urdf_exports_urs_layout_in_urs_base(tmp_path, capsys):
+    """The UR5 read from ur_description's URDF (base_link, joint origins 136 mm along the shoulder's axis from UR's
+    layout) exports the same UR kinematics file as kincal's DH ur5 (UR's default layout, the UR10 test's reference),
+    entry by entry within 1e-9, in UR's Base: its link 'base' (base_link turned 180°) found without --base-yaw; a
+    --base-yaw that disagrees is refused. Calibrated from the same measurements, the URDF and the DH robot give the
+    same frames-only correction for the controller."""
+    from kincal.models.urdf import rpy_matrix
+
+    files = {}
+    for name, robot in (("dh", ["ur5"]), ("urdf", [str(UR5_URDF), "--base-link", "base_link", "--tip-link", "tool0"])):
+        assert main(["export", *robot, str(tmp_path / f"{name}.yaml"), "--format", "ur"]) == 0
+        files[name] = yaml.safe_load((tmp_path / f"{name}.yaml").read_text())["kinematics"]
+    for entry in ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3"):
+        a, b = files["dh"][entry], files["urdf"][entry]
+        np.testing.assert_allclose([b[k] for k in "xyz"], [a[k] for k in "xyz"], atol=1e-9, err_msg=entry)
+        np.testing.assert_allclose(rpy_matrix(b["roll"], b["pitch"], b["yaw"]), rpy_matrix(a["roll"], a["pitch"],
+                                                                                             a["yaw"]), atol=1e-9)
+    assert main(["export", str(UR5_URDF), str(tmp_path / "x.yaml"), "--format", "ur", "--base-link", "base_link",
+                 "--tip-link", "tool0", "--base-yaw", "0"]) == 1
+    assert "turned 180.000° about z from base_link; --base-yaw 0.000 disagrees" in capsys.readouterr().err
+    dh = kincal.load_robot("ur5").with_tool_point([0.0, 0.0, 0.05])
+    urdf = kincal.load_robot(UR5_URDF, base_link="base_link", tip_link="tool0").with_tool_point([0.0, 0.0, 0.05])
+    q = dh.sample_joints(60, seed=5)
+    true = kincal.perturb(dh, seed=5)
+    meas = kincal.simulate(true.with_params({"base.x": 1.5, "base.rz": 0.4}), q, noise=0.0)  # the tracker's frame
+    bases = []
+    for name, robot in (("dh", dh), ("urdf", urdf)):
+        res = kincal.calibrate(robot, kincal.Measurements(q, meas.xyz, robot.joint_names))
+        kincal.save_robot(res.robot, tmp_path / f"{name}_cal.yaml", calibration=res.record())
+        assert main(["export", str(tmp_path / f"{name}_cal.yaml"), str(tmp_path / f"{name}.script"), "--format",
+                     "frames-urscript", "--json"]) == 0
+        bases.append(np.array(json.loads(capsys.readouterr().out)["written_base"]))
+    np.testing.assert_allclose(bases[1], bases[0], atol=1e-7)

@@ -12,6 +12,7 @@ import kincal.io
 import kincal.models
 from kincal.compensate import fit_frames_only
 from kincal.identify import observation_identifiability
+from kincal.models.export import controller_base
 from kincal.observe import describe, read_observations, write_observations
 from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM, SHOWN, display, joint_factors, joint_units
 
@@ -117,7 +118,8 @@ def cmd_export(args) -> int:
     r = load_robot(args, [args.source], [args.output])
     values = (kincal.models.load_calibration_record(args.robot) or {}).get("nominal")
     base = {n: values[n] for n in r.base_params() if n in values} if isinstance(values, dict) else None
-    info = kincal.export_robot(r, args.output, args.format, args.source, args.tool_link, args.base_yaw / DEG,
+    info = kincal.export_robot(r, args.output, args.format, args.source, args.tool_link,
+                               None if args.base_yaw is None else args.base_yaw / DEG,
                                args.length_unit, args.angle_unit, args.joint_names, base if base else None)
     lines = [f"{r.name}: {info['format']} written to {args.output} (checked: it reproduces the model, tool point "
              f"included, to 1e-9 m)"]
@@ -163,6 +165,8 @@ def _export_frames(args) -> int:
     fit = fit_frames_only(cal, cal.with_params(values), region=region)
     where = "the joint ranges of the calibration's data" if region else "the joint limits"
     base = np.linalg.inv(fit.base)  # the measurement frame (where targets are) in the robot's base
+    ctrl = controller_base(cal)  # a URDF's link 'base': the controller's base frame, where its frames are
+    base = base if ctrl is None else np.linalg.inv(ctrl) @ base
     note = [f"kincal frames-only correction of {cal.name}: base = the calibration's measurement frame in the "
             f"robot's base, tool = the TCP in the flange",
             f"left by the frames: RMS {fit.after_rms * 1e3:.3f} mm, max {fit.after_max * 1e3:.3f} mm over "
@@ -170,7 +174,8 @@ def _export_frames(args) -> int:
     kincal.io.write_frames_data(args.output, args.format, base, fit.tool, note,
                                 tuple(args.tool_load) if args.tool_load else None)
     lines = [f"{cal.name}: {args.format} written to {args.output} (read back by the language's reader: the frames "
-             f"to 1e-9 m and 1e-9 rad)", _frame_line("base (the measurement frame in the robot's base)", base),
+             f"to 1e-9 m and 1e-9 rad)", _frame_line("base (the measurement frame in the " + (
+                 "controller's base frame, the URDF's link 'base')" if ctrl is not None else "robot's base)"), base),
              _frame_line("tool (the TCP in the flange)", fit.tool),
              "angles ZYX: KUKA A, B, C; FANUC W, P, R and Yaskawa Rx, Ry, Rz are C, B, A (enter these on the pendant)",
              f"the frames alone leave RMS {fit.after_rms * 1e3:.3f} mm, max {fit.after_max * 1e3:.3f} mm, "
@@ -241,8 +246,9 @@ def register(cmd) -> None:
     s.add_argument("--tool-link", help="add the tool point to the URDF as a fixed joint and link of this name")
     s.add_argument("--joint-names", type=csv_list, help="URDF of a DH robot: the joints' names in your robot stack, "
                    "e.g. shoulder_pan_joint,... (default: the robot file's 'names:')")
-    s.add_argument("--base-yaw", type=finite_float, default=0.0, help="UR files: UR's Base frame is the model's base "
-                   "turned by this about z, deg (0 for kincal's DH ur5; 180 for ur_description's base_link)")
+    s.add_argument("--base-yaw", type=finite_float, help="UR files: UR's Base frame is the model's base turned by "
+                   "this about z, deg (default: the URDF's link 'base' where it has one, as ur_description's, turned "
+                   "180 deg from base_link; else 0, kincal's DH UR arms)")
     s.add_argument("--length-unit", default="m", choices=list(LENGTH_UNITS), help="kincal YAML: length unit")
     s.add_argument("--angle-unit", default="rad", choices=list(ANGLE_UNITS), help="kincal YAML: angle unit")
 

@@ -24,7 +24,7 @@ from .chain import ROT
 from .robot import TOOL_NAMES, Robot
 from .serial import ChainRobot, SerialRobot
 from .transforms import rot_zyx, zyx_from_matrix
-from .urdf import ORIGIN, URDFRobot, read_urdf, rpy_matrix
+from .urdf import ORIGIN, URDFRobot, fixed_frame, read_urdf, rpy_matrix
 from .yaml_io import robot_to_yaml
 
 EXPORT_TOL = 1e-9  # m: an export must reproduce the model this closely
@@ -172,12 +172,13 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
     >>> sorted(summary)
     ['base_yaw', 'flange_to_tcp', 'tool_point']
     """
-    frames, flange = joint_frames(robot, slide=True)  # the link frames UR's description puts on the axes
+    frames, flange = joint_frames(robot)  # a serial chain's (ModelError for another)
     if robot.n_joints != 6 or any(t != "revolute" for t in robot.joint_types):
         raise ModelError(f"robot '{robot.name}': a UR calibration file holds 6 revolute joints, the robot has "
                          f"{robot.n_joints} ({', '.join(robot.joint_types)})")
-    base = _h(rot_zyx(base_yaw, 0.0, 0.0), np.zeros(3))
-    chain = [base] + frames
+    base = _h(rot_zyx(base_yaw, 0.0, 0.0), np.zeros(3))  # UR's Base in the model's base frame
+    frames, flange = ur_layout(frames, flange, base)  # the link frames UR's description hangs its links on
+    chain = [np.eye(4)] + frames
     origins = [np.linalg.inv(a) @ b for a, b in zip(chain[:-1], chain[1:])]
     rest = np.linalg.inv(frames[-1]) @ flange
     d = rest[2, 3]  # a shift along the last axis commutes with its rotation: it belongs to wrist_3
@@ -197,6 +198,46 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
                "base_yaw": base_yaw}
     _check(robot, lambda q: _ur_forward(entries, q, base, rest, tool), "UR calibration file")
     return text, summary
+
+
+PARALLEL = 0.1  # sine of the angle below which two joint axes count as parallel (no common normal of their own)
+
+
+def ur_layout(frames: list[np.ndarray], flange: np.ndarray, base: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+    """The joint frames (each z on its joint's axis) moved along and turned about their axes to where UR's
+    description puts its link frames (its DH layout), and the flange, both in UR's Base frame ``base`` (4x4, in the
+    model's base frame): the origin where the axis meets the next one's common normal (where they intersect, the
+    intersection), for an axis parallel to the next the point nearest the previous origin, for the last the point
+    nearest the flange; x the previous frame's x (Base's for the first, the flange's for the last) made square to
+    the axis. Any chain's
+    layout (a URDF's frames lie elsewhere on the axes) then gives UR's own numbers; the motion is unchanged: a
+    joint turns about the same line whatever point and x its frame takes on it."""
+    to_base = np.linalg.inv(base)
+    F, end = [to_base @ f for f in frames], to_base @ flange
+    out, o_prev, x_prev, y_prev = [], np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    for k, f in enumerate(F):
+        p, z = f[:3, 3], f[:3, 2]
+        o = _foot(p, z, F[k + 1][:3, 3], F[k + 1][:3, 2]) if k + 1 < len(F) else None
+        if o is None:
+            target = end[:3, 3] if k + 1 == len(F) else o_prev
+            o = p + z * float(np.dot(target - p, z))
+        x_prev = end[:3, 0] if k + 1 == len(F) else x_prev  # the last: the flange's x (its zero in wrist_3's yaw)
+        x = x_prev - z * float(x_prev @ z)
+        x = x if np.linalg.norm(x) > PARALLEL else y_prev - z * float(y_prev @ z)  # x along the axis: y instead
+        x = x / np.linalg.norm(x)
+        out.append(_h(np.column_stack([x, np.cross(z, x), z]), o))
+        o_prev, x_prev, y_prev = o, x, np.cross(z, x)
+    return out, end
+
+
+def _foot(p1: np.ndarray, z1: np.ndarray, p2: np.ndarray, z2: np.ndarray) -> np.ndarray | None:
+    """The point on the line (p1, z1) where its common normal with the line (p2, z2) meets it; None for lines
+    nearer parallel than PARALLEL (unit directions z, m)."""
+    c = float(z1 @ z2)
+    if np.linalg.norm(np.cross(z1, z2)) < PARALLEL:
+        return None
+    t, _ = np.linalg.solve(np.array([[1.0, -c], [c, -1.0]]), np.array([(p2 - p1) @ z1, (p2 - p1) @ z2]))
+    return p1 + t * z1
 
 
 def _ur_forward(entries: dict, q: np.ndarray, base: np.ndarray, rest: np.ndarray, tool: np.ndarray) -> np.ndarray:
@@ -405,7 +446,7 @@ FORMATS = ("urdf", "ur", "yaml")
 
 
 def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, tool_link: str | None = None,
-                 base_yaw: float = 0.0, length_unit: str = "m", angle_unit: str = "rad",
+                 base_yaw: float | None = None, length_unit: str = "m", angle_unit: str = "rad",
                  joint_names: Sequence[str] | None = None, base: Mapping[str, float] | None = None) -> dict:
     """Write a robot as a URDF, a UR calibration file or a kincal robot YAML file.
 
@@ -426,7 +467,8 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
     tool_link : str, optional
         URDF: the link that carries the tool point (default "tool_point" when the tool point is not zero).
     base_yaw : float, optional
-        UR: turn of UR's Base frame from the model's base frame about z, rad (default 0).
+        UR: turn of UR's Base frame from the model's base frame about z, rad (default: :func:`ur_base_yaw`, from a
+        URDF's link ``base``, else 0).
     length_unit : str, optional
         YAML: unit of the lengths in the file (default "m").
     angle_unit : str, optional
@@ -475,13 +517,44 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
         text = urdf_text(robot, _source(robot, source_path), tool_link, joint_names)
         summary.update(tool_link=tool_link_of(robot, tool_link))
     elif fmt == "ur":
-        text, extra = ur_calibration(robot, base_yaw)
+        text, extra = ur_calibration(robot, ur_base_yaw(robot, base_yaw, source_path))
         summary.update(extra)
     else:
         mounted = robot.with_params({n: float(base[n]) for n in robot.base_params()}) if base else robot
         text = robot_to_yaml(mounted, length_unit, angle_unit)
     write_text_atomic(path, text)
     return summary
+
+
+CONTROLLER_BASE = "base"  # ROS-Industrial's link for the controller's base frame (UR's Base, KUKA's $ROBROOT)
+
+
+def controller_base(robot: Robot, source_path: str | None = None) -> np.ndarray | None:
+    """The controller's base frame (4x4, m) in a URDF robot's base frame: the pose of the URDF's link ``base``
+    where a fixed joint hangs it on the chain's base link, as ROS-Industrial's descriptions do (ur_description's
+    ``base`` is UR's Base, base_link turned 180° about z); None for another robot or a URDF without it."""
+    if not isinstance(robot, URDFRobot):
+        return None
+    text = _source(robot, source_path)
+    return None if text is None else fixed_frame(text, str(robot.source.get("base_link")), CONTROLLER_BASE)
+
+
+def ur_base_yaw(robot: Robot, given: float | None, source_path: str | None = None) -> float:
+    """The turn of UR's Base about z from the model's base frame, rad: from the URDF's link ``base``
+    (:func:`controller_base`) where it has one, ``given`` (which must agree) otherwise, else 0 (kincal's DH UR arms
+    stand in UR's Base). ModelError when the link is more than a turn about z, or disagrees with ``given``."""
+    T = controller_base(robot, source_path)
+    if T is None or not isinstance(robot, URDFRobot):
+        return 0.0 if given is None else given
+    yaw, link = float(np.arctan2(T[1, 0], T[0, 0])), robot.source.get("base_link")
+    if np.abs(T - _h(rot_zyx(yaw, 0.0, 0.0), np.zeros(3))).max() > 1e-9:
+        raise ModelError(f"robot '{robot.name}': the URDF's link '{CONTROLLER_BASE}' (the controller's base frame) is "
+                         f"not a turn about z of {link}: UR's Base cannot be placed")
+    if given is not None and abs(np.angle(np.exp(1j * (given - yaw)))) > 1e-9:
+        raise ModelError(f"robot '{robot.name}': the URDF's link '{CONTROLLER_BASE}' is UR's Base, turned "
+                         f"{np.degrees(yaw):.3f}° about z from {link}; --base-yaw {np.degrees(given):.3f} disagrees: "
+                         f"leave it out")
+    return yaw
 
 
 def _source(robot: Robot, source_path) -> str | None:

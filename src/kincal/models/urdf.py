@@ -325,6 +325,24 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
                       f"URDF chain {base} -> {tip} from {label}", source)
 
 
+def fixed_frame(text: str, parent: str, child: str) -> np.ndarray | None:
+    """The 4x4 pose (m) of link ``child`` in link ``parent`` when a fixed joint of the URDF document ``text`` joins
+    them, else None (ROS-Industrial's link ``base``, the controller's base frame, under ``base_link``)."""
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError:
+        return None
+    for el in root.findall("joint"):
+        ends = tuple(e.get("link") if e is not None else None for e in (el.find("parent"), el.find("child")))
+        if el.get("type") == "fixed" and ends == (parent, child):
+            where = f"joint '{el.get('name')}'"
+            T = np.eye(4)
+            T[:3, :3] = rpy_matrix(*_triple(el.find("origin"), "rpy", where, (0.0, 0.0, 0.0)))
+            T[:3, 3] = _triple(el.find("origin"), "xyz", where, (0.0, 0.0, 0.0))
+            return T
+    return None
+
+
 MAX_REACH = 20.0  # m: a chain longer than this is no robot arm (the largest reach about 4 m)
 MM_REACH = 100.0  # m: ... and one this long was written in mm (URDF lengths are in metres)
 
