@@ -171,6 +171,26 @@ def test_real_ur5_figures_unchanged_in_the_same_frame():
     assert np.linalg.norm(fitted - robot.tool_point()) < 3e-3
 
 
+def test_same_frame_on_a_file_without_a_record_names_its_base_frame(tmp_path, capsys):
+    """An exported calibration (its base the robot's own, no record) evaluated with --same-frame on data taken
+    2 m from the robot: the statistics say the file's base frame was taken for the measurement frame, and the
+    likely cause gives the mean with the frame re-fitted (recomputed here), pointing at --same-frame."""
+    res, path = calibrated_ur10(tmp_path)
+    assert main(["export", str(path), str(tmp_path / "exported.yaml")]) == 0
+    meas = kincal.simulate(res.robot, res.robot.sample_joints(20, seed=8), 0.0)
+    data = tmp_path / "held.csv"
+    kincal.write_measurements(data, meas, res.robot.joint_types, "mm", "deg")
+    capsys.readouterr()
+    assert main(["evaluate", str(tmp_path / "exported.yaml"), str(data), "--length-unit", "mm", "--angle-unit",
+                 "deg", "--same-frame"]) == 0
+    said = capsys.readouterr().out
+    exported = kincal.load_robot(tmp_path / "exported.yaml")
+    refit = kincal.evaluate(refit_frame(exported, meas), meas).mean
+    assert "frame as the file gives it: it has no calibration record" in said
+    assert f"with the frame re-fitted to these data the mean is {refit * 1e3:.4f} mm: leave out --same-frame" in said
+    assert kincal.evaluate(exported, meas).mean > 1.0  # the tracker's 2 m, taken for the robot's base
+
+
 # ---- commands in the user's frames -----------------------------------------------------------------
 TCP = np.array([0.0, 0.0, 0.1092])  # the controller's TCP: 16 mm beyond the probe
 

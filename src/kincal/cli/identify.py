@@ -227,12 +227,13 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
     the predicted σ and where the model extrapolates (from the calibration record), and the likely
     cause of an error far above the training error; the JSON payload and the lines to print."""
     meas = read(args, r, path)
-    how = kincal.identify.AS_CALIBRATED if args.same_frame else kincal.identify.REGISTERED
+    how = kincal.identify.REGISTERED if not args.same_frame else kincal.identify.AS_CALIBRATED if record else AS_GIVEN
     model = r if args.same_frame else kincal.identify.refit_frame(r, meas)
     stats = kincal.evaluate(model, meas, uncertainty=kincal.analysis.load_uncertainty(args.robot) if record else None)
     value = (record or {}).get("training_error")  # the mean error on the training data (m); 0 when unknown
     train_error = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else 0.0
     cause = kincal.identify.heldout_cause(model, meas, train_error, not args.same_frame) if train_error else ""
+    cause = cause or (_frame_not_given(r, meas, stats.mean) if args.same_frame and not record else "")
     texts = [f"{r.name} on {path} ({how}): {stats}" + (f"\n  likely cause: {cause}" if cause else "")]
     before, registered = _nominal_before(args, r, record, meas)
     if before is not None:
@@ -243,6 +244,23 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
         texts += save_figures(evaluation_figures(model, meas), stem)
     return {"file": path, "registration": how, **stats.to_dict(), "nominal_mean": before,
             "nominal_registration": registered or None, "cause": cause or None}, texts
+
+
+AS_GIVEN = "frame as the file gives it: it has no calibration record, its base frame is taken for the measurement frame"
+FRAME_GAIN = 2.0  # --same-frame on a file without a record: a re-fitted frame this many times better says why
+
+
+def _frame_not_given(r, meas, mean: float) -> str:
+    """Why a robot file without a calibration record misses data measured, it is told, in its frame: its base frame
+    (an export or a robot description keeps the robot's own) is not where the instrument stood, when re-fitting
+    the frame alone does FRAME_GAIN times better; '' otherwise."""
+    refit = kincal.evaluate(kincal.identify.refit_frame(r, meas), meas).mean
+    if not mean > FRAME_GAIN * refit:
+        return ""
+    return (f"the file has no calibration record, so its base frame (the robot's own: an export or a description "
+            f"keeps that, not where the instrument stood) was taken for the measurement frame; with the frame "
+            f"re-fitted to these data the mean is {refit * MM:.4f} mm: leave out --same-frame, or evaluate the "
+            f"calibrated file itself (kincal calibrate -o), which keeps the frame it found")
 
 
 def _nominal_before(args, r, record: dict | None, meas) -> tuple[float | None, str]:
