@@ -183,6 +183,13 @@ def _frame_and_rows() -> list[tuple[Cause, Change]]:
 
 
 @functools.lru_cache(maxsize=None)
+def data_changes(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]:
+    """The candidate mistakes in a file's columns and rows, each with its change of the data (in the canonical
+    order): an angle unit, a joint column negated, offset or swapped with another, the positions mirrored, the
+    rows shifted; what a model with fixed kinematics (a held-out file) can be judged against."""
+    return _angle_units(robot, meas) + _joint_columns(robot) + _frame_and_rows()
+
+
 def _bundled(name: str) -> Robot:
     from ..models.yaml_io import load_robot
     return load_robot(name)

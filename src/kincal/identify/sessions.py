@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import KincalError
 from ..io.measurements import Measurements
 from ..io.unit_checks import spread
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import MM
+from ..ties import first_best
 from .calibrate import calibrate
+from .options import FitOptions
 from .select import _mean_error
 
 HELDOUT_RATIO = 10.0  # a held-out error this many times the training error needs a named cause
@@ -75,6 +78,29 @@ def _tool_fix(robot: Robot, meas: Measurements, base: str) -> tuple[float, str] 
                    f"adapter or seat); give that session's tool point with --tool")
 
 
+def _data_mistake(robot: Robot, meas: Measurements, enough: float, rebased: bool) -> str:
+    """The mistake in the file's columns or rows (:func:`kincal.identify.diagnosis.data_changes`) whose undoing
+    brings the model's mean error within ``enough`` (m), the frame re-registered where it was (``rebased``), in
+    words with the figure; the smallest error wins, ties the earlier candidate; '' when none does."""
+    from .diagnosis import data_changes
+
+    tried = []
+    for cause, change in data_changes(robot, meas):
+        changed = change(robot, meas, FitOptions())[1]  # a change of the data: the options pass through
+        if not isinstance(changed, Measurements):
+            continue
+        try:
+            error = _mean_error(refit_frame(robot, changed) if rebased else robot, changed)
+        except (KincalError, ValueError, np.linalg.LinAlgError):
+            continue
+        tried.append((cause, error))
+    fits = [(c, e) for c, e in tried if e <= enough]
+    if not fits:
+        return ""
+    cause, error = fits[first_best([e for _, e in fits], maximize=False)]
+    return f"{cause.cause} (undone, the mean error is {error * MM:.3f} mm): {cause.fix}"
+
+
 def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased: bool) -> str:
     """Name the likely cause when a model misses a held-out session by far more than its training data.
 
@@ -128,6 +154,9 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
     if framed <= enough:
         return (f"{head}; with the measurement frame re-registered it is {framed * MM:.3f} mm: the tracker moved "
                 f"between sessions (leave out --same-frame so that each session's frame is registered)")
+    mistake = _data_mistake(robot, meas, enough, rebased)
+    if mistake:
+        return f"{head}; {mistake}"
     if np.isfinite(framed):
         moved = (f"; re-registering the measurement frame brings it to {framed * MM:.3f} mm (the tracker moved too: "
                  f"leave out --same-frame), still {framed / train_error:.0f}x the training error" if framed < 0.5 * error
