@@ -265,3 +265,17 @@ def test_a_check_no_single_change_explains_names_none(tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     assert out["verdict"] == "re-calibrate (no single change explains it)" and out["explained"] < 0.5
     assert out["suspects"][0]["name"] == "j7 zero" and any("explains only" in n for n in out["notes"])
+
+
+def test_a_legs_scale_is_an_actuator_change_shown_in_percent():
+    """A hexapod's leg scale (travel per revolution, a ratio) was offered as a 'joint axis' and printed in degrees
+    (-0.3022 ° for a 0.3 % change of the lead); it is an actuator change, shown in %."""
+    from kincal.analysis.changes import candidates
+    from kincal.identify.change import Suspect
+
+    robot = kincal.load_robot("hexapod")
+    c = candidates(robot, robot.sample_joints(20, seed=1), None)
+    scales = [(k, u) for n, k, u in zip(c.names, c.kinds, c.units) if n.endswith(".scale")]
+    assert scales and set(scales) == {("actuator", "ratio")}
+    line = Suspect("leg1.scale", "actuator", "ratio", -0.003022, 0.000302, -10.0).line()
+    assert line == "leg1.scale (actuator): -0.3022 % ± 0.0302 (z = -10.0)"

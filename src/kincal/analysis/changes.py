@@ -22,7 +22,7 @@ from ..models.robot import TOOL_NAMES, Robot
 
 ALPHA = 0.05  # the default false-alarm probability of compare and check (and the threshold check poses aim at)
 STEPS = {"joint zero": np.deg2rad(0.01), "link": 1e-4, "joint axis": np.deg2rad(0.01), "tool": 1e-4,
-         "frame": 1e-4}  # m or rad: changes a check should see (a frame's angles: 0.01°, below)
+         "frame": 1e-4, "actuator": 1e-4}  # m, rad or ratio: changes a check should see (a frame's angles: 0.01°)
 PARALLEL = 1e-5  # 1 − |cos| below which two directions are one candidate (within 4.5 mrad)
 NEGLIGIBLE = 1e-9  # m per unit change (RMS over the rows) below which a direction is not seen at all
 SAMPLES = 300  # calibration samples a Repeat keeps to predict the miss from (a check's cost is cubic in them)
@@ -187,8 +187,8 @@ def miss_from_parts(parts, sigma: float, length: float, M: int) -> np.ndarray:
 @dataclass(frozen=True, eq=False)
 class Candidates:
     """names -- one per candidate change ("j2 zero", "j3.a", "tool.z", "base.rx")
-    kinds -- "joint zero", "link", "joint axis", "tool" or "frame" per candidate
-    units -- "length" or "angle" per candidate (what its size is in)
+    kinds -- "joint zero", "link", "joint axis", "actuator" (a scale), "tool" or "frame" per candidate
+    units -- "length", "angle" or "ratio" per candidate (what its size is in)
     G     -- (3M, C) the predicted positions' change per unit change of each (m per m or m per rad), pose-major
     also  -- per candidate, the names of the changes that act the same at these poses (merged into it), "−" before
              one that acts the same with the opposite sign"""
@@ -232,7 +232,7 @@ def _kind(name: str, unit: str, base: set) -> str:
         return "frame"
     if name in TOOL_NAMES or name.startswith("tool."):
         return "tool"
-    return "link" if unit == "length" else "joint axis"
+    return {"length": "link", "ratio": "actuator"}.get(unit, "joint axis")  # a ratio: a leg's or a joint's scale
 
 
 def _distinct(G: np.ndarray) -> tuple[list[int], dict[int, list[tuple[int, float]]]]:

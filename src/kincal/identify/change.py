@@ -36,7 +36,7 @@ from .._threads import blas_threads
 from ..analysis.changes import ALPHA, Candidates, Repeat, candidates, frame_basis, without
 from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
-from ..units import DEG, MM
+from ..units import DEG, MM, SHOWN
 from .registration import register_base
 
 REGION_POSES = 200
@@ -44,7 +44,7 @@ MIN_CHECK_POSES = 4  # a re-fitted frame takes 6 of 3n rows
 RANK_RTOL = 1e-6  # singular values of the discrepancy's covariance factor below this × the largest: not seen
 RESOLUTION = 1e-8  # m: nor below this σ (0.01 µm, no instrument's): what is left of one calibration's frame
 # directions after another's are removed, and a model's second order, would otherwise look certain
-SHOWN = 5  # suspects kept in a result
+KEPT = 5  # suspects kept in a result
 EXPLAINED_MIN = 0.5  # the first suspect must explain this share of the whitened discrepancy alone to be named
 ODDS = {"joint zero": 3.0}  # prior odds of a kind of change against any other (1): how suspects are ranked. A
 # joint's zero moves when a motor, encoder or gearbox is replaced, at a re-mastering or a crash, the commonest
@@ -62,9 +62,9 @@ class Suspect:
     name : str
         The change: "j2 zero", a model parameter ("j3.a"), "tool.z", "base.rx".
     kind : str
-        "joint zero", "link", "joint axis", "tool" or "frame".
+        "joint zero", "link", "joint axis", "actuator" (a leg's or a joint's scale), "tool" or "frame".
     unit : str
-        "length" or "angle": what ``size`` and ``sigma`` are in.
+        "length", "angle" or "ratio": what ``size`` and ``sigma`` are in (shown in mm, deg or %).
     size : float
         The size of this change alone that best explains the discrepancy, m or rad.
     sigma : float
@@ -90,10 +90,9 @@ class Suspect:
     parts: tuple["Suspect", ...] = ()  # the frame as a whole: its parameters' shares
 
     def line(self) -> str:
-        factor, unit = (MM, "mm") if self.unit == "length" else (DEG, "°")
+        unit, factor = SHOWN[self.unit]
         if self.parts:
-            shares = ", ".join(f"{p.name} {p.size * (MM if p.unit == 'length' else DEG):+.4f}"
-                               f"{' mm' if p.unit == 'length' else '°'}" for p in self.parts)
+            shares = ", ".join(f"{p.name} {p.size * SHOWN[p.unit][1]:+.4f} {SHOWN[p.unit][0]}" for p in self.parts)
             return (f"{self.name} ({self.kind}: the instrument or the robot's base moved; {shares}): moved "
                     f"{self.size * MM:.4f} mm ± {self.sigma * MM:.4f} (explains {self.z ** 2:.1f} of the whitened "
                     f"discrepancy)")
@@ -146,7 +145,7 @@ class ChangeTest:
     >>> t.verdict
     'still good'
     >>> print(t.suspects[0].line())
-    j2 zero (joint zero): +0.0001 ° ± 0.0001 (z = +0.5)
+    j2 zero (joint zero): +0.0001 deg ± 0.0001 (z = +0.5)
     """
 
     question: str
@@ -393,7 +392,7 @@ def _judged(question: str, d: np.ndarray, U: np.ndarray, cands: Candidates, basi
         pool.append((explained - (len(whole.names) - 1) * np.log(max(dof, 2)), frame))
     ev = np.array([e for e, _ in pool])
     rank = np.round(ev / max(float(np.max(np.abs(ev))), 1e-300), 9)  # ties (kincal.ties): their order
-    suspects = tuple(pool[k][1] for k in sorted(range(len(pool)), key=lambda k: -rank[k])[:SHOWN])
+    suspects = tuple(pool[k][1] for k in sorted(range(len(pool)), key=lambda k: -rank[k])[:KEPT])
     changed = min(p_omni, p_dir) < alpha / 2
     share = min(1.0, suspects[0].z ** 2 / T) if suspects and T > 0 else 1.0
     if changed and share < EXPLAINED_MIN:
