@@ -279,3 +279,20 @@ def test_a_legs_scale_is_an_actuator_change_shown_in_percent():
     assert scales and set(scales) == {("actuator", "ratio")}
     line = Suspect("leg1.scale", "actuator", "ratio", -0.003022, 0.000302, -10.0).line()
     assert line == "leg1.scale (actuator): -0.3022 % ± 0.0302 (z = -10.0)"
+
+
+def test_a_check_of_a_joint_space_calibration_names_that(tmp_path, capsys):
+    """A 3-PUU calibrated in joint space (--residual joint) leaves no miss of positions: check refuses, naming the
+    joint-space fit (it said only 'no absolute positions ... calibrate from positions or poses', which the data were);
+    the same data fitted on their positions are checked."""
+    from kincal.cli import main
+
+    data = tmp_path / "p.csv"
+    assert main(["simulate", "puu3", "--perturb", "--poses", "40", "-o", str(data)]) == 0
+    for residual, code in ((["--residual", "joint"], 1), ([], 0)):
+        cal = tmp_path / f"cal{len(residual)}.yaml"
+        assert main(["calibrate", "puu3", str(data), "-o", str(cal), "--base", "fixed", *residual]) == 0
+        capsys.readouterr()
+        assert main(["check", str(cal), str(data)]) == code
+        said = capsys.readouterr()
+        assert ("fitted in joint space (--residual joint)" in said.err) == bool(residual)

@@ -69,8 +69,9 @@ class Repeat:
 
     def _prior(self, robot: Robot, q: np.ndarray) -> np.ndarray:
         if self.sigma is None or len(self.joints) != robot.n_joints:
-            raise ModelError("the calibration's data had no absolute positions: there is no prediction miss to judge "
-                             "measured positions against (calibrate from positions or poses)")
+            raise ModelError("the calibration left no miss of positions to judge measured positions against: its data "
+                             "had no absolute positions, or it was fitted in joint space (--residual joint); for a "
+                             "check, calibrate from positions or poses with their own residual (the default)")
         revolute = robot.revolute
         return miss_covariance(robot.joint_jacobian(q)[:, :3, :], q, revolute, self.sigma, self.joints, self.length)
 
