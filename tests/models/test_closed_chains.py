@@ -426,6 +426,11 @@ def test_jugglebot_mistakes_are_named(tmp_path, capsys):
     # the joint values; now the position columns are named first
     code, _, err = _kincal(capsys, ["calibrate", "hexapod", s1, *JUGGLE, "--xyz-cols", "y,x,z", *out])
     assert code == 1 and "no longer assembles" in err and "--xyz-cols" in err
+    # ... and so with the fit in joint space, whose result did not assemble at the file's legs ("forward kinematics
+    # did not converge ... check the joint values and their units")
+    for cols in (["--xyz-cols", "y,x,z"], ["--rot-cols", "qy,qx,qz,qw"]):
+        code, _, err = _kincal(capsys, ["calibrate", "hexapod", s1, *JUGGLE, "--residual", "joint", *cols, *out])
+        assert code == 1 and "no longer assembles" in err and cols[0] in err and "did not converge" not in err, err
     # the legs written as mm of travel (rev × 71 mm) and declared rev: the column and its range, as written
     lines = open(s1).read().splitlines()
     head = lines[0].split(",")

@@ -25,6 +25,15 @@ if TYPE_CHECKING:  # the stack evaluates itself; this room only calls it
     from .stacked import _Stack
 
 
+def unassembled(sets) -> MeasurementError:
+    """The error of a fit that moved the model where it no longer assembles at some of the measured joints of the
+    observation sets ``sets`` (a closed chain): the data and the model do not belong together."""
+    files = ", ".join(sorted({o.source for o in sets}))
+    return MeasurementError(f"{files}: the fit moved the model where it no longer assembles at some of the measured "
+                            f"joints: the data and the model do not belong together; check the position and rotation "
+                            f"columns (their order and axes: --xyz-cols, --rot-cols), the joint columns and their units")
+
+
 @dataclass(frozen=True)
 class Round:
     """One fit of a set of free columns (module docstring). The columns not fitted stay at ``x0`` (the
@@ -50,11 +59,7 @@ class Round:
             except ModelError:  # the first round starts where the data's own joints were checked
                 if k == 0:
                     raise
-                files = ", ".join(sorted({o.source for o in st.sets}))
-                raise MeasurementError(f"{files}: the fit moved the model where it no longer assembles at some of the "
-                                       f"measured joints: the data and the model do not belong together; check the "
-                                       f"position columns (their order and axes: --xyz-cols), the joint columns and "
-                                       f"their units") from None
+                raise unassembled(st.sets) from None
             start, evaluated = self.x0.copy(), None
             start[fcols] = fit.x
             again, found = used.with_model_error(fit.residual, len(free))

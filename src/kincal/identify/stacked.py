@@ -23,7 +23,7 @@ import numpy as np
 from .._threads import blas_threads
 from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_identifiability, kinds_of
 from ..analysis.observability import live_columns
-from ..errors import IdentifiabilityError, MeasurementError
+from ..errors import IdentifiabilityError, MeasurementError, ModelError
 from ..models.robot import Robot
 from ..observe.drifting import DRIFT
 from ..observe.sessions import InSession
@@ -37,7 +37,7 @@ from .result import CalibrationResult
 from .judge import component_kinds, outlier_samples
 from .registration import register_base, register_mounting
 from .relevance import RelevanceFit
-from .rounds import Round, swarm
+from .rounds import Round, swarm, unassembled
 from .verdict import Thresholds
 
 
@@ -417,7 +417,10 @@ def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit,
     std.update({n: np.inf for n in st.nuis_names if n not in std})
     before = tuple(o.stats(before_model, before_model.params.values, _before_nuisance(before_model, o, x0[P:][slot]))
                    for o, slot in zip(st.sets, st.slots))
-    after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
+    try:
+        after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
+    except ModelError:  # a fit on other residuals (the joints') whose model does not assemble at the data's joints
+        raise unassembled(st.sets) from None
     r = fit.residual * st.stated / st.inv_sigma  # whitened by the stated σ: what the user can restate
     return CalibrationResult(
         robot=calibrated, nominal=declared, registered=robot, before=before_model,
