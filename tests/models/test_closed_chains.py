@@ -435,6 +435,11 @@ def test_jugglebot_mistakes_are_named(tmp_path, capsys):
     lines = open(s1).read().splitlines()
     head = lines[0].split(",")
     legs = [k for k, c in enumerate(head) if c.startswith("leg")]
+    # the motor's degrees declared as revolutions: the legs do not assemble (it said '2.06e+299x less')
+    deg = [",".join(f"{float(v) * 360:.4f}" if k in legs else v for k, v in enumerate(r.split(","))) for r in lines[1:]]
+    (tmp_path / "S1_deg.csv").write_text("\n".join([lines[0], *deg]) + "\n")
+    code, _, err = _kincal(capsys, ["calibrate", "hexapod", str(tmp_path / "S1_deg.csv"), *JUGGLE, *out])
+    assert code == 1 and "do not even assemble the robot (hexapod), read as degrees they match" in err, err
     mm = [",".join(f"{float(v) * 71.2:.4f}" if k in legs else v for k, v in enumerate(r.split(","))) for r in lines[1:]]
     (tmp_path / "S1_mm.csv").write_text("\n".join([lines[0], *mm]) + "\n")
     code, _, err = _kincal(capsys, ["calibrate", "hexapod", str(tmp_path / "S1_mm.csv"), *JUGGLE, *out])

@@ -90,10 +90,10 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
         return
     other = _other_angle_unit(q, xyz, robot, angle_unit)
     if other is not None:
-        raise MeasurementError(f"{source}: read as {ANGLE_WORDS[str(angle_unit)]}, the joint values move the robot "
-                               f"{max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the {what} "
-                               f"spread, read as {ANGLE_WORDS[other]} they match: use angle unit '{other}' (CLI: "
-                               f"--angle-unit {other})")
+        how = (f"do not even assemble the robot ({robot.name})" if not assembles else
+               f"move the robot {max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the {what} spread")
+        raise MeasurementError(f"{source}: read as {ANGLE_WORDS[str(angle_unit)]}, the joint values {how}, read as "
+                               f"{ANGLE_WORDS[other]} they match: use angle unit '{other}' (CLI: --angle-unit {other})")
     if not assembles:
         return
     jump = frame_jump(xyz, robot.forward(q))
