@@ -366,6 +366,11 @@ def test_jugglebot_session_to_session_through_the_command_line(tmp_path, capsys)
                                      *JUGGLE[2:], "-o", str(tmp_path / "legs.csv")])
     assert code == 0 and "3 of 3 targets" in text and "orientation: from the calibrated model" in text
     cal = kincal.load_robot(str(tmp_path / "s1.yaml"))
+    # the robot's own frame is far less certain than the motion capture's (the base and platform points and the
+    # legs' zeros trade places): said, with the ratio of the record's σ over the training region (a UR5's is 1.5)
+    unc = kincal.analysis.load_uncertainty(str(tmp_path / "s1.yaml"))
+    ratio = unc.without(cal.base_params(), cal).envelope_sigma / unc.envelope_sigma
+    assert ratio > 3 and f"the calibrated model is {ratio:.1f}x less certain than in the instrument's" in text
     nominal = kincal.models.load_calibration_record(str(tmp_path / "s1.yaml"))["nominal"]
     model, _ = command_models(cal, nominal)
     rows = np.loadtxt(tmp_path / "legs.csv", delimiter=",", skiprows=1)

@@ -99,6 +99,7 @@ def cmd_compensate(args) -> int:
     turned, turn = _orientation(args, record, cal, values, nominal, uncertainty)
     in_robot = uncertainty if uncertainty is None or args.target_frame == "measurement" else \
         uncertainty.without(cal.base_params(), cal)  # commands in a robot frame do not depend on the tracker's
+    _frame_doubt(args, uncertainty, in_robot)
     job = StreamJob(r, nominal, fmt, in_robot, args.output_kind, args.path, turned)
     with progress_bar(args, "compensating") as bar:
         res = compensate_file(job, args.targets, args.output, skip_unreachable=args.skip_unreachable,
@@ -225,6 +226,26 @@ def _doubt(args, record: dict) -> None:
     if record.get("verdict") in ("suspect", "refused"):
         err.print(f"warning: {args.robot} was calibrated with the verdict {str(record['verdict']).upper()} (its "
                   f"report says why): these commands carry that doubt", markup=False)
+
+
+FRAME_DOUBT = 3.0  # the model this many times less certain in the robot's frame than in the instrument's: said
+
+
+def _frame_doubt(args, uncertainty, in_robot) -> None:
+    """On stderr: when the calibrated model is FRAME_DOUBT times less certain in the robot's own base frame than in
+    the instrument's (σ over the training region, the record's envelope), the data do not fix where that frame
+    lies among the robot's geometry (a hexapod's base and platform points and legs' zeros), and commands for
+    targets given in it carry that doubt. A serial arm's ratio is 0.9 to 1.5; the Jugglebot's 6 and 34."""
+    if uncertainty is None or in_robot is uncertainty or not uncertainty.envelope_sigma or \
+            not in_robot.envelope_sigma or in_robot.envelope_sigma <= FRAME_DOUBT * uncertainty.envelope_sigma:
+        return
+    err.print(f"warning: in the robot's base frame the calibrated model is "
+              f"{in_robot.envelope_sigma / uncertainty.envelope_sigma:.1f}x less certain than in the instrument's "
+              f"(σ over the training region {in_robot.envelope_sigma * MM:.3f} mm against "
+              f"{uncertainty.envelope_sigma * MM:.3f} mm): the data do not fix where the robot's own frame lies among "
+              f"its geometry, so targets given in it can miss by that much; give them in the measurement frame "
+              f"(--target-frame measurement) or a frame taught with the robot, or calibrate with the robot's base "
+              f"frame known (--base fixed)", markup=False)
 
 
 def _read_program(args):
