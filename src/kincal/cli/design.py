@@ -169,10 +169,12 @@ def cell_of(args):
     """The cell's constraints from the flags (SI, the robot's base frame), or None when none is given."""
     half = [((0.0, 0.0, 1.0), args.floor[0])] if args.floor else []
     boxes = [(np.array(b[:3]), np.array(b[3:])) for b in args.keep_out or []]
+    labels = (("half-space 1", "--floor"),) + tuple((f"keep-out {k}", f"--keep-out box {k}")
+                                                    for k in range(1, len(boxes) + 1))
     cell = kincal.design.Cell(tuple(half), tuple(boxes), None if args.tracker is None else np.array(args.tracker),
                               tuple(args.tracker_range) if args.tracker_range else (0.0, np.inf),
                               np.deg2rad(args.cone), tuple(args.reflector_axis),
-                              np.deg2rad(args.joint_margin), args.link_radius[0])
+                              np.deg2rad(args.joint_margin), args.link_radius[0], labels)
     return None if cell.empty else cell
 
 
