@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,7 @@ from kincal.io.program_ur import measurement_program
 from kincal.observe import read_observations, write_observations
 
 from . import observe
-from .common import (cell_lengths, csv_list, emit, lengths, load_robot, nonneg_float, nonneg_int, one_type,
+from .common import (cell_lengths, csv_list, emit, err, lengths, load_robot, nonneg_float, nonneg_int, one_type,
                      positive_float, positive_int, progress, check_paths)
 
 
@@ -46,9 +47,9 @@ def cmd_design(args) -> int:
                                    cr=args.cr, population=args.population, coverage=args.coverage, weight=args.weight)
     if args.params:
         r.params.indices(args.params)
-    if "link_radius" in args.given and not (args.floor or args.keep_out):
-        raise ValueError("--link-radius thickens the arm's links for --floor and --keep-out; give one of them, or "
-                         "leave --link-radius out")
+    if args.program and r.n_joints != 6:
+        raise ValueError(f"--program ur writes URScript for a six-joint UR arm; {r.name} has {r.n_joints} joints")
+    _link_radius_alone(args)
     cell = cell_of(args)
     if (args.type or ["point"])[0] in CONSTRAINTS:
         if args.program:
@@ -72,6 +73,7 @@ def cmd_design(args) -> int:
     with progress("designing poses", args.json) as say:
         say(f"{args.method} on {len(pool)} candidates")
         d = kincal.select_poses(r, pool, options, problem=problem, cell=cell, validation_q=use)
+        d, route = _route(args, r, d, pool, cell)
     if args.candidates and d.indices is not None:  # the user's own rows: IDs and every column kept
         kincal.io.write_selected_rows(args.output, args.candidates, d.indices)
         where = f"poses written to {args.output} (the chosen rows of {args.candidates}, every column kept)"
@@ -79,9 +81,8 @@ def cmd_design(args) -> int:
         kincal.io.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, args.angle_unit)
         where = f"poses written to {args.output}" + (f" ({args.method} leaves the candidates: new poses, no input "
                                                      f"rows)" if args.candidates else "")
-    return emit(args, {**d.to_dict(), "output": args.output, **_program(args, r, d.q)}, f"{d}\n{where}" + (
-        f"\nmeasurement program written to {_program_path(args)} (movej through the poses, {args.settle:g} s to "
-        f"settle at each; the predicted tool positions in its comments and the JSON)" if args.program else ""))
+    return emit(args, {**d.to_dict(), "output": args.output, **_program(args, r, route)}, f"{d}\n{where}" + (
+        _program_said(args, route) if route is not None else ""))
 
 
 def _design_check(args) -> int:
@@ -114,21 +115,58 @@ def _design_check(args) -> int:
                 f"kincal check {args.robot} <measurements.csv>")
 
 
+def _link_radius_alone(args) -> None:
+    if "link_radius" in args.given and not (args.floor or args.keep_out):
+        raise ValueError("--link-radius thickens the arm's links for --floor and --keep-out; give one of them, or "
+                         "leave --link-radius out")
+
+
 def _program_path(args) -> str | None:
     """Where design --program writes the measurement program: beside the poses, .script."""
     return str(Path(args.output).with_suffix(".script")) if args.program else None
 
 
-def _program(args, r, q: np.ndarray) -> dict:
-    """design --program ur: the measurement program written (atomically); its path and the tool
-    positions (m, the robot's base frame) for the JSON ({} without --program)."""
+def _route(args, r, d, pool: np.ndarray, cell):
+    """design --program: the design with its poses in the program's order and turns (kincal.design.plan_route: a
+    short travel, no joint turning more than it must, every move checked against the cell with via poses where
+    needed), and the route; the design as it is and None without --program. A user's candidate rows keep their
+    values (the CSV holds them as given)."""
     if not args.program:
+        return d, None
+    rows = args.candidates is not None and d.indices is not None
+    route = kincal.design.plan_route(r, d.q, cell, vias=pool, turn=not rows)
+    return dataclasses.replace(d, q=route.q, indices=None if d.indices is None else d.indices[route.order]), route
+
+
+def _program(args, r, route) -> dict:
+    """design --program ur: the measurement program through the route written (atomically); its path, the tool
+    positions (m, the robot's base frame), the vias and the travel for the JSON ({} without --program)."""
+    if route is None:
         return {}
-    if r.n_joints != 6:
-        raise ValueError(f"--program ur writes URScript for a six-joint UR arm; {r.name} has {r.n_joints} joints")
-    tool, path = r.forward(q), str(_program_path(args))
-    write_text_atomic(path, measurement_program(q, tool, args.settle, f"kincal design: {r.name}"))
-    return {"program": path, "tool_positions": tool.tolist()}
+    tool, path = r.forward(route.q), str(_program_path(args))
+    checked = ("every move checked against the cell (floor, keep-out boxes) at 1 deg steps; start it with the "
+               "arm at pose 1: the move there is not checked" if route.checked else
+               "the moves were NOT checked against any cell (no --floor or --keep-out): watch the first run")
+    write_text_atomic(path, measurement_program(route.q, tool, args.settle, f"kincal design: {r.name}", route.vias,
+                                                (checked,)))
+    if not route.checked:
+        err.print("kincal: warning: the program's moves were not checked against any cell: a movej between two "
+                  "poses may put the arm into the table or a fixture; give --floor (e.g. 0mm) and --keep-out boxes "
+                  "to check them", markup=False)
+    vias = [{"before_pose": k + 2, "q": v.tolist()} for k, v in enumerate(route.vias) if v is not None]
+    return {"program": path, "tool_positions": tool.tolist(), "moves_checked": route.checked, "vias": vias,
+            "travel": route.travel, "travel_given": route.travel_given}
+
+
+def _program_said(args, route) -> str:
+    """The line about the program that design --program wrote."""
+    moves = len(route.q) - 1
+    vias = (f"; every move checked against the cell: {route.n_vias} of {moves} needed a via pose to stay inside it"
+            if route.checked else "; its moves were not checked against any cell")
+    return (f"\nmeasurement program written to {_program_path(args)} (movej through the poses in the CSV's order, "
+            f"chosen for a short travel: the largest joint moves sum to {np.rad2deg(route.travel):.0f} deg, "
+            f"{np.rad2deg(route.travel_given):.0f} in the design's order{vias}; {args.settle:g} s to settle at each; "
+            f"the predicted tool positions in its comments and the JSON)")
 
 
 def _criterion_flags(s) -> None:
