@@ -1,7 +1,8 @@
 """design --program ur: the measurement program's moves (movej: straight lines in joint space) stay inside the cell,
 no joint turns a whole turn between two poses, the poses come in a short-travel order, the CSV holds the program's
-poses. Every pose and move is checked with an independent forward kinematics (the UR5's DH table multiplied out,
-test_design_cell._dh_origins; the arm as the segments from the shoulder through every joint frame to the tool)."""
+poses; design CAL --check draws inside the cell. Every pose and move is checked with an independent forward
+kinematics (the UR5's DH table multiplied out, test_design_cell._dh_origins; the arm as the segments from the
+shoulder through every joint frame to the tool)."""
 import re
 
 import numpy as np
@@ -143,3 +144,35 @@ def test_a_move_no_via_keeps_inside_is_refused_naming_it():
     route = plan_route(robot, np.array([a, b]), floor, vias=floor.pool(robot, 2000, seed=6))
     assert route.n_vias == 1
     assert not any(_leaving(s, t, box=False) for s, t in zip(route.targets()[:-1], route.targets()[1:]))
+
+
+@pytest.fixture(scope="module")
+def calibrated(tmp_path_factory):
+    """A UR5 calibrated with the tracker 1.2 m in front of it and 0.6 m below its base (the file keeps the
+    measurement frame), as `kincal calibrate -o` writes it."""
+    nominal = kincal.load_robot("ur5")
+    true = kincal.perturb(nominal, seed=2).with_params({"base.x": 1.2, "base.z": 0.6})
+    q = nominal.sample_joints(60, seed=0)
+    res = kincal.calibrate(nominal, kincal.simulate(true, q, 0.0, 0), kincal.FitOptions(diagnose=False))
+    path = tmp_path_factory.mktemp("cal") / "cal.yaml"
+    kincal.save_robot(res.robot, str(path), calibration=res.record())
+    return path
+
+
+def test_the_check_design_draws_inside_the_cell(calibrated, tmp_path, capsys):
+    """design CAL --check with the cell flags: the 10 poses keep the arm above the floor and out of the box in the
+    robot's own base frame (not the tracker's, 0.6 m off); without them, most poses leave the cell, and as
+--candidates with --floor they are refused, the first named by its row."""
+    free, kept = tmp_path / "free.csv", tmp_path / "kept.csv"
+    assert main(["design", str(calibrated), "--check", "-o", str(free)]) == 0
+    assert main(["design", str(calibrated), "--check", "-o", str(kept), "--floor", "0mm", "--keep-out",
+                 "200,-300,0,600,300,400mm", "--tracker", "2000,0,500mm"]) == 0
+    assert "10 check poses" in capsys.readouterr().out
+    robot = kincal.load_robot("ur5")
+    assert _outside(kincal.read_joints(str(free), robot))[0].sum() >= 5
+    below = _outside(kincal.read_joints(str(free), robot), box=False)[0]  # the floor alone
+    assert main(["design", str(calibrated), "--check", "--candidates", str(free), "-m", "4", "--floor", "0mm", "-o",
+                 str(tmp_path / "rows.csv")]) == 1  # the user's rows: those outside the cell refused by number
+    assert f"leave the cell (first: row {int(np.flatnonzero(below)[0]) + 2}: " in capsys.readouterr().err
+    bad, low = _outside(kincal.read_joints(str(kept), robot), tol=2e-3)  # the calibrated arm: mm from the nominal
+    assert len(low) == 10 and not bad.any()

@@ -14,6 +14,7 @@ import kincal.design
 import kincal.identify
 import kincal.models
 from kincal._atomic import write_text_atomic
+from kincal.compensate import command_models
 from kincal.io.program_ur import measurement_program
 from kincal.observe import read_observations, write_observations
 
@@ -22,7 +23,9 @@ from .common import (cell_lengths, csv_list, emit, err, lengths, load_robot, non
                      positive_float, positive_int, progress, check_paths)
 
 
-CHECK_FLAGS = {"m", "output", "pool", "candidates", "joint_cols", "length_unit", "angle_unit", "seed", "check", "json"}
+CELL_FLAGS = {"floor", "keep_out", "tracker", "tracker_range", "cone", "reflector_axis", "joint_margin", "link_radius"}
+CHECK_FLAGS = {"m", "output", "pool", "candidates", "joint_cols", "length_unit", "angle_unit", "seed", "check",
+               "json"} | CELL_FLAGS
 METHOD_FLAGS = {"generations": ("ide", "detmax-ide"), "f0": ("ide", "detmax-ide"), "cr": ("ide", "detmax-ide"),
                 "population": ("ide", "detmax-ide"), "restarts": ("fedorov",)}  # a search's own settings
 
@@ -87,22 +90,19 @@ def cmd_design(args) -> int:
 
 def _design_check(args) -> int:
     """design CAL --check: the poses of a short check of a calibrated robot (kincal.design.check_poses), from the
-    user's candidate rows or from random poses in the joint ranges the calibration was fitted in."""
+    user's candidate rows or from random poses in the joint ranges the calibration was fitted in, inside the cell
+    the cell flags give (in the robot's base frame)."""
     wrong = sorted(flag for dest, flag in args.given.items() if dest not in CHECK_FLAGS)
     if wrong:
         raise ValueError(f"design --check chooses the poses of a check of a calibrated robot; {', '.join(wrong)} "
                          f"{'does' if len(wrong) == 1 else 'do'} not apply to it (it takes -m, --pool or "
-                         f"--candidates, the data columns, --seed)")
+                         f"--candidates, the data columns, --seed and the cell flags)")
+    _link_radius_alone(args)
     check_paths([args.robot, args.candidates], [args.output])
-    cal = kincal.identify.Calibrated.of(kincal.load_robot(args.robot),
-                                        kincal.models.load_calibration_record(args.robot), args.robot)
+    record = kincal.models.load_calibration_record(args.robot)
+    cal = kincal.identify.Calibrated.of(kincal.load_robot(args.robot), record, args.robot)
     m = args.m if "m" in args.given else 10
-    if args.candidates:
-        pool = kincal.read_joints(args.candidates, cal.robot, args.joint_cols, args.length_unit, args.angle_unit)
-    else:
-        rng = np.random.default_rng(args.seed)
-        pool = rng.uniform(cal.lower, cal.upper, size=(4 * min(args.pool, 2000), len(cal.lower)))
-        pool = pool[cal.robot.feasible(pool)][:min(args.pool, 2000)]
+    pool = _check_pool(args, cal, record, cell_of(args))
     with progress("designing the check", args.json):
         chosen = kincal.design.check_poses(cal.robot, pool, m, cal.repeat)
     if args.candidates:
@@ -113,6 +113,36 @@ def _design_check(args) -> int:
                        "output": args.output},
                 f"{len(chosen)} check poses of {len(pool)} candidates written to {args.output}: measure them, then "
                 f"kincal check {args.robot} <measurements.csv>")
+
+
+def _check_pool(args, cal, record, cell) -> np.ndarray:
+    """The candidates of design --check: the user's rows (each inside the cell, if one is given), else random
+    poses in the joint ranges the calibration was fitted in (inside the cell)."""
+    if args.candidates:
+        pool = kincal.read_joints(args.candidates, cal.robot, args.joint_cols, args.length_unit, args.angle_unit)
+        if cell is not None:
+            model = _base_frame_model(cal.robot, record)
+            bad = ~cell.allows(model, pool)
+            if bad.any():
+                k = int(np.flatnonzero(bad)[0])
+                broken = [cell.said(n) for n, v in cell.violations(model, pool[k:k + 1]).items() if v[0]]
+                raise kincal.MeasurementError(f"{args.candidates}: {int(bad.sum())} candidate pose(s) leave the cell "
+                                              f"(first: row {k + 2}: {', '.join(broken) or 'joint limits'}); give "
+                                              f"poses inside it, or leave the cell flags out")
+        return pool
+    n = min(args.pool, 2000)
+    if cell is not None:
+        return cell.pool(_base_frame_model(cal.robot, record), n, seed=args.seed, within=(cal.lower, cal.upper))
+    rng = np.random.default_rng(args.seed)
+    pool = rng.uniform(cal.lower, cal.upper, size=(4 * n, len(cal.lower)))
+    return pool[cal.robot.feasible(pool)][:n]
+
+
+def _base_frame_model(calibrated, record):
+    """The calibrated model in the robot's own base frame (the cell's), not the measurement frame its file
+    keeps."""
+    values = record.get("nominal") if isinstance(record, dict) and isinstance(record.get("nominal"), dict) else None
+    return command_models(calibrated, values)[0]
 
 
 def _link_radius_alone(args) -> None:
