@@ -142,3 +142,24 @@ def test_verification_plans_keep_to_the_cell(tmp_path, capsys):
     assert not np.all((seg > np.array([0.3, -0.3, 0.0]) - 0.05) & (seg < np.array([0.7, 0.3, 0.4]) + 0.05), axis=2).any()
     assert main(["verify", "ur10", "--plan", str(kept), "--floor", "0mm", "--simulate", "ur10"]) == 1
     assert "--plan" in capsys.readouterr().err
+
+
+def test_a_floor_the_arm_cannot_stand_above_names_the_flag_and_the_arm():
+    """A UR5 under --floor 100mm: its fixed shoulder (89 mm up, DH d1) less the 50 mm link radius is below the floor
+    at every pose, so nothing fits; the message names the flag and the arm's lowest link height (the shoulder, at
+    most 89 mm high in every draw by an independent forward kinematics), not 'half-space 1' or the units."""
+    import re
+
+    ur5 = kincal.load_robot("ur5")
+    cell = Cell(half_spaces=(((0.0, 0.0, 1.0), 0.1),), labels=(("half-space 1", "--floor"),))
+    with pytest.raises(ValueError) as exc:
+        cell.pool(ur5, 100)
+    said = str(exc.value)
+    assert "the arm's own links sit below --floor (100 mm) at every pose" in said
+    assert "half-space" not in said and "units" not in said
+    high = float(re.search(r"at most (\d+) mm high", said).group(1))
+    pts = _dh_origins(ur5.sample_joints(2000, seed=0), [0.089159, 0, 0, 0.10915, 0.09465, 0.0823],
+                      [0, -0.425, -0.39225, 0, 0, 0], [np.pi / 2, 0, 0, np.pi / 2, -np.pi / 2, 0], ur5.tool_point())
+    assert high == round(pts[:, 1:, 2].min(axis=1).max() * 1e3) == 89  # the shoulder is the arm's highest low point
+    with pytest.raises(ValueError, match="'--floor' removes 100 %.*check its values and units"):
+        Cell(half_spaces=(((0.0, 0.0, 1.0), 5.0),), labels=(("half-space 1", "--floor"),)).pool(ur5, 100)

@@ -22,6 +22,8 @@ EXIT_ERROR, EXIT_NOT_CONVERGED, EXIT_REFUSED = 1, 3, 4
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
 MAX_TOOL = 2.0  # m: no tool point lies farther from the flange; larger values are mm written without a unit
 CELL_SIZE = 100.0  # m: a length beyond this in a robot cell, given without a unit, is taken for mm
+CELL_UNITLESS = 10.0  # m: a cell flag's length beyond this without a unit (--floor -50) is refused as mm
+CELL = "the cell"  # lengths(where=CELL): a cell flag's message
 TYPES = kincal.observe.KINDS  # measurement types (--type)
 
 
@@ -97,7 +99,7 @@ def row_list(s: str) -> list[int]:
 def lengths(count: int, example: str, what: str = "", limit: float = CELL_SIZE, where: str = "the robot"):
     """argparse type: ``count`` numbers with an optional length unit after them ('3000,0,500mm'), in m.
     ``what`` names the numbers in the message (default "<count> finite number(s)"); without a unit, a
-    value beyond ``limit`` (m) from ``where`` is taken for mm."""
+    value beyond ``limit`` (m) from ``where`` is taken for mm (:func:`cell_lengths`: beyond ``CELL_UNITLESS``)."""
     def parse(s: str) -> tuple[float, ...]:
         text = s.strip()
         unit = next((u for u in sorted(LENGTH_UNITS, key=len, reverse=True) if text.endswith(u)), None)
@@ -109,10 +111,18 @@ def lengths(count: int, example: str, what: str = "", limit: float = CELL_SIZE, 
             raise argparse.ArgumentTypeError(f"'{s}': give {what or f'{count} finite number(s)'} and a unit, "
                                              f"e.g. {example}")
         if unit is None and max(map(abs, t)) > limit:
-            raise argparse.ArgumentTypeError(f"'{s}': {max(map(abs, t)):g} m from {where}; these look like mm: "
-                                             f"write {text}mm")
+            big = max(t, key=abs)
+            raise argparse.ArgumentTypeError(f"'{s}': {big:g} m without a unit looks like mm: give the unit ({text}mm)"
+                                             if where == CELL else f"'{s}': {abs(big):g} m from {where}; these look "
+                                             f"like mm: write {text}mm")
         return t
     return parse
+
+
+def cell_lengths(count: int, example: str):
+    """argparse type of a cell flag's lengths (--floor, --keep-out, --tracker, --tracker-range, --link-radius): as
+    :func:`lengths`, and a value beyond ``CELL_UNITLESS`` (10 m) without a unit (--floor -50) is refused as mm."""
+    return lengths(count, example, limit=CELL_UNITLESS, where=CELL)
 
 
 # argparse type: 'X,Y,Z' with an optional length unit after the numbers ('0,0,93.2mm'), in m

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -13,15 +14,18 @@ import kincal.design
 import kincal.identify
 import kincal.models
 from kincal._atomic import write_text_atomic
+from kincal.compensate import command_models
 from kincal.io.program_ur import measurement_program
 from kincal.observe import read_observations, write_observations
 
 from . import observe
-from .common import (csv_list, emit, lengths, load_robot, nonneg_float, nonneg_int, one_type, positive_float,
-                     positive_int, progress, check_paths)
+from .common import (cell_lengths, csv_list, emit, err, lengths, load_robot, nonneg_float, nonneg_int, one_type,
+                     positive_float, positive_int, progress, check_paths)
 
 
-CHECK_FLAGS = {"m", "output", "pool", "candidates", "joint_cols", "length_unit", "angle_unit", "seed", "check", "json"}
+CELL_FLAGS = {"floor", "keep_out", "tracker", "tracker_range", "cone", "reflector_axis", "joint_margin", "link_radius"}
+CHECK_FLAGS = {"m", "output", "pool", "candidates", "joint_cols", "length_unit", "angle_unit", "seed", "check",
+               "json"} | CELL_FLAGS
 METHOD_FLAGS = {"generations": ("ide", "detmax-ide"), "f0": ("ide", "detmax-ide"), "cr": ("ide", "detmax-ide"),
                 "population": ("ide", "detmax-ide"), "restarts": ("fedorov",)}  # a search's own settings
 
@@ -46,9 +50,9 @@ def cmd_design(args) -> int:
                                    cr=args.cr, population=args.population, coverage=args.coverage, weight=args.weight)
     if args.params:
         r.params.indices(args.params)
-    if "link_radius" in args.given and not (args.floor or args.keep_out):
-        raise ValueError("--link-radius thickens the arm's links for --floor and --keep-out; give one of them, or "
-                         "leave --link-radius out")
+    if args.program and r.n_joints != 6:
+        raise ValueError(f"--program ur writes URScript for a six-joint UR arm; {r.name} has {r.n_joints} joints")
+    _link_radius_alone(args)
     cell = cell_of(args)
     if (args.type or ["point"])[0] in CONSTRAINTS:
         if args.program:
@@ -72,6 +76,7 @@ def cmd_design(args) -> int:
     with progress("designing poses", args.json) as say:
         say(f"{args.method} on {len(pool)} candidates")
         d = kincal.select_poses(r, pool, options, problem=problem, cell=cell, validation_q=use)
+        d, route = _route(args, r, d, pool, cell)
     if args.candidates and d.indices is not None:  # the user's own rows: IDs and every column kept
         kincal.io.write_selected_rows(args.output, args.candidates, d.indices)
         where = f"poses written to {args.output} (the chosen rows of {args.candidates}, every column kept)"
@@ -79,29 +84,25 @@ def cmd_design(args) -> int:
         kincal.io.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, args.angle_unit)
         where = f"poses written to {args.output}" + (f" ({args.method} leaves the candidates: new poses, no input "
                                                      f"rows)" if args.candidates else "")
-    return emit(args, {**d.to_dict(), "output": args.output, **_program(args, r, d.q)}, f"{d}\n{where}" + (
-        f"\nmeasurement program written to {_program_path(args)} (movej through the poses, {args.settle:g} s to "
-        f"settle at each; the predicted tool positions in its comments and the JSON)" if args.program else ""))
+    return emit(args, {**d.to_dict(), "output": args.output, **_program(args, r, route)}, f"{d}\n{where}" + (
+        _program_said(args, route) if route is not None else ""))
 
 
 def _design_check(args) -> int:
     """design CAL --check: the poses of a short check of a calibrated robot (kincal.design.check_poses), from the
-    user's candidate rows or from random poses in the joint ranges the calibration was fitted in."""
+    user's candidate rows or from random poses in the joint ranges the calibration was fitted in, inside the cell
+    the cell flags give (in the robot's base frame)."""
     wrong = sorted(flag for dest, flag in args.given.items() if dest not in CHECK_FLAGS)
     if wrong:
         raise ValueError(f"design --check chooses the poses of a check of a calibrated robot; {', '.join(wrong)} "
                          f"{'does' if len(wrong) == 1 else 'do'} not apply to it (it takes -m, --pool or "
-                         f"--candidates, the data columns, --seed)")
+                         f"--candidates, the data columns, --seed and the cell flags)")
+    _link_radius_alone(args)
     check_paths([args.robot, args.candidates], [args.output])
-    cal = kincal.identify.Calibrated.of(kincal.load_robot(args.robot),
-                                        kincal.models.load_calibration_record(args.robot), args.robot)
+    record = kincal.models.load_calibration_record(args.robot)
+    cal = kincal.identify.Calibrated.of(kincal.load_robot(args.robot), record, args.robot)
     m = args.m if "m" in args.given else 10
-    if args.candidates:
-        pool = kincal.read_joints(args.candidates, cal.robot, args.joint_cols, args.length_unit, args.angle_unit)
-    else:
-        rng = np.random.default_rng(args.seed)
-        pool = rng.uniform(cal.lower, cal.upper, size=(4 * min(args.pool, 2000), len(cal.lower)))
-        pool = pool[cal.robot.feasible(pool)][:min(args.pool, 2000)]
+    pool = _check_pool(args, cal, record, cell_of(args))
     with progress("designing the check", args.json):
         chosen = kincal.design.check_poses(cal.robot, pool, m, cal.repeat)
     if args.candidates:
@@ -114,21 +115,88 @@ def _design_check(args) -> int:
                 f"kincal check {args.robot} <measurements.csv>")
 
 
+def _check_pool(args, cal, record, cell) -> np.ndarray:
+    """The candidates of design --check: the user's rows (each inside the cell, if one is given), else random
+    poses in the joint ranges the calibration was fitted in (inside the cell)."""
+    if args.candidates:
+        pool = kincal.read_joints(args.candidates, cal.robot, args.joint_cols, args.length_unit, args.angle_unit)
+        if cell is not None:
+            model = _base_frame_model(cal.robot, record)
+            bad = ~cell.allows(model, pool)
+            if bad.any():
+                k = int(np.flatnonzero(bad)[0])
+                broken = [cell.said(n) for n, v in cell.violations(model, pool[k:k + 1]).items() if v[0]]
+                raise kincal.MeasurementError(f"{args.candidates}: {int(bad.sum())} candidate pose(s) leave the cell "
+                                              f"(first: row {k + 2}: {', '.join(broken) or 'joint limits'}); give "
+                                              f"poses inside it, or leave the cell flags out")
+        return pool
+    n = min(args.pool, 2000)
+    if cell is not None:
+        return cell.pool(_base_frame_model(cal.robot, record), n, seed=args.seed, within=(cal.lower, cal.upper))
+    rng = np.random.default_rng(args.seed)
+    pool = rng.uniform(cal.lower, cal.upper, size=(4 * n, len(cal.lower)))
+    return pool[cal.robot.feasible(pool)][:n]
+
+
+def _base_frame_model(calibrated, record):
+    """The calibrated model in the robot's own base frame (the cell's), not the measurement frame its file
+    keeps."""
+    values = record.get("nominal") if isinstance(record, dict) and isinstance(record.get("nominal"), dict) else None
+    return command_models(calibrated, values)[0]
+
+
+def _link_radius_alone(args) -> None:
+    if "link_radius" in args.given and not (args.floor or args.keep_out):
+        raise ValueError("--link-radius thickens the arm's links for --floor and --keep-out; give one of them, or "
+                         "leave --link-radius out")
+
+
 def _program_path(args) -> str | None:
     """Where design --program writes the measurement program: beside the poses, .script."""
     return str(Path(args.output).with_suffix(".script")) if args.program else None
 
 
-def _program(args, r, q: np.ndarray) -> dict:
-    """design --program ur: the measurement program written (atomically); its path and the tool
-    positions (m, the robot's base frame) for the JSON ({} without --program)."""
+def _route(args, r, d, pool: np.ndarray, cell):
+    """design --program: the design with its poses in the program's order and turns (kincal.design.plan_route: a
+    short travel, no joint turning more than it must, every move checked against the cell with via poses where
+    needed), and the route; the design as it is and None without --program. A user's candidate rows keep their
+    values (the CSV holds them as given)."""
     if not args.program:
+        return d, None
+    rows = args.candidates is not None and d.indices is not None
+    route = kincal.design.plan_route(r, d.q, cell, vias=pool, turn=not rows)
+    return dataclasses.replace(d, q=route.q, indices=None if d.indices is None else d.indices[route.order]), route
+
+
+def _program(args, r, route) -> dict:
+    """design --program ur: the measurement program through the route written (atomically); its path, the tool
+    positions (m, the robot's base frame), the vias and the travel for the JSON ({} without --program)."""
+    if route is None:
         return {}
-    if r.n_joints != 6:
-        raise ValueError(f"--program ur writes URScript for a six-joint UR arm; {r.name} has {r.n_joints} joints")
-    tool, path = r.forward(q), str(_program_path(args))
-    write_text_atomic(path, measurement_program(q, tool, args.settle, f"kincal design: {r.name}"))
-    return {"program": path, "tool_positions": tool.tolist()}
+    tool, path = r.forward(route.q), str(_program_path(args))
+    checked = ("every move checked against the cell (floor, keep-out boxes) at 1 deg steps; start it with the "
+               "arm at pose 1: the move there is not checked" if route.checked else
+               "the moves were NOT checked against any cell (no --floor or --keep-out): watch the first run")
+    write_text_atomic(path, measurement_program(route.q, tool, args.settle, f"kincal design: {r.name}", route.vias,
+                                                (checked,)))
+    if not route.checked:
+        err.print("kincal: warning: the program's moves were not checked against any cell: a movej between two "
+                  "poses may put the arm into the table or a fixture; give --floor (e.g. 0mm) and --keep-out boxes "
+                  "to check them", markup=False)
+    vias = [{"before_pose": k + 2, "q": v.tolist()} for k, v in enumerate(route.vias) if v is not None]
+    return {"program": path, "tool_positions": tool.tolist(), "moves_checked": route.checked, "vias": vias,
+            "travel": route.travel, "travel_given": route.travel_given}
+
+
+def _program_said(args, route) -> str:
+    """The line about the program that design --program wrote."""
+    moves = len(route.q) - 1
+    vias = (f"; every move checked against the cell: {route.n_vias} of {moves} needed a via pose to stay inside it"
+            if route.checked else "; its moves were not checked against any cell")
+    return (f"\nmeasurement program written to {_program_path(args)} (movej through the poses in the CSV's order, "
+            f"chosen for a short travel: the largest joint moves sum to {np.rad2deg(route.travel):.0f} deg, "
+            f"{np.rad2deg(route.travel_given):.0f} in the design's order{vias}; {args.settle:g} s to settle at each; "
+            f"the predicted tool positions in its comments and the JSON)")
 
 
 def _criterion_flags(s) -> None:
@@ -148,19 +216,19 @@ def _criterion_flags(s) -> None:
 def add_cell_flags(s, obeys: str) -> None:
     """The cell's flags (:func:`cell_of`), of the commands that choose where the robot goes (design, verify)."""
     c = s.add_argument_group(f"the cell (robot base frame; {obeys})")
-    c.add_argument("--floor", type=lengths(1, "0mm"), help="the target stays above this height, e.g. 0mm (the "
-                                                         "mounting plane)")
-    c.add_argument("--keep-out", type=lengths(6, "200,-300,0,600,300,400mm"), action="append",
+    c.add_argument("--floor", type=cell_lengths(1, "0mm"),
+                   help="the target stays above this height, e.g. 0mm (the mounting plane)")
+    c.add_argument("--keep-out", type=cell_lengths(6, "200,-300,0,600,300,400mm"), action="append",
                    help="X0,Y0,Z0,X1,Y1,Z1[UNIT]: a box the target may not enter (repeatable)")
-    c.add_argument("--tracker", type=lengths(3, "3000,0,500mm"), help="the tracker's position: poses it cannot see "
-                                                                   "are left out")
-    c.add_argument("--tracker-range", type=lengths(2, "500,20000mm"), help="MIN,MAX[UNIT] distance to the tracker")
+    c.add_argument("--tracker", type=cell_lengths(3, "3000,0,500mm"),
+                   help="the tracker's position: poses it cannot see are left out")
+    c.add_argument("--tracker-range", type=cell_lengths(2, "500,20000mm"), help="MIN,MAX[UNIT] distance to the tracker")
     c.add_argument("--cone", type=positive_float, default=30.0,
                    help="half-angle (deg) of the reflector's acceptance around its axis (default 30)")
     c.add_argument("--reflector-axis", type=lengths(3, "0,0,1"), default=(0.0, 0.0, 1.0),
                    help="the reflector's opening direction in the flange frame (default 0,0,1)")
     c.add_argument("--joint-margin", type=nonneg_float, default=0.0, help="degrees kept from every revolute joint's limits")
-    c.add_argument("--link-radius", type=lengths(1, "50mm"), default=(0.05,),
+    c.add_argument("--link-radius", type=cell_lengths(1, "50mm"), default=(0.05,),
                    help="the arm's links as segments this thick (between its joint frames), kept above --floor and "
                         "out of --keep-out boxes too (default 50mm)")
 
@@ -169,10 +237,12 @@ def cell_of(args):
     """The cell's constraints from the flags (SI, the robot's base frame), or None when none is given."""
     half = [((0.0, 0.0, 1.0), args.floor[0])] if args.floor else []
     boxes = [(np.array(b[:3]), np.array(b[3:])) for b in args.keep_out or []]
+    labels = (("half-space 1", "--floor"),) + tuple((f"keep-out {k}", f"--keep-out box {k}")
+                                                    for k in range(1, len(boxes) + 1))
     cell = kincal.design.Cell(tuple(half), tuple(boxes), None if args.tracker is None else np.array(args.tracker),
                               tuple(args.tracker_range) if args.tracker_range else (0.0, np.inf),
                               np.deg2rad(args.cone), tuple(args.reflector_axis),
-                              np.deg2rad(args.joint_margin), args.link_radius[0])
+                              np.deg2rad(args.joint_margin), args.link_radius[0], labels)
     return None if cell.empty else cell
 
 

@@ -50,6 +50,9 @@ class Cell:
         Kept from each revolute joint's limits, rad, ≥ 0 (default 0).
     link_radius : float, optional
         The arm's links as segments this thick, m, in [0, 1) (default 0.05).
+    labels : tuple of (str, str), optional
+        ((constraint, how the user gave it), ...), e.g. (('half-space 1', '--floor'),): the words messages
+        use for a constraint (default: its own name, 'half-space k', 'keep-out k', ...).
 
     Attributes
     ----------
@@ -87,6 +90,7 @@ class Cell:
     reflector_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
     joint_margin: float = 0.0
     link_radius: float = 0.05  # m: the arm's links as segments this thick
+    labels: tuple = ()  # ((constraint, how the user gave it), ...)
 
     def __post_init__(self) -> None:
         for n, c in self.half_spaces:
@@ -135,6 +139,15 @@ class Cell:
             out["line of sight"] = cos < np.cos(self.cone)
         return out
 
+    def said(self, name: str) -> str:
+        """A constraint of :meth:`violations` in the user's words (its label: 'arm through --floor'), else its
+        own name."""
+        for key, label in self.labels:
+            for lead in ("", "arm through ", "arm in "):
+                if name == lead + key:
+                    return lead + label
+        return name
+
     def _arm(self, robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """The links after the first joint's frame as segments between the robot's link points: their
         starts and ends (N, S, 3) each; None for a robot that declares none or a cell with no
@@ -147,25 +160,52 @@ class Cell:
         ok = robot.feasible(q)
         return ok if self.empty else ok & ~np.any(list(self.violations(robot, q).values()), axis=0)
 
-    def pool(self, robot: Robot, n: int, seed: int | None = 0, max_draws: int = 2_000_000) -> np.ndarray:
-        """n random poses (n, n_joints) the cell allows, by rejection from uniform feasible draws; an
-        error naming the constraint that removes most when fewer than 1 in 10⁴ draws pass."""
+    def pool(self, robot: Robot, n: int, seed: int | None = 0, max_draws: int = 2_000_000,
+             within: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """n random poses (n, n_joints) the cell allows, by rejection from uniform feasible draws (within the joint
+        limits, or the ranges ``within`` = (lower, upper)); an error naming the constraint that removes most when
+        fewer than 1 in 10⁴ draws pass (the arm's own links, when they break it at every draw and the target
+        does not)."""
         rng = np.random.default_rng(seed)
         kept, have, drawn = [], 0, 0
         while have < n and drawn < max_draws:
-            q = robot.sample_joints(max(4 * (n - have), 1000), seed=int(rng.integers(2**31)))
-            drawn += len(q)
+            q = _draw(robot, max(4 * (n - have), 1000), int(rng.integers(2**31)), within)
+            drawn += max(4 * (n - have), 1000)
             q = q[self.allows(robot, q)]
             kept.append(q)
             have += len(q)
             if drawn >= 20_000 and have < drawn * 1e-4:
                 break
         if have < n:
-            broken = self.violations(robot, robot.sample_joints(2000, seed))
-            name = list(broken)[first_best([float(v.mean()) for v in broken.values()])]
-            raise ValueError(f"only {have} of {drawn} random poses fit the cell; '{name}' removes "
-                             f"{100 * broken[name].mean():.0f} % of them: check its values and units")
+            raise ValueError(f"only {have} of {drawn} random poses fit the cell; "
+                             f"{self._what_removes(robot, _draw(robot, 2000, seed, within))}")
         return np.concatenate(kept)[:n]
+
+    def _what_removes(self, robot: Robot, q: np.ndarray) -> str:
+        """What keeps the draws q out of the cell: the constraint that removes most of them, or, when the arm's own
+        links break a half-space or box at every draw and the target does not, that (with the arm's lowest link
+        height against a half-space)."""
+        broken = self.violations(robot, q)
+        name = list(broken)[first_best([float(v.mean()) for v in broken.values()])]
+        share = f"'{self.said(name)}' removes {100 * broken[name].mean():.0f} % of them"
+        own = name.split(" ", 2)[-1]
+        if not (name.startswith("arm ") and broken[name].all() and not broken[own].all()):
+            return f"{share}: check its values and units"
+        if own.startswith("keep-out"):
+            return (f"the arm's own links enter {self.said(own)} at every pose ({share}; the target only "
+                    f"{100 * broken[own].mean():.0f} %): does the box hold the robot's base or its first links? "
+                    f"Check its corners, and the {self.link_radius * 1e3:g} mm link radius")
+        k = int(own.split()[-1]) - 1
+        n, c = self.half_spaces[k]
+        arm = self._arm(robot, q)
+        assert arm is not None  # an 'arm' constraint was checked
+        unit = np.asarray(n, float) / np.linalg.norm(n)
+        low = float(np.minimum(arm[0] @ unit, arm[1] @ unit).min(axis=1).max())
+        return (f"the arm's own links sit below {self.said(own)} ({c * 1e3:g} mm) at every pose: their lowest "
+                f"point is at most {low * 1e3:.0f} mm high in {len(q)} draws, {(low - self.link_radius) * 1e3:.0f} mm "
+                f"with the {self.link_radius * 1e3:g} mm link radius (the target only breaks it in "
+                f"{100 * broken[own].mean():.0f} %): give a floor the arm stands above (the mounting plane: 0mm), "
+                f"or a smaller link radius")
 
 
 def candidate_pool(robot: Robot, n: int, seed: int | None = 0) -> np.ndarray:
@@ -218,3 +258,12 @@ def _crosses(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np
     enter = np.where(parallel, np.where(inside, -np.inf, np.inf), np.minimum(t1, t2)).max(axis=2)
     leave = np.where(parallel, np.where(inside, np.inf, -np.inf), np.maximum(t1, t2)).min(axis=2)
     return (enter <= leave) & (leave >= 0.0) & (enter <= 1.0)
+
+
+def _draw(robot: Robot, n: int, seed: int | None, within: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
+    """Feasible random poses of n draws, uniform within the joint limits or within the ranges ``within``."""
+    if within is None:
+        return robot.sample_joints(n, seed=seed)
+    lo, hi = np.maximum(within[0], robot.lower), np.minimum(within[1], robot.upper)
+    q = np.random.default_rng(seed).uniform(lo, hi, size=(n, len(lo)))
+    return q[robot.feasible(q)]

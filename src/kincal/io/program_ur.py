@@ -155,12 +155,19 @@ def write(text: str, targets: Sequence[Target], values: Sequence[np.ndarray]) ->
 DIALECT = Dialect("ur", (".script", ".urscript"), "#", parse, write)
 
 
-def measurement_program(q: np.ndarray, tool: np.ndarray, settle: float, title: str) -> str:
+def measurement_program(q: np.ndarray, tool: np.ndarray, settle: float, title: str,
+                        vias: Sequence[np.ndarray | None] = (), notes: Sequence[str] = ()) -> str:
     """A URScript program that moves through the joint vectors q (N, 6) rad with movej, waits
     ``settle`` s at each for the measurement, and names each pose and its predicted tool position
-    (N, 3) m in a comment and a textmsg; ``title`` heads it."""
+    (N, 3) m in a comment and a textmsg; ``title`` and ``notes`` (comment lines) head it. ``vias``, per
+    move k → k + 1, a joint vector (6,) rad the arm goes through on the way (no wait), or None."""
     lines = ["def kincal_measure():", f"  # {title}", f"  # {len(q)} poses; settle {settle:g} s at each, then measure"]
+    lines += [f"  # {note}" for note in notes]
     for k, (qk, tk) in enumerate(zip(q, tool), start=1):
+        via = vias[k - 2] if 2 <= k <= len(vias) + 1 else None
+        if via is not None:
+            lines += [f"  # via on the way from pose {k - 1} to pose {k}: keeps the move inside the cell (no "
+                      f"measurement)", f"  movej({joints_literal(via)}, a=0.5, v=0.5)"]
         where = ", ".join(f"{v * 1e3:.3f}" for v in tk)
         lines += [f"  # pose {k}: tool at ({where}) mm in the base frame",
                   f"  movej({joints_literal(qk)}, a=0.5, v=0.5)", f"  sleep({settle:g})",
