@@ -2,6 +2,7 @@
 order, migrated from older schemas, refused when newer; two writers at once and writers killed at random points
 lose and corrupt nothing — each on SQLite and on a real PostgreSQL server; the history table, JSON and plot
 against the records added."""
+import dataclasses
 import hashlib
 import io
 import json
@@ -385,6 +386,27 @@ def test_history_table_and_json_against_the_records(tmp_path, kincal_main, capsy
     for mm in ("0.0300", "0.0400", "0.0250", "0.0500"):
         assert mm in text
     assert "gearbox" in text and "replaced" in text and "base.*" in text  # the note (wrapped at 80 columns)
+
+
+def test_history_does_not_compare_values_held_in_one_calibration_only(tmp_path, kincal_main, capsys):
+    """Two calibrations that held different parameters (a hexapod's design frames fixed by other coordinates: the
+    Jugglebot's two sessions listed leg3.bx +9.67 mm, z +7.8, and four more legs' bx as moves): their values are
+    not compared parameter by parameter, and the step says which were held where; a step between calibrations
+    that held the same ones is compared as before."""
+    a = _cal("2024-01-01T00:00Z", {}, {})
+    b = dataclasses.replace(_cal("2024-02-01T00:00Z", {"j2.a": -0.425 + 9e-3}, {}),
+                            identifiable=tuple(n for n in SIG if n != "j3.d"))
+    c = dataclasses.replace(_cal("2024-03-01T00:00Z", {"j2.a": -0.425 + 9.1e-3, "j1.theta": 1e-3}, {}),
+                            identifiable=tuple(n for n in SIG if n != "j3.d"))
+    with open_store(str(tmp_path / "s.db")) as store:
+        ids = [store.add(r) for r in (a, b, c)]
+    assert kincal_main(["history", "cell-3", "--store", str(tmp_path / "s.db"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["not_compared"] == [{"before": ids[0], "after": ids[1], "held_before": [], "held_after": ["j3.d"]}]
+    assert {(m["before"], m["parameter"]) for m in out["moves"]} == {(ids[1], "j2.a"), (ids[1], "j1.theta")}
+    assert kincal_main(["history", "cell-3", "--store", str(tmp_path / "s.db")]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"#{ids[0]}" in text and "not compared parameter by parameter" in text and "held in #" in text
 
 
 @pytest.mark.slow  # matplotlib's first import and drawing: 2-4 s

@@ -8,7 +8,7 @@ import shlex
 import sys
 
 from kincal.history import (MOVED_Z, Identity, Move, Record, Store, changed_parameters, event_record, history_figure,
-                            how_to_set, moves, open_store, save_history_figure, store_url, utc_time)
+                            how_to_set, moves, not_compared, open_store, save_history_figure, store_url, utc_time)
 from kincal.units import MM, display
 
 from .common import check_paths, csv_list, emit
@@ -136,6 +136,13 @@ def move_lines(steps: list[Move], rows: list[tuple[int, Record]]) -> list[str]:
             else "  (no σ)") for m in shown]
     if any(m.frame for m in steps):
         lines.append("the measurement frame (base.*) is left out: it moves whenever the tracker does")
+    for a, b, held_a, held_b in not_compared(rows):
+        held = "; ".join(f"held in #{i}: {', '.join(names[:6])}{' …' if len(names) > 6 else ''}"
+                         for i, names in ((a, held_a), (b, held_b)) if names)
+        lines.append(f"#{a} ({when[a]}) → #{b} ({when[b]}): not compared parameter by parameter: each held at its "
+                     f"nominal value parameters the other determined ({held}), so their values are in different "
+                     f"terms (a design frame fixed by other coordinates, a confounded parameter taken up by another); "
+                     f"kincal compare judges whether the robot changed")
     return lines
 
 
@@ -163,14 +170,15 @@ def cmd_history(args) -> int:
                                            command=" ".join(["kincal", *sys.argv[1:]])))
             rows = store.records(robot.name, robot.serial)
         changed = store.model_changes(robot.name, robot.serial)
-    steps = moves(rows)
+    steps, apart = moves(rows), not_compared(rows)
     lines = [f"event recorded (#{added})"] if added is not None else []
     if args.plot:
         save_history_figure(history_figure(rows, args.parameters), args.plot)
         lines.append(f"plot written to {args.plot}")
     payload = {"robot": robot.name, "serial": robot.serial, "records": [
         {"id": rid, "model_changed": rid in changed, **r.to_dict()} for rid, r in rows],
-        "moves": [m.to_dict() for m in steps], "moved_z": MOVED_Z, "event": added, "plot": args.plot}
+        "moves": [m.to_dict() for m in steps], "moved_z": MOVED_Z, "not_compared": [
+            {"before": a, "after": b, "held_before": ha, "held_after": hb} for a, b, ha, hb in apart], "event": added, "plot": args.plot}
     if args.json:
         return emit(args, payload, "")
     from rich.console import Group
@@ -178,7 +186,8 @@ def cmd_history(args) -> int:
 
     head = f"{robot.name}" + (f" (serial {robot.serial})" if robot.serial else "") + f": {len(rows)} records"
     body = "\n".join(["", "parameters moved between consecutive calibrations (|z| = |Δ|/σ ≥ "
-                      f"{MOVED_Z:g}, σ of both in quadrature):", *move_lines(steps, rows)] if steps else [])
+                      f"{MOVED_Z:g}, σ of both in quadrature):", *move_lines(steps, rows)]
+                     if steps or apart else [])
     return emit(args, payload, Group(Text(head), _table(rows, changed), Text("\n".join([body, *lines]).strip("\n"))))
 
 

@@ -154,6 +154,8 @@ def moves(records: Sequence[tuple[int, Record]]) -> list[Move]:
     """
     cals, frame, out = calibrations(records), frame_names(records), []
     for (ia, a), (ib, b) in zip(cals, cals[1:]):
+        if any(held_apart(a, b, frame)):  # their values are in different terms: not compared (not_compared says)
+            continue
         step = []
         for n, v in b.parameters.items():
             if n not in a.parameters or a.parameters[n] == v:
@@ -166,3 +168,44 @@ def moves(records: Sequence[tuple[int, Record]]) -> list[Move]:
             step.append(Move(ia, ib, b.time, n, b.kinds[n], delta, sigma, z, n in frame))
         out += sorted(step, key=lambda m: (m.z is None, -abs(m.z or 0.0)))
     return out
+
+
+def held_apart(a: Record, b: Record, frame: set[str]) -> tuple[list[str], list[str]]:
+    """The robot parameters both calibrations' models have (the measurement frame ``frame`` left out) that one
+    determined and the other held at its nominal value: (held in ``a`` only, held in ``b`` only). Where there are
+    any, the two sets of values are in different terms (a hexapod's design frames fixed by other coordinates, a
+    confounded parameter taken up by another) and are not compared parameter by parameter."""
+    shared = [n for n in b.parameters if n in a.parameters and n not in frame]
+    ia, ib = set(a.identifiable), set(b.identifiable)
+    return [n for n in shared if n in ib and n not in ia], [n for n in shared if n in ia and n not in ib]
+
+
+def not_compared(records: Sequence[tuple[int, Record]]) -> list[tuple[int, int, list[str], list[str]]]:
+    """The steps between consecutive calibrations whose parameters :func:`moves` does not compare: (earlier id,
+    later id, held in the earlier only, held in the later only) (:func:`held_apart`).
+
+    Parameters
+    ----------
+    records : sequence of (int, Record)
+        (id, record) of one robot in time order; only the calibrations count.
+
+    Returns
+    -------
+    list of (int, int, list of str, list of str)
+        One per step whose two calibrations held different parameters.
+
+    Examples
+    --------
+    >>> from kincal.history import Identity, Record, not_compared
+    >>> arm = Identity("hexapod")
+    >>> a = Record(arm, "calibration", "2024-05-01T08:00Z", parameters={"leg1.bx": 0.1, "leg2.bx": 0.2},
+    ...            identifiable=("leg2.bx",))
+    >>> b = Record(arm, "calibration", "2024-06-01T08:00Z", parameters={"leg1.bx": 0.11, "leg2.bx": 0.2},
+    ...            identifiable=("leg1.bx",))
+    >>> not_compared([(1, a), (2, b)])
+    [(1, 2, ['leg1.bx'], ['leg2.bx'])]
+    """
+    cals, frame = calibrations(records), frame_names(records)
+    return [(ia, ib, *held_apart(a, b, frame)) for (ia, a), (ib, b) in zip(cals, cals[1:])
+            if any(held_apart(a, b, frame))]
+
