@@ -191,6 +191,25 @@ def test_same_frame_on_a_file_without_a_record_names_its_base_frame(tmp_path, ca
     assert kincal.evaluate(exported, meas).mean > 1.0  # the tracker's 2 m, taken for the robot's base
 
 
+def test_evaluate_on_the_training_file_says_so(tmp_path, capsys):
+    """evaluate of a calibration on its own training file (here a copy under another name) printed its figures
+    as any other file's (the Jugglebot's S1 as 'held-out'); it says they are the training error, and the JSON
+    names the training file; another file is not flagged."""
+    units = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
+    train = tmp_path / "grid.csv"
+    train.write_bytes((DATA / "ur5_grid.csv").read_bytes())
+    assert main(["calibrate", "ur5", str(train), *units, "-o", str(tmp_path / "cal.yaml")]) == 0
+    copy = tmp_path / "again.csv"
+    copy.write_bytes(train.read_bytes())
+    capsys.readouterr()
+    for path, twin in ((copy, str(train)), (DATA / "ur5_random.csv", None)):
+        assert main(["evaluate", str(tmp_path / "cal.yaml"), str(path), *units, "--json"]) == 0
+        assert json.loads(capsys.readouterr().out)["training_file"] == twin
+    assert main(["evaluate", str(tmp_path / "cal.yaml"), str(copy), *units]) == 0
+    said = capsys.readouterr().out
+    assert f"holds the same data as the calibration's training file {train}: these figures are the training" in said
+
+
 # ---- commands in the user's frames -----------------------------------------------------------------
 TCP = np.array([0.0, 0.0, 0.1092])  # the controller's TCP: 16 mm beyond the probe
 

@@ -166,6 +166,23 @@ def _not_training(data: list[str], tests: list[str]) -> None:
                              f"see (another session, or the rows left out of the training file)")
 
 
+def _training_twin(record: dict | None, path: str) -> str | None:
+    """The calibration's training file (as its record names it) that holds the same bytes as ``path``, or None
+    (no record, or no such file readable from here)."""
+    files = ((record or {}).get("data") or {}).get("file") or []
+    try:
+        mine = fingerprint(path).sha256
+    except OSError:
+        return None
+    for other in files:
+        try:
+            if fingerprint(str(other)).sha256 == mine:
+                return str(other)
+        except OSError:
+            continue
+    return None
+
+
 def held_out(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
     """Held-out observation sets under the nominal ("before") and the calibrated model, and the
     placements of the training and held-out sets, as lines and as JSON (position data: :func:`_held_out_points`)."""
@@ -215,6 +232,11 @@ def cmd_evaluate(args) -> int:
         judged = [judge(args, r, record, path, kinds[0],
                         args.plot and (args.plot if len(args.data) == 1 else f"{args.plot}-{k + 1}"))
                   for k, path in enumerate(args.data)]
+    twins = [_training_twin(record, path) for path in args.data]
+    judged = [({**payload, "training_file": twin}, lines + ([
+        f"  note: {path} holds the same data as the calibration's training file {twin}: these figures are the "
+        f"training error, not a held-out one"] if twin else [])) for (payload, lines), path, twin in
+        zip(judged, args.data, twins)]
     payloads = [payload for payload, _ in judged]
     stored = store_record(args, nominal_model(r, record, args.robot) or r, lambda identity, command: evaluation_record(
         payloads, identity, [fingerprint(p) for p in args.data], command=command, robot=r))
