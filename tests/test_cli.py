@@ -297,3 +297,15 @@ def test_a_base_frame_near_gimbal_lock_says_its_outer_angles_mean_only_together(
     assert np.abs(cal.forward(q) - truth.forward(q)).max() < 1e-4  # the frame it makes is right
     ur5 = kincal.simulate(kincal.perturb(kincal.load_robot("ur5"), seed=1), kincal.load_robot("ur5").sample_joints(60))
     assert "gimbal" not in str(kincal.calibrate(kincal.load_robot("ur5"), ur5))
+
+
+def test_a_flag_of_another_command_is_named_with_its_commands(tmp_path, capsys):
+    """report reads how the data were read from the calibration's record: --type and --orientation, calibrate's
+    flags, ended in argparse's bare 'unrecognized arguments'; the error names the commands that have them and says
+    where report takes them from."""
+    with pytest.raises(SystemExit) as stop:
+        main(["report", "cal.yaml", "--type", "pose", "-o", str(tmp_path / "r.html")])
+    said = capsys.readouterr().err
+    assert stop.value.code == 2 and "unrecognized arguments: --type pose" in said
+    assert "--type is a flag of " in said and "calibrate" in said and "not of report" in said
+    assert "from the calibration's record" in said

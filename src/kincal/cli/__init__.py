@@ -82,7 +82,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         parser = build_parser()
         tokens = _negative_values(parser, list(sys.argv[1:] if argv is None else argv))
-        args = parser.parse_args(tokens)
+        args, extra = parser.parse_known_args(tokens)
+        if extra:
+            parser.exit(2, f"kincal {args.command}: error: unrecognized arguments: {' '.join(extra)}"
+                           f"{_elsewhere(parser, args.command, extra)}\n")
         if progress_lines():  # a log (or a test) learns that Ctrl-C and SIGTERM are handled from here on
             line(f"kincal: {args.command} started")
         try:  # a signal while an error is printed is still caught below
@@ -134,6 +137,27 @@ def _once(parser: argparse.ArgumentParser, argv: list[str]) -> None:
             raise ValueError(f"{flag} is given twice, as {seen[action.dest]} and {value} (only the last would "
                              f"count): give it once")
         seen[action.dest] = value
+
+
+RECORDED = ("report",)  # commands that read how the data are read from the calibration's record
+MAIN = ("calibrate", "evaluate", "compensate", "design", "simulate")  # named first where a flag is theirs
+
+
+def _elsewhere(parser: argparse.ArgumentParser, command: str, extra: list[str]) -> str:
+    """A hint for flags a command does not have: the commands that do (``--type`` is calibrate's and evaluate's,
+    not report's, which reads how the files were read from the calibration's record); '' when none has them."""
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    hints = []
+    for flag in dict.fromkeys(t.partition("=")[0] for t in extra if t.startswith("--")):
+        owners = sorted((name for name, p in sub.choices.items() if flag in p._option_string_actions),
+                        key=lambda name: MAIN.index(name) if name in MAIN else len(MAIN))  # stable: then as listed
+        if owners:
+            more = f" and {len(owners) - 3} more" if len(owners) > 3 else ""
+            hints.append(f"{flag} is a flag of {', '.join(owners[:3])}{more}, not of {command}")
+    if hints and command in RECORDED:
+        hints.append(f"{command} reads how the data were read (their type, units, columns, orientation) from the "
+                     f"calibration's record; --joint-cols, --xyz-cols and the units override it")
+    return f" ({'; '.join(hints)})" if hints else ""
 
 
 def _negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
