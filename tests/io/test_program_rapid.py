@@ -92,7 +92,7 @@ def test_hanoi_targets_offs_moves_and_the_jointtarget_of_moveabsj():
     np.testing.assert_allclose(home.values, np.radians([0, -130, 30, 0, 40, 0]))
     assert len(home.fields) == 6  # eax_a (the arm angle, 135) stays as written
     assert len(prog.not_literal) == 11
-    assert all(why.startswith("Offs() displaces Target_GRASP (compensated where it is declared, line 71)")
+    assert all(why.startswith("Offs() displaces Target_GRASP (a literal target of its own, line 71)")
                for _, _, why in prog.not_literal)
     assert [n for n, _, _ in prog.not_literal][:3] == [109, 128, 132]
 
@@ -215,7 +215,7 @@ def test_synthetic_module_lists_what_is_not_a_literal():
     assert sorted(listed) == [12, 25, 26, 28, 29, 30, 31, 32, 33, 36, 41]
     assert listed[12] == ("robtarget pRun", "declared with a literal but assigned at run time (line 27): the moves "
                                             "use the value set then")
-    assert listed[25][1].startswith("Offs() displaces pZ90 (compensated where it is declared, line 5)")
+    assert listed[25][1].startswith("Offs() displaces pZ90 (a literal target of its own, line 5)")
     assert listed[26][1].startswith("RelTool() displaces pZ90")
     assert listed[28][1] == "pRun is assigned at run time (line 27)"
     assert listed[29][1].startswith("CJointT() reads the robot's joints")

@@ -189,8 +189,8 @@ def _named(s: _Scan, move: _Move, name: re.Match, uses: dict, what: str) -> list
     if found == "param":
         return [(line, what, f"{name.group(1)} is a parameter of the routine: its value comes from the caller")]
     if found is None:
-        return [(line, what, f"{name.group(1)} is not declared in this file (data of another module?): it is "
-                             "compensated where it is declared")]
+        return [(line, what, f"{name.group(1)} is not declared in this file (data of another module?): it is a "
+                             "target of the file that declares it")]
     assert isinstance(found, Decl)
     if found.changed:
         return [(line, what, f"{found.name} is assigned at run time (line {found.changed})")]
@@ -214,7 +214,7 @@ def _call_reason(s: _Scan, move: _Move, call: re.Match, a: int, uses: dict) -> s
         found = s.resolve(a, name.group(1)) if name else None
         if name and isinstance(found, Decl) and found.value is not None and not found.changed:
             _use(uses, (id(found), _index(s, name.group(2))), move, False)
-            base += f" (compensated where it is declared, line {found.line})"
+            base += f" (a literal target of its own, line {found.line})"
     return RUNTIME[low].format(base=base or "its base") + "; only literal targets are compensated"
 
 
