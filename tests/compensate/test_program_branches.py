@@ -332,3 +332,37 @@ def test_a_joint_target_at_a_singularity_is_kept_and_said(tmp_path, capsys):
     res = compensate_program(ur_real, ur, read_program(str(script), "ur"))
     assert sorted(res.texts) == [1] and not res.problems and [line for line, _, _ in res.kept] == [2]
 
+
+
+def test_fanuc_user_frame_0_is_the_world(tmp_path):
+    """A FANUC position in UF : 0 (the world frame, by FANUC's definition) with its tool given: compensated, where
+    it was refused until a frame 'UF 0' was given; the written position, read back and turned into joints on its
+    CONFIG by the nominal arm, lands on the meant pose on the calibrated arm."""
+    from kincal.io import BITS, ROWS, frame_numbers
+
+    nominal = kincal.load_robot("fanuc_lrmate200id")
+    real = kincal.perturb(nominal, seed=2)
+    flange = nominal.with_tool_point(np.zeros(3))
+    q = np.radians([10.0, 20.0, -10.0, 30.0, -40.0, 50.0])
+    p, R, _, _ = flange.pose_and_jacobian(q[None])
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R[0], p[0]
+    x, y, z, a, b, c = frame_numbers(T)
+    (bits,) = ROWS["fanuc"](flange, q[None])
+    text = ("/PROG  UF0\n/ATTR\n/MN\n   1:L P[1] 100mm/sec FINE ;\n/POS\nP[1]{\n   GP1:\n"
+            f"\tUF : 0, UT : 1,\t\tCONFIG : '{bits[0]}, {bits[1]}, {bits[2]}, {bits[3]}',\n"
+            f"\tX = {x:.4f} mm,\tY = {y:.4f} mm,\tZ = {z:.4f} mm,\n\tW = {c:.4f} deg,\tP = {b:.4f} deg,\tR = {a:.4f} deg\n"
+            "};\n/END\n")
+    path = tmp_path / "uf0.ls"
+    path.write_text(text)
+    prog = read_program(str(path), "fanuc")
+    res = compensate_branches(real, nominal, prog, ROWS["fanuc"], {"UT 1": np.eye(4)})
+    assert not res.refused and sorted(res.texts) == [0]
+    new = dialects()["fanuc"].parse(str(path), prog.with_targets(res.texts)).targets[0]
+    Tn = np.eye(4)
+    Tn[:3, :3], Tn[:3, 3] = Rotation.from_rotvec(new.values[3:]).as_matrix(), new.values[:3]
+    q_ctrl = controller_inverse(flange, Tn[None, :3, 3], Tn[None, :3, :3], q, new.config, BITS["fanuc"])
+    reached, Rr, _, _ = real.with_tool_point(np.zeros(3)).pose_and_jacobian(q_ctrl[None])
+    meant = prog.targets[0].values  # the pose as the text wrote it (to 1e-4 mm and deg)
+    assert np.linalg.norm(reached[0] - meant[:3]) < 1e-9
+    assert np.abs(Rr[0] - Rotation.from_rotvec(meant[3:]).as_matrix()).max() < 1e-9

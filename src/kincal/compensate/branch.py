@@ -51,9 +51,10 @@ METRES_LOOK = 5.0  # mm: a pose target within this of its frame's origin in ever
 BIT_EDGE = np.radians(0.01)  # rad: a joint this near 0 sits on the edge of its sign bit (a pose's last decimals)
 CHAIN = 512  # targets per Newton pass of the controller's joints (the next ones start from the joints found)
 IDENTITY_FRAMES = {"rapid": (("tool0",), ("wobj0", "")), "krl": (("$nullframe",), ()),  # (tools, bases) a language
-                   "inform": ((), ("robot",))}  # defines as the identity (RAPID: tool0 is the flange, wobj0 the
-# world frame, and a move without \WObj is in wobj0; KRL: $TOOL = $NULLFRAME is the flange, while $BASE = $NULLFRAME
-# is the world, given with $ROBROOT_C; INFORM: ROBOT coordinates, and BASE ones where no base axis moves the robot)
+                   "inform": ((), ("robot",)), "fanuc": ((), ("uf 0",))}  # defines as the identity (RAPID: tool0 is
+# the flange, wobj0 the world frame, and a move without \WObj is in wobj0; KRL: $TOOL = $NULLFRAME is the flange,
+# while $BASE = $NULLFRAME is the world, given with $ROBROOT_C; INFORM: ROBOT coordinates, and BASE ones where no base
+# axis moves the robot; FANUC: user frame 0 is the world frame)
 REDUNDANT = ("a pose target of a redundant arm: the controller chooses the redundancy (the elbow's arm angle, "
              "KRL's E1 or RAPID's eax_a) by a rule kincal does not model, so the joints it would take are unknown; "
              "give joint targets (E6AXIS, jointtarget) to compensate")
