@@ -78,8 +78,13 @@ def cmd_simulate(args) -> int:
     r = load_robot(args, [args.poses_file], [args.output, args.save_true])
     true = (kincal.perturb(r, length=args.length_error / MM, angle=args.angle_error / DEG, seed=args.seed)
             if args.perturb else r)
-    q = joint_values(args, r, args.poses_file)
     kind = one_type(args)
+    if args.poses_file and kind in ("same-point", "plane"):
+        what = "plate of sockets" if kind == "same-point" else "table"
+        raise ValueError(f"--poses-file: simulate --type {kind} plans its own {what} and moves the true robot until "
+                         f"it touches it, so joint values given in advance (a design's poses) have no place; leave "
+                         f"--poses-file out")
+    q = joint_values(args, r, args.poses_file)
     if args.save_true:
         kincal.save_robot(true, args.save_true)
     if kind != "point":  # observations of the type, written in its columns
