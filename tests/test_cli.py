@@ -309,3 +309,24 @@ def test_a_flag_of_another_command_is_named_with_its_commands(tmp_path, capsys):
     assert stop.value.code == 2 and "unrecognized arguments: --type pose" in said
     assert "--type is a flag of " in said and "calibrate" in said and "not of report" in said
     assert "from the calibration's record" in said
+
+
+def test_verification_samples_are_commandable_and_the_simulated_noise_follows_the_seed(tmp_path, capsys):
+    """A plan drawn over the 3-PUU's limits could hold a sample whose command is refused, and verify stopped
+    ('choose sample inputs away from the joint limits', with no flag to choose them): such samples are passed
+    over (commandable: exactly those verification_plan refuses). verify --simulate drew the same noise for every
+    --seed; it follows the seed now."""
+    from kincal.compensate import commandable, verification_plan
+
+    robot = kincal.load_robot("puu3")
+    q = robot.sample_joints(40, seed=1)
+    ok = commandable(robot, q)
+    assert 0 < (~ok).sum() < len(q)
+    with pytest.raises(kincal.ModelError, match="were refused"):
+        verification_plan(robot, q)
+    assert verification_plan(robot, q[ok]).commands.shape == (5, int(ok.sum()), 3)
+    largest = []
+    for seed in (1, 2):
+        v = run_json(capsys, "verify", "puu3", "--seed", seed, "--simulate", "puu3", "-o", tmp_path / f"p{seed}.csv")
+        largest.append([max(c["max"]) for c in v["cases"].values()])
+    assert largest[0] != largest[1]

@@ -12,6 +12,7 @@ import kincal.analysis
 import kincal.io
 import kincal.models
 from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, VerificationPlan, base_note, command_models,
+                               commandable,
                                check_folder_output, compensate_branches, compensate_file, compensate_folder,
                                compensate_program, flange_turn,
                                resolve_taught, tool_carry, unseen_in_base, verification_plan, write_folder)
@@ -413,7 +414,7 @@ def _plan(args, r) -> VerificationPlan:
                              f"plan's samples go; --plan {args.plan} already says where the robot goes: give one or "
                              f"the other")
         return VerificationPlan.read_csv(args.plan, r)
-    q = r.sample_joints(args.samples, seed=args.seed) if cell is None else cell.pool(r, args.samples, seed=args.seed)
+    q = _samples(r, cell, args)
     plan = verification_plan(r, q, args.params)
     z = r.forward(plan.commands.reshape(-1, r.n_joints))[:, 2]
     if cell is None and (z < 0).any() and (z > 0).any():
@@ -424,11 +425,29 @@ def _plan(args, r) -> VerificationPlan:
     return plan
 
 
+SAMPLE_DRAWS = 4  # candidate samples drawn per sample a plan needs: those with a refused command are passed over
+
+
+def _samples(r, cell, args) -> np.ndarray:
+    """A new plan's sample inputs (--samples): drawn in the cell (or within the joint limits), the first whose every
+    case has a command the robot may be sent (kincal.compensate.commandable), in the order drawn."""
+    n = args.samples * SAMPLE_DRAWS
+    q = r.sample_joints(n, seed=args.seed) if cell is None else cell.pool(r, n, seed=args.seed)
+    ok = commandable(r, q, args.params)
+    if ok.sum() < args.samples:
+        raise ValueError(f"only {int(ok.sum())} of {n} samples drawn have a command the robot may be sent for every "
+                         f"case (the others reach a joint limit, leave the branch or are unreachable); give fewer "
+                         f"--samples, or --params with fewer cases")
+    return q[ok][:args.samples]
+
+
 def _measured(args, r, plan) -> np.ndarray:
     """Measured positions (C, N, 3) of the plan's commands, from a file or simulated."""
     if args.simulate:
         true = kincal.load_robot(args.simulate)
-        return np.array([kincal.simulate(true, c, args.noise / MM, seed=k).xyz for k, c in enumerate(plan.commands)])
+        seeds = np.random.SeedSequence(args.seed).spawn(len(plan.commands))  # the noise differs with --seed
+        return np.array([kincal.simulate(true, c, args.noise / MM, seed=int(s.generate_state(1)[0])).xyz
+                         for s, c in zip(seeds, plan.commands)])
     meas = kincal.read_measurements(args.measured, r, args.joint_cols, args.xyz_cols, args.length_unit, args.angle_unit)
     cmds = plan.commands.reshape(-1, r.n_joints)
     if len(meas) != len(cmds):

@@ -11,11 +11,11 @@ from .frames_only import FramesOnly, fit_frames_only
 from .taught import resolve_taught
 from .turn import FlangeTurn, flange_turn
 from .folder import FolderCompensation, check_folder_output, compensate_folder, write_folder
-from .verify import Verification, VerificationPlan, verification_plan
+from .verify import Verification, VerificationPlan, commandable, verification_plan
 
 __all__ = ["Compensation", "compensate", "compensate_poses", "path_checked", "ProgramCompensation",
            "compensate_program", "compensate_branches", "PoseSolution", "solve_poses", "filtered_poses",
            "TARGET_FRAMES", "LINK_ERROR_MAX", "command_models", "frame_mismatch", "tool_carry", "StreamJob",
-           "StreamResult", "TargetsFormat", "compensate_file", "Verification", "VerificationPlan", "verification_plan",
+           "StreamResult", "TargetsFormat", "compensate_file", "Verification", "VerificationPlan", "verification_plan", "commandable",
            "FramesOnly", "fit_frames_only", "resolve_taught", "FolderCompensation", "check_folder_output",
            "compensate_folder", "write_folder", "FlangeTurn", "flange_turn", "unseen_in_base", "base_note"]

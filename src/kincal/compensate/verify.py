@@ -312,9 +312,7 @@ def verification_plan(robot: Robot, q_samples: np.ndarray, names: Sequence[str] 
     True
     """
     q = robot.check_q(q_samples)
-    names = tuple(names) if names is not None else tuple(
-        n for n in robot.params.names if n not in set(robot.base_params()))
-    robot.params.indices(names)
+    names = _cases(robot, names)
     predicted, commands = [], []
     for name in names:
         i = robot.params.index(name)
@@ -330,3 +328,47 @@ def verification_plan(robot: Robot, q_samples: np.ndarray, names: Sequence[str] 
         predicted.append(target)
         commands.append(comp.q)
     return VerificationPlan(names, q, np.array(predicted), np.array(commands))
+
+
+def _cases(robot: Robot, names: Sequence[str] | None) -> tuple[str, ...]:
+    """The parameters to test (default: all but the base frame's), checked to be the robot's."""
+    names = tuple(names) if names is not None else tuple(
+        n for n in robot.params.names if n not in set(robot.base_params()))
+    robot.params.indices(names)
+    return names
+
+
+def commandable(robot: Robot, q_samples: np.ndarray, names: Sequence[str] | None = None) -> np.ndarray:
+    """Which sample inputs q′ (N, n) have a command the robot may be sent for every case (unit error) of
+    :func:`verification_plan`: none beyond a joint limit, off the branch or unreachable.
+
+    Parameters
+    ----------
+    robot : Robot
+        The identified ("actual") model s′.
+    q_samples : ndarray, shape (N, n)
+        Candidate sample inputs, rad (m for a prismatic joint).
+    names : sequence of str, optional
+        The parameters to test (default: all but the base frame's).
+
+    Returns
+    -------
+    ndarray of bool, shape (N,)
+        True where every case's command is accepted.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.compensate import commandable
+    >>> robot = kincal.load_robot("puu3")
+    >>> commandable(robot, robot.sample_joints(4, seed=1)).tolist()
+    [True, True, True, True]
+    """
+    q = robot.check_q(q_samples)
+    ok = np.ones(len(q), bool)
+    for name in _cases(robot, names):
+        v = robot.params.values.copy()
+        v[robot.params.index(name)] += UNIT[robot.params.kinds[robot.params.index(name)]]
+        ok &= compensate(robot, robot.forward(q, v), q).ok
+    return ok
+
