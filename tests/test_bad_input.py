@@ -746,6 +746,11 @@ OBSERVE = [
                                                 "{d}/p.csv", "-o", "{d}/x.csv"], 1,
          ["--poses-file: simulate --type same-point plans its own plate of sockets"],
          files={"p.csv": "j1,j2,j3,j4,j5,j6\n0,0,0,0,0,0\n"}),
+    case("design-candidates-in-degrees-read-as-radians", ["design", "ur5", "-m", "5", "--candidates", "{d}/c.csv",
+                                                          "-o", "{d}/d.csv"], 1,
+         ["candidate pose(s) break the joint limits", "read as deg, every pose is within them: give --angle-unit deg"],
+         files={"c.csv": "j1,j2,j3,j4,j5,j6\n" + "".join(f"{a},{-a},{a + 0.5},{-a - 0.5},{a},{a}\n"
+                                                        for a in (-5.5, -4.0, -3.5, 3.5, 4.0, 5.5, 2.0, 1.0))}),
     case("an-on-off-flag-given-both-ways", ["design", "ur5", "-m", "10", "--coverage", "--no-coverage", "-o",
                                             "{d}/p.csv"], 1, ["--coverage and --no-coverage are both given"]),
     case("a-search-setting-of-another-method", ["design", "ur5", "-m", "10", "--method", "fedorov", "--generations",

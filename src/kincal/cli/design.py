@@ -65,7 +65,8 @@ def cmd_design(args) -> int:
         bad = ~r.feasible(pool)
         if bad.any():
             raise kincal.MeasurementError(f"{args.candidates}: {int(bad.sum())} candidate pose(s) break the joint "
-                                          f"limits or coupled constraints (first: row {int(np.flatnonzero(bad)[0]) + 2})")
+                                          f"limits or coupled constraints (first: row {int(np.flatnonzero(bad)[0]) + 2})"
+                                          + _other_angle_unit(r, pool, args.angle_unit))
     elif cell is not None:
         pool = cell.pool(r, args.pool, seed=args.seed)
     else:
@@ -211,6 +212,17 @@ def _criterion_flags(s) -> None:
                    help="one pose per joint-space stratum of the candidates (default: on for IMSE)")
     s.add_argument("--weight", type=nonneg_float, default=0.3,
                    help="IMSE: variance of each left-out error term, in units of the noise variance (default 0.3)")
+
+
+def _other_angle_unit(r, q: np.ndarray, unit: str | None) -> str:
+    """The hint when the joint values (N, n) as read break the limits but every pose is within them read in the
+    other angle unit (degrees read as radians, or the reverse); '' otherwise."""
+    declared = unit or "rad"
+    other = "deg" if declared == "rad" else "rad"
+    factor = np.where(r.revolute, np.deg2rad(1.0) if other == "deg" else np.rad2deg(1.0), 1.0)
+    if declared not in ("rad", "deg") or not r.feasible(q * factor).all():
+        return ""
+    return f"; read as {other}, every pose is within them: give --angle-unit {other}"
 
 
 def add_cell_flags(s, obeys: str) -> None:
