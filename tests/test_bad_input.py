@@ -508,7 +508,7 @@ ROUND2 = [
          files={"c.csv": "j1,j1,j3,j4,j5,j6\n" + "0.1,0.2,0.3,0.4,0.5,0.6\n" * 20}),
     case("verify-plan-predictions-as-measurements", ["verify", "puu3", "--plan", "{d}/p.csv", "--measured",
                                                      "{d}/p.csv", "--xyz-cols", "x_pred,y_pred,z_pred"], 1,
-         ["predicted columns, not measurements"], files={"p.csv": lambda b: _plan()}),
+         ["a kincal verification plan (the commands to run"], files={"p.csv": lambda b: _plan()}),
     # robot files: missing, a folder, xacro, URDF in mm or absurd, error-model values
     case("robot-file-missing-with-path", ["calibrate", "{d}/robots/arm.yaml", "{base}/good.csv", *MMDEG], 1,
          ["robot file", "not found", "does not exist either"]),
@@ -751,6 +751,13 @@ OBSERVE = [
          ["candidate pose(s) break the joint limits", "read as deg, every pose is within them: give --angle-unit deg"],
          files={"c.csv": "j1,j2,j3,j4,j5,j6\n" + "".join(f"{a},{-a},{a + 0.5},{-a - 0.5},{a},{a}\n"
                                                         for a in (-5.5, -4.0, -3.5, 3.5, 4.0, 5.5, 2.0, 1.0))}),
+    case("calibrate-a-design", ["calibrate", "ur5", "{d}/poses.csv"], 1,
+         ["column(s) x, y, z not found", "it holds joint values only: a list of poses (a design, poses to run)?"],
+         files={"poses.csv": "j1,j2,j3,j4,j5,j6\n" + "".join(f"{0.1 * k},0.2,0.3,0.4,0.5,0.6\n" for k in range(12))}),
+    case("calibrate-a-verification-plan", ["calibrate", "ur5", "{d}/plan.csv", "--xyz-cols", "x_pred,y_pred,z_pred"],
+         1, ["plan.csv: a kincal verification plan", "kincal verify ROBOT --plan"],
+         files={"plan.csv": "# kincal verification plan for ur5; units: length=m angle=rad\ncase,sample,j1,j2,j3,j4,j5,"
+                            "j6,x_pred,y_pred,z_pred\nj2.a,1,0,0,0,0,0,0,0.1,0.2,0.3\n"}),
     case("an-on-off-flag-given-both-ways", ["design", "ur5", "-m", "10", "--coverage", "--no-coverage", "-o",
                                             "{d}/p.csv"], 1, ["--coverage and --no-coverage are both given"]),
     case("a-search-setting-of-another-method", ["design", "ur5", "-m", "10", "--method", "fedorov", "--generations",

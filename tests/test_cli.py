@@ -179,8 +179,13 @@ def test_verify_with_measurements_file(tmp_path, capsys):
     largest = max(max(c["max"]) for c in v["cases"].values())
     assert 0.5 * np.linalg.norm(noise, axis=1).max() < largest < 1.01 * np.linalg.norm(noise, axis=1).max()
     assert v["pass"]
-    # the plan's own predicted columns are not measurements
+    # the plan itself is not measurements; nor its predicted columns copied into a file of their own
     code = main(["verify", "puu3", "--plan", str(plan_path), "--measured", str(plan_path), "--length-unit", "mm", "--xyz-cols",
+                 "x_pred,y_pred,z_pred"])
+    assert code == 1 and "a kincal verification plan (the commands to run" in capsys.readouterr().err
+    copied = tmp_path / "copied.csv"
+    copied.write_text("\n".join(plan_path.read_text().splitlines()[1:]) + "\n")
+    code = main(["verify", "puu3", "--plan", str(plan_path), "--measured", str(copied), "--length-unit", "mm", "--xyz-cols",
                  "x_pred,y_pred,z_pred"])
     assert code == 1 and "predicted columns, not measurements" in capsys.readouterr().err
     # a plan rebuilt from another seed is not what was measured: the joints do not match and it says so

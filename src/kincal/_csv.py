@@ -63,6 +63,10 @@ def _decoded(raw: bytes, encoding: str = "utf-8") -> str:
         return raw.decode("latin-1")
 
 
+PLAN_HEAD = "# kincal verification plan"  # the first line of the plans 'kincal verify -o' writes
+INDEX_COLUMNS = {"pose", "id", "index", "sample", "row", "n"}  # a poses file's row-number column
+
+
 def data_lines(text: str) -> list[tuple[int, str]]:
     """(1-based line number, line) of every line that is not blank or a '#' comment."""
     return [(k, line) for k, line in enumerate(text.splitlines(), start=1)
@@ -96,7 +100,12 @@ def open_table(path: str, kinds: str = "joint, position or σ") -> Table:
     """The CSV at ``path`` read whole as a ``Table`` (``kinds``: what its columns may be, for messages):
     the header (stripped names), the records as (line number, cells), the separator and the header's
     line number; every record has as many fields as the header."""
-    lines = data_lines(_decoded(_read_bytes(path), "utf-8-sig"))  # Excel writes UTF-8 with a BOM
+    text = _decoded(_read_bytes(path), "utf-8-sig")  # Excel writes UTF-8 with a BOM
+    if text.startswith(PLAN_HEAD):
+        raise MeasurementError(f"{path}: a kincal verification plan (the commands to run and the positions the model "
+                               f"predicts there), not measurements: run its commands, measure, and judge them with "
+                               f"kincal verify ROBOT --plan {path} --measured MEASUREMENTS")
+    lines = data_lines(text)
     if not lines:
         raise MeasurementError(f"{path}: the file is empty; expected a header line and one row per pose")
     delim = sniff_delimiter(lines[0][1], path)
@@ -220,9 +229,16 @@ class Table:
         return np.array([k for k, _ in self.records], dtype=int)
 
     def need(self, cols, what: str = "") -> None:
-        """``cols`` each named once in the header and present (``what``: what they are for)."""
+        """``cols`` each named once in the header and present (``what``: what they are for); a file that holds
+        nothing but the columns read so far (joint values only: a design's or a plan's poses) is said to be one."""
         check_once(self.path, self.header, list(cols), self.kinds)
-        check_present(self.path, self.header, list(cols), what, self.header_line)
+        try:
+            check_present(self.path, self.header, list(cols), what, self.header_line)
+        except MeasurementError as exc:
+            if not set(self.header) <= set(self.used) | set(cols) | INDEX_COLUMNS:  # it has columns of its own
+                raise
+            raise MeasurementError(f"{exc}; it holds joint values only: a list of poses (a design, poses to run)? "
+                                   f"measure at them, then give the instrument's readings") from None
 
     def use(self, cols) -> None:
         """Mark ``cols`` read: each once, named once in the header, present."""
