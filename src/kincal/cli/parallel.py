@@ -3,6 +3,7 @@ and the 3-PUU error-model verification paper's verification (commands to run, th
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 
 import numpy as np
@@ -41,6 +42,8 @@ def _orientation(args, record: dict, cal, values, nominal, unc):
         return None, None
     turn = flange_turn(cal, cal.with_params(values) if values else cal, None if unc is None else unc.covariance,
                        () if unc is None else unc.names, *_ranges(cal, unc))
+    kinds = (record.get("data") or {}).get("kinds") or []
+    turn = dataclasses.replace(turn, rotations_seen=any(k in ("pose", "markers") for k in kinds))
     return (None if turn.determined else nominal), turn
 
 

@@ -38,6 +38,9 @@ class FlangeTurn:
         when the calibration recorded no covariance.
     determined : bool
         ``change`` is at least ``TURN_Z`` (3) times ``sigma``: pose commands follow the calibrated flange.
+    rotations_seen : bool, optional
+        The calibration's data saw rotations (6-D poses, several markers): the note's advice is then not to
+        measure them (default False).
 
     See Also
     --------
@@ -47,6 +50,7 @@ class FlangeTurn:
     change: float
     sigma: float
     determined: bool
+    rotations_seen: bool = False
 
     def to_dict(self) -> dict:
         """The fields, rad, with ``sigma`` None where it is not known (JSON has no inf)."""
@@ -59,11 +63,14 @@ class FlangeTurn:
         if self.determined:
             return (f"orientation: from the calibrated model, whose data determine its turn of the flange "
                     f"({self.change * 1e3:.3f} mrad from the nominal model, σ {sigma})")
+        what = ("the data saw rotations, yet in the robot's own frame they leave it open: poses spread over more of "
+                "the joints' ranges, or targets in the measurement frame" if self.rotations_seen else
+                "6-D poses or several markers, or a measured point further from the flange's axis, at poses spread "
+                "over more of the joints' ranges")
         return (f"orientation: as the nominal model turns the flange; the calibrated model's turn of it "
                 f"({self.change * 1e3:.3f} mrad from the nominal model, σ {sigma}) is within {TURN_Z:g}σ, not told "
-                f"apart from noise, so the commands correct the positions with the calibrated model only (what determines "
-                f"it: 6-D poses or several markers, or a measured point further from the flange's axis, at poses "
-                f"spread over more of the joints' ranges)")
+                f"apart from noise, so the commands correct the positions with the calibrated model only (what "
+                f"determines it: {what})")
 
 
 def flange_turn(calibrated: Robot, nominal: Robot, covariance: np.ndarray | None, names, lower: np.ndarray,
