@@ -758,6 +758,9 @@ OBSERVE = [
          1, ["plan.csv: a kincal verification plan", "kincal verify ROBOT --plan"],
          files={"plan.csv": "# kincal verification plan for ur5; units: length=m angle=rad\ncase,sample,j1,j2,j3,j4,j5,"
                             "j6,x_pred,y_pred,z_pred\nj2.a,1,0,0,0,0,0,0,0.1,0.2,0.3\n"}),
+    case("compensate-tcp-in-the-wrong-unit", ["compensate", "ur5", "{d}/t.csv", "--tcp", "0,0,0.109mm", "-o",
+                                              "{d}/c.csv"], 1, ["--tcp is 0.109 mm from the flange"],
+         files={"t.csv": "x,y,z\n0.4,0.1,0.3\n"}),
     case("an-on-off-flag-given-both-ways", ["design", "ur5", "-m", "10", "--coverage", "--no-coverage", "-o",
                                             "{d}/p.csv"], 1, ["--coverage and --no-coverage are both given"]),
     case("a-search-setting-of-another-method", ["design", "ur5", "-m", "10", "--method", "fedorov", "--generations",

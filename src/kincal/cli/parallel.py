@@ -73,6 +73,7 @@ def cmd_compensate(args) -> int:
     record, values = _calibration(args)
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
     _doubt(args, record)
+    _tcp_length(args.tcp)
     if "link_error_max" in args.given and args.tcp is None and not args.program:  # a program may set its TCP
         raise ValueError("--link-error-max decides how much of the calibration's move of the measured target is "
                          "carried over to the controller's TCP; without --tcp the commands are for the measured "
@@ -230,6 +231,17 @@ def _doubt(args, record: dict) -> None:
     if record.get("verdict") in ("suspect", "refused"):
         err.print(f"warning: {args.robot} was calibrated with the verdict {str(record['verdict']).upper()} (its "
                   f"report says why): these commands carry that doubt", markup=False)
+
+
+TCP_MIN = 1e-3  # m: a TCP nearer the flange than this, and not on it, is a unit slip (0,0,0.109mm for 109 mm)
+
+
+def _tcp_length(tcp) -> None:
+    """Refuse a --tcp nearer the flange than TCP_MIN but not on it: no tool's point is there; a unit slip."""
+    d = 0.0 if tcp is None else float(np.linalg.norm(tcp))
+    if 0.0 < d < TCP_MIN:
+        raise ValueError(f"--tcp is {d * MM:.3g} mm from the flange: no tool's TCP lies that close unless it is the "
+                         f"flange itself (give 0,0,0); is it in another unit (0,0,0.109mm for 0,0,109mm)?")
 
 
 FRAME_DOUBT = 3.0  # the model this many times less certain in the robot's frame than in the instrument's: said
