@@ -27,6 +27,7 @@ from .._atomic import write_text_atomic
 from .._collector import paused_collector
 from .._numstyle import restyle_all
 from ..errors import MeasurementError
+from ..models.transforms import zyx_nearest
 
 
 @dataclass(frozen=True)
@@ -273,6 +274,60 @@ def old_numbers(text: str, targets: Sequence[Target], fields: slice = slice(None
     """The numbers (G, F) the targets' ``fields`` hold in ``text`` now (each target the same count)."""
     return np.array([[float(text[a:b]) for a, b in t.fields[fields]] for t in targets], dtype=float).reshape(
         len(targets), -1)
+
+
+def controller_angles(R: np.ndarray, old: np.ndarray, middle: float = 180.0) -> np.ndarray:
+    """The Euler angles a writer puts where a program wrote ``old``: fixed axes x, y, z (R = Rz·Ry·Rx), in the
+    controller's range.
+
+    Of R's equivalent triples, the one nearest the old numbers (:func:`kincal.models.transforms.zyx_nearest`);
+    then each angle in [-180°, 180°] and the middle one (about y) in [-``middle``, ``middle``], the same rotation:
+    an angle past 180° becomes one past -180°, and a middle angle ry past ±``middle`` (90°: KUKA's B) becomes
+    ±180° - ry with the other two turned by 180°. A row whose rotation is the old one keeps the old numbers as
+    written, in or out of range (a program written again unchanged is the same text).
+
+    Parameters
+    ----------
+    R : ndarray, shape (G, 3, 3)
+        The new rotations.
+    old : ndarray, shape (G, 3)
+        The numbers the program wrote, deg: (rz, ry, rx).
+    middle : float, optional
+        The largest middle angle the controller takes, deg (default 180: no limit beyond the others').
+
+    Returns
+    -------
+    ndarray, shape (G, 3)
+        (rz, ry, rx) in deg with Rz(rz)·Ry(ry)·Rx(rx) = R.
+
+    Examples
+    --------
+    A rotation 0.1° past the old 179.95° about x is written 0.05° past -180°, not as 180.05°:
+
+    >>> import numpy as np
+    >>> from scipy.spatial.transform import Rotation
+    >>> from kincal.io.programs import controller_angles
+    >>> R = Rotation.from_euler("ZYX", [10.0, 20.0, 180.05], degrees=True).as_matrix()[None]
+    >>> np.round(controller_angles(R, np.array([[10.0, 20.0, 179.95]])), 9).tolist()
+    [[10.0, 20.0, -179.95]]
+
+    With B in [-90°, 90°] (KUKA), a middle angle of 95° is written as the same rotation with 85°:
+
+    >>> R = Rotation.from_euler("ZYX", [10.0, 95.0, 20.0], degrees=True).as_matrix()[None]
+    >>> np.round(controller_angles(R, np.array([[10.0, 94.9, 20.0]]), middle=90.0), 9).tolist()
+    [[-170.0, 85.0, -160.0]]
+    """
+    rad = np.radians(old)
+    near = zyx_nearest(R, rad)
+    angles = _wrapped(np.degrees(near))
+    flip = np.abs(angles[:, 1]) > middle
+    angles[flip] = _wrapped(angles[flip] * [1.0, -1.0, 1.0] + [180.0, 180.0, 180.0])
+    return np.where((near == rad).all(axis=1)[:, None], old, angles)
+
+
+def _wrapped(degrees: np.ndarray) -> np.ndarray:
+    """Each angle (deg) outside [-180, 180] turned by whole turns into it (one in it as it is)."""
+    return np.where(np.abs(degrees) > 180.0, degrees - 360.0 * np.round(degrees / 360.0), degrees)
 
 
 def _spliced(text: str, target: Target, numbers: list[str]) -> str:
