@@ -201,12 +201,12 @@ def test_a_rewrite_with_new_values_reads_back_and_keeps_every_other_byte(tmp_pat
 
 def test_the_angle_triple_nearest_the_old_one_is_written(tmp_path):
     prog = _poses(_read(tmp_path, TEXT))
-    t = prog.targets[4]  # Rx -179.9988, Rz 190: the same rotation as 180.0012 / -170 is kept as written
+    t = prog.targets[4]  # Rx -179.9988 (not 180.0012) is kept; Rz 190, outside INFORM's [-180, 180], becomes -170
     R = Rotation.from_rotvec(t.values[3:]) * Rotation.from_euler("z", 1e-4, degrees=True)
     text = prog.with_values({4: np.concatenate([t.values[:3], R.as_rotvec()])})
     fields = text.split("\n")[22].split("=")[1].split(",")
     assert fields[:3] == ["1e2", "2.5e-1", "-3E1"]
-    np.testing.assert_allclose([float(f) for f in fields[3:]], [-179.9988, -0.0019, 190.0], atol=1e-3)
+    np.testing.assert_allclose([float(f) for f in fields[3:]], [-179.9988, -0.0019, -170.0], atol=1e-3)
     t = prog.targets[5]  # Ry = 90°: only Rz - Rx is defined; a turn about the base z keeps Rx and Ry as written
     R = Rotation.from_euler("z", 0.5, degrees=True) * Rotation.from_rotvec(t.values[3:])
     text = prog.with_values({5: np.concatenate([t.values[:3], R.as_rotvec()])})

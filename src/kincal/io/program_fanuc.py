@@ -47,8 +47,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import MeasurementError
-from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix, zyx_nearest
-from .programs import Dialect, Program, Target, line_column, old_numbers, write_fields
+from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix
+from .programs import Dialect, Program, Target, controller_angles, line_column, old_numbers, write_fields
 
 SECTION = re.compile(r"^[ \t]*/(PROG|ATTR|APPL|MN|POS|END)\b", re.M | re.I)
 NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
@@ -359,13 +359,13 @@ def _use(text: str, code: str, letter: str, at: int, ref: tuple[int, int], seg_e
 
 def _fields(text: str, targets: Sequence[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The fields of targets of one kind for new SI values (G, V): X, Y, Z in mm and W, P, R in deg (the
-    triple nearest the old numbers), or J1…Jn in deg (mm for an axis written in mm)."""
+    triple nearest the old numbers, each in FANUC's [-180, 180]), or J1…Jn in deg (mm for an axis written in mm)."""
     if targets[0].kind == "joints":
         scale = np.array([[1e3 if re.match(r"[ \t]*mm\b", text[b:b + 8]) else 180 / np.pi for _, b in t.fields]
                           for t in targets])
         return values * scale, np.where(scale == 1e3, LENGTH_RES, ANGLE_RES)
-    old = np.radians(old_numbers(text, targets, slice(5, 2, -1)))  # R, P, W: about z, y, x
-    angles = np.degrees(zyx_nearest(rotvec_matrix(values[:, 3:6]), old))[:, ::-1]
+    old = old_numbers(text, targets, slice(5, 2, -1))  # R, P, W: about z, y, x
+    angles = controller_angles(rotvec_matrix(values[:, 3:6]), old)[:, ::-1]
     return np.concatenate([values[:, :3] * 1e3, angles], axis=1), np.array([LENGTH_RES] * 3 + [ANGLE_RES] * 3)
 
 

@@ -58,9 +58,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import MeasurementError
-from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix, zyx_nearest
+from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix
 from .branches import RCONF_DIGITS
-from .programs import Dialect, Program, Target, line_column, old_numbers, write_fields
+from .programs import Dialect, Program, Target, controller_angles, line_column, old_numbers, write_fields
 
 NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 SECTION = re.compile(r"[ \t\ufeff]*//(?!/)[ \t]*([A-Za-z]*)")
@@ -357,11 +357,12 @@ def parse(source: str, text: str) -> Program:
 
 def _fields(text: str, targets: Sequence[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The positions' numbers for new SI values (G, 6): X, Y, Z (mm; 1e-7 mm) and Rx, Ry, Rz (deg; 1e-8°), the
-    equivalent angle triple nearest the old one; a number that moved only by rounding noise stays the old one."""
+    equivalent angle triple nearest the old one, each in [-180, 180]; a number that moved only by rounding noise
+    stays the old one."""
     if targets[0].kind == "pulses":  # whole counts
         return np.round(values), np.full(values.shape[1], 0.5)
     old = old_numbers(text, targets)
-    angles = np.degrees(zyx_nearest(rotvec_matrix(values[:, 3:6]), np.radians(old[:, 5:2:-1])))[:, ::-1]
+    angles = controller_angles(rotvec_matrix(values[:, 3:6]), old[:, 5:2:-1])[:, ::-1]
     numbers = np.concatenate([values[:, :3] * 1e3, angles], axis=1)  # Rx, Ry, Rz from (rz, ry, rx)
     return np.where(np.abs(numbers - old) <= RESOLUTION / 2, old, numbers), RESOLUTION
 

@@ -57,8 +57,8 @@ from typing import Sequence
 
 import numpy as np
 
-from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix, zyx_nearest
-from .programs import Dialect, Program, Target, old_numbers, write_fields
+from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix
+from .programs import Dialect, Program, Target, controller_angles, old_numbers, write_fields
 from .krl_scan import (AXIS_KEYS, EXTERNAL, POSE_KEYS, _Aggregate, _aggregate, _blank, _check_brackets, _check_numbers,
                        _fail, _integer)
 
@@ -427,11 +427,11 @@ def parse(source: str, text: str) -> Program:
 
 def _fields(text: str, targets: Sequence[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The fields of targets of one kind for new SI values (G, V): X, Y, Z (mm, to 1e-7), A, B, C (deg, to
-    1e-8; the triple nearest the old numbers) or A1..A6 (deg, to 1e-8)."""
+    1e-8; the triple nearest the old numbers, in KUKA's ranges: A and C in [-180, 180], B in [-90, 90]) or
+    A1..A6 (deg, to 1e-8)."""
     if targets[0].kind != "pose":
         return np.degrees(values), np.full(values.shape[1], 1e-8)
-    old = np.radians(old_numbers(text, targets, slice(3, 6)))
-    angles = np.degrees(zyx_nearest(rotvec_matrix(values[:, 3:6]), old))
+    angles = controller_angles(rotvec_matrix(values[:, 3:6]), old_numbers(text, targets, slice(3, 6)), middle=90.0)
     return np.concatenate([values[:, :3] * 1e3, angles], axis=1), np.array([1e-7] * 3 + [1e-8] * 3)
 
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import unicodedata
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
@@ -27,6 +28,7 @@ from .._atomic import write_text_atomic
 from .._collector import paused_collector
 from .._numstyle import restyle_all
 from ..errors import MeasurementError
+from ..models.transforms import zyx_nearest
 
 
 @dataclass(frozen=True)
@@ -180,7 +182,8 @@ class Program:
 
     def with_targets(self, texts: dict[int, str], marks: dict[int, str] | None = None) -> str:
         """The text with target k's span replaced by ``texts[k]`` (the others as they are), and a
-        comment ``marks[k]`` at the end of the line of each target k that is left as it is."""
+        comment ``marks[k]`` at the end of the line of each target k that is left as it is (in ASCII:
+        :func:`ascii_text`)."""
         edits = sorted([(t.start, t.end, texts[k]) for k, t in enumerate(self.targets) if k in texts]
                        + _marks(self, marks or {}))
         out, at = [], 0
@@ -253,8 +256,8 @@ def write_fields(text: str, targets: Sequence[Target], values: Sequence[np.ndarr
     groups of one kind and one number of values, ``numbers(text, group, values (G, V))`` gives each group's
     field numbers (G, F) in the fields' units and their resolution (G, F) or (F,), and each number is written
     in its old style with at least the decimals that carry it to its resolution
-    (:func:`kincal._numstyle.restyle_all`); every other byte of a span as it is. All at once per group (a
-    10^4-target program is converted in one step, not target by target)."""
+    (:func:`kincal._numstyle.restyle_all`), in ASCII (:func:`ascii_text`); every other byte of a span as it is.
+    All at once per group (a 10^4-target program is converted in one step, not target by target)."""
     out = [""] * len(targets)
     groups: dict[tuple[str, int], list[int]] = {}
     for k, (t, v) in enumerate(zip(targets, values)):
@@ -265,7 +268,7 @@ def write_fields(text: str, targets: Sequence[Target], values: Sequence[np.ndarr
         olds = [text[a:b] for t in group for a, b in t.fields]
         new = iter(restyle_all(olds, found.ravel(), np.broadcast_to(resolution, found.shape).ravel()))
         for k, t in zip(ks, group):
-            out[k] = _spliced(text, t, [next(new) for _ in t.fields])
+            out[k] = _spliced(text, t, [ascii_text(next(new)) for _ in t.fields])
     return out
 
 
@@ -273,6 +276,60 @@ def old_numbers(text: str, targets: Sequence[Target], fields: slice = slice(None
     """The numbers (G, F) the targets' ``fields`` hold in ``text`` now (each target the same count)."""
     return np.array([[float(text[a:b]) for a, b in t.fields[fields]] for t in targets], dtype=float).reshape(
         len(targets), -1)
+
+
+def controller_angles(R: np.ndarray, old: np.ndarray, middle: float = 180.0) -> np.ndarray:
+    """The Euler angles a writer puts where a program wrote ``old``: fixed axes x, y, z (R = Rz·Ry·Rx), in the
+    controller's range.
+
+    Of R's equivalent triples, the one nearest the old numbers (:func:`kincal.models.transforms.zyx_nearest`);
+    then each angle in [-180°, 180°] and the middle one (about y) in [-``middle``, ``middle``], the same rotation:
+    an angle past 180° becomes one past -180°, and a middle angle ry past ±``middle`` (90°: KUKA's B) becomes
+    ±180° - ry with the other two turned by 180°. A row whose rotation is the old one keeps the old numbers as
+    written, in or out of range (a program written again unchanged is the same text).
+
+    Parameters
+    ----------
+    R : ndarray, shape (G, 3, 3)
+        The new rotations.
+    old : ndarray, shape (G, 3)
+        The numbers the program wrote, deg: (rz, ry, rx).
+    middle : float, optional
+        The largest middle angle the controller takes, deg (default 180: no limit beyond the others').
+
+    Returns
+    -------
+    ndarray, shape (G, 3)
+        (rz, ry, rx) in deg with Rz(rz)·Ry(ry)·Rx(rx) = R.
+
+    Examples
+    --------
+    A rotation 0.1° past the old 179.95° about x is written 0.05° past -180°, not as 180.05°:
+
+    >>> import numpy as np
+    >>> from scipy.spatial.transform import Rotation
+    >>> from kincal.io.programs import controller_angles
+    >>> R = Rotation.from_euler("ZYX", [10.0, 20.0, 180.05], degrees=True).as_matrix()[None]
+    >>> np.round(controller_angles(R, np.array([[10.0, 20.0, 179.95]])), 9).tolist()
+    [[10.0, 20.0, -179.95]]
+
+    With B in [-90°, 90°] (KUKA), a middle angle of 95° is written as the same rotation with 85°:
+
+    >>> R = Rotation.from_euler("ZYX", [10.0, 95.0, 20.0], degrees=True).as_matrix()[None]
+    >>> np.round(controller_angles(R, np.array([[10.0, 94.9, 20.0]]), middle=90.0), 9).tolist()
+    [[-170.0, 85.0, -160.0]]
+    """
+    rad = np.radians(old)
+    near = zyx_nearest(R, rad)
+    angles = _wrapped(np.degrees(near))
+    flip = np.abs(angles[:, 1]) > middle
+    angles[flip] = _wrapped(angles[flip] * [1.0, -1.0, 1.0] + [180.0, 180.0, 180.0])
+    return np.where((near == rad).all(axis=1)[:, None], old, angles)
+
+
+def _wrapped(degrees: np.ndarray) -> np.ndarray:
+    """Each angle (deg) outside [-180, 180] turned by whole turns into it (one in it as it is)."""
+    return np.where(np.abs(degrees) > 180.0, degrees - 360.0 * np.round(degrees / 360.0), degrees)
 
 
 def _spliced(text: str, target: Target, numbers: list[str]) -> str:
@@ -308,6 +365,57 @@ def dialects() -> dict[str, Dialect]:
                                 program_inform.DIALECT)}
 
 
+ASCII_FOR = {"°": " deg", "…": "...", "—": "-", "–": "-", "−": "-", "×": "x", "·": "*", "±": "+/-", "∓": "-/+",
+             "≤": "<=", "≥": ">=", "≠": "!=", "≈": "~", "→": "->", "←": "<-", "‖": "|", "√": "sqrt", "∂": "d",
+             "µ": "u", "‘": "'", "’": "'", "′": "'", "“": '"', "”": '"', "″": '"', "½": "1/2", "§": "S"}
+# what kincal writes into a program in place of a character outside ASCII (Greek letters by name: σ -> sigma)
+
+
+def ascii_text(text: str) -> str:
+    """Text kincal inserts into a program (a number, a comment beside a target), in ASCII only.
+
+    Controllers read their programs as ASCII or a code page (KRL ``.src``/``.dat``, RAPID ``.mod``, FANUC
+    ``.ls``, INFORM ``.JBI``) and may refuse a file with other bytes, and a Latin-1 file cannot hold σ at
+    all; the file keeps its own encoding and every byte kincal does not insert. Each character outside ASCII
+    is written as :data:`ASCII_FOR` says ("°" -> " deg", "…" -> "...", "—" -> "-", "×" -> "x"), a Greek
+    letter by its name ("σ" -> "sigma"), a letter with an accent without it ("é" -> "e"), anything else as
+    "?"; a line break or other control character becomes a blank (a comment stays on its line).
+
+    Parameters
+    ----------
+    text : str
+        The text to insert.
+
+    Returns
+    -------
+    str
+        The text in ASCII, the same where it was.
+
+    Examples
+    --------
+    >>> from kincal.io.programs import ascii_text
+    >>> ascii_text("a3 moves from +0.091° to -0.876° (limits -170…170°), 2σ — 3×")
+    'a3 moves from +0.091 deg to -0.876 deg (limits -170...170 deg), 2sigma - 3x'
+    """
+    if text.isascii() and text.isprintable():
+        return text
+    return "".join(_ascii_char(c) for c in text)
+
+
+def _ascii_char(c: str) -> str:
+    """One character of :func:`ascii_text`."""
+    if c.isascii():
+        return c if c.isprintable() else " "
+    if c in ASCII_FOR:
+        return ASCII_FOR[c]
+    name = unicodedata.name(c, "")
+    if name.startswith("GREEK ") and " LETTER " in name and len(name.split()) == 4:
+        letter = name.split()[-1].lower()
+        return letter.capitalize() if "CAPITAL" in name else letter
+    plain = "".join(p for p in unicodedata.normalize("NFKD", c) if p.isascii() and p.isprintable())
+    return plain or ("" if unicodedata.category(c) == "Mn" else " " if c.isspace() else "?")
+
+
 def _marks(program: Program, marks: dict[int, str]) -> list[tuple[int, int, str]]:
     """Insertions (at the end of each marked target's line, before its line ending) of one comment
     per line with the reasons of every marked target on it."""
@@ -319,7 +427,8 @@ def _marks(program: Program, marks: dict[int, str]) -> list[tuple[int, int, str]
         end = program.text.find("\n", t.end)
         end = len(program.text) if end < 0 else end - (program.text[end - 1:end] == "\r")
         by_end.setdefault(end, []).append(why)
-    return [(e, e, f"  {program.comment} kincal: not compensated: {'; '.join(w)}") for e, w in by_end.items()]
+    return [(e, e, ascii_text(f"  {program.comment} kincal: not compensated: {'; '.join(w)}"))
+            for e, w in by_end.items()]
 
 
 def dialect_of(path: str) -> str:
@@ -441,8 +550,8 @@ def write_program(path: str, program: Program, texts: dict[int, str], marks: dic
     texts : dict of int to str
         The new text of target k's span, by k (the index in ``program.targets``); the others stay as they are.
     marks : dict of int to str, optional
-        A reason for target k, written as a comment (``kincal: not compensated: …``) at the end of its line
-        (default None: none; a language without comments beside a target gets none).
+        A reason for target k, written as a comment (``kincal: not compensated: …``, in ASCII: :func:`ascii_text`)
+        at the end of its line (default None: none; a language without comments beside a target gets none).
 
     See Also
     --------
