@@ -761,6 +761,8 @@ OBSERVE = [
     case("compensate-tcp-in-the-wrong-unit", ["compensate", "ur5", "{d}/t.csv", "--tcp", "0,0,0.109mm", "-o",
                                               "{d}/c.csv"], 1, ["--tcp is 0.109 mm from the flange"],
          files={"t.csv": "x,y,z\n0.4,0.1,0.3\n"}),
+    case("frames-data-of-another-controller", ["export", "{d}/cal.yaml", "{d}/f.src", "--format", "frames-krl"], 1,
+         ["robot 'ur5' runs ur programs", "give --format frames-urscript"], files={"cal.yaml": lambda b: _calibrated(b)}),
     case("an-on-off-flag-given-both-ways", ["design", "ur5", "-m", "10", "--coverage", "--no-coverage", "-o",
                                             "{d}/p.csv"], 1, ["--coverage and --no-coverage are both given"]),
     case("a-search-setting-of-another-method", ["design", "ur5", "-m", "10", "--method", "fedorov", "--generations",

@@ -87,11 +87,33 @@ def test_designs_keep_the_whole_arm_above_the_floor_and_out_of_the_box(tmp_path,
     assert len(q) == 60 and np.all(seg[:, :, 2] >= 0.05 - 1e-9)  # 50 mm of link radius above the floor
     inside = np.all((seg > np.array([0.3, -0.3, 0.0]) - 0.05) & (seg < np.array([0.7, 0.3, 0.4]) + 0.05), axis=2)
     assert not inside.any()
+    assert _base_gap(pts).min() >= 0.1 - 1e-9  # nor into its own base
     assert np.abs(q[:, 2]).max() <= np.pi and np.abs(q).max() <= 2 * np.pi  # UR's limits: elbow ±180°, others ±360°
     bare = Cell(half_spaces=(((0.0, 0.0, 1.0), 0.0),), link_radius=0.0)
     pool = kincal.candidate_pool(robot, 1500, seed=0)
     tip_only = bare.violations(robot, pool)
     assert (tip_only["arm through half-space 1"] & ~tip_only["half-space 1"]).sum() > 50  # the elbow, not the tip
+
+
+def _base_gap(pts):
+    """(N,) m: how near the wrist (from the fourth joint's origin on) and the probe come to the base column, the
+    segment from the base to the shoulder's axis point d1 above it (_dh_origins's points)."""
+    column, wrist = pts[:, 1], pts[:, 3:]
+    t = np.clip(wrist[..., 2] / column[:, None, 2], 0.0, 1.0)
+    return np.linalg.norm(wrist - t[..., None] * column[:, None], axis=2).min(axis=1)
+
+
+def test_a_pose_folded_into_the_robots_own_base_is_out_of_the_cell():
+    """The audit's UR5 design had the tool 61 mm from the base's axis at 79 mm height, inside the base: with a floor
+    (the arm checked) the wrist and the probe keep two link radii (100 mm) from the base column, the poses that do
+    not are exactly those an independent forward kinematics finds nearer."""
+    q = kincal.candidate_pool(UR10, 3000, seed=6)
+    got = Cell(half_spaces=(((0.0, 0.0, 1.0), -10.0),)).violations(UR10.with_tool_point([0, 0, 0.1]), q)
+    gap = _base_gap(_dh_origins(q, [0.1273, 0, 0, 0.163941, 0.1157, 0.0922], [0, -0.612, -0.5723, 0, 0, 0],
+                                [np.pi / 2, 0, 0, np.pi / 2, -np.pi / 2, 0], [0.0, 0.0, 0.1]))
+    clear = np.abs(gap - 0.1) > 1e-9
+    assert got["arm into its own base"].sum() > 50
+    assert np.array_equal(got["arm into its own base"][clear], (gap < 0.1)[clear])
 
 
 @pytest.mark.slow

@@ -159,6 +159,14 @@ def _export_frames(args) -> int:
         raise ValueError(f"{', '.join(flags)}: not for frames data, which hold only a base and a tool")
     kincal.io.check_frames_output(args.output, args.format, tuple(args.tool_load) if args.tool_load else None)
     cal = load_robot(args, [], [args.output])
+    language = args.format.removeprefix("frames-").replace("urscript", "ur")
+    if cal.program_language() and cal.program_language() != language:
+        own = f"frames-{cal.program_language()}".replace("frames-ur", "frames-urscript")
+        raise ValueError(f"--format {args.format}: robot '{cal.name}' runs {cal.program_language()} programs (its "
+                         f"robot file says language: {cal.program_language()}), and {language} data are for another "
+                         f"controller: " + (f"give --format {own}" if own in kincal.io.FRAMES_FORMATS else
+                                            f"kincal writes no {cal.program_language()} frames data; enter the base "
+                                            f"and tool another format prints on the pendant"))
     values = (kincal.models.load_calibration_record(args.robot) or {}).get("nominal")
     if not isinstance(values, dict):
         raise ValueError(f"{args.robot}: frames data need the nominal model the controller moves with; export them "

@@ -113,8 +113,9 @@ class Cell:
         return not (self.half_spaces or self.keep_out or self.tracker is not None or self.joint_margin)
 
     def violations(self, robot: Robot, q: np.ndarray) -> dict[str, np.ndarray]:
-        """(N,) bool per constraint broken by the poses q (N, n): 'joint margin', 'half-space k',
-        'keep-out k', 'tracker range', 'line of sight'."""
+        """(N,) bool per constraint broken by the poses q (N, n): 'joint margin', 'half-space k', 'keep-out k' (and
+        their arm's), 'arm into its own base' (with a half-space or a box and a link radius), 'tracker range', 'line
+        of sight'."""
         q = robot.check_q(q)
         m = np.where(robot.revolute, self.joint_margin, 0.0)
         out = {"joint margin": ~np.all((q >= robot.lower + m) & (q <= robot.upper - m), axis=1)}
@@ -124,6 +125,9 @@ class Cell:
             out[f"half-space {k + 1}"] = p @ unit < c
             if arm is not None:  # a straight segment is lowest at one of its ends
                 out[f"arm through half-space {k + 1}"] = np.any(np.minimum(arm[0] @ unit, arm[1] @ unit) < c + r, axis=1)
+        pts = robot.link_points(q) if arm is not None and r > 0 else None
+        if pts is not None:
+            out["arm into its own base"] = _into_base(pts, p, r)
         for k, (lo, hi) in enumerate(self.keep_out):
             out[f"keep-out {k + 1}"] = np.all((p > lo) & (p < hi), axis=1)
             if arm is not None:
@@ -245,6 +249,19 @@ def candidate_pool(robot: Robot, n: int, seed: int | None = 0) -> np.ndarray:
     True
     """
     return robot.sample_joints(whole("n", n, 1), seed)
+
+
+def _into_base(pts: np.ndarray, tool: np.ndarray, r: float) -> np.ndarray:
+    """(N,) bool: the wrist's link points (from the fourth joint's on) or the target (N, 3) come within two link
+    radii ``r`` (m) of the robot's base column, the segment from its base to the second joint's frame (link points
+    ``pts`` (N, P, 3)): the arm folded into its own base (a UR5's tool 61 mm from its axis at 79 mm height)."""
+    a, b = pts[:, 0], pts[:, 2]
+    x = np.concatenate([pts[:, 4:], tool[:, None]], axis=1)  # (N, K, 3)
+    d = b - a
+    t = np.clip(np.einsum("nkj,nj->nk", x - a[:, None], d) / np.maximum(np.einsum("nj,nj->n", d, d), 1e-300)[:, None],
+                0.0, 1.0)
+    near = a[:, None] + t[..., None] * d[:, None]
+    return np.any(np.linalg.norm(x - near, axis=2) < 2 * r, axis=1)
 
 
 def _crosses(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
