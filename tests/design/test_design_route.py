@@ -10,7 +10,7 @@ import pytest
 
 import kincal
 from kincal.cli import main
-from kincal.design import Cell, plan_route, travel_order
+from kincal.design import Cell, plan_route, travel_order, turned
 
 from test_design_cell import _dh_origins
 
@@ -135,7 +135,7 @@ def test_a_move_no_via_keeps_inside_is_refused_naming_it():
             break
     else:
         pytest.fail("no pair of the pool refused")
-    first, second = np.array([a, b])[travel_order(robot, np.array([a, b]))]
+    first, second = turned(robot, np.array([a, b])[travel_order(robot, np.array([a, b]))], floor)  # as routed
     assert "the move from pose 1 to pose 2" in said and "arm through --floor" in said
     low = float(re.search(r"z = (-?\d+) mm", said).group(1))
     n = int(np.ceil(np.degrees(np.abs(second - first).max()))) + 1

@@ -396,6 +396,27 @@ def test_jugglebot_session_to_session_through_the_command_line(tmp_path, capsys)
     assert "leg1 at 0.7..3.7 rev (calibrated on 1.2..3.3 rev)" in text  # S1 spreads the legs wider than S2
 
 
+def test_jugglebot_poses_in_the_measurement_frame_are_the_measured_bodys(tmp_path, capsys):
+    """The motion capture gives the poses of its rigid body, turned 6.9 mrad on the platform (the calibration's
+    target_rotation): commands for S1's own first 20 poses in the measurement frame took them for the platform's
+    and missed the legs that produced them by 1.06 mm RMS; turned by the body's rotation they miss by the fit's own
+    residual (0.43 mm RMS through the legs' mean lead), and the output says how the rotations were taken."""
+    s1 = JUGGLEBOT / "S1.csv"
+    cal, targets, legs = tmp_path / "s1.yaml", tmp_path / "t.csv", tmp_path / "legs.csv"
+    code, _, _ = _kincal(capsys, ["calibrate", "hexapod", str(s1), *JUGGLE, "-o", str(cal)])
+    assert code in (0, 4)
+    targets.write_text("\n".join(s1.read_text().splitlines()[:21]) + "\n")
+    code, _, text = _kincal(capsys, ["compensate", str(cal), str(targets), "--pose", *JUGGLE[2:], "--target-frame",
+                                     "measurement", "-o", str(legs)])
+    assert code == 0 and "target rotations: the measured body's, as the instrument gives them" in text
+    names = [f"leg{i}" for i in range(1, 7)]
+    read = np.array([[float(r[n]) for n in names] for r in csv.DictReader(open(targets))])
+    made = np.array([[float(r[n]) for n in names] for r in csv.DictReader(open(legs))])
+    lead = np.mean([leg["lead"] for leg in yaml.safe_load(
+        (ROOT / "src/kincal/models/robots/hexapod.yaml").read_text())["legs"]])  # mm per rev
+    assert np.sqrt(np.mean(((made - read) * lead) ** 2)) < 0.5
+
+
 @pytest.mark.slow
 def test_jugglebot_legs_give_under_the_platforms_weight(tmp_path, capsys):
     """The error model 'compliance' (one parameter: the legs' give per platform weight) on the real hexapod: better

@@ -105,7 +105,8 @@ def cmd_compensate(args) -> int:
     in_robot = uncertainty if uncertainty is None or args.target_frame == "measurement" else \
         uncertainty.without(cal.base_params(), cal)  # commands in a robot frame do not depend on the tracker's
     _frame_doubt(args, uncertainty, in_robot)
-    job = StreamJob(r, nominal, fmt, in_robot, args.output_kind, args.path, turned)
+    body, body_note = _body(args, record)
+    job = StreamJob(r, nominal, fmt, in_robot, args.output_kind, args.path, turned, body)
     with progress_bar(args, "compensating") as bar:
         res = compensate_file(job, args.targets, args.output, skip_unreachable=args.skip_unreachable,
                               workers=args.workers, progress=bar)
@@ -116,7 +117,8 @@ def cmd_compensate(args) -> int:
     payload["base_note"] = unseen or None
     alone = "" if values else (f"note: {args.robot} has no calibration record: the commands are this model's own "
                                f"inverse kinematics, orientation included (no nominal model to correct, no σ)")
-    text = _compensation_text(args, res, r) + (f"\nTCP: {carry}" if carry else "") + \
+    text = _compensation_text(args, res, r) + (f"\n{body_note}" if body_note else "") + \
+        (f"\nTCP: {carry}" if carry else "") + \
         (f"\n{turn.note()}" if turn is not None else "") + (f"\n{unseen}" if unseen else "") + \
         (f"\n{alone}" if alone else "")
     return emit(args, payload, text, 0 if res.written else EXIT_REFUSED)
@@ -379,6 +381,24 @@ def _compensate_program(args, r, nominal, carry: str, models, orientation, unsee
                        **_orientation_from(turned, turn), "base_note": unseen or None},
                 "\n".join(lines + ([f"TCP: {carry}"] if carry else []) + ([turn.note()] if turn is not None else [])
                           + ([unseen] if unseen else [])), 0 if written else EXIT_REFUSED)
+
+
+def _body(args, record: dict) -> tuple[np.ndarray | None, str]:
+    """For pose targets in the measurement frame (the instrument's poses of the measured body): the body's rotation
+    on the flange the calibration found (its record's setup), and a line saying how the targets are turned; else
+    (None, '')."""
+    if not (args.pose and args.target_frame == "measurement") or not record:
+        return None, ""
+    found = record.get("setup")
+    setup: dict = found if isinstance(found, dict) else {}
+    if "target_rotation" not in setup:
+        return None, ("target rotations: taken as the flange's (the calibration recorded no rotation of a measured "
+                      "body on the flange" + (": it was fitted in joint space)" if "pose" in (
+                          (record.get("data") or {}).get("kinds") or []) else ")"))
+    R = kincal.identify.trained_setup({"setup": setup}, str(args.robot))[1]["target_rotation"]
+    angle = float(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0)))
+    return R, (f"target rotations: the measured body's, as the instrument gives them; turned to the flange's by the "
+               f"body's rotation on it that the calibration found ({angle * 1e3:.3f} mrad)")
 
 
 def _kept_count(n: int) -> str:

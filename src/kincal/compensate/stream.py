@@ -116,11 +116,16 @@ class StreamJob:
     orientation : Robot or None, optional
         For pose targets, the model whose flange is turned to the target rotations (default: ``robot``); the
         nominal model when the calibration measured no orientation (:func:`compensate_poses`).
+    body : ndarray, shape (3, 3), optional
+        For pose targets that are poses of the measured body (a 6-D probe's, in the measurement frame): its
+        rotation on the flange (the calibration's ``target_rotation``); the flange's target rotation is then
+        R · bodyᵀ (default None: the target rotations are the flange's).
 
     Raises
     ------
     ValueError
-        When ``kind`` is neither, or "cartesian" without pose targets and a nominal model.
+        When ``kind`` is neither, or "cartesian" without pose targets and a nominal model, or ``body`` is not a
+        rotation or is given for position targets.
 
     Examples
     --------
@@ -145,8 +150,12 @@ class StreamJob:
     kind: str = "joints"
     path: bool = False
     orientation: Robot | None = None
+    body: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        if self.body is not None and (not self.targets.pose or np.shape(self.body) != (3, 3) or not np.allclose(
+                np.asarray(self.body) @ np.asarray(self.body).T, np.eye(3), atol=1e-9)):
+            raise ValueError("body: a rotation (3, 3) of the measured body on the flange, for pose targets")
         if self.kind not in ("joints", "cartesian"):
             raise ValueError(f"output kind '{self.kind}': use joints or cartesian")
         if self.kind == "cartesian" and not (self.targets.pose and self.nominal is not None):
@@ -485,6 +494,8 @@ def _read(job: StreamJob, stream: Stream, block: Block, previous: Block | None):
     q0 = v[:, :n] * np.array(joint_factors(robot.joint_types, t.length_unit, t.angle_unit)) if n else None
     xyz = v[:, n:n + 3] * unit_factor(t.length_unit, "length")
     R = to_matrices(v[:, n + 3:], t.orientation, stream.path, rows) if t.pose else None
+    if R is not None and job.body is not None:  # the measured body's rotations: the flange's are R · bodyᵀ
+        R = R @ np.asarray(job.body).T
     return rows, q0, xyz, R, (v[:, n + 3:] if t.pose else None)
 
 

@@ -75,7 +75,7 @@ class Cell:
     >>> q.shape, bool(cell.allows(robot, q).all()), bool((robot.forward(q)[:, 2] >= 0.0).all())
     ((50, 6), True, True)
     >>> sorted(cell.violations(robot, q))
-    ['arm through half-space 1', 'half-space 1', 'joint margin']
+    ['arm into its own base', 'arm through half-space 1', 'half-space 1', 'joint margin']
     >>> Cell(tracker_range=(2.0, 1.0))
     Traceback (most recent call last):
         ...

@@ -66,9 +66,9 @@ class Route:
     >>> q = cell.pool(robot, 12, seed=3)
     >>> route = plan_route(robot, q, cell, vias=cell.pool(robot, 500, seed=4))
     >>> route.order.tolist(), route.checked, route.n_vias
-    ([11, 8, 2, 5, 10, 1, 3, 4, 9, 7, 6, 0], True, 0)
+    ([10, 11, 8, 4, 3, 1, 9, 5, 2, 6, 7, 0], True, 0)
     >>> np.rad2deg([route.travel, route.travel_given]).round(0)  # deg: the largest joint moves, summed
-    array([1586., 4574.])
+    array([1514., 4816.])
     """
 
     order: np.ndarray
