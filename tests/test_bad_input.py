@@ -429,6 +429,15 @@ URDF_FLAGS = ["--tip-link", "tool0", "--joint-cols", "j1,j2,j3,j4,j5,j6"]
 _CALIBRATED: dict = {}
 
 
+def _calibrated_delta(base) -> str:
+    """A calibrated delta robot file (YAML text), from simulated data of a perturbed delta."""
+    delta = kincal.load_robot("delta")
+    res = kincal.calibrate(delta, kincal.simulate(kincal.perturb(delta, seed=1), delta.sample_joints(40, seed=1), 0.0))
+    out = base / "delta_cal.yaml"
+    kincal.save_robot(res.robot, out, calibration=res.record())
+    return out.read_text()
+
+
 def _calibrated(base, **record):
     """A calibrated UR5 file (YAML text) from good.csv, its calibration record changed by ``record``
     (a key set to None is removed)."""
@@ -763,6 +772,9 @@ OBSERVE = [
          files={"t.csv": "x,y,z\n0.4,0.1,0.3\n"}),
     case("frames-data-of-another-controller", ["export", "{d}/cal.yaml", "{d}/f.src", "--format", "frames-krl"], 1,
          ["robot 'ur5' runs ur programs", "give --format frames-urscript"], files={"cal.yaml": lambda b: _calibrated(b)}),
+    case("frames-data-of-a-delta", ["export", "{d}/cal.yaml", "{d}/f.src", "--format", "frames-krl"], 1,
+         ["frames data are a serial arm's base and tool; a parallel robot's controller takes its own"],
+         files={"cal.yaml": lambda b: _calibrated_delta(b)}),
     case("an-on-off-flag-given-both-ways", ["design", "ur5", "-m", "10", "--coverage", "--no-coverage", "-o",
                                             "{d}/p.csv"], 1, ["--coverage and --no-coverage are both given"]),
     case("a-search-setting-of-another-method", ["design", "ur5", "-m", "10", "--method", "fedorov", "--generations",

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import re
 
 import numpy as np
@@ -172,7 +173,8 @@ def _export_frames(args) -> int:
         raise ValueError(f"{args.robot}: frames data need the nominal model the controller moves with; export them "
                          f"from a calibration's robot file (kincal calibrate … -o cal.yaml), which records it")
     if not cal.has_tool_point:
-        cal = cal.with_tool_point(np.zeros(3))
+        with contextlib.suppress(kincal.ModelError):  # a parallel robot has none: fit_frames_only says why no frames
+            cal = cal.with_tool_point(np.zeros(3))
     unc = kincal.analysis.load_uncertainty(args.robot)
     region = None if unc is None or unc.lower is None or unc.upper is None else (unc.lower, unc.upper)
     fit = fit_frames_only(cal, cal.with_params(values), region=region)
