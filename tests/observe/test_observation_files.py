@@ -628,3 +628,23 @@ def test_an_euler_file_read_in_the_reversed_convention_is_named(tmp_path, capsys
         assert code == 1 and "the file looks like euler-xyz-intrinsic-deg" in err, err
     code, fit, _ = _run(capsys, ["calibrate", "ur10", path, *out["flags"].split()[2:], "--type", "pose", *units])
     assert code == 0 and fit["verdict"]["status"] == "good"
+
+
+def test_the_authors_one_placement_protocol_from_the_command_line(tmp_path, capsys):
+    """The Panda authors trained on the front_center placement alone: --exclude every other placement's rows, with
+    --distance 0,1,50 for every placement, was refused ('the distance back_left/0-back_left/1 names ... which no
+    sample has'); a placement left out whole takes its distance with it, the fit uses front_center's one distance,
+    and its training figure is the authors' (0.168 mm, dataset README; 0.167 here). A distance naming a label no
+    placement has is still refused."""
+    rows = list(csv.DictReader(open(SOCKETS / "samples.csv")))
+    others = [str(k + 2) for k, r in enumerate(rows) if r["placement"] != "front_center"]
+    base = ["calibrate", str(PANDA_URDF), "--tip-link", "ball_link", str(SOCKETS / "samples.csv"), "--type",
+            "same-point", "--joint-cols", "q1,q2,q3,q4,q5,q6,q7", "--label-col", "socket", "--group-col", "placement",
+            "--length-unit", "mm", "--exclude", ",".join(others), "--json"]
+    assert main([*base, "--distance", "0,1,50"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    (fit,) = out["sets"]
+    assert fit["samples"] == len(rows) - len(others) == 60
+    assert abs(fit["mean_abs"] * 1e3 - 0.167) < 0.002
+    assert main([*base, "--distance", "0,9,50"]) == 1
+    assert "the distance 0–9 names label(s) 9 that column 'socket' does not have" in capsys.readouterr().err

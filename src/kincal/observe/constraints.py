@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -122,6 +123,13 @@ class SamePointObs(Observation):
 
     def points(self) -> list[str]:
         return _labels_in_order(self.labels)
+
+    def subset(self, idx: np.ndarray) -> "SamePointObs":
+        """The samples ``idx``, with the known distances between points that still have samples (a placement left
+        out whole, by --exclude or a cross-validation fold, takes its distances with it)."""
+        out = cast(SamePointObs, super().subset(idx))  # every per-sample array indexed
+        kept = set(out.labels.tolist())
+        return dataclasses.replace(out, distances=tuple(d for d in self.distances if d[0] in kept and d[1] in kept))
 
     def _spread_hint(self) -> str:
         """What to check when one label's samples are not one point: the placements (when none are labelled), then
