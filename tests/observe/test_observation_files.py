@@ -4,6 +4,7 @@ convention named, one-line errors when type and columns disagree, and the real d
 the command line against their published figures."""
 import csv
 import json
+import re
 
 import numpy as np
 import pytest
@@ -384,6 +385,24 @@ def test_pose_positions_in_the_wrong_unit_are_named(capsys):
                                  str(POSITIONER / "measurements.csv"), "--type", "pose",
                                  "--joint-cols", "q1,q2", "--length-unit", "mm"])
     assert code == 1 and "they look like m; use length unit 'm'" in err
+
+
+@pytest.mark.parametrize("tool", ["0,0,0.5", "0,0,0"])
+def test_a_tool_point_declared_wrong_is_named_not_a_unit(capsys, tool):
+    """The positioner's poses with its target declared 0.8 m off: the spread check said 'they look like cm; convert
+    them to mm (x10)' (followed, the fit was GOOD with the base shrunk a hundredfold) or 'use angle unit rev'; with
+    the tool point fitted the poses agree to under a millimetre, so the tool point is named with where the data put
+    it, and declared there the calibration fits (0.37 mm, the positioner's figure) with its point within 15 mm."""
+    base = ["calibrate", str(POSITIONER_MODEL), str(POSITIONER / "measurements.csv"), "--type", "pose",
+            "--joint-cols", "q1,q2"]
+    code, _, err = _run(capsys, [*base, f"--tool={tool}"])
+    found = re.search(r"not a unit, the tool point: declare it \(--tool (-?[\d.]+),(-?[\d.]+),(-?[\d.]+)mm\)", err)
+    assert code == 1 and found and "look like" not in err and "angle unit" not in err, err
+    point = np.array([float(v) for v in found.groups()])
+    code, out, err = _run(capsys, [*base, f"--tool={','.join(found.groups())}mm"])
+    assert code == 0 and out["verdict"]["status"] == "good" and out["sets"][0]["mean"] < 0.4e-3
+    fitted = np.array([out["estimates"].get(f"tool.{c}", 0.0) for c in "xyz"]) * 1e3
+    assert np.linalg.norm(fitted - point) < 15.0
 
 
 @pytest.mark.slow

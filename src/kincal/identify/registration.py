@@ -4,17 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.robot import TOOL_NAMES, Robot
-from ..models.transforms import rotvec_matrix, skew
-
-
-def kabsch(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation R (3,3) and translation t (3,) minimising Σ‖R pᵢ + t − qᵢ‖² for P, Q (N,3), N ≥ 3."""
-    cp, cq = P.mean(axis=0), Q.mean(axis=0)
-    H = (P - cp).T @ (Q - cq)
-    U, _, Vt = np.linalg.svd(H)
-    d = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
-    R = Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
-    return R, cq - R @ cp
+from ..models.transforms import kabsch, rotvec_matrix, skew
 
 
 def register_base(robot: Robot, q: np.ndarray, xyz: np.ndarray) -> Robot:

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
+from ..models.transforms import kabsch, rotvec_matrix
 from ..ties import first_best
 from ..units import ANGLE_UNITS, LENGTH_UNITS, OTHER_LENGTHS, joint_units
 
@@ -88,6 +89,12 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
     ratio = spread(xyz) / max(predicted, 1e-300)
     if predicted > MIN_SPREAD and 1 / SPREAD_RATIO < ratio < SPREAD_RATIO:
         return
+    tool = tool_explains(q, xyz, robot) if assembles and predicted > MIN_SPREAD else None
+    if tool is not None:
+        raise MeasurementError(
+            f"{source}: {what} spread {ratio:.3g}x the robot's at the same joint values with the declared tool point "
+            f"({_mm(robot.tool_point())} mm), but with the tool point fitted they agree to {tool[1] * 1e3:.3g} mm RMS: "
+            f"not a unit, the tool point: declare it (--tool {_mm(tool[0], ',')}mm)")
     other = _other_angle_unit(q, xyz, robot, angle_unit)
     if other is not None:
         how = (f"do not even assemble the robot ({robot.name})" if not assembles else
@@ -109,6 +116,50 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
 
 
 ANGLE_WORDS = {"rad": "radians", "deg": "degrees", "rev": "revolutions"}
+TOOL_ROUNDS = 50  # Gauss-Newton steps at most of the frame and the tool point in tool_explains
+TOOL_FITS = 0.01  # a fitted tool point that brings the RMS miss below this share of the spread explains it
+TOOL_MAX = 2.0  # m: ... and lies this near the flange at most (a tool, not a lever)
+TOOL_SPREAD = 0.01  # m: ... and the robot moves it this far at least (not a point where its axes meet)
+
+
+def _mm(p: np.ndarray, sep: str = ", ") -> str:
+    return sep.join(f"{v * 1e3:.1f}" for v in p)
+
+
+def tool_explains(q: np.ndarray, xyz: np.ndarray, robot: Robot) -> tuple[np.ndarray, float] | None:
+    """The tool point (3,) m, flange frame, and the RMS miss, m, with which the robot fits the positions ``xyz`` (N, 3)
+    at the joints ``q`` (N, n) rigidly (frame and tool point fitted, alternately: Kabsch for the frame, linear least
+    squares for the point), when that miss is below TOOL_FITS of the positions' spread and the point within TOOL_MAX
+    of the flange, moved TOOL_SPREAD at least: then a spread unlike the robot's is a tool point declared wrong, not a
+    unit; else None (also for a robot without a tool point on a flange)."""
+    if not robot.has_tool_point or len(q) < 4:
+        return None
+    try:
+        p_f, R_f, _, _ = robot.with_tool_point(np.zeros(3)).pose_and_jacobian(q)
+    except ModelError:
+        return None
+    t = robot.tool_point()
+    R, b = kabsch(p_f + np.einsum("nij,j->ni", R_f, t), xyz)
+    for _ in range(TOOL_ROUNDS):  # Gauss-Newton on the frame's turn, its origin and the point, from Kabsch's frame
+        world = (p_f + np.einsum("nij,j->ni", R_f, t)) @ R.T
+        r = (world + b - xyz).reshape(-1)
+        J = np.concatenate([-skew_rows(world), np.tile(np.eye(3), (len(q), 1, 1)),
+                            np.einsum("ij,njk->nik", R, R_f)], axis=2).reshape(-1, 9)
+        step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        R, b, t = rotvec_matrix(step[:3]) @ R, b + step[3:6], t + step[6:]
+        if np.abs(step).max() < 1e-12:
+            break
+    moved = p_f + np.einsum("nij,j->ni", R_f, t)
+    miss = float(np.sqrt(np.mean(np.sum((moved @ R.T + b - xyz) ** 2, axis=1))))
+    fits = miss < TOOL_FITS * spread(xyz) and np.linalg.norm(t) < TOOL_MAX and spread(moved) > TOOL_SPREAD
+    return (t, miss) if fits else None  # a point the robot hardly moves (where its axes meet) explains nothing
+
+
+def skew_rows(v: np.ndarray) -> np.ndarray:
+    """(N, 3, 3): the cross-product matrix [vᵢ]× of each row of v (N, 3)."""
+    z = np.zeros(len(v))
+    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], 1), np.stack([v[:, 2], z, -v[:, 0]], 1),
+                     np.stack([-v[:, 1], v[:, 0], z], 1)], 1)
 
 
 def _other_angle_unit(q: np.ndarray, xyz: np.ndarray, robot: Robot, angle_unit: str | None) -> str | None:
@@ -120,8 +171,11 @@ def _other_angle_unit(q: np.ndarray, xyz: np.ndarray, robot: Robot, angle_unit: 
     for unit, factor in ANGLE_UNITS.items():
         if unit == angle_unit:
             continue
+        read = np.where(rev, q * (factor / ANGLE_UNITS[angle_unit]), q)
+        if not robot.within_limits(read).mean() > 0.5:  # most joints beyond their limits: not this unit
+            continue
         with suppress(ModelError):  # joints no configuration of the robot has: not this unit
-            moved = spread(robot.forward(np.where(rev, q * (factor / ANGLE_UNITS[angle_unit]), q)))
+            moved = spread(robot.forward(read))
             if 1 / SPREAD_RATIO < spread(xyz) / max(moved, 1e-300) < SPREAD_RATIO:
                 return unit
     return None

@@ -31,6 +31,16 @@ def zyx_from_matrix(R: np.ndarray) -> tuple[float, float, float]:
     return rz, ry, rx
 
 
+def kabsch(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation R (3,3) and translation t (3,) minimising Σ‖R pᵢ + t − qᵢ‖² for P, Q (N,3), N ≥ 3."""
+    cp, cq = P.mean(axis=0), Q.mean(axis=0)
+    H = (P - cp).T @ (Q - cq)
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
+    R = Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
+    return R, cq - R @ cp
+
+
 def skew(v: np.ndarray) -> np.ndarray:
     """(…, 3) → (…, 3, 3) cross-product matrices."""
     z = np.zeros(v.shape[:-1])
