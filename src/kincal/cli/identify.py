@@ -269,20 +269,22 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
 
 
 AS_GIVEN = "frame as the file gives it: it has no calibration record, its base frame is taken for the measurement frame"
-FRAME_GAIN = 2.0  # --same-frame on a file without a record: a re-fitted frame this many times better says why
+FRAME_GAIN = 2.0  # --same-frame on a file without a record: a registration this many times better says why
 
 
 def _frame_not_given(r, meas, mean: float) -> str:
-    """Why a robot file without a calibration record misses data measured, it is told, in its frame: its base frame
-    (an export or a robot description keeps the robot's own) is not where the instrument stood, when re-fitting
-    the frame alone does FRAME_GAIN times better; '' otherwise."""
-    refit = kincal.evaluate(kincal.identify.refit_frame(r, meas), meas).mean
-    if not mean > FRAME_GAIN * refit:
+    """Why a robot file without a calibration record may miss data measured, it is told, in its frame: its base
+    frame (an export or a robot description keeps the robot's own) and its tool point were taken for where the
+    instrument stood and what it measured, when registering both to the data does FRAME_GAIN times better; the
+    data cannot tell which of the two is off, so both are named; '' otherwise."""
+    registered = kincal.evaluate(kincal.identify.register_mounting(r, meas.q, meas.xyz), meas).mean
+    if not mean > FRAME_GAIN * registered:
         return ""
-    return (f"the file has no calibration record, so its base frame (the robot's own: an export or a description "
-            f"keeps that, not where the instrument stood) was taken for the measurement frame; with the frame "
-            f"re-fitted to these data the mean is {refit * MM:.4f} mm: leave out --same-frame, or evaluate the "
-            f"calibrated file itself (kincal calibrate -o), which keeps the frame it found")
+    return (f"the file has no calibration record, so its base frame and tool point (the robot's own: an export or "
+            f"a description keeps those) were taken for where the instrument stood and what it measured; with both "
+            f"registered to these data the mean is {registered * MM:.4f} mm: if the instrument was not at the "
+            f"robot's base, leave out --same-frame (or evaluate the calibrated file itself, which keeps the frame it "
+            f"found); if the target is not the file's tool point, declare it (--tool)")
 
 
 def _nominal_before(args, r, record: dict | None, meas) -> tuple[float | None, str]:
