@@ -395,6 +395,10 @@ def test_sigma_columns_weight_the_fit_and_set_the_noise_level(tmp_path, capsys):
     text = str(weighted)
     assert "tracker noise for the verdict 0.011 mm: median of the data's measurement σ columns" in text
     assert "the default; give --tracker-noise" in str(plain)
+    stated = kincal.calibrate(robot, kincal.read_measurements(path, robot, length_unit="mm", angle_unit="deg",
+                                                              std_cols=[]), kincal.FitOptions(
+        thresholds=kincal.Thresholds(tracker_noise=15e-6), diagnose=False))
+    assert "tracker noise for the verdict 0.015 mm: as stated (--tracker-noise)" in str(stated)  # not "the default"
     # equal σ everywhere: the same fit as without them
     same = sigma_file(tmp_path, np.full((120, 3), 20e-6), meas, "same.csv")
     equal = kincal.calibrate(robot, kincal.read_measurements(same, robot, length_unit="mm", angle_unit="deg"))

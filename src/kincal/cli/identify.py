@@ -16,7 +16,7 @@ import kincal.models
 from kincal._atomic import json_path_for
 from kincal.history import calibration_record, evaluation_record, fingerprint
 from kincal.identify import held_out_stats, stat_line
-from kincal.units import DEG, MM
+from kincal.units import DEG, LENGTH_UNITS, MM
 
 from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, csv_list, emit, err, hidden_alias, load_robot,
                      nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list, unread_joints)
@@ -164,6 +164,26 @@ def _not_training(data: list[str], tests: list[str]) -> None:
             raise ValueError(f"--test {path} holds the same data as the training file {same}: its figures would be "
                              f"the training error, not a held-out one; hold out a file of poses the fit does not "
                              f"see (another session, or the rows left out of the training file)")
+
+
+NOISE_MIN = 1e-3  # mm: a tracker noise below this (1 µm) given without a unit was written in metres
+
+
+def _noise_mm(text: str) -> float:
+    """argparse type: a tracker noise, mm: a number with a length unit (0.015mm, 15um, 1.5e-5m), or mm without one;
+    a unitless value below NOISE_MIN is refused as metres."""
+    s = text.strip()
+    unit = next((u for u in sorted(LENGTH_UNITS, key=len, reverse=True) if s.endswith(u)), None)
+    try:
+        value = float(s[:-len(unit)] if unit else s) * (LENGTH_UNITS[unit] * MM if unit else 1.0)
+    except ValueError:
+        value = np.nan
+    if not (np.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"'{text}': give a positive noise with its unit, e.g. 0.015mm or 15um")
+    if unit is None and value < NOISE_MIN:
+        raise argparse.ArgumentTypeError(f"'{text}' mm is {value * 1e6:g} nm, below any instrument's noise: metres? "
+                                         f"give the unit ({text}m, or 0.015mm)")
+    return value
 
 
 def _training_twin(record: dict | None, path: str) -> str | None:
@@ -350,8 +370,9 @@ def register(cmd) -> None:
     s.add_argument("--report", help="HTML report to write (self-contained; its JSON goes beside it)")
     s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     th = kincal.Thresholds()  # the defaults are the record's
-    s.add_argument("--tracker-noise", type=positive_float, default=th.tracker_noise * MM,
-                   help=f"expected tracker noise, mm (default {th.tracker_noise * MM:g})")
+    s.add_argument("--tracker-noise", type=_noise_mm, default=th.tracker_noise * MM,
+                   help=f"expected tracker noise per axis, with its unit (0.015mm, 15um; mm without one; default "
+                        f"{th.tracker_noise * MM:g}mm)")
     for kind, unit, lo, hi in (("length", "mm", th.length_suspect * MM, th.length_refuse * MM),
                                ("angle", "deg", th.angle_suspect * DEG, th.angle_refuse * DEG)):
         s.add_argument(f"--{kind}-limits", type=_pair, default=(lo, hi), metavar="SUSPECT,REFUSE",

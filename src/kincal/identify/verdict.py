@@ -440,6 +440,8 @@ def noise_level(std: np.ndarray | None, th: Thresholds) -> tuple[float, str]:
     the data's per-sample σ (N, 3) when given, else the thresholds' tracker_noise."""
     if std is not None:
         return float(np.median(std)), "median of the data's measurement σ columns"
+    if th.tracker_noise != Thresholds().tracker_noise:
+        return th.tracker_noise, "as stated (--tracker-noise)"
     return th.tracker_noise, "the default; give --tracker-noise or measurement_std_x/y/z columns"
 
 
