@@ -296,3 +296,22 @@ def test_a_check_of_a_joint_space_calibration_names_that(tmp_path, capsys):
         assert main(["check", str(cal), str(data)]) == code
         said = capsys.readouterr()
         assert ("fitted in joint space (--residual joint)" in said.err) == bool(residual)
+
+
+def test_a_comparison_with_a_doubtful_calibration_says_so(tmp_path, capsys):
+    """The WAM's two SUSPECT calibrations were compared and a joint zero named at z = 29.6 with no word of their
+    verdicts; compare and check now say on stderr which input was calibrated SUSPECT (a good one is not named)."""
+    from kincal.cli import main
+
+    data = tmp_path / "p.csv"
+    assert main(["simulate", "puu3", "--perturb", "--poses", "40", "-o", str(data)]) == 0
+    for name in ("a", "b"):
+        assert main(["calibrate", "puu3", str(data), "-o", str(tmp_path / f"{name}.yaml"), "--base", "fixed"]) == 0
+    doubtful = tmp_path / "b.yaml"
+    doubtful.write_text(doubtful.read_text().replace("  verdict: good", "  verdict: suspect"))
+    capsys.readouterr()
+    main(["compare", str(tmp_path / "a.yaml"), str(doubtful)])
+    said = capsys.readouterr().err
+    assert f"warning: {doubtful} was calibrated with the verdict SUSPECT" in said and "a.yaml was" not in said
+    main(["check", str(doubtful), str(data)])
+    assert f"warning: {doubtful} was calibrated with the verdict SUSPECT" in capsys.readouterr().err

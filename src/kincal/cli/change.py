@@ -9,7 +9,7 @@ import kincal
 from kincal.identify import ALPHA, Calibrated, ChangeTest, check, compare
 from kincal.identify.change import EXPLAINED_MIN
 
-from .common import EXIT_REFUSED, add_data_flags, check_paths, emit, positive_float
+from .common import EXIT_REFUSED, add_data_flags, check_paths, emit, err, positive_float
 from .history import add_store_flag, store_of, store_record
 
 
@@ -57,7 +57,17 @@ def record(args, test: ChangeTest, path: str, robot, inputs: list[str]) -> str |
         payload={"command": command, "test": test.to_dict()}))
 
 
+def _doubtful(path: str) -> None:
+    """On stderr: a calibration compared or checked against whose verdict was not good (its doubt carries over)."""
+    verdict = (kincal.models.load_calibration_record(path) or {}).get("verdict")
+    if verdict in ("suspect", "refused"):
+        err.print(f"warning: {path} was calibrated with the verdict {str(verdict).upper()} (its report says why): a "
+                  f"change named here may be that calibration's trouble, not the robot's", markup=False)
+
+
 def cmd_compare(args) -> int:
+    for path in (args.first, args.second):
+        _doubtful(path)
     a, b = calibrated(args.first), calibrated(args.second)
     test = compare(a, b, same_frame=args.same_frame, alpha=args.alpha)
     stored = record(args, test, args.second, b.robot, [args.first, args.second])
@@ -65,6 +75,7 @@ def cmd_compare(args) -> int:
 
 
 def cmd_check(args) -> int:
+    _doubtful(args.calibration)
     cal = calibrated(args.calibration)
     check_paths([args.data], [])
     meas = kincal.read_measurements(args.data, cal.robot, joint_cols=args.joint_cols, xyz_cols=args.xyz_cols,
