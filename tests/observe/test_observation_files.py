@@ -520,6 +520,33 @@ def test_design_chooses_samples_of_a_socket_or_plane_plan(tmp_path, capsys, kind
                                      for r in chosen)
 
 
+def test_a_socket_plan_takes_its_spacing_and_prints_flags_that_read_it(tmp_path, capsys):
+    """design --type same-point planned sockets 50 mm apart whatever --distance said (0,1,30mm: silently ignored),
+    and printed --label-col point and a --distance without its unit for a file written with --label-col socket in
+    mm: the plan's sockets are 30 mm apart (recomputed with the nominal model here) and the printed flags read the
+    file back as written; a distance of other labels is refused."""
+    base = ["design", str(PANDA_URDF), "--tip-link", "ball_link", "--type", "same-point", "-m", "20", "--length-unit",
+            "mm", "--label-col", "socket"]
+    code, out, err = _run(capsys, [*base, "--distance", "0,1,30", "-o", str(tmp_path / "plan.csv")])
+    assert code == 0, err
+    assert out["flags"] == ("--type same-point --label-col socket --group-col placement --distance 0,1,30 "
+                            "--length-unit mm")
+    robot = kincal.load_robot(PANDA_URDF, tip_link="ball_link")
+    rows = list(csv.DictReader(open(tmp_path / "plan.csv")))
+    joints = [c for c in rows[0] if c.startswith("panda_joint")]
+    p = robot.forward(np.array([[float(r[c]) for c in joints] for r in rows]))
+    places = sorted({r["placement"] for r in rows})
+    gaps = [np.linalg.norm(p[[r["placement"] == g and r["socket"] == "0" for r in rows]].mean(axis=0)
+                           - p[[r["placement"] == g and r["socket"] == "1" for r in rows]].mean(axis=0))
+            for g in places if {"0", "1"} <= {r["socket"] for r in rows if r["placement"] == g}]
+    assert gaps and np.allclose(gaps, 0.030, atol=1e-6)
+    code, _, _ = _run(capsys, ["calibrate", str(PANDA_URDF), "--tip-link", "ball_link", str(tmp_path / "plan.csv"),
+                               *out["flags"].split()])
+    assert code == 0
+    code, _, err = _run(capsys, [*base, "--distance", "0,2,30", "-o", str(tmp_path / "other.csv")])
+    assert code == 1 and "kincal's own plate plan has sockets 0 and 1" in err
+
+
 SPOIL = {"j2 twice": (lambda h, r: (h + ["joint_2"], [x + [x[1] + 0.5] for x in r]),
                       "the header names column(s) joint_2 more than once (columns 2, 14)"),
          "0_5": (lambda h, r: (h, [[*x[:3], "0_5", *x[4:]] if k == 1 else x for k, x in enumerate(r)]),

@@ -91,7 +91,7 @@ def cmd_simulate(args) -> int:
     if kind != "point":  # observations of the type, written in its columns
         obs = observe.planned(args, r, true, kind, q, args.noise / MM, args.seed + 1)
         write_observations(args.output, obs, r, observe.format_of(args, kind))
-        use = observe.flags_to_use(obs, args.length_unit) + observe.units_to_use(args) + (
+        use = observe.flags_to_use(obs, args.length_unit, observe.format_of(args, kind)) + observe.units_to_use(args) + (
             f" --orientation {args.orientation}" if kind == "pose" and args.orientation != "quat-wxyz" else "")
         return emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
                     f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them "

@@ -207,7 +207,7 @@ def planned(args, robot, true, kind: str, q, std: float, seed: int, per: int | N
         tool = true.tool_point()
         return dataclasses.replace(simulate_markers(true, q, tool + np.array(PLAN_MARKERS), std, 0.0, seed), std=pos)
     if kind == "same-point":
-        points, distances = socket_plan(robot, seed=seed)
+        points, distances = socket_plan(robot, spacing=_spacing(args), seed=seed)
         obs = simulate_same_point(true, points, per or SOCKETS_PER_POINT, distances, std, seed=seed)
         return dataclasses.replace(obs, std=pos, group=np.array([lab.split("/")[0] for lab in obs.labels]))
     planes = plane_plan(robot, seed=seed)
@@ -215,11 +215,30 @@ def planned(args, robot, true, kind: str, q, std: float, seed: int, per: int | N
     return dataclasses.replace(contacts, std=pos)
 
 
-def flags_to_use(obs, length_unit: str) -> str:
-    """The calibrate flags that read a written plan back: labels, distances, planes."""
+SPACING = 0.05  # m: the sockets of kincal's own plate plan, 0 and 1, this far apart unless --distance says
+
+
+def _spacing(args) -> float:
+    """The distance of the planned plate's sockets 0 and 1, m: --distance 0,1,D (the file's length unit), else
+    SPACING; any other --distance is refused (the plan has those two sockets only)."""
+    given = list(args.distance or [])
+    if not given:
+        return SPACING
+    if len(given) != 1 or {given[0][0], given[0][1]} != {"0", "1"}:
+        raise ValueError(f"--distance {' '.join(','.join(map(str, d)) for d in given)}: kincal's own plate plan has "
+                         f"sockets 0 and 1; give one --distance 0,1,D (their spacing) or leave it out ("
+                         f"{SPACING * 1e3:g} mm)")
+    return float(given[0][2]) * LENGTH_UNITS[args.length_unit]
+
+
+def flags_to_use(obs, length_unit: str, fmt=None) -> str:
+    """The calibrate flags that read a written plan back: labels (as ``fmt``, its format, names the columns),
+    distances, planes."""
     f = 1.0 / LENGTH_UNITS[length_unit]
     if obs.kind == "same-point":
-        return f"--type same-point --label-col point --group-col placement --distance 0,1,{obs.distances[0][2] * f:g}"
+        label, group = (fmt.label, fmt.group_col or "placement") if fmt is not None else ("point", "placement")
+        return (f"--type same-point --label-col {label} --group-col {group} --distance 0,1,"
+                f"{obs.distances[0][2] * f:g}")
     if obs.kind == "plane":
         return "--type plane " + " ".join(f"--plane {lab}:{n[0]:g},{n[1]:g},{n[2]:g},{c * f:.6g}"
                                           for lab, (n, c) in obs.known.items())
