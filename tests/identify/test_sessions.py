@@ -210,6 +210,13 @@ def test_evaluate_on_the_training_file_says_so(tmp_path, capsys):
     assert main(["evaluate", str(tmp_path / "cal.yaml"), str(copy), *units]) == 0
     said = capsys.readouterr().out
     assert f"holds the same data as the calibration's training file {train}: these figures are the training" in said
+    # rows left out of the training (--exclude): the file's figures mix them with the training rows, and calibrate
+    # --test with the same file says to hold the left-out rows out in a file of their own
+    assert main(["calibrate", "ur5", str(train), *units, "--exclude", "2,3,4", "-o", str(tmp_path / "part.yaml")]) == 0
+    assert main(["evaluate", str(tmp_path / "part.yaml"), str(copy), *units]) == 0
+    assert "the training rows' and the rows the calibration left out (--exclude) together" in capsys.readouterr().out
+    assert main(["calibrate", "ur5", str(train), *units, "--exclude", "2,3,4", "--test", str(copy)]) == 1
+    assert "write the rows left out (--exclude) to a file of their own" in capsys.readouterr().err
 
 
 # ---- commands in the user's frames -----------------------------------------------------------------

@@ -129,7 +129,7 @@ def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], 
     (each absolute file after the first in its own frame)."""
     if args.exclude and len(data) > 1:
         raise ValueError("--exclude names rows of one file; with several files leave the rows out of their files")
-    _not_training(data, tests)
+    _not_training(data, tests, bool(args.exclude))
     options.check(robot)
     points = set(kinds) == {"point"}
 
@@ -149,7 +149,7 @@ def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], 
         return kincal.identify.calibrate_sessions(robot, sets, options, use_q=use_q), held
 
 
-def _not_training(data: list[str], tests: list[str]) -> None:
+def _not_training(data: list[str], tests: list[str], excluded: bool = False) -> None:
     """Refuse a held-out file that is a training file (the same file, or the same bytes under another name): its
     "held-out" figures would be the training error, presented as what the model does on poses it never saw."""
     def digest(path: str) -> str:
@@ -162,8 +162,10 @@ def _not_training(data: list[str], tests: list[str]) -> None:
         same = known.get(digest(path))
         if same is not None:
             raise ValueError(f"--test {path} holds the same data as the training file {same}: its figures would be "
-                             f"the training error, not a held-out one; hold out a file of poses the fit does not "
-                             f"see (another session, or the rows left out of the training file)")
+                             + ("its left-out rows' mixed with the training rows'; write the rows left out (--exclude) "
+                                "to a file of their own and hold that out" if excluded else
+                                "the training error, not a held-out one; hold out a file of poses the fit does not see "
+                                "(another session, or the rows left out of the training file, in a file of their own)"))
 
 
 NOISE_MIN = 1e-3  # mm: a tracker noise below this (1 µm) given without a unit was written in metres
@@ -253,9 +255,11 @@ def cmd_evaluate(args) -> int:
                         args.plot and (args.plot if len(args.data) == 1 else f"{args.plot}-{k + 1}"))
                   for k, path in enumerate(args.data)]
     twins = [_training_twin(record, path) for path in args.data]
+    left_out = bool(((record or {}).get("data") or {}).get("reading", {}).get("exclude"))
     judged = [({**payload, "training_file": twin}, lines + ([
         f"  note: {path} holds the same data as the calibration's training file {twin}: these figures are the "
-        f"training error, not a held-out one"] if twin else [])) for (payload, lines), path, twin in
+        + ("training rows' and the rows the calibration left out (--exclude) together" if left_out else
+           "training error, not a held-out one")] if twin else [])) for (payload, lines), path, twin in
         zip(judged, args.data, twins)]
     payloads = [payload for payload, _ in judged]
     stored = store_record(args, nominal_model(r, record, args.robot) or r, lambda identity, command: evaluation_record(
