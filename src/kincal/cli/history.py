@@ -20,7 +20,7 @@ def add_store_flag(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--serial", help="the robot's serial number in the calibration store (robots are known by "
                                          "their name and serial)")
     parser.add_argument("--store", metavar="URL",
-                        help="the calibration store: an SQLite file (created when missing) or "
+                        help="the calibration store: an SQLite file (created when missing, in a folder that exists) or "
                              "postgresql://USER@HOST/DATABASE; default: $KINCAL_STORE, else 'store:' in "
                              "~/.config/kincal/config.yaml, else none")
 
