@@ -287,7 +287,8 @@ def _positions_of(res: CalibrationResult, robot: Robot) -> CalibrationResult | N
     if len(sets) != 1 or len(sets[0]) < 10:
         return None
     q, xyz = sets[0].positions()
-    return calibrate(robot, Measurements(q, xyz, robot.joint_names, sets[0].source, sets[0].rows), diagnose=False)
+    return calibrate(robot, Measurements(q, xyz, robot.joint_names, sets[0].source, sets[0].rows), diagnose=False,
+                     base=res.options.base)  # the set-up as the user gave it: --base fixed is one of the causes
 
 
 def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
