@@ -473,3 +473,18 @@ def test_history_bad_inputs_and_events(tmp_path, kincal_main, capsys, monkeypatc
         events = [r for _, r in store.records("cell-3", kind="event")]
     assert [(r.note, r.time) for r in events] == [("gearbox 3 replaced", "2024-02-15T00:00:00.000000Z"),
                                                   ("crash into the fence", "2024-02-20T10:00:00.000000Z")]
+
+
+def test_a_serial_new_to_a_known_robot_is_said(tmp_path, kincal_main, capsys):
+    """--serial 2019302134 for 2019301234 silently started a second robot (history then asked which serial); the
+    record says the store knew that robot under another serial only; the same serial again says nothing."""
+    ur5 = kincal.load_robot("ur5")
+    meas = kincal.simulate(kincal.perturb(ur5, seed=2), ur5.sample_joints(40, seed=1), 10e-6, seed=1)
+    kincal.write_measurements(tmp_path / "m.csv", meas, ur5.joint_types)
+    said = []
+    for serial in ("2019301234", "2019302134", "2019301234"):
+        assert kincal_main(["calibrate", "ur5", str(tmp_path / "m.csv"), "--store", str(tmp_path / "s.db"),
+                            "--serial", serial]) == 0
+        said.append(" ".join(capsys.readouterr().out.split()))
+    assert "a new robot" not in said[0] and "a new robot" not in said[2]
+    assert "a new robot: the store knew 'ur5' as serial(s) 2019301234 only (a typing slip in --serial?)" in said[1]

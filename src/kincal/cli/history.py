@@ -36,9 +36,13 @@ def store_record(args, nominal, build) -> str | None:
 
     identity = Identity(nominal.name, args.serial or "", model_hash(nominal))
     with open_store(url) as store:
+        others = [i.serial for i, *_ in store.robots() if i.name == identity.name]
         number = store.add(build(identity, shlex.join(["kincal", *sys.argv[1:]])))
+    new = f"; a new robot: the store knew '{identity.name}' as serial(s) " + ", ".join(
+        o or "(none)" for o in others) + " only (a typing slip in --serial?)" if others and identity.serial not in \
+        others else ""
     return f"recorded in the calibration store {url} as record {number} (robot '{identity.name}'" + \
-        (f", serial {identity.serial})" if identity.serial else ")")
+        (f", serial {identity.serial})" if identity.serial else ")") + new
 
 
 def store_of(args) -> str | None:
