@@ -298,6 +298,9 @@ class CalibrationResult:
         kept = [n for n in ident.dropped if n not in self.names]
         if kept:
             head += ("; " if moved else "") + f"{', '.join(kept)} not estimated (kept nominal)"
+        if self.weak:  # identifiable, yet held: the count above includes them
+            head += (f"; {', '.join(self.weak)} identifiable but kept nominal too (determined worse than a real "
+                     f"robot's error)")
         return head + ". Each acts like the estimated ones shown:\n" + "\n".join(ident.confound_lines("  "))
 
     def record(self) -> dict:
