@@ -314,7 +314,10 @@ def _checks(robot: Robot, q: np.ndarray, residual: np.ndarray, targets: np.ndarr
                                            f"one (another arm configuration); refused")
     lim = finite & ~robot.within_limits(np.where(finite[:, None], q, 0.0))
     yield lim, lambda k: "the command breaks the joint limits"
-    yield finite & (residual > 1e-6), lambda k: f"the model misses the target by {mm(residual[k])}"
+    few = (f" (a robot of {robot.n_joints} joint{'s' if robot.n_joints > 1 else ''} reaches a "
+           f"{'surface' if robot.n_joints == 2 else 'curve'} of points only: a target off it cannot be reached; give "
+           f"points it reaches, such as the nominal model's at the commands)") if robot.n_joints < 3 else ""
+    yield finite & (residual > 1e-6), lambda k: f"the model misses the target by {mm(residual[k])}{few}"
 
 
 def _reach(robot: Robot, targets: np.ndarray) -> tuple[np.ndarray, float]:
