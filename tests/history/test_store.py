@@ -488,3 +488,22 @@ def test_a_serial_new_to_a_known_robot_is_said(tmp_path, kincal_main, capsys):
         said.append(" ".join(capsys.readouterr().out.split()))
     assert "a new robot" not in said[0] and "a new robot" not in said[2]
     assert "a new robot: the store knew 'ur5' as serial(s) 2019301234 only (a typing slip in --serial?)" in said[1]
+
+
+def test_a_past_session_is_recorded_at_its_time(tmp_path, kincal_main, capsys):
+    """calibrate --store stamped every record with the time it ran, so two past sessions recorded today stood after
+    an event of 2024: --at gives the session's time (UTC or local), refused without a store and when it is no time."""
+    ur5 = kincal.load_robot("ur5")
+    meas = kincal.simulate(kincal.perturb(ur5, seed=2), ur5.sample_joints(40, seed=1), 10e-6, seed=1)
+    kincal.write_measurements(tmp_path / "m.csv", meas, ur5.joint_types)
+    store = str(tmp_path / "s.db")
+    assert kincal_main(["calibrate", "ur5", str(tmp_path / "m.csv"), "--store", store, "--at", "2024-01-10T09:00Z"]) == 0
+    assert kincal_main(["evaluate", "ur5", str(tmp_path / "m.csv"), "--store", store, "--at", "2024-02-10T09:00Z"]) == 0
+    with open_store(store) as s:
+        times = [r.time for _, r in s.records("ur5", "")]
+    assert times == [utc_time("2024-01-10T09:00Z"), utc_time("2024-02-10T09:00Z")]
+    capsys.readouterr()
+    assert kincal_main(["calibrate", "ur5", str(tmp_path / "m.csv"), "--at", "2024-01-10T09:00Z"]) == 1
+    assert "--at dates the record in the calibration store, and none is set" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        kincal_main(["calibrate", "ur5", str(tmp_path / "m.csv"), "--store", store, "--at", "last tuesday"])

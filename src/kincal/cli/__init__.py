@@ -18,6 +18,7 @@ import kincal
 
 from . import change, design, history, identify, model, parallel, report, study
 from .common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED, err, line, point, progress_lines
+from kincal.history import how_to_set, store_url
 
 EXIT_INTERNAL = 70  # a bug in kincal, not in the user's input (KINCAL_DEBUG=1 shows the traceback)
 
@@ -41,6 +42,8 @@ def prepared(parser: argparse.ArgumentParser, args: argparse.Namespace) -> argpa
         raise ValueError("--rebase (each session's frame re-fitted, the default) contradicts --same-frame; give one")
     if "force" in args.given and args.force and not args.output:
         raise ValueError("--force writes the calibrated model despite a refused verdict: give the file with -o")
+    if "at" in args.given and "store" in vars(args) and store_url(args.store) is None:
+        raise ValueError(f"--at dates the record in the calibration store, and none is set: {how_to_set()}")
     return args
 
 

@@ -3,6 +3,7 @@ between calibrations, the plot, events) and the --store flag the recording comma
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import shlex
 import sys
@@ -14,9 +15,14 @@ from kincal.units import MM, display
 from .common import check_paths, csv_list, emit
 
 
-def add_store_flag(parser: argparse.ArgumentParser) -> None:
+def add_store_flag(parser: argparse.ArgumentParser, recording: bool = True) -> None:
     """--store URL: the calibration store to record in (or read) and --serial, the robot's serial number there;
-    declared once for every command that uses them."""
+    declared once for every command that uses them; for a command that records (``recording``) also --at, when
+    the data were taken."""
+    if recording:
+        parser.add_argument("--at", metavar="TIME", type=iso_time, help="when the data were taken, ISO 8601 (e.g. 2024-05-03T14:00, "
+                                                        "local time; ...Z, UTC), for the store's record of a past "
+                                                        "session (default: now)")
     parser.add_argument("--serial", help="the robot's serial number in the calibration store (robots are known by "
                                          "their name and serial)")
     parser.add_argument("--store", metavar="URL",
@@ -25,19 +31,31 @@ def add_store_flag(parser: argparse.ArgumentParser) -> None:
                              "~/.config/kincal/config.yaml, else none")
 
 
+def iso_time(text: str) -> str:
+    """argparse type: a time kincal's store takes (:func:`kincal.history.utc_time`), as given."""
+    try:
+        utc_time(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 def store_record(args, nominal, build) -> str | None:
     """Record in the calibration store, when one is set (flag, KINCAL_STORE or the config file), the record
     ``build(identity, command)`` makes for the robot whose nominal model is ``nominal`` (named by its name and
     --serial); what was done, in words. --serial without a store is refused (it would be ignored)."""
+    at = args.at  # a recording command's: when the data were taken (checked when parsed; a store: kincal.cli)
     url = store_of(args)
     if url is None:
         return None
     from kincal.history import model_hash  # noqa: PLC0415  (hashing loads nothing heavy, the store does)
 
     identity = Identity(nominal.name, args.serial or "", model_hash(nominal))
+    made = build(identity, shlex.join(["kincal", *sys.argv[1:]]))
+    made = dataclasses.replace(made, time=utc_time(at)) if at else made
     with open_store(url) as store:
         others = [i.serial for i, *_ in store.robots() if i.name == identity.name]
-        number = store.add(build(identity, shlex.join(["kincal", *sys.argv[1:]])))
+        number = store.add(made)
     new = f"; a new robot: the store knew '{identity.name}' as serial(s) " + ", ".join(
         o or "(none)" for o in others) + " only (a typing slip in --serial?)" if others and identity.serial not in \
         others else ""
@@ -200,7 +218,7 @@ def register(cmd) -> None:
     s = cmd("history", cmd_history, "a robot's calibrations, evaluations, checks and events from the calibration "
                                     "store: a table, what moved, a plot; record an event", None)
     s.add_argument("robot", help="the robot's name, as given when it was calibrated with --store")
-    add_store_flag(s)
+    add_store_flag(s, recording=False)
     s.add_argument("--plot", metavar="FILE", help="the history plot to write (.png or .svg): each parameter that "
                                                   "moved against the first calibration with its ±σ band, the "
                                                   "position errors, the events")

@@ -191,5 +191,5 @@ def register(cmd) -> None:
     g.add_argument("--xyz-cols", type=csv_list)
     g.add_argument("--length-unit", choices=list(LENGTH_UNITS))
     g.add_argument("--angle-unit", choices=list(ANGLE_UNITS))
-    add_store_flag(s)  # the robot's history beside the report, when a store holds it
+    add_store_flag(s, recording=False)  # the robot's history beside the report, when a store holds it
 
