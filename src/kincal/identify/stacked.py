@@ -26,6 +26,7 @@ from ..analysis.observability import live_columns
 from ..errors import IdentifiabilityError, MeasurementError, ModelError
 from ..models.robot import Robot
 from ..observe.drifting import DRIFT
+from ..observe.observations import PoseObs, Wrapper
 from ..observe.sessions import InSession
 from .covariance import parameter_statistics
 from ..analysis.changes import Repeat
@@ -365,13 +366,20 @@ def _before(robot: Robot, sets, frame: bool) -> Robot:
 def _before_nuisance(model: Robot, obs, nuis: np.ndarray) -> np.ndarray:
     """A set's set-up values for its "before" figures: as the fit started, but a session's own frame registered
     to its positions with the "before" model (it kept the frame the fit started from, with the declared tool
-    point: 2.86 mm on the second half of the UR5 grid, whose nominal registered alone gives 0.65 mm)."""
-    found = obs.inner.positions() if isinstance(obs, InSession) else None
-    if found is None or not model.base_params():
-        return nuis
-    framed = register_base(model, found[0], found[1])
+    point: 2.86 mm on the second half of the UR5 grid, whose nominal registered alone gives 0.65 mm), and a 6-D
+    target's turn registered to its rotations (its start came with the declared frame: the positioner's "before"
+    rotation was 14.9 mrad against the nominal model's 0.85 registered)."""
     out = np.array(nuis, float)
-    out[len(out) - len(model.base_params()):] = framed.params.values[framed.params.indices(model.base_params())]
+    found = obs.inner.positions() if isinstance(obs, InSession) else None
+    at = model
+    if found is not None and model.base_params():
+        at = register_base(model, found[0], found[1])
+        out[len(out) - len(model.base_params()):] = at.params.values[at.params.indices(model.base_params())]
+    inner = obs
+    while isinstance(inner, Wrapper):
+        inner = inner.inner
+    if isinstance(inner, PoseObs) and len(out) >= 3:  # the target's turn: the inner set's first set-up values
+        out[:3] = inner.registered_turn(at)
     return out
 
 

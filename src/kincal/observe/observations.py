@@ -410,6 +410,16 @@ class PoseObs(MeasuredPositions):
     def nuisance(self, robot: Robot):
         return ("target.rx", "target.ry", "target.rz"), np.zeros(3), ("angle",) * 3
 
+    def registered_turn(self, robot: Robot) -> np.ndarray:
+        """The target's turn (3,) rad (``target.rx/ry/rz``, from ``target_rotation``) that best fits the measured
+        rotations with ``robot`` as it is (the chordal mean of flangeᵀ·measured): the target registered to these
+        data, as a "before" figure takes it."""
+        from ..models.transforms import rotation_log
+
+        _, _, Rf = flange_point(robot, self.q, robot.params.values, robot.tool_point())
+        best = nearest_rotation(np.sum(Rf.transpose(0, 2, 1) @ self.R, 0))
+        return rotation_log((self.target_rotation.T @ best)[None])[0]
+
     def anchors(self) -> dict:
         return {"target_rotation": self.target_rotation}
 
