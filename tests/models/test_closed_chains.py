@@ -396,6 +396,23 @@ def test_jugglebot_session_to_session_through_the_command_line(tmp_path, capsys)
     assert "leg1 at 0.7..3.7 rev (calibrated on 1.2..3.3 rev)" in text  # S1 spreads the legs wider than S2
 
 
+def test_jugglebot_legs_reading_noise_can_be_stated(tmp_path, capsys):
+    """Every joint-space fit of the Jugglebot was SUSPECT for 'the joint residuals are 360x their stated σ (the
+    joints' reading noise taken as 1e-4 rad or m; no flag states it yet)': --std-joint states it (0.006 rev, the fit's
+    0.41 mm through the mean lead), the residual reason goes, the calibrated file keeps it for kincal report, and
+    it is refused without the joint-space residual."""
+    s1, cal = str(JUGGLEBOT / "S1.csv"), tmp_path / "s1.yaml"
+    base = ["calibrate", "hexapod", s1, *JUGGLE, "--json"]
+    code, out, _ = _kincal(capsys, [*base, "--residual", "joint"])
+    assert any(r["code"] == "residual" for r in out["verdict"]["reasons"])
+    code, out, _ = _kincal(capsys, [*base, "--residual", "joint", "--std-joint", "0.006rev", "-o", str(cal)])
+    assert code in (0, 4) and not any(r["code"] == "residual" for r in out["verdict"]["reasons"])
+    options = kincal.models.load_calibration_record(str(cal))["options"]
+    assert options["joint_std"] == pytest.approx(0.006 * 2 * np.pi)
+    code, _, err = _kincal(capsys, [*base, "--std-joint", "0.006rev"])
+    assert code == 1 and "--std-joint" in err and "--residual joint" in err
+
+
 def test_jugglebot_poses_in_the_measurement_frame_are_the_measured_bodys(tmp_path, capsys):
     """The motion capture gives the poses of its rigid body, turned 6.9 mrad on the platform (the calibration's
     target_rotation): commands for S1's own first 20 poses in the measurement frame took them for the platform's

@@ -16,7 +16,7 @@ import kincal.models
 from kincal._atomic import json_path_for
 from kincal.history import calibration_record, evaluation_record, fingerprint
 from kincal.identify import held_out_stats, stat_line
-from kincal.units import DEG, LENGTH_UNITS, MM
+from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM
 
 from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, csv_list, emit, err, hidden_alias, load_robot,
                      nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list, unread_joints)
@@ -28,8 +28,24 @@ from .report import add_session_flags, data_record, nominal_model, save_figures,
 error_model_name = checked(lambda s: kincal.ErrorModel(s).name)  # argparse type: an error model name or auto
 
 
+def _joint_sigma(text: str) -> float:
+    """argparse type: a joint reading's σ with its unit (rad, deg, rev; m, mm, um), in SI (rad or m)."""
+    s = text.strip()
+    units = {**ANGLE_UNITS, **LENGTH_UNITS}
+    unit = next((u for u in sorted(units, key=len, reverse=True) if s.endswith(u)), None)
+    try:
+        value = float(s[:-len(unit)]) * units[unit] if unit else np.nan
+    except ValueError:
+        value = np.nan
+    if not (np.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"'{text}': give the joints' reading noise, > 0, with its unit: 0.001rev, "
+                                         f"0.05deg, 1e-4rad, 0.01mm")
+    return value
+
+
 FORMS: dict[str, dict] = {"names": {"type": csv_list}, "count": {"type": positive_int},
-                          "switch": {"action": "store_true"}}  # argparse forms of FitOptions fields
+                          "switch": {"action": "store_true"},
+                          "joint sigma": {"type": _joint_sigma}}  # argparse forms of FitOptions fields
 FLAGGED = [f for f in dataclasses.fields(kincal.FitOptions) if "flag" in f.metadata]  # the fields with a flag
 
 

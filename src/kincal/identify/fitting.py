@@ -55,7 +55,8 @@ def fit_stack(robot: Robot, observations: Sequence, options: FitOptions, held: M
     compliance refit and outlier rejection; ``held``: set-up parameters held at these values (a held-
     out file judged with the probe as trained). No diagnosis: the callers add theirs."""
     robot = _with_error_model(robot, observations, options.error_model)
-    sets = [in_joint_space(o) for o in observations] if options.residual == "joint" else list(observations)
+    sets = [in_joint_space(o, options.joint_std) for o in observations] if options.residual == "joint" \
+        else list(observations)
     sets = [_drifting(o) for o in sets] if options.drift else sets
     prior = resolved_prior(options.prior, sets)
     kinds = " + ".join(dict.fromkeys(o.kind for o in sets))

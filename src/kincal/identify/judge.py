@@ -30,7 +30,7 @@ MIN_SAMPLES = 10  # a set with fewer samples is not judged for outliers (no robu
 
 
 STATED = {"pose position": "--std-pos", "pose rotation": "--std-rot"}  # the flag that states each kind's σ
-ASSUMED = {"joint": "the joints' reading noise taken as 1e-4 rad or m; no flag states it yet"}  # σ no flag states
+ASSUMED = {"joint": "the joints' reading noise taken as 1e-4 rad or m; --std-joint states it"}  # σ when not stated
 
 
 def component_kinds(sets) -> tuple[np.ndarray, tuple[str, ...]]:
@@ -151,19 +151,23 @@ def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
 def _set_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     """Observation sets: the whitened residual per kind against its stated σ, outlier samples and
     repeated poses per set, and what plane contacts alone cannot confirm."""
-    reasons = [_whitened_reason(kind, rms, res.whitened, th) for kind, rms in res.whitened.items() if rms > 3.0]
+    stated = {"joint"} if res.options.joint_std is not None else set()  # --std-joint: the joints' σ the user's word
+    reasons = [_whitened_reason(kind, rms, res.whitened, th, stated) for kind, rms in res.whitened.items()
+               if rms > 3.0]
     reasons += _sample_reasons(res.observations, res.outliers, res.registered, th)
     if all(o.kind == "plane" for o in res.observations):
         reasons += _plane_reasons(res.registered, res.robot, res.observations)
     return reasons
 
 
-def _whitened_reason(kind: str, rms: float, whitened: dict, th: Thresholds) -> Reason:
+def _whitened_reason(kind: str, rms: float, whitened: dict, th: Thresholds,
+                     stated: frozenset | set = frozenset()) -> Reason:
     """A kind whose residuals are ``rms`` (> 3) times their stated σ: suspect; refused beyond ``th.residual_refuse``
     (the ratio that refuses position data against the tracker noise) when a flag states that σ (an assumed σ is
     not the user's word: suspect only)."""
-    flag = STATED.get(kind, ASSUMED.get(kind, "--std-pos"))
-    if rms > th.residual_refuse and kind not in ASSUMED:
+    assumed = kind in ASSUMED and kind not in stated
+    flag = STATED.get(kind, "--std-joint" if kind in stated else ASSUMED.get(kind, "--std-pos"))
+    if rms > th.residual_refuse and not assumed:
         return Reason("refused", "residual", f"the {kind} residuals are {rms:.0f}x their stated σ ({flag}): data and "
                                              f"model do not belong together (another robot's or another session's "
                                              f"data in one frame, a moved camera, wrong columns or units), unless "
@@ -171,7 +175,8 @@ def _whitened_reason(kind: str, rms: float, whitened: dict, th: Thresholds) -> R
     fine = [k for k, v in whitened.items() if k != kind and v <= 3.0]
     return Reason("suspect", "residual", (
         f"the {kind} residuals are {rms:.1f}x their stated σ ({flag}): the model leaves errors it cannot describe "
-        f"there, or that σ is too small" + ("" if kind in ASSUMED else "; restate it if the instrument is noisier")
+        f"there, or that σ is too small" + ("; state it with --std-joint" if assumed else
+                                            "; restate it if the instrument is noisier")
         + (f" (the {', '.join(fine)} residuals are within 3x their stated σ)" if fine else "")))
 
 

@@ -132,6 +132,9 @@ class FitOptions:
         ``"cartesian"`` (positions, default) or ``"joint"`` (commanded − inverse kinematics of the
         measured positions, the 3-PUU error-model verification paper's residual; robots with a
         closed-form inverse).
+    joint_std : float, optional
+        With ``residual="joint"``: the joints' reading noise σ, rad or m, the residual's stated σ (default None:
+        1e-4, assumed, and the verdict says so).
     keep : sequence of str, optional
         Names to prefer among confounded parameters (default none).
     rank_tol : float, optional
@@ -201,6 +204,9 @@ class FitOptions:
                                           "settings) or pso+lm (default lm)", choices=METHODS)
     residual: str = _flag("cartesian", "--residual", "joint: commanded − inverse kinematics of the measured "
                                                      "positions (parallel robots)", choices=RESIDUAL_NAMES)
+    joint_std: float | None = _flag(None, "--std-joint", "--residual joint: the joints' reading noise σ with its unit "
+                                                        "(0.001rev, 0.05deg, 0.01mm; default 1e-4 rad or m)",
+                                    "joint sigma")
     keep: tuple[str, ...] = _flag((), "--keep", "parameters to prefer among confounded ones", "names")
     rank_tol: float = RANK_TOL
     max_iter: int = _flag(100, "--max-iter", "Levenberg-Marquardt iteration limit (default 100)", "count")
@@ -244,6 +250,11 @@ class FitOptions:
         set_("thresholds", Thresholds.of(self.thresholds))
         if self.error_model is not None:
             set_("error_model", ErrorModel.of(self.error_model))
+        if self.joint_std is not None:
+            set_("joint_std", _number("joint_std", self.joint_std, unit="rad or m"))
+            if not self.joint_std > 0 or self.residual != "joint":
+                raise ValueError(f"joint_std={self.joint_std!r} (--std-joint): the joints' reading noise σ, > 0, of the "
+                                 f"joint-space residual (residual='joint', --residual joint; got '{self.residual}')")
         if self.drift not in (True, False) or (self.drift and self.residual != "cartesian"):
             raise ValueError(f"drift={self.drift!r}: True or False; the drift term needs residual='cartesian'")
         set_("drift", bool(self.drift))

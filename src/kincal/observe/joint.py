@@ -168,7 +168,7 @@ class PoseJointObs(InJoints, PoseObs):
                 f"residual='cartesian' or leave those rows out")
 
 
-def in_joint_space(obs):
+def in_joint_space(obs, std: float | None = None):
     """A set with its residual in joint space (``residual='joint'``).
 
     Points become a :class:`JointObs`, 6-D poses a :class:`PoseJointObs` (σ: the joints' reading noise,
@@ -179,6 +179,8 @@ def in_joint_space(obs):
     ----------
     obs : Observation
         The set (points, poses, or a wrapper of them).
+    std : float, optional
+        The joints' reading noise σ, rad or m (default: the types' own, 1e-4).
 
     Returns
     -------
@@ -202,13 +204,14 @@ def in_joint_space(obs):
     ('JointObs', 'joint', True)
     """
     if obs.kind == "joint":
-        return obs
+        return obs if std is None else dataclasses.replace(obs, std=std)
     if isinstance(obs, Wrapper):
-        return dataclasses.replace(obs, inner=in_joint_space(obs.inner))
+        return dataclasses.replace(obs, inner=in_joint_space(obs.inner, std))
+    sigma = {} if std is None else {"std": std}
     if isinstance(obs, PoseObs):
-        return PoseJointObs(q=obs.q, rows=obs.rows, source=obs.source, xyz=obs.xyz, R=obs.R,
+        return PoseJointObs(q=obs.q, rows=obs.rows, source=obs.source, xyz=obs.xyz, R=obs.R, **sigma,
                             target_rotation=obs.target_rotation, anchored=obs.anchored, own_target=obs.own_target)
     if isinstance(obs, PointObs):
-        return JointObs(q=obs.q, rows=obs.rows, source=obs.source, xyz=obs.xyz)
+        return JointObs(q=obs.q, rows=obs.rows, source=obs.source, xyz=obs.xyz, **sigma)
     raise ValueError(f"residual='joint' inverts measured positions or poses; {obs.kind} data ({obs.source}) have "
                      f"none to invert: use residual='cartesian'")
