@@ -275,12 +275,27 @@ def compare(a: Calibrated, b: Calibrated, same_frame: bool = False, alpha: float
     """
     _same_model(a, b)
     q = _region(a, b, poses)
-    d = (b.robot.forward(q) - a.robot.forward(q)).ravel()
-    U = np.concatenate([a.factor(q, not same_frame), b.factor(q, not same_frame)], axis=1)
+    (ma, Fa), (mb, Fb) = _miss(a, q), _miss(b, q)  # what each misses there, as its own residuals predict it
+    d = ((b.robot.forward(q) + mb) - (a.robot.forward(q) + ma)).ravel()
+    U = np.concatenate([a.factor(q, not same_frame), b.factor(q, not same_frame), Fa, Fb], axis=1)
     basis = None if same_frame else frame_basis(b.robot, q)
     notes = [] if same_frame else [_frame_shift(a.robot, b.robot)]
     return _judged("compare", d, U, candidates(b.robot, q, basis), basis, a.repeat.dof + b.repeat.dof, 1.0, alpha,
                    len(q), tuple(n for n in notes if n), _whole_frame(b.robot, q) if same_frame else None)
+
+
+def _miss(cal: Calibrated, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """What ``cal``'s predictions at q (M, n) miss by (M, 3), m, as its own samples' residuals predict it
+    (:meth:`Repeat.conditioned`), and a factor (3M, K) of its covariance: two calibrations of an unchanged robot on
+    different poses differ by their models' unmodelled errors there, not only by their noise (the real UR5's grid
+    halves were 'changed' at p = 8e-21). Zero and no columns for a calibration without absolute positions."""
+    try:
+        mean, C = cal.repeat.conditioned(cal.robot, q)
+    except ModelError:
+        return np.zeros((len(q), 3)), np.zeros((3 * len(q), 0))
+    w, V = np.linalg.eigh((C + C.T) / 2)
+    L = V * np.sqrt(np.clip(w, 0.0, None))  # (M, M): L Lᵀ = C, the same for x, y and z
+    return mean, np.kron(L, np.eye(3))
 
 
 def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = False,
