@@ -185,3 +185,24 @@ def test_a_floor_the_arm_cannot_stand_above_names_the_flag_and_the_arm():
     assert high == round(pts[:, 1:, 2].min(axis=1).max() * 1e3) == 89  # the shoulder is the arm's highest low point
     with pytest.raises(ValueError, match="'--floor' removes 100 %.*check its values and units"):
         Cell(half_spaces=(((0.0, 0.0, 1.0), 5.0),), labels=(("half-space 1", "--floor"),)).pool(ur5, 100)
+
+
+def test_the_arm_keeps_out_of_the_trackers_head():
+    """A tracker set 0.5 m in front of the UR10 at shoulder height (inside its reach: the audit's arm passed 8 mm
+    from one): with a floor (the arm checked), the arm's links keep out of a 0.3 m box around it grown by the link
+    radius; the poses flagged are those whose links, sampled densely with an independent forward kinematics, enter
+    the box (2 mm either way from its faces left out)."""
+    tracker = np.array([0.5, 0.0, 0.3])
+    cell = Cell(half_spaces=(((0.0, 0.0, 1.0), -10.0),), tracker=tracker, cone=np.pi)
+    q = kincal.candidate_pool(UR10, 1500, seed=8)
+    flagged = cell.violations(UR10.with_tool_point([0, 0, 0.1]), q)["arm into the tracker"]
+    pts = _dh_origins(q, [0.1273, 0, 0, 0.163941, 0.1157, 0.0922], [0, -0.612, -0.5723, 0, 0, 0],
+                      [np.pi / 2, 0, 0, np.pi / 2, -np.pi / 2, 0], [0.0, 0.0, 0.1])
+    t = np.linspace(0, 1, 201)[None, None, :, None]
+    seg = (pts[:, 1:-1, None] + t * (pts[:, 2:] - pts[:, 1:-1])[:, :, None]).reshape(len(q), -1, 3)
+    def inside(grow):
+        return np.any(np.all(np.abs(seg - tracker) < 0.15 + 0.05 + grow, axis=2), axis=1)
+    small, big = inside(-2e-3), inside(2e-3)
+    clear = small == big
+    assert flagged.sum() > 50 and clear.sum() > 1400
+    assert np.array_equal(flagged[clear], small[clear])

@@ -21,6 +21,9 @@ from ..models.robot import Robot
 from ..ties import first_best
 
 
+TRACKER_HALF = 0.15  # m: a tracker's head as a box this far each way from its position, which the arm keeps out of
+
+
 @dataclass(frozen=True, eq=False)
 class Cell:
     """The constraints of the cell around the robot, SI, in the robot's base frame.
@@ -114,8 +117,8 @@ class Cell:
 
     def violations(self, robot: Robot, q: np.ndarray) -> dict[str, np.ndarray]:
         """(N,) bool per constraint broken by the poses q (N, n): 'joint margin', 'half-space k', 'keep-out k' (and
-        their arm's), 'arm into its own base' (with a half-space or a box and a link radius), 'tracker range', 'line
-        of sight'."""
+        their arm's), 'arm into its own base' (with a half-space or a box and a link radius), 'arm into the tracker'
+        (its head a box TRACKER_HALF each way, with a half-space or a box), 'tracker range', 'line of sight'."""
         q = robot.check_q(q)
         m = np.where(robot.revolute, self.joint_margin, 0.0)
         out = {"joint margin": ~np.all((q >= robot.lower + m) & (q <= robot.upper - m), axis=1)}
@@ -132,6 +135,10 @@ class Cell:
             out[f"keep-out {k + 1}"] = np.all((p > lo) & (p < hi), axis=1)
             if arm is not None:
                 out[f"arm in keep-out {k + 1}"] = np.any(_crosses(*arm, np.asarray(lo) - r, np.asarray(hi) + r), axis=1)
+        if self.tracker is not None and arm is not None:  # the tracker's head as a box the arm keeps out of
+            head = np.asarray(self.tracker, float)
+            reach = TRACKER_HALF + r
+            out["arm into the tracker"] = np.any(_crosses(*arm, head - reach, head + reach), axis=1)
         if self.tracker is not None:
             if not robot.has_tool_point:
                 raise ModelError(f"robot '{robot.name}' has no flange frame: a tracker's line of sight needs it")
