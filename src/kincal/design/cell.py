@@ -22,6 +22,8 @@ from ..ties import first_best
 
 
 TRACKER_HALF = 0.15  # m: a tracker's head as a box this far each way from its position, which the arm keeps out of
+BEAM_START = 0.1  # m: the line of sight is kept clear of the links from this far out from the target (the wrist
+# behind the reflector is not in it)
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,7 +120,8 @@ class Cell:
     def violations(self, robot: Robot, q: np.ndarray) -> dict[str, np.ndarray]:
         """(N,) bool per constraint broken by the poses q (N, n): 'joint margin', 'half-space k', 'keep-out k' (and
         their arm's), 'arm into its own base' (with a half-space or a box and a link radius), 'arm into the tracker'
-        (its head a box TRACKER_HALF each way, with a half-space or a box), 'tracker range', 'line of sight'."""
+        (its head a box TRACKER_HALF each way, with a half-space or a box), 'tracker range', 'line of sight' (the
+        reflector facing the tracker) and 'arm across the line of sight' (a link within its radius of the beam)."""
         q = robot.check_q(q)
         m = np.where(robot.revolute, self.joint_margin, 0.0)
         out = {"joint margin": ~np.all((q >= robot.lower + m) & (q <= robot.upper - m), axis=1)}
@@ -148,6 +151,10 @@ class Cell:
             axis = robot.flange_rotation(q) @ (np.asarray(self.reflector_axis, float) / np.linalg.norm(self.reflector_axis))
             cos = np.einsum("ni,ni->n", axis, ray) / np.maximum(dist, 1e-300)
             out["line of sight"] = cos < np.cos(self.cone)
+            if arm is not None:  # the beam, from BEAM_START out from the target to the tracker, clear of the links
+                start = p + ray * (np.minimum(BEAM_START, dist / 2) / np.maximum(dist, 1e-300))[:, None]
+                gap = _segments_gap(*arm, start[:, None], np.broadcast_to(self.tracker, p.shape)[:, None])
+                out["arm across the line of sight"] = np.any(gap < r, axis=1)
         return out
 
     def said(self, name: str) -> str:
@@ -256,6 +263,21 @@ def candidate_pool(robot: Robot, n: int, seed: int | None = 0) -> np.ndarray:
     True
     """
     return robot.sample_joints(whole("n", n, 1), seed)
+
+
+def _segments_gap(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> np.ndarray:
+    """(N, S): the least distance, m, between the segments a0→a1 and b0→b1 (broadcast over (N, S, 3)): the closest
+    points' parameters solved on the lines, clamped to the segments (each end tried in turn)."""
+    u, v, w = a1 - a0, b1 - b0, a0 - b0
+    a, b, c = (np.einsum("...i,...i->...", x, y) for x, y in ((u, u), (u, v), (v, v)))
+    d, e = np.einsum("...i,...i->...", u, w), np.einsum("...i,...i->...", v, w)
+    den = a * c - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(den > 1e-12 * np.maximum(a * c, 1e-300), np.clip((b * e - c * d) / den, 0.0, 1.0), 0.0)
+        t = np.where(c > 1e-300, (b * s + e) / c, 0.0)
+        t = np.clip(t, 0.0, 1.0)  # then s again, for the clamped t
+        s = np.where(a > 1e-300, np.clip((b * t - d) / a, 0.0, 1.0), 0.0)
+    return np.linalg.norm(w + s[..., None] * u - t[..., None] * v, axis=-1)
 
 
 def _into_base(pts: np.ndarray, tool: np.ndarray, r: float) -> np.ndarray:
