@@ -7,7 +7,9 @@ n·p ≥ c) and outside every keep-out box, the arm does too — every link afte
 frame, as the segments between the robot's link points (:meth:`Robot.link_points`: its joint
 frames and the tool point) thickened by ``link_radius`` —, and, with a ``tracker``, the target is
 within the tracker's range and seen by it: the reflector's opening (``reflector_axis`` in the
-flange frame) points within ``cone`` of the line from the target to the tracker.
+flange frame) points within ``cone`` of the line from the target to the tracker, no link crosses that
+line, and the arm keeps out of the tracker's head (the arm's checks run with a half-space or a box);
+nor may the wrist or the target come within two link radii of the robot's own base column.
 """
 from __future__ import annotations
 
