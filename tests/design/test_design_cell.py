@@ -187,19 +187,27 @@ def test_a_floor_the_arm_cannot_stand_above_names_the_flag_and_the_arm():
         Cell(half_spaces=(((0.0, 0.0, 1.0), 5.0),), labels=(("half-space 1", "--floor"),)).pool(ur5, 100)
 
 
+def _with_tracker(tracker, n: int, seed: int, constraint: str, samples: int):
+    """The UR10 (a 0.1 m probe) in a cell with a floor far below and a tracker: n candidate poses, which of them
+    break ``constraint``, their independent link points (_dh_origins) and the links sampled ``samples`` times each
+    (from the shoulder on, as the cell's arm)."""
+    cell = Cell(half_spaces=(((0.0, 0.0, 1.0), -10.0),), tracker=tracker, cone=np.pi)
+    q = kincal.candidate_pool(UR10, n, seed=seed)
+    flagged = cell.violations(UR10.with_tool_point([0, 0, 0.1]), q)[constraint]
+    pts = _dh_origins(q, [0.1273, 0, 0, 0.163941, 0.1157, 0.0922], [0, -0.612, -0.5723, 0, 0, 0],
+                      [np.pi / 2, 0, 0, np.pi / 2, -np.pi / 2, 0], [0.0, 0.0, 0.1])
+    t = np.linspace(0, 1, samples)[None, None, :, None]
+    links = (pts[:, 1:-1, None] + t * (pts[:, 2:] - pts[:, 1:-1])[:, :, None]).reshape(n, -1, 3)
+    return q, flagged, pts, links
+
+
 def test_the_arm_keeps_out_of_the_trackers_head():
     """A tracker set 0.5 m in front of the UR10 at shoulder height (inside its reach: the audit's arm passed 8 mm
     from one): with a floor (the arm checked), the arm's links keep out of a 0.3 m box around it grown by the link
     radius; the poses flagged are those whose links, sampled densely with an independent forward kinematics, enter
     the box (2 mm either way from its faces left out)."""
     tracker = np.array([0.5, 0.0, 0.3])
-    cell = Cell(half_spaces=(((0.0, 0.0, 1.0), -10.0),), tracker=tracker, cone=np.pi)
-    q = kincal.candidate_pool(UR10, 1500, seed=8)
-    flagged = cell.violations(UR10.with_tool_point([0, 0, 0.1]), q)["arm into the tracker"]
-    pts = _dh_origins(q, [0.1273, 0, 0, 0.163941, 0.1157, 0.0922], [0, -0.612, -0.5723, 0, 0, 0],
-                      [np.pi / 2, 0, 0, np.pi / 2, -np.pi / 2, 0], [0.0, 0.0, 0.1])
-    t = np.linspace(0, 1, 201)[None, None, :, None]
-    seg = (pts[:, 1:-1, None] + t * (pts[:, 2:] - pts[:, 1:-1])[:, :, None]).reshape(len(q), -1, 3)
+    q, flagged, pts, seg = _with_tracker(tracker, 1500, 8, "arm into the tracker", 201)
     def inside(grow):
         return np.any(np.all(np.abs(seg - tracker) < 0.15 + 0.05 + grow, axis=2), axis=1)
     small, big = inside(-2e-3), inside(2e-3)
@@ -214,13 +222,7 @@ def test_a_link_across_the_trackers_line_of_sight_is_out_of_the_cell():
     beam (from 0.1 m out from the target to the tracker) is out; the poses flagged are those an independent forward
     kinematics and a dense sampling of the links and the beam find so (2 mm either way left out)."""
     tracker = np.array([1.2, 0.3, 0.2])
-    cell = Cell(half_spaces=(((0.0, 0.0, 1.0), -10.0),), tracker=tracker, cone=np.pi)
-    q = kincal.candidate_pool(UR10, 300, seed=9)
-    flagged = cell.violations(UR10.with_tool_point([0, 0, 0.1]), q)["arm across the line of sight"]
-    pts = _dh_origins(q, [0.1273, 0, 0, 0.163941, 0.1157, 0.0922], [0, -0.612, -0.5723, 0, 0, 0],
-                      [np.pi / 2, 0, 0, np.pi / 2, -np.pi / 2, 0], [0.0, 0.0, 0.1])
-    t = np.linspace(0, 1, 101)[None, None, :, None]
-    links = (pts[:, 1:-1, None] + t * (pts[:, 2:] - pts[:, 1:-1])[:, :, None]).reshape(len(q), -1, 3)
+    q, flagged, pts, links = _with_tracker(tracker, 300, 9, "arm across the line of sight", 101)
     target = pts[:, -1]
     ray = tracker - target
     dist = np.linalg.norm(ray, axis=1)
