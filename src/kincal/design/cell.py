@@ -127,14 +127,14 @@ class Cell:
         q = robot.check_q(q)
         m = np.where(robot.revolute, self.joint_margin, 0.0)
         out = {"joint margin": ~np.all((q >= robot.lower + m) & (q <= robot.upper - m), axis=1)}
-        p, arm, r = robot.forward(q), self._arm(robot, q), self.link_radius
+        p, pts, r = robot.forward(q), self._points(robot, q), self.link_radius
+        arm = None if pts is None else (pts[:, 2:-1], pts[:, 3:])
         for k, (n, c) in enumerate(self.half_spaces):
             unit = np.asarray(n, float) / np.linalg.norm(n)
             out[f"half-space {k + 1}"] = p @ unit < c
             if arm is not None:  # a straight segment is lowest at one of its ends
                 out[f"arm through half-space {k + 1}"] = np.any(np.minimum(arm[0] @ unit, arm[1] @ unit) < c + r, axis=1)
-        pts = robot.link_points(q) if arm is not None and r > 0 else None
-        if pts is not None:
+        if pts is not None and r > 0:
             out["arm into its own base"] = _into_base(pts, p, r)
         for k, (lo, hi) in enumerate(self.keep_out):
             out[f"keep-out {k + 1}"] = np.all((p > lo) & (p < hi), axis=1)
@@ -168,12 +168,18 @@ class Cell:
                     return lead + label
         return name
 
+    def _points(self, robot: Robot, q: np.ndarray) -> np.ndarray | None:
+        """The robot's link points (N, P, 3) when the arm is checked (a half-space or a box, and at least four
+        points: links after the first joint's frame); None otherwise."""
+        pts = robot.link_points(q) if self.half_spaces or self.keep_out else None
+        return None if pts is None or pts.shape[1] < 4 else pts
+
     def _arm(self, robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """The links after the first joint's frame as segments between the robot's link points: their
         starts and ends (N, S, 3) each; None for a robot that declares none or a cell with no
         half-space or box."""
-        pts = robot.link_points(q) if self.half_spaces or self.keep_out else None
-        return None if pts is None or pts.shape[1] < 4 else (pts[:, 2:-1], pts[:, 3:])
+        pts = self._points(robot, q)
+        return None if pts is None else (pts[:, 2:-1], pts[:, 3:])
 
     def allows(self, robot: Robot, q: np.ndarray) -> np.ndarray:
         """(N,) bool: the robot's own constraints and every constraint of the cell hold."""
