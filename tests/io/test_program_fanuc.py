@@ -219,12 +219,16 @@ def test_identity_is_byte_for_byte_and_a_change_touches_only_the_fields():
     text = prog.with_values(new)
     again = _parse(text)
     assert [t.variable for t in again.targets] == [t.variable for t in prog.targets]
-    for k, t in enumerate(again.targets):
+    for k, t in enumerate(again.targets):  # to the controller's step: 0.001 mm and 0.001 deg, half of it at most
         if t.kind == "pose":
-            assert np.allclose(t.values[:3], new[k][:3], atol=1e-10)  # 1e-7 mm
-            assert np.allclose(rotvec_matrix(t.values[3:]), rotvec_matrix(new[k][3:]), atol=1e-9)
+            assert np.allclose(t.values[:3], new[k][:3], rtol=0, atol=0.5e-6 + 1e-12)
+            turn = _rotvec(rotvec_matrix(t.values[3:]) @ rotvec_matrix(new[k][3:]).T)
+            assert np.linalg.norm(turn) <= 3 * np.radians(0.5e-3)
         else:
-            assert np.allclose(t.values, new[k], atol=1e-9)
+            mm = np.array([text[b:b + 4].strip().startswith("mm") for _, b in t.fields])  # an axis in mm
+            assert np.all(np.abs(t.values - new[k]) <= np.where(mm, 0.5e-6, np.radians(0.5e-3)) + 1e-12)
+    fields = [text[a:b] for t in again.targets for a, b in t.fields]
+    assert max(len(f.split(".")[1]) for f in fields if "." in f and "e" not in f.lower()) == 3  # the controller's
     assert skeleton(SYNTH, prog.targets) == skeleton(text, again.targets)
     assert text != SYNTH and len(text) > len(SYNTH)
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-from typing import Callable, Mapping
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -464,8 +464,9 @@ def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, q
     the target's bits) and a written joint target's joints must put the calibrated model's TCP on the intended
     point and its flange (``orientation``'s, when given) on the intended rotation (``intended``: TCP points
     (N, 3) m, flange rotations (N, 3, 3) and TCPs in the flange (N, 3) m of every target, from :func:`_at_tcp`)
-    to ``CHECK_TOL``; a PULSE position's counts (``scale``: pulses per rad or m) must be the corrected joints'
-    nearest, and then miss by no more than half a pulse on every joint moves the TCP. All together."""
+    to ``CHECK_TOL`` and what rounding to the controller's step moves them (:func:`_rounding`); a PULSE
+    position's counts (``scale``: pulses per rad or m) must be the corrected joints' nearest, and then miss by no
+    more than half a pulse on every joint moves the TCP. All together."""
     if not texts:
         return {}
     model, nominal = model.with_tool_point(np.zeros(3)), nominal.with_tool_point(np.zeros(3))  # flange poses
@@ -489,9 +490,8 @@ def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, q
                 bad[int(k)] = "the written target does not come back on its branch when read again"
     miss, turn, Jp, Jw = _misses(model, orientation or model, q, goals)
     pulsed = np.array([program.targets[k].kind == "pulses" for k in ks])
-    half = np.zeros(q.shape[1]) if scale is None else 0.5 / np.abs(scale)  # half a pulse of each joint
-    tol_p = CHECK_TOL + np.where(pulsed, np.linalg.norm(Jp, axis=1) @ half, 0.0)
-    tol_r = CHECK_TOL + np.where(pulsed, np.linalg.norm(Jw, axis=1) @ half, 0.0)
+    kinds = [program.targets[k].kind for k in ks]
+    tol_p, tol_r = _rounding(nominal, kinds, Jp, Jw, goals[2], scale, dialects()[program.dialect].step)
     for i, (k, m, r) in enumerate(zip(ks, miss, turn)):
         if pulsed[i] and not np.array_equal(np.round(q[i] * scale), np.round(qs[k] * scale)):
             bad[k] = "the written pulse counts are not the corrected joints' nearest (checked as read again)"
@@ -499,6 +499,29 @@ def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, q
             bad[k] = (f"the written target misses by {m * 1e3:.2e} mm / {r:.2e} rad (checked as read again)"
                       + singular(nominal, q[i]))
     return bad
+
+
+def _rounding(robot: Robot, kinds: Sequence[str], Jp: np.ndarray, Jw: np.ndarray, lever: np.ndarray,
+              scale: np.ndarray | None, step: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """What a written target may miss by (m, rad; each (N,)) for the numbers' rounding, beyond ``CHECK_TOL``: half
+    a pulse (``scale``: pulses per rad or m) or the controller's ``step`` (m, rad; a number is written to within
+    it, to half of it in the controller's own number of decimals) of each joint through the TCP's and the
+    flange's Jacobians Jp, Jw (N, 3, n); for a pose, a step on each of X, Y, Z (√3 of it) and on each of its
+    three angles (3 of it, also swinging the TCP at ``lever`` (N, 3) m from the flange)."""
+    length, angle = step
+    prismatic = np.array([t == "prismatic" for t in robot.joint_types])
+    each = np.where(prismatic, length, angle)
+    pulse = each if scale is None else 0.5 / np.abs(scale)
+    tol_p, tol_r = np.full(len(kinds), CHECK_TOL), np.full(len(kinds), CHECK_TOL)
+    for i, kind in enumerate(kinds):
+        if kind == "pose":
+            tol_p[i] += 1.01 * (np.sqrt(3) * length + 3 * angle * np.linalg.norm(lever[i]))
+            tol_r[i] += 1.01 * 3 * angle
+        else:
+            joint = pulse if kind == "pulses" else each
+            tol_p[i] += np.linalg.norm(Jp[i], axis=0) @ joint
+            tol_r[i] += np.linalg.norm(Jw[i], axis=0) @ joint
+    return tol_p, tol_r
 
 
 def _misses(model: Robot, orientation: Robot, q: np.ndarray, goals):

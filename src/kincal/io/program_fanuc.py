@@ -40,6 +40,7 @@ numbering and ``LINE_COUNT``; write FANUC programs without marks.
 """
 from __future__ import annotations
 
+import math
 import re
 from typing import Sequence
 from dataclasses import dataclass, field
@@ -67,7 +68,7 @@ REF = re.compile(r"\b(PR|P)\[", re.I)
 OPTION = re.compile(r"\b(Tool_Offset|Offset|VOFFSET|INC)\b(\s*,\s*(?:PR|VR)\[(?:[^\[\]\n]|\[[^\[\]\n]*\])*\])?",
                     re.I)
 POSE_FIELDS = ("X", "Y", "Z", "W", "P", "R")
-LENGTH_RES, ANGLE_RES = 1e-7, 1e-8  # mm, deg: the finest step a rewritten field carries
+LENGTH_RES, ANGLE_RES = 1e-3, 1e-3  # mm, deg: the controller's step, to which its own .ls files write positions
 
 
 @dataclass
@@ -375,4 +376,6 @@ def write(text: str, targets: Sequence[Target], values: Sequence[np.ndarray]) ->
     return write_fields(text, targets, values, _fields)
 
 
-DIALECT = Dialect("fanuc", (".ls",), "", parse, write)  # no comment: TP allows none after a /POS entry
+# no comment mark: TP allows none after a /POS entry
+DIALECT = Dialect("fanuc", (".ls",), "", parse, write,
+                  step=(LENGTH_RES * 1e-3, math.radians(ANGLE_RES)))

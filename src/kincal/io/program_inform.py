@@ -79,7 +79,7 @@ BASE_AXIS = re.compile(r"^[ \t]*///GROUP\d+[ \t]+[^\n]*\bBS\d", re.M | re.I)  # 
 NPOS_KINDS = ("C", "BC", "EC", "P", "BP", "EX")
 ROBOT_VARIABLES = ("P", "LP", "PX", "LPX")
 ASSIGNS = ("SET", "SETE", "ADD", "SUB", "MUL", "DIV", "CNVRT", "GETS", "MSHIFT", "CLEAR", "SETEXPRESS")
-RESOLUTION = np.array([1e-7, 1e-7, 1e-7, 1e-8, 1e-8, 1e-8])  # mm, mm, mm, deg, deg, deg
+RESOLUTION = np.array([1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-4])  # mm, deg: the controller's step (its own .JBI files)
 
 
 @dataclass(frozen=True)
@@ -356,7 +356,7 @@ def parse(source: str, text: str) -> Program:
 
 
 def _fields(text: str, targets: Sequence[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The positions' numbers for new SI values (G, 6): X, Y, Z (mm; 1e-7 mm) and Rx, Ry, Rz (deg; 1e-8°), the
+    """The positions' numbers for new SI values (G, 6): X, Y, Z (mm; 1e-3 mm) and Rx, Ry, Rz (deg; 1e-4°), the
     equivalent angle triple nearest the old one, each in [-180, 180]; a number that moved only by rounding noise
     stays the old one."""
     if targets[0].kind == "pulses":  # whole counts
@@ -373,4 +373,6 @@ def write(text: str, targets: Sequence[Target], values: Sequence[np.ndarray]) ->
     return write_fields(text, targets, values, _fields)
 
 
-DIALECT = Dialect("inform", (".jbi",), "", parse, write)  # no comment: INFORM allows none after a position line
+# no comment mark: INFORM allows none after a position line
+DIALECT = Dialect("inform", (".jbi",), "", parse, write,
+                  step=(float(RESOLUTION[0]) * 1e-3, math.radians(RESOLUTION[3])))

@@ -227,6 +227,10 @@ class Dialect:
         ``frames(program)``: the tool and base frames a program declares (or its controller holds beside it)
         with their values, by the names its targets use (4x4, m; or a str: why a frame it names cannot be
         known) (default: none).
+    step : tuple of float, optional
+        The finest step the controller keeps of a position's length and angle fields, (m, rad): its writer
+        writes rewritten numbers to it, as the controller's own files do, and the end-to-end check of a
+        written target allows the miss that rounding to it makes (default (0, 0): as finely as a value needs).
 
     See Also
     --------
@@ -246,6 +250,7 @@ class Dialect:
     parse: Callable[[str, str], Program]
     write: Callable[[str, Sequence[Target], Sequence[np.ndarray]], list[str]]
     frames: Callable[[Program], Mapping[str, np.ndarray | str]] = no_frames
+    step: tuple[float, float] = (0.0, 0.0)
 
 
 Numbers = Callable[[str, Sequence[Target], np.ndarray], tuple[np.ndarray, np.ndarray]]
