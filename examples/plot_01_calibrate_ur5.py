@@ -132,8 +132,10 @@ plt.show()
 # The result is a robot
 # ---------------------
 #
-# ``result.robot`` is a robot like any other: ``kincal.save_robot(result.robot, "ur5_cal.yaml")`` writes
-# it with its covariance, and ``kincal.export_robot`` turns it into a URDF or UR's kinematics file. The
+# ``result.robot`` is a robot like any other: ``kincal.save_robot(result.robot, "ur5_cal.yaml",
+# calibration=result.record())`` writes it with its covariance and the calibration's record (without
+# ``calibration=`` the file holds the parameters only: ``kincal evaluate`` then predicts no σ), and
+# ``kincal.export_robot`` turns it into a URDF or UR's kinematics file. The
 # largest corrections of the arm itself (the tracker frame and the reflector left aside), lengths and
 # angles apart, each with its σ:
 

@@ -198,13 +198,14 @@ def test_a_calibration_from_positions_does_not_turn_the_flange_it_never_saw():
     axis): compensating pose targets with such a calibration turned the true flange further from the targets than
     the nominal commands did. With the nominal model's orientation the true flange is as far as with the nominal
     commands (no worse), and the positions are still corrected."""
-    from kincal.compensate import compensate_poses
+    from kincal.compensate import command_models, compensate_poses
     from kincal.models.transforms import rotation_log
 
     nominal = kincal.load_robot("ur5")
     true = kincal.perturb(nominal, seed=2)
     q = nominal.sample_joints(200, seed=1)
-    cal = kincal.calibrate(nominal, kincal.simulate(true, q, 15e-6, 1), kincal.FitOptions(diagnose=False)).robot
+    fit = kincal.calibrate(nominal, kincal.simulate(true, q, 15e-6, 1), kincal.FitOptions(diagnose=False)).robot
+    cal, nominal = command_models(fit, nominal.params.as_dict(), frame="measurement")  # targets: the tracker's
     qt = nominal.sample_joints(30, seed=7)
     R, p = nominal.flange_rotation(qt), nominal.forward(qt)
     turn = lambda A, B: np.linalg.norm(rotation_log(A @ np.swapaxes(B, 1, 2)), axis=1)  # noqa: E731

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import kincal
-from kincal.compensate import compensate_branches, compensate_poses, compensate_program, flange_turn
+from kincal.compensate import command_models, compensate_branches, compensate_poses, compensate_program, flange_turn
 from kincal.io import ROWS, read_program
 from kincal.models.transforms import rotation_log, zyx_from_matrix
 
@@ -66,10 +66,11 @@ def test_the_orientation_followed_is_the_one_nearer_the_true_robot(tool, determi
     unc = fit.uncertainty()
     turn = flange_turn(fit.robot, nominal, unc.covariance, unc.names, nominal.lower, nominal.upper)
     assert turn.determined is determined
+    model, nominal = command_models(fit.robot, nominal.params.as_dict(), frame="measurement")  # the tracker's frame
     qt = nominal.sample_joints(30, seed=7)
     p, R = nominal.forward(qt), nominal.flange_rotation(qt)
-    own = compensate_poses(fit.robot, p, R, qt, nominal=nominal)
-    kept = compensate_poses(fit.robot, p, R, qt, nominal=nominal, orientation=nominal)
+    own = compensate_poses(model, p, R, qt, nominal=nominal)
+    kept = compensate_poses(model, p, R, qt, nominal=nominal, orientation=nominal)
     ok = own.ok & kept.ok
     errors = {k: _turn(true.flange_rotation(c.q[ok]), R[ok]).mean() for k, c in (("own", own), ("kept", kept))}
     chosen, other = ("own", "kept") if determined else ("kept", "own")

@@ -11,7 +11,7 @@ from ..checks import number
 from ..units import MM
 from ..errors import ModelError
 from ..models.robot import Robot
-from .frames import MISMATCH_TOL, frame_mismatch, orientation_change
+from .frames import MISMATCH_TOL, base_mismatch, frame_mismatch, orientation_change
 
 IK_TOL = 1e-10  # m
 IK_ITER = 100
@@ -147,10 +147,11 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
         The model's uncertainty: the predicted σ at every accepted command is reported, with a warning
         naming the rows where the model extrapolates.
     nominal : Robot, optional
-        The nominal (controller's) model, same frame and tool point (:func:`command_models`). The nominal
-        joints must first reach the targets through it: a TCP or frame mismatch refuses every row, named
-        with its size and direction (:func:`frame_mismatch`); the predicted change of the tool orientation
-        is reported.
+        The nominal (controller's) model, same frame and tool point (:func:`command_models`): a model whose
+        base frame is another (a calibrated model as fitted: the instrument's) is refused (ModelError,
+        :func:`base_mismatch`). The nominal joints must first reach the targets through it: a TCP or frame
+        mismatch refuses every row, named with its size and direction (:func:`frame_mismatch`); the predicted
+        change of the tool orientation is reported.
     rotations : ndarray, shape (N, 3, 3), optional
         Target rotations of the flange: the targets are full poses (:func:`compensate_poses`).
 
@@ -167,7 +168,8 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     ------
     ModelError
         When the robot has covariate terms, is a hexapod given position targets only, has no inverse and
-        no ``q_start``, or the targets or start joints are not finite or do not match in number.
+        no ``q_start``, stands in another base frame than ``nominal``, or the targets or start joints are not
+        finite or do not match in number.
     ValueError
         When ``rows`` does not give one number per target.
 
@@ -208,6 +210,7 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
         raise ModelError(f"robot '{robot.name}' has covariate terms ({', '.join(robot.covariate_names)}): its "
                          f"commands depend on the covariate's value at each target, which compensation does not take "
                          f"yet; compensate with a calibration without the covariate term")
+    _same_frame(robot, nominal)
     if rotations is not None:
         return compensate_poses(robot, targets, rotations, q_start, rows=rows, uncertainty=uncertainty,
                                 nominal=nominal, orientation=orientation)
@@ -238,6 +241,13 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     if nominal is None or q0 is None or not robot.has_tool_point:
         return comp
     return dataclasses.replace(comp, orientation_change=orientation_change(robot, q, nominal, q0))
+
+
+def _same_frame(robot: Robot, nominal: Robot | None) -> None:
+    """ModelError when ``robot`` and ``nominal`` stand in different base frames (:func:`base_mismatch`)."""
+    why = "" if nominal is None else base_mismatch(robot, nominal)
+    if why:
+        raise ModelError(why)
 
 
 def _checked_inputs(robot: Robot, targets, q_start, damping: float, rows):
@@ -404,6 +414,7 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
     """
     from .poses import filtered_poses, model_turn, solve_poses
 
+    _same_frame(robot, nominal)
     targets, q0, rows = _checked_inputs(robot, targets, q_start, 1e-4, rows)
     rotations = _checked_rotations(rotations, len(targets))
     if robot.has_pose_inverse:  # a hexapod: the legs of each pose in closed form, checked through the forward model

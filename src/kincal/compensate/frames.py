@@ -15,6 +15,7 @@ from typing import Mapping
 import numpy as np
 
 from ..models.robot import Robot
+from ..models.transforms import rotation_log
 from ..ties import first_best
 from ..units import MM
 
@@ -23,6 +24,7 @@ MISMATCH_TOL = 0.1e-3  # m: the nominal model at the nominal joints must reach t
 EXPLAINED = 0.2  # a constant offset explains the gap when it leaves less than this fraction (RMS)
 MIN_ROWS = 3  # a constant offset needs this many targets to be told from a row's own miss
 LINK_ERROR_MAX = 1e-3  # m: the most a real robot's last link is off; a larger move of the fitted target is its mounting
+BASE_TOL = 1e-9  # m and rad: a model and its nominal for commands stand in one base frame this closely
 
 
 def command_models(calibrated: Robot, nominal_values: Mapping[str, float] | None = None,
@@ -168,6 +170,51 @@ def _direction(v: np.ndarray, frame: str) -> str:
     if abs(v[k]) > 0.98:
         return f"the {frame} {'+' if v[k] > 0 else '-'}{'xyz'[k]}"
     return f"the {frame} direction ({', '.join(f'{c:.2f}' for c in v)})"
+
+
+def base_mismatch(model: Robot, nominal: Robot) -> str:
+    """Say why a model and the nominal model given with it for commands are not in one frame, if they are not.
+
+    Commands need both in the targets' frame (:func:`command_models`); a calibrated model's base frame is
+    the measurement frame (where the instrument saw the robot), so given as it is beside the nominal model, its
+    commands are off by that frame's move (1.1 mm on the real UR5's tracker frame) while every other check
+    passes.
+
+    Parameters
+    ----------
+    model : Robot
+        The model the commands are computed with.
+    nominal : Robot
+        The nominal (controller's) model.
+
+    Returns
+    -------
+    str
+        How far the base frames are apart and what to do; '' when they agree to ``BASE_TOL`` (or a model has
+        no base frame).
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.compensate import base_mismatch, command_models
+    >>> nominal = kincal.load_robot("ur5")
+    >>> calibrated = nominal.with_params({"base.x": 0.0004, "base.ry": 0.002})
+    >>> print(base_mismatch(calibrated, nominal))
+    the model's base frame stands 0.400 mm and 2.000 mrad from the nominal model's: ...
+    >>> base_mismatch(*command_models(calibrated, nominal.params.as_dict()))
+    ''
+    """
+    if not (model.base_params() and nominal.base_params()):
+        return ""
+    (Rm, tm), (Rn, tn) = model.base_transform(), nominal.base_transform()
+    move, turn = float(np.linalg.norm(tm - tn)), float(np.linalg.norm(rotation_log((Rm @ Rn.T)[None])[0]))
+    if move <= BASE_TOL and turn <= BASE_TOL:
+        return ""
+    return (f"the model's base frame stands {move * MM:.3f} mm and {turn * 1e3:.3f} mrad from the nominal model's: "
+            f"the two are in different frames (a calibrated model's base frame is the measurement frame, where the "
+            f"instrument saw the robot), and its commands would miss by that move; put both in the targets' frame "
+            f"with command_models(calibrated, nominal.params.as_dict()) (frame='measurement' for targets in the "
+            f"instrument's frame)")
 
 
 def frame_mismatch(nominal: Robot, q: np.ndarray, targets: np.ndarray) -> str:
