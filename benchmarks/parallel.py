@@ -1,4 +1,5 @@
-"""3-PUU identification, the 3-PUU error-model verification paper's simulation (§3.2, Tables 1–3):
+"""3-PUU identification, the simulation of the 3-PUU paper of 2024
+("Error analysis model of parallel robot based on parameters identification") (§3.2, Tables 1–3):
 PSO with the paper's settings vs LM.
 
 Errors δr = −1.0, δR = 2.5, δL1 = 3.4, δL2 = −2.8, δL3 = 2.2 mm; 30 random samples; joint-space residual

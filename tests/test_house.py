@@ -13,6 +13,7 @@ import pytest
 
 import kincal
 from kincal.cli import build_parser, main
+from kincal.papers import GUO2024_TITLE, PUU3_2024_TITLE
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src" / "kincal"
@@ -167,7 +168,8 @@ def test_papers_are_cited_not_nicknamed(tmp_path, capsys, guo2024_demo):
         texts[robot] = kincal.load_robot(robot).description
     bad = {where: PAPER_SEED.findall(text) for where, text in texts.items() if PAPER_SEED.search(text)}
     assert bad == {}
-    assert "Guo et al. 2024" in texts["README.md"] and "ill-conditioned parameter separation" in texts["README.md"]
+    readme = " ".join(texts["README.md"].split())  # each paper by its authors or year and its own English title
+    assert f'Guo et al. 2024, "{GUO2024_TITLE}"' in readme and f'2024, "{PUU3_2024_TITLE}"' in readme
     keys = _json_keys(guo2024_demo, set())  # demo --repeats 1 --json
     data = tmp_path / "d.csv"
     kincal.write_measurements(data, kincal.simulate(kincal.load_robot("puu3"),

@@ -1,5 +1,6 @@
-"""Sensitivity analysis (the 3-PUU error-model verification paper, §3.4): the position error a unit error of
-each parameter causes."""
+"""Sensitivity analysis (the 3-PUU paper of 2024,
+"Error analysis model of parallel robot based on parameters identification", §3.4): the position error a unit
+error of each parameter causes."""
 from __future__ import annotations
 
 import os

@@ -72,8 +72,8 @@ class Separation:
     """Outcome of the branch-and-bound separation (GCN values averaged over 1…M poses).
 
     Built by :func:`separate_ill_conditioned`; :meth:`tables` prints kincal's tables S1, S2, …, the
-    analogues of the paper's Tables 1–3 (Guo et al. 2024, "Measurement configuration optimization for robot
-    kinematic calibration based on ill-conditioned parameter separation", §3.1), each naming its analogue.
+    analogues of the paper's Tables 1–3 (Guo et al. 2024, "Ill-conditioned parameter separation based optimization
+    of measurement configuration for robot kinematic calibration", §3.1), each naming its analogue.
 
     Parameters
     ----------
@@ -183,8 +183,8 @@ def separate_ill_conditioned(robot: Robot, q: np.ndarray, names: Sequence[str] |
                              threshold: float = 1e2, keep: Sequence[str] = ()) -> Separation:
     """Separate the ill-conditioned parameters at poses ``q`` by GCN and branch-and-bound.
 
-    The procedure of Guo et al. 2024, "Measurement configuration optimization for robot kinematic
-    calibration based on ill-conditioned parameter separation", §3.1 (see the module description):
+    The procedure of Guo et al. 2024, "Ill-conditioned parameter separation based optimization of
+    measurement configuration for robot kinematic calibration", §3.1 (see the module description):
     subdomains by parameter type, backward elimination in each whose GCN exceeds ``threshold``, the
     reconstructed models, and their verification.
 

@@ -2,7 +2,7 @@
 
 One module per concept: ``model`` (robots and their kinematics), ``design`` (pose design, separation),
 ``identify`` (calibrate, evaluate), ``report`` (the calibration report), ``parallel`` (compensation
-and the 3-PUU paper's error-model verification), ``study`` (Guo et al. 2024 reproduced, and its
+and the error-model verification of the 3-PUU paper of 2024), ``study`` (Guo et al. 2024 reproduced, and its
 Monte-Carlo study). Each adds its commands with ``register(cmd)``, through ``cmd(name, func, help[, robot help
 or None])`` (:func:`build_parser`).
 """

@@ -1,5 +1,6 @@
 """Commands that turn a model into robot commands: compensation (targets -> corrected joint commands)
-and the 3-PUU error-model verification paper's verification (commands to run, then the comparison)."""
+and the error-model verification of the 3-PUU paper of 2024 ("Error analysis model of parallel robot based on
+parameters identification"): commands to run, then the comparison."""
 from __future__ import annotations
 
 import contextlib
@@ -19,6 +20,7 @@ from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, Verific
                                resolve_taught, tool_carry, unseen_in_base, verification_plan, write_folder)
 from kincal.compensate.turn import poses_in
 from kincal.observe import check_convention
+from kincal.papers import PUU3_2024
 from kincal.units import DEG, MM
 
 from .design import add_cell_flags, cell_of
@@ -553,7 +555,7 @@ def register(cmd) -> None:
 
 def _register_verify(cmd) -> None:
     """verify's flags: a new plan (its samples, in the cell), or a plan measured (or simulated) and judged."""
-    s = cmd("verify", cmd_verify, "error-model verification (the 3-PUU paper): commands to run, then the comparison "
+    s = cmd("verify", cmd_verify, f"error-model verification ({PUU3_2024}): commands to run, then the comparison "
                                   "(its Table 5)", "the identified (actual) robot model")
     s.add_argument("--samples", type=positive_int, default=10, help="sample inputs of a new plan (default 10)")
     s.add_argument("--params", type=csv_list, help="the parameters to test, one case each (default: all but the "

@@ -1,4 +1,5 @@
-"""Error-model verification (the 3-PUU error-model verification paper, §3.5, Table 5).
+"""Error-model verification (the 3-PUU paper of 2024,
+"Error analysis model of parallel robot based on parameters identification", §3.5, Table 5).
 
 With an identified ("actual") model s′ and sample joint inputs q′: for each parameter error Δs (unit
 error) the error model predicts the position p + Δp = FK(q′; s′ + Δs). The inverse of the actual
@@ -25,7 +26,7 @@ from .commands import compensate
 
 WHY_TOLERANCE = ("  (the tolerance is how far a measured position may deviate and still count as the prediction come "
                  "true: the default 0.05 mm is about 3 σ of a 15 µm tracker, which noise alone exceeds in a few per "
-                 "cent of cases; the 3-PUU paper accepted its model with deviations up to about 0.45 mm, which "
+                 "cent of cases; the 3-PUU paper of 2024 accepted its model with deviations up to about 0.45 mm, which "
                  "--tolerance 0.5 judges alike)")
 
 

@@ -44,7 +44,9 @@ PRIOR_CHOICES = ("auto", *PRIORS)  # "auto": each kind's default, chosen by held
 
 @dataclass(frozen=True)
 class PSOOptions:
-    """Particle swarm settings (defaults: the 3-PUU error-model verification paper's Table 2).
+    """Particle swarm settings (defaults: the 3-PUU paper of 2024, Table 2).
+
+    The paper: "Error analysis model of parallel robot based on parameters identification".
 
     Every field is checked when the record is built (ValueError naming it).
 
@@ -130,7 +132,7 @@ class FitOptions:
         ``"lm"`` (Levenberg–Marquardt, default), ``"pso"`` (particle swarm; ``pso``) or ``"pso+lm"``.
     residual : {"cartesian", "joint"}, optional
         ``"cartesian"`` (positions, default) or ``"joint"`` (commanded − inverse kinematics of the
-        measured positions, the 3-PUU error-model verification paper's residual; robots with a
+        measured positions, the residual of the 3-PUU paper of 2024; robots with a
         closed-form inverse).
     joint_std : float, optional
         With ``residual="joint"``: the joints' reading noise σ, rad or m, the residual's stated σ (default None:
@@ -200,7 +202,7 @@ class FitOptions:
                                           "against its stated σ (a point, a 6-D pose, a marker sample, a seat), "
                                           "reweighted from the start (default linear)", choices=LOSSES)
     f_scale: float | None = None
-    method: str = _flag("lm", "--method", "lm (Levenberg-Marquardt), pso (particle swarm, the 3-PUU paper's "
+    method: str = _flag("lm", "--method", "lm (Levenberg-Marquardt), pso (particle swarm, the 3-PUU paper of 2024's "
                                           "settings) or pso+lm (default lm)", choices=METHODS)
     residual: str = _flag("cartesian", "--residual", "joint: commanded − inverse kinematics of the measured "
                                                      "positions (parallel robots)", choices=RESIDUAL_NAMES)

@@ -1,4 +1,5 @@
-"""Particle swarm optimisation with the 3-PUU error-model verification paper's settings as defaults (Table 2).
+"""Particle swarm optimisation with the settings of the 3-PUU paper of 2024 as defaults
+("Error analysis model of parallel robot based on parameters identification", Table 2).
 
 The objective is evaluated for the whole swarm at once, ``objective(X (S, K)) -> (S,)``: with a
 model's batched kinematics (``forward_batch`` / ``inverse_batch``) no Python loop runs over particles.

@@ -1,4 +1,5 @@
-"""Closed-loop robots defined by constraints f(x, q, s) = 0 (the 3-PUU error-model verification paper, eq. 1),
+"""Closed-loop robots defined by constraints f(x, q, s) = 0 (the 3-PUU paper of 2024,
+"Error analysis model of parallel robot based on parameters identification", eq. 1),
 with the platform's position or its whole pose as the unknown x.
 
 x is the platform's position (``UNKNOWN = "position"``, 3 coordinates) or its pose (``"pose"``: a rotation

@@ -1,4 +1,5 @@
-"""The 3-PUU translational parallel robot of the 3-PUU error-model verification paper (eq. 7–10), with an
+"""The 3-PUU translational parallel robot of the 3-PUU paper of 2024
+("Error analysis model of parallel robot based on parameters identification", eq. 7–10), with an
 extended parameter set.
 
 Leg i (nominal direction φᵢ = 0°, 120°, 240°): a slider moves along a rail through the base point

@@ -1,7 +1,7 @@
 """The joint-space residual as an observation type: measured positions against commanded joints.
 
-The 3-PUU error-model verification paper (eq. 4/11) compares the joint values that reach each measured point, by
-the model's closed-form inverse kinematics, with the commanded ones. The data are a :class:`~kincal.observe.PointObs`'s
+The 3-PUU paper of 2024 ("Error analysis model of parallel robot based on parameters identification", eq. 4/11)
+compares the joint values that reach each measured point, by the model's closed-form inverse kinematics, with the commanded ones. The data are a :class:`~kincal.observe.PointObs`'s
 (joint values and measured positions); only the residual differs: robots with a closed-form inverse (``has_inverse``).
 """
 from __future__ import annotations

@@ -267,7 +267,7 @@ def figure_set(result: CalibrationResult, test: Measurements | Sequence[Measurem
     Position data: errors per pose ("per_pose"), their distribution ("histogram"), per axis ("per_axis"),
     against the joints ("vs_joints"), in the workspace ("workspace") and the correlation of the estimated
     parameters ("correlation"); with a particle swarm also its fitness per iteration ("pso-fitness", the
-    3-PUU paper's Fig. 7). Observation sets: the figures of the sets with positions in the robot's frame
+    3-PUU paper of 2024's Fig. 7). Observation sets: the figures of the sets with positions in the robot's frame
     (:func:`observation_figures`).
 
     Parameters

@@ -1,5 +1,6 @@
 """Figures of the papers' studies: Guo et al. 2024's Figs. 5-8, 10 and 12-13 from a
-:class:`~kincal.studies.Guo2024Study`, and the 3-PUU error-model verification paper's Fig. 7
+:class:`~kincal.studies.Guo2024Study`, and the 3-PUU paper of 2024's Fig. 7
+("Error analysis model of parallel robot based on parameters identification")
 (particle-swarm fitness) from a calibration's history."""
 from __future__ import annotations
 
@@ -180,9 +181,10 @@ def guo2024_figures(study) -> dict:
 
 @_styled
 def pso_fitness(history) -> Figure:
-    """The 3-PUU paper's Fig. 7: the swarm's best mean squared residual per iteration."""
+    """The 3-PUU paper of 2024's Fig. 7: the swarm's best mean squared residual per iteration."""
     fig, ax = _axes(6.0, 3.2)
     h = np.asarray(history, dtype=float)
     ax.semilogy(np.arange(1, len(h) + 1), np.sqrt(h) * MM, color="#1f77b4")
-    ax.set(xlabel="iteration", ylabel="best RMS residual (mm)", title="Particle swarm fitness (3-PUU paper, Fig. 7)")
+    ax.set(xlabel="iteration", ylabel="best RMS residual (mm)",
+           title="Particle swarm fitness (3-PUU paper of 2024, Fig. 7)")
     return fig

@@ -1,5 +1,5 @@
-"""Guo et al. 2024 ("Measurement configuration optimization for robot kinematic calibration based on
-ill-conditioned parameter separation") reproduced on the 3T2R robot: ill-conditioned parameter
+"""Guo et al. 2024 ("Ill-conditioned parameter separation based optimization of measurement configuration for
+robot kinematic calibration") reproduced on the 3T2R robot: ill-conditioned parameter
 separation, three 60-pose designs
 (random, full-parameter optimised, separated-parameter optimised, both by DETMAX-IDE on the
 comprehensive index), LM identification of parameter errors of 0.5 mm / 0.05 rad, identification
