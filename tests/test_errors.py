@@ -145,3 +145,21 @@ def test_a_bad_tool_point_names_the_robot_once(tool):
     with pytest.raises(kincal.ModelError) as err:
         kincal.load_robot("ur5", tool=tool)
     assert str(err.value) == f"bundled robot 'ur5': the tool point must be three finite numbers (m), got {tool!r}"
+
+
+def test_python_calls_with_arguments_of_the_wrong_kind_say_what_to_give(ur5, good):
+    """A file path where the data read from it belong, a loss name where the options record does, a result
+    where its robot does: each a TypeError naming the argument and the call to make (they were a TypeError of
+    str.replace, or an AttributeError from deep inside)."""
+    path, q, xyz = good
+    meas = kincal.Measurements(q, xyz, ur5.joint_names)
+    with pytest.raises(TypeError, match=r"options: a FitOptions is wanted, got str: .*loss='huber'"):
+        kincal.calibrate(ur5, meas, "huber")
+    with pytest.raises(TypeError, match=r"meas: a Measurements is wanted, got PosixPath: .*read_measurements"):
+        kincal.calibrate(ur5, path)
+    res = kincal.calibrate(ur5, meas, diagnose=False)
+    with pytest.raises(TypeError, match=r"robot: a Robot is wanted, got CalibrationResult: .*result\.robot"):
+        kincal.evaluate(res, meas)
+    with pytest.raises(TypeError, match=r"robot: a Robot is wanted, got str: .*load_robot\('ur5'\)"):
+        kincal.read_measurements(path, "ur5")
+    assert kincal.evaluate(res.robot, meas).n == 30  # the call it names works

@@ -30,3 +30,11 @@ def one_of(name: str, value, allowed) -> str:
     if value not in allowed:
         raise ValueError(f"{name}={value!r} is not one of {', '.join(map(str, allowed))}")
     return value
+
+
+def kind_of(name: str, value, expected: type, hint: str = "") -> None:
+    """TypeError unless ``value`` is an ``expected`` (a wrong argument in a Python call: a file path where the data
+    read from it belong, a robot's name where the robot does), naming the argument, what it got and ``hint``."""
+    if not isinstance(value, expected):
+        raise TypeError(f"{name}: a {expected.__name__} is wanted, got {type(value).__name__}"
+                        + (f": {hint}" if hint else ""))

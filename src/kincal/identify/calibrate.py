@@ -17,6 +17,7 @@ import numpy as np
 
 from .._threads import blas_threads
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
+from ..checks import kind_of
 from ..errors import MeasurementError
 from ..io.measurements import Measurements
 from ..models.robot import Robot
@@ -98,6 +99,7 @@ def calibrate(robot: Robot, meas: Measurements, options: FitOptions | None = Non
     ...
     ValueError: loss='cauchy' is not one of linear, huber, soft_l1
     """
+    _arguments(robot, meas, options)
     parts = [meas] if meas.session is None or len(meas.sessions()) < 2 else \
         [dataclasses.replace(meas.subset(np.flatnonzero(meas.session == s)), source=s) for s in meas.sessions()]
     return _calibrate(robot, parts, False, options, use_q, progress, changes)
@@ -291,6 +293,15 @@ def _positions_of(res: CalibrationResult, robot: Robot) -> CalibrationResult | N
                      base=res.options.base)  # the set-up as the user gave it: --base fixed is one of the causes
 
 
+def _arguments(robot: Robot, meas: Measurements, options: FitOptions | None) -> None:
+    """TypeError for a call whose arguments are of the wrong kind, saying what to give."""
+    kind_of("robot", robot, Robot, "load it first, e.g. kincal.load_robot('ur5')")
+    kind_of("meas", meas, Measurements, "read the file first: kincal.read_measurements(path, robot, ...)")
+    if options is not None:
+        kind_of("options", options, FitOptions, "a FitOptions record; or give its fields as keywords, e.g. "
+                                                "calibrate(robot, meas, loss='huber')")
+
+
 def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
              uncertainty: ModelUncertainty | None = None) -> EvaluationStats:
     """Position error statistics of ``robot`` on ``meas`` (m).
@@ -338,6 +349,9 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
     >>> f"{kincal.evaluate(res.robot, moved, rebase=True).mean * 1e3:.3f} mm"
     '0.029 mm'
     """
+    kind_of("robot", robot, Robot, "the model to judge; of a calibration: evaluate(result.robot, meas, "
+                                   "uncertainty=result.uncertainty())")
+    _arguments(robot, meas, None)
     if rebase not in (True, False):
         raise ValueError(f"rebase={rebase!r}: True or False")
     meas.check_robot(robot)

@@ -13,6 +13,7 @@ from numpy.typing import ArrayLike
 from .._atomic import write_text_atomic
 from .._csv import MAX_LISTED, listed  # for messages naming rows
 from .._csv import check_finite, open_table
+from ..checks import kind_of
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..units import joint_factors, joint_units, unit_factor
@@ -380,6 +381,7 @@ def read_measurements(path: str | os.PathLike, robot: Robot, joint_cols: Sequenc
     >>> float(np.abs(back.q - meas.q).max()) < 1e-12, float(np.abs(back.xyz - meas.xyz).max()) < 1e-12
     (True, True)
     """
+    kind_of("robot", robot, Robot, "load it first, e.g. kincal.read_measurements(path, kincal.load_robot('ur5'))")
     path = str(path)
     _joint_columns(path, robot, joint_cols)  # one per joint, before the file is read
     if len(xyz_cols) != 3:
