@@ -10,6 +10,7 @@ import pytest
 
 from conftest import default_sigint
 
+import kincal
 from kincal.cli import main
 from kincal.studies import guo2024_mc, runner
 
@@ -257,3 +258,25 @@ def test_the_exact_model_is_exact_without_noise(small):
             assert rec[f"unmodelled/{name}/train_rms"] > 5e-6, (t, name)
     every = dataclasses.replace(quiet, drawn=())  # the former truth: errors on every kinematic parameter
     assert max(every.trial(0)[f"exact/{n}/train_rms"] for n in ("optimised", "random")) > 1e-5
+
+
+@pytest.mark.xdist_group("guo2024-small")
+def test_a_file_of_more_trials_or_a_study_that_cannot_start_says_so(small, tmp_path, capsys):
+    """A results file of 3 trials asked for 2 says it holds 3 and how to use them (it said the file was changed
+    or written by another version); a study whose first task fails leaves no file (a header alone made every
+    later run refuse it); too few poses for the study's parameters are refused before the preparation."""
+    path = tmp_path / "r.jsonl"
+    with runner.make_executor(1) as ex:
+        runner.run_tasks(small.run, runner.tasks_for(3, 1), ex, path, small.header)
+        with pytest.raises(ValueError, match=r"holds 3 trials of this study, more than the 2 asked; give --trials 3"):
+            runner.run_tasks(small.run, runner.tasks_for(2, 1), ex, path, small.header)
+
+        def broken(task):
+            raise ValueError("the first task fails")
+        with pytest.raises(ValueError, match="the first task fails"):
+            runner.run_tasks(broken, runner.tasks_for(2, 1), ex, tmp_path / "new.jsonl", small.header)
+    assert not (tmp_path / "new.jsonl").exists()
+    k = len(kincal.identifiability(small.robot, kincal.candidate_pool(small.robot, 1000, seed=1),
+                                   names=small.kin).identifiable)
+    assert main(["study", "guo2024", "--poses", str(k // 3), "-o", str(tmp_path / "few.jsonl")]) == 1
+    assert f"give --poses {k // 3 + 1} or more" in capsys.readouterr().err and not (tmp_path / "few.jsonl").exists()

@@ -126,9 +126,13 @@ def prepare(m: int = 60, generations: int = 150, seed: int = 0, say=lambda msg: 
     if not isinstance(robot, TransmissionRobot):
         raise ModelError("guo3t2r: the study needs the bundled robot file's transmission-driven chain")
     kin = tuple(n for n in robot.params.names if param_type(n) in TYPES)
+    pool = candidate_pool(robot, 1000, seed=1)
+    k = len(identifiability(robot, pool, names=kin).identifiable)
+    if 3 * m <= k:  # before the design's minutes: every trial's fit would be refused
+        raise ValueError(f"--poses {m}: the study's designs identify up to {k} parameters, 3 equations a pose: give "
+                         f"--poses {k // 3 + 1} or more (the paper measures 60)")
     say("separating ill-conditioned parameters")
     sep = separate_ill_conditioned(robot, candidate_pool(robot, 100, seed=0), kin)
-    pool = candidate_pool(robot, 1000, seed=1)
     reduced = identifiability(robot, pool, names=[n for n in kin if n not in sep.paper_choice]).identifiable
     say("optimising the design (DETMAX-IDE, comprehensive index)")
     design = select_poses(robot, pool, m=m, method="detmax-ide", criterion="comprehensive", seed=0,

@@ -16,7 +16,7 @@ import json
 import multiprocessing
 import os
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
-from contextlib import contextmanager, nullcontext
+from contextlib import ExitStack, contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
@@ -148,6 +148,12 @@ def _check_done(path: Path, done: dict[int, list], tasks: Sequence[Task]) -> Non
     """Every finished task in the file holds one record (a mapping) per trial of that task, all with
     the same keys (ValueError naming the task otherwise: the summary would cover other trials)."""
     by_first = {t.first: t for t in tasks}
+    beyond = [first for first in done if first not in by_first and first > max(by_first, default=-1)]
+    if beyond:
+        held = max(r.get("trial", -1) for first in beyond for r in done[first] if isinstance(r, dict)) + 1
+        asked = sum(len(t.trials) for t in tasks)
+        raise ValueError(f"{path}: holds {held} trials of this study, more than the {asked} asked; give --trials "
+                         f"{held} (or more) to use and extend it, or a new output file")
     keys = None
     for first, records in done.items():
         task = by_first.get(first)
@@ -177,12 +183,15 @@ def run_tasks(run: Callable[[Task], list[dict]], tasks: Sequence[Task], executor
     done = check_results_file(path, header)
     _check_done(path, done, tasks)
     todo = [t for t in tasks if t.first not in done]
-    with path.open("a", encoding="utf-8") as handle:
-        if not done and path.stat().st_size == 0:
-            _append(handle, {"study": header})
-        tell = progress or (lambda *_: None)
-        tell(len(tasks) - len(todo), len(tasks))
+    tell = progress or (lambda *_: None)
+    tell(len(tasks) - len(todo), len(tasks))
+    with ExitStack() as stack:
+        handle = None  # opened with the first finished task: a study that fails first leaves no file behind
         for task, records in _finished(run, todo, executor):
+            if handle is None:
+                handle = stack.enter_context(path.open("a", encoding="utf-8"))
+                if not done and path.stat().st_size == 0:
+                    _append(handle, {"study": header})
             done[task.first] = records
             _append(handle, {"task": task.first, "records": records})
             tell(sum(1 for t in tasks if t.first in done), len(tasks))
