@@ -248,3 +248,22 @@ def test_a_robot_file_states_its_controllers_language_and_keeps_it(tmp_path):
     (tmp_path / "bad.yaml").write_text(text)
     with pytest.raises(kincal.ModelError, match="language 'karel' is not one of ur, krl, rapid, fanuc, inform"):
         kincal.load_robot(tmp_path / "bad.yaml")
+
+
+@pytest.mark.parametrize("angle, advice", [("rad", "units: {length: mm, angle: rad}"),
+                                           ("deg", "units: {length: mm, angle: deg}")])
+def test_a_robot_file_without_units_is_told_the_units_it_is_in(tmp_path, angle, advice):
+    """A UR5 file with its lengths in mm and no units line: the advice names mm for the lengths and, for angles
+    written in radians, keeps radians (it said 'angle: deg', which loaded the arm with 0.785 deg twists); the
+    file with the advised line is the UR5."""
+    ur5 = kincal.load_robot("ur5")
+    path = tmp_path / "arm.yaml"
+    kincal.save_robot(ur5, path, length_unit="mm", angle_unit=angle)
+    text = "".join(line for line in path.read_text().splitlines(True) if not line.startswith("units:"))
+    path.write_text(text)
+    with pytest.raises(ModelError) as e:
+        kincal.load_robot(path)
+    assert f"add '{advice}'" in str(e.value)
+    path.write_text(text.replace("joints:", advice + "\njoints:", 1))
+    again = kincal.load_robot(path)
+    assert np.allclose(again.params.values, ur5.params.values, rtol=1e-12, atol=1e-12)

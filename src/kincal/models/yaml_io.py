@@ -171,8 +171,11 @@ def _check_plausible(robot: Robot, has_units: bool, label: str) -> None:
     if not has_units and (ang or lng):
         n, x = (ang or lng)[0]
         what = f"{x * DEG:.0f} deg read as rad" if ang else f"{x:g} m"
+        largest = max((abs(x) for x, k in zip(v, kinds) if k == "angle"), default=0.0)
+        units = f"units: {{length: {'mm' if lng else 'm'}, angle: {'deg' if ang else 'rad'}}}"
+        aside = "" if ang else f" (the angles, up to {largest:.3g}, read as radians; write angle: deg if they are not)"
         raise ModelError(f"{label}: {n} = {x:g} ({what}) is implausible in the default units m and rad; the values "
-                         f"look like {'degrees' if ang else 'mm'}: add 'units: {{length: mm, angle: deg}}'")
+                         f"look like {'degrees' if ang else 'mm'}: add '{units}'{aside}")
     bad = [(n, x) for n, x in ang if abs(x) > MAX_ANGLE] + [(n, x) for n, x in lng if abs(x) > MAX_LENGTH]
     if bad:
         n, x = bad[0]
