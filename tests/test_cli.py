@@ -335,3 +335,26 @@ def test_verification_samples_are_commandable_and_the_simulated_noise_follows_th
         v = run_json(capsys, "verify", "puu3", "--seed", seed, "--simulate", "puu3", "-o", tmp_path / f"p{seed}.csv")
         largest.append([max(c["max"]) for c in v["cases"].values()])
     assert largest[0] != largest[1]
+
+
+def test_calibrate_test_names_the_likely_cause_of_a_held_out_file_as_evaluate_does(tmp_path, capsys):
+    """A held-out file of another robot (a UR10's positions under a UR5's joint names): calibrate --test printed
+    '258 mm' and nothing else, while evaluate on the same file named a scale error or another robot's data. Now
+    both say it; a held-out file of the same robot gets no cause."""
+    ur5, ur10 = kincal.load_robot("ur5"), kincal.load_robot("ur10")
+    true = kincal.perturb(ur5, seed=4)
+    kincal.write_measurements(tmp_path / "train.csv", kincal.simulate(true, ur5.sample_joints(60, seed=1), seed=2),
+                              ur5.joint_types)
+    q = ur5.sample_joints(30, seed=3)
+    kincal.write_measurements(tmp_path / "same.csv", kincal.simulate(true, q, seed=5), ur5.joint_types)
+    kincal.write_measurements(tmp_path / "other.csv", kincal.Measurements(q, ur10.forward(q), ur5.joint_names),
+                              ur5.joint_types)
+    lines = {}
+    for name in ("same", "other"):
+        assert main(["calibrate", "ur5", str(tmp_path / "train.csv"), "--test", str(tmp_path / f"{name}.csv"),
+                     "-o", str(tmp_path / f"{name}.yaml")]) == 0
+        lines[name] = capsys.readouterr().out
+    assert "likely cause" not in lines["same"]
+    cause = next(x for x in lines["other"].splitlines() if "likely cause" in x)
+    assert main(["evaluate", str(tmp_path / "other.yaml"), str(tmp_path / "other.csv")]) == 0
+    assert cause in capsys.readouterr().out and "another robot's data" in cause

@@ -246,8 +246,10 @@ def _held_out_points(res, tests: list, same_frame: bool) -> tuple[list[str], dic
         nominal = res.before if same_frame else kincal.identify.register_mounting(res.nominal, t.q, t.xyz)
         after.append(kincal.evaluate(model, t))
         before.append(kincal.evaluate(nominal, t))
+        cause = kincal.identify.heldout_cause(model, t, res.stats_after.mean, not same_frame)  # as evaluate says
         lines.append(f"  held out {Path(t.source).name} ({how}): n={after[-1].n}  mean {before[-1].mean * MM:.4f} mm "
-                     f"→ {after[-1].mean * MM:.4f} mm, max {after[-1].max * MM:.4f} mm")
+                     f"→ {after[-1].mean * MM:.4f} mm, max {after[-1].max * MM:.4f} mm"
+                     + (f"\n  likely cause: {cause}" if cause else ""))
     return lines, ({"held_out": [{"file": t.source, "registration": how, **a.to_dict()} for t, a in zip(tests, after)],
                     "held_out_nominal": [b.to_dict() for b in before]} if tests else {})
 
