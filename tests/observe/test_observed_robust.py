@@ -130,3 +130,28 @@ def test_residuals_file_per_sample(case, tmp_path, capsys):
     ang = Rotation.from_matrix(Rf @ target @ dirty.R.transpose(0, 2, 1)).magnitude() * 1e3
     np.testing.assert_allclose([float(r["position_error_mm"]) for r in rows], pos, rtol=1e-5, atol=1e-9)
     np.testing.assert_allclose([float(r["rotation_error_mrad"]) for r in rows], ang, rtol=1e-5, atol=1e-9)
+
+
+def test_label_swapped_marker_samples_are_named_before_the_residual(case):
+    """Four samples whose first two markers were swapped (a label mix-up): the least-squares fit was refused with
+    "data and model do not belong together" first, and under --loss huber (a fit as good as without them) still
+    refused for residuals 119x their σ, counted over the down-weighted samples. The outliers come first and, once
+    down-weighted, are the whole reason; an honest fit stays GOOD."""
+    ur5, true, *_ = case
+    markers = np.array([[0.05, 0.0, 0.1], [-0.03, 0.05, 0.08], [0.0, -0.06, 0.12]])
+    q = ur5.sample_joints(80, seed=4)
+    obs = simulate_markers(true, q, markers, 20e-6, seed=2)
+    xyz = obs.xyz.copy()
+    bad = [6, 16, 26, 36]
+    xyz[bad, 0], xyz[bad, 1] = obs.xyz[bad, 1], obs.xyz[bad, 0]
+    swapped = dataclasses.replace(obs, xyz=xyz)
+    honest = fit_observations(ur5, [obs])
+    assert honest.verdict.status == "good"
+    linear = fit_observations(ur5, [swapped])
+    codes = [r.code for r in linear.verdict.reasons]
+    assert linear.verdict.status == "refused" and codes.index("outliers") < codes.index("residual")
+    assert "outlier samples above" in linear.verdict.reasons[codes.index("residual")].message
+    huber = fit_observations(ur5, [swapped], loss="huber")
+    assert huber.verdict.status == "suspect" and "residual" not in [r.code for r in huber.verdict.reasons]
+    assert set(obs.rows[bad]) <= set(obs.rows[huber.outliers[0]])
+    assert _error(huber, honest.robot, q) < 0.1 * _error(linear, honest.robot, q)  # right: the samples were wrong

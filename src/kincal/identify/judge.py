@@ -152,12 +152,27 @@ def _set_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     """Observation sets: the whitened residual per kind against its stated σ, outlier samples and
     repeated poses per set, and what plane contacts alone cannot confirm."""
     stated = {"joint"} if res.options.joint_std is not None else set()  # --std-joint: the joints' σ the user's word
-    reasons = [_whitened_reason(kind, rms, res.whitened, th, stated) for kind, rms in res.whitened.items()
-               if rms > 3.0]
-    reasons += _sample_reasons(res.observations, res.outliers, res.registered, th)
+    clean = _without_outliers(res.observations, res.whitened_residual, res.outliers)
+    samples = _sample_reasons(res.observations, res.outliers, res.registered, th)
+    residual = [_whitened_reason(kind, rms, res.whitened, th, stated) for kind, rms in res.whitened.items()
+                if rms > 3.0 and clean > 3.0]  # a few outlier samples alone: they are the reason, named below
+    if np.isfinite(clean) and residual:  # outliers first: a least-squares fit follows them, and they may be all
+        residual = [Reason(r.level, r.code, f"{r.message}; or the outlier samples above, which a least-squares fit "
+                                             f"follows: see it with --reject-outliers") for r in residual]
+    reasons = [*samples, *residual] if np.isfinite(clean) else [*residual, *samples]
     if all(o.kind == "plane" for o in res.observations):
         reasons += _plane_reasons(res.registered, res.robot, res.observations)
     return reasons
+
+
+def _without_outliers(sets, r: np.ndarray | None, outliers) -> float:
+    """The whitened RMS of the residual ``r`` (stacked as ``sets``) without the rows of the outlier samples."""
+    if r is None or not any(len(found) for found in outliers):
+        return np.inf
+    owner, _ = owners(sets)
+    first = np.cumsum([0, *[len(obs) for obs in sets]])[:-1]
+    bad = np.isin(owner, np.concatenate([found + start for found, start in zip(outliers, first)]))
+    return float(np.sqrt(np.mean(r[~bad] ** 2))) if (~bad).any() else np.inf
 
 
 def _whitened_reason(kind: str, rms: float, whitened: dict, th: Thresholds,
