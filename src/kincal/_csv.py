@@ -55,6 +55,12 @@ def _read_bytes(path: str, size: int = -1) -> bytes:
     return raw
 
 
+def read_text(path: str) -> str:
+    """A user's text file whole (a leading BOM dropped; Latin-1 when it is not UTF-8); MeasurementError naming it
+    when it cannot be read or is not text."""
+    return _decoded(_read_bytes(str(path)), "utf-8-sig")
+
+
 def _decoded(raw: bytes, encoding: str = "utf-8") -> str:
     """``raw`` as UTF-8 ('utf-8-sig': a leading BOM dropped), else Latin-1."""
     try:

@@ -12,11 +12,11 @@ import csv
 import os
 import re
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
+from .._csv import read_text
 from ..analysis.sensitivity import UNIT
 from ..errors import MeasurementError, ModelError
 from ..io.measurements import write_csv
@@ -163,7 +163,7 @@ class VerificationPlan:
             When the file is not a plan written by kincal, has the wrong number of columns, a value that
             is no number, or cases of different sizes.
         """
-        lines = Path(path).read_text(encoding="utf-8-sig").splitlines()
+        lines = read_text(str(path)).splitlines()
         m = re.match(r"# kincal verification plan .*units: length=(\w+) angle=(\w+)", lines[0] if lines else "")
         if not m:
             raise MeasurementError(f"{path}: not a verification plan written by 'kincal verify -o' (its first line "
