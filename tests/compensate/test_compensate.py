@@ -250,3 +250,19 @@ def test_a_calibrated_model_beside_a_nominal_of_another_frame_is_refused():
     assert np.linalg.norm(model.forward(wrong.q) - targets, axis=1).mean() > 0.5e-3  # what the pair would give
     model, nominal = command_models(cal, ur5.params.as_dict(), frame="measurement")
     assert compensate(model, nominal.forward(q0), q0, nominal=nominal).ok.all()
+
+
+def test_verification_cases_name_their_unit_error(tmp_path):
+    """Table 5's cases say what unit error each is (a length's 1 mm, an angle's 1 mrad): 'Δj2.theta = 1' named
+    none; a plan read back from its file says the same."""
+    from kincal.compensate import VerificationPlan, verification_plan
+
+    ur5 = kincal.load_robot("ur5")
+    plan = verification_plan(ur5, ur5.sample_joints(3, seed=1), names=["j2.theta", "j3.a"])
+    plan.write_csv(tmp_path / "plan.csv", ur5, length_unit="mm")
+    again = VerificationPlan.read_csv(tmp_path / "plan.csv", ur5)
+    for p in (plan, again):
+        table = p.compare(ur5.forward(p.commands.reshape(-1, 6))).table().splitlines()
+        assert [line.rsplit(" x ", 1)[0].strip() for line in table[1::3][:2]] == ["Δj2.theta = 1 mrad", "Δj3.a = 1 mm"]
+    moved = kincal.load_robot("ur5").with_params({"j2.theta": 1e-3})  # the case's 1 mrad, by hand
+    assert np.allclose(plan.predicted[0], moved.forward(plan.q_samples), atol=1e-12)

@@ -45,6 +45,8 @@ class VerificationPlan:
         The positions the error model predicts for each case at each sample, m.
     commands : ndarray, shape (C, N, n)
         The commands that realise them on the actual robot, rad (m for a prismatic joint).
+    units : tuple of str, optional
+        The unit error of each case as the tables name it ("mm", "mrad", "‰"; default: not named).
 
     See Also
     --------
@@ -83,6 +85,7 @@ class VerificationPlan:
     q_samples: np.ndarray | None
     predicted: np.ndarray
     commands: np.ndarray
+    units: tuple[str, ...] = ()
 
     def compare(self, measured: np.ndarray, tolerance: float = 50e-6) -> "Verification":
         """Compare the positions measured at the commands with the predictions.
@@ -100,7 +103,7 @@ class VerificationPlan:
             The deviations (C, N, 3) m, judged against ``tolerance``.
         """
         dev = np.asarray(measured, float).reshape(self.predicted.shape) - self.predicted
-        return Verification(self.cases, dev, tolerance)
+        return Verification(self.cases, dev, tolerance, self.units)
 
     def write_csv(self, path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None,
                   length_unit: str = "m", angle_unit: str = "rad") -> None:
@@ -187,7 +190,7 @@ class VerificationPlan:
         inputs = (vals[:per, n + 3:] * qs) if width == 2 * n + 5 else None  # the same for every case
         if inputs is not None and not (vals[:, n + 3:].reshape(len(cases), per, n) == vals[:per, n + 3:]).all():
             raise MeasurementError(f"{path}: the sample inputs differ between cases; write the plan again with -o")
-        return cls(cases, inputs, (vals[:, n:n + 3] * lf).reshape(len(cases), per, 3), cmds)
+        return cls(cases, inputs, (vals[:, n:n + 3] * lf).reshape(len(cases), per, 3), cmds, _units(robot, cases))
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,6 +206,8 @@ class Verification:
         Measured minus predicted positions, m.
     tolerance : float, optional
         The largest deviation per axis of a case that passes, m (default 50e-6).
+    units : tuple of str, optional
+        The unit error of each case as the table names it ("mm", "mrad", "‰"; default: not named).
 
     See Also
     --------
@@ -224,10 +229,10 @@ class Verification:
     ([True, True], True)
     >>> print(result.table())
     case           axis     max mm   mean mm  verdict (tolerance 0.05 mm)
-    ΔL1 = 1        x        0.0065    0.0035  PASS
+    ΔL1 = 1 mm     x        0.0065    0.0035  PASS
                    y        0.0047    0.0028
                    z        0.0035    0.0022
-    ΔL2 = 1        x        0.0116    0.0060  PASS
+    ΔL2 = 1 mm     x        0.0116    0.0060  PASS
                    y        0.0052    0.0031
                    z        0.0062    0.0026
     error model confirmed: 2 of 2 cases within 0.05 mm
@@ -238,6 +243,7 @@ class Verification:
     cases: tuple[str, ...]
     deviations: np.ndarray
     tolerance: float = 50e-6
+    units: tuple[str, ...] = ()
 
     @property
     def passed(self) -> np.ndarray:
@@ -253,12 +259,15 @@ class Verification:
 
     def table(self) -> str:
         """Table 5: per case and axis, maximum and mean deviation (mm), and the verdict."""
-        out = [f"{'case':<14} {'axis':<5} {'max mm':>9} {'mean mm':>9}  verdict (tolerance {self.tolerance * MM:g} mm)"]
+        units = [*self.units, *[""] * len(self.cases)]
+        labels = [f"Δ{c} = 1" + (f" {u}" if u else "") for c, u in zip(self.cases, units)]
+        w = max([14, *map(len, labels)])
+        out = [f"{'case':<{w}} {'axis':<5} {'max mm':>9} {'mean mm':>9}  verdict (tolerance {self.tolerance * MM:g} mm)"]
         a = np.abs(self.deviations) * MM
-        for k, c in enumerate(self.cases):
+        for k, label in enumerate(labels):
             for j, axis in enumerate("xyz"):
                 verdict = ("PASS" if self.passed[k] else "FAIL") if j == 0 else ""
-                out.append(f"{('Δ' + c + ' = 1') if j == 0 else '':<14} {axis:<5} {a[k, :, j].max():9.4f} "
+                out.append(f"{label if j == 0 else '':<{w}} {axis:<5} {a[k, :, j].max():9.4f} "
                            f"{a[k, :, j].mean():9.4f}  {verdict}")
         out.append(f"error model {'confirmed' if self.passed.all() else 'NOT confirmed'}: "
                    f"{int(self.passed.sum())} of {len(self.cases)} cases within {self.tolerance * MM:g} mm")
@@ -328,7 +337,14 @@ def verification_plan(robot: Robot, q_samples: np.ndarray, names: Sequence[str] 
                              f"singularities")
         predicted.append(target)
         commands.append(comp.q)
-    return VerificationPlan(names, q, np.array(predicted), np.array(commands))
+    return VerificationPlan(names, q, np.array(predicted), np.array(commands), _units(robot, names))
+
+
+def _units(robot: Robot, cases: Sequence[str]) -> tuple[str, ...]:
+    """Each case's unit error as a table names it: "mm", "mrad" or "‰" ('' for a name the robot does not have)."""
+    shown = {"length": "mm", "angle": "mrad", "ratio": "‰"}
+    names = robot.params.names
+    return tuple(shown.get(robot.params.kinds[names.index(c)], "") if c in names else "" for c in cases)
 
 
 def _cases(robot: Robot, names: Sequence[str] | None) -> tuple[str, ...]:
