@@ -332,6 +332,8 @@ ARGS = [
     case("verify-plan-not-a-plan", ["verify", "puu3", "--plan", "{base}/good.csv", "--measured", "{base}/good.csv"], 1,
          ["not a verification plan"]),
     case("verify-zero-samples", ["verify", "puu3", "--samples", "0", "-o", "{d}/p.csv"], 2, ["at least 1"]),
+    case("verify-hexapod", ["verify", "hexapod", "-o", "{d}/p.csv"], 1,
+         ["joints are set by the platform's whole pose", "no cases of 6-D poses", "calibrate --test"]),
     case("verify-plan-missing", ["verify", "puu3", "--plan", "{d}/none.csv", "--measured", "{base}/good.csv"], 1,
          ["none.csv: cannot read the file (No such file or directory)"]),
     case("verify-zero-tolerance", ["verify", "puu3", "-o", "{d}/p.csv", "--tolerance", "0"], 2, ["> 0"]),

@@ -321,6 +321,7 @@ def verification_plan(robot: Robot, q_samples: np.ndarray, names: Sequence[str] 
     >>> bool(np.abs(robot.forward(plan.commands[2]) - plan.predicted[2]).max() < 1e-9)
     True
     """
+    _positions_only(robot)
     q = robot.check_q(q_samples)
     names = _cases(robot, names)
     predicted, commands = [], []
@@ -338,6 +339,15 @@ def verification_plan(robot: Robot, q_samples: np.ndarray, names: Sequence[str] 
         predicted.append(target)
         commands.append(comp.q)
     return VerificationPlan(names, q, np.array(predicted), np.array(commands), _units(robot, names))
+
+
+def _positions_only(robot: Robot) -> None:
+    """ModelError for a robot whose joints its platform's whole pose sets: the cases are positions."""
+    if robot.has_pose_inverse:
+        raise ModelError(f"robot '{robot.name}' ({robot.structure}): its joints are set by the platform's whole pose, "
+                         f"and the error-model verification's cases are positions (the 3-PUU paper of 2024's, for a "
+                         f"translational robot): it has no cases of 6-D poses; judge this robot with calibrate --test "
+                         f"or evaluate on poses it did not see")
 
 
 def _units(robot: Robot, cases: Sequence[str]) -> tuple[str, ...]:
@@ -381,6 +391,7 @@ def commandable(robot: Robot, q_samples: np.ndarray, names: Sequence[str] | None
     >>> commandable(robot, robot.sample_joints(4, seed=1)).tolist()
     [True, True, True, True]
     """
+    _positions_only(robot)
     q = robot.check_q(q_samples)
     ok = np.ones(len(q), bool)
     for name in _cases(robot, names):
