@@ -263,3 +263,20 @@ def test_the_envelope_takes_a_revolute_joint_a_whole_turn_away_as_inside():
     beyond[:, 5] = np.deg2rad(150.0) - 2 * np.pi
     bad, text = envelope_warning(rows, beyond, model, unc)
     assert bad.all() and "150.0..150.0 deg" in text
+
+
+def test_a_model_kincal_would_refuse_to_load_is_not_written(ur5, tmp_path):
+    """A fit can put a 3.2 deg harmonic on a joint (the WAM's grid with harmonics:4: j6.h3c = 0.0556 rad); the file
+    was written and then every command refused to load it. Now nothing is written and the loader's reason is
+    given; within the loader's limit the file is written and loads back exactly."""
+    from kincal.models.yaml_kinds import MAX_HARMONIC
+
+    robot = kincal.extend(ur5, "harmonics:1")
+    name = next(n for n in robot.params.names if n.endswith(".h1c"))
+    path = tmp_path / "h.yaml"
+    with pytest.raises(kincal.ModelError, match=rf"h.yaml: not written: kincal would refuse to load it .*{name} = "
+                                                rf"0.0556 rad are implausible \(limit {MAX_HARMONIC:g} rad"):
+        kincal.save_robot(robot.with_params({name: 0.0556}), path)
+    assert not path.exists()
+    kincal.save_robot(robot.with_params({name: 0.9 * MAX_HARMONIC}), path)
+    assert kincal.load_robot(path).params[name] == 0.9 * MAX_HARMONIC

@@ -445,7 +445,8 @@ def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", an
     Raises
     ------
     ModelError
-        When kincal has no robot file for this kind of model.
+        When kincal has no robot file for this kind of model, or would refuse to load the file (values beyond
+        what the loader takes as plausible): nothing is written.
 
     See Also
     --------
@@ -470,9 +471,22 @@ def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", an
     True
     """
     text = robot_to_yaml(robot, length_unit, angle_unit)
+    _loads_back(text, str(path))
     if calibration:
         text += yaml.safe_dump({"calibration": calibration}, default_flow_style=None, sort_keys=False, width=120)
     write_text_atomic(path, text)
+
+
+def _loads_back(text: str, label: str) -> None:
+    """ModelError, before anything is written, for a robot file kincal would refuse to load (a calibration's
+    values beyond what the loader takes as plausible: a 3.2 deg harmonic)."""
+    try:
+        data = _parse(text, label)
+        _check_plausible(robot_from_dict(data, label), "units" in data, label)
+    except ModelError as exc:
+        raise ModelError(f"{label}: not written: kincal would refuse to load it ({str(exc).removeprefix(label + ': ')}); "
+                         f"a fit that puts such values there took up errors its terms cannot describe: calibrate with "
+                         f"fewer terms (a smaller --error-model, or auto)") from None
 
 
 def read_section(name_or_path: str | os.PathLike, key: str) -> object | None:
