@@ -689,6 +689,47 @@ def test_evaluate_a_moved_camera_judged_in_the_same_frame_names_the_cause(tmp_pa
     assert "with the measurement frame re-registered it is 0.38" in got["cause"]
 
 
+def test_markers_held_out_in_the_same_frame_are_judged_at_their_own_point(tmp_path, capsys):
+    """Markers held out with --same-frame: their positions (the markers' centroid) were judged against the model's
+    tool point (the flange's origin, a gauge freedom for markers), so a perfect session (0.026 mm) was 'mean error
+    8.410 mm ... a tool point 8.41 mm from the calibrated one', and a camera moved by 0.46 m and 0.4 rad was
+    named another tool point first, in evaluate and in report alike. Judged at the calibrated markers' centroid:
+    no cause, and the moved camera is named, with its figures (the centroid's error, then after a rigid
+    re-registration: Kabsch below)."""
+    units = ["--type", "markers", "--length-unit", "mm", "--angle-unit", "deg"]
+    m, t, mt, cal = (str(tmp_path / n) for n in ("m.csv", "t.yaml", "mt.csv", "mc.yaml"))
+    assert main(["simulate", "ur10", "-o", m, "--perturb", "--seed", "1", "--save-true", t, "--poses", "80",
+                 *units]) == 0
+    assert main(["simulate", t, "-o", mt, "--seed", "7", "--poses", "40", *units]) == 0
+    assert main(["calibrate", "ur10", m, "-o", cal, *units]) == 0
+    capsys.readouterr()
+    code, ev, _ = _run(capsys, ["evaluate", cal, mt, "--same-frame", *units])
+    assert code == 0 and ev["sessions"][0]["mean"] * 1e3 < 0.05 and ev["sessions"][0]["cause"] is None
+    data = np.loadtxt(mt, delimiter=",", skiprows=1)
+    M, shift = Rotation.from_rotvec([0.02, -0.03, 0.4]), np.array([300.0, -250.0, 250.0])  # mm
+    data[:, :9] = np.hstack([M.apply(data[:, 3 * k:3 * k + 3]) + shift for k in range(3)])
+    moved = _write(tmp_path / "moved.csv", open(mt).readline().strip().split(","), data.tolist())
+    # the reference: the calibrated markers' centroid through the calibrated model, against the measured centroid
+    markers = kincal.models.load_calibration_record(cal)["setup"]["markers"]
+    point = np.mean([[markers[f"marker[m{k}].{a}"] for a in "xyz"] for k in (1, 2, 3)], axis=0)
+    seen = np.mean(data[:, :9].reshape(-1, 3, 3), axis=1) / 1e3  # m
+    said = kincal.load_robot(cal).with_tool_point(point).forward(np.radians(data[:, 9:]))
+    a, b = said - said.mean(0), seen - seen.mean(0)
+    u, _, vt = np.linalg.svd(a.T @ b)
+    turn = vt.T @ np.diag([1.0, 1.0, np.linalg.det(vt.T @ u.T)]) @ u.T  # turns the model's points onto the seen
+    errors = [np.linalg.norm(seen - said, axis=1).mean(), np.linalg.norm(b - a @ turn.T, axis=1).mean()]
+    code, ev, _ = _run(capsys, ["evaluate", cal, moved, "--same-frame", *units])
+    code_r, rep, _ = _run(capsys, ["report", cal, "--test", moved, "--same-frame", *units[2:], "-o",
+                                   str(tmp_path / "r.html")])
+    for cause in (ev["sessions"][0]["cause"], *rep["warnings"]):
+        assert "with the measurement frame re-registered it is" in cause and "tool point" not in cause
+        figures = re.findall(r"mean error ([0-9.]+) mm.*re-registered it is ([0-9.]+) mm", cause)[0]
+        assert np.allclose([float(f) for f in figures], np.array(errors) * 1e3, atol=2e-3)  # 538.166, 0.016 mm
+    assert code == code_r == 0 and len(rep["warnings"]) == 1
+    code, rep, _ = _run(capsys, ["report", cal, "--test", mt, "--same-frame", *units[2:], "-o", str(tmp_path / "p.html")])
+    assert code == 0 and rep["warnings"] == []
+
+
 def test_an_euler_file_read_in_the_reversed_convention_is_named(tmp_path, capsys):
     """UR10 poses written as intrinsic XYZ angles (simulate's hint says how to read them back) and
     read as extrinsic ZYX — the same letters reversed and the other mode, the mistake the robot could

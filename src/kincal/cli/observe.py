@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 import kincal
-from kincal.identify import ABSOLUTE, fit_observations, heldout_cause, refuse_inapplicable, stat_line, trained_setup
+from kincal.identify import ABSOLUTE, fit_observations, refuse_inapplicable, set_cause, stat_line, trained_setup
 from kincal.io import check_joints, check_spread
 from kincal.observe import InSession, ObservationFormat, PointObs, read_observations
 from kincal.simulate import (plane_plan, simulate_markers, simulate_planes, simulate_poses, simulate_same_point,
@@ -277,12 +277,11 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
     texts += group_lines([s], "")
     train = [t.get("mean") for t in (record or {}).get("observations", []) if isinstance(t, dict)
              and t.get("type") == obs.kind]  # the training error of this kind (m)
-    found, cause = obs.positions(), ""
-    if not (frame or found is None or not train or not isinstance(train[0], (int, float)) or train[0] <= 0):
+    cause = ""
+    if not (frame or not train or not isinstance(train[0], (int, float)) or train[0] <= 0):
         # positions judged in the calibration's frame: the position path's likely cause of an error far above
         # the training error (the tracker moved, another tool point, a scale)
-        meas = kincal.Measurements(found[0], found[1], robot.joint_names, obs.source, obs.rows)
-        cause = heldout_cause(robot, meas, float(train[0]), rebased=False)
+        cause = set_cause(robot, obs, fit.nuisance, float(train[0]))
     texts += [f"  likely cause: {cause}"] if cause else []
     unc = kincal.analysis.load_uncertainty(args.robot) if record else None
     envelope = None if unc is None else kincal.analysis.envelope_warning(obs.rows, obs.q, robot, unc)[1]

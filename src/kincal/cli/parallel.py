@@ -394,9 +394,13 @@ def _body(args, record: dict) -> tuple[np.ndarray | None, str]:
     found = record.get("setup")
     setup: dict = found if isinstance(found, dict) else {}
     if "target_rotation" not in setup:
+        if "target.rx" in (record.get("nuisance") or {}):  # a fit in joint space before kincal recorded it
+            raise ValueError(f"{args.robot}: its calibration fitted the measured body's rotation on the flange "
+                             f"(target.rx, target.ry, target.rz) but does not record it (setup.target_rotation), so "
+                             f"the measured body's poses (--target-frame measurement) cannot be turned to the "
+                             f"flange's; calibrate again with this kincal, which records it")
         return None, ("target rotations: taken as the flange's (the calibration recorded no rotation of a measured "
-                      "body on the flange" + (": it was fitted in joint space)" if "pose" in (
-                          (record.get("data") or {}).get("kinds") or []) else ")"))
+                      "body on the flange)")
     R = kincal.identify.trained_setup({"setup": setup}, str(args.robot))[1]["target_rotation"]
     angle = float(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0)))
     return R, (f"target rotations: the measured body's, as the instrument gives them; turned to the flange's by the "

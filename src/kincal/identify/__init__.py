@@ -11,12 +11,12 @@ from .relevance import PRIORS
 from .robust import LOSSES
 from .select import ErrorModelChoice
 from .stacked import observation_identifiability
-from .sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
+from .sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame, set_cause
 from .registration import register_mounting
 from .verdict import Reason, Thresholds, Verdict
 
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "RESIDUALS", "CalibrationResult", "EvaluationStats", "LOSSES",
            "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
            "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "observation_identifiability", "stat_line", "trained_setup",
-           "SCOPES", "refuse_inapplicable", "joined", "ABSOLUTE", "held_out_stats", "register_mounting",
+           "SCOPES", "refuse_inapplicable", "joined", "ABSOLUTE", "held_out_stats", "register_mounting", "set_cause",
            "ALPHA", "Calibrated", "ChangeTest", "Suspect", "check", "compare"]

@@ -328,12 +328,17 @@ class CalibrationResult:
         """The set-up the next measurement of this robot shares, in absolute form: the 6-D probe's
         rotation on the flange (3, 3) and the marker points on the flange (m), as fitted."""
         out: dict = {"markers": {n: float(v) for n, v in self.nuisance.items() if n.startswith("marker[")}}
-        pose = next((o for o in self.observations if o.kind == "pose"), None)
+        pose = self._pose_set()  # a pose set, its residual in the instrument's frame or the joints'
         while isinstance(pose, Wrapper):  # the set under a session's frame or a drifting instrument
             pose = pose.inner
         if pose is not None:
             out["target_rotation"] = pose.target(np.array([self.nuisance[f"target.r{a}"] for a in "xyz"])).tolist()
         return out
+
+    def _pose_set(self):
+        """The first set that measures a body's rotation on the flange (a pose set, its residual in the
+        instrument's frame or in the joints', maybe wrapped), or None."""
+        return next((o for o in self.observations if "target_rotation" in o.anchors()), None)
 
     def sample_table(self) -> list[dict]:
         """Per sample of every set: file, row, kind, position error (mm: the norm of the sample's position residuals,
@@ -380,7 +385,8 @@ class CalibrationResult:
         nominal one): set-up parameters the fit shares with it (a target's rotation, markers) at their
         fitted values; a pose set also takes the training target's start rotation."""
         robot = self.robot if robot is None else robot
-        anchors: dict = next((o.anchors() for o in self.observations if o.kind == "pose"), {})  # the first target's
+        pose = self._pose_set()
+        anchors: dict = {} if pose is None else pose.anchors()  # the first target's
         obs = obs.with_anchors(anchors).prepare(robot)  # anchored: prepare keeps the training target's rotation
         names, start, _ = obs.nuisance(robot)
         return obs.stats(robot, robot.params.values, np.array([self.nuisance.get(n, v) for n, v in zip(names, start)]))

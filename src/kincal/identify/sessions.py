@@ -26,6 +26,53 @@ REGISTERED = "frame re-registered to these data (both models; kinematics fixed)"
 AS_CALIBRATED = "frame as calibrated: told the measurement frame did not move"
 
 
+def set_cause(robot: Robot, obs, setup: dict, train_error: float) -> str:
+    """Name the likely cause when a model misses a held-out observation set, judged in the calibration's frame.
+
+    :func:`heldout_cause` on the set's positions (``obs.positions()``) against the point on the flange they are
+    of (``obs.positions_point``: the robot's tool point for points and poses, the markers' centroid for
+    markers), so that a set whose measured point is not the model's tool point is not taken for another tool.
+
+    Parameters
+    ----------
+    robot : Robot
+        The model as calibrated, in the calibration's measurement frame.
+    obs : Observation
+        The held-out set.
+    setup : dict of str to float
+        The set-up parameters as calibrated (name -> m or rad, e.g. ``marker[m1].x``); the set's own start
+        values stand in for the others.
+    train_error : float
+        The model's mean error on training data of the set's kind, m.
+
+    Returns
+    -------
+    str
+        :func:`heldout_cause`'s sentence; ``""`` for a set without positions or within the limit.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.identify import set_cause
+    >>> from kincal.simulate import simulate_markers
+    >>> robot = kincal.load_robot("ur5")
+    >>> points = [[0.05, 0.0, 0.1], [0.0, 0.05, 0.1], [-0.05, 0.0, 0.1]]
+    >>> obs = simulate_markers(robot, robot.sample_joints(20, seed=1), points, std=0.0)
+    >>> setup = {f"marker[{m}].{a}": p[i] for m, p in zip(obs.names, points) for i, a in enumerate("xyz")}
+    >>> set_cause(robot, obs, setup, 20e-6)
+    ''
+    """
+    found = obs.positions()
+    if found is None:
+        return ""
+    ready = obs.prepare(robot)
+    names, start, _ = ready.nuisance(robot)
+    point = ready.positions_point({**dict(zip(names, map(float, start))), **setup})
+    model = robot if point is None else robot.with_tool_point(point)
+    meas = Measurements(found[0], found[1], robot.joint_names, obs.source, obs.rows)
+    return heldout_cause(model, meas, train_error, rebased=False)
+
+
 def refit_frame(robot: Robot, meas: Measurements) -> Robot:
     """Re-fit only the measurement (base) frame of ``robot`` to ``meas``, kinematics fixed.
 

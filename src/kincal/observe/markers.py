@@ -64,14 +64,24 @@ class MarkersObs(Observation):
     def seen(self) -> np.ndarray:
         return np.all(np.isfinite(self.xyz), axis=2)  # (N, k)
 
+    def _registering(self) -> tuple[np.ndarray, slice]:
+        """The samples (N,) bool and the markers whose centroid :meth:`positions` gives: every marker where
+        every marker was seen (at least 3 such samples), else the first marker where seen."""
+        seen = self.seen()
+        every = np.all(seen, axis=1)
+        return (every, slice(None)) if np.count_nonzero(every) >= 3 else (seen[:, 0], slice(0, 1))
+
     def positions(self):
         """A point near the tool per sample, to register the measurement frame: the markers' centroid
         where every marker was seen (at least 3 such samples), else the first marker where seen."""
-        seen = self.seen()
-        every = np.all(seen, axis=1)
-        if np.count_nonzero(every) >= 3:
-            return self.q[every], self.xyz[every].mean(axis=1)
-        return self.q[seen[:, 0]], self.xyz[seen[:, 0], 0]
+        rows, which = self._registering()
+        return self.q[rows], self.xyz[rows][:, which].mean(axis=1)
+
+    def positions_point(self, setup: dict) -> np.ndarray:
+        """The point on the flange (3,) m :meth:`positions` measures: the centroid of the same markers' points
+        ``marker[<name>].x/y/z`` in ``setup`` (m)."""
+        points = np.array([[setup[f"marker[{m}].{a}"] for a in "xyz"] for m in self.names], float)
+        return points[self._registering()[1]].mean(axis=0)
 
     def prepare(self, robot: Robot) -> "MarkersObs":
         """Without given starts, each marker starts where the (registered) robot's flange frames put

@@ -143,6 +143,11 @@ class Observation:
         the fit; None for data that see no absolute position."""
         return None
 
+    def positions_point(self, setup: dict) -> np.ndarray | None:
+        """The point on the flange (3,) m whose positions :meth:`positions` gives, from the set-up parameters'
+        values ``setup`` (name -> m or rad); None for the robot's own tool point (points, poses)."""
+        return None
+
     def sample_rows(self) -> np.ndarray:
         """The sample each residual row belongs to, (M,); -1 for rows of no one sample (a known
         distance): what a pose design needs to group the rows into per-candidate blocks."""
@@ -232,6 +237,9 @@ class Wrapper(Observation):
 
     def positions(self):
         return self.inner.positions()
+
+    def positions_point(self, setup: dict) -> np.ndarray | None:
+        return self.inner.positions_point(setup)
 
     def prepare(self, robot: Robot) -> "Wrapper":
         return dataclasses.replace(self, inner=self.inner.prepare(robot))

@@ -11,8 +11,7 @@ import numpy as np
 
 from ..identify.calibrate import held_out_stats
 from ..identify.result import CalibrationResult
-from ..identify.sessions import heldout_cause
-from ..io.measurements import Measurements
+from ..identify.sessions import set_cause
 from ..observe.sessions import InSession
 from . import figures as F
 from .._csv import listed
@@ -45,12 +44,8 @@ def _cause(result: CalibrationResult, obs) -> str:
     """The likely cause of a held-out set's error far above the training error of its kind, judged on its positions
     in the calibration's frame (``--same-frame``: the tracker moved, another tool point, a scale), as ``evaluate``
     names it; '' for a set without positions or within the limit."""
-    found = obs.positions()
     train = [s["mean"] for s in result.per_set if s.get("type") == obs.kind and s.get("mean")]
-    if found is None or not train:
-        return ""
-    meas = Measurements(found[0], found[1], result.robot.joint_names, obs.source, obs.rows)
-    return heldout_cause(result.robot, meas, float(train[0]), rebased=False)
+    return set_cause(result.robot, obs, result.nuisance, float(train[0])) if train else ""
 
 
 def observation_figures(fit: CalibrationResult, label: str = "training") -> dict:
