@@ -17,7 +17,8 @@ from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, Verific
                                commandable,
                                check_folder_output, compensate_branches, compensate_file, compensate_folder,
                                compensate_program, flange_turn,
-                               resolve_taught, tool_carry, unseen_in_base, verification_plan, write_folder)
+                               resolve_taught, tool_carry, unseen_at_flange, unseen_in_base, verification_plan,
+                               write_folder)
 from kincal.compensate.turn import poses_in
 from kincal.observe import check_convention
 from kincal.papers import PUU3_2024
@@ -75,6 +76,7 @@ def cmd_compensate(args) -> int:
     record, values = _calibration(args)
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
     _doubt(args, record)
+    _flange_doubt(args, record, cal, uncertainty)
     _tcp_length(args.tcp)
     if "link_error_max" in args.given and args.tcp is None and not args.program:  # a program may set its TCP
         raise ValueError("--link-error-max decides how much of the calibration's move of the measured target is "
@@ -235,6 +237,21 @@ def _doubt(args, record: dict) -> None:
     if record.get("verdict") in ("suspect", "refused"):
         err.print(f"warning: {args.robot} was calibrated with the verdict {str(record['verdict']).upper()} (its "
                   f"report says why): these commands carry that doubt", markup=False)
+
+
+def _flange_doubt(args, record: dict, cal, unc) -> None:
+    """On stderr: a calibration that fitted where its markers sit on the flange leaves the parameters that the nest's
+    pose takes up (the last link's: :func:`kincal.compensate.unseen_at_flange`) as the controller has them, unless
+    other data fitted them; the flange and a TCP carry their real errors, which the predicted σ leaves out."""
+    setup, fitted = record.get("setup"), record.get("parameters")
+    if not (isinstance(setup, dict) and setup.get("markers")) or not isinstance(fitted, list):
+        return
+    names = [n for n in unseen_at_flange(cal, poses_in(cal, *_ranges(cal, unc))) if n not in set(map(str, fitted))]
+    if names:
+        err.print(f"warning: flange: {', '.join(names)} not corrected: the calibration fitted where its markers sit on "
+                  f"the flange, and the markers' positions took these up, so the flange and a TCP on it keep them as "
+                  f"the controller has them (the predicted σ leaves them out); to correct them, calibrate with a "
+                  f"point on the TCP measured too (--type point or pose)", markup=False)
 
 
 TCP_MIN = 1e-3  # m: a TCP nearer the flange than this, and not on it, is a unit slip (0,0,0.109mm for 109 mm)

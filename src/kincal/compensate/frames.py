@@ -14,7 +14,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..models.robot import Robot
+from ..models.robot import TOOL_NAMES, Robot
 from ..models.transforms import rotation_log
 from ..ties import first_best
 from ..units import MM
@@ -331,6 +331,55 @@ def unseen_in_base(calibrated: Robot, q: np.ndarray) -> tuple[str, ...]:
     ident = free_parameters(calibrated, q)
     base = set(calibrated.base_params())
     return tuple(n for n in ident.dropped if ident.confounds.get(n) and all(k in base for k, _ in ident.confounds[n]))
+
+
+def unseen_at_flange(calibrated: Robot, q: np.ndarray) -> tuple[str, ...]:
+    """The robot parameters a body fitted on the flange (a nest of markers) takes up: their effect at every pose
+    is a rigid move of everything on the flange.
+
+    A calibration that fits where its markers sit on the flange cannot tell these from the nest's own pose (a
+    DH arm's last link: ``j6.d``, ``j6.a``, its twist and zero), so it keeps them nominal and the markers'
+    positions take their real values: the flange itself, and a TCP on it, keep them as the controller has them.
+    A parameter is taken up when its position Jacobian at three points of the flange lies, over the poses, in the
+    span of the flange's own six motions (to 1e-6 of its size).
+
+    Parameters
+    ----------
+    calibrated : Robot
+        The calibrated model, with a tool point.
+    q : ndarray, shape (N, n)
+        Poses of the calibration's joint ranges, rad (m for a prismatic joint).
+
+    Returns
+    -------
+    tuple of str
+        The names, in the robot's order (the base frame's and the tool point's left out); () for a robot
+        without a tool point.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.compensate import unseen_at_flange
+    >>> robot = kincal.load_robot("ur10")
+    >>> unseen_at_flange(robot, robot.sample_joints(50, seed=1))
+    ('j6.theta', 'j6.d', 'j6.a', 'j6.alpha')
+    """
+    if not calibrated.has_tool_point:
+        return ()
+    flange = calibrated.with_tool_point(np.zeros(3))
+    _, R, _, _ = flange.pose_and_jacobian(q)
+    blocks, motions = [], []
+    for v in 0.1 * np.eye(3):  # three points of the flange, 0.1 m out along its axes
+        blocks.append(calibrated.with_tool_point(v).param_jacobian(q).reshape(-1, calibrated.n_params))
+        arm = np.einsum("nij,j->ni", R, v)
+        turn = np.cross(R, arm[:, :, None], axis=1)  # a turn about each flange axis: ω × arm, (N, 3, 3)
+        motions.append(np.concatenate([R, turn], axis=2).reshape(-1, 6))
+    A, T = np.vstack(blocks), np.vstack(motions)
+    left = A - T @ np.linalg.lstsq(T, A, rcond=None)[0]
+    size = np.linalg.norm(A, axis=0)
+    skip = set(calibrated.base_params()) | set(TOOL_NAMES)
+    return tuple(n for n, a, r in zip(calibrated.params.names, size, np.linalg.norm(left, axis=0))
+                 if n not in skip and a > 0 and r <= 1e-6 * a)
 
 
 def base_note(names: tuple[str, ...], measurement_frame: bool = True) -> str:
