@@ -75,6 +75,28 @@ def test_paper_simulation_pso(puu3):
     moved = [n for n in ("r", "R") if res.std[n] == np.inf]  # the swarm moved it: said so, not "kept nominal"
     assert res.corrections[moved[0]] != 0.0 and "4 of 5 candidate parameters" in res.dropped_text()
     assert f"{moved[0]} moved by the particle swarm too" in res.dropped_text() and "kept nominal" not in res.dropped_text()
+    assert "search-box" not in [r.code for r in res.verdict.reasons]  # 3.4 mm at most: inside the ±8 mm box
+
+
+@pytest.mark.parametrize("particles", [3, 60])
+def test_a_swarm_stopped_short_is_named_not_blamed_on_the_data(puu3, particles):
+    # one frame, L1 11 mm long: beyond the swarm's ±8 mm box; Levenberg-Marquardt finds it
+    true = puu3.with_params({"L1": puu3.params["L1"] + 11e-3})
+    meas = kincal.simulate(true, puu3.sample_joints(30, seed=1), 15e-6, seed=1)
+    lm = kincal.calibrate(puu3, meas, base="fixed", residual="joint", diagnose=False)
+    assert lm.corrections["L1"] == pytest.approx(11e-3, abs=0.05e-3)
+    res = kincal.calibrate(puu3, meas, base="fixed", residual="joint", method="pso",
+                           pso={"particles": particles, "iterations": 60})
+    codes = [r.code for r in res.verdict.reasons]
+    assert codes[0] == "cause-solver" and not {"cause-frame", "cause-frame-jump"} & set(codes)
+    assert res.diagnosis.best.sigma == pytest.approx(lm.sigma, rel=1e-6)  # the trials' own refit of the data
+    assert "--method pso+lm" in res.verdict.reasons[0].message
+    edge = abs(res.corrections["L1"] - 8e-3) < 1e-12  # the box's edge, nominal + HALF_WIDTH
+    assert ("search-box" in codes) == edge and (edge or particles == 3)
+    if edge:
+        text = next(r.message for r in res.verdict.reasons if r.code == "search-box")
+        assert "L1 +8 mm" in text and "±8 mm for lengths" in text and "--method pso+lm" in text
+    assert str(res).startswith("calibration of puu3 from joint data: stopped (the particle swarm ran all its")
 
 
 @pytest.mark.slow
