@@ -138,3 +138,30 @@ def test_yaml_round_trip(tmp_path):
     path.write_text(path.read_text().replace("L1:", "L9:"))
     with pytest.raises(kincal.ModelError, match="unknown 3-PUU parameter 'L9'"):
         kincal.load_robot(path)
+
+
+def test_positions_out_of_reach_in_joint_space_are_counted_and_a_unit_is_named(puu3):
+    """The joint-space residual of positions the starting model cannot reach: a few rows are counted and named with
+    --exclude; all of them, in mm read as m (the joints right), name the unit; all of them with the axes mixed up
+    (same spread: no unit) name the columns, not a unit."""
+    from kincal.identify import fit_observations
+    from kincal.observe import JointObs
+    meas = kincal.simulate(puu3, puu3.sample_joints(30, seed=1), 15e-6, seed=1)
+
+    def error(xyz):
+        with pytest.raises(kincal.MeasurementError) as info:
+            fit_observations(puu3, [JointObs(meas.q, meas.rows, "p.csv", xyz=xyz)], base="fixed")
+        return str(info.value)
+    far = meas.xyz.copy()
+    far[[3, 7]] += [0.5, 0.0, 0.0]  # 500 mm off: more than a 350 mm link reaches
+    text = error(far)
+    assert "positions in 2 of 30 rows (5, 9) are out of reach" in text and "--exclude 5,9" in text
+    text = error(meas.xyz * 1e3)
+    rms = lambda x: np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1)))  # noqa: E731  (about the centroid)
+    ratio = rms(meas.xyz * 1e3) / rms(puu3.forward(meas.q))
+    assert "positions in all 30 rows are out of reach" in text and f"they spread {ratio:.4g}x" in text
+    assert "multiplied by 0.001 they are all within reach" in text and "mm read as m" in text
+    assert "--length-unit" in text and "residual='cartesian'" not in text
+    text = error(meas.xyz[:, [2, 0, 1]])
+    assert "all 30 rows" in text or "of 30 rows" in text
+    assert "length unit mistake" not in text and "--xyz-cols" in text
