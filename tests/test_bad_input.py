@@ -1153,3 +1153,19 @@ def test_a_store_that_cannot_be_written_is_refused_before_the_model_is(tmp_path,
         assert main(["calibrate", "ur5", str(DATA / "ur5_random.csv"), *units, "-o", str(out), "--store",
                      str(store)]) == 1
         assert said in capsys.readouterr().err and not out.exists()
+
+
+@pytest.mark.parametrize("residual", ["joint", "cartesian"])
+def test_a_3puu_file_in_mm_read_as_metres_is_named_a_unit(tmp_path, capsys, residual):
+    """A 3-PUU file written in mm and read without --length-unit mm: the joint-space path said the positions in
+    'row(s) 2 … 11' were out of reach (all 30 were) and 'use residual='cartesian'', the Cartesian one that the forward
+    kinematics did not converge; both now name the unit, from the slides' values against their range."""
+    robot = kincal.load_robot("puu3")
+    q = robot.sample_joints(30, seed=1)
+    kincal.write_measurements(tmp_path / "p30.csv", kincal.simulate(robot, q, 15e-6, seed=1), robot.joint_types, "mm")
+    code = main(["calibrate", "puu3", str(tmp_path / "p30.csv"), "--base", "fixed", "--residual", residual,
+                 "-o", str(tmp_path / "x.yaml")])
+    err = capsys.readouterr().err
+    lo, hi = (q[:, 0].min() * 1e3, q[:, 0].max() * 1e3)  # the first slide's values as written, mm
+    assert code == 1 and f"the column read as joint h1 holds {lo:.4g} to {hi:.4g} m as written" in err
+    assert "read as mm they lie within it" in err and "--length-unit mm" in err and "residual='cartesian'" not in err

@@ -1,9 +1,12 @@
 """Tail probabilities without SciPy's special-function module (its import alone costs 0.4 s, more than a whole
 ``kincal check``): the F distribution's survival function through the regularized incomplete beta function,
-evaluated by its continued fraction (modified Lentz), accurate to ~1e-14 relative."""
+evaluated by its continued fraction (modified Lentz), accurate to ~1e-14 relative; and the spread of points about
+their centroid."""
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 TINY = 1e-300
 EPS = 1e-15
@@ -45,3 +48,10 @@ def f_sf(x: float, d1: float, d2: float) -> float:
     if x <= 0:
         return 1.0
     return betainc(d2 / 2.0, d1 / 2.0, d2 / (d2 + d1 * x))
+
+
+def spread(x: np.ndarray) -> float:
+    """RMS distance (m) of the points x (N, 3) from their centroid (inf for values whose squares overflow:
+    the readers refuse such values, data built in memory may hold them)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return float(np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1))))

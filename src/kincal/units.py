@@ -9,7 +9,8 @@ units engineers read; this module converts between the two and nothing else does
 * ``MM``, ``DEG``: display factors, an SI value times the factor is in that unit
   (``0.0012 * MM == 1.2`` mm; ``1.2 / MM`` m); ``MRAD`` likewise (1 rad = 1000 mrad);
 * :func:`display` writes a parameter value as mm or deg by its kind; :func:`in_display` turns a
-  set's statistics (m, rad) into mm and mrad, each key named with its unit.
+  set's statistics (m, rad) into mm and mrad, each key named with its unit;
+* :func:`length_mistakes`: the factors positions read in the wrong length unit are off by.
 
 A leaf module: it imports nothing of kincal.
 """
@@ -88,3 +89,23 @@ def in_display(stats: dict) -> dict:
         else:
             out[key] = [in_display(g) for g in value] if key == "groups" else value
     return out
+
+
+def length_mistakes() -> dict[float, tuple[tuple[str, str], ...]]:
+    """The factors by which positions read in the wrong length unit must be multiplied to be right, nearest 1 first:
+    each with its (unit the numbers are in, unit they were read in) pairs; read in one of LENGTH_UNITS, written in
+    any length unit kincal names (OTHER_LENGTHS too).
+
+    Examples
+    --------
+    >>> from kincal.units import length_mistakes
+    >>> length_mistakes()[0.001]
+    (('mm', 'm'), ('um', 'mm'))
+    """
+    table = {**LENGTH_UNITS, **OTHER_LENGTHS}
+    out: dict[float, tuple[tuple[str, str], ...]] = {}
+    for real, a in table.items():
+        for read in (u for u in LENGTH_UNITS if u != real):
+            f = float(f"{a / LENGTH_UNITS[read]:.12g}")
+            out[f] = out.get(f, ()) + ((real, read),)
+    return {f: out[f] for f in sorted(out, key=lambda f: abs(math.log(f)))}

@@ -65,22 +65,34 @@ def test_too_few_poses_limit_the_rank(ur5):
     assert len(ident.identifiable) == 15 and len(ident.dropped) == ur5.n_params - 15
 
 
-def test_confound_coefficients_carry_their_units():
-    """A dropped parameter's combination names each coefficient's unit when the kinds differ: a length
-    acting like an angle in mm/mrad (1 m/rad), an angle like a length in mrad/mm; same kinds none."""
+@pytest.mark.parametrize("name, seed, dropped", [("guo3t2r", 0, "j5.theta"), ("guo3t2r", 0, "j5.alpha"),
+                                                  ("puu3-extended", 1, "leg1.dR"), ("ur5", 2, "j6.alpha")])
+def test_confound_coefficients_carry_their_units(name, seed, dropped):
+    """A dropped parameter's combination gives each coefficient in the kept parameter's unit per the dropped one's
+    (mm/mrad: 1 mrad of an angle moves the points like c mm of a length; same kinds none), its value the
+    finite-difference ratio: on guo3t2r 1 mrad of j5.theta moves the points like +0.05 mm of tool.y."""
     import re
 
-    ur5 = kincal.load_robot("ur5")
-    ident = kincal.identifiability(ur5, ur5.sample_joints(60, seed=2))
-    kinds = dict(zip(ur5.params.names, ur5.params.kinds))
-    mixed = 0
-    for line in ident.confound_lines(""):
-        dropped, rhs = line.split("  ~  ")
-        for unit, kept in re.findall(r"[-+][0-9.e+-]+( mm/mrad| mrad/mm)?·(\S+)", rhs):
-            want = "" if kinds[dropped] == kinds[kept] else " mm/mrad" if kinds[dropped] == "length" else " mrad/mm"
-            assert unit == want, line
-            mixed += bool(unit)
-    assert mixed >= 2 and "mrad/mm·tool.y" in next(x for x in ident.confound_lines("") if x.startswith("j6.alpha"))
+    robot = kincal.load_robot(name)
+    q = robot.sample_joints(60 if name != "puu3-extended" else 80, seed=seed)
+    ident = kincal.identifiability(robot, q)
+    kinds = dict(zip(robot.params.names, robot.params.kinds))
+    line = next(x for x in ident.confound_lines("") if x.startswith(f"{dropped}  ~  "))
+    terms = re.findall(r"([-+][0-9.e+-]+)( mm/mrad| mrad/mm)?·(\S+)", line.split("  ~  ")[1])
+    shown = {"length": "mm", "angle": "mrad"}  # both 1e-3 of the SI unit
+
+    def moved(n):  # the points moved by 1e-3 (one mm or mrad) of parameter n, m: central differences
+        h = 1e-7
+        up, down = (robot.with_params({n: robot.params[n] + s}).forward(q) for s in (h, -h))
+        return ((up - down) / (2 * h) * 1e-3).ravel()
+    ratio = np.linalg.lstsq(np.stack([moved(k) for _, _, k in terms], axis=1), moved(dropped), rcond=None)[0]
+    for (c, unit, kept), want in zip(terms, ratio):
+        same = kinds[kept] == kinds[dropped]
+        assert unit == ("" if same else f" {shown[kinds[kept]]}/{shown[kinds[dropped]]}"), line
+        assert float(c) == pytest.approx(want, rel=6e-3, abs=1e-6), line  # 3 significant digits
+    assert sum(bool(u) for _, u, _ in terms) >= 1
+    if dropped == "j5.theta":
+        assert line == "j5.theta  ~  +0.05 mm/mrad·tool.y"
 
 
 def test_tall_r_factor_equals_one_householder_qr():

@@ -75,6 +75,28 @@ def test_paper_simulation_pso(puu3):
     moved = [n for n in ("r", "R") if res.std[n] == np.inf]  # the swarm moved it: said so, not "kept nominal"
     assert res.corrections[moved[0]] != 0.0 and "4 of 5 candidate parameters" in res.dropped_text()
     assert f"{moved[0]} moved by the particle swarm too" in res.dropped_text() and "kept nominal" not in res.dropped_text()
+    assert "search-box" not in [r.code for r in res.verdict.reasons]  # 3.4 mm at most: inside the ±8 mm box
+
+
+@pytest.mark.parametrize("particles", [3, 60])
+def test_a_swarm_stopped_short_is_named_not_blamed_on_the_data(puu3, particles):
+    # one frame, L1 11 mm long: beyond the swarm's ±8 mm box; Levenberg-Marquardt finds it
+    true = puu3.with_params({"L1": puu3.params["L1"] + 11e-3})
+    meas = kincal.simulate(true, puu3.sample_joints(30, seed=1), 15e-6, seed=1)
+    lm = kincal.calibrate(puu3, meas, base="fixed", residual="joint", diagnose=False)
+    assert lm.corrections["L1"] == pytest.approx(11e-3, abs=0.05e-3)
+    res = kincal.calibrate(puu3, meas, base="fixed", residual="joint", method="pso",
+                           pso={"particles": particles, "iterations": 60})
+    codes = [r.code for r in res.verdict.reasons]
+    assert codes[0] == "cause-solver" and not {"cause-frame", "cause-frame-jump"} & set(codes)
+    assert res.diagnosis.best.sigma == pytest.approx(lm.sigma, rel=1e-6)  # the trials' own refit of the data
+    assert "--method pso+lm" in res.verdict.reasons[0].message
+    edge = abs(res.corrections["L1"] - 8e-3) < 1e-12  # the box's edge, nominal + HALF_WIDTH
+    assert ("search-box" in codes) == edge and (edge or particles == 3)
+    if edge:
+        text = next(r.message for r in res.verdict.reasons if r.code == "search-box")
+        assert "L1 +8 mm" in text and "±8 mm for lengths" in text and "--method pso+lm" in text
+    assert str(res).startswith("calibration of puu3 from joint data: stopped (the particle swarm ran all its")
 
 
 @pytest.mark.slow
@@ -116,3 +138,30 @@ def test_yaml_round_trip(tmp_path):
     path.write_text(path.read_text().replace("L1:", "L9:"))
     with pytest.raises(kincal.ModelError, match="unknown 3-PUU parameter 'L9'"):
         kincal.load_robot(path)
+
+
+def test_positions_out_of_reach_in_joint_space_are_counted_and_a_unit_is_named(puu3):
+    """The joint-space residual of positions the starting model cannot reach: a few rows are counted and named with
+    --exclude; all of them, in mm read as m (the joints right), name the unit; all of them with the axes mixed up
+    (same spread: no unit) name the columns, not a unit."""
+    from kincal.identify import fit_observations
+    from kincal.observe import JointObs
+    meas = kincal.simulate(puu3, puu3.sample_joints(30, seed=1), 15e-6, seed=1)
+
+    def error(xyz):
+        with pytest.raises(kincal.MeasurementError) as info:
+            fit_observations(puu3, [JointObs(meas.q, meas.rows, "p.csv", xyz=xyz)], base="fixed")
+        return str(info.value)
+    far = meas.xyz.copy()
+    far[[3, 7]] += [0.5, 0.0, 0.0]  # 500 mm off: more than a 350 mm link reaches
+    text = error(far)
+    assert "positions in 2 of 30 rows (5, 9) are out of reach" in text and "--exclude 5,9" in text
+    text = error(meas.xyz * 1e3)
+    rms = lambda x: np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1)))  # noqa: E731  (about the centroid)
+    ratio = rms(meas.xyz * 1e3) / rms(puu3.forward(meas.q))
+    assert "positions in all 30 rows are out of reach" in text and f"they spread {ratio:.4g}x" in text
+    assert "multiplied by 0.001 they are all within reach" in text and "mm read as m" in text
+    assert "--length-unit" in text and "residual='cartesian'" not in text
+    text = error(meas.xyz[:, [2, 0, 1]])
+    assert "all 30 rows" in text or "of 30 rows" in text
+    assert "length unit mistake" not in text and "--xyz-cols" in text

@@ -151,10 +151,11 @@ class Identifiability:
         return [f"{indent}{d}  ~  {rhs[d] or 'no effect on the position'}" for d in self.dropped]
 
     def _unit(self, dropped: str, kept: str) -> str:
-        """The unit of a confound coefficient: ' mm/mrad' for a length acting like an angle (m/rad is
-        mm/mrad), ' mrad/mm' the other way, '' for the same kind or kinds not known."""
+        """The unit of a confound coefficient, the kept parameter's per the dropped one's: ' mm/mrad' for an angle
+        acting like a length (1 mrad of it moves the points like c mm of the length; m/rad is mm/mrad), ' mrad/mm'
+        for a length acting like an angle, '' for the same kind or kinds not known."""
         a, b = self.kinds.get(dropped), self.kinds.get(kept)
-        return "" if a is None or b is None or a == b else " mm/mrad" if a == "length" else " mrad/mm"
+        return "" if a is None or b is None or a == b else " mm/mrad" if b == "length" else " mrad/mm"
 
     def __str__(self) -> str:
         lines = [f"{self.robot}: {self.rank} of {len(self.candidates)} parameters identifiable from {self.n_poses} "

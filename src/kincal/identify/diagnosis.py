@@ -25,7 +25,10 @@ nominal model to it (measurement frame and tool point only, ~10 ms for 80 poses)
 screens that beat the data as given, and candidates 7–10, then get a full calibration with the user's
 options. A candidate explains the data when its verdict is better than the original one with a
 residual σ no more than NOT_WORSE times the original, or when its σ falls below EXPLAIN_RATIO times
-the original; those that do are ranked by verdict, then σ.
+the original; those that do are ranked by verdict, then σ. The trials run Levenberg–Marquardt: a particle
+swarm's fit (``method="pso"``) is replaced as "the original" by Levenberg–Marquardt's fit of the unchanged data
+(a better optimum is not a data mistake), and that refit is itself a cause when it explains the swarm's fit (the
+swarm stopped short of the best fit).
 """
 from __future__ import annotations
 
@@ -297,6 +300,19 @@ def _full(cause: Cause, change: Change, robot: Robot, meas: Measurements, option
     return replace(cause, sigma=res.sigma, status=res.verdict.status)
 
 
+def _refit(res: CalibrationResult) -> Cause | None:
+    """A particle swarm's fit: the unchanged data fitted as the trials are (:func:`_quiet`: Levenberg–Marquardt from
+    the nominal values), the fit the trials are judged against (a better optimum is not a data mistake) and itself a
+    cause when it explains the data (the swarm stopped short of the best fit). None for the other solvers: the
+    trials run the fit's own."""
+    if res.options.method != "pso":
+        return None
+    return _full(Cause("solver", "the particle swarm stopped short of the best fit (Levenberg–Marquardt fits the same "
+                                 "data from the nominal values)", "refit with --method pso+lm (Levenberg–Marquardt "
+                                                                  "from the swarm's best) or --method lm"),
+                 lambda r, m, o: (r, m, o), res.nominal, res.measurements, res.options)
+
+
 def diagnose(res: CalibrationResult) -> Diagnosis:
     """Try the candidate causes of a doubtful fit ``res`` (a :class:`CalibrationResult` with its
     measurements) and rank those that explain the data; see the module docstring."""
@@ -318,15 +334,23 @@ def diagnose(res: CalibrationResult) -> Diagnosis:
                        lambda r, m, o: (r, m.subset(np.setdiff1d(np.arange(len(m)), bad)), o)))
     tried = [c for c in (_full(cause, change, robot, meas, options) for cause, change in trials) if c is not None]
     n_tried = len(data) + len(trials) - min(len(order), MAX_FULL)  # the screened ones counted once
-    return Diagnosis(res.sigma, res.verdict.status, _ranked(tried, res), n_tried)
+    refit = _refit(res)
+    ref = (res.sigma, res.verdict.status) if refit is None else (refit.sigma, refit.status)
+    good = [c for c in tried if _explains(c, *ref)]
+    good += [refit] if refit is not None and _explains(refit, res.sigma, res.verdict.status) else []
+    return Diagnosis(res.sigma, res.verdict.status, _ranked(good), n_tried + (refit is not None))
 
 
-def _ranked(tried: list[Cause], res: CalibrationResult) -> tuple[Cause, ...]:
+def _explains(c: Cause, sigma: float, status: str) -> bool:
+    """Whether the trial ``c`` explains the data against a fit of residual σ ``sigma`` (m) and verdict ``status``:
+    a σ below EXPLAIN_RATIO times it, or a better verdict with a σ at most NOT_WORSE times it."""
+    return c.sigma < EXPLAIN_RATIO * sigma or (STATUSES.index(c.status) < STATUSES.index(status)
+                                               and c.sigma <= NOT_WORSE * sigma)
+
+
+def _ranked(good: list[Cause]) -> tuple[Cause, ...]:
     """The causes that explain the data, best verdict first, then smallest σ; ties (kincal.ties) keep
     the canonical order."""
-    level = STATUSES.index(res.verdict.status)
-    good = [c for c in tried if c.sigma < EXPLAIN_RATIO * res.sigma
-            or (STATUSES.index(c.status) < level and c.sigma <= NOT_WORSE * res.sigma)]
     out: list[Cause] = []
     for status in STATUSES:
         same = [c for c in good if c.status == status]

@@ -12,8 +12,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..models.robot import TOOL_NAMES, Robot
-from ..units import MM
+from ..units import MM, fine
 from .._csv import listed
+from .pso import HALF_WIDTH
 from .verdict import (Reason, Thresholds, Verdict, correction_reasons, drift_reasons, duplicate_groups,
                       duplicate_reasons, fitted_drift_reasons, mounting_reasons, noise_level, outlier_reasons,
                       repeat_tolerance, residual_reasons, robust_z)
@@ -51,7 +52,7 @@ def verdict_of(res: "CalibrationResult") -> Verdict:
     th = res.options.thresholds
     reasons = [] if res.converged else [Reason("refused", "not-converged", f"the fit did not converge "
                                                                              f"({res.message})")]
-    reasons += _base_reasons(res)
+    reasons += _base_reasons(res) + _box_reasons(res)
     reasons += correction_reasons(res.nominal, {n: c for n, c in res.corrections.items() if np.isfinite(res.std[n])},
                                   th)
     if res.mounting:
@@ -117,6 +118,28 @@ def similarity_scale(a: np.ndarray, b: np.ndarray) -> float:
     U, S, Vt = np.linalg.svd(b.T @ a)
     S[-1] *= np.sign(np.linalg.det(U @ Vt))
     return float(S.sum() / max(np.sum(a**2), 1e-300))
+
+
+def _box_reasons(res: "CalibrationResult") -> list[Reason]:
+    """A particle swarm alone (``method="pso"``) whose estimates lie on the edge of its search box (the values it
+    started from ± :data:`kincal.identify.pso.HALF_WIDTH` per kind, the 3-PUU paper of 2024's position limits):
+    the swarm could go no further, and the best fit lies beyond the box."""
+    if res.options.method != "pso":
+        return []
+    kinds = dict(zip(res.registered.params.names, res.registered.params.kinds))
+    moved = {n: res.robot.params[n] - res.registered.params[n] for n in res.names}
+    edge = [n for n, c in moved.items() if abs(c) >= HALF_WIDTH[kinds[n]] * (1.0 - EDGE)]
+    if not edge:
+        return []
+    box = ", ".join(f"±{fine(HALF_WIDTH[k], k, 'g')} for {k}s" for k in dict.fromkeys(kinds[n] for n in edge))
+    at = ", ".join(f"{n} {fine(moved[n], kinds[n], '+g')}" for n in edge)
+    return [Reason("suspect", "search-box", f"the particle swarm stopped on the edge of its search box (the nominal "
+                   f"values {box}) at {at}: the best "
+                   f"fit lies beyond it; refit with --method pso+lm (Levenberg–Marquardt from the swarm's best, not "
+                   f"bound by the box) or --method lm")]
+
+
+EDGE = 1e-6  # an estimate within this share of the half-width from the box's edge is on it (the swarm clips to it)
 
 
 def _base_reasons(res: "CalibrationResult") -> list[Reason]:

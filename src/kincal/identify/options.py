@@ -46,7 +46,10 @@ PRIOR_CHOICES = ("auto", *PRIORS)  # "auto": each kind's default, chosen by held
 class PSOOptions:
     """Particle swarm settings (defaults: the 3-PUU paper of 2024, Table 2).
 
-    The paper: "Error analysis model of parallel robot based on parameters identification".
+    The paper: "Error analysis model of parallel robot based on parameters identification". The swarm searches
+    the nominal values ± its position limits, 8 mm for lengths, 8 mrad for angles, 8 ‰ for ratios
+    (:data:`kincal.identify.pso.HALF_WIDTH`, not an option): an estimate on that box's edge is named in the
+    verdict (``search-box``); ``method="pso+lm"`` polishes the swarm's best with Levenberg–Marquardt, unbound.
 
     Every field is checked when the record is built (ValueError naming it).
 

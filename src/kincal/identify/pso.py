@@ -11,7 +11,8 @@ from typing import Callable
 
 import numpy as np
 
-HALF_WIDTH = {"length": 8e-3, "angle": 8e-3, "ratio": 8e-3}  # the paper's position limits ±8 (mm), per kind
+HALF_WIDTH = {"length": 8e-3, "angle": 8e-3, "ratio": 8e-3}  # the paper's position limits ±8 (mm), per kind (m, rad,
+# ratio): the search box around the nominal values; an estimate on its edge is named in the verdict (search-box)
 V_MAX = {"length": 0.5e-3, "angle": 0.5e-3, "ratio": 0.5e-3}  # and velocity limits ±0.5 (mm per iteration)
 
 

@@ -68,7 +68,8 @@ class CalibrationResult:
     covariance : ndarray, shape (F, F)
         Covariance over ``free`` (robot and set-up parameters fitted, in that order), SI.
     converged : bool
-        Whether the last solver run converged.
+        Whether the last solver run converged (a particle swarm alone, which has no test of convergence: that it
+        ran its iterations; :attr:`solver_state` says "stopped").
     iterations : int
         Iterations of every solver run, summed.
     observations : tuple of Observation, optional
@@ -420,6 +421,14 @@ class CalibrationResult:
         return out
 
     @property
+    def solver_state(self) -> str:
+        """How the solver ended: "converged", "not converged", or "stopped" (``method="pso"``: the particle swarm
+        runs its iterations and stops, with no test of convergence; ``"pso+lm"`` polishes its best)."""
+        if self.options.method == "pso":
+            return "stopped"
+        return "converged" if self.converged else "not converged"
+
+    @property
     def _turning_joints(self) -> bool:
         """Whether the robot's joints all turn (a joint-space residual in rad, else in m)."""
         return all(t == "revolute" for t in self.robot.joint_types)
@@ -428,7 +437,7 @@ class CalibrationResult:
         kinds = " + ".join(dict.fromkeys(s["type"] for s in self.per_set))
         lines = [f"calibration of {self.robot.name} from {kinds} data"
                  + ("" if self.robot.error_model == "geometric" else f" ({self.robot.error_model} error model)")
-                 + f": {'converged' if self.converged else 'NOT CONVERGED'} ({self.message}) in {self.iterations} "
+                 + f": {self.solver_state.replace('not converged', 'NOT CONVERGED')} ({self.message}) in {self.iterations} "
                  f"iterations, {self.time_s * 1e3:.1f} ms; {len(self.names)} robot and {len(self.nuisance)} set-up "
                  f"parameters; loss {self.options.loss}, base {self.options.base}"]
         # the fitted robot parameters as a table: estimate, correction from nominal, σ (mm, deg)

@@ -154,5 +154,5 @@ def swarm(st: _Stack, x0: np.ndarray, cols: np.ndarray, settings) -> tuple[np.nd
     full[cols] = found.x
     r, J = fun_at(st, x0, cols, found.x)
     fit = LMResult(found.x, 0.5 * float(r @ r), r, J, found.iterations, found.evaluations, True,
-                   "particle swarm finished its iterations")
+                   "the particle swarm ran all its iterations; a swarm has no test of convergence")
     return full, fit, tuple(map(float, found.history))

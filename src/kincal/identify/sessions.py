@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import KincalError
 from ..io.measurements import Measurements
-from ..io.unit_checks import spread
+from .._stats import spread
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import MM
 from ..ties import first_best

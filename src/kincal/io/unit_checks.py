@@ -11,19 +11,13 @@ from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
 from ..models.transforms import kabsch, rotvec_matrix
 from ..ties import first_best
+from .._stats import spread
 from ..units import ANGLE_UNITS, LENGTH_UNITS, OTHER_LENGTHS, joint_units
 
 MIN_SPREAD = 1e-3  # m: below this the poses barely move the tool, and noise decides the spread
 SPREAD_RATIO = 2.0  # measured vs predicted spread at the same poses; model errors change it by < 1 %
 JUMP_RATIO = 0.25  # two frames leave less than this share of one frame's RMS: the frame jumps inside the file
 MIN_PART = 10  # poses on either side of a frame jump (fewer fit any frame)
-
-
-def spread(x: np.ndarray) -> float:
-    """RMS distance (m) of the points x (N, 3) from their centroid (inf for values whose squares overflow:
-    the readers refuse such values, data built in memory may hold them)."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        return float(np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1))))
 
 
 def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, length_unit: str | None,
@@ -34,7 +28,9 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
     joints ``q``; when they differ by more than ``SPREAD_RATIO`` (2x; model errors change it by < 1 %), the
     cause is named: the joint values read in the other angle unit first, then a frame that jumps inside the
     file (at its row of ``rows``), then the unit the positions are really in. Where the robot's own spread is
-    below ``MIN_SPREAD`` (1 mm: noise decides the spread) only the first two are looked for.
+    below ``MIN_SPREAD`` (1 mm: noise decides the spread) only the first two are looked for; where the robot does
+    not even assemble at the joints (a closed chain) the joint values are judged against their limits instead
+    (:func:`check_limits`, which names the unit that puts them within).
 
     Parameters
     ----------
@@ -101,7 +97,8 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
                f"move the robot {max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the {what} spread")
         raise MeasurementError(f"{source}: read as {ANGLE_WORDS[str(angle_unit)]}, the joint values {how}, read as "
                                f"{ANGLE_WORDS[other]} they match: use angle unit '{other}' (CLI: --angle-unit {other})")
-    if not assembles:
+    if not assembles:  # the joint values' own check: far outside the limits, in the unit that puts them within
+        check_limits(source, q, robot, length_unit, angle_unit)
         return
     jump = frame_jump(xyz, robot.forward(q))
     if jump is not None:

@@ -11,8 +11,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._csv import listed
+from .._stats import spread
 from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
+from ..units import length_mistakes
 from .observations import MeasuredPositions, PointObs, PoseObs, Wrapper, component_major, mean_square, so3_right
 
 
@@ -81,12 +84,42 @@ class JointObs(InJoints, MeasuredPositions):
         return mean_square(robot.inverse_batch(self.xyz, values) - self.q)
 
     def check(self, robot: Robot, values: np.ndarray) -> None:
-        bad = ~np.all(np.isfinite(robot.inverse(self.xyz, values, strict=False)), axis=1)
-        if bad.any():
-            raise MeasurementError(
-                f"{self.source}: the positions in row(s) {', '.join(str(r) for r in self.rows[bad][:10])} are out of "
-                f"reach of the starting model, so the joint-space residual is undefined there; use "
-                f"residual='cartesian' or leave those rows out")
+        reach = lambda k: np.all(np.isfinite(robot.inverse(self.xyz * k, values, strict=False)), axis=1)  # noqa: E731
+        out_of_reach(self, robot, values, ~reach(1.0), "positions", lambda k: bool(np.all(reach(k))))
+
+
+MOST = 0.5  # more than this share of the samples out of reach: not a few bad poses, the whole file
+UNIT_MATCH = 1.3  # a length unit mistake explains a spread ratio within this factor of its own
+
+
+def out_of_reach(obs: MeasuredPositions, robot: Robot, values: np.ndarray, bad: np.ndarray, what: str, reach) -> None:
+    """Refuse the samples of ``obs`` whose measured positions the starting model (``values``) cannot reach (``bad``
+    (N,) bool): how many and which, and what to do. When most are out of reach, a length unit mistake is named if one
+    explains the positions' spread (RMS distance from their centroid) against the robot's own at the same joints
+    and brings every one within reach (``reach(k)``: whether all the positions multiplied by k are)."""
+    n, k, rows = len(bad), int(np.count_nonzero(bad)), obs.rows
+    if not k:
+        return
+    head = (f"{obs.source}: the {what} in {f'all {n} rows' if k == n else f'{k} of {n} rows ({listed(rows[bad])})'} "
+            f"are out of reach of the starting model, so the joint-space residual is undefined there")
+    cartesian = "fit the positions instead (residual='cartesian'; CLI: --residual cartesian)"
+    if k <= MOST * n:
+        raise MeasurementError(f"{head}: leave those rows out (CLI: --exclude {','.join(map(str, rows[bad]))}) or "
+                               f"{cartesian}")
+    try:
+        ratio = spread(obs.xyz) / max(spread(robot.forward(obs.q, values)), 1e-300)
+    except ModelError:  # the joints do not assemble the robot either: their own check names why
+        ratio = np.nan
+    fits = lambda f: 1 / UNIT_MATCH < f * ratio < UNIT_MATCH and reach(f)  # noqa: E731  (False for nan)
+    factor = next((f for f in length_mistakes() if fits(f)), None)
+    if factor is None:
+        raise MeasurementError(f"{head}: that many rows are not a few bad poses: check the position columns, their unit "
+                               f"and their frame against the robot file (CLI: --xyz-cols, --length-unit, --base "
+                               f"estimate), or {cartesian}")
+    pairs = " or ".join(f"{real} read as {read}" for real, read in length_mistakes()[factor])
+    raise MeasurementError(f"{head}: they spread {ratio:.4g}x as far as the robot moves at the same joint values, and "
+                           f"multiplied by {factor:g} they are all within reach: a length unit mistake ({pairs}); read "
+                           f"them in the unit they are in (CLI: --length-unit)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -159,13 +192,10 @@ class PoseJointObs(InJoints, PoseObs):
         return r, J, Jn.transpose(1, 0, 2).reshape(-1, 3)
 
     def check(self, robot: Robot, values: np.ndarray) -> None:
-        bad = ~np.all(np.isfinite(robot.inverse_pose(self.R @ self.target(np.zeros(3)).T, self.xyz, values,
-                                                     strict=False)), axis=1)
-        if bad.any():
-            raise MeasurementError(
-                f"{self.source}: the poses in row(s) {', '.join(str(r) for r in self.rows[bad][:10])} are out of "
-                f"reach of the starting model, so the joint-space residual is undefined there; use "
-                f"residual='cartesian' or leave those rows out")
+        R = self.R @ self.target(np.zeros(3)).T
+        reach = lambda k: np.all(np.isfinite(robot.inverse_pose(R, self.xyz * k, values, strict=False)),  # noqa: E731
+                                 axis=1)
+        out_of_reach(self, robot, values, ~reach(1.0), "poses", lambda k: bool(np.all(reach(k))))
 
 
 def in_joint_space(obs, std: float | None = None):

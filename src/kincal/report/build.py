@@ -390,7 +390,7 @@ def _data_rows(result: CalibrationResult, tests: list, info: dict) -> list[dict]
     rows += [("options", f"base {o.base}, loss {o.loss}, method {o.method}, "
                          f"parameters {o.names if isinstance(o.names, str) else 'as listed'}"
                          + (", outliers left out (--reject-outliers)" if o.reject_outliers else "")),
-             ("solver", f"{'converged' if result.converged else 'NOT converged'} ({result.message}), "
+             ("solver", f"{result.solver_state.replace('not converged', 'NOT converged')} ({result.message}), "
                         f"{result.iterations} iterations"),
              ("pose design", info.pop("design", "not recorded (poses not from kincal design, or not given)"))]
     rows += [(k, str(v)) for k, v in info.items()]
