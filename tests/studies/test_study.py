@@ -280,3 +280,24 @@ def test_a_file_of_more_trials_or_a_study_that_cannot_start_says_so(small, tmp_p
                                    names=small.kin).identifiable)
     assert main(["study", "guo2024", "--poses", str(k // 3), "-o", str(tmp_path / "few.jsonl")]) == 1
     assert f"give --poses {k // 3 + 1} or more" in capsys.readouterr().err and not (tmp_path / "few.jsonl").exists()
+
+
+@pytest.mark.xdist_group("guo2024-small")
+def test_study_settings_that_do_not_apply_or_differ_are_named(small, tmp_path, capsys):
+    """A file run with another --per-task was 'the results of another study'; --workers beside --scheduler was
+    ignored; --poses 1000 ended in 'first_best of an empty sequence'. Each is said in the flags' words."""
+    import os
+
+    path = tmp_path / "r.jsonl"
+    with runner.make_executor(1) as ex:
+        runner.run_tasks(small.run, runner.tasks_for(2, 1), ex, path, {**small.header, "per_task": 1})
+        with pytest.raises(ValueError, match=r"another study, run with --per-task 1 \(give the same to resume it\)"):
+            runner.run_tasks(small.run, runner.tasks_for(2, 2), ex, path, {**small.header, "per_task": 2})
+    workers = str((os.cpu_count() or 1) + 1)  # not the default, so given
+    assert main(["study", "guo2024", "--workers", workers, "--scheduler", "local:1", "-o",
+                 str(tmp_path / "w.jsonl")]) == 1
+    assert "with --scheduler local:1 the Dask cluster's workers run the study" in capsys.readouterr().err
+    assert main(["study", "guo2024", "--poses", "1000", "-o", str(tmp_path / "p.jsonl")]) == 1
+    said = capsys.readouterr().err
+    assert "the designs choose among 1000 candidates" in said and "give --poses 500 or fewer" in said
+    assert not (tmp_path / "w.jsonl").exists() and not (tmp_path / "p.jsonl").exists()

@@ -32,6 +32,9 @@ def cmd_study(args) -> int:
     out = Path(args.output)
     if out.exists() and out.is_dir():
         raise ValueError(f"{out}: is a folder; give a results file (JSON lines)")
+    if args.scheduler and "workers" in args.given:
+        raise ValueError(f"--workers sets the worker processes on this machine; with --scheduler {args.scheduler} the "
+                         f"Dask cluster's workers run the study (local:N gives N): give one of the two")
     header = {**guo2024_mc.settings(args.poses, args.generations, args.seed), "per_task": args.per_task}
     runner.check_results_file(out, header)  # another study's file is refused before the preparation
     with progress("preparing the study", args.json) as say:

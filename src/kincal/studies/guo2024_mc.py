@@ -131,15 +131,19 @@ def prepare(m: int = 60, generations: int = 150, seed: int = 0, say=lambda msg: 
     if 3 * m <= k:  # before the design's minutes: every trial's fit would be refused
         raise ValueError(f"--poses {m}: the study's designs identify up to {k} parameters, 3 equations a pose: give "
                          f"--poses {k // 3 + 1} or more (the paper measures 60)")
+    big = candidate_pool(robot, 8000, seed=2)
+    qj = robot.chain_q(big)
+    part = big[(qj[:, 0] <= 0.5) & (qj[:, 2] >= -0.25)]
+    most = min(len(pool), len(part)) // 2  # every design a choice among at least twice as many candidates
+    if m > most:
+        raise ValueError(f"--poses {m}: the designs choose among {len(pool)} candidates (the partial-workspace random "
+                         f"designs among {len(part)}): give --poses {most} or fewer (the paper measures 60)")
     say("separating ill-conditioned parameters")
     sep = separate_ill_conditioned(robot, candidate_pool(robot, 100, seed=0), kin)
     reduced = identifiability(robot, pool, names=[n for n in kin if n not in sep.paper_choice]).identifiable
     say("optimising the design (DETMAX-IDE, comprehensive index)")
     design = select_poses(robot, pool, m=m, method="detmax-ide", criterion="comprehensive", seed=0,
                           problem=design_problem(robot, pool, reduced), certify=False, generations=generations)
-    big = candidate_pool(robot, 8000, seed=2)
-    qj = robot.chain_q(big)
-    part = big[(qj[:, 0] <= 0.5) & (qj[:, 2] >= -0.25)]
     drawn = identifiability(robot, big, names=kin).identifiable
     return Guo2024Trials(robot, design.q, paper_grid(robot), candidate_pool(robot, 60, seed=99),
                          {"random": big, "partial": part}, kin, drawn, m=m, seed=seed,

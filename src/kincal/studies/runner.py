@@ -129,8 +129,8 @@ def check_results_file(path: str | os.PathLike, header: dict) -> dict[int, list[
     except json.JSONDecodeError:
         first = None
     if first != {"study": header}:
-        raise ValueError(f"{path}: holds the results of another study (or is not a results file); give a new "
-                         f"output file or remove this one")
+        raise ValueError(f"{path}: holds the results of another study{_differing(first, header)} (or is not a "
+                         f"results file); give a new output file or remove this one")
     done = {}
     for k, line in enumerate(lines[1:], start=2):
         try:
@@ -142,6 +142,18 @@ def check_results_file(path: str | os.PathLike, header: dict) -> dict[int, list[
                              f"this one")
         done[rec["task"]] = rec["records"]
     return done
+
+
+def _differing(first, header: dict) -> str:
+    """', run with --per-task 100' and the like: the settings in which a results file's study differs ('' when
+    it is no study's file)."""
+    held = first.get("study") if isinstance(first, dict) else None
+    if not isinstance(held, dict) or held.get("study") != header.get("study"):
+        return ""
+    keys = [k for k in dict.fromkeys([*held, *header]) if held.get(k) != header.get(k)]
+    flags = {"m": "--poses", "generations": "--generations", "seed": "--seed", "per_task": "--per-task"}
+    said = [f"{flags[k]} {held[k]}" for k in keys if k in flags and k in held]
+    return f", run with {', '.join(said)} (give the same to resume it)" if said and len(said) == len(keys) else ""
 
 
 def _check_done(path: Path, done: dict[int, list], tasks: Sequence[Task]) -> None:
