@@ -280,3 +280,21 @@ def test_a_model_kincal_would_refuse_to_load_is_not_written(ur5, tmp_path):
     assert not path.exists()
     kincal.save_robot(robot.with_params({name: 0.9 * MAX_HARMONIC}), path)
     assert kincal.load_robot(path).params[name] == 0.9 * MAX_HARMONIC
+
+
+def test_params_with_an_error_model_fit_its_terms_too(ur5):
+    """--params beside an error model: the list names the robot's parameters; the model's terms (whose names the
+    user cannot know beforehand) were silently left out, so every 'auto' candidate was the geometric fit (the
+    WAM's: 11 parameters and the same CV for each) and a named model fitted none of its terms. Now the terms are
+    fitted with the listed parameters, and the harmonics come back as simulated (within 4σ)."""
+    model = kincal.extend(ur5, "harmonics:1")
+    terms = model.term_names
+    true = model.with_params(dict(zip(terms, np.random.default_rng(1).uniform(-1e-3, 1e-3, len(terms)))))
+    meas = kincal.simulate(true, ur5.sample_joints(150, seed=2), NOISE, seed=3)
+    listed = ["j2.a", "j3.a", "tool.x", "tool.y", "tool.z"]
+    res = kincal.calibrate(ur5, meas, error_model="harmonics:1", names=listed, base="fixed", diagnose=False)
+    assert set(res.names) == set(listed) | set(terms)
+    assert max(abs(res.estimates[n] - true.params[n]) / res.std[n] for n in terms) < 4
+    auto = kincal.calibrate(ur5, meas, error_model="auto", names=listed, base="fixed", diagnose=False)
+    counts = {r["error_model"]: r["parameters"] for r in auto.error_model_choice.rows if r["parameters"]}
+    assert counts["geometric"] == len(listed) and counts["harmonics:1"] == len(listed) + len(terms)

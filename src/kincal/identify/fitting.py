@@ -54,7 +54,11 @@ def fit_stack(robot: Robot, observations: Sequence, options: FitOptions, held: M
     "auto" is chosen by :func:`kincal.calibrate` on position data), drift, the fit, the negative-
     compliance refit and outlier rejection; ``held``: set-up parameters held at these values (a held-
     out file judged with the probe as trained). No diagnosis: the callers add theirs."""
-    robot = _with_error_model(robot, observations, options.error_model)
+    extended = _with_error_model(robot, observations, options.error_model)
+    if extended is not robot and not isinstance(options.names, str):  # --params: the model's terms fitted too
+        options = options.replace(names=(*options.names, *[n for n in extended.params.names
+                                                            if n not in robot.params.names]))
+    robot = extended
     sets = [in_joint_space(o, options.joint_std) for o in observations] if options.residual == "joint" \
         else list(observations)
     sets = [_drifting(o) for o in sets] if options.drift else sets
@@ -69,6 +73,8 @@ def fit_stack(robot: Robot, observations: Sequence, options: FitOptions, held: M
     if neg:
         say("dropping negative compliance: " + ", ".join(neg))
         robot = drop_terms(robot, neg)
+        if not isinstance(options.names, str):  # --params with the error model's terms: the dropped ones go
+            options = options.replace(names=tuple(n for n in options.names if n not in neg))
         res = dataclasses.replace(fit(sets, options.loss), notes=notes)
     if options.reject_outliers:
         res = _without_outliers(fit, sets, res, options.loss, say)

@@ -187,6 +187,8 @@ def _cross_validate(robot: Robot, meas: Measurements, spec: ErrorModel, regions,
         ext = extend(robot, spec, meas.q)
     except KincalError as exc:  # e.g. compliance without link masses
         return _unjudged(model, 0, sessions, why=str(exc))
+    if not isinstance(options.names, str):  # --params: each candidate with its own terms too, or all are geometric
+        options = options.replace(names=(*options.names, *[n for n in ext.params.names if n not in robot.params.names]))
     errors, ok, estimated = [], True, 0
     for held in regions:
         try:
