@@ -245,7 +245,23 @@ def test_a_drift_found_by_the_drift_term_is_a_reason():
     res = kincal.calibrate(ur5, drifted, drift=True)
     codes = [r.code for r in res.verdict.reasons]
     assert "drift-fitted" in codes and res.verdict.status == "suspect"
+    assert "measured in an order" not in res.verdict.reasons[codes.index("drift-fitted")].message  # random order
     assert kincal.calibrate(ur5, meas, drift=True).verdict.status == "good"
+
+
+def test_a_drift_along_the_order_the_positions_follow_is_not_only_blamed_on_the_tracker():
+    """Poses measured sweeping along y (the WAM's grid: row order against y, r = 0.98) with a drift along y: the
+    drift cannot be told from an error growing along y, and the reason says so with the correlation."""
+    ur5 = kincal.load_robot("ur5")
+    true = kincal.perturb(ur5, seed=2)
+    q = ur5.sample_joints(300, seed=2)
+    q = q[np.argsort(true.forward(q)[:, 1])]  # measured in the order of y
+    meas = kincal.simulate(true, q, 15e-6, seed=2)
+    drifted = dataclasses.replace(meas, xyz=meas.xyz + np.linspace(0.0, 1.0, len(q))[:, None] * [0.0, 0.8e-3, 0.0])
+    res = kincal.calibrate(ur5, drifted, drift=True)
+    reason = next(r.message for r in res.verdict.reasons if r.code == "drift-fitted")
+    r = np.corrcoef(np.arange(len(q)), drifted.xyz[:, 1])[0, 1]
+    assert f"follows the position along y (correlation {r:+.2f})" in reason and r > 0.9
 
 
 def _bumped(shift, turn, at=149, n=300):

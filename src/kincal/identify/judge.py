@@ -168,7 +168,7 @@ def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     reasons += [r for f, m in parts for r in outlier_reasons(meas.rows[m], z[m], th, res.options.loss, f)]
     return [*reasons, *duplicate_reasons(meas.rows, duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types,
                                                                                                  th))),
-            *fitted_drift_reasons(res.drift, noise[0])]
+            *fitted_drift_reasons(res.drift, noise[0], meas.xyz)]
 
 
 def _set_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:

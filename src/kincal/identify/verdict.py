@@ -40,6 +40,7 @@ import numpy as np
 
 from .._csv import MAX_LISTED, listed
 from ..models.robot import TOOL_NAMES, Robot
+from ..ties import first_best
 from ..units import DEG, MM, SHOWN, display
 from .noise import decreasing_root
 
@@ -472,9 +473,11 @@ def outlier_reasons(rows: np.ndarray, z: np.ndarray, th: Thresholds, loss: str =
                                           f"{listed(bad)}; {todo}")]
 
 
-def fitted_drift_reasons(drift: dict | None, noise: float) -> list[Reason]:
+def fitted_drift_reasons(drift: dict | None, noise: float, xyz: np.ndarray | None = None) -> list[Reason]:
     """A drift term (``{axis: {value, std}}``, m) that found a real drift: larger than 2× the instrument
-    noise and 3 standard errors. The fit absorbs it in these data only; the set-up was not settled."""
+    noise and 3 standard errors. The fit absorbs it in these data only; the set-up was not settled. When the
+    measured positions ``xyz`` (N, 3) m, in acquisition order, follow that order along an axis (correlation
+    at least ``ORDER_CORRELATION``), a drift cannot be told from an error that grows along that axis: said."""
     if not drift:
         return []
     d = np.array([drift[a]["value"] for a in drift])
@@ -482,10 +485,31 @@ def fitted_drift_reasons(drift: dict | None, noise: float) -> list[Reason]:
     if not (np.linalg.norm(d) > DRIFT_NOISE * noise and np.any(np.abs(d) > DRIFT_Z * sd)):
         return []
     shown = ", ".join(f"{a} {drift[a]['value'] * MM:+.3f} mm" for a in drift)
-    return [Reason("suspect", "drift-fitted", f"the measurement frame drifted by {np.linalg.norm(d) * MM:.3f} mm over "
-                                              f"the session ({shown}): the drift term absorbs it in these data only; "
-                                              f"let the tracker and robot warm up, check the tracker's stand, and "
-                                              f"measure again (or repeat a reference pose to track the drift)")]
+    text = (f"the measurement frame drifted by {np.linalg.norm(d) * MM:.3f} mm over the session ({shown}): the drift "
+            f"term absorbs it in these data only; let the tracker and robot warm up, check the tracker's stand, and "
+            f"measure again (or repeat a reference pose to track the drift)")
+    order = _order_axis(xyz)
+    if order:
+        axis, r = order
+        text += (f"; but the rows were measured in an order that follows the position along {axis} (correlation "
+                 f"{r:+.2f}), so a drift cannot be told from an error that grows along {axis} (one the model lacks): "
+                 f"measure in a shuffled order, or repeat a reference pose, to tell them apart")
+    return [Reason("suspect", "drift-fitted", text)]
+
+
+ORDER_CORRELATION = 0.9  # |r| of row order against a position axis beyond which a drift is a position effect too
+
+
+def _order_axis(xyz: np.ndarray | None) -> tuple[str, float] | None:
+    """The position axis (x, y or z) the acquisition order follows most, with the correlation, when it reaches
+    ``ORDER_CORRELATION``; None otherwise (or without positions)."""
+    if xyz is None or len(xyz) < 3:
+        return None
+    t = np.arange(len(xyz), dtype=float)
+    spread = xyz.std(axis=0)
+    r = np.array([np.corrcoef(t, xyz[:, k])[0, 1] if spread[k] > 0 else 0.0 for k in range(3)])
+    k = first_best(np.abs(r))  # a tie: the first axis (x before y before z)
+    return ("xyz"[k], float(r[k])) if abs(r[k]) >= ORDER_CORRELATION else None
 
 
 def duplicate_reasons(rows: np.ndarray, groups, source: str | None = None) -> list[Reason]:
