@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
 from ..checks import number
 from ..units import MM
@@ -96,6 +97,9 @@ class Compensation:
     orientation_change: np.ndarray | None = None  # (N,) rad: model at q vs the nominal promise at q_start
     rotation_residual: np.ndarray | None = None  # (N,) rad, pose targets: |log(R_target R(q)ᵀ)|
     filtered: tuple[np.ndarray, np.ndarray] | None = None  # poses to send a controller moving with the nominal model
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)
 
     @property
     def all_ok(self) -> bool:
