@@ -292,3 +292,22 @@ def test_commands_from_markers_name_the_flange_parameters_they_leave(tmp_path, c
     controllers = true.with_tool_point(np.zeros(3)).with_params({n: nominal.params[n] for n in left})
     assert np.linalg.norm(controllers.forward(q) - nominal.forward(q0), axis=1).max() < 0.05e-3
     assert np.linalg.norm(true.with_tool_point(np.zeros(3)).forward(q) - nominal.forward(q0), axis=1).mean() > 0.2e-3
+
+
+def test_a_screw_motor_may_turn_past_five_degrees_for_a_sub_millimetre_correction():
+    """guo3t2r's motors drive travel through 10 mm leads: a correction of 0.57 mm of quill travel is 20.7° of its
+    motor, and no other configuration exists for a screw. Each row is accepted, at the commands scipy's least
+    squares finds from the nominal command (an independent solver), the quill moving under a millimetre."""
+    from scipy.optimize import least_squares
+    nominal = kincal.load_robot("guo3t2r")
+    true = kincal.perturb(nominal, seed=4)
+    q0 = nominal.sample_joints(10, seed=2)
+    targets = nominal.forward(q0)
+    comp = compensate(true, targets, q0)
+    ref = np.array([least_squares(lambda q: (true.forward(q[None])[0] - t) * 1e3, q, xtol=1e-15, ftol=1e-15,
+                                  gtol=1e-15).x for q, t in zip(q0, targets)])
+    assert np.linalg.norm(true.forward(ref) - targets, axis=1).max() < 1e-12
+    quill = np.rad2deg(np.abs(ref[:, 2] - q0[:, 2])) / 360.0 * 10.0  # mm of travel at the 10 mm lead
+    assert np.rad2deg(np.abs(ref - q0)).max() > 20.0 and quill.max() < 1.0  # past 5° of a motor, under 1 mm
+    assert comp.ok.all() and comp.residual.max() < 1e-9
+    assert np.rad2deg(np.abs(comp.q - ref)).max() < 1.0  # the same commands (five joints, three targets: near)

@@ -158,3 +158,29 @@ def test_parameters_the_data_hardly_determine_are_held_at_nominal(monkeypatch):
             errors[name].append(float(np.mean(np.linalg.norm(p @ R.T + c - t, axis=1))))
     print({k: np.round(np.array(v) * 1e3, 3) for k, v in errors.items()})
     assert np.mean(errors["held"]) < np.mean(errors["fitted"])
+
+
+def test_a_result_hands_out_read_only_arrays(ur5):
+    """Edits in place of the arrays a result hands out raise, so what it prints stays what it computed: the mean
+    error and σ of str(res) and to_dict() agree with numpy on a copy of the residuals (a copy is the user's own)."""
+    true = kincal.perturb(ur5, seed=1)
+    use_q = ur5.sample_joints(5, seed=3)
+    res = kincal.calibrate(ur5, kincal.simulate(true, ur5.sample_joints(40, seed=1), NOISE, seed=2), use_q=use_q)
+    assert use_q.flags.writeable  # the array given stays the caller's
+    comp = kincal.compensate(res.robot, ur5.forward(ur5.sample_joints(3, seed=4)), ur5.sample_joints(3, seed=4))
+    r = res.residuals
+    with pytest.raises(ValueError, match="output array is read-only"):
+        r *= 1e3
+    for name, a in [("covariance", res.covariance), ("use_q", res.use_q), ("whitened_residual", res.whitened_residual),
+                    ("comp.q", comp.q), ("comp.ok", comp.ok), ("comp.residual", comp.residual)]:
+        with pytest.raises(ValueError, match="assignment destination is read-only"):
+            a[...] = a
+        assert not a.flags.writeable, name
+    mine = np.array(res.residuals)
+    mine *= 1e3  # the user's copy: free, and the result unchanged
+    norms = np.linalg.norm(res.residuals, axis=1)
+    sigma = np.sqrt(np.sum(res.residuals ** 2) / (res.residuals.size - len(res.names)))
+    assert f"after:  n=40  mean {norms.mean() * 1e3:.4f} mm" in str(res)
+    assert f"residual sigma per axis: {sigma * 1e3:.4f} mm" in str(res)
+    d = res.to_dict()
+    assert d["after"]["mean"] == pytest.approx(norms.mean(), rel=1e-12) and d["sigma"] == pytest.approx(sigma, rel=1e-12)

@@ -342,3 +342,35 @@ def test_the_size_check_is_for_robots_whose_positions_grow_with_their_lengths():
                                                                      "puu3", "scara")}
     assert said == {"ur5": True, "wam": True, "delta": True, "guo3t2r": False, "hexapod": False, "puu3": False,
                     "scara": False}
+
+
+def test_keeping_a_base_confound_is_not_an_underdetermined_base(ur5):
+    """keep=["j1.theta"] on the real UR5 grid: base.rz is dropped for acting like j1.theta, the user's choice. The
+    fit is the default one's (the same predicted positions, mean 0.1020 mm) and not refused for the poses."""
+    meas = kincal.read_measurements(DATA / "ur5_grid.csv", ur5, joint_cols=UR5_COLS, length_unit="mm",
+                                    angle_unit="deg")
+    plain, kept = kincal.calibrate(ur5, meas), kincal.calibrate(ur5, meas, keep=["j1.theta"])
+    assert "base.rz" in kept.identifiability.dropped and "j1.theta" in kept.identifiability.identifiable
+    np.testing.assert_allclose(kept.residuals, plain.residuals, atol=1e-9)  # the same model, m
+    assert round(float(np.linalg.norm(kept.residuals, axis=1).mean()) * 1e3, 4) == 0.1020
+    assert kept.verdict.status == plain.verdict.status == "good"
+    assert "base-underdetermined" not in [r.code for r in kept.verdict.reasons]
+
+
+@pytest.mark.parametrize("keep", [(), ("j1.theta",)])
+def test_poses_on_a_line_leave_the_base_underdetermined_whatever_is_kept(ur5, keep):
+    """Tool points on one vertical line (numpy: the second singular value of the centred points is 0): a turn of the
+    base about that line moves none of them. Refused as the poses' fault, with j1.theta kept too (the fit then drops
+    base.y and base.rz, both acting like the kept j1.theta)."""
+    from scipy.spatial.transform import Rotation
+    from kincal.compensate.poses import solve_poses
+    q0 = ur5.sample_joints(1, seed=3)
+    p0, R0, _, _ = ur5.pose_and_jacobian(q0)
+    p = p0 + np.outer(np.linspace(-0.1, 0.1, 60), [0.0, 0.0, 1.0])
+    R = R0 @ Rotation.from_rotvec(np.random.default_rng(1).normal(0.0, 0.2, (60, 3))).as_matrix()
+    sol = solve_poses(ur5, p, R, np.repeat(q0, 60, axis=0))
+    meas = kincal.simulate(ur5, sol.q[sol.converged], 0.0)
+    assert np.linalg.svd(meas.xyz - meas.xyz.mean(axis=0), compute_uv=False)[1] < 1e-9
+    res = kincal.calibrate(ur5, meas, keep=keep)
+    why = [r.message for r in res.verdict.reasons if r.code == "base-underdetermined"]
+    assert res.verdict.status == "refused" and len(why) == 1 and "base.rz" in why[0]

@@ -57,3 +57,13 @@ def test_round_trip_and_calibration(tmp_path, guo):
     res = kincal.calibrate(guo, kincal.simulate(true, phi, 15e-6, seed=1))
     val = kincal.simulate(true, candidate_pool(guo, 100, seed=9), 0.0)
     assert kincal.evaluate(guo, val).mean > 0.3e-3 and kincal.evaluate(res.robot, val).rms < 30e-6
+
+
+def test_a_screw_motor_is_not_periodic(guo):
+    """A whole turn of a screw's motor is 10 mm of travel, not the same pose: the route keeps the motors' values
+    (turning them by whole turns moved the tool 30-40 mm) and the wrist's direct motors alone repeat."""
+    from kincal.design import turned
+    np.testing.assert_allclose(guo.motor_leads[:3] * 2 * np.pi * 1e3, [5.0, 5.0, 10.0])  # lead/2 per motor of a pair
+    assert guo.periodic.tolist() == [False, False, False, True, True]
+    q = guo.sample_joints(3, seed=1)
+    np.testing.assert_array_equal(turned(guo, q)[:, :3], q[:, :3])

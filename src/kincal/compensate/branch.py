@@ -42,7 +42,7 @@ from ..models.wrapped import Wrapped
 from ..models.transforms import rotation_log, rotvec_matrix
 from ..ties import first_best
 from .poses import solve_poses
-from .commands import BRANCH_TOL
+from .commands import branch_tolerance
 from .taught import resolve_taught
 from .program import SEARCH, STARTS, ProgramCompensation, kept_joints, outside_limits, singular
 
@@ -327,7 +327,7 @@ def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom:
     if not idx.size:
         return qs
     q, converged = _solve_levers(model, [g[idx] for g in goals], q_nom[idx], orientation)
-    tol = np.array([BRANCH_TOL[j] for j in model.joint_types])
+    tol = branch_tolerance(model)
     off = (np.abs(q - q_nom[idx]) > tol).any(axis=1)
     outside = ~model.within_limits(q)
     bits = rows(model, np.where(np.isfinite(q), q, 0.0))

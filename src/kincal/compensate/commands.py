@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
 from ..checks import number
 from ..units import MM
@@ -16,7 +17,7 @@ from .frames import MISMATCH_TOL, base_mismatch, frame_mismatch, orientation_cha
 IK_TOL = 1e-10  # m
 IK_ITER = 100
 BRANCH_TOL = {"revolute": np.deg2rad(5.0), "prismatic": 5e-3}  # a correction larger than this changes branch
-GIVE_UP = 2.0  # pose solves stop a target this many times BRANCH_TOL from its nominal command
+GIVE_UP = 2.0  # pose solves stop a target this many times branch_tolerance from its nominal command
 START_TOL = 50e-3  # m: the model at the nominal command must be this close to the target
 REACH_MARGIN = 1.2  # targets farther from the base than this times the reach bound are out of reach
 
@@ -97,6 +98,9 @@ class Compensation:
     rotation_residual: np.ndarray | None = None  # (N,) rad, pose targets: |log(R_target R(q)ᵀ)|
     filtered: tuple[np.ndarray, np.ndarray] | None = None  # poses to send a controller moving with the nominal model
 
+    def __post_init__(self) -> None:
+        freeze_arrays(self)
+
     @property
     def all_ok(self) -> bool:
         """True when every command passed every check."""
@@ -127,7 +131,7 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     nominal model gives for the targets — converges to the nearest solution; the damping keeps
     steps small near singularities. Every command is then checked: the target must be within reach
     (and plausibly in the declared unit), the command inside the joint limits, on the same branch
-    as the nominal command (no joint moving more than ``BRANCH_TOL``), with a model residual under
+    as the nominal command (no joint moving more than :func:`branch_tolerance`), with a model residual under
     1 µm. ``ok`` and ``problems`` report the checks. Every argument is checked before any work.
 
     Parameters
@@ -243,6 +247,38 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     return dataclasses.replace(comp, orientation_change=orientation_change(robot, q, nominal, q0))
 
 
+def branch_tolerance(robot: Robot) -> np.ndarray:
+    """How far each joint's corrected command may move from the nominal one and stay on its branch.
+
+    ``BRANCH_TOL`` of what the joint moves: an angle's (5°) for a revolute joint, a length's (5 mm) for a prismatic
+    one and for a motor turning a screw (``robot.motor_leads``), converted through its lead (a screw has no other
+    configuration: its turns add up to travel, so 5° of a 10 mm lead would refuse a correction of 0.14 mm).
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot (its joint types and any motors' leads).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The tolerances, rad (m for a prismatic joint).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate.commands import branch_tolerance
+    >>> np.degrees(branch_tolerance(kincal.load_robot("ur5"))).round(3).tolist()
+    [5.0, 5.0, 5.0, 5.0, 5.0, 5.0]
+    >>> np.degrees(branch_tolerance(kincal.load_robot("guo3t2r"))).round(3).tolist()  # 10 mm leads: 5 mm of travel
+    [360.0, 360.0, 180.0, 5.0, 5.0]
+    """
+    typed = np.array([BRANCH_TOL[t] for t in robot.joint_types])
+    lead = robot.motor_leads
+    return np.where(np.isnan(lead), typed, BRANCH_TOL["prismatic"] / np.where(np.isnan(lead), 1.0, lead))
+
+
 def _same_frame(robot: Robot, nominal: Robot | None) -> None:
     """ModelError when ``robot`` and ``nominal`` stand in different base frames (:func:`base_mismatch`)."""
     why = "" if nominal is None else base_mismatch(robot, nominal)
@@ -316,8 +352,7 @@ def _checks(robot: Robot, q: np.ndarray, residual: np.ndarray, targets: np.ndarr
         yield gap > tol, lambda k: (f"the nominal command lands {gap[k] * MM:.3f} mm from the target"
                                     f"{' through the nominal model' if nominal else ''}: the joint values and the "
                                     f"target do not belong together (units, column order, TCP or frame?)")
-        branch_tol = np.array([BRANCH_TOL[t] for t in robot.joint_types])
-        jump = np.where(finite[:, None], np.abs(q - q0), 0.0) > branch_tol
+        jump = np.where(finite[:, None], np.abs(q - q0), 0.0) > branch_tolerance(robot)
         names = robot.joint_names
         yield jump.any(axis=1), lambda k: (f"the corrected command moves joint(s) "
                                            f"{', '.join(n for n, j in zip(names, jump[k]) if j)} away from the nominal "
@@ -428,7 +463,7 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
         if why:
             none = np.zeros(len(targets), bool)
             return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
-    give_up = GIVE_UP * np.array([BRANCH_TOL[t] for t in robot.joint_types])  # refused by the branch check anyway
+    give_up = GIVE_UP * branch_tolerance(robot)  # refused by the branch check anyway
     sol = solve_poses(robot, targets, rotations, q0, give_up=give_up, turned_as=orientation)
     comp = _checked(robot, sol.q, "pose (damped Newton)", sol.iterations, targets, q0, rows, nominal)
     if robot.n_joints >= 6:

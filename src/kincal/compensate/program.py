@@ -25,7 +25,7 @@ from ..models.robot import Robot
 from ..models.transforms import rotation_log, rotvec_matrix
 from ..models.ur import nearest_turns, ur_inverse, ur_lengths
 from ..ties import first_best
-from .commands import BRANCH_TOL
+from .commands import branch_tolerance
 from .poses import solve_poses
 
 STARTS = 24  # spread starts of the numeric inverse when Newton from the previous joints fails
@@ -299,11 +299,11 @@ def corrected(model: Robot, p: np.ndarray, R: np.ndarray, q_nom: np.ndarray,
               orientation: Robot | None = None) -> tuple[np.ndarray, str]:
     """The joints (n,) at which ``model`` puts its tool point at p (1, 3) m with the flange (``orientation``'s, default
     ``model``'s) at R (1, 3, 3), by Newton from the nominal joints q_nom (n,), and why they are refused ('' when they
-    are not): the correction did not converge, leaves the nominal branch (a joint moves more than ``BRANCH_TOL``) or
-    breaks a joint limit."""
+    are not): the correction did not converge, leaves the nominal branch (a joint moves more than its
+    :func:`branch_tolerance`) or breaks a joint limit."""
     sol = solve_poses(model, p, R, q_nom[None], turned_as=orientation)
     q = sol.q[0]
-    tol = np.array([BRANCH_TOL[j] for j in model.joint_types])
+    tol = branch_tolerance(model)
     return q, ("the correction did not converge" if not sol.converged[0] else
                "the corrected joints leave the nominal branch" if (np.abs(q - q_nom) > tol).any() else
                "the corrected joints break the joint limits" if not model.within_limits(q[None])[0] else "")

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from .._stats import f_sf
 from .._threads import blas_threads
 from ..analysis.changes import ALPHA, Candidates, Repeat, candidates, frame_basis, without
@@ -197,6 +198,9 @@ class Calibrated:
     lower: np.ndarray
     upper: np.ndarray
     label: str
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)
 
     @classmethod
     def of(cls, robot: Robot, record: dict | None, label: str) -> "Calibrated":

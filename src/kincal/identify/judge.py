@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..analysis.identifiability import jacobian_identifiability, stacked_jacobian
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import MM, fine
 from .._csv import listed
@@ -144,13 +145,18 @@ EDGE = 1e-6  # an estimate within this share of the half-width from the box's ed
 
 def _base_reasons(res: "CalibrationResult") -> list[Reason]:
     """Position data that leave the base frame underdetermined (other kinds may leave it unseen:
-    sockets and planes carry frames of their own)."""
-    loose = [n for n in res.nominal.base_params() if n in res.identifiability.dropped]
-    if not res.data or res.options.base != "estimate" or not loose:
+    sockets and planes carry frames of their own): base parameters the poses cannot tell apart among themselves, by
+    the identifiability rule on the base frame's own columns. A base parameter the fit dropped for acting like one
+    the user keeps (``keep``: base.rz for j1.theta) is that choice, not the poses': the kept one carries it."""
+    base = list(res.nominal.base_params())
+    if not res.data or res.options.base != "estimate" or not set(base) & set(res.identifiability.dropped):
         return []
+    J = stacked_jacobian(res.robot, res.measurements.q, base)
+    loose = jacobian_identifiability(J, base, [], res.robot.name, len(res.measurements.q),
+                                     res.options.rank_tol).dropped
     return [Reason("refused", "base-underdetermined", f"the poses leave the base frame underdetermined "
                    f"({', '.join(loose)}): measure poses spread over the workspace, or use --base fixed if the base "
-                   f"is known")]
+                   f"is known")] if loose else []
 
 
 def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:

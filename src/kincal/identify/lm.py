@@ -13,6 +13,7 @@ from typing import Callable
 import numpy as np
 
 from ..analysis.observability import column_norms
+from .._frozen import freeze_arrays
 from ..errors import ModelError
 
 MU_LIMIT = 1e20  # damping beyond this (relative to the largest diagonal entry) means no step helps
@@ -29,6 +30,9 @@ class LMResult:
     evaluations: int
     converged: bool
     message: str
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)
 
 
 @dataclass

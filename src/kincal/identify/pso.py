@@ -11,6 +11,8 @@ from typing import Callable
 
 import numpy as np
 
+from .._frozen import freeze_arrays
+
 HALF_WIDTH = {"length": 8e-3, "angle": 8e-3, "ratio": 8e-3}  # the paper's position limits ±8 (mm), per kind (m, rad,
 # ratio): the search box around the nominal values; an estimate on its edge is named in the verdict (search-box)
 V_MAX = {"length": 0.5e-3, "angle": 0.5e-3, "ratio": 0.5e-3}  # and velocity limits ±0.5 (mm per iteration)
@@ -23,6 +25,9 @@ class PSOResult:
     history: np.ndarray  # best value after each iteration
     evaluations: int
     iterations: int
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)
 
 
 def pso(objective: Callable[[np.ndarray], np.ndarray], center: np.ndarray, half_width: np.ndarray, v_max: np.ndarray,

@@ -25,6 +25,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..units import fine
 from .covariance import spd_inverse
 from .lm import LMResult, levenberg_marquardt
@@ -56,6 +57,9 @@ class RelevanceFit:
     covariance: np.ndarray
     converged: bool
     iterations: int
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)
 
 
 def with_learned_prior(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], fit: LMResult,

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._csv import listed
+from .._frozen import freeze_arrays, read_only
 from ..analysis.identifiability import Identifiability
 from ..analysis.uncertainty import ModelUncertainty
 from ..io.measurements import Measurements, write_csv
@@ -173,6 +174,9 @@ class CalibrationResult:
     data: tuple[Measurements, ...] = ()
     repeat: Repeat | None = None  # what a repeat calibration on other poses would differ by (compare, check)
 
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # the arrays it hands out: what it prints cannot drift from what it computed
+
     @functools.cached_property
     def verdict(self) -> Verdict:
         """Good, suspect or refused, with reasons (:func:`kincal.identify.judge.verdict_of`)."""
@@ -185,7 +189,8 @@ class CalibrationResult:
         if not self.data:
             raise ValueError("a fit of observation sets has no position view (measurements, residuals): use "
                              "per_set and sample_table()")
-        return kept_positions(self, list(self.data))
+        meas, err, drift = kept_positions(self, list(self.data))
+        return meas, read_only(err), drift
 
     @property
     def measurements(self) -> Measurements:

@@ -111,10 +111,16 @@ class Joints:
         return np.array([t == "revolute" for t in self.joint_types], bool)
 
     @property
+    def motor_leads(self) -> np.ndarray:
+        """(n,) m per rad: the travel each joint drives where it is a motor turning a screw (a leg's, a
+        carriage's), NaN for a joint that moves what its type says (an angle, a length); none by default."""
+        return np.full(self.n_joints, np.nan)
+
+    @property
     def periodic(self) -> np.ndarray:
         """(n,) bool: joints whose configuration repeats every whole turn (revolute joints; a motor
-        that drives a leg through a screw does not: its turns add up)."""
-        return self.revolute
+        that drives a travel through a screw, ``motor_leads``, does not: its turns add up)."""
+        return self.revolute & np.isnan(self.motor_leads)
 
     @property
     def lower(self) -> np.ndarray:

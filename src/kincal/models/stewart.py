@@ -123,9 +123,9 @@ class StewartRobot(ImplicitRobot):
         return "stewart (implicit, 6-D)"
 
     @property
-    def periodic(self) -> np.ndarray:
-        """No leg repeats: a motor's turns add up to the leg's travel."""
-        return np.zeros(N_LEGS, bool)
+    def motor_leads(self) -> np.ndarray:
+        """(6,) m per rad: legs read as motor angles drive their travel through ``lead`` (NaN for lengths)."""
+        return self.lead if self.motor else np.full(N_LEGS, np.nan)
 
     def reading_terms(self) -> str:
         return "the legs' zeros and scales"

@@ -164,6 +164,16 @@ class TransmissionRobot(Wrapped):
     def structure(self) -> str:
         return f"{self.inner.structure} + transmission"
 
+    @property
+    def motor_leads(self) -> np.ndarray:
+        """(n_a,) m per rad: a screw's motor drives its travel by lead/2π, each motor of a differential screw the
+        carriage by lead/4π; NaN for a direct or coupled actuator (it turns its joint)."""
+        out = np.full(self.n_joints, np.nan)
+        for mp in self.maps:
+            if mp.type in ("screw", "differential_screw"):  # the lead is the map's first parameter
+                out[list(mp.actuators)] = self.drive[mp.param_names[0]] / (TWO_PI * len(mp.actuators))
+        return out
+
     # ---- the transmission ----------------------------------------------------------------------
     def chain_q(self, q: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
         """Chain joint values (N, n_j) for actuator values q (N, n_a)."""
