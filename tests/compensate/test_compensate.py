@@ -311,3 +311,19 @@ def test_a_screw_motor_may_turn_past_five_degrees_for_a_sub_millimetre_correctio
     assert np.rad2deg(np.abs(ref - q0)).max() > 20.0 and quill.max() < 1.0  # past 5° of a motor, under 1 mm
     assert comp.ok.all() and comp.residual.max() < 1e-9
     assert np.rad2deg(np.abs(comp.q - ref)).max() < 1.0  # the same commands (five joints, three targets: near)
+
+
+def test_a_hybrids_verification_plan_leaves_its_screw_leads_out():
+    """The guo3t2r hybrid: every plan drew 0 of 40 commandable samples, because a 1 mm unit error on a 10 mm screw
+    lead (10 %) moves the tool by some 57 mm, beyond what its commands may correct. The default cases are the
+    structure's."""
+    from kincal.compensate import commandable, verification_plan
+
+    robot = kincal.load_robot("guo3t2r")
+    q = robot.sample_joints(40, seed=1)
+    ok = commandable(robot, q)
+    plan = verification_plan(robot, q[ok][:5])
+    assert ok.sum() >= 10 and not [c for c in plan.cases if c.startswith("drive.")]
+    lead = robot.params["drive.sx"]
+    moved = robot.with_params({"drive.sx": lead + 1e-3}).forward(q) - robot.forward(q)
+    assert np.linalg.norm(moved, axis=1).max() > 0.05  # 1 mm on the lead: tens of mm at the tool, no small error

@@ -580,7 +580,7 @@ def _register_verify(cmd) -> None:
                                   "(its Table 5)", "the identified (actual) robot model")
     s.add_argument("--samples", type=positive_int, default=10, help="sample inputs of a new plan (default 10)")
     s.add_argument("--params", type=csv_list, help="the parameters to test, one case each (default: all but the "
-                                                   "base frame's)")
+                                                   "base frame's and a transmission's own)")
     s.add_argument("--seed", type=int, default=0, help="random seed of a new plan's samples (default 0)")
     add_cell_flags(s, "a new plan's samples obey it")
     s.add_argument("-o", "--output", help="CSV of the commands to run, case by case (in --length-unit/--angle-unit)")
