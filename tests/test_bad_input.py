@@ -930,7 +930,22 @@ READERS = _reader_cases() + [
           extra=["--plane", "table:0,0,1,0,5"]),
     ocase("plane-offset-1e300", "plane", 1, ["plane table", "a robot can reach"],
           extra=["--plane", "table:0,0,1,1e300"]),
+    ocase("marker-under-two-names", "markers", 1, ["the columns of marker m2 repeat those of m1 in every row"],
+          content=lambda b: _markers_twice(b)),
 ]
+
+
+def _markers_twice(base):
+    """A markers file (mm, deg) of a UR5 whose second marker is the first one's columns again."""
+    from kincal.observe import ObservationFormat, write_observations
+    from kincal.simulate.observations import simulate_markers
+    ur5 = kincal.load_robot("ur5")
+    obs = simulate_markers(ur5, ur5.sample_joints(30, seed=2), np.array([[0.05, 0.0, 0.1], [0.05, 0.0, 0.1]]), 0.0)
+    path = Path(os.environ.get("TMPDIR", "/tmp")) / f"kincal-markers-{os.getpid()}.csv"
+    write_observations(path, obs, ur5, ObservationFormat("markers", length_unit="mm", angle_unit="deg"))
+    text = path.read_text()
+    path.unlink()
+    return text
 
 
 def _few(base):

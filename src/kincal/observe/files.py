@@ -307,7 +307,20 @@ def _markers(t: Table, robot: Robot, fmt: ObservationFormat, q, lf) -> MarkersOb
         r, m = np.argwhere(partial)[0]
         raise MeasurementError(f"{t.path}: row {t.rows[r]}: marker {names[m]} has some coordinates empty, not all; "
                                f"a marker not seen leaves all three empty")
+    _no_copies(t.path, xyz, names)
     return MarkersObs(q, t.rows, t.path, xyz=xyz, names=tuple(names), std=_stds(t, fmt)[0])
+
+
+def _no_copies(path: str, xyz: np.ndarray, names) -> None:
+    """MeasurementError for a marker whose columns repeat another's (seen in the same rows, the same numbers): one
+    marker under two names counts its noise twice and passes for a nest it is not."""
+    seen = ~np.isnan(xyz).any(axis=2)  # (N, k)
+    for a in range(len(names)):
+        for b in range(a + 1, len(names)):
+            if seen[:, a].any() and np.array_equal(seen[:, a], seen[:, b]) and \
+                    np.array_equal(xyz[seen[:, a], a], xyz[seen[:, b], b]):
+                raise MeasurementError(f"{path}: the columns of marker {names[b]} repeat those of {names[a]} in every "
+                                       f"row: one marker under two names; leave the copy out (--markers)")
 
 
 def _labels(t: Table, fmt: ObservationFormat) -> tuple[np.ndarray, np.ndarray | None]:
