@@ -217,3 +217,14 @@ def test_a_pose_report_names_a_moved_camera_as_evaluate_does():
     assert len(told.data["warnings"]) == 1 and "the tracker moved between sessions" in told.data["warnings"][0]
     assert told.data["warnings"][0] in told.html.replace("&#39;", "'") and "warning: " in told.summary
     assert kincal.build_report(fit, [moved]).data["warnings"] == []
+
+
+def test_a_report_written_under_another_name_names_its_own_json(ur5, tmp_path):
+    """Report.write('myrun.html') writes myrun.json beside it, but the page said its numbers were in report.json
+    (the name it was built with)."""
+    true = kincal.perturb(ur5, seed=1)
+    res = kincal.calibrate(ur5, kincal.simulate(true, ur5.sample_joints(40, seed=2), seed=3), diagnose=False)
+    written = kincal.build_report(res).write(tmp_path / "myrun.html")
+    page = (tmp_path / "myrun.html").read_text()
+    assert written == tmp_path / "myrun.json" and written.exists()
+    assert "<code>myrun.json</code>" in page and "report.json" not in page

@@ -45,6 +45,9 @@ class Report:
         The same numbers, SI units (m, rad), JSON-ready.
     summary : str
         A few lines for the terminal: the verdict, its reasons and the headline errors (mm).
+    json_name : str, optional
+        The JSON file name the page names (``<code>name</code>``), made the written one's by :meth:`write`
+        (default: none named).
 
     See Also
     --------
@@ -66,6 +69,7 @@ class Report:
     html: str
     data: dict  # the same numbers, SI units
     summary: str  # a few lines for the terminal
+    json_name: str = ""  # the JSON file the page names, as built
 
     def write(self, path: str | os.PathLike) -> Path:
         """Write the HTML to ``path`` and the JSON beside it (same name, .json), each atomically.
@@ -81,7 +85,9 @@ class Report:
             The JSON file (:func:`json_path_for`).
         """
         json_path = json_path_for(path)
-        write_text_atomic(path, self.html)
+        html = self.html.replace(f"<code>{self.json_name}</code>", f"<code>{json_path.name}</code>") \
+            if self.json_name else self.html  # the page names the JSON written beside it, whatever the name
+        write_text_atomic(path, html)
         write_text_atomic(json_path, json.dumps(self.data, indent=2, sort_keys=True) + "\n")
         return json_path
 
@@ -161,7 +167,8 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
     data["history"] = None if history is None else history["rows"]
     return Report(template().render(**ctx), {**data, **numbers, "calibration": result.to_dict()},
                   "\n".join([f"verdict: {result.verdict.status.upper()}",
-                             *(f"  {r.level}: {r.message}" for r in result.verdict.reasons), *summary]))
+                             *(f"  {r.level}: {r.message}" for r in result.verdict.reasons), *summary]),
+                  ctx["json_name"])
 
 
 def _positions_part(result: CalibrationResult, tests: list[Measurements], same_frame: bool):
