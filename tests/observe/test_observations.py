@@ -180,6 +180,32 @@ def test_sockets_without_a_distance_are_refused_for_scale(ur5):
         fit_observations(ur5, [one_plane])
 
 
+def test_plane_offsets_in_another_unit_are_named(ur5):
+    """A table and a step 100 mm above it, their offsets read in the wrong unit: metres in a file read in mm (a step
+    of 0.1 mm, which fixed no length scale: the fit was refused for "no known step"), mm where m is read (a 100 m
+    step: refused at 10⁵x the stated σ with no word of the unit), cm in a mm file; each named before any fit, with
+    the step the robot file puts between the contacts (their mean heights, here by its forward kinematics). A step
+    2 mm off (a robot's error) is fitted."""
+    true = kincal.perturb(ur5, seed=1)
+    horizontal = {k: PLANES[k] for k in ("table", "step")}
+    obs = simulate_planes(true, horizontal, 30, known=("table", "step"), std=15e-6, seed=1)
+    z = ur5.forward(obs.q)[:, 2]
+    seen = float(np.mean(z[obs.labels == "step"]) - np.mean(z[obs.labels == "table"]))
+    assert seen == pytest.approx(0.1, abs=2e-3)
+
+    def scaled(factor, shift=0.0):
+        return dataclasses.replace(obs, known={k: (n, c * factor + shift * (k == "step"))
+                                               for k, (n, c) in horizontal.items()})
+    for factor, words in ((1e-3, "a thousandth of it, as if metres were stated in a file read in mm; state plane"),
+                          (1e3, "it looks like mm; give plane offsets in m"),
+                          (1e-1, "0.1 times theirs, a power of ten: stated in another unit than the file's")):
+        with pytest.raises(kincal.MeasurementError) as err:
+            fit_observations(ur5, [scaled(factor)])
+        assert f"table and step are stated {0.1 * factor:.4g} m apart" in str(err.value)
+        assert f"puts their contacts {seen:.4g} m apart: {words}" in str(err.value)
+    assert fit_observations(ur5, [scaled(1.0, -2e-3)]).per_set[0]["samples"] == 60
+
+
 def test_plane_residual_falls_while_the_absolute_error_grows_is_named(ur5):
     """An error the model cannot describe (joint harmonics): the plane fit lowers the plane residual
     and makes the robot worse in absolute terms; the verdict is never good and names the motion
