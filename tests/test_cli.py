@@ -240,6 +240,31 @@ def test_simulate_says_how_to_read_its_file_back(tmp_path, capsys, kind):
     assert main(["calibrate", "ur5", str(path), "--type", kind]) == 1
 
 
+def test_simulate_touches_the_planes_given_and_says_so(tmp_path, capsys):
+    """simulate --type plane --plane: the contacts lie on the planes given (offsets in the file's mm), checked by the
+    true robot's forward kinematics; the printed flags carry those planes and the --tool given, and calibrate reads
+    the file back with them. (The planes were ignored: the contacts lay on kincal's own table, 150 mm lower.)"""
+    import kincal
+
+    path, true = tmp_path / "p.csv", tmp_path / "true.yaml"
+    assert main(["simulate", "ur5", "--type", "plane", "--plane", "table:0,0,1,-200", "--plane", "step:0,0,1,-120",
+                 "-o", str(path), "--perturb", "--noise", "0", "--length-unit", "mm", "--tool", "0,0,100mm",
+                 "--save-true", str(true)]) == 0
+    hint = capsys.readouterr().out.split("calibrate them with: ")[1].split()
+    assert hint[hint.index("--tool") + 1] == "0,0,100mm"
+    assert [hint[i + 1] for i, h in enumerate(hint) if h == "--plane"] == ["table:0,0,1,-200", "step:0,0,1,-120"]
+    robot = kincal.load_robot(str(true))
+    lines = path.read_text().splitlines()
+    head, rows = lines[0].split(","), [line.split(",") for line in lines[1:]]
+    q = np.array([[float(r[head.index(f"j{k}")]) for k in range(1, 7)] for r in rows])
+    height = robot.forward(q)[:, 2]
+    on = {lab: height[[r[head.index("plane")] == lab for r in rows]] for lab in ("table", "step")}
+    assert len(on["table"]) == len(on["step"]) == 30
+    assert on["table"] == pytest.approx(-0.200, abs=1e-8) and on["step"] == pytest.approx(-0.120, abs=1e-8)
+    assert main(["calibrate", "ur5", str(path), *hint]) in (0, 4)
+    assert "length scale" not in capsys.readouterr().err
+
+
 def test_files_with_the_robot_stacks_joint_names_are_read_without_joint_cols(tmp_path):
     """A bundled UR's joints are j1..j6 in kincal and shoulder_pan_joint … in UR's ROS description (its
     robot file's names:): a file headed with either is read alike, points and 6-D poses; another

@@ -91,8 +91,9 @@ def cmd_simulate(args) -> int:
     if kind != "point":  # observations of the type, written in its columns
         obs = observe.planned(args, r, true, kind, q, args.noise / MM, args.seed + 1)
         write_observations(args.output, obs, r, observe.format_of(args, kind))
-        use = observe.flags_to_use(obs, args.length_unit, observe.format_of(args, kind)) + observe.units_to_use(args) + (
-            f" --orientation {args.orientation}" if kind == "pose" and args.orientation != "quat-wxyz" else "")
+        use = (observe.flags_to_use(obs, args.length_unit, observe.format_of(args, kind)) + observe.units_to_use(args)
+               + (f" --orientation {args.orientation}" if kind == "pose" and args.orientation != "quat-wxyz" else "")
+               + observe.tool_to_use(args))
         return emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
                     f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them "
                     f"with: {use}")
@@ -102,6 +103,7 @@ def cmd_simulate(args) -> int:
     payload = {"output": args.output, "n": len(meas), "noise": args.noise / MM, "perturbed": bool(args.perturb),
                "true_robot": args.save_true, "true_parameters": true.params.as_dict()}
     use = observe.units_to_use(args) + ("" if args.joint_cols is None else f" --joint-cols {','.join(args.joint_cols)}")
+    use += observe.tool_to_use(args)
     use += "" if list(args.xyz_cols) == ["x", "y", "z"] else f" --xyz-cols {','.join(args.xyz_cols)}"
     return emit(args, {**payload, "flags": use.strip()}, f"wrote {len(meas)} simulated measurements of {true.name} to "
                 f"{args.output}" + (f" (true robot saved to {args.save_true})" if args.save_true else "")

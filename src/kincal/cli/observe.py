@@ -137,7 +137,9 @@ def add_flags(p: argparse.ArgumentParser, std: bool = True) -> None:
     g.add_argument("--distance", type=distance, action=Once, default=[], metavar="A,B,D",
                    help="same-point: a known distance between labels A and B (length unit of the file); repeatable")
     g.add_argument("--plane", type=plane, action=Once, default=[], metavar="LABEL:NX,NY,NZ,C",
-                   help="plane: a known plane n·p = c in the robot's base frame (c in the file's length unit)")
+                   help="plane: a known plane n·p = c in the robot's base frame (c in the file's length unit); "
+                        "simulate, design and identifiability touch these planes (default: kincal's own table and "
+                        "a step 50 mm above it)")
     g.add_argument("--std-pos", type=length, help="position σ with its unit, e.g. 0.1mm (defaults: point 0.015mm, "
                                                   "pose 0.1mm, markers/sockets/planes 0.05mm)")
     g.add_argument("--std-rot", type=angle, help="pose: orientation σ with its unit, e.g. 1mrad (default 1mrad)")
@@ -194,8 +196,8 @@ CONTACTS_PER_PLANE = 30  # contacts per plane when planning
 
 def planned(args, robot, true, kind: str, q, std: float, seed: int, per: int | None = None):
     """Observations of ``true`` of the type ``kind``: at the joints q (point, pose, markers), or at a
-    planned plate (sockets) or table with a step (planes), ``per`` samples per socket or plane
-    (default 15 and 30). With ``std`` = 0 they are exact."""
+    planned plate (sockets) or at the planes of --plane, else a planned table with a step (planes), ``per``
+    samples per socket or plane (default 15 and 30). With ``std`` = 0 they are exact."""
     pos, rot = format_of(args, kind).std()
     if kind == "point":
         m = kincal.simulate(true, q, std, seed=seed)
@@ -210,9 +212,19 @@ def planned(args, robot, true, kind: str, q, std: float, seed: int, per: int | N
         points, distances = socket_plan(robot, spacing=_spacing(args), seed=seed)
         obs = simulate_same_point(true, points, per or SOCKETS_PER_POINT, distances, std, seed=seed)
         return dataclasses.replace(obs, std=pos, group=np.array([lab.split("/")[0] for lab in obs.labels]))
-    planes = plane_plan(robot, seed=seed)
+    planes = _planes(args, robot, seed)
     contacts = simulate_planes(true, planes, per or CONTACTS_PER_PLANE, known=tuple(planes), std=std, seed=seed)
     return dataclasses.replace(contacts, std=pos)
+
+
+def _planes(args, robot, seed: int) -> dict:
+    """The planes touched, label -> (unit normal, offset m): those of --plane (offsets in the file's length unit),
+    else kincal's own table and step (:func:`kincal.simulate.plane_plan`)."""
+    given = dict(vars(args).get("plane") or [])
+    if not given:
+        return plane_plan(robot, seed=seed)
+    f = LENGTH_UNITS[args.length_unit]
+    return {lab: (np.asarray(n, float), float(c) * f) for lab, (n, c) in given.items()}
 
 
 SPACING = 0.05  # m: the sockets of kincal's own plate plan, 0 and 1, this far apart unless --distance says
@@ -243,6 +255,12 @@ def flags_to_use(obs, length_unit: str, fmt=None) -> str:
         return "--type plane " + " ".join(f"--plane {lab}:{n[0]:g},{n[1]:g},{n[2]:g},{c * f:.6g}"
                                           for lab, (n, c) in obs.known.items())
     return f"--type {obs.kind}"
+
+
+def tool_to_use(args) -> str:
+    """The --tool flag that reads a written file back with the tool point it was simulated with ('' for none)."""
+    tool = vars(args).get("tool")
+    return "" if tool is None else " --tool " + ",".join(f"{v * 1e3:.10g}" for v in tool) + "mm"
 
 
 def units_to_use(args) -> str:

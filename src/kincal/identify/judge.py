@@ -254,12 +254,22 @@ def owners(sets) -> tuple[np.ndarray, int]:
     return np.concatenate(out), n
 
 
+def block_size(obs) -> int:
+    """The residual rows of the set's smallest sample: a plane contact's 1, a point's or a seat's 3, a pose's 6, a
+    marker sample's 3 per seen marker, a joint-space sample's one per joint. Its outlier limit is taken at that
+    dimension (:meth:`Thresholds.outlier_limit`), the highest of its samples' when they differ."""
+    rows = obs.sample_rows()
+    counts = np.bincount(rows[rows >= 0], minlength=len(obs))
+    return int(max(counts.min(), 1)) if len(obs) else 3
+
+
 def outlier_samples(sets, r: np.ndarray, th: Thresholds) -> tuple[np.ndarray, ...]:
     """Per set, the indices of its samples whose whitened norm (of ``r``, stacked in the order of
-    ``sets``) is more than ``th.outlier_limit`` robust σ off; none in a set of fewer than MIN_SAMPLES."""
+    ``sets``) is more than ``th.outlier_limit`` robust σ off (at its :func:`block_size`); none in a set of fewer
+    than MIN_SAMPLES."""
     zs = [robust_z(norms) if len(obs) >= MIN_SAMPLES else np.zeros(len(obs))
           for obs, norms in zip(sets, sample_norms(sets, r))]
-    return tuple(np.flatnonzero(z > th.outlier_limit(len(z))) for z in zs)
+    return tuple(np.flatnonzero(z > th.outlier_limit(len(z), block_size(obs))) for obs, z in zip(sets, zs))
 
 
 def _sample_reasons(sets, outliers, robot: Robot, th: Thresholds) -> list[Reason]:
@@ -268,7 +278,7 @@ def _sample_reasons(sets, outliers, robot: Robot, th: Thresholds) -> list[Reason
     out = []
     tol = repeat_tolerance(robot.joint_types, th)
     for obs, found in zip(sets, outliers):
-        limit, bad = th.outlier_limit(len(obs)), obs.rows[found]
+        limit, bad = th.outlier_limit(len(obs), block_size(obs)), obs.rows[found]
         if bad.size:
             out.append(Reason("suspect", "outliers", f"{obs.source}: outlier sample(s) more than {limit:.3g} "
                                                      f"robust σ off: row(s) {listed(bad)}; check them (a blocked line "

@@ -283,6 +283,8 @@ def _problem(robot: Robot, observations: Sequence, wanted: tuple[str, ...], keep
     if not observations:
         raise MeasurementError("no observations given")
     if wanted and not any(o.reference for o in observations):  # (a model only evaluated needs no scale)
+        for o in observations:  # a known step stated in another unit is named as such first
+            o.check_known_lengths(robot)
         raise MeasurementError(
             "these data do not fix the length scale: sockets without a known distance, or plane contacts without two "
             "known parallel planes at different heights, are explained as well by a robot shrunk towards a point, so "

@@ -19,7 +19,9 @@ CLI flags):
   cannot describe), more than ``residual_refuse`` (100×) is refused (data and model do not belong
   together);
 * outliers: poses whose error norm lies more than ``outlier_z`` (5) robust σ above the median
-  (σ = 1.4826·MAD) are named by input row, with the advice to use a robust loss or leave them out;
+  (σ = 1.4826·MAD) are named by input row, with the advice to use a robust loss or leave them out; the limit
+  is raised where noise alone would pass it in more than one calibration in a hundred (:func:`noise_limit`: few
+  or very many samples, residual blocks of fewer dimensions than a point's 3, such as a plane contact's 1);
 * repeated poses (commanded joints within ``repeat_angle`` 1e-4 rad / ``repeat_length`` 0.01 mm: a
   robot's joint readings jitter around the same command) are named: they shrink the stated σ as if
   independent;
@@ -45,22 +47,117 @@ from ..units import DEG, MM, SHOWN, display
 from .noise import decreasing_root
 
 STATUSES = ("good", "suspect", "refused")
-FALSE_ALARM = 0.01  # chance that pure noise names an outlier in one calibration (any number of poses)
+FALSE_ALARM = 0.01  # chance that pure noise names an outlier in one calibration (any number of samples)
+SIMULATED_BELOW = 200  # samples below which the outlier limit is simulated; from here the asymptotic spread serves
+DRAWS = 500_000  # error norms drawn to simulate one outlier limit (DRAWS // n sets of n)
+_NODES, _WEIGHTS = np.polynomial.hermite_e.hermegauss(64)  # expectations over a standard normal
+_WEIGHTS = _WEIGHTS / _WEIGHTS.sum()
 
 
-def _chi3_sf(x: float) -> float:
-    """P(‖e‖ > x) for e a 3-D standard Gaussian (the χ distribution with 3 degrees of freedom)."""
-    return math.erfc(x / math.sqrt(2.0)) + math.sqrt(2.0 / math.pi) * x * math.exp(-0.5 * x * x)
+def _chi_sf(x: float, dim: int) -> float:
+    """P(‖e‖ > x) for e a ``dim``-D standard Gaussian (the χ distribution with ``dim`` degrees of freedom): the
+    regularised upper incomplete gamma function Q(dim/2, x²/2), a finite sum for a whole ``dim``.
+
+    >>> round(_chi_sf(1.0, 1), 6), round(_chi_sf(2.0, 2), 6), round(_chi_sf(1.5, 3), 6)  # erfc(1/√2), e⁻², χ₃
+    (0.317311, 0.135335, 0.522167)
+    """
+    if x <= 0.0:
+        return 1.0
+    y, half = 0.5 * x * x, 0.5 * (dim % 2)
+    head = math.erfc(math.sqrt(y)) if dim % 2 else 0.0
+    return head + sum(math.exp(-y + (j + half) * math.log(y) - math.lgamma(j + half + 1.0)) for j in range(dim // 2))
+
+
+def _chi_pdf(x: float, dim: int) -> float:
+    """The density of ‖e‖ at x > 0 for e a ``dim``-D standard Gaussian."""
+    return math.exp((dim - 1) * math.log(x) - 0.5 * x * x - (0.5 * dim - 1.0) * math.log(2.0) - math.lgamma(0.5 * dim))
 
 
 @functools.lru_cache(maxsize=64)
-def _chi3_robust_z(tail: float) -> float:
-    """The robust z ((x − median) / (1.4826·MAD), as :func:`robust_z`) of the χ₃ quantile with upper
-    tail probability ``tail``."""
-    med = decreasing_root(lambda x: _chi3_sf(x) - 0.5, 0.0, 10.0)
-    mad = decreasing_root(lambda d: 0.5 - (_chi3_sf(max(med - d, 0.0)) - _chi3_sf(med + d)), 0.0, 10.0)
-    x = decreasing_root(lambda x: _chi3_sf(x) - tail, 0.0, 40.0)
-    return (x - med) / (1.4826 * mad)
+def _chi_tables(dim: int) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """The median and the MAD of the χ distribution with ``dim`` degrees of freedom, and its log survival function
+    on a grid (x, log P(‖e‖ > x)), which :func:`numpy.interp` reads at many points (its curvature is about 1: the
+    grid's step of 0.005 keeps it to 3e-6)."""
+    top = math.sqrt(dim) + 20.0
+    med = decreasing_root(lambda x: _chi_sf(x, dim) - 0.5, 0.0, top)
+    mad = decreasing_root(lambda d: 0.5 - (_chi_sf(max(med - d, 0.0), dim) - _chi_sf(med + d, dim)), 0.0, top)
+    x = np.linspace(0.0, top, int(top / 0.005) + 1)
+    return med, mad, x, np.log([max(_chi_sf(float(v), dim), 1e-300) for v in x])
+
+
+def _simulated_limit(n: int, dim: int) -> float:
+    """The limit of :func:`noise_limit` by simulation (seeded: the same in every run): ``DRAWS // n`` sets of n
+    norms. Given a set's other norms its largest is χ-distributed above the second largest, and the median and the
+    MAD scarcely depend on it, so each set adds the chance that it passes the limit (no count of rare events)."""
+    sets = max(DRAWS // n, 1000)
+    e = np.sqrt(np.random.default_rng(20240601).chisquare(dim, (sets, n)))
+    med = np.median(e, axis=1)
+    spread = 1.4826 * np.median(np.abs(e - med[:, None]), axis=1)
+    second = np.partition(e, n - 2, axis=1)[:, n - 2]
+    _, _, x, log_sf = _chi_tables(dim)
+    below = np.interp(second, x, log_sf)
+
+    def excess(limit: float) -> float:
+        passed = np.interp(np.maximum(med + limit * spread, second), x, log_sf) - below
+        return float(np.mean(np.exp(passed))) - FALSE_ALARM
+    return decreasing_root(excess, 0.0, 1000.0, 1e-5)
+
+
+def _asymptotic_limit(n: int, dim: int) -> float:
+    """The limit of :func:`noise_limit` for many samples: the median and the MAD of n norms are normal about the
+    distribution's (their Bahadur representations by the empirical distribution at median − MAD, median, median +
+    MAD), and the chance that the largest norm passes ``median + limit·1.4826·MAD`` is averaged over that spread."""
+    med, mad, x, log_sf = _chi_tables(dim)
+    at = (med - mad, med, med + mad)
+    p = np.array([1.0 - _chi_sf(v, dim) for v in at])
+    f = [_chi_pdf(v, dim) for v in at]
+    cov = (np.minimum.outer(p, p) - np.outer(p, p)) / n
+    of_med = np.array([0.0, -1.0 / f[1], 0.0])  # δmedian and δMAD by δF at the three points
+    of_mad = np.array([1.0, (f[2] - f[0]) / f[1], -1.0]) / (f[0] + f[2])
+
+    def excess(limit: float) -> float:
+        a = of_med + 1.4826 * limit * of_mad
+        top = med + 1.4826 * limit * mad + math.sqrt(float(a @ cov @ a)) * _NODES
+        sf = np.minimum(np.exp(np.interp(top, x, log_sf)), 1.0 - 1e-16)
+        return float(_WEIGHTS @ -np.expm1(n * np.log1p(-sf))) - FALSE_ALARM
+    return decreasing_root(excess, 0.0, 1000.0, 1e-5)
+
+
+@functools.lru_cache(maxsize=256)
+def noise_limit(n: int, dim: int = 3) -> float:
+    """The robust z that noise alone passes in one calibration in a hundred (``FALSE_ALARM``).
+
+    The largest of n error norms of pure Gaussian noise (each the norm of a ``dim``-D residual block of unit σ
+    per row: a plane contact's 1, a point's 3, a pose's 6) lies ``limit`` robust σ ((e − median) / (1.4826·MAD),
+    :func:`robust_z`, over the n norms themselves) above their median with probability ``FALSE_ALARM``. The
+    median and the MAD of a few norms scatter, which raises the limit for few samples; the χ tail rises for many.
+    Simulated (:func:`_simulated_limit`) below ``SIMULATED_BELOW`` samples, from the asymptotic spread of the
+    median and the MAD above (:func:`_asymptotic_limit`; the two agree to 0.03 there).
+
+    Parameters
+    ----------
+    n : int
+        The number of samples judged together (a set's); 0 below 3 (no spread to judge by).
+    dim : int, optional
+        The dimension of each sample's residual block (default 3: a point).
+
+    Returns
+    -------
+    float
+        The limit, robust σ.
+
+    Examples
+    --------
+    >>> from kincal.identify.verdict import noise_limit
+    >>> [round(noise_limit(60, d), 1) for d in (1, 3, 6)]  # a plane contact's, a point's, a pose's
+    [6.1, 5.0, 4.7]
+    >>> round(noise_limit(10), 1), round(noise_limit(1000), 2), round(noise_limit(100_000), 2)
+    (7.0, 5.27, 6.47)
+    """
+    n, dim = int(n), max(int(dim), 1)
+    if n < 3:
+        return 0.0
+    return _simulated_limit(n, dim) if n < SIMULATED_BELOW else _asymptotic_limit(n, dim)
 
 
 MAX_OUTLIER_SHARE = 0.1  # "a few bad poses": outliers are left out only up to this share of the poses
@@ -91,8 +188,9 @@ class Thresholds:
     residual_refuse : float, optional
         The same ratio beyond which it is refused: data and model do not belong together (default 100).
     outlier_z : float, optional
-        Robust σ (1.4826·MAD) above the median error norm beyond which a pose is an outlier, raised for
-        many poses by :meth:`outlier_limit` (default 5).
+        Robust σ (1.4826·MAD) above the median error norm beyond which a pose is an outlier, raised by
+        :meth:`outlier_limit` where noise alone would pass it in more than one calibration in a hundred
+        (default 5).
     tool_suspect : float, optional
         Distance of the fitted tool point from the declared one beyond which it is suspect, m (default
         50e-3).
@@ -124,6 +222,8 @@ class Thresholds:
     (2e-05, 0.01, 0.05)
     >>> th.outlier_limit(100), round(th.outlier_limit(100_000), 2)  # raised for many poses
     (5.0, 6.47)
+    >>> round(th.outlier_limit(60, dim=1), 2)  # and for residuals of fewer dimensions (a plane contact's)
+    6.13
     >>> Thresholds.of({"outlier_z": 4.0}).outlier_z
     4.0
     >>> Thresholds(length_suspect=0.1)
@@ -169,11 +269,12 @@ class Thresholds:
         """The same beyond which it is refused."""
         return self.mounting_refuse if mounting else self.__dict__[f"{kind}_refuse"]
 
-    def outlier_limit(self, n: int) -> float:
-        """The robust z beyond which one of ``n`` error norms is an outlier: ``outlier_z``, raised for
-        many poses so that noise alone (3-D Gaussian errors) names a pose in at most one calibration in
-        a hundred (5 up to about 500 poses, 5.2 for 1000, 6.5 for 10⁵)."""
-        return max(self.outlier_z, _chi3_robust_z(FALSE_ALARM / max(int(n), 1)))
+    def outlier_limit(self, n: int, dim: int = 3) -> float:
+        """The robust z beyond which one of ``n`` error norms of ``dim``-D residual blocks (a plane contact's 1, a
+        point's 3, a pose's 6) is an outlier: ``outlier_z``, raised where noise alone would pass it in more than
+        one calibration in a hundred (:func:`noise_limit`): for points below about 60 and above about 250 (7.0 for
+        10, 5.3 for 1000, 6.5 for 10⁵), for plane contacts always (6.1 for 60)."""
+        return max(self.outlier_z, noise_limit(n, dim))
 
     @classmethod
     def of(cls, value) -> "Thresholds":

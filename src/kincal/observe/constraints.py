@@ -22,11 +22,36 @@ from .observations import Observation, error_stats
 
 SCALE_LIMIT = 3.0  # a stated distance this many times off the robot file's: a unit or label mistake
 SPREAD_LIMIT = 50e-3  # m: one point's samples farther than this from their centre under the robot file: not one point
+STEP_SLACK = 5e-3  # m: a step between known planes this far off the robot file's is a robot's error, never a unit's
 UNIT_FACTORS = {"mm": 1 / LENGTH_UNITS["mm"], "cm": 1 / OTHER_LENGTHS["cm"], "inches": 1 / OTHER_LENGTHS["inch"]}
 
 
 def _labels_in_order(labels: np.ndarray) -> list[str]:
     return list(dict.fromkeys(str(x) for x in labels.tolist()))  # in order of first appearance
+
+
+def _unit_hint(stated: float, seen: float, what: str) -> str:
+    """What a known length ``stated`` (m), which the robot file sees as ``seen`` (m), looks like ('' if nothing):
+    metres written in a file read in mm (a thousandth), another unit (:data:`UNIT_FACTORS`: mm, cm, inches where m
+    is read) or another power of ten; ``what`` names the lengths in the advice (e.g. "distances").
+
+    >>> _unit_hint(0.05e-3, 0.05, "plane offsets")[:52]
+    ': a thousandth of it, as if metres were stated in a '
+    >>> _unit_hint(50.0, 0.05, "plane offsets"), _unit_hint(0.12, 0.05, "distances")
+    (': it looks like mm; give plane offsets in m', '')
+    >>> _unit_hint(0.5, 0.05, "distances")
+    ": 10 times theirs, a power of ten: stated in another unit than the file's?"
+    """
+    ratio = max(stated, 1e-300) / max(seen, 1e-12)
+    if abs(np.log(ratio * 1e3)) < 0.3:  # metres stated where the file's unit is mm
+        return f": a thousandth of it, as if metres were stated in a file read in mm; state {what} in the file's " \
+               f"length unit"
+    unit = next((u for u, f in UNIT_FACTORS.items() if abs(np.log(ratio / f)) < 0.3), None)
+    if unit:
+        return f": it looks like {unit}; give {what} in m"
+    tens = round(float(np.log10(ratio)))
+    return (f": {10.0 ** tens:g} times theirs, a power of ten: stated in another unit than the file's?"
+            if tens and abs(np.log(ratio / 10.0 ** tens)) < 0.3 else "")
 
 
 def _tool_hint(robot: Robot, q: np.ndarray, labels: np.ndarray) -> str:
@@ -161,16 +186,8 @@ class SamePointObs(Observation):
                                        f"has (labels: {', '.join(self.points()[:10])})")
             seen = float(np.linalg.norm(at[a] - at[b]))
             if not (d > 0 and SCALE_LIMIT ** -1 < d / max(seen, 1e-12) < SCALE_LIMIT):
-                unit = next((u for u, f in UNIT_FACTORS.items() if abs(np.log(d / max(seen, 1e-12) / f)) < 0.3), None)
-                tens = round(float(np.log10(max(d, 1e-300) / max(seen, 1e-12))))
-                hint = f": it looks like {unit}; give distances in m" if unit else (
-                    f": {10.0 ** tens:g} times theirs, a power of ten: stated in another unit than the file's?"
-                    if tens and abs(np.log(d / max(seen, 1e-12) / 10.0 ** tens)) < 0.3 else "")
-                if abs(np.log(d / max(seen, 1e-12) * 1e3)) < 0.3:  # metres stated where the file's unit is mm
-                    hint = ": a thousandth of it, as if metres were stated in a file read in mm; state distances " \
-                           "in the file's length unit"
                 raise MeasurementError(f"{self.source}: the distance {a}–{b} is stated as {d:g} m, but the robot file "
-                                       f"puts those points {seen:.4g} m apart{hint}")
+                                       f"puts those points {seen:.4g} m apart{_unit_hint(d, seen, 'distances')}")
         return self
 
     def nuisance(self, robot: Robot):
@@ -299,7 +316,10 @@ class PlaneObs(Observation):
     start: dict = field(default_factory=dict)  # unknown planes: label -> (n0, c0) the fit starts from (prepare)
 
     def prepare(self, robot: Robot) -> "PlaneObs":
-        """A copy whose unknown planes start at the best-fitting planes through ``robot``'s points."""
+        """A copy whose unknown planes start at the best-fitting planes through ``robot``'s points, after the check
+        of each step between known parallel planes against the one ``robot`` puts between their contacts
+        (:meth:`check_known_lengths`)."""
+        self.check_known_lengths(robot)
         p = robot.forward(self.q)
         start = {}
         for lab in self.unknown():
@@ -308,6 +328,29 @@ class PlaneObs(Observation):
             n = n if n[np.argmax(np.abs(n))] > 0 else -n  # canonical sign
             start[lab] = (n, float(n @ pts.mean(axis=0)))
         return dataclasses.replace(self, start=start)
+
+    def check_known_lengths(self, robot: Robot) -> None:
+        """Refuses a step between two known parallel planes that ``robot`` puts more than ``STEP_SLACK`` and a factor
+        ``SCALE_LIMIT`` away from the stated one (between the mean heights of their contacts), naming the unit it
+        looks like (:func:`_unit_hint`): offsets in another unit make a step 10-1000x off, which a fit reads as a
+        robot that many times its size, or, under 1 mm, as no step at all (no length scale)."""
+        p = robot.forward(self.q)
+        known = {lab: (np.asarray(n, float) / np.linalg.norm(n), float(c)) for lab, (n, c) in self.known.items()
+                 if np.any(self.labels == lab)}
+        labels = list(known)
+        for i, a in enumerate(labels):
+            for b in labels[i + 1:]:
+                (na, ca), (nb, cb) = known[a], known[b]
+                if abs(abs(na @ nb) - 1.0) >= 1e-6:
+                    continue
+                turn = float(np.sign(na @ nb))
+                stated = abs(ca - turn * cb)
+                seen = abs(float(np.mean(p[self.labels == a] @ na) - turn * np.mean(p[self.labels == b] @ nb)))
+                if abs(stated - seen) > STEP_SLACK and not SCALE_LIMIT ** -1 < stated / max(seen, 1e-12) < SCALE_LIMIT:
+                    raise MeasurementError(
+                        f"{self.source}: the known planes {a} and {b} are stated {stated:.4g} m apart (offsets {ca:g} "
+                        f"and {cb:g} m), but the robot file puts their contacts {seen:.4g} m apart"
+                        f"{_unit_hint(stated, seen, 'plane offsets')}")
 
     def nuisance(self, robot: Robot):
         names = tuple(f"plane[{lab}].{a}" for lab in self.unknown() for a in "abc")

@@ -138,6 +138,11 @@ class Observation:
         """The set ready to fit from ``robot`` (types whose parametrisation depends on the start override)."""
         return self
 
+    def check_known_lengths(self, robot: Robot) -> None:
+        """Refuses (MeasurementError) a known length of the set that ``robot`` sees 10-1000x off, naming the unit it
+        looks like (types that state lengths, such as a step between known planes, override; also before data
+        without a length scale are refused: a step read in another unit may be why there is none)."""
+
     def positions(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(q, xyz) of the tool point measured in the measurement frame, to register that frame before
         the fit; None for data that see no absolute position."""
@@ -243,6 +248,9 @@ class Wrapper(Observation):
 
     def prepare(self, robot: Robot) -> "Wrapper":
         return dataclasses.replace(self, inner=self.inner.prepare(robot))
+
+    def check_known_lengths(self, robot: Robot) -> None:
+        self.inner.check_known_lengths(robot)
 
     def anchors(self) -> dict:
         return self.inner.anchors()

@@ -316,7 +316,8 @@ def simulate_planes(true: Robot, planes: dict, per_plane: int, known=(), std: fl
         q = reach(true, on, seed=seed, max_rounds=5, strict=False)
         q = q[np.all(np.isfinite(q), axis=1)][:per_plane]
         if len(q) < per_plane:
-            raise ModelError(f"plane {lab}: only {len(q)} of {per_plane} contacts are within reach of {true.name}")
+            raise ModelError(f"plane {lab}: only {len(q)} of {per_plane} contacts are within reach of {true.name}; "
+                             f"give a plane it reaches (n·x = c in its base frame)")
         qs.append(q)
     q = np.concatenate(qs)
     return PlaneObs(q, np.arange(2, len(q) + 2), f"simulated {true.name} plane contacts",
