@@ -67,7 +67,8 @@ def main() -> None:
     table = Table("models", "Error models on the real UR5 and WAM", (
         "ur5_wam_gts3800: each error model fitted on the grid poses (UR5 1000, WAM 216) and judged on the "
         "20 random poses no fit sees; mean 3-D position error, mm. `auto` chooses by joint-space blocked "
-        "cross-validation with the prediction-σ guard, shown as auto=(the model chosen); compliance only where "
+        "cross-validation with the prediction-σ guard (judged in the tracker's frame and in the robot's own base "
+        "frame, where commands are computed), shown as auto=(the model chosen); compliance only where "
         "the robot file has link masses. The fit times the benchmark prints are left out here: they depend on the "
         "machine's load."), ["robot", "model", "params", "held-out mean mm", "fit time"],
         widths=[5, 30, 6, 17, 10], align="llrrr", left_out=("fit time",))

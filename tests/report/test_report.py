@@ -177,7 +177,7 @@ def test_report_refits_from_the_record_the_file_keeps(tmp_path, capsys):
     cap = capsys.readouterr()
     assert "differs from" not in cap.err
     data = json.loads((tmp_path / "r.json").read_text())
-    assert data["error_model_choice"]["chosen"] == res["error_model_choice"]["chosen"] == "harmonics:2"
+    assert data["error_model_choice"]["chosen"] == res["error_model_choice"]["chosen"] == "harmonics:1"
 
 
 def test_held_out_sessions_are_drawn_in_the_training_frame(ur5):

@@ -11,7 +11,15 @@ is later used. A candidate term is kept only when
   prediction-σ guard. σ only propagates noise and so understates how badly flexible terms
   extrapolate: on the real UR5 grid, harmonics fitted on one half of a joint's range showed 1.3–1.6×
   the geometric σ on the other half and 2–4× its error, while inside the training region the ratio
-  stayed at 1.0–1.1. Hence the tight factor (chosen on that data set; the WAM agreed);
+  stayed at 1.0–1.1. Hence the tight factor (chosen on that data set; the WAM agreed). σ is judged in
+  both frames the model's predictions are used in, and the worse ratio decides: the measurement frame
+  (evaluate, targets in the tracker's frame) and the robot's own base frame, where ``compensate``
+  computes commands by default, without the base frame's parameters
+  (:func:`kincal.compensate.command_models`). A term the data cannot tell from the measurement frame
+  over their range is certain only in the first: on the real UR5 grid (joint 1 over −24..56°) the
+  joint-1 harmonics of ``harmonics:2`` came out as a near-constant −0.44° (joint 1's zero, which the
+  data cannot tell from the tracker frame's rotation); at the 20 random poses its σ was 1.03× geometric's
+  in the tracker's frame and 11.8× in the robot's, where its commands stood 4.3 mm from geometric's;
 * every fold's fit converged without a refused verdict;
 * when the data come from several sessions (files, set-ups, days), it is also no worse than
   geometric on any held-out session: each session is left out in turn, both models are fitted to the
@@ -41,6 +49,8 @@ from ..ties import first_best, improves
 from ..units import MM
 
 SIGMA_FACTOR = 1.25
+FRAMES = ("measurement", "base")  # the frames a model's predictions are used in: the instrument's, the robot's own
+FRAME_WORDS = {"measurement": "in the measurement frame", "base": "in the robot's base frame"}
 FOLDS = 5  # k-means regions of joint space, each held out in turn
 
 
@@ -72,7 +82,9 @@ class ErrorModelChoice:
     rows : tuple of dict
         One per candidate error model: ``error_model`` (its name), ``parameters`` (the count estimated),
         ``cv_mean`` and ``cv_se`` (blocked-CV mean error and its standard error, m; inf: not judged),
-        ``sigma_ratio`` (predicted σ where the model will be used, over geometric's), ``fits_ok``,
+        ``sigma_ratio_measurement`` and ``sigma_ratio_base`` (median predicted σ where the model will be used
+        over geometric's, in the measurement frame and in the robot's own base frame), ``sigma_ratio`` (the
+        worse of the two) and ``sigma_frame`` (its frame: "measurement" or "base"), ``fits_ok``,
         ``sessions`` (mean error on each held-out session, m; inf: not judged) and ``decision`` (kept or
         dropped, and why); ``why`` when the model does not apply to the robot.
     chosen : str
@@ -100,15 +112,17 @@ class ErrorModelChoice:
         total = len(self.sessions) + len(self.not_held_out)
         held = f" and leave-one-session-out ({len(self.sessions)} of {total} sessions held out)" if self.sessions else ""
         lines = [f"error model by joint-space blocked cross-validation ({self.folds} regions){held}: {self.chosen}",
-                 f"  {'error model':<20} {'params':>6} {'CV mean mm':>11} {'± se':>8} {'σ ratio':>8}"
+                 f"  {'error model':<20} {'params':>6} {'CV mean mm':>11} {'± se':>8} {'σ ratio':>8} {'σ frame':<11}"
                  + "".join(f" {f'session {i + 1} mm':>12}" for i in range(len(self.sessions))) + "  decision"]
         for r in self.rows:
             judged = np.isfinite(r["cv_mean"])  # else '-' throughout
-            cells = (f"{r['parameters']:>6} {r['cv_mean'] * MM:11.4f} {r['cv_se'] * MM:8.4f} {r['sigma_ratio']:8.2f}"
-                     if judged else f"{'-':>6} {'-':>11} {'-':>8} {'-':>8}")
+            cells = (f"{r['parameters']:>6} {r['cv_mean'] * MM:11.4f} {r['cv_se'] * MM:8.4f} {r['sigma_ratio']:8.2f} "
+                     f"{r['sigma_frame']:<11}" if judged else f"{'-':>6} {'-':>11} {'-':>8} {'-':>8} {'-':<11}")
             lines.append(f"  {r['error_model']:<20} {cells}" + "".join(f" {e * MM:12.4f}" if judged and np.isfinite(e)
                                                                        else f" {'-':>12}" for e in r["sessions"])
                          + f"  {r['decision']}")
+        lines.append("  σ ratio: predicted σ where the model will be used over geometric's, the worse of the measurement "
+                     "frame's and the robot's base frame's (σ frame: which)")
         lines += [f"  session {i + 1}: {name} (held out; its frame re-registered)" for i, name in enumerate(self.sessions)]
         lines += [f"  not held out: {name} (more than half of the poses: a model fitted without it would be judged "
                   f"on too little data)" for name in self.not_held_out]
@@ -149,9 +163,9 @@ def select_model(robot: Robot, meas: Measurements, calibrate, options, use_q: np
     use = meas.q if use_q is None else robot.check_q(use_q)
     rows = [_cross_validate(robot, meas, ErrorModel(name, payload), regions, sessions, calibrate, options, use)
             for name in default_candidates(robot)]
-    geo = rows[0]
+    geo, reference = rows[0], rows[0]["sigma"]
     for r in rows:
-        r["sigma_ratio"] = r.pop("sigma") / geo["sigma"] if r is not geo else 1.0
+        _sigma_ratio(r, None if r is geo else reference)
         r["decision"] = _eligibility(r, geo)
     geo["decision"] = "kept (reference)"  # the fallback, whatever its folds gave
     kept = [r for r in rows if r["decision"].startswith("kept")]
@@ -199,16 +213,39 @@ def _cross_validate(robot: Robot, meas: Measurements, spec: ErrorModel, regions,
         estimated = max(estimated, len(res.names))
         errors.append(_mean_error(res.robot, meas.subset(held)))
     full = calibrate(ext, meas, options)
-    sigma = float(np.median(full.uncertainty().sigma(full.robot, use)))
     e = np.array(errors)
     return {"error_model": model, "parameters": estimated, "cv_mean": float(e.mean()),
-            "cv_se": float(e.std(ddof=1) / np.sqrt(len(e))) if len(e) > 1 else 0.0, "sigma": sigma,
+            "cv_se": float(e.std(ddof=1) / np.sqrt(len(e))) if len(e) > 1 else 0.0, "sigma": _sigmas(full, use),
             "fits_ok": bool(ok), "sessions": [_session_error(ext, meas, held, calibrate, options)
                                               for _, held in sessions]}
 
 
+def _sigmas(full, use: np.ndarray) -> dict[str, float]:
+    """Median predicted σ (m) at the use poses of the model fitted to all data, in each frame its predictions are
+    used in: the measurement frame, and the robot's own base frame, where commands are computed
+    (:func:`kincal.compensate.command_models`), without the base frame's parameters (as ``compensate`` judges them).
+    A term the data cannot tell from the measurement frame's parameters over their range (a harmonic of a joint
+    that turns little, in effect its zero) is certain only in the first."""
+    unc = full.uncertainty()
+    robot = full.robot
+    return {frame: float(np.median(u.sigma(robot, use)))
+            for frame, u in (("measurement", unc), ("base", unc.without(robot.base_params(), robot)))}
+
+
+def _sigma_ratio(r: dict, reference: dict[str, float] | None) -> None:
+    """Replace the row's σ by its ratio over geometric's (``reference``; None: the row is geometric's, 1) in each
+    frame (``sigma_ratio_<frame>``), the worse of them (``sigma_ratio``) and the frame that set it
+    (``sigma_frame``; ties: the measurement frame)."""
+    sigma = r.pop("sigma")
+    ratios = [1.0 if reference is None else sigma[f] / reference[f] for f in FRAMES]
+    worse = first_best(ratios)
+    r.update({f"sigma_ratio_{f}": x for f, x in zip(FRAMES, ratios)})
+    r.update(sigma_ratio=ratios[worse], sigma_frame=FRAMES[worse])
+
+
 def _unjudged(model: str, parameters: int, sessions, why: str | None = None) -> dict:
-    row = {"error_model": model, "parameters": parameters, "cv_mean": np.inf, "cv_se": 0.0, "sigma": np.inf,
+    row = {"error_model": model, "parameters": parameters, "cv_mean": np.inf, "cv_se": 0.0,
+           "sigma": dict.fromkeys(FRAMES, np.inf),
            "fits_ok": False, "sessions": [np.inf] * len(sessions)}
     return row if why is None else {**row, "why": why}
 
@@ -241,7 +278,9 @@ def _eligibility(r: dict, geo: dict) -> str:
     if r["cv_mean"] >= geo["cv_mean"]:
         return "dropped: no better than geometric on held-out regions"
     if r["sigma_ratio"] > SIGMA_FACTOR:
-        return f"dropped: predicted σ {r['sigma_ratio']:.1f}x geometric's where it would be used (limit {SIGMA_FACTOR:g}x)"
+        other = next(f for f in FRAMES if f != r["sigma_frame"])
+        return (f"dropped: predicted σ {r['sigma_ratio']:.1f}x geometric's {FRAME_WORDS[r['sigma_frame']]} where it "
+                f"would be used (limit {SIGMA_FACTOR:g}x; {r[f'sigma_ratio_{other}']:.2f}x {FRAME_WORDS[other]})")
     if not r["sessions"]:  # then the leave-one-session-out test: no held-out session worse than with geometric
         return "kept"
     judged = [(i, e, g) for i, (e, g) in enumerate(zip(r["sessions"], geo["sessions"]))
