@@ -36,7 +36,7 @@ import numpy as np
 
 from ..checks import number
 from ..errors import ModelError
-from .covariates import Covariate, thermal_term
+from .covariates import Covariate, ThermalTerm, thermal_term
 from .gravity import COMPONENTS, GravityModel
 from .parameters import Parameters
 from .joint_space import JointSpace
@@ -359,6 +359,50 @@ def with_covariates(robot: Robot, names: Sequence[str] | None) -> Robot:
     if isinstance(robot, ExtendedRobot):  # terms on the joints already (a robot file's harmonics)
         return dataclasses.replace(robot, covariates=covs)
     return ExtendedRobot.build(robot, (), covariates=covs)
+
+
+def without_unread_covariates(robot: Robot) -> Robot:
+    """``robot`` without the covariates no term of it reads: they are no input of its predictions.
+
+    A calibration given covariate columns keeps them with its model even when the model it chose has no term
+    that reads them (``geometric``, or ``auto`` choosing no thermal term); such a model predicts the same for
+    any value of them, so data and targets need not carry them.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+
+    Returns
+    -------
+    Robot
+        ``robot`` itself when every covariate it reads is read by a term (or it reads none); else the same
+        model without the others: its geometry alone when it has no term left.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.models import with_covariates, without_unread_covariates
+    >>> robot = kincal.load_robot("ur5")
+    >>> warm = with_covariates(robot, ["temperature"])
+    >>> without_unread_covariates(warm).joint_names
+    ('j1', 'j2', 'j3', 'j4', 'j5', 'j6')
+    >>> thermal = kincal.extend(warm, "thermal:temperature")
+    >>> without_unread_covariates(thermal) is thermal
+    True
+    """
+    if not isinstance(robot, ExtendedRobot):
+        return robot
+    read = {t.covariate.name for t in robot.terms if isinstance(t, ThermalTerm)}
+    keep = tuple(c for c in robot.covariates if c.name in read)
+    if len(keep) == len(robot.covariates):
+        return robot
+    if not robot.terms:
+        return robot.inner
+    at = {c.name: robot.inner.n_joints + k for k, c in enumerate(keep)}  # a kept covariate's new input column
+    terms = tuple(dataclasses.replace(t, index=at[t.covariate.name]) if isinstance(t, ThermalTerm) else t
+                  for t in robot.terms)
+    return dataclasses.replace(robot, terms=terms, covariates=keep)
 
 
 def drop_terms(robot: Robot, names: Sequence[str]) -> Robot:
