@@ -174,3 +174,25 @@ def test_compliance_needs_masses(tmp_path, capsys):
         main(["calibrate", "wam", str(data), "--error-model", "compliance+gravity-regressor"])
     assert exc.value.code == 2
     assert "joined by '+'" in capsys.readouterr().err
+
+
+def test_auto_gives_the_payload_to_the_gravity_candidates_only(ur5):
+    """``auto`` with a payload: the gravity candidates load it, the others (geometric, harmonics) get none (every
+    'auto --payload' failed: "payload=0.5 kg: … error model 'geometric' has none"). A UR5 whose j2 and j3 give
+    under its links and a 20 kg payload: auto chooses compliance, fitted exactly as the compliance model named
+    with that payload, its compliances the simulated ones within 3σ."""
+    payload = 20.0
+    model = kincal.extend(ur5, kincal.ErrorModel("compliance", payload=payload))
+    true = kincal.perturb(model, 0.5e-3, 0.5e-3, seed=11).with_params({"j2.compliance": 2e-3, "j3.compliance": 1.5e-3,
+                                                                        "j4.compliance": 0.0})
+    meas = kincal.simulate(true, ur5.sample_joints(120, seed=12), NOISE, seed=13)
+    res = kincal.calibrate(ur5, meas, error_model=kincal.ErrorModel("auto", payload=payload), base="fixed")
+    rows = {r["error_model"]: r for r in res.error_model_choice.rows}
+    assert all(np.isfinite(rows[m]["cv_mean"]) for m in ("geometric", "compliance", "harmonics:1", "harmonics:2"))
+    assert res.error_model_choice.chosen == "compliance"
+    named = kincal.calibrate(ur5, meas, error_model=kincal.ErrorModel("compliance", payload=payload), base="fixed")
+    for n in ("j2.compliance", "j3.compliance"):
+        assert res.estimates[n] == pytest.approx(named.estimates[n], rel=1e-9)
+        assert abs(res.estimates[n] - true.params[n]) < 3 * res.std[n]
+    unloaded = kincal.calibrate(ur5, meas, error_model="compliance", base="fixed")  # the payload matters
+    assert abs(unloaded.estimates["j2.compliance"] - true.params["j2.compliance"]) > 10 * res.std["j2.compliance"]

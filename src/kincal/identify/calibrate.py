@@ -201,7 +201,7 @@ def _error_model(robot: Robot, sessions: list[Measurements], own_frames: bool, o
     quiet = options.replace(error_model=None, diagnose=False, reject_outliers=False)
     data = _calibrate(robot, sessions, True, quiet, None, None, {}).measurements if own_frames else joined(sessions)
     choice = select_model(robot, data, calibrate, quiet, use_q=use_q, payload=spec.payload)
-    return dataclasses.replace(spec, name=choice.chosen), choice
+    return spec.named(choice.chosen), choice
 
 
 def fit_observations(robot: Robot, observations: Sequence, options: FitOptions | None = None, *,

@@ -49,6 +49,7 @@ TAU_MIN = 0.5  # N·m: RMS load below which a joint gets no compliance
 REGRESSOR_MIN = 1e-6  # m: RMS of a regressor column below which it is left out (no load in any pose)
 SLOPE_STEP = 1e-6  # rad
 TERMS = ("compliance", "gravity-regressor", "harmonics", "thermal")
+GRAVITY_TERMS = frozenset({"compliance", "gravity-regressor"})  # the terms a payload loads
 THERMAL = "thermal:"  # the token of a thermal term is THERMAL + the covariate's name
 MAX_PAYLOAD = 3000.0  # kg: the heaviest industrial robots carry about 2300 kg
 MODELS = ("geometric", "nobeta", "compliance", "gravity-regressor", "harmonics:1", "harmonics:2", "harmonics:3",
@@ -512,7 +513,7 @@ class ErrorModel:
         if self.payload > MAX_PAYLOAD:
             raise ValueError(f"payload={self.payload:g} kg: more than any robot carries ({MAX_PAYLOAD:g} kg); give the "
                              f"payload at the tool in kg")
-        if self.payload > 0 and self.name != "auto" and not {"compliance", "gravity-regressor"} & set(tokens):
+        if self.payload > 0 and self.name != "auto" and not GRAVITY_TERMS & set(tokens):
             raise ValueError(f"payload={self.payload:g} kg: only the gravity terms (compliance, gravity-regressor) use "
                              f"it, and error model '{self.name}' has none")
 
@@ -526,6 +527,17 @@ class ErrorModel:
         if isinstance(value, Mapping) and set(value) <= {"name", "payload"}:
             return cls(**value)
         raise ValueError(f"error model {value!r}: give a name such as 'compliance+harmonics:2' or 'auto'")
+
+    def named(self, name: str) -> "ErrorModel":
+        """The error model ``name`` with this one's payload when its terms use it, else none: ``auto``'s
+        candidates and its choice.
+
+        >>> from kincal.models import ErrorModel
+        >>> auto = ErrorModel("auto", payload=0.5)
+        >>> auto.named("compliance+harmonics:1").payload, auto.named("geometric").payload
+        (0.5, 0.0)
+        """
+        return ErrorModel(name, self.payload if GRAVITY_TERMS & set(parse_model(name)) else 0.0)
 
     def to_dict(self) -> dict:
         return {"name": self.name, "payload": self.payload}
