@@ -196,3 +196,37 @@ def test_auto_gives_the_payload_to_the_gravity_candidates_only(ur5):
         assert abs(res.estimates[n] - true.params[n]) < 3 * res.std[n]
     unloaded = kincal.calibrate(ur5, meas, error_model="compliance", base="fixed")  # the payload matters
     assert abs(unloaded.estimates["j2.compliance"] - true.params["j2.compliance"]) > 10 * res.std["j2.compliance"]
+
+
+def test_a_payload_in_grams_declared_as_kg_is_refused_naming_the_joint_and_its_limit(ur5, capsys):
+    """500 'kg' on the UR5's real grid (0.5 kg written in grams) was calibrated GOOD without a word, j2 loaded far
+    beyond its 150 N·m effort limit: refused before any work, naming each joint's largest load — the potential's
+    gradient by central differences with the payload at the tool, not kincal's loads — and its limit; 0.5 kg
+    passes, and a robot file without effort limits (the WAM) is not judged."""
+    import re
+    from conftest import DATA, UR5_COLS, WAM_COLS
+    from kincal.models.terms import check_payload
+    units = ["--length-unit", "mm", "--angle-unit", "deg"]
+    meas = kincal.read_measurements(DATA / "ur5_grid.csv", ur5, joint_cols=UR5_COLS, length_unit="mm",
+                                    angle_unit="deg")
+    h = 1e-6
+    tau = np.stack([-(dh_potential(ur5, meas.q + h * e, 500.0) - dh_potential(ur5, meas.q - h * e, 500.0)) / (2 * h)
+                    for e in np.eye(6)], axis=1)
+    peak = np.abs(tau).max(axis=0)  # N·m per joint
+    for model in ("compliance", "auto"):
+        code = main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *units, "--joint-cols", ",".join(UR5_COLS),
+                     "--error-model", model, "--payload", "500"])
+        err = capsys.readouterr().err
+        assert code == 1 and "payload=500 kg" in err and "was it given in grams (500 g is 0.5 kg)?" in err
+        said = {j: (float(t), float(lim)) for j, t, lim in re.findall(r"(j\d) up to (\d+) N·m against (\d+) N·m", err)}
+        assert set(said) == {"j2", "j3", "j4", "j5"}  # beyond twice their limits (150, 150, 28, 28 N·m)
+        for j, (t, lim) in said.items():
+            k = int(j[1]) - 1
+            assert t == pytest.approx(peak[k], abs=0.6) and lim == ur5.joints[k].effort and t > 2 * lim
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *units, "--joint-cols", ",".join(UR5_COLS),
+                 "--error-model", "compliance", "--payload", "0.5"]) == 0
+    wam = kincal.load_robot("wam")
+    assert all(j.effort is None for j in wam.joints)
+    q = kincal.read_measurements(DATA / "wam_grid.csv", wam, joint_cols=WAM_COLS, length_unit="mm",
+                                 angle_unit="deg").q
+    check_payload(wam, 500.0, q)  # no effort limits: nothing said

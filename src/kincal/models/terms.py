@@ -36,6 +36,7 @@ import numpy as np
 
 from ..checks import number
 from ..errors import ModelError
+from ..ties import order_with_ties
 from .covariates import Covariate, ThermalTerm, thermal_term
 from .gravity import COMPONENTS, GravityModel
 from .parameters import Parameters
@@ -52,6 +53,7 @@ TERMS = ("compliance", "gravity-regressor", "harmonics", "thermal")
 GRAVITY_TERMS = frozenset({"compliance", "gravity-regressor"})  # the terms a payload loads
 THERMAL = "thermal:"  # the token of a thermal term is THERMAL + the covariate's name
 MAX_PAYLOAD = 3000.0  # kg: the heaviest industrial robots carry about 2300 kg
+PAYLOAD_MARGIN = 2.0  # a payload loading a joint this many times beyond its effort limit is refused (grams as kg?)
 MODELS = ("geometric", "nobeta", "compliance", "gravity-regressor", "harmonics:1", "harmonics:2", "harmonics:3",
           "harmonics:4")
 
@@ -600,6 +602,7 @@ def extend(robot: Robot, error_model: ErrorModel | str, q: np.ndarray | None = N
     else:
         q = robot.check_q(q)
         covs = tuple(Covariate.of_data(c.name, q[:, n + i]) for i, c in enumerate(covs))
+        check_payload(robot, spec.payload, q)
     if "nobeta" in tokens:
         inner = inner.without_beta()
     if "compliance" in tokens and inner.has_load_compliance:  # the model's own (a hexapod's legs), not a term
@@ -607,6 +610,62 @@ def extend(robot: Robot, error_model: ErrorModel | str, q: np.ndarray | None = N
     terms = [thermal_term(inner, tok[len(THERMAL):], covs) if tok.startswith(THERMAL) else
              _term(inner, tok, q[:, :n], spec.payload) for tok in tokens if tok not in ("geometric", "nobeta")]
     return ExtendedRobot.build(inner, terms, covariates=covs) if terms or covs else inner
+
+
+def check_payload(robot: Robot, payload: float, q: np.ndarray) -> None:
+    """Refuse a payload no joint of ``robot`` could hold at the poses ``q``: a payload in grams given as kg.
+
+    The gravity load of the link masses and ``payload`` at the tool point, at every pose, is compared with each
+    joint's effort limit from the robot file; a joint loaded beyond ``PAYLOAD_MARGIN`` (2) times its limit, where
+    the links alone stay within that, is refused. A robot without effort limits or link masses is not judged.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot (its geometry, when it carries error terms).
+    payload : float
+        Mass at the tool point, kg.
+    q : ndarray, shape (N, n)
+        The data's poses, rad (m for a prismatic joint); covariates after the joints are ignored.
+
+    Raises
+    ------
+    ValueError
+        Naming each such joint, its largest load and its effort limit, the worst first, and the unit of the
+        payload.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.models.terms import check_payload
+    >>> ur5 = kincal.load_robot("ur5")  # j2's effort limit: 150 N·m
+    >>> q = ur5.sample_joints(50, seed=0)
+    >>> check_payload(ur5, 5.0, q)  # its rated payload: nothing to say
+    >>> check_payload(ur5, 500.0, q)
+    Traceback (most recent call last):
+    ...
+    ValueError: payload=500 kg: at the data's poses its gravity load exceeds the effort limits of the robot file: ...
+    """
+    geometry = robot.inner if isinstance(robot, ExtendedRobot) else robot
+    if payload <= 0.0 or not geometry.has_gravity:
+        return
+    loaded = geometry.gravity(payload)
+    limits = np.array([np.nan if not vars(j).get("effort") else float(vars(j)["effort"]) for j in loaded.robot.moving])
+    if np.all(np.isnan(limits)):
+        return
+    qj = q[:, :geometry.n_joints]
+    tau = np.abs(loaded.torques(qj)).max(axis=0)
+    links = np.abs(geometry.gravity(0.0).torques(qj)).max(axis=0)
+    with np.errstate(invalid="ignore"):
+        over = np.flatnonzero((tau > PAYLOAD_MARGIN * limits) & (links <= PAYLOAD_MARGIN * limits))
+    if over.size:
+        units = ["N·m" if t == "revolute" else "N" for t in geometry.joint_types]
+        each = [f"{geometry.joint_names[k]} up to {tau[k]:.0f} {units[k]} against {limits[k]:g} {units[k]} "
+                f"({tau[k] / limits[k]:.0f}x; the links alone {links[k]:.0f} {units[k]})"
+                for k in over[order_with_ties(tau[over] / limits[over])]]
+        raise ValueError(f"payload={payload:g} kg: at the data's poses its gravity load exceeds the effort limits of "
+                         f"the robot file: {', '.join(each)}; the payload is in kg: was it given in grams "
+                         f"({payload:g} g is {payload / 1000:g} kg)?")
 
 
 def _term(geometry: Robot, token: str, q: np.ndarray, payload: float):
