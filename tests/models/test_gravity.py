@@ -1,4 +1,6 @@
 """Gravity terms: loads from link masses, compliance and the gravity regressor."""
+import re
+
 import numpy as np
 import pytest
 import yourdfpy
@@ -203,7 +205,6 @@ def test_a_payload_in_grams_declared_as_kg_is_refused_naming_the_joint_and_its_l
     beyond its 150 N·m effort limit: refused before any work, naming each joint's largest load — the potential's
     gradient by central differences with the payload at the tool, not kincal's loads — and its limit; 0.5 kg
     passes, and a robot file without effort limits (the WAM) is not judged."""
-    import re
     from conftest import DATA, UR5_COLS, WAM_COLS
     from kincal.models.terms import check_payload
     units = ["--length-unit", "mm", "--angle-unit", "deg"]
@@ -230,3 +231,29 @@ def test_a_payload_in_grams_declared_as_kg_is_refused_naming_the_joint_and_its_l
     q = kincal.read_measurements(DATA / "wam_grid.csv", wam, joint_cols=WAM_COLS, length_unit="mm",
                                  angle_unit="deg").q
     check_payload(wam, 500.0, q)  # no effort limits: nothing said
+
+
+def test_a_compliance_kept_at_nominal_is_said_so_not_printed_as_zero(capsys):
+    """The WAM's real grid with --error-model compliance --payload 0.5: j3's and j4's compliances are determined
+    worse than a real robot's error and kept at nominal (29 parameters, as geometric); they printed as
+    'compliance of j3: 0 rad/(N·m)'. Now 'kept at nominal (not determined)', None in the JSON; an estimated
+    compliance keeps its value (the deflection at 100 N·m over 100)."""
+    import json
+    from conftest import DATA, WAM_COLS
+    args = ["calibrate", "wam", str(DATA / "wam_grid.csv"), "--length-unit", "mm", "--angle-unit", "deg",
+            "--joint-cols", ",".join(WAM_COLS), "--error-model", "compliance", "--payload", "0.5"]
+    main(args)
+    text = capsys.readouterr().out
+    assert "compliance of j3: kept at nominal (not determined)" in text
+    assert "compliance of j4: kept at nominal (not determined)" in text and "0 rad/(N·m)" not in text
+    kept = re.search(r"kept at nominal, determined worse than a real robot's error[^:]*: (.*)", text).group(1)
+    assert "j3.compliance" in kept and "j4.compliance" in kept
+    main([*args, "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert out["compliance"] == {"j3": None, "j4": None} and len(out["estimates"]) == 29
+    wam = kincal.load_robot("wam")
+    model = kincal.extend(wam, kincal.ErrorModel("compliance", payload=0.5))
+    true = model.with_params({"j2.compliance": 2e-3})
+    res = kincal.calibrate(wam, kincal.simulate(true, wam.sample_joints(100, seed=3), NOISE, seed=4),
+                           error_model=kincal.ErrorModel("compliance", payload=0.5), base="fixed")
+    assert res.compliances["j2"] == pytest.approx(res.estimates["j2.compliance"] / 100) and "j2.compliance" in res.names
