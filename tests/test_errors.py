@@ -163,3 +163,35 @@ def test_python_calls_with_arguments_of_the_wrong_kind_say_what_to_give(ur5, goo
     with pytest.raises(TypeError, match=r"robot: a Robot is wanted, got str: .*load_robot\('ur5'\)"):
         kincal.read_measurements(path, "ur5")
     assert kincal.evaluate(res.robot, meas).n == 30  # the call it names works
+
+
+def test_a_value_error_of_numpy_is_an_internal_error_and_kincals_own_message_is_advice(monkeypatch, capsys, good):
+    """A ValueError that numpy raises (shapes that do not broadcast, a singular matrix) is a bug in kincal: exit 70
+    with the bug-report wording, not 'kincal: error:' advice (it printed 'operands could not be broadcast together
+    with shapes (20,6) (7,)' as the user's error); a ValueError kincal raises itself stays advice, also from a
+    worker process."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    import kincal.cli.model
+    from kincal.cli import EXIT_INTERNAL, raised_by_kincal
+
+    def broadcast(args):
+        return int((np.zeros((20, 6)) * np.zeros(7)).sum())
+
+    def singular(args):
+        return int(np.linalg.solve(np.zeros((2, 2)), np.ones(2)).sum())
+    for bug in (broadcast, singular):
+        monkeypatch.setattr(kincal.cli.model, "cmd_show", bug)
+        code, _, err = run_cli(capsys, "show", "ur5")
+        assert code == EXIT_INTERNAL == 70 and err.startswith("kincal: internal error (") and "please report" in err
+    code, _, err = run_cli(capsys, "calibrate", "ur5", good[0], "--error-model", "harmonics:2", "--payload", "3")
+    assert code == 1 and err.startswith("kincal: error: payload=3 kg: only the gravity terms")
+    with ProcessPoolExecutor(1) as pool:
+        own, numpy_s = (pool.submit(f, *a) for f, a in ((kincal.ErrorModel, ("harmonics:2", 3.0)),
+                                                        (np.multiply, (np.zeros((2, 6)), np.zeros(7)))))
+        with pytest.raises(ValueError) as a:
+            own.result()
+        with pytest.raises(ValueError) as b:
+            numpy_s.result()
+    assert type(a.value.__cause__).__name__ == "_RemoteTraceback"  # judged by the worker's traceback text
+    assert raised_by_kincal(a.value) and not raised_by_kincal(b.value)

@@ -181,3 +181,45 @@ def test_a_covariate_is_read_as_written_and_shown_as_one_whatever_the_length_uni
     assert "6 joints; covariates temperature" in text
     row = next(line for line in text.splitlines() if "covariate" in line and "│" in line)
     assert [float(v) for v in row.split("│")[3:5]] == pytest.approx([robot.lower[k], robot.upper[k]], rel=1e-5)
+
+
+def test_a_covariate_no_term_reads_is_not_needed_to_compensate_or_evaluate(tmp_path, warm, capsys):
+    """The UR5's grid with a temperature column, calibrated geometric with --covariate-cols temperature: the model
+    keeps the covariate, no term reads it. compensate and evaluate of the tracker's random poses (no temperature
+    column) give what the same calibration without the covariate gives, byte for byte, and say the column is not
+    used (compensate stopped at 'operands could not be broadcast together with shapes (20,6) (7,)', evaluate
+    refused 'no column temperature'). A model whose thermal term reads it is still refused, before any work."""
+    import json
+    from conftest import DATA, UR5_COLS
+    units = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
+    text = (DATA / "ur5_grid.csv").read_text().splitlines()
+    temps = 20.0 + np.random.default_rng(0).normal(0.0, 0.5, len(text) - 1)
+    grid = tmp_path / "grid_t.csv"
+    grid.write_text("\n".join([text[0] + ",temperature"] + [f"{r},{t:.3f}" for r, t in zip(text[1:], temps)]) + "\n")
+    covgeo, geo = str(tmp_path / "covgeo.yaml"), str(tmp_path / "geo.yaml")
+    assert main(["calibrate", "ur5", str(grid), *units, "--covariate-cols", "temperature", "-o", covgeo]) == 0
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *units, "-o", geo]) == 0
+    assert kincal.load_robot(covgeo).covariate_names == ("temperature",)
+    random = str(DATA / "ur5_random.csv")
+    out = {}
+    for name, cal in (("covgeo", covgeo), ("geo", geo)):
+        capsys.readouterr()
+        assert main(["compensate", cal, random, *units, "--xyz-cols", "x_target,y_target,z_target",
+                     "-o", str(tmp_path / f"{name}.csv")]) == 0
+        note = capsys.readouterr().err
+        assert main(["evaluate", cal, random, *units, "--json"]) == 0
+        out[name] = (json.loads(capsys.readouterr().out), note, (tmp_path / f"{name}.csv").read_text())
+    assert out["covgeo"][2] == out["geo"][2] and out["covgeo"][2].count("\n") == 21  # 20 commands and the header
+    assert out["covgeo"][0]["mean"] == pytest.approx(out["geo"][0]["mean"], rel=1e-12)
+    assert out["covgeo"][0]["mean"] == pytest.approx(0.0922e-3, abs=0.00005e-3)
+    assert "reads the covariate temperature: its column is not used" in out["covgeo"][1]
+    assert "covariate" not in out["geo"][1]
+    nominal, train, _, _ = warm
+    thermal = kincal.calibrate(with_covariates(nominal, ["temperature"]), train, error_model="thermal:temperature",
+                               diagnose=False)
+    kincal.save_robot(thermal.robot, tmp_path / "thermal.yaml")
+    for cols in (units, [*units[:-1], units[-1] + ",temperature"]):
+        capsys.readouterr()
+        assert main(["compensate", str(tmp_path / "thermal.yaml"), random, *cols, "--xyz-cols",
+                     "x_target,y_target,z_target", "-o", str(tmp_path / "t.csv")]) == 1
+        assert "has covariate terms (temperature): its commands depend on" in capsys.readouterr().err

@@ -1,4 +1,6 @@
 """Gravity terms: loads from link masses, compliance and the gravity regressor."""
+import re
+
 import numpy as np
 import pytest
 import yourdfpy
@@ -174,3 +176,84 @@ def test_compliance_needs_masses(tmp_path, capsys):
         main(["calibrate", "wam", str(data), "--error-model", "compliance+gravity-regressor"])
     assert exc.value.code == 2
     assert "joined by '+'" in capsys.readouterr().err
+
+
+def test_auto_gives_the_payload_to_the_gravity_candidates_only(ur5):
+    """``auto`` with a payload: the gravity candidates load it, the others (geometric, harmonics) get none (every
+    'auto --payload' failed: "payload=0.5 kg: … error model 'geometric' has none"). A UR5 whose j2 and j3 give
+    under its links and a 20 kg payload: auto chooses compliance, fitted exactly as the compliance model named
+    with that payload, its compliances the simulated ones within 3σ."""
+    payload = 20.0
+    model = kincal.extend(ur5, kincal.ErrorModel("compliance", payload=payload))
+    true = kincal.perturb(model, 0.5e-3, 0.5e-3, seed=11).with_params({"j2.compliance": 2e-3, "j3.compliance": 1.5e-3,
+                                                                        "j4.compliance": 0.0})
+    meas = kincal.simulate(true, ur5.sample_joints(120, seed=12), NOISE, seed=13)
+    res = kincal.calibrate(ur5, meas, error_model=kincal.ErrorModel("auto", payload=payload), base="fixed")
+    rows = {r["error_model"]: r for r in res.error_model_choice.rows}
+    assert all(np.isfinite(rows[m]["cv_mean"]) for m in ("geometric", "compliance", "harmonics:1", "harmonics:2"))
+    assert res.error_model_choice.chosen == "compliance"
+    named = kincal.calibrate(ur5, meas, error_model=kincal.ErrorModel("compliance", payload=payload), base="fixed")
+    for n in ("j2.compliance", "j3.compliance"):
+        assert res.estimates[n] == pytest.approx(named.estimates[n], rel=1e-9)
+        assert abs(res.estimates[n] - true.params[n]) < 3 * res.std[n]
+    unloaded = kincal.calibrate(ur5, meas, error_model="compliance", base="fixed")  # the payload matters
+    assert abs(unloaded.estimates["j2.compliance"] - true.params["j2.compliance"]) > 10 * res.std["j2.compliance"]
+
+
+def test_a_payload_in_grams_declared_as_kg_is_refused_naming_the_joint_and_its_limit(ur5, capsys):
+    """500 'kg' on the UR5's real grid (0.5 kg written in grams) was calibrated GOOD without a word, j2 loaded far
+    beyond its 150 N·m effort limit: refused before any work, naming each joint's largest load — the potential's
+    gradient by central differences with the payload at the tool, not kincal's loads — and its limit; 0.5 kg
+    passes, and a robot file without effort limits (the WAM) is not judged."""
+    from conftest import DATA, UR5_COLS, WAM_COLS
+    from kincal.models.terms import check_payload
+    units = ["--length-unit", "mm", "--angle-unit", "deg"]
+    meas = kincal.read_measurements(DATA / "ur5_grid.csv", ur5, joint_cols=UR5_COLS, length_unit="mm",
+                                    angle_unit="deg")
+    h = 1e-6
+    tau = np.stack([-(dh_potential(ur5, meas.q + h * e, 500.0) - dh_potential(ur5, meas.q - h * e, 500.0)) / (2 * h)
+                    for e in np.eye(6)], axis=1)
+    peak = np.abs(tau).max(axis=0)  # N·m per joint
+    for model in ("compliance", "auto"):
+        code = main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *units, "--joint-cols", ",".join(UR5_COLS),
+                     "--error-model", model, "--payload", "500"])
+        err = capsys.readouterr().err
+        assert code == 1 and "payload=500 kg" in err and "was it given in grams (500 g is 0.5 kg)?" in err
+        said = {j: (float(t), float(lim)) for j, t, lim in re.findall(r"(j\d) up to (\d+) N·m against (\d+) N·m", err)}
+        assert set(said) == {"j2", "j3", "j4", "j5"}  # beyond twice their limits (150, 150, 28, 28 N·m)
+        for j, (t, lim) in said.items():
+            k = int(j[1]) - 1
+            assert t == pytest.approx(peak[k], abs=0.6) and lim == ur5.joints[k].effort and t > 2 * lim
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *units, "--joint-cols", ",".join(UR5_COLS),
+                 "--error-model", "compliance", "--payload", "0.5"]) == 0
+    wam = kincal.load_robot("wam")
+    assert all(j.effort is None for j in wam.joints)
+    q = kincal.read_measurements(DATA / "wam_grid.csv", wam, joint_cols=WAM_COLS, length_unit="mm",
+                                 angle_unit="deg").q
+    check_payload(wam, 500.0, q)  # no effort limits: nothing said
+
+
+def test_a_compliance_kept_at_nominal_is_said_so_not_printed_as_zero(capsys):
+    """The WAM's real grid with --error-model compliance --payload 0.5: j3's and j4's compliances are determined
+    worse than a real robot's error and kept at nominal (29 parameters, as geometric); they printed as
+    'compliance of j3: 0 rad/(N·m)'. Now 'kept at nominal (not determined)', None in the JSON; an estimated
+    compliance keeps its value (the deflection at 100 N·m over 100)."""
+    import json
+    from conftest import DATA, WAM_COLS
+    args = ["calibrate", "wam", str(DATA / "wam_grid.csv"), "--length-unit", "mm", "--angle-unit", "deg",
+            "--joint-cols", ",".join(WAM_COLS), "--error-model", "compliance", "--payload", "0.5"]
+    main(args)
+    text = capsys.readouterr().out
+    assert "compliance of j3: kept at nominal (not determined)" in text
+    assert "compliance of j4: kept at nominal (not determined)" in text and "0 rad/(N·m)" not in text
+    kept = re.search(r"kept at nominal, determined worse than a real robot's error[^:]*: (.*)", text).group(1)
+    assert "j3.compliance" in kept and "j4.compliance" in kept
+    main([*args, "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert out["compliance"] == {"j3": None, "j4": None} and len(out["estimates"]) == 29
+    wam = kincal.load_robot("wam")
+    model = kincal.extend(wam, kincal.ErrorModel("compliance", payload=0.5))
+    true = model.with_params({"j2.compliance": 2e-3})
+    res = kincal.calibrate(wam, kincal.simulate(true, wam.sample_joints(100, seed=3), NOISE, seed=4),
+                           error_model=kincal.ErrorModel("compliance", payload=0.5), base="fixed")
+    assert res.compliances["j2"] == pytest.approx(res.estimates["j2.compliance"] / 100) and "j2.compliance" in res.names

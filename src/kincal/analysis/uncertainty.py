@@ -139,6 +139,16 @@ class ModelUncertainty:
             return dataclasses.replace(unc, envelope_sigma=float(np.percentile(unc.sigma(robot, q), 95)))
         return unc
 
+    def on_inputs(self, keep) -> "ModelUncertainty":
+        """The same uncertainty with the training ranges of the inputs ``keep`` only (indices into the robot's
+        joints and covariates, in order): of a robot without covariates no term reads
+        (:func:`kincal.models.without_unread_covariates`); ``self`` without recorded ranges (or fewer than
+        ``keep`` reaches)."""
+        keep = [int(k) for k in keep]
+        if self.lower is None or self.upper is None or not keep or max(keep) >= len(self.lower):
+            return self
+        return dataclasses.replace(self, lower=self.lower[keep], upper=self.upper[keep])
+
     def outside(self, q: np.ndarray, revolute: np.ndarray | None = None) -> np.ndarray:
         """(N,) bool: a joint lies outside its training range by more than ENVELOPE_MARGIN of it (the
         ``revolute`` joints, a bool mask, taken the whole turns nearest the range)."""

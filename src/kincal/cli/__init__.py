@@ -13,6 +13,7 @@ import re
 import os
 import signal
 import sys
+import traceback
 
 import kincal
 
@@ -94,18 +95,16 @@ def main(argv: list[str] | None = None) -> int:
         try:  # a signal while an error is printed is still caught below
             _once(parser, tokens)
             return args.func(prepared(parser, args))
+        except Terminated:  # an Exception, but no internal error: stopped below
+            raise
         except (kincal.KincalError, ValueError, OSError) as exc:
+            if not isinstance(exc, (kincal.KincalError, OSError)) and not raised_by_kincal(exc):
+                return internal(exc)
             msg = " ".join(str(exc).split()) if not isinstance(exc, kincal.IdentifiabilityError) else str(exc)
             err.print(f"kincal: error: {msg}", markup=False)
             return EXIT_ERROR
-        except Terminated:  # an Exception, but no internal error: stopped below
-            raise
         except Exception as exc:  # never a bare traceback for a user
-            if os.environ.get("KINCAL_DEBUG"):
-                raise
-            err.print(f"kincal: internal error ({type(exc).__name__}: {exc}); please report it with the command "
-                      f"line (KINCAL_DEBUG=1 shows the details)", markup=False)
-            return EXIT_INTERNAL
+            return internal(exc)
     except KeyboardInterrupt:
         return stopped("interrupted", EXIT_INTERRUPTED)
     except Terminated:
@@ -114,6 +113,39 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signal.SIGTERM, previous[0])
         if previous[1] is not None:  # None: a handler not set from Python
             signal.signal(signal.SIGINT, previous[1])
+
+
+def internal(exc: Exception) -> int:
+    """A bug in kincal, not in the user's input: one line asking for a report (KINCAL_DEBUG=1: the traceback,
+    re-raised from the handler that called this)."""
+    if os.environ.get("KINCAL_DEBUG"):
+        raise exc
+    err.print(f"kincal: internal error ({type(exc).__name__}: {exc}); please report it with the command "
+              f"line (KINCAL_DEBUG=1 shows the details)", markup=False)
+    return EXIT_INTERNAL
+
+
+KINCAL_DIR = os.path.dirname(os.path.abspath(kincal.__file__)) + os.sep
+_REMOTE_FRAME = re.compile(r'\s*File "([^"]+)", line \d+, in ')  # a frame of a traceback's text; its code follows
+
+
+def raised_by_kincal(exc: BaseException) -> bool:
+    """Whether a raise statement of a kincal module raised ``exc``: a message kincal wrote for the user (a
+    ValueError naming the flag or the value and what to do). A ValueError raised inside numpy or another library,
+    or by an operation in kincal's code (shapes that do not broadcast, ``list.index`` of a missing name), is a bug
+    and reported as one. A worker process's exception is judged by its traceback's text, which it carries."""
+    remote = exc.__cause__  # concurrent.futures' _RemoteTraceback: the worker's traceback as text (.tb)
+    text = vars(remote).get("tb") if remote is not None and type(remote).__name__ == "_RemoteTraceback" else None
+    if isinstance(text, str):
+        lines = text.splitlines() + [""]
+        frames = [(m.group(1), "" if lines[k + 1].lstrip().startswith("File ") else lines[k + 1])
+                  for k, m in enumerate(map(_REMOTE_FRAME.match, lines[:-1])) if m]
+    else:
+        frames = [(f.filename, f.line or "") for f in traceback.extract_tb(exc.__traceback__)]
+    if not frames:
+        return False
+    filename, line = frames[-1]
+    return os.path.abspath(filename).startswith(KINCAL_DIR) and line.strip().startswith("raise ")
 
 
 def _once(parser: argparse.ArgumentParser, argv: list[str]) -> None:

@@ -145,6 +145,20 @@ def load_robot(args, inputs=None, outputs=()):
     return kincal.load_robot(args.robot, base_link=args.base_link, tip_link=args.tip_link, tool=args.tool)
 
 
+def covariates_read(robot, uncertainty):
+    """``robot`` without the covariates no term of it reads (a calibration given --covariate-cols whose model has no
+    thermal term: they change no prediction), its ``uncertainty``'s training ranges without them, and a note naming
+    them ('' when there are none)."""
+    used = kincal.models.without_unread_covariates(robot)
+    unread = [c for c in robot.covariate_names if c not in used.covariate_names]
+    if not unread:
+        return robot, uncertainty, ""
+    keep = [robot.joint_names.index(n) for n in used.joint_names]
+    note = (f"note: no term of the error model ({robot.error_model}) reads the covariate {', '.join(unread)}: its "
+            f"column is not used, the file need not have it")
+    return used, None if uncertainty is None else uncertainty.on_inputs(keep), note
+
+
 def hidden_alias(p: argparse.ArgumentParser, flag: str, dest: str, **kw) -> None:
     """An old spelling of an option, still accepted for one release, not shown in --help."""
     p.add_argument(flag, dest=dest, help=argparse.SUPPRESS, default=argparse.SUPPRESS, **kw)

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import operator
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -18,8 +19,8 @@ from kincal.history import calibration_record, evaluation_record, fingerprint
 from kincal.identify import held_out_stats, stat_line
 from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM
 
-from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, csv_list, emit, err, hidden_alias, load_robot,
-                     nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list, unread_joints)
+from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, covariates_read, csv_list, emit, err, hidden_alias,
+                     load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list, unread_joints)
 from . import observe
 from .history import add_store_flag, store_file, store_record
 from .report import add_session_flags, data_record, nominal_model, save_figures, write_outputs
@@ -262,12 +263,13 @@ def _covariate_ranges(res) -> dict:
 
 
 def cmd_evaluate(args) -> int:
-    r = covariates_of(args, load_robot(args, args.data, [args.plot]))
+    loaded = covariates_of(args, load_robot(args, args.data, [args.plot]))
     kinds = observe.types_of(args)
     if len(set(kinds)) > 1:
         raise ValueError("evaluate --type: one type for all files")
     record = kincal.models.load_calibration_record(args.robot) if robot_inputs(args.robot) else None
-    judge = _evaluate_points if kinds[0] == "point" else observe.evaluate_set
+    r, unc, unread = covariates_read(loaded, kincal.analysis.load_uncertainty(args.robot) if record else None)
+    judge = partial(_evaluate_points, uncertainty=unc) if kinds[0] == "point" else observe.evaluate_set
     with progress("evaluating", args.json):  # the figures of each file: STEM, or STEM-<k> for several
         judged = [judge(args, r, record, path, kinds[0],
                         args.plot and (args.plot if len(args.data) == 1 else f"{args.plot}-{k + 1}"))
@@ -280,20 +282,22 @@ def cmd_evaluate(args) -> int:
            "training error, not a held-out one")] if twin else [])) for (payload, lines), path, twin in
         zip(judged, args.data, twins)]
     payloads = [payload for payload, _ in judged]
-    stored = store_record(args, nominal_model(r, record, args.robot) or r, lambda identity, command: evaluation_record(
-        payloads, identity, [fingerprint(p) for p in args.data], command=command, robot=r))
+    stored = store_record(args, nominal_model(loaded, record, args.robot) or loaded, lambda identity, command:
+                          evaluation_record(payloads, identity, [fingerprint(p) for p in args.data], command=command,
+                                            robot=loaded))
     return emit(args, {**payloads[0], "sessions": payloads} if len(payloads) == 1 else {"sessions": payloads},
-                "\n".join([text for _, lines in judged for text in lines] + ([stored] if stored else [])))
+                "\n".join([text for _, lines in judged for text in lines] + [t for t in (unread, stored) if t]))
 
 
-def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: str | None) -> tuple[dict, list[str]]:
+def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: str | None,
+                     uncertainty=None) -> tuple[dict, list[str]]:
     """``r`` on one file of positions (its frame re-fitted unless --same-frame): the statistics (SI),
-    the predicted σ and where the model extrapolates (from the calibration record), and the likely
-    cause of an error far above the training error; the JSON payload and the lines to print."""
+    the predicted σ and where the model extrapolates (``uncertainty``, from the calibration record), and the
+    likely cause of an error far above the training error; the JSON payload and the lines to print."""
     meas = read(args, r, path)
     how = kincal.identify.REGISTERED if not args.same_frame else kincal.identify.AS_CALIBRATED if record else AS_GIVEN
     model = r if args.same_frame else kincal.identify.refit_frame(r, meas)
-    stats = kincal.evaluate(model, meas, uncertainty=kincal.analysis.load_uncertainty(args.robot) if record else None)
+    stats = kincal.evaluate(model, meas, uncertainty=uncertainty)
     value = (record or {}).get("training_error")  # the mean error on the training data (m); 0 when unknown
     train_error = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else 0.0
     cause = kincal.identify.heldout_cause(model, meas, train_error, not args.same_frame) if train_error else ""

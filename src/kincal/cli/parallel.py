@@ -25,8 +25,8 @@ from kincal.papers import PUU3_2024
 from kincal.units import DEG, MM
 
 from .design import add_cell_flags, cell_of
-from .common import (EXIT_REFUSED, add_data_flags, checked, csv_list, emit, err, load_robot, nonneg_float, point,
-                     positive_float, positive_int, progress_bar)
+from .common import (EXIT_REFUSED, add_data_flags, checked, covariates_read, csv_list, emit, err, load_robot,
+                     nonneg_float, point, positive_float, positive_int, progress_bar)
 
 
 def _ranges(cal, unc) -> tuple:
@@ -75,7 +75,8 @@ def cmd_compensate(args) -> int:
     cal = load_robot(args, [args.targets, *([args.frames] if args.frames else [])], [args.output])
     record, values = _calibration(args)
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
-    _doubt(args, record)
+    cal, uncertainty, unread = covariates_read(cal, uncertainty)
+    _doubt(args, record, unread)
     _flange_doubt(args, record, cal, uncertainty)
     _tcp_length(args.tcp)
     if "link_error_max" in args.given and args.tcp is None and not args.program:  # a program may set its TCP
@@ -232,8 +233,11 @@ def _not_a_program(args) -> None:
                          f"(without it the file is read as a CSV of targets)")
 
 
-def _doubt(args, record: dict) -> None:
-    """On stderr (the commands' output stays as it is): the calibration's verdict when it was not good."""
+def _doubt(args, record: dict, unread: str = "") -> None:
+    """On stderr (the commands' output stays as it is): the calibration's verdict when it was not good; ``unread``,
+    the note on covariates no term reads (:func:`covariates_read`)."""
+    if unread:
+        err.print(unread, markup=False)
     if record.get("verdict") in ("suspect", "refused"):
         err.print(f"warning: {args.robot} was calibrated with the verdict {str(record['verdict']).upper()} (its "
                   f"report says why): these commands carry that doubt", markup=False)
@@ -321,12 +325,13 @@ def _compensate_folder(args) -> int:
         raise ValueError(f"{', '.join(flags)}: not for {args.program} programs, whose targets carry their own frames "
                          f"(--frames), units and orientation")
     check_folder_output(args.targets, args.output)
-    cal = load_robot(args, [*([args.frames] if args.frames else [])], [])
+    cal, unc, unread = covariates_read(load_robot(args, [*([args.frames] if args.frames else [])], []),
+                                       kincal.analysis.load_uncertainty(args.robot))
     _program_for(cal, args.program, args.robot)
     record, values = _calibration(args)
+    _doubt(args, {}, unread)
     model, nominal = command_models(cal, values)  # both in the robot's base frame, the controller's world
     frames = kincal.io.read_frames(args.frames) if args.frames else {}
-    unc = kincal.analysis.load_uncertainty(args.robot)
     turned, turn = _orientation(args, record, cal, values, nominal, unc)
     res = compensate_folder(model, nominal, args.targets, args.program, kincal.io.ROWS[args.program], frames, turned)
     if not res.files:

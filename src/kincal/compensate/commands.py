@@ -12,6 +12,7 @@ from ..checks import number
 from ..units import MM
 from ..errors import ModelError
 from ..models.robot import Robot
+from ..models.terms import without_unread_covariates
 from .frames import MISMATCH_TOL, base_mismatch, frame_mismatch, orientation_change
 
 IK_TOL = 1e-10  # m
@@ -210,10 +211,7 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     row 10: target ... mm from the base, beyond the robot's reach (1225.4 mm): out of reach, or not in the
     declared length unit
     """
-    if robot.covariate_names:
-        raise ModelError(f"robot '{robot.name}' has covariate terms ({', '.join(robot.covariate_names)}): its "
-                         f"commands depend on the covariate's value at each target, which compensation does not take "
-                         f"yet; compensate with a calibration without the covariate term")
+    refuse_covariates(robot)
     _same_frame(robot, nominal)
     if rotations is not None:
         return compensate_poses(robot, targets, rotations, q_start, rows=rows, uncertainty=uncertainty,
@@ -277,6 +275,20 @@ def branch_tolerance(robot: Robot) -> np.ndarray:
     typed = np.array([BRANCH_TOL[t] for t in robot.joint_types])
     lead = robot.motor_leads
     return np.where(np.isnan(lead), typed, BRANCH_TOL["prismatic"] / np.where(np.isnan(lead), 1.0, lead))
+
+
+def refuse_covariates(robot: Robot) -> None:
+    """ModelError for a robot that reads covariates (a thermal term's temperature): compensation solves for the
+    joints alone. One whose covariates no term reads is that model without them
+    (:func:`kincal.models.without_unread_covariates`)."""
+    read = without_unread_covariates(robot).covariate_names
+    if read:
+        raise ModelError(f"robot '{robot.name}' has covariate terms ({', '.join(read)}): its "
+                         f"commands depend on the covariate's value at each target, which compensation does not take "
+                         f"yet; compensate with a calibration without the covariate term")
+    if robot.covariate_names:
+        raise ModelError(f"robot '{robot.name}' reads the covariate(s) {', '.join(robot.covariate_names)}, which no "
+                         f"term uses: compensate without_unread_covariates(robot), the same model without them")
 
 
 def _same_frame(robot: Robot, nominal: Robot | None) -> None:

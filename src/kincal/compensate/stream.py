@@ -31,7 +31,7 @@ from ..models.robot import Robot
 from ..observe.files import check_pose_columns
 from ..observe.orientation import convention_check, default_columns, from_matrices, position_frame, to_matrices
 from ..units import joint_factors, unit_factor
-from .commands import compensate, path_checked, uncontrolled_warning
+from .commands import compensate, path_checked, refuse_covariates, uncontrolled_warning
 
 CONVENTION_ROWS = 500  # the orientation convention is judged on the file's first rows
 IN_FLIGHT = 2  # blocks queued per worker
@@ -342,6 +342,7 @@ def compensate_file(job: StreamJob, src: str, dst: str, *, skip_unreachable: boo
     >>> round(res.largest["orientation_change"] * 1e3, 2)  # mrad
     3.36
     """
+    refuse_covariates(job.robot)  # before reading: the targets' columns are the joints'
     stream = open_stream(src, block_bytes)
     _check_columns(job, stream)
     if stream.size - stream.offset > block_bytes:

@@ -21,6 +21,7 @@ from ..checks import kind_of
 from ..errors import MeasurementError
 from ..io.measurements import Measurements
 from ..models.robot import Robot
+from ..models.terms import check_payload
 from ..observe import InSession, JointObs, PointObs
 from .diagnosis import TRIGGERS, diagnose
 from .fitting import ABSOLUTE, fit_stack
@@ -197,11 +198,12 @@ def _error_model(robot: Robot, sessions: list[Measurements], own_frames: bool, o
     spec = options.error_model
     if spec is None or spec.name != "auto":
         return spec, None
+    check_payload(robot, spec.payload, np.concatenate([s.q for s in sessions]))  # a named model's: when extended
     say("choosing the error model (joint-space blocked cross-validation)")
     quiet = options.replace(error_model=None, diagnose=False, reject_outliers=False)
     data = _calibrate(robot, sessions, True, quiet, None, None, {}).measurements if own_frames else joined(sessions)
     choice = select_model(robot, data, calibrate, quiet, use_q=use_q, payload=spec.payload)
-    return dataclasses.replace(spec, name=choice.chosen), choice
+    return spec.named(choice.chosen), choice
 
 
 def fit_observations(robot: Robot, observations: Sequence, options: FitOptions | None = None, *,

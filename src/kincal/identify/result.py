@@ -255,6 +255,12 @@ class CalibrationResult:
         return {n: float(self.robot.params[n]) for n in self.names}
 
     @property
+    def compliances(self) -> dict[str, float | None]:
+        """Per joint with a compliance term: the fitted compliance, rad/(N·m); None for one kept at its nominal 0
+        (not estimated: not identifiable, or determined worse than a real robot's error), which is no value."""
+        return {j: c if f"{j}.compliance" in self.names else None for j, c in self.robot.compliances().items()}
+
+    @property
     def corrections(self) -> dict[str, float]:
         """Final − nominal (the model as given) per fitted robot parameter (m or rad)."""
         return {n: float(self.robot.params[n] - self.nominal.params[n]) for n in self.names}
@@ -417,7 +423,7 @@ class CalibrationResult:
                "mounting": None if not self.mounting else {
                    "tool_point": self.robot.tool_point().tolist(),
                    "declared_tool_point": self.nominal.tool_point().tolist(), "text": self.mounting},
-               "compliance": self.robot.compliances(),  # rad/(N·m) per joint
+               "compliance": self.compliances,  # rad/(N·m) per joint; None: kept at nominal, not determined
                "weakly_determined": {k: float(v) for k, v in self.weak.items()},  # m or rad: the σ the data gave
                "prior": {k: float(v) for k, v in self.prior.items()}}  # learned prior σ per group (m or rad)
         if self.data:
@@ -464,7 +470,8 @@ class CalibrationResult:
             lines.append(f"left out as outliers (a robust refit put them beyond the outlier limit): "
                          f"{self.rejected_text()}")
         lines += [] if self.error_model_choice is None else [str(self.error_model_choice)]
-        lines += [f"compliance of {j}: {c:.3g} rad/(N·m)" for j, c in self.robot.compliances().items()]
+        lines += [f"compliance of {j}: " + ("kept at nominal (not determined)" if c is None else f"{c:.3g} rad/(N·m)")
+                  for j, c in self.compliances.items()]
         lines += [f"note: {n}" for n in self.notes]
         lines += [f"note: {n}" for n in [self._gimbal_note()] if n]
         return "\n".join([*lines, str(self.verdict)])

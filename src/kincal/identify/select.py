@@ -157,11 +157,13 @@ def select_model(robot: Robot, meas: Measurements, calibrate, options, use_q: np
     """Compare the :func:`default_candidates` on ``meas`` and choose one (see the module docstring).
     ``calibrate`` is the calibration function (passed in to keep this room below it), ``options`` its
     FitOptions (without an error model); the regions are FOLDS k-means regions; ``meas.session`` labels
-    (several sessions) add the leave-one-session-out test; ``payload`` (kg) loads the gravity terms."""
+    (several sessions) add the leave-one-session-out test; ``payload`` (kg) loads the gravity terms (the
+    candidates without one get none)."""
     regions = blocked_folds(robot, meas.q, FOLDS)
     sessions = _held_out_sessions(meas)
     use = meas.q if use_q is None else robot.check_q(use_q)
-    rows = [_cross_validate(robot, meas, ErrorModel(name, payload), regions, sessions, calibrate, options, use)
+    auto = ErrorModel("auto", payload)
+    rows = [_cross_validate(robot, meas, auto.named(name), regions, sessions, calibrate, options, use)
             for name in default_candidates(robot)]
     geo, reference = rows[0], rows[0]["sigma"]
     for r in rows:

@@ -31,8 +31,9 @@ lengths, so poses' rotations are untouched.
 What an input column means elsewhere: a fit never moves q, so calibration, cross-validation and
 evaluation are exact; design samples the covariate inside its limits like a joint (a pose is then a
 pose at a temperature). Inverse kinematics and compensation solve for joints and must hold the
-covariate at the target's value: not done yet, so a model with covariates is not for ``compensate``
-(a targets file without the column is refused naming it).
+covariate at the target's value: not done yet, so a model whose term reads a covariate is not for
+``compensate`` (refused before any work); one no term reads is no input of the model
+(:func:`~kincal.models.terms.without_unread_covariates`): ``compensate`` and ``evaluate`` leave it out.
 """
 from __future__ import annotations
 

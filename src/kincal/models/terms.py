@@ -36,7 +36,8 @@ import numpy as np
 
 from ..checks import number
 from ..errors import ModelError
-from .covariates import Covariate, thermal_term
+from ..ties import order_with_ties
+from .covariates import Covariate, ThermalTerm, thermal_term
 from .gravity import COMPONENTS, GravityModel
 from .parameters import Parameters
 from .joint_space import JointSpace
@@ -49,8 +50,10 @@ TAU_MIN = 0.5  # N·m: RMS load below which a joint gets no compliance
 REGRESSOR_MIN = 1e-6  # m: RMS of a regressor column below which it is left out (no load in any pose)
 SLOPE_STEP = 1e-6  # rad
 TERMS = ("compliance", "gravity-regressor", "harmonics", "thermal")
+GRAVITY_TERMS = frozenset({"compliance", "gravity-regressor"})  # the terms a payload loads
 THERMAL = "thermal:"  # the token of a thermal term is THERMAL + the covariate's name
 MAX_PAYLOAD = 3000.0  # kg: the heaviest industrial robots carry about 2300 kg
+PAYLOAD_MARGIN = 2.0  # a payload loading a joint this many times beyond its effort limit is refused (grams as kg?)
 MODELS = ("geometric", "nobeta", "compliance", "gravity-regressor", "harmonics:1", "harmonics:2", "harmonics:3",
           "harmonics:4")
 
@@ -361,6 +364,50 @@ def with_covariates(robot: Robot, names: Sequence[str] | None) -> Robot:
     return ExtendedRobot.build(robot, (), covariates=covs)
 
 
+def without_unread_covariates(robot: Robot) -> Robot:
+    """``robot`` without the covariates no term of it reads: they are no input of its predictions.
+
+    A calibration given covariate columns keeps them with its model even when the model it chose has no term
+    that reads them (``geometric``, or ``auto`` choosing no thermal term); such a model predicts the same for
+    any value of them, so data and targets need not carry them.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+
+    Returns
+    -------
+    Robot
+        ``robot`` itself when every covariate it reads is read by a term (or it reads none); else the same
+        model without the others: its geometry alone when it has no term left.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.models import with_covariates, without_unread_covariates
+    >>> robot = kincal.load_robot("ur5")
+    >>> warm = with_covariates(robot, ["temperature"])
+    >>> without_unread_covariates(warm).joint_names
+    ('j1', 'j2', 'j3', 'j4', 'j5', 'j6')
+    >>> thermal = kincal.extend(warm, "thermal:temperature")
+    >>> without_unread_covariates(thermal) is thermal
+    True
+    """
+    if not isinstance(robot, ExtendedRobot):
+        return robot
+    read = {t.covariate.name for t in robot.terms if isinstance(t, ThermalTerm)}
+    keep = tuple(c for c in robot.covariates if c.name in read)
+    if len(keep) == len(robot.covariates):
+        return robot
+    if not robot.terms:
+        return robot.inner
+    at = {c.name: robot.inner.n_joints + k for k, c in enumerate(keep)}  # a kept covariate's new input column
+    terms = tuple(dataclasses.replace(t, index=at[t.covariate.name]) if isinstance(t, ThermalTerm) else t
+                  for t in robot.terms)
+    return dataclasses.replace(robot, terms=terms, covariates=keep)
+
+
 def drop_terms(robot: Robot, names: Sequence[str]) -> Robot:
     """``robot`` without the gravity-term parameters ``names`` (a term left without columns goes)."""
     if not isinstance(robot, ExtendedRobot):
@@ -468,7 +515,7 @@ class ErrorModel:
         if self.payload > MAX_PAYLOAD:
             raise ValueError(f"payload={self.payload:g} kg: more than any robot carries ({MAX_PAYLOAD:g} kg); give the "
                              f"payload at the tool in kg")
-        if self.payload > 0 and self.name != "auto" and not {"compliance", "gravity-regressor"} & set(tokens):
+        if self.payload > 0 and self.name != "auto" and not GRAVITY_TERMS & set(tokens):
             raise ValueError(f"payload={self.payload:g} kg: only the gravity terms (compliance, gravity-regressor) use "
                              f"it, and error model '{self.name}' has none")
 
@@ -482,6 +529,17 @@ class ErrorModel:
         if isinstance(value, Mapping) and set(value) <= {"name", "payload"}:
             return cls(**value)
         raise ValueError(f"error model {value!r}: give a name such as 'compliance+harmonics:2' or 'auto'")
+
+    def named(self, name: str) -> "ErrorModel":
+        """The error model ``name`` with this one's payload when its terms use it, else none: ``auto``'s
+        candidates and its choice.
+
+        >>> from kincal.models import ErrorModel
+        >>> auto = ErrorModel("auto", payload=0.5)
+        >>> auto.named("compliance+harmonics:1").payload, auto.named("geometric").payload
+        (0.5, 0.0)
+        """
+        return ErrorModel(name, self.payload if GRAVITY_TERMS & set(parse_model(name)) else 0.0)
 
     def to_dict(self) -> dict:
         return {"name": self.name, "payload": self.payload}
@@ -544,6 +602,7 @@ def extend(robot: Robot, error_model: ErrorModel | str, q: np.ndarray | None = N
     else:
         q = robot.check_q(q)
         covs = tuple(Covariate.of_data(c.name, q[:, n + i]) for i, c in enumerate(covs))
+        check_payload(robot, spec.payload, q)
     if "nobeta" in tokens:
         inner = inner.without_beta()
     if "compliance" in tokens and inner.has_load_compliance:  # the model's own (a hexapod's legs), not a term
@@ -551,6 +610,62 @@ def extend(robot: Robot, error_model: ErrorModel | str, q: np.ndarray | None = N
     terms = [thermal_term(inner, tok[len(THERMAL):], covs) if tok.startswith(THERMAL) else
              _term(inner, tok, q[:, :n], spec.payload) for tok in tokens if tok not in ("geometric", "nobeta")]
     return ExtendedRobot.build(inner, terms, covariates=covs) if terms or covs else inner
+
+
+def check_payload(robot: Robot, payload: float, q: np.ndarray) -> None:
+    """Refuse a payload no joint of ``robot`` could hold at the poses ``q``: a payload in grams given as kg.
+
+    The gravity load of the link masses and ``payload`` at the tool point, at every pose, is compared with each
+    joint's effort limit from the robot file; a joint loaded beyond ``PAYLOAD_MARGIN`` (2) times its limit, where
+    the links alone stay within that, is refused. A robot without effort limits or link masses is not judged.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot (its geometry, when it carries error terms).
+    payload : float
+        Mass at the tool point, kg.
+    q : ndarray, shape (N, n)
+        The data's poses, rad (m for a prismatic joint); covariates after the joints are ignored.
+
+    Raises
+    ------
+    ValueError
+        Naming each such joint, its largest load and its effort limit, the worst first, and the unit of the
+        payload.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.models.terms import check_payload
+    >>> ur5 = kincal.load_robot("ur5")  # j2's effort limit: 150 N·m
+    >>> q = ur5.sample_joints(50, seed=0)
+    >>> check_payload(ur5, 5.0, q)  # its rated payload: nothing to say
+    >>> check_payload(ur5, 500.0, q)
+    Traceback (most recent call last):
+    ...
+    ValueError: payload=500 kg: at the data's poses its gravity load exceeds the effort limits of the robot file: ...
+    """
+    geometry = robot.inner if isinstance(robot, ExtendedRobot) else robot
+    if payload <= 0.0 or not geometry.has_gravity:
+        return
+    loaded = geometry.gravity(payload)
+    limits = np.array([np.nan if not vars(j).get("effort") else float(vars(j)["effort"]) for j in loaded.robot.moving])
+    if np.all(np.isnan(limits)):
+        return
+    qj = q[:, :geometry.n_joints]
+    tau = np.abs(loaded.torques(qj)).max(axis=0)
+    links = np.abs(geometry.gravity(0.0).torques(qj)).max(axis=0)
+    with np.errstate(invalid="ignore"):
+        over = np.flatnonzero((tau > PAYLOAD_MARGIN * limits) & (links <= PAYLOAD_MARGIN * limits))
+    if over.size:
+        units = ["N·m" if t == "revolute" else "N" for t in geometry.joint_types]
+        each = [f"{geometry.joint_names[k]} up to {tau[k]:.0f} {units[k]} against {limits[k]:g} {units[k]} "
+                f"({tau[k] / limits[k]:.0f}x; the links alone {links[k]:.0f} {units[k]})"
+                for k in over[order_with_ties(tau[over] / limits[over])]]
+        raise ValueError(f"payload={payload:g} kg: at the data's poses its gravity load exceeds the effort limits of "
+                         f"the robot file: {', '.join(each)}; the payload is in kg: was it given in grams "
+                         f"({payload:g} g is {payload / 1000:g} kg)?")
 
 
 def _term(geometry: Robot, token: str, q: np.ndarray, payload: float):

@@ -157,7 +157,7 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
                                                           if line.split()[0] not in set(result.gauge)],
            "data": _data_rows(result, tests, dict(info or {})), "json_name": json_path_for(html_name).name,
            "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
-           "error_model_notes": list(result.notes), "compliance": result.robot.compliances(),
+           "error_model_notes": list(result.notes), "compliance": result.compliances,
            "mounting": result.mounting, **part,
            "history": None if history is None else {"rows": history["rows"], "store": history["store"],
                                                     "svg": F.svg(history["figure"])}}
