@@ -165,7 +165,9 @@ class Separation:
         out.append(f"separated (ill-conditioned): {', '.join(self.separated) or 'none'}")
         if set(self.paper_choice) != set(self.separated):
             out.append(f"by the paper's rule (the lowest GCN once step 4 has verified each model) the separated set "
-                       f"would be: {', '.join(self.paper_choice)}")
+                       f"is: {', '.join(self.paper_choice)} ({len(self.names) - len(self.paper_choice)} of "
+                       f"{len(self.names)} kept; kincal's reproduction of the paper's separated-parameter design "
+                       f"leaves these out)")
         out += [f"note: {n}" for n in self.notes]
         if any(g >= DEPENDENT for g in (*self.subdomain_gcn.values(), *(g for _, g in self.models))):
             out.append("note: 'dependent': an exact dependence among the columns, its smallest singular value rounding "
