@@ -975,6 +975,10 @@ CHANGE = [  # compare, check, history: a robot's life
     pytest.param({**_cal(["design", "{d}/cal.yaml", "--check", "--floor", "2m", "-o", "{d}/p.csv"]), "code": 1,
                   "words": ["'--floor' removes 100 %"]}, id="design-check-floor-above-the-robot"),
     case("history-without-a-store", ["history", "ur5"], 1, ["no calibration store is set", "KINCAL_STORE"]),
+    case("covariate-no-term-reads", ["calibrate", "ur5", "{base}/good.csv", "--covariate-cols", "temperature",
+                                     "--error-model", "harmonics:1"], 1,
+         ["--covariate-cols temperature: no term of --error-model harmonics:1 reads it",
+          "--error-model harmonics:1+thermal:temperature or auto"]),
     case("check-serial-without-a-store", ["calibrate", "ur5", "{base}/good.csv", *MMDEG, "--serial", "7"], 1,
          ["--serial names the robot in the calibration store"]),
 ]

@@ -357,7 +357,17 @@ def add_covariate_flag(s) -> None:
 
 def covariates_of(args, robot):
     """``robot`` reading the --covariate-cols after its joints (position data only: refused for the other kinds
-    by :func:`kincal.identify.refuse_inapplicable`)."""
+    by :func:`kincal.identify.refuse_inapplicable`); with a named --error-model, each column must be one a term of
+    it reads (thermal:COL; auto tries them all), or the flag changes nothing (ValueError)."""
+    spec = vars(args).get("error_model")
+    if args.covariate_cols and spec and spec != "auto":
+        used = {t.split(":", 1)[1] for t in kincal.models.parse_model(spec) if t.startswith("thermal:")}
+        unused = [c for c in args.covariate_cols if c not in used]
+        if unused:
+            raise ValueError(f"--covariate-cols {','.join(unused)}: no term of --error-model {spec} reads it (thermal:"
+                             f"COL does, and auto tries it), so it would change nothing: give --error-model "
+                             f"{'' if spec == 'geometric' else spec + '+'}thermal:{unused[0]} or auto, or leave the "
+                             f"column out")
     return kincal.models.with_covariates(robot, args.covariate_cols)
 
 
