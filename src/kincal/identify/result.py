@@ -551,12 +551,15 @@ def stat_line(stats: dict) -> str:
     'mean 0.0215 mm'
     >>> stat_line({"type": "pose", "mean": 30e-6, "mean_rotation": 0.1e-3})
     'mean 0.0300 mm, mean 0.1000 mrad'
+    >>> stat_line({"type": "joint", "mean": 24.4e-6})  # a joint-space fit's set: its positions' error
+    'mean position error 0.0244 mm'
     """
     s = in_display(stats)
     if "mean_abs_mm" in s:
         return f"mean |p − point| {s['mean_abs_mm']:.4f} mm"
     rot = f", mean {s['mean_mrad']:.4f} mrad" if "mean_mrad" in s else ""
-    return f"mean {s['mean_mm']:.4f} mm{rot}"
+    what = "position error " if stats.get("type") == "joint" else ""  # fitted in joint space, judged in position
+    return f"mean {what}{s['mean_mm']:.4f} mm{rot}"
 
 
 def trained_setup(record: dict | None, where: str = "calibration record") -> tuple[dict, dict]:
