@@ -327,3 +327,43 @@ def test_a_hybrids_verification_plan_leaves_its_screw_leads_out():
     lead = robot.params["drive.sx"]
     moved = robot.with_params({"drive.sx": lead + 1e-3}).forward(q) - robot.forward(q)
     assert np.linalg.norm(moved, axis=1).max() > 0.05  # 1 mm on the lead: tens of mm at the tool, no small error
+
+
+def test_the_flange_warning_is_said_for_folders_and_not_once_the_tcp_was_measured(tmp_path, capsys):
+    """A folder of FANUC programs compensated from a markers calibration said nothing of the flange (nor of a
+    SUSPECT verdict: the folder run read an empty record), and a calibration from markers and a point on the TCP
+    was still told to measure a point on the TCP: said for the folder, not for markers with a point."""
+    from conftest import shared_dataset
+
+    units = ["--length-unit", "mm", "--angle-unit", "deg"]
+    m, t, p, cal, both = (str(tmp_path / n) for n in ("m.csv", "t.yaml", "p.csv", "cal.yaml", "both.yaml"))
+    assert main(["simulate", "fanuc_lrmate200id", "--type", "markers", "-o", m, "--perturb", "--seed", "4",
+                 "--save-true", t, "--poses", "60", *units]) == 0
+    assert main(["simulate", t, "--poses", "40", "--seed", "9", "--tool", "0,0,100mm", "-o", p, *units]) == 0
+    assert main(["calibrate", "fanuc_lrmate200id", m, "-o", cal, "--type", "markers", *units]) == 0
+    assert main(["calibrate", "fanuc_lrmate200id", m, p, "-o", both, "--type", "markers,point", "--tool", "0,0,100mm",
+                 *units]) == 0
+    capsys.readouterr()
+    folder = shared_dataset("robot_programs") / "fanuc"
+    assert main(["compensate", cal, str(folder), "--program", "fanuc", "-o", str(tmp_path / "out"),
+                 "--skip-unreachable"]) == 0
+    assert "warning: flange: j6.theta, j6.d, j6.a, j6.alpha not corrected" in capsys.readouterr().err
+    nominal = kincal.load_robot("fanuc_lrmate200id").with_tool_point([0.0, 0.0, 0.1])
+    q0 = nominal.sample_joints(5, seed=3)
+    kincal.write_measurements(tmp_path / "targets.csv", kincal.Measurements(q0, nominal.forward(q0),
+                                                                            nominal.joint_names), nominal.joint_types)
+    assert main(["compensate", both, str(tmp_path / "targets.csv"), "--tcp", "0,0,100mm", "-o",
+                 str(tmp_path / "c.csv"), "--skip-unreachable"]) == 0
+    assert "flange:" not in capsys.readouterr().err
+
+
+def test_a_failed_verification_case_never_reads_as_the_tolerance():
+    """0.050034 mm against 0.05 mm was printed '0.0500 ... FAIL': a failing case that rounds to the tolerance
+    is printed to 1e-6 mm."""
+    from kincal.compensate import Verification
+
+    dev = np.zeros((2, 3, 3))
+    dev[0, 0, 0], dev[1, 0, 0] = 50.034e-6, 20e-6
+    lines = Verification(("a", "b"), dev).table().splitlines()
+    assert lines[1].split()[-3:] == ["0.050034", "0.016678", "FAIL"]
+    assert lines[4].split()[-3:] == ["0.0200", "0.0067", "PASS"]

@@ -301,3 +301,26 @@ def test_study_settings_that_do_not_apply_or_differ_are_named(small, tmp_path, c
     said = capsys.readouterr().err
     assert "the designs choose among 1000 candidates" in said and "give --poses 500 or fewer" in said
     assert not (tmp_path / "w.jsonl").exists() and not (tmp_path / "p.jsonl").exists()
+
+
+@pytest.mark.xdist_group("guo2024-small")
+def test_a_study_grows_shrinks_and_resumes_over_a_partial_last_task(small, tmp_path, capsys):
+    """Tasks of 2 trials: a file of 3 trials (its last task holds one) extended to 4, and a file of 4 read for 3,
+    were refused as 'changed or written by another version'; a line torn by an interruption was continued by the
+    next record into a line no JSON reader takes. The trials are the fresh run's, and every line is JSON."""
+    import os
+
+    header = {**small.header, "per_task": 2}
+    with runner.make_executor(1) as ex:
+        fresh = runner.run_tasks(small.run, runner.tasks_for(4, 2), ex, tmp_path / "fresh.jsonl", header)
+        runner.run_tasks(small.run, runner.tasks_for(3, 2), ex, tmp_path / "grow.jsonl", header)
+        assert runner.run_tasks(small.run, runner.tasks_for(4, 2), ex, tmp_path / "grow.jsonl", header) == fresh
+        assert runner.run_tasks(small.run, runner.tasks_for(3, 2), ex, tmp_path / "fresh.jsonl", header) == fresh[:3]
+        torn = tmp_path / "torn.jsonl"
+        torn.write_text((tmp_path / "fresh.jsonl").read_text()[:-40])  # stopped while writing the last task
+        assert runner.run_tasks(small.run, runner.tasks_for(4, 2), ex, torn, header) == fresh
+    assert all(json.loads(line) for line in torn.read_text().splitlines())
+    workers = str(os.cpu_count() or 1)  # the default's value, given: still refused beside a scheduler
+    assert main(["study", "guo2024", "--workers", workers, "--scheduler", "local:1", "-o",
+                 str(tmp_path / "w.jsonl")]) == 1
+    assert "the Dask cluster's workers run the study" in capsys.readouterr().err

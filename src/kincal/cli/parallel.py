@@ -244,11 +244,14 @@ def _doubt(args, record: dict, unread: str = "") -> None:
 
 
 def _flange_doubt(args, record: dict, cal, unc) -> None:
-    """On stderr: a calibration that fitted where its markers sit on the flange leaves the parameters that the nest's
-    pose takes up (the last link's: :func:`kincal.compensate.unseen_at_flange`) as the controller has them, unless
-    other data fitted them; the flange and a TCP carry their real errors, which the predicted σ leaves out."""
-    setup, fitted = record.get("setup"), record.get("parameters")
-    if not (isinstance(setup, dict) and setup.get("markers")) or not isinstance(fitted, list):
+    """On stderr: a calibration from markers alone (fitted where they sit on the flange) leaves the parameters that
+    the nest's pose takes up (the last link's: :func:`kincal.compensate.unseen_at_flange`) as the controller has
+    them; the flange and a TCP carry their real errors, which the predicted σ leaves out. With a point or pose set
+    beside them the tool point is measured, and carried to the TCP as for point data: nothing to say."""
+    setup, fitted, data = record.get("setup"), record.get("parameters"), record.get("data")
+    kinds = data.get("kinds") if isinstance(data, dict) else None
+    if not (isinstance(setup, dict) and setup.get("markers")) or not isinstance(fitted, list) or \
+            not isinstance(kinds, list) or set(map(str, kinds)) != {"markers"}:  # a point on the TCP measured too
         return
     names = [n for n in unseen_at_flange(cal, poses_in(cal, *_ranges(cal, unc))) if n not in set(map(str, fitted))]
     if names:
@@ -329,7 +332,8 @@ def _compensate_folder(args) -> int:
                                        kincal.analysis.load_uncertainty(args.robot))
     _program_for(cal, args.program, args.robot)
     record, values = _calibration(args)
-    _doubt(args, {}, unread)
+    _doubt(args, record, unread)
+    _flange_doubt(args, record, cal, unc)
     model, nominal = command_models(cal, values)  # both in the robot's base frame, the controller's world
     frames = kincal.io.read_frames(args.frames) if args.frames else {}
     turned, turn = _orientation(args, record, cal, values, nominal, unc)

@@ -41,7 +41,7 @@ def cmd_study(args) -> int:
         trials = guo2024_mc.prepare(m=args.poses, generations=args.generations, seed=args.seed, say=say)
     tasks = runner.tasks_for(args.trials, args.per_task)
     try:
-        with runner.make_executor(args.workers, args.scheduler) as ex, progress_bar(args, "study", len(tasks)) as bar:
+        with runner.make_executor(args.workers or os.cpu_count() or 1, args.scheduler) as ex, progress_bar(args, "study", len(tasks)) as bar:
             records = runner.run_tasks(trials.run, tasks, ex, out, header, bar)
     except KeyboardInterrupt:
         line(f"kincal: interrupted; the finished tasks are kept in {out}: run the same command to resume")
@@ -95,7 +95,7 @@ def register(cmd) -> None:
                    help="trials, each a new random design, parameter errors and noise (default 200)")
     s.add_argument("--per-task", type=positive_int, default=runner.TRIALS_PER_TASK,
                    help=f"trials per task sent to a worker (default {runner.TRIALS_PER_TASK})")
-    s.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1,
+    s.add_argument("--workers", type=positive_int, default=None,
                    help="worker processes on this machine (default: one per core; 1 runs in this process)")
     s.add_argument("--scheduler", type=_scheduler,
                    help="run on Dask: a scheduler address (tcp://host:8786) or local:N for a local cluster of N "

@@ -281,7 +281,7 @@ def _eligibility(r: dict, geo: dict) -> str:
         return "dropped: no better than geometric on held-out regions"
     if r["sigma_ratio"] > SIGMA_FACTOR:
         other = next(f for f in FRAMES if f != r["sigma_frame"])
-        return (f"dropped: predicted σ {r['sigma_ratio']:.1f}x geometric's {FRAME_WORDS[r['sigma_frame']]} where it "
+        return (f"dropped: predicted σ {r['sigma_ratio']:.2f}x geometric's {FRAME_WORDS[r['sigma_frame']]} where it "
                 f"would be used (limit {SIGMA_FACTOR:g}x; {r[f'sigma_ratio_{other}']:.2f}x {FRAME_WORDS[other]})")
     if not r["sessions"]:  # then the leave-one-session-out test: no held-out session worse than with geometric
         return "kept"

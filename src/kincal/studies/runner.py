@@ -144,6 +144,32 @@ def check_results_file(path: str | os.PathLike, header: dict) -> dict[int, list[
     return done
 
 
+def _reconciled(done: dict[int, list], tasks: Sequence[Task]) -> dict[int, list]:
+    """The finished tasks of a results file against the ``tasks`` asked now: a last task of a smaller study
+    (its trials the first of the task asked) is run again in full, one of a larger study gives its first trials;
+    any other difference is left for :func:`_check_done` to name."""
+    by_first, out = {t.first: t for t in tasks}, {}
+    for first, records in done.items():
+        task = by_first.get(first)
+        trials = [r.get("trial") if isinstance(r, dict) else None for r in records]
+        want = [] if task is None else list(task.trials)
+        if task is not None and len(trials) < len(want) and trials == want[:len(trials)]:
+            continue  # the later, full record of the task is appended, and read last
+        out[first] = records[:len(want)] if task is not None and trials[:len(want)] == want else records
+    return out
+
+
+def _drop_torn_line(path: Path) -> None:
+    """Cut a results file back to its last whole line (a line torn by an interruption, ignored when read, would
+    otherwise be continued by the next record)."""
+    if not path.exists():
+        return
+    raw = path.read_bytes()
+    if raw and not raw.endswith(b"\n"):
+        with path.open("r+b") as handle:
+            handle.truncate(raw.rfind(b"\n") + 1)
+
+
 def _differing(first, header: dict) -> str:
     """', run with --per-task 100' and the like: the settings in which a results file's study differs ('' when
     it is no study's file)."""
@@ -192,7 +218,7 @@ def run_tasks(run: Callable[[Task], list[dict]], tasks: Sequence[Task], executor
     return every trial's record, sorted by trial. ``header``: the study's settings (JSON), checked
     against the file; ``progress(done, total)`` is called as tasks finish."""
     path = Path(path)
-    done = check_results_file(path, header)
+    done = _reconciled(check_results_file(path, header), tasks)
     _check_done(path, done, tasks)
     todo = [t for t in tasks if t.first not in done]
     tell = progress or (lambda *_: None)
@@ -201,6 +227,7 @@ def run_tasks(run: Callable[[Task], list[dict]], tasks: Sequence[Task], executor
         handle = None  # opened with the first finished task: a study that fails first leaves no file behind
         for task, records in _finished(run, todo, executor):
             if handle is None:
+                _drop_torn_line(path)
                 handle = stack.enter_context(path.open("a", encoding="utf-8"))
                 if not done and path.stat().st_size == 0:
                     _append(handle, {"study": header})
