@@ -153,7 +153,7 @@ def _reconciled(done: dict[int, list], tasks: Sequence[Task]) -> dict[int, list]
         task = by_first.get(first)
         trials = [r.get("trial") if isinstance(r, dict) else None for r in records]
         want = [] if task is None else list(task.trials)
-        if task is not None and len(trials) < len(want) and trials == want[:len(trials)]:
+        if task is not None and 0 < len(trials) < len(want) and trials == want[:len(trials)]:
             continue  # the later, full record of the task is appended, and read last
         out[first] = records[:len(want)] if task is not None and trials[:len(want)] == want else records
     return out
