@@ -6,11 +6,12 @@ compensated exactly as one file at a time would be, the others byte for byte; an
 the folder read is refused before any work."""
 import csv
 
+import numpy as np
 import pytest
 
 import kincal
 from kincal.cli import main
-from kincal.compensate import command_models, compensate_folder
+from kincal.compensate import command_models, compensate_folder, tool_carry
 from kincal.compensate.branch import compensate_branches
 from kincal.io import ROWS, read_program
 
@@ -53,8 +54,10 @@ def test_a_backup_folder_compensated_with_its_report(tmp_path, capsys):
     code, said = _run(capsys, str(tmp_path / "cal.yaml"), str(krc), "--program", "krl", "-o", str(out),
                       "--skip-unreachable")
     assert code == 0 and "4 targets compensated" in said
+    shift, carry = tool_carry(cal.tool_point(), nominal.tool_point())  # the tool frames' TCPs move as --tcp's would
+    assert f"TCP: {carry}" in said and 0 < np.linalg.norm(shift) <= 1e-3
     one = read_program(str(krc / "R1/Program/pick.dat"), "krl")  # one file at a time gives the same text
-    alone = compensate_branches(cal, nominal, one, ROWS["krl"])
+    alone = compensate_branches(cal, nominal, one, ROWS["krl"], carry=shift)
     assert (out / "R1/Program/pick.dat").read_bytes() == one.with_targets(alone.texts).encode()
     for same in ("R1/Program/secret.src", "R1/Program/broken.src", "R1/System/$config.dat"):
         assert (out / same).read_bytes() == (krc / same).read_bytes()

@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import kincal
-from kincal.compensate import command_models
+from kincal.compensate import command_models, tool_carry
 from kincal.compensate.branch import compensate_branches, controller_inverse
 from kincal.io import dialects, read_program
 
@@ -146,6 +146,8 @@ def test_a_kuka_program_through_the_command_line(tmp_path, capsys):
     cal = tmp_path / "cal.yaml"
     kincal.save_robot(res.robot, cal, calibration=res.record())
     true = command_models(res.robot, res.record()["nominal"])[0]  # the calibrated arm in its base frame
+    shift = tool_carry(res.robot.tool_point(), nominal.tool_point())[0]  # carried over to the TCP (a link's error)
+    assert 0 < np.linalg.norm(shift) <= 1e-3
     q = np.radians([[10, -80, 100, 20, 40, 30], [-25, -100, 110, -30, -50, 60], [40, -60, 80, 90, 30, -120]])
     flange = nominal.with_tool_point(np.zeros(3))
     dat = tmp_path / "pick.dat"
@@ -172,7 +174,9 @@ def test_a_kuka_program_through_the_command_line(tmp_path, capsys):
         pn, Rn = _intended(nominal, t_new.values)
         q_ctrl = controller_inverse(flange, pn[None], Rn[None], qk, t_new.config, BITS["krl"])
         pt, Rt, _, _ = true.with_tool_point(np.zeros(3)).pose_and_jacobian(q_ctrl[None])
-        assert np.linalg.norm(pt[0] - p) < 1e-9 and np.linalg.norm(Rotation.from_matrix(Rt[0] @ R.T).as_rotvec()) < 1e-9
+        assert np.linalg.norm(Rotation.from_matrix(Rt[0] @ R.T).as_rotvec()) < 1e-9
+        # the TCP: TOOL's origin, moved on the calibrated arm by what the calibration moved the reflector
+        assert np.linalg.norm(pt[0] + Rt[0] @ (TOOL[:3, 3] + shift) - p - R @ TOOL[:3, 3]) < 1e-9
 
 
 def test_where_the_tracker_stood_does_not_change_the_program(tmp_path, capsys):
@@ -370,3 +374,74 @@ def test_fanuc_user_frame_0_is_the_world(tmp_path):
     assert np.linalg.norm(reached[0] - meant[:3]) <= 1e-9 + np.sqrt(3) * length / 2
     turn = Rotation.from_matrix(Rr[0]).inv() * Rotation.from_rotvec(meant[3:])
     assert turn.magnitude() <= 1e-9 + 3 * angle / 2
+
+
+def test_a_program_and_a_targets_file_carry_the_calibrations_move_of_the_declared_point_alike(tmp_path, capsys):
+    """An LR Mate calibrated from points on a probe declared at (0, 0, 100) mm that sits 0.54 mm off it: the
+    calibration moves the declared point by 0.706 mm (with the last link's errors), and a TCP at (0, 0, 100) mm
+    carries that move over (the last link's error, at most --link-error-max). Three Cartesian targets for that TCP,
+    as a FANUC program (UT 1) and as a CSV with --pose --tcp: the calibrated model's TCP at both routes' commands is
+    one point, the true robot's TCP there (the probe) is on the targets. Before, the program carried nothing over:
+    its commands were up to 0.12 deg off the CSV's, the routes' TCPs 0.706 mm apart, the program's missing the true
+    robot by as much (0.4 µm and 1 µm after)."""
+    import json
+    from kincal.cli import main
+    from kincal.io import BITS, ROWS, frame_numbers
+    from kincal.observe import from_matrices
+
+    nominal = kincal.load_robot("fanuc_lrmate200id").with_tool_point(np.array([0.0, 0.0, 0.1]))
+    true = kincal.perturb(nominal, seed=3)
+    true = true.with_params({n: nominal.params[n] for n in [*nominal.base_params(), "j1.theta", "j1.d"]})
+    true = true.with_tool_point(np.array([0.0002, -0.0003, 0.1004]))  # where the probe really is, 0.54 mm off
+    fit = kincal.calibrate(nominal, kincal.simulate(true, nominal.sample_joints(150, seed=4), 1e-6, seed=5))
+    kincal.save_robot(fit.robot, tmp_path / "cal.yaml", calibration=fit.record())
+    shift, _ = tool_carry(fit.robot.tool_point(), nominal.tool_point())
+    assert 0.3e-3 < np.linalg.norm(shift) < 1e-3  # carried over (a link's error)
+    flange = nominal.with_tool_point(np.zeros(3))
+    q = np.radians([[10.0, 20.0, -10.0, 30.0, -40.0, 50.0], [-15, 10, 5, -20, -50, 10], [30, -5, -20, 40, -30, -60]])
+    p, R, _, _ = flange.pose_and_jacobian(q)
+    T = np.zeros((3, 4, 4))
+    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, p + R[:, :, 2] * 0.1, 1.0  # the TCP (0, 0, 100) mm's poses
+    pos = ""
+    for k, (Tk, bits) in enumerate(zip(T, ROWS["fanuc"](flange, q)), 1):
+        x, y, z, a, b, c = frame_numbers(Tk)
+        pos += (f"P[{k}]{{\n   GP1:\n\tUF : 0, UT : 1,\t\tCONFIG : '{', '.join(map(str, bits))}',\n\tX = {x:.3f} mm,"
+                f"\tY = {y:.3f} mm,\tZ = {z:.3f} mm,\n\tW = {c:.3f} deg,\tP = {b:.3f} deg,\tR = {a:.3f} deg\n}};\n")
+    (tmp_path / "t.ls").write_text("/PROG  T\n/ATTR\n/MN\n" + "".join(f"   {k}:L P[{k}] 100mm/sec FINE ;\n"
+                                                                      for k in (1, 2, 3)) + "/POS\n" + pos + "/END\n")
+    (tmp_path / "frames.yaml").write_text("UT 1: {x: 0, y: 0, z: 100}\n")
+    prog = read_program(str(tmp_path / "t.ls"), "fanuc")
+    goal = np.array([t.values for t in prog.targets])  # m and rotation vectors, as the program writes them
+    np.savetxt(tmp_path / "t.csv", np.column_stack([np.degrees(q), goal[:, :3] * 1e3, from_matrices(
+        Rotation.from_rotvec(goal[:, 3:]).as_matrix(), "euler-zyx-intrinsic-deg")]), delimiter=",", comments="",
+        header="J1,J2,J3,J4,J5,J6,x,y,z,e1,e2,e3", fmt="%.15g")
+    capsys.readouterr()
+    assert main(["compensate", str(tmp_path / "cal.yaml"), str(tmp_path / "t.csv"), "--pose", "--tcp", "0,0,100mm",
+                 "--length-unit", "mm", "--angle-unit", "deg", "--orientation", "euler-zyx-intrinsic-deg",
+                 "-o", str(tmp_path / "cmd.csv")]) == 0
+    csv = np.radians(np.loadtxt(tmp_path / "cmd.csv", delimiter=",", skiprows=1)[:, 1:7])
+    capsys.readouterr()
+    assert main(["compensate", str(tmp_path / "cal.yaml"), str(tmp_path / "t.ls"), "--program", "fanuc", "--frames",
+                 str(tmp_path / "frames.yaml"), "-o", str(tmp_path / "out.ls"), "--json"]) == 0
+    assert "carried over to the TCP" in json.loads(capsys.readouterr().out)["tool_carry"]
+    again = read_program(str(tmp_path / "out.ls"), "fanuc").targets
+    tcp = np.array([0.0, 0.0, 0.1])
+    ctrl = []  # the controller's joints of the written program: its pose at UT 1 turned into joints on its CONFIG
+    for t, qk in zip(again, csv):
+        F = np.eye(4)
+        F[:3, :3], F[:3, 3] = Rotation.from_rotvec(t.values[3:]).as_matrix(), t.values[:3]
+        F[:3, 3] -= F[:3, :3] @ tcp
+        ctrl.append(controller_inverse(flange, F[None, :3, 3], F[None, :3, :3], qk, t.config, BITS["fanuc"]))
+    model, _ = command_models(fit.robot, fit.record()["nominal"], tcp)
+    assert np.allclose(model.tool_point(), tcp + shift, atol=1e-12)
+    written = 0.5e-3 * 1e-3 * np.sqrt(3) + 3 * np.radians(0.5e-3) * 0.1  # m: the text's 0.001 mm and deg, halved
+    assert np.linalg.norm(model.forward(np.array(ctrl)) - model.forward(csv), axis=1).max() < written  # was 0.706 mm
+    assert np.linalg.norm(model.forward(csv) - goal[:, :3], axis=1).max() < 1e-9
+    assert np.linalg.norm(true.forward(np.array(ctrl)) - goal[:, :3], axis=1).max() < 0.01e-3  # was 0.706 mm
+    # the library: the program's corrected joints (unrounded) are the targets file's commands
+    ut1 = np.eye(4)
+    ut1[:3, 3] = tcp
+    res = compensate_branches(*command_models(fit.robot, fit.record()["nominal"]), prog, ROWS["fanuc"], {"UT 1": ut1},
+                              carry=shift)
+    assert not res.problems
+    assert np.linalg.norm(model.forward(res.q) - model.forward(csv), axis=1).max() < 1e-6

@@ -87,8 +87,7 @@ def cmd_compensate(args) -> int:
     def models(tcp):  # the models for a TCP: --tcp's, or one a program sets (set_tcp)
         return command_models(cal, values, tcp, args.target_frame, args.link_error_max / MM)
     r, nominal = models(args.tcp)
-    carry = "" if not cal.has_tool_point else tool_carry(
-        cal.tool_point(), (cal.with_params(values) if values else cal).tool_point(), args.link_error_max / MM)[1]
+    carry = _carried(args, cal, values)[1]
     if args.program:
         _same_language(args.targets, args.program)
         _program_for(cal, args.program, args.robot)
@@ -185,8 +184,20 @@ def _program_for(robot, program: str, source) -> None:
                          f"this is a {program} program: give the calibration of the robot it was written for")
 
 
-NOT_FOR_BRANCHES = ("tcp", "link_error_max", "pose", "orientation", "rot_cols", "path", "output_kind", "workers",
+NOT_FOR_BRANCHES = ("tcp", "pose", "orientation", "rot_cols", "path", "output_kind", "workers",
                     "target_frame", "joint_cols", "xyz_cols", "length_unit", "angle_unit")
+
+
+def _carried(args, cal, values) -> tuple[np.ndarray, str]:
+    """What of the calibration's move of the declared target point is carried over to the controller's TCP (3,) m,
+    and the sentence that says so (:func:`tool_carry`); zeros and '' for a model without a tool point."""
+    if not cal.has_tool_point:
+        if "link_error_max" in args.given:
+            raise ValueError(f"--link-error-max: {args.robot} has no tool point, so the calibration moved no declared "
+                             f"target point to carry over to a TCP: leave --link-error-max out")
+        return np.zeros(3), ""
+    return tool_carry(cal.tool_point(), (cal.with_params(values) if values else cal).tool_point(),
+                      args.link_error_max / MM)
 
 
 def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
@@ -200,7 +211,9 @@ def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
     prog = _read_program(args)
     frames = kincal.io.read_frames(args.frames) if args.frames else {}
     turned, turn = orientation
-    res = compensate_branches(model, nominal, prog, kincal.io.ROWS[args.program], frames, orientation=turned)
+    shift, carry = _carried(args, cal, values)  # the tool frames' TCPs move as --tcp's would (command_models)
+    res = compensate_branches(model, nominal, prog, kincal.io.ROWS[args.program], frames, orientation=turned,
+                              carry=shift)
     written = not res.problems or args.skip_unreachable  # no target at all: the program as it was
     if written:
         kincal.io.write_program(args.output, prog, res.texts, res.refused)
@@ -214,9 +227,10 @@ def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
     lines += _taught_lines(model, nominal, frames, turned)
     lines += [f"refused: {p}" for p in res.problems]
     lines += _left_lines(res)
-    lines += ([turn.note()] if turn is not None else []) + ([unseen] if unseen else [])
+    lines += ([f"TCP: {carry}"] if carry else []) + ([turn.note()] if turn is not None else []) + (
+        [unseen] if unseen else [])
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
-                       "declared_frames": known, **_left_dict(res),
+                       "declared_frames": known, **_left_dict(res), "tool_carry": carry or None,
                        "output": args.output if written else None, **_orientation_from(turned, turn),
                        "base_note": unseen or None},
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
@@ -337,7 +351,9 @@ def _compensate_folder(args) -> int:
     model, nominal = command_models(cal, values)  # both in the robot's base frame, the controller's world
     frames = kincal.io.read_frames(args.frames) if args.frames else {}
     turned, turn = _orientation(args, record, cal, values, nominal, unc)
-    res = compensate_folder(model, nominal, args.targets, args.program, kincal.io.ROWS[args.program], frames, turned)
+    shift, carry = _carried(args, cal, values)
+    res = compensate_folder(model, nominal, args.targets, args.program, kincal.io.ROWS[args.program], frames, turned,
+                            shift)
     if not res.files:
         raise ValueError(f"{args.targets}: no {args.program} program in this folder (suffixes "
                          f"{', '.join(kincal.io.dialects()[args.program].suffixes)})")
@@ -360,9 +376,10 @@ def _compensate_folder(args) -> int:
     unseen = _base_line(args, record, cal, unc)
     lines += refused[:SHOWN_PROBLEMS] + ([f"… and {len(refused) - SHOWN_PROBLEMS} more refused targets (all of them "
                                           f"with --json)"] if len(refused) > SHOWN_PROBLEMS else [])
-    lines += ([turn.note()] if turn is not None else []) + ([unseen] if unseen else [])
+    lines += ([f"TCP: {carry}"] if carry else []) + ([turn.note()] if turn is not None else []) + (
+        [unseen] if unseen else [])
     return emit(args, {**res.to_dict(), "output": args.output if written else None, **_orientation_from(turned, turn),
-                       "base_note": unseen or None},
+                       "tool_carry": carry or None, "base_note": unseen or None},
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
 
 
@@ -547,7 +564,7 @@ def register(cmd) -> None:
                    help="the controller's TCP in the flange frame, e.g. 0,0,109mm: the point the targets are for "
                         "(default: the calibrated tool point)")
     s.add_argument("--link-error-max", type=nonneg_float, default=LINK_ERROR_MAX * MM,
-                   help=f"with --tcp: the most the last link can be off, mm (default {LINK_ERROR_MAX * MM:g}); the "
+                   help=f"with --tcp or a program's tool frames: the most the last link can be off, mm (default {LINK_ERROR_MAX * MM:g}); the "
                         f"calibration's move of the declared target point up to this is carried over to the TCP as "
                         f"the link's error, a larger one is the target's mounting and is not")
     s.add_argument("--pose", action="store_true",

@@ -67,7 +67,8 @@ Rows = Callable[[Robot, np.ndarray], list]
 @paused_collector
 def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Rows,
                         frames: Mapping[str, object] | None = None,
-                        q_start: np.ndarray | None = None, orientation: Robot | None = None) -> ProgramCompensation:
+                        q_start: np.ndarray | None = None, orientation: Robot | None = None,
+                        carry: np.ndarray | None = None) -> ProgramCompensation:
     """Compensate every literal target of a program on the branch it states (KUKA S/T, ABB confdata, ...).
 
     A joint target means the pose the nominal model reaches there; a pose target means the TCP in the
@@ -100,6 +101,10 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
         The model whose flange the corrected joints turn to each target's rotation, in the end-to-end check too
         (default: the calibrated model). Give the nominal model when the calibration measured no orientation
         (points, sockets, planes): the turns of the flange its parameters imply were never seen.
+    carry : ndarray, shape (3,), optional
+        What of the calibration's move of the declared target point is carried over to the TCP, m, flange frame
+        (:func:`kincal.compensate.tool_carry`; default zeros): added to each pose target's TCP (its tool frame's
+        origin) on the calibrated model only, as :func:`kincal.compensate.command_models` does for a ``tcp``.
 
     Returns
     -------
@@ -159,7 +164,7 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
           if q_start is None else np.asarray(q_start, dtype=float))
     goals, tools, refused = _goals(nominal, work, frames)
     q_nom = _controller_joints(nominal, work, goals, rows, q0, refused)
-    tcp_goals = _at_tcp(goals, tools, measured)
+    tcp_goals = _at_tcp(goals, tools, measured, np.zeros(3) if carry is None else np.asarray(carry, dtype=float))
     kept: dict[int, str] = {}
     qs = _corrected_all(model, nominal, work, tcp_goals, q_nom, rows, (refused, kept), orientation)
     values = _written(nominal, work.targets, qs, tools, [k for k in range(len(qs)) if k not in refused | kept])
@@ -303,15 +308,17 @@ def _pass(nominal: Robot, program: Program, goals, rows: Rows, q_nom: np.ndarray
             q_nom[k] = q
 
 
-def _at_tcp(goals, tools: list, measured: np.ndarray):
+def _at_tcp(goals, tools: list, measured: np.ndarray, carry: np.ndarray):
     """The goals (flange poses p (N, 3), R (N, 3, 3)) with the TCP point of each target's physical tool: p (N, 3), R
-    and the TCP in the flange frame (N, 3) m (for a joint target, which names no tool, the point the calibration
-    measured, ``measured`` (3,) m). The calibrated model's position is trusted at that point, not at the flange:
-    where the flange is turned as another model's (``orientation``), the two differ by the models' turn times the
-    point's lever."""
+    and the calibrated model's TCP in the flange frame (N, 3) m: the tool's origin moved by ``carry`` (3,) m (what
+    :func:`kincal.compensate.tool_carry` carries over; p is the tool's own point); for a joint target, which names
+    no tool, the point the calibration measured, ``measured`` (3,) m, the model's own. The calibrated model's
+    position is trusted at that point, not at the flange: where the flange is turned as another model's
+    (``orientation``), the two differ by the models' turn times the point's lever."""
     p, R = goals
     lever = np.array([measured if t is None else t[0][1][:3, 3] for t in tools]).reshape(-1, 3)
-    return p + np.einsum("nij,nj->ni", R, lever), R, lever
+    moved = lever + np.array([np.zeros(3) if t is None else carry for t in tools]).reshape(-1, 3)
+    return p + np.einsum("nij,nj->ni", R, lever), R, moved
 
 
 def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom: np.ndarray, rows: Rows,

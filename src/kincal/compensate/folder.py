@@ -18,6 +18,8 @@ import tempfile
 from dataclasses import dataclass
 from typing import Mapping
 
+import numpy as np
+
 from ..errors import KincalError
 from ..io.programs import dialects, read_program
 from ..models.robot import Robot
@@ -121,7 +123,7 @@ def program_files(folder: str, dialect: str) -> list[str]:
 
 def compensate_folder(model: Robot, nominal: Robot, folder: str, dialect: str, rows: Rows,
                       frames: Mapping[str, object] | None = None,
-                      orientation: Robot | None = None) -> FolderCompensation:
+                      orientation: Robot | None = None, carry: np.ndarray | None = None) -> FolderCompensation:
     """Compensate every program file of one language under a folder, each on its own branches.
 
     Each file is read and compensated alone (:func:`compensate_branches`); a file that cannot be read (an
@@ -147,6 +149,9 @@ def compensate_folder(model: Robot, nominal: Robot, folder: str, dialect: str, r
         The model whose flange the corrected joints turn to the targets' rotations (default: the calibrated
         model; give the nominal one after a calibration from positions alone), as for
         :func:`compensate_branches`.
+    carry : ndarray, shape (3,), optional
+        What of the calibration's move of the declared target point is carried over to the TCP, m, flange frame
+        (default zeros), as for :func:`compensate_branches`.
 
     Returns
     -------
@@ -189,19 +194,20 @@ def compensate_folder(model: Robot, nominal: Robot, folder: str, dialect: str, r
     R1/Program/demo.src,3,LIN,compensated,
     R1/Program/demo.src,4,PTP $POS_ACT,listed,"$POS_ACT is the robot's position when the move starts, read at run time"
     """
-    return FolderCompensation(folder, dialect, tuple(_one(model, nominal, folder, p, dialect, rows, frames, orientation)
-                                                     for p in program_files(folder, dialect)))
+    return FolderCompensation(folder, dialect, tuple(_one(model, nominal, folder, p, dialect, rows, frames, orientation,
+                                                          carry) for p in program_files(folder, dialect)))
 
 
 def _one(model: Robot, nominal: Robot, folder: str, path: str, dialect: str, rows: Rows,
-         frames: Mapping[str, object] | None, orientation: Robot | None) -> FileCompensation:
+         frames: Mapping[str, object] | None, orientation: Robot | None,
+         carry: np.ndarray | None = None) -> FileCompensation:
     full = os.path.join(folder, path)
     try:
         prog = read_program(full, dialect)
     except KincalError as exc:
         line = _line_of(str(exc))
         return FileCompensation(path, 0, None, "utf-8", ((line, "", "unreadable", str(exc).replace(full + ": ", "")),))
-    res = compensate_branches(model, nominal, prog, rows, frames, orientation=orientation)
+    res = compensate_branches(model, nominal, prog, rows, frames, orientation=orientation, carry=carry)
     out = [(t.line, t.variable or t.move, "compensated", "") for k, t in enumerate(prog.targets) if k in res.texts]
     out += [(prog.targets[k].line, prog.targets[k].variable or prog.targets[k].move, "refused", why)
             for k, why in res.refused.items()]
