@@ -1,8 +1,9 @@
-"""Read-only arrays for frozen results (a leaf module).
+"""Read-only arrays and mappings for frozen results (a leaf module).
 
-A frozen dataclass cannot have its fields replaced, but an array field could still be edited in place, and what
-the result prints would follow the edit while what it computed before would not. :func:`freeze_arrays`, called
-once as a result is built (its ``__post_init__``), makes every array it hands out read-only.
+A frozen dataclass cannot have its fields replaced, but an array or a dict field could still be edited in place,
+and what the result prints would follow the edit while what it computed before would not. :func:`freeze_arrays`,
+called once as a result is built (its ``__post_init__``), makes every array it hands out read-only, and every
+plain dict a :class:`ReadOnlyDict`.
 """
 from __future__ import annotations
 
@@ -47,6 +48,31 @@ def read_only(value: np.ndarray) -> np.ndarray:
     return out
 
 
+class ReadOnlyDict(dict):
+    """A dict that refuses changes (still a dict: JSON writes it, ``dict(d)`` or ``{**d}`` is the user's own copy).
+
+    Examples
+    --------
+    >>> from kincal._frozen import ReadOnlyDict
+    >>> d = ReadOnlyDict({"j2.a": 1e-5})
+    >>> d["j2.a"] *= 1000
+    Traceback (most recent call last):
+    ...
+    TypeError: this mapping belongs to a frozen result: make a copy to change it (dict(...))
+    >>> dict(d)["j2.a"] == 1e-5, isinstance(d, dict)
+    (True, True)
+    """
+
+    def _refuse(self, *args, **kwargs):
+        raise TypeError("this mapping belongs to a frozen result: make a copy to change it (dict(...))")
+
+    __setitem__ = __delitem__ = update = pop = popitem = setdefault = clear = _refuse
+    __ior__ = _refuse
+
+    def __reduce__(self):  # pickled (a worker's result) as the plain dict it holds, made read-only again on arrival
+        return (ReadOnlyDict, (dict(self),))
+
+
 def freeze_arrays(result) -> None:
     """Make every array field of the frozen dataclass ``result`` read-only, and the arrays of its tuple fields.
 
@@ -77,3 +103,5 @@ def freeze_arrays(result) -> None:
             object.__setattr__(result, f.name, read_only(value))
         elif type(value) is tuple and any(isinstance(v, np.ndarray) for v in value):
             object.__setattr__(result, f.name, tuple(read_only(v) if isinstance(v, np.ndarray) else v for v in value))
+        elif type(value) is dict:
+            object.__setattr__(result, f.name, ReadOnlyDict(value))

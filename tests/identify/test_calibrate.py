@@ -184,3 +184,7 @@ def test_a_result_hands_out_read_only_arrays(ur5):
     assert f"residual sigma per axis: {sigma * 1e3:.4f} mm" in str(res)
     d = res.to_dict()
     assert d["after"]["mean"] == pytest.approx(norms.mean(), rel=1e-12) and d["sigma"] == pytest.approx(sigma, rel=1e-12)
+    before = res.std["j2.a"]
+    with pytest.raises(TypeError, match="belongs to a frozen result"):  # res.std["j2.a"] *= 1000 printed 9.99 mm
+        res.std["j2.a"] *= 1000
+    assert res.std["j2.a"] == before and res.to_dict()["std"]["j2.a"] == before and dict(res.std) == res.std
