@@ -260,3 +260,17 @@ def test_an_undetermined_turn_from_data_with_rotations_does_not_ask_for_them():
     plain, seen = FlangeTurn(0.0446, 0.0338, False), FlangeTurn(0.0446, 0.0338, False, rotations_seen=True)
     assert "6-D poses or several markers" in plain.note() and "6-D poses" not in seen.note()
     assert "the data saw rotations, yet in the robot's own frame they leave it open" in seen.note()
+
+
+def test_parameters_held_at_nominal_count_in_the_turns_sigma():
+    """An LR Mate point calibration kept j5.theta at nominal (determined to ±76 mrad): the flange's turn was
+    'determined' to σ 0.039 mrad and followed, 23σ off on the true robot. A held parameter's σ now counts: a
+    joint zero turns the flange by exactly its own angle, so σ² grows by its σ² (independent of the poses)."""
+    nominal, true, fit = _case("ur5", [0.03, -0.02, 0.12])
+    unc = fit.uncertainty()
+    keep = [k for k, n in enumerate(unc.names) if n != "j5.theta"]
+    names, cov = [unc.names[k] for k in keep], unc.covariance[np.ix_(keep, keep)]  # as if j5.theta had been held
+    without = flange_turn(fit.robot, nominal, cov, names, nominal.lower, nominal.upper)
+    held = flange_turn(fit.robot, nominal, cov, names, nominal.lower, nominal.upper, held={"j5.theta": 0.0759})
+    assert without.determined and not held.determined
+    assert held.sigma == pytest.approx(np.hypot(without.sigma, 0.0759), rel=1e-4)

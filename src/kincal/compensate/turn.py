@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from typing import Mapping
+
 import numpy as np
 
 from ..errors import ModelError
@@ -74,7 +76,7 @@ class FlangeTurn:
 
 
 def flange_turn(calibrated: Robot, nominal: Robot, covariance: np.ndarray | None, names, lower: np.ndarray,
-                upper: np.ndarray) -> FlangeTurn:
+                upper: np.ndarray, held: Mapping[str, float] | None = None) -> FlangeTurn:
     """Weigh the calibrated model's turn of the flange against what its data determine (module docstring).
 
     Parameters
@@ -89,6 +91,10 @@ def flange_turn(calibrated: Robot, nominal: Robot, covariance: np.ndarray | None
         The K parameters of ``covariance``; the base frame's are left out (a turn of the base is not the flange's).
     lower, upper : ndarray, shape (n,)
         The joint ranges the poses are drawn from (the calibration's), rad (m for a prismatic joint).
+    held : mapping of str to float, optional
+        Parameters the calibration kept at nominal because its data determine them too weakly, with the σ the data
+        gave them (m or rad: the record's ``weakly_determined``): their turn of the flange is as unknown as that σ
+        says, so it counts in the turn's σ (default none).
 
     Returns
     -------
@@ -117,8 +123,23 @@ def flange_turn(calibrated: Robot, nominal: Robot, covariance: np.ndarray | None
     q = poses_in(calibrated, lower, upper, nominal)
     turn = _relative(calibrated, q, None, nominal)
     change = float(np.sqrt(np.mean(np.sum(turn**2, axis=1))))
-    sigma = np.inf if covariance is None else _sigma(calibrated, q, np.asarray(covariance, float), tuple(names))
+    if covariance is None:
+        return FlangeTurn(change, np.inf, False)
+    names, covariance = _with_held(calibrated, tuple(names), np.asarray(covariance, float), held or {})
+    sigma = _sigma(calibrated, q, covariance, names)
     return FlangeTurn(change, sigma, bool(change >= TURN_Z * sigma))
+
+
+def _with_held(robot: Robot, names: tuple[str, ...], covariance: np.ndarray, held: Mapping[str, float]):
+    """``names`` and ``covariance`` with the held parameters' σ² on the diagonal beside them (each independent)."""
+    extra = [n for n, v in held.items() if n not in names and n in robot.params.names and np.isfinite(v)]
+    if not extra:
+        return names, covariance
+    k = len(names)
+    out = np.zeros((k + len(extra), k + len(extra)))
+    out[:k, :k] = covariance
+    out[k:, k:] = np.diag([float(held[n]) ** 2 for n in extra])
+    return (*names, *extra), out
 
 
 def poses_in(robot: Robot, lower: np.ndarray, upper: np.ndarray, *others: Robot) -> np.ndarray:
