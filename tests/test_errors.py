@@ -195,3 +195,20 @@ def test_a_value_error_of_numpy_is_an_internal_error_and_kincals_own_message_is_
             numpy_s.result()
     assert type(a.value.__cause__).__name__ == "_RemoteTraceback"  # judged by the worker's traceback text
     assert raised_by_kincal(a.value) and not raised_by_kincal(b.value)
+
+
+def test_python_calls_given_degrees_say_so(ur5):
+    """select_poses on a pool in degrees designed 30 poses with |q| up to 137.8 rad, simulate and calibrate's use_q
+    took degrees as radians, all without a word: each names the argument and that a Python call takes radians;
+    the same calls in radians go through."""
+    q = ur5.sample_joints(30, seed=1)
+    pool = kincal.candidate_pool(ur5, 200, seed=0)
+    meas = kincal.simulate(kincal.perturb(ur5, seed=2), q, seed=3)
+    for call, what in ((lambda: kincal.select_poses(ur5, np.degrees(pool), m=30), "the candidate poses"),
+                       (lambda: kincal.simulate(ur5, np.degrees(q)), "q"),
+                       (lambda: kincal.calibrate(ur5, meas, use_q=np.degrees(q), diagnose=False), "use_q")):
+        with pytest.raises(MeasurementError, match=rf"^{what}: revolute joint values reach [0-9.]+ rad, far beyond the "
+                                                   r"joint limits: they look like degrees; a Python call takes radians"):
+            call()
+    assert len(kincal.select_poses(ur5, pool, m=30).q) == 30
+    assert kincal.calibrate(ur5, meas, use_q=q, diagnose=False).converged

@@ -9,6 +9,7 @@ import numpy as np
 
 from .._threads import blas_threads
 from ..errors import IdentifiabilityError
+from ..io.unit_checks import joints_in_radians
 from ..models.robot import Robot
 from ..ties import first_best
 from .bound import Bound, relaxed_bound
@@ -240,10 +241,11 @@ def _checked_pool(robot: Robot, pool_q: np.ndarray, o: DesignOptions, problem: D
                   validation_q: np.ndarray | None) -> np.ndarray:
     """The pool as (N, n) after the checks that need the robot and the pool (cheap: before any work)."""
     pool_q = robot.check_q(pool_q)
+    joints_in_radians("the candidate poses", pool_q, robot)
     if o.names is not None:
         robot.params.indices(o.names)
     if validation_q is not None:
-        robot.check_q(validation_q)
+        joints_in_radians("validation_q", robot.check_q(validation_q), robot)
         if o.criterion not in ("IMSE", "I"):
             raise ValueError(f"a region of use (validation_q, --use) steers the IMSE and I criteria only; criterion "
                              f"'{o.criterion}' does not look at it: choose IMSE or I, or leave it out")

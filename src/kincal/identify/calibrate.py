@@ -20,6 +20,7 @@ from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapola
 from ..checks import kind_of
 from ..errors import MeasurementError
 from ..io.measurements import Measurements
+from ..io.unit_checks import joints_in_radians
 from ..models.robot import Robot
 from ..models.terms import check_payload
 from ..observe import InSession, JointObs, PointObs
@@ -166,6 +167,8 @@ def _calibrate(robot: Robot, sessions: list[Measurements], own_frames: bool, opt
     t0 = time.perf_counter()
     options = (options or FitOptions()).replace(**changes).check(robot)
     use_q = None if use_q is None else robot.check_q(use_q)
+    if use_q is not None:
+        joints_in_radians("use_q", use_q, robot)
     say = progress or (lambda msg: None)
     for s in sessions:
         s.check_robot(robot)

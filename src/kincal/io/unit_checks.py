@@ -253,10 +253,8 @@ def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
     rev = robot.revolute
     if not rev.any() or angle_unit not in (None, "rad", "deg"):  # revolutions: no degrees-for-radians mistake
         return
-    lim = np.maximum(np.abs(robot.lower), np.abs(robot.upper))
-    reach = np.maximum(4 * np.pi, 1.5 * np.where(np.isfinite(lim), lim, 0.0))[rev]
-    over = np.any(np.abs(q[:, rev]) > reach)
-    if over and np.all(np.abs(q[:, rev]) * np.pi / 180.0 <= reach):  # read as degrees, they would fit
+    reach = _reach(robot)
+    if _degrees_as_radians(q, robot):  # read as degrees, they would fit
         qmax = float(np.max(np.abs(q[:, rev])))
         given = f" ('{angle_unit}' was given)" if angle_unit else ""
         j = np.flatnonzero(rev)[int(np.argmax(np.max(np.abs(q[:, rev]), axis=0)))]
@@ -273,6 +271,57 @@ def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
                                    f"(CLI: --joint-cols)")
         raise MeasurementError(f"{source}: revolute joint values reach {qmax:.4g} rad{given}, far beyond the joint "
                                f"limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)")
+
+
+def _reach(robot: Robot) -> np.ndarray:
+    """Each revolute joint's reach (rad): the larger of two turns and 1.5 times its largest limit."""
+    lim = np.maximum(np.abs(robot.lower), np.abs(robot.upper))
+    return np.maximum(4 * np.pi, 1.5 * np.where(np.isfinite(lim), lim, 0.0))[robot.revolute]
+
+
+def _degrees_as_radians(q: np.ndarray, robot: Robot) -> bool:
+    """Whether revolute joint values (N, n) go beyond their reach while all would lie within it as degrees."""
+    a = np.abs(q[:, robot.revolute])
+    return bool(a.size and np.any(a > _reach(robot)) and np.all(a * np.pi / 180.0 <= _reach(robot)))
+
+
+def joints_in_radians(what: str, q: np.ndarray, robot: Robot) -> None:
+    """Refuse joint values of a Python call (``what`` names them) that look like degrees: a library call takes
+    radians, and degrees read as radians go far beyond the joint limits.
+
+    Parameters
+    ----------
+    what : str
+        What the values are (an argument of the call), named in the message.
+    q : ndarray, shape (N, n)
+        The joint values given, meant in rad (m for a prismatic joint).
+    robot : Robot
+        The robot (its joint types and limits).
+
+    Raises
+    ------
+    MeasurementError
+        When they look like degrees, naming the largest and what to give.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.io import joints_in_radians
+    >>> robot = kincal.load_robot("ur5")
+    >>> q = robot.sample_joints(5, seed=1)
+    >>> joints_in_radians("candidates", q, robot)  # radians: nothing to say
+    >>> joints_in_radians("candidates", np.degrees(q), robot)
+    Traceback (most recent call last):
+    ...
+    kincal.errors.MeasurementError: candidates: revolute joint values reach ... rad, far beyond the joint limits: they
+    look like degrees; a Python call takes radians (np.radians(q))
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if q.ndim == 2 and q.shape[1] == robot.n_joints and _degrees_as_radians(q, robot):
+        qmax = float(np.max(np.abs(q[:, robot.revolute])))
+        raise MeasurementError(f"{what}: revolute joint values reach {qmax:.4g} rad, far beyond the joint limits: they "
+                               f"look like degrees; a Python call takes radians (np.radians(q))")
 
 
 def check_limits(source: str, q: np.ndarray, robot: Robot, length_unit: str | None, angle_unit: str | None,

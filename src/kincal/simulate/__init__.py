@@ -13,6 +13,7 @@ import numpy as np
 
 from ..checks import number
 from ..io.measurements import Measurements
+from ..io.unit_checks import joints_in_radians
 from ..models.robot import Robot
 from .observations import (plane_plan, reach, simulate_markers, simulate_planes, simulate_poses, simulate_same_point,
                            socket_plan)
@@ -76,6 +77,7 @@ def simulate(true_robot: Robot, q: np.ndarray, noise: float = DEFAULT_NOISE, see
     """
     number("noise", noise, positive=False, unit="m per axis")
     q = true_robot.check_q(q)
+    joints_in_radians("q", q, true_robot)
     rng = np.random.default_rng(seed)
     xyz = true_robot.forward(q) + noise * rng.standard_normal((q.shape[0], 3))
     return Measurements(q, xyz, true_robot.joint_names, source=f"simulated {true_robot.name}")
