@@ -148,6 +148,21 @@ def test_pose_counts(ur5):
     assert (curve.values[i + 10] - curve.values[i]) / abs(curve.values[i]) < 0.01
 
 
+def test_a_design_below_the_papers_minimum_says_so():
+    """Guo et al. 2024's eq. 18, m >= (n + 1) k / 6: the 3T2R robot's 21 parameters on 5 joints want 21 poses.
+    Eight still solve (24 equations), so they are chosen, with a note that names the minimum."""
+    robot = kincal.load_robot("guo3t2r")
+    pool = candidate_pool(robot, 300, seed=3)
+    few = select_poses(robot, pool, m=8, method="random", criterion="D", seed=1, certify=False)
+    k = len(few.names)  # the identifiable parameters designed for
+    low = int(np.ceil((robot.n_joints + 1) * k / 6))
+    assert (k, low) == (21, 21)
+    assert f"8 poses are fewer than Guo et al. 2024's eq. 18 minimum for 21 parameters on 5 joints ({low})" in few.note
+    assert "24 equations" in few.note and "eq. 18" in str(few)
+    enough = select_poses(robot, pool, m=low, method="random", criterion="D", seed=1, certify=False)
+    assert "eq. 18" not in enough.note
+
+
 @pytest.mark.parametrize("method", ["random", "detmax", "fedorov"])
 def test_pool_designs_keep_the_coupled_constraints(method):
     robot = kincal.load_robot("guo3t2r")

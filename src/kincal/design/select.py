@@ -11,12 +11,14 @@ from .._threads import blas_threads
 from ..errors import IdentifiabilityError
 from ..io.unit_checks import joints_in_radians
 from ..models.robot import Robot
+from ..papers import GUO2024
 from ..ties import first_best
 from .bound import Bound, relaxed_bound
 from .cell import Cell
 from .criteria import score
 from .exchange import _State, det_blocks, fedorov, greedy
 from .ide import ide
+from .npose import minimum_poses
 from .options import DesignOptions
 from .problem import DesignProblem, design_problem
 from .robust import robust_terms, stratified_design
@@ -230,11 +232,19 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
             bound = None
         elif bound is None and o.certify:
             bound = relaxed_bound(P, o.m)
-        note = "\n  ".join(n for n in (P.note, note, "no D-efficiency: the certified bound holds for designs from the "
+        note = "\n  ".join(n for n in (P.note, note, _below_minimum(robot, P, o.m), "no D-efficiency: the certified bound holds for designs from the "
                                                       "candidate pool, and IDE moves poses off it" if beyond and
                                                       o.certify else "") if n)
         return Design(idx, q, o.method, o.criterion, value, _score_blocks(J, "D", None), P.names, bound, elapsed,
                       o.seed, tuple(float(h) for h in history), note)
+
+
+def _below_minimum(robot: Robot, P: DesignProblem, m: int) -> str:
+    """A note when m poses are fewer than Guo et al. 2024's eq. 18 minimum for P's parameters, else ''."""
+    low = minimum_poses(robot.n_joints, P.k)
+    return (f"{m} poses are fewer than {GUO2024}'s eq. 18 minimum for {P.k} parameters on {robot.n_joints} joints "
+            f"({low}): they give {P.r * m} equations, enough to solve, but the paper measures at least {low}; "
+            f"`kincal npose` shows how the criterion grows with m") if m < low else ""
 
 
 def _checked_pool(robot: Robot, pool_q: np.ndarray, o: DesignOptions, problem: DesignProblem | None,
