@@ -192,3 +192,11 @@ def test_ide_designs_claim_no_pool_efficiency():
     detmax = select_poses(robot, pool, kincal.DesignOptions(m=20, method="detmax", criterion="D", seed=0))
     assert detmax.efficiency is not None and 0 < detmax.efficiency <= 1.0
     assert ide.logdet > detmax.logdet - 1e-9  # it starts from DETMAX's design and keeps the better
+
+
+def test_imse_refusal_does_not_call_a_given_criterion_the_default():
+    """`design --method detmax --criterion IMSE`: the user chose IMSE; the refusal says why, not 'the default'."""
+    from kincal.design import DesignOptions
+    with pytest.raises(ValueError) as e:
+        DesignOptions(method="detmax", criterion="IMSE")
+    assert "default" not in str(e.value) and "by method 'fedorov' with coverage" in str(e.value)

@@ -98,7 +98,7 @@ class DesignOptions:
     >>> DesignOptions(method="detmax")  # IMSE, the default criterion, is searched by "fedorov"
     Traceback (most recent call last):
         ...
-    ValueError: criterion 'IMSE' (the default) is searched one pose per joint-space stratum by method ...
+    ValueError: criterion 'IMSE' is searched one pose per joint-space stratum by method ...
     """
 
     m: int = 60
@@ -148,7 +148,7 @@ class DesignOptions:
             raise ValueError(f"weight={w!r}: give the variance of each left-out term in units of the noise variance "
                              f"(≥ 0, e.g. 0.3)")
         if self.criterion == "IMSE" and (self.coverage is False or self.method not in ("fedorov", "random")):
-            raise ValueError(f"criterion 'IMSE'{' (the default)' if self.method != 'fedorov' else ''} is searched one "
+            raise ValueError(f"criterion 'IMSE' is searched one "
                              f"pose per joint-space stratum by method 'fedorov' with coverage; with method "
                              f"'{self.method}'{' and no coverage' if self.coverage is False else ''} choose a criterion "
                              f"such as D")
