@@ -89,6 +89,9 @@ def test_demo_reproduces_guo2024(guo2024_demo):
         assert d["repeated"][name]["mean_of_mean"] == pytest.approx(np.mean(np.abs(e)), rel=1e-12)
         assert d["repeated"][name]["mean_of_std"] == pytest.approx(np.std(e, ddof=1), rel=1e-12)
         assert d["repeated"][name]["sd_of_mean"] == 0.0 and d["repeats"] == 1
+        table = d["validation_e"][name]  # the printed Table 8 analogue: e, not the 3-D norms of "validation"
+        assert (table["max_abs"], table["mean_abs"], table["std"]) == pytest.approx(
+            (np.max(np.abs(e)), np.mean(np.abs(e)), np.std(e, ddof=1)), rel=1e-12)
     assert d["design_values"]["separated-parameter optimised"] > d["design_values"]["random"]
 
 
