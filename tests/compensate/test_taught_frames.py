@@ -8,9 +8,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import kincal
-from kincal.compensate import solve_poses
+from kincal.compensate import command_models, resolve_taught, solve_poses, tool_carry
 from kincal.compensate.branch import compensate_branches, controller_inverse
-from kincal.io import BITS, ROWS, read_frames, read_program
+from kincal.compensate.taught import tool_pair
+from kincal.io import BITS, ROWS, TaughtFrame, read_frames, read_program
 
 TOOL = np.array([0.012, -0.004, 0.18])  # the real TCP in the flange
 BASE = np.eye(4)
@@ -57,13 +58,15 @@ def _flange(robot, q):
     return p, R
 
 
-def _controller_frames(nominal, tool_q, base_q):
-    """The controller's tool and base, computed here: the TCP from (R_i - R_0) t = p_0 - p_i, the base by
-    Gram-Schmidt on the three TCP positions."""
-    p, R = _flange(nominal, tool_q)
-    t = np.linalg.lstsq((R[1:] - R[0]).reshape(-1, 3), (p[0] - p[1:]).reshape(-1), rcond=None)[0]
-    U = np.eye(4)
-    U[:3, 3] = t
+def _controller_frames(nominal, tool_q, base_q, U=None):
+    """The controller's tool and base, computed here: the TCP from (R_i - R_0) t = p_0 - p_i (unless given: U),
+    the base by Gram-Schmidt on the three TCP positions."""
+    if U is None:
+        p, R = _flange(nominal, tool_q)
+        t = np.linalg.lstsq((R[1:] - R[0]).reshape(-1, 3), (p[0] - p[1:]).reshape(-1), rcond=None)[0]
+        U = np.eye(4)
+        U[:3, 3] = t
+    t = U[:3, 3]
     p, R = _flange(nominal, base_q)
     P = p + R @ t
     x = (P[1] - P[0]) / np.linalg.norm(P[1] - P[0])
@@ -177,3 +180,125 @@ def test_teach_poses_of_another_joint_count_refuse_the_frame_with_the_reason(tmp
     res = compensate_branches(true, nominal, read_program(str(tmp_path / "one.dat"), "krl"), ROWS["krl"],
                               read_frames(str(tmp_path / "frames.yaml")))
     assert res.refused[0].startswith("its tool frame 'TOOL_NO 1' is not known: its teach poses do not fit this robot")
+
+
+HELD = ("a1.theta", "a1.d", "a1.a", "a1.alpha", "a6.theta", "flange.theta", "flange.alpha")  # what a point on the
+# flange's axis cannot tell from the base frame (the first four) or turns of the flange it does not see
+POINT, LEVER = np.array([0.0, 0.0, 0.03]), np.array([0.01, -0.02, 0.12])  # the measured point; the TCP from it
+
+
+def _carried_case():
+    """A KR 6 measured at POINT (30 mm out on the flange's axis), calibrated from 200 noise-free points of a true
+    arm whose HELD parameters are nominal: the calibrated model in the robot's base frame is the true arm's up to its
+    flange, off by a translation (the last link's) that the fitted point takes up; the true TCP, LEVER beyond the
+    point, shares it. Returns the nominal arm, the true one, the calibration, both models for commands and the carry
+    (m)."""
+    nominal = kincal.load_robot("kuka_kr6r900sixx").with_tool_point(POINT)
+    true = kincal.perturb(nominal, seed=2, names=[n for n in nominal.params.names
+                                                  if n not in HELD and n not in nominal.base_params()])
+    fit = kincal.calibrate(nominal, kincal.simulate(true, nominal.sample_joints(200, seed=1), 0.0),
+                           kincal.FitOptions(diagnose=False))
+    model, nom = command_models(fit.robot, fit.record()["nominal"])
+    return nominal, true, fit, (model, nom), tool_carry(model.tool_point(), nom.tool_point())[0]
+
+
+def _true_teach(true, tool_tcp):
+    """The true arm's joints putting the true TCP (``tool_tcp`` (3,) m in its flange) on the true fixture's origin,
+    a point on its +x and one in its xy plane (the base's), and four times on one point (the tool's), pointing down."""
+    flange = true.with_tool_point(np.zeros(3))
+
+    def reach(p, R):
+        sol = solve_poses(flange, (p - R @ tool_tcp)[None], R[None], START[None], max_iter=200, max_travel=20.0)
+        assert sol.converged[0]
+        return sol.q[0]
+
+    down = Rotation.from_euler("y", 180, degrees=True)
+    base_q = [reach(BASE[:3, :3] @ v + BASE[:3, 3], down.as_matrix()) for v in ([0, 0, 0], [0.25, 0, 0],
+                                                                                  [0.15, 0.2, 0])]
+    tool_q = [reach(np.array([0.5, 0.05, 0.25]), (down * Rotation.from_euler("xyz", a, degrees=True)).as_matrix())
+              for a in ([0, 0, 0], [25, 0, 0], [0, 30, 40], [-20, -15, 90])]
+    return np.array(base_q), np.array(tool_q)
+
+
+@pytest.mark.parametrize("taught_tool", [False, True])
+def test_a_taught_base_and_the_programs_tcp_take_the_calibrations_move_of_the_measured_point_alike(tmp_path,
+                                                                                                   taught_tool):
+    """A base taught with a TCP 150 mm out (LEVER beyond the measured point), given by its values or taught itself;
+    a program in it for that TCP, meant in the true fixture. The calibration moved the measured point by 0.488 mm
+    (the last link's error, carried over to the TCP). Each frame and program TCP now takes that move once: the
+    physical base is the true one and the true arm's TCP at the written commands' controller joints is on the
+    targets (to 1e-9 m). Before, a base taught with a given tool took none of it, or a taught tool took it twice
+    (its physical frame, from the calibrated model, holds it already): the true TCP 0.488 mm off every target."""
+    nominal, true, _, (model, nom), shift = _carried_case()
+    assert 0.4e-3 < np.linalg.norm(shift) < 1e-3  # carried over (a link's error)
+    flange, true_flange = nominal.with_tool_point(np.zeros(3)), true.with_tool_point(np.zeros(3))
+    U_true = np.eye(4)
+    U_true[:3, 3] = true.tool_point() + LEVER  # the TCP in the true flange
+    base_q, tool_q = _true_teach(true, U_true[:3, 3])
+    frames = {"BASE_NO 2": TaughtFrame("BASE_NO 2", "origin-x-xy", base_q, "TOOL_NO 1", None)}
+    U_c = np.eye(4)
+    U_c[:3, 3] = POINT + LEVER  # the controller's TCP, given by its values
+    if taught_tool:
+        U_c = _controller_frames(flange, tool_q, base_q)[0]  # the controller's own fit of the nominal poses
+        frames["TOOL_NO 1"] = TaughtFrame("TOOL_NO 1", "fixed-point", tool_q, "", U_c)
+    else:
+        frames["TOOL_NO 1"] = U_c
+    B_c = _controller_frames(flange, tool_q, base_q, U_c)[1]
+    q = np.radians([[10, -80, 100, 20, 40, 30], [-25, -100, 110, -30, -50, 60], [30, -70, 90, 60, 45, -100]])
+    _program(tmp_path / "t.dat", nominal, true_flange, BASE, U_true, q)  # meant in the true fixture, true TCP
+    prog = read_program(str(tmp_path / "t.dat"), "krl")
+    res = compensate_branches(model, nom, prog, ROWS["krl"], frames, carry=shift)
+    assert not res.problems and len(res.texts) == 3
+    (tmp_path / "out.dat").write_text(prog.with_targets(res.texts))
+    for old, new, qk in zip(prog.targets, read_program(str(tmp_path / "out.dat"), "krl").targets, q):
+        sent = B_c @ _pose(new.values) @ np.linalg.inv(U_c)  # what the controller turns the written target into
+        q_ctrl = controller_inverse(flange, sent[None, :3, 3], sent[None, :3, :3], qk, new.config, BITS["krl"])
+        p, R = _flange(true_flange, q_ctrl)
+        assert np.linalg.norm(p[0] + R[0] @ U_true[:3, 3] - (BASE @ _pose(old.values))[:3, 3]) < 1e-9  # was 0.488 mm
+    resolved = resolve_taught(frames, nom.with_tool_point(np.zeros(3)), model, carry=shift)
+    tool, base = tool_pair(resolved["TOOL_NO 1"], shift)[1], resolved["BASE_NO 2"][1]  # the physical frames
+    assert np.linalg.norm(base[:3, 3] - BASE[:3, 3]) < 1e-9  # the physical base is the true fixture (was 0.488 mm)
+    assert np.linalg.norm(Rotation.from_matrix(base[:3, :3] @ BASE[:3, :3].T).as_rotvec()) < 1e-9
+    p_cal, R_cal = _flange(model.with_tool_point(np.zeros(3)), q[:1])
+    p_true, R_true = _flange(true_flange, q[:1])
+    here = R_cal[0].T @ (p_true[0] + R_true[0] @ U_true[:3, 3] - p_cal[0])  # the true TCP in the calibrated flange
+    assert np.linalg.norm(tool[:3, 3] - here) < 1e-9  # a taught tool's own, a given one's carried: the true TCP
+    assert np.linalg.norm(here - (POINT + LEVER + shift)) < 1e-9  # the carry of a given tool is that move
+
+
+def test_the_command_line_says_how_far_a_base_taught_with_a_given_tcp_really_is(tmp_path, capsys):
+    """kincal compensate --program krl --frames after the calibration of _carried_case: a base taught with TOOL_NO 1
+    given by its values (150 mm out). The line on the taught base names how far the true fixture is from the
+    controller's base (0.759 mm; 0.727 before, the base computed without the carry the program's TCP takes), and
+    the written program puts the true TCP on its targets to the text's rounding (0.488 mm off before)."""
+    from kincal.cli import main
+
+    nominal, true, fit, _, _ = _carried_case()
+    kincal.save_robot(fit.robot, tmp_path / "cal.yaml", calibration=fit.record())
+    flange, true_flange = nominal.with_tool_point(np.zeros(3)), true.with_tool_point(np.zeros(3))
+    U_true, U_c = np.eye(4), np.eye(4)
+    U_true[:3, 3], U_c[:3, 3] = true.tool_point() + LEVER, POINT + LEVER
+    base_q, _ = _true_teach(true, U_true[:3, 3])
+    rows = ", ".join("[" + ", ".join(f"{v:.12f}" for v in np.degrees(x)) + "]" for x in base_q)
+    x, y, z = U_c[:3, 3] * 1e3
+    (tmp_path / "frames.yaml").write_text(
+        f"TOOL_NO 1: {{x: {x:.9f}, y: {y:.9f}, z: {z:.9f}}}\n"
+        f"BASE_NO 2: {{taught: {{rule: origin-x-xy, tool: TOOL_NO 1, joints: [{rows}]}}}}\n")
+    q = np.radians([[10, -80, 100, 20, 40, 30], [-25, -100, 110, -30, -50, 60], [30, -70, 90, 60, 45, -100]])
+    _program(tmp_path / "t.dat", nominal, true_flange, BASE, U_true, q)
+    capsys.readouterr()
+    assert main(["compensate", str(tmp_path / "cal.yaml"), str(tmp_path / "t.dat"), "--program", "krl", "--frames",
+                 str(tmp_path / "frames.yaml"), "-o", str(tmp_path / "out.dat")]) == 0
+    said = capsys.readouterr().out
+    B_c = _controller_frames(flange, None, base_q, U_c)[1]
+    assert "orientation: from the calibrated model" in said
+    assert (f"taught frame BASE_NO 2: corrected as a measurement: its origin really is "
+            f"{np.linalg.norm(BASE[:3, 3] - B_c[:3, 3]) * 1e3:.3f} mm from the controller's") in said
+    misses = []
+    for old, new, qk in zip(read_program(str(tmp_path / "t.dat"), "krl").targets,
+                            read_program(str(tmp_path / "out.dat"), "krl").targets, q):
+        sent = B_c @ _pose(new.values) @ np.linalg.inv(U_c)
+        q_ctrl = controller_inverse(flange, sent[None, :3, 3], sent[None, :3, :3], qk, new.config, BITS["krl"])
+        p, R = _flange(true_flange, q_ctrl)
+        misses.append(np.linalg.norm(p[0] + R[0] @ U_true[:3, 3] - (BASE @ _pose(old.values))[:3, 3]))
+    assert max(misses) < 1e-9, misses  # was 0.488 mm

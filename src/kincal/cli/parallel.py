@@ -227,7 +227,7 @@ def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
     declared = kincal.io.dialects()[args.program].frames(prog)
     known = sorted(k for k, v in declared.items() if not isinstance(v, str))
     lines += [f"frames the program declares or holds beside it: {', '.join(known)}"] if known else []
-    lines += _taught_lines(model, nominal, frames, turned)
+    lines += _taught_lines(model, nominal, frames, turned, shift)
     lines += [f"refused: {p}" for p in res.problems]
     lines += _left_lines(res)
     lines += ([f"TCP: {carry}"] if carry else []) + ([turn.note()] if turn is not None else []) + (
@@ -386,9 +386,10 @@ def _compensate_folder(args) -> int:
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
 
 
-def _taught_lines(cal, nominal, frames, turned) -> list[str]:
-    """How far each taught frame of the frames file really is from the controller's (as compensate used it)."""
-    resolved = resolve_taught(frames, nominal.with_tool_point(np.zeros(3)), cal, turned)
+def _taught_lines(cal, nominal, frames, turned, shift: np.ndarray) -> list[str]:
+    """How far each taught frame of the frames file really is from the controller's (as compensate used it: the
+    flange turned as ``turned``'s, a given tool's TCP moved by ``shift``, :func:`tool_carry`)."""
+    resolved = resolve_taught(frames, nominal.with_tool_point(np.zeros(3)), cal, turned, shift)
     out = []
     for name, f in frames.items():
         if isinstance(f, kincal.io.TaughtFrame):

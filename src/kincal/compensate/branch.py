@@ -43,7 +43,7 @@ from ..models.transforms import rotation_log, rotvec_matrix
 from ..ties import first_best
 from .poses import solve_poses
 from .commands import branch_tolerance
-from .taught import resolve_taught
+from .taught import resolve_taught, tool_pair
 from .program import SEARCH, STARTS, ProgramCompensation, kept_joints, outside_limits, singular
 
 CHECK_TOL = 1e-9  # m and rad: a written target must reproduce its intended pose this closely
@@ -103,8 +103,10 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
         (points, sockets, planes): the turns of the flange its parameters imply were never seen.
     carry : ndarray, shape (3,), optional
         What of the calibration's move of the declared target point is carried over to the TCP, m, flange frame
-        (:func:`kincal.compensate.tool_carry`; default zeros): added to each pose target's TCP (its tool frame's
-        origin) on the calibrated model only, as :func:`kincal.compensate.command_models` does for a ``tcp``.
+        (:func:`kincal.compensate.tool_carry`; default zeros): added to the TCP (the origin) of each tool frame
+        given by its values on the calibrated model only, as :func:`kincal.compensate.command_models` does for a
+        ``tcp``, for the program's targets and a base taught with that tool alike (a taught tool's physical frame is
+        the calibrated model's own: :func:`kincal.compensate.taught.tool_pair`).
 
     Returns
     -------
@@ -157,14 +159,14 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     measured = model.tool_point() if model.has_tool_point else np.zeros(3)  # the point the calibration measured
     model, nominal = model.with_tool_point(np.zeros(3)), nominal.with_tool_point(np.zeros(3))  # flange poses
     frames = resolve_taught({**dialect.frames(program), **(frames or {})}, nominal, model.with_tool_point(measured),
-                            orientation)  # the frames the program declares, unless given
+                            orientation, carry)  # the frames the program declares, unless given
     scale = pulse_scale(nominal)
     work = in_joints(program, scale)  # PULSE positions as joint targets (rad)
     q0 = (next((t.values for t in work.targets if t.kind == "joints"), np.clip(0.0, model.lower, model.upper))
           if q_start is None else np.asarray(q_start, dtype=float))
-    goals, tools, refused = _goals(nominal, work, frames)
+    goals, tools, refused = _goals(nominal, work, frames, carry=carry)
     q_nom = _controller_joints(nominal, work, goals, rows, q0, refused)
-    tcp_goals = _at_tcp(goals, tools, measured, np.zeros(3) if carry is None else np.asarray(carry, dtype=float))
+    tcp_goals = _at_tcp(goals, tools, measured)
     kept: dict[int, str] = {}
     qs = _corrected_all(model, nominal, work, tcp_goals, q_nom, rows, (refused, kept), orientation)
     values = _written(nominal, work.targets, qs, tools, [k for k in range(len(qs)) if k not in refused | kept])
@@ -181,11 +183,13 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
         (program.targets[k].line, program.targets[k].move, why) for k, why in sorted(kept.items())))
 
 
-def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side: int = 1):
+def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side: int = 1,
+           carry: np.ndarray | None = None):
     """Each target's flange pose (p (N, 3), R (N, 3, 3); NaN where refused), its (tool, base) frames (each a
-    (controller, physical) pair; None for joints) and the refusals so far (index -> why): a joint target's pose
-    is the nominal model's there, a pose target's is B·T·U⁻¹ with the ``side`` of its frames (1: the physical
-    ones, what the program means; 0: the controller's, what it turns a written target with); all at once."""
+    (controller, physical) pair, a tool's physical TCP moved by ``carry`` (3,) m unless taught: :func:`tool_pair`;
+    None for joints) and the refusals so far (index -> why): a joint target's pose is the nominal model's there, a
+    pose target's is B·T·U⁻¹ with the ``side`` of its frames (1: the physical ones, what the program means; 0: the
+    controller's, what it turns a written target with); all at once."""
     n = len(program.targets)
     p, R = np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)
     tools: list = [None] * n
@@ -208,7 +212,7 @@ def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side:
             refused[k] = REDUNDANT
             continue
         if t.frames not in known:
-            known[t.frames] = _frames(program.dialect, t.frames, given)
+            known[t.frames] = _frames(program.dialect, t.frames, given, carry)
         found = known[t.frames]
         if isinstance(found, str):
             refused[k] = found
@@ -308,17 +312,16 @@ def _pass(nominal: Robot, program: Program, goals, rows: Rows, q_nom: np.ndarray
             q_nom[k] = q
 
 
-def _at_tcp(goals, tools: list, measured: np.ndarray, carry: np.ndarray):
+def _at_tcp(goals, tools: list, measured: np.ndarray):
     """The goals (flange poses p (N, 3), R (N, 3, 3)) with the TCP point of each target's physical tool: p (N, 3), R
-    and the calibrated model's TCP in the flange frame (N, 3) m: the tool's origin moved by ``carry`` (3,) m (what
-    :func:`kincal.compensate.tool_carry` carries over; p is the tool's own point); for a joint target, which names
-    no tool, the point the calibration measured, ``measured`` (3,) m, the model's own. The calibrated model's
-    position is trusted at that point, not at the flange: where the flange is turned as another model's
-    (``orientation``), the two differ by the models' turn times the point's lever."""
+    and the calibrated model's TCP in the flange frame (N, 3) m: the physical tool's origin (a given tool's moved by
+    the carry, :func:`tool_pair`); for a joint target, which names no tool, the point the calibration measured,
+    ``measured`` (3,) m, the model's own. The calibrated model's position is trusted at that point, not at the
+    flange: where the flange is turned as another model's (``orientation``), the two differ by the models' turn
+    times the point's lever."""
     p, R = goals
     lever = np.array([measured if t is None else t[0][1][:3, 3] for t in tools]).reshape(-1, 3)
-    moved = lever + np.array([np.zeros(3) if t is None else carry for t in tools]).reshape(-1, 3)
-    return p + np.einsum("nij,nj->ni", R, lever), R, moved
+    return p + np.einsum("nij,nj->ni", R, lever), R, lever
 
 
 def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom: np.ndarray, rows: Rows,
@@ -398,9 +401,11 @@ def _single(rows: Rows) -> Config:
     return lambda robot, q: tuple(rows(robot, np.asarray(q, dtype=float)[None])[0])
 
 
-def _frames(dialect: str, names: tuple[str, str], given: Mapping[str, object]) -> tuple[tuple, tuple] | str:
+def _frames(dialect: str, names: tuple[str, str], given: Mapping[str, object],
+            carry: np.ndarray | None = None) -> tuple[tuple, tuple] | str:
     """The tool and base frames of a target naming ``names`` (any case; ``given`` by lower-case name), each a
-    (controller, physical) pair of 4x4 frames (the same frame twice unless it was taught), or why they are
+    (controller, physical) pair of 4x4 frames (a base: the same frame twice unless it was taught; a tool: its TCP
+    moved by ``carry`` (3,) m on the calibrated model unless it was taught, :func:`tool_pair`), or why they are
     not known."""
     out = []
     for what, name, identity in zip(("tool", "base"), names, IDENTITY_FRAMES.get(dialect, ((), ()))):
@@ -412,7 +417,7 @@ def _frames(dialect: str, names: tuple[str, str], given: Mapping[str, object]) -
             return (f"its {what} frame {name!r} is not given (give it with the frames; it is not taken as the "
                     f"identity)" if name else f"the program names no {what} frame here: give the one in force "
                     f"(frames: 'default {what}')")
-        out.append(found if isinstance(found, tuple) else (found, found))
+        out.append(tool_pair(found, carry) if what == "tool" else found if isinstance(found, tuple) else (found, found))
     return out[0], out[1]
 
 

@@ -8,7 +8,10 @@ targets with) and the physical one (the calibrated model at the same poses: wher
 really is, which the program's targets mean). A frame written in the file as well is the controller's (a
 tool always is: the controller's fit of disagreeing nominal poses is its own); it must agree with the one its
 joints give to ``TAUGHT_TOL`` (a tool: plus three times how far its nominal poses disagree), else it is refused
-with the sizes (wrong joints, tool, rule or robot). Rules: :data:`kincal.io.frames_file.RULES`.
+with the sizes (wrong joints, tool, rule or robot). A base taught with a tool takes that tool's TCP as the
+program's targets do (:func:`tool_pair`: a tool given by its values with the calibration's move of the measured
+point carried over, :func:`kincal.compensate.tool_carry`; a taught tool as the calibrated model gives it, that
+move held already). Rules: :data:`kincal.io.frames_file.RULES`.
 """
 from __future__ import annotations
 
@@ -49,6 +52,44 @@ def tool_of_poses(p: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, float]:
     return T, float(np.sqrt(np.mean(spread**2)))
 
 
+def tool_pair(tool: object, carry: np.ndarray | None = None) -> Pair:
+    """A tool frame as the controller holds it and as it is on the calibrated model (4x4 each, m).
+
+    A tool given by its values (or None: the flange) is the controller's; on the calibrated model its TCP is moved
+    by ``carry``, what of the calibration's move of the declared target point is the last link's error, which the
+    TCP shares (:func:`kincal.compensate.tool_carry`). A (controller, physical) pair, a taught tool's, is kept: its
+    physical frame is computed on the calibrated model, which holds that error already.
+
+    Parameters
+    ----------
+    tool : ndarray, shape (4, 4), None or tuple of two ndarrays
+        The tool frame in the flange (m), None for the flange itself, or its (controller, physical) pair.
+    carry : ndarray, shape (3,), optional
+        What is added to the TCP on the calibrated model, m, flange frame (default zeros).
+
+    Returns
+    -------
+    tuple of two ndarrays, shape (4, 4)
+        The controller's tool frame and the physical one, m.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.compensate.taught import tool_pair
+    >>> tcp = np.eye(4)
+    >>> tcp[:3, 3] = [0.0, 0.0, 0.15]
+    >>> controller, physical = tool_pair(tcp, np.array([0.0002, 0.0, 0.0003]))
+    >>> controller[:3, 3].tolist(), np.round(physical[:3, 3] * 1e3, 3).tolist()  # m; mm
+    ([0.0, 0.0, 0.15], [0.2, 0.0, 150.3])
+    """
+    if isinstance(tool, tuple):
+        return tool
+    controller = np.eye(4) if tool is None else np.asarray(tool, dtype=float)
+    physical = controller.copy()
+    physical[:3, 3] += np.zeros(3) if carry is None else carry
+    return controller, physical
+
+
 def _flange_poses(robot: Robot, q: np.ndarray, orientation: Robot | None) -> tuple[np.ndarray, np.ndarray]:
     """The flange poses p (K, 3) m, R (K, 3, 3) at q (K, n): ``robot``'s tool point where ``robot`` puts it, the
     flange turned as ``orientation``'s (default ``robot``'s) about it; the flange's origin follows from both."""
@@ -59,19 +100,19 @@ def _flange_poses(robot: Robot, q: np.ndarray, orientation: Robot | None) -> tup
     return P - R @ robot.tool_point(), R
 
 
-def _taught(f: TaughtFrame, robot: Robot, tool: np.ndarray | None,
+def _taught(f: TaughtFrame, robot: Robot, tool: np.ndarray,
             orientation: Robot | None = None) -> tuple[np.ndarray, float]:
     """The frame ``f``'s teach poses give on ``robot`` (its flange poses, :func:`_flange_poses`), a base with the
-    TCP of ``tool``; and for a tool how far its poses disagree (m; 0 for a base, whose rule is an exact
+    TCP of ``tool`` (4x4); and for a tool how far its poses disagree (m; 0 for a base, whose rule is an exact
     construction)."""
     p, R = _flange_poses(robot, f.joints, orientation)
     if f.kind == "tool":
         return tool_of_poses(p, R)
-    return base_of_points(f.rule, p + np.einsum("kij,j->ki", R, np.zeros(3) if tool is None else tool[:3, 3])), 0.0
+    return base_of_points(f.rule, p + np.einsum("kij,j->ki", R, tool[:3, 3])), 0.0
 
 
 def resolve_taught(frames: Mapping[str, object], nominal: Robot, calibrated: Robot,
-                   orientation: Robot | None = None) -> dict[str, object]:
+                   orientation: Robot | None = None, carry: np.ndarray | None = None) -> dict[str, object]:
     """Replace every taught frame by the frame the controller holds and the one that is physically there.
 
     The controller's frame is what its nominal model gives at the teach poses (what it turns written targets
@@ -79,7 +120,8 @@ def resolve_taught(frames: Mapping[str, object], nominal: Robot, calibrated: Rob
     tool really is, which the program's targets mean). A frame written in the file as well is the
     controller's; it must agree with the one its joints give to ``TAUGHT_TOL`` (0.1 mm, 0.5 mrad; a tool:
     plus three times how far its nominal poses disagree), else it is refused with the sizes. Tools are
-    resolved first: a base uses the tool it was taught with.
+    resolved first: a base uses the tool it was taught with, on the calibrated model as the program's targets use
+    it (:func:`tool_pair`: a tool given by its values with its TCP moved by ``carry``, a taught one as it is).
 
     Parameters
     ----------
@@ -94,6 +136,10 @@ def resolve_taught(frames: Mapping[str, object], nominal: Robot, calibrated: Rob
         The model whose flange turn the physical frames take (default: the calibrated model's): give the nominal
         model where the calibration's data do not determine the turn (:func:`flange_turn`). The flange then
         stands where the calibrated model puts the measured point, turned as this model's about it.
+    carry : ndarray, shape (3,), optional
+        What of the calibration's move of the declared target point is carried over to a TCP, m, flange frame
+        (:func:`kincal.compensate.tool_carry`; default zeros): a base taught with a tool given by its values
+        takes that tool's TCP so moved on the calibrated model, as the program's targets do.
 
     Returns
     -------
@@ -130,16 +176,18 @@ def resolve_taught(frames: Mapping[str, object], nominal: Robot, calibrated: Rob
     out = dict(frames)
     taught = {n: f for n, f in frames.items() if isinstance(f, TaughtFrame)}
     for name in sorted(taught, key=lambda n: (taught[n].kind != "tool", n)):  # tools first: bases use them
-        out[name] = _pair(taught[name], out, nominal, calibrated, orientation)
+        out[name] = _pair(taught[name], out, nominal, calibrated, orientation, carry)
     return out
 
 
 def _pair(f: TaughtFrame, known: Mapping[str, object], nominal: Robot, calibrated: Robot,
-          orientation: Robot | None) -> Pair | str:
+          orientation: Robot | None, carry: np.ndarray | None) -> Pair | str:
+    """The (controller, physical) frames of ``f`` (``orientation`` and ``carry`` as for :func:`resolve_taught`),
+    or why it cannot be used."""
     tool = known.get(f.tool) if f.kind == "base" else None
     if isinstance(tool, str):
         return f"it was taught with tool {f.tool!r}, which is not known: {tool}"
-    pair = tool if isinstance(tool, tuple) else (tool, tool)
+    pair = tool_pair(tool, carry)  # the base's TCP on each model, as the program's targets take it
     try:
         (controller, spread) = _taught(f, nominal, pair[0])
         physical, _ = _taught(f, calibrated, pair[1], orientation)
