@@ -367,3 +367,54 @@ def test_a_failed_verification_case_never_reads_as_the_tolerance():
     lines = Verification(("a", "b"), dev).table().splitlines()
     assert lines[1].split()[-3:] == ["0.050034", "0.016678", "FAIL"]
     assert lines[4].split()[-3:] == ["0.0200", "0.0067", "PASS"]
+
+
+def test_analysis_plan_and_program_records_hand_out_read_only_arrays(ur5, tmp_path):
+    """Identifiability, ModelUncertainty, VerificationPlan, Verification and ProgramCompensation are frozen the way a
+    calibration is: an edit in place of an array (or dict) they hand out raises, and what they report stays what an
+    independent numpy computation gives (before, ident.singular_values[0] = 0 went through and str(ident) followed)."""
+    from kincal.analysis import identifiability, stacked_jacobian
+    from kincal.compensate import compensate_program, verification_plan
+    from kincal.io import read_program
+
+    q = ur5.sample_joints(30, seed=2)
+    ident = identifiability(ur5, q)
+    J = stacked_jacobian(ur5, q, ident.candidates)
+    norms = np.linalg.norm(J, axis=0)
+    live = norms > 1e-9 * norms.max()
+    s = np.linalg.svd(J[:, live] / norms[live], compute_uv=False)
+    assert np.allclose(ident.singular_values, s, rtol=1e-9, atol=1e-12 * s[0])
+    assert ident.rank == int(np.sum(s > 3e-5 * s[0]))
+    true = kincal.perturb(ur5, seed=1)
+    res = kincal.calibrate(ur5, kincal.simulate(true, q, NOISE, seed=3), diagnose=False)
+    unc = res.uncertainty()
+    q_test = ur5.sample_joints(4, seed=9)
+    Jp = res.robot.param_jacobian(q_test)[:, :, res.robot.params.indices(unc.names)]  # (N, 3, K)
+    mine = np.sqrt(np.einsum("nik,kl,nil->n", Jp, np.array(unc.covariance), Jp))
+    assert np.allclose(unc.sigma(res.robot, q_test), mine, rtol=1e-9)
+    puu = kincal.load_robot("puu3")
+    plan = verification_plan(puu, puu.sample_joints(4, seed=1), names=["L1", "L2"])
+    v = puu.params.values.copy()
+    v[puu.params.index("L2")] += 1e-3  # the case's unit error, 1 mm
+    assert np.allclose(plan.predicted[1], puu.forward(plan.q_samples, v), atol=1e-12)
+    check = plan.compare(puu.forward(plan.commands.reshape(-1, 3)))
+    path = tmp_path / "tcp.script"
+    path.write_text("movej([0.3, -1.2, 1.5, -1.9, 1.2, 0.4])\nset_tcp(p[0, 0, 0.1, 0, 0, 0])\n"
+                    "movej([0.5, -1.0, 1.3, -1.6, 1.0, 0.2])\n")
+    prog = compensate_program(true, ur5, read_program(str(path), "ur"))
+    assert np.allclose(true.forward(prog.q[:1]), ur5.forward(np.array([[0.3, -1.2, 1.5, -1.9, 1.2, 0.4]])), atol=1e-9)
+    arrays = [("ident.singular_values", ident.singular_values), ("unc.covariance", unc.covariance),
+              ("unc.lower", unc.lower), ("unc.upper", unc.upper), ("plan.q_samples", plan.q_samples),
+              ("plan.predicted", plan.predicted), ("plan.commands", plan.commands),
+              ("verification.deviations", check.deviations), ("program.q", prog.q)]
+    for name, a in arrays:
+        assert not a.flags.writeable, name
+        with pytest.raises(ValueError, match="assignment destination is read-only"):
+            a[...] = 0.0
+    for name, d in [("ident.confounds", ident.confounds), ("program.refused", prog.refused),
+                    ("program.texts", prog.texts)]:
+        with pytest.raises(TypeError, match="belongs to a frozen result"):
+            d[0] = "edited"
+    assert np.allclose(ident.singular_values, s, rtol=1e-9, atol=1e-12 * s[0])  # unchanged by the attempts
+    assert f"rank gap {s[ident.rank - 1] / s[ident.rank]:.3g}" in str(ident)
+    assert check.passed.tolist() == [True, True] and np.abs(check.deviations).max() < 1e-9

@@ -201,9 +201,39 @@ def test_plane_offsets_in_another_unit_are_named(ur5):
                           (1e-1, "0.1 times theirs, a power of ten: stated in another unit than the file's")):
         with pytest.raises(kincal.MeasurementError) as err:
             fit_observations(ur5, [scaled(factor)])
-        assert f"table and step are stated {0.1 * factor:.4g} m apart" in str(err.value)
-        assert f"puts their contacts {seen:.4g} m apart: {words}" in str(err.value)
+        assert f"table and step are stated {100 * factor:.4g} mm apart" in str(err.value)  # 100 mm x the unit's
+        assert f"puts their contacts {seen * 1e3:.4g} mm apart: {words}" in str(err.value)
     assert fit_observations(ur5, [scaled(1.0, -2e-3)]).per_set[0]["samples"] == 60
+
+
+def test_socket_messages_state_their_lengths_in_mm(tmp_path):
+    """A socket file in mm whose --distance was written in metres (0.3137 for 313.7 mm), a socket out of a SCARA's
+    reach and a σ beyond any instrument's: each message gives its length in mm, as the file and kincal's other
+    messages do (they said "stated as 0.0003137 m, but the robot file puts those points 0.3137 m apart", "[2.0, 0.0,
+    0.1] m")."""
+    from kincal.observe import ObservationFormat, read_observations, write_observations
+
+    robot = kincal.load_robot("scara")
+    a, b = robot.forward(np.array([[0.3, 0.5, 0.1, 0.0], [-0.4, 0.8, 0.05, 0.0]]))
+    obs = simulate_same_point(robot, {"a": a, "b": b}, per_point=3, std=20e-6, seed=1)
+    path = str(tmp_path / "sockets.csv")
+    fmt = ObservationFormat(kind="same-point", length_unit="mm", distances=(("a", "b", 0.3137),))
+    write_observations(path, obs, robot, fmt)
+    back = read_observations(path, robot, fmt)
+    p = robot.forward(obs.q)  # the points the robot file puts the two sockets at: the means of their samples
+    seen = np.linalg.norm(p[obs.labels == "a"].mean(axis=0) - p[obs.labels == "b"].mean(axis=0))
+    assert seen == pytest.approx(np.linalg.norm(a - b), abs=1e-4)
+    with pytest.raises(kincal.MeasurementError) as err:
+        back.prepare(robot)
+    assert (f"the distance a–b is stated as 0.3137 mm, but the robot file puts those points {seen * 1e3:.4g} mm apart: "
+            f"a thousandth of it, as if metres were stated in a file read in mm") in str(err.value)
+    assert f"{seen * 1e3:.4g}" == "313.7" and " m " not in str(err.value) + " "
+    far = np.array([2.0, 0.0, 0.1])  # 2 m from the base: beyond the SCARA's 0.65 m arm
+    with pytest.raises(kincal.ModelError, match=r"could not be reached by scara \(first: \[2000\.0, 0\.0, 100\.0\] "
+                                                r"mm\)"):
+        simulate_same_point(robot, {"a": a, "far": far}, per_point=1, std=0.0)
+    with pytest.raises(ValueError, match=r"std_pos 2e\+07 mm is more than any instrument's σ"):
+        ObservationFormat(kind="same-point", std_pos=2e4)  # 20 km
 
 
 def test_plane_contacts_name_a_real_outlier_and_not_their_noise():
@@ -303,8 +333,8 @@ def test_panda_sockets_as_the_authors_protocol(tmp_path):
     with pytest.raises(kincal.MeasurementError, match="scale is unobservable"):
         fit_observations(robot, [sockets(train, distance=False)])
     in_mm = dataclasses.replace(sockets(train), distances=(("front_center/0", "front_center/1", 50.0),))
-    with pytest.raises(kincal.MeasurementError, match="stated as 50 m, but the robot file puts those points "
-                                                      "0.05.. m apart: it looks like mm"):
+    with pytest.raises(kincal.MeasurementError, match="stated as 50000 mm, but the robot file puts those points "
+                                                      r"5\d\.\d+ mm apart: it looks like mm"):
         fit_observations(robot, [in_mm])
     in_m_read_as_mm = dataclasses.replace(sockets(train), distances=(("front_center/0", "front_center/1", 0.05e-3),))
     with pytest.raises(kincal.MeasurementError, match="as if metres were stated in a file read in mm"):

@@ -19,6 +19,7 @@ from typing import Sequence, cast
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..models.robot import Robot
 from ..ties import first_best, order_with_ties
 from .observability import column_norms, live_columns
@@ -122,6 +123,9 @@ class Identifiability:
     kinds: dict = field(default_factory=dict)  # name -> "length" or "angle": the confounds' units
     frames: tuple[str, ...] = ()  # held as gauge freedoms of a closed chain's design frames (Robot.frame_freedoms)
     frames_note: str = ""  # which frames, in words
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # the arrays it hands out: what it prints cannot drift from what it computed
 
     @property
     def full_rank(self) -> bool:

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._csv import listed
+from .._frozen import freeze_arrays
 from ..errors import ModelError
 from ..models.robot import Robot
 from ..models.yaml_io import load_calibration_record
@@ -92,6 +93,9 @@ class ModelUncertainty:
     upper: np.ndarray | None = None
     envelope_sigma: float | None = None  # 95th percentile of σ over the training joint ranges (m); None: not recorded
     measured_point: np.ndarray | None = None  # (3,) m in the flange frame: where the references' σ are; None: unknown
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # the arrays it hands out: what it prints cannot drift from what it computed
 
     @classmethod
     def from_fit(cls, robot: Robot, names, covariance: np.ndarray, q_train: np.ndarray) -> "ModelUncertainty":

@@ -19,6 +19,7 @@ from typing import Callable
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..io.program_ur import write as write_ur
 from ..io.programs import Program, Target
 from ..models.robot import Robot
@@ -105,6 +106,9 @@ class ProgramCompensation:
     not_literal: tuple[tuple[int, str, str], ...]
     refused: dict
     kept: tuple[tuple[int, str, str], ...] = ()
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # the arrays it hands out: what it prints cannot drift from what it computed
 
 
 def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: np.ndarray | None = None,

@@ -17,6 +17,7 @@ from typing import Sequence
 import numpy as np
 
 from .._csv import read_text
+from .._frozen import freeze_arrays
 from ..analysis.sensitivity import UNIT
 from ..errors import MeasurementError, ModelError
 from ..io.measurements import write_csv
@@ -87,6 +88,9 @@ class VerificationPlan:
     predicted: np.ndarray
     commands: np.ndarray
     units: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # the arrays it hands out: what it prints cannot drift from what it computed
 
     def compare(self, measured: np.ndarray, tolerance: float = 50e-6) -> "Verification":
         """Compare the positions measured at the commands with the predictions.
@@ -245,6 +249,9 @@ class Verification:
     deviations: np.ndarray
     tolerance: float = 50e-6
     units: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # the arrays it hands out: what it prints cannot drift from what it computed
 
     @property
     def passed(self) -> np.ndarray:

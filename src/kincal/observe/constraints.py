@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import MeasurementError
 from ..models.robot import Robot
-from ..units import LENGTH_UNITS, MM, OTHER_LENGTHS
+from ..units import LENGTH_UNITS, MM, OTHER_LENGTHS, fine
 from .observations import Observation, error_stats
 
 
@@ -131,8 +131,8 @@ class SamePointObs(Observation):
     >>> dataclasses.replace(obs, distances=(("a", "b", d * 1e3),)).prepare(robot)
     Traceback (most recent call last):
     ...
-    kincal.errors.MeasurementError: simulated scara sockets: the distance a–b is stated as 313.686 m, but the
-    robot file puts those points 0.3137 m apart: it looks like mm; give distances in m
+    kincal.errors.MeasurementError: simulated scara sockets: the distance a–b is stated as 313686 mm, but the
+    robot file puts those points 313.7 mm apart: it looks like mm; give distances in m
     """
 
     labels: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=str))
@@ -186,8 +186,9 @@ class SamePointObs(Observation):
                                        f"has (labels: {', '.join(self.points()[:10])})")
             seen = float(np.linalg.norm(at[a] - at[b]))
             if not (d > 0 and SCALE_LIMIT ** -1 < d / max(seen, 1e-12) < SCALE_LIMIT):
-                raise MeasurementError(f"{self.source}: the distance {a}–{b} is stated as {d:g} m, but the robot file "
-                                       f"puts those points {seen:.4g} m apart{_unit_hint(d, seen, 'distances')}")
+                raise MeasurementError(f"{self.source}: the distance {a}–{b} is stated as {fine(d, 'length', 'g')}, "
+                                       f"but the robot file puts those points {fine(seen, 'length', '.4g')} apart"
+                                       f"{_unit_hint(d, seen, 'distances')}")
         return self
 
     def nuisance(self, robot: Robot):
@@ -348,8 +349,9 @@ class PlaneObs(Observation):
                 seen = abs(float(np.mean(p[self.labels == a] @ na) - turn * np.mean(p[self.labels == b] @ nb)))
                 if abs(stated - seen) > STEP_SLACK and not SCALE_LIMIT ** -1 < stated / max(seen, 1e-12) < SCALE_LIMIT:
                     raise MeasurementError(
-                        f"{self.source}: the known planes {a} and {b} are stated {stated:.4g} m apart (offsets {ca:g} "
-                        f"and {cb:g} m), but the robot file puts their contacts {seen:.4g} m apart"
+                        f"{self.source}: the known planes {a} and {b} are stated {fine(stated, 'length', '.4g')} apart "
+                        f"(offsets {ca * MM:g} and {fine(cb, 'length', 'g')}), but the robot file puts their contacts "
+                        f"{fine(seen, 'length', '.4g')} apart"
                         f"{_unit_hint(stated, seen, 'plane offsets')}")
 
     def nuisance(self, robot: Robot):

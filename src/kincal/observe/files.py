@@ -26,7 +26,7 @@ from .._atomic import write_text_atomic
 from .._csv import LIMIT, Table, open_table
 from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
-from ..units import joint_factors, joint_units, unit_factor
+from ..units import fine, joint_factors, joint_units, unit_factor
 from .constraints import PlaneObs, SamePointObs
 from .markers import MarkersObs
 from .observations import Observation, PointObs, PoseObs, flange_point
@@ -165,7 +165,7 @@ class ObservationFormat:
                 raise ValueError(f"plane {label}: give a non-zero normal and an offset a robot can reach (in "
                                  f"{self.length_unit}), got {', '.join(f'{v:g}' for v in n)}, {c:g}")
         if self.std_pos is not None and self.std_pos > LIMIT["length"]:
-            raise ValueError(f"std_pos {self.std_pos:g} m is more than any instrument's σ")
+            raise ValueError(f"std_pos {fine(self.std_pos, 'length', 'g')} is more than any instrument's σ")
 
     @property
     def label(self) -> str:

@@ -13,6 +13,7 @@ from ..observe.constraints import PlaneObs, SamePointObs
 from ..observe.markers import MarkersObs
 from ..observe.observations import PoseObs, flange_point
 from ..models.robot import Robot
+from ..units import MM
 
 IK_TOL = 1e-9  # m
 
@@ -189,7 +190,7 @@ def reach(true: Robot, targets: np.ndarray, seed: int = 0, max_rounds: int = 20,
     q[todo] = np.nan
     if todo.size and strict:
         raise ModelError(f"{todo.size} target point(s) could not be reached by {true.name} (first: "
-                         f"{targets[todo[0]].round(4).tolist()} m)")
+                         f"{((targets[todo[0]] * MM).round(1) + 0.0).tolist()} mm)")  # + 0.0: no -0.0
     return q
 
 
