@@ -280,7 +280,7 @@ def test_a_bumped_tracker_is_named_with_its_row():
     """A frame that moves by 2 mm and turns by 3 mrad at row 151 of one file: the diagnosis names the
     jump and its row first, and with the file split the residual falls to the noise; the data as
     simulated (no jump) give no jump, the model as fitted or as true."""
-    from kincal.io.unit_checks import frame_jump
+    from kincal.models.unit_checks import frame_jump
 
     robot, true, meas = _bumped(0.002, 0.003)
     res = kincal.calibrate(robot, meas)

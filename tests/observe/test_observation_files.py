@@ -766,3 +766,32 @@ def test_the_authors_one_placement_protocol_from_the_command_line(tmp_path, caps
     assert abs(fit["mean_abs"] * 1e3 - 0.167) < 0.002
     assert main([*base, "--distance", "0,9,50"]) == 1
     assert "the distance 0–9 names label(s) 9 that column 'socket' does not have" in capsys.readouterr().err
+
+
+def test_the_python_reader_makes_the_point_readers_unit_checks(tmp_path, ur5):
+    """`read_observations` from Python made none of the unit checks `calibrate --type` makes after it: the
+    positioner's poses (m) read as mm, and a pose file whose joints were written in degrees read as radians, came
+    back as data; the reader now refuses both as the point reader does, naming the unit."""
+    robot = kincal.load_robot(POSITIONER_MODEL)
+    with pytest.raises(kincal.MeasurementError, match="they look like m; use length unit 'm'"):
+        read_observations(POSITIONER / "measurements.csv", robot, ObservationFormat("pose", ("q1", "q2"), "mm"))
+    q = ur5.sample_joints(30, seed=4)
+    obs = simulate_poses(ur5, q, TARGET, std_pos=0.0, std_rot=0.0)
+    fmt = ObservationFormat("pose", tuple(JOINTS), "mm", "deg")
+    path = tmp_path / "poses.csv"
+    kincal.observe.write_observations(str(path), obs, ur5, fmt)
+    back = read_observations(path, ur5, fmt)  # as written: the joints come back in rad
+    assert np.allclose(back.q, q, rtol=0.0, atol=1e-9)
+    largest = np.degrees(np.abs(q)).max()  # what the file holds, read as rad
+    with pytest.raises(kincal.MeasurementError, match=f"reach {largest:.4g} rad .*look like degrees"):
+        read_observations(path, ur5, ObservationFormat("pose", tuple(JOINTS), "mm", "rad"))
+
+
+def test_identifiability_refuses_joints_in_degrees(ur5):
+    """`identifiability(robot, q)` from Python took degrees as radians (joints up to 350 rad) and answered."""
+    from kincal.analysis import identifiability
+    q = ur5.sample_joints(30, seed=2)
+    assert len(identifiability(ur5, q).identifiable) == 27
+    with pytest.raises(kincal.MeasurementError, match=f"q: revolute joint values reach "
+                                                      f"{np.degrees(np.abs(q)).max():.4g} rad"):
+        identifiability(ur5, np.degrees(q))

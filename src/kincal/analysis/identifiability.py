@@ -21,6 +21,7 @@ import numpy as np
 
 from .._frozen import freeze_arrays
 from ..models.robot import Robot
+from ..models.unit_checks import joints_in_radians
 from ..ties import first_best, order_with_ties
 from .observability import column_norms, live_columns
 
@@ -266,6 +267,8 @@ def identifiability(robot: Robot, q: np.ndarray, names: Sequence[str] | None = N
         When ``rank_tol`` is not in (0, 1).
     ModelError
         For an unknown name in ``names`` or ``exclude``, or ``q`` of the wrong shape.
+    MeasurementError
+        When ``q`` looks like degrees (a call takes radians).
 
     See Also
     --------
@@ -288,6 +291,7 @@ def identifiability(robot: Robot, q: np.ndarray, names: Sequence[str] | None = N
     if not 0 < rank_tol < 1:
         raise ValueError(f"rank_tol={rank_tol}: the relative singular-value tolerance must lie in (0, 1)")
     q = robot.check_q(q)
+    joints_in_radians("q", q, robot)
     excluded = set(exclude)
     robot.params.indices(sorted(excluded))  # unknown names raise
     robot.params.indices(list(keep))  # and so do names to prefer that the robot does not have

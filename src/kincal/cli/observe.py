@@ -10,7 +10,6 @@ import numpy as np
 
 import kincal
 from kincal.identify import ABSOLUTE, fit_observations, refuse_inapplicable, set_cause, stat_line, trained_setup
-from kincal.io import check_joints, check_spread
 from kincal.observe import InSession, ObservationFormat, PointObs, read_observations
 from kincal.simulate import (plane_plan, simulate_markers, simulate_planes, simulate_poses, simulate_same_point,
                              socket_plan)
@@ -173,12 +172,7 @@ def format_of(args, kind: str, own_target: bool = False):
 def read_set(args, robot, path: str, kind: str, held_out: bool = False):
     """One observation file of ``kind`` read as ``args`` say, its joints and positions checked
     against the declared units before any fit (a wrong unit is fitted by a shrunk or blown-up robot)."""
-    obs = read_observations(path, robot, format_of(args, kind, held_out and args.refit_target))
-    found = obs.positions()  # the positions name the unit first (degrees, radians or revolutions), where there are any
-    if found is not None:
-        check_spread(obs.source, *found, robot, args.length_unit, args.angle_unit, rows=obs.rows)
-    check_joints(obs.source, obs.q, robot, args.length_unit, args.angle_unit, suggest=found is None)
-    return obs
+    return read_observations(path, robot, format_of(args, kind, held_out and args.refit_target))
 
 
 def sessions(sets: list, same_frame: bool) -> list:

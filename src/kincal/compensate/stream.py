@@ -26,7 +26,7 @@ from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapola
 from ..errors import MeasurementError
 from ..io.commands import CommandColumns
 from ..io.measurements import _file_scales, _joint_columns
-from ..io.unit_checks import SPREAD_RATIO, check_degrees, check_radians, check_spread
+from ..models.unit_checks import SPREAD_RATIO, check_degrees, check_radians, check_spread
 from ..models.robot import Robot
 from ..observe.files import check_pose_columns
 from ..observe.orientation import convention_check, default_columns, from_matrices, position_frame, to_matrices

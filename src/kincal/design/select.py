@@ -9,7 +9,7 @@ import numpy as np
 
 from .._threads import blas_threads
 from ..errors import IdentifiabilityError
-from ..io.unit_checks import joints_in_radians
+from ..models.unit_checks import joints_in_radians
 from ..models.robot import Robot
 from ..papers import GUO2024
 from ..ties import first_best

@@ -20,7 +20,7 @@ from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapola
 from ..checks import kind_of
 from ..errors import MeasurementError
 from ..io.measurements import Measurements
-from ..io.unit_checks import joints_in_radians
+from ..models.unit_checks import joints_in_radians
 from ..models.robot import Robot
 from ..models.terms import check_payload
 from ..observe import InSession, JointObs, PointObs

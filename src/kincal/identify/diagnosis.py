@@ -16,7 +16,7 @@ fit's set-up, listed in this canonical order (ties go to the earlier one, :mod:`
 7. the frame: ``base="fixed"`` on data measured in another frame (a tracker's);
 8. the tool point: not estimated, and mounted elsewhere than declared;
 9. a frame that jumps inside the file (two set-ups, a bumped tracker): the split
-   (:func:`kincal.io.unit_checks.frame_jump` on the fitted model) fitted as two sessions; several files
+   (:func:`kincal.models.unit_checks.frame_jump` on the fitted model) fitted as two sessions; several files
    fitted in one frame (``--same-frame``): each in a frame of its own;
 10. a few bad poses: the rows a robust refit puts beyond ``outlier_z`` robust σ, left out.
 
@@ -42,7 +42,7 @@ import numpy as np
 
 from ..errors import KincalError
 from ..io.measurements import Measurements
-from ..io.unit_checks import frame_jump
+from ..models.unit_checks import frame_jump
 from ..models.robot import TOOL_NAMES, Robot
 from ..units import ANGLE_UNITS, LENGTH_UNITS, MM, OTHER_LENGTHS
 from ..ties import order_with_ties

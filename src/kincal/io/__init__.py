@@ -5,7 +5,7 @@ from .programs import DIALECT_NAMES, Dialect, Program, Target, dialect_of, diale
 from .frames_file import TaughtFrame, read_frames
 from .branches import BITS, ROWS
 from .frames_data import FRAMES_FORMATS, check_frames_output, frame_numbers, write_frames_data
-from .unit_checks import check_degrees, check_joints, check_limits, check_radians, check_spread, joints_in_radians
+from ..models.unit_checks import check_degrees, check_joints, check_limits, check_radians, check_spread, joints_in_radians
 
 __all__ = ["Measurements", "read_joints", "read_measurements", "read_positions", "write_joints", "write_measurements",
            "write_residuals", "write_selected_rows", "check_degrees", "check_joints", "check_limits", "check_radians",

@@ -17,7 +17,7 @@ from ..checks import kind_of
 from ..errors import MeasurementError
 from ..models.robot import Robot
 from ..units import joint_factors, joint_units, unit_factor
-from .unit_checks import check_degrees, check_spread
+from ..models.unit_checks import check_degrees, check_spread
 
 
 @dataclass(frozen=True, eq=False, init=False)

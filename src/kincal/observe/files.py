@@ -26,6 +26,7 @@ from .._atomic import write_text_atomic
 from .._csv import LIMIT, Table, open_table
 from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
+from ..models.unit_checks import check_joints, check_spread
 from ..units import fine, joint_factors, joint_units, unit_factor
 from .constraints import PlaneObs, SamePointObs
 from .markers import MarkersObs
@@ -220,7 +221,9 @@ def read_observations(path: str, robot: Robot, fmt: ObservationFormat = Observat
         When the file cannot be read, its columns do not fit the type (named, with the option that names
         them), a cell is not a finite number or a σ is not > 0, a marker has some coordinates empty, a label
         is empty, a known distance or plane names a label the file does not have, an orientation is no
-        rotation in its convention or looks like another convention.
+        rotation in its convention or looks like another convention, or the joints or positions look like another
+        unit than ``fmt``'s (degrees read as radians and the reverse; positions whose spread is 1000 times the
+        robot's own at the same joints), the checks the point reader makes.
 
     See Also
     --------
@@ -255,7 +258,18 @@ def read_observations(path: str, robot: Robot, fmt: ObservationFormat = Observat
     q = _joints(table, robot, fmt)
     lf = unit_factor(fmt.length_unit, "length")
     reader = {"point": _point, "pose": _pose, "markers": _markers, "same-point": _same_point, "plane": _plane}
-    return reader[fmt.kind](table, robot, fmt, q, lf)
+    obs = reader[fmt.kind](table, robot, fmt, q, lf)
+    _check_units(obs, robot, fmt)
+    return obs
+
+
+def _check_units(obs: Observation, robot: Robot, fmt: ObservationFormat) -> None:
+    """The readers' unit checks, as the point reader makes them: the measured positions' spread against the robot's
+    own at the same joints (where the kind has positions: they name the unit first), then the joints' unit."""
+    found = obs.positions()
+    if found is not None:
+        check_spread(obs.source, *found, robot, fmt.length_unit, fmt.angle_unit, rows=obs.rows)
+    check_joints(obs.source, obs.q, robot, fmt.length_unit, fmt.angle_unit, suggest=found is None)
 
 
 def _joints(t: Table, robot: Robot, fmt: ObservationFormat) -> np.ndarray:

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..checks import number
 from ..io.measurements import Measurements
-from ..io.unit_checks import joints_in_radians
+from ..models.unit_checks import joints_in_radians
 from ..models.robot import Robot
 from .observations import (plane_plan, reach, simulate_markers, simulate_planes, simulate_poses, simulate_same_point,
                            socket_plan)

@@ -8,8 +8,8 @@ from contextlib import suppress
 import numpy as np
 
 from ..errors import MeasurementError, ModelError
-from ..models.robot import Robot
-from ..models.transforms import kabsch, rotvec_matrix
+from .robot import Robot
+from .transforms import kabsch, rotvec_matrix
 from ..ties import first_best
 from .._stats import spread
 from ..units import ANGLE_UNITS, LENGTH_UNITS, OTHER_LENGTHS, joint_units
