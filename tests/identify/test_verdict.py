@@ -377,6 +377,13 @@ def test_keeping_a_base_confound_is_not_an_underdetermined_base(ur5):
     assert round(float(np.linalg.norm(kept.residuals, axis=1).mean()) * 1e3, 4) == 0.1020
     assert kept.verdict.status == plain.verdict.status == "good"
     assert "base-underdetermined" not in [r.code for r in kept.verdict.reasons]
+    # base.rz is not nominal (0) but where the frame's registration put it, and j1.theta holds only the rest: the two
+    # add up to the default fit's base.rz (it printed "base.rz not estimated (kept nominal)")
+    rz, theta = kept.robot.params.as_dict()["base.rz"], kept.robot.params.as_dict()["j1.theta"]
+    assert rz != 0.0 and rz + theta == pytest.approx(plain.robot.params.as_dict()["base.rz"], abs=1e-7)
+    said = kept.dropped_text()
+    assert "base.rz not estimated (held where the measurement frame's registration put it" in said
+    assert "base.rz" not in said.split("(kept nominal)")[0].split("; ")[-1]
 
 
 @pytest.mark.parametrize("keep", [(), ("j1.theta",)])

@@ -308,8 +308,16 @@ class CalibrationResult:
             head += (f"{', '.join(moved)} moved by the particle swarm too, but not determined by the data (σ "
                      f"undetermined): only its combination with the parameters it acts like is fitted")
         kept = [n for n in ident.dropped if n not in self.names]
+        at = self.robot.params.as_dict()
+        nominal = self.nominal.params.as_dict()
+        registered = [n for n in kept if n in nominal and at[n] != nominal[n]]  # a base frame's, where it was put
+        kept = [n for n in kept if n not in registered]
         if kept:
             head += ("; " if moved else "") + f"{', '.join(kept)} not estimated (kept nominal)"
+        if registered:
+            head += (("; " if moved or kept else "") + f"{', '.join(registered)} not estimated (held where the "
+                     f"measurement frame's registration put it: the data cannot tell it from the parameters it "
+                     f"acts like, whose values hold only the rest)")
         if self.weak:  # identifiable, yet held: the count above includes them
             head += (f"; {', '.join(self.weak)} identifiable but kept nominal too (determined worse than a real "
                      f"robot's error)")
