@@ -171,6 +171,35 @@ def test_pso_history_is_kept(puu3_data):
     assert res.to_dict()["history"] == list(res.history)
 
 
+def test_pso_sigma_of_a_parameter_in_an_undetermined_parameters_confound(puu3_data):
+    """The swarm moves R, which only R - r determines, so r's value is where R was left: its sigma was 1.3 um (the
+    pseudo-inverse's minimum-norm split, half of what LM gives with R held) while r sat 1.3 mm from the truth. Now
+    its sigma holds R's search box (uniform +-8 mm, variance 64/3 mm^2): sqrt(sigma_LM^2 + 64e-6/3), and the model's
+    predicted sigma, along that confound, stays the LM fit's."""
+    robot, meas = puu3_data
+    names = ["r", "R", "L1", "L2", "L3"]
+    res = kincal.calibrate(robot, meas, base="fixed", residual="joint", method="pso", names=names,
+                           pso={"particles": 60, "iterations": 40})
+    assert res.identifiability.confounds["R"] == (("r", pytest.approx(-1.0, abs=1e-6)),)
+    assert np.isinf(res.std["R"])
+    cal = res.robot
+    v0 = cal.params.as_dict()
+
+    def residual(values):  # the joint-space residual, rad (one sigma for every row: it cancels below)
+        return (cal.with_params(values).inverse(meas.xyz) - meas.q).ravel()
+    r = residual(v0)
+    J = np.stack([(residual({**v0, n: v0[n] + 1e-7}) - residual({**v0, n: v0[n] - 1e-7})) / 2e-7
+                  for n in ("r", "L1", "L2", "L3")], axis=1)  # central differences; R held where it is: LM's rule
+    held = np.linalg.inv(J.T @ J) * float(r @ r) / (r.size - len(names))
+    assert res.std["r"] == pytest.approx(np.sqrt(held[0, 0] + 64e-6 / 3.0), rel=1e-9)
+    assert res.std["L1"] == pytest.approx(np.sqrt(held[1, 1]), rel=1e-9)
+    q = meas.q[:20]
+    Jp = np.stack([(cal.with_params({**v0, n: v0[n] + 1e-7}).forward(q) - cal.with_params({**v0, n: v0[n] - 1e-7})
+                    .forward(q)) / 2e-7 for n in ("r", "L1", "L2", "L3")], axis=2)  # (20, 3, 4) m per m
+    expected = np.sqrt(np.einsum("nak,kl,nal->n", Jp, held, Jp))  # R held: the drift moves no prediction
+    assert res.uncertainty().sigma(cal, q) == pytest.approx(expected, rel=1e-3)
+
+
 def test_problem_refuses_too_little_data_before_solving(puu3_data, monkeypatch):
     robot, meas = puu3_data
     few = meas.subset(np.arange(1))

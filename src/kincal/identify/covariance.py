@@ -29,13 +29,27 @@ def normal_inverse(J: np.ndarray) -> np.ndarray:
     return spd_inverse(J.T @ J, column_norms(J))
 
 
-def parameter_statistics(J: np.ndarray, r: np.ndarray, names: Sequence[str],
-                         undetermined: Sequence[str] = ()) -> tuple[np.ndarray, np.ndarray]:
+def parameter_statistics(J: np.ndarray, r: np.ndarray, names: Sequence[str], undetermined: Sequence[str] = (),
+                         drift: Sequence[tuple[str, float, Sequence[tuple[str, float]]]] = ()
+                         ) -> tuple[np.ndarray, np.ndarray]:
     """Standard deviations (K,) and covariance (K, K) (m, rad) of the fitted parameters ``names`` (the
-    columns of J) with residual r: σ̂²(JᵀJ)⁻¹. Names in ``undetermined`` get σ = inf and zero
-    rows/columns in the covariance."""
+    columns of J) with residual r: σ̂²(JᵀJ)⁻¹. Names in ``undetermined`` get σ = inf, the others' covariance is
+    taken with those where they are (their columns left out). Each (name, variance, combination) in ``drift`` is an
+    undetermined parameter left anywhere along its confound (a particle swarm's search box: the variance of its
+    value) and the determined parameters it acts like, with their coefficients c: the covariance gains variance ·
+    v vᵀ along the direction v that moves it by 1 and each of those by −c, which leaves every prediction as it is
+    (its rows are the undetermined parameter's only entries)."""
     dof = max(r.size - J.shape[1], 1)
     without = set(undetermined)
     ok = np.array([n not in without for n in names], dtype=bool)
-    cov = np.where(np.outer(ok, ok), normal_inverse(J) * (float(r @ r) / dof), 0.0)
+    cov = np.zeros((len(names), len(names)))
+    cov[np.ix_(ok, ok)] = normal_inverse(J[:, ok]) * (float(r @ r) / dof)
+    where = {n: k for k, n in enumerate(names)}
+    for name, variance, combination in drift:
+        v = np.zeros(len(names))
+        v[where[name]] = 1.0
+        for n, coefficient in combination:
+            if n in where and ok[where[n]]:
+                v[where[n]] = -coefficient
+        cov += variance * np.outer(v, v)
     return np.where(ok, np.sqrt(np.maximum(np.diag(cov), 0.0)), np.inf), cov

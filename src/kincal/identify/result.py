@@ -291,7 +291,9 @@ class CalibrationResult:
 
     @functools.cached_property
     def _uncertainty(self) -> ModelUncertainty:
-        ok = [n for n in self.names if np.isfinite(self.std[n])]
+        # what the covariance covers: a parameter a swarm left undetermined too (σ inf), moving with those it acts like
+        ok = [n for n in self.names if np.isfinite(self.std[n]) or self.covariance[self.free.index(n)][
+            self.free.index(n)] > 0]
         at = [self.free.index(n) for n in ok]
         q = np.concatenate([o.q for o in self.observations])
         return ModelUncertainty.from_fit(self.robot, tuple(ok), self.covariance[np.ix_(at, at)], q)

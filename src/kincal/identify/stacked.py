@@ -33,6 +33,7 @@ from ..analysis.changes import Repeat
 from .repeat import repeat_of
 from .lm import LMResult
 from .options import FitOptions, PSOOptions
+from .pso import HALF_WIDTH
 from .noise import extra_variance
 from .result import CalibrationResult
 from .judge import component_kinds, outlier_samples
@@ -406,6 +407,14 @@ def _session_start(robot: Robot, obs):
     return dataclasses.replace(obs, frame0=moved.params.values[moved.params.indices(robot.base_params())])
 
 
+def _swarm_drift(robot: Robot, ident, moved) -> list[tuple[str, float, tuple]]:
+    """For each parameter a particle swarm moved that the data do not determine: its name, the variance of a value
+    anywhere in its search box (uniform, half-width :data:`HALF_WIDTH` of its kind, m or rad) and the determined
+    parameters it acts like (its confound), whose values move with it."""
+    kinds = dict(zip(robot.params.names, robot.params.kinds))
+    return [(d, HALF_WIDTH[kinds[d]] ** 2 / 3.0, ident.confounds.get(d, ())) for d in moved if d in kinds]
+
+
 def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit, weak, o: FitOptions, error: dict,
             spent: list, history: tuple[float, ...], undetermined=()) -> CalibrationResult:
     """The fit of the columns ``free`` as a :class:`CalibrationResult` with options ``o`` (``models``: the model as given,
@@ -421,7 +430,8 @@ def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit,
         cov, learned = fit.covariance, fit.sigma
         sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     else:
-        sd, cov = parameter_statistics(fit.jacobian, fit.residual, free, undetermined)
+        sd, cov = parameter_statistics(fit.jacobian, fit.residual, free, undetermined,
+                                       _swarm_drift(robot, ident, undetermined))
         learned = {}
     std = {n: float(v) for n, v in zip(free, sd)}
     std.update({n: np.inf for n in st.nuis_names if n not in std})
