@@ -13,7 +13,9 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
+from ..errors import ModelError
 from ..models.robot import TOOL_NAMES, Robot
+from ..models.yaml_io import robot_to_yaml
 
 KINDS = ("calibration", "evaluation", "check", "comparison", "event")
 TIME_FORMAT = "%Y-%m-%dT%H:%M:%S.%fZ"  # UTC, microseconds always: the text sorts as the time does
@@ -447,6 +449,15 @@ def _about(command: str, robot: Robot | None = None) -> dict:
     return out
 
 
+def _model_text(robot: Robot) -> str | None:
+    """The calibrated robot's file text in SI units (it loads back exactly), which the history compares
+    consecutive calibrations by (:func:`kincal.history.steps`); None for a kind of model kincal has no file for."""
+    try:
+        return robot_to_yaml(robot)
+    except ModelError:
+        return None
+
+
 def calibration_record(result: Any, identity: Identity, inputs: Iterable[InputFile],
                        heldout: Iterable[Any] | None = None, note: str = "", command: str = "",
                        covariates: Mapping | None = None, time: str | datetime | None = None) -> Record:
@@ -455,7 +466,8 @@ def calibration_record(result: Any, identity: Identity, inputs: Iterable[InputFi
     It keeps every robot parameter's value, the fitted ones' σ, the identifiable set (finite σ) and its
     covariance, the verdict, the training figures (the kept poses of position data, else every set's
     position statistics) and the held-out ones, the mounting, the covariates and, in the payload, the
-    calibrated file's ``calibration`` section, the command, kincal's version and the parameters' kinds.
+    calibrated file's ``calibration`` section, the calibrated model's file text (SI: it loads back exactly;
+    the history compares calibrations by it), the command, kincal's version and the parameters' kinds.
 
     Parameters
     ----------
@@ -506,7 +518,8 @@ def calibration_record(result: Any, identity: Identity, inputs: Iterable[InputFi
     figures |= _combined(heldout or (), "heldout")
     mounting = None if not result.mounting else {
         "tool_point": robot.tool_point(), "declared_tool_point": result.nominal.tool_point(), "text": result.mounting}
-    payload = _about(command, robot) | {"estimated": list(result.names), "calibration": json_safe(result.record())}
+    payload = _about(command, robot) | {"estimated": list(result.names), "calibration": json_safe(result.record()),
+                                        "model": _model_text(robot)}
     return Record(identity, "calibration", utc_time(time), result.verdict.status, tuple(inputs),
                   robot.params.as_dict(), sigmas, ident, covariance, figures, mounting, dict(covariates or {}), note,
                   payload)
