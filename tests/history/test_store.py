@@ -8,12 +8,16 @@ import io
 import json
 import os
 import re
+import shutil
 import signal
+import subprocess
+import sys
 import time
 import traceback
 import uuid
 from contextlib import redirect_stdout
 from datetime import datetime, timezone
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -133,7 +137,7 @@ def test_a_changed_nominal_model_is_recorded_and_flagged(url):
 
 
 def test_a_version_1_store_is_migrated_and_keeps_its_records(url):
-    engine = _engine(url)
+    engine, _ = _engine(url)
     assert migrate(engine, 1) == 1
     old = [sample(1, "2024-01-01T00:00Z"), sample(2, "2024-01-02T00:00Z", model="cd" * 32)]
     t = _tables(1).tables
@@ -584,3 +588,53 @@ def test_history_says_nothing_is_comparable_across_a_model_change(tmp_path, kinc
     assert (f"not judged: record #{ids[0]} and record #{ids[1]} are calibrations of different models (their "
             f"parameters differ: the nominal model changed), so nothing in them is comparable") in text
     assert "moved" not in text and "largest parameter differences" not in text
+
+
+def _as_user(argv: list[str]) -> subprocess.CompletedProcess | None:
+    """``kincal argv`` in a process a folder's mode binds: this user's when not root; root's without the
+    capabilities that override file modes (setpriv) when root; None when root and setpriv is missing."""
+    prefix = [] if os.geteuid() else ["setpriv", "--bounding-set", "-dac_override,-dac_read_search", "--"]
+    if prefix and shutil.which("setpriv") is None:
+        return None
+    env = {**os.environ, "PYTHONPATH": str(Path(kincal.__file__).parents[1])}
+    return subprocess.run([*prefix, sys.executable, "-m", "kincal.cli", *argv], capture_output=True, text=True,
+                          env=env, timeout=120)
+
+
+@pytest.mark.slow  # two kincal processes: about 3 s
+def test_a_store_in_a_read_only_folder_is_read_and_not_written(tmp_path, kincal_main, capsys, monkeypatch):
+    """`history ur5 --store /ro/r.db` said 'cannot be opened: unable to open database file' (the store's WAL mode
+    wants its -shm file beside it, and the folder takes none): the store is read through SQLite's read-only URI
+    (immutable: no write-ahead log beside it), and a record into it is refused naming the folder. Run for real
+    where the folder's mode binds (not root, or root without CAP_DAC_OVERRIDE); in-process with the folder's
+    check answering 'not writable', as it does there."""
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    store = folder / "s.db"
+    records = history(store)
+    folder.chmod(0o555)
+    try:
+        real = [_as_user(["history", "cell-3", "--store", str(store), *argv]) for argv in (["--json"], ["--event", "x"])]
+        if real[0] is not None and real[1] is not None:
+            assert real[0].returncode == 0, real[0].stderr
+            assert len(json.loads(real[0].stdout)["records"]) == len(records)
+            assert real[1].returncode == 1 and f"nothing recorded: the calibration store {store} can only be read " \
+                f"(the folder {folder} is not writable)" in " ".join(real[1].stderr.split())
+        access = os.access
+        monkeypatch.setattr(os, "access", lambda p, mode, **k: False if mode & os.W_OK and Path(p) in (folder, store)
+                            else access(p, mode, **k))
+        assert kincal_main(["history", "cell-3", "--store", str(store), "--json"]) == 0
+        assert len(json.loads(capsys.readouterr().out)["records"]) == len(records)
+        assert kincal_main(["history", "cell-3", "--store", str(store), "--event", "crash"]) == 1
+        assert f"can only be read (the folder {folder} is not writable)" in " ".join(capsys.readouterr().err.split())
+        with open_store(str(store)) as opened, opened.engine.connect() as conn:
+            assert opened.read_only == f"the folder {folder} is not writable"
+            with pytest.raises(sa.exc.OperationalError, match="readonly database"):  # opened read-only
+                conn.exec_driver_sql("DELETE FROM records")
+        with pytest.raises(StoreError, match=f"the folder {folder} is not writable, so the store cannot be created"):
+            open_store(str(folder / "new.db"))
+        assert sorted(p.name for p in folder.iterdir()) == ["s.db"]  # nothing written beside it
+    finally:
+        folder.chmod(0o755)
+    with open_store(str(store)) as s:
+        assert [r for _, r in s.records("cell-3")] == records  # nor in it
