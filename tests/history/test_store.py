@@ -16,7 +16,7 @@ import time
 import traceback
 import uuid
 from contextlib import redirect_stdout
-from datetime import datetime, timezone
+from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
 import numpy as np
@@ -638,3 +638,51 @@ def test_a_store_in_a_read_only_folder_is_read_and_not_written(tmp_path, kincal_
         folder.chmod(0o755)
     with open_store(str(store)) as s:
         assert [r for _, r in s.records("cell-3")] == records  # nor in it
+
+
+def test_impossible_and_repeated_records_are_refused(tmp_path, kincal_main, capsys):
+    """The same calibration recorded twice (same file, options and --at: the same sha256 and results), records
+    dated in the future, and an evaluation dated before the calibration it evaluates were all kept; an evaluation
+    did not say which calibration it evaluated. Each is refused now, naming the record it repeats or predates;
+    an evaluation keeps the calibration's record id and the evaluated file's sha256."""
+    ur5 = kincal.load_robot("ur5")
+    meas = kincal.simulate(kincal.perturb(ur5, seed=2), ur5.sample_joints(40, seed=1), 10e-6, seed=1)
+    kincal.write_measurements(tmp_path / "m.csv", meas, ur5.joint_types)
+    store, cal = str(tmp_path / "s.db"), tmp_path / "c.yaml"
+    calibrate = ["calibrate", "ur5", str(tmp_path / "m.csv"), "--store", store, "--at", "2024-01-10T09:00Z"]
+    assert kincal_main([*calibrate, "-o", str(cal)]) == 0
+    capsys.readouterr()
+    assert kincal_main([*calibrate, "-o", str(tmp_path / "c2.yaml")]) == 1  # the same session again
+    said = " ".join(capsys.readouterr().err.split())
+    assert "nothing recorded: the same calibration is record 1 of the store" in said and "recorded already" in said
+    future = utc_time(datetime.now(timezone.utc) + timedelta(days=2))
+    with pytest.raises(SystemExit):
+        kincal_main([*calibrate[:-1], future])
+    assert "days in the future" in capsys.readouterr().err
+    assert kincal_main(["history", "ur5", "--store", store, "--event", "crash", "--at", future]) == 1
+    assert "nothing recorded: the time" in capsys.readouterr().err
+    evaluate = ["evaluate", str(cal), str(tmp_path / "m.csv"), "--store", store, "--at"]
+    assert kincal_main([*evaluate, "2024-01-09T09:00Z"]) == 1
+    assert (f"dated 2024-01-09 09:00 UTC, before the calibration it evaluates ({cal}: record 1, 2024-01-10 09:00 "
+            f"UTC)") in " ".join(capsys.readouterr().err.split())
+    assert kincal_main([*evaluate, "2024-01-10T10:00Z"]) == 0
+    with open_store(store) as s:
+        kept = s.records("ur5")
+    assert [(i, r.kind) for i, r in kept] == [(1, "calibration"), (2, "evaluation")]
+    assert kept[0][1].payload["output"]["sha256"] == hashlib.sha256(cal.read_bytes()).hexdigest()
+    assert kept[1][1].payload["evaluated"] == {"path": str(cal), "sha256": hashlib.sha256(cal.read_bytes()).hexdigest(),
+                                                "size": cal.stat().st_size, "record": 1}
+    moved = dataclasses.replace(kept[1][1], inputs=(dataclasses.replace(kept[1][1].inputs[0], path="other.csv"),))
+    with open_store(store) as s, pytest.raises(StoreError, match="the same evaluation is record 2"):
+        s.add(moved)  # the same data under another name: the same session
+
+
+def test_a_time_ahead_of_the_clock_by_more_than_five_minutes_is_refused():
+    from kincal.history import not_in_future
+
+    now = datetime(2024, 5, 3, 12, 0, tzinfo=timezone.utc)
+    not_in_future(utc_time(now + timedelta(seconds=300)), now)  # another computer's clock, a little ahead
+    with pytest.raises(ValueError, match=r"the time 2024-05-03 12:05 UTC is 5 min in the future \(now 2024-05-03 12:00"):
+        not_in_future(utc_time(now + timedelta(seconds=301)), now)
+    with pytest.raises(ValueError, match="is 2.0 h in the future"):
+        not_in_future(utc_time(now + timedelta(hours=2)), now)

@@ -51,10 +51,11 @@ def record(args, test: ChangeTest, path: str, robot, inputs: list[str]) -> str |
     from .report import nominal_model  # noqa: PLC0415  (the report's module imports the observation commands')
 
     nominal = nominal_model(robot, kincal.models.load_calibration_record(path), path) or robot
+    evaluated = {"evaluated": fingerprint(path).to_dict()} if test.question == "check" else {}  # the store links it
     return store_record(args, nominal, lambda identity, command: Record(
         identity, "check" if test.question == "check" else "comparison", utc_time(), test.verdict,
         tuple(fingerprint(p) for p in inputs), figures={"heldout_rms": test.rms},
-        payload={"command": command, "test": test.to_dict()}))
+        payload={"command": command, "test": test.to_dict(), **evaluated}))
 
 
 def _doubtful(path: str) -> None:

@@ -9,7 +9,8 @@ import shlex
 import sys
 
 from kincal.history import (Identity, Record, Step, Store, changed_parameters, event_record, history_figure, how_to_set,
-                            moves, not_compared, open_store, save_history_figure, steps, store_url, utc_time)
+                            moves, not_compared, not_in_future, open_store, save_history_figure, steps, store_url,
+                            utc_time)
 from kincal.identify import ALPHA
 from kincal.identify.change import EXPLAINED_MIN
 from kincal.units import MM, display
@@ -34,9 +35,10 @@ def add_store_flag(parser: argparse.ArgumentParser, recording: bool = True) -> N
 
 
 def iso_time(text: str) -> str:
-    """argparse type: a time kincal's store takes (:func:`kincal.history.utc_time`), as given."""
+    """argparse type: a time kincal's store takes (:func:`kincal.history.utc_time`), not in the future
+    (:func:`kincal.history.not_in_future`), as given."""
     try:
-        utc_time(text)
+        not_in_future(utc_time(text))
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     return text
@@ -139,7 +141,9 @@ def _table(rows: list[tuple[int, Record]], changed: set[int]):
         table.add_column(head, justify="right", no_wrap=True, min_width=len(head))
     table.add_column("note", overflow="fold")
     for rid, r in rows:
-        note = "; ".join(filter(None, ["nominal model changed" if rid in changed else "", r.note]))
+        of = (r.payload.get("evaluated") or {}).get("record")
+        note = "; ".join(filter(None, ["nominal model changed" if rid in changed else "",
+                                       f"evaluates #{of}" if of else "", r.note]))
         table.add_row(str(rid), r.time[:16].replace("T", " "), r.kind, r.verdict or "", _mm(r, "training_mean"),
                       _mm(r, "heldout_mean"), note)
     return table

@@ -17,6 +17,7 @@ the history says so beside it. Events carry no model and are never flagged.
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 import os
@@ -27,7 +28,7 @@ from urllib.parse import quote
 from typing import Any, Callable, Iterator
 
 from ..errors import KincalError
-from .records import Identity, Record
+from .records import Identity, Record, not_in_future
 
 SCHEMA_VERSION = 3
 BUSY_TIMEOUT_S = 60.0  # SQLite: how long a writer waits for another's transaction
@@ -403,14 +404,25 @@ class Store:
 
     def add(self, record: Record) -> int:
         """Record ``record`` (one transaction: the robot's row, the record, its parameter and input rows); its id.
-        A StoreError when the store can only be read (:attr:`read_only`)."""
+
+        An evaluation or check of a calibrated robot file (its payload's ``evaluated`` fingerprint) is linked to
+        the calibration record that wrote that file (``evaluated["record"]``, by the file's sha256). A StoreError,
+        nothing recorded, when the store can only be read (:attr:`read_only`), the record is dated in the future
+        (:func:`kincal.history.not_in_future`), says what one of the robot's records says already
+        (:meth:`Record.same_as`: the same session recorded twice), or is dated before the calibration it
+        evaluates."""
         if self.read_only:
             raise StoreError(f"nothing recorded: the calibration store {_shown(self.url)} can only be read "
                              f"({self.read_only}); record into a store in a writable folder, or make it writable")
+        try:
+            not_in_future(record.time)
+        except ValueError as exc:
+            raise StoreError(f"nothing recorded: {exc}") from None
         t, ident = self.tables, record.identity
         with write(self.engine) as conn:
             robot = conn.execute(t["robots"].select().where(t["robots"].c.name == ident.name,
                                                             t["robots"].c.serial == ident.serial)).first()
+            record = record if robot is None else self._checked(conn, robot.id, record)
             changed = bool(robot is not None and ident.model_hash and robot.model_hash
                            and ident.model_hash != robot.model_hash)
             if robot is None:
@@ -433,6 +445,33 @@ class Store:
             if record.inputs:
                 conn.execute(t["inputs"].insert(), [{"record_id": rid, **i.to_dict()} for i in record.inputs])
         return int(rid)
+
+    def _checked(self, conn, robot_id: int, record: Record) -> Record:
+        """``record`` for the robot ``robot_id``, checked against its records (:meth:`add`) and linked to the
+        calibration it evaluates; a StoreError naming the record it repeats or the calibration it predates."""
+        rec = self.tables["records"]
+        for rid, payload in conn.execute(rec.select().with_only_columns(rec.c.id, rec.c.payload).where(
+                rec.c.robot_id == robot_id, rec.c.kind == record.kind, rec.c.time == record.time,
+                rec.c.note == record.note)).all():
+            if as_record(payload, rid).same_as(record):
+                raise StoreError(f"nothing recorded: the same {record.kind} is record {rid} of the store "
+                                 f"{_shown(self.url)} (dated {record.time[:16].replace('T', ' ')} UTC, the same "
+                                 f"input files by their sha256, the same results): it was recorded already")
+        evaluated = record.payload.get("evaluated")
+        if not isinstance(evaluated, dict) or not evaluated.get("sha256"):
+            return record
+        made = [(rid, when) for rid, when, payload in conn.execute(
+            rec.select().with_only_columns(rec.c.id, rec.c.time, rec.c.payload).where(
+                rec.c.robot_id == robot_id, rec.c.kind == "calibration").order_by(rec.c.time, rec.c.id)).all()
+                if ((payload.get("payload") or {}).get("output") or {}).get("sha256") == evaluated["sha256"]]
+        if not made:
+            return record
+        rid, when = made[-1]
+        if record.time < when:
+            raise StoreError(f"nothing recorded: this {record.kind} is dated {record.time[:16].replace('T', ' ')} "
+                             f"UTC, before the calibration it evaluates ({evaluated.get('path')}: record {rid}, "
+                             f"{when[:16].replace('T', ' ')} UTC); give the time its data were taken with --at")
+        return dataclasses.replace(record, payload={**record.payload, "evaluated": {**evaluated, "record": rid}})
 
     def _read(self, query) -> list:
         with self.engine.connect() as conn, conn.begin():
