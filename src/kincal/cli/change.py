@@ -14,9 +14,11 @@ from .history import add_store_flag, store_of, store_record
 
 
 def calibrated(path: str) -> Calibrated:
-    """The calibrated robot file ``path`` with its calibration record (a clear error for any other file)."""
+    """The calibrated robot file ``path`` with its calibration record (a clear error for any other file: the record
+    is read first, so a URDF is not given the URDF reader's advice, --tip-link, which compare and check refuse)."""
     check_paths([path], [])
-    return Calibrated.of(kincal.load_robot(path), kincal.models.load_calibration_record(path), path)
+    record = Calibrated.required(kincal.models.load_calibration_record(path), path)
+    return Calibrated.of(kincal.load_robot(path), record, path)
 
 
 def _alpha(s: str) -> float:
