@@ -8,18 +8,23 @@ import io
 import json
 import os
 import re
+import shutil
 import signal
+import subprocess
+import sys
 import time
 import traceback
 import uuid
 from contextlib import redirect_stdout
-from datetime import datetime, timezone
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
 
 import numpy as np
 import pytest
 import sqlalchemy as sa
 
 import kincal
+from conftest import DATA, UR5_COLS
 from kincal.history import (SCHEMA_VERSION, Identity, InputFile, Record, StoreError, calibration_record,
                             event_record, fingerprint, history_figure, migrate, model_hash, open_store,
                             save_history_figure, store_url, utc_time)
@@ -132,7 +137,7 @@ def test_a_changed_nominal_model_is_recorded_and_flagged(url):
 
 
 def test_a_version_1_store_is_migrated_and_keeps_its_records(url):
-    engine = _engine(url)
+    engine, _ = _engine(url)
     assert migrate(engine, 1) == 1
     old = [sample(1, "2024-01-01T00:00Z"), sample(2, "2024-01-02T00:00Z", model="cd" * 32)]
     t = _tables(1).tables
@@ -378,11 +383,14 @@ def test_history_table_and_json_against_the_records(tmp_path, kincal_main, capsy
         assert m["change"] == pytest.approx(delta, rel=1e-9) and m["sigma"] == pytest.approx(sigma, rel=1e-12)
         assert m["z"] == pytest.approx(delta / sigma, rel=1e-9) and not m["frame"]
     assert moves[(first, second, "base.x")]["frame"] and moves[(first, second, "base.x")]["change"] == 0.5
+    assert [(s["before"], s["after"], s["test"], s["largest"]) for s in out["steps"]] == [
+        (first, second, None, ["j2.a", "j1.theta"]), (second, third, None, ["j3.d"])]  # no model kept: not judged
+    assert all("keeps no calibrated model" in s["not_judged"] for s in out["steps"])
     assert kincal_main(["history", "cell-3", "--store", str(tmp_path / "s.db")]) == 0
     text = capsys.readouterr().out
     assert "j2.a" in text and "+0.0500 mm" in text and "z +3.5" in text  # 50 µm / (√2 · 10 µm)
     assert "+0.00172 deg  σ 0.00081 deg  z +2.1" in text  # 30 µrad against √2 · 10 µrad
-    assert "no parameter moved beyond 2σ" in text and "j3.d" not in text  # 1 µm: z 0.04
+    assert "+0.0010 mm  σ 0.0283 mm  z +0.0" in text and "moved" not in text  # j3.d: 1 µm against √2 · 20 µm
     for mm in ("0.0300", "0.0400", "0.0250", "0.0500"):
         assert mm in text
     assert "gearbox" in text and "replaced" in text and "base.*" in text  # the note (wrapped at 80 columns)
@@ -416,8 +424,9 @@ def test_history_plot_shows_the_records(tmp_path, kincal_main):
     records = history(tmp_path / "s.db")
     with open_store(str(tmp_path / "s.db")) as store:
         rows = store.records("cell-3")
-    assert {ax.get_title(loc="left") for ax in history_figure(rows).axes} == {"j2.a", "j1.theta", "position error"}
-    # the frame (base.x) left out, and j3.d: its 1 µm step is 0.04 σ; asked for, it is drawn
+    drawn = {ax.get_title(loc="left") for ax in history_figure(rows).axes}
+    assert drawn == {"j2.a", "j1.theta", "j3.d", "position error"}  # the steps' largest differences, as the text
+    # lists them; the frame (base.x) left out
     fig = history_figure(rows, ["j2.a", "j3.d", "j1.theta"])
     panels = {ax.get_title(loc="left"): ax for ax in fig.axes}
     assert set(panels) == {"j2.a", "j3.d", "j1.theta", "position error"}
@@ -507,3 +516,173 @@ def test_a_past_session_is_recorded_at_its_time(tmp_path, kincal_main, capsys):
     assert "--at dates the record in the calibration store, and none is set" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         kincal_main(["calibrate", "ur5", str(tmp_path / "m.csv"), "--store", store, "--at", "last tuesday"])
+
+
+def _halves(tmp_path, kincal_main, capsys, link_change: float = 0.0) -> tuple[str, list[str]]:
+    """The real UR5 grid's two halves calibrated into one store (poses 1-500 in January, 501-1000 in March) and the
+    second half again in May with its measured positions moved by what lengthening j3.a by ``link_change`` (m)
+    does (a real change of the robot): the store and the three calibrated files."""
+    grid = np.genfromtxt(DATA / "ur5_grid.csv", delimiter=",", names=True)
+    q = np.radians(np.column_stack([grid[c] for c in UR5_COLS]))
+    ur5 = kincal.load_robot("ur5", tool=(0.0, 0.09e-3, 0.031))
+    shift = (ur5.with_params({"j3.a": ur5.params["j3.a"] + link_change}).forward(q) - ur5.forward(q)) * 1e3
+    lines = (DATA / "ur5_grid.csv").read_text().splitlines()
+    moved = [lines[0]] + [",".join(f[:7] + [f"{float(v) + d:.6f}" for v, d in zip(f[7:10], shift[k])] + f[10:])
+                          for k, f in enumerate(line.split(",") for line in lines[1:])]
+    (tmp_path / "moved.csv").write_text("\n".join(moved) + "\n")
+    store, files = str(tmp_path / "robots.db"), [str(tmp_path / f"{n}.yaml") for n in "ABP"]
+    for data, exclude, at, out in ((DATA / "ur5_grid.csv", "501-1000", "2024-01-10T09:00Z", files[0]),
+                                   (DATA / "ur5_grid.csv", "2-501", "2024-03-10T09:00Z", files[1]),
+                                   (tmp_path / "moved.csv", "2-501", "2024-05-10T09:00Z", files[2])):
+        assert kincal_main(["calibrate", "ur5", str(data), "--length-unit", "mm", "--angle-unit", "deg",
+                            "--joint-cols", ",".join(UR5_COLS), "--tool", "0,0.09,31mm", "--exclude", exclude,
+                            "--at", at, "--store", store, "-o", out]) == 0
+    capsys.readouterr()
+    return store, files
+
+
+@pytest.mark.slow  # three calibrations of 500 real poses and four compares: about 2 s
+def test_history_judges_each_step_by_compares_test(tmp_path, kincal_main, capsys):
+    """Two calibrations of the real UR5 grid's two halves (an unchanged robot) made the history list ten parameters
+    that 'moved' (j4.alpha +0.0896 deg, σ 0.0134, z +6.7: many single tests on the parameters' own σ) where
+    compare said no significant change (p = 0.17). Each step is compare's test now: the halves are no change at
+    compare's own p, their largest differences listed as such; the second half with j3.a 0.3 mm longer is
+    changed, j3.a named, 0.3 mm within its σ, at compare's p."""
+    store, (a, b, p) = _halves(tmp_path, kincal_main, capsys, link_change=0.3e-3)
+    assert kincal_main(["history", "ur5", "--store", store, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    ids = [r["id"] for r in out["records"]]
+    assert [(s["before"], s["after"]) for s in out["steps"]] == [(ids[0], ids[1]), (ids[1], ids[2])]
+    for step, (first, second) in zip(out["steps"], ((a, b), (b, p))):
+        assert kincal_main(["compare", first, second, "--json"]) == 0
+        said = json.loads(capsys.readouterr().out)
+        assert step["test"]["p_value"] == pytest.approx(said["p_value"], rel=1e-9)
+        assert (step["test"]["changed"], step["test"]["verdict"]) == (said["changed"], said["verdict"])
+    unchanged, changed = (s["test"] for s in out["steps"])
+    assert not unchanged["changed"] and unchanged["p_value"] > out["alpha"]
+    assert changed["changed"] and changed["suspects"][0]["name"] == "j3.a"
+    assert abs(changed["suspects"][0]["size"] - 0.3e-3) < 3 * changed["suspects"][0]["sigma"]
+    assert out["steps"][0]["largest"][0] == "j4.alpha"  # the largest difference, as before: listed, not a move
+    assert kincal_main(["history", "ur5", "--store", store]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"no significant change (p = {unchanged['p_value']:.3g})" in text and "moved" not in text
+    assert "false-alarm probability 5% per step" in text and "changed (link: j3.a)" in text
+    assert "j4.alpha +0.08964 deg σ 0.01338 deg z +6.7" in text
+
+
+def test_history_says_nothing_is_comparable_across_a_model_change(tmp_path, kincal_main, capsys):
+    """A DH calibration followed by one of a URDF model (the tool's the only parameters in common, unchanged) was
+    'no parameter moved beyond 2σ', true only because nothing was compared: the step says nothing in them is
+    comparable, and lists no parameter."""
+    a = _cal("2024-01-01T00:00Z", {}, {})
+    b = Record(Identity("cell-3", "", "cd" * 32), "calibration", "2024-02-01T00:00Z", "good", (),
+               {"shoulder.x": 0.1, "j2.a": -0.425, "base.x": 1.0}, {"shoulder.x": 1e-5}, ("shoulder.x",), None,
+               {}, None, {}, "", {"kinds": {}, "frame": ["base.x"]})
+    with open_store(str(tmp_path / "s.db")) as store:
+        ids = [store.add(r) for r in (a, b)]
+    assert kincal_main(["history", "cell-3", "--store", str(tmp_path / "s.db"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["moves"] == [] and out["steps"][0]["test"] is None and out["steps"][0]["largest"] == []
+    assert kincal_main(["history", "cell-3", "--store", str(tmp_path / "s.db")]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert (f"not judged: record #{ids[0]} and record #{ids[1]} are calibrations of different models (their "
+            f"parameters differ: the nominal model changed), so nothing in them is comparable") in text
+    assert "moved" not in text and "largest parameter differences" not in text
+
+
+def _as_user(argv: list[str]) -> subprocess.CompletedProcess | None:
+    """``kincal argv`` in a process a folder's mode binds: this user's when not root; root's without the
+    capabilities that override file modes (setpriv) when root; None when root and setpriv is missing."""
+    prefix = [] if os.geteuid() else ["setpriv", "--bounding-set", "-dac_override,-dac_read_search", "--"]
+    if prefix and shutil.which("setpriv") is None:
+        return None
+    env = {**os.environ, "PYTHONPATH": str(Path(kincal.__file__).parents[1])}
+    return subprocess.run([*prefix, sys.executable, "-m", "kincal.cli", *argv], capture_output=True, text=True,
+                          env=env, timeout=120)
+
+
+@pytest.mark.slow  # two kincal processes: about 3 s
+def test_a_store_in_a_read_only_folder_is_read_and_not_written(tmp_path, kincal_main, capsys, monkeypatch):
+    """`history ur5 --store /ro/r.db` said 'cannot be opened: unable to open database file' (the store's WAL mode
+    wants its -shm file beside it, and the folder takes none): the store is read through SQLite's read-only URI
+    (immutable: no write-ahead log beside it), and a record into it is refused naming the folder. Run for real
+    where the folder's mode binds (not root, or root without CAP_DAC_OVERRIDE); in-process with the folder's
+    check answering 'not writable', as it does there."""
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    store = folder / "s.db"
+    records = history(store)
+    folder.chmod(0o555)
+    try:
+        real = [_as_user(["history", "cell-3", "--store", str(store), *argv]) for argv in (["--json"], ["--event", "x"])]
+        if real[0] is not None and real[1] is not None:
+            assert real[0].returncode == 0, real[0].stderr
+            assert len(json.loads(real[0].stdout)["records"]) == len(records)
+            assert real[1].returncode == 1 and f"nothing recorded: the calibration store {store} can only be read " \
+                f"(the folder {folder} is not writable)" in " ".join(real[1].stderr.split())
+        access = os.access
+        monkeypatch.setattr(os, "access", lambda p, mode, **k: False if mode & os.W_OK and Path(p) in (folder, store)
+                            else access(p, mode, **k))
+        assert kincal_main(["history", "cell-3", "--store", str(store), "--json"]) == 0
+        assert len(json.loads(capsys.readouterr().out)["records"]) == len(records)
+        assert kincal_main(["history", "cell-3", "--store", str(store), "--event", "crash"]) == 1
+        assert f"can only be read (the folder {folder} is not writable)" in " ".join(capsys.readouterr().err.split())
+        with open_store(str(store)) as opened, opened.engine.connect() as conn:
+            assert opened.read_only == f"the folder {folder} is not writable"
+            with pytest.raises(sa.exc.OperationalError, match="readonly database"):  # opened read-only
+                conn.exec_driver_sql("DELETE FROM records")
+        with pytest.raises(StoreError, match=f"the folder {folder} is not writable, so the store cannot be created"):
+            open_store(str(folder / "new.db"))
+        assert sorted(p.name for p in folder.iterdir()) == ["s.db"]  # nothing written beside it
+    finally:
+        folder.chmod(0o755)
+    with open_store(str(store)) as s:
+        assert [r for _, r in s.records("cell-3")] == records  # nor in it
+
+
+def test_impossible_and_repeated_records_are_refused(tmp_path, kincal_main, capsys):
+    """The same calibration recorded twice (same file, options and --at: the same sha256 and results), records
+    dated in the future, and an evaluation dated before the calibration it evaluates were all kept; an evaluation
+    did not say which calibration it evaluated. Each is refused now, naming the record it repeats or predates;
+    an evaluation keeps the calibration's record id and the evaluated file's sha256."""
+    ur5 = kincal.load_robot("ur5")
+    meas = kincal.simulate(kincal.perturb(ur5, seed=2), ur5.sample_joints(40, seed=1), 10e-6, seed=1)
+    kincal.write_measurements(tmp_path / "m.csv", meas, ur5.joint_types)
+    store, cal = str(tmp_path / "s.db"), tmp_path / "c.yaml"
+    calibrate = ["calibrate", "ur5", str(tmp_path / "m.csv"), "--store", store, "--at", "2024-01-10T09:00Z"]
+    assert kincal_main([*calibrate, "-o", str(cal)]) == 0
+    capsys.readouterr()
+    assert kincal_main([*calibrate, "-o", str(tmp_path / "c2.yaml")]) == 1  # the same session again
+    said = " ".join(capsys.readouterr().err.split())
+    assert "nothing recorded: the same calibration is record 1 of the store" in said and "recorded already" in said
+    future = utc_time(datetime.now(timezone.utc) + timedelta(days=2))
+    with pytest.raises(SystemExit):
+        kincal_main([*calibrate[:-1], future])
+    assert "days in the future" in capsys.readouterr().err
+    assert kincal_main(["history", "ur5", "--store", store, "--event", "crash", "--at", future]) == 1
+    assert "nothing recorded: the time" in capsys.readouterr().err
+    evaluate = ["evaluate", str(cal), str(tmp_path / "m.csv"), "--store", store, "--at"]
+    assert kincal_main([*evaluate, "2024-01-09T09:00Z"]) == 1
+    assert (f"dated 2024-01-09 09:00 UTC, before the calibration it evaluates ({cal}: record 1, 2024-01-10 09:00 "
+            f"UTC)") in " ".join(capsys.readouterr().err.split())
+    assert kincal_main([*evaluate, "2024-01-10T10:00Z"]) == 0
+    with open_store(store) as s:
+        kept = s.records("ur5")
+    assert [(i, r.kind) for i, r in kept] == [(1, "calibration"), (2, "evaluation")]
+    assert kept[0][1].payload["output"]["sha256"] == hashlib.sha256(cal.read_bytes()).hexdigest()
+    assert kept[1][1].payload["evaluated"] == {"path": str(cal), "sha256": hashlib.sha256(cal.read_bytes()).hexdigest(),
+                                                "size": cal.stat().st_size, "record": 1}
+    moved = dataclasses.replace(kept[1][1], inputs=(dataclasses.replace(kept[1][1].inputs[0], path="other.csv"),))
+    with open_store(store) as s, pytest.raises(StoreError, match="the same evaluation is record 2"):
+        s.add(moved)  # the same data under another name: the same session
+
+
+def test_a_time_ahead_of_the_clock_by_more_than_five_minutes_is_refused():
+    from kincal.history import not_in_future
+
+    now = datetime(2024, 5, 3, 12, 0, tzinfo=timezone.utc)
+    not_in_future(utc_time(now + timedelta(seconds=300)), now)  # another computer's clock, a little ahead
+    with pytest.raises(ValueError, match=r"the time 2024-05-03 12:05 UTC is 5 min in the future \(now 2024-05-03 12:00"):
+        not_in_future(utc_time(now + timedelta(seconds=301)), now)
+    with pytest.raises(ValueError, match="is 2.0 h in the future"):
+        not_in_future(utc_time(now + timedelta(hours=2)), now)

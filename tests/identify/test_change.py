@@ -14,7 +14,7 @@ from kincal.design import check_poses
 from kincal.design.check import sensitivities
 from kincal.identify import Calibrated, check, compare
 
-from conftest import DATA, UR5_COLS
+from conftest import DATA, UR5_COLS, UR5_URDF
 
 UR5 = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
 
@@ -337,3 +337,15 @@ def test_two_calibrations_of_one_session_on_different_poses_are_not_a_change():
     shifted = kincal.calibrate(ur5, dataclasses.replace(moved, q=q))
     found = compare(*(Calibrated.of(r.robot, r.record(), n) for r, n in ((first, "a"), (shifted, "b"))))
     assert found.changed and found.suspects[0].name.startswith("j2")
+
+
+def test_compare_and_check_of_a_urdf_name_it_as_no_calibration(capsys):
+    """compare given a URDF said 'several end links below world ...; choose one with tip_link (CLI: --tip-link)',
+    the URDF reader's advice, and compare refuses --tip-link: the file's calibration record is read first, so it
+    is named as no calibrated robot file with what to give instead; check the same."""
+    for argv in (["compare", str(UR5_URDF), str(UR5_URDF)],
+                 ["check", str(UR5_URDF), str(DATA / "ur5_random.csv"), *UR5]):
+        assert main(argv) == 1
+        said = " ".join(capsys.readouterr().err.split())
+        assert f"{UR5_URDF}: not a calibrated robot file" in said and "`kincal calibrate -o` wrote" in said
+        assert "tip" not in said

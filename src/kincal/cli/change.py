@@ -14,9 +14,11 @@ from .history import add_store_flag, store_of, store_record
 
 
 def calibrated(path: str) -> Calibrated:
-    """The calibrated robot file ``path`` with its calibration record (a clear error for any other file)."""
+    """The calibrated robot file ``path`` with its calibration record (a clear error for any other file: the record
+    is read first, so a URDF is not given the URDF reader's advice, --tip-link, which compare and check refuse)."""
     check_paths([path], [])
-    return Calibrated.of(kincal.load_robot(path), kincal.models.load_calibration_record(path), path)
+    record = Calibrated.required(kincal.models.load_calibration_record(path), path)
+    return Calibrated.of(kincal.load_robot(path), record, path)
 
 
 def _alpha(s: str) -> float:
@@ -51,10 +53,11 @@ def record(args, test: ChangeTest, path: str, robot, inputs: list[str]) -> str |
     from .report import nominal_model  # noqa: PLC0415  (the report's module imports the observation commands')
 
     nominal = nominal_model(robot, kincal.models.load_calibration_record(path), path) or robot
+    evaluated = {"evaluated": fingerprint(path).to_dict()} if test.question == "check" else {}  # the store links it
     return store_record(args, nominal, lambda identity, command: Record(
         identity, "check" if test.question == "check" else "comparison", utc_time(), test.verdict,
         tuple(fingerprint(p) for p in inputs), figures={"heldout_rms": test.rms},
-        payload={"command": command, "test": test.to_dict()}))
+        payload={"command": command, "test": test.to_dict(), **evaluated}))
 
 
 def _doubtful(path: str) -> None:

@@ -1,5 +1,5 @@
-"""A robot over its life: ``kincal history ROBOT`` (its records from the calibration store, what moved
-between calibrations, the plot, events) and the --store flag the recording commands share."""
+"""A robot over its life: ``kincal history ROBOT`` (its records from the calibration store, each step between
+calibrations judged by compare's test, the plot, events) and the --store flag the recording commands share."""
 from __future__ import annotations
 
 import argparse
@@ -8,8 +8,11 @@ import os
 import shlex
 import sys
 
-from kincal.history import (MOVED_Z, Identity, Move, Record, Store, changed_parameters, event_record, history_figure,
-                            how_to_set, moves, not_compared, open_store, save_history_figure, store_url, utc_time)
+from kincal.history import (Identity, Record, Step, Store, changed_parameters, event_record, history_figure, how_to_set,
+                            moves, not_compared, not_in_future, open_store, save_history_figure, steps, store_url,
+                            utc_time)
+from kincal.identify import ALPHA
+from kincal.identify.change import EXPLAINED_MIN
 from kincal.units import MM, display
 
 from .common import check_paths, csv_list, emit
@@ -32,9 +35,10 @@ def add_store_flag(parser: argparse.ArgumentParser, recording: bool = True) -> N
 
 
 def iso_time(text: str) -> str:
-    """argparse type: a time kincal's store takes (:func:`kincal.history.utc_time`), as given."""
+    """argparse type: a time kincal's store takes (:func:`kincal.history.utc_time`), not in the future
+    (:func:`kincal.history.not_in_future`), as given."""
     try:
-        utc_time(text)
+        not_in_future(utc_time(text))
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     return text
@@ -137,34 +141,42 @@ def _table(rows: list[tuple[int, Record]], changed: set[int]):
         table.add_column(head, justify="right", no_wrap=True, min_width=len(head))
     table.add_column("note", overflow="fold")
     for rid, r in rows:
-        note = "; ".join(filter(None, ["nominal model changed" if rid in changed else "", r.note]))
+        of = (r.payload.get("evaluated") or {}).get("record")
+        note = "; ".join(filter(None, ["nominal model changed" if rid in changed else "",
+                                       f"evaluates #{of}" if of else "", r.note]))
         table.add_row(str(rid), r.time[:16].replace("T", " "), r.kind, r.verdict or "", _mm(r, "training_mean"),
                       _mm(r, "heldout_mean"), note)
     return table
 
 
-def move_lines(steps: list[Move], rows: list[tuple[int, Record]]) -> list[str]:
-    """The moves between consecutive calibrations in words: per step the parameters beyond MOVED_Z σ (or
-    without σ), their change in mm/deg, σ and z."""
-    when = {rid: r.time[:16].replace("T", " ") for rid, r in rows}
-    pairs = list(dict.fromkeys((m.before, m.after) for m in steps))
+def step_lines(judged: list[Step], rows: list[tuple[int, Record]]) -> list[str]:
+    """The steps between consecutive calibrations in words: per step kincal compare's verdict with its p-value
+    (or why it was not judged), the change it names, and the parameters whose values differ most (Δ in mm/deg,
+    σ, z)."""
+    when = {rid: f"#{rid} ({r.time[:16].replace('T', ' ')})" for rid, r in rows}
     lines = []
-    for a, b in pairs:
-        shown = [m for m in steps if (m.before, m.after) == (a, b) and m.shown]
-        lines.append(f"#{a} ({when[a]}) → #{b} ({when[b]}):" + ("" if shown else f" no parameter moved beyond "
-                                                                  f"{MOVED_Z:g}σ"))
-        lines += [f"  {m.name:<16} {display(m.delta, m.kind):>14}" + (
+    for step in judged:
+        test = step.test
+        head = f"{when[step.before]} → {when[step.after]}: "
+        lines.append(head + (f"not judged: {step.reason}" if test is None else
+                             f"{test.verdict} (p = {test.p_value:.3g})"))
+        if test is not None and test.changed and test.suspects:
+            lines.append(f"  {'most likely single change' if test.explained >= EXPLAINED_MIN else 'closest single change'}"
+                         f": {test.suspects[0].line()}")
+        if step.differences:
+            lines.append("  largest parameter differences (Δ, σ of both in quadrature, z = Δ/σ of each alone"
+                         + ("; not judged)" if test is None else ")") + ":")
+        lines += [f"    {m.name:<16} {display(m.delta, m.kind):>14}" + (
             f"  σ {display(m.sigma, m.kind, signed=False)}  z {m.z:+.1f}" if m.sigma and m.z is not None
-            else "  (no σ)") for m in shown]
-    if any(m.frame for m in steps):
+            else "  (no σ)") for m in step.differences]
+    if any(m.frame for m in moves(rows)):
         lines.append("the measurement frame (base.*) is left out: it moves whenever the tracker does")
     for a, b, held_a, held_b in not_compared(rows):
         held = "; ".join(f"held in #{i}: {', '.join(names[:6])}{' …' if len(names) > 6 else ''}"
                          for i, names in ((a, held_a), (b, held_b)) if names)
-        lines.append(f"#{a} ({when[a]}) → #{b} ({when[b]}): not compared parameter by parameter: each held at its "
-                     f"nominal value parameters the other determined ({held}), so their values are in different "
-                     f"terms (a design frame fixed by other coordinates, a confounded parameter taken up by another); "
-                     f"kincal compare judges whether the robot changed")
+        lines.append(f"{when[a]} → {when[b]}: not compared parameter by parameter: each held at its nominal value "
+                     f"parameters the other determined ({held}), so their values are in different terms (a design "
+                     f"frame fixed by other coordinates, a confounded parameter taken up by another)")
     return lines
 
 
@@ -192,14 +204,15 @@ def cmd_history(args) -> int:
                                            command=" ".join(["kincal", *sys.argv[1:]])))
             rows = store.records(robot.name, robot.serial)
         changed = store.model_changes(robot.name, robot.serial)
-    steps, apart = moves(rows), not_compared(rows)
+    judged, apart = steps(rows), not_compared(rows)
     lines = [f"event recorded (#{added})"] if added is not None else []
     if args.plot:
         save_history_figure(history_figure(rows, args.parameters), args.plot)
         lines.append(f"plot written to {args.plot}")
     payload = {"robot": robot.name, "serial": robot.serial, "records": [
         {"id": rid, "model_changed": rid in changed, **r.to_dict()} for rid, r in rows],
-        "moves": [m.to_dict() for m in steps], "moved_z": MOVED_Z, "not_compared": [
+        "steps": [j.to_dict() for j in judged], "alpha": ALPHA, "moves": [m.to_dict() for m in moves(rows)],
+        "not_compared": [
             {"before": a, "after": b, "held_before": ha, "held_after": hb} for a, b, ha, hb in apart], "event": added, "plot": args.plot}
     if args.json:
         return emit(args, payload, "")
@@ -207,23 +220,25 @@ def cmd_history(args) -> int:
     from rich.text import Text
 
     head = f"{robot.name}" + (f" (serial {robot.serial})" if robot.serial else "") + f": {len(rows)} records"
-    body = "\n".join(["", "parameters moved between consecutive calibrations (|z| = |Δ|/σ ≥ "
-                      f"{MOVED_Z:g}, σ of both in quadrature):", *move_lines(steps, rows)]
-                     if steps or apart else [])
+    body = "\n".join(["", f"consecutive calibrations, each step judged by kincal compare's test (false-alarm "
+                          f"probability {ALPHA:.0%} per step, the measurement frame re-fitted):",
+                      *step_lines(judged, rows)] if judged else [])
     return emit(args, payload, Group(Text(head), _table(rows, changed), Text("\n".join([body, *lines]).strip("\n"))))
 
 
 def register(cmd) -> None:
     """Add the history command through ``cmd(name, func, help, None)``."""
     s = cmd("history", cmd_history, "a robot's calibrations, evaluations, checks and events from the calibration "
-                                    "store: a table, what moved, a plot; record an event", None)
+                                    "store: a table, each step judged by compare's test, a plot; record an event",
+            None)
     s.add_argument("robot", help="the robot's name, as given when it was calibrated with --store")
     add_store_flag(s, recording=False)
-    s.add_argument("--plot", metavar="FILE", help="the history plot to write (.png or .svg): each parameter that "
-                                                  "moved against the first calibration with its ±σ band, the "
+    s.add_argument("--plot", metavar="FILE", help="the history plot to write (.png or .svg): the parameters "
+                                                  "against the first calibration with their ±σ bands, the "
                                                   "position errors, the events")
     s.add_argument("--parameters", type=csv_list, metavar="A,B",
-                   help="the parameters to plot (default: every one that changed, the measurement frame left out)")
+                   help="the parameters to plot (default: those listed as a step's largest differences, the "
+                        "measurement frame left out)")
     s.add_argument("--event", metavar="TEXT", help="record an event in the robot's life (a crash, a gearbox change)")
     s.add_argument("--at", metavar="TIME", help="when the --event happened, ISO 8601 (e.g. 2024-05-03T14:00, local "
                                                 "time; 2024-05-03T12:00Z, UTC); default: now")

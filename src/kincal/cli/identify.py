@@ -118,7 +118,8 @@ def cmd_calibrate(args) -> int:
                  if written else f"\nnothing written to {args.output}: the calibration is refused (--force writes it)")
     stored = store_record(args, robot, lambda identity, command: calibration_record(
         res, identity, [fingerprint(p) for p in [*args.data, *args.test]], heldout=held.get("held_out"),
-        command=command, covariates=_covariate_ranges(res)))  # before the report: it shows the history with it
+        command=command, covariates=_covariate_ranges(res), output=fingerprint(args.output) if written else None))
+    # before the report: it shows the history with it
     text += f"\n{stored}" if stored else ""
     text += "".join("\n" + line for line in write_outputs(args, res, tests, {
         "robot": args.robot, "units": f"{args.length_unit}, {args.angle_unit}"}))
@@ -284,7 +285,7 @@ def cmd_evaluate(args) -> int:
     payloads = [payload for payload, _ in judged]
     stored = store_record(args, nominal_model(loaded, record, args.robot) or loaded, lambda identity, command:
                           evaluation_record(payloads, identity, [fingerprint(p) for p in args.data], command=command,
-                                            robot=loaded))
+                                            robot=loaded, evaluated=fingerprint(args.robot) if record else None))
     return emit(args, {**payloads[0], "sessions": payloads} if len(payloads) == 1 else {"sessions": payloads},
                 "\n".join([text for _, lines in judged for text in lines] + [t for t in (unread, stored) if t]))
 

@@ -1,5 +1,5 @@
-"""The history plot: each parameter that changed over the robot's calibrations (against the first
-calibration, with its ±σ band), the position error of every calibration, evaluation and check, and the
+"""The history plot: the parameters the history lists as the steps' largest differences (against the first
+calibration, with their ±σ bands), the position error of every calibration, evaluation and check, and the
 events, on one time axis. matplotlib is loaded when a plot is drawn."""
 from __future__ import annotations
 
@@ -46,8 +46,8 @@ def history_figure(records: Sequence[tuple[int, Record]], parameters: Sequence[s
     records : sequence of (int, Record)
         (id, record) of one robot in time order (:meth:`Store.records`).
     parameters : sequence of str, optional
-        The parameters to show (each in some calibration); default: each that changed
-        (:func:`changed_parameters`).
+        The parameters to show (each in some calibration); default: those the steps list as their largest
+        differences (:func:`changed_parameters`).
 
     Returns
     -------

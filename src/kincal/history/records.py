@@ -13,11 +13,14 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
+from ..errors import ModelError
 from ..models.robot import TOOL_NAMES, Robot
+from ..models.yaml_io import robot_to_yaml
 
 KINDS = ("calibration", "evaluation", "check", "comparison", "event")
 TIME_FORMAT = "%Y-%m-%dT%H:%M:%S.%fZ"  # UTC, microseconds always: the text sorts as the time does
 HASH_DIGITS = 12  # nominal values rounded to 1e-12 (m, rad) in the model hash
+FUTURE_TOLERANCE_S = 300.0  # a record's time may be this far ahead of the clock (another computer's clock)
 
 
 def utc_time(value: str | datetime | None = None) -> str:
@@ -97,6 +100,43 @@ def parse_time(text: str) -> datetime:
     datetime.datetime(2024, 5, 3, 12, 0, tzinfo=datetime.timezone.utc)
     """
     return datetime.strptime(text, TIME_FORMAT).replace(tzinfo=timezone.utc)
+
+
+def not_in_future(text: str, now: datetime | None = None) -> None:
+    """Refuse a record's time later than now (beyond ``FUTURE_TOLERANCE_S``, clocks that differ a little): a record
+    is dated when its data were taken.
+
+    Parameters
+    ----------
+    text : str
+        A time as :func:`utc_time` writes it.
+    now : datetime, optional
+        The present (default: this computer's clock).
+
+    Raises
+    ------
+    ValueError
+        Naming the time, how far ahead it is and the present.
+
+    Examples
+    --------
+    >>> from datetime import datetime, timezone
+    >>> from kincal.history import not_in_future
+    >>> now = datetime(2024, 5, 3, 12, 0, tzinfo=timezone.utc)
+    >>> not_in_future("2024-05-03T12:04:00.000000Z", now)  # within the tolerance
+    >>> not_in_future("2025-05-03T12:00:00.000000Z", now)
+    Traceback (most recent call last):
+        ...
+    ValueError: the time 2025-05-03 12:00 UTC is 365.0 days in the future (now 2024-05-03 12:00 UTC): ...
+    """
+    now = now or datetime.now(timezone.utc)
+    ahead = (parse_time(text) - now).total_seconds()
+    if ahead > FUTURE_TOLERANCE_S:
+        size = f"{ahead / 86400:.1f} days" if ahead >= 86400 else f"{ahead / 3600:.1f} h" if ahead >= 3600 else \
+            f"{ahead / 60:.0f} min"
+        raise ValueError(f"the time {text[:16].replace('T', ' ')} UTC is {size} in the future (now "
+                         f"{utc_time(now)[:16].replace('T', ' ')} UTC): a record is dated when its data were taken; "
+                         f"give that time (a local time without a zone, or ...Z for UTC)")
 
 
 def json_safe(obj: Any) -> Any:
@@ -413,6 +453,15 @@ class Record:
                    {k: tuple(v) for k, v in (d.get("covariates") or {}).items()}, str(d.get("note") or ""),
                    dict(d.get("payload") or {}))
 
+    def same_as(self, other: "Record") -> bool:
+        """Whether ``other`` says what this record says: the same robot, kind, time, verdict, note, input files by
+        their sha256 (not their paths), parameters, σ and figures: the same session recorded twice, however it
+        was asked for (the command line, the output file's name)."""
+        def said(r: Record) -> tuple:
+            return (r.identity.name, r.identity.serial, r.kind, r.time, r.verdict, r.note,
+                    sorted(i.sha256 for i in r.inputs), r.parameters, r.sigmas, r.figures)
+        return said(self) == said(other)
+
 
 def _combined(stats: Iterable[Any], prefix: str) -> dict[str, float]:
     """Sets' position statistics (EvaluationStats or a set's stats dict, m) as one: mean and RMS weighted by
@@ -447,15 +496,26 @@ def _about(command: str, robot: Robot | None = None) -> dict:
     return out
 
 
+def _model_text(robot: Robot) -> str | None:
+    """The calibrated robot's file text in SI units (it loads back exactly), which the history compares
+    consecutive calibrations by (:func:`kincal.history.steps`); None for a kind of model kincal has no file for."""
+    try:
+        return robot_to_yaml(robot)
+    except ModelError:
+        return None
+
+
 def calibration_record(result: Any, identity: Identity, inputs: Iterable[InputFile],
                        heldout: Iterable[Any] | None = None, note: str = "", command: str = "",
-                       covariates: Mapping | None = None, time: str | datetime | None = None) -> Record:
+                       covariates: Mapping | None = None, time: str | datetime | None = None,
+                       output: InputFile | None = None) -> Record:
     """The record of a calibration.
 
     It keeps every robot parameter's value, the fitted ones' σ, the identifiable set (finite σ) and its
     covariance, the verdict, the training figures (the kept poses of position data, else every set's
     position statistics) and the held-out ones, the mounting, the covariates and, in the payload, the
-    calibrated file's ``calibration`` section, the command, kincal's version and the parameters' kinds.
+    calibrated file's ``calibration`` section, the calibrated model's file text (SI: it loads back exactly;
+    the history compares calibrations by it), the command, kincal's version and the parameters' kinds.
 
     Parameters
     ----------
@@ -475,6 +535,9 @@ def calibration_record(result: Any, identity: Identity, inputs: Iterable[InputFi
         name -> (low, high): the range of each covariate in the data (temperature in K, time in s).
     time : str or datetime, optional
         When it was calibrated (:func:`utc_time`); None (default): now.
+    output : InputFile, optional
+        The fingerprint of the calibrated robot file written (an evaluation of that file is linked to this
+        record by its sha256); None (default): none written.
 
     Returns
     -------
@@ -506,7 +569,9 @@ def calibration_record(result: Any, identity: Identity, inputs: Iterable[InputFi
     figures |= _combined(heldout or (), "heldout")
     mounting = None if not result.mounting else {
         "tool_point": robot.tool_point(), "declared_tool_point": result.nominal.tool_point(), "text": result.mounting}
-    payload = _about(command, robot) | {"estimated": list(result.names), "calibration": json_safe(result.record())}
+    payload = _about(command, robot) | {"estimated": list(result.names), "calibration": json_safe(result.record()),
+                                        "model": _model_text(robot),
+                                        "output": None if output is None else output.to_dict()}
     return Record(identity, "calibration", utc_time(time), result.verdict.status, tuple(inputs),
                   robot.params.as_dict(), sigmas, ident, covariance, figures, mounting, dict(covariates or {}), note,
                   payload)
@@ -514,7 +579,7 @@ def calibration_record(result: Any, identity: Identity, inputs: Iterable[InputFi
 
 def evaluation_record(stats: Any, identity: Identity, inputs: Iterable[InputFile], note: str = "",
                       command: str = "", covariates: Mapping | None = None, time: str | datetime | None = None,
-                      robot: Robot | None = None) -> Record:
+                      robot: Robot | None = None, evaluated: InputFile | None = None) -> Record:
     """The record of an evaluation: a model's errors on data it was not fitted on.
 
     The statistics are combined into the held-out figures (heldout_mean, heldout_rms, heldout_max,
@@ -538,6 +603,9 @@ def evaluation_record(stats: Any, identity: Identity, inputs: Iterable[InputFile
         When it was evaluated (:func:`utc_time`); None (default): now.
     robot : Robot, optional
         The model evaluated (its parameters' kinds in the payload).
+    evaluated : InputFile, optional
+        The fingerprint of the robot file evaluated: the store links the record to the calibration that wrote
+        it (:meth:`Store.add`); None (default): a model of no file (a bundled robot).
 
     Returns
     -------
@@ -558,7 +626,8 @@ def evaluation_record(stats: Any, identity: Identity, inputs: Iterable[InputFile
     details = [dict(p) if isinstance(p, Mapping) else p.to_dict() for p in parts]
     return Record(identity, "evaluation", utc_time(time), None, tuple(inputs), figures=figures,
                   covariates=dict(covariates or {}), note=note,
-                  payload=_about(command, robot) | {"evaluation": json_safe(details)})
+                  payload=_about(command, robot) | {"evaluation": json_safe(details),
+                                                    "evaluated": None if evaluated is None else evaluated.to_dict()})
 
 
 def event_record(identity: Identity, note: str, time: str | datetime | None = None, command: str = "") -> Record:

@@ -17,14 +17,18 @@ the history says so beside it. Events carry no model and are never flagged.
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
+import os
+import sqlite3
 from contextlib import contextmanager
 from pathlib import Path
+from urllib.parse import quote
 from typing import Any, Callable, Iterator
 
 from ..errors import KincalError
-from .records import Identity, Record
+from .records import Identity, Record, not_in_future
 
 SCHEMA_VERSION = 3
 BUSY_TIMEOUT_S = 60.0  # SQLite: how long a writer waits for another's transaction
@@ -113,21 +117,29 @@ def _v3(conn) -> None:
 MIGRATIONS: tuple[Callable[[Any], None], ...] = (_v1, _v2, _v3)  # step k brings a store to version k + 1
 
 
-def _sqlite_engine(path: Path):
+def _sqlite_engine(path: Path, reading: str = ""):
     """An SQLite engine on ``path``: WAL journal, foreign keys, a busy timeout, and SQLAlchemy's recipe for
     pysqlite's transactions (its own BEGIN off; ours: IMMEDIATE for writes, so a writer waits for the lock at
-    the start instead of failing later)."""
+    the start instead of failing later). ``reading``: the SQLite URI parameter of a store that can only be read
+    (:func:`_read_only`), its journal mode left as it is."""
     import sqlalchemy as sa
 
-    engine = sa.create_engine(f"sqlite:///{path}", connect_args={"timeout": BUSY_TIMEOUT_S}, json_serializer=_dumps)
+    if reading:  # a URI: the file opened read-only (or immutable), through pysqlite's uri=True
+        engine = sa.create_engine("sqlite://", creator=lambda: sqlite3.connect(
+            f"file:{quote(str(path.resolve()))}?{reading}", uri=True, timeout=BUSY_TIMEOUT_S,
+            check_same_thread=False), json_serializer=_dumps)
+    else:
+        engine = sa.create_engine(f"sqlite:///{path}", connect_args={"timeout": BUSY_TIMEOUT_S},
+                                  json_serializer=_dumps)
 
     @sa.event.listens_for(engine, "connect")
     def connect(dbapi_connection, record) -> None:
         dbapi_connection.isolation_level = None
         cursor = dbapi_connection.cursor()
         cursor.execute(f"PRAGMA busy_timeout = {int(BUSY_TIMEOUT_S * 1000)}")
-        cursor.execute("PRAGMA journal_mode = WAL")
-        cursor.execute("PRAGMA synchronous = NORMAL")  # WAL: a commit survives its process being killed
+        if not reading:  # setting the journal mode writes the file
+            cursor.execute("PRAGMA journal_mode = WAL")
+            cursor.execute("PRAGMA synchronous = NORMAL")  # WAL: a commit survives its process being killed
         cursor.execute("PRAGMA foreign_keys = ON")
         cursor.close()
 
@@ -141,8 +153,9 @@ def _dumps(obj: Any) -> str:
     return json.dumps(obj, allow_nan=False)
 
 
-def _engine(url: str):
-    """The engine of a store ``url``: a path or sqlite:///path (its folder must exist), or postgresql://…"""
+def _engine(url: str) -> tuple[Any, str]:
+    """The engine of a store ``url`` (a path or sqlite:///path, its folder must exist, or postgresql://…) and why
+    it can only be read ('' when it can be written: :func:`_read_only`)."""
     import sqlalchemy as sa
 
     if url.startswith(("postgresql:", "postgresql+psycopg:", "postgres:")):
@@ -150,7 +163,7 @@ def _engine(url: str):
             raise StoreError(f"the store {_shown(url)} is a PostgreSQL server, and its driver psycopg is not "
                              f"installed: {POSTGRES_HINT}")
         real = "postgresql+psycopg:" + url.split(":", 1)[1]
-        return sa.create_engine(real, json_serializer=_dumps)
+        return sa.create_engine(real, json_serializer=_dumps), ""
     if "://" in url and not url.startswith("sqlite:///"):
         raise StoreError(f"store '{_shown(url)}': give a file path or sqlite:///PATH (SQLite), or "
                          f"postgresql://USER@HOST/DATABASE (a PostgreSQL server)")
@@ -159,7 +172,24 @@ def _engine(url: str):
         raise StoreError(f"store {path}: the folder {path.parent} does not exist; create it or give another path")
     if path.is_dir():
         raise StoreError(f"store {path}: is a folder; give the store's file, e.g. {path / 'kincal.db'}")
-    return _sqlite_engine(path)
+    why, reading = _read_only(path)
+    return _sqlite_engine(path, reading), why
+
+
+def _read_only(path: Path) -> tuple[str, str]:
+    """Why the SQLite store ``path`` can only be read ('' when it can be written) and the SQLite URI parameter
+    to read it by: ``mode=ro``, or ``immutable=1`` when its folder is not writable and no write-ahead log is
+    beside it (SQLite cannot create the shared-memory file a WAL store's readers need; the file is then all
+    there is to read). A StoreError when the store does not exist and its folder is not writable."""
+    folder = os.access(path.parent, os.W_OK)
+    if folder and (not path.exists() or os.access(path, os.W_OK)):
+        return "", ""
+    if not path.exists():
+        raise StoreError(f"store {path}: the folder {path.parent} is not writable, so the store cannot be created "
+                         f"there; give a path in a writable folder")
+    why = f"the file {path} is not writable" if folder else f"the folder {path.parent} is not writable"
+    wal = path.with_name(path.name + "-wal").exists()
+    return why, "mode=ro" if folder or wal else "immutable=1"
 
 
 def _shown(url: str) -> str:
@@ -178,8 +208,9 @@ def open_store(url: str) -> "Store":
     Parameters
     ----------
     url : str
-        A file path or sqlite:///PATH (an SQLite file, created when missing; its folder must exist), or
-        postgresql://USER@HOST/DATABASE (a server's database; needs the psycopg driver).
+        A file path or sqlite:///PATH (an SQLite file, created when missing; its folder must exist; opened
+        read-only when it or its folder is not writable), or postgresql://USER@HOST/DATABASE (a server's
+        database; needs the psycopg driver).
 
     Returns
     -------
@@ -210,7 +241,8 @@ def open_store(url: str) -> "Store":
         ...
     kincal.history.store.StoreError: store /no/such/folder/robots.db: the folder /no/such/folder does not exist; ...
     """
-    return Store(_engine(url), url)
+    engine, why = _engine(url)
+    return Store(engine, url, why)
 
 
 def migrate(engine, upto: int = SCHEMA_VERSION) -> int:
@@ -308,6 +340,9 @@ class Store:
         The database's engine (SQLite or PostgreSQL); the store is migrated to this kincal's schema.
     url : str
         The store's path or URL, as given (shown in messages without its password).
+    read_only : str, optional
+        Why the store can only be read (its folder or file is not writable), '' (default) when it can be written:
+        :meth:`add` is then refused, saying so.
 
     Attributes
     ----------
@@ -344,16 +379,18 @@ class Store:
     (True, [2])
     """
 
-    def __init__(self, engine, url: str) -> None:
+    def __init__(self, engine, url: str, read_only: str = "") -> None:
         import sqlalchemy as sa
 
-        self.engine, self.url = engine, url
+        self.engine, self.url, self.read_only = engine, url, read_only
         self.tables = _tables(SCHEMA_VERSION).tables
         try:
             self.version = migrate(engine)
         except sa.exc.SQLAlchemyError as exc:
             engine.dispose()
-            raise StoreError(f"the store {_shown(url)} cannot be opened: {_reason(exc)}") from None
+            raise StoreError(f"the store {_shown(url)} cannot be opened: {_reason(exc)}" + (
+                f" ({read_only}: it can only be read, and its schema needs bringing up to date by a kincal that "
+                f"can write it)" if read_only else "")) from None
 
     def __enter__(self) -> "Store":
         return self
@@ -366,11 +403,26 @@ class Store:
         self.engine.dispose()
 
     def add(self, record: Record) -> int:
-        """Record ``record`` (one transaction: the robot's row, the record, its parameter and input rows); its id."""
+        """Record ``record`` (one transaction: the robot's row, the record, its parameter and input rows); its id.
+
+        An evaluation or check of a calibrated robot file (its payload's ``evaluated`` fingerprint) is linked to
+        the calibration record that wrote that file (``evaluated["record"]``, by the file's sha256). A StoreError,
+        nothing recorded, when the store can only be read (:attr:`read_only`), the record is dated in the future
+        (:func:`kincal.history.not_in_future`), says what one of the robot's records says already
+        (:meth:`Record.same_as`: the same session recorded twice), or is dated before the calibration it
+        evaluates."""
+        if self.read_only:
+            raise StoreError(f"nothing recorded: the calibration store {_shown(self.url)} can only be read "
+                             f"({self.read_only}); record into a store in a writable folder, or make it writable")
+        try:
+            not_in_future(record.time)
+        except ValueError as exc:
+            raise StoreError(f"nothing recorded: {exc}") from None
         t, ident = self.tables, record.identity
         with write(self.engine) as conn:
             robot = conn.execute(t["robots"].select().where(t["robots"].c.name == ident.name,
                                                             t["robots"].c.serial == ident.serial)).first()
+            record = record if robot is None else self._checked(conn, robot.id, record)
             changed = bool(robot is not None and ident.model_hash and robot.model_hash
                            and ident.model_hash != robot.model_hash)
             if robot is None:
@@ -393,6 +445,33 @@ class Store:
             if record.inputs:
                 conn.execute(t["inputs"].insert(), [{"record_id": rid, **i.to_dict()} for i in record.inputs])
         return int(rid)
+
+    def _checked(self, conn, robot_id: int, record: Record) -> Record:
+        """``record`` for the robot ``robot_id``, checked against its records (:meth:`add`) and linked to the
+        calibration it evaluates; a StoreError naming the record it repeats or the calibration it predates."""
+        rec = self.tables["records"]
+        for rid, payload in conn.execute(rec.select().with_only_columns(rec.c.id, rec.c.payload).where(
+                rec.c.robot_id == robot_id, rec.c.kind == record.kind, rec.c.time == record.time,
+                rec.c.note == record.note)).all():
+            if as_record(payload, rid).same_as(record):
+                raise StoreError(f"nothing recorded: the same {record.kind} is record {rid} of the store "
+                                 f"{_shown(self.url)} (dated {record.time[:16].replace('T', ' ')} UTC, the same "
+                                 f"input files by their sha256, the same results): it was recorded already")
+        evaluated = record.payload.get("evaluated")
+        if not isinstance(evaluated, dict) or not evaluated.get("sha256"):
+            return record
+        made = [(rid, when) for rid, when, payload in conn.execute(
+            rec.select().with_only_columns(rec.c.id, rec.c.time, rec.c.payload).where(
+                rec.c.robot_id == robot_id, rec.c.kind == "calibration").order_by(rec.c.time, rec.c.id)).all()
+                if ((payload.get("payload") or {}).get("output") or {}).get("sha256") == evaluated["sha256"]]
+        if not made:
+            return record
+        rid, when = made[-1]
+        if record.time < when:
+            raise StoreError(f"nothing recorded: this {record.kind} is dated {record.time[:16].replace('T', ' ')} "
+                             f"UTC, before the calibration it evaluates ({evaluated.get('path')}: record {rid}, "
+                             f"{when[:16].replace('T', ' ')} UTC); give the time its data were taken with --at")
+        return dataclasses.replace(record, payload={**record.payload, "evaluated": {**evaluated, "record": rid}})
 
     def _read(self, query) -> list:
         with self.engine.connect() as conn, conn.begin():

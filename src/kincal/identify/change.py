@@ -224,15 +224,41 @@ class Calibrated:
         ModelError
             Naming ``label``, when the file has no calibration record or its repeat record is missing or malformed.
         """
-        if not record or "envelope" not in record:
-            raise ModelError(f"{label}: not a calibrated robot file (no 'calibration' section with the joint ranges "
-                             f"of its data); give the file `kincal calibrate -o` wrote")
+        record = cls.required(record, label)
         rep = Repeat.from_dict(record.get("repeat"), label)
         missing = [n for n in rep.names if n not in robot.params.names]
         if missing:
             raise ModelError(f"{label}: the repeat covariance names parameters the robot does not have: {missing}")
         env = record["envelope"]
         return cls(robot, rep, np.asarray(env["lower"], float), np.asarray(env["upper"], float), label)
+
+    @staticmethod
+    def required(record: dict | None, label: str) -> dict:
+        """A calibrated file's ``calibration`` section, checked to be one (with the joint ranges of its data): read
+        it before the file's robot, so a file of another kind (a URDF, a nominal robot file) is named as what it
+        is not, not given its own loader's advice.
+
+        Parameters
+        ----------
+        record : dict or None
+            The file's ``calibration`` section (:func:`kincal.models.load_calibration_record`).
+        label : str
+            The file's name, for messages.
+
+        Returns
+        -------
+        dict
+            ``record``.
+
+        Raises
+        ------
+        ModelError
+            Naming ``label``, when it is no calibrated robot file's section.
+        """
+        if not record or "envelope" not in record:
+            raise ModelError(f"{label}: not a calibrated robot file (no 'calibration' section with the joint ranges "
+                             f"of its data); give the file `kincal calibrate -o` wrote")
+        return record
 
     def factor(self, q: np.ndarray, refitted: bool = False, robot: Robot | None = None) -> np.ndarray:
         """(3M, K) U with U Uᵀ the repeat covariance carried to the positions at q (M, n) by ``robot`` (default: the

@@ -477,6 +477,38 @@ def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", an
     write_text_atomic(path, text)
 
 
+def robot_from_text(text: str, label: str = "robot") -> Robot:
+    """A robot from the text of a kincal robot YAML file (what :func:`robot_to_yaml` writes: in SI units, the
+    same robot exactly).
+
+    Parameters
+    ----------
+    text : str
+        The robot file's YAML text.
+    label : str, optional
+        How messages name it (default "robot").
+
+    Returns
+    -------
+    Robot
+        The robot, in SI units.
+
+    Raises
+    ------
+    ModelError
+        Naming ``label``, when the text is no valid robot file.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.models.yaml_io import robot_from_text, robot_to_yaml
+    >>> robot = kincal.load_robot("ur5")
+    >>> robot_from_text(robot_to_yaml(robot)).params == robot.params
+    True
+    """
+    return robot_from_dict(_parse(text, label), label)
+
+
 def _loads_back(text: str, label: str) -> None:
     """ModelError, before anything is written, for a robot file kincal would refuse to load (a calibration's
     values beyond what the loader takes as plausible: a 3.2 deg harmonic)."""
