@@ -49,12 +49,20 @@ def json_path_for(path: str | os.PathLike) -> Path:
 class AtomicFile:
     """A text file written through a temporary file beside ``path``: it appears at ``path`` (renamed)
     only when :meth:`keep` was called before the ``with`` block ends; else, or on an error, the
-    temporary file is removed and ``path`` is untouched."""
+    temporary file is removed and ``path`` is untouched. A link is followed (the file it names is replaced, the link
+    kept); a path that is no regular file (``/dev/null``, ``/dev/stdout``, a named pipe) is not renamed over (as root
+    that would replace the device with a file): the text is held and written to it at once when kept."""
 
     def __init__(self, path: str | os.PathLike, encoding: str = "utf-8") -> None:
-        self.path, self.encoding, self._keep = Path(path), encoding, False
+        self.path, self.encoding, self._keep = Path(os.path.realpath(path)), encoding, False
+        self._tmp: str | None = None
 
     def __enter__(self):
+        if self.path.exists() and not self.path.is_file():
+            import io
+
+            self._fh = io.StringIO()
+            return self
         import tempfile  # loaded when a file is written, not when kincal is imported
 
         fd, self._tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", dir=self.path.parent or ".")
@@ -68,6 +76,11 @@ class AtomicFile:
         self._keep = True
 
     def __exit__(self, exc_type, exc, tb) -> None:
+        if self._tmp is None:  # a device or a pipe: written as it is, once, when kept
+            if exc_type is None and self._keep:
+                with open(self.path, "w", newline="", encoding=self.encoding) as fh:
+                    fh.write(self._fh.getvalue())
+            return
         try:
             self._fh.close()
             if exc_type is None and self._keep:

@@ -1,0 +1,53 @@
+"""Outputs written through a temporary file and a rename: a named pipe or a device (``-o /dev/null``) is written
+into, never renamed over (as root the rename replaced /dev/null with a regular file, and every later program
+that wrote to it as another user failed), and a link is followed (the file it names replaced, the link kept)."""
+import os
+import stat
+import threading
+
+from kincal._atomic import AtomicFile, write_text_atomic
+from kincal.cli import main
+
+
+def test_a_named_pipe_is_written_into_not_replaced(tmp_path):
+    fifo = tmp_path / "out.csv"
+    os.mkfifo(fifo)
+    got: list[str] = []
+    reader = threading.Thread(target=lambda: got.append(open(fifo).read()), daemon=True)
+    reader.start()
+    write_text_atomic(fifo, "j1,j2\n0.1,0.2\n")
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)  # before: a regular file in the pipe's place, the reader left waiting
+    reader.join()
+    assert got == ["j1,j2\n0.1,0.2\n"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.csv"]  # no temporary file left
+
+
+def test_a_pipe_gets_nothing_when_the_text_is_not_kept(tmp_path):
+    fifo = tmp_path / "out.csv"
+    os.mkfifo(fifo)
+    with AtomicFile(fifo) as fh:
+        fh.write("half")  # not kept: nothing is opened, so no reader is needed
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+
+
+def test_a_link_is_followed(tmp_path):
+    real = tmp_path / "real.yaml"
+    real.write_text("old\n")
+    link = tmp_path / "link.yaml"
+    link.symlink_to(real)
+    write_text_atomic(link, "new\n")
+    assert link.is_symlink() and os.readlink(link) == str(real) and real.read_text() == "new\n"
+
+
+def test_the_command_line_writes_into_a_pipe(tmp_path):
+    """`kincal simulate ... -o PIPE` (as `-o /dev/null` or `-o /dev/stdout`, not tried here: a regression would
+    replace the machine's /dev/null) writes the CSV into the pipe, which stays a pipe."""
+    fifo = tmp_path / "poses.csv"
+    os.mkfifo(fifo)
+    got: list[str] = []
+    reader = threading.Thread(target=lambda: got.append(open(fifo).read()), daemon=True)
+    reader.start()
+    assert main(["simulate", "ur5", "--poses", "5", "-o", str(fifo)]) == 0
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)  # (before: a file in its place, the reader left waiting)
+    reader.join()
+    assert got[0].splitlines()[0].startswith("j1,") and len(got[0].splitlines()) == 6  # header and 5 poses
