@@ -142,3 +142,27 @@ def test_a_frames_file_written_in_metres_is_refused_naming_the_unit(tmp_path):
     assert read_frames(str(tmp_path / "small.yaml"))["TOOL_NO 1"][2, 3] == pytest.approx(0.15e-3)
     (tmp_path / "zero.yaml").write_text("BASE_NO 0: {}\n")
     assert np.array_equal(read_frames(str(tmp_path / "zero.yaml"))["BASE_NO 0"], np.eye(4))
+
+
+@pytest.mark.parametrize("output", ["R1/Program/pick.src", "R1/System/$config.dat", "STEU/Mada/$machine.dat"])
+def test_compensate_refuses_to_write_over_a_file_its_reader_reads_beside_the_program(tmp_path, capsys, output):
+    """compensate pick.dat reads pick.src (its module: what it does with the .dat's points), the controller's
+    $config.dat and $machine.dat; -o on any of them is refused before any work, naming it, and the file is as it
+    was (the .src was written over with the .dat's compensation, exit 0). A $config.dat given as the frames reads
+    the $machine.dat beside it: refused alike."""
+    from kincal.cli import main
+
+    program = _cell(tmp_path, kincal.load_robot("kuka_kr6r900sixx"))
+    (program / "pick.src").write_text("DEF pick()\nPTP XP1\nLIN XP2\nLIN XP3\nEND\n")
+    target = tmp_path / "KRC" / output
+    before = target.read_bytes()
+    capsys.readouterr()
+    assert main(["compensate", "kuka_kr6r900sixx", str(program / "pick.dat"), "--program", "krl",
+                 "-o", str(target)]) == 1
+    said = capsys.readouterr().err
+    assert f"the output would overwrite {target}" in said and "which this command reads" in said, said
+    assert target.read_bytes() == before
+    if output.endswith("$machine.dat"):
+        assert main(["compensate", "kuka_kr6r900sixx", str(program / "move.src"), "--program", "krl", "--frames",
+                     str(tmp_path / "KRC" / "R1" / "System" / "$config.dat"), "-o", str(target)]) == 1
+        assert f"the output would overwrite {target}" in capsys.readouterr().err

@@ -21,6 +21,7 @@ from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, Verific
                                write_folder)
 from kincal.compensate.turn import poses_in
 from kincal.observe import check_convention
+from kincal.io.frames_file import frames_read
 from kincal.papers import PUU3_2024
 from kincal.units import DEG, MM
 
@@ -75,7 +76,7 @@ def cmd_compensate(args) -> int:
     if args.program and os.path.isdir(args.targets):
         return _compensate_folder(args)
     _not_a_program(args)
-    cal = load_robot(args, [args.targets, *([args.frames] if args.frames else [])], [args.output])
+    cal = load_robot(args, _read_files(args), [args.output])
     record, values = _calibration(args)
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
     cal, uncertainty, unread = covariates_read(cal, uncertainty)
@@ -237,6 +238,14 @@ def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
                        "output": args.output if written else None, **_orientation_from(turned, turn),
                        "base_note": unseen or None},
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
+
+
+def _read_files(args) -> list[str]:
+    """Every file compensate reads for one targets file or program: it, the files its language's reader reads
+    beside it (a KRL .dat's module .src, the controller's $config.dat and $machine.dat: Dialect.beside) and the
+    frames file's (frames_read); an output must replace none of them."""
+    beside = kincal.io.dialects()[args.program].beside(args.targets) if args.program else ()
+    return [args.targets, *beside, *(frames_read(args.frames) if args.frames else ())]
 
 
 def _not_a_program(args) -> None:

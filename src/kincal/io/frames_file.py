@@ -68,6 +68,34 @@ class TaughtFrame:
         return RULES[self.rule][0]
 
 
+def frames_read(path: str) -> tuple[str, ...]:
+    """The files :func:`read_frames` reads for ``path``: the file, and for a KUKA ``$config.dat`` the ``$machine.dat``
+    beside it (:func:`kincal.io.krl_config.sibling`) when there is one.
+
+    Parameters
+    ----------
+    path : str
+        The frames file.
+
+    Returns
+    -------
+    tuple of str
+        The paths, ``path`` first.
+
+    Examples
+    --------
+    >>> from kincal.io.frames_file import frames_read
+    >>> frames_read("cell/frames.yaml")
+    ('cell/frames.yaml',)
+    """
+    if os.path.basename(str(path)).lower() != "$config.dat":
+        return (str(path),)
+    from .krl_config import sibling
+
+    machine = sibling(str(path), "$machine.dat")
+    return (str(path),) + (() if machine is None else (machine,))
+
+
 def read_frames(path: str) -> Mapping[str, np.ndarray | str | TaughtFrame]:
     """Read the frames of a frames file, by name.
 
