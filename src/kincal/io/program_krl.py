@@ -58,7 +58,7 @@ from typing import Sequence
 import numpy as np
 
 from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix
-from .programs import Dialect, Program, Target, controller_angles, old_numbers, write_fields
+from .programs import Dialect, Program, Target, controller_angles, old_numbers, used_otherwise, write_fields
 from .krl_scan import (AXIS_KEYS, EXTERNAL, POSE_KEYS, _Aggregate, _aggregate, _blank, _check_brackets, _check_numbers,
                        _fail, _integer)
 
@@ -341,8 +341,8 @@ def _points(f: _File) -> None:
         elif agg.missing:
             f.note(a, shown, _partial(agg))
         elif f.unmoved(var):
-            f.note(a, shown, f"no move of its module ({f.module.name if f.module else ''}) goes to it, and it is not "
-                             f"GLOBAL: a value the module uses otherwise (a limit, a speed, a record), not a move target")
+            f.note(a, shown, used_otherwise(f"no move of its module ({f.module.name if f.module else ''}) goes to "
+                                            f"it, and it is not GLOBAL"))
         else:
             kind = kind or ("E6" if set(agg.parts) & set(EXTERNAL) else "") + ("POS" if agg.shape == "pose" else "AXIS")
             f.targets.append(_target(f.text, agg, move or kind, at if move else a, shown, f.frames(a, var),

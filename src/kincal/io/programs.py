@@ -206,6 +206,33 @@ def no_frames(program: Program) -> dict[str, np.ndarray]:
     return {}
 
 
+def used_otherwise(how: str) -> str:
+    """Why a point variable given one literal is listed, not compensated: the module uses it otherwise than as a
+    place a move goes to (``how``: where and how, or that no move goes to it), so a new value would change what
+    the program does with it (a comparison, a limit); a data target is compensated only when every use of it is a
+    move's (KRL and RAPID alike).
+
+    Parameters
+    ----------
+    how : str
+        Where and how the module uses it, in words.
+
+    Returns
+    -------
+    str
+        The reason, as listed.
+
+    Examples
+    --------
+    >>> from kincal.io.programs import used_otherwise
+    >>> print(used_otherwise("compared in line 92 (IF jtPos.robax<>pRobHome.robax THEN)"))
+    compared in line 92 (IF jtPos.robax<>pRobHome.robax THEN): a value the module uses otherwise (a limit, a
+    comparison, a speed, a record), not only a move target
+    """
+    return (f"{how}: a value the module uses otherwise (a limit, a comparison, a speed, a record), not only a move "
+            f"target")
+
+
 def nothing_beside(path: str) -> tuple[str, ...]:
     """A language whose reader reads no file but the program's own: none."""
     return ()
