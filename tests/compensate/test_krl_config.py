@@ -166,3 +166,24 @@ def test_compensate_refuses_to_write_over_a_file_its_reader_reads_beside_the_pro
         assert main(["compensate", "kuka_kr6r900sixx", str(program / "move.src"), "--program", "krl", "--frames",
                      str(tmp_path / "KRC" / "R1" / "System" / "$config.dat"), "-o", str(target)]) == 1
         assert f"the output would overwrite {target}" in capsys.readouterr().err
+
+
+def test_one_frame_in_metres_among_frames_in_mm_is_refused_naming_it(tmp_path):
+    """A frames file whose default tool was written in metres ({x: 0.02, y: 0.01, z: 0.12}: a 20, 10, 120 mm tool)
+    beside TOOL_NO 2 in mm (z: 180): the tool was taken as 0.122 mm long without a word (only a file whose every frame
+    is that small was refused; the real TCP then 0.27-0.29 mm off the targets). Each frame is judged on its own: the
+    tool is named with its values and what they are in metres; one really that small is taken with 'units: {length:
+    mm}', and frames at their origin (0) or far from it are as they were."""
+    (tmp_path / "mix.yaml").write_text("default tool: {x: 0.02, y: 0.01, z: 0.12, rx: 0, ry: 0, rz: 0}\n"
+                                       "default base: {x: 0, y: 0, z: 0}\nTOOL_NO 2: {z: 180}\n")
+    with pytest.raises(ValueError) as err:
+        read_frames(str(tmp_path / "mix.yaml"))
+    said = str(err.value)
+    assert "'default tool' {x: 0.02, y: 0.01, z: 0.12}, 0.122 mm from its origin" in said, said
+    assert "in metres {x: 20, y: 10, z: 120} mm" in said and "beside 'TOOL_NO 2' 180 mm out" in said
+    assert "'default base'" not in said and "units: {length: mm}" in said
+    (tmp_path / "mm.yaml").write_text("units: {length: mm}\n" + (tmp_path / "mix.yaml").read_text())
+    got = read_frames(str(tmp_path / "mm.yaml"))
+    np.testing.assert_allclose(got["default tool"][:3, 3], [0.02e-3, 0.01e-3, 0.12e-3])
+    (tmp_path / "ok.yaml").write_text("default tool: {x: 20, y: 10, z: 120}\ndefault base: {}\nTOOL_NO 2: {z: 180}\n")
+    np.testing.assert_allclose(read_frames(str(tmp_path / "ok.yaml"))["default tool"][:3, 3], [0.02, 0.01, 0.12])

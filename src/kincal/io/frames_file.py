@@ -186,17 +186,34 @@ def read_frames(path: str) -> Mapping[str, np.ndarray | str | TaughtFrame]:
     return out
 
 
-METRES_LOOK = 2e-3  # m: frames whose translations all stay within this, read as mm, were written in metres
+METRES_LOOK = 2e-3  # m: a frame whose translation, read as mm, is within this (and not 0) was written in metres
 
 
 def _not_metres(path: str, frames: dict) -> None:
-    """Refuse frames read in the default mm whose translations are all within METRES_LOOK (and some not 0): written
-    in metres (a 150 mm tool as z: 0.15)."""
-    t = [np.linalg.norm(f[:3, 3]) for f in frames.values() if isinstance(f, np.ndarray)]
-    if t and 0.0 < max(t) <= METRES_LOOK:
-        raise ValueError(f"{path}: every frame's translation is within {max(t) * 1e3:.3g} mm as read in mm (the "
-                         f"default): they look like metres; say so with 'units: {{length: m}}' (or, if they really "
-                         f"are this small, 'units: {{length: mm}}')")
+    """Refuse, in a file read in the default mm, each frame whose translation is within METRES_LOOK of its origin and
+    not 0, judged on its own: no tool's TCP and no base lies that close unless it is the origin itself, so it was
+    written in metres (a 150 mm tool as z: 0.15), whether the file's other frames are in mm or all in metres. A
+    frame really this small is taken once the file says 'units: {length: mm}'."""
+    sizes = {n: float(np.linalg.norm(f[:3, 3])) for n, f in frames.items() if isinstance(f, np.ndarray)}
+    small = [n for n, d in sizes.items() if 0.0 < d <= METRES_LOOK]
+    large = [n for n, d in sizes.items() if d > METRES_LOOK]
+    if not small:
+        return
+    if not large:
+        raise ValueError(f"{path}: every frame's translation is within {max(sizes.values()) * 1e3:.3g} mm as read in "
+                         f"mm (the default): they look like metres; say so with 'units: {{length: m}}' (or, if they "
+                         f"really are this small, 'units: {{length: mm}}')")
+    shown = "; ".join(f"{n!r} {{{_xyz(frames[n][:3, 3] * 1e3)}}}, {sizes[n] * 1e3:.3g} mm from its origin, in metres "
+                      f"{{{_xyz(frames[n][:3, 3] * 1e6)}}} mm" for n in small[:3])
+    raise ValueError(f"{path}: {len(small)} frame(s) read in mm (the default) lie within {METRES_LOOK * 1e3:g} mm of "
+                     f"their origin, where no tool's TCP or base does unless it is the origin itself, beside "
+                     f"{large[0]!r} {sizes[large[0]] * 1e3:.4g} mm out: {shown}: written in metres? Write them in mm "
+                     f"(or, if they really are this small, give the file 'units: {{length: mm}}')")
+
+
+def _xyz(v: np.ndarray) -> str:
+    """x, y, z as a frames file writes them: 'x: 20, y: 10, z: 120'."""
+    return ", ".join(f"{k}: {float(x):.6g}" for k, x in zip("xyz", v))
 
 
 def _entry(path: str, name: str, f, lf: float, af: float) -> np.ndarray | TaughtFrame:
