@@ -183,6 +183,8 @@ def read_frames(path: str) -> Mapping[str, np.ndarray | str | TaughtFrame]:
     for name, f in out.items():
         if isinstance(f, TaughtFrame) and f.kind == "base" and f.tool not in out:
             raise ValueError(f"{path}: frame {name!r} was taught with tool {f.tool!r}, which the file does not give")
+    if str(units.get("angle", "deg")) == "deg":
+        _not_radians(str(path), out)
     return out
 
 
@@ -209,6 +211,21 @@ def _not_metres(path: str, frames: dict) -> None:
                      f"their origin, where no tool's TCP or base does unless it is the origin itself, beside "
                      f"{large[0]!r} {sizes[large[0]] * 1e3:.4g} mm out: {shown}: written in metres? Write them in mm "
                      f"(or, if they really are this small, give the file 'units: {{length: mm}}')")
+
+
+def _not_radians(path: str, frames: dict) -> None:
+    """Refuse a taught frame whose teach poses, in a file whose angles are degrees, look like radians
+    (:func:`kincal.io.unit_checks.radians_as_degrees`, the readers' check): taken as degrees they barely move the
+    robot, and the frame they give is wrong by as much as the robot then is."""
+    from .unit_checks import radians_as_degrees
+
+    for name, f in frames.items():
+        if isinstance(f, TaughtFrame) and radians_as_degrees(np.degrees(f.joints)):
+            raise ValueError(f"{path}: frame {name!r}: the joints of its {len(f.joints)} teach poses all lie within "
+                             f"±{2 * np.pi:.2f} as written (largest {np.degrees(np.abs(f.joints)).max():.4g}), read in "
+                             f"degrees (the file's angle unit): they look like radians; write them in degrees as the "
+                             f"controller shows them (or, if every angle of the file is in radians, give it 'units: "
+                             f"{{angle: rad}}')")
 
 
 def _xyz(v: np.ndarray) -> str:
