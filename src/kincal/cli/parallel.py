@@ -366,9 +366,11 @@ def _compensate_folder(args) -> int:
     shift, carry = _carried(args, cal, values)
     res = compensate_folder(model, nominal, args.targets, args.program, kincal.io.ROWS[args.program], frames, turned,
                             shift)
+    others = _left_out_line(res)
     if not res.files:
-        raise ValueError(f"{args.targets}: no {args.program} program in this folder (suffixes "
-                         f"{', '.join(kincal.io.dialects()[args.program].suffixes)})")
+        suffixes = ", ".join(kincal.io.dialects()[args.program].suffixes)
+        raise ValueError(f"{args.targets}: no {args.program} program in this folder (suffixes {suffixes})"
+                         + (f"; {others}" if others else ""))
     stuck = res.count("refused") + res.count("unreadable")
     written = not stuck or args.skip_unreachable
     if written:
@@ -385,6 +387,7 @@ def _compensate_folder(args) -> int:
                  (f"written to {args.output} (every {args.program} file, compensated or as it was; report "
                   f"{args.output}/kincal_report.csv)" if written else
                   f"nothing written (--skip-unreachable writes the folder with those left as they are)"))
+    lines += [others] if others else []
     unseen = _base_line(args, record, cal, unc)
     lines += refused[:SHOWN_PROBLEMS] + ([f"… and {len(refused) - SHOWN_PROBLEMS} more refused targets (all of them "
                                           f"with --json)"] if len(refused) > SHOWN_PROBLEMS else [])
@@ -393,6 +396,17 @@ def _compensate_folder(args) -> int:
     return emit(args, {**res.to_dict(), "output": args.output if written else None, **_orientation_from(turned, turn),
                        "tool_carry": carry or None, "base_note": unseen or None},
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
+
+
+def _left_out_line(res) -> str:
+    """The programs of other languages under the folder, not read: how many, which (the first SHOWN_PROBLEMS) and what
+    to do; '' for none."""
+    if not res.left_out:
+        return ""
+    named = ", ".join(f"{p} ({lang})" for p, lang in res.left_out[:SHOWN_PROBLEMS])
+    more = f", … and {len(res.left_out) - SHOWN_PROBLEMS} more" if len(res.left_out) > SHOWN_PROBLEMS else ""
+    return (f"left out: {len(res.left_out)} program(s) of other languages than {res.dialect}, not read and not "
+            f"written: {named}{more} (compensate each with its own --program)")
 
 
 def _taught_lines(cal, nominal, frames, turned, shift: np.ndarray) -> list[str]:
