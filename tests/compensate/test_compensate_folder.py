@@ -117,3 +117,41 @@ def test_a_refused_folder_says_why_each_target_was_refused(tmp_path, capsys):
     (line,) = [x for x in said.splitlines() if x.startswith("refused: ")]
     assert line.startswith("refused: R1/Program/a.src: line 3 (PTP): the target's own joints are outside the robot's "
                            "limits: a2 -200.000°")
+
+
+def test_programs_of_other_languages_in_the_folder_are_reported_as_left_out(tmp_path, capsys):
+    """A folder of mixed vendors compensated as KRL: the RAPID, FANUC, INFORM and URScript files were left out of the
+    written folder without a word (exit 0). They are not read (another language) and are named as left out, on the
+    terminal (how many, which, and the --program to use), in kincal_report.csv (one row each) and in --json; the exit
+    code is as it was (0: nothing refused), and a folder with none of the language says what it holds."""
+    import json
+
+    _backup(tmp_path)
+    krc = tmp_path / "KRC"
+    others = {"R1/Program/Module1.mod": "rapid", "R1/Program/HOME.ls": "fanuc", "R1/FORMCUT.JBI": "inform",
+              "prog.script": "ur"}
+    for path in others:
+        (krc / path).write_text("not read\n")
+    (krc / "R1/Program/broken.src").unlink()
+    (krc / "R1/Program/secret.src").unlink()
+    out = tmp_path / "KRC_cal"
+    code, said = _run(capsys, str(tmp_path / "cal.yaml"), str(krc), "--program", "krl", "-o", str(out))
+    assert code == 0, said
+    expected = sorted(others.items())
+    named = ", ".join(f"{p} ({lang})" for p, lang in expected)
+    assert (f"left out: 4 program(s) of other languages than krl, not read and not written: {named} (compensate "
+            f"each with its own --program)") in said
+    rows = [r for r in csv.DictReader(open(out / "kincal_report.csv", encoding="utf-8")) if r["status"] == "left out"]
+    assert [(r["file"], r["line"]) for r in rows] == [(p, "0") for p, _ in expected]
+    assert all(f"--program {lang}" in r["why"] for r, (_, lang) in zip(rows, expected))
+    assert not any((out / p).exists() for p in others)
+    code, said = _run(capsys, str(tmp_path / "cal.yaml"), str(krc), "--program", "krl", "-o", str(tmp_path / "j"),
+                      "--json")
+    got = json.loads(said)
+    assert code == 0 and got["left out"] == 4
+    assert [(f["path"], f["language"]) for f in got["left_out_files"]] == expected
+    lone = tmp_path / "lone"
+    lone.mkdir()
+    (lone / "Module1.mod").write_text("not read\n")
+    code, said = _run(capsys, str(tmp_path / "cal.yaml"), str(lone), "--program", "krl", "-o", str(tmp_path / "x"))
+    assert code != 0 and "no krl program in this folder" in said and "Module1.mod (rapid)" in said

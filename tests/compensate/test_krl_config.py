@@ -142,3 +142,48 @@ def test_a_frames_file_written_in_metres_is_refused_naming_the_unit(tmp_path):
     assert read_frames(str(tmp_path / "small.yaml"))["TOOL_NO 1"][2, 3] == pytest.approx(0.15e-3)
     (tmp_path / "zero.yaml").write_text("BASE_NO 0: {}\n")
     assert np.array_equal(read_frames(str(tmp_path / "zero.yaml"))["BASE_NO 0"], np.eye(4))
+
+
+@pytest.mark.parametrize("output", ["R1/Program/pick.src", "R1/System/$config.dat", "STEU/Mada/$machine.dat"])
+def test_compensate_refuses_to_write_over_a_file_its_reader_reads_beside_the_program(tmp_path, capsys, output):
+    """compensate pick.dat reads pick.src (its module: what it does with the .dat's points), the controller's
+    $config.dat and $machine.dat; -o on any of them is refused before any work, naming it, and the file is as it
+    was (the .src was written over with the .dat's compensation, exit 0). A $config.dat given as the frames reads
+    the $machine.dat beside it: refused alike."""
+    from kincal.cli import main
+
+    program = _cell(tmp_path, kincal.load_robot("kuka_kr6r900sixx"))
+    (program / "pick.src").write_text("DEF pick()\nPTP XP1\nLIN XP2\nLIN XP3\nEND\n")
+    target = tmp_path / "KRC" / output
+    before = target.read_bytes()
+    capsys.readouterr()
+    assert main(["compensate", "kuka_kr6r900sixx", str(program / "pick.dat"), "--program", "krl",
+                 "-o", str(target)]) == 1
+    said = capsys.readouterr().err
+    assert f"the output would overwrite {target}" in said and "which this command reads" in said, said
+    assert target.read_bytes() == before
+    if output.endswith("$machine.dat"):
+        assert main(["compensate", "kuka_kr6r900sixx", str(program / "move.src"), "--program", "krl", "--frames",
+                     str(tmp_path / "KRC" / "R1" / "System" / "$config.dat"), "-o", str(target)]) == 1
+        assert f"the output would overwrite {target}" in capsys.readouterr().err
+
+
+def test_one_frame_in_metres_among_frames_in_mm_is_refused_naming_it(tmp_path):
+    """A frames file whose default tool was written in metres ({x: 0.02, y: 0.01, z: 0.12}: a 20, 10, 120 mm tool)
+    beside TOOL_NO 2 in mm (z: 180): the tool was taken as 0.122 mm long without a word (only a file whose every frame
+    is that small was refused; the real TCP then 0.27-0.29 mm off the targets). Each frame is judged on its own: the
+    tool is named with its values and what they are in metres; one really that small is taken with 'units: {length:
+    mm}', and frames at their origin (0) or far from it are as they were."""
+    (tmp_path / "mix.yaml").write_text("default tool: {x: 0.02, y: 0.01, z: 0.12, rx: 0, ry: 0, rz: 0}\n"
+                                       "default base: {x: 0, y: 0, z: 0}\nTOOL_NO 2: {z: 180}\n")
+    with pytest.raises(ValueError) as err:
+        read_frames(str(tmp_path / "mix.yaml"))
+    said = str(err.value)
+    assert "'default tool' {x: 0.02, y: 0.01, z: 0.12}, 0.122 mm from its origin" in said, said
+    assert "in metres {x: 20, y: 10, z: 120} mm" in said and "beside 'TOOL_NO 2' 180 mm out" in said
+    assert "'default base'" not in said and "units: {length: mm}" in said
+    (tmp_path / "mm.yaml").write_text("units: {length: mm}\n" + (tmp_path / "mix.yaml").read_text())
+    got = read_frames(str(tmp_path / "mm.yaml"))
+    np.testing.assert_allclose(got["default tool"][:3, 3], [0.02e-3, 0.01e-3, 0.12e-3])
+    (tmp_path / "ok.yaml").write_text("default tool: {x: 20, y: 10, z: 120}\ndefault base: {}\nTOOL_NO 2: {z: 180}\n")
+    np.testing.assert_allclose(read_frames(str(tmp_path / "ok.yaml"))["default tool"][:3, 3], [0.02, 0.01, 0.12])

@@ -445,3 +445,59 @@ def test_a_program_and_a_targets_file_carry_the_calibrations_move_of_the_declare
                               carry=shift)
     assert not res.problems
     assert np.linalg.norm(model.forward(res.q) - model.forward(csv), axis=1).max() < 1e-6
+
+
+def _kabsch(P, Q):
+    """R (3, 3), t (3,) putting the points P (N, 3) on Q (N, 3) by least squares (a rigid move)."""
+    pc, qc = P.mean(axis=0), Q.mean(axis=0)
+    U, _, Vt = np.linalg.svd((P - pc).T @ (Q - qc))
+    R = Vt.T @ np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))]) @ U.T
+    return R, qc - R @ pc
+
+
+@pytest.mark.parametrize("arm, language, suffix", [("kuka_kr6r900sixx", "krl", "src"),
+                                                   ("fanuc_lrmate200id", "fanuc", "ls")])
+def test_joint_targets_take_the_calibrations_move_of_the_measured_point_as_the_carry(tmp_path, capsys, arm,
+                                                                                     language, suffix):
+    """An arm measured at a point 30 mm out on the flange whose every link but the base's is off: the noise-free
+    calibration moves the declared point by less than 1 mm (the last link's error, carried over to the TCP). A
+    program's joint targets (KRL PTP {A1 ...}, FANUC J1 = ... deg) mean where the nominal model puts the declared
+    point there; the true arm (moved onto the calibrated model's frame by a rigid fit of its points) puts its
+    measured point at the written joints on that point (to the text's rounding: KRL full precision, FANUC 0.001 deg).
+    Before, the joint targets aimed the nominal flange's pose plus the fitted point: off by the move (0.89, 0.73 mm)."""
+    from kincal.cli import main
+    from kincal.io import ROWS
+
+    nominal = kincal.load_robot(arm).with_tool_point(np.array([0.0, 0.0, 0.03]))
+    true = kincal.perturb(nominal, seed=2, names=[n for n in nominal.params.names if n not in nominal.base_params()])
+    fit = kincal.calibrate(nominal, kincal.simulate(true, nominal.sample_joints(200, seed=1), 0.0),
+                           kincal.FitOptions(diagnose=False))
+    kincal.save_robot(fit.robot, tmp_path / "cal.yaml", calibration=fit.record())
+    model, _ = command_models(fit.robot, fit.record()["nominal"])
+    carry, _ = tool_carry(model.tool_point(), nominal.tool_point())
+    assert 0.3e-3 < np.linalg.norm(carry) < 1e-3  # carried over: the last link's error
+    q = np.radians([[10.0, -80, 100, 20, 40, 30], [-25, -100, 110, -30, -50, 60], [30, -70, 90, 60, 45, -100]])
+    if language == "fanuc":
+        q = np.radians([[10.0, 20, -10, 30, -40, 50], [-15, 10, 5, -20, -50, 10], [30, -5, -20, 40, -30, -60]])
+        text = "/PROG  J\n/ATTR\n/MN\n" + "".join(f"   {k}:J P[{k}] 100% FINE ;\n" for k in (1, 2, 3)) + "/POS\n" \
+            + "".join(f"P[{k}]{{\n   GP1:\n\tUF : 0, UT : 1,\n\t" + ",\t".join(
+                f"J{j} = {v:.3f} deg" for j, v in enumerate(np.degrees(qk), 1)) + "\n};\n"
+                for k, qk in enumerate(q, 1)) + "/END\n"
+    else:
+        text = "DEF j()\n" + "".join("PTP {" + ", ".join(f"A{j} {v:.6f}" for j, v in enumerate(np.degrees(qk), 1))
+                                     + "}\n" for qk in q) + "END\n"
+    (tmp_path / f"j.{suffix}").write_text(text)
+    q = np.array([t.values for t in read_program(str(tmp_path / f"j.{suffix}"), language).targets])  # as written
+    capsys.readouterr()
+    assert main(["compensate", str(tmp_path / "cal.yaml"), str(tmp_path / f"j.{suffix}"), "--program", language,
+                 "-o", str(tmp_path / f"out.{suffix}")]) == 0
+    assert "carried over to the TCP" in capsys.readouterr().out
+    written = np.array([t.values for t in read_program(str(tmp_path / f"out.{suffix}"), language).targets])
+    spread = nominal.sample_joints(300, seed=5)
+    Rt, tt = _kabsch(true.forward(spread), model.forward(spread))  # the true arm onto the calibrated frame
+    reached = true.forward(written) @ Rt.T + tt  # the true measured point, in the calibrated model's frame
+    meant = nominal.forward(q)  # the declared point where the nominal model puts it at the program's joints
+    _, _, Jp, _ = true.pose_and_jacobian(written)
+    rounding = np.einsum("nij->n", np.abs(Jp)) * np.radians(0.0005) if language == "fanuc" else np.zeros(3)
+    assert (np.linalg.norm(reached - meant, axis=1) < 1e-6 + rounding).all(), np.linalg.norm(reached - meant, axis=1)
+    assert np.linalg.norm(true.forward(q) @ Rt.T + tt - meant, axis=1).min() > 0.1e-3  # the calibration's worth

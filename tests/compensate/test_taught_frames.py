@@ -302,3 +302,34 @@ def test_the_command_line_says_how_far_a_base_taught_with_a_given_tcp_really_is(
         p, R = _flange(true_flange, q_ctrl)
         misses.append(np.linalg.norm(p[0] + R[0] @ U_true[:3, 3] - (BASE @ _pose(old.values))[:3, 3]))
     assert max(misses) < 1e-9, misses  # was 0.488 mm
+
+
+@pytest.mark.parametrize("in_radians", ["BASE_NO 2", "TOOL_NO 1"])
+def test_teach_poses_written_in_radians_are_refused_naming_the_frame(tmp_path, in_radians):
+    """The teach poses of a taught frame are in the file's angle unit (degrees unless it says otherwise). Written in
+    radians, a base was taken as a measurement 1.6 mm off and its targets refused for 'no branch with the target's
+    bits', a tool as '291 mm from ... not the joints, tool, rule or robot': now refused when read, by the readers'
+    own check (every value within ±2π as written, kincal.models.unit_checks.radians_as_degrees), naming the frame; the
+    same joints in degrees, or in radians with 'units: {angle: rad}', give the same frames."""
+    nominal, true = _arms()
+    tool_q, base_q = _teach(true)
+    _frames_file(tmp_path / "deg.yaml", tool_q, base_q)
+    text = (tmp_path / "deg.yaml").read_text().splitlines()
+    k = 0 if in_radians == "TOOL_NO 1" else 1
+    q = tool_q if k == 0 else base_q
+    rows = "[" + ", ".join("[" + ", ".join(f"{v:.12f}" for v in x) + "]" for x in q) + "]"  # radians, as numbers
+    text[k] = text[k].split("joints: ")[0] + f"joints: {rows}}}}}"
+    (tmp_path / "mix.yaml").write_text("\n".join(text) + "\n")
+    with pytest.raises(ValueError) as err:
+        read_frames(str(tmp_path / "mix.yaml"))
+    said = str(err.value)
+    assert f"frame {in_radians!r}: the joints of its {len(q)} teach poses all lie within ±6.28 as written" in said
+    assert f"(largest {np.abs(q).max():.4g})" in said and "they look like radians; write them in degrees" in said
+    degrees = read_frames(str(tmp_path / "deg.yaml"))
+    np.testing.assert_allclose(degrees[in_radians].joints, q, atol=1e-12)
+    as_rad = lambda qq: "[" + ", ".join("[" + ", ".join(f"{v:.12f}" for v in x) + "]" for x in qq) + "]"  # noqa: E731
+    both = [line.split("joints: ")[0] + f"joints: {as_rad(qq)}}}}}" for line, qq in zip(text, (tool_q, base_q))]
+    (tmp_path / "rad.yaml").write_text("units: {angle: rad}\n" + "\n".join(both) + "\n")  # said so: the same frames
+    rad = read_frames(str(tmp_path / "rad.yaml"))
+    for name in ("TOOL_NO 1", "BASE_NO 2"):
+        np.testing.assert_allclose(rad[name].joints, degrees[name].joints, atol=1e-11)

@@ -45,16 +45,17 @@ def test_every_file_is_read_and_written_back_byte_for_byte(path):
     assert out == path.read_bytes()
 
 
-def test_the_data_folder_holds_31_modules_with_312_targets():
+def test_the_data_folder_holds_31_modules_with_311_targets():
     assert len(FILES) == 31
     kinds = [t.kind for p in FILES for t in _read(p).targets]
-    assert (kinds.count("pose"), kinds.count("joints")) == (300, 12)
+    assert (kinds.count("pose"), kinds.count("joints")) == (300, 11)  # 12 before pRobHome, only compared, was one
 
 
 DECLARED = re.compile(r"^\s*(?:(?:LOCAL|TASK)\s+)?(?:CONST|PERS|VAR)\s+(robtarget|jointtarget)\s+(\w+)\s*:=\s*\[\[",
                       re.I | re.M)
 INLINE = re.compile(r"^\s*Move\w*\s+\[\[", re.I | re.M)
-CHANGED_IN_FILE = {"RobertAndersson/lib_rob.sys": 6}  # VAR robtarget rx1 … then rx1.trans := … (read by eye)
+CHANGED_IN_FILE = {"RobertAndersson/lib_rob.sys": 6,  # VAR robtarget rx1 … then rx1.trans := … (read by eye)
+                   "JohnFraser/Sys_Functions.sys": 1}  # pRobHome: only compared (IF …<>pRobHome.robax)
 
 
 @pytest.mark.parametrize("path", FILES, ids=_rel)
@@ -115,9 +116,7 @@ def test_library_modules_list_run_time_targets():
 
 def test_tooldata_and_wobjdata_are_exposed_not_targets():
     prog = read_program(str(LIB / "JohnFraser/Sys_Functions.sys"), "rapid")
-    (home,) = prog.targets  # LOCAL VAR jointtarget pRobHome:=[[0,0,0,0,35,0],[1000,9E+09,…]] (line 18)
-    assert (home.variable, home.kind, home.line) == ("pRobHome", "joints", 18)
-    np.testing.assert_allclose(home.values, np.radians([0, 0, 0, 0, 35, 0]))
+    assert prog.targets == ()  # its one jointtarget, pRobHome, is only compared: test_a_point_only_compared_...
     frames = declared_frames(prog)
     tool, wobj = frames["yourtool"], frames["yourwobj"]
     assert (tool.kind, tool.line, tool.robhold, tool.oframe) == ("tooldata", 19, True, None)
@@ -303,3 +302,30 @@ def test_broken_modules_name_the_file_line_and_column(text, line, column, what):
     message = str(err.value)
     assert message.startswith(f"bad.mod: line {line}, column {column}: "), message
     assert what in message and "\n" not in message
+
+
+def test_a_point_the_module_uses_otherwise_than_as_a_moves_target_is_listed_not_compensated(tmp_path):
+    """Sys_Functions.sys: LOCAL VAR jointtarget pRobHome:=[[0,0,0,0,35,0],…] (line 18) is compared with the robot's
+    joints (line 92: IF jtPos.robax<>pRobHome.robax; line 113: a field of it as a limit) and its MoveAbsJ (line 142)
+    is a comment: compensating it changed those comparisons. It is listed with the first such use, as KRL lists a
+    module's point no move goes to (kincal.io.programs.used_otherwise); a point used by moves only, directly or as
+    the base of Offs/RelTool, is still a target, and one of them compared too is listed."""
+    from kincal.io.programs import used_otherwise
+
+    prog = read_program(str(LIB / "JohnFraser/Sys_Functions.sys"), "rapid")
+    raw = (LIB / "JohnFraser/Sys_Functions.sys").read_text(encoding="latin-1").splitlines()
+    assert "pRobHome" in raw[91] and raw[141].lstrip().startswith("!!!MoveAbsJ pRobHome")  # lines 92, 142
+    assert prog.targets == ()
+    assert (18, "jointtarget pRobHome", used_otherwise("line 92 uses pRobHome otherwise than as a move's target (IF "
+                                                       "jtPos.robax<>pRobHome.robax THEN)")) in prog.not_literal
+    (tmp_path / "m.mod").write_text(
+        "MODULE m\n  CONST robtarget pA:=[[500,0,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+        "  CONST robtarget pB:=[[500,100,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+        "  CONST jointtarget jH:=[[0,0,0,0,30,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+        "  PROC main()\n    MoveJ pA,v100,fine,tool0;\n    MoveL Offs(pA,0,0,50),v100,fine,tool0;\n"
+        "    MoveL pB,v100,fine,tool0;\n    MoveAbsJ jH,v100,fine,tool0;\n"
+        "    IF CRobT().trans.z > pB.trans.z THEN\n      Stop;\n    ENDIF\n  ENDPROC\nENDMODULE\n")
+    m = read_program(str(tmp_path / "m.mod"), "rapid")
+    assert [t.variable for t in m.targets] == ["pA", "jH"]
+    assert (3, "robtarget pB", used_otherwise("line 10 uses pB otherwise than as a move's target (IF "
+                                              "CRobT().trans.z > pB.trans.z THEN)")) in m.not_literal

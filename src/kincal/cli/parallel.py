@@ -21,6 +21,7 @@ from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, Verific
                                write_folder)
 from kincal.compensate.turn import poses_in
 from kincal.observe import check_convention
+from kincal.io.frames_file import frames_read
 from kincal.papers import PUU3_2024
 from kincal.units import DEG, MM
 
@@ -75,7 +76,7 @@ def cmd_compensate(args) -> int:
     if args.program and os.path.isdir(args.targets):
         return _compensate_folder(args)
     _not_a_program(args)
-    cal = load_robot(args, [args.targets, *([args.frames] if args.frames else [])], [args.output])
+    cal = load_robot(args, _read_files(args), [args.output])
     record, values = _calibration(args)
     uncertainty = kincal.analysis.load_uncertainty(args.robot)  # a malformed record is refused before any work
     cal, uncertainty, unread = covariates_read(cal, uncertainty)
@@ -239,6 +240,14 @@ def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
 
 
+def _read_files(args) -> list[str]:
+    """Every file compensate reads for one targets file or program: it, the files its language's reader reads
+    beside it (a KRL .dat's module .src, the controller's $config.dat and $machine.dat: Dialect.beside) and the
+    frames file's (frames_read); an output must replace none of them."""
+    beside = kincal.io.dialects()[args.program].beside(args.targets) if args.program else ()
+    return [args.targets, *beside, *(frames_read(args.frames) if args.frames else ())]
+
+
 def _not_a_program(args) -> None:
     """Refuse a targets file whose suffix is a robot program's, given without --program."""
     language = None
@@ -357,9 +366,11 @@ def _compensate_folder(args) -> int:
     shift, carry = _carried(args, cal, values)
     res = compensate_folder(model, nominal, args.targets, args.program, kincal.io.ROWS[args.program], frames, turned,
                             shift)
+    others = _left_out_line(res)
     if not res.files:
-        raise ValueError(f"{args.targets}: no {args.program} program in this folder (suffixes "
-                         f"{', '.join(kincal.io.dialects()[args.program].suffixes)})")
+        suffixes = ", ".join(kincal.io.dialects()[args.program].suffixes)
+        raise ValueError(f"{args.targets}: no {args.program} program in this folder (suffixes {suffixes})"
+                         + (f"; {others}" if others else ""))
     stuck = res.count("refused") + res.count("unreadable")
     written = not stuck or args.skip_unreachable
     if written:
@@ -376,6 +387,7 @@ def _compensate_folder(args) -> int:
                  (f"written to {args.output} (every {args.program} file, compensated or as it was; report "
                   f"{args.output}/kincal_report.csv)" if written else
                   f"nothing written (--skip-unreachable writes the folder with those left as they are)"))
+    lines += [others] if others else []
     unseen = _base_line(args, record, cal, unc)
     lines += refused[:SHOWN_PROBLEMS] + ([f"… and {len(refused) - SHOWN_PROBLEMS} more refused targets (all of them "
                                           f"with --json)"] if len(refused) > SHOWN_PROBLEMS else [])
@@ -384,6 +396,17 @@ def _compensate_folder(args) -> int:
     return emit(args, {**res.to_dict(), "output": args.output if written else None, **_orientation_from(turned, turn),
                        "tool_carry": carry or None, "base_note": unseen or None},
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
+
+
+def _left_out_line(res) -> str:
+    """The programs of other languages under the folder, not read: how many, which (the first SHOWN_PROBLEMS) and what
+    to do; '' for none."""
+    if not res.left_out:
+        return ""
+    named = ", ".join(f"{p} ({lang})" for p, lang in res.left_out[:SHOWN_PROBLEMS])
+    more = f", … and {len(res.left_out) - SHOWN_PROBLEMS} more" if len(res.left_out) > SHOWN_PROBLEMS else ""
+    return (f"left out: {len(res.left_out)} program(s) of other languages than {res.dialect}, not read and not "
+            f"written: {named}{more} (compensate each with its own --program)")
 
 
 def _taught_lines(cal, nominal, frames, turned, shift: np.ndarray) -> list[str]:

@@ -4,8 +4,11 @@ compensated on that branch.
 A controller turns a Cartesian target into joints with its own (nominal) model, on the branch the
 target's configuration bits name. For each literal target of such a program:
 
-* a joint target q₀ means the pose the nominal model reaches there; the corrected joints q reach that
-  pose on the calibrated model (Newton from q₀) and are written as they are;
+* a joint target q₀ means the pose the nominal model reaches there, at the measured point as the controller
+  has it (the calibrated model's less what of the calibration's move of it is carried over to a TCP,
+  ``carry``: the same (controller, physical) tool pair as a given tool's, :func:`tool_pair`); the corrected
+  joints q reach that pose with the calibrated model's measured point (Newton from q₀) and are written as
+  they are;
 * a pose target T (the TCP in the program's base frame B, with the program's tool frame U) is turned
   into the controller's joints q₀: a nominal inverse-kinematics solution within the joint limits whose
   bits equal the target's (all targets together by Newton passes, each from the joints of the last
@@ -71,7 +74,8 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
                         carry: np.ndarray | None = None) -> ProgramCompensation:
     """Compensate every literal target of a program on the branch it states (KUKA S/T, ABB confdata, ...).
 
-    A joint target means the pose the nominal model reaches there; a pose target means the TCP in the
+    A joint target means the pose the nominal model reaches there (at the measured point less ``carry``, reached
+    by the calibrated model's measured point: the tool pair of :func:`tool_pair`); a pose target means the TCP in the
     program's base and tool frames, reached by the controller on the branch its bits name (module
     docstring). Batched: the controller's joints of all targets are solved together, each from the start and
     then from its predecessor's joints, and only what that leaves is searched one by one. The replacement
@@ -106,7 +110,8 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
         (:func:`kincal.compensate.tool_carry`; default zeros): added to the TCP (the origin) of each tool frame
         given by its values on the calibrated model only, as :func:`kincal.compensate.command_models` does for a
         ``tcp``, for the program's targets and a base taught with that tool alike (a taught tool's physical frame is
-        the calibrated model's own: :func:`kincal.compensate.taught.tool_pair`).
+        the calibrated model's own: :func:`kincal.compensate.taught.tool_pair`); a joint target's TCP is the
+        measured point, on the nominal model where the calibrated one has it less ``carry``.
 
     Returns
     -------
@@ -164,11 +169,13 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     work = in_joints(program, scale)  # PULSE positions as joint targets (rad)
     q0 = (next((t.values for t in work.targets if t.kind == "joints"), np.clip(0.0, model.lower, model.upper))
           if q_start is None else np.asarray(q_start, dtype=float))
-    goals, tools, refused = _goals(nominal, work, frames, carry=carry)
+    carry = np.zeros(3) if carry is None else np.asarray(carry, dtype=float)
+    point = tool_pair(_poses((measured - carry)[None], np.eye(3)[None])[0], carry)  # a joint target's TCP
+    goals, tools, refused = _goals(nominal, work, frames, carry=carry, point=point)
     q_nom = _controller_joints(nominal, work, goals, rows, q0, refused)
-    tcp_goals = _at_tcp(goals, tools, measured)
+    tcp_goals = _at_tcp(goals, tools)
     kept: dict[int, str] = {}
-    qs = _corrected_all(model, nominal, work, tcp_goals, q_nom, rows, (refused, kept), orientation)
+    qs = _corrected_all(model, nominal, work, (tcp_goals, tools), q_nom, rows, (refused, kept), orientation)
     values = _written(nominal, work.targets, qs, tools, [k for k in range(len(qs)) if k not in refused | kept])
     values = {k: np.round(v * scale) if program.targets[k].kind == "pulses" else v for k, v in values.items()}
     texts = dict(zip(values, dialect.write(program.text, [program.targets[k] for k in values], list(values.values()))))
@@ -184,14 +191,15 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
 
 
 def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side: int = 1,
-           carry: np.ndarray | None = None):
+           carry: np.ndarray | None = None, point: tuple | None = None):
     """Each target's flange pose (p (N, 3), R (N, 3, 3); NaN where refused), its (tool, base) frames (each a
-    (controller, physical) pair, a tool's physical TCP moved by ``carry`` (3,) m unless taught: :func:`tool_pair`;
-    None for joints) and the refusals so far (index -> why): a joint target's pose is the nominal model's there, a
-    pose target's is B·T·U⁻¹ with the ``side`` of its frames (1: the physical ones, what the program means; 0: the
-    controller's, what it turns a written target with); all at once."""
+    (controller, physical) pair, a tool's physical TCP moved by ``carry`` (3,) m unless taught: :func:`tool_pair`)
+    and the refusals so far (index -> why): a target's flange pose is B·T·U⁻¹ with the ``side`` of its frames (1:
+    the physical ones, what the program means; 0: the controller's, what it turns a written target with), T a pose
+    target's pose, or a joint target's TCP pose on the nominal model there (its tool ``point``, the measured point's
+    (controller, physical) pair, default the flange; its base the identity); all at once."""
     n = len(program.targets)
-    p, R = np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)
+    T = np.full((n, 4, 4), np.nan)
     tools: list = [None] * n
     refused: dict[int, str] = {}
     given = {k.lower(): v if isinstance(v, (str, tuple)) else np.asarray(v, dtype=float) for k, v in frames.items()}
@@ -218,15 +226,22 @@ def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side:
             refused[k] = found
         else:
             tools[k] = found
-    ok = [k for k, t in enumerate(program.targets) if t.kind == "joints" and k not in refused]
-    if ok:
-        p[ok], R[ok], _, _ = nominal.pose_and_jacobian(np.array([program.targets[k].values for k in ok]))
     poses = [k for k in range(n) if tools[k] is not None]
     if poses:
         v = np.array([program.targets[k].values[:6] for k in poses])
-        F = np.array([tools[k][1][side] for k in poses]) @ _poses(v[:, :3], rotvec_matrix(v[:, 3:6])) \
-            @ np.linalg.inv(np.array([tools[k][0][side] for k in poses]))
-        p[poses], R[poses] = F[:, :3, 3], F[:, :3, :3]
+        T[poses] = _poses(v[:, :3], rotvec_matrix(v[:, 3:6]))
+    ok = [k for k, t in enumerate(program.targets) if t.kind == "joints" and k not in refused]
+    if ok:
+        pf, Rf, _, _ = nominal.pose_and_jacobian(np.array([program.targets[k].values for k in ok]))
+        T[ok] = _poses(pf, Rf) @ (np.eye(4) if point is None else point[0])
+        tools = [(point or (np.eye(4), np.eye(4)), (np.eye(4), np.eye(4))) if k in ok else t
+                 for k, t in enumerate(tools)]
+    have = [k for k in range(n) if tools[k] is not None]
+    p, R = np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)
+    if have:
+        F = np.array([tools[k][1][side] for k in have]) @ T[have] \
+            @ np.linalg.inv(np.array([tools[k][0][side] for k in have]))
+        p[have], R[have] = F[:, :3, 3], F[:, :3, :3]
     return (p, R), tools, refused
 
 
@@ -312,26 +327,26 @@ def _pass(nominal: Robot, program: Program, goals, rows: Rows, q_nom: np.ndarray
             q_nom[k] = q
 
 
-def _at_tcp(goals, tools: list, measured: np.ndarray):
+def _at_tcp(goals, tools: list):
     """The goals (flange poses p (N, 3), R (N, 3, 3)) with the TCP point of each target's physical tool: p (N, 3), R
     and the calibrated model's TCP in the flange frame (N, 3) m: the physical tool's origin (a given tool's moved by
-    the carry, :func:`tool_pair`); for a joint target, which names no tool, the point the calibration measured,
-    ``measured`` (3,) m, the model's own. The calibrated model's position is trusted at that point, not at the
-    flange: where the flange is turned as another model's (``orientation``), the two differ by the models' turn
-    times the point's lever."""
+    the carry, :func:`tool_pair`; a joint target's, the point the calibration measured). The calibrated model's
+    position is trusted at that point, not at the flange: where the flange is turned as another model's
+    (``orientation``), the two differ by the models' turn times the point's lever."""
     p, R = goals
-    lever = np.array([measured if t is None else t[0][1][:3, 3] for t in tools]).reshape(-1, 3)
+    lever = np.array([np.zeros(3) if t is None else t[0][1][:3, 3] for t in tools]).reshape(-1, 3)
     return p + np.einsum("nij,nj->ni", R, lever), R, lever
 
 
-def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom: np.ndarray, rows: Rows,
+def _corrected_all(model: Robot, nominal: Robot, program: Program, aims, q_nom: np.ndarray, rows: Rows,
                    out: tuple[dict[int, str], dict[int, str]], orientation: Robot | None = None) -> np.ndarray:
     """The corrected joints (N, n) of every target not refused (NaN elsewhere; refusals added to ``out``'s first
-    dict): Newton on the calibrated model from the controller's joints (the TCP at the goals of :func:`_at_tcp`,
-    the flange turned as ``orientation``'s), together; refused where it did not converge, left the nominal branch,
+    dict): Newton on the calibrated model from the controller's joints (``aims``: the goals of :func:`_at_tcp` for
+    the TCP, and each target's (tool, base) pairs of :func:`_goals`; the flange turned as ``orientation``'s),
+    together; refused where it did not converge, left the nominal branch,
     broke a joint limit or changed the target's bits (each named, with a singularity's condition), except a joint
     target at a singularity: kept as it is (its joints; why in ``out``'s second dict, :func:`kept_joints`)."""
-    refused, kept = out
+    (goals, tools), (refused, kept) = aims, out
     qs = np.full_like(q_nom, np.nan)
     idx = np.array([k for k in range(len(q_nom)) if k not in refused], dtype=int)
     if not idx.size:
@@ -348,9 +363,9 @@ def _corrected_all(model: Robot, nominal: Robot, program: Program, goals, q_nom:
                "the corrected joints break the joint limits" if outside[i] else
                f"the corrected joints' configuration bits {tuple(bits[i])} differ from the target's {config}"
                + _crossed(model, q_nom[k], q[i]) if config and tuple(bits[i]) != config else "")
-        lever = goals[2][k]  # the TCP in the flange frame (a joint target: the point the calibration measured)
-        keep = kept_joints(model.with_tool_point(lever), nominal.with_tool_point(lever), q_nom[k], why) \
-            if program.targets[k].kind == "joints" else ""
+        tcp = tools[k][0]  # a joint target's: the measured point, where each model has it (controller, physical)
+        keep = kept_joints(model.with_tool_point(tcp[1][:3, 3]), nominal.with_tool_point(tcp[0][:3, 3]), q_nom[k],
+                           why) if program.targets[k].kind == "joints" else ""
         if keep:
             kept[int(k)], qs[k] = keep, q_nom[k]
         elif why:

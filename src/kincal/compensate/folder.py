@@ -1,7 +1,8 @@
 """A controller's programs compensated as a folder: every file of one language under a folder (a KRC backup's
 R1, an ABB HOME, a FANUC or Yaskawa backup), each on its own branches (:func:`compensate_branches`), with one
 report of every target and item: compensated, refused (line and why), listed (line and why) or the file not
-readable at all (an encrypted, binary or broken module: its line and column where there is one).
+readable at all (an encrypted, binary or broken module: its line and column where there is one); a program of
+another language under the folder (by its suffix) is not read and is reported as left out, with its language.
 
 The written folder holds every program file of the language, compensated or as it was, at the same relative
 paths: it is built beside the output path and renamed into place only when complete, so there is never half of
@@ -26,7 +27,7 @@ from ..models.robot import Robot
 from .branch import Rows, compensate_branches
 
 REPORT = "kincal_report.csv"  # in the written folder: one row per target, listed item or unreadable file
-STATUSES = ("compensated", "refused", "kept", "listed", "unreadable")  # of a report row
+STATUSES = ("compensated", "refused", "kept", "listed", "unreadable", "left out")  # of a report row
 
 
 @dataclass(frozen=True)
@@ -60,6 +61,9 @@ class FolderCompensation:
         new text (None: unchanged or not read) and one row (line, what, status, why) per target or item,
         with status "compensated", "refused", "kept" (a joint target at a singularity, its joints kept),
         "listed" or "unreadable".
+    left_out : tuple of (str, str), optional
+        The programs of other languages under the folder (relative path, language; :func:`other_programs`), not
+        read: reported with status "left out" (default none).
 
     See Also
     --------
@@ -85,30 +89,39 @@ class FolderCompensation:
     >>> print(res.report(), end="")
     file,line,what,status,why
     broken.src,2,,unreadable,"line 2, column 5: a '{' that is never closed"
-    >>> {k: v for k, v in res.to_dict().items() if k not in ("folder", "files")}
-    {'dialect': 'krl', 'compensated': 0, 'refused': 0, 'kept': 0, 'listed': 0, 'unreadable': 1}
+    >>> {k: v for k, v in res.to_dict().items() if k not in ("folder", "files", "left_out_files")}
+    {'dialect': 'krl', 'compensated': 0, 'refused': 0, 'kept': 0, 'listed': 0, 'unreadable': 1, 'left out': 0}
     """
 
     folder: str
     dialect: str
     files: tuple[FileCompensation, ...]
+    left_out: tuple[tuple[str, str], ...] = ()
 
     def count(self, status: str) -> int:
-        """The targets and items of every file with this ``status`` ("compensated", "refused", ...)."""
-        return sum(f.count(status) for f in self.files)
+        """The targets and items of every file with this ``status`` ("compensated", "refused", ...; "left out":
+        the files of other languages)."""
+        return len(self.left_out) if status == "left out" else sum(f.count(status) for f in self.files)
+
+    def left_out_why(self, language: str) -> str:
+        """Why a program of ``language`` under the folder was not read."""
+        return (f"a program of another language ({language}), not {self.dialect}: not read (compensate it with "
+                f"--program {language}); not in the written folder")
 
     def report(self) -> str:
-        """The report as CSV: file, line, what, status, why."""
+        """The report as CSV: file, line, what, status, why (a file left out: line 0)."""
         out = _io.StringIO()
         w = csv.writer(out, lineterminator="\n")
         w.writerow(["file", "line", "what", "status", "why"])
         w.writerows([f.path, *row] for f in self.files for row in f.rows)
+        w.writerows([path, 0, "", "left out", self.left_out_why(language)] for path, language in self.left_out)
         return out.getvalue()
 
     def to_dict(self) -> dict:
-        """The folder, the counts by status and every file's rows as plain JSON values."""
+        """The folder, the counts by status, every file's rows and the files left out as plain JSON values."""
         return {"folder": self.folder, "dialect": self.dialect,
                 **{s: self.count(s) for s in STATUSES},
+                "left_out_files": [{"path": p, "language": lang} for p, lang in self.left_out],
                 "files": [{"path": f.path, "targets": f.targets, "rows": [list(r) for r in f.rows]}
                           for f in self.files]}
 
@@ -118,6 +131,39 @@ def program_files(folder: str, dialect: str) -> list[str]:
     suffixes = dialects()[dialect].suffixes
     found = [os.path.relpath(os.path.join(d, f), folder) for d, _, names in os.walk(folder) for f in names
              if os.path.splitext(f)[1].lower() in suffixes]
+    return sorted(found)
+
+
+def other_programs(folder: str, dialect: str) -> list[tuple[str, str]]:
+    """The files under ``folder`` whose suffix (any case) is another language's than ``dialect``: (relative path,
+    language), by path in name order.
+
+    Parameters
+    ----------
+    folder : str
+        The folder read.
+    dialect : str
+        The language compensated (:func:`kincal.io.dialects`).
+
+    Returns
+    -------
+    list of (str, str)
+        Each such file's path relative to ``folder`` and its language.
+
+    Examples
+    --------
+    >>> import os
+    >>> import tempfile
+    >>> from kincal.compensate.folder import other_programs
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     for name in ("pick.src", "Module1.mod", "HOME.ls", "notes.txt"):
+    ...         open(os.path.join(tmp, name), "w").close()
+    ...     other_programs(tmp, "krl")
+    [('HOME.ls', 'fanuc'), ('Module1.mod', 'rapid')]
+    """
+    by_suffix = {x: name for name, d in dialects().items() if name != dialect for x in d.suffixes}
+    found = [(os.path.relpath(os.path.join(d, f), folder), by_suffix[os.path.splitext(f)[1].lower()])
+             for d, _, names in os.walk(folder) for f in names if os.path.splitext(f)[1].lower() in by_suffix]
     return sorted(found)
 
 
@@ -156,7 +202,8 @@ def compensate_folder(model: Robot, nominal: Robot, folder: str, dialect: str, r
     Returns
     -------
     FolderCompensation
-        Every program file (sorted by path) and what happened to each target and item.
+        Every program file (sorted by path) and what happened to each target and item; the programs of other
+        languages under the folder, left out.
 
     Examples
     --------
@@ -195,7 +242,8 @@ def compensate_folder(model: Robot, nominal: Robot, folder: str, dialect: str, r
     R1/Program/demo.src,4,PTP $POS_ACT,listed,"$POS_ACT is the robot's position when the move starts, read at run time"
     """
     return FolderCompensation(folder, dialect, tuple(_one(model, nominal, folder, p, dialect, rows, frames, orientation,
-                                                          carry) for p in program_files(folder, dialect)))
+                                                          carry) for p in program_files(folder, dialect)),
+                              tuple(other_programs(folder, dialect)))
 
 
 def _one(model: Robot, nominal: Robot, folder: str, path: str, dialect: str, rows: Rows,

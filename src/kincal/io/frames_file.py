@@ -68,6 +68,34 @@ class TaughtFrame:
         return RULES[self.rule][0]
 
 
+def frames_read(path: str) -> tuple[str, ...]:
+    """The files :func:`read_frames` reads for ``path``: the file, and for a KUKA ``$config.dat`` the ``$machine.dat``
+    beside it (:func:`kincal.io.krl_config.sibling`) when there is one.
+
+    Parameters
+    ----------
+    path : str
+        The frames file.
+
+    Returns
+    -------
+    tuple of str
+        The paths, ``path`` first.
+
+    Examples
+    --------
+    >>> from kincal.io.frames_file import frames_read
+    >>> frames_read("cell/frames.yaml")
+    ('cell/frames.yaml',)
+    """
+    if os.path.basename(str(path)).lower() != "$config.dat":
+        return (str(path),)
+    from .krl_config import sibling
+
+    machine = sibling(str(path), "$machine.dat")
+    return (str(path),) + (() if machine is None else (machine,))
+
+
 def read_frames(path: str) -> Mapping[str, np.ndarray | str | TaughtFrame]:
     """Read the frames of a frames file, by name.
 
@@ -155,20 +183,54 @@ def read_frames(path: str) -> Mapping[str, np.ndarray | str | TaughtFrame]:
     for name, f in out.items():
         if isinstance(f, TaughtFrame) and f.kind == "base" and f.tool not in out:
             raise ValueError(f"{path}: frame {name!r} was taught with tool {f.tool!r}, which the file does not give")
+    if str(units.get("angle", "deg")) == "deg":
+        _not_radians(str(path), out)
     return out
 
 
-METRES_LOOK = 2e-3  # m: frames whose translations all stay within this, read as mm, were written in metres
+METRES_LOOK = 2e-3  # m: a frame whose translation, read as mm, is within this (and not 0) was written in metres
 
 
 def _not_metres(path: str, frames: dict) -> None:
-    """Refuse frames read in the default mm whose translations are all within METRES_LOOK (and some not 0): written
-    in metres (a 150 mm tool as z: 0.15)."""
-    t = [np.linalg.norm(f[:3, 3]) for f in frames.values() if isinstance(f, np.ndarray)]
-    if t and 0.0 < max(t) <= METRES_LOOK:
-        raise ValueError(f"{path}: every frame's translation is within {max(t) * 1e3:.3g} mm as read in mm (the "
-                         f"default): they look like metres; say so with 'units: {{length: m}}' (or, if they really "
-                         f"are this small, 'units: {{length: mm}}')")
+    """Refuse, in a file read in the default mm, each frame whose translation is within METRES_LOOK of its origin and
+    not 0, judged on its own: no tool's TCP and no base lies that close unless it is the origin itself, so it was
+    written in metres (a 150 mm tool as z: 0.15), whether the file's other frames are in mm or all in metres. A
+    frame really this small is taken once the file says 'units: {length: mm}'."""
+    sizes = {n: float(np.linalg.norm(f[:3, 3])) for n, f in frames.items() if isinstance(f, np.ndarray)}
+    small = [n for n, d in sizes.items() if 0.0 < d <= METRES_LOOK]
+    large = [n for n, d in sizes.items() if d > METRES_LOOK]
+    if not small:
+        return
+    if not large:
+        raise ValueError(f"{path}: every frame's translation is within {max(sizes.values()) * 1e3:.3g} mm as read in "
+                         f"mm (the default): they look like metres; say so with 'units: {{length: m}}' (or, if they "
+                         f"really are this small, 'units: {{length: mm}}')")
+    shown = "; ".join(f"{n!r} {{{_xyz(frames[n][:3, 3] * 1e3)}}}, {sizes[n] * 1e3:.3g} mm from its origin, in metres "
+                      f"{{{_xyz(frames[n][:3, 3] * 1e6)}}} mm" for n in small[:3])
+    raise ValueError(f"{path}: {len(small)} frame(s) read in mm (the default) lie within {METRES_LOOK * 1e3:g} mm of "
+                     f"their origin, where no tool's TCP or base does unless it is the origin itself, beside "
+                     f"{large[0]!r} {sizes[large[0]] * 1e3:.4g} mm out: {shown}: written in metres? Write them in mm "
+                     f"(or, if they really are this small, give the file 'units: {{length: mm}}')")
+
+
+def _not_radians(path: str, frames: dict) -> None:
+    """Refuse a taught frame whose teach poses, in a file whose angles are degrees, look like radians
+    (:func:`kincal.models.unit_checks.radians_as_degrees`, the readers' check): taken as degrees they barely move the
+    robot, and the frame they give is wrong by as much as the robot then is."""
+    from ..models.unit_checks import radians_as_degrees
+
+    for name, f in frames.items():
+        if isinstance(f, TaughtFrame) and radians_as_degrees(np.degrees(f.joints)):
+            raise ValueError(f"{path}: frame {name!r}: the joints of its {len(f.joints)} teach poses all lie within "
+                             f"±{2 * np.pi:.2f} as written (largest {np.degrees(np.abs(f.joints)).max():.4g}), read in "
+                             f"degrees (the file's angle unit): they look like radians; write them in degrees as the "
+                             f"controller shows them (or, if every angle of the file is in radians, give it 'units: "
+                             f"{{angle: rad}}')")
+
+
+def _xyz(v: np.ndarray) -> str:
+    """x, y, z as a frames file writes them: 'x: 20, y: 10, z: 120'."""
+    return ", ".join(f"{k}: {float(x):.6g}" for k, x in zip("xyz", v))
 
 
 def _entry(path: str, name: str, f, lf: float, af: float) -> np.ndarray | TaughtFrame:

@@ -58,7 +58,7 @@ from typing import Sequence
 import numpy as np
 
 from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix
-from .programs import Dialect, Program, Target, controller_angles, old_numbers, write_fields
+from .programs import Dialect, Program, Target, controller_angles, old_numbers, used_otherwise, write_fields
 from .krl_scan import (AXIS_KEYS, EXTERNAL, POSE_KEYS, _Aggregate, _aggregate, _blank, _check_brackets, _check_numbers,
                        _fail, _integer)
 
@@ -341,8 +341,8 @@ def _points(f: _File) -> None:
         elif agg.missing:
             f.note(a, shown, _partial(agg))
         elif f.unmoved(var):
-            f.note(a, shown, f"no move of its module ({f.module.name if f.module else ''}) goes to it, and it is not "
-                             f"GLOBAL: a value the module uses otherwise (a limit, a speed, a record), not a move target")
+            f.note(a, shown, used_otherwise(f"no move of its module ({f.module.name if f.module else ''}) goes to "
+                                            f"it, and it is not GLOBAL"))
         else:
             kind = kind or ("E6" if set(agg.parts) & set(EXTERNAL) else "") + ("POS" if agg.shape == "pose" else "AXIS")
             f.targets.append(_target(f.text, agg, move or kind, at if move else a, shown, f.frames(a, var),
@@ -385,28 +385,35 @@ class _Module:
     moved: frozenset[str]  # the names (upper case) its moves' lines hold
 
 
-def _module(source: str) -> _Module | None:
-    """For a ``.dat``: its module's ``.src``, as :class:`_Module`; None for any other file or a ``.dat`` without one."""
+def _module_source(source: str) -> str | None:
+    """For a ``.dat``: the path of its module's ``.src`` (the same name beside it, in KUKA's cases); None for any
+    other file or a ``.dat`` without one."""
     folder, name = os.path.split(source)
     stem, suffix = os.path.splitext(name)
     if suffix.lower() != ".dat":
         return None
-    for other in (stem + s for s in (".src", ".SRC", ".Src")):
-        try:
-            with open(os.path.join(folder, other), "rb") as fh:
-                code = _blank(fh.read().decode("latin-1"))  # names are ASCII; comments may be anything
-        except OSError:
-            continue
-        assigned: dict[str, int] = {}
-        for m in ASSIGN.finditer(code):
-            index = "".join((m.group(2) or "").split())
-            var = m.group(1).upper() + (index if index[1:-1].isdigit() else "")
-            assigned.setdefault(var, code.count("\n", 0, m.start()) + 1)
-        ends = [(m.end(), code.find("\n", m.end())) for m in MOVE.finditer(code)]  # each move's line after its word
-        moved = {n.upper() for a, b in ends for n in re.findall(r"[A-Za-z_]\w*", code[a:b if b >= 0 else None])}
-        return _Module(other, assigned, frozenset(moved))
-    return None
+    return next((p for p in (os.path.join(folder, stem + s) for s in (".src", ".SRC", ".Src")) if os.path.isfile(p)),
+                None)
 
+
+def _module(source: str) -> _Module | None:
+    """For a ``.dat``: its module's ``.src``, as :class:`_Module`; None for any other file or a ``.dat`` without one."""
+    path = _module_source(source)
+    if path is None:
+        return None
+    try:
+        with open(path, "rb") as fh:
+            code = _blank(fh.read().decode("latin-1"))  # names are ASCII; comments may be anything
+    except OSError:
+        return None
+    assigned: dict[str, int] = {}
+    for m in ASSIGN.finditer(code):
+        index = "".join((m.group(2) or "").split())
+        var = m.group(1).upper() + (index if index[1:-1].isdigit() else "")
+        assigned.setdefault(var, code.count("\n", 0, m.start()) + 1)
+    ends = [(m.end(), code.find("\n", m.end())) for m in MOVE.finditer(code)]  # each move's line after its word
+    moved = {n.upper() for a, b in ends for n in re.findall(r"[A-Za-z_]\w*", code[a:b if b >= 0 else None])}
+    return _Module(os.path.basename(path), assigned, frozenset(moved))
 
 
 def parse(source: str, text: str) -> Program:
@@ -448,4 +455,14 @@ def _frames(program: Program) -> dict[str, np.ndarray | str]:
     return program_frames(program)
 
 
-DIALECT = Dialect("krl", (".src", ".dat", ".sub"), ";", parse, write, _frames)
+def _beside(source: str) -> tuple[str, ...]:
+    """The files reading the program at ``source`` reads besides it: a ``.dat``'s module ``.src``
+    (:func:`_module_source`) and the controller's ``$config.dat`` and ``$machine.dat``
+    (:func:`kincal.io.krl_config.sibling`), those that exist."""
+    from .krl_config import sibling
+
+    found = (_module_source(source), sibling(source, "$config.dat"), sibling(source, "$machine.dat"))
+    return tuple(p for p in found if p is not None)
+
+
+DIALECT = Dialect("krl", (".src", ".dat", ".sub"), ";", parse, write, _frames, beside=_beside)

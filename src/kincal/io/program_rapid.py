@@ -25,7 +25,11 @@ What is a target (``Program.targets``, in text order)
       move to it, else the declaration; ``frames`` those of the first move to it, directly or as the base
       of ``Offs``/``RelTool``). A declared point is a target even when no move of this file uses it
       (modules keep data apart from motion) or when the moves use it only as the base of
-      ``Offs``/``RelTool`` (compensating the base carries the displaced moves along).
+      ``Offs``/``RelTool`` (compensating the base carries the displaced moves along); but not when the module
+      uses it otherwise too (a comparison ``IF jt.robax<>pHome.robax``, a field read, an argument of a call,
+      another declaration's value, ``MoveExtJ``): a data target is compensated only when every use of it in the
+      file is a move's target; else it is listed with its first other use
+      (:func:`kincal.io.programs.used_otherwise`, as KRL lists a module's point no move goes to).
 
 What is listed (``Program.not_literal``: line, what, why) and never touched
     * moves to ``Offs()``, ``RelTool()``, ``CRobT()``, ``CJointT()``, ``CalcRobT()``, any other function or
@@ -58,7 +62,7 @@ import numpy as np
 
 from ..errors import MeasurementError
 from ..models.transforms import quaternion_rotvec, rotvec_matrix, rotvec_quaternion
-from .programs import Dialect, Program, Target, old_numbers, write_fields
+from .programs import Dialect, Program, Target, old_numbers, used_otherwise, write_fields
 from .rapid_scan import (Decl, FORMS, FrameData, Node, SHAPES, UNUSED, Use, _Scan, _aggregate, _closing, _literal,
                          _number, _pieces, _shaped)
 
@@ -218,8 +222,36 @@ def _call_reason(s: _Scan, move: _Move, call: re.Match, a: int, uses: dict) -> s
     return RUNTIME[low].format(base=base or "its base") + "; only literal targets are compensated"
 
 
-def _declared(s: _Scan, uses: dict, out: list, listed: list) -> list[tuple[int, int]]:
-    """The targets declared with literals (and the listed declarations); the spans of the values read."""
+def _moved_at(s: _Scan, a: int, b: int) -> int | None:
+    """Where the name a move's target argument (span a, b) goes to starts: the argument itself (``p``, ``p{2}``) or
+    the base of its ``Offs``/``RelTool``; None for any other argument."""
+    head = a + len(s.code[a:b]) - len(s.code[a:b].lstrip())
+    if NAME.fullmatch(s.code[a:b].strip()):
+        return head
+    call = CALL.match(s.code, head, b)
+    if not call or call.group(1).lower() not in ("offs", "reltool"):
+        return None
+    open_at = call.end() - 1
+    (x, y), _ = _pieces(s.code, open_at + 1, _closing(s.code, open_at))[0]
+    return x + len(s.code[x:y]) - len(s.code[x:y].lstrip()) if NAME.fullmatch(s.code[x:y].strip()) else None
+
+
+def _otherwise(s: _Scan, moves: list[_Move]) -> dict[int, int]:
+    """For each declared robtarget and jointtarget (by id) that the module uses otherwise than as a move's target
+    (:func:`_moved_at`; a comparison, a field read, an argument of a call, a value of other data, MoveExtJ), where
+    the first such use is."""
+    moved = {_moved_at(s, a, b) for m in moves for a, b in m.targets}
+    out: dict[int, int] = {}
+    for m in re.finditer(r"(?<![\w.\\%])[A-Za-z]\w*", s.code):
+        d = s.resolve(m.start(), m.group()) if m.start() not in moved else None
+        if isinstance(d, Decl) and d.kind in SHAPES and m.start() != d.name_at:
+            out.setdefault(id(d), m.start())
+    return out
+
+
+def _declared(s: _Scan, uses: dict, out: list, listed: list, otherwise: dict[int, int]) -> list[tuple[int, int]]:
+    """The targets declared with literals (and the listed declarations: assigned at run time, or used otherwise
+    than as a move's target, ``otherwise`` of :func:`_otherwise`); the spans of the values read."""
     spans = []
     for d in s.decls:
         if d.kind not in SHAPES or d.value is None:
@@ -229,6 +261,13 @@ def _declared(s: _Scan, uses: dict, out: list, listed: list) -> list[tuple[int, 
         if d.changed:
             listed.append((d.line, what, f"declared with a literal but assigned at run time (line {d.changed}): "
                                          "the moves use the value set then"))
+            continue
+        if id(d) in otherwise:
+            at = otherwise[id(d)]
+            start = max(s.code.rfind(c, 0, at) for c in ";\n") + 1
+            end = min(p for p in (*(s.code.find(c, at) for c in ";\n"), len(s.code)) if p >= 0)
+            listed.append((d.line, what, used_otherwise(f"line {s.line(at)} uses {d.name} otherwise than as a move's "
+                                                        f"target ({s.words(start, end)})")))
             continue
         elements = _elements(s, d)
         if isinstance(elements, str):
@@ -281,7 +320,7 @@ def parse(source: str, text: str) -> Program:
     for move in moves:
         for a, b in move.targets:
             _argument(s, move, a, b, uses, targets, listed)
-    claimed = _declared(s, uses, targets, listed)
+    claimed = _declared(s, uses, targets, listed, _otherwise(s, moves))
     claimed += [(m.at, s.end_of_statement(m.at, m.name)) for m in moves]
     claimed += [d.value for d in s.decls if d.value is not None]
     listed += _strays(s, claimed)

@@ -206,6 +206,38 @@ def no_frames(program: Program) -> dict[str, np.ndarray]:
     return {}
 
 
+def used_otherwise(how: str) -> str:
+    """Why a point variable given one literal is listed, not compensated: the module uses it otherwise than as a
+    place a move goes to (``how``: where and how, or that no move goes to it), so a new value would change what
+    the program does with it (a comparison, a limit); a data target is compensated only when every use of it is a
+    move's (KRL and RAPID alike).
+
+    Parameters
+    ----------
+    how : str
+        Where and how the module uses it, in words.
+
+    Returns
+    -------
+    str
+        The reason, as listed.
+
+    Examples
+    --------
+    >>> from kincal.io.programs import used_otherwise
+    >>> print(used_otherwise("compared in line 92 (IF jtPos.robax<>pRobHome.robax THEN)"))
+    compared in line 92 (IF jtPos.robax<>pRobHome.robax THEN): a value the module uses otherwise (a limit, a
+    comparison, a speed, a record), not only a move target
+    """
+    return (f"{how}: a value the module uses otherwise (a limit, a comparison, a speed, a record), not only a move "
+            f"target")
+
+
+def nothing_beside(path: str) -> tuple[str, ...]:
+    """A language whose reader reads no file but the program's own: none."""
+    return ()
+
+
 @dataclass(frozen=True)
 class Dialect:
     """A vendor language: how its programs are read and written again.
@@ -227,6 +259,10 @@ class Dialect:
         ``frames(program)``: the tool and base frames a program declares (or its controller holds beside it)
         with their values, by the names its targets use (4x4, m; or a str: why a frame it names cannot be
         known) (default: none).
+    beside : callable, optional
+        ``beside(path) -> paths``: the other files that reading the program at ``path`` and its frames reads (a
+        KRL ``.dat``'s module ``.src``, the controller's ``$config.dat`` and ``$machine.dat``): an output must
+        replace none of them (default: none).
     step : tuple of float, optional
         The finest step the controller keeps of a position's length and angle fields, (m, rad): its writer
         writes rewritten numbers to it, as the controller's own files do, and the end-to-end check of a
@@ -251,6 +287,7 @@ class Dialect:
     write: Callable[[str, Sequence[Target], Sequence[np.ndarray]], list[str]]
     frames: Callable[[Program], Mapping[str, np.ndarray | str]] = no_frames
     step: tuple[float, float] = (0.0, 0.0)
+    beside: Callable[[str], tuple[str, ...]] = nothing_beside
 
 
 Numbers = Callable[[str, Sequence[Target], np.ndarray], tuple[np.ndarray, np.ndarray]]

@@ -485,10 +485,37 @@ def check_radians(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
     if angle_unit != "deg" or not rev.any() or len(q) < 10:
         return
     as_read = np.abs(q[:, rev]) * 180.0 / np.pi
-    if float(as_read.max()) <= 2 * np.pi and float(np.ptp(as_read, axis=0).max()) > 0.5:
+    if radians_as_degrees(as_read) and float(np.ptp(as_read, axis=0).max()) > 0.5:
         raise MeasurementError(f"{source}: read as degrees, no revolute joint moves more than {as_read.max():.3g} "
                                f"deg over {len(q)} samples: the values look like radians; use angle unit 'rad' "
                                f"(CLI: --angle-unit rad)")
+
+
+def radians_as_degrees(written: np.ndarray) -> bool:
+    """Whether revolute joint values written in degrees look like radians: every one within ±2π as written (a robot's
+    poses in degrees leave ±6.3° on some joint) and not all 0.
+
+    Parameters
+    ----------
+    written : ndarray
+        The values as written (any shape), meant in degrees.
+
+    Returns
+    -------
+    bool
+        True when they look like radians.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kincal.models.unit_checks import radians_as_degrees
+    >>> radians_as_degrees(np.array([[0.29, -1.08, 2.51, 0.0, 0.15, 0.29]]))
+    True
+    >>> radians_as_degrees(np.degrees([[0.29, -1.08, 2.51, 0.0, 0.15, 0.29]]))
+    False
+    """
+    a = np.abs(np.asarray(written, dtype=float))
+    return bool(a.size and a.max() <= 2 * np.pi and a.max() > 0)
 
 
 def unit_hint(ratio: float, length_unit: str | None, what: str = "measured positions") -> str:
