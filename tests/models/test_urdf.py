@@ -509,3 +509,54 @@ def test_the_ur5_urdf_exports_urs_layout_in_urs_base(tmp_path, capsys):
                      "frames-urscript", "--json"]) == 0
         bases.append(np.array(json.loads(capsys.readouterr().out)["written_base"]))
     np.testing.assert_allclose(bases[1], bases[0], atol=1e-7)
+
+
+UR_TOOL0_IN_WRIST_3 = (0.0, -np.pi / 2, -np.pi / 2), (np.pi / 2, 0.0, np.pi / 2)  # ur_description: flange, tool0 rpy
+
+
+@pytest.mark.parametrize("base_link", [None, "base_link"])
+def test_the_ur_file_of_a_urdf_is_in_urs_base_whatever_the_chains_base_link(base_link, tmp_path, capsys):
+    """The UR5 URDF's chain from its root 'world' (world -> base_link -> base: link 'base' two fixed joints away) or
+    from base_link: the written file, rebuilt by UR's rules (ur_file_forward, then ur_description's wrist_3 ->
+    flange -> tool0, the identity), is the model in UR's Base, base_link turned 180° about z: x and y negated, within
+    1e-9 m. It was 1.668 m off from 'world', with every x and y negated, and the check passed."""
+    from kincal.models.urdf import rpy_matrix
+
+    nominal = kincal.load_robot(UR5_URDF, base_link=base_link, tip_link="tool0", tool=SMR)
+    true = kincal.perturb(kincal.load_robot(UR5_URDF, base_link="base_link", tip_link="tool0", tool=SMR), seed=21)
+    robot = nominal.with_params({n: v for n, v in true.params.as_dict().items() if not n.startswith("base.")})
+    kincal.save_robot(robot, tmp_path / "cal.yaml")
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "ur.yaml"), "--format", "ur"]) == 0
+    kin = yaml.safe_load((tmp_path / "ur.yaml").read_text())["kinematics"]
+    tcp = rpy_matrix(*UR_TOOL0_IN_WRIST_3[0]) @ rpy_matrix(*UR_TOOL0_IN_WRIST_3[1]) @ robot.tool_point()
+    q = robot.sample_joints(40, seed=22)
+    np.testing.assert_allclose(ur_file_forward(kin, q, tcp), robot.forward(q) * [-1, -1, 1], atol=1e-9)
+
+
+def test_urs_base_is_found_through_fixed_joints_or_refused(tmp_path, capsys):
+    """The link 'base' composed along fixed joints (a mounted world joint, then base_link's 180° turn: the pose by
+    hand); a moving joint between refused by name; a URDF without link 'base' gets no guessed turn of 0: --base-yaw
+    is asked for. A turn that is not where the driver puts UR's Base fails the file's check."""
+    from kincal.models.export import ur_calibration
+    from kincal.models.urdf import fixed_frame, rpy_matrix
+
+    text = UR5_URDF.read_text().replace('<origin rpy="0.0 0.0 0.0" xyz="0.0 0.0 0.0"/>\n  </joint>\n</robot>',
+                                        '<origin rpy="0 0 0.5" xyz="0.1 0.2 0.3"/>\n  </joint>\n</robot>')
+    want = np.eye(4)
+    want[:3, :3], want[:3, 3] = rpy_matrix(0.0, 0.0, 0.5) @ rpy_matrix(0.0, 0.0, -3.14159265359), [0.1, 0.2, 0.3]
+    np.testing.assert_allclose(fixed_frame(text, "world", "base"), want, atol=1e-15)
+    np.testing.assert_allclose(fixed_frame(text, "base", "world"), np.linalg.inv(want), atol=1e-15)
+    with pytest.raises(kincal.ModelError, match="joint 'wrist_3_joint' \\(revolute\\) lies between"):
+        fixed_frame(text, "tool0", "base")
+    assert fixed_frame(text, "world", "no_such_link") is None
+    bare = UR5_URDF.read_text().replace('<link name="base">', '<link name="base_x">').replace(
+        '<child link="base"/>', '<child link="base_x"/>')
+    (tmp_path / "bare.urdf").write_text(bare)
+    flags = ["--base-link", "base_link", "--tip-link", "tool0"]
+    assert main(["export", str(tmp_path / "bare.urdf"), str(tmp_path / "u.yaml"), "--format", "ur", *flags]) == 1
+    assert "no link 'base' (UR's Base" in capsys.readouterr().err and not (tmp_path / "u.yaml").exists()
+    assert main(["export", str(tmp_path / "bare.urdf"), str(tmp_path / "u.yaml"), "--format", "ur", *flags,
+                 "--base-yaw", "180"]) == 0
+    robot = kincal.load_robot(UR5_URDF, base_link="base_link", tip_link="tool0")
+    with pytest.raises(kincal.ModelError, match="would place the tool"):
+        ur_calibration(robot, 0.0, driver_base=fixed_frame(UR5_URDF.read_text(), "base_link", "base"))

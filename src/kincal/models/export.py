@@ -123,14 +123,15 @@ def _origin_tag(xyz, rpy) -> str:
 
 
 # ---- Universal Robots calibration file ------------------------------------------------------------
-def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
+def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray | None = None) -> tuple[str, dict]:
     """Write the ``kinematics:`` calibration file of UR's ROS driver for a 6-joint revolute chain.
 
     The six entries (shoulder … wrist_3) are each joint's origin, the parent-to-joint transform at zero angle
     (x y z m, roll pitch yaw rad), relative to UR's Base frame, which is the model's base frame turned by
     ``base_yaw`` about z. What lies beyond the wrist-3 frame, which the file cannot hold, is returned in the
     summary for the controller. The file is checked before it is returned: its numbers, rebuilt by the
-    driver's rules, must reproduce the model within 1e-9 m at random poses.
+    driver's rules in the driver's Base frame (``driver_base``), must reproduce the model within 1e-9 m at random
+    poses.
 
     Parameters
     ----------
@@ -139,6 +140,10 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
     base_yaw : float, optional
         Turn of UR's Base frame from the model's base frame about z, rad (default 0, right for kincal's DH
         ur5, whose base is UR's Base; π for a URDF whose base_link faces the other way).
+    driver_base : ndarray, shape (4, 4), optional
+        The frame the driver places the file's chain in (UR's Base: a URDF's link ``base``), in the model's base
+        frame, m, known apart from ``base_yaw`` (default: ``base_yaw`` about z); the check compares the file's
+        positions with the model's in it, so a ``base_yaw`` that is not its turn is refused.
 
     Returns
     -------
@@ -152,7 +157,7 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
     ------
     ModelError
         When the robot has joint-value terms, is not a serial chain, does not have 6 revolute joints, or the
-        file would not reproduce the model.
+        file would not reproduce the model in ``driver_base``.
 
     Examples
     --------
@@ -196,7 +201,8 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
     tool = robot.tool_point()
     summary = {"flange_to_tcp": rest.tolist(), "tool_point": (rest[:3, :3] @ tool + rest[:3, 3]).tolist(),
                "base_yaw": base_yaw}
-    _check(robot, lambda q: _ur_forward(entries, q, base, rest, tool), "UR calibration file")
+    driver = base if driver_base is None else np.asarray(driver_base, dtype=float)
+    _check(robot, lambda q: _ur_forward(entries, q, rest, tool), "UR calibration file", driver)
     return text, summary
 
 
@@ -240,21 +246,24 @@ def _foot(p1: np.ndarray, z1: np.ndarray, p2: np.ndarray, z2: np.ndarray) -> np.
     return p1 + t * z1
 
 
-def _ur_forward(entries: dict, q: np.ndarray, base: np.ndarray, rest: np.ndarray, tool: np.ndarray) -> np.ndarray:
-    """The UR file's chain: Base, then per joint origin and Rz(q), then flange-to-TCP and the tool."""
+def _ur_forward(entries: dict, q: np.ndarray, rest: np.ndarray, tool: np.ndarray) -> np.ndarray:
+    """The UR file's chain in UR's Base: per joint origin and Rz(q), then flange-to-TCP and the tool."""
     out = []
     for qi in q:
-        T = base.copy()
+        T = np.eye(4)
         for (xyz, rpy), angle in zip(entries.values(), qi):
             T = T @ _h(rpy_matrix(*rpy), xyz) @ _motion(ROT, 2, angle)
         out.append((T @ rest @ np.append(tool, 1.0))[:3])
     return np.array(out)
 
 
-def _check(robot: Robot, forward, what: str) -> None:
-    """The exported kinematics must reproduce the model (base frame removed) at random poses."""
+def _check(robot: Robot, forward, what: str, frame: np.ndarray | None = None) -> None:
+    """The exported kinematics must reproduce the model (base frame removed; seen from ``frame``, 4x4 in the model's
+    base frame, where given) at random poses."""
     q = robot.sample_joints(50, seed=0)
     model = robot.with_params(dict.fromkeys(robot.base_params(), 0.0)).forward(q)
+    if frame is not None:
+        model = model @ frame[:3, :3] - frame[:3, 3] @ frame[:3, :3]  # inv(frame) applied to each row
     gap = float(np.max(np.linalg.norm(forward(q) - model, axis=1)))
     if not gap <= EXPORT_TOL:
         raise ModelError(f"the {what} would place the tool {gap * MM:.3g} mm from the calibrated model; "
@@ -517,7 +526,8 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
         text = urdf_text(robot, _source(robot, source_path), tool_link, joint_names)
         summary.update(tool_link=tool_link_of(robot, tool_link))
     elif fmt == "ur":
-        text, extra = ur_calibration(robot, ur_base_yaw(robot, base_yaw, source_path))
+        driver = controller_base(robot, source_path)  # UR's Base as the URDF places it (None: not a URDF robot)
+        text, extra = ur_calibration(robot, ur_base_yaw(robot, base_yaw, source_path), driver)
         summary.update(extra)
     else:
         mounted = robot.with_params({n: float(base[n]) for n in robot.base_params()}) if base else robot
@@ -530,9 +540,11 @@ CONTROLLER_BASE = "base"  # ROS-Industrial's link for the controller's base fram
 
 
 def controller_base(robot: Robot, source_path: str | None = None) -> np.ndarray | None:
-    """The controller's base frame (4x4, m) in a URDF robot's base frame: the pose of the URDF's link ``base``
-    where a fixed joint hangs it on the chain's base link, as ROS-Industrial's descriptions do (ur_description's
-    ``base`` is UR's Base, base_link turned 180° about z); None for another robot or a URDF without it."""
+    """The controller's base frame (4x4, m) in a URDF robot's base frame: the pose of the URDF's link ``base``,
+    composed along the fixed joints between it and the chain's base link (ROS-Industrial's descriptions hang it on
+    base_link; ur_description's ``base`` is UR's Base, base_link turned 180° about z, and a chain from the root
+    ``world`` reaches it through base_link); None for another robot or a URDF without that link. ModelError when
+    a moving joint lies between the two links."""
     if not isinstance(robot, URDFRobot):
         return None
     text = _source(robot, source_path)
@@ -541,9 +553,15 @@ def controller_base(robot: Robot, source_path: str | None = None) -> np.ndarray 
 
 def ur_base_yaw(robot: Robot, given: float | None, source_path: str | None = None) -> float:
     """The turn of UR's Base about z from the model's base frame, rad: from the URDF's link ``base``
-    (:func:`controller_base`) where it has one, ``given`` (which must agree) otherwise, else 0 (kincal's DH UR arms
-    stand in UR's Base). ModelError when the link is more than a turn about z, or disagrees with ``given``."""
+    (:func:`controller_base`) where it has one (``given`` must agree), else ``given``, else 0 for a DH/MDH robot
+    (kincal's DH UR arms stand in UR's Base). ModelError when the link is more than a turn about z, disagrees with
+    ``given``, or a URDF robot has neither (never a guessed 0: a wrong turn negates every x and y)."""
     T = controller_base(robot, source_path)
+    if T is None and isinstance(robot, URDFRobot) and given is None:
+        raise ModelError(f"robot '{robot.name}': its URDF has no link '{CONTROLLER_BASE}' (UR's Base, the frame the "
+                         f"driver's kinematics file is in) to place the file in: give --base-yaw, the turn of UR's "
+                         f"Base about z from the chain's base link '{robot.source.get('base_link')}' (ur_description:"
+                         f" 180 from base_link)")
     if T is None or not isinstance(robot, URDFRobot):
         return 0.0 if given is None else given
     yaw, link = float(np.arctan2(T[1, 0], T[0, 0])), robot.source.get("base_link")
