@@ -560,3 +560,44 @@ def test_urs_base_is_found_through_fixed_joints_or_refused(tmp_path, capsys):
     robot = kincal.load_robot(UR5_URDF, base_link="base_link", tip_link="tool0")
     with pytest.raises(kincal.ModelError, match="would place the tool"):
         ur_calibration(robot, 0.0, driver_base=fixed_frame(UR5_URDF.read_text(), "base_link", "base"))
+
+
+def test_the_source_urdf_is_the_calibrated_files_and_checked(tmp_path, monkeypatch, capsys):
+    """A robot calibrated from 'mine.urdf' in its folder, exported from a sub-folder holding another mine.urdf
+    (another robot's name, elbow limits ±1 rad): the export edits the calibrated file's (name 'ur5', elbow ±π, as
+    the URDF says), resolved beside the robot file (saved elsewhere: '../mine.urdf'); the other one given as --from
+    is refused naming both files and what differs, an old robot file (no sha256) too; the source changed after the
+    calibration is refused unless given with --from."""
+    import xml.etree.ElementTree as ET
+
+    text = UR5_URDF.read_text()
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "mine.urdf").write_text(text)
+    (tmp_path / "sub" / "mine.urdf").write_text(text.replace('name="ur5"', 'name="cell7"').replace(
+        'lower="-3.14159265359" upper="3.14159265359"', 'lower="-1.0" upper="1.0"'))
+    monkeypatch.chdir(tmp_path)
+    kincal.save_robot(kincal.load_robot("mine.urdf", tip_link="tool0"), "cal.yaml")
+    kincal.save_robot(kincal.load_robot("mine.urdf", tip_link="tool0"), "sub/cal.yaml")
+    assert 'file: "../mine.urdf"' in (tmp_path / "sub" / "cal.yaml").read_text()
+    monkeypatch.chdir(tmp_path / "sub")
+    for cal in ("../cal.yaml", "cal.yaml"):
+        assert main(["export", cal, "out.urdf"]) == 0
+        root = ET.parse("out.urdf").getroot()
+        elbow = [j for j in root.findall("joint") if j.get("name") == "elbow_joint"][0].find("limit")
+        assert root.get("name") == "ur5" and float(elbow.get("upper")) == pytest.approx(np.pi, abs=1e-10)
+    capsys.readouterr()
+    assert main(["export", "../cal.yaml", "out2.urdf", "--from", "mine.urdf"]) == 1
+    said = capsys.readouterr().err
+    assert said.startswith("kincal: error: mine.urdf: not the URDF robot 'ur5' was calibrated from (../mine.urdf)")
+    assert "the robot is 'cell7', not 'ur5'" in said and "'elbow_joint' has limits [-1, 1]" in said
+    old = "\n".join(line.split(", sha256")[0] + "}" if line.startswith("source:") else line
+                    for line in (tmp_path / "cal.yaml").read_text().splitlines())
+    (tmp_path / "old.yaml").write_text(old)
+    assert main(["export", "../old.yaml", "out2.urdf", "--from", "mine.urdf"]) == 1
+    assert "not the URDF robot 'ur5' was calibrated from" in capsys.readouterr().err
+    assert not (tmp_path / "sub" / "out2.urdf").exists()
+    assert main(["export", "../old.yaml", "out2.urdf"]) == 0
+    (tmp_path / "mine.urdf").write_text(text + "<!-- edited -->\n")
+    assert main(["export", "../cal.yaml", "out3.urdf"]) == 1
+    assert "../mine.urdf: changed since robot 'ur5' was calibrated from it" in capsys.readouterr().err
+    assert main(["export", "../cal.yaml", "out3.urdf", "--from", "../mine.urdf"]) == 0

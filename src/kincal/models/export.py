@@ -11,6 +11,8 @@ forward kinematics to 1e-9 m at random poses, else nothing is written.
 """
 from __future__ import annotations
 
+import hashlib
+import os
 import re
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -194,8 +196,6 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray 
     for name, (xyz, rpy) in entries.items():
         lines.append(f"  {name}:")
         lines += [f"    {k}: {_fmt(v)}" for k, v in zip(ORIGIN, (*xyz, *rpy))]
-    import hashlib  # the UR file's hash line only
-
     digest = hashlib.sha256("\n".join(lines).encode()).hexdigest()
     text = "\n".join(lines + [f"  hash: calib_{int(digest[:15], 16)}", ""])
     tool = robot.tool_point()
@@ -531,7 +531,7 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
         summary.update(extra)
     else:
         mounted = robot.with_params({n: float(base[n]) for n in robot.base_params()}) if base else robot
-        text = robot_to_yaml(mounted, length_unit, angle_unit)
+        text = robot_to_yaml(mounted, length_unit, angle_unit, os.path.dirname(os.fspath(path)))
     write_text_atomic(path, text)
     return summary
 
@@ -576,6 +576,8 @@ def ur_base_yaw(robot: Robot, given: float | None, source_path: str | None = Non
 
 
 def _source(robot: Robot, source_path) -> str | None:
+    """The text of the URDF a URDF robot was read from: ``source_path`` (--from), else the file its ``source``
+    records (a robot file holds it relative to its own folder); checked to be that URDF (:func:`_same_source`)."""
     if not isinstance(robot, URDFRobot):
         if source_path:
             raise ModelError(f"{source_path}: a source URDF (--from) applies to robots read from a URDF; robot "
@@ -585,6 +587,46 @@ def _source(robot: Robot, source_path) -> str | None:
     if not path:
         raise ModelError(f"robot '{robot.name}' came from a URDF: give that file (--from)")
     try:
-        return Path(path).read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise ModelError(f"{path}: cannot read the URDF the robot came from ({exc.strerror}); give it with --from")
+        text = Path(path).read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        why = exc.strerror if isinstance(exc, OSError) else "not text"
+        raise ModelError(f"{path}: cannot read the URDF robot '{robot.name}' was calibrated from ({why}); give it "
+                         f"with --from") from None
+    _same_source(robot, text, str(path), given=bool(source_path))
+    return text
+
+
+def _same_source(robot: URDFRobot, text: str, label: str, given: bool) -> None:
+    """ModelError unless ``text`` is the URDF the robot was read from: the sha256 its ``source`` records (a file
+    found there, not given with --from, must match it), else the chain as the robot has it, every name, type,
+    axis, limit and constant origin (a calibration changes only the moving joints' positions and small turns)."""
+    digest = robot.source.get("sha256")
+    if digest and hashlib.sha256(text.encode()).hexdigest() == digest:
+        return
+    recorded = robot.source.get("file", "not recorded")
+    if digest and not given:
+        raise ModelError(f"{label}: changed since robot '{robot.name}' was calibrated from it (its sha256 is not "
+                         f"the one the robot file records); if it still describes that robot, give it with --from "
+                         f"{label}")
+    other = read_urdf(text, label, robot.source.get("base_link"), robot.source.get("tip_link"))
+    differ = _differences(robot, other)
+    if differ:
+        raise ModelError(f"{label}: not the URDF robot '{robot.name}' was calibrated from ({recorded}): "
+                         f"{'; '.join(differ[:3])}{'; …' if len(differ) > 3 else ''}; give that file with --from")
+
+
+def _differences(robot: URDFRobot, other: URDFRobot) -> list[str]:
+    """What ``other`` (a URDF's chain) has unlike ``robot`` beyond what a calibration changes."""
+    out = [] if other.name == robot.name else [f"the robot is '{other.name}', not '{robot.name}'"]
+    names = [j.name for j in other.joints]
+    if names != [j.name for j in robot.joints]:
+        return out + [f"its chain is {', '.join(names)}, not {', '.join(j.name for j in robot.joints)}"]
+    for a, b in zip(robot.joints, other.joints):
+        if a.type != b.type:
+            out.append(f"joint '{a.name}' is {b.type}, not {a.type}")
+        if not np.allclose([a.lower, a.upper], [b.lower, b.upper], rtol=0.0, atol=1e-9):
+            out.append(f"joint '{a.name}' has limits [{b.lower:.6g}, {b.upper:.6g}], not [{a.lower:.6g}, "
+                       f"{a.upper:.6g}] (rad, m for a prismatic joint)")
+    return out
+
+

@@ -22,6 +22,7 @@ position data can determine (for a UR5: 27, as for DH with Hayati's β).
 """
 from __future__ import annotations
 
+import hashlib
 import math
 import xml.etree.ElementTree as ET
 from types import MappingProxyType
@@ -121,7 +122,7 @@ class URDFRobot(ChainRobot):
     description : str, optional
         Free text (default "").
     source : mapping of str to str, optional
-        Where the chain came from: "file", "base_link", "tip_link" (default empty); stored read-only.
+        Where the chain came from: "file", "base_link", "tip_link", "sha256" (default empty); stored read-only.
 
     Attributes
     ----------
@@ -265,7 +266,8 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
     Returns
     -------
     URDFRobot
-        The chain, named as the URDF's ``<robot>``, with ``source`` {"file", "base_link", "tip_link"}.
+        The chain, named as the URDF's ``<robot>``, with ``source`` {"file", "base_link", "tip_link", "sha256"
+        (of the text, UTF-8: an export checks that the file it edits is still this one)}.
 
     Raises
     ------
@@ -288,7 +290,7 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
     >>> robot.name, robot.joint_names, robot.n_params
     ('two_link', ('shoulder', 'elbow'), 21)
     >>> dict(robot.source)
-    {'file': 'two_link.urdf', 'base_link': 'base', 'tip_link': 'fore'}
+    {'file': 'two_link.urdf', 'base_link': 'base', 'tip_link': 'fore', 'sha256': '...'}
     >>> np.round(robot.forward([0.0, np.pi / 2]), 6).tolist()
     [0.4, 0.3, 0.1]
     """
@@ -320,7 +322,7 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
             raise ModelError(f"{label}: joint '{j['joint'].name}' is a mimic joint; kincal does not model mimic "
                              f"joints yet")
     _check_lengths([j["joint"] for j in chain], label)
-    source = {"file": label, "base_link": base, "tip_link": tip}
+    source = {"file": label, "base_link": base, "tip_link": tip, "sha256": hashlib.sha256(text.encode()).hexdigest()}
     return urdf_robot(root.get("name") or "urdf_robot", [j["joint"] for j in chain], tool or (0.0, 0.0, 0.0),
                       f"URDF chain {base} -> {tip} from {label}", source)
 

@@ -375,14 +375,16 @@ def _dh_joints(entries, lf: float, af: float, label: str) -> tuple[list[Joint], 
     return joints, rows, explicit_beta
 
 
-def robot_to_yaml(robot: Robot, length_unit: str = "m", angle_unit: str = "rad") -> str:
-    """YAML text of a robot. In SI units (the default) load(save(robot)) reproduces it exactly."""
+def robot_to_yaml(robot: Robot, length_unit: str = "m", angle_unit: str = "rad",
+                  folder: str | os.PathLike | None = None) -> str:
+    """YAML text of a robot. In SI units (the default) load(save(robot)) reproduces it exactly. A URDF chain's
+    source file is written relative to ``folder``, the folder the text is saved in, else absolute."""
     if isinstance(robot, ExtendedRobot):
-        return robot_to_yaml(robot.inner, length_unit, angle_unit) + error_model_yaml(robot)
+        return robot_to_yaml(robot.inner, length_unit, angle_unit, folder) + error_model_yaml(robot)
     if isinstance(robot, PUU3Robot):
         return puu3_yaml(robot, length_unit, angle_unit)
     if isinstance(robot, URDFRobot):
-        return urdf_yaml(robot, length_unit, angle_unit)
+        return urdf_yaml(robot, length_unit, angle_unit, None if folder is None else str(folder))
     if isinstance(robot, StewartRobot):
         return stewart_yaml(robot, length_unit, angle_unit)
     if isinstance(robot, DeltaRobot):
@@ -470,7 +472,7 @@ def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", an
     >>> bool(np.allclose(readable.params.values, robot.params.values, rtol=0.0, atol=1e-12))
     True
     """
-    text = robot_to_yaml(robot, length_unit, angle_unit)
+    text = robot_to_yaml(robot, length_unit, angle_unit, os.path.dirname(os.fspath(path)))
     _loads_back(text, str(path))
     if calibration:
         text += yaml.safe_dump({"calibration": calibration}, default_flow_style=None, sort_keys=False, width=120)
