@@ -601,3 +601,34 @@ def test_the_source_urdf_is_the_calibrated_files_and_checked(tmp_path, monkeypat
     assert main(["export", "../cal.yaml", "out3.urdf"]) == 1
     assert "../mine.urdf: changed since robot 'ur5' was calibrated from it" in capsys.readouterr().err
     assert main(["export", "../cal.yaml", "out3.urdf", "--from", "../mine.urdf"]) == 0
+
+
+def test_the_urdf_edit_changes_the_robots_joints_whatever_comes_first(ur5u, tmp_path, capsys):
+    """ur_description's UR5 with its <transmission> blocks (each names a <joint>) before the joints, and the elbow's
+    origin written <origin ...></origin>: the export edits the robot's own joints, one <origin> each, the
+    transmissions unchanged, and the file read by yourdfpy is the calibrated model within 1e-9 m (it was refused:
+    'would place the tool 4.05 mm', and the open origin came out twice)."""
+    import re
+    import xml.etree.ElementTree as ET
+
+    text = UR5_URDF.read_text()
+    blocks = re.findall(r"  <transmission.*?</transmission>\n", text, re.S)
+    for block in blocks:
+        text = text.replace(block, "")
+    at = text.index('  <link name="base_link">')
+    text = text[:at] + "".join(blocks) + text[at:]
+    text = text.replace('xyz="0.0 -0.1197 0.425"/>', 'xyz="0.0 -0.1197 0.425">\n    </origin>')
+    (tmp_path / "arm.urdf").write_text(text)
+    robot = kincal.perturb(kincal.load_robot(tmp_path / "arm.urdf", base_link="base_link", tip_link="tool0",
+                                             tool=SMR), seed=31)
+    kincal.save_robot(robot, tmp_path / "cal.yaml")
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "out.urdf")]) == 0
+    out = (tmp_path / "out.urdf").read_text()
+    assert len(blocks) == 6 and out.index("".join(blocks)) == at
+    joints = {j.get("name"): len(j.findall("origin")) for j in ET.fromstring(out).findall("joint")}
+    assert set(joints.values()) == {1} and "</origin>" not in out
+    assert out.count("<origin") == text.count("<origin") + 1  # and the tool point's
+    q = robot.sample_joints(50, seed=32)
+    no_tool = without_base(robot).with_params({"tool.x": 0.0, "tool.y": 0.0, "tool.z": 0.0})
+    np.testing.assert_allclose(reference(tmp_path / "out.urdf", no_tool, q, "tool_point"),
+                               without_base(robot).forward(q), atol=1e-9)

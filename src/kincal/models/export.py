@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import os
 import re
+import xml.parsers.expat
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -351,18 +352,64 @@ def tool_link_of(robot: Robot, name: str | None) -> str | None:
 
 
 def _edit_urdf(robot: URDFRobot, source: str) -> str:
+    """The URDF text with the ``<origin>`` of each moving joint (a ``<joint>`` of ``<robot>`` itself, not a
+    ``<transmission>``'s reference) replaced, self-closing or not, or added; every other byte as it was."""
+    data, spans = source.encode(), _joint_spans(source)
+    edits = []
     for j in robot.moving:
-        xyz, rpy = robot.origin(j)
-        start = re.search(rf'<joint\b[^>]*\bname\s*=\s*["\']{re.escape(j.name)}["\'][^>]*>', source)
-        if start is None:
+        if j.name not in spans:
             raise ModelError(f"the URDF has no joint '{j.name}': give the file the robot was read from (--from)")
-        end = source.index("</joint>", start.end())
-        body = source[start.end():end]
-        tag = _origin_tag(xyz, rpy)
-        m = re.search(r"<origin\b[^>]*/>", body)
-        body = body[:m.start()] + tag + body[m.end():] if m else "\n    " + tag + body
-        source = source[:start.end()] + body + source[end:]
-    return source
+        after_tag, origin = spans[j.name]
+        tag = _origin_tag(*robot.origin(j)).encode()
+        edits.append((*origin, tag) if origin else (after_tag, after_tag, b"\n    " + tag))
+    for start, end, tag in sorted(edits, reverse=True):
+        data = data[:start] + tag + data[end:]
+    return data.decode()
+
+
+def _joint_spans(text: str) -> dict[str, tuple[int, tuple[int, int] | None]]:
+    """Per ``<joint>`` child of the root: the UTF-8 byte offset after its start tag, and the span of its first
+    ``<origin>`` element (start tag to end tag, or the self-closing tag), None without one."""
+    data, parser = text.encode(), xml.parsers.expat.ParserCreate()
+    spans: dict[str, tuple[int, tuple[int, int] | None]] = {}
+    path: list[tuple[str, int]] = []  # open elements: name, start offset
+    joint: list[str] = []  # the root's joint being read
+
+    def start(name: str, attrs: dict) -> None:
+        at = parser.CurrentByteIndex
+        if len(path) == 1 and name == "joint" and attrs.get("name") not in spans:
+            joint[:] = [attrs.get("name", "")]
+            spans[joint[0]] = (_tag_end(data, at), None)
+        path.append((name, at))
+
+    def end(name: str) -> None:
+        _, at = path.pop()
+        if len(path) == 2 and name == "origin" and joint and spans[joint[0]][1] is None:
+            close = _tag_end(data, at)
+            stop = close if data[close - 2:close] == b"/>" else data.index(b">", parser.CurrentByteIndex) + 1
+            spans[joint[0]] = (spans[joint[0]][0], (at, stop))
+        joint[:] = [] if len(path) == 1 else joint
+
+    parser.StartElementHandler, parser.EndElementHandler = start, end
+    try:
+        parser.Parse(text, True)
+    except xml.parsers.expat.ExpatError as exc:
+        raise ModelError(f"the URDF is not valid XML ({exc})") from None
+    return spans
+
+
+def _tag_end(data: bytes, at: int) -> int:
+    """The offset after the tag that starts at ``at`` (its '>' outside quoted attribute values)."""
+    quote = None
+    for k in range(at, len(data)):
+        c = data[k:k + 1]
+        if quote:
+            quote = None if c == quote else quote
+        elif c in (b'"', b"'"):
+            quote = c
+        elif c == b">":
+            return k + 1
+    raise ModelError("the URDF ends inside a tag")
 
 
 UR_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
