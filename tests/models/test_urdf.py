@@ -632,3 +632,28 @@ def test_the_urdf_edit_changes_the_robots_joints_whatever_comes_first(ur5u, tmp_
     no_tool = without_base(robot).with_params({"tool.x": 0.0, "tool.y": 0.0, "tool.z": 0.0})
     np.testing.assert_allclose(reference(tmp_path / "out.urdf", no_tool, q, "tool_point"),
                                without_base(robot).forward(q), atol=1e-9)
+
+
+def test_a_robot_file_is_not_written_under_a_urdf_name(tmp_path, capsys):
+    """calibrate -o cal.urdf wrote kincal YAML into a .urdf, which kincal itself then read as a URDF ('not valid XML'):
+    refused before any work, as simulate --save-true t.xml and export --format yaml x.urdf, nothing written; the advice
+    (cal.yaml, then kincal export cal.yaml cal.urdf) gives a URDF whose chain is the calibrated model."""
+    import xml.etree.ElementTree as ET
+
+    grid = ["ur5", str(DATA / "ur5_grid.csv"), *UNITS]
+    assert main(["calibrate", *grid, "-o", str(tmp_path / "cal.urdf")]) == 1
+    said = capsys.readouterr().err
+    assert "cal.urdf: a kincal robot file is YAML, not .urdf" in said and f"'kincal export {tmp_path / 'cal.yaml'} " in said
+    assert main(["simulate", "ur5", "-o", str(tmp_path / "s.csv"), "--save-true", str(tmp_path / "t.xml")]) == 1
+    assert main(["export", "ur5", str(tmp_path / "x.urdf"), "--format", "yaml"]) == 1
+    with pytest.raises(kincal.ModelError, match="YAML, not .URDF: a URDF or XML reader"):
+        kincal.save_robot(kincal.load_robot("ur5"), tmp_path / "y.URDF")
+    assert not list(tmp_path.iterdir())
+    assert main(["calibrate", *grid, "-o", str(tmp_path / "cal.yaml")]) == 0
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "cal.urdf")]) == 0
+    assert ET.parse(tmp_path / "cal.urdf").getroot().tag == "robot"
+    cal = kincal.load_robot(tmp_path / "cal.yaml")
+    back = kincal.load_robot(tmp_path / "cal.urdf", base_link="base_link_inertia", tip_link="tool_point")
+    q = cal.sample_joints(20, seed=3)
+    np.testing.assert_allclose(reference(tmp_path / "cal.urdf", back, q, "tool_point"), without_base(cal).forward(q),
+                               atol=1e-9)

@@ -28,7 +28,7 @@ from .robot import TOOL_NAMES, Robot
 from .serial import ChainRobot, SerialRobot
 from .transforms import rot_zyx, zyx_from_matrix
 from .urdf import ORIGIN, URDFRobot, fixed_frame, read_urdf, rpy_matrix
-from .yaml_io import robot_to_yaml
+from .yaml_io import check_robot_output, robot_to_yaml
 
 EXPORT_TOL = 1e-9  # m: an export must reproduce the model this closely
 TOOL_LINK = "tool_point"  # the link a URDF export carries a non-zero tool point on, unless named
@@ -548,8 +548,9 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
     ValueError
         When ``fmt`` is not one of ``FORMATS``.
     ModelError
-        When the robot has no form in that format, a source URDF is missing or not readable (or given for a
-        robot that does not come from a URDF), or the export would not reproduce the model.
+        When the robot has no form in that format, a source URDF is missing, not readable or not the robot's (or
+        given for a robot that does not come from a URDF), kincal YAML is named as a URDF or XML file, or the
+        export would not reproduce the model.
 
     Examples
     --------
@@ -577,6 +578,7 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
         text, extra = ur_calibration(robot, ur_base_yaw(robot, base_yaw, source_path), driver)
         summary.update(extra)
     else:
+        check_robot_output(path)
         mounted = robot.with_params({n: float(base[n]) for n in robot.base_params()}) if base else robot
         text = robot_to_yaml(mounted, length_unit, angle_unit, os.path.dirname(os.fspath(path)))
     write_text_atomic(path, text)

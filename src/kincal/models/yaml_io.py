@@ -447,8 +447,9 @@ def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", an
     Raises
     ------
     ModelError
-        When kincal has no robot file for this kind of model, or would refuse to load the file (values beyond
-        what the loader takes as plausible): nothing is written.
+        When kincal has no robot file for this kind of model, the path is named as a URDF or XML file
+        (:func:`check_robot_output`), or kincal would refuse to load the file (values beyond what the loader takes
+        as plausible): nothing is written.
 
     See Also
     --------
@@ -472,11 +473,37 @@ def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", an
     >>> bool(np.allclose(readable.params.values, robot.params.values, rtol=0.0, atol=1e-12))
     True
     """
+    check_robot_output(path)
     text = robot_to_yaml(robot, length_unit, angle_unit, os.path.dirname(os.fspath(path)))
     _loads_back(text, str(path))
     if calibration:
         text += yaml.safe_dump({"calibration": calibration}, default_flow_style=None, sort_keys=False, width=120)
     write_text_atomic(path, text)
+
+
+NOT_ROBOT_FILES = (".urdf", ".xacro", ".xml")  # names of files kincal (.urdf) or ROS read as XML
+
+
+def check_robot_output(path: str | os.PathLike) -> None:
+    """Refuse to name a kincal robot file (YAML) as a URDF or XML file: kincal would read a .urdf back as a URDF
+    (and fail: not XML), and ROS tools as XML. ModelError naming the file, a .yaml name, and ``kincal export``
+    for a URDF.
+
+    Examples
+    --------
+    >>> from kincal.models.yaml_io import check_robot_output
+    >>> check_robot_output("cal.yaml")
+    >>> check_robot_output("cal.urdf")
+    Traceback (most recent call last):
+    ...
+    kincal.errors.ModelError: cal.urdf: a kincal robot file is YAML, not .urdf: ...
+    """
+    p = Path(path)
+    if p.suffix.lower() in NOT_ROBOT_FILES:
+        yaml_name = p.with_suffix(".yaml")
+        raise ModelError(f"{path}: a kincal robot file is YAML, not {p.suffix}: a URDF or XML reader (kincal's own "
+                         f"for .urdf) would fail on it; name it {yaml_name}, and write the URDF from it with "
+                         f"'kincal export {yaml_name} {path}'")
 
 
 def _loads_back(text: str, label: str) -> None:
