@@ -657,3 +657,43 @@ def test_a_robot_file_is_not_written_under_a_urdf_name(tmp_path, capsys):
     q = cal.sample_joints(20, seed=3)
     np.testing.assert_allclose(reference(tmp_path / "cal.urdf", back, q, "tool_point"), without_base(cal).forward(q),
                                atol=1e-9)
+
+
+def test_a_wrong_from_says_what_it_is(tmp_path, capsys):
+    """--from a CSV or a README: 'not a URDF', naming it (it said the URDF had no joint 'shoulder_pan_joint'); a URDF
+    with the same joints, its world joint 0.5 m up and every moving origin 1.5 times as far: not the URDF the
+    calibration came from, its nominal geometry differing by the largest origin shift computed here from the two
+    files (it ended in 'would place the tool ... mm (please report this)')."""
+    import re
+    import xml.etree.ElementTree as ET
+
+    text = UR5_URDF.read_text()
+    (tmp_path / "mine.urdf").write_text(text)
+    kincal.save_robot(kincal.load_robot(tmp_path / "mine.urdf", tip_link="tool0"), tmp_path / "cal.yaml")
+    for wrong in (DATA / "ur5_grid.csv", DATA / "README.md"):
+        assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "o.urdf"), "--from", str(wrong)]) == 1
+        said = capsys.readouterr().err
+        assert said.startswith(f"kincal: error: {wrong}: not a URDF (not valid XML") and "--from takes the URDF " \
+            f"robot 'ur5' was calibrated from ({tmp_path / 'mine.urdf'})" in said
+
+    def scaled(m):
+        xyz = [float(v) * 1.5 for v in m.group(2).split()]
+        return f'{m.group(1)}{" ".join(map(repr, xyz))}"/>\n    <axis'
+    other = re.sub(r'(<origin rpy="[^"]*" xyz=")([^"]*)"/>\n    <axis', scaled, text)
+    other = other.replace('<child link="base_link"/>\n    <origin rpy="0.0 0.0 0.0" xyz="0.0 0.0 0.0"/>',
+                          '<child link="base_link"/>\n    <origin rpy="0.0 0.0 0.0" xyz="0.0 0.0 0.5"/>')
+    (tmp_path / "other.urdf").write_text(other)
+
+    def origins(t):
+        return {j.get("name"): np.array([float(v) for v in j.find("origin").get("xyz").split()])
+                for j in ET.fromstring(t).findall("joint")}
+    a, b = origins(text), origins(other)
+    shift = max(np.linalg.norm(a[n] - b[n]) for n in a) * 1e3
+    assert shift == pytest.approx(500.0)
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "o.urdf"), "--from",
+                 str(tmp_path / "other.urdf")]) == 1
+    said = capsys.readouterr().err
+    assert "other.urdf: not the URDF robot 'ur5' was calibrated from" in said and "please report" not in said
+    assert f"its nominal geometry differs by up to {shift:.4g} mm and 0°" in said
+    assert "world_joint, shoulder_pan_joint, shoulder_lift_joint, elbow_joint" in said
+    assert not (tmp_path / "o.urdf").exists()

@@ -648,7 +648,8 @@ def _source(robot: Robot, source_path) -> str | None:
 def _same_source(robot: URDFRobot, text: str, label: str, given: bool) -> None:
     """ModelError unless ``text`` is the URDF the robot was read from: the sha256 its ``source`` records (a file
     found there, not given with --from, must match it), else the chain as the robot has it, every name, type,
-    axis, limit and constant origin (a calibration changes only the moving joints' positions and small turns)."""
+    axis, limit and constant origin (a calibration changes only the moving joints' positions and small turns),
+    and the moving joints' positions too where the recorded file is still there to give them."""
     digest = robot.source.get("sha256")
     if digest and hashlib.sha256(text.encode()).hexdigest() == digest:
         return
@@ -657,15 +658,38 @@ def _same_source(robot: URDFRobot, text: str, label: str, given: bool) -> None:
         raise ModelError(f"{label}: changed since robot '{robot.name}' was calibrated from it (its sha256 is not "
                          f"the one the robot file records); if it still describes that robot, give it with --from "
                          f"{label}")
-    other = read_urdf(text, label, robot.source.get("base_link"), robot.source.get("tip_link"))
-    differ = _differences(robot, other)
+    try:
+        other = read_urdf(text, label, robot.source.get("base_link"), robot.source.get("tip_link"))
+    except ModelError as exc:
+        why = str(exc).removeprefix(f"{label}: ")
+        if why.startswith(("not valid XML", "the root element", "a xacro file")):
+            raise ModelError(f"{label}: not a URDF ({why}); --from takes the URDF robot '{robot.name}' was "
+                             f"calibrated from ({recorded})") from None
+        raise ModelError(f"{label}: not the URDF robot '{robot.name}' was calibrated from ({recorded}): {why}; give "
+                         f"that file with --from") from None
+    differ = _differences(robot, other, _recorded_chain(robot) if given else None)
     if differ:
         raise ModelError(f"{label}: not the URDF robot '{robot.name}' was calibrated from ({recorded}): "
                          f"{'; '.join(differ[:3])}{'; …' if len(differ) > 3 else ''}; give that file with --from")
 
 
-def _differences(robot: URDFRobot, other: URDFRobot) -> list[str]:
-    """What ``other`` (a URDF's chain) has unlike ``robot`` beyond what a calibration changes."""
+def _recorded_chain(robot: URDFRobot) -> tuple | None:
+    """The chain's joints as the recorded source file has them, when it is there with its recorded sha256 (the
+    nominal positions of the moving joints, which the calibrated robot no longer holds); else None."""
+    path, digest = robot.source.get("file"), robot.source.get("sha256")
+    try:
+        text = Path(str(path)).read_text(encoding="utf-8-sig") if path and digest else ""
+    except (OSError, UnicodeDecodeError):
+        return None
+    if not text or hashlib.sha256(text.encode()).hexdigest() != digest:
+        return None
+    return read_urdf(text, str(path), robot.source.get("base_link"), robot.source.get("tip_link")).joints
+
+
+def _differences(robot: URDFRobot, other: URDFRobot, nominal: tuple | None = None) -> list[str]:
+    """What ``other`` (a URDF's chain) has unlike ``robot`` beyond what a calibration changes: names, types, limits,
+    and the nominal geometry (constant origins, axes, the moving joints' turns; their positions too with
+    ``nominal``, the source's joints)."""
     out = [] if other.name == robot.name else [f"the robot is '{other.name}', not '{robot.name}'"]
     names = [j.name for j in other.joints]
     if names != [j.name for j in robot.joints]:
@@ -676,6 +700,23 @@ def _differences(robot: URDFRobot, other: URDFRobot) -> list[str]:
         if not np.allclose([a.lower, a.upper], [b.lower, b.upper], rtol=0.0, atol=1e-9):
             out.append(f"joint '{a.name}' has limits [{b.lower:.6g}, {b.upper:.6g}], not [{a.lower:.6g}, "
                        f"{a.upper:.6g}] (rad, m for a prismatic joint)")
+    gaps = {}  # joint: (position m, turn rad) of its origin and axis against the source's
+    for a, b in zip(nominal or robot.joints, other.joints):
+        shift = float(np.linalg.norm(np.subtract(a.xyz, b.xyz))) if nominal or not a.moving else 0.0
+        axes = [np.asarray(v, float) / np.linalg.norm(v) for v in (a.axis, b.axis)]
+        turn = max(_angle(rpy_matrix(*a.rpy).T @ rpy_matrix(*b.rpy)), float(np.arccos(np.clip(axes[0] @ axes[1],
+                                                                                              -1.0, 1.0))))
+        if shift > 1e-9 or turn > 1e-9:
+            gaps[a.name] = (shift, turn)
+    if gaps:
+        shift, turn = (max(g[k] for g in gaps.values()) for k in (0, 1))
+        out.append(f"its nominal geometry differs by up to {shift * MM:.4g} mm and {np.degrees(turn):.4g}° "
+                   f"(joint{'s' if len(gaps) > 1 else ''} {', '.join(gaps)}: origin or axis)")
     return out
+
+
+def _angle(R: np.ndarray) -> float:
+    """The rotation angle of a rotation matrix, rad."""
+    return float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
 
 
