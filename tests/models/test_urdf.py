@@ -1,5 +1,6 @@
 """URDF robots in, calibrated kinematics out (URDF, Universal Robots' kinematics file, kincal YAML)."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -429,8 +430,9 @@ def test_the_ur10_urdf_has_urs_own_link_frames(tmp_path, capsys):
 
 
 def test_the_ur10_calibration_file_has_urs_default_kinematics(tmp_path, capsys):
-    """kincal export ur10 --format ur on the nominal UR10: UR's own default_kinematics.yaml, entry by
-    entry — each joint origin within 1e-9 m, its rotation within 1e-9 (the rpy written may differ)."""
+    """kincal export ur10 --format ur on the nominal UR10: the transforms of UR's own default_kinematics.yaml —
+    each joint origin within 1e-9 m, its rotation within 1e-9 — but not its entries: wrist_3 is written roll
+    -π/2, pitch 0, yaw 0 for UR's π/2, π, π, as docs/howto/export.md says."""
     from kincal.models.urdf import rpy_matrix
 
     assert main(["export", "ur10", str(tmp_path / "ur.yaml"), "--format", "ur"]) == 0
@@ -442,6 +444,10 @@ def test_the_ur10_calibration_file_has_urs_default_kinematics(tmp_path, capsys):
         np.testing.assert_allclose([got["x"], got["y"], got["z"]], xyz, atol=1e-9, err_msg=joint)
         np.testing.assert_allclose(rpy_matrix(got["roll"], got["pitch"], got["yaw"]), rpy_matrix(*rpy), atol=1e-9,
                                    err_msg=joint)
+    np.testing.assert_allclose([kin["wrist_3"][k] for k in ("roll", "pitch", "yaw")], [-np.pi / 2, 0.0, 0.0],
+                               atol=1e-12)
+    docs = " ".join((Path(__file__).parents[2] / "docs" / "howto" / "export.md").read_text().split())
+    assert "wrist_3 comes out roll −π/2, pitch 0, yaw 0, UR's file has π/2, π, π" in docs
 
 
 def test_a_tool_declared_in_another_links_axes_is_suspect(capsys):
@@ -473,6 +479,8 @@ def test_a_urdf_needs_every_joints_velocity_and_effort(tmp_path, capsys):
               if j.find("limit") is not None}
     assert float(limits["j1"]["velocity"]) == pytest.approx(np.pi / 2) and float(limits["j1"]["effort"]) == 40
     assert float(limits["j2"]["velocity"]) == pytest.approx(0.25) and float(limits["j2"]["effort"]) == 300
+    docs = " ".join((Path(__file__).parents[2] / "docs" / "reference" / "formats.md").read_text().split())
+    assert "refuses a file that lacks them for a moving joint" in docs and "leaves them out" not in docs
 
 
 
