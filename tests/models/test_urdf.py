@@ -1,5 +1,6 @@
 """URDF robots in, calibrated kinematics out (URDF, Universal Robots' kinematics file, kincal YAML)."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -429,8 +430,9 @@ def test_the_ur10_urdf_has_urs_own_link_frames(tmp_path, capsys):
 
 
 def test_the_ur10_calibration_file_has_urs_default_kinematics(tmp_path, capsys):
-    """kincal export ur10 --format ur on the nominal UR10: UR's own default_kinematics.yaml, entry by
-    entry — each joint origin within 1e-9 m, its rotation within 1e-9 (the rpy written may differ)."""
+    """kincal export ur10 --format ur on the nominal UR10: the transforms of UR's own default_kinematics.yaml —
+    each joint origin within 1e-9 m, its rotation within 1e-9 — but not its entries: wrist_3 is written roll
+    -π/2, pitch 0, yaw 0 for UR's π/2, π, π, as docs/howto/export.md says."""
     from kincal.models.urdf import rpy_matrix
 
     assert main(["export", "ur10", str(tmp_path / "ur.yaml"), "--format", "ur"]) == 0
@@ -442,6 +444,10 @@ def test_the_ur10_calibration_file_has_urs_default_kinematics(tmp_path, capsys):
         np.testing.assert_allclose([got["x"], got["y"], got["z"]], xyz, atol=1e-9, err_msg=joint)
         np.testing.assert_allclose(rpy_matrix(got["roll"], got["pitch"], got["yaw"]), rpy_matrix(*rpy), atol=1e-9,
                                    err_msg=joint)
+    np.testing.assert_allclose([kin["wrist_3"][k] for k in ("roll", "pitch", "yaw")], [-np.pi / 2, 0.0, 0.0],
+                               atol=1e-12)
+    docs = " ".join((Path(__file__).parents[2] / "docs" / "howto" / "export.md").read_text().split())
+    assert "wrist_3 comes out roll −π/2, pitch 0, yaw 0, UR's file has π/2, π, π" in docs
 
 
 def test_a_tool_declared_in_another_links_axes_is_suspect(capsys):
@@ -473,6 +479,8 @@ def test_a_urdf_needs_every_joints_velocity_and_effort(tmp_path, capsys):
               if j.find("limit") is not None}
     assert float(limits["j1"]["velocity"]) == pytest.approx(np.pi / 2) and float(limits["j1"]["effort"]) == 40
     assert float(limits["j2"]["velocity"]) == pytest.approx(0.25) and float(limits["j2"]["effort"]) == 300
+    docs = " ".join((Path(__file__).parents[2] / "docs" / "reference" / "formats.md").read_text().split())
+    assert "refuses a file that lacks them for a moving joint" in docs and "leaves them out" not in docs
 
 
 
@@ -509,3 +517,191 @@ def test_the_ur5_urdf_exports_urs_layout_in_urs_base(tmp_path, capsys):
                      "frames-urscript", "--json"]) == 0
         bases.append(np.array(json.loads(capsys.readouterr().out)["written_base"]))
     np.testing.assert_allclose(bases[1], bases[0], atol=1e-7)
+
+
+UR_TOOL0_IN_WRIST_3 = (0.0, -np.pi / 2, -np.pi / 2), (np.pi / 2, 0.0, np.pi / 2)  # ur_description: flange, tool0 rpy
+
+
+@pytest.mark.parametrize("base_link", [None, "base_link"])
+def test_the_ur_file_of_a_urdf_is_in_urs_base_whatever_the_chains_base_link(base_link, tmp_path, capsys):
+    """The UR5 URDF's chain from its root 'world' (world -> base_link -> base: link 'base' two fixed joints away) or
+    from base_link: the written file, rebuilt by UR's rules (ur_file_forward, then ur_description's wrist_3 ->
+    flange -> tool0, the identity), is the model in UR's Base, base_link turned 180° about z: x and y negated, within
+    1e-9 m. It was 1.668 m off from 'world', with every x and y negated, and the check passed."""
+    from kincal.models.urdf import rpy_matrix
+
+    nominal = kincal.load_robot(UR5_URDF, base_link=base_link, tip_link="tool0", tool=SMR)
+    true = kincal.perturb(kincal.load_robot(UR5_URDF, base_link="base_link", tip_link="tool0", tool=SMR), seed=21)
+    robot = nominal.with_params({n: v for n, v in true.params.as_dict().items() if not n.startswith("base.")})
+    kincal.save_robot(robot, tmp_path / "cal.yaml")
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "ur.yaml"), "--format", "ur"]) == 0
+    kin = yaml.safe_load((tmp_path / "ur.yaml").read_text())["kinematics"]
+    tcp = rpy_matrix(*UR_TOOL0_IN_WRIST_3[0]) @ rpy_matrix(*UR_TOOL0_IN_WRIST_3[1]) @ robot.tool_point()
+    q = robot.sample_joints(40, seed=22)
+    np.testing.assert_allclose(ur_file_forward(kin, q, tcp), robot.forward(q) * [-1, -1, 1], atol=1e-9)
+
+
+def test_urs_base_is_found_through_fixed_joints_or_refused(tmp_path, capsys):
+    """The link 'base' composed along fixed joints (a mounted world joint, then base_link's 180° turn: the pose by
+    hand); a moving joint between refused by name; a URDF without link 'base' gets no guessed turn of 0: --base-yaw
+    is asked for. A turn that is not where the driver puts UR's Base fails the file's check."""
+    from kincal.models.export import ur_calibration
+    from kincal.models.urdf import fixed_frame, rpy_matrix
+
+    text = UR5_URDF.read_text().replace('<origin rpy="0.0 0.0 0.0" xyz="0.0 0.0 0.0"/>\n  </joint>\n</robot>',
+                                        '<origin rpy="0 0 0.5" xyz="0.1 0.2 0.3"/>\n  </joint>\n</robot>')
+    want = np.eye(4)
+    want[:3, :3], want[:3, 3] = rpy_matrix(0.0, 0.0, 0.5) @ rpy_matrix(0.0, 0.0, -3.14159265359), [0.1, 0.2, 0.3]
+    np.testing.assert_allclose(fixed_frame(text, "world", "base"), want, atol=1e-15)
+    np.testing.assert_allclose(fixed_frame(text, "base", "world"), np.linalg.inv(want), atol=1e-15)
+    with pytest.raises(kincal.ModelError, match="joint 'wrist_3_joint' \\(revolute\\) lies between"):
+        fixed_frame(text, "tool0", "base")
+    assert fixed_frame(text, "world", "no_such_link") is None
+    bare = UR5_URDF.read_text().replace('<link name="base">', '<link name="base_x">').replace(
+        '<child link="base"/>', '<child link="base_x"/>')
+    (tmp_path / "bare.urdf").write_text(bare)
+    flags = ["--base-link", "base_link", "--tip-link", "tool0"]
+    assert main(["export", str(tmp_path / "bare.urdf"), str(tmp_path / "u.yaml"), "--format", "ur", *flags]) == 1
+    assert "no link 'base' (UR's Base" in capsys.readouterr().err and not (tmp_path / "u.yaml").exists()
+    assert main(["export", str(tmp_path / "bare.urdf"), str(tmp_path / "u.yaml"), "--format", "ur", *flags,
+                 "--base-yaw", "180"]) == 0
+    robot = kincal.load_robot(UR5_URDF, base_link="base_link", tip_link="tool0")
+    with pytest.raises(kincal.ModelError, match="would place the tool"):
+        ur_calibration(robot, 0.0, driver_base=fixed_frame(UR5_URDF.read_text(), "base_link", "base"))
+
+
+def test_the_source_urdf_is_the_calibrated_files_and_checked(tmp_path, monkeypatch, capsys):
+    """A robot calibrated from 'mine.urdf' in its folder, exported from a sub-folder holding another mine.urdf
+    (another robot's name, elbow limits ±1 rad): the export edits the calibrated file's (name 'ur5', elbow ±π, as
+    the URDF says), resolved beside the robot file (saved elsewhere: '../mine.urdf'); the other one given as --from
+    is refused naming both files and what differs, an old robot file (no sha256) too; the source changed after the
+    calibration is refused unless given with --from."""
+    import xml.etree.ElementTree as ET
+
+    text = UR5_URDF.read_text()
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "mine.urdf").write_text(text)
+    (tmp_path / "sub" / "mine.urdf").write_text(text.replace('name="ur5"', 'name="cell7"').replace(
+        'lower="-3.14159265359" upper="3.14159265359"', 'lower="-1.0" upper="1.0"'))
+    monkeypatch.chdir(tmp_path)
+    kincal.save_robot(kincal.load_robot("mine.urdf", tip_link="tool0"), "cal.yaml")
+    kincal.save_robot(kincal.load_robot("mine.urdf", tip_link="tool0"), "sub/cal.yaml")
+    assert 'file: "../mine.urdf"' in (tmp_path / "sub" / "cal.yaml").read_text()
+    monkeypatch.chdir(tmp_path / "sub")
+    for cal in ("../cal.yaml", "cal.yaml"):
+        assert main(["export", cal, "out.urdf"]) == 0
+        root = ET.parse("out.urdf").getroot()
+        elbow = [j for j in root.findall("joint") if j.get("name") == "elbow_joint"][0].find("limit")
+        assert root.get("name") == "ur5" and float(elbow.get("upper")) == pytest.approx(np.pi, abs=1e-10)
+    capsys.readouterr()
+    assert main(["export", "../cal.yaml", "out2.urdf", "--from", "mine.urdf"]) == 1
+    said = capsys.readouterr().err
+    assert said.startswith("kincal: error: mine.urdf: not the URDF robot 'ur5' was calibrated from (../mine.urdf)")
+    assert "the robot is 'cell7', not 'ur5'" in said and "'elbow_joint' has limits [-1, 1]" in said
+    old = "\n".join(line.split(", sha256")[0] + "}" if line.startswith("source:") else line
+                    for line in (tmp_path / "cal.yaml").read_text().splitlines())
+    (tmp_path / "old.yaml").write_text(old)
+    assert main(["export", "../old.yaml", "out2.urdf", "--from", "mine.urdf"]) == 1
+    assert "not the URDF robot 'ur5' was calibrated from" in capsys.readouterr().err
+    assert not (tmp_path / "sub" / "out2.urdf").exists()
+    assert main(["export", "../old.yaml", "out2.urdf"]) == 0
+    (tmp_path / "mine.urdf").write_text(text + "<!-- edited -->\n")
+    assert main(["export", "../cal.yaml", "out3.urdf"]) == 1
+    assert "../mine.urdf: changed since robot 'ur5' was calibrated from it" in capsys.readouterr().err
+    assert main(["export", "../cal.yaml", "out3.urdf", "--from", "../mine.urdf"]) == 0
+
+
+def test_the_urdf_edit_changes_the_robots_joints_whatever_comes_first(ur5u, tmp_path, capsys):
+    """ur_description's UR5 with its <transmission> blocks (each names a <joint>) before the joints, and the elbow's
+    origin written <origin ...></origin>: the export edits the robot's own joints, one <origin> each, the
+    transmissions unchanged, and the file read by yourdfpy is the calibrated model within 1e-9 m (it was refused:
+    'would place the tool 4.05 mm', and the open origin came out twice)."""
+    import re
+    import xml.etree.ElementTree as ET
+
+    text = UR5_URDF.read_text()
+    blocks = re.findall(r"  <transmission.*?</transmission>\n", text, re.S)
+    for block in blocks:
+        text = text.replace(block, "")
+    at = text.index('  <link name="base_link">')
+    text = text[:at] + "".join(blocks) + text[at:]
+    text = text.replace('xyz="0.0 -0.1197 0.425"/>', 'xyz="0.0 -0.1197 0.425">\n    </origin>')
+    (tmp_path / "arm.urdf").write_text(text)
+    robot = kincal.perturb(kincal.load_robot(tmp_path / "arm.urdf", base_link="base_link", tip_link="tool0",
+                                             tool=SMR), seed=31)
+    kincal.save_robot(robot, tmp_path / "cal.yaml")
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "out.urdf")]) == 0
+    out = (tmp_path / "out.urdf").read_text()
+    assert len(blocks) == 6 and out.index("".join(blocks)) == at
+    joints = {j.get("name"): len(j.findall("origin")) for j in ET.fromstring(out).findall("joint")}
+    assert set(joints.values()) == {1} and "</origin>" not in out
+    assert out.count("<origin") == text.count("<origin") + 1  # and the tool point's
+    q = robot.sample_joints(50, seed=32)
+    no_tool = without_base(robot).with_params({"tool.x": 0.0, "tool.y": 0.0, "tool.z": 0.0})
+    np.testing.assert_allclose(reference(tmp_path / "out.urdf", no_tool, q, "tool_point"),
+                               without_base(robot).forward(q), atol=1e-9)
+
+
+def test_a_robot_file_is_not_written_under_a_urdf_name(tmp_path, capsys):
+    """calibrate -o cal.urdf wrote kincal YAML into a .urdf, which kincal itself then read as a URDF ('not valid XML'):
+    refused before any work, as simulate --save-true t.xml and export --format yaml x.urdf, nothing written; the advice
+    (cal.yaml, then kincal export cal.yaml cal.urdf) gives a URDF whose chain is the calibrated model."""
+    import xml.etree.ElementTree as ET
+
+    grid = ["ur5", str(DATA / "ur5_grid.csv"), *UNITS]
+    assert main(["calibrate", *grid, "-o", str(tmp_path / "cal.urdf")]) == 1
+    said = capsys.readouterr().err
+    assert "cal.urdf: a kincal robot file is YAML, not .urdf" in said and f"'kincal export {tmp_path / 'cal.yaml'} " in said
+    assert main(["simulate", "ur5", "-o", str(tmp_path / "s.csv"), "--save-true", str(tmp_path / "t.xml")]) == 1
+    assert main(["export", "ur5", str(tmp_path / "x.urdf"), "--format", "yaml"]) == 1
+    with pytest.raises(kincal.ModelError, match="YAML, not .URDF: a URDF or XML reader"):
+        kincal.save_robot(kincal.load_robot("ur5"), tmp_path / "y.URDF")
+    assert not list(tmp_path.iterdir())
+    assert main(["calibrate", *grid, "-o", str(tmp_path / "cal.yaml")]) == 0
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "cal.urdf")]) == 0
+    assert ET.parse(tmp_path / "cal.urdf").getroot().tag == "robot"
+    cal = kincal.load_robot(tmp_path / "cal.yaml")
+    back = kincal.load_robot(tmp_path / "cal.urdf", base_link="base_link_inertia", tip_link="tool_point")
+    q = cal.sample_joints(20, seed=3)
+    np.testing.assert_allclose(reference(tmp_path / "cal.urdf", back, q, "tool_point"), without_base(cal).forward(q),
+                               atol=1e-9)
+
+
+def test_a_wrong_from_says_what_it_is(tmp_path, capsys):
+    """--from a CSV or a README: 'not a URDF', naming it (it said the URDF had no joint 'shoulder_pan_joint'); a URDF
+    with the same joints, its world joint 0.5 m up and every moving origin 1.5 times as far: not the URDF the
+    calibration came from, its nominal geometry differing by the largest origin shift computed here from the two
+    files (it ended in 'would place the tool ... mm (please report this)')."""
+    import re
+    import xml.etree.ElementTree as ET
+
+    text = UR5_URDF.read_text()
+    (tmp_path / "mine.urdf").write_text(text)
+    kincal.save_robot(kincal.load_robot(tmp_path / "mine.urdf", tip_link="tool0"), tmp_path / "cal.yaml")
+    for wrong in (DATA / "ur5_grid.csv", DATA / "README.md"):
+        assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "o.urdf"), "--from", str(wrong)]) == 1
+        said = capsys.readouterr().err
+        assert said.startswith(f"kincal: error: {wrong}: not a URDF (not valid XML") and "--from takes the URDF " \
+            f"robot 'ur5' was calibrated from ({tmp_path / 'mine.urdf'})" in said
+
+    def scaled(m):
+        xyz = [float(v) * 1.5 for v in m.group(2).split()]
+        return f'{m.group(1)}{" ".join(map(repr, xyz))}"/>\n    <axis'
+    other = re.sub(r'(<origin rpy="[^"]*" xyz=")([^"]*)"/>\n    <axis', scaled, text)
+    other = other.replace('<child link="base_link"/>\n    <origin rpy="0.0 0.0 0.0" xyz="0.0 0.0 0.0"/>',
+                          '<child link="base_link"/>\n    <origin rpy="0.0 0.0 0.0" xyz="0.0 0.0 0.5"/>')
+    (tmp_path / "other.urdf").write_text(other)
+
+    def origins(t):
+        return {j.get("name"): np.array([float(v) for v in j.find("origin").get("xyz").split()])
+                for j in ET.fromstring(t).findall("joint")}
+    a, b = origins(text), origins(other)
+    shift = max(np.linalg.norm(a[n] - b[n]) for n in a) * 1e3
+    assert shift == pytest.approx(500.0)
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "o.urdf"), "--from",
+                 str(tmp_path / "other.urdf")]) == 1
+    said = capsys.readouterr().err
+    assert "other.urdf: not the URDF robot 'ur5' was calibrated from" in said and "please report" not in said
+    assert f"its nominal geometry differs by up to {shift:.4g} mm and 0°" in said
+    assert "world_joint, shoulder_pan_joint, shoulder_lift_joint, elbow_joint" in said
+    assert not (tmp_path / "o.urdf").exists()

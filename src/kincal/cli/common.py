@@ -174,7 +174,8 @@ def robot_inputs(robot: str) -> list[str]:
     except kincal.errors.KincalError:  # a malformed file: loading it says why
         source = None
     made_from = source.get("file") if isinstance(source, dict) else None
-    return [robot] + ([made_from] if isinstance(made_from, str) and Path(made_from).is_file() else [])
+    made_from = str(Path(robot).parent / made_from) if isinstance(made_from, str) else None  # relative to the file
+    return [robot] + ([made_from] if made_from and Path(made_from).is_file() else [])
 
 
 def check_paths(inputs, outputs) -> None:

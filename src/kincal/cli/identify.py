@@ -91,6 +91,8 @@ def cmd_calibrate(args) -> int:
         raise ValueError("--refit-target re-fits the target of held-out files (--test); there are none: leave it out "
                          "(the training files' target is fitted anyway)")
     reports = [args.report, json_path_for(args.report)] if args.report else []
+    if args.output:
+        kincal.models.yaml_io.check_robot_output(args.output)  # before any work
     robot = covariates_of(args, load_robot(args, [*args.data, *args.test],
                                            [args.output, args.residuals, *reports, args.plot, store_file(args)]))
     options = fit_options(args)

@@ -11,7 +11,10 @@ forward kinematics to 1e-9 m at random poses, else nothing is written.
 """
 from __future__ import annotations
 
+import hashlib
+import os
 import re
+import xml.parsers.expat
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -25,7 +28,7 @@ from .robot import TOOL_NAMES, Robot
 from .serial import ChainRobot, SerialRobot
 from .transforms import rot_zyx, zyx_from_matrix
 from .urdf import ORIGIN, URDFRobot, fixed_frame, read_urdf, rpy_matrix
-from .yaml_io import robot_to_yaml
+from .yaml_io import check_robot_output, robot_to_yaml
 
 EXPORT_TOL = 1e-9  # m: an export must reproduce the model this closely
 TOOL_LINK = "tool_point"  # the link a URDF export carries a non-zero tool point on, unless named
@@ -123,14 +126,15 @@ def _origin_tag(xyz, rpy) -> str:
 
 
 # ---- Universal Robots calibration file ------------------------------------------------------------
-def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
+def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray | None = None) -> tuple[str, dict]:
     """Write the ``kinematics:`` calibration file of UR's ROS driver for a 6-joint revolute chain.
 
     The six entries (shoulder … wrist_3) are each joint's origin, the parent-to-joint transform at zero angle
     (x y z m, roll pitch yaw rad), relative to UR's Base frame, which is the model's base frame turned by
     ``base_yaw`` about z. What lies beyond the wrist-3 frame, which the file cannot hold, is returned in the
     summary for the controller. The file is checked before it is returned: its numbers, rebuilt by the
-    driver's rules, must reproduce the model within 1e-9 m at random poses.
+    driver's rules in the driver's Base frame (``driver_base``), must reproduce the model within 1e-9 m at random
+    poses.
 
     Parameters
     ----------
@@ -139,6 +143,10 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
     base_yaw : float, optional
         Turn of UR's Base frame from the model's base frame about z, rad (default 0, right for kincal's DH
         ur5, whose base is UR's Base; π for a URDF whose base_link faces the other way).
+    driver_base : ndarray, shape (4, 4), optional
+        The frame the driver places the file's chain in (UR's Base: a URDF's link ``base``), in the model's base
+        frame, m, known apart from ``base_yaw`` (default: ``base_yaw`` about z); the check compares the file's
+        positions with the model's in it, so a ``base_yaw`` that is not its turn is refused.
 
     Returns
     -------
@@ -152,7 +160,7 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
     ------
     ModelError
         When the robot has joint-value terms, is not a serial chain, does not have 6 revolute joints, or the
-        file would not reproduce the model.
+        file would not reproduce the model in ``driver_base``.
 
     Examples
     --------
@@ -189,14 +197,13 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0) -> tuple[str, dict]:
     for name, (xyz, rpy) in entries.items():
         lines.append(f"  {name}:")
         lines += [f"    {k}: {_fmt(v)}" for k, v in zip(ORIGIN, (*xyz, *rpy))]
-    import hashlib  # the UR file's hash line only
-
     digest = hashlib.sha256("\n".join(lines).encode()).hexdigest()
     text = "\n".join(lines + [f"  hash: calib_{int(digest[:15], 16)}", ""])
     tool = robot.tool_point()
     summary = {"flange_to_tcp": rest.tolist(), "tool_point": (rest[:3, :3] @ tool + rest[:3, 3]).tolist(),
                "base_yaw": base_yaw}
-    _check(robot, lambda q: _ur_forward(entries, q, base, rest, tool), "UR calibration file")
+    driver = base if driver_base is None else np.asarray(driver_base, dtype=float)
+    _check(robot, lambda q: _ur_forward(entries, q, rest, tool), "UR calibration file", driver)
     return text, summary
 
 
@@ -240,21 +247,24 @@ def _foot(p1: np.ndarray, z1: np.ndarray, p2: np.ndarray, z2: np.ndarray) -> np.
     return p1 + t * z1
 
 
-def _ur_forward(entries: dict, q: np.ndarray, base: np.ndarray, rest: np.ndarray, tool: np.ndarray) -> np.ndarray:
-    """The UR file's chain: Base, then per joint origin and Rz(q), then flange-to-TCP and the tool."""
+def _ur_forward(entries: dict, q: np.ndarray, rest: np.ndarray, tool: np.ndarray) -> np.ndarray:
+    """The UR file's chain in UR's Base: per joint origin and Rz(q), then flange-to-TCP and the tool."""
     out = []
     for qi in q:
-        T = base.copy()
+        T = np.eye(4)
         for (xyz, rpy), angle in zip(entries.values(), qi):
             T = T @ _h(rpy_matrix(*rpy), xyz) @ _motion(ROT, 2, angle)
         out.append((T @ rest @ np.append(tool, 1.0))[:3])
     return np.array(out)
 
 
-def _check(robot: Robot, forward, what: str) -> None:
-    """The exported kinematics must reproduce the model (base frame removed) at random poses."""
+def _check(robot: Robot, forward, what: str, frame: np.ndarray | None = None) -> None:
+    """The exported kinematics must reproduce the model (base frame removed; seen from ``frame``, 4x4 in the model's
+    base frame, where given) at random poses."""
     q = robot.sample_joints(50, seed=0)
     model = robot.with_params(dict.fromkeys(robot.base_params(), 0.0)).forward(q)
+    if frame is not None:
+        model = model @ frame[:3, :3] - frame[:3, 3] @ frame[:3, :3]  # inv(frame) applied to each row
     gap = float(np.max(np.linalg.norm(forward(q) - model, axis=1)))
     if not gap <= EXPORT_TOL:
         raise ModelError(f"the {what} would place the tool {gap * MM:.3g} mm from the calibrated model; "
@@ -342,18 +352,64 @@ def tool_link_of(robot: Robot, name: str | None) -> str | None:
 
 
 def _edit_urdf(robot: URDFRobot, source: str) -> str:
+    """The URDF text with the ``<origin>`` of each moving joint (a ``<joint>`` of ``<robot>`` itself, not a
+    ``<transmission>``'s reference) replaced, self-closing or not, or added; every other byte as it was."""
+    data, spans = source.encode(), _joint_spans(source)
+    edits = []
     for j in robot.moving:
-        xyz, rpy = robot.origin(j)
-        start = re.search(rf'<joint\b[^>]*\bname\s*=\s*["\']{re.escape(j.name)}["\'][^>]*>', source)
-        if start is None:
+        if j.name not in spans:
             raise ModelError(f"the URDF has no joint '{j.name}': give the file the robot was read from (--from)")
-        end = source.index("</joint>", start.end())
-        body = source[start.end():end]
-        tag = _origin_tag(xyz, rpy)
-        m = re.search(r"<origin\b[^>]*/>", body)
-        body = body[:m.start()] + tag + body[m.end():] if m else "\n    " + tag + body
-        source = source[:start.end()] + body + source[end:]
-    return source
+        after_tag, origin = spans[j.name]
+        tag = _origin_tag(*robot.origin(j)).encode()
+        edits.append((*origin, tag) if origin else (after_tag, after_tag, b"\n    " + tag))
+    for start, end, tag in sorted(edits, reverse=True):
+        data = data[:start] + tag + data[end:]
+    return data.decode()
+
+
+def _joint_spans(text: str) -> dict[str, tuple[int, tuple[int, int] | None]]:
+    """Per ``<joint>`` child of the root: the UTF-8 byte offset after its start tag, and the span of its first
+    ``<origin>`` element (start tag to end tag, or the self-closing tag), None without one."""
+    data, parser = text.encode(), xml.parsers.expat.ParserCreate()
+    spans: dict[str, tuple[int, tuple[int, int] | None]] = {}
+    path: list[tuple[str, int]] = []  # open elements: name, start offset
+    joint: list[str] = []  # the root's joint being read
+
+    def start(name: str, attrs: dict) -> None:
+        at = parser.CurrentByteIndex
+        if len(path) == 1 and name == "joint" and attrs.get("name") not in spans:
+            joint[:] = [attrs.get("name", "")]
+            spans[joint[0]] = (_tag_end(data, at), None)
+        path.append((name, at))
+
+    def end(name: str) -> None:
+        _, at = path.pop()
+        if len(path) == 2 and name == "origin" and joint and spans[joint[0]][1] is None:
+            close = _tag_end(data, at)
+            stop = close if data[close - 2:close] == b"/>" else data.index(b">", parser.CurrentByteIndex) + 1
+            spans[joint[0]] = (spans[joint[0]][0], (at, stop))
+        joint[:] = [] if len(path) == 1 else joint
+
+    parser.StartElementHandler, parser.EndElementHandler = start, end
+    try:
+        parser.Parse(text, True)
+    except xml.parsers.expat.ExpatError as exc:
+        raise ModelError(f"the URDF is not valid XML ({exc})") from None
+    return spans
+
+
+def _tag_end(data: bytes, at: int) -> int:
+    """The offset after the tag that starts at ``at`` (its '>' outside quoted attribute values)."""
+    quote = None
+    for k in range(at, len(data)):
+        c = data[k:k + 1]
+        if quote:
+            quote = None if c == quote else quote
+        elif c in (b'"', b"'"):
+            quote = c
+        elif c == b">":
+            return k + 1
+    raise ModelError("the URDF ends inside a tag")
 
 
 UR_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
@@ -492,8 +548,9 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
     ValueError
         When ``fmt`` is not one of ``FORMATS``.
     ModelError
-        When the robot has no form in that format, a source URDF is missing or not readable (or given for a
-        robot that does not come from a URDF), or the export would not reproduce the model.
+        When the robot has no form in that format, a source URDF is missing, not readable or not the robot's (or
+        given for a robot that does not come from a URDF), kincal YAML is named as a URDF or XML file, or the
+        export would not reproduce the model.
 
     Examples
     --------
@@ -517,11 +574,13 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
         text = urdf_text(robot, _source(robot, source_path), tool_link, joint_names)
         summary.update(tool_link=tool_link_of(robot, tool_link))
     elif fmt == "ur":
-        text, extra = ur_calibration(robot, ur_base_yaw(robot, base_yaw, source_path))
+        driver = controller_base(robot, source_path)  # UR's Base as the URDF places it (None: not a URDF robot)
+        text, extra = ur_calibration(robot, ur_base_yaw(robot, base_yaw, source_path), driver)
         summary.update(extra)
     else:
+        check_robot_output(path)
         mounted = robot.with_params({n: float(base[n]) for n in robot.base_params()}) if base else robot
-        text = robot_to_yaml(mounted, length_unit, angle_unit)
+        text = robot_to_yaml(mounted, length_unit, angle_unit, os.path.dirname(os.fspath(path)))
     write_text_atomic(path, text)
     return summary
 
@@ -530,9 +589,11 @@ CONTROLLER_BASE = "base"  # ROS-Industrial's link for the controller's base fram
 
 
 def controller_base(robot: Robot, source_path: str | None = None) -> np.ndarray | None:
-    """The controller's base frame (4x4, m) in a URDF robot's base frame: the pose of the URDF's link ``base``
-    where a fixed joint hangs it on the chain's base link, as ROS-Industrial's descriptions do (ur_description's
-    ``base`` is UR's Base, base_link turned 180° about z); None for another robot or a URDF without it."""
+    """The controller's base frame (4x4, m) in a URDF robot's base frame: the pose of the URDF's link ``base``,
+    composed along the fixed joints between it and the chain's base link (ROS-Industrial's descriptions hang it on
+    base_link; ur_description's ``base`` is UR's Base, base_link turned 180° about z, and a chain from the root
+    ``world`` reaches it through base_link); None for another robot or a URDF without that link. ModelError when
+    a moving joint lies between the two links."""
     if not isinstance(robot, URDFRobot):
         return None
     text = _source(robot, source_path)
@@ -541,9 +602,15 @@ def controller_base(robot: Robot, source_path: str | None = None) -> np.ndarray 
 
 def ur_base_yaw(robot: Robot, given: float | None, source_path: str | None = None) -> float:
     """The turn of UR's Base about z from the model's base frame, rad: from the URDF's link ``base``
-    (:func:`controller_base`) where it has one, ``given`` (which must agree) otherwise, else 0 (kincal's DH UR arms
-    stand in UR's Base). ModelError when the link is more than a turn about z, or disagrees with ``given``."""
+    (:func:`controller_base`) where it has one (``given`` must agree), else ``given``, else 0 for a DH/MDH robot
+    (kincal's DH UR arms stand in UR's Base). ModelError when the link is more than a turn about z, disagrees with
+    ``given``, or a URDF robot has neither (never a guessed 0: a wrong turn negates every x and y)."""
     T = controller_base(robot, source_path)
+    if T is None and isinstance(robot, URDFRobot) and given is None:
+        raise ModelError(f"robot '{robot.name}': its URDF has no link '{CONTROLLER_BASE}' (UR's Base, the frame the "
+                         f"driver's kinematics file is in) to place the file in: give --base-yaw, the turn of UR's "
+                         f"Base about z from the chain's base link '{robot.source.get('base_link')}' (ur_description:"
+                         f" 180 from base_link)")
     if T is None or not isinstance(robot, URDFRobot):
         return 0.0 if given is None else given
     yaw, link = float(np.arctan2(T[1, 0], T[0, 0])), robot.source.get("base_link")
@@ -558,6 +625,8 @@ def ur_base_yaw(robot: Robot, given: float | None, source_path: str | None = Non
 
 
 def _source(robot: Robot, source_path) -> str | None:
+    """The text of the URDF a URDF robot was read from: ``source_path`` (--from), else the file its ``source``
+    records (a robot file holds it relative to its own folder); checked to be that URDF (:func:`_same_source`)."""
     if not isinstance(robot, URDFRobot):
         if source_path:
             raise ModelError(f"{source_path}: a source URDF (--from) applies to robots read from a URDF; robot "
@@ -567,6 +636,87 @@ def _source(robot: Robot, source_path) -> str | None:
     if not path:
         raise ModelError(f"robot '{robot.name}' came from a URDF: give that file (--from)")
     try:
-        return Path(path).read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise ModelError(f"{path}: cannot read the URDF the robot came from ({exc.strerror}); give it with --from")
+        text = Path(path).read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        why = exc.strerror if isinstance(exc, OSError) else "not text"
+        raise ModelError(f"{path}: cannot read the URDF robot '{robot.name}' was calibrated from ({why}); give it "
+                         f"with --from") from None
+    _same_source(robot, text, str(path), given=bool(source_path))
+    return text
+
+
+def _same_source(robot: URDFRobot, text: str, label: str, given: bool) -> None:
+    """ModelError unless ``text`` is the URDF the robot was read from: the sha256 its ``source`` records (a file
+    found there, not given with --from, must match it), else the chain as the robot has it, every name, type,
+    axis, limit and constant origin (a calibration changes only the moving joints' positions and small turns),
+    and the moving joints' positions too where the recorded file is still there to give them."""
+    digest = robot.source.get("sha256")
+    if digest and hashlib.sha256(text.encode()).hexdigest() == digest:
+        return
+    recorded = robot.source.get("file", "not recorded")
+    if digest and not given:
+        raise ModelError(f"{label}: changed since robot '{robot.name}' was calibrated from it (its sha256 is not "
+                         f"the one the robot file records); if it still describes that robot, give it with --from "
+                         f"{label}")
+    try:
+        other = read_urdf(text, label, robot.source.get("base_link"), robot.source.get("tip_link"))
+    except ModelError as exc:
+        why = str(exc).removeprefix(f"{label}: ")
+        if why.startswith(("not valid XML", "the root element", "a xacro file")):
+            raise ModelError(f"{label}: not a URDF ({why}); --from takes the URDF robot '{robot.name}' was "
+                             f"calibrated from ({recorded})") from None
+        raise ModelError(f"{label}: not the URDF robot '{robot.name}' was calibrated from ({recorded}): {why}; give "
+                         f"that file with --from") from None
+    differ = _differences(robot, other, _recorded_chain(robot) if given else None)
+    if differ:
+        raise ModelError(f"{label}: not the URDF robot '{robot.name}' was calibrated from ({recorded}): "
+                         f"{'; '.join(differ[:3])}{'; …' if len(differ) > 3 else ''}; give that file with --from")
+
+
+def _recorded_chain(robot: URDFRobot) -> tuple | None:
+    """The chain's joints as the recorded source file has them, when it is there with its recorded sha256 (the
+    nominal positions of the moving joints, which the calibrated robot no longer holds); else None."""
+    path, digest = robot.source.get("file"), robot.source.get("sha256")
+    try:
+        text = Path(str(path)).read_text(encoding="utf-8-sig") if path and digest else ""
+    except (OSError, UnicodeDecodeError):
+        return None
+    if not text or hashlib.sha256(text.encode()).hexdigest() != digest:
+        return None
+    return read_urdf(text, str(path), robot.source.get("base_link"), robot.source.get("tip_link")).joints
+
+
+def _differences(robot: URDFRobot, other: URDFRobot, nominal: tuple | None = None) -> list[str]:
+    """What ``other`` (a URDF's chain) has unlike ``robot`` beyond what a calibration changes: names, types, limits,
+    and the nominal geometry (constant origins, axes, the moving joints' turns; their positions too with
+    ``nominal``, the source's joints)."""
+    out = [] if other.name == robot.name else [f"the robot is '{other.name}', not '{robot.name}'"]
+    names = [j.name for j in other.joints]
+    if names != [j.name for j in robot.joints]:
+        return out + [f"its chain is {', '.join(names)}, not {', '.join(j.name for j in robot.joints)}"]
+    for a, b in zip(robot.joints, other.joints):
+        if a.type != b.type:
+            out.append(f"joint '{a.name}' is {b.type}, not {a.type}")
+        if not np.allclose([a.lower, a.upper], [b.lower, b.upper], rtol=0.0, atol=1e-9):
+            out.append(f"joint '{a.name}' has limits [{b.lower:.6g}, {b.upper:.6g}], not [{a.lower:.6g}, "
+                       f"{a.upper:.6g}] (rad, m for a prismatic joint)")
+    gaps = {}  # joint: (position m, turn rad) of its origin and axis against the source's
+    for a, b in zip(nominal or robot.joints, other.joints):
+        shift = float(np.linalg.norm(np.subtract(a.xyz, b.xyz))) if nominal or not a.moving else 0.0
+        axes = [np.asarray(v, float) / np.linalg.norm(v) for v in (a.axis, b.axis)]
+        turn = max(_angle(rpy_matrix(*a.rpy).T @ rpy_matrix(*b.rpy)), float(np.arccos(np.clip(axes[0] @ axes[1],
+                                                                                              -1.0, 1.0))))
+        if shift > 1e-9 or turn > 1e-9:
+            gaps[a.name] = (shift, turn)
+    if gaps:
+        shift, turn = (max(g[k] for g in gaps.values()) for k in (0, 1))
+        out.append(f"its nominal geometry differs by up to {shift * MM:.4g} mm and {np.degrees(turn):.4g}° "
+                   f"(joint{'s' if len(gaps) > 1 else ''} {', '.join(gaps)}: origin or axis)")
+    return out
+
+
+def _angle(R: np.ndarray) -> float:
+    """The rotation angle of a rotation matrix, rad."""
+    return float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
+
+

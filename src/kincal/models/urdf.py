@@ -22,6 +22,7 @@ position data can determine (for a UR5: 27, as for DH with Hayati's β).
 """
 from __future__ import annotations
 
+import hashlib
 import math
 import xml.etree.ElementTree as ET
 from types import MappingProxyType
@@ -121,7 +122,7 @@ class URDFRobot(ChainRobot):
     description : str, optional
         Free text (default "").
     source : mapping of str to str, optional
-        Where the chain came from: "file", "base_link", "tip_link" (default empty); stored read-only.
+        Where the chain came from: "file", "base_link", "tip_link", "sha256" (default empty); stored read-only.
 
     Attributes
     ----------
@@ -265,7 +266,8 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
     Returns
     -------
     URDFRobot
-        The chain, named as the URDF's ``<robot>``, with ``source`` {"file", "base_link", "tip_link"}.
+        The chain, named as the URDF's ``<robot>``, with ``source`` {"file", "base_link", "tip_link", "sha256"
+        (of the text, UTF-8: an export checks that the file it edits is still this one)}.
 
     Raises
     ------
@@ -288,7 +290,7 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
     >>> robot.name, robot.joint_names, robot.n_params
     ('two_link', ('shoulder', 'elbow'), 21)
     >>> dict(robot.source)
-    {'file': 'two_link.urdf', 'base_link': 'base', 'tip_link': 'fore'}
+    {'file': 'two_link.urdf', 'base_link': 'base', 'tip_link': 'fore', 'sha256': '...'}
     >>> np.round(robot.forward([0.0, np.pi / 2]), 6).tolist()
     [0.4, 0.3, 0.1]
     """
@@ -320,27 +322,70 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
             raise ModelError(f"{label}: joint '{j['joint'].name}' is a mimic joint; kincal does not model mimic "
                              f"joints yet")
     _check_lengths([j["joint"] for j in chain], label)
-    source = {"file": label, "base_link": base, "tip_link": tip}
+    source = {"file": label, "base_link": base, "tip_link": tip, "sha256": hashlib.sha256(text.encode()).hexdigest()}
     return urdf_robot(root.get("name") or "urdf_robot", [j["joint"] for j in chain], tool or (0.0, 0.0, 0.0),
                       f"URDF chain {base} -> {tip} from {label}", source)
 
 
 def fixed_frame(text: str, parent: str, child: str) -> np.ndarray | None:
-    """The 4x4 pose (m) of link ``child`` in link ``parent`` when a fixed joint of the URDF document ``text`` joins
-    them, else None (ROS-Industrial's link ``base``, the controller's base frame, under ``base_link``)."""
+    """The 4x4 pose (m) of link ``child`` in link ``parent`` of the URDF document ``text``, composed along the
+    joints that join them in the link tree (up from ``parent`` to the links' common ancestor, then down to
+    ``child``), as ROS-Industrial's link ``base`` (the controller's base frame) hangs under ``base_link``, however
+    far from the chain's base link; None when ``child`` is not a link of the file.
+
+    Raises
+    ------
+    ModelError
+        When the text is not XML, ``parent`` is not a link of the file, the two links are not in one tree, or a
+        joint between them moves (the pose would depend on a joint value), naming the joint.
+    """
     try:
         root = ET.fromstring(text)
-    except ET.ParseError:
+    except ET.ParseError as exc:
+        raise ModelError(f"the URDF is not valid XML ({exc})") from None
+    links = {el.get("name") for el in root.findall("link")}
+    if child not in links:
         return None
+    if parent not in links:
+        raise ModelError(f"the URDF has no link '{parent}'")
+    up: dict[str | None, ET.Element] = {}  # child link -> its joint element
     for el in root.findall("joint"):
-        ends = tuple(e.get("link") if e is not None else None for e in (el.find("parent"), el.find("child")))
-        if el.get("type") == "fixed" and ends == (parent, child):
-            where = f"joint '{el.get('name')}'"
-            T = np.eye(4)
-            T[:3, :3] = rpy_matrix(*_triple(el.find("origin"), "rpy", where, (0.0, 0.0, 0.0)))
-            T[:3, 3] = _triple(el.find("origin"), "xyz", where, (0.0, 0.0, 0.0))
-            return T
-    return None
+        node = el.find("child")
+        up.setdefault(node.get("link") if node is not None else None, el)
+    above = [_path_up(parent, up), _path_up(child, up)]
+    if above[0][-1][0] != above[1][-1][0]:
+        raise ModelError(f"the URDF's links '{parent}' and '{child}' are not in one tree")
+    while len(above[0]) > 1 and len(above[1]) > 1 and above[0][-2][0] == above[1][-2][0]:
+        above = [above[0][:-1], above[1][:-1]]  # drop the common ancestors above the nearest
+    poses = [_pose_along(path, parent, child) for path in above]  # each in the nearest common ancestor
+    return np.linalg.inv(poses[0]) @ poses[1]
+
+
+def _pose_along(path: list[tuple[str | None, ET.Element | None]], parent: str, child: str) -> np.ndarray:
+    """The pose (4x4, m) of the first link of ``path`` (:func:`_path_up`) in its last, through fixed joints only."""
+    T = np.eye(4)
+    for _, joint in path[:-1]:
+        assert joint is not None  # every link but the last has its joint
+        where = f"joint '{joint.get('name')}'"
+        if joint.get("type") != "fixed":
+            raise ModelError(f"the URDF's {where} ({joint.get('type')}) lies between links '{parent}' and "
+                             f"'{child}': '{child}' moves with it, it is no fixed frame of '{parent}'")
+        J = np.eye(4)
+        J[:3, :3] = rpy_matrix(*_triple(joint.find("origin"), "rpy", where, (0.0, 0.0, 0.0)))
+        J[:3, 3] = _triple(joint.find("origin"), "xyz", where, (0.0, 0.0, 0.0))
+        T = J @ T
+    return T
+
+
+def _path_up(link: str | None, up: dict[str | None, ET.Element]) -> list[tuple[str | None, ET.Element | None]]:
+    """(link, the joint above it) from ``link`` up to the root link (its joint None); a loop ends it."""
+    path: list[tuple[str | None, ET.Element | None]] = []
+    while link in up and all(link != seen for seen, _ in path):
+        el = up[link]
+        path.append((link, el))
+        node = el.find("parent")
+        link = node.get("link") if node is not None else None
+    return path + [(link, None)]
 
 
 MAX_REACH = 20.0  # m: a chain longer than this is no robot arm (the largest reach about 4 m)

@@ -375,14 +375,16 @@ def _dh_joints(entries, lf: float, af: float, label: str) -> tuple[list[Joint], 
     return joints, rows, explicit_beta
 
 
-def robot_to_yaml(robot: Robot, length_unit: str = "m", angle_unit: str = "rad") -> str:
-    """YAML text of a robot. In SI units (the default) load(save(robot)) reproduces it exactly."""
+def robot_to_yaml(robot: Robot, length_unit: str = "m", angle_unit: str = "rad",
+                  folder: str | os.PathLike | None = None) -> str:
+    """YAML text of a robot. In SI units (the default) load(save(robot)) reproduces it exactly. A URDF chain's
+    source file is written relative to ``folder``, the folder the text is saved in, else absolute."""
     if isinstance(robot, ExtendedRobot):
-        return robot_to_yaml(robot.inner, length_unit, angle_unit) + error_model_yaml(robot)
+        return robot_to_yaml(robot.inner, length_unit, angle_unit, folder) + error_model_yaml(robot)
     if isinstance(robot, PUU3Robot):
         return puu3_yaml(robot, length_unit, angle_unit)
     if isinstance(robot, URDFRobot):
-        return urdf_yaml(robot, length_unit, angle_unit)
+        return urdf_yaml(robot, length_unit, angle_unit, None if folder is None else str(folder))
     if isinstance(robot, StewartRobot):
         return stewart_yaml(robot, length_unit, angle_unit)
     if isinstance(robot, DeltaRobot):
@@ -445,8 +447,9 @@ def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", an
     Raises
     ------
     ModelError
-        When kincal has no robot file for this kind of model, or would refuse to load the file (values beyond
-        what the loader takes as plausible): nothing is written.
+        When kincal has no robot file for this kind of model, the path is named as a URDF or XML file
+        (:func:`check_robot_output`), or kincal would refuse to load the file (values beyond what the loader takes
+        as plausible): nothing is written.
 
     See Also
     --------
@@ -470,7 +473,8 @@ def save_robot(robot: Robot, path: str | os.PathLike, length_unit: str = "m", an
     >>> bool(np.allclose(readable.params.values, robot.params.values, rtol=0.0, atol=1e-12))
     True
     """
-    text = robot_to_yaml(robot, length_unit, angle_unit)
+    check_robot_output(path)
+    text = robot_to_yaml(robot, length_unit, angle_unit, os.path.dirname(os.fspath(path)))
     _loads_back(text, str(path))
     if calibration:
         text += yaml.safe_dump({"calibration": calibration}, default_flow_style=None, sort_keys=False, width=120)
@@ -507,6 +511,31 @@ def robot_from_text(text: str, label: str = "robot") -> Robot:
     True
     """
     return robot_from_dict(_parse(text, label), label)
+
+
+NOT_ROBOT_FILES = (".urdf", ".xacro", ".xml")  # names of files kincal (.urdf) or ROS read as XML
+
+
+def check_robot_output(path: str | os.PathLike) -> None:
+    """Refuse to name a kincal robot file (YAML) as a URDF or XML file: kincal would read a .urdf back as a URDF
+    (and fail: not XML), and ROS tools as XML. ModelError naming the file, a .yaml name, and ``kincal export``
+    for a URDF.
+
+    Examples
+    --------
+    >>> from kincal.models.yaml_io import check_robot_output
+    >>> check_robot_output("cal.yaml")
+    >>> check_robot_output("cal.urdf")
+    Traceback (most recent call last):
+    ...
+    kincal.errors.ModelError: cal.urdf: a kincal robot file is YAML, not .urdf: ...
+    """
+    p = Path(path)
+    if p.suffix.lower() in NOT_ROBOT_FILES:
+        yaml_name = p.with_suffix(".yaml")
+        raise ModelError(f"{path}: a kincal robot file is YAML, not {p.suffix}: a URDF or XML reader (kincal's own "
+                         f"for .urdf) would fail on it; name it {yaml_name}, and write the URDF from it with "
+                         f"'kincal export {yaml_name} {path}'")
 
 
 def _loads_back(text: str, label: str) -> None:

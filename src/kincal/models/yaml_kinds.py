@@ -1,6 +1,7 @@
 """Robot files for the model kinds beyond DH chains: 3-PUU, transmissions, URDF chains (kincal YAML)."""
 from __future__ import annotations
 
+import os
 import re
 from itertools import product
 
@@ -82,21 +83,25 @@ def urdf_from_dict(data: dict, label: str) -> URDFRobot:
                                 *link_mass(jd, lf, where)))
         if jtype != "fixed":
             values.update({f"{name}.{c}": num(jd.get(c, 0.0), where, c) * af for c in ("roll", "pitch", "yaw")})
-    src = mapping(data, "source", label)
+    src = {str(k): str(v) for k, v in mapping(data, "source", label).items()}
+    if "file" in src and not os.path.isabs(src["file"]):  # written relative to the robot file's folder
+        src["file"] = os.path.join(os.path.dirname(label), src["file"])
     tool = tuple(num(mapping(data, "tool", label).get(c, 0.0), f"{label}: tool", c) * lf for c in "xyz")
-    robot = urdf_robot(str(data.get("name", "urdf_robot")), joints, tool, str(data.get("description", "")),
-                       {str(k): str(v) for k, v in src.items()})
+    robot = urdf_robot(str(data.get("name", "urdf_robot")), joints, tool, str(data.get("description", "")), src)
     base = {f"base.{k}": x for k, x in base_pose(data, label, lf, af).items()}
     return robot.with_params({**values, **base})
 
 
-def urdf_yaml(robot: URDFRobot, length_unit: str, angle_unit: str) -> str:
+def urdf_yaml(robot: URDFRobot, length_unit: str, angle_unit: str, folder: str | None = None) -> str:
+    """The kincal YAML of a URDF chain; its source URDF's path relative to ``folder``, the folder of the robot file
+    written (where loading resolves it), else absolute."""
     lf, af = per_unit(length_unit, angle_unit)
     v = robot.params.as_dict()
     lines = [f"name: {robot.name}", "type: urdf", *description_lines(robot.description)]
     if robot.source:
+        src = {**robot.source, **({"file": _path_from(robot.source["file"], folder)} if "file" in robot.source else {})}
         lines.append("source: {" + ", ".join(f"{k}: {yaml.safe_dump(str(x), default_style=chr(34)).strip()}"
-                                             for k, x in robot.source.items()) + "}")
+                                             for k, x in src.items()) + "}")
     lines += [f"units: {{length: {length_unit}, angle: {angle_unit}}}", "joints:"]
     vec = lambda xs, f: "[" + ", ".join(fmt(x * f) for x in xs) + "]"  # noqa: E731
     for j in robot.joints:
@@ -110,6 +115,16 @@ def urdf_yaml(robot: URDFRobot, length_unit: str, angle_unit: str) -> str:
             items.append(f"limits: [{fmt(j.lower * qf)}, {fmt(j.upper * qf)}]")
         lines.append("  - {" + ", ".join(items + mass_items(j, lf)) + "}")
     return "\n".join(lines + [frame_text(v, "base", lf, af), frame_text(v, "tool", lf, af), ""])
+
+
+def _path_from(path: str, folder: str | None) -> str:
+    """``path`` relative to ``folder`` (absolute without one, or on another drive)."""
+    if folder is None:
+        return os.path.abspath(path)
+    try:
+        return os.path.relpath(os.path.abspath(path), os.path.abspath(folder or "."))
+    except ValueError:  # Windows: another drive
+        return os.path.abspath(path)
 
 
 def transmission_from_dict(chain: SerialRobot, data: dict, lf: float, af: float, label: str) -> TransmissionRobot:
