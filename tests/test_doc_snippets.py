@@ -1,6 +1,7 @@
 """The Python snippets of the documentation run as written: every name a snippet uses is imported or assigned
 before it on its page, or is one of the reader's own inputs the page speaks of (its joints, targets, test data),
-and docs/howto/python.md runs from top to bottom with those inputs made from the real UR5 data."""
+docs/howto/python.md runs from top to bottom with those inputs made from the real UR5 data, and
+docs/howto/compensate.md's program snippet runs on a KRL module."""
 import ast
 import builtins
 import re
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 import kincal
+from kincal.io import read_program
 from conftest import DATA, ROOT, UR5_COLS
 
 FENCE = re.compile(r"```python\n(.*?)```", re.S)
@@ -97,3 +99,43 @@ def test_the_python_page_runs_as_written(tmp_path, monkeypatch):
     assert bool(np.all(ns["cmd"].ok))
     assert np.abs(ns["model"].forward(ns["cmd"].q) - ns["targets"]).max() < 1e-9
     assert ns["d"].q.shape == (60, 6) and 0 < ns["d"].efficiency <= 1
+
+
+KRL_SRC = """&ACCESS RVP
+DEF PICK()
+  PTP XHOME
+  ;FOLD PTP P1 Vel=100 % PDAT1 Tool[1] Base[0];%{PE}
+  FDAT_ACT=FP1
+  PTP XP1
+  ;ENDFOLD
+  PTP XHOME
+END
+"""
+KRL_DAT = """&ACCESS RVP
+DEFDAT PICK
+DECL E6POS XP1={X 658.901,Y -171.045,Z 854.246,A -28.700,B 46.708,C 0.581,S 2,T 34,E1 0.0,E2 0.0,E3 0.0}
+DECL E6AXIS XHOME={A1 0.000,A2 -90.000,A3 90.000,A4 0.000,A5 45.000,A6 0.000,E1 0.0,E2 0.0,E3 0.0}
+DECL FDAT FP1={TOOL_NO 1,BASE_NO 0,IPO_FRAME #BASE,POINT2[] " "}
+ENDDAT
+"""
+
+
+def test_the_program_snippet_runs_on_a_krl_module(tmp_path, monkeypatch, capsys):
+    """docs/howto/compensate.md's read_program snippet, as written, on a KRL module in the usual layout (the
+    points in the .dat, the .src moving to them by name): it reads the .dat's two targets with their frames, and
+    target 0 written again leaves the file as it was. Read from the .src, the module has no target (the snippet
+    took prog.targets[0] there: IndexError)."""
+    folder = tmp_path / "R1" / "Program"
+    folder.mkdir(parents=True)
+    (folder / "pick.src").write_text(KRL_SRC)
+    (folder / "pick.dat").write_text(KRL_DAT)
+    monkeypatch.chdir(tmp_path)
+    ns: dict = {}
+    for k, block in enumerate(_blocks("docs/howto/compensate.md"), 1):
+        exec(compile(block, f"compensate.md block {k}", "exec"), ns)
+    assert [(t.variable, t.kind) for t in ns["prog"].targets] == [("XP1", "pose"), ("XHOME", "joints")]
+    assert ns["prog"].targets[0].frames == ("TOOL_NO 1", "BASE_NO 0")
+    assert ns["text"] == KRL_DAT
+    src = read_program(str(folder / "pick.src"), "krl")
+    assert not src.targets and [what for _, what, _ in src.not_literal] == ["PTP XHOME", "PTP XP1", "PTP XHOME"]
+    assert capsys.readouterr().out.splitlines()[0] == "3 E6POS XP1 pose (2, 34) ('TOOL_NO 1', 'BASE_NO 0')"
