@@ -151,9 +151,25 @@ class Identifiability:
 
     def confound_lines(self, indent: str = "    ") -> list[str]:
         """One line per dropped parameter: the kept parameters it acts like (physical units)."""
-        rhs = {d: " ".join(f"{c:+.3g}{self._unit(d, n)}·{n}" for n, c in self.confounds.get(d, ()))
-               for d in self.dropped}
-        return [f"{indent}{d}  ~  {rhs[d] or 'no effect on the position'}" for d in self.dropped]
+        return [f"{indent}{d}  ~  {self.acts_like(d) or 'no effect on the position'}" for d in self.dropped]
+
+    def acts_like(self, dropped: str, most: int | None = None) -> str:
+        """The kept parameters a dropped one acts like, each with its coefficient in physical units.
+
+        Parameters
+        ----------
+        dropped : str
+            A dropped parameter's name.
+        most : int, optional
+            How many of the kept parameters to give, in the order of :attr:`confounds` (default all).
+
+        Returns
+        -------
+        str
+            '+0.113 mm/mrad·j5.d -0.02·tool.z': each coefficient with its unit (:meth:`_unit`: mm/mrad for an
+            angle acting like a length, mrad/mm for the reverse, none for the same kind); '' when none.
+        """
+        return " ".join(f"{c:+.3g}{self._unit(dropped, n)}·{n}" for n, c in self.confounds.get(dropped, ())[:most])
 
     def _unit(self, dropped: str, kept: str) -> str:
         """The unit of a confound coefficient, the kept parameter's per the dropped one's: ' mm/mrad' for an angle
