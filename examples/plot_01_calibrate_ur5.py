@@ -132,9 +132,10 @@ plt.show()
 # The result is a robot
 # ---------------------
 #
-# ``result.robot`` is a robot like any other: ``kincal.save_robot(result.robot, "ur5_cal.yaml",
-# calibration=result.record())`` writes it with its covariance and the calibration's record (without
-# ``calibration=`` the file holds the parameters only: ``kincal evaluate`` then predicts no σ), and
+# ``result.robot`` is a robot like any other. Saved with the calibration's record,
+# ``kincal.save_robot(result.robot, "ur5_cal.yaml", calibration=result.record())``, the file holds its
+# covariance too (its ``calibration:`` section, as ``kincal calibrate -o`` writes it); saved without
+# ``calibration=`` it holds the parameters only, and ``kincal evaluate`` then predicts no σ.
 # ``kincal.export_robot`` turns it into a URDF or UR's kinematics file. The
 # largest corrections of the arm itself (the tracker frame and the reflector left aside), lengths and
 # angles apart, each with its σ:

@@ -187,3 +187,51 @@ def test_one_frame_in_metres_among_frames_in_mm_is_refused_naming_it(tmp_path):
     np.testing.assert_allclose(got["default tool"][:3, 3], [0.02e-3, 0.01e-3, 0.12e-3])
     (tmp_path / "ok.yaml").write_text("default tool: {x: 20, y: 10, z: 120}\ndefault base: {}\nTOOL_NO 2: {z: 180}\n")
     np.testing.assert_allclose(read_frames(str(tmp_path / "ok.yaml"))["default tool"][:3, 3], [0.02, 0.01, 0.12])
+
+
+def _world_module(tmp_path, nominal, machine: bool):
+    """KRC/R1/Program/pick.dat: the three poses as E6POS in BASE_NO 0 (the world) with TOOL_NO 1, no $config.dat;
+    STEU/Mada/$machine.dat with ROOT when ``machine``."""
+    flange = nominal.with_tool_point(np.zeros(3))
+    program = tmp_path / "KRC" / "R1" / "Program"
+    program.mkdir(parents=True)
+    lines = ["DEFDAT  PICK"]
+    for k, qk in enumerate(Q, 1):
+        p, R, _, _ = flange.pose_and_jacobian(qk[None])
+        F = np.eye(4)
+        F[:3, :3], F[:3, 3] = R[0], p[0]
+        s, t = BITS["krl"](nominal, qk)
+        lines += [f"DECL E6POS XP{k}={{{_krl(ROOT @ F @ TOOL)},S {s},T {t},E1 0.0}}",  # in the world: ROOT · base
+                  f"DECL FDAT FP{k}={{TOOL_NO 1,BASE_NO 0,IPO_FRAME #BASE}}"]
+    (program / "pick.dat").write_text("\r\n".join(lines + ["ENDDAT", ""]))
+    if machine:
+        mada = tmp_path / "KRC" / "STEU" / "Mada"
+        mada.mkdir(parents=True)
+        (mada / "$machine.dat").write_text(f"DEFDAT  $MACHINE\nFRAME $ROBROOT_C={{{_krl(ROOT)}}}\nENDDAT\n")
+    return program / "pick.dat"
+
+
+def test_base_0_is_the_world_placed_by_robroot_else_refused_with_why(tmp_path):
+    """KRL's BASE_NO 0 ($NULLFRAME) is the world frame: with a $machine.dat beside the program (and no $config.dat)
+    its $ROBROOT_C places it and the targets land where they meant (the test's own frames: the world is ROOT⁻¹ in
+    the robot's base); without one, a frames file giving only the tool had the targets refused as 'not given (...
+    not taken as the identity)', and now with why: base 0 is the world, the robot's base only where $ROBROOT_C is
+    $NULLFRAME. BASE_NO 0 given with the frames is taken as given."""
+    nominal = kincal.load_robot("kuka_kr6r900sixx")
+    true = kincal.perturb(nominal, seed=5)
+    path = _world_module(tmp_path / "placed", nominal, machine=True)
+    prog = read_program(str(path), "krl")
+    res = compensate_branches(true, nominal, prog, ROWS["krl"], {"TOOL_NO 1": TOOL})
+    assert not res.problems and len(res.texts) == 3
+    (tmp_path / "out.dat").write_text(prog.with_targets(res.texts))
+    for old, new, qk in zip(prog.targets, read_program(str(tmp_path / "out.dat"), "krl").targets, Q):
+        miss, turn = _lands(true, nominal, old, new, TOOL, np.linalg.inv(ROOT), qk)
+        assert miss < 1e-9 and turn < 1e-9
+    prog = read_program(str(_world_module(tmp_path / "bare", nominal, machine=False)), "krl")
+    res = compensate_branches(true, nominal, prog, ROWS["krl"], {"TOOL_NO 1": TOOL})
+    assert not res.texts and len(res.refused) == 3
+    assert all(w.startswith("its base frame 'BASE_NO 0' is not known: KRL's base 0 ($BASE = $NULLFRAME) is the world "
+                            "frame") and "$ROBROOT_C" in w and "give the controller's folders, or BASE_NO 0 with the "
+               "frames" in w for w in res.refused.values())
+    res = compensate_branches(true, nominal, prog, ROWS["krl"], {"TOOL_NO 1": TOOL, "BASE_NO 0": np.linalg.inv(ROOT)})
+    assert not res.problems and len(res.texts) == 3

@@ -10,7 +10,7 @@ import pytest
 import kincal
 from kincal.design import design_problem
 from kincal.design.robust import design_imse, exchange_in_strata, medoids, robust_terms, strata
-from conftest import PANDA_URDF
+from conftest import DATA, PANDA_URDF
 
 
 
@@ -125,6 +125,21 @@ def test_a_pool_that_cannot_separate_two_parameters_is_designed_for_the_rest_and
     assert "j5.a ~ +0.955·tool.x" in d.note and "j5.a" not in d.names and len(d.names) == 23
     with pytest.raises(kincal.IdentifiabilityError, match="too alike"):
         kincal.select_poses(ur5, pool[:1] + np.linspace(0, 1e-3, 40)[:, None], m=30, certify=False)
+
+
+def test_a_pools_confounds_carry_their_units_as_a_calibrations_do():
+    """The real UR5 grid as candidates: its wrist cannot separate j5.theta from j5.a, nor j5.alpha from j5.d. The
+    design's note gives each coefficient in the unit calibrate prints (an angle acting like a length: mm of the
+    length per mrad of the angle, numerically m/rad), equal to the least-squares coefficient of the dropped
+    parameter's Jacobian column on the designed ones' (numpy); it said '-0.113·j5.a', no unit."""
+    ur5 = kincal.load_robot("ur5")
+    q = np.radians(np.loadtxt(DATA / "ur5_grid.csv", delimiter=",", skiprows=1, usecols=range(1, 7)))
+    d = kincal.select_poses(ur5, q, m=30, certify=False)
+    J = ur5.param_jacobian(q).reshape(-1, len(ur5.params.names))
+    kept = J[:, ur5.params.indices(list(d.names))]
+    for dropped, like in (("j5.theta", "j5.a"), ("j5.alpha", "j5.d")):
+        c = np.linalg.lstsq(kept, J[:, ur5.params.index(dropped)], rcond=None)[0][d.names.index(like)]  # m/rad
+        assert f"{dropped} ~ {c:+.3g} mm/mrad·{like}" in d.note
 
 
 def test_evaluating_on_no_poses_is_a_clear_error_not_a_traceback():

@@ -3,6 +3,7 @@ calibrations against the Cramér–Rao prediction, and the two real data sets (P
 positioner seen by a camera) against their published figures."""
 import csv
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -169,6 +170,36 @@ def test_mixed_points_and_sockets(ur5):
     qv = ur5.sample_joints(200, seed=9)
     p, t = fit.robot.forward(qv), true.forward(qv)
     assert np.sqrt(np.mean(np.sum((p - t) ** 2, axis=1))) < 0.03e-3
+
+
+def test_sockets_say_the_base_is_not_seen_rather_than_a_confound_with_it(tmp_path, capsys):
+    """Sockets do not see the base frame (a gauge freedom), and joint 1's zero turns the arm about the base's z axis
+    as base.rz does (both columns equal ez × p, the closed form): j1.theta is not seen either. `identifiability
+    --type same-point` on simulate's socket file said 'j1.theta ~ +1·base.rz' and noted that only their sum can be
+    identified (calibrate likewise); it now says j1.theta is not seen, acting only like base.rz, a gauge freedom,
+    and no line names a base parameter as a confound. The record's confounds keep base.rz (what compensate's base
+    note reads)."""
+    from kincal.cli import main
+    ur5 = kincal.load_robot("ur5")
+    q = ur5.sample_joints(20, seed=3)
+    J, p = ur5.param_jacobian(q), ur5.forward(q)
+    for name in ("j1.theta", "base.rz"):
+        assert np.abs(J[:, :, ur5.params.index(name)] - np.cross([0.0, 0.0, 1.0], p)).max() < 1e-12
+    data = str(tmp_path / "sp.csv")
+    assert main(["simulate", "ur5", "--type", "same-point", "--perturb", "-o", data]) == 0
+    flags = ["--type", "same-point", "--label-col", "point", "--group-col", "placement", "--distance", "0,1,0.05"]
+    capsys.readouterr()
+    assert main(["identifiability", "ur5", "--data", data, *flags]) == 0
+    text = capsys.readouterr().out
+    assert main(["identifiability", "ur5", "--data", data, *flags, "--json"]) == 0
+    said = json.loads(capsys.readouterr().out)
+    assert said["gauge"] == list(ur5.base_params()) and said["confounds"]["j1.theta"] == [["base.rz", pytest.approx(1.0)]]
+    assert "    j1.theta  ~  not seen by these data: it acts only like base.rz, a gauge freedom" in text.splitlines()
+    assert "·base." not in text and "base.rz and" not in text and "and base.rz" not in text
+    assert main(["calibrate", "ur5", data, *flags, "-o", str(tmp_path / "cal.yaml")]) == 0
+    text = capsys.readouterr().out
+    assert "  j1.theta  ~  not seen by these data: it acts only like base.rz, a gauge freedom" in text.splitlines()
+    assert "·base." not in text
 
 
 def test_sockets_without_a_distance_are_refused_for_scale(ur5):

@@ -83,6 +83,9 @@ class Identifiability:
         Parameters held as gauge freedoms of a closed chain's design frames (default none).
     frames_note : str, optional
         Which frames, in words (default ``""``).
+    unseen : tuple of str, optional
+        Parameters the data do not see at all (an observation's gauge freedoms, such as the base frame of
+        socket data), left out of the other fields but the confounds (:meth:`without_unseen`) (default none).
 
     See Also
     --------
@@ -124,6 +127,7 @@ class Identifiability:
     kinds: dict = field(default_factory=dict)  # name -> "length" or "angle": the confounds' units
     frames: tuple[str, ...] = ()  # held as gauge freedoms of a closed chain's design frames (Robot.frame_freedoms)
     frames_note: str = ""  # which frames, in words
+    unseen: tuple[str, ...] = ()  # what the data do not see at all (gauge freedoms): left out, see without_unseen
 
     def __post_init__(self) -> None:
         freeze_arrays(self)  # the arrays it hands out: what it prints cannot drift from what it computed
@@ -149,11 +153,54 @@ class Identifiability:
                 "rank_tol": self.rank_tol, "notes": list(self.notes), "frames": list(self.frames),
                 "frames_note": self.frames_note}
 
+    def without_unseen(self, unseen: Sequence[str]) -> "Identifiability":
+        """This record with the parameters the data do not see at all (``unseen``: an observation's gauge freedoms)
+        left out of the candidates, the identifiable and the dropped ones and of the notes on pairs; a dropped
+        parameter keeps them among its confounds (the record's data), and its line says they are not seen."""
+        out = set(unseen)
+        with_unseen = {d: c for d, c in self.confounds.items() if d in out or any(k in out for k, _ in c)}
+        pairs = set(_pair_notes(self.dropped, with_unseen))
+        free = tuple(n for n in self.identifiable if n not in out)
+        return dataclasses.replace(self, candidates=tuple(n for n in self.candidates if n not in out), identifiable=free,
+                                   rank=len(free), dropped=tuple(n for n in self.dropped if n not in out),
+                                   confounds={k: v for k, v in self.confounds.items() if k not in out},
+                                   notes=tuple(n for n in self.notes if n not in pairs), unseen=tuple(unseen))
+
     def confound_lines(self, indent: str = "    ") -> list[str]:
-        """One line per dropped parameter: the kept parameters it acts like (physical units)."""
-        rhs = {d: " ".join(f"{c:+.3g}{self._unit(d, n)}·{n}" for n, c in self.confounds.get(d, ()))
-               for d in self.dropped}
-        return [f"{indent}{d}  ~  {rhs[d] or 'no effect on the position'}" for d in self.dropped]
+        """One line per dropped parameter: the kept parameters it acts like (physical units), and those of them
+        the data do not see (:attr:`unseen`) said so."""
+        return [f"{indent}{d}  ~  {self._acts(d)}" for d in self.dropped]
+
+    def _acts(self, dropped: str) -> str:
+        """What a dropped parameter acts like, in words: the seen kept parameters (:meth:`acts_like`), then the
+        unseen ones as not seen."""
+        seen = self.acts_like(dropped)
+        hidden = [n for n, _ in self.confounds.get(dropped, ()) if n in set(self.unseen)]
+        if not hidden:
+            return seen or "no effect on the position"
+        if seen:
+            return f"{seen} (and {', '.join(hidden)}, not seen by these data)"
+        return f"not seen by these data: it acts only like {', '.join(hidden)}, a gauge freedom{'s' * (len(hidden) > 1)}"
+
+    def acts_like(self, dropped: str, most: int | None = None) -> str:
+        """The kept parameters a dropped one acts like, each with its coefficient in physical units.
+
+        Parameters
+        ----------
+        dropped : str
+            A dropped parameter's name.
+        most : int, optional
+            How many of the kept parameters to give, in the order of :attr:`confounds` (default all).
+
+        Returns
+        -------
+        str
+            '+0.113 mm/mrad·j5.d -0.02·tool.z': each coefficient with its unit (:meth:`_unit`: mm/mrad for an
+            angle acting like a length, mrad/mm for the reverse, none for the same kind), those the data do not
+            see (:attr:`unseen`) left out; '' when none.
+        """
+        seen = [(n, c) for n, c in self.confounds.get(dropped, ()) if n not in set(self.unseen)]
+        return " ".join(f"{c:+.3g}{self._unit(dropped, n)}·{n}" for n, c in seen[:most])
 
     def _unit(self, dropped: str, kept: str) -> str:
         """The unit of a confound coefficient, the kept parameter's per the dropped one's: ' mm/mrad' for an angle

@@ -191,7 +191,7 @@ def _pool_parameters(robot: Robot, pool_q: np.ndarray, base: str, distinct: int)
             f"identify {generic.rank}: its {distinct} distinct candidates are too alike (nearly identical poses?); "
             f"give candidates spread over the workspace, or name the parameters to design for")
     lost = [n for n in ident.dropped if n not in generic.dropped] or list(ident.dropped)
-    like = "; ".join(f"{n} ~ " + " ".join(f"{c:+.3g}·{k}" for k, c in ident.confounds.get(n, ())[:2]) for n in lost)
+    like = "; ".join(f"{n} ~ {ident.acts_like(n, most=2)}" for n in lost)
     return ident.identifiable, (f"the candidates identify {ident.rank} of the {generic.rank} parameters that poses "
                                 f"spread over the workspace identify; no design from them can separate {like}: a "
                                 f"calibration on it keeps these nominal, as one on every candidate would")

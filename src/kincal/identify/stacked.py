@@ -327,14 +327,9 @@ def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, fu
                                       list(robot.base_params()),
                                       list(robot.preferred_params())], robot.name,
                                      sum(len(o) for o in st.sets), rank_tol, live)
-    ident = _design_frames(robot, ident)
-    unseen = set(gauge)
-    free = tuple(n for n in ident.identifiable if n not in unseen)
+    ident = _design_frames(robot, ident).without_unseen(gauge)
     notes = (f"not seen by these data (gauge freedoms, kept at their values): {', '.join(gauge)}",) if gauge else ()
-    return dataclasses.replace(ident, measured=" + ".join(dict.fromkeys(o.kind for o in st.sets)), identifiable=free,
-                               candidates=tuple(n for n in ident.candidates if n not in unseen), rank=len(free),
-                               dropped=tuple(n for n in ident.dropped if n not in unseen),
-                               confounds={k: v for k, v in ident.confounds.items() if k not in unseen},
+    return dataclasses.replace(ident, measured=" + ".join(dict.fromkeys(o.kind for o in st.sets)),
                                notes=ident.notes + notes, kinds=kinds_of(robot, cand + nuis))
 
 

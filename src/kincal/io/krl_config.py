@@ -6,10 +6,11 @@ TOOL_DATA[1]``, ``$BASE = BASE_DATA[2]``); the values live in the controller's `
 frame is in the flange and is used as written. A base frame is in the world frame, so it is turned into the
 robot's base frame with ``$ROBROOT_C`` from ``$machine.dat`` (``STEU/Mada``); without that file each base
 is named with why it is not known (its targets are refused with that reason, never taken as in the robot's
-base). With it, the world
-itself (``BASE_NO 0``, ``$BASE = $NULLFRAME``) is a base too. Frames are ``{X, Y, Z, A, B, C}`` (mm, deg,
-R = Rz(A)·Ry(B)·Rx(C)); a frame with a missing component or a value that is not a number is an error naming the
-file, line and column.
+base). The world itself (``BASE_NO 0``, ``$BASE = $NULLFRAME``) is a base too, placed by ``$ROBROOT_C`` alone
+(with or without a ``$config.dat``); without a ``$machine.dat`` it is named with why it is not known (a robot
+on a riser or a ceiling stands away from the world's origin), unless the frames give it. Frames are ``{X, Y,
+Z, A, B, C}`` (mm, deg, R = Rz(A)·Ry(B)·Rx(C)); a frame with a missing component or a value that is not a number
+is an error naming the file, line and column.
 """
 from __future__ import annotations
 
@@ -24,6 +25,10 @@ from .krl_scan import POSE_KEYS, _aggregate, _blank, _check_brackets, _check_num
 
 DATA = re.compile(r"^[ \t]*(TOOL_DATA|BASE_DATA)[ \t]*\[[ \t]*(\d+)[ \t]*\][ \t]*=[ \t]*\{", re.M | re.I)
 ROBROOT = re.compile(r"^[ \t]*(?:DECL[ \t]+)?(?:FRAME[ \t]+)?\$ROBROOT_C[ \t]*=[ \t]*\{", re.M | re.I)
+WORLD_UNKNOWN = ("KRL's base 0 ($BASE = $NULLFRAME) is the world frame, which is the robot's base frame only where "
+                 "$ROBROOT_C (the robot's base in the world, in STEU/Mada/$machine.dat) is $NULLFRAME, and no "
+                 "$machine.dat was found beside the program: give the controller's folders, or BASE_NO 0 with the "
+                 "frames (its pose in the robot's base frame: all zeros where $ROBROOT_C is $NULLFRAME)")
 PLACES = {"$config.dat": ("", "System", os.path.join("R1", "System")),  # where each file sits, from an ancestor
           "$machine.dat": ("", "Mada", os.path.join("STEU", "Mada"), os.path.join("KRC", "STEU", "Mada"))}
 LEVELS = 4  # ancestors of the program's folder searched
@@ -116,9 +121,9 @@ def config_frames(path: str, root: np.ndarray | None) -> dict[str, np.ndarray | 
 
 def program_frames(program) -> dict[str, np.ndarray | str]:
     """The frames of the ``$config.dat`` beside a KRL program (:func:`sibling`; its bases with the
-    ``$machine.dat`` beside it), {} when there is none."""
-    config = sibling(program.source, "$config.dat")
-    if config is None:
-        return {}
-    machine = sibling(program.source, "$machine.dat")
-    return config_frames(config, None if machine is None else robroot(machine))
+    ``$machine.dat`` beside it), and the world as "BASE_NO 0" and "$NULLFRAME": placed in the robot's base by
+    the ``$machine.dat``'s ``$ROBROOT_C``, else why it cannot be (:data:`WORLD_UNKNOWN`)."""
+    config, machine = sibling(program.source, "$config.dat"), sibling(program.source, "$machine.dat")
+    root = None if machine is None else robroot(machine)
+    world: np.ndarray | str = WORLD_UNKNOWN if root is None else np.linalg.inv(root)
+    return {"BASE_NO 0": world, "$NULLFRAME": world, **({} if config is None else config_frames(config, root))}
