@@ -252,6 +252,27 @@ def test_a_calibrated_model_beside_a_nominal_of_another_frame_is_refused():
     assert compensate(model, nominal.forward(q0), q0, nominal=nominal).ok.all()
 
 
+def test_command_models_refuse_a_nominal_without_the_error_models_terms():
+    """The nominal robot's own values beside a harmonics:1 calibration kept its ten fitted harmonic terms in the
+    "nominal" (controller's) model: every command of the documented Python route was refused as landing 1.3 mm from
+    its target. Refused now, naming the terms; the calibration's own nominal (terms at 0) gives the commands."""
+    ur5 = kincal.load_robot("ur5")
+    true = kincal.perturb(ur5, seed=2)
+    train = kincal.simulate(true, ur5.sample_joints(150, seed=3), 15e-6, seed=4)
+    fit = kincal.calibrate(ur5, train, error_model="harmonics:1", diagnose=False)
+    terms = [n for n in fit.robot.params.names if n not in ur5.params.names]
+    assert len(terms) == 10 and terms[:2] == ["j1.h1s", "j1.h1c"]
+    with pytest.raises(kincal.ModelError, match=r"lack 10 of the calibrated model's parameters \(j1.h1s, j1.h1c"):
+        command_models(fit.robot, ur5.params.as_dict())
+    with pytest.raises(kincal.ModelError, match="name extra.x, which the calibrated model does not have"):
+        command_models(fit.robot, {**fit.nominal.params.as_dict(), "extra.x": 0.0})
+    model, nominal = command_models(fit.robot, fit.nominal.params.as_dict())
+    assert all(nominal.params.as_dict()[n] == 0.0 for n in terms)  # the controller knows no harmonics
+    q0 = ur5.sample_joints(10, seed=5)
+    res = compensate(model, nominal.forward(q0), q0, nominal=nominal)
+    assert res.ok.all() and np.abs(model.forward(res.q) - nominal.forward(q0)).max() < 1e-9
+
+
 def test_verification_cases_name_their_unit_error(tmp_path):
     """Table 5's cases say what unit error each is (a length's 1 mm, an angle's 1 mrad): 'Δj2.theta = 1' named
     none; a plan read back from its file says the same."""

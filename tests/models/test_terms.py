@@ -88,7 +88,7 @@ def _median_sigma_in_base(ur5, train, q, model):
     parameters other than the base frame's, J of command_models' model (the base frame nominal)."""
     fit = kincal.calibrate(ur5, train, error_model=model, diagnose=False)
     unc = fit.uncertainty()
-    cmd, _ = command_models(fit.robot, ur5.params.as_dict())
+    cmd, _ = command_models(fit.robot, fit.nominal.params.as_dict())
     names = [n for n in unc.names if n not in cmd.base_params()]
     k = [unc.names.index(n) for n in names]
     J = cmd.param_jacobian(q)[:, :, cmd.params.indices(names)]  # (N, 3, K)

@@ -14,6 +14,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ..errors import ModelError
 from ..models.robot import TOOL_NAMES, Robot
 from ..models.transforms import rotation_log
 from ..ties import first_best
@@ -66,7 +67,8 @@ def command_models(calibrated: Robot, nominal_values: Mapping[str, float] | None
     ValueError
         When ``frame`` is none of the target frames.
     ModelError
-        When a ``tcp`` is given for a robot without a tool point.
+        When a ``tcp`` is given for a robot without a tool point, or ``nominal_values`` lacks some of the
+        calibrated model's parameters (an error model's terms) or names others.
 
     Examples
     --------
@@ -96,7 +98,7 @@ def command_models(calibrated: Robot, nominal_values: Mapping[str, float] | None
     >>> np.round((model.tool_point() - nom.tool_point()) * 1e3, 3)  # mm
     array([ 0.041, -0.223, -0.339])
     """
-    nominal = calibrated.with_params(dict(nominal_values)) if nominal_values else calibrated
+    nominal = calibrated.with_params(_every_nominal(calibrated, nominal_values)) if nominal_values else calibrated
     named = calibrated.named_frames()
     if frame not in TARGET_FRAMES and frame not in named:
         raise ValueError(f"target frame '{frame}': use one of {', '.join((*TARGET_FRAMES, *named))}")
@@ -414,3 +416,18 @@ def base_note(names: tuple[str, ...], measurement_frame: bool = True) -> str:
             + ("in the instrument's frame (--target-frame measurement) or " if measurement_frame else "")
             + "in frames taught with this robot do not")
 
+
+def _every_nominal(calibrated: Robot, nominal_values: Mapping[str, float]) -> dict[str, float]:
+    """``nominal_values`` when it gives every parameter of ``calibrated`` and no other (ModelError otherwise: a
+    parameter left out would keep its calibrated value in the "nominal" model, the controller's)."""
+    names = calibrated.params.names
+    missing = [n for n in names if n not in nominal_values]
+    unknown = [n for n in nominal_values if n not in set(names)]
+    if missing or unknown:
+        what = (f"lack {len(missing)} of the calibrated model's parameters ({', '.join(missing[:4])}"
+                f"{', ...' if len(missing) > 4 else ''}), which would keep their calibrated values in the controller's "
+                f"model" if missing else f"name {', '.join(unknown[:4])}, which the calibrated model does not have")
+        raise ModelError(f"the nominal values {what}; give the calibration's own nominal, with its error model's "
+                         f"terms at their nominal values (from Python: the result's nominal.params.as_dict(); a "
+                         f"calibrated file's record: its 'nominal')")
+    return dict(nominal_values)
