@@ -4,7 +4,6 @@ parameters identification"): commands to run, then the comparison."""
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import os
 
 import numpy as np
@@ -44,13 +43,10 @@ def _orientation(args, record: dict, cal, values, nominal, unc):
     else (a bundled robot, a URDF) None, the model itself, with no reason."""
     if not (args.pose or args.program) or not record:
         return None, None
-    weak = record.get("weakly_determined")
-    held = {str(k): float(v) for k, v in weak.items() if isinstance(v, (int, float))} if isinstance(weak, dict) else {}
+    kinds = (record.get("data") or {}).get("kinds") or []
     lo, hi = _ranges(cal, unc)
     turn = flange_turn(cal, cal.with_params(values) if values else cal, None if unc is None else unc.covariance,
-                       () if unc is None else unc.names, lo, hi, held=held)
-    kinds = (record.get("data") or {}).get("kinds") or []
-    turn = dataclasses.replace(turn, rotations_seen=any(k in ("pose", "markers") for k in kinds))
+                       () if unc is None else unc.names, lo, hi, any(k in ("pose", "markers") for k in kinds))
     return (None if turn.determined else nominal), turn
 
 

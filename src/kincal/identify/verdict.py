@@ -41,6 +41,7 @@ from typing import Mapping
 import numpy as np
 
 from .._csv import MAX_LISTED, listed
+from ..models.parameters import SUSPECT
 from ..models.robot import TOOL_NAMES, Robot
 from ..ties import first_best
 from ..units import DEG, MM, SHOWN, display
@@ -232,9 +233,9 @@ class Thresholds:
     ValueError: thresholds: length_suspect must not exceed length_refuse
     """
 
-    length_suspect: float = 10e-3
+    length_suspect: float = SUSPECT["length"]
     length_refuse: float = 50e-3
-    angle_suspect: float = float(np.deg2rad(2.0))
+    angle_suspect: float = SUSPECT["angle"]
     angle_refuse: float = float(np.deg2rad(10.0))
     tracker_noise: float = 0.05e-3
     residual_suspect: float = 10.0
@@ -244,9 +245,10 @@ class Thresholds:
     tool_refuse: float = 1.0
     repeat_angle: float = 1e-4  # rad: commanded joint angles this close are the same pose (a repeat)
     repeat_length: float = 1e-5  # m: the same for prismatic joints
-    ratio_suspect: float = 0.02  # an actuator's scale this far off its nominal travel (2 %)
+    ratio_suspect: float = SUSPECT["ratio"]  # an actuator's scale this far off its nominal travel (2 %)
     ratio_refuse: float = 0.2
-    mounting_suspect: float = 50e-3  # m: a closed chain's design points, whose design frames are not the measured ones
+    mounting_suspect: float = SUSPECT["mounting"]  # m: a closed chain's design points, whose design frames are not
+    # the measured ones
     mounting_refuse: float = 0.5
 
     def __post_init__(self) -> None:

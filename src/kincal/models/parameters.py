@@ -10,6 +10,10 @@ from numpy.typing import ArrayLike
 from ..errors import ModelError
 
 KINDS = ("length", "angle", "ratio")  # ratio: a dimensionless factor (an actuator's scale, 1 nominal)
+# The largest correction a real robot plausibly needs, per kind (m, rad, ratio), and for a closed chain's design
+# points ("mounting"): the verdict's suspect limits (kincal.Thresholds' defaults), and the size of the real error a
+# parameter kept at nominal may have
+SUSPECT = {"length": 10e-3, "angle": float(np.deg2rad(2.0)), "ratio": 0.02, "mounting": 50e-3}
 
 
 @dataclass(frozen=True, eq=False, init=False)
