@@ -78,23 +78,25 @@ def fit_options(args) -> kincal.FitOptions:
     return kincal.FitOptions(**given, thresholds=thresholds, error_model=error_model)  # flag not given
 
 
-def _refuse_misused(args) -> None:
-    """A session file given twice, and --same-frame or --refit-target where they change nothing, refused."""
+def _checked_kinds(args) -> list[str]:
+    """The data's kinds (a flag that does not apply to them refused), after a session file given twice; then
+    --same-frame or --refit-target where they change nothing, refused."""
     twice = [d for k, d in enumerate(args.data) if Path(d).resolve() in {Path(e).resolve() for e in args.data[:k]}]
     if twice:
         raise ValueError(f"{twice[0]} is given twice as a session: each pose would count twice (the σ too small, "
                          f"and a session held out against its own copy); give each session file once")
+    kinds = observe.types_of(args)
     if args.same_frame and len(args.data) == 1 and not args.test:
         raise ValueError("--same-frame declares one measurement frame for several files (sessions or --test); "
                          "with one file and no --test it changes nothing: leave it out")
     if args.refit_target and not args.test:
         raise ValueError("--refit-target re-fits the target of held-out files (--test); there are none: leave it out "
                          "(the training files' target is fitted anyway)")
+    return kinds
 
 
 def cmd_calibrate(args) -> int:
-    _refuse_misused(args)
-    kinds = observe.types_of(args)
+    kinds = _checked_kinds(args)
     reports = [args.report, json_path_for(args.report)] if args.report else []
     if args.output:
         kincal.models.yaml_io.check_robot_output(args.output)  # before any work
