@@ -51,3 +51,28 @@ def test_the_command_line_writes_into_a_pipe(tmp_path):
     assert stat.S_ISFIFO(os.stat(fifo).st_mode)  # (before: a file in its place, the reader left waiting)
     reader.join()
     assert got[0].splitlines()[0].startswith("j1,") and len(got[0].splitlines()) == 6  # header and 5 poses
+
+
+def _kincal():
+    import sys
+    from pathlib import Path
+    return str(Path(sys.executable).parent / "kincal")
+
+
+def test_dev_stdout_into_a_pipe_and_into_a_redirected_file(tmp_path):
+    """`-o /dev/stdout | ...` ended in 'No such file or directory: /proc/.../fd/.pipe:[...]' (the temporary file
+    went beside the link's target), and `-o /dev/stdout > r.txt` lost kincal's own line after the CSV (the file was
+    renamed over while the shell held it open): both now give the CSV, then the line, in that order."""
+    import subprocess
+    argv = [_kincal(), "simulate", "ur5", "--poses", "3", "-o", "/dev/stdout"]
+    piped = subprocess.run(argv, capture_output=True, text=True, cwd=tmp_path)
+    assert piped.returncode == 0, piped.stderr
+    with open(tmp_path / "r.txt", "w") as out:
+        redirected = subprocess.run(argv, stdout=out, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    assert redirected.returncode == 0, redirected.stderr
+    for text in (piped.stdout, (tmp_path / "r.txt").read_text()):
+        lines = text.splitlines()
+        assert lines[0] == "j1,j2,j3,j4,j5,j6,x,y,z" and len(lines) == 5
+        assert [len(x.split(",")) for x in lines[1:4]] == [9, 9, 9]
+        assert lines[4] == "wrote 3 simulated measurements of ur5 to /dev/stdout"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.txt"]

@@ -50,15 +50,20 @@ class AtomicFile:
     """A text file written through a temporary file beside ``path``: it appears at ``path`` (renamed)
     only when :meth:`keep` was called before the ``with`` block ends; else, or on an error, the
     temporary file is removed and ``path`` is untouched. A link is followed (the file it names is replaced, the link
-    kept); a path that is no regular file (``/dev/null``, ``/dev/stdout``, a named pipe) is not renamed over (as root
-    that would replace the device with a file): the text is held and written to it at once when kept."""
+    kept). A path that is no regular file (``/dev/null``, a named pipe) is not renamed over (as root that would
+    replace the device with a file), nor is the file kincal's own output goes to (``/dev/stdout`` redirected to a
+    file): the text is held and written into it at once when kept (into the output stream itself for the latter, so
+    what kincal prints after it follows it)."""
 
     def __init__(self, path: str | os.PathLike, encoding: str = "utf-8") -> None:
-        self.path, self.encoding, self._keep = Path(os.path.realpath(path)), encoding, False
+        self.path, self.encoding, self._keep = Path(path), encoding, False
         self._tmp: str | None = None
+        self._stream = _std_stream(self.path)
+        if self._stream is None and (not self.path.exists() or self.path.is_file()):
+            self.path = Path(os.path.realpath(self.path))  # a regular file (or a new one): the file a link names
 
     def __enter__(self):
-        if self.path.exists() and not self.path.is_file():
+        if self._stream is not None or self.path.exists() and not self.path.is_file():
             import io
 
             self._fh = io.StringIO()
@@ -76,8 +81,12 @@ class AtomicFile:
         self._keep = True
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        if self._tmp is None:  # a device or a pipe: written as it is, once, when kept
+        if self._tmp is None:  # a stream, a device or a pipe: written as it is, once, when kept
             if exc_type is None and self._keep:
+                if self._stream is not None:
+                    self._stream.write(self._fh.getvalue())
+                    self._stream.flush()
+                    return
                 with open(self.path, "w", newline="", encoding=self.encoding) as fh:
                     fh.write(self._fh.getvalue())
             return
@@ -91,3 +100,25 @@ class AtomicFile:
         finally:  # not renamed (not kept, an error, or the close, chmod or rename failed): no temporary left
             if os.path.exists(self._tmp):
                 os.unlink(self._tmp)
+
+
+def _std_stream(path: Path):
+    """sys.stdout or sys.stderr when ``path`` is the file, pipe or terminal it writes to (``/dev/stdout``,
+    ``/proc/self/fd/1``, or the file the shell redirected it to), else None."""
+    import stat
+    import sys
+
+    try:
+        here = os.stat(path)
+    except OSError:
+        return None
+    if stat.S_ISCHR(here.st_mode) and not os.path.realpath(path).startswith("/dev/pts"):
+        return None  # /dev/null and other devices: not a stream of kincal's even where fd 1 is one
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            there = os.fstat(stream.fileno())
+        except (AttributeError, OSError, ValueError):  # a stream without a file (a test's capture)
+            continue
+        if (here.st_dev, here.st_ino) == (there.st_dev, there.st_ino):
+            return stream
+    return None
