@@ -665,6 +665,11 @@ def test_a_robot_file_is_not_written_under_a_urdf_name(tmp_path, capsys):
     q = cal.sample_joints(20, seed=3)
     np.testing.assert_allclose(reference(tmp_path / "cal.urdf", back, q, "tool_point"), without_base(cal).forward(q),
                                atol=1e-9)
+    # the advice for an XML name works as given: export to .xacro or .xml writes a URDF (it wrote YAML, refused,
+    # so the advice named the very command refused)
+    for name in ("cal.xacro", "cal.xml"):
+        assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / name)]) == 0
+        assert (tmp_path / name).read_bytes() == (tmp_path / "cal.urdf").read_bytes()
 
 
 def test_a_wrong_from_says_what_it_is(tmp_path, capsys):

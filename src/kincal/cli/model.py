@@ -252,7 +252,8 @@ def register(cmd) -> None:
     observe.add_flags(s, std=False)  # simulated files carry no σ columns
 
     s = cmd("export", cmd_export, "write a calibrated robot as URDF, UR calibration file or kincal YAML")
-    s.add_argument("output", help="file to write (.urdf: URDF; otherwise kincal YAML unless --format ur)")
+    s.add_argument("output", help="file to write (.urdf, .xacro or .xml: URDF; otherwise kincal YAML unless "
+                                  "--format ur)")
     s.add_argument("--format", choices=[*kincal.models.FORMATS, *kincal.io.FRAMES_FORMATS], help="urdf, ur "
                    "(Universal Robots' kinematics file for the ROS driver), yaml (default: from the file name), or "
                    "frames-krl, frames-rapid, frames-urscript: a calibration as a base and a tool in the controller's "

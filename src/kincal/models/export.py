@@ -28,7 +28,7 @@ from .robot import TOOL_NAMES, Robot
 from .serial import ChainRobot, SerialRobot
 from .transforms import rot_zyx, zyx_from_matrix
 from .urdf import ORIGIN, URDFRobot, fixed_frame, read_urdf, rpy_matrix
-from .yaml_io import check_robot_output, robot_to_yaml
+from .yaml_io import NOT_ROBOT_FILES, check_robot_output, robot_to_yaml
 
 EXPORT_TOL = 1e-9  # m: an export must reproduce the model this closely
 TOOL_LINK = "tool_point"  # the link a URDF export carries a non-zero tool point on, unless named
@@ -516,8 +516,8 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
     path : str or path-like
         The file to write.
     fmt : str, optional
-        "urdf", "ur" or "yaml" (``FORMATS``); default from the file name: .urdf is a URDF, anything else
-        kincal YAML.
+        "urdf", "ur" or "yaml" (``FORMATS``); default from the file name: .urdf, .xacro or .xml is a URDF,
+        anything else kincal YAML.
     source_path : str or path-like, optional
         URDF of a URDF robot: the URDF it was read from (default: the file its ``source`` names).
     tool_link : str, optional
@@ -566,7 +566,7 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
     >>> summary["base_frame"]["base.x"]
     0.0
     """
-    fmt = fmt or ("urdf" if str(path).lower().endswith(".urdf") else "yaml")
+    fmt = fmt or ("urdf" if os.path.splitext(str(path))[1].lower() in NOT_ROBOT_FILES else "yaml")
     if fmt not in FORMATS:
         raise ValueError(f"format '{fmt}' is not one of {', '.join(FORMATS)}")
     summary: dict = {"format": fmt, "base_frame": {n: float(robot.params[n]) for n in robot.base_params()}}
