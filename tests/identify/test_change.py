@@ -349,3 +349,41 @@ def test_compare_and_check_of_a_urdf_name_it_as_no_calibration(capsys):
         said = " ".join(capsys.readouterr().err.split())
         assert f"{UR5_URDF}: not a calibrated robot file" in said and "`kincal calibrate -o` wrote" in said
         assert "tip" not in said
+
+
+def test_a_turned_and_moved_tracker_is_no_change_and_a_real_one_is_still_found():
+    """The real UR5 grid's second half measured by a tracker turned 0.5°, 2° and 5.5° about z (and about a tilted
+    axis) and moved up to 130 mm: compare took b's frame to a's by a linear frame basis only, and what the
+    turn does beyond first order (its square) was called a change: 2° was 'changed (link: j1.a)' at p = 1e-40,
+    5.5° 'j2.a -1.92 mm, z = -96'. The frames registered rigidly first, the verdict and p are those of the
+    unturned pair (to 1e-6, the calibrations' own convergence), and j3 made 0.3 mm longer in the turned data is
+    still found, within 3σ of 0.3 mm."""
+    from conftest import DATA, UR5_COLS
+    from kincal.models.transforms import rotvec_matrix
+
+    ur5 = kincal.load_robot("ur5")
+    grid = kincal.read_measurements(DATA / "ur5_grid.csv", ur5, UR5_COLS, length_unit="mm", angle_unit="deg")
+    half = len(grid) // 2
+    first = kincal.calibrate(ur5, grid.subset(np.arange(half)))
+    second = grid.subset(np.arange(half, len(grid)))
+    a = Calibrated.of(first.robot, first.record(), "a")
+
+    def judged(data, deg, axis=(0.0, 0.0, 1.0)):
+        R = rotvec_matrix(np.radians(deg) * np.asarray(axis) / np.linalg.norm(axis))
+        shift = np.array([0.05, -0.03, 0.114]) * deg / 5.5  # m: 130 mm at 5.5°
+        res = kincal.calibrate(ur5, dataclasses.replace(data, xyz=data.xyz @ R.T + shift))
+        return compare(a, Calibrated.of(res.robot, res.record(), f"b turned {deg}°"))
+
+    same = judged(second, 0.0)
+    assert not same.changed and 0.05 < same.p_value < 1
+    for deg, axis in ((0.5, (0, 0, 1)), (2.0, (0, 0, 1)), (5.5, (0, 0, 1)), (5.5, (1, 2, 3))):
+        turned = judged(second, deg, axis)
+        assert not turned.changed and turned.verdict == "no significant change"
+        assert turned.p_value == pytest.approx(same.p_value, abs=1e-6)
+        assert turned.statistic == pytest.approx(same.statistic, rel=1e-6)
+    v = first.robot.params.as_dict()
+    v["j3.a"] += 3e-4  # the forearm 0.3 mm longer: the data as that robot would have been measured
+    longer = first.robot.with_params(v).forward(second.q) - first.robot.forward(second.q)
+    found = judged(dataclasses.replace(second, xyz=second.xyz + longer), 5.5)
+    top = found.suspects[0]
+    assert found.changed and top.name == "j3.a" and abs(top.size - 3e-4) < 3 * top.sigma

@@ -92,6 +92,27 @@ def test_report_frame_as_recorded_or_turned_off(real, tmp_path, capsys):
     assert held_after("--no-same-frame") == pytest.approx(independent, abs=2e-6)
 
 
+@pytest.mark.xdist_group("report-real")
+def test_report_rebase_re_fits_the_frame_over_the_recorded_same_frame(real, tmp_path, capsys):
+    """--rebase, the old spelling of --no-same-frame, was accepted and ignored over a calibration recorded with
+    --same-frame (0.1005 mm, the training frame); it re-fits the held-out file's frame (the mean distance of the
+    frame-alone re-fit computed here, 0.0922 mm), and beside --same-frame it is refused, naming both."""
+    out = tmp_path / "r.html"
+    assert main(["report", str(real / "cal.yaml"), "--test", str(DATA / "ur5_random.csv"), "--rebase", "-o",
+                 str(out), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    cal = kincal.load_robot(str(real / "cal.yaml"))
+    meas = kincal.read_measurements(DATA / "ur5_random.csv", cal, UR5_COLS, length_unit="mm", angle_unit="deg")
+    refit = kincal.identify.refit_frame(cal, meas)
+    independent = float(np.linalg.norm(refit.forward(meas.q) - meas.xyz, axis=1).mean())
+    held = next(h["mean"] for h in data["headline"] if h["key"] == "held-out.after")
+    assert held == pytest.approx(independent, abs=2e-6) and abs(held - 0.1005e-3) > 5e-6
+    assert main(["report", str(real / "cal.yaml"), "--test", str(DATA / "ur5_random.csv"), "--rebase",
+                 "--same-frame", "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "--rebase" in err and "contradicts --same-frame" in err
+
+
 def test_bad_calibration_says_so_at_the_top(ur5, tmp_path, capsys):
     true = kincal.perturb(ur5, seed=1)
     meas = kincal.simulate(true, ur5.sample_joints(80, seed=3), 15e-6, seed=0)

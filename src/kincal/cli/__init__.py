@@ -39,8 +39,11 @@ def prepared(parser: argparse.ArgumentParser, args: argparse.Namespace) -> argpa
         if action.option_strings and action.default is not argparse.SUPPRESS and action.dest not in args.given:
             if vars(args).get(action.dest, action.default) != action.default:
                 args.given[action.dest] = action.option_strings[-1]  # declared short first: "-o", "--output"
-    if "rebase" in args.given and args.rebase and args.same_frame:
-        raise ValueError("--rebase (each session's frame re-fitted, the default) contradicts --same-frame; give one")
+    if "rebase" in args.given and args.rebase:  # the old spelling of --no-same-frame: it takes effect as that
+        if args.same_frame:
+            raise ValueError("--rebase (each session's frame re-fitted, as --no-same-frame) contradicts "
+                             "--same-frame; give one")
+        args.same_frame = False  # also over a calibration's recorded --same-frame (report)
     if "force" in args.given and args.force and not args.output:
         raise ValueError("--force writes the calibrated model despite a refused verdict: give the file with -o")
     if "at" in args.given and "store" in vars(args) and store_url(args.store) is None:

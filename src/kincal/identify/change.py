@@ -12,8 +12,9 @@ Both judge a discrepancy d over the poses of use against what it would be on an 
   :meth:`kincal.analysis.changes.Repeat.conditioned`), its covariance what is left of the prediction miss per axis
   (noise and what the model cannot describe) plus the repeat covariance carried to the poses.
 
-Unless the instrument kept its frame (``same_frame``), the frame is re-fitted and every direction a frame change
-makes is taken out first. Two tests, each at half the level α: an omnibus test of the whole discrepancy (its squared
+Unless the instrument kept its frame (``same_frame``), the frame is re-fitted first, rigidly (Kabsch, exact for any
+turn: :func:`kincal.identify.registration.register_base`; compare moves B's base frame onto A's predictions, check
+the model's onto the measured positions), and every direction a frame change makes is then taken out. Two tests, each at half the level α: an omnibus test of the whole discrepancy (its squared
 whitened norm, an F reference with the degrees of freedom the covariance was estimated with, and for a check the
 heavier-than-Gaussian spread of the calibration's own residuals, ``dispersion``), and a directed test of each single
 candidate change (:func:`kincal.analysis.changes.candidates`: joint zeros, links, joint axes, the tool, the frame),
@@ -278,7 +279,8 @@ def compare(a: Calibrated, b: Calibrated, same_frame: bool = False, alpha: float
     """Did the robot change from calibration ``a`` to ``b``?
 
     The positions each predicts at ``poses`` poses drawn (random seed 0) in the joint ranges both were fitted in,
-    judged against both repeat covariances.
+    judged against both repeat covariances; unless ``same_frame``, b's base frame is first moved rigidly so its
+    predictions match a's there (a tracker turned by any angle between the two is no change).
 
     Parameters
     ----------
@@ -306,12 +308,16 @@ def compare(a: Calibrated, b: Calibrated, same_frame: bool = False, alpha: float
     _same_model(a, b)
     q = _region(a, b, poses)
     (ma, Fa), (mb, Fb) = _miss(a, q), _miss(b, q)  # what each misses there, as its own residuals predict it
-    d = ((b.robot.forward(q) + mb) - (a.robot.forward(q) + ma)).ravel()
-    U = np.concatenate([a.factor(q, not same_frame), b.factor(q, not same_frame), Fa, Fb], axis=1)
-    basis = None if same_frame else frame_basis(b.robot, q)
+    seen = a.robot.forward(q) + _in_frame(a.robot, ma)  # where a says the instrument sees the target
+    rb = b.robot  # b in a's measurement frame: its base moved rigidly onto a's predictions (what check does)
+    if not same_frame and rb.base_params():
+        rb = register_base(rb, q, seen, mb)
+    d = (rb.forward(q) + _in_frame(rb, mb) - seen).ravel()
+    U = np.concatenate([a.factor(q, not same_frame), b.factor(q, not same_frame, rb), Fa, Fb], axis=1)
+    basis = None if same_frame else frame_basis(rb, q)
     notes = [] if same_frame else [_frame_shift(a.robot, b.robot)]
-    return _judged("compare", d, U, candidates(b.robot, q, basis), basis, a.repeat.dof + b.repeat.dof, 1.0, alpha,
-                   len(q), tuple(n for n in notes if n), _whole_frame(b.robot, q) if same_frame else None)
+    return _judged("compare", d, U, candidates(rb, q, basis), basis, a.repeat.dof + b.repeat.dof, 1.0, alpha,
+                   len(q), tuple(n for n in notes if n), _whole_frame(rb, q) if same_frame else None)
 
 
 def _miss(cal: Calibrated, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -365,7 +371,7 @@ def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = Fa
         expected, A = cal.repeat.conditioned(cal.robot, q)  # what the calibration's own samples say it misses by
     robot = cal.robot
     if not same_frame:  # the frame of the measured positions less that expected miss
-        robot = register_base(robot, q, xyz - _in_frame(register_base(robot, q, xyz), expected))
+        robot = register_base(robot, q, xyz, expected)
     d = (xyz - _in_frame(robot, expected) - robot.forward(q)).ravel()
     w, V = np.linalg.eigh(A)  # per axis, the same for x, y, z: pose-major rows
     U = np.concatenate([np.kron(V * np.sqrt(np.clip(w, 0.0, None)), np.eye(3)),

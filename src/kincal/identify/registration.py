@@ -7,10 +7,13 @@ from ..models.robot import TOOL_NAMES, Robot
 from ..models.transforms import kabsch, rotvec_matrix, skew
 
 
-def register_base(robot: Robot, q: np.ndarray, xyz: np.ndarray) -> Robot:
-    """``robot`` with its base frame moved so its predictions at q best match xyz (N,3) rigidly."""
-    R, t = kabsch(robot.forward(q), xyz)
+def register_base(robot: Robot, q: np.ndarray, xyz: np.ndarray, miss: np.ndarray | None = None) -> Robot:
+    """``robot`` with its base frame moved so its predictions at q best match xyz (N,3) rigidly (Kabsch, exact
+    for any turn); ``miss`` (N,3), m: what it is known to miss there, in its base frame (turned with it),
+    added to its predictions first."""
     Rb, tb = robot.base_transform()
+    P = robot.forward(q) if miss is None else robot.forward(q) + miss @ Rb.T
+    R, t = kabsch(P, xyz)
     return robot.with_base_transform(R @ Rb, R @ tb + t)
 
 
