@@ -157,6 +157,10 @@ def test_joint_residual_jacobian_is_its_derivative(puu3_data):
         h[k] = 1e-7
         fd = (obs.evaluate_cols(robot, v0 + h, cols)[0] - obs.evaluate_cols(robot, v0 - h, cols)[0]) / 2e-7
         np.testing.assert_allclose(J[:, k], fd, atol=1e-6)
+    # each sample's noise: the joints' σ and the positions' σ through the inverse, D by central differences
+    D = np.stack([(robot.inverse(meas.xyz + e) - robot.inverse(meas.xyz - e)) / 2e-7 for e in 1e-7 * np.eye(3)], -1)
+    np.testing.assert_allclose(obs.covariance(robot, v0, np.zeros(0)), obs.std**2 * np.eye(3) + 15e-6**2 * D @
+                               D.transpose(0, 2, 1), rtol=1e-6)
 
 
 def test_pso_history_is_kept(puu3_data):

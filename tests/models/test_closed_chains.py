@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from scipy.linalg import block_diag
 from scipy.spatial.transform import Rotation
 
 import kincal
@@ -100,6 +101,10 @@ def test_jacobians_match_finite_differences(hexapod, compliance):
         turned = [Rotation.from_rotvec(s * w).as_matrix() @ R for s in (1, -1)]
         assert np.abs(dw[:, :, k] - (robot.inverse_pose(turned[0], p) - robot.inverse_pose(turned[1], p)) / 2e-7
                       ).max() < 1e-6
+    # by the measured pose: a world translation of the tool point, then the turn above (how its noise reaches the legs)
+    moved = robot.inverse_rates(p, None, R)
+    assert np.abs(moved[:, :, :3] - _fd(lambda x: robot.inverse_pose(R, p + x), np.zeros(3), 1e-7)).max() < 1e-6
+    assert np.array_equal(moved[:, :, 3:], dw) and np.abs(moved).max() > 10  # rad per m: a leg's lead of ~12 mm
 
 
 @pytest.mark.parametrize("compliance", [False, True])
@@ -192,6 +197,61 @@ def test_simulated_hexapod_recovers_every_identifiable_parameter(hexapod, residu
         assert abs(again.robot.params[n] - true.params[n]) <= 1e-9 * max(abs(true.params[n]), 1e-3), n
 
 
+def _judged_norms(res, obs):
+    """Each sample's norm √(rᵢᵀ Vᵢ⁻¹ rᵢ) written out in numpy: rᵢ the legs that reach the measured pose − the read
+    ones; Cᵢ = σ² I + D Σ Dᵀ, D the legs' central differences by the measured position and by a world turn of the
+    measured rotation, Σ the poses' σ; V = (I − H) C (I − H)ᵀ over all rows at once, H the least-squares hat matrix
+    of the fit's free columns (robot and target parameters) by central differences."""
+    robot, v = res.robot, res.robot.params.values
+    target = np.array([res.nuisance[f"target.r{c}"] for c in "xyz"])
+
+    def legs(values=v, aim=target, move=np.zeros(3), turn=np.zeros(3)):
+        R = Rotation.from_rotvec(turn).as_matrix() @ obs.R @ obs.target(aim).T
+        return robot.inverse_pose(R, obs.xyz + move, values)
+    n, zero, h = obs.q.shape[1], np.zeros(3), 1e-7
+    D = np.concatenate([_fd(lambda x: legs(move=x), zero, h), _fd(lambda x: legs(turn=x), zero, h)], axis=2)
+    C = obs.std**2 * np.eye(n) + D @ np.diag([obs.std_pos**2] * 3 + [obs.std_rot**2] * 3) @ D.transpose(0, 2, 1)
+    cols = [_fd(lambda x: legs(values=v + x[0] * np.eye(v.size)[robot.params.index(f)]), np.zeros(1), h)
+            if f in robot.params.names else _fd(lambda x: legs(aim=target + x[0] * np.eye(3)["xyz".index(f[-1])]),
+                                                   np.zeros(1), h) for f in res.free]
+    G = np.concatenate(cols, axis=2).reshape(obs.q.size, -1)  # (N·n, K), sample by sample
+    I_H = np.eye(G.shape[0]) - G @ np.linalg.pinv(G.T @ G) @ G.T
+    V = I_H @ block_diag(*C) @ I_H.T
+    r = legs() - obs.q
+    blocks = [V[i * n:(i + 1) * n, i * n:(i + 1) * n] for i in range(len(r))]
+    return np.array([np.sqrt(ri @ np.linalg.solve(Vi, ri)) for ri, Vi in zip(r, blocks)])
+
+
+def test_clean_poses_in_joint_space_are_judged_by_their_own_noise(hexapod, tmp_path, capsys):
+    """A sample of the legs' residual (the legs that reach the measured pose − the read ones) carries the pose's
+    noise through the inverse kinematics, C = σ² I + D Σ Dᵀ, not σ per leg: judged by σ alone, clean simulated poses
+    (the 80 of seed 0, as `kincal simulate` writes them) had row 10 called an outlier (5.21 robust σ, limit 5).
+    Judged by each sample's residual covariance after the fit, V = [(I − H) C (I − H)ᵀ]ᵢᵢ, checked here against the
+    written-out numpy computation, it is not; a pose really 5 mm or 20 mrad off is found, alone."""
+    from kincal.cli import main
+    from kincal.identify.judge import sample_norms
+    from kincal.observe import ObservationFormat, read_observations
+
+    path = tmp_path / "l0.csv"
+    assert main(["simulate", "hexapod", "--perturb", "--poses", "80", "--type", "pose", "-o", str(path)]) == 0
+    capsys.readouterr()
+    data = read_observations(str(path), hexapod, ObservationFormat("pose"))
+    fit = lambda obs: fit_observations(hexapod, [obs], residual="joint", joint_std=0.006 * 2 * np.pi)  # noqa: E731
+    res = fit(data)
+    obs = res.observations[0]
+    norms = sample_norms(res.observations, res.whitened_residual)[0]
+    np.testing.assert_allclose(norms, _judged_norms(res, obs), rtol=1e-5)
+    assert not any(len(found) for found in res.outliers) and res.verdict.status == "good"
+    assert obs.rows[np.argmax(norms)] == 10  # still the largest, within the noise now
+    moved = data.xyz.copy()
+    moved[28, 0] += 5e-3
+    turned = data.R.copy()
+    turned[28] = Rotation.from_rotvec([0.0, 0.02, 0.0]).as_matrix() @ turned[28]
+    for bad in (dataclasses.replace(data, xyz=moved), dataclasses.replace(data, R=turned)):
+        found = fit(bad)
+        assert [obs.rows[i] for i in found.outliers[0]] == [30] and found.verdict.status == "suspect"
+
+
 def test_simulated_compliant_hexapod_keeps_its_gauge_and_recovers_the_compliance(hexapod):
     """Gravity along the measurement frame and the weight at the platform points' centre: the design frames stay
     gauge freedoms (12, named), and a fit with the error model 'compliance' finds the legs' give exactly."""
@@ -231,6 +291,7 @@ def test_delta_closes_every_forearm_and_inverts_in_closed_form(delta):
         assert np.abs(reach - v[f"arm{i + 1}.l"]).max() < 1e-12
         assert np.all(elbow[:, 2] > local[:, 2])  # the platform hangs below the elbows
     assert np.abs(true.inverse(p) - q).max() < 1e-9
+    assert np.abs(true.inverse_rates(p[:5]) - _fd(lambda x: true.inverse(p[:5] + x), np.zeros(3), 1e-7)).max() < 1e-6
     J = true.param_jacobian(q[:5])
     assert np.abs(J - _fd(lambda x: true.forward(q[:5], x), true.params.values, 1e-7)).max() < 1e-7
     for k in range(3):

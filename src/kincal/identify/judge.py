@@ -32,7 +32,8 @@ MIN_SAMPLES = 10  # a set with fewer samples is not judged for outliers (no robu
 
 
 STATED = {"pose position": "--std-pos", "pose rotation": "--std-rot"}  # the flag that states each kind's σ
-ASSUMED = {"joint": "the joints' reading noise taken as 1e-4 rad or m; --std-joint states it"}  # σ when not stated
+THROUGH = "with the measured positions' or poses' σ through the inverse kinematics"  # a joint residual's σ besides
+ASSUMED = {"joint": f"the joints' reading noise taken as 1e-4 rad or m, {THROUGH}; --std-joint states it"}  # not stated
 
 
 def component_kinds(sets) -> tuple[np.ndarray, tuple[str, ...]]:
@@ -210,7 +211,7 @@ def _whitened_reason(kind: str, rms: float, whitened: dict, th: Thresholds,
     (the ratio that refuses position data against the tracker noise) when a flag states that σ (an assumed σ is
     not the user's word: suspect only)."""
     assumed = kind in ASSUMED and kind not in stated
-    flag = STATED.get(kind, "--std-joint" if kind in stated else ASSUMED.get(kind, "--std-pos"))
+    flag = STATED.get(kind, f"--std-joint, {THROUGH}" if kind in stated else ASSUMED.get(kind, "--std-pos"))
     if rms > th.residual_refuse and not assumed:
         return Reason("refused", "residual", f"the {kind} residuals are {rms:.0f}x their stated σ ({flag}): data and "
                                              f"model do not belong together (another robot's or another session's "

@@ -91,7 +91,8 @@ class CalibrationResult:
     notes : tuple of str, optional
         What the fit changed on its way (an error-model term dropped, a refit).
     whitened_residual : ndarray, shape (M,), optional
-        The residual whitened by the stated σ.
+        The residual whitened by the stated σ (a joint-space sample by its residual's covariance after the fit,
+        the joints' σ and the measured σ through the inverse kinematics: its norm is √(rᵀ V⁻¹ r)).
     diagnosis : Diagnosis or None, optional
         The differential diagnosis of a doubtful fit, if run.
     evaluations : int, optional

@@ -281,10 +281,39 @@ class ImplicitRobot(Robot):
         delta = -Rb.T @ self._base_axes(v)  # (3, 3): δ per base rotation
         dx[:, 3:, base[3:]] = delta
         dx[:, :3, base[3:]] = np.cross(delta.T[None], t[:, None], axis=2).transpose(0, 2, 1)
-        turn = np.concatenate([np.cross((Rl @ v[self.params.indices(TOOL_NAMES)])[:, None], Rb[None], axis=2)
-                               .transpose(0, 2, 1), np.broadcast_to(Rb.T, (n, 3, 3))], axis=1)  # twist per world turn
         solve = lambda rhs: -np.linalg.solve(fq, rhs)  # noqa: E731
-        return q, solve(fx @ dx + fs), solve(fx @ turn)
+        return q, solve(fx @ dx + fs), solve(fx @ self._world_moves(Rl, v)[:, :, 3:])
+
+    def _world_moves(self, Rl: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """(N, 6, 6) the platform's twist in the robot frame (dt, δ) per world translation of the tool point (3),
+        then per turn about world axes through it (3), for platform rotations Rl (N, 3, 3) in the robot frame."""
+        Rb, _ = self._base(values)
+        n, tool = len(Rl), values[self.params.indices(TOOL_NAMES)]
+        out = np.zeros((n, 6, 6))
+        out[:, :3, :3] = Rb.T
+        out[:, :3, 3:] = np.cross((Rl @ tool)[:, None], Rb[None], axis=2).transpose(0, 2, 1)
+        out[:, 3:, 3:] = Rb.T
+        return out
+
+    def inverse_rates(self, p: np.ndarray, values: np.ndarray | None = None,
+                      R: np.ndarray | None = None) -> np.ndarray:
+        """The joints' derivatives by the measured tool point p (N, 3) (a world translation), (N, n, 3), or with
+        the platform's world rotations R (N, 3, 3) by the pose (a translation, then a turn about world axes through
+        the tool point), (N, n, 6): dq = −(∂f/∂q)⁻¹ ∂f/∂x · dx, the implicit-function theorem at the inverse."""
+        v = self.param_values(values)
+        p = np.atleast_2d(np.asarray(p, float))
+        if (R is None) != (self.UNKNOWN == "position"):
+            raise ModelError(f"{self.name}: its inverse starts from a {'position' if R is None else 'pose'}; give "
+                             f"{'positions only' if self.UNKNOWN == 'position' else 'the rotations too'}")
+        if R is None:
+            Rb, t = self._base(v)
+            x = (p - t) @ Rb
+            moves = np.broadcast_to(Rb.T, (len(p), 3, 3))  # the local point per world translation
+        else:
+            x = self._pose_local(np.asarray(R, float), p, v)
+            moves = self._world_moves(x[:, :, :3], v)
+        fx, fq, _ = self.constraint_derivatives(x, self.inverse_local(x, v), v)
+        return -np.linalg.solve(fq, fx @ moves)
 
     def _forward_and_jacobian(self, q, values, jacobian):
         if not jacobian:

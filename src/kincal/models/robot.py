@@ -15,7 +15,8 @@ ability says so with a :class:`~kincal.errors.ModelError` through the same metho
 * parameters: ``with_params`` (one implementation: a copy with new values, re-validated),
   ``param_values``, ``preferred_params`` (kept first among confounded ones), ``structure_notes``;
 * the base frame: ``base_params``, ``base_transform``, ``with_base_transform``;
-* inverse kinematics (``has_inverse``): ``inverse``, ``inverse_and_jacobian``, ``inverse_batch``;
+* inverse kinematics (``has_inverse``): ``inverse``, ``inverse_and_jacobian``, ``inverse_batch``,
+  ``inverse_rates``;
 * the error model beyond geometry: ``error_model``, ``term_names``, ``corrected``, ``compliances``;
 * gravity loads of link masses (``has_gravity``): ``gravity``; Hayati's β tilts (``has_beta``):
   ``without_beta``.
@@ -297,6 +298,14 @@ class Robot(Joints, ABC):
 
     def inverse_batch(self, p: np.ndarray, values: np.ndarray) -> np.ndarray:
         """Joint values (S, N, n) for positions p (N, 3) and S parameter vectors (S, P); NaN where out of reach."""
+        raise self._no_inverse()
+
+    def inverse_rates(self, p: np.ndarray, values: np.ndarray | None = None,
+                      R: np.ndarray | None = None) -> np.ndarray:
+        """The closed-form inverse's derivatives by what it starts from, at tool points p (N, 3) m: by a world
+        translation of p, (N, n, 3) rad or m per m; with the flange's world rotations R (N, 3, 3) (a pose inverse),
+        by that translation and then by a turn of the pose about world axes through p, (N, n, 6) (per m, then per
+        rad): how the noise of a measured position or pose reaches the joints."""
         raise self._no_inverse()
 
     def inverse_pose(self, R: np.ndarray, p: np.ndarray, values: np.ndarray | None = None,

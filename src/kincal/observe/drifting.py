@@ -80,5 +80,8 @@ class Drifting(Wrapper):
         Jd[rows, axes[rows]] = acquisition(self.rows)[owner[rows]]  # r = p − (x − s·d)
         return r, Jr, np.hstack([Jn, Jd])
 
+    def covariance(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> np.ndarray | None:
+        return self._corrected(nuis[-3:]).covariance(robot, values, nuis[:-3])
+
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         return self._corrected(nuis[-3:]).stats(robot, values, nuis[:-3]) | {"drift": [float(v) for v in nuis[-3:]]}

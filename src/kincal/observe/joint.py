@@ -21,7 +21,9 @@ from .observations import MeasuredPositions, PointObs, PoseObs, Wrapper, compone
 
 class InJoints:
     """What a residual in joint space is, whatever was measured: one row per sample and joint, each with
-    the joints' reading noise ``std`` (rad or m) as its σ."""
+    the joints' reading noise ``std`` (rad or m) as its σ; and each sample's noise as a whole, the joints' reading
+    noise and the measurement's noise through the inverse kinematics (:meth:`covariance`), which the verdict
+    judges it by."""
 
     kind = "joint"
     q: np.ndarray
@@ -32,6 +34,18 @@ class InJoints:
 
     def sigma(self) -> np.ndarray:
         return np.full(self.q.size, float(self.std))
+
+    def measured_noise(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """How the measurement's noise reaches the joints: the inverse's derivatives by the measured quantity at
+        each sample (N, n, d) and that quantity's noise variances (N, d) (m², rad²); each type declares them."""
+        raise NotImplementedError
+
+    def covariance(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> np.ndarray:
+        """(N, n, n) each sample's residual covariance, (rad or m)²: C = σ² I + D Σ Dᵀ, σ the joints' reading noise,
+        D the inverse's derivatives by the measured position or pose and Σ its noise (:meth:`measured_noise`): the
+        noise of one measured pose reaches every joint, the more where the inverse kinematics amplify it."""
+        D, var = self.measured_noise(robot, values, nuis)
+        return float(self.std) ** 2 * np.eye(D.shape[1]) + np.einsum("nid,nd,njd->nij", D, var, D)
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,6 +67,9 @@ class JointObs(InJoints, MeasuredPositions):
         The measured positions of the tool point, m.
     std : float, optional
         σ of every joint's reading, rad or m (default 1e-4).
+    std_pos : ndarray, shape (N, 3), or float, optional
+        σ of the measured positions per axis, m, as for :class:`PointObs` (default 15e-6): it reaches the joints
+        through the inverse kinematics (:meth:`covariance`).
 
     See Also
     --------
@@ -72,6 +89,11 @@ class JointObs(InJoints, MeasuredPositions):
     """
 
     std: float = 1e-4
+    std_pos: np.ndarray | float = 15e-6
+
+    def measured_noise(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        var = np.broadcast_to(np.asarray(self.std_pos, float) ** 2, self.xyz.shape)
+        return robot.inverse_rates(self.xyz, values), var
 
     def evaluate_cols(self, robot: Robot, values: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         try:
@@ -148,9 +170,10 @@ class PoseJointObs(InJoints, PoseObs):
         The target's orientation on the platform that the fitted rotation vector starts from (default
         identity).
     std_pos : ndarray, shape (N,), or float, optional
-        σ of the positions, m, as for :class:`PoseObs` (default 0.1e-3; the residual's σ is ``std``).
+        σ of the positions per axis, m, as for :class:`PoseObs` (default 0.1e-3); with ``std_rot`` it reaches the
+        joints through the inverse kinematics (:meth:`covariance`).
     std_rot : ndarray, shape (N,), or float, optional
-        σ of the rotations, rad, as for :class:`PoseObs` (default 1e-3; the residual's σ is ``std``).
+        σ of the rotations per axis, rad, as for :class:`PoseObs` (default 1e-3).
     anchored : bool, optional
         The target rotation was given: :meth:`prepare` keeps it (default False).
     own_target : bool, optional
@@ -180,6 +203,11 @@ class PoseJointObs(InJoints, PoseObs):
     def position_axes(self) -> np.ndarray:
         return np.full(self.q.size, -1)
 
+    def measured_noise(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        Rm = self.R @ self.target(nuis).transpose()  # the platform frame the measurement implies
+        var = [np.broadcast_to(np.asarray(s, float) ** 2, len(self.q)) for s in (self.std_pos, self.std_rot)]
+        return robot.inverse_rates(self.xyz, values, Rm), np.repeat(np.column_stack(var), 3, axis=1)
+
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
         Rm = self.R @ self.target(nuis).transpose()  # the platform frame the measurement implies
         try:
@@ -202,7 +230,8 @@ def in_joint_space(obs, std: float | None = None):
     """A set with its residual in joint space (``residual='joint'``).
 
     Points become a :class:`JointObs`, 6-D poses a :class:`PoseJointObs` (σ: the joints' reading noise,
-    their default ``std``), a session's or a drifting instrument's set is converted inside its wrapper; a
+    their default ``std``; the positions' and rotations' σ kept, which reach the joints through the inverse
+    kinematics), a session's or a drifting instrument's set is converted inside its wrapper; a
     set already in joint space is returned as it is.
 
     Parameters
@@ -240,8 +269,9 @@ def in_joint_space(obs, std: float | None = None):
     sigma = {} if std is None else {"std": std}
     if isinstance(obs, PoseObs):
         return PoseJointObs(q=obs.q, rows=obs.rows, source=obs.source, xyz=obs.xyz, R=obs.R, **sigma,
-                            target_rotation=obs.target_rotation, anchored=obs.anchored, own_target=obs.own_target)
+                            std_pos=obs.std_pos, std_rot=obs.std_rot, target_rotation=obs.target_rotation,
+                            anchored=obs.anchored, own_target=obs.own_target)
     if isinstance(obs, PointObs):
-        return JointObs(q=obs.q, rows=obs.rows, source=obs.source, xyz=obs.xyz, **sigma)
+        return JointObs(q=obs.q, rows=obs.rows, source=obs.source, xyz=obs.xyz, std_pos=obs.std, **sigma)
     raise ValueError(f"residual='joint' inverts measured positions or poses; {obs.kind} data ({obs.source}) have "
                      f"none to invert: use residual='cartesian'")

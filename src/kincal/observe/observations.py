@@ -163,6 +163,12 @@ class Observation:
         problem: mm and mrad are combined by the instrument's noise, never by an arbitrary "1 mm weighs like x mrad"."""
         raise NotImplementedError(f"{self.kind} data declare no σ")
 
+    def covariance(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> np.ndarray | None:
+        """(N, c, c) each sample's noise covariance, (m or rad)², its c residual rows in their order, at ``values``
+        and ``nuis``, for a type whose sample's components share noise (the joints that reach one measured pose);
+        None (the default) where every component's noise is its own, σ (:meth:`sigma`)."""
+        return None
+
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Predicted − measured r (M,), its derivatives by the robot's parameters Jr (M, P) and by the set's
         own nuisance parameters Jn (M, K), at ``values`` and ``nuis``; every type declares it."""

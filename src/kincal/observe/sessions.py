@@ -110,5 +110,8 @@ class InSession(Wrapper):
         Jr[:, idx] = 0.0
         return r, Jr, np.hstack([Jn, Jf])
 
+    def covariance(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> np.ndarray | None:
+        return self.inner.covariance(robot, *self._split(robot, values, nuis))
+
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         return {**self.inner.stats(robot, *self._split(robot, values, nuis)), "session": self.session}
