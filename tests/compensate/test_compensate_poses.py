@@ -116,10 +116,13 @@ def test_pose_targets_through_the_command_line(tmp_path, capsys):
     rows = cmd[:, 0].astype(int) - 2
     assert len(rows) >= 76 and len(rows) + len(out["problems"]) == 80  # a refused row is named (limits, branch)
     assert out["max_rotation_residual"] < 1e-6 and out["written"] == len(rows) and out["targets"] == 80
-    pm, Rm, _, _ = model.pose_and_jacobian(np.deg2rad(cmd[:, 1:7]))
-    assert np.abs(pm - p[rows]).max() < 1e-6
-    # calibrated from points: the flange is turned to the targets as the nominal model predicts, and said so
+    # calibrated from points: the flange is turned to the targets as the nominal model predicts, and said so; the
+    # TCP is the calibrated measured point carried on by that turn (the TCP is 120 mm beyond it)
     assert out["orientation_from"] == "nominal"
+    q = np.deg2rad(cmd[:, 1:7])
+    tcp_at = model.with_tool_point(cal.tool_point()).forward(q) + nominal.flange_rotation(q) @ (
+        model.tool_point() - cal.tool_point())
+    assert np.abs(tcp_at - p[rows]).max() < 1e-6
     assert np.abs(nominal.pose_and_jacobian(np.deg2rad(cmd[:, 1:7]))[1] - R[rows]).max() < 1e-6
     assert main(base + ["-o", str(tmp_path / "f.csv"), "--orientation", "euler-zyx-intrinsic-deg",
                         "--output-kind", "cartesian"]) == 0
@@ -236,3 +239,19 @@ def test_a_hexapod_turned_as_its_nominal_model():
     assert turn.max() < 1e-9 and np.allclose(comp.rotation_residual, turn)
     own = np.linalg.norm(rotation_log(real.flange_rotation(comp.q) @ np.swapaxes(R, 1, 2)), axis=1)
     assert own.min() > 1e-5  # the real platform's own rotation is not what was reached
+
+
+def test_a_hexapods_tcp_beyond_the_measured_point_is_carried_on_by_the_nominal_turn():
+    """A TCP 100 mm above the platform's measured point (its centre): the legs put the calibrated centre where the
+    nominal platform's turn carries it to the TCP's target (computed here: centre + R_nominal · lever), not the
+    calibrated platform's own TCP (0.2 mm away: its unseen turn times the lever)."""
+    from kincal.compensate import compensate_poses
+
+    nominal = kincal.load_robot("hexapod")
+    centre, lever = nominal.tool_point(), np.array([0.02, -0.01, 0.1])
+    nom, real = nominal.with_tool_point(centre + lever), kincal.perturb(nominal, seed=3).with_tool_point(centre + lever)
+    q = nominal.sample_joints(5, seed=1)
+    p, R = nom.forward(q), nom.flange_rotation(q)
+    comp = compensate_poses(real, p, R, None, orientation=nom, measured=centre)
+    hybrid = real.with_tool_point(centre).forward(comp.q) + nom.flange_rotation(comp.q) @ lever
+    assert comp.all_ok and np.abs(hybrid - p).max() < 1e-9 and np.abs(real.forward(comp.q) - p).max() > 0.1e-3

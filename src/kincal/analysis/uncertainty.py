@@ -236,9 +236,10 @@ class ModelUncertainty:
 
 
 def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncertainty, q: np.ndarray | None = None,
-                          robot: Robot | None = None) -> str | None:
+                          robot: Robot | None = None, what: str = "row") -> str | None:
     """A warning naming the poses whose predicted σ says the model extrapolates there — where they lie
-    (the joint ranges beyond the training ones, given ``q`` and ``robot``) and their first rows — or None."""
+    (the joint ranges beyond the training ones, given ``q`` and ``robot``) and their first rows (``what`` they
+    are: a program's lines) — or None."""
     bad = unc.extrapolated(sigma)
     if not bad.any():
         return None
@@ -250,7 +251,7 @@ def extrapolation_warning(rows: np.ndarray, sigma: np.ndarray, unc: ModelUncerta
         if unc.envelope_sigma is not None else f": {EXTRAPOLATION_RATIO:g}x the median at the training poses"
     return (f"{int(bad.sum())} pose(s) lie where the calibration data did not constrain the model (predicted σ up to "
             f"{sigma[bad].max() * MM:.4f} mm, {sigma[bad].max() / unc.limit():.1f}x the limit {unc.limit() * MM:.4f} mm"
-            f"{words}){where}: row(s) {listed(rows[bad])}; measure calibration poses there too")
+            f"{words}){where}: {what}(s) {listed(rows[bad])}; measure calibration poses there too")
 
 
 LEVER = 1e-3  # m: a TCP this far from the measured point may owe its σ to the lever, not to the poses

@@ -18,6 +18,7 @@ from kincal.compensate import (LINK_ERROR_MAX, StreamJob, TargetsFormat, Verific
                                compensate_program, flange_turn,
                                resolve_taught, tool_carry, unseen_at_flange, unseen_in_base, verification_plan,
                                write_folder)
+from kincal.analysis.uncertainty import extrapolation_warning
 from kincal.compensate.turn import poses_in
 from kincal.observe import check_convention
 from kincal.io.frames_file import frames_read
@@ -62,6 +63,12 @@ def _base_line(args, record: dict, cal, unc) -> str:
     return base_note(unseen_in_base(cal, poses_in(cal, *_ranges(cal, unc))), not args.program)
 
 
+def _measured_point(cal) -> np.ndarray | None:
+    """The point the calibration measured (3,) m in the flange frame, the calibrated file's tool point (None for a
+    model without one): where its positions are trusted when the commands turn the flange as the nominal model."""
+    return cal.tool_point() if cal.has_tool_point else None
+
+
 def _orientation_from(turned, turn) -> dict:
     """The JSON fields that say which model turned the flange, and why."""
     return {"orientation_from": "nominal" if turned is not None else "calibrated",
@@ -91,14 +98,15 @@ def cmd_compensate(args) -> int:
     if args.program:
         _same_language(args.targets, args.program)
         _program_for(cal, args.program, args.robot)
+    in_robot = None if uncertainty is None else uncertainty.without(cal.base_params(), cal)  # a program's frame
     if args.program and args.program != "ur":
-        return _compensate_branches(args, cal, values, _orientation(args, record, cal, values, cal.with_params(
+        return _compensate_branches(args, (cal, values, in_robot), _orientation(args, record, cal, values, cal.with_params(
             values) if values else cal, uncertainty), _base_line(args, record, cal, uncertainty))
     if "frames" in args.given:
         raise ValueError("--frames gives the frames a KRL, RAPID, FANUC or INFORM program names; URScript sets its TCP "
                          "with set_tcp (or give --tcp)")
     if args.program:
-        return _compensate_program(args, r, nominal, carry, models,
+        return _compensate_program(args, (r, nominal, _measured_point(cal), in_robot), carry, models,
                                    _orientation(args, record, cal, values, nominal, uncertainty),
                                    _base_line(args, record, cal, uncertainty))
     carry = carry if args.tcp is not None else ""
@@ -110,7 +118,7 @@ def cmd_compensate(args) -> int:
         uncertainty.without(cal.base_params(), cal)  # commands in a robot frame do not depend on the tracker's
     _frame_doubt(args, uncertainty, in_robot)
     body, body_note = _body(args, record)
-    job = StreamJob(r, nominal, fmt, in_robot, args.output_kind, args.path, turned, body)
+    job = StreamJob(r, nominal, fmt, in_robot, args.output_kind, args.path, turned, body, _measured_point(cal))
     with progress_bar(args, "compensating") as bar:
         res = compensate_file(job, args.targets, args.output, skip_unreachable=args.skip_unreachable,
                               workers=args.workers, progress=bar)
@@ -200,9 +208,11 @@ def _carried(args, cal, values) -> tuple[np.ndarray, str]:
                       args.link_error_max / MM)
 
 
-def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
+def _compensate_branches(args, calibrated, orientation, unseen: str) -> int:
     """compensate --program krl|rapid|fanuc|inform: the program compensated on the branch each target states
-    (kincal.compensate.branch), written to -o only when every target passed or with --skip-unreachable."""
+    (kincal.compensate.branch), written to -o only when every target passed or with --skip-unreachable.
+    ``calibrated``: the calibrated model, its nominal values and its uncertainty in the robot's base frame."""
+    cal, values, unc = calibrated
     flags = [args.given[k] for k in NOT_FOR_BRANCHES if k in args.given]
     if flags:
         raise ValueError(f"{', '.join(flags)}: not for a {args.program} program, whose targets carry their own frames "
@@ -227,13 +237,30 @@ def _compensate_branches(args, cal, values, orientation, unseen: str) -> int:
     lines += _taught_lines(model, nominal, frames, turned, shift)
     lines += [f"refused: {p}" for p in res.problems]
     lines += _left_lines(res)
+    warned = _sigma_warnings(model, prog, res, unc)
     lines += ([f"TCP: {carry}"] if carry else []) + ([turn.note()] if turn is not None else []) + (
-        [unseen] if unseen else [])
+        [unseen] if unseen else []) + [f"warning: {w}" for w in warned]
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
                        "declared_frames": known, **_left_dict(res), "tool_carry": carry or None,
                        "output": args.output if written else None, **_orientation_from(turned, turn),
-                       "base_note": unseen or None},
+                       "base_note": unseen or None, "warnings": warned},
                 "\n".join(lines), 0 if written else EXIT_REFUSED)
+
+
+def _sigma_warnings(model, prog, res, unc) -> list[str]:
+    """The predicted σ at a program's compensated targets, each at its TCP on the calibrated model (``res.tcp``),
+    warned of as for a targets file (:func:`kincal.analysis.uncertainty.extrapolation_warning`: where the model
+    extrapolates, or a TCP far from the measured point whose flange turn the data leave open), naming the
+    program's lines; one warning per TCP. None without the calibration's uncertainty (``unc``)."""
+    if unc is None or res.tcp is None:
+        return []
+    done = np.all(np.isfinite(res.tcp), axis=1) & np.all(np.isfinite(res.q), axis=1)
+    lines, out = np.array([t.line for t in prog.targets]), []
+    for tcp in np.unique(res.tcp[done], axis=0):
+        at = done & np.all(res.tcp == tcp, axis=1)
+        robot = model.with_tool_point(tcp)
+        out.append(extrapolation_warning(lines[at], unc.sigma(robot, res.q[at]), unc, res.q[at], robot, "line"))
+    return [w for w in out if w]
 
 
 def _read_files(args) -> list[str]:
@@ -419,15 +446,18 @@ def _taught_lines(cal, nominal, frames, turned, shift: np.ndarray) -> list[str]:
     return out
 
 
-def _compensate_program(args, r, nominal, carry: str, models, orientation, unseen: str) -> int:
+def _compensate_program(args, robots, carry: str, models, orientation, unseen: str) -> int:
     """compensate --program ur: a robot program compensated in place, written to -o (never over it);
-    with --skip-unreachable each target left as it is gets a comment saying why."""
+    with --skip-unreachable each target left as it is gets a comment saying why. ``robots``: the calibrated and the
+    nominal model for --tcp, the point the calibration measured (:func:`_measured_point`) and the calibration's
+    uncertainty in the robot's base frame."""
+    r, nominal, measured, unc = robots
     prog = _read_program(args)
     if args.tcp is not None and prog.targets and not any(isinstance(prog.tcp_at(t.at), tuple) for t in prog.targets):
         raise ValueError(f"--tcp is the TCP of the moves before the program's first set_tcp, and {args.targets} sets "
                          f"its TCP before every move: leave --tcp out (the program's set_tcp is used)")
     turned, turn = orientation
-    res = compensate_program(r, nominal, prog, models=models, orientation=turned)
+    res = compensate_program(r, nominal, prog, models=models, orientation=turned, measured=measured)
     written = not res.problems or args.skip_unreachable  # never half a program silently; none at all: as it was
     if written:
         kincal.io.write_program(args.output, prog, res.texts, res.refused)
@@ -443,12 +473,14 @@ def _compensate_program(args, r, nominal, carry: str, models, orientation, unsee
         "measured target (the calibration's tool point); give --tcp with the controller's TCP if it is another"]
     lines += [f"refused: {p}" for p in res.problems]
     lines += _left_lines(res)
+    warned = _sigma_warnings(r, prog, res, unc)
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
                        **_left_dict(res),
                        "output": args.output if written else None, "tool_carry": carry or None,
-                       **_orientation_from(turned, turn), "base_note": unseen or None},
+                       **_orientation_from(turned, turn), "base_note": unseen or None, "warnings": warned},
                 "\n".join(lines + ([f"TCP: {carry}"] if carry else []) + ([turn.note()] if turn is not None else [])
-                          + ([unseen] if unseen else [])), 0 if written else EXIT_REFUSED)
+                          + ([unseen] if unseen else []) + [f"warning: {w}" for w in warned]),
+                0 if written else EXIT_REFUSED)
 
 
 def _body(args, record: dict) -> tuple[np.ndarray | None, str]:

@@ -175,19 +175,21 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     q_nom = _controller_joints(nominal, work, goals, rows, q0, refused)
     tcp_goals = _at_tcp(goals, tools)
     kept: dict[int, str] = {}
-    qs = _corrected_all(model, nominal, work, (tcp_goals, tools), q_nom, rows, (refused, kept), orientation)
+    qs = _corrected_all(model, nominal, work, (tcp_goals, tools), q_nom, rows, (refused, kept), (orientation, measured))
     values = _written(nominal, work.targets, qs, tools, [k for k in range(len(qs)) if k not in refused | kept])
     values = {k: np.round(v * scale) if program.targets[k].kind == "pulses" else v for k, v in values.items()}
     texts = dict(zip(values, dialect.write(program.text, [program.targets[k] for k in values], list(values.values()))))
     for k, why in check_written(model, nominal, program, texts, qs, rows, frames, tcp_goals, scale,
-                                orientation).items():
+                                orientation, measured).items():
         texts.pop(k)
         refused[k] = why
     problems = tuple(f"{program.source}: line {program.targets[k].line} ({program.targets[k].move}"
                      f"{' ' + program.targets[k].variable if program.targets[k].variable else ''}): {why}; left as is"
                      for k, why in sorted(refused.items()))
+    tcp = np.where(np.isfinite(qs[:, :1]), tcp_goals[2], np.nan)
+    tcp[sorted(refused)] = np.nan  # as for ProgramCompensation.q: where the robot goes
     return ProgramCompensation(texts, qs, problems, program.not_literal, refused, tuple(
-        (program.targets[k].line, program.targets[k].move, why) for k, why in sorted(kept.items())))
+        (program.targets[k].line, program.targets[k].move, why) for k, why in sorted(kept.items())), tcp)
 
 
 def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side: int = 1,
@@ -330,20 +332,21 @@ def _pass(nominal: Robot, program: Program, goals, rows: Rows, q_nom: np.ndarray
 def _at_tcp(goals, tools: list):
     """The goals (flange poses p (N, 3), R (N, 3, 3)) with the TCP point of each target's physical tool: p (N, 3), R
     and the calibrated model's TCP in the flange frame (N, 3) m: the physical tool's origin (a given tool's moved by
-    the carry, :func:`tool_pair`; a joint target's, the point the calibration measured). The calibrated model's
-    position is trusted at that point, not at the flange: where the flange is turned as another model's
-    (``orientation``), the two differ by the models' turn times the point's lever."""
+    the carry, :func:`tool_pair`; a joint target's, the point the calibration measured). Where the flange is turned
+    as another model's (``orientation``), the calibrated model's position is trusted at the measured point, not at
+    the TCP nor the flange: the TCP is that point carried on by ``orientation``'s turn
+    (:func:`kincal.compensate.poses.tcp_positions`), as the taught frames take it."""
     p, R = goals
     lever = np.array([np.zeros(3) if t is None else t[0][1][:3, 3] for t in tools]).reshape(-1, 3)
     return p + np.einsum("nij,nj->ni", R, lever), R, lever
 
 
 def _corrected_all(model: Robot, nominal: Robot, program: Program, aims, q_nom: np.ndarray, rows: Rows,
-                   out: tuple[dict[int, str], dict[int, str]], orientation: Robot | None = None) -> np.ndarray:
+                   out: tuple[dict[int, str], dict[int, str]], turn: tuple = (None, None)) -> np.ndarray:
     """The corrected joints (N, n) of every target not refused (NaN elsewhere; refusals added to ``out``'s first
     dict): Newton on the calibrated model from the controller's joints (``aims``: the goals of :func:`_at_tcp` for
-    the TCP, and each target's (tool, base) pairs of :func:`_goals`; the flange turned as ``orientation``'s),
-    together; refused where it did not converge, left the nominal branch,
+    the TCP, and each target's (tool, base) pairs of :func:`_goals`; ``turn``: the model whose flange turn is
+    followed and the point the calibration measured, :func:`_solve_levers`), together; refused where it did not converge, left the nominal branch,
     broke a joint limit or changed the target's bits (each named, with a singularity's condition), except a joint
     target at a singularity: kept as it is (its joints; why in ``out``'s second dict, :func:`kept_joints`)."""
     (goals, tools), (refused, kept) = aims, out
@@ -351,7 +354,7 @@ def _corrected_all(model: Robot, nominal: Robot, program: Program, aims, q_nom: 
     idx = np.array([k for k in range(len(q_nom)) if k not in refused], dtype=int)
     if not idx.size:
         return qs
-    q, converged = _solve_levers(model, [g[idx] for g in goals], q_nom[idx], orientation)
+    q, converged = _solve_levers(model, [g[idx] for g in goals], q_nom[idx], *turn)
     tol = branch_tolerance(model)
     off = (np.abs(q - q_nom[idx]) > tol).any(axis=1)
     outside = ~model.within_limits(q)
@@ -383,15 +386,18 @@ def _crossed(robot: Robot, q_nom: np.ndarray, q: np.ndarray) -> str:
                    f"position)" for j in moved[:1])
 
 
-def _solve_levers(model: Robot, goals, q0: np.ndarray, orientation: Robot | None) -> tuple[np.ndarray, np.ndarray]:
+def _solve_levers(model: Robot, goals, q0: np.ndarray, orientation: Robot | None,
+                  measured: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The commands (N, n) and which converged (N,) of :func:`solve_poses` on goals (TCP points p (N, 3) m, flange
-    rotations R (N, 3, 3), TCPs in the flange frame (N, 3) m) from q0 (N, n): one solve per distinct TCP."""
+    rotations R (N, 3, 3), TCPs in the flange frame (N, 3) m) from q0 (N, n): one solve per distinct TCP; the flange
+    turned as ``orientation``'s, the calibrated position trusted at the ``measured`` point (3,) m, flange frame."""
     p, R, lever = goals
     q, converged = np.full_like(q0, np.nan), np.zeros(len(q0), bool)
     _, which = np.unique(lever, axis=0, return_inverse=True)
     for g in range(int(which.max()) + 1):
         at = np.flatnonzero(which.reshape(-1) == g)
-        sol = solve_poses(model.with_tool_point(lever[at[0]]), p[at], R[at], q0[at], turned_as=orientation)
+        sol = solve_poses(model.with_tool_point(lever[at[0]]), p[at], R[at], q0[at], turned_as=orientation,
+                          measured=measured)
         q[at], converged[at] = sol.q, sol.converged
     return q, converged
 
@@ -485,10 +491,11 @@ def _turns(robot: Robot, q: np.ndarray) -> list[np.ndarray]:
 
 def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, qs: np.ndarray, rows: Rows,
                   frames: Mapping[str, object], intended, scale: np.ndarray | None = None,
-                  orientation: Robot | None = None) -> dict[int, str]:
+                  orientation: Robot | None = None, measured: np.ndarray | None = None) -> dict[int, str]:
     """The compensated targets whose text, read again, does not bring the robot where the program meant, and
     why: a written pose target's controller joints (Newton on the nominal model from the corrected joints, on
-    the target's bits) and a written joint target's joints must put the calibrated model's TCP on the intended
+    the target's bits) and a written joint target's joints must put the calibrated model's TCP (carried from the
+    ``measured`` point (3,) m by ``orientation``'s turn, when given: :func:`_misses`) on the intended
     point and its flange (``orientation``'s, when given) on the intended rotation (``intended``: TCP points
     (N, 3) m, flange rotations (N, 3, 3) and TCPs in the flange (N, 3) m of every target, from :func:`_at_tcp`)
     to ``CHECK_TOL`` and what rounding to the controller's step moves them (:func:`_rounding`); a PULSE
@@ -515,7 +522,7 @@ def check_written(model: Robot, nominal: Robot, program: Program, texts: dict, q
             config = tuple(program.targets[k].config)
             if not sol.converged[i] or (config and tuple(bits[i]) != config):
                 bad[int(k)] = "the written target does not come back on its branch when read again"
-    miss, turn, Jp, Jw = _misses(model, orientation or model, q, goals)
+    miss, turn, Jp, Jw = _misses(model, orientation or model, q, goals, measured)
     pulsed = np.array([program.targets[k].kind == "pulses" for k in ks])
     kinds = [program.targets[k].kind for k in ks]
     tol_p, tol_r = _rounding(nominal, kinds, Jp, Jw, goals[2], scale, dialects()[program.dialect].step)
@@ -548,16 +555,21 @@ def _rounding(robot: Robot, kinds: Sequence[str], Jp: np.ndarray, Jw: np.ndarray
     return tol_p, tol_r  # all targets at once (a program of 10^4 targets)
 
 
-def _misses(model: Robot, orientation: Robot, q: np.ndarray, goals):
+def _misses(model: Robot, orientation: Robot, q: np.ndarray, goals, measured: np.ndarray | None = None):
     """How far ``model``'s TCP (m) and ``orientation``'s flange (rad) stand from goals (TCP points (N, 3), flange
     rotations (N, 3, 3), TCPs in the flange (N, 3)) at q (N, n), each (N,), with the TCP's and the flange's joint
-    Jacobians (N, 3, n)."""
+    Jacobians (N, 3, n). Where ``orientation`` is another model, the TCP is ``model``'s ``measured`` point (3,) m
+    (default the TCP itself) carried on by ``orientation``'s turn (:func:`kincal.compensate.poses.tcp_positions`)."""
     p, R, lever = goals
     pm, Rm, Jp, Jw = model.with_tool_point(np.zeros(3)).pose_and_jacobian(q)
-    arm = np.einsum("nij,nj->ni", Rm, lever)  # the TCP from the flange, in the world
-    Jp = Jp + np.cross(np.swapaxes(Jw, 1, 2), arm[:, None, :]).swapaxes(1, 2)  # v = v_flange + ω × arm
-    if orientation is not model:
+    if orientation is not model:  # from the measured point on, the arm turns with the other model's flange
+        point = lever if measured is None else np.broadcast_to(np.asarray(measured, dtype=float), lever.shape)
+        at = np.einsum("nij,nj->ni", Rm, point)
+        pm, Jp = pm + at, Jp + np.cross(np.swapaxes(Jw, 1, 2), at[:, None, :]).swapaxes(1, 2)
         _, Rm, _, Jw = orientation.with_tool_point(np.zeros(3)).pose_and_jacobian(q)
+        lever = lever - point
+    arm = np.einsum("nij,nj->ni", Rm, lever)  # the TCP from the flange (or the measured point), in the world
+    Jp = Jp + np.cross(np.swapaxes(Jw, 1, 2), arm[:, None, :]).swapaxes(1, 2)  # v = v_point + ω × arm
     miss = np.linalg.norm(pm + arm - p, axis=1)
     return miss, np.linalg.norm(rotation_log(Rm @ np.swapaxes(R, 1, 2)), axis=1), Jp, Jw
 

@@ -124,7 +124,7 @@ class Compensation:
 def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = None, *, damping: float = 1e-4,
                rows: np.ndarray | None = None, uncertainty: ModelUncertainty | None = None,
                nominal: Robot | None = None, rotations: np.ndarray | None = None,
-               orientation: Robot | None = None) -> Compensation:
+               orientation: Robot | None = None, measured: np.ndarray | None = None) -> Compensation:
     """Joint commands that place ``robot``'s tool at the targets, each checked before use.
 
     Robots with a closed-form inverse (parallel robots) use it. Otherwise (serial robots) a damped
@@ -163,6 +163,8 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     orientation : Robot, optional
         With ``rotations``: the model whose flange is turned to them (:func:`compensate_poses`); the nominal
         model when the calibration measured no orientation.
+    measured : ndarray, shape (3,), optional
+        With ``orientation``: the point the calibration measured, m, flange frame (:func:`compensate_poses`).
 
     Returns
     -------
@@ -215,7 +217,7 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     _same_frame(robot, nominal)
     if rotations is not None:
         return compensate_poses(robot, targets, rotations, q_start, rows=rows, uncertainty=uncertainty,
-                                nominal=nominal, orientation=orientation)
+                                nominal=nominal, orientation=orientation, measured=measured)
     if orientation is not None:
         raise ValueError("orientation names the model whose flange is turned to target rotations: it applies to "
                          "pose targets only (give rotations)")
@@ -332,13 +334,17 @@ def _with_sigma(robot: Robot, comp: Compensation, unc: ModelUncertainty | None) 
 
 
 def _checked(robot: Robot, q: np.ndarray, method: str, iterations: int, targets: np.ndarray, q0: np.ndarray | None,
-             rows: np.ndarray, nominal: Robot | None = None) -> Compensation:
+             rows: np.ndarray, nominal: Robot | None = None, turn: tuple = (None, None)) -> Compensation:
     """The compensation by commands q (how they were found; their model residuals: inf where q is not
-    finite) with every command checked; the first failed check of each row is reported."""
+    finite, the TCP where ``turn``, the model whose flange turn is followed and the point the calibration
+    measured, puts it: :func:`kincal.compensate.poses.tcp_positions`) with every command checked; the first
+    failed check of each row is reported."""
+    from .poses import tcp_positions
+
     residual = np.full(len(q), np.inf)
     good = np.all(np.isfinite(q), axis=1)
     if good.any():
-        residual[good] = np.linalg.norm(robot.forward(q[good]) - targets[good], axis=1)
+        residual[good] = np.linalg.norm(tcp_positions(robot, q[good], *turn) - targets[good], axis=1)
     why: list[str | None] = [None] * len(targets)
     for bad, message in _checks(robot, q, residual, targets, q0, nominal):
         for k in np.flatnonzero(bad):
@@ -396,7 +402,8 @@ ORIENT_MISMATCH = 1e-3  # rad: the nominal command's orientation must match the 
 
 def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q_start: np.ndarray | None, *,
                      rows: np.ndarray | None = None, uncertainty: ModelUncertainty | None = None,
-                     nominal: Robot | None = None, orientation: Robot | None = None) -> Compensation:
+                     nominal: Robot | None = None, orientation: Robot | None = None,
+                     measured: np.ndarray | None = None) -> Compensation:
     """Joint commands that put ``robot``'s tool point at target poses, each checked before use.
 
     Each command is checked like a position command (:func:`compensate`) and, with six joints or more,
@@ -429,6 +436,11 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
         fitted to positions alone, and the turns of the flange they imply are not seen by the data (a UR5
         calibrated from a reflector on the flange's axis turned the true flange 0.17° from its targets, against
         0.10° for the nominal commands); the positions still come from ``robot``.
+    measured : ndarray, shape (3,), optional
+        With ``orientation``: the point the calibration measured, m in the flange frame (the calibrated file's tool
+        point; default: ``robot``'s tool point, the TCP). ``robot``'s position is trusted there, and a TCP beyond
+        it is carried on by ``orientation``'s turn (:func:`kincal.compensate.poses.tcp_positions`), not by
+        ``robot``'s, which the data did not determine: the lever would carry that turn's error to the TCP.
 
     Returns
     -------
@@ -459,14 +471,15 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
     >>> p_send.shape, R_send.shape
     ((3, 3), (3, 3, 3))
     """
-    from .poses import filtered_poses, model_turn, solve_poses
+    from .poses import at_measured, filtered_poses, model_turn, solve_poses
 
     _same_frame(robot, nominal)
     targets, q0, rows = _checked_inputs(robot, targets, q_start, 1e-4, rows)
     rotations = _checked_rotations(rotations, len(targets))
     if robot.has_pose_inverse:  # a hexapod: the legs of each pose in closed form, checked through the forward model
-        goal = rotations if orientation is None else _closed_form_goal(orientation, robot, targets, rotations)
-        comp = _closed_form_poses(robot, targets, goal, rows, nominal)
+        point, at = (robot, targets) if orientation is None else at_measured(robot, targets, rotations, measured)
+        goal = rotations if orientation is None else _closed_form_goal(orientation, point, at, rotations)
+        comp = _closed_form_poses(point, at, goal, rows, nominal)
         if orientation is not None:
             comp = dataclasses.replace(comp, rotation_residual=model_turn(orientation, comp.q, rotations))
         return _with_sigma(robot, comp, uncertainty)
@@ -476,8 +489,9 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
             none = np.zeros(len(targets), bool)
             return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
     give_up = GIVE_UP * branch_tolerance(robot)  # refused by the branch check anyway
-    sol = solve_poses(robot, targets, rotations, q0, give_up=give_up, turned_as=orientation)
-    comp = _checked(robot, sol.q, "pose (damped Newton)", sol.iterations, targets, q0, rows, nominal)
+    sol = solve_poses(robot, targets, rotations, q0, give_up=give_up, turned_as=orientation, measured=measured)
+    comp = _checked(robot, sol.q, "pose (damped Newton)", sol.iterations, targets, q0, rows, nominal,
+                    (orientation, measured))
     if robot.n_joints >= 6:
         bad = comp.ok & (sol.rotation_error > ROT_TOL)
         problems = comp.problems + tuple(f"row {r}: the model misses the target orientation by "

@@ -91,7 +91,8 @@ def pose_errors(model: Robot, q: np.ndarray, p_t: np.ndarray, R_t: np.ndarray):
 
 def solve_poses(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, max_iter: int = MAX_ITER,
                 fixed: tuple[int, ...] = (), chunk: int = CHUNK, give_up: np.ndarray | None = None,
-                max_travel: float = MAX_TRAVEL, turned_as: Robot | None = None) -> PoseSolution:
+                max_travel: float = MAX_TRAVEL, turned_as: Robot | None = None,
+                measured: np.ndarray | None = None) -> PoseSolution:
     """Solve for the commands that put ``model``'s tool point and flange at target poses.
 
     Damped Newton steps on the 6-D pose error from ``q0`` (module docstring); only unconverged targets
@@ -130,6 +131,12 @@ def solve_poses(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, 
         must reach for ``turned_as`` to reach R_t (:func:`turn_goal`), until ``turned_as``'s flange is within
         ``ROT_TOL`` of R_t wherever the solve converged (``TURN_ROUNDS`` at most); the rotation error reported is
         ``turned_as``'s.
+    measured : ndarray, shape (3,), optional
+        With ``turned_as``: the point the calibration measured, in the flange frame, m (default: ``model``'s tool
+        point). ``model``'s position is trusted there, not at its tool point (the TCP): the TCP stands where
+        ``model`` puts that point, carried on by ``turned_as``'s flange turn (:func:`tcp_positions`). Solved as
+        that point on the goal less R_t times the lever (:func:`at_measured`); the position error reported is
+        the TCP's.
 
     Returns
     -------
@@ -164,17 +171,91 @@ def solve_poses(model: Robot, p_t: np.ndarray, R_t: np.ndarray, q0: np.ndarray, 
     """
     if not model.has_tool_point:
         raise ModelError(f"robot '{model.name}' has no tool point and flange frame: give position targets")
-    sol = _solve(model, p_t, R_t, q0, max_iter, fixed, chunk, give_up, max_travel)
     if turned_as is None:
-        return sol
+        return _solve(model, p_t, R_t, q0, max_iter, fixed, chunk, give_up, max_travel)
+    point, p_point = at_measured(model, p_t, R_t, measured)
+    sol = _solve(point, p_point, R_t, q0, max_iter, fixed, chunk, give_up, max_travel)
     for _ in range(TURN_ROUNDS):
         start = np.where(np.all(np.isfinite(sol.q), axis=1)[:, None], sol.q, q0)
-        sol = _solve(model, p_t, turn_goal(turned_as, model, sol.q, R_t), start, max_iter, fixed, chunk, give_up,
-                     max_travel)
+        sol = _solve(point, p_point, turn_goal(turned_as, point, sol.q, R_t), start, max_iter, fixed, chunk,
+                     give_up, max_travel)
         left = model_turn(turned_as, sol.q, R_t)
         if not np.any(sol.converged & (left > ROT_TOL)):
             break
-    return dataclasses.replace(sol, rotation_error=left)
+    ok = np.all(np.isfinite(sol.q), axis=1)
+    miss = sol.position_error.copy()
+    miss[ok] = np.linalg.norm(tcp_positions(model, sol.q[ok], turned_as, measured) - p_t[ok], axis=1)
+    return dataclasses.replace(sol, rotation_error=left, position_error=miss)
+
+
+def at_measured(model: Robot, p_t: np.ndarray, R_t: np.ndarray,
+                measured: np.ndarray | None) -> tuple[Robot, np.ndarray]:
+    """The model and goals on which a pose solve puts the TCP at p_t (N, 3) m, the flange at R_t (N, 3, 3) turned as
+    another model's, where ``model``'s position is trusted at ``measured`` (3,) m in the flange frame: ``model``
+    with that point as its tool point, and p_t − R_t·(TCP − measured), where it stands when the TCP is on p_t
+    (:func:`tcp_positions`); ``model`` and p_t as they are for ``measured`` None.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate.poses import at_measured
+    >>> robot = kincal.load_robot("ur5").with_tool_point([0.0, 0.0, 0.15])
+    >>> point, p = at_measured(robot, np.array([[0.4, 0.1, 0.3]]), np.eye(3)[None], np.array([0.0, 0.0, 0.03]))
+    >>> point.tool_point().tolist(), np.round(p, 3).tolist()  # m
+    ([0.0, 0.0, 0.03], [[0.4, 0.1, 0.18]])
+    """
+    if measured is None:
+        return model, p_t
+    measured = np.asarray(measured, dtype=float)
+    return model.with_tool_point(measured), p_t - R_t @ (model.tool_point() - measured)
+
+
+def tcp_positions(model: Robot, q: np.ndarray, turned_as: Robot | None = None,
+                  measured: np.ndarray | None = None) -> np.ndarray:
+    """Where the TCP (``model``'s tool point) stands at q (N, n), m (N, 3).
+
+    ``model`` puts it there itself unless its flange turn is not followed (``turned_as``, the model whose flange
+    turn is) and its position is trusted at another point, the one the calibration ``measured`` ((3,) m, flange
+    frame): then ``model``'s position of that point plus ``turned_as``'s flange rotation times the lever from it
+    to the TCP. The position data determine ``model``'s point where they were measured; its turn of the flange
+    they do not, and the lever would carry that turn's error to the TCP.
+
+    Parameters
+    ----------
+    model : Robot
+        The calibrated model, with the TCP as its tool point.
+    q : ndarray, shape (N, n)
+        Joints, rad (m for a prismatic joint).
+    turned_as : Robot, optional
+        The model whose flange turn the commands follow (default: ``model``'s own).
+    measured : ndarray, shape (3,), optional
+        The point the calibration measured, m, flange frame (default: the TCP itself).
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        The TCP positions, m.
+
+    Examples
+    --------
+    A TCP 120 mm beyond the point measured, on a model whose flange turn differs from the nominal one: the two
+    stand apart by the turn times that lever.
+
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate.poses import tcp_positions
+    >>> nominal = kincal.load_robot("ur5").with_tool_point([0.0, 0.0, 0.15])
+    >>> model = kincal.perturb(nominal, seed=1)
+    >>> q = nominal.sample_joints(2, seed=2)
+    >>> own, kept = tcp_positions(model, q), tcp_positions(model, q, nominal, np.array([0.0, 0.0, 0.03]))
+    >>> np.round(np.linalg.norm(own - kept, axis=1) * 1e3, 3)  # mm
+    array([0.236, 0.144])
+    """
+    if turned_as is None or measured is None:
+        return model.forward(q)
+    measured = np.asarray(measured, dtype=float)
+    return model.with_tool_point(measured).forward(q) + turned_as.flange_rotation(q) @ (model.tool_point() - measured)
 
 
 def turn_goal(model: Robot, robot: Robot, q: np.ndarray, rotations: np.ndarray) -> np.ndarray:

@@ -60,6 +60,10 @@ class ProgramCompensation:
         joints near theirs put the calibrated TCP at their nominal pose; the robot goes where it went before.
     refused : dict of int to str
         Why each refused target was left, by target index: the mark written beside it.
+    tcp : ndarray, shape (K, 3), optional
+        Each target's TCP on the calibrated model, m in the flange frame (a tool's origin, the calibration's move
+        carried over; a KRL, RAPID, FANUC or INFORM joint target's: the point the calibration measured); NaN where
+        refused; None where not recorded (default). With ``q``, where the predicted σ is taken.
 
     See Also
     --------
@@ -106,13 +110,15 @@ class ProgramCompensation:
     not_literal: tuple[tuple[int, str, str], ...]
     refused: dict
     kept: tuple[tuple[int, str, str], ...] = ()
+    tcp: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         freeze_arrays(self)  # the arrays it hands out: what it prints cannot drift from what it computed
 
 
 def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: np.ndarray | None = None,
-                       models: Models | None = None, orientation: Robot | None = None) -> ProgramCompensation:
+                       models: Models | None = None, orientation: Robot | None = None,
+                       measured: np.ndarray | None = None) -> ProgramCompensation:
     """Compensate every literal target of a robot program for a controller that moves with its nominal model.
 
     A joint target means the pose the nominal model reaches there, and becomes the joints at which the
@@ -138,6 +144,10 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
         The model whose flange the corrected joints turn to each target's rotation (default: the calibrated
         model). Give the nominal model when the calibration measured no orientation (points, sockets, planes):
         the turns of the flange its parameters imply were never seen (:func:`compensate_poses`).
+    measured : ndarray, shape (3,), optional
+        With ``orientation``: the point the calibration measured, m in the flange frame (the calibrated file's
+        tool point; default: each TCP itself). The calibrated model's position is trusted there, and a TCP beyond
+        it is carried on by ``orientation``'s turn (:func:`kincal.compensate.poses.tcp_positions`).
 
     Returns
     -------
@@ -186,15 +196,17 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
                     and not outside_limits(nominal, t.values)), None) if q_start is None
               else np.asarray(q_start, dtype=float))  # a refused joint target is no start
     values, refused, qs = {}, {}, np.full((len(program.targets), model.n_joints), np.nan)
-    kept = []
+    kept, tcps = [], np.full((len(program.targets), 3), np.nan)
     for k, t in enumerate(program.targets):
         tcp = program.tcp_at(t.at)
-        found = _target(t, tcp, (model, nominal) if isinstance(tcp, tuple) else _for_tcp(models, tcp), q_prev,
-                        orientation)
+        pair = (model, nominal) if isinstance(tcp, tuple) else _for_tcp(models, tcp)
+        found = _target(t, tcp, pair, q_prev, (orientation, measured))
         if isinstance(found, str):
             refused[k] = found
             continue
         qs[k], q_prev, values[k] = found[:3]
+        if not isinstance(pair, str):  # a pair that is why it is refused refuses its target (above)
+            tcps[k] = pair[0].tool_point() if pair[0].has_tool_point else 0.0
         if len(found) > 3:  # a joint target kept as it is: nothing rewritten
             kept.append((t.line, t.move, found[3]))
             del values[k]
@@ -202,7 +214,7 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
     problems = tuple(f"{program.source}: line {program.targets[k].line} ({program.targets[k].move}"
                      f"{' ' + program.targets[k].variable if program.targets[k].variable else ''}): {why}; left as is"
                      for k, why in refused.items())
-    return ProgramCompensation(texts, qs, problems, program.not_literal, refused, tuple(kept))
+    return ProgramCompensation(texts, qs, problems, program.not_literal, refused, tuple(kept), tcps)
 
 
 def _for_tcp(models: Models | None, tcp) -> tuple[Robot, Robot] | str:
@@ -216,9 +228,10 @@ def _for_tcp(models: Models | None, tcp) -> tuple[Robot, Robot] | str:
     return models(tcp[:3])
 
 
-def _target(t: Target, tcp, models, q_prev: np.ndarray | None, orientation: Robot | None):
+def _target(t: Target, tcp, models, q_prev: np.ndarray | None, follow: tuple):
     """(corrected joints, nominal joints, the values to write: the joints, or the TCP pose as p[…] holds it) of one
-    target, or why it is refused."""
+    target, or why it is refused; ``follow``: the model whose flange turn is followed and the point the calibration
+    measured (:func:`corrected`)."""
     if isinstance(models, str):
         return models
     model, nominal = models
@@ -244,7 +257,7 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None, orientation: Robo
         if found is None:
             return "the nominal model does not reach this pose on any branch within the joint limits"
         q_nom = found
-    q, why = corrected(model, p, R, q_nom, orientation)
+    q, why = corrected(model, p, R, q_nom, *follow)
     keep = kept_joints(model, nominal, q_nom, why) if t.kind == "joints" else ""
     if keep:
         return q_nom, q_nom, q_nom, keep
@@ -299,13 +312,14 @@ def kept_joints(model: Robot, nominal: Robot, q: np.ndarray, why: str) -> str:
             f"and the TCP lands {miss * 1e3:.3f} mm from the nominal model's point there, as before calibration")
 
 
-def corrected(model: Robot, p: np.ndarray, R: np.ndarray, q_nom: np.ndarray,
-              orientation: Robot | None = None) -> tuple[np.ndarray, str]:
+def corrected(model: Robot, p: np.ndarray, R: np.ndarray, q_nom: np.ndarray, orientation: Robot | None = None,
+              measured: np.ndarray | None = None) -> tuple[np.ndarray, str]:
     """The joints (n,) at which ``model`` puts its tool point at p (1, 3) m with the flange (``orientation``'s, default
     ``model``'s) at R (1, 3, 3), by Newton from the nominal joints q_nom (n,), and why they are refused ('' when they
     are not): the correction did not converge, leaves the nominal branch (a joint moves more than its
-    :func:`branch_tolerance`) or breaks a joint limit."""
-    sol = solve_poses(model, p, R, q_nom[None], turned_as=orientation)
+    :func:`branch_tolerance`) or breaks a joint limit. With ``orientation``, the tool point is carried from the
+    ``measured`` point (3,) m by its turn (:func:`solve_poses`)."""
+    sol = solve_poses(model, p, R, q_nom[None], turned_as=orientation, measured=measured)
     q = sol.q[0]
     tol = branch_tolerance(model)
     return q, ("the correction did not converge" if not sol.converged[0] else

@@ -120,6 +120,10 @@ class StreamJob:
         For pose targets that are poses of the measured body (a 6-D probe's, in the measurement frame): its
         rotation on the flange (the calibration's ``target_rotation``); the flange's target rotation is then
         R · bodyᵀ (default None: the target rotations are the flange's).
+    measured : ndarray, shape (3,), optional
+        With ``orientation``: the point the calibration measured, m in the flange frame; ``robot``'s position is
+        trusted there and the TCP carried on from it by ``orientation``'s turn (:func:`compensate_poses`; default:
+        the TCP itself).
 
     Raises
     ------
@@ -151,6 +155,7 @@ class StreamJob:
     path: bool = False
     orientation: Robot | None = None
     body: np.ndarray | None = None
+    measured: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.body is not None and (not self.targets.pose or np.shape(self.body) != (3, 3) or not np.allclose(
@@ -454,7 +459,7 @@ def _block(job: StreamJob, stream: Stream, layout: CommandColumns, block: Block,
     if first:
         _first_checks(job, stream, rows, q0, xyz, rot)
     comp = compensate(job.robot, xyz, q0, rows=rows, rotations=R, nominal=job.nominal, uncertainty=job.uncertainty,
-                      orientation=job.orientation if R is not None else None)
+                      orientation=job.orientation if R is not None else None, measured=job.measured)
     if job.path and q0 is not None:
         comp = path_checked(job.robot, comp, q0)
     k = 1 if ctx else 0

@@ -86,7 +86,8 @@ class FlangeTurn:
                 "over more of the joints' ranges")
         return (f"orientation: as the nominal model turns the flange; the calibrated model's turn of it "
                 f"({self.change * 1e3:.3f} mrad from the nominal model, σ {sigma}) is within {TURN_Z:g}σ, not told "
-                f"apart from noise, so the commands correct the positions with the calibrated model only (what "
+                f"apart from noise, so the commands correct the positions with the calibrated model only, where it "
+                f"measured them: a TCP beyond the measured point is carried on from it by the nominal turn (what "
                 f"determines it: {what}){unseen}")
 
 
