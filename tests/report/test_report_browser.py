@@ -9,6 +9,7 @@ import re
 import shutil
 import subprocess
 
+import numpy as np
 import pytest
 from conftest import DATA, PANDA_URDF, POSITIONER, POSITIONER_MODEL, SOCKETS, UR5_COLS
 from PIL import Image
@@ -148,3 +149,55 @@ def test_pose_calibration_reported_again_in_a_real_browser(tmp_path, monkeypatch
     key = f"held_out.{held['source']}"
     assert pages[1][f"{key}.mean_mm"] == pytest.approx(held["mean"] * 1e3, abs=5e-5)
     assert pages[1][f"{key}.mean_mrad"] == pytest.approx(held["mean_rotation"] * 1e3, abs=5e-5)
+
+
+TURN = 0.0875  # rad about z, and a shift (mm): where the tracker stood for the second session
+
+
+@pytest.fixture(scope="module")
+def two_sessions(tmp_path_factory):
+    """The UR5 grid as two sessions (its halves), the second measured by a tracker turned 87.5 mrad about z and
+    moved by (100, -50, 20) mm: calibrate --report and the page as the browser shows it (DOM)."""
+    browser = find_browser()
+    d = tmp_path_factory.mktemp("two")
+    lines = (DATA / "ur5_grid.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    at = [header.index(a) for a in "xyz"]
+    Rz = np.array([[np.cos(TURN), -np.sin(TURN), 0.0], [np.sin(TURN), np.cos(TURN), 0.0], [0.0, 0.0, 1.0]])
+    moved = []
+    for line in lines[501:]:
+        cells = line.split(",")
+        p = Rz @ np.array([float(cells[k]) for k in at]) + [100.0, -50.0, 20.0]
+        moved.append(",".join(f"{p[at.index(k)]:.6f}" if k in at else c for k, c in enumerate(cells)))
+    (d / "a.csv").write_text("\n".join(lines[:501]) + "\n")
+    (d / "b.csv").write_text("\n".join([lines[0], *moved]) + "\n")
+    mp = pytest.MonkeyPatch()
+    mp.setenv("SOURCE_DATE_EPOCH", "1795000000")
+    report = d / "two.html"
+    units = ["--length-unit", "mm", "--angle-unit", "deg", "--joint-cols", ",".join(UR5_COLS)]
+    code = main(["calibrate", "ur5", str(d / "a.csv"), str(d / "b.csv"), *units, "--test",
+                 str(DATA / "ur5_random.csv"), "--report", str(report)])
+    mp.undo()
+    assert code == 0
+    dom = render(browser, report.as_uri(), d, "--dump-dom")
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    return d, json.loads(report.with_suffix(".json").read_text()), dom.stdout
+
+
+def test_session_frame_turns_in_mrad(two_sessions):
+    """The second session's frame is the first's turned 87.5 mrad about z (Rz(t)·Rz·Ry·Rx = Rz(t + rz)·Ry·Rx): its
+    rz shows as base.rz + 87.5 mrad and its rx, ry as the first's, in mrad (they showed as "87.4568 mm"); its shift in
+    mm."""
+    _, data, html = two_sessions
+    rows = dict(re.findall(r"<tr><td>frame\[2:[^\]]*\]\.base\.(\w+)</td><td class=\"num\">([^<]+)</td>", html))
+    assert set(rows) == {"x", "y", "z", "rx", "ry", "rz"}
+    value = {k: float(v.split()[0]) for k, v in rows.items()}
+    assert {k: v.split()[1] for k, v in rows.items()} == {"x": "mm", "y": "mm", "z": "mm", "rx": "mrad", "ry": "mrad",
+                                                          "rz": "mrad"}
+    first = data["calibration"]["estimates"]
+    assert value["rz"] == pytest.approx((first["base.rz"] + TURN) * 1e3, abs=0.5)  # σ 0.09 mrad
+    assert value["rx"] == pytest.approx(first["base.rx"] * 1e3, abs=0.5)
+    assert value["ry"] == pytest.approx(first["base.ry"] * 1e3, abs=0.5)
+    for k, v in value.items():  # the JSON's (m, rad) as shown
+        assert v == pytest.approx(data["calibration"]["nuisance"][next(n for n in data["calibration"]["nuisance"]
+                                                                       if n.endswith(f".base.{k}"))] * 1e3, abs=5e-5)

@@ -27,7 +27,8 @@ from ..identify.weak import weak_note
 from ..identify.verdict import Thresholds, duplicate_groups, repeat_tolerance, robust_z
 from ..io.measurements import Measurements
 from ..models.robot import TOOL_NAMES
-from ..units import MM, MRAD, display
+from ..observe.drifting import DRIFT
+from ..units import MM, display, fine
 from . import figures as F
 from .observations import observation_figures, sets_part
 from .study_figures import pso_fitness
@@ -362,13 +363,24 @@ def _parameter_rows(result: CalibrationResult) -> list[dict]:
     return rows
 
 
+def _setup_kinds(result: CalibrationResult) -> dict[str, str]:
+    """Each set-up parameter's kind, "length" or "angle", as the observation set that brings it declares it (a
+    session's frame: its base parameters' kinds; a drift is a length)."""
+    kinds: dict[str, str] = {}
+    for obs in result.observations:
+        names, _, declared = obs.nuisance(result.robot)
+        kinds.update({n: "length" if k == DRIFT else k for n, k in zip(names, declared)})
+    return kinds
+
+
 def _setup(result: CalibrationResult) -> list[dict]:
-    """Set-up parameters in mm (lengths) and mrad (angles: target rotations, plane tilts)."""
+    """Set-up parameters by their kind: lengths in mm, angles (frame and target rotations, plane tilts) in mrad."""
+    kinds = _setup_kinds(result)
     out = []
     for n, v in result.nuisance.items():
-        f, unit = (MRAD, "mrad") if n.startswith("target.") or n.endswith((".a", ".b")) else (MM, "mm")
         sd = result.std.get(n, np.inf)
-        out.append({"name": n, "value": f"{v * f:.4f} {unit}", "std": f"{sd * f:.4f} {unit}" if np.isfinite(sd) else "–"})
+        out.append({"name": n, "value": fine(v, kinds[n], ".4f"),
+                    "std": fine(sd, kinds[n], ".4f") if np.isfinite(sd) else "–"})
     return out
 
 
