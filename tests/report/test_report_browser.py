@@ -201,3 +201,40 @@ def test_session_frame_turns_in_mrad(two_sessions):
     for k, v in value.items():  # the JSON's (m, rad) as shown
         assert v == pytest.approx(data["calibration"]["nuisance"][next(n for n in data["calibration"]["nuisance"]
                                                                        if n.endswith(f".base.{k}"))] * 1e3, abs=5e-5)
+
+
+def test_swarm_report_says_what_the_calibration_says(tmp_path, monkeypatch, capsys):
+    """A 3-PUU fitted by the particle swarm with the base as given (the 3-PUU paper of 2024's setting): the swarm has
+    no test of convergence and moves R, which the data do not determine (only R - r), to where the saved model has it.
+    The page says so in the calibration's own words, not "converged", R "kept at its nominal value" and the frame
+    "fitted with the model"."""
+    import kincal
+    from kincal.io import write_measurements
+
+    browser = find_browser()
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1795000000")
+    robot = kincal.load_robot("puu3")
+    true = robot.with_params({"r": 0.10044, "R": 0.20001, "L1": 0.35048, "L2": 0.34958, "L3": 0.35011})
+    for name, n, seed in (("train", 60, 1), ("test", 40, 2)):
+        meas = kincal.simulate(true, robot.sample_joints(n, seed=seed), 15e-6, seed=seed + 10)
+        write_measurements(tmp_path / f"{name}.csv", meas, robot.joint_types)
+    report, cal = tmp_path / "puu.html", tmp_path / "cal.yaml"
+    assert main(["calibrate", "puu3", str(tmp_path / "train.csv"), "--base", "fixed", "--residual", "joint",
+                 "--method", "pso", "--test", str(tmp_path / "test.csv"), "--same-frame", "--report", str(report),
+                 "-o", str(cal)]) == 0
+    said = capsys.readouterr().out
+    dom = render(browser, report.as_uri(), tmp_path, "--dump-dom")
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    html = dom.stdout
+    box = re.search(r'<div class="verdict good" id="verdict">(.*?)</div>', html, re.S).group(1)
+    solver = re.search(r"from joint data: (stopped \(.*?\)) in \d+ iterations", said).group(1)
+    assert f"solver {solver}" in box and "converged" not in box  # the CLI's first line: no test of convergence
+    saved_R = kincal.load_robot(str(cal)).params["R"]
+    shown_R = re.search(r"<td><code>R</code></td><td class=\"num\">[^<]*</td><td class=\"num\">([-0-9.]+) mm<", html)
+    assert float(shown_R.group(1)) == pytest.approx(saved_R * 1e3, abs=5e-5) and abs(saved_R - 0.2) > 1e-5
+    moved = re.search(r"identifiable: .*? fitted\.", said).group(0)  # the CLI's sentence, in the page too
+    assert "R moved by the particle swarm too" in moved and moved in html.replace("Identifiable:", "identifiable:")
+    assert "kept at their nominal values" not in html
+    training = re.findall(r"<tr><td>training</td>.*?</tr>", html, re.S)
+    assert len(training) == 2 and all("<td>frame as given (--base fixed)</td>" in row for row in training)
+    assert "nominal (target point registered, frame as given (--base fixed))" in training[0]

@@ -154,8 +154,8 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
            "n_samples": sum(s["samples"] for s in result.per_set), "whitened_rms": result.whitened_rms,
            "verdict": result.verdict.to_dict(), "parameters": _parameter_rows(result), "setup": _setup(result),
            "weak": weak_note(result.robot, result.weak), "prior": prior_lines(result.prior),
-           "gauge": list(result.gauge), "not_estimated": [line for line in result.identifiability.confound_lines("")
-                                                          if line.split()[0] not in set(result.gauge)],
+           "gauge": list(result.gauge), **_dropped(result), "solver": f"{result.solver_state} ({result.message})",
+           "base_fixed": result.options.base == "fixed",
            "data": _data_rows(result, tests, dict(info or {})), "json_name": json_path_for(html_name).name,
            "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
            "error_model_notes": list(result.notes), "compliance": result.compliances,
@@ -163,7 +163,7 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
            "history": None if history is None else {"rows": history["rows"], "store": history["store"],
                                                     "svg": F.svg(history["figure"])}}
     data = {k: ctx[k] for k in ("robot", "version", "date", "structure", "verdict", "parameters", "setup",
-                                "not_estimated", "data", "error_model_choice", "error_model_notes", "compliance",
+                                "not_estimated", "not_estimated_text", "data", "error_model_choice", "error_model_notes", "compliance",
                                 "mounting", "whitened_rms")}
     data["history"] = None if history is None else history["rows"]
     return Report(template().render(**ctx), {**data, **numbers, "calibration": result.to_dict()},
@@ -172,12 +172,19 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
                   ctx["json_name"])
 
 
+def _dropped(result: CalibrationResult) -> dict:
+    """What the data do not determine, in the calibration's own words (:meth:`CalibrationResult.dropped_text`, as
+    the CLI prints it): its sentence and one line per parameter with what it acts like."""
+    text = result.dropped_text().split("\n")
+    return {"not_estimated_text": text[0], "not_estimated": [line.strip() for line in text[1:]]}
+
+
 def _positions_part(result: CalibrationResult, tests: list[Measurements], same_frame: bool):
     """The position report's sections (headline, figures, warnings, ISO 9283, acquisition order), the
     numbers it adds to the JSON and its lines of the terminal summary."""
     models = _held_out_models(result, tests, same_frame)
     sets = _sets(result, tests, models, result.options.thresholds)
-    headline = [_headline(s, which) for s in sets for which in ("before", "after")]
+    headline = [_headline(s, which, result.before_registration()) for s in sets for which in ("before", "after")]
     part: dict = {"outliers": [int(r) for s in sets for r in s.rows[s.outliers]], "headline": headline,
                   "warnings": _warnings(result, tests, models), "iso": _iso9283(sets, result),
                   "acquisition": _acquisition(result)}
@@ -239,9 +246,11 @@ def _sets(result: CalibrationResult, tests: list[Measurements], models: list[tup
     its registered model sees the robot, has its positions and error vectors expressed in the frame of the
     trained model (the first session's): every set in one frame."""
     train, nominal = result.measurements, _training_nominal(result)
+    frame = "frame as given (--base fixed)" if result.options.base == "fixed" else \
+        "frame fitted with the model (nominal: registered to these data)"
     sets = [F.PoseSet("training", train.rows, train.q, train.xyz, train.xyz - nominal.forward(train.q),
                       train.xyz - result.robot.forward(train.q), np.asarray(result.pose_z > result.outlier_z, bool),
-                      registration="frame fitted with the model (nominal: registered to these data)")]
+                      registration=frame)]
     R0, t0 = result.robot.base_transform() if result.robot.base_params() else (np.eye(3), np.zeros(3))
     for k, (meas, (nominal, model, how)) in enumerate(zip(tests, models)):
         after = meas.xyz - model.forward(meas.q)
@@ -255,11 +264,14 @@ def _sets(result: CalibrationResult, tests: list[Measurements], models: list[tup
     return sets
 
 
-def _headline(s: F.PoseSet, which: str) -> dict:
+def _headline(s: F.PoseSet, which: str, trained: str) -> dict:
+    """A row of the headline table; ``trained``: how the "before" model was registered on the training data (as
+    the CLI says it), which a set judged in the training frame shares."""
     errors = s.before if which == "before" else s.after
     assert errors is not None  # the report's sets (from _sets) carry both models' errors
     st = EvaluationStats.from_errors(errors)
-    model = "nominal (frame and target point registered)" if which == "before" else "calibrated"
+    registered = "frame and target point registered" if s.registration == REGISTERED else trained
+    model = f"nominal ({registered})" if which == "before" else "calibrated"
     return {"data": s.title, "n": st.n, "model": model, "key": f"{s.key or s.label}.{which}", "mean": st.mean * MM,
             "rms": st.rms * MM, "max": st.max * MM, "p95": st.p95 * MM, "registration": s.registration}
 
