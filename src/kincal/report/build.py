@@ -3,6 +3,7 @@ JSON of the same numbers, and a terminal summary. Deterministic: the same input 
 (the date is the day, or SOURCE_DATE_EPOCH when set)."""
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import json
@@ -18,6 +19,7 @@ import numpy as np
 
 from .._atomic import json_path_for, write_text_atomic
 from ..identify.calibrate import evaluate
+from ..identify.fitting import ABSOLUTE
 from ..identify.sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
 from ..identify.registration import register_mounting
 from ..identify.relevance import prior_lines
@@ -155,16 +157,16 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
            "verdict": result.verdict.to_dict(), "parameters": _parameter_rows(result), "setup": _setup(result),
            "weak": weak_note(result.robot, result.weak), "prior": prior_lines(result.prior),
            "gauge": list(result.gauge), **_dropped(result), "solver": f"{result.solver_state} ({result.message})",
-           "base_fixed": result.options.base == "fixed",
-           "data": _data_rows(result, tests, dict(info or {})), "json_name": json_path_for(html_name).name,
+           "base_fixed": result.options.base == "fixed", "json_name": json_path_for(html_name).name,
+           "data": _data_rows(result, tests, dict(info or {}), same_frame),
            "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
            "error_model_notes": list(result.notes), "compliance": result.compliances,
            "mounting": result.mounting, **part,
            "history": None if history is None else {"rows": history["rows"], "store": history["store"],
                                                     "svg": F.svg(history["figure"])}}
     data = {k: ctx[k] for k in ("robot", "version", "date", "structure", "verdict", "parameters", "setup",
-                                "not_estimated", "not_estimated_text", "data", "error_model_choice", "error_model_notes", "compliance",
-                                "mounting", "whitened_rms")}
+                                "not_estimated", "not_estimated_text", "data", "error_model_choice",
+                                "error_model_notes", "compliance", "mounting", "whitened_rms")}
     data["history"] = None if history is None else history["rows"]
     return Report(template().render(**ctx), {**data, **numbers, "calibration": result.to_dict()},
                   "\n".join([f"verdict: {result.verdict.status.upper()}",
@@ -405,8 +407,28 @@ def _file_line(data) -> str:
     return f"{path.name} ({len(data)} {what}, rows {data.rows[0]}..{data.rows[-1]}; sha256 {digest[:16]}…)"
 
 
-def _data_rows(result: CalibrationResult, tests: list, info: dict) -> list[dict]:
+def _options_text(result: CalibrationResult, tests: list, same_frame: bool) -> str:
+    """The fit's options (the calibration record's) in words: base, loss, method and parameters, then every other
+    option with a flag that is not at its default, as its flag (--residual joint, --drift); with held-out files,
+    how their frame and target were set (--same-frame, --refit-target), which changes what "held out" means."""
     o = result.options
+    shown = [f"base {o.base}", f"loss {o.loss}", f"method {o.method}",
+             f"parameters {o.names if isinstance(o.names, str) else 'as listed'}"]
+    for f in dataclasses.fields(o):
+        value, flag = vars(o)[f.name], f.metadata.get("flag")
+        if flag and f.name not in ("names", "base", "loss", "method") and value != f.default:
+            shown.append(flag if value is True else f"{flag} {','.join(value)}" if isinstance(value, tuple) else
+                         f"{flag} {value:g} (rad or m)" if f.metadata["form"] == "joint sigma" else f"{flag} {value}")
+    if o.error_model is not None:
+        shown.append(f"--error-model {o.error_model.name}" + (f" (payload {o.error_model.payload:g} kg)"
+                                                                 if o.error_model.payload else ""))
+    held = ["frame as calibrated (--same-frame)" if same_frame else "each file's frame re-fitted (kinematics fixed)"
+            ] if any(isinstance(t, Measurements) or t.kind in ABSOLUTE for t in tests) else []
+    held += ["its target re-fitted too (--refit-target)"] if any(vars(t).get("own_target") for t in tests) else []
+    return ", ".join(shown) + ("; held out: " + ", ".join(held) if held else "")
+
+
+def _data_rows(result: CalibrationResult, tests: list, info: dict, same_frame: bool) -> list[dict]:
     rows = [("robot", info.pop("robot", result.robot.name))]
     rows += [(f"training data {k + 1}" if len(result.observations) > 1 else "training data", _file_line(s))
              for k, s in enumerate(result.data or result.observations)]
@@ -418,9 +440,7 @@ def _data_rows(result: CalibrationResult, tests: list, info: dict) -> list[dict]
                                              f"(--reject-outliers)"))
     if result.diagnosis is not None:
         rows.append(("diagnosis", result.diagnosis.message()))
-    rows += [("options", f"base {o.base}, loss {o.loss}, method {o.method}, "
-                         f"parameters {o.names if isinstance(o.names, str) else 'as listed'}"
-                         + (", outliers left out (--reject-outliers)" if o.reject_outliers else "")),
+    rows += [("options", _options_text(result, tests, same_frame)),
              ("solver", f"{result.solver_state.replace('not converged', 'NOT converged')} ({result.message}), "
                         f"{result.iterations} iterations"),
              ("pose design", info.pop("design", "not recorded (poses not from kincal design, or not given)"))]
