@@ -238,3 +238,37 @@ def test_swarm_report_says_what_the_calibration_says(tmp_path, monkeypatch, caps
     training = re.findall(r"<tr><td>training</td>.*?</tr>", html, re.S)
     assert len(training) == 2 and all("<td>frame as given (--base fixed)</td>" in row for row in training)
     assert "nominal (target point registered, frame as given (--base fixed))" in training[0]
+
+
+def test_each_training_session_as_the_calibration_judged_it(two_sessions):
+    """One row per training session, its figures the calibration's per-set ones, which the CLI prints (the sessions
+    were one "training" row whose "before" registered one frame on both: 0.6264 mm against the CLI's 0.6002 and
+    0.6457). The first session's "before" is the nominal UR5 with its frame and target point fitted to it by least
+    squares, the second's that target point with the second session's frame fitted (scipy, independently)."""
+    import kincal
+    from scipy.optimize import least_squares
+
+    d, data, html = two_sessions
+    shown = _shown_rows(html)
+    cal = data["calibration"]
+    for k, (before, after) in enumerate(zip(cal["sets_before"], cal["sets"]), start=1):
+        for which, s in (("before", before), ("after", after)):
+            assert shown[f"training-{k}.{which}.mean"] == pytest.approx(s["mean"] * 1e3, abs=5e-5)
+    rows = re.findall(r"<tr><td>(training [ab]\.csv)</td><td class=\"num\">(\d+)</td>", html)
+    assert rows == [("training a.csv", "500")] * 2 + [("training b.csv", "500")] * 2
+    nominal = kincal.load_robot("ur5")
+    frame = ["base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz"]
+    sessions = [kincal.read_measurements(d / f, nominal, UR5_COLS, length_unit="mm", angle_unit="deg")
+                for f in ("a.csv", "b.csv")]
+
+    def errors(m, names, start, fixed=None):
+        def miss(x):
+            return (nominal.with_params({**(fixed or {}), **dict(zip(names, x))}).forward(m.q) - m.xyz).ravel()
+        fit = least_squares(miss, start, x_scale=[1e-2 if n.startswith("base.r") else 1e-3 for n in names])
+        return dict(zip(names, fit.x)), np.linalg.norm(miss(fit.x).reshape(-1, 3), axis=1)
+
+    tool = ["tool.x", "tool.y", "tool.z"]
+    first, e1 = errors(sessions[0], frame + tool, np.r_[np.zeros(6), nominal.tool_point()])
+    _, e2 = errors(sessions[1], frame, [0.1, -0.05, 0.02, 0.0, 0.0, TURN], {n: first[n] for n in tool})
+    assert shown["training-1.before.mean"] == pytest.approx(e1.mean() * 1e3, abs=2e-3)
+    assert shown["training-2.before.mean"] == pytest.approx(e2.mean() * 1e3, abs=2e-3)

@@ -23,12 +23,14 @@ from ..identify.fitting import ABSOLUTE
 from ..identify.sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
 from ..identify.registration import register_mounting
 from ..identify.relevance import prior_lines
-from ..identify.positions import EvaluationStats
+from ..identify.positions import EvaluationStats, session_frame
 from ..identify.result import CalibrationResult
+from ..identify.stacked import session_before
 from ..identify.weak import weak_note
 from ..identify.verdict import Thresholds, duplicate_groups, repeat_tolerance, robust_z
 from ..io.measurements import Measurements
 from ..models.robot import TOOL_NAMES
+from ..observe.sessions import InSession
 from ..observe.drifting import DRIFT
 from ..units import MM, display, fine
 from . import figures as F
@@ -189,7 +191,7 @@ def _positions_part(result: CalibrationResult, tests: list[Measurements], same_f
     headline = [_headline(s, which, result.before_registration()) for s in sets for which in ("before", "after")]
     part: dict = {"outliers": [int(r) for s in sets for r in s.rows[s.outliers]], "headline": headline,
                   "warnings": _warnings(result, tests, models), "iso": _iso9283(sets, result),
-                  "acquisition": _acquisition(result)}
+                  "acquisition": _acquisition(result), "sessions": len(result.data)}
     figs = _make_figures(sets, result)
     part.update({g: [{"name": n, "svg": F.svg(figs[n])} for n in names] for g, names in GROUPS.items()})
     numbers = {k: part[k] for k in ("outliers", "warnings", "iso", "acquisition")}
@@ -198,7 +200,7 @@ def _positions_part(result: CalibrationResult, tests: list[Measurements], same_f
     width = max(len(h["data"]) for h in headline)
     summary = [f"  {h['data']:<{width}} {h['model']:<27} mean {h['mean']:.4f} mm  rms {h['rms']:.4f} mm  "
                f"max {h['max']:.4f} mm" for h in headline]
-    summary += [f"  {h['data']}: {h['registration']}" for h in headline[::2] if h["data"] != "training"]
+    summary += [f"  {h['data']}: {h['registration']}" for h in headline[::2] if not h["key"].startswith("training")]
     return part, numbers, summary + [f"  warning: {w}" for w in part["warnings"]]
 
 
@@ -216,19 +218,12 @@ def _warnings(result: CalibrationResult, tests: list[Measurements], models: list
 
 def _held_out_models(result: CalibrationResult, tests: list[Measurements], same_frame: bool) -> list[tuple]:
     """Per held-out session (nominal model, calibrated model, how their frame was set): both re-fitted
-    to the session (kinematics fixed), or with ``same_frame`` as calibrated (the nominal one registered
-    to the training data). Computed once: the headline, the figures and the warnings share them."""
+    to the session (kinematics fixed), or with ``same_frame`` as calibrated (the nominal one as the calibration
+    judged the training data, ``result.before``, as the CLI judges it). Computed once: the headline, the figures
+    and the warnings share them."""
     if same_frame:
-        return [(_training_nominal(result), result.robot, AS_CALIBRATED) for _ in tests]
+        return [(result.before, result.robot, AS_CALIBRATED) for _ in tests]
     return [(register_mounting(result.nominal, m.q, m.xyz), refit_frame(result.robot, m), REGISTERED) for m in tests]
-
-
-def _training_nominal(result: CalibrationResult):
-    """The nominal kinematics with the measurement frame (unless the base is known) and the target
-    point registered to the training data: "before" calibration, whatever target point was declared
-    (the improvement shown is the robot's)."""
-    train = result.measurements
-    return register_mounting(result.nominal, train.q, train.xyz, result.options.base == "estimate")
 
 
 def _acquisition(result: CalibrationResult) -> dict:
@@ -241,18 +236,41 @@ def _acquisition(result: CalibrationResult) -> dict:
     return {"rows": meas.rows[order].tolist(), "error_mm": norms.tolist(), "trend_mm_per_100_poses": slope}
 
 
+def _rotation(robot) -> np.ndarray:
+    """(3, 3) the rotation of ``robot``'s base frame (the identity for a robot without one)."""
+    return robot.base_transform()[0] if robot.base_params() else np.eye(3)
+
+
+def _training_sets(result: CalibrationResult) -> list[F.PoseSet]:
+    """One set per training session (outliers as judged by the calibration), all in the first session's frame:
+    errors after calibration, and before it those of the "before" model as the calibration judged that session
+    (a session in its own frame with its frame registered to it), so that each session's figures are the
+    calibration's per-set ones, which the CLI prints."""
+    meas, after, bad = result.measurements, result.residuals, np.asarray(result.pose_z > result.outlier_z, bool)
+    fixed = result.options.base == "fixed"
+    R0, several, sets, start = _rotation(result.robot), len(result.data) > 1, [], 0
+    for k, (obs, session) in enumerate(zip(result.observations, result.data)):
+        own = session.subset(np.flatnonzero(np.isin(session.rows, obs.rows)))  # the session's frame
+        at = slice(start, start + len(own))
+        start += len(own)
+        before = (own.xyz - session_before(result.before, obs).forward(own.q)) @ _rotation(
+            session_frame(result, obs)) @ R0.T
+        frame = "frame as given (--base fixed)" if fixed else "own frame fitted with the model (nominal: registered " \
+            "to this session)" if isinstance(obs, InSession) else "frame fitted with the model (nominal: registered " \
+            "to these data)"
+        sets.append(F.PoseSet("training", own.rows, own.q, meas.xyz[at], before, after[at], bad[at],
+                              name=Path(session.source).name if several else "", registration=frame,
+                              key=f"training-{k + 1}" if several else "training"))
+    return sets
+
+
 def _sets(result: CalibrationResult, tests: list[Measurements], models: list[tuple], th: Thresholds) -> list[F.PoseSet]:
-    """The training set (outliers as judged by the calibration) and one set per held-out session (by
+    """The training sessions (:func:`_training_sets`) and one set per held-out session (outliers by
     robust z), each with its errors before (nominal) and after (calibrated), both models registered
     the same way (``models``: per session, from :func:`_held_out_models`). A held-out set, measured where
     its registered model sees the robot, has its positions and error vectors expressed in the frame of the
     trained model (the first session's): every set in one frame."""
-    train, nominal = result.measurements, _training_nominal(result)
-    frame = "frame as given (--base fixed)" if result.options.base == "fixed" else \
-        "frame fitted with the model (nominal: registered to these data)"
-    sets = [F.PoseSet("training", train.rows, train.q, train.xyz, train.xyz - nominal.forward(train.q),
-                      train.xyz - result.robot.forward(train.q), np.asarray(result.pose_z > result.outlier_z, bool),
-                      registration=frame)]
+    sets = _training_sets(result)
     R0, t0 = result.robot.base_transform() if result.robot.base_params() else (np.eye(3), np.zeros(3))
     for k, (meas, (nominal, model, how)) in enumerate(zip(tests, models)):
         after = meas.xyz - model.forward(meas.q)
