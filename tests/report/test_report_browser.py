@@ -76,9 +76,21 @@ def test_report_in_a_real_browser(tmp_path, monkeypatch, capsys):
     assert printed.returncode == 0 and pdf.read_bytes()[:5] == b"%PDF-" and pdf.stat().st_size > 50_000
 
 
+def sideways(browser: str, page, tmp_path, width: int = 800) -> int:
+    """How far (CSS px) the page scrolls sideways in a window ``width`` px wide: a copy of it measures itself."""
+    probe = page.with_name(f"probe-{page.name}")
+    probe.write_text(page.read_text().replace("</body>", '<script>document.body.setAttribute("data-sideways", '
+                     'document.documentElement.scrollWidth - document.documentElement.clientWidth)</script></body>'))
+    dom = render(browser, probe.as_uri(), tmp_path, f"--window-size={width},2000", "--dump-dom")
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    return int(re.search(r'data-sideways="(-?\d+)"', dom.stdout).group(1))
+
+
 def test_socket_report_in_a_real_browser(tmp_path, monkeypatch, capsys):
     """The observation report (Panda sockets, trained on one placement, 7 held out): the per-placement
-    table as the browser shows it equals the JSON, and the page is not blank."""
+    table as the browser shows it equals the JSON, and the page is not blank. In an 800 px window the page does not
+    scroll sideways (its tables gave each row the file's full path: 250 px too wide): the tables name the files, the
+    data section gives their paths."""
     import csv as _csv
 
     browser = find_browser()
@@ -114,6 +126,12 @@ def test_socket_report_in_a_real_browser(tmp_path, monkeypatch, capsys):
     with Image.open(png) as im:
         colours = im.convert("RGB").resize((300, 600)).getcolors(maxcolors=100_000)
         assert colours is not None and len(colours) > 50  # tables and text, not a blank page
+    assert sideways(browser, report, tmp_path) == 0
+    for table in ("residuals", "groups", "data"):
+        cells = re.sub(r"<[^>]*>", " ", re.search(rf'<table id="{table}">(.*?)</table>', dom.stdout, re.S).group(1))
+        paths = cells.count(str(files["train"])) + cells.count(str(files["test"]))
+        assert paths == (2 if table == "data" else 0), table  # each path once, in the data section
+    assert "<td>training 1: train.csv</td>" in dom.stdout and "<td>held out: test.csv</td>" in dom.stdout
 
 
 def _shown_rows(html: str) -> dict:
@@ -272,3 +290,4 @@ def test_each_training_session_as_the_calibration_judged_it(two_sessions):
     _, e2 = errors(sessions[1], frame, [0.1, -0.05, 0.02, 0.0, 0.0, TURN], {n: first[n] for n in tool})
     assert shown["training-1.before.mean"] == pytest.approx(e1.mean() * 1e3, abs=2e-3)
     assert shown["training-2.before.mean"] == pytest.approx(e2.mean() * 1e3, abs=2e-3)
+    assert sideways(find_browser(), d / "two.html", d) == 0  # 800 px: the set-up table's frame names, the rows

@@ -417,12 +417,13 @@ def _setup(result: CalibrationResult) -> list[dict]:
 
 
 def _file_line(data) -> str:
-    """A data file (measurements or an observation set) by name, size, rows and sha256."""
+    """A data file (measurements or an observation set) by its path as given (the one place the page gives it: the
+    tables name it by its name), size, rows and sha256."""
     path, what = Path(data.source), "poses" if isinstance(data, Measurements) else f"{data.kind} samples"
     if not path.is_file():
         return f"{data.source} ({len(data)} {what})"
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    return f"{path.name} ({len(data)} {what}, rows {data.rows[0]}..{data.rows[-1]}; sha256 {digest[:16]}…)"
+    return f"{data.source} ({len(data)} {what}, rows {data.rows[0]}..{data.rows[-1]}; sha256 {digest[:16]}…)"
 
 
 def _options_text(result: CalibrationResult, tests: list, same_frame: bool) -> str:
