@@ -132,6 +132,9 @@ def test_socket_report_in_a_real_browser(tmp_path, monkeypatch, capsys):
         paths = cells.count(str(files["train"])) + cells.count(str(files["test"]))
         assert paths == (2 if table == "data" else 0), table  # each path once, in the data section
     assert "<td>training 1: train.csv</td>" in dom.stdout and "<td>held out: test.csv</td>" in dom.stdout
+    # the plate does not see where the robot stands: the options say so, not "base estimate"
+    assert "<th>options</th><td>base not seen by these data (gauge freedoms), loss linear" in dom.stdout
+    assert "Not seen by these data (gauge freedoms, kept at their values): base.x, base.y, base.z" in dom.stdout
 
 
 def _shown_rows(html: str) -> dict:

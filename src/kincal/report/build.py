@@ -153,7 +153,8 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
     tests = [test] if isinstance(test, Measurements) else list(test or [])
     part, numbers, summary = (_positions_part if result.data else sets_part)(result, tests, same_frame)
     ctx = {"robot": result.robot.name, "version": __version__, "date": report_date(), "positional": bool(result.data),
-           "structure": result.robot.structure, "types": list(dict.fromkeys(s["type"] for s in result.per_set)),
+           "structure": result.robot.structure, "model": _model_words(result),
+           "types": list(dict.fromkeys(s["type"] for s in result.per_set)),
            "n_estimated": len(result.names), "n_setup": len(result.nuisance),
            "n_samples": sum(s["samples"] for s in result.per_set), "whitened_rms": result.whitened_rms,
            "verdict": result.verdict.to_dict(), "parameters": _parameter_rows(result), "setup": _setup(result),
@@ -170,10 +171,20 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
                                 "not_estimated", "not_estimated_text", "data", "error_model_choice",
                                 "error_model_notes", "compliance", "mounting", "whitened_rms")}
     data["history"] = None if history is None else history["rows"]
-    return Report(template().render(**ctx), {**data, **numbers, "calibration": result.to_dict()},
+    calibration = {k: v for k, v in result.to_dict().items() if k != "time_s"}  # the same numbers, the same bytes
+    return Report(template().render(**ctx), {**data, **numbers, "calibration": calibration},
                   "\n".join([f"verdict: {result.verdict.status.upper()}",
                              *(f"  {r.level}: {r.message}" for r in result.verdict.reasons), *summary]),
                   ctx["json_name"])
+
+
+def _model_words(result: CalibrationResult) -> str:
+    """The model as the page's header names it: its structure, and the error model the fit was asked for where the
+    structure does not name it (a hexapod's leg compliance is a parameter of its own: "stewart (implicit, 6-D) +
+    compliance"; a serial robot's terms are in its structure, "dh + compliance")."""
+    asked = result.options.error_model
+    extra = asked is not None and asked.name not in ("auto", "geometric") and result.robot.error_model == "geometric"
+    return result.robot.structure + (f" + {asked.name}" if extra and asked is not None else "")
 
 
 def _dropped(result: CalibrationResult) -> dict:
@@ -377,7 +388,7 @@ def _make_figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
         [n for n, k in zip(result.names, ok) if k], result.correlation[np.ix_(ok, ok)])}
 
 
-_value = functools.partial(display, signed=False, digits=(4, 4))
+_value = functools.partial(display, signed=False)  # the CLI's digits: 4 decimals of a mm, 5 of a degree
 
 
 def _parameter_rows(result: CalibrationResult) -> list[dict]:
@@ -391,7 +402,7 @@ def _parameter_rows(result: CalibrationResult) -> list[dict]:
         rows.append({"name": n, "nominal": _value(result.nominal.params[n], k),
                      "calibrated": _value(result.estimates[n], k), "correction": _value(c, k, signed=True),
                      "sigma": result.sigma_text(n) or _value(result.std[n], k),
-                     "flag": "large" if big else ""})
+                     "flag": "large (beyond the verdict's limit)" if big else ""})
     return rows
 
 
@@ -431,7 +442,10 @@ def _options_text(result: CalibrationResult, tests: list, same_frame: bool) -> s
     option with a flag that is not at its default, as its flag (--residual joint, --drift); with held-out files,
     how their frame and target were set (--same-frame, --refit-target), which changes what "held out" means."""
     o = result.options
-    shown = [f"base {o.base}", f"loss {o.loss}", f"method {o.method}",
+    base = result.robot.base_params()
+    unseen = bool(base) and set(base) <= set(result.gauge)  # sockets, planes: where the robot stands is not seen
+    shown = ["base not seen by these data (gauge freedoms)" if unseen else f"base {o.base}", f"loss {o.loss}",
+             f"method {o.method}",
              f"parameters {o.names if isinstance(o.names, str) else 'as listed'}"]
     for f in dataclasses.fields(o):
         value, flag = vars(o)[f.name], f.metadata.get("flag")
