@@ -91,10 +91,8 @@ def kept_positions(fit, sessions: list[Measurements]):
     parts, errs, drift = [], [], None
     for obs, s in zip(fit.observations, sessions):
         kept = s.subset(np.flatnonzero(np.isin(s.rows, obs.rows)))
-        frame, inner, offset = fit.robot, obs, np.zeros((len(kept), 3))
+        frame, inner, offset = session_frame(fit, obs), obs, np.zeros((len(kept), 3))
         if isinstance(inner, InSession):
-            frame = fit.robot.with_params({b: fit.nuisance[f"frame[{inner.session}].{b}"]
-                                           for b in fit.robot.base_params()})
             inner = inner.inner
         if isinstance(inner, Drifting):
             d = np.array([fit.nuisance[n] for n in inner.names()])
@@ -105,6 +103,14 @@ def kept_positions(fit, sessions: list[Measurements]):
         errs.append(in_frame_of(fit.robot, frame, dataclasses.replace(kept, xyz=kept.xyz - offset)).xyz
                     - fit.robot.forward(kept.q))
     return joined(parts), np.concatenate(errs), drift
+
+
+def session_frame(fit, obs) -> Robot:
+    """The calibrated model of ``fit`` (a :class:`~kincal.identify.CalibrationResult`) as it sees the fitted set
+    ``obs``: with the frame fitted for its session when the set is in a session's own frame, else ``fit.robot``."""
+    if not isinstance(obs, InSession):
+        return fit.robot
+    return fit.robot.with_params({b: fit.nuisance[f"frame[{obs.session}].{b}"] for b in fit.robot.base_params()})
 
 
 def in_frame_of(model: Robot, registered: Robot, meas: Measurements) -> Measurements:

@@ -508,8 +508,8 @@ class CalibrationResult:
             return "undetermined"
         return "held by the prior" if self.prior and sd < PRIOR_HELD else ""
 
-    def _registered(self) -> str:
-        """How the "before" model was registered to the data, in words."""
+    def before_registration(self) -> str:
+        """How the "before" model was registered to the data, in words (the CLI's and the report's)."""
         return "target point registered, frame as given (--base fixed)" if self.options.base == "fixed" else \
             "frame and target point registered"
 
@@ -522,7 +522,7 @@ class CalibrationResult:
             noise = noise_level(self.measurements.std, self.options.thresholds)
             lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm (tracker noise for the verdict "
                       f"{noise[0] * MM:.3g} mm: {noise[1]})",
-                      f"before (nominal, {self._registered()}): {self.stats_before}",
+                      f"before (nominal, {self.before_registration()}): {self.stats_before}",
                       f"after:  {self.stats_after}"]
             if self.drift:
                 lines.append("drift over the session (first to last pose): " + ", ".join(

@@ -398,6 +398,13 @@ def _before(robot: Robot, sets, frame: bool) -> Robot:
                              frame) if found else robot
 
 
+def session_before(model: Robot, obs) -> Robot:
+    """The "before" model ``model`` as the set ``obs`` is judged by it (its per-set "before" figures): a set in a
+    session's own frame with that frame registered to the session's positions, any other set as it is."""
+    found = obs.inner.positions() if isinstance(obs, InSession) else None
+    return register_base(model, found[0], found[1]) if found is not None and model.base_params() else model
+
+
 def _before_nuisance(model: Robot, obs, nuis: np.ndarray) -> np.ndarray:
     """A set's set-up values for its "before" figures: as the fit started, but a session's own frame registered
     to its positions with the "before" model (it kept the frame the fit started from, with the declared tool
@@ -405,10 +412,8 @@ def _before_nuisance(model: Robot, obs, nuis: np.ndarray) -> np.ndarray:
     target's turn registered to its rotations (its start came with the declared frame: the positioner's "before"
     rotation was 14.9 mrad against the nominal model's 0.85 registered)."""
     out = np.array(nuis, float)
-    found = obs.inner.positions() if isinstance(obs, InSession) else None
-    at = model
-    if found is not None and model.base_params():
-        at = register_base(model, found[0], found[1])
+    at = session_before(model, obs)
+    if at is not model:
         out[len(out) - len(model.base_params()):] = at.params.values[at.params.indices(model.base_params())]
     inner = obs
     while isinstance(inner, Wrapper):

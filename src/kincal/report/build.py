@@ -3,6 +3,7 @@ JSON of the same numbers, and a terminal summary. Deterministic: the same input 
 (the date is the day, or SOURCE_DATE_EPOCH when set)."""
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import json
@@ -18,16 +19,20 @@ import numpy as np
 
 from .._atomic import json_path_for, write_text_atomic
 from ..identify.calibrate import evaluate
+from ..identify.fitting import ABSOLUTE
 from ..identify.sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
 from ..identify.registration import register_mounting
 from ..identify.relevance import prior_lines
-from ..identify.positions import EvaluationStats
+from ..identify.positions import EvaluationStats, session_frame
 from ..identify.result import CalibrationResult
+from ..identify.stacked import session_before
 from ..identify.weak import weak_note
 from ..identify.verdict import Thresholds, duplicate_groups, repeat_tolerance, robust_z
 from ..io.measurements import Measurements
 from ..models.robot import TOOL_NAMES
-from ..units import MM, MRAD, display
+from ..observe.sessions import InSession
+from ..observe.drifting import DRIFT
+from ..units import MM, display, fine
 from . import figures as F
 from .observations import observation_figures, sets_part
 from .study_figures import pso_fitness
@@ -148,27 +153,45 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
     tests = [test] if isinstance(test, Measurements) else list(test or [])
     part, numbers, summary = (_positions_part if result.data else sets_part)(result, tests, same_frame)
     ctx = {"robot": result.robot.name, "version": __version__, "date": report_date(), "positional": bool(result.data),
-           "structure": result.robot.structure, "types": list(dict.fromkeys(s["type"] for s in result.per_set)),
+           "structure": result.robot.structure, "model": _model_words(result),
+           "types": list(dict.fromkeys(s["type"] for s in result.per_set)),
            "n_estimated": len(result.names), "n_setup": len(result.nuisance),
            "n_samples": sum(s["samples"] for s in result.per_set), "whitened_rms": result.whitened_rms,
            "verdict": result.verdict.to_dict(), "parameters": _parameter_rows(result), "setup": _setup(result),
            "weak": weak_note(result.robot, result.weak), "prior": prior_lines(result.prior),
-           "gauge": list(result.gauge), "not_estimated": [line for line in result.identifiability.confound_lines("")
-                                                          if line.split()[0] not in set(result.gauge)],
-           "data": _data_rows(result, tests, dict(info or {})), "json_name": json_path_for(html_name).name,
+           "gauge": list(result.gauge), **_dropped(result), "solver": f"{result.solver_state} ({result.message})",
+           "base_fixed": result.options.base == "fixed", "json_name": json_path_for(html_name).name,
+           "data": _data_rows(result, tests, dict(info or {}), same_frame),
            "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
            "error_model_notes": list(result.notes), "compliance": result.compliances,
            "mounting": result.mounting, **part,
            "history": None if history is None else {"rows": history["rows"], "store": history["store"],
                                                     "svg": F.svg(history["figure"])}}
     data = {k: ctx[k] for k in ("robot", "version", "date", "structure", "verdict", "parameters", "setup",
-                                "not_estimated", "data", "error_model_choice", "error_model_notes", "compliance",
-                                "mounting", "whitened_rms")}
+                                "not_estimated", "not_estimated_text", "data", "error_model_choice",
+                                "error_model_notes", "compliance", "mounting", "whitened_rms")}
     data["history"] = None if history is None else history["rows"]
-    return Report(template().render(**ctx), {**data, **numbers, "calibration": result.to_dict()},
+    calibration = {k: v for k, v in result.to_dict().items() if k != "time_s"}  # the same numbers, the same bytes
+    return Report(template().render(**ctx), {**data, **numbers, "calibration": calibration},
                   "\n".join([f"verdict: {result.verdict.status.upper()}",
                              *(f"  {r.level}: {r.message}" for r in result.verdict.reasons), *summary]),
                   ctx["json_name"])
+
+
+def _model_words(result: CalibrationResult) -> str:
+    """The model as the page's header names it: its structure, and the error model the fit was asked for where the
+    structure does not name it (a hexapod's leg compliance is a parameter of its own: "stewart (implicit, 6-D) +
+    compliance"; a serial robot's terms are in its structure, "dh + compliance")."""
+    asked = result.options.error_model
+    extra = asked is not None and asked.name not in ("auto", "geometric") and result.robot.error_model == "geometric"
+    return result.robot.structure + (f" + {asked.name}" if extra and asked is not None else "")
+
+
+def _dropped(result: CalibrationResult) -> dict:
+    """What the data do not determine, in the calibration's own words (:meth:`CalibrationResult.dropped_text`, as
+    the CLI prints it): its sentence and one line per parameter with what it acts like."""
+    text = result.dropped_text().split("\n")
+    return {"not_estimated_text": text[0], "not_estimated": [line.strip() for line in text[1:]]}
 
 
 def _positions_part(result: CalibrationResult, tests: list[Measurements], same_frame: bool):
@@ -176,10 +199,10 @@ def _positions_part(result: CalibrationResult, tests: list[Measurements], same_f
     numbers it adds to the JSON and its lines of the terminal summary."""
     models = _held_out_models(result, tests, same_frame)
     sets = _sets(result, tests, models, result.options.thresholds)
-    headline = [_headline(s, which) for s in sets for which in ("before", "after")]
+    headline = [_headline(s, which, result.before_registration()) for s in sets for which in ("before", "after")]
     part: dict = {"outliers": [int(r) for s in sets for r in s.rows[s.outliers]], "headline": headline,
                   "warnings": _warnings(result, tests, models), "iso": _iso9283(sets, result),
-                  "acquisition": _acquisition(result)}
+                  "acquisition": _acquisition(result), "sessions": len(result.data)}
     figs = _make_figures(sets, result)
     part.update({g: [{"name": n, "svg": F.svg(figs[n])} for n in names] for g, names in GROUPS.items()})
     numbers = {k: part[k] for k in ("outliers", "warnings", "iso", "acquisition")}
@@ -188,7 +211,7 @@ def _positions_part(result: CalibrationResult, tests: list[Measurements], same_f
     width = max(len(h["data"]) for h in headline)
     summary = [f"  {h['data']:<{width}} {h['model']:<27} mean {h['mean']:.4f} mm  rms {h['rms']:.4f} mm  "
                f"max {h['max']:.4f} mm" for h in headline]
-    summary += [f"  {h['data']}: {h['registration']}" for h in headline[::2] if h["data"] != "training"]
+    summary += [f"  {h['data']}: {h['registration']}" for h in headline[::2] if not h["key"].startswith("training")]
     return part, numbers, summary + [f"  warning: {w}" for w in part["warnings"]]
 
 
@@ -206,19 +229,12 @@ def _warnings(result: CalibrationResult, tests: list[Measurements], models: list
 
 def _held_out_models(result: CalibrationResult, tests: list[Measurements], same_frame: bool) -> list[tuple]:
     """Per held-out session (nominal model, calibrated model, how their frame was set): both re-fitted
-    to the session (kinematics fixed), or with ``same_frame`` as calibrated (the nominal one registered
-    to the training data). Computed once: the headline, the figures and the warnings share them."""
+    to the session (kinematics fixed), or with ``same_frame`` as calibrated (the nominal one as the calibration
+    judged the training data, ``result.before``, as the CLI judges it). Computed once: the headline, the figures
+    and the warnings share them."""
     if same_frame:
-        return [(_training_nominal(result), result.robot, AS_CALIBRATED) for _ in tests]
+        return [(result.before, result.robot, AS_CALIBRATED) for _ in tests]
     return [(register_mounting(result.nominal, m.q, m.xyz), refit_frame(result.robot, m), REGISTERED) for m in tests]
-
-
-def _training_nominal(result: CalibrationResult):
-    """The nominal kinematics with the measurement frame (unless the base is known) and the target
-    point registered to the training data: "before" calibration, whatever target point was declared
-    (the improvement shown is the robot's)."""
-    train = result.measurements
-    return register_mounting(result.nominal, train.q, train.xyz, result.options.base == "estimate")
 
 
 def _acquisition(result: CalibrationResult) -> dict:
@@ -231,16 +247,41 @@ def _acquisition(result: CalibrationResult) -> dict:
     return {"rows": meas.rows[order].tolist(), "error_mm": norms.tolist(), "trend_mm_per_100_poses": slope}
 
 
+def _rotation(robot) -> np.ndarray:
+    """(3, 3) the rotation of ``robot``'s base frame (the identity for a robot without one)."""
+    return robot.base_transform()[0] if robot.base_params() else np.eye(3)
+
+
+def _training_sets(result: CalibrationResult) -> list[F.PoseSet]:
+    """One set per training session (outliers as judged by the calibration), all in the first session's frame:
+    errors after calibration, and before it those of the "before" model as the calibration judged that session
+    (a session in its own frame with its frame registered to it), so that each session's figures are the
+    calibration's per-set ones, which the CLI prints."""
+    meas, after, bad = result.measurements, result.residuals, np.asarray(result.pose_z > result.outlier_z, bool)
+    fixed = result.options.base == "fixed"
+    R0, several, sets, start = _rotation(result.robot), len(result.data) > 1, [], 0
+    for k, (obs, session) in enumerate(zip(result.observations, result.data)):
+        own = session.subset(np.flatnonzero(np.isin(session.rows, obs.rows)))  # the session's frame
+        at = slice(start, start + len(own))
+        start += len(own)
+        before = (own.xyz - session_before(result.before, obs).forward(own.q)) @ _rotation(
+            session_frame(result, obs)) @ R0.T
+        frame = "frame as given (--base fixed)" if fixed else "own frame fitted with the model (nominal: registered " \
+            "to this session)" if isinstance(obs, InSession) else "frame fitted with the model (nominal: registered " \
+            "to these data)"
+        sets.append(F.PoseSet("training", own.rows, own.q, meas.xyz[at], before, after[at], bad[at],
+                              name=Path(session.source).name if several else "", registration=frame,
+                              key=f"training-{k + 1}" if several else "training"))
+    return sets
+
+
 def _sets(result: CalibrationResult, tests: list[Measurements], models: list[tuple], th: Thresholds) -> list[F.PoseSet]:
-    """The training set (outliers as judged by the calibration) and one set per held-out session (by
+    """The training sessions (:func:`_training_sets`) and one set per held-out session (outliers by
     robust z), each with its errors before (nominal) and after (calibrated), both models registered
     the same way (``models``: per session, from :func:`_held_out_models`). A held-out set, measured where
     its registered model sees the robot, has its positions and error vectors expressed in the frame of the
     trained model (the first session's): every set in one frame."""
-    train, nominal = result.measurements, _training_nominal(result)
-    sets = [F.PoseSet("training", train.rows, train.q, train.xyz, train.xyz - nominal.forward(train.q),
-                      train.xyz - result.robot.forward(train.q), np.asarray(result.pose_z > result.outlier_z, bool),
-                      registration="frame fitted with the model (nominal: registered to these data)")]
+    sets = _training_sets(result)
     R0, t0 = result.robot.base_transform() if result.robot.base_params() else (np.eye(3), np.zeros(3))
     for k, (meas, (nominal, model, how)) in enumerate(zip(tests, models)):
         after = meas.xyz - model.forward(meas.q)
@@ -254,11 +295,14 @@ def _sets(result: CalibrationResult, tests: list[Measurements], models: list[tup
     return sets
 
 
-def _headline(s: F.PoseSet, which: str) -> dict:
+def _headline(s: F.PoseSet, which: str, trained: str) -> dict:
+    """A row of the headline table; ``trained``: how the "before" model was registered on the training data (as
+    the CLI says it), which a set judged in the training frame shares."""
     errors = s.before if which == "before" else s.after
     assert errors is not None  # the report's sets (from _sets) carry both models' errors
     st = EvaluationStats.from_errors(errors)
-    model = "nominal (frame and target point registered)" if which == "before" else "calibrated"
+    registered = "frame and target point registered" if s.registration == REGISTERED else trained
+    model = f"nominal ({registered})" if which == "before" else "calibrated"
     return {"data": s.title, "n": st.n, "model": model, "key": f"{s.key or s.label}.{which}", "mean": st.mean * MM,
             "rms": st.rms * MM, "max": st.max * MM, "p95": st.p95 * MM, "registration": s.registration}
 
@@ -344,7 +388,7 @@ def _make_figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
         [n for n, k in zip(result.names, ok) if k], result.correlation[np.ix_(ok, ok)])}
 
 
-_value = functools.partial(display, signed=False, digits=(4, 4))
+_value = functools.partial(display, signed=False)  # the CLI's digits: 4 decimals of a mm, 5 of a degree
 
 
 def _parameter_rows(result: CalibrationResult) -> list[dict]:
@@ -358,31 +402,66 @@ def _parameter_rows(result: CalibrationResult) -> list[dict]:
         rows.append({"name": n, "nominal": _value(result.nominal.params[n], k),
                      "calibrated": _value(result.estimates[n], k), "correction": _value(c, k, signed=True),
                      "sigma": result.sigma_text(n) or _value(result.std[n], k),
-                     "flag": "large" if big else ""})
+                     "flag": "large (beyond the verdict's limit)" if big else ""})
     return rows
 
 
+def _setup_kinds(result: CalibrationResult) -> dict[str, str]:
+    """Each set-up parameter's kind, "length" or "angle", as the observation set that brings it declares it (a
+    session's frame: its base parameters' kinds; a drift is a length)."""
+    kinds: dict[str, str] = {}
+    for obs in result.observations:
+        names, _, declared = obs.nuisance(result.robot)
+        kinds.update({n: "length" if k == DRIFT else k for n, k in zip(names, declared)})
+    return kinds
+
+
 def _setup(result: CalibrationResult) -> list[dict]:
-    """Set-up parameters in mm (lengths) and mrad (angles: target rotations, plane tilts)."""
+    """Set-up parameters by their kind: lengths in mm, angles (frame and target rotations, plane tilts) in mrad."""
+    kinds = _setup_kinds(result)
     out = []
     for n, v in result.nuisance.items():
-        f, unit = (MRAD, "mrad") if n.startswith("target.") or n.endswith((".a", ".b")) else (MM, "mm")
         sd = result.std.get(n, np.inf)
-        out.append({"name": n, "value": f"{v * f:.4f} {unit}", "std": f"{sd * f:.4f} {unit}" if np.isfinite(sd) else "–"})
+        out.append({"name": n, "value": fine(v, kinds[n], ".4f"),
+                    "std": fine(sd, kinds[n], ".4f") if np.isfinite(sd) else "–"})
     return out
 
 
 def _file_line(data) -> str:
-    """A data file (measurements or an observation set) by name, size, rows and sha256."""
+    """A data file (measurements or an observation set) by its path as given (the one place the page gives it: the
+    tables name it by its name), size, rows and sha256."""
     path, what = Path(data.source), "poses" if isinstance(data, Measurements) else f"{data.kind} samples"
     if not path.is_file():
         return f"{data.source} ({len(data)} {what})"
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    return f"{path.name} ({len(data)} {what}, rows {data.rows[0]}..{data.rows[-1]}; sha256 {digest[:16]}…)"
+    return f"{data.source} ({len(data)} {what}, rows {data.rows[0]}..{data.rows[-1]}; sha256 {digest[:16]}…)"
 
 
-def _data_rows(result: CalibrationResult, tests: list, info: dict) -> list[dict]:
+def _options_text(result: CalibrationResult, tests: list, same_frame: bool) -> str:
+    """The fit's options (the calibration record's) in words: base, loss, method and parameters, then every other
+    option with a flag that is not at its default, as its flag (--residual joint, --drift); with held-out files,
+    how their frame and target were set (--same-frame, --refit-target), which changes what "held out" means."""
     o = result.options
+    base = result.robot.base_params()
+    unseen = bool(base) and set(base) <= set(result.gauge)  # sockets, planes: where the robot stands is not seen
+    shown = ["base not seen by these data (gauge freedoms)" if unseen else f"base {o.base}", f"loss {o.loss}",
+             f"method {o.method}",
+             f"parameters {o.names if isinstance(o.names, str) else 'as listed'}"]
+    for f in dataclasses.fields(o):
+        value, flag = vars(o)[f.name], f.metadata.get("flag")
+        if flag and f.name not in ("names", "base", "loss", "method") and value != f.default:
+            shown.append(flag if value is True else f"{flag} {','.join(value)}" if isinstance(value, tuple) else
+                         f"{flag} {value:g} (rad or m)" if f.metadata["form"] == "joint sigma" else f"{flag} {value}")
+    if o.error_model is not None:
+        shown.append(f"--error-model {o.error_model.name}" + (f" (payload {o.error_model.payload:g} kg)"
+                                                                 if o.error_model.payload else ""))
+    held = ["frame as calibrated (--same-frame)" if same_frame else "each file's frame re-fitted (kinematics fixed)"
+            ] if any(isinstance(t, Measurements) or t.kind in ABSOLUTE for t in tests) else []
+    held += ["its target re-fitted too (--refit-target)"] if any(vars(t).get("own_target") for t in tests) else []
+    return ", ".join(shown) + ("; held out: " + ", ".join(held) if held else "")
+
+
+def _data_rows(result: CalibrationResult, tests: list, info: dict, same_frame: bool) -> list[dict]:
     rows = [("robot", info.pop("robot", result.robot.name))]
     rows += [(f"training data {k + 1}" if len(result.observations) > 1 else "training data", _file_line(s))
              for k, s in enumerate(result.data or result.observations)]
@@ -394,9 +473,7 @@ def _data_rows(result: CalibrationResult, tests: list, info: dict) -> list[dict]
                                              f"(--reject-outliers)"))
     if result.diagnosis is not None:
         rows.append(("diagnosis", result.diagnosis.message()))
-    rows += [("options", f"base {o.base}, loss {o.loss}, method {o.method}, "
-                         f"parameters {o.names if isinstance(o.names, str) else 'as listed'}"
-                         + (", outliers left out (--reject-outliers)" if o.reject_outliers else "")),
+    rows += [("options", _options_text(result, tests, same_frame)),
              ("solver", f"{result.solver_state.replace('not converged', 'NOT converged')} ({result.message}), "
                         f"{result.iterations} iterations"),
              ("pose design", info.pop("design", "not recorded (poses not from kincal design, or not given)"))]

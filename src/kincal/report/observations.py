@@ -83,10 +83,10 @@ def observation_figures(fit: CalibrationResult, label: str = "training") -> dict
 
 def _row(stats: dict, data: str, model: str, key: str) -> dict:
     """One table row (mm, mrad) from a set's statistics (m, rad; a socket set's mean is its mean
-    |p − point|)."""
+    |p − point|), the file by its name (the data section gives its path)."""
     s = in_display(stats)
     s = {**s, "mean_mm": s["mean_abs_mm"]} if "mean_abs_mm" in s else s
-    return {"data": f"{data}: {s['source']}", "type": s["type"], "samples": s["samples"], "model": model,
+    return {"data": f"{data}: {Path(s['source']).name}", "type": s["type"], "samples": s["samples"], "model": model,
             "key": f"{key}.{s['source']}", **{k: s.get(k) for k in COLUMNS}}
 
 
@@ -97,7 +97,7 @@ def _groups(before: Sequence[dict], after: Sequence[dict], data: str) -> list[di
         prior = {g["group"]: g for g in before[k].get("groups", [])} if k < len(before) else {}
         for g in s.get("groups", []):
             b = prior.get(g["group"], dict.fromkeys(("mean_abs_mm", "distance_error_mm")))  # None: no such group before
-            out.append({"data": f"{data}: {s['source']}", "group": g["group"], "samples": g["samples"],
+            out.append({"data": f"{data}: {Path(s['source']).name}", "group": g["group"], "samples": g["samples"],
                         "before": b["mean_abs_mm"], "after": g["mean_abs_mm"], "dist_before": b["distance_error_mm"],
                         "dist_after": g["distance_error_mm"], "key": f"{data}.{g['group']}"})
     return out
