@@ -113,6 +113,23 @@ def _axes(width: float, height: float, **kw) -> tuple[Figure, Any]:
     return fig, fig.add_subplot(**kw)
 
 
+def legend_below(fig: Figure, handles: list | None = None, labels: list | None = None, ncols: int = 3) -> None:
+    """The figure's one legend, below its axes: outside every axes, so it covers no plotted point or bar.
+
+    ``handles`` and ``labels`` default to the labelled artists of all its axes, a label once (the first
+    artist that has it). The figure must use the constrained layout, which makes room for it.
+    """
+    if handles is None or labels is None:
+        found: dict[str, Any] = {}
+        for ax in fig.axes:
+            for handle, label in zip(*ax.get_legend_handles_labels()):
+                found.setdefault(label, handle)
+        handles, labels = list(found.values()), list(found)
+    if labels:
+        fig.legend(handles, labels, loc="outside lower center", ncols=min(ncols, len(labels)), fontsize=8,
+                   frameon=False)
+
+
 @_styled
 def per_pose(sets: list[PoseSet]) -> Figure:
     """Error norm of every pose, before and after, in file order (log scale: mm to µm)."""
@@ -124,10 +141,10 @@ def per_pose(sets: list[PoseSet]) -> Figure:
             ax.semilogy(x, np.linalg.norm(s.before, axis=1) * MM, ".", ms=3, color=COLOURS["before"],
                         label="before (nominal model, frame and target point registered)", rasterized=True)
         ax.semilogy(x, s.after_norm * MM, ".", ms=3, color=s.color,
-                    label="after calibration" if s.before is not None else "model", rasterized=True)
+                    label=f"{s.title}: after calibration" if s.before is not None else "model", rasterized=True)
         ax.set(title=f"{s.title} poses ({len(x)}): position error per pose", xlabel="pose (file order)",
                ylabel="error (mm)")
-        ax.legend(loc="upper right", fontsize=8)
+    legend_below(fig)
     return fig
 
 
@@ -140,7 +157,7 @@ def histogram(sets: list[PoseSet]) -> Figure:
         ax.hist(s.after_norm * MM, bins=bins.tolist(), alpha=0.6, color=s.color, label=s.title,
                 weights=np.full(len(s.rows), 100.0 / len(s.rows)))
     ax.set(title="distribution of the error after calibration", xlabel="position error (mm)", ylabel="poses (%)")
-    ax.legend(fontsize=8)
+    legend_below(fig)
     return fig
 
 
@@ -157,7 +174,7 @@ def per_axis(sets: list[PoseSet]) -> Figure:
         patch.set(facecolor=s.color, alpha=0.5)
     ax.set_xticks([a * (k + 1) + (k + 1) / 2 for a in range(3)], ["x", "y", "z"])
     if k > 1:
-        ax.legend(parts["boxes"][:k], [s.title for s in sets], fontsize=7)
+        legend_below(fig, parts["boxes"][:k], [s.title for s in sets])
     ax.set(title="error per axis after calibration", ylabel="measured − model (mm)")
     return fig
 
@@ -176,7 +193,7 @@ def vs_joints(sets: list[PoseSet], joint_names, joint_types) -> Figure:
             ax.plot(s.q[:, j] * scale, s.after_norm * MM, ".", ms=3, color=s.color, label=s.title,
                     rasterized=True)
         ax.set(xlabel=f"{joint_names[j]} ({unit})", ylabel="error (mm)")
-    fig.axes[0].legend(fontsize=7)
+    legend_below(fig)
     fig.suptitle("error after calibration against each joint")
     return fig
 
