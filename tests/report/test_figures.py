@@ -6,6 +6,7 @@ from conftest import DATA, UR5_COLS
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 import kincal
+import kincal.cli
 from kincal.identify import refit_frame
 from kincal.report import evaluation_figures, figure_set
 from kincal.report import figures as F
@@ -81,3 +82,32 @@ def test_legends_cover_no_point_of_a_calibration(random):
     held = figs["per_pose"].axes[1]
     before = held.get_lines()[0].get_xydata()  # the grey points: the nominal model's errors (mm)
     assert int(np.argmax(before[:, 1])) + 1 == 19 and before[:, 1].max() == pytest.approx(1.096, abs=1e-3)
+    words = {name: texts(fig) for name, fig in figs.items()}
+    assert "distribution of the error after calibration" in words["histogram"]
+    assert words["workspace"][0] == "workspace (the training data's frame): o training, ^ held-out"
+
+
+def texts(fig) -> list[str]:
+    """Every title, suptitle, axis label and legend entry of the figure."""
+    out = [fig.get_suptitle()] if fig.get_suptitle() else []
+    for ax in fig.axes:
+        out += [ax.get_title(), ax.get_xlabel(), ax.get_ylabel()]
+    return [t for t in out + [x.get_text() for leg in legends(fig) for x in leg.get_texts()] if t]
+
+
+def test_one_model_evaluated_is_titled_as_such(random, capsys, tmp_path):
+    """evaluate of the nominal UR5, never calibrated: no figure says 'after calibration', the workspace names no
+    training data (none is shown), no legend says 'model', and the text names one model, not 'both models'."""
+    ur5 = kincal.load_robot("ur5")
+    figs = evaluation_figures(refit_frame(ur5, random), random)
+    words = {name: texts(fig) for name, fig in figs.items()}
+    assert not [t for ts in words.values() for t in ts if "after calibration" in t or "after (" in t]
+    assert "distribution of the error of ur5" in words["histogram"]
+    assert "error per axis of ur5" in words["per_axis"] and "error of ur5 against each joint" in words["vs_joints"]
+    assert words["per_pose"][0] == "held-out poses (20): position error of ur5 per pose"
+    assert words["workspace"][0] == "workspace (this file's measurement frame)"  # no outlier, no training
+    assert "error of ur5 (mm)" in words["workspace"] and "model" not in words["per_pose"]
+    assert kincal.cli.main(["evaluate", "ur5", str(DATA / "ur5_random.csv"), "--length-unit", "mm", "--angle-unit",
+                            "deg", "--joint-cols", ",".join(UR5_COLS)]) == 0
+    out = capsys.readouterr().out
+    assert "both models" not in out and "(frame re-registered to these data, kinematics fixed)" in out

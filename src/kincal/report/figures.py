@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from ..units import DEG, MM
 
@@ -130,9 +131,17 @@ def legend_below(fig: Figure, handles: list | None = None, labels: list | None =
                    frameon=False)
 
 
+def error_of(sets: list[PoseSet], model: str = "the model") -> str:
+    """What the sets' ``after`` errors are, for the figures' titles: "after calibration" when some set has the
+    nominal model's errors beside them (a calibration), else "of <model>" (one model evaluated: nothing says it
+    was calibrated)."""
+    return "after calibration" if any(s.before is not None for s in sets) else f"of {model}"
+
+
 @_styled
-def per_pose(sets: list[PoseSet]) -> Figure:
-    """Error norm of every pose, before and after, in file order (log scale: mm to µm)."""
+def per_pose(sets: list[PoseSet], what: str = "after calibration") -> Figure:
+    """Error norm of every pose in file order (log scale: mm to µm): before and after calibration, or of the one
+    model evaluated (``what``: :func:`error_of`)."""
     fig = _figure(9.0, 2.6 * len(sets))
     for k, s in enumerate(sets):
         ax = fig.add_subplot(len(sets), 1, k + 1)
@@ -140,30 +149,32 @@ def per_pose(sets: list[PoseSet]) -> Figure:
         if s.before is not None:
             ax.semilogy(x, np.linalg.norm(s.before, axis=1) * MM, ".", ms=3, color=COLOURS["before"],
                         label="before (nominal model, frame and target point registered)", rasterized=True)
-        ax.semilogy(x, s.after_norm * MM, ".", ms=3, color=s.color,
-                    label=f"{s.title}: after calibration" if s.before is not None else "model", rasterized=True)
-        ax.set(title=f"{s.title} poses ({len(x)}): position error per pose", xlabel="pose (file order)",
-               ylabel="error (mm)")
+        ax.semilogy(x, s.after_norm * MM, ".", ms=3, color=s.color, rasterized=True,
+                    label=f"{s.title}: {what}" if s.before is not None else None)
+        error = "position error" if s.before is not None else f"position error {what}"
+        ax.set(title=f"{s.title} poses ({len(x)}): {error} per pose", xlabel="pose (file order)", ylabel="error (mm)")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True, steps=[1, 2, 5, 10]))  # poses are counted
     legend_below(fig)
     return fig
 
 
 @_styled
-def histogram(sets: list[PoseSet]) -> Figure:
+def histogram(sets: list[PoseSet], what: str = "after calibration") -> Figure:
+    """The distribution of the position error (``what``: :func:`error_of`), a set's share of poses per bin."""
     fig, ax = _axes(4.6, 3.0)
     top = max(float(s.after_norm.max()) for s in sets) * MM
     bins = np.linspace(0.0, top * 1.02 if top > 0 else 1.0, 31)
     for s in sets:
         ax.hist(s.after_norm * MM, bins=bins.tolist(), alpha=0.6, color=s.color, label=s.title,
                 weights=np.full(len(s.rows), 100.0 / len(s.rows)))
-    ax.set(title="distribution of the error after calibration", xlabel="position error (mm)", ylabel="poses (%)")
+    ax.set(title=f"distribution of the error {what}", xlabel="position error (mm)", ylabel="poses (%)")
     legend_below(fig)
     return fig
 
 
 @_styled
-def per_axis(sets: list[PoseSet]) -> Figure:
-    """Box plots of the error per axis after calibration: one box per set (its colour, named in the
+def per_axis(sets: list[PoseSet], what: str = "after calibration") -> Figure:
+    """Box plots of the error per axis (``what``: :func:`error_of`): one box per set (its colour, named in the
     legend) beside each other at x, y and z."""
     fig, ax = _axes(4.6, 3.0)
     k = len(sets)
@@ -175,13 +186,14 @@ def per_axis(sets: list[PoseSet]) -> Figure:
     ax.set_xticks([a * (k + 1) + (k + 1) / 2 for a in range(3)], ["x", "y", "z"])
     if k > 1:
         legend_below(fig, parts["boxes"][:k], [s.title for s in sets])
-    ax.set(title="error per axis after calibration", ylabel="measured − model (mm)")
+    ax.set(title=f"error per axis {what}", ylabel="measured − model (mm)")
     return fig
 
 
 @_styled
-def vs_joints(sets: list[PoseSet], joint_names, joint_types) -> Figure:
-    """Error after calibration against each joint value: gravity sag, gear and encoder errors show here."""
+def vs_joints(sets: list[PoseSet], joint_names, joint_types, what: str = "after calibration") -> Figure:
+    """The error (``what``: :func:`error_of`) against each joint value: gravity sag, gear and encoder errors show
+    here."""
     n = len(joint_names)
     cols = min(n, 3)
     rows = -(-n // cols)
@@ -194,14 +206,15 @@ def vs_joints(sets: list[PoseSet], joint_names, joint_types) -> Figure:
                     rasterized=True)
         ax.set(xlabel=f"{joint_names[j]} ({unit})", ylabel="error (mm)")
     legend_below(fig)
-    fig.suptitle("error after calibration against each joint")
+    fig.suptitle(f"error {what} against each joint")
     return fig
 
 
 @_styled
-def workspace(sets: list[PoseSet], frame: str = "the training data's frame") -> Figure:
-    """Measured positions in three projections (in ``frame``, for the title), coloured by the error
-    after calibration; outliers circled and named by input row."""
+def workspace(sets: list[PoseSet], frame: str = "the training data's frame", what: str = "after calibration") -> Figure:
+    """Measured positions in three projections (in ``frame``, for the title), coloured by the error (``what``:
+    :func:`error_of`); outliers circled and named by input row. The title keys the markers of training and
+    held-out data when both are shown."""
     fig = _figure(11.0, 3.6)
     all_err = np.concatenate([s.after_norm for s in sets]) * MM
     vmax = float(np.percentile(all_err, 99)) if all_err.size else 1.0
@@ -215,8 +228,11 @@ def workspace(sets: list[PoseSet], frame: str = "the training data's frame") -> 
                 ax.annotate(f"row {r}", (p[a] * MM, p[b] * MM), xytext=(4, 4), textcoords="offset points",
                             color="red", fontsize=8)
         ax.set(xlabel=f"{'xyz'[a]} (mm)", ylabel=f"{'xyz'[b]} (mm)", aspect="equal", adjustable="datalim")
-    fig.colorbar(sc, ax=fig.axes, label="error after (mm)", shrink=0.9)
-    fig.suptitle(f"workspace ({frame}): o training, ^ held-out; red circles: outliers")
+    fig.colorbar(sc, ax=fig.axes, label=f"error {what} (mm)", shrink=0.9)
+    kinds = {s.label == "training" for s in sets}
+    key = ["o training, ^ held-out"] if len(kinds) == 2 else []
+    key += ["red circles: outliers"] if any(s.outliers.any() for s in sets) else []
+    fig.suptitle(f"workspace ({frame})" + (": " + "; ".join(key) if key else ""))
     return fig
 
 
@@ -237,5 +253,7 @@ def correlation(names, corr: np.ndarray) -> Figure:
 def pose_figures(sets: list[PoseSet], robot, frame: str = "the training data's frame") -> dict:
     """The five figures of pose sets by name: errors per pose, distribution, per axis, against the
     joints of ``robot``, in the workspace (``frame``, for its title)."""
-    return {"per_pose": per_pose(sets), "histogram": histogram(sets), "per_axis": per_axis(sets),
-            "vs_joints": vs_joints(sets, robot.joint_names, robot.joint_types), "workspace": workspace(sets, frame)}
+    what = error_of(sets, robot.name)
+    return {"per_pose": per_pose(sets, what), "histogram": histogram(sets, what), "per_axis": per_axis(sets, what),
+            "vs_joints": vs_joints(sets, robot.joint_names, robot.joint_types, what),
+            "workspace": workspace(sets, frame, what)}
