@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from conftest import DATA, UR5_COLS
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.transforms import Bbox
 
 import kincal
 import kincal.cli
@@ -27,13 +28,9 @@ def legends(fig) -> list:
 
 
 def plotted(ax) -> np.ndarray:
-    """(M, 2) display coordinates of every point, marker and bar corner the axes draws."""
+    """(M, 2) display coordinates of every point and marker the axes draws."""
     pts = [ax.transData.transform(line.get_xydata()) for line in ax.get_lines() if len(line.get_xydata())]
     pts += [c.get_offset_transform().transform(c.get_offsets()) for c in ax.collections if len(c.get_offsets())]
-    for patch in ax.patches:
-        box = patch.get_window_extent()
-        pts.append(np.array([[box.x0, box.y0], [box.x1, box.y1], [box.x0, box.y1], [box.x1, box.y0],
-                             [(box.x0 + box.x1) / 2, box.y1]]))
     return np.vstack(pts) if pts else np.zeros((0, 2))
 
 
@@ -43,10 +40,17 @@ def inside(box, pts: np.ndarray) -> np.ndarray:
 
 
 def covered(fig) -> int:
-    """How many plotted points of the figure's axes lie under one of its legends."""
+    """How many plotted points and bars (boxes, as drawn within their axes) of the figure lie under one of its
+    legends."""
     renderer = drawn(fig)
-    boxes = [leg.get_window_extent(renderer) for leg in legends(fig)]
-    return sum(int(inside(box, plotted(ax)).sum()) for ax in fig.axes for box in boxes)
+    n = 0
+    for box in [leg.get_window_extent(renderer) for leg in legends(fig)]:
+        for ax in fig.axes:
+            n += int(inside(box, plotted(ax)).sum())
+            frame = ax.get_window_extent(renderer)
+            drawn_bars = [Bbox.intersection(p.get_window_extent(renderer), frame) for p in ax.patches]
+            n += sum(1 for b in drawn_bars if b is not None and b.width > 0 and b.height > 0 and box.overlaps(b))
+    return n
 
 
 @pytest.fixture(scope="module")
@@ -111,3 +115,56 @@ def test_one_model_evaluated_is_titled_as_such(random, capsys, tmp_path):
                             "deg", "--joint-cols", ",".join(UR5_COLS)]) == 0
     out = capsys.readouterr().out
     assert "both models" not in out and "(frame re-registered to these data, kinematics fixed)" in out
+
+
+ETA = {  # kincal demo's η (%) of its first repetition, random and separated-parameter designs (its table)
+    "random": {"j1.theta": 99.98, "j1.d": 99.65, "j1.a": 98.92, "j1.alpha": 100.0, "j2.d": 97.87, "j2.a": 99.18,
+               "j4.a": 99.09, "j5.d": 99.13},
+    "separated-parameter optimised": {"j1.theta": 99.96, "j1.d": 98.93, "j1.a": 99.03, "j1.alpha": 99.98,
+                                      "j2.d": 99.53, "j2.a": 99.40, "j4.a": 97.02, "j5.d": 99.69}}
+
+
+def inside_of(outer, inner) -> bool:
+    return outer.x0 <= inner.x0 and inner.x1 <= outer.x1 and outer.y0 <= inner.y0 and inner.y1 <= outer.y1
+
+
+def test_demo_eta_axis_follows_the_values_and_its_title_fits():
+    """η of 97-100 % on an axis of -100..110 % differ by 1.5 % of its height; the title (one line) was cut at
+    both edges of the figure."""
+    from kincal.report.study_figures import eta_bars
+
+    names = list(ETA["random"])
+    fig = eta_bars(ETA, names, {"j2.d"})
+    renderer = drawn(fig)
+    low, high = fig.axes[0].get_ylim()
+    values = [v for d in ETA.values() for v in d.values()]
+    assert low < min(values) - 0.1 and high >= 100.0 and high - low < 5.0  # 97.02 .. 100 fill the axis
+    assert (99.96 - 97.87) / (high - low) > 0.4  # the two designs' j2.d differ by > 40 % of the axis
+    whole = fig.bbox
+    assert inside_of(whole, fig.axes[0].title.get_window_extent(renderer))
+    assert covered(fig) == 0
+
+
+def test_demo_validation_summary_labels_inside_and_legend_clear():
+    """Fig. 13 of the demo: the bars' value labels end inside the axes (the 25.3 mm one ran into the frame) and
+    the legend covers no bar (it covered the std e bar before calibration)."""
+    from kincal.report.study_figures import validation_summary
+
+    rng = np.random.default_rng(1)
+    e = rng.normal(-11.7, 7.05, 60)  # e (mm) before calibration as the demo's: mean -11.7, std 7.05, max 25.3
+    e[np.argmax(np.abs(e))] = -25.3
+    errors = {"before calibration": np.repeat(e[:, None], 3, axis=1) * 1e-3,
+              "random": rng.normal(0.0, 2e-6, (60, 3)), "full-parameter optimised": rng.normal(0.0, 4e-6, (60, 3)),
+              "separated-parameter optimised": rng.normal(0.0, 3e-6, (60, 3))}
+    top = max(np.abs(e.mean(axis=1)).max() for e in errors.values()) * 1e3  # the largest bar, |e| max (mm)
+    for note in ((), ("first repetition; a protocol",)):
+        fig = validation_summary(errors, *note)
+        renderer = drawn(fig)
+        ax = fig.axes[0]
+        frame = ax.get_window_extent(renderer)
+        assert ax.get_ylim()[1] > top
+        clear = 3.0 * fig.dpi / 72.0  # 3 pt (the 25.3 ended 1.6 px from the frame: touching it)
+        for label in ax.texts:
+            box = label.get_window_extent(renderer)
+            assert inside_of(frame, box) and frame.y1 - box.y1 > clear, label.get_text()
+        assert covered(fig) == 0
