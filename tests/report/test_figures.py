@@ -168,3 +168,31 @@ def test_demo_validation_summary_labels_inside_and_legend_clear():
             box = label.get_window_extent(renderer)
             assert inside_of(frame, box) and frame.y1 - box.y1 > clear, label.get_text()
         assert covered(fig) == 0
+
+
+def test_workspace_names_a_few_outliers_inside_and_lists_the_rest():
+    """The UR5 grid read with joints 5 and 6 swapped: 18 outliers, whose 'row ...' labels stacked illegibly and
+    ran beyond the axes. Now the three largest errors are named, inside their axes, no two names overlap, and the
+    caption lists every outlier, largest first."""
+    ur5 = kincal.load_robot("ur5")
+    cols = ["joint_1", "joint_2", "joint_3", "joint_4", "joint_6", "joint_5"]
+    grid = kincal.read_measurements(DATA / "ur5_grid.csv", ur5, cols, length_unit="mm", angle_unit="deg")
+    res = kincal.calibrate(ur5, grid, diagnose=False)
+    error = np.linalg.norm(grid.xyz - res.robot.forward(grid.q), axis=1)  # computed here
+    out = np.flatnonzero(res.pose_z > res.outlier_z)
+    ranked = [f"row {r}" for r in grid.rows[out[np.argsort(-error[out], kind="stable")]]]
+    assert len(out) > 10
+    fig = figure_set(res)["workspace"]
+    renderer = drawn(fig)
+    panels = [ax for ax in fig.axes if ax.get_label() != "<colorbar>"]
+    assert len(panels) == 3
+    for ax in panels:
+        names = [t for t in ax.texts if t.get_text().startswith("row")]
+        boxes = [t.get_window_extent(renderer) for t in names]
+        frame = ax.get_window_extent(renderer)
+        assert 1 <= len(names) <= 3 and all(inside_of(frame, b) for b in boxes)
+        assert not any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
+        shown = {n.strip() for t in names for n in t.get_text().replace("rows ", "row ").split(",")}
+        assert {n if n.startswith("row") else f"row {n}" for n in shown} == set(ranked[:3])
+    caption = fig.get_supxlabel().replace("\n", " ")
+    assert caption.endswith(", ".join(ranked)) and f"red circles: {len(out)} outliers" in fig.get_suptitle()

@@ -9,6 +9,7 @@ from __future__ import annotations
 import io
 import os
 import re
+import textwrap
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -17,6 +18,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
+from ..ties import order_with_ties
 from ..units import DEG, MM
 
 if TYPE_CHECKING:
@@ -213,27 +215,78 @@ def vs_joints(sets: list[PoseSet], joint_names, joint_types, what: str = "after 
 @_styled
 def workspace(sets: list[PoseSet], frame: str = "the training data's frame", what: str = "after calibration") -> Figure:
     """Measured positions in three projections (in ``frame``, for the title), coloured by the error (``what``:
-    :func:`error_of`); outliers circled and named by input row. The title keys the markers of training and
-    held-out data when both are shown."""
+    :func:`error_of`); outliers circled, the ``NAMED`` largest named by input row inside the axes, and all
+    listed under the figure. The title keys the markers of training and held-out data when both are shown."""
     fig = _figure(11.0, 3.6)
     all_err = np.concatenate([s.after_norm for s in sets]) * MM
     vmax = float(np.percentile(all_err, 99)) if all_err.size else 1.0
+    where, names = _outliers(sets)
+    everything = np.concatenate([s.xyz for s in sets]) * MM
     for k, (a, b) in enumerate(((0, 1), (0, 2), (1, 2))):
         ax = fig.add_subplot(1, 3, k + 1)
         for s in sets:
             sc = ax.scatter(s.xyz[:, a] * MM, s.xyz[:, b] * MM, c=s.after_norm * MM, s=8, cmap="viridis",
                             vmin=0.0, vmax=vmax, marker="o" if s.label == "training" else "^", rasterized=True)
-            for r, p in zip(s.rows[s.outliers], s.xyz[s.outliers]):
-                ax.scatter(p[a] * MM, p[b] * MM, s=80, facecolors="none", edgecolors="red", linewidths=1.2)
-                ax.annotate(f"row {r}", (p[a] * MM, p[b] * MM), xytext=(4, 4), textcoords="offset points",
-                            color="red", fontsize=8)
+        if len(where):
+            ax.scatter(where[:, a], where[:, b], s=80, facecolors="none", edgecolors="red", linewidths=1.2)
+        _name_outliers(ax, everything[:, [a, b]], where[:NAMED][:, [a, b]], names[:NAMED])
         ax.set(xlabel=f"{'xyz'[a]} (mm)", ylabel=f"{'xyz'[b]} (mm)", aspect="equal", adjustable="datalim")
     fig.colorbar(sc, ax=fig.axes, label=f"error {what} (mm)", shrink=0.9)
     kinds = {s.label == "training" for s in sets}
     key = ["o training, ^ held-out"] if len(kinds) == 2 else []
-    key += ["red circles: outliers"] if any(s.outliers.any() for s in sets) else []
+    key += [f"red circles: {len(names)} outlier{'s' if len(names) > 1 else ''}"] if names else []
     fig.suptitle(f"workspace ({frame})" + (": " + "; ".join(key) if key else ""))
+    if len(names) > NAMED:
+        listed = ", ".join(names[:LISTED]) + (f" and {len(names) - LISTED} more" if len(names) > LISTED else "")
+        fig.supxlabel(textwrap.fill(f"outliers by error, largest first (the first {NAMED} named): {listed}", 190),
+                      fontsize=8)
+    _merge_names(fig)  # once laid out with the caption
     return fig
+
+
+NAMED = 3  # outliers the workspace names by row beside their circle (the largest errors)
+LISTED = 60  # outliers its caption lists
+
+
+def _outliers(sets: list[PoseSet]) -> tuple[np.ndarray, list[str]]:
+    """The outliers of all sets, largest error first (ties: in the sets' order): positions (K, 3) mm and names
+    ("row 86"; a held-out set's with its file or label)."""
+    where = np.concatenate([s.xyz[s.outliers] for s in sets]) * MM
+    error = np.concatenate([s.after_norm[s.outliers] for s in sets])
+    names = [f"row {r}" if s.label == "training" else f"{s.name or s.label} row {r}" for s in sets
+             for r in s.rows[s.outliers]]
+    order = order_with_ties(error) if len(error) else []
+    return where[order].reshape(-1, 3), [names[i] for i in order]
+
+
+def _name_outliers(ax: Any, points: np.ndarray, where: np.ndarray, names: list[str]) -> None:
+    """Name outliers at ``where`` (K, 2) in a panel of ``points`` (N, 2), each name written from its point towards
+    the points' middle, so that it stays inside the axes; :func:`_merge_names` joins names that overlap."""
+    middle = (points.min(axis=0) + points.max(axis=0)) / 2.0 if len(points) else np.zeros(2)
+    for p, name in zip(where, names):
+        right, up = p[0] <= middle[0], p[1] <= middle[1]
+        ax.annotate(name, tuple(p), xytext=(5 if right else -5, 5 if up else -5), textcoords="offset points",
+                    ha="left" if right else "right", va="bottom" if up else "top", color="red", fontsize=8,
+                    gid="outlier", bbox={"boxstyle": "square,pad=0.1", "facecolor": "white", "alpha": 0.7,
+                                         "edgecolor": "none"})  # legible over the points
+
+
+def _merge_names(fig: Figure) -> None:
+    """Join outlier names that overlap as drawn into the first one's ("rows 86, 91"), in each axes: the layout
+    is drawn once (text sizes do not depend on the resolution it is saved at)."""
+    fig.draw_without_rendering()
+    for ax in fig.axes:
+        kept: list[tuple[Any, list[str]]] = []
+        for label in [t for t in ax.texts if t.get_gid() == "outlier"]:
+            box = label.get_window_extent()
+            home = next((k for k in kept if k[0].get_window_extent().overlaps(box)), None)
+            if home is None:
+                kept.append((label, [label.get_text()]))
+                continue
+            home[1].append(label.get_text())
+            label.remove()
+            rows = all(n.startswith("row ") for n in home[1])
+            home[0].set_text("rows " + ", ".join(n[4:] for n in home[1]) if rows else "; ".join(home[1]))
 
 
 @_styled
