@@ -196,3 +196,44 @@ def test_workspace_names_a_few_outliers_inside_and_lists_the_rest():
         assert {n if n.startswith("row") else f"row {n}" for n in shown} == set(ranked[:3])
     caption = fig.get_supxlabel().replace("\n", " ")
     assert caption.endswith(", ".join(ranked)) and f"red circles: {len(out)} outliers" in fig.get_suptitle()
+
+
+def test_joints_are_drawn_in_the_units_they_are_read_in():
+    """The Jugglebot's legs, read in motor revolutions (0.09-3.97 rev, its README), were drawn as 200-1400 'deg'
+    against the error; a UR5's joints stay in deg."""
+    from conftest import shared_dataset
+
+    table = np.genfromtxt(shared_dataset("stewart_jugglebot") / "S1.csv", delimiter=",", names=True)
+    legs = np.column_stack([table[f"leg{i}"] for i in range(1, 7)])  # rev, as written
+    xyz = np.column_stack([table["x"], table["y"], table["z"]]) * 1e-3
+    hexapod = kincal.load_robot("hexapod")
+    s = F.PoseSet("training", np.arange(2, len(legs) + 2), legs * 2.0 * np.pi, xyz, None, np.full_like(xyz, 1e-4),
+                  np.zeros(len(legs), bool))
+    panels = F.pose_figures([s], hexapod)["vs_joints"].axes
+    assert [ax.get_xlabel() for ax in panels] == [f"leg{i} (rev)" for i in range(1, 7)]
+    for j, ax in enumerate(panels):
+        np.testing.assert_allclose(ax.get_lines()[0].get_xdata(), legs[:, j], rtol=1e-12)
+    assert 0.09 <= legs.min() and legs.max() <= 3.98
+    ur5 = kincal.load_robot("ur5")
+    q = ur5.sample_joints(5, seed=1)
+    s = F.PoseSet("training", np.arange(5), q, ur5.forward(q), None, np.full((5, 3), 1e-4), np.zeros(5, bool))
+    panels = F.pose_figures([s], ur5)["vs_joints"].axes
+    assert panels[0].get_xlabel() == "j1 (deg)"
+    np.testing.assert_allclose(panels[0].get_lines()[0].get_xdata(), np.degrees(q[:, 0]), rtol=1e-12)
+
+
+def test_sensitivity_plot_says_per_which_unit_and_shows_equal_curves():
+    """sensitivity --plot's axes said 'mm' for every parameter, though an angle's is per mrad; j1.d (a length
+    along the base z axis) moves the point by exactly (0, 0, 1) mm per mm, and its Δx line hid under Δy."""
+    from kincal.analysis import sensitivity
+
+    ur5 = kincal.load_robot("ur5")
+    fig = sensitivity(ur5, ur5.sample_joints(10, seed=2), names=["j1.d", "j2.theta"]).figure()
+    d, theta = fig.axes[:2]
+    assert d.get_ylabel() == "Δ (mm per mm)" and theta.get_ylabel() == "Δ (mm per mrad)"
+    lines = d.get_lines()
+    np.testing.assert_allclose([li.get_ydata() for li in lines], [[0.0] * 10, [0.0] * 10, [1.0] * 10], atol=1e-9)
+    styles = {(li.get_marker(), li.get_linestyle(), li.get_markerfacecolor() == "none") for li in lines}
+    assert len(styles) == 3  # Δx drawn over Δy is still seen
+    assert lines[0].get_markersize() > lines[1].get_markersize() and lines[0].get_markerfacecolor() == "none"
+    assert covered(fig) == 0

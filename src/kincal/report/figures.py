@@ -19,7 +19,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from ..ties import order_with_ties
-from ..units import DEG, MM
+from ..units import MM, joint_shown
 
 if TYPE_CHECKING:
     from matplotlib.typing import RcKeyType
@@ -193,16 +193,17 @@ def per_axis(sets: list[PoseSet], what: str = "after calibration") -> Figure:
 
 
 @_styled
-def vs_joints(sets: list[PoseSet], joint_names, joint_types, what: str = "after calibration") -> Figure:
-    """The error (``what``: :func:`error_of`) against each joint value: gravity sag, gear and encoder errors show
-    here."""
+def vs_joints(sets: list[PoseSet], joint_names, units, what: str = "after calibration") -> Figure:
+    """The error (``what``: :func:`error_of`) against each joint value, in the joint's ``units`` ((unit, factor
+    from SI) per joint, :func:`kincal.units.joint_shown`: deg, mm, rev for a leg's motor): gravity sag, gear and
+    encoder errors show here."""
     n = len(joint_names)
     cols = min(n, 3)
     rows = -(-n // cols)
     fig = _figure(3.2 * cols, 2.4 * rows)
     for j in range(n):
         ax = fig.add_subplot(rows, cols, j + 1)
-        scale, unit = (DEG, "deg") if joint_types[j] == "revolute" else (MM, "mm")
+        unit, scale = units[j]
         for s in sets:
             ax.plot(s.q[:, j] * scale, s.after_norm * MM, ".", ms=3, color=s.color, label=s.title,
                     rasterized=True)
@@ -308,5 +309,5 @@ def pose_figures(sets: list[PoseSet], robot, frame: str = "the training data's f
     joints of ``robot``, in the workspace (``frame``, for its title)."""
     what = error_of(sets, robot.name)
     return {"per_pose": per_pose(sets, what), "histogram": histogram(sets, what), "per_axis": per_axis(sets, what),
-            "vs_joints": vs_joints(sets, robot.joint_names, robot.joint_types, what),
+            "vs_joints": vs_joints(sets, robot.joint_names, joint_shown(robot.joint_types, robot.periodic), what),
             "workspace": workspace(sets, frame, what)}
