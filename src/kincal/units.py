@@ -6,6 +6,7 @@ units engineers read; this module converts between the two and nothing else does
 * ``LENGTH_UNITS`` / ``ANGLE_UNITS``: the SI value of one unit (``"mm": 1e-3`` m);
   :func:`unit_factor` looks one up and names the choices when a unit is unknown;
 * :func:`joint_units` / :func:`joint_factors`: each joint's unit (and its SI factor) by the joint's type;
+  :func:`joint_shown`: the unit kincal shows a joint's values in (deg, mm, rev for a multi-turn motor);
 * ``MM``, ``DEG``: display factors, an SI value times the factor is in that unit
   (``0.0012 * MM == 1.2`` mm; ``1.2 / MM`` m); ``MRAD`` likewise (1 rad = 1000 mrad);
 * :func:`display` writes a parameter value as mm or deg by its kind; :func:`in_display` turns a
@@ -44,6 +45,18 @@ def joint_units(types: Iterable[str], length_unit: str, angle_unit: str, where: 
     (:func:`unit_factor`, with ``where`` and ``error``)."""
     unit_factor(length_unit, "length", where, error), unit_factor(angle_unit, "angle", where, error)
     return [angle_unit if t == "revolute" else None if t == "covariate" else length_unit for t in types]
+
+
+def joint_shown(types: Iterable[str], periodic: Iterable[bool]) -> list[tuple[str, float]]:
+    """Each joint's unit as kincal shows its values, with the factor from SI (a value in rad or m times it):
+    "deg" for a revolute joint, "mm" for a prismatic one, "rev" for a revolute joint that does not repeat every
+    turn (``periodic`` False: a motor driving a travel through a screw, a hexapod leg's, whose turns add up).
+
+    >>> [(u, round(f, 4)) for u, f in joint_shown(["revolute", "prismatic", "revolute"], [True, False, False])]
+    [('deg', 57.2958), ('mm', 1000.0), ('rev', 0.1592)]
+    """
+    return [("mm", MM) if t != "revolute" else ("deg", DEG) if p else ("rev", 1.0 / ANGLE_UNITS["rev"])
+            for t, p in zip(types, periodic)]
 
 
 def joint_factors(types: Iterable[str], length_unit: str, angle_unit: str, where: str = "",

@@ -432,7 +432,9 @@ def test_history_plot_shows_the_records(tmp_path, kincal_main):
     assert set(panels) == {"j2.a", "j3.d", "j1.theta", "position error"}
     cals = [r for r in records if r.kind == "calibration"]
     days = mdates.date2num([datetime.fromisoformat(r.time.replace("Z", "+00:00")) for r in cals])
-    for name, factor in (("j2.a", 1e3), ("j3.d", 1e3), ("j1.theta", 1e3)):  # mm, mrad
+    for name, factor, unit in (("j2.a", 1e3, "mm"), ("j3.d", 1e3, "mm"), ("j1.theta", 180 / np.pi, "deg")):
+        # the units the text lists the differences in: j1.theta's 30 µrad as +0.00172 deg (the plot said 0.03 mrad)
+        assert panels[name].get_ylabel() == f"Δ ({unit})"
         line = next(li for li in panels[name].lines if li.get_label() == name)
         want = [(r.parameters[name] - cals[0].parameters[name]) * factor for r in cals]
         np.testing.assert_allclose(mdates.date2num(line.get_xdata()), days)
@@ -449,6 +451,11 @@ def test_history_plot_shows_the_records(tmp_path, kincal_main):
     for ax in fig.axes:
         assert any(np.allclose(mdates.date2num(li.get_xdata()), event) for li in ax.lines)
     assert [t.get_text() for t in panels["position error"].texts] == ["gearbox 3 replaced"]
+    assert (line.get_ydata()[1] - line.get_ydata()[0]) == pytest.approx(0.00172, abs=5e-6)  # j1.theta, as the text
+    fig.draw_without_rendering()  # every panel its dates: the parameter panels had none
+    for name, ax in panels.items():
+        dates = [t.get_text() for t in ax.get_xticklabels() if t.get_visible()]
+        assert len([d for d in dates if d]) >= 2 and ax.xaxis.get_tick_params()["labelbottom"], name
     save_history_figure(fig, tmp_path / "h.svg")
     assert (tmp_path / "h.svg").read_text().count("<svg") == 1
     assert kincal_main(["history", "cell-3", "--store", str(tmp_path / "s.db"), "--plot", str(tmp_path / "h.png"),

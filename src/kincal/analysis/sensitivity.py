@@ -5,14 +5,19 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
 from ..models.robot import Robot
-from ..units import MM, MRAD, fine
+from ..units import FINE, MM, MRAD, fine
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 UNIT = {"length": 1.0 / MM, "angle": 1.0 / MRAD, "ratio": 1e-3}  # one unit error: 1 mm, 1 mrad, 1 ‰ (SI)
+STYLES = ({"marker": "o", "ms": 5, "linestyle": "-", "mfc": "none"},  # Δx, Δy, Δz: told apart where they coincide
+          {"marker": "s", "ms": 3, "linestyle": "--"}, {"marker": "^", "ms": 3, "linestyle": ":"})
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,26 +79,54 @@ class Sensitivity:
                        f"{np.linalg.norm(d, axis=1).max() * MM:11.4f}")
         return "\n".join(out)
 
-    def plot(self, path: str | os.PathLike) -> None:
-        """Δx, Δy, Δz against the sample for each parameter (Figs. 8–9), as PNG or SVG by extension."""
+    def figure(self) -> "Figure":
+        """Δx, Δy, Δz against the sample for each parameter (Figs. 8–9).
+
+        Each panel's axis is mm per unit error (mm per mm, mm per mrad, mm per ‰: :data:`UNIT`); each of x, y, z
+        has its marker and line style, so equal curves stay visible (j1.d's Δx and Δy, both 0); one legend above
+        the panels.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            One panel per parameter (not attached to pyplot).
+
+        Examples
+        --------
+        >>> import kincal
+        >>> from kincal.analysis import sensitivity
+        >>> robot = kincal.load_robot("ur5")
+        >>> fig = sensitivity(robot, robot.sample_joints(5, seed=2), names=["j1.d", "j2.theta"]).figure()
+        >>> [ax.get_ylabel() for ax in fig.axes[:2]]
+        ['Δ (mm per mm)', 'Δ (mm per mrad)']
+        """
         from matplotlib.figure import Figure
 
         P = len(self.names)
         cols = min(P, 3)
         rows = -(-P // cols)
-        fig = Figure(figsize=(4.2 * cols, 3.0 * rows))
+        fig = Figure(figsize=(4.2 * cols, 3.0 * rows + 0.4), layout="constrained")
         axes = fig.subplots(rows, cols, squeeze=False)
         x = np.arange(1, self.q.shape[0] + 1)
         for ax in axes.flat[P:]:
             ax.axis("off")
         for k, ax in enumerate(axes.flat[:P]):
-            for a, label in enumerate("xyz"):
-                ax.plot(x, self.deltas[k, :, a] * MM, marker="o", ms=3, label=f"Δ{label}")
-            ax.set(title=self.names[k], xlabel="sample", ylabel="mm")
+            for a, (label, style) in enumerate(zip("xyz", STYLES)):
+                ax.plot(x, self.deltas[k, :, a] * MM, label=f"Δ{label}", **style)
+            ax.set(title=self.names[k], xlabel="sample", ylabel=f"Δ (mm per {FINE[self.kinds[k]][0]})")
             ax.grid(alpha=0.3)
-        axes.flat[0].legend()
-        fig.tight_layout()
-        fig.savefig(path)
+        fig.legend(*axes.flat[0].get_legend_handles_labels(), loc="outside upper center", ncols=3)
+        return fig
+
+    def plot(self, path: str | os.PathLike) -> None:
+        """Save :meth:`figure` as PNG or SVG by the file's extension.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file (.png or .svg).
+        """
+        self.figure().savefig(path)
 
 
 def sensitivity(robot: Robot, q: np.ndarray, names: Sequence[str] | None = None) -> Sensitivity:

@@ -31,7 +31,7 @@ from .._frozen import freeze_arrays
 from ..errors import ModelError
 from ..models.robot import Robot
 from ..models.yaml_io import load_calibration_record
-from ..units import DEG, MM
+from ..units import MM, joint_shown
 
 EXTRAPOLATION_RATIO = 2.5
 ENVELOPE_FACTOR = 1.25
@@ -281,8 +281,7 @@ def _beyond(q: np.ndarray, robot: Robot, unc: ModelUncertainty) -> str:
     q = unc.turned(q, robot.periodic)
     parts = []
     for j in np.flatnonzero(np.any((q < unc.lower) | (q > unc.upper), axis=0)):
-        turns = robot.joint_types[j] == "revolute" and not robot.periodic[j]  # a multi-turn motor: revolutions
-        k, u = (1 / (2 * np.pi), "rev") if turns else (DEG, "deg") if robot.joint_types[j] == "revolute" else (MM, "mm")
+        u, k = joint_shown(robot.joint_types, robot.periodic)[j]  # a multi-turn motor in revolutions
         parts.append(f"{robot.joint_names[j]} at {q[:, j].min() * k:.1f}..{q[:, j].max() * k:.1f} {u} (calibrated on "
                      f"{unc.lower[j] * k:.1f}..{unc.upper[j] * k:.1f} {u})")
     return ", with " + "; ".join(parts) if parts else ", inside the training joint ranges"

@@ -305,7 +305,7 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
     the predicted σ and where the model extrapolates (``uncertainty``, from the calibration record), and the
     likely cause of an error far above the training error; the JSON payload and the lines to print."""
     meas = read(args, r, path)
-    how = kincal.identify.REGISTERED if not args.same_frame else kincal.identify.AS_CALIBRATED if record else AS_GIVEN
+    how = REFITTED if not args.same_frame else kincal.identify.AS_CALIBRATED if record else AS_GIVEN
     model = r if args.same_frame else kincal.identify.refit_frame(r, meas)
     stats = kincal.evaluate(model, meas, uncertainty=uncertainty)
     value = (record or {}).get("training_error")  # the mean error on the training data (m); 0 when unknown
@@ -324,6 +324,7 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
             "nominal_registration": registered or None, "cause": cause or None}, texts
 
 
+REFITTED = "frame re-registered to these data, kinematics fixed"  # the one model evaluate judges (the nominal: its own)
 AS_GIVEN = "frame as the file gives it: it has no calibration record, its base frame is taken for the measurement frame"
 FRAME_GAIN = 2.0  # --same-frame on a file without a record: a registration this many times better says why
 

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
 
 from .._atomic import write_text_atomic
-from ..units import FINE, MM
+from ..units import MM, SHOWN
 from .changes import calibrations, changed_parameters
 from .records import Record, parse_time
 
@@ -35,7 +35,8 @@ def _grid(n: int) -> int:
 def history_figure(records: Sequence[tuple[int, Record]], parameters: Sequence[str] | None = None) -> "Figure":
     """The history plot of one robot: its parameters, position errors and events on one time axis.
 
-    A panel per parameter shows its value minus the first calibration's (mm, mrad or ‰) with the ±σ band
+    A panel per parameter shows its value minus the first calibration's (mm, deg or %, as ``kincal history``
+    lists the differences) with the ±σ band
     (no band where σ is unknown: the value was held); a panel of the mean position errors (mm) shows
     each calibration's held-out mean (its training mean without held-out data), each evaluation's and
     check's; events are dashed vertical lines, with their note on the error panel. matplotlib is
@@ -76,8 +77,8 @@ def history_figure(records: Sequence[tuple[int, Record]], parameters: Sequence[s
         for ax in [*panels, errors]:
             _events(ax, records, label=ax is errors)
             ax.margins(x=0.05)
-            ax.tick_params(labelbottom=ax is errors)  # one time axis, at the bottom
-        _dates(errors)
+            _dates(ax)
+            ax.tick_params(labelbottom=True)  # each panel its dates (shared axes hide all but the last's)
         name = records[0][1].identity.name if records else ""
         fig.suptitle(f"history of {name}\neach parameter minus its first calibrated value (band ±1σ); position "
                      f"errors; events (dashed)", fontsize=10)
@@ -89,7 +90,7 @@ def _parameter_panel(ax: Any, records: Sequence[tuple[int, Record]], name: str) 
     is unknown: the value was held)."""
     cals = [r for _, r in calibrations(records) if name in r.parameters]
     kind = cals[0].kinds[name] if cals else "length"
-    unit, factor = FINE[kind]
+    unit, factor = SHOWN[kind]  # the unit kincal history lists the differences in
     x = [parse_time(r.time) for r in cals]
     y = [(r.parameters[name] - cals[0].parameters[name]) * factor for r in cals]
     s = [(r.sigmas.get(name) or 0.0) * factor for r in cals]

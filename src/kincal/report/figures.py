@@ -9,14 +9,17 @@ from __future__ import annotations
 import io
 import os
 import re
+import textwrap
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
-from ..units import DEG, MM
+from ..ties import order_with_ties
+from ..units import MM, joint_shown
 
 if TYPE_CHECKING:
     from matplotlib.typing import RcKeyType
@@ -113,9 +116,34 @@ def _axes(width: float, height: float, **kw) -> tuple[Figure, Any]:
     return fig, fig.add_subplot(**kw)
 
 
+def legend_below(fig: Figure, handles: list | None = None, labels: list | None = None, ncols: int = 3) -> None:
+    """The figure's one legend, below its axes: outside every axes, so it covers no plotted point or bar.
+
+    ``handles`` and ``labels`` default to the labelled artists of all its axes, a label once (the first
+    artist that has it). The figure must use the constrained layout, which makes room for it.
+    """
+    if handles is None or labels is None:
+        found: dict[str, Any] = {}
+        for ax in fig.axes:
+            for handle, label in zip(*ax.get_legend_handles_labels()):
+                found.setdefault(label, handle)
+        handles, labels = list(found.values()), list(found)
+    if labels:
+        fig.legend(handles, labels, loc="outside lower center", ncols=min(ncols, len(labels)), fontsize=8,
+                   frameon=False)
+
+
+def error_of(sets: list[PoseSet], model: str = "the model") -> str:
+    """What the sets' ``after`` errors are, for the figures' titles: "after calibration" when some set has the
+    nominal model's errors beside them (a calibration), else "of <model>" (one model evaluated: nothing says it
+    was calibrated)."""
+    return "after calibration" if any(s.before is not None for s in sets) else f"of {model}"
+
+
 @_styled
-def per_pose(sets: list[PoseSet]) -> Figure:
-    """Error norm of every pose, before and after, in file order (log scale: mm to µm)."""
+def per_pose(sets: list[PoseSet], what: str = "after calibration") -> Figure:
+    """Error norm of every pose in file order (log scale: mm to µm): before and after calibration, or of the one
+    model evaluated (``what``: :func:`error_of`)."""
     fig = _figure(9.0, 2.6 * len(sets))
     for k, s in enumerate(sets):
         ax = fig.add_subplot(len(sets), 1, k + 1)
@@ -123,30 +151,32 @@ def per_pose(sets: list[PoseSet]) -> Figure:
         if s.before is not None:
             ax.semilogy(x, np.linalg.norm(s.before, axis=1) * MM, ".", ms=3, color=COLOURS["before"],
                         label="before (nominal model, frame and target point registered)", rasterized=True)
-        ax.semilogy(x, s.after_norm * MM, ".", ms=3, color=s.color,
-                    label="after calibration" if s.before is not None else "model", rasterized=True)
-        ax.set(title=f"{s.title} poses ({len(x)}): position error per pose", xlabel="pose (file order)",
-               ylabel="error (mm)")
-        ax.legend(loc="upper right", fontsize=8)
+        ax.semilogy(x, s.after_norm * MM, ".", ms=3, color=s.color, rasterized=True,
+                    label=f"{s.title}: {what}" if s.before is not None else None)
+        error = "position error" if s.before is not None else f"position error {what}"
+        ax.set(title=f"{s.title} poses ({len(x)}): {error} per pose", xlabel="pose (file order)", ylabel="error (mm)")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True, steps=[1, 2, 5, 10]))  # poses are counted
+    legend_below(fig)
     return fig
 
 
 @_styled
-def histogram(sets: list[PoseSet]) -> Figure:
+def histogram(sets: list[PoseSet], what: str = "after calibration") -> Figure:
+    """The distribution of the position error (``what``: :func:`error_of`), a set's share of poses per bin."""
     fig, ax = _axes(4.6, 3.0)
     top = max(float(s.after_norm.max()) for s in sets) * MM
     bins = np.linspace(0.0, top * 1.02 if top > 0 else 1.0, 31)
     for s in sets:
         ax.hist(s.after_norm * MM, bins=bins.tolist(), alpha=0.6, color=s.color, label=s.title,
                 weights=np.full(len(s.rows), 100.0 / len(s.rows)))
-    ax.set(title="distribution of the error after calibration", xlabel="position error (mm)", ylabel="poses (%)")
-    ax.legend(fontsize=8)
+    ax.set(title=f"distribution of the error {what}", xlabel="position error (mm)", ylabel="poses (%)")
+    legend_below(fig)
     return fig
 
 
 @_styled
-def per_axis(sets: list[PoseSet]) -> Figure:
-    """Box plots of the error per axis after calibration: one box per set (its colour, named in the
+def per_axis(sets: list[PoseSet], what: str = "after calibration") -> Figure:
+    """Box plots of the error per axis (``what``: :func:`error_of`): one box per set (its colour, named in the
     legend) beside each other at x, y and z."""
     fig, ax = _axes(4.6, 3.0)
     k = len(sets)
@@ -157,50 +187,107 @@ def per_axis(sets: list[PoseSet]) -> Figure:
         patch.set(facecolor=s.color, alpha=0.5)
     ax.set_xticks([a * (k + 1) + (k + 1) / 2 for a in range(3)], ["x", "y", "z"])
     if k > 1:
-        ax.legend(parts["boxes"][:k], [s.title for s in sets], fontsize=7)
-    ax.set(title="error per axis after calibration", ylabel="measured − model (mm)")
+        legend_below(fig, parts["boxes"][:k], [s.title for s in sets])
+    ax.set(title=f"error per axis {what}", ylabel="measured − model (mm)")
     return fig
 
 
 @_styled
-def vs_joints(sets: list[PoseSet], joint_names, joint_types) -> Figure:
-    """Error after calibration against each joint value: gravity sag, gear and encoder errors show here."""
+def vs_joints(sets: list[PoseSet], joint_names, units, what: str = "after calibration") -> Figure:
+    """The error (``what``: :func:`error_of`) against each joint value, in the joint's ``units`` ((unit, factor
+    from SI) per joint, :func:`kincal.units.joint_shown`: deg, mm, rev for a leg's motor): gravity sag, gear and
+    encoder errors show here."""
     n = len(joint_names)
     cols = min(n, 3)
     rows = -(-n // cols)
     fig = _figure(3.2 * cols, 2.4 * rows)
     for j in range(n):
         ax = fig.add_subplot(rows, cols, j + 1)
-        scale, unit = (DEG, "deg") if joint_types[j] == "revolute" else (MM, "mm")
+        unit, scale = units[j]
         for s in sets:
             ax.plot(s.q[:, j] * scale, s.after_norm * MM, ".", ms=3, color=s.color, label=s.title,
                     rasterized=True)
         ax.set(xlabel=f"{joint_names[j]} ({unit})", ylabel="error (mm)")
-    fig.axes[0].legend(fontsize=7)
-    fig.suptitle("error after calibration against each joint")
+    legend_below(fig)
+    fig.suptitle(f"error {what} against each joint")
     return fig
 
 
 @_styled
-def workspace(sets: list[PoseSet], frame: str = "the training data's frame") -> Figure:
-    """Measured positions in three projections (in ``frame``, for the title), coloured by the error
-    after calibration; outliers circled and named by input row."""
+def workspace(sets: list[PoseSet], frame: str = "the training data's frame", what: str = "after calibration") -> Figure:
+    """Measured positions in three projections (in ``frame``, for the title), coloured by the error (``what``:
+    :func:`error_of`); outliers circled, the ``NAMED`` largest named by input row inside the axes, and all
+    listed under the figure. The title keys the markers of training and held-out data when both are shown."""
     fig = _figure(11.0, 3.6)
     all_err = np.concatenate([s.after_norm for s in sets]) * MM
     vmax = float(np.percentile(all_err, 99)) if all_err.size else 1.0
+    where, names = _outliers(sets)
+    everything = np.concatenate([s.xyz for s in sets]) * MM
     for k, (a, b) in enumerate(((0, 1), (0, 2), (1, 2))):
         ax = fig.add_subplot(1, 3, k + 1)
         for s in sets:
             sc = ax.scatter(s.xyz[:, a] * MM, s.xyz[:, b] * MM, c=s.after_norm * MM, s=8, cmap="viridis",
                             vmin=0.0, vmax=vmax, marker="o" if s.label == "training" else "^", rasterized=True)
-            for r, p in zip(s.rows[s.outliers], s.xyz[s.outliers]):
-                ax.scatter(p[a] * MM, p[b] * MM, s=80, facecolors="none", edgecolors="red", linewidths=1.2)
-                ax.annotate(f"row {r}", (p[a] * MM, p[b] * MM), xytext=(4, 4), textcoords="offset points",
-                            color="red", fontsize=8)
+        if len(where):
+            ax.scatter(where[:, a], where[:, b], s=80, facecolors="none", edgecolors="red", linewidths=1.2)
+        _name_outliers(ax, everything[:, [a, b]], where[:NAMED][:, [a, b]], names[:NAMED])
         ax.set(xlabel=f"{'xyz'[a]} (mm)", ylabel=f"{'xyz'[b]} (mm)", aspect="equal", adjustable="datalim")
-    fig.colorbar(sc, ax=fig.axes, label="error after (mm)", shrink=0.9)
-    fig.suptitle(f"workspace ({frame}): o training, ^ held-out; red circles: outliers")
+    fig.colorbar(sc, ax=fig.axes, label=f"error {what} (mm)", shrink=0.9)
+    kinds = {s.label == "training" for s in sets}
+    key = ["o training, ^ held-out"] if len(kinds) == 2 else []
+    key += [f"red circles: {len(names)} outlier{'s' if len(names) > 1 else ''}"] if names else []
+    fig.suptitle(f"workspace ({frame})" + (": " + "; ".join(key) if key else ""))
+    if len(names) > NAMED:
+        listed = ", ".join(names[:LISTED]) + (f" and {len(names) - LISTED} more" if len(names) > LISTED else "")
+        fig.supxlabel(textwrap.fill(f"outliers by error, largest first (the first {NAMED} named): {listed}", 190),
+                      fontsize=8)
+    _merge_names(fig)  # once laid out with the caption
     return fig
+
+
+NAMED = 3  # outliers the workspace names by row beside their circle (the largest errors)
+LISTED = 60  # outliers its caption lists
+
+
+def _outliers(sets: list[PoseSet]) -> tuple[np.ndarray, list[str]]:
+    """The outliers of all sets, largest error first (ties: in the sets' order): positions (K, 3) mm and names
+    ("row 86"; a held-out set's with its file or label)."""
+    where = np.concatenate([s.xyz[s.outliers] for s in sets]) * MM
+    error = np.concatenate([s.after_norm[s.outliers] for s in sets])
+    names = [f"row {r}" if s.label == "training" else f"{s.name or s.label} row {r}" for s in sets
+             for r in s.rows[s.outliers]]
+    order = order_with_ties(error) if len(error) else []
+    return where[order].reshape(-1, 3), [names[i] for i in order]
+
+
+def _name_outliers(ax: Any, points: np.ndarray, where: np.ndarray, names: list[str]) -> None:
+    """Name outliers at ``where`` (K, 2) in a panel of ``points`` (N, 2), each name written from its point towards
+    the points' middle, so that it stays inside the axes; :func:`_merge_names` joins names that overlap."""
+    middle = (points.min(axis=0) + points.max(axis=0)) / 2.0 if len(points) else np.zeros(2)
+    for p, name in zip(where, names):
+        right, up = p[0] <= middle[0], p[1] <= middle[1]
+        ax.annotate(name, tuple(p), xytext=(5 if right else -5, 5 if up else -5), textcoords="offset points",
+                    ha="left" if right else "right", va="bottom" if up else "top", color="red", fontsize=8,
+                    gid="outlier", bbox={"boxstyle": "square,pad=0.1", "facecolor": "white", "alpha": 0.7,
+                                         "edgecolor": "none"})  # legible over the points
+
+
+def _merge_names(fig: Figure) -> None:
+    """Join outlier names that overlap as drawn into the first one's ("rows 86, 91"), in each axes: the layout
+    is drawn once (text sizes do not depend on the resolution it is saved at)."""
+    fig.draw_without_rendering()
+    for ax in fig.axes:
+        kept: list[tuple[Any, list[str]]] = []
+        for label in [t for t in ax.texts if t.get_gid() == "outlier"]:
+            box = label.get_window_extent()
+            home = next((k for k in kept if k[0].get_window_extent().overlaps(box)), None)
+            if home is None:
+                kept.append((label, [label.get_text()]))
+                continue
+            home[1].append(label.get_text())
+            label.remove()
+            rows = all(n.startswith("row ") for n in home[1])
+            home[0].set_text("rows " + ", ".join(n[4:] for n in home[1]) if rows else "; ".join(home[1]))
 
 
 @_styled
@@ -220,5 +307,7 @@ def correlation(names, corr: np.ndarray) -> Figure:
 def pose_figures(sets: list[PoseSet], robot, frame: str = "the training data's frame") -> dict:
     """The five figures of pose sets by name: errors per pose, distribution, per axis, against the
     joints of ``robot``, in the workspace (``frame``, for its title)."""
-    return {"per_pose": per_pose(sets), "histogram": histogram(sets), "per_axis": per_axis(sets),
-            "vs_joints": vs_joints(sets, robot.joint_names, robot.joint_types), "workspace": workspace(sets, frame)}
+    what = error_of(sets, robot.name)
+    return {"per_pose": per_pose(sets, what), "histogram": histogram(sets, what), "per_axis": per_axis(sets, what),
+            "vs_joints": vs_joints(sets, robot.joint_names, joint_shown(robot.joint_types, robot.periodic), what),
+            "workspace": workspace(sets, frame, what)}

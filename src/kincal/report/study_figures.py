@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.font_manager import FontProperties
 from matplotlib.patches import Patch
 
 from ..identify.positions import EXACT, e_statistics
 from ..units import MM
-from .figures import _axes, _figure, _styled
+from .figures import _axes, _figure, _styled, legend_below
 
 DESIGN_COLOURS = {"random": "#9a9a9a", "full-parameter optimised": "#1f77b4",
                   "separated-parameter optimised": "#d62728", "before calibration": "#555555"}
@@ -42,12 +43,29 @@ def pose_count(curve: dict, m: int) -> Figure:
     return fig
 
 
+def eta_range(values, clip: float = -100.0) -> tuple[float, float]:
+    """The η axis (%) for ``values`` (NaN: not identifiable): from a little below the lowest (at most down to
+    ``clip`` less a margin) to a little above the highest or 100 %, so that η of 97-100 % differ visibly.
+
+    >>> eta_range([97.02, 99.5, 100.0])
+    (96.57, 100.3)
+    >>> eta_range([-250.0, 90.0])  # cut at -100 %: the cut bars are marked
+    (-130.0, 120.0)
+    """
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    low = max(float(v.min()), clip) if v.size else 0.0
+    high = max(float(v.max()), 100.0) if v.size else 100.0
+    span = max(high - low, 1.0)
+    return round(low - 0.15 * span, 2), round(high + 0.1 * span, 2)
+
+
 @_styled
 def eta_bars(eta: dict, names: list[str], stand_ins=(), clip: float = -100.0) -> Figure:
-    """Fig. 8: identification accuracy η per parameter and design (bars below ``clip`` are cut and
-    marked; ``stand_ins``, kept parameters that carry dependent ones, are hatched: their η against
-    their own error alone is not their accuracy)."""
-    fig, ax = _axes(max(6.0, 0.38 * len(names)), 3.4)
+    """Fig. 8: identification accuracy η per parameter and design, the axis from the values (:func:`eta_range`:
+    bars below ``clip`` are cut and marked; ``stand_ins``, kept parameters that carry dependent ones, are hatched:
+    their η against their own error alone is not their accuracy)."""
+    fig, ax = _axes(max(6.0, 0.38 * len(names)), 3.6)
     designs = list(eta)
     width = 0.8 / len(designs)
     x = np.arange(len(names))
@@ -61,10 +79,10 @@ def eta_bars(eta: dict, names: list[str], stand_ins=(), clip: float = -100.0) ->
         for i in np.flatnonzero(v < clip):
             ax.annotate(f"{v[i]:.0f}", (pos[i], clip), fontsize=6, rotation=90, va="bottom", ha="center")
     ax.set_xticks(x, names, rotation=60, ha="right", fontsize=7)
-    ax.set(ylabel="η (%)", ylim=(clip - 5, 110),
-           title="Identification accuracy η per parameter (Fig. 8; hatched: stands for a combination; "
-                 "no bar: not identifiable)")
-    ax.legend(loc="lower left", fontsize=7)
+    ax.set(ylabel="η (%)", ylim=eta_range([eta[d].get(n, np.nan) for d in designs for n in names], clip),
+           title="Identification accuracy η per parameter (Fig. 8)\nhatched: stands for a combination; "
+                 "no bar: not identifiable")
+    legend_below(fig)
     return fig
 
 
@@ -88,14 +106,24 @@ def validation_points(errors: dict) -> Figure:
     top.set(ylabel="e (mm)", title="Error at the validation points (Fig. 12): before calibration")
     bottom.set(xlabel="validation point", ylabel="e (mm)", title="after calibration")
     if len(exact) < len(errors) - 1:
-        bottom.legend(fontsize=7)
+        legend_below(fig, *bottom.get_legend_handles_labels())
     return fig
 
 
+def _note(fig: Figure, text: str) -> None:
+    """A note under the figure: the title of its legend below the axes (:func:`legend_below`), else its x label
+    (the two would share the bottom margin and overlap)."""
+    if fig.legends:
+        fig.legends[0].set_title(text, prop=FontProperties(size=6))
+    elif text:
+        fig.supxlabel(text, fontsize=6)
+
+
 @_styled
-def validation_summary(errors: dict) -> Figure:
+def validation_summary(errors: dict, note: str = "") -> Figure:
     """Fig. 13: max |e|, mean |e| and std e over the validation points, before calibration and per
-    model after; values below 1 nm (no noise, exact model) are round-off, drawn as a note, not bars."""
+    model after; values below 1 nm (no noise, exact model) are round-off, drawn as a note, not bars. ``note``:
+    under the figure (the protocol), set before the top of the axes leaves room for the bars' labels."""
     fig, ax = _axes(6.4, 3.4)
     stats = e_statistics(errors)
     x = np.arange(3)
@@ -113,8 +141,25 @@ def validation_summary(errors: dict) -> Figure:
     ax.set(yscale="log", xlim=(-0.5, 2.5), ylim=(min(shown) / 4, max(shown) * 2.5))
     ax.set_xticks(x, ["max |e|", "mean |e|", "std e"])
     ax.set(ylabel="mm (log scale)", title="Validation on the 60-point grid, before and after calibration (Fig. 13)")
-    ax.legend(handles=[Patch(color=DESIGN_COLOURS.get(n, "#999999"), label=n) for n in stats], fontsize=7)
+    legend_below(fig, [Patch(color=DESIGN_COLOURS.get(n, "#999999")) for n in stats], list(stats), ncols=2)
+    _note(fig, note)
+    _room_above(ax, [t for t in ax.texts if t.get_text() != "< 1 nm"])
     return fig
+
+
+def _room_above(ax, labels: list) -> None:
+    """Raise the top of a log axes until the labels written upwards from their data points (va "bottom") end
+    below it: the labels' heights do not depend on the limits, so the top follows in closed form from them
+    and the axes' height (as laid out) with one layout."""
+    fig = ax.figure
+    fig.draw_without_rendering()
+    height = ax.get_window_extent().height
+    low, high = (np.log10(v) for v in ax.get_ylim())
+    need = high - low
+    for label in labels:
+        share = (label.get_window_extent().height + 5.0 * fig.dpi / 72.0) / height  # 5 pt clear of the frame
+        need = max(need, (np.log10(label.xy[1]) - low) / (1.0 - share))
+    ax.set_ylim(10.0 ** low, 10.0 ** (low + need))
 
 
 @_styled
@@ -129,7 +174,7 @@ def gcn_against_poses(curve: dict) -> Figure:
                 label="raw Jacobian in mm and rad (columns not scaled,\nunlike the separation tables S1, S2, ...)")
     ax.set(xlabel="number of poses", ylabel="GCN (cond / m), mm and rad",
            title=f"GCN of the separated model ({len(curve['parameters'])} parameters) against the poses (Fig. 5)")
-    ax.legend(fontsize=7, loc="upper right")
+    legend_below(fig)
     return fig
 
 
@@ -169,13 +214,14 @@ def guo2024_figures(study) -> dict:
     figs = {"ide-convergence": ide_convergence(study.histories), "pose-count": pose_count(study.curve, study.m),
             "eta": eta_bars(chosen, list(study.true_errors), stand_ins),
             "validation-points": validation_points(study.point_errors),
-            "validation-summary": validation_summary(study.point_errors), "gcn": gcn_against_poses(study.gcn_curve),
+            "validation-summary": validation_summary(study.point_errors, f"first repetition; {study.protocol_text()}"),
+            "gcn": gcn_against_poses(study.gcn_curve),
             "design-positions": design_positions(study.positions)}
     index = "the raw Jacobian in mm and rad" if study.units == "paper" else "scaled columns"
     for name in ("ide-convergence", "pose-count", "design-positions"):  # each figure states its protocol
-        figs[name].supxlabel(f"{study.m}-pose designs, comprehensive index on {index}", fontsize=6)
-    for name in ("eta", "validation-points", "validation-summary"):
-        figs[name].supxlabel(f"first repetition; {study.protocol_text()}", fontsize=6)
+        _note(figs[name], f"{study.m}-pose designs, comprehensive index on {index}")
+    for name in ("eta", "validation-points"):
+        _note(figs[name], f"first repetition; {study.protocol_text()}")
     return figs
 
 
