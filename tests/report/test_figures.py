@@ -1,4 +1,5 @@
 """The figures of calibrate/evaluate --plot and the report, as drawn: legends beside the data, never over it."""
+import re
 import matplotlib
 import numpy as np
 import pytest
@@ -108,7 +109,14 @@ def test_one_model_evaluated_is_titled_as_such(random, capsys, tmp_path):
     assert not [t for ts in words.values() for t in ts if "after calibration" in t or "after (" in t]
     assert "distribution of the error of ur5" in words["histogram"]
     assert "error per axis of ur5" in words["per_axis"] and "error of ur5 against each joint" in words["vs_joints"]
-    assert words["per_pose"][0] == "held-out poses (20): position error of ur5 per pose"
+    # the evaluated file by its name (it said "held-out", also for a calibration's own training file)
+    assert words["per_pose"][0] == "ur5_random.csv poses (20): position error of ur5 per pose"
+    fig = figs["per_pose"]
+    fig.canvas.draw()
+    ticks = [t.get_text() for t in fig.axes[0].get_yticklabels(minor=True) + fig.axes[0].get_yticklabels() if
+             t.get_text()]
+    # the log axis in mm as plain numbers (it read 6×10⁻¹)
+    assert "1" in ticks and all(re.fullmatch(r"\d+(\.\d+)?", t) for t in ticks), ticks
     assert words["workspace"][0] == "workspace (this file's measurement frame)"  # no outlier, no training
     assert "error of ur5 (mm)" in words["workspace"] and "model" not in words["per_pose"]
     assert kincal.cli.main(["evaluate", "ur5", str(DATA / "ur5_random.csv"), "--length-unit", "mm", "--angle-unit",

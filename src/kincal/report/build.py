@@ -378,7 +378,9 @@ def evaluation_figures(robot, meas: Measurements) -> dict:
     """
     after = meas.xyz - robot.forward(meas.q)
     z = robust_z(np.linalg.norm(after, axis=1))
-    s = F.PoseSet("held-out", meas.rows, meas.q, meas.xyz, None, after, z > Thresholds().outlier_limit(len(z)))
+    label = os.path.basename(str(meas.source)) if meas.source else "evaluated"  # its file: training or held out
+    s = F.PoseSet(label, meas.rows, meas.q, meas.xyz, None, after, z > Thresholds().outlier_limit(len(z)),
+                  colour=F.COLOURS["held-out"])
     return F.pose_figures([s], robot, "this file's measurement frame")
 
 

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import LogFormatter, MaxNLocator
 
 from ..ties import order_with_ties
 from ..units import MM, joint_shown
@@ -140,6 +140,13 @@ def error_of(sets: list[PoseSet], model: str = "the model") -> str:
     return "after calibration" if any(s.before is not None for s in sets) else f"of {model}"
 
 
+class _PlainLog(LogFormatter):
+    """A log axis's labels as plain numbers (0.06, 1), on the ticks matplotlib's log formatter labels."""
+
+    def _num_to_string(self, x, vmin, vmax):
+        return f"{x:g}"
+
+
 @_styled
 def per_pose(sets: list[PoseSet], what: str = "after calibration") -> Figure:
     """Error norm of every pose in file order (log scale: mm to µm): before and after calibration, or of the one
@@ -156,6 +163,8 @@ def per_pose(sets: list[PoseSet], what: str = "after calibration") -> Figure:
         error = "position error" if s.before is not None else f"position error {what}"
         ax.set(title=f"{s.title} poses ({len(x)}): {error} per pose", xlabel="pose (file order)", ylabel="error (mm)")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True, steps=[1, 2, 5, 10]))  # poses are counted
+        ax.yaxis.set_major_formatter(_PlainLog())  # mm as numbers (0.6, not 6×10⁻¹)
+        ax.yaxis.set_minor_formatter(_PlainLog(labelOnlyBase=False, minor_thresholds=(2, 0.4)))
     legend_below(fig)
     return fig
 
