@@ -143,7 +143,8 @@ class Guo2024Study:
 
     def to_dict(self) -> dict:
         """The study as JSON-ready values (SI: m, rad; η in %): "validation" holds the statistics of the 3-D
-        errors, "validation_e" the printed table's of e (max |e|, mean |e|, std e)."""
+        errors, "validation_e" the printed table's of e (the largest and the mean absolute e, and the standard
+        deviation of e)."""
         return {"separation": self.separation.to_dict(), "design_params": {k: list(v) for k, v in self.design_params.items()},
                 "design_values": self.design_values, "eta_percent": self.eta, "identified_errors": self.identified,
                 "combinations": self.combinations, "protocol": self.protocol, "units": self.units,
