@@ -32,8 +32,8 @@ def changed_parameters(records: Sequence[tuple[int, Record]], parameters: Sequen
     """The parameters a history plot shows: those the steps list as their largest differences, or those asked for.
 
     Without ``parameters``: the robot parameters :func:`largest` lists for some step between consecutive
-    calibrations (up to ``LISTED`` per step, the largest |z| = |Δ|/σ first), the measurement frame left out
-    (it moves with the tracker), in the order of the models.
+    calibrations (up to ``LISTED`` per step, the largest z = Δ/σ in absolute value first), the measurement frame
+    left out (it moves with the tracker), in the order of the models.
 
     Parameters
     ----------
@@ -172,7 +172,8 @@ def moves(records: Sequence[tuple[int, Record]]) -> list[Move]:
 
 def largest(records: Sequence[tuple[int, Record]]) -> list[Move]:
     """The parameter differences a history lists: per step between consecutive calibrations the ``LISTED``
-    largest |z| of :func:`moves` (a difference without σ after those with one), the measurement frame left out.
+    largest z in absolute value of :func:`moves` (a difference without σ after those with one), the measurement
+    frame left out.
 
     Parameters
     ----------
