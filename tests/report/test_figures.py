@@ -245,3 +245,17 @@ def test_sensitivity_plot_says_per_which_unit_and_shows_equal_curves():
     assert len(styles) == 3  # Δx drawn over Δy is still seen
     assert lines[0].get_markersize() > lines[1].get_markersize() and lines[0].get_markerfacecolor() == "none"
     assert covered(fig) == 0
+
+
+def test_the_before_legend_says_how_the_nominal_model_was_registered():
+    """With --base fixed the "before" model keeps the frame as given: the per-pose legend said "frame and target
+    point registered" all the same, unlike the CLI and the report's table (before_registration's words)."""
+    ur5 = kincal.load_robot("ur5")
+    meas = kincal.simulate(kincal.perturb(ur5, seed=1).with_params({"base.x": 0.0}), ur5.sample_joints(40, seed=2),
+                           15e-6, seed=3)
+    for base, words in (("fixed", "target point registered, frame as given (--base fixed)"),
+                        ("estimate", "frame and target point registered")):
+        res = kincal.calibrate(ur5, meas, base=base, diagnose=False)
+        assert res.before_registration() == words
+        legend = texts(figure_set(res)["per_pose"])
+        assert f"before (nominal model, {words})" in legend, legend

@@ -386,7 +386,7 @@ def evaluation_figures(robot, meas: Measurements) -> dict:
 
 def _make_figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
     ok = np.array([np.isfinite(result.std[n]) for n in result.names])
-    return {**F.pose_figures(sets, result.robot), "correlation": F.correlation(
+    return {**F.pose_figures(sets, result.robot, before=result.before_registration()), "correlation": F.correlation(
         [n for n, k in zip(result.names, ok) if k], result.correlation[np.ix_(ok, ok)])}
 
 

@@ -148,16 +148,17 @@ class _PlainLog(LogFormatter):
 
 
 @_styled
-def per_pose(sets: list[PoseSet], what: str = "after calibration") -> Figure:
-    """Error norm of every pose in file order (log scale: mm to µm): before and after calibration, or of the one
-    model evaluated (``what``: :func:`error_of`)."""
+def per_pose(sets: list[PoseSet], what: str = "after calibration",
+             before: str = "frame and target point registered") -> Figure:
+    """Error norm of every pose in file order (log scale: mm to µm): before and after calibration (``before``: how
+    the nominal model was registered), or of the one model evaluated (``what``: :func:`error_of`)."""
     fig = _figure(9.0, 2.6 * len(sets))
     for k, s in enumerate(sets):
         ax = fig.add_subplot(len(sets), 1, k + 1)
         x = np.arange(1, len(s.rows) + 1)
         if s.before is not None:
             ax.semilogy(x, np.linalg.norm(s.before, axis=1) * MM, ".", ms=3, color=COLOURS["before"],
-                        label="before (nominal model, frame and target point registered)", rasterized=True)
+                        label=f"before (nominal model, {before})", rasterized=True)
         ax.semilogy(x, s.after_norm * MM, ".", ms=3, color=s.color, rasterized=True,
                     label=f"{s.title}: {what}" if s.before is not None else None)
         error = "position error" if s.before is not None else f"position error {what}"
@@ -313,10 +314,12 @@ def correlation(names, corr: np.ndarray) -> Figure:
     return fig
 
 
-def pose_figures(sets: list[PoseSet], robot, frame: str = "the training data's frame") -> dict:
+def pose_figures(sets: list[PoseSet], robot, frame: str = "the training data's frame",
+                 before: str = "frame and target point registered") -> dict:
     """The five figures of pose sets by name: errors per pose, distribution, per axis, against the
-    joints of ``robot``, in the workspace (``frame``, for its title)."""
+    joints of ``robot``, in the workspace (``frame``, for its title); ``before``: how the nominal model was
+    registered to the data, in the CLI's words."""
     what = error_of(sets, robot.name)
-    return {"per_pose": per_pose(sets, what), "histogram": histogram(sets, what), "per_axis": per_axis(sets, what),
+    return {"per_pose": per_pose(sets, what, before), "histogram": histogram(sets, what), "per_axis": per_axis(sets, what),
             "vs_joints": vs_joints(sets, robot.joint_names, joint_shown(robot.joint_types, robot.periodic), what),
             "workspace": workspace(sets, frame, what)}
