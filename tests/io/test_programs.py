@@ -348,7 +348,9 @@ def test_a_program_with_nothing_to_compensate_or_in_another_language(tmp_path, c
     (tmp_path / "run.src").write_text(krl)
     assert main(["compensate", str(tmp_path / "kuka.yaml"), str(tmp_path / "run.src"), "--program", "krl", "-o",
                  str(tmp_path / "run_cal.src")]) == 0
-    assert "0 of 0 literal targets" in capsys.readouterr().out and (tmp_path / "run_cal.src").read_text() == krl
+    said = capsys.readouterr().out
+    assert "0 of 0 literal targets" in said and (tmp_path / "run_cal.src").read_text() == krl
+    assert "TCP:" not in said and "orientation:" not in said  # no target: nothing was corrected, at no TCP
     (tmp_path / "mt.mod").write_text(module)
     base = ["compensate", str(tmp_path / "abb.yaml"), str(tmp_path / "mt.mod"), "--program", "rapid", "-o",
             str(tmp_path / "mt_cal.mod")]

@@ -238,8 +238,9 @@ def _compensate_branches(args, calibrated, orientation, unseen: str) -> int:
     lines += [f"refused: {p}" for p in res.problems]
     lines += _left_lines(res)
     warned = _sigma_warnings(model, prog, res, unc)
-    lines += ([f"TCP: {carry}"] if carry else []) + ([turn.note()] if turn is not None else []) + (
-        [unseen] if unseen else []) + [f"warning: {w}" for w in warned]
+    if prog.targets:  # how targets were corrected: nothing to say of a program without any
+        lines += ([f"TCP: {carry}"] if carry else []) + ([turn.note()] if turn is not None else []) + (
+            [unseen] if unseen else []) + [f"warning: {w}" for w in warned]
     return emit(args, {"compensated": len(res.texts), "targets": len(prog.targets), "problems": list(res.problems),
                        "declared_frames": known, **_left_dict(res), "tool_carry": carry or None,
                        "output": args.output if written else None, **_orientation_from(turned, turn),
