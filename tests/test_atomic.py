@@ -5,6 +5,7 @@ import os
 import stat
 import threading
 
+import kincal
 from kincal._atomic import AtomicFile, write_text_atomic
 from kincal.cli import main
 
@@ -62,17 +63,31 @@ def _kincal():
 def test_dev_stdout_into_a_pipe_and_into_a_redirected_file(tmp_path):
     """`-o /dev/stdout | ...` ended in 'No such file or directory: /proc/.../fd/.pipe:[...]' (the temporary file
     went beside the link's target), and `-o /dev/stdout > r.txt` lost kincal's own line after the CSV (the file was
-    renamed over while the shell held it open): both now give the CSV, then the line, in that order."""
+    renamed over while the shell held it open). Both give the CSV alone on the standard output now, kincal's line
+    on the standard error (in the stream it made the file unreadable: 'row 5 has 1 fields')."""
     import subprocess
     argv = [_kincal(), "simulate", "ur5", "--poses", "3", "-o", "/dev/stdout"]
     piped = subprocess.run(argv, capture_output=True, text=True, cwd=tmp_path)
     assert piped.returncode == 0, piped.stderr
-    with open(tmp_path / "r.txt", "w") as out:
+    with open(tmp_path / "r.csv", "w") as out:
         redirected = subprocess.run(argv, stdout=out, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     assert redirected.returncode == 0, redirected.stderr
-    for text in (piped.stdout, (tmp_path / "r.txt").read_text()):
+    for text, said in ((piped.stdout, piped.stderr), ((tmp_path / "r.csv").read_text(), redirected.stderr)):
         lines = text.splitlines()
-        assert lines[0] == "j1,j2,j3,j4,j5,j6,x,y,z" and len(lines) == 5
-        assert [len(x.split(",")) for x in lines[1:4]] == [9, 9, 9]
-        assert lines[4] == "wrote 3 simulated measurements of ur5 to /dev/stdout"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.txt"]
+        assert lines[0] == "j1,j2,j3,j4,j5,j6,x,y,z" and [len(x.split(",")) for x in lines[1:]] == [9, 9, 9]
+        assert said.strip() == "wrote 3 simulated measurements of ur5 to /dev/stdout"
+    ur5 = kincal.load_robot("ur5")
+    back = kincal.read_measurements(str(tmp_path / "r.csv"), ur5)  # the file reads back as data
+    assert back.q.shape == (3, 6)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.csv"]
+
+
+def test_a_robot_file_through_the_standard_output_loads_back(tmp_path):
+    """`kincal export cal.yaml /dev/stdout > exp.yaml`: the YAML ended with export's own lines (not valid YAML)
+    while export said it was checked; now the stream holds the robot file alone, which loads as the model."""
+    import subprocess
+    with open(tmp_path / "exp.yaml", "w") as out:
+        done = subprocess.run([_kincal(), "export", "ur5", "/dev/stdout"], stdout=out, stderr=subprocess.PIPE,
+                              text=True, cwd=tmp_path)
+    assert done.returncode == 0 and "yaml written to /dev/stdout" in done.stderr
+    assert kincal.load_robot(str(tmp_path / "exp.yaml")).params == kincal.load_robot("ur5").params

@@ -46,14 +46,23 @@ def json_path_for(path: str | os.PathLike) -> Path:
     return path.with_suffix(".json") if path.suffix.lower() in (".html", ".htm") else Path(f"{path}.json")
 
 
+DATA_STREAMS: set[int] = set()  # the file descriptors of kincal's own output streams an output file was written into
+
+
+def data_on_stdout() -> bool:
+    """Whether an output file went into kincal's standard output (``-o /dev/stdout``): its messages then go to the
+    standard error, so that the data stay what a reader of the stream expects."""
+    return 1 in DATA_STREAMS
+
+
 class AtomicFile:
     """A text file written through a temporary file beside ``path``: it appears at ``path`` (renamed)
     only when :meth:`keep` was called before the ``with`` block ends; else, or on an error, the
     temporary file is removed and ``path`` is untouched. A link is followed (the file it names is replaced, the link
     kept). A path that is no regular file (``/dev/null``, a named pipe) is not renamed over (as root that would
     replace the device with a file), nor is the file kincal's own output goes to (``/dev/stdout`` redirected to a
-    file): the text is held and written into it at once when kept (into the output stream itself for the latter, so
-    what kincal prints after it follows it)."""
+    file): the text is held and written into it at once when kept (into the output stream itself for the latter;
+    what kincal says then goes to the standard error, :func:`data_on_stdout`)."""
 
     def __init__(self, path: str | os.PathLike, encoding: str = "utf-8") -> None:
         self.path, self.encoding, self._keep = Path(path), encoding, False
@@ -86,6 +95,7 @@ class AtomicFile:
                 if self._stream is not None:
                     self._stream.write(self._fh.getvalue())
                     self._stream.flush()
+                    DATA_STREAMS.add(self._stream.fileno())
                     return
                 with open(self.path, "w", newline="", encoding=self.encoding) as fh:
                     fh.write(self._fh.getvalue())

@@ -16,6 +16,7 @@ import sys
 import traceback
 
 import kincal
+from kincal._atomic import DATA_STREAMS
 
 from . import change, design, history, identify, model, parallel, report, study
 from .common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED, err, line, point, progress_lines
@@ -86,6 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     70 (internal error), 130 (Ctrl-C), 143 (SIGTERM). Outputs are written atomically, so an
     interrupted command leaves no half-written file."""
     previous = signal.signal(signal.SIGTERM, on_sigterm), signal.getsignal(signal.SIGINT)
+    DATA_STREAMS.clear()  # this command's outputs decide where its messages go (common.emit)
     try:
         parser = build_parser()
         tokens = _negative_values(parser, list(sys.argv[1:] if argv is None else argv))

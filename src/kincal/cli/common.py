@@ -13,6 +13,7 @@ import numpy as np
 from rich.console import Console
 
 import kincal
+from kincal._atomic import data_on_stdout
 from kincal._csv import open_table
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS
 
@@ -296,11 +297,13 @@ def progress_bar(args, label: str, total: int | None = None):
 
 
 def emit(args, payload: dict, text, code: int = 0) -> int:
-    """Print the result (``payload`` as JSON with --json, else ``text``); return the exit ``code``."""
+    """Print the result (``payload`` as JSON with --json, else ``text``); return the exit ``code``. To the standard
+    error when an output file went to the standard output (``-o /dev/stdout``): the data stay data."""
+    moved = data_on_stdout()
     if args.json:
-        sys.stdout.write(json.dumps(payload, indent=2, default=json_default) + "\n")
+        (sys.stderr if moved else sys.stdout).write(json.dumps(payload, indent=2, default=json_default) + "\n")
     else:  # plain text printed as it is: '[' in a parameter name is no rich markup
-        out.print(text, markup=False if isinstance(text, str) else None)
+        (err if moved else out).print(text, markup=False if isinstance(text, str) else None)
     return code
 
 
