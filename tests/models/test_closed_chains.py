@@ -636,3 +636,25 @@ def test_a_hexapods_size_is_not_judged_from_its_leg_readings(capsys, tmp_path):
                                     "--json", "-o", str(tmp_path / "s1.yaml")])
     codes = [r["code"] for r in out["verdict"]["reasons"]]
     assert "large-correction" in codes and "size" not in codes
+
+
+def test_std_joint_is_judged_against_the_joints_kind(tmp_path, capsys):
+    """--std-joint 0.4mm for the Jugglebot's legs read as motor turns was taken as 0.4 mrad of the motor (its
+    whitened RMS 4.07 against 0.93 for the same noise as 0.0056 rev); now a length is turned into the motor turn
+    through the legs' mean lead (computed here), and an angle for a slider read in metres (0.001 rev, taken as
+    6.28 mm) is refused. mrad is an angle unit too (it printed leg noise in mrad and refused 5.6mrad)."""
+    from kincal.cli import main
+    hexapod = kincal.load_robot("hexapod")
+    lead = float(np.mean(np.abs(hexapod.motor_leads)))  # m per rad
+    taken = {}
+    for given in ("0.4mm", "5.6mrad"):
+        assert main(["calibrate", "hexapod", str(JUGGLEBOT / "S1.csv"), *JUGGLE, "--residual", "joint",
+                     "--std-joint", given, "--json"]) in (0, 4)
+        taken[given] = json.loads(capsys.readouterr().out)["options"]["joint_std"]
+    assert taken == {"0.4mm": pytest.approx(0.4e-3 / lead, rel=1e-12), "5.6mrad": pytest.approx(5.6e-3, rel=1e-12)}
+    puu3 = kincal.load_robot("puu3")
+    kincal.write_measurements(tmp_path / "p.csv", kincal.simulate(puu3, puu3.sample_joints(20, seed=1), 0.0),
+                              puu3.joint_types)
+    assert main(["calibrate", "puu3", str(tmp_path / "p.csv"), "--base", "fixed", "--residual", "joint",
+                 "--std-joint", "0.001rev"]) == 1
+    assert "is an angle, but puu3's joints are read as lengths" in capsys.readouterr().err

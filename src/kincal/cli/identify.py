@@ -29,10 +29,17 @@ from .report import add_session_flags, data_record, nominal_model, save_figures,
 error_model_name = checked(lambda s: kincal.ErrorModel(s).name)  # argparse type: an error model name or auto
 
 
+class JointSigma(float):
+    """A joint reading's σ in SI (rad or m) that remembers its kind ("angle" or "length"), to be judged against
+    the robot's joints (:func:`joint_std_for`)."""
+
+    kind = "angle"
+
+
 def _joint_sigma(text: str) -> float:
-    """argparse type: a joint reading's σ with its unit (rad, deg, rev; m, mm, um), in SI (rad or m)."""
+    """argparse type: a joint reading's σ with its unit (rad, mrad, deg, rev; m, mm, um), in SI (rad or m)."""
     s = text.strip()
-    units = {**ANGLE_UNITS, **LENGTH_UNITS}
+    units = {**ANGLE_UNITS, "mrad": 1e-3, **LENGTH_UNITS}
     unit = next((u for u in sorted(units, key=len, reverse=True) if s.endswith(u)), None)
     try:
         value = float(s[:-len(unit)]) * units[unit] if unit else np.nan
@@ -41,6 +48,28 @@ def _joint_sigma(text: str) -> float:
     if not (np.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"'{text}': give the joints' reading noise, > 0, with its unit: 0.001rev, "
                                          f"0.05deg, 1e-4rad, 0.01mm")
+    sigma = JointSigma(value)
+    sigma.kind = "length" if unit in LENGTH_UNITS else "angle"
+    return sigma
+
+
+def joint_std_for(robot, sigma: float | None) -> float | None:
+    """``--std-joint`` in the units of ``robot``'s joint readings (rad or m): a length for legs read as motor turns
+    through their leads (m per rad, within 25 % of each other) turned into the turn their mean lead gives; refused
+    when its kind is not the joints' (a length for angles, an angle for lengths: taken as the other, it was 70x
+    off on the Jugglebot's legs). Joints of both kinds take the number as given (rad or m)."""
+    if not isinstance(sigma, JointSigma):
+        return sigma
+    value, revolute = float(sigma), np.asarray(robot.revolute, bool)
+    leads = np.abs(np.asarray(robot.motor_leads, float))
+    if revolute.all() and sigma.kind == "length":
+        if np.all(np.isfinite(leads)) and leads.min() > 0 and leads.max() <= 1.25 * leads.min():
+            return value / float(leads.mean())  # the motor turn that moves a leg by that length
+        raise ValueError(f"--std-joint {value * 1e3:g} mm is a length, but {robot.name}'s joints are read as angles: "
+                         f"give their reading noise as an angle (rev, deg, mrad or rad)")
+    if not revolute.any() and sigma.kind == "angle":
+        raise ValueError(f"--std-joint {value:g} rad is an angle, but {robot.name}'s joints are read as lengths: "
+                         f"give their reading noise as a length (mm, um or m)")
     return value
 
 
@@ -63,9 +92,10 @@ def add_fit_flags(s) -> None:
         s.add_argument(m["flag"], **kw)
 
 
-def fit_options(args) -> kincal.FitOptions:
+def fit_options(args, robot=None) -> kincal.FitOptions:
     """The calibrate command's options, for every kind, as the record the API takes (checked when
-    built): the fields' own flags, the verdict's limits and the error model with its payload."""
+    built): the fields' own flags, the verdict's limits and the error model with its payload; ``robot``: the
+    joints --std-joint is judged against (:func:`joint_std_for`)."""
     if args.payload and args.error_model is None:
         raise ValueError(f"--payload {args.payload:g}: only the gravity terms use it; give --error-model compliance, "
                          f"gravity-regressor or auto")
@@ -75,6 +105,8 @@ def fit_options(args) -> kincal.FitOptions:
                                    angle_refuse=a_r / DEG, tracker_noise=args.tracker_noise / MM)
     names = [f.name for f in FLAGGED]
     given: dict = {k: v for k, v in zip(names, operator.attrgetter(*names)(args)) if v is not None}  # None: a list
+    if "joint_std" in given and robot is not None:
+        given["joint_std"] = joint_std_for(robot, given["joint_std"])
     return kincal.FitOptions(**given, thresholds=thresholds, error_model=error_model)  # flag not given
 
 
@@ -102,7 +134,7 @@ def cmd_calibrate(args) -> int:
         kincal.models.yaml_io.check_robot_output(args.output)  # before any work
     robot = covariates_of(args, load_robot(args, [*args.data, *args.test],
                                            [args.output, args.residuals, *reports, args.plot, store_file(args)]))
-    options = fit_options(args)
+    options = fit_options(args, robot)
     res, tests = fit_files(args, robot, kinds, args.data, args.test, options)
     refused = res.verdict.status == "refused"
     written = bool(args.output) and (not refused or args.force)
