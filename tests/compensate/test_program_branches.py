@@ -501,3 +501,45 @@ def test_joint_targets_take_the_calibrations_move_of_the_measured_point_as_the_c
     rounding = np.einsum("nij->n", np.abs(Jp)) * np.radians(0.0005) if language == "fanuc" else np.zeros(3)
     assert (np.linalg.norm(reached - meant, axis=1) < 1e-6 + rounding).all(), np.linalg.norm(reached - meant, axis=1)
     assert np.linalg.norm(true.forward(q) @ Rt.T + tt - meant, axis=1).min() > 0.1e-3  # the calibration's worth
+
+
+def test_a_correction_past_a_joint_limit_is_named_as_such_not_as_an_unreached_branch(tmp_path):
+    """A KRL pose taught with A6 at -349.95° (0.05° inside its -350° limit) with a 152 mm tool, whose TCP the
+    calibration moves by 1 mm (the carry): the controller's joints of the target as written are those, inside the
+    limits; the real robot needs A6 at -350.64° there (a least-squares solve of its flange pose, below). Before,
+    the controller's joints were solved for the physical tool (the carried TCP), whose A6 is -350.17°, and the
+    target was refused as 'the nominal model reaches this pose, but on no branch with the target's bits'; now the
+    refusal names A6, its limit and the excess, as a targets file's does."""
+    from scipy.optimize import least_squares
+    from kincal.compensate import compensate_poses
+    from kincal.io import ROWS
+    from kincal.models.transforms import zyx_from_matrix
+    nominal = kincal.load_robot("kuka_kr6r900sixx")
+    true = kincal.perturb(nominal, seed=1)
+    q = np.radians([20, -80, 100, 25, 30, -349.95])
+    tool = np.eye(4)
+    tool[:3, 3] = [0.0, 0.0, 0.152]
+    carry = np.array([0.0, -1e-3, 0.0])  # m, flange frame: moves the flange goal so that A6 turns further back
+    p, R, _, _ = nominal.with_tool_point(np.zeros(3)).pose_and_jacobian(q[None])
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R[0], p[0]
+    T = T @ tool
+    P, (a, b, c), (s, t) = T[:3, 3] * 1e3, np.degrees(zyx_from_matrix(T[:3, :3])), ROWS["krl"](nominal, q[None])[0]
+    (tmp_path / "x.src").write_text(f"DEF x()\nLIN {{X {P[0]:.4f}, Y {P[1]:.4f}, Z {P[2]:.4f}, A {a:.5f}, "
+                                    f"B {b:.5f}, C {c:.5f}, S {s}, T {t}}}\nEND\n")
+    phys = tool.copy()
+    phys[:3, 3] += carry
+    F = T @ np.linalg.inv(phys)  # where the real flange must be
+
+    def off(x):
+        pt, Rt, _, _ = true.with_tool_point(np.zeros(3)).pose_and_jacobian(x[None])
+        return np.r_[pt[0] - F[:3, 3], Rotation.from_matrix(Rt[0] @ F[:3, :3].T).as_rotvec()]
+    need = np.degrees(least_squares(off, q, xtol=1e-15, ftol=1e-15, gtol=1e-15).x[5])
+    assert -350.7 < need < -350.6
+    res = compensate_branches(true, nominal, read_program(str(tmp_path / "x.src"), "krl"), ROWS["krl"],
+                              {"default tool": tool, "default base": np.eye(4)}, carry=carry)
+    said = f"a6 at {need:.3f} deg, past its limit -350.000 deg by {-350 - need:.3f} deg"
+    assert res.refused[0] == f"the corrected joints break the joint limits: {said}", res.refused
+    assert "no branch" not in res.refused[0]
+    csv = compensate_poses(true.with_tool_point(phys[:3, 3]), T[None, :3, 3], R, q[None])
+    assert csv.problems == (f"row 1: the command breaks the joint limits: {said}",)

@@ -45,7 +45,7 @@ from ..models.wrapped import Wrapped
 from ..models.transforms import rotation_log, rotvec_matrix
 from ..ties import first_best
 from .poses import solve_poses
-from .commands import branch_tolerance
+from .commands import branch_tolerance, past_limits
 from .taught import resolve_taught, tool_pair
 from .program import SEARCH, STARTS, ProgramCompensation, kept_joints, outside_limits, singular
 
@@ -172,7 +172,8 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     carry = np.zeros(3) if carry is None else np.asarray(carry, dtype=float)
     point = tool_pair(_poses((measured - carry)[None], np.eye(3)[None])[0], carry)  # a joint target's TCP
     goals, tools, refused = _goals(nominal, work, frames, carry=carry, point=point)
-    q_nom = _controller_joints(nominal, work, goals, rows, q0, refused)
+    held, _, _ = _goals(nominal, work, frames, side=0, carry=carry, point=point)  # as the controller holds them
+    q_nom = _controller_joints(nominal, work, held, rows, q0, refused)
     tcp_goals = _at_tcp(goals, tools)
     kept: dict[int, str] = {}
     qs = _corrected_all(model, nominal, work, (tcp_goals, tools), q_nom, rows, (refused, kept), (orientation, measured))
@@ -363,7 +364,7 @@ def _corrected_all(model: Robot, nominal: Robot, program: Program, aims, q_nom: 
         config = tuple(program.targets[k].config)
         why = ("the correction did not converge" if not converged[i] else
                "the corrected joints leave the nominal branch" if off[i] else
-               "the corrected joints break the joint limits" if outside[i] else
+               f"the corrected joints break the joint limits: {past_limits(model, q[i])}" if outside[i] else
                f"the corrected joints' configuration bits {tuple(bits[i])} differ from the target's {config}"
                + _crossed(model, q_nom[k], q[i]) if config and tuple(bits[i]) != config else "")
         tcp = tools[k][0]  # a joint target's: the measured point, where each model has it (controller, physical)

@@ -9,7 +9,7 @@ import numpy as np
 from .._frozen import freeze_arrays
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
 from ..checks import number
-from ..units import MM
+from ..units import MM, joint_shown
 from ..errors import ModelError
 from ..models.robot import Robot
 from ..models.terms import without_unread_covariates
@@ -279,6 +279,44 @@ def branch_tolerance(robot: Robot) -> np.ndarray:
     return np.where(np.isnan(lead), typed, BRANCH_TOL["prismatic"] / np.where(np.isnan(lead), 1.0, lead))
 
 
+def past_limits(robot: Robot, q: np.ndarray) -> str:
+    """Which joint of q breaks the robot's limits and by how much, in kincal's display units; '' when none does.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot (its joint limits, rad or m).
+    q : ndarray, shape (n,)
+        The joints, rad (m for a prismatic joint).
+
+    Returns
+    -------
+    str
+        The first joint past a limit: its value, the limit and the excess ('' when every joint is inside).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate.commands import past_limits
+    >>> robot = kincal.load_robot("kuka_kr6r900sixx")
+    >>> past_limits(robot, np.radians([0, -90, 90, 0, 30, -350.25]))
+    'a6 at -350.250 deg, past its limit -350.000 deg by 0.250 deg'
+    >>> past_limits(robot, np.radians([0, -90, 90, 0, 30, 0]))
+    ''
+    """
+    q = np.asarray(q, dtype=float)
+    excess = np.maximum(robot.lower - q, q - robot.upper)
+    off = np.flatnonzero(excess > 1e-12)  # within_limits' own margin
+    if not off.size:
+        return ""
+    j = int(off[0])
+    unit, f = joint_shown(robot.joint_types, robot.periodic)[j]
+    limit = robot.lower[j] if q[j] < robot.lower[j] else robot.upper[j]
+    return (f"{robot.joint_names[j]} at {q[j] * f:.3f} {unit}, past its limit {limit * f:.3f} {unit} by "
+            f"{excess[j] * f:.3f} {unit}")
+
+
 def refuse_covariates(robot: Robot) -> None:
     """ModelError for a robot that reads covariates (a thermal term's temperature): compensation solves for the
     joints alone. One whose covariates no term reads is that model without them
@@ -376,7 +414,7 @@ def _checks(robot: Robot, q: np.ndarray, residual: np.ndarray, targets: np.ndarr
                                            f"{', '.join(n for n, j in zip(names, jump[k]) if j)} away from the nominal "
                                            f"one (another arm configuration); refused")
     lim = finite & ~robot.within_limits(np.where(finite[:, None], q, 0.0))
-    yield lim, lambda k: "the command breaks the joint limits"
+    yield lim, lambda k: f"the command breaks the joint limits: {past_limits(robot, q[k])}"
     few = (f" (a robot of {robot.n_joints} joint{'s' if robot.n_joints > 1 else ''} reaches a "
            f"{'surface' if robot.n_joints == 2 else 'curve'} of points only: a target off it cannot be reached; give "
            f"points it reaches, such as the nominal model's at the commands)") if robot.n_joints < 3 else ""

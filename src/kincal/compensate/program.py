@@ -26,7 +26,7 @@ from ..models.robot import Robot
 from ..models.transforms import rotation_log, rotvec_matrix
 from ..models.ur import nearest_turns, ur_inverse, ur_lengths
 from ..ties import first_best
-from .commands import branch_tolerance
+from .commands import branch_tolerance, past_limits
 from .poses import solve_poses
 
 STARTS = 24  # spread starts of the numeric inverse when Newton from the previous joints fails
@@ -324,7 +324,8 @@ def corrected(model: Robot, p: np.ndarray, R: np.ndarray, q_nom: np.ndarray, ori
     tol = branch_tolerance(model)
     return q, ("the correction did not converge" if not sol.converged[0] else
                "the corrected joints leave the nominal branch" if (np.abs(q - q_nom) > tol).any() else
-               "the corrected joints break the joint limits" if not model.within_limits(q[None])[0] else "")
+               f"the corrected joints break the joint limits: {past_limits(model, q)}"
+               if not model.within_limits(q[None])[0] else "")
 
 
 def controller_inverse(robot: Robot, p: np.ndarray, R: np.ndarray, near: np.ndarray) -> np.ndarray | None:
