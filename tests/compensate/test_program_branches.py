@@ -543,3 +543,32 @@ def test_a_correction_past_a_joint_limit_is_named_as_such_not_as_an_unreached_br
     assert "no branch" not in res.refused[0]
     csv = compensate_poses(true.with_tool_point(phys[:3, 3]), T[None, :3, 3], R, q[None])
     assert csv.problems == (f"row 1: the command breaks the joint limits: {said}",)
+
+
+def test_a_tool_and_base_are_one_frame_under_both_their_krl_names(tmp_path):
+    """KRL names tool 1 ``TOOL_DATA[1]`` where a program sets ``$TOOL`` and ``TOOL_NO 1`` in an FDAT (base 2 likewise):
+    given under either name, in any case, it is the frame of both. Before, a ``$TOOL = TOOL_DATA[1]`` program with
+    the frames given as ``TOOL_NO 1`` refused every Cartesian target ("its tool frame 'TOOL_DATA[1]' is not
+    given"); now each lands on the flange pose BASE · T · TOOL⁻¹ on the true arm, to 1e-9 m and rad."""
+    nominal, true = _arms()
+    q = np.array([[0.3, -1.2, 1.4, -0.5, 1.1, 0.4], [-0.6, -1.0, 1.2, 0.7, -1.3, 2.0]])
+    (tmp_path / "test.dat").write_bytes(_module(nominal, q).encode())  # FDATs: TOOL_NO 1, BASE_NO 2
+    dat = read_program(str(tmp_path / "test.dat"), "krl")
+    same = compensate_branches(true, nominal, dat, rows, {"TOOL_NO 1": TOOL, "BASE_NO 2": BASE}, q_start=q[0])
+    other = compensate_branches(true, nominal, dat, rows, {"tool_data[1]": TOOL, "BASE_DATA[2]": BASE}, q_start=q[0])
+    assert not other.problems and other.texts == same.texts and len(same.texts) == 3
+    src = ["DEF t()", "  $TOOL = TOOL_DATA[1]", "  $BASE = BASE_DATA[2]"]
+    for t in dat.targets[:2]:
+        src.append("  LIN " + dat.text[t.start:t.end] + " C_DIS")
+    (tmp_path / "t.src").write_text("\n".join(src + ["END", ""]))
+    prog = read_program(str(tmp_path / "t.src"), "krl")
+    assert [t.frames for t in prog.targets] == [("TOOL_DATA[1]", "BASE_DATA[2]")] * 2
+    res = compensate_branches(true, nominal, prog, rows, {"TOOL_NO 1": TOOL, "BASE_NO 2": BASE}, q_start=q[0])
+    assert not res.problems and sorted(res.texts) == [0, 1]
+    pt, Rt, _, _ = true.with_tool_point(np.zeros(3)).pose_and_jacobian(res.q)
+    for k, t in enumerate(prog.targets):
+        p, R = _intended(nominal, t.values)
+        assert np.linalg.norm(pt[k] - p) < 1e-9 and np.linalg.norm(Rotation.from_matrix(Rt[k] @ R.T).as_rotvec()) < 1e-9
+    both = compensate_branches(true, nominal, prog, rows, {"TOOL_NO 1": np.eye(4), "TOOL_DATA[1]": TOOL,
+                                                           "BASE_NO 2": BASE}, q_start=q[0])
+    assert both.texts == res.texts  # a name given itself is not replaced by its other spelling's frame

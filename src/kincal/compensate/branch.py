@@ -163,8 +163,8 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
     dialect = dialects()[program.dialect]
     measured = model.tool_point() if model.has_tool_point else np.zeros(3)  # the point the calibration measured
     model, nominal = model.with_tool_point(np.zeros(3)), nominal.with_tool_point(np.zeros(3))  # flange poses
-    frames = resolve_taught({**dialect.frames(program), **(frames or {})}, nominal, model.with_tool_point(measured),
-                            orientation, carry)  # the frames the program declares, unless given
+    frames = resolve_taught({**dialect.spellings(dialect.frames(program)), **dialect.spellings(frames or {})}, nominal,
+                            model.with_tool_point(measured), orientation, carry)  # the program's frames, unless given
     scale = pulse_scale(nominal)
     work = in_joints(program, scale)  # PULSE positions as joint targets (rad)
     q0 = (next((t.values for t in work.targets if t.kind == "joints"), np.clip(0.0, model.lower, model.upper))

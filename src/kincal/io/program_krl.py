@@ -53,7 +53,7 @@ import dataclasses
 import functools
 import os
 import re
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -455,6 +455,27 @@ def _frames(program: Program) -> dict[str, np.ndarray | str]:
     return program_frames(program)
 
 
+SPELLED = re.compile(r"(TOOL|BASE)(?:_DATA[ \t]*\[[ \t]*(\d+)[ \t]*\]|_NO[ \t]+(\d+))", re.I)  # a tool or base by number
+
+
+def spellings(frames: Mapping[str, object]) -> dict[str, object]:
+    """The frames by name with each tool and base also under KRL's other name of it: ``TOOL_DATA[n]`` (a ``$TOOL``
+    assignment's) and ``TOOL_NO n`` (an FDAT's) are one tool, ``BASE_DATA[n]`` and ``BASE_NO n`` one base; a name
+    the mapping has in any case is kept as it is.
+
+    >>> sorted(spellings({"TOOL_NO 1": 1, "base_data[2]": 2, "BASE_NO 2": 3, "$NULLFRAME": 4}).items())
+    [('$NULLFRAME', 4), ('BASE_NO 2', 3), ('TOOL_DATA[1]', 1), ('TOOL_NO 1', 1), ('base_data[2]', 2)]
+    """
+    out = dict(frames)
+    named = {k.lower() for k in frames}
+    for name, value in frames.items():
+        m = SPELLED.fullmatch(name.strip())
+        if m:
+            kind, n = m.group(1).upper(), int(m.group(2) or m.group(3))
+            out.update({o: value for o in (f"{kind}_DATA[{n}]", f"{kind}_NO {n}") if o.lower() not in named})
+    return out
+
+
 def _beside(source: str) -> tuple[str, ...]:
     """The files reading the program at ``source`` reads besides it: a ``.dat``'s module ``.src``
     (:func:`_module_source`) and the controller's ``$config.dat`` and ``$machine.dat``
@@ -465,4 +486,4 @@ def _beside(source: str) -> tuple[str, ...]:
     return tuple(p for p in found if p is not None)
 
 
-DIALECT = Dialect("krl", (".src", ".dat", ".sub"), ";", parse, write, _frames, beside=_beside)
+DIALECT = Dialect("krl", (".src", ".dat", ".sub"), ";", parse, write, _frames, beside=_beside, spellings=spellings)

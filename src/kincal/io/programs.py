@@ -233,6 +233,11 @@ def used_otherwise(how: str) -> str:
             f"target")
 
 
+def as_given(frames: Mapping[str, object]) -> dict[str, object]:
+    """A language with one spelling of each frame's name: the frames as they are."""
+    return dict(frames)
+
+
 def nothing_beside(path: str) -> tuple[str, ...]:
     """A language whose reader reads no file but the program's own: none."""
     return ()
@@ -263,6 +268,10 @@ class Dialect:
         ``beside(path) -> paths``: the other files that reading the program at ``path`` and its frames reads (a
         KRL ``.dat``'s module ``.src``, the controller's ``$config.dat`` and ``$machine.dat``): an output must
         replace none of them (default: none).
+    spellings : callable, optional
+        ``spellings(frames) -> frames``: frames by name (a frames file's, or what ``frames`` gives) with each also
+        under the language's other names of the same frame, where that mapping names none of them (KRL:
+        ``TOOL_DATA[1]`` and ``TOOL_NO 1``; default: as given).
     step : tuple of float, optional
         The finest step the controller keeps of a position's length and angle fields, (m, rad): its writer
         writes rewritten numbers to it, as the controller's own files do, and the end-to-end check of a
@@ -288,6 +297,7 @@ class Dialect:
     frames: Callable[[Program], Mapping[str, np.ndarray | str]] = no_frames
     step: tuple[float, float] = (0.0, 0.0)
     beside: Callable[[str], tuple[str, ...]] = nothing_beside
+    spellings: Callable[[Mapping[str, object]], dict[str, object]] = as_given
 
 
 Numbers = Callable[[str, Sequence[Target], np.ndarray], tuple[np.ndarray, np.ndarray]]
