@@ -651,3 +651,26 @@ def test_a_second_sessions_before_figure_is_registered_to_it(tmp_path, capsys):
     alone = json.loads(capsys.readouterr().out)["sets_before"][0]["mean"]
     a, b = (s["mean"] for s in two["sets_before"])
     assert abs(b - alone) < 0.01e-3 and abs((a + b) / 2 - two["before"]["mean"]) < 0.005e-3
+
+
+def test_the_merged_before_of_two_sessions_judges_each_in_its_own_frame(tmp_path, capsys):
+    """The UR5 grid's halves, the second seen by a tracker turned 5 deg and moved: the merged "before" line judged
+    the second in the frame the fit found for it (mean 0.6247 mm beside per-session 0.6002 and 0.6457); it is the
+    two sessions' own figures joined now: the pose-weighted mean and the larger max, the same as with the second
+    half untouched (where the tracker stood is not the robot's error)."""
+    ur5 = kincal.load_robot("ur5")
+    grid = kincal.read_measurements(DATA / "ur5_grid.csv", ur5, UR5_COLS, length_unit="mm", angle_unit="deg")
+    a, b = grid.subset(np.arange(500)), grid.subset(np.arange(500, 1000))
+    turned = dataclasses.replace(b, xyz=b.xyz @ rot_zyx(np.radians(5.0), 0.0, 0.0).T + [0.05, -0.03, 0.01])
+    merged = []
+    for name, m in (("a.csv", a), ("b.csv", b), ("turned.csv", turned)):
+        kincal.write_measurements(tmp_path / name, m, ur5.joint_types)
+    for second in ("b.csv", "turned.csv"):
+        assert main(["calibrate", "ur5", str(tmp_path / "a.csv"), str(tmp_path / second), "--json"]) == 0
+        out = json.loads(capsys.readouterr().out)
+        sets, before = out["sets_before"], out["before"]
+        assert [s["samples"] for s in sets] == [500, 500] and before["n"] == 1000
+        assert before["mean"] == pytest.approx((sets[0]["mean"] + sets[1]["mean"]) / 2, rel=1e-12)
+        assert before["max"] == pytest.approx(max(s["max"] for s in sets), rel=1e-12)
+        merged.append(before["mean"])
+    assert merged[1] == pytest.approx(merged[0], abs=1e-9)  # m
