@@ -17,7 +17,7 @@ import kincal.models
 from kincal._atomic import json_path_for
 from kincal.history import calibration_record, evaluation_record, fingerprint
 from kincal.identify import held_out_stats, stat_line
-from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM
+from kincal.units import DEG, LENGTH_UNITS, MM
 
 from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, covariates_read, csv_list, emit, err, hidden_alias,
                      load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list, unread_joints)
@@ -37,20 +37,17 @@ class JointSigma(float):
 
 
 def _joint_sigma(text: str) -> float:
-    """argparse type: a joint reading's σ with its unit (rad, mrad, deg, rev; m, mm, um), in SI (rad or m)."""
-    s = text.strip()
-    units = {**ANGLE_UNITS, "mrad": 1e-3, **LENGTH_UNITS}
-    unit = next((u for u in sorted(units, key=len, reverse=True) if s.endswith(u)), None)
-    try:
-        value = float(s[:-len(unit)]) * units[unit] if unit else np.nan
-    except ValueError:
-        value = np.nan
-    if not (np.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"'{text}': give the joints' reading noise, > 0, with its unit: 0.001rev, "
-                                         f"0.05deg, 1e-4rad, 0.01mm")
-    sigma = JointSigma(value)
-    sigma.kind = "length" if unit in LENGTH_UNITS else "angle"
-    return sigma
+    """argparse type: a joint reading's σ with its unit (rad, mrad, deg, rev; m, mm, um), in SI (rad or m), read by
+    the flags' own angle and length parsers."""
+    for parse, kind in ((observe.angle, "angle"), (observe.length, "length")):
+        try:
+            sigma = JointSigma(parse(text))
+        except argparse.ArgumentTypeError:
+            continue
+        sigma.kind = kind
+        return sigma
+    raise argparse.ArgumentTypeError(f"'{text}': give the joints' reading noise, > 0, with its unit: 0.001rev, "
+                                     f"0.05deg, 1e-4rad, 0.01mm")
 
 
 def joint_std_for(robot, sigma: float | None) -> float | None:
