@@ -122,13 +122,13 @@ def _std_stream(path: Path):
         here = os.stat(path)
     except OSError:
         return None
-    if stat.S_ISCHR(here.st_mode) and not os.path.realpath(path).startswith("/dev/pts"):
-        return None  # /dev/null and other devices: not a stream of kincal's even where fd 1 is one
     for stream in (sys.stdout, sys.stderr):
         try:
-            there = os.fstat(stream.fileno())
+            there, terminal = os.fstat(stream.fileno()), stream.isatty()
         except (AttributeError, OSError, ValueError):  # a stream without a file (a test's capture)
             continue
+        if stat.S_ISCHR(here.st_mode) and not terminal:
+            continue  # /dev/null and other devices: not a stream of kincal's even where its output goes there
         if (here.st_dev, here.st_ino) == (there.st_dev, there.st_ino):
             return stream
     return None
