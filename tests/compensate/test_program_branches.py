@@ -547,7 +547,8 @@ def test_a_correction_past_a_joint_limit_is_named_as_such_not_as_an_unreached_br
 
 def test_a_tool_and_base_are_one_frame_under_both_their_krl_names(tmp_path):
     """KRL names tool 1 ``TOOL_DATA[1]`` where a program sets ``$TOOL`` and ``TOOL_NO 1`` in an FDAT (base 2 likewise):
-    given under either name, in any case, it is the frame of both. Before, a ``$TOOL = TOOL_DATA[1]`` program with
+    given under either name, in any case, it is the frame of both; both names with two values are refused (the
+    controller holds one tool 1, so one of them is not its). Before, a ``$TOOL = TOOL_DATA[1]`` program with
     the frames given as ``TOOL_NO 1`` refused every Cartesian target ("its tool frame 'TOOL_DATA[1]' is not
     given"); now each lands on the flange pose BASE · T · TOOL⁻¹ on the true arm, to 1e-9 m and rad."""
     nominal, true = _arms()
@@ -569,6 +570,9 @@ def test_a_tool_and_base_are_one_frame_under_both_their_krl_names(tmp_path):
     for k, t in enumerate(prog.targets):
         p, R = _intended(nominal, t.values)
         assert np.linalg.norm(pt[k] - p) < 1e-9 and np.linalg.norm(Rotation.from_matrix(Rt[k] @ R.T).as_rotvec()) < 1e-9
-    both = compensate_branches(true, nominal, prog, rows, {"TOOL_NO 1": np.eye(4), "TOOL_DATA[1]": TOOL,
+    both = compensate_branches(true, nominal, prog, rows, {"TOOL_NO 1": TOOL, "TOOL_DATA[1]": TOOL.copy(),
                                                            "BASE_NO 2": BASE}, q_start=q[0])
-    assert both.texts == res.texts  # a name given itself is not replaced by its other spelling's frame
+    assert both.texts == res.texts  # both names with one value: that frame
+    with pytest.raises(ValueError, match=r"'TOOL_NO 1' and 'TOOL_DATA\[1\]', KRL's two names of tool 1, different"):
+        compensate_branches(true, nominal, prog, rows, {"TOOL_NO 1": np.eye(4), "TOOL_DATA[1]": TOOL,
+                                                        "BASE_NO 2": BASE}, q_start=q[0])

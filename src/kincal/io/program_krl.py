@@ -463,17 +463,42 @@ def spellings(frames: Mapping[str, object]) -> dict[str, object]:
     assignment's) and ``TOOL_NO n`` (an FDAT's) are one tool, ``BASE_DATA[n]`` and ``BASE_NO n`` one base; a name
     the mapping has in any case is kept as it is.
 
-    >>> sorted(spellings({"TOOL_NO 1": 1, "base_data[2]": 2, "BASE_NO 2": 3, "$NULLFRAME": 4}).items())
-    [('$NULLFRAME', 4), ('BASE_NO 2', 3), ('TOOL_DATA[1]', 1), ('TOOL_NO 1', 1), ('base_data[2]', 2)]
+    Raises
+    ------
+    ValueError
+        When two names of one tool or base carry different values (the controller holds one of them).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> tool, base = np.eye(4), np.diag([1.0, -1.0, -1.0, 1.0])
+    >>> sorted(spellings({"TOOL_NO 1": tool, "base_data[2]": base, "BASE_NO 2": base, "$NULLFRAME": tool}))
+    ['$NULLFRAME', 'BASE_NO 2', 'TOOL_DATA[1]', 'TOOL_NO 1', 'base_data[2]']
+    >>> spellings({"TOOL_NO 1": tool, "TOOL_DATA[1]": base})
+    Traceback (most recent call last):
+    ...
+    ValueError: the frames give 'TOOL_NO 1' and 'TOOL_DATA[1]', KRL's two names of tool 1, different values: ...
     """
     out = dict(frames)
     named = {k.lower() for k in frames}
+    seen: dict[tuple[str, int], str] = {}
     for name, value in frames.items():
         m = SPELLED.fullmatch(name.strip())
         if m:
             kind, n = m.group(1).upper(), int(m.group(2) or m.group(3))
+            other = seen.setdefault((kind, n), name)
+            if not _same_frame(frames[other], value):
+                raise ValueError(f"the frames give {other!r} and {name!r}, KRL's two names of {kind.lower()} {n}, "
+                                 f"different values: the controller holds one {kind.lower()} {n}; give it once")
             out.update({o: value for o in (f"{kind}_DATA[{n}]", f"{kind}_NO {n}") if o.lower() not in named})
     return out
+
+
+def _same_frame(a: object, b: object) -> bool:
+    """Whether two frames' values are the same: poses (4, 4) equal to the last bit, anything else the same object."""
+    if isinstance(a, np.ndarray) and isinstance(b, np.ndarray):
+        return bool(np.array_equal(a, b))
+    return a is b
 
 
 def _beside(source: str) -> tuple[str, ...]:
