@@ -141,6 +141,27 @@ def test_markers_with_empty_cells_are_not_observed_there(tmp_path, ur5):
         read_observations(path, ur5, ObservationFormat("markers", tuple(JOINTS)))
 
 
+def test_markers_rows_that_saw_no_marker_are_no_samples(tmp_path, capsys, ur5):
+    """A motion-capture row in which every marker was lost carries no measurement: the fit, its figures and its
+    sample count are those of the file without it, and the count of such rows is said (before: 60 samples for 40
+    that saw a marker)."""
+    sim = simulate_markers(kincal.perturb(ur5, seed=2), ur5.sample_joints(60, seed=5), MARKERS, 30e-6)
+    cells = sim.xyz.astype(str).astype(object).reshape(len(sim.q), -1)
+    lost = np.arange(60) % 3 == 0
+    cells[lost] = ""
+    header = JOINTS + [f"m{k}.{a}" for k in range(1, 4) for a in "xyz"]
+    every = _write(tmp_path / "every.csv", header, np.column_stack([sim.q.astype(str), cells]))
+    seen = _write(tmp_path / "seen.csv", header, np.column_stack([sim.q.astype(str), cells])[~lost])
+    argv = ["calibrate", "ur5", "--type", "markers", "--joint-cols", ",".join(JOINTS)]
+    _, full, _ = _run(capsys, argv[:2] + [every] + argv[2:])
+    _, kept, _ = _run(capsys, argv[:2] + [seen] + argv[2:])
+    assert full["sets"][0]["samples"] == kept["sets"][0]["samples"] == np.count_nonzero(~lost) == 40
+    assert full["sets"][0]["unseen"] == 20 and "unseen" not in kept["sets"][0]
+    assert full["sets"][0]["mean"] == pytest.approx(kept["sets"][0]["mean"], rel=1e-9)
+    main(argv[:2] + [every] + argv[2:])
+    assert "(40 samples; 20 rows saw no marker)" in capsys.readouterr().out
+
+
 def _run(capsys, argv):
     code = main(argv + ["--json"])
     out = capsys.readouterr()

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 import kincal
-from kincal.identify import ABSOLUTE, fit_observations, refuse_inapplicable, set_cause, stat_line, trained_setup
+from kincal.identify import (ABSOLUTE, fit_observations, refuse_inapplicable, set_cause, stat_line, trained_setup,
+                             unseen_note)
 from kincal.observe import InSession, ObservationFormat, PointObs, read_observations
 from kincal.simulate import (plane_plan, simulate_markers, simulate_planes, simulate_poses, simulate_same_point,
                              socket_plan)
@@ -285,7 +286,8 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
         texts = save_figures(observation_figures(fit, "held-out"), stem)
     texts.append(f"{robot.name} on {path} ({kind}; kinematics fixed, {_fitted_here(robot, frame, own, fit, held)}"
                  f"{', the ' + ' and '.join(kept) + ' as calibrated' if kept else ''}): "
-                 f"{stat_line(s)}" + ("" if before is None else f"  (nominal, {fitted}: {stat_line(before)})"))
+                 f"{stat_line(s)}{unseen_note(s)}"
+                 + ("" if before is None else f"  (nominal, {fitted}: {stat_line(before)})"))
     texts += group_lines([s], "")
     train = [t.get("mean") for t in (record or {}).get("observations", []) if isinstance(t, dict)
              and t.get("type") == obs.kind]  # the training error of this kind (m)

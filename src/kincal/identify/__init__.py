@@ -6,7 +6,7 @@ from .calibrate import RESIDUALS, calibrate, calibrate_sessions, evaluate, fit_o
 from .fitting import ABSOLUTE
 from .options import METHODS, PRIOR_CHOICES, FitOptions, PSOOptions
 from .positions import EvaluationStats, joined
-from .result import CalibrationResult, stat_line, trained_setup
+from .result import CalibrationResult, stat_change, stat_line, trained_setup, unseen_note
 from .relevance import PRIORS
 from .robust import LOSSES
 from .select import ErrorModelChoice
@@ -17,6 +17,6 @@ from .verdict import Reason, Thresholds, Verdict
 
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "RESIDUALS", "CalibrationResult", "EvaluationStats", "LOSSES",
            "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
-           "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "observation_identifiability", "stat_line", "trained_setup",
+           "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "observation_identifiability", "stat_change", "stat_line", "trained_setup", "unseen_note",
            "SCOPES", "refuse_inapplicable", "joined", "ABSOLUTE", "held_out_stats", "register_mounting", "set_cause",
            "ALPHA", "Calibrated", "ChangeTest", "Suspect", "check", "compare"]

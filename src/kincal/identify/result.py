@@ -528,7 +528,7 @@ class CalibrationResult:
     def _data_lines(self) -> list[str]:
         """The residuals: per set before → after; for position data the residual σ against the
         tracker noise, the statistics before and after and a fitted drift; σ per kind otherwise."""
-        lines = [f"  {a['type']} ({a['source']}): {stat_line(b)}  →  {stat_line(a)}"
+        lines = [f"  {a['type']} ({a['source']}): {stat_change(b, a)}"
                  for b, a in zip(self.per_set_before, self.per_set)]
         if self.data:
             noise = noise_level(self.measurements.std, self.options.thresholds)
@@ -583,6 +583,50 @@ def stat_line(stats: dict) -> str:
     rot = f", mean {s['mean_mrad']:.4f} mrad" if "mean_mrad" in s else ""
     what = "position error " if stats.get("type") == "joint" else ""  # fitted in joint space, judged in position
     return f"mean {what}{s['mean_mm']:.4f} mm{rot}"
+
+
+def stat_change(before: dict, after: dict) -> str:
+    """A set's statistics before → after in a few words, mm and mrad.
+
+    Parameters
+    ----------
+    before, after : dict
+        The set's statistics under the nominal and the calibrated model (:func:`stat_line`).
+
+    Returns
+    -------
+    str
+        Both :func:`stat_line` texts and, when some of the set's rows were no sample, :func:`unseen_note`.
+
+    Examples
+    --------
+    >>> from kincal.identify import stat_change
+    >>> stat_change({"type": "markers", "mean": 2e-3}, {"type": "markers", "samples": 40, "unseen": 3, "mean": 4e-5})
+    'mean 2.0000 mm  →  mean 0.0400 mm (40 samples; 3 rows saw no marker)'
+    """
+    return f"{stat_line(before)}  →  {stat_line(after)}{unseen_note(after)}"
+
+
+def unseen_note(stats: dict) -> str:
+    """How many of a set's rows were no sample: a markers row that saw no marker.
+
+    Parameters
+    ----------
+    stats : dict
+        The set's statistics; ``unseen`` (rows with no marker seen) and ``samples`` when there are such rows.
+
+    Returns
+    -------
+    str
+        ``" (N samples; K rows saw no marker)"``, or ``""`` when every row is a sample.
+
+    Examples
+    --------
+    >>> from kincal.identify import unseen_note
+    >>> unseen_note({"samples": 40, "unseen": 3}), unseen_note({"samples": 40})
+    (' (40 samples; 3 rows saw no marker)', '')
+    """
+    return f" ({stats['samples']} samples; {stats['unseen']} rows saw no marker)" if stats.get("unseen") else ""
 
 
 def trained_setup(record: dict | None, where: str = "calibration record") -> tuple[dict, dict]:

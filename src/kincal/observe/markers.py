@@ -131,4 +131,6 @@ class MarkersObs(Observation):
         r = self.evaluate(robot, values, nuis)[0]  # per marker: its x rows, then y, then z
         ends = 3 * np.cumsum(np.count_nonzero(self.seen(), axis=0))[:-1]
         e = np.concatenate([np.linalg.norm(b.reshape(3, -1), axis=0) for b in np.split(r, ends)])
-        return error_stats(self, e, markers=len(self.names), observed=int(e.size))
+        unseen = int(np.count_nonzero(~self.seen().any(axis=1)))  # rows that saw no marker: no sample
+        return {**error_stats(self, e, markers=len(self.names), observed=int(e.size)),
+                "samples": len(self) - unseen, **({"unseen": unseen} if unseen else {})}
