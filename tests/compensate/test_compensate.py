@@ -439,3 +439,30 @@ def test_analysis_plan_and_program_records_hand_out_read_only_arrays(ur5, tmp_pa
     assert np.allclose(ident.singular_values, s, rtol=1e-9, atol=1e-12 * s[0])  # unchanged by the attempts
     assert f"rank gap {s[ident.rank - 1] / s[ident.rank]:.3g}" in str(ident)
     assert check.passed.tolist() == [True, True] and np.abs(check.deviations).max() < 1e-9
+
+
+def test_a_tool_given_again_to_compensate_a_calibration_is_refused(tmp_path, capsys):
+    """The calibrated file holds the target point its data fitted; ``--tool`` replaced it, so a UR5 probe declared at
+    31 mm and fitted about 2.5 mm away got commands for the declared point, 2.5 mm from every goal on the true
+    robot, with no word. Now refused, naming the fitted point (the file's own, read independently), nothing written;
+    without --tool the same targets are reached."""
+    ur5 = kincal.load_robot("ur5").with_tool_point([0.0, 0.0, 0.031])
+    true = kincal.perturb(ur5, seed=3).with_tool_point([0.0, 0.0, 0.0335])
+    kincal.write_measurements(tmp_path / "m.csv", kincal.simulate(true, ur5.sample_joints(150, seed=4), 10e-6, 5),
+                              ur5.joint_types)
+    cal = str(tmp_path / "cal.yaml")
+    assert main(["calibrate", "ur5", str(tmp_path / "m.csv"), "--tool", "0,0,31mm", "-o", cal]) == 0
+    fitted = kincal.load_robot(cal).tool_point() * 1e3
+    q = ur5.sample_joints(10, seed=6)
+    goals = ur5.forward(q)  # where the controller means the declared point to go
+    kincal.write_measurements(tmp_path / "t.csv", kincal.Measurements(q, goals, ur5.joint_names), ur5.joint_types)
+    capsys.readouterr()
+    out = tmp_path / "cmd.csv"
+    assert main(["compensate", cal, str(tmp_path / "t.csv"), "--tool", "0,0,31mm", "-o", str(out)]) != 0
+    assert np.linalg.norm(fitted - [0.0, 0.0, 31.0]) > 2.0  # the data moved the declared point
+    said = capsys.readouterr().err
+    assert "--tool replaces the target point" in said and f"{fitted[2]:.3f} mm" in said and not out.exists()
+    assert main(["compensate", cal, str(tmp_path / "t.csv"), "-o", str(out)]) == 0
+    rows = np.genfromtxt(out, delimiter=",", names=True)
+    cmd = np.column_stack([rows[f"j{k}"] for k in range(1, 7)])
+    assert np.linalg.norm(true.forward(cmd) - goals, axis=1).max() < 1e-3  # j1 kept in the base frame; --tool: 2.5 mm

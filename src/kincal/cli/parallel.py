@@ -359,6 +359,12 @@ def _calibration(args) -> tuple[dict, dict | None]:
     refused for a program, whose targets are the controller's nominal model's: with one model nothing corrects."""
     record = kincal.models.load_calibration_record(args.robot) or {}
     values = record.get("nominal") if isinstance(record.get("nominal"), dict) else None
+    if values is not None and "tool" in args.given:
+        fitted = kincal.load_robot(args.robot).tool_point() * MM
+        raise ValueError(f"--tool replaces the target point {args.robot} holds, the one its calibration fitted "
+                         f"({', '.join(f'{v:.3f}' for v in fitted)} mm in the flange frame): the commands would be "
+                         f"for a point the data did not determine; leave --tool out (the commands are for the "
+                         f"measured point), or give the TCP to command with --tcp")
     if values is None and args.program:
         raise ValueError(f"{args.robot} holds one model and no calibration record: a program's targets are the "
                          f"controller's nominal model's, corrected with the calibrated one, so there is nothing to "
