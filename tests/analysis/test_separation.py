@@ -57,3 +57,17 @@ def test_a_group_that_is_all_candidates_keeps_one_member():
     ur5 = kincal.load_robot("ur5")
     sep = separate_ill_conditioned(ur5, ur5.sample_joints(50, seed=0), names=["j2.d", "j3.d", "j4.d"])
     assert len(sep.separated) == 2 and set(sep.separated) == set(sep.qr_dropped)
+
+
+def test_a_model_with_fewer_rows_than_parameters_is_refused_not_called_well_conditioned():
+    """Three guo3t2r poses give a 9 x 21 Jacobian of rank 9 (numpy's own rank, the independent count): its GCN over
+    the 9 singular values was 4.16, under the threshold, so the whole rank-deficient model passed as verified.
+    Refused now, naming the fewest poses with more rows than parameters (8); 8 poses are separated."""
+    robot = kincal.load_robot("guo3t2r")
+    q = candidate_pool(robot, 3, seed=0)
+    names = [n for n in robot.params.names if n.split(".")[-1] in ("theta", "d", "a", "alpha", "beta")]
+    J = robot.param_jacobian(q)[:, :, robot.params.indices(names)].reshape(-1, len(names))
+    assert J.shape == (9, 21) and np.linalg.matrix_rank(J) == 9
+    with pytest.raises(ValueError, match="3 poses give 9 rows for 21 parameters.*at least 8 poses"):
+        separate_ill_conditioned(robot, q)
+    assert separate_ill_conditioned(robot, candidate_pool(robot, 8, seed=0)).gcn_full > 0

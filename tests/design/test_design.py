@@ -200,3 +200,19 @@ def test_imse_refusal_does_not_call_a_given_criterion_the_default():
     with pytest.raises(ValueError) as e:
         DesignOptions(method="detmax", criterion="IMSE")
     assert "default" not in str(e.value) and "by method 'fedorov' with coverage" in str(e.value)
+
+
+def test_a_design_never_plans_fewer_equations_than_the_fit_needs(ur5, tmp_path, capsys):
+    """design -m 9 on a UR5 (27 parameters, 27 equations) was "enough to solve", and calibrate refused the 9 measured
+    poses ("measure at least 10"): the design needs more equations than parameters, as the fit does; the 10 it
+    accepts calibrate."""
+    pool = ur5.sample_joints(300, seed=0)
+    with pytest.raises(kincal.IdentifiabilityError, match="9 poses give 27 equations for 27 parameters.*choose m ≥ 10"):
+        select_poses(ur5, pool, m=9, certify=False)
+    from kincal.cli import main
+    true = kincal.perturb(ur5, seed=1)
+    ten = select_poses(ur5, pool, m=10, certify=False).q
+    for m, q in ((9, ten[:9]), (10, ten)):
+        kincal.write_measurements(tmp_path / f"m{m}.csv", kincal.simulate(true, q, 15e-6, 1), ur5.joint_types)
+        assert main(["calibrate", "ur5", str(tmp_path / f"m{m}.csv")]) == (0 if m == 10 else 1)
+    assert "9 poses give 27 equations for 27 parameters; measure at least 10" in capsys.readouterr().err

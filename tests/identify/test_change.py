@@ -73,6 +73,20 @@ def test_check_of_a_joint_zero_change_on_designed_poses(true):
     assert not check(cal, q, kincal.simulate(true, q, 15e-6, 7).xyz).changed
 
 
+def test_a_check_design_never_plans_fewer_poses_than_a_check_takes(true):
+    """design --check wrote 3 (or 1) poses that check then refused ("a check needs at least 4 ... measure the poses
+    design --check chose"): both refuse below 4 now, the check accepts the 4 the design chose."""
+    cal = _fit(true, 5, n=100)
+    pool = kincal.load_robot("ur5").sample_joints(300, seed=9)
+    for m in (1, 3):
+        with pytest.raises(ValueError, match=f"{m} check poses: a check needs at least 4"):
+            check_poses(cal.robot, pool, m, cal.repeat)
+        with pytest.raises(kincal.MeasurementError, match="a check needs at least 4 poses"):
+            check(cal, pool[:m], kincal.simulate(true, pool[:m], 15e-6, 7).xyz)
+    q = pool[check_poses(cal.robot, pool, 4, cal.repeat)]
+    assert not check(cal, q, kincal.simulate(true, q, 15e-6, 7).xyz).changed
+
+
 def test_the_designed_check_sees_more_than_random_poses(true):
     """The design's criterion (Σ Φ(√λ − t), the summed chance of detection) beats every one of 20 random sets of the
     same size from its pool."""

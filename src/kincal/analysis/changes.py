@@ -21,6 +21,7 @@ from ..errors import ModelError
 from ..models.robot import TOOL_NAMES, Robot
 
 ALPHA = 0.05  # the default false-alarm probability of compare and check (and the threshold check poses aim at)
+MIN_CHECK_POSES = 4  # a check's re-fitted frame takes 6 of its 3n rows
 STEPS = {"joint zero": np.deg2rad(0.01), "link": 1e-4, "joint axis": np.deg2rad(0.01), "tool": 1e-4,
          "frame": 1e-4, "actuator": 1e-4}  # m, rad or ratio: changes a check should see (a frame's angles: 0.01°)
 PARALLEL = 1e-5  # 1 − |cos| below which two directions are one candidate (within 4.5 mrad)

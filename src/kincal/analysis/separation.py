@@ -214,7 +214,7 @@ def separate_ill_conditioned(robot: Robot, q: np.ndarray, names: Sequence[str] |
     Raises
     ------
     ValueError
-        When ``threshold`` is not a positive number.
+        When ``threshold`` is not a positive number, or the poses give no more rows than parameters.
     ModelError
         When the robot has no DH parameters to separate (a URDF or a parallel robot), or for an
         unknown name.
@@ -246,6 +246,10 @@ def separate_ill_conditioned(robot: Robot, q: np.ndarray, names: Sequence[str] |
                          f"of Guo et al. 2024 works on a DH model (a URDF or a parallel robot has other parameters); "
                          f"use 'kincal identifiability' for this robot")
     J = robot.param_jacobian(q)[:, :, robot.params.indices(names)]
+    if J.shape[0] * J.shape[1] <= len(names):  # the whole model rank-deficient: no GCN judges it
+        raise ValueError(f"{len(q)} poses give {J.shape[0] * J.shape[1]} rows for {len(names)} parameters: the "
+                         f"model's GCN over them leaves the missing directions out; give at least "
+                         f"{len(names) // J.shape[1] + 1} poses")
     J = J * column_scale(J.reshape(-1, len(names)))
     canon = [n for n in dict.fromkeys(keep) if n in names] + [n for n in names if n not in set(keep)]
     rank = {n: k for k, n in enumerate(canon)}

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._threads import blas_threads
-from ..analysis.changes import ALPHA, Repeat, candidates
+from ..analysis.changes import ALPHA, MIN_CHECK_POSES, Repeat, candidates
 from ..errors import ModelError
 from ..models.robot import Robot
 from ..ties import TIE_RTOL
@@ -51,9 +51,14 @@ def check_poses(robot: Robot, pool: np.ndarray, m: int, repeat: Repeat) -> np.nd
 
     Raises
     ------
+    ValueError
+        When m is fewer than a check needs (4: its re-fitted frame takes 6 of the 3 rows per pose).
     ModelError
         When the pool has fewer than m poses, or the calibration had no absolute positions.
     """
+    if m < MIN_CHECK_POSES:
+        raise ValueError(f"{m} check poses: a check needs at least {MIN_CHECK_POSES} (its re-fitted frame takes 6 of the "
+                         f"3 rows per pose); kincal design --check takes 10")
     pool = robot.check_q(pool)
     if len(pool) < m:
         raise ModelError(f"the pool has {len(pool)} poses; a check of {m} needs at least as many")

@@ -207,9 +207,9 @@ def select_poses(robot: Robot, pool_q: np.ndarray, options: DesignOptions | None
             _check_cell(robot, pool_q, cell)
         t0 = time.perf_counter()
         P = problem or design_problem(robot, pool_q, o.names, o.base, o.units)
-        if P.r * o.m < P.k:
-            raise IdentifiabilityError(f"{o.m} poses give {P.r * o.m} equations for {P.k} parameters; choose "
-                                       f"m ≥ {-(-P.k // P.r)}")
+        if P.r * o.m <= P.k:  # as the fit: more equations than unknowns, or nothing is left to judge the fit by
+            raise IdentifiabilityError(f"{o.m} poses give {P.r * o.m} equations for {P.k} parameters, and a fit "
+                                       f"needs more equations than parameters; choose m ≥ {P.k // P.r + 1}")
         # the left-out terms count for IMSE only; B, the region's mean information, steers criterion I
         terms, note = robust_terms(robot, P, validation_q, o.weight if o.criterion == "IMSE" else 0.0)
         rng = np.random.default_rng(o.seed)
@@ -243,7 +243,7 @@ def _below_minimum(robot: Robot, P: DesignProblem, m: int) -> str:
     """A note when m poses are fewer than Guo et al. 2024's eq. 18 minimum for P's parameters, else ''."""
     low = minimum_poses(robot.n_joints, P.k)
     return (f"{m} poses are fewer than {GUO2024}'s eq. 18 minimum for {P.k} parameters on {robot.n_joints} joints "
-            f"({low}): they give {P.r * m} equations, enough to solve, but the paper measures at least {low}; "
+            f"({low}): they give {P.r * m} equations, more than the parameters, but the paper measures at least {low}; "
             f"`kincal npose` shows how the criterion grows with m") if m < low else ""
 
 

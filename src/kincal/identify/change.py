@@ -35,14 +35,13 @@ import numpy as np
 from .._frozen import freeze_arrays
 from .._stats import f_sf
 from .._threads import blas_threads
-from ..analysis.changes import ALPHA, Candidates, Repeat, candidates, frame_basis, without
+from ..analysis.changes import ALPHA, MIN_CHECK_POSES, Candidates, Repeat, candidates, frame_basis, without
 from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
 from ..units import DEG, MM, SHOWN
 from .registration import register_base
 
 REGION_POSES = 200
-MIN_CHECK_POSES = 4  # a re-fitted frame takes 6 of 3n rows
 RANK_RTOL = 1e-6  # singular values of the discrepancy's covariance factor below this × the largest: not seen
 RESOLUTION = 1e-8  # m: nor below this σ (0.01 µm, no instrument's): what is left of one calibration's frame
 # directions after another's are removed, and a model's second order, would otherwise look certain
