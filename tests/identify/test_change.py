@@ -401,3 +401,22 @@ def test_a_turned_and_moved_tracker_is_no_change_and_a_real_one_is_still_found()
     found = judged(dataclasses.replace(second, xyz=second.xyz + longer), 5.5)
     top = found.suspects[0]
     assert found.changed and top.name == "j3.a" and abs(top.size - 3e-4) < 3 * top.sigma
+
+
+def test_design_check_says_the_unit_it_wrote_the_joints_in(tmp_path, capsys):
+    """The history how-to measured design --check's poses and checked them with --angle-unit deg while the design
+    wrote radians under bare j1..j6 headers, and said nothing of the unit: it says it now, and --angle-unit deg
+    writes the same poses x 180/pi."""
+    ur5 = kincal.load_robot("ur5")
+    kincal.write_measurements(tmp_path / "m.csv", kincal.simulate(kincal.perturb(ur5, seed=3),
+                                                                  ur5.sample_joints(60, seed=4), 15e-6, 5),
+                              ur5.joint_types)
+    assert main(["calibrate", "ur5", str(tmp_path / "m.csv"), "-o", str(tmp_path / "cal.yaml")]) == 0
+    rows = {}
+    for unit in ("rad", "deg"):
+        capsys.readouterr()
+        assert main(["design", str(tmp_path / "cal.yaml"), "--check", "-o", str(tmp_path / f"{unit}.csv"),
+                     "--angle-unit", unit, "--pool", "100"]) == 0
+        assert f"(joints in {unit})" in capsys.readouterr().out
+        rows[unit] = np.loadtxt(tmp_path / f"{unit}.csv", delimiter=",", skiprows=1)
+    assert np.allclose(rows["deg"], np.degrees(rows["rad"]), rtol=1e-12, atol=1e-9)

@@ -112,8 +112,18 @@ def _design_check(args) -> int:
         kincal.io.write_joints(args.output, pool[chosen], cal.robot, args.joint_cols, args.length_unit, args.angle_unit)
     return emit(args, {"poses": len(chosen), "rows": (chosen + 2).tolist() if args.candidates else None,
                        "output": args.output},
-                f"{len(chosen)} check poses of {len(pool)} candidates written to {args.output}: measure them, then "
-                f"kincal check {args.robot} <measurements.csv>")
+                f"{len(chosen)} check poses of {len(pool)} candidates written to {args.output}{_joint_units(args, cal)}: "
+                f"measure them, then kincal check {args.robot} <measurements.csv> (with the joints' and positions' "
+                f"units)")
+
+
+def _joint_units(args, cal) -> str:
+    """' (joints in deg)' and the like: the units design --check wrote the joints in ('' for the user's own rows)."""
+    if args.candidates:
+        return ""
+    types = set(cal.robot.joint_types)
+    units = [u for t, u in (("revolute", args.angle_unit), ("prismatic", args.length_unit)) if t in types]
+    return f" (joints in {' and '.join(units)})" if units else ""
 
 
 def _check_pool(args, cal, record, cell) -> np.ndarray:
