@@ -97,6 +97,11 @@ def test_another_study_or_a_torn_line(small, tmp_path, capsys):
     assert main(["study", "guo2024", "--trials", "2", "--poses", "30", "--generations", "10", "--workers", "1",
                  "-o", str(tmp_path / "x.jsonl")]) == 1
     assert "another study" in capsys.readouterr().err and (tmp_path / "x.jsonl").read_text() == "hello\n"
+    empty = tmp_path / "empty.jsonl"  # made beforehand (touch): nothing in it is another study's
+    empty.touch()
+    with runner.make_executor(1) as ex:
+        assert runner.run_tasks(small.run, runner.tasks_for(3, 1), ex, empty, small.header) == full
+    assert empty.read_text() == path.read_text()  # the header first, then the tasks, as the other run's file
 
 
 def test_an_interrupted_study_resumes_to_the_same_results(tmp_path):

@@ -44,7 +44,9 @@ def cmd_study(args) -> int:
         with runner.make_executor(args.workers or os.cpu_count() or 1, args.scheduler) as ex, progress_bar(args, "study", len(tasks)) as bar:
             records = runner.run_tasks(trials.run, tasks, ex, out, header, bar)
     except KeyboardInterrupt:
-        line(f"kincal: interrupted; the finished tasks are kept in {out}: run the same command to resume")
+        line(f"kincal: interrupted; the finished tasks are kept in {out}: run the same command to resume"
+             if out.exists() and out.stat().st_size else "kincal: interrupted before any task finished; nothing "
+             "was kept: run the same command to start again")
         return EXIT_INTERRUPTED
     try:
         rows = guo2024_mc.summarise(records)

@@ -118,14 +118,16 @@ def _single_thread() -> None:
 
 
 def check_results_file(path: str | os.PathLike, header: dict) -> dict[int, list[dict]]:
-    """Before any work: ``path`` is absent or holds results of the study ``header`` names (ValueError
+    """Before any work: ``path`` is absent, empty or holds results of the study ``header`` names (ValueError
     otherwise). Returns its finished tasks (a torn last line from an interruption is ignored)."""
     path, header = Path(path), json.loads(json.dumps(header))  # the header as read back from the file
     if not path.exists():
         return {}
     lines = path.read_text(encoding="utf-8").splitlines()
+    if not lines:  # an empty file (made beforehand): nothing to keep, the header is written first
+        return {}
     try:
-        first = json.loads(lines[0]) if lines else None
+        first = json.loads(lines[0])
     except json.JSONDecodeError:
         first = None
     if first != {"study": header}:
