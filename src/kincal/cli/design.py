@@ -112,7 +112,8 @@ def _design_check(args) -> int:
         kincal.io.write_joints(args.output, pool[chosen], cal.robot, args.joint_cols, args.length_unit, args.angle_unit)
     return emit(args, {"poses": len(chosen), "rows": (chosen + 2).tolist() if args.candidates else None,
                        "output": args.output},
-                f"{len(chosen)} check poses of {len(pool)} candidates written to {args.output}{_joint_units(args, cal)}: "
+                f"{len(chosen)} check poses of {len(pool)} candidates written to {args.output}"
+                f"{_joint_units(args, cal)}: "
                 f"measure them, then kincal check {args.robot} <measurements.csv> (with the joints' and positions' "
                 f"units)")
 

@@ -57,8 +57,8 @@ def check_poses(robot: Robot, pool: np.ndarray, m: int, repeat: Repeat) -> np.nd
         When the pool has fewer than m poses, or the calibration had no absolute positions.
     """
     if m < MIN_CHECK_POSES:
-        raise ValueError(f"{m} check poses: a check needs at least {MIN_CHECK_POSES} (its re-fitted frame takes 6 of the "
-                         f"3 rows per pose); kincal design --check takes 10")
+        raise ValueError(f"{m} check poses: a check needs at least {MIN_CHECK_POSES} (its re-fitted frame takes 6 of "
+                         f"the 3 rows per pose); kincal design --check takes 10")
     pool = robot.check_q(pool)
     if len(pool) < m:
         raise ModelError(f"the pool has {len(pool)} poses; a check of {m} needs at least as many")

@@ -17,6 +17,7 @@ from .verdict import Reason, Thresholds, Verdict
 
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "RESIDUALS", "CalibrationResult", "EvaluationStats", "LOSSES",
            "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
-           "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "observation_identifiability", "stat_change", "stat_line", "trained_setup", "unseen_note",
+           "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "observation_identifiability", "stat_change", "stat_line", "trained_setup",
+           "unseen_note",
            "SCOPES", "refuse_inapplicable", "joined", "ABSOLUTE", "held_out_stats", "register_mounting", "set_cause",
            "ALPHA", "Calibrated", "ChangeTest", "Suspect", "check", "compare"]
