@@ -462,7 +462,7 @@ def test_set_tcp_in_a_loop_a_called_def_or_after_a_return_reaches_the_moves_its_
 
     def tcps(text):
         prog = parse("x.script", text)
-        return [(t.line, v[2] if isinstance(v, np.ndarray) else v) for t in prog.targets for v in [prog.tcp_of(t)]]
+        return [(t.line, v[2] if isinstance(v, np.ndarray) else v) for t in prog.targets for v in [prog.in_force_of(t)]]
 
     (l3, loop3), (l5, loop5), (l7, loop7) = tcps(f"set_tcp({a})\nwhile True:\n{j}\nset_tcp({b})\n{j}\nend\n{j}\n")
     assert "set_tcp on lines 1, 4 may be in force" in loop3 and loop5 == 0.25 and loop7 == loop3

@@ -454,7 +454,7 @@ def _compensate_program(args, robots, carry: str, models, orientation, unseen: s
     uncertainty in the robot's base frame."""
     r, nominal, measured, unc = robots
     prog = _read_program(args)
-    if args.tcp is not None and prog.targets and not any(isinstance(prog.tcp_of(t), tuple) for t in prog.targets):
+    if args.tcp is not None and prog.targets and not any(isinstance(prog.in_force_of(t), tuple) for t in prog.targets):
         raise ValueError(f"--tcp is the TCP of the moves before the program's first set_tcp, and {args.targets} sets "
                          f"its TCP before every move (or leaves it unknown there: such a move is refused, naming its "
                          f"set_tcp lines): leave --tcp out (the program's set_tcp is used)")

@@ -199,7 +199,7 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
     values, refused, qs = {}, {}, np.full((len(program.targets), model.n_joints), np.nan)
     kept, tcps = [], np.full((len(program.targets), 3), np.nan)
     for k, t in enumerate(program.targets):
-        tcp = program.tcp_of(t)
+        tcp = program.in_force_of(t)
         pair = (model, nominal) if isinstance(tcp, tuple) else _for_tcp(models, tcp)
         found = _target(t, tcp, pair, q_prev, (orientation, measured))
         if isinstance(found, str):

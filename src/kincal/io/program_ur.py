@@ -91,7 +91,7 @@ def parse(source: str, text: str) -> Program:
     not_literal += [(t.line, t.variable, torn[t.variable]) for t in targets if t.variable in torn]
     kept = tuple(t for t in targets if t.variable not in torn)
     return Program(source, text, kept, tuple(sorted(not_literal, key=lambda item: item[0])), tcps=tcps,
-                   tcp_in_force=() if reached is None else tuple(
+                   in_force=() if reached is None else tuple(
                        (t.start, _in_force(reached, [at for at, _ in uses[t.variable]] if t.variable else [t.at]))
                        for t in kept))
 
@@ -182,6 +182,9 @@ class _Tree:
                 nodes += self.opened(event, at)
             elif event in ("return", "break", "continue", "halt"):
                 nodes.append(flow.Jump(event))
+            elif stops:
+                raise _Broken(opened[0], f"this '{opened[1]}' block is not closed with '{stops[-1]}' before the "
+                                         f"'{event}' of line {self.code.count(chr(10), 0, at) + 1}")
             else:
                 raise _Broken(at, f"'{event}' with no block open before it")
         if stops:

@@ -131,10 +131,11 @@ class Program:
     tcps : tuple of (int, ndarray or None), optional
         The TCPs the program sets: (position in the text, the pose (6,) in m and rad, or None when not a
         literal) (default ()).
-    tcp_in_force : tuple of (int, object), optional
-        Each target's TCP by the program's flow (:mod:`kincal.io.flow`): (the target's ``start``, the pose (6,) in
-        force at its moves, None for a TCP set from a non-literal, () for none set, or a str: why no one TCP is
-        known there) (default (): every target's is ()).
+    in_force : tuple of (int, object), optional
+        What the program's flow (:mod:`kincal.io.flow`) leaves in force at a target's moves: (the target's
+        ``start``, URScript's TCP there — the pose (6,), None for a TCP set from a non-literal, () for none set —
+        or, in any language, a str: why no one TCP, tool or base is known there) (default (): () for every
+        target).
     comment : str, optional
         The language's comment mark ('' for a language that allows none beside a target) (default "#").
     dialect : str, optional
@@ -161,7 +162,7 @@ class Program:
     ...     program = read_program(path)
     >>> program.dialect, program.encoding, program.comment, len(program.targets)
     ('ur', 'utf-8', '#', 1)
-    >>> program.tcp_of(program.targets[0]).tolist()
+    >>> program.in_force_of(program.targets[0]).tolist()
     [0.0, 0.0, 0.15, 0.0, 0.0, 0.0]
 
     The target written again 1 mm higher, every other byte as it was:
@@ -179,16 +180,17 @@ class Program:
     tcps: tuple = ()
     comment: str = "#"
     dialect: str = "ur"
-    tcp_in_force: tuple = ()
+    in_force: tuple = ()
 
-    def tcp_of(self, target: Target):
-        """The TCP in force at ``target``'s moves by the program's flow: its pose (6,), None if set from a
-        non-literal, () when none is set, or a str: why no one TCP is known there (``tcp_in_force``)."""
+    def in_force_of(self, target: Target):
+        """What is in force at ``target``'s moves by the program's flow (``in_force``): URScript's TCP pose (6,),
+        None if set from a non-literal, () when none is set (or in another language); a str: why no one TCP, tool or
+        base is known there."""
         return self._tcp_by_start.get(target.start, ())
 
     @functools.cached_property
     def _tcp_by_start(self) -> dict:
-        return dict(self.tcp_in_force)
+        return dict(self.in_force)
 
     def with_targets(self, texts: dict[int, str], marks: dict[int, str] | None = None) -> str:
         """The text with target k's span replaced by ``texts[k]`` (the others as they are), and a
