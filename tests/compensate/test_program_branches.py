@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 import kincal
@@ -576,3 +577,76 @@ def test_a_tool_and_base_are_one_frame_under_both_their_krl_names(tmp_path):
     with pytest.raises(ValueError, match=r"'TOOL_NO 1' and 'TOOL_DATA\[1\]', KRL's two names of tool 1, different"):
         compensate_branches(true, nominal, prog, rows, {"TOOL_NO 1": np.eye(4), "TOOL_DATA[1]": TOOL,
                                                         "BASE_NO 2": BASE}, q_start=q[0])
+
+
+UR10_DH = ((0.1273, 0.0, np.pi / 2), (0.0, -0.612, 0.0), (0.0, -0.5723, 0.0), (0.163941, 0.0, np.pi / 2),
+           (0.1157, 0.0, -np.pi / 2), (0.0922, 0.0, 0.0))  # the UR10's nominal DH (d, a, alpha), m and rad
+
+
+def _ur10_flange(q):
+    """The nominal UR10's flange (4x4) at joints q (6,): the textbook DH product, written here apart from kincal."""
+    T = np.eye(4)
+    for qj, (d, a, alpha) in zip(q, UR10_DH):
+        ct, st, ca, sa = np.cos(qj), np.sin(qj), np.cos(alpha), np.sin(alpha)
+        T = T @ np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st], [0, sa, ca, d],
+                          [0, 0, 0, 1]])
+    return T
+
+
+def _frame(values):
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = Rotation.from_rotvec(values[3:6]).as_matrix(), values[:3]
+    return T
+
+
+def test_a_krl_tool_reaches_the_moves_its_flow_reaches_not_those_after_it_in_the_text(tmp_path):
+    """$TOOL = TOOL_DATA[1], pick(), $TOOL = TOOL_DATA[2], place(), with pick and place defined after the main DEF:
+    place's LIN runs with tool 2, but the last $TOOL before it in the text is the TOOL_DATA[1] of an IF further up,
+    so it was compensated for tool 1; the LIN after that IF (tool 1 or 2) was compensated for tool 1. Now place's
+    LIN is compensated for tool 2 and the one after the IF is refused, naming lines 5 and 8. Checked through the
+    UR10's own DH product: the controller's inverse of each written target (BASE · T · TOOLk⁻¹), then the true arm
+    there, on the pose the original text meant to 1e-6 mm and 1e-9 rad."""
+    nominal, true = _arms()
+    tool2 = TOOL.copy()
+    tool2[:3, 3] = [-0.02, 0.03, 0.22]
+    q = np.array([[0.3, -1.2, 1.4, -0.5, 1.1, 0.4], [-0.6, -1.0, 1.2, 0.7, -1.3, 2.0],
+                  [0.5, -1.4, 1.6, -0.2, 0.9, 1.0]])
+    assert np.abs(_ur10_flange(q[0]) - _poses_of(nominal, q[0])).max() < 1e-12
+    lins = []
+    for qk, tool in zip(q, (TOOL, tool2, TOOL)):
+        T = np.linalg.inv(BASE) @ _ur10_flange(qk) @ tool
+        a, b, c = Rotation.from_matrix(T[:3, :3]).as_euler("ZYX", degrees=True)
+        x, y, z = T[:3, 3] * 1e3
+        s, t = config_of(nominal, qk)
+        lins.append(f"LIN {{X {x:.6f}, Y {y:.6f}, Z {z:.6f}, A {a:.6f}, B {b:.6f}, C {c:.6f}, S {s}, T {t}}}")
+    src = ["DEF t()", "  $BASE = BASE_DATA[2]", "  $TOOL = TOOL_DATA[1]", "  pick()", "  $TOOL = TOOL_DATA[2]",
+           "  place()", "  IF $IN[1] THEN", "    $TOOL = TOOL_DATA[1]", "  ENDIF", f"  {lins[2]}", "END", "",
+           "DEF pick()", f"  {lins[0]}", "END", "", "DEF place()", f"  {lins[1]}", "END", ""]
+    (tmp_path / "t.src").write_text("\r\n".join(src))
+    prog = read_program(str(tmp_path / "t.src"), "krl")
+    assert [t.line for t in prog.targets] == [10, 14, 18]
+    frames = {"TOOL_DATA[1]": TOOL, "TOOL_DATA[2]": tool2, "BASE_DATA[2]": BASE}
+    res = compensate_branches(true, nominal, prog, rows, frames, q_start=q[0])
+    assert sorted(res.texts) == [1, 2] and list(res.refused) == [0]
+    assert res.refused[0] == ("its $TOOL is not known from the module's structure: the $TOOL assignments on lines 5, "
+                              "8 may be in force here, as a branch, loop or call decides at run time; give it one: a "
+                              "$TOOL assignment that every path runs before this move")
+    (tmp_path / "out.src").write_text(prog.with_targets(res.texts))
+    new = read_program(str(tmp_path / "out.src"), "krl")
+    assert [t.frames for t in new.targets] == [("", "BASE_DATA[2]"), ("TOOL_DATA[1]", "BASE_DATA[2]"),
+                                               ("TOOL_DATA[2]", "BASE_DATA[2]")]
+    for k, qk, tool in ((1, q[0], TOOL), (2, q[1], tool2)):
+        goal = BASE @ _frame(new.targets[k].values) @ np.linalg.inv(tool)  # what the controller turns into joints
+        ik = least_squares(lambda x: np.concatenate([(_ur10_flange(x) - goal)[:3, 3], Rotation.from_matrix(
+            _ur10_flange(x)[:3, :3] @ goal[:3, :3].T).as_rotvec()]), res.q[k], xtol=1e-15, ftol=1e-15, gtol=1e-15).x
+        pt, Rt, _, _ = true.with_tool_point(np.zeros(3)).pose_and_jacobian(ik[None])
+        meant = BASE @ _frame(prog.targets[k].values) @ np.linalg.inv(tool)
+        assert np.linalg.norm(pt[0] - meant[:3, 3]) * 1e3 < 1e-6
+        assert np.linalg.norm(Rotation.from_matrix(Rt[0] @ meant[:3, :3].T).as_rotvec()) < 1e-9
+
+
+def _poses_of(robot, q):
+    p, R, _, _ = robot.with_tool_point(np.zeros(3)).pose_and_jacobian(q[None])
+    out = np.eye(4)
+    out[:3, :3], out[:3, 3] = R[0], p[0]
+    return out

@@ -183,7 +183,7 @@ def test_synthetic_src_targets_against_closed_forms():
                      (13, "SLIN", "", "pose")]
     home, ptp, lin, lin2, aux, to, slin = prog.targets
     np.testing.assert_allclose(home.values, [0, -math.pi / 2, math.pi / 2, 0, math.pi / 2, 0])
-    assert home.frames == ("", "") and home.config == ()
+    assert home.frames == ("TOOL_DATA[2]", "BASE_DATA[1]") and home.config == ()  # those in force at its move (line 8)
     np.testing.assert_allclose(ptp.values, np.radians([10, -0.242, 15, 0, 30, -45]))
     assert ptp.frames == ("TOOL_DATA[2]", "BASE_DATA[1]")
     np.testing.assert_allclose(lin.values, [0.1, -0.2005, 0.3, 0, 0, math.pi / 2], atol=1e-15)

@@ -3,6 +3,7 @@ unchanged lines byte for byte, compensated literals equal to the pose-file route
 listed."""
 import numpy as np
 import pytest
+from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 import kincal
@@ -379,3 +380,99 @@ def test_a_pose_variable_moved_to_under_two_tcps_is_listed(tmp_path, capsys):
     one = _program([f"movej({_fmt(q0, False)})", f"global home = {home}", "movel(home)", "movej(home)"])
     (tmp_path / "one.script").write_text(one)
     assert [t.variable for t in read_program(str(tmp_path / "one.script")).targets] == ["", "home"]
+
+
+UR5_DH = ((0.089159, 0.0, np.pi / 2), (0.0, -0.425, 0.0), (0.0, -0.39225, 0.0), (0.10915, 0.0, np.pi / 2),
+          (0.09465, 0.0, -np.pi / 2), (0.0823, 0.0, 0.0))  # the UR5's nominal DH (d, a, alpha), m and rad
+
+
+def _ur5_tcp(q, tcp):
+    """The nominal UR5's TCP frame (4x4) at joints q (6,) for a TCP (x, y, z) m on the flange: the textbook DH
+    product, written here apart from kincal's models."""
+    T = np.eye(4)
+    for qj, (d, a, alpha) in zip(q, UR5_DH):
+        ct, st, ca, sa = np.cos(qj), np.sin(qj), np.cos(alpha), np.sin(alpha)
+        T = T @ np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st], [0, sa, ca, d],
+                          [0, 0, 0, 1]])
+    T[:3, 3] += T[:3, :3] @ np.asarray(tcp)
+    return T
+
+
+def _as_pose(T):
+    return np.concatenate([T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_rotvec()])
+
+
+def test_set_tcp_reaches_the_moves_its_flow_reaches_not_those_after_it_in_the_text(tmp_path):
+    """A set_tcp in a def never called (0.25 m) does not reach the moves written after it for the 0.15 m TCP: they
+    were compensated for 0.25 m and the real 0.15 m TCP missed by 1.15-1.41 mm while "10 of 10 compensated" was
+    printed. After a call of that def its TCP is in force; after an if/else that sets 0.15 m or 0.25 m no one TCP
+    is, and the move is refused naming both set_tcp lines; after one whose branches both set 0.25 m it is known.
+    Checked through the nominal UR5's own DH product here: the controller's inverse of each written pose, then the
+    calibrated model there, within 1e-6 mm of the target; a joint target's TCP likewise."""
+    nominal = kincal.load_robot("ur5")
+    true = kincal.perturb(nominal, seed=2)
+    a, b = np.array([0.0, 0.0, 0.15]), np.array([0.0, 0.0, 0.25])
+    home = np.array([0.30, -1.43, 1.54, 0.0, 1.63, 0.0])
+    qs = [home + k * np.array([0.06, 0.04, -0.05, 0.07, 0.05, 0.08]) for k in range(1, 5)]
+    assert np.abs(_ur5_tcp(home, a)[:3, 3] - nominal.with_tool_point(a).forward(home[None])[0]).max() < 1e-12
+    meant = [(home, a), (qs[0], a), (qs[1], b), (qs[2], b), (qs[3], b)]  # each move's joints and real TCP
+    p = [_fmt(_as_pose(_ur5_tcp(q, tcp)), True) for q, tcp in meant]
+    text = _program(["set_tcp(p[0, 0, 0.15, 0, 0, 0])", f"movej({_fmt(home, False)})", "def tool_b():",
+                     "  set_tcp(p[0, 0, 0.25, 0, 0, 0])", "end", f"movel({p[1]})", "tool_b()", f"movel({p[2]})",
+                     "if get_digital_in(0):", "  set_tcp(p[0, 0, 0.15, 0, 0, 0])", "else:", "  tool_b()", "end",
+                     f"movel({p[3]})", "if get_digital_in(1):", "  set_tcp(p[0, 0, 0.25, 0, 0, 0])", "else:",
+                     "  tool_b()", "end", f"movel({p[4]})"]) + "prog()\n"
+    (tmp_path / "p.script").write_text(text)
+    prog = read_program(str(tmp_path / "p.script"))
+    res = compensate_program(true, nominal, prog,
+                             models=lambda t: (true.with_tool_point(t), nominal.with_tool_point(t)))
+    assert sorted(res.texts) == [0, 1, 2, 4] and list(res.refused) == [3]
+    assert res.refused[3].startswith("its TCP is not known from the program's structure: the set_tcp on lines 5, 11 "
+                                     "may be in force here")
+    assert "line 15 (movel)" in res.problems[0]
+    write_program(str(tmp_path / "out.script"), prog, res.texts, res.refused)
+    new = read_program(str(tmp_path / "out.script"))
+    assert new.targets[3].values.tolist() == prog.targets[3].values.tolist()  # refused: as it was, and marked
+    assert "kincal: not compensated: its TCP is not known" in new.text.splitlines()[14]
+    for k, (q, tcp) in enumerate(meant):
+        if k == 3:
+            continue
+        written = new.targets[k].values
+        if k == 0:  # a joint target: the calibrated TCP at the new joints is the nominal one at the old
+            got = true.with_tool_point(tcp).forward(written[None])[0]
+            assert np.linalg.norm(got - _ur5_tcp(q, tcp)[:3, 3]) * 1e3 < 1e-6
+            continue
+        goal = np.eye(4)
+        goal[:3, :3], goal[:3, 3] = Rotation.from_rotvec(written[3:]).as_matrix(), written[:3]
+        ik = least_squares(lambda x: np.concatenate([(_ur5_tcp(x, tcp) - goal)[:3, 3], Rotation.from_matrix(
+            _ur5_tcp(x, tcp)[:3, :3] @ goal[:3, :3].T).as_rotvec()]), q, xtol=1e-15, ftol=1e-15, gtol=1e-15).x
+        p_true, R_true, _, _ = true.with_tool_point(tcp).pose_and_jacobian(ik[None])
+        target = _ur5_tcp(q, tcp)
+        assert np.linalg.norm(p_true[0] - target[:3, 3]) * 1e3 < 1e-6
+        assert np.linalg.norm(Rotation.from_matrix(R_true[0] @ target[:3, :3].T).as_rotvec()) < 1e-9
+
+
+def test_set_tcp_in_a_loop_a_called_def_or_after_a_return_reaches_the_moves_its_paths_reach():
+    """Each move's TCP by the program's paths: a loop's set_tcp reaches its start again (ambiguous there, known after
+    it in the body); a def called under two TCPs has none known inside, and after its last call the caller's; a
+    return before a def's set_tcp leaves its caller's TCP possible; a block never closed names its line."""
+    from kincal.io.program_ur import parse
+
+    a, b, j = "p[0, 0, 0.15, 0, 0, 0]", "p[0, 0, 0.25, 0, 0, 0]", "movej([0, -1.5, 1.5, -1.5, -1.5, 0])"
+
+    def tcps(text):
+        prog = parse("x.script", text)
+        return [(t.line, v[2] if isinstance(v, np.ndarray) else v) for t in prog.targets for v in [prog.in_force_of(t)]]
+
+    (l3, loop3), (l5, loop5), (l7, loop7) = tcps(f"set_tcp({a})\nwhile True:\n{j}\nset_tcp({b})\n{j}\nend\n{j}\n")
+    assert "set_tcp on lines 1, 4 may be in force" in loop3 and loop5 == 0.25 and loop7 == loop3
+    (_, inside), (_, after) = tcps(f"def mv():\n{j}\nend\nset_tcp({a})\nmv()\nset_tcp({b})\nmv()\n{j}\n")
+    assert "set_tcp on lines 4, 6 may be in force" in inside and after == 0.25
+    (_, back), = tcps(f"def f():\nif x:\nreturn\nend\nset_tcp({b})\nend\nset_tcp({a})\nf()\n{j}\n")
+    assert "set_tcp on lines 5, 7 may be in force" in back
+    (_, same), = tcps(f"if x:\nset_tcp({b})\nelif y:\nset_tcp({b})\nelse:\nset_tcp({b})\nend\n{j}\n")
+    assert same == 0.25
+    (_, before), = tcps(f"if x:\nset_tcp({b})\nend\n{j}\n")
+    assert "set_tcp on line 2 or the TCP before any set_tcp may be in force" in before
+    (_, broken), = tcps(f"set_tcp({a})\nif x:\n{j}\n")
+    assert "line 2: this 'if' block is never closed with 'end'" in broken

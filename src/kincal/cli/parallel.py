@@ -460,9 +460,10 @@ def _compensate_program(args, robots, carry: str, models, orientation, unseen: s
     uncertainty in the robot's base frame."""
     r, nominal, measured, unc = robots
     prog = _read_program(args)
-    if args.tcp is not None and prog.targets and not any(isinstance(prog.tcp_at(t.at), tuple) for t in prog.targets):
+    if args.tcp is not None and prog.targets and not any(isinstance(prog.in_force_of(t), tuple) for t in prog.targets):
         raise ValueError(f"--tcp is the TCP of the moves before the program's first set_tcp, and {args.targets} sets "
-                         f"its TCP before every move: leave --tcp out (the program's set_tcp is used)")
+                         f"its TCP before every move (or leaves it unknown there: such a move is refused, naming its "
+                         f"set_tcp lines): leave --tcp out (the program's set_tcp is used)")
     turned, turn = orientation
     res = compensate_program(r, nominal, prog, models=models, orientation=turned, measured=measured)
     written = not res.problems or args.skip_unreachable  # never half a program silently; none at all: as it was
@@ -474,7 +475,8 @@ def _compensate_program(args, robots, carry: str, models, orientation, unseen: s
                 f"; nothing written to {args.output}" + (" (--skip-unreachable writes the program with the refused "
                                                          "targets left as they are, each marked)" if res.texts else ""))]
     carry = carry if prog.tcps or args.tcp is not None else ""
-    lines += [f"TCP set by the program (set_tcp) at {len(prog.tcps)} place(s): the moves after each use it"] \
+    lines += [f"TCP set by the program (set_tcp) at {len(prog.tcps)} place(s): each move takes the one its flow "
+              f"reaches it with (branches, loops and calls followed)"] \
         if prog.tcps else [] if args.tcp is not None else [
         "warning: the program sets no TCP (set_tcp) and no --tcp was given: its poses are taken as poses of the "
         "measured target (the calibration's tool point); give --tcp with the controller's TCP if it is another"]

@@ -222,6 +222,9 @@ def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side:
         if nominal.n_joints > 6:
             refused[k] = REDUNDANT
             continue
+        if isinstance(program.in_force_of(t), str):  # the program's flow leaves no one tool or base here
+            refused[k] = program.in_force_of(t)
+            continue
         if t.frames not in known:
             known[t.frames] = _frames(program.dialect, t.frames, given, carry)
         found = known[t.frames]

@@ -8,7 +8,8 @@ own (nominal) model; every other byte of the program kept.
   kinematics of the nominal model on the branch nearest the previous target's joints) are corrected
   on the calibrated model, and the pose is replaced by the filtered pose, the one the controller
   turns into the corrected joints.
-The TCP is the program's own where it sets one (``set_tcp``), else the given one. Each corrected
+The TCP is the program's own where it sets one (``set_tcp``, by the program's flow: a target where its paths
+leave different TCPs is refused, naming their lines), else the given one. Each corrected
 target is checked (converged, on the nominal branch, within the joint limits); a target that fails
 keeps its text and is named by line.
 """
@@ -198,7 +199,7 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
     values, refused, qs = {}, {}, np.full((len(program.targets), model.n_joints), np.nan)
     kept, tcps = [], np.full((len(program.targets), 3), np.nan)
     for k, t in enumerate(program.targets):
-        tcp = program.tcp_at(t.at)
+        tcp = program.in_force_of(t)
         pair = (model, nominal) if isinstance(tcp, tuple) else _for_tcp(models, tcp)
         found = _target(t, tcp, pair, q_prev, (orientation, measured))
         if isinstance(found, str):
@@ -218,6 +219,8 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
 
 
 def _for_tcp(models: Models | None, tcp) -> tuple[Robot, Robot] | str:
+    if isinstance(tcp, str):  # no one TCP is known there: why
+        return tcp
     if tcp is None:
         return "the TCP is set from a variable (set_tcp of a non-literal); set it with a literal p[…]"
     if np.linalg.norm(tcp[:3]) > TCP_MAX:

@@ -27,8 +27,11 @@ What is a target (kind "pose" or "joints"):
 
 Frames: a point ``X<name>`` with a ``DECL FDAT F<name>={TOOL_NO t, BASE_NO b, …}`` in the same file
 (the inline forms' naming) has ``frames`` ("TOOL_NO t", "BASE_NO b"). Any other target has the values
-last assigned in the text before it to ``$TOOL`` and ``$BASE`` as written (e.g. "TOOL_DATA[1]",
-"$NULLFRAME"), or '' where the file sets none. A ``.src`` move ``PTP XP1 … C_PTP`` whose point and
+assigned to ``$TOOL`` and ``$BASE`` as written (e.g. "TOOL_DATA[1]", "$NULLFRAME") that the module's flow leaves
+in force at its moves (:mod:`kincal.io.krl_flow`: an assignment in a ``DEF`` reaches the moves after each call of
+it, one in an ``IF``, ``SWITCH`` or loop the moves after the block only as one possibility), or '' where the file
+sets none; where its paths leave different ones (or the module jumps with ``GOTO``) the target's
+``Program.in_force_of`` says why, and it is refused. A ``.src`` move ``PTP XP1 … C_PTP`` whose point and
 FDAT are in the ``.dat`` is listed in the ``.src`` (its literal is compensated in the ``.dat``).
 
 Listed in ``not_literal`` (line, what, why), never changed: relative moves (``PTP_REL``, ``LIN_REL``,
@@ -58,6 +61,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix
+from . import flow, krl_flow
 from .programs import Dialect, Program, Target, controller_angles, old_numbers, used_otherwise, write_fields
 from .krl_scan import (AXIS_KEYS, EXTERNAL, POSE_KEYS, _Aggregate, _aggregate, _blank, _check_brackets, _check_numbers,
                        _fail, _integer)
@@ -197,6 +201,9 @@ class _File:
     listed: list[tuple[int, str, str]] = dataclasses.field(default_factory=list)
     used: set[int] = dataclasses.field(default_factory=set)
     first_move: dict[str, tuple[str, int]] = dataclasses.field(default_factory=dict)
+    moves_to: dict[str, list[int]] = dataclasses.field(default_factory=dict)  # each move to a variable, where
+    unknown: dict[int, str] = dataclasses.field(default_factory=dict)  # a target's start -> why its frames are not
+    # known: its moves' paths leave different $TOOL or $BASE values
 
     @functools.cached_property
     def _breaks(self) -> list[int]:
@@ -253,18 +260,55 @@ class _File:
         return frozenset(name.upper() for m in DECLARE.finditer(self.code) if "GLOBAL" in m.group(0).upper()
                          for name in re.findall(r"[A-Za-z_]\w*", re.sub(r"\[[^\]]*\]", "", m.group(2))))
 
-    def frames(self, at: int, variable: str) -> tuple[str, str]:
-        """(tool, base) of a target at ``at``: the FDAT F<name> of a point X<name>, else the last
-        $TOOL and $BASE set before it ('' for none)."""
+    def frames(self, ats: list[int], variable: str, start: int) -> tuple[str, str]:
+        """(tool, base) of the target at ``start`` whose moves are at ``ats``: the FDAT F<name> of a point X<name>,
+        else the $TOOL and $BASE the module's flow leaves in force at every one of them ('' for none set;
+        :mod:`kincal.io.krl_flow`); where its paths leave different ones, '' and why in ``unknown``."""
         name = variable.split("[")[0].upper()
         if name[:1] == "X" and name[1:] in self._fdat:
             return self._fdat[name[1:]]
-        out = ["", ""]
-        for where, which, value in self._settings:
-            if where >= at:
-                break
-            out[which] = value
+        reached = self._reached
+        if isinstance(reached, str):
+            self.unknown[start] = reached
+        if not isinstance(reached, dict):
+            return "", ""
+        out, why = [], []
+        for slot, what in ((0, "$TOOL"), (1, "$BASE")):
+            possible = frozenset().union(*(reached.get(at, (frozenset(), frozenset()))[slot] for at in ats))
+            one = flow.in_force(possible)
+            out.append("" if one is None else str(one.value))
+            why += [] if one is not None else [_ambiguous(what, possible, len(ats) > 1)]
+        if why:
+            self.unknown[start] = "; ".join(why)
         return out[0], out[1]
+
+    @functools.cached_property
+    def _reached(self) -> dict | str | None:
+        """What may be in force at each move and bound point (:func:`kincal.io.krl_flow.reach`), None for a module
+        that sets no $TOOL or $BASE, or why its structure cannot be read."""
+        if not self._settings:
+            return None
+        moves = [m.start() for m in MOVE.finditer(self.code)] + list(self.bound.values())
+        try:
+            return krl_flow.reach(self.code, [(w, k, v, self.line(w)) for w, k, v in self._settings], moves)
+        except krl_flow.Broken as exc:
+            return (f"the $TOOL and $BASE in force cannot be read from the module's structure: line "
+                    f"{self.line(exc.args[0])}: {exc.args[1]}")
+
+
+def _ambiguous(what: str, possible: frozenset, shared: bool = False) -> str:
+    """Why the ``what`` ($TOOL or $BASE) in force at a target is not known: the lines whose values may be (at the
+    moves to it, ``shared``: a point moved to more than once)."""
+    if not possible:
+        return f"no path of the module reaches this move, so no {what} is known for it"
+    lines = sorted(s.line for s in possible if s.line != flow.START)
+    return (f"its {what} is not known from the module's structure: the {what} assignment"
+            f"{'s' * (len(lines) > 1)} on line{'s' * (len(lines) > 1)} {', '.join(map(str, lines))}"
+            + (f" or the {what} in force before any" if any(s.line == flow.START for s in possible) else "")
+            + (f" may be in force at the moves to it, one literal for each; give each its own point, after a {what} "
+               f"assignment that every path to it runs" if shared else
+               f" may be in force here, as a branch, loop or call decides at run time; give it one: a {what} "
+               f"assignment that every path runs before this move"))
 
 
 def _variable_reason(f: _File, var: str, shown: str) -> str:
@@ -299,6 +343,7 @@ def _moves(f: _File) -> None:
                 f.note(a, f"{move} {arg}", "a target computed at run time (a frame product ':' or a call)")
             elif _key(arg) in bound:
                 f.first_move.setdefault(_key(arg), (move, m.start()))
+                f.moves_to.setdefault(_key(arg), []).append(m.start())
             else:
                 f.note(a, f"{move} {arg}", _variable_reason(f, _key(arg), "".join(arg.split())))
 
@@ -311,7 +356,7 @@ def _inline(f: _File, agg: _Aggregate, move: str, at: int) -> None:
     if agg.missing:
         f.note(agg.start, f"{move} {f.text[agg.start:agg.end]}", _partial(agg))
         return
-    f.targets.append(_target(f.text, agg, move, at, "", f.frames(at, ""), f.line(agg.start)))
+    f.targets.append(_target(f.text, agg, move, at, "", f.frames([at], "", agg.start), f.line(agg.start)))
 
 
 def _partial(agg: _Aggregate) -> str:
@@ -345,7 +390,8 @@ def _points(f: _File) -> None:
                                             f"it, and it is not GLOBAL"))
         else:
             kind = kind or ("E6" if set(agg.parts) & set(EXTERNAL) else "") + ("POS" if agg.shape == "pose" else "AXIS")
-            f.targets.append(_target(f.text, agg, move or kind, at if move else a, shown, f.frames(a, var),
+            f.targets.append(_target(f.text, agg, move or kind, at if move else a, shown,
+                                     f.frames(f.moves_to.get(var) or [a], var, a),
                                      f.line(agg.start)))
 
 
@@ -429,7 +475,8 @@ def parse(source: str, text: str) -> Program:
     _points(f)
     _leftovers(f)
     targets = _in_si(sorted(f.targets, key=lambda t: t.start))
-    return Program(source, text, tuple(targets), tuple(sorted(f.listed, key=lambda x: x[0])))
+    return Program(source, text, tuple(targets), tuple(sorted(f.listed, key=lambda x: x[0])),
+                   in_force=tuple(sorted(f.unknown.items())))
 
 
 def _fields(text: str, targets: Sequence[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

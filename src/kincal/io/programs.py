@@ -17,6 +17,7 @@ INFORM ``RCONF``) and its ``frames`` the tool and base (work object, user frame)
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import unicodedata
 from dataclasses import dataclass, field
@@ -130,6 +131,11 @@ class Program:
     tcps : tuple of (int, ndarray or None), optional
         The TCPs the program sets: (position in the text, the pose (6,) in m and rad, or None when not a
         literal) (default ()).
+    in_force : tuple of (int, object), optional
+        What the program's flow (:mod:`kincal.io.flow`) leaves in force at a target's moves: (the target's
+        ``start``, URScript's TCP there — the pose (6,), None for a TCP set from a non-literal, () for none set —
+        or, in any language, a str: why no one TCP, tool or base is known there) (default (): () for every
+        target).
     comment : str, optional
         The language's comment mark ('' for a language that allows none beside a target) (default "#").
     dialect : str, optional
@@ -156,7 +162,7 @@ class Program:
     ...     program = read_program(path)
     >>> program.dialect, program.encoding, program.comment, len(program.targets)
     ('ur', 'utf-8', '#', 1)
-    >>> program.tcp_at(program.targets[0].at).tolist()
+    >>> program.in_force_of(program.targets[0]).tolist()
     [0.0, 0.0, 0.15, 0.0, 0.0, 0.0]
 
     The target written again 1 mm higher, every other byte as it was:
@@ -174,11 +180,17 @@ class Program:
     tcps: tuple = ()
     comment: str = "#"
     dialect: str = "ur"
+    in_force: tuple = ()
 
-    def tcp_at(self, at: int):
-        """The TCP set last before position ``at`` (its pose (6,), None if not a literal), or () when none."""
-        before = [pose for where, pose in self.tcps if where < at]
-        return before[-1] if before else ()
+    def in_force_of(self, target: Target):
+        """What is in force at ``target``'s moves by the program's flow (``in_force``): URScript's TCP pose (6,),
+        None if set from a non-literal, () when none is set (or in another language); a str: why no one TCP, tool or
+        base is known there."""
+        return self._tcp_by_start.get(target.start, ())
+
+    @functools.cached_property
+    def _tcp_by_start(self) -> dict:
+        return dict(self.in_force)
 
     def with_targets(self, texts: dict[int, str], marks: dict[int, str] | None = None) -> str:
         """The text with target k's span replaced by ``texts[k]`` (the others as they are), and a
