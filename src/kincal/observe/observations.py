@@ -156,6 +156,10 @@ class Observation:
         found = self.positions()
         return {} if found is None else {"tool": found}
 
+    def position_rows(self) -> np.ndarray:
+        """(n,) the input rows of the samples :meth:`positions` gives (every sample's by default)."""
+        return self.rows
+
     def positions_point(self, setup: dict) -> np.ndarray | None:
         """The point on the flange (3,) m whose positions :meth:`positions` gives, from the set-up parameters'
         values ``setup`` (name -> m or rad); None for the robot's own tool point (points, poses)."""
@@ -259,6 +263,9 @@ class Wrapper(Observation):
 
     def flange_positions(self) -> dict:
         return self.inner.flange_positions()
+
+    def position_rows(self) -> np.ndarray:
+        return self.inner.position_rows()
 
     def positions_point(self, setup: dict) -> np.ndarray | None:
         return self.inner.positions_point(setup)
