@@ -107,6 +107,28 @@ def assert_jacobians(robot, q, param_tol=1e-6, joint_tol=1e-8, h=1e-6):
     assert np.abs(robot.joint_jacobian(q) - Jq).max() < joint_tol
 
 
+def registered_markers(robot, sets, points=None):
+    """Reference for the "before" of markers: the mean marker error (m) of ``robot``'s kinematics with each set's
+    measurement frame and the markers' points (shared) registered by scipy's least squares, the points (k, 3) m
+    (``points``: held at these) and each set's frame as (R (3, 3), t (3,)) taking the robot's frame to the set's."""
+    from scipy.optimize import least_squares
+    from scipy.spatial.transform import Rotation
+
+    k, n = sets[0].xyz.shape[1], 6 * len(sets)
+
+    def frames(x):
+        return [(Rotation.from_rotvec(x[6 * s:6 * s + 3]).as_matrix(), x[6 * s + 3:6 * s + 6]) for s in range(len(sets))]
+
+    def residual(x):
+        pts = x[n:].reshape(k, 3) if points is None else points
+        return np.concatenate([robot.with_tool_point(p).forward(obs.q) @ R.T + t - obs.xyz[:, m]
+                               for obs, (R, t) in zip(sets, frames(x)) for m, p in enumerate(pts)])  # (N k, 3) m
+    x = least_squares(lambda x: residual(x).ravel(), np.zeros(n + (3 * k if points is None else 0)), xtol=1e-14,
+                      ftol=1e-14).x
+    return float(np.linalg.norm(residual(x), axis=1).mean()), x[n:].reshape(k, 3) if points is None else points, \
+        frames(x)
+
+
 def z_limit(n: int, alpha: float = 0.01) -> float:
     """The bound on the largest |z| of n standard normal z-scores that a correct estimator exceeds with
     probability alpha (two-sided, Bonferroni): 3.0 is exceeded by one of 128 honest z-scores 29 % of the

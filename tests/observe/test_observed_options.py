@@ -143,6 +143,39 @@ def test_diagnosis_of_poses_names_a_negated_joint():
     assert clean.diagnosis is None and clean.verdict.status == "good"
 
 
+@pytest.mark.slow
+def test_diagnosis_of_poses_or_markers_given_one_frame_names_the_moved_camera():
+    """Two 6-D pose files, or two markers files, fitted in one frame (--same-frame) though the camera turned 1 deg
+    and moved 6 mm between them: the diagnosis tries each file in a frame of its own, as for position files, and
+    names it with the σ before and after: after, the simulated noise per axis (20 µm for the poses' target; the
+    centroid of 3 markers at 15 µm: 15/√3 µm), before, the fit of the same positions in one frame. It ran for one
+    point or pose file only: none was named (the positioner: 55.6x the stated σ, no cause)."""
+    import dataclasses
+
+    from kincal.identify import calibrate, joined
+    from kincal.io.measurements import Measurements
+    from kincal.simulate.observations import simulate_markers
+
+    ur5 = kincal.load_robot("ur5").with_tool_point([0.05, 0.02, 0.1])
+    true = kincal.perturb(ur5, seed=3)
+    turn, shift = Rotation.from_rotvec([0.0, 0.0, np.deg2rad(1.0)]).as_matrix(), np.array([6e-3, 0.0, 0.0])
+    target = Rotation.from_rotvec([0.1, 0.2, -0.3]).as_matrix()
+    markers = np.array([[0.04, 0.0, 0.03], [0.0, 0.04, 0.03], [-0.03, -0.03, 0.05]])
+    poses = [simulate_poses(true, ur5.sample_joints(60, seed=s), target, 20e-6, 0.05e-3, seed=s) for s in (1, 2)]
+    seen = [simulate_markers(true, ur5.sample_joints(60, seed=s), markers, 15e-6, seed=s) for s in (1, 2)]
+    moved = [[poses[0], dataclasses.replace(poses[1], xyz=poses[1].xyz @ turn.T + shift, R=turn @ poses[1].R)],
+             [seen[0], dataclasses.replace(seen[1], xyz=seen[1].xyz @ turn.T + shift)]]
+    for sets, noise in zip(moved, (20e-6, 15e-6 / np.sqrt(3))):
+        fit = fit_observations(ur5, sets, diagnose=True)
+        first = fit.verdict.reasons[0]
+        assert first.code == "cause-same-frame" and "leave out --same-frame" in first.message
+        best = fit.diagnosis.best
+        assert best.sigma == pytest.approx(noise, rel=0.15) and best.status == "good"
+        one = joined([Measurements(*o.positions(), ur5.joint_names, f"{k}.csv") for k, o in enumerate(sets)])
+        assert fit.diagnosis.sigma == pytest.approx(calibrate(ur5, one, diagnose=False).sigma, rel=1e-6)
+        assert fit.diagnosis.sigma > 50 * noise
+
+
 def test_instrument_drift_over_a_pose_or_marker_file(tmp_path, capsys):
     """A camera creeping 0.3/-0.2/0.1 mm over a file: drift=True fits it as the file's set-up
     parameters (within 4 σ of the truth, for poses and for markers), and the model no longer absorbs

@@ -323,20 +323,23 @@ def _fitted_here(robot, frame: tuple, own: tuple, fit, held: dict) -> str:
 
 def _nominal_beside(args, robot, record: dict | None, obs, held: dict) -> tuple[dict | None, str]:
     """The nominal model's statistics on a held-out set, judged as the calibrated one is: with --same-frame its
-    frame and target point as registered on the training data (the record's, as the report does), else registered
-    to this set (the point only where the data fix a scale); and how, in words. (None, '') without a record."""
+    frame, target point and markers' points as registered on the training data (the record's, as the report does),
+    else registered to this set (the points only where the data fix a scale); and how, in words. (None, '') without
+    a record."""
     kept = nominal_model(robot, record, args.robot, "before_mounting") if args.same_frame else None
+    mounted = {str(k): float(v) for k, v in ((record or {}).get("before_setup") or {}).items()}  # markers' points
     if kept is not None:
-        return _fixed_kinematics(kept, obs, (), held).per_set[0], "its frame and target point as registered on the " \
-            "training data"
+        return _fixed_kinematics(kept, obs, (), {**held, **mounted}).per_set[0], "its frame and target point as " \
+            "registered on the training data"
     nominal = nominal_model(robot, record, args.robot)
     if nominal is None:
         return None, ""
     mounting = (*(robot.base_params() if obs.kind in ABSOLUTE else ()),
                 *(n for n in robot.params.names if n.startswith("tool.") and obs.reference))
     parts = [w for w, p in (("frame", "base."), ("target point", "tool.")) if any(n.startswith(p) for n in mounting)]
-    return _fixed_kinematics(nominal, obs, mounting, held).per_set[0], \
-        f"its {' and '.join(parts)} fitted" if parts else "its frame and target point as declared"
+    return _fixed_kinematics(nominal, obs, mounting, {n: v for n, v in held.items() if not (
+        obs.reference and n in mounted)}).per_set[0], f"its {' and '.join(parts)} fitted" if parts else \
+        "its frame and target point as declared"
 
 
 def _fixed_kinematics(robot, obs, frame: tuple, held: dict):

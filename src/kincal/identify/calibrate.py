@@ -275,8 +275,8 @@ def fit_observations(robot: Robot, observations: Sequence, options: FitOptions |
 def diagnosed(res: CalibrationResult, robot: Robot, say=lambda msg: None) -> CalibrationResult:
     """``res`` with the differential diagnosis as the first reason of its verdict, when the verdict
     doubts the data (:data:`TRIGGERS`). Position data are screened as fitted; other kinds on the
-    positions of their one point or 6-D pose file in the robot's frame (fitted as positions from
-    ``robot``, the model as given); markers, sockets, planes and sessions in their own frames are
+    positions of their point, 6-D pose or markers files in the robot's frame (:func:`_positions_of`, fitted as
+    positions from ``robot``, the model as given); sockets, planes and sessions in their own frames are
     not (the verdict puts the diagnosis first: :func:`kincal.identify.judge.verdict_of`)."""
     if not any(r.code in TRIGGERS for r in res.verdict.reasons):
         return res
@@ -288,14 +288,23 @@ def diagnosed(res: CalibrationResult, robot: Robot, say=lambda msg: None) -> Cal
 
 
 def _positions_of(res: CalibrationResult, robot: Robot) -> CalibrationResult | None:
-    """The fit of the measured positions of ``res``'s one point or pose file in the robot's frame
-    (at least 10 of them), or None."""
-    sets = [o for o in res.observations if o.kind in ("point", "pose") and not isinstance(o, InSession)]
-    if len(sets) != 1 or len(sets[0]) < 10:
+    """The fit of the measured positions of ``res``'s point, pose or markers files in the robot's frame (at least
+    10 of them), or None: one file, or several given in one frame (--same-frame) as sessions of that frame, so the
+    diagnosis tries each in a frame of its own as it does for position files (the camera moved between them);
+    files that measure one point on the flange only (a markers file's centroid is another than a pose's target)."""
+    sets = [o for o in res.observations if o.kind in ABSOLUTE and not isinstance(o, InSession)]
+    points, found = [o.positions_point(res.nuisance) for o in sets], [o.positions() for o in sets]
+    if not sets or None in found or not all(
+            p is None if points[0] is None else p is not None and np.allclose(p, points[0], atol=1e-9) for p in points):
         return None
-    q, xyz = sets[0].positions()
-    return calibrate(robot, Measurements(q, xyz, robot.joint_names, sets[0].source, sets[0].rows), diagnose=False,
-                     base=res.options.base)  # the set-up as the user gave it: --base fixed is one of the causes
+    parts = [Measurements(f[0], f[1], robot.joint_names, o.source, o.position_rows()) for o, f in zip(sets, found)
+             if f is not None]
+    meas = parts[0] if len(parts) == 1 else joined(parts)
+    if len(meas) < 10:
+        return None
+    robot = robot if points[0] is None else robot.with_tool_point(points[0])  # markers: their centroid as fitted
+    return calibrate(robot, meas, diagnose=False, base=res.options.base)  # the set-up as the user gave it: --base
+    # fixed is one of the causes
 
 
 def _arguments(robot: Robot, meas: Measurements, options: FitOptions | None) -> None:
@@ -382,7 +391,8 @@ def held_out_stats(fit: CalibrationResult, obs, robot: Robot, same_frame: bool) 
     In the training frame with the training set-up parameters (``same_frame``; sockets and planes need
     no frame), else with its own frame fitted (the tracker or camera may have moved), the kinematics
     fixed and the set-up parameters it shares with the training files (a target's rotation, markers)
-    held as trained.
+    held as trained. ``fit.before`` is judged as "before" calibration: with the markers' points registered
+    with it on the training sets (``fit.before_setup``) in the training frame, else registered to this set.
 
     Parameters
     ----------
@@ -418,6 +428,8 @@ def held_out_stats(fit: CalibrationResult, obs, robot: Robot, same_frame: bool) 
         return fit.held_out(obs, robot)
     anchors = {k: v for o in fit.observations for k, v in o.anchors().items()}
     own = obs.refitted(robot)  # a target defined anew: its point and rotation are the set's own
-    held = {n: v for n, v in fit.nuisance.items() if not n.startswith(("frame[", "drift[")) and n not in own}
+    mounted = fit.before_setup if robot is fit.before else {}  # the nominal's markers: registered to the set
+    held = {n: v for n, v in fit.nuisance.items()
+            if not n.startswith(("frame[", "drift[")) and n not in own and n not in mounted}
     names = (*robot.base_params(), *(n for n in own if n in robot.params))
     return fit_observations(robot, [obs.with_anchors(anchors)], names=names, held=held).per_set[0]

@@ -17,7 +17,8 @@ fit's set-up, listed in this canonical order (ties go to the earlier one, :mod:`
 8. the tool point: not estimated, and mounted elsewhere than declared;
 9. a frame that jumps inside the file (two set-ups, a bumped tracker): the split
    (:func:`kincal.models.unit_checks.frame_jump` on the fitted model) fitted as two sessions; several files
-   fitted in one frame (``--same-frame``): each in a frame of its own;
+   fitted in one frame (``--same-frame``; points, 6-D poses or markers, by their positions): each in a frame of
+   its own;
 10. a few bad poses: the rows a robust refit puts beyond ``outlier_z`` robust σ, left out.
 
 Two stages keep it cheap. Candidates 1–6 change the data; each is screened by registering the
@@ -253,8 +254,8 @@ def _sessions(res: CalibrationResult) -> list[tuple[Cause, Change]]:
     if len(labels) < 2:
         return []
     parts = [meas.subset(np.flatnonzero(meas.session == s)) for s in labels]
-    return [(Cause("same-frame", "the files were not measured in one frame (the tracker moved between them)",
-                   "leave out --same-frame: each file then gets its own measurement frame"),
+    return [(Cause("same-frame", "the files were not measured in one frame (the tracker or camera moved between "
+                                 "them)", "leave out --same-frame: each file then gets its own measurement frame"),
              lambda r, m, o: (r, parts, o))]
 
 

@@ -48,7 +48,8 @@ class CalibrationResult:
     registered : Robot
         The same with its measurement frame registered to the data: where the fit began.
     before : Robot
-        The same with the target point registered too: what "before" calibration is judged on.
+        The same with the target point registered too, its frame with the markers' points where markers were
+        measured (``before_setup``): what "before" calibration is judged on.
     names : tuple of str
         The robot parameters fitted; every other kept its value.
     nuisance : dict of str to float
@@ -118,6 +119,9 @@ class CalibrationResult:
         of observation sets.
     repeat : Repeat or None, optional
         What a repeat calibration on other poses would differ by (for ``compare`` and ``check``).
+    before_setup : dict of str to float, optional
+        The markers' points registered with ``before`` (``marker[<name>].x/y/z``, m): the set-up its figures, and a
+        held-out set's in the training frame, are judged with; empty without markers.
 
     Examples
     --------
@@ -175,6 +179,7 @@ class CalibrationResult:
     use_q: np.ndarray | None = None  # (M, n) where the model will be used (the prediction-σ guard)
     data: tuple[Measurements, ...] = ()
     repeat: Repeat | None = None  # what a repeat calibration on other poses would differ by (compare, check)
+    before_setup: dict = field(default_factory=dict)  # the markers' points registered with ``before`` (name -> m)
 
     def __post_init__(self) -> None:
         freeze_arrays(self)  # the arrays it hands out: what it prints cannot drift from what it computed
@@ -353,6 +358,8 @@ class CalibrationResult:
         out["verdict"] = self.verdict.status  # what the commands made with this file carry
         nominal = self.nominal.params.as_dict()  # "before": its frame and target point registered on the data
         out["before_mounting"] = {n: float(v) for n, v in self.before.params.as_dict().items() if v != nominal[n]}
+        if self.before_setup:  # and the markers' points registered with it
+            out["before_setup"] = {n: float(v) for n, v in self.before_setup.items()}
         if self.use_q is not None:
             out["use_q"] = self.use_q.tolist()
         if self.repeat is not None:
@@ -418,13 +425,15 @@ class CalibrationResult:
     def held_out(self, obs, robot: Robot | None = None) -> dict:
         """Statistics of a held-out set (same types) under the calibrated robot (or ``robot``, e.g. the
         nominal one): set-up parameters the fit shares with it (a target's rotation, markers) at their
-        fitted values; a pose set also takes the training target's start rotation."""
+        fitted values, or, under :attr:`before`, the markers' points as registered with it (:attr:`before_setup`);
+        a pose set also takes the training target's start rotation."""
         robot = self.robot if robot is None else robot
+        setup = {**self.nuisance, **(self.before_setup if robot is self.before else {})}
         pose = self._pose_set()
         anchors: dict = {} if pose is None else pose.anchors()  # the first target's
         obs = obs.with_anchors(anchors).prepare(robot)  # anchored: prepare keeps the training target's rotation
         names, start, _ = obs.nuisance(robot)
-        return obs.stats(robot, robot.params.values, np.array([self.nuisance.get(n, v) for n, v in zip(names, start)]))
+        return obs.stats(robot, robot.params.values, np.array([setup.get(n, v) for n, v in zip(names, start)]))
 
     def to_dict(self) -> dict:
         out = {"robot": self.robot.name, "converged": self.converged, "message": self.message,

@@ -77,6 +77,14 @@ class MarkersObs(Observation):
         rows, which = self._registering()
         return self.q[rows], self.xyz[rows][:, which].mean(axis=1)
 
+    def position_rows(self) -> np.ndarray:
+        return self.rows[self._registering()[0]]
+
+    def flange_positions(self) -> dict:
+        """Each marker's measured positions where it was seen: ``marker[<name>]`` -> (q (n, joints), xyz (n, 3) m)."""
+        return {f"marker[{m}]": (self.q[seen], self.xyz[seen, k]) for k, (m, seen) in enumerate(zip(self.names,
+                                                                                                  self.seen().T))}
+
     def positions_point(self, setup: dict) -> np.ndarray:
         """The point on the flange (3,) m :meth:`positions` measures: the centroid of the same markers' points
         ``marker[<name>].x/y/z`` in ``setup`` (m)."""

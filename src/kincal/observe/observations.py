@@ -148,6 +148,18 @@ class Observation:
         the fit; None for data that see no absolute position."""
         return None
 
+    def flange_positions(self) -> dict:
+        """The absolute positions it measured of points on the flange, in the measurement frame, per point: the
+        point's name (``tool``: the robot's tool point; ``marker[m1]``: a marker's set-up point) -> (q (N, n),
+        xyz (N, 3) m) of the samples that saw it; {} for data that see none: what a "before" model is registered
+        to."""
+        found = self.positions()
+        return {} if found is None else {"tool": found}
+
+    def position_rows(self) -> np.ndarray:
+        """(n,) the input rows of the samples :meth:`positions` gives (every sample's by default)."""
+        return self.rows
+
     def positions_point(self, setup: dict) -> np.ndarray | None:
         """The point on the flange (3,) m whose positions :meth:`positions` gives, from the set-up parameters'
         values ``setup`` (name -> m or rad); None for the robot's own tool point (points, poses)."""
@@ -248,6 +260,12 @@ class Wrapper(Observation):
 
     def positions(self):
         return self.inner.positions()
+
+    def flange_positions(self) -> dict:
+        return self.inner.flange_positions()
+
+    def position_rows(self) -> np.ndarray:
+        return self.inner.position_rows()
 
     def positions_point(self, setup: dict) -> np.ndarray | None:
         return self.inner.positions_point(setup)

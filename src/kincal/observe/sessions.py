@@ -91,6 +91,9 @@ class InSession(Wrapper):
     def positions(self):
         return None  # its positions are in its own frame, not the robot's
 
+    def flange_positions(self) -> dict:
+        return {}  # (as its positions)
+
     def prepare(self, robot: Robot) -> "InSession":
         return dataclasses.replace(self, inner=self.inner.prepare(self._at_frame(robot)))
 
