@@ -439,3 +439,25 @@ def test_analysis_plan_and_program_records_hand_out_read_only_arrays(ur5, tmp_pa
     assert np.allclose(ident.singular_values, s, rtol=1e-9, atol=1e-12 * s[0])  # unchanged by the attempts
     assert f"rank gap {s[ident.rank - 1] / s[ident.rank]:.3g}" in str(ident)
     assert check.passed.tolist() == [True, True] and np.abs(check.deviations).max() < 1e-9
+
+
+def test_a_miss_of_micrometres_is_said_in_them():
+    """A target 30 µm off the positioner's surface is refused as the model missing it by more than the 1 µm the
+    command must reach: the message said "misses the target by 0.0 mm" (0.1 mm steps); it says the miss the
+    command leaves, to the micrometre, and the limit."""
+    import re
+
+    from conftest import POSITIONER_MODEL
+
+    robot = kincal.load_robot(POSITIONER_MODEL)
+    q = np.array([[0.1, 0.2], [0.2, 1.5]])
+    h = 1e-7
+    J = np.stack([(robot.forward(q + h * e) - robot.forward(q - h * e)) / (2 * h) for e in np.eye(2)], axis=2)
+    normal = np.cross(J[..., 0], J[..., 1])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)  # of the surface its two joints sweep, at q
+    off = compensate(robot, robot.forward(q) + 30e-6 * normal, q)
+    assert not off.ok.any()
+    said = [float(re.search(r"misses the target by ([\d.]+) mm \(a command must reach it within 0.001 mm; ",
+                            p).group(1)) for p in off.problems]
+    miss = np.linalg.norm(robot.forward(off.q) - (robot.forward(q) + 30e-6 * normal), axis=1)
+    assert said == pytest.approx(np.round(miss * 1e3, 3).tolist(), abs=0) and said == [0.030, 0.030]
