@@ -51,7 +51,8 @@ def files(tmp_path_factory):
     out = {}
     for kind in KINDS:
         path = d / f"{kind}.csv"
-        assert main(["simulate", "ur5", "--type", kind, "--perturb", "--poses", "40", "-o", str(path)]) == 0
+        count = [] if kind in ("same-point", "plane") else ["--poses", "40"]  # sockets and planes: the plan's count
+        assert main(["simulate", "ur5", "--type", kind, "--perturb", *count, "-o", str(path)]) == 0
         out[kind] = path
     return out
 
@@ -121,3 +122,45 @@ def test_every_report_flag_is_read(files, kind, capsys, tmp_path):
     read = object.__getattribute__(args, "_read")
     missing = [flag for dest, flag in _flags(parser, "report").items() if dest not in read and dest != "rebase"]
     assert missing == [], f"report of {kind} data: {missing} neither read nor refused"
+
+
+# a valid value other than the default, for every flag of simulate's own table (kincal.cli.model.SIMULATE_SCOPES)
+SIMULATE_SAMPLE = {"--poses": ["7"], "--poses-file": ["{d}/q.csv"], "--orientation": ["quat-xyzw"],
+                   "--rot-cols": ["a,b,c,d"], "--std-rot": ["5mrad"], "--label-col": ["socket"],
+                   "--group-col": ["plate"], "--distance": ["0,1,0.04"], "--plane": ["t:0,0,1,-0.2"],
+                   "--xyz-cols": ["a,b,c"], "--std-pos": ["1mm"], "--markers": ["m1"]}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", KINDS)
+def test_every_simulate_flag_changes_the_file_or_is_refused(kind, tmp_path, capsys):
+    """simulate: each flag its table scopes either changes the file written or is refused, naming it. --poses was
+    ignored for sockets and planes (`--type plane --poses 200` wrote 60 samples, `--type same-point --poses 20`
+    120), as were --std-pos (every kind) and --markers (the markers are always m1, m2, m3)."""
+    from kincal.cli.model import SIMULATE_SCOPES
+    from kincal.cli.observe import CONTACTS_PER_PLANE, SOCKETS_PER_POINT
+
+    parser = build_parser()
+    scoped = {flag: dest for dest, flag in _flags(parser, "simulate").items() if dest in SIMULATE_SCOPES}
+    assert set(scoped) == set(SIMULATE_SAMPLE)
+    (tmp_path / "q.csv").write_text("j1,j2,j3,j4,j5,j6\n" + "0.1,-1,1,-1,1,0.2\n" * 5)
+    base = tmp_path / "base.csv"
+    assert main(["simulate", "ur5", "--type", kind, "-o", str(base)]) == 0
+    rows = base.read_text().splitlines()[1:]
+    if kind in ("same-point", "plane"):  # the count the refusal states: the plan's, per socket or plane
+        labels = [r.split(",")[0] + "/" + r.split(",")[1] * (kind == "same-point") for r in rows]  # placement/socket
+        per = SOCKETS_PER_POINT if kind == "same-point" else CONTACTS_PER_PLANE
+        assert {labels.count(lab) for lab in labels} == {per}
+        assert len(rows) == {"same-point": 120, "plane": 60}[kind] == per * len(set(labels))
+    capsys.readouterr()
+    for flag, value in SIMULATE_SAMPLE.items():
+        out = tmp_path / "f.csv"
+        out.unlink(missing_ok=True)
+        code = main(["simulate", "ur5", "--type", kind, "-o", str(out), flag, *[v.format(d=tmp_path) for v in value]])
+        err = capsys.readouterr().err
+        if kind in SIMULATE_SCOPES[scoped[flag]].kinds:
+            assert code == 0 and out.read_bytes() != base.read_bytes(), (flag, kind, err)
+        else:
+            assert code == 1 and f"{flag} does not apply to {kind} data" in err and not out.exists(), (flag, kind, err)
+    assert main(["simulate", "ur5", "--type", kind, "-o", str(tmp_path / "g.csv"), "--poses", "7", "--poses-file",
+                 str(tmp_path / "q.csv")]) == 1  # --poses beside the file of poses: one of the two is not used

@@ -759,7 +759,7 @@ OBSERVE = [
          1, ["--seed is given twice"]),
     case("simulate-sockets-with-a-poses-file", ["simulate", "ur5", "--type", "same-point", "--poses-file",
                                                 "{d}/p.csv", "-o", "{d}/x.csv"], 1,
-         ["--poses-file: simulate --type same-point plans its own plate of sockets"],
+         ["--poses-file does not apply to same-point data: sockets and planes are touched where kincal's own plan"],
          files={"p.csv": "j1,j2,j3,j4,j5,j6\n0,0,0,0,0,0\n"}),
     case("design-candidates-in-degrees-read-as-radians", ["design", "ur5", "-m", "5", "--candidates", "{d}/c.csv",
                                                           "-o", "{d}/d.csv"], 1,

@@ -466,3 +466,23 @@ def test_a_tool_given_again_to_compensate_a_calibration_is_refused(tmp_path, cap
     rows = np.genfromtxt(out, delimiter=",", names=True)
     cmd = np.column_stack([rows[f"j{k}"] for k in range(1, 7)])
     assert np.linalg.norm(true.forward(cmd) - goals, axis=1).max() < 1e-3  # j1 kept in the base frame; --tool: 2.5 mm
+def test_a_miss_of_micrometres_is_said_in_them():
+    """A target 30 µm off the positioner's surface is refused as the model missing it by more than the 1 µm the
+    command must reach: the message said "misses the target by 0.0 mm" (0.1 mm steps); it says the miss the
+    command leaves, to the micrometre, and the limit."""
+    import re
+
+    from conftest import POSITIONER_MODEL
+
+    robot = kincal.load_robot(POSITIONER_MODEL)
+    q = np.array([[0.1, 0.2], [0.2, 1.5]])
+    h = 1e-7
+    J = np.stack([(robot.forward(q + h * e) - robot.forward(q - h * e)) / (2 * h) for e in np.eye(2)], axis=2)
+    normal = np.cross(J[..., 0], J[..., 1])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)  # of the surface its two joints sweep, at q
+    off = compensate(robot, robot.forward(q) + 30e-6 * normal, q)
+    assert not off.ok.any()
+    said = [float(re.search(r"misses the target by ([\d.]+) mm \(a command must reach it within 0.001 mm; ",
+                            p).group(1)) for p in off.problems]
+    miss = np.linalg.norm(robot.forward(off.q) - (robot.forward(q) + 30e-6 * normal), axis=1)
+    assert said == pytest.approx(np.round(miss * 1e3, 3).tolist(), abs=0) and said == [0.030, 0.030]

@@ -110,3 +110,62 @@ def test_scarce_data_keep_what_they_cannot_confirm_near_nominal():
     assert error(learned.robot) < 0.5 * error(plain.robot)
     held = [g for g, s in learned.prior.items() if s < 1e-6]
     assert "j2 lengths" not in held and len(held) >= 3
+
+
+
+def test_the_learned_prior_keeps_to_its_iteration_limit():
+    """relevance_fit's iterations (Gauss–Newton steps and its final Levenberg–Marquardt together) stay within
+    max_iter, and a fit stopped by it says so (its Levenberg–Marquardt ran up to 100 whatever the limit)."""
+    J, y, groups = _linear_problem()
+
+    def fun(x):
+        return (J @ x - y / STATED), J
+    ls = levenberg_marquardt(fun, np.zeros(7))
+    free = relevance_fit(fun, ls, np.zeros(7), groups, ["length"] * 6 + [""])
+    assert free.converged and free.iterations > 1 and free.message == "prior learned"
+    capped = relevance_fit(fun, ls, np.zeros(7), groups, ["length"] * 6 + [""], max_iter=1)
+    assert capped.iterations == 1 and not capped.converged
+    assert capped.message == "prior learned; stopped after 1 iterations without meeting the tolerances"
+
+
+@pytest.mark.slow
+def test_max_iter_caps_every_solver_run_and_the_count_sums_them(tmp_path, capsys, monkeypatch):
+    """--max-iter caps each solver run, and the printed count is the sum over the runs it names: the Panda's
+    front placement with --max-iter 5 printed "27 iterations" (6 Levenberg–Marquardt runs of at most 5, the
+    learned prior's 3 left out), two files with a moved plate 9774 at the default 100."""
+    import json
+
+    import kincal.identify.rounds as rounds
+    from conftest import PANDA_URDF, SOCKETS
+    from kincal.cli import main
+
+    runs, limits = [], []
+    lm, prior = rounds.levenberg_marquardt, rounds.with_learned_prior
+
+    def counted_lm(fun, x0, max_iter=100, **kw):
+        fit = lm(fun, x0, max_iter=max_iter, **kw)
+        runs.append(fit.iterations)
+        limits.append(max_iter)
+        return fit
+
+    def counted_prior(fun, fit, nominal, free, robot, *limit):
+        out = prior(fun, fit, nominal, free, robot, *limit)
+        if out is not fit:
+            runs.append(out.iterations)
+            limits.extend(limit or [100])
+        return out
+
+    monkeypatch.setattr(rounds, "levenberg_marquardt", counted_lm)
+    monkeypatch.setattr(rounds, "with_learned_prior", counted_prior)
+    lines = (SOCKETS / "samples.csv").read_text().splitlines()
+    front = tmp_path / "front.csv"
+    front.write_text("\n".join([lines[0], *(x for x in lines if x.startswith("front_center,"))]) + "\n")
+    args = ["calibrate", str(PANDA_URDF), "--tip-link", "ball_link", str(front), "--type", "same-point",
+            "--joint-cols", "q1,q2,q3,q4,q5,q6,q7", "--label-col", "socket", "--group-col", "placement",
+            "--length-unit", "mm", "--distance", "0,1,50", "--max-iter", "5"]
+    assert main([*args, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["prior"] and len(runs) > 2 and set(limits) == {5} and max(runs) <= 5
+    assert (out["iterations"], out["runs"]) == (sum(runs), len(runs))
+    assert main(args) == 0
+    assert f"in {out['iterations']} iterations over {out['runs']} solver runs" in capsys.readouterr().out

@@ -12,7 +12,8 @@ import kincal.analysis
 import kincal.io
 import kincal.models
 from kincal.compensate import fit_frames_only
-from kincal.identify import observation_identifiability
+from kincal.identify import SCOPES, observation_identifiability, refuse_inapplicable
+from kincal.identify.applies import Scope
 from kincal.models.export import controller_base
 from kincal.observe import describe, read_observations, write_observations
 from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM, SHOWN, display, joint_factors, joint_units
@@ -75,16 +76,33 @@ def cmd_identifiability(args) -> int:
     return emit(args, {**ident.to_dict(), "gauge": list(gauge), "type": kind}, str(ident))
 
 
+AT_JOINTS = ("point", "pose", "markers")  # the kinds simulate measures at joints given or drawn at random
+SIMULATE_POSES = 60  # random poses of a point, pose or markers simulation unless --poses says
+# simulate's own table of what applies to which kind (kincal.identify.refuse_inapplicable): the file-layout flags
+# as calibrate reads them, and those of simulate alone
+SIMULATE_SCOPES = {**{k: SCOPES[k] for k in ("orientation", "rot_cols", "std_rot", "label_col", "group_col",
+                                             "distance", "plane", "xyz_cols")},
+                   "poses": Scope(AT_JOINTS, f"sockets and planes are touched where kincal's own plan puts them, so "
+                                  f"their count is the plan's: {observe.SOCKETS_PER_POINT} seatings in each of the "
+                                  f"2 sockets at 4 placements of the plate (120 samples), "
+                                  f"{observe.CONTACTS_PER_PLANE} contacts per plane (60 on kincal's table and step; "
+                                  f"{observe.CONTACTS_PER_PLANE} per --plane given)"),
+                   "poses_file": Scope(AT_JOINTS, "sockets and planes are touched where kincal's own plan puts them, "
+                                       "the true robot moved until it touches them, so joint values given in advance "
+                                       "(a design's poses) have no place"),
+                   "std_pos": Scope((), "simulated files carry no σ; the position noise is --noise (mm per axis)"),
+                   "markers": Scope((), "simulate writes kincal's own nest of three markers, m1, m2 and m3")}
+
+
 def cmd_simulate(args) -> int:
     r = load_robot(args, [args.poses_file], [args.output, args.save_true])
     true = (kincal.perturb(r, length=args.length_error / MM, angle=args.angle_error / DEG, seed=args.seed)
             if args.perturb else r)
     kind = one_type(args)
-    if args.poses_file and kind in ("same-point", "plane"):
-        what = "plate of sockets" if kind == "same-point" else "table"
-        raise ValueError(f"--poses-file: simulate --type {kind} plans its own {what} and moves the true robot until "
-                         f"it touches it, so joint values given in advance (a design's poses) have no place; leave "
-                         f"--poses-file out")
+    refuse_inapplicable([kind], args.given, SIMULATE_SCOPES)
+    if args.poses_file and args.poses is not None:
+        raise ValueError(f"--poses {args.poses}: the poses are those of --poses-file {args.poses_file}; give one")
+    args.poses = SIMULATE_POSES if args.poses is None else args.poses
     q = joint_values(args, r, args.poses_file)
     if args.save_true:
         kincal.save_robot(true, args.save_true)
@@ -240,7 +258,8 @@ def register(cmd) -> None:
 
     s = cmd("simulate", cmd_simulate, "simulate tracker measurements of a (perturbed) robot")
     s.add_argument("-o", "--output", required=True, help="CSV to write")
-    s.add_argument("--poses", type=positive_int, default=60, help="random poses within the joint limits (default 60)")
+    s.add_argument("--poses", type=positive_int, help=f"point, pose, markers: random poses within the joint limits "
+                   f"(default {SIMULATE_POSES}; sockets and planes are as many as kincal's plan touches)")
     s.add_argument("--poses-file", help="CSV of joint values to use instead of random poses (e.g. a design)")
     hidden_alias(s, "--joints", "poses_file")
     s.add_argument("--perturb", action="store_true", help="apply random geometric errors to the robot first")

@@ -20,6 +20,7 @@ IK_ITER = 100
 BRANCH_TOL = {"revolute": np.deg2rad(5.0), "prismatic": 5e-3}  # a correction larger than this changes branch
 GIVE_UP = 2.0  # pose solves stop a target this many times branch_tolerance from its nominal command
 START_TOL = 50e-3  # m: the model at the nominal command must be this close to the target
+POS_TOL = 1e-6  # m: a command must reach its target position this closely
 REACH_MARGIN = 1.2  # targets farther from the base than this times the reach bound are out of reach
 
 
@@ -415,10 +416,11 @@ def _checks(robot: Robot, q: np.ndarray, residual: np.ndarray, targets: np.ndarr
                                            f"one (another arm configuration); refused")
     lim = finite & ~robot.within_limits(np.where(finite[:, None], q, 0.0))
     yield lim, lambda k: f"the command breaks the joint limits: {past_limits(robot, q[k])}"
-    few = (f" (a robot of {robot.n_joints} joint{'s' if robot.n_joints > 1 else ''} reaches a "
+    few = (f"; a robot of {robot.n_joints} joint{'s' if robot.n_joints > 1 else ''} reaches a "
            f"{'surface' if robot.n_joints == 2 else 'curve'} of points only: a target off it cannot be reached; give "
-           f"points it reaches, such as the nominal model's at the commands)") if robot.n_joints < 3 else ""
-    yield finite & (residual > 1e-6), lambda k: f"the model misses the target by {mm(residual[k])}{few}"
+           f"points it reaches, such as the nominal model's at the commands") if robot.n_joints < 3 else ""
+    yield finite & (residual > POS_TOL), lambda k: (f"the model misses the target by {residual[k] * MM:.3f} mm (a "
+                                                    f"command must reach it within {POS_TOL * MM:g} mm{few})")
 
 
 def _reach(robot: Robot, targets: np.ndarray) -> tuple[np.ndarray, float]:

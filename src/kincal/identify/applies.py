@@ -64,7 +64,8 @@ SCOPES: dict[str, Scope] = {
 }
 
 
-def refuse_inapplicable(kinds: Iterable[str], given: Mapping[str, str]) -> None:
+def refuse_inapplicable(kinds: Iterable[str], given: Mapping[str, str],
+                        scopes: Mapping[str, Scope] | None = None) -> None:
     """Refuse an option that none of the data's kinds uses, instead of ignoring it.
 
     An option not in :data:`SCOPES` applies to every kind; with several kinds, an option is accepted
@@ -78,6 +79,9 @@ def refuse_inapplicable(kinds: Iterable[str], given: Mapping[str, str]) -> None:
         ``"plane"``).
     given : mapping of str to str
         The options given: option name (a key of :data:`SCOPES`) to the flag as the user wrote it.
+    scopes : mapping of str to Scope, optional
+        The table judged against (default :data:`SCOPES`, that of calibrate and evaluate; a command of its own
+        flags, as simulate, gives its own). A scope of no kinds is an option the command never uses.
 
     Raises
     ------
@@ -96,12 +100,12 @@ def refuse_inapplicable(kinds: Iterable[str], given: Mapping[str, str]) -> None:
     """
     kinds = tuple(dict.fromkeys(kinds))
     for name, flag in given.items():
-        scope = SCOPES.get(name)
+        scope = (SCOPES if scopes is None else scopes).get(name)
         if scope is None or (set(kinds) <= set(scope.kinds) if scope.alone else set(scope.kinds) & set(kinds)):
             continue
-        where = f"{_either(scope.kinds, 'or')} data{' alone' if scope.alone else ''}"
-        raise ValueError(f"{flag} does not apply to {_either(kinds, 'and')} data: {scope.why}; leave it out "
-                         f"(it applies to {where})")
+        where = (f" (it applies to {_either(scope.kinds, 'or')} data{' alone' if scope.alone else ''})"
+                 if scope.kinds else "")
+        raise ValueError(f"{flag} does not apply to {_either(kinds, 'and')} data: {scope.why}; leave it out{where}")
 
 
 def _either(words: tuple[str, ...], joiner: str) -> str:

@@ -146,7 +146,10 @@ class FitOptions:
         Relative singular-value tolerance of the identifiable set, in (0, 1) (the one rule shared with
         pose design; default :data:`kincal.analysis.RANK_TOL`, 3e-5).
     max_iter : int, optional
-        Levenberg–Marquardt iteration limit, 1 or more (default 100).
+        Iterations of each solver run at most, 1 or more (default 100): a fit runs Levenberg–Marquardt several
+        times (again after a parameter is kept nominal, the noise weights re-estimated, a robust reweighting,
+        the identifiable set judged anew) and the learned prior's fit once; the result's ``iterations`` are
+        summed over its ``runs``.
     pso : PSOOptions or mapping or None, optional
         Particle swarm settings for method ``"pso"`` / ``"pso+lm"`` (default None: its defaults; refused
         with ``"lm"``).
@@ -214,7 +217,10 @@ class FitOptions:
                                     "joint sigma")
     keep: tuple[str, ...] = _flag((), "--keep", "parameters to prefer among confounded ones", "names")
     rank_tol: float = RANK_TOL
-    max_iter: int = _flag(100, "--max-iter", "Levenberg-Marquardt iteration limit (default 100)", "count")
+    max_iter: int = _flag(100, "--max-iter", "iterations of each solver run at most (default 100); a fit runs "
+                                             "several (refits as parameters are kept nominal, the noise weights "
+                                             "re-estimated, robust reweighting; the learned prior's) and prints "
+                                             "their iterations summed over its runs", "count")
     pso: PSOOptions | None = None
     thresholds: Thresholds = field(default_factory=Thresholds)
     error_model: ErrorModel | None = None

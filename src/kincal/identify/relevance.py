@@ -20,6 +20,7 @@ covariance is reported: under the learned prior, a group held at nominal has σ 
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
@@ -47,7 +48,7 @@ class RelevanceFit:
     """The fit with the learned prior: the columns' values ``x``, the data's whitened residual and
     Jacobian there, the noise factor s² (1 when the stated σ are right), each group's prior σ (m or
     rad), the posterior covariance of the columns, whether the fit converged and its linearisations
-    (each one evaluation of the data)."""
+    (each one evaluation of the data), its evaluations of the data and how it stopped."""
 
     x: np.ndarray
     residual: np.ndarray
@@ -57,21 +58,23 @@ class RelevanceFit:
     covariance: np.ndarray
     converged: bool
     iterations: int
+    evaluations: int = 0
+    message: str = "prior learned"
 
     def __post_init__(self) -> None:
         freeze_arrays(self)
 
 
 def with_learned_prior(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], fit: LMResult,
-                       nominal: np.ndarray, free: Sequence[str], robot) -> RelevanceFit | LMResult:
+                       nominal: np.ndarray, free: Sequence[str], robot, max_iter: int = 100) -> RelevanceFit | LMResult:
     """:func:`relevance_fit` of the columns ``free`` (robot parameters and set-up parameters) of a
-    least-squares ``fit``, the base frame without a prior; ``fit`` itself when no column has one
-    (only a frame fitted)."""
+    least-squares ``fit``, the base frame without a prior, in at most ``max_iter`` iterations; ``fit`` itself
+    when no column has one (only a frame fitted)."""
     kinds = dict(zip(robot.params.names, robot.params.kinds))
     groups = prior_groups(free, kinds, robot.base_params())
     if not any(groups):
         return fit
-    return relevance_fit(fun, fit, nominal, groups, [kinds.get(n, "") for n in free])
+    return relevance_fit(fun, fit, nominal, groups, [kinds.get(n, "") for n in free], max_iter)
 
 
 def prior_lines(sigma: dict) -> list[str]:
@@ -97,27 +100,35 @@ def prior_groups(names: Sequence[str], kinds: dict, excluded: Sequence[str] = ()
 
 
 def relevance_fit(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], fit: LMResult,
-                  nominal: np.ndarray, groups: Sequence[str | None], kinds: Sequence[str]) -> RelevanceFit:
+                  nominal: np.ndarray, groups: Sequence[str | None], kinds: Sequence[str],
+                  max_iter: int = 100) -> RelevanceFit:
     """Refit the columns of ``fun`` (whitened data residual and Jacobian), from their least-squares
     ``fit``, with a Gaussian prior around ``nominal`` whose σ per group is learned (module
     docstring); ``kinds`` per column ("length"/"angle"; others: no group) sets the first σ.
     Gauss–Newton steps interleaved with the evidence updates; Levenberg–Marquardt for the final
-    prior if a step does not lower the cost or the steps have not settled."""
+    prior if a step does not lower the cost or the steps have not settled; ``max_iter`` iterations at most,
+    the two together (each step one)."""
     prec = np.array([0.0 if g is None else 1.0 / START.get(k, 1e-3) ** 2 for g, k in zip(groups, kinds)])
     x, r, J, s2 = fit.x, fit.residual, fit.jacobian, 1.0
     it = 0
-    for it in range(1, RELINEARISE + 1):
+    for it in range(1, min(RELINEARISE, max_iter) + 1):
         prec, s2, d, C = _evidence_updates(r, J, x - nominal, prec, s2, groups)
         step = nominal + d - x
         if np.all(np.abs(step) <= np.maximum(LINEAR, SETTLED * np.sqrt(np.diag(C)))):  # linear here
-            return _relevance_result(x + step, r + J @ step, J, prec, s2, groups, True, it)
+            return _relevance_result(x + step, r + J @ step, J, prec, s2, groups, True, it, it - 1)
         r_new, J_new = fun(x + step)
         if not _lower(r_new, x + step - nominal, r, x - nominal, prec, s2):
             break
         x, r, J = x + step, r_new, J_new
-    lm = levenberg_marquardt(_augmented(fun, nominal, prec, s2), x)
+    lm = levenberg_marquardt(_augmented(fun, nominal, prec, s2), x, max_iter=max_iter - it)
     r, J = fun(lm.x)
-    return _relevance_result(lm.x, r, J, prec, s2, groups, lm.converged, it + lm.iterations)
+    result = _relevance_result(lm.x, r, J, prec, s2, groups, lm.converged, it + lm.iterations,
+                               it + lm.evaluations + 1)
+    if lm.converged:
+        return result
+    why = (f"stopped after {max_iter} iterations without meeting the tolerances" if it + lm.iterations >= max_iter
+           else lm.message)
+    return dataclasses.replace(result, message=f"prior learned; {why}")
 
 
 def _lower(r_new, d_new, r_old, d_old, prec, s2) -> bool:
@@ -127,10 +138,10 @@ def _lower(r_new, d_new, r_old, d_old, prec, s2) -> bool:
     return bool(np.all(np.isfinite(r_new)) and cost(r_new, d_new) < cost(r_old, d_old))
 
 
-def _relevance_result(x, r, J, prec, s2, groups, converged: bool, iterations: int) -> RelevanceFit:
+def _relevance_result(x, r, J, prec, s2, groups, converged: bool, iterations: int, evaluations: int) -> RelevanceFit:
     cov = _posterior(J.T @ J / s2, prec)
     sigma = {g: float(1.0 / np.sqrt(prec[k])) for k, g in enumerate(groups) if g is not None}
-    return RelevanceFit(x, r, J, float(s2), sigma, cov, bool(converged), iterations)
+    return RelevanceFit(x, r, J, float(s2), sigma, cov, bool(converged), iterations, evaluations)
 
 
 def _posterior(A: np.ndarray, prec: np.ndarray) -> np.ndarray:

@@ -74,7 +74,9 @@ class CalibrationResult:
         Whether the last solver run converged (a particle swarm alone, which has no test of convergence: that it
         ran its iterations; :attr:`solver_state` says "stopped").
     iterations : int
-        Iterations of every solver run, summed.
+        Iterations of every solver run, summed: a fit runs Levenberg–Marquardt several times (again after a
+        parameter is kept nominal, the noise weights re-estimated, a robust reweighting, the identifiable set
+        judged anew), then the learned prior's fit, each run at most ``options.max_iter`` iterations.
     observations : tuple of Observation, optional
         The sets fitted (outliers left out).
     weak : dict of str to float, optional
@@ -99,6 +101,8 @@ class CalibrationResult:
         The differential diagnosis of a doubtful fit, if run.
     evaluations : int, optional
         Evaluations of the stacked residual (a particle swarm's included).
+    runs : int, optional
+        Solver runs the ``iterations`` are summed over (a particle swarm: one).
     message : str, optional
         How the last solver stopped.
     history : tuple of float, optional
@@ -170,6 +174,7 @@ class CalibrationResult:
     whitened_residual: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (M,) by the stated σ
     diagnosis: Diagnosis | None = None  # the differential diagnosis of a doubtful fit, if run
     evaluations: int = 0  # evaluations of the stacked residual (a particle swarm's included)
+    runs: int = 0  # solver runs the iterations were summed over (a particle swarm: one)
     message: str = ""  # how the last solver stopped
     history: tuple[float, ...] = ()  # particle swarm: best mean squared residual per iteration
     free: tuple[str, ...] = ()
@@ -437,7 +442,7 @@ class CalibrationResult:
 
     def to_dict(self) -> dict:
         out = {"robot": self.robot.name, "converged": self.converged, "message": self.message,
-               "iterations": self.iterations, "evaluations": self.evaluations, "time_s": self.time_s,
+               "iterations": self.iterations, "runs": self.runs, "evaluations": self.evaluations, "time_s": self.time_s,
                "options": self.options.to_dict(), "estimated": list(self.names),
                "not_estimated": [n for n in self.robot.params.names if n not in set(self.names)],
                "estimates": self.estimates, "corrections": self.corrections,
@@ -481,7 +486,8 @@ class CalibrationResult:
         lines = [f"calibration of {self.robot.name} from {kinds} data"
                  + ("" if self.robot.error_model == "geometric" else f" ({self.robot.error_model} error model)")
                  + f": {self.solver_state.replace('not converged', 'NOT CONVERGED')} ({self.message}) in {self.iterations} "
-                 f"iterations, {self.time_s * 1e3:.1f} ms; {len(self.names)} robot and {len(self.nuisance)} set-up "
+                 f"iterations over {self.runs} solver run{'s' * (self.runs != 1)}, {self.time_s * 1e3:.1f} ms; "
+                 f"{len(self.names)} robot and {len(self.nuisance)} set-up "
                  f"parameters; loss {self.options.loss}, base {self.options.base}"]
         # the fitted robot parameters as a table: estimate, correction from nominal, σ (mm, deg)
         param_kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))

@@ -45,7 +45,7 @@ class Round:
     prior: str
     loss: str = "linear"
     f_scale: float | None = None  # m: the robust loss's scale on a sample's position norm (None: 3 robust σ)
-    spent: list = dataclasses.field(default_factory=lambda: [0, 0])  # LM iterations and evaluations so far
+    spent: list = dataclasses.field(default_factory=lambda: [0, 0, 0])  # iterations, evaluations, solver runs so far
 
     def fit(self, free: list[str], start: np.ndarray, evaluated):
         """(full vector, fit, free names, weak, the stack with its weights, s per kind) from the full
@@ -69,7 +69,8 @@ class Round:
                 break
             st, error = again, found
         if self.prior == "relevance":
-            fit = with_learned_prior(lambda x: fun_at(used, self.x0, fcols, x), fit, self.x0[fcols], free, self.st.robot)
+            fit = self._count(with_learned_prior(lambda x: fun_at(used, self.x0, fcols, x), fit, self.x0[fcols], free,
+                                                 self.st.robot, self.max_iter), fit)
         full = self.x0.copy()
         full[fcols] = fit.x
         return full, fit, free, weak, used, error
@@ -111,10 +112,16 @@ class Round:
         return st, fit
 
     def _lm(self, fun, x0: np.ndarray):
-        fit = levenberg_marquardt(fun, x0, max_iter=self.max_iter)
-        self.spent[0] += fit.iterations
-        self.spent[1] += fit.evaluations
-        return fit
+        return self._count(levenberg_marquardt(fun, x0, max_iter=self.max_iter))
+
+    def _count(self, run, before=None):
+        """``run``, a solver run of at most ``max_iter`` iterations, added to what was spent (none when it is
+        ``before``, the fit a learned prior had nothing to add to)."""
+        if run is not before:
+            self.spent[0] += run.iterations
+            self.spent[1] += run.evaluations
+            self.spent[2] += 1
+        return run
 
 
 NOISE_ROUNDS = 4  # least-squares fits at most, the model error per kind re-estimated after each

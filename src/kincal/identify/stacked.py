@@ -32,7 +32,6 @@ from ..observe.sessions import InSession
 from .covariance import parameter_statistics
 from ..analysis.changes import Repeat
 from .repeat import repeat_of
-from .lm import LMResult
 from .options import FitOptions, PSOOptions
 from .pso import HALF_WIDTH
 from .noise import extra_variance
@@ -192,7 +191,7 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
         history: tuple[float, ...] = ()  # the particle swarm's best value per iteration, when it runs
         if o.method != "lm":
             begin, swarmed, history = swarm(st, x0, st.cols(ident.candidates), o.pso or PSOOptions())
-            rounds.spent[:] = [swarmed.iterations, swarmed.evaluations]  # every solver run counts
+            rounds.spent[:] = [swarmed.iterations, swarmed.evaluations, 1]  # every solver run counts
             if o.method == "pso":
                 return _result(models, st, gauge, ident, list(ident.candidates), x0, swarmed, {}, o, {}, rounds.spent,
                                history, ident.dropped)
@@ -486,7 +485,7 @@ def _result(models: tuple[Robot, Robot, Robot, dict], st, gauge, ident, free, x0
     """The fit of the columns ``free`` as a :class:`CalibrationResult` with options ``o`` (``models``: the model as given,
     as registered, where the fit began, and as judged "before" with its markers' points, :func:`_before`;
     ``undetermined``: moved by a particle swarm but not determined by the data, σ = inf; ``spent``: iterations and
-    evaluations of every solver run)."""
+    evaluations of every solver run, and how many runs)."""
     declared, robot, before_model, before_setup = models
     full = x0.copy()
     full[st.cols(free)] = fit.x
@@ -513,11 +512,11 @@ def _result(models: tuple[Robot, Robot, Robot, dict], st, gauge, ident, free, x0
         names=tuple(n for n in free if n in robot.params.names), nuisance=dict(zip(st.nuis_names, full[P:])),
         std=std, identifiability=ident, gauge=gauge, per_set_before=before, per_set=after,
         whitened_rms=float(np.sqrt(np.mean(r**2))), covariance=cov,
-        converged=bool(fit.converged), iterations=spent[0], observations=st.sets, weak=weak, prior=learned,
+        converged=bool(fit.converged), iterations=spent[0], runs=spent[2], observations=st.sets, weak=weak, prior=learned,
         whitened={name: float(np.sqrt(np.mean(r[st.labels == k] ** 2))) for k, name in enumerate(st.kinds)},
         model_error={k: v for k, v in error.items() if v > 0},
         outliers=outlier_samples(st.sets, r, o.thresholds), whitened_residual=r, evaluations=spent[1],
-        message=fit.message if isinstance(fit, LMResult) else "prior learned", history=tuple(history),
+        message=fit.message, history=tuple(history),
         free=tuple(free), options=o, repeat=_repeat(calibrated, st, fit, free, weak))
 
 

@@ -477,7 +477,7 @@ def _data_rows(result: CalibrationResult, tests: list, info: dict, same_frame: b
         rows.append(("diagnosis", result.diagnosis.message()))
     rows += [("options", _options_text(result, tests, same_frame)),
              ("solver", f"{result.solver_state.replace('not converged', 'NOT converged')} ({result.message}), "
-                        f"{result.iterations} iterations"),
+                        f"{result.iterations} iterations over {result.runs} solver run{'s' * (result.runs != 1)}"),
              ("pose design", info.pop("design", "not recorded (poses not from kincal design, or not given)"))]
     rows += [(k, str(v)) for k, v in info.items()]
     return [{"label": k, "value": v} for k, v in rows]
