@@ -382,6 +382,44 @@ def test_pose_targets_become_leg_commands_that_reach_them(hexapod):
         compensate(true, p[:3])
 
 
+def test_a_pose_target_beyond_the_legs_is_refused_by_row_and_degrees_read_as_radians_are_named(hexapod, tmp_path,
+                                                                                                capsys):
+    """A row whose legs are past their range (one target's angles written in degrees, in a file declared in radians,
+    all within 2π so the reader passes them) made the forward kinematics of the whole file fail ('did not converge
+    for 1 configuration(s)', exit 1, nothing written, --skip-unreachable or not); now that row is refused with its
+    leg in the file's unit, said to look like degrees where read so it is reached, and the others are written: the
+    legs of the definition, |R p_i + t - b_i| = zero + lead · reading."""
+    design = yaml.safe_load((ROOT / "src/kincal/models/robots/hexapod.yaml").read_text())["legs"]
+    b, pl = np.array([leg["base"] for leg in design]), np.array([leg["platform"] for leg in design])  # mm
+    zero, lead = np.array([leg["zero"] for leg in design]), np.array([leg["lead"] for leg in design])  # mm, mm/rev
+    home = hexapod.frame_and_rates(np.full((1, 6), 2.1 * 2 * np.pi))[0][0] * 1e3  # mm: every leg at 2.1 rev
+    rows = [(home, [0.02, 0.01, -0.03]), (home + [10, 0, 0], [1.6, -2.8, -5.5]),  # the second's angles in degrees
+            (home + [0, -10, 0], [0.0, 0.03, 0.01]), (home + [0, 0, 600], [0.0, 0.0, 0.0])]  # the last out of reach
+    targets = tmp_path / "targets.csv"
+    targets.write_text("x,y,z,rz,ry,rx\n" + "".join(",".join(f"{v:.6f}" for v in (*p, *a)) + "\n" for p, a in rows))
+
+    def legs(p, angles):  # rev: the definition, written out
+        R = Rotation.from_euler("ZYX", angles).as_matrix()
+        return (np.linalg.norm(pl @ R.T + p - b, axis=1) - zero) / lead
+
+    flags = ["--pose", "--length-unit", "mm", "--angle-unit", "rev", "--orientation", "euler-zyx-intrinsic-rad",
+             "--rot-cols", "rz,ry,rx", "-o", str(tmp_path / "legs.csv")]
+    code, _, text = _kincal(capsys, ["compensate", "hexapod", str(targets), *flags])
+    assert code == 4 and not (tmp_path / "legs.csv").exists() and "did not converge" not in text
+    code, _, text = _kincal(capsys, ["compensate", "hexapod", str(targets), *flags, "--skip-unreachable"])
+    assert code == 0 and "2 of 4 targets" in text
+    as_read = legs(*rows[1])
+    j = int(np.argmax(as_read - 4.2))
+    assert as_read[j] > 4.2 and f"row 3: the command breaks the joint limits: leg{j + 1} at {as_read[j]:.3f} rev" in text
+    assert "row 3" in text and "the angles look like degrees (--orientation euler-zyx-intrinsic-deg)" in text
+    assert np.all(legs(rows[1][0], np.radians(rows[1][1])) < 4.2)  # read as degrees: within the legs' range
+    far = next(line for line in text.splitlines() if line.startswith("refused: row 5"))
+    assert "look like degrees" not in far
+    written = np.loadtxt(tmp_path / "legs.csv", delimiter=",", skiprows=1)
+    assert written[:, 0].tolist() == [2, 4]
+    assert np.abs(written[:, 1:7] - [legs(*rows[0]), legs(*rows[2])]).max() < 1e-6  # rev
+
+
 # ---- the real Jugglebot hexapod through the command line ---------------------------------------------------
 
 
