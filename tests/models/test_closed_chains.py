@@ -600,11 +600,28 @@ def test_jugglebot_mistakes_are_named(tmp_path, capsys):
     (tmp_path / "S1_deg.csv").write_text("\n".join([lines[0], *deg]) + "\n")
     code, _, err = _kincal(capsys, ["calibrate", "hexapod", str(tmp_path / "S1_deg.csv"), *JUGGLE, *out])
     assert code == 1 and "do not even assemble the robot (hexapod), read as degrees they match" in err, err
+    # the legs written as mm of travel (rev × 71.2 mm) and declared rev: it said 'read as deg they lie within it; use
+    # angle unit deg', and with deg 'spread 6.08x more ... no length unit explains that factor'; now the travel is named
+    # in both, the leads being the robot file's (75.69 mm/rev for leg1)
     mm = [",".join(f"{float(v) * 71.2:.4f}" if k in legs else v for k, v in enumerate(r.split(","))) for r in lines[1:]]
     (tmp_path / "S1_mm.csv").write_text("\n".join([lines[0], *mm]) + "\n")
-    code, _, err = _kincal(capsys, ["calibrate", "hexapod", str(tmp_path / "S1_mm.csv"), *JUGGLE, *out])
-    assert code == 1 and "the column read as joint leg1 holds" in err and "while its range is 0 to 4.2 rev" in err
-    assert "did not converge" not in err
+    for unit, lead in (("rev", "75.69"), ("deg", f"{75.6921 / 360:.4g}")):  # mm per rev, per deg
+        argv = ["calibrate", "hexapod", str(tmp_path / "S1_mm.csv"), *[unit if a == "rev" else a for a in JUGGLE], *out]
+        code, _, err = _kincal(capsys, argv)
+        assert code == 1 and f"read as mm of travel through each one's lead (leg1 {lead}," in err, err
+        assert f"they look like lengths in mm: give them in {unit}" in err and "did not converge" not in err
+        assert "angle unit 'deg'" not in err and "no length unit explains" not in err
+    # the right readings with a robot file whose leads are 10 mm/rev: 'spread 8.86x more ... no length unit explains
+    # that factor'; now the leads are named, with the factor the spreads give: the dataset's own leads (its README:
+    # 70.62 to 75.69 mm/rev, mean 71.99) are 7.20x the file's
+    design = yaml.safe_load((ROOT / "src/kincal/models/robots/hexapod.yaml").read_text())
+    for leg in design["legs"]:
+        leg["lead"] = 10.0
+    (tmp_path / "lead10.yaml").write_text(yaml.safe_dump(design))
+    code, _, err = _kincal(capsys, ["calibrate", str(tmp_path / "lead10.yaml"), s1, *JUGGLE, *out])
+    said = err.split("the robot file's leads look ")[1]
+    assert code == 1 and abs(float(said.split("x")[0]) / 7.199 - 1) < 0.02 and said.split("x ")[1].startswith("too small")
+    assert "no length unit explains" not in err
     # legs 1 and 2 read in each other's columns: the fit relabels the legs (its held-out error unchanged), and the
     # file would command each by the other's column; refused with that cause (it named leg 1's lead), nothing written
     code, out, _ = _kincal(capsys, ["calibrate", "hexapod", s1, *JUGGLE, "--residual", "joint", "--joint-cols",
