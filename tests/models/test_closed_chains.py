@@ -420,6 +420,28 @@ def test_a_pose_target_beyond_the_legs_is_refused_by_row_and_degrees_read_as_rad
     assert np.abs(written[:, 1:7] - [legs(*rows[0]), legs(*rows[2])]).max() < 1e-6  # rev
 
 
+def test_a_parallel_robots_leg_columns_in_targets_are_said_not_to_be_read(hexapod, tmp_path):
+    """A hexapod's legs follow from each target pose alone: leg columns in a targets file (all 0.5 rev here) were
+    silently left unread, the commands byte for byte those of the file without them; now a warning names them."""
+    from kincal.compensate import StreamJob, TargetsFormat, compensate_file
+
+    q = hexapod.sample_joints(3, seed=4)
+    p, _, R, _ = hexapod.frame_and_rates(q)
+    quat = Rotation.from_matrix(R).as_quat()  # x, y, z, w
+    body = "".join(",".join(f"{v:.9f}" for v in (*pi * 1e3, *qi)) + "\n" for pi, qi in zip(p, quat))
+    bare, legs = tmp_path / "bare.csv", tmp_path / "legs.csv"
+    bare.write_text("x,y,z,qx,qy,qz,qw\n" + body)
+    legs.write_text("leg1,leg2,leg3,leg4,leg5,leg6,x,y,z,qx,qy,qz,qw\n" + "".join("0.5," * 6 + line + "\n"
+                                                                                   for line in body.splitlines()))
+    job = StreamJob(hexapod, None, TargetsFormat(pose=True, orientation="quat-xyzw", length_unit="mm",
+                                                 angle_unit="rev"))
+    without, with_legs = (compensate_file(job, str(f), str(tmp_path / f"out_{f.name}")) for f in (bare, legs))
+    assert without.warnings == () and with_legs.all_ok
+    assert with_legs.warnings[0].startswith("the file's joint columns leg1, leg2, leg3, leg4, leg5, leg6 are not read")
+    commands = [np.loadtxt(tmp_path / f"out_{f.name}", delimiter=",", skiprows=1)[:, 1:7] for f in (bare, legs)]
+    assert np.abs(commands[0] - commands[1]).max() == 0 and np.abs(commands[0] * 2 * np.pi - q).max() < 1e-6
+
+
 # ---- the real Jugglebot hexapod through the command line ---------------------------------------------------
 
 

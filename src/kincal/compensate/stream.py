@@ -216,8 +216,9 @@ class StreamResult:
     problems : tuple of str
         The refused rows' reasons ("row r: why"), each message once.
     warnings : tuple of str
-        Warnings: where the model extrapolates or leaves its data's joint envelope, rotations a robot with
-        fewer than six joints does not control.
+        Warnings: joint columns the file has that are not read (a parallel robot's joints follow from each target
+        alone), where the model extrapolates or leaves its data's joint envelope, rotations a robot with fewer than
+        six joints does not control.
     method : str
         How the commands were found (:attr:`Compensation.method`).
     iterations : int
@@ -350,6 +351,7 @@ def compensate_file(job: StreamJob, src: str, dst: str, *, skip_unreachable: boo
     refuse_covariates(job.robot)  # before reading: the targets' columns are the joints'
     stream = open_stream(src, block_bytes)
     _check_columns(job, stream)
+    unread = _unread_joints(job, stream)
     if stream.size - stream.offset > block_bytes:
         keep_freed_memory()  # a long file: this process reads and writes every block
     layout = job.layout(dst)
@@ -367,7 +369,19 @@ def compensate_file(job: StreamJob, src: str, dst: str, *, skip_unreachable: boo
             out.keep()
     if n == 0:
         raise MeasurementError(f"{src}: no data rows after the header")
-    return _result(job, parts, written)
+    return _result(job, parts, written, unread)
+
+
+def _unread_joints(job: StreamJob, stream: Stream) -> str:
+    """What to say of joint columns the file has but the job does not read ('' when none): a parallel robot's joints
+    follow from each target alone, so the file's are neither a start nor compared with the commands."""
+    header = stream.header
+    cols = [c for c in (job.targets.joint_cols or job.robot.default_columns(header)) if c in header]
+    if job.needs_joints or not cols:
+        return ""
+    return (f"the file's joint columns {', '.join(cols)} are not read: {job.robot.name}'s joints follow from each "
+            f"target alone (closed form), so the commands written are the model's for the targets, not these values "
+            f"corrected")
 
 
 def _check_columns(job: StreamJob, stream: Stream) -> None:
@@ -562,14 +576,15 @@ def _summary(job: StreamJob, layout: CommandColumns, comp, rows, q0, xyz, k: int
                  (rows[ok][out], q[out]), largest, comp.method, comp.iterations, end)
 
 
-def _result(job: StreamJob, parts: list[_Part], written: bool) -> StreamResult:
-    """The blocks' summaries (at least one) added up, in file order."""
+def _result(job: StreamJob, parts: list[_Part], written: bool, unread: str = "") -> StreamResult:
+    """The blocks' summaries (at least one) added up, in file order (``unread``: the joint columns not read, said
+    first)."""
     sigma = np.concatenate([p.sigma for p in parts])
     largest: dict = {}
     for part in parts:
         for name, v in part.largest.items():
             largest[name] = v if name not in largest else np.maximum(largest[name], v)
-    warnings = []
+    warnings: list[str | None] = [unread]
     unc, robot = job.uncertainty, job.robot
     if unc is not None and sigma.size:
         rows, s, q = (np.concatenate(a) for a in zip(*(p.extrapolated for p in parts)))
