@@ -442,6 +442,24 @@ def test_a_parallel_robots_leg_columns_in_targets_are_said_not_to_be_read(hexapo
     assert np.abs(commands[0] - commands[1]).max() == 0 and np.abs(commands[0] * 2 * np.pi - q).max() < 1e-6
 
 
+def test_the_formats_reference_gives_the_parallel_robots_files():
+    """docs/reference/formats.md gave serial robot files only: every key the hexapod's and the delta's readers take,
+    and the rev unit, are now there, the example leg being the bundled hexapod's first."""
+    import re
+
+    from kincal.models.delta import ARM_NAMES
+    from kincal.models.yaml_io import _TYPE_KEYS
+    from kincal.models.yaml_kinds import LEG_KEYS
+
+    page = (ROOT / "docs/reference/formats.md").read_text()
+    assert "`type: stewart`" in page and "`type: delta`" in page and "`rev`" in page and "reading: {unit: rev}" in page
+    for key in sorted(LEG_KEYS | _TYPE_KEYS["stewart"] | _TYPE_KEYS["delta"]):
+        assert re.search(rf"\b{key}\b", page), key
+    assert all(f".{name}`" in page for name in ARM_NAMES)
+    leg = yaml.safe_load(re.search(r"  - (\{base: .*\})", page).group(1))
+    assert leg == yaml.safe_load((ROOT / "src/kincal/models/robots/hexapod.yaml").read_text())["legs"][0]
+
+
 # ---- the real Jugglebot hexapod through the command line ---------------------------------------------------
 
 
