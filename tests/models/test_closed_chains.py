@@ -752,4 +752,10 @@ def test_std_joint_is_judged_against_the_joints_kind(tmp_path, capsys):
                               puu3.joint_types)
     assert main(["calibrate", "puu3", str(tmp_path / "p.csv"), "--base", "fixed", "--residual", "joint",
                  "--std-joint", "0.001rev"]) == 1
-    assert "is an angle, but puu3's joints are read as lengths" in capsys.readouterr().err
+    assert "--std-joint 0.001rev is an angle, but puu3's joints are read as lengths" in capsys.readouterr().err
+    # the flag's value is echoed as given: it said '0.00628 rad', '0.01 mm' and 'joint_std=0.006283185307179587'
+    assert main(["calibrate", "ur5", str(tmp_path / "p.csv"), "--residual", "joint", "--std-joint", "10um"]) == 1
+    assert "--std-joint 10um is a length, but ur5's joints are read as angles" in capsys.readouterr().err
+    assert main(["calibrate", "hexapod", str(JUGGLEBOT / "S1.csv"), *JUGGLE, "--std-joint", "0.001rev"]) == 1
+    err = capsys.readouterr().err
+    assert "--std-joint 0.001rev:" in err and "--residual joint" in err and "0.00628" not in err
