@@ -175,3 +175,20 @@ def test_refused_rows_are_listed_in_file_order():
     from kincal.compensate.stream import _row_of
     given = ["row 28: b", "row 7: a", "the targets' frame: all", "row 16: c", "row 7: d"]
     assert sorted(given, key=_row_of) == ["the targets' frame: all", "row 7: a", "row 7: d", "row 16: c", "row 28: b"]
+
+
+def test_the_commands_files_columns_are_those_the_guide_lists():
+    """docs/howto/calibrate.md said every output had each joint's change and the tool orientation's: a hexapod's
+    has neither (its legs follow from the pose, with no nominal legs), a serial robot's pose targets no orientation
+    change; the guide now lists the three headers, and these are the ones written."""
+    from pathlib import Path
+
+    guide = " ".join((Path(__file__).resolve().parents[2] / "docs/howto/calibrate.md").read_text().split())
+    ur5, hexapod = kincal.load_robot("ur5"), kincal.load_robot("hexapod")
+    real = kincal.perturb(ur5, seed=1)
+    for job in (StreamJob(real, ur5), StreamJob(real, ur5, TargetsFormat(pose=True)),
+                StreamJob(hexapod, None, TargetsFormat(pose=True))):
+        inner = {f"{d}{j}" for j in job.robot.joint_names[1:-1] for d in ("", "d_")}  # written as …
+        cols = ["…" if c in inner else c for c in job.layout("commands.csv").header().strip().split(",")]
+        short = ",".join(c for k, c in enumerate(cols) if not (c == "…" and cols[k - 1] == "…"))
+        assert f"`{short}`" in guide, short

@@ -382,6 +382,84 @@ def test_pose_targets_become_leg_commands_that_reach_them(hexapod):
         compensate(true, p[:3])
 
 
+def test_a_pose_target_beyond_the_legs_is_refused_by_row_and_degrees_read_as_radians_are_named(hexapod, tmp_path,
+                                                                                                capsys):
+    """A row whose legs are past their range (one target's angles written in degrees, in a file declared in radians,
+    all within 2π so the reader passes them) made the forward kinematics of the whole file fail ('did not converge
+    for 1 configuration(s)', exit 1, nothing written, --skip-unreachable or not); now that row is refused with its
+    leg in the file's unit, said to look like degrees where read so it is reached, and the others are written: the
+    legs of the definition, |R p_i + t - b_i| = zero + lead · reading."""
+    design = yaml.safe_load((ROOT / "src/kincal/models/robots/hexapod.yaml").read_text())["legs"]
+    b, pl = np.array([leg["base"] for leg in design]), np.array([leg["platform"] for leg in design])  # mm
+    zero, lead = np.array([leg["zero"] for leg in design]), np.array([leg["lead"] for leg in design])  # mm, mm/rev
+    home = hexapod.frame_and_rates(np.full((1, 6), 2.1 * 2 * np.pi))[0][0] * 1e3  # mm: every leg at 2.1 rev
+    rows = [(home, [0.02, 0.01, -0.03]), (home + [10, 0, 0], [1.6, -2.8, -5.5]),  # the second's angles in degrees
+            (home + [0, -10, 0], [0.0, 0.03, 0.01]), (home + [0, 0, 600], [0.0, 0.0, 0.0])]  # the last out of reach
+    targets = tmp_path / "targets.csv"
+    targets.write_text("x,y,z,rz,ry,rx\n" + "".join(",".join(f"{v:.6f}" for v in (*p, *a)) + "\n" for p, a in rows))
+
+    def legs(p, angles):  # rev: the definition, written out
+        R = Rotation.from_euler("ZYX", angles).as_matrix()
+        return (np.linalg.norm(pl @ R.T + p - b, axis=1) - zero) / lead
+
+    flags = ["--pose", "--length-unit", "mm", "--angle-unit", "rev", "--orientation", "euler-zyx-intrinsic-rad",
+             "--rot-cols", "rz,ry,rx", "-o", str(tmp_path / "legs.csv")]
+    code, _, text = _kincal(capsys, ["compensate", "hexapod", str(targets), *flags])
+    assert code == 4 and not (tmp_path / "legs.csv").exists() and "did not converge" not in text
+    code, _, text = _kincal(capsys, ["compensate", "hexapod", str(targets), *flags, "--skip-unreachable"])
+    assert code == 0 and "2 of 4 targets" in text
+    as_read = legs(*rows[1])
+    j = int(np.argmax(as_read - 4.2))
+    assert as_read[j] > 4.2 and f"row 3: the command breaks the joint limits: leg{j + 1} at {as_read[j]:.3f} rev" in text
+    assert "row 3" in text and "the angles look like degrees (--orientation euler-zyx-intrinsic-deg)" in text
+    assert np.all(legs(rows[1][0], np.radians(rows[1][1])) < 4.2)  # read as degrees: within the legs' range
+    far = next(line for line in text.splitlines() if line.startswith("refused: row 5"))
+    assert "look like degrees" not in far
+    written = np.loadtxt(tmp_path / "legs.csv", delimiter=",", skiprows=1)
+    assert written[:, 0].tolist() == [2, 4]
+    assert np.abs(written[:, 1:7] - [legs(*rows[0]), legs(*rows[2])]).max() < 1e-6  # rev
+
+
+def test_a_parallel_robots_leg_columns_in_targets_are_said_not_to_be_read(hexapod, tmp_path):
+    """A hexapod's legs follow from each target pose alone: leg columns in a targets file (all 0.5 rev here) were
+    silently left unread, the commands byte for byte those of the file without them; now a warning names them."""
+    from kincal.compensate import StreamJob, TargetsFormat, compensate_file
+
+    q = hexapod.sample_joints(3, seed=4)
+    p, _, R, _ = hexapod.frame_and_rates(q)
+    quat = Rotation.from_matrix(R).as_quat()  # x, y, z, w
+    body = "".join(",".join(f"{v:.9f}" for v in (*pi * 1e3, *qi)) + "\n" for pi, qi in zip(p, quat))
+    bare, legs = tmp_path / "bare.csv", tmp_path / "legs.csv"
+    bare.write_text("x,y,z,qx,qy,qz,qw\n" + body)
+    legs.write_text("leg1,leg2,leg3,leg4,leg5,leg6,x,y,z,qx,qy,qz,qw\n" + "".join("0.5," * 6 + line + "\n"
+                                                                                   for line in body.splitlines()))
+    job = StreamJob(hexapod, None, TargetsFormat(pose=True, orientation="quat-xyzw", length_unit="mm",
+                                                 angle_unit="rev"))
+    without, with_legs = (compensate_file(job, str(f), str(tmp_path / f"out_{f.name}")) for f in (bare, legs))
+    assert without.warnings == () and with_legs.all_ok
+    assert with_legs.warnings[0].startswith("the file's joint columns leg1, leg2, leg3, leg4, leg5, leg6 are not read")
+    commands = [np.loadtxt(tmp_path / f"out_{f.name}", delimiter=",", skiprows=1)[:, 1:7] for f in (bare, legs)]
+    assert np.abs(commands[0] - commands[1]).max() == 0 and np.abs(commands[0] * 2 * np.pi - q).max() < 1e-6
+
+
+def test_the_formats_reference_gives_the_parallel_robots_files():
+    """docs/reference/formats.md gave serial robot files only: every key the hexapod's and the delta's readers take,
+    and the rev unit, are now there, the example leg being the bundled hexapod's first."""
+    import re
+
+    from kincal.models.delta import ARM_NAMES
+    from kincal.models.yaml_io import _TYPE_KEYS
+    from kincal.models.yaml_kinds import LEG_KEYS
+
+    page = (ROOT / "docs/reference/formats.md").read_text()
+    assert "`type: stewart`" in page and "`type: delta`" in page and "`rev`" in page and "reading: {unit: rev}" in page
+    for key in sorted(LEG_KEYS | _TYPE_KEYS["stewart"] | _TYPE_KEYS["delta"]):
+        assert re.search(rf"\b{key}\b", page), key
+    assert all(f".{name}`" in page for name in ARM_NAMES)
+    leg = yaml.safe_load(re.search(r"  - (\{base: .*\})", page).group(1))
+    assert leg == yaml.safe_load((ROOT / "src/kincal/models/robots/hexapod.yaml").read_text())["legs"][0]
+
+
 # ---- the real Jugglebot hexapod through the command line ---------------------------------------------------
 
 
@@ -562,11 +640,28 @@ def test_jugglebot_mistakes_are_named(tmp_path, capsys):
     (tmp_path / "S1_deg.csv").write_text("\n".join([lines[0], *deg]) + "\n")
     code, _, err = _kincal(capsys, ["calibrate", "hexapod", str(tmp_path / "S1_deg.csv"), *JUGGLE, *out])
     assert code == 1 and "do not even assemble the robot (hexapod), read as degrees they match" in err, err
+    # the legs written as mm of travel (rev × 71.2 mm) and declared rev: it said 'read as deg they lie within it; use
+    # angle unit deg', and with deg 'spread 6.08x more ... no length unit explains that factor'; now the travel is named
+    # in both, the leads being the robot file's (75.69 mm/rev for leg1)
     mm = [",".join(f"{float(v) * 71.2:.4f}" if k in legs else v for k, v in enumerate(r.split(","))) for r in lines[1:]]
     (tmp_path / "S1_mm.csv").write_text("\n".join([lines[0], *mm]) + "\n")
-    code, _, err = _kincal(capsys, ["calibrate", "hexapod", str(tmp_path / "S1_mm.csv"), *JUGGLE, *out])
-    assert code == 1 and "the column read as joint leg1 holds" in err and "while its range is 0 to 4.2 rev" in err
-    assert "did not converge" not in err
+    for unit, lead in (("rev", "75.69"), ("deg", f"{75.6921 / 360:.4g}")):  # mm per rev, per deg
+        argv = ["calibrate", "hexapod", str(tmp_path / "S1_mm.csv"), *[unit if a == "rev" else a for a in JUGGLE], *out]
+        code, _, err = _kincal(capsys, argv)
+        assert code == 1 and f"read as mm of travel through each one's lead (leg1 {lead}," in err, err
+        assert f"they look like lengths in mm: give them in {unit}" in err and "did not converge" not in err
+        assert "angle unit 'deg'" not in err and "no length unit explains" not in err
+    # the right readings with a robot file whose leads are 10 mm/rev: 'spread 8.86x more ... no length unit explains
+    # that factor'; now the leads are named, with the factor the spreads give: the dataset's own leads (its README:
+    # 70.62 to 75.69 mm/rev, mean 71.99) are 7.20x the file's
+    design = yaml.safe_load((ROOT / "src/kincal/models/robots/hexapod.yaml").read_text())
+    for leg in design["legs"]:
+        leg["lead"] = 10.0
+    (tmp_path / "lead10.yaml").write_text(yaml.safe_dump(design))
+    code, _, err = _kincal(capsys, ["calibrate", str(tmp_path / "lead10.yaml"), s1, *JUGGLE, *out])
+    said = err.split("the robot file's leads look ")[1]
+    assert code == 1 and abs(float(said.split("x")[0]) / 7.199 - 1) < 0.02 and said.split("x ")[1].startswith("too small")
+    assert "no length unit explains" not in err
     # legs 1 and 2 read in each other's columns: the fit relabels the legs (its held-out error unchanged), and the
     # file would command each by the other's column; refused with that cause (it named leg 1's lead), nothing written
     code, out, _ = _kincal(capsys, ["calibrate", "hexapod", s1, *JUGGLE, "--residual", "joint", "--joint-cols",
@@ -599,7 +694,8 @@ def test_a_users_hexapod_file_calibrates_saves_reloads_and_reports(tmp_path, cap
     robot_file.write_text(LAB_HEXAPOD)
     noise = ["--std-pos", "0.01mm", "--std-rot", "0.05mrad"]
     code, _, _ = _kincal(capsys, ["simulate", str(robot_file), "--poses", "80", "--perturb", "--type", "pose",
-                                  "--length-unit", "mm", *noise, "-o", data, "--save-true", true_file])
+                                  "--length-unit", "mm", "--noise", "0.01", "--std-rot", "0.05mrad", "-o", data,
+                                  "--save-true", true_file])  # simulated noise: --noise (mm), as σ for the fit
     assert code == 0
     cal = str(tmp_path / "cal.yaml")
     code, out, _ = _kincal(capsys, ["calibrate", str(robot_file), data, "--type", "pose", "--length-unit", "mm",
@@ -657,4 +753,10 @@ def test_std_joint_is_judged_against_the_joints_kind(tmp_path, capsys):
                               puu3.joint_types)
     assert main(["calibrate", "puu3", str(tmp_path / "p.csv"), "--base", "fixed", "--residual", "joint",
                  "--std-joint", "0.001rev"]) == 1
-    assert "is an angle, but puu3's joints are read as lengths" in capsys.readouterr().err
+    assert "--std-joint 0.001rev is an angle, but puu3's joints are read as lengths" in capsys.readouterr().err
+    # the flag's value is echoed as given: it said '0.00628 rad', '0.01 mm' and 'joint_std=0.006283185307179587'
+    assert main(["calibrate", "ur5", str(tmp_path / "p.csv"), "--residual", "joint", "--std-joint", "10um"]) == 1
+    assert "--std-joint 10um is a length, but ur5's joints are read as angles" in capsys.readouterr().err
+    assert main(["calibrate", "hexapod", str(JUGGLEBOT / "S1.csv"), *JUGGLE, "--std-joint", "0.001rev"]) == 1
+    err = capsys.readouterr().err
+    assert "--std-joint 0.001rev:" in err and "--residual joint" in err and "0.00628" not in err

@@ -31,9 +31,10 @@ error_model_name = checked(lambda s: kincal.ErrorModel(s).name)  # argparse type
 
 class JointSigma(float):
     """A joint reading's σ in SI (rad or m) that remembers its kind ("angle" or "length"), to be judged against
-    the robot's joints (:func:`joint_std_for`)."""
+    the robot's joints (:func:`joint_std_for`), and the flag's value as written, for the messages."""
 
     kind = "angle"
+    written = ""
 
 
 def _joint_sigma(text: str) -> float:
@@ -44,7 +45,7 @@ def _joint_sigma(text: str) -> float:
             sigma = JointSigma(parse(text))
         except argparse.ArgumentTypeError:
             continue
-        sigma.kind = kind
+        sigma.kind, sigma.written = kind, text.strip()
         return sigma
     raise argparse.ArgumentTypeError(f"'{text}': give the joints' reading noise, > 0, with its unit: 0.001rev, "
                                      f"0.05deg, 1e-4rad, 0.01mm")
@@ -62,10 +63,10 @@ def joint_std_for(robot, sigma: float | None) -> float | None:
     if revolute.all() and sigma.kind == "length":
         if np.all(np.isfinite(leads)) and leads.min() > 0 and leads.max() <= 1.25 * leads.min():
             return value / float(leads.mean())  # the motor turn that moves a leg by that length
-        raise ValueError(f"--std-joint {value * 1e3:g} mm is a length, but {robot.name}'s joints are read as angles: "
+        raise ValueError(f"--std-joint {sigma.written} is a length, but {robot.name}'s joints are read as angles: "
                          f"give their reading noise as an angle (rev, deg, mrad or rad)")
     if not revolute.any() and sigma.kind == "angle":
-        raise ValueError(f"--std-joint {value:g} rad is an angle, but {robot.name}'s joints are read as lengths: "
+        raise ValueError(f"--std-joint {sigma.written} is an angle, but {robot.name}'s joints are read as lengths: "
                          f"give their reading noise as a length (mm, um or m)")
     return value
 
@@ -102,6 +103,10 @@ def fit_options(args, robot=None) -> kincal.FitOptions:
                                    angle_refuse=a_r / DEG, tracker_noise=args.tracker_noise / MM)
     names = [f.name for f in FLAGGED]
     given: dict = {k: v for k, v in zip(names, operator.attrgetter(*names)(args)) if v is not None}  # None: a list
+    sigma = given.get("joint_std")
+    if isinstance(sigma, JointSigma) and args.residual != "joint":  # the flag as written (FitOptions has it in SI)
+        raise ValueError(f"--std-joint {sigma.written}: the joints' reading noise σ of the joint-space residual; give "
+                         f"--residual joint with it (got --residual {args.residual})")
     if "joint_std" in given and robot is not None:
         given["joint_std"] = joint_std_for(robot, given["joint_std"])
     return kincal.FitOptions(**given, thresholds=thresholds, error_model=error_model)  # flag not given

@@ -378,12 +378,12 @@ def _checked(robot: Robot, q: np.ndarray, method: str, iterations: int, targets:
     finite, the TCP where ``turn``, the model whose flange turn is followed and the point the calibration
     measured, puts it: :func:`kincal.compensate.poses.tcp_positions`) with every command checked; the first
     failed check of each row is reported."""
-    from .poses import tcp_positions
+    from .poses import assembled_rows, tcp_positions
 
-    residual = np.full(len(q), np.inf)
-    good = np.all(np.isfinite(q), axis=1)
-    if good.any():
-        residual[good] = np.linalg.norm(tcp_positions(robot, q[good], *turn) - targets[good], axis=1)
+    residual = np.full(len(q), np.inf)  # inf also where a closed chain does not assemble: refused by row
+    good, at = assembled_rows(lambda i: tcp_positions(robot, q[i], *turn), q)
+    if good.size:
+        residual[good] = np.linalg.norm(at - targets[good], axis=1)
     why: list[str | None] = [None] * len(targets)
     for bad, message in _checks(robot, q, residual, targets, q0, nominal):
         for k in np.flatnonzero(bad):
@@ -416,6 +416,8 @@ def _checks(robot: Robot, q: np.ndarray, residual: np.ndarray, targets: np.ndarr
                                            f"one (another arm configuration); refused")
     lim = finite & ~robot.within_limits(np.where(finite[:, None], q, 0.0))
     yield lim, lambda k: f"the command breaks the joint limits: {past_limits(robot, q[k])}"
+    yield finite & np.isinf(residual), lambda k: ("the calibrated model does not assemble at the command (its forward "
+                                                  "kinematics find no pose there): out of reach, or at a singularity")
     few = (f"; a robot of {robot.n_joints} joint{'s' if robot.n_joints > 1 else ''} reaches a "
            f"{'surface' if robot.n_joints == 2 else 'curve'} of points only: a target off it cannot be reached; give "
            f"points it reaches, such as the nominal model's at the commands") if robot.n_joints < 3 else ""
@@ -568,7 +570,7 @@ def _closed_form_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray,
     with np.errstate(invalid="ignore"):
         q = robot.inverse_pose(rotations, targets, strict=False)
     comp = _checked(robot, q, "closed-form inverse (poses)", 0, targets, None, rows, nominal)
-    finite = np.all(np.isfinite(q), axis=1)
+    finite = np.isfinite(comp.residual)  # the legs are finite and the model assembles there
     turn = np.full(len(q), np.inf)
     if finite.any():
         R = robot.frame_and_rates(q[finite])[2]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -258,20 +259,74 @@ def tcp_positions(model: Robot, q: np.ndarray, turned_as: Robot | None = None,
     return model.with_tool_point(measured).forward(q) + turned_as.flange_rotation(q) @ (model.tool_point() - measured)
 
 
+def assembled_rows(f: Callable[[np.ndarray], np.ndarray], q: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """``f`` of the rows of q (N, n) where the models it uses assemble: (those rows' indices (K,), ``f`` of them,
+    stacked; None when K is 0).
+
+    ``f`` takes an index array and computes through models whose forward kinematics may fail at some rows (a closed
+    chain's legs out of reach: a ModelError for the whole call). All finite rows are tried at once; where that fails,
+    each half on its own, down to the rows that fail alone, which are left out: they are refused by row, not the file.
+
+    Parameters
+    ----------
+    f : callable
+        ``f(idx)`` -> ndarray (len(idx), ...), for an index array of rows of q.
+    q : ndarray, shape (N, n)
+        The commands, rad (m for a prismatic joint).
+
+    Returns
+    -------
+    tuple of ndarray and (ndarray or None)
+        The indices of the rows computed (finite and assembled, in order) and ``f`` of them.
+
+    Examples
+    --------
+    A hexapod's legs of two poses, with leg 1 of the second made 2 m long, where no platform pose exists:
+
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.compensate.poses import assembled_rows
+    >>> robot = kincal.load_robot("hexapod")
+    >>> q = robot.sample_joints(3, seed=1)
+    >>> q[1, 0] = 2.0 / robot.motor_leads[0]
+    >>> rows, p = assembled_rows(lambda i: robot.forward(q[i]), q)
+    >>> rows.tolist(), p.shape
+    ([0, 2], (2, 3))
+    """
+    def tried(idx: np.ndarray) -> tuple[np.ndarray, list]:
+        try:
+            return idx, [f(idx)]
+        except ModelError:
+            if len(idx) == 1:
+                return idx[:0], []
+            (a, fa), (b, fb) = tried(idx[:len(idx) // 2]), tried(idx[len(idx) // 2:])
+            return np.concatenate([a, b]), fa + fb
+
+    finite = np.flatnonzero(np.all(np.isfinite(q), axis=1))
+    if not finite.size:
+        return finite, None
+    rows, values = tried(finite)
+    return rows, (np.concatenate(values) if values else None)
+
+
 def turn_goal(model: Robot, robot: Robot, q: np.ndarray, rotations: np.ndarray) -> np.ndarray:
     """(N, 3, 3) the rotations ``robot``'s flange must reach for ``model``'s to reach ``rotations`` at about q
-    (N, n): R_robot(q) R_model(q)ᵀ R* (rows with no finite q keep R*)."""
-    ok = np.all(np.isfinite(q), axis=1)
+    (N, n): R_robot(q) R_model(q)ᵀ R* (rows with no finite q, or where a model does not assemble, keep R*)."""
     goal = np.array(rotations, dtype=float)
-    goal[ok] = robot.flange_rotation(q[ok]) @ np.swapaxes(model.flange_rotation(q[ok]), 1, 2) @ goal[ok]
+    ok, turn = assembled_rows(lambda i: robot.flange_rotation(q[i]) @ np.swapaxes(model.flange_rotation(q[i]), 1, 2),
+                              q)
+    if ok.size:
+        goal[ok] = turn @ goal[ok]
     return goal
 
 
 def model_turn(model: Robot, q: np.ndarray, rotations: np.ndarray) -> np.ndarray:
-    """(N,) rad: how far ``model``'s flange at q (N, n) stands from ``rotations`` (inf where q is not finite)."""
+    """(N,) rad: how far ``model``'s flange at q (N, n) stands from ``rotations`` (inf where q is not finite or
+    the model does not assemble)."""
     left = np.full(len(q), np.inf)
-    ok = np.all(np.isfinite(q), axis=1)
-    left[ok] = np.linalg.norm(rotation_log(model.flange_rotation(q[ok]) @ np.swapaxes(rotations[ok], 1, 2)), axis=1)
+    ok, R = assembled_rows(lambda i: model.flange_rotation(q[i]), q)
+    if ok.size:
+        left[ok] = np.linalg.norm(rotation_log(R @ np.swapaxes(rotations[ok], 1, 2)), axis=1)
     return left
 
 

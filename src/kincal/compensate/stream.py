@@ -23,7 +23,7 @@ from .._csv import BLOCK_BYTES, Block, Stream, check_once, check_present, open_s
 from .._memory import keep_freed_memory
 from .._threads import blas_threads
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
-from ..errors import MeasurementError
+from ..errors import MeasurementError, ModelError
 from ..io.commands import CommandColumns
 from ..io.measurements import _file_scales, _joint_columns
 from ..models.unit_checks import SPREAD_RATIO, check_degrees, check_radians, check_spread
@@ -216,8 +216,9 @@ class StreamResult:
     problems : tuple of str
         The refused rows' reasons ("row r: why"), each message once.
     warnings : tuple of str
-        Warnings: where the model extrapolates or leaves its data's joint envelope, rotations a robot with
-        fewer than six joints does not control.
+        Warnings: joint columns the file has that are not read (a parallel robot's joints follow from each target
+        alone), where the model extrapolates or leaves its data's joint envelope, rotations a robot with fewer than
+        six joints does not control.
     method : str
         How the commands were found (:attr:`Compensation.method`).
     iterations : int
@@ -350,6 +351,7 @@ def compensate_file(job: StreamJob, src: str, dst: str, *, skip_unreachable: boo
     refuse_covariates(job.robot)  # before reading: the targets' columns are the joints'
     stream = open_stream(src, block_bytes)
     _check_columns(job, stream)
+    unread = _unread_joints(job, stream)
     if stream.size - stream.offset > block_bytes:
         keep_freed_memory()  # a long file: this process reads and writes every block
     layout = job.layout(dst)
@@ -367,7 +369,19 @@ def compensate_file(job: StreamJob, src: str, dst: str, *, skip_unreachable: boo
             out.keep()
     if n == 0:
         raise MeasurementError(f"{src}: no data rows after the header")
-    return _result(job, parts, written)
+    return _result(job, parts, written, unread)
+
+
+def _unread_joints(job: StreamJob, stream: Stream) -> str:
+    """What to say of joint columns the file has but the job does not read ('' when none): a parallel robot's joints
+    follow from each target alone, so the file's are neither a start nor compared with the commands."""
+    header = stream.header
+    cols = [c for c in (job.targets.joint_cols or job.robot.default_columns(header)) if c in header]
+    if job.needs_joints or not cols:
+        return ""
+    return (f"the file's joint columns {', '.join(cols)} are not read: {job.robot.name}'s joints follow from each "
+            f"target alone (closed form), so the commands written are the model's for the targets, not these values "
+            f"corrected")
 
 
 def _check_columns(job: StreamJob, stream: Stream) -> None:
@@ -460,6 +474,8 @@ def _block(job: StreamJob, stream: Stream, layout: CommandColumns, block: Block,
         _first_checks(job, stream, rows, q0, xyz, rot)
     comp = compensate(job.robot, xyz, q0, rows=rows, rotations=R, nominal=job.nominal, uncertainty=job.uncertainty,
                       orientation=job.orientation if R is not None else None, measured=job.measured)
+    if rot is not None and not comp.all_ok:
+        comp = _read_as_degrees(job, stream.path, comp, rows, q0, xyz, rot)
     if job.path and q0 is not None:
         comp = path_checked(job.robot, comp, q0)
     k = 1 if ctx else 0
@@ -485,6 +501,29 @@ def _first_checks(job: StreamJob, stream: Stream, rows, q0, xyz, rot) -> None:
     if t.pose and job.nominal is not None:
         convention_check(job.nominal.flange_rotation(q0), rot[:m], t.orientation, stream.path, rows[:m],
                          position_frame(p0, xyz))  # (a relabelling of the axes cannot hide in a frame)
+
+
+def _read_as_degrees(job: StreamJob, path: str, comp, rows: np.ndarray, q0, xyz: np.ndarray, rot: np.ndarray):
+    """The compensation with the refused pose targets whose orientation, read as degrees, every check passes saying
+    so (a file in degrees declared in radians: angles within 2π pass the reader's own check; such a row is out of
+    reach or past the joint limits as read)."""
+    name = job.targets.orientation
+    other = "rotvec-deg" if name == "rotvec" else f"{name[:-4]}-deg" if name.startswith("euler-") and \
+        name.endswith("-rad") else ""
+    bad = np.flatnonzero(~comp.ok)
+    if not other or not bad.size:
+        return comp
+    R = to_matrices(rot[bad], other, path, rows[bad])
+    R = R if job.body is None else R @ np.asarray(job.body).T
+    try:
+        again = compensate(job.robot, xyz[bad], None if q0 is None else q0[bad], rows=rows[bad], rotations=R,
+                           nominal=job.nominal, orientation=job.orientation, measured=job.measured)
+    except ModelError:  # (no reading of the file's: nothing to add)
+        return comp
+    reached = set(rows[bad][again.ok].tolist())
+    hint = (f"; read as degrees its orientation is reached: the angles look like degrees (--orientation {other})")
+    return dataclasses.replace(comp, problems=tuple(p + hint if _row_of(p) in {(1, r) for r in reached} else p
+                                                    for p in comp.problems))
 
 
 def _read(job: StreamJob, stream: Stream, block: Block, previous: Block | None):
@@ -537,14 +576,15 @@ def _summary(job: StreamJob, layout: CommandColumns, comp, rows, q0, xyz, k: int
                  (rows[ok][out], q[out]), largest, comp.method, comp.iterations, end)
 
 
-def _result(job: StreamJob, parts: list[_Part], written: bool) -> StreamResult:
-    """The blocks' summaries (at least one) added up, in file order."""
+def _result(job: StreamJob, parts: list[_Part], written: bool, unread: str = "") -> StreamResult:
+    """The blocks' summaries (at least one) added up, in file order (``unread``: the joint columns not read, said
+    first)."""
     sigma = np.concatenate([p.sigma for p in parts])
     largest: dict = {}
     for part in parts:
         for name, v in part.largest.items():
             largest[name] = v if name not in largest else np.maximum(largest[name], v)
-    warnings = []
+    warnings: list[str | None] = [unread]
     unc, robot = job.uncertainty, job.robot
     if unc is not None and sigma.size:
         rows, s, q = (np.concatenate(a) for a in zip(*(p.extrapolated for p in parts)))

@@ -91,14 +91,13 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
             f"{source}: {what} spread {ratio:.3g}x the robot's at the same joint values with the declared tool point "
             f"({_mm(robot.tool_point())} mm), but with the tool point fitted they agree to {tool[1] * 1e3:.3g} mm RMS: "
             f"not a unit, the tool point: declare it (--tool {_mm(tool[0], ',')}mm)")
-    other = _other_angle_unit(q, xyz, robot, angle_unit)
+    other = _other_reading(q, xyz, robot, length_unit, angle_unit)
     if other is not None:
         how = (f"do not even assemble the robot ({robot.name})" if not assembles else
                f"move the robot {max(ratio, 1 / ratio):.3g}x {'less' if ratio > 1 else 'more'} than the {what} spread")
-        raise MeasurementError(f"{source}: read as {ANGLE_WORDS[str(angle_unit)]}, the joint values {how}, read as "
-                               f"{ANGLE_WORDS[other]} they match: use angle unit '{other}' (CLI: --angle-unit {other})")
+        raise MeasurementError(f"{source}: read as {ANGLE_WORDS[str(angle_unit)]}, the joint values {how}, {other}")
     if not assembles:  # the joint values' own check: far outside the limits, in the unit that puts them within
-        check_limits(source, q, robot, length_unit, angle_unit)
+        check_limits(source, q, robot, length_unit, angle_unit, tried=True)
         return
     jump = frame_jump(xyz, robot.forward(q))
     if jump is not None:
@@ -109,6 +108,13 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
                                f"{one * 1e3:.3g} mm in one frame): two set-ups in one file, or the tracker was moved "
                                f"or bumped there; give one file per session (each gets its own frame)")
     if predicted > MIN_SPREAD:
+        lead = lead_factor(q, xyz, robot) if not _unit_of(ratio, length_unit) else None
+        if lead is not None:
+            raise MeasurementError(f"{source}: {what} spread {_times(ratio)} than the robot moves at the same joint "
+                                   f"values, and as far with the travel per reading of every joint driven through a "
+                                   f"lead {lead:.3g}x the robot file's ({_leads(robot, angle_unit, lead)}): the robot "
+                                   f"file's leads look {lead:.3g}x too {'small' if lead > 1 else 'large'}; check them "
+                                   f"(each joint's lead: travel per reading unit)")
         raise MeasurementError(f"{source}: {unit_hint(ratio, length_unit, what)}")
 
 
@@ -159,22 +165,105 @@ def skew_rows(v: np.ndarray) -> np.ndarray:
                      np.stack([-v[:, 1], v[:, 0], z], 1)], 1)
 
 
-def _other_angle_unit(q: np.ndarray, xyz: np.ndarray, robot: Robot, angle_unit: str | None) -> str | None:
-    """The angle unit (of ``ANGLE_UNITS``, in their order) whose reading of the revolute joints makes the
-    robot move as far as the measured positions xyz, when the declared ``angle_unit`` does not; None if none does."""
-    rev = robot.revolute
-    if angle_unit not in ANGLE_UNITS or not rev.any():
-        return None
-    for unit, factor in ANGLE_UNITS.items():
-        if unit == angle_unit:
+def _other_reading(q: np.ndarray, xyz: np.ndarray, robot: Robot, length_unit: str | None,
+                   angle_unit: str | None) -> str | None:
+    """What to say ("read as … they match: …") of the first other reading of the joint values as written
+    (:func:`_readings`) that makes the robot move as far as the measured positions xyz, when the declared
+    ``angle_unit`` does not; None if none does."""
+    for read, said in _readings(q, robot, length_unit, angle_unit):
+        if not robot.within_limits(read).mean() > 0.5:  # most joints beyond their limits: not this reading
             continue
-        read = np.where(rev, q * (factor / ANGLE_UNITS[angle_unit]), q)
-        if not robot.within_limits(read).mean() > 0.5:  # most joints beyond their limits: not this unit
-            continue
-        with suppress(ModelError):  # joints no configuration of the robot has: not this unit
+        with suppress(ModelError):  # joints no configuration of the robot has: not this reading
             moved = spread(robot.forward(read))
             if 1 / SPREAD_RATIO < spread(xyz) / max(moved, 1e-300) < SPREAD_RATIO:
-                return unit
+                return said
+    return None
+
+
+def _readings(q: np.ndarray, robot: Robot, length_unit: str | None, angle_unit: str | None):
+    """(joint values (N, n) rad or m, what to say where they fit) of each other reading of the revolute joints'
+    numbers as written in ``angle_unit``: the other angle units (in ``ANGLE_UNITS``' order), then, for joints a motor
+    drives through a lead (``robot.motor_leads``), lengths (the declared ``length_unit`` first) turned into motor
+    angles by the lead: a leg's travel in mm given where its motor's revolutions are read."""
+    rev = robot.revolute
+    if angle_unit not in ANGLE_UNITS or not rev.any():
+        return
+    for unit, factor in ANGLE_UNITS.items():
+        if unit != angle_unit:
+            yield (np.where(rev, q * (factor / ANGLE_UNITS[angle_unit]), q),
+                   f"read as {ANGLE_WORDS[unit]} they match: use angle unit '{unit}' (CLI: --angle-unit {unit})")
+    lead = robot.motor_leads
+    driven = rev & np.isfinite(lead) & (lead != 0)
+    for unit in sorted(LENGTH_UNITS, key=lambda u: u != (length_unit or "m")) if driven.any() else ():
+        yield (np.where(driven, q / ANGLE_UNITS[angle_unit] * LENGTH_UNITS[unit] / np.where(driven, lead, 1.0), q),
+               f"read as {unit} of travel through each one's lead ({_leads(robot, angle_unit, 1.0, unit)}) they "
+               f"match: {as_travel(unit, angle_unit)}")
+
+
+def as_travel(length_unit: str, angle_unit: str) -> str:
+    """The advice for the readings of motors driving screws given as the lengths they drive (in ``length_unit``)."""
+    return (f"they look like lengths in {length_unit}: give them in {angle_unit} (the travel divided by the lead), "
+            f"or describe the joints as read in lengths in the robot file (a hexapod's legs: no 'reading', no 'lead')")
+
+
+def _leads(robot: Robot, angle_unit: str | None, factor: float = 1.0, length_unit: str = "mm") -> str:
+    """Each lead joint's lead times ``factor``, in ``length_unit`` per ``angle_unit`` (rev when not an angle unit)."""
+    per = angle_unit if angle_unit in ANGLE_UNITS else "rev"
+    lead = robot.motor_leads * factor * ANGLE_UNITS[per] / LENGTH_UNITS[length_unit]
+    shown = [f"{n} {v:.4g}" for n, v in zip(robot.joint_names, lead) if np.isfinite(v)]
+    return f"{', '.join(shown)} {length_unit}/{per}"
+
+
+LEAD_ROUNDS = 30  # fixed-point steps at most of lead_factor
+LEAD_AGREES = 1e-3  # ... which ends where the spreads agree to this share
+
+
+def lead_factor(q: np.ndarray, xyz: np.ndarray, robot: Robot) -> float | None:
+    """The factor on the travel per reading of every joint a motor drives through a lead (``robot.motor_leads``)
+    with which the robot moves as far as the measured positions spread: a lead in the robot file that is not the
+    robot's (scaling the lead scales the travel the readings drive). Found by a fixed point on the spreads' ratio
+    (the spread grows about as the travel does); None without such joints, or where no factor in 1e-3..1e3 makes
+    the robot assemble and the spreads agree to ``LEAD_AGREES``.
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, n)
+        Joint values as read, rad (m for a prismatic joint).
+    xyz : ndarray, shape (N, 3)
+        Measured positions, m.
+    robot : Robot
+        The robot (its leads).
+
+    Returns
+    -------
+    float or None
+        The factor (the true leads are the file's times it).
+
+    Examples
+    --------
+    The hexapod's legs read through leads 10 % shorter than its own:
+
+    >>> import kincal
+    >>> from kincal.models.unit_checks import lead_factor
+    >>> robot = kincal.load_robot("hexapod")
+    >>> q = robot.sample_joints(30, seed=1)
+    >>> round(lead_factor(q * 0.9, robot.forward(q), robot), 2)  # 1 / 0.9
+    1.11
+    """
+    driven = robot.revolute & np.isfinite(robot.motor_leads)
+    if not driven.any():
+        return None
+    s, target = 1.0, spread(xyz)
+    for _ in range(LEAD_ROUNDS):
+        try:
+            ratio = target / max(spread(robot.forward(np.where(driven, q * s, q))), 1e-300)
+        except ModelError:  # the legs do not assemble so: no lead explains the spread
+            return None
+        if abs(ratio - 1.0) < LEAD_AGREES:
+            return s
+        s *= ratio
+        if not 1e-3 < s < 1e3:
+            return None
     return None
 
 
@@ -325,11 +414,13 @@ def joints_in_radians(what: str, q: np.ndarray, robot: Robot) -> None:
 
 
 def check_limits(source: str, q: np.ndarray, robot: Robot, length_unit: str | None, angle_unit: str | None,
-                 suggest: bool = True) -> None:
+                 suggest: bool = True, tried: bool = False) -> None:
     """Refuse a joint column whose values lie, in most rows, further outside the robot's limits than the limits are
     wide: another unit, or another quantity in that column (run after the degree and radian checks); with
     ``suggest``, a unit in which every value lies within the limits is named (without it, when measured positions
-    were already checked for the unit that moves the robot as far as they spread, none is).
+    were already checked for the unit that moves the robot as far as they spread, none is): for a motor driving a
+    screw (``robot.motor_leads``) also lengths in ``length_unit``, turned into its angle by the lead (a leg's travel
+    in mm given where its motor's revolutions are read).
 
     Parameters
     ----------
@@ -343,6 +434,9 @@ def check_limits(source: str, q: np.ndarray, robot: Robot, length_unit: str | No
         The units the values were read in (None: SI), to show them as written.
     suggest : bool, optional
         Name a unit that puts every value within the limits (default True).
+    tried : bool, optional
+        The revolute joints' other readings were already tried against measured positions (:func:`check_spread`):
+        none is named for them (default False).
 
     Raises
     ------
@@ -361,7 +455,19 @@ def check_limits(source: str, q: np.ndarray, robot: Robot, length_unit: str | No
     Traceback (most recent call last):
     ...
     kincal.errors.MeasurementError: legs.csv: the column read as joint leg... holds ... rev as written, while
-    its range is 0 to 4.2 rev: far outside it in most rows: another unit, or another quantity in that column? ...
+    its range is 0 to 4.2 rev: far outside it in most rows: another unit, another lead in the robot file, or another
+    quantity in that column? ...
+
+    The legs' travel in mm where their motors' revolutions are read: the lead that turns it into them is named:
+
+    >>> travel = q * robot.motor_leads * 1e3 * 2 * np.pi  # mm, as numbers read as rev
+    >>> check_limits("legs.csv", travel, robot, "mm", "rev")
+    Traceback (most recent call last):
+    ...
+    kincal.errors.MeasurementError: legs.csv: the column read as joint leg1 holds ... rev as written, while its range
+    is 0 to 4.2 rev: far outside it in most rows: read as mm of travel through its lead (75.69 mm/rev)... they lie
+    within it: they look like lengths in mm: give them in rev (the travel divided by the lead), or describe the joints
+    as read in lengths in the robot file (a hexapod's legs: no 'reading', no 'lead')...
 
     A 3-PUU's slides in mm read as metres: the unit that puts them all within their range is named:
 
@@ -383,11 +489,21 @@ def check_limits(source: str, q: np.ndarray, robot: Robot, length_unit: str | No
     units = ANGLE_UNITS if robot.joint_types[j] == "revolute" else LENGTH_UNITS
     f, flag = {**LENGTH_UNITS, **ANGLE_UNITS}.get(unit, 1.0), "angle" if units is ANGLE_UNITS else "length"
     written = q[:, j] / f
-    fits = [u for u, g in units.items() if u != unit and np.all((written * g >= robot.lower[j] - 1e-12)
-                                                                 & (written * g <= robot.upper[j] + 1e-12))]
-    hint = f": read as {fits[0]} they lie within it; use {flag} unit '{fits[0]}' (CLI: --{flag}-unit {fits[0]})" if \
-        fits and suggest else (f": another unit, or another quantity in that column? check the joint columns and their unit "
-                   f"(CLI: --joint-cols, --{flag}-unit)")
+    inside = lambda g: bool(np.all((written * g >= robot.lower[j] - 1e-12)  # noqa: E731
+                                   & (written * g <= robot.upper[j] + 1e-12)))
+    fits = [u for u, g in units.items() if u != unit and inside(g)]
+    lead = float(robot.motor_leads[j]) if robot.revolute[j] else np.nan  # a motor driving a screw: lengths of travel
+    travel = [u for u in (length_unit or "m",) if np.isfinite(lead) and lead != 0 and inside(LENGTH_UNITS[u] / lead)]
+    suggest = suggest and not (tried and robot.revolute[j])
+    hint = (f": another unit, {'another lead in the robot file, ' if np.isfinite(lead) else ''}or another quantity "
+            f"in that column? check the joint columns and their unit (CLI: --joint-cols, --{flag}-unit)")
+    if suggest and travel:
+        per = f"{lead * f / LENGTH_UNITS[travel[0]]:.4g} {travel[0]}/{unit}"
+        hint = (f": read as {travel[0]} of travel through its lead ({per}){f', or as {fits[0]},' if fits else ''} they "
+                f"lie within it: {as_travel(travel[0], unit)}" + (f"; or use {flag} unit '{fits[0]}' (CLI: "
+                                                                  f"--{flag}-unit {fits[0]})" if fits else ""))
+    elif suggest and fits:
+        hint = f": read as {fits[0]} they lie within it; use {flag} unit '{fits[0]}' (CLI: --{flag}-unit {fits[0]})"
     raise MeasurementError(f"{source}: the column read as joint {robot.joint_names[j]} holds {written.min():.4g} "
                            f"to {written.max():.4g} {unit} as written, while its range is {robot.lower[j] / f:.4g} "
                            f"to {robot.upper[j] / f:.4g} {unit}: far outside it in most rows{hint}")
@@ -526,13 +642,27 @@ def unit_hint(ratio: float, length_unit: str | None, what: str = "measured posit
     if not (np.isfinite(ratio) and ratio > 0):  # no spread at all, or one beyond floating point
         return (f"{what} spread {'not at all' if ratio == 0 else 'beyond any robot'} while the robot moves at the "
                 f"same joint values (read as '{declared}'): check the position columns and their values")
-    true = table[declared] / ratio  # the SI value of the unit the numbers are really in
-    name = min(table, key=lambda k: abs(np.log(table[k] / true)))
-    side = f"{ratio:.3g}x more" if ratio > 1 else f"{1 / ratio:.3g}x less"
-    head = f"{what} spread {side} than the robot moves at the same joint values (read as '{declared}')"
-    if abs(np.log(table[name] / true)) > np.log(1.3):
+    name = _unit_of(ratio, length_unit)
+    head = f"{what} spread {_times(ratio)} than the robot moves at the same joint values (read as '{declared}')"
+    if not name:
         return f"{head}; no length unit explains that factor: check the joint columns and the robot file"
     if name in LENGTH_UNITS:
         return f"{head}: they look like {name}; use length unit '{name}' (CLI: --length-unit {name})"
     return (f"{head}: they look like {name}; convert them to mm (x{table[name] / 1e-3:g}) and use length unit 'mm' "
             f"(CLI: --length-unit mm)")
+
+
+def _times(ratio: float) -> str:
+    """'6.08x more' or '2x less': a spread's ratio in words."""
+    return f"{ratio:.3g}x more" if ratio > 1 else f"{1 / ratio:.3g}x less"
+
+
+def _unit_of(ratio: float, length_unit: str | None) -> str:
+    """The length unit (of ``LENGTH_UNITS`` and ``OTHER_LENGTHS``) measured positions read in ``length_unit`` (default
+    m) are really in when they spread ``ratio`` times the robot's (within 30 %); '' when none is."""
+    table = {**LENGTH_UNITS, **OTHER_LENGTHS}
+    if not (np.isfinite(ratio) and ratio > 0):
+        return ""
+    true = table[length_unit if length_unit in table else "m"] / ratio  # the SI value of the unit they are in
+    name = min(table, key=lambda k: abs(np.log(table[k] / true)))
+    return name if abs(np.log(table[name] / true)) <= np.log(1.3) else ""
