@@ -417,6 +417,59 @@ def test_a_socket_distance_one_percent_off_that_the_fit_does_not_meet_is_named(t
         assert abs(kept - 50.0) < abs(stated - 50.0) - 0.4, kept  # 49.55 and 49.94 mm: the arm kept its scale
 
 
+def _socket_rows_moved(rows, shift):
+    """The rows' joints re-solved (damped Newton on the nominal Panda) so the ball sits ``shift`` (m, (3,)) away."""
+    robot = kincal.load_robot(PANDA_URDF, tip_link="ball_link")
+    q = np.array([[float(r[f"q{k}"]) for k in range(1, 8)] for r in rows])
+    target = robot.forward(q) + shift
+    for _ in range(20):
+        J = robot.joint_jacobian(q)
+        e = target - robot.forward(q)
+        q = q + np.einsum("nji,nj->ni", J, np.linalg.solve(J @ J.transpose(0, 2, 1) + 1e-12 * np.eye(3), e[..., None])[..., 0])
+    assert np.abs(robot.forward(q) - target).max() < 1e-9
+    return [{**r, **{f"q{k + 1}": repr(float(v)) for k, v in enumerate(qk)}} for r, qk in zip(rows, q)]
+
+
+def test_a_placement_name_shared_by_two_files_is_judged_as_one_point_and_a_moved_plate_named(tmp_path, capsys):
+    """Two files of one placement name are one point to the fit. The Panda's front_center, again with the plate 3 mm
+    away (the same configurations re-solved), fitted as two files: each file's figure was 0.22 mm, its own mean hiding
+    the 3 mm between the files, while the same rows in one file are 1.51 mm off their point. Each file's figure is now
+    judged against the shared point — the mean over both files' samples, computed here by numpy from the calibrated
+    arm — and the verdict names the placement, both files and the 3 mm. The front_center rows split into their two
+    halves (the plate not moved) name nothing."""
+    rows = [r for r in csv.DictReader(open(SOCKETS / "samples.csv")) if r["placement"] == "front_center"]
+    keys = list(rows[0])
+    shifted = _socket_rows_moved(rows, np.array([3e-3, 0.0, 0.0]))
+    one = _write(tmp_path / "one.csv", keys, [[r[k] for k in keys] for r in rows])
+    two = _write(tmp_path / "two.csv", keys, [[r[k] for k in keys] for r in shifted])
+    both = _write(tmp_path / "both.csv", keys, [[r[k] for k in keys] for r in rows + shifted])
+    base = ["calibrate", str(PANDA_URDF), "--tip-link", "ball_link", "--type", "same-point", "--joint-cols",
+            ",".join(f"q{k}" for k in range(1, 8)), "--label-col", "socket", "--length-unit", "mm", "--group-col",
+            "placement", "--distance", "0,1,50"]
+    code, out, err = _run(capsys, base + [one, two, "-o", str(tmp_path / "cal.yaml")])
+    assert code == 0, err
+    cal = kincal.load_robot(tmp_path / "cal.yaml")
+    files = [(rows, out["sets"][0]), (shifted, out["sets"][1])]
+    p = [cal.forward(np.array([[float(r[f"q{k}"]) for k in range(1, 8)] for r in rs])) for rs, _ in files]
+    sockets = [np.array([r["socket"] for r in rs]) for rs, _ in files]
+    centre = {s: np.concatenate([x[k == s] for x, k in zip(p, sockets)]).mean(axis=0) for s in "01"}
+    for x, k, (_, got) in zip(p, sockets, files):
+        mine = np.mean([np.linalg.norm(x[i] - centre[k[i]]) for i in range(len(k))])
+        assert got["mean_abs"] == pytest.approx(mine, rel=1e-9) and mine > 1.4e-3  # 1.505 mm, not 0.223
+    _, pooled, _ = _run(capsys, base + [both])
+    assert np.mean([s["mean_abs"] for s in out["sets"]]) == pytest.approx(pooled["sets"][0]["mean_abs"], abs=5e-6)
+    moved = [r for r in out["verdict"]["reasons"] if r["code"] == "moved-plate"]
+    assert out["verdict"]["status"] == "suspect" and len(moved) == 1, out["verdict"]
+    message = moved[0]["message"]
+    assert message.startswith("placement front_center:") and one in message and two in message
+    assert "front_center_1, front_center_2" in message
+    assert abs(float(message.split("put it ")[1].split(" mm")[0]) - 3.0) < 0.05
+    half = [_write(tmp_path / f"half{k}.csv", keys, [[r[c] for c in keys] for r in rows if int(r["sample"]) % 2 == k])
+            for k in (0, 1)]
+    code, halves, err = _run(capsys, base + half)
+    assert code == 0 and halves["verdict"]["status"] == "good", halves["verdict"]
+
+
 def test_points_and_sockets_together_through_the_command_line(tmp_path, capsys):
     """A tracker session and socket samples in one calibration: the points give the frame and the
     scale, the sockets add configurations; the result is near the truth."""

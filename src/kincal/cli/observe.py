@@ -306,9 +306,11 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
 
 def group_lines(sets: list, which: str) -> list[str]:
     """A line per placement (group) of sockets in the sets' statistics: samples, mean distance to its point, error
-    of the known distances; ``which`` before its name."""
-    return [f"  {which}{g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
-            f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
+    of the known distances; ``which`` before its name, and the file's name after it where several sets hold it."""
+    names = [g["group"] for s in sets for g in s.get("groups", [])]
+    return [f"  {which}{g['group']}" + (f" ({Path(s['source']).name})" if names.count(g["group"]) > 1 else "")
+            + f": {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance error "
+            + ("–" if g["distance_error_mm"] is None else f"{g['distance_error_mm']:.3f} mm")
             for s in sets for g in in_display(s).get("groups", [])]
 
 

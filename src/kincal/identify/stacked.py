@@ -25,6 +25,7 @@ from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_ident
 from ..analysis.observability import live_columns
 from ..errors import IdentifiabilityError, MeasurementError, ModelError
 from ..models.robot import Robot
+from ..observe.constraints import SamePointObs
 from ..observe.drifting import DRIFT
 from ..observe.observations import PoseObs, Wrapper
 from ..observe.sessions import InSession
@@ -472,10 +473,11 @@ def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit,
         learned = {}
     std = {n: float(v) for n, v in zip(free, sd)}
     std.update({n: np.inf for n in st.nuis_names if n not in std})
+    judged = [o.among(st.sets) if isinstance(o, SamePointObs) else o for o in st.sets]  # a shared point is one point
     before = tuple(o.stats(before_model, before_model.params.values, _before_nuisance(before_model, o, x0[P:][slot]))
-                   for o, slot in zip(st.sets, st.slots))
+                   for o, slot in zip(judged, st.slots))
     try:
-        after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
+        after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(judged, st.slots))
     except ModelError:  # a fit on other residuals (the joints') whose model does not assemble at the data's joints
         raise unassembled(st.sets) from None
     r = st.judged(fit.residual, fit.jacobian, _hat_covariance(fit, cov), full[:P], full[P:])

@@ -104,6 +104,9 @@ class SamePointObs(Observation):
         How well the ball seats, σ per axis, per sample or one number, m (default 0.05e-3).
     std_distance : float, optional
         How well the distances are known, σ, m (default 0.1e-3).
+    elsewhere : tuple of (str, ndarray (M, n)), optional
+        Per label, the joints of other files' samples of the same point (default (): :meth:`among` sets them), which
+        :meth:`stats` judges this file's samples against with its own.
 
     Examples
     --------
@@ -140,6 +143,7 @@ class SamePointObs(Observation):
     group: np.ndarray | None = None
     std: np.ndarray | float = 0.05e-3  # m: how well the ball seats, per axis (one number or per sample)
     std_distance: float = 0.1e-3  # m: how well the distances are known
+    elsewhere: tuple[tuple[str, np.ndarray], ...] = ()  # (label, joints (M, n)): its points' samples in other files
     kind = "same-point"
 
     @property
@@ -155,6 +159,28 @@ class SamePointObs(Observation):
         out = cast(SamePointObs, super().subset(idx))  # every per-sample array indexed
         kept = set(out.labels.tolist())
         return dataclasses.replace(out, distances=tuple(d for d in self.distances if d[0] in kept and d[1] in kept))
+
+    def among(self, sets) -> "SamePointObs":
+        """The set as it is fitted among ``sets``: a label that another file's samples hold too is one point (one
+        set-up parameter), so :meth:`stats` judges this file's samples of it against the mean of all of them, as if
+        the files were one (each file's own mean hid a plate moved between them: 0.22 mm per file where the same rows
+        in one file are 1.51 mm off their point)."""
+        mine = set(self.points())
+        found = tuple((lab, o.q[o.labels == lab]) for o in sets if o is not self and isinstance(o, SamePointObs)
+                      for lab in o.points() if lab in mine)
+        return dataclasses.replace(self, elsewhere=found)
+
+    def point_means(self, robot: Robot, values: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Per label, the mean of its samples' points under ``robot`` at ``values`` (3,), m, and that mean's standard
+        error per axis (3,), m: their spread (the stated σ at least) over the square root of their count."""
+        p = robot.forward(self.q, values)
+        seat = np.broadcast_to(np.asarray(self.std, float), (len(self),))
+        out = {}
+        for lab in self.points():
+            mine = self.labels == lab
+            spread = np.std(p[mine], axis=0, ddof=1) if mine.sum() > 1 else np.zeros(3)
+            out[lab] = (p[mine].mean(axis=0), np.maximum(spread, seat[mine].mean()) / np.sqrt(mine.sum()))
+        return out
 
     def _spread_hint(self) -> str:
         """What to check when one label's samples are not one point: the placements (when none are labelled), then
@@ -226,13 +252,17 @@ class SamePointObs(Observation):
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         """Per group (placement), as the MUKCa paper defines them: the count-weighted mean over its points of
         ``|p − that point's mean of p|`` and, per known distance inside it, ``| ‖m_a − m_b‖ − d |`` (m: the mean
-        points)."""
+        points). A point other files hold too (:meth:`among`) is one point: its mean is over all their samples."""
         p = robot.forward(self.q, values)
         group = np.full(len(self), "all") if self.group is None else self.group
+        others: dict[str, list[np.ndarray]] = {}
+        for lab, q in self.elsewhere:
+            others.setdefault(lab, []).append(robot.forward(q, values))
         out, devs = [], []
         for g in _labels_in_order(group):
             mine = group == g
-            means = {lab: p[mine & (self.labels == lab)].mean(axis=0) for lab in _labels_in_order(self.labels[mine])}
+            means = {lab: np.concatenate([p[self.labels == lab], *others.get(lab, [])]).mean(axis=0)
+                     for lab in _labels_in_order(self.labels[mine])}
             dev = np.concatenate([np.linalg.norm(p[mine & (self.labels == lab)] - m, axis=1) for lab, m in means.items()])
             dist = [abs(float(np.linalg.norm(means[a] - means[b])) - d) for a, b, d in self.distances
                     if a in means and b in means]
