@@ -358,6 +358,32 @@ def test_the_wrong_tip_link_is_named_as_the_tool_not_a_moved_plate(tmp_path, cap
     assert code == 1 and "--group-col" in err and "a tool point at" not in err
 
 
+def test_two_plate_positions_under_one_placement_name_are_named_not_the_joint_columns(tmp_path, capsys):
+    """mid_right's rows renamed mid_left: the 64 samples of 'mid_left/0' lie 242 mm from their centre on average, and
+    the refusal said to check the joint columns and their units. They are two tight places: the refusal names them,
+    their rows (the file's lines of each original placement) and the distance between them (numpy, the two original
+    placements' mean ball centres under the robot file), and the advice to name each plate position apart."""
+    rows = list(csv.DictReader(open(SOCKETS / "samples.csv")))
+    keys = list(rows[0])
+    merged = _write(tmp_path / "merged.csv", keys, [[("mid_left" if k == "placement" and r[k] == "mid_right" else r[k])
+                                                     for k in keys] for r in rows])
+    code, _, err = _run(capsys, ["calibrate", str(PANDA_URDF), "--tip-link", "ball_link", merged, "--type", "same-point",
+                                 "--joint-cols", ",".join(f"q{k}" for k in range(1, 8)), "--label-col", "socket",
+                                 "--group-col", "placement", "--length-unit", "mm", "--distance", "0,1,50"])
+    assert code == 1 and "'mid_left/0' are not one point" in err and "check the joint columns" not in err, err
+    assert "two placements share its name" in err and "a placement name of its own" in err
+    robot = kincal.load_robot(PANDA_URDF, tip_link="ball_link")
+    centres, lines = [], []
+    for place in ("mid_left", "mid_right"):
+        mine = [(k + 2, r) for k, r in enumerate(rows) if r["placement"] == place and r["socket"] == "0"]
+        lines.append(f"rows {mine[0][0]}-{mine[-1][0]} ({len(mine)} samples)")
+        assert [k for k, _ in mine] == list(range(mine[0][0], mine[-1][0] + 1))  # one run of lines each
+        centres.append(robot.forward(np.array([[float(r[f"q{j}"]) for j in range(1, 8)] for _, r in mine])).mean(0))
+    assert f"({lines[0]}; {lines[1]})" in err, (lines, err)
+    gap = float(err.split("two places ")[1].split(" mm apart")[0])
+    assert abs(gap - np.linalg.norm(centres[0] - centres[1]) * 1e3) < 0.5
+
+
 def test_a_socket_distance_two_percent_off_is_named_not_good(tmp_path, capsys):
     """The Panda's sockets are 50 mm apart; stated as 51 mm the fit scales the whole arm (its placements still agree
     to 0.35 mm: nothing else shows it). The verdict says the model is larger than the nominal one as a whole and

@@ -76,6 +76,43 @@ def _tool_hint(robot: Robot, q: np.ndarray, labels: np.ndarray) -> str:
             f"ball is not where the robot file puts the tool (check --tip-link, or declare it with --tool)")
 
 
+def two_places(p: np.ndarray) -> np.ndarray | None:
+    """Whether points p (N, 3), m, are two tight clusters: the split along their principal axis that leaves the least
+    squared spread (every cut, by prefix sums), when each side has two points or more within :data:`SPREAD_LIMIT` of
+    its centre on average (a robot's error); its mask of the points on one side (N,) of bool, else None.
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> p = np.vstack([rng.normal(0, 5e-3, (6, 3)), rng.normal([0.48, 0, 0], 5e-3, (4, 3))])
+    >>> two_places(p).astype(int).tolist(), two_places(rng.normal(0, 0.2, (10, 3))) is None
+    ([1, 1, 1, 1, 1, 1, 0, 0, 0, 0], True)
+    """
+    if len(p) < 4:
+        return None
+    c = p - p.mean(axis=0)
+    order = np.argsort(c @ np.linalg.svd(c, full_matrices=False)[2][0], kind="stable")
+    s, s2, n = np.cumsum(c[order], axis=0), np.cumsum(np.sum(c[order] ** 2, axis=1)), np.arange(1, len(p) + 1)
+    left = s2[:-1] - np.sum(s[:-1] ** 2, axis=1) / n[:-1]
+    right = (s2[-1] - s2[:-1]) - np.sum((s[-1] - s[:-1]) ** 2, axis=1) / (len(p) - n[:-1])
+    k = int(np.argmin(np.where((n[:-1] >= 2) & (n[:-1] <= len(p) - 2), left + right, np.inf))) + 1
+    one = np.zeros(len(p), bool)
+    one[order[:k]] = True
+    tight = all(np.linalg.norm(p[m] - p[m].mean(axis=0), axis=1).mean() < SPREAD_LIMIT for m in (one, ~one))
+    return one if tight else None
+
+
+def _spans(rows: np.ndarray) -> str:
+    """Row numbers as runs: '371-402, 410' (MAX_RUNS runs at most, then how many more rows)."""
+    rows = np.sort(np.asarray(rows, int))
+    breaks = np.flatnonzero(np.diff(rows) != 1) + 1
+    runs = [f"{r[0]}-{r[-1]}" if len(r) > 1 else f"{r[0]}" for r in np.split(rows, breaks)]
+    rest = int(sum(len(r) for r in np.split(rows, breaks)[MAX_RUNS:]))
+    return ", ".join(runs[:MAX_RUNS]) + (f" and {rest} more" if rest else "")
+
+
+MAX_RUNS = 4
+
+
 @dataclass(frozen=True, eq=False)
 class SamePointObs(Observation):
     """The tool point held at the same unknown point in every sample with that label (a ball in a socket).
@@ -182,9 +219,19 @@ class SamePointObs(Observation):
             out[lab] = (p[mine].mean(axis=0), np.maximum(spread, seat[mine].mean()) / np.sqrt(mine.sum()))
         return out
 
-    def _spread_hint(self) -> str:
-        """What to check when one label's samples are not one point: the placements (when none are labelled), then
-        the joint columns (their order, one given twice) and units."""
+    def _spread_hint(self, p: np.ndarray, label: str) -> str:
+        """What to check when the samples labelled ``label`` (their points p (N, 3) under the robot file, m) are not
+        one point: two tight places (a plate moved within the label, or two placements under one name), the
+        placements (when none are labelled), then the joint columns (their order, one given twice) and units."""
+        mine = self.labels == label
+        one = two_places(p[mine])
+        if one is not None:
+            gap = float(np.linalg.norm(p[mine][one].mean(axis=0) - p[mine][~one].mean(axis=0)))
+            where = "; ".join(f"rows {_spans(self.rows[mine][m])} ({m.sum()} samples)" for m in (one, ~one))
+            return (f"they fall into two places {gap * MM:.0f} mm apart, each within a robot's error ({where}): the "
+                    f"plate moved within this label, or two placements share its name; give each plate position a "
+                    f"placement name of its own" + (" (kincal calibrate: --group-col)" if self.group is None else
+                                                     f" (in the --group-col column)"))
         columns = "check the joint columns (their order, and that each is the joint it names) and their units"
         if self.group is None:
             return (f"if the plate was moved between samples, label each placement (kincal calibrate: --group-col), "
@@ -204,7 +251,7 @@ class SamePointObs(Observation):
                 raise MeasurementError(
                     f"{self.source}: the {d.size} samples labelled '{lab}' are not one point: the robot file puts them "
                     f"{d.mean() * MM:.0f} mm from their centre on average (up to {d.max() * MM:.0f} mm), far more "
-                    f"than a robot's error; " + (_tool_hint(robot, self.q, self.labels) or self._spread_hint()))
+                    f"than a robot's error; " + (_tool_hint(robot, self.q, self.labels) or self._spread_hint(p, lab)))
         for a, b, d in self.distances:
             missing = [lab for lab in (a, b) if lab not in at]
             if missing:
