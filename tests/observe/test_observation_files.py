@@ -384,6 +384,34 @@ def test_two_plate_positions_under_one_placement_name_are_named_not_the_joint_co
     assert abs(gap - np.linalg.norm(centres[0] - centres[1]) * 1e3) < 0.5
 
 
+def test_evaluate_judges_the_nominal_model_on_held_out_sockets_as_calibrate_test_does(tmp_path, capsys):
+    """The Panda trained on front_center, the other 7 placements held out: calibrate --test judged the nominal model
+    with the ball as the URDF declares it (7.78 mm, the data's README), evaluate of the written calibration with a
+    ball fitted to the held-out file itself (7.52 mm). Both now give the nominal URDF's figure: numpy's mean distance
+    of each predicted ball centre from its socket's mean, per placement."""
+    rows = list(csv.DictReader(open(SOCKETS / "samples.csv")))
+    keys = list(rows[0])
+    train = _write(tmp_path / "train.csv", keys, [[r[k] for k in keys] for r in rows if r["placement"] == "front_center"])
+    held = [r for r in rows if r["placement"] != "front_center"]
+    test = _write(tmp_path / "test.csv", keys, [[r[k] for k in keys] for r in held])
+    cols = ["--type", "same-point", "--joint-cols", ",".join(f"q{k}" for k in range(1, 8)), "--label-col", "socket",
+            "--group-col", "placement", "--length-unit", "mm", "--distance", "0,1,50"]
+    cal = tmp_path / "cal.yaml"
+    code, fit, err = _run(capsys, ["calibrate", str(PANDA_URDF), "--tip-link", "ball_link", train, "--test", test,
+                                   "-o", str(cal), *cols])
+    assert code == 0, err
+    code, ev, err = _run(capsys, ["evaluate", str(cal), test, *cols])
+    assert code == 0, err
+    p = kincal.load_robot(PANDA_URDF, tip_link="ball_link").forward(
+        np.array([[float(r[f"q{k}"]) for k in range(1, 8)] for r in held]))
+    point = np.array([f"{r['placement']}/{r['socket']}" for r in held])
+    reference = np.mean(np.concatenate([np.linalg.norm(p[point == x] - p[point == x].mean(axis=0), axis=1)
+                                        for x in dict.fromkeys(point)]))
+    assert fit["held_out_nominal"][0]["mean_abs"] == pytest.approx(reference, rel=1e-9)
+    assert ev["nominal"]["mean_abs"] == pytest.approx(reference, rel=1e-9)  # it was 7.5213 mm
+    assert round(reference * 1e3, 2) == 7.78 and ev["mean_abs"] == pytest.approx(fit["held_out"][0]["mean_abs"])
+
+
 def test_a_socket_distance_two_percent_off_is_named_not_good(tmp_path, capsys):
     """The Panda's sockets are 50 mm apart; stated as 51 mm the fit scales the whole arm (its placements still agree
     to 0.35 mm: nothing else shows it). The verdict says the model is larger than the nominal one as a whole and

@@ -390,11 +390,16 @@ def _design_frames(robot: Robot, ident: Identifiability) -> Identifiability:
                                f"held at their values (no prediction depends on them): " + "; ".join(said))
 
 
+MOUNTED = ("point", "pose")  # the kinds whose positions register the nominal model's target point "before" calibration
+# (other kinds — sockets, planes, markers — judge it with the target point as declared: the MUKCa sockets' 8.28 mm)
+
+
 def _before(robot: Robot, sets, frame: bool) -> Robot:
     """The nominal kinematics as judged "before" calibration: with the measurement frame (when it is
     fitted, ``frame``) and the target point registered to the measured points and pose positions in the robot's
-    frame (:func:`register_mounting`), so the figure does not depend on where the target was declared."""
-    found = [f for f in (o.positions() for o in sets if o.kind in ("point", "pose")) if f is not None]
+    frame (:func:`register_mounting`; :data:`MOUNTED`), so the figure does not depend on where the target was
+    declared."""
+    found = [f for f in (o.positions() for o in sets if o.kind in MOUNTED) if f is not None]
     return register_mounting(robot, np.concatenate([f[0] for f in found]), np.concatenate([f[1] for f in found]),
                              frame) if found else robot
 
