@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 import kincal
-from kincal.identify import (ABSOLUTE, fit_observations, refuse_inapplicable, set_cause, stat_line, trained_setup,
-                             unseen_note)
+from kincal.identify import (ABSOLUTE, MOUNTED, fit_observations, refuse_inapplicable, set_cause, stat_line,
+                             trained_setup, unseen_note)
 from kincal.observe import InSession, ObservationFormat, PointObs, read_observations
 from kincal.simulate import (plane_plan, simulate_markers, simulate_planes, simulate_poses, simulate_same_point,
                              socket_plan)
@@ -306,9 +306,11 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
 
 def group_lines(sets: list, which: str) -> list[str]:
     """A line per placement (group) of sockets in the sets' statistics: samples, mean distance to its point, error
-    of the known distances; ``which`` before its name."""
-    return [f"  {which}{g['group']}: {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance "
-            f"error {'–' if g['distance_error_mm'] is None else format(g['distance_error_mm'], '.3f') + ' mm'}"
+    of the known distances; ``which`` before its name, and the file's name after it where several sets hold it."""
+    names = [g["group"] for s in sets for g in s.get("groups", [])]
+    return [f"  {which}{g['group']}" + (f" ({Path(s['source']).name})" if names.count(g["group"]) > 1 else "")
+            + f": {g['samples']} samples, mean |p − point| {g['mean_abs_mm']:.4f} mm, distance error "
+            + ("–" if g["distance_error_mm"] is None else f"{g['distance_error_mm']:.3f} mm")
             for s in sets for g in in_display(s).get("groups", [])]
 
 
@@ -324,7 +326,10 @@ def _fitted_here(robot, frame: tuple, own: tuple, fit, held: dict) -> str:
 def _nominal_beside(args, robot, record: dict | None, obs, held: dict) -> tuple[dict | None, str]:
     """The nominal model's statistics on a held-out set, judged as the calibrated one is: with --same-frame its
     frame, target point and markers' points as registered on the training data (the record's, as the report does),
-    else registered to this set (the points only where the data fix a scale); and how, in words. (None, '') without
+    else registered to this set — the target point only for the kinds whose "before" registers it
+    (:data:`kincal.identify.MOUNTED`: points and poses; sockets and planes keep the declared one, as calibrate --test
+    and the report judge them: the Panda's held-out placements 7.78 mm, not 7.52 with a ball fitted to them), markers'
+    points where the data fix a scale; and how, in words. (None, '') without
     a record."""
     kept = nominal_model(robot, record, args.robot, "before_mounting") if args.same_frame else None
     mounted = {str(k): float(v) for k, v in ((record or {}).get("before_setup") or {}).items()}  # markers' points
@@ -335,7 +340,7 @@ def _nominal_beside(args, robot, record: dict | None, obs, held: dict) -> tuple[
     if nominal is None:
         return None, ""
     mounting = (*(robot.base_params() if obs.kind in ABSOLUTE else ()),
-                *(n for n in robot.params.names if n.startswith("tool.") and obs.reference))
+                *(n for n in robot.params.names if n.startswith("tool.") and obs.kind in MOUNTED))
     parts = [w for w, p in (("frame", "base."), ("target point", "tool.")) if any(n.startswith(p) for n in mounting)]
     return _fixed_kinematics(nominal, obs, mounting, {n: v for n, v in held.items() if not (
         obs.reference and n in mounted)}).per_set[0], f"its {' and '.join(parts)} fitted" if parts else \

@@ -10,7 +10,7 @@ from .result import CalibrationResult, stat_change, stat_line, trained_setup, un
 from .relevance import PRIORS
 from .robust import LOSSES
 from .select import ErrorModelChoice
-from .stacked import observation_identifiability
+from .stacked import MOUNTED, observation_identifiability
 from .sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame, set_cause
 from .registration import register_mounting
 from .verdict import Reason, Thresholds, Verdict
@@ -20,4 +20,4 @@ __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "RESI
            "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "observation_identifiability", "stat_change", "stat_line", "trained_setup",
            "unseen_note",
            "SCOPES", "refuse_inapplicable", "joined", "ABSOLUTE", "held_out_stats", "register_mounting", "set_cause",
-           "ALPHA", "Calibrated", "ChangeTest", "Suspect", "check", "compare"]
+           "ALPHA", "MOUNTED", "Calibrated", "ChangeTest", "Suspect", "check", "compare"]

@@ -7,16 +7,18 @@ stated σ, outlier samples and repeated poses per set (named by file and row), a
 contacts alone cannot confirm. A differential diagnosis, when run, comes first."""
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..analysis.identifiability import jacobian_identifiability, stacked_jacobian
 from ..models.robot import TOOL_NAMES, Robot
+from ..observe.constraints import SamePointObs
 from ..units import MM, fine
 from .._csv import listed
 from .pso import HALF_WIDTH
-from .verdict import (Reason, Thresholds, Verdict, correction_reasons, drift_reasons, duplicate_groups,
+from .verdict import (FALSE_ALARM, Reason, Thresholds, Verdict, correction_reasons, drift_reasons, duplicate_groups,
                       duplicate_reasons, fitted_drift_reasons, mounting_reasons, noise_level, outlier_reasons,
                       repeat_tolerance, residual_reasons, robust_z)
 
@@ -29,6 +31,12 @@ SIZE_SUSPECT = 1e-2  # a calibrated model this much larger or smaller than its d
 SIZE_POSES = 100  # poses of the joint ranges the two models' sizes are compared over (seed 0)
 IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes (unseen) than across them
 MIN_SAMPLES = 10  # a set with fewer samples is not judged for outliers (no robust spread to judge by)
+PLATE_Z = 6.0  # two files' samples of one shared socket point this many σ of their means apart: two plate positions.
+# Above the 3.5 σ between the two halves of the Panda's front_center as measured (configurations grouped by row); the
+# same rows moved by 0.5 mm are 14 σ apart
+DISTANCE_Z = 4.0  # a known distance the fit leaves this many of its σ off (at least): not met. Above the 2.6 that
+# noise alone passes once in a hundred: the Panda's true 50 mm are left up to 2.8 σ off where the model leaves its
+# seats 3.5x their σ (all 8 placements); the same plate stated 49 or 50.5 mm is left 5.3 and 5.6 σ off
 
 
 STATED = {"pose position": "--std-pos", "pose rotation": "--std-rot"}  # the flag that states each kind's σ
@@ -189,10 +197,87 @@ def _set_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     if np.isfinite(clean) and residual:  # outliers first: a least-squares fit follows them, and they may be all
         residual = [Reason(r.level, r.code, f"{r.message}; or the outlier samples above, which a least-squares fit "
                                              f"follows: see it with --reject-outliers") for r in residual]
+    moved, pooled = _moved_plate_reasons(res.observations, res.robot)
+    if moved:  # a point pooled from two plate positions: no σ and no distance describes it
+        residual = [Reason(r.level, r.code, f"{r.message}; or the plate moved between files, as named above")
+                    for r in residual]
     reasons = [*samples, *residual] if np.isfinite(clean) else [*residual, *samples]
+    reasons = [*moved, *reasons, *_distance_reasons(res.observations, res.whitened_residual, pooled)]
     if all(o.kind == "plane" for o in res.observations):
         reasons += _plane_reasons(res.registered, res.robot, res.observations)
     return reasons
+
+
+def _moved_plate_reasons(sets, robot: Robot) -> tuple[list[Reason], set[str]]:
+    """Socket points that two files share by name (one set-up parameter) whose samples in the two files lie more
+    than :data:`PLATE_Z` σ of their means apart under the calibrated ``robot``: a plate moved between sessions kept its
+    placement's name, and the fit took two places for one point. One reason per placement and pair of files (the
+    offset of its point that lies farthest in σ), and the labels of those placements' points."""
+    means = [(o, o.point_means(robot, robot.params.values)) for o in sets if isinstance(o, SamePointObs)]
+    found: dict[tuple[str, str, str], tuple[float, float, str]] = {}  # (placement, file, file) -> z, offset, label
+    for k, (a, at_a) in enumerate(means):
+        for b, at_b in means[k + 1:]:
+            for lab in [lab for lab in at_a if lab in at_b]:
+                (ma, sa), (mb, sb) = at_a[lab], at_b[lab]
+                z = float(np.linalg.norm((ma - mb) / np.sqrt(sa**2 + sb**2)))
+                key = (_placement(a, lab), a.source, b.source)
+                if z > PLATE_Z and z > found.get(key, (0.0,))[0]:
+                    found[key] = (z, float(np.linalg.norm(ma - mb)), lab)
+    what = "placement" if any(o.group is not None for o, _ in means) else "point"
+    moved = {place for place, _, _ in found}
+    return [Reason("suspect", "moved-plate", f"{what} {place}: its samples in {one} and in {two} share its name, so the "
+                   f"fit took them for one point, but they put it {fine(offset, 'length', '.2f')} apart ({z:.0f}x the σ "
+                   f"of their means; point {lab}): the plate moved between the files; if it did, give each session's "
+                   f"placement a name of its own (e.g. {place}_1, {place}_2)")
+            for (place, one, two), (z, offset, lab) in found.items()], \
+        {lab for o, _ in means for lab in o.points() if _placement(o, lab) in moved}
+
+
+def _placement(obs: SamePointObs, label: str) -> str:
+    """The placement (group) of a socket point ``label`` of ``obs``, or the label itself when none are given."""
+    return label if obs.group is None else str(obs.group[obs.labels == label][0])
+
+
+def _distance_reasons(sets, r: np.ndarray | None, pooled: set[str] | frozenset[str] = frozenset()) -> list[Reason]:
+    """Each known distance between sockets that the fit leaves more than :func:`distance_limit` of its σ off (``r``:
+    the residual whitened by the stated σ, stacked as ``sets``): the stated distance or the plate is wrong. A learned
+    prior holds the links' lengths, so a distance 1-2 % off is not honoured rather than scaling the model (which
+    :func:`_size_reasons` would name): its own residual is what shows it. A distance stated again by another file
+    (the same points) is named once; one to a point ``pooled`` from two plate positions is not judged."""
+    if r is None:
+        return []
+    ends = np.cumsum([0, *[o.sigma().size for o in sets]])
+    found: dict[tuple[str, str, float], tuple[SamePointObs, float]] = {}  # distance -> the first file stating it, z
+    for obs, start, end in zip(sets, ends[:-1], ends[1:]):
+        if isinstance(obs, SamePointObs) and obs.distances:
+            z = r[start:end][obs.sample_rows() < 0]  # the distances' rows, in their order
+            for d, zk in zip(obs.distances, z):
+                if d[0] not in pooled and d[1] not in pooled:
+                    found.setdefault(d, (obs, float(zk)))
+    limit = distance_limit(len(found))
+    return [Reason("suspect", "distance", f"{obs.source}: the distance {a}–{b} stated as {fine(d, 'length', 'g')} is "
+                                          f"not met: the fit leaves it {fine(abs(z) * obs.std_distance, 'length', '.3f')}"
+                                          f" {'longer' if z > 0 else 'shorter'} than stated, {abs(z):.1f}x its σ "
+                                          f"({fine(obs.std_distance, 'length', 'g')}); the stated distance or the plate "
+                                          f"is wrong: measure the plate and state its distance (--distance)")
+            for (a, b, d), (obs, z) in found.items() if abs(z) > limit]
+
+
+def distance_limit(n: int) -> float:
+    """The |z| beyond which one of ``n`` known distances' whitened residuals is not met: :data:`DISTANCE_Z`, raised
+    where Gaussian noise alone would pass it in more than one calibration in a hundred (``FALSE_ALARM``).
+
+    >>> from kincal.identify.judge import distance_limit
+    >>> distance_limit(8), round(distance_limit(10_000), 2)
+    (4.0, 4.89)
+    """
+    low, high = DISTANCE_Z, 40.0
+    if max(n, 1) * math.erfc(low / math.sqrt(2.0)) <= FALSE_ALARM:
+        return low
+    for _ in range(60):  # bisection on n · P(|z| > limit) = FALSE_ALARM
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if n * math.erfc(mid / math.sqrt(2.0)) > FALSE_ALARM else (low, mid)
+    return high
 
 
 def _without_outliers(sets, r: np.ndarray | None, outliers) -> float:

@@ -26,6 +26,7 @@ from ..analysis.observability import live_columns
 from ..errors import IdentifiabilityError, MeasurementError, ModelError
 from ..models.robot import Robot
 from ..models.transforms import kabsch
+from ..observe.constraints import SamePointObs
 from ..observe.drifting import DRIFT
 from ..observe.observations import PoseObs, Wrapper
 from ..observe.sessions import InSession
@@ -389,6 +390,10 @@ def _design_frames(robot: Robot, ident: Identifiability) -> Identifiability:
                                f"held at their values (no prediction depends on them): " + "; ".join(said))
 
 
+MOUNTED = ("point", "pose")  # the kinds whose positions register the nominal model's target point "before" calibration
+# (markers register their own points; sockets and planes keep the declared target point: the MUKCa sockets' 8.28 mm)
+
+
 def _before(robot: Robot, st: _Stack, frame: bool) -> tuple[Robot, dict]:
     """The nominal kinematics as judged "before" calibration: with the measurement frame (when it is
     fitted, ``frame``), the target point and the markers' points registered to the measured points, pose positions
@@ -396,7 +401,7 @@ def _before(robot: Robot, st: _Stack, frame: bool) -> tuple[Robot, dict]:
     depend on where the target was declared nor on the frame a fit starts from; and the registered markers' points
     (name -> m). Markers judged by their start instead: 5.50 mm for one marker of a simulated UR5 registered at 0.83."""
     found: dict = {}  # a point's name (tool, marker[m1]) -> its (q, xyz) per set
-    for o in (o for o in st.sets if o.kind in ("point", "pose", "markers")):
+    for o in (o for o in st.sets if o.kind in (*MOUNTED, "markers")):
         for key, seen in o.flange_positions().items():
             found.setdefault(key, []).append(seen)
     keys = list(found)
@@ -500,10 +505,12 @@ def _result(models: tuple[Robot, Robot, Robot, dict], st, gauge, ident, free, x0
         learned = {}
     std = {n: float(v) for n, v in zip(free, sd)}
     std.update({n: np.inf for n in st.nuis_names if n not in std})
+    judged = [o.among(st.sets) if isinstance(o, SamePointObs) else o for o in st.sets]  # a shared point is one point
     before = tuple(o.stats(before_model, before_model.params.values, _before_nuisance(
-        before_model, o, x0[P:][slot], [st.nuis_names[k] for k in slot], before_setup)) for o, slot in zip(st.sets, st.slots))
+        before_model, o, x0[P:][slot], [st.nuis_names[k] for k in slot], before_setup))
+        for o, slot in zip(judged, st.slots))
     try:
-        after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
+        after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(judged, st.slots))
     except ModelError:  # a fit on other residuals (the joints') whose model does not assemble at the data's joints
         raise unassembled(st.sets) from None
     r = st.judged(fit.residual, fit.jacobian, _hat_covariance(fit, cov), full[:P], full[P:])

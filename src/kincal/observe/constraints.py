@@ -76,6 +76,43 @@ def _tool_hint(robot: Robot, q: np.ndarray, labels: np.ndarray) -> str:
             f"ball is not where the robot file puts the tool (check --tip-link, or declare it with --tool)")
 
 
+def two_places(p: np.ndarray) -> np.ndarray | None:
+    """Whether points p (N, 3), m, are two tight clusters: the split along their principal axis that leaves the least
+    squared spread (every cut, by prefix sums), when each side has two points or more within :data:`SPREAD_LIMIT` of
+    its centre on average (a robot's error); its mask of the points on one side (N,) of bool, else None.
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> p = np.vstack([rng.normal(0, 5e-3, (6, 3)), rng.normal([0.48, 0, 0], 5e-3, (4, 3))])
+    >>> two_places(p).astype(int).tolist(), two_places(rng.normal(0, 0.2, (10, 3))) is None
+    ([1, 1, 1, 1, 1, 1, 0, 0, 0, 0], True)
+    """
+    if len(p) < 4:
+        return None
+    c = p - p.mean(axis=0)
+    order = np.argsort(c @ np.linalg.svd(c, full_matrices=False)[2][0], kind="stable")
+    s, s2, n = np.cumsum(c[order], axis=0), np.cumsum(np.sum(c[order] ** 2, axis=1)), np.arange(1, len(p) + 1)
+    left = s2[:-1] - np.sum(s[:-1] ** 2, axis=1) / n[:-1]
+    right = (s2[-1] - s2[:-1]) - np.sum((s[-1] - s[:-1]) ** 2, axis=1) / (len(p) - n[:-1])
+    k = int(np.argmin(np.where((n[:-1] >= 2) & (n[:-1] <= len(p) - 2), left + right, np.inf))) + 1
+    one = np.zeros(len(p), bool)
+    one[order[:k]] = True
+    tight = all(np.linalg.norm(p[m] - p[m].mean(axis=0), axis=1).mean() < SPREAD_LIMIT for m in (one, ~one))
+    return one if tight else None
+
+
+def _spans(rows: np.ndarray) -> str:
+    """Row numbers as runs: '371-402, 410' (MAX_RUNS runs at most, then how many more rows)."""
+    rows = np.sort(np.asarray(rows, int))
+    breaks = np.flatnonzero(np.diff(rows) != 1) + 1
+    runs = [f"{r[0]}-{r[-1]}" if len(r) > 1 else f"{r[0]}" for r in np.split(rows, breaks)]
+    rest = int(sum(len(r) for r in np.split(rows, breaks)[MAX_RUNS:]))
+    return ", ".join(runs[:MAX_RUNS]) + (f" and {rest} more" if rest else "")
+
+
+MAX_RUNS = 4
+
+
 @dataclass(frozen=True, eq=False)
 class SamePointObs(Observation):
     """The tool point held at the same unknown point in every sample with that label (a ball in a socket).
@@ -104,6 +141,9 @@ class SamePointObs(Observation):
         How well the ball seats, σ per axis, per sample or one number, m (default 0.05e-3).
     std_distance : float, optional
         How well the distances are known, σ, m (default 0.1e-3).
+    elsewhere : tuple of (str, ndarray (M, n)), optional
+        Per label, the joints of other files' samples of the same point (default (): :meth:`among` sets them), which
+        :meth:`stats` judges this file's samples against with its own.
 
     Examples
     --------
@@ -140,6 +180,7 @@ class SamePointObs(Observation):
     group: np.ndarray | None = None
     std: np.ndarray | float = 0.05e-3  # m: how well the ball seats, per axis (one number or per sample)
     std_distance: float = 0.1e-3  # m: how well the distances are known
+    elsewhere: tuple[tuple[str, np.ndarray], ...] = ()  # (label, joints (M, n)): its points' samples in other files
     kind = "same-point"
 
     @property
@@ -156,9 +197,41 @@ class SamePointObs(Observation):
         kept = set(out.labels.tolist())
         return dataclasses.replace(out, distances=tuple(d for d in self.distances if d[0] in kept and d[1] in kept))
 
-    def _spread_hint(self) -> str:
-        """What to check when one label's samples are not one point: the placements (when none are labelled), then
-        the joint columns (their order, one given twice) and units."""
+    def among(self, sets) -> "SamePointObs":
+        """The set as it is fitted among ``sets``: a label that another file's samples hold too is one point (one
+        set-up parameter), so :meth:`stats` judges this file's samples of it against the mean of all of them, as if
+        the files were one (each file's own mean hid a plate moved between them: 0.22 mm per file where the same rows
+        in one file are 1.51 mm off their point)."""
+        mine = set(self.points())
+        found = tuple((lab, o.q[o.labels == lab]) for o in sets if o is not self and isinstance(o, SamePointObs)
+                      for lab in o.points() if lab in mine)
+        return dataclasses.replace(self, elsewhere=found)
+
+    def point_means(self, robot: Robot, values: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Per label, the mean of its samples' points under ``robot`` at ``values`` (3,), m, and that mean's standard
+        error per axis (3,), m: their spread (the stated σ at least) over the square root of their count."""
+        p = robot.forward(self.q, values)
+        seat = np.broadcast_to(np.asarray(self.std, float), (len(self),))
+        out = {}
+        for lab in self.points():
+            mine = self.labels == lab
+            spread = np.std(p[mine], axis=0, ddof=1) if mine.sum() > 1 else np.zeros(3)
+            out[lab] = (p[mine].mean(axis=0), np.maximum(spread, seat[mine].mean()) / np.sqrt(mine.sum()))
+        return out
+
+    def _spread_hint(self, p: np.ndarray, label: str) -> str:
+        """What to check when the samples labelled ``label`` (their points p (N, 3) under the robot file, m) are not
+        one point: two tight places (a plate moved within the label, or two placements under one name), the
+        placements (when none are labelled), then the joint columns (their order, one given twice) and units."""
+        mine = self.labels == label
+        one = two_places(p[mine])
+        if one is not None:
+            gap = float(np.linalg.norm(p[mine][one].mean(axis=0) - p[mine][~one].mean(axis=0)))
+            where = "; ".join(f"rows {_spans(self.rows[mine][m])} ({m.sum()} samples)" for m in (one, ~one))
+            return (f"they fall into two places {gap * MM:.0f} mm apart, each within a robot's error ({where}): the "
+                    f"plate moved within this label, or two placements share its name; give each plate position a "
+                    f"placement name of its own" + (" (kincal calibrate: --group-col)" if self.group is None else
+                                                     f" (in the --group-col column)"))
         columns = "check the joint columns (their order, and that each is the joint it names) and their units"
         if self.group is None:
             return (f"if the plate was moved between samples, label each placement (kincal calibrate: --group-col), "
@@ -178,7 +251,7 @@ class SamePointObs(Observation):
                 raise MeasurementError(
                     f"{self.source}: the {d.size} samples labelled '{lab}' are not one point: the robot file puts them "
                     f"{d.mean() * MM:.0f} mm from their centre on average (up to {d.max() * MM:.0f} mm), far more "
-                    f"than a robot's error; " + (_tool_hint(robot, self.q, self.labels) or self._spread_hint()))
+                    f"than a robot's error; " + (_tool_hint(robot, self.q, self.labels) or self._spread_hint(p, lab)))
         for a, b, d in self.distances:
             missing = [lab for lab in (a, b) if lab not in at]
             if missing:
@@ -226,13 +299,17 @@ class SamePointObs(Observation):
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         """Per group (placement), as the MUKCa paper defines them: the count-weighted mean over its points of
         ``|p − that point's mean of p|`` and, per known distance inside it, ``| ‖m_a − m_b‖ − d |`` (m: the mean
-        points)."""
+        points). A point other files hold too (:meth:`among`) is one point: its mean is over all their samples."""
         p = robot.forward(self.q, values)
         group = np.full(len(self), "all") if self.group is None else self.group
+        others: dict[str, list[np.ndarray]] = {}
+        for lab, q in self.elsewhere:
+            others.setdefault(lab, []).append(robot.forward(q, values))
         out, devs = [], []
         for g in _labels_in_order(group):
             mine = group == g
-            means = {lab: p[mine & (self.labels == lab)].mean(axis=0) for lab in _labels_in_order(self.labels[mine])}
+            means = {lab: np.concatenate([p[self.labels == lab], *others.get(lab, [])]).mean(axis=0)
+                     for lab in _labels_in_order(self.labels[mine])}
             dev = np.concatenate([np.linalg.norm(p[mine & (self.labels == lab)] - m, axis=1) for lab, m in means.items()])
             dist = [abs(float(np.linalg.norm(means[a] - means[b])) - d) for a, b, d in self.distances
                     if a in means and b in means]
