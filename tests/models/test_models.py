@@ -267,3 +267,59 @@ def test_a_robot_file_without_units_is_told_the_units_it_is_in(tmp_path, angle, 
     path.write_text(text.replace("joints:", advice + "\njoints:", 1))
     again = kincal.load_robot(path)
     assert np.allclose(again.params.values, ur5.params.values, rtol=1e-12, atol=1e-12)
+
+
+def _ur5_file(tmp_path, length="m", angle="rad", edit=lambda text: text):
+    """The bundled UR5 saved in ``length``/``angle`` units, its text changed by ``edit``; the path."""
+    path = tmp_path / f"ur5_{length}_{angle}.yaml"
+    kincal.save_robot(kincal.load_robot("ur5"), path, length_unit=length, angle_unit=angle)
+    path.write_text(edit(path.read_text()))
+    return path
+
+
+def test_joint_limits_in_the_other_angle_unit_are_refused_naming_the_joint(tmp_path):
+    """A UR5 file in m and rad with its limits written in degrees (±360, the elbow ±180) loaded as ±57.3 turns
+    and designed a URScript program whose elbow went to 153 rad; the converse (±2π written in a deg file) kept
+    every joint within ±6.3 deg. Both are refused, naming the joint, the limits as written and the same limits in
+    the file's unit (360 deg = 2π rad = 6.28319; 2π rad = 360 deg)."""
+    two_pi = f"{2 * np.pi!r}"
+    degrees = _ur5_file(tmp_path, edit=lambda t: t.replace(f"[-{two_pi}, {two_pi}]", "[-360, 360]")
+                        .replace(f"[-{np.pi!r}, {np.pi!r}]", "[-180, 180]"))
+    with pytest.raises(ModelError) as e:
+        kincal.load_robot(degrees)
+    said = str(e.value)
+    assert f"joint j1's limits [-360, 360] rad reach {360 / (2 * np.pi):.3g} turns" in said
+    assert "look like degrees" in said and f"write them in rad ([-{2 * np.pi:.6g}, {2 * np.pi:.6g}])" in said
+    radians = _ur5_file(tmp_path, angle="deg", edit=lambda t: t.replace("[-360.0, 360.0]", "[-6.2832, 6.2832]")
+                        .replace("[-180.0, 180.0]", "[-3.1416, 3.1416]"))
+    with pytest.raises(ModelError) as e:
+        kincal.load_robot(radians)
+    said = str(e.value)
+    assert "every revolute joint's limits lie within ±6.283 deg (joint j1: [-6.2832, 6.2832] deg)" in said
+    assert "look like radians" in said and f"write them in deg ([-{6.2832 * 180 / np.pi:.6g}," in said
+    no_units = _ur5_file(tmp_path, edit=lambda t: t.replace(f"[-{two_pi}, {two_pi}]", "[-360, 360]")
+                         .replace("units: {length: m, angle: rad}\n", ""))
+    with pytest.raises(ModelError, match=r"the default: the file has no 'units' key.*add 'units: \{angle: deg\}'"):
+        kincal.load_robot(no_units)
+    wide = kincal.load_robot("abb_irb120")  # axis 6 turns ±400 deg: 1.11 turns, within 2
+    assert wide.upper[5] == pytest.approx(np.radians(400))
+
+
+def test_prismatic_limits_in_the_other_length_unit_are_refused(tmp_path):
+    """The SCARA's quill (0..200 mm) written in mm in an m file reaches 200 m; written in m in a mm file it
+    travels 0.2 mm: both refused, naming the joint and its limits in the file's unit."""
+    scara = tmp_path / "scara.yaml"
+    kincal.save_robot(kincal.load_robot("scara"), scara)  # m, rad
+    text = scara.read_text()
+    assert "limits: [0.0, 0.2]" in text
+    scara.write_text(text.replace("limits: [0.0, 0.2]", "limits: [0.0, 200]"))
+    with pytest.raises(ModelError, match=r"joint j3's limits \[0, 200\] m reach 200 m from zero; .* look like mm .*"
+                                         r"write them in m \(\[0, 0\.2\]\)"):
+        kincal.load_robot(scara)
+    kincal.save_robot(kincal.load_robot("scara"), scara, length_unit="mm", angle_unit="deg")
+    text = scara.read_text()
+    assert "limits: [0.0, 200.0]" in text
+    scara.write_text(text.replace("limits: [0.0, 200.0]", "limits: [0.0, 0.2]"))
+    with pytest.raises(ModelError, match=r"every prismatic joint's limits lie within ±0\.2 mm .* look like metres"
+                                         r".*write them in mm \(\[0, 200\]\)"):
+        kincal.load_robot(scara)
