@@ -32,7 +32,7 @@ import yaml
 from .._atomic import write_text_atomic
 from ..errors import ModelError
 from ..units import DEG
-from .plausible import check_limits
+from .plausible import arm_size, check_limits, check_size, size_unit
 from .puu3 import PUU3Robot
 from .stewart import StewartRobot
 from .delta import DeltaRobot
@@ -171,7 +171,8 @@ def _check_plausible(robot: Robot, data: dict, label: str) -> None:
     v, kinds = robot.params.values, robot.params.kinds
     ang = [(n, x) for n, k, x in zip(robot.params.names, kinds, v) if k == "angle" and abs(x) > MAX_ANGLE / 2]
     lng = [(n, x) for n, k, x in zip(robot.params.names, kinds, v) if k == "length" and abs(x) > 10.0]
-    if not has_units and (ang or lng):
+    size = size_unit(arm_size(robot)[0]) if lng else "m"  # the unit the lengths look like (cm: check_size says)
+    if not has_units and (ang or lng) and size in (None, "m", "mm"):
         n, x = (ang or lng)[0]
         what = f"{x * DEG:.0f} deg read as rad" if ang else f"{x:g} m"
         largest = max((abs(x) for x, k in zip(v, kinds) if k == "angle"), default=0.0)
@@ -180,6 +181,7 @@ def _check_plausible(robot: Robot, data: dict, label: str) -> None:
         raise ModelError(f"{label}: {n} = {x:g} ({what}) is implausible in the default units m and rad; the values "
                          f"look like {'degrees' if ang else 'mm'}: add '{units}'{aside}")
     declared = mapping(data, "units", label)
+    check_size(robot, label, str(declared.get("length", "m")), has_units)
     check_limits(robot, label, str(declared.get("length", "m")), str(declared.get("angle", "rad")), has_units)
     bad = [(n, x) for n, x in ang if abs(x) > MAX_ANGLE] + [(n, x) for n, x in lng if abs(x) > MAX_LENGTH]
     if bad:
