@@ -3,7 +3,7 @@ central differences, robot YAML files."""
 
 import numpy as np
 import pytest
-from conftest import DATA, PANDA_URDF, UR5_COLS, central_jacobian
+from conftest import DATA, PANDA_URDF, ROOT, SOCKETS, UR5_COLS, UR5_URDF, central_jacobian
 
 import kincal
 from kincal import Joint, ModelError, SerialRobot
@@ -267,3 +267,124 @@ def test_a_robot_file_without_units_is_told_the_units_it_is_in(tmp_path, angle, 
     path.write_text(text.replace("joints:", advice + "\njoints:", 1))
     again = kincal.load_robot(path)
     assert np.allclose(again.params.values, ur5.params.values, rtol=1e-12, atol=1e-12)
+
+
+def _ur5_file(tmp_path, length="m", angle="rad", edit=lambda text: text):
+    """The bundled UR5 saved in ``length``/``angle`` units, its text changed by ``edit``; the path."""
+    path = tmp_path / f"ur5_{length}_{angle}.yaml"
+    kincal.save_robot(kincal.load_robot("ur5"), path, length_unit=length, angle_unit=angle)
+    path.write_text(edit(path.read_text()))
+    return path
+
+
+def test_joint_limits_in_the_other_angle_unit_are_refused_naming_the_joint(tmp_path):
+    """A UR5 file in m and rad with its limits written in degrees (±360, the elbow ±180) loaded as ±57.3 turns
+    and designed a URScript program whose elbow went to 153 rad; the converse (±2π written in a deg file) kept
+    every joint within ±6.3 deg. Both are refused, naming the joint, the limits as written and the same limits in
+    the file's unit (360 deg = 2π rad = 6.28319; 2π rad = 360 deg)."""
+    two_pi = f"{2 * np.pi!r}"
+    degrees = _ur5_file(tmp_path, edit=lambda t: t.replace(f"[-{two_pi}, {two_pi}]", "[-360, 360]")
+                        .replace(f"[-{np.pi!r}, {np.pi!r}]", "[-180, 180]"))
+    with pytest.raises(ModelError) as e:
+        kincal.load_robot(degrees)
+    said = str(e.value)
+    assert f"joint j1's limits [-360, 360] rad reach {360 / (2 * np.pi):.3g} turns" in said
+    assert "look like degrees" in said and f"write them in rad ([-{2 * np.pi:.6g}, {2 * np.pi:.6g}])" in said
+    radians = _ur5_file(tmp_path, angle="deg", edit=lambda t: t.replace("[-360.0, 360.0]", "[-6.2832, 6.2832]")
+                        .replace("[-180.0, 180.0]", "[-3.1416, 3.1416]"))
+    with pytest.raises(ModelError) as e:
+        kincal.load_robot(radians)
+    said = str(e.value)
+    assert "every revolute joint's limits lie within ±6.283 deg (joint j1: [-6.2832, 6.2832] deg)" in said
+    assert "look like radians" in said and f"write them in deg ([-{6.2832 * 180 / np.pi:.6g}," in said
+    no_units = _ur5_file(tmp_path, edit=lambda t: t.replace(f"[-{two_pi}, {two_pi}]", "[-360, 360]")
+                         .replace("units: {length: m, angle: rad}\n", ""))
+    with pytest.raises(ModelError, match=r"the default: the file has no 'units' key.*add 'units: \{angle: deg\}'"):
+        kincal.load_robot(no_units)
+    wide = kincal.load_robot("abb_irb120")  # axis 6 turns ±400 deg: 1.11 turns, within 2
+    assert wide.upper[5] == pytest.approx(np.radians(400))
+
+
+def test_prismatic_limits_in_the_other_length_unit_are_refused(tmp_path):
+    """The SCARA's quill (0..200 mm) written in mm in an m file reaches 200 m; written in m in a mm file it
+    travels 0.2 mm: both refused, naming the joint and its limits in the file's unit."""
+    scara = tmp_path / "scara.yaml"
+    kincal.save_robot(kincal.load_robot("scara"), scara)  # m, rad
+    text = scara.read_text()
+    assert "limits: [0.0, 0.2]" in text
+    scara.write_text(text.replace("limits: [0.0, 0.2]", "limits: [0.0, 200]"))
+    with pytest.raises(ModelError, match=r"joint j3's limits \[0, 200\] m reach 200 m from zero; .* look like mm .*"
+                                         r"write them in m \(\[0, 0\.2\]\)"):
+        kincal.load_robot(scara)
+    kincal.save_robot(kincal.load_robot("scara"), scara, length_unit="mm", angle_unit="deg")
+    text = scara.read_text()
+    assert "limits: [0.0, 200.0]" in text
+    scara.write_text(text.replace("limits: [0.0, 200.0]", "limits: [0.0, 0.2]"))
+    with pytest.raises(ModelError, match=r"every prismatic joint's limits lie within ±0\.2 mm .* look like metres"
+                                         r".*write them in mm \(\[0, 200\]\)"):
+        kincal.load_robot(scara)
+
+
+UR5_REACH = sum(UR5_D) + sum(map(abs, UR5_A))  # m: UR's DH table, the links from the base frame to the flange
+
+
+def test_a_tool_point_written_in_mm_in_an_m_file_is_refused(tmp_path):
+    """The UR5's reflector written in mm (0, 0.09, 31) in an m file loaded as a probe 31 m long (`show` printed
+    tool.z 31000 mm), while `--tool 0,0.09,31` was refused as mm: the file is refused alike, with the same bound
+    (2 m from the flange), the arm's reach beside it and the values to write."""
+    path = _ur5_file(tmp_path, edit=lambda t: t.replace("tool: {x: 0.0, y: 8.999999999999999e-05, z: 0.031}",
+                                                        "tool: {x: 0, y: 0.09, z: 31.0}"))
+    with pytest.raises(ModelError) as e:
+        kincal.load_robot(path)
+    said = str(e.value)
+    assert f"the tool point (0, 0.09, 31) m lies {np.hypot(0.09, 31):.4g} m from the flange" in said
+    assert f"the reach of the robot itself is {UR5_REACH:.3g} m" in said
+    assert "these look like mm: write them in m (0, 9e-05, 0.031)" in said
+
+
+@pytest.mark.parametrize("written, declared, looks, advice", [
+    (1.0, "mm", "m", "set 'length: m' in its 'units'"),  # metres read as mm: a 1.19 mm UR5
+    (100.0, "m", "cm", "write the lengths in mm (x10) and set 'length: mm'"),  # cm read as m: 42.5 m links
+    (1000.0, "m", "mm", "set 'length: mm' in its 'units'")])
+def test_a_robot_file_in_another_length_unit_is_refused_by_its_reach(tmp_path, written, declared, looks, advice):
+    """The UR5's lengths written in m (cm, mm) in a file declared mm (m): its reach, the DH lengths added up
+    (1.1925 m), is 1.19 mm (119 m, 1193 m); the m-as-mm file designed poses whose note blamed the joint terms.
+    Refused, naming the reach as read, the unit that makes it 1.19 m and how to write it."""
+    ur5 = kincal.load_robot("ur5")
+    scaled = ur5.with_params({n: v * written for n, v, k in zip(ur5.params.names, ur5.params.values,
+                                                                 ur5.params.kinds) if k == "length"})
+    path = tmp_path / "arm.yaml"
+    text = kincal.models.yaml_io.robot_to_yaml(scaled)  # in m (save_robot refuses to write 119 m links)
+    path.write_text(text.replace("units: {length: m,", f"units: {{length: {declared},"))
+    with pytest.raises(ModelError) as e:
+        kincal.load_robot(path)
+    said = str(e.value)
+    read = UR5_REACH * written * kincal.units.LENGTH_UNITS[declared]
+    assert f"the arm's reach is {read:.4g} m as read in {declared}, implausible for a robot (5 mm to 20 m)" in said
+    assert f"the lengths look like {looks} (a reach of {UR5_REACH:.3g} m)" in said and advice in said
+
+
+def _robot_files():
+    """Every robot kincal ships or reads in its data: the bundled ones, the examples' files, the datasets'
+    URDFs (with the tip link their tests use)."""
+    return ([(name, {}) for name in kincal.bundled_robots()]
+            + [(p, {}) for p in sorted((ROOT / "examples").glob("*.yaml"))]
+            + [(UR5_URDF, {"tip_link": "tool0"}), (PANDA_URDF, {"tip_link": "ball_link"}),
+               (SOCKETS / "panda_2_calibrated_by_authors.urdf", {"tip_link": "ball_link"})])
+
+
+@pytest.mark.parametrize("source, links", _robot_files(), ids=lambda v: str(v).rsplit("/", 1)[-1] if v else "")
+def test_every_shipped_robot_is_plausible_in_any_units(tmp_path, source, links):
+    """Every bundled robot, example robot file and dataset URDF loads, passes the size, tool and limit checks, and
+    loads back when saved in mm and deg and in m and rad (the checks judge each file in its own units)."""
+    from kincal.models.plausible import MAX_REACH, MAX_TOOL, MIN_REACH, arm_size, check_limits, check_size
+    robot = kincal.load_robot(source, **links)
+    check_size(robot, "r"), check_limits(robot, "r")
+    size, _ = arm_size(robot)
+    assert MIN_REACH <= size <= MAX_REACH
+    assert not robot.has_tool_point or np.linalg.norm(robot.tool_point()) <= MAX_TOOL
+    if "tip_link" in links:
+        return  # a URDF is saved as a reference to its file
+    for length, angle in (("mm", "deg"), ("m", "rad")):
+        kincal.save_robot(robot, tmp_path / "r.yaml", length_unit=length, angle_unit=angle)
+        assert np.allclose(kincal.load_robot(tmp_path / "r.yaml").params.values, robot.params.values, atol=1e-9)

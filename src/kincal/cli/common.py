@@ -15,13 +15,13 @@ from rich.console import Console
 import kincal
 from kincal._atomic import data_on_stdout
 from kincal._csv import open_table
+from kincal.models.plausible import MAX_TOOL  # m: no tool point lies farther from the flange (robot files too)
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS
 
 out = Console(highlight=False, soft_wrap=True)
 err = Console(stderr=True, highlight=False, soft_wrap=True)
 EXIT_ERROR, EXIT_NOT_CONVERGED, EXIT_REFUSED = 1, 3, 4
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
-MAX_TOOL = 2.0  # m: no tool point lies farther from the flange; larger values are mm written without a unit
 CELL_SIZE = 100.0  # m: a length beyond this in a robot cell, given without a unit, is taken for mm
 CELL_UNITLESS = 10.0  # m: a cell flag's length beyond this without a unit (--floor -50) is refused as mm
 CELL = "the cell"  # lengths(where=CELL): a cell flag's message

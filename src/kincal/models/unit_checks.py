@@ -8,6 +8,7 @@ from contextlib import suppress
 import numpy as np
 
 from ..errors import MeasurementError, ModelError
+from .plausible import MAX_TOOL
 from .robot import Robot
 from .transforms import kabsch, rotvec_matrix
 from ..ties import first_best
@@ -121,7 +122,7 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
 ANGLE_WORDS = {"rad": "radians", "deg": "degrees", "rev": "revolutions"}
 TOOL_ROUNDS = 50  # Gauss-Newton steps at most of the frame and the tool point in tool_explains
 TOOL_FITS = 0.01  # a fitted tool point that brings the RMS miss below this share of the spread explains it
-TOOL_MAX = 2.0  # m: ... and lies this near the flange at most (a tool, not a lever)
+TOOL_MAX = MAX_TOOL  # m: ... and lies this near the flange at most (a tool, not a lever; robot files' bound)
 TOOL_SPREAD = 0.01  # m: ... and the robot moves it this far at least (not a point where its axes meet)
 
 

@@ -35,6 +35,7 @@ from ..errors import ModelError
 from .chain import AXES, ROT, TRANS, Chain, Op
 from .parameters import Parameters
 from .joint_space import JointSpace
+from .plausible import MAX_REACH
 from .serial import POSE_KINDS, ChainRobot, chain_layout, check_mass
 from .transforms import rot_zyx, zyx_from_matrix
 
@@ -388,7 +389,6 @@ def _path_up(link: str | None, up: dict[str | None, ET.Element]) -> list[tuple[s
     return path + [(link, None)]
 
 
-MAX_REACH = 20.0  # m: a chain longer than this is no robot arm (the largest reach about 4 m)
 MM_REACH = 100.0  # m: ... and one this long was written in mm (URDF lengths are in metres)
 
 

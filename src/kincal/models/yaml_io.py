@@ -32,6 +32,7 @@ import yaml
 from .._atomic import write_text_atomic
 from ..errors import ModelError
 from ..units import DEG
+from .plausible import arm_size, check_limits, check_size, size_unit
 from .puu3 import PUU3Robot
 from .stewart import StewartRobot
 from .delta import DeltaRobot
@@ -131,7 +132,7 @@ def load_robot(name_or_path: str | os.PathLike, base_link: str | None = None, ti
         if urdf:
             return read_urdf(text, label, base_link, tip_link, _tool(tool))
         robot = robot_from_dict(data, label)
-        _check_plausible(robot, isinstance(data, dict) and "units" in data, label)
+        _check_plausible(robot, data, label)
         return robot if tool is None else robot.with_tool_point(_tool(tool))
     except ModelError as exc:
         if str(exc).startswith(label):
@@ -163,12 +164,15 @@ MAX_LENGTH = 100.0  # m: no robot parameter is longer
 MAX_ANGLE = 4 * np.pi  # rad: no geometric angle turns further
 
 
-def _check_plausible(robot: Robot, has_units: bool, label: str) -> None:
-    """Refuse values no robot has; without a ``units`` key say which unit the values look like."""
+def _check_plausible(robot: Robot, data: dict, label: str) -> None:
+    """Refuse values no robot has (the file's parsed mapping ``data`` declares the units); without a ``units`` key
+    say which unit the values look like."""
+    has_units = "units" in data
     v, kinds = robot.params.values, robot.params.kinds
     ang = [(n, x) for n, k, x in zip(robot.params.names, kinds, v) if k == "angle" and abs(x) > MAX_ANGLE / 2]
     lng = [(n, x) for n, k, x in zip(robot.params.names, kinds, v) if k == "length" and abs(x) > 10.0]
-    if not has_units and (ang or lng):
+    size = size_unit(arm_size(robot)[0]) if lng else "m"  # the unit the lengths look like (cm: check_size says)
+    if not has_units and (ang or lng) and size in (None, "m", "mm"):
         n, x = (ang or lng)[0]
         what = f"{x * DEG:.0f} deg read as rad" if ang else f"{x:g} m"
         largest = max((abs(x) for x, k in zip(v, kinds) if k == "angle"), default=0.0)
@@ -176,6 +180,9 @@ def _check_plausible(robot: Robot, has_units: bool, label: str) -> None:
         aside = "" if ang else f" (the angles, up to {largest:.3g}, read as radians; write angle: deg if they are not)"
         raise ModelError(f"{label}: {n} = {x:g} ({what}) is implausible in the default units m and rad; the values "
                          f"look like {'degrees' if ang else 'mm'}: add '{units}'{aside}")
+    declared = mapping(data, "units", label)
+    check_size(robot, label, str(declared.get("length", "m")), has_units)
+    check_limits(robot, label, str(declared.get("length", "m")), str(declared.get("angle", "rad")), has_units)
     bad = [(n, x) for n, x in ang if abs(x) > MAX_ANGLE] + [(n, x) for n, x in lng if abs(x) > MAX_LENGTH]
     if bad:
         n, x = bad[0]
@@ -543,7 +550,7 @@ def _loads_back(text: str, label: str) -> None:
     values beyond what the loader takes as plausible: a 3.2 deg harmonic)."""
     try:
         data = _parse(text, label)
-        _check_plausible(robot_from_dict(data, label), "units" in data, label)
+        _check_plausible(robot_from_dict(data, label), data, label)
     except ModelError as exc:
         raise ModelError(f"{label}: not written: kincal would refuse to load it ({str(exc).removeprefix(label + ': ')}); "
                          f"a fit that puts such values there took up errors its terms cannot describe: calibrate with "
