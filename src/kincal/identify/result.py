@@ -311,6 +311,14 @@ class CalibrationResult:
         q = np.concatenate([o.q for o in self.observations])
         return ModelUncertainty.from_fit(self.robot, tuple(ok), self.covariance[np.ix_(at, at)], q)
 
+    @functools.cached_property
+    def correction_scales(self) -> dict[str, tuple[float, str]]:
+        """The robot's :meth:`~kincal.Robot.correction_scales` at the data's poses: per parameter whose value is not
+        the correction it makes (a compliance, the deflection at 100 N·m), what one unit of it makes there, and
+        where (its joint's largest load in the data); what the verdict and the weak-parameter hold judge by."""
+        q = [o.q for o in self.observations]
+        return self.nominal.correction_scales(np.concatenate(q)) if q else {}
+
     def dropped_text(self) -> str:
         """What the data do not determine: kept nominal (least squares), or moved by a particle swarm
         anyway (only their combination with the parameters they act like is fitted); '' when none."""
@@ -487,7 +495,7 @@ class CalibrationResult:
         if self.gauge:
             lines.append(f"not seen by these data (gauge freedoms, kept at their values): {', '.join(self.gauge)}")
         lines += [self.identifiability.frames_note] if self.identifiability.frames else []
-        lines += [weak_note(self.robot, self.weak)] if self.weak else []
+        lines += [weak_note(self.robot, self.weak, self.correction_scales)] if self.weak else []
         lines += prior_lines(self.prior)
         if self.rejected:
             lines.append(f"left out as outliers (a robust refit put them beyond the outlier limit): "

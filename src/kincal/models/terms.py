@@ -311,6 +311,17 @@ class ExtendedRobot(Wrapped):
         """Per joint with a compliance term: the compliance in rad/(N·m)."""
         return {n.split(".")[0]: self.params[n] / TAU_REF for n in self.term_names if n.endswith(".compliance")}
 
+    def correction_scales(self, q: np.ndarray) -> dict[str, tuple[float, str]]:
+        """A compliance (the deflection at ``TAU_REF``) deflects its joint at the poses q (N, n) by at most its value
+        × max|τ| / ``TAU_REF``, τ that joint's gravity load there (N·m): its scale, and that load in words."""
+        qj, out = self.check_q(q)[:, :self.inner.n_joints], {}
+        for t in self.terms:
+            if isinstance(t, GravityTerm) and t.token == "compliance":
+                peak = np.abs(t.basis(qj)).max(axis=(0, 1)) if len(qj) else np.zeros(len(t.names))
+                out.update({n: (float(s), f"at {s * TAU_REF:.3g} N·m, the largest load of {n.split('.')[0]} in the "
+                                          f"data") for n, s in zip(t.names, peak)})
+        return out
+
 
 def with_covariates(robot: Robot, names: Sequence[str] | None) -> Robot:
     """Make a robot read covariate columns (a temperature) after its joints.
