@@ -304,3 +304,26 @@ def test_a_compliance_is_judged_by_its_deflection_at_the_datas_loads(capsys):
     big = {"j4.compliance": np.deg2rad(3.0) / (peak[3] / 100)}  # 3 deg at j4's 3.96 N·m: 75.8 deg at 100 N·m
     (reason,) = correction_reasons(res.nominal, big, Thresholds(), res.correction_scales)
     assert reason.level == "suspect" and "j4.compliance +3.00 deg at 3.96 N·m, the largest load of j4" in reason.message
+
+
+def test_a_compliance_is_printed_as_the_deflection_at_100_nm_and_the_json_names_its_unit(ur5, tmp_path, capsys):
+    """The table printed 'j2.compliance +0.16889 deg' without saying it is the deflection at 100 N·m, and the JSON's
+    estimates (rad at 100 N·m) sat beside its compliance (rad/(N·m)) with no word of which is which: the row now
+    says '(deflection at 100 N·m)' and the JSON's units name each estimate's."""
+    import json
+    model = kincal.extend(ur5, "compliance")
+    true = kincal.perturb(model, 0.5e-3, 0.5e-3, seed=3).with_params({"j2.compliance": 3e-3, "j3.compliance": 2e-3})
+    data = tmp_path / "d.csv"
+    kincal.write_measurements(data, kincal.simulate(true, ur5.sample_joints(120, seed=4), NOISE, seed=5))
+    args = ["calibrate", "ur5", str(data), "--error-model", "compliance"]
+    main([*args, "--json"])
+    out = json.loads(capsys.readouterr().out)
+    main(args)
+    text = capsys.readouterr().out
+    for n in ("j2.compliance", "j3.compliance"):
+        j = n.split(".")[0]
+        assert out["units"][n] == "rad, deflection at 100 N·m" and out["units"][f"{j}.theta"] == "rad"
+        assert out["compliance"][j] == pytest.approx(out["estimates"][n] / 100, rel=1e-12)  # rad/(N·m)
+        row = re.search(rf"^{n} +([+-][\d.]+) deg .*\(deflection at 100 N·m\)$", text, re.M)
+        assert row and float(row.group(1)) == pytest.approx(np.rad2deg(out["estimates"][n]), abs=1e-5)
+    assert out["units"]["j2.a"] == "m" and "(deflection" not in re.search(r"^j2\.a .*$", text, re.M).group(0)

@@ -550,6 +550,12 @@ class Robot(Joints, ABC):
         """Per joint with a compliance term its compliance in rad/(N·m); none by default."""
         return {}
 
+    def value_units(self) -> dict[str, str]:
+        """Parameters whose value is per something beyond its kind's unit (m, rad, 1), and what, in words: a
+        compliance is the deflection 'at 100 N·m', a thermal growth rate 'per unit of temperature' (its
+        covariate's unit). The parameter tables say it beside such a value. None by default."""
+        return {}
+
     def correction_scales(self, q: np.ndarray) -> dict[str, tuple[float, str]]:
         """Parameters whose value is not the correction it makes at the poses q (N, n): per name, the largest
         correction (m or rad, of the parameter's kind) one unit of it makes there, and where, in words (a

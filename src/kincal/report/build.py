@@ -397,12 +397,12 @@ def _parameter_rows(result: CalibrationResult) -> list[dict]:
     th = result.options.thresholds
     kinds = dict(zip(result.robot.params.names, result.robot.params.kinds))
     base = {*result.robot.base_params(), *TOOL_NAMES}  # where the tracker stands and the target is: not errors
-    rows = []
+    rows, per = [], result.robot.value_units()  # a value per something more: a compliance's deflection at 100 N·m
     for n in result.names:
         k, c = kinds[n], result.corrections[n]
         scale = result.correction_scales.get(n, (1.0, ""))[0]  # a compliance: the deflection at the data's loads
         big = abs(c) * scale > th.suspect(k, n in result.robot.mounting_params()) and n not in base
-        rows.append({"name": n, "nominal": _value(result.nominal.params[n], k),
+        rows.append({"name": n, "per": per.get(n, ""), "nominal": _value(result.nominal.params[n], k),
                      "calibrated": _value(result.estimates[n], k), "correction": _value(c, k, signed=True),
                      "sigma": result.sigma_text(n) or _value(result.std[n], k),
                      "flag": "large (beyond the verdict's limit)" if big else ""})
