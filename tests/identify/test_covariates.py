@@ -223,3 +223,35 @@ def test_a_covariate_no_term_reads_is_not_needed_to_compensate_or_evaluate(tmp_p
         assert main(["compensate", str(tmp_path / "thermal.yaml"), random, *cols, "--xyz-cols",
                      "x_target,y_target,z_target", "-o", str(tmp_path / "t.csv")]) == 1
         assert "has covariate terms (temperature): its commands depend on" in capsys.readouterr().err
+
+
+def test_a_thermal_rate_says_its_unit_and_auto_says_what_its_regions_are_of(tmp_path, warm, capsys):
+    """The table printed 'j1.temperature -0.0148 %' without its unit (per unit of the covariate: %/K for a
+    temperature in K or °C); it says '(per unit of temperature)', the JSON's units '1, per unit of temperature'.
+    A covariate column changed every row of auto's table (UR5 grid: harmonics:1 0.0933 -> 0.0950 mm) under a header
+    saying the regions are of joint space: the k-means of the regions reads the covariate too (for the thermal
+    candidate's sake), and the header says so."""
+    import json
+    import re
+    from kincal.identify.select import blocked_folds
+    nominal, train, _, _ = warm
+    data = _csv(tmp_path / "warm.csv", train.subset(np.arange(0, len(train), 2)))
+    args = ["calibrate", "ur5", data, "--covariate-cols", "temperature", "--error-model", "thermal:temperature"]
+    main([*args, "--json"])
+    units = json.loads(capsys.readouterr().out)["units"]
+    main(args)
+    text = capsys.readouterr().out
+    rows = re.findall(r"^(j\d\.temperature) +[+-][\d.]+ % .*\(per unit of temperature\)$", text, re.M)
+    assert rows and set(rows) == {n for n, u in units.items() if u == "1, per unit of temperature"}
+    q = train.q[::2]
+    plain = blocked_folds(nominal, q[:, :6], 5)
+    read = blocked_folds(with_covariates(nominal, ["temperature"]), q, 5)
+    assert any(not np.array_equal(a, b) for a, b in zip(plain, read))  # the covariate moves the regions
+    few = train.subset(np.arange(0, len(train), 3))  # 40 poses
+    choice = kincal.calibrate(with_covariates(nominal, ["temperature"]), few, error_model="auto",
+                              diagnose=False).error_model_choice
+    assert str(choice).startswith("error model by blocked cross-validation (5 regions of joint space and "
+                                  "temperature): ")
+    assert choice.to_dict()["regions"] == "joint space and temperature"
+    assert str(kincal.identify.select.ErrorModelChoice((), "geometric", 5)).startswith(
+        "error model by joint-space blocked cross-validation (5 regions): geometric")

@@ -64,7 +64,7 @@ def verdict_of(res: "CalibrationResult") -> Verdict:
                                                                              f"({res.message})")]
     reasons += _base_reasons(res) + _box_reasons(res)
     reasons += correction_reasons(res.nominal, {n: c for n, c in res.corrections.items() if np.isfinite(res.std[n])},
-                                  th)
+                                  th, res.correction_scales)
     if res.mounting:
         reasons += mounting_reasons(res.nominal.tool_point(), res.robot.tool_point(), th)
     reasons += _position_reasons(res, th) if res.data else _set_reasons(res, th)

@@ -284,6 +284,15 @@ class CalibrationResult:
         return {j: c if f"{j}.compliance" in self.names else None for j, c in self.robot.compliances().items()}
 
     @property
+    def units(self) -> dict[str, str]:
+        """The SI unit of each fitted robot parameter's estimate, correction and σ: "m", "rad", "1" (a ratio), and
+        what a value is per beyond it ("rad, deflection at 100 N·m" for a compliance, whose rad/(N·m) are
+        ``compliances``; "1, per unit of temperature" for a thermal growth rate)."""
+        si, per = {"length": "m", "angle": "rad", "ratio": "1"}, self.robot.value_units()
+        kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
+        return {n: si[kinds[n]] + (f", {per[n]}" if n in per else "") for n in self.names}
+
+    @property
     def corrections(self) -> dict[str, float]:
         """Final − nominal (the model as given) per fitted robot parameter (m or rad)."""
         return {n: float(self.robot.params[n] - self.nominal.params[n]) for n in self.names}
@@ -320,6 +329,14 @@ class CalibrationResult:
         at = [self.free.index(n) for n in ok]
         q = np.concatenate([o.q for o in self.observations])
         return ModelUncertainty.from_fit(self.robot, tuple(ok), self.covariance[np.ix_(at, at)], q)
+
+    @functools.cached_property
+    def correction_scales(self) -> dict[str, tuple[float, str]]:
+        """The robot's :meth:`~kincal.Robot.correction_scales` at the data's poses: per parameter whose value is not
+        the correction it makes (a compliance, the deflection at 100 N·m), what one unit of it makes there, and
+        where (its joint's largest load in the data); what the verdict and the weak-parameter hold judge by."""
+        q = [o.q for o in self.observations]
+        return self.nominal.correction_scales(np.concatenate(q)) if q else {}
 
     def dropped_text(self) -> str:
         """What the data do not determine: kept nominal (least squares), or moved by a particle swarm
@@ -445,7 +462,7 @@ class CalibrationResult:
                "iterations": self.iterations, "runs": self.runs, "evaluations": self.evaluations, "time_s": self.time_s,
                "options": self.options.to_dict(), "estimated": list(self.names),
                "not_estimated": [n for n in self.robot.params.names if n not in set(self.names)],
-               "estimates": self.estimates, "corrections": self.corrections,
+               "estimates": self.estimates, "corrections": self.corrections, "units": self.units,
                "nuisance": {k: float(v) for k, v in self.nuisance.items()},
                "std": {k: (float(v) if np.isfinite(v) else None) for k, v in self.std.items()},  # None: undetermined
                "correlation": self.correlation.tolist(), "gauge": list(self.gauge),
@@ -490,19 +507,20 @@ class CalibrationResult:
                  f"{len(self.names)} robot and {len(self.nuisance)} set-up "
                  f"parameters; loss {self.options.loss}, base {self.options.base}"]
         # the fitted robot parameters as a table: estimate, correction from nominal, σ (mm, deg)
-        param_kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
+        param_kinds, per = dict(zip(self.robot.params.names, self.robot.params.kinds)), self.robot.value_units()
         lines.append(f"{'parameter':<22} {'estimate':>16} {'correction':>16} {'σ':>14}")
-        for n in self.names:
+        for n in self.names:  # a value per something more (a compliance's deflection at 100 N·m): said at the end
             k = param_kinds[n]
             lines.append(f"{n:<22} {display(self.robot.params[n], k):>16} "
                          f"{display(self.robot.params[n] - self.nominal.params[n], k):>16} "
-                         f"{self.sigma_text(n) or display(self.std[n], k).lstrip('+'):>14}")
+                         f"{self.sigma_text(n) or display(self.std[n], k).lstrip('+'):>14}"
+                         + (f"  ({per[n]})" if n in per else ""))
         lines += self._data_lines()
         lines += [f"mounting: {self.mounting}"] if self.mounting else []
         if self.gauge:
             lines.append(f"not seen by these data (gauge freedoms, kept at their values): {', '.join(self.gauge)}")
         lines += [self.identifiability.frames_note] if self.identifiability.frames else []
-        lines += [weak_note(self.robot, self.weak)] if self.weak else []
+        lines += [weak_note(self.robot, self.weak, self.correction_scales)] if self.weak else []
         lines += prior_lines(self.prior)
         if self.rejected:
             lines.append(f"left out as outliers (a robust refit put them beyond the outlier limit): "

@@ -80,6 +80,7 @@ class Round:
         a parameter the data determine worse than a real robot's error kept nominal and the fit
         repeated: (columns, fit, free names, weak, the stack with the robust factors in its weights)."""
         weak: dict[str, float] = {}
+        scales = self.st.robot.correction_scales(np.concatenate([o.q for o in self.st.sets]))  # a compliance's load
         while True:
             fcols = self.st.cols(free)
             at_start = evaluated if evaluated is not None and np.array_equal(start, self.x0) else None
@@ -88,7 +89,8 @@ class Round:
                 fit, used = self._lm(fun, start[fcols]), st
             else:  # reweighted from the start: a least-squares fit pulled by outliers is a poor place to begin
                 used, fit = self._reweighted(st, fcols, start[fcols], fun(start[fcols])[0])
-            worst = weakest(self.st.robot, free, fit.jacobian * used.weak_scale(fit.residual, len(free))[:, None], 1.0)
+            worst = weakest(self.st.robot, free, fit.jacobian * used.weak_scale(fit.residual, len(free))[:, None], 1.0,
+                            scales)
             if worst is None:
                 return fcols, fit, free, weak, used
             weak[worst[0]] = worst[1]

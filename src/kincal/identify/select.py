@@ -3,7 +3,10 @@
 Random folds flatter flexible models: every held-out pose has training neighbours. Here the folds
 are regions of joint space (k-means on cos/sin of the revolute joints and the scaled prismatic
 ones, deterministically seeded), so each fold tests the model where it was not fitted, as a robot
-is later used. A candidate term is kept only when
+is later used. A covariate the robot reads (a temperature) is one more scaled input of the k-means,
+so that ``thermal:<covariate>`` is tested where it was not fitted too: the regions, and so every
+candidate's figures, then differ from those of the same poses without it, and the table says what
+the regions are of. A candidate term is kept only when
 
 * its blocked-CV mean error is below the geometric model's,
 * its predicted σ (fitted to all data) at the poses where the model will be used (``use_q``;
@@ -95,6 +98,10 @@ class ErrorModelChoice:
         The held-out sessions' labels (default empty: one session).
     not_held_out : tuple of str, optional
         The sessions kept in every fit, with more than half of the poses (default empty).
+    covariates : tuple of str, optional
+        The covariates the regions are regions of too (default none: of joint space alone). A covariate
+        the robot reads has its ``thermal:`` candidate, so k-means sees it as one more input, and every
+        candidate's figures differ from those of the same poses without it.
     """
 
     rows: tuple[dict, ...]
@@ -102,16 +109,24 @@ class ErrorModelChoice:
     folds: int
     sessions: tuple[str, ...] = ()
     not_held_out: tuple[str, ...] = ()  # sessions with more than half of the poses
+    covariates: tuple[str, ...] = ()  # the regions are of these too
+
+    @property
+    def regions(self) -> str:
+        """What the regions are regions of, in words: 'joint space', or 'joint space and temperature'."""
+        return "joint space" + (f" and {', '.join(self.covariates)}" if self.covariates else "")
 
     def to_dict(self) -> dict:
-        return {"chosen": self.chosen, "folds": self.folds, "sessions": list(self.sessions),
+        return {"chosen": self.chosen, "folds": self.folds, "regions": self.regions, "sessions": list(self.sessions),
                 "not_held_out": list(self.not_held_out),
                 "candidates": [{k: _json(v) for k, v in r.items()} for r in self.rows]}
 
     def __str__(self) -> str:
         total = len(self.sessions) + len(self.not_held_out)
         held = f" and leave-one-session-out ({len(self.sessions)} of {total} sessions held out)" if self.sessions else ""
-        lines = [f"error model by joint-space blocked cross-validation ({self.folds} regions){held}: {self.chosen}",
+        how = "joint-space blocked cross-validation" if not self.covariates else "blocked cross-validation"
+        regions = f"{self.folds} regions" + (f" of {self.regions}" if self.covariates else "")
+        lines = [f"error model by {how} ({regions}){held}: {self.chosen}",
                  f"  {'error model':<20} {'params':>6} {'CV mean mm':>11} {'± se':>8} {'σ ratio':>8} {'σ frame':<11}"
                  + "".join(f" {f'session {i + 1} mm':>12}" for i in range(len(self.sessions))) + "  decision"]
         for r in self.rows:
@@ -182,7 +197,8 @@ def select_model(robot: Robot, meas: Measurements, calibrate, options, use_q: np
         else:
             r["decision"] = "kept, but more than one standard error worse than the best"
     return ErrorModelChoice(tuple(rows), chosen["error_model"], len(regions), tuple(n for n, _ in sessions),
-                            tuple(n for n in meas.sessions() if n not in {m for m, _ in sessions}) if sessions else ())
+                            tuple(n for n in meas.sessions() if n not in {m for m, _ in sessions}) if sessions else (),
+                            robot.covariate_names)
 
 
 def _held_out_sessions(meas: Measurements) -> list[tuple[str, np.ndarray]]:

@@ -469,19 +469,23 @@ def _scale_hint(big: list[tuple[str, float]], kinds) -> str:
 LIMIT_KIND = {"mounting": "length"}  # a design point's limit is a length
 
 
-def correction_reasons(robot: Robot, corrections: dict[str, float], th: Thresholds) -> list[Reason]:
-    """Implausibly large corrections (the base frame and the tool point, mounting results, excluded)."""
+def correction_reasons(robot: Robot, corrections: dict[str, float], th: Thresholds,
+                       scales: Mapping[str, tuple[float, str]] | None = None) -> list[Reason]:
+    """Implausibly large corrections (the base frame and the tool point, mounting results, excluded); a parameter
+    with a scale in ``scales`` (:meth:`kincal.Robot.correction_scales` at the data's poses: a compliance, whose value
+    is the deflection at 100 N·m) by the correction it makes there, correction × scale, shown with where."""
     base = set(robot.base_params()) | set(TOOL_NAMES)
     kinds = dict(zip(robot.params.names, robot.params.kinds))
-    mounting = set(robot.mounting_params())
+    mounting, scales = set(robot.mounting_params()), scales or {}
+    made = {n: c * scales.get(n, (1.0, ""))[0] for n, c in corrections.items()}  # the correction each makes
     for level, limit in (("refused", th.refuse), ("suspect", th.suspect)):
         lim = {n: limit(kinds[n], n in mounting) for n in corrections if n not in base}
-        big = [(n, c) for n, c in corrections.items() if n in lim and abs(c) > lim[n]]
+        big = [(n, made[n]) for n in corrections if n in lim and abs(made[n]) > lim[n]]
         cause = robot.correction_hint(robot.with_params({n: robot.params[n] + c for n, c in corrections.items()})) \
             if big else ""
         level = "refused" if cause else level
         if big:
-            shown = ", ".join(f"{n} {display(c, kinds[n], digits=(1, 2))}"
+            shown = ", ".join(f"{n} {display(c, kinds[n], digits=(1, 2))}" + (f" {scales[n][1]}" if n in scales else "")
                               for n, c in sorted(big, key=lambda x: -abs(x[1] / lim[x[0]]))[:MAX_LISTED])
             used = {("mounting" if n in mounting else kinds[n]) for n in lim}
             limits = ", ".join(f"{limit(k, k == 'mounting') * SHOWN[LIMIT_KIND.get(k, k)][1]:g} "

@@ -550,6 +550,20 @@ class Robot(Joints, ABC):
         """Per joint with a compliance term its compliance in rad/(N·m); none by default."""
         return {}
 
+    def value_units(self) -> dict[str, str]:
+        """Parameters whose value is per something beyond its kind's unit (m, rad, 1), and what, in words: a
+        compliance is the deflection 'at 100 N·m', a thermal growth rate 'per unit of temperature' (its
+        covariate's unit). The parameter tables say it beside such a value. None by default."""
+        return {}
+
+    def correction_scales(self, q: np.ndarray) -> dict[str, tuple[float, str]]:
+        """Parameters whose value is not the correction it makes at the poses q (N, n): per name, the largest
+        correction (m or rad, of the parameter's kind) one unit of it makes there, and where, in words (a
+        compliance, the deflection at 100 N·m, deflects its joint by value × its largest load in q / 100 N·m).
+        The verdict's plausible-correction limits and the hold of weakly determined parameters judge value ×
+        scale. None by default: a value is its correction."""
+        return {}
+
     def with_load_compliance(self: R) -> R:
         """The robot with its own compliance under its load as parameters (``has_load_compliance``: the
         error model ``compliance`` of a model that is not a chain; a chain's is a term on its joints)."""

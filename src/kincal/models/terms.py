@@ -311,6 +311,33 @@ class ExtendedRobot(Wrapped):
         """Per joint with a compliance term: the compliance in rad/(N·m)."""
         return {n.split(".")[0]: self.params[n] / TAU_REF for n in self.term_names if n.endswith(".compliance")}
 
+    def value_units(self) -> dict[str, str]:
+        """A compliance is the deflection at ``TAU_REF``, a gravity-regressor parameter the deflection at a 1 m load
+        column, a thermal rate per unit of its covariate.
+
+        >>> import kincal
+        >>> from kincal.models import with_covariates
+        >>> kincal.extend(kincal.load_robot("ur5"), "compliance").value_units()["j2.compliance"]
+        'deflection at 100 N·m'
+        >>> warm = kincal.extend(with_covariates(kincal.load_robot("ur5"), ["temperature"]), "thermal:temperature")
+        >>> warm.value_units()["j2.temperature"]
+        'per unit of temperature'
+        """
+        per = {"compliance": f"deflection at {TAU_REF:g} N·m", "gravity-regressor": "deflection at a 1 m load column"}
+        return {n: per[t.token] if isinstance(t, GravityTerm) else f"per unit of {t.covariate.name}"
+                for t in self.terms if isinstance(t, (GravityTerm, ThermalTerm)) for n in t.names}
+
+    def correction_scales(self, q: np.ndarray) -> dict[str, tuple[float, str]]:
+        """A compliance (the deflection at ``TAU_REF``) deflects its joint at the poses q (N, n) by at most its value
+        × max|τ| / ``TAU_REF``, τ that joint's gravity load there (N·m): its scale, and that load in words."""
+        qj, out = self.check_q(q)[:, :self.inner.n_joints], {}
+        for t in self.terms:
+            if isinstance(t, GravityTerm) and t.token == "compliance":
+                peak = np.abs(t.basis(qj)).max(axis=(0, 1)) if len(qj) else np.zeros(len(t.names))
+                out.update({n: (float(s), f"at {s * TAU_REF:.3g} N·m, the largest load of {n.split('.')[0]} in the "
+                                          f"data") for n, s in zip(t.names, peak)})
+        return out
+
 
 def with_covariates(robot: Robot, names: Sequence[str] | None) -> Robot:
     """Make a robot read covariate columns (a temperature) after its joints.

@@ -158,7 +158,7 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
            "n_estimated": len(result.names), "n_setup": len(result.nuisance),
            "n_samples": sum(s["samples"] for s in result.per_set), "whitened_rms": result.whitened_rms,
            "verdict": result.verdict.to_dict(), "parameters": _parameter_rows(result), "setup": _setup(result),
-           "weak": weak_note(result.robot, result.weak), "prior": prior_lines(result.prior),
+           "weak": weak_note(result.robot, result.weak, result.correction_scales), "prior": prior_lines(result.prior),
            "gauge": list(result.gauge), **_dropped(result), "solver": f"{result.solver_state} ({result.message})",
            "base_fixed": result.options.base == "fixed", "json_name": json_path_for(html_name).name,
            "data": _data_rows(result, tests, dict(info or {}), same_frame),
@@ -397,11 +397,12 @@ def _parameter_rows(result: CalibrationResult) -> list[dict]:
     th = result.options.thresholds
     kinds = dict(zip(result.robot.params.names, result.robot.params.kinds))
     base = {*result.robot.base_params(), *TOOL_NAMES}  # where the tracker stands and the target is: not errors
-    rows = []
+    rows, per = [], result.robot.value_units()  # a value per something more: a compliance's deflection at 100 N·m
     for n in result.names:
         k, c = kinds[n], result.corrections[n]
-        big = abs(c) > th.suspect(k, n in result.robot.mounting_params()) and n not in base
-        rows.append({"name": n, "nominal": _value(result.nominal.params[n], k),
+        scale = result.correction_scales.get(n, (1.0, ""))[0]  # a compliance: the deflection at the data's loads
+        big = abs(c) * scale > th.suspect(k, n in result.robot.mounting_params()) and n not in base
+        rows.append({"name": n, "per": per.get(n, ""), "nominal": _value(result.nominal.params[n], k),
                      "calibrated": _value(result.estimates[n], k), "correction": _value(c, k, signed=True),
                      "sigma": result.sigma_text(n) or _value(result.std[n], k),
                      "flag": "large (beyond the verdict's limit)" if big else ""})
