@@ -474,6 +474,51 @@ def test_jugglebot_legs_reading_noise_can_be_stated(tmp_path, capsys):
     assert code == 1 and "--std-joint" in err and "--residual joint" in err
 
 
+def test_jugglebot_gauge_and_mounting_do_not_depend_on_the_legs_unit(tmp_path, capsys):
+    """S1 with the legs read in motor revolutions (the bundled file) and in mm of travel (the leads folded into the
+    readings: a file without them) is one robot with one set of predictions. The design frames' gauge freedoms were
+    held at other parameters (leg2.pz, leg5.pz, leg6.pz against leg3.pz, leg5.pz, leg6.pz: the whitened norms, in
+    rad or in m), so the mounting line put the target at (0, 0, 14.46) mm against (0, 0, 15.24) mm; a tool point
+    that trades with the platform points is no finding. Now the same parameters hold the gauge, and the line says
+    the target's place is not determined by these data."""
+    robot = yaml.safe_load((ROOT / "src/kincal/models/robots/hexapod.yaml").read_text())
+    lead = np.array([leg.pop("lead") for leg in robot["legs"]])  # mm per rev
+    for leg in robot["legs"]:
+        leg["range"] = [0, 320]
+    del robot["reading"]
+    (tmp_path / "mm.yaml").write_text(yaml.safe_dump({**robot, "name": "hexapod_mm"}))
+    s1 = np.genfromtxt(JUGGLEBOT / "S1.csv", delimiter=",", names=True)
+    head = s1.dtype.names
+    mm = np.column_stack([s1[c] * (lead[int(c[3:]) - 1] if c.startswith("leg") else 1.0) for c in head])
+    np.savetxt(tmp_path / "S1_mm.csv", mm, delimiter=",", header=",".join(head), comments="", fmt="%.10g")
+    outs = []
+    for model, data, saved in (("hexapod", JUGGLEBOT / "S1.csv", "rev.yaml"), (tmp_path / "mm.yaml",
+                                                                              tmp_path / "S1_mm.csv", "mm_cal.yaml")):
+        code, out, text = _kincal(capsys, ["calibrate", str(model), str(data), *JUGGLE, "--residual", "joint",
+                                           "--json", "-o", str(tmp_path / saved)])
+        assert code in (0, 4)
+        outs.append(out)
+    rev, mm_out = outs
+    held = rev["identifiability"]["frames"]
+    assert len(held) == 12 and held == mm_out["identifiability"]["frames"]
+    for n in ("tool.x", "tool.y", "tool.z", "leg1.px", "leg6.bz"):  # one parametrisation: the same values
+        assert abs(rev["estimates"][n] - mm_out["estimates"][n]) < 1e-6, n
+    platform = [n for n in held if ".p" in n]
+    for out in outs:
+        said = out["mounting"]["text"]
+        assert out["mounting"]["tool_point"] is None and "not determined by these data" in said
+        assert f"held here at {', '.join(platform)}" in said and "put the target at" not in said
+        assert not any(r["code"] == "tool-point" for r in out["verdict"]["reasons"])
+    # the reason, independently: the platform points and the tool point moved together 5 mm along z (a shift of the
+    # platform frame among them) leave every pose the calibrated model predicts at S1's legs where it was
+    cal = kincal.load_robot(tmp_path / "rev.yaml")
+    shift = {n: cal.params[n] + 5e-3 for n in cal.params.names if n.endswith(".pz") or n == "tool.z"}
+    q = np.column_stack([s1[f"leg{i}"] for i in range(1, 7)]) * 2 * np.pi
+    p, _, R, _ = cal.frame_and_rates(q)
+    p2, _, R2, _ = cal.with_params(shift).frame_and_rates(q)
+    assert np.abs(p2 - p).max() < 1e-9 and np.abs(R2 - R).max() < 1e-9
+
+
 @pytest.mark.parametrize("residual", [[], ["--residual", "joint"]], ids=["cartesian", "joint"])
 def test_jugglebot_poses_in_the_measurement_frame_are_the_measured_bodys(tmp_path, capsys, residual):
     """The motion capture gives the poses of its rigid body, turned 6.9 mrad on the platform (the calibration's

@@ -23,7 +23,7 @@ from .positions import EvaluationStats, kept_positions
 from .relevance import prior_lines
 from ..analysis.changes import Repeat
 from .select import ErrorModelChoice
-from .verdict import Verdict, mounting_line, noise_level, robust_z
+from .verdict import Verdict, mounting_line, noise_level, robust_z, undetermined_mounting_line
 from .weak import weak_note
 
 GIMBAL_NEAR = np.radians(5.0)  # the base frame's middle angle this near ±90°: its outer angles turn alike
@@ -290,12 +290,28 @@ class CalibrationResult:
 
     @property
     def mounting(self) -> str:
-        """Where the data put the target against the declared tool point, when the fit determined it;
-        '' otherwise (a mounting result, not a robot error)."""
-        if not self.robot.has_tool_point or not any(np.isfinite(self.std.get(n, np.inf)) for n in TOOL_NAMES
-                                                    if n in self.names):
+        """Where the data put the target against the declared tool point, when the fit determined it; that the
+        data do not determine it, when it stands in a design frame whose gauge freedom the fit holds
+        (:attr:`mounting_gauge`); '' otherwise (a mounting result, not a robot error)."""
+        if not self.robot.has_tool_point:
+            return ""
+        if self.mounting_gauge[0]:
+            return undetermined_mounting_line(*self.mounting_gauge)
+        if not any(np.isfinite(self.std.get(n, np.inf)) for n in TOOL_NAMES if n in self.names):
             return ""
         return mounting_line(self.nominal.tool_point(), self.robot.tool_point())
+
+    @property
+    def mounting_gauge(self) -> tuple[str, tuple[str, ...]]:
+        """The design frame the tool point stands in (:meth:`Robot.frame_freedoms`, in words) with the parameters
+        that hold its gauge freedom in this fit, when it has one: the tool point moves with that frame, so its
+        coordinates are the held parameters' choice, not the data's; ``("", ())`` for none (an arm's flange)."""
+        held = self.identifiability.frames
+        for what, members, _ in self.robot.frame_freedoms():
+            holding = tuple(n for n in held if n in set(members))
+            if holding and set(TOOL_NAMES) & set(members):
+                return what, holding
+        return "", ()
 
     def uncertainty(self) -> ModelUncertainty:
         """The calibrated model's parameter covariance, with the median predicted σ at the training
@@ -443,8 +459,8 @@ class CalibrationResult:
                "error_model_choice": None if self.error_model_choice is None else self.error_model_choice.to_dict(),
                "error_model_notes": list(self.notes), "rejected_rows": {k: list(v) for k, v in self.rejected.items()},
                "diagnosis": None if self.diagnosis is None else self.diagnosis.to_dict(),
-               "mounting": None if not self.mounting else {
-                   "tool_point": self.robot.tool_point().tolist(),
+               "mounting": None if not self.mounting else {  # tool_point None: the data do not determine it
+                   "tool_point": None if self.mounting_gauge[0] else self.robot.tool_point().tolist(),
                    "declared_tool_point": self.nominal.tool_point().tolist(), "text": self.mounting},
                "compliance": self.compliances,  # rad/(N·m) per joint; None: kept at nominal, not determined
                "weakly_determined": {k: float(v) for k, v in self.weak.items()},  # m or rad: the σ the data gave

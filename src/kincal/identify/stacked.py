@@ -21,7 +21,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .._threads import blas_threads
-from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_identifiability, kinds_of
+from ..analysis.identifiability import RANK_TOL, Identifiability, frame_members, jacobian_identifiability, kinds_of
 from ..analysis.observability import live_columns
 from ..errors import IdentifiabilityError, MeasurementError, ModelError
 from ..models.robot import Robot
@@ -363,7 +363,7 @@ def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, fu
                                      [list(keep), [n for n in nuis if n not in st.late], list(gauge),
                                       list(robot.base_params()),
                                       list(robot.preferred_params())], robot.name,
-                                     sum(len(o) for o in st.sets), rank_tol, live)
+                                     sum(len(o) for o in st.sets), rank_tol, live, frame_members(robot))
     ident = _design_frames(robot, ident).without_unseen(gauge)
     notes = (f"not seen by these data (gauge freedoms, kept at their values): {', '.join(gauge)}",) if gauge else ()
     return dataclasses.replace(ident, measured=" + ".join(dict.fromkeys(o.kind for o in st.sets)),
