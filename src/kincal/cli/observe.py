@@ -322,9 +322,11 @@ def _fitted_here(robot, frame: tuple, own: tuple, fit, held: dict) -> str:
 
 
 def _nominal_beside(args, robot, record: dict | None, obs, held: dict) -> tuple[dict | None, str]:
-    """The nominal model's statistics on a held-out set, judged as the calibrated one is: with --same-frame its
-    frame and target point as registered on the training data (the record's, as the report does), else registered
-    to this set (the point only where the data fix a scale); and how, in words. (None, '') without a record."""
+    """The nominal model's statistics on a held-out set, judged as calibrate judges it ("before"): with --same-frame
+    its frame and target point as registered on the training data (the record's, as the report does), else its
+    frame, target point (where the data fix a scale) and target rotation fitted to this set (the calibrated
+    rotation belongs to the calibrated kinematics), kinematics fixed; and how, in words. (None, '') without a
+    record."""
     kept = nominal_model(robot, record, args.robot, "before_mounting") if args.same_frame else None
     if kept is not None:
         return _fixed_kinematics(kept, obs, (), held).per_set[0], "its frame and target point as registered on the " \
@@ -334,9 +336,11 @@ def _nominal_beside(args, robot, record: dict | None, obs, held: dict) -> tuple[
         return None, ""
     mounting = (*(robot.base_params() if obs.kind in ABSOLUTE else ()),
                 *(n for n in robot.params.names if n.startswith("tool.") and obs.reference))
+    fit = _fixed_kinematics(nominal, obs, mounting, {n: v for n, v in held.items() if not n.startswith("target.")})
     parts = [w for w, p in (("frame", "base."), ("target point", "tool.")) if any(n.startswith(p) for n in mounting)]
-    return _fixed_kinematics(nominal, obs, mounting, held).per_set[0], \
-        f"its {' and '.join(parts)} fitted" if parts else "its frame and target point as declared"
+    parts += ["target rotation"] if any(n.startswith("target.") for n in fit.nuisance) else []
+    return fit.per_set[0], (f"its {', '.join(parts[:-1])}{' and ' * (len(parts) > 1)}{parts[-1]} fitted"
+                            if parts else "its frame and target point as declared")
 
 
 def _fixed_kinematics(robot, obs, frame: tuple, held: dict):

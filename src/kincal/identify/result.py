@@ -13,6 +13,7 @@ from ..analysis.identifiability import Identifiability
 from ..analysis.uncertainty import ModelUncertainty
 from ..io.measurements import Measurements, write_csv
 from ..models.robot import TOOL_NAMES, Robot
+from ..observe.joint import in_cartesian
 from ..observe.observations import Wrapper
 from ..observe.sessions import InSession
 from ..units import MM, MRAD, display, in_display
@@ -537,8 +538,15 @@ class CalibrationResult:
         return "held by the prior" if self.prior and sd < PRIOR_HELD else ""
 
     def before_registration(self) -> str:
-        """How the "before" model was registered to the data, in words (the CLI's and the report's)."""
-        return "target point registered, frame as given (--base fixed)" if self.options.base == "fixed" else \
+        """How the "before" model was registered to the data, in words (the CLI's and the report's): with poses
+        (whatever residual the fit used), the frame, the target point and the target's rotation fitted to each
+        file with the kinematics fixed, as ``kincal evaluate --refit-target`` judges the nominal model; with
+        positions, the frame and the target point registered to them (as ``kincal evaluate`` does)."""
+        fixed = self.options.base == "fixed"
+        if not self.data and any(in_cartesian(o).kind == "pose" for o in self.observations):
+            return ("target point and target rotation fitted to each file, frame as given (--base fixed)" if fixed
+                    else "frame, target point and target rotation fitted to each file") + ", kinematics fixed"
+        return "target point registered, frame as given (--base fixed)" if fixed else \
             "frame and target point registered"
 
     def _data_lines(self) -> list[str]:
@@ -546,6 +554,8 @@ class CalibrationResult:
         tracker noise, the statistics before and after and a fitted drift; σ per kind otherwise."""
         lines = [f"  {a['type']} ({a['source']}): {stat_change(b, a)}"
                  for b, a in zip(self.per_set_before, self.per_set)]
+        if not self.data and any(in_cartesian(o).kind in ("point", "pose") for o in self.observations):
+            lines.insert(0, f"before → after per file (before: nominal, {self.before_registration()}):")
         if self.data:
             noise = noise_level(self.measurements.std, self.options.thresholds)
             lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm (tracker noise for the verdict "

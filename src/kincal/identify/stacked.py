@@ -24,8 +24,9 @@ from .._threads import blas_threads
 from ..analysis.identifiability import RANK_TOL, Identifiability, frame_members, jacobian_identifiability, kinds_of
 from ..analysis.observability import live_columns
 from ..errors import IdentifiabilityError, MeasurementError, ModelError
-from ..models.robot import Robot
+from ..models.robot import TOOL_NAMES, Robot
 from ..observe.drifting import DRIFT
+from ..observe.joint import in_cartesian
 from ..observe.observations import PoseObs, Wrapper
 from ..observe.sessions import InSession
 from .covariance import parameter_statistics
@@ -182,7 +183,7 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
     with blas_threads(1):
         wanted, declared = wanted_names(robot, o), robot
         robot, st, gauge, ident, start = _problem(robot, observations, wanted, o.keep, o.rank_tol, held)
-        models = (declared, robot, _before(robot, st.sets, bool(set(robot.base_params()) & set(wanted))))
+        models = (declared, robot, _before(robot, st.sets, bool(set(robot.base_params()) & set(wanted)), wanted))
         _check_strict(ident, o, st)
         _check_equations(st, start[0].size, len(ident.identifiable if o.method == "lm" else ident.candidates))
         x0 = np.concatenate([robot.params.values, st.nuis0])
@@ -389,13 +390,32 @@ def _design_frames(robot: Robot, ident: Identifiability) -> Identifiability:
                                f"held at their values (no prediction depends on them): " + "; ".join(said))
 
 
-def _before(robot: Robot, sets, frame: bool) -> Robot:
-    """The nominal kinematics as judged "before" calibration: with the measurement frame (when it is
-    fitted, ``frame``) and the target point registered to the measured points and pose positions in the robot's
-    frame (:func:`register_mounting`), so the figure does not depend on where the target was declared."""
-    found = [f for f in (o.positions() for o in sets if o.kind in ("point", "pose")) if f is not None]
+Before = tuple[Robot, tuple[dict, ...] | None]  # the "before" model and its per-set figures (:func:`_before`)
+
+
+def _before(robot: Robot, sets, frame: bool, wanted) -> Before:
+    """The nominal kinematics as judged "before" calibration, so the figure does not depend on where the target
+    was declared, and each set's figures under it (None: computed from the model with the sets' set-up values).
+
+    With poses (whatever residual the fit uses): the measurement frame (when it is fitted, ``frame``), the target
+    point and every set-up parameter (the target's rotation, a session's frame) fitted to the sets' position and
+    rotation errors with the kinematics fixed, as ``kincal evaluate`` judges the nominal model and as a held-out
+    file's nominal figure is (:func:`kincal.identify.held_out_nominal`); a fit of nothing but that mounting is
+    that registration, its own "before" (``()``). Positions alone: the frame and the target point registered to
+    them (:func:`register_mounting`), as ``kincal evaluate`` does for points."""
+    cartesian = [in_cartesian(o) for o in sets]
+    mounting = (*(robot.base_params() if frame else ()), *(TOOL_NAMES if robot.has_tool_point else ()))
+    if any(o.kind == "pose" for o in cartesian):
+        if set(wanted) <= set(mounting):
+            return robot, ()  # the fit is that registration: its own "before"
+        from .fitting import fit_stack  # (fitting fits stacks through this module)
+
+        judged = fit_stack(robot, cartesian, FitOptions(diagnose=False).replace(
+            names=mounting, base="estimate" if frame else "fixed").check(robot))
+        return judged.robot, tuple({**s, "type": o.kind} for s, o in zip(judged.per_set, sets))  # (the fit's kind)
+    found = [f for f in (o.positions() for o in cartesian if o.kind in ("point", "pose")) if f is not None]
     return register_mounting(robot, np.concatenate([f[0] for f in found]), np.concatenate([f[1] for f in found]),
-                             frame) if found else robot
+                             frame) if found else robot, None
 
 
 def session_before(model: Robot, obs) -> Robot:
@@ -452,13 +472,13 @@ def _swarm_drift(robot: Robot, ident, moved) -> list[tuple[str, float, tuple]]:
     return [(d, HALF_WIDTH[kinds[d]] ** 2 / 3.0, ident.confounds.get(d, ())) for d in moved if d in kinds]
 
 
-def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit, weak, o: FitOptions, error: dict,
+def _result(models: tuple[Robot, Robot, Before], st, gauge, ident, free, x0, fit, weak, o: FitOptions, error: dict,
             spent: list, history: tuple[float, ...], undetermined=()) -> CalibrationResult:
     """The fit of the columns ``free`` as a :class:`CalibrationResult` with options ``o`` (``models``: the model as given,
-    as registered, where the fit began, and as judged "before", :func:`_before`; ``undetermined``:
-    moved by a particle swarm but not determined by the data, σ = inf; ``spent``: iterations and
+    as registered, where the fit began, and as judged "before" with its per-set figures, :func:`_before`;
+    ``undetermined``: moved by a particle swarm but not determined by the data, σ = inf; ``spent``: iterations and
     evaluations of every solver run)."""
-    declared, robot, before_model = models
+    declared, robot, (before_model, judged) = models
     full = x0.copy()
     full[st.cols(free)] = fit.x
     P = robot.n_params
@@ -472,12 +492,15 @@ def _result(models: tuple[Robot, Robot, Robot], st, gauge, ident, free, x0, fit,
         learned = {}
     std = {n: float(v) for n, v in zip(free, sd)}
     std.update({n: np.inf for n in st.nuis_names if n not in std})
-    before = tuple(o.stats(before_model, before_model.params.values, _before_nuisance(before_model, o, x0[P:][slot]))
-                   for o, slot in zip(st.sets, st.slots))
     try:
         after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(st.sets, st.slots))
     except ModelError:  # a fit on other residuals (the joints') whose model does not assemble at the data's joints
         raise unassembled(st.sets) from None
+    before: tuple[dict, ...] | None = judged
+    if before == ():  # a fit of the mounting alone: it is its own "before"
+        before_model, before = calibrated, after
+    before = before or tuple(o.stats(before_model, before_model.params.values, _before_nuisance(
+        before_model, o, x0[P:][slot])) for o, slot in zip(st.sets, st.slots))
     r = st.judged(fit.residual, fit.jacobian, _hat_covariance(fit, cov), full[:P], full[P:])
     return CalibrationResult(
         robot=calibrated, nominal=declared, registered=robot, before=before_model,
