@@ -8,6 +8,10 @@ which the caller lists them. Callers list candidates as follows, so the rule is 
 * parameters: the user's ``keep`` list first, then the model's preferred parameters (tool point,
   base frame), then ``robot.params.names`` order; the earliest is kept, the latest is dropped;
 * sets of parameters: by size, then by the canonical positions of their members;
+* a design frame's gauge freedoms (a hexapod's base and platform frames): held at the members that move most
+  along them in the parameters' own units (m, rad: whatever unit the joints are read in), motions within
+  5 % of the largest tied (a symmetric design's members move alike) and the earliest chosen
+  (``kincal.analysis.identifiability.HOLD_RTOL``);
 * poses: by position in the candidate pool (the earliest wins); exchange candidates likewise;
 * an optimiser's incumbent beats any challenger it ties with (only a real improvement replaces it).
 

@@ -347,8 +347,27 @@ def identifiability(robot: Robot, q: np.ndarray, names: Sequence[str] | None = N
     # a given Jacobian's columns are taken as rows of its transpose: column-major stays column-major
     J = stacked_jacobian(robot, q, cand) if jacobian is None else jacobian.T[robot.params.indices(cand)].T
     ident = jacobian_identifiability(J, cand, [list(keep), list(robot.preferred_params())], robot.name, q.shape[0],
-                                     rank_tol)
+                                     rank_tol, frames=frame_members(robot))
     return dataclasses.replace(ident, notes=tuple(robot.structure_notes()) + ident.notes, kinds=kinds_of(robot, cand))
+
+
+def frame_members(robot: Robot) -> tuple[str, ...]:
+    """The parameters among which a design frame of ``robot`` stands (:meth:`Robot.frame_freedoms`: a hexapod's
+    base points with the base frame, its platform points with the tool point and the target's rotation); none for
+    a serial arm. :func:`jacobian_identifiability` holds the frames' gauge freedoms at those of them that move
+    most along the freedoms, in the parameters' own units (whatever unit the joints are read in).
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.analysis.identifiability import frame_members
+    >>> members = frame_members(kincal.load_robot("hexapod"))
+    >>> len(members), members[-6:]
+    (48, ('leg6.px', 'leg6.py', 'leg6.pz', 'target.rx', 'target.ry', 'target.rz'))
+    >>> frame_members(kincal.load_robot("ur5"))
+    ()
+    """
+    return tuple(n for _, members, _ in robot.frame_freedoms() for n in members)
 
 
 ANGLE_SUFFIXES = (".rx", ".ry", ".rz", ".theta", ".alpha", ".beta", ".roll", ".pitch", ".yaw")
@@ -363,12 +382,15 @@ def kinds_of(robot: Robot, names: Sequence[str]) -> dict[str, str]:
 
 
 def jacobian_identifiability(J: np.ndarray, cand: Sequence[str], stages: Sequence[Sequence[str]], label: str,
-                             n_poses: int, rank_tol: float = RANK_TOL, live: np.ndarray | None = None
-                             ) -> Identifiability:
+                             n_poses: int, rank_tol: float = RANK_TOL, live: np.ndarray | None = None,
+                             frames: Sequence[str] = ()) -> Identifiability:
     """Identifiability of the columns ``cand`` of any stacked (whitened) Jacobian J (M, K): the one
     rule for position data and for every other observation type. ``stages``: names chosen first, in
     order, when columns are confounded (e.g. nuisance parameters, then the base frame). ``live``:
-    which columns have any effect, judged in physical units (default: from J itself, unwhitened)."""
+    which columns have any effect, judged in physical units (default: from J itself, unwhitened).
+    ``frames``: the members of design frames (:func:`frame_members`); those of no stage that hold the frames'
+    gauge freedoms (:func:`_holders`: chosen on the null space in the parameters' own units, so the rows'
+    weights, the unit the joints are read in, change nothing) are tried last, one at a time."""
     norms = column_norms(J)
     live = live_columns(J) if live is None else np.asarray(live, bool)
     live_names = [n for n, ok in zip(cand, live) if ok]
@@ -382,7 +404,11 @@ def jacobian_identifiability(J: np.ndarray, cand: Sequence[str], stages: Sequenc
     rank = int(np.sum(s > rank_tol * s[0])) if s.size else 0
     gap = float(s[rank - 1] / s[rank]) if 0 < rank < s.size and s[rank] > 0 else float("inf")
 
-    order = _pivot_order(R0, live_names, [list(st) for st in stages], rank, rank_tol * s[0] if s.size else 0.0)
+    staged = {n for st in stages for n in st}
+    members = [n for n in live_names if n in set(frames) and n not in staged]
+    held = _holders(R0, norms[live], live_names, rank, members)
+    order = _pivot_order(R0, live_names, [list(st) for st in stages], rank, rank_tol * s[0] if s.size else 0.0,
+                         [[n] for n in reversed(held)])
     ident = [live_names[k] for k in order[:rank]]
     confounds = _confounds(R0, norms[live], order, rank, live_names)
     dead = [n for n, ok in zip(cand, live) if not ok]
@@ -397,6 +423,37 @@ def jacobian_identifiability(J: np.ndarray, cand: Sequence[str], stages: Sequenc
                      f"parameters; add poses or check the model")
     return Identifiability(label, tuple(cand), tuple(n for n in cand if n in set(ident)), dropped, confounds,
                            rank, n_poses, s, gap, cond_raw, cond_scaled, rank_tol, tuple(notes))
+
+
+HOLD_TOL = 1e-6  # a member's motion along the freedoms left, against the first holder's: below it, none are left
+HOLD_RTOL = 0.05  # motions this near the largest tie: a symmetric design's members move alike, up to its tolerances
+
+
+def _holders(R0: np.ndarray, norms: np.ndarray, names: list[str], rank: int, members: list[str]) -> list[str]:
+    """The ``members`` (of design frames, in canonical order) that hold the freedoms the columns of R0 leave
+    undetermined, the first holder first: the null space of R0 in the parameters' own units (m, rad: the rows'
+    weights do not change it), orthonormalised; the member that moves most along it holds one freedom, what is
+    left is made orthogonal to its motion, and so on while a member still moves (:data:`HOLD_TOL`). Motions within
+    :data:`HOLD_RTOL` (5 %) of the largest tie and go to the earliest member (:func:`kincal.ties.first_best`): the
+    members of a symmetric design move alike but for its tolerances, which must not choose. The holders are far
+    apart (a frame turned about a point moves the points far from it most), so the parameters left are well
+    determined."""
+    if rank >= R0.shape[1] or not members:
+        return []
+    null = np.linalg.svd(R0)[2][rank:].T / norms[:, None]  # (K, d): the undetermined directions, per SI unit
+    A = np.linalg.qr(null)[0][[names.index(n) for n in members]]
+    held: list[str] = []
+    first = 0.0
+    while len(held) < A.shape[1]:
+        size = np.sqrt(np.einsum("ij,ij->i", A, A))
+        i = first_best(size, rtol=HOLD_RTOL)
+        if size[i] <= HOLD_TOL * (first or 1.0):
+            break
+        first = first or float(size[i])
+        held.append(members[i])
+        u = A[i] / size[i]
+        A = A - np.outer(A @ u, u)
+    return held
 
 
 QR_ROWS = 2048  # rows per block of a tall QR: a block of a Jacobian stays in the cache
@@ -516,23 +573,27 @@ def free_parameters(robot: Robot, q: np.ndarray, base: str = "estimate", names: 
                            exclude=bn if base == "fixed" else (), rank_tol=rank_tol, jacobian=jacobian)
 
 
-def _pivot_order(Js: np.ndarray, names: list[str], stages: list[list[str]], rank: int, cutoff: float) -> list[int]:
+def _pivot_order(Js: np.ndarray, names: list[str], stages: list[list[str]], rank: int, cutoff: float,
+                 after: Sequence[Sequence[str]] = ()) -> list[int]:
     """Column order: pivoted Gram–Schmidt stage by stage (each stage's columns in the stage's own
     order, the rest in model order), a column counting when its residual exceeds ``cutoff``; the
-    columns of no stage come last and complete the rank. Residual norms that tie go to the earliest
+    columns of no stage come next, then the stages ``after`` (one column each: tried in their order); the
+    columns of no stage and of ``after`` complete the rank. Residual norms that tie go to the earliest
     column. The first ``rank`` entries are the chosen columns."""
     pos = {n: k for k, n in enumerate(names)}
     groups, seen = [], set()
-    for stage in stages:
+    for stage in [*stages, *after]:
         g = [pos[n] for n in dict.fromkeys(stage) if n in pos and pos[n] not in seen]
         seen.update(g)
         groups.append(g)
-    groups.append([k for k in range(len(names)) if k not in seen])
+    free = [k for k in range(len(names)) if k not in seen]
+    groups.insert(len(stages), free)
+    groups.append(free + [k for g in groups[len(stages) + 1:] for k in g])  # what completes the rank
     A = np.array(Js, dtype=float)  # columns made orthogonal to the chosen ones as we go
     chosen: list[int] = []
     for at, group in enumerate(groups):
         last = at == len(groups) - 1  # the last stage completes the rank whatever its residuals
-        rest = list(group)
+        rest = [k for k in group if k not in set(chosen)]
         while rest and len(chosen) < rank:
             norms = np.sqrt(np.einsum("ij,ij->j", A, A)[rest])
             i = first_best(norms)

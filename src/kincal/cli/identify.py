@@ -16,7 +16,7 @@ import kincal.io
 import kincal.models
 from kincal._atomic import json_path_for
 from kincal.history import calibration_record, evaluation_record, fingerprint
-from kincal.identify import held_out_stats, stat_change
+from kincal.identify import held_out_nominal, held_out_stats, stat_change
 from kincal.units import DEG, LENGTH_UNITS, MM
 
 from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, covariates_read, csv_list, emit, err, hidden_alias,
@@ -271,7 +271,7 @@ def held_out(res, tests: list, same_frame: bool) -> tuple[list[str], dict]:
     placements of the training and held-out sets, as lines and as JSON (position data: :func:`_held_out_points`)."""
     if res.data:
         return _held_out_points(res, tests, same_frame)
-    held = [(held_out_stats(res, t, res.before, same_frame), held_out_stats(res, t, res.robot, same_frame))
+    held = [(held_out_nominal(res, t, same_frame), held_out_stats(res, t, res.robot, same_frame))
             for t in tests]
     out = [f"  held out {h['type']} ({h['source']}): {stat_change(b, h)}" for b, h in held]
     envelopes = [kincal.analysis.envelope_warning(t.rows, t.q, res.robot, res.uncertainty())[1] for t in tests]

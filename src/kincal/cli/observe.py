@@ -324,13 +324,13 @@ def _fitted_here(robot, frame: tuple, own: tuple, fit, held: dict) -> str:
 
 
 def _nominal_beside(args, robot, record: dict | None, obs, held: dict) -> tuple[dict | None, str]:
-    """The nominal model's statistics on a held-out set, judged as the calibrated one is: with --same-frame its
-    frame, target point and markers' points as registered on the training data (the record's, as the report does),
-    else registered to this set — the target point only for the kinds whose "before" registers it
+    """The nominal model's statistics on a held-out set, judged as calibrate judges it ("before"): with --same-frame
+    its frame, target point and markers' points as registered on the training data (the record's, as the report
+    does), else its frame, target point and target rotation fitted to this set (the calibrated rotation belongs to
+    the calibrated kinematics), kinematics fixed — the target point only for the kinds whose "before" registers it
     (:data:`kincal.identify.MOUNTED`: points and poses; sockets and planes keep the declared one, as calibrate --test
     and the report judge them: the Panda's held-out placements 7.78 mm, not 7.52 with a ball fitted to them), markers'
-    points where the data fix a scale; and how, in words. (None, '') without
-    a record."""
+    points where the data fix a scale; and how, in words. (None, '') without a record."""
     kept = nominal_model(robot, record, args.robot, "before_mounting") if args.same_frame else None
     mounted = {str(k): float(v) for k, v in ((record or {}).get("before_setup") or {}).items()}  # markers' points
     if kept is not None:
@@ -341,10 +341,12 @@ def _nominal_beside(args, robot, record: dict | None, obs, held: dict) -> tuple[
         return None, ""
     mounting = (*(robot.base_params() if obs.kind in ABSOLUTE else ()),
                 *(n for n in robot.params.names if n.startswith("tool.") and obs.kind in MOUNTED))
+    fit = _fixed_kinematics(nominal, obs, mounting, {n: v for n, v in held.items() if not n.startswith("target.")
+                                                     and not (obs.reference and n in mounted)})
     parts = [w for w, p in (("frame", "base."), ("target point", "tool.")) if any(n.startswith(p) for n in mounting)]
-    return _fixed_kinematics(nominal, obs, mounting, {n: v for n, v in held.items() if not (
-        obs.reference and n in mounted)}).per_set[0], f"its {' and '.join(parts)} fitted" if parts else \
-        "its frame and target point as declared"
+    parts += ["target rotation"] if any(n.startswith("target.") for n in fit.nuisance) else []
+    return fit.per_set[0], (f"its {', '.join(parts[:-1])}{' and ' * (len(parts) > 1)}{parts[-1]} fitted"
+                            if parts else "its frame and target point as declared")
 
 
 def _fixed_kinematics(robot, obs, frame: tuple, held: dict):

@@ -6,7 +6,8 @@ from typing import Sequence
 
 import numpy as np
 
-from ..analysis.identifiability import RANK_TOL, free_parameters, identifiability, jacobian_identifiability
+from ..analysis.identifiability import (RANK_TOL, frame_members, free_parameters, identifiability,
+                                        jacobian_identifiability)
 from ..analysis.observability import column_scale, live_columns
 from ..errors import IdentifiabilityError
 from ..models.robot import Robot
@@ -243,7 +244,7 @@ def observation_problem(robot: Robot, planned, names: Sequence[str] | None = Non
     if names is None:
         ident = jacobian_identifiability(J, all_names, [list(nuis_names), list(robot.base_params()),
                                                         list(robot.preferred_params())], robot.name, len(obs),
-                                         RANK_TOL, live_columns(raw))
+                                         RANK_TOL, live_columns(raw), frame_members(robot))
         names = ident.identifiable
     cols = [all_names.index(n) for n in names]
     Jb = blocks[:, :, cols]

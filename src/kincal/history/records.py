@@ -568,7 +568,8 @@ def calibration_record(result: Any, identity: Identity, inputs: Iterable[InputFi
     figures = _combined([result.stats_after] if result.data else result.per_set, "training")
     figures |= _combined(heldout or (), "heldout")
     mounting = None if not result.mounting else {
-        "tool_point": robot.tool_point(), "declared_tool_point": result.nominal.tool_point(), "text": result.mounting}
+        "tool_point": None if result.mounting_gauge[0] else robot.tool_point(),  # None: the data do not determine it
+        "declared_tool_point": result.nominal.tool_point(), "text": result.mounting}
     payload = _about(command, robot) | {"estimated": list(result.names), "calibration": json_safe(result.record()),
                                         "model": _model_text(robot),
                                         "output": None if output is None else output.to_dict()}

@@ -2,7 +2,8 @@
 from .applies import SCOPES, refuse_inapplicable
 from ..analysis.changes import ALPHA
 from .change import Calibrated, ChangeTest, Suspect, check, compare
-from .calibrate import RESIDUALS, calibrate, calibrate_sessions, evaluate, fit_observations, held_out_stats
+from .calibrate import (RESIDUALS, calibrate, calibrate_sessions, evaluate, fit_observations, held_out_nominal,
+                        held_out_stats)
 from .fitting import ABSOLUTE
 from .options import METHODS, PRIOR_CHOICES, FitOptions, PSOOptions
 from .positions import EvaluationStats, joined
@@ -17,7 +18,7 @@ from .verdict import Reason, Thresholds, Verdict
 
 __all__ = ["calibrate", "evaluate", "METHODS", "FitOptions", "PSOOptions", "RESIDUALS", "CalibrationResult", "EvaluationStats", "LOSSES",
            "ErrorModelChoice", "Reason", "Thresholds", "Verdict", "refit_frame", "heldout_cause", "calibrate_sessions", "REGISTERED",
-           "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "observation_identifiability", "stat_change", "stat_line", "trained_setup",
-           "unseen_note",
-           "SCOPES", "refuse_inapplicable", "joined", "ABSOLUTE", "held_out_stats", "register_mounting", "set_cause",
+           "AS_CALIBRATED", "PRIORS", "PRIOR_CHOICES", "fit_observations", "observation_identifiability", "stat_change",
+           "stat_line", "trained_setup", "unseen_note", "SCOPES", "refuse_inapplicable", "joined", "ABSOLUTE",
+           "held_out_stats", "held_out_nominal", "register_mounting", "set_cause",
            "ALPHA", "MOUNTED", "Calibrated", "ChangeTest", "Suspect", "check", "compare"]

@@ -65,7 +65,7 @@ def verdict_of(res: "CalibrationResult") -> Verdict:
     reasons += _base_reasons(res) + _box_reasons(res)
     reasons += correction_reasons(res.nominal, {n: c for n, c in res.corrections.items() if np.isfinite(res.std[n])},
                                   th, res.correction_scales)
-    if res.mounting:
+    if res.mounting and not res.mounting_gauge[0]:  # a tool point the data do not determine is judged by nothing
         reasons += mounting_reasons(res.nominal.tool_point(), res.robot.tool_point(), th)
     reasons += _position_reasons(res, th) if res.data else _set_reasons(res, th)
     reasons += _size_reasons(res)

@@ -27,6 +27,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .._frozen import freeze_arrays
+from ..errors import ModelError
 from ..units import fine
 from .covariance import spd_inverse
 from .lm import LMResult, levenberg_marquardt
@@ -116,7 +117,10 @@ def relevance_fit(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], fi
         step = nominal + d - x
         if np.all(np.abs(step) <= np.maximum(LINEAR, SETTLED * np.sqrt(np.diag(C)))):  # linear here
             return _relevance_result(x + step, r + J @ step, J, prec, s2, groups, True, it, it - 1)
-        r_new, J_new = fun(x + step)
+        try:
+            r_new, J_new = fun(x + step)
+        except ModelError:  # a step the model cannot take (a closed chain that no longer assembles): not kept
+            break
         if not _lower(r_new, x + step - nominal, r, x - nominal, prec, s2):
             break
         x, r, J = x + step, r_new, J_new

@@ -13,6 +13,7 @@ from ..analysis.identifiability import Identifiability
 from ..analysis.uncertainty import ModelUncertainty
 from ..io.measurements import Measurements, write_csv
 from ..models.robot import TOOL_NAMES, Robot
+from ..observe.joint import in_cartesian
 from ..observe.observations import Wrapper
 from ..observe.sessions import InSession
 from ..units import MM, MRAD, display, in_display
@@ -23,7 +24,7 @@ from .positions import EvaluationStats, kept_positions
 from .relevance import prior_lines
 from ..analysis.changes import Repeat
 from .select import ErrorModelChoice
-from .verdict import Verdict, mounting_line, noise_level, robust_z
+from .verdict import Verdict, mounting_line, noise_level, robust_z, undetermined_mounting_line
 from .weak import weak_note
 
 GIMBAL_NEAR = np.radians(5.0)  # the base frame's middle angle this near ±90°: its outer angles turn alike
@@ -309,12 +310,28 @@ class CalibrationResult:
 
     @property
     def mounting(self) -> str:
-        """Where the data put the target against the declared tool point, when the fit determined it;
-        '' otherwise (a mounting result, not a robot error)."""
-        if not self.robot.has_tool_point or not any(np.isfinite(self.std.get(n, np.inf)) for n in TOOL_NAMES
-                                                    if n in self.names):
+        """Where the data put the target against the declared tool point, when the fit determined it; that the
+        data do not determine it, when it stands in a design frame whose gauge freedom the fit holds
+        (:attr:`mounting_gauge`); '' otherwise (a mounting result, not a robot error)."""
+        if not self.robot.has_tool_point:
+            return ""
+        if self.mounting_gauge[0]:
+            return undetermined_mounting_line(*self.mounting_gauge)
+        if not any(np.isfinite(self.std.get(n, np.inf)) for n in TOOL_NAMES if n in self.names):
             return ""
         return mounting_line(self.nominal.tool_point(), self.robot.tool_point())
+
+    @property
+    def mounting_gauge(self) -> tuple[str, tuple[str, ...]]:
+        """The design frame the tool point stands in (:meth:`Robot.frame_freedoms`, in words) with the parameters
+        that hold its gauge freedom in this fit, when it has one: the tool point moves with that frame, so its
+        coordinates are the held parameters' choice, not the data's; ``("", ())`` for none (an arm's flange)."""
+        held = self.identifiability.frames
+        for what, members, _ in self.robot.frame_freedoms():
+            holding = tuple(n for n in held if n in set(members))
+            if holding and set(TOOL_NAMES) & set(members):
+                return what, holding
+        return "", ()
 
     def uncertainty(self) -> ModelUncertainty:
         """The calibrated model's parameter covariance, with the median predicted σ at the training
@@ -474,8 +491,8 @@ class CalibrationResult:
                "error_model_choice": None if self.error_model_choice is None else self.error_model_choice.to_dict(),
                "error_model_notes": list(self.notes), "rejected_rows": {k: list(v) for k, v in self.rejected.items()},
                "diagnosis": None if self.diagnosis is None else self.diagnosis.to_dict(),
-               "mounting": None if not self.mounting else {
-                   "tool_point": self.robot.tool_point().tolist(),
+               "mounting": None if not self.mounting else {  # tool_point None: the data do not determine it
+                   "tool_point": None if self.mounting_gauge[0] else self.robot.tool_point().tolist(),
                    "declared_tool_point": self.nominal.tool_point().tolist(), "text": self.mounting},
                "compliance": self.compliances,  # rad/(N·m) per joint; None: kept at nominal, not determined
                "weakly_determined": {k: float(v) for k, v in self.weak.items()},  # m or rad: the σ the data gave
@@ -554,8 +571,15 @@ class CalibrationResult:
         return "held by the prior" if self.prior and sd < PRIOR_HELD else ""
 
     def before_registration(self) -> str:
-        """How the "before" model was registered to the data, in words (the CLI's and the report's)."""
-        return "target point registered, frame as given (--base fixed)" if self.options.base == "fixed" else \
+        """How the "before" model was registered to the data, in words (the CLI's and the report's): with poses
+        (whatever residual the fit used), the frame, the target point and the target's rotation fitted to each
+        file with the kinematics fixed, as ``kincal evaluate --refit-target`` judges the nominal model; with
+        positions, the frame and the target point registered to them (as ``kincal evaluate`` does)."""
+        fixed = self.options.base == "fixed"
+        if not self.data and any(in_cartesian(o).kind == "pose" for o in self.observations):
+            return ("target point and target rotation fitted to each file, frame as given (--base fixed)" if fixed
+                    else "frame, target point and target rotation fitted to each file") + ", kinematics fixed"
+        return "target point registered, frame as given (--base fixed)" if fixed else \
             "frame and target point registered"
 
     def _data_lines(self) -> list[str]:
@@ -563,6 +587,8 @@ class CalibrationResult:
         tracker noise, the statistics before and after and a fitted drift; σ per kind otherwise."""
         lines = [f"  {a['type']} ({a['source']}): {stat_change(b, a)}"
                  for b, a in zip(self.per_set_before, self.per_set)]
+        if not self.data and any(in_cartesian(o).kind in ("point", "pose") for o in self.observations):
+            lines.insert(0, f"before → after per file (before: nominal, {self.before_registration()}):")
         if self.data:
             noise = noise_level(self.measurements.std, self.options.thresholds)
             lines += [f"residual sigma per axis: {self.sigma * MM:.4f} mm (tracker noise for the verdict "

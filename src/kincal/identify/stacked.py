@@ -21,13 +21,14 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .._threads import blas_threads
-from ..analysis.identifiability import RANK_TOL, Identifiability, jacobian_identifiability, kinds_of
+from ..analysis.identifiability import RANK_TOL, Identifiability, frame_members, jacobian_identifiability, kinds_of
 from ..analysis.observability import live_columns
 from ..errors import IdentifiabilityError, MeasurementError, ModelError
-from ..models.robot import Robot
+from ..models.robot import TOOL_NAMES, Robot
 from ..models.transforms import kabsch
 from ..observe.constraints import SamePointObs
 from ..observe.drifting import DRIFT
+from ..observe.joint import in_cartesian
 from ..observe.observations import PoseObs, Wrapper
 from ..observe.sessions import InSession
 from .covariance import parameter_statistics
@@ -183,7 +184,7 @@ def fit_sets(robot: Robot, observations: Sequence, o: FitOptions, prior: str, lo
     with blas_threads(1):
         wanted, declared = wanted_names(robot, o), robot
         robot, st, gauge, ident, start = _problem(robot, observations, wanted, o.keep, o.rank_tol, held)
-        models = (declared, robot, *_before(robot, st, bool(set(robot.base_params()) & set(wanted))))
+        models = (declared, robot, _before(robot, st, bool(set(robot.base_params()) & set(wanted)), wanted))
         _check_strict(ident, o, st)
         _check_equations(st, start[0].size, len(ident.identifiable if o.method == "lm" else ident.candidates))
         x0 = np.concatenate([robot.params.values, st.nuis0])
@@ -364,7 +365,7 @@ def _identifiability(robot: Robot, st: _Stack, gauge, wanted, keep, rank_tol, fu
                                      [list(keep), [n for n in nuis if n not in st.late], list(gauge),
                                       list(robot.base_params()),
                                       list(robot.preferred_params())], robot.name,
-                                     sum(len(o) for o in st.sets), rank_tol, live)
+                                     sum(len(o) for o in st.sets), rank_tol, live, frame_members(robot))
     ident = _design_frames(robot, ident).without_unseen(gauge)
     notes = (f"not seen by these data (gauge freedoms, kept at their values): {', '.join(gauge)}",) if gauge else ()
     return dataclasses.replace(ident, measured=" + ".join(dict.fromkeys(o.kind for o in st.sets)),
@@ -392,16 +393,39 @@ def _design_frames(robot: Robot, ident: Identifiability) -> Identifiability:
 
 MOUNTED = ("point", "pose")  # the kinds whose positions register the nominal model's target point "before" calibration
 # (markers register their own points; sockets and planes keep the declared target point: the MUKCa sockets' 8.28 mm)
+Before = tuple[Robot, dict, tuple[dict, ...] | None]  # the "before" model, its markers' points, its per-set figures
 
 
-def _before(robot: Robot, st: _Stack, frame: bool) -> tuple[Robot, dict]:
-    """The nominal kinematics as judged "before" calibration: with the measurement frame (when it is
-    fitted, ``frame``), the target point and the markers' points registered to the measured points, pose positions
-    and markers in the robot's frame (:func:`register_mounting`, :func:`register_points`), so the figure does not
-    depend on where the target was declared nor on the frame a fit starts from; and the registered markers' points
-    (name -> m). Markers judged by their start instead: 5.50 mm for one marker of a simulated UR5 registered at 0.83."""
+def _before(robot: Robot, st: _Stack, frame: bool, wanted) -> Before:
+    """The nominal kinematics as judged "before" calibration, so the figure does not depend on where the target
+    was declared, the markers' points registered with it (name -> m) and each set's figures under it (None:
+    computed from the model with the sets' set-up values).
+
+    With poses (whatever residual the fit uses): the measurement frame (when it is fitted, ``frame``), the target
+    point and every set-up parameter (the target's rotation, a session's frame) fitted to the sets' position and
+    rotation errors with the kinematics fixed, as ``kincal evaluate`` judges the nominal model and as a held-out
+    file's nominal figure is (:func:`kincal.identify.held_out_nominal`); a fit of nothing but that mounting is
+    that registration, its own "before" (``()``). Else points and markers: :func:`_registered_before`."""
+    cartesian = [in_cartesian(o) for o in st.sets]
+    mounting = (*(robot.base_params() if frame else ()), *(TOOL_NAMES if robot.has_tool_point else ()))
+    if any(o.kind == "pose" for o in cartesian):
+        if set(wanted) <= set(mounting):
+            return robot, {}, ()  # the fit is that registration: its own "before"
+        from .fitting import fit_stack  # (fitting fits stacks through this module)
+
+        judged = fit_stack(robot, cartesian, FitOptions(diagnose=False).replace(
+            names=mounting, base="estimate" if frame else "fixed").check(robot))
+        return judged.robot, {}, tuple({**s, "type": o.kind} for s, o in zip(judged.per_set, st.sets))
+    return (*_registered_before(robot, st, cartesian, frame), None)
+
+
+def _registered_before(robot: Robot, st: _Stack, cartesian, frame: bool) -> tuple[Robot, dict]:
+    """The nominal kinematics with the measurement frame (when it is fitted, ``frame``), the target point and the
+    markers' points registered to the measured points and markers in the robot's frame (:func:`register_mounting`,
+    :func:`register_points`), and the registered markers' points (name -> m). Markers judged by their start instead:
+    5.50 mm for one marker of a simulated UR5 registered at 0.83."""
     found: dict = {}  # a point's name (tool, marker[m1]) -> its (q, xyz) per set
-    for o in (o for o in st.sets if o.kind in (*MOUNTED, "markers")):
+    for o in (o for o in cartesian if o.kind in (*MOUNTED, "markers")):
         for key, seen in o.flange_positions().items():
             found.setdefault(key, []).append(seen)
     keys = list(found)
@@ -485,13 +509,13 @@ def _swarm_drift(robot: Robot, ident, moved) -> list[tuple[str, float, tuple]]:
     return [(d, HALF_WIDTH[kinds[d]] ** 2 / 3.0, ident.confounds.get(d, ())) for d in moved if d in kinds]
 
 
-def _result(models: tuple[Robot, Robot, Robot, dict], st, gauge, ident, free, x0, fit, weak, o: FitOptions, error: dict,
+def _result(models: tuple[Robot, Robot, Before], st, gauge, ident, free, x0, fit, weak, o: FitOptions, error: dict,
             spent: list, history: tuple[float, ...], undetermined=()) -> CalibrationResult:
     """The fit of the columns ``free`` as a :class:`CalibrationResult` with options ``o`` (``models``: the model as given,
-    as registered, where the fit began, and as judged "before" with its markers' points, :func:`_before`;
+    as registered, and as judged "before" with its markers' points and its per-set figures, :func:`_before`;
     ``undetermined``: moved by a particle swarm but not determined by the data, σ = inf; ``spent``: iterations and
     evaluations of every solver run, and how many runs)."""
-    declared, robot, before_model, before_setup = models
+    declared, robot, (before_model, before_setup, figures) = models
     full = x0.copy()
     full[st.cols(free)] = fit.x
     P = robot.n_params
@@ -506,13 +530,16 @@ def _result(models: tuple[Robot, Robot, Robot, dict], st, gauge, ident, free, x0
     std = {n: float(v) for n, v in zip(free, sd)}
     std.update({n: np.inf for n in st.nuis_names if n not in std})
     judged = [o.among(st.sets) if isinstance(o, SamePointObs) else o for o in st.sets]  # a shared point is one point
-    before = tuple(o.stats(before_model, before_model.params.values, _before_nuisance(
-        before_model, o, x0[P:][slot], [st.nuis_names[k] for k in slot], before_setup))
-        for o, slot in zip(judged, st.slots))
     try:
         after = tuple(o.stats(robot, full[:P], full[P:][slot]) for o, slot in zip(judged, st.slots))
     except ModelError:  # a fit on other residuals (the joints') whose model does not assemble at the data's joints
         raise unassembled(st.sets) from None
+    before: tuple[dict, ...] | None = figures
+    if before == ():  # a fit of the mounting alone: it is its own "before"
+        before_model, before = calibrated, after
+    before = before or tuple(o.stats(before_model, before_model.params.values, _before_nuisance(
+        before_model, o, x0[P:][slot], [st.nuis_names[k] for k in slot], before_setup))
+        for o, slot in zip(judged, st.slots))
     r = st.judged(fit.residual, fit.jacobian, _hat_covariance(fit, cov), full[:P], full[P:])
     return CalibrationResult(
         robot=calibrated, nominal=declared, registered=robot, before=before_model, before_setup=before_setup,

@@ -505,6 +505,23 @@ def mounting_line(declared: np.ndarray, fitted: np.ndarray) -> str:
             f"{np.linalg.norm(fitted - declared) * MM:.2f} mm apart)")
 
 
+def undetermined_mounting_line(frame: str, held: tuple[str, ...]) -> str:
+    """That the data do not determine the target's place in the flange frame: the tool point stands in a design
+    frame (``frame``, in words) whose gauge freedom the fit holds at the parameters ``held``.
+
+    Examples
+    --------
+    >>> line = undetermined_mounting_line("where the platform frame stands among the platform points", ("leg1.pz",))
+    >>> line[:line.index(":")]
+    "the target's place in the flange frame is not determined by these data"
+    >>> line[line.index("held"):]
+    'held here at leg1.pz: another choice moves the tool point, not a prediction)'
+    """
+    return (f"the target's place in the flange frame is not determined by these data: the tool point "
+            f"({', '.join(TOOL_NAMES)}) trades with the design points it stands among ({frame} is a gauge freedom, "
+            f"held here at {', '.join(held)}: another choice moves the tool point, not a prediction)")
+
+
 def mounting_reasons(declared: np.ndarray, fitted: np.ndarray, th: Thresholds) -> list[Reason]:
     """The fitted tool point against the declared one: a mounting result, with its own limits."""
     gap, line = float(np.linalg.norm(fitted - declared)), mounting_line(declared, fitted)

@@ -38,6 +38,7 @@ from .parameters import Parameters
 from .joint_space import JointSpace
 from .robot import TOOL_NAMES, Robot
 from .serial import BASE_NAMES
+from .transforms import kabsch
 
 LEG_NAMES = ("bx", "by", "bz", "px", "py", "pz", "zero", "scale")
 LEG_KINDS = ("length",) * 7 + ("ratio",)
@@ -132,9 +133,13 @@ class StewartRobot(ImplicitRobot):
 
     def correction_hint(self, calibrated: Robot) -> str:
         """Legs the calibration put where other legs are drawn (base and platform points each nearer another leg's
-        than their own by more than ``RELABEL_MARGIN``): the joint columns in another order, a relabelling the
-        fit follows (the model then commands each leg by another's column)."""
+        than their own by more than ``RELABEL_MARGIN``, each set of points moved rigidly onto the drawing first: where
+        the design frames stand among them is a gauge freedom, held where the fit chose): the joint columns in
+        another order, a relabelling the fit follows (the model then commands each leg by another's column)."""
         mine, theirs = self._anchors(self.params.values), self._anchors(calibrated.params.values)
+        for at in (slice(0, 3), slice(3, 6)):  # the base points, the platform points
+            R, t = kabsch(theirs[:, at], mine[:, at])
+            theirs[:, at] = theirs[:, at] @ R.T + t
         gap = np.linalg.norm(theirs[:, None] - mine[None], axis=2)  # (calibrated leg, drawn leg)
         moved = [(i, int(np.argmin(gap[i]))) for i in range(N_LEGS)
                  if gap[i].min() + RELABEL_MARGIN < gap[i, i]]

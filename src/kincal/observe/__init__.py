@@ -4,12 +4,13 @@ set-up parameters it brings. The stacked fit is :func:`kincal.identify.fit_obser
 from .constraints import PlaneObs, SamePointObs
 from .drifting import Drifting
 from .files import KINDS, ObservationFormat, describe, read_observations, write_observations
-from .joint import JointObs, PoseJointObs, in_joint_space
+from .joint import JointObs, PoseJointObs, in_cartesian, in_joint_space
 from .markers import MarkersObs
 from .observations import Observation, PointObs, PoseObs
 from .orientation import check_convention, default_columns, from_matrices, to_matrices
 from .sessions import InSession
 
-__all__ = ["Observation", "PointObs", "JointObs", "PoseJointObs", "in_joint_space", "PoseObs", "MarkersObs",
-           "SamePointObs", "PlaneObs", "InSession", "Drifting", "KINDS", "ObservationFormat", "read_observations",
-           "write_observations", "describe", "check_convention", "default_columns", "from_matrices", "to_matrices"]
+__all__ = ["Observation", "PointObs", "JointObs", "PoseJointObs", "in_joint_space", "in_cartesian", "PoseObs",
+           "MarkersObs", "SamePointObs", "PlaneObs", "InSession", "Drifting", "KINDS", "ObservationFormat",
+           "read_observations", "write_observations", "describe", "check_convention", "default_columns",
+           "from_matrices", "to_matrices"]

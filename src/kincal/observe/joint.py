@@ -275,3 +275,42 @@ def in_joint_space(obs, std: float | None = None):
         return JointObs(q=obs.q, rows=obs.rows, source=obs.source, xyz=obs.xyz, std_pos=obs.std, **sigma)
     raise ValueError(f"residual='joint' inverts measured positions or poses; {obs.kind} data ({obs.source}) have "
                      f"none to invert: use residual='cartesian'")
+
+
+def in_cartesian(obs):
+    """The set ``obs`` with its residual in the measurement's own space: the inverse of :func:`in_joint_space` (a
+    :class:`JointObs` becomes the :class:`PointObs`, a :class:`PoseJointObs` the :class:`PoseObs` it was made of;
+    a wrapper keeps its wrapping); any other set as it is. What a figure of the nominal model is judged on
+    whatever residual the fit used: the position and rotation errors it reports.
+
+    Parameters
+    ----------
+    obs : Observation
+        A set of any type, its residual in joint space or not.
+
+    Returns
+    -------
+    Observation
+        The same samples, σ and target, with the residual of their measurement (positions in m, rotations in
+        rad).
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.observe import PointObs, in_cartesian, in_joint_space
+    >>> robot = kincal.load_robot("puu3")
+    >>> meas = kincal.simulate(robot, robot.sample_joints(4, seed=1))
+    >>> obs = PointObs(meas.q, meas.rows, meas.source, xyz=meas.xyz, std=20e-6)
+    >>> back = in_cartesian(in_joint_space(obs))
+    >>> type(back).__name__, back.kind, back.std, bool((back.xyz == obs.xyz).all()), in_cartesian(obs) is obs
+    ('PointObs', 'point', 2e-05, True, True)
+    """
+    if isinstance(obs, Wrapper):
+        return dataclasses.replace(obs, inner=in_cartesian(obs.inner))
+    if isinstance(obs, PoseJointObs):
+        return PoseObs(q=obs.q, rows=obs.rows, source=obs.source, xyz=obs.xyz, R=obs.R, std_pos=obs.std_pos,
+                       std_rot=obs.std_rot, target_rotation=obs.target_rotation, anchored=obs.anchored,
+                       own_target=obs.own_target)
+    if isinstance(obs, JointObs):
+        return PointObs(q=obs.q, rows=obs.rows, source=obs.source, xyz=obs.xyz, std=obs.std_pos)
+    return obs

@@ -9,7 +9,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..identify.calibrate import held_out_stats
+from ..identify.calibrate import held_out_nominal, held_out_stats
 from ..identify.result import CalibrationResult
 from ..identify.sessions import set_cause
 from ..observe.sessions import InSession
@@ -24,7 +24,7 @@ def sets_part(result: CalibrationResult, tests: Sequence, same_frame: bool):
     """The sections, the numbers they add to the JSON (the held-out statistics under the calibrated
     and the nominal model) and the lines of the terminal summary; ``tests``: held-out sets."""
     held = [held_out_stats(result, t, result.robot, same_frame) for t in tests]
-    nominal = [held_out_stats(result, t, result.before, same_frame) for t in tests]
+    nominal = [held_out_nominal(result, t, same_frame) for t in tests]
     residuals = [_row(s, f"training {k + 1}", "nominal", "before") for k, s in enumerate(result.per_set_before)]
     residuals += [_row(s, f"training {k + 1}", "calibrated", "after") for k, s in enumerate(result.per_set)]
     residuals += [_row(s, f"held out {k + 1}", "nominal", "held_out_before") for k, s in enumerate(nominal)]
