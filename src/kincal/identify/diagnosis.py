@@ -194,6 +194,12 @@ def data_changes(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]
     return _angle_units(robot, meas) + _joint_columns(robot) + _frame_and_rows()
 
 
+def input_changes(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]:
+    """The candidate input mistakes of a file judged against a model with fixed kinematics (a check): the positions'
+    length unit (:func:`_length_units`) and :func:`data_changes`, in the canonical order."""
+    return _length_units(meas) + data_changes(robot, meas)
+
+
 def _bundled(name: str) -> Robot:
     from ..models.yaml_io import load_robot
     return load_robot(name)
