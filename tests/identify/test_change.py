@@ -1,6 +1,7 @@
 """compare, check and design --check: has the robot changed? Against closed forms (a DH θ is the joint's zero, a
 translation of the base is a link's d), simulated changes of known size, and the real UR5 (acceptance 2)."""
 import dataclasses
+import json
 import math
 
 import numpy as np
@@ -420,3 +421,40 @@ def test_design_check_says_the_unit_it_wrote_the_joints_in(tmp_path, capsys):
         assert f"(joints in {unit})" in capsys.readouterr().out
         rows[unit] = np.loadtxt(tmp_path / f"{unit}.csv", delimiter=",", skiprows=1)
     assert np.allclose(rows["deg"], np.degrees(rows["rad"]), rtol=1e-12, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_a_check_on_data_that_do_not_fit_the_robot_names_the_input_mistake_not_a_change(tmp_path, capsys):
+    """The real UR5 calibrated on its grid, checked on its 20 random poses with x and y swapped: 'the data do not
+    fit this robot: the positions are mirrored' (as calibrate says), the check with them undone the one of the file
+    as measured (the swap and the mirror's z negated are one turn, which the re-fitted frame takes), not
+    're-calibrate' with j2.a +303.6 mm; the columns of j2 and j3 swapped, j4 negated, millimetres as metres named
+    the same way; the WAM's random poses (its first 6 joints) against the UR5: no input mistake explains them, no
+    robot change is named (it was j3.a +567 mm)."""
+    wam = kincal.load_robot("wam")
+    cal_file = tmp_path / "cal.yaml"
+    assert main(["calibrate", "ur5", str(DATA / "ur5_grid.csv"), *UR5, "-o", str(cal_file)]) == 0
+    capsys.readouterr()
+    assert main(["check", str(cal_file), str(DATA / "ur5_random.csv"), *UR5, "--xyz-cols", "y,x,z", "--json"]) == 4
+    out = json.loads(capsys.readouterr().out)
+    cal = Calibrated.of(kincal.load_robot(str(cal_file)), kincal.models.load_calibration_record(str(cal_file)), "c")
+    meas = kincal.read_measurements(DATA / "ur5_random.csv", cal.robot, UR5_COLS, length_unit="mm", angle_unit="deg")
+    clean = check(cal, meas.q, meas.xyz)
+    assert clean.verdict == "still good"
+    assert out["verdict"] == ("the data do not fit this robot: the positions are mirrored (a left-handed measurement "
+                              "frame: two axes swapped or one negated)") and out["changed"]
+    assert f"the check says still good (discrepancy {out['rms'] * 1e3:.4g} mm RMS per pose -> " \
+           f"{clean.rms * 1e3:.4g} mm)" in out["notes"][-1] and out["suspects"][0]["size"] > 10e-3
+    for q, xyz, units, cause in ((meas.q[:, [0, 2, 1, 3, 4, 5]], meas.xyz, meas.units, "the columns of j2 and j3 are "
+                                                                                         "swapped"),
+                                 (meas.q * [1, 1, 1, -1, 1, 1], meas.xyz, meas.units, "j4 counts the other way"),
+                                 (meas.q, meas.xyz * 1e3, None, "the positions are in mm, read as m")):
+        test = check(cal, q, xyz, units=units)
+        assert test.verdict.startswith(f"the data do not fit this robot: {cause}"), test.verdict
+        assert "the check says still good (discrepancy" in test.notes[-1]
+        assert f"-> {clean.rms * 1e3:.4g} mm). Fix: " in test.notes[-1]
+    other = kincal.read_measurements(DATA / "wam_random.csv", wam, [f"joint_{i}" for i in range(1, 8)],
+                                     length_unit="mm", angle_unit="deg")
+    test = check(cal, other.q[:, :6], other.xyz, units=other.units)
+    assert test.changed and test.verdict == "the data do not fit this robot: no common input mistake explains them"
+    assert "common input mistakes kincal tried" in test.notes[-1] and "likely cause" not in test.notes[-1]

@@ -34,6 +34,8 @@ def lines_of(test: ChangeTest) -> list[str]:
     out = [f"verdict: {test.verdict}  (false-alarm probability {test.alpha:.0%}; p = {test.p_value:.3g})",
            f"{test.poses} poses, frame {frame}: discrepancy {test.rms * kincal.units.MM:.4f} mm RMS per pose, "
            f"whitened {test.statistic:.1f} on {test.dof} degrees of freedom"]
+    if test.misfit:  # its suspects are no robot's changes: the note says why, and what the data are
+        return out + [f"note: {n}" for n in test.notes]
     if test.changed and test.explained < EXPLAINED_MIN:
         out.append("single changes, none explaining it alone (ranked; sizes with σ):")
     elif test.changed:
@@ -83,7 +85,7 @@ def cmd_check(args) -> int:
     check_paths([args.data], [])
     meas = kincal.read_measurements(args.data, cal.robot, joint_cols=args.joint_cols, xyz_cols=args.xyz_cols,
                                     length_unit=args.length_unit, angle_unit=args.angle_unit)
-    test = check(cal, meas.q, meas.xyz, same_frame=args.same_frame, alpha=args.alpha)
+    test = check(cal, meas.q, meas.xyz, same_frame=args.same_frame, alpha=args.alpha, units=meas.units)
     stored = record(args, test, args.calibration, cal.robot, [args.calibration, args.data])
     emit(args, test.to_dict(), "\n".join(lines_of(test) + ([stored] if stored else [])))
     return EXIT_REFUSED if test.changed else 0

@@ -25,10 +25,18 @@ no part in the tests. The false-alarm probability is therefore at most α; simul
 noise, a 0.1 mm unmodelled harmonic, 200 pairs) it is measured by ``benchmarks/change_detection.py``. The suspects are
 ranked by their posterior odds (the directed statistic z² and the prior odds ``ODDS`` of their kind): the first is
 the single change that most probably explains the discrepancy.
+
+A check whose first suspect is beyond a real robot's error (the verdict's suspect limits, 10 mm and 2°; the frame
+and the tool point aside), and determined better than that, names no change of the robot: the data do not fit it.
+The input mistakes the diagnosis knows (:func:`kincal.identify.diagnosis.input_changes`: the positions' length unit,
+the joints' angle unit, a joint column negated, offset or swapped, mirrored positions, shifted rows) are screened by
+the rigid fit of the model to the changed data, and the best few checked again: the one whose undoing leaves a
+plausible check (and halves the discrepancy) is named with its fix, else that none of them explains the data.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from contextlib import suppress
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -36,9 +44,12 @@ from .._frozen import freeze_arrays
 from .._stats import f_sf
 from .._threads import blas_threads
 from ..analysis.changes import ALPHA, MIN_CHECK_POSES, Candidates, Repeat, candidates, frame_basis, without
-from ..errors import MeasurementError, ModelError
+from ..errors import KincalError, MeasurementError, ModelError
+from ..io.measurements import Measurements
 from ..models.robot import Robot
-from ..units import DEG, MM, SHOWN
+from ..models.transforms import kabsch
+from ..ties import first_best, order_with_ties
+from ..units import DEG, MM, SHOWN, display
 from .registration import register_base
 
 REGION_POSES = 200
@@ -138,6 +149,9 @@ class ChangeTest:
     explained : float, optional
         The share of the whitened discrepancy the first suspect explains alone (1 by default); below
         ``EXPLAINED_MIN`` no single change is named in the verdict.
+    misfit : str, optional
+        Why the data do not fit the robot at all, when the first suspect is beyond a real robot's error: the likely
+        input mistake, or that none explains them (default ``""``: they fit; a note gives the figures and the fix).
 
     Examples
     --------
@@ -161,9 +175,12 @@ class ChangeTest:
     rms: float
     notes: tuple[str, ...] = ()
     explained: float = 1.0
+    misfit: str = ""
 
     @property
     def verdict(self) -> str:
+        if self.misfit:
+            return f"the data do not fit this robot: {self.misfit}"
         if not self.changed:
             return "still good" if self.question == "check" else "no significant change"
         what = "no single change explains it" if self.explained < EXPLAINED_MIN else \
@@ -174,7 +191,7 @@ class ChangeTest:
         return {"question": self.question, "verdict": self.verdict, "changed": self.changed, "alpha": self.alpha,
                 "p_value": self.p_value, "statistic": self.statistic, "dof": self.dof, "poses": self.poses,
                 "frame_refitted": self.frame_refitted, "rms": self.rms, "explained": self.explained,
-                "suspects": [s.to_dict() for s in self.suspects], "notes": list(self.notes)}
+                "misfit": self.misfit, "suspects": [s.to_dict() for s in self.suspects], "notes": list(self.notes)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -334,8 +351,11 @@ def _miss(cal: Calibrated, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = False,
-          alpha: float = ALPHA) -> ChangeTest:
+          alpha: float = ALPHA, units: tuple[str, str] | None = None) -> ChangeTest:
     """Is the calibrated model still good? A short check on a few measured poses.
+
+    Data whose most likely single change lies beyond a real robot's error (the verdict's suspect limits, 10 mm and
+    2°) are not taken for a change of the robot: the input mistake that explains them is named (``misfit``).
 
     Parameters
     ----------
@@ -349,11 +369,14 @@ def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = Fa
         The instrument kept the calibration's frame; default False: the frame is re-fitted.
     alpha : float, optional
         The false-alarm probability (default ``ALPHA``, 0.05).
+    units : tuple of (str, str), optional
+        The (length, angle) units the data were read in, to name a unit mistake (default None: SI).
 
     Returns
     -------
     ChangeTest
-        "still good" or "re-calibrate (kind: name)", with the suspects (sizes: measured − model).
+        "still good" or "re-calibrate (kind: name)", with the suspects (sizes: measured − model); or "the data do
+        not fit this robot: cause" when they do not.
 
     Raises
     ------
@@ -366,6 +389,12 @@ def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = Fa
     if len(q) < MIN_CHECK_POSES:
         raise MeasurementError(f"a check needs at least {MIN_CHECK_POSES} poses (the frame takes 6 of the 3 per "
                                f"pose); {len(q)} given. Measure the poses `kincal design CAL --check` chose")
+    test = _checked(cal, q, xyz, same_frame, alpha)
+    return test if _implausible(test) is None else _misfit(cal, q, xyz, alpha, units, test)
+
+
+def _checked(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool, alpha: float) -> ChangeTest:
+    """The check of :func:`check` without its plausibility gate."""
     with blas_threads(1):  # small dense work: OpenBLAS threads spinning on a busy machine cost 100x (0.4 s)
         expected, A = cal.repeat.conditioned(cal.robot, q)  # what the calibration's own samples say it misses by
     robot = cal.robot
@@ -378,6 +407,75 @@ def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = Fa
     basis = None if same_frame else frame_basis(robot, q)
     return _judged("check", d, U, candidates(robot, q, basis), basis, cal.repeat.dof, cal.repeat.dispersion, alpha,
                    len(q), tuple(_outside(cal, q)), _whole_frame(robot, q) if same_frame else None)
+
+
+NOT_ROBOT = ("frame", "tool")  # kinds of change that say where the instrument stands or the target is mounted
+
+
+def _implausible(test: ChangeTest) -> Suspect | None:
+    """The first suspect of a significant ``test`` when it lies beyond a real robot's error (the verdict's suspect
+    limits, :class:`kincal.identify.verdict.Thresholds`: 10 mm, 2°, 2 %; the frame and the tool point aside) and
+    is determined better than that (a σ within the limit, as a calibration judges its corrections: the real WAM's
+    check names j7's zero at +30.7° ± 8.0°, which these poses barely see)."""
+    from .verdict import Thresholds
+
+    first = test.suspects[0] if test.changed and test.suspects else None
+    if first is None or first.kind in NOT_ROBOT:
+        return None
+    limit = Thresholds().suspect(first.unit)
+    return first if abs(first.size) > limit >= first.sigma else None
+
+
+def _misfit(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, alpha: float, units: tuple[str, str] | None,
+            test: ChangeTest) -> ChangeTest:
+    """``test`` (its first suspect beyond a real robot's error) as data that do not fit the robot: each input
+    mistake of :func:`kincal.identify.diagnosis.input_changes` undone is screened by the rigid fit of the model to
+    it, the ``MAX_FULL`` best that halve the original's checked again (the frame re-fitted: the mirrored frame's
+    fix), and the one with the smallest discrepancy whose first suspect is plausible is named; else none."""
+    from .diagnosis import EXPLAIN_RATIO, MAX_FULL, input_changes
+    from .options import FitOptions
+    from .verdict import Thresholds
+
+    meas = Measurements(q, xyz, cal.robot.joint_names, "check", units=units)
+    changes = input_changes(cal.robot, meas)
+    changed = [change(cal.robot, meas, FitOptions())[1] for _, change in changes]
+    screens = [_rigid_rms(cal.robot, m) if isinstance(m, Measurements) else np.inf for m in changed]
+    limit = EXPLAIN_RATIO * _rigid_rms(cal.robot, meas)
+    tried = []
+    for k in [k for k in order_with_ties(screens, descending=False) if screens[k] < limit][:MAX_FULL]:
+        m = changed[k]
+        assert isinstance(m, Measurements)  # screened: a change of the data
+        with suppress(KincalError, ValueError, np.linalg.LinAlgError):
+            again = _checked(cal, m.q, m.xyz, False, alpha)
+            if _implausible(again) is None and again.rms < EXPLAIN_RATIO * test.rms:
+                tried.append((changes[k][0], again))
+    th, first = Thresholds(), test.suspects[0]
+    head = (f"the most likely single change, {first.name} {display(first.size, first.unit, digits=(2, 2))}, is "
+            f"beyond a real robot's error ({th.length_suspect * MM:g} mm, {th.angle_suspect * DEG:g} deg): not a "
+            f"change of the robot, the data do not fit it")
+    if not tried:
+        note = (f"{head}; none of the {len(changes)} common input mistakes kincal tried (length and angle units, "
+                f"joint columns negated, offset or swapped, mirrored positions, shifted rows) explains them: check "
+                f"that the data are this robot's and the calibration file its own; if the robot was crashed, "
+                f"re-mastered or rebuilt, re-calibrate it")
+        return replace(test, misfit="no common input mistake explains them", notes=(*_outside(cal, q), note))
+    cause, again = tried[first_best([t.rms for _, t in tried], maximize=False)]
+    note = (f"{head}; likely cause: {cause.cause}; with that undone the check says {again.verdict} (discrepancy "
+            f"{test.rms * MM:.4g} mm RMS per pose -> {again.rms * MM:.4g} mm). Fix: {cause.fix}")
+    return replace(test, misfit=cause.cause, notes=(*_outside(cal, q), note))  # not the suspects' notes
+
+
+def _rigid_rms(robot: Robot, meas: Measurements) -> float:
+    """RMS distance (m) of the positions of ``meas`` from the robot's at its joints in the rigid frame that fits
+    them best (the frame re-fitted, Kabsch); inf where the robot has no position there."""
+    try:
+        p = robot.forward(meas.q)
+    except (KincalError, ValueError):
+        return np.inf
+    if len(p) < 3 or not np.all(np.isfinite(p)):
+        return np.inf
+    R, t = kabsch(p, meas.xyz)
+    return float(np.sqrt(np.mean(np.sum((meas.xyz - p @ R.T - t) ** 2, axis=1))))
 
 
 def _in_frame(robot: Robot, base: np.ndarray) -> np.ndarray:

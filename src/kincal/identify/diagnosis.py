@@ -56,7 +56,7 @@ if TYPE_CHECKING:  # the result holds a Diagnosis: result imports this module
 EXPLAIN_RATIO = 0.5  # a candidate whose fit leaves less than half the residual σ explains the data
 NOT_WORSE = 2.0  # ... or one with a better verdict and a residual σ at most this many times the original
 MAX_FULL = 3  # screened data changes that get a full calibration
-TRIGGERS = ("implausible-correction", "large-correction", "residual", "outliers")
+TRIGGERS = ("implausible-correction", "large-correction", "residual", "outliers", "frame-jump")
 SCREEN_POSES = 200  # the screen registers the nominal model to the first this many poses
 SCREEN_ITERATIONS = 8  # ... in this many steps: enough to tell a fitting change from the rest
 
@@ -192,6 +192,12 @@ def data_changes(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]
     order): an angle unit, a joint column negated, offset or swapped with another, the positions mirrored, the
     rows shifted; what a model with fixed kinematics (a held-out file) can be judged against."""
     return _angle_units(robot, meas) + _joint_columns(robot) + _frame_and_rows()
+
+
+def input_changes(robot: Robot, meas: Measurements) -> list[tuple[Cause, Change]]:
+    """The candidate input mistakes of a file judged against a model with fixed kinematics (a check): the positions'
+    length unit (:func:`_length_units`) and :func:`data_changes`, in the canonical order."""
+    return _length_units(meas) + data_changes(robot, meas)
 
 
 def _bundled(name: str) -> Robot:

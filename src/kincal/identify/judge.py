@@ -19,8 +19,8 @@ from ..units import MM, fine
 from .._csv import listed
 from .pso import HALF_WIDTH
 from .verdict import (FALSE_ALARM, Reason, Thresholds, Verdict, correction_reasons, drift_reasons, duplicate_groups,
-                      duplicate_reasons, fitted_drift_reasons, mounting_reasons, noise_level, outlier_reasons,
-                      repeat_tolerance, residual_reasons, robust_z)
+                      duplicate_reasons, fitted_drift_reasons, jump_reasons, mounting_reasons, noise_level,
+                      outlier_reasons, repeat_tolerance, residual_reasons, robust_z)
 
 if TYPE_CHECKING:
     from .diagnosis import Diagnosis
@@ -169,8 +169,9 @@ def _base_reasons(res: "CalibrationResult") -> list[Reason]:
 
 
 def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
-    """Position data as fitted: residual σ (outliers left out) against the tracker noise, warm-up
-    drift, per-pose outliers, repeated poses and a fitted drift."""
+    """Position data as fitted: a frame that jumps inside a file (whatever the residual: a jump the fit has bent
+    the model to can leave a σ the noise explains), residual σ (outliers left out) against the tracker noise,
+    warm-up drift, per-pose outliers, repeated poses and a fitted drift (unless a step explains the data better)."""
     meas, z, err = res.measurements, res.pose_z, res.residuals
     inliers = err[z <= th.outlier_limit(len(z))]  # outliers are named on their own, not smeared into σ
     pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
@@ -178,12 +179,16 @@ def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     norms = np.linalg.norm(err, axis=1)
     files = meas.session if meas.session is not None and len(set(meas.session)) > 1 else None  # rows are per file
     parts = [(None, np.ones(len(z), bool))] if files is None else [(str(f), files == f) for f in dict.fromkeys(files)]
-    reasons = [r for f, m in parts for r in drift_reasons(meas.rows[m], norms[m], f)]
+    model, base = res.robot.forward(meas.q), set(res.nominal.base_params())
+    fitted = len([n for n in res.names if n not in base]) / len(z)  # the kinematics' parameters per pose
+    jumps = [r for f, m in parts for r in jump_reasons(meas.rows[m], meas.xyz[m], model[m], round(fitted * m.sum()),
+                                                        res.drift is not None, f)]
+    reasons = [*jumps, *(r for f, m in parts for r in drift_reasons(meas.rows[m], norms[m], f))]
     reasons += residual_reasons(pos_sigma, noise, th)
     reasons += [r for f, m in parts for r in outlier_reasons(meas.rows[m], z[m], th, res.options.loss, f)]
     return [*reasons, *duplicate_reasons(meas.rows, duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types,
                                                                                                  th))),
-            *fitted_drift_reasons(res.drift, noise[0], meas.xyz)]
+            *([] if jumps else fitted_drift_reasons(res.drift, noise[0], meas.xyz))]  # a step, not a drift
 
 
 def _set_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
@@ -318,7 +323,8 @@ def _diagnosed(res: "CalibrationResult", found: "Diagnosis", verdict: Verdict) -
         else verdict.status
     reason = Reason(status, f"cause-{best.code}" if best else "cause-unknown",
                     found.message() + ("" if res.data else " (screened on the measured positions)"))
-    return Verdict(status, (reason, *verdict.reasons))
+    named = best is not None and best.code == "frame-jump"  # the jump the cause names with its refit: not twice
+    return Verdict(status, (reason, *(r for r in verdict.reasons if not (named and r.code == "frame-jump"))))
 
 
 def sample_norms(sets, r: np.ndarray) -> list[np.ndarray]:

@@ -27,6 +27,9 @@ CLI flags):
   independent;
 * drift: when the first tenth of the poses in acquisition (row) order carry errors 1.5× and 3
   standard errors above the rest, the tracker or the robot was still warming up;
+* a measurement frame that jumps inside a file, whatever the residual (:func:`jump_reasons`: a rigid frame
+  of its own from some row on, significant by the F test at 1 % over all rows, removing half the squared error
+  and fitting better than a linear drift): named by row; with a fitted drift, instead of the drift;
 * a fit that did not converge is refused.
 """
 from __future__ import annotations
@@ -43,6 +46,7 @@ import numpy as np
 from .._csv import MAX_LISTED, listed
 from ..models.parameters import SUSPECT
 from ..models.robot import TOOL_NAMES, Robot
+from ..models.unit_checks import frame_jump_test
 from ..ties import first_best
 from ..units import DEG, MM, SHOWN, display
 from .noise import decreasing_root
@@ -619,6 +623,29 @@ def fitted_drift_reasons(drift: dict | None, noise: float, xyz: np.ndarray | Non
                  f"{r:+.2f}), so a drift cannot be told from an error that grows along {axis} (one the model lacks): "
                  f"measure in a shuffled order, or repeat a reference pose, to tell them apart")
     return [Reason("suspect", "drift-fitted", text)]
+
+
+def jump_reasons(rows: np.ndarray, xyz: np.ndarray, model: np.ndarray, n_params: int = 0, drift: bool = False,
+                 source: str | None = None) -> list[Reason]:
+    """A measurement frame that jumps inside one file (of the file ``source``, one of several): the positions xyz
+    (N, 3) m against the fitted model's (N, 3) m, in row order (``rows``, their line numbers), judged by
+    :func:`kincal.models.unit_checks.frame_jump_test` (``n_params`` kinematic parameters fitted to them), named by
+    the row where the second frame starts with the RMS before and after a frame per part and the linear drift's;
+    with ``drift`` (a drift term fitted) the step is named instead of the drift."""
+    order = np.argsort(rows, kind="stable")
+    jump = frame_jump_test(xyz[order], model[order], n_params)
+    if jump is None:
+        return []
+    row, mm = int(rows[order][jump.index]), (lambda v: f"{v * MM:.3g} mm")
+    head = "" if source is None else f"{source}: "
+    versus = (f"a step, not a drift: the fitted linear drift leaves {mm(jump.drift)}" if drift else
+              f"a linear drift over the rows would leave {mm(jump.drift)}")
+    return [Reason("suspect", "frame-jump", f"{head}the measurement frame jumps at row {row}: the positions fit the "
+                                            f"calibrated model to {mm(jump.one)} RMS in one frame, to "
+                                            f"{mm(jump.two)} with one frame for the rows before it and one from it "
+                                            f"on ({versus}): two set-ups in one file, or the tracker was moved or "
+                                            f"bumped there; split the file at row {row}: one file per session (each "
+                                            f"gets its own frame)")]
 
 
 ORDER_CORRELATION = 0.9  # |r| of row order against a position axis beyond which a drift is a position effect too
