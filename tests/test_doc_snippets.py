@@ -179,7 +179,7 @@ def test_the_positioner_figures_of_the_measurements_page_are_those_printed(tmp_p
 @pytest.mark.slow
 def test_the_six_d_tutorial_states_the_fit_it_prints():
     """examples/plot_03's prose quotes the fit's "before" and "after" on the even rows as the fit prints them (it
-    said the rotation "before" held the unknown target orientation; the target's turn is registered: 0.8373
+    said the rotation "before" held the unknown target orientation; the target's turn is registered: 0.8244
     mrad, 14.8929 mrad before that)."""
     from conftest import POSITIONER, POSITIONER_MODEL
     from kincal.identify import fit_observations
