@@ -458,3 +458,53 @@ def test_a_check_on_data_that_do_not_fit_the_robot_names_the_input_mistake_not_a
     test = check(cal, other.q[:, :6], other.xyz, units=other.units)
     assert test.changed and test.verdict == "the data do not fit this robot: no common input mistake explains them"
     assert "common input mistakes kincal tried" in test.notes[-1] and "likely cause" not in test.notes[-1]
+
+
+@pytest.mark.slow
+def test_two_calibrations_that_are_not_one_robot_measured_the_same_way_name_no_change(tmp_path, capsys):
+    """compare had no plausibility gate: the real UR5 grid's first half against its second read with x and y
+    swapped (calibrate refuses it; --force wrote it) said 'changed' listing j2.a -358.43 mm (288 mm RMS), a UR5
+    against a UR10 'changed' with j2.a -177 mm. A first suspect beyond the verdict's suspect limits (10 mm, 2°),
+    determined better than them, now names no change but what the records say: the REFUSED verdict and the columns
+    read, the two robots and their nominal models (the bundled files' values), or that they do not say why. The
+    unswapped halves stay 'no significant change' (p = 0.125)."""
+    lines = (DATA / "ur5_grid.csv").read_text().splitlines()
+    half = (len(lines) - 1) // 2
+    for name, rows in (("a", lines[1:half + 1]), ("b", lines[half + 1:])):
+        (tmp_path / f"{name}.csv").write_text("\n".join([lines[0], *rows]) + "\n")
+    files = {}
+    for name, data, extra in (("a", "a", []), ("b", "b", []), ("swapped", "b", ["--xyz-cols", "y,x,z", "--force"])):
+        files[name] = str(tmp_path / f"{name}.yaml")
+        main(["calibrate", "ur5", str(tmp_path / f"{data}.csv"), *UR5, *extra, "-o", files[name]])
+    assert "verdict: refused" in (tmp_path / "swapped.yaml").read_text()
+    capsys.readouterr()
+    assert main(["compare", files["a"], files["b"], "--json"]) == 0
+    same = json.loads(capsys.readouterr().out)
+    assert same["verdict"] == "no significant change" and same["p_value"] == pytest.approx(0.125, abs=5e-3)
+    assert main(["compare", files["a"], files["swapped"], "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    first = out["suspects"][0]
+    assert out["changed"] and abs(first["size"]) > 10e-3 > first["sigma"] and first["kind"] == "link"
+    assert out["verdict"] == (f"these calibrations do not describe one robot measured the same way: {files['swapped']} "
+                              f"was calibrated with the verdict REFUSED (and 1 more: see the note)")
+    assert "their data were read differently (position columns x,y,z vs y,x,z)" in out["notes"][-1]
+    assert "changed (" not in out["verdict"]
+
+    ur5, ur10 = kincal.load_robot("ur5"), kincal.load_robot("ur10")
+    cals = []
+    for robot in (ur5, ur10):
+        res = kincal.calibrate(robot, kincal.simulate(kincal.perturb(robot, seed=3), robot.sample_joints(80, seed=4),
+                                                      15e-6, 5))
+        assert res.verdict.status == "good"
+        cals.append(Calibrated.of(res.robot, res.record(), robot.name))
+    test = compare(*cals)
+    names = [n for n in ur5.params.names if abs(ur5.params[n] - ur10.params[n]) > 1e-8]
+    assert test.changed and abs(test.suspects[0].size) > 10e-3 > test.suspects[0].sigma
+    assert test.verdict == ("these calibrations do not describe one robot measured the same way: they are "
+                            "calibrations of two robots, 'ur5' and 'ur10' (and 1 more: see the note)")
+    shown = ", ".join(f"{n} {ur5.params[n] * 1e3:+.2f} mm vs {ur10.params[n] * 1e3:+.2f} mm" for n in names[:3])
+    assert f"different nominal models ({len(names)} parameters differ: {shown} …)" in test.notes[-1]
+    blind = compare(*(dataclasses.replace(c, nominal={}, robot=dataclasses.replace(c.robot, name="arm")) for c in cals))
+    assert blind.verdict == "these calibrations do not describe one robot measured the same way: their records do " \
+                            "not say why" and "do not say why: check that both files" in blind.notes[-1]
+    assert compare(cals[0], cals[0]).verdict == "no significant change"

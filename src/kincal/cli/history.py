@@ -160,7 +160,7 @@ def step_lines(judged: list[Step], rows: list[tuple[int, Record]]) -> list[str]:
         head = f"{when[step.before]} → {when[step.after]}: "
         lines.append(head + (f"not judged: {step.reason}" if test is None else
                              f"{test.verdict} (p = {test.p_value:.3g})"))
-        if test is not None and test.changed and test.suspects:
+        if test is not None and test.changed and test.suspects and not test.misfit:
             lines.append(f"  {'most likely single change' if test.explained >= EXPLAINED_MIN else 'closest single change'}"
                          f": {test.suspects[0].line()}")
         if step.differences:

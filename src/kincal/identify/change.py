@@ -32,11 +32,14 @@ The input mistakes the diagnosis knows (:func:`kincal.identify.diagnosis.input_c
 the joints' angle unit, a joint column negated, offset or swapped, mirrored positions, shifted rows) are screened by
 the rigid fit of the model to the changed data, and the best few checked again: the one whose undoing leaves a
 plausible check (and halves the discrepancy) is named with its fix, else that none of them explains the data.
+Two calibrations whose first suspect is beyond those limits are, by the same rule, no calibrations of one robot
+measured the same way: ``compare`` names no change but what their records say of why (a calibration whose verdict
+was suspect or refused, another robot's name or nominal model, data read in other units or columns).
 """
 from __future__ import annotations
 
 from contextlib import suppress
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -150,8 +153,10 @@ class ChangeTest:
         The share of the whitened discrepancy the first suspect explains alone (1 by default); below
         ``EXPLAINED_MIN`` no single change is named in the verdict.
     misfit : str, optional
-        Why the data do not fit the robot at all, when the first suspect is beyond a real robot's error: the likely
-        input mistake, or that none explains them (default ``""``: they fit; a note gives the figures and the fix).
+        Why the data do not fit the robot at all (check), or the two calibrations do not describe one robot
+        measured the same way (compare), when the first suspect is beyond a real robot's error: the likely input
+        mistake, or what their records say (a doubtful verdict, another robot, data read otherwise), or that
+        nothing explains it (default ``""``: they fit; a note gives the figures and the fix).
 
     Examples
     --------
@@ -180,7 +185,8 @@ class ChangeTest:
     @property
     def verdict(self) -> str:
         if self.misfit:
-            return f"the data do not fit this robot: {self.misfit}"
+            return f"the data do not fit this robot: {self.misfit}" if self.question == "check" else \
+                f"these calibrations do not describe one robot measured the same way: {self.misfit}"
         if not self.changed:
             return "still good" if self.question == "check" else "no significant change"
         what = "no single change explains it" if self.explained < EXPLAINED_MIN else \
@@ -208,6 +214,13 @@ class Calibrated:
         The joint ranges of the calibration's data, rad (m for a prismatic joint).
     label : str
         How messages name it (its file).
+    verdict : str, optional
+        The calibration's verdict as its record keeps it ("good", "suspect", "refused"; default "": not recorded).
+    nominal : dict, optional
+        The nominal model it was calibrated from, its parameters' values by name, SI (default: not recorded).
+    reading : dict, optional
+        How its data were read, as ``kincal calibrate`` records it (``length_unit``, ``angle_unit``, ``xyz_cols``,
+        ``joint_cols`` ...; default: not recorded).
     """
 
     robot: Robot
@@ -215,6 +228,9 @@ class Calibrated:
     lower: np.ndarray
     upper: np.ndarray
     label: str
+    verdict: str = ""
+    nominal: dict = field(default_factory=dict)
+    reading: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         freeze_arrays(self)
@@ -246,8 +262,12 @@ class Calibrated:
         missing = [n for n in rep.names if n not in robot.params.names]
         if missing:
             raise ModelError(f"{label}: the repeat covariance names parameters the robot does not have: {missing}")
-        env = record["envelope"]
-        return cls(robot, rep, np.asarray(env["lower"], float), np.asarray(env["upper"], float), label)
+        env, data = record["envelope"], record.get("data")
+        reading = data.get("reading") if isinstance(data, dict) else None
+        nominal = record.get("nominal")
+        return cls(robot, rep, np.asarray(env["lower"], float), np.asarray(env["upper"], float), label,
+                   str(record.get("verdict") or ""), dict(nominal) if isinstance(nominal, dict) else {},
+                   dict(reading) if isinstance(reading, dict) else {})
 
     @staticmethod
     def required(record: dict | None, label: str) -> dict:
@@ -312,7 +332,10 @@ def compare(a: Calibrated, b: Calibrated, same_frame: bool = False, alpha: float
     Returns
     -------
     ChangeTest
-        The verdict, its p-value and the suspects; sizes are b − a.
+        The verdict, its p-value and the suspects; sizes are b − a. When the most likely single change is beyond
+        a real robot's (the verdict's suspect limits, 10 mm, 2°, 2 %, and determined better than that), no change
+        is named: "these calibrations do not describe one robot measured the same way" with what their records
+        say of why (``misfit``: a doubtful verdict, another robot or nominal model, data read otherwise).
 
     Raises
     ------
@@ -331,9 +354,66 @@ def compare(a: Calibrated, b: Calibrated, same_frame: bool = False, alpha: float
     d = (rb.forward(q) + _in_frame(rb, mb) - seen).ravel()
     U = np.concatenate([a.factor(q, not same_frame), b.factor(q, not same_frame, rb), Fa, Fb], axis=1)
     basis = None if same_frame else frame_basis(rb, q)
-    notes = [] if same_frame else [_frame_shift(a.robot, b.robot)]
-    return _judged("compare", d, U, candidates(rb, q, basis), basis, a.repeat.dof + b.repeat.dof, 1.0, alpha,
-                   len(q), tuple(n for n in notes if n), _whole_frame(rb, q) if same_frame else None)
+    notes = tuple(n for n in ([] if same_frame else [_frame_shift(a.robot, b.robot)]) if n)
+    test = _judged("compare", d, U, candidates(rb, q, basis), basis, a.repeat.dof + b.repeat.dof, 1.0, alpha,
+                   len(q), notes, _whole_frame(rb, q) if same_frame else None)
+    return test if _implausible(test) is None else _not_one_robot(a, b, test, notes)
+
+
+def _not_one_robot(a: Calibrated, b: Calibrated, test: ChangeTest, notes: tuple[str, ...]) -> ChangeTest:
+    """``test`` (its first suspect beyond a real robot's change) as two calibrations that do not describe one
+    robot measured the same way, with what their records say of why (:func:`_unlike`), not as a change."""
+    from .verdict import Thresholds
+
+    th, first, causes = Thresholds(), test.suspects[0], _unlike(a, b)
+    head = (f"the most likely single change, {first.name} {display(first.size, first.unit, digits=(2, 2))}, is "
+            f"beyond a real robot's change "
+            f"({th.length_suspect * MM:g} mm, {th.angle_suspect * DEG:g} deg, {th.ratio_suspect:.0%}): these "
+            f"calibrations do not describe one robot measured the same way, and no change of it is named")
+    if causes:
+        note = (f"{head}; likely cause: {'; '.join(causes)}. Fix that (a doubtful calibration's report names its "
+                f"likely mistake; read both calibrations' data the same way; compare calibrations of one robot), "
+                f"then compare again")
+    else:
+        note = (f"{head}; their records (verdicts, robot, nominal model, units and columns the data were read in) "
+                f"do not say why: check that both files are calibrations of this robot from data read the same "
+                f"way; if the robot was crashed, re-mastered or rebuilt, its history starts afresh: re-calibrate")
+    more = f" (and {len(causes) - 1} more: see the note)" if len(causes) > 1 else ""
+    return replace(test, misfit=f"{causes[0]}{more}" if causes else "their records do not say why",
+                   notes=(*notes, note))
+
+
+DOUBTFUL = ("suspect", "refused")  # a calibration's verdicts whose doubt carries over to what is judged against it
+READ_AS = (("length_unit", "length unit", "m"), ("angle_unit", "angle unit", "rad"),
+           ("xyz_cols", "position columns", "x,y,z"), ("joint_cols", "joint columns", "the robot's joint names"))
+
+
+def _unlike(a: Calibrated, b: Calibrated) -> list[str]:
+    """What the records of ``a`` and ``b`` say makes them no calibrations of one robot measured the same way: a
+    doubtful verdict, another robot (its name or its nominal model), data read in other units or columns."""
+    out = [f"{c.label} was calibrated with the verdict {c.verdict.upper()}" for c in (a, b) if c.verdict in DOUBTFUL]
+    if a.robot.name != b.robot.name:
+        out.append(f"they are calibrations of two robots, '{a.robot.name}' and '{b.robot.name}'")
+    names = [n for n in a.nominal if n in b.nominal and n in a.robot.params.names  # beyond 0.01 µm or 0.01 µrad
+             and isinstance(a.nominal[n], (int, float)) and isinstance(b.nominal[n], (int, float))
+             and abs(a.nominal[n] - b.nominal[n]) > RESOLUTION]
+    if names:
+        kinds = dict(zip(a.robot.params.names, a.robot.params.kinds))
+        shown = ", ".join(f"{n} {display(float(a.nominal[n]), kinds[n], digits=(2, 2))} vs "
+                          f"{display(float(b.nominal[n]), kinds[n], digits=(2, 2))}" for n in names[:3])
+        out.append(f"they were calibrated from different nominal models ({len(names)} parameters differ: {shown}"
+                   f"{' …' if len(names) > 3 else ''})")
+    read = [f"{what} {_read_as(a, key, d)} vs {_read_as(b, key, d)}" for key, what, d in READ_AS
+            if a.reading and b.reading and _read_as(a, key, d) != _read_as(b, key, d)]
+    if read:
+        out.append(f"their data were read differently ({'; '.join(read)})")
+    return out
+
+
+def _read_as(cal: Calibrated, key: str, default: str) -> str:
+    """How ``cal``'s data were read by the reading flag ``key`` in words (its ``default`` when not given)."""
+    value = cal.reading.get(key)
+    return default if value is None else ",".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value)
 
 
 def _miss(cal: Calibrated, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
