@@ -474,6 +474,42 @@ def test_jugglebot_legs_reading_noise_can_be_stated(tmp_path, capsys):
     assert code == 1 and "--std-joint" in err and "--residual joint" in err
 
 
+def test_jugglebot_legs_reading_noise_stated_far_too_large_is_suspect(tmp_path, capsys):
+    """--std-joint 5rev (the legs read to 0.006 rev, the dataset README's 0.41 mm fit through the mean lead: about
+    830x too large) held every leg parameter at nominal as 'determined worse than a real robot's error': training
+    4.68 -> 4.77 mm, held out unchanged at 2.41 mm, whitened RMS 0.0056, and the verdict GOOD. Now suspect, naming
+    --std-joint and how far off (at least the 1/0.0056 = 180x the residuals show); at 0.006 rev not said."""
+    s1, s2 = str(JUGGLEBOT / "S1.csv"), str(JUGGLEBOT / "S2.csv")
+    base = ["calibrate", "hexapod", s1, "--test", s2, *JUGGLE, "--residual", "joint", "--refit-target", "--json"]
+    code, out, _ = _kincal(capsys, [*base, "--std-joint", "5rev"])
+    held = out["held_out"][0]
+    assert held["mean"] == pytest.approx(out["held_out_nominal"][0]["mean"], rel=1e-6)  # nothing was calibrated
+    found = [r for r in out["verdict"]["reasons"] if r["code"] == "sigma-overstated"]
+    assert code in (0, 4) and out["verdict"]["status"] == "suspect" and len(found) == 1
+    factor = float(found[0]["message"].split("--std-joint looks about ")[1].split("x")[0])
+    assert 150 <= factor <= 5 / 0.006 and "39 parameter(s) were kept at nominal" in found[0]["message"]
+    code, out, _ = _kincal(capsys, [*base, "--std-joint", "0.006rev"])
+    assert not any(r["code"] == "sigma-overstated" for r in out["verdict"]["reasons"])
+    assert out["held_out"][0]["mean"] * 1e3 < 0.62  # the README's 0.610 mm
+
+
+def test_every_parameter_dropped_at_a_far_too_large_sigma_is_said(tmp_path, capsys):
+    """puu3 positions with the legs' noise stated as 200 mm: every parameter is determined worse than a real robot's
+    error (r ±42.8 mm at 20 poses, the σ √((JᵀJ)⁻¹) of the leg Jacobian, checked here), so nothing was left to fit
+    and Levenberg–Marquardt ran on no column: an internal error. Now the file, the parameters and the flag."""
+    puu3 = kincal.load_robot("puu3")
+    meas = kincal.simulate(puu3, puu3.sample_joints(20, seed=1), 0.0)
+    kincal.write_measurements(tmp_path / "p.csv", meas, puu3.joint_types)
+    code, _, err = _kincal(capsys, ["calibrate", "puu3", str(tmp_path / "p.csv"), "--base", "fixed", "--residual",
+                                    "joint", "--std-joint", "200mm"])
+    assert code == 1 and "internal error" not in err
+    assert "p.csv: no parameter is determined by these data at the stated σ" in err and "(--std-joint)" in err
+    names = ["r", "L1", "L2", "L3"]
+    J = puu3.inverse_and_jacobian(meas.xyz)[1][:, :, puu3.params.indices(names)].reshape(-1, len(names))
+    sd = 0.2 * np.sqrt(np.diag(np.linalg.inv(J.T @ J)))
+    assert f"{names[int(np.argmax(sd))]} ±{sd.max() * 1e3:.1f} mm" in err
+
+
 @pytest.mark.parametrize("residual", [[], ["--residual", "joint"]], ids=["cartesian", "joint"])
 def test_jugglebot_poses_in_the_measurement_frame_are_the_measured_bodys(tmp_path, capsys, residual):
     """The motion capture gives the poses of its rigid body, turned 6.9 mrad on the platform (the calibration's
