@@ -493,6 +493,43 @@ def test_jugglebot_legs_reading_noise_stated_far_too_large_is_suspect(tmp_path, 
     assert out["held_out"][0]["mean"] * 1e3 < 0.62  # the README's 0.610 mm
 
 
+def test_same_frame_with_refit_target_refits_the_target_alone_in_every_command(tmp_path, capsys):
+    """--same-frame --refit-target on S2 after S1: evaluate fitted the frame too ("frame_fitted": true, 0.6107 mm,
+    the 12-parameter refit) while saying only the target was, and calibrate --test and report fitted nothing (1.9225
+    mm). One meaning now: the frame as calibrated, the target's point and rotation fitted, 0.784 mm in all three,
+    as a least-squares fit of those 6 numbers alone on the calibrated model's platform poses computes here (scipy,
+    the poses' σ 0.1 mm and 1 mrad); the nominal model beside it judged the same way in all three."""
+    from scipy.optimize import least_squares
+    from scipy.spatial.transform import Rotation
+    s1, s2, cal = str(JUGGLEBOT / "S1.csv"), str(JUGGLEBOT / "S2.csv"), tmp_path / "s1.yaml"
+    both = ["--same-frame", "--refit-target", "--json"]
+    code, fit, _ = _kincal(capsys, ["calibrate", "hexapod", s1, "--test", s2, *JUGGLE, "--residual", "joint", *both,
+                                    "-o", str(cal)])
+    code, ev, _ = _kincal(capsys, ["evaluate", str(cal), s2, *JUGGLE, *both])
+    assert code == 0 and ev["frame_fitted"] is False
+    code, rep, _ = _kincal(capsys, ["report", str(cal), "--test", s2, *both, "-o", str(tmp_path / "r.html")])
+    assert code == 0
+    mean = ev["mean"]
+    assert fit["held_out"][0]["mean"] == pytest.approx(mean, rel=1e-6) == rep["held_out"][0]["mean"]
+    nominal = ev["nominal"]["mean"]
+    assert fit["held_out_nominal"][0]["mean"] == pytest.approx(nominal, rel=1e-6) == rep["held_out_nominal"][0]["mean"]
+    table = np.genfromtxt(s2, delimiter=",", names=True)
+    q = np.column_stack([table[f"leg{i}"] for i in range(1, 7)]) * 2 * np.pi
+    xyz = np.column_stack([table["x"], table["y"], table["z"]]) * 1e-3
+    Rm = Rotation.from_quat(np.column_stack([table[c] for c in ("qx", "qy", "qz", "qw")])).as_matrix()
+    p, R, _, _ = kincal.load_robot(str(cal)).with_tool_point(np.zeros(3)).pose_and_jacobian(q)
+
+    def residual(x):
+        turn = np.einsum("kji,kjl->kil", Rm, R @ Rotation.from_rotvec(x[3:]).as_matrix())
+        return np.concatenate([((p + R @ x[:3] - xyz) / 0.1e-3).ravel(),
+                               (Rotation.from_matrix(turn).as_rotvec() / 1e-3).ravel()])
+    x = least_squares(residual, np.zeros(6)).x
+    assert mean == pytest.approx(np.linalg.norm(p + R @ x[:3] - xyz, axis=1).mean(), rel=2e-3)
+    code, whole, _ = _kincal(capsys, ["evaluate", str(cal), s2, *JUGGLE, "--refit-target", "--json"])
+    code, none, _ = _kincal(capsys, ["evaluate", str(cal), s2, *JUGGLE, "--same-frame", "--json"])
+    assert whole["frame_fitted"] and whole["mean"] < mean < none["mean"]  # 0.611 < 0.784 < 1.92 mm
+
+
 def test_every_parameter_dropped_at_a_far_too_large_sigma_is_said(tmp_path, capsys):
     """puu3 positions with the legs' noise stated as 200 mm: every parameter is determined worse than a real robot's
     error (r ±42.8 mm at 20 poses, the σ √((JᵀJ)⁻¹) of the leg Jacobian, checked here), so nothing was left to fit
