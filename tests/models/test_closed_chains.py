@@ -530,6 +530,56 @@ def test_same_frame_with_refit_target_refits_the_target_alone_in_every_command(t
     assert whole["frame_fitted"] and whole["mean"] < mean < none["mean"]  # 0.611 < 0.784 < 1.92 mm
 
 
+def _swapped(path, tmp_path, a: str, b: str, edit=None) -> str:
+    """The Jugglebot file ``path`` with the columns ``a`` and ``b`` swapped (and ``edit`` applied to its rows), in
+    ``tmp_path``."""
+    rows = list(csv.reader(open(path)))
+    i, j = rows[0].index(a), rows[0].index(b)
+    for r in rows[1:]:
+        r[i], r[j] = r[j], r[i]
+    if edit is not None:
+        edit(rows)
+    out = tmp_path / f"{Path(path).stem}_{a}{b}.csv"
+    csv.writer(open(out, "w", newline="")).writerows(rows)
+    return str(out)
+
+
+def test_jugglebot_legs_swapped_are_named_where_the_fit_and_the_held_out_errors_meet_them(tmp_path, capsys):
+    """Legs 2 and 3 swapped. Held out with --refit-target: 37.6 mm against 0.84 mm in training, no likely cause
+    (only looked for with the frame kept, and against a training set of the held-out file's kind, not the joint
+    residual's); now the swap, with the error it leaves undone, the dataset README's 0.610 mm. In training: 'forward
+    kinematics did not converge ... (first at index 60, q = [23.24 ...])' in rad; now the file's rows (62, 63, 64,
+    86, 87, 88), row 62's values as written and the swap; a few rows that do not assemble are named by row and
+    leave with --exclude."""
+    s1, s2, cal = str(JUGGLEBOT / "S1.csv"), str(JUGGLEBOT / "S2.csv"), tmp_path / "s1.yaml"
+    code, fit, _ = _kincal(capsys, ["calibrate", "hexapod", s1, *JUGGLE, "--residual", "joint", "--json",
+                                    "-o", str(cal)])
+    code, out, text = _kincal(capsys, ["evaluate", str(cal), _swapped(s2, tmp_path, "leg2", "leg3"), *JUGGLE,
+                                       "--refit-target", "--json"])
+    assert code == 0 and out["mean"] > 10 * fit["sets"][0]["mean"] and out["cause"] is not None
+    assert "the columns of leg2 and leg3 are swapped (undone, the mean error is" in out["cause"]
+    undone = float(out["cause"].split("undone, the mean error is ")[1].split(" mm")[0])
+    assert abs(undone - 0.610) < 0.01
+    swapped = _swapped(s1, tmp_path, "leg2", "leg3")
+    code, _, err = _kincal(capsys, ["calibrate", "hexapod", swapped, *JUGGLE, "--residual", "joint"])
+    assert code == 1 and "forward kinematics did not converge" not in err
+    assert "row(s) 62, 63, 64, 86, 87, 88; row 62: leg1 " in err
+    written = open(swapped).read().splitlines()[61].split(",")[1:7]  # line 62 of the file, its legs as written
+    assert ", ".join(f"leg{k + 1} {float(v):.6g} rev" for k, v in enumerate(written)) + " as written" in err
+    miss = float(err.split("fit it rigidly to ")[1].split(" mm")[0])  # the nominal model, its frame registered
+    assert "the columns of leg2 and leg3 are swapped" in err and miss == pytest.approx(
+        fit["sets_before"][0]["mean"] * 1e3, abs=0.01)
+
+    def stretched(rows):
+        for r in (rows[10], rows[40]):
+            r[1] = "12"
+    bad = _swapped(s1, tmp_path, "leg1", "leg1", stretched)
+    code, _, err = _kincal(capsys, ["calibrate", "hexapod", bad, *JUGGLE, "--residual", "joint"])
+    assert code == 1 and "row(s) 11, 41; row 11: leg1 12 rev" in err and "--exclude 11,41" in err
+    code, _, _ = _kincal(capsys, ["calibrate", "hexapod", bad, *JUGGLE, "--residual", "joint", "--exclude", "11,41"])
+    assert code == 0
+
+
 def test_every_parameter_dropped_at_a_far_too_large_sigma_is_said(tmp_path, capsys):
     """puu3 positions with the legs' noise stated as 200 mm: every parameter is determined worse than a real robot's
     error (r ±42.8 mm at 20 poses, the σ √((JᵀJ)⁻¹) of the leg Jacobian, checked here), so nothing was left to fit

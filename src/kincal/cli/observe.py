@@ -291,12 +291,14 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
                  + ("" if before is None else f"  (nominal, {fitted}: {stat_line(before)})"))
     texts += group_lines([s], "")
     train = [t.get("mean") for t in (record or {}).get("observations", []) if isinstance(t, dict)
-             and t.get("type") == obs.kind]  # the training error of this kind (m)
+             and t.get("type") in (obs.kind, "joint")]  # the training error of this kind (m; a joint-space
+    # residual's statistics are its measured positions' or poses')
     cause = ""
-    if not (frame or not train or not isinstance(train[0], (int, float)) or train[0] <= 0):
-        # positions judged in the calibration's frame: the position path's likely cause of an error far above
-        # the training error (the tracker moved, another tool point, a scale)
-        cause = set_cause(robot, obs, fit.nuisance, float(train[0]))
+    if train and isinstance(train[0], (int, float)) and train[0] > 0:
+        # the position path's likely cause of an error far above the training error (the tracker moved, another
+        # tool point, a scale, the file's columns), in the frame the set was judged in
+        cause = set_cause(fit.robot, obs, fit.nuisance, float(train[0]), bool(set(frame) & set(robot.base_params())),
+                          tuple(n for n in frame if n not in robot.base_params()))
     texts += [f"  likely cause: {cause}"] if cause else []
     unc = kincal.analysis.load_uncertainty(args.robot) if record else None
     envelope = None if unc is None else kincal.analysis.envelope_warning(obs.rows, obs.q, robot, unc)[1]
