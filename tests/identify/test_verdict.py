@@ -68,6 +68,27 @@ def test_real_ur5_grid_is_good(tmp_path, capsys):
     assert len(ev["predicted_sigma"]) == 20 and max(ev["predicted_sigma"]) < 0.05e-3
 
 
+def test_a_stated_sigma_far_too_large_is_suspect_with_its_factor(ur5):
+    """300 UR5 positions simulated with 15 µm noise, stated at 150 µm (10x too large): the weak-parameter rule judges
+    by that σ and kept 2 parameters at nominal, and the verdict was GOOD (whitened RMS 0.098). Now suspect, naming
+    --std-pos and about 10x (the simulation's own ratio); at 45 µm (3x) too; stated right (15 µm) or left at
+    kincal's default (data more precise than a default are no fault) nothing is said."""
+    from kincal.identify import fit_observations
+    from kincal.observe import PointObs
+    meas = kincal.simulate(kincal.perturb(ur5, seed=1), ur5.sample_joints(100, seed=3), 15e-6, seed=0)
+    said = {}
+    for std in (15e-6, 45e-6, 150e-6, None):
+        obs = PointObs(meas.q, meas.rows, meas.source, xyz=meas.xyz, **({} if std is None else {"std": std}))
+        res = fit_observations(ur5, [obs])
+        said[std] = [r for r in res.verdict.reasons if r.code == "sigma-overstated"]
+        if said[std]:
+            assert res.verdict.status == "suspect" and "--std-pos looks about" in said[std][0].message
+            factor = float(said[std][0].message.split("looks about ")[1].split("x")[0])
+            assert factor == pytest.approx(std / 15e-6, rel=0.15), said[std][0].message
+    assert not said[15e-6] and not said[None] and said[45e-6] and said[150e-6]
+    assert "2 parameter(s) were kept at nominal" in said[150e-6][0].message
+
+
 @pytest.mark.slow
 def test_outlier_is_named_and_robust_fits_recover(ur5, sim, tmp_path, capsys):
     true, meas, val = sim

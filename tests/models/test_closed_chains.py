@@ -672,6 +672,134 @@ def test_jugglebot_nominal_figures_are_one_definition(tmp_path, capsys):
     assert miss.mean() == pytest.approx(said["joint"]["mean"], abs=1e-9)
 
 
+def test_jugglebot_legs_reading_noise_stated_far_too_large_is_suspect(tmp_path, capsys):
+    """--std-joint 5rev (the legs read to 0.006 rev, the dataset README's 0.41 mm fit through the mean lead: about
+    830x too large) held every leg parameter at nominal as 'determined worse than a real robot's error': training
+    4.68 -> 4.77 mm, held out unchanged at 2.41 mm, whitened RMS 0.0056, and the verdict GOOD. Now suspect, naming
+    --std-joint and how far off (at least the 1/0.0056 = 180x the residuals show); at 0.006 rev not said."""
+    s1, s2 = str(JUGGLEBOT / "S1.csv"), str(JUGGLEBOT / "S2.csv")
+    base = ["calibrate", "hexapod", s1, "--test", s2, *JUGGLE, "--residual", "joint", "--refit-target", "--json"]
+    code, out, _ = _kincal(capsys, [*base, "--std-joint", "5rev"])
+    held = out["held_out"][0]
+    assert held["mean"] == pytest.approx(out["held_out_nominal"][0]["mean"], rel=1e-6)  # nothing was calibrated
+    found = [r for r in out["verdict"]["reasons"] if r["code"] == "sigma-overstated"]
+    assert code in (0, 4) and out["verdict"]["status"] == "suspect" and len(found) == 1
+    factor = float(found[0]["message"].split("--std-joint looks about ")[1].split("x")[0])
+    assert 150 <= factor <= 5 / 0.006 and "39 parameter(s) were kept at nominal" in found[0]["message"]
+    code, out, _ = _kincal(capsys, [*base, "--std-joint", "0.006rev"])
+    assert not any(r["code"] == "sigma-overstated" for r in out["verdict"]["reasons"])
+    assert out["held_out"][0]["mean"] * 1e3 < 0.62  # the README's 0.610 mm
+
+
+def test_same_frame_with_refit_target_refits_the_target_alone_in_every_command(tmp_path, capsys):
+    """--same-frame --refit-target on S2 after S1: evaluate fitted the frame too ("frame_fitted": true, 0.6107 mm,
+    the 12-parameter refit) while saying only the target was, and calibrate --test and report fitted nothing (1.9225
+    mm). One meaning now: the frame as calibrated, the target's point and rotation fitted, 0.784 mm in all three,
+    as a least-squares fit of those 6 numbers alone on the calibrated model's platform poses computes here (scipy,
+    the poses' σ 0.1 mm and 1 mrad); the nominal model beside it judged the same way in all three."""
+    from scipy.optimize import least_squares
+    from scipy.spatial.transform import Rotation
+    s1, s2, cal = str(JUGGLEBOT / "S1.csv"), str(JUGGLEBOT / "S2.csv"), tmp_path / "s1.yaml"
+    both = ["--same-frame", "--refit-target", "--json"]
+    code, fit, _ = _kincal(capsys, ["calibrate", "hexapod", s1, "--test", s2, *JUGGLE, "--residual", "joint", *both,
+                                    "-o", str(cal)])
+    code, ev, _ = _kincal(capsys, ["evaluate", str(cal), s2, *JUGGLE, *both])
+    assert code == 0 and ev["frame_fitted"] is False
+    code, rep, _ = _kincal(capsys, ["report", str(cal), "--test", s2, *both, "-o", str(tmp_path / "r.html")])
+    assert code == 0
+    mean = ev["mean"]
+    assert fit["held_out"][0]["mean"] == pytest.approx(mean, rel=1e-6) == rep["held_out"][0]["mean"]
+    nominal = ev["nominal"]["mean"]
+    assert fit["held_out_nominal"][0]["mean"] == pytest.approx(nominal, rel=1e-6) == rep["held_out_nominal"][0]["mean"]
+    table = np.genfromtxt(s2, delimiter=",", names=True)
+    q = np.column_stack([table[f"leg{i}"] for i in range(1, 7)]) * 2 * np.pi
+    xyz = np.column_stack([table["x"], table["y"], table["z"]]) * 1e-3
+    Rm = Rotation.from_quat(np.column_stack([table[c] for c in ("qx", "qy", "qz", "qw")])).as_matrix()
+    p, R, _, _ = kincal.load_robot(str(cal)).with_tool_point(np.zeros(3)).pose_and_jacobian(q)
+
+    def residual(x):
+        turn = np.einsum("kji,kjl->kil", Rm, R @ Rotation.from_rotvec(x[3:]).as_matrix())
+        return np.concatenate([((p + R @ x[:3] - xyz) / 0.1e-3).ravel(),
+                               (Rotation.from_matrix(turn).as_rotvec() / 1e-3).ravel()])
+    x = least_squares(residual, np.zeros(6)).x
+    assert mean == pytest.approx(np.linalg.norm(p + R @ x[:3] - xyz, axis=1).mean(), rel=2e-3)
+    code, whole, _ = _kincal(capsys, ["evaluate", str(cal), s2, *JUGGLE, "--refit-target", "--json"])
+    code, none, _ = _kincal(capsys, ["evaluate", str(cal), s2, *JUGGLE, "--same-frame", "--json"])
+    assert whole["frame_fitted"] and whole["mean"] < mean < none["mean"]  # 0.611 < 0.784 < 1.92 mm
+
+
+def _swapped(path, tmp_path, a: str, b: str, edit=None) -> str:
+    """The Jugglebot file ``path`` with the columns ``a`` and ``b`` swapped (and ``edit`` applied to its rows), in
+    ``tmp_path``."""
+    rows = list(csv.reader(open(path)))
+    i, j = rows[0].index(a), rows[0].index(b)
+    for r in rows[1:]:
+        r[i], r[j] = r[j], r[i]
+    if edit is not None:
+        edit(rows)
+    out = tmp_path / f"{Path(path).stem}_{a}{b}.csv"
+    csv.writer(open(out, "w", newline="")).writerows(rows)
+    return str(out)
+
+
+def test_jugglebot_legs_swapped_are_named_where_the_fit_and_the_held_out_errors_meet_them(tmp_path, capsys):
+    """Legs 2 and 3 swapped. Held out with --refit-target: 37.6 mm against 0.84 mm in training, no likely cause
+    (only looked for with the frame kept, and against a training set of the held-out file's kind, not the joint
+    residual's); now the swap, with the error it leaves undone, the dataset README's 0.610 mm. In training: 'forward
+    kinematics did not converge ... (first at index 60, q = [23.24 ...])' in rad; now the file's rows (62, 63, 64,
+    86, 87, 88), row 62's values as written and the swap; a few rows that do not assemble are named by row and
+    leave with --exclude."""
+    s1, s2, cal = str(JUGGLEBOT / "S1.csv"), str(JUGGLEBOT / "S2.csv"), tmp_path / "s1.yaml"
+    code, fit, _ = _kincal(capsys, ["calibrate", "hexapod", s1, *JUGGLE, "--residual", "joint", "--json",
+                                    "-o", str(cal)])
+    code, out, text = _kincal(capsys, ["evaluate", str(cal), _swapped(s2, tmp_path, "leg2", "leg3"), *JUGGLE,
+                                       "--refit-target", "--json"])
+    assert code == 0 and out["mean"] > 10 * fit["sets"][0]["mean"] and out["cause"] is not None
+    assert "the columns of leg2 and leg3 are swapped (undone, the mean error is" in out["cause"]
+    undone = float(out["cause"].split("undone, the mean error is ")[1].split(" mm")[0])
+    assert abs(undone - 0.610) < 0.01
+    swapped = _swapped(s1, tmp_path, "leg2", "leg3")
+    code, _, err = _kincal(capsys, ["calibrate", "hexapod", swapped, *JUGGLE, "--residual", "joint"])
+    assert code == 1 and "forward kinematics did not converge" not in err
+    assert "row(s) 62, 63, 64, 86, 87, 88; row 62: leg1 " in err
+    written = open(swapped).read().splitlines()[61].split(",")[1:7]  # line 62 of the file, its legs as written
+    assert ", ".join(f"leg{k + 1} {float(v):.6g} rev" for k, v in enumerate(written)) + " as written" in err
+    miss = float(err.split("fit it rigidly to ")[1].split(" mm")[0])  # the nominal model, its frame registered
+    nominal = kincal.load_robot("hexapod")  # independently: the nominal positions at S1's legs, fitted rigidly (scipy)
+    table = np.genfromtxt(s1, delimiter=",", names=True)
+    p = nominal.forward(np.column_stack([table[f"leg{i}"] for i in range(1, 7)]) * 2 * np.pi)
+    x = np.column_stack([table[c] for c in "xyz"]) * 1e-3
+    turn = Rotation.align_vectors(x - x.mean(0), p - p.mean(0))[0]
+    rigid = np.linalg.norm(turn.apply(p - p.mean(0)) - (x - x.mean(0)), axis=1).mean() * 1e3  # 4.678 mm
+    assert "the columns of leg2 and leg3 are swapped" in err and miss == pytest.approx(rigid, abs=0.01)
+
+    def stretched(rows):
+        for r in (rows[10], rows[40]):
+            r[1] = "12"
+    bad = _swapped(s1, tmp_path, "leg1", "leg1", stretched)
+    code, _, err = _kincal(capsys, ["calibrate", "hexapod", bad, *JUGGLE, "--residual", "joint"])
+    assert code == 1 and "row(s) 11, 41; row 11: leg1 12 rev" in err and "--exclude 11,41" in err
+    code, _, _ = _kincal(capsys, ["calibrate", "hexapod", bad, *JUGGLE, "--residual", "joint", "--exclude", "11,41"])
+    assert code == 0
+
+
+def test_every_parameter_dropped_at_a_far_too_large_sigma_is_said(tmp_path, capsys):
+    """puu3 positions with the legs' noise stated as 200 mm: every parameter is determined worse than a real robot's
+    error (r ±42.8 mm at 20 poses, the σ √((JᵀJ)⁻¹) of the leg Jacobian, checked here), so nothing was left to fit
+    and Levenberg–Marquardt ran on no column: an internal error. Now the file, the parameters and the flag."""
+    puu3 = kincal.load_robot("puu3")
+    meas = kincal.simulate(puu3, puu3.sample_joints(20, seed=1), 0.0)
+    kincal.write_measurements(tmp_path / "p.csv", meas, puu3.joint_types)
+    code, _, err = _kincal(capsys, ["calibrate", "puu3", str(tmp_path / "p.csv"), "--base", "fixed", "--residual",
+                                    "joint", "--std-joint", "200mm"])
+    assert code == 1 and "internal error" not in err
+    assert "p.csv: no parameter is determined by these data at the stated σ" in err and "(--std-joint)" in err
+    names = ["r", "L1", "L2", "L3"]
+    J = puu3.inverse_and_jacobian(meas.xyz)[1][:, :, puu3.params.indices(names)].reshape(-1, len(names))
+    sd = 0.2 * np.sqrt(np.diag(np.linalg.inv(J.T @ J)))
+    assert f"{names[int(np.argmax(sd))]} ±{sd.max() * 1e3:.1f} mm" in err
+
+
 @pytest.mark.parametrize("residual", [[], ["--residual", "joint"]], ids=["cartesian", "joint"])
 def test_jugglebot_poses_in_the_measurement_frame_are_the_measured_bodys(tmp_path, capsys, residual):
     """The motion capture gives the poses of its rigid body, turned 6.9 mrad on the platform (the calibration's

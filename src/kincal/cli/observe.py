@@ -158,7 +158,8 @@ def add_refit_target(p: argparse.ArgumentParser, recorded: bool = False) -> None
     """--refit-target, of the commands that judge held-out files (calibrate, report, evaluate)."""
     p.add_argument("--refit-target", **switch(recorded),
                    help="pose, held-out files: re-fit the target's frame on the flange too, its point and rotation "
-                        "(a rigid body defined anew between sessions), not kept as calibrated"
+                        "(a rigid body defined anew between sessions), not kept as calibrated; with --same-frame "
+                        "only the target, the measurement frame kept"
                         + AS_RECORDED * recorded)
 
 
@@ -266,10 +267,10 @@ def units_to_use(args) -> str:
 
 
 def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: str | None) -> tuple[dict, list[str]]:
-    """``robot`` on one observation file, its kinematics fixed; only the set-up parameters (and,
-    unless --same-frame, the file's measurement frame) are fitted, the probe's rotation and the
-    markers held as calibrated (``record``), and the nominal model the same way beside it: the JSON
-    payload and the lines to print, with the likely cause of an error far above the training error."""
+    """``robot`` on one observation file, its kinematics fixed; only the set-up parameters (unless --same-frame,
+    the file's measurement frame; with --refit-target, the target's point and rotation) are fitted, the probe's
+    rotation and the markers otherwise held as calibrated (``record``), and the nominal model the same way beside
+    it: the JSON payload and the lines to print, with the likely cause of an error far above the training error."""
     held, anchors = trained_setup(record, args.robot)
     obs = read_set(args, robot, path, kind, held_out=True).with_anchors(anchors)
     own = obs.refitted(robot)  # --refit-target: the target's point and rotation are the file's own
@@ -277,7 +278,7 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
     frame = (() if args.same_frame or kind not in ABSOLUTE else robot.base_params()) + tuple(
         n for n in own if n in robot.params)
     fit = _fixed_kinematics(robot, obs, frame, held)
-    s, (before, fitted) = fit.per_set[0], _nominal_beside(args, robot, record, obs, held)
+    s, (before, fitted) = fit.per_set[0], _nominal_beside(args, robot, record, obs, held, own)
     kept = sorted({"probe rotation" if n.startswith("target.") else "marker points" for n in held if n in fit.nuisance})
     texts: list[str] = []
     if stem:  # the figures of the set with positions: stem-<figure>.png/.svg
@@ -290,17 +291,19 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
                  + ("" if before is None else f"  (nominal, {fitted}: {stat_line(before)})"))
     texts += group_lines([s], "")
     train = [t.get("mean") for t in (record or {}).get("observations", []) if isinstance(t, dict)
-             and t.get("type") == obs.kind]  # the training error of this kind (m)
+             and t.get("type") in (obs.kind, "joint")]  # the training error of this kind (m; a joint-space
+    # residual's statistics are its measured positions' or poses')
     cause = ""
-    if not (frame or not train or not isinstance(train[0], (int, float)) or train[0] <= 0):
-        # positions judged in the calibration's frame: the position path's likely cause of an error far above
-        # the training error (the tracker moved, another tool point, a scale)
-        cause = set_cause(robot, obs, fit.nuisance, float(train[0]))
+    if train and isinstance(train[0], (int, float)) and train[0] > 0:
+        # the position path's likely cause of an error far above the training error (the tracker moved, another
+        # tool point, a scale, the file's columns), in the frame the set was judged in
+        cause = set_cause(fit.robot, obs, fit.nuisance, float(train[0]), bool(set(frame) & set(robot.base_params())),
+                          tuple(n for n in frame if n not in robot.base_params()))
     texts += [f"  likely cause: {cause}"] if cause else []
     unc = kincal.analysis.load_uncertainty(args.robot) if record else None
     envelope = None if unc is None else kincal.analysis.envelope_warning(obs.rows, obs.q, robot, unc)[1]
     texts += [f"  warning: {envelope}"] if envelope else []
-    return {"file": path, "frame_fitted": bool(frame), "setup_as_trained": kept, **s, "nominal": before,
+    return {"file": path, "frame_fitted": bool(set(frame) & set(robot.base_params())), "setup_as_trained": kept, **s, "nominal": before,
             "cause": cause or None, "warnings": [envelope] if envelope else []}, texts
 
 
@@ -323,19 +326,22 @@ def _fitted_here(robot, frame: tuple, own: tuple, fit, held: dict) -> str:
     return (" and ".join(parts) + " fitted") if parts else "nothing fitted"
 
 
-def _nominal_beside(args, robot, record: dict | None, obs, held: dict) -> tuple[dict | None, str]:
+def _nominal_beside(args, robot, record: dict | None, obs, held: dict, own: tuple = ()) -> tuple[dict | None, str]:
     """The nominal model's statistics on a held-out set, judged as calibrate judges it ("before"): with --same-frame
     its frame, target point and markers' points as registered on the training data (the record's, as the report
-    does), else its frame, target point and target rotation fitted to this set (the calibrated rotation belongs to
-    the calibrated kinematics), kinematics fixed — the target point only for the kinds whose "before" registers it
+    does), a target the set defines anew (``own``: --refit-target) fitted as for the calibrated one; else its frame,
+    target point and target rotation fitted to this set (the calibrated rotation belongs to the calibrated
+    kinematics), kinematics fixed — the target point only for the kinds whose "before" registers it
     (:data:`kincal.identify.MOUNTED`: points and poses; sockets and planes keep the declared one, as calibrate --test
     and the report judge them: the Panda's held-out placements 7.78 mm, not 7.52 with a ball fitted to them), markers'
     points where the data fix a scale; and how, in words. (None, '') without a record."""
     kept = nominal_model(robot, record, args.robot, "before_mounting") if args.same_frame else None
     mounted = {str(k): float(v) for k, v in ((record or {}).get("before_setup") or {}).items()}  # markers' points
     if kept is not None:
-        return _fixed_kinematics(kept, obs, (), {**held, **mounted}).per_set[0], "its frame and target point as " \
-            "registered on the training data"
+        refit = tuple(n for n in own if n in kept.params)
+        return _fixed_kinematics(kept, obs, refit, {**held, **mounted}).per_set[0], "its frame " + (
+            "as registered on the training data, the target (--refit-target) fitted" if own else
+            "and target point as registered on the training data")
     nominal = nominal_model(robot, record, args.robot)
     if nominal is None:
         return None, ""
@@ -350,5 +356,7 @@ def _nominal_beside(args, robot, record: dict | None, obs, held: dict) -> tuple[
 
 
 def _fixed_kinematics(robot, obs, frame: tuple, held: dict):
-    """``robot`` fitted to one set with its kinematics fixed: only ``frame`` and the set-up parameters not ``held``."""
-    return fit_observations(robot, [obs], names=frame, base="estimate" if frame else "fixed", held=held)
+    """``robot`` fitted to one set with its kinematics fixed: only ``frame`` (the base frame's parameters, a target's
+    own) and the set-up parameters not ``held``; the base frame kept unless ``frame`` names it."""
+    base = "estimate" if set(frame) & set(robot.base_params()) else "fixed"
+    return fit_observations(robot, [obs], names=frame, base=base, held=held)

@@ -453,8 +453,10 @@ def held_out_stats(fit: CalibrationResult, obs, robot: Robot, same_frame: bool) 
     In the training frame with the training set-up parameters (``same_frame``; sockets and planes need
     no frame), else with its own frame fitted (the tracker or camera may have moved), the kinematics
     fixed and the set-up parameters it shares with the training files (a target's rotation, markers)
-    held as trained. ``fit.before`` is judged as "before" calibration: with the markers' points registered
-    with it on the training sets (``fit.before_setup``) in the training frame, else registered to this set.
+    held as trained. A target the set defines anew (``refit_target``) is its own, fitted either way: with
+    ``same_frame`` only that target, the frame as calibrated. ``fit.before`` is judged as "before" calibration:
+    with the markers' points registered with it on the training sets (``fit.before_setup``) in the training frame,
+    else registered to this set.
 
     Parameters
     ----------
@@ -486,12 +488,14 @@ def held_out_stats(fit: CalibrationResult, obs, robot: Robot, same_frame: bool) 
     >>> stats["source"], stats["samples"], bool(stats["mean"] < 0.05e-3)
     ('test.csv', 20, True)
     """
-    if same_frame or obs.kind not in ABSOLUTE:
+    own = obs.refitted(robot)  # a target defined anew: its point and rotation are the set's own
+    kept = same_frame or obs.kind not in ABSOLUTE  # the frame as calibrated
+    if kept and not own:
         return fit.held_out(obs, robot)
     anchors = {k: v for o in fit.observations for k, v in o.anchors().items()}
-    own = obs.refitted(robot)  # a target defined anew: its point and rotation are the set's own
-    mounted = fit.before_setup if robot is fit.before else {}  # the nominal's markers: registered to the set
+    mounted = fit.before_setup if robot is fit.before and not kept else {}  # the nominal's markers: the set's
     held = {n: v for n, v in fit.nuisance.items()
             if not n.startswith(("frame[", "drift[")) and n not in own and n not in mounted}
-    names = (*robot.base_params(), *(n for n in own if n in robot.params))
-    return fit_observations(robot, [obs.with_anchors(anchors)], names=names, held=held).per_set[0]
+    names = (*(() if kept else robot.base_params()), *(n for n in own if n in robot.params))
+    return fit_observations(robot, [obs.with_anchors(anchors)], names=names, held=held,
+                            base="fixed" if kept else "estimate").per_set[0]

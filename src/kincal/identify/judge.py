@@ -7,15 +7,20 @@ stated σ, outlier samples and repeated poses per set (named by file and row), a
 contacts alone cannot confirm. A differential diagnosis, when run, comes first."""
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..analysis.identifiability import jacobian_identifiability, stacked_jacobian
+from ..errors import ModelError
 from ..models.robot import TOOL_NAMES, Robot
 from ..observe.constraints import SamePointObs
+from ..observe.files import DEFAULT_STD
+from ..observe.observations import Wrapper
 from ..units import MM, fine
+from .noise import SIGNIFICANT
 from .._csv import listed
 from .pso import HALF_WIDTH
 from .verdict import (FALSE_ALARM, Reason, Thresholds, Verdict, correction_reasons, drift_reasons, duplicate_groups,
@@ -68,6 +73,7 @@ def verdict_of(res: "CalibrationResult") -> Verdict:
     if res.mounting and not res.mounting_gauge[0]:  # a tool point the data do not determine is judged by nothing
         reasons += mounting_reasons(res.nominal.tool_point(), res.robot.tool_point(), th)
     reasons += _position_reasons(res, th) if res.data else _set_reasons(res, th)
+    reasons += overstated_reasons(res, {"joint"} if res.options.joint_std is not None else set())
     reasons += _size_reasons(res)
     verdict = Verdict.from_reasons(tuple(reasons))
     return verdict if res.diagnosis is None else _diagnosed(res, res.diagnosis, verdict)
@@ -283,6 +289,81 @@ def distance_limit(n: int) -> float:
         mid = 0.5 * (low + high)
         low, high = (mid, high) if n * math.erfc(mid / math.sqrt(2.0)) > FALSE_ALARM else (low, mid)
     return high
+
+
+OVERSTATED = 1.0 / 3.0  # a kind's whitened RMS below this: its stated σ many-fold too large (with the χ² bound)
+
+
+def overstated_reasons(res: "CalibrationResult", stated: frozenset | set = frozenset()) -> list[Reason]:
+    """Kinds whose whitened RMS is below OVERSTATED (1/3) and below 1 by more than SIGNIFICANT standard errors of
+    χ²/dof (dof: the kind's rows less their share of the fitted parameters), for a σ the user stated (``stated``:
+    the kinds whose σ a fit option gave; a set's σ other than kincal's default): that σ is many-fold too large.
+    Suspect: the weak-parameter rule judges "determined worse than a real robot's error" by those σ, so it keeps
+    parameters at nominal that the data determine, while the residuals look fine. A σ kincal assumed (a kind's
+    default) is not judged so: data more precise than the default (a simulation's) are no fault."""
+    labels, kinds = component_kinds(res.observations)
+    share = 1.0 - len(res.free) / max(labels.size, 1)
+    out = []
+    for k, kind in enumerate(kinds):
+        rms, rows = res.whitened.get(kind, np.nan), int(np.count_nonzero(labels == k))
+        dof = share * rows
+        if not (dof > 0 and rms < OVERSTATED and rms**2 * rows / dof < 1.0 - SIGNIFICANT * np.sqrt(2.0 / dof)):
+            continue
+        flag = _overstated_flag(res, kind, stated)
+        if flag is None:
+            continue
+        factor = float(f"{1.0 / max(rms, 1e-300):.2g}")  # two significant figures: 180, not 1.8e+02
+        held = (f"; by that σ {len(res.weak)} parameter(s) were kept at nominal as determined worse than a real "
+                f"robot's error (listed above)" if res.weak else "")
+        out.append(Reason("suspect", "sigma-overstated", (
+            f"the {kind} residuals are {rms:.3g}x their stated σ, far below 1 ({rows} rows): {flag} looks about "
+            f"{factor:g}x too large{held}; state the instrument's real noise and refit")))
+    return out
+
+
+SIGMA_FIELD = {"pose position": ("std_pos", 0), "pose rotation": ("std_rot", 1)}  # a kind's σ: its field, and its
+# place in the file reader's defaults (observe.files.DEFAULT_STD); other kinds: "std", the position's
+
+
+def _overstated_flag(res: "CalibrationResult", kind: str, stated: frozenset | set) -> str | None:
+    """The σ a kind's residual is whitened by, named by its flag; None when it is kincal's assumption. A joint-space
+    residual's is the joints' reading noise and the measured positions' or poses' through the inverse kinematics,
+    named by the larger share of the samples' variance (:meth:`~kincal.observe.Observation.covariance` at the fit)."""
+    sets = [o for o in res.observations if o.kind == ("pose" if kind.startswith("pose ") else kind)]
+    if kind != "joint":
+        field, at = SIGMA_FIELD.get(kind, ("std", 0))
+        return None if all(_assumed(o, field, at) for o in sets) else STATED.get(kind, "--std-pos")
+    reading = through = 0.0
+    for obs in sets:
+        names, start, _ = obs.nuisance(res.registered)
+        nuis = np.array([res.nuisance.get(n, v) for n, v in zip(names, start)], float)
+        try:
+            C = obs.covariance(res.registered, res.robot.param_values(None), nuis)
+        except ModelError:  # a measured pose out of the fitted model's reach: its share is not known
+            C = None
+        own = float(np.sum(obs.sigma() ** 2))
+        reading += own
+        through += 0.0 if C is None or not np.all(np.isfinite(C)) else float(np.trace(C, axis1=1, axis2=2).sum()) - own
+    if reading >= through:
+        return "--std-joint" if "joint" in stated else None
+    if all(_assumed(o, "std_pos", 0) and _assumed(o, "std_rot", 1) for o in sets):
+        return None
+    return "the measured positions' or poses' σ through the inverse kinematics (--std-pos, --std-rot)"
+
+
+def _assumed(obs, field: str, at: int) -> bool:
+    """Whether the σ ``field`` of the set ``obs`` (its innermost set's, under a session's or a drift's wrapper) is
+    kincal's default for it: its type's own, the file reader's for its kind (``at``: position 0, rotation 1), or
+    for a position the verdict's default tracker noise (position data that state none are fitted with it); True
+    for a set without that field."""
+    while isinstance(obs, Wrapper):
+        obs = obs.inner
+    value = vars(obs).get(field)
+    if value is None:
+        return True
+    defaults = [f.default for f in dataclasses.fields(obs) if f.name == field]
+    defaults += [DEFAULT_STD.get(obs.kind, (None, None))[at], Thresholds().tracker_noise if at == 0 else None]
+    return bool(np.all(np.isin(np.asarray(value, float), [d for d in defaults if isinstance(d, float)])))
 
 
 def _without_outliers(sets, r: np.ndarray | None, outliers) -> float:

@@ -14,12 +14,12 @@ import numpy as np
 
 from ..errors import MeasurementError, ModelError
 
-from .judge import owners
+from .judge import STATED, owners
 from .lm import LMResult, levenberg_marquardt
 from .pso import HALF_WIDTH, V_MAX, pso
 from .relevance import with_learned_prior
 from .robust import MAX_IRLS, WEIGHT_TOL, block_weights
-from .weak import weakest
+from .weak import weak_note, weakest
 
 if TYPE_CHECKING:  # the stack evaluates itself; this room only calls it
     from .stacked import _Stack
@@ -32,6 +32,22 @@ def unassembled(sets) -> MeasurementError:
     return MeasurementError(f"{files}: the fit moved the model where it no longer assembles at some of the measured "
                             f"joints: the data and the model do not belong together; check the position and rotation "
                             f"columns (their order and axes: --xyz-cols, --rot-cols), the joint columns and their units")
+
+
+def undetermined(st: _Stack, weak: dict[str, float]) -> MeasurementError:
+    """The error of a fit whose every parameter the data determine worse than a real robot's error at the stated σ
+    (``weak``: name -> its σ, m or rad): nothing is left to fit. Those σ are likely far too large."""
+    files = ", ".join(sorted({o.source for o in st.sets}))
+    flags = ", ".join(dict.fromkeys("--std-joint" if k == "joint" else STATED.get(k, "--std-pos") for k in st.kinds))
+    shown = weak_note(st.robot, dict(list(weak.items())[:MAX_SHOWN])).split(": ", 1)[1]
+    more = f" and {len(weak) - MAX_SHOWN} more" if len(weak) > MAX_SHOWN else ""
+    return MeasurementError(f"{files}: no parameter is determined by these data at the stated σ: each is known worse "
+                            f"than a real robot's error (10 mm, 2 deg) ({shown}{more}), so none is left to fit; the "
+                            f"stated σ ({flags}) are likely far too large: state the instrument's real noise, or "
+                            f"measure more poses spread over the workspace")
+
+
+MAX_SHOWN = 6  # parameters named in that error
 
 
 @dataclass(frozen=True)
@@ -96,6 +112,8 @@ class Round:
                 return fcols, fit, free, weak, used
             weak[worst[0]] = worst[1]
             free.remove(worst[0])
+            if not free:
+                raise undetermined(st, weak)
 
     def _reweighted(self, st: _Stack, fcols: np.ndarray, x: np.ndarray, r: np.ndarray):
         """Iteratively reweighted least squares on each sample's whitened block from ``x`` (its

@@ -26,8 +26,10 @@ REGISTERED = "frame re-registered to these data (both models; kinematics fixed)"
 AS_CALIBRATED = "frame as calibrated: told the measurement frame did not move"
 
 
-def set_cause(robot: Robot, obs, setup: dict, train_error: float) -> str:
-    """Name the likely cause when a model misses a held-out observation set, judged in the calibration's frame.
+def set_cause(robot: Robot, obs, setup: dict, train_error: float, rebased: bool = False,
+              refit: tuple[str, ...] = ()) -> str:
+    """Name the likely cause when a model misses a held-out observation set, judged in the calibration's frame
+    or, ``rebased``, in the set's own frame re-fitted to it.
 
     :func:`heldout_cause` on the set's positions (``obs.positions()``) against the point on the flange they are
     of (``obs.positions_point``: the robot's tool point for points and poses, the markers' centroid for
@@ -44,6 +46,10 @@ def set_cause(robot: Robot, obs, setup: dict, train_error: float) -> str:
         values stand in for the others.
     train_error : float
         The model's mean error on training data of the set's kind, m.
+    rebased : bool, optional
+        Whether ``robot``'s measurement frame was re-fitted to the set (default False: the calibration's).
+    refit : tuple of str, optional
+        Robot parameters re-fitted to the set with it (a target defined anew), as :func:`heldout_cause` takes them.
 
     Returns
     -------
@@ -70,7 +76,7 @@ def set_cause(robot: Robot, obs, setup: dict, train_error: float) -> str:
     point = ready.positions_point({**dict(zip(names, map(float, start))), **setup})
     model = robot if point is None else robot.with_tool_point(point)
     meas = Measurements(found[0], found[1], robot.joint_names, obs.source, obs.rows)
-    return heldout_cause(model, meas, train_error, rebased=False)
+    return heldout_cause(model, meas, train_error, rebased=rebased, refit=refit)
 
 
 def refit_frame(robot: Robot, meas: Measurements) -> Robot:
@@ -125,10 +131,11 @@ def _tool_fix(robot: Robot, meas: Measurements, base: str) -> tuple[float, str] 
                    f"adapter or seat); give that session's tool point with --tool")
 
 
-def _data_mistake(robot: Robot, meas: Measurements, enough: float, rebased: bool) -> str:
+def _data_mistake(robot: Robot, meas: Measurements, enough: float, rebased: bool, refit: tuple[str, ...] = ()) -> str:
     """The mistake in the file's columns or rows (:func:`kincal.identify.diagnosis.data_changes`) whose undoing
-    brings the model's mean error within ``enough`` (m), the frame re-registered where it was (``rebased``), in
-    words with the figure; the smallest error wins, ties the earlier candidate; '' when none does."""
+    brings the model's mean error within ``enough`` (m), judged as the held-out set was: the frame re-registered
+    where it was (``rebased``), the robot parameters ``refit`` (a target's own point) re-fitted too; in words with
+    the figure; the smallest error wins, ties the earlier candidate; '' when none does."""
     from .diagnosis import data_changes
 
     tried = []
@@ -137,7 +144,7 @@ def _data_mistake(robot: Robot, meas: Measurements, enough: float, rebased: bool
         if not isinstance(changed, Measurements):
             continue
         try:
-            error = _mean_error(refit_frame(robot, changed) if rebased else robot, changed)
+            error = _mean_error(_judged_again(robot, changed, rebased, refit), changed)
         except (KincalError, ValueError, np.linalg.LinAlgError):
             continue
         tried.append((cause, error))
@@ -148,7 +155,16 @@ def _data_mistake(robot: Robot, meas: Measurements, enough: float, rebased: bool
     return f"{cause.cause} (undone, the mean error is {error * MM:.3f} mm): {cause.fix}"
 
 
-def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased: bool) -> str:
+def _judged_again(robot: Robot, meas: Measurements, rebased: bool, refit: tuple[str, ...]) -> Robot:
+    """``robot`` re-fitted to ``meas`` as a held-out set is judged: its frame (``rebased``) and the robot parameters
+    ``refit`` (a target's own point), kinematics fixed; as it is when neither."""
+    if not refit:
+        return refit_frame(robot, meas) if rebased else robot
+    return calibrate(robot, meas, names=refit, base="estimate" if rebased else "fixed", diagnose=False).robot
+
+
+def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased: bool,
+                  refit: tuple[str, ...] = ()) -> str:
     """Name the likely cause when a model misses a held-out session by far more than its training data.
 
     When ``robot`` misses ``meas`` by more than ``HELDOUT_RATIO`` (10) times its mean training error, tries
@@ -165,6 +181,9 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
         The model's mean error on its training data, m.
     rebased : bool
         Whether the frame was already re-registered to ``meas``.
+    refit : tuple of str, optional
+        Robot parameters re-fitted to ``meas`` with it (a target defined anew: ``tool.x``, ``tool.y``,
+        ``tool.z``), re-fitted so again where a mistake in the file's columns is tried (default none).
 
     Returns
     -------
@@ -201,7 +220,7 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
     if framed <= enough:
         return (f"{head}; with the measurement frame re-registered it is {framed * MM:.3f} mm: the tracker moved "
                 f"between sessions (leave out --same-frame so that each session's frame is registered)")
-    mistake = _data_mistake(robot, meas, enough, rebased)
+    mistake = _data_mistake(robot, meas, enough, rebased, refit)
     if mistake:
         return f"{head}; {mistake}"
     if np.isfinite(framed):

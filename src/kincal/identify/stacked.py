@@ -28,7 +28,7 @@ from ..models.robot import TOOL_NAMES, Robot
 from ..models.transforms import kabsch
 from ..observe.constraints import SamePointObs
 from ..observe.drifting import DRIFT
-from ..observe.joint import in_cartesian
+from ..observe.joint import in_cartesian, unassembled_rows
 from ..observe.observations import PoseObs, Wrapper
 from ..observe.sessions import InSession
 from .covariance import parameter_statistics
@@ -330,6 +330,11 @@ def _problem(robot: Robot, observations: Sequence, wanted: tuple[str, ...], keep
             "known parallel planes at different heights, are explained as well by a robot shrunk towards a point, so "
             "the scale is unobservable; give a known distance between two labelled points, a known step between two "
             "parallel planes, or some absolute measurements (a tracker, a camera)")
+    for o in observations:  # joint values the robot does not assemble at (a closed chain): named by row
+        found = o.positions()
+        error = None if found is None else unassembled_rows(o.source, found[0], found[1], robot, o.rows)
+        if error is not None:
+            raise error[0]
     unseen = set(robot.params.names).intersection(*(obs.gauge_params(robot) for obs in observations))
     gauge = tuple(n for n in robot.params.names if n in unseen)  # robot parameters no set sees
     if set(robot.base_params()) & set(wanted):  # a base that is not fitted stays where it is

@@ -29,6 +29,7 @@ from ..models.robot import Robot
 from ..models.unit_checks import check_joints, check_spread
 from ..units import fine, joint_factors, joint_units, unit_factor
 from .constraints import PlaneObs, SamePointObs
+from .joint import unassembled_rows
 from .markers import MarkersObs
 from .observations import Observation, PointObs, PoseObs, flange_point
 from .orientation import (check_convention, convention_check, default_columns, from_matrices, position_frame,
@@ -265,11 +266,16 @@ def read_observations(path: str, robot: Robot, fmt: ObservationFormat = Observat
 
 def _check_units(obs: Observation, robot: Robot, fmt: ObservationFormat) -> None:
     """The readers' unit checks, as the point reader makes them: the measured positions' spread against the robot's
-    own at the same joints (where the kind has positions: they name the unit first), then the joints' unit."""
+    own at the same joints (where the kind has positions: they name the unit first), then the joints' unit, then
+    two joint columns swapped where a closed chain does not assemble at some rows."""
     found = obs.positions()
     if found is not None:
         check_spread(obs.source, *found, robot, fmt.length_unit, fmt.angle_unit, rows=obs.rows)
     check_joints(obs.source, obs.q, robot, fmt.length_unit, fmt.angle_unit, suggest=found is None)
+    swap = None if found is None else unassembled_rows(obs.source, *found, robot, obs.rows,
+                                                       (fmt.length_unit, fmt.angle_unit))
+    if swap is not None and swap[1]:  # two joint columns swapped: the whole file's mistake (a few rows that do not
+        raise swap[0]  # assemble are left to the fit, which names them, to leave out with --exclude)
 
 
 def _joints(t: Table, robot: Robot, fmt: ObservationFormat) -> np.ndarray:

@@ -3,11 +3,14 @@
 The 3-PUU paper of 2024 ("Error analysis model of parallel robot based on parameters identification", eq. 4/11)
 compares the joint values that reach each measured point, by the model's closed-form inverse kinematics, with the commanded ones. The data are a :class:`~kincal.observe.PointObs`'s
 (joint values and measured positions); only the residual differs: robots with a closed-form inverse (``has_inverse``).
+Also the rows a set's measured positions cannot be judged at: out of the starting model's reach, or joint values a
+closed chain does not assemble at (two columns swapped named as such).
 """
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from itertools import combinations
 
 import numpy as np
 
@@ -15,7 +18,9 @@ from .._csv import listed
 from .._stats import spread
 from ..errors import MeasurementError, ModelError
 from ..models.robot import Robot
-from ..units import length_mistakes
+from ..models.transforms import kabsch
+from ..ties import first_best
+from ..units import ANGLE_UNITS, LENGTH_UNITS, joint_shown, joint_units, length_mistakes
 from .observations import MeasuredPositions, PointObs, PoseObs, Wrapper, component_major, mean_square, so3_right
 
 
@@ -143,6 +148,91 @@ def out_of_reach(obs: MeasuredPositions, robot: Robot, values: np.ndarray, bad: 
                            f"multiplied by {factor:g} they are all within reach: a length unit mistake ({pairs}); read "
                            f"them in the unit they are in (CLI: --length-unit)")
 
+
+SWAP_CLEAR = 0.5  # a swap of two joint columns explains the data when its rigid fit's mean miss is at most this share
+# of the next swap's (the Jugglebot's legs 2 and 3: 4.68 mm, the next 77 mm)
+
+
+def unassembled_rows(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, rows: np.ndarray | None = None,
+                units: tuple[str, str] | None = None) -> tuple[MeasurementError, bool] | None:
+    """The error for joint values at which ``robot`` (a closed chain) does not assemble, and whether two joint
+    columns swapped explain it (:func:`swap_explains`); None when it assembles at every row.
+
+    Parameters
+    ----------
+    source : str
+        Where the values come from (a file's path), named in the message.
+    q : ndarray, shape (N, n)
+        Joint values, rad or m.
+    xyz : ndarray, shape (N, 3)
+        The measured positions at them, m (to judge a swap by).
+    robot : Robot
+        The robot, at its own parameter values.
+    rows : ndarray of int, shape (N,), optional
+        Each row's 1-based line number in ``source`` (default: 2, 3, …, after a header line).
+    units : (str, str), optional
+        The length and angle unit the joint values were written in, to show them so (default: kincal's own,
+        :func:`kincal.units.joint_shown`).
+
+    Returns
+    -------
+    (MeasurementError, bool) or None
+        The error naming the rows, the first one's joint values and what to do, and whether a swap explains it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import kincal
+    >>> from kincal.observe.joint import unassembled_rows
+    >>> robot = kincal.load_robot("hexapod")
+    >>> q = robot.sample_joints(20, seed=1)
+    >>> unassembled_rows("legs.csv", q, robot.forward(q), robot) is None
+    True
+    """
+    p = robot.forward_batch(q, robot.params.values[None])[0]
+    bad = np.flatnonzero(~np.all(np.isfinite(p), axis=1))
+    if not bad.size:
+        return None
+    rows = np.arange(2, len(q) + 2) if rows is None else np.asarray(rows)
+    shown = joint_shown(robot.joint_types, robot.periodic) if units is None else [
+        (u or "", 1.0 / {**LENGTH_UNITS, **ANGLE_UNITS}.get(u or "", 1.0)) for u in joint_units(robot.joint_types,
+                                                                                                 *units)]
+    first = ", ".join(f"{n} {v * f:.6g} {u}" for n, v, (u, f) in zip(robot.joint_names, q[bad[0]], shown))
+    head = (f"{source}: {robot.name} does not assemble at the joint values of {bad.size} row(s) (its forward "
+            f"kinematics finds no pose there): row(s) {listed(rows[bad])}; row {rows[bad[0]]}: {first}"
+            f"{' as written' if units else ''}")
+    swap = swap_explains(q, xyz, robot)
+    if swap is not None:
+        a, b = (robot.joint_names[k] for k in swap[:2])
+        return MeasurementError(
+            f"{head}; with the columns of {a} and {b} swapped it assembles at every row and the positions fit it "
+            f"rigidly to {swap[2] * 1e3:.3g} mm mean (the next swap {swap[3] * 1e3:.3g} mm): the columns of {a} and "
+            f"{b} are swapped; swap them (CLI: give --joint-cols in the robot's joint order)"), True
+    return MeasurementError(f"{head}: outside the workspace or at a singularity; check those rows' joint values and "
+                            f"their unit, or leave them out (CLI: --exclude {','.join(map(str, rows[bad]))})"), False
+
+
+def swap_explains(q: np.ndarray, xyz: np.ndarray, robot: Robot) -> tuple[int, int, float, float] | None:
+    """The two joint columns (i, j) of one type whose swap makes ``robot`` assemble at every row of q (N, n) and fits
+    the positions xyz (N, 3) m best rigidly (Kabsch), with its mean miss and the next swap's (m; inf when no other
+    assembles); None unless that miss is at most SWAP_CLEAR of the next one's."""
+    tried = []
+    for i, j in combinations(range(robot.n_joints), 2):
+        if robot.joint_types[i] != robot.joint_types[j]:
+            continue
+        swapped = q.copy()
+        swapped[:, [i, j]] = swapped[:, [j, i]]
+        p = robot.forward_batch(swapped, robot.params.values[None])[0]
+        if np.all(np.isfinite(p)) and len(q) >= 3:
+            R, t = kabsch(p, xyz)
+            tried.append((float(np.mean(np.linalg.norm(p @ R.T + t - xyz, axis=1))), i, j))
+    if not tried:
+        return None
+    best = first_best([e for e, _, _ in tried], maximize=False)
+    others = [e for k, (e, _, _) in enumerate(tried) if k != best]
+    miss, i, j = tried[best]
+    after = min(others, default=np.inf)
+    return (i, j, miss, after) if miss <= SWAP_CLEAR * after else None
 
 @dataclass(frozen=True, eq=False)
 class PoseJointObs(InJoints, PoseObs):
