@@ -12,8 +12,9 @@ import kincal.analysis
 import kincal.io
 import kincal.models
 from kincal.compensate import fit_frames_only
-from kincal.identify import SCOPES, observation_identifiability, refuse_inapplicable
-from kincal.identify.applies import Scope
+from kincal.identify import SCOPES, FitOptions, observation_identifiability, refuse_inapplicable
+from kincal.identify.applies import OBSERVED, Scope
+from kincal.identify.stacked import wanted_names
 from kincal.models.export import controller_base
 from kincal.observe import describe, read_observations, write_observations
 from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM, SHOWN, display, joint_factors, joint_units
@@ -62,6 +63,9 @@ def cmd_show(args) -> int:
 
 def cmd_identifiability(args) -> int:
     kind = one_type(args)
+    refuse_inapplicable([kind], args.given, identifiability_scopes(args))
+    args.poses = IDENTIFIABILITY_POSES if args.poses is None else args.poses
+    args.seed = 0 if args.seed is None else args.seed
     r = load_robot(args)
     if kind == "point":
         ident = kincal.analysis.free_parameters(r, joint_values(args, r, args.data), base=args.base,
@@ -72,7 +76,8 @@ def cmd_identifiability(args) -> int:
                else observe.planned(args, r, r, kind, None, 0.0, args.seed))
     else:  # the type's observations at the poses of a file or at random ones
         obs = observe.planned(args, r, r, kind, joint_values(args, r, args.data), 0.0, args.seed)
-    ident, gauge = observation_identifiability(r, [obs], keep=args.keep or (), rank_tol=args.rank_tol)
+    names = wanted_names(r, FitOptions(base=args.base))  # --base fixed: the base frame left out, as calibrate does
+    ident, gauge = observation_identifiability(r, [obs], names, keep=args.keep or (), rank_tol=args.rank_tol)
     return emit(args, {**ident.to_dict(), "gauge": list(gauge), "type": kind}, str(ident))
 
 
@@ -92,6 +97,35 @@ SIMULATE_SCOPES = {**{k: SCOPES[k] for k in ("orientation", "rot_cols", "std_rot
                                        "(a design's poses) have no place"),
                    "std_pos": Scope((), "simulated files carry no σ; the position noise is --noise (mm per axis)"),
                    "markers": Scope((), "simulate writes kincal's own nest of three markers, m1, m2 and m3")}
+
+
+IDENTIFIABILITY_POSES = 100  # random poses of a point, pose or markers plan unless --poses says
+READ_FROM_DATA = ("the measured values do not change what the samples identify: identifiability reads the joint "
+                  "columns of a point, pose or markers file and the joints and labels of a socket or plane file")
+PLANNED = ("without --data no file is read (kincal plans the samples: at random joint values for points, poses and "
+           "markers, where its own plan puts them for sockets and planes), so a flag that says how a file is read "
+           "has nothing to read")
+
+
+def identifiability_scopes(args) -> dict[str, Scope]:
+    """identifiability's own table of what applies to which kind (:func:`kincal.identify.refuse_inapplicable`), with
+    --data (the file's samples: no count, nothing drawn, only its joints and labels read) or without (kincal's plan:
+    no file read; --length-unit is then the unit of --distance and --plane alone)."""
+    std_pos = Scope(OBSERVED, "position data are judged by their Jacobian alone: one σ for every sample scales it "
+                              "and changes nothing")
+    own = {**{k: SCOPES[k] for k in ("base", "std_rot", "label_col", "group_col", "distance", "plane")},
+           "std_pos": std_pos}
+    if args.data:
+        beside = f"beside --data {args.data} its rows are the samples"
+        return {**own, "poses": Scope((), f"{beside}, as many as it holds"),
+                "seed": Scope((), f"{beside}: nothing is drawn at random"),
+                **{k: Scope((), READ_FROM_DATA) for k in ("xyz_cols", "orientation", "rot_cols", "markers")}}
+    valued = tuple(k for k, flag in (("same-point", "distance"), ("plane", "plane")) if flag in args.given)
+    return {**own, "poses": SIMULATE_SCOPES["poses"],
+            **{k: Scope((), PLANNED) for k in ("joint_cols", "xyz_cols", "orientation", "rot_cols", "markers",
+                                               "label_col", "group_col", "angle_unit")},
+            "length_unit": Scope(valued, f"{PLANNED}; it is the unit of the values of --distance (sockets) and "
+                                         f"--plane (planes) alone")}
 
 
 def cmd_simulate(args) -> int:
@@ -246,8 +280,10 @@ def register(cmd) -> None:
 
     s = cmd("identifiability", cmd_identifiability, "which parameters position data can identify")
     s.add_argument("--data", help="CSV of poses (joint columns) to analyse (default: random poses)")
-    s.add_argument("--poses", type=positive_int, default=100, help="number of random poses (default 100)")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--poses", type=positive_int, help=f"point, pose, markers without --data: random poses within "
+                   f"the joint limits (default {IDENTIFIABILITY_POSES}; sockets and planes are as many as kincal's plan "
+                   f"touches)")
+    s.add_argument("--seed", type=int, help="without --data: the random poses or kincal's plan (default 0)")
     s.add_argument("--base", choices=list(kincal.analysis.BASE_MODES), default="estimate")
     s.add_argument("--keep", type=csv_list, help="parameters to prefer among confounded ones")
     s.add_argument("--rank-tol", type=positive_float, default=kincal.analysis.RANK_TOL,
