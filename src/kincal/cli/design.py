@@ -305,8 +305,7 @@ def _design_constraints(args, robot, options, cell) -> int:
         say(f"{args.method} on {len(plan)} candidates")
         d = kincal.select_poses(robot, plan.q, options, problem=problem)
     assert d.indices is not None  # detmax and fedorov choose among the plan's samples (checked above)
-    flags = (observe.flags_to_use(plan, args.length_unit, observe.format_of(args, kind)) + observe.units_to_use(args)
-             + observe.tool_to_use(args))
+    flags = observe.flags_to_use(args, kind, plan)
     if args.candidates:
         kincal.io.write_selected_rows(args.output, args.candidates, d.indices)
         where = f"samples written to {args.output} (the chosen rows of {args.candidates}, every column kept)"

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import re
+import shlex
 
 import numpy as np
 
@@ -143,23 +144,27 @@ def cmd_simulate(args) -> int:
     if kind != "point":  # observations of the type, written in its columns
         obs = observe.planned(args, r, true, kind, q, args.noise / MM, args.seed + 1)
         write_observations(args.output, obs, r, observe.format_of(args, kind))
-        use = (observe.flags_to_use(obs, args.length_unit, observe.format_of(args, kind)) + observe.units_to_use(args)
-               + (f" --orientation {args.orientation}" if kind == "pose" and args.orientation != "quat-wxyz" else "")
-               + observe.tool_to_use(args))
-        return emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
+        use, command = _read_back(args, kind, obs)
+        return emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use, "command": command},
                     f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them "
-                    f"with: {use}")
+                    f"with: {command}")
     meas = kincal.simulate(true, q, noise=args.noise / MM, seed=args.seed + 1)
     kincal.write_measurements(args.output, meas, r.joint_types, args.length_unit, args.angle_unit,
                               joint_cols=args.joint_cols, xyz_cols=args.xyz_cols)
     payload = {"output": args.output, "n": len(meas), "noise": args.noise / MM, "perturbed": bool(args.perturb),
                "true_robot": args.save_true, "true_parameters": true.params.as_dict()}
-    use = observe.units_to_use(args) + ("" if args.joint_cols is None else f" --joint-cols {','.join(args.joint_cols)}")
-    use += observe.tool_to_use(args)
-    use += "" if list(args.xyz_cols) == ["x", "y", "z"] else f" --xyz-cols {','.join(args.xyz_cols)}"
-    return emit(args, {**payload, "flags": use.strip()}, f"wrote {len(meas)} simulated measurements of {true.name} to "
-                f"{args.output}" + (f" (true robot saved to {args.save_true})" if args.save_true else "")
-                + (f"; calibrate them with: {use.strip()}" if use else ""))
+    use, command = _read_back(args, kind)
+    return emit(args, {**payload, "flags": use, "command": command}, f"wrote {len(meas)} simulated measurements of "
+                f"{true.name} to {args.output}" + (f" (true robot saved to {args.save_true})" if args.save_true else "")
+                + f"; calibrate them with: {command}")
+
+
+def _read_back(args, kind: str, obs=None) -> tuple[str, str]:
+    """The flags that read a simulated file back (:func:`kincal.cli.observe.flags_to_use`) and the whole command:
+    kincal calibrate, the robot with the URDF chain flags given, the file, those flags."""
+    use = observe.flags_to_use(args, kind, obs)
+    chain = [f"{args.given[k]} {shlex.quote(vars(args)[k])}" for k in ("base_link", "tip_link") if k in args.given]
+    return use, " ".join(["kincal calibrate", shlex.quote(args.robot), shlex.quote(args.output), *chain, use]).strip()
 
 
 def cmd_sensitivity(args) -> int:
