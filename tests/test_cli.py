@@ -417,3 +417,23 @@ def test_calibrate_test_names_the_likely_cause_of_a_held_out_file_as_evaluate_do
     cause = next(x for x in lines["other"].splitlines() if "likely cause" in x)
     assert main(["evaluate", str(tmp_path / "other.yaml"), str(tmp_path / "other.csv")]) == 0
     assert cause in capsys.readouterr().out and "another robot's data" in cause
+
+
+@pytest.mark.parametrize("argv, typed, si, rule", [
+    (["design", "ur5", "-m", "10", "-o", "{d}/d.csv", "--tracker-range", "20000,500mm"], "20000,500mm",
+     f"{20000 * 1e-3}..{500 * 1e-3} m", "give 0 ≤ min < max"),  # the record said 'tracker range 20.0..0.5 m'
+    (["design", "ur5", "-m", "10", "-o", "{d}/d.csv", "--keep-out", "600,300,400,200,-300,0mm"],
+     "600,300,400,200,-300,0mm", str(np.array([0.6, 0.3, 0.4])),  # 'keep-out box [0.6 0.3 0.4]..[ 0.2 -0.3 0. ]'
+     "give the lower corner below the upper one on every axis"),
+    (["calibrate", "ur5", str(DATA / "ur5_random.csv"), "--type", "pose", "--std-pos", "20000m"], "20000m",
+     f"{20000 * 1e3:g} mm", "more than any instrument's σ (at most 10 km)")])  # 'std_pos 2e+07 mm'
+def test_a_unit_flag_refused_by_its_record_is_echoed_as_typed(argv, typed, si, rule, tmp_path, capsys):
+    """A flag with a unit is converted to SI before its option record (the design's cell, the file's format) checks
+    it: the refusal showed the SI number ('tracker range 20.0..0.5 m', 'keep-out box [0.6 0.3 0.4]..', 'std_pos
+    2e+07 mm is more than any instrument's σ'), not the flag nor what was typed. Now the flag and its text, as
+    --std-joint's refusals, and what to do, before any work."""
+    flag = argv[-2]
+    with pytest.raises(SystemExit) as stop:
+        main([a.format(d=tmp_path) for a in argv])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and f"argument {flag}: '{typed}': {rule}" in err and si not in err, err

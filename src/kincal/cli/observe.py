@@ -16,7 +16,7 @@ from kincal.simulate import (plane_plan, simulate_markers, simulate_planes, simu
                              socket_plan)
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS, MRAD, in_display
 
-from .common import TYPES, add_data_flags, csv_list
+from .common import TYPES, add_data_flags, csv_list, judged
 from .report import nominal_model, save_figures
 
 def types_of(args) -> list[str]:
@@ -140,9 +140,11 @@ def add_flags(p: argparse.ArgumentParser, std: bool = True) -> None:
                    help="plane: a known plane n·p = c in the robot's base frame (c in the file's length unit); "
                         "simulate, design and identifiability touch these planes (default: kincal's own table and "
                         "a step 50 mm above it)")
-    g.add_argument("--std-pos", type=length, help="position σ with its unit, e.g. 0.1mm (defaults: point 0.015mm, "
-                                                  "pose 0.1mm, markers/sockets/planes 0.05mm)")
-    g.add_argument("--std-rot", type=angle, help="pose: orientation σ with its unit, e.g. 1mrad (default 1mrad)")
+    g.add_argument("--std-pos", type=judged(length, lambda v: ObservationFormat(std_pos=v)),
+                   help="position σ with its unit, e.g. 0.1mm (defaults: point 0.015mm, pose 0.1mm, "
+                        "markers/sockets/planes 0.05mm)")
+    g.add_argument("--std-rot", type=judged(angle, lambda v: ObservationFormat("pose", std_rot=v)),
+                   help="pose: orientation σ with its unit, e.g. 1mrad (default 1mrad)")
 
 
 AS_RECORDED = " (default: as the calibration was made; --no-... turns it off)"
