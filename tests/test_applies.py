@@ -1,6 +1,7 @@
 """Every flag of calibrate and evaluate, for every measurement kind: read by the command, or refused
 with its reason (kincal.identify.SCOPES). None is silently ignored."""
 import argparse
+import json
 import re
 
 import pytest
@@ -164,3 +165,63 @@ def test_every_simulate_flag_changes_the_file_or_is_refused(kind, tmp_path, caps
             assert code == 1 and f"{flag} does not apply to {kind} data" in err and not out.exists(), (flag, kind, err)
     assert main(["simulate", "ur5", "--type", kind, "-o", str(tmp_path / "g.csv"), "--poses", "7", "--poses-file",
                  str(tmp_path / "q.csv")]) == 1  # --poses beside the file of poses: one of the two is not used
+
+
+# a valid value other than the default, for every flag of identifiability a kind may refuse (the SCARA: revolute and
+# prismatic joints, so that either unit reads a joint of a --data file)
+IDENTIFIABILITY_SAMPLE = {
+    "--poses": ["7"], "--seed": ["3"], "--base": ["fixed"], "--keep": ["j4.d"], "--rank-tol": ["0.01"],
+    "--joint-cols": ["a1,a2,a3,a4"], "--xyz-cols": ["a,b,c"], "--length-unit": ["mm"], "--angle-unit": ["deg"],
+    "--orientation": ["quat-xyzw"], "--rot-cols": ["a,b,c,d"], "--markers": ["m1"], "--label-col": ["socket"],
+    "--group-col": ["plate"], "--distance": ["0,1,0.04"], "--plane": ["t:0,0,1,0.1", "--plane", "s:0,0,1,0.15"],
+    "--std-pos": ["1mm"], "--std-rot": ["50mrad"], "--tool": ["0,0,0.3"]}
+NOT_WALKED = {"json", "type", "data", "base_link", "tip_link"}  # the command's subject, and a URDF's chain
+
+
+def _outcome(argv, capsys):
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("source", ["plan", "data"])
+@pytest.mark.parametrize("kind", KINDS)
+def test_every_identifiability_flag_changes_the_result_or_is_refused(kind, source, tmp_path, capsys):
+    """identifiability, kincal's plan or a --data file: each flag either changes the result (the JSON, or the file's
+    reading: a flag of the read-back given another value) or is refused by the command's table, naming it.
+    --poses was ignored for sockets and planes (their count is the plan's, 120 and 60) and beside --data (its rows),
+    --seed beside --data, the layout flags of a file that is not read, --std-pos for points, --base for poses and
+    markers."""
+    from kincal.cli.model import identifiability_scopes
+    from kincal.identify.applies import Scope
+
+    data = tmp_path / f"{kind}.csv"
+    code, out, _ = _outcome(["simulate", "scara", "--type", kind, "-o", str(data), "--json"], capsys)
+    assert code == 0
+    read_back = json.loads(out)["flags"].split() if kind in ("same-point", "plane") else []  # labels and planes
+    head = ["identifiability", "scara", "--type", kind, "--json", *(["--data", str(data), *read_back] * (source == "data"))]
+    base = _outcome(head, capsys)
+    assert base[0] == 0, base[2]
+    said = json.loads(base[1])
+    planned = {"point": 100, "pose": 100, "markers": 100, "same-point": 120, "plane": 60}[kind]
+    assert said["n_poses"] == (planned if source == "plan" else len(data.read_text().splitlines()) - 1)
+    parser = build_parser()
+    walked = {flag: dest for dest, flag in _flags(parser, "identifiability").items() if dest not in NOT_WALKED}
+    assert set(walked) == set(IDENTIFIABILITY_SAMPLE)
+    for flag, dest in walked.items():
+        kept = [t for k, t in enumerate(head) if flag not in head[max(k - 1, 0):k + 1]]  # a read-back's flag: replaced
+        argv = [*kept, flag, *IDENTIFIABILITY_SAMPLE[flag]]
+        _, args = _parse(argv)
+        code, out, err = _outcome(argv, capsys)
+        if kind in identifiability_scopes(args).get(dest, Scope((kind,), "")).kinds:  # it applies: the result moves
+            moved = [(code, out)] + [_outcome(kept, capsys)[:2]] * (kept != head)  # a read-back's flag: or left out
+            assert "does not apply" not in err and set(moved) != {base[:2]}, (flag, kind, source, err)
+        else:
+            assert code == 1 and f"{flag} does not apply to {kind} data" in err, (flag, kind, source, err)
+    poses = _outcome([*head, "--poses", "7"], capsys)  # the finding: a count that is not the samples' is refused
+    if source == "plan" and kind in ("point", "pose", "markers"):
+        assert json.loads(poses[1])["n_poses"] == 7
+    else:
+        assert poses[0] == 1 and ("120 samples" in poses[2] and "30 contacts per plane" in poses[2]
+                                  if source == "plan" else f"beside --data {data} its rows are the samples" in poses[2])

@@ -229,18 +229,49 @@ def test_a_value_that_starts_with_a_minus_sign(capsys):
     assert stop.value.code == 2 and "unrecognized arguments: -5" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("kind", ["point", "pose"])
-def test_simulate_says_how_to_read_its_file_back(tmp_path, capsys, kind):
-    """The hint simulate prints is complete: calibrate with exactly those flags reads the file in its
-    units (without them the mm file is refused as a unit mistake)."""
-    path = tmp_path / "s.csv"
-    assert main(["simulate", "ur5", "--type", kind, "-o", str(path), "--poses", "40", "--perturb",
-                 "--length-unit", "mm", "--angle-unit", "deg"]) == 0
-    hint = capsys.readouterr().out.split("calibrate them with: ")[1].split()
-    assert "--length-unit" in hint and "--angle-unit" in hint
-    assert main(["calibrate", "ur5", str(path), *hint]) in (0, 4)
-    assert "looks like" not in capsys.readouterr().err
+# every layout flag simulate writes a file of the kind by (calibrate's defaults otherwise), and the header it gives
+LAYOUT = {"point": (["--xyz-cols", "px,py,pz"], "q1,q2,q3,q4,q5,q6,px,py,pz"),
+          "pose": (["--xyz-cols", "px,py,pz", "--orientation", "quat-xyzw", "--rot-cols", "A,B,C,D"],
+                   "px,py,pz,A,B,C,D,q1,q2,q3,q4,q5,q6"),
+          "markers": ([], "m1.x,m1.y,m1.z,m2.x,m2.y,m2.z,m3.x,m3.y,m3.z,q1,q2,q3,q4,q5,q6"),
+          "same-point": (["--label-col", "sock", "--group-col", "plate"], "plate,sock,q1,q2,q3,q4,q5,q6"),
+          "plane": (["--label-col", "surf"], "surf,q1,q2,q3,q4,q5,q6")}
+
+
+@pytest.mark.parametrize("kind", [*LAYOUT])
+def test_simulate_says_the_command_that_reads_its_file_back(tmp_path, capsys, kind):
+    """The command simulate prints reads the file it wrote: run as printed, calibrate fits it (a verdict, not a read
+    error), whatever columns and units the file was written in. It left out --xyz-cols and --rot-cols of a pose
+    file, a plane file's --label-col and every non-point file's --joint-cols (calibrate said 'not found'); without
+    the units the mm file is refused as a unit mistake."""
+    import shlex
+
+    path = tmp_path / "s p.csv"  # a space: the printed command quotes it
+    count = [] if kind in ("same-point", "plane") else ["--poses", "40"]
+    layout, header = LAYOUT[kind]
+    assert main(["simulate", "ur5", "--type", kind, "-o", str(path), *count, "--perturb", "--joint-cols",
+                 "q1,q2,q3,q4,q5,q6", *layout, "--length-unit", "mm", "--angle-unit", "deg", "--tool", "0,0,100mm"]) == 0
+    assert path.read_text().splitlines()[0] == header
+    command = shlex.split(capsys.readouterr().out.split("calibrate them with: ")[1])
+    assert command[:4] == ["kincal", "calibrate", "ur5", str(path)]
+    assert {"--length-unit", "--angle-unit", "--joint-cols", *layout[::2]} <= set(command)
+    assert main(command[1:]) in (0, 4)
+    err = capsys.readouterr().err
+    assert "not found" not in err and "looks like" not in err, err
     assert main(["calibrate", "ur5", str(path), "--type", kind]) == 1
+
+
+def test_simulate_says_the_urdf_chain_it_read(tmp_path, capsys):
+    """A URDF robot's chain flags are part of the command that reads the simulated file back."""
+    import shlex
+
+    from conftest import PANDA_URDF
+
+    path = tmp_path / "s.csv"
+    assert main(["simulate", str(PANDA_URDF), "--tip-link", "ball_link", "-o", str(path), "--perturb"]) == 0
+    command = shlex.split(capsys.readouterr().out.split("calibrate them with: ")[1])
+    assert command == ["kincal", "calibrate", str(PANDA_URDF), str(path), "--tip-link", "ball_link"]
+    assert main(command[1:]) in (0, 4)
 
 
 def test_simulate_touches_the_planes_given_and_says_so(tmp_path, capsys):
@@ -253,7 +284,7 @@ def test_simulate_touches_the_planes_given_and_says_so(tmp_path, capsys):
     assert main(["simulate", "ur5", "--type", "plane", "--plane", "table:0,0,1,-200", "--plane", "step:0,0,1,-120",
                  "-o", str(path), "--perturb", "--noise", "0", "--length-unit", "mm", "--tool", "0,0,100mm",
                  "--save-true", str(true)]) == 0
-    hint = capsys.readouterr().out.split("calibrate them with: ")[1].split()
+    hint = capsys.readouterr().out.split("calibrate them with: ")[1].split()[4:]  # after kincal calibrate ROBOT FILE
     assert hint[hint.index("--tool") + 1] == "0,0,100mm"
     assert [hint[i + 1] for i, h in enumerate(hint) if h == "--plane"] == ["table:0,0,1,-200", "step:0,0,1,-120"]
     robot = kincal.load_robot(str(true))
@@ -386,3 +417,23 @@ def test_calibrate_test_names_the_likely_cause_of_a_held_out_file_as_evaluate_do
     cause = next(x for x in lines["other"].splitlines() if "likely cause" in x)
     assert main(["evaluate", str(tmp_path / "other.yaml"), str(tmp_path / "other.csv")]) == 0
     assert cause in capsys.readouterr().out and "another robot's data" in cause
+
+
+@pytest.mark.parametrize("argv, typed, si, rule", [
+    (["design", "ur5", "-m", "10", "-o", "{d}/d.csv", "--tracker-range", "20000,500mm"], "20000,500mm",
+     f"{20000 * 1e-3}..{500 * 1e-3} m", "give 0 ≤ min < max"),  # the record said 'tracker range 20.0..0.5 m'
+    (["design", "ur5", "-m", "10", "-o", "{d}/d.csv", "--keep-out", "600,300,400,200,-300,0mm"],
+     "600,300,400,200,-300,0mm", str(np.array([0.6, 0.3, 0.4])),  # 'keep-out box [0.6 0.3 0.4]..[ 0.2 -0.3 0. ]'
+     "give the lower corner below the upper one on every axis"),
+    (["calibrate", "ur5", str(DATA / "ur5_random.csv"), "--type", "pose", "--std-pos", "20000m"], "20000m",
+     f"{20000 * 1e3:g} mm", "more than any instrument's σ (at most 10 km)")])  # 'std_pos 2e+07 mm'
+def test_a_unit_flag_refused_by_its_record_is_echoed_as_typed(argv, typed, si, rule, tmp_path, capsys):
+    """A flag with a unit is converted to SI before its option record (the design's cell, the file's format) checks
+    it: the refusal showed the SI number ('tracker range 20.0..0.5 m', 'keep-out box [0.6 0.3 0.4]..', 'std_pos
+    2e+07 mm is more than any instrument's σ'), not the flag nor what was typed. Now the flag and its text, as
+    --std-joint's refusals, and what to do, before any work."""
+    flag = argv[-2]
+    with pytest.raises(SystemExit) as stop:
+        main([a.format(d=tmp_path) for a in argv])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and f"argument {flag}: '{typed}': {rule}" in err and si not in err, err

@@ -263,7 +263,7 @@ def test_socket_messages_state_their_lengths_in_mm(tmp_path):
     with pytest.raises(kincal.ModelError, match=r"could not be reached by scara \(first: \[2000\.0, 0\.0, 100\.0\] "
                                                 r"mm\)"):
         simulate_same_point(robot, {"a": a, "far": far}, per_point=1, std=0.0)
-    with pytest.raises(ValueError, match=r"std_pos 2e\+07 mm is more than any instrument's σ"):
+    with pytest.raises(ValueError, match=r"std_pos 2e\+07 mm: more than any instrument's σ \(at most 10 km\)"):
         ObservationFormat(kind="same-point", std_pos=2e4)  # 20 km
 
 

@@ -82,6 +82,21 @@ def checked(check):
     return parse
 
 
+def judged(parse, rule):
+    """argparse type: ``parse``'s value (SI) judged at once by ``rule``, the option record's own check of that value
+    (e.g. the record built with it alone), whose refusal is said with the value as typed. A record's message is
+    'SUBJECT: WHAT TO DO', its subject in SI ("tracker range 20.0..0.5 m: give 0 ≤ min < max"); the flag's is the
+    text typed and what to do ("argument --tracker-range: '20000,500mm': give 0 ≤ min < max")."""
+    def parsed(s: str):
+        value = parse(s)
+        try:
+            rule(value)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(f"'{s.strip()}': {str(exc).partition(': ')[2] or exc}") from None
+        return value
+    return parsed
+
+
 def row_list(s: str) -> list[int]:
     """'5,7-9' -> [5, 7, 8, 9] (input file rows, header = 1)."""
     rows: list[int] = []

@@ -13,14 +13,15 @@ import kincal.analysis
 import kincal.design
 import kincal.identify
 import kincal.models
+from kincal.design import Cell
 from kincal._atomic import write_text_atomic
 from kincal.compensate import command_models
 from kincal.io.program_ur import measurement_program
 from kincal.observe import read_observations, write_observations
 
 from . import observe
-from .common import (cell_lengths, csv_list, emit, err, lengths, load_robot, nonneg_float, nonneg_int, one_type,
-                     positive_float, positive_int, progress, check_paths)
+from .common import (cell_lengths, csv_list, emit, err, judged, lengths, load_robot, nonneg_float, nonneg_int,
+                     one_type, positive_float, positive_int, progress, check_paths)
 
 
 CELL_FLAGS = {"floor", "keep_out", "tracker", "tracker_range", "cone", "reflector_axis", "joint_margin", "link_radius"}
@@ -241,19 +242,21 @@ def add_cell_flags(s, obeys: str) -> None:
     c = s.add_argument_group(f"the cell (robot base frame; {obeys})")
     c.add_argument("--floor", type=cell_lengths(1, "0mm"),
                    help="the target stays above this height, e.g. 0mm (the mounting plane)")
-    c.add_argument("--keep-out", type=cell_lengths(6, "200,-300,0,600,300,400mm"), action="append",
-                   help="X0,Y0,Z0,X1,Y1,Z1[UNIT]: a box the target may not enter (repeatable)")
+    c.add_argument("--keep-out", type=judged(cell_lengths(6, "200,-300,0,600,300,400mm"),
+                                             lambda t: Cell(keep_out=((np.array(t[:3]), np.array(t[3:])),))),
+                   action="append", help="X0,Y0,Z0,X1,Y1,Z1[UNIT]: a box the target may not enter (repeatable)")
     c.add_argument("--tracker", type=cell_lengths(3, "3000,0,500mm"),
                    help="the tracker's position: poses it cannot see are left out")
-    c.add_argument("--tracker-range", type=cell_lengths(2, "500,20000mm"), help="MIN,MAX[UNIT] distance to the tracker")
-    c.add_argument("--cone", type=positive_float, default=30.0,
+    c.add_argument("--tracker-range", type=judged(cell_lengths(2, "500,20000mm"), lambda t: Cell(tracker_range=t)),
+                   help="MIN,MAX[UNIT] distance to the tracker")
+    c.add_argument("--cone", type=judged(positive_float, lambda v: Cell(cone=np.deg2rad(v))), default=30.0,
                    help="half-angle (deg) of the reflector's acceptance around its axis (default 30)")
-    c.add_argument("--reflector-axis", type=lengths(3, "0,0,1"), default=(0.0, 0.0, 1.0),
-                   help="the reflector's opening direction in the flange frame (default 0,0,1)")
+    c.add_argument("--reflector-axis", type=judged(lengths(3, "0,0,1"), lambda t: Cell(reflector_axis=t)),
+                   default=(0.0, 0.0, 1.0), help="the reflector's opening direction in the flange frame (default 0,0,1)")
     c.add_argument("--joint-margin", type=nonneg_float, default=0.0, help="degrees kept from every revolute joint's limits")
-    c.add_argument("--link-radius", type=cell_lengths(1, "50mm"), default=(0.05,),
-                   help="the arm's links as segments this thick (between its joint frames), kept above --floor and "
-                        "out of --keep-out boxes too (default 50mm)")
+    c.add_argument("--link-radius", type=judged(cell_lengths(1, "50mm"), lambda t: Cell(link_radius=t[0])),
+                   default=(0.05,), help="the arm's links as segments this thick (between its joint frames), kept "
+                                         "above --floor and out of --keep-out boxes too (default 50mm)")
 
 
 def cell_of(args):
@@ -305,8 +308,7 @@ def _design_constraints(args, robot, options, cell) -> int:
         say(f"{args.method} on {len(plan)} candidates")
         d = kincal.select_poses(robot, plan.q, options, problem=problem)
     assert d.indices is not None  # detmax and fedorov choose among the plan's samples (checked above)
-    flags = (observe.flags_to_use(plan, args.length_unit, observe.format_of(args, kind)) + observe.units_to_use(args)
-             + observe.tool_to_use(args))
+    flags = observe.flags_to_use(args, kind, plan)
     if args.candidates:
         kincal.io.write_selected_rows(args.output, args.candidates, d.indices)
         where = f"samples written to {args.output} (the chosen rows of {args.candidates}, every column kept)"

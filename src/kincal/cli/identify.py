@@ -20,7 +20,8 @@ from kincal.identify import held_out_nominal, held_out_stats, stat_change
 from kincal.units import DEG, LENGTH_UNITS, MM
 
 from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, covariates_read, csv_list, emit, err, hidden_alias,
-                     load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs, row_list, unread_joints)
+                     judged, load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs,
+                     row_list, unread_joints)
 from . import observe
 from .history import add_store_flag, store_file, store_record
 from .report import add_session_flags, data_record, nominal_model, save_figures, write_outputs
@@ -451,7 +452,8 @@ def register(cmd) -> None:
     s.add_argument("--report", help="HTML report to write (self-contained; its JSON goes beside it)")
     s.add_argument("--plot", help="figures to write: STEM.png or STEM.svg gives STEM-<figure>.png/.svg")
     th = kincal.Thresholds()  # the defaults are the record's
-    s.add_argument("--tracker-noise", type=_noise_mm, default=th.tracker_noise * MM,
+    s.add_argument("--tracker-noise", type=judged(_noise_mm, lambda v: kincal.Thresholds(tracker_noise=v / MM)),
+                   default=th.tracker_noise * MM,
                    help=f"expected tracker noise per axis, with its unit (0.015mm, 15um; mm without one; default "
                         f"{th.tracker_noise * MM:g}mm)")
     for kind, unit, lo, hi in (("length", "mm", th.length_suspect * MM, th.length_refuse * MM),

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import re
+import shlex
 
 import numpy as np
 
@@ -12,8 +13,9 @@ import kincal.analysis
 import kincal.io
 import kincal.models
 from kincal.compensate import fit_frames_only
-from kincal.identify import SCOPES, observation_identifiability, refuse_inapplicable
-from kincal.identify.applies import Scope
+from kincal.identify import SCOPES, FitOptions, observation_identifiability, refuse_inapplicable
+from kincal.identify.applies import OBSERVED, Scope
+from kincal.identify.stacked import wanted_names
 from kincal.models.export import controller_base
 from kincal.observe import describe, read_observations, write_observations
 from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM, SHOWN, display, joint_factors, joint_units
@@ -62,6 +64,9 @@ def cmd_show(args) -> int:
 
 def cmd_identifiability(args) -> int:
     kind = one_type(args)
+    refuse_inapplicable([kind], args.given, identifiability_scopes(args))
+    args.poses = IDENTIFIABILITY_POSES if args.poses is None else args.poses
+    args.seed = 0 if args.seed is None else args.seed
     r = load_robot(args)
     if kind == "point":
         ident = kincal.analysis.free_parameters(r, joint_values(args, r, args.data), base=args.base,
@@ -72,7 +77,8 @@ def cmd_identifiability(args) -> int:
                else observe.planned(args, r, r, kind, None, 0.0, args.seed))
     else:  # the type's observations at the poses of a file or at random ones
         obs = observe.planned(args, r, r, kind, joint_values(args, r, args.data), 0.0, args.seed)
-    ident, gauge = observation_identifiability(r, [obs], keep=args.keep or (), rank_tol=args.rank_tol)
+    names = wanted_names(r, FitOptions(base=args.base))  # --base fixed: the base frame left out, as calibrate does
+    ident, gauge = observation_identifiability(r, [obs], names, keep=args.keep or (), rank_tol=args.rank_tol)
     return emit(args, {**ident.to_dict(), "gauge": list(gauge), "type": kind}, str(ident))
 
 
@@ -94,6 +100,35 @@ SIMULATE_SCOPES = {**{k: SCOPES[k] for k in ("orientation", "rot_cols", "std_rot
                    "markers": Scope((), "simulate writes kincal's own nest of three markers, m1, m2 and m3")}
 
 
+IDENTIFIABILITY_POSES = 100  # random poses of a point, pose or markers plan unless --poses says
+READ_FROM_DATA = ("the measured values do not change what the samples identify: identifiability reads the joint "
+                  "columns of a point, pose or markers file and the joints and labels of a socket or plane file")
+PLANNED = ("without --data no file is read (kincal plans the samples: at random joint values for points, poses and "
+           "markers, where its own plan puts them for sockets and planes), so a flag that says how a file is read "
+           "has nothing to read")
+
+
+def identifiability_scopes(args) -> dict[str, Scope]:
+    """identifiability's own table of what applies to which kind (:func:`kincal.identify.refuse_inapplicable`), with
+    --data (the file's samples: no count, nothing drawn, only its joints and labels read) or without (kincal's plan:
+    no file read; --length-unit is then the unit of --distance and --plane alone)."""
+    std_pos = Scope(OBSERVED, "position data are judged by their Jacobian alone: one σ for every sample scales it "
+                              "and changes nothing")
+    own = {**{k: SCOPES[k] for k in ("base", "std_rot", "label_col", "group_col", "distance", "plane")},
+           "std_pos": std_pos}
+    if args.data:
+        beside = f"beside --data {args.data} its rows are the samples"
+        return {**own, "poses": Scope((), f"{beside}, as many as it holds"),
+                "seed": Scope((), f"{beside}: nothing is drawn at random"),
+                **{k: Scope((), READ_FROM_DATA) for k in ("xyz_cols", "orientation", "rot_cols", "markers")}}
+    valued = tuple(k for k, flag in (("same-point", "distance"), ("plane", "plane")) if flag in args.given)
+    return {**own, "poses": SIMULATE_SCOPES["poses"],
+            **{k: Scope((), PLANNED) for k in ("joint_cols", "xyz_cols", "orientation", "rot_cols", "markers",
+                                               "label_col", "group_col", "angle_unit")},
+            "length_unit": Scope(valued, f"{PLANNED}; it is the unit of the values of --distance (sockets) and "
+                                         f"--plane (planes) alone")}
+
+
 def cmd_simulate(args) -> int:
     r = load_robot(args, [args.poses_file], [args.output, args.save_true])
     true = (kincal.perturb(r, length=args.length_error / MM, angle=args.angle_error / DEG, seed=args.seed)
@@ -109,23 +144,27 @@ def cmd_simulate(args) -> int:
     if kind != "point":  # observations of the type, written in its columns
         obs = observe.planned(args, r, true, kind, q, args.noise / MM, args.seed + 1)
         write_observations(args.output, obs, r, observe.format_of(args, kind))
-        use = (observe.flags_to_use(obs, args.length_unit, observe.format_of(args, kind)) + observe.units_to_use(args)
-               + (f" --orientation {args.orientation}" if kind == "pose" and args.orientation != "quat-wxyz" else "")
-               + observe.tool_to_use(args))
-        return emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use},
+        use, command = _read_back(args, kind, obs)
+        return emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use, "command": command},
                     f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them "
-                    f"with: {use}")
+                    f"with: {command}")
     meas = kincal.simulate(true, q, noise=args.noise / MM, seed=args.seed + 1)
     kincal.write_measurements(args.output, meas, r.joint_types, args.length_unit, args.angle_unit,
                               joint_cols=args.joint_cols, xyz_cols=args.xyz_cols)
     payload = {"output": args.output, "n": len(meas), "noise": args.noise / MM, "perturbed": bool(args.perturb),
                "true_robot": args.save_true, "true_parameters": true.params.as_dict()}
-    use = observe.units_to_use(args) + ("" if args.joint_cols is None else f" --joint-cols {','.join(args.joint_cols)}")
-    use += observe.tool_to_use(args)
-    use += "" if list(args.xyz_cols) == ["x", "y", "z"] else f" --xyz-cols {','.join(args.xyz_cols)}"
-    return emit(args, {**payload, "flags": use.strip()}, f"wrote {len(meas)} simulated measurements of {true.name} to "
-                f"{args.output}" + (f" (true robot saved to {args.save_true})" if args.save_true else "")
-                + (f"; calibrate them with: {use.strip()}" if use else ""))
+    use, command = _read_back(args, kind)
+    return emit(args, {**payload, "flags": use, "command": command}, f"wrote {len(meas)} simulated measurements of "
+                f"{true.name} to {args.output}" + (f" (true robot saved to {args.save_true})" if args.save_true else "")
+                + f"; calibrate them with: {command}")
+
+
+def _read_back(args, kind: str, obs=None) -> tuple[str, str]:
+    """The flags that read a simulated file back (:func:`kincal.cli.observe.flags_to_use`) and the whole command:
+    kincal calibrate, the robot with the URDF chain flags given, the file, those flags."""
+    use = observe.flags_to_use(args, kind, obs)
+    chain = [f"{args.given[k]} {shlex.quote(vars(args)[k])}" for k in ("base_link", "tip_link") if k in args.given]
+    return use, " ".join(["kincal calibrate", shlex.quote(args.robot), shlex.quote(args.output), *chain, use]).strip()
 
 
 def cmd_sensitivity(args) -> int:
@@ -246,8 +285,10 @@ def register(cmd) -> None:
 
     s = cmd("identifiability", cmd_identifiability, "which parameters position data can identify")
     s.add_argument("--data", help="CSV of poses (joint columns) to analyse (default: random poses)")
-    s.add_argument("--poses", type=positive_int, default=100, help="number of random poses (default 100)")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--poses", type=positive_int, help=f"point, pose, markers without --data: random poses within "
+                   f"the joint limits (default {IDENTIFIABILITY_POSES}; sockets and planes are as many as kincal's plan "
+                   f"touches)")
+    s.add_argument("--seed", type=int, help="without --data: the random poses or kincal's plan (default 0)")
     s.add_argument("--base", choices=list(kincal.analysis.BASE_MODES), default="estimate")
     s.add_argument("--keep", type=csv_list, help="parameters to prefer among confounded ones")
     s.add_argument("--rank-tol", type=positive_float, default=kincal.analysis.RANK_TOL,

@@ -16,7 +16,7 @@ from kincal.simulate import (plane_plan, simulate_markers, simulate_planes, simu
                              socket_plan)
 from kincal.units import ANGLE_UNITS, LENGTH_UNITS, MRAD, in_display
 
-from .common import TYPES, add_data_flags, csv_list
+from .common import TYPES, add_data_flags, csv_list, judged
 from .report import nominal_model, save_figures
 
 def types_of(args) -> list[str]:
@@ -140,9 +140,11 @@ def add_flags(p: argparse.ArgumentParser, std: bool = True) -> None:
                    help="plane: a known plane n·p = c in the robot's base frame (c in the file's length unit); "
                         "simulate, design and identifiability touch these planes (default: kincal's own table and "
                         "a step 50 mm above it)")
-    g.add_argument("--std-pos", type=length, help="position σ with its unit, e.g. 0.1mm (defaults: point 0.015mm, "
-                                                  "pose 0.1mm, markers/sockets/planes 0.05mm)")
-    g.add_argument("--std-rot", type=angle, help="pose: orientation σ with its unit, e.g. 1mrad (default 1mrad)")
+    g.add_argument("--std-pos", type=judged(length, lambda v: ObservationFormat(std_pos=v)),
+                   help="position σ with its unit, e.g. 0.1mm (defaults: point 0.015mm, pose 0.1mm, "
+                        "markers/sockets/planes 0.05mm)")
+    g.add_argument("--std-rot", type=judged(angle, lambda v: ObservationFormat("pose", std_rot=v)),
+                   help="pose: orientation σ with its unit, e.g. 1mrad (default 1mrad)")
 
 
 AS_RECORDED = " (default: as the calibration was made; --no-... turns it off)"
@@ -239,31 +241,34 @@ def _spacing(args) -> float:
     return float(given[0][2]) * LENGTH_UNITS[args.length_unit]
 
 
-def flags_to_use(obs, length_unit: str, fmt=None) -> str:
-    """The calibrate flags that read a written plan back: labels (as ``fmt``, its format, names the columns),
-    distances, planes."""
-    f = 1.0 / LENGTH_UNITS[length_unit]
-    if obs.kind == "same-point":
-        label, group = (fmt.label, fmt.group_col or "placement") if fmt is not None else ("point", "placement")
-        return (f"--type same-point --label-col {label} --group-col {group} --distance 0,1,"
-                f"{obs.distances[0][2] * f:g}")
-    if obs.kind == "plane":
-        return "--type plane " + " ".join(f"--plane {lab}:{n[0]:g},{n[1]:g},{n[2]:g},{c * f:.6g}"
-                                          for lab, (n, c) in obs.known.items())
-    return f"--type {obs.kind}"
-
-
-def tool_to_use(args) -> str:
-    """The --tool flag that reads a written file back with the tool point it was simulated with ('' for none)."""
+def flags_to_use(args, kind: str, obs=None) -> str:
+    """The calibrate flags that read back the file of ``kind`` written as ``args`` say (:func:`format_of`; a point
+    file by :func:`kincal.write_measurements` with the same columns and units): its type, every column and unit the
+    format names other than calibrate's defaults, the tool point it was simulated with, and a written plan's
+    (``obs``) placements, known distances and planes. One rule for every kind, so the hint is the command that reads
+    the file: a pose file's --xyz-cols and --rot-cols, a plane file's --label-col were left out."""
+    fmt, default = format_of(args, kind), ObservationFormat(kind)
+    parts = [] if kind == "point" else [f"--type {kind}"]
+    parts += [f"--joint-cols {','.join(fmt.joint_cols)}"] if fmt.joint_cols else []
+    if kind in ("point", "pose"):
+        parts += [f"--xyz-cols {','.join(fmt.xyz_cols)}"] if fmt.xyz_cols != default.xyz_cols else []
+    if kind == "pose":
+        parts += [f"--orientation {fmt.orientation}"] if fmt.orientation != default.orientation else []
+        parts += [f"--rot-cols {','.join(fmt.rot_cols)}"] if fmt.rot_cols else []
+    f = 1.0 / LENGTH_UNITS[fmt.length_unit]
+    if kind == "same-point":  # the label and placement columns simulate and design write
+        parts += [f"--label-col {fmt.label} --group-col {fmt.group_col or 'placement'}"]
+        parts += [f"--distance 0,1,{obs.distances[0][2] * f:g}"] if obs is not None else []
+    if kind == "plane":
+        parts += [f"--label-col {fmt.label}"] if fmt.label != default.label else []
+        parts += [f"--plane {lab}:{n[0]:g},{n[1]:g},{n[2]:g},{c * f:.6g}" for lab, (n, c) in
+                  (obs.known.items() if obs is not None else ())]
+    parts += [f"--{flag}-unit {unit}" for flag, unit, default_unit in (("length", fmt.length_unit, "m"),
+                                                                        ("angle", fmt.angle_unit, "rad"))
+              if unit != default_unit]
     tool = vars(args).get("tool")
-    return "" if tool is None else " --tool " + ",".join(f"{v * 1e3:.10g}" for v in tool) + "mm"
-
-
-def units_to_use(args) -> str:
-    """The unit flags that read a written file back ('' for the defaults, m and rad)."""
-    return "".join(f" --{flag}-unit {unit}" for flag, unit, default in (("length", args.length_unit, "m"),
-                                                                      ("angle", args.angle_unit, "rad"))
-                   if unit != default)
+    parts += [] if tool is None else ["--tool " + ",".join(f"{v * 1e3:.10g}" for v in tool) + "mm"]
+    return " ".join(parts)
 
 
 def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: str | None) -> tuple[dict, list[str]]:

@@ -111,8 +111,12 @@ class Cell:
             raise ValueError(f"tracker range {lo}..{hi} m: give 0 ≤ min < max")
         if not 0 < self.cone <= np.pi:
             raise ValueError(f"cone {np.rad2deg(self.cone):g} deg: give a half-angle in (0, 180] deg")
-        if not np.linalg.norm(self.reflector_axis) > 0 or self.joint_margin < 0 or not 0 <= self.link_radius < 1:
-            raise ValueError("the reflector axis must be non-zero, the joint margin ≥ 0 and the link radius in [0, 1) m")
+        if not np.linalg.norm(self.reflector_axis) > 0:
+            raise ValueError(f"reflector axis {tuple(map(float, self.reflector_axis))}: give a non-zero direction")
+        if not self.joint_margin >= 0:
+            raise ValueError(f"joint margin {self.joint_margin:g} rad: give 0 or more")
+        if not 0 <= self.link_radius < 1:
+            raise ValueError(f"link radius {self.link_radius:g} m: give 0 or more, below 1 m")
 
     @property
     def empty(self) -> bool:

@@ -167,7 +167,8 @@ class ObservationFormat:
                 raise ValueError(f"plane {label}: give a non-zero normal and an offset a robot can reach (in "
                                  f"{self.length_unit}), got {', '.join(f'{v:g}' for v in n)}, {c:g}")
         if self.std_pos is not None and self.std_pos > LIMIT["length"]:
-            raise ValueError(f"std_pos {fine(self.std_pos, 'length', 'g')} is more than any instrument's σ")
+            raise ValueError(f"std_pos {fine(self.std_pos, 'length', 'g')}: more than any instrument's σ (at most "
+                             f"{LIMIT['length'] / 1e3:g} km)")
 
     @property
     def label(self) -> str:
