@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import re
 import shlex
 
@@ -146,8 +147,7 @@ def cmd_simulate(args) -> int:
         write_observations(args.output, obs, r, observe.format_of(args, kind))
         use, command = _read_back(args, kind, obs)
         return emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use, "command": command},
-                    f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}; calibrate them "
-                    f"with: {command}")
+                    f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}{_hint(args, command)}")
     meas = kincal.simulate(true, q, noise=args.noise / MM, seed=args.seed + 1)
     kincal.write_measurements(args.output, meas, r.joint_types, args.length_unit, args.angle_unit,
                               joint_cols=args.joint_cols, xyz_cols=args.xyz_cols)
@@ -156,7 +156,14 @@ def cmd_simulate(args) -> int:
     use, command = _read_back(args, kind)
     return emit(args, {**payload, "flags": use, "command": command}, f"wrote {len(meas)} simulated measurements of "
                 f"{true.name} to {args.output}" + (f" (true robot saved to {args.save_true})" if args.save_true else "")
-                + f"; calibrate them with: {command}")
+                + _hint(args, command))
+
+
+def _hint(args, command: str) -> str:
+    """'; calibrate them with: COMMAND' where the output is a file to read back ('' for a stream: -o /dev/stdout)."""
+    from kincal._atomic import data_on_stdout
+
+    return f"; calibrate them with: {command}" if os.path.isfile(args.output) and not data_on_stdout() else ""
 
 
 def _read_back(args, kind: str, obs=None) -> tuple[str, str]:
