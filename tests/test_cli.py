@@ -426,7 +426,9 @@ def test_calibrate_test_names_the_likely_cause_of_a_held_out_file_as_evaluate_do
      "600,300,400,200,-300,0mm", str(np.array([0.6, 0.3, 0.4])),  # 'keep-out box [0.6 0.3 0.4]..[ 0.2 -0.3 0. ]'
      "give the lower corner below the upper one on every axis"),
     (["calibrate", "ur5", str(DATA / "ur5_random.csv"), "--type", "pose", "--std-pos", "20000m"], "20000m",
-     f"{20000 * 1e3:g} mm", "more than any instrument's σ (at most 10 km)")])  # 'std_pos 2e+07 mm'
+     f"{20000 * 1e3:g} mm", "more than any instrument's σ (at most 10 km)"),  # 'std_pos 2e+07 mm'
+    (["calibrate", "ur5", str(DATA / "ur5_random.csv"), "--tracker-noise", "1e-320m"], "1e-320m",
+     "not finite", "below any instrument's noise")])  # passed as positive: 'the residual ... is not finite'
 def test_a_unit_flag_refused_by_its_record_is_echoed_as_typed(argv, typed, si, rule, tmp_path, capsys):
     """A flag with a unit is converted to SI before its option record (the design's cell, the file's format) checks
     it: the refusal showed the SI number ('tracker range 20.0..0.5 m', 'keep-out box [0.6 0.3 0.4]..', 'std_pos

@@ -167,6 +167,9 @@ def noise_limit(n: int, dim: int = 3) -> float:
 
 MAX_OUTLIER_SHARE = 0.1  # "a few bad poses": outliers are left out only up to this share of the poses
 
+MIN_NOISE = 1e-9  # m: no instrument measures positions with less noise (an interferometer's ~1 nm)
+
+
 @dataclass(frozen=True)
 class Thresholds:
     """Verdict thresholds (SI units: m, rad; the residual ratios are to ``tracker_noise``).
@@ -260,6 +263,10 @@ class Thresholds:
                if isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) or not (np.isfinite(v) and v > 0)]
         if bad:
             raise ValueError(f"thresholds: {', '.join(bad)} must be positive numbers")
+        if self.tracker_noise < MIN_NOISE:  # 1e-320 m passed as positive, and its whitened residuals overflowed
+            raise ValueError(f"tracker_noise {self.tracker_noise:g} m: below any instrument's noise (an "
+                             f"interferometer's is about {MIN_NOISE * 1e9:g} nm); give the tracker's with its unit, "
+                             f"e.g. 0.015mm")
         for a, b in (("length_suspect", "length_refuse"), ("angle_suspect", "angle_refuse"),
                      ("residual_suspect", "residual_refuse"), ("tool_suspect", "tool_refuse"),
                      ("ratio_suspect", "ratio_refuse"), ("mounting_suspect", "mounting_refuse")):
