@@ -561,8 +561,9 @@ def test_history_judges_each_step_by_compares_test(tmp_path, kincal_main, capsys
     ids = [r["id"] for r in out["records"]]
     assert [(s["before"], s["after"]) for s in out["steps"]] == [(ids[0], ids[1]), (ids[1], ids[2])]
     for step, (first, second) in zip(out["steps"], ((a, b), (b, p))):
-        assert kincal_main(["compare", first, second, "--json"]) == 0
+        code = kincal_main(["compare", first, second, "--json"])
         said = json.loads(capsys.readouterr().out)
+        assert code == (4 if said["changed"] else 0)  # as check: a change is no pass
         assert step["test"]["p_value"] == pytest.approx(said["p_value"], rel=1e-9)
         assert (step["test"]["changed"], step["test"]["verdict"]) == (said["changed"], said["verdict"])
     unchanged, changed = (s["test"] for s in out["steps"])

@@ -102,6 +102,26 @@ def test_a_joint_remastered_by_3_deg_or_a_link_15_mm_longer_is_named_with_its_si
         assert "the two calibrations show no significant change" in moved.notes[-1]
 
 
+def test_compare_exits_with_4_when_the_robot_changed_as_check_does(true, tmp_path, capsys):
+    """compare exited 0 beside '"changed": true' (a UR5 before and after joint 2 re-mastered by 3°), where check exits
+    4 when it advises re-calibration: compare now exits 4 when it finds a change, 0 for no significant change, and
+    the change it names is the 3° put in (within 3σ)."""
+    ur5 = kincal.load_robot("ur5")
+    v = true.params.as_dict()
+    v["j2.theta"] += math.radians(3)
+    for name, robot, seed in (("a", true, 1), ("b", true, 2), ("moved", true.with_params(v), 2)):
+        kincal.write_measurements(tmp_path / f"{name}.csv", kincal.simulate(robot, ur5.sample_joints(80, seed=seed),
+                                                                            15e-6, seed), ur5.joint_types)
+        main(["calibrate", "ur5", str(tmp_path / f"{name}.csv"), "-o", str(tmp_path / f"{name}.yaml"), "--force"])
+    capsys.readouterr()
+    for name, code in (("b", 0), ("moved", 4)):
+        assert main(["compare", str(tmp_path / "a.yaml"), str(tmp_path / f"{name}.yaml"), "--json"]) == code
+        out = json.loads(capsys.readouterr().out)
+        assert out["changed"] == bool(code)
+    top = out["suspects"][0]
+    assert out["verdict"] == "changed (joint zero: j2 zero)" and abs(top["size"] - math.radians(3)) < 3 * top["sigma"]
+
+
 def test_a_check_design_never_plans_fewer_poses_than_a_check_takes(true):
     """design --check wrote 3 (or 1) poses that check then refused ("a check needs at least 4 ... measure the poses
     design --check chose"): both refuse below 4 now, the check accepts the 4 the design chose."""
@@ -518,7 +538,7 @@ def test_two_calibrations_that_are_not_one_robot_measured_the_same_way_name_no_c
     assert main(["compare", files["a"], files["b"], "--json"]) == 0
     same = json.loads(capsys.readouterr().out)
     assert same["verdict"] == "no significant change" and same["p_value"] == pytest.approx(0.125, abs=5e-3)
-    assert main(["compare", files["a"], files["swapped"], "--json"]) == 0
+    assert main(["compare", files["a"], files["swapped"], "--json"]) == 4
     out = json.loads(capsys.readouterr().out)
     first = out["suspects"][0]
     assert out["changed"] and abs(first["size"]) > 10e-3 > first["sigma"] and first["kind"] == "link"

@@ -76,7 +76,8 @@ def cmd_compare(args) -> int:
     a, b = calibrated(args.first), calibrated(args.second)
     test = compare(a, b, same_frame=args.same_frame, alpha=args.alpha)
     stored = record(args, test, args.second, b.robot, [args.first, args.second])
-    return emit(args, test.to_dict(), "\n".join(lines_of(test) + ([stored] if stored else [])))
+    emit(args, test.to_dict(), "\n".join(lines_of(test) + ([stored] if stored else [])))
+    return EXIT_REFUSED if test.changed else 0  # as check: a change found (or no one robot) is no pass
 
 
 def cmd_check(args) -> int:
@@ -94,13 +95,14 @@ def cmd_check(args) -> int:
 def register(cmd) -> None:
     """Add compare and check through ``cmd(name, func, help, None)``."""
     s = cmd("compare", cmd_compare, "did the robot change between two calibrations? (the parameters that moved, "
-                                    "with a stated false-alarm probability)", None)
+                                    "with a stated false-alarm probability); exit 4 when it changed or the two "
+                                    "do not describe one robot, as check", None)
     s.add_argument("first", metavar="A", help="the earlier calibrated robot file")
     s.add_argument("second", metavar="B", help="the later calibrated robot file (sizes are B − A)")
     _common(s)
     s = cmd("check", cmd_check, "is a calibrated model still good? a few measured poses (those `design --check` "
                                 "chose) against it: 'still good' or 're-calibrate' with what moved; exit 4 when "
-                                "re-calibration is advised", None)
+                                "re-calibration is advised or the data do not fit, as compare", None)
     s.add_argument("calibration", metavar="CAL", help="the calibrated robot file")
     s.add_argument("data", help="the check's measurements CSV (joints and measured positions, like calibrate's)")
     add_data_flags(s, std=False)
