@@ -116,10 +116,14 @@ def test_compare_exits_with_4_when_the_robot_changed_as_check_does(true, tmp_pat
     capsys.readouterr()
     for name, code in (("b", 0), ("moved", 4)):
         assert main(["compare", str(tmp_path / "a.yaml"), str(tmp_path / f"{name}.yaml"), "--json"]) == code
-        out = json.loads(capsys.readouterr().out)
-        assert out["changed"] == bool(code)
+        said = capsys.readouterr()
+        out = json.loads(said.out)
+        assert out["changed"] == bool(code) and ("the change named here may be" in said.err) == bool(code)
     top = out["suspects"][0]
     assert out["verdict"] == "changed (joint zero: j2 zero)" and abs(top["size"] - math.radians(3)) < 3 * top["sigma"]
+    assert main(["compare", str(tmp_path / "moved.yaml"), str(tmp_path / "moved.yaml")]) == 0
+    said = capsys.readouterr().err  # SUSPECT for its 3° correction; one file given twice is warned of once
+    assert said == f"warning: {tmp_path / 'moved.yaml'} was calibrated with the verdict SUSPECT (its report says why)\n"
 
 
 def test_a_check_design_never_plans_fewer_poses_than_a_check_takes(true):
@@ -364,7 +368,8 @@ def test_a_check_of_a_joint_space_calibration_names_that(tmp_path, capsys):
 
 def test_a_comparison_with_a_doubtful_calibration_says_so(tmp_path, capsys):
     """The WAM's two SUSPECT calibrations were compared and a joint zero named at z = 29.6 with no word of their
-    verdicts; compare and check now say on stderr which input was calibrated SUSPECT (a good one is not named)."""
+    verdicts; compare and check now say on stderr which input was calibrated SUSPECT (a good one is not named), and
+    that a change named may be its trouble only when one is named (it said so beside 'no significant change')."""
     from kincal.cli import main
 
     data = tmp_path / "p.csv"
@@ -374,9 +379,10 @@ def test_a_comparison_with_a_doubtful_calibration_says_so(tmp_path, capsys):
     doubtful = tmp_path / "b.yaml"
     doubtful.write_text(doubtful.read_text().replace("  verdict: good", "  verdict: suspect"))
     capsys.readouterr()
-    main(["compare", str(tmp_path / "a.yaml"), str(doubtful)])
+    assert main(["compare", str(tmp_path / "a.yaml"), str(doubtful)]) == 0
     said = capsys.readouterr().err
     assert f"warning: {doubtful} was calibrated with the verdict SUSPECT" in said and "a.yaml was" not in said
+    assert "change named here" not in said  # it said "a change named here may be ..." beside no change named
     main(["check", str(doubtful), str(data)])
     assert f"warning: {doubtful} was calibrated with the verdict SUSPECT" in capsys.readouterr().err
 
@@ -539,7 +545,9 @@ def test_two_calibrations_that_are_not_one_robot_measured_the_same_way_name_no_c
     same = json.loads(capsys.readouterr().out)
     assert same["verdict"] == "no significant change" and same["p_value"] == pytest.approx(0.125, abs=5e-3)
     assert main(["compare", files["a"], files["swapped"], "--json"]) == 4
-    out = json.loads(capsys.readouterr().out)
+    said = capsys.readouterr()
+    out = json.loads(said.out)  # the size gate names no change: the REFUSED file's warning says none may be its own
+    assert f"warning: {files['swapped']} was calibrated with the verdict REFUSED (its report says why)\n" == said.err
     first = out["suspects"][0]
     assert out["changed"] and abs(first["size"]) > 10e-3 > first["sigma"] and first["kind"] == "link"
     assert out["verdict"] == (f"these calibrations do not describe one robot measured the same way: {files['swapped']} "

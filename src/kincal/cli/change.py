@@ -62,31 +62,34 @@ def record(args, test: ChangeTest, path: str, robot, inputs: list[str]) -> str |
         payload={"command": command, "test": test.to_dict(), **evaluated}))
 
 
-def _doubtful(path: str) -> None:
-    """On stderr: a calibration compared or checked against whose verdict was not good (its doubt carries over)."""
+def _doubtful(path: str, test: ChangeTest) -> None:
+    """On stderr: a calibration compared or checked against whose verdict was not good (its doubt carries over to
+    a change ``test`` names; a test that names none is not said to)."""
     verdict = (kincal.models.load_calibration_record(path) or {}).get("verdict")
     if verdict in ("suspect", "refused"):
-        err.print(f"warning: {path} was calibrated with the verdict {str(verdict).upper()} (its report says why): a "
-                  f"change named here may be that calibration's trouble, not the robot's", markup=False)
+        named = test.changed and not test.misfit and test.explained >= EXPLAINED_MIN
+        err.print(f"warning: {path} was calibrated with the verdict {str(verdict).upper()} (its report says why)"
+                  + (": the change named here may be that calibration's trouble, not the robot's" if named else ""),
+                  markup=False)
 
 
 def cmd_compare(args) -> int:
-    for path in (args.first, args.second):
-        _doubtful(path)
     a, b = calibrated(args.first), calibrated(args.second)
     test = compare(a, b, same_frame=args.same_frame, alpha=args.alpha)
+    for path in dict.fromkeys((args.first, args.second)):  # one file given twice: said once
+        _doubtful(path, test)
     stored = record(args, test, args.second, b.robot, [args.first, args.second])
     emit(args, test.to_dict(), "\n".join(lines_of(test) + ([stored] if stored else [])))
     return EXIT_REFUSED if test.changed else 0  # as check: a change found (or no one robot) is no pass
 
 
 def cmd_check(args) -> int:
-    _doubtful(args.calibration)
     cal = calibrated(args.calibration)
     check_paths([args.data], [])
     meas = kincal.read_measurements(args.data, cal.robot, joint_cols=args.joint_cols, xyz_cols=args.xyz_cols,
                                     length_unit=args.length_unit, angle_unit=args.angle_unit)
     test = check(cal, meas.q, meas.xyz, same_frame=args.same_frame, alpha=args.alpha, units=meas.units)
+    _doubtful(args.calibration, test)
     stored = record(args, test, args.calibration, cal.robot, [args.calibration, args.data])
     emit(args, test.to_dict(), "\n".join(lines_of(test) + ([stored] if stored else [])))
     return EXIT_REFUSED if test.changed else 0
