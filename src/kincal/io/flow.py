@@ -1,7 +1,8 @@
 """What a program's settings reach along its flow: which assignment of a setting (URScript's ``set_tcp``, KRL's
 ``$TOOL`` and ``$BASE``) may be in force at each move, by the program's structure and not by the order of its text.
 
-A dialect reads its program into a tree of nodes — a setting (:class:`Set`), a move (:class:`Move`), branches
+A dialect reads its program into a tree of nodes — a setting (:class:`Set`), settings made from another one in
+force (:class:`Derive`: KRL's ``BAS(#FRAMES)``, $TOOL and $BASE from FDAT_ACT), a move (:class:`Move`), branches
 (:class:`Branch`: if/elif/else, switch), loops (:class:`Loop`), calls of the program's own routines
 (:class:`Call`, :class:`Define`) and jumps out (:class:`Jump`: return, break, continue, halt) — and
 :func:`reach` follows every path: a routine's settings reach the moves after each call of it (its body followed
@@ -12,7 +13,7 @@ named with the lines that make it ambiguous, never compensated with a guess.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Hashable, Optional, Sequence
+from typing import Callable, Hashable, Optional, Sequence
 
 START = 0  # the line of the state before any setting: the controller's own
 
@@ -42,6 +43,18 @@ class Set:
 
     setting: Setting
     slot: int = 0
+
+
+@dataclass(frozen=True)
+class Derive:
+    """Settings made from the one in force in slot ``source``: for each setting ``s`` that may be in force there,
+    ``made(s)`` gives one setting per slot of ``slots`` (in that order), in force from here on; ``made(None)``: what
+    it gives where the source is not known (a routine's settings gathered apart from its calls: a thread's, a
+    recursion's)."""
+
+    source: int
+    slots: tuple[int, ...]
+    made: Callable[[Optional[Setting]], tuple[Setting, ...]]
 
 
 @dataclass(frozen=True)
@@ -131,6 +144,10 @@ class _Walk:
         for node in nodes:
             if isinstance(node, Set) and fall is not None:
                 fall = tuple(frozenset([node.setting]) if k == node.slot else s for k, s in enumerate(fall))
+            elif isinstance(node, Derive) and fall is not None:
+                made = [node.made(s) for s in fall[node.source]]
+                fall = tuple(frozenset(m[node.slots.index(k)] for m in made) if k in node.slots else s
+                             for k, s in enumerate(fall))
             elif isinstance(node, Move) and fall is not None:
                 self.moves[node.at] = _join(self.moves.get(node.at), fall)
             elif isinstance(node, Branch):
@@ -193,10 +210,11 @@ class _Walk:
         out: State = None
         for b in self.defs.get(name, []):
             for node in _flat(b):
-                if isinstance(node, Set):
-                    one = tuple(frozenset([node.setting]) if k == node.slot else frozenset()
-                                for k in range(self.slots))
-                    out = _join(out, one)
+                if isinstance(node, (Set, Derive)):
+                    sets = {node.slot: node.setting} if isinstance(node, Set) else dict(zip(node.slots,
+                                                                                            node.made(None)))
+                    out = _join(out, tuple(frozenset([sets[k]]) if k in sets else frozenset()
+                                           for k in range(self.slots)))
                 elif isinstance(node, (Call, Start)) and node.name not in seen:
                     out = _join(out, self.settable(node.name, seen))
         return out if out is not None else tuple(frozenset() for _ in range(self.slots))
@@ -243,7 +261,7 @@ def reach(tree: Sequence, start: Sequence[Setting]) -> dict[int, tuple[frozenset
     Parameters
     ----------
     tree : sequence of nodes
-        The program as :class:`Set`, :class:`Move`, :class:`Branch`, :class:`Loop`, :class:`Call`,
+        The program as :class:`Set`, :class:`Derive`, :class:`Move`, :class:`Branch`, :class:`Loop`, :class:`Call`,
         :class:`Start`, :class:`Define` and :class:`Jump` nodes, in the order of its text.
     start : sequence of Setting
         What is in force before the program sets anything, one per slot (line :data:`START`).

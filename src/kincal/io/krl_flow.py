@@ -1,12 +1,21 @@
 """A KRL module's structure as :mod:`kincal.io.flow` nodes, behind :mod:`kincal.io.program_krl`: which ``$TOOL`` and
-``$BASE`` assignment may be in force at each move, by its routines (``DEF``/``DEFFCT``, called by name), branches
+``$BASE`` may be in force at each move, by its routines (``DEF``/``DEFFCT``, called by name), branches
 (``IF``/``ELSE``, ``SWITCH``/``CASE``/``DEFAULT``), loops (``FOR``, ``WHILE``, ``LOOP``, ``REPEAT``/``UNTIL``) and
 jumps (``EXIT``, ``RETURN``); a routine an ``INTERRUPT DECL`` or ``TRIGGER`` runs may run beside any move. Each
-statement is on its own line; names in any case."""
+statement is on its own line; names in any case.
+
+What sets them (:func:`nodes`): the assignments ``$TOOL = …`` and ``$BASE = …`` (the value as written), and KUKA's
+``BAS`` calls (its BAS.SRC): ``BAS(#TOOL, n)`` sets ``$TOOL = TOOL_DATA[n]`` and ``BAS(#BASE, n)`` ``$BASE =
+BASE_DATA[n]`` ($NULLFRAME for 0: the flange, the world); ``BAS(#FRAMES)``, and ``BAS(#PTP_PARAMS, v)`` and
+``BAS(#CP_PARAMS, v)`` of the inline forms, set both from the TOOL_NO and BASE_NO of the FDAT that ``FDAT_ACT = F…``
+leaves in force. A value known only at run time — ``BAS(#TOOL, n)`` with a variable ``n``, a component changed
+(``$TOOL.Z = …``), ``BAS(#FRAMES)`` where FDAT_ACT is not one known FDAT — is :class:`Unknown`, with why."""
 from __future__ import annotations
 
+import functools
 import re
-from typing import Sequence
+from dataclasses import dataclass
+from typing import Callable, Sequence
 
 from . import flow
 
@@ -18,22 +27,120 @@ CALL = re.compile(r"(?<![\w$.#])([A-Za-z_]\w*)[ \t]*\(")
 CLOSER = {"DEF": "END", "DEFFCT": "ENDFCT", "DEFDAT": "ENDDAT", "FOR": "ENDFOR", "WHILE": "ENDWHILE",
           "LOOP": "ENDLOOP", "REPEAT": "UNTIL"}
 NONE_SET = flow.Setting(flow.START, "", "")  # no $TOOL or $BASE set by the module: '' (the one in force, given)
+SLOTS = ("$TOOL", "$BASE", "FDAT_ACT")  # the settings followed, by slot
+ASSIGNED = re.compile(r"^[ \t]*(\$TOOL|\$BASE|FDAT_ACT)[ \t]*((?:\.[ \t]*\w+[ \t]*)*)=(?!=)[ \t]*([^\n]*?)[ \t\r]*$",
+                      re.M | re.I)
+BAS = re.compile(r"^[ \t]*BAS[ \t]*\([ \t]*#(TOOL|BASE|FRAMES|PTP_PARAMS|CP_PARAMS)[ \t]*(?:,[ \t]*([^\n]*?)[ \t]*)?\)"
+                 r"[ \t\r]*$", re.M | re.I)
+NUMBER = re.compile(r"\+?(\d+)(?:\.0*)?")  # a tool's or base's number written out (BAS takes a REAL)
+
+
+@dataclass(frozen=True)
+class Unknown:
+    """A setting's value known only at run time: ``why``, in words with its line."""
+
+    why: str
+
+
+def _setting(line: int, value: str | Unknown) -> flow.Setting:
+    """A Setting on ``line``: a value as written keyed as KRL compares it (upper case, no blanks); an Unknown keyed
+    by its why (the same statement, the same key)."""
+    key = ("run time", value.why) if isinstance(value, Unknown) else "".join(value.split()).upper()
+    return flow.Setting(line, key, value)
+
+
+def nodes(code: str, text: str, line: Callable[[int], int],
+          fdat: Callable[[str], tuple[str, str] | str]) -> list[tuple[int, object]]:
+    """Each statement of a module that sets ``$TOOL`` (slot 0), ``$BASE`` (1) or ``FDAT_ACT`` (2), as a
+    :mod:`kincal.io.flow` node by its position (module docstring).
+
+    Parameters
+    ----------
+    code : str
+        The module's text, comments and strings blanked.
+    text : str
+        The module's text as written (the values are taken from it).
+    line : callable
+        ``line(position) -> int``: the line (from 1) of a position.
+    fdat : callable
+        ``fdat(name) -> (tool, base) | str``: the TOOL_NO and BASE_NO of the FDAT named as written ("TOOL_NO 1",
+        "BASE_NO 2"; '' where it gives none), or why it is not known.
+
+    Returns
+    -------
+    list of (int, Set or Derive)
+        By position, in text order.
+
+    Examples
+    --------
+    >>> text = "DEF p()\\nBAS (#tool, 2 )\\nBAS(#BASE,n)\\nEND"
+    >>> [(n.slot, n.setting.value) for _, n in nodes(text, text, lambda at: text.count(chr(10), 0, at) + 1, dict)]
+    [(0, 'TOOL_DATA[2]'), (1, Unknown(why="line 3's BAS(#BASE,n) sets the base numbered by n"))]
+    """
+    out: list[tuple[int, object]] = []
+    for m in ASSIGNED.finditer(code):
+        n, value = line(m.start()), text[m.start(3):m.end(3)]
+        part = "".join(m.group(2).split())
+        made = Unknown(f"line {n}'s {m.group(1)}{part} = {value} changes it") if part else value
+        out.append((m.start(), flow.Set(_setting(n, made), SLOTS.index(m.group(1).upper()))))
+    for m in BAS.finditer(code):
+        n, word, shown = line(m.start()), m.group(1).upper(), text[m.start():m.end()].strip()
+        if word in ("TOOL", "BASE"):
+            arg = text[m.start(2):m.end(2)] if m.group(2) else ""
+            got = _numbered(word, NUMBER.fullmatch("".join(arg.split())),
+                            f"line {n}'s {shown} sets the {word.lower()} numbered by {arg or 'nothing'}")
+            out.append((m.start(), flow.Set(_setting(n, got), int(word == "BASE"))))
+        else:
+            out.append((m.start(), flow.Derive(2, (0, 1), functools.partial(_from_fdat, n, shown, fdat))))
+    return sorted(out, key=lambda e: e[0])
+
+
+def _numbered(word: str, number: re.Match | None, why: str) -> str | Unknown:
+    """The frame KUKA's BAS.SRC sets for the ``word`` (TOOL or BASE) numbered by the match ``number`` of
+    :data:`NUMBER`: TOOL_DATA[n] or BASE_DATA[n], $NULLFRAME for 0 (the flange, the world); without a number,
+    Unknown with ``why``."""
+    if number is None:
+        return Unknown(why)
+    return "$NULLFRAME" if int(number.group(1)) == 0 else f"{word}_DATA[{int(number.group(1))}]"
+
+
+def _from_fdat(line: int, shown: str, fdat: Callable[[str], tuple[str, str] | str],
+               source: flow.Setting | None) -> tuple[flow.Setting, flow.Setting]:
+    """The $TOOL and $BASE that ``shown`` (BAS(#FRAMES) and the like, on ``line``) sets from the FDAT_ACT in force
+    ``source`` (None: not known): TOOL_DATA[TOOL_NO] and BASE_DATA[BASE_NO] ($NULLFRAME for 0), else why not."""
+    head = f"line {line}'s {shown} sets it from FDAT_ACT"
+    if source is None:
+        return (_setting(line, Unknown(f"{head}, not known where its routine runs (an interrupt's, a trigger's, or "
+                                       f"one that calls itself)")),) * 2
+    if source.line == flow.START:
+        return (_setting(line, Unknown(f"{head}, which no line of the module sets before it")),) * 2
+    if isinstance(source.value, Unknown):
+        return (_setting(line, Unknown(f"{head}, and {source.value.why}")),) * 2
+    found = fdat(str(source.value))
+    out = []
+    for k, word in enumerate(("TOOL", "BASE")):
+        given = found if isinstance(found, str) else found[k]
+        number = re.fullmatch(rf"{word}_NO[ \t]+{NUMBER.pattern}", given.strip(), re.I)
+        out.append(_setting(line, _numbered(word, number, f"{head} = {source.value} (line {source.line}), " + (
+            found if isinstance(found, str) else f"whose {word}_NO is not a number written out" if given else
+            f"which gives no {word}_NO"))))
+    return out[0], out[1]
 
 
 class Broken(Exception):
     """The module's blocks do not balance, or it jumps (GOTO): (position, what)."""
 
 
-def reach(code: str, settings: Sequence[tuple[int, int, str, int]], moves: Sequence[int]):
+def reach(code: str, settings: Sequence[tuple[int, object]], moves: Sequence[int]):
     """What may be in force at each move: :func:`kincal.io.flow.reach` of the module in ``code`` (comments and
-    strings blanked), by position, slot 0 the tool and 1 the base.
+    strings blanked), by position, slot 0 the tool, 1 the base and 2 FDAT_ACT.
 
     Parameters
     ----------
     code : str
         The module's text, comments and strings blanked.
-    settings : sequence of (int, int, str, int)
-        Each ``$TOOL``/``$BASE`` assignment: (where, 0 tool or 1 base, the value as written, its line).
+    settings : sequence of (int, node)
+        Each statement that sets them, as :func:`nodes` gives: (where, its Set or Derive node).
     moves : sequence of int
         Where each move (or point whose frames are asked for) is.
 
@@ -49,13 +156,12 @@ def reach(code: str, settings: Sequence[tuple[int, int, str, int]], moves: Seque
     """
     routines = {m.group(1).upper() for m in ROUTINE.finditer(code)}
     events: list[tuple[int, object]] = [(m.start(1), m.group(1).upper()) for m in BLOCK.finditer(code)]
-    events += [(at, flow.Set(flow.Setting(line, "".join(value.split()).upper(), value), which))
-               for at, which, value, line in settings]
+    events += list(settings)
     events += [(at, flow.Move(at)) for at in moves]
     events += [(m.start(), flow.Call(m.group(1).upper())) for m in CALL.finditer(code)
                if m.group(1).upper() in routines]
     tree = _Tree(code, sorted(events, key=lambda e: e[0])).block(())[0]
-    return flow.reach(tree, [NONE_SET, NONE_SET])
+    return flow.reach(tree, [NONE_SET] * len(SLOTS))
 
 
 class _Tree:

@@ -27,11 +27,13 @@ What is a target (kind "pose" or "joints"):
 
 Frames: a point ``X<name>`` with a ``DECL FDAT F<name>={TOOL_NO t, BASE_NO b, …}`` in the same file
 (the inline forms' naming) has ``frames`` ("TOOL_NO t", "BASE_NO b"). Any other target has the values
-assigned to ``$TOOL`` and ``$BASE`` as written (e.g. "TOOL_DATA[1]", "$NULLFRAME") that the module's flow leaves
-in force at its moves (:mod:`kincal.io.krl_flow`: an assignment in a ``DEF`` reaches the moves after each call of
-it, one in an ``IF``, ``SWITCH`` or loop the moves after the block only as one possibility), or '' where the file
-sets none; where its paths leave different ones (or the module jumps with ``GOTO``) the target's
-``Program.in_force_of`` says why, and it is refused. A ``.src`` move ``PTP XP1 … C_PTP`` whose point and
+assigned to ``$TOOL`` and ``$BASE`` as written (e.g. "TOOL_DATA[1]", "$NULLFRAME"; KUKA's ``BAS(#TOOL, n)``,
+``BAS(#BASE, n)`` and ``BAS(#FRAMES)`` set them too, the last from FDAT_ACT's FDAT in the file or its module's
+``.dat``) that the module's flow leaves in force at its moves (:mod:`kincal.io.krl_flow`: an assignment in a
+``DEF`` reaches the moves after each call of it, one in an ``IF``, ``SWITCH`` or loop the moves after the block
+only as one possibility), or '' where the file sets none; where its paths leave different ones, one known only at
+run time (``BAS(#TOOL, nTool)``), or the module jumps with ``GOTO``, the target's ``Program.in_force_of`` says
+why, and it is refused. A ``.src`` move ``PTP XP1 … C_PTP`` whose point and
 FDAT are in the ``.dat`` is listed in the ``.src`` (its literal is compensated in the ``.dat``).
 
 Listed in ``not_literal`` (line, what, why), never changed: relative moves (``PTP_REL``, ``LIN_REL``,
@@ -60,6 +62,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..errors import MeasurementError
 from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix
 from . import flow, krl_flow
 from .programs import Dialect, Program, Target, controller_angles, old_numbers, used_otherwise, write_fields
@@ -75,7 +78,8 @@ DECLARE = re.compile(r"^[ \t]*(?:GLOBAL[ \t]+)?(?:DECL[ \t]+)?(?:GLOBAL[ \t]+)?(
 ASSIGN = re.compile(r"^[ \t]*(?:(?:GLOBAL|DECL)[ \t]+)*(?:[A-Za-z_]\w*[ \t]+)?(\$?[A-Za-z_]\w*)[ \t]*(\[[^\]\n]*\])?"
                     r"((?:[ \t]*\.[ \t]*\w+)*)[ \t]*=(?!=)[ \t]*", re.M | re.I)
 OPERAND = re.compile(r"\$?[A-Za-z_]\w*(?:[ \t]*\[[^\]\n]*\])?(?:[ \t]*\.[ \t]*\w+)*")
-FDAT = re.compile(r"^[ \t]*(?:GLOBAL[ \t]+)?DECL[ \t]+(?:GLOBAL[ \t]+)?FDAT[ \t]+F(\w+)[ \t]*=[ \t]*\{", re.M | re.I)
+FDAT = re.compile(r"^[ \t]*(?:GLOBAL[ \t]+)?DECL[ \t]+(?:GLOBAL[ \t]+)?FDAT[ \t]+([A-Za-z_]\w*)[ \t]*=[ \t]*\{",
+                  re.M | re.I)
 RUN_TIME = "the robot's position when the move starts, read at run time"
 
 
@@ -212,19 +216,46 @@ class _File:
 
     @functools.cached_property
     def _fdat(self) -> dict[str, tuple[str, str]]:
-        """FDAT F<name> -> its (tool, base) as written ('' where it names none), by upper-case name."""
-        out: dict[str, tuple[str, str]] = {}
-        for m in FDAT.finditer(self.code):
-            parts = self.aggs[m.end() - 1].parts
-            got = [f"{k} {self.text[slice(*parts[k])]}" if k in parts else "" for k in ("TOOL_NO", "BASE_NO")]
-            out.setdefault(m.group(1).upper(), (got[0], got[1]))
-        return out
+        """Each FDAT declared in the file -> its (tool, base) (:func:`_fdats`)."""
+        return _fdats(self.text, self.code, self.aggs)
 
     @functools.cached_property
-    def _settings(self) -> list[tuple[int, int, str]]:
-        """Each $TOOL / $BASE assignment: (where, 0 tool or 1 base, the value as written), in text order."""
-        return [(m.start(), int(m.group(1).upper() == "BASE"), self.text[m.start(2):m.end(2)])
-                for m in re.finditer(r"^[ \t]*\$(TOOL|BASE)[ \t]*=[ \t]*([^\n]*?)[ \t\r]*$", self.code, re.M | re.I)]
+    def _module_fdat(self) -> dict[str, tuple[str, str]] | str:
+        """For a ``.src``: the FDATs of its module's ``.dat`` (:func:`_fdats`; {} without one), or why they cannot
+        be read."""
+        path = _module_data(self.source)
+        if path is None:
+            return {}
+        try:
+            with open(path, "rb") as fh:
+                text = fh.read().decode("latin-1")  # names and numbers are ASCII; comments may be anything
+            code = _blank(text)
+            ends = _check_brackets(path, text, code)
+            return _fdats(text, code, {m.end() - 1: _aggregate(path, text, code, ends, m.end() - 1)
+                                       for m in FDAT.finditer(code)})
+        except (OSError, MeasurementError) as exc:
+            return f"its module's {os.path.basename(path)} cannot be read ({exc})"
+
+    def fdat(self, name: str) -> tuple[str, str] | str:
+        """The (tool, base) of the FDAT named ``name`` as written (an FDAT literal's own), from this file or its
+        module's ``.dat``, or why it is not known."""
+        literal = re.fullmatch(r"\{([^{}]*)\}", name.strip())
+        if literal:
+            got = [re.search(rf"(?<!\w){k}[ \t]+([^,\s]+)", literal.group(1), re.I) for k in ("TOOL_NO", "BASE_NO")]
+            return (f"TOOL_NO {got[0].group(1)}" if got[0] else "", f"BASE_NO {got[1].group(1)}" if got[1] else "")
+        other = self._module_fdat
+        found = {**(other if isinstance(other, dict) else {}), **self._fdat}.get(_key(name))
+        if found is not None:
+            return found
+        if isinstance(other, str):
+            return other
+        where = _module_data(self.source)
+        return f"which no DECL FDAT of this file{' or of ' + os.path.basename(where) if where else ''} declares"
+
+    @functools.cached_property
+    def _nodes(self) -> list[tuple[int, object]]:
+        """Each statement setting $TOOL, $BASE or FDAT_ACT, as flow nodes by position (:func:`kincal.io.krl_flow.nodes`)."""
+        return krl_flow.nodes(self.code, self.text, self.line, self.fdat)
 
     def line(self, at: int) -> int:
         return bisect.bisect_left(self._breaks, at) + 1
@@ -265,8 +296,8 @@ class _File:
         else the $TOOL and $BASE the module's flow leaves in force at every one of them ('' for none set;
         :mod:`kincal.io.krl_flow`); where its paths leave different ones, '' and why in ``unknown``."""
         name = variable.split("[")[0].upper()
-        if name[:1] == "X" and name[1:] in self._fdat:
-            return self._fdat[name[1:]]
+        if name[:1] == "X" and "F" + name[1:] in self._fdat:
+            return self._fdat["F" + name[1:]]
         reached = self._reached
         if isinstance(reached, str):
             self.unknown[start] = reached
@@ -276,6 +307,7 @@ class _File:
         for slot, what in ((0, "$TOOL"), (1, "$BASE")):
             possible = frozenset().union(*(reached.get(at, (frozenset(), frozenset()))[slot] for at in ats))
             one = flow.in_force(possible)
+            one = None if one is None or isinstance(one.value, krl_flow.Unknown) else one
             out.append("" if one is None else str(one.value))
             why += [] if one is not None else [_ambiguous(what, possible, len(ats) > 1)]
         if why:
@@ -286,14 +318,25 @@ class _File:
     def _reached(self) -> dict | str | None:
         """What may be in force at each move and bound point (:func:`kincal.io.krl_flow.reach`), None for a module
         that sets no $TOOL or $BASE, or why its structure cannot be read."""
-        if not self._settings:
+        if not any(isinstance(n, flow.Derive) or (isinstance(n, flow.Set) and n.slot < 2) for _, n in self._nodes):
             return None
         moves = [m.start() for m in MOVE.finditer(self.code)] + list(self.bound.values())
         try:
-            return krl_flow.reach(self.code, [(w, k, v, self.line(w)) for w, k, v in self._settings], moves)
+            return krl_flow.reach(self.code, self._nodes, moves)
         except krl_flow.Broken as exc:
             return (f"the $TOOL and $BASE in force cannot be read from the module's structure: line "
                     f"{self.line(exc.args[0])}: {exc.args[1]}")
+
+
+def _fdats(text: str, code: str, aggs: Mapping[int, _Aggregate]) -> dict[str, tuple[str, str]]:
+    """Each ``DECL FDAT`` of a file (its text, blanked code and aggregates by their '{') -> its (tool, base) as
+    written ("TOOL_NO 1", "BASE_NO 2"; '' where it names none), by upper-case name; the first of a name."""
+    out: dict[str, tuple[str, str]] = {}
+    for m in FDAT.finditer(code):
+        parts = aggs[m.end() - 1].parts
+        got = [f"{k} {text[slice(*parts[k])]}" if k in parts else "" for k in ("TOOL_NO", "BASE_NO")]
+        out.setdefault(m.group(1).upper(), (got[0], got[1]))
+    return out
 
 
 def _ambiguous(what: str, possible: frozenset, shared: bool = False) -> str:
@@ -301,14 +344,21 @@ def _ambiguous(what: str, possible: frozenset, shared: bool = False) -> str:
     moves to it, ``shared``: a point moved to more than once)."""
     if not possible:
         return f"no path of the module reaches this move, so no {what} is known for it"
-    lines = sorted(s.line for s in possible if s.line != flow.START)
+    unknown = [why for _, why in sorted({(s.line, s.value.why) for s in possible
+                                         if isinstance(s.value, krl_flow.Unknown)})]
+    example = "BAS(#TOOL,2) or $TOOL = TOOL_DATA[2]" if what == "$TOOL" else "BAS(#BASE,1) or $BASE = BASE_DATA[1]"
+    if unknown and len({s.key for s in possible}) == 1:
+        return (f"its {what} is known only at run time: {unknown[0]}; give it with its number written out ({example}) "
+                f"on every path before this move")
+    lines = sorted({s.line for s in possible if s.line != flow.START})
     return (f"its {what} is not known from the module's structure: the {what} assignment"
             f"{'s' * (len(lines) > 1)} on line{'s' * (len(lines) > 1)} {', '.join(map(str, lines))}"
             + (f" or the {what} in force before any" if any(s.line == flow.START for s in possible) else "")
             + (f" may be in force at the moves to it, one literal for each; give each its own point, after a {what} "
                f"assignment that every path to it runs" if shared else
                f" may be in force here, as a branch, loop or call decides at run time; give it one: a {what} "
-               f"assignment that every path runs before this move"))
+               f"assignment that every path runs before this move")
+            + (f" ({'; '.join(unknown)}: known only at run time)" if unknown else ""))
 
 
 def _variable_reason(f: _File, var: str, shown: str) -> str:
@@ -442,6 +492,17 @@ def _module_source(source: str) -> str | None:
                 None)
 
 
+def _module_data(source: str) -> str | None:
+    """For a ``.src`` or ``.sub``: the path of its module's ``.dat`` (the same name beside it, in KUKA's cases); None
+    for a ``.dat`` or a module without one."""
+    folder, name = os.path.split(source)
+    stem, suffix = os.path.splitext(name)
+    if suffix.lower() not in (".src", ".sub"):
+        return None
+    return next((p for p in (os.path.join(folder, stem + s) for s in (".dat", ".DAT", ".Dat")) if os.path.isfile(p)),
+                None)
+
+
 def _module(source: str) -> _Module | None:
     """For a ``.dat``: its module's ``.src``, as :class:`_Module`; None for any other file or a ``.dat`` without one."""
     path = _module_source(source)
@@ -550,11 +611,12 @@ def _same_frame(a: object, b: object) -> bool:
 
 def _beside(source: str) -> tuple[str, ...]:
     """The files reading the program at ``source`` reads besides it: a ``.dat``'s module ``.src``
-    (:func:`_module_source`) and the controller's ``$config.dat`` and ``$machine.dat``
+    (:func:`_module_source`), a ``.src``'s module ``.dat`` (:func:`_module_data`: its FDATs) and the controller's ``$config.dat`` and ``$machine.dat``
     (:func:`kincal.io.krl_config.sibling`), those that exist."""
     from .krl_config import sibling
 
-    found = (_module_source(source), sibling(source, "$config.dat"), sibling(source, "$machine.dat"))
+    found = (_module_source(source), _module_data(source), sibling(source, "$config.dat"),
+             sibling(source, "$machine.dat"))
     return tuple(p for p in found if p is not None)
 
 
