@@ -518,3 +518,44 @@ def test_the_turns_neither_model_corrects_are_named_not_hidden_in_sigma():
     unseen = true.with_params({n: nominal.params[n] for n in turn.uncorrected})
     theirs = np.sqrt(np.mean(_turn(true.flange_rotation(own.q), unseen.flange_rotation(own.q)) ** 2))
     assert missed > 10 * turn.sigma and abs(theirs / missed - 1) < 0.05, (missed, theirs, turn.sigma)
+
+
+def test_a_compliance_kept_at_nominal_is_sized_at_the_datas_loads():
+    """A compliance's value is its deflection at 100 N·m; kept at nominal, its error is sized as the verdict sizes a
+    compliance, 2° at its joint's largest load at the poses (a UR5's j4: 3.5 N·m with 1 kg, so 57° at 100 N·m), not
+    2° at 100 N·m (0.07° of deflection there: 800-fold too small in variance; σ 0.13 mrad, now 3.3 mrad, and the
+    1.3 mrad turn no longer followed). Reference: what keeping j4's
+    compliance adds to σ² (the fit's σ² less that of the same robot without the term), against the excess of
+    |own − moved|² − |own|² over errors at 40 quantiles of a normal of that size, its load from the gravity model's
+    torques at the poses, the moved parameters a least-squares fit of its position effect (as the test above)."""
+    from statistics import NormalDist
+
+    from kincal.compensate.turn import _relative, poses_in
+    from kincal.models.gravity import GravityModel
+    from kincal.models.terms import drop_terms
+    em = kincal.ErrorModel("compliance", payload=1.0)
+    nominal = kincal.load_robot("ur5").with_tool_point([0.03, -0.02, 0.12])
+    true = kincal.perturb(kincal.extend(nominal, em), seed=2)
+    true = true.with_params({n: 1e-3 for n in true.term_names})
+    fit = kincal.calibrate(nominal, kincal.simulate(true, nominal.sample_joints(200, seed=1), 15e-6, 1),
+                           kincal.FitOptions(diagnose=False, error_model=em))
+    unc, robot = fit.uncertainty(), fit.robot
+    names = [n for n in unc.names if n != "j4.compliance"]  # j4's compliance kept at nominal (0)
+    cov = unc.covariance[np.ix_(*[[unc.names.index(n) for n in names]] * 2)]
+    turns = [flange_turn(r, fit.nominal, cov, names, unc.lower, unc.upper)
+             for r in (robot, drop_terms(robot, ["j4.compliance"]))]
+    q = poses_in(robot, unc.lower, unc.upper, fit.nominal)
+    load = np.abs(GravityModel(nominal, 1.0).torques(q)[:, 3]).max()  # N·m
+    P = robot.param_jacobian(q).reshape(-1, robot.n_params)
+    est, k, v0 = robot.params.indices(names), robot.params.index("j4.compliance"), robot.param_values(None)
+    robot_part = np.array([n not in robot.base_params() for n in names])
+    excess = []
+    for e in np.deg2rad(2.0) * 100.0 / load * np.array([NormalDist().inv_cdf((i + 0.5) / 40) for i in range(40)]):
+        own, moved = v0.copy(), v0.copy()
+        own[k] += e
+        moved[est] += np.linalg.lstsq(P[:, est], P[:, k] * e, rcond=None)[0] * robot_part
+        t_own, t_moved = (_relative(robot, q, v, robot) for v in (own, moved))
+        excess.append(np.mean(np.sum((t_own - t_moved) ** 2 - t_own**2, axis=1)))
+    reference = max(float(np.mean(excess)), 0.0)
+    assert 2.0 < load < 4.0 and reference > 0
+    assert turns[0].sigma ** 2 - turns[1].sigma ** 2 == pytest.approx(reference, rel=0.05)

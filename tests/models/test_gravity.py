@@ -142,6 +142,46 @@ def test_a_negative_compliance_is_dropped(ur5):
     assert res.to_dict()["compliance"]["j2"] == pytest.approx(res.estimates["j2.compliance"] / 100)
 
 
+def test_a_compliance_a_drop_turns_negative_is_dropped_too(ur5):
+    """j3's load falls to j5 once j3 is dropped (2 kg payload): j5 turns negative in the second fit and goes too.
+    Reference: Gauss-Newton in numpy on central differences of the model's positions, the parameters the fit
+    estimated free and the others at nominal, dropping in each round the compliances it finds negative."""
+    em = kincal.ErrorModel("compliance", payload=2.0)
+    model = kincal.extend(ur5, em)
+    true = kincal.perturb(model, 0.5e-3, 0.5e-3, seed=3).with_params(
+        {"j2.compliance": 1e-3, "j3.compliance": -3e-3, "j4.compliance": 0.3e-3, "j5.compliance": 1e-3})
+    q = ur5.sample_joints(200, seed=4)
+    meas = kincal.simulate(true, q, NOISE, seed=5)
+    res = kincal.calibrate(ur5, meas, error_model=em)
+    compliances = [n for n in model.term_names if n.endswith(".compliance")]
+    names = [*res.names, *[n for n in compliances if n not in res.names]]
+
+    def gauss_newton(out):
+        idx = model.params.indices([n for n in names if n not in out])
+        v = model.param_values(None).copy()
+        for _ in range(6):
+            J = np.stack([((model.forward(q, v + h) - model.forward(q, v - h)) / 2e-7).ravel()
+                          for h in np.eye(len(v))[idx] * 1e-7], axis=1)
+            v[idx] += np.linalg.lstsq(J, (meas.xyz - model.forward(q, v)).ravel(), rcond=None)[0]
+        return dict(zip(model.params.names, v))
+    out, rounds = [], []
+    while True:
+        est = gauss_newton(out)
+        neg = [n for n in compliances if n not in out and est[n] < 0.0]
+        if not neg:
+            break
+        rounds.append({n: est[n] for n in neg})
+        out += neg
+    assert [list(r) for r in rounds] == [["j3.compliance"], ["j5.compliance"]]  # j5 ≥ 0 in the first fit
+    assert not [n for n in res.names if n.endswith(".compliance") and res.estimates[n] < 0.0]
+    assert not {"j3.compliance", "j5.compliance"} & set(res.robot.params.names)
+    assert [n.split(":")[0] for n in res.notes] == ["j3", "j5"] and "once j3's was dropped" in res.notes[1]
+    for note, r in zip(res.notes, rounds):  # the value each note gives, rad/(N·m), is the fit's of its round
+        (name, value), = r.items()
+        assert float(re.search(r"\(([-+0-9.e]+) rad", note).group(1)) == pytest.approx(value / 100, rel=5e-3)
+    assert all(abs(res.estimates[n] - est[n]) < 1e-3 * res.std[n] for n in res.names)
+
+
 def test_terms_warn_outside_the_training_envelope(ur5, tmp_path):
     model = kincal.extend(ur5, "compliance+harmonics:1")
     true = kincal.perturb(model, 0.5e-3, 0.5e-3, seed=1).with_params({n: 1e-3 for n in model.term_names})

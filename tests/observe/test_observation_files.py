@@ -5,6 +5,7 @@ the command line against their published figures."""
 import csv
 import json
 import re
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -14,6 +15,7 @@ from scipy.spatial.transform import Rotation
 import kincal
 from kincal.cli import main
 from kincal.cli.observe import PLAN_MARKERS
+from kincal.identify import fit_observations
 from kincal.observe.files import ObservationFormat, read_observations
 from kincal.observe.observations import flange_point
 from kincal.simulate.observations import simulate_markers, simulate_poses
@@ -548,6 +550,38 @@ def test_a_placement_name_shared_by_two_files_is_judged_as_one_point_and_a_moved
             for k in (0, 1)]
     code, halves, err = _run(capsys, base + half)
     assert code == 0 and halves["verdict"]["status"] == "good", halves["verdict"]
+
+
+def test_a_distance_stated_by_two_files_of_the_same_sockets_weighs_once(tmp_path):
+    """The Panda's samples split into two files, each with every placement's both sockets (one point per label to
+    the fit) and each stating the 50 mm: the distance had a residual row per file, 16 for 8 placements, and weighed
+    twice (estimates 1.6 σ from the fit with it stated once). Now 8 rows, and the fit equals the one whose second
+    file states no distance (stated in reverse order, 1–0, alike); different lengths for the same pair are refused,
+    naming both files."""
+    rows = list(csv.DictReader(open(SOCKETS / "samples.csv")))
+    keys = list(rows[0])
+    half = [_write(tmp_path / f"half{k}.csv", keys, [[r[c] for c in keys] for i, r in enumerate(rows) if i % 2 == k])
+            for k in (0, 1)]
+    robot = kincal.load_robot(PANDA_URDF, tip_link="ball_link")
+    fmt = ObservationFormat(kind="same-point", joint_cols=tuple(f"q{k}" for k in range(1, 8)), label_col="socket",
+                            group_col="placement", length_unit="mm")
+    a = read_observations(half[0], robot, replace(fmt, distances=(("0", "1", 50.0),)))
+    fits = [fit_observations(robot, [a, read_observations(half[1], robot, replace(fmt, distances=d))],
+                             kincal.FitOptions(diagnose=False)) for d in ((("0", "1", 50.0),), (("1", "0", 50.0),), ())]
+    placements = {r["placement"] for r in rows}
+    for fit in fits:
+        rows_of = [o.sample_rows() for o in fit.observations]
+        assert [int(np.sum(r < 0)) for r in rows_of] == [len(placements), 0]  # 8 distance rows, all in the first
+        assert sum(r.size for r in rows_of) == 3 * len(rows) + len(placements) == fit.whitened_residual.size
+    for fit in fits[:2]:
+        assert len(fit.observations[1].distances) == len(placements)  # stated, reported, fitted once
+        assert fit.names == fits[2].names
+        assert max(abs(fit.estimates[n] - fits[2].estimates[n]) for n in fit.names) < 1e-9
+        assert fit.whitened_rms == pytest.approx(fits[2].whitened_rms, rel=1e-9)
+    b = read_observations(half[1], robot, replace(fmt, distances=(("0", "1", 51.0),)))
+    with pytest.raises(kincal.MeasurementError, match="distance back_left/0–back_left/1 is stated as 51 mm, but "
+                       f".*{re.escape(half[0])} states it as 50 mm between the same points"):
+        fit_observations(robot, [a, b], kincal.FitOptions(diagnose=False))
 
 
 def test_points_and_sockets_together_through_the_command_line(tmp_path, capsys):

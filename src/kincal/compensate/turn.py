@@ -161,8 +161,10 @@ def _kept(robot: Robot, q: np.ndarray, names: tuple[str, ...]) -> tuple[float, t
     ones' at the measured point over ``q``, and so turns the calibrated flange by J·A_k·e. The commands that follow
     it miss by (J_k − J·A_k)·e, those that keep the nominal turn by J_k·e: following adds
     E|(J_k − J·A_k)·e|² − E|J_k·e|² (RMS over q) with e of the size of a real robot's largest error (the verdict's
-    suspect limits, 10 mm and 2 deg), or nothing where that is negative (the fit took up the kept one's turn with
-    its position: following corrects it). A kept angle is named when at least half its turn (RMS) is left."""
+    suspect limits, 10 mm and 2 deg; a compliance, the deflection at 100 N·m, as the verdict sizes it: 2 deg at the
+    largest load at q, :meth:`~kincal.Robot.correction_scales`), or nothing where that is negative (the fit took up
+    the kept one's turn with its position: following corrects it). A kept angle is named when at least half its
+    turn (RMS) is left."""
     base = set(robot.base_params())
     kept = [n for n in robot.params.names if n not in names and n not in base]
     if not kept:
@@ -172,7 +174,9 @@ def _kept(robot: Robot, q: np.ndarray, names: tuple[str, ...]) -> tuple[float, t
     scale = np.maximum(np.linalg.norm(P[:, est], axis=0), 1e-300)
     A = np.linalg.lstsq(P[:, est] / scale, P[:, out], rcond=None)[0] / scale[:, None]
     kinds, mounting = dict(zip(robot.params.names, robot.params.kinds)), set(robot.mounting_params())
-    limit = np.array([SUSPECT["mounting" if n in mounting else kinds[n]] for n in kept])
+    scales = robot.correction_scales(q)  # a compliance: its deflection per unit of its value at q's largest load
+    limit = np.array([SUSPECT["mounting" if n in mounting else kinds[n]] / max(scales.get(n, (1.0, ""))[0], 1e-300)
+                      for n in kept])
     J = _turn_jacobian(robot, q, [*names, *kept])
     own, moved = J[:, :, len(names):], np.einsum("nik,km->nim", J[:, :, :len(names)], A)  # the base's turn in it
     share = np.sqrt(np.mean(np.sum((own - moved) ** 2, axis=1), axis=0))

@@ -4,7 +4,8 @@ record (:class:`~kincal.identify.FitOptions`).
 
 :func:`fit_stack` extends the robot by a named error model, wraps each set of measured positions in
 its instrument's drift when asked, runs the stacked fit (:func:`kincal.identify.stacked.fit_sets`),
-drops a compliance that comes out negative and fits again, and leaves out outlier samples by a
+drops a compliance that comes out negative and fits again (until none is: a compliance's load then
+falls to the others, which may turn negative in turn), and leaves out outlier samples by a
 Huber refit. Each procedure calls the fit as a function: nothing recurses through ``calibrate``.
 """
 from __future__ import annotations
@@ -37,13 +38,15 @@ def resolved_prior(prior: str, observations: Sequence) -> str:
     return "none" if all(o.kind in POSITION_KINDS for o in observations) else "relevance"
 
 
-def negative_compliances(names: Sequence[str], estimates: Mapping[str, float], std: Mapping[str, float]
-                         ) -> tuple[list[str], tuple[str, ...]]:
+def negative_compliances(names: Sequence[str], estimates: Mapping[str, float], std: Mapping[str, float],
+                         dropped: Sequence[str] = ()) -> tuple[list[str], tuple[str, ...]]:
     """The fitted compliance parameters that came out negative, and a note for each (rad/(N·m)): a
     joint that bends against its load is not a spring, so such a term describes something else; it
-    is dropped and the fit repeated without it."""
+    is dropped and the fit repeated without it. ``dropped``: the compliances an earlier round dropped,
+    named in the note (their load then falls to the others, which may turn negative in turn)."""
     neg = [n for n in names if n.endswith(".compliance") and estimates[n] < 0.0]
-    notes = tuple(f"{n.split('.')[0]}: compliance came out negative ({estimates[n] / TAU_REF:+.3g} rad/(N·m), "
+    after = f" once {', '.join(n.split('.')[0] for n in dropped)}'s was dropped" if dropped else ""
+    notes = tuple(f"{n.split('.')[0]}: compliance came out negative{after} ({estimates[n] / TAU_REF:+.3g} rad/(N·m), "
                   f"σ {std[n] / TAU_REF:.2g}) and was dropped; the fit was repeated without it" for n in neg)
     return neg, notes
 
@@ -66,25 +69,34 @@ def fit_stack(robot: Robot, observations: Sequence, options: FitOptions, held: M
     kinds = " + ".join(dict.fromkeys(o.kind for o in sets))
     say(f"fitting {kinds} data ({sum(len(o) for o in sets)} samples)")
 
-    def fit(chosen: Sequence, loss: str) -> CalibrationResult:
-        return fit_sets(robot, chosen, options, prior, loss, held or {})
+    dropped: list[str] = []
+    notes: tuple[str, ...] = ()
+
+    def fit(chosen: Sequence, loss: str, drop: bool = True) -> CalibrationResult:
+        """The fit of ``chosen``; with ``drop``, again without each compliance that comes out negative until none
+        does: at most one round per compliance (each drops one or more), so none is negative at the end."""
+        nonlocal robot, options, dropped, notes
+        res = fit_sets(robot, chosen, options, prior, loss, held or {})
+        for _ in range(sum(n.endswith(".compliance") for n in robot.params.names) if drop else 0):
+            neg, more = negative_compliances(res.names, res.robot.params.as_dict(), res.std, dropped)
+            if not neg:
+                break
+            say("dropping negative compliance: " + ", ".join(neg))
+            robot, dropped, notes = drop_terms(robot, neg), dropped + neg, notes + more
+            if not isinstance(options.names, str):  # --params with the error model's terms: the dropped ones go
+                options = options.replace(names=tuple(n for n in options.names if n not in neg))
+            res = fit_sets(robot, chosen, options, prior, loss, held or {})
+        return res
     res = fit(sets, options.loss)
-    neg, notes = negative_compliances(res.names, res.robot.params.as_dict(), res.std)
-    if neg:
-        say("dropping negative compliance: " + ", ".join(neg))
-        robot = drop_terms(robot, neg)
-        if not isinstance(options.names, str):  # --params with the error model's terms: the dropped ones go
-            options = options.replace(names=tuple(n for n in options.names if n not in neg))
-        res = dataclasses.replace(fit(sets, options.loss), notes=notes)
     if options.reject_outliers:
         res = _without_outliers(fit, sets, res, options.loss, say)
-    return res
+    return dataclasses.replace(res, notes=notes) if notes else res
 
 
 def _without_outliers(fit, observations: Sequence, res: CalibrationResult, loss: str, say) -> CalibrationResult:
-    """``res`` fitted again (``fit(sets, loss)``) without the samples a robust fit puts beyond the
-    outlier limit, at most a tenth of a set's; ``res`` itself when there are none."""
-    found = (res if loss != "linear" else fit(observations, "huber")).outliers
+    """``res`` fitted again (``fit(sets, loss)``) without the samples a robust fit (which drops no term) puts beyond
+    the outlier limit, at most a tenth of a set's; ``res`` itself when there are none."""
+    found = (res if loss != "linear" else fit(observations, "huber", drop=False)).outliers
     bad = [b if len(b) <= max(1, int(MAX_OUTLIER_SHARE * len(o))) else b[:0] for o, b in zip(observations, found)]
     if not any(len(b) for b in bad):
         return res

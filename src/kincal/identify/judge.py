@@ -262,7 +262,7 @@ def _distance_reasons(sets, r: np.ndarray | None, pooled: set[str] | frozenset[s
     for obs, start, end in zip(sets, ends[:-1], ends[1:]):
         if isinstance(obs, SamePointObs) and obs.distances:
             z = r[start:end][obs.sample_rows() < 0]  # the distances' rows, in their order
-            for d, zk in zip(obs.distances, z):
+            for d, zk in zip(obs.fitted_distances(), z):  # one stated before is fitted, and named, there
                 if d[0] not in pooled and d[1] not in pooled:
                     found.setdefault(d, (obs, float(zk)))
     limit = distance_limit(len(found))

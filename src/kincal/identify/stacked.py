@@ -157,7 +157,7 @@ def _stack(robot: Robot, observations: Sequence) -> _Stack:
         o = o.with_anchors({k: v for k, v in anchors.items() if k in o.anchors()})
         anchors = {**o.anchors(), **anchors}
         prepared.append(o)
-    sets = tuple(prepared)
+    sets = tuple(o.after(prepared[:k]) if isinstance(o, SamePointObs) else o for k, o in enumerate(prepared))
     start: dict[str, float] = {}  # a name shared by several sets is one parameter, started from the first's value
     own, late = [], []
     for obs in sets:

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import MeasurementError
 from ..models.robot import Robot
+from ..ties import tie_tolerance
 from ..units import LENGTH_UNITS, MM, OTHER_LENGTHS, fine
 from .observations import Observation, error_stats
 
@@ -121,7 +122,8 @@ class SamePointObs(Observation):
     distances between labelled points fix the length scale (without one the set is no reference and such a
     fit is refused). The base frame is a gauge freedom: the sockets do not see where the robot stands. The
     residual is each sample's tool point − its label's point (x rows, then y, then z), then each known
-    distance's error.
+    distance's error, once in a fit: a distance between points another file holds too, stated there as well, is
+    fitted by the first file stating it (:meth:`after`).
 
     Parameters
     ----------
@@ -144,6 +146,9 @@ class SamePointObs(Observation):
     elsewhere : tuple of (str, ndarray (M, n)), optional
         Per label, the joints of other files' samples of the same point (default (): :meth:`among` sets them), which
         :meth:`stats` judges this file's samples against with its own.
+    stated_before : tuple of (str, str), optional
+        The pairs of labels of ``distances`` that an earlier set of the same fit states too (default (): :meth:`after`
+        sets them): they have no residual here, so that each distance weighs once; :meth:`stats` still reports them.
 
     Examples
     --------
@@ -181,6 +186,7 @@ class SamePointObs(Observation):
     std: np.ndarray | float = 0.05e-3  # m: how well the ball seats, per axis (one number or per sample)
     std_distance: float = 0.1e-3  # m: how well the distances are known
     elsewhere: tuple[tuple[str, np.ndarray], ...] = ()  # (label, joints (M, n)): its points' samples in other files
+    stated_before: tuple[tuple[str, str], ...] = ()  # distances an earlier set of the fit states: fitted there, once
     kind = "same-point"
 
     @property
@@ -196,6 +202,32 @@ class SamePointObs(Observation):
         out = cast(SamePointObs, super().subset(idx))  # every per-sample array indexed
         kept = set(out.labels.tolist())
         return dataclasses.replace(out, distances=tuple(d for d in self.distances if d[0] in kept and d[1] in kept))
+
+    def fitted_distances(self) -> tuple[tuple[str, str, float], ...]:
+        """The known distances this set adds residuals for (m): ``distances`` but those ``stated_before``."""
+        before = {frozenset(pair) for pair in self.stated_before}
+        return tuple(d for d in self.distances if frozenset(d[:2]) not in before)
+
+    def after(self, earlier) -> "SamePointObs":
+        """The set as it is fitted after the sets ``earlier``: a distance between two points that an earlier set
+        states too (the same labels: the same points) is fitted there, once (stated in two files it weighed twice),
+        and MeasurementError when the two lengths differ beyond a tie (:mod:`kincal.ties`)."""
+        stated: dict[frozenset, tuple[float, str]] = {}
+        for o in earlier:
+            for a, b, d in o.distances if isinstance(o, SamePointObs) else ():
+                stated.setdefault(frozenset((a, b)), (d, o.source))
+        before = []
+        for a, b, d in self.distances:
+            if frozenset((a, b)) in stated:
+                other, where = stated[frozenset((a, b))]
+                if abs(d - other) > tie_tolerance(max(d, other)):
+                    raise MeasurementError(
+                        f"{self.source}: the distance {a}–{b} is stated as {fine(d, 'length', 'g')}, but {where} "
+                        f"states it as {fine(other, 'length', 'g')} between the same points (their labels are "
+                        f"shared); give each known distance once, or give the files' points labels of their own "
+                        f"(another placement name) if they are different plates")
+                before.append((a, b))
+        return dataclasses.replace(self, stated_before=tuple(before))
 
     def among(self, sets) -> "SamePointObs":
         """The set as it is fitted among ``sets``: a label that another file's samples hold too is one point (one
@@ -273,11 +305,11 @@ class SamePointObs(Observation):
         return robot.base_params()
 
     def sample_rows(self) -> np.ndarray:
-        return np.concatenate([np.tile(np.arange(len(self)), 3), -np.ones(len(self.distances), int)])
+        return np.concatenate([np.tile(np.arange(len(self)), 3), -np.ones(len(self.fitted_distances()), int)])
 
     def sigma(self) -> np.ndarray:
         per_sample = np.broadcast_to(np.asarray(self.std, float), (len(self),))  # one number or (N,)
-        return np.concatenate([np.tile(per_sample, 3), np.full(len(self.distances), self.std_distance)])
+        return np.concatenate([np.tile(per_sample, 3), np.full(len(self.fitted_distances()), self.std_distance)])
 
     def evaluate(self, robot: Robot, values: np.ndarray, nuis: np.ndarray):
         p, J = robot.forward_and_jacobian(self.q, values)
@@ -286,8 +318,9 @@ class SamePointObs(Observation):
         P, n, K = nuis.reshape(-1, 3), len(self), nuis.size
         Jn = np.zeros((3, n, K))
         Jn[np.arange(3)[:, None], np.arange(n), 3 * at + np.arange(3)[:, None]] = -1.0  # d (p − P[at]) / d P
-        rd, Jd = np.empty(len(self.distances)), np.zeros((len(self.distances), K))
-        for k, (a_lab, b_lab, d) in enumerate(self.distances):
+        fitted = self.fitted_distances()
+        rd, Jd = np.empty(len(fitted)), np.zeros((len(fitted), K))
+        for k, (a_lab, b_lab, d) in enumerate(fitted):
             i, j = pos[a_lab], pos[b_lab]
             u = P[i] - P[j]
             length = float(np.linalg.norm(u))
