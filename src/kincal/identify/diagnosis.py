@@ -247,7 +247,7 @@ def _jump(res: CalibrationResult) -> list[tuple[Cause, Change]]:
     k, row = found[0], int(meas.rows[found[0]])
     parts = [meas.subset(np.arange(k)), meas.subset(np.arange(k, len(meas)))]
     return [(Cause("frame-jump", f"the measurement frame jumps at row {row} (two set-ups in one file, or the tracker "
-                                 f"was moved or bumped there)", f"split the file at row {row}: one file per session "
+                                 f"or camera was moved or bumped there)", f"split the file at row {row}: one file per session "
                                                                 f"(each gets its own frame)", rows=(row,)),
              lambda r, m, o: (r, parts, o))]
 

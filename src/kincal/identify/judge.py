@@ -16,6 +16,7 @@ import numpy as np
 from ..analysis.identifiability import jacobian_identifiability, stacked_jacobian
 from ..errors import ModelError
 from ..models.robot import TOOL_NAMES, Robot
+from ..models.unit_checks import Framed
 from ..observe.constraints import SamePointObs
 from ..observe.files import DEFAULT_STD
 from ..observe.observations import Wrapper
@@ -187,8 +188,8 @@ def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     parts = [(None, np.ones(len(z), bool))] if files is None else [(str(f), files == f) for f in dict.fromkeys(files)]
     model, base = res.robot.forward(meas.q), set(res.nominal.base_params())
     fitted = len([n for n in res.names if n not in base]) / len(z)  # the kinematics' parameters per pose
-    jumps = [r for f, m in parts for r in jump_reasons(meas.rows[m], meas.xyz[m], model[m], round(fitted * m.sum()),
-                                                        res.drift is not None, f)]
+    jumps = [r for f, m in parts for r in jump_reasons(meas.rows[m], Framed.of(meas.xyz[m], model[m]),
+                                                        round(fitted * m.sum()), res.drift is not None, f)]
     reasons = [*jumps, *(r for f, m in parts for r in drift_reasons(meas.rows[m], norms[m], f))]
     reasons += residual_reasons(pos_sigma, noise, th)
     reasons += [r for f, m in parts for r in outlier_reasons(meas.rows[m], z[m], th, res.options.loss, f)]
@@ -213,10 +214,30 @@ def _set_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
         residual = [Reason(r.level, r.code, f"{r.message}; or the plate moved between files, as named above")
                     for r in residual]
     reasons = [*samples, *residual] if np.isfinite(clean) else [*residual, *samples]
-    reasons = [*moved, *reasons, *_distance_reasons(res.observations, res.whitened_residual, pooled)]
+    reasons = [*_jump_reasons(res), *moved, *reasons, *_distance_reasons(res.observations, res.whitened_residual,
+                                                                         pooled)]
     if all(o.kind == "plane" for o in res.observations):
         reasons += _plane_reasons(res.registered, res.robot, res.observations)
     return reasons
+
+
+def _jump_reasons(res: "CalibrationResult") -> list[Reason]:
+    """A measurement frame that jumps inside a file, in every set whose kind measures in a frame
+    (:meth:`kincal.observe.Observation.framed`: points, 6-D poses with their rotations, markers), as for position
+    data (:func:`kincal.identify.verdict.jump_reasons`), against the calibrated model and the set's fitted set-up
+    parameters. The parameters fitted to the set: the robot's beside its base frame, by the set's share of the
+    residual rows, and the set's own."""
+    robot, sets = res.robot, res.observations
+    rows = np.array([o.sigma().size for o in sets], float)
+    base = set(robot.base_params())
+    kinematic = len([n for n in res.names if n in robot.params.names and n not in base])
+    out = []
+    for obs, share in zip(sets, rows / max(rows.sum(), 1.0)):
+        names, start, _ = obs.nuisance(robot)
+        framed = obs.framed(robot, robot.params.values, np.array([res.nuisance.get(n, v) for n, v in zip(names, start)]))
+        if framed is not None:
+            out += jump_reasons(obs.rows, framed, round(kinematic * share) + len(names), res.options.drift, obs.source)
+    return out
 
 
 def _moved_plate_reasons(sets, robot: Robot) -> tuple[list[Reason], set[str]]:

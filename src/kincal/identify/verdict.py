@@ -29,7 +29,8 @@ CLI flags):
   standard errors above the rest, the tracker or the robot was still warming up;
 * a measurement frame that jumps inside a file, whatever the residual (:func:`jump_reasons`: a rigid frame
   of its own from some row on, significant by the F test at 1 % over all rows, removing half the squared error
-  and fitting better than a linear drift): named by row; with a fitted drift, instead of the drift;
+  and fitting better than a linear drift): named by row; with a fitted drift, instead of the drift; in every file
+  of a kind that measures in a frame (points, 6-D poses with their rotations, markers);
 * a fit that did not converge is refused.
 """
 from __future__ import annotations
@@ -46,9 +47,9 @@ import numpy as np
 from .._csv import MAX_LISTED, listed
 from ..models.parameters import SUSPECT
 from ..models.robot import TOOL_NAMES, Robot
-from ..models.unit_checks import frame_jump_test
+from ..models.unit_checks import Framed, frame_jump_test
 from ..ties import first_best
-from ..units import DEG, MM, SHOWN, display
+from ..units import DEG, MM, MRAD, SHOWN, display
 from .noise import decreasing_root
 
 STATUSES = ("good", "suspect", "refused")
@@ -632,27 +633,34 @@ def fitted_drift_reasons(drift: dict | None, noise: float, xyz: np.ndarray | Non
     return [Reason("suspect", "drift-fitted", text)]
 
 
-def jump_reasons(rows: np.ndarray, xyz: np.ndarray, model: np.ndarray, n_params: int = 0, drift: bool = False,
+def jump_reasons(rows: np.ndarray, framed: Framed, n_params: int = 0, drift: bool = False,
                  source: str | None = None) -> list[Reason]:
-    """A measurement frame that jumps inside one file (of the file ``source``, one of several): the positions xyz
-    (N, 3) m against the fitted model's (N, 3) m, in row order (``rows``, their line numbers), judged by
-    :func:`kincal.models.unit_checks.frame_jump_test` (``n_params`` kinematic parameters fitted to them), named by
-    the row where the second frame starts with the RMS before and after a frame per part and the linear drift's;
-    with ``drift`` (a drift term fitted) the step is named instead of the drift."""
+    """A measurement frame that jumps inside one file (of the file ``source``, one of several): what a change of the
+    frame moves (:class:`kincal.models.unit_checks.Framed`: the positions, and a 6-D pose's rotations, against the
+    fitted model's), in row order (``rows``, their line numbers), judged by
+    :func:`kincal.models.unit_checks.frame_jump_test` (``n_params`` kinematic and set-up parameters fitted to them),
+    named by the row where the second frame starts with the RMS before and after a frame per part and the linear
+    drift's; with ``drift`` (a drift term fitted) the step is named instead of the drift."""
     order = np.argsort(rows, kind="stable")
-    jump = frame_jump_test(xyz[order], model[order], n_params)
+    jump = frame_jump_test(framed.subset(order), n_params=n_params)
     if jump is None:
         return []
-    row, mm = int(rows[order][jump.index]), (lambda v: f"{v * MM:.3g} mm")
+    row, turns = int(rows[order][jump.index]), jump.turns or (None, None, None)
     head = "" if source is None else f"{source}: "
-    versus = (f"a step, not a drift: the fitted linear drift leaves {mm(jump.drift)}" if drift else
-              f"a linear drift over the rows would leave {mm(jump.drift)}")
-    return [Reason("suspect", "frame-jump", f"{head}the measurement frame jumps at row {row}: the positions fit the "
-                                            f"calibrated model to {mm(jump.one)} RMS in one frame, to "
-                                            f"{mm(jump.two)} with one frame for the rows before it and one from it "
-                                            f"on ({versus}): two set-ups in one file, or the tracker was moved or "
-                                            f"bumped there; split the file at row {row}: one file per session (each "
-                                            f"gets its own frame)")]
+    versus = (f"a step, not a drift: the fitted linear drift leaves {_misses(jump.drift, turns[2])}" if drift else
+              f"a linear drift over the rows would leave {_misses(jump.drift, turns[2])}")
+    return [Reason("suspect", "frame-jump", f"{head}the measurement frame jumps at row {row}: the "
+                                            f"{'poses' if jump.turns else 'positions'} fit the calibrated model to "
+                                            f"{_misses(jump.one, turns[0])} RMS in one frame, to "
+                                            f"{_misses(jump.two, turns[1])} with one frame for the rows before it and "
+                                            f"one from it on ({versus}): two set-ups in one file, or the tracker or "
+                                            f"camera was moved or bumped there; split the file at row {row}: one file "
+                                            f"per session (each gets its own frame)")]
+
+
+def _misses(distance: float, angle: float | None) -> str:
+    """An RMS distance (m) in mm, and an RMS angle (rad) in mrad where rotations were measured."""
+    return f"{distance * MM:.3g} mm" + ("" if angle is None else f", {angle * MRAD:.3g} mrad")
 
 
 ORDER_CORRELATION = 0.9  # |r| of row order against a position axis beyond which a drift is a position effect too

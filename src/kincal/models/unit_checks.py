@@ -4,6 +4,7 @@ numbers are really in). Used by every reader of joint values and by the measurem
 from __future__ import annotations
 
 from contextlib import suppress
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -274,6 +275,90 @@ def lead_factor(q: np.ndarray, xyz: np.ndarray, robot: Robot) -> float | None:
     return None
 
 
+@dataclass(frozen=True)
+class Framed:
+    """What a rigid change of the measurement frame moves, sample by sample in row order: the measured points and the
+    fitted model's at the same poses, which its shift and its turn move, and, where rotations were measured, each
+    one's axes and the model's, which its turn alone moves. Build it with :meth:`of`.
+
+    Parameters
+    ----------
+    xyz : ndarray, shape (N, m, 3)
+        Measured points (m points per sample: a tool point, or markers), m; NaN where a point was not seen.
+    model : ndarray, shape (N, m, 3)
+        The model's points at the same poses, m.
+    axes : ndarray, shape (N, d, 3)
+        The measured rotations' axes (d = 3; d = 0 without rotations), each times the sample's ``lever``, m.
+    model_axes : ndarray, shape (N, d, 3)
+        The model's, as ``axes``, m.
+    lever : ndarray, shape (N,)
+        m per rad: σ_pos / (√2 σ_rot), so that a turn of the rotations' σ weighs as a move of the positions' σ
+        (‖R₁ − R₂‖_F² = 4 (1 − cos θ) ≈ 2 θ² for two rotations θ apart).
+    """
+
+    xyz: np.ndarray
+    model: np.ndarray
+    axes: np.ndarray
+    model_axes: np.ndarray
+    lever: np.ndarray
+
+    @classmethod
+    def of(cls, xyz: np.ndarray, model: np.ndarray, R: np.ndarray | None = None, model_R: np.ndarray | None = None,
+           lever: np.ndarray | float = 1.0) -> "Framed":
+        """From points xyz and model (N, 3) or (N, m, 3) m and, where rotations were measured, the measured ones R
+        (N, 3, 3) (columns: the axes) and the model's model_R (N, 3, 3), weighed by ``lever`` (N,) or one number, m."""
+        n = len(xyz)
+        xyz, model = (np.asarray(a, float).reshape(n, -1, 3) for a in (xyz, model))
+        none = np.zeros((n, 0, 3))
+        lev = np.broadcast_to(np.asarray(lever, float), (n,))
+        axes = none if R is None else R.transpose(0, 2, 1) * lev[:, None, None]
+        model_axes = none if model_R is None else model_R.transpose(0, 2, 1) * lev[:, None, None]
+        return cls(xyz, model, axes, model_axes, lev)
+
+    def __len__(self) -> int:
+        return len(self.xyz)
+
+    def subset(self, idx: np.ndarray | slice) -> "Framed":
+        """The samples ``idx`` (an index array or a slice), in its order."""
+        return Framed(self.xyz[idx], self.model[idx], self.axes[idx], self.model_axes[idx], self.lever[idx])
+
+    @property
+    def rotations(self) -> bool:
+        """Whether rotations were measured."""
+        return self.axes.shape[1] > 0
+
+    def seen(self) -> np.ndarray:
+        """(N, m) the points that were seen and that the model reaches."""
+        return np.all(np.isfinite(self.xyz) & np.isfinite(self.model), axis=2)
+
+    def components(self) -> int:
+        """The measured components: 3 per seen point and 3 per rotation."""
+        return 3 * int(self.seen().sum()) + 3 * len(self) * self.rotations
+
+    def sums(self) -> tuple[np.ndarray, ...]:
+        """Per sample, what one rigid fit needs (:func:`_rigid_sse`): the seen points' count (N,), their sums Σx and
+        Σp (N, 3), Σ(|x|² + |p|²) (N,) and Σ x pᵀ (N, 3, 3), the axes added to the last two (a turn moves them, a
+        shift does not)."""
+        w = self.seen().astype(float)
+        x, p = (np.where(w[:, :, None] > 0, a, 0.0) for a in (self.xyz, self.model))
+        a, b = self.axes, self.model_axes
+        sq = np.einsum("nm,nmi->n", w, x**2 + p**2) + np.sum(a**2 + b**2, axis=(1, 2))
+        return (w.sum(1), np.einsum("nm,nmi->ni", w, x), np.einsum("nm,nmi->ni", w, p), sq,
+                np.einsum("nm,nmi,nmj->nij", w, x, p) + np.einsum("nki,nkj->nij", a, b))
+
+    def misses(self, R: np.ndarray, t: np.ndarray,
+               shift: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per sample (N,), with the points moved by (R, t) after ``shift`` (N, 3) m and the axes turned by R: the
+        squared distances of the seen points from the model's, summed, m²; the same of the axes, m² (the two sum to
+        the fit's squared error); the squared angle between the rotations so turned and the model's, rad²."""
+        x = self.xyz if shift is None else self.xyz + shift[:, None, :]
+        d = np.sum(np.where(self.seen()[:, :, None], x @ R.T + t - self.model, 0.0) ** 2, axis=(1, 2))
+        chord = np.sum((self.axes @ R.T - self.model_axes) ** 2, axis=(1, 2))
+        with np.errstate(invalid="ignore", divide="ignore"):  # no rotations: no lever, no angle
+            cos = np.where(chord > 0, 1.0 - chord / (4 * self.lever**2), 1.0)
+        return d, chord, np.arccos(np.clip(cos, -1.0, 1.0)) ** 2
+
+
 def frame_jump(xyz: np.ndarray, model: np.ndarray, min_part: int = MIN_PART,
                ratio: float = JUMP_RATIO) -> tuple[int, float, float] | None:
     """Where the measurement frame jumps inside one file: the first index k of the second part and
@@ -281,11 +366,21 @@ def frame_jump(xyz: np.ndarray, model: np.ndarray, min_part: int = MIN_PART,
     all and with one for each part (rows before k and from k on), for the k that fits best; None
     unless two frames leave less than ``ratio`` (default JUMP_RATIO) of one frame's RMS (two set-ups, a bumped
     tracker); ``ratio`` 1: the best split whatever it leaves (a candidate to try)."""
-    n = len(xyz)
+    found = _best_split(Framed.of(xyz, model), min_part)
+    if found is None:
+        return None
+    k, one, two = found[0], float(np.sqrt(found[1] / len(xyz))), float(np.sqrt(found[2] / len(xyz)))
+    return (k, one, two) if two < ratio * one else None
+
+
+def _best_split(framed: Framed, min_part: int) -> tuple[int, float, float] | None:
+    """The first index k of the second part where one rigid frame per part (before k, from k on) fits ``framed``
+    best (every split at once, from prefix sums; ties: the earliest), the squared error (m²) left by one frame for
+    all and by one per part; None for fewer than 2 ``min_part`` samples."""
+    n = len(framed)
     if n < 2 * min_part:
         return None
-    cum = [np.cumsum(a, axis=0) for a in (np.ones(n), xyz, model, np.sum(xyz**2, 1) + np.sum(model**2, 1),
-                                          xyz[:, :, None] * model[:, None, :])]
+    cum = [np.cumsum(a, axis=0) for a in framed.sums()]
     total = [c[-1] for c in cum]
     k = np.arange(min_part, n - min_part + 1)  # the second part's first index
     head = [c[k - 1] for c in cum]
@@ -293,24 +388,26 @@ def frame_jump(xyz: np.ndarray, model: np.ndarray, min_part: int = MIN_PART,
     two = _rigid_sse(*head) + _rigid_sse(*tail)
     one = float(_rigid_sse(*[t[None] for t in total])[0])
     best = first_best(two, maximize=False)  # splits that fit as well: the earliest
-    rms_one, rms_two = float(np.sqrt(max(one, 0.0) / n)), float(np.sqrt(max(two[best], 0.0) / n))  # round-off: ≥ 0
-    return (int(k[best]), rms_one, rms_two) if rms_two < ratio * rms_one else None
+    return int(k[best]), max(one, 0.0), max(float(two[best]), 0.0)  # round-off: ≥ 0
 
 
 @dataclass(frozen=True)
 class Jump:
     """A frame jump inside one file (:func:`frame_jump_test`): the first index of the second part, the RMS distance
-    (m) of the positions from the model with one rigid frame for all, with one frame per part, and with one frame
-    and a linear drift over the rows, and the F test's p-value (Bonferroni over the splits)."""
+    (m) of the measured points from the model's with one rigid frame for all, with one frame per part, and with one
+    frame and a linear drift over the rows, and the F test's p-value (Bonferroni over the splits); where rotations
+    were measured, their RMS angle (rad) from the model's in the same three fits (``turns``; else None)."""
 
     index: int
     one: float
     two: float
     drift: float
     p: float
+    turns: tuple[float, float, float] | None = None
 
 
-def frame_jump_test(xyz: np.ndarray, model: np.ndarray, n_params: int = 0, min_part: int = MIN_PART) -> Jump | None:
+def frame_jump_test(xyz: np.ndarray | Framed, model: np.ndarray | None = None, n_params: int = 0,
+                    min_part: int = MIN_PART) -> Jump | None:
     """A significant, material frame jump inside one file, found cheaply (prefix sums) on a fitted model.
 
     The split of :func:`frame_jump` (the one that fits best, whatever it leaves) is judged by the F test of a
@@ -319,16 +416,18 @@ def frame_jump_test(xyz: np.ndarray, model: np.ndarray, n_params: int = 0, min_p
     times the number of splits tried, Bonferroni): significant below ``JUMP_ALARM`` (1 %); the split must also
     remove ``JUMP_SHARE`` (half) of the squared error one frame leaves, since a model's own errors, which
     neighbouring rows share, pass the F test alone (the real UR5 grid's best split removes 4.6 % of it at F = 24),
-    and fit better than one frame with a linear drift over the rows (a warm-up, not a step).
+    and fit better than one frame with a linear drift over the rows (a warm-up, not a step). Whatever an observation
+    kind measures in its frame is judged so (:meth:`kincal.observe.Observation.framed`): points, markers, and 6-D
+    poses, whose rotations a frame's turn moves with their positions (weighed by their σ, :class:`Framed`).
 
     Parameters
     ----------
-    xyz : ndarray, shape (N, 3)
-        Measured positions in acquisition (row) order, m.
-    model : ndarray, shape (N, 3)
-        The fitted model's positions at the same poses, m.
+    xyz : ndarray, shape (N, 3), or Framed
+        Measured positions in acquisition (row) order, m; or what a frame moves (:class:`Framed`), in that order.
+    model : ndarray, shape (N, 3), optional
+        The fitted model's positions at the same poses, m (for positions ``xyz``; default None).
     n_params : int, optional
-        The parameters fitted to these positions besides one rigid frame (default 0), for the F test's degrees
+        The parameters fitted to these data besides one rigid frame (default 0), for the F test's degrees
         of freedom.
     min_part : int, optional
         Poses on either side of a split at least (default ``MIN_PART``, 10).
@@ -352,36 +451,57 @@ def frame_jump_test(xyz: np.ndarray, model: np.ndarray, n_params: int = 0, min_p
     >>> jump.index, round(jump.one * 1e3, 3), round(jump.two * 1e3, 3), jump.p < 1e-100
     (120, 0.105, 0.033, True)
     """
-    n = len(xyz)
-    found = frame_jump(xyz, model, min_part, ratio=1.0)
-    dof = 3 * n - n_params - 12  # each part's frame fitted
+    framed = xyz if isinstance(xyz, Framed) else Framed.of(xyz, np.asarray(model, float))
+    found = _best_split(framed, min_part)
+    dof = framed.components() - n_params - 12  # each part's frame fitted
     if found is None or dof < 1:
         return None
-    k, one, two = found
-    sse_one, sse_two = one**2 * n, two**2 * n
+    k, sse_one, sse_two = found
     if not sse_two <= (1.0 - JUMP_SHARE) * sse_one:
         return None
     f = (sse_one - sse_two) / 6.0 / max(sse_two / dof, 1e-300)
-    p = min(1.0, (n - 2 * min_part + 1) * f_sf(f, 6.0, float(dof)))
-    drift = _drift_rms(xyz, model)
-    return Jump(k, one, two, drift, p) if p < JUMP_ALARM and two < drift else None
+    p = min(1.0, (len(framed) - 2 * min_part + 1) * f_sf(f, 6.0, float(dof)))
+    drift = _drift_fit(framed)
+    if not (p < JUMP_ALARM and sse_two < float(np.sum(drift[0] + drift[1]))):
+        return None
+    parts = [part.misses(*_frame(part)) for part in (framed.subset(slice(None, k)), framed.subset(slice(k, None)))]
+    fits = [framed.misses(*_frame(framed)), tuple(np.concatenate(m) for m in zip(*parts)), drift]
+    points = max(int(framed.seen().sum()), 1)
+    one, two, drifted = (float(np.sqrt(np.sum(d) / points)) for d, _, _ in fits)
+    one_turn, two_turn, drift_turn = (float(np.sqrt(np.mean(a))) for _, _, a in fits)
+    return Jump(k, one, two, drifted, p, (one_turn, two_turn, drift_turn) if framed.rotations else None)
 
 
-def _drift_rms(xyz: np.ndarray, model: np.ndarray) -> float:
-    """RMS distance (m) of xyz (N, 3) from model (N, 3) moved by one rigid frame and a linear drift over the rows
-    (from −½ to +½ of it from the first to the last), the two fitted alternately (Kabsch, then least squares)."""
-    t = np.linspace(-0.5, 0.5, len(xyz))
+def _frame(framed: Framed, shift: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The rigid frame (R (3, 3), t (3,)) that moves ``framed``'s points (after ``shift`` (N, 3) m) and axes onto
+    the model's best (Kabsch, the axes in the cross-covariance only)."""
+    moved = framed if shift is None else dataclasses.replace(framed, xyz=framed.xyz + shift[:, None, :])
+    n, sx, sp, _, sxp = (s.sum(axis=0) for s in moved.sums())
+    H = sxp - np.outer(sx, sp) / max(n, 1.0)
+    U, _, Vt = np.linalg.svd(H)
+    R = Vt.T @ np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0]) @ U.T  # a reflection is not a frame
+    return R, (sp - R @ sx) / max(n, 1.0)
+
+
+def _drift_fit(framed: Framed) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:meth:`Framed.misses` with one rigid frame and a linear drift of the points over the rows (from −½ to +½ of
+    it from the first to the last), the two fitted alternately (Kabsch, then least squares)."""
+    s = np.linspace(-0.5, 0.5, len(framed))
+    w = framed.seen()
     d = np.zeros(3)
     for _ in range(DRIFT_ROUNDS):
-        R, b = kabsch(model, xyz - t[:, None] * d)
-        d = t @ (xyz - model @ R.T - b) / (t @ t)
-    R, b = kabsch(model, xyz - t[:, None] * d)
-    return float(np.sqrt(np.mean(np.sum((xyz - t[:, None] * d - model @ R.T - b) ** 2, axis=1))))
+        R, t = _frame(framed, -s[:, None] * d)
+        r = np.where(w[:, :, None], framed.xyz @ R.T + t - framed.model, 0.0)  # the drift not taken out
+        d = R.T @ np.einsum("n,nmi->i", s, r) / max(float(np.sum(w.sum(1) * s**2)), 1e-300)
+    R, t = _frame(framed, -s[:, None] * d)
+    return framed.misses(R, t, -s[:, None] * d)
 
 
 def _rigid_sse(n, sx, sp, sq, sxp) -> np.ndarray:
     """Sum of squared distances left by the best rigid motion of the points x onto p, from their
-    sums: count n (K,), Σx and Σp (K, 3), Σ(|x|² + |p|²) (K,), Σ x pᵀ (K, 3, 3) (Kabsch)."""
+    sums: count n (K,), Σx and Σp (K, 3), Σ(|x|² + |p|²) (K,), Σ x pᵀ (K, 3, 3) (Kabsch; axes, which a turn moves
+    and a shift does not, are in the last two only: :meth:`Framed.sums`)."""
+    n = np.maximum(n, 1.0)  # a part that saw no point: its sums are 0
     H = sxp - sx[:, :, None] * sp[:, None, :] / n[:, None, None]
     s = np.linalg.svd(H, compute_uv=False)
     s[:, -1] *= np.sign(np.linalg.det(H))  # a reflection is not a frame

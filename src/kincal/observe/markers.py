@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..models.robot import TOOL_NAMES, Robot
+from ..models.unit_checks import Framed
 from .observations import Observation, error_stats, flange_point
 
 
@@ -118,6 +119,12 @@ class MarkersObs(Observation):
 
     def position_axes(self) -> np.ndarray:
         return np.concatenate([np.repeat(np.arange(3), np.count_nonzero(seen)) for seen in self.seen().T])
+
+    def framed(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> Framed:
+        """Every marker where it was seen (NaN where not), against its point ``marker[<name>].x/y/z`` in ``nuis``."""
+        v = robot.param_values(values)
+        model = [flange_point(robot, self.q, v, nuis[3 * m:3 * m + 3])[0] for m in range(self.xyz.shape[1])]
+        return Framed.of(self.xyz, np.stack(model, axis=1))
 
     def shifted(self, offset: np.ndarray) -> "MarkersObs":
         return dataclasses.replace(self, xyz=self.xyz + offset[:, None, :])

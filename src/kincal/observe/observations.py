@@ -14,6 +14,7 @@ import numpy as np
 from ..errors import MeasurementError
 from ..models.robot import TOOL_NAMES, Robot
 from ..models.transforms import skew
+from ..models.unit_checks import Framed
 from .orientation import nearest_rotation
 
 
@@ -165,6 +166,12 @@ class Observation:
         values ``setup`` (name -> m or rad); None for the robot's own tool point (points, poses)."""
         return None
 
+    def framed(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> Framed | None:
+        """What a rigid change of its measurement frame moves, sample by sample in the set's order (the measured
+        points and rotations against ``robot``'s at ``values`` and ``nuis``): what the frame-jump test judges
+        (:func:`kincal.models.unit_checks.frame_jump_test`); None for data that see no absolute position."""
+        return None
+
     def sample_rows(self) -> np.ndarray:
         """The sample each residual row belongs to, (M,); -1 for rows of no one sample (a known
         distance): what a pose design needs to group the rows into per-candidate blocks."""
@@ -270,6 +277,11 @@ class Wrapper(Observation):
     def positions_point(self, setup: dict) -> np.ndarray | None:
         return self.inner.positions_point(setup)
 
+    def framed(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> Framed | None:
+        """The inner set's, its own set-up parameters first in ``nuis`` (the measurements as given: a session's frame
+        is one more rigid frame, which the test fits; a drift, which it weighs the jump against)."""
+        return self.inner.framed(robot, values, nuis[:len(self.inner.nuisance(robot)[1])])
+
     def prepare(self, robot: Robot) -> "Wrapper":
         return dataclasses.replace(self, inner=self.inner.prepare(robot))
 
@@ -315,6 +327,9 @@ class MeasuredPositions(Observation):
 
     def positions(self):
         return self.q, self.xyz
+
+    def framed(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> Framed:
+        return Framed.of(self.xyz, robot.forward(self.q, values))
 
     def shifted(self, offset: np.ndarray) -> "MeasuredPositions":
         return dataclasses.replace(self, xyz=self.xyz + offset)
@@ -480,6 +495,13 @@ class PoseObs(MeasuredPositions):
     def sigma(self) -> np.ndarray:
         sp, sr = (np.broadcast_to(np.asarray(s, float), (len(self),)) for s in (self.std_pos, self.std_rot))
         return np.concatenate([sp, sp, sp, sr, sr, sr])
+
+    def framed(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> Framed:
+        """The positions and the rotations, a rotation's σ weighed as its position's (:class:`Framed`)."""
+        v = robot.param_values(values)
+        p, _, Rf = flange_point(robot, self.q, v, v[robot.params.indices(TOOL_NAMES)])
+        sp, sr = (np.broadcast_to(np.asarray(s, float), (len(self),)) for s in (self.std_pos, self.std_rot))
+        return Framed.of(self.xyz, p, self.R, Rf @ self.target(nuis), sp / (np.sqrt(2.0) * sr))
 
     def target(self, nuis: np.ndarray) -> np.ndarray:
         from scipy.spatial.transform import Rotation
