@@ -121,3 +121,103 @@ def test_a_fanuc_write_with_no_jump_back_reaches_only_the_moves_after_it(tmp_pat
                              frames)
     assert sorted(res.texts) == [2] and sorted(res.refused) == [0, 1]  # P[2] in UT 2: no move, set on line 6
     assert "where it is used (no move of the program goes to it)" in res.refused[1]
+
+
+def _job(frames, names, inst):
+    """An INFORM job of C positions C00000… (in USER coordinates, or ROBOT for base 'ROBOT') and instructions."""
+    nominal = kincal.load_robot("motoman_gp7")
+    poses, bits = _targets(nominal, Q[:len(names)], frames, names, "inform")
+    pos = ""
+    for k, (T, b, (tool, base)) in enumerate(zip(poses, bits, names)):
+        x, y, z, a, bb, c = frame_numbers(T)
+        pos += (f"///TOOL {tool.split()[1]}\n" + (f"///USER {base.split()[1]}\n///POSTYPE USER\n" if base != "ROBOT"
+                                                  else "///POSTYPE ROBOT\n")
+                + f"///RECTAN\n///RCONF {','.join(map(str, b))},0,0\n"
+                f"C{k:05d}={x:.3f},{y:.3f},{z:.3f},{c:.4f},{bb:.4f},{a:.4f}\n")
+    return (f"/JOB\n//NAME RT\n//POS\n///NPOS {len(names)},0,0,0,0,0\n{pos}//INST\n///DATE 2024/01/01 00:00\n"
+            "///ATTR SC,RW\n///GROUP1 RB1\nNOP\n" + "".join(s + "\n" for s in inst) + "END\n")
+
+
+def _line(text, what):
+    return text.splitlines().index(what) + 1
+
+
+def test_an_inform_user_frame_or_tool_set_at_run_time_refuses_the_targets_it_may_reach(tmp_path):
+    """MF.JBI's case: 'MFRAME UF#(1) P001 P002 P003' made user frame 1 at run time, yet a later MOVL in USER 1 was
+    compensated with the frames' USER 1 ('3 of 3'). Now C00001 (USER 1, between the label *L1 and 'JUMP *L1') and
+    C00002 (after the MFRAME) are refused naming its line, C00004 (TOOL 2, after 'SETTOOL TL#(2) P004') too; C00000
+    (before the label) and C00003 (TOOL 2 before the SETTOOL, ROBOT coordinates) are compensated exactly as in the
+    job without those lines; the refused position lines are written back byte for byte."""
+    frames = {"TOOL 1": _frame(0, 0, 100), "TOOL 2": _frame(0, 20, 150, rx=30),
+              "USER 1": _frame(500, -200, 50, rz=-30)}
+    names = [("TOOL 1", "USER 1")] * 3 + [("TOOL 2", "ROBOT")] * 2
+    inst = ["MOVL C00000 V=100.0", "*L1", "MOVL C00001 V=100.0", "MFRAME UF#(1) P001 P002 P003",
+            "MOVL C00002 V=100.0 'after it", "JUMP *L1 IF IN#(1)=ON", "MOVL C00003 V=100.0", "SETTOOL TL#(2) P004",
+            "MOVJ C00004 VJ=25.00"]
+    text = _job(frames, names, inst)
+    prog, res = _compensated(tmp_path, "rt.JBI", text, "inform", "motoman_gp7", frames)
+    variables = [t.variable for t in prog.targets]
+    assert sorted(variables[k] for k in res.texts) == ["C00000", "C00003"]
+    assert sorted(variables[k] for k in res.refused) == ["C00001", "C00002", "C00004"]
+    why = {variables[k]: w for k, w in res.refused.items()}
+    mframe, settool = _line(text, inst[3]), _line(text, inst[7])
+    assert why["C00001"] == why["C00002"] == (
+        f"its base frame 'USER 1' may be the one the program sets at run time on line {mframe} (MFRAME UF#(1) P001 "
+        "P002 P003) at the moves to it: a value only the controller knows, not the one given with the frames; "
+        "teach it in a frame the program does not set")
+    assert why["C00004"].startswith(f"its tool frame 'TOOL 2' may be the one the program sets at run time on line "
+                                    f"{settool} (SETTOOL TL#(2) P004)")
+    out = prog.with_targets(res.texts).splitlines()
+    for k in (1, 2, 4):
+        assert out[prog.targets[k].line - 1] == text.splitlines()[prog.targets[k].line - 1]
+    plain = text.replace(inst[3], "NOP").replace(inst[7], "NOP")
+    _, res0 = _compensated(tmp_path, "plain.JBI", plain, "inform", "motoman_gp7", frames)
+    assert not res0.refused and {k: res0.texts[k] for k in res.texts} == res.texts
+
+
+def _module(frames, names, body):
+    """A RAPID module: tooldata t30 and wobjdata w1 declared, robtargets p0… and the routine ``body``."""
+    nominal = kincal.load_robot("abb_irb120")
+    poses, bits = _targets(nominal, Q[:len(names)], frames, names, "rapid")
+    points = []
+    for k, (T, b) in enumerate(zip(poses, bits)):
+        x, y, z = T[:3, 3] * 1e3
+        qx, qy, qz, qw = Rotation.from_matrix(T[:3, :3]).as_quat()
+        points.append(f"    CONST robtarget p{k}:=[[{x:.6f},{y:.6f},{z:.6f}],[{qw:.9f},{qx:.9f},{qy:.9f},{qz:.9f}],"
+                      f"[{','.join(map(str, b))}],[9E9,9E9,9E9,9E9,9E9,9E9]];")
+    return "\n".join(["MODULE Rt", "    PERS tooldata t30:=[TRUE,[[0,0,30],[1,0,0,0]],[1,[0,0,10],[1,0,0,0],0,0,0]];",
+                      "    PERS wobjdata w1:=[FALSE,TRUE,\"\",[[300,-100,50],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];",
+                      *points, "    PROC main()", *body, "    ENDPROC", "ENDMODULE", ""])
+
+
+def test_a_rapid_tool_or_work_object_set_at_run_time_refuses_its_targets(tmp_path):
+    """'t30.tframe.trans := [0,0,80];' (line 10, after a move with t30: main runs again, and a PERS keeps its value)
+    and 'MToolTCPCalib p4,p4,p4,p4,tLong,e1,e2;' (line 13) set the tools at run time; with t30 and tLong given in
+    the frames, p0 and p1 (t30) and p2 (tLong) were compensated with the given values. Now they are refused naming
+    the lines; p3 (tool0, wobj w1, which nothing sets) is compensated exactly as in the module without those lines,
+    and the refused declarations are written back byte for byte."""
+    frames = {"t30": _frame(0, 0, 30), "tLong": _frame(10, -5, 150, ry=30), "w1": _frame(300, -100, 50)}
+    names = [("t30", "wobj0"), ("t30", "w1"), ("tLong", "wobj0"), ("tool0", "w1")]
+    frames["tool0"] = np.eye(4)
+    body = ["        MoveL p0,v100,fine,t30;", "        t30.tframe.trans := [0,0,80];",
+            "        MoveL p1,v100,fine,t30\\WObj:=w1;", "        MoveJ p2,v100,fine,tLong;",
+            "        MToolTCPCalib p4,p4,p4,p4,tLong,e1,e2;", "        MoveL p3,v100,fine,tool0\\WObj:=w1;"]
+    text = _module(frames, names, body)
+    given = {k: v for k, v in frames.items() if k != "tool0"}
+    prog, res = _compensated(tmp_path, "rt.mod", text, "rapid", "abb_irb120", given)
+    variables = [t.variable for t in prog.targets]
+    assert sorted(variables[k] for k in res.texts) == ["p3"]
+    assert sorted(variables[k] for k in res.refused) == ["p0", "p1", "p2"]
+    why = {variables[k]: w for k, w in res.refused.items()}
+    assert why["p0"] == why["p1"] == (
+        "its tool frame 't30' may be the one the program sets at run time on line 10 (t30.tframe.trans := [0,0,80]) "
+        "at the moves to it: a value only the controller knows, not the one given with the frames; teach it in a "
+        "frame the program does not set")
+    assert "on line 13 (MToolTCPCalib p4,p4,p4,p4,tLong,e1,e2)" in why["p2"]
+    assert [_line(text, body[1]), _line(text, body[4])] == [10, 13]
+    out = prog.with_targets(res.texts).splitlines()
+    for k in range(3):
+        assert out[prog.targets[k].line - 1] == text.splitlines()[prog.targets[k].line - 1]
+    plain = text.replace(body[1], "").replace(body[4], "")
+    _, res0 = _compensated(tmp_path, "plain.mod", plain, "rapid", "abb_irb120", given)
+    assert not res0.refused and {k: res0.texts[k] for k in res.texts} == res.texts

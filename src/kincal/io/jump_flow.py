@@ -21,8 +21,8 @@ from . import flow
 @dataclass(frozen=True)
 class Write:
     """A frame written at run time: where (``at``, a character position; ``line``, from 1), the frame as targets
-    name it ("UT 2"; its kind alone, "UT", where the number is chosen at run time: every frame of that kind) and
-    the statement as written."""
+    name it ("UT 2"; its kind alone, "UT", where the number is chosen at run time: every frame of that kind; any
+    case) and the statement as written."""
 
     at: int
     line: int
@@ -30,8 +30,8 @@ class Write:
     text: str
 
     def hits(self, frame: str) -> bool:
-        """Whether the write may change ``frame``."""
-        return frame == self.frame or frame.startswith(self.frame + " ")
+        """Whether the write may change ``frame`` (names compared case-insensitively)."""
+        return frame.lower() == self.frame.lower() or frame.lower().startswith(self.frame.lower() + " ")
 
 
 def unknown_frames(writes: Sequence[Write], marks: Sequence[tuple[int, str, Optional[str]]],
@@ -46,8 +46,8 @@ def unknown_frames(writes: Sequence[Write], marks: Sequence[tuple[int, str, Opti
         Its flow, by character position: (at, "label", name), (at, "jump", name; None: any label) and a loop's
         (at, "open", None) and (at, "close", None).
     targets : sequence of (tuple of str, tuple of int)
-        Each target's frames as it names them, (tool, base) ("UT 2", "UF 1"), and the positions of the moves to it (none: a
-        target no move uses, which any write of its frames may reach).
+        Each target's frames as it names them, (tool, base) ("UT 2", "UF 1"), and the positions of the moves to it
+        (none: a target no move uses, which any write of its frames may reach).
 
     Returns
     -------
@@ -81,7 +81,7 @@ def unknown_frames(writes: Sequence[Write], marks: Sequence[tuple[int, str, Opti
             k = slots.index(f)
             lines = ({s.line for at in ats for s in reached.get(at, ((frozenset(),) * len(slots)))[k]} if ats
                      else {w.line for w in writes if w.hits(f)})
-            found = [w for w in writes if w.line in lines]
+            found = [w for w in writes if w.line in lines and w.hits(f)]
             if found:
                 why.append(_why(("tool", "base")[min(side, 1)], f, found, bool(ats)))
         out.append("; ".join(why))
