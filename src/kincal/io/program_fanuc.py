@@ -29,6 +29,13 @@ to a ``P[n]`` with no ``/POS`` entry, not taught (``********``) or without ``GP1
 by such moves is not a target; one also used by a plain move is (and the listing says so). An untaught
 or group-1-less ``/POS`` entry no move uses is listed too.
 
+Frames set at run time. ``UTOOL[n]=PR[i]`` and ``UFRAME[n]=PR[i]`` (``UTOOL[R[k]]=…``: any n) give a tool or
+user frame a value only the controller knows: a Cartesian target in that frame whose moves the write may reach,
+by the program's labels, jumps and ``FOR`` loops (:mod:`kincal.io.jump_flow`), says why in ``in_force`` and is
+refused, never compensated with the frame's given value (one no move uses: wherever the program writes its
+frame). ``UTOOL_NUM``/``UFRAME_NUM`` only select a frame: a position names its own (``UT``, ``UF``), and the
+controller refuses to move to it in another.
+
 Skipped when searching ``/MN``: comments (``!…`` at the start of a statement or after its ``;``),
 lines commented out (``//…``, ``--…``), strings, the comments of registers (``PR[2:name]``) and the
 text of ``MESSAGE[…]``. Units are mm and deg, numbers in any style (``-.242``, ``1e3``).
@@ -49,6 +56,7 @@ import numpy as np
 
 from ..errors import MeasurementError
 from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix
+from .jump_flow import Write, unknown_frames
 from .programs import Dialect, Program, Target, controller_angles, line_column, old_numbers, write_fields
 
 SECTION = re.compile(r"^[ \t]*/(PROG|ATTR|APPL|MN|POS|END)\b", re.M | re.I)
@@ -67,6 +75,11 @@ MOVE = re.compile(STATEMENT_START + r"([JLCA])[ \t]+(?=P\[|PR\[)", re.M | re.I)
 REF = re.compile(r"\b(PR|P)\[", re.I)
 OPTION = re.compile(r"\b(Tool_Offset|Offset|VOFFSET|INC)\b(\s*,\s*(?:PR|VR)\[(?:[^\[\]\n]|\[[^\[\]\n]*\])*\])?",
                     re.I)
+FRAME_WRITE = re.compile(r"(?<![\w\[])(UTOOL|UFRAME)[ \t]*\[[ \t]*(?:GP(\d+)[ \t]*:[ \t]*)?"
+                         r"((?:[^\[\]\n]|\[[^\[\]\n]*\])*)\][ \t]*=(?!=)[^;\n]*", re.I)  # UTOOL[2]=PR[9]: a frame's value set at run time
+LABEL = re.compile(STATEMENT_START + r"LBL[ \t]*\[[ \t]*(\d+)[ \t]*\]", re.M | re.I)
+JUMP = re.compile(r"\bLBL[ \t]*\[[ \t]*(\d+)?", re.I)  # any other LBL[…]: JMP, IF …,JMP, SELECT, Skip, TIMEOUT
+LOOP = re.compile(STATEMENT_START + r"(FOR|ENDFOR)\b", re.M | re.I)
 POSE_FIELDS = ("X", "Y", "Z", "W", "P", "R")
 LENGTH_RES, ANGLE_RES = 1e-3, 1e-3  # mm, deg: the controller's step, to which its own .ls files write positions
 
@@ -141,7 +154,30 @@ def parse(source: str, text: str) -> Program:
         elif e.number not in used:
             targets.append(e.target)
     not_literal.sort(key=lambda n: n[0])
-    return Program(source, text, tuple(targets), tuple(not_literal), comment="", dialect="fanuc")
+    at = {n: tuple(u.at for u in uses if u.number == n and not u.why) for n in plain}
+    whys = _run_time_frames(text, *sections.get("MN", (0, 0)), [
+        (t.frames if t.kind == "pose" else (), at.get(int(t.variable[2:-1]), ())) for t in targets])
+    return Program(source, text, tuple(targets), tuple(not_literal), comment="", dialect="fanuc",
+                   in_force=tuple((t.start, why) for t, why in zip(targets, whys) if why))
+
+
+def _run_time_frames(text: str, a: int, b: int, targets: list[tuple[tuple[str, ...], tuple[int, ...]]]) -> list[str]:
+    """Why each target (its frames, its moves' positions) is in a tool or user frame that /MN (text[a:b]) may have
+    written at run time (``UTOOL[n]=…``, ``UFRAME[n]=…``: :func:`kincal.io.jump_flow.unknown_frames`), or ''."""
+    code = " " * a + _code(text, a, b)
+    writes = [Write(m.start(), line_column(text, m.start())[0],
+                    {"UTOOL": "UT", "UFRAME": "UF"}[m.group(1).upper()]
+                    + (f" {int(m.group(3))}" if m.group(3).strip().isdigit() else ""), text[m.start():m.end()].strip())
+              for m in FRAME_WRITE.finditer(code, a, b) if m.group(2) in (None, "1")]
+    if not writes:
+        return [""] * len(targets)
+    labels = {m.start(1) for m in LABEL.finditer(code, a, b)}
+    marks: list[tuple[int, str, str | None]] = [(m.start(1), "label", str(int(m.group(1))))
+                                                for m in LABEL.finditer(code, a, b)]
+    marks += [(m.start(), "jump", m.group(1) and str(int(m.group(1)))) for m in JUMP.finditer(code, a, b)
+              if m.start(1) not in labels]
+    marks += [(m.start(1), "open" if m.group(1).upper() == "FOR" else "close", None) for m in LOOP.finditer(code, a, b)]
+    return unknown_frames(writes, marks, targets)
 
 
 def _with_move(t: Target, use: _Use) -> Target:

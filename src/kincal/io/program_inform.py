@@ -41,6 +41,11 @@ needs each joint's pulses per degree, the controller's parameters, which a robot
   written, not where the shift puts them), an incremental move (IMOV); P variables the job carries but
   does not use are listed at their position line.
 
+**Frames set at run time.** ``MFRAME UF#(n) …`` makes user frame n, ``SETTOOL TL#(n) …`` sets tool n (``UF#(B000)``:
+any n): a target in that frame whose moves the write may reach, by the job's labels, jumps (``*L1`` … ``JUMP
+*L1``) and loops (:mod:`kincal.io.jump_flow`), says why in ``in_force`` and is refused, never compensated with the
+frame's given value.
+
 Base-axis and station positions and variables (BC, EC, BP, EX) are external axes: not targets, not listed.
 Comments (``'`` to the end of the line) and strings are blanked before instructions are searched; names
 are matched case-insensitively. Broken input (a non-number, a truncated Cartesian position, an RCONF
@@ -60,6 +65,7 @@ import numpy as np
 from ..errors import MeasurementError
 from ..models.transforms import rot_zyx, rotation_log, rotvec_matrix
 from .branches import RCONF_DIGITS
+from .jump_flow import Write, unknown_frames
 from .programs import Dialect, Program, Target, controller_angles, line_column, old_numbers, write_fields
 
 NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
@@ -79,6 +85,10 @@ BASE_AXIS = re.compile(r"^[ \t]*///GROUP\d+[ \t]+[^\n]*\bBS\d", re.M | re.I)  # 
 NPOS_KINDS = ("C", "BC", "EC", "P", "BP", "EX")
 ROBOT_VARIABLES = ("P", "LP", "PX", "LPX")
 ASSIGNS = ("SET", "SETE", "ADD", "SUB", "MUL", "DIV", "CNVRT", "GETS", "MSHIFT", "CLEAR", "SETEXPRESS")
+FRAME_WRITE = re.compile(r"[ \t]*(MFRAME|SETTOOL)[ \t]+(UF|TL)#[ \t]*\(([^)\n]*)\)", re.I)  # a frame set at run time
+LABEL = re.compile(r"[ \t]*\*[ \t]*(\w+)")
+JUMP = re.compile(r"\bJUMP[ \t]+(?:\*[ \t]*(\w+)|(?!JOB[ \t]*:))", re.I)  # to a label: named, or chosen at run time
+LOOP = re.compile(r"[ \t]*(FOR|NEXT|WHILE|ENDWHILE)\b", re.I)
 RESOLUTION = np.array([1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-4])  # mm, deg: the controller's step (its own .JBI files)
 
 
@@ -351,8 +361,37 @@ def parse(source: str, text: str) -> Program:
             listed.append((p.line, p.name, "a taught position no instruction of this job uses"))
         if kind == "P" and n not in variables:
             listed.append((p.line, p.name, "a global position variable this job carries and does not use"))
-    return Program(source, text, tuple(sorted(targets, key=lambda t: t.start)),
-                   tuple(sorted(listed, key=lambda item: item[0])), comment="", dialect="inform")
+    targets.sort(key=lambda t: t.start)
+    at: dict[int, tuple[int, ...]] = {}
+    for r in refs:
+        if r.kind == "C" and r.word in MOVES:
+            at[r.number] = at.get(r.number, ()) + (r.at,)
+    whys = _run_time_frames(source, text, sections.get("INST", []),
+                            [(t.frames if t.kind == "pose" else (), at.get(int(t.variable[1:]), ())) for t in targets])
+    return Program(source, text, tuple(targets), tuple(sorted(listed, key=lambda item: item[0])), comment="",
+                   dialect="inform", in_force=tuple((t.start, why) for t, why in zip(targets, whys) if why))
+
+
+def _run_time_frames(source: str, text: str, lines: list[tuple[int, int]],
+                     targets: list[tuple[tuple[str, ...], tuple[int, ...]]]) -> list[str]:
+    """Why each target (its frames, its moves' positions) is in a tool or user frame the //INST section (``lines``)
+    may have set at run time (``MFRAME UF#(n)``, ``SETTOOL TL#(n)``: :func:`kincal.io.jump_flow.unknown_frames`),
+    or ''."""
+    writes, marks = [], []
+    for a, b in lines:
+        code = _code(source, text, a, b)
+        m = FRAME_WRITE.match(code)
+        if m:
+            kind = {"UF": "USER", "TL": "TOOL"}[m.group(2).upper()]
+            number = m.group(3).strip()
+            frame = kind + (f" {int(number)}" if number.isdigit() else "")  # B000: any of them
+            writes.append(Write(a + m.start(1), text.count("\n", 0, a) + 1, frame, code.strip()))
+        label, loop = LABEL.match(code), LOOP.match(code)
+        marks += [(a + label.start(1), "label", label.group(1).upper())] if label else []
+        marks += [(a + j.start(), "jump", j.group(1) and j.group(1).upper()) for j in JUMP.finditer(code)]
+        marks += [(a + loop.start(1), "open" if loop.group(1).upper() in ("FOR", "WHILE") else "close", None)] \
+            if loop else []
+    return unknown_frames(writes, marks, targets) if writes else [""] * len(targets)
 
 
 def _fields(text: str, targets: Sequence[Target], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -43,6 +43,10 @@ What is listed (``Program.not_literal``: line, what, why) and never touched
     * a robtarget-shaped literal (or a jointtarget-shaped one with an unused-axis ``9E9``) anywhere else: an
       assignment, a call of a routine of the program.
 
+Refused (``Program.in_force`` says why): a pose target whose tool or work object the module sets at run time
+(``t1.tframe.trans := …``, ``w1 := …``, ``MToolTCPCalib …, t1, …``), at every move to it: its routines run in any
+order, main again and again, and a PERS keeps its value; a frame's given value is not the one in force.
+
 Conventions: ``values`` of a pose are x, y, z (m) and the rotation vector (rad) of the unit quaternion
 (the written one divided by its norm); ``fields`` are the spans of x, y, z, q1, q2, q3, q4; ``config``
 (cf1, cf4, cf6, cfx) as ints. Joints are rax_1..rax_6 in rad (an axis written 9E9, unused, is not one);
@@ -62,6 +66,7 @@ import numpy as np
 
 from ..errors import MeasurementError
 from ..models.transforms import quaternion_rotvec, rotvec_matrix, rotvec_quaternion
+from .jump_flow import Write, unknown_frames
 from .programs import Dialect, Program, Target, old_numbers, used_otherwise, write_fields
 from .rapid_scan import (Decl, FORMS, FrameData, Node, SHAPES, UNUSED, Use, _Scan, _aggregate, _closing, _literal,
                          _number, _pieces, _shaped)
@@ -81,6 +86,7 @@ RUNTIME = {"offs": "Offs() displaces {base} at run time", "reltool": "RelTool() 
            "crobt": "CRobT() reads the robot's position at run time",
            "cjointt": "CJointT() reads the robot's joints at run time",
            "calcrobt": "CalcRobT() computes it at run time", "calcjointt": "CalcJointT() computes it at run time"}
+CALIBRATES = re.compile(r"(?<![\w.])(MToolTCPCalib|MToolRotCalib|SToolTCPCalib|SToolRotCalib)\b", re.I)  # write a tool
 LENGTH_RES, ANGLE_RES, QUATERNION_RES = 1e-7, 1e-8, 1e-10  # mm, deg, quaternion component
 
 
@@ -325,8 +331,35 @@ def parse(source: str, text: str) -> Program:
     claimed += [d.value for d in s.decls if d.value is not None]
     listed += _strays(s, claimed)
     targets.sort(key=lambda t: t.start)
+    whys = unknown_frames(_frames_written(s), [(0, "open", None), (len(text), "close", None)],
+                          [(t.frames if t.kind == "pose" else (), (t.at,))
+                           for t in targets])
     return Program(source, text, tuple(targets), tuple(sorted(listed, key=lambda x: x[0])), comment="!",
-                   dialect="rapid")
+                   dialect="rapid", in_force=tuple((t.start, why) for t, why in zip(targets, whys) if why))
+
+
+def _statement_end(s: _Scan, at: int) -> int:
+    """Where the statement at ``at`` ends: its ';' (the end of the text without one)."""
+    end = s.code.find(";", at)
+    return len(s.code) if end < 0 else end
+
+
+def _frames_written(s: _Scan) -> list[Write]:
+    """The tools and work objects (any variable, by name) the module sets at run time: assigned
+    (``tool1.tframe.trans := …``, ``wobj1 := …``) or calibrated (``MToolTCPCalib``, …: a name among the arguments).
+    Its routines run in an order its text does not give, so each may be in force at every move
+    (:func:`kincal.io.jump_flow.unknown_frames`, the whole module one loop)."""
+    names = {d.name_at for d in s.decls}
+    out = []
+    for m in ASSIGN.finditer(s.code):
+        if m.start(1) not in names:
+            end = _statement_end(s, m.start())
+            out.append(Write(m.start(), s.line(m.start()), m.group(1), " ".join(s.text[m.start():end].split())))
+    for m in CALIBRATES.finditer(s.code):
+        end = _statement_end(s, m.end())
+        out += [Write(m.start(), s.line(m.start()), n, " ".join(s.text[m.start():end].split()))
+                for n in re.findall(r"(?<![\w.\\])[A-Za-z]\w*", s.code[m.end():end])]
+    return out
 
 
 def _frames(s: _Scan) -> list[FrameData]:
