@@ -126,7 +126,8 @@ def _origin_tag(xyz, rpy) -> str:
 
 
 # ---- Universal Robots calibration file ------------------------------------------------------------
-def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray | None = None) -> tuple[str, dict]:
+def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray | None = None,
+                   tip_in_flange: np.ndarray | None = None) -> tuple[str, dict]:
     """Write the ``kinematics:`` calibration file of UR's ROS driver for a 6-joint revolute chain.
 
     The six entries (shoulder … wrist_3) are each joint's origin, the parent-to-joint transform at zero angle
@@ -147,20 +148,25 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray 
         The frame the driver places the file's chain in (UR's Base: a URDF's link ``base``), in the model's base
         frame, m, known apart from ``base_yaw`` (default: ``base_yaw`` about z); the check compares the file's
         positions with the model's in it, so a ``base_yaw`` that is not its turn is refused.
+    tip_in_flange : ndarray, shape (4, 4), optional
+        The chain's tip frame in UR's tool flange frame (a URDF's link ``tool0``: :func:`ur_flange`), m; the file's
+        wrist-3 frame is then that flange (as ur_description makes it ``tool0``), the rest goes into the TCP, and
+        the check also compares the file's wrist-3 frame with the model's flange, within 1e-9 m and rad (default:
+        the chain ends at the flange, as kincal's DH UR arms do).
 
     Returns
     -------
     text : str
         The file's text, ending with its ``hash:`` line.
     summary : dict
-        "flange_to_tcp" (4×4 nested list, m: the flange frame in the file's wrist-3 frame), "tool_point"
-        (3 floats, m, in the wrist-3 frame) and "base_yaw" (rad).
+        "flange_to_tcp" (4×4 nested list, m: the chain's tip frame in the file's wrist-3 frame), "tool_point"
+        (3 floats, m, in the wrist-3 frame: the TCP for the controller) and "base_yaw" (rad).
 
     Raises
     ------
     ModelError
-        When the robot has joint-value terms, is not a serial chain, does not have 6 revolute joints, or the
-        file would not reproduce the model in ``driver_base``.
+        When the robot has joint-value terms, is not a serial chain, does not have 6 revolute joints, its flange
+        ``tip_in_flange`` is not on the last axis, or the file would not reproduce the model in ``driver_base``.
 
     Examples
     --------
@@ -185,13 +191,17 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray 
         raise ModelError(f"robot '{robot.name}': a UR calibration file holds 6 revolute joints, the robot has "
                          f"{robot.n_joints} ({', '.join(robot.joint_types)})")
     base = _h(rot_zyx(base_yaw, 0.0, 0.0), np.zeros(3))  # UR's Base in the model's base frame
-    frames, flange = ur_layout(frames, flange, base)  # the link frames UR's description hangs its links on
+    tip = np.eye(4) if tip_in_flange is None else np.asarray(tip_in_flange, dtype=float)
+    frames, flange = ur_layout(frames, flange @ np.linalg.inv(tip), base)  # UR's link frames; flange: UR's
     chain = [np.eye(4)] + frames
     origins = [np.linalg.inv(a) @ b for a, b in zip(chain[:-1], chain[1:])]
     rest = np.linalg.inv(frames[-1]) @ flange
     d = rest[2, 3]  # a shift along the last axis commutes with its rotation: it belongs to wrist_3
     origins[-1] = origins[-1] @ _h(np.eye(3), [0.0, 0.0, d])
     rest = _h(np.eye(3), [0.0, 0.0, -d]) @ rest
+    if tip_in_flange is not None:
+        _on_last_axis(robot, rest)
+    rest = rest @ tip  # the flange to the chain's tip: the controller's TCP frame without the tool point
     entries = {name: _xyz_rpy(T) for name, T in zip(UR_SECTIONS, origins)}
     lines = ["kinematics:"]
     for name, (xyz, rpy) in entries.items():
@@ -204,7 +214,40 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray 
                "base_yaw": base_yaw}
     driver = base if driver_base is None else np.asarray(driver_base, dtype=float)
     _check(robot, lambda q: _ur_forward(entries, q, rest, tool), "UR calibration file", driver)
+    if tip_in_flange is not None:
+        _check_flange(robot, entries, driver, tip)
     return text, summary
+
+
+def _on_last_axis(robot: Robot, rest: np.ndarray) -> None:
+    """Refuse a flange (``rest``: its pose in the file's wrist-3 frame, 4x4, m) off the last joint's axis or turned
+    from it: UR's tool flange sits on wrist 3's axis, z along it, and the driver puts tool0 at the wrist-3 frame."""
+    R = rest[:3, :3]
+    turn = float(np.arctan2(np.linalg.norm(R - R.T) / np.sqrt(8.0), (np.trace(R) - 1.0) / 2.0))  # exact near 0
+    off = float(np.linalg.norm(rest[:3, 3]))
+    if off > EXPORT_TOL or turn > EXPORT_TOL:
+        raise ModelError(f"robot '{robot.name}': the URDF's tool flange lies {off * MM:.4g} mm off the last joint's "
+                         f"axis and turns {np.degrees(turn):.4g}° from the frame on it; UR's flange (tool0) is on "
+                         f"wrist 3's axis, z along it, so the driver's file cannot place it: not UR's description")
+
+
+def _check_flange(robot: Robot, entries: dict, driver: np.ndarray, tip: np.ndarray) -> None:
+    """The file's wrist-3 frame in UR's Base ``driver`` (the driver's tool0: ur_description's wrist_3 -> flange ->
+    tool0 is the identity) must be the model's flange, its chain's tip with ``tip`` (the tip in the flange, 4x4, m)
+    undone, at random poses within 1e-9 m and rad: the file checked against the URDF's own tool0, not the tool point
+    alone."""
+    q = robot.sample_joints(50, seed=0)
+    plain = robot.with_params(dict.fromkeys(robot.base_params(), 0.0))
+    points, rotations = plain.with_tool_point([0.0, 0.0, 0.0]).forward(q), plain.flange_rotation(q)
+    to_base, to_flange, gap = np.linalg.inv(driver), np.linalg.inv(tip), 0.0
+    for qi, p, R in zip(q, points, rotations):
+        T = np.eye(4)
+        for (xyz, rpy), angle in zip(entries.values(), qi):
+            T = T @ _h(rpy_matrix(*rpy), xyz) @ _motion(ROT, 2, angle)
+        gap = max(gap, float(np.abs(T - to_base @ _h(R, p) @ to_flange).max()))
+    if not gap <= EXPORT_TOL:
+        raise ModelError(f"the UR calibration file would place tool0 {gap * MM:.3g} mm from the URDF's; nothing "
+                         f"written (please report this)")
 
 
 PARALLEL = 0.1  # sine of the angle below which two joint axes count as parallel (no common normal of their own)
@@ -575,7 +618,8 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
         summary.update(tool_link=tool_link_of(robot, tool_link))
     elif fmt == "ur":
         driver = controller_base(robot, source_path)  # UR's Base as the URDF places it (None: not a URDF robot)
-        text, extra = ur_calibration(robot, ur_base_yaw(robot, base_yaw, source_path), driver)
+        text, extra = ur_calibration(robot, ur_base_yaw(robot, base_yaw, source_path), driver,
+                                     ur_flange(robot, source_path))
         summary.update(extra)
     else:
         check_robot_output(path)
@@ -598,6 +642,33 @@ def controller_base(robot: Robot, source_path: str | None = None) -> np.ndarray 
         return None
     text = _source(robot, source_path)
     return None if text is None else fixed_frame(text, str(robot.source.get("base_link")), CONTROLLER_BASE)
+
+
+UR_FLANGES = (("tool0", np.eye(4)), ("flange", UR_TOOL0))  # ROS-Industrial's links at the tool flange, -> tool0
+
+
+def ur_flange(robot: Robot, source_path: str | None = None) -> np.ndarray | None:
+    """The chain's tip frame in UR's tool flange frame (4x4, m) for a URDF robot: the pose of the tip link in the
+    URDF's ``tool0`` (z out of the flange, the frame the controller's TCP is given in), else in its ``flange`` (x
+    out, turned to tool0 as ur_description does), composed along the fixed joints between them (a probe link below
+    tool0, or wrist_3_link above it); None for another robot (its chain ends at the flange). ModelError when the
+    URDF has neither link fixed to the tip: the driver's file would end at the tip, wherever it is."""
+    if not isinstance(robot, URDFRobot):
+        return None
+    text, tip, why = _source(robot, source_path), str(robot.source.get("tip_link")), []
+    for link, to_tool0 in UR_FLANGES:
+        try:
+            T = fixed_frame(str(text), tip, link)  # the link in the tip's frame
+        except ModelError as exc:
+            why.append(str(exc).removeprefix("the URDF's ").split(":")[0])
+            continue
+        if T is not None:
+            return np.linalg.inv(T @ to_tool0)
+        why.append(f"no link '{link}'")
+    raise ModelError(f"robot '{robot.name}': UR's tool flange, where the driver's file ends and the controller's TCP "
+                     f"starts, is the URDF's link 'tool0' or 'flange', and neither is fixed to the chain's tip "
+                     f"'{tip}' ({'; '.join(why)}): calibrate with --tip-link tool0 (or a link fixed to it), or add "
+                     f"ROS-Industrial's tool0 to the URDF at the flange and give it with --from")
 
 
 def ur_base_yaw(robot: Robot, given: float | None, source_path: str | None = None) -> float:

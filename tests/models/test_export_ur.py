@@ -1,0 +1,88 @@
+"""Universal Robots' kinematics file out of a URDF calibration: where UR's flange and Base are, and which arm is UR's,
+checked against an independent reading of the calibrated URDF (yourdfpy) and UR's own description chain."""
+import json
+
+import numpy as np
+import pytest
+import yaml
+from conftest import UR5_URDF
+
+import yourdfpy  # an independent URDF parser, test-time only (the dev extra installs it)
+
+import kincal
+from kincal.cli import main
+
+SMR = (0.0, 0.09e-3, 31.0e-3)  # the data set's reflector in the flange (tool0) frame, m
+ENTRIES = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
+PROBE = ('<link name="probe"/><joint name="tool0-probe" type="fixed"><parent link="tool0"/><child link="probe"/>'
+         '<origin xyz="0 0 0.02" rpy="0 0 0.7853981633974483"/></joint>\n</robot>')
+
+
+def ur_frames(kin, q):
+    """UR's description chain in UR's Base (ur_description's base_link_inertia, which is its link 'base'): per
+    joint T(x, y, z) Rz(yaw) Ry(pitch) Rx(roll) Rz(q), by hand; wrist_3 -> flange -> tool0 is the identity, so the
+    last frame is tool0. (N, 4, 4)."""
+    def rot(axis, a):
+        c, s = np.cos(a), np.sin(a)
+        i, j = [(1, 2), (2, 0), (0, 1)][axis]
+        R = np.eye(4)
+        R[i, i], R[i, j], R[j, i], R[j, j] = c, -s, s, c
+        return R
+    out = []
+    for qi in q:
+        T = np.eye(4)
+        for name, angle in zip(ENTRIES, qi):
+            e, M = kin[name], np.eye(4)
+            M[:3, 3] = [e["x"], e["y"], e["z"]]
+            T = T @ M @ rot(2, e["yaw"]) @ rot(1, e["pitch"]) @ rot(0, e["roll"]) @ rot(2, angle)
+        out.append(T)
+    return np.array(out)
+
+
+def calibrated(tmp_path, capsys, text, tip, base_link=None, seed=31):
+    """The URDF ``text`` (written to tmp_path) read to ``tip``, its joint origins perturbed as a calibration moves
+    them (base frame left at zero), saved as cal.yaml and exported as a URDF and a UR file: the robot, the file's
+    kinematics and the export's --json summary."""
+    (tmp_path / "arm.urdf").write_text(text)
+    nominal = kincal.load_robot(tmp_path / "arm.urdf", base_link=base_link, tip_link=tip, tool=SMR)
+    true = kincal.perturb(nominal, seed=seed)
+    robot = nominal.with_params({n: v for n, v in true.params.as_dict().items() if not n.startswith("base.")})
+    kincal.save_robot(robot, tmp_path / "cal.yaml")
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "cal.urdf")]) == 0
+    capsys.readouterr()
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "ur.yaml"), "--format", "ur", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    return robot, yaml.safe_load((tmp_path / "ur.yaml").read_text())["kinematics"], info
+
+
+@pytest.mark.parametrize("tip", ["probe", "wrist_3_link", "tool0"])
+def test_urs_flange_is_the_urdfs_tool0_whatever_the_tip_link(tip, tmp_path, capsys):
+    """UR5 calibrated to a probe link 20 mm below tool0 turned 45°, to wrist_3_link (82.3 mm above tool0) or to
+    tool0: the UR file's wrist-3 frame, rebuilt by UR's description rules, is the calibrated URDF's own tool0 in its
+    link 'base' (read by yourdfpy) within 1e-9 m at random poses, and the TCP printed is the tool point in that
+    tool0 (the probe's 20 mm and 45° turn, or the 82.3 mm, in it). Before, the file ended at the tip link: tool0 20 mm
+    / 45° off (probe), 82.3 mm short (wrist_3_link), and its check passed."""
+    robot, kin, info = calibrated(tmp_path, capsys, UR5_URDF.read_text().replace("</robot>", PROBE), tip)
+    urdf = yourdfpy.URDF.load(str(tmp_path / "cal.urdf"), load_meshes=False, build_collision_scene_graph=False)
+    q = robot.sample_joints(30, seed=32)
+    for qi, ours in zip(q, ur_frames(kin, q)):
+        urdf.update_cfg(dict(zip(robot.joint_names, qi)))
+        np.testing.assert_allclose(ours, urdf.get_transform("tool0", "base"), atol=1e-9)
+    x, y, z = t = robot.tool_point()
+    tcp = urdf.get_transform(tip, "tool0") @ np.append(t, 1.0)
+    np.testing.assert_allclose(info["tool_point"], tcp[:3], atol=1e-12)
+    c = np.cos(np.pi / 4)  # by hand: tool0 -> probe is T(0, 0, 0.02) Rz(45°); tool0 -> wrist_3_link Rx(90°) T(0, -0.0823, 0)
+    want = {"probe": [c * (x - y), c * (x + y), z + 0.02], "wrist_3_link": [x, -z, y - 0.0823], "tool0": t}[tip]
+    np.testing.assert_allclose(info["tool_point"], want, atol=1e-12)
+
+
+def test_a_tip_without_urs_flange_is_refused(tmp_path, capsys):
+    """A URDF whose tool0 is renamed (and that has no 'flange'): UR's flange cannot be found, so nothing is written
+    and the message says why and what to do."""
+    text = UR5_URDF.read_text().replace('"tool0"', '"tool_plate"')
+    (tmp_path / "arm.urdf").write_text(text)
+    assert main(["export", str(tmp_path / "arm.urdf"), str(tmp_path / "ur.yaml"), "--format", "ur", "--base-link",
+                 "base_link", "--tip-link", "tool_plate"]) == 1
+    said = capsys.readouterr().err
+    assert "link 'tool0' or 'flange', and neither is fixed to the chain's tip 'tool_plate'" in said
+    assert "--tip-link tool0" in said and not (tmp_path / "ur.yaml").exists()
