@@ -86,3 +86,30 @@ def test_a_tip_without_urs_flange_is_refused(tmp_path, capsys):
     said = capsys.readouterr().err
     assert "link 'tool0' or 'flange', and neither is fixed to the chain's tip 'tool_plate'" in said
     assert "--tip-link tool0" in said and not (tmp_path / "ur.yaml").exists()
+
+
+def test_a_mounted_arms_file_is_relative_to_urs_base(tmp_path, capsys):
+    """The UR5 URDF calibrated from 'world' with the arm mounted at (300, 200, 800) mm, tilted 0.1 rad and turned 0.5
+    rad: the UR file is written in the URDF's link 'base' wherever the mounting puts it (UR's calibration is
+    relative to Base; the mounting is not the driver's business): its wrist-3 frame is the calibrated URDF's tool0 in
+    'base' (yourdfpy) within 1e-9 m, and the same joint origins unmounted give the same file within 1e-9. It was
+    refused ("not a turn about z of world") with no way out; --base-yaw beside it is refused, naming the mounting."""
+    mount = ('<origin rpy="0.0 0.0 0.0" xyz="0.0 0.0 0.0"/>\n  </joint>\n</robot>',
+             '<origin rpy="0 0.1 0.5" xyz="0.3 0.2 0.8"/>\n  </joint>\n</robot>')
+    text = UR5_URDF.read_text()
+    assert text.count(mount[0]) == 1
+    robot, kin, _ = calibrated(tmp_path, capsys, text.replace(*mount), "tool0")
+    assert robot.source.get("base_link") == "world"
+    urdf = yourdfpy.URDF.load(str(tmp_path / "cal.urdf"), load_meshes=False, build_collision_scene_graph=False)
+    q = robot.sample_joints(30, seed=33)
+    for qi, ours in zip(q, ur_frames(kin, q)):
+        urdf.update_cfg(dict(zip(robot.joint_names, qi)))
+        np.testing.assert_allclose(ours, urdf.get_transform("tool0", "base"), atol=1e-9)
+    flat = tmp_path / "flat"
+    flat.mkdir()
+    _, plain, _ = calibrated(flat, capsys, text, "tool0")  # the same seed: the same joint origins
+    for entry in ENTRIES:
+        np.testing.assert_allclose([kin[entry][k] for k in "xyz"], [plain[entry][k] for k in "xyz"], atol=1e-9)
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "x.yaml"), "--format", "ur", "--base-yaw",
+                 "180"]) == 1
+    assert "(at 300, 200, 800 mm: more than a turn about z, a mounting)" in capsys.readouterr().err

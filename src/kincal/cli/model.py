@@ -333,8 +333,8 @@ def register(cmd) -> None:
                    "e.g. shoulder_pan_joint,... (default: the robot file's 'names:')")
     s.add_argument("--base-yaw", type=finite_float, help="UR files: UR's Base frame is the model's base turned by "
                    "this about z, deg (default: the URDF's link 'base' where it has one, as ur_description's, turned "
-                   "180 deg from base_link, through the fixed joints from the chain's base link; a URDF without it "
-                   "needs this; 0 for kincal's DH UR arms)")
+                   "180 deg from base_link, through the fixed joints from the chain's base link, wherever a mounting "
+                   "puts it; a URDF without it needs this; 0 for kincal's DH UR arms)")
     s.add_argument("--length-unit", default="m", choices=list(LENGTH_UNITS), help="kincal YAML: length unit")
     s.add_argument("--angle-unit", default="rad", choices=list(ANGLE_UNITS), help="kincal YAML: angle unit")
 

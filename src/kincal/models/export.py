@@ -126,15 +126,15 @@ def _origin_tag(xyz, rpy) -> str:
 
 
 # ---- Universal Robots calibration file ------------------------------------------------------------
-def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray | None = None,
+def ur_calibration(robot: Robot, base_yaw: float | None = None, driver_base: np.ndarray | None = None,
                    tip_in_flange: np.ndarray | None = None) -> tuple[str, dict]:
     """Write the ``kinematics:`` calibration file of UR's ROS driver for a 6-joint revolute chain.
 
     The six entries (shoulder … wrist_3) are each joint's origin, the parent-to-joint transform at zero angle
-    (x y z m, roll pitch yaw rad), relative to UR's Base frame, which is the model's base frame turned by
-    ``base_yaw`` about z. What lies beyond the wrist-3 frame, which the file cannot hold, is returned in the
-    summary for the controller. The file is checked before it is returned: its numbers, rebuilt by the
-    driver's rules in the driver's Base frame (``driver_base``), must reproduce the model within 1e-9 m at random
+    (x y z m, roll pitch yaw rad), relative to UR's Base frame: ``driver_base`` where the robot's description
+    places it, else the model's base frame turned by ``base_yaw`` about z. What lies beyond the wrist-3 frame, which
+    the file cannot hold, is returned in the summary for the controller. The file is checked before it is returned:
+    its numbers, rebuilt by the driver's rules in UR's Base, must reproduce the model within 1e-9 m at random
     poses.
 
     Parameters
@@ -142,12 +142,13 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray 
     robot : Robot
         A geometric serial chain with 6 revolute joints (DH/MDH or URDF).
     base_yaw : float, optional
-        Turn of UR's Base frame from the model's base frame about z, rad (default 0, right for kincal's DH
-        ur5, whose base is UR's Base; π for a URDF whose base_link faces the other way).
+        Turn of UR's Base frame from the model's base frame about z, rad, for a description without UR's Base
+        (default 0, right for kincal's DH ur5, whose base is UR's Base; π for a URDF whose base_link faces the
+        other way); not with ``driver_base``.
     driver_base : ndarray, shape (4, 4), optional
-        The frame the driver places the file's chain in (UR's Base: a URDF's link ``base``), in the model's base
-        frame, m, known apart from ``base_yaw`` (default: ``base_yaw`` about z); the check compares the file's
-        positions with the model's in it, so a ``base_yaw`` that is not its turn is refused.
+        UR's Base as the robot's description places it (a URDF's link ``base``: :func:`controller_base`), in the
+        model's base frame, m: any pose, a mounting's shift and tilt included (the file is relative to UR's Base,
+        wherever the arm stands); not with ``base_yaw``.
     tip_in_flange : ndarray, shape (4, 4), optional
         The chain's tip frame in UR's tool flange frame (a URDF's link ``tool0``: :func:`ur_flange`), m; the file's
         wrist-3 frame is then that flange (as ur_description makes it ``tool0``), the rest goes into the TCP, and
@@ -160,12 +161,14 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray 
         The file's text, ending with its ``hash:`` line.
     summary : dict
         "flange_to_tcp" (4×4 nested list, m: the chain's tip frame in the file's wrist-3 frame), "tool_point"
-        (3 floats, m, in the wrist-3 frame: the TCP for the controller) and "base_yaw" (rad).
+        (3 floats, m, in the wrist-3 frame: the TCP for the controller) and "base_yaw" (rad: UR's Base's turn
+        about z from the model's base frame, of its x axis where a mounting also shifts or tilts it).
 
     Raises
     ------
     ModelError
-        When the robot has joint-value terms, is not a serial chain, does not have 6 revolute joints, its flange
+        When both ``base_yaw`` and ``driver_base`` are given, the robot has joint-value terms, is not a serial
+        chain, does not have 6 revolute joints, its flange
         ``tip_in_flange`` is not on the last axis, or the file would not reproduce the model in ``driver_base``.
 
     Examples
@@ -190,7 +193,11 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray 
     if robot.n_joints != 6 or any(t != "revolute" for t in robot.joint_types):
         raise ModelError(f"robot '{robot.name}': a UR calibration file holds 6 revolute joints, the robot has "
                          f"{robot.n_joints} ({', '.join(robot.joint_types)})")
-    base = _h(rot_zyx(base_yaw, 0.0, 0.0), np.zeros(3))  # UR's Base in the model's base frame
+    if base_yaw is not None and driver_base is not None:
+        raise ModelError(f"robot '{robot.name}': UR's Base is either placed by the description (driver_base) or "
+                         f"turned by base_yaw from the model's base, not both")
+    base = _h(rot_zyx(base_yaw or 0.0, 0.0, 0.0), np.zeros(3)) if driver_base is None else \
+        np.asarray(driver_base, dtype=float)  # UR's Base in the model's base frame
     tip = np.eye(4) if tip_in_flange is None else np.asarray(tip_in_flange, dtype=float)
     frames, flange = ur_layout(frames, flange @ np.linalg.inv(tip), base)  # UR's link frames; flange: UR's
     chain = [np.eye(4)] + frames
@@ -211,11 +218,10 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray 
     text = "\n".join(lines + [f"  hash: calib_{int(digest[:15], 16)}", ""])
     tool = robot.tool_point()
     summary = {"flange_to_tcp": rest.tolist(), "tool_point": (rest[:3, :3] @ tool + rest[:3, 3]).tolist(),
-               "base_yaw": base_yaw}
-    driver = base if driver_base is None else np.asarray(driver_base, dtype=float)
-    _check(robot, lambda q: _ur_forward(entries, q, rest, tool), "UR calibration file", driver)
+               "base_yaw": float(np.arctan2(base[1, 0], base[0, 0]))}
+    _check(robot, lambda q: _ur_forward(entries, q, rest, tool), "UR calibration file", base)
     if tip_in_flange is not None:
-        _check_flange(robot, entries, driver, tip)
+        _check_flange(robot, entries, base, tip)
     return text, summary
 
 
@@ -618,8 +624,8 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
         summary.update(tool_link=tool_link_of(robot, tool_link))
     elif fmt == "ur":
         driver = controller_base(robot, source_path)  # UR's Base as the URDF places it (None: not a URDF robot)
-        text, extra = ur_calibration(robot, ur_base_yaw(robot, base_yaw, source_path), driver,
-                                     ur_flange(robot, source_path))
+        yaw = ur_base_yaw(robot, base_yaw, source_path)  # a --base-yaw checked against it
+        text, extra = ur_calibration(robot, yaw if driver is None else None, driver, ur_flange(robot, source_path))
         summary.update(extra)
     else:
         check_robot_output(path)
@@ -673,9 +679,10 @@ def ur_flange(robot: Robot, source_path: str | None = None) -> np.ndarray | None
 
 def ur_base_yaw(robot: Robot, given: float | None, source_path: str | None = None) -> float:
     """The turn of UR's Base about z from the model's base frame, rad: from the URDF's link ``base``
-    (:func:`controller_base`) where it has one (``given`` must agree), else ``given``, else 0 for a DH/MDH robot
-    (kincal's DH UR arms stand in UR's Base). ModelError when the link is more than a turn about z, disagrees with
-    ``given``, or a URDF robot has neither (never a guessed 0: a wrong turn negates every x and y)."""
+    (:func:`controller_base`, UR's Base wherever a mounting puts it) where it has one, of its x axis (``given`` must
+    be that turn, and is refused where the link is more than a turn about z), else ``given``, else 0 for a DH/MDH
+    robot (kincal's DH UR arms stand in UR's Base). ModelError when ``given`` disagrees, or a URDF robot has neither
+    (never a guessed 0: a wrong turn negates every x and y)."""
     T = controller_base(robot, source_path)
     if T is None and isinstance(robot, URDFRobot) and given is None:
         raise ModelError(f"robot '{robot.name}': its URDF has no link '{CONTROLLER_BASE}' (UR's Base, the frame the "
@@ -685,9 +692,11 @@ def ur_base_yaw(robot: Robot, given: float | None, source_path: str | None = Non
     if T is None or not isinstance(robot, URDFRobot):
         return 0.0 if given is None else given
     yaw, link = float(np.arctan2(T[1, 0], T[0, 0])), robot.source.get("base_link")
-    if np.abs(T - _h(rot_zyx(yaw, 0.0, 0.0), np.zeros(3))).max() > 1e-9:
-        raise ModelError(f"robot '{robot.name}': the URDF's link '{CONTROLLER_BASE}' (the controller's base frame) is "
-                         f"not a turn about z of {link}: UR's Base cannot be placed")
+    if given is not None and np.abs(T - _h(rot_zyx(yaw, 0.0, 0.0), np.zeros(3))).max() > 1e-9:
+        shift = ", ".join(f"{v * MM:.4g}" for v in T[:3, 3])
+        raise ModelError(f"robot '{robot.name}': the URDF's link '{CONTROLLER_BASE}' is UR's Base, placed by the "
+                         f"fixed joints from {link} (at {shift} mm: more than a turn about z, a mounting), and the "
+                         f"file is written in it; --base-yaw does not apply: leave it out")
     if given is not None and abs(np.angle(np.exp(1j * (given - yaw)))) > 1e-9:
         raise ModelError(f"robot '{robot.name}': the URDF's link '{CONTROLLER_BASE}' is UR's Base, turned "
                          f"{np.degrees(yaw):.3f}° about z from {link}; --base-yaw {np.degrees(given):.3f} disagrees: "
