@@ -113,3 +113,32 @@ def test_a_mounted_arms_file_is_relative_to_urs_base(tmp_path, capsys):
     assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "x.yaml"), "--format", "ur", "--base-yaw",
                  "180"]) == 1
     assert "(at 300, 200, 800 mm: more than a turn about z, a mounting)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", ["kuka_kr6r900sixx", "abb_irb120"])
+def test_a_six_joint_arm_of_another_make_is_not_a_ur(name, tmp_path, capsys):
+    """A 6R arm with a spherical wrist (joint 3 square to joint 4) is refused a UR file, naming its angles between
+    neighbouring axes, the twists folded to [0°, 90°] by hand (standard DH: α of joints 1-5; modified DH, the KUKA:
+    α of joints 2-6); it was written without comment (a Kinova Jaco calibration too, its root link being called
+    'base'). UR's own pass (test_urdf)."""
+    robot = kincal.load_robot(name)
+    rows = robot.joint_names[1:] if name.startswith("kuka") else robot.joint_names[:5]
+    twists = [np.degrees(robot.params[f"{j}.alpha"]) % 180.0 for j in rows]
+    angles = ", ".join(f"{min(a, 180.0 - a):.1f}°" for a in twists)
+    assert main(["export", name, str(tmp_path / "ur.yaml"), "--format", "ur"]) == 1
+    said = capsys.readouterr().err
+    assert f"robot '{name}' is not a Universal Robots arm" in said and f"this robot's are {angles};" in said
+    assert "90.0°, 0.0°, 90.0°, 90.0°, 90.0°" in said and not (tmp_path / "ur.yaml").exists()
+
+
+def test_urs_names_do_not_make_a_ur(tmp_path, capsys):
+    """The UR5 URDF, its links 'base' and 'tool0' and UR's joint names kept, with wrist 1 turned about z instead of
+    y (its axis square to the elbow's, parallel to wrist 2's): refused by its structure, angles 90, 0, 90, 0, 90."""
+    text = UR5_URDF.read_text()
+    wrist_1 = '<child link="wrist_1_link"/>\n    <origin rpy="0.0 1.57079632679 0.0" xyz="0.0 0.0 0.39225"/>\n    ' \
+              '<axis xyz="0 1 0"/>'
+    assert text.count(wrist_1) == 1
+    (tmp_path / "arm.urdf").write_text(text.replace(wrist_1, wrist_1.replace("0 1 0", "0 0 1")))
+    assert main(["export", str(tmp_path / "arm.urdf"), str(tmp_path / "ur.yaml"), "--format", "ur", "--base-link",
+                 "base_link", "--tip-link", "tool0"]) == 1
+    assert "this robot's are 90.0°, 0.0°, 90.0°, 0.0°, 90.0°;" in capsys.readouterr().err

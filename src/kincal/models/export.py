@@ -189,10 +189,7 @@ def ur_calibration(robot: Robot, base_yaw: float | None = None, driver_base: np.
     >>> sorted(summary)
     ['base_yaw', 'flange_to_tcp', 'tool_point']
     """
-    frames, flange = joint_frames(robot)  # a serial chain's (ModelError for another)
-    if robot.n_joints != 6 or any(t != "revolute" for t in robot.joint_types):
-        raise ModelError(f"robot '{robot.name}': a UR calibration file holds 6 revolute joints, the robot has "
-                         f"{robot.n_joints} ({', '.join(robot.joint_types)})")
+    frames, flange = ur_arm(robot)
     if base_yaw is not None and driver_base is not None:
         raise ModelError(f"robot '{robot.name}': UR's Base is either placed by the description (driver_base) or "
                          f"turned by base_yaw from the model's base, not both")
@@ -257,6 +254,26 @@ def _check_flange(robot: Robot, entries: dict, driver: np.ndarray, tip: np.ndarr
 
 
 PARALLEL = 0.1  # sine of the angle below which two joint axes count as parallel (no common normal of their own)
+UR_AXES = (90.0, 0.0, 0.0, 90.0, 90.0)  # deg: UR's angles between neighbouring joint axes, 1 ⟂ 2 ∥ 3 ∥ 4 ⟂ 5 ⟂ 6
+
+
+def ur_arm(robot: Robot) -> tuple[list[np.ndarray], np.ndarray]:
+    """The joint frames and flange of a robot with UR's structure (:func:`joint_frames`): 6 revolute joints whose
+    neighbouring axes are square or parallel as UR's (``UR_AXES``, each within the angle whose sine is PARALLEL),
+    whatever the names; ModelError naming the angles otherwise (a spherical wrist, a KUKA's or a Kinova Jaco's 3 ⟂
+    4: UR's driver would build another arm from the file)."""
+    frames, flange = joint_frames(robot)  # a serial chain's (ModelError for another)
+    if robot.n_joints != 6 or any(t != "revolute" for t in robot.joint_types):
+        raise ModelError(f"robot '{robot.name}': a UR calibration file holds 6 revolute joints, the robot has "
+                         f"{robot.n_joints} ({', '.join(robot.joint_types)})")
+    z = [f[:3, 2] for f in frames]
+    angles = [float(np.degrees(np.arccos(np.clip(abs(a @ b), 0.0, 1.0)))) for a, b in zip(z[:-1], z[1:])]
+    if any(abs(np.sin(np.radians(a - want))) > PARALLEL for a, want in zip(angles, UR_AXES)):
+        raise ModelError(f"robot '{robot.name}' is not a Universal Robots arm: UR's joint axes are 1 ⟂ 2, 2 ∥ 3 ∥ 4, "
+                         f"4 ⟂ 5, 5 ⟂ 6 (angles between neighbours {', '.join(f'{a:.0f}°' for a in UR_AXES)}), this "
+                         f"robot's are {', '.join(f'{a:.1f}°' for a in angles)}; UR's driver would build another arm "
+                         f"from the file: export --format urdf or yaml")
+    return frames, flange
 
 
 def ur_layout(frames: list[np.ndarray], flange: np.ndarray, base: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
@@ -623,6 +640,7 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
         text = urdf_text(robot, _source(robot, source_path), tool_link, joint_names)
         summary.update(tool_link=tool_link_of(robot, tool_link))
     elif fmt == "ur":
+        ur_arm(robot)  # UR's structure first: a KUKA's URDF may have a link 'base' too
         driver = controller_base(robot, source_path)  # UR's Base as the URDF places it (None: not a URDF robot)
         yaw = ur_base_yaw(robot, base_yaw, source_path)  # a --base-yaw checked against it
         text, extra = ur_calibration(robot, yaw if driver is None else None, driver, ur_flange(robot, source_path))
