@@ -142,3 +142,32 @@ def test_urs_names_do_not_make_a_ur(tmp_path, capsys):
     assert main(["export", str(tmp_path / "arm.urdf"), str(tmp_path / "ur.yaml"), "--format", "ur", "--base-link",
                  "base_link", "--tip-link", "tool0"]) == 1
     assert "this robot's are 90.0°, 0.0°, 90.0°, 0.0°, 90.0°;" in capsys.readouterr().err
+
+
+def test_the_base_frame_printed_names_the_link_it_places(tmp_path, capsys):
+    """A DH UR5 calibrated in a tracker's frame, exported as a URDF: the base frame printed places link
+    base_link_inertia (the DH base), not the file's root base_link (180° about z from it), and says so. By yourdfpy:
+    the calibrated positions are the base frame applied to tool_point in base_link_inertia within 1e-9 m, and miss
+    by metres in base_link. A URDF robot's line names its chain's base link."""
+    robot = kincal.perturb(kincal.load_robot("ur5"), seed=34).with_params({"base.x": 1.2, "base.y": -0.4,
+                                                                            "base.rz": 0.7})
+    kincal.save_robot(robot, tmp_path / "cal.yaml")
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "cal.urdf"), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert (info["base_frame_link"], info["root_link"]) == ("base_link_inertia", "base_link")
+    assert main(["export", str(tmp_path / "cal.yaml"), str(tmp_path / "cal.urdf")]) == 0
+    assert "where the instrument saw link 'base_link_inertia', not the URDF's root 'base_link';" in \
+        capsys.readouterr().out
+    urdf = yourdfpy.URDF.load(str(tmp_path / "cal.urdf"), load_meshes=False, build_collision_scene_graph=False)
+    R, t = robot.base_transform()
+    q = robot.sample_joints(20, seed=35)
+    for link, near in (("base_link_inertia", True), ("base_link", False)):
+        placed = []
+        for qi in q:
+            urdf.update_cfg(dict(zip(robot.stack_names, qi)))
+            placed.append(R @ urdf.get_transform("tool_point", link)[:3, 3] + t)
+        gap = np.abs(np.array(placed) - robot.forward(q)).max()
+        assert gap < 1e-9 if near else gap > 0.1
+    assert main(["export", str(UR5_URDF), str(tmp_path / "u.urdf"), "--tip-link", "tool0", "--base-link",
+                 "base_link", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["base_frame_link"] == "base_link"

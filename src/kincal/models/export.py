@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import os
 import re
+import xml.etree.ElementTree as ET
 import xml.parsers.expat
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -497,7 +498,7 @@ def _new_urdf(robot: SerialRobot, names: Sequence[str] | None = None) -> tuple[s
     ur = tuple(names) == UR_JOINTS
     links = UR_LINKS if ur else tuple(f"link_{k + 1}" for k in range(robot.n_joints))
     ros = robot.named_frames().get("base_link")
-    base = "base_link_inertia" if ur else "base" if ros else "base_link"
+    base = _dh_base_link(robot, names)
     lines = ['<?xml version="1.0"?>', f"<!-- {robot.name} calibrated with kincal; joint origins in m and rad -->",
              f'<robot name="{robot.name}">', '  <link name="base_link"/>']
     if ros:
@@ -514,6 +515,14 @@ def _new_urdf(robot: SerialRobot, names: Sequence[str] | None = None) -> tuple[s
     else:
         lines += _fixed(parent, "flange", rest)
     return "\n".join(lines + ["</robot>", ""]), base, "tool0" if ur else "flange"
+
+
+def _dh_base_link(robot: SerialRobot, names: Sequence[str]) -> str:
+    """The link of a DH/MDH robot's new URDF at its DH base (where its base frame parameters put it):
+    base_link_inertia for a UR arm (its joints named ``names`` as UR's), ``base`` below a robot file's ROS
+    ``base_link``, else the root base_link itself."""
+    ur = tuple(names) == UR_JOINTS
+    return "base_link_inertia" if ur else "base" if robot.named_frames().get("base_link") else "base_link"
 
 
 def _fixed(parent: str, child: str, T: np.ndarray, name: str = "", kind: str = "fixed",
@@ -606,7 +615,9 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
     -------
     dict
         A summary: "format", "base_frame" (the base parameters the calibration found, m and rad: where the
-        tracker saw the robot, not part of a robot description); URDF: "tool_link"; UR: "flange_to_tcp", "tool_point" and "base_yaw", what
+        tracker saw the robot, not part of a robot description), "base_frame_link" for a URDF robot or a URDF export
+        (the link those parameters place: the chain's base link, a DH robot's DH base, e.g. base_link_inertia);
+        URDF: "tool_link", "root_link" (the written file's root); UR: "flange_to_tcp", "tool_point" and "base_yaw", what
         belongs on the controller.
 
     Raises
@@ -636,9 +647,13 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
     if fmt not in FORMATS:
         raise ValueError(f"format '{fmt}' is not one of {', '.join(FORMATS)}")
     summary: dict = {"format": fmt, "base_frame": {n: float(robot.params[n]) for n in robot.base_params()}}
+    if isinstance(robot, URDFRobot):
+        summary.update(base_frame_link=robot.source.get("base_link"))
     if fmt == "urdf":
         text = urdf_text(robot, _source(robot, source_path), tool_link, joint_names)
-        summary.update(tool_link=tool_link_of(robot, tool_link))
+        summary.update(tool_link=tool_link_of(robot, tool_link), root_link=_root_link(text))
+        if isinstance(robot, SerialRobot):
+            summary.update(base_frame_link=_dh_base_link(robot, _joint_names(robot, joint_names)))
     elif fmt == "ur":
         ur_arm(robot)  # UR's structure first: a KUKA's URDF may have a link 'base' too
         driver = controller_base(robot, source_path)  # UR's Base as the URDF places it (None: not a URDF robot)
@@ -651,6 +666,13 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
         text = robot_to_yaml(mounted, length_unit, angle_unit, os.path.dirname(os.fspath(path)))
     write_text_atomic(path, text)
     return summary
+
+
+def _root_link(text: str) -> str:
+    """The root link of a URDF text (checked: read back by :func:`urdf_text`): the link no joint is a child of."""
+    root = ET.fromstring(text)
+    children = {c.get("link") for c in (j.find("child") for j in root.findall("joint")) if c is not None}
+    return next(str(el.get("name")) for el in root.findall("link") if el.get("name") not in children)
 
 
 CONTROLLER_BASE = "base"  # ROS-Industrial's link for the controller's base frame (UR's Base, KUKA's $ROBROOT)
