@@ -544,7 +544,7 @@ def test_the_ur_file_of_a_urdf_is_in_urs_base_whatever_the_chains_base_link(base
 def test_urs_base_is_found_through_fixed_joints_or_refused(tmp_path, capsys):
     """The link 'base' composed along fixed joints (a mounted world joint, then base_link's 180° turn: the pose by
     hand); a moving joint between refused by name; a URDF without link 'base' gets no guessed turn of 0: --base-yaw
-    is asked for. A turn that is not where the driver puts UR's Base fails the file's check."""
+    is asked for. A turn given beside the Base the description places is refused."""
     from kincal.models.export import ur_calibration
     from kincal.models.urdf import fixed_frame, rpy_matrix
 
@@ -566,7 +566,7 @@ def test_urs_base_is_found_through_fixed_joints_or_refused(tmp_path, capsys):
     assert main(["export", str(tmp_path / "bare.urdf"), str(tmp_path / "u.yaml"), "--format", "ur", *flags,
                  "--base-yaw", "180"]) == 0
     robot = kincal.load_robot(UR5_URDF, base_link="base_link", tip_link="tool0")
-    with pytest.raises(kincal.ModelError, match="would place the tool"):
+    with pytest.raises(kincal.ModelError, match="not both"):
         ur_calibration(robot, 0.0, driver_base=fixed_frame(UR5_URDF.read_text(), "base_link", "base"))
 
 

@@ -203,8 +203,8 @@ def cmd_export(args) -> int:
     if found and any(abs(v - (base or {}).get(n, 0.0)) > 1e-12 for n, v in found.items()):  # not the nominal base
         kinds = dict(zip(r.params.names, r.params.kinds))
         kept = " (the file keeps the nominal model's base)" if info["format"] == "yaml" and base else ""
-        lines.append(f"base frame found by the calibration (where the instrument saw the robot; not part of the "
-                     f"robot description{kept}): " + ", ".join(f"{k} {display(v, kinds[k], digits=(4, 4))}"
+        lines.append(f"base frame found by the calibration (where the instrument saw {_base_frame_of(info)}; not "
+                     f"part of the robot description{kept}): " + ", ".join(f"{k} {display(v, kinds[k], digits=(4, 4))}"
                                                                for k, v in info["base_frame"].items()))
     if info["format"] == "ur":
         tcp = np.array(info["tool_point"]) * MM
@@ -212,6 +212,15 @@ def cmd_export(args) -> int:
                      f"tool point in the UR flange frame); the driver will warn that the file's hash does not match "
                      f"the robot's factory calibration: expected for a tracker calibration (see docs/howto/export.md)")
     return emit(args, {**info, "output": args.output}, "\n".join(lines))
+
+
+def _base_frame_of(info: dict) -> str:
+    """What an export's base frame parameters place: the robot, or the URDF link they locate, named beside the
+    written file's root when that is another link (a DH UR arm's base_link_inertia, 180° about z from base_link)."""
+    link, root = info.get("base_frame_link"), info.get("root_link")
+    if not link:
+        return "the robot"
+    return f"link '{link}'" + (f", not the URDF's root '{root}'" if root and root != link else "")
 
 
 NOT_FOR_FRAMES = ("source", "tool_link", "joint_names", "base_yaw", "length_unit", "angle_unit")
@@ -333,8 +342,8 @@ def register(cmd) -> None:
                    "e.g. shoulder_pan_joint,... (default: the robot file's 'names:')")
     s.add_argument("--base-yaw", type=finite_float, help="UR files: UR's Base frame is the model's base turned by "
                    "this about z, deg (default: the URDF's link 'base' where it has one, as ur_description's, turned "
-                   "180 deg from base_link, through the fixed joints from the chain's base link; a URDF without it "
-                   "needs this; 0 for kincal's DH UR arms)")
+                   "180 deg from base_link, through the fixed joints from the chain's base link, wherever a mounting "
+                   "puts it; a URDF without it needs this; 0 for kincal's DH UR arms)")
     s.add_argument("--length-unit", default="m", choices=list(LENGTH_UNITS), help="kincal YAML: length unit")
     s.add_argument("--angle-unit", default="rad", choices=list(ANGLE_UNITS), help="kincal YAML: angle unit")
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import os
 import re
+import xml.etree.ElementTree as ET
 import xml.parsers.expat
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -126,14 +127,15 @@ def _origin_tag(xyz, rpy) -> str:
 
 
 # ---- Universal Robots calibration file ------------------------------------------------------------
-def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray | None = None) -> tuple[str, dict]:
+def ur_calibration(robot: Robot, base_yaw: float | None = None, driver_base: np.ndarray | None = None,
+                   tip_in_flange: np.ndarray | None = None) -> tuple[str, dict]:
     """Write the ``kinematics:`` calibration file of UR's ROS driver for a 6-joint revolute chain.
 
     The six entries (shoulder … wrist_3) are each joint's origin, the parent-to-joint transform at zero angle
-    (x y z m, roll pitch yaw rad), relative to UR's Base frame, which is the model's base frame turned by
-    ``base_yaw`` about z. What lies beyond the wrist-3 frame, which the file cannot hold, is returned in the
-    summary for the controller. The file is checked before it is returned: its numbers, rebuilt by the
-    driver's rules in the driver's Base frame (``driver_base``), must reproduce the model within 1e-9 m at random
+    (x y z m, roll pitch yaw rad), relative to UR's Base frame: ``driver_base`` where the robot's description
+    places it, else the model's base frame turned by ``base_yaw`` about z. What lies beyond the wrist-3 frame, which
+    the file cannot hold, is returned in the summary for the controller. The file is checked before it is returned:
+    its numbers, rebuilt by the driver's rules in UR's Base, must reproduce the model within 1e-9 m at random
     poses.
 
     Parameters
@@ -141,26 +143,34 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray 
     robot : Robot
         A geometric serial chain with 6 revolute joints (DH/MDH or URDF).
     base_yaw : float, optional
-        Turn of UR's Base frame from the model's base frame about z, rad (default 0, right for kincal's DH
-        ur5, whose base is UR's Base; π for a URDF whose base_link faces the other way).
+        Turn of UR's Base frame from the model's base frame about z, rad, for a description without UR's Base
+        (default 0, right for kincal's DH ur5, whose base is UR's Base; π for a URDF whose base_link faces the
+        other way); not with ``driver_base``.
     driver_base : ndarray, shape (4, 4), optional
-        The frame the driver places the file's chain in (UR's Base: a URDF's link ``base``), in the model's base
-        frame, m, known apart from ``base_yaw`` (default: ``base_yaw`` about z); the check compares the file's
-        positions with the model's in it, so a ``base_yaw`` that is not its turn is refused.
+        UR's Base as the robot's description places it (a URDF's link ``base``: :func:`controller_base`), in the
+        model's base frame, m: any pose, a mounting's shift and tilt included (the file is relative to UR's Base,
+        wherever the arm stands); not with ``base_yaw``.
+    tip_in_flange : ndarray, shape (4, 4), optional
+        The chain's tip frame in UR's tool flange frame (a URDF's link ``tool0``: :func:`ur_flange`), m; the file's
+        wrist-3 frame is then that flange (as ur_description makes it ``tool0``), the rest goes into the TCP, and
+        the check also compares the file's wrist-3 frame with the model's flange, within 1e-9 m and rad (default:
+        the chain ends at the flange, as kincal's DH UR arms do).
 
     Returns
     -------
     text : str
         The file's text, ending with its ``hash:`` line.
     summary : dict
-        "flange_to_tcp" (4×4 nested list, m: the flange frame in the file's wrist-3 frame), "tool_point"
-        (3 floats, m, in the wrist-3 frame) and "base_yaw" (rad).
+        "flange_to_tcp" (4×4 nested list, m: the chain's tip frame in the file's wrist-3 frame), "tool_point"
+        (3 floats, m, in the wrist-3 frame: the TCP for the controller) and "base_yaw" (rad: UR's Base's turn
+        about z from the model's base frame, of its x axis where a mounting also shifts or tilts it).
 
     Raises
     ------
     ModelError
-        When the robot has joint-value terms, is not a serial chain, does not have 6 revolute joints, or the
-        file would not reproduce the model in ``driver_base``.
+        When both ``base_yaw`` and ``driver_base`` are given, the robot has joint-value terms, is not a serial
+        chain, does not have 6 revolute joints, its flange
+        ``tip_in_flange`` is not on the last axis, or the file would not reproduce the model in ``driver_base``.
 
     Examples
     --------
@@ -180,18 +190,23 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray 
     >>> sorted(summary)
     ['base_yaw', 'flange_to_tcp', 'tool_point']
     """
-    frames, flange = joint_frames(robot)  # a serial chain's (ModelError for another)
-    if robot.n_joints != 6 or any(t != "revolute" for t in robot.joint_types):
-        raise ModelError(f"robot '{robot.name}': a UR calibration file holds 6 revolute joints, the robot has "
-                         f"{robot.n_joints} ({', '.join(robot.joint_types)})")
-    base = _h(rot_zyx(base_yaw, 0.0, 0.0), np.zeros(3))  # UR's Base in the model's base frame
-    frames, flange = ur_layout(frames, flange, base)  # the link frames UR's description hangs its links on
+    frames, flange = ur_arm(robot)
+    if base_yaw is not None and driver_base is not None:
+        raise ModelError(f"robot '{robot.name}': UR's Base is either placed by the description (driver_base) or "
+                         f"turned by base_yaw from the model's base, not both")
+    base = _h(rot_zyx(base_yaw or 0.0, 0.0, 0.0), np.zeros(3)) if driver_base is None else \
+        np.asarray(driver_base, dtype=float)  # UR's Base in the model's base frame
+    tip = np.eye(4) if tip_in_flange is None else np.asarray(tip_in_flange, dtype=float)
+    frames, flange = ur_layout(frames, flange @ np.linalg.inv(tip), base)  # UR's link frames; flange: UR's
     chain = [np.eye(4)] + frames
     origins = [np.linalg.inv(a) @ b for a, b in zip(chain[:-1], chain[1:])]
     rest = np.linalg.inv(frames[-1]) @ flange
     d = rest[2, 3]  # a shift along the last axis commutes with its rotation: it belongs to wrist_3
     origins[-1] = origins[-1] @ _h(np.eye(3), [0.0, 0.0, d])
     rest = _h(np.eye(3), [0.0, 0.0, -d]) @ rest
+    if tip_in_flange is not None:
+        _on_last_axis(robot, rest)
+    rest = rest @ tip  # the flange to the chain's tip: the controller's TCP frame without the tool point
     entries = {name: _xyz_rpy(T) for name, T in zip(UR_SECTIONS, origins)}
     lines = ["kinematics:"]
     for name, (xyz, rpy) in entries.items():
@@ -201,13 +216,65 @@ def ur_calibration(robot: Robot, base_yaw: float = 0.0, driver_base: np.ndarray 
     text = "\n".join(lines + [f"  hash: calib_{int(digest[:15], 16)}", ""])
     tool = robot.tool_point()
     summary = {"flange_to_tcp": rest.tolist(), "tool_point": (rest[:3, :3] @ tool + rest[:3, 3]).tolist(),
-               "base_yaw": base_yaw}
-    driver = base if driver_base is None else np.asarray(driver_base, dtype=float)
-    _check(robot, lambda q: _ur_forward(entries, q, rest, tool), "UR calibration file", driver)
+               "base_yaw": float(np.arctan2(base[1, 0], base[0, 0]))}
+    _check(robot, lambda q: _ur_forward(entries, q, rest, tool), "UR calibration file", base)
+    if tip_in_flange is not None:
+        _check_flange(robot, entries, base, tip)
     return text, summary
 
 
+def _on_last_axis(robot: Robot, rest: np.ndarray) -> None:
+    """Refuse a flange (``rest``: its pose in the file's wrist-3 frame, 4x4, m) off the last joint's axis or turned
+    from it: UR's tool flange sits on wrist 3's axis, z along it, and the driver puts tool0 at the wrist-3 frame."""
+    R = rest[:3, :3]
+    turn = float(np.arctan2(np.linalg.norm(R - R.T) / np.sqrt(8.0), (np.trace(R) - 1.0) / 2.0))  # exact near 0
+    off = float(np.linalg.norm(rest[:3, 3]))
+    if off > EXPORT_TOL or turn > EXPORT_TOL:
+        raise ModelError(f"robot '{robot.name}': the URDF's tool flange lies {off * MM:.4g} mm off the last joint's "
+                         f"axis and turns {np.degrees(turn):.4g}° from the frame on it; UR's flange (tool0) is on "
+                         f"wrist 3's axis, z along it, so the driver's file cannot place it: not UR's description")
+
+
+def _check_flange(robot: Robot, entries: dict, driver: np.ndarray, tip: np.ndarray) -> None:
+    """The file's wrist-3 frame in UR's Base ``driver`` (the driver's tool0: ur_description's wrist_3 -> flange ->
+    tool0 is the identity) must be the model's flange, its chain's tip with ``tip`` (the tip in the flange, 4x4, m)
+    undone, at random poses within 1e-9 m and rad: the file checked against the URDF's own tool0, not the tool point
+    alone."""
+    q = robot.sample_joints(50, seed=0)
+    plain = robot.with_params(dict.fromkeys(robot.base_params(), 0.0))
+    points, rotations = plain.with_tool_point([0.0, 0.0, 0.0]).forward(q), plain.flange_rotation(q)
+    to_base, to_flange, gap = np.linalg.inv(driver), np.linalg.inv(tip), 0.0
+    for qi, p, R in zip(q, points, rotations):
+        T = np.eye(4)
+        for (xyz, rpy), angle in zip(entries.values(), qi):
+            T = T @ _h(rpy_matrix(*rpy), xyz) @ _motion(ROT, 2, angle)
+        gap = max(gap, float(np.abs(T - to_base @ _h(R, p) @ to_flange).max()))
+    if not gap <= EXPORT_TOL:
+        raise ModelError(f"the UR calibration file would place tool0 {gap * MM:.3g} mm from the URDF's; nothing "
+                         f"written (please report this)")
+
+
 PARALLEL = 0.1  # sine of the angle below which two joint axes count as parallel (no common normal of their own)
+UR_AXES = (90.0, 0.0, 0.0, 90.0, 90.0)  # deg: UR's angles between neighbouring joint axes, 1 ⟂ 2 ∥ 3 ∥ 4 ⟂ 5 ⟂ 6
+
+
+def ur_arm(robot: Robot) -> tuple[list[np.ndarray], np.ndarray]:
+    """The joint frames and flange of a robot with UR's structure (:func:`joint_frames`): 6 revolute joints whose
+    neighbouring axes are square or parallel as UR's (``UR_AXES``, each within the angle whose sine is PARALLEL),
+    whatever the names; ModelError naming the angles otherwise (a spherical wrist, a KUKA's or a Kinova Jaco's 3 ⟂
+    4: UR's driver would build another arm from the file)."""
+    frames, flange = joint_frames(robot)  # a serial chain's (ModelError for another)
+    if robot.n_joints != 6 or any(t != "revolute" for t in robot.joint_types):
+        raise ModelError(f"robot '{robot.name}': a UR calibration file holds 6 revolute joints, the robot has "
+                         f"{robot.n_joints} ({', '.join(robot.joint_types)})")
+    z = [f[:3, 2] for f in frames]
+    angles = [float(np.degrees(np.arccos(np.clip(abs(a @ b), 0.0, 1.0)))) for a, b in zip(z[:-1], z[1:])]
+    if any(abs(np.sin(np.radians(a - want))) > PARALLEL for a, want in zip(angles, UR_AXES)):
+        raise ModelError(f"robot '{robot.name}' is not a Universal Robots arm: UR's joint axes are 1 ⟂ 2, 2 ∥ 3 ∥ 4, "
+                         f"4 ⟂ 5, 5 ⟂ 6 (angles between neighbours {', '.join(f'{a:.0f}°' for a in UR_AXES)}), this "
+                         f"robot's are {', '.join(f'{a:.1f}°' for a in angles)}; UR's driver would build another arm "
+                         f"from the file: export --format urdf or yaml")
+    return frames, flange
 
 
 def ur_layout(frames: list[np.ndarray], flange: np.ndarray, base: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
@@ -431,7 +498,7 @@ def _new_urdf(robot: SerialRobot, names: Sequence[str] | None = None) -> tuple[s
     ur = tuple(names) == UR_JOINTS
     links = UR_LINKS if ur else tuple(f"link_{k + 1}" for k in range(robot.n_joints))
     ros = robot.named_frames().get("base_link")
-    base = "base_link_inertia" if ur else "base" if ros else "base_link"
+    base = _dh_base_link(robot, names)
     lines = ['<?xml version="1.0"?>', f"<!-- {robot.name} calibrated with kincal; joint origins in m and rad -->",
              f'<robot name="{robot.name}">', '  <link name="base_link"/>']
     if ros:
@@ -448,6 +515,14 @@ def _new_urdf(robot: SerialRobot, names: Sequence[str] | None = None) -> tuple[s
     else:
         lines += _fixed(parent, "flange", rest)
     return "\n".join(lines + ["</robot>", ""]), base, "tool0" if ur else "flange"
+
+
+def _dh_base_link(robot: SerialRobot, names: Sequence[str]) -> str:
+    """The link of a DH/MDH robot's new URDF at its DH base (where its base frame parameters put it):
+    base_link_inertia for a UR arm (its joints named ``names`` as UR's), ``base`` below a robot file's ROS
+    ``base_link``, else the root base_link itself."""
+    ur = tuple(names) == UR_JOINTS
+    return "base_link_inertia" if ur else "base" if robot.named_frames().get("base_link") else "base_link"
 
 
 def _fixed(parent: str, child: str, T: np.ndarray, name: str = "", kind: str = "fixed",
@@ -540,7 +615,9 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
     -------
     dict
         A summary: "format", "base_frame" (the base parameters the calibration found, m and rad: where the
-        tracker saw the robot, not part of a robot description); URDF: "tool_link"; UR: "flange_to_tcp", "tool_point" and "base_yaw", what
+        tracker saw the robot, not part of a robot description), "base_frame_link" for a URDF robot or a URDF export
+        (the link those parameters place: the chain's base link, a DH robot's DH base, e.g. base_link_inertia);
+        URDF: "tool_link", "root_link" (the written file's root); UR: "flange_to_tcp", "tool_point" and "base_yaw", what
         belongs on the controller.
 
     Raises
@@ -570,12 +647,18 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
     if fmt not in FORMATS:
         raise ValueError(f"format '{fmt}' is not one of {', '.join(FORMATS)}")
     summary: dict = {"format": fmt, "base_frame": {n: float(robot.params[n]) for n in robot.base_params()}}
+    if isinstance(robot, URDFRobot):
+        summary.update(base_frame_link=robot.source.get("base_link"))
     if fmt == "urdf":
         text = urdf_text(robot, _source(robot, source_path), tool_link, joint_names)
-        summary.update(tool_link=tool_link_of(robot, tool_link))
+        summary.update(tool_link=tool_link_of(robot, tool_link), root_link=_root_link(text))
+        if isinstance(robot, SerialRobot):
+            summary.update(base_frame_link=_dh_base_link(robot, _joint_names(robot, joint_names)))
     elif fmt == "ur":
+        ur_arm(robot)  # UR's structure first: a KUKA's URDF may have a link 'base' too
         driver = controller_base(robot, source_path)  # UR's Base as the URDF places it (None: not a URDF robot)
-        text, extra = ur_calibration(robot, ur_base_yaw(robot, base_yaw, source_path), driver)
+        yaw = ur_base_yaw(robot, base_yaw, source_path)  # a --base-yaw checked against it
+        text, extra = ur_calibration(robot, yaw if driver is None else None, driver, ur_flange(robot, source_path))
         summary.update(extra)
     else:
         check_robot_output(path)
@@ -583,6 +666,13 @@ def export_robot(robot: Robot, path, fmt: str | None = None, source_path=None, t
         text = robot_to_yaml(mounted, length_unit, angle_unit, os.path.dirname(os.fspath(path)))
     write_text_atomic(path, text)
     return summary
+
+
+def _root_link(text: str) -> str:
+    """The root link of a URDF text (checked: read back by :func:`urdf_text`): the link no joint is a child of."""
+    root = ET.fromstring(text)
+    children = {c.get("link") for c in (j.find("child") for j in root.findall("joint")) if c is not None}
+    return next(str(el.get("name")) for el in root.findall("link") if el.get("name") not in children)
 
 
 CONTROLLER_BASE = "base"  # ROS-Industrial's link for the controller's base frame (UR's Base, KUKA's $ROBROOT)
@@ -600,11 +690,39 @@ def controller_base(robot: Robot, source_path: str | None = None) -> np.ndarray 
     return None if text is None else fixed_frame(text, str(robot.source.get("base_link")), CONTROLLER_BASE)
 
 
+UR_FLANGES = (("tool0", np.eye(4)), ("flange", UR_TOOL0))  # ROS-Industrial's links at the tool flange, -> tool0
+
+
+def ur_flange(robot: Robot, source_path: str | None = None) -> np.ndarray | None:
+    """The chain's tip frame in UR's tool flange frame (4x4, m) for a URDF robot: the pose of the tip link in the
+    URDF's ``tool0`` (z out of the flange, the frame the controller's TCP is given in), else in its ``flange`` (x
+    out, turned to tool0 as ur_description does), composed along the fixed joints between them (a probe link below
+    tool0, or wrist_3_link above it); None for another robot (its chain ends at the flange). ModelError when the
+    URDF has neither link fixed to the tip: the driver's file would end at the tip, wherever it is."""
+    if not isinstance(robot, URDFRobot):
+        return None
+    text, tip, why = _source(robot, source_path), str(robot.source.get("tip_link")), []
+    for link, to_tool0 in UR_FLANGES:
+        try:
+            T = fixed_frame(str(text), tip, link)  # the link in the tip's frame
+        except ModelError as exc:
+            why.append(str(exc).removeprefix("the URDF's ").split(":")[0])
+            continue
+        if T is not None:
+            return np.linalg.inv(T @ to_tool0)
+        why.append(f"no link '{link}'")
+    raise ModelError(f"robot '{robot.name}': UR's tool flange, where the driver's file ends and the controller's TCP "
+                     f"starts, is the URDF's link 'tool0' or 'flange', and neither is fixed to the chain's tip "
+                     f"'{tip}' ({'; '.join(why)}): calibrate with --tip-link tool0 (or a link fixed to it), or add "
+                     f"ROS-Industrial's tool0 to the URDF at the flange and give it with --from")
+
+
 def ur_base_yaw(robot: Robot, given: float | None, source_path: str | None = None) -> float:
     """The turn of UR's Base about z from the model's base frame, rad: from the URDF's link ``base``
-    (:func:`controller_base`) where it has one (``given`` must agree), else ``given``, else 0 for a DH/MDH robot
-    (kincal's DH UR arms stand in UR's Base). ModelError when the link is more than a turn about z, disagrees with
-    ``given``, or a URDF robot has neither (never a guessed 0: a wrong turn negates every x and y)."""
+    (:func:`controller_base`, UR's Base wherever a mounting puts it) where it has one, of its x axis (``given`` must
+    be that turn, and is refused where the link is more than a turn about z), else ``given``, else 0 for a DH/MDH
+    robot (kincal's DH UR arms stand in UR's Base). ModelError when ``given`` disagrees, or a URDF robot has neither
+    (never a guessed 0: a wrong turn negates every x and y)."""
     T = controller_base(robot, source_path)
     if T is None and isinstance(robot, URDFRobot) and given is None:
         raise ModelError(f"robot '{robot.name}': its URDF has no link '{CONTROLLER_BASE}' (UR's Base, the frame the "
@@ -614,9 +732,11 @@ def ur_base_yaw(robot: Robot, given: float | None, source_path: str | None = Non
     if T is None or not isinstance(robot, URDFRobot):
         return 0.0 if given is None else given
     yaw, link = float(np.arctan2(T[1, 0], T[0, 0])), robot.source.get("base_link")
-    if np.abs(T - _h(rot_zyx(yaw, 0.0, 0.0), np.zeros(3))).max() > 1e-9:
-        raise ModelError(f"robot '{robot.name}': the URDF's link '{CONTROLLER_BASE}' (the controller's base frame) is "
-                         f"not a turn about z of {link}: UR's Base cannot be placed")
+    if given is not None and np.abs(T - _h(rot_zyx(yaw, 0.0, 0.0), np.zeros(3))).max() > 1e-9:
+        shift = ", ".join(f"{v * MM:.4g}" for v in T[:3, 3])
+        raise ModelError(f"robot '{robot.name}': the URDF's link '{CONTROLLER_BASE}' is UR's Base, placed by the "
+                         f"fixed joints from {link} (at {shift} mm: more than a turn about z, a mounting), and the "
+                         f"file is written in it; --base-yaw does not apply: leave it out")
     if given is not None and abs(np.angle(np.exp(1j * (given - yaw)))) > 1e-9:
         raise ModelError(f"robot '{robot.name}': the URDF's link '{CONTROLLER_BASE}' is UR's Base, turned "
                          f"{np.degrees(yaw):.3f}° about z from {link}; --base-yaw {np.degrees(given):.3f} disagrees: "
