@@ -4,8 +4,10 @@ import argparse
 import json
 import re
 
+import numpy as np
 import pytest
 
+import kincal
 from kincal.cli import build_parser, main, prepared
 from kincal.identify import SCOPES
 from kincal.identify.applies import KINDS
@@ -196,6 +198,7 @@ def test_every_identifiability_flag_changes_the_result_or_is_refused(kind, sourc
     from kincal.cli.model import identifiability_scopes
     from kincal.identify.applies import Scope
 
+    scara = kincal.load_robot("scara")
     data = tmp_path / f"{kind}.csv"
     code, out, _ = _outcome(["simulate", "scara", "--type", kind, "-o", str(data), "--json"], capsys)
     assert code == 0
@@ -214,7 +217,8 @@ def test_every_identifiability_flag_changes_the_result_or_is_refused(kind, sourc
         argv = [*kept, flag, *IDENTIFIABILITY_SAMPLE[flag]]
         _, args = _parse(argv)
         code, out, err = _outcome(argv, capsys)
-        if kind in identifiability_scopes(args).get(dest, Scope((kind,), "")).kinds:  # it applies: the result moves
+        scope = identifiability_scopes(args, scara).get(dest, Scope((kind,), ""))
+        if kind in scope.kinds:  # it applies: the result moves
             moved = [(code, out)] + [_outcome(kept, capsys)[:2]] * (kept != head)  # a read-back's flag: or left out
             assert "does not apply" not in err and set(moved) != {base[:2]}, (flag, kind, source, err)
         else:
@@ -225,3 +229,135 @@ def test_every_identifiability_flag_changes_the_result_or_is_refused(kind, sourc
     else:
         assert poses[0] == 1 and ("120 samples" in poses[2] and "30 contacts per plane" in poses[2]
                                   if source == "plan" else f"beside --data {data} its rows are the samples" in poses[2])
+
+
+# a valid value other than the default for every flag of design (the UR5: revolute joints alone, so --length-unit reads
+# no joint of its poses CSV); {d}: the test's folder, {kind}: the kind's candidates, {read_back}: the flags that read
+# them (simulate's)
+DESIGN_SAMPLE = {
+    "--tool": ["0,0,0.3"], "-m": ["31"], "--program": ["ur"], "--settle": ["3"], "--pool": ["400"],
+    "--candidates": ["{d}/{kind}.csv", "{read_back}"], "--floor": ["0mm"], "--keep-out": ["200,-300,0,600,300,400mm"],
+    "--tracker": ["3000,0,500mm"], "--tracker-range": ["500,2900mm"], "--cone": ["10"], "--reflector-axis": ["1,0,0"],
+    "--joint-margin": ["20"], "--link-radius": ["30mm"], "--method": ["random"], "--criterion": ["D"],
+    "--use": ["{d}/q.csv"], "--no-coverage": [], "--weight": ["2"], "--params": ["j2.a,j3.a,j2.theta,j3.theta"],
+    "--base": ["fixed"], "--restarts": ["5"], "--generations": ["3"], "--f0": ["0.5"], "--cr": ["0.5"],
+    "--population": ["10"], "--no-bound": [], "--units": ["paper"], "--seed": ["3"],
+    "--joint-cols": ["a1,a2,a3,a4,a5,a6"], "--xyz-cols": ["a,b,c"], "--length-unit": ["mm"], "--angle-unit": ["deg"],
+    "--orientation": ["quat-xyzw"], "--rot-cols": ["a,b,c,d"], "--markers": ["m1"], "--label-col": ["socket"],
+    "--group-col": ["plate"], "--distance": ["0,1,0.04"], "--plane": ["t:0,0,1,-0.2", "--plane", "s:0,0,1,-0.1"],
+    "--std-pos": ["1mm"], "--std-rot": ["50mrad"]}
+AS_GIVEN = {"--no-coverage": "--coverage"}  # an on/off flag walked in its 'on' spelling (off is the default)
+# a flag that modifies another (kincal.cli.design.MODIFIERS): what it needs beside it to change the design, and what
+# leaves it nothing to change (None: it asks what the default does); {pool}: a larger pool for the kinds that draw
+# one (the greedy start wins over 5 random ones among 300 candidates)
+DESIGN_NEEDS = {"--settle": (["--program", "ur"], []), "--link-radius": (["--floor", "0mm"], []),
+                **{f: (["--tracker", "3000,0,500mm"], []) for f in ("--tracker-range", "--cone", "--reflector-axis")},
+                **{f: (["--method", "ide", "--criterion", "D", "--generations", "2"], [])
+                   for f in ("--generations", "--f0", "--cr", "--population")},
+                "--restarts": (["--criterion", "D", "{pool}"], []), "--weight": ([], ["--criterion", "D"]),
+                "--no-coverage": (["--criterion", "D"], None)}
+DESIGN_NOT_WALKED = {"json", "type", "output", "check", "base_link", "tip_link"}  # its subject, a URDF's chain
+
+
+def _design(argv, out, capsys):
+    """design's exit code, its error line and what it wrote: the poses (or samples), the program, the JSON."""
+    for f in (out, out.with_suffix(".script")):
+        f.unlink(missing_ok=True)
+    code = main(argv)
+    text, err = capsys.readouterr()
+    said = json.loads(text) if code == 0 else {}
+    said.pop("time_s", None)
+    wrote = [f.read_bytes() if f.exists() else None for f in (out, out.with_suffix(".script"))]
+    return code, err, (wrote, json.dumps(said, sort_keys=True))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", KINDS)
+def test_every_design_flag_changes_the_design_or_is_refused(kind, tmp_path, capsys):
+    """design, for each kind: every flag changes what it writes (the poses or samples, the program, the JSON) or is
+    refused, naming it: by design's table for a kind that does not use it, for a flag that modifies another without
+    that one. 84 of the 42 × 5 were ignored (a byte-identical design): --xyz-cols, --orientation, --rot-cols,
+    --markers for every kind, --length-unit for the UR5's poses, --std-pos and the socket and plane flags for points,
+    --pool, --use, --cone and the like for sockets and planes, --base, --units, --weight for all but points,
+    --settle without --program, --cone, --tracker-range and --reflector-axis without --tracker, --restarts beside
+    IMSE's strata, --weight beside D."""
+    from kincal.cli.design import design_scopes
+    from kincal.identify.applies import Scope
+
+    ur5 = kincal.load_robot("ur5")
+    assert main(["simulate", "ur5", "--poses", "200", "-o", str(tmp_path / "q.csv")]) == 0
+    capsys.readouterr()
+    read_back = []
+    if kind in ("same-point", "plane"):
+        assert main(["simulate", "ur5", "--type", kind, "-o", str(tmp_path / f"{kind}.csv"), "--json"]) == 0
+        read_back = json.loads(capsys.readouterr().out)["flags"].split()[2:]  # after --type KIND
+    else:
+        (tmp_path / f"{kind}.csv").write_bytes((tmp_path / "q.csv").read_bytes())
+    capsys.readouterr()
+    out = tmp_path / "p.csv"
+    head = ["design", "ur5", "--type", kind, "-o", str(out), "--json", "-m", "12", "--pool", "300"]
+    if kind in ("same-point", "plane"):
+        head = head[:-4] + ["-m", "30"]
+    parser = build_parser()
+    walked = {flag: dest for dest, flag in _flags(parser, "design").items() if dest not in DESIGN_NOT_WALKED}
+    assert set(walked) == set(DESIGN_SAMPLE)
+    for flag, dest in walked.items():
+        gone = {flag, "--pool"} if flag == "--candidates" else {flag}  # -m, --pool: replaced; --pool: or left out
+        kept = [t for k, t in enumerate(head) if not gone & set(head[max(k - 1, 0):k + 1])]
+        tokens = {"{read_back}": read_back, "{pool}": ["--pool", "1000"] if "--pool" in head else []}
+        value, (used, unused) = [AS_GIVEN.get(flag, flag)], DESIGN_NEEDS.get(flag, ([], None))
+        for v in DESIGN_SAMPLE[flag]:
+            value += tokens[v] if v in tokens else [v.format(d=tmp_path, kind=kind)]
+        used = [t for v in used for t in tokens.get(v, [v])]
+        _, args = _parse([*kept, *(unused or []), *value])
+        if kind not in design_scopes(args, ur5).get(dest, Scope((kind,), "")).kinds:
+            code, err, _ = _design([*kept, *(unused or []), *value], out, capsys)
+            assert code == 1 and f"{flag if flag not in AS_GIVEN else AS_GIVEN[flag]} does not apply to {kind} " \
+                                  f"data" in err, (flag, kind, err)
+            continue
+        if unused is not None and (used or unused):  # a modifier: alone (or beside what makes it idle), refused
+            code, err, _ = _design([*kept, *unused, *value], out, capsys)
+            assert code == 1 and flag in err and "leave it out" in err and "does not apply" not in err, (flag, err)
+        before = _design([*kept, *used], out, capsys)  # what it needs: --generations 2 beside --generations 3
+        after = _design([*kept, *[t for k, t in enumerate(used) if flag not in used[max(k - 1, 0):k + 1]], *value],
+                        out, capsys)
+        if before[0] == 1:  # what it modifies is refused for the kind (the IDE leaves a plan's pool): so is it
+            assert after[0] == 1, (flag, kind, after[1])
+            continue
+        assert before[0] == 0 and after[0] == 0 and after[2] != before[2], (flag, kind, before[1], after[1])
+
+
+def test_a_unit_that_reads_no_joint_of_a_joints_file_is_refused(tmp_path, capsys):
+    """--length-unit for a robot with no prismatic joint (--angle-unit with no revolute one), where the files hold
+    joint values alone, is refused with the reason: design's poses CSV (and --check's), identifiability's --data.
+    It was accepted and changed nothing; where it reads a joint, it converts it (the PUU3's legs: mm = 1000 × m)."""
+    q, poses = tmp_path / "q.csv", tmp_path / "p.csv"
+    assert main(["simulate", "ur5", "--poses", "40", "--perturb", "-o", str(q)]) == 0
+    capsys.readouterr()
+    for argv in (["design", "ur5", "-m", "12", "--pool", "300", "-o", str(poses), "--length-unit", "mm"],
+                 ["identifiability", "ur5", "--data", str(q), "--length-unit", "mm"],
+                 ["identifiability", "ur5", "--type", "same-point", "--data", str(q), "--length-unit", "mm"],
+                 ["design", "puu3", "-m", "12", "--pool", "300", "-o", str(poses), "--angle-unit", "deg"]):
+        code, _, err = _outcome(argv, capsys)
+        unit, robot, other = ("angle", "puu3", "revolute") if "puu3" in argv else ("length", "ur5", "prismatic")
+        assert code == 1 and f"--{unit}-unit does not apply" in err and f"{robot} has no {other} joint" in err, err
+        assert "Traceback" not in err
+    cal = tmp_path / "cal.yaml"
+    assert main(["calibrate", "ur5", str(q), "-o", str(cal), "--force"]) in (0, 4)
+    capsys.readouterr()
+    code, _, err = _outcome(["design", str(cal), "--check", "-o", str(poses), "--length-unit", "mm"], capsys)
+    assert code == 1 and "--length-unit does not apply" in err and "ur5 has no prismatic joint" in err, err
+    # where it reads a value, it is accepted: a known distance's unit; the PUU3's legs
+    sockets = tmp_path / "s.csv"
+    assert main(["simulate", "ur5", "--type", "same-point", "-o", str(sockets)]) == 0
+    capsys.readouterr()
+    code, _, err = _outcome(["identifiability", "ur5", "--type", "same-point", "--data", str(sockets), "--label-col",
+                             "point", "--group-col", "placement", "--distance", "0,1,50", "--length-unit", "mm"],
+                            capsys)
+    assert code == 0, err
+    written = []
+    for unit in ("m", "mm"):
+        assert main(["design", "puu3", "-m", "12", "--pool", "300", "-o", str(poses), "--length-unit", unit]) == 0
+        written.append(np.loadtxt(poses, delimiter=",", skiprows=1))
+    capsys.readouterr()
+    np.testing.assert_allclose(written[1], 1000.0 * written[0], rtol=1e-9)

@@ -168,9 +168,9 @@ CSV = [
     csv_case("identifiability-nan", lambda b: edit(b, lambda h, r: (h, [["nan"] + r[0][1:]] + r[1:])), 1,
              ["NaN", "joint values", "2"], cmd="identifiability"),
 ]
-for _p in CSV:  # identifiability reads poses with --data
+for _p in CSV:  # identifiability reads poses with --data: their joints alone (the UR5's: no length unit)
     if _p.values[0]["argv"][0] == "identifiability":
-        _p.values[0]["argv"][2:3] = ["--data", "{d}/data.csv"]
+        _p.values[0]["argv"][2:5] = ["--data", "{d}/data.csv"]
 
 CSV_GOOD = [  # variants real tools produce: read correctly, never misread
     csv_case("bom", lambda b: "\ufeff" + (b / "good.csv").read_text(), 0, []),
@@ -818,7 +818,7 @@ OBSERVE = [
     case("identifiability-bad-type", ["identifiability", "ur5", "--type", "socket"], 1,
          ["--type: give one of point, pose"]),
     case("identifiability-sockets-plan-without-labels", ["identifiability", "ur5", "--type", "same-point", "--data",
-                                                          "{base}/good.csv", *MMDEG], 1,
+                                                          "{base}/good.csv", "--angle-unit", "deg"], 1,
          ["a label column ('point', --label-col)"]),
 ]
 

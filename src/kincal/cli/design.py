@@ -16,6 +16,8 @@ import kincal.models
 from kincal.design import Cell
 from kincal._atomic import write_text_atomic
 from kincal.compensate import command_models
+from kincal.identify import SCOPES, refuse_inapplicable
+from kincal.identify.applies import Scope, joint_unit_scopes
 from kincal.io.program_ur import measurement_program
 from kincal.observe import read_observations, write_observations
 
@@ -27,39 +29,81 @@ from .common import (cell_lengths, csv_list, emit, err, judged, lengths, load_ro
 CELL_FLAGS = {"floor", "keep_out", "tracker", "tracker_range", "cone", "reflector_axis", "joint_margin", "link_radius"}
 CHECK_FLAGS = {"m", "output", "pool", "candidates", "joint_cols", "length_unit", "angle_unit", "seed", "check",
                "json"} | CELL_FLAGS
-METHOD_FLAGS = {"generations": ("ide", "detmax-ide"), "f0": ("ide", "detmax-ide"), "cr": ("ide", "detmax-ide"),
-                "population": ("ide", "detmax-ide"), "restarts": ("fedorov",)}  # a search's own settings
+IDE = ("ide", "detmax-ide")
+# a flag that sets how another works, and what it is for: given without that, it would change nothing
+MODIFIERS = {**{k: (lambda a, o: o.method in IDE, "is for --method ide or detmax-ide, not {method}")
+                for k in ("generations", "f0", "cr", "population")},
+             "restarts": (lambda a, o: o.method == "fedorov" and not o.stratified,
+                          "is for --method fedorov without coverage (criterion D or I): {method} with {criterion}"
+                          "{stratified} makes no random start"),
+             "weight": (lambda a, o: o.criterion == "IMSE", "is for --criterion IMSE, not {criterion}"),
+             "settle": (lambda a, o: bool(a.program), "is for --program (the wait at each of its poses)"),
+             **{k: (lambda a, o: a.tracker is not None, "is for --tracker (its range and line of sight)")
+                for k in ("tracker_range", "cone", "reflector_axis")},
+             "link_radius": (lambda a, o: bool(a.floor or a.keep_out),
+                             "thickens the arm's links for --floor and --keep-out (give one of them)")}
 
 
-def _method_flags(args) -> None:
-    """Refuse a search's own settings given with another --method (they were ignored)."""
-    other = [k for k, methods in METHOD_FLAGS.items() if k in args.given and args.method not in methods]
-    if other:
-        said = "; ".join(f"{args.given[k]} is for --method {' or '.join(METHOD_FLAGS[k])}" for k in other)
-        raise ValueError(f"{said}, not {args.method}: leave {'them' if len(other) > 1 else 'it'} out")
+def _unused_modifiers(args, options) -> None:
+    """Refuse a flag given without what it modifies (:data:`MODIFIERS`: they were ignored), all of them named."""
+    unused = [k for k, (used, _) in MODIFIERS.items() if k in args.given and not used(args, options)]
+    if unused:
+        said = "; ".join(f"{args.given[k]} " + MODIFIERS[k][1].format(
+            method=options.method, criterion=options.criterion,
+            stratified=" (one pose per stratum)" if options.stratified else "") for k in unused)
+        raise ValueError(f"{said}: leave {'them' if len(unused) > 1 else 'it'} out")
+
+
+AT_POSES = ("point", "pose", "markers")  # designed as poses of a pool; sockets and planes: samples of a plan
+WRITES = "design writes the joint values of the poses to measure (sockets and planes: with their labels), not the "
+
+
+def design_scopes(args, robot) -> dict[str, Scope]:
+    """design's own table of what applies to which kind (:func:`kincal.identify.refuse_inapplicable`): the
+    measured values' columns are not written, sockets and planes are samples of a plan (no pool, cell or program),
+    the point design's own settings, and the units of its files of joint values alone."""
+    kind = (args.type or ["point"])[0]
+    plan = (f"a {kind} design chooses samples of a plan "
+            f"(kincal's own, {PLAN_PER_LABEL} per socket or plane, or --candidates)")
+    observed = "the other kinds are designed for the robot's and set-up parameters their samples identify"
+    return {**{k: SCOPES[k] for k in ("label_col", "group_col", "distance", "plane", "std_rot", "std_pos")},
+            **{k: Scope((), f"{WRITES}measured values' columns; give it to calibrate") for k in
+               ("xyz_cols", "orientation", "rot_cols")},
+            "markers": Scope((), f"{WRITES}markers' columns; the design is for kincal's own nest of three markers"),
+            **{k: Scope(AT_POSES, f"the cell filters the poses of a tracker, pose or markers design; a {kind} plan "
+                                  f"already says where the robot goes (plan it inside the cell)") for k in CELL_FLAGS},
+            **{k: Scope(AT_POSES, f"{plan}, touched by hand or by a guided move at each sample, so no program is "
+                                  f"written") for k in ("program", "settle")},
+            "pool": Scope(AT_POSES, f"{plan}, not from a random pool"),
+            "use": Scope(("point",), "a region of use other than the candidates is supported for tool-position "
+                                     "(point) designs only"),
+            "weight": Scope(("point",), "IMSE counts the left-out error terms of a tool position; for the other "
+                                        "kinds it is I-optimality"),
+            "params": Scope(("point",), observed),
+            "base": Scope(("point",), f"{observed}, the measurement frame among them as the fit chooses"),
+            "units": Scope(("point",), f"{observed}, scaled by their σ (--std-pos, --std-rot)"),
+            **joint_unit_scopes(robot.name, robot.joint_types, "the poses CSV", CONSTRAINTS)}
 
 
 def cmd_design(args) -> int:
     if args.check:
         return _design_check(args)
-    _method_flags(args)
     r = load_robot(args, [args.candidates, args.use], [args.output, _program_path(args)])
+    kind = one_type(args, f"design --type {','.join(args.type or ['point'])}")
+    refuse_inapplicable([kind], args.given, design_scopes(args, r))
     imse = args.method in ("fedorov", "random")  # the default criterion: IMSE for these, D for the others
     options = kincal.DesignOptions(m=args.m, method=args.method, criterion=args.criterion or ("IMSE" if imse else "D"),
                                    seed=args.seed, names=args.params, base=args.base, certify=not args.no_bound,
                                    restarts=args.restarts, generations=args.generations, units=args.units, f0=args.f0,
                                    cr=args.cr, population=args.population, coverage=args.coverage, weight=args.weight)
+    _unused_modifiers(args, options)
     if args.params:
         r.params.indices(args.params)
     if args.program and r.n_joints != 6:
         raise ValueError(f"--program ur writes URScript for a six-joint UR arm; {r.name} has {r.n_joints} joints")
-    _link_radius_alone(args)
     cell = cell_of(args)
-    if (args.type or ["point"])[0] in CONSTRAINTS:
-        if args.program:
-            raise ValueError("--program writes a program through designed poses; sockets and planes are touched by "
-                             "hand or by a guided move at each sample, so no program is written for them")
-        return _design_constraints(args, r, options, cell)
+    if kind in CONSTRAINTS:  # no cell: refused above
+        return _design_constraints(args, r, options)
     if args.candidates:
         pool = kincal.read_joints(args.candidates, r, args.joint_cols, args.length_unit, args.angle_unit)
         kincal.io.check_joints(args.candidates, pool, r, args.length_unit, args.angle_unit)  # a unit, named
@@ -99,10 +143,12 @@ def _design_check(args) -> int:
         raise ValueError(f"design --check chooses the poses of a check of a calibrated robot; {', '.join(wrong)} "
                          f"{'does' if len(wrong) == 1 else 'do'} not apply to it (it takes -m, --pool or "
                          f"--candidates, the data columns, --seed and the cell flags)")
-    _link_radius_alone(args)
+    _unused_modifiers(args, kincal.DesignOptions())
     check_paths([args.robot, args.candidates], [args.output])
     record = kincal.models.load_calibration_record(args.robot)
     cal = kincal.identify.Calibrated.of(kincal.load_robot(args.robot), record, args.robot)
+    refuse_inapplicable(["point"], args.given, joint_unit_scopes(cal.robot.name, cal.robot.joint_types,
+                                                                 "the check's poses CSV"))
     m = args.m if "m" in args.given else 10
     pool = _check_pool(args, cal, record, cell_of(args))
     with progress("designing the check", args.json):
@@ -156,12 +202,6 @@ def _base_frame_model(calibrated, record):
     keeps."""
     values = record.get("nominal") if isinstance(record, dict) and isinstance(record.get("nominal"), dict) else None
     return command_models(calibrated, values)[0]
-
-
-def _link_radius_alone(args) -> None:
-    if "link_radius" in args.given and not (args.floor or args.keep_out):
-        raise ValueError("--link-radius thickens the arm's links for --floor and --keep-out; give one of them, or "
-                         "leave --link-radius out")
 
 
 def _program_path(args) -> str | None:
@@ -287,20 +327,16 @@ def _observation_problem(args, robot, pool):
 
 
 def _check_observation_design(args) -> None:
-    one_type(args, f"design --type {','.join(args.type or ['point'])}")
-    if args.method in ("ide", "detmax-ide") or args.params:
-        raise ValueError("design --type: use --method detmax or fedorov (the IDE leaves the pool) and no --params")
+    if args.method in IDE:
+        raise ValueError(f"design --type {args.type[0]}: use --method detmax or fedorov (the IDE leaves the pool)")
 
 
-def _design_constraints(args, robot, options, cell) -> int:
+def _design_constraints(args, robot, options) -> int:
     """design --type same-point|plane: choose samples of a plan (a plate's sockets, a table and a step:
     the candidates file, e.g. from 'simulate --type', or kincal's own plan) by the stacked, whitened
     problem; known distances count as exact constraints on the socket points."""
     kind = args.type[0]
     _check_observation_design(args)
-    if cell is not None:
-        raise ValueError(f"design --type {kind}: the cell flags filter poses of a tracker, pose or markers design; "
-                         f"a {kind} plan already says where the robot goes (plan it inside the cell)")
     plan = (read_observations(args.candidates, robot, observe.format_of(args, kind)) if args.candidates
             else observe.planned(args, robot, robot, kind, None, 0.0, args.seed, per=PLAN_PER_LABEL))
     problem = kincal.design.observation_problem(robot, plan)

@@ -15,7 +15,7 @@ import kincal.io
 import kincal.models
 from kincal.compensate import fit_frames_only
 from kincal.identify import SCOPES, FitOptions, observation_identifiability, refuse_inapplicable
-from kincal.identify.applies import OBSERVED, Scope
+from kincal.identify.applies import OBSERVED, Scope, joint_unit_scopes
 from kincal.identify.stacked import wanted_names
 from kincal.models.export import controller_base
 from kincal.observe import describe, read_observations, write_observations
@@ -65,10 +65,10 @@ def cmd_show(args) -> int:
 
 def cmd_identifiability(args) -> int:
     kind = one_type(args)
-    refuse_inapplicable([kind], args.given, identifiability_scopes(args))
+    r = load_robot(args)
+    refuse_inapplicable([kind], args.given, identifiability_scopes(args, r))
     args.poses = IDENTIFIABILITY_POSES if args.poses is None else args.poses
     args.seed = 0 if args.seed is None else args.seed
-    r = load_robot(args)
     if kind == "point":
         ident = kincal.analysis.free_parameters(r, joint_values(args, r, args.data), base=args.base,
                                                 keep=args.keep or (), rank_tol=args.rank_tol)
@@ -109,20 +109,22 @@ PLANNED = ("without --data no file is read (kincal plans the samples: at random 
            "has nothing to read")
 
 
-def identifiability_scopes(args) -> dict[str, Scope]:
+def identifiability_scopes(args, robot) -> dict[str, Scope]:
     """identifiability's own table of what applies to which kind (:func:`kincal.identify.refuse_inapplicable`), with
-    --data (the file's samples: no count, nothing drawn, only its joints and labels read) or without (kincal's plan:
-    no file read; --length-unit is then the unit of --distance and --plane alone)."""
+    --data (the file's samples: no count, nothing drawn, only its joints and labels read, so a unit that reads none
+    of ``robot``'s joints nor a value of --distance or --plane is refused) or without (kincal's plan: no file read;
+    --length-unit is then the unit of --distance and --plane alone)."""
     std_pos = Scope(OBSERVED, "position data are judged by their Jacobian alone: one σ for every sample scales it "
                               "and changes nothing")
     own = {**{k: SCOPES[k] for k in ("base", "std_rot", "label_col", "group_col", "distance", "plane")},
            "std_pos": std_pos}
+    valued = tuple(k for k, flag in (("same-point", "distance"), ("plane", "plane")) if flag in args.given)
     if args.data:
         beside = f"beside --data {args.data} its rows are the samples"
-        return {**own, "poses": Scope((), f"{beside}, as many as it holds"),
+        return {**own, **joint_unit_scopes(robot.name, robot.joint_types, args.data, valued),
+                "poses": Scope((), f"{beside}, as many as it holds"),
                 "seed": Scope((), f"{beside}: nothing is drawn at random"),
                 **{k: Scope((), READ_FROM_DATA) for k in ("xyz_cols", "orientation", "rot_cols", "markers")}}
-    valued = tuple(k for k, flag in (("same-point", "distance"), ("plane", "plane")) if flag in args.given)
     return {**own, "poses": SIMULATE_SCOPES["poses"],
             **{k: Scope((), PLANNED) for k in ("joint_cols", "xyz_cols", "orientation", "rot_cols", "markers",
                                                "label_col", "group_col", "angle_unit")},

@@ -64,6 +64,52 @@ SCOPES: dict[str, Scope] = {
 }
 
 
+def joint_unit_scopes(robot: str, joint_types: Iterable[str], files: str,
+                      lengths: tuple[str, ...] = ()) -> dict[str, Scope]:
+    """The scopes of the unit options (``length_unit``, ``angle_unit``) where the files hold joint values and no
+    measured position: a unit that reads none of the robot's joints applies to no kind (but ``lengths``, whose
+    other values, as known distances or planes, it reads).
+
+    Parameters
+    ----------
+    robot : str
+        The robot's name, as the reason names it.
+    joint_types : iterable of str
+        Its joints' types: "revolute" (read in the angle unit), "covariate" (as written), any other (a length).
+    files : str
+        The files of joint values, as the reason names them (e.g. "the poses CSV").
+    lengths : tuple of str, optional
+        The kinds whose other values the length unit reads (default none).
+
+    Returns
+    -------
+    dict of str to Scope
+        ``length_unit`` when no joint is a length, ``angle_unit`` when none is revolute (empty when both read a
+        joint): a table to add to the command's own for :func:`refuse_inapplicable`.
+
+    Examples
+    --------
+    >>> from kincal.identify.applies import joint_unit_scopes
+    >>> list(joint_unit_scopes("scara", ["revolute", "revolute", "prismatic", "revolute"], "the poses CSV"))
+    []
+    >>> refuse_inapplicable(["point"], {"length_unit": "--length-unit"},
+    ...                     joint_unit_scopes("ur5", ["revolute"] * 6, "the poses CSV"))
+    Traceback (most recent call last):
+    ...
+    ValueError: --length-unit does not apply to point data: ur5 has no prismatic joint, so its joint values are
+    angles alone (--angle-unit) and the poses CSV holds no other length; leave it out
+    """
+    types = [t for t in joint_types if t != "covariate"]
+    out = {}
+    if all(t == "revolute" for t in types):
+        out["length_unit"] = Scope(lengths, f"{robot} has no prismatic joint, so its joint values are angles alone "
+                                            f"(--angle-unit) and {files} holds no other length")
+    if "revolute" not in types:
+        out["angle_unit"] = Scope((), f"{robot} has no revolute joint, so its joint values are lengths alone "
+                                      f"(--length-unit) and {files} holds no angle")
+    return out
+
+
 def refuse_inapplicable(kinds: Iterable[str], given: Mapping[str, str],
                         scopes: Mapping[str, Scope] | None = None) -> None:
     """Refuse an option that none of the data's kinds uses, instead of ignoring it.
