@@ -13,7 +13,7 @@ from ..units import MM, joint_shown
 from ..errors import ModelError
 from ..models.robot import Robot
 from ..models.terms import without_unread_covariates
-from .frames import MISMATCH_TOL, base_mismatch, frame_mismatch, orientation_change
+from .frames import MISMATCH_TOL, base_mismatch, frame_mismatch, orientation_change, unit_mismatch
 
 IK_TOL = 1e-10  # m
 IK_ITER = 100
@@ -205,12 +205,19 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     >>> bool(np.linalg.norm(real.forward(comp.q) - targets, axis=1).max() < 1e-9)
     True
 
-    Targets in mm read as m are out of reach, and each row says so:
+    Targets in mm given as m spread a thousand times more than the robot moves at their joints: none is corrected,
+    and the unit is named (:func:`unit_mismatch`):
 
-    >>> bad = compensate(real, targets * 1e3, q0, rows=np.array([10, 11, 12]))
-    >>> bad.ok.tolist()
-    [False, False, False]
+    >>> bad = compensate(real, targets * 1e3, q0)
+    >>> bad.ok.tolist(), bad.method
+    ([False, False, False], 'not corrected')
     >>> print(bad.problems[0])
+    the targets spread ...x more than the model moves at their nominal joints: they look like mm, not m; give them in
+    m (x0.001). Not corrected: a unit mistake, not a robot error
+
+    One target (no spread to judge by) is out of reach, and its row says so:
+
+    >>> print(compensate(real, targets[:1] * 1e3, q0[:1], rows=np.array([10])).problems[0])
     row 10: target ... mm from the base, beyond the robot's reach (1225.4 mm): out of reach, or not in the
     declared length unit
     """
@@ -226,11 +233,10 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
         raise ModelError(f"robot '{robot.name}' ({robot.structure}): its joints are set by the platform's whole pose; "
                          f"give 6-D targets (position and orientation: --pose)")
     targets, q0, rows = _checked_inputs(robot, targets, q_start, damping, rows)
-    if nominal is not None and q0 is not None:
-        why = frame_mismatch(nominal, q0, targets)
-        if why:
-            none = np.zeros(len(targets), bool)
-            return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
+    why = _set_up_mismatch(robot, nominal, q0, targets)
+    if why:
+        return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, np.zeros(len(targets), bool),
+                            (why,), rows)
     if robot.has_inverse:  # (no nominal commands q0 to check against)
         q, method, it = robot.inverse(targets, strict=False), "closed-form inverse", 0
     else:
@@ -337,6 +343,16 @@ def _same_frame(robot: Robot, nominal: Robot | None) -> None:
     why = "" if nominal is None else base_mismatch(robot, nominal)
     if why:
         raise ModelError(why)
+
+
+def _set_up_mismatch(robot: Robot, nominal: Robot | None, q0: np.ndarray | None, targets: np.ndarray) -> str:
+    """Why no target can be corrected, before any is: targets in another length unit than m (judged against the
+    nominal model, else ``robot``: :func:`unit_mismatch`), or a TCP or frame mismatch (:func:`frame_mismatch`);
+    '' when neither (or no nominal joints to judge by)."""
+    if q0 is None:
+        return ""
+    return unit_mismatch(nominal or robot, q0, targets) or ("" if nominal is None else
+                                                             frame_mismatch(nominal, q0, targets))
 
 
 def _checked_inputs(robot: Robot, targets, q_start, damping: float, rows):
@@ -525,11 +541,11 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
         if orientation is not None:
             comp = dataclasses.replace(comp, rotation_residual=model_turn(orientation, comp.q, rotations))
         return _with_sigma(robot, comp, uncertainty)
-    if nominal is not None:
-        why = frame_mismatch(nominal, q0, targets) or _orientation_mismatch(nominal, q0, rotations)
-        if why:
-            none = np.zeros(len(targets), bool)
-            return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
+    why = _set_up_mismatch(robot, nominal, q0, targets) or (
+        "" if nominal is None else _orientation_mismatch(nominal, q0, rotations))
+    if why:
+        none = np.zeros(len(targets), bool)
+        return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
     give_up = GIVE_UP * branch_tolerance(robot)  # refused by the branch check anyway
     sol = solve_poses(robot, targets, rotations, q0, give_up=give_up, turned_as=orientation, measured=measured)
     comp = _checked(robot, sol.q, "pose (damped Newton)", sol.iterations, targets, q0, rows, nominal,
