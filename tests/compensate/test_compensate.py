@@ -525,3 +525,21 @@ def test_targets_in_another_length_unit_are_named_as_such_not_as_a_frame(ur5_gri
     poses = kincal.compensate(model, targets * scale, q, nominal=nominal, rotations=R)
     assert not poses.ok.any() and poses.problems[0].startswith(f"the targets spread {ratio:.3g}x more")
 
+
+def test_a_calibration_result_given_for_the_robot_says_what_to_give(ur5_grid_calibration):
+    """compensate(result, ...) ended in AttributeError ('covariate_names'); like evaluate and calibrate, a TypeError
+    names the argument, what it got and the pair command_models makes of a calibration."""
+    res, q = ur5_grid_calibration
+    model, nominal = command_models(res.robot, res.nominal.params.as_dict())
+    targets = nominal.forward(q)
+    advice = r"command_models\(result\.robot, result\.nominal\.params\.as_dict\(\)\) gives both"
+    with pytest.raises(TypeError, match=r"^robot: a Robot is wanted, got CalibrationResult: the calibrated model; of a "
+                                        r"calibration: model, nominal = " + advice):
+        compensate(res, targets, q, nominal=nominal)
+    with pytest.raises(TypeError, match=r"^nominal: a Robot is wanted, got CalibrationResult: .*" + advice):
+        compensate(model, targets, q, nominal=res)
+    with pytest.raises(TypeError, match=r"^robot: a Robot is wanted, got CalibrationResult"):
+        kincal.compensate(res, targets, q, rotations=nominal.flange_rotation(q))
+    from kincal.compensate import compensate_poses
+    with pytest.raises(TypeError, match=r"^nominal: a Robot is wanted, got CalibrationResult"):
+        compensate_poses(model, targets, nominal.flange_rotation(q), q, nominal=res)

@@ -8,7 +8,7 @@ import numpy as np
 
 from .._frozen import freeze_arrays
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
-from ..checks import number
+from ..checks import kind_of, number
 from ..units import MM, joint_shown
 from ..errors import ModelError
 from ..models.robot import Robot
@@ -180,6 +180,8 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
         finite or do not match in number.
     ValueError
         When ``rows`` does not give one number per target.
+    TypeError
+        When ``robot`` or ``nominal`` is not a Robot (a calibration's result: :func:`command_models` gives the pair).
 
     See Also
     --------
@@ -221,6 +223,7 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     row 10: target ... mm from the base, beyond the robot's reach (1225.4 mm): out of reach, or not in the
     declared length unit
     """
+    _robots(robot, nominal, orientation)
     refuse_covariates(robot)
     _same_frame(robot, nominal)
     if rotations is not None:
@@ -336,6 +339,16 @@ def refuse_covariates(robot: Robot) -> None:
     if robot.covariate_names:
         raise ModelError(f"robot '{robot.name}' reads the covariate(s) {', '.join(robot.covariate_names)}, which no "
                          f"term uses: compensate without_unread_covariates(robot), the same model without them")
+
+
+def _robots(robot: Robot, nominal: Robot | None, orientation: Robot | None) -> None:
+    """TypeError unless the models given are robots (a calibration's result where its robot belongs: what to give)."""
+    pair = "command_models(result.robot, result.nominal.params.as_dict()) gives both in the targets' frame"
+    kind_of("robot", robot, Robot, f"the calibrated model; of a calibration: model, nominal = {pair}")
+    for name, value in (("nominal", nominal), ("orientation", orientation)):
+        if value is not None:
+            kind_of(name, value, Robot, f"the nominal model; of a calibration: model, nominal = {pair}"
+                    if name == "nominal" else "the model whose flange is turned to the target rotations")
 
 
 def _same_frame(robot: Robot, nominal: Robot | None) -> None:
@@ -510,6 +523,9 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
     ModelError
         When the rotations are not finite right-handed rotation matrices (N, 3, 3), the robot has no tool
         point, or the targets or start joints are not finite or do not match in number.
+    TypeError
+        When ``robot``, ``nominal`` or ``orientation`` is not a Robot (a calibration's result: :func:`command_models`
+        gives the pair).
 
     Examples
     --------
@@ -531,6 +547,7 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
     """
     from .poses import at_measured, filtered_poses, model_turn, solve_poses
 
+    _robots(robot, nominal, orientation)
     _same_frame(robot, nominal)
     targets, q0, rows = _checked_inputs(robot, targets, q_start, 1e-4, rows)
     rotations = _checked_rotations(rotations, len(targets))
