@@ -40,6 +40,9 @@ ROOT = Path(os.path.relpath(Path(__file__).resolve().parents[1])) if "__file__" 
 # the real datasets, used where they are: beside the checkout, or where KINCAL_SHARED_DATASETS points
 DATASETS = Path(os.environ.get("KINCAL_SHARED_DATASETS", ROOT / ".." / "shared" / "datasets"))
 DATA = DATASETS / "panda_sockets"
+if not DATA.is_dir():  # a copy of this example elsewhere: the datasets are not where it looks
+    raise SystemExit(f"{DATA}: no such folder; set KINCAL_SHARED_DATASETS to the folder that holds kincal's datasets "
+                     f"(shared/datasets beside the checkout)")
 URDF = DATA / "panda.urdf"
 
 robot = kincal.load_robot(URDF, tip_link="ball_link")

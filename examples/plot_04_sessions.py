@@ -36,6 +36,9 @@ ROOT = Path(os.path.relpath(Path(__file__).resolve().parents[1])) if "__file__" 
 # the real datasets, used where they are: beside the checkout, or where KINCAL_SHARED_DATASETS points
 DATASETS = Path(os.environ.get("KINCAL_SHARED_DATASETS", ROOT / ".." / "shared" / "datasets"))
 DATA = DATASETS / "ur5_wam_gts3800"
+if not DATA.is_dir():  # a copy of this example elsewhere: the datasets are not where it looks
+    raise SystemExit(f"{DATA}: no such folder; set KINCAL_SHARED_DATASETS to the folder that holds kincal's datasets "
+                     f"(shared/datasets beside the checkout)")
 JOINTS = [f"joint_{k}" for k in range(1, 7)]
 UNITS = dict(joint_cols=JOINTS, length_unit="mm", angle_unit="deg")
 

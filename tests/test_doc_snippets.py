@@ -195,3 +195,22 @@ def test_the_six_d_tutorial_states_the_fit_it_prints():
     line = re.search(r"mean ([\d.]+) mm, mean ([\d.]+) mrad\s+→\s+mean ([\d.]+) mm, mean ([\d.]+) mrad", str(fit))
     assert quoted == line.groups()
     assert "unknown orientation" not in prose and "also contains" not in prose
+
+
+@pytest.mark.parametrize("name", ["plot_01_calibrate_ur5.py", "plot_02_sockets.py", "plot_03_six_d_poses.py",
+                                  "plot_04_sessions.py"])
+def test_a_tutorial_copied_elsewhere_names_the_variable_that_finds_the_datasets(tmp_path, name):
+    """A tutorial copied out of the checkout failed with "../../shared/datasets/...: cannot read the file": it says
+    the folder it looked in is not there and names KINCAL_SHARED_DATASETS, in one line, before any work."""
+    import os
+    import subprocess
+    import sys
+    (tmp_path / name).write_text((ROOT / "examples" / name).read_text())
+    env = {k: v for k, v in os.environ.items() if k != "KINCAL_SHARED_DATASETS"}
+    env.update(MPLBACKEND="Agg", PYTHONPATH=str(ROOT / "src"))
+    run = subprocess.run([sys.executable, name], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    folder = re.search(r'DATA = DATASETS / "(\w+)"', (ROOT / "examples" / name).read_text()).group(1)
+    where = os.path.join(os.path.relpath(tmp_path.parent, tmp_path), "..", "shared", "datasets", folder)  # ROOT/../…
+    assert run.returncode == 1 and "Traceback" not in run.stderr
+    assert run.stderr.strip() == (f"{where}: no such folder; set KINCAL_SHARED_DATASETS to the folder that holds "
+                                  f"kincal's datasets (shared/datasets beside the checkout)")

@@ -212,3 +212,26 @@ def test_python_calls_given_degrees_say_so(ur5):
             call()
     assert len(kincal.select_poses(ur5, pool, m=30).q) == 30
     assert kincal.calibrate(ur5, meas, use_q=q, diagnose=False).converged
+
+
+def test_degrees_read_in_the_default_radians_say_no_unit_was_given(ur5):
+    """read_measurements with no angle unit read the UR5 grid's degrees as radians and said "('rad' was given)": the
+    user gave none. The message says the default was used; a unit given is still named as given. The figure: the
+    largest revolute value of the file as written (numpy on the columns)."""
+    import csv
+    with open(DATA / "ur5_grid.csv") as f:
+        rows = list(csv.DictReader(f))
+    largest = max(abs(float(r[c])) for r in rows for c in UR5_COLS)
+    head = f"revolute joint values reach {largest:.4g} rad"
+    with pytest.raises(MeasurementError) as err:
+        kincal.read_measurements(DATA / "ur5_grid.csv", ur5, joint_cols=UR5_COLS, length_unit="mm")
+    assert f"{head} (the default 'rad': no unit was given), far beyond the joint limits: they look like degrees; " \
+           f"use angle unit 'deg'" in str(err.value)
+    with pytest.raises(MeasurementError, match=r"\(the default 'rad': no unit was given\)"):
+        kincal.io.read_joints(DATA / "ur5_grid.csv", ur5, joint_cols=UR5_COLS)
+    with pytest.raises(MeasurementError) as err:
+        kincal.read_measurements(DATA / "ur5_grid.csv", ur5, joint_cols=UR5_COLS, length_unit="mm", angle_unit="rad")
+    assert f"{head} ('rad' was given)" in str(err.value)
+    grid = kincal.read_measurements(DATA / "ur5_grid.csv", ur5, joint_cols=UR5_COLS, length_unit="mm",
+                                    angle_unit="deg")
+    assert np.degrees(np.abs(grid.q)).max() == pytest.approx(largest, rel=1e-12)

@@ -74,7 +74,11 @@ class ReadOnlyDict(dict):
 
 
 def freeze_arrays(result) -> None:
-    """Make every array field of the frozen dataclass ``result`` read-only, and the arrays of its tuple fields.
+    """Make every array field of the frozen dataclass ``result`` read-only, and the arrays its tuples hold however deep
+    (a tuple of pairs); a plain dict field becomes a :class:`ReadOnlyDict`, its arrays read-only.
+
+    The one mechanism every frozen record that holds arrays calls from its ``__post_init__``: a result, and the records
+    nested in it (each freezes its own as it is built).
 
     Parameters
     ----------
@@ -90,18 +94,33 @@ def freeze_arrays(result) -> None:
     ... class Fit:
     ...     x: np.ndarray
     ...     parts: tuple = ()
+    ...     by: dict = dataclasses.field(default_factory=dict)
     ...     def __post_init__(self):
     ...         freeze_arrays(self)
-    >>> fit = Fit(np.ones(2), (np.zeros(1), "a"))
-    >>> fit.x.flags.writeable, fit.parts[0].flags.writeable, fit.parts[1]
-    (False, False, 'a')
+    >>> fit = Fit(np.ones(2), (np.zeros(1), "a", ("b", np.zeros(2))), {"j1": np.ones(3)})
+    >>> fit.x.flags.writeable, fit.parts[0].flags.writeable, fit.parts[1], fit.parts[2][1].flags.writeable
+    (False, False, 'a', False)
+    >>> fit.by["j1"].flags.writeable, type(fit.by).__name__
+    (False, 'ReadOnlyDict')
     """
     own = vars(result)
     for f in dataclasses.fields(result):
+        if f.name not in own:  # a field set later (``init=False``): its owner freezes it once set
+            continue
         value = own[f.name]
-        if isinstance(value, np.ndarray):
-            object.__setattr__(result, f.name, read_only(value))
-        elif type(value) is tuple and any(isinstance(v, np.ndarray) for v in value):
-            object.__setattr__(result, f.name, tuple(read_only(v) if isinstance(v, np.ndarray) else v for v in value))
-        elif type(value) is dict:
-            object.__setattr__(result, f.name, ReadOnlyDict(value))
+        if type(value) is dict:
+            value = ReadOnlyDict({k: _frozen(v) for k, v in value.items()})
+        else:
+            value = _frozen(value)
+        if value is not own[f.name]:
+            object.__setattr__(result, f.name, value)
+
+
+def _frozen(value):
+    """``value`` with its arrays read-only, however deep in tuples (``value`` itself when nothing changes)."""
+    if isinstance(value, np.ndarray):
+        return read_only(value)
+    if type(value) is tuple:
+        items = tuple(_frozen(v) for v in value)
+        return value if all(a is b for a, b in zip(items, value)) else items
+    return value

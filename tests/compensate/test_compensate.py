@@ -486,3 +486,60 @@ def test_a_miss_of_micrometres_is_said_in_them():
                             p).group(1)) for p in off.problems]
     miss = np.linalg.norm(robot.forward(off.q) - (robot.forward(q) + 30e-6 * normal), axis=1)
     assert said == pytest.approx(np.round(miss * 1e3, 3).tolist(), abs=0) and said == [0.030, 0.030]
+
+
+@pytest.fixture(scope="module")
+def ur5_grid_calibration(ur5):
+    """The real UR5 calibrated from its grid, and 8 held-out poses' nominal joints (rad) from its random file."""
+    read = dict(joint_cols=UR5_COLS, length_unit="mm", angle_unit="deg")
+    res = kincal.calibrate(ur5, kincal.read_measurements(DATA / "ur5_grid.csv", ur5, **read))
+    return res, np.array(kincal.read_measurements(DATA / "ur5_random.csv", ur5, **read).q[:8])
+
+
+@pytest.mark.parametrize("scale, unit, factor", [(1e3, "mm", "0.001"), (1e6, "um", "1e-06"), (1 / 0.0254, "inch",
+                                                                                               "0.0254")])
+def test_targets_in_another_length_unit_are_named_as_such_not_as_a_frame(ur5_grid_calibration, scale, unit, factor):
+    """Targets in mm given to the library as m were refused as a 'TCP/frame mismatch of 612007.4 mm' and told to use
+    --target-frame, a flag of the command line: the unit is named, with the factor that puts them in m, and no flag.
+    The figure: the targets spread ``scale`` times what the nominal model moves at their joints (median distance from
+    the median, by numpy)."""
+    res, q = ur5_grid_calibration
+    model, nominal = command_models(res.robot, res.nominal.params.as_dict())
+    targets = nominal.forward(q)
+    assert compensate(model, targets, q, nominal=nominal).ok.all()  # in m: nothing to say
+
+    def size(x):
+        return np.median(np.linalg.norm(x - np.median(x, axis=0), axis=1))
+
+    ratio = size(targets * scale) / size(nominal.forward(q))
+    assert ratio == pytest.approx(scale, rel=1e-9)
+    for given in (nominal, None):  # judged against the nominal model, else the calibrated one
+        comp = compensate(model, targets * scale, q, nominal=given)
+        assert not comp.ok.any() and comp.method == "not corrected"
+        if given is None:
+            ratio = size(targets * scale) / size(model.forward(q))
+        assert comp.problems == (f"the targets spread {ratio:.3g}x more than the model moves at their nominal joints: "
+                                 f"they look like {unit}, not m; give them in m (x{factor}). Not corrected: a unit "
+                                 f"mistake, not a robot error",)
+    R = nominal.flange_rotation(q)
+    poses = kincal.compensate(model, targets * scale, q, nominal=nominal, rotations=R)
+    assert not poses.ok.any() and poses.problems[0].startswith(f"the targets spread {ratio:.3g}x more")
+
+
+def test_a_calibration_result_given_for_the_robot_says_what_to_give(ur5_grid_calibration):
+    """compensate(result, ...) ended in AttributeError ('covariate_names'); like evaluate and calibrate, a TypeError
+    names the argument, what it got and the pair command_models makes of a calibration."""
+    res, q = ur5_grid_calibration
+    model, nominal = command_models(res.robot, res.nominal.params.as_dict())
+    targets = nominal.forward(q)
+    advice = r"command_models\(result\.robot, result\.nominal\.params\.as_dict\(\)\) gives both"
+    with pytest.raises(TypeError, match=r"^robot: a Robot is wanted, got CalibrationResult: the calibrated model; of a "
+                                        r"calibration: model, nominal = " + advice):
+        compensate(res, targets, q, nominal=nominal)
+    with pytest.raises(TypeError, match=r"^nominal: a Robot is wanted, got CalibrationResult: .*" + advice):
+        compensate(model, targets, q, nominal=res)
+    with pytest.raises(TypeError, match=r"^robot: a Robot is wanted, got CalibrationResult"):
+        kincal.compensate(res, targets, q, rotations=nominal.flange_rotation(q))
+    from kincal.compensate import compensate_poses
+    with pytest.raises(TypeError, match=r"^nominal: a Robot is wanted, got CalibrationResult"):
+        compensate_poses(model, targets, nominal.flange_rotation(q), q, nominal=res)

@@ -3,11 +3,12 @@ registration, robust losses, covariance, evaluation."""
 import numpy as np
 import pytest
 
-from conftest import central_jacobian
+from conftest import DATA, UR5_COLS, central_jacobian
 
 import kincal
 from kincal.analysis import stacked_jacobian
 from kincal.models.transforms import rot_zyx
+from kincal.models.yaml_io import load_calibration_record
 
 NOISE = 15e-6
 
@@ -188,3 +189,43 @@ def test_a_result_hands_out_read_only_arrays(ur5):
     with pytest.raises(TypeError, match="belongs to a frozen result"):  # res.std["j2.a"] *= 1000 printed 9.99 mm
         res.std["j2.a"] *= 1000
     assert res.std["j2.a"] == before and res.to_dict()["std"]["j2.a"] == before and dict(res.std) == res.std
+
+
+def _writable(value, path: str, seen: set) -> list[str]:
+    """The paths of the writable arrays ``value`` holds however deep: fields of kincal's records and objects, tuples,
+    lists and dicts."""
+    if id(value) in seen:
+        return []
+    seen.add(id(value))
+    if isinstance(value, np.ndarray):
+        return [path] if value.flags.writeable else []
+    if isinstance(value, (tuple, list)):
+        items = list(enumerate(value))
+    elif isinstance(value, dict):
+        items = list(value.items())
+    elif type(value).__module__.startswith("kincal") and "__dict__" in dir(value):
+        items = list(vars(value).items())
+    else:
+        return []
+    return [p for k, v in items for p in _writable(v, f"{path}.{k}", seen)]
+
+
+def test_every_array_a_calibration_holds_is_read_only(ur5, tmp_path):
+    """Every array a result holds, however deep (its repeat record, observations, robots' compiled chains), is
+    read-only: ``res.repeat.covariance[:] *= 100`` used to pass, and the calibration file then saved a repeat σ 10x
+    the fit's, which compare judged by. The file keeps the covariance as computed, to the digit."""
+    grid = kincal.read_measurements(DATA / "ur5_grid.csv", ur5, joint_cols=UR5_COLS, length_unit="mm",
+                                    angle_unit="deg")
+    res = kincal.calibrate(ur5, grid)
+    assert res.repeat is not None and res.repeat.covariance.shape == (26, 26) and len(res.repeat.poses) > 0
+    assert _writable(res, "res", set()) == []
+    cov = np.array(res.repeat.covariance)
+    for a in (res.repeat.covariance, res.repeat.poses, res.repeat.residuals):
+        with pytest.raises(ValueError, match="read-only"):
+            a[:] *= 100.0
+    kincal.save_robot(res.robot, tmp_path / "cal.yaml", calibration=res.record())
+    record = load_calibration_record(tmp_path / "cal.yaml")["repeat"]
+    at = [res.repeat.names.index(n) for n in record["parameters"]]  # the robot's parameters of the fit's
+    assert np.allclose(np.array(record["covariance"], dtype=float), cov[np.ix_(at, at)], rtol=1e-12, atol=0.0)
+    comp = kincal.compensate(res.robot, res.robot.forward(grid.q[:5]), grid.q[:5])
+    assert _writable(comp, "comp", set()) == [] and comp.ok.all()

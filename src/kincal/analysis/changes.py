@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..errors import ModelError
 from ..models.robot import TOOL_NAMES, Robot
 
@@ -57,6 +58,9 @@ class Repeat:
     poses: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     residuals: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     def restricted(self, names) -> "Repeat":
         """The same record over the parameters ``names`` (a subset of :attr:`names`)."""
@@ -200,6 +204,9 @@ class Candidates:
     units: tuple[str, ...]
     G: np.ndarray
     also: tuple[tuple[str, ...], ...] = ()
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     def steps(self) -> np.ndarray:
         """(C,) the size of change of each candidate that matters (``STEPS``; a frame angle 0.01°)."""

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..models.robot import Robot
 from ..units import FINE, MM, MRAD, fine
 
@@ -61,6 +62,9 @@ class Sensitivity:
     q: np.ndarray
     deltas: np.ndarray
     linear: np.ndarray
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     def to_dict(self) -> dict:
         return {"names": list(self.names), "units": list(self.units), "q": self.q.tolist(),

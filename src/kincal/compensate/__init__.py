@@ -6,7 +6,7 @@ from .poses import PoseSolution, filtered_poses, solve_poses
 from .program import ProgramCompensation, compensate_program
 from .branch import compensate_branches
 from .frames import (LINK_ERROR_MAX, TARGET_FRAMES, base_mismatch, base_note, command_models, frame_mismatch,
-                     tool_carry, unseen_at_flange, unseen_in_base)
+                     tool_carry, unit_mismatch, unseen_at_flange, unseen_in_base)
 from .stream import StreamJob, StreamResult, TargetsFormat, compensate_file
 from .frames_only import FramesOnly, fit_frames_only
 from .taught import resolve_taught
@@ -20,5 +20,5 @@ __all__ = ["Compensation", "compensate", "compensate_poses", "path_checked", "Pr
            "StreamResult", "TargetsFormat", "compensate_file", "Verification", "VerificationPlan", "verification_plan", "commandable",
            "FramesOnly", "fit_frames_only", "resolve_taught", "FolderCompensation", "check_folder_output",
            "compensate_folder", "write_folder", "FlangeTurn", "flange_turn", "unseen_in_base", "unseen_at_flange",
-           "base_note",
+           "base_note", "unit_mismatch",
            "base_mismatch"]

@@ -8,12 +8,12 @@ import numpy as np
 
 from .._frozen import freeze_arrays
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
-from ..checks import number
+from ..checks import kind_of, number
 from ..units import MM, joint_shown
 from ..errors import ModelError
 from ..models.robot import Robot
 from ..models.terms import without_unread_covariates
-from .frames import MISMATCH_TOL, base_mismatch, frame_mismatch, orientation_change
+from .frames import MISMATCH_TOL, base_mismatch, frame_mismatch, orientation_change, unit_mismatch
 
 IK_TOL = 1e-10  # m
 IK_ITER = 100
@@ -180,6 +180,8 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
         finite or do not match in number.
     ValueError
         When ``rows`` does not give one number per target.
+    TypeError
+        When ``robot`` or ``nominal`` is not a Robot (a calibration's result: :func:`command_models` gives the pair).
 
     See Also
     --------
@@ -205,15 +207,23 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
     >>> bool(np.linalg.norm(real.forward(comp.q) - targets, axis=1).max() < 1e-9)
     True
 
-    Targets in mm read as m are out of reach, and each row says so:
+    Targets in mm given as m spread a thousand times more than the robot moves at their joints: none is corrected,
+    and the unit is named (:func:`unit_mismatch`):
 
-    >>> bad = compensate(real, targets * 1e3, q0, rows=np.array([10, 11, 12]))
-    >>> bad.ok.tolist()
-    [False, False, False]
+    >>> bad = compensate(real, targets * 1e3, q0)
+    >>> bad.ok.tolist(), bad.method
+    ([False, False, False], 'not corrected')
     >>> print(bad.problems[0])
+    the targets spread ...x more than the model moves at their nominal joints: they look like mm, not m; give them in
+    m (x0.001). Not corrected: a unit mistake, not a robot error
+
+    One target (no spread to judge by) is out of reach, and its row says so:
+
+    >>> print(compensate(real, targets[:1] * 1e3, q0[:1], rows=np.array([10])).problems[0])
     row 10: target ... mm from the base, beyond the robot's reach (1225.4 mm): out of reach, or not in the
     declared length unit
     """
+    _robots(robot, nominal, orientation)
     refuse_covariates(robot)
     _same_frame(robot, nominal)
     if rotations is not None:
@@ -226,11 +236,10 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
         raise ModelError(f"robot '{robot.name}' ({robot.structure}): its joints are set by the platform's whole pose; "
                          f"give 6-D targets (position and orientation: --pose)")
     targets, q0, rows = _checked_inputs(robot, targets, q_start, damping, rows)
-    if nominal is not None and q0 is not None:
-        why = frame_mismatch(nominal, q0, targets)
-        if why:
-            none = np.zeros(len(targets), bool)
-            return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
+    why = _set_up_mismatch(robot, nominal, q0, targets)
+    if why:
+        return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, np.zeros(len(targets), bool),
+                            (why,), rows)
     if robot.has_inverse:  # (no nominal commands q0 to check against)
         q, method, it = robot.inverse(targets, strict=False), "closed-form inverse", 0
     else:
@@ -332,11 +341,31 @@ def refuse_covariates(robot: Robot) -> None:
                          f"term uses: compensate without_unread_covariates(robot), the same model without them")
 
 
+def _robots(robot: Robot, nominal: Robot | None, orientation: Robot | None) -> None:
+    """TypeError unless the models given are robots (a calibration's result where its robot belongs: what to give)."""
+    pair = "command_models(result.robot, result.nominal.params.as_dict()) gives both in the targets' frame"
+    kind_of("robot", robot, Robot, f"the calibrated model; of a calibration: model, nominal = {pair}")
+    for name, value in (("nominal", nominal), ("orientation", orientation)):
+        if value is not None:
+            kind_of(name, value, Robot, f"the nominal model; of a calibration: model, nominal = {pair}"
+                    if name == "nominal" else "the model whose flange is turned to the target rotations")
+
+
 def _same_frame(robot: Robot, nominal: Robot | None) -> None:
     """ModelError when ``robot`` and ``nominal`` stand in different base frames (:func:`base_mismatch`)."""
     why = "" if nominal is None else base_mismatch(robot, nominal)
     if why:
         raise ModelError(why)
+
+
+def _set_up_mismatch(robot: Robot, nominal: Robot | None, q0: np.ndarray | None, targets: np.ndarray) -> str:
+    """Why no target can be corrected, before any is: targets in another length unit than m (judged against the
+    nominal model, else ``robot``: :func:`unit_mismatch`), or a TCP or frame mismatch (:func:`frame_mismatch`);
+    '' when neither (or no nominal joints to judge by)."""
+    if q0 is None:
+        return ""
+    return unit_mismatch(nominal or robot, q0, targets) or ("" if nominal is None else
+                                                             frame_mismatch(nominal, q0, targets))
 
 
 def _checked_inputs(robot: Robot, targets, q_start, damping: float, rows):
@@ -494,6 +523,9 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
     ModelError
         When the rotations are not finite right-handed rotation matrices (N, 3, 3), the robot has no tool
         point, or the targets or start joints are not finite or do not match in number.
+    TypeError
+        When ``robot``, ``nominal`` or ``orientation`` is not a Robot (a calibration's result: :func:`command_models`
+        gives the pair).
 
     Examples
     --------
@@ -515,6 +547,7 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
     """
     from .poses import at_measured, filtered_poses, model_turn, solve_poses
 
+    _robots(robot, nominal, orientation)
     _same_frame(robot, nominal)
     targets, q0, rows = _checked_inputs(robot, targets, q_start, 1e-4, rows)
     rotations = _checked_rotations(rotations, len(targets))
@@ -525,11 +558,11 @@ def compensate_poses(robot: Robot, targets: np.ndarray, rotations: np.ndarray, q
         if orientation is not None:
             comp = dataclasses.replace(comp, rotation_residual=model_turn(orientation, comp.q, rotations))
         return _with_sigma(robot, comp, uncertainty)
-    if nominal is not None:
-        why = frame_mismatch(nominal, q0, targets) or _orientation_mismatch(nominal, q0, rotations)
-        if why:
-            none = np.zeros(len(targets), bool)
-            return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
+    why = _set_up_mismatch(robot, nominal, q0, targets) or (
+        "" if nominal is None else _orientation_mismatch(nominal, q0, rotations))
+    if why:
+        none = np.zeros(len(targets), bool)
+        return Compensation(q0.copy(), np.full(len(targets), np.inf), "not corrected", 0, none, (why,), rows)
     give_up = GIVE_UP * branch_tolerance(robot)  # refused by the branch check anyway
     sol = solve_poses(robot, targets, rotations, q0, give_up=give_up, turned_as=orientation, measured=measured)
     comp = _checked(robot, sol.q, "pose (damped Newton)", sol.iterations, targets, q0, rows, nominal,

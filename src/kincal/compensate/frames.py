@@ -17,8 +17,9 @@ import numpy as np
 from ..errors import ModelError
 from ..models.robot import TOOL_NAMES, Robot
 from ..models.transforms import rotation_log
+from ..models.unit_checks import MIN_SPREAD, SPREAD_RATIO, _times, _unit_of
 from ..ties import first_best
-from ..units import MM
+from ..units import LENGTH_UNITS, MM, OTHER_LENGTHS
 
 TARGET_FRAMES = ("base", "measurement")  # besides the frames a robot file names
 MISMATCH_TOL = 0.1e-3  # m: the nominal model at the nominal joints must reach the targets this closely
@@ -288,6 +289,60 @@ def frame_mismatch(nominal: Robot, q: np.ndarray, targets: np.ndarray) -> str:
         if np.max(np.linalg.norm(targets - there, axis=1)) <= MISMATCH_TOL:
             return (f"the targets are in the robot's '{frame}' frame, not its base frame: give --target-frame {frame}")
     return ""  # no set-up mismatch: the rows that miss are named one by one
+
+
+def unit_mismatch(nominal: Robot, q: np.ndarray, targets: np.ndarray) -> str:
+    """Name the length unit the targets are really in when they are not in m: their spread against the nominal model's
+    at the nominal joints, off by the factor of a length unit (a set-up mismatch moves them, it does not scale them).
+
+    The spread is the median distance from the median position, so a few rows far off are named by row, not taken for a
+    unit. Fewer than ``MIN_ROWS`` (3) targets, a robot that moves less than ``MIN_SPREAD`` (1 mm) at the joints, a
+    spread within ``SPREAD_RATIO`` (2x) of the robot's or a factor no length unit explains (within 30 %) say nothing.
+
+    Parameters
+    ----------
+    nominal : Robot
+        The nominal (controller's) model, in the targets' frame.
+    q : ndarray, shape (N, n)
+        The nominal joints of the targets, rad (m for a prismatic joint).
+    targets : ndarray, shape (N, 3)
+        The target positions, m.
+
+    Returns
+    -------
+    str
+        The factor, the unit the targets look like and what to do; '' when they are plausibly in m.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.compensate import unit_mismatch
+    >>> nominal = kincal.load_robot("ur5")
+    >>> q = nominal.sample_joints(5, seed=2)
+    >>> unit_mismatch(nominal, q, nominal.forward(q))
+    ''
+    >>> print(unit_mismatch(nominal, q, nominal.forward(q) * 1e3))
+    the targets spread 1e+03x more than the model moves at their nominal joints: they look like mm, not m; give
+    them in m (x0.001). Not corrected: a unit mistake, not a robot error
+    """
+    if len(targets) < MIN_ROWS:
+        return ""
+    try:
+        moved = _median_spread(nominal.forward(q))
+    except ModelError:  # a closed chain that does not assemble at these joints: the rows' own checks name it
+        return ""
+    ratio = _median_spread(targets) / moved if moved > MIN_SPREAD else 1.0
+    name = "" if 1 / SPREAD_RATIO < ratio < SPREAD_RATIO else _unit_of(ratio, "m")
+    if not name:
+        return ""
+    return (f"the targets spread {_times(ratio)} than the model moves at their nominal joints: they look like {name}, "
+            f"not m; give them in m (x{({**LENGTH_UNITS, **OTHER_LENGTHS})[name]:g}). Not corrected: a unit mistake, "
+            f"not a robot error")
+
+
+def _median_spread(x: np.ndarray) -> float:
+    """m: the median distance of the positions x (N, 3) from their median (a few rows far off do not move it)."""
+    return float(np.median(np.linalg.norm(x - np.median(x, axis=0), axis=1)))
 
 
 def orientation_change(model: Robot, q: np.ndarray, nominal: Robot, q0: np.ndarray) -> np.ndarray:

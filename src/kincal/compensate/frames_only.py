@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..errors import ModelError
 from ..models.implicit import ImplicitRobot
 from ..models.robot import Robot
@@ -70,6 +71,9 @@ class FramesOnly:
     after_max: float
     rotation_after: float
     samples: int
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     def to_dict(self) -> dict:
         """The frames and errors as plain JSON values (m, rad)."""

@@ -15,6 +15,7 @@ from typing import Callable
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..errors import ModelError
 from ..models.robot import Robot
 from ..models.transforms import rotation_log
@@ -81,6 +82,9 @@ class PoseSolution:
     rotation_error: np.ndarray
     converged: np.ndarray
     iterations: int
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
 
 def pose_errors(model: Robot, q: np.ndarray, p_t: np.ndarray, R_t: np.ndarray):

@@ -20,6 +20,7 @@ import numpy as np
 
 from .._atomic import AtomicFile
 from .._csv import BLOCK_BYTES, Block, Stream, check_once, check_present, open_stream
+from .._frozen import freeze_arrays
 from .._memory import keep_freed_memory
 from .._threads import blas_threads
 from ..analysis.uncertainty import ModelUncertainty, envelope_warning, extrapolation_warning
@@ -158,6 +159,7 @@ class StreamJob:
     measured: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
         if self.body is not None and (not self.targets.pose or np.shape(self.body) != (3, 3) or not np.allclose(
                 np.asarray(self.body) @ np.asarray(self.body).T, np.eye(3), atol=1e-9)):
             raise ValueError("body: a rotation (3, 3) of the measured body on the flange, for pose targets")
@@ -199,6 +201,9 @@ class _Part:
     method: str
     iterations: int
     end: int
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .problem import DesignProblem
+from .._frozen import freeze_arrays
 
 
 @dataclass(frozen=True)
@@ -63,6 +64,9 @@ class Bound:
     relaxed: float
     weights: np.ndarray
     iterations: int
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     @property
     def gap(self) -> float:

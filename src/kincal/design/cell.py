@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..checks import whole
 from ..errors import ModelError
 from ..models.robot import Robot
@@ -100,6 +101,7 @@ class Cell:
     labels: tuple = ()  # ((constraint, how the user gave it), ...)
 
     def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
         for n, c in self.half_spaces:
             if np.shape(n) != (3,) or not np.linalg.norm(n) > 0 or not np.isfinite(c):
                 raise ValueError(f"half-space ({n}, {c}): give a non-zero normal (3 numbers) and a finite offset")

@@ -7,6 +7,7 @@ import numpy as np
 
 from .criteria import score
 from .problem import DesignProblem
+from .._frozen import freeze_arrays
 
 
 def minimum_poses(n_dof: int, k: int) -> int:
@@ -62,6 +63,9 @@ class PoseCountCurve:
     chosen: int
     criterion: str
     flattened: bool = True  # False: no flattening within the curve; ``chosen`` is then its last m
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     def to_dict(self) -> dict:
         """The curve as JSON-ready values: m, values, chosen, criterion, flattened."""

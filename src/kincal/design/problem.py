@@ -6,6 +6,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..analysis.identifiability import (RANK_TOL, frame_members, free_parameters, identifiability,
                                         jacobian_identifiability)
 from ..analysis.observability import column_scale, live_columns
@@ -72,6 +73,9 @@ class DesignProblem:
     names: tuple[str, ...]
     scale: np.ndarray
     note: str = ""  # parameters the pool cannot identify that spread poses would, and what they act like
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     @property
     def N(self) -> int:

@@ -25,6 +25,7 @@ from typing import Callable
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..errors import ModelError
 from ..models.robot import Robot
 from ..models.terms import extend
@@ -51,6 +52,9 @@ class RobustTerms:
     C: np.ndarray
     D: float
     names: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     def imse(self, M: np.ndarray, Q: np.ndarray) -> np.ndarray:
         """IMSE/σ² of designs with information M (c, k, k) and cross terms Q = JᵀK (c, k, p); inf if singular."""

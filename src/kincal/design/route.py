@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..models.robot import Robot
 from ..ties import TIE_RTOL, first_best, improves, order_with_ties, tie_tolerance
 from .cell import Cell
@@ -77,6 +78,9 @@ class Route:
     checked: bool
     travel: float
     travel_given: float
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     @property
     def n_vias(self) -> int:

@@ -7,6 +7,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from .._threads import blas_threads
 from ..errors import IdentifiabilityError
 from ..models.unit_checks import joints_in_radians
@@ -82,6 +83,9 @@ class Design:
     seed: int | None
     history: tuple[float, ...] = ()
     note: str = ""
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     @property
     def efficiency(self) -> float | None:

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..errors import MeasurementError, ModelError
 
 from .judge import STATED, owners
@@ -62,6 +63,9 @@ class Round:
     loss: str = "linear"
     f_scale: float | None = None  # m: the robust loss's scale on a sample's position norm (None: 3 robust σ)
     spent: list = dataclasses.field(default_factory=lambda: [0, 0, 0])  # iterations, evaluations, solver runs so far
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     def fit(self, free: list[str], start: np.ndarray, evaluated):
         """(full vector, fit, free names, weak, the stack with its weights, s per kind) from the full

@@ -156,8 +156,10 @@ class Measurements:
                                    f"not data rows of the file (data rows are {self.rows[0]}..{self.rows[-1]})")
         return self.subset(~np.isin(self.rows, rows))
 
-    def check_robot(self, robot: Robot, length_unit: str | None = None, angle_unit: str | None = None) -> None:
-        """Raise MeasurementError if the data cannot belong to ``robot`` or its units look wrong."""
+    def check_robot(self, robot: Robot, length_unit: str | None = None, angle_unit: str | None = None,
+                    angle_default: bool = False) -> None:
+        """Raise MeasurementError if the data cannot belong to ``robot`` or its units look wrong (``angle_default``:
+        ``angle_unit`` is a reader's default, not given, and the message says so)."""
         if self.q.shape[1] != robot.n_joints:
             raise MeasurementError(f"{self.source}: {self.q.shape[1]} joint columns but robot '{robot.name}' has "
                                    f"{robot.n_joints} joints ({', '.join(robot.joint_names)}); pass the right joint "
@@ -165,7 +167,7 @@ class Measurements:
         outside, why = robot.inputs_outside(self.q)
         if outside.any():
             raise MeasurementError(f"{self.source}: {self.describe_rows(np.flatnonzero(outside))}: {why}")
-        check_degrees(self.source, self.q, robot, angle_unit)
+        check_degrees(self.source, self.q, robot, angle_unit, angle_default)
         if len(self) >= 3:
             check_spread(self.source, self.q, self.xyz, robot, length_unit or (self.units[0] if self.units else None),
                          angle_unit or (self.units[1] if self.units else None), rows=self.rows)
@@ -199,7 +201,7 @@ def _file_scales(joint_types: Sequence[str], length_unit: str, angle_unit: str, 
 
 
 def read_joints(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None, length_unit: str = "m",
-                angle_unit: str = "rad") -> np.ndarray:
+                angle_unit: str | None = None) -> np.ndarray:
     """Read joint values from a CSV with a header (e.g. poses to measure).
 
     The file is read as :func:`read_measurements` reads it (comma, semicolon or tab separated; blank and '#'
@@ -218,7 +220,8 @@ def read_joints(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str]
     length_unit : str, optional
         The file's unit of prismatic joints: "m", "mm" or "um" (default "m").
     angle_unit : str, optional
-        The file's unit of revolute joints: "rad", "deg" or "rev" (default "rad").
+        The file's unit of revolute joints: "rad", "deg" or "rev" (default None: "rad", and a message that finds the
+        values in another unit says none was given).
 
     Returns
     -------
@@ -251,11 +254,12 @@ def read_joints(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str]
     >>> back.shape, bool(np.allclose(back, q, rtol=0.0, atol=1e-12))
     ((3, 6), True)
     """
-    path = str(path)
+    path, angle_default = str(path), angle_unit is None
+    angle_unit = "rad" if angle_unit is None else angle_unit
     units = joint_units(robot.joint_types, length_unit, angle_unit, f"{path}: ", MeasurementError)
     table = open_table(path)
     q = table.numbers(_joint_columns(path, robot, joint_cols, table.header), units, what="joint values")
-    check_degrees(path, q, robot, angle_unit)
+    check_degrees(path, q, robot, angle_unit, angle_default)
     return q
 
 
@@ -309,8 +313,8 @@ def read_positions(path: str | os.PathLike, xyz_cols: Sequence[str] = ("x", "y",
 
 
 def read_measurements(path: str | os.PathLike, robot: Robot, joint_cols: Sequence[str] | None = None,
-                      xyz_cols: Sequence[str] = ("x", "y", "z"), length_unit: str = "m", angle_unit: str = "rad",
-                      std_cols: Sequence[str] | None = None) -> Measurements:
+                      xyz_cols: Sequence[str] = ("x", "y", "z"), length_unit: str = "m",
+                      angle_unit: str | None = None, std_cols: Sequence[str] | None = None) -> Measurements:
     """Read a CSV (header line; comma, semicolon or tab separated) of joint values and positions.
 
     Revolute joints are in ``angle_unit``, prismatic joints and positions in ``length_unit``; values are
@@ -334,7 +338,8 @@ def read_measurements(path: str | os.PathLike, robot: Robot, joint_cols: Sequenc
     length_unit : str, optional
         The file's unit of positions and prismatic joints: "m", "mm" or "um" (default "m").
     angle_unit : str, optional
-        The file's unit of revolute joints: "rad", "deg" or "rev" (default "rad").
+        The file's unit of revolute joints: "rad", "deg" or "rev" (default None: "rad", and a message that finds the
+        values in another unit says none was given).
     std_cols : sequence of str, optional
         Three columns of the instrument's σ per sample and axis, in ``length_unit`` (they weight the fit and
         set the noise level of the verdict); ``[]`` ignores them (default None: ``measurement_std_x/y/z``
@@ -382,7 +387,8 @@ def read_measurements(path: str | os.PathLike, robot: Robot, joint_cols: Sequenc
     (True, True)
     """
     kind_of("robot", robot, Robot, "load it first, e.g. kincal.read_measurements(path, kincal.load_robot('ur5'))")
-    path = str(path)
+    path, angle_default = str(path), angle_unit is None
+    angle_unit = "rad" if angle_unit is None else angle_unit
     _joint_columns(path, robot, joint_cols)  # one per joint, before the file is read
     if len(xyz_cols) != 3:
         raise MeasurementError(f"{path}: give exactly three position columns, got {list(xyz_cols)}")
@@ -397,7 +403,7 @@ def read_measurements(path: str | os.PathLike, robot: Robot, joint_cols: Sequenc
     n = robot.n_joints
     meas = Measurements(data[:, :n], data[:, n:n + 3], robot.joint_names, path, table.rows,
                         data[:, n + 3:] if len(std_cols) else None, (length_unit, angle_unit))
-    meas.check_robot(robot, length_unit, angle_unit)
+    meas.check_robot(robot, length_unit, angle_unit, angle_default)
     return meas
 
 

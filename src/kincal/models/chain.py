@@ -171,6 +171,9 @@ class Chain:
         self.head_param = np.array([h.param for h in self.heads if h is not None])
         self.head_offset = np.array([h.offset for h in self.heads if h is not None])
         self.joint_param = np.array([ops[k].param for k in sorted(joint_ops, key=lambda k: ops[k].joint)])
+        for value in vars(self).values():  # its index arrays read-only: an edit would move every position it gives
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
 
     def _segment_frames(self, values: np.ndarray, record: bool):
         """Constant part of each segment as [Rᵀ; t] (4, 3); with ``record`` also each op's axis

@@ -42,6 +42,7 @@ class GravityModel:
     def __post_init__(self) -> None:
         values = self.robot.chain_values().copy()
         values[self.robot.params.indices(self.robot.base_params())] = 0.0
+        values.setflags(write=False)  # read-only: its own copy
         object.__setattr__(self, "_values", values)
         object.__setattr__(self, "_cache", {})
 

@@ -32,6 +32,7 @@ from typing import ClassVar, Sequence
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..errors import ModelError
 from .implicit import ImplicitRobot, twist_exp
 from .parameters import Parameters
@@ -97,6 +98,7 @@ class StewartRobot(ImplicitRobot):
         kind = "revolute" if self.motor else "prismatic"
         object.__setattr__(self, "joint_space", JointSpace([f"leg{i}" for i in range(1, N_LEGS + 1)],
                                                            (kind,) * N_LEGS, self.leg_lower, self.leg_upper))
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     @classmethod
     def build(cls, name: str, base_points: Sequence, platform_points: Sequence, zero: Sequence[float],

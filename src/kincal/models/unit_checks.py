@@ -508,7 +508,7 @@ def _rigid_sse(n, sx, sp, sq, sxp) -> np.ndarray:
     return sq - (np.sum(sx**2, 1) + np.sum(sp**2, 1)) / n - 2 * s.sum(axis=1)
 
 
-def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | None) -> None:
+def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | None, default: bool = False) -> None:
     """Refuse revolute joint values that look like degrees read as radians.
 
     They do when some go beyond their joint's reach, the larger of two turns and 1.5 times the joint's
@@ -524,6 +524,8 @@ def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
         The robot (its joint types and limits).
     angle_unit : str or None
         The angle unit the values were read in, named in the message (None: not named).
+    default : bool, optional
+        ``angle_unit`` is a reader's default, not given: the message says so (default False: it was given).
 
     Raises
     ------
@@ -547,6 +549,11 @@ def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
     ...
     kincal.errors.MeasurementError: poses.csv: revolute joint values reach ... rad ('rad' was given), far beyond
     the joint limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)
+    >>> check_degrees("poses.csv", np.degrees(q), robot, "rad", default=True)
+    Traceback (most recent call last):
+    ...
+    kincal.errors.MeasurementError: poses.csv: revolute joint values reach ... rad (the default 'rad': no unit was
+    given), far beyond the joint limits: they look like degrees; use angle unit 'deg' (CLI: --angle-unit deg)
     """
     rev = robot.revolute
     if not rev.any() or angle_unit not in (None, "rad", "deg"):  # revolutions: no degrees-for-radians mistake
@@ -554,7 +561,8 @@ def check_degrees(source: str, q: np.ndarray, robot: Robot, angle_unit: str | No
     reach = _reach(robot)
     if _degrees_as_radians(q, robot):  # read as degrees, they would fit
         qmax = float(np.max(np.abs(q[:, rev])))
-        given = f" ('{angle_unit}' was given)" if angle_unit else ""
+        given = (f" (the default '{angle_unit}': no unit was given)" if default else
+                 f" ('{angle_unit}' was given)" if angle_unit else "")
         j = np.flatnonzero(rev)[int(np.argmax(np.max(np.abs(q[:, rev]), axis=0)))]
         written = q[:, j] * (180.0 / np.pi if angle_unit == "deg" else 1.0)
         alone = int(np.sum(np.any(np.abs(q[:, rev]) > reach, axis=0))) == 1  # the other joints fit as given

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from ..errors import MeasurementError
 from ..models.robot import TOOL_NAMES, Robot
 from ..models.transforms import skew
@@ -102,6 +103,9 @@ class Observation:
     source: str
 
     kind = "observation"
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     @property
     def reference(self) -> bool:
@@ -251,6 +255,7 @@ class Wrapper(Observation):
     inner: Observation
 
     def __post_init__(self) -> None:  # the inner set's type (frozen: it cannot be assigned afterwards)
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
         object.__setattr__(self, "kind", self.inner.kind)
 
     @classmethod

@@ -18,6 +18,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import LogFormatter, MaxNLocator
 
+from .._frozen import freeze_arrays
 from ..ties import order_with_ties
 from ..units import MM, joint_shown
 
@@ -47,6 +48,9 @@ class PoseSet:
     registration: str = ""  # how the models' measurement frame was set for these data
     colour: str = ""  # default: by label
     key: str = ""  # the set's key in the report's numbers (default: the label)
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     @property
     def after_norm(self) -> np.ndarray:

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._frozen import freeze_arrays
 from .._threads import blas_threads
 from ..errors import ModelError
 from ..ties import first_best
@@ -77,6 +78,9 @@ class Guo2024Trials:
     sag: float = 0.1e-3
     seed: int = 0
     header: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
 
     def run(self, task: Task) -> list[dict]:
         with blas_threads(1):  # the same arithmetic in this process, a pool worker or a Dask worker
