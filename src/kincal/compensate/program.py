@@ -2,8 +2,10 @@
 real robot (the calibrated model) land where the program meant, for a controller that moves with its
 own (nominal) model; every other byte of the program kept.
 
-* a joint target: the pose the nominal model reaches there is the intended one; it becomes the
-  corrected joints;
+* a joint target: the pose the nominal model reaches there is the intended one, at the calibrated model's TCP
+  less what of the calibration's move of it is carried over (``carry``, :func:`kincal.compensate.tool_carry`: a
+  move beyond a link's error is the target's mounting, where the nominal model has it too), as for the other
+  languages (:mod:`kincal.compensate.branch`); it becomes the corrected joints;
 * a pose target: the joints the controller would use (:func:`controller_inverse`: its inverse
   kinematics of the nominal model on the branch nearest the previous target's joints) are corrected
   on the calibrated model, and the pose is replaced by the filtered pose, the one the controller
@@ -119,11 +121,11 @@ class ProgramCompensation:
 
 def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: np.ndarray | None = None,
                        models: Models | None = None, orientation: Robot | None = None,
-                       measured: np.ndarray | None = None) -> ProgramCompensation:
+                       measured: np.ndarray | None = None, carry: np.ndarray | None = None) -> ProgramCompensation:
     """Compensate every literal target of a robot program for a controller that moves with its nominal model.
 
-    A joint target means the pose the nominal model reaches there, and becomes the joints at which the
-    calibrated model reaches it; a pose target's controller joints (:func:`controller_inverse`) are corrected
+    A joint target means the pose the nominal model reaches there (at the calibrated model's TCP less ``carry``),
+    and becomes the joints at which the calibrated model reaches it; a pose target's controller joints (:func:`controller_inverse`) are corrected
     the same way, and the pose is replaced by the filtered pose (module docstring). Each corrected target is
     checked (converged, on the nominal branch, within the joint limits); a target that fails keeps its text
     and is named by line. Every other byte of the program is kept.
@@ -149,6 +151,11 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
         With ``orientation``: the point the calibration measured, m in the flange frame (the calibrated file's
         tool point; default: each TCP itself). The calibrated model's position is trusted there, and a TCP beyond
         it is carried on by ``orientation``'s turn (:func:`kincal.compensate.poses.tcp_positions`).
+    carry : ndarray, shape (3,), optional
+        What of the calibration's move of the declared target point is carried over to the TCP, m, flange frame
+        (:func:`kincal.compensate.tool_carry`, as :func:`kincal.compensate.command_models` adds it to a ``tcp``): a
+        joint target's pose is the nominal model's at the calibrated model's TCP less it, for the TCP each
+        target's models have (default: the nominal model's own TCP, the two TCPs' difference carried whole).
 
     Returns
     -------
@@ -201,7 +208,7 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
     for k, t in enumerate(program.targets):
         tcp = program.in_force_of(t)
         pair = (model, nominal) if isinstance(tcp, tuple) else _for_tcp(models, tcp)
-        found = _target(t, tcp, pair, q_prev, (orientation, measured))
+        found = _target(t, tcp, pair, q_prev, (orientation, measured), carry)
         if isinstance(found, str):
             refused[k] = found
             continue
@@ -231,10 +238,11 @@ def _for_tcp(models: Models | None, tcp) -> tuple[Robot, Robot] | str:
     return models(tcp[:3])
 
 
-def _target(t: Target, tcp, models, q_prev: np.ndarray | None, follow: tuple):
+def _target(t: Target, tcp, models, q_prev: np.ndarray | None, follow: tuple, carry: np.ndarray | None = None):
     """(corrected joints, nominal joints, the values to write: the joints, or the TCP pose as p[…] holds it) of one
     target, or why it is refused; ``follow``: the model whose flange turn is followed and the point the calibration
-    measured (:func:`corrected`)."""
+    measured (:func:`corrected`); ``carry``: what of the calibrated TCP's move is carried over (a joint target's pose
+    is the nominal model's at the calibrated TCP less it: :func:`joint_goal_model`)."""
     if isinstance(models, str):
         return models
     model, nominal = models
@@ -247,6 +255,7 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None, follow: tuple):
             degrees = np.sum(np.abs(t.values) > 2 * np.pi) >= 2 and not outside_limits(nominal, np.radians(t.values))
             return outside + (" (URScript's joints are in radians; these look like degrees)" if degrees else "")
         q_nom = t.values
+        nominal = joint_goal_model(model, nominal, carry)
         p, R, _, _ = nominal.pose_and_jacobian(q_nom[None])
     else:
         if q_prev is None:
@@ -270,6 +279,15 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None, follow: tuple):
         return q, q_nom, q
     pf, Rf, _, _ = nominal.pose_and_jacobian(q[None])
     return q, q_nom, np.concatenate([pf[0], rotation_log(Rf @ turn)[0]])
+
+
+def joint_goal_model(model: Robot, nominal: Robot, carry: np.ndarray | None) -> Robot:
+    """The nominal model whose pose at a joint target is the intended one: its TCP the calibrated model's less
+    ``carry`` (3,) m, what of the calibration's move of the point is the last link's error (a larger move is the
+    target's mounting, on the nominal model too); ``nominal`` itself for ``carry`` None or a model without a TCP."""
+    if carry is None or not model.has_tool_point:
+        return nominal
+    return nominal.with_tool_point(model.tool_point() - np.asarray(carry, dtype=float))
 
 
 def outside_limits(robot: Robot, q: np.ndarray) -> str:
