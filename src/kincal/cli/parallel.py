@@ -231,6 +231,7 @@ def _compensate_branches(args, calibrated, orientation, unseen: str) -> int:
              f"checked as written" + (f"; program written to {args.output} (every other byte as it was)" if written
                                       else f"; nothing written to {args.output}" + (
                                           " (--skip-unreachable writes the others)" if res.texts else ""))]
+    lines += [f"refused: {res.foreign}"] if res.foreign else []
     declared = kincal.io.dialects()[args.program].frames(prog)
     known = sorted(k for k, v in declared.items() if not isinstance(v, str))
     lines += [f"frames the program declares or holds beside it: {', '.join(known)}"] if known else []
@@ -409,7 +410,8 @@ def _compensate_folder(args) -> int:
                if status == "refused"]
     lines = [f"{f.path}: " + (f"unreadable: {f.rows[0][3]}" if f.count("unreadable") else
                               f"{f.count('compensated')} of {f.targets} targets compensated, {f.count('refused')} "
-                              f"refused, {f.count('listed')} listed" + _kept_count(f.count("kept")))
+                              f"refused, {f.count('listed')} listed" + _kept_count(f.count("kept"))
+                              + (f"; {f.foreign}" if f.foreign else ""))
              for f in res.files]
     lines.append(f"{len(res.files)} files: {res.count('compensated')} targets compensated, {res.count('refused')} "
                  f"refused{_kept_count(res.count('kept'))}, {res.count('listed')} listed, {res.count('unreadable')} "
@@ -476,6 +478,7 @@ def _compensate_program(args, robots, carried: tuple, models, orientation, unsee
                 + (", a comment beside each target left as it is)" if res.refused else ")") if written else
                 f"; nothing written to {args.output}" + (" (--skip-unreachable writes the program with the refused "
                                                          "targets left as they are, each marked)" if res.texts else ""))]
+    lines += [f"refused: {res.foreign}"] if res.foreign else []
     carry = carry if prog.tcps or args.tcp is not None or any(t.kind == "joints" for t in prog.targets) else ""
     lines += [f"TCP set by the program (set_tcp) at {len(prog.tcps)} place(s): each move takes the one its flow "
               f"reaches it with (branches, loops and calls followed)"] \
@@ -527,7 +530,7 @@ def _left_lines(res) -> list[str]:
 
 
 def _left_dict(res) -> dict:
-    return {"kept": [{"line": n, "what": w, "why": y} for n, w, y in res.kept],
+    return {"foreign": res.foreign or None, "kept": [{"line": n, "what": w, "why": y} for n, w, y in res.kept],
             "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal]}
 
 
