@@ -524,9 +524,10 @@ def _kept_count(n: int) -> str:
 
 
 def _left_lines(res) -> list[str]:
-    """The lines of a program's targets kept as they are and of its moves left as they are."""
+    """The lines of a program's targets kept as they are and of its moves not rewritten (listed: a move to the Offs() of
+    a compensated target goes with it at run time, and its reason says so)."""
     return ([f"kept as is: line {n}: {what}: {why}" for n, what, why in res.kept]
-            + [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal])
+            + [f"not rewritten: line {n}: {what}: {why}" for n, what, why in res.not_literal])
 
 
 def _left_dict(res) -> dict:
