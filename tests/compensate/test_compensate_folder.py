@@ -5,6 +5,7 @@ while something is refused or unreadable unless --skip-unreachable; the written 
 compensated exactly as one file at a time would be, the others byte for byte; an output that exists or lies in
 the folder read is refused before any work."""
 import csv
+import json
 
 import numpy as np
 import pytest
@@ -155,3 +156,39 @@ def test_programs_of_other_languages_in_the_folder_are_reported_as_left_out(tmp_
     (lone / "Module1.mod").write_text("not read\n")
     code, said = _run(capsys, str(tmp_path / "cal.yaml"), str(lone), "--program", "krl", "-o", str(tmp_path / "x"))
     assert code != 0 and "no krl program in this folder" in said and "Module1.mod (rapid)" in said
+
+
+def test_a_program_for_another_robot_of_the_vendor_is_refused_whole(tmp_path, capsys):
+    """An IRB 1200 module (rparak/ABB_EGM_Python, 142 robtargets in tool0 and wobj0) compensated with an IRB 120's
+    calibration: 73 of its targets put the wrist centre (72 mm behind tool0, along its z) more than the IRB 120's
+    270 + √(70² + 302²) = 580 mm from axis 2 (the test's own closed form), more than half of 142 on their own. The
+    module looks written for another robot and says so; none of its targets is compensated, and --skip-unreachable
+    writes it as it was, each target marked. Before, the 57 the IRB 120 reaches were written corrected with it."""
+    from conftest import shared_dataset
+    from scipy.spatial.transform import Rotation
+
+    source = shared_dataset("robot_programs") / "rapid" / "rparak__ABB_EGM_Python/ABB/IRB12000/RAPID/T_ROB1/Module1.mod"
+    folder = tmp_path / "HOME"
+    folder.mkdir()
+    (folder / "Module1.mod").write_bytes(source.read_bytes())
+    prog = read_program(str(folder / "Module1.mod"), "rapid")
+    v = np.array([t.values for t in prog.targets])
+    wrist = v[:, :3] - 0.072 * Rotation.from_rotvec(v[:, 3:6]).as_matrix()[:, :, 2]
+    beyond = np.linalg.norm(wrist - [0.0, 0.0, 0.29], axis=1) > 0.27 + np.hypot(0.07, 0.302)
+    assert len(prog.targets) == 142 and beyond.sum() == 73 > 142 / 2
+    nominal = kincal.load_robot("abb_irb120")
+    res = kincal.calibrate(nominal, kincal.simulate(kincal.perturb(nominal, seed=3), nominal.sample_joints(60, seed=1),
+                                                    noise=0.0), kincal.FitOptions(diagnose=False))
+    kincal.save_robot(res.robot, tmp_path / "cal.yaml", calibration=res.record())
+    code = main(["compensate", str(tmp_path / "cal.yaml"), str(folder), "--program", "rapid", "-o",
+                 str(tmp_path / "out"), "--skip-unreachable", "--json"])
+    said = json.loads(capsys.readouterr().out)
+    (f,) = said["files"]
+    assert code == 0 and said["compensated"] == 0 and said["refused"] == 142
+    out = int(f["foreign"].split(" of its 142 ")[0].rsplit(" ", 1)[1])
+    assert f["foreign"].startswith("the program looks written for another robot") and 73 <= out < 142
+    lines = {t.line for t, far in zip(prog.targets, beyond) if far}
+    assert all("does not reach this pose" in why for line, _, status, why in f["rows"] if line in lines)
+    again = read_program(str(tmp_path / "out" / "Module1.mod"), "rapid")
+    assert np.array_equal([t.values for t in again.targets], v)  # as it was
+    assert all("kincal: not compensated" in line for line in again.text.splitlines()[2:144])

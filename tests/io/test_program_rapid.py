@@ -93,8 +93,8 @@ def test_hanoi_targets_offs_moves_and_the_jointtarget_of_moveabsj():
     np.testing.assert_allclose(home.values, np.radians([0, -130, 30, 0, 40, 0]))
     assert len(home.fields) == 6  # eax_a (the arm angle, 135) stays as written
     assert len(prog.not_literal) == 11
-    assert all(why.startswith("Offs() displaces Target_GRASP (a literal target of its own, line 71)")
-               for _, _, why in prog.not_literal)
+    assert all(why == "Offs() displaces Target_GRASP at run time: the move goes with Target_GRASP's compensation (a "
+               "literal target of its own, line 71); the offset itself is not corrected" for _, _, why in prog.not_literal)
     assert [n for n, _, _ in prog.not_literal][:3] == [109, 128, 132]
 
 
@@ -214,7 +214,8 @@ def test_synthetic_module_lists_what_is_not_a_literal():
     assert sorted(listed) == [12, 25, 26, 28, 29, 30, 31, 32, 33, 36, 41]
     assert listed[12] == ("robtarget pRun", "declared with a literal but assigned at run time (line 27): the moves "
                                             "use the value set then")
-    assert listed[25][1].startswith("Offs() displaces pZ90 (a literal target of its own, line 5)")
+    assert listed[25][1].startswith("Offs() displaces pZ90 at run time: the move goes with pZ90's compensation (a "
+                                    "literal target of its own, line 5)")
     assert listed[26][1].startswith("RelTool() displaces pZ90")
     assert listed[28][1] == "pRun is assigned at run time (line 27)"
     assert listed[29][1].startswith("CJointT() reads the robot's joints")
@@ -329,3 +330,40 @@ def test_a_point_the_module_uses_otherwise_than_as_a_moves_target_is_listed_not_
     assert [t.variable for t in m.targets] == ["pA", "jH"]
     assert (3, "robtarget pB", used_otherwise("line 10 uses pB otherwise than as a move's target (IF "
                                               "CRobT().trans.z > pB.trans.z THEN)")) in m.not_literal
+
+
+def test_a_move_to_the_offs_of_a_compensated_target_says_it_goes_with_it(tmp_path, capsys):
+    """MoveL Offs(pA,0,0,50) was listed "left as is" while pA itself is compensated, so the move changes at run time:
+    Offs(pA, 0, 0, 50) is pA's new position plus 50 mm along the work object's z (RAPID's Offs), here 1.06 mm
+    from the old one, as far as pA moved. It is listed as not rewritten, going with pA's compensation (the offset
+    itself not corrected); a move to the Offs of a point the module uses otherwise (no target) says only literal
+    targets are compensated."""
+    import kincal
+    from kincal.cli import main
+    from kincal.io import ROWS
+
+    nominal = kincal.load_robot("abb_irb120")
+    res = kincal.calibrate(nominal, kincal.simulate(kincal.perturb(nominal, seed=3), nominal.sample_joints(60, seed=1),
+                                                    noise=0.0), kincal.FitOptions(diagnose=False))
+    kincal.save_robot(res.robot, tmp_path / "cal.yaml", calibration=res.record())
+    q = np.radians([[10.0, 20, 10, 30, 50, 40]])
+    x, y, z, w = Rotation.from_matrix(nominal.flange_rotation(q)[0]).as_quat()
+    bits = ",".join(map(str, ROWS["rapid"](nominal, q)[0]))
+    pose = ",".join(f"{v:.3f}" for v in nominal.forward(q)[0] * 1e3) + f"],[{w:.9f},{x:.9f},{y:.9f},{z:.9f}"
+    (tmp_path / "m.mod").write_text(
+        f"MODULE m\n  CONST robtarget pA:=[[{pose}],[{bits}],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+        "  CONST robtarget pB:=[[400,-50,450],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+        "  PROC main()\n    MoveJ pA,v100,fine,tool0;\n    MoveL Offs(pA,0,0,50),v100,fine,tool0;\n"
+        "    MoveL Offs(pB,0,0,50),v100,fine,tool0;\n    IF CRobT().trans.z > pB.trans.z THEN\n      Stop;\n"
+        "    ENDIF\n  ENDPROC\nENDMODULE\n")
+    assert main(["compensate", str(tmp_path / "cal.yaml"), str(tmp_path / "m.mod"), "--program", "rapid", "-o",
+                 str(tmp_path / "out.mod")]) == 0
+    said = capsys.readouterr().out
+    assert ("not rewritten: line 6: MoveL Offs(pA,0,0,50): Offs() displaces pA at run time: the move goes with pA's "
+            "compensation (a literal target of its own, line 2); the offset itself is not corrected") in said
+    assert "not rewritten: line 7: MoveL Offs(pB,0,0,50): Offs() displaces pB at run time; only literal targets are " \
+           "compensated" in said and "left as is: line" not in said
+    old, new = (re.search(r"pA:=\[\[([^\]]*)\]", (tmp_path / name).read_text()).group(1) for name in ("m.mod", "out.mod"))
+    offset = np.array([0.0, 0.0, 50.0])  # Offs(pA, 0, 0, 50): pA's position plus the offset, the same frame
+    before, after = np.array(old.split(","), float) + offset, np.array(new.split(","), float) + offset
+    assert np.linalg.norm(after - before) > 0.5  # mm (1.06): the move to Offs(pA, ...) changed with pA

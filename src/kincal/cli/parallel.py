@@ -94,7 +94,7 @@ def cmd_compensate(args) -> int:
     def models(tcp):  # the models for a TCP: --tcp's, or one a program sets (set_tcp)
         return command_models(cal, values, tcp, args.target_frame, args.link_error_max / MM)
     r, nominal = models(args.tcp)
-    carry = _carried(args, cal, values)[1]
+    shift, carry = _carried(args, cal, values)
     if args.program:
         _same_language(args.targets, args.program)
         _program_for(cal, args.program, args.robot)
@@ -106,7 +106,7 @@ def cmd_compensate(args) -> int:
         raise ValueError("--frames gives the frames a KRL, RAPID, FANUC or INFORM program names; URScript sets its TCP "
                          "with set_tcp (or give --tcp)")
     if args.program:
-        return _compensate_program(args, (r, nominal, _measured_point(cal), in_robot), carry, models,
+        return _compensate_program(args, (r, nominal, _measured_point(cal), in_robot), (shift, carry), models,
                                    _orientation(args, record, cal, values, nominal, uncertainty),
                                    _base_line(args, record, cal, uncertainty))
     carry = carry if args.tcp is not None else ""
@@ -231,6 +231,7 @@ def _compensate_branches(args, calibrated, orientation, unseen: str) -> int:
              f"checked as written" + (f"; program written to {args.output} (every other byte as it was)" if written
                                       else f"; nothing written to {args.output}" + (
                                           " (--skip-unreachable writes the others)" if res.texts else ""))]
+    lines += [f"refused: {res.foreign}"] if res.foreign else []
     declared = kincal.io.dialects()[args.program].frames(prog)
     known = sorted(k for k, v in declared.items() if not isinstance(v, str))
     lines += [f"frames the program declares or holds beside it: {', '.join(known)}"] if known else []
@@ -409,7 +410,8 @@ def _compensate_folder(args) -> int:
                if status == "refused"]
     lines = [f"{f.path}: " + (f"unreadable: {f.rows[0][3]}" if f.count("unreadable") else
                               f"{f.count('compensated')} of {f.targets} targets compensated, {f.count('refused')} "
-                              f"refused, {f.count('listed')} listed" + _kept_count(f.count("kept")))
+                              f"refused, {f.count('listed')} listed" + _kept_count(f.count("kept"))
+                              + (f"; {f.foreign}" if f.foreign else ""))
              for f in res.files]
     lines.append(f"{len(res.files)} files: {res.count('compensated')} targets compensated, {res.count('refused')} "
                  f"refused{_kept_count(res.count('kept'))}, {res.count('listed')} listed, {res.count('unreadable')} "
@@ -453,19 +455,21 @@ def _taught_lines(cal, nominal, frames, turned, shift: np.ndarray) -> list[str]:
     return out
 
 
-def _compensate_program(args, robots, carry: str, models, orientation, unseen: str) -> int:
+def _compensate_program(args, robots, carried: tuple, models, orientation, unseen: str) -> int:
     """compensate --program ur: a robot program compensated in place, written to -o (never over it);
     with --skip-unreachable each target left as it is gets a comment saying why. ``robots``: the calibrated and the
     nominal model for --tcp, the point the calibration measured (:func:`_measured_point`) and the calibration's
-    uncertainty in the robot's base frame."""
+    uncertainty in the robot's base frame; ``carried``: what of the calibration's move of the declared point is
+    carried over to the TCP (m) and the sentence that says so (:func:`_carried`)."""
     r, nominal, measured, unc = robots
+    shift, carry = carried
     prog = _read_program(args)
     if args.tcp is not None and prog.targets and not any(isinstance(prog.in_force_of(t), tuple) for t in prog.targets):
         raise ValueError(f"--tcp is the TCP of the moves before the program's first set_tcp, and {args.targets} sets "
                          f"its TCP before every move (or leaves it unknown there: such a move is refused, naming its "
                          f"set_tcp lines): leave --tcp out (the program's set_tcp is used)")
     turned, turn = orientation
-    res = compensate_program(r, nominal, prog, models=models, orientation=turned, measured=measured)
+    res = compensate_program(r, nominal, prog, models=models, orientation=turned, measured=measured, carry=shift)
     written = not res.problems or args.skip_unreachable  # never half a program silently; none at all: as it was
     if written:
         kincal.io.write_program(args.output, prog, res.texts, res.refused)
@@ -474,7 +478,8 @@ def _compensate_program(args, robots, carry: str, models, orientation, unseen: s
                 + (", a comment beside each target left as it is)" if res.refused else ")") if written else
                 f"; nothing written to {args.output}" + (" (--skip-unreachable writes the program with the refused "
                                                          "targets left as they are, each marked)" if res.texts else ""))]
-    carry = carry if prog.tcps or args.tcp is not None else ""
+    lines += [f"refused: {res.foreign}"] if res.foreign else []
+    carry = carry if prog.tcps or args.tcp is not None or any(t.kind == "joints" for t in prog.targets) else ""
     lines += [f"TCP set by the program (set_tcp) at {len(prog.tcps)} place(s): each move takes the one its flow "
               f"reaches it with (branches, loops and calls followed)"] \
         if prog.tcps else [] if args.tcp is not None else [
@@ -519,13 +524,14 @@ def _kept_count(n: int) -> str:
 
 
 def _left_lines(res) -> list[str]:
-    """The lines of a program's targets kept as they are and of its moves left as they are."""
+    """The lines of a program's targets kept as they are and of its moves not rewritten (listed: a move to the Offs() of
+    a compensated target goes with it at run time, and its reason says so)."""
     return ([f"kept as is: line {n}: {what}: {why}" for n, what, why in res.kept]
-            + [f"left as is: line {n}: {what}: {why}" for n, what, why in res.not_literal])
+            + [f"not rewritten: line {n}: {what}: {why}" for n, what, why in res.not_literal])
 
 
 def _left_dict(res) -> dict:
-    return {"kept": [{"line": n, "what": w, "why": y} for n, w, y in res.kept],
+    return {"foreign": res.foreign or None, "kept": [{"line": n, "what": w, "why": y} for n, w, y in res.kept],
             "not_literal": [{"line": n, "what": w, "why": y} for n, w, y in res.not_literal]}
 
 

@@ -47,7 +47,8 @@ from ..ties import first_best
 from .poses import solve_poses
 from .commands import branch_tolerance, past_limits
 from .taught import resolve_taught, tool_pair
-from .program import SEARCH, STARTS, ProgramCompensation, kept_joints, outside_limits, singular
+from .program import (ALIEN, SEARCH, STARTS, ProgramCompensation, Unreached, foreign, kept_joints, outside_limits,
+                      singular)
 
 CHECK_TOL = 1e-9  # m and rad: a written target must reproduce its intended pose this closely
 METRES_LOOK = 5.0  # mm: a pose target within this of its frame's origin in every coordinate looks written in metres
@@ -184,13 +185,17 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
                                 orientation, measured).items():
         texts.pop(k)
         refused[k] = why
+    alien = foreign(nominal, program, refused)
+    if alien:  # nothing corrected for the wrong robot: the targets it reached are refused too
+        refused.update({k: ALIEN for k in texts})
+        qs[list(texts)], texts = np.nan, {}
     problems = tuple(f"{program.source}: line {program.targets[k].line} ({program.targets[k].move}"
                      f"{' ' + program.targets[k].variable if program.targets[k].variable else ''}): {why}; left as is"
                      for k, why in sorted(refused.items()))
     tcp = np.where(np.isfinite(qs[:, :1]), tcp_goals[2], np.nan)
     tcp[sorted(refused)] = np.nan  # as for ProgramCompensation.q: where the robot goes
     return ProgramCompensation(texts, qs, problems, program.not_literal, refused, tuple(
-        (program.targets[k].line, program.targets[k].move, why) for k, why in sorted(kept.items())), tcp)
+        (program.targets[k].line, program.targets[k].move, why) for k, why in sorted(kept.items())), tcp, alien)
 
 
 def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side: int = 1,
@@ -211,13 +216,13 @@ def _goals(nominal: Robot, program: Program, frames: Mapping[str, object], side:
     for k, t in enumerate(program.targets):
         if t.kind == "pulses":  # what in_joints could not turn into joints
             refused[k] = (PULSES_WHY if no_scale else
-                          f"{t.values.size} pulse counts for a {nominal.n_joints}-joint robot")
+                          Unreached(f"{t.values.size} pulse counts for a {nominal.n_joints}-joint robot"))
             continue
         if t.kind == "joints":
             if t.values.size != nominal.n_joints:
-                refused[k] = f"{t.values.size} joint values for a {nominal.n_joints}-joint robot"
+                refused[k] = Unreached(f"{t.values.size} joint values for a {nominal.n_joints}-joint robot")
             elif outside_limits(nominal, t.values):
-                refused[k] = outside_limits(nominal, t.values)
+                refused[k] = Unreached(outside_limits(nominal, t.values))
             continue
         if nominal.n_joints > 6:
             refused[k] = REDUNDANT
@@ -279,7 +284,7 @@ def _controller_joints(nominal: Robot, program: Program, goals, rows: Rows, q0: 
             found = controller_inverse(nominal, p[k][None], R[k][None], q0 if near < 0 else q_nom[near],
                                        targets[k].config, _single(rows))
             if isinstance(found, str):
-                refused[k] = found + _in_metres(targets[k])
+                refused[k] = (Unreached if isinstance(found, Unreached) else str)(found + _in_metres(targets[k]))
             else:
                 q_nom[k] = found
     return q_nom
@@ -450,7 +455,8 @@ def controller_inverse(robot: Robot, p: np.ndarray, R: np.ndarray, near: np.ndar
                        config_of: Config) -> np.ndarray | str:
     """The joints (n,) a controller moving with ``robot`` takes for the tool point at p (1, 3) m with the
     flange at R (1, 3, 3) on the branch ``config`` (all branches for ()): of the solutions within the joint
-    limits whose bits equal it, the one nearest ``near`` (ties: the first in the order found); or why none."""
+    limits whose bits equal it, the one nearest ``near`` (ties: the first in the order found); or why none (an
+    :class:`Unreached` unless a joint of the pose sits on the edge of its sign bit: a rounding, not the reach)."""
     cand: list[np.ndarray] = []
     reached: list[np.ndarray] = []
     for starts in (near[None], robot.sample_joints(STARTS, seed=0)):  # the spread starts only when needed
@@ -462,10 +468,11 @@ def controller_inverse(robot: Robot, p: np.ndarray, R: np.ndarray, near: np.ndar
         if cand:
             break
     if not cand:
-        return (_at_bit_edge(robot, reached, tuple(config), config_of) or
+        return (_at_bit_edge(robot, reached, tuple(config), config_of) or Unreached(  # a bit's edge: a rounding
                 f"the nominal model reaches this pose, but on no branch with the target's bits {tuple(config)} "
-                f"within the joint limits" if reached else "the nominal model does not reach this pose within the "
-                f"joint limits (out of reach, or the wrong robot or frames)")
+                f"within the joint limits") if reached else Unreached("the nominal model does not reach this pose "
+                                                                      "within the joint limits (out of reach, or the "
+                                                                      "wrong robot or frames)"))
     c = np.array(cand)
     return c[first_best(np.linalg.norm(c - near, axis=1), maximize=False)]
 

@@ -33,14 +33,16 @@ STATUSES = ("compensated", "refused", "kept", "listed", "unreadable", "left out"
 @dataclass(frozen=True)
 class FileCompensation:
     """One program file: its path relative to the folder, its targets, the new text (None: unchanged or not
-    read), its encoding, and rows (line, what, status, why) with status compensated, refused, listed or
-    unreadable."""
+    read), its encoding, rows (line, what, status, why) with status compensated, refused, listed or
+    unreadable, and why it looks written for another robot ('' when it does not: every target refused,
+    :func:`kincal.compensate.program.foreign`)."""
 
     path: str
     targets: int
     text: str | None
     encoding: str
     rows: tuple[tuple[int, str, str, str], ...]
+    foreign: str = ""
 
     def count(self, status: str) -> int:
         return sum(r[2] == status for r in self.rows)
@@ -122,8 +124,8 @@ class FolderCompensation:
         return {"folder": self.folder, "dialect": self.dialect,
                 **{s: self.count(s) for s in STATUSES},
                 "left_out_files": [{"path": p, "language": lang} for p, lang in self.left_out],
-                "files": [{"path": f.path, "targets": f.targets, "rows": [list(r) for r in f.rows]}
-                          for f in self.files]}
+                "files": [{"path": f.path, "targets": f.targets, "rows": [list(r) for r in f.rows],
+                           "foreign": f.foreign or None} for f in self.files]}
 
 
 def program_files(folder: str, dialect: str) -> list[str]:
@@ -262,7 +264,7 @@ def _one(model: Robot, nominal: Robot, folder: str, path: str, dialect: str, row
     out += [(line, what, "kept", why) for line, what, why in res.kept]
     out += [(line, what, "listed", why) for line, what, why in res.not_literal]
     text = prog.with_targets(res.texts, res.refused) if res.texts or res.refused else None
-    return FileCompensation(path, len(prog.targets), text, prog.encoding, tuple(sorted(out)))
+    return FileCompensation(path, len(prog.targets), text, prog.encoding, tuple(sorted(out)), res.foreign)
 
 
 def _line_of(message: str) -> int:

@@ -2,8 +2,10 @@
 real robot (the calibrated model) land where the program meant, for a controller that moves with its
 own (nominal) model; every other byte of the program kept.
 
-* a joint target: the pose the nominal model reaches there is the intended one; it becomes the
-  corrected joints;
+* a joint target: the pose the nominal model reaches there is the intended one, at the calibrated model's TCP
+  less what of the calibration's move of it is carried over (``carry``, :func:`kincal.compensate.tool_carry`: a
+  move beyond a link's error is the target's mounting, where the nominal model has it too), as for the other
+  languages (:mod:`kincal.compensate.branch`); it becomes the corrected joints;
 * a pose target: the joints the controller would use (:func:`controller_inverse`: its inverse
   kinematics of the nominal model on the branch nearest the previous target's joints) are corrected
   on the calibrated model, and the pose is replaced by the filtered pose, the one the controller
@@ -34,10 +36,19 @@ STARTS = 24  # spread starts of the numeric inverse when Newton from the previou
 TCP_MAX = 2.0  # m: no tool puts its TCP this far from the flange (a set_tcp written in mm, not m)
 POSE_MAX = 20.0  # m: no arm's pose target lies this far from its base (a pose written in mm, not m)
 SEARCH = (200, 20.0)  # iterations and travel (m) of the numeric inverse: from afar, not a small correction
+FOREIGN = 0.5  # a program more than this fraction of whose literal targets its robot cannot reach is another robot's
+ALIEN = ("the program looks written for another robot (more than half of its literal targets are out of this robot's "
+         "reach as written): none of its targets is compensated")  # the mark beside a target it reached
 SINGULAR = 1e3  # condition number of the pose Jacobian (m, rad) beyond which a failed correction is named as such
 SINGULAR_EXACT = 1e8  # ... beyond which a joint target is at the singularity itself (a UR5's wrist 6e-8 rad from it; a
 # literal 0): its correction, where one converges, is a split of a turn between joints in line that round-off decides
 Models = Callable[[np.ndarray], tuple[Robot, Robot]]  # a TCP point (3,) m -> (calibrated, nominal) models for it
+
+
+class Unreached(str):
+    """Why a target is refused when the robot's nominal model cannot reach it as written: beyond its reach or joint
+    limits, on none of its branches with the target's bits, or joints of another count (the refusals
+    :func:`foreign` counts)."""
 
 
 @dataclass(frozen=True)
@@ -60,11 +71,15 @@ class ProgramCompensation:
         The joint targets kept as they are (line, the move as written, why): at a singularity of the arm no
         joints near theirs put the calibrated TCP at their nominal pose; the robot goes where it went before.
     refused : dict of int to str
-        Why each refused target was left, by target index: the mark written beside it.
+        Why each refused target was left, by target index: the mark written beside it (:class:`Unreached` where
+        the nominal model cannot reach it as written).
     tcp : ndarray, shape (K, 3), optional
         Each target's TCP on the calibrated model, m in the flange frame (a tool's origin, the calibration's move
         carried over; a KRL, RAPID, FANUC or INFORM joint target's: the point the calibration measured); NaN where
         refused; None where not recorded (default). With ``q``, where the predicted σ is taken.
+    foreign : str, optional
+        Why the program looks written for another robot, '' when it does not (default): more than half of its
+        literal targets are beyond the robot's reach or limits (:func:`foreign`); then every target is refused.
 
     See Also
     --------
@@ -112,6 +127,7 @@ class ProgramCompensation:
     refused: dict
     kept: tuple[tuple[int, str, str], ...] = ()
     tcp: np.ndarray | None = None
+    foreign: str = ""
 
     def __post_init__(self) -> None:
         freeze_arrays(self)  # the arrays it hands out: what it prints cannot drift from what it computed
@@ -119,11 +135,11 @@ class ProgramCompensation:
 
 def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: np.ndarray | None = None,
                        models: Models | None = None, orientation: Robot | None = None,
-                       measured: np.ndarray | None = None) -> ProgramCompensation:
+                       measured: np.ndarray | None = None, carry: np.ndarray | None = None) -> ProgramCompensation:
     """Compensate every literal target of a robot program for a controller that moves with its nominal model.
 
-    A joint target means the pose the nominal model reaches there, and becomes the joints at which the
-    calibrated model reaches it; a pose target's controller joints (:func:`controller_inverse`) are corrected
+    A joint target means the pose the nominal model reaches there (at the calibrated model's TCP less ``carry``),
+    and becomes the joints at which the calibrated model reaches it; a pose target's controller joints (:func:`controller_inverse`) are corrected
     the same way, and the pose is replaced by the filtered pose (module docstring). Each corrected target is
     checked (converged, on the nominal branch, within the joint limits); a target that fails keeps its text
     and is named by line. Every other byte of the program is kept.
@@ -149,6 +165,11 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
         With ``orientation``: the point the calibration measured, m in the flange frame (the calibrated file's
         tool point; default: each TCP itself). The calibrated model's position is trusted there, and a TCP beyond
         it is carried on by ``orientation``'s turn (:func:`kincal.compensate.poses.tcp_positions`).
+    carry : ndarray, shape (3,), optional
+        What of the calibration's move of the declared target point is carried over to the TCP, m, flange frame
+        (:func:`kincal.compensate.tool_carry`, as :func:`kincal.compensate.command_models` adds it to a ``tcp``): a
+        joint target's pose is the nominal model's at the calibrated model's TCP less it, for the TCP each
+        target's models have (default: the nominal model's own TCP, the two TCPs' difference carried whole).
 
     Returns
     -------
@@ -201,7 +222,7 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
     for k, t in enumerate(program.targets):
         tcp = program.in_force_of(t)
         pair = (model, nominal) if isinstance(tcp, tuple) else _for_tcp(models, tcp)
-        found = _target(t, tcp, pair, q_prev, (orientation, measured))
+        found = _target(t, tcp, pair, q_prev, (orientation, measured), carry)
         if isinstance(found, str):
             refused[k] = found
             continue
@@ -211,11 +232,59 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
         if len(found) > 3:  # a joint target kept as it is: nothing rewritten
             kept.append((t.line, t.move, found[3]))
             del values[k]
+    alien = foreign(nominal, program, refused)
+    if alien:  # nothing corrected for the wrong robot: the targets it reached are refused too
+        refused.update({k: ALIEN for k in values})
+        qs[list(values)] = tcps[list(values)] = np.nan
+        values = {}
     texts = dict(zip(values, write_ur(program.text, [program.targets[k] for k in values], list(values.values()))))
     problems = tuple(f"{program.source}: line {program.targets[k].line} ({program.targets[k].move}"
                      f"{' ' + program.targets[k].variable if program.targets[k].variable else ''}): {why}; left as is"
-                     for k, why in refused.items())
-    return ProgramCompensation(texts, qs, problems, program.not_literal, refused, tuple(kept), tcps)
+                     for k, why in sorted(refused.items()))
+    return ProgramCompensation(texts, qs, problems, program.not_literal, refused, tuple(kept), tcps, alien)
+
+
+def foreign(robot: Robot, program: Program, refused: dict) -> str:
+    """Why a program looks written for another robot, or '' when it does not: more than ``FOREIGN`` (half) of its
+    literal targets are refused as :class:`Unreached` (beyond ``robot``'s reach or joint limits as written).
+
+    Parameters
+    ----------
+    robot : Robot
+        The controller's (nominal) model the targets were tried on.
+    program : Program
+        The program read (:func:`kincal.io.read_program`).
+    refused : dict of int to str
+        Why each refused target was refused, by target index.
+
+    Returns
+    -------
+    str
+        The sentence, naming how many targets of how many and what to do; '' for half of them or fewer.
+
+    Examples
+    --------
+    >>> import kincal
+    >>> from kincal.compensate.program import Unreached, foreign
+    >>> from kincal.io.programs import Program
+    >>> prog = Program("cell.mod", "", targets=(None, None, None), dialect="rapid")  # three targets (not read here)
+    >>> foreign(kincal.load_robot("abb_irb120"), prog, {0: Unreached("out of reach"), 1: "no tool frame"})
+    ''
+    >>> print(foreign(kincal.load_robot("abb_irb120"), prog, {0: Unreached("a"), 1: Unreached("b")}))
+    the program looks written for another robot: 2 of its 3 literal targets are out of abb_irb120's reach as
+    written (beyond its reach or joint limits, or on none of its branches with the target's bits: more than
+    half), so none is compensated (--skip-unreachable writes it as it was, each target marked): compensate it
+    with the calibration of the robot it is written for (if it is this robot's, check the frames and units of its
+    targets)
+    """
+    n, out = len(program.targets), sum(isinstance(why, Unreached) for why in refused.values())
+    if not n or out <= FOREIGN * n:
+        return ""
+    return (f"the program looks written for another robot: {out} of its {n} literal targets are out of "
+            f"{robot.name}'s reach as written (beyond its reach or joint limits, or on none of its branches with "
+            f"the target's bits: more than half), so none is compensated (--skip-unreachable writes it as it was, "
+            f"each target marked): compensate it with the calibration of the robot it is written for (if it is "
+            f"this robot's, check the frames and units of its targets)")
 
 
 def _for_tcp(models: Models | None, tcp) -> tuple[Robot, Robot] | str:
@@ -231,34 +300,37 @@ def _for_tcp(models: Models | None, tcp) -> tuple[Robot, Robot] | str:
     return models(tcp[:3])
 
 
-def _target(t: Target, tcp, models, q_prev: np.ndarray | None, follow: tuple):
+def _target(t: Target, tcp, models, q_prev: np.ndarray | None, follow: tuple, carry: np.ndarray | None = None):
     """(corrected joints, nominal joints, the values to write: the joints, or the TCP pose as p[…] holds it) of one
     target, or why it is refused; ``follow``: the model whose flange turn is followed and the point the calibration
-    measured (:func:`corrected`)."""
+    measured (:func:`corrected`); ``carry``: what of the calibrated TCP's move is carried over (a joint target's pose
+    is the nominal model's at the calibrated TCP less it: :func:`joint_goal_model`)."""
     if isinstance(models, str):
         return models
     model, nominal = models
     turn = np.eye(3) if isinstance(tcp, tuple) else rotvec_matrix(tcp[3:])  # the TCP's rotation on the flange
     if t.kind == "joints":
         if t.values.size != model.n_joints:
-            return f"{t.values.size} joint values for a {model.n_joints}-joint robot"
+            return Unreached(f"{t.values.size} joint values for a {model.n_joints}-joint robot")
         outside = outside_limits(nominal, t.values)
         if outside:
             degrees = np.sum(np.abs(t.values) > 2 * np.pi) >= 2 and not outside_limits(nominal, np.radians(t.values))
-            return outside + (" (URScript's joints are in radians; these look like degrees)" if degrees else "")
+            return Unreached(outside + (" (URScript's joints are in radians; these look like degrees)" if degrees
+                                        else ""))
         q_nom = t.values
+        nominal = joint_goal_model(model, nominal, carry)
         p, R, _, _ = nominal.pose_and_jacobian(q_nom[None])
     else:
         if q_prev is None:
             return ("a pose target with no joints to start the inverse kinematics from (no joint target before it "
                     "and no start joints given)")
         if np.linalg.norm(t.values[:3]) > POSE_MAX:
-            return (f"the pose is {np.linalg.norm(t.values[:3]):g} m from the base: URScript's poses are in metres "
-                    f"and radians")
+            return Unreached(f"the pose is {np.linalg.norm(t.values[:3]):g} m from the base: URScript's poses are "
+                             f"in metres and radians")
         p, R = t.values[None, :3], (rotvec_matrix(t.values[3:]) @ turn.T)[None]
         found = controller_inverse(nominal, p, R, q_prev)
         if found is None:
-            return "the nominal model does not reach this pose on any branch within the joint limits"
+            return Unreached("the nominal model does not reach this pose on any branch within the joint limits")
         q_nom = found
     q, why = corrected(model, p, R, q_nom, *follow)
     keep = kept_joints(model, nominal, q_nom, why) if t.kind == "joints" else ""
@@ -270,6 +342,15 @@ def _target(t: Target, tcp, models, q_prev: np.ndarray | None, follow: tuple):
         return q, q_nom, q
     pf, Rf, _, _ = nominal.pose_and_jacobian(q[None])
     return q, q_nom, np.concatenate([pf[0], rotation_log(Rf @ turn)[0]])
+
+
+def joint_goal_model(model: Robot, nominal: Robot, carry: np.ndarray | None) -> Robot:
+    """The nominal model whose pose at a joint target is the intended one: its TCP the calibrated model's less
+    ``carry`` (3,) m, what of the calibration's move of the point is the last link's error (a larger move is the
+    target's mounting, on the nominal model too); ``nominal`` itself for ``carry`` None or a model without a TCP."""
+    if carry is None or not model.has_tool_point:
+        return nominal
+    return nominal.with_tool_point(model.tool_point() - np.asarray(carry, dtype=float))
 
 
 def outside_limits(robot: Robot, q: np.ndarray) -> str:

@@ -33,7 +33,8 @@ What is a target (``Program.targets``, in text order)
 
 What is listed (``Program.not_literal``: line, what, why) and never touched
     * moves to ``Offs()``, ``RelTool()``, ``CRobT()``, ``CJointT()``, ``CalcRobT()``, any other function or
-      expression (computed at run time);
+      expression (computed at run time); a move to ``Offs(pA, …)`` or ``RelTool(pA, …)`` of a literal target pA
+      goes with pA's compensation at run time, and its reason says so (only the offset is not corrected);
     * moves to a variable assigned at run time (``p := …``, ``p.trans.x := …``, ``p{i} := …``, the
       SearchPoint of a search), to a routine parameter, to data declared without a value or not in this
       file; a declared literal that is assigned at run time (at its declaration);
@@ -177,8 +178,10 @@ def _use(uses: dict, key: tuple[int, tuple[int, ...] | None], move: _Move, direc
         first.later.append((move.at, move.name, move.frames))
 
 
-def _argument(s: _Scan, move: _Move, a: int, b: int, uses: dict, out: list, listed: list) -> None:
-    """One target argument of a move: a literal (a target), a declared point (a use) or listed."""
+def _argument(s: _Scan, move: _Move, a: int, b: int, uses: dict, out: list, listed: list,
+              otherwise: dict[int, int]) -> None:
+    """One target argument of a move: a literal (a target), a declared point (a use) or listed (``otherwise``: the
+    declarations used otherwise than as a move's target, :func:`_otherwise`, which are no targets)."""
     word = s.words(a, b)
     kind = "jointtarget" if move.name.lower() == "moveabsj" else "robtarget"
     what, line = f"{move.name} {word}", s.line(move.at)
@@ -189,7 +192,7 @@ def _argument(s: _Scan, move: _Move, a: int, b: int, uses: dict, out: list, list
     elif name:
         listed += _named(s, move, name, uses, what)
     elif call:
-        listed.append((line, what, _call_reason(s, move, call, a, uses)))
+        listed.append((line, what, _call_reason(s, move, call, a, uses, otherwise)))
     else:
         listed.append((line, what, "an expression computed at run time"))
 
@@ -210,8 +213,10 @@ def _named(s: _Scan, move: _Move, name: re.Match, uses: dict, what: str) -> list
     return []
 
 
-def _call_reason(s: _Scan, move: _Move, call: re.Match, a: int, uses: dict) -> str:
-    """Why a move to a function's result is listed (and the base of Offs/RelTool recorded as a use)."""
+def _call_reason(s: _Scan, move: _Move, call: re.Match, a: int, uses: dict, otherwise: dict[int, int]) -> str:
+    """Why a move to a function's result is listed (and the base of Offs/RelTool recorded as a use): a base that is
+    a literal target of its own (declared with a literal, never changed nor used otherwise) is compensated, and the
+    move goes with it at run time; only the offset is not corrected."""
     low = call.group(1).lower()
     if low not in RUNTIME:
         return f"{call.group(1)}() computes it at run time"
@@ -224,7 +229,10 @@ def _call_reason(s: _Scan, move: _Move, call: re.Match, a: int, uses: dict) -> s
         found = s.resolve(a, name.group(1)) if name else None
         if name and isinstance(found, Decl) and found.value is not None and not found.changed:
             _use(uses, (id(found), _index(s, name.group(2))), move, False)
-            base += f" (a literal target of its own, line {found.line})"
+            if id(found) not in otherwise:
+                shift = "offset" if low == "offs" else "displacement"
+                return (RUNTIME[low].format(base=base) + f": the move goes with {base}'s compensation (a literal "
+                        f"target of its own, line {found.line}); the {shift} itself is not corrected")
     return RUNTIME[low].format(base=base or "its base") + "; only literal targets are compensated"
 
 
@@ -323,10 +331,11 @@ def parse(source: str, text: str) -> Program:
     targets: list[Target] = []
     listed: list[tuple[int, str, str]] = []
     uses: dict = {}
+    otherwise = _otherwise(s, moves)
     for move in moves:
         for a, b in move.targets:
-            _argument(s, move, a, b, uses, targets, listed)
-    claimed = _declared(s, uses, targets, listed, _otherwise(s, moves))
+            _argument(s, move, a, b, uses, targets, listed, otherwise)
+    claimed = _declared(s, uses, targets, listed, otherwise)
     claimed += [(m.at, s.end_of_statement(m.at, m.name)) for m in moves]
     claimed += [d.value for d in s.decls if d.value is not None]
     listed += _strays(s, claimed)
