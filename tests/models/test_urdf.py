@@ -246,6 +246,15 @@ BAD = {
                         "<parent link='a'/><child link='b'/></joint></robot>", "no moving joint"),
     "zero-axis": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j' type='revolute'><parent link='a'/>"
                   "<child link='b'/><axis xyz='0 0 0'/><limit lower='-1' upper='1'/></joint></robot>", "axis"),
+    # xacro, by any of ROS's namespace URIs, undeclared, or by its ${...} expressions alone (it said "0 root links",
+    # "child link 'base_link' is not defined" or "origin xyz='0 0 ${h}' is not 3 number(s)")
+    "xacro-wiki-ns": ("<robot xmlns:xacro='http://wiki.ros.org/xacro' name='r'><xacro:include filename='ur.xacro'/>"
+                      "<xacro:ur_robot prefix=''/></robot>", "a xacro file (<xacro:include>"),
+    "xacro-undeclared": ("<robot name='r'><link name='world'/><xacro:ur_robot prefix=''/></robot>",
+                         "a xacro file (<xacro:ur_robot>"),
+    "xacro-expression": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j' type='revolute'>"
+                         "<parent link='a'/><child link='b'/><origin xyz='0 0 ${h}'/><limit lower='-1' upper='1'/>"
+                         "</joint></robot>", "a xacro file (<origin xyz='0 0 ${h}'>"),
     "dot-in-name": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j.1' type='revolute'>"
                     "<parent link='a'/><child link='b'/><limit lower='-1' upper='1'/></joint></robot>", "'j.1'"),
 }
@@ -259,6 +268,16 @@ def test_bad_urdf_one_line_error(name, tmp_path, capsys):
     assert main(["show", str(path)]) == 1
     err = capsys.readouterr().err
     assert words in err and "bad.urdf" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_urdf_that_xacro_wrote_is_read(tmp_path):
+    """A URDF that xacro wrote keeps its root's xmlns:xacro, unused: read as a URDF, the chain yourdfpy reads."""
+    path = tmp_path / "arm.urdf"
+    path.write_text(TESTBOT.replace('<robot name="testbot">', '<robot name="testbot" '
+                                    'xmlns:xacro="http://www.ros.org/wiki/xacro">'))
+    robot = kincal.load_robot(path, tip_link="tip", tool=(0.02, 0.01, 0.05))
+    q = robot.sample_joints(5, seed=2)
+    np.testing.assert_allclose(reference(path, without_base(robot), q, "tip"), robot.forward(q), atol=1e-12)
 
 
 @pytest.mark.parametrize("flags, words, expected", [  # 1: refused by the URDF reader, 2: by argparse

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 import xml.etree.ElementTree as ET
 from types import MappingProxyType
 from dataclasses import dataclass, field
@@ -298,12 +299,15 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
     try:
         root = ET.fromstring(text)
     except ET.ParseError as exc:
+        found = re.search(r"<xacro:[\w.-]+", text)  # a xacro element without its namespace declared
+        if found:
+            raise ModelError(_xacro_advice(label, f"<{found.group()[1:]}>")) from None
         raise ModelError(f"{label}: not valid XML ({exc})") from None
+    sign = _xacro_sign(root)
+    if sign:
+        raise ModelError(_xacro_advice(label, sign))
     if root.tag != "robot":
         raise ModelError(f"{label}: the root element is <{root.tag}>, a URDF has <robot>")
-    if "xacro" in text[:4000] and any(el.tag.startswith("{http://www.ros.org/wiki/xacro}") for el in root.iter()):
-        raise ModelError(f"{label}: a xacro file (macros, not yet a URDF); expand it first, e.g. 'xacro {label} > "
-                         f"robot.urdf' (or 'ros2 run xacro xacro ...'), and give the URDF")
     links = _links(root, label)
     joints = {}
     for el in root.findall("joint"):
@@ -326,6 +330,24 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
     source = {"file": label, "base_link": base, "tip_link": tip, "sha256": hashlib.sha256(text.encode()).hexdigest()}
     return urdf_robot(root.get("name") or "urdf_robot", [j["joint"] for j in chain], tool or (0.0, 0.0, 0.0),
                       f"URDF chain {base} -> {tip} from {label}", source)
+
+
+def _xacro_sign(root: ET.Element) -> str | None:
+    """What shows ``root`` to be a xacro document: its first element of a xacro namespace (``<xacro:include>``;
+    ROS's URIs differ, all end in 'xacro') or attribute with a ``${…}`` expression or ``$(…)`` substitution, in
+    words; None for a URDF (one written by xacro may still declare the namespace, unused)."""
+    for el in root.iter():
+        if el.tag.startswith("{") and el.tag[1:].split("}")[0].rstrip("/#").endswith("xacro"):
+            return f"<xacro:{el.tag.split('}')[1]}>"
+        for key, value in el.attrib.items():
+            if "${" in value or "$(" in value:
+                return f"<{el.tag} {key}='{value}'>"
+    return None
+
+
+def _xacro_advice(label: str, sign: str) -> str:
+    return (f"{label}: a xacro file ({sign}: macros and expressions, not yet a URDF); expand it first, e.g. 'xacro "
+            f"{label} > robot.urdf' (or 'ros2 run xacro xacro ...'), and give the URDF")
 
 
 def fixed_frame(text: str, parent: str, child: str) -> np.ndarray | None:
