@@ -270,6 +270,42 @@ def test_bad_urdf_one_line_error(name, tmp_path, capsys):
     assert words in err and "bad.urdf" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.parametrize("old, new, words", [
+    ('rpy="0.0 1.57079632679 0.0" xyz="0.0 0.13585 0.0"', 'rpy="0.0 90 0.0" xyz="0.0 0.13585 0.0"',
+     f"joint 'shoulder_lift_joint': origin rpy='0 90 0' turns 90 rad (14.3 turns) about one axis; no origin turns "
+     f"beyond 1.25 turns: the angles look like degrees; URDF angles are in radians: write rpy='0 "
+     f"{np.pi / 2:.6g} 0'"),
+    ('lower="-6.28318530718" upper="6.28318530718"', 'lower="-360" upper="360"',
+     f"joint shoulder_pan_joint's limits [-360, 360] rad reach {360 / (2 * np.pi):.3g} turns from zero; no revolute "
+     f"joint turns more than 2 turns each way: the limits look like degrees; URDF angles are in radians: write them "
+     f"in rad ([{-2 * np.pi:.6g}, {2 * np.pi:.6g}])"),
+], ids=["rpy", "limits"])
+def test_degrees_in_a_urdf_are_refused_naming_the_joint(old, new, words, tmp_path, capsys):
+    """UR's UR5 URDF with one rpy or every limit in degrees (it was read as 90 rad, ±360 rad = ±20626.5 deg, without
+    a word, and calibrate blamed the length scale): refused, naming the joint and the radians meant."""
+    path = tmp_path / "ur5_deg.urdf"
+    assert old in UR5_URDF.read_text()
+    path.write_text(UR5_URDF.read_text().replace(old, new))
+    assert main(["show", str(path), "--tip-link", "tool0"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}: {words}" in err and len(err.strip().splitlines()) == 1
+
+
+def test_real_urdfs_angles_are_read(tmp_path):
+    """Angles real URDFs write stay readable: a continuous joint (no limits), a limit of ±9.25 rad (TIAGo's hand),
+    ±2π (UR) and an rpy of 3π/2 (TALOS's wrist); the chain is the one yourdfpy reads."""
+    text = (TESTBOT.replace('lower="-2.5" upper="2.5"', 'lower="-9.25" upper="9.25"')
+            .replace('lower="-3" upper="3"', f'lower="{-2 * np.pi!r}" upper="{2 * np.pi!r}"')
+            .replace('rpy="0.2 -0.1 0"', f'rpy="0.2 -0.1 {3 * np.pi / 2!r}"'))
+    assert "9.25" in text and repr(3 * np.pi / 2) in text and repr(2 * np.pi) in text
+    path = tmp_path / "angles.urdf"
+    path.write_text(text)
+    robot = kincal.load_robot(path, tip_link="tip", tool=(0.02, 0.01, 0.05))
+    assert robot.joint_types[0] == "revolute" and np.isinf(robot.upper[0]) and robot.upper[3] == 9.25
+    q = robot.sample_joints(5, seed=4)
+    np.testing.assert_allclose(reference(path, without_base(robot), q, "tip"), robot.forward(q), atol=1e-12)
+
+
 def test_a_urdf_that_xacro_wrote_is_read(tmp_path):
     """A URDF that xacro wrote keeps its root's xmlns:xacro, unused: read as a URDF, the chain yourdfpy reads."""
     path = tmp_path / "arm.urdf"

@@ -36,7 +36,7 @@ from ..errors import ModelError
 from .chain import AXES, ROT, TRANS, Chain, Op
 from .parameters import Parameters
 from .joint_space import JointSpace
-from .plausible import MAX_REACH
+from .plausible import MAX_REACH, check_limits
 from .serial import POSE_KINDS, ChainRobot, chain_layout, check_mass
 from .transforms import rot_zyx, zyx_from_matrix
 
@@ -276,8 +276,9 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
     ModelError
         When the text is not a URDF (not XML, a xacro file, another root element), an element is missing or
         malformed, the links do not form one chain from base to tip (closed loops, several roots or tips), a
-        joint is mimic, floating or planar, or the lengths add up to more than a robot's (e.g. written in
-        mm); messages name the file and the element.
+        joint is mimic, floating or planar, or the numbers are no robot's: the lengths add up to more than a
+        robot's (e.g. written in mm), an origin's rpy angle turns beyond MAX_RPY (1.25 turns) or a revolute joint's
+        limit beyond 2 turns (degrees written where URDF wants radians); messages name the file and the element.
 
     Examples
     --------
@@ -327,9 +328,12 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
             raise ModelError(f"{label}: joint '{j['joint'].name}' is a mimic joint; kincal does not model mimic "
                              f"joints yet")
     _check_lengths([j["joint"] for j in chain], label)
+    _check_rpy([j["joint"] for j in chain], label)
     source = {"file": label, "base_link": base, "tip_link": tip, "sha256": hashlib.sha256(text.encode()).hexdigest()}
-    return urdf_robot(root.get("name") or "urdf_robot", [j["joint"] for j in chain], tool or (0.0, 0.0, 0.0),
-                      f"URDF chain {base} -> {tip} from {label}", source)
+    robot = urdf_robot(root.get("name") or "urdf_robot", [j["joint"] for j in chain], tool or (0.0, 0.0, 0.0),
+                       f"URDF chain {base} -> {tip} from {label}", source)
+    check_limits(robot, label, fmt="URDF")  # a revolute joint's beyond 2 turns: degrees
+    return robot
 
 
 def _xacro_sign(root: ET.Element) -> str | None:
@@ -426,6 +430,21 @@ def _check_lengths(chain: Sequence[URDFJoint], label: str) -> None:
                          f"{max(lengths):.4g} m): they look like mm; URDF lengths are in metres (divide by 1000)")
     raise ModelError(f"{label}: joint '{worst.name}' has its origin {max(lengths):.4g} m away (the chain adds up to "
                      f"{total:.4g} m): implausible for a robot; check the <origin xyz> values (metres)")
+
+
+MAX_RPY = 2.5 * math.pi  # rad (450°): no origin turns further about an axis (real files: up to 3π/2, TALOS's wrist)
+
+
+def _check_rpy(chain: Sequence[URDFJoint], label: str) -> None:
+    """Refuse an origin's rpy angle beyond MAX_RPY: degrees written where URDF wants radians."""
+    for j in chain:
+        far = max(abs(v) for v in j.rpy)
+        if far > MAX_RPY:
+            written, meant = (" ".join(f"{v:.6g}" for v in values) for values in (j.rpy, np.radians(j.rpy)))
+            raise ModelError(f"{label}: joint '{j.name}': origin rpy='{written}' turns {far:.6g} rad "
+                             f"({far / (2 * math.pi):.3g} turns) about one axis; no origin turns beyond "
+                             f"{MAX_RPY / (2 * math.pi):g} turns: the angles look like degrees; URDF angles are in "
+                             f"radians: write rpy='{meant}'")
 
 
 def _links(root, label: str) -> dict[str, tuple[float, tuple[float, float, float]]]:
