@@ -306,6 +306,32 @@ def test_real_urdfs_angles_are_read(tmp_path):
     np.testing.assert_allclose(reference(path, without_base(robot), q, "tip"), robot.forward(q), atol=1e-12)
 
 
+def test_non_unit_axes_are_noted_and_exported_as_unit_vectors(tmp_path, capsys):
+    """Axes `1 2 2` (prismatic) and `1 1 1`: kincal reads their directions, as the URDF specification means, names
+    the joints in a note, and the exported URDF holds the unit vectors (1, 2, 2)/3 and (1, 1, 1)/√3, so yourdfpy,
+    which does not normalise a prismatic axis, reads the model (it read the exported file 0.3+ m off, the source's
+    vectors kept)."""
+    text = TESTBOT.replace('<axis xyz="1 0 0"/>\n    <limit lower="0"', '<axis xyz="1 2 2"/>\n    <limit lower="0"')
+    text = text.replace('<axis xyz="0 -1 0"/>', '<axis xyz="1 1 1"/>')
+    assert text.count('"1 2 2"') == 1 and text.count('"1 1 1"') == 1
+    path = tmp_path / "axes.urdf"
+    path.write_text(text)
+    robot = kincal.load_robot(path, tip_link="tip", tool=(0.02, 0.01, 0.05))
+    notes = robot.structure_notes()
+    assert [n.split(":")[0] for n in notes] == ["joint 'slide'", "joint 'j4'"]
+    assert "length 3)" in notes[0] and "yourdfpy: 3 times as far" in notes[0] and "length 1.73205)" in notes[1]
+    assert main(["show", str(path), "--tip-link", "tip"]) == 0 and "note: joint 'slide'" in capsys.readouterr().out
+    out = tmp_path / "out.urdf"
+    kincal.export_robot(robot, out, tool_link="tool_point")
+    axes = yourdfpy.URDF.load(str(out), load_meshes=False, build_collision_scene_graph=False).joint_map
+    np.testing.assert_allclose(axes["slide"].axis, np.array([1.0, 2.0, 2.0]) / 3.0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(axes["j4"].axis, np.ones(3) / np.sqrt(3.0), rtol=0, atol=1e-15)
+    q = robot.sample_joints(20, seed=5)
+    no_tool = without_base(robot).with_params({"tool.x": 0.0, "tool.y": 0.0, "tool.z": 0.0})
+    np.testing.assert_allclose(reference(out, no_tool, q, "tool_point"), without_base(robot).forward(q), atol=1e-9)
+    assert kincal.load_robot(out, tip_link="tool_point").structure_notes() == []
+
+
 def test_a_urdf_that_xacro_wrote_is_read(tmp_path):
     """A URDF that xacro wrote keeps its root's xmlns:xacro, unused: read as a URDF, the chain yourdfpy reads."""
     path = tmp_path / "arm.urdf"

@@ -16,7 +16,8 @@ A zero offset of the joint value is a rotation about (or translation along) the 
 therefore already one of these six. Fixed joints inside the chain are constant motions without
 parameters: their deviations act like those of the next moving joint's origin. Continuous joints
 are revolute joints without limits. An axis that is not +x, +y or +z is reached by constant
-rotations around the joint motion. ``mimic`` joints, closed loops, ``floating`` and ``planar``
+rotations around the joint motion; one that is not a unit vector is read as its direction (the URDF
+specification's meaning), with a structure note naming the joint. ``mimic`` joints, closed loops, ``floating`` and ``planar``
 joints are refused with the element's name. Identifiability then says which of these parameters
 position data can determine (for a UR5: 27, as for DH with Hayati's β).
 """
@@ -190,6 +191,21 @@ class URDFRobot(ChainRobot):
         pre, axis, post = _align(j.axis, f"robot '{self.name}', joint '{j.name}'")
         return ops + pre + [Op(kind, axis, len(self.params) + k, k)] + post
 
+    def structure_notes(self) -> list[str]:
+        """A moving joint whose axis is not a unit vector: kincal reads its direction (the URDF specification's
+        meaning); another parser may not normalise it."""
+        notes = []
+        for j in self.moving:
+            norm = axis_norm(j)
+            if norm is not None:
+                unit = " ".join(f"{v:.6g}" for v in np.divide(j.axis, norm))
+                far = f" (yourdfpy: {norm:.6g} times as far)" if j.type == "prismatic" else ""
+                notes.append(f"joint '{j.name}': its axis xyz='{' '.join(f'{v:g}' for v in j.axis)}' is not a unit "
+                             f"vector (length {norm:.6g}), which the URDF specification asks for; kincal reads its "
+                             f"direction ({unit}); a parser that does not normalise it reads another motion{far}: "
+                             f"write the unit vector (kincal export does)")
+        return notes
+
     def chain_values(self, values: np.ndarray | None = None) -> np.ndarray:
         """Parameter values followed by a zero per joint (the joint motions' own columns)."""
         return np.concatenate([self.param_values(values), np.zeros(self.n_joints)])
@@ -203,6 +219,15 @@ class URDFRobot(ChainRobot):
             @ rot_zyx(0.0, v[f"{joint.name}.pitch"], 0.0) @ rot_zyx(v[f"{joint.name}.yaw"], 0.0, 0.0)
         rz, ry, rx = zyx_from_matrix(R)
         return xyz, np.array([rx, ry, rz])
+
+
+AXIS_TOL = 1e-4  # an axis whose length differs from 1 by more is not a unit vector (4-digit 0.7071 0.7071 0 is)
+
+
+def axis_norm(joint: URDFJoint) -> float | None:
+    """The length of a joint's axis when it is not a unit vector (beyond AXIS_TOL), else None."""
+    norm = float(np.linalg.norm(joint.axis))
+    return norm if abs(norm - 1.0) > AXIS_TOL else None
 
 
 def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
