@@ -332,6 +332,20 @@ def test_non_unit_axes_are_noted_and_exported_as_unit_vectors(tmp_path, capsys):
     assert kincal.load_robot(out, tip_link="tool_point").structure_notes() == []
 
 
+@pytest.mark.parametrize("flags, words", [
+    (["--tool-link", "bad name<"], "tool link name 'bad name<' (--tool-link): a URDF name here holds no whitespace "
+                                   "and none of < > & \" ' . (it has ' ', '<')"),
+    (["--tool-link", "smr.1"], "tool link name 'smr.1' (--tool-link)"),  # its joint 'tool0-smr.1' would hold a dot
+    (["--joint-names", "j1,j2,j3,j4,j5,a&b"], "joint name 'a&b' (--joint-names)"),
+])
+def test_a_name_a_urdf_cannot_hold_is_refused_naming_the_argument(flags, words, tmp_path, capsys):
+    """A tool link or joint name that is no URDF name: refused naming the argument, nothing written (it said
+    "exported URDF: not valid XML (line 337, column 22)")."""
+    assert main(["export", "ur5", str(tmp_path / "ur5.urdf"), *flags]) == 1
+    err = capsys.readouterr().err
+    assert words in err and len(err.strip().splitlines()) == 1 and not list(tmp_path.iterdir())
+
+
 def test_a_urdf_that_xacro_wrote_is_read(tmp_path):
     """A URDF that xacro wrote keeps its root's xmlns:xacro, unused: read as a URDF, the chain yourdfpy reads."""
     path = tmp_path / "arm.urdf"

@@ -344,10 +344,10 @@ def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = N
 
 
 def tool_link_of(robot: Robot, name: str | None) -> str | None:
-    """The link a URDF export puts the tool point on: ``name``, else TOOL_LINK when the tool point
-    is not zero (it would be dropped otherwise), else none."""
+    """The link a URDF export puts the tool point on: ``name`` (a valid name, :func:`_urdf_name`), else TOOL_LINK
+    when the tool point is not zero (it would be dropped otherwise), else none."""
     if name or not robot.has_tool_point:
-        return name
+        return _urdf_name(name, "tool link", "--tool-link", TOOL_LINK) if name else name
     return TOOL_LINK if np.any(robot.tool_point() != 0.0) else None
 
 
@@ -467,11 +467,22 @@ def _fixed(parent: str, child: str, T: np.ndarray, name: str = "", kind: str = "
             *extra, "  </joint>"]
 
 
+def _urdf_name(name: str, what: str, flag: str, example: str) -> str:
+    """``name`` when a URDF can hold it as written and kincal read it back (no whitespace, control character,
+    ``<>&"'`` nor dot: kincal's parameter names are ``<joint>.x``, and a tool link names its joint), else a
+    ModelError naming ``what`` and ``flag``."""
+    bad = sorted({c for c in name if c.isspace() or not c.isprintable() or c in "<>&\"'."})
+    if bad:
+        raise ModelError(f"{what} name {name!r} ({flag}): a URDF name here holds no whitespace and none of "
+                         f"< > & \" ' . (it has {', '.join(repr(c) for c in bad)}); choose one like '{example}'")
+    return name
+
+
 def _joint_names(robot: SerialRobot, names: Sequence[str] | None) -> tuple[str, ...]:
-    """The URDF joint names: ``names`` (one per joint, distinct) or the robot file's."""
+    """The URDF joint names: ``names`` (one per joint, distinct, each :func:`_urdf_name`) or the robot file's."""
     if names is None:
         return robot.stack_names
-    names = tuple(str(n).strip() for n in names)
+    names = tuple(_urdf_name(str(n).strip(), "joint", "--joint-names", "joint_1") for n in names)
     if len(names) != robot.n_joints or len(set(names)) != len(names) or not all(names):
         raise ModelError(f"joint names {list(names)}: give {robot.n_joints} distinct names, one per joint "
                          f"({', '.join(robot.joint_names)})")
