@@ -246,6 +246,15 @@ BAD = {
                         "<parent link='a'/><child link='b'/></joint></robot>", "no moving joint"),
     "zero-axis": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j' type='revolute'><parent link='a'/>"
                   "<child link='b'/><axis xyz='0 0 0'/><limit lower='-1' upper='1'/></joint></robot>", "axis"),
+    # xacro, by any of ROS's namespace URIs, undeclared, or by its ${...} expressions alone (it said "0 root links",
+    # "child link 'base_link' is not defined" or "origin xyz='0 0 ${h}' is not 3 number(s)")
+    "xacro-wiki-ns": ("<robot xmlns:xacro='http://wiki.ros.org/xacro' name='r'><xacro:include filename='ur.xacro'/>"
+                      "<xacro:ur_robot prefix=''/></robot>", "a xacro file (<xacro:include>"),
+    "xacro-undeclared": ("<robot name='r'><link name='world'/><xacro:ur_robot prefix=''/></robot>",
+                         "a xacro file (<xacro:ur_robot>"),
+    "xacro-expression": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j' type='revolute'>"
+                         "<parent link='a'/><child link='b'/><origin xyz='0 0 ${h}'/><limit lower='-1' upper='1'/>"
+                         "</joint></robot>", "a xacro file (<origin xyz='0 0 ${h}'>"),
     "dot-in-name": ("<robot name='r'><link name='a'/><link name='b'/><joint name='j.1' type='revolute'>"
                     "<parent link='a'/><child link='b'/><limit lower='-1' upper='1'/></joint></robot>", "'j.1'"),
 }
@@ -259,6 +268,92 @@ def test_bad_urdf_one_line_error(name, tmp_path, capsys):
     assert main(["show", str(path)]) == 1
     err = capsys.readouterr().err
     assert words in err and "bad.urdf" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("old, new, words", [
+    ('rpy="0.0 1.57079632679 0.0" xyz="0.0 0.13585 0.0"', 'rpy="0.0 90 0.0" xyz="0.0 0.13585 0.0"',
+     f"joint 'shoulder_lift_joint': origin rpy='0 90 0' turns 90 rad (14.3 turns) about one axis; no origin turns "
+     f"beyond 1.25 turns: the angles look like degrees; URDF angles are in radians: write rpy='0 "
+     f"{np.pi / 2:.6g} 0'"),
+    ('lower="-6.28318530718" upper="6.28318530718"', 'lower="-360" upper="360"',
+     f"joint shoulder_pan_joint's limits [-360, 360] rad reach {360 / (2 * np.pi):.3g} turns from zero; no revolute "
+     f"joint turns more than 2 turns each way: the limits look like degrees; URDF angles are in radians: write them "
+     f"in rad ([{-2 * np.pi:.6g}, {2 * np.pi:.6g}])"),
+], ids=["rpy", "limits"])
+def test_degrees_in_a_urdf_are_refused_naming_the_joint(old, new, words, tmp_path, capsys):
+    """UR's UR5 URDF with one rpy or every limit in degrees (it was read as 90 rad, ±360 rad = ±20626.5 deg, without
+    a word, and calibrate blamed the length scale): refused, naming the joint and the radians meant."""
+    path = tmp_path / "ur5_deg.urdf"
+    assert old in UR5_URDF.read_text()
+    path.write_text(UR5_URDF.read_text().replace(old, new))
+    assert main(["show", str(path), "--tip-link", "tool0"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}: {words}" in err and len(err.strip().splitlines()) == 1
+
+
+def test_real_urdfs_angles_are_read(tmp_path):
+    """Angles real URDFs write stay readable: a continuous joint (no limits), a limit of ±9.25 rad (TIAGo's hand),
+    ±2π (UR) and an rpy of 3π/2 (TALOS's wrist); the chain is the one yourdfpy reads."""
+    text = (TESTBOT.replace('lower="-2.5" upper="2.5"', 'lower="-9.25" upper="9.25"')
+            .replace('lower="-3" upper="3"', f'lower="{-2 * np.pi!r}" upper="{2 * np.pi!r}"')
+            .replace('rpy="0.2 -0.1 0"', f'rpy="0.2 -0.1 {3 * np.pi / 2!r}"'))
+    assert "9.25" in text and repr(3 * np.pi / 2) in text and repr(2 * np.pi) in text
+    path = tmp_path / "angles.urdf"
+    path.write_text(text)
+    robot = kincal.load_robot(path, tip_link="tip", tool=(0.02, 0.01, 0.05))
+    assert robot.joint_types[0] == "revolute" and np.isinf(robot.upper[0]) and robot.upper[3] == 9.25
+    q = robot.sample_joints(5, seed=4)
+    np.testing.assert_allclose(reference(path, without_base(robot), q, "tip"), robot.forward(q), atol=1e-12)
+
+
+def test_non_unit_axes_are_noted_and_exported_as_unit_vectors(tmp_path, capsys):
+    """Axes `1 2 2` (prismatic) and `1 1 1`: kincal reads their directions, as the URDF specification means, names
+    the joints in a note, and the exported URDF holds the unit vectors (1, 2, 2)/3 and (1, 1, 1)/√3, so yourdfpy,
+    which does not normalise a prismatic axis, reads the model (it read the exported file 0.3+ m off, the source's
+    vectors kept)."""
+    text = TESTBOT.replace('<axis xyz="1 0 0"/>\n    <limit lower="0"', '<axis xyz="1 2 2"/>\n    <limit lower="0"')
+    text = text.replace('<axis xyz="0 -1 0"/>', '<axis xyz="1 1 1"/>')
+    assert text.count('"1 2 2"') == 1 and text.count('"1 1 1"') == 1
+    path = tmp_path / "axes.urdf"
+    path.write_text(text)
+    robot = kincal.load_robot(path, tip_link="tip", tool=(0.02, 0.01, 0.05))
+    notes = robot.structure_notes()
+    assert [n.split(":")[0] for n in notes] == ["joint 'slide'", "joint 'j4'"]
+    assert "length 3)" in notes[0] and "yourdfpy: 3 times as far" in notes[0] and "length 1.73205)" in notes[1]
+    assert main(["show", str(path), "--tip-link", "tip"]) == 0 and "note: joint 'slide'" in capsys.readouterr().out
+    out = tmp_path / "out.urdf"
+    kincal.export_robot(robot, out, tool_link="tool_point")
+    axes = yourdfpy.URDF.load(str(out), load_meshes=False, build_collision_scene_graph=False).joint_map
+    np.testing.assert_allclose(axes["slide"].axis, np.array([1.0, 2.0, 2.0]) / 3.0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(axes["j4"].axis, np.ones(3) / np.sqrt(3.0), rtol=0, atol=1e-15)
+    q = robot.sample_joints(20, seed=5)
+    no_tool = without_base(robot).with_params({"tool.x": 0.0, "tool.y": 0.0, "tool.z": 0.0})
+    np.testing.assert_allclose(reference(out, no_tool, q, "tool_point"), without_base(robot).forward(q), atol=1e-9)
+    assert kincal.load_robot(out, tip_link="tool_point").structure_notes() == []
+
+
+@pytest.mark.parametrize("flags, words", [
+    (["--tool-link", "bad name<"], "tool link name 'bad name<' (--tool-link): a URDF name here holds no whitespace "
+                                   "and none of < > & \" ' . (it has ' ', '<')"),
+    (["--tool-link", "smr.1"], "tool link name 'smr.1' (--tool-link)"),  # its joint 'tool0-smr.1' would hold a dot
+    (["--joint-names", "j1,j2,j3,j4,j5,a&b"], "joint name 'a&b' (--joint-names)"),
+])
+def test_a_name_a_urdf_cannot_hold_is_refused_naming_the_argument(flags, words, tmp_path, capsys):
+    """A tool link or joint name that is no URDF name: refused naming the argument, nothing written (it said
+    "exported URDF: not valid XML (line 337, column 22)")."""
+    assert main(["export", "ur5", str(tmp_path / "ur5.urdf"), *flags]) == 1
+    err = capsys.readouterr().err
+    assert words in err and len(err.strip().splitlines()) == 1 and not list(tmp_path.iterdir())
+
+
+def test_a_urdf_that_xacro_wrote_is_read(tmp_path):
+    """A URDF that xacro wrote keeps its root's xmlns:xacro, unused: read as a URDF, the chain yourdfpy reads."""
+    path = tmp_path / "arm.urdf"
+    path.write_text(TESTBOT.replace('<robot name="testbot">', '<robot name="testbot" '
+                                    'xmlns:xacro="http://www.ros.org/wiki/xacro">'))
+    robot = kincal.load_robot(path, tip_link="tip", tool=(0.02, 0.01, 0.05))
+    q = robot.sample_joints(5, seed=2)
+    np.testing.assert_allclose(reference(path, without_base(robot), q, "tip"), robot.forward(q), atol=1e-12)
 
 
 @pytest.mark.parametrize("flags, words, expected", [  # 1: refused by the URDF reader, 2: by argparse

@@ -12,7 +12,8 @@ fit's set-up, listed in this canonical order (ties go to the earlier one, :mod:`
 4. mirrored positions: a left-handed measurement frame (two axes swapped, or one negated: with the
    frame fitted these are one and the same mistake);
 5. rows shifted: each position belongs to the joints one row above or below;
-6. the robot file: a bundled robot with the same joints fits the data;
+6. the robot file: a bundled robot with the same joint types fits the data, whatever its model (a URDF chain is
+   compared with the bundled DH robots);
 7. the frame: ``base="fixed"`` on data measured in another frame (a tracker's);
 8. the tool point: not estimated, and mounted elsewhere than declared;
 9. a frame that jumps inside the file (two set-ups, a bumped tracker): the split
@@ -125,7 +126,14 @@ def _columns(cols: list[int], f: Callable[..., np.ndarray], **bound) -> Change:
 
 
 def _other_robot(other: Robot) -> Change:
-    return lambda r, m, o: (other, m, o)
+    """The fit with ``other`` in place of the robot; parameter names ``other`` lacks (another class's: a URDF chain's
+    against a DH one's) give way to its identifiable set."""
+    def change(r: Robot, m: Measurements, o: FitOptions) -> tuple[Robot, Measurements, FitOptions]:
+        names = () if o.names == "auto" else o.names
+        if set(names) | set(o.keep) <= set(other.params.names):
+            return other, m, o
+        return other, m, o.replace(names="auto", keep=())
+    return change
 
 
 def _length_units(meas: Measurements) -> list[tuple[Cause, Change]]:
@@ -210,7 +218,7 @@ def _robot_files(robot: Robot) -> list[tuple[Cause, Change]]:
     out: list[tuple[Cause, Change]] = []
     for name in bundled_robots():
         other = _bundled(name)
-        if name == robot.name or other.joint_types != robot.joint_types or type(other) is not type(robot):
+        if name == robot.name or other.joint_types != robot.joint_types:  # by kinematics, whatever the class
             continue
         if robot.has_tool_point and other.has_tool_point:
             other = other.with_tool_point(robot.tool_point())

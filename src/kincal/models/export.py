@@ -28,7 +28,7 @@ from .chain import ROT
 from .robot import TOOL_NAMES, Robot
 from .serial import ChainRobot, SerialRobot
 from .transforms import rot_zyx, zyx_from_matrix
-from .urdf import ORIGIN, URDFRobot, fixed_frame, read_urdf, rpy_matrix
+from .urdf import ORIGIN, URDFRobot, axis_norm, fixed_frame, read_urdf, rpy_matrix
 from .yaml_io import NOT_ROBOT_FILES, check_robot_output, robot_to_yaml
 
 EXPORT_TOL = 1e-9  # m: an export must reproduce the model this closely
@@ -411,34 +411,40 @@ def urdf_text(robot: Robot, source: str | None = None, tool_link: str | None = N
 
 
 def tool_link_of(robot: Robot, name: str | None) -> str | None:
-    """The link a URDF export puts the tool point on: ``name``, else TOOL_LINK when the tool point
-    is not zero (it would be dropped otherwise), else none."""
+    """The link a URDF export puts the tool point on: ``name`` (a valid name, :func:`_urdf_name`), else TOOL_LINK
+    when the tool point is not zero (it would be dropped otherwise), else none."""
     if name or not robot.has_tool_point:
-        return name
+        return _urdf_name(name, "tool link", "--tool-link", TOOL_LINK) if name else name
     return TOOL_LINK if np.any(robot.tool_point() != 0.0) else None
 
 
 def _edit_urdf(robot: URDFRobot, source: str) -> str:
     """The URDF text with the ``<origin>`` of each moving joint (a ``<joint>`` of ``<robot>`` itself, not a
-    ``<transmission>``'s reference) replaced, self-closing or not, or added; every other byte as it was."""
+    ``<transmission>``'s reference) replaced, self-closing or not, or added, and its ``<axis xyz>`` made the unit
+    vector the URDF specification asks for where the file's is not; every other byte as it was."""
     data, spans = source.encode(), _joint_spans(source)
     edits = []
     for j in robot.moving:
         if j.name not in spans:
             raise ModelError(f"the URDF has no joint '{j.name}': give the file the robot was read from (--from)")
-        after_tag, origin = spans[j.name]
+        after_tag, origin, axis = spans[j.name]
         tag = _origin_tag(*robot.origin(j)).encode()
         edits.append((*origin, tag) if origin else (after_tag, after_tag, b"\n    " + tag))
+        if axis and axis_norm(j) is not None:  # a parser that does not normalise it reads another joint
+            unit = " ".join(map(_fmt, np.divide(j.axis, np.linalg.norm(j.axis))))
+            edits.append((*axis, re.sub(rb"""(\bxyz\s*=\s*)(["'])[^"']*\2""", rf'\g<1>"{unit}"'.encode(),
+                                        data[axis[0]:axis[1]], count=1)))
     for start, end, tag in sorted(edits, reverse=True):
         data = data[:start] + tag + data[end:]
     return data.decode()
 
 
-def _joint_spans(text: str) -> dict[str, tuple[int, tuple[int, int] | None]]:
-    """Per ``<joint>`` child of the root: the UTF-8 byte offset after its start tag, and the span of its first
-    ``<origin>`` element (start tag to end tag, or the self-closing tag), None without one."""
+def _joint_spans(text: str) -> dict[str, tuple[int, tuple[int, int] | None, tuple[int, int] | None]]:
+    """Per ``<joint>`` child of the root: the UTF-8 byte offset after its start tag, the span of its first
+    ``<origin>`` element (start tag to end tag, or the self-closing tag), None without one, and the span of its
+    first ``<axis>`` start tag (None without one)."""
     data, parser = text.encode(), xml.parsers.expat.ParserCreate()
-    spans: dict[str, tuple[int, tuple[int, int] | None]] = {}
+    spans: dict[str, tuple[int, tuple[int, int] | None, tuple[int, int] | None]] = {}
     path: list[tuple[str, int]] = []  # open elements: name, start offset
     joint: list[str] = []  # the root's joint being read
 
@@ -446,7 +452,9 @@ def _joint_spans(text: str) -> dict[str, tuple[int, tuple[int, int] | None]]:
         at = parser.CurrentByteIndex
         if len(path) == 1 and name == "joint" and attrs.get("name") not in spans:
             joint[:] = [attrs.get("name", "")]
-            spans[joint[0]] = (_tag_end(data, at), None)
+            spans[joint[0]] = (_tag_end(data, at), None, None)
+        if len(path) == 2 and name == "axis" and joint and spans[joint[0]][2] is None:
+            spans[joint[0]] = (*spans[joint[0]][:2], (at, _tag_end(data, at)))
         path.append((name, at))
 
     def end(name: str) -> None:
@@ -454,7 +462,7 @@ def _joint_spans(text: str) -> dict[str, tuple[int, tuple[int, int] | None]]:
         if len(path) == 2 and name == "origin" and joint and spans[joint[0]][1] is None:
             close = _tag_end(data, at)
             stop = close if data[close - 2:close] == b"/>" else data.index(b">", parser.CurrentByteIndex) + 1
-            spans[joint[0]] = (spans[joint[0]][0], (at, stop))
+            spans[joint[0]] = (spans[joint[0]][0], (at, stop), spans[joint[0]][2])
         joint[:] = [] if len(path) == 1 else joint
 
     parser.StartElementHandler, parser.EndElementHandler = start, end
@@ -534,11 +542,22 @@ def _fixed(parent: str, child: str, T: np.ndarray, name: str = "", kind: str = "
             *extra, "  </joint>"]
 
 
+def _urdf_name(name: str, what: str, flag: str, example: str) -> str:
+    """``name`` when a URDF can hold it as written and kincal read it back (no whitespace, control character,
+    ``<>&"'`` nor dot: kincal's parameter names are ``<joint>.x``, and a tool link names its joint), else a
+    ModelError naming ``what`` and ``flag``."""
+    bad = sorted({c for c in name if c.isspace() or not c.isprintable() or c in "<>&\"'."})
+    if bad:
+        raise ModelError(f"{what} name {name!r} ({flag}): a URDF name here holds no whitespace and none of "
+                         f"< > & \" ' . (it has {', '.join(repr(c) for c in bad)}); choose one like '{example}'")
+    return name
+
+
 def _joint_names(robot: SerialRobot, names: Sequence[str] | None) -> tuple[str, ...]:
-    """The URDF joint names: ``names`` (one per joint, distinct) or the robot file's."""
+    """The URDF joint names: ``names`` (one per joint, distinct, each :func:`_urdf_name`) or the robot file's."""
     if names is None:
         return robot.stack_names
-    names = tuple(str(n).strip() for n in names)
+    names = tuple(_urdf_name(str(n).strip(), "joint", "--joint-names", "joint_1") for n in names)
     if len(names) != robot.n_joints or len(set(names)) != len(names) or not all(names):
         raise ModelError(f"joint names {list(names)}: give {robot.n_joints} distinct names, one per joint "
                          f"({', '.join(robot.joint_names)})")

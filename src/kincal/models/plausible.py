@@ -28,7 +28,7 @@ NARROW = {"deg": "rad", "mm": "m"}
 
 
 def check_limits(robot: Robot, label: str, length_unit: str = "m", angle_unit: str = "rad",
-                 declared: bool = True) -> None:
+                 declared: bool = True, fmt: str = "") -> None:
     """Refuse joint limits no robot has, naming the joint, its limits as written and the unit they look like.
 
     A revolute joint (one that repeats every turn: a motor that drives a screw is not) whose limit lies more than
@@ -50,6 +50,9 @@ def check_limits(robot: Robot, label: str, length_unit: str = "m", angle_unit: s
         The angle unit the file's values were read in (default "rad").
     declared : bool, optional
         Whether the file declares its units (default True); without a ``units`` key the advice is to add one.
+    fmt : str, optional
+        The format when it fixes the units (e.g. "URDF": radians and metres); the advice is then to write the limits
+        in them (default "": a kincal robot file, whose ``units`` key may say otherwise).
 
     Raises
     ------
@@ -73,8 +76,8 @@ def check_limits(robot: Robot, label: str, length_unit: str = "m", angle_unit: s
     for level in _levels(robot):
         angle = level.periodic
         length = np.array([t == "prismatic" for t in level.joint_types], bool)
-        _check_kind(level, angle, ANGLE_UNITS[angle_unit], angle_unit, MAX_TURNS * 2 * np.pi, label, declared)
-        _check_kind(level, length, LENGTH_UNITS[length_unit], length_unit, MAX_TRAVEL, label, declared)
+        _check_kind(level, angle, ANGLE_UNITS[angle_unit], angle_unit, MAX_TURNS * 2 * np.pi, label, declared, fmt)
+        _check_kind(level, length, LENGTH_UNITS[length_unit], length_unit, MAX_TRAVEL, label, declared, fmt)
 
 
 def _levels(robot: Robot) -> Iterator[Robot]:
@@ -86,7 +89,7 @@ def _levels(robot: Robot) -> Iterator[Robot]:
 
 
 def _check_kind(robot: Robot, which: np.ndarray, factor: float, unit: str, bound: float, label: str,
-                declared: bool) -> None:
+                declared: bool, fmt: str = "") -> None:
     """One kind of joint (``which``: angles or lengths) against ``bound`` (SI, each way from zero), written in
     ``unit`` (``factor``: SI per unit): a joint beyond it, or every one within the NARROW unit's share of it."""
     if not which.any():
@@ -102,7 +105,7 @@ def _check_kind(robot: Robot, which: np.ndarray, factor: float, unit: str, bound
                f"each way" if kind == "angles" else f"{reach[k]:.3g} m from zero; no joint travels beyond "
                f"{MAX_TRAVEL:g} m")
         raise ModelError(f"{label}: joint {names[k]}'s limits {_written(lo[k], hi[k], factor)} {unit} reach {far}: "
-                         + _advice(WIDE.get(unit), unit, kind, lo[k], hi[k], table, declared))
+                         + _advice(WIDE.get(unit), unit, kind, lo[k], hi[k], table, declared, fmt))
     small = NARROW.get(unit)
     if small is None or not np.all(np.isfinite(lo) & np.isfinite(hi)):
         return
@@ -111,19 +114,23 @@ def _check_kind(robot: Robot, which: np.ndarray, factor: float, unit: str, bound
         what = "revolute" if kind == "angles" else "prismatic"
         raise ModelError(f"{label}: every {what} joint's limits lie within ±{reach[k] / factor:.4g} {unit} (joint "
                          f"{names[k]}: {_written(lo[k], hi[k], factor)} {unit}); no robot moves this little in every "
-                         f"joint: " + _advice(small, unit, kind, lo[k], hi[k], table, declared))
+                         f"joint: " + _advice(small, unit, kind, lo[k], hi[k], table, declared, fmt))
 
 
 def _written(lo: float, hi: float, factor: float) -> str:
     return f"[{lo / factor:.6g}, {hi / factor:.6g}]"
 
 
-def _advice(other: str | None, unit: str, kind: str, lo: float, hi: float, table: dict, declared: bool) -> str:
+def _advice(other: str | None, unit: str, kind: str, lo: float, hi: float, table: dict, declared: bool,
+            fmt: str = "") -> str:
     """What to write: the limits in the file's unit when they look like ``other``, else to check them."""
     if other is None:
         return f"check the limits (the file's {kind} are in {unit})"
     meant = table[other] / table[unit]  # SI as meant per SI as read
     words = {"deg": "degrees", "rad": "radians", "mm": "mm", "m": "metres"}
+    if fmt:
+        return (f"the limits look like {words[other]}; {fmt} {kind} are in {words[unit]}: write them in {unit} "
+                f"({_written(lo * meant, hi * meant, table[unit])})")
     key = "angle" if kind == "angles" else "length"
     where = "" if declared else " (the default: the file has no 'units' key)"
     how = f"set '{key}: {other}' in its 'units'" if declared else f"add 'units: {{{key}: {other}}}'"

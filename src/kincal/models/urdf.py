@@ -16,7 +16,8 @@ A zero offset of the joint value is a rotation about (or translation along) the 
 therefore already one of these six. Fixed joints inside the chain are constant motions without
 parameters: their deviations act like those of the next moving joint's origin. Continuous joints
 are revolute joints without limits. An axis that is not +x, +y or +z is reached by constant
-rotations around the joint motion. ``mimic`` joints, closed loops, ``floating`` and ``planar``
+rotations around the joint motion; one that is not a unit vector is read as its direction (the URDF
+specification's meaning), with a structure note naming the joint. ``mimic`` joints, closed loops, ``floating`` and ``planar``
 joints are refused with the element's name. Identifiability then says which of these parameters
 position data can determine (for a UR5: 27, as for DH with Hayati's β).
 """
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 import xml.etree.ElementTree as ET
 from types import MappingProxyType
 from dataclasses import dataclass, field
@@ -35,7 +37,7 @@ from ..errors import ModelError
 from .chain import AXES, ROT, TRANS, Chain, Op
 from .parameters import Parameters
 from .joint_space import JointSpace
-from .plausible import MAX_REACH
+from .plausible import MAX_REACH, check_limits
 from .serial import POSE_KINDS, ChainRobot, chain_layout, check_mass
 from .transforms import rot_zyx, zyx_from_matrix
 
@@ -189,6 +191,21 @@ class URDFRobot(ChainRobot):
         pre, axis, post = _align(j.axis, f"robot '{self.name}', joint '{j.name}'")
         return ops + pre + [Op(kind, axis, len(self.params) + k, k)] + post
 
+    def structure_notes(self) -> list[str]:
+        """A moving joint whose axis is not a unit vector: kincal reads its direction (the URDF specification's
+        meaning); another parser may not normalise it."""
+        notes = []
+        for j in self.moving:
+            norm = axis_norm(j)
+            if norm is not None:
+                unit = " ".join(f"{v:.6g}" for v in np.divide(j.axis, norm))
+                far = f" (yourdfpy: {norm:.6g} times as far)" if j.type == "prismatic" else ""
+                notes.append(f"joint '{j.name}': its axis xyz='{' '.join(f'{v:g}' for v in j.axis)}' is not a unit "
+                             f"vector (length {norm:.6g}), which the URDF specification asks for; kincal reads its "
+                             f"direction ({unit}); a parser that does not normalise it reads another motion{far}: "
+                             f"write the unit vector (kincal export does)")
+        return notes
+
     def chain_values(self, values: np.ndarray | None = None) -> np.ndarray:
         """Parameter values followed by a zero per joint (the joint motions' own columns)."""
         return np.concatenate([self.param_values(values), np.zeros(self.n_joints)])
@@ -202,6 +219,15 @@ class URDFRobot(ChainRobot):
             @ rot_zyx(0.0, v[f"{joint.name}.pitch"], 0.0) @ rot_zyx(v[f"{joint.name}.yaw"], 0.0, 0.0)
         rz, ry, rx = zyx_from_matrix(R)
         return xyz, np.array([rx, ry, rz])
+
+
+AXIS_TOL = 1e-4  # an axis whose length differs from 1 by more is not a unit vector (4-digit 0.7071 0.7071 0 is)
+
+
+def axis_norm(joint: URDFJoint) -> float | None:
+    """The length of a joint's axis when it is not a unit vector (beyond AXIS_TOL), else None."""
+    norm = float(np.linalg.norm(joint.axis))
+    return norm if abs(norm - 1.0) > AXIS_TOL else None
 
 
 def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -275,8 +301,9 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
     ModelError
         When the text is not a URDF (not XML, a xacro file, another root element), an element is missing or
         malformed, the links do not form one chain from base to tip (closed loops, several roots or tips), a
-        joint is mimic, floating or planar, or the lengths add up to more than a robot's (e.g. written in
-        mm); messages name the file and the element.
+        joint is mimic, floating or planar, or the numbers are no robot's: the lengths add up to more than a
+        robot's (e.g. written in mm), an origin's rpy angle turns beyond MAX_RPY (1.25 turns) or a revolute joint's
+        limit beyond 2 turns (degrees written where URDF wants radians); messages name the file and the element.
 
     Examples
     --------
@@ -298,12 +325,15 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
     try:
         root = ET.fromstring(text)
     except ET.ParseError as exc:
+        found = re.search(r"<xacro:[\w.-]+", text)  # a xacro element without its namespace declared
+        if found:
+            raise ModelError(_xacro_advice(label, f"<{found.group()[1:]}>")) from None
         raise ModelError(f"{label}: not valid XML ({exc})") from None
+    sign = _xacro_sign(root)
+    if sign:
+        raise ModelError(_xacro_advice(label, sign))
     if root.tag != "robot":
         raise ModelError(f"{label}: the root element is <{root.tag}>, a URDF has <robot>")
-    if "xacro" in text[:4000] and any(el.tag.startswith("{http://www.ros.org/wiki/xacro}") for el in root.iter()):
-        raise ModelError(f"{label}: a xacro file (macros, not yet a URDF); expand it first, e.g. 'xacro {label} > "
-                         f"robot.urdf' (or 'ros2 run xacro xacro ...'), and give the URDF")
     links = _links(root, label)
     joints = {}
     for el in root.findall("joint"):
@@ -323,9 +353,30 @@ def read_urdf(text: str, label: str, base_link: str | None = None, tip_link: str
             raise ModelError(f"{label}: joint '{j['joint'].name}' is a mimic joint; kincal does not model mimic "
                              f"joints yet")
     _check_lengths([j["joint"] for j in chain], label)
+    _check_rpy([j["joint"] for j in chain], label)
     source = {"file": label, "base_link": base, "tip_link": tip, "sha256": hashlib.sha256(text.encode()).hexdigest()}
-    return urdf_robot(root.get("name") or "urdf_robot", [j["joint"] for j in chain], tool or (0.0, 0.0, 0.0),
-                      f"URDF chain {base} -> {tip} from {label}", source)
+    robot = urdf_robot(root.get("name") or "urdf_robot", [j["joint"] for j in chain], tool or (0.0, 0.0, 0.0),
+                       f"URDF chain {base} -> {tip} from {label}", source)
+    check_limits(robot, label, fmt="URDF")  # a revolute joint's beyond 2 turns: degrees
+    return robot
+
+
+def _xacro_sign(root: ET.Element) -> str | None:
+    """What shows ``root`` to be a xacro document: its first element of a xacro namespace (``<xacro:include>``;
+    ROS's URIs differ, all end in 'xacro') or attribute with a ``${…}`` expression or ``$(…)`` substitution, in
+    words; None for a URDF (one written by xacro may still declare the namespace, unused)."""
+    for el in root.iter():
+        if el.tag.startswith("{") and el.tag[1:].split("}")[0].rstrip("/#").endswith("xacro"):
+            return f"<xacro:{el.tag.split('}')[1]}>"
+        for key, value in el.attrib.items():
+            if "${" in value or "$(" in value:
+                return f"<{el.tag} {key}='{value}'>"
+    return None
+
+
+def _xacro_advice(label: str, sign: str) -> str:
+    return (f"{label}: a xacro file ({sign}: macros and expressions, not yet a URDF); expand it first, e.g. 'xacro "
+            f"{label} > robot.urdf' (or 'ros2 run xacro xacro ...'), and give the URDF")
 
 
 def fixed_frame(text: str, parent: str, child: str) -> np.ndarray | None:
@@ -404,6 +455,21 @@ def _check_lengths(chain: Sequence[URDFJoint], label: str) -> None:
                          f"{max(lengths):.4g} m): they look like mm; URDF lengths are in metres (divide by 1000)")
     raise ModelError(f"{label}: joint '{worst.name}' has its origin {max(lengths):.4g} m away (the chain adds up to "
                      f"{total:.4g} m): implausible for a robot; check the <origin xyz> values (metres)")
+
+
+MAX_RPY = 2.5 * math.pi  # rad (450°): no origin turns further about an axis (real files: up to 3π/2, TALOS's wrist)
+
+
+def _check_rpy(chain: Sequence[URDFJoint], label: str) -> None:
+    """Refuse an origin's rpy angle beyond MAX_RPY: degrees written where URDF wants radians."""
+    for j in chain:
+        far = max(abs(v) for v in j.rpy)
+        if far > MAX_RPY:
+            written, meant = (" ".join(f"{v:.6g}" for v in values) for values in (j.rpy, np.radians(j.rpy)))
+            raise ModelError(f"{label}: joint '{j.name}': origin rpy='{written}' turns {far:.6g} rad "
+                             f"({far / (2 * math.pi):.3g} turns) about one axis; no origin turns beyond "
+                             f"{MAX_RPY / (2 * math.pi):g} turns: the angles look like degrees; URDF angles are in "
+                             f"radians: write rpy='{meant}'")
 
 
 def _links(root, label: str) -> dict[str, tuple[float, tuple[float, float, float]]]:
