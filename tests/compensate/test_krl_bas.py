@@ -162,3 +162,42 @@ def test_the_real_ros_control_src_and_a_move_after_its_bas_tool(tmp_path):
     copy = read_program(str(tmp_path / "ros_control.src"), "krl")
     assert [(t.line, t.frames) for t in copy.targets] == [(82, ("", "")), (97, ("TOOL_DATA[1]", ""))]
     assert copy.in_force == ()
+
+
+def test_a_dat_point_takes_the_tool_and_base_in_force_at_its_moves_in_the_src(tmp_path):
+    """A .dat's points with no FDAT of their own (DECL E6POS PA={…}), moved to by its module's .src after
+    'BAS(#BASE,2)' and 'BAS(#TOOL,2)' (PA), '$TOOL = TOOL_DATA[1]' (PB; XP[2] by 'LIN XP[i]', an index chosen at
+    run time), and PC, moved to on line 10 in tool 1 and on line 14 after an IF that may set tool 2. Before, the .dat
+    was read without the .src's flow: every point in ('', ''), compensated with the default tool and base given (tool
+    1, base 2), PA silently for tool 1 where the program moves it in tool 2. Now PA is compensated in (TOOL_DATA[2],
+    BASE_DATA[2]), PB and XP[2] in (TOOL_DATA[1], BASE_DATA[2]), and land where the text meant on the true arm to
+    1e-6 mm and 1e-9 rad; PC is refused naming m.src's lines 10, 14 and the assignments on lines 5, 12, its text
+    left byte for byte; PD (GLOBAL, which no move of the .src uses) keeps the default tool and base as before."""
+    nominal, true = kincal.load_robot("ur10"), kincal.perturb(kincal.load_robot("ur10"), seed=4)
+    _controller(tmp_path)
+    (tmp_path / "m.src").write_text("\n".join([
+        "DEF m()", "  BAS(#BASE, 2)", "  BAS(#TOOL, 2)", "  LIN PA", "  $TOOL = TOOL_DATA[1]", "  LIN PB",
+        "  FOR i = 1 TO 3", "    LIN XP[i]", "  ENDFOR", "  LIN PC", "  IF $IN[1] THEN", "    $TOOL = TOOL_DATA[2]",
+        "  ENDIF", "  LIN PC", "END", ""]))
+    (tmp_path / "m.dat").write_text("\n".join([
+        "DEFDAT  M", f"DECL E6POS PA={_target(Q[0], U2, B2, point=True)}",
+        f"DECL E6POS PB={_target(Q[1], U1, B2, point=True)}", f"DECL E6POS PC={_target(Q[2], U1, B2, point=True)}",
+        f"GLOBAL DECL E6POS PD={_target(Q[3], U1, B2, point=True)}", "DECL E6POS XP[3]",
+        f"XP[2]={_target(Q[4], U1, B2, point=True)}", "ENDDAT", ""]))
+    dat = read_program(str(tmp_path / "m.dat"), "krl")
+    assert [t.variable for t in dat.targets] == ["PA", "PB", "PC", "PD", "XP[2]"]
+    assert [t.frames for t in dat.targets] == [("TOOL_DATA[2]", "BASE_DATA[2]"), ("TOOL_DATA[1]", "BASE_DATA[2]"),
+                                               ("", "BASE_DATA[2]"), ("", ""), ("TOOL_DATA[1]", "BASE_DATA[2]")]
+    res = compensate_branches(true, nominal, dat, rows, {"default tool": U1, "default base": B2}, q_start=Q[0])
+    assert sorted(res.texts) == [0, 1, 3, 4] and list(res.refused) == [2]
+    assert res.refused[2] == (
+        "at the moves to it in m.src (lines 10, 14): its $TOOL is not known from the module's structure: the $TOOL "
+        "assignments on lines 5, 12 may be in force at the moves to it, one literal for each; give each its own "
+        "point, after a $TOOL assignment that every path to it runs")
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "m.dat").write_text(dat.with_targets(res.texts))
+    new = read_program(str(tmp_path / "out" / "m.dat"), "krl")
+    assert new.text.splitlines()[3] == dat.text.splitlines()[3]  # PC as it was
+    for k, tool in ((0, U2), (1, U1), (3, U1), (4, U1)):
+        miss, turn = _lands(true, res, dat.targets[k], new.targets[k], tool, B2, k)
+        assert miss < 1e-6 and turn < 1e-9, (k, miss, turn)

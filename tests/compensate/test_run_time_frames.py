@@ -123,6 +123,45 @@ def test_a_fanuc_write_with_no_jump_back_reaches_only_the_moves_after_it(tmp_pat
     assert "where it is used (no move of the program goes to it)" in res.refused[1]
 
 
+def test_a_fanuc_system_variable_write_of_a_tool_or_user_frame_refuses_as_utool_does(tmp_path):
+    """'$MNUTOOL[1,2]=PR[9]' (group 1, tool 2), '$MNUFRAME [ 1 , 1 ].X = 500' (one number of user frame 1) and
+    '$MNUTOOL[1,R[4]]=PR[9]' (a tool chosen at run time) were read as no write: P[2] (UT 2), P[3] (UF 1) and P[4]
+    (UT 1) were compensated with the given frames ('5 of 5'). Now they are refused naming the line and the write,
+    exactly as for 'UTOOL[2]=…', and P[5] (UT 3) too, by '$MNUTOOL[1,R[4]]' alone; P[1] (before the writes) is
+    compensated exactly as in the program without them. '$MNUTOOL[2,3]=PR[9]' (group 2, a positioner's tool),
+    '$MNUTOOLNUM[1]=2' (a selection) and 'PR[7]=$MNUTOOL[1,1]' (a read) write no frame of the robot: with only
+    them, every target is compensated."""
+    frames = {"UT 1": _frame(0, 0, 100), "UT 2": _frame(5, -10, 120, ry=-30), "UT 3": _frame(0, 30, 90, rx=20),
+              "UF 1": _frame(400, 50, -100, rz=15)}
+    names = [("UT 2", "UF 1"), ("UT 2", "UF 0"), ("UT 3", "UF 1"), ("UT 1", "UF 0"), ("UT 3", "UF 0")]
+    mn = ["$MNUTOOLNUM[1]=2", "PR[7]=$MNUTOOL[1,1]", "L P[1] 100mm/sec FINE", "$MNUTOOL[1,2]=PR[9]",
+          "L P[2] 100mm/sec FINE", "$MNUFRAME [ 1 , 1 ].X = 500", "L P[3] 100mm/sec FINE", "$MNUTOOL[2,3]=PR[9]",
+          "$MNUTOOL[1,R[4]]=PR[9]", "L P[4] 100mm/sec FINE", "L P[5] 100mm/sec FINE"]
+    text = _fanuc(frames, names, mn)
+    prog, res = _compensated(tmp_path, "mn.ls", text, "fanuc", "fanuc_lrmate200id", frames)
+    variables = [t.variable for t in prog.targets]
+    assert sorted(variables[k] for k in res.texts) == ["P[1]"]
+    assert sorted(variables[k] for k in res.refused) == ["P[2]", "P[3]", "P[4]", "P[5]"]
+    why = {variables[k]: w for k, w in res.refused.items()}
+    assert why["P[2]"] == (
+        "its tool frame 'UT 2' may be the one the program sets at run time on line 7 ($MNUTOOL[1,2]=PR[9]) at the "
+        "moves to it: a value only the controller knows, not the one given with the frames; teach it in a frame the "
+        "program does not set")
+    assert why["P[3]"].startswith("its base frame 'UF 1' may be the one the program sets at run time on line 9 "
+                                  "($MNUFRAME [ 1 , 1 ].X = 500)")
+    assert "on line 12 ($MNUTOOL[1,R[4]]=PR[9])" in why["P[4]"] and "line 11" not in why["P[4]"]
+    assert "on line 12 ($MNUTOOL[1,R[4]]=PR[9])" in why["P[5]"] and "line 11" not in why["P[5]"]
+    out = prog.with_targets(res.texts)
+    for k in (2, 3, 4, 5):
+        assert _entry(out, k) == _entry(text, k)
+    # group 2's write alone leaves P[5] as it is; without the writes every target is compensated, the same texts
+    plain = text.replace("$MNUTOOL[1,2]=PR[9]", "R[2]=9").replace("$MNUFRAME [ 1 , 1 ].X = 500", "R[3]=8")
+    _, res2 = _compensated(tmp_path, "g2.ls", plain.replace("$MNUTOOL[1,R[4]]=PR[9]", "R[5]=1"), "fanuc",
+                           "fanuc_lrmate200id", frames)
+    assert not res2.refused and sorted(res2.texts) == list(range(5))
+    assert {k: res2.texts[k] for k in res.texts} == res.texts
+
+
 def _job(frames, names, inst):
     """An INFORM job of C positions C00000… (in USER coordinates, or ROBOT for base 'ROBOT') and instructions."""
     nominal = kincal.load_robot("motoman_gp7")

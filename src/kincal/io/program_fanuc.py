@@ -29,8 +29,9 @@ to a ``P[n]`` with no ``/POS`` entry, not taught (``********``) or without ``GP1
 by such moves is not a target; one also used by a plain move is (and the listing says so). An untaught
 or group-1-less ``/POS`` entry no move uses is listed too.
 
-Frames set at run time. ``UTOOL[n]=PR[i]`` and ``UFRAME[n]=PR[i]`` (``UTOOL[R[k]]=…``: any n) give a tool or
-user frame a value only the controller knows: a Cartesian target in that frame whose moves the write may reach,
+Frames set at run time. ``UTOOL[n]=PR[i]`` and ``UFRAME[n]=PR[i]`` (``UTOOL[R[k]]=…``: any n), and the system
+variables ``$MNUTOOL[1,n]=…`` and ``$MNUFRAME[1,n]=…`` (group 1; ``$MNUTOOL[1,n].X=…``, one of its numbers, too)
+give a tool or user frame a value only the controller knows: a Cartesian target in that frame whose moves the write may reach,
 by the program's labels, jumps and ``FOR`` loops (:mod:`kincal.io.jump_flow`), says why in ``in_force`` and is
 refused, never compensated with the frame's given value (one no move uses: wherever the program writes its
 frame). ``UTOOL_NUM``/``UFRAME_NUM`` only select a frame: a position names its own (``UT``, ``UF``), and the
@@ -75,8 +76,10 @@ MOVE = re.compile(STATEMENT_START + r"([JLCA])[ \t]+(?=P\[|PR\[)", re.M | re.I)
 REF = re.compile(r"\b(PR|P)\[", re.I)
 OPTION = re.compile(r"\b(Tool_Offset|Offset|VOFFSET|INC)\b(\s*,\s*(?:PR|VR)\[(?:[^\[\]\n]|\[[^\[\]\n]*\])*\])?",
                     re.I)
-FRAME_WRITE = re.compile(r"(?<![\w\[])(UTOOL|UFRAME)[ \t]*\[[ \t]*(?:GP(\d+)[ \t]*:[ \t]*)?"
-                         r"((?:[^\[\]\n]|\[[^\[\]\n]*\])*)\][ \t]*=(?!=)[^;\n]*", re.I)  # UTOOL[2]=PR[9]: a frame's value set at run time
+INDEX = r"((?:[^\[\],\n]|\[[^\[\]\n]*\])*)"  # a frame's or group's number: 2, R[4]
+FRAME_WRITE = re.compile(  # UTOOL[2]=PR[9], $MNUTOOL[1,2]=PR[9], $MNUFRAME[1,R[4]].X=0: a frame's value set at run time
+    r"(?:(?<![\w\[$])(UTOOL|UFRAME)[ \t]*\[[ \t]*(?:GP(\d+)[ \t]*:[ \t]*)?"
+    r"|\$MN(UTOOL|UFRAME)[ \t]*\[" + INDEX + ",)" + INDEX + r"\](?:[ \t]*\.[ \t]*\w+)?[ \t]*=(?!=)[^;\n]*", re.I)
 LABEL = re.compile(STATEMENT_START + r"LBL[ \t]*\[[ \t]*(\d+)[ \t]*\]", re.M | re.I)
 JUMP = re.compile(r"\bLBL[ \t]*\[[ \t]*(\d+)?", re.I)  # any other LBL[…]: JMP, IF …,JMP, SELECT, Skip, TIMEOUT
 LOOP = re.compile(STATEMENT_START + r"(FOR|ENDFOR)\b", re.M | re.I)
@@ -163,12 +166,13 @@ def parse(source: str, text: str) -> Program:
 
 def _run_time_frames(text: str, a: int, b: int, targets: list[tuple[tuple[str, ...], tuple[int, ...]]]) -> list[str]:
     """Why each target (its frames, its moves' positions) is in a tool or user frame that /MN (text[a:b]) may have
-    written at run time (``UTOOL[n]=…``, ``UFRAME[n]=…``: :func:`kincal.io.jump_flow.unknown_frames`), or ''."""
+    written at run time (``UTOOL[n]=…``, ``UFRAME[n]=…``, ``$MNUTOOL[1,n]=…``, ``$MNUFRAME[1,n]=…``:
+    :func:`kincal.io.jump_flow.unknown_frames`), or ''."""
     code = " " * a + _code(text, a, b)
     writes = [Write(m.start(), line_column(text, m.start())[0],
-                    {"UTOOL": "UT", "UFRAME": "UF"}[m.group(1).upper()]
-                    + (f" {int(m.group(3))}" if m.group(3).strip().isdigit() else ""), text[m.start():m.end()].strip())
-              for m in FRAME_WRITE.finditer(code, a, b) if m.group(2) in (None, "1")]
+                    {"UTOOL": "UT", "UFRAME": "UF"}[(m.group(1) or m.group(3)).upper()]
+                    + (f" {int(m.group(5))}" if m.group(5).strip().isdigit() else ""), text[m.start():m.end()].strip())
+              for m in FRAME_WRITE.finditer(code, a, b) if _group_1(m.group(2) or m.group(4) or "1")]
     if not writes:
         return [""] * len(targets)
     labels = {m.start(1) for m in LABEL.finditer(code, a, b)}
@@ -178,6 +182,12 @@ def _run_time_frames(text: str, a: int, b: int, targets: list[tuple[tuple[str, .
               if m.start(1) not in labels]
     marks += [(m.start(1), "open" if m.group(1).upper() == "FOR" else "close", None) for m in LOOP.finditer(code, a, b)]
     return unknown_frames(writes, marks, targets)
+
+
+def _group_1(group: str) -> bool:
+    """Whether a frame write's motion group (``GP2:``; ``$MNUTOOL[2,…]``) may be the robot's, group 1 (a register
+    may)."""
+    return not group.strip().isdigit() or int(group) == 1
 
 
 def _with_move(t: Target, use: _Use) -> Target:

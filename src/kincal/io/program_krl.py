@@ -34,7 +34,12 @@ assigned to ``$TOOL`` and ``$BASE`` as written (e.g. "TOOL_DATA[1]", "$NULLFRAME
 only as one possibility), or '' where the file sets none; where its paths leave different ones, one known only at
 run time (``BAS(#TOOL, nTool)``), or the module jumps with ``GOTO``, the target's ``Program.in_force_of`` says
 why, and it is refused. A ``.src`` move ``PTP XP1 … C_PTP`` whose point and
-FDAT are in the ``.dat`` is listed in the ``.src`` (its literal is compensated in the ``.dat``).
+FDAT are in the ``.dat`` is listed in the ``.src`` (its literal is compensated in the ``.dat``). A ``.dat`` point
+with no FDAT of its own that its module's ``.src`` moves to takes the $TOOL and $BASE the ``.src``'s flow leaves in
+force at every one of those moves (a move to ``XP[i]``, an index computed at run time, is one to each element of
+``XP``); where they differ between its moves or are not known, '' and ``in_force_of`` names the ``.src`` and its
+lines. Only a ``.dat`` point no move of the ``.src`` uses (a GLOBAL one other modules move to) is read as the
+``.dat`` alone.
 
 Listed in ``not_literal`` (line, what, why), never changed: relative moves (``PTP_REL``, ``LIN_REL``,
 …: an offset from wherever the robot is at run time); moves to the current position (``$POS_ACT``,
@@ -293,16 +298,25 @@ class _File:
 
     def frames(self, ats: list[int], variable: str, start: int) -> tuple[str, str]:
         """(tool, base) of the target at ``start`` whose moves are at ``ats``: the FDAT F<name> of a point X<name>,
-        else the $TOOL and $BASE the module's flow leaves in force at every one of them ('' for none set;
-        :mod:`kincal.io.krl_flow`); where its paths leave different ones, '' and why in ``unknown``."""
+        else, for a ``.dat`` point its module's ``.src`` moves to, the $TOOL and $BASE in force at those moves
+        (:meth:`_Module.frames`), else the $TOOL and $BASE the module's flow leaves in force at every one of them
+        ('' for none set; :mod:`kincal.io.krl_flow`); where its paths leave different ones, '' and why in
+        ``unknown``."""
         name = variable.split("[")[0].upper()
         if name[:1] == "X" and "F" + name[1:] in self._fdat:
             return self._fdat["F" + name[1:]]
+        moved = self.module.frames(_key(variable)) if self.module is not None and variable else None
+        tool, base, why = moved if moved is not None else self.in_force(ats)
+        if why:
+            self.unknown[start] = why
+        return tool, base
+
+    def in_force(self, ats: list[int]) -> tuple[str, str, str]:
+        """The $TOOL and $BASE this module's flow leaves in force at every one of the moves at ``ats`` ('' for none
+        set) and why one is not known ('' where both are)."""
         reached = self._reached
-        if isinstance(reached, str):
-            self.unknown[start] = reached
         if not isinstance(reached, dict):
-            return "", ""
+            return "", "", reached or ""
         out, why = [], []
         for slot, what in ((0, "$TOOL"), (1, "$BASE")):
             possible = frozenset().union(*(reached.get(at, (frozenset(), frozenset()))[slot] for at in ats))
@@ -310,9 +324,7 @@ class _File:
             one = None if one is None or isinstance(one.value, krl_flow.Unknown) else one
             out.append("" if one is None else str(one.value))
             why += [] if one is not None else [_ambiguous(what, possible, len(ats) > 1)]
-        if why:
-            self.unknown[start] = "; ".join(why)
-        return out[0], out[1]
+        return out[0], out[1], "; ".join(why)
 
     @functools.cached_property
     def _reached(self) -> dict | str | None:
@@ -479,6 +491,23 @@ class _Module:
     assigned: dict[str, int]  # each variable it assigns, whole or in part, as compared ("XP[1]"; the bare name for
     # an index computed at run time) -> the line of the first
     moved: frozenset[str]  # the names (upper case) its moves' lines hold
+    moves: dict[str, list[int]] | str  # each variable its moves go to, as compared ("XP[3]"; "XP[]" for an index
+    # computed at run time) -> where those moves are; or why its moves cannot be read
+    src: "_File | None" = None  # the .src, read for the $TOOL and $BASE its flow leaves in force
+
+    def frames(self, var: str) -> tuple[str, str, str] | None:
+        """The (tool, base) in force at every move of the ``.src`` to the ``.dat``'s variable ``var`` (as compared;
+        an element also at the moves to the array's element an index computed at run time picks) and why one is not
+        known, naming the moves' lines ('' where both are); None where no move of the ``.src`` goes to it."""
+        name = var.split("[")[0]
+        if isinstance(self.moves, str) or self.src is None:
+            return ("", "", f"at the moves to it in {self.name}: {self.moves}") if name in self.moved else None
+        ats = sorted(set(self.moves.get(var, []) + (self.moves.get(name + "[]", []) if "[" in var else [])))
+        if not ats:
+            return None
+        tool, base, why = self.src.in_force(ats)
+        lines = ", ".join(str(n) for n in sorted({self.src.line(at) for at in ats}))
+        return tool, base, why and f"at the moves to it in {self.name} (line{'s' * (len(ats) > 1)} {lines}): {why}"
 
 
 def _module_source(source: str) -> str | None:
@@ -510,9 +539,10 @@ def _module(source: str) -> _Module | None:
         return None
     try:
         with open(path, "rb") as fh:
-            code = _blank(fh.read().decode("latin-1"))  # names are ASCII; comments may be anything
+            text = fh.read().decode("latin-1")  # names are ASCII; comments may be anything
     except OSError:
         return None
+    code = _blank(text)
     assigned: dict[str, int] = {}
     for m in ASSIGN.finditer(code):
         index = "".join((m.group(2) or "").split())
@@ -520,7 +550,27 @@ def _module(source: str) -> _Module | None:
         assigned.setdefault(var, code.count("\n", 0, m.start()) + 1)
     ends = [(m.end(), code.find("\n", m.end())) for m in MOVE.finditer(code)]  # each move's line after its word
     moved = {n.upper() for a, b in ends for n in re.findall(r"[A-Za-z_]\w*", code[a:b if b >= 0 else None])}
-    return _Module(os.path.basename(path), assigned, frozenset(moved))
+    try:
+        src, moves = _source_moves(path, text, code)
+    except MeasurementError as exc:
+        return _Module(os.path.basename(path), assigned, frozenset(moved), f"its moves cannot be read ({exc})")
+    return _Module(os.path.basename(path), assigned, frozenset(moved), moves, src)
+
+
+def _source_moves(path: str, text: str, code: str) -> tuple[_File, dict[str, list[int]]]:
+    """A module's ``.src`` (its path, text and blanked code) as a :class:`_File`, read as far as its flow needs, and
+    each variable its moves go to -> where those moves are (:attr:`_Module.moves`)."""
+    ends = _check_brackets(path, text, code)
+    aggs = {a: _aggregate(path, text, code, ends, a) for a in sorted(ends) if code[a] == "{"}
+    moves: dict[str, list[int]] = {}
+    for m in MOVE.finditer(code):
+        for a, b in _move_arguments(path, text, code, ends, m):
+            arg = _key(code[a:b])
+            if re.fullmatch(r"[A-Z_]\w*(\[[\d,]+\])?", arg):
+                moves.setdefault(arg, []).append(m.start())
+            elif re.fullmatch(r"[A-Z_]\w*\[[^\]]*\]", arg):
+                moves.setdefault(arg.split("[")[0] + "[]", []).append(m.start())
+    return _File(path, text, code, ends, aggs, _declared(code), _assignments(code, ends)), moves
 
 
 def parse(source: str, text: str) -> Program:
