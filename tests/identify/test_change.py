@@ -166,8 +166,8 @@ def test_real_ur5_check_still_good_then_a_shifted_joint_2_zero(tmp_path, capsys)
     page = (tmp_path / "r.html").read_text()  # the report shows the robot's history: this calibration, its figure
     history = page[page.index("This robot's history"):page.index("</figure>", page.index("This robot's history"))]
     assert history.count("<tr>") == 2 and "calibration" in history and "0.1020 mm" in history and "<svg" in history
-    assert main(["design", str(cal), "--check", "--candidates", str(DATA / "ur5_random.csv"), *UR5,
-                 "-o", str(poses)]) == 0
+    assert main(["design", str(cal), "--check", "--candidates", str(DATA / "ur5_random.csv"), *UR5[2:],
+                 "-o", str(poses)]) == 0  # joints only: --length-unit reads nothing there and is refused
     assert len(poses.read_text().splitlines()) == 11
     capsys.readouterr()
     assert main(["check", str(cal), str(poses), *UR5, "--same-frame", "--json"]) == 0
@@ -325,7 +325,7 @@ def test_a_check_no_single_change_explains_names_none(tmp_path, capsys):
     cal, poses = tmp_path / "wam.yaml", tmp_path / "check.csv"
     main(["calibrate", "wam", str(DATA / "wam_grid.csv"), *wam, "-o", str(cal)])
     assert cal.exists()
-    assert main(["design", str(cal), "--check", "--candidates", str(DATA / "wam_random.csv"), *wam,
+    assert main(["design", str(cal), "--check", "--candidates", str(DATA / "wam_random.csv"), *wam[2:],
                  "-o", str(poses)]) == 0
     capsys.readouterr()
     assert main(["check", str(cal), str(poses), *wam, "--same-frame", "--json"]) == 4
