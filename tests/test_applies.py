@@ -240,7 +240,7 @@ DESIGN_SAMPLE = {
     "--tracker": ["3000,0,500mm"], "--tracker-range": ["500,2900mm"], "--cone": ["10"], "--reflector-axis": ["1,0,0"],
     "--joint-margin": ["20"], "--link-radius": ["30mm"], "--method": ["random"], "--criterion": ["D"],
     "--use": ["{d}/q.csv"], "--no-coverage": [], "--weight": ["2"], "--params": ["j2.a,j3.a,j2.theta,j3.theta"],
-    "--base": ["fixed"], "--restarts": ["5"], "--generations": ["3"], "--f0": ["0.5"], "--cr": ["0.5"],
+    "--base": ["fixed"], "--restarts": ["10"], "--generations": ["3"], "--f0": ["0.5"], "--cr": ["0.5"],
     "--population": ["10"], "--no-bound": [], "--units": ["paper"], "--seed": ["3"],
     "--joint-cols": ["a1,a2,a3,a4,a5,a6"], "--xyz-cols": ["a,b,c"], "--length-unit": ["mm"], "--angle-unit": ["deg"],
     "--orientation": ["quat-xyzw"], "--rot-cols": ["a,b,c,d"], "--markers": ["m1"], "--label-col": ["socket"],
@@ -249,7 +249,7 @@ DESIGN_SAMPLE = {
 AS_GIVEN = {"--no-coverage": "--coverage"}  # an on/off flag walked in its 'on' spelling (off is the default)
 # a flag that modifies another (kincal.cli.design.MODIFIERS): what it needs beside it to change the design, and what
 # leaves it nothing to change (None: it asks what the default does); {pool}: a larger pool for the kinds that draw
-# one (the greedy start wins over 5 random ones among 300 candidates)
+# one (the greedy start wins over 10 random ones among 300 candidates)
 DESIGN_NEEDS = {"--settle": (["--program", "ur"], []), "--link-radius": (["--floor", "0mm"], []),
                 **{f: (["--tracker", "3000,0,500mm"], []) for f in ("--tracker-range", "--cone", "--reflector-axis")},
                 **{f: (["--method", "ide", "--criterion", "D", "--generations", "2"], [])
