@@ -240,7 +240,7 @@ DESIGN_SAMPLE = {
     "--tracker": ["3000,0,500mm"], "--tracker-range": ["500,2900mm"], "--cone": ["10"], "--reflector-axis": ["1,0,0"],
     "--joint-margin": ["20"], "--link-radius": ["30mm"], "--method": ["random"], "--criterion": ["D"],
     "--use": ["{d}/q.csv"], "--no-coverage": [], "--weight": ["2"], "--params": ["j2.a,j3.a,j2.theta,j3.theta"],
-    "--base": ["fixed"], "--restarts": ["5"], "--generations": ["3"], "--f0": ["0.5"], "--cr": ["0.5"],
+    "--base": ["fixed"], "--restarts": ["10"], "--generations": ["3"], "--f0": ["0.5"], "--cr": ["0.5"],
     "--population": ["10"], "--no-bound": [], "--units": ["paper"], "--seed": ["3"],
     "--joint-cols": ["a1,a2,a3,a4,a5,a6"], "--xyz-cols": ["a,b,c"], "--length-unit": ["mm"], "--angle-unit": ["deg"],
     "--orientation": ["quat-xyzw"], "--rot-cols": ["a,b,c,d"], "--markers": ["m1"], "--label-col": ["socket"],
@@ -249,7 +249,7 @@ DESIGN_SAMPLE = {
 AS_GIVEN = {"--no-coverage": "--coverage"}  # an on/off flag walked in its 'on' spelling (off is the default)
 # a flag that modifies another (kincal.cli.design.MODIFIERS): what it needs beside it to change the design, and what
 # leaves it nothing to change (None: it asks what the default does); {pool}: a larger pool for the kinds that draw
-# one (the greedy start wins over 5 random ones among 300 candidates)
+# one (the greedy start wins over 10 random ones among 300 candidates)
 DESIGN_NEEDS = {"--settle": (["--program", "ur"], []), "--link-radius": (["--floor", "0mm"], []),
                 **{f: (["--tracker", "3000,0,500mm"], []) for f in ("--tracker-range", "--cone", "--reflector-axis")},
                 **{f: (["--method", "ide", "--criterion", "D", "--generations", "2"], [])
@@ -361,3 +361,41 @@ def test_a_unit_that_reads_no_joint_of_a_joints_file_is_refused(tmp_path, capsys
         written.append(np.loadtxt(poses, delimiter=",", skiprows=1))
     capsys.readouterr()
     np.testing.assert_allclose(written[1], 1000.0 * written[0], rtol=1e-9)
+
+
+# a valid value other than the default for every flag of show; {kind}: another kind than the walk's
+SHOW_SAMPLE = {"--tool": ["0,0,0.3"], "--joint-cols": ["a1,a2,a3,a4,a5,a6"], "--xyz-cols": ["a,b,c"],
+               "--length-unit": ["mm"], "--angle-unit": ["deg"], "--type": ["{kind}"], "--orientation": ["quat-xyzw"],
+               "--rot-cols": ["a,b,c,d"], "--markers": ["m1"], "--label-col": ["socket"], "--group-col": ["plate"],
+               "--distance": ["0,1,50"], "--plane": ["t:0,0,1,0"], "--std-pos": ["1mm"], "--std-rot": ["50mrad"]}
+SHOW_NOT_WALKED = {"json", "base_link", "tip_link"}  # its output's form, a URDF's chain
+
+
+@pytest.mark.parametrize("kind", [None, *KINDS])
+def test_every_show_flag_changes_what_it_says_or_is_refused(kind, capsys):
+    """show, without --type and with each kind: every flag changes what it prints (the robot, or the description of
+    a file of that type) or is refused by show's table, naming it. Without --type all 13 file flags were ignored
+    (show ur5 --length-unit mm printed the same), and with it --distance and --plane (and --markers: the columns
+    named NAME whatever the markers)."""
+    from kincal.cli.model import show_scopes
+    from kincal.identify.applies import Scope
+
+    ur5 = kincal.load_robot("ur5")
+    head = ["show", "ur5", "--json", *(["--type", kind] if kind else [])]
+    base = _outcome(head, capsys)
+    assert base[0] == 0, base[2]
+    walked = {flag: dest for dest, flag in _flags(build_parser(), "show").items() if dest not in SHOW_NOT_WALKED}
+    assert set(walked) == set(SHOW_SAMPLE)
+    other = "pose" if kind != "pose" else "point"
+    for flag, dest in walked.items():
+        kept = [t for k, t in enumerate(head) if flag not in head[max(k - 1, 0):k + 1]]  # --type: replaced
+        argv = [*kept, flag, *(v.format(kind=other) for v in SHOW_SAMPLE[flag])]
+        _, args = _parse(argv)
+        code, out, err = _outcome(argv, capsys)
+        if (kind or "point") in show_scopes(args, ur5).get(dest, Scope((kind or "point",), "")).kinds:
+            assert code == 0 and out != base[1], (flag, kind, err)
+        else:
+            assert code == 1 and f"{flag} does not apply to {kind or 'point'} data" in err, (flag, kind, err)
+            assert "without --type show describes no data file" in err if kind is None else "Traceback" not in err
+    code, _, err = _outcome(["show", "puu3", "--type", "point", "--angle-unit", "deg"], capsys)  # no revolute joint
+    assert code == 1 and "--angle-unit does not apply to point data: puu3 has no revolute joint" in err, err

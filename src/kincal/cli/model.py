@@ -37,12 +37,33 @@ def cmd_robots(args) -> int:
                                    "structure": r.structure, "description": r.description} for n, r in rows]}, t)
 
 
+FILE_FLAGS = ("joint_cols", "xyz_cols", "length_unit", "angle_unit", "orientation", "rot_cols", "markers", "label_col",
+              "group_col", "distance", "plane", "std_pos", "std_rot")  # how a file is read: what show --type describes
+
+
+def show_scopes(args, robot) -> dict[str, Scope]:
+    """show's own table of what applies to which kind (:func:`kincal.identify.refuse_inapplicable`): with --type, the
+    flags that change the description of a file of that type (its columns, units and σ, as calibrate reads them);
+    without, none of the file flags (no file is described)."""
+    if not args.type:
+        return {k: Scope((), "without --type show describes no data file; give --type with it to see what a file of "
+                             "that type holds, read so") for k in FILE_FLAGS}
+    return {**{k: SCOPES[k] for k in ("xyz_cols", "orientation", "rot_cols", "markers", "label_col", "group_col",
+                                      "std_pos", "std_rot")},
+            **{k: Scope((), "show describes a file's columns, units and σ; known distances and planes are none of "
+                            "them: give it to calibrate (or simulate, design, identifiability)")
+               for k in ("distance", "plane")},
+            **{k: v for k, v in joint_unit_scopes(robot.name, robot.joint_types, "a data file").items()
+               if k == "angle_unit"}}  # the length unit is that of the positions, distances and planes too
+
+
 def cmd_show(args) -> int:
     from rich.console import Group
     from rich.table import Table
     from rich.text import Text
 
     r = load_robot(args)
+    refuse_inapplicable([one_type(args)], args.given, show_scopes(args, r))
     covariates = r.covariate_names
     t = Table("parameter", "value", "unit", title=f"{r.name} ({r.structure}, {r.n_joints - len(covariates)} joints"
               + (f"; covariates {', '.join(covariates)}" if covariates else "") + ")")

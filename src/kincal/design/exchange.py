@@ -23,6 +23,7 @@ from ..ties import first_best
 from .problem import DesignProblem
 
 IMPROVE = 1e-10  # relative improvement an exchange must bring
+SINGULAR = 1e-10  # λmin/λmax of an information matrix at or below which it is singular; also the ridge, × λmax
 
 # Small matrices are stored component-first, (3, 3, N): every batched step is then a contiguous
 # vector operation, several times faster than NumPy's stacked (N, 3, 3) matmul.
@@ -64,12 +65,19 @@ def tr(X: np.ndarray) -> np.ndarray:
 
 
 class _State:
-    """M⁻¹ of the current design and Vᵢ = Jᵢ M⁻¹ Jᵢᵀ for every candidate, (r, r, N)."""
+    """M⁻¹ of the current design and Vᵢ = Jᵢ M⁻¹ Jᵢᵀ for every candidate, (r, r, N).
+
+    A singular M (a random start that leaves a parameter unseen, e.g. a socket with too few samples) is
+    inverted as M + ε·λmax·I (ε = :data:`SINGULAR`; ``ridge`` holds the term added, else 0): the exchange
+    then maximises det(M + ridge·I), which fills the unseen directions first, as the greedy start does.
+    """
 
     def __init__(self, P: DesignProblem, M: np.ndarray) -> None:
         self.P = P
         self.rows = np.ascontiguousarray(P.J.transpose(1, 0, 2)).reshape(-1, P.k)  # (3N, k), axis-major
-        self.Minv = np.linalg.inv(M)
+        w = np.linalg.eigvalsh(M)
+        self.ridge = 0.0 if w[0] > SINGULAR * w[-1] else SINGULAR * (w[-1] if w[-1] > 0 else 1.0)
+        self.Minv = np.linalg.inv(M + self.ridge * np.eye(P.k))
         self._set_V(self.quad(self.Minv))
 
     def _set_V(self, V: np.ndarray) -> None:
@@ -126,15 +134,18 @@ def fedorov(P: DesignProblem, start: list[int], criterion: str = "D", B: np.ndar
             j = design[pos]
             C = st.cross(j)  # (r,r,N): Cᵢⱼ
             Vj = st.V[:, :, j:j + 1]
+            ratio = st.A_det * det_blocks((eye - Vj) + mm(tr(C), mm(st.A_inv, C)))  # det M'/det M of each swap
             if criterion == "D":
-                E = (eye - Vj) + mm(tr(C), mm(st.A_inv, C))
-                score = st.A_det * det_blocks(E) - 1.0  # relative gain in det M
+                score = ratio - 1.0  # relative gain in det M
             else:
+                assert B is not None  # criterion I weighs the region's information B
                 if H is None:
                     H = st.Minv @ B @ st.Minv
                     R = st.quad(H)
-                score = _i_gain(st, C, Vj, R, H, j, in_design) / max(np.trace(st.Minv @ B), 1e-300)
-            score[in_design | ~np.isfinite(score)] = -np.inf
+                with np.errstate(over="ignore"):  # a gain beyond range is judged below, as not finite
+                    score = _i_gain(st, C, Vj, R, H, j, in_design) / max(np.trace(st.Minv @ B), 1e-300)
+            # a swap that leaves M singular has no finite criterion (its I gain is round-off): never taken
+            score[in_design | ~np.isfinite(score) | ~(ratio > SINGULAR)] = -np.inf
             i = first_best(score + 1.0)  # ties judged on the ratio of the criteria
             if score[i] <= IMPROVE:
                 continue

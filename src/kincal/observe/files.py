@@ -503,13 +503,16 @@ def describe(robot: Robot, fmt: ObservationFormat) -> list[str]:
     joints = ", ".join(fmt.joint_cols or robot.joint_names)
     own = {"point": ", ".join(fmt.xyz_cols), "pose": ", ".join(list(fmt.xyz_cols) + list(
                fmt.rot_cols or default_columns(fmt.orientation))) + f" ({fmt.orientation})",
-           "markers": "NAME.x, NAME.y, NAME.z per marker (empty: not seen)",
+           "markers": (", ".join(f"{m}.x, {m}.y, {m}.z" for m in fmt.markers) if fmt.markers else
+                       "NAME.x, NAME.y, NAME.z per marker") + " (empty: not seen)",
            "same-point": f"{fmt.label}" + (f", {fmt.group_col}" if fmt.group_col else " (and a group column for "
                                                                                      "plate placements)"),
            "plane": fmt.label}[fmt.kind]
     pos, rot = fmt.std()
     sigma = f"{pos * 1e3:g} mm" + (f", {rot * 1e3:g} mrad" if rot else "")
+    flags = ("per axis: --std-cols, else calibrate --tracker-noise" if fmt.kind == "point" else
+             "--std-pos, --std-rot" if rot else "--std-pos")
     return [f"{fmt.kind} files: columns {joints} ({fmt.angle_unit} / {fmt.length_unit}) and {own}",
             f"set-up parameters fitted with the robot: {SETUP[fmt.kind]}",
             f"fixes the length scale: {SCALE[fmt.kind]}",
-            f"σ used: {sigma} ({'--std-pos, --std-rot' if rot else '--std-pos'})"]
+            f"σ used: {sigma} ({flags})"]
