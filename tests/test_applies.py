@@ -301,6 +301,7 @@ def test_every_design_flag_changes_the_design_or_is_refused(kind, tmp_path, caps
     parser = build_parser()
     walked = {flag: dest for dest, flag in _flags(parser, "design").items() if dest not in DESIGN_NOT_WALKED}
     assert set(walked) == set(DESIGN_SAMPLE)
+    designed: dict = {}  # the design without the flag, by its command line: most flags share one
     for flag, dest in walked.items():
         gone = {flag, "--pool"} if flag == "--candidates" else {flag}  # -m, --pool: replaced; --pool: or left out
         kept = [t for k, t in enumerate(head) if not gone & set(head[max(k - 1, 0):k + 1])]
@@ -318,7 +319,9 @@ def test_every_design_flag_changes_the_design_or_is_refused(kind, tmp_path, caps
         if unused is not None and (used or unused):  # a modifier: alone (or beside what makes it idle), refused
             code, err, _ = _design([*kept, *unused, *value], out, capsys)
             assert code == 1 and flag in err and "leave it out" in err and "does not apply" not in err, (flag, err)
-        before = _design([*kept, *used], out, capsys)  # what it needs: --generations 2 beside --generations 3
+        if tuple([*kept, *used]) not in designed:  # what it needs: --generations 2 beside --generations 3
+            designed[tuple([*kept, *used])] = _design([*kept, *used], out, capsys)
+        before = designed[tuple([*kept, *used])]
         after = _design([*kept, *[t for k, t in enumerate(used) if flag not in used[max(k - 1, 0):k + 1]], *value],
                         out, capsys)
         if before[0] == 1:  # what it modifies is refused for the kind (the IDE leaves a plan's pool): so is it
