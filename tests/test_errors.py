@@ -235,3 +235,38 @@ def test_degrees_read_in_the_default_radians_say_no_unit_was_given(ur5):
     grid = kincal.read_measurements(DATA / "ur5_grid.csv", ur5, joint_cols=UR5_COLS, length_unit="mm",
                                     angle_unit="deg")
     assert np.degrees(np.abs(grid.q)).max() == pytest.approx(largest, rel=1e-12)
+
+
+def test_cli_tells_a_typed_angle_unit_from_its_default(ur5, tmp_path, capsys):
+    """kincal calibrate with no --angle-unit said "reach 147 rad ('rad' was given)" of the UR5 grid's degrees: its
+    default was 'rad' in the parser. The default is None now, read as rad: the message says no unit was given, as
+    read_measurements does, and the same for a Python ObservationFormat with no angle unit; typed, 'rad' is named as
+    given. The figure: the largest revolute value of the file as written (numpy on the columns)."""
+    import csv
+
+    from kincal.compensate import TargetsFormat
+    from kincal.observe import ObservationFormat, read_observations
+    with open(DATA / "ur5_grid.csv") as f:
+        largest = max(abs(float(r[c])) for r in csv.DictReader(f) for c in UR5_COLS)
+    head = f"revolute joint values reach {largest:.4g} rad"
+    grid, cols, out = str(DATA / "ur5_grid.csv"), ",".join(UR5_COLS), str(tmp_path / "x.yaml")
+    for argv in (["calibrate", "ur5", grid, "--length-unit", "mm", "--joint-cols", cols, "-o", out],
+                 ["evaluate", "ur5", grid, "--length-unit", "mm", "--joint-cols", cols],
+                 ["simulate", "ur5", "--poses-file", grid, "--joint-cols", cols, "-o", str(tmp_path / "s.csv")],
+                 ["design", "ur5", "--candidates", grid, "--joint-cols", cols, "-m", "10", "-o", str(tmp_path / "d.csv")]):
+        code, _, err = run_cli(capsys, *argv)
+        assert code == 1 and f"{head} (the default 'rad': no unit was given), far beyond" in " ".join(err.split()), err
+        code, _, err = run_cli(capsys, *argv, "--angle-unit", "rad")
+        assert code == 1 and f"{head} ('rad' was given), far beyond" in " ".join(err.split()), err
+    q = np.loadtxt(grid, delimiter=",", skiprows=1, usecols=range(1, 7))  # degrees, read as radians
+    for fmt, said in ((ObservationFormat(), "(the default 'rad': no unit was given)"),
+                      (ObservationFormat(angle_unit="rad"), "('rad' was given)"),
+                      (TargetsFormat(), "(the default 'rad': no unit was given)"),
+                      (TargetsFormat(angle_unit="rad"), "('rad' was given)")):
+        assert fmt.angle_unit == "rad"
+        with pytest.raises(MeasurementError) as err:
+            kincal.io.check_joints(grid, q, ur5, "mm", fmt.angle_unit, angle_default=fmt.angle_default)
+        assert f"{head} {said}, far beyond" in str(err.value)
+    obs = read_observations(grid, ur5, ObservationFormat(joint_cols=tuple(UR5_COLS), length_unit="mm",
+                                                         angle_unit="deg"))
+    assert np.degrees(np.abs(obs.q)).max() == pytest.approx(largest, rel=1e-12)

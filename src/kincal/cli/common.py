@@ -223,11 +223,17 @@ def add_data_flags(p: argparse.ArgumentParser, std: bool = True) -> None:
                    help="comma-separated joint columns (default: the robot's joint names)")
     g.add_argument("--xyz-cols", type=csv_list, default=["x", "y", "z"], help="position columns (default x,y,z)")
     g.add_argument("--length-unit", default="m", choices=list(LENGTH_UNITS), help="positions, prismatic joints")
-    g.add_argument("--angle-unit", default="rad", choices=list(ANGLE_UNITS), help="revolute joints")
+    g.add_argument("--angle-unit", choices=list(ANGLE_UNITS), help="revolute joints (default rad)")
     if std:
         g.add_argument("--std-cols", type=csv_list, default=None,
                        help="the instrument's σ per sample, X,Y,Z columns in the length unit (default: "
                             "measurement_std_x,measurement_std_y,measurement_std_z when present; 'none' ignores them)")
+
+
+def angle_unit(args) -> str:
+    """--angle-unit as typed, else its default "rad": the flag is None when not typed, and the readers told None
+    say so of joint values in another unit."""
+    return args.angle_unit or "rad"
 
 
 def joint_values(args, robot, path: str | None) -> np.ndarray:

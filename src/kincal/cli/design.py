@@ -22,8 +22,8 @@ from kincal.io.program_ur import measurement_program
 from kincal.observe import read_observations, write_observations
 
 from . import observe
-from .common import (cell_lengths, csv_list, emit, err, judged, lengths, load_robot, nonneg_float, nonneg_int,
-                     one_type, positive_float, positive_int, progress, check_paths)
+from .common import (angle_unit, cell_lengths, csv_list, emit, err, judged, lengths, load_robot, nonneg_float,
+                     nonneg_int, one_type, positive_float, positive_int, progress, check_paths)
 
 
 CELL_FLAGS = {"floor", "keep_out", "tracker", "tracker_range", "cone", "reflector_axis", "joint_margin", "link_radius"}
@@ -106,7 +106,8 @@ def cmd_design(args) -> int:
         return _design_constraints(args, r, options)
     if args.candidates:
         pool = kincal.read_joints(args.candidates, r, args.joint_cols, args.length_unit, args.angle_unit)
-        kincal.io.check_joints(args.candidates, pool, r, args.length_unit, args.angle_unit)  # a unit, named
+        kincal.io.check_joints(args.candidates, pool, r, args.length_unit, angle_unit(args),  # a unit, named
+                               angle_default=args.angle_unit is None)
         bad = ~r.feasible(pool)
         if bad.any():
             raise kincal.MeasurementError(f"{args.candidates}: {int(bad.sum())} candidate pose(s) break the joint "
@@ -127,7 +128,7 @@ def cmd_design(args) -> int:
         kincal.io.write_selected_rows(args.output, args.candidates, d.indices)
         where = f"poses written to {args.output} (the chosen rows of {args.candidates}, every column kept)"
     else:
-        kincal.io.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, args.angle_unit)
+        kincal.io.write_joints(args.output, d.q, r, args.joint_cols, args.length_unit, angle_unit(args))
         where = f"poses written to {args.output}" + (f" ({args.method} leaves the candidates: new poses, no input "
                                                      f"rows)" if args.candidates else "")
     return emit(args, {**d.to_dict(), "output": args.output, **_program(args, r, route)}, f"{d}\n{where}" + (
@@ -156,7 +157,8 @@ def _design_check(args) -> int:
     if args.candidates:
         kincal.io.write_selected_rows(args.output, args.candidates, chosen)
     else:
-        kincal.io.write_joints(args.output, pool[chosen], cal.robot, args.joint_cols, args.length_unit, args.angle_unit)
+        kincal.io.write_joints(args.output, pool[chosen], cal.robot, args.joint_cols, args.length_unit,
+                               angle_unit(args))
     return emit(args, {"poses": len(chosen), "rows": (chosen + 2).tolist() if args.candidates else None,
                        "output": args.output},
                 f"{len(chosen)} check poses of {len(pool)} candidates written to {args.output}"
@@ -170,7 +172,7 @@ def _joint_units(args, cal) -> str:
     if args.candidates:
         return ""
     types = set(cal.robot.joint_types)
-    units = [u for t, u in (("revolute", args.angle_unit), ("prismatic", args.length_unit)) if t in types]
+    units = [u for t, u in (("revolute", angle_unit(args)), ("prismatic", args.length_unit)) if t in types]
     return f" (joints in {' and '.join(units)})" if units else ""
 
 

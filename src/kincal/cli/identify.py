@@ -19,8 +19,8 @@ from kincal.history import calibration_record, evaluation_record, fingerprint
 from kincal.identify import held_out_nominal, held_out_stats, stat_change
 from kincal.units import DEG, LENGTH_UNITS, MM
 
-from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, checked, covariates_read, csv_list, emit, err, hidden_alias,
-                     judged, load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs,
+from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, angle_unit, checked, covariates_read, csv_list, emit, err,
+                     hidden_alias, judged, load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs,
                      row_list, unread_joints)
 from . import observe
 from .history import add_store_flag, store_file, store_record
@@ -166,7 +166,7 @@ def cmd_calibrate(args) -> int:
     # before the report: it shows the history with it
     text += f"\n{stored}" if stored else ""
     text += "".join("\n" + line for line in write_outputs(args, res, tests, {
-        "robot": args.robot, "units": f"{args.length_unit}, {args.angle_unit}"}))
+        "robot": args.robot, "units": f"{args.length_unit}, {angle_unit(args)}"}))
     emit(args, {**res.to_dict(), **held, "output": args.output if written else None, "residuals_file": args.residuals,
                 "sessions": list(args.data) if len(args.data) > 1 else None}, text)
     # refused data are named, with the likely cause: more telling than the non-convergence they usually cause

@@ -22,8 +22,8 @@ from kincal.observe import describe, read_observations, write_observations
 from kincal.units import ANGLE_UNITS, DEG, LENGTH_UNITS, MM, SHOWN, display, joint_factors, joint_units
 
 from . import observe
-from .common import (csv_list, emit, finite_float, hidden_alias, joint_values, load_robot, nonneg_float, one_type,
-                     positive_float, positive_int)
+from .common import (angle_unit, csv_list, emit, finite_float, hidden_alias, joint_values, load_robot, nonneg_float,
+                     one_type, positive_float, positive_int)
 
 
 def cmd_robots(args) -> int:
@@ -172,7 +172,7 @@ def cmd_simulate(args) -> int:
         return emit(args, {"output": args.output, "type": kind, "n": len(obs), "flags": use, "command": command},
                     f"wrote {len(obs)} simulated {kind} samples of {true.name} to {args.output}{_hint(args, command)}")
     meas = kincal.simulate(true, q, noise=args.noise / MM, seed=args.seed + 1)
-    kincal.write_measurements(args.output, meas, r.joint_types, args.length_unit, args.angle_unit,
+    kincal.write_measurements(args.output, meas, r.joint_types, args.length_unit, angle_unit(args),
                               joint_cols=args.joint_cols, xyz_cols=args.xyz_cols)
     payload = {"output": args.output, "n": len(meas), "noise": args.noise / MM, "perturbed": bool(args.perturb),
                "true_robot": args.save_true, "true_parameters": true.params.as_dict()}

@@ -26,7 +26,7 @@ from kincal.papers import PUU3_2024
 from kincal.units import DEG, MM
 
 from .design import add_cell_flags, cell_of
-from .common import (EXIT_REFUSED, add_data_flags, checked, covariates_read, csv_list, emit, err, load_robot,
+from .common import (EXIT_REFUSED, add_data_flags, angle_unit, checked, covariates_read, csv_list, emit, err, load_robot,
                      nonneg_float, point, positive_float, positive_int, progress_bar)
 
 
@@ -548,11 +548,11 @@ def cmd_verify(args) -> int:
                          "again with --plan FILE --measured MEASUREMENTS (or --simulate TRUE_ROBOT to try it)")
     plan = _plan(args, r)
     if args.output:
-        plan.write_csv(args.output, r, args.joint_cols, args.length_unit, args.angle_unit)
+        plan.write_csv(args.output, r, args.joint_cols, args.length_unit, angle_unit(args))
     if not (args.measured or args.simulate):
         return emit(args, {"cases": list(plan.cases), "commands": plan.commands.tolist(), "output": args.output},
                     f"{len(plan.cases)} cases x {plan.commands.shape[1]} samples: commands written to {args.output} "
-                    f"({args.length_unit}, {args.angle_unit}); measure them in this order, then run with --plan "
+                    f"({args.length_unit}, {angle_unit(args)}); measure them in this order, then run with --plan "
                     f"{args.output} --measured FILE")
     result = plan.compare(_measured(args, r, plan), args.tolerance / MM)
     return emit(args, result.to_dict(), result.table(), 0 if result.passed.all() else EXIT_REFUSED)

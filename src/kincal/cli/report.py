@@ -89,7 +89,7 @@ def cmd_report(args) -> int:
                                _use_q(record.get("use_q"), nominal, args.robot))
     gap = float(np.max(np.abs(res.robot.params.values - cal.params.values)))
     info = {"robot": f"{args.robot} (nominal values from its calibration record)",
-            "units": f"{reading.length_unit}, {reading.angle_unit}"}
+            "units": f"{reading.length_unit}, {reading.angle_unit or 'rad'}"}
     if gap > 1e-9:
         info["note"] = (f"a fit of these data differs from {args.robot} by up to {gap:.3g} (SI): the report shows "
                         f"the fit of these data, not the file")

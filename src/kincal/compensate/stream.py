@@ -58,7 +58,8 @@ class TargetsFormat:
     length_unit : str, optional
         The unit of the positions and prismatic joints: "m" (the default), "mm" or "um".
     angle_unit : str, optional
-        The unit of the revolute joints: "rad" (the default), "deg" or "rev".
+        The unit of the revolute joints: "rad", "deg" or "rev" (default None: "rad", and a message about the values
+        in another unit says none was given; ``angle_default`` records it).
 
     Raises
     ------
@@ -84,9 +85,13 @@ class TargetsFormat:
     orientation: str = "quat-wxyz"
     rot_cols: tuple[str, ...] | None = None
     length_unit: str = "m"
-    angle_unit: str = "rad"
+    angle_unit: str = None  # type: ignore[assignment]  # None: "rad", not given (__post_init__ sets it)
+    angle_default: bool = field(init=False, default=False)  # no angle unit was given: "rad" is the default
 
     def __post_init__(self) -> None:
+        if self.angle_unit is None:  # frozen: set once, here
+            object.__setattr__(self, "angle_unit", "rad")
+            object.__setattr__(self, "angle_default", True)
         check_pose_columns(self.orientation, self.length_unit, self.angle_unit, self.xyz_cols, self.rot_cols)
 
     @property
@@ -497,7 +502,7 @@ def _first_checks(job: StreamJob, stream: Stream, rows, q0, xyz, rot) -> None:
         return
     t, robot, m = job.targets, job.nominal or job.robot, CONVENTION_ROWS
     q0, xyz = q0[:m], xyz[:m]
-    check_degrees(stream.path, q0, robot, t.angle_unit)
+    check_degrees(stream.path, q0, robot, t.angle_unit, t.angle_default)
     check_radians(stream.path, q0, robot, t.angle_unit)
     size = lambda x: float(np.median(np.linalg.norm(x - np.median(x, axis=0), axis=1)))  # noqa: E731
     p0 = robot.forward(q0)

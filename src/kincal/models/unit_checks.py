@@ -727,7 +727,7 @@ def check_limits(source: str, q: np.ndarray, robot: Robot, length_unit: str | No
 
 
 def check_joints(source: str, q: np.ndarray, robot: Robot, length_unit: str | None, angle_unit: str | None,
-                 suggest: bool = True) -> None:
+                 suggest: bool = True, angle_default: bool = False) -> None:
     """The joint values' unit and column checks, in order: :func:`check_degrees`, :func:`check_radians`,
     :func:`check_limits`.
 
@@ -743,6 +743,8 @@ def check_joints(source: str, q: np.ndarray, robot: Robot, length_unit: str | No
         The units the values were read in.
     suggest : bool, optional
         Passed to :func:`check_limits` (default True).
+    angle_default : bool, optional
+        ``angle_unit`` is a reader's default, not given (:func:`check_degrees`; default False: it was given).
 
     Raises
     ------
@@ -756,7 +758,7 @@ def check_joints(source: str, q: np.ndarray, robot: Robot, length_unit: str | No
     >>> robot = kincal.load_robot("ur5")
     >>> check_joints("poses.csv", robot.sample_joints(5, seed=1), robot, "mm", "rad")  # nothing to say
     """
-    check_degrees(source, q, robot, angle_unit)
+    check_degrees(source, q, robot, angle_unit, angle_default)
     check_radians(source, q, robot, angle_unit)
     check_limits(source, q, robot, length_unit, angle_unit, suggest)
 

@@ -70,7 +70,8 @@ class ObservationFormat:
         The file's length unit, "m", "mm" or "um": positions, prismatic joints, ``std_pos`` columns,
         ``distances`` and the planes' offsets (default "m").
     angle_unit : str, optional
-        The file's unit of revolute joints, "rad", "deg" or "rev" (default "rad").
+        The file's unit of revolute joints, "rad", "deg" or "rev" (default None: "rad", and a message about the
+        values in another unit says none was given; ``angle_default`` records it).
     xyz_cols : tuple of str, optional
         The three position columns of points and poses (default ("x", "y", "z")).
     orientation : str, optional
@@ -123,7 +124,7 @@ class ObservationFormat:
     kind: str = "point"
     joint_cols: tuple[str, ...] | None = None
     length_unit: str = "m"
-    angle_unit: str = "rad"
+    angle_unit: str = None  # type: ignore[assignment]  # None: "rad", not given (__post_init__ sets it)
     xyz_cols: tuple[str, ...] = ("x", "y", "z")
     orientation: str = "quat-wxyz"
     rot_cols: tuple[str, ...] | None = None
@@ -135,6 +136,7 @@ class ObservationFormat:
     std_pos: float | None = None  # m
     std_rot: float | None = None  # rad
     own_target: bool = False  # pose, held out: its target's frame on the flange is its own (re-fitted)
+    angle_default: bool = field(init=False, default=False)  # no angle unit was given: "rad" is the default
 
     def __post_init__(self) -> None:
         """Every setting checked (ValueError): a known type, convention and units, σ > 0 that an instrument can
@@ -142,6 +144,9 @@ class ObservationFormat:
         a repeat with the same length is dropped); known planes: a normal and an offset a robot can reach."""
         if self.kind not in KINDS:
             raise ValueError(f"measurement type '{self.kind}': use one of {', '.join(KINDS)}")
+        if self.angle_unit is None:  # frozen: set once, here
+            object.__setattr__(self, "angle_unit", "rad")
+            object.__setattr__(self, "angle_default", True)
         check_pose_columns(self.orientation, self.length_unit, self.angle_unit, self.xyz_cols, self.rot_cols)
         for what, v in (("std_pos", self.std_pos), ("std_rot", self.std_rot)):
             if v is not None and not (np.isfinite(v) and v > 0):
@@ -272,7 +277,8 @@ def _check_units(obs: Observation, robot: Robot, fmt: ObservationFormat) -> None
     found = obs.positions()
     if found is not None:
         check_spread(obs.source, *found, robot, fmt.length_unit, fmt.angle_unit, rows=obs.rows)
-    check_joints(obs.source, obs.q, robot, fmt.length_unit, fmt.angle_unit, suggest=found is None)
+    check_joints(obs.source, obs.q, robot, fmt.length_unit, fmt.angle_unit, suggest=found is None,
+                 angle_default=fmt.angle_default)
     swap = None if found is None else unassembled_rows(obs.source, *found, robot, obs.rows,
                                                        (fmt.length_unit, fmt.angle_unit))
     if swap is not None and swap[1]:  # two joint columns swapped: the whole file's mistake (a few rows that do not
