@@ -744,7 +744,7 @@ OBSERVE = [
     case("compensate-pose-without-orientation", ["compensate", "ur5", "{base}/targets.csv", "-o", "{d}/c.csv", "--pose",
                                                  *MMDEG], 1, ["orientation columns qw, qx, qy, qz"]),
     case("compensate-cartesian-without-pose", ["compensate", "ur5", "{base}/targets.csv", "-o", "{d}/c.csv",
-                                               "--output-kind", "cartesian", *MMDEG], 1, ["give --pose"]),
+                                               "--output-kind", "cartesian", *MMDEG], 1, ["CLI: --pose"]),
     case("program-move-without-closing", ["compensate", "{d}/cal.yaml", "{d}/prog.script", "--program", "ur", "-o",
                                           "{d}/out.script"], 1, ["prog.script: line 2: a move call without its closing"],
          files={"prog.script": "def p():\n  movej([0, -1.5, 1.5, -1.5, -1.5, 0], a=1.4\nend\n",

@@ -270,3 +270,29 @@ def test_cli_tells_a_typed_angle_unit_from_its_default(ur5, tmp_path, capsys):
     obs = read_observations(grid, ur5, ObservationFormat(joint_cols=tuple(UR5_COLS), length_unit="mm",
                                                          angle_unit="deg"))
     assert np.degrees(np.abs(obs.q)).max() == pytest.approx(largest, rel=1e-12)
+
+
+def test_library_messages_name_the_python_argument_beside_the_flag(ur5):
+    """frame_mismatch told a Python caller "say which with --target-frame" and "give the controller's TCP with --tcp",
+    compensate of a hexapod "--pose", check_limits "(CLI: --joint-cols, --length-unit)": CLI flags alone. Each now
+    names the argument first (command_models' frame= / tcp=, rotations=, joint_cols); the CLI flag stays beside it.
+    The offsets are exact: a 2 mm shift along base y, 10 mm along the flange z, the base_link frame (x, y negated)."""
+    from kincal.compensate import TargetsFormat, StreamJob, frame_mismatch
+    q = ur5.sample_joints(5, seed=2)
+    p = ur5.forward(q)
+    said = frame_mismatch(ur5, q, p + [0.0, 0.002, 0.0])
+    assert "mismatch of 2.0 mm along the base frame +y" in said
+    assert "say which (command_models' frame=; CLI: --target-frame)" in said
+    said = frame_mismatch(ur5, q, p + ur5.flange_rotation(q) @ np.array([0.0, 0.0, 0.01]))
+    assert "mismatch of 10.0 mm along the flange +z" in said and "(command_models' tcp=; CLI: --tcp)" in said
+    said = frame_mismatch(ur5, q, p * [-1.0, -1.0, 1.0])
+    assert "(command_models' frame='base_link'; CLI: --target-frame base_link)" in said
+    hexapod = kincal.load_robot("hexapod")
+    with pytest.raises(kincal.ModelError, match=r"rotations=; CLI: --pose"):
+        kincal.compensate(hexapod, hexapod.forward(hexapod.sample_joints(3, seed=0)))
+    with pytest.raises(ValueError, match=r"TargetsFormat\(pose=True\); CLI: --pose"):
+        StreamJob(ur5, ur5, TargetsFormat(), kind="cartesian")
+    wide = ur5.sample_joints(20, seed=1)
+    wide[:, 0] = 500.0  # rad: no angle unit puts joint 1 within ±2π
+    with pytest.raises(MeasurementError, match=r"\(joint_cols, angle_unit; CLI: --joint-cols, --angle-unit\)"):
+        kincal.io.check_limits("poses.csv", wide, ur5, "m", "rad")

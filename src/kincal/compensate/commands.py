@@ -234,7 +234,7 @@ def compensate(robot: Robot, targets: np.ndarray, q_start: np.ndarray | None = N
                          "pose targets only (give rotations)")
     if robot.has_pose_inverse:
         raise ModelError(f"robot '{robot.name}' ({robot.structure}): its joints are set by the platform's whole pose; "
-                         f"give 6-D targets (position and orientation: --pose)")
+                         f"give 6-D targets, position and orientation (rotations=; CLI: --pose)")
     targets, q0, rows = _checked_inputs(robot, targets, q_start, damping, rows)
     why = _set_up_mismatch(robot, nominal, q0, targets)
     if why:

@@ -253,14 +253,16 @@ def frame_mismatch(nominal: Robot, q: np.ndarray, targets: np.ndarray) -> str:
     ''
     >>> print(frame_mismatch(nominal, q, nominal.forward(q) + [0.0, 0.002, 0.0]))
     TCP/frame mismatch of 2.0 mm along the base frame +y: the targets are in another frame than the model's;
-    say which with --target-frame. Not corrected: a constant offset is a set-up mismatch, not a robot error
+    say which (command_models' frame=; CLI: --target-frame). Not corrected: a constant offset is a set-up
+    mismatch, not a robot error
     >>> longer = nominal.forward(q) + nominal.flange_rotation(q) @ np.array([0.0, 0.0, 0.01])
     >>> print(frame_mismatch(nominal, q, longer))
     TCP/frame mismatch of 10.0 mm along the flange +z: the targets were computed for a tool point at (0.00, 0.09,
-    41.00) mm in the flange frame, not the model's; give the controller's TCP with --tcp. Not corrected: a
-    constant offset is a set-up mismatch, not a robot error
+    41.00) mm in the flange frame, not the model's; give the controller's TCP (command_models' tcp=; CLI: --tcp).
+    Not corrected: a constant offset is a set-up mismatch, not a robot error
     >>> print(frame_mismatch(nominal, q, nominal.forward(q) * [-1.0, -1.0, 1.0]))
-    the targets are in the robot's 'base_link' frame, not its base frame: give --target-frame base_link
+    the targets are in the robot's 'base_link' frame, not its base frame: give it (command_models'
+    frame='base_link'; CLI: --target-frame base_link)
     """
     reached = nominal.forward(q)
     e = targets - reached
@@ -280,14 +282,15 @@ def frame_mismatch(nominal: Robot, q: np.ndarray, targets: np.ndarray) -> str:
         if name == "flange":
             where = ", ".join(f"{x * MM:.2f}" for x in nominal.tool_point() + c)
             return (f"{head}: the targets were computed for a tool point at ({where}) mm in the flange frame, not the "
-                    f"model's; give the controller's TCP with --tcp. Not corrected: a constant offset is a set-up "
-                    f"mismatch, not a robot error")
-        return (f"{head}: the targets are in another frame than the model's; say which with --target-frame. Not "
-                f"corrected: a constant offset is a set-up mismatch, not a robot error")
+                    f"model's; give the controller's TCP (command_models' tcp=; CLI: --tcp). Not corrected: a "
+                    f"constant offset is a set-up mismatch, not a robot error")
+        return (f"{head}: the targets are in another frame than the model's; say which (command_models' frame=; "
+                f"CLI: --target-frame). Not corrected: a constant offset is a set-up mismatch, not a robot error")
     for frame, (R, t) in nominal.named_frames().items():
         there = (reached - t) @ R  # the nominal positions in that frame
         if np.max(np.linalg.norm(targets - there, axis=1)) <= MISMATCH_TOL:
-            return (f"the targets are in the robot's '{frame}' frame, not its base frame: give --target-frame {frame}")
+            return (f"the targets are in the robot's '{frame}' frame, not its base frame: give it (command_models' "
+                    f"frame='{frame}'; CLI: --target-frame {frame})")
     return ""  # no set-up mismatch: the rows that miss are named one by one
 
 

@@ -150,7 +150,8 @@ class StreamJob:
     >>> StreamJob(nominal, nominal, kind="cartesian")
     Traceback (most recent call last):
     ...
-    ValueError: --output-kind cartesian writes filtered poses: give --pose (targets with orientation)
+    ValueError: kind='cartesian' (CLI: --output-kind cartesian) writes filtered poses: give targets with orientation
+    (TargetsFormat(pose=True); CLI: --pose)
     """
 
     robot: Robot
@@ -171,7 +172,8 @@ class StreamJob:
         if self.kind not in ("joints", "cartesian"):
             raise ValueError(f"output kind '{self.kind}': use joints or cartesian")
         if self.kind == "cartesian" and not (self.targets.pose and self.nominal is not None):
-            raise ValueError("--output-kind cartesian writes filtered poses: give --pose (targets with orientation)")
+            raise ValueError("kind='cartesian' (CLI: --output-kind cartesian) writes filtered poses: give targets "
+                             "with orientation (TargetsFormat(pose=True); CLI: --pose)")
 
     @property
     def needs_joints(self) -> bool:
@@ -402,12 +404,14 @@ def _check_columns(job: StreamJob, stream: Stream) -> None:
     check_once(path, header, cols, "joint, position or orientation")
     if job.needs_joints:
         _joint_columns(path, robot, joints)  # one per joint
-        check_present(path, header, joints, "needs the nominal joint values (--joint-cols names them)")
-    check_present(path, header, t.xyz_cols, "needs the target position columns (--xyz-cols)")
+        check_present(path, header, joints, "needs the nominal joint values (joint_cols names them; CLI: "
+                                                      "--joint-cols)")
+    check_present(path, header, t.xyz_cols, "needs the target position columns (xyz_cols; CLI: --xyz-cols)")
     if t.pose:
         rot = t.orientation_cols
         check_present(path, header, rot, f"needs orientation columns {', '.join(rot)} for --orientation "
-                                         f"{t.orientation} (other names: --rot-cols; position only: leave out --pose)")
+                                         f"{t.orientation} (other names: rot_cols, CLI: --rot-cols; position only: "
+                                         f"pose=False, CLI: leave out --pose)")
 
 
 def _workers(workers: int | None, stream: Stream) -> int:
@@ -531,7 +535,8 @@ def _read_as_degrees(job: StreamJob, path: str, comp, rows: np.ndarray, q0, xyz:
     except ModelError:  # (no reading of the file's: nothing to add)
         return comp
     reached = set(rows[bad][again.ok].tolist())
-    hint = (f"; read as degrees its orientation is reached: the angles look like degrees (--orientation {other})")
+    hint = (f"; read as degrees its orientation is reached: the angles look like degrees (orientation='{other}'; "
+            f"CLI: --orientation {other})")
     return dataclasses.replace(comp, problems=tuple(p + hint if _row_of(p) in {(1, r) for r in reached} else p
                                                     for p in comp.problems))
 

@@ -713,7 +713,8 @@ def check_limits(source: str, q: np.ndarray, robot: Robot, length_unit: str | No
     travel = [u for u in (length_unit or "m",) if np.isfinite(lead) and lead != 0 and inside(LENGTH_UNITS[u] / lead)]
     suggest = suggest and not (tried and robot.revolute[j])
     hint = (f": another unit, {'another lead in the robot file, ' if np.isfinite(lead) else ''}or another quantity "
-            f"in that column? check the joint columns and their unit (CLI: --joint-cols, --{flag}-unit)")
+            f"in that column? check the joint columns and their unit (joint_cols, {flag}_unit; "
+            f"CLI: --joint-cols, --{flag}-unit)")
     if suggest and travel:
         per = f"{lead * f / LENGTH_UNITS[travel[0]]:.4g} {travel[0]}/{unit}"
         hint = (f": read as {travel[0]} of travel through its lead ({per}){f', or as {fits[0]},' if fits else ''} they "
