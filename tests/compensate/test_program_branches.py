@@ -3,6 +3,7 @@ E6POS (S/T) and E6AXIS targets written from a nominal arm's poses, compensated f
 independently of the module's own check: the text read again, each Cartesian target turned into joints on its
 bits and moved through the perturbed arm, lands on the pose the original text meant."""
 import dataclasses
+import sys
 
 import numpy as np
 import pytest
@@ -716,3 +717,25 @@ def test_joint_targets_take_a_move_of_the_measured_point_beyond_a_links_error_as
     declared = _dh_point(nominal.params.as_dict(), q, nominal.tool_point())
     assert (np.linalg.norm(reached - declared, axis=1) > 2e-3).all()  # not the declared point's place
     assert "taken as the target's mounting" in said  # the note says so, for a program of joint targets too
+
+
+def test_a_target_refused_by_the_written_text_check_has_nan_joints(tmp_path, monkeypatch):
+    """A target whose written text check_written refuses kept its corrected joints in ProgramCompensation.q, which
+    says NaN where refused (and its tcp was NaN): now NaN. The check is made to refuse the Cartesian target of a
+    two-target KRL module; the joint target's joints stay those of the run without the refusal."""
+    branch = sys.modules["kincal.compensate.branch"]  # kincal.compensate is also a function: no attribute path
+    from kincal.io import ROWS
+    nominal = kincal.load_robot("kuka_kr6r900sixx")
+    real = kincal.perturb(nominal, seed=1)
+    (tmp_path / "d.src").write_text("DEF d()\nPTP {A1 20, A2 -70, A3 80, A4 10, A5 40, A6 5}\nLIN {X 609.5, Y -231.3, "
+                                    "Z 728.6, A -29.83, B 49.15, C -20.16, S 2, T 2}\nEND\n")
+    program = read_program(str(tmp_path / "d.src"), "krl")
+    frames = {"default tool": np.eye(4), "default base": np.eye(4)}
+    free = compensate_branches(real, nominal, program, ROWS["krl"], frames)
+    assert not free.refused and np.isfinite(free.q).all()
+    monkeypatch.setattr(branch, "check_written", lambda *a, **k: {1: "the written text misses (test)"})
+    res = compensate_branches(real, nominal, program, ROWS["krl"], frames)
+    assert sorted(res.refused) == [1] and sorted(res.texts) == [0]
+    assert np.isnan(res.q[1]).all() and np.isnan(res.tcp[1]).all()
+    np.testing.assert_array_equal(res.q[0], free.q[0])
+

@@ -185,6 +185,7 @@ def compensate_branches(model: Robot, nominal: Robot, program: Program, rows: Ro
                                 orientation, measured).items():
         texts.pop(k)
         refused[k] = why
+        qs[k] = np.nan  # ProgramCompensation.q: NaN where refused, as the other refusals
     alien = foreign(nominal, program, refused)
     if alien:  # nothing corrected for the wrong robot: the targets it reached are refused too
         refused.update({k: ALIEN for k in texts})

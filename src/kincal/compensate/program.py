@@ -23,6 +23,7 @@ from typing import Callable
 import numpy as np
 
 from .._frozen import freeze_arrays
+from ..io.branches import BITS
 from ..io.program_ur import write as write_ur
 from ..io.programs import Program, Target
 from ..models.robot import Robot
@@ -246,7 +247,8 @@ def compensate_program(model: Robot, nominal: Robot, program: Program, q_start: 
 
 def foreign(robot: Robot, program: Program, refused: dict) -> str:
     """Why a program looks written for another robot, or '' when it does not: more than ``FOREIGN`` (half) of its
-    literal targets are refused as :class:`Unreached` (beyond ``robot``'s reach or joint limits as written).
+    literal targets are refused as :class:`Unreached` (beyond ``robot``'s reach or joint limits as written; in a
+    language whose targets carry branch bits (:data:`kincal.io.branches.BITS`), on none of the branches they name).
 
     Parameters
     ----------
@@ -280,9 +282,10 @@ def foreign(robot: Robot, program: Program, refused: dict) -> str:
     n, out = len(program.targets), sum(isinstance(why, Unreached) for why in refused.values())
     if not n or out <= FOREIGN * n:
         return ""
+    bits = ", or on none of its branches with the target's bits" if program.dialect in BITS else ""  # URScript: none
     return (f"the program looks written for another robot: {out} of its {n} literal targets are out of "
-            f"{robot.name}'s reach as written (beyond its reach or joint limits, or on none of its branches with "
-            f"the target's bits: more than half), so none is compensated (--skip-unreachable writes it as it was, "
+            f"{robot.name}'s reach as written (beyond its reach or joint limits{bits}: more than half), so none is "
+            f"compensated (--skip-unreachable writes it as it was, "
             f"each target marked): compensate it with the calibration of the robot it is written for (if it is "
             f"this robot's, check the frames and units of its targets)")
 
