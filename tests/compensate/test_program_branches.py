@@ -739,3 +739,18 @@ def test_a_target_refused_by_the_written_text_check_has_nan_joints(tmp_path, mon
     assert np.isnan(res.q[1]).all() and np.isnan(res.tcp[1]).all()
     np.testing.assert_array_equal(res.q[0], free.q[0])
 
+
+def test_the_wrong_robot_sentence_names_branch_bits_only_where_the_language_has_them():
+    """foreign's sentence said "or on none of its branches with the target's bits" of a URScript program too, whose
+    targets carry no branch bits; it says so only for the languages with bits (kincal.io.branches.BITS: KRL, RAPID,
+    FANUC, INFORM). 2 of 3 targets unreached: more than half, so both sentences are given."""
+    from kincal.compensate.program import Unreached, foreign
+    from kincal.io.branches import BITS
+    from kincal.io.programs import Program
+    refused = {0: Unreached("a"), 1: Unreached("b")}
+    bits = "on none of its branches with the target's bits"
+    for dialect in ("ur", *BITS):
+        said = foreign(kincal.load_robot("ur5"), Program("p", "", targets=(None,) * 3, dialect=dialect), refused)
+        assert said.startswith("the program looks written for another robot: 2 of its 3 literal targets are out of "
+                               "ur5's reach as written (beyond its reach or joint limits"), said
+        assert (bits in said) == (dialect != "ur"), (dialect, said)
