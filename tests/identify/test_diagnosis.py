@@ -410,3 +410,27 @@ def test_a_urdf_robot_is_compared_with_the_bundled_robots_by_kinematics(tmp_path
     names = [*ur10.base_params(), "elbow_joint.x", "elbow_joint.z", "wrist_1_joint.x", "tool.x", "tool.y", "tool.z"]
     explicit = kincal.calibrate(ur10, meas, names=names)  # URDF names the DH UR5 lacks: its trial takes 'auto'
     assert explicit.diagnosis.best is not None and "the bundled 'ur5'" in explicit.diagnosis.best.cause
+
+
+@pytest.mark.slow
+def test_a_calibration_refused_by_its_likely_cause_alone_exits_4(tmp_path, capsys):
+    """One joint cell 10 mrad off among 80 poses: the verdict is refused by the likely cause (a few bad poses, the row)
+    alone, no other reason refuses it; calibrate and report exit 4 as the verdict says (trust.md), not 0."""
+    from kincal.cli import main
+    ur5 = kincal.load_robot("ur5")
+    meas = kincal.simulate(kincal.perturb(ur5, seed=3), ur5.sample_joints(80, seed=3), 15e-6, seed=3)
+    q = meas.q.copy()
+    q[5, 1] += 0.01  # 10 mrad off in input row 7 (the header is line 1)
+    bad = dataclasses.replace(meas, q=q)
+    res = kincal.calibrate(ur5, bad)
+    refusing = [r.code for r in res.verdict.reasons if r.level == "refused"]
+    assert res.verdict.status == "refused" and refusing == ["cause-outliers"] and res.converged
+    assert res.diagnosis.best.rows == (7,)
+    path = tmp_path / "bad.csv"
+    kincal.write_measurements(path, bad, ur5.joint_types, "mm", "deg")
+    args = [str(path), "--length-unit", "mm", "--angle-unit", "deg"]
+    code = main(["calibrate", "ur5", *args, "-o", str(tmp_path / "cal.yaml")])
+    err = capsys.readouterr().err
+    assert code == 4 and not (tmp_path / "cal.yaml").exists() and "likely cause: a few bad poses: row(s) 7" in err
+    assert main(["calibrate", "ur5", *args, "-o", str(tmp_path / "cal.yaml"), "--force"]) == 4
+    assert main(["report", str(tmp_path / "cal.yaml"), "-o", str(tmp_path / "r.html")]) == 4

@@ -28,6 +28,17 @@ CELL = "the cell"  # lengths(where=CELL): a cell flag's message
 TYPES = kincal.observe.KINDS  # measurement types (--type)
 
 
+def verdict_exit(verdict, converged: bool) -> int:
+    """The exit status of a calibration's ``verdict`` (its status alone): 0 good or suspect; refused EXIT_REFUSED,
+    EXIT_NOT_CONVERGED when the fit did not ``converge`` and no reason but that (and the likely cause it prompted)
+    refuses it."""
+    if verdict.status != "refused":
+        return 0
+    others = [r for r in verdict.reasons if r.level == "refused" and r.code != "not-converged"
+              and not r.code.startswith("cause-")]
+    return EXIT_NOT_CONVERGED if not converged and not others else EXIT_REFUSED
+
+
 def csv_list(s: str) -> list[str]:
     return [c.strip() for c in s.split(",") if c.strip()]
 

@@ -20,7 +20,7 @@ from kincal.identify import held_out_nominal, held_out_stats, stat_change
 from kincal.units import DEG, LENGTH_UNITS, MM
 
 from .common import (EXIT_NOT_CONVERGED, EXIT_REFUSED, angle_unit, checked, covariates_read, csv_list, emit, err,
-                     hidden_alias, judged, load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs,
+                     verdict_exit, hidden_alias, judged, load_robot, nonneg_float, positive_float, positive_int, progress, read, robot_inputs,
                      row_list, unread_joints)
 from . import observe
 from .history import add_store_flag, store_file, store_record
@@ -170,17 +170,16 @@ def cmd_calibrate(args) -> int:
     emit(args, {**res.to_dict(), **held, "output": args.output if written else None, "residuals_file": args.residuals,
                 "sessions": list(args.data) if len(args.data) > 1 else None}, text)
     # refused data are named, with the likely cause: more telling than the non-convergence they usually cause
-    data_problems = [r.code for r in res.verdict.reasons if r.level == "refused" and r.code != "not-converged"
-                     and not r.code.startswith("cause-")]
-    if data_problems:
+    code = verdict_exit(res.verdict, res.converged)
+    if code == EXIT_REFUSED:
+        problems = [r.code for r in res.verdict.reasons if r.level == "refused" and r.code != "not-converged"
+                    and not r.code.startswith("cause-")]
         cause = res.diagnosis.best if res.diagnosis else None
-        err.print(f"kincal: calibration refused: {'; '.join(data_problems)}"
+        err.print("kincal: calibration refused" + (f": {'; '.join(problems)}" if problems else "")
                   + (f"; likely cause: {cause.cause} (fix: {cause.fix})" if cause else ""))
-        return EXIT_REFUSED
-    if not res.converged:
+    elif code == EXIT_NOT_CONVERGED:
         err.print(f"kincal: calibration did not converge: {res.message}")
-        return EXIT_NOT_CONVERGED
-    return 0
+    return code
 
 
 def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], options, use_q="held"):

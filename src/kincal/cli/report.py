@@ -14,7 +14,7 @@ from kincal.units import ANGLE_UNITS, LENGTH_UNITS
 
 from . import observe
 from .history import add_store_flag, history_for_report
-from .common import EXIT_REFUSED, TYPES, csv_list, emit, err, load_robot, progress
+from .common import TYPES, verdict_exit, csv_list, emit, err, load_robot, progress
 
 
 READING = ("joint_cols", "length_unit", "angle_unit", "xyz_cols", "std_cols", "orientation", "rot_cols", "markers",
@@ -99,7 +99,7 @@ def cmd_report(args) -> int:
     json_file = rep.write(args.output)
     return emit(args, {**rep.data, "output": args.output, "json": str(json_file)},
                 f"{rep.summary}\nreport written to {args.output} (numbers in {json_file})",
-                0 if res.verdict.status != "refused" else EXIT_REFUSED)
+                verdict_exit(res.verdict, res.converged))
 
 
 def _record_parts(path: str, record: dict, train: list[str] | None) -> tuple[dict, "kincal.FitOptions"]:
