@@ -573,3 +573,36 @@ def test_two_calibrations_that_are_not_one_robot_measured_the_same_way_name_no_c
     assert blind.verdict == "these calibrations do not describe one robot measured the same way: their records do " \
                             "not say why" and "do not say why: check that both files" in blind.notes[-1]
     assert compare(cals[0], cals[0]).verdict == "no significant change"
+
+
+def test_a_check_with_one_bad_pose_names_its_file_row_not_a_change(true, tmp_path, capsys):
+    """20 check poses of an unchanged robot, joint 2 of one pose misread (line 14 of a file with 2 comment lines
+    above its header): the check names that pose by its file line (as every message does) as a few bad poses and
+    says the rest are still good, not a change of the tool of hundreds of mm; its range note names line 14 too."""
+    nominal = kincal.load_robot("ur5")
+    res = kincal.calibrate(nominal, kincal.simulate(true, nominal.sample_joints(100, seed=5), 15e-6, 5),
+                           kincal.FitOptions(diagnose=False))
+    cal = Calibrated.of(res.robot, res.record(), "fit 5")
+    q = nominal.sample_joints(20, seed=11)
+    xyz = kincal.simulate(true, q, 15e-6, 7).xyz
+    bad = q.copy()
+    bad[10, 1] = cal.upper[1] + 0.5  # 0.5 rad beyond the calibrated joint_2 range
+    rows = np.arange(4, 24)  # 2 comment lines, the header on line 3: data from line 4; pose 10 is on line 14
+    test = check(cal, bad, xyz, rows=rows)
+    rest = np.delete(np.arange(20), 10)
+    clean = check(cal, q[rest], xyz[rest], rows=rows[rest])
+    assert not clean.changed and test.changed and test.misfit == "a few bad poses: row(s) 14 lie far off the rest"
+    assert f"{test.rms * 1e3:.4g} mm RMS per pose -> {clean.rms * 1e3:.4g} mm" in test.notes[-1]
+    assert test.verdict == "the data do not fit this robot: a few bad poses: row(s) 14 lie far off the rest"
+    cal_file, path = tmp_path / "cal.yaml", tmp_path / "chk.csv"
+    kincal.save_robot(cal.robot, cal_file, calibration=res.record())
+    kincal.write_measurements(path, kincal.io.Measurements(bad, xyz, cal.robot.joint_names), cal.robot.joint_types,
+                              "mm", "deg")
+    path.write_text("# check poses\n# one tracker set-up\n" + path.read_text())
+    capsys.readouterr()
+    assert main(["check", str(cal_file), str(path), "--length-unit", "mm", "--angle-unit", "deg"]) == 4
+    said = capsys.readouterr().out
+    assert "verdict: the data do not fit this robot: a few bad poses: row(s) 14 lie far off the rest" in said
+    span = cal.upper - cal.lower  # the range note's own rule: 2 % of the span beyond the calibrated range
+    out = rows[np.any((bad < cal.lower - 0.02 * span) | (bad > cal.upper + 0.02 * span), axis=1)]
+    assert 14 in out and "outside the joint ranges" in said and f"(row(s) {', '.join(map(str, out))})" in said

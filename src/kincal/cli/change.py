@@ -88,7 +88,8 @@ def cmd_check(args) -> int:
     check_paths([args.data], [])
     meas = kincal.read_measurements(args.data, cal.robot, joint_cols=args.joint_cols, xyz_cols=args.xyz_cols,
                                     length_unit=args.length_unit, angle_unit=args.angle_unit)
-    test = check(cal, meas.q, meas.xyz, same_frame=args.same_frame, alpha=args.alpha, units=meas.units)
+    test = check(cal, meas.q, meas.xyz, same_frame=args.same_frame, alpha=args.alpha, units=meas.units,
+                  rows=meas.rows)
     _doubtful(args.calibration, test)
     stored = record(args, test, args.calibration, cal.robot, [args.calibration, args.data])
     emit(args, test.to_dict(), "\n".join(lines_of(test) + ([stored] if stored else [])))

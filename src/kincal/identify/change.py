@@ -447,13 +447,15 @@ def _miss(cal: Calibrated, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = False,
-          alpha: float = ALPHA, units: tuple[str, str] | None = None) -> ChangeTest:
+          alpha: float = ALPHA, units: tuple[str, str] | None = None, rows: np.ndarray | None = None) -> ChangeTest:
     """Is the calibrated model still good? A short check on a few measured poses.
 
     Data whose most likely single change lies beyond a real robot's usual error (the verdict's suspect limits,
     10 mm and 2°) are taken for that change when it explains them alone (with it made in the model the check
     leaves less than half the discrepancy, plausibly: a joint re-mastered by 3°), its size refined; else for no
-    change of the robot: the input mistake that explains them is named (``misfit``).
+    change of the robot: the input mistake that explains them is named (``misfit``). A few poses that carry the
+    discrepancy (beyond the outlier limit of robust σ, as a calibration's "a few bad poses") are named first, by row,
+    when the check without them leaves less than half of it.
 
     Parameters
     ----------
@@ -469,6 +471,8 @@ def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = Fa
         The false-alarm probability (default ``ALPHA``, 0.05).
     units : tuple of (str, str), optional
         The (length, angle) units the data were read in, to name a unit mistake (default None: SI).
+    rows : ndarray of int, shape (M,), optional
+        The poses' line numbers in their file, header = 1, as messages name them (default 2, 3, ...).
 
     Returns
     -------
@@ -487,11 +491,41 @@ def check(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool = Fa
     if len(q) < MIN_CHECK_POSES:
         raise MeasurementError(f"a check needs at least {MIN_CHECK_POSES} poses (the frame takes 6 of the 3 per "
                                f"pose); {len(q)} given. Measure the poses `kincal design CAL --check` chose")
-    test = _checked(cal, q, xyz, same_frame, alpha)
-    if _implausible(test) is None:
-        return test
-    named = _one_change(test, lambda name, size: _checked(*_undone(cal, q, name, size), xyz, same_frame, alpha))
-    return named or _misfit(cal, q, xyz, alpha, units, test)
+    meas = Measurements(q, xyz, cal.robot.joint_names, "check", rows, units=units)
+    test = _checked(cal, meas, same_frame, alpha)
+    bad = _bad_poses(cal, meas, same_frame, alpha, test)
+    if bad is not None or _implausible(test) is None:
+        return bad or test
+
+    def again(name: str, size: float) -> ChangeTest:
+        changed, q_at = _undone(cal, meas.q, name, size)
+        return _checked(changed, replace(meas, q=q_at), same_frame, alpha)
+    named = _one_change(test, again)
+    return named or _misfit(cal, meas, alpha, test)
+
+
+def _bad_poses(cal: Calibrated, meas: Measurements, same_frame: bool, alpha: float,
+               test: ChangeTest) -> ChangeTest | None:
+    """``test`` (a change found) as data that do not fit when a few poses carry the discrepancy: those
+    :func:`kincal.identify.diagnosis.few_bad` finds among the poses' discrepancies, named by row when the check
+    without them leaves less than ``EXPLAIN_RATIO`` of it; else None."""
+    from .diagnosis import EXPLAIN_RATIO, bad_rows, few_bad
+
+    if not test.changed:
+        return None
+    bad = few_bad(np.linalg.norm(_discrepancy(cal, meas.q, meas.xyz, same_frame)[2], axis=1))
+    keep = np.setdiff1d(np.arange(len(meas)), bad)
+    if not len(bad) or len(keep) < MIN_CHECK_POSES:
+        return None
+    with suppress(KincalError, ValueError, np.linalg.LinAlgError):
+        again = _checked(cal, meas.subset(keep), same_frame, alpha)
+        if again.rms < EXPLAIN_RATIO * test.rms:
+            cause = bad_rows(meas, bad)
+            note = (f"likely cause: {cause.cause}; without them the check says {again.verdict} (discrepancy "
+                    f"{test.rms * MM:.4g} mm RMS per pose -> {again.rms * MM:.4g} mm). Fix: check how they were "
+                    f"measured and measure them again, or leave them out of the file")
+            return replace(test, misfit=cause.cause, notes=(*test.notes, note))
+    return None
 
 
 def _undone(cal: Calibrated, q: np.ndarray, name: str, size: float) -> tuple[Calibrated, np.ndarray]:
@@ -540,20 +574,29 @@ def _one_change(test: ChangeTest, again: Callable[[str, float], ChangeTest]) -> 
     return None
 
 
-def _checked(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, same_frame: bool, alpha: float) -> ChangeTest:
-    """The check of :func:`check` without its plausibility gate."""
+def _discrepancy(cal: Calibrated, q: np.ndarray, xyz: np.ndarray,
+                 same_frame: bool) -> tuple[Robot, np.ndarray, np.ndarray]:
+    """The check's robot (its frame re-fitted unless ``same_frame``), the (M, M) covariance a repeat calibration's
+    miss has between the poses, and the poses' discrepancies (M, 3), m: measured less model less expected miss."""
     with blas_threads(1):  # small dense work: OpenBLAS threads spinning on a busy machine cost 100x (0.4 s)
         expected, A = cal.repeat.conditioned(cal.robot, q)  # what the calibration's own samples say it misses by
     robot = cal.robot
     if not same_frame:  # the frame of the measured positions less that expected miss
         robot = register_base(robot, q, xyz, expected)
-    d = (xyz - _in_frame(robot, expected) - robot.forward(q)).ravel()
+    return robot, A, xyz - _in_frame(robot, expected) - robot.forward(q)
+
+
+def _checked(cal: Calibrated, meas: Measurements, same_frame: bool, alpha: float) -> ChangeTest:
+    """The check of :func:`check` on ``meas`` without its plausibility gate."""
+    q = meas.q
+    robot, A, miss = _discrepancy(cal, q, meas.xyz, same_frame)
+    d = miss.ravel()
     w, V = np.linalg.eigh(A)  # per axis, the same for x, y, z: pose-major rows
     U = np.concatenate([np.kron(V * np.sqrt(np.clip(w, 0.0, None)), np.eye(3)),
                         cal.factor(q, not same_frame, robot)], axis=1)
     basis = None if same_frame else frame_basis(robot, q)
     return _judged("check", d, U, candidates(robot, q, basis), basis, cal.repeat.dof, cal.repeat.dispersion, alpha,
-                   len(q), tuple(_outside(cal, q)), _whole_frame(robot, q) if same_frame else None)
+                   len(q), tuple(_outside(cal, meas)), _whole_frame(robot, q) if same_frame else None)
 
 
 NOT_ROBOT = ("frame", "tool")  # kinds of change that say where the instrument stands or the target is mounted
@@ -573,8 +616,7 @@ def _implausible(test: ChangeTest) -> Suspect | None:
     return first if abs(first.size) > limit >= first.sigma else None
 
 
-def _misfit(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, alpha: float, units: tuple[str, str] | None,
-            test: ChangeTest) -> ChangeTest:
+def _misfit(cal: Calibrated, meas: Measurements, alpha: float, test: ChangeTest) -> ChangeTest:
     """``test`` (its first suspect beyond a real robot's error) as data that do not fit the robot: each input
     mistake of :func:`kincal.identify.diagnosis.input_changes` undone is screened by the rigid fit of the model to
     it, the ``MAX_FULL`` best that halve the original's checked again (the frame re-fitted: the mirrored frame's
@@ -583,7 +625,6 @@ def _misfit(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, alpha: float, units
     from .options import FitOptions
     from .verdict import Thresholds
 
-    meas = Measurements(q, xyz, cal.robot.joint_names, "check", units=units)
     changes = input_changes(cal.robot, meas)
     changed = [change(cal.robot, meas, FitOptions())[1] for _, change in changes]
     screens = [_rigid_rms(cal.robot, m) if isinstance(m, Measurements) else np.inf for m in changed]
@@ -593,7 +634,7 @@ def _misfit(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, alpha: float, units
         m = changed[k]
         assert isinstance(m, Measurements)  # screened: a change of the data
         with suppress(KincalError, ValueError, np.linalg.LinAlgError):
-            again = _checked(cal, m.q, m.xyz, False, alpha)
+            again = _checked(cal, m, False, alpha)
             if _implausible(again) is None and again.rms < EXPLAIN_RATIO * test.rms:
                 tried.append((changes[k][0], again))
     th, first = Thresholds(), test.suspects[0]
@@ -605,11 +646,11 @@ def _misfit(cal: Calibrated, q: np.ndarray, xyz: np.ndarray, alpha: float, units
                 f"joint columns negated, offset or swapped, mirrored positions, shifted rows) explains them: check "
                 f"that the data are this robot's and the calibration file its own; if the robot was crashed, "
                 f"re-mastered or rebuilt, re-calibrate it")
-        return replace(test, misfit="no common input mistake explains them", notes=(*_outside(cal, q), note))
+        return replace(test, misfit="no common input mistake explains them", notes=(*_outside(cal, meas), note))
     cause, again = tried[first_best([t.rms for _, t in tried], maximize=False)]
     note = (f"{head}; likely cause: {cause.cause}; with that undone the check says {again.verdict} (discrepancy "
             f"{test.rms * MM:.4g} mm RMS per pose -> {again.rms * MM:.4g} mm). Fix: {cause.fix}")
-    return replace(test, misfit=cause.cause, notes=(*_outside(cal, q), note))  # not the suspects' notes
+    return replace(test, misfit=cause.cause, notes=(*_outside(cal, meas), note))  # not the suspects' notes
 
 
 def _rigid_rms(robot: Robot, meas: Measurements) -> float:
@@ -735,11 +776,12 @@ def _frame_shift(a: Robot, b: Robot) -> str:
     return f"the measurement frame differs by {move:.3f} mm and {turn:.3f} mrad (re-fitted: not judged)"
 
 
-def _outside(cal: Calibrated, q: np.ndarray) -> list[str]:
-    """A note when check poses lie outside the joint ranges the calibration was fitted in."""
+def _outside(cal: Calibrated, meas: Measurements) -> list[str]:
+    """A note when check poses ``meas`` lie outside the joint ranges the calibration was fitted in (their file
+    rows named)."""
     span = np.maximum(cal.upper - cal.lower, 1e-9)
-    out = np.any((q < cal.lower - 0.02 * span) | (q > cal.upper + 0.02 * span), axis=1)
+    out = np.any((meas.q < cal.lower - 0.02 * span) | (meas.q > cal.upper + 0.02 * span), axis=1)
     if not out.any():
         return []
-    return [f"{int(out.sum())} of {len(q)} poses lie outside the joint ranges the calibration was fitted in: its "
-            f"model error was not measured there (rows {', '.join(str(i + 1) for i in np.flatnonzero(out)[:10])})"]
+    return [f"{int(out.sum())} of {len(meas)} poses lie outside the joint ranges the calibration was fitted in: its "
+            f"model error was not measured there ({meas.describe_rows(np.flatnonzero(out))})"]

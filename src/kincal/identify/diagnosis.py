@@ -49,7 +49,7 @@ from ..models.robot import TOOL_NAMES, Robot
 from ..units import ANGLE_UNITS, LENGTH_UNITS, MM, OTHER_LENGTHS
 from ..ties import order_with_ties
 from .options import FitOptions
-from .verdict import MAX_OUTLIER_SHARE, STATUSES, robust_z
+from .verdict import MAX_OUTLIER_SHARE, STATUSES, Thresholds, robust_z
 
 if TYPE_CHECKING:  # the result holds a Diagnosis: result imports this module
     from .result import CalibrationResult
@@ -275,13 +275,36 @@ def _sessions(res: CalibrationResult) -> list[tuple[Cause, Change]]:
 
 def outlier_poses(robot: Robot, meas: Measurements, options: FitOptions) -> np.ndarray:
     """Indices into ``meas`` of the poses a robust (Huber) refit puts more than ``outlier_z`` robust σ
-    off, at most MAX_OUTLIER_SHARE of the poses (none when more are that far off: then it is not a few
-    bad poses). Indices, not file rows: several sessions repeat their files' line numbers."""
+    off (:func:`few_bad` of their error norms). Indices, not file rows: several sessions repeat their files' line
+    numbers."""
     from .calibrate import calibrate
     robust = calibrate(robot, meas, _quiet(options).replace(loss="huber", method="lm", f_scale=None))
-    z = robust_z(np.linalg.norm(robust.residuals, axis=1))
-    bad = np.flatnonzero(z > options.thresholds.outlier_limit(len(z)))
-    return bad if 0 < len(bad) <= max(1, int(MAX_OUTLIER_SHARE * len(meas))) else bad[:0]
+    return few_bad(np.linalg.norm(robust.residuals, axis=1), options.thresholds)
+
+
+def few_bad(norms: np.ndarray, thresholds: Thresholds | None = None, dim: int = 3) -> np.ndarray:
+    """Indices of the samples whose error ``norms`` (N,) of ``dim``-D residual blocks lie beyond
+    ``thresholds.outlier_limit`` robust σ (:func:`kincal.identify.verdict.robust_z`), when they are a few: at most
+    MAX_OUTLIER_SHARE of the samples (none when more are that far off: then it is not a few bad samples).
+
+    Examples
+    --------
+    >>> few_bad(np.array([1.0, 1.1, 0.9, 1.05, 0.95, 1.0, 1.02, 0.98, 1.01, 0.99, 40.0])).tolist()
+    [10]
+    """
+    z = robust_z(np.asarray(norms, float))
+    bad = np.flatnonzero(z > (thresholds or Thresholds()).outlier_limit(len(z), dim))
+    return bad if 0 < len(bad) <= max(1, int(MAX_OUTLIER_SHARE * len(z))) else bad[:0]
+
+
+def bad_rows(meas: Measurements, bad: np.ndarray, what: str = "poses") -> Cause:
+    """The cause "a few bad ``what``" for the samples at indices ``bad`` of ``meas`` (their file rows named, as the
+    fix's --exclude), without its σ and verdict."""
+    rows = meas.rows[bad]
+    exclude = f"--exclude {','.join(map(str, rows))}" if meas.session is None else "--exclude in their files"
+    return Cause("outliers", f"a few bad {what}: {meas.describe_rows(bad)} lie far off the rest",
+                 f"leave them out (--reject-outliers, or {exclude}) and check how they were measured",
+                 rows=tuple(int(r) for r in rows))
 
 
 def _quiet(options: FitOptions) -> FitOptions:
@@ -341,12 +364,7 @@ def diagnose(res: CalibrationResult) -> Diagnosis:
     trials = [data[k] for k in sorted(order[:MAX_FULL])] + _setups(robot, options) + _jump(res) + _sessions(res)
     bad = outlier_poses(robot, meas, options) if len(meas) > 10 else np.zeros(0, dtype=int)
     if len(bad):
-        rows = meas.rows[bad]
-        exclude = f"--exclude {','.join(map(str, rows))}" if meas.session is None else "--exclude in their files"
-        trials.append((Cause("outliers", f"a few bad poses: {meas.describe_rows(bad)} lie far off the rest",
-                             f"leave them out (--reject-outliers, or {exclude}) and check how they were measured",
-                             rows=tuple(int(r) for r in rows)),
-                       lambda r, m, o: (r, m.subset(np.setdiff1d(np.arange(len(m)), bad)), o)))
+        trials.append((bad_rows(meas, bad), lambda r, m, o: (r, m.subset(np.setdiff1d(np.arange(len(m)), bad)), o)))
     tried = [c for c in (_full(cause, change, robot, meas, options) for cause, change in trials) if c is not None]
     n_tried = len(data) + len(trials) - min(len(order), MAX_FULL)  # the screened ones counted once
     refit = _refit(res)
