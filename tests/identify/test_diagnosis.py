@@ -434,3 +434,27 @@ def test_a_calibration_refused_by_its_likely_cause_alone_exits_4(tmp_path, capsy
     assert code == 4 and not (tmp_path / "cal.yaml").exists() and "likely cause: a few bad poses: row(s) 7" in err
     assert main(["calibrate", "ur5", *args, "-o", str(tmp_path / "cal.yaml"), "--force"]) == 4
     assert main(["report", str(tmp_path / "cal.yaml"), "-o", str(tmp_path / "r.html")]) == 4
+
+
+def test_evaluate_names_a_few_bad_poses_by_row_not_a_scale_error(tmp_path, capsys):
+    """A calibrated UR5 evaluated on 20 poses, one with joint 2 misread by 1 rad (line 7): the likely cause is that
+    pose, with the mean error of the other 19 (numpy on the calibrated model), not a scale error."""
+    from kincal.cli import main
+    ur5 = kincal.load_robot("ur5")
+    true = kincal.perturb(ur5, seed=3)
+    train = kincal.simulate(true, ur5.sample_joints(80, seed=3), 15e-6, seed=3)
+    kincal.write_measurements(tmp_path / "train.csv", train, ur5.joint_types, "mm", "deg")
+    units = ["--length-unit", "mm", "--angle-unit", "deg"]
+    assert main(["calibrate", "ur5", str(tmp_path / "train.csv"), *units, "-o", str(tmp_path / "cal.yaml")]) == 0
+    test = kincal.simulate(true, ur5.sample_joints(20, seed=4), 15e-6, seed=4)
+    q = test.q.copy()
+    q[5, 1] += 1.0  # line 7
+    kincal.write_measurements(tmp_path / "test.csv", dataclasses.replace(test, q=q), ur5.joint_types, "mm", "deg")
+    capsys.readouterr()
+    assert main(["evaluate", str(tmp_path / "cal.yaml"), str(tmp_path / "test.csv"), *units, "--same-frame"]) == 0
+    out = capsys.readouterr().out
+    cal = kincal.load_robot(str(tmp_path / "cal.yaml"))
+    rest = np.delete(np.arange(20), 5)
+    left = np.linalg.norm(test.xyz[rest] - cal.forward(test.q[rest]), axis=1).mean()
+    assert f"likely cause: a few bad poses: row(s) 7 lie far off the rest: without them the mean error is " \
+           f"{left * 1e3:.4g} mm" in out and "scale" not in out

@@ -333,6 +333,23 @@ def cmd_evaluate(args) -> int:
                 "\n".join([text for _, lines in judged for text in lines] + [t for t in (unread, stored) if t]))
 
 
+def _few_bad(r, model, meas, mean: float, refit: bool) -> str:
+    """The likely cause when a few poses of ``meas`` carry ``model``'s error (``mean``, m): calibrate's rule
+    (:func:`kincal.identify.diagnosis.few_bad`), named with their rows when the rest (the frame of ``r`` re-fitted
+    to it when ``refit``) leaves less than half that mean; "" otherwise."""
+    from kincal.identify.diagnosis import EXPLAIN_RATIO, bad_rows, few_bad
+
+    bad = few_bad(np.linalg.norm(meas.xyz - model.forward(meas.q), axis=1))
+    if not len(bad) or len(meas) - len(bad) < 3:
+        return ""
+    rest = meas.subset(np.setdiff1d(np.arange(len(meas)), bad))
+    left = kincal.evaluate(kincal.identify.refit_frame(r, rest) if refit else model, rest).mean
+    if not left < EXPLAIN_RATIO * mean:
+        return ""
+    return (f"{bad_rows(meas, bad).cause}: without them the mean error is {left * MM:.4g} mm, not {mean * MM:.4g} mm; "
+            f"check how they were measured and measure them again, or leave them out of the file")
+
+
 def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: str | None,
                      uncertainty=None) -> tuple[dict, list[str]]:
     """``r`` on one file of positions (its frame re-fitted unless --same-frame): the statistics (SI),
@@ -344,7 +361,9 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
     stats = kincal.evaluate(model, meas, uncertainty=uncertainty)
     value = (record or {}).get("training_error")  # the mean error on the training data (m); 0 when unknown
     train_error = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else 0.0
-    cause = kincal.identify.heldout_cause(model, meas, train_error, not args.same_frame) if train_error else ""
+    cause = _few_bad(r, model, meas, stats.mean, not args.same_frame)
+    cause = cause or (kincal.identify.heldout_cause(model, meas, train_error, not args.same_frame) if train_error
+                      else "")
     cause = cause or (_frame_not_given(r, meas, stats.mean) if args.same_frame and not record else "")
     texts = [f"{r.name} on {path} ({how}): {stats}" + (f"\n  likely cause: {cause}" if cause else "")]
     before, registered = _nominal_before(args, r, record, meas)
