@@ -136,7 +136,10 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
     history : dict, optional
         The robot's history from the calibration store, shown beside the calibration: "rows" (one dict of
         display texts per record: time, kind, verdict, training, held_out, note), "figure" (a matplotlib
-        Figure, :func:`kincal.history.history_figure`) and "store" (where it is).
+        Figure, :func:`kincal.history.history_figure`), "store" (where it is) and, optionally, "steps" (each
+        step between consecutive calibrations as ``kincal history`` prints it: a dict of "line", its judgement
+        with p, and "more", its indented lines), "judged" (the steps' :meth:`Step.to_dict`, for the JSON) and
+        "alpha" (each step's false-alarm probability).
 
     Returns
     -------
@@ -166,11 +169,13 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
            "error_model_notes": list(result.notes), "compliance": result.compliances,
            "mounting": result.mounting, **part,
            "history": None if history is None else {"rows": history["rows"], "store": history["store"],
+                                                    "steps": history.get("steps", []), "alpha": history.get("alpha"),
                                                     "svg": F.svg(history["figure"])}}
     data = {k: ctx[k] for k in ("robot", "version", "date", "structure", "verdict", "parameters", "setup",
                                 "not_estimated", "not_estimated_text", "data", "error_model_choice",
                                 "error_model_notes", "compliance", "mounting", "whitened_rms")}
     data["history"] = None if history is None else history["rows"]
+    data["history_steps"] = None if history is None else history.get("judged", [])
     calibration = {k: v for k, v in result.to_dict().items() if k != "time_s"}  # the same numbers, the same bytes
     return Report(template().render(**ctx), {**data, **numbers, "calibration": calibration},
                   "\n".join([f"verdict: {result.verdict.status.upper()}",
