@@ -180,7 +180,8 @@ def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     the model to can leave a σ the noise explains), residual σ (outliers left out) against the tracker noise,
     warm-up drift, per-pose outliers, repeated poses and a fitted drift (unless a step explains the data better)."""
     meas, z, err = res.measurements, res.pose_z, res.residuals
-    inliers = err[z <= th.outlier_limit(len(z))]  # outliers are named on their own, not smeared into σ
+    inside = z <= th.outlier_limit(len(z))
+    inliers = err[inside]  # outliers are named on their own, not smeared into σ
     pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
     noise = noise_level(meas.std, th)
     norms = np.linalg.norm(err, axis=1)
@@ -191,7 +192,7 @@ def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     jumps = [r for f, m in parts for r in jump_reasons(meas.rows[m], Framed.of(meas.xyz[m], model[m]),
                                                         round(fitted * m.sum()), res.drift is not None, f)]
     reasons = [*jumps, *(r for f, m in parts for r in drift_reasons(meas.rows[m], norms[m], f))]
-    reasons += residual_reasons(pos_sigma, noise, th)
+    reasons += residual_reasons(pos_sigma, noise, th, int(np.sum(~inside)))
     reasons += [r for f, m in parts for r in outlier_reasons(meas.rows[m], z[m], th, res.options.loss, f)]
     return [*reasons, *duplicate_reasons(meas.rows, duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types,
                                                                                                  th))),
