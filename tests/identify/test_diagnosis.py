@@ -430,3 +430,18 @@ def test_the_residual_reason_says_it_leaves_the_outliers_out():
     every = np.sqrt(np.sum(res.residuals**2) / (3 * len(grid) - p)) * 1e3
     assert f"residual σ per axis {inliers:.3f} mm (without the 15 outlier poses) is" in said["residual"]
     assert f"from {every:.4g} mm" in res.verdict.reasons[0].message and f"{every:.3f}" not in said["residual"]
+
+
+def test_a_diagnosis_that_finds_no_cause_is_a_note_after_the_reasons():
+    """The real WAM grid: the verdict listed "suspect: none of the 65 common input mistakes ... explains the data
+    better" first, a reason for doubt before the real ones (j5.alpha −2.96°, residual 26x the tracker noise). The
+    real reasons come first now, the negative diagnosis last as a note; the status is still suspect."""
+    robot = kincal.load_robot("wam")
+    grid = kincal.read_measurements(DATA / "wam_grid.csv", robot, WAM_COLS, length_unit="mm", angle_unit="deg")
+    res = kincal.calibrate(robot, grid)
+    reasons = res.verdict.reasons
+    assert res.verdict.status == "suspect" and res.diagnosis is not None and res.diagnosis.best is None
+    assert [r.code for r in reasons] == ["large-correction", "residual", "cause-unknown"]
+    assert [r.level for r in reasons] == ["suspect", "suspect", "note"]
+    assert "j5.alpha -2.96 deg" in reasons[0].message and "is 26x the tracker noise" in reasons[1].message
+    assert reasons[2].message.startswith(f"none of the {res.diagnosis.tried} common input mistakes")

@@ -311,7 +311,8 @@ class Reason:
     Parameters
     ----------
     level : str
-        ``"suspect"`` or ``"refused"``.
+        ``"suspect"`` or ``"refused"``; ``"note"`` for what is said beside the reasons and sets no level (none of
+        the common input mistakes explains the data better).
     code : str
         A short, stable code, e.g. ``"large-correction"``, ``"outliers"``, ``"drift"``.
     message : str

@@ -19,6 +19,7 @@ import numpy as np
 
 from .._atomic import json_path_for, write_text_atomic
 from ..identify.calibrate import evaluate
+from ..identify.judge import residual_words
 from ..identify.fitting import ABSOLUTE
 from ..identify.sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
 from ..identify.registration import register_mounting
@@ -167,7 +168,7 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
            "data": _data_rows(result, tests, dict(info or {}), same_frame),
            "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
            "error_model_notes": list(result.notes), "compliance": result.compliances,
-           "mounting": result.mounting, **part,
+           "mounting": result.mounting, "residual_words": residual_words(result), **part,
            "history": None if history is None else {"rows": history["rows"], "store": history["store"],
                                                     "steps": history.get("steps", []), "alpha": history.get("alpha"),
                                                     "svg": F.svg(history["figure"])}}
