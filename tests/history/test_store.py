@@ -445,7 +445,9 @@ def test_history_plot_shows_the_records(tmp_path, kincal_main):
             np.testing.assert_allclose([at.min(), at.max()], [y - SIG[name] * factor, y + SIG[name] * factor])
     series = {li.get_label(): li for li in panels["position error"].lines}
     np.testing.assert_allclose(series["calibration, held-out data"].get_ydata(), [0.03, 0.04])
-    np.testing.assert_allclose(series["calibration, training data"].get_ydata(), [0.025])
+    # one quantity per series: every calibration's training mean (Jan, Feb, Mar) beside the held-out means; the
+    # training series held only Feb's (no held-out data) and a held-out mean stood in for the others
+    np.testing.assert_allclose(series["calibration, training data"].get_ydata(), [0.02, 0.025, 0.02])
     np.testing.assert_allclose(series["evaluation"].get_ydata(), [0.05])
     event = mdates.date2num(datetime(2024, 2, 15, tzinfo=timezone.utc))
     for ax in fig.axes:
@@ -576,6 +578,27 @@ def test_history_judges_each_step_by_compares_test(tmp_path, kincal_main, capsys
     assert f"no significant change (p = {unchanged['p_value']:.3g})" in text and "moved" not in text
     assert "false-alarm probability 5% per step" in text and "changed (link: j3.a)" in text
     assert "j4.alpha +0.08964 deg σ 0.01338 deg z +6.7" in text
+
+
+@pytest.mark.slow  # two calibrations of 500 real poses, a compare and a report: about 5 s
+def test_report_history_says_each_steps_judgement(tmp_path, kincal_main, capsys):
+    """The report's history drew the UR5 grid halves' parameters beyond their ±1σ bands and left out the judgement
+    kincal history printed ('#1 -> #2: no significant change (p = 0.17)'): the report says each step's judgement
+    with its p as history does, and its JSON keeps the steps."""
+    store, (a, b, _) = _halves(tmp_path, kincal_main, capsys, link_change=0.0)
+    assert kincal_main(["history", "ur5", "--store", store, "--json"]) == 0
+    said = json.loads(capsys.readouterr().out)["steps"]
+    out = tmp_path / "r.html"
+    assert kincal_main(["report", b, "--store", store, "-o", str(out)]) == 0
+    page, numbers = out.read_text(), json.loads(out.with_suffix(".json").read_text())
+    ids = [s["before"] for s in said] + [said[-1]["after"]]
+    verdict, p = said[0]["test"]["verdict"], said[0]["test"]["p_value"]
+    assert verdict == "no significant change" and p > 0.05
+    steps = page.split('<ul id="history-steps">')[1].split("</ul>")[0]
+    assert f"#{ids[0]} (2024-01-10 09:00) → #{ids[1]} (2024-03-10 09:00): {verdict} (p = {p:.3g})" in steps
+    assert "j4.alpha" in steps and "false-alarm probability 5 % per step" in page
+    assert [s["test"]["p_value"] for s in numbers["history_steps"]] == pytest.approx([s["test"]["p_value"]
+                                                                                      for s in said], rel=1e-12)
 
 
 def test_history_says_nothing_is_comparable_across_a_model_change(tmp_path, kincal_main, capsys):

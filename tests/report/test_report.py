@@ -1,5 +1,6 @@
 """The calibration report: same bytes for the same input, the page's numbers equal the JSON, bad
 calibrations say so at the top, and figures for calibrate/evaluate --plot."""
+import dataclasses
 import json
 import re
 
@@ -317,3 +318,30 @@ def test_header_names_the_hexapod_compliance(tmp_path, capsys):
     html = page.read_text()
     assert "· stewart (implicit, 6-D) + compliance model ·" in html and "<code>legs.compliance</code>" in html
     assert ", --error-model compliance" in _options_row(html)
+
+
+def test_a_good_verdict_states_the_residuals_against_their_limit():
+    """A GOOD report said "residuals within the limits their stated noise allows (whitened RMS 2.11 ...)": 2.11 is
+    twice the stated σ, no noise allows that; it names the ratio and the limit now. Poses with their noise twice the
+    σ fit_observations is told: each kind's whitened RMS (numpy, from the whitened residual) within 3x; the real UR5
+    grid: its σ per axis (numpy) against the 0.05 mm tracker noise, within 10x."""
+    from kincal.identify import fit_observations
+    from kincal.identify.judge import component_kinds
+    from kincal.simulate.observations import simulate_poses
+
+    ur5 = kincal.load_robot("ur5")
+    noisy = simulate_poses(kincal.perturb(ur5, seed=5), ur5.sample_joints(80, seed=6), np.eye(3), 40e-6, 0.4e-3,
+                           seed=7)
+    fit = fit_observations(ur5, [dataclasses.replace(noisy, std_pos=20e-6, std_rot=0.2e-3)])
+    labels, kinds = component_kinds(fit.observations)
+    rms = [float(np.sqrt(np.mean(fit.whitened_residual[labels == k] ** 2))) for k in range(len(kinds))]
+    assert fit.verdict.status == "good" and 1.5 < min(rms) and max(rms) < 3.0
+    html = kincal.build_report(fit).html.replace("&#39;", "'")
+    assert (f"whitened RMS {fit.whitened_rms:.2f} (1 when the stated σ are right): {kinds[0]} residuals {rms[0]:.1f}x"
+            f", {kinds[1]} residuals {rms[1]:.1f}x their stated σ, each within the limit of 3x") in html
+    assert "stated noise allows" not in html
+    grid = kincal.read_measurements(DATA / "ur5_grid.csv", ur5, UR5_COLS, length_unit="mm", angle_unit="deg")
+    res = kincal.calibrate(ur5, grid)
+    sigma = np.sqrt(np.sum(res.residuals**2) / (res.residuals.size - len(res.names))) * 1e3
+    assert (f"residual σ per axis {sigma:.4g} mm, {sigma / 0.05:.1f}x the tracker noise (0.05 mm), within the limit "
+            f"of 10x") in kincal.build_report(res).html

@@ -85,8 +85,9 @@ def store_file(args) -> str | None:
 
 
 def history_for_report(args, nominal) -> dict | None:
-    """The robot's history for its calibration report (rows of display texts, the plot, the store), when a store
-    is set and holds records of the robot (named by the nominal model's name and --serial); None otherwise."""
+    """The robot's history for its calibration report (rows of display texts, the plot, the store, each step between
+    consecutive calibrations judged as ``kincal history`` prints it), when a store is set and holds records of the
+    robot (named by the nominal model's name and --serial); None otherwise."""
     url = store_of(args)
     if url is None:
         return None
@@ -98,7 +99,15 @@ def history_for_report(args, nominal) -> dict | None:
               "training": _mm(r, "training_mean") and f"{_mm(r, 'training_mean')} mm",
               "held_out": _mm(r, "heldout_mean") and f"{_mm(r, 'heldout_mean')} mm", "note": r.note}
              for _, r in rows]
-    return {"rows": shown, "figure": history_figure(rows), "store": url}
+    judged = steps(rows)
+    said: list[dict] = []  # the steps as kincal history prints them: each head line with its indented lines
+    for line in step_lines(judged, rows):
+        if line.startswith(" ") and said:
+            said[-1]["more"].append(line.strip())
+        else:
+            said.append({"line": line, "more": []})
+    return {"rows": shown, "figure": history_figure(rows), "store": url, "steps": said,
+            "judged": [j.to_dict() for j in judged], "alpha": ALPHA}
 
 
 def store_for(given: str | None) -> str:

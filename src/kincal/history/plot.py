@@ -38,8 +38,8 @@ def history_figure(records: Sequence[tuple[int, Record]], parameters: Sequence[s
     A panel per parameter shows its value minus the first calibration's (mm, deg or %, as ``kincal history``
     lists the differences) with the ±σ band
     (no band where σ is unknown: the value was held); a panel of the mean position errors (mm) shows
-    each calibration's held-out mean (its training mean without held-out data), each evaluation's and
-    check's; events are dashed vertical lines, with their note on the error panel. matplotlib is
+    each calibration's training mean and held-out mean (where it had held-out data) as two series, each
+    evaluation's and check's; events are dashed vertical lines, with their note on the error panel. matplotlib is
     loaded when the plot is drawn.
 
     Parameters
@@ -103,11 +103,11 @@ def _parameter_panel(ax: Any, records: Sequence[tuple[int, Record]], name: str) 
 
 
 def _error_panel(ax: Any, records: Sequence[tuple[int, Record]]) -> None:
-    """Each calibration's held-out mean error (its training mean when it had no held-out data), each
-    evaluation's and check's, in mm."""
+    """Each calibration's training mean error and, where it had held-out data, its held-out mean, as two series;
+    each evaluation's and check's held-out mean; in mm. One quantity per series: a training mean never stands in
+    a held-out series."""
     for kind, figure, label, marker, filled in ERRORS:
-        chosen = [r for _, r in records if r.kind == kind and figure in r.figures
-                  and (figure == "heldout_mean" or "heldout_mean" not in r.figures)]
+        chosen = [r for _, r in records if r.kind == kind and figure in r.figures]
         if chosen:
             colour = COLOUR[kind]
             ax.plot([parse_time(r.time) for r in chosen], [r.figures[figure] * MM for r in chosen], marker,

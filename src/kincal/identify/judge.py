@@ -36,6 +36,7 @@ SIZE_SUSPECT = 1e-2  # a calibrated model this much larger or smaller than its d
 # plate placement's 50 mm fixes the scale only to about 0.5 %)
 SIZE_POSES = 100  # poses of the joint ranges the two models' sizes are compared over (seed 0)
 IN_PLANE_RATIO = 1.0  # plane data: predicted points moved more along the planes (unseen) than across them
+WHITENED_SUSPECT = 3.0  # a kind of observation whose whitened residual RMS is beyond this: suspect
 MIN_SAMPLES = 10  # a set with fewer samples is not judged for outliers (no robust spread to judge by)
 PLATE_Z = 6.0  # two files' samples of one shared socket point this many σ of their means apart: two plate positions.
 # Above the 3.5 σ between the two halves of the Panda's front_center as measured (configurations grouped by row); the
@@ -180,8 +181,7 @@ def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     the model to can leave a σ the noise explains), residual σ (outliers left out) against the tracker noise,
     warm-up drift, per-pose outliers, repeated poses and a fitted drift (unless a step explains the data better)."""
     meas, z, err = res.measurements, res.pose_z, res.residuals
-    inliers = err[z <= th.outlier_limit(len(z))]  # outliers are named on their own, not smeared into σ
-    pos_sigma = float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1)))
+    pos_sigma, left_out = _position_sigma(res, th)
     noise = noise_level(meas.std, th)
     norms = np.linalg.norm(err, axis=1)
     files = meas.session if meas.session is not None and len(set(meas.session)) > 1 else None  # rows are per file
@@ -191,11 +191,48 @@ def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     jumps = [r for f, m in parts for r in jump_reasons(meas.rows[m], Framed.of(meas.xyz[m], model[m]),
                                                         round(fitted * m.sum()), res.drift is not None, f)]
     reasons = [*jumps, *(r for f, m in parts for r in drift_reasons(meas.rows[m], norms[m], f))]
-    reasons += residual_reasons(pos_sigma, noise, th)
+    reasons += residual_reasons(pos_sigma, noise, th, left_out)
     reasons += [r for f, m in parts for r in outlier_reasons(meas.rows[m], z[m], th, res.options.loss, f)]
     return [*reasons, *duplicate_reasons(meas.rows, duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types,
                                                                                                  th))),
             *([] if jumps else fitted_drift_reasons(res.drift, noise[0], meas.xyz))]  # a step, not a drift
+
+
+def _position_sigma(res: "CalibrationResult", th: Thresholds) -> tuple[float, int]:
+    """The residual σ per axis (m) the verdict judges position data by, the outlier poses left out (they are named
+    on their own, not smeared into σ), and how many it left out."""
+    inside = res.pose_z <= th.outlier_limit(len(res.pose_z))
+    inliers = res.residuals[inside]
+    return float(np.sqrt(np.sum(inliers**2) / max(inliers.size - len(res.names), 1))), int(np.sum(~inside))
+
+
+def residual_words(res: "CalibrationResult") -> str:
+    """The residuals against the limit the verdict judges them by, in words, for a verdict with no reason to
+    give: position data by their σ per axis against the tracker noise (``residual_suspect``, 10x), observation sets
+    by their whitened RMS per kind against its stated σ (``WHITENED_SUSPECT``, 3x).
+
+    Parameters
+    ----------
+    res : CalibrationResult
+        The calibration.
+
+    Returns
+    -------
+    str
+        E.g. "whitened RMS 2.11 (1 when the stated σ are right): residuals 2.1x their stated σ, within the limit
+        of 3x".
+    """
+    th = res.options.thresholds
+    if res.data:
+        sigma, _ = _position_sigma(res, th)
+        noise = noise_level(res.measurements.std, th)[0]
+        return (f"residual σ per axis {sigma * MM:.4g} mm, {sigma / noise:.1f}x the tracker noise "
+                f"({noise * MM:.3g} mm), within the limit of {th.residual_suspect:.0f}x")
+    kinds = dict(res.whitened)
+    each = (f"residuals {next(iter(kinds.values())):.1f}x their stated σ, within" if len(kinds) == 1 else
+            ", ".join(f"{k} residuals {v:.1f}x" for k, v in kinds.items()) + " their stated σ, each within")
+    return (f"whitened RMS {res.whitened_rms:.2f} (1 when the stated σ are right): {each} the limit of "
+            f"{WHITENED_SUSPECT:.0f}x")
 
 
 def _set_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
@@ -205,7 +242,7 @@ def _set_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     clean = _without_outliers(res.observations, res.whitened_residual, res.outliers)
     samples = _sample_reasons(res.observations, res.outliers, res.registered, th)
     residual = [_whitened_reason(kind, rms, res.whitened, th, stated) for kind, rms in res.whitened.items()
-                if rms > 3.0 and clean > 3.0]  # a few outlier samples alone: they are the reason, named below
+                if rms > WHITENED_SUSPECT and clean > WHITENED_SUSPECT]  # a few outlier samples alone: they are the reason, named below
     if np.isfinite(clean) and residual:  # outliers first: a least-squares fit follows them, and they may be all
         residual = [Reason(r.level, r.code, f"{r.message}; or the outlier samples above, which a least-squares fit "
                                              f"follows: see it with --reject-outliers") for r in residual]
@@ -409,7 +446,7 @@ def _whitened_reason(kind: str, rms: float, whitened: dict, th: Thresholds,
                                              f"model do not belong together (another robot's or another session's "
                                              f"data in one frame, a moved camera, wrong columns or units), unless "
                                              f"that σ is stated {rms:.0f} times too small")
-    fine = [k for k, v in whitened.items() if k != kind and v <= 3.0]
+    fine = [k for k, v in whitened.items() if k != kind and v <= WHITENED_SUSPECT]
     return Reason("suspect", "residual", (
         f"the {kind} residuals are {rms:.1f}x their stated σ ({flag}): the model leaves errors it cannot describe "
         f"there, or that σ is too small" + ("; state it with --std-joint" if assumed else
@@ -418,13 +455,16 @@ def _whitened_reason(kind: str, rms: float, whitened: dict, th: Thresholds,
 
 
 def _diagnosed(res: "CalibrationResult", found: "Diagnosis", verdict: Verdict) -> Verdict:
-    """The verdict with the differential diagnosis ``found`` first. Bad poses in a least-squares fit
-    of positions steer the whole model: refused, not doubtful."""
+    """The verdict with the differential diagnosis ``found`` first; a diagnosis that found no cause last, as a note
+    (level "note") after the reasons for doubt. Bad poses in a least-squares fit of positions steer the whole model:
+    refused, not doubtful."""
     best = found.best
     status = "refused" if best and best.code == "outliers" and res.data and res.options.loss == "linear" \
         else verdict.status
-    reason = Reason(status, f"cause-{best.code}" if best else "cause-unknown",
-                    found.message() + ("" if res.data else " (screened on the measured positions)"))
+    said = found.message() + ("" if res.data else " (screened on the measured positions)")
+    if best is None and verdict.reasons:  # no cause found: a note after the reasons for doubt, not one of them
+        return Verdict(status, (*verdict.reasons, Reason("note", "cause-unknown", said)))
+    reason = Reason(status, f"cause-{best.code}" if best else "cause-unknown", said)
     named = best is not None and best.code == "frame-jump"  # the jump the cause names with its refit: not twice
     return Verdict(status, (reason, *(r for r in verdict.reasons if not (named and r.code == "frame-jump"))))
 

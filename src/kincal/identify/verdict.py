@@ -311,7 +311,8 @@ class Reason:
     Parameters
     ----------
     level : str
-        ``"suspect"`` or ``"refused"``.
+        ``"suspect"`` or ``"refused"``; ``"note"`` for what is said beside the reasons and sets no level (none of
+        the common input mistakes explains the data better).
     code : str
         A short, stable code, e.g. ``"large-correction"``, ``"outliers"``, ``"drift"``.
     message : str
@@ -582,10 +583,12 @@ def noise_level(std: np.ndarray | None, th: Thresholds) -> tuple[float, str]:
     return th.tracker_noise, "the default; give --tracker-noise or measurement_std_x/y/z columns"
 
 
-def residual_reasons(sigma: float, noise: tuple[float, str], th: Thresholds) -> list[Reason]:
-    """The fit's σ per axis against the instrument noise (value in m, and where it comes from)."""
+def residual_reasons(sigma: float, noise: tuple[float, str], th: Thresholds, left_out: int = 0) -> list[Reason]:
+    """The fit's σ per axis against the instrument noise (value in m, and where it comes from); ``left_out``: the
+    outlier poses the σ leaves out, which the message names (a σ of all poses elsewhere differs from it)."""
     ratio = sigma / noise[0]
-    msg = (f"residual σ per axis {sigma * MM:.3f} mm is {ratio:.0f}x the tracker noise "
+    without = f" (without the {left_out} outlier pose{'s' if left_out > 1 else ''})" if left_out else ""
+    msg = (f"residual σ per axis {sigma * MM:.3f} mm{without} is {ratio:.0f}x the tracker noise "
            f"({noise[0] * MM:.3g} mm: {noise[1]})")
     return _graded("residual", ratio, (th.residual_refuse, th.residual_suspect), (
         msg + ": data and model do not belong together",

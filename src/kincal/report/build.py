@@ -19,6 +19,7 @@ import numpy as np
 
 from .._atomic import json_path_for, write_text_atomic
 from ..identify.calibrate import evaluate
+from ..identify.judge import residual_words
 from ..identify.fitting import ABSOLUTE
 from ..identify.sessions import AS_CALIBRATED, REGISTERED, heldout_cause, refit_frame
 from ..identify.registration import register_mounting
@@ -136,7 +137,10 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
     history : dict, optional
         The robot's history from the calibration store, shown beside the calibration: "rows" (one dict of
         display texts per record: time, kind, verdict, training, held_out, note), "figure" (a matplotlib
-        Figure, :func:`kincal.history.history_figure`) and "store" (where it is).
+        Figure, :func:`kincal.history.history_figure`), "store" (where it is) and, optionally, "steps" (each
+        step between consecutive calibrations as ``kincal history`` prints it: a dict of "line", its judgement
+        with p, and "more", its indented lines), "judged" (the steps' :meth:`Step.to_dict`, for the JSON) and
+        "alpha" (each step's false-alarm probability).
 
     Returns
     -------
@@ -164,13 +168,15 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
            "data": _data_rows(result, tests, dict(info or {}), same_frame),
            "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
            "error_model_notes": list(result.notes), "compliance": result.compliances,
-           "mounting": result.mounting, **part,
+           "mounting": result.mounting, "residual_words": residual_words(result), **part,
            "history": None if history is None else {"rows": history["rows"], "store": history["store"],
+                                                    "steps": history.get("steps", []), "alpha": history.get("alpha"),
                                                     "svg": F.svg(history["figure"])}}
     data = {k: ctx[k] for k in ("robot", "version", "date", "structure", "verdict", "parameters", "setup",
                                 "not_estimated", "not_estimated_text", "data", "error_model_choice",
                                 "error_model_notes", "compliance", "mounting", "whitened_rms")}
     data["history"] = None if history is None else history["rows"]
+    data["history_steps"] = None if history is None else history.get("judged", [])
     calibration = {k: v for k, v in result.to_dict().items() if k != "time_s"}  # the same numbers, the same bytes
     return Report(template().render(**ctx), {**data, **numbers, "calibration": calibration},
                   "\n".join([f"verdict: {result.verdict.status.upper()}",
