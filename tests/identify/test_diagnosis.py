@@ -412,7 +412,6 @@ def test_a_urdf_robot_is_compared_with_the_bundled_robots_by_kinematics(tmp_path
     assert explicit.diagnosis.best is not None and "the bundled 'ur5'" in explicit.diagnosis.best.cause
 
 
-<<<<<<< HEAD
 @pytest.mark.slow
 def test_a_calibration_refused_by_its_likely_cause_alone_exits_4(tmp_path, capsys):
     """One joint cell 10 mrad off among 80 poses: the verdict is refused by the likely cause (a few bad poses, the row)
@@ -459,7 +458,8 @@ def test_evaluate_names_a_few_bad_poses_by_row_not_a_scale_error(tmp_path, capsy
     left = np.linalg.norm(test.xyz[rest] - cal.forward(test.q[rest]), axis=1).mean()
     assert f"likely cause: a few bad poses: row(s) 7 lie far off the rest: without them the mean error is " \
            f"{left * 1e3:.4g} mm" in out and "scale" not in out
-=======
+
+
 def test_the_residual_reason_says_it_leaves_the_outliers_out():
     """The real UR5 grid with joints 4 and 5 swapped: the diagnosis said 'residual σ per axis falls from 5.807 mm'
     (all poses) and the next reason 'residual σ per axis 5.314 mm is 106x the tracker noise', silently without the
@@ -493,4 +493,3 @@ def test_a_diagnosis_that_finds_no_cause_is_a_note_after_the_reasons():
     assert [r.level for r in reasons] == ["suspect", "suspect", "note"]
     assert "j5.alpha -2.96 deg" in reasons[0].message and "is 26x the tracker noise" in reasons[1].message
     assert reasons[2].message.startswith(f"none of the {res.diagnosis.tried} common input mistakes")
->>>>>>> fix49
