@@ -22,7 +22,7 @@ from .select import _mean_error
 
 HELDOUT_RATIO = 10.0  # a held-out error this many times the training error needs a named cause
 SCALE_TOL = 0.005  # measured vs predicted spread off by more than 0.5 %: a scale (unit, compensation) error
-REGISTERED = "frame re-registered to these data (both models; kinematics fixed)"
+REGISTERED = "frame re-registered to these data (both models, the nominal's target point too; kinematics fixed)"
 AS_CALIBRATED = "frame as calibrated: told the measurement frame did not move"
 
 
@@ -213,8 +213,11 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
             f"({train_error * MM:.3f} mm)")
     enough, moved = HELDOUT_RATIO * train_error, ""  # a cause must bring the error within the limit, not just lower it
     framed = _mean_error(refit_frame(robot, meas), meas) if not rebased and robot.base_params() else np.inf
-    for base, also in (("fixed", ""), ("estimate", " (and the tracker moved: leave out --same-frame)")):
-        tool = _tool_fix(robot, meas, base) if base == "fixed" or not rebased else None
+    # registered (``rebased``), the frame was fitted with the wrong tool point: fit both again together
+    trials = (("estimate", ""),) if rebased else (("fixed", ""), ("estimate", " (and the tracker moved: leave out "
+                                                                               "--same-frame)"))
+    for base, also in trials:
+        tool = _tool_fix(robot, meas, base)
         if tool is not None and tool[0] <= enough and tool[0] < 0.5 * framed:  # the tool explains more than the frame
             return f"{head}; {tool[1]}{also}"
     if framed <= enough:
