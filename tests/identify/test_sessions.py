@@ -623,6 +623,29 @@ def test_a_registered_session_with_another_tool_fits_the_frame_and_the_tool_toge
     assert "no moved frame" not in said and "tracker moved" not in said, said
 
 
+@pytest.mark.parametrize("n", [1, 2])
+def test_a_cause_for_too_few_poses_to_register_says_why_the_frame_was_not_tried(n):
+    """Told the frame did not move (--same-frame), a held-out file of 2 poses from a moved tracker was refused with
+    "registering the base frame needs at least 3 distinct poses" by the diagnosis, which re-registered the frame the
+    user had not asked for. The cause is given now with the error figure (the model's mean error, recomputed here),
+    saying why a registration could not be tried; of 1 pose a scale cannot be judged either (no warning raised)."""
+    import warnings
+
+    from kincal.identify import heldout_cause
+    robot = kincal.load_robot("ur5").with_tool_point([0.0, 0.0, 0.031])
+    q = robot.sample_joints(n, seed=1)
+    meas = kincal.simulate(robot.with_params({"base.x": 0.3, "base.rz": 0.2}), q, 10e-6, seed=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        said = heldout_cause(robot, meas, 0.1e-3, rebased=False)
+    error = np.linalg.norm(meas.xyz - robot.forward(q), axis=1).mean()
+    assert said.startswith(f"{meas.source}: mean error {error * 1e3:.3f} mm is {error / 0.1e-3:.0f}x"), said
+    assert (f"re-registering the measurement frame needs at least 3 distinct poses, the file has {n} ({n} row(s)); "
+            f"the tracker may have moved") in said, said
+    assert ("no scale error explains it" in said) == (n == 2)
+    assert ("or a scale error cannot be judged" in said) == (n == 1)
+
+
 def test_a_one_percent_scale_is_named_as_a_scale():
     """Held-out positions 1 % too large (a tracker's compensation off), the frame and tool as calibrated: 'no scale
     error explains it' was said at exactly 1 %; the scale is named, with its ratio."""
