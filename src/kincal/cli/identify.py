@@ -342,6 +342,8 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
     meas = read(args, r, path)
     how = REFITTED if not args.same_frame else kincal.identify.AS_CALIBRATED if record else AS_GIVEN
     model = r if args.same_frame else kincal.identify.refit_frame(r, meas)
+    if uncertainty is not None and not args.same_frame:  # the frame is the file's: its training σ does not count
+        uncertainty = uncertainty.given(r.base_params(), r)
     stats = kincal.evaluate(model, meas, uncertainty=uncertainty)
     value = (record or {}).get("training_error")  # the mean error on the training data (m); 0 when unknown
     train_error = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else 0.0
