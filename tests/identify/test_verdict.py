@@ -175,6 +175,52 @@ def test_extrapolation_fires_rarely_inside_the_training_ranges(ur5):
     assert np.mean(s_in > kincal.analysis.EXTRAPOLATION_RATIO * unc.training_median) > 0.5  # what the old rule did
 
 
+def test_a_registered_frames_predicted_sigma_does_not_depend_on_where_the_tracker_stood(ur5, sim, tmp_path, capsys):
+    """The same held-out poses seen by a tracker turned -40 deg about z and moved (-300, 900, -100) mm: identical
+    errors, yet the predicted σ was propagated through the base frame's covariance at the frame registered to them
+    (the audit's UR5: median 0.0099 against 0.0222 mm). With the frame registered the base frame's parameters are
+    taken as known: the σ is the same to 1e-12 m (library and CLI) and equals an independent
+    sqrt(trace(J C Jᵀ)) with J by central differences over the other parameters and C their covariance conditioned
+    on the base frame's (C_kk - C_kb C_bb⁻¹ C_bk)."""
+    true, meas, _ = sim
+    res = kincal.calibrate(ur5, meas, diagnose=False)
+    unc = res.uncertainty()
+    q = ur5.sample_joints(20, seed=4)
+    held = kincal.simulate(true, q, 15e-6, seed=5)
+    turn = np.deg2rad(-40.0)
+    R = np.array([[np.cos(turn), -np.sin(turn), 0.0], [np.sin(turn), np.cos(turn), 0.0], [0.0, 0.0, 1.0]])
+    moved = kincal.Measurements(q, held.xyz @ R.T + [-0.3, 0.9, -0.1], held.joint_names, "moved.csv")
+    here, there = (kincal.evaluate(res.robot, m, rebase=True, uncertainty=unc) for m in (held, moved))
+    np.testing.assert_allclose(here.predicted_sigma, there.predicted_sigma, rtol=0, atol=1e-12)
+    assert here.mean == pytest.approx(there.mean, abs=1e-9)
+    # the independent reference, at the frame registered to the moved data
+    registered = kincal.identify.refit_frame(res.robot, moved)
+    base = [k for k, n in enumerate(unc.names) if n in ur5.base_params()]
+    kin = [k for k in range(len(unc.names)) if k not in base]
+    C = unc.covariance
+    cross = C[np.ix_(kin, base)]
+    conditioned = C[np.ix_(kin, kin)] - cross @ np.linalg.inv(C[np.ix_(base, base)]) @ cross.T
+    J = np.zeros((len(q), 3, len(kin)))
+    for j, k in enumerate(kin):
+        n, h = unc.names[k], 1e-6
+        up, down = (registered.with_params({n: registered.params[n] + d}).forward(q) for d in (h, -h))
+        J[:, :, j] = (up - down) / (2 * h)
+    reference = np.sqrt(np.einsum("pik,kl,pil->p", J, conditioned, J))
+    np.testing.assert_allclose(there.predicted_sigma, reference, rtol=1e-6)
+    assert not np.allclose(reference, unc.sigma(res.robot, q), rtol=0.05)  # not the training frame's full σ
+    # the CLI registers the frame itself and says the same for both files
+    robot = tmp_path / "cal.yaml"
+    kincal.save_robot(res.robot, robot, calibration=res.record())
+    said = []
+    for m in (held, moved):
+        path = tmp_path / f"{m.source}.csv"
+        kincal.write_measurements(path, m, ur5.joint_types, "mm", "deg")
+        code, out, _ = run(capsys, "evaluate", robot, path, *UNITS, "--json")
+        said.append(json.loads(out)["predicted_sigma"])
+    np.testing.assert_allclose(said[0], said[1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(said[1], there.predicted_sigma, rtol=0, atol=1e-12)
+
+
 @pytest.mark.slow
 def test_predicted_sigma_matches_monte_carlo(ur5, sim):
     """σ(q) = sqrt(tr(J C Jᵀ)) against the scatter of predictions over repeated noisy calibrations."""

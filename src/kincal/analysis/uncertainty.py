@@ -131,10 +131,49 @@ class ModelUncertainty:
             ``self`` when none of ``names`` is in it.
         """
         keep = [k for k, n in enumerate(self.names) if n not in set(names)]
-        if len(keep) == len(self.names):
+        return self if len(keep) == len(self.names) else self._over(keep, self.covariance[np.ix_(keep, keep)], robot)
+
+    def given(self, names, robot: Robot) -> "ModelUncertainty":
+        """The same uncertainty with the parameters ``names`` taken as known: the others' covariance conditioned on
+        them, C_kk − C_kb C_bb⁻¹ C_bk (the Schur complement), its envelope reference recomputed the same way over
+        the training ranges; for predictions in a measurement frame registered to the data anew (``names``: the
+        base frame's), where the part of the kinematics' error a frame absorbs does not count, nor where the
+        instrument stood (a rigid relabelling of the data changes no σ).
+
+        Parameters
+        ----------
+        names : iterable of str
+            The parameters taken as known (those not in it are ignored).
+        robot : Robot
+            The calibrated robot, for the envelope reference.
+
+        Returns
+        -------
+        ModelUncertainty
+            Over the other parameters; ``self`` when none of ``names`` is in it.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import kincal
+        >>> from kincal.analysis import ModelUncertainty
+        >>> unc = ModelUncertainty(("base.x", "j2.a"), np.array([[4.0, 2.0], [2.0, 3.0]]) * 1e-8, 1e-4)
+        >>> unc.given(["base.x"], kincal.load_robot("ur5")).covariance / 1e-8  # 3 - 2 * 2 / 4
+        array([[2.]])
+        """
+        gone = [k for k, n in enumerate(self.names) if n in set(names)]
+        keep = [k for k in range(len(self.names)) if k not in gone]
+        if not gone:
             return self
-        unc = dataclasses.replace(self, names=tuple(self.names[k] for k in keep),
-                                  covariance=self.covariance[np.ix_(keep, keep)])
+        c = self.covariance
+        cross = c[np.ix_(keep, gone)]
+        conditioned = c[np.ix_(keep, keep)] - cross @ np.linalg.pinv(c[np.ix_(gone, gone)], hermitian=True) @ cross.T
+        return self._over(keep, 0.5 * (conditioned + conditioned.T), robot)
+
+    def _over(self, keep: list[int], covariance: np.ndarray, robot: Robot) -> "ModelUncertainty":
+        """The uncertainty over the parameters ``keep`` (indices) with ``covariance`` (K', K'), the envelope's
+        reference recomputed with it as :meth:`from_fit` does (kept as it is without the training ranges)."""
+        unc = dataclasses.replace(self, names=tuple(self.names[k] for k in keep), covariance=covariance)
         if self.lower is None or self.upper is None or self.envelope_sigma is None:
             return unc
         q = np.random.default_rng(0).uniform(self.lower, self.upper, size=(ENVELOPE_POSES, len(self.lower)))

@@ -358,6 +358,8 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
     meas = read(args, r, path)
     how = REFITTED if not args.same_frame else kincal.identify.AS_CALIBRATED if record else AS_GIVEN
     model = r if args.same_frame else kincal.identify.refit_frame(r, meas)
+    if uncertainty is not None and not args.same_frame:  # the frame is the file's: its training σ does not count
+        uncertainty = uncertainty.given(r.base_params(), r)
     stats = kincal.evaluate(model, meas, uncertainty=uncertainty)
     value = (record or {}).get("training_error")  # the mean error on the training data (m); 0 when unknown
     train_error = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else 0.0
@@ -368,7 +370,8 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
     texts = [f"{r.name} on {path} ({how}): {stats}" + (f"\n  likely cause: {cause}" if cause else "")]
     before, registered = _nominal_before(args, r, record, meas)
     if before is not None:
-        texts.append(f"  nominal, {registered}: mean {before * MM:.4f} mm → calibrated {stats.mean * MM:.4f} mm")
+        mine = "" if args.same_frame else f" ({CALIBRATED_REGISTERED})"  # "before" refits the nominal's point too
+        texts.append(f"  nominal, {registered}: mean {before * MM:.4f} mm → calibrated{mine} {stats.mean * MM:.4f} mm")
     if stem:
         from kincal.report import evaluation_figures
 
@@ -379,6 +382,7 @@ def _evaluate_points(args, r, record: dict | None, path: str, kind: str, stem: s
 
 REFITTED = "frame re-registered to these data, kinematics fixed"  # the one model evaluate judges (the nominal: its own)
 AS_GIVEN = "frame as the file gives it: it has no calibration record, its base frame is taken for the measurement frame"
+CALIBRATED_REGISTERED = "its frame registered, its target point as calibrated"  # beside the nominal's "before"
 FRAME_GAIN = 2.0  # --same-frame on a file without a record: a registration this many times better says why
 
 

@@ -333,7 +333,10 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
     uncertainty : ModelUncertainty, optional
         The model's parameter covariance (``result.uncertainty()``, or
         :func:`kincal.analysis.load_uncertainty` of a saved calibration): adds the predicted σ at every
-        pose and a warning naming the rows where the model extrapolates (default None).
+        pose and a warning naming the rows where the model extrapolates (default None). With ``rebase`` the
+        base-frame parameters are taken as known in it (:meth:`~kincal.analysis.ModelUncertainty.given`): the frame
+        is these data's, and where the tracker stood changes no predicted σ; a model registered by the caller
+        (:func:`kincal.identify.refit_frame`) is given such an uncertainty.
 
     Returns
     -------
@@ -375,6 +378,8 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
                                f"subset); give at least one measured pose")
     if rebase and robot.base_params():  # frame only, kinematics fixed (kincal.identify.refit_frame)
         robot = calibrate(robot, meas, names=(), base="estimate", diagnose=False).robot
+        # the frame is these data's now: the training frame's σ no longer counts (a rigid relabelling changes no σ)
+        uncertainty = None if uncertainty is None else uncertainty.given(robot.base_params(), robot)
     stats = EvaluationStats.from_errors(meas.xyz - robot.forward(meas.q))
     if uncertainty is None:
         return stats

@@ -19,10 +19,11 @@ from ..ties import first_best
 from .calibrate import calibrate
 from .options import FitOptions
 from .select import _mean_error
+from .verdict import distinct_count, repeat_tolerance
 
 HELDOUT_RATIO = 10.0  # a held-out error this many times the training error needs a named cause
 SCALE_TOL = 0.005  # measured vs predicted spread off by more than 0.5 %: a scale (unit, compensation) error
-REGISTERED = "frame re-registered to these data (both models; kinematics fixed)"
+REGISTERED = "frame re-registered to these data (both models, the nominal's target point too; kinematics fixed)"
 AS_CALIBRATED = "frame as calibrated: told the measurement frame did not move"
 
 
@@ -141,7 +142,7 @@ def _data_mistake(robot: Robot, meas: Measurements, enough: float, rebased: bool
     tried = []
     for cause, change in data_changes(robot, meas):
         changed = change(robot, meas, FitOptions())[1]  # a change of the data: the options pass through
-        if not isinstance(changed, Measurements):
+        if not isinstance(changed, Measurements) or len(changed) == 0:  # a change that leaves no pose: nothing judged
             continue
         try:
             error = _mean_error(_judged_again(robot, changed, rebased, refit), changed)
@@ -211,10 +212,14 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
         return ""
     head = (f"{meas.source}: mean error {error * MM:.3f} mm is {error / train_error:.0f}x the training error "
             f"({train_error * MM:.3f} mm)")
-    enough, moved = HELDOUT_RATIO * train_error, ""  # a cause must bring the error within the limit, not just lower it
-    framed = _mean_error(refit_frame(robot, meas), meas) if not rebased and robot.base_params() else np.inf
-    for base, also in (("fixed", ""), ("estimate", " (and the tracker moved: leave out --same-frame)")):
-        tool = _tool_fix(robot, meas, base) if base == "fixed" or not rebased else None
+    enough = HELDOUT_RATIO * train_error  # a cause must bring the error within the limit, not just lower it
+    few = 0 if rebased or not robot.base_params() else _distinct_below(robot, meas, 3)
+    framed = _mean_error(refit_frame(robot, meas), meas) if not (rebased or few) and robot.base_params() else np.inf
+    # registered (``rebased``), the frame was fitted with the wrong tool point: fit both again together
+    trials = (("estimate", ""),) if rebased else (("fixed", ""), ("estimate", " (and the tracker moved: leave out "
+                                                                               "--same-frame)"))
+    for base, also in trials:
+        tool = None if few else _tool_fix(robot, meas, base)
         if tool is not None and tool[0] <= enough and tool[0] < 0.5 * framed:  # the tool explains more than the frame
             return f"{head}; {tool[1]}{also}"
     if framed <= enough:
@@ -223,14 +228,38 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
     mistake = _data_mistake(robot, meas, enough, rebased, refit)
     if mistake:
         return f"{head}; {mistake}"
+    return head + _unexplained(robot, meas, (error, train_error), framed, few)
+
+
+def _distinct_below(robot: Robot, meas: Measurements, most: int) -> int:
+    """The number of distinct poses of ``meas`` (the fit's repeat tolerance) when fewer than ``most``, else 0."""
+    distinct = distinct_count(meas.q, repeat_tolerance(robot.joint_types, FitOptions().thresholds), most)
+    return distinct if distinct < most else 0
+
+
+def _unexplained(robot: Robot, meas: Measurements, errors: tuple[float, float], framed: float, few: int) -> str:
+    """The rest of :func:`heldout_cause`'s sentence when neither the frame, a tool point nor a data mistake brings the
+    error within the limit (``errors``: the held-out and the training mean error, m): what re-registering the frame
+    gave (``framed``, m; inf when not tried), else why it could not be tried (``few``: the distinct poses, fewer than
+    3), the scale."""
+    moved = ""
     if np.isfinite(framed):
         moved = (f"; re-registering the measurement frame brings it to {framed * MM:.3f} mm (the tracker moved too: "
-                 f"leave out --same-frame), still {framed / train_error:.0f}x the training error" if framed < 0.5 * error
-                 else f"; re-registering the measurement frame leaves {framed * MM:.3f} mm")
-    ratio = spread(meas.xyz) / max(spread(robot.forward(meas.q)), 1e-300)  # measured / predicted at the same joints
-    if abs(np.log(ratio)) > SCALE_TOL:
-        return (f"{head}{moved}; the measured positions spread {ratio:.4f}x the model's at the same joints: a scale "
+                 f"leave out --same-frame), still {framed / errors[1]:.0f}x the training error"
+                 if framed < 0.5 * errors[0] else f"; re-registering the measurement frame leaves {framed * MM:.3f} mm")
+    predicted = spread(robot.forward(meas.q))
+    scale = spread(meas.xyz) / predicted if predicted > 0 else 1.0  # measured / predicted at the same joints
+    if abs(np.log(scale)) > SCALE_TOL and few != 1:  # one distinct pose has no spread to judge
+        return (f"{moved}; the measured positions spread {scale:.4f}x the model's at the same joints: a scale "
                 f"error (length unit, tracker compensation, or joint columns in another unit), or another robot's data")
-    return (f"{head}{moved}; no moved frame, other tool point or scale error explains it: the poses may lie "
+    if few:
+        what = "a moved tracker, another tool point or a scale error" if few == 1 else \
+            "no scale error explains it, and a moved tracker or another tool point"
+        return (f"; {what} cannot be judged: "
+                f"re-registering the measurement frame needs at least 3 distinct poses, the file has {few} "
+                f"({len(meas)} row(s)); the tracker may have moved (measure 3 or more distinct poses and leave out "
+                f"--same-frame), the target may sit elsewhere, the robot may have been disturbed (collision, "
+                f"re-mastering), or the joint columns differ from the training data")
+    return (f"{moved}; no moved frame, other tool point or scale error explains it: the poses may lie "
             f"outside the calibrated region (see the predicted σ), the robot may have been disturbed (collision, "
             f"re-mastering), or the joint columns differ from the training data")

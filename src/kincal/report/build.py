@@ -224,10 +224,10 @@ def _positions_part(result: CalibrationResult, tests: list[Measurements], same_f
 def _warnings(result: CalibrationResult, tests: list[Measurements], models: list[tuple]) -> list[str]:
     """Per held-out session: where the calibrated model extrapolates, and the likely cause of an error
     far above the training error (``models``: per session, as :func:`_held_out_models` gives them)."""
-    out = []
-    for meas, (_, model, how) in zip(tests, models):
-        out += [f"{Path(meas.source).name}: {w}"
-                for w in evaluate(model, meas, uncertainty=result.uncertainty()).warnings]
+    out, unc = [], result.uncertainty()
+    for meas, (_, model, how) in zip(tests, models):  # a frame registered to the session: its training σ does not count
+        mine = unc.given(model.base_params(), model) if how == REGISTERED else unc
+        out += [f"{Path(meas.source).name}: {w}" for w in evaluate(model, meas, uncertainty=mine).warnings]
         cause = heldout_cause(model, meas, result.stats_after.mean, how == REGISTERED)
         out += [cause] if cause else []
     return out
