@@ -314,6 +314,25 @@ def test_a_frame_jump_that_breaks_the_spread_is_named_by_the_reader(tmp_path):
         kincal.read_measurements(str(tmp_path / "far.csv"), robot, length_unit="mm")
 
 
+@pytest.mark.parametrize("order", ["interleaved", "ABA"])
+def test_set_ups_mixed_in_one_file_are_named_by_the_reader(tmp_path, order):
+    """Two set-ups 5 m and 115 deg apart whose rows alternate (row by row, or A B A in blocks): no single jump
+    splits them, yet the reader names two set-ups with their rows (the ones simulated in each frame), not 'no
+    length unit explains that factor'."""
+    robot, _, meas = _bumped(0.0, 0.0)
+    moved = np.arange(1, 300, 2) if order == "interleaved" else np.arange(100, 250)  # the second set-up's indices
+    xyz = meas.xyz.copy()
+    xyz[moved] = xyz[moved] @ rot_zyx(2.0, 0.0, 0.0).T + [5.0, 0.0, 0.0]
+    kincal.write_measurements(str(tmp_path / "mixed.csv"), dataclasses.replace(meas, xyz=xyz), robot.joint_types,
+                              length_unit="mm")
+    with pytest.raises(MeasurementError) as caught:
+        kincal.read_measurements(str(tmp_path / "mixed.csv"), robot, length_unit="mm")
+    text = " ".join(str(caught.value).split())
+    rows = "3, 5, 7, …" if order == "interleaved" else "102-251"  # line numbers: index + 2 (header line 1)
+    assert "2 tracker set-ups" in text and "no length unit explains that factor" not in text
+    assert f"150 rows: {rows}" in text and "150 rows: 2" in text  # the first set-up: indices 0 on
+
+
 def _sse(xyz, model):
     """Squared distances summed (m²) of xyz (N, 3) from model (N, 3) in the rigid frame that fits them best."""
     R, t = kabsch(model, xyz)
