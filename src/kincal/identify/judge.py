@@ -193,8 +193,8 @@ def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     reasons = [*jumps, *(r for f, m in parts for r in drift_reasons(meas.rows[m], norms[m], f))]
     reasons += residual_reasons(pos_sigma, noise, th)
     reasons += [r for f, m in parts for r in outlier_reasons(meas.rows[m], z[m], th, res.options.loss, f)]
-    return [*reasons, *duplicate_reasons(meas.rows, duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types,
-                                                                                                 th))),
+    groups = duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types, th))
+    return [*reasons, *duplicate_reasons(meas.rows, groups, files=meas.session, xyz=meas.xyz),
             *([] if jumps else fitted_drift_reasons(res.drift, noise[0], meas.xyz))]  # a step, not a drift
 
 
