@@ -426,7 +426,14 @@ def _diagnosed(res: "CalibrationResult", found: "Diagnosis", verdict: Verdict) -
     reason = Reason(status, f"cause-{best.code}" if best else "cause-unknown",
                     found.message() + ("" if res.data else " (screened on the measured positions)"))
     named = best is not None and best.code == "frame-jump"  # the jump the cause names with its refit: not twice
-    return Verdict(status, (reason, *(r for r in verdict.reasons if not (named and r.code == "frame-jump"))))
+    framed = best is not None and best.code in FRAME_CAUSES  # the tool point a misplaced frame bent: no advice
+    return Verdict(status, (reason, *(r for r in verdict.reasons if not (named and r.code == "frame-jump")
+                                      and not (framed and r.code == "tool-point"))))
+
+
+FRAME_CAUSES = ("frame", "frame-jump", "same-frame")  # diagnosed causes that misplace the frame the tool point is
+# fitted in: the tool point they give says nothing of the target (a UR5 session moved 1.2 m fitted in the other's
+# frame put it 887 mm from the flange, and advised --tool there)
 
 
 def sample_norms(sets, r: np.ndarray) -> list[np.ndarray]:
