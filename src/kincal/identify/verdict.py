@@ -686,12 +686,12 @@ def duplicate_reasons(rows: np.ndarray, groups, source: str | None = None, files
     ``xyz`` (N, 3) m: with the same positions too, the same rows)."""
     if not groups:
         return []
-    several = files is not None and len(set(files)) > 1
-    shown = "; ".join(", ".join(f"{f} row{'s' * (k.size > 1)} {listed(rows[k])}" for f in dict.fromkeys(files[g])
-                                if (k := np.asarray(g)[files[g] == f]).size) if several else f"rows {listed(rows[g])}"
-                      for g in groups[:5])
+    labels = files if files is not None and len(set(files)) > 1 else None
+    shown = "; ".join(", ".join(f"{f} row{'s' * (k.size > 1)} {listed(rows[k])}" for f in dict.fromkeys(labels[g])
+                                if (k := np.asarray(g)[labels[g] == f]).size) if labels is not None
+                      else f"rows {listed(rows[g])}" for g in groups[:5])
     head, what, look = ("", "rows", "") if source is None else (f"{source}: ", "samples", " look")
-    copies = _copied_files(groups, files, xyz) if several else ""
+    copies = _copied_files(groups, labels, xyz) if labels is not None else ""
     return [Reason("suspect", "repeated-poses",
                    f"{head}{copies}{sum(len(g) for g in groups)} {what} repeat the same joint values ({shown}): "
                    f"repeated poses count as independent and make the stated σ{look} too small; average them or "

@@ -148,7 +148,8 @@ def frame_groups(xyz: np.ndarray, model: np.ndarray, min_part: int = MIN_PART) -
     is found first (the most rows within reach of a frame through 3 random rows, seeded: the same answer each
     run; ties: the first), then the largest among the rows left, and so on."""
     n, tol, rng = len(xyz), GROUP_TOL * spread(model), np.random.default_rng(0)
-    left, groups, sse = np.arange(n), [], 0.0
+    left, sse = np.arange(n), 0.0
+    groups: list[np.ndarray] = []
 
     def near(R: np.ndarray, t: np.ndarray, at: np.ndarray) -> np.ndarray:
         return np.linalg.norm(model[at] @ R.T + t - xyz[at], axis=1)
