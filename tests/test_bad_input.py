@@ -1129,6 +1129,23 @@ def test_a_held_out_file_that_is_the_training_file_is_refused(tmp_path, capsys, 
     assert not (tmp_path / "c.yaml").exists()
 
 
+@pytest.mark.parametrize("same_frame", [[], ["--same-frame"]])
+def test_a_held_out_file_of_two_poses_is_refused_before_the_fit(tmp_path, capsys, same_frame):
+    """--test with 3 rows of 2 distinct poses (the third repeats the first): its frame cannot be registered (3
+    needed). Found after the fit, the calibrated robot had been written (verdict good) with no figures printed;
+    now refused before the fit, naming the file and its 2 poses, and nothing is written."""
+    from conftest import DATA
+    lines = (DATA / "ur5_grid.csv").read_text().splitlines()
+    test = tmp_path / "two.csv"
+    test.write_text("\n".join([lines[0], lines[1], lines[2], lines[1]]) + "\n")
+    code = main(["calibrate", "ur5", str(DATA / "ur5_random.csv"), "--test", str(test), *same_frame, "--length-unit",
+                 "mm", "--angle-unit", "deg", "--joint-cols", ",".join(f"joint_{i}" for i in range(1, 7)),
+                 "-o", str(tmp_path / "c.yaml")])
+    captured = capsys.readouterr()
+    assert code == 1 and f"--test {test}: 2 distinct poses (3 rows)" in captured.err
+    assert "calibration of ur5" not in captured.out and not (tmp_path / "c.yaml").exists()
+
+
 def test_a_sample_number_column_given_as_a_joint_is_named(tmp_path, capsys):
     """--joint-cols sample,q2,… on the Panda's socket file (radians, as declared): the sample numbers 0…36, counting
     up within each placement, were called degrees ('use angle unit deg'); now the column is named a counter. A joint

@@ -314,6 +314,42 @@ def test_a_frame_jump_that_breaks_the_spread_is_named_by_the_reader(tmp_path):
         kincal.read_measurements(str(tmp_path / "far.csv"), robot, length_unit="mm")
 
 
+@pytest.mark.parametrize("order", ["interleaved", "ABA"])
+def test_set_ups_mixed_in_one_file_are_named_by_the_reader(tmp_path, order):
+    """Two set-ups 5 m and 115 deg apart whose rows alternate (row by row, or A B A in blocks): no single jump
+    splits them, yet the reader names two set-ups with their rows (the ones simulated in each frame), not 'no
+    length unit explains that factor'."""
+    robot, _, meas = _bumped(0.0, 0.0)
+    moved = np.arange(1, 300, 2) if order == "interleaved" else np.arange(100, 250)  # the second set-up's indices
+    xyz = meas.xyz.copy()
+    xyz[moved] = xyz[moved] @ rot_zyx(2.0, 0.0, 0.0).T + [5.0, 0.0, 0.0]
+    kincal.write_measurements(str(tmp_path / "mixed.csv"), dataclasses.replace(meas, xyz=xyz), robot.joint_types,
+                              length_unit="mm")
+    with pytest.raises(MeasurementError) as caught:
+        kincal.read_measurements(str(tmp_path / "mixed.csv"), robot, length_unit="mm")
+    text = " ".join(str(caught.value).split())
+    rows = "3, 5, 7, …" if order == "interleaved" else "102-251"  # line numbers: index + 2 (header line 1)
+    assert "2 tracker set-ups" in text and "no length unit explains that factor" not in text
+    assert f"150 rows: {rows}" in text and "150 rows: 2" in text  # the first set-up: indices 0 on
+
+
+def test_sessions_moved_apart_in_one_frame_name_the_python_way_and_no_tool(capsys):
+    """Two sessions labelled in one Measurements, the second moved 1.2 m and 30 deg: kincal.calibrate names the
+    moved frame first with the Python way out (its fix said "leave out --same-frame", a CLI flag), and gives no
+    tool-point advice: the tool point the misplaced frame bent (metres off) said to declare it (--tool)."""
+    from kincal.identify import joined
+    robot, _, meas = _bumped(0.0, 0.0, n=200)
+    a, b = (dataclasses.replace(meas.subset(np.arange(k, k + 100)), source=f"{s}.csv")
+            for k, s in ((0, "a"), (100, "b")))
+    b = dataclasses.replace(b, xyz=b.xyz @ rot_zyx(np.radians(30.0), 0.0, 0.0).T + [1.2, -0.8, 0.15])
+    res = kincal.calibrate(robot, joined([a, b]))
+    first = res.verdict.reasons[0]
+    assert first.code == "cause-same-frame" and "kincal.identify.calibrate_sessions(robot, sessions)" in first.message
+    assert "--tool" not in str(res.verdict) and "tool-point" not in [r.code for r in res.verdict.reasons]
+    apart = np.linalg.norm(res.robot.tool_point() - robot.tool_point())
+    assert apart > 0.05  # the fit's tool point lies far from the true one: the advice it gave was wrong
+
+
 def _sse(xyz, model):
     """Squared distances summed (m²) of xyz (N, 3) from model (N, 3) in the rigid frame that fits them best."""
     R, t = kabsch(model, xyz)

@@ -1,4 +1,5 @@
 """Every result says whether to believe it: verdicts, outliers by row, extrapolation, checked commands."""
+import dataclasses
 import json
 
 import numpy as np
@@ -8,6 +9,7 @@ from conftest import DATA, UR5_COLS
 import kincal
 from kincal.compensate import command_models
 from kincal.cli import main
+from kincal.identify import joined
 from kincal.identify.verdict import duplicate_groups, robust_z
 
 UNITS = ["--length-unit", "mm", "--angle-unit", "deg"]
@@ -117,6 +119,22 @@ def test_repeated_poses_are_named(ur5, sim):
     res = kincal.calibrate(ur5, kincal.Measurements(meas.q[idx], meas.xyz[idx], meas.joint_names, "rep.csv"))
     msg = next(r.message for r in res.verdict.reasons if r.code == "repeated-poses")
     assert res.verdict.status == "suspect" and "rows 7, 82, 83" in msg and "rows 19, 84" in msg
+
+
+def test_a_file_given_twice_is_named_by_file(ur5, sim):
+    """The same data in two files (a.csv and its copy b.csv) named no file ("rows 2, 2; rows 3, 3"); now the copy
+    is named, and each repeat by file and row; the same poses measured anew (c.csv: other positions) repeat the poses
+    of a.csv, not its rows."""
+    true, meas, _ = sim
+    a = dataclasses.replace(meas, source="a.csv")
+    again = kincal.simulate(true, meas.q, 15e-6, seed=5)  # the same poses, measured again
+    for other, said in ((dataclasses.replace(meas, source="b.csv"), "b.csv holds the same rows as a.csv"),
+                        (dataclasses.replace(again, source="c.csv"), "c.csv repeats the poses of a.csv")):
+        res = kincal.calibrate(ur5, joined([a, other]))
+        msg = next(r.message for r in res.verdict.reasons if r.code == "repeated-poses")
+        name = other.source
+        assert msg.startswith(f"{said}: 160 rows repeat the same joint values (a.csv row 2, {name} row 2; a.csv row 3")
+        assert "give each file once" in msg
 
 
 def test_robust_z_and_duplicates_by_hand():

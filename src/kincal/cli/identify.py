@@ -141,9 +141,9 @@ def cmd_calibrate(args) -> int:
     res, tests = fit_files(args, robot, kinds, args.data, args.test, options)
     refused = res.verdict.status == "refused"
     written = bool(args.output) and (not refused or args.force)
+    lines, held = held_out(res, tests, args.same_frame)  # before writing: a failure here leaves nothing half-written
     if written:
         kincal.save_robot(res.robot, args.output, calibration={**res.record(), "data": data_record(args, kinds)})
-    lines, held = held_out(res, tests, args.same_frame)
     if res.verdict.status != "good" and set(kinds) == {"point"}:  # a file of a robot with more joints?
         lines += [f"note: {path} also has the column(s) {', '.join(extra)}, which no joint of {robot.name} reads "
                   f"({robot.n_joints} joints): data of a robot with more joints?"
@@ -199,6 +199,8 @@ def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], 
     sets = [load(path, k) for path, k in zip(data, kinds)]
     sets = [sets[0].without_rows(args.exclude)] if args.exclude else sets
     held = [load(path, kinds[0], True) for path in tests]
+    if points:
+        _registrable(robot, held, options)
     if points and isinstance(use_q, str):
         use_q = np.concatenate([t.q for t in held]) if held else None
     with progress("calibrating", args.json) as say:
@@ -208,6 +210,20 @@ def fit_files(args, robot, kinds: list[str], data: list[str], tests: list[str], 
             return kincal.calibrate(robot, kincal.identify.joined(sets), options, use_q=use_q, progress=say), held
         say(f"calibrating {len(sets)} sessions, each in its own measurement frame")
         return kincal.identify.calibrate_sessions(robot, sets, options, use_q=use_q), held
+
+
+def _registrable(robot, held: list, options) -> None:
+    """Refuse, before the fit, a held-out position file of fewer than 3 distinct poses: its measurement frame is
+    registered to it (re-fitted to judge it, or, with --same-frame, to tell whether the tracker moved), which
+    needs 3; found only after the fit, the calibrated robot had been written with no figures printed."""
+    tol = kincal.identify.verdict.repeat_tolerance(robot.joint_types, options.thresholds)
+    for t in held:
+        distinct = kincal.identify.verdict.distinct_count(t.q, tol, 3)
+        if distinct < 3:
+            raise ValueError(f"--test {t.source}: {distinct} distinct pose{'s' * (distinct != 1)} ({len(t.q)} rows); "
+                             f"a held-out file's measurement frame is registered to it (to judge it, or with "
+                             f"--same-frame to tell whether the tracker moved), which needs 3 at least: hold out a "
+                             f"file of 3 or more poses spread over the workspace")
 
 
 def _not_training(data: list[str], tests: list[str], excluded: bool = False) -> None:

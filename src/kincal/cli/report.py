@@ -173,8 +173,11 @@ def add_session_flags(p, recorded: bool = False) -> None:
                         "session's measurement frame is re-fitted to it for the nominal and the calibrated model "
                         "alike, kinematics fixed")
     p.add_argument("--same-frame", **observe.switch(recorded),
-                   help="the held-out sessions were measured in the training data's frame (the tracker did not "
-                        "move): use the models' frames as they are" + observe.AS_RECORDED * recorded)
+                   help=("the held-out sessions were measured in the training data's frame (the tracker did not "
+                         "move): use the models' frames as they are" if recorded else
+                         "all the files were measured in one frame (the tracker did not move): the training files "
+                         "are fitted in one measurement frame (not one each), and the held-out sessions (--test) "
+                         "are judged in it as calibrated (not re-registered)") + observe.AS_RECORDED * recorded)
     p.add_argument("--rebase", action="store_true", help=argparse.SUPPRESS)  # the default now; accepted
     observe.add_refit_target(p, recorded)
 

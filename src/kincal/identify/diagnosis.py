@@ -269,7 +269,9 @@ def _sessions(res: CalibrationResult) -> list[tuple[Cause, Change]]:
         return []
     parts = [meas.subset(np.flatnonzero(meas.session == s)) for s in labels]
     return [(Cause("same-frame", "the files were not measured in one frame (the tracker or camera moved between "
-                                 "them)", "leave out --same-frame: each file then gets its own measurement frame"),
+                                 "them)", "fit them as sessions, each in its own measurement frame: "
+                                               "kincal.identify.calibrate_sessions(robot, sessions), one "
+                                               "Measurements per file (CLI: leave out --same-frame)"),
              lambda r, m, o: (r, parts, o))]
 
 

@@ -193,8 +193,8 @@ def _position_reasons(res: "CalibrationResult", th: Thresholds) -> list[Reason]:
     reasons = [*jumps, *(r for f, m in parts for r in drift_reasons(meas.rows[m], norms[m], f))]
     reasons += residual_reasons(pos_sigma, noise, th, left_out)
     reasons += [r for f, m in parts for r in outlier_reasons(meas.rows[m], z[m], th, res.options.loss, f)]
-    return [*reasons, *duplicate_reasons(meas.rows, duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types,
-                                                                                                 th))),
+    groups = duplicate_groups(meas.q, repeat_tolerance(res.robot.joint_types, th))
+    return [*reasons, *duplicate_reasons(meas.rows, groups, files=meas.session, xyz=meas.xyz),
             *([] if jumps else fitted_drift_reasons(res.drift, noise[0], meas.xyz))]  # a step, not a drift
 
 
@@ -466,7 +466,14 @@ def _diagnosed(res: "CalibrationResult", found: "Diagnosis", verdict: Verdict) -
         return Verdict(status, (*verdict.reasons, Reason("note", "cause-unknown", said)))
     reason = Reason(status, f"cause-{best.code}" if best else "cause-unknown", said)
     named = best is not None and best.code == "frame-jump"  # the jump the cause names with its refit: not twice
-    return Verdict(status, (reason, *(r for r in verdict.reasons if not (named and r.code == "frame-jump"))))
+    framed = best is not None and best.code in FRAME_CAUSES  # the tool point a misplaced frame bent: no advice
+    return Verdict(status, (reason, *(r for r in verdict.reasons if not (named and r.code == "frame-jump")
+                                      and not (framed and r.code == "tool-point"))))
+
+
+FRAME_CAUSES = ("frame", "frame-jump", "same-frame")  # diagnosed causes that misplace the frame the tool point is
+# fitted in: the tool point they give says nothing of the target (a UR5 session moved 1.2 m fitted in the other's
+# frame put it 887 mm from the flange, and advised --tool there)
 
 
 def sample_norms(sets, r: np.ndarray) -> list[np.ndarray]:

@@ -681,17 +681,44 @@ def _order_axis(xyz: np.ndarray | None) -> tuple[str, float] | None:
     return ("xyz"[k], float(r[k])) if abs(r[k]) >= ORDER_CORRELATION else None
 
 
-def duplicate_reasons(rows: np.ndarray, groups, source: str | None = None) -> list[Reason]:
+def duplicate_reasons(rows: np.ndarray, groups, source: str | None = None, files: np.ndarray | None = None,
+                      xyz: np.ndarray | None = None) -> list[Reason]:
     """Repeated poses (groups of indices, see :func:`duplicate_groups`), named by input row (of the
-    observation set from ``source``, when given)."""
+    observation set from ``source``, when given); poses from several files (``files``: each pose's file, (N,))
+    named by file and row, led by the files that repeat another's poses one for one (:func:`_copied_files`;
+    ``xyz`` (N, 3) m: with the same positions too, the same rows)."""
     if not groups:
         return []
-    shown = "; ".join(f"rows {listed(rows[g])}" for g in groups[:5])
+    labels = files if files is not None and len(set(files)) > 1 else None
+    shown = "; ".join(", ".join(f"{f} row{'s' * (k.size > 1)} {listed(rows[k])}" for f in dict.fromkeys(labels[g])
+                                if (k := np.asarray(g)[labels[g] == f]).size) if labels is not None
+                      else f"rows {listed(rows[g])}" for g in groups[:5])
     head, what, look = ("", "rows", "") if source is None else (f"{source}: ", "samples", " look")
+    copies = _copied_files(groups, labels, xyz) if labels is not None else ""
     return [Reason("suspect", "repeated-poses",
-                   f"{head}{sum(len(g) for g in groups)} {what} repeat the same joint values ({shown}): repeated "
-                   f"poses count as independent and make the stated σ{look} too small; average them or leave the "
-                   f"copies out")]
+                   f"{head}{copies}{sum(len(g) for g in groups)} {what} repeat the same joint values ({shown}): "
+                   f"repeated poses count as independent and make the stated σ{look} too small; average them or "
+                   f"leave the copies out" + ("; give each file once" if copies else ""))]
+
+
+def _copied_files(groups, files: np.ndarray, xyz: np.ndarray | None) -> str:
+    """'B.csv holds the same rows as A.csv: ' for each file whose poses pair one for one with an earlier file's in
+    the repeat groups (the same joint values; with ``xyz``, the same positions to 1 µm too: else 'repeats the poses
+    of'); '' when none does."""
+    order = list(dict.fromkeys(files))
+    pairs: dict[tuple, list] = {}  # (earlier file, later file) -> their paired indices
+    for g in groups:
+        g = np.asarray(g)
+        if len(g) == 2 and files[g[0]] != files[g[1]]:
+            a, b = sorted(g, key=lambda k: order.index(files[k]))
+            pairs.setdefault((files[a], files[b]), []).append((a, b))
+    said = []
+    for (a, b), paired in pairs.items():
+        if len(paired) == int(np.sum(files == a)) == int(np.sum(files == b)):
+            i, j = np.array(paired).T
+            same = xyz is not None and float(np.abs(xyz[i] - xyz[j]).max()) < 1e-6
+            said.append(f"{b} {'holds the same rows as' if same else 'repeats the poses of'} {a}")
+    return "; ".join(said) + ": " if said else ""
 
 
 DRIFT_RATIO, DRIFT_Z, DRIFT_MIN_POSES, DRIFT_NOISE = 1.5, 3.0, 50, 2.0

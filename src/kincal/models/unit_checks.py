@@ -116,6 +116,13 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
                                f"{one * 1e3:.3g} mm in one frame): two set-ups in one file, or the tracker was moved "
                                f"or bumped there; give one file per session (each gets its own frame)")
     if predicted > MIN_SPREAD:
+        setups = frame_groups(xyz, robot.forward(q)) if not _unit_of(ratio, length_unit) else None
+        if setups is not None:
+            raise MeasurementError(f"{source}: {what} spread {_times(ratio)} than the robot moves at the same joint "
+                                   f"values, but no length unit explains that and the rows fall into {len(setups[0])} "
+                                   f"groups that each fit the robot in a frame of their own (RMS {setups[1] * 1e3:.3g} "
+                                   f"mm; {_groups_text(setups[0], rows)}): measurements from {len(setups[0])} tracker "
+                                   f"set-ups in one file; give one file per set-up (each gets its own frame)")
         lead = lead_factor(q, xyz, robot) if not _unit_of(ratio, length_unit) else None
         if lead is not None:
             raise MeasurementError(f"{source}: {what} spread {_times(ratio)} than the robot moves at the same joint "
@@ -127,6 +134,55 @@ def check_spread(source: str, q: np.ndarray, xyz: np.ndarray, robot: Robot, leng
 
 
 ANGLE_WORDS = {"rad": "radians", "deg": "degrees", "rev": "revolutions"}
+GROUP_TOL = 0.02  # share of the robot's spread: a row this near a group's rigid frame belongs to that group
+GROUP_TRIES = 200  # random 3-row frames tried per group (two equal groups: 3 rows of one group in 1 try of 4)
+GROUP_MOST = 4  # set-ups looked for in one file at most
+GROUP_COVER = 0.95  # ... and the share of the rows they must hold together
+
+
+def frame_groups(xyz: np.ndarray, model: np.ndarray, min_part: int = MIN_PART) -> tuple[list, float] | None:
+    """The rows of the positions ``xyz`` (N, 3) m that fall into 2 to GROUP_MOST groups, each fitting the model's
+    positions ``model`` (N, 3) m in a rigid frame of its own within GROUP_TOL of the model's spread, together
+    GROUP_COVER of the rows at least, MIN_PART rows each (several tracker set-ups in one file, in any order): the
+    groups' indices (largest first) and the RMS (m) left with a frame per group; None otherwise. The largest group
+    is found first (the most rows within reach of a frame through 3 random rows, seeded: the same answer each
+    run; ties: the first), then the largest among the rows left, and so on."""
+    n, tol, rng = len(xyz), GROUP_TOL * spread(model), np.random.default_rng(0)
+    left, sse = np.arange(n), 0.0
+    groups: list[np.ndarray] = []
+
+    def near(R: np.ndarray, t: np.ndarray, at: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(model[at] @ R.T + t - xyz[at], axis=1)
+    while len(left) >= min_part and len(groups) < GROUP_MOST:
+        tries = [left[near(*kabsch(model[k], xyz[k]), left) < tol]
+                 for k in (rng.choice(left, 3, replace=False) for _ in range(GROUP_TRIES))]
+        best = tries[first_best(np.array([len(g) for g in tries]), maximize=True)]
+        if len(best) < 3:
+            break
+        frame = kabsch(model[best], xyz[best])  # refitted on its rows, which it then gathers again
+        best = left[near(*frame, left) < tol]
+        if len(best) < min_part:
+            break
+        groups.append(best)
+        sse += float(np.sum(near(*kabsch(model[best], xyz[best]), best) ** 2))
+        left = np.setdiff1d(left, best)
+    if len(groups) < 2 or n - len(left) < GROUP_COVER * n:
+        return None
+    return groups, float(np.sqrt(sse / (n - len(left))))
+
+
+def _groups_text(groups: list, rows: np.ndarray | None) -> str:
+    """'500 rows: 2-251, 752-1001; 500 rows: 252-751': each group's size and its first runs of rows (1-based line
+    numbers of ``rows``, default 2, 3, ...)."""
+    out = []
+    for g in groups:
+        at = np.asarray(rows)[g] if rows is not None else g + 2
+        cut = np.flatnonzero(np.diff(at) != 1) + 1
+        runs = [f"{r[0]}" if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in np.split(at, cut)]
+        out.append(f"{len(g)} rows: {', '.join(runs[:3])}{', …' if len(runs) > 3 else ''}")
+    return "; ".join(out)
+
+
 TOOL_ROUNDS = 50  # Gauss-Newton steps at most of the frame and the tool point in tool_explains
 TOOL_FITS = 0.01  # a fitted tool point that brings the RMS miss below this share of the spread explains it
 TOOL_MAX = MAX_TOOL  # m: ... and lies this near the flange at most (a tool, not a lever; robot files' bound)
@@ -865,7 +921,8 @@ def unit_hint(ratio: float, length_unit: str | None, what: str = "measured posit
     name = _unit_of(ratio, length_unit)
     head = f"{what} spread {_times(ratio)} than the robot moves at the same joint values (read as '{declared}')"
     if not name:
-        return f"{head}; no length unit explains that factor: check the joint columns and the robot file"
+        return (f"{head}; no length unit explains that factor: check the joint columns and the robot file, or "
+                f"whether the file holds measurements from several tracker set-ups (then give one file per set-up)")
     if name in LENGTH_UNITS:
         return f"{head}: they look like {name}; use length unit '{name}' (CLI: --length-unit {name})"
     return (f"{head}: they look like {name}; convert them to mm (x{table[name] / 1e-3:g}) and use length unit 'mm' "
