@@ -317,3 +317,21 @@ def test_header_names_the_hexapod_compliance(tmp_path, capsys):
     html = page.read_text()
     assert "· stewart (implicit, 6-D) + compliance model ·" in html and "<code>legs.compliance</code>" in html
     assert ", --error-model compliance" in _options_row(html)
+
+
+def test_a_value_that_rounds_to_zero_is_written_without_a_sign(ur5):
+    """A parameter held by a prior at -1e-9 m printed "-0.0000 mm" in the parameter table, and a tool point at
+    y = -2e-6 m "(0.30, -0.00, 1.29) mm" (the Panda's report): every number that rounds to zero is written
+    unsigned, whatever sign the value had; a value that does not round to zero keeps its sign."""
+    from kincal.identify.verdict import mounting_line
+    from kincal.units import display, fine, number
+
+    assert [number(v, s) for v, s in ((-1e-9, ".4f"), (-1e-9, "+.4f"), (-0.0, "g"), (-0.00006, "+.4f"))] == \
+        ["0.0000", "0.0000", "0", "-0.0001"]
+    assert display(-1e-9, "length") == "0.0000 mm" and display(-1e-12, "angle", signed=False) == "0.00000 deg"
+    assert fine(-1e-9, "angle", ".3f") == "0.000 mrad" and display(2e-7, "length") == "+0.0002 mm"
+    line = mounting_line(np.zeros(3), np.array([0.30e-3, -2e-6, 1.29e-3]))
+    assert line.startswith("the data put the target at (0.30, 0.00, 1.29) mm") and "-0.00" not in line
+    res = kincal.calibrate(ur5, kincal.simulate(ur5, ur5.sample_joints(30, seed=2), 0.0, seed=3), diagnose=False)
+    page = kincal.build_report(res).html
+    assert not re.search(r"-0\.0+(?![0-9])", page)  # a perfect fit: every correction rounds to zero

@@ -16,7 +16,7 @@ from ..models.robot import TOOL_NAMES, Robot
 from ..observe.joint import in_cartesian
 from ..observe.observations import Wrapper
 from ..observe.sessions import InSession
-from ..units import MM, MRAD, display, in_display
+from ..units import MM, MRAD, display, in_display, number
 from .diagnosis import Diagnosis
 from .judge import MIN_SAMPLES, component_kinds, sample_norms, verdict_of
 from .options import FitOptions
@@ -597,7 +597,7 @@ class CalibrationResult:
                       f"after:  {self.stats_after}"]
             if self.drift:
                 lines.append("drift over the session (first to last pose): " + ", ".join(
-                    f"{a} {d['value'] * MM:+.4f} ± {d['std'] * MM:.4f} mm" for a, d in self.drift.items()))
+                    f"{a} {number(d['value'] * MM, '+.4f')} ± {d['std'] * MM:.4f} mm" for a, d in self.drift.items()))
             return lines
         lines.append(f"whitened residual RMS {self.whitened_rms:.3g} (1 when the stated σ are right): "
                      + ", ".join(f"{k} {v:.3g}" for k, v in self.whitened.items()))
@@ -608,7 +608,7 @@ class CalibrationResult:
         # each set's fitted instrument drift over its rows (first to last sample), mm with σ
         sets = dict.fromkeys(n.rsplit(".", 1)[0] for n in self.nuisance if n.startswith("drift["))
         return lines + [f"{s} over the file (first to last sample): " + ", ".join(
-            f"{a} {self.nuisance[f'{s}.{a}'] * MM:+.4f} ± {self.std.get(f'{s}.{a}', np.inf) * MM:.4f} mm"
+            f"{a} {number(self.nuisance[f'{s}.{a}'] * MM, '+.4f')} ± {self.std.get(f'{s}.{a}', np.inf) * MM:.4f} mm"
             for a in "xyz" if f"{s}.{a}" in self.nuisance) for s in sets]
 
 
