@@ -259,3 +259,30 @@ def test_the_before_legend_says_how_the_nominal_model_was_registered():
         assert res.before_registration() == words
         legend = texts(figure_set(res)["per_pose"])
         assert f"before (nominal model, {words})" in legend, legend
+
+
+def figure_svg(html: str, name: str) -> str:
+    """The SVG of the report's figure ``name`` (its ``<figure id="fig-<name>">``)."""
+    return re.search(rf'<figure id="fig-{name}">(.*?)</figure>', html, re.S).group(1)
+
+
+def circled(svg: str) -> list[int]:
+    """The red rings of each "outliers" group of an SVG figure (one group per axes that circles some)."""
+    return [part.split('<g id="', 1)[0].count("<use") for part in svg.split('<g id="outliers">')[1:]]
+
+
+def test_outliers_are_circled_in_every_error_figure(ur5):
+    """docs/howto/report.md says outliers are circled in the error figures, but only the workspace circled them
+    (the UR5 grid with j4/j5 swapped: 15 outliers, none marked per pose or per joint): 4 poses moved 3 mm are the
+    report's outliers, and each is ringed once per pose and once in each of the 6 joint panels."""
+    true = kincal.perturb(ur5, seed=4)
+    meas = kincal.simulate(true, ur5.sample_joints(120, seed=5), 20e-6, seed=6)
+    moved = np.array([7, 30, 64, 101])
+    xyz = meas.xyz.copy()
+    xyz[moved] += np.array([3e-3, -2e-3, 1e-3])
+    res = kincal.calibrate(ur5, kincal.Measurements(meas.q, xyz, meas.joint_names, "moved.csv"), diagnose=False)
+    report = kincal.build_report(res)
+    assert report.data["outliers"] == meas.rows[moved].tolist()
+    assert circled(figure_svg(report.html, "per_pose")) == [4]
+    assert circled(figure_svg(report.html, "vs_joints")) == [4] * 6
+    assert sum(circled(figure_svg(report.html, "workspace"))) == 4 * 3

@@ -165,6 +165,7 @@ def per_pose(sets: list[PoseSet], what: str = "after calibration",
                         label=f"before (nominal model, {before})", rasterized=True)
         ax.semilogy(x, s.after_norm * MM, ".", ms=3, color=s.color, rasterized=True,
                     label=f"{s.title}: {what}" if s.before is not None else None)
+        circle(ax, x[s.outliers], s.after_norm[s.outliers] * MM)
         error = "position error" if s.before is not None else f"position error {what}"
         ax.set(title=f"{s.title} poses ({len(x)}): {error} per pose", xlabel="pose (file order)", ylabel="error (mm)")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True, steps=[1, 2, 5, 10]))  # poses are counted
@@ -221,6 +222,7 @@ def vs_joints(sets: list[PoseSet], joint_names, units, what: str = "after calibr
         for s in sets:
             ax.plot(s.q[:, j] * scale, s.after_norm * MM, ".", ms=3, color=s.color, label=s.title,
                     rasterized=True)
+            circle(ax, s.q[s.outliers, j] * scale, s.after_norm[s.outliers] * MM)
         ax.set(xlabel=f"{joint_names[j]} ({unit})", ylabel="error (mm)")
     legend_below(fig)
     fig.suptitle(f"error {what} against each joint")
@@ -242,8 +244,7 @@ def workspace(sets: list[PoseSet], frame: str = "the training data's frame", wha
         for s in sets:
             sc = ax.scatter(s.xyz[:, a] * MM, s.xyz[:, b] * MM, c=s.after_norm * MM, s=8, cmap="viridis",
                             vmin=0.0, vmax=vmax, marker="o" if s.label == "training" else "^", rasterized=True)
-        if len(where):
-            ax.scatter(where[:, a], where[:, b], s=80, facecolors="none", edgecolors="red", linewidths=1.2)
+        circle(ax, where[:, a], where[:, b])
         _name_outliers(ax, everything[:, [a, b]], where[:NAMED][:, [a, b]], names[:NAMED])
         ax.set(xlabel=f"{'xyz'[a]} (mm)", ylabel=f"{'xyz'[b]} (mm)", aspect="equal", adjustable="datalim")
     fig.colorbar(sc, ax=fig.axes, label=f"error {what} (mm)", shrink=0.9)
@@ -257,6 +258,14 @@ def workspace(sets: list[PoseSet], frame: str = "the training data's frame", wha
                       fontsize=8)
     _merge_names(fig)  # once laid out with the caption
     return fig
+
+
+def circle(ax: Any, x: np.ndarray, y: np.ndarray) -> None:
+    """Circle the outliers at ``x``, ``y`` (K,) in ``ax`` (red rings, vector: one ``<use>`` each in the SVG's group
+    "outliers"), as every error figure marks them; nothing for none."""
+    if len(x):
+        ax.scatter(x, y, s=80, facecolors="none", edgecolors="red", linewidths=1.2, label="outlier (red circle)",
+                   gid="outliers", zorder=3)
 
 
 NAMED = 3  # outliers the workspace names by row beside their circle (the largest errors)
