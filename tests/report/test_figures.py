@@ -9,7 +9,7 @@ from matplotlib.transforms import Bbox
 
 import kincal
 import kincal.cli
-from kincal.identify import refit_frame
+from kincal.identify import calibrate_sessions, refit_frame
 from kincal.report import evaluation_figures, figure_set
 from kincal.report import figures as F
 
@@ -286,3 +286,17 @@ def test_outliers_are_circled_in_every_error_figure(ur5):
     assert circled(figure_svg(report.html, "per_pose")) == [4]
     assert circled(figure_svg(report.html, "vs_joints")) == [4] * 6
     assert sum(circled(figure_svg(report.html, "workspace"))) == 4 * 3
+
+
+def test_every_session_has_its_own_colour(ur5):
+    """Two training sessions and a held-out one: three colours in the per-axis boxes and the histogram's bars (the
+    two training sessions of ur5s.html shared one blue, told apart by nothing)."""
+    true = kincal.perturb(ur5, seed=7)
+    a, b, c = (kincal.simulate(true, ur5.sample_joints(n, seed=s), 20e-6, seed=s) for n, s in ((60, 1), (50, 2), (20, 3)))
+    res = calibrate_sessions(ur5, [kincal.Measurements(m.q, m.xyz, m.joint_names, f"{k}.csv")
+                                          for k, m in (("a", a), ("b", b))], diagnose=False)
+    html = kincal.build_report(res, kincal.Measurements(c.q, c.xyz, c.joint_names, "c.csv")).html
+    boxes = re.findall(r"fill: (#[0-9a-f]{6}); opacity: 0\.5", figure_svg(html, "per_axis"))[:9]  # then the legend's
+    assert len(set(boxes)) == 3 and boxes[:3] == boxes[3:6] == boxes[6:]  # x, y, z: same order
+    bars = re.findall(r"fill: (#[0-9a-f]{6}); opacity: 0\.6", figure_svg(html, "histogram"))
+    assert set(bars) == set(boxes) and F.COLOURS["before"] not in boxes

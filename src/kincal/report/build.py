@@ -271,7 +271,7 @@ def _training_sets(result: CalibrationResult) -> list[F.PoseSet]:
             "to these data)"
         sets.append(F.PoseSet("training", own.rows, own.q, meas.xyz[at], before, after[at], bad[at],
                               name=Path(session.source).name if several else "", registration=frame,
-                              key=f"training-{k + 1}" if several else "training"))
+                              colour=F.colour("training", k), key=f"training-{k + 1}" if several else "training"))
     return sets
 
 
@@ -290,7 +290,7 @@ def _sets(result: CalibrationResult, tests: list[Measurements], models: list[tup
         M = Rs @ R0.T
         sets.append(F.PoseSet("held-out", meas.rows, meas.q, (meas.xyz - ts) @ M + t0,
                               (meas.xyz - nominal.forward(meas.q)) @ M, after @ M, z > th.outlier_limit(len(z)),
-                              name=Path(meas.source).name, colour=F.SESSION_COLOURS[k % len(F.SESSION_COLOURS)],
+                              name=Path(meas.source).name, colour=F.colour("held-out", k),
                               registration=how, key="held-out" if len(tests) == 1 else f"held-out-{k + 1}"))
     return sets
 

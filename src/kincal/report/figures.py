@@ -66,6 +66,14 @@ class PoseSet:
 
 
 SESSION_COLOURS = ("#d62728", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf")  # held-out sessions in turn
+TRAINING_COLOURS = ("#1f77b4", "#2ca02c", "#bcbd22", "#393b79", "#637939", "#843c39")  # training sessions in turn
+
+
+def colour(label: str, k: int) -> str:
+    """The colour of the ``k``-th (0-based) set labelled ``label`` ("training" or "held-out"): each session its own,
+    training sessions in blues and greens, held-out ones in reds and oranges, none the grey of "before"."""
+    palette = TRAINING_COLOURS if label == "training" else SESSION_COLOURS
+    return palette[k % len(palette)]
 
 
 _styled = matplotlib.rc_context(RC)  # a decorator: figures built and saved in the report's style, whatever rcParams
