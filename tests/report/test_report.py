@@ -335,3 +335,24 @@ def test_a_value_that_rounds_to_zero_is_written_without_a_sign(ur5):
     res = kincal.calibrate(ur5, kincal.simulate(ur5, ur5.sample_joints(30, seed=2), 0.0, seed=3), diagnose=False)
     page = kincal.build_report(res).html
     assert not re.search(r"-0\.0+(?![0-9])", page)  # a perfect fit: every correction rounds to zero
+
+
+def test_every_pose_set_is_drawn_training_sessions_and_held_out(tmp_path):
+    """The Jugglebot's S1 (108 poses) and S2 (60) fitted in joint space: the figures drew S1 alone (S2, in a session
+    frame of its own, was left out without a word) and never a held-out set. Now each is drawn, per pose in position
+    (mm) and rotation (mrad), the held-out set too."""
+    jug = shared_dataset("stewart_jugglebot")
+    flags = ["--type", "pose", "--length-unit", "mm", "--angle-unit", "rev", "--orientation", "quat-xyzw",
+             "--residual", "joint"]
+    both = tmp_path / "both.html"
+    assert main(["calibrate", "hexapod", str(jug / "S1.csv"), str(jug / "S2.csv"), *flags, "-o",
+                 str(tmp_path / "both.yaml"), "--report", str(both)]) == 0
+    html = both.read_text()
+    for name, n in (("S1.csv", 108), ("S2.csv", 60)):
+        assert html.count(f"training {name} poses ({n}): position error per pose") == 1
+        assert html.count(f"training {name} poses ({n}): rotation error per pose") == 1
+    held = tmp_path / "held.html"
+    assert main(["calibrate", "hexapod", str(jug / "S1.csv"), *flags, "--test", str(jug / "S2.csv"),
+                 "--refit-target", "-o", str(tmp_path / "s1.yaml"), "--report", str(held)]) == 0
+    page = held.read_text()
+    assert "held-out S2.csv poses (60): position error" in page and "held-out S2.csv poses (60): rotation" in page

@@ -325,8 +325,8 @@ def figure_set(result: CalibrationResult, test: Measurements | Sequence[Measurem
     ----------
     result : CalibrationResult
         The calibration.
-    test : Measurements or sequence of Measurements, optional
-        Held-out sessions of position data (default none).
+    test : Measurements or sequence, optional
+        Held-out sessions of position data, or held-out observation sets (default none).
     same_frame : bool, optional
         The held-out sessions were measured in the training data's frame; False (default): each
         session's frame is re-fitted to it.
@@ -336,9 +336,9 @@ def figure_set(result: CalibrationResult, test: Measurements | Sequence[Measurem
     dict
         name -> matplotlib Figure ({} for observation sets of which none has positions).
     """
-    if not result.data:
-        return observation_figures(result)
     tests = [test] if isinstance(test, Measurements) else list(test or [])
+    if not result.data:
+        return observation_figures(result, tests=tests, same_frame=same_frame)
     models = _held_out_models(result, tests, same_frame)
     figs = _make_figures(_sets(result, tests, models, result.options.thresholds), result)
     if result.history:
