@@ -9,7 +9,8 @@ units engineers read; this module converts between the two and nothing else does
   :func:`joint_shown`: the unit kincal shows a joint's values in (deg, mm, rev for a multi-turn motor);
 * ``MM``, ``DEG``: display factors, an SI value times the factor is in that unit
   (``0.0012 * MM == 1.2`` mm; ``1.2 / MM`` m); ``MRAD`` likewise (1 rad = 1000 mrad);
-* :func:`display` writes a parameter value as mm or deg by its kind; :func:`in_display` turns a
+* :func:`number` formats a number, a value that rounds to zero without a sign ("0.0000", never "-0.0000");
+  :func:`display` writes a parameter value as mm or deg by its kind; :func:`in_display` turns a
   set's statistics (m, rad) into mm and mrad, each key named with its unit;
 * :func:`length_mistakes`: the factors positions read in the wrong length unit are off by.
 
@@ -18,6 +19,7 @@ A leaf module: it imports nothing of kincal.
 from __future__ import annotations
 
 import math
+import re
 from typing import Iterable
 
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}  # SI value (m) of one unit
@@ -71,17 +73,48 @@ SHOWN = {"length": ("mm", MM), "angle": ("deg", DEG), "ratio": ("%", 100.0)}  # 
 FINE = {"length": ("mm", MM), "angle": ("mrad", MRAD), "ratio": ("‰", 1e3)}  # its small changes: σ, steps, limits
 
 
+def number(value: float, spec: str = "") -> str:
+    """``value`` formatted by ``spec`` (Python's format mini-language), a value that rounds to zero without a sign.
+
+    Every number kincal writes for a person goes through it: a correction of -1e-9 mm is "0.0000", not
+    "-0.0000" (nor "+0.0000"), whatever ``spec`` asks for its sign.
+
+    Parameters
+    ----------
+    value : float
+        The number, in the unit it is shown in.
+    spec : str, optional
+        The format specification, e.g. ".4f" or "+.2f" (default "": Python's ``str``).
+
+    Returns
+    -------
+    str
+        The text.
+
+    Examples
+    --------
+    >>> number(-0.00002, ".4f"), number(-0.00002, "+.4f"), number(-0.2, "+.4f"), number(-0.0, "g")
+    ('0.0000', '0.0000', '-0.2000', '0')
+    """
+    text = f"{value:{spec}}"
+    mantissa = re.split("[eE]", text)[0]
+    if re.search("[1-9]", mantissa) or not re.search("[0-9]", mantissa):  # a digit of its own, or inf/nan
+        return text
+    return f"{0.0:{spec.replace('+', '')}}"  # (a '+' in a spec is its sign: kincal pads with spaces)
+
+
 def display(value: float, kind: str, signed: bool = True, digits: tuple[int, int] = (4, 5)) -> str:
     """A parameter value as engineers read it: lengths in mm, angles in deg, ratios (an actuator's
     scale) in % (``kind``: "length", "angle" or "ratio"); ``digits``: decimals for mm and % and for deg."""
     unit, factor = SHOWN[kind]
-    return f"{value * factor:{'+' if signed else ''}.{digits[kind == 'angle']}f} {unit}"
+    spec = f"{'+' if signed else ''}.{digits[kind == 'angle']}f"
+    return f"{number(value * factor, spec)} {unit}"
 
 
 def fine(value: float, kind: str, spec: str = ".3g") -> str:
     """A small change of a parameter (a σ, a step, a limit) in mm, mrad or ‰ by its ``kind``, formatted by ``spec``."""
     unit, factor = FINE[kind]
-    return f"{value * factor:{spec}} {unit}"
+    return f"{number(value * factor, spec)} {unit}"
 
 
 STAT_UNITS = {"mean": "mm", "rms": "mm", "max": "mm", "mean_abs": "mm", "distance_error": "mm", "drift": "mm",

@@ -9,7 +9,7 @@ from matplotlib.transforms import Bbox
 
 import kincal
 import kincal.cli
-from kincal.identify import refit_frame
+from kincal.identify import calibrate_sessions, refit_frame
 from kincal.report import evaluation_figures, figure_set
 from kincal.report import figures as F
 
@@ -259,3 +259,44 @@ def test_the_before_legend_says_how_the_nominal_model_was_registered():
         assert res.before_registration() == words
         legend = texts(figure_set(res)["per_pose"])
         assert f"before (nominal model, {words})" in legend, legend
+
+
+def figure_svg(html: str, name: str) -> str:
+    """The SVG of the report's figure ``name`` (its ``<figure id="fig-<name>">``)."""
+    return re.search(rf'<figure id="fig-{name}">(.*?)</figure>', html, re.S).group(1)
+
+
+def circled(svg: str) -> list[int]:
+    """The red rings of each "outliers" group of an SVG figure (one group per axes that circles some)."""
+    return [part.split('<g id="', 1)[0].count("<use") for part in svg.split('<g id="outliers">')[1:]]
+
+
+def test_outliers_are_circled_in_every_error_figure(ur5):
+    """docs/howto/report.md says outliers are circled in the error figures, but only the workspace circled them
+    (the UR5 grid with j4/j5 swapped: 15 outliers, none marked per pose or per joint): 4 poses moved 3 mm are the
+    report's outliers, and each is ringed once per pose and once in each of the 6 joint panels."""
+    true = kincal.perturb(ur5, seed=4)
+    meas = kincal.simulate(true, ur5.sample_joints(120, seed=5), 20e-6, seed=6)
+    moved = np.array([7, 30, 64, 101])
+    xyz = meas.xyz.copy()
+    xyz[moved] += np.array([3e-3, -2e-3, 1e-3])
+    res = kincal.calibrate(ur5, kincal.Measurements(meas.q, xyz, meas.joint_names, "moved.csv"), diagnose=False)
+    report = kincal.build_report(res)
+    assert report.data["outliers"] == meas.rows[moved].tolist()
+    assert circled(figure_svg(report.html, "per_pose")) == [4]
+    assert circled(figure_svg(report.html, "vs_joints")) == [4] * 6
+    assert sum(circled(figure_svg(report.html, "workspace"))) == 4 * 3
+
+
+def test_every_session_has_its_own_colour(ur5):
+    """Two training sessions and a held-out one: three colours in the per-axis boxes and the histogram's bars (the
+    two training sessions of ur5s.html shared one blue, told apart by nothing)."""
+    true = kincal.perturb(ur5, seed=7)
+    a, b, c = (kincal.simulate(true, ur5.sample_joints(n, seed=s), 20e-6, seed=s) for n, s in ((60, 1), (50, 2), (20, 3)))
+    res = calibrate_sessions(ur5, [kincal.Measurements(m.q, m.xyz, m.joint_names, f"{k}.csv")
+                                          for k, m in (("a", a), ("b", b))], diagnose=False)
+    html = kincal.build_report(res, kincal.Measurements(c.q, c.xyz, c.joint_names, "c.csv")).html
+    boxes = re.findall(r"fill: (#[0-9a-f]{6}); opacity: 0\.5", figure_svg(html, "per_axis"))[:9]  # then the legend's
+    assert len(set(boxes)) == 3 and boxes[:3] == boxes[3:6] == boxes[6:]  # x, y, z: same order
+    bars = re.findall(r"fill: (#[0-9a-f]{6}); opacity: 0\.6", figure_svg(html, "histogram"))
+    assert set(bars) == set(boxes) and F.COLOURS["before"] not in boxes

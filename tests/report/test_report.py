@@ -345,3 +345,42 @@ def test_a_good_verdict_states_the_residuals_against_their_limit():
     sigma = np.sqrt(np.sum(res.residuals**2) / (res.residuals.size - len(res.names))) * 1e3
     assert (f"residual σ per axis {sigma:.4g} mm, {sigma / 0.05:.1f}x the tracker noise (0.05 mm), within the limit "
             f"of 10x") in kincal.build_report(res).html
+
+
+def test_a_value_that_rounds_to_zero_is_written_without_a_sign(ur5):
+    """A parameter held by a prior at -1e-9 m printed "-0.0000 mm" in the parameter table, and a tool point at
+    y = -2e-6 m "(0.30, -0.00, 1.29) mm" (the Panda's report): every number that rounds to zero is written
+    unsigned, whatever sign the value had; a value that does not round to zero keeps its sign."""
+    from kincal.identify.verdict import mounting_line
+    from kincal.units import display, fine, number
+
+    assert [number(v, s) for v, s in ((-1e-9, ".4f"), (-1e-9, "+.4f"), (-0.0, "g"), (-0.00006, "+.4f"))] == \
+        ["0.0000", "0.0000", "0", "-0.0001"]
+    assert display(-1e-9, "length") == "0.0000 mm" and display(-1e-12, "angle", signed=False) == "0.00000 deg"
+    assert fine(-1e-9, "angle", ".3f") == "0.000 mrad" and display(2e-7, "length") == "+0.0002 mm"
+    line = mounting_line(np.zeros(3), np.array([0.30e-3, -2e-6, 1.29e-3]))
+    assert line.startswith("the data put the target at (0.30, 0.00, 1.29) mm") and "-0.00" not in line
+    res = kincal.calibrate(ur5, kincal.simulate(ur5, ur5.sample_joints(30, seed=2), 0.0, seed=3), diagnose=False)
+    page = kincal.build_report(res).html
+    assert not re.search(r"-0\.0+(?![0-9])", page)  # a perfect fit: every correction rounds to zero
+
+
+def test_every_pose_set_is_drawn_training_sessions_and_held_out(tmp_path):
+    """The Jugglebot's S1 (108 poses) and S2 (60) fitted in joint space: the figures drew S1 alone (S2, in a session
+    frame of its own, was left out without a word) and never a held-out set. Now each is drawn, per pose in position
+    (mm) and rotation (mrad), the held-out set too."""
+    jug = shared_dataset("stewart_jugglebot")
+    flags = ["--type", "pose", "--length-unit", "mm", "--angle-unit", "rev", "--orientation", "quat-xyzw",
+             "--residual", "joint"]
+    both = tmp_path / "both.html"
+    assert main(["calibrate", "hexapod", str(jug / "S1.csv"), str(jug / "S2.csv"), *flags, "-o",
+                 str(tmp_path / "both.yaml"), "--report", str(both)]) == 0
+    html = both.read_text()
+    for name, n in (("S1.csv", 108), ("S2.csv", 60)):
+        assert html.count(f"training {name} poses ({n}): position error per pose") == 1
+        assert html.count(f"training {name} poses ({n}): rotation error per pose") == 1
+    held = tmp_path / "held.html"
+    assert main(["calibrate", "hexapod", str(jug / "S1.csv"), *flags, "--test", str(jug / "S2.csv"),
+                 "--refit-target", "-o", str(tmp_path / "s1.yaml"), "--report", str(held)]) == 0
+    page = held.read_text()
+    assert "held-out S2.csv poses (60): position error" in page and "held-out S2.csv poses (60): rotation" in page

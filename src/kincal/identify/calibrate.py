@@ -29,7 +29,7 @@ from .diagnosis import TRIGGERS, diagnose
 from .fitting import ABSOLUTE, fit_stack
 from .options import FitOptions
 from .positions import EvaluationStats, joined
-from .result import CalibrationResult
+from .result import CalibrationResult, Judged
 from .select import select_model
 from .verdict import distinct_count, repeat_tolerance
 
@@ -391,7 +391,7 @@ def evaluate(robot: Robot, meas: Measurements, rebase: bool = False,
                                extrapolated_rows=tuple(int(r) for r in meas.rows[flagged]), warnings=warnings)
 
 
-def held_out_nominal(fit: CalibrationResult, obs, same_frame: bool) -> dict:
+def held_out_nominal(fit: CalibrationResult, obs, same_frame: bool, judge=None):
     """A held-out set's statistics (m, rad) under the nominal kinematics, judged as the training file's "before"
     and ``kincal evaluate``'s nominal line judge it.
 
@@ -410,11 +410,14 @@ def held_out_nominal(fit: CalibrationResult, obs, same_frame: bool) -> dict:
         The held-out set.
     same_frame : bool
         Whether the held-out set was measured in the training frame.
+    judge : callable, optional
+        What to make of the set under the nominal model so registered: :func:`held_out_stats` (default, its
+        statistics) or :func:`held_out_judged` (the set as judged, for the report's figures).
 
     Returns
     -------
-    dict
-        The set's statistics as :func:`held_out_stats` gives them.
+    dict or Judged
+        The set's statistics as :func:`held_out_stats` gives them (or ``judge``'s answer).
 
     Examples
     --------
@@ -434,10 +437,11 @@ def held_out_nominal(fit: CalibrationResult, obs, same_frame: bool) -> dict:
     >>> round(held_out_nominal(fit, sets[1], False)["mean"] / alone.per_set[0]["mean"], 6)
     1.0
     """
+    judge = judge or held_out_stats
     if same_frame or obs.kind not in ABSOLUTE or not isinstance(_innermost(obs), PoseObs):
-        return held_out_stats(fit, obs, fit.before, same_frame)
+        return judge(fit, obs, fit.before, same_frame)
     start = fit.before.with_tool_point(fit.nominal.tool_point()) if fit.before.has_tool_point else fit.before
-    return held_out_stats(fit, _own_target(obs), start, False)
+    return judge(fit, _own_target(obs), start, False)
 
 
 def _innermost(obs):
@@ -495,12 +499,28 @@ def held_out_stats(fit: CalibrationResult, obs, robot: Robot, same_frame: bool) 
     """
     own = obs.refitted(robot)  # a target defined anew: its point and rotation are the set's own
     kept = same_frame or obs.kind not in ABSOLUTE  # the frame as calibrated
+    return fit.held_out(obs, robot) if kept and not own else _held_out_fit(fit, obs, robot, kept, own).per_set[0]
+
+
+def held_out_judged(fit: CalibrationResult, obs, robot: Robot, same_frame: bool) -> Judged:
+    """A held-out set as :func:`held_out_stats` judges it under ``robot``: the set, the model (its frame fitted to
+    the set unless kept, so positions in the set's own frame) and the set's set-up values, which the report's
+    figures draw (their statistics are :func:`held_out_stats`'s)."""
+    own = obs.refitted(robot)
+    kept = same_frame or obs.kind not in ABSOLUTE
     if kept and not own:
-        return fit.held_out(obs, robot)
+        return fit.held_out_judged(obs, robot)
+    judged = _held_out_fit(fit, obs, robot, kept, own)
+    inner = judged.observations[0]
+    return Judged(inner, judged.robot, np.array([judged.nuisance[n] for n in inner.nuisance(judged.robot)[0]]))
+
+
+def _held_out_fit(fit: CalibrationResult, obs, robot: Robot, kept: bool, own: tuple[str, ...]) -> CalibrationResult:
+    """The fit of a held-out set's own frame (unless ``kept``) and its own target (``own``), the kinematics fixed."""
     anchors = {k: v for o in fit.observations for k, v in o.anchors().items()}
     mounted = fit.before_setup if robot is fit.before and not kept else {}  # the nominal's markers: the set's
     held = {n: v for n, v in fit.nuisance.items()
             if not n.startswith(("frame[", "drift[")) and n not in own and n not in mounted}
     names = (*(() if kept else robot.base_params()), *(n for n in own if n in robot.params))
     return fit_observations(robot, [obs.with_anchors(anchors)], names=names, held=held,
-                            base="fixed" if kept else "estimate").per_set[0]
+                            base="fixed" if kept else "estimate")

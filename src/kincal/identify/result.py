@@ -14,9 +14,9 @@ from ..analysis.uncertainty import ModelUncertainty
 from ..io.measurements import Measurements, write_csv
 from ..models.robot import TOOL_NAMES, Robot
 from ..observe.joint import in_cartesian
-from ..observe.observations import Wrapper
+from ..observe.observations import Observation, Wrapper
 from ..observe.sessions import InSession
-from ..units import MM, MRAD, display, in_display
+from ..units import MM, MRAD, display, in_display, number
 from .diagnosis import Diagnosis
 from .judge import MIN_SAMPLES, component_kinds, sample_norms, verdict_of
 from .options import FitOptions
@@ -466,13 +466,17 @@ class CalibrationResult:
         nominal one): set-up parameters the fit shares with it (a target's rotation, markers) at their
         fitted values, or, under :attr:`before`, the markers' points as registered with it (:attr:`before_setup`);
         a pose set also takes the training target's start rotation."""
+        return self.held_out_judged(obs, robot).stats()
+
+    def held_out_judged(self, obs, robot: Robot | None = None) -> "Judged":
+        """The held-out set as :meth:`held_out` judges it: prepared, with the model and the set's set-up values."""
         robot = self.robot if robot is None else robot
         setup = {**self.nuisance, **(self.before_setup if robot is self.before else {})}
         pose = self._pose_set()
         anchors: dict = {} if pose is None else pose.anchors()  # the first target's
         obs = obs.with_anchors(anchors).prepare(robot)  # anchored: prepare keeps the training target's rotation
         names, start, _ = obs.nuisance(robot)
-        return obs.stats(robot, robot.params.values, np.array([setup.get(n, v) for n, v in zip(names, start)]))
+        return Judged(obs, robot, np.array([setup.get(n, v) for n, v in zip(names, start)]))
 
     def to_dict(self) -> dict:
         out = {"robot": self.robot.name, "converged": self.converged, "message": self.message,
@@ -597,7 +601,7 @@ class CalibrationResult:
                       f"after:  {self.stats_after}"]
             if self.drift:
                 lines.append("drift over the session (first to last pose): " + ", ".join(
-                    f"{a} {d['value'] * MM:+.4f} ± {d['std'] * MM:.4f} mm" for a, d in self.drift.items()))
+                    f"{a} {number(d['value'] * MM, '+.4f')} ± {d['std'] * MM:.4f} mm" for a, d in self.drift.items()))
             return lines
         lines.append(f"whitened residual RMS {self.whitened_rms:.3g} (1 when the stated σ are right): "
                      + ", ".join(f"{k} {v:.3g}" for k, v in self.whitened.items()))
@@ -608,8 +612,26 @@ class CalibrationResult:
         # each set's fitted instrument drift over its rows (first to last sample), mm with σ
         sets = dict.fromkeys(n.rsplit(".", 1)[0] for n in self.nuisance if n.startswith("drift["))
         return lines + [f"{s} over the file (first to last sample): " + ", ".join(
-            f"{a} {self.nuisance[f'{s}.{a}'] * MM:+.4f} ± {self.std.get(f'{s}.{a}', np.inf) * MM:.4f} mm"
+            f"{a} {number(self.nuisance[f'{s}.{a}'] * MM, '+.4f')} ± {self.std.get(f'{s}.{a}', np.inf) * MM:.4f} mm"
             for a in "xyz" if f"{s}.{a}" in self.nuisance) for s in sets]
+
+
+@dataclass(frozen=True, eq=False)
+class Judged:
+    """An observation set as judged: the set, the model (its parameter values) and the set's set-up values
+    ``nuis`` (m, rad), which its statistics and its per-sample errors share."""
+
+    obs: Observation
+    robot: Robot
+    nuis: np.ndarray
+
+    def stats(self) -> dict:
+        """The set's statistics (m, rad), as its type's ``stats()`` gives them."""
+        return self.obs.stats(self.robot, self.robot.params.values, self.nuis)
+
+    def sample_errors(self) -> tuple | None:
+        """Its per-sample errors (``Observation.sample_errors``: (N, 3) m measured − model, and (N,) rad or None)."""
+        return self.obs.sample_errors(self.robot, self.robot.params.values, self.nuis)
 
 
 def stat_line(stats: dict) -> str:

@@ -466,7 +466,7 @@ def session_before(model: Robot, obs, setup: Mapping[str, float] | None = None) 
     return model.with_base_transform(R @ Rb, R @ tb + t)
 
 
-def _before_nuisance(model: Robot, obs, nuis: np.ndarray, names, setup: dict) -> np.ndarray:
+def before_nuisance(model: Robot, obs, nuis: np.ndarray, names, setup: dict) -> np.ndarray:
     """A set's set-up values (``names``) for its "before" figures: as the fit started, but the markers' points as
     registered with the "before" model (``setup``, name -> m; :func:`_before`), a session's own frame registered
     to its positions with the "before" model (it kept the frame the fit started from, with the declared tool
@@ -542,7 +542,7 @@ def _result(models: tuple[Robot, Robot, Before], st, gauge, ident, free, x0, fit
     before: tuple[dict, ...] | None = figures
     if before == ():  # a fit of the mounting alone: it is its own "before"
         before_model, before = calibrated, after
-    before = before or tuple(o.stats(before_model, before_model.params.values, _before_nuisance(
+    before = before or tuple(o.stats(before_model, before_model.params.values, before_nuisance(
         before_model, o, x0[P:][slot], [st.nuis_names[k] for k in slot], before_setup))
         for o, slot in zip(judged, st.slots))
     r = st.judged(fit.residual, fit.jacobian, _hat_covariance(fit, cov), full[:P], full[P:])

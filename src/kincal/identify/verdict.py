@@ -49,7 +49,7 @@ from ..models.parameters import SUSPECT
 from ..models.robot import TOOL_NAMES, Robot
 from ..models.unit_checks import Framed, frame_jump_test
 from ..ties import first_best
-from ..units import DEG, MM, MRAD, SHOWN, display
+from ..units import DEG, MM, MRAD, SHOWN, display, number
 from .noise import decreasing_root
 
 STATUSES = ("good", "suspect", "refused")
@@ -513,7 +513,7 @@ def correction_reasons(robot: Robot, corrections: dict[str, float], th: Threshol
 
 def mounting_line(declared: np.ndarray, fitted: np.ndarray) -> str:
     """Where the data put the target in the flange frame, against the declared tool point (m)."""
-    mm = lambda v: "(" + ", ".join(f"{x * MM:.2f}" for x in v) + ") mm"  # noqa: E731
+    mm = lambda v: "(" + ", ".join(number(x * MM, ".2f") for x in v) + ") mm"  # noqa: E731
     return (f"the data put the target at {mm(fitted)} in the flange frame (declared {mm(declared)}, "
             f"{np.linalg.norm(fitted - declared) * MM:.2f} mm apart)")
 

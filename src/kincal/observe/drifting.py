@@ -83,5 +83,8 @@ class Drifting(Wrapper):
     def covariance(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> np.ndarray | None:
         return self._corrected(nuis[-3:]).covariance(robot, values, nuis[:-3])
 
+    def sample_errors(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> tuple | None:
+        return self._corrected(nuis[-3:]).sample_errors(robot, values, nuis[:-3])
+
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         return self._corrected(nuis[-3:]).stats(robot, values, nuis[:-3]) | {"drift": [float(v) for v in nuis[-3:]]}

@@ -201,6 +201,12 @@ class Observation:
         """Per-type figures (m, rad) at ``values`` and ``nuis``; every type declares them."""
         raise NotImplementedError(f"{self.kind} data declare no statistics")
 
+    def sample_errors(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> tuple | None:
+        """Each sample's errors as :meth:`stats` judges them at ``values`` and ``nuis``, for the report's figures:
+        the measured − the model's position (N, 3) m in the measurement frame, and for 6-D data the rotation error
+        (N,) rad (else None); None for data without one measured position per sample."""
+        return None
+
     def evaluate_cols(self, robot: Robot, values: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """r (M,) and its derivatives by the robot parameters ``cols`` only (M, K), set-up parameters at their
         starts: the position fit's view (types whose Jacobian is parameter-major override it, saving a copy)."""
@@ -341,6 +347,9 @@ class MeasuredPositions(Observation):
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         return error_stats(self, np.linalg.norm(robot.forward(self.q, values) - self.xyz, axis=1))
+
+    def sample_errors(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> tuple | None:
+        return self.xyz - robot.forward(self.q, values), None
 
 
 @dataclass(frozen=True, eq=False)
@@ -533,6 +542,10 @@ class PoseObs(MeasuredPositions):
         return (np.concatenate([dp, phi], axis=1).T.ravel(),
                 np.concatenate([J, Jrot], axis=1).transpose(1, 0, 2).reshape(-1, J.shape[2]),
                 np.concatenate([np.zeros_like(Jn), Jn], axis=1).transpose(1, 0, 2).reshape(-1, 3))
+
+    def sample_errors(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> tuple | None:
+        dp, phi, _ = self.errors(robot, values, nuis, jacobian=False)
+        return -dp, np.linalg.norm(phi, axis=1)
 
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         dp, phi, _ = self.errors(robot, values, nuis, jacobian=False)

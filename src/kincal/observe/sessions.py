@@ -116,5 +116,9 @@ class InSession(Wrapper):
     def covariance(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> np.ndarray | None:
         return self.inner.covariance(robot, *self._split(robot, values, nuis))
 
+    def sample_errors(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> tuple | None:
+        """The inner set's, at this session's frame: in the session's own measurement frame."""
+        return self.inner.sample_errors(robot, *self._split(robot, values, nuis))
+
     def stats(self, robot: Robot, values: np.ndarray, nuis: np.ndarray) -> dict:
         return {**self.inner.stats(robot, *self._split(robot, values, nuis)), "session": self.session}

@@ -277,7 +277,7 @@ def _training_sets(result: CalibrationResult) -> list[F.PoseSet]:
             "to these data)"
         sets.append(F.PoseSet("training", own.rows, own.q, meas.xyz[at], before, after[at], bad[at],
                               name=Path(session.source).name if several else "", registration=frame,
-                              key=f"training-{k + 1}" if several else "training"))
+                              colour=F.colour("training", k), key=f"training-{k + 1}" if several else "training"))
     return sets
 
 
@@ -296,7 +296,7 @@ def _sets(result: CalibrationResult, tests: list[Measurements], models: list[tup
         M = Rs @ R0.T
         sets.append(F.PoseSet("held-out", meas.rows, meas.q, (meas.xyz - ts) @ M + t0,
                               (meas.xyz - nominal.forward(meas.q)) @ M, after @ M, z > th.outlier_limit(len(z)),
-                              name=Path(meas.source).name, colour=F.SESSION_COLOURS[k % len(F.SESSION_COLOURS)],
+                              name=Path(meas.source).name, colour=F.colour("held-out", k),
                               registration=how, key="held-out" if len(tests) == 1 else f"held-out-{k + 1}"))
     return sets
 
@@ -331,8 +331,8 @@ def figure_set(result: CalibrationResult, test: Measurements | Sequence[Measurem
     ----------
     result : CalibrationResult
         The calibration.
-    test : Measurements or sequence of Measurements, optional
-        Held-out sessions of position data (default none).
+    test : Measurements or sequence, optional
+        Held-out sessions of position data, or held-out observation sets (default none).
     same_frame : bool, optional
         The held-out sessions were measured in the training data's frame; False (default): each
         session's frame is re-fitted to it.
@@ -342,9 +342,9 @@ def figure_set(result: CalibrationResult, test: Measurements | Sequence[Measurem
     dict
         name -> matplotlib Figure ({} for observation sets of which none has positions).
     """
-    if not result.data:
-        return observation_figures(result)
     tests = [test] if isinstance(test, Measurements) else list(test or [])
+    if not result.data:
+        return observation_figures(result, tests=tests, same_frame=same_frame)
     models = _held_out_models(result, tests, same_frame)
     figs = _make_figures(_sets(result, tests, models, result.options.thresholds), result)
     if result.history:

@@ -48,6 +48,8 @@ class PoseSet:
     registration: str = ""  # how the models' measurement frame was set for these data
     colour: str = ""  # default: by label
     key: str = ""  # the set's key in the report's numbers (default: the label)
+    rot_before: np.ndarray | None = None  # 6-D data: the rotation error per sample (N,) rad, before calibration
+    rot_after: np.ndarray | None = None  # and after (None: no rotation measured)
 
     def __post_init__(self) -> None:
         freeze_arrays(self)  # its arrays read-only: what it holds cannot be edited in place
@@ -66,6 +68,14 @@ class PoseSet:
 
 
 SESSION_COLOURS = ("#d62728", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf")  # held-out sessions in turn
+TRAINING_COLOURS = ("#1f77b4", "#2ca02c", "#bcbd22", "#393b79", "#637939", "#843c39")  # training sessions in turn
+
+
+def colour(label: str, k: int) -> str:
+    """The colour of the ``k``-th (0-based) set labelled ``label`` ("training" or "held-out"): each session its own,
+    training sessions in blues and greens, held-out ones in reds and oranges, none the grey of "before"."""
+    palette = TRAINING_COLOURS if label == "training" else SESSION_COLOURS
+    return palette[k % len(palette)]
 
 
 _styled = matplotlib.rc_context(RC)  # a decorator: figures built and saved in the report's style, whatever rcParams
@@ -153,20 +163,27 @@ class _PlainLog(LogFormatter):
 
 @_styled
 def per_pose(sets: list[PoseSet], what: str = "after calibration",
-             before: str = "frame and target point registered") -> Figure:
+             before: str = "frame and target point registered", rotation: bool = False) -> Figure:
     """Error norm of every pose in file order (log scale: mm to µm): before and after calibration (``before``: how
-    the nominal model was registered), or of the one model evaluated (``what``: :func:`error_of`)."""
+    the nominal model was registered), or of the one model evaluated (``what``: :func:`error_of`); with
+    ``rotation`` the rotation error (mrad) of the sets that measured one."""
+    sets = [s for s in sets if s.rot_after is not None] if rotation else sets
     fig = _figure(9.0, 2.6 * len(sets))
+    quantity, unit = ("rotation error", "mrad") if rotation else ("position error", "mm")
     for k, s in enumerate(sets):
         ax = fig.add_subplot(len(sets), 1, k + 1)
         x = np.arange(1, len(s.rows) + 1)
-        if s.before is not None:
-            ax.semilogy(x, np.linalg.norm(s.before, axis=1) * MM, ".", ms=3, color=COLOURS["before"],
+        ref = s.rot_before if rotation else None if s.before is None else np.linalg.norm(s.before, axis=1)
+        err = s.rot_after if rotation and s.rot_after is not None else s.after_norm
+        if ref is not None:
+            ax.semilogy(x, ref * MM, ".", ms=3, color=COLOURS["before"],  # (mm per m, mrad per rad: 1000)
                         label=f"before (nominal model, {before})", rasterized=True)
-        ax.semilogy(x, s.after_norm * MM, ".", ms=3, color=s.color, rasterized=True,
-                    label=f"{s.title}: {what}" if s.before is not None else None)
-        error = "position error" if s.before is not None else f"position error {what}"
-        ax.set(title=f"{s.title} poses ({len(x)}): {error} per pose", xlabel="pose (file order)", ylabel="error (mm)")
+        ax.semilogy(x, err * MM, ".", ms=3, color=s.color, rasterized=True,
+                    label=f"{s.title}: {what}" if ref is not None else None)
+        circle(ax, x[s.outliers], err[s.outliers] * MM)
+        error = quantity if ref is not None else f"{quantity} {what}"
+        ax.set(title=f"{s.title} poses ({len(x)}): {error} per pose", xlabel="pose (file order)",
+               ylabel=f"error ({unit})")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True, steps=[1, 2, 5, 10]))  # poses are counted
         ax.yaxis.set_major_formatter(_PlainLog())  # mm as numbers (0.6, not 6×10⁻¹)
         ax.yaxis.set_minor_formatter(_PlainLog(labelOnlyBase=False, minor_thresholds=(2, 0.4)))
@@ -221,6 +238,7 @@ def vs_joints(sets: list[PoseSet], joint_names, units, what: str = "after calibr
         for s in sets:
             ax.plot(s.q[:, j] * scale, s.after_norm * MM, ".", ms=3, color=s.color, label=s.title,
                     rasterized=True)
+            circle(ax, s.q[s.outliers, j] * scale, s.after_norm[s.outliers] * MM)
         ax.set(xlabel=f"{joint_names[j]} ({unit})", ylabel="error (mm)")
     legend_below(fig)
     fig.suptitle(f"error {what} against each joint")
@@ -242,8 +260,7 @@ def workspace(sets: list[PoseSet], frame: str = "the training data's frame", wha
         for s in sets:
             sc = ax.scatter(s.xyz[:, a] * MM, s.xyz[:, b] * MM, c=s.after_norm * MM, s=8, cmap="viridis",
                             vmin=0.0, vmax=vmax, marker="o" if s.label == "training" else "^", rasterized=True)
-        if len(where):
-            ax.scatter(where[:, a], where[:, b], s=80, facecolors="none", edgecolors="red", linewidths=1.2)
+        circle(ax, where[:, a], where[:, b])
         _name_outliers(ax, everything[:, [a, b]], where[:NAMED][:, [a, b]], names[:NAMED])
         ax.set(xlabel=f"{'xyz'[a]} (mm)", ylabel=f"{'xyz'[b]} (mm)", aspect="equal", adjustable="datalim")
     fig.colorbar(sc, ax=fig.axes, label=f"error {what} (mm)", shrink=0.9)
@@ -257,6 +274,14 @@ def workspace(sets: list[PoseSet], frame: str = "the training data's frame", wha
                       fontsize=8)
     _merge_names(fig)  # once laid out with the caption
     return fig
+
+
+def circle(ax: Any, x: np.ndarray, y: np.ndarray) -> None:
+    """Circle the outliers at ``x``, ``y`` (K,) in ``ax`` (red rings, vector: one ``<use>`` each in the SVG's group
+    "outliers"), as every error figure marks them; nothing for none."""
+    if len(x):
+        ax.scatter(x, y, s=80, facecolors="none", edgecolors="red", linewidths=1.2, label="outlier (red circle)",
+                   gid="outliers", zorder=3)
 
 
 NAMED = 3  # outliers the workspace names by row beside their circle (the largest errors)
@@ -320,10 +345,13 @@ def correlation(names, corr: np.ndarray) -> Figure:
 
 def pose_figures(sets: list[PoseSet], robot, frame: str = "the training data's frame",
                  before: str = "frame and target point registered") -> dict:
-    """The five figures of pose sets by name: errors per pose, distribution, per axis, against the
+    """The figures of pose sets by name: errors per pose (and rotation errors per pose, "rotation", of 6-D data),
+    distribution, per axis, against the
     joints of ``robot``, in the workspace (``frame``, for its title); ``before``: how the nominal model was
     registered to the data, in the CLI's words."""
     what = error_of(sets, robot.name)
-    return {"per_pose": per_pose(sets, what, before), "histogram": histogram(sets, what), "per_axis": per_axis(sets, what),
+    rotation = {"rotation": per_pose(sets, what, before, rotation=True)} if any(
+        s.rot_after is not None for s in sets) else {}
+    return {"per_pose": per_pose(sets, what, before), **rotation, "histogram": histogram(sets, what), "per_axis": per_axis(sets, what),
             "vs_joints": vs_joints(sets, robot.joint_names, joint_shown(robot.joint_types, robot.periodic), what),
             "workspace": workspace(sets, frame, what)}
