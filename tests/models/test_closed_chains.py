@@ -411,7 +411,8 @@ def test_a_pose_target_beyond_the_legs_is_refused_by_row_and_degrees_read_as_rad
     as_read = legs(*rows[1])
     j = int(np.argmax(as_read - 4.2))
     assert as_read[j] > 4.2 and f"row 3: the command breaks the joint limits: leg{j + 1} at {as_read[j]:.3f} rev" in text
-    assert "row 3" in text and "the angles look like degrees (--orientation euler-zyx-intrinsic-deg)" in text
+    assert "row 3" in text and "the angles look like degrees (orientation='euler-zyx-intrinsic-deg'; CLI: --orientation " \
+                               "euler-zyx-intrinsic-deg)" in text
     assert np.all(legs(rows[1][0], np.radians(rows[1][1])) < 4.2)  # read as degrees: within the legs' range
     far = next(line for line in text.splitlines() if line.startswith("refused: row 5"))
     assert "look like degrees" not in far

@@ -64,7 +64,8 @@ def test_exclude_rows_of_a_pose_file(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_figures_for_poses(tmp_path, capsys):
-    """--plot for pose data (calibrate and evaluate) writes the five figures, the report embeds them, and
+    """--plot for pose data (calibrate and evaluate) writes the six figures (6-D data: the rotation error per pose
+    too), the report embeds them, and
     the per-sample position errors of the same fit (its --residuals file) are the calibrated model's
     distances to the measured points, recomputed here."""
     import csv
@@ -81,7 +82,7 @@ def test_figures_for_poses(tmp_path, capsys):
                  str(tmp_path / "fig.png"), "--residuals", str(tmp_path / "res.csv"), "--report",
                  str(tmp_path / "r.html")]) == 0
     out = capsys.readouterr().out
-    names = ("per_pose", "histogram", "per_axis", "vs_joints", "workspace")
+    names = ("per_pose", "rotation", "histogram", "per_axis", "vs_joints", "workspace")
     for name in names:
         assert (tmp_path / f"fig-{name}.png").stat().st_size > 10_000 and name in out
     html = (tmp_path / "r.html").read_text()
