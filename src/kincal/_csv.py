@@ -20,6 +20,10 @@ DECIMAL_COMMA = re.compile(r"^\s*[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?\s*$")
 # a number as a CSV cell writes it: ASCII digits, one optional '.', an optional exponent (Python's float()
 # also takes '0_5' as 5 and '١٢' as 12: neither is a number in a measurement file)
 NUMBER = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
+# a cell whose '.' or ',' groups thousands (1-3 digits, then groups of exactly 3: '-432.472', '1,234,567'), and a
+# number with that mark as its decimal mark and not so grouped (the file's decimals: '-22,933297', '0.5')
+GROUPED = {m: re.compile(rf"[+-]?[0-9]{{1,3}}(\{m}[0-9]{{3}})+") for m in ".,"}
+DECIMALS = {m: re.compile(rf"[+-]?[0-9]*\{m}[0-9]+([eE][+-]?[0-9]+)?") for m in ".,"}
 NOT_FINITE = re.compile(r"[+-]?(nan|inf|infinity)", re.IGNORECASE)  # read, then refused by row (check_finite)
 MAX_LISTED = 10  # rows named in an error message
 # SI magnitudes beyond any robot's: a coordinate or prismatic joint value 10 km from the base, a joint (a screw's
@@ -148,6 +152,7 @@ def cell_numbers(path: str, records, header: list[str], cols, delim: str, empty_
     cell checked: a cell that is not a number (or empty, with ``empty_ok``: NaN) is refused, naming
     the file, row and column and why; with ``finite`` NaN and inf too, else they are read for the
     caller to refuse by row (``check_finite``)."""
+    check_grouping(path, records, header, cols, delim)
     idx = [header.index(c) for c in cols]
     out = np.empty((len(records), len(cols)))
     for r, (k, rec) in enumerate(records):
@@ -166,6 +171,32 @@ def cell_numbers(path: str, records, header: list[str], cols, delim: str, empty_
             raise MeasurementError(f"{path}: row {k}, column '{cols[j]}': '{rec[i]}' is not a {kind}"
                                    f"{' (or empty)' if empty_ok else ''}{why_not(rec[i])}")
     return out
+
+
+def check_grouping(path: str, records, header: list[str], cols, delim: str) -> None:
+    """MeasurementError when a column of ``cols`` writes '.' (',') in a file whose decimals are commas (points) and
+    every such cell groups thousands ('-432.472' beside '-22,933297'): a spreadsheet's thousands separator, which
+    the cell-by-cell reading would take for a decimal mark (1000 times too small) or a decimal comma; which one
+    the file means is not guessed. ``records``: (line number, cells) of the file (or of a block of it), every
+    column looked at for the file's decimals. In a comma-separated file a ',' in a cell is refused cell by cell."""
+    if delim == ",":
+        return
+    for col in cols:
+        i = header.index(col)
+        for mark, other in ((".", ","), (",", ".")):
+            cells = [(k, rec[i].strip()) for k, rec in records if mark in rec[i]]
+            if not cells or not all(GROUPED[mark].fullmatch(c) for _, c in cells):
+                continue
+            seen = next(((k, h, c.strip()) for k, rec in records for h, c in zip(header, rec)
+                         if DECIMALS[other].fullmatch(c.strip()) and not GROUPED[other].fullmatch(c.strip())), None)
+            if seen:
+                (k, cell), names = cells[0], {".": "points", ",": "commas"}
+                raise MeasurementError(
+                    f"{path}: column '{col}' groups thousands with '{mark}' (row {k}: '{cell}'; all {len(cells)} of "
+                    f"its cells with a '{mark}' have groups of 3 digits) while the file's decimals are {names[other]} "
+                    f"(row {seen[0]}, column '{seen[1]}': '{seen[2]}'); kincal does not guess whether '{cell}' is "
+                    f"{cell.replace(mark, '')} or {cell.replace(mark, '.')}: write the file without thousands "
+                    f"separators (in Excel: Format Cells > Number, untick 'Use 1000 Separator')")
 
 
 def listed(rows) -> str:
@@ -333,7 +364,8 @@ class Stream:
         n = raw.count(b"\n") + (0 if raw.endswith(b"\n") else 1)
         d = self.delim.encode()
         plain = (b"#" not in raw and b'"' not in raw and b"\n\n" not in raw and not raw.startswith((b"\n", b"\r"))
-                 and raw.count(d) == n * (len(self.header) - 1))
+                 and raw.count(d) == n * (len(self.header) - 1) and (d == b"," or b"," not in raw))  # (decimal
+        # commas, thousands separators: cell by cell)
         if plain:
             try:
                 out = np.loadtxt(io.BytesIO(raw), delimiter=self.delim, usecols=idx, ndmin=2, comments=None)

@@ -1,0 +1,83 @@
+"""How spreadsheets write numbers: thousands separators, units in cells, emptied rows; the measurement reader and
+the compensation targets' reader (``_csv.Table``, ``_csv.Stream``) read and refuse them alike."""
+import csv
+
+import numpy as np
+import pytest
+from conftest import DATA, UR5_COLS
+
+import kincal
+from kincal import MeasurementError
+from kincal._csv import open_stream
+
+POSITIONS = ["x", "y", "z", "x_target", "y_target", "z_target"]
+
+
+def _grid():
+    """The UR5 grid set's header and rows as written (strings), and its joints (deg) and positions (µm) as floats."""
+    rows = list(csv.reader(open(DATA / "ur5_grid.csv", newline="")))
+    head, body = rows[0], rows[1:]
+    at = [head.index(c) for c in UR5_COLS], [head.index(c) for c in "xyz"]
+    values = np.array([[float(c) for c in r] for r in body])
+    return head, body, values[:, at[0]], values[:, at[1]] * 1000
+
+
+def _export(sep, dec, thousands, digits):
+    """The grid set as a spreadsheet exports it: positions in µm with ``digits`` decimals and ``thousands`` grouping
+    their digits ('' none), decimals written with ``dec``, cells separated by ``sep``."""
+    head, body, _, _ = _grid()
+    lines = [sep.join(head)]
+    for r in body:
+        cells = []
+        for h, c in zip(head, r):
+            if h in POSITIONS:
+                c = f"{float(c) * 1000:,.{digits}f}".replace(",", "T").replace(".", "D")
+                c = c.replace("T", thousands).replace("D", dec)
+            else:
+                c = c.replace(".", dec)
+            cells.append(c)
+        lines.append(sep.join(cells))
+    return "\n".join(lines) + "\n"
+
+
+def _read(path):
+    return kincal.read_measurements(path, kincal.load_robot("ur5"), joint_cols=UR5_COLS, length_unit="um",
+                                    angle_unit="deg")
+
+
+def _stream(path, cols):
+    stream = open_stream(str(path))
+    return np.concatenate([stream.numbers(b, cols)[1] for b, _ in stream.blocks()])
+
+
+@pytest.mark.parametrize("sep,dec,thousands,example,decimals", [
+    (";", ",", ".", "-432.472", "commas (row 2, column 'joint_1': '-22,933297')"),
+    ("\t", ".", ",", "-432,472", "points (row 2, column 'joint_1': '-22.933297')")])
+def test_a_column_of_whole_numbers_grouped_by_thousands_is_refused_by_both_readers(tmp_path, sep, dec, thousands,
+                                                                                   example, decimals):
+    """German Excel writes whole µm as '-432.472' beside joints '-22,933297' (US: '-432,472' beside '-22.933297'):
+    read cell by cell the positions were 1000 times too small (then 'they look like mm'), values under 1000 ('868')
+    right: the column is refused, naming it, a cell and the file's decimals."""
+    path = tmp_path / "grid.csv"
+    path.write_text(_export(sep, dec, thousands, 0))
+    with pytest.raises(MeasurementError, match=f"grid.csv: column 'x' groups thousands with '{thousands}'") as err:
+        _read(path)
+    for words in (f"(row 2: '{example}'", f"the file's decimals are {decimals}", "-432472 or -432.472",
+                  "without thousands separators"):
+        assert words in str(err.value)
+    with pytest.raises(MeasurementError, match=f"column 'x' groups thousands with '{thousands}'"):
+        _stream(path, POSITIONS[:3])
+
+
+@pytest.mark.parametrize("sep,dec,digits", [(";", ",", 3), ("\t", ",", 3), ("\t", ".", 3), (",", ".", 3),
+                                            (";", ",", 0), ("\t", ".", 0), (";", ".", 3)])
+def test_files_without_thousands_separators_are_read_to_the_digit(tmp_path, sep, dec, digits):
+    """Decimal commas or points, µm with 3 decimals (every cell under 1000 µm has the form of a thousands group) or
+    whole, any separator: the values written, to the digit (the reference: the dataset's own numbers)."""
+    path = tmp_path / "grid.csv"
+    path.write_text(_export(sep, dec, "", digits))
+    _, _, q, xyz = _grid()
+    meas = _read(path)
+    np.testing.assert_allclose(np.rad2deg(meas.q), q, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(meas.xyz * 1e6, np.round(xyz, digits), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(_stream(path, ["x", "y", "z"]), np.round(xyz, digits), rtol=0, atol=1e-9)
