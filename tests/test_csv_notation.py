@@ -33,6 +33,7 @@ def _export(sep, dec, thousands, digits):
             if h in POSITIONS:
                 c = f"{float(c) * 1000:,.{digits}f}".replace(",", "T").replace(".", "D")
                 c = c.replace("T", thousands).replace("D", dec)
+                c = f'"{c}"' if sep in c else c  # (as csv writes it)
             else:
                 c = c.replace(".", dec)
             cells.append(c)
@@ -81,3 +82,20 @@ def test_files_without_thousands_separators_are_read_to_the_digit(tmp_path, sep,
     np.testing.assert_allclose(np.rad2deg(meas.q), q, rtol=0, atol=1e-9)
     np.testing.assert_allclose(meas.xyz * 1e6, np.round(xyz, digits), rtol=0, atol=1e-6)
     np.testing.assert_allclose(_stream(path, ["x", "y", "z"]), np.round(xyz, digits), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("sep,dec,thousands,cell", [(";", ",", ".", "-432.471,963"), (",", ".", ",", "-432,471.963"),
+                                                   ("\t", ".", ",", "-432,471.963")])
+def test_a_cell_with_thousands_separators_is_said_to_have_them(tmp_path, sep, dec, thousands, cell):
+    """'-432.471,963' in a ';' file was refused as "a decimal comma: use '.' or a ';' separated file" (it is one):
+    the message names the thousands separator, in both readers."""
+    path = tmp_path / "grid.csv"
+    path.write_text(_export(sep, dec, thousands, 3))
+    words = f"row 2, column 'x': '{cell}' is not a number ('{thousands}' as a thousands separator: write the numbers " \
+            f"without thousands separators"
+    with pytest.raises(MeasurementError) as err:
+        _read(path)
+    assert words in str(err.value) and "decimal comma" not in str(err.value)
+    with pytest.raises(MeasurementError) as err:
+        _stream(path, ["x"])
+    assert words.replace("a number", "a finite number") in str(err.value)

@@ -24,6 +24,9 @@ NUMBER = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
 # number with that mark as its decimal mark and not so grouped (the file's decimals: '-22,933297', '0.5')
 GROUPED = {m: re.compile(rf"[+-]?[0-9]{{1,3}}(\{m}[0-9]{{3}})+") for m in ".,"}
 DECIMALS = {m: re.compile(rf"[+-]?[0-9]*\{m}[0-9]+([eE][+-]?[0-9]+)?") for m in ".,"}
+# a number whose digits a '.' or ',' groups by three, decimals after the other mark or none ('-432.471,963')
+THOUSANDS = re.compile(r"[+-]?[0-9]{1,3}([.,])[0-9]{3}(\1[0-9]{3})*((?!\1)[.,][0-9]*)?")
+NO_1000 = "write the numbers without thousands separators; in Excel: Format Cells > Number, untick 'Use 1000 Separator'"
 NOT_FINITE = re.compile(r"[+-]?(nan|inf|infinity)", re.IGNORECASE)  # read, then refused by row (check_finite)
 MAX_LISTED = 10  # rows named in an error message
 # SI magnitudes beyond any robot's: a coordinate or prismatic joint value 10 km from the base, a joint (a screw's
@@ -101,8 +104,12 @@ def why_not(cell: str) -> str:
         return " (the cell is empty)"
     if "_" in text:
         return " (no '_' inside numbers: write 0.5 or 5, not 0_5)"
+    grouped = THOUSANDS.fullmatch(text)
+    if grouped and (grouped[3] or grouped[2]):  # both marks, or one twice: a thousands separator
+        return f" ('{grouped[1]}' as a thousands separator: {NO_1000})"
     if "," in text:
-        return " (a decimal comma: use '.' or a ';' separated file)"
+        return (" (a decimal comma" + (", or ',' as a thousands separator" if grouped else "")
+                + ": use '.' for decimals (no thousands separator) or a ';' separated file)")
     return ""
 
 
@@ -195,8 +202,7 @@ def check_grouping(path: str, records, header: list[str], cols, delim: str) -> N
                     f"{path}: column '{col}' groups thousands with '{mark}' (row {k}: '{cell}'; all {len(cells)} of "
                     f"its cells with a '{mark}' have groups of 3 digits) while the file's decimals are {names[other]} "
                     f"(row {seen[0]}, column '{seen[1]}': '{seen[2]}'); kincal does not guess whether '{cell}' is "
-                    f"{cell.replace(mark, '')} or {cell.replace(mark, '.')}: write the file without thousands "
-                    f"separators (in Excel: Format Cells > Number, untick 'Use 1000 Separator')")
+                    f"{cell.replace(mark, '')} or {cell.replace(mark, '.')}: {NO_1000}")
 
 
 def listed(rows) -> str:
