@@ -48,7 +48,7 @@ def _read(path):
 
 def _stream(path, cols):
     stream = open_stream(str(path))
-    return np.concatenate([stream.numbers(b, cols)[1] for b, _ in stream.blocks()])
+    return np.concatenate([stream.numbers(b, cols, "um")[1] for b, _ in stream.blocks()]) * 1e6  # µm
 
 
 @pytest.mark.parametrize("sep,dec,thousands,example,decimals", [
@@ -81,7 +81,7 @@ def test_files_without_thousands_separators_are_read_to_the_digit(tmp_path, sep,
     meas = _read(path)
     np.testing.assert_allclose(np.rad2deg(meas.q), q, rtol=0, atol=1e-9)
     np.testing.assert_allclose(meas.xyz * 1e6, np.round(xyz, digits), rtol=0, atol=1e-6)
-    np.testing.assert_allclose(_stream(path, ["x", "y", "z"]), np.round(xyz, digits), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(_stream(path, ["x", "y", "z"]), np.round(xyz, digits), rtol=0, atol=1e-6)
 
 
 @pytest.mark.parametrize("sep,dec,thousands,cell", [(";", ",", ".", "-432.471,963"), (",", ".", ",", "-432,471.963"),
@@ -99,3 +99,51 @@ def test_a_cell_with_thousands_separators_is_said_to_have_them(tmp_path, sep, de
     with pytest.raises(MeasurementError) as err:
         _stream(path, ["x"])
     assert words.replace("a number", "a finite number") in str(err.value)
+
+
+def _targets(tmp_path, spoil=None, sep=",", dec="."):
+    """The grid set's first 20 poses as compensation targets (joints deg, positions mm), ``spoil(cells)`` done to
+    the 7th pose's cells, written with ``sep`` and ``dec``."""
+    head, body, _, _ = _grid()
+    keep = UR5_COLS + ["x", "y", "z"]
+    rows = [[r[head.index(c)] for c in keep] for r in body[:20]]
+    if spoil:
+        spoil(rows[6], keep.index)
+    path = tmp_path / "targets.csv"
+    path.write_text("\n".join(sep.join(c.replace(".", dec) for c in r) for r in [keep] + rows) + "\n")
+    return path
+
+
+def _compensate(src):
+    from kincal.compensate import StreamJob, TargetsFormat, compensate_file
+    ur5 = kincal.load_robot("ur5")
+    job = StreamJob(kincal.perturb(ur5, seed=1), ur5, TargetsFormat(joint_cols=tuple(UR5_COLS), length_unit="mm",
+                                                                             angle_unit="deg"))
+    return compensate_file(job, str(src), str(src.parent / "commands.csv"))
+
+
+@pytest.mark.parametrize("col,value,words", [
+    ("x", "1e300", "row 8, column 'x': 1e+300 mm is not physically possible for a robot (beyond 10 km"),
+    ("joint_2", "1e300", "row 8, column 'joint_2': 1e+300 deg is not physically possible for a robot (beyond "
+                         "100000 rad"),
+    ("z", "-2e7", "row 8, column 'z': -2e+07 mm is not physically possible")])
+def test_the_targets_reader_refuses_what_the_measurement_reader_refuses(tmp_path, col, value, words):
+    """A target 1e300 mm away was 'target inf mm from the base' (a row refused after an overflow); a joint at 1e300
+    deg 'units, column order, TCP or frame?': the targets reader checks cells as the measurement reader does, with
+    its message (20 km = 2e7 mm is past the 10 km limit, 1e300 deg past 1e5 rad)."""
+    path = _targets(tmp_path, lambda r, at: r.__setitem__(at(col), value))
+    with pytest.raises(MeasurementError) as table:
+        kincal.read_measurements(path, kincal.load_robot("ur5"), UR5_COLS, length_unit="mm", angle_unit="deg")
+    with pytest.raises(MeasurementError) as stream:
+        _compensate(path)
+    assert words in str(stream.value) and str(stream.value) == str(table.value)
+
+
+def test_a_comma_file_with_decimal_commas_is_said_to_be_one_by_the_targets_reader(tmp_path):
+    path = _targets(tmp_path, dec=",")
+    with pytest.raises(MeasurementError, match="row 2 has 18 fields, the header has 9 .decimal commas in a "
+                                               "comma-separated file. use ';' as the separator"):
+        _compensate(path)
+    semi = _compensate(_targets(tmp_path, sep=";", dec=","))  # the same values, separated by ';': read alike
+    plain = _compensate(_targets(tmp_path))
+    assert semi.targets == 20 and (semi.accepted, semi.problems) == (plain.accepted, plain.problems)

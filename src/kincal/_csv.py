@@ -128,14 +128,19 @@ def open_table(path: str, kinds: str = "joint, position or σ") -> Table:
     delim = sniff_delimiter(lines[0][1], path)
     records = list(zip((k for k, _ in lines), csv.reader((line for _, line in lines), delimiter=delim)))
     header = [h.strip() for h in records[0][1]]
-    for k, rec in records[1:]:
+    check_fields(path, records[1:], header, delim)
+    if len(records) < 2:
+        raise MeasurementError(f"{path}: no data rows after the header")
+    return Table(path, header, records[1:], delim, records[0][0], kinds)
+
+
+def check_fields(path: str, records, header: list[str], delim: str) -> None:
+    """MeasurementError naming the first of ``records`` ((line number, cells)) without the header's field count."""
+    for k, rec in records:
         if len(rec) != len(header):
             hint = (" (decimal commas in a comma-separated file? use ';' as the separator, or '.' for decimals)"
                     if len(rec) > len(header) and delim == "," else "")
             raise MeasurementError(f"{path}: row {k} has {len(rec)} fields, the header has {len(header)}{hint}")
-    if len(records) < 2:
-        raise MeasurementError(f"{path}: no data rows after the header")
-    return Table(path, header, records[1:], delim, records[0][0], kinds)
 
 
 def check_once(path: str, header: list[str], columns, kinds: str) -> None:
@@ -360,11 +365,17 @@ class Stream:
             fh.seek(block.offset)
             return fh.read(block.nbytes)
 
-    def numbers(self, block: Block, cols) -> tuple[np.ndarray, np.ndarray]:
-        """(row numbers (N,), values (N, len(cols))) of the block's data lines: numpy's C reader when
+    def numbers(self, block: Block, cols, units=None) -> tuple[np.ndarray, np.ndarray]:
+        """(row numbers (N,), values in SI (N, len(cols))) of the block's data lines: numpy's C reader when
         the block is plain (no comment, blank or quoted line; the header's field count on every line)
         and every cell a finite number in '.' notation, else cell by cell (decimal commas, quoted
-        cells), with an error naming the row and column."""
+        cells), with an error naming the row and column; ``units``: the file's unit of each column (None: plain
+        numbers), checked as ``Table.numbers`` checks them (``in_si``)."""
+        rows, values = self._numbers(block, list(cols))
+        units = [units] * len(cols) if units is None or isinstance(units, str) else list(units)
+        return rows, in_si(self.path, values, rows, list(cols), units)
+
+    def _numbers(self, block: Block, cols: list) -> tuple[np.ndarray, np.ndarray]:
         raw = self.read(block)
         idx = [self.header.index(c) for c in cols]
         n = raw.count(b"\n") + (0 if raw.endswith(b"\n") else 1)
@@ -385,9 +396,7 @@ class Stream:
         lines = data_lines(text)
         records = list(zip([first_line + k - 1 for k, _ in lines], csv.reader([s for _, s in lines],
                                                                                   delimiter=self.delim)))
-        for k, rec in records:
-            if len(rec) != len(self.header):
-                raise MeasurementError(f"{self.path}: row {k} has {len(rec)} fields, the header has {len(self.header)}")
+        check_fields(self.path, records, self.header, self.delim)
         rows = np.array([k for k, _ in records], dtype=int)
         return rows, cell_numbers(self.path, records, self.header, cols, self.delim).reshape(len(rows), len(cols))
 
