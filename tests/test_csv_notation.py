@@ -147,3 +147,45 @@ def test_a_comma_file_with_decimal_commas_is_said_to_be_one_by_the_targets_reade
     semi = _compensate(_targets(tmp_path, sep=";", dec=","))  # the same values, separated by ';': read alike
     plain = _compensate(_targets(tmp_path))
     assert semi.targets == 20 and (semi.accepted, semi.problems) == (plain.accepted, plain.problems)
+
+
+def test_rows_of_separators_after_the_data_are_not_data_and_among_them_are_named(tmp_path):
+    """Excel leaves ',,,,,,' rows below its table: they were 'row 22, column 'joint_1': '' is not a number'; at the
+    end they are dropped (the file reads as without them, in both readers); among the data such a row is named as
+    empty (a reading lost there, or a row cleared: the user decides)."""
+    clean = _targets(tmp_path)
+    ref = np.loadtxt(clean, delimiter=",", skiprows=1)  # (20, 9) deg, mm
+    trailing = tmp_path / "trailing.csv"
+    trailing.write_text(clean.read_text() + ",,,,,,,,\n" * 3 + '"","","","","","","","",""\n\n')
+    meas = kincal.read_measurements(trailing, kincal.load_robot("ur5"), UR5_COLS, length_unit="mm", angle_unit="deg")
+    np.testing.assert_allclose(np.c_[np.rad2deg(meas.q), meas.xyz * 1e3], ref, rtol=0, atol=1e-9)
+    stream = open_stream(str(trailing), block_bytes=300)  # several blocks
+    assert stream.size == clean.stat().st_size
+    rows, values = (np.concatenate(a) for a in zip(*(stream.numbers(b, UR5_COLS + ["x", "y", "z"])
+                                                      for b, _ in stream.blocks())))
+    assert rows.tolist() == list(range(2, 22)) and np.array_equal(values, ref)
+    assert _compensate(trailing).targets == 20
+    lines = clean.read_text().splitlines()
+    middle = tmp_path / "middle.csv"
+    middle.write_text("\n".join(lines[:5] + [",,,,,,,,"] + lines[5:]) + "\n")
+    with pytest.raises(MeasurementError, match="middle.csv: row 6 is empty .only separators.* delete the row"):
+        kincal.read_measurements(middle, kincal.load_robot("ur5"), UR5_COLS, length_unit="mm", angle_unit="deg")
+    with pytest.raises(MeasurementError, match="middle.csv: row 6 is empty .only separators.* delete the row"):
+        _compensate(middle)
+
+
+@pytest.mark.parametrize("col,suffix,words", [
+    ("joint_1", " deg", "the unit 'deg' is written in the cell: write the number alone and give the unit as the "
+                        "file's angle unit, angle_unit='deg' (CLI: --angle-unit deg)"),
+    ("joint_1", "°", "the unit '°' is written in the cell: write the number alone and give the unit as the file's "
+                     "angle unit, angle_unit='deg' (CLI: --angle-unit deg)"),
+    ("x", " mm", "the unit 'mm' is written in the cell: write the number alone and give the unit as the file's "
+                 "length unit, length_unit='mm' (CLI: --length-unit mm)")])
+def test_a_unit_written_in_a_cell_is_named(tmp_path, col, suffix, words):
+    path = _targets(tmp_path, lambda r, at: r.__setitem__(at(col), r[at(col)] + suffix))
+    with pytest.raises(MeasurementError) as err:
+        kincal.read_measurements(path, kincal.load_robot("ur5"), UR5_COLS, length_unit="mm", angle_unit="deg")
+    assert f"row 8, column '{col}'" in str(err.value) and words in str(err.value)
+    with pytest.raises(MeasurementError) as err:
+        _compensate(path)
+    assert f"row 8, column '{col}'" in str(err.value) and words in str(err.value)

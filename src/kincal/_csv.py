@@ -27,6 +27,10 @@ DECIMALS = {m: re.compile(rf"[+-]?[0-9]*\{m}[0-9]+([eE][+-]?[0-9]+)?") for m in 
 # a number whose digits a '.' or ',' groups by three, decimals after the other mark or none ('-432.471,963')
 THOUSANDS = re.compile(r"[+-]?[0-9]{1,3}([.,])[0-9]{3}(\1[0-9]{3})*((?!\1)[.,][0-9]*)?")
 NO_1000 = "write the numbers without thousands separators; in Excel: Format Cells > Number, untick 'Use 1000 Separator'"
+# a number with its unit written after it ('-22.9 deg', '-22.9°', '-432.4 mm'): the unit named the flag's way
+UNIT_IN_CELL = re.compile(r"[+-]?[0-9.,]*[0-9]([eE][+-]?[0-9]+)?\s*(?P<unit>mm|um|µm|m|rad|deg|°|rev)")
+UNIT_NAMES = {"µm": ("length", "um"), "°": ("angle", "deg"), **{u: ("length", u) for u in LENGTH_UNITS},
+              **{u: ("angle", u) for u in ANGLE_UNITS}}
 NOT_FINITE = re.compile(r"[+-]?(nan|inf|infinity)", re.IGNORECASE)  # read, then refused by row (check_finite)
 MAX_LISTED = 10  # rows named in an error message
 # SI magnitudes beyond any robot's: a coordinate or prismatic joint value 10 km from the base, a joint (a screw's
@@ -104,6 +108,11 @@ def why_not(cell: str) -> str:
         return " (the cell is empty)"
     if "_" in text:
         return " (no '_' inside numbers: write 0.5 or 5, not 0_5)"
+    unit = UNIT_IN_CELL.fullmatch(text)
+    if unit:
+        kind, name = UNIT_NAMES[unit["unit"]]
+        return (f" (the unit '{unit['unit']}' is written in the cell: write the number alone and give the unit as the "
+                f"file's {kind} unit, {kind}_unit='{name}' (CLI: --{kind}-unit {name}))")
     grouped = THOUSANDS.fullmatch(text)
     if grouped and (grouped[3] or grouped[2]):  # both marks, or one twice: a thousands separator
         return f" ('{grouped[1]}' as a thousands separator: {NO_1000})"
@@ -128,6 +137,8 @@ def open_table(path: str, kinds: str = "joint, position or σ") -> Table:
     delim = sniff_delimiter(lines[0][1], path)
     records = list(zip((k for k, _ in lines), csv.reader((line for _, line in lines), delimiter=delim)))
     header = [h.strip() for h in records[0][1]]
+    while len(records) > 1 and not any(c.strip() for c in records[-1][1]):
+        records.pop()  # rows of separators only after the data: the rows a spreadsheet leaves below its table
     check_fields(path, records[1:], header, delim)
     if len(records) < 2:
         raise MeasurementError(f"{path}: no data rows after the header")
@@ -179,6 +190,9 @@ def cell_numbers(path: str, records, header: list[str], cols, delim: str, empty_
                     continue
             except ValueError:
                 pass
+            if not any(c.strip() for c in rec):
+                raise MeasurementError(f"{path}: row {k} is empty (only separators, as a spreadsheet writes a row it "
+                                       f"has cleared) among the data: delete the row, or fill in its values")
             kind = "finite number" if finite else "number"
             raise MeasurementError(f"{path}: row {k}, column '{cols[j]}': '{rec[i]}' is not a {kind}"
                                    f"{' (or empty)' if empty_ok else ''}{why_not(rec[i])}")
@@ -335,7 +349,7 @@ class Stream:
     delim: str
     header_line: int
     offset: int  # bytes: the first byte after the header line
-    size: int  # bytes: the file's size
+    size: int  # bytes: where the data end (the file's size, rows of separators only at its end left out)
     block_bytes: int = BLOCK_BYTES
 
     def blocks(self):
@@ -346,7 +360,7 @@ class Stream:
             fh.seek(offset)
             tail = b""
             while True:
-                raw = fh.read(size)
+                raw = fh.read(min(size, self.size - fh.tell()))
                 if not raw and not tail.strip():
                     return
                 raw = tail + raw
@@ -431,4 +445,23 @@ def open_stream(path: str, block_bytes: int = BLOCK_BYTES) -> Stream:
         pos, line = end + 1, line + 1
     delim = sniff_delimiter(text, path)
     header = [h.strip() for h in next(csv.reader([text], delimiter=delim))]
-    return Stream(path, header, delim, line, end + 1, size, block_bytes)
+    return Stream(path, header, delim, line, end + 1, _data_end(path, size, end + 1, delim), block_bytes)
+
+
+def _data_end(path: str, size: int, start: int, delim: str) -> int:
+    """The byte after the last line from ``start`` that holds more than separators, quotes and white space: the rows
+    a spreadsheet leaves below its table (',,,,,,') are not data, as ``open_table`` drops them."""
+    filler = (delim + ' \t\r\n"').encode()
+    end = size
+    with open(path, "rb") as fh:
+        while end > start:
+            lo = max(start, end - (1 << 16))
+            fh.seek(lo)
+            kept = fh.read(end - lo).rstrip(filler)
+            if kept:
+                fh.seek(lo + len(kept))
+                rest = fh.read(size - lo - len(kept))
+                cut = rest.find(b"\n")
+                return size if cut < 0 else lo + len(kept) + cut + 1
+            end = lo
+    return start
