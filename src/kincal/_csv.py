@@ -20,6 +20,17 @@ DECIMAL_COMMA = re.compile(r"^\s*[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?\s*$")
 # a number as a CSV cell writes it: ASCII digits, one optional '.', an optional exponent (Python's float()
 # also takes '0_5' as 5 and '١٢' as 12: neither is a number in a measurement file)
 NUMBER = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
+# a cell whose '.' or ',' groups thousands (1-3 digits, then groups of exactly 3: '-432.472', '1,234,567'), and a
+# number with that mark as its decimal mark and not so grouped (the file's decimals: '-22,933297', '0.5')
+GROUPED = {m: re.compile(rf"[+-]?[0-9]{{1,3}}(\{m}[0-9]{{3}})+") for m in ".,"}
+DECIMALS = {m: re.compile(rf"[+-]?[0-9]*\{m}[0-9]+([eE][+-]?[0-9]+)?") for m in ".,"}
+# a number whose digits a '.' or ',' groups by three, decimals after the other mark or none ('-432.471,963')
+THOUSANDS = re.compile(r"[+-]?[0-9]{1,3}([.,])[0-9]{3}(\1[0-9]{3})*((?!\1)[.,][0-9]*)?")
+NO_1000 = "write the numbers without thousands separators; in Excel: Format Cells > Number, untick 'Use 1000 Separator'"
+# a number with its unit written after it ('-22.9 deg', '-22.9°', '-432.4 mm'): the unit named the flag's way
+UNIT_IN_CELL = re.compile(r"[+-]?[0-9.,]*[0-9]([eE][+-]?[0-9]+)?\s*(?P<unit>mm|um|µm|m|rad|deg|°|rev)")
+UNIT_NAMES = {"µm": ("length", "um"), "°": ("angle", "deg"), **{u: ("length", u) for u in LENGTH_UNITS},
+              **{u: ("angle", u) for u in ANGLE_UNITS}}
 NOT_FINITE = re.compile(r"[+-]?(nan|inf|infinity)", re.IGNORECASE)  # read, then refused by row (check_finite)
 MAX_LISTED = 10  # rows named in an error message
 # SI magnitudes beyond any robot's: a coordinate or prismatic joint value 10 km from the base, a joint (a screw's
@@ -97,8 +108,17 @@ def why_not(cell: str) -> str:
         return " (the cell is empty)"
     if "_" in text:
         return " (no '_' inside numbers: write 0.5 or 5, not 0_5)"
+    unit = UNIT_IN_CELL.fullmatch(text)
+    if unit:
+        kind, name = UNIT_NAMES[unit["unit"]]
+        return (f" (the unit '{unit['unit']}' is written in the cell: write the number alone and give the unit as the "
+                f"file's {kind} unit, {kind}_unit='{name}' (CLI: --{kind}-unit {name}))")
+    grouped = THOUSANDS.fullmatch(text)
+    if grouped and (grouped[3] or grouped[2]):  # both marks, or one twice: a thousands separator
+        return f" ('{grouped[1]}' as a thousands separator: {NO_1000})"
     if "," in text:
-        return " (a decimal comma: use '.' or a ';' separated file)"
+        return (" (a decimal comma" + (", or ',' as a thousands separator" if grouped else "")
+                + ": use '.' for decimals (no thousands separator) or a ';' separated file)")
     return ""
 
 
@@ -117,14 +137,21 @@ def open_table(path: str, kinds: str = "joint, position or σ") -> Table:
     delim = sniff_delimiter(lines[0][1], path)
     records = list(zip((k for k, _ in lines), csv.reader((line for _, line in lines), delimiter=delim)))
     header = [h.strip() for h in records[0][1]]
-    for k, rec in records[1:]:
+    while len(records) > 1 and not any(c.strip() for c in records[-1][1]):
+        records.pop()  # rows of separators only after the data: the rows a spreadsheet leaves below its table
+    check_fields(path, records[1:], header, delim)
+    if len(records) < 2:
+        raise MeasurementError(f"{path}: no data rows after the header")
+    return Table(path, header, records[1:], delim, records[0][0], kinds)
+
+
+def check_fields(path: str, records, header: list[str], delim: str) -> None:
+    """MeasurementError naming the first of ``records`` ((line number, cells)) without the header's field count."""
+    for k, rec in records:
         if len(rec) != len(header):
             hint = (" (decimal commas in a comma-separated file? use ';' as the separator, or '.' for decimals)"
                     if len(rec) > len(header) and delim == "," else "")
             raise MeasurementError(f"{path}: row {k} has {len(rec)} fields, the header has {len(header)}{hint}")
-    if len(records) < 2:
-        raise MeasurementError(f"{path}: no data rows after the header")
-    return Table(path, header, records[1:], delim, records[0][0], kinds)
 
 
 def check_once(path: str, header: list[str], columns, kinds: str) -> None:
@@ -148,6 +175,7 @@ def cell_numbers(path: str, records, header: list[str], cols, delim: str, empty_
     cell checked: a cell that is not a number (or empty, with ``empty_ok``: NaN) is refused, naming
     the file, row and column and why; with ``finite`` NaN and inf too, else they are read for the
     caller to refuse by row (``check_finite``)."""
+    check_grouping(path, records, header, cols, delim)
     idx = [header.index(c) for c in cols]
     out = np.empty((len(records), len(cols)))
     for r, (k, rec) in enumerate(records):
@@ -162,10 +190,38 @@ def cell_numbers(path: str, records, header: list[str], cols, delim: str, empty_
                     continue
             except ValueError:
                 pass
+            if not any(c.strip() for c in rec):
+                raise MeasurementError(f"{path}: row {k} is empty (only separators, as a spreadsheet writes a row it "
+                                       f"has cleared) among the data: delete the row, or fill in its values")
             kind = "finite number" if finite else "number"
             raise MeasurementError(f"{path}: row {k}, column '{cols[j]}': '{rec[i]}' is not a {kind}"
                                    f"{' (or empty)' if empty_ok else ''}{why_not(rec[i])}")
     return out
+
+
+def check_grouping(path: str, records, header: list[str], cols, delim: str) -> None:
+    """MeasurementError when a column of ``cols`` writes '.' (',') in a file whose decimals are commas (points) and
+    every such cell groups thousands ('-432.472' beside '-22,933297'): a spreadsheet's thousands separator, which
+    the cell-by-cell reading would take for a decimal mark (1000 times too small) or a decimal comma; which one
+    the file means is not guessed. ``records``: (line number, cells) of the file (or of a block of it), every
+    column looked at for the file's decimals. In a comma-separated file a ',' in a cell is refused cell by cell."""
+    if delim == ",":
+        return
+    for col in cols:
+        i = header.index(col)
+        for mark, other in ((".", ","), (",", ".")):
+            cells = [(k, rec[i].strip()) for k, rec in records if mark in rec[i]]
+            if not cells or not all(GROUPED[mark].fullmatch(c) for _, c in cells):
+                continue
+            seen = next(((k, h, c.strip()) for k, rec in records for h, c in zip(header, rec)
+                         if DECIMALS[other].fullmatch(c.strip()) and not GROUPED[other].fullmatch(c.strip())), None)
+            if seen:
+                (k, cell), names = cells[0], {".": "points", ",": "commas"}
+                raise MeasurementError(
+                    f"{path}: column '{col}' groups thousands with '{mark}' (row {k}: '{cell}'; all {len(cells)} of "
+                    f"its cells with a '{mark}' have groups of 3 digits) while the file's decimals are {names[other]} "
+                    f"(row {seen[0]}, column '{seen[1]}': '{seen[2]}'); kincal does not guess whether '{cell}' is "
+                    f"{cell.replace(mark, '')} or {cell.replace(mark, '.')}: {NO_1000}")
 
 
 def listed(rows) -> str:
@@ -293,7 +349,7 @@ class Stream:
     delim: str
     header_line: int
     offset: int  # bytes: the first byte after the header line
-    size: int  # bytes: the file's size
+    size: int  # bytes: where the data end (the file's size, rows of separators only at its end left out)
     block_bytes: int = BLOCK_BYTES
 
     def blocks(self):
@@ -304,7 +360,7 @@ class Stream:
             fh.seek(offset)
             tail = b""
             while True:
-                raw = fh.read(size)
+                raw = fh.read(min(size, self.size - fh.tell()))
                 if not raw and not tail.strip():
                     return
                 raw = tail + raw
@@ -323,17 +379,24 @@ class Stream:
             fh.seek(block.offset)
             return fh.read(block.nbytes)
 
-    def numbers(self, block: Block, cols) -> tuple[np.ndarray, np.ndarray]:
-        """(row numbers (N,), values (N, len(cols))) of the block's data lines: numpy's C reader when
+    def numbers(self, block: Block, cols, units=None) -> tuple[np.ndarray, np.ndarray]:
+        """(row numbers (N,), values in SI (N, len(cols))) of the block's data lines: numpy's C reader when
         the block is plain (no comment, blank or quoted line; the header's field count on every line)
         and every cell a finite number in '.' notation, else cell by cell (decimal commas, quoted
-        cells), with an error naming the row and column."""
+        cells), with an error naming the row and column; ``units``: the file's unit of each column (None: plain
+        numbers), checked as ``Table.numbers`` checks them (``in_si``)."""
+        rows, values = self._numbers(block, list(cols))
+        units = [units] * len(cols) if units is None or isinstance(units, str) else list(units)
+        return rows, in_si(self.path, values, rows, list(cols), units)
+
+    def _numbers(self, block: Block, cols: list) -> tuple[np.ndarray, np.ndarray]:
         raw = self.read(block)
         idx = [self.header.index(c) for c in cols]
         n = raw.count(b"\n") + (0 if raw.endswith(b"\n") else 1)
         d = self.delim.encode()
         plain = (b"#" not in raw and b'"' not in raw and b"\n\n" not in raw and not raw.startswith((b"\n", b"\r"))
-                 and raw.count(d) == n * (len(self.header) - 1))
+                 and raw.count(d) == n * (len(self.header) - 1) and (d == b"," or b"," not in raw))  # (decimal
+        # commas, thousands separators: cell by cell)
         if plain:
             try:
                 out = np.loadtxt(io.BytesIO(raw), delimiter=self.delim, usecols=idx, ndmin=2, comments=None)
@@ -347,9 +410,7 @@ class Stream:
         lines = data_lines(text)
         records = list(zip([first_line + k - 1 for k, _ in lines], csv.reader([s for _, s in lines],
                                                                                   delimiter=self.delim)))
-        for k, rec in records:
-            if len(rec) != len(self.header):
-                raise MeasurementError(f"{self.path}: row {k} has {len(rec)} fields, the header has {len(self.header)}")
+        check_fields(self.path, records, self.header, self.delim)
         rows = np.array([k for k, _ in records], dtype=int)
         return rows, cell_numbers(self.path, records, self.header, cols, self.delim).reshape(len(rows), len(cols))
 
@@ -384,4 +445,23 @@ def open_stream(path: str, block_bytes: int = BLOCK_BYTES) -> Stream:
         pos, line = end + 1, line + 1
     delim = sniff_delimiter(text, path)
     header = [h.strip() for h in next(csv.reader([text], delimiter=delim))]
-    return Stream(path, header, delim, line, end + 1, size, block_bytes)
+    return Stream(path, header, delim, line, end + 1, _data_end(path, size, end + 1, delim), block_bytes)
+
+
+def _data_end(path: str, size: int, start: int, delim: str) -> int:
+    """The byte after the last line from ``start`` that holds more than separators, quotes and white space: the rows
+    a spreadsheet leaves below its table (',,,,,,') are not data, as ``open_table`` drops them."""
+    filler = (delim + ' \t\r\n"').encode()
+    end = size
+    with open(path, "rb") as fh:
+        while end > start:
+            lo = max(start, end - (1 << 16))
+            fh.seek(lo)
+            kept = fh.read(end - lo).rstrip(filler)
+            if kept:
+                fh.seek(lo + len(kept))
+                rest = fh.read(size - lo - len(kept))
+                cut = rest.find(b"\n")
+                return size if cut < 0 else lo + len(kept) + cut + 1
+            end = lo
+    return start

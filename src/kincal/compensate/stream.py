@@ -31,7 +31,7 @@ from ..models.unit_checks import SPREAD_RATIO, check_degrees, check_radians, che
 from ..models.robot import Robot
 from ..observe.files import check_pose_columns
 from ..observe.orientation import convention_check, default_columns, from_matrices, position_frame, to_matrices
-from ..units import joint_factors, unit_factor
+from ..units import joint_units
 from .commands import compensate, path_checked, refuse_covariates, uncontrolled_warning
 
 CONVENTION_ROWS = 500  # the orientation convention is judged on the file's first rows
@@ -548,11 +548,13 @@ def _read(job: StreamJob, stream: Stream, block: Block, previous: Block | None):
     t, robot = job.targets, job.robot
     jcols = list(t.joint_cols or robot.joint_names) if job.needs_joints else []
     cols = jcols + list(t.xyz_cols) + (list(t.orientation_cols) if t.pose else [])
-    parts = [stream.numbers(b, cols) for b in ((previous, block) if previous is not None else (block,))]
-    rows, v = (np.concatenate(a) for a in zip(*parts))
+    units = [*(joint_units(robot.joint_types, t.length_unit, t.angle_unit) if jcols else []), *[t.length_unit] * 3,
+             *[None] * (len(cols) - len(jcols) - 3)]
+    parts = [stream.numbers(b, cols, units) for b in ((previous, block) if previous is not None else (block,))]
+    rows, v = (np.concatenate(a) for a in zip(*parts))  # SI (the orientation's values as written)
     n = len(jcols)
-    q0 = v[:, :n] * np.array(joint_factors(robot.joint_types, t.length_unit, t.angle_unit)) if n else None
-    xyz = v[:, n:n + 3] * unit_factor(t.length_unit, "length")
+    q0 = v[:, :n] if n else None
+    xyz = v[:, n:n + 3]
     R = to_matrices(v[:, n + 3:], t.orientation, stream.path, rows) if t.pose else None
     if R is not None and job.body is not None:  # the measured body's rotations: the flange's are R · bodyᵀ
         R = R @ np.asarray(job.body).T
