@@ -418,13 +418,14 @@ def _whitened_reason(kind: str, rms: float, whitened: dict, th: Thresholds,
 
 
 def _diagnosed(res: "CalibrationResult", found: "Diagnosis", verdict: Verdict) -> Verdict:
-    """The verdict with the differential diagnosis ``found`` first. Bad poses in a least-squares fit
-    of positions steer the whole model: refused, not doubtful."""
-    best = found.best
-    status = "refused" if best and best.code == "outliers" and res.data and res.options.loss == "linear" \
+    """The verdict with the differential diagnosis ``found`` first. Bad poses in a least-squares fit steer the whole
+    model: refused, not doubtful, where the diagnosis judged the fit itself (position data, or the whitened residual
+    of other kinds: :func:`kincal.identify.diagnosis.diagnose_samples`)."""
+    best, itself = found.best, res.data or found.whitened
+    status = "refused" if best and best.code == "outliers" and itself and res.options.loss == "linear" \
         else verdict.status
     reason = Reason(status, f"cause-{best.code}" if best else "cause-unknown",
-                    found.message() + ("" if res.data else " (screened on the measured positions)"))
+                    found.message() + ("" if itself else " (screened on the measured positions)"))
     named = best is not None and best.code == "frame-jump"  # the jump the cause names with its refit: not twice
     return Verdict(status, (reason, *(r for r in verdict.reasons if not (named and r.code == "frame-jump"))))
 
