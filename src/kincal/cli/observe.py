@@ -14,7 +14,8 @@ from kincal.identify import (ABSOLUTE, MOUNTED, fit_observations, refuse_inappli
 from kincal.observe import InSession, ObservationFormat, PointObs, read_observations
 from kincal.simulate import (plane_plan, simulate_markers, simulate_planes, simulate_poses, simulate_same_point,
                              socket_plan)
-from kincal.units import ANGLE_UNITS, LENGTH_UNITS, MRAD, in_display
+from kincal._csv import listed
+from kincal.units import ANGLE_UNITS, LENGTH_UNITS, MM, MRAD, in_display
 
 from .common import TYPES, add_data_flags, csv_list, judged
 from .report import nominal_model, save_figures
@@ -298,8 +299,8 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
     train = [t.get("mean") for t in (record or {}).get("observations", []) if isinstance(t, dict)
              and t.get("type") in (obs.kind, "joint")]  # the training error of this kind (m; a joint-space
     # residual's statistics are its measured positions' or poses')
-    cause = ""
-    if train and isinstance(train[0], (int, float)) and train[0] > 0:
+    cause = _few_bad_samples(robot, obs, fit, frame, held)
+    if not cause and train and isinstance(train[0], (int, float)) and train[0] > 0:
         # the position path's likely cause of an error far above the training error (the tracker moved, another
         # tool point, a scale, the file's columns), in the frame the set was judged in
         cause = set_cause(fit.robot, obs, fit.nuisance, float(train[0]), bool(set(frame) & set(robot.base_params())),
@@ -310,6 +311,26 @@ def evaluate_set(args, robot, record: dict | None, path: str, kind: str, stem: s
     texts += [f"  warning: {envelope}"] if envelope else []
     return {"file": path, "frame_fitted": bool(set(frame) & set(robot.base_params())), "setup_as_trained": kept, **s, "nominal": before,
             "cause": cause or None, "warnings": [envelope] if envelope else []}, texts
+
+
+def _few_bad_samples(robot, obs, fit, frame: tuple, held: dict) -> str:
+    """The likely cause when a few samples of ``obs`` carry ``fit``'s error: calibrate's rule on their whitened norms
+    (:func:`kincal.identify.diagnosis.few_bad` at the set's block size), named with their rows when the rest, fitted
+    again alike (:func:`_fixed_kinematics`), leaves less than half the mean error; "" otherwise (or for a kind
+    without a mean error)."""
+    from kincal.identify.diagnosis import EXPLAIN_RATIO, few_bad
+    from kincal.identify.judge import block_size, sample_norms
+
+    sets, mean = fit.observations, fit.per_set[0].get("mean")
+    bad = few_bad(sample_norms(sets, fit.whitened_residual)[0], dim=block_size(sets[0]))
+    if not len(bad) or len(obs) - len(bad) < 3 or not isinstance(mean, float) or not mean > 0:
+        return ""
+    left = _fixed_kinematics(robot, obs.subset(np.setdiff1d(np.arange(len(obs)), bad)), frame, held).per_set[0]["mean"]
+    if not left < EXPLAIN_RATIO * mean:
+        return ""
+    return (f"a few bad poses: row(s) {listed(obs.rows[bad])} lie far off the rest: without them the mean error is "
+            f"{left * MM:.4g} mm, not {mean * MM:.4g} mm; check how they were measured and measure them again, or "
+            f"leave them out of the file")
 
 
 def group_lines(sets: list, which: str) -> list[str]:

@@ -25,7 +25,7 @@ from ..models.robot import Robot
 from ..models.terms import check_payload
 from ..observe import InSession, JointObs, PointObs, PoseObs
 from ..observe.observations import Wrapper
-from .diagnosis import TRIGGERS, diagnose
+from .diagnosis import TRIGGERS, diagnose, diagnose_samples
 from .fitting import ABSOLUTE, fit_stack
 from .options import FitOptions
 from .positions import EvaluationStats, joined
@@ -277,13 +277,16 @@ def diagnosed(res: CalibrationResult, robot: Robot, say=lambda msg: None) -> Cal
     """``res`` with the differential diagnosis as the first reason of its verdict, when the verdict
     doubts the data (:data:`TRIGGERS`). Position data are screened as fitted; other kinds on the
     positions of their point, 6-D pose or markers files in the robot's frame (:func:`_positions_of`, fitted as
-    positions from ``robot``, the model as given); sockets, planes and sessions in their own frames are
-    not (the verdict puts the diagnosis first: :func:`kincal.identify.judge.verdict_of`)."""
+    positions from ``robot``, the model as given); sockets, planes, joint-space residuals and sessions in their own
+    frames for a few bad samples of the fit itself (:func:`kincal.identify.diagnosis.diagnose_samples`). The verdict
+    puts the diagnosis first (:func:`kincal.identify.judge.verdict_of`)."""
     if not any(r.code in TRIGGERS for r in res.verdict.reasons):
         return res
     position = res if res.data else _positions_of(res, robot)
-    if position is None:
-        return res
+    if position is None:  # no positions to screen: a few bad samples of the fit itself
+        say("looking for a few bad samples")
+        found = diagnose_samples(res)
+        return res if found is None else dataclasses.replace(res, diagnosis=found)
     say("trying the common input mistakes")
     return dataclasses.replace(res, diagnosis=diagnose(position))
 

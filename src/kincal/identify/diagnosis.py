@@ -22,6 +22,10 @@ fit's set-up, listed in this canonical order (ties go to the earlier one, :mod:`
    its own;
 10. a few bad poses: the rows a robust refit puts beyond ``outlier_z`` robust σ, left out.
 
+Kinds without measured positions to screen (sockets, planes, a joint-space residual of poses) get the last
+candidate alone, on the fit itself (:func:`diagnose_samples`): the samples a robust refit of the observations puts
+beyond the outlier limit, left out, judged by the whitened residual RMS with the same rule.
+
 Two stages keep it cheap. Candidates 1–6 change the data; each is screened by registering the
 nominal model to it (measurement frame and tool point only, ~10 ms for 80 poses). The MAX_FULL best
 screens that beat the data as given, and candidates 7–10, then get a full calibration with the user's
@@ -43,6 +47,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from ..errors import KincalError
+from .._csv import listed
 from ..io.measurements import Measurements
 from ..models.unit_checks import frame_jump
 from ..models.robot import TOOL_NAMES, Robot
@@ -80,12 +85,14 @@ class Cause:
 
 @dataclass(frozen=True)
 class Diagnosis:
-    """The fit as given (σ per axis, m; verdict) and the causes that explain it, best first."""
+    """The fit as given (σ per axis, m; verdict) and the causes that explain it, best first; ``whitened``: the σ
+    are whitened residual RMS (1 when the stated σ are right), of the fit itself (:func:`diagnose_samples`)."""
 
     sigma: float
     status: str
     found: tuple[Cause, ...]
     tried: int
+    whitened: bool = False
 
     @property
     def best(self) -> Cause | None:
@@ -97,14 +104,19 @@ class Diagnosis:
         if c is None:
             return (f"none of the {self.tried} common input mistakes kincal tried (joint columns, position frame, "
                     f"rows, tool point, bad poses, robot file) explains the data better")
-        if c.sigma < EXPLAIN_RATIO * self.sigma:
-            figure = f"the residual σ per axis falls from {self.sigma * MM:.4g} mm to {c.sigma * MM:.4g} mm"
+        if self.whitened:
+            what, before, after = "whitened residual RMS", f"{self.sigma:.3g}", f"{c.sigma:.3g} (1 when the stated σ " \
+                                                                                  f"are right)"
         else:
-            figure = f"the verdict becomes {c.status} (residual σ {c.sigma * MM:.4g} mm)"
+            what, before, after = "residual σ per axis", f"{self.sigma * MM:.4g} mm", f"{c.sigma * MM:.4g} mm"
+        if c.sigma < EXPLAIN_RATIO * self.sigma:
+            figure = f"the {what} falls from {before} to {after}"
+        else:
+            figure = f"the verdict becomes {c.status} ({what} {after})"
         return f"likely cause: {c.cause}; with that undone {figure}. Fix: {c.fix}"
 
     def to_dict(self) -> dict:
-        return {"sigma": self.sigma, "status": self.status, "tried": self.tried,
+        return {"sigma": self.sigma, "status": self.status, "tried": self.tried, "whitened": self.whitened,
                 "found": [c.to_dict() for c in self.found]}
 
 
@@ -374,6 +386,38 @@ def diagnose(res: CalibrationResult) -> Diagnosis:
     good = [c for c in tried if _explains(c, *ref)]
     good += [refit] if refit is not None and _explains(refit, res.sigma, res.verdict.status) else []
     return Diagnosis(res.sigma, res.verdict.status, _ranked(good), n_tried + (refit is not None))
+
+
+def diagnose_samples(res: CalibrationResult) -> Diagnosis | None:
+    """The diagnosis of a doubtful fit ``res`` of observation sets with no measured positions to screen (sockets,
+    planes, a joint-space residual): the samples a robust (Huber) refit puts beyond the outlier limit, when they are
+    a few of their set's (:func:`few_bad` of :func:`kincal.identify.judge.sample_norms`), left out and fitted again;
+    the cause when that explains the fit by the whitened residual RMS (:func:`_explains`), else None (nothing said:
+    the one candidate did not explain it)."""
+    from .fitting import fit_stack
+    from .judge import MIN_SAMPLES, block_size, sample_norms
+    sets, options = list(res.observations), _quiet(res.options)
+    try:
+        robust = fit_stack(res.nominal, sets, options.replace(loss="huber", method="lm", f_scale=None))
+    except (KincalError, ValueError, np.linalg.LinAlgError):
+        return None
+    bad = [few_bad(norms, options.thresholds, block_size(obs)) if len(obs) >= MIN_SAMPLES else np.zeros(0, int)
+           for obs, norms in zip(sets, sample_norms(sets, robust.whitened_residual))]
+    if not any(len(b) for b in bad):
+        return None
+    kept = [o.subset(np.setdiff1d(np.arange(len(o)), b)) if len(b) else o for o, b in zip(sets, bad)]
+    try:
+        trial = fit_stack(res.nominal, kept, options)
+    except (KincalError, ValueError, np.linalg.LinAlgError):
+        return None
+    named = [(o, o.rows[b]) for o, b in zip(sets, bad) if len(b)]
+    where = "; ".join(f"{listed(rows)} of {o.source}" for o, rows in named)
+    exclude = f"--exclude {','.join(map(str, named[0][1]))}" if len(sets) == 1 else "--exclude in their files"
+    cause = Cause("outliers", f"a few bad poses: row(s) {where} lie far off the rest",
+                  f"leave them out (--reject-outliers, or {exclude}) and check how they were measured",
+                  trial.whitened_rms, trial.verdict.status, tuple(int(r) for _, rows in named for r in rows))
+    rms = res.whitened_rms
+    return Diagnosis(rms, res.verdict.status, (cause,), 1, True) if _explains(cause, rms, res.verdict.status) else None
 
 
 def _explains(c: Cause, sigma: float, status: str) -> bool:

@@ -456,12 +456,13 @@ def _whitened_reason(kind: str, rms: float, whitened: dict, th: Thresholds,
 
 def _diagnosed(res: "CalibrationResult", found: "Diagnosis", verdict: Verdict) -> Verdict:
     """The verdict with the differential diagnosis ``found`` first; a diagnosis that found no cause last, as a note
-    (level "note") after the reasons for doubt. Bad poses in a least-squares fit of positions steer the whole model:
-    refused, not doubtful."""
-    best = found.best
-    status = "refused" if best and best.code == "outliers" and res.data and res.options.loss == "linear" \
+    (level "note") after the reasons for doubt. Bad poses in a least-squares fit steer the whole model: refused, not
+    doubtful, where the diagnosis judged the fit itself (position data, or the whitened residual of other kinds:
+    :func:`kincal.identify.diagnosis.diagnose_samples`)."""
+    best, itself = found.best, res.data or found.whitened
+    status = "refused" if best and best.code == "outliers" and itself and res.options.loss == "linear" \
         else verdict.status
-    said = found.message() + ("" if res.data else " (screened on the measured positions)")
+    said = found.message() + ("" if itself else " (screened on the measured positions)")
     if best is None and verdict.reasons:  # no cause found: a note after the reasons for doubt, not one of them
         return Verdict(status, (*verdict.reasons, Reason("note", "cause-unknown", said)))
     reason = Reason(status, f"cause-{best.code}" if best else "cause-unknown", said)
