@@ -728,3 +728,47 @@ def test_the_merged_before_of_two_sessions_judges_each_in_its_own_frame(tmp_path
         assert before["max"] == pytest.approx(max(s["max"] for s in sets), rel=1e-12)
         merged.append(before["mean"])
     assert merged[1] == pytest.approx(merged[0], abs=1e-9)  # m
+
+
+def test_calibrate_prints_each_later_sessions_frame_with_its_sigma_and_convention(tmp_path, capsys):
+    """The real UR5 grid, even rows as measured and odd rows as a tracker moved by R = ZYX(30°, 5°, -3°),
+    t = (1200, -800, 150) mm records them: the frame printed for the second file (mm, deg, with σ) is the
+    calibrated base moved by (R, t), computed here with scipy, within 3σ; --json gives the same in m and rad."""
+    from scipy.spatial.transform import Rotation
+
+    header = open(DATA / "ur5_grid.csv").readline().strip().split(",")[:10]
+    grid = np.loadtxt(DATA / "ur5_grid.csv", delimiter=",", skiprows=1)[:, :10]
+    R, t = Rotation.from_euler("ZYX", [30.0, 5.0, -3.0], degrees=True).as_matrix(), np.array([1200.0, -800.0, 150.0])
+    b = grid[1::2].copy()
+    b[:, 7:10] = b[:, 7:10] @ R.T + t
+    paths = [tmp_path / "A.csv", tmp_path / "B.csv"]
+    for path, rows in zip(paths, (grid[0::2], b)):
+        np.savetxt(path, rows, delimiter=",", header=",".join(header), comments="", fmt="%.6f")
+    argv = ["calibrate", "ur5", *map(str, paths), "--length-unit", "mm", "--angle-unit", "deg",
+            "--joint-cols", ",".join(UR5_COLS)]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "frame of each later file: the robot's base frame in that file's measurement frame" in text
+    assert "R = Rz(rz)·Ry(ry)·Rx(rx)" in text
+    line = next(x for x in text.splitlines() if x.startswith(f"  2:{paths[1]}: "))
+    printed = {}
+    for part in line.split(": ", 1)[1].split(", "):
+        name, value, unit, _, sigma, _ = part.split()
+        printed[name] = (float(value), float(sigma), unit)
+    assert [printed[n][2] for n in ("x", "y", "z", "rx", "ry", "rz")] == ["mm"] * 3 + ["deg"] * 3
+    assert main([*argv, "--json"]) == 0
+    cli = json.loads(capsys.readouterr().out)
+    base = cli["estimates"]
+    ra = Rotation.from_euler("ZYX", [base["base.rz"], base["base.ry"], base["base.rx"]]).as_matrix()
+    t_b = R @ (np.array([base["base.x"], base["base.y"], base["base.z"]]) * 1e3) + t  # mm
+    rz, ry, rx = Rotation.from_matrix(R @ ra).as_euler("ZYX", degrees=True)
+    expected = dict(zip(("x", "y", "z", "rx", "ry", "rz"), [*t_b, rx, ry, rz]))
+    for name, want in expected.items():
+        value, sigma, _ = printed[name]
+        assert abs(value - want) < 3 * sigma, (name, value, want, sigma)
+    frames = cli["session_frames"]["frames"][f"2:{paths[1]}"]
+    for name, (value, sigma, unit) in printed.items():
+        factor = 1e3 if unit == "mm" else np.degrees(1.0)
+        assert frames[f"base.{name}"]["value"] * factor == pytest.approx(value, abs=1e-4)
+        assert frames[f"base.{name}"]["std"] * factor == pytest.approx(sigma, rel=1e-2)
+    assert "R = Rz(rz)·Ry(ry)·Rx(rx)" in cli["session_frames"]["convention"]

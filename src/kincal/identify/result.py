@@ -29,6 +29,10 @@ from .weak import weak_note
 
 GIMBAL_NEAR = np.radians(5.0)  # the base frame's middle angle this near ±90°: its outer angles turn alike
 PRIOR_HELD = 1e-7  # m or rad: a σ this small under a learned prior is the prior holding the parameter, not data
+FRAME_CONVENTION = ("the robot's base frame in that file's measurement frame, as base.* is in the first file's: a point p "
+                    "in the robot's frame is R·p + t there, t = (x, y, z), R = Rz(rz)·Ry(ry)·Rx(rx) (rx about x first, "
+                    "then ry about y, then rz about z, all about the measurement frame's fixed axes); a file measured in "
+                    "a frame moved so that its points are R'·p + t' has R = R'·R_base, t = R'·t_base + t'")
 
 
 @dataclass(frozen=True, eq=False)
@@ -500,7 +504,11 @@ class CalibrationResult:
                    "declared_tool_point": self.nominal.tool_point().tolist(), "text": self.mounting},
                "compliance": self.compliances,  # rad/(N·m) per joint; None: kept at nominal, not determined
                "weakly_determined": {k: float(v) for k, v in self.weak.items()},  # m or rad: the σ the data gave
-               "prior": {k: float(v) for k, v in self.prior.items()}}  # learned prior σ per group (m or rad)
+               "prior": {k: float(v) for k, v in self.prior.items()},  # learned prior σ per group (m or rad)
+               "session_frames": None if not self.session_frames() else {
+                   "convention": FRAME_CONVENTION, "frames": {  # m and rad; std None: undetermined
+                       s: {b: {"value": float(v), "std": float(sd) if np.isfinite(sd) else None}
+                           for b, (v, sd) in f.items()} for s, f in self.session_frames().items()}}}
         if self.data:
             out.update(n_poses=len(self.residuals), sigma=self.sigma, before=self.stats_before.to_dict(),
                        after=self.stats_after.to_dict(), drift=self.drift, poses=self.pose_records())
@@ -536,6 +544,7 @@ class CalibrationResult:
                          f"{display(self.robot.params[n] - self.nominal.params[n], k):>16} "
                          f"{self.sigma_text(n) or display(self.std[n], k).lstrip('+'):>14}"
                          + (f"  ({per[n]})" if n in per else ""))
+        lines += self._frame_lines()
         lines += self._data_lines()
         lines += [f"mounting: {self.mounting}"] if self.mounting else []
         if self.gauge:
@@ -552,6 +561,26 @@ class CalibrationResult:
         lines += [f"note: {n}" for n in self.notes]
         lines += [f"note: {n}" for n in [self._gimbal_note()] if n]
         return "\n".join([*lines, str(self.verdict)])
+
+    def session_frames(self) -> dict[str, dict[str, tuple[float, float]]]:
+        """Each later session's frame as fitted: session ("2:B.csv") -> base parameter ("base.x") -> (value, σ),
+        m and rad (σ inf: undetermined); :data:`FRAME_CONVENTION` says what it is. Empty with one session."""
+        out: dict[str, dict[str, tuple[float, float]]] = {}
+        for n, v in self.nuisance.items():
+            if n.startswith("frame[") and "]." in n:
+                session, base = n[len("frame["):].rsplit("].", 1)
+                out.setdefault(session, {})[base] = (float(v), float(self.std.get(n, np.inf)))
+        return out
+
+    def _frame_lines(self) -> list[str]:
+        """The later sessions' frames, one line each, with their σ (mm, deg) and one line of convention."""
+        frames = self.session_frames()
+        kinds = dict(zip(self.robot.params.names, self.robot.params.kinds))
+        lines = [f"frame of each later file: {FRAME_CONVENTION}"] if frames else []
+        return lines + [f"  {s}: " + ", ".join(
+            f"{b.rsplit('.', 1)[-1]} {display(v, kinds[b])} ± "
+            + (display(sd, kinds[b], signed=False) if np.isfinite(sd) else "undetermined") for b, (v, sd) in f.items())
+            for s, f in frames.items()]
 
     def _gimbal_note(self) -> str:
         """A note when the base frame's middle angle (R = Rz·Ry·Rx) lies within GIMBAL_NEAR of ±90°: there base.rx
