@@ -606,3 +606,29 @@ def test_a_check_with_one_bad_pose_names_its_file_row_not_a_change(true, tmp_pat
     span = cal.upper - cal.lower  # the range note's own rule: 2 % of the span beyond the calibrated range
     out = rows[np.any((bad < cal.lower - 0.02 * span) | (bad > cal.upper + 0.02 * span), axis=1)]
     assert 14 in out and "outside the joint ranges" in said and f"(row(s) {', '.join(map(str, out))})" in said
+
+
+def test_a_tool_point_moved_beyond_any_tools_reach_is_an_input_mistake_not_a_change():
+    """A UR5 with a 0.6 m tool, checked on positions in mm read as m: the first suspect, tool.z +727.9 m, was taken
+    for a change of the target's mounting, 're-calibrate (tool: tool.z)', since the tool point was exempt from the
+    size limits. No tool reaches beyond MAX_TOOL (2 m) from the flange: the input mistake is named now, the check
+    with it undone the clean check's (its RMS, computed here); a genuine 336 mm longer tool is still that change,
+    its size the true tool's less the calibrated one's plus 336 mm."""
+    from kincal.models.plausible import MAX_TOOL
+    nominal = kincal.load_robot("ur5").with_tool_point([0.0, 0.0, 0.6])
+    true = kincal.perturb(nominal, seed=3)
+    res = kincal.calibrate(nominal, kincal.simulate(true, nominal.sample_joints(80, seed=1), 15e-6, 1),
+                           kincal.FitOptions(diagnose=False))
+    cal = Calibrated.of(res.robot, res.record(), "fit")
+    q = nominal.sample_joints(20, seed=7)
+    meas = kincal.simulate(true, q, 15e-6, 2)
+    clean = check(cal, q, meas.xyz)
+    assert clean.verdict == "still good"
+    test = check(cal, q, meas.xyz * 1e3)
+    assert test.suspects[0].name == "tool.z" and test.suspects[0].size > MAX_TOOL
+    assert test.verdict == "the data do not fit this robot: the positions are in mm, read as m", test.verdict
+    assert f"-> {clean.rms * 1e3:.4g} mm). Fix: " in test.notes[-1]
+    longer = true.with_tool_point(true.tool_point() + [0.0, 0.0, 0.336])
+    test = check(cal, q, kincal.simulate(longer, q, 15e-6, 2).xyz)
+    expected = true.tool_point()[2] + 0.336 - cal.robot.tool_point()[2]
+    assert test.verdict == "re-calibrate (tool: tool.z)" and abs(test.suspects[0].size - expected) < 1e-3

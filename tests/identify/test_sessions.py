@@ -623,6 +623,39 @@ def test_a_registered_session_with_another_tool_fits_the_frame_and_the_tool_toge
     assert "no moved frame" not in said and "tracker moved" not in said, said
 
 
+def test_a_tool_point_fitted_with_the_frame_on_few_poses_is_not_named():
+    """Four held-out poses (12 numbers), the tracker moved, the target unchanged, told --same-frame: the frame and the
+    tool point fitted together (9 unknowns) leave 3 numbers and follow the noise, so "a tool point 0.63 mm away
+    brings it to 0.005 mm" was named though the frame alone brings it to 0.05 mm (the audit's B_4.csv). A trial needs
+    twice as many numbers as unknowns: the moved tracker is named, and the tool said to be unjudgeable (the over-fit
+    checked with an independent least-squares fit of the 9 numbers, scipy); with 40 poses the same unchanged target
+    is not named either (the F test of its 3 numbers), and a target 2.5 mm further out still is."""
+    from scipy.optimize import least_squares
+
+    from kincal.identify import heldout_cause
+    robot = kincal.load_robot("ur5").with_tool_point([0.0, 0.0, 0.031])
+    moved = robot.with_params({"base.x": 0.3, "base.rz": 0.2})
+    q = robot.sample_joints(4, seed=12)
+    meas = kincal.simulate(moved, q, 30e-6, seed=13)
+    registered = refit_frame(robot, meas)
+    names = (*robot.base_params(), *TOOL_NAMES)
+
+    def errors(x):
+        return (robot.with_params(dict(zip(names, x))).forward(q) - meas.xyz).ravel()
+    fit = least_squares(errors, [registered.params[n] for n in names], xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    overfit = float(np.mean(np.linalg.norm(fit.fun.reshape(-1, 3), axis=1)))
+    assert overfit < 0.5 * mean_error(registered, meas)  # what the old rule took for a cause
+    said = heldout_cause(robot, meas, 0.01e-3, rebased=False)
+    assert "a tool point" not in said and "the tracker moved between sessions" in said, said
+    assert said.endswith("cannot be judged with 4 pose(s): 12 measured numbers for 9 unknowns (the frame and the tool "
+                         "point) need 6 poses at least"), said
+    q = robot.sample_joints(40, seed=3)
+    said = heldout_cause(robot, kincal.simulate(moved, q, 30e-6, seed=4), 0.01e-3, rebased=False)
+    assert "a tool point" not in said and "the tracker moved between sessions" in said and "judged" not in said, said
+    longer = kincal.simulate(moved.with_tool_point([0.0, 0.0, 0.0335]), q, 10e-6, seed=4)
+    assert "a tool point 2.50 mm" in heldout_cause(robot, longer, 0.1e-3, rebased=False)
+
+
 @pytest.mark.parametrize("n", [1, 2])
 def test_a_cause_for_too_few_poses_to_register_says_why_the_frame_was_not_tried(n):
     """Told the frame did not move (--same-frame), a held-out file of 2 poses from a moved tracker was refused with

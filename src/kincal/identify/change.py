@@ -26,8 +26,9 @@ noise, a 0.1 mm unmodelled harmonic, 200 pairs) it is measured by ``benchmarks/c
 ranked by their posterior odds (the directed statistic z² and the prior odds ``ODDS`` of their kind): the first is
 the single change that most probably explains the discrepancy.
 
-A first suspect beyond a real robot's usual error (the verdict's suspect limits, 10 mm and 2°; the frame and the
-tool point aside), and determined better than that, is first made in the model, its size refined by Gauss-Newton
+A first suspect beyond a real robot's usual error (the verdict's suspect limits, 10 mm and 2°; the frame aside, a
+tool point moved beyond ``MAX_TOOL``, 2 m, an input mistake and never a change), and determined better than that,
+is first made in the model, its size refined by Gauss-Newton
 steps on it alone (``STEPS``), and the test run again: when that leaves a plausible test and less than half the
 discrepancy (``EXPLAIN_RATIO``, as an input mistake undone must), it is named with that size, a large but genuine
 change (a joint re-mastered by 3°, a link rebuilt 15 mm longer). Else a check names no change of the robot: the
@@ -53,6 +54,7 @@ from .._threads import blas_threads
 from ..analysis.changes import ALPHA, MIN_CHECK_POSES, Candidates, Repeat, candidates, frame_basis, without
 from ..errors import KincalError, MeasurementError, ModelError
 from ..io.measurements import Measurements
+from ..models.plausible import MAX_TOOL
 from ..models.robot import Robot
 from ..models.transforms import kabsch
 from ..ties import first_best, order_with_ties
@@ -552,6 +554,8 @@ def _one_change(test: ChangeTest, again: Callable[[str, float], ChangeTest]) -> 
     from .verdict import Thresholds
 
     first, size = test.suspects[0], test.suspects[0].size
+    if first.kind in NOT_ROBOT:  # a tool point moved beyond any tool's reach: no change of the robot, a mistake
+        return None
     with suppress(KincalError, ValueError, np.linalg.LinAlgError):
         for _ in range(STEPS):
             rest = again(first.name, size)
@@ -604,15 +608,16 @@ NOT_ROBOT = ("frame", "tool")  # kinds of change that say where the instrument s
 
 def _implausible(test: ChangeTest) -> Suspect | None:
     """The first suspect of a significant ``test`` when it lies beyond a real robot's error (the verdict's suspect
-    limits, :class:`kincal.identify.verdict.Thresholds`: 10 mm, 2°, 2 %; the frame and the tool point aside) and
-    is determined better than that (a σ within the limit, as a calibration judges its corrections: the real WAM's
-    check names j7's zero at +30.7° ± 8.0°, which these poses barely see)."""
+    limits, :class:`kincal.identify.verdict.Thresholds`: 10 mm, 2°, 2 %; the frame aside, the tool point beyond
+    ``MAX_TOOL``, 2 m, the farthest any tool reaches from the flange) and is determined better than that (a σ
+    within the limit, as a calibration judges its corrections: the real WAM's check names j7's zero at +30.7° ±
+    8.0°, which these poses barely see)."""
     from .verdict import Thresholds
 
     first = test.suspects[0] if test.changed and test.suspects else None
-    if first is None or first.kind in NOT_ROBOT:
+    if first is None or first.kind == "frame":
         return None
-    limit = Thresholds().suspect(first.unit)
+    limit = MAX_TOOL if first.kind == "tool" else Thresholds().suspect(first.unit)
     return first if abs(first.size) > limit >= first.sigma else None
 
 

@@ -12,8 +12,9 @@ import numpy as np
 
 from ..errors import KincalError
 from ..io.measurements import Measurements
-from .._stats import spread
+from .._stats import f_sf, spread
 from ..models.robot import TOOL_NAMES, Robot
+from ..models.unit_checks import JUMP_ALARM
 from ..units import MM
 from ..ties import first_best
 from .calibrate import calibrate
@@ -120,16 +121,45 @@ def refit_frame(robot: Robot, meas: Measurements) -> Robot:
 
 def _tool_fix(robot: Robot, meas: Measurements, base: str) -> tuple[float, str] | None:
     """The mean error (m) with the session's own tool point fitted (and its frame, with ``base="estimate"``), and
-    what that says; None when the robot has no tool point or frame to fit, or too few poses."""
+    what that says; None when the robot has no tool point or frame to fit, or the trial cannot be judged: fewer
+    numbers than twice its unknowns (:func:`_too_few`), or a tool point that lowers the squared error of the same fit
+    without it no more than noise would (the F test of its 3 numbers, below ``JUMP_ALARM``, 1 %, as
+    :func:`kincal.models.unit_checks.frame_jump_test` judges a second frame)."""
     if not (robot.has_tool_point and robot.base_params() and len(meas) >= 4):
         return None
+    unknowns = len(TOOL_NAMES) + (len(robot.base_params()) if base == "estimate" else 0)
+    if _too_few(meas, unknowns):
+        return None
+    without = refit_frame(robot, meas) if base == "estimate" else robot
     tooled = calibrate(robot, meas, names=TOOL_NAMES, base=base, diagnose=False).robot
+    sse_without, sse = (float(np.sum((meas.xyz - m.forward(meas.q)) ** 2)) for m in (without, tooled))
+    dof = meas.xyz.size - unknowns
+    f = (sse_without - sse) / len(TOOL_NAMES) / max(sse / dof, 1e-300)
+    if not f_sf(f, float(len(TOOL_NAMES)), float(dof)) < JUMP_ALARM:
+        return None
     again = _mean_error(tooled, meas)
     gap = np.linalg.norm(tooled.tool_point() - robot.tool_point())
     where = ", ".join(f"{x * MM:.2f}" for x in tooled.tool_point())
     return again, (f"a tool point {gap * MM:.2f} mm from the calibrated one (at {where} mm in the flange frame) brings "
                    f"it to {again * MM:.3f} mm: the target was mounted differently in this session (another probe, "
                    f"adapter or seat); give that session's tool point with --tool")
+
+
+def _too_few(meas: Measurements, unknowns: int) -> bool:
+    """Whether ``meas`` has fewer measured numbers than twice the ``unknowns`` a trial fits: with fewer, a fit of
+    that many unknowns follows the noise (9 unknowns on 4 poses' 12 numbers leave 3) and judges nothing."""
+    return meas.xyz.size < 2 * unknowns
+
+
+def _tool_unjudged(robot: Robot, meas: Measurements) -> str:
+    """The clause saying another tool point with the frame re-registered could not be tried on so few poses
+    (:func:`_too_few`); '' when it could, or the robot has no tool point or frame."""
+    unknowns = len(TOOL_NAMES) + len(robot.base_params())
+    if not (robot.has_tool_point and robot.base_params()) or not _too_few(meas, unknowns):
+        return ""
+    return (f"; whether the target was also mounted differently cannot be judged with {len(meas)} pose(s): "
+            f"{meas.xyz.size} measured numbers for {unknowns} unknowns (the frame and the tool point) need "
+            f"{-(-2 * unknowns // 3)} poses at least")
 
 
 def _data_mistake(robot: Robot, meas: Measurements, enough: float, rebased: bool, refit: tuple[str, ...] = ()) -> str:
@@ -224,11 +254,12 @@ def heldout_cause(robot: Robot, meas: Measurements, train_error: float, rebased:
             return f"{head}; {tool[1]}{also}"
     if framed <= enough:
         return (f"{head}; with the measurement frame re-registered it is {framed * MM:.3f} mm: the tracker moved "
-                f"between sessions (leave out --same-frame so that each session's frame is registered)")
+                f"between sessions (leave out --same-frame so that each session's frame is registered)"
+                f"{_tool_unjudged(robot, meas)}")
     mistake = _data_mistake(robot, meas, enough, rebased, refit)
     if mistake:
         return f"{head}; {mistake}"
-    return head + _unexplained(robot, meas, (error, train_error), framed, few)
+    return head + _unexplained(robot, meas, (error, train_error), framed, few) + ("" if few else _tool_unjudged(robot, meas))
 
 
 def _distinct_below(robot: Robot, meas: Measurements, most: int) -> int:
