@@ -384,3 +384,41 @@ def test_every_pose_set_is_drawn_training_sessions_and_held_out(tmp_path):
                  "--refit-target", "-o", str(tmp_path / "s1.yaml"), "--report", str(held)]) == 0
     page = held.read_text()
     assert "held-out S2.csv poses (60): position error" in page and "held-out S2.csv poses (60): rotation" in page
+
+
+@pytest.fixture(scope="module")
+def jugglebot_pose(tmp_path_factory):
+    """The Jugglebot hexapod's first session as 6-D poses (--residual joint): its report and its JSON."""
+    juggle, d = shared_dataset("stewart_jugglebot"), tmp_path_factory.mktemp("jug")
+    code = main(["calibrate", "hexapod", str(juggle / "S1.csv"), "--type", "pose", "--length-unit", "mm",
+                 "--angle-unit", "rev", "--orientation", "quat-xyzw", "--residual", "joint", "-o", str(d / "j.yaml"),
+                 "--report", str(d / "j.html")])
+    assert code in (0, 1)
+    return (d / "j.html").read_text(), json.loads((d / "j.json").read_text())
+
+
+def _paragraph(html: str, pid: str) -> str:
+    """The text of the page's <p id=pid> (unescaped), '' when there is none."""
+    import html as h
+    found = re.search(rf'<p id="{pid}">(.*?)</p>', html, re.S)
+    return h.unescape(found.group(1)) if found else ""
+
+
+@pytest.mark.xdist_group("report-real")
+def test_a_hexapods_held_design_frames_are_said_and_an_undetermined_tool_point_not_called_a_mounting(
+        jugglebot_pose, real):
+    """The hexapod's "12 gauge freedoms of the design frames, held at ..." line, which the CLI prints, was missing
+    from the page; and its mounting paragraph said the tool point "is not determined by these data", then "The tool
+    point is where the target was mounted, not a robot error". The page now says the line as the calibration does,
+    with as many parameters named as it counts, and the mounting sentence only for a determined tool point."""
+    html, data = jugglebot_pose
+    note = data["calibration"]["identifiability"]["frames_note"]
+    frames = _paragraph(html, "frames")
+    assert frames == note[0].upper() + note[1:] + "." and note.startswith("12 gauge freedoms")
+    named = [n for group in re.findall(r"\(\d+: ([^)]*)\)", note) for n in group.split(", ")]
+    assert len(named) == 12 == len(set(named)) and set(named) == set(data["calibration"]["identifiability"]["frames"])
+    mounting = _paragraph(html, "mounting")
+    assert "not determined by these data" in mounting and "not a robot error" not in mounting
+    ur5 = (real / "report.html").read_text()  # a tool point the data determine: where the target was mounted
+    assert _paragraph(ur5, "mounting").endswith("The tool point is where the target was mounted, not a robot error.")
+    assert "not determined" not in _paragraph(ur5, "mounting") and not _paragraph(ur5, "frames")

@@ -168,13 +168,15 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
            "data": _data_rows(result, tests, dict(info or {}), same_frame),
            "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
            "error_model_notes": list(result.notes), "compliance": result.compliances,
-           "mounting": result.mounting, "residual_words": residual_words(result), **part,
+           "mounting": result.mounting, "mounting_determined": not result.mounting_gauge[0],
+           "frames_note": result.identifiability.frames_note if result.identifiability.frames else "",
+           "residual_words": residual_words(result), **part,
            "history": None if history is None else {"rows": history["rows"], "store": history["store"],
                                                     "steps": history.get("steps", []), "alpha": history.get("alpha"),
                                                     "svg": F.svg(history["figure"])}}
     data = {k: ctx[k] for k in ("robot", "version", "date", "structure", "verdict", "parameters", "setup",
                                 "not_estimated", "not_estimated_text", "data", "error_model_choice",
-                                "error_model_notes", "compliance", "mounting", "whitened_rms")}
+                                "error_model_notes", "compliance", "mounting", "frames_note", "whitened_rms")}
     data["history"] = None if history is None else history["rows"]
     data["history_steps"] = None if history is None else history.get("judged", [])
     calibration = {k: v for k, v in result.to_dict().items() if k != "time_s"}  # the same numbers, the same bytes
