@@ -422,3 +422,17 @@ def test_a_hexapods_held_design_frames_are_said_and_an_undetermined_tool_point_n
     ur5 = (real / "report.html").read_text()  # a tool point the data determine: where the target was mounted
     assert _paragraph(ur5, "mounting").endswith("The tool point is where the target was mounted, not a robot error.")
     assert "not determined" not in _paragraph(ur5, "mounting") and not _paragraph(ur5, "frames")
+
+
+def test_the_correlation_matrix_is_drawn_for_observation_sets_too(jugglebot_pose):
+    """The parameters' correlation matrix was drawn for position data only; 6-D poses now have it too: one tick
+    label per estimated parameter with a σ, on each axis."""
+    html, data = jugglebot_pose
+    assert "Residuals per measurement set" in html  # a page of observation sets, not of position data
+    start = html.index('<figure id="fig-correlation">')
+    labels = re.findall(r"<text[^>]*>([^<]*)</text>", html[start:html.index("</figure>", start)])
+    sigma = data["calibration"]["std"]
+    finite = [n for n in data["calibration"]["estimated"] if sigma.get(n) is not None and np.isfinite(sigma[n])]
+    assert len(finite) > 40
+    for name in finite:
+        assert labels.count(name) == 2, name

@@ -156,6 +156,7 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
 
     tests = [test] if isinstance(test, Measurements) else list(test or [])
     part, numbers, summary = (_positions_part if result.data else sets_part)(result, tests, same_frame)
+    part.setdefault("figures_params", [{"name": "correlation", "svg": F.svg(_correlation(result))}])  # every kind
     ctx = {"robot": result.robot.name, "version": __version__, "date": report_date(), "positional": bool(result.data),
            "structure": result.robot.structure, "model": _model_words(result),
            "types": list(dict.fromkeys(s["type"] for s in result.per_set)),
@@ -393,9 +394,14 @@ def evaluation_figures(robot, meas: Measurements) -> dict:
 
 
 def _make_figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
-    ok = np.array([np.isfinite(result.std[n]) for n in result.names])
-    return {**F.pose_figures(sets, result.robot, before=result.before_registration()), "correlation": F.correlation(
-        [n for n, k in zip(result.names, ok) if k], result.correlation[np.ix_(ok, ok)])}
+    return {**F.pose_figures(sets, result.robot, before=result.before_registration()),
+            "correlation": _correlation(result)}
+
+
+def _correlation(result: CalibrationResult):
+    """The correlation matrix of the estimated robot parameters with a σ (any kind of data): a matplotlib Figure."""
+    ok = np.array([np.isfinite(result.std[n]) for n in result.names], bool)
+    return F.correlation([n for n, k in zip(result.names, ok) if k], result.correlation[np.ix_(ok, ok)])
 
 
 _value = functools.partial(display, signed=False)  # the CLI's digits: 4 decimals of a mm, 5 of a degree
