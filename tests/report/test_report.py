@@ -436,3 +436,27 @@ def test_the_correlation_matrix_is_drawn_for_observation_sets_too(jugglebot_pose
     assert len(finite) > 40
     for name in finite:
         assert labels.count(name) == 2, name
+
+
+def test_a_thermal_models_covariate_reference_and_range_are_on_the_page():
+    """A thermal model's covariate reference (the training median) and fitted range, which the calibrated file keeps,
+    appeared nowhere in the report; the error-model section says them, and the JSON has them (SI: as written)."""
+    from kincal.models import with_covariates
+    from kincal.report import build_report
+    from kincal.simulate import simulate_thermal
+    nominal = kincal.load_robot("ur5")
+    q = nominal.sample_joints(60, seed=2)
+    temperature = np.linspace(20.0, 24.0, 60)
+    train = simulate_thermal(kincal.perturb(nominal, seed=1), q, temperature, reference=20.0)
+    res = kincal.calibrate(with_covariates(nominal, ["temperature"]), train, error_model="thermal:temperature",
+                           diagnose=False)
+    report = build_report(res)
+    mid, pad = np.median(temperature), 0.1 * (24.0 - 20.0)  # the accepted range: 10 % of the fitted one each side
+    said = _paragraph(report.html, "covariates")
+    assert f"'temperature' was fitted on [20, 24] (reference {mid:g}; accepted {20 - pad:.4g} to {24 + pad:.4g})" \
+        in said and said.startswith("Covariates (in the column's unit")
+    assert "<h3>Error model</h3>" in report.html
+    assert report.data["covariates"] == [{"name": "temperature", "reference": pytest.approx(mid),
+                                          "range": [20.0, 24.0]}]
+    plain = build_report(kincal.calibrate(nominal, kincal.simulate(nominal, q, 15e-6, seed=3), diagnose=False))
+    assert not _paragraph(plain.html, "covariates") and plain.data["covariates"] == []
