@@ -384,3 +384,79 @@ def test_every_pose_set_is_drawn_training_sessions_and_held_out(tmp_path):
                  "--refit-target", "-o", str(tmp_path / "s1.yaml"), "--report", str(held)]) == 0
     page = held.read_text()
     assert "held-out S2.csv poses (60): position error" in page and "held-out S2.csv poses (60): rotation" in page
+
+
+@pytest.fixture(scope="module")
+def jugglebot_pose(tmp_path_factory):
+    """The Jugglebot hexapod's first session as 6-D poses (--residual joint): its report and its JSON."""
+    juggle, d = shared_dataset("stewart_jugglebot"), tmp_path_factory.mktemp("jug")
+    code = main(["calibrate", "hexapod", str(juggle / "S1.csv"), "--type", "pose", "--length-unit", "mm",
+                 "--angle-unit", "rev", "--orientation", "quat-xyzw", "--residual", "joint", "-o", str(d / "j.yaml"),
+                 "--report", str(d / "j.html")])
+    assert code in (0, 1)
+    return (d / "j.html").read_text(), json.loads((d / "j.json").read_text())
+
+
+def _paragraph(html: str, pid: str) -> str:
+    """The text of the page's <p id=pid> (unescaped), '' when there is none."""
+    import html as h
+    found = re.search(rf'<p id="{pid}">(.*?)</p>', html, re.S)
+    return h.unescape(found.group(1)) if found else ""
+
+
+@pytest.mark.xdist_group("report-real")
+def test_a_hexapods_held_design_frames_are_said_and_an_undetermined_tool_point_not_called_a_mounting(
+        jugglebot_pose, real):
+    """The hexapod's "12 gauge freedoms of the design frames, held at ..." line, which the CLI prints, was missing
+    from the page; and its mounting paragraph said the tool point "is not determined by these data", then "The tool
+    point is where the target was mounted, not a robot error". The page now says the line as the calibration does,
+    with as many parameters named as it counts, and the mounting sentence only for a determined tool point."""
+    html, data = jugglebot_pose
+    note = data["calibration"]["identifiability"]["frames_note"]
+    frames = _paragraph(html, "frames")
+    assert frames == note[0].upper() + note[1:] + "." and note.startswith("12 gauge freedoms")
+    named = [n for group in re.findall(r"\(\d+: ([^)]*)\)", note) for n in group.split(", ")]
+    assert len(named) == 12 == len(set(named)) and set(named) == set(data["calibration"]["identifiability"]["frames"])
+    mounting = _paragraph(html, "mounting")
+    assert "not determined by these data" in mounting and "not a robot error" not in mounting
+    ur5 = (real / "report.html").read_text()  # a tool point the data determine: where the target was mounted
+    assert _paragraph(ur5, "mounting").endswith("The tool point is where the target was mounted, not a robot error.")
+    assert "not determined" not in _paragraph(ur5, "mounting") and not _paragraph(ur5, "frames")
+
+
+def test_the_correlation_matrix_is_drawn_for_observation_sets_too(jugglebot_pose):
+    """The parameters' correlation matrix was drawn for position data only; 6-D poses now have it too: one tick
+    label per estimated parameter with a σ, on each axis."""
+    html, data = jugglebot_pose
+    assert "Residuals per measurement set" in html  # a page of observation sets, not of position data
+    start = html.index('<figure id="fig-correlation">')
+    labels = re.findall(r"<text[^>]*>([^<]*)</text>", html[start:html.index("</figure>", start)])
+    sigma = data["calibration"]["std"]
+    finite = [n for n in data["calibration"]["estimated"] if sigma.get(n) is not None and np.isfinite(sigma[n])]
+    assert len(finite) > 40
+    for name in finite:
+        assert labels.count(name) == 2, name
+
+
+def test_a_thermal_models_covariate_reference_and_range_are_on_the_page():
+    """A thermal model's covariate reference (the training median) and fitted range, which the calibrated file keeps,
+    appeared nowhere in the report; the error-model section says them, and the JSON has them (SI: as written)."""
+    from kincal.models import with_covariates
+    from kincal.report import build_report
+    from kincal.simulate import simulate_thermal
+    nominal = kincal.load_robot("ur5")
+    q = nominal.sample_joints(60, seed=2)
+    temperature = np.linspace(20.0, 24.0, 60)
+    train = simulate_thermal(kincal.perturb(nominal, seed=1), q, temperature, reference=20.0)
+    res = kincal.calibrate(with_covariates(nominal, ["temperature"]), train, error_model="thermal:temperature",
+                           diagnose=False)
+    report = build_report(res)
+    mid, pad = np.median(temperature), 0.1 * (24.0 - 20.0)  # the accepted range: 10 % of the fitted one each side
+    said = _paragraph(report.html, "covariates")
+    assert f"'temperature' was fitted on [20, 24] (reference {mid:g}; accepted {20 - pad:.4g} to {24 + pad:.4g})" \
+        in said and said.startswith("Covariates (in the column's unit")
+    assert "<h3>Error model</h3>" in report.html
+    assert report.data["covariates"] == [{"name": "temperature", "reference": pytest.approx(mid),
+                                          "range": [20.0, 24.0]}]
+    plain = build_report(kincal.calibrate(nominal, kincal.simulate(nominal, q, 15e-6, seed=3), diagnose=False))
+    assert not _paragraph(plain.html, "covariates") and plain.data["covariates"] == []

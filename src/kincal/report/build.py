@@ -156,6 +156,7 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
 
     tests = [test] if isinstance(test, Measurements) else list(test or [])
     part, numbers, summary = (_positions_part if result.data else sets_part)(result, tests, same_frame)
+    part.setdefault("figures_params", [{"name": "correlation", "svg": F.svg(_correlation(result))}])  # every kind
     ctx = {"robot": result.robot.name, "version": __version__, "date": report_date(), "positional": bool(result.data),
            "structure": result.robot.structure, "model": _model_words(result),
            "types": list(dict.fromkeys(s["type"] for s in result.per_set)),
@@ -168,13 +169,17 @@ def build_report(result: CalibrationResult, test: Measurements | Sequence | None
            "data": _data_rows(result, tests, dict(info or {}), same_frame),
            "error_model_choice": None if result.error_model_choice is None else result.error_model_choice.to_dict(),
            "error_model_notes": list(result.notes), "compliance": result.compliances,
-           "mounting": result.mounting, "residual_words": residual_words(result), **part,
+           "mounting": result.mounting, "mounting_determined": not result.mounting_gauge[0],
+           "frames_note": result.identifiability.frames_note if result.identifiability.frames else "",
+           "covariates": _covariates(result), "residual_words": residual_words(result),
+           **part,
            "history": None if history is None else {"rows": history["rows"], "store": history["store"],
                                                     "steps": history.get("steps", []), "alpha": history.get("alpha"),
                                                     "svg": F.svg(history["figure"])}}
     data = {k: ctx[k] for k in ("robot", "version", "date", "structure", "verdict", "parameters", "setup",
                                 "not_estimated", "not_estimated_text", "data", "error_model_choice",
-                                "error_model_notes", "compliance", "mounting", "whitened_rms")}
+                                "error_model_notes", "compliance", "mounting", "frames_note", "whitened_rms")}
+    data["covariates"] = [c.to_dict() for c in _fitted_covariates(result)]
     data["history"] = None if history is None else history["rows"]
     data["history_steps"] = None if history is None else history.get("judged", [])
     calibration = {k: v for k, v in result.to_dict().items() if k != "time_s"}  # the same numbers, the same bytes
@@ -391,9 +396,25 @@ def evaluation_figures(robot, meas: Measurements) -> dict:
 
 
 def _make_figures(sets: list[F.PoseSet], result: CalibrationResult) -> dict:
-    ok = np.array([np.isfinite(result.std[n]) for n in result.names])
-    return {**F.pose_figures(sets, result.robot, before=result.before_registration()), "correlation": F.correlation(
-        [n for n, k in zip(result.names, ok) if k], result.correlation[np.ix_(ok, ok)])}
+    return {**F.pose_figures(sets, result.robot, before=result.before_registration()),
+            "correlation": _correlation(result)}
+
+
+def _correlation(result: CalibrationResult):
+    """The correlation matrix of the estimated robot parameters with a σ (any kind of data): a matplotlib Figure."""
+    ok = np.array([np.isfinite(result.std[n]) for n in result.names], bool)
+    return F.correlation([n for n, k in zip(result.names, ok) if k], result.correlation[np.ix_(ok, ok)])
+
+
+def _fitted_covariates(result: CalibrationResult) -> list:
+    """The covariates the calibrated model reads that were fitted on the training data (a thermal term's
+    temperature): each with its reference and range, in the column's unit."""
+    return [c for c in vars(result.robot).get("covariates", ()) if c.fitted]
+
+
+def _covariates(result: CalibrationResult) -> list[str]:
+    """Each fitted covariate in words: its range, reference and the accepted inputs (:meth:`Covariate.describe`)."""
+    return [c.describe() for c in _fitted_covariates(result)]
 
 
 _value = functools.partial(display, signed=False)  # the CLI's digits: 4 decimals of a mm, 5 of a degree
